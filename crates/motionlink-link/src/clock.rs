@@ -1,0 +1,616 @@
+//! Time for protocol logic: a [`Clock`] trait with a real and a manual implementation.
+//!
+//! Every timeout, period and emulator in motionlink reads time from a [`Clock`] and blocks through a
+//! [`Signal`] made by that clock, never through `std::thread::sleep`. With [`RealClock`] that is ordinary
+//! wall time. With [`ManualClock`] time only moves when a test says so ([`ManualClock::advance`]) or, in
+//! auto-advance mode, when every registered thread is blocked on the clock: then the clock jumps straight to
+//! the earliest deadline anyone waits for. A client session that sends a keepalive every 200 ms can so be
+//! run for ten minutes of device time in a few milliseconds, deterministically.
+//!
+//! ```
+//! use motionlink_link::clock::{Clock, ManualClock, Timestamp};
+//! use std::time::Duration;
+//!
+//! let clock = ManualClock::new();
+//! assert_eq!(clock.now(), Timestamp::ZERO);
+//! clock.advance(Duration::from_millis(250));
+//! assert_eq!(clock.now(), Timestamp::from_millis(250));
+//! ```
+
+use std::cell::RefCell;
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt;
+use std::ops::{Add, AddAssign, Sub};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+/// A point in time on a [`Clock`]: the time elapsed since the clock's origin.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub struct Timestamp(Duration);
+
+impl Timestamp {
+    /// The clock's origin.
+    pub const ZERO: Timestamp = Timestamp(Duration::ZERO);
+
+    /// A timestamp `since_origin` after the clock's origin.
+    pub const fn from_duration(since_origin: Duration) -> Self {
+        Timestamp(since_origin)
+    }
+
+    /// A timestamp `ms` milliseconds after the clock's origin.
+    pub const fn from_millis(ms: u64) -> Self {
+        Timestamp(Duration::from_millis(ms))
+    }
+
+    /// A timestamp `us` microseconds after the clock's origin.
+    pub const fn from_micros(us: u64) -> Self {
+        Timestamp(Duration::from_micros(us))
+    }
+
+    /// Time since the clock's origin.
+    pub const fn since_origin(self) -> Duration {
+        self.0
+    }
+
+    /// Milliseconds since the clock's origin, truncated.
+    pub fn as_millis(self) -> u128 {
+        self.0.as_millis()
+    }
+
+    /// The time from `earlier` to `self`, or zero if `earlier` is later.
+    pub fn saturating_since(self, earlier: Timestamp) -> Duration {
+        self.0.saturating_sub(earlier.0)
+    }
+}
+
+impl Add<Duration> for Timestamp {
+    type Output = Timestamp;
+    fn add(self, rhs: Duration) -> Timestamp {
+        Timestamp(self.0.saturating_add(rhs))
+    }
+}
+
+impl AddAssign<Duration> for Timestamp {
+    fn add_assign(&mut self, rhs: Duration) {
+        self.0 = self.0.saturating_add(rhs);
+    }
+}
+
+impl Sub<Timestamp> for Timestamp {
+    type Output = Duration;
+    /// Saturating: a later `rhs` gives zero.
+    fn sub(self, rhs: Timestamp) -> Duration {
+        self.saturating_since(rhs)
+    }
+}
+
+impl fmt::Display for Timestamp {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{:.3} s", self.0.as_secs_f64())
+    }
+}
+
+/// Why a [`Signal::wait_until`] returned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Wake {
+    /// The signal was raised.
+    Raised,
+    /// The deadline passed.
+    Deadline,
+}
+
+/// A source of time and the only way protocol code blocks.
+pub trait Clock: Send + Sync + fmt::Debug {
+    /// The current time.
+    fn now(&self) -> Timestamp;
+
+    /// A new, lowered signal whose waits are timed by this clock.
+    fn signal(&self) -> Signal;
+
+    /// Counts a thread, from now on, as a participant of this clock (see [`ManualClock::new_auto`]). Call
+    /// it before spawning the thread and [`ParticipantTicket::enter`] inside it. A no-op for [`RealClock`].
+    fn reserve_participant(&self) -> ParticipantTicket {
+        ParticipantTicket::none()
+    }
+
+    /// Blocks until `deadline` has passed on this clock.
+    fn sleep_until(&self, deadline: Timestamp) {
+        let signal = self.signal();
+        while signal.wait_until(Some(deadline)) == Wake::Raised {}
+    }
+
+    /// Blocks for `duration` of this clock's time.
+    fn sleep(&self, duration: Duration) {
+        self.sleep_until(self.now() + duration);
+    }
+}
+
+/// A clock shared between a session, its I/O thread and its link.
+pub type SharedClock = Arc<dyn Clock>;
+
+/// A one-shot, re-armable wake-up: one thread waits on it with a deadline, others raise it.
+///
+/// Raising a signal that nobody waits on is remembered: the next wait returns at once and lowers it.
+#[derive(Clone)]
+pub struct Signal(Arc<dyn RawSignal>);
+
+impl fmt::Debug for Signal {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("Signal")
+    }
+}
+
+impl Signal {
+    /// Wakes the waiter (or the next one to wait).
+    pub fn raise(&self) {
+        self.0.raise()
+    }
+
+    /// Blocks until the signal is raised or `deadline` passes (`None`: no deadline). Lowers the signal.
+    pub fn wait_until(&self, deadline: Option<Timestamp>) -> Wake {
+        self.0.wait_until(deadline)
+    }
+}
+
+trait RawSignal: Send + Sync {
+    fn raise(&self);
+    fn wait_until(&self, deadline: Option<Timestamp>) -> Wake;
+}
+
+/// Hands a participant slot of an auto-advancing [`ManualClock`] to the thread that will use it.
+#[must_use = "a ticket that is never entered holds the clock still until it is dropped"]
+pub struct ParticipantTicket {
+    slot: Option<(Arc<ManualShared>, u64)>,
+}
+
+impl fmt::Debug for ParticipantTicket {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("ParticipantTicket").field("counted", &self.slot.is_some()).finish()
+    }
+}
+
+impl ParticipantTicket {
+    fn none() -> Self {
+        ParticipantTicket { slot: None }
+    }
+
+    /// Marks the calling thread as the participant; it stays one until the guard is dropped.
+    pub fn enter(mut self) -> ParticipantGuard {
+        if let Some((shared, clock_id)) = self.slot.take() {
+            PARTICIPANT_OF.with(|p| p.borrow_mut().push(clock_id));
+            ParticipantGuard { slot: Some((shared, clock_id)), _not_send: std::marker::PhantomData }
+        } else {
+            ParticipantGuard { slot: None, _not_send: std::marker::PhantomData }
+        }
+    }
+}
+
+impl Drop for ParticipantTicket {
+    fn drop(&mut self) {
+        if let Some((shared, _)) = self.slot.take() {
+            shared.leave();
+        }
+    }
+}
+
+/// Keeps the current thread counted as a participant of a [`ManualClock`]; see [`Clock::reserve_participant`].
+pub struct ParticipantGuard {
+    slot: Option<(Arc<ManualShared>, u64)>,
+    _not_send: std::marker::PhantomData<*const ()>,
+}
+
+impl fmt::Debug for ParticipantGuard {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("ParticipantGuard").field("counted", &self.slot.is_some()).finish()
+    }
+}
+
+impl Drop for ParticipantGuard {
+    fn drop(&mut self) {
+        if let Some((shared, clock_id)) = self.slot.take() {
+            PARTICIPANT_OF.with(|p| {
+                let mut p = p.borrow_mut();
+                if let Some(i) = p.iter().rposition(|&c| c == clock_id) {
+                    p.remove(i);
+                }
+            });
+            shared.leave();
+        }
+    }
+}
+
+thread_local! {
+    static PARTICIPANT_OF: RefCell<Vec<u64>> = const { RefCell::new(Vec::new()) };
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Real clock
+
+/// Wall time, measured from the moment the clock was made.
+#[derive(Debug, Clone)]
+pub struct RealClock {
+    origin: Instant,
+}
+
+impl RealClock {
+    /// A clock whose origin is now.
+    pub fn new() -> Self {
+        RealClock { origin: Instant::now() }
+    }
+
+    /// A shared handle to a new real clock.
+    pub fn shared() -> SharedClock {
+        Arc::new(RealClock::new())
+    }
+}
+
+impl Default for RealClock {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Clock for RealClock {
+    fn now(&self) -> Timestamp {
+        Timestamp(self.origin.elapsed())
+    }
+
+    fn signal(&self) -> Signal {
+        Signal(Arc::new(RealSignal { origin: self.origin, raised: Mutex::new(false), cv: Condvar::new() }))
+    }
+}
+
+struct RealSignal {
+    origin: Instant,
+    raised: Mutex<bool>,
+    cv: Condvar,
+}
+
+impl RawSignal for RealSignal {
+    fn raise(&self) {
+        *lock(&self.raised) = true;
+        self.cv.notify_all();
+    }
+
+    fn wait_until(&self, deadline: Option<Timestamp>) -> Wake {
+        let mut raised = lock(&self.raised);
+        loop {
+            if *raised {
+                *raised = false;
+                return Wake::Raised;
+            }
+            match deadline {
+                None => raised = self.cv.wait(raised).unwrap_or_else(|e| e.into_inner()),
+                Some(deadline) => {
+                    let now = Timestamp(self.origin.elapsed());
+                    if now >= deadline {
+                        return Wake::Deadline;
+                    }
+                    raised = self.cv.wait_timeout(raised, deadline - now).unwrap_or_else(|e| e.into_inner()).0;
+                }
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Manual clock
+
+/// A clock that only moves when told to, for tests and for the demo.
+///
+/// In plain mode ([`ManualClock::new`]) time moves with [`ManualClock::advance`] and
+/// [`ManualClock::set`]. In auto-advance mode ([`ManualClock::new_auto`]) it also moves by itself whenever
+/// every participant thread is blocked on one of its signals: it jumps to the earliest deadline that any
+/// waiter has. Participants are the threads that drive a scenario (the test thread, a client's I/O thread);
+/// register one with [`Clock::reserve_participant`] and [`ParticipantTicket::enter`].
+///
+/// ```
+/// use motionlink_link::clock::{Clock, ManualClock, Timestamp};
+/// use std::time::Duration;
+///
+/// let clock = ManualClock::new_auto();
+/// let _me = clock.reserve_participant().enter();
+/// // The only participant sleeps: the clock jumps ahead instead of waiting ten real minutes.
+/// clock.sleep(Duration::from_secs(600));
+/// assert_eq!(clock.now(), Timestamp::from_millis(600_000));
+/// ```
+#[derive(Debug, Clone)]
+pub struct ManualClock {
+    shared: Arc<ManualShared>,
+}
+
+static NEXT_CLOCK_ID: AtomicU64 = AtomicU64::new(1);
+
+#[derive(Debug)]
+struct ManualShared {
+    id: u64,
+    auto: bool,
+    state: Mutex<ManualState>,
+    cv: Condvar,
+}
+
+#[derive(Debug, Default)]
+struct ManualState {
+    now: Timestamp,
+    next_signal_id: u64,
+    /// Participants counted by the clock.
+    participants: usize,
+    /// Signals raised and not yet consumed by a wait.
+    raised: BTreeSet<u64>,
+    /// Blocked waiters: signal id -> (deadline, waiter is a participant).
+    waiting: BTreeMap<u64, (Option<Timestamp>, bool)>,
+}
+
+impl ManualState {
+    fn idle_participants(&self) -> usize {
+        self.waiting.values().filter(|(_, participant)| *participant).count()
+    }
+
+    /// Removes from `waiting` every waiter whose deadline has passed: they are runnable again.
+    fn release_expired(&mut self) {
+        let now = self.now;
+        self.waiting.retain(|_, (deadline, _)| deadline.is_none_or(|d| d > now));
+    }
+}
+
+impl ManualClock {
+    /// A clock at [`Timestamp::ZERO`] that moves only when told to.
+    pub fn new() -> Self {
+        Self::with_mode(false)
+    }
+
+    /// A clock at [`Timestamp::ZERO`] that also jumps to the next deadline whenever all participants wait.
+    pub fn new_auto() -> Self {
+        Self::with_mode(true)
+    }
+
+    fn with_mode(auto: bool) -> Self {
+        ManualClock {
+            shared: Arc::new(ManualShared {
+                id: NEXT_CLOCK_ID.fetch_add(1, Ordering::Relaxed),
+                auto,
+                state: Mutex::new(ManualState::default()),
+                cv: Condvar::new(),
+            }),
+        }
+    }
+
+    /// A shared handle to this clock.
+    pub fn shared(&self) -> SharedClock {
+        Arc::new(self.clone())
+    }
+
+    /// Moves time forward by `by` and wakes every waiter whose deadline has passed.
+    pub fn advance(&self, by: Duration) {
+        let mut st = lock(&self.shared.state);
+        st.now += by;
+        st.release_expired();
+        self.shared.cv.notify_all();
+    }
+
+    /// Moves time forward to `to` (never backwards) and wakes every waiter whose deadline has passed.
+    pub fn set(&self, to: Timestamp) {
+        let mut st = lock(&self.shared.state);
+        if to > st.now {
+            st.now = to;
+        }
+        st.release_expired();
+        self.shared.cv.notify_all();
+    }
+}
+
+impl Default for ManualClock {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ManualShared {
+    fn leave(&self) {
+        let mut st = lock(&self.state);
+        st.participants = st.participants.saturating_sub(1);
+        self.maybe_auto_advance(&mut st);
+    }
+
+    /// If every participant is blocked, jump to the earliest deadline of any waiter.
+    fn maybe_auto_advance(&self, st: &mut ManualState) {
+        if !self.auto || st.participants == 0 || st.idle_participants() < st.participants {
+            return;
+        }
+        if !st.raised.is_empty() && st.waiting.keys().any(|id| st.raised.contains(id)) {
+            return;
+        }
+        if let Some(earliest) = st.waiting.values().filter_map(|(d, _)| *d).min() {
+            if earliest > st.now {
+                st.now = earliest;
+            }
+            st.release_expired();
+            self.cv.notify_all();
+        }
+    }
+}
+
+impl Clock for ManualClock {
+    fn now(&self) -> Timestamp {
+        lock(&self.shared.state).now
+    }
+
+    fn signal(&self) -> Signal {
+        let id = {
+            let mut st = lock(&self.shared.state);
+            st.next_signal_id += 1;
+            st.next_signal_id
+        };
+        Signal(Arc::new(ManualSignal { shared: Arc::clone(&self.shared), id }))
+    }
+
+    fn reserve_participant(&self) -> ParticipantTicket {
+        lock(&self.shared.state).participants += 1;
+        ParticipantTicket { slot: Some((Arc::clone(&self.shared), self.shared.id)) }
+    }
+}
+
+struct ManualSignal {
+    shared: Arc<ManualShared>,
+    id: u64,
+}
+
+impl RawSignal for ManualSignal {
+    fn raise(&self) {
+        let mut st = lock(&self.shared.state);
+        st.raised.insert(self.id);
+        // The waiter is runnable from this instant: it no longer counts as idle.
+        st.waiting.remove(&self.id);
+        self.shared.cv.notify_all();
+    }
+
+    fn wait_until(&self, deadline: Option<Timestamp>) -> Wake {
+        let participant = PARTICIPANT_OF.with(|p| p.borrow().contains(&self.shared.id));
+        let mut st = lock(&self.shared.state);
+        let mut registered = false;
+        loop {
+            if st.raised.remove(&self.id) {
+                st.waiting.remove(&self.id);
+                return Wake::Raised;
+            }
+            if deadline.is_some_and(|d| st.now >= d) {
+                st.waiting.remove(&self.id);
+                return Wake::Deadline;
+            }
+            if !registered || !st.waiting.contains_key(&self.id) {
+                st.waiting.insert(self.id, (deadline, participant));
+                registered = true;
+                self.shared.maybe_auto_advance(&mut st);
+                continue;
+            }
+            st = self.shared.cv.wait(st).unwrap_or_else(|e| e.into_inner());
+        }
+    }
+}
+
+/// Locks a mutex, recovering the data if another thread panicked while holding it.
+pub fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::thread;
+
+    #[test]
+    fn timestamp_arithmetic_saturates() {
+        let a = Timestamp::from_millis(100);
+        let b = Timestamp::from_millis(250);
+        assert_eq!(b - a, Duration::from_millis(150));
+        assert_eq!(a - b, Duration::ZERO);
+        assert_eq!(a + Duration::from_millis(5), Timestamp::from_millis(105));
+    }
+
+    #[test]
+    fn real_signal_raised_before_wait_returns_at_once() {
+        let clock = RealClock::new();
+        let s = clock.signal();
+        s.raise();
+        assert_eq!(s.wait_until(Some(clock.now() + Duration::from_secs(10))), Wake::Raised);
+        // Lowered again: now it times out.
+        assert_eq!(s.wait_until(Some(clock.now() + Duration::from_millis(5))), Wake::Deadline);
+    }
+
+    #[test]
+    fn real_signal_wakes_a_blocked_thread() {
+        let clock = RealClock::new();
+        let s = clock.signal();
+        let s2 = s.clone();
+        let t = thread::spawn(move || s2.wait_until(None));
+        thread::sleep(Duration::from_millis(20));
+        s.raise();
+        assert_eq!(t.join().unwrap(), Wake::Raised);
+    }
+
+    #[test]
+    fn manual_advance_wakes_expired_waiters_only() {
+        let clock = ManualClock::new();
+        let s = clock.signal();
+        let c2 = clock.clone();
+        let t = thread::spawn(move || {
+            let w = s.wait_until(Some(Timestamp::from_millis(100)));
+            (w, c2.now())
+        });
+        thread::sleep(Duration::from_millis(20));
+        clock.advance(Duration::from_millis(50));
+        thread::sleep(Duration::from_millis(20));
+        assert!(!t.is_finished(), "woke before its deadline");
+        clock.advance(Duration::from_millis(60));
+        let (w, at) = t.join().unwrap();
+        assert_eq!(w, Wake::Deadline);
+        assert_eq!(at, Timestamp::from_millis(110));
+    }
+
+    #[test]
+    fn auto_clock_jumps_when_all_participants_wait() {
+        let clock = ManualClock::new_auto();
+        let ticket = clock.reserve_participant();
+        let c2 = clock.clone();
+        // A second participant that ticks every 200 ms, ten times.
+        let t = thread::spawn(move || {
+            let _g = ticket.enter();
+            let s = c2.signal();
+            let mut stamps = Vec::new();
+            for i in 1..=10u64 {
+                s.wait_until(Some(Timestamp::from_millis(200 * i)));
+                stamps.push(c2.now());
+            }
+            stamps
+        });
+        let _me = clock.reserve_participant().enter();
+        clock.sleep_until(Timestamp::from_millis(5_000));
+        let stamps = t.join().unwrap();
+        assert_eq!(stamps, (1..=10).map(|i| Timestamp::from_millis(200 * i)).collect::<Vec<_>>());
+        assert_eq!(clock.now(), Timestamp::from_millis(5_000));
+    }
+
+    #[test]
+    fn auto_clock_does_not_move_while_a_participant_runs() {
+        let clock = ManualClock::new_auto();
+        let ticket = clock.reserve_participant();
+        let c2 = clock.clone();
+        let t = thread::spawn(move || {
+            let _g = ticket.enter();
+            c2.sleep(Duration::from_millis(100));
+        });
+        // This thread is a participant and busy: the other one must not be released.
+        let _me = clock.reserve_participant().enter();
+        thread::sleep(Duration::from_millis(30));
+        assert_eq!(clock.now(), Timestamp::ZERO);
+        assert!(!t.is_finished());
+        clock.sleep(Duration::from_millis(100));
+        t.join().unwrap();
+        assert_eq!(clock.now(), Timestamp::from_millis(100));
+    }
+
+    #[test]
+    fn raising_a_waiter_counts_it_as_running_at_once() {
+        // Ping-pong between two participants through signals must never let time move.
+        let clock = ManualClock::new_auto();
+        let ticket = clock.reserve_participant();
+        let ping = clock.signal();
+        let pong = clock.signal();
+        let (ping2, pong2, c2) = (ping.clone(), pong.clone(), clock.clone());
+        let t = thread::spawn(move || {
+            let _g = ticket.enter();
+            for _ in 0..1000 {
+                assert_eq!(ping2.wait_until(Some(Timestamp::from_millis(1))), Wake::Raised);
+                pong2.raise();
+            }
+            c2.now()
+        });
+        let _me = clock.reserve_participant().enter();
+        for _ in 0..1000 {
+            ping.raise();
+            assert_eq!(pong.wait_until(Some(Timestamp::from_millis(1))), Wake::Raised);
+        }
+        assert_eq!(t.join().unwrap(), Timestamp::ZERO);
+    }
+}

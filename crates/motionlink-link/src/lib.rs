@@ -1,0 +1,25 @@
+//! Bytes and frames in motion, shared by every motionlink device family.
+//!
+//! - [`cancel`]: a cancellation flag for long actions (Ctrl-C).
+//! - [`clock`]: the [`Clock`](clock::Clock) every timeout, period and emulator reads; real and manual.
+//! - [`link`]: the [`Link`](link::Link) trait, a byte stream with read timeouts, and its errors.
+//! - [`serial`], [`tcp`]: links to real ports and serial-over-TCP gateways; pty pairs for tests.
+//! - [`pipe`]: in-memory links with baud-rate pacing and fault injection, and in-process emulators.
+//! - [`emulator`]: the [`Emulator`](emulator::Emulator) trait and servers for `motionlink sim`.
+//! - [`url`]: the `--port` syntax.
+//! - [`transcript`]: a recording link wrapper.
+
+#![warn(missing_docs)]
+
+pub mod cancel;
+pub mod clock;
+pub mod emulator;
+pub mod link;
+pub mod pipe;
+pub mod serial;
+pub mod tcp;
+pub mod transcript;
+pub mod url;
+
+pub use clock::{Clock, ManualClock, RealClock, SharedClock, Signal, Timestamp};
+pub use link::{Link, LinkError, SerialSettings};

@@ -1,0 +1,131 @@
+//! `motionlink`: operate, script, emulate and decode industrial motion devices.
+//!
+//! ```text
+//! motionlink <family> --port PORT <action> ...   operate a device (scu, powercube, compax)
+//! motionlink sim <family> --tcp ADDR | --pty     serve an emulated device
+//! motionlink decode <family>                     annotate a capture
+//! motionlink demo                                the manuals' examples against built-in emulators
+//! ```
+//!
+//! Exit codes: 0 success, 1 device refused or device error, 2 usage error, 3 transport error.
+
+mod common;
+mod compax;
+mod powercube;
+mod scu;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+use crate::common::CliError;
+
+#[derive(Parser, Debug)]
+#[command(name = "motionlink", version, about = "Operate, script, emulate and decode industrial motion devices")]
+struct Cli {
+    /// More log output on stderr (-v info, -vv debug, -vvv trace). RUST_LOG overrides it.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Ewellix / Schaeffler SCU control unit (RS232).
+    Scu(scu::Args),
+    /// Schunk / Amtec PowerCube modules (RS232, CAN).
+    Powercube(powercube::Args),
+    /// Parker COMPAX servo drives (RS485 / RS232).
+    Compax(compax::Args),
+    /// Serve an emulated device over TCP or a pseudo-terminal until killed.
+    Sim {
+        #[command(subcommand)]
+        family: SimFamily,
+    },
+    /// Read a capture (hex or raw bytes on stdin or as arguments) and print each telegram annotated.
+    Decode {
+        #[command(subcommand)]
+        family: DecodeFamily,
+    },
+    /// Run the manuals' examples against the built-in emulators and print each telegram with its meaning.
+    Demo(DemoArgs),
+}
+
+#[derive(Subcommand, Debug)]
+enum SimFamily {
+    /// Emulate an SCU control unit.
+    Scu(scu::SimArgs),
+    /// Emulate a bus of PowerCube modules.
+    Powercube(powercube::SimArgs),
+    /// Emulate a bus of COMPAX drives.
+    Compax(compax::SimArgs),
+}
+
+#[derive(Subcommand, Debug)]
+enum DecodeFamily {
+    /// SCU telegrams, both directions.
+    Scu(scu::DecodeArgs),
+    /// PowerCube RS232 frames or candump log lines.
+    Powercube(powercube::DecodeArgs),
+    /// COMPAX ASCII and binary telegrams, both directions.
+    Compax(compax::DecodeArgs),
+}
+
+#[derive(clap::Args, Debug)]
+struct DemoArgs {
+    /// Run only this family's part.
+    #[arg(value_enum)]
+    only: Option<DemoPart>,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum DemoPart {
+    Scu,
+    Powercube,
+    Compax,
+}
+
+fn run(cli: Cli) -> Result<(), CliError> {
+    match cli.command {
+        Command::Scu(args) => scu::run(args),
+        Command::Powercube(args) => powercube::run(args),
+        Command::Compax(args) => compax::run(args),
+        Command::Sim { family } => match family {
+            SimFamily::Scu(args) => scu::sim(args),
+            SimFamily::Powercube(args) => powercube::sim(args),
+            SimFamily::Compax(args) => compax::sim(args),
+        },
+        Command::Decode { family } => match family {
+            DecodeFamily::Scu(args) => scu::decode(args),
+            DecodeFamily::Powercube(args) => powercube::decode(args),
+            DecodeFamily::Compax(args) => compax::decode(args),
+        },
+        Command::Demo(args) => {
+            let mut out = std::io::stdout().lock();
+            let parts = [
+                (DemoPart::Scu, scu::demo as fn(&mut dyn std::io::Write) -> Result<(), CliError>),
+                (DemoPart::Powercube, powercube::demo),
+                (DemoPart::Compax, compax::demo),
+            ];
+            for (part, demo) in parts {
+                if args.only.is_none_or(|only| only == part) {
+                    demo(&mut out)?;
+                }
+            }
+            Ok(())
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    common::init_logging(cli.verbose);
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("motionlink: {e}");
+            ExitCode::from(e.exit_code())
+        }
+    }
+}
