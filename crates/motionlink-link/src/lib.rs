@@ -1,5 +1,6 @@
 //! Bytes and frames in motion, shared by every motionlink device family.
 //!
+//! - [`can`]: CAN frames and links (SocketCAN, SLCAN, in-memory bus).
 //! - [`cancel`]: a cancellation flag for long actions (Ctrl-C).
 //! - [`clock`]: the [`Clock`](clock::Clock) every timeout, period and emulator reads; real and manual.
 //! - [`link`]: the [`Link`](link::Link) trait, a byte stream with read timeouts, and its errors.
@@ -11,6 +12,7 @@
 
 #![warn(missing_docs)]
 
+pub mod can;
 pub mod cancel;
 pub mod clock;
 pub mod emulator;
