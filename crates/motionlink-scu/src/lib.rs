@@ -1,1 +1,7 @@
-//! placeholder
+//! Ewellix / Schaeffler SCU control unit over RS232.
+#![warn(missing_docs)]
+
+pub mod model;
+pub mod sim;
+pub mod value;
+pub mod wire;

@@ -1,0 +1,608 @@
+//! The emulator, driven through its sans-IO interface with explicit timestamps.
+
+use std::time::Duration;
+
+use motionlink_link::emulator::Emulator;
+use motionlink_link::Timestamp;
+use motionlink_scu::model::{status1, Actuator, CyclicObject, DataIndex, ErrorCode, DATA_LIST, GROUPS};
+use motionlink_scu::sim::{RemoteMode, ScuEmulator, SimConfig};
+use motionlink_scu::wire::*;
+use proptest::prelude::*;
+
+/// A unit on a bench: send requests at chosen times, read its replies.
+struct Bench {
+    unit: ScuEmulator,
+    now: Timestamp,
+}
+
+#[derive(Debug, PartialEq)]
+struct Answer {
+    command: Command,
+    status: Status,
+    data: Option<Vec<u8>>,
+}
+
+impl Bench {
+    fn new(config: SimConfig) -> Self {
+        Bench { unit: ScuEmulator::new(config).unwrap(), now: Timestamp::ZERO }
+    }
+
+    fn at(&mut self, ms: u64) -> &mut Self {
+        self.now = Timestamp::from_millis(ms);
+        let mut out = Vec::new();
+        self.unit.advance(self.now, &mut out);
+        assert!(out.is_empty(), "the unit never speaks unasked");
+        self
+    }
+
+    fn wait(&mut self, ms: u64) -> &mut Self {
+        let t = self.now.since_origin().as_millis() as u64 + ms;
+        self.at(t)
+    }
+
+    fn raw(&mut self, bytes: &[u8]) -> Vec<Answer> {
+        let mut out = Vec::new();
+        self.unit.receive(self.now, bytes, &mut out);
+        let mut dec = ReplyDecoder::new();
+        let mut answers = Vec::new();
+        let mut input = &out[..];
+        loop {
+            let (n, ev) = dec.decode(input);
+            input = &input[n..];
+            match ev {
+                Some(Ok(r)) => {
+                    answers.push(Answer { command: r.command, status: r.status, data: r.data.map(<[u8]>::to_vec) })
+                }
+                Some(Err(e)) => panic!("the unit sent a bad telegram: {e}"),
+                None if input.is_empty() => break,
+                None => {}
+            }
+        }
+        answers
+    }
+
+    fn send(&mut self, r: Request<'_>) -> Answer {
+        let mut a = self.raw(&request_to_vec(&r).unwrap());
+        assert_eq!(a.len(), 1, "one reply per request: {a:?}");
+        a.remove(0)
+    }
+
+    fn status(&mut self, r: Request<'_>) -> Status {
+        self.send(r).status
+    }
+
+    fn open(&mut self, safety: u8) {
+        assert_eq!(self.status(Request::Open { safety_id: safety }), Status::Ack);
+        assert_eq!(self.status(Request::Cyclic { object: 0xFF, write: &[] }), Status::Ack);
+    }
+
+    fn rc(&mut self) -> Status {
+        self.status(Request::Cyclic { object: 0xFF, write: &[] })
+    }
+
+    fn get(&mut self, index: u16) -> Vec<u8> {
+        let a = self.send(Request::Get { index });
+        assert_eq!(a.status, Status::Ack, "RG 0x{index:04X}");
+        a.data.unwrap()
+    }
+
+    fn position(&mut self, actuator: u8) -> i32 {
+        i32::from_le_bytes(self.get(0x0010 + u16::from(actuator)).try_into().unwrap())
+    }
+
+    fn status1(&mut self, actuator: u8) -> u8 {
+        self.get(0x0170 + u16::from(actuator))[0]
+    }
+
+    fn set(&mut self, index: u16, data: &[u8]) -> Status {
+        self.status(Request::Transfer { index, data })
+    }
+
+    /// Runs for `ms` with an RC every 100 ms.
+    fn keep_alive(&mut self, ms: u64) {
+        for _ in 0..ms / 100 {
+            self.wait(100);
+            assert_eq!(self.rc(), Status::Ack);
+        }
+    }
+}
+
+fn a(n: u8) -> Actuator {
+    Actuator::new(n).unwrap()
+}
+
+#[test]
+fn remote_commands_are_refused_outside_remote_mode() {
+    let mut b = Bench::new(SimConfig::default());
+    for r in [
+        Request::Get { index: 0x0011 },
+        Request::Cyclic { object: 0xFF, write: &[] },
+        Request::Transfer { index: 0x3011, data: &[50, 0] },
+        Request::Execute { function: 0, params: [9, 0xFF] },
+        Request::Stop { function: 0, param: 1 },
+    ] {
+        assert_eq!(b.status(r), Status::PermissionError, "{r:?}");
+    }
+    assert_eq!(b.status(Request::Abort), Status::Ack, "RA is harmless outside remote mode");
+}
+
+#[test]
+fn an_rc_must_come_before_any_other_command() {
+    let mut b = Bench::new(SimConfig::default());
+    assert_eq!(b.status(Request::Open { safety_id: 0 }), Status::Ack);
+    assert_eq!(b.status(Request::Get { index: 0x0011 }), Status::PermissionError);
+    assert_eq!(b.rc(), Status::Ack);
+    assert_eq!(b.status(Request::Get { index: 0x0011 }), Status::Ack);
+    assert_eq!(b.unit.mode(), RemoteMode::Active(motionlink_scu::model::SafetyId::StopAllAndLock));
+}
+
+#[test]
+fn ro_with_an_unknown_safety_id_is_a_data_error() {
+    let mut b = Bench::new(SimConfig::default());
+    assert_eq!(b.status(Request::Open { safety_id: 3 }), Status::ParameterDataError);
+    assert_eq!(b.unit.mode(), RemoteMode::Off);
+}
+
+#[test]
+fn chapter5_routine_moves_actuator_1_and_reports_its_position() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(0);
+    assert_eq!(b.set(0x3011, &100u16.to_le_bytes()), Status::Ack);
+    assert_eq!(b.set(0x3021, &400i32.to_le_bytes()), Status::Ack);
+    assert_eq!(b.status(Request::Execute { function: 0, params: [9, 0xFF] }), Status::Ack);
+    b.wait(100);
+    assert_ne!(b.status1(1) & status1::MOTION, 0, "status bit 4 is set while the motion is active");
+    let mut t = 0;
+    while b.status1(1) & status1::MOTION != 0 {
+        b.keep_alive(100);
+        t += 100;
+        assert!(t < 10_000, "the move never ended");
+    }
+    assert_eq!(b.position(1), 400);
+    // 400 counts at 110 counts/s is 3.6 s plus the ramps.
+    assert!((3_600..=4_300).contains(&t), "took {t} ms");
+    assert_eq!(b.status(Request::Stop { function: 0, param: 1 }), Status::Ack);
+    assert!(b.unit.executed_functions().is_empty());
+    assert_eq!(b.status(Request::Abort), Status::Ack);
+    assert_eq!(b.unit.mode(), RemoteMode::Off);
+    assert_eq!(b.get_after_open(0x0091), 400u32.to_le_bytes(), "cumulated stroke");
+}
+
+impl Bench {
+    fn get_after_open(&mut self, index: u16) -> Vec<u8> {
+        self.open(1);
+        self.get(index)
+    }
+}
+
+#[test]
+fn speed_scales_the_motion() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    b.set(0x3012, &50u16.to_le_bytes());
+    b.set(0x3022, &300i32.to_le_bytes());
+    b.status(Request::Execute { function: 1, params: [9, 0xFF] });
+    b.keep_alive(2000);
+    let p = b.position(2);
+    // 55 counts/s at 50 %: about 100 counts in 2 s after the ramp.
+    assert!((95..=112).contains(&p), "position {p}");
+    assert_eq!(u16::from_le_bytes(b.get(0x00F2).try_into().unwrap()), 50, "speed A2 in percent");
+    assert!(u16::from_le_bytes(b.get(0x00A2).try_into().unwrap()) > 0, "a moving actuator draws current");
+    assert_eq!(b.position(1), 0, "actuator 1 is on another function");
+}
+
+#[test]
+fn rs_fast_stops_at_once_and_soft_stops_along_the_ramp() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    b.set(0x3021, &800i32.to_le_bytes());
+    b.set(0x3022, &800i32.to_le_bytes());
+    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+    b.status(Request::Execute { function: 1, params: [9, 0xFF] });
+    b.keep_alive(1000);
+    let (p1, p2) = (b.position(1), b.position(2));
+    assert_eq!(b.status(Request::Stop { function: 0, param: 0 }), Status::Ack);
+    assert_eq!(b.status(Request::Stop { function: 1, param: 1 }), Status::Ack);
+    b.keep_alive(500);
+    assert_eq!(b.position(1), p1, "fast stop: no further travel");
+    let travel = b.position(2) - p2;
+    // Soft stop from 110 counts/s over a 300 ms ramp: about 16 counts.
+    assert!((10..=25).contains(&travel), "soft stop travelled {travel}");
+    assert!(!b.unit.any_moving());
+}
+
+#[test]
+fn motion_directions_go_to_the_stroke_ends_and_stored_positions() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    b.status(Request::Execute { function: 0, params: [2, 0xFF] }); // Out
+    b.keep_alive(9_000);
+    assert_eq!(b.position(1), 865);
+    let s = b.status1(1);
+    assert_ne!(s & status1::OUT_POSITION, 0);
+    assert_ne!(s & status1::LIMIT_IN_OUT, 0);
+    assert_eq!(s & (status1::IN_POSITION | status1::MOTION), 0);
+    b.status(Request::Stop { function: 0, param: 1 });
+    b.status(Request::Execute { function: 0, params: [4, 0xFF] }); // Mem2
+    b.keep_alive(9_000);
+    assert_eq!(b.position(1), 300);
+    b.status(Request::Execute { function: 0, params: [1, 0xFF] }); // In
+    b.keep_alive(9_000);
+    assert_eq!(b.position(1), 0);
+    assert_ne!(b.status1(1) & status1::IN_POSITION, 0);
+    assert_eq!(u32::from_le_bytes(b.get(0x0071).try_into().unwrap()), 1, "relay out cycles: Out");
+    assert_eq!(u32::from_le_bytes(b.get(0x0061).try_into().unwrap()), 2, "relay in cycles: Mem2 (865 -> 300), In");
+}
+
+#[test]
+fn targets_beyond_the_stroke_stop_at_its_end() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    b.set(0x3021, &5000i32.to_le_bytes());
+    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+    b.keep_alive(10_000);
+    assert_eq!(b.position(1), 865);
+}
+
+#[test]
+fn watchdog_with_safety_id_0_stops_and_locks_until_ro() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(0);
+    b.set(0x3021, &800i32.to_le_bytes());
+    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+    b.keep_alive(1000);
+    let p = b.position(1);
+    assert!(b.unit.is_moving(a(1)));
+    // Last RC at 1000 ms. At 1499 ms all is well; the watchdog fires at 1500 ms.
+    b.at(1499);
+    assert!(b.unit.is_moving(a(1)));
+    assert_eq!(b.unit.stats().watchdog_expiries, 0);
+    b.at(1500);
+    assert!(!b.unit.is_moving(a(1)), "all motions stop on the watchdog");
+    assert_eq!(b.unit.mode(), RemoteMode::Locked);
+    assert_eq!(b.unit.last_error(), ErrorCode::from_bit(22));
+    // Only RC, RA and RO are accepted now.
+    assert_eq!(b.rc(), Status::Ack);
+    assert_eq!(b.status(Request::Get { index: 0x0011 }), Status::PermissionError);
+    assert_eq!(b.status(Request::Execute { function: 0, params: [9, 0xFF] }), Status::PermissionError);
+    b.wait(2000);
+    assert!(!b.unit.is_moving(a(1)));
+    assert!(b.unit.position(a(1)).unwrap() - p < 60, "stopped where the watchdog fired");
+    b.open(0);
+    assert_eq!(b.get(0x00D1), (1u32 << 21).to_le_bytes(), "error code 1 has bit 22 (mask 1 << 21) set");
+}
+
+#[test]
+fn watchdog_with_safety_id_1_stops_and_the_next_rc_rearms() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    b.set(0x3021, &800i32.to_le_bytes());
+    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+    b.wait(600);
+    assert!(!b.unit.is_moving(a(1)));
+    assert!(matches!(b.unit.mode(), RemoteMode::TimedOut(_)));
+    assert_eq!(b.status(Request::Get { index: 0x0011 }), Status::PermissionError, "an RC first");
+    assert_eq!(b.rc(), Status::Ack);
+    assert_eq!(b.status(Request::Get { index: 0x0011 }), Status::Ack);
+    assert_eq!(b.status(Request::Execute { function: 0, params: [9, 0xFF] }), Status::Ack);
+    b.keep_alive(300);
+    assert!(b.unit.is_moving(a(1)), "motion can start again");
+}
+
+#[test]
+fn watchdog_with_safety_id_2_stops_only_remote_motions() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(2);
+    b.set(0x3021, &800i32.to_le_bytes());
+    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+    b.unit.press_hand_switch(2, true);
+    assert_ne!(b.get(0x0040)[0] & 0b1000, 0, "key K4 (F2 out) shows as pressed");
+    b.wait(600);
+    assert!(!b.unit.is_moving(a(1)), "the remote motion stopped");
+    assert!(b.unit.is_moving(a(2)), "the hand-switch motion goes on");
+    b.unit.release_hand_switch();
+    b.wait(1000);
+    assert!(!b.unit.is_moving(a(2)));
+}
+
+#[test]
+fn watchdog_runs_from_ro_even_without_an_rc() {
+    let mut b = Bench::new(SimConfig::default());
+    assert_eq!(b.status(Request::Open { safety_id: 1 }), Status::Ack);
+    b.wait(501);
+    assert_eq!(b.unit.stats().watchdog_expiries, 1);
+}
+
+#[test]
+fn a_session_with_rc_every_400_ms_never_times_out() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(0);
+    for _ in 0..1500 {
+        b.wait(400);
+        assert_eq!(b.rc(), Status::Ack);
+    }
+    assert_eq!(b.unit.stats().watchdog_expiries, 0);
+}
+
+#[test]
+fn rt_is_checked() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    assert_eq!(b.set(0x0011, &[1, 0, 0, 0]), Status::ParameterDataError, "not remote data");
+    assert_eq!(b.set(0x3017, &[1, 0, 0]), Status::ParameterCountError, "wrong size");
+    assert_eq!(b.set(0x3011, &101u16.to_le_bytes()), Status::ParameterDataError, "speed above 100 %");
+    assert_eq!(b.set(0x3099, &[1, 0]), Status::ParameterDataError, "no such entry");
+    assert_eq!(b.set(0x3011, &100u16.to_le_bytes()), Status::Ack);
+    // A whole group, all or nothing.
+    let mut speeds = Vec::new();
+    for s in [10u16, 20, 30, 40, 50, 60, 70, 80, 90, 101] {
+        speeds.extend_from_slice(&s.to_le_bytes());
+    }
+    assert_eq!(b.set(0x3010, &speeds), Status::ParameterDataError);
+    assert_eq!(b.get(0x3011), 100u16.to_le_bytes(), "nothing of the refused group was written");
+    speeds[18] = 100;
+    assert_eq!(b.set(0x3010, &speeds), Status::Ack);
+    assert_eq!(b.get(0x3013), 30u16.to_le_bytes());
+}
+
+#[test]
+fn re_and_rs_parameters_are_checked() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    assert_eq!(b.status(Request::Execute { function: 0, params: [10, 0xFF] }), Status::ParameterDataError);
+    assert_eq!(b.status(Request::Execute { function: 0, params: [9, 0] }), Status::ParameterDataError);
+    assert_eq!(b.status(Request::Execute { function: 12, params: [0xFF, 0xFF] }), Status::ParameterDataError, "F13");
+    assert_eq!(
+        b.status(Request::Execute { function: 5, params: [9, 0xFF] }),
+        Status::PermissionError,
+        "F6 drives nothing"
+    );
+    assert_eq!(b.status(Request::Stop { function: 0, param: 2 }), Status::ParameterDataError);
+    assert_eq!(b.status(Request::Stop { function: 10, param: 0 }), Status::ParameterDataError, "buzzer: -1");
+    assert_eq!(b.status(Request::Execute { function: 0, params: [0, 0xFF] }), Status::Ack, "direction 0: no motion");
+    assert!(!b.unit.any_moving());
+}
+
+#[test]
+fn wrong_crc_gets_cse_and_unknown_command_gets_ice() {
+    let mut b = Bench::new(SimConfig::default());
+    let mut t = request_to_vec(&Request::Open { safety_id: 0 }).unwrap();
+    t[4] ^= 0xFF;
+    let answers = b.raw(&t);
+    assert_eq!(answers, [Answer { command: Command::Open, status: Status::ChecksumError, data: None }]);
+    assert_eq!(b.unit.mode(), RemoteMode::Off);
+    let mut unknown = b"RQ".to_vec();
+    unknown.extend_from_slice(&crc16(b"RQ").to_le_bytes());
+    let out = {
+        let mut out = Vec::new();
+        b.unit.receive(b.now, &unknown, &mut out);
+        out
+    };
+    assert_eq!(&out[..3], &[b'R', b'Q', 0x83], "ICE, with the unknown letters repeated");
+    assert_eq!(crc16(&out[..3]).to_le_bytes(), [out[3], out[4]]);
+}
+
+#[test]
+fn a_telegram_left_incomplete_for_1000_ms_is_dropped() {
+    let mut b = Bench::new(SimConfig::default());
+    let t = request_to_vec(&Request::Open { safety_id: 0 }).unwrap();
+    assert!(b.raw(&t[..2]).is_empty());
+    b.wait(1001);
+    // The rest arrives too late: the start was dropped, so these bytes are garbage and get no reply.
+    assert!(b.raw(&t[2..]).is_empty());
+    assert_eq!(b.unit.stats().dropped_partial, 1);
+    assert_eq!(b.unit.mode(), RemoteMode::Off);
+    // Within the limit, bytes may trickle in.
+    assert!(b.raw(&t[..2]).is_empty());
+    b.wait(999);
+    assert_eq!(b.raw(&t[2..]).len(), 1);
+    assert!(matches!(b.unit.mode(), RemoteMode::AwaitingRc(_)));
+}
+
+#[test]
+fn rc_exchanges_the_data_of_a_cyclic_object() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    let obj = CyclicObject::new(
+        &[DataIndex(0x3021), DataIndex(0x3011)],
+        &[DataIndex(0x0011), DataIndex(0x0171), DataIndex(0x0010)],
+    )
+    .unwrap();
+    assert_eq!(b.set(0x3001, &obj.to_bytes()), Status::Ack);
+    assert_eq!(b.get(0x3001), obj.to_bytes());
+    let mut write = 250i32.to_le_bytes().to_vec();
+    write.extend_from_slice(&80u16.to_le_bytes());
+    let answer = b.send(Request::Cyclic { object: 0, write: &write });
+    assert_eq!(answer.status, Status::Ack);
+    let data = answer.data.unwrap();
+    assert_eq!(data.len(), 4 + 1 + 24, "position, status, all six positions");
+    assert_eq!(&data[..4], &0i32.to_le_bytes());
+    assert_eq!(data[4] & status1::AVAILABLE, status1::AVAILABLE);
+    assert_eq!(b.get(0x3021), 250i32.to_le_bytes(), "the write data landed");
+    assert_eq!(b.get(0x3011), 80u16.to_le_bytes());
+    // Wrong write length, unknown object, data without object.
+    assert_eq!(b.status(Request::Cyclic { object: 0, write: &write[..3] }), Status::ParameterCountError);
+    assert_eq!(b.status(Request::Cyclic { object: 5, write: &[] }), Status::ParameterDataError);
+    assert_eq!(b.status(Request::Cyclic { object: 0xFF, write: &[1] }), Status::ParameterCountError);
+    // An empty object answers with ctp 0.
+    let empty = b.send(Request::Cyclic { object: 1, write: &[] });
+    assert_eq!((empty.status, empty.data), (Status::Ack, Some(vec![])));
+}
+
+#[test]
+fn a_cyclic_object_may_not_write_read_only_data() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    let bad = CyclicObject::new(&[DataIndex(0x0011)], &[]).unwrap();
+    assert_eq!(b.set(0x3002, &bad.to_bytes()), Status::ParameterDataError);
+}
+
+#[test]
+fn every_index_of_the_data_list_answers_with_its_size() {
+    let mut b = Bench::new(SimConfig::scp11(6));
+    b.open(1);
+    for e in DATA_LIST {
+        assert_eq!(b.get(e.index.0).len(), e.size(), "{}", e.name);
+    }
+    for g in GROUPS {
+        assert_eq!(b.get(g.index.0).len(), g.size(), "{}", g.name);
+    }
+    assert_eq!(b.status(Request::Get { index: 0x0017 }), Status::ParameterDataError);
+    assert_eq!(b.status(Request::Get { index: 0x4000 }), Status::ParameterDataError);
+    let fw = b.get(0x0001);
+    assert!(fw.starts_with(b"SCU V2B3"));
+    assert_eq!(b.get(0x3021), 100i32.to_le_bytes(), "remote position defaults to memory 1 of user 1");
+    assert_eq!(b.get(0x3011), 100u16.to_le_bytes(), "remote speed defaults to the function speed");
+    assert_eq!(b.get(0x0100)[0] & 1, 1, "mains connected");
+}
+
+#[test]
+fn switching_functions_show_in_the_data_list() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    let on = |f: u8| Request::Execute { function: f, params: [0xFF, 0xFF] };
+    let off = |f: u8| Request::Stop { function: f, param: 0xFF };
+    for (f, index, bit) in [(10u8, 0x0140u16, 0u8), (16, 0x0110, 0), (17, 0x0110, 1), (20, 0x0120, 0), (21, 0x0120, 1)]
+    {
+        assert_eq!(b.status(on(f)), Status::Ack);
+        assert_ne!(b.get(index)[0] & (1 << bit), 0, "F{} on", f + 1);
+        assert_eq!(b.status(off(f)), Status::Ack);
+        assert_eq!(b.get(index)[0] & (1 << bit), 0, "F{} off", f + 1);
+    }
+}
+
+#[test]
+fn emergency_stop_stops_everything_and_blocks_motion_until_released() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    b.set(0x3021, &800i32.to_le_bytes());
+    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+    b.keep_alive(500);
+    assert!(b.unit.is_moving(a(1)));
+    assert_eq!(b.status(Request::Execute { function: 19, params: [0xFF, 0xFF] }), Status::Ack);
+    assert!(!b.unit.any_moving());
+    assert_eq!(b.get(0x0162), 0x03FFu16.to_le_bytes(), "all functions locked");
+    assert_eq!(b.get(0x00E1)[0] & 0b110, 0, "no release flags");
+    assert_eq!(b.status(Request::Execute { function: 0, params: [9, 0xFF] }), Status::PermissionError);
+    assert_eq!(b.status(Request::Stop { function: 19, param: 0xFF }), Status::Ack);
+    assert_eq!(b.status(Request::Execute { function: 0, params: [9, 0xFF] }), Status::Ack);
+}
+
+#[test]
+fn a_drive_error_fast_stops_its_drive_and_enters_the_history() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    b.set(0x3021, &800i32.to_le_bytes());
+    b.set(0x3022, &800i32.to_le_bytes());
+    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+    b.status(Request::Execute { function: 1, params: [9, 0xFF] });
+    b.keep_alive(500);
+    b.unit.inject_error(ErrorCode::from_bit(15));
+    assert!(!b.unit.is_moving(a(1)));
+    assert!(b.unit.is_moving(a(2)));
+    b.unit.inject_error(ErrorCode::from_bit(12));
+    let codes = b.get(0x00D0);
+    assert_eq!(&codes[..4], &(1u32 << 11).to_le_bytes(), "last recent: bit 12");
+    assert_eq!(&codes[4..8], &(1u32 << 14).to_le_bytes(), "history 1: bit 15");
+    assert_eq!(u32::from_le_bytes(b.get(0x0081).try_into().unwrap()), 1, "actuator error counter");
+}
+
+#[test]
+fn ra_ends_remote_mode_and_stops_remote_motions() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    b.set(0x3021, &800i32.to_le_bytes());
+    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+    b.keep_alive(300);
+    assert_eq!(b.status(Request::Abort), Status::Ack);
+    assert!(!b.unit.any_moving());
+    b.wait(2000);
+    assert_eq!(b.unit.stats().watchdog_expiries, 0, "no watchdog outside remote mode");
+}
+
+#[test]
+fn tlt_preset_drives_two_columns_on_f1_stalls_below_30_percent_and_reads_below_zero_at_the_in_end() {
+    let mut b = Bench::new(SimConfig::tlt());
+    b.open(1);
+    b.set(0x3021, &300i32.to_le_bytes());
+    b.set(0x3022, &300i32.to_le_bytes());
+    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+    b.keep_alive(5_000);
+    assert_eq!((b.position(1), b.position(2)), (300, 300));
+    b.status(Request::Stop { function: 0, param: 1 });
+    b.set(0x3011, &20u16.to_le_bytes());
+    b.status(Request::Execute { function: 0, params: [1, 0xFF] });
+    b.keep_alive(3_000);
+    assert_eq!(b.position(1), 300, "stalled at 20 %");
+    assert_ne!(b.status1(1) & status1::MOTION, 0, "the motion bit stays set while stalled");
+    b.status(Request::Stop { function: 0, param: 0 });
+    b.set(0x3011, &100u16.to_le_bytes());
+    b.status(Request::Execute { function: 0, params: [1, 0xFF] });
+    b.keep_alive(5_000);
+    assert_eq!(b.position(1), -3, "a few counts below zero at the In end");
+}
+
+#[test]
+fn config_from_toml() {
+    let c = SimConfig::from_toml(
+        r#"
+        actuators = 3
+        speed_mode = "counts_per_second"
+        default_speed = 200
+        [functions]
+        F1 = [1, 3]
+        [[actuator]]
+        stroke_max_counts = 1000
+        "#,
+    )
+    .unwrap();
+    assert_eq!(c.actuators.len(), 3);
+    assert_eq!(c.actuators[0].stroke_max_counts, 1000);
+    assert_eq!(c.functions[0], vec![a(1), a(3)]);
+    assert_eq!(c.functions[1], vec![a(2)], "the rest stays SCP11");
+    let mut b = Bench::new(c);
+    b.open(1);
+    assert_eq!(b.set(0x3011, &1000u16.to_le_bytes()), Status::Ack, "counts/s allow up to 1000");
+    assert_eq!(SimConfig::from_toml("preset = \"tlt\"").unwrap(), SimConfig::tlt());
+    for bad in [
+        "actuators = 7",
+        "preset = \"nope\"",
+        "[functions]\nF11 = [1]",
+        "[functions]\nF1 = [5]",
+        "colour = 1",
+        "[[actuator]]\nstroke_min_counts = 900",
+    ] {
+        let err = SimConfig::from_toml(bad).unwrap_err();
+        assert!(!err.0.is_empty(), "{bad}");
+    }
+}
+
+proptest! {
+    /// Arbitrary bytes never panic the emulator; after a pause the unit answers a good telegram again.
+    #[test]
+    fn arbitrary_bytes_never_panic_and_the_unit_recovers(chunks in proptest::collection::vec(proptest::collection::vec(any::<u8>(), 0..80), 0..20)) {
+        let mut unit = ScuEmulator::new(SimConfig::default()).unwrap();
+        let mut out = Vec::new();
+        let mut t = 0;
+        for c in &chunks {
+            t += 3;
+            unit.receive(Timestamp::from_millis(t), c, &mut out);
+        }
+        // Every reply the unit made is a well-formed telegram.
+        let mut dec = ReplyDecoder::new();
+        let mut input = &out[..];
+        loop {
+            let (n, ev) = dec.decode(input);
+            input = &input[n..];
+            match ev {
+                Some(ev) => prop_assert!(ev.is_ok(), "{:?}", ev),
+                None if input.is_empty() => break,
+                None => {}
+            }
+        }
+        out.clear();
+        let later = Timestamp::from_millis(t) + Duration::from_millis(1500);
+        unit.receive(later, &request_to_vec(&Request::Open { safety_id: 1 }).unwrap(), &mut out);
+        prop_assert_eq!(&out[..3], b"RO\x06");
+    }
+}
