@@ -97,6 +97,8 @@ struct Wire {
     offered: u64,
     /// Faults by byte offset, kept sorted.
     faults: Vec<(u64, Fault)>,
+    /// Ranges of byte offsets that are lost.
+    dropped: Vec<std::ops::Range<u64>>,
 }
 
 impl Wire {
@@ -110,6 +112,10 @@ impl Wire {
             let offset = self.offered;
             self.offered += 1;
             let mut byte = Some(b);
+            self.dropped.retain(|r| r.end > offset);
+            if self.dropped.iter().any(|r| r.contains(&offset)) {
+                byte = None;
+            }
             while let Some(i) = self.faults.iter().position(|(o, _)| *o == offset) {
                 let (_, fault) = self.faults.remove(i);
                 match fault {
@@ -203,12 +209,21 @@ impl FaultControl {
         });
     }
 
-    /// Loses the next `count` bytes sent in direction `dir`.
+    /// Loses the next `count` bytes sent in direction `dir` (`u64::MAX`: everything from now on).
     pub fn drop_next(&self, dir: Direction, count: u64) {
         self.with(|f| {
-            let at = f.wires[dir.index()].offered;
-            for i in 0..count {
-                f.schedule(dir, at + i, Fault::Drop);
+            let wire = &mut f.wires[dir.index()];
+            let at = wire.offered;
+            wire.dropped.push(at..at.saturating_add(count));
+        });
+    }
+
+    /// Cancels every fault not yet applied (the line is healthy again).
+    pub fn heal(&self) {
+        self.with(|f| {
+            for w in &mut f.wires {
+                w.faults.clear();
+                w.dropped.clear();
             }
         });
     }

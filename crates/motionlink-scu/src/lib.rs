@@ -1,6 +1,7 @@
 //! Ewellix / Schaeffler SCU control unit over RS232.
 #![warn(missing_docs)]
 
+pub mod client;
 pub mod model;
 pub mod sim;
 pub mod value;

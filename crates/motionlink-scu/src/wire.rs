@@ -799,6 +799,12 @@ impl ReplyDecoder {
         self.consumed_front = 0;
     }
 
+    /// True while the start of an expected reply (its command letters at least) is buffered, after every event
+    /// of the input was taken: the unit is answering.
+    pub fn is_mid_telegram(&self) -> bool {
+        self.len >= self.consumed_front + 2
+    }
+
     fn compact(&mut self) {
         if self.consumed_front > 0 {
             self.buf.copy_within(self.consumed_front..self.len, 0);
