@@ -2,6 +2,7 @@
 #![warn(missing_docs)]
 
 pub mod client;
+pub mod describe;
 pub mod model;
 pub mod sim;
 pub mod value;

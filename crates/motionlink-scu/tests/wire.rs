@@ -56,7 +56,10 @@ fn decode_requests(bytes: &[u8]) -> Vec<Result<String, WireError>> {
     out
 }
 
-fn decode_replies(dec: &mut ReplyDecoder, bytes: &[u8]) -> Vec<Result<(Command, Status, Option<Vec<u8>>), WireError>> {
+/// A decoded reply: command, status, data.
+type Decoded = Result<(Command, Status, Option<Vec<u8>>), WireError>;
+
+fn decode_replies(dec: &mut ReplyDecoder, bytes: &[u8]) -> Vec<Decoded> {
     let mut out = Vec::new();
     let mut input = bytes;
     loop {

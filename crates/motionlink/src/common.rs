@@ -22,6 +22,9 @@ pub enum CliError {
     /// The port, the line or the timing failed (exit code 3).
     #[error("{0}")]
     Transport(String),
+    /// The user pressed Ctrl-C; what was running was stopped (exit code 130, as for SIGINT).
+    #[error("{0}")]
+    Interrupted(String),
 }
 
 impl CliError {
@@ -31,6 +34,7 @@ impl CliError {
             CliError::Device(_) => 1,
             CliError::Usage(_) => 2,
             CliError::Transport(_) => 3,
+            CliError::Interrupted(_) => 130,
         }
     }
 

@@ -1,13 +1,120 @@
-//! `motionlink scu`: to be built (see the scu issue).
+//! `motionlink scu`, `motionlink sim scu`, `motionlink decode scu` and the SCU part of `motionlink demo`.
 
-use crate::common::{CaptureArgs, CliError, ServeArgs};
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+
+use motionlink_link::cancel::CancelToken;
+use motionlink_link::clock::Clock;
+use motionlink_link::link::{Connector, Link, SerialSettings};
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::transcript::{TapLink, Transcript, Way};
+use motionlink_link::url::PortUrl;
+use motionlink_link::{ManualClock, RealClock, SharedClock, Timestamp};
+use motionlink_scu::client::{ClientConfig, ErrorClass, MoveOptions, MoveProgress, ScuClient, ScuError};
+use motionlink_scu::describe::{describe_incoming, describe_reply, describe_request};
+use motionlink_scu::model::{
+    lookup, status1, Actuator, DataEntry, DataIndex, ErrorCode, FlagSet, Flags, Function, Item, MotionDirection,
+    MotionFunction, SafetyId, StopMode,
+};
+use motionlink_scu::sim::{ScuEmulator, SimConfig};
+use motionlink_scu::value::Value;
+use motionlink_scu::wire::{
+    capture_step, request_to_vec, CaptureDirection, CaptureItem, Incoming, Request, Telegram, WireError,
+};
+use serde_json::json;
+
+use crate::common::{self, CaptureArgs, CliError, Row, ServeArgs};
 
 /// `motionlink scu` arguments.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The port: a device path, tcp://HOST:PORT, or sim.
-    #[arg(long)]
+    /// The port: a serial device (/dev/ttyUSB0, COM3), tcp://HOST:PORT (a serial gateway or `motionlink sim scu`),
+    /// or sim (an emulator in this process).
+    #[arg(long, value_name = "PORT")]
     pub port: String,
+    /// Baud rate of a serial port: 38400 on standard units, 9600 or 19200 on customised ones.
+    #[arg(long, default_value_t = 38_400, value_parser = parse_baud)]
+    pub baud: u32,
+    /// Safety_ID sent with RO: 0 a timeout stops all motion and locks remote motion until RO, 1 stops all
+    /// motion, 2 stops remote motion only.
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=2))]
+    pub safety: u8,
+    /// How long to wait for a reply, in ms (the manual allows the unit 2000 ms).
+    #[arg(long, default_value_t = 2000, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    pub reply_timeout: u64,
+    /// Emulator configuration (TOML) when the port is sim.
+    #[arg(long, value_name = "FILE")]
+    pub sim_config: Option<PathBuf>,
+    /// Print JSON instead of a table.
+    #[arg(long, global = true)]
+    pub json: bool,
+    #[command(subcommand)]
+    pub action: Action,
+}
+
+/// What to do.
+#[derive(clap::Subcommand, Debug)]
+pub enum Action {
+    /// Firmware and configuration, actuators, positions, state, last error.
+    Info,
+    /// Read a data-list entry or group, by name (actual_position_a1, actual_positions) or index (0x0011).
+    Get {
+        /// Name or index.
+        item: String,
+    },
+    /// Write a remote data entry (0x3xxx), such as remote_speed_f1 80 or remote_position_a1 400.
+    Set {
+        /// Name or index.
+        item: String,
+        /// The value, in the entry's unit (percent, counts...).
+        value: String,
+    },
+    /// Move an actuator to a position (counts) and wait until it is there. Ctrl-C stops it.
+    Move {
+        /// Actuator 1..6.
+        actuator: u8,
+        /// Target position in encoder counts.
+        #[arg(allow_negative_numbers = true)]
+        position: i32,
+        /// Speed in percent (or counts/s on units set to absolute speed).
+        #[arg(long, default_value_t = 100)]
+        speed: u16,
+        /// Motion function (1..10) that drives the actuator; default: the same number (SCP11).
+        #[arg(long)]
+        function: Option<u8>,
+    },
+    /// Run a function until it ends or Ctrl-C: a motion function (F1..F10) with a direction (in, out, mem1..mem4,
+    /// int-in, int-out, remote, or 0..9), or F11 buzzer, F17/F18 outputs, F20 emergency stop, F21/F22 LEDs with "on".
+    Run {
+        /// F1..F22 (or 1..22).
+        function: String,
+        /// Direction of a motion function, or "on".
+        direction: String,
+        /// Stop after this many seconds (default: when the motion ends, or Ctrl-C).
+        #[arg(long, value_name = "S")]
+        seconds: Option<f64>,
+    },
+    /// Stop a function (RS): motions fast, or along the ramp with --soft.
+    Stop {
+        /// F1..F22 (or 1..22).
+        function: String,
+        /// Soft stop (along the stop ramp) instead of a fast stop.
+        #[arg(long)]
+        soft: bool,
+    },
+    /// Live positions and state until Ctrl-C.
+    Watch {
+        /// Time between samples, in ms.
+        #[arg(long, default_value_t = 250, value_name = "MS")]
+        interval: u64,
+        /// Stop after this many samples.
+        #[arg(long)]
+        count: Option<u64>,
+    },
+    /// The error history (Error_Code 1..5) with each bit's cause.
+    Errors,
 }
 
 /// `motionlink sim scu` arguments.
@@ -15,6 +122,12 @@ pub struct Args {
 pub struct SimArgs {
     #[command(flatten)]
     pub serve: ServeArgs,
+    /// Parameterisation (TOML): actuators, function mapping, stroke, speed. See the README.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Start from a preset: scp11 (default; actuator n on Fn) or tlt (F1 drives two columns).
+    #[arg(long, value_parser = ["scp11", "tlt"])]
+    pub preset: Option<String>,
 }
 
 /// `motionlink decode scu` arguments.
@@ -22,20 +135,643 @@ pub struct SimArgs {
 pub struct DecodeArgs {
     #[command(flatten)]
     pub capture: CaptureArgs,
+    /// Print one JSON object per telegram.
+    #[arg(long)]
+    pub json: bool,
 }
 
-pub fn run(_args: Args) -> Result<(), CliError> {
-    Err(CliError::usage("the scu family is not built yet"))
+fn parse_baud(s: &str) -> Result<u32, String> {
+    match s.parse::<u32>() {
+        Ok(b @ (9_600 | 19_200 | 38_400)) => Ok(b),
+        _ => Err(format!("{s:?}: an SCU runs at 9600, 19200 or 38400 baud")),
+    }
 }
 
-pub fn sim(_args: SimArgs) -> Result<(), CliError> {
-    Err(CliError::usage("the scu family is not built yet"))
+fn scu_error(e: ScuError) -> CliError {
+    match e.class() {
+        ErrorClass::Device => CliError::Device(e.to_string()),
+        ErrorClass::Transport => CliError::Transport(e.to_string()),
+        ErrorClass::Usage => CliError::Usage(e.to_string()),
+        ErrorClass::Cancelled => CliError::Interrupted(e.to_string()),
+    }
 }
 
-pub fn decode(_args: DecodeArgs) -> Result<(), CliError> {
-    Err(CliError::usage("the scu family is not built yet"))
+fn load_sim_config(path: Option<&PathBuf>, preset: Option<&str>) -> Result<SimConfig, CliError> {
+    let mut config = match preset {
+        Some("tlt") => SimConfig::tlt(),
+        _ => SimConfig::default(),
+    };
+    if let Some(path) = path {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| CliError::usage(format!("cannot read {}: {e}", path.display())))?;
+        let text = match preset {
+            Some(p) if !text.contains("preset") => format!("preset = \"{p}\"\n{text}"),
+            _ => text,
+        };
+        config = SimConfig::from_toml(&text).map_err(|e| CliError::usage(format!("{}: {e}", path.display())))?;
+    }
+    Ok(config)
 }
 
-pub fn demo(_out: &mut dyn std::io::Write) -> Result<(), CliError> {
+fn connect(args: &Args) -> Result<ScuClient, CliError> {
+    let port: PortUrl = args.port.parse()?;
+    let config = ClientConfig {
+        safety_id: SafetyId::from_code(args.safety).unwrap_or_default(),
+        reply_timeout: Duration::from_millis(args.reply_timeout),
+        ..ClientConfig::default()
+    };
+    let clock = RealClock::shared();
+    let connector: Connector = match &port {
+        PortUrl::Sim => {
+            let sim = ScuEmulator::new(load_sim_config(args.sim_config.as_ref(), None)?)
+                .map_err(|e| CliError::usage(e.to_string()))?;
+            let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(args.baud));
+            Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>))
+        }
+        p if p.is_can() => return Err(CliError::usage(format!("{p}: the SCU speaks RS232, not CAN"))),
+        p => {
+            if args.sim_config.is_some() {
+                return Err(CliError::usage("--sim-config is only for --port sim"));
+            }
+            let p = p.clone();
+            let settings = SerialSettings::new(args.baud);
+            Box::new(move || p.open_byte_link(settings))
+        }
+    };
+    ScuClient::open(connector, clock, config).map_err(scu_error)
+}
+
+fn parse_item(text: &str) -> Result<Item, CliError> {
+    lookup(text).ok_or_else(|| {
+        CliError::usage(format!(
+            "{text:?} is not a data-list entry: give a name such as actual_position_a1 or an index such as 0x0011"
+        ))
+    })
+}
+
+fn parse_actuator(n: u8) -> Result<Actuator, CliError> {
+    Actuator::new(n).ok_or_else(|| CliError::usage(format!("actuator {n}: actuators are 1..6")))
+}
+
+fn parse_function(text: &str) -> Result<Function, CliError> {
+    Function::parse(text).ok_or_else(|| {
+        CliError::usage(format!(
+            "{text:?} is not a function: F1..F10 motion, F11 buzzer, F17/F18 outputs, F20 emergency stop, F21/F22 LEDs"
+        ))
+    })
+}
+
+fn parse_direction(text: &str) -> Result<MotionDirection, CliError> {
+    let d = match text.to_ascii_lowercase().as_str() {
+        "none" | "undefined" => MotionDirection::Undefined,
+        "in" => MotionDirection::In,
+        "out" => MotionDirection::Out,
+        "mem1" => MotionDirection::Memory1,
+        "mem2" => MotionDirection::Memory2,
+        "mem3" => MotionDirection::Memory3,
+        "mem4" => MotionDirection::Memory4,
+        "int-in" => MotionDirection::IntermediateIn,
+        "int-out" => MotionDirection::IntermediateOut,
+        "remote" => MotionDirection::RemotePosition,
+        other => other.parse::<u8>().ok().and_then(MotionDirection::from_code).ok_or_else(|| {
+            CliError::usage(format!(
+                "{text:?} is not a direction: in, out, mem1..mem4, int-in, int-out, remote, none, or 0..9"
+            ))
+        })?,
+    };
+    Ok(d)
+}
+
+fn value_rows(values: &[(&'static DataEntry, Value)]) -> Vec<Row> {
+    values.iter().map(|(e, v)| (format!("{} ({})", e.name, e.index), v.to_string())).collect()
+}
+
+fn values_json(values: &[(&'static DataEntry, Value)]) -> serde_json::Value {
+    let mut map = serde_json::Map::new();
+    for (e, v) in values {
+        map.insert(e.name.to_string(), v.to_json());
+    }
+    serde_json::Value::Object(map)
+}
+
+/// `motionlink scu ...`
+pub fn run(args: Args) -> Result<(), CliError> {
+    // Check what can be checked before the port is opened.
+    match &args.action {
+        Action::Get { item } | Action::Set { item, .. } => {
+            parse_item(item)?;
+        }
+        Action::Move { actuator, function, .. } => {
+            parse_actuator(*actuator)?;
+            if let Some(f) = function {
+                MotionFunction::new(*f)
+                    .ok_or_else(|| CliError::usage(format!("function {f}: motion functions are 1..10")))?;
+            }
+        }
+        Action::Run { function, direction, .. } => {
+            if let Function::Motion(_) = parse_function(function)? {
+                parse_direction(direction)?;
+            } else if !direction.eq_ignore_ascii_case("on") {
+                return Err(CliError::usage(format!("{function} is switched with \"on\", not {direction:?}")));
+            }
+        }
+        Action::Stop { function, .. } => {
+            parse_function(function)?;
+        }
+        _ => {}
+    }
+    let interrupt = common::interrupt_token();
+    let client = connect(&args)?;
+    let mut out = std::io::stdout().lock();
+    let result = act(&client, &args, &mut out, &interrupt);
+    // Stop what was started and leave remote mode, whatever happened.
+    let closed = client.close().map_err(scu_error);
+    result.and(closed)
+}
+
+fn act(client: &ScuClient, args: &Args, out: &mut dyn Write, interrupt: &CancelToken) -> Result<(), CliError> {
+    match &args.action {
+        Action::Info => info(client, args.json, out),
+        Action::Get { item } => {
+            let it = parse_item(item)?;
+            let values = client.get(it.index()).map_err(scu_error)?;
+            if args.json {
+                let (value, unit) = match it {
+                    Item::Entry(e) => (values[0].1.to_json(), e.kind.unit()),
+                    Item::Group(_) => (values_json(&values), ""),
+                };
+                common::print_json(
+                    out,
+                    &json!({"index": it.index().to_string(), "name": it.name(), "value": value, "unit": unit}),
+                )
+            } else {
+                common::print_table(out, &value_rows(&values))
+            }
+        }
+        Action::Set { item, value } => {
+            let it = parse_item(item)?;
+            let Item::Entry(e) = it else {
+                return Err(CliError::usage(format!("{} is a group; set its entries one by one", it.name())));
+            };
+            let v = Value::parse(e.kind, value).map_err(|err| CliError::usage(format!("{}: {err}", e.name)))?;
+            client.set(e.index, &v).map_err(scu_error)?;
+            if args.json {
+                common::print_json(out, &json!({"index": e.index.to_string(), "name": e.name, "value": v.to_json()}))
+            } else {
+                common::print_table(out, &[(format!("{} ({})", e.name, e.index), format!("{v} (written)"))])
+            }
+        }
+        Action::Move { actuator, position, speed, function } => {
+            let a = parse_actuator(*actuator)?;
+            let start = client.position(a).map_err(scu_error)?;
+            let bar = common::progress_bar(u64::from(start.abs_diff(*position)), format!("{a} -> {position}"));
+            let progress = |p: &MoveProgress| bar.set_position(u64::from(p.position_counts.abs_diff(p.start_counts)));
+            let options = MoveOptions {
+                cancel: Some(interrupt),
+                progress: Some(&progress),
+                function: function.and_then(MotionFunction::new),
+            };
+            let result = client.move_to(a, *position, *speed, &options);
+            bar.finish_and_clear();
+            let report = result.map_err(scu_error)?;
+            if args.json {
+                common::print_json(
+                    out,
+                    &json!({"actuator": a.number(), "function": report.function.number(),
+                            "position": report.position_counts, "seconds": report.duration.as_secs_f64()}),
+                )
+            } else {
+                common::print_table(
+                    out,
+                    &[
+                        ("actuator".into(), a.to_string()),
+                        ("position".into(), format!("{} counts", report.position_counts)),
+                        ("time".into(), format!("{:.1} s", report.duration.as_secs_f64())),
+                    ],
+                )
+            }
+        }
+        Action::Run { function, direction, seconds } => {
+            run_function(client, function, direction, *seconds, interrupt, out)
+        }
+        Action::Stop { function, soft } => {
+            match parse_function(function)? {
+                Function::Motion(m) => {
+                    client.stop_motion(m, if *soft { StopMode::Soft } else { StopMode::Fast }).map_err(scu_error)?
+                }
+                f => client.switch(f, false).map_err(scu_error)?,
+            }
+            writeln!(out, "stopped")?;
+            Ok(())
+        }
+        Action::Watch { interval, count } => watch(client, args.json, *interval, *count, interrupt, out),
+        Action::Errors => errors(client, args.json, out),
+    }
+}
+
+/// Actuators whose status says they are connected, with their status 1.
+fn connected_actuators(client: &ScuClient) -> Result<Vec<(Actuator, u8)>, CliError> {
+    let raw = client.get_raw(DataIndex(0x0170)).map_err(scu_error)?;
+    Ok(Actuator::all().zip(raw).filter(|(_, s)| s & status1::AVAILABLE != 0).collect())
+}
+
+fn status_text(s: u8) -> String {
+    Value::Flags(Flags { set: FlagSet::ActuatorStatus1, bits: u32::from(s) }).to_string()
+}
+
+fn info(client: &ScuClient, json: bool, out: &mut dyn Write) -> Result<(), CliError> {
+    let get = |i: u16| client.get_value(DataIndex(i)).map_err(scu_error);
+    let firmware = get(0x0001)?;
+    let configuration = get(0x0002)?;
+    let mains = get(0x0100)?;
+    let last_error = get(0x00D1)?;
+    let actuators = connected_actuators(client)?;
+    let positions = client.get(DataIndex(0x0010)).map_err(scu_error)?;
+    let position = |a: Actuator| positions[usize::from(a.number() - 1)].1.clone();
+    if json {
+        let acts: Vec<_> = actuators
+            .iter()
+            .map(|(a, s)| {
+                json!({"actuator": a.number(), "position": position(*a).to_json(), "status": s,
+                       "moving": s & status1::MOTION != 0})
+            })
+            .collect();
+        common::print_json(
+            out,
+            &json!({"port": client.port(), "firmware": firmware.to_json(), "configuration": configuration.to_json(),
+                    "battery_mains": mains.to_json(), "last_error": last_error.to_json(), "actuators": acts}),
+        )
+    } else {
+        let mut rows: Vec<Row> = vec![
+            ("port".into(), client.port().to_string()),
+            ("firmware".into(), firmware.to_string()),
+            ("configuration".into(), configuration.to_string()),
+            ("battery/mains".into(), mains.to_string()),
+            ("last error".into(), last_error.to_string()),
+        ];
+        for (a, s) in &actuators {
+            rows.push((format!("actuator {}", a.number()), format!("{}, {}", position(*a), status_text(*s))));
+        }
+        common::print_table(out, &rows)
+    }
+}
+
+fn errors(client: &ScuClient, json: bool, out: &mut dyn Write) -> Result<(), CliError> {
+    let history = client.error_history().map_err(scu_error)?;
+    if json {
+        let list: Vec<_> = history.iter().map(|c| Value::ErrorCode(*c).to_json()).collect();
+        return common::print_json(out, &json!({"errors": list}));
+    }
+    let mut rows = Vec::new();
+    for (i, code) in history.iter().enumerate() {
+        let label = if i == 0 {
+            "error code 1 (last recent)".to_string()
+        } else {
+            format!("error code {} (history {i})", i + 1)
+        };
+        rows.push((label, format!("0x{:08X}", code.0)));
+        for b in code.bits() {
+            rows.push((format!("  bit {}", b.number), format!("{}; reaction: {}", b.cause, b.reaction)));
+        }
+        if code.unknown_bits() != 0 {
+            rows.push(("  undefined bits".into(), format!("0x{:08X}", code.unknown_bits())));
+        }
+    }
+    common::print_table(out, &rows)
+}
+
+/// Waits `duration` on the client's clock, returning early on Ctrl-C.
+fn pause(client: &ScuClient, duration: Duration, interrupt: &CancelToken) {
+    let clock = client.clock();
+    let signal = clock.signal();
+    let until = clock.now() + duration;
+    while clock.now() < until && !interrupt.is_cancelled() {
+        signal.wait_until(Some(until.min(clock.now() + Duration::from_millis(50))));
+    }
+}
+
+fn watch(
+    client: &ScuClient,
+    json: bool,
+    interval_ms: u64,
+    count: Option<u64>,
+    interrupt: &CancelToken,
+    out: &mut dyn Write,
+) -> Result<(), CliError> {
+    let clock = Arc::clone(client.clock());
+    let actuators = connected_actuators(client)?;
+    let mut n = 0u64;
+    let started = clock.now();
+    while !interrupt.is_cancelled() && count.is_none_or(|c| n < c) {
+        let positions = client.get(DataIndex(0x0010)).map_err(scu_error)?;
+        let status = client.get_raw(DataIndex(0x0170)).map_err(scu_error)?;
+        let currents = client.get(DataIndex(0x00A0)).map_err(scu_error)?;
+        let last_error = client.get_value(DataIndex(0x00D1)).map_err(scu_error)?;
+        let t = (clock.now() - started).as_secs_f64();
+        if json {
+            let acts: Vec<_> = actuators
+                .iter()
+                .map(|(a, _)| {
+                    let i = usize::from(a.number() - 1);
+                    json!({"actuator": a.number(), "position": positions[i].1.to_json(), "status": status[i],
+                           "moving": status[i] & status1::MOTION != 0, "current_deci_amps": currents[i].1.to_json()})
+                })
+                .collect();
+            common::print_json(out, &json!({"t": t, "actuators": acts, "last_error": last_error.to_json()}))?;
+        } else {
+            let mut line = format!("{t:7.2} s");
+            for (a, _) in &actuators {
+                let i = usize::from(a.number() - 1);
+                let moving = if status[i] & status1::MOTION != 0 { "moving" } else { "stopped" };
+                line.push_str(&format!("  {a}: {} {moving} {}", positions[i].1, currents[i].1));
+            }
+            if let Value::ErrorCode(c) = last_error {
+                if c != ErrorCode::NONE {
+                    line.push_str(&format!("  last error 0x{:08X}", c.0));
+                }
+            }
+            writeln!(out, "{line}")?;
+        }
+        out.flush()?;
+        n += 1;
+        if count.is_none_or(|c| n < c) {
+            pause(client, Duration::from_millis(interval_ms), interrupt);
+        }
+    }
+    Ok(())
+}
+
+fn run_function(
+    client: &ScuClient,
+    function: &str,
+    direction: &str,
+    seconds: Option<f64>,
+    interrupt: &CancelToken,
+    out: &mut dyn Write,
+) -> Result<(), CliError> {
+    let f = parse_function(function)?;
+    let limit = match seconds {
+        Some(s) if s.is_finite() && s >= 0.0 => Some(Duration::from_secs_f64(s)),
+        Some(s) => return Err(CliError::usage(format!("--seconds {s}: give a number of seconds"))),
+        None => None,
+    };
+    let clock = Arc::clone(client.clock());
+    let started = clock.now();
+    match f {
+        Function::Motion(m) => client.start_motion(m, parse_direction(direction)?).map_err(scu_error)?,
+        other => client.switch(other, true).map_err(scu_error)?,
+    }
+    writeln!(out, "{f} running; Ctrl-C stops it")?;
+    out.flush()?;
+    let mut seen_motion = false;
+    loop {
+        pause(client, Duration::from_millis(200), interrupt);
+        let elapsed = clock.now() - started;
+        if interrupt.is_cancelled() || limit.is_some_and(|l| elapsed >= l) {
+            break;
+        }
+        if let (Function::Motion(_), None) = (f, limit) {
+            // A motion function ends when none of the actuators moves any more.
+            let status = client.get_raw(DataIndex(0x0170)).map_err(scu_error)?;
+            let moving = status.iter().any(|s| s & status1::MOTION != 0);
+            seen_motion |= moving;
+            if !moving && (seen_motion || elapsed >= client.config().start_grace) {
+                break;
+            }
+        }
+    }
+    match f {
+        Function::Motion(m) => client.stop_motion(m, StopMode::Fast).map_err(scu_error)?,
+        other => client.switch(other, false).map_err(scu_error)?,
+    }
+    let positions = client.get(DataIndex(0x0010)).map_err(scu_error)?;
+    let rows: Vec<Row> = connected_actuators(client)?
+        .iter()
+        .map(|(a, _)| (a.to_string(), positions[usize::from(a.number() - 1)].1.to_string()))
+        .collect();
+    writeln!(out, "{f} stopped")?;
+    common::print_table(out, &rows)?;
+    if interrupt.is_cancelled() {
+        return Err(CliError::Interrupted(format!("interrupted; {f} stopped")));
+    }
+    Ok(())
+}
+
+/// `motionlink sim scu`
+pub fn sim(args: SimArgs) -> Result<(), CliError> {
+    let config = load_sim_config(args.config.as_ref(), args.preset.as_deref())?;
+    let device = ScuEmulator::new(config).map_err(|e| CliError::usage(e.to_string()))?;
+    common::serve(&args.serve, device)
+}
+
+/// One telegram (or undecodable part) of a capture, described.
+struct Annotated {
+    offset: usize,
+    bytes: Vec<u8>,
+    /// "->" host to unit, "<-" unit to host, "!!" not a telegram.
+    direction: &'static str,
+    text: String,
+}
+
+/// Splits `bytes` into telegrams and describes each; replies are decoded with the request before them.
+fn annotate(bytes: &[u8], direction: CaptureDirection, last_request: &mut Option<Vec<u8>>) -> Vec<Annotated> {
+    let mut out = Vec::new();
+    let mut at = 0;
+    while at < bytes.len() {
+        let (n, found) = capture_step(&bytes[at..], direction);
+        let n = n.max(1);
+        let raw = &bytes[at..(at + n).min(bytes.len())];
+        let (dir, text) = match &found {
+            CaptureItem::Telegram(Telegram::Request(i)) => {
+                *last_request = Some(raw.to_vec());
+                ("->", describe_incoming(i))
+            }
+            CaptureItem::Telegram(Telegram::Reply(r)) => {
+                let context =
+                    last_request.as_deref().and_then(|b| match capture_step(b, CaptureDirection::FromHost).1 {
+                        CaptureItem::Telegram(Telegram::Request(Incoming::Request(req))) => Some(req),
+                        _ => None,
+                    });
+                ("<-", describe_reply(r, context.as_ref()))
+            }
+            CaptureItem::Error(WireError::Garbage { count }) => {
+                ("!!", format!("{count} byte(s) that start no telegram"))
+            }
+            CaptureItem::Error(e) => ("!!", e.to_string()),
+            CaptureItem::Truncated => ("!!", format!("the capture ends inside a telegram ({} byte(s))", raw.len())),
+        };
+        out.push(Annotated { offset: at, bytes: raw.to_vec(), direction: dir, text });
+        at += n;
+    }
+    out
+}
+
+/// `motionlink decode scu`
+pub fn decode(args: DecodeArgs) -> Result<(), CliError> {
+    let bytes = common::read_capture(&args.capture)?;
+    let mut out = std::io::stdout().lock();
+    let mut last_request = None;
+    for a in annotate(&bytes, CaptureDirection::Unknown, &mut last_request) {
+        if args.json {
+            common::print_json(
+                &mut out,
+                &json!({"offset": a.offset, "direction": a.direction, "bytes": common::hex(&a.bytes), "meaning": a.text}),
+            )?;
+        } else {
+            writeln!(out, "{} {:<38} {}", a.direction, common::hex(&a.bytes), a.text)?;
+        }
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Demo
+
+/// Prints a session transcript: every exchange once; keepalives after the first folded into a count; an
+/// exchange repeated without change (a status poll) collapsed into one line.
+fn print_transcript(out: &mut dyn Write, transcript: &Transcript) -> Result<(), CliError> {
+    let keepalive = request_to_vec(&Request::Cyclic { object: 0xFF, write: &[] }).unwrap_or_default();
+    let mut last_request = None;
+    let mut lines: Vec<(Timestamp, Annotated)> = Vec::new();
+    for r in transcript.take() {
+        let direction = if r.way == Way::Sent { CaptureDirection::FromHost } else { CaptureDirection::FromUnit };
+        lines.extend(annotate(&r.bytes, direction, &mut last_request).into_iter().map(|a| (r.at, a)));
+    }
+    let print = |out: &mut dyn Write, (t, a): &(Timestamp, Annotated)| -> std::io::Result<()> {
+        writeln!(
+            out,
+            "  {:>8.3}  {} {:<38} {}",
+            t.since_origin().as_secs_f64(),
+            a.direction,
+            common::hex(&a.bytes),
+            a.text
+        )
+    };
+    let mut keepalives_shown = false;
+    let mut keepalives_folded = 0;
+    let mut previous: Option<(Vec<u8>, Vec<u8>)> = None;
+    let mut repeats = 0;
+    let mut last_repeat_at = Timestamp::ZERO;
+    let mut i = 0;
+    while i < lines.len() {
+        let exchange = lines.get(i..i + 2).filter(|p| p[0].1.direction == "->" && p[1].1.direction == "<-");
+        let Some(pair) = exchange else {
+            print(out, &lines[i])?;
+            i += 1;
+            continue;
+        };
+        if pair[0].1.bytes == keepalive {
+            if keepalives_shown {
+                keepalives_folded += 1;
+                i += 2;
+                continue;
+            }
+            keepalives_shown = true;
+        }
+        let key = (pair[0].1.bytes.clone(), pair[1].1.bytes.clone());
+        if previous.as_ref() == Some(&key) {
+            repeats += 1;
+            last_repeat_at = pair[1].0;
+            i += 2;
+            continue;
+        }
+        if repeats > 0 {
+            writeln!(
+                out,
+                "  {:>8}     … the same exchange {repeats} more time(s), until {:.3} s",
+                "",
+                last_repeat_at.since_origin().as_secs_f64()
+            )?;
+            repeats = 0;
+        }
+        if keepalives_folded > 0 {
+            writeln!(out, "  {:>8}     … {keepalives_folded} RC keepalive(s), each answered ACK", "")?;
+            keepalives_folded = 0;
+        }
+        print(out, &pair[0])?;
+        print(out, &pair[1])?;
+        previous = Some(key);
+        i += 2;
+    }
+    Ok(())
+}
+
+/// The SCU part of `motionlink demo`: the manual's chapter 5 routine against the emulator.
+pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
+    writeln!(out, "== Ewellix / Schaeffler SCU: the manual's chapter 5 routine (SCP11, actuator 1) ==")?;
+    writeln!(out, "The manual's example telegrams, as motionlink-scu encodes them (CRC-16/XMODEM, low byte first):")?;
+    let examples: [(&str, Request<'_>); 7] = [
+        ("RO 00", Request::Open { safety_id: 0 }),
+        ("RC 01 00 -1", Request::Cyclic { object: 0xFF, write: &[] }),
+        ("RT 04 00 11 30 01 00", Request::Transfer { index: 0x3011, data: &[0x01, 0x00] }),
+        ("RE 00 09 -1", Request::Execute { function: 0, params: [9, 0xFF] }),
+        ("RG 71 01", Request::Get { index: 0x0171 }),
+        ("RG 11 00", Request::Get { index: 0x0011 }),
+        ("RA", Request::Abort),
+    ];
+    for (manual, r) in examples {
+        let bytes = request_to_vec(&r).map_err(|e| CliError::usage(e.to_string()))?;
+        writeln!(out, "  {manual:<22} {:<38} {}", common::hex(&bytes), describe_request(&r))?;
+    }
+    writeln!(out, "  (The manual captions its RT example \"100h\"; its bytes 01 00 are little-endian 1. The bytes are the truth.)")?;
+    writeln!(out)?;
+    writeln!(
+        out,
+        "The routine against the built-in emulator (2 actuators, stroke 0..865 counts, 110 counts/s at 100 %),"
+    )?;
+    writeln!(out, "on a virtual clock: times are device seconds. RC keepalives run every 200 ms throughout.")?;
+    writeln!(out, "  {:>8}  dir telegram{:<30} meaning", "t [s]", "")?;
+
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let shared: SharedClock = clock.shared();
+    let host = EmulatorHost::new(
+        ScuEmulator::new(SimConfig::default()).map_err(|e| CliError::usage(e.to_string()))?,
+        Arc::clone(&shared),
+        PipeConfig::paced(38_400),
+    );
+    let transcript = Transcript::new();
+    let (tap_transcript, tap_clock, tap_host) = (transcript.clone(), Arc::clone(&shared), host.clone());
+    let connector: Connector = Box::new(move || {
+        Ok(Box::new(TapLink::new(tap_host.connect().0, Arc::clone(&tap_clock), tap_transcript.clone()))
+            as Box<dyn Link>)
+    });
+    let client = ScuClient::open(connector, Arc::clone(&shared), ClientConfig::default()).map_err(scu_error)?;
+    let a1 = Actuator::new(1).ok_or_else(|| CliError::usage("actuator 1"))?;
+    let f1 = MotionFunction::new(1).ok_or_else(|| CliError::usage("F1"))?;
+    let target = 400;
+    let steps = || -> Result<(i32, Duration), ScuError> {
+        client.set(DataIndex(0x3011), &Value::RemoteSpeed(80))?;
+        client.set(a1.remote_position_index(), &Value::RemotePosition(target))?;
+        let started = shared.now();
+        client.start_motion(f1, MotionDirection::RemotePosition)?;
+        let pause = shared.signal();
+        loop {
+            let until = shared.now() + Duration::from_millis(250);
+            while pause.wait_until(Some(until)) == motionlink_link::clock::Wake::Raised {}
+            if client.status1(a1)?.bits as u8 & status1::MOTION == 0 {
+                break;
+            }
+        }
+        let took = shared.now() - started;
+        let position = client.position(a1)?;
+        client.stop_motion(f1, StopMode::Soft)?;
+        Ok((position, took))
+    };
+    let result = steps();
+    let keepalives = client.stats().keepalives;
+    let closed = client.close();
+    print_transcript(out, &transcript)?;
+    let (position, took) = result.map_err(scu_error)?;
+    closed.map_err(scu_error)?;
+    writeln!(out)?;
+    writeln!(
+        out,
+        "Result: actuator 1 reached {position} counts (target {target}) in {:.1} s at 80 %; {keepalives} RC keepalives kept the 500 ms watchdog fed; RS and RA closed the session.",
+        took.as_secs_f64()
+    )?;
+    let idle_error = host.with_device(|u| u.last_error());
+    writeln!(out, "The unit's last error code: {idle_error}")?;
+    writeln!(out)?;
     Ok(())
 }
