@@ -21,7 +21,7 @@ use std::cell::RefCell;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
 use std::ops::{Add, AddAssign, Sub};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
@@ -257,37 +257,60 @@ impl Clock for RealClock {
     }
 
     fn signal(&self) -> Signal {
-        Signal(Arc::new(RealSignal { origin: self.origin, raised: Mutex::new(false), cv: Condvar::new() }))
+        Signal(Arc::new(RealSignal {
+            origin: self.origin,
+            raised: AtomicBool::new(false),
+            lock: Mutex::new(()),
+            cv: Condvar::new(),
+        }))
     }
 }
 
+/// The last stretch before a deadline that a real wait spends yielding instead of sleeping: the operating
+/// system's timer slack (50 µs on Linux) would otherwise make every timed wait late by about that much.
+const REAL_SPIN: Duration = Duration::from_micros(100);
+
 struct RealSignal {
     origin: Instant,
-    raised: Mutex<bool>,
+    raised: AtomicBool,
+    lock: Mutex<()>,
     cv: Condvar,
 }
 
 impl RawSignal for RealSignal {
     fn raise(&self) {
-        *lock(&self.raised) = true;
+        self.raised.store(true, Ordering::SeqCst);
+        let _g = lock(&self.lock);
         self.cv.notify_all();
     }
 
     fn wait_until(&self, deadline: Option<Timestamp>) -> Wake {
-        let mut raised = lock(&self.raised);
         loop {
-            if *raised {
-                *raised = false;
+            if self.raised.swap(false, Ordering::SeqCst) {
                 return Wake::Raised;
             }
-            match deadline {
-                None => raised = self.cv.wait(raised).unwrap_or_else(|e| e.into_inner()),
+            let remaining = match deadline {
+                None => None,
                 Some(deadline) => {
                     let now = Timestamp(self.origin.elapsed());
                     if now >= deadline {
                         return Wake::Deadline;
                     }
-                    raised = self.cv.wait_timeout(raised, deadline - now).unwrap_or_else(|e| e.into_inner()).0;
+                    Some(deadline - now)
+                }
+            };
+            match remaining {
+                Some(r) if r <= REAL_SPIN => std::thread::yield_now(),
+                _ => {
+                    let g = lock(&self.lock);
+                    // Raised between the check above and taking the lock: do not sleep.
+                    if self.raised.load(Ordering::SeqCst) {
+                        continue;
+                    }
+                    match remaining {
+                        None => drop(self.cv.wait(g).unwrap_or_else(|e| e.into_inner())),
+                        Some(r) => drop(self.cv.wait_timeout(g, r - REAL_SPIN).unwrap_or_else(|e| e.into_inner())),
+                    }
                 }
             }
         }
@@ -551,6 +574,7 @@ mod tests {
     #[test]
     fn auto_clock_jumps_when_all_participants_wait() {
         let clock = ManualClock::new_auto();
+        let _me = clock.reserve_participant().enter();
         let ticket = clock.reserve_participant();
         let c2 = clock.clone();
         // A second participant that ticks every 200 ms, ten times.
@@ -564,7 +588,6 @@ mod tests {
             }
             stamps
         });
-        let _me = clock.reserve_participant().enter();
         clock.sleep_until(Timestamp::from_millis(5_000));
         let stamps = t.join().unwrap();
         assert_eq!(stamps, (1..=10).map(|i| Timestamp::from_millis(200 * i)).collect::<Vec<_>>());
@@ -574,14 +597,14 @@ mod tests {
     #[test]
     fn auto_clock_does_not_move_while_a_participant_runs() {
         let clock = ManualClock::new_auto();
+        // This thread is a participant (counted before the other starts) and busy: the other must not be released.
+        let _me = clock.reserve_participant().enter();
         let ticket = clock.reserve_participant();
         let c2 = clock.clone();
         let t = thread::spawn(move || {
             let _g = ticket.enter();
             c2.sleep(Duration::from_millis(100));
         });
-        // This thread is a participant and busy: the other one must not be released.
-        let _me = clock.reserve_participant().enter();
         thread::sleep(Duration::from_millis(30));
         assert_eq!(clock.now(), Timestamp::ZERO);
         assert!(!t.is_finished());
@@ -594,6 +617,7 @@ mod tests {
     fn raising_a_waiter_counts_it_as_running_at_once() {
         // Ping-pong between two participants through signals must never let time move.
         let clock = ManualClock::new_auto();
+        let _me = clock.reserve_participant().enter();
         let ticket = clock.reserve_participant();
         let ping = clock.signal();
         let pong = clock.signal();
@@ -606,7 +630,6 @@ mod tests {
             }
             c2.now()
         });
-        let _me = clock.reserve_participant().enter();
         for _ in 0..1000 {
             ping.raise();
             assert_eq!(pong.wait_until(Some(Timestamp::from_millis(1))), Wake::Raised);

@@ -21,16 +21,84 @@
 
 use std::fmt;
 
-/// The CRC of SCU telegrams: CRC-16/XMODEM (polynomial 0x1021, initial value 0, no reflection, no final xor).
-pub const CRC: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_XMODEM);
+/// CRC-16/XMODEM polynomial (x^16 + x^12 + x^5 + 1).
+const POLY: u16 = 0x1021;
 
-/// CRC-16/XMODEM of `bytes`.
+/// Slice-by-8 tables: `TABLES[k][b]` is the CRC of byte `b` followed by `k` zero bytes. `TABLES[0]` is the
+/// manual's CRC_TABLE (chapter 6, code example 1).
+static TABLES: [[u16; 256]; 8] = crc_tables();
+
+const fn crc_tables() -> [[u16; 256]; 8] {
+    let mut t = [[0u16; 256]; 8];
+    let mut b = 0;
+    while b < 256 {
+        let mut crc = (b as u16) << 8;
+        let mut bit = 0;
+        while bit < 8 {
+            crc = if crc & 0x8000 != 0 { (crc << 1) ^ POLY } else { crc << 1 };
+            bit += 1;
+        }
+        t[0][b] = crc;
+        b += 1;
+    }
+    let mut k = 1;
+    while k < 8 {
+        let mut b = 0;
+        while b < 256 {
+            let prev = t[k - 1][b];
+            t[k][b] = (prev << 8) ^ t[0][(prev >> 8) as usize];
+            b += 1;
+        }
+        k += 1;
+    }
+    t
+}
+
+/// CRC-16/XMODEM of `bytes` (initial value 0, no reflection, no final xor), as the manual specifies.
+///
+/// Telegrams are short (4 to a few dozen bytes), so this works eight and four bytes at a time with independent
+/// table lookups, where a byte-at-a-time loop (the `crc` crate's way for anything under 16 bytes) is one long
+/// chain of dependent lookups. The tests check it against the `crc` crate and the manual's table.
 ///
 /// ```
 /// assert_eq!(motionlink_scu::wire::crc16(b"123456789"), 0x31C3);
 /// ```
 pub fn crc16(bytes: &[u8]) -> u16 {
-    CRC.checksum(bytes)
+    let t = &TABLES;
+    let mut crc: u16 = 0;
+    let mut chunks = bytes.chunks_exact(8);
+    for c in &mut chunks {
+        let [hi, lo] = crc.to_be_bytes();
+        crc = t[7][usize::from(c[0] ^ hi)]
+            ^ t[6][usize::from(c[1] ^ lo)]
+            ^ t[5][usize::from(c[2])]
+            ^ t[4][usize::from(c[3])]
+            ^ t[3][usize::from(c[4])]
+            ^ t[2][usize::from(c[5])]
+            ^ t[1][usize::from(c[6])]
+            ^ t[0][usize::from(c[7])];
+    }
+    let mut rest = chunks.remainder();
+    if rest.len() >= 4 {
+        let [hi, lo] = crc.to_be_bytes();
+        crc = t[3][usize::from(rest[0] ^ hi)]
+            ^ t[2][usize::from(rest[1] ^ lo)]
+            ^ t[1][usize::from(rest[2])]
+            ^ t[0][usize::from(rest[3])];
+        rest = &rest[4..];
+    }
+    for &b in rest {
+        crc = t[0][usize::from((crc >> 8) as u8 ^ b)] ^ (crc << 8);
+    }
+    crc
+}
+
+/// Continues a CRC over more bytes (byte by byte; for the rare unknown-command search).
+fn crc16_update(mut crc: u16, bytes: &[u8]) -> u16 {
+    for &b in bytes {
+        crc = TABLES[0][usize::from((crc >> 8) as u8 ^ b)] ^ (crc << 8);
+    }
+    crc
 }
 
 /// The longest request this codec builds or accepts: a command, a ctp, a data index and 250 data bytes, a CRC.
@@ -584,6 +652,17 @@ fn check_crc(frame: &[u8]) -> Result<(), (u16, u16)> {
     }
 }
 
+/// The bytes to skip and the error for a scan that found no telegram.
+fn scan_error(scan: Scan) -> (usize, WireError) {
+    match scan {
+        Scan::Garbage(n) => (n, WireError::Garbage { count: n }),
+        Scan::BadCrc { command, received, computed } => (1, WireError::Checksum { command, received, computed }),
+        Scan::BadLength(e) => (1, e),
+        // Not errors; never passed here.
+        Scan::NeedMore | Scan::Complete(_) => (1, WireError::Garbage { count: 1 }),
+    }
+}
+
 fn known_or_crc(frame: &[u8], command: Option<Command>) -> Scan {
     match check_crc(frame) {
         Ok(()) => Scan::Complete(frame.len()),
@@ -603,14 +682,13 @@ fn scan_request(b: &[u8]) -> Scan {
             return Scan::Garbage(1);
         }
         // An unknown command: it ends where its CRC matches.
-        let mut crc = CRC.digest();
-        crc.update(&b[..2]);
+        let mut crc = crc16_update(0, &b[..2]);
         for end in 4..=b.len().min(MAX_UNKNOWN_LEN) {
             // crc holds the CRC of b[..end - 2].
-            if u16::from_le_bytes([b[end - 2], b[end - 1]]) == crc.clone().finalize() {
+            if u16::from_le_bytes([b[end - 2], b[end - 1]]) == crc {
                 return Scan::Complete(end);
             }
-            crc.update(&b[end - 2..end - 1]);
+            crc = crc16_update(crc, &b[end - 2..end - 1]);
         }
         return if b.len() >= MAX_UNKNOWN_LEN { Scan::Garbage(1) } else { Scan::NeedMore };
     };
@@ -688,37 +766,38 @@ impl RequestDecoder {
 
     /// Takes bytes from `input` and returns how many it used and at most one event. Call it again with the rest
     /// of the input (and with an empty input, to drain events of bytes already buffered) until it returns
-    /// `(0, None)`.
-    pub fn decode<'s>(&'s mut self, input: &[u8]) -> (usize, Option<RequestEvent<'s>>) {
+    /// `(0, None)`. A telegram that lies whole in `input` is decoded in place, without copying.
+    pub fn decode<'a>(&'a mut self, input: &'a [u8]) -> (usize, Option<RequestEvent<'a>>) {
         self.compact();
+        if self.len == 0 && !input.is_empty() {
+            match scan_request(input) {
+                Scan::NeedMore => {}
+                Scan::Complete(n) => return (n, Some(Ok(parse_request(&input[..n])))),
+                other => {
+                    let (n, e) = scan_error(other);
+                    return (n, Some(Err(e)));
+                }
+            }
+        }
         let mut used = 0;
         loop {
             match scan_request(&self.buf[..self.len]) {
                 Scan::NeedMore => {
-                    if used == input.len() {
+                    let take = (self.buf.len() - self.len).min(input.len() - used);
+                    if take == 0 {
                         return (used, None);
                     }
-                    // Fast path: nothing buffered and a whole telegram in the input.
-                    let take = (self.buf.len() - self.len).min(input.len() - used);
                     self.buf[self.len..self.len + take].copy_from_slice(&input[used..used + take]);
                     self.len += take;
                     used += take;
-                    // Whatever the scan does not use stays buffered; give back nothing.
                 }
                 Scan::Complete(n) => {
                     self.consumed_front = n;
                     return (used, Some(Ok(parse_request(&self.buf[..n]))));
                 }
-                Scan::Garbage(n) => {
+                other => {
+                    let (n, e) = scan_error(other);
                     self.consumed_front = n;
-                    return (used, Some(Err(WireError::Garbage { count: n })));
-                }
-                Scan::BadCrc { command, received, computed, .. } => {
-                    self.consumed_front = 1;
-                    return (used, Some(Err(WireError::Checksum { command, received, computed })));
-                }
-                Scan::BadLength(e) => {
-                    self.consumed_front = 1;
                     return (used, Some(Err(e)));
                 }
             }
@@ -814,105 +893,116 @@ impl ReplyDecoder {
     }
 
     fn scan(&self) -> Scan {
-        let b = &self.buf[..self.len];
-        let is_start = |x: u8, y: u8| match (Command::from_code(x, y), self.expect) {
-            (Some(c), Some(e)) => c == e.command,
-            (Some(_), None) => true,
-            (None, _) => false,
-        };
-        let Some(&x) = b.first() else { return Scan::NeedMore };
-        if x != b'R' {
-            let n = b.iter().position(|&c| c == b'R').unwrap_or(b.len());
-            return Scan::Garbage(n);
-        }
-        let Some(&y) = b.get(1) else { return Scan::NeedMore };
-        if !is_start(x, y) {
-            return Scan::Garbage(1);
-        }
-        let command = Command::from_code(x, y).unwrap_or(Command::Get);
-        let Some(&s) = b.get(2) else { return Scan::NeedMore };
-        let Some(status) = Status::from_code(s) else { return Scan::Garbage(1) };
-        if status != Status::Ack {
-            return if b.len() < 5 { Scan::NeedMore } else { known_or_crc(&b[..5], Some(command)) };
-        }
-        let shape = match (self.expect, command) {
-            (Some(e), _) => e.shape,
-            (None, Command::Get) => ReplyShape::WithData,
-            (None, Command::Cyclic) => {
-                // Ambiguous without the request: status-only if that CRC matches, else with data.
-                if b.len() < 5 {
-                    return Scan::NeedMore;
-                }
-                if check_crc(&b[..5]).is_ok() {
-                    return Scan::Complete(5);
-                }
-                ReplyShape::WithData
-            }
-            (None, _) => ReplyShape::StatusOnly,
-        };
-        match shape {
-            ReplyShape::StatusOnly => {
-                if b.len() < 5 {
-                    Scan::NeedMore
-                } else {
-                    known_or_crc(&b[..5], Some(command))
-                }
-            }
-            ReplyShape::WithData => {
-                if b.len() < 5 {
-                    return Scan::NeedMore;
-                }
-                let ctp = u16::from_le_bytes([b[3], b[4]]);
-                if usize::from(ctp) > MAX_REPLY_DATA {
-                    return Scan::BadLength(WireError::Oversized { command, ctp, max: MAX_REPLY_DATA });
-                }
-                let len = 5 + usize::from(ctp) + 2;
-                if b.len() < len {
-                    Scan::NeedMore
-                } else {
-                    known_or_crc(&b[..len], Some(command))
-                }
-            }
-        }
+        scan_reply(&self.buf[..self.len], self.expect)
     }
 
     /// Takes bytes from `input` and returns how many it used and at most one event. Call it again with the rest
     /// of the input (and with an empty input, to drain events of bytes already buffered) until it returns
-    /// `(0, None)`.
-    pub fn decode<'s>(&'s mut self, input: &[u8]) -> (usize, Option<ReplyEvent<'s>>) {
+    /// `(0, None)`. A telegram that lies whole in `input` is decoded in place, without copying.
+    pub fn decode<'a>(&'a mut self, input: &'a [u8]) -> (usize, Option<ReplyEvent<'a>>) {
         self.compact();
+        if self.len == 0 && !input.is_empty() {
+            match scan_reply(input, self.expect) {
+                Scan::NeedMore => {}
+                Scan::Complete(n) => return (n, Some(Ok(parse_reply(&input[..n])))),
+                other => {
+                    let (n, e) = scan_error(other);
+                    return (n, Some(Err(e)));
+                }
+            }
+        }
         let mut used = 0;
         loop {
             match self.scan() {
                 Scan::NeedMore => {
-                    if used == input.len() {
+                    let take = (self.buf.len() - self.len).min(input.len() - used);
+                    if take == 0 {
                         return (used, None);
                     }
-                    let take = (self.buf.len() - self.len).min(input.len() - used);
                     self.buf[self.len..self.len + take].copy_from_slice(&input[used..used + take]);
                     self.len += take;
                     used += take;
                 }
                 Scan::Complete(n) => {
                     self.consumed_front = n;
-                    let f = &self.buf[..n];
-                    let command = Command::from_code(f[0], f[1]).unwrap_or(Command::Get);
-                    let status = Status::from_code(f[2]).unwrap_or(Status::Ack);
-                    let data = (n > 5).then(|| &f[5..n - 2]);
-                    return (used, Some(Ok(Reply { command, status, data })));
+                    return (used, Some(Ok(parse_reply(&self.buf[..n]))));
                 }
-                Scan::Garbage(n) => {
+                other => {
+                    let (n, e) = scan_error(other);
                     self.consumed_front = n;
-                    return (used, Some(Err(WireError::Garbage { count: n })));
-                }
-                Scan::BadCrc { command, received, computed, .. } => {
-                    self.consumed_front = 1;
-                    return (used, Some(Err(WireError::Checksum { command, received, computed })));
-                }
-                Scan::BadLength(e) => {
-                    self.consumed_front = 1;
                     return (used, Some(Err(e)));
                 }
+            }
+        }
+    }
+}
+
+/// A complete reply telegram whose CRC was checked.
+fn parse_reply(f: &[u8]) -> Reply<'_> {
+    let n = f.len();
+    let command = Command::from_code(f[0], f[1]).unwrap_or(Command::Get);
+    let status = Status::from_code(f[2]).unwrap_or(Status::Ack);
+    let data = (n > 5).then(|| &f[5..n - 2]);
+    Reply { command, status, data }
+}
+
+fn scan_reply(b: &[u8], expect: Option<Expectation>) -> Scan {
+    let is_start = |x: u8, y: u8| match (Command::from_code(x, y), expect) {
+        (Some(c), Some(e)) => c == e.command,
+        (Some(_), None) => true,
+        (None, _) => false,
+    };
+    let Some(&x) = b.first() else { return Scan::NeedMore };
+    if x != b'R' {
+        let n = b.iter().position(|&c| c == b'R').unwrap_or(b.len());
+        return Scan::Garbage(n);
+    }
+    let Some(&y) = b.get(1) else { return Scan::NeedMore };
+    if !is_start(x, y) {
+        return Scan::Garbage(1);
+    }
+    let command = Command::from_code(x, y).unwrap_or(Command::Get);
+    let Some(&s) = b.get(2) else { return Scan::NeedMore };
+    let Some(status) = Status::from_code(s) else { return Scan::Garbage(1) };
+    if status != Status::Ack {
+        return if b.len() < 5 { Scan::NeedMore } else { known_or_crc(&b[..5], Some(command)) };
+    }
+    let shape = match (expect, command) {
+        (Some(e), _) => e.shape,
+        (None, Command::Get) => ReplyShape::WithData,
+        (None, Command::Cyclic) => {
+            // Ambiguous without the request: status-only if that CRC matches, else with data.
+            if b.len() < 5 {
+                return Scan::NeedMore;
+            }
+            if check_crc(&b[..5]).is_ok() {
+                return Scan::Complete(5);
+            }
+            ReplyShape::WithData
+        }
+        (None, _) => ReplyShape::StatusOnly,
+    };
+    match shape {
+        ReplyShape::StatusOnly => {
+            if b.len() < 5 {
+                Scan::NeedMore
+            } else {
+                known_or_crc(&b[..5], Some(command))
+            }
+        }
+        ReplyShape::WithData => {
+            if b.len() < 5 {
+                return Scan::NeedMore;
+            }
+            let ctp = u16::from_le_bytes([b[3], b[4]]);
+            if usize::from(ctp) > MAX_REPLY_DATA {
+                return Scan::BadLength(WireError::Oversized { command, ctp, max: MAX_REPLY_DATA });
+            }
+            let len = 5 + usize::from(ctp) + 2;
+            if b.len() < len {
+                Scan::NeedMore
+            } else {
+                known_or_crc(&b[..len], Some(command))
             }
         }
     }
@@ -970,22 +1060,9 @@ pub fn capture_step(bytes: &[u8], direction: CaptureDirection) -> (usize, Captur
     if bytes.is_empty() {
         return (0, CaptureItem::Truncated);
     }
-    let reply_decoder = {
-        let mut d = ReplyDecoder::new();
-        let n = bytes.len().min(d.buf.len());
-        d.buf[..n].copy_from_slice(&bytes[..n]);
-        d.len = n;
-        d
-    };
     let as_request = if direction == CaptureDirection::FromUnit { Scan::Garbage(1) } else { scan_request(bytes) };
-    let as_reply = if direction == CaptureDirection::FromHost { Scan::Garbage(1) } else { reply_decoder.scan() };
-    let reply = |n: usize| {
-        let f = &bytes[..n];
-        let command = Command::from_code(f[0], f[1]).unwrap_or(Command::Get);
-        let status = Status::from_code(f[2]).unwrap_or(Status::Ack);
-        let data = (n > 5).then(|| &f[5..n - 2]);
-        (n, CaptureItem::Telegram(Telegram::Reply(Reply { command, status, data })))
-    };
+    let as_reply = if direction == CaptureDirection::FromHost { Scan::Garbage(1) } else { scan_reply(bytes, None) };
+    let reply = |n: usize| (n, CaptureItem::Telegram(Telegram::Reply(parse_reply(&bytes[..n]))));
     match (&as_request, &as_reply) {
         (_, Scan::Complete(n)) => reply(*n),
         (Scan::Complete(n), _) => (*n, CaptureItem::Telegram(Telegram::Request(parse_request(&bytes[..*n])))),

@@ -80,6 +80,17 @@ fn crc_check_value_is_0x31c3() {
 }
 
 #[test]
+fn crc_matches_the_crc_crate_for_every_length_and_offset() {
+    let reference = crc::Crc::<u16>::new(&crc::CRC_16_XMODEM);
+    let sample: Vec<u8> = (0..700u32).map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8).collect();
+    for start in 0..17 {
+        for end in start..sample.len() {
+            assert_eq!(crc16(&sample[start..end]), reference.checksum(&sample[start..end]), "{start}..{end}");
+        }
+    }
+}
+
+#[test]
 fn crc_matches_the_manual_table_and_its_algorithm() {
     for b in 0..=255u8 {
         assert_eq!(crc16(&[b]), MANUAL_CRC_TABLE[usize::from(b)], "table entry {b}");

@@ -1,0 +1,129 @@
+//! Benchmarks of the SCU codec and of a client transaction.
+//!
+//! - `codec/rg_position_exchange` and `codec/rc_12_word_cyclic_exchange`: both telegrams of an exchange encoded
+//!   and decoded (request built by the host and parsed by the unit, reply built by the unit and parsed by the
+//!   host), no heap allocation. Throughput is in telegrams; the target is 20 million per second each.
+//! - `transaction/rg_position_38400_baud_overhead`: a real `ScuClient::get_raw` through the in-process emulator
+//!   over a link paced at 38400 baud. The time reported is the host's overhead: the measured time minus the
+//!   wire time of the 17 bytes (6 out, 11 back) at 10 bits per byte. Target: median under 50 µs.
+//!   Criterion's estimate is a mean over samples of many transactions, and about one transaction in 45 waits
+//!   for an RC keepalive (3 ms of wire time) that was due just before it; so the bench also measures 2000
+//!   single transactions and prints their median and 90th percentile, which is what the target is about.
+
+use std::hint::black_box;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use motionlink_link::link::{char_time, Connector, Link, Parity};
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::RealClock;
+use motionlink_scu::client::{ClientConfig, ScuClient};
+use motionlink_scu::model::DataIndex;
+use motionlink_scu::sim::{ScuEmulator, SimConfig};
+use motionlink_scu::wire::*;
+
+/// Encodes and decodes `request` and `reply` once; returns something that depends on every step.
+fn exchange(
+    request: &Request<'_>,
+    reply: &Reply<'_>,
+    req_dec: &mut RequestDecoder,
+    rep_dec: &mut ReplyDecoder,
+    buf: &mut [u8; 64],
+) -> usize {
+    let n = encode_request(request, buf).unwrap_or(0);
+    let (_, ev) = req_dec.decode(&buf[..n]);
+    let got_request = matches!(ev, Some(Ok(Incoming::Request(_))));
+    let m = encode_reply(reply, buf).unwrap_or(0);
+    let (_, ev) = rep_dec.decode(&buf[..m]);
+    let data_len = match ev {
+        Some(Ok(r)) => r.data.map_or(0, <[u8]>::len),
+        _ => usize::MAX,
+    };
+    n + m + data_len + usize::from(got_request)
+}
+
+fn codec(c: &mut Criterion) {
+    let mut g = c.benchmark_group("codec");
+    g.throughput(Throughput::Elements(2));
+    let mut req_dec = RequestDecoder::new();
+    let mut rep_dec = ReplyDecoder::new();
+    let mut buf = [0u8; 64];
+
+    let position = 400i32.to_le_bytes();
+    rep_dec.expect(Command::Get, ReplyShape::WithData);
+    g.bench_function("rg_position_exchange", |b| {
+        b.iter(|| {
+            exchange(
+                black_box(&Request::Get { index: 0x0011 }),
+                black_box(&Reply::with_data(Command::Get, &position)),
+                &mut req_dec,
+                &mut rep_dec,
+                &mut buf,
+            )
+        })
+    });
+
+    // CyclicObj 1 with 12 words: writes the six remote positions, reads the six actual positions.
+    let write = [0x5Au8; 24];
+    let read = [0xA5u8; 24];
+    rep_dec.expect(Command::Cyclic, ReplyShape::WithData);
+    g.bench_function("rc_12_word_cyclic_exchange", |b| {
+        b.iter(|| {
+            exchange(
+                black_box(&Request::Cyclic { object: 0, write: &write }),
+                black_box(&Reply::with_data(Command::Cyclic, &read)),
+                &mut req_dec,
+                &mut rep_dec,
+                &mut buf,
+            )
+        })
+    });
+    g.finish();
+}
+
+fn transaction(c: &mut Criterion) {
+    let clock = RealClock::shared();
+    let host = EmulatorHost::new(
+        ScuEmulator::new(SimConfig::default()).unwrap(),
+        Arc::clone(&clock),
+        PipeConfig::paced(38_400),
+    );
+    let connector: Connector = Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>));
+    let client = ScuClient::open(connector, clock, ClientConfig::default()).unwrap();
+    let wire = char_time(38_400, Parity::None) * (6 + 11);
+    eprintln!("wire time of an RG position exchange at 38400 baud: 17 bytes x 10 bits = {wire:?}");
+    let mut g = c.benchmark_group("transaction");
+    g.sample_size(40).measurement_time(Duration::from_secs(8));
+    g.bench_function("rg_position_38400_baud_overhead", |b| {
+        b.iter_custom(|iters| {
+            let mut overhead = Duration::ZERO;
+            for _ in 0..iters {
+                let t = Instant::now();
+                black_box(client.get_raw(DataIndex(0x0011)).unwrap());
+                overhead += t.elapsed().saturating_sub(wire);
+            }
+            overhead
+        })
+    });
+    g.finish();
+
+    let mut single: Vec<Duration> = (0..2000)
+        .map(|_| {
+            let t = Instant::now();
+            black_box(client.get_raw(DataIndex(0x0011)).unwrap());
+            t.elapsed().saturating_sub(wire)
+        })
+        .collect();
+    single.sort();
+    let median = single[single.len() / 2];
+    let p90 = single[single.len() * 9 / 10];
+    eprintln!(
+        "host overhead above wire time, 2000 single RG transactions: median {median:?}, 90th percentile {p90:?} \
+         (target: median under 50 µs: {})",
+        if median < Duration::from_micros(50) { "met" } else { "NOT met" }
+    );
+}
+
+criterion_group!(benches, codec, transaction);
+criterion_main!(benches);
