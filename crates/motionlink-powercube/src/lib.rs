@@ -1,1 +1,107 @@
-//! placeholder
+//! Schunk / Amtec PowerCube modules: the data exchange protocol of the manual "Data exchange with
+//! PowerCube" on its three carriers (RS232, CAN, Profibus-DP), a client for a bus of modules, and an
+//! emulator of such a bus.
+//!
+//! Layers, bottom to top, each using only those below it:
+//!
+//! - [`wire`]: the sans-IO codec. [`wire::Payload`] (`[CommandID][ParamID|MotionID][data]`, at most 8
+//!   bytes), the RS232 frame with TELID, BCC and DLE escaping and an incremental decoder that resynchronises
+//!   on STX ([`wire::rs232`]), CAN identifiers ([`wire::can`]) and the Profibus-DP process images
+//!   ([`wire::profibus`]). No I/O, no clock, no allocation.
+//! - [`model`]: the vocabulary. The parameter table ([`model::Param`]: id, name, data type, unit class,
+//!   access, class), the 18 motion modes ([`model::MotionId`], [`model::Motion`]), the state word and every
+//!   other flag word ([`model::CubeState`], [`model::ShortState`], [`model::ProfibusState`], [`model::Dio`],
+//!   [`model::DioWord`], [`model::SetupWord`], [`model::ConfigWord`]), and typed commands, acknowledges and
+//!   broadcasts ([`model::Request`], [`model::Reply`], [`model::Broadcast`]). Each table is written once.
+//! - [`client`]: [`client::Bus`] over a byte link (RS232) or a CAN link, [`client::Module`] handles by
+//!   address; timeouts, retries of reads only, the watchdog refresh from a background thread, halting on
+//!   drop, on cancellation and on a failing session.
+//! - [`sim`]: [`sim::SimBus`], modules at configurable addresses with a physical model of the axis, as an
+//!   [`Emulator`](motionlink_link::emulator::Emulator) (RS232 framing) and a
+//!   [`CanEmulator`](motionlink_link::can::CanEmulator).
+//!
+//! ```
+//! use motionlink_link::can::{CanBus, CanBusConfig};
+//! use motionlink_link::clock::{Clock, ManualClock};
+//! use motionlink_powercube::client::{Bus, BusConfig};
+//! use motionlink_powercube::model::{Param, Position};
+//! use motionlink_powercube::sim::{SimBus, SimConfig};
+//! use std::time::Duration;
+//!
+//! let clock = ManualClock::new_auto();
+//! let _me = clock.reserve_participant().enter();
+//! let sim = SimBus::new_can(&SimConfig::with_addresses(&[1, 2, 3]).unwrap());
+//! let can = CanBus::with_emulator(sim, clock.shared(), CanBusConfig::paced(1_000_000));
+//! let bus = Bus::can(Box::new(can.connect()), clock.shared(), BusConfig::can());
+//! let found = bus.scan().unwrap();
+//! assert_eq!(found.len(), 3);
+//! bus.enable_watchdog(&[1, 2, 3]).unwrap(); // refreshed in the background from now on
+//! let positions = bus.positions(&[1, 2, 3]); // three requests out, three acknowledges in, any order
+//! assert!(positions.iter().all(|p| p.is_ok()));
+//! ```
+//!
+//! # Decisions
+//!
+//! Where the manual contradicts itself or is silent, this crate decides as follows (each is tested).
+//!
+//! - **BCC.** `(s + (s >> 8)) & 0xFF`, `s` the 16-bit sum of TELID and data; the manual's examples agree
+//!   (Home to module 17 is `02 06 21 01 28 03`). DLE escaping covers TELID, data and BCC.
+//! - **BCC checking.** The modules do not check the BCC "for compatibility reasons": the emulator accepts a
+//!   wrong BCC unless told to be strict (`--strict`); the client always checks the BCC of what it receives
+//!   and reports a mismatch as [`client::Error::Corrupt`] (reads are then retried).
+//! - **TELID length.** The manual's RS232 acknowledge examples carry length 6 for 3 data bytes. The
+//!   emulator sends the true length and, as the manual says, ignores commands whose length does not match;
+//!   the client accepts acknowledges with either.
+//! - **CAN identifiers.** The DLC is the data length; "+ number of data bytes" in the manual's formulas is
+//!   not added to the identifier. Extended motion acknowledges come on the acknowledge identifier
+//!   `0x0A0 + address`, whatever the manual's last CAN table shows (`0x0f1`).
+//! - **Broadcasts on RS232.** The manual defines none. The client sends them to address 0 (TELID with M = 0)
+//!   and the emulator takes address 0 as every module, without acknowledge. Real RS232 modules may ignore
+//!   address 0; on a real RS232 chain the watchdog therefore cannot be relied upon.
+//! - **Life sign.** The individual `0x07` (switch the watchdog on, and off when sent again) is acknowledged
+//!   `[0x07]` by the emulator like every one-byte command; the client accepts silence as well and never
+//!   repeats it (a repeat would switch the watchdog off).
+//! - **Watchdog expiry** raises STATE_COMM_ERROR and STATE_HALTED (not STATE_ERROR), as chapter 13 says. A
+//!   Reset re-arms it: without refreshes it expires again 50 ms later.
+//! - **State flags.** STATE_POW_INTEGRAL-ERR is bit 23 (0x00800000; the table prints 0x00080000).
+//!   STATE_LOGIC_VOLT and STATE_POW_SETUP_ERR are both bit 27: both are in the table, a set bit 27 is
+//!   named STATE_LOGIC_VOLT. The five flags the manual lists after STATE_LOGIC_VOLT (POW_WDG_TEMP,
+//!   POW_SHORTCUR, POW_HALLERR, CPU_OVERLOAD, POW_SETUP_ERR) are classed obsolete (the manual's colour
+//!   legend is lost in the text); STATE_HALTED and STATE_CURLIMIT are information. A client error names
+//!   every set flag that is not information.
+//! - **Parameter types.** TargetPosInc and StepInc are positions in ticks and are signed (Int32); the
+//!   manual prints UInt32. DefA0 has no access mark in the manual: it is read-only like the other defaults.
+//!   ActFPosStateDio (0x62) carries 6 bytes (float, short state, DIO) and ActFPosTime (0xA1) 6 (float,
+//!   UInt16 ms), so their GetExtended acknowledges are 8 bytes long.
+//! - **Profibus byte 7.** Commands of up to 7 bytes get a rolling counter in byte 7. An 8-byte command
+//!   (FSTEP, ISTEP, FCOSLOOP) fills byte 7 itself; sent twice in a row the image would not change, so the
+//!   writer refuses the repeat rather than letting the module ignore it silently.
+//! - **Writes the module cannot apply.** The emulator acknowledges a write of a read-only parameter and
+//!   ignores it; unknown commands, parameters and modes get no acknowledge. The client refuses such
+//!   requests before sending ([`model::Request::set`], [`model::Request::get`]).
+//! - **Limits.** Soft limits apply only after homing (chapter 12). Ramp targets beyond them are limited to
+//!   them; velocity, current and loop motions that reach them stop with STATE_BEYOND_SOFT, STATE_ERROR and
+//!   STATE_HALTED. TargetVel and TargetAcc are limited to MaxVel and MaxAcc when a ramp starts. Motion
+//!   commands to a halted module are acknowledged and ignored.
+//! - **Emulated physics.** Homing ramps to the home switch at position 0 with DefHomeVel and DefHomeAcc.
+//!   Velocity mode accelerates with TargetAcc; current mode moves at `current / MaxCur × MaxVel`. Step mode
+//!   moves at constant speed and buffers one more step (a newer one replaces it). FCOSLOOP oscillates on a
+//!   cosine between the start and the target with the given period; FRAMPLOOP ramps back and forth. The servo
+//!   lags 5 ms: the following error is the velocity × 5 ms, and a tow error is raised when it exceeds
+//!   MaxDeltaPos.
+//! - **Drop.** Dropping a [`client::Bus`] reads the state of every module it set in motion and halts those
+//!   still moving or not answering (with a broadcast halt if single halts fail). A wait that times out or
+//!   is cancelled halts its module. The watchdog is left online on drop: the modules halt within 50 ms, which
+//!   is what the watchdog is for; [`client::Bus::disable_watchdog`] switches it off cleanly.
+//! - **Timeouts.** RS232 200 ms (a frame takes up to 25 ms each way at 9600 baud), CAN 50 ms; reads are
+//!   retried twice; the scan waits 60 ms per address on RS232 and 50 ms for all 31 on CAN. All are
+//!   [`client::BusConfig`] settings.
+//! - **DISABLE_ACK.** The client refuses to set CONFIGID_MOD_DISABLE_ACK on CAN (it needs acknowledges).
+//!   The emulator honours it; the write that sets it is still acknowledged.
+
+#![warn(missing_docs)]
+
+pub mod client;
+pub mod model;
+pub mod sim;
+pub mod wire;

@@ -1,13 +1,115 @@
-//! `motionlink powercube`: to be built (see the powercube issue).
+//! `motionlink powercube`, `motionlink sim powercube`, `motionlink decode powercube` and the PowerCube part
+//! of `motionlink demo`.
 
-use crate::common::{CaptureArgs, CliError, ServeArgs};
+use std::io::{IsTerminal, Read, Write};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use motionlink_link::can::{
+    CanBus, CanBusConfig, CanFrame, CanLink, CandumpLine, SlcanAdapter, SlcanBitrate, SlcanLink,
+};
+use motionlink_link::clock::{Clock, ManualClock};
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::serial::SerialLink;
+use motionlink_link::transcript::{TapLink, Transcript, Way};
+use motionlink_link::url::PortUrl;
+use motionlink_link::{LinkError, RealClock, SerialSettings, SharedClock};
+use motionlink_powercube::client::{Bus, BusConfig, Error as PcError, ModuleInfo, Progress};
+use motionlink_powercube::model::{
+    Acceleration, AckKind, Broadcast, CubeState, ModuleKind, Motion, Param, Position, Ramp, Reply, Request, Value,
+    Velocity,
+};
+use motionlink_powercube::sim::{SimBus, SimConfig};
+use motionlink_powercube::wire::can::{self as can_wire, Role};
+use motionlink_powercube::wire::rs232::{self, Rs232Decoder, TelKind};
+use motionlink_powercube::wire::Payload;
+use serde_json::json;
+
+use crate::common::{self, CaptureArgs, CliError, ServeArgs};
 
 /// `motionlink powercube` arguments.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The port: a device path, tcp://HOST:PORT, or sim.
+    /// The port: a serial device or tcp://HOST:PORT (RS232), socketcan://IF or slcan://PATH (CAN), or sim.
     #[arg(long)]
     pub port: String,
+    /// The module's address, 1..31.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=31))]
+    pub module: u8,
+    /// RS232 baud rate.
+    #[arg(long, default_value_t = 9600)]
+    pub baud: u32,
+    /// CAN bit rate of an SLCAN adapter (10000 .. 1000000).
+    #[arg(long, default_value_t = 1_000_000)]
+    pub bitrate: u32,
+    /// Acknowledge timeout in ms (default: 200 on RS232, 50 on CAN).
+    #[arg(long, value_name = "MS")]
+    pub timeout_ms: Option<u64>,
+    /// Print JSON instead of a table.
+    #[arg(long, global = true)]
+    pub json: bool,
+    /// What to do.
+    #[command(subcommand)]
+    pub action: Action,
+}
+
+/// What `motionlink powercube` does.
+#[derive(clap::Subcommand, Debug)]
+pub enum Action {
+    /// List the modules on the bus (addresses 1..31) with type, version, serial number and state.
+    Scan,
+    /// Type, version, serial number, state and limits of the module.
+    Info,
+    /// The module's state word, flag by flag.
+    State,
+    /// Read a parameter (by name, such as ActPos, or id, such as 60 or 0x3c).
+    Get {
+        /// The parameter.
+        param: String,
+    },
+    /// Write a parameter.
+    Set {
+        /// The parameter.
+        param: String,
+        /// The value, in the parameter's type and unit.
+        value: String,
+    },
+    /// Home the module and wait for the end of homing.
+    Home {
+        /// Give up (and halt) after this many seconds.
+        #[arg(long, default_value_t = 60.0)]
+        timeout: f64,
+    },
+    /// Reset the module's error state.
+    Reset,
+    /// Stop the module at once (it stays halted until a reset).
+    Halt,
+    /// Ramp to a position (rad or m) and wait for the end of the ramp; Ctrl-C halts.
+    Move {
+        /// The target position.
+        #[arg(allow_negative_numbers = true)]
+        position: f32,
+        /// Velocity (rad/s or m/s); the module's TargetVel if not given.
+        #[arg(long)]
+        vel: Option<f32>,
+        /// Acceleration (rad/s² or m/s²); the module's TargetAcc if not given.
+        #[arg(long)]
+        acc: Option<f32>,
+        /// Give up (and halt) after this many seconds.
+        #[arg(long, default_value_t = 60.0)]
+        timeout: f64,
+    },
+    /// Print position and state until Ctrl-C (or --count samples).
+    Watch {
+        /// Milliseconds between samples.
+        #[arg(long, default_value_t = 200)]
+        interval_ms: u64,
+        /// Stop after this many samples.
+        #[arg(long)]
+        count: Option<u64>,
+    },
+    /// List the parameter table.
+    Params,
 }
 
 /// `motionlink sim powercube` arguments.
@@ -15,6 +117,18 @@ pub struct Args {
 pub struct SimArgs {
     #[command(flatten)]
     pub serve: ServeArgs,
+    /// Module addresses, such as 1,17 (default: one module at 1).
+    #[arg(long, value_delimiter = ',', conflicts_with = "config")]
+    pub modules: Vec<u8>,
+    /// A TOML file describing the modules (see crates/motionlink-powercube/README.md).
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<std::path::PathBuf>,
+    /// Serve the modules on CAN through an emulated SLCAN serial adapter instead of RS232 framing.
+    #[arg(long)]
+    pub slcan: bool,
+    /// Drop RS232 frames with a wrong BCC (the modules accept them).
+    #[arg(long)]
+    pub strict: bool,
 }
 
 /// `motionlink decode powercube` arguments.
@@ -24,18 +138,567 @@ pub struct DecodeArgs {
     pub capture: CaptureArgs,
 }
 
-pub fn run(_args: Args) -> Result<(), CliError> {
-    Err(CliError::usage("the powercube family is not built yet"))
+fn cli_err(e: PcError) -> CliError {
+    if e.is_transport() {
+        CliError::transport(e)
+    } else if e.is_usage() {
+        CliError::usage(e)
+    } else {
+        CliError::device(e)
+    }
 }
 
-pub fn sim(_args: SimArgs) -> Result<(), CliError> {
-    Err(CliError::usage("the powercube family is not built yet"))
+/// Opens the session `args` ask for.
+fn open(args: &Args) -> Result<(Bus, Option<EmulatorHost<SimBus>>), CliError> {
+    let url: PortUrl = args.port.parse()?;
+    let clock = RealClock::shared();
+    let timeout = args.timeout_ms.map(Duration::from_millis);
+    let with_timeout = |mut c: BusConfig| {
+        if let Some(t) = timeout {
+            c.reply_timeout = t;
+        }
+        c
+    };
+    let bus = match &url {
+        PortUrl::Serial(_) | PortUrl::Tcp { .. } => {
+            let link = url.open_byte_link(SerialSettings { dtr_rts_on: false, ..SerialSettings::new(args.baud) })?;
+            Bus::rs232(link, clock, with_timeout(BusConfig::rs232()))
+        }
+        PortUrl::Sim => {
+            let host = EmulatorHost::new(SimBus::new(&SimConfig::default()), Arc::clone(&clock), PipeConfig::instant());
+            let bus = Bus::rs232(Box::new(host.connect().0), clock, with_timeout(BusConfig::rs232()));
+            return Ok((bus, Some(host)));
+        }
+        PortUrl::Slcan(path) => {
+            let rate = SlcanBitrate::from_bps(args.bitrate)
+                .ok_or_else(|| CliError::usage(format!("{} bit/s is not an SLCAN bit rate", args.bitrate)))?;
+            let serial = SerialLink::open(path, SerialSettings::new(115_200))?;
+            let link = SlcanLink::open(serial, Arc::clone(&clock), rate)?;
+            Bus::can(Box::new(link), clock, with_timeout(BusConfig::can()))
+        }
+        PortUrl::SocketCan(ifname) => open_socketcan(ifname, clock, with_timeout(BusConfig::can()))?,
+    };
+    Ok((bus, None))
 }
 
-pub fn decode(_args: DecodeArgs) -> Result<(), CliError> {
-    Err(CliError::usage("the powercube family is not built yet"))
+#[cfg(target_os = "linux")]
+fn open_socketcan(ifname: &str, clock: SharedClock, config: BusConfig) -> Result<Bus, CliError> {
+    let link = motionlink_link::can::socketcan::SocketCanLink::open(ifname)?;
+    Ok(Bus::can(Box::new(link), clock, config))
 }
 
-pub fn demo(_out: &mut dyn std::io::Write) -> Result<(), CliError> {
+#[cfg(not(target_os = "linux"))]
+fn open_socketcan(_ifname: &str, _clock: SharedClock, _config: BusConfig) -> Result<Bus, CliError> {
+    Err(CliError::usage("socketcan:// ports need Linux"))
+}
+
+fn parse_param(text: &str) -> Result<Param, CliError> {
+    text.parse::<Param>().map_err(CliError::usage)
+}
+
+fn value_json(v: &Value) -> serde_json::Value {
+    match *v {
+        Value::F32(x) => json!(x),
+        Value::U32(x) => json!(x),
+        Value::I32(x) => json!(x),
+        Value::U16(x) => json!(x),
+        Value::I16(x) => json!(x),
+        Value::U8(x) => json!(x),
+        Value::PosStateDio { pos, state, dio } => json!({"position": pos, "short_state": state.0, "dio": dio.0}),
+        Value::PosTime { pos, time_ms } => json!({"position": pos, "time_ms": time_ms}),
+    }
+}
+
+fn state_json(s: CubeState) -> serde_json::Value {
+    json!({
+        "word": s.0,
+        "flags": s.iter().map(|f| f.name()).collect::<Vec<_>>(),
+        "faults": s.faults().map(|f| f.name()).collect::<Vec<_>>(),
+    })
+}
+
+fn info_json(m: &ModuleInfo) -> serde_json::Value {
+    json!({
+        "address": m.address,
+        "kind": m.kind.name(),
+        "version": m.version.to_string(),
+        "serial": m.serial,
+        "state": state_json(m.state),
+    })
+}
+
+/// `motionlink powercube ...`
+pub fn run(args: Args) -> Result<(), CliError> {
+    let mut out = std::io::stdout().lock();
+    if let Action::Params = args.action {
+        return print_params(&mut out, args.json);
+    }
+    let (bus, _host) = open(&args)?;
+    bus.set_cancel_token(common::interrupt_token());
+    let m = bus.module(args.module).map_err(cli_err)?;
+    match &args.action {
+        Action::Scan => {
+            let found = bus.scan().map_err(cli_err)?;
+            if args.json {
+                common::print_json(&mut out, &json!(found.iter().map(info_json).collect::<Vec<_>>()))?;
+            } else if found.is_empty() {
+                writeln!(out, "no module answered on {}", bus.describe())?;
+            } else {
+                writeln!(out, "{:<7}  {:<6}  {:<7}  {:<8}  state", "address", "type", "version", "serial")?;
+                for i in &found {
+                    writeln!(
+                        out,
+                        "{:<7}  {:<6}  {:<7}  {:<8}  {}",
+                        i.address,
+                        i.kind.name(),
+                        i.version.to_string(),
+                        i.serial,
+                        i.state
+                    )?;
+                }
+            }
+            if found.is_empty() {
+                return Err(CliError::transport(format!("no module answered on {}", bus.describe())));
+            }
+        }
+        Action::Info => {
+            let info = m.info().map_err(cli_err)?;
+            let limits: Vec<(Param, Value)> =
+                [Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::ActPos]
+                    .into_iter()
+                    .map(|p| m.get(p).map(|v| (p, v)))
+                    .collect::<Result<_, _>>()
+                    .map_err(cli_err)?;
+            if args.json {
+                let mut j = info_json(&info);
+                for (p, v) in &limits {
+                    j[p.name()] = value_json(v);
+                }
+                common::print_json(&mut out, &j)?;
+            } else {
+                let mut rows = vec![
+                    ("address".to_string(), info.address.to_string()),
+                    ("type".to_string(), info.kind.name().to_string()),
+                    ("version".to_string(), info.version.to_string()),
+                    ("serial".to_string(), info.serial.to_string()),
+                    ("state".to_string(), info.state.to_string()),
+                ];
+                rows.extend(limits.iter().map(|(p, v)| (p.name().to_string(), v.show(*p, info.kind))));
+                common::print_table(&mut out, &rows)?;
+            }
+        }
+        Action::State => {
+            let s = m.state().map_err(cli_err)?;
+            if args.json {
+                common::print_json(&mut out, &state_json(s))?;
+            } else {
+                writeln!(out, "CubeState {:#010x}", s.0)?;
+                let rows: Vec<_> = s
+                    .iter()
+                    .map(|f| (f.name().to_string(), format!("{:<11}  {}", f.class().name(), f.meaning())))
+                    .collect();
+                common::print_table(&mut out, &rows)?;
+                if s.is_empty() {
+                    writeln!(out, "(no flag set)")?;
+                }
+            }
+        }
+        Action::Get { param } => {
+            let p = parse_param(param)?;
+            let v = m.get(p).map_err(cli_err)?;
+            let kind = m.kind().unwrap_or(ModuleKind::Rotary);
+            if args.json {
+                common::print_json(
+                    &mut out,
+                    &json!({"param": p.name(), "id": p.id(), "value": value_json(&v), "unit": p.unit().symbol(kind)}),
+                )?;
+            } else {
+                common::print_table(&mut out, &[(p.name().to_string(), v.show(p, kind))])?;
+            }
+        }
+        Action::Set { param, value } => {
+            let p = parse_param(param)?;
+            let v = Value::parse(p, value).map_err(CliError::usage)?;
+            m.set(p, v).map_err(cli_err)?;
+            if args.json {
+                common::print_json(&mut out, &json!({"param": p.name(), "value": value_json(&v), "ok": true}))?;
+            } else {
+                writeln!(out, "{} set to {}", p.name(), v.show(p, m.kind().unwrap_or_default()))?;
+            }
+        }
+        Action::Home { timeout } => {
+            m.home().map_err(cli_err)?;
+            let bar = common::progress_bar(0, format!("homing module {}", args.module));
+            let r = m.wait_home(secs(*timeout)?, &mut |p: &Progress| bar.set_message(progress_text(p)));
+            bar.finish_and_clear();
+            let s = r.map_err(cli_err)?;
+            report_done(&mut out, args.json, "homed", &m.position().map_err(cli_err)?, s)?;
+        }
+        Action::Reset => {
+            m.reset().map_err(cli_err)?;
+            done(&mut out, args.json, "reset")?;
+        }
+        Action::Halt => {
+            m.halt().map_err(cli_err)?;
+            done(&mut out, args.json, "halted")?;
+        }
+        Action::Move { position, vel, acc, timeout } => {
+            if !position.is_finite() {
+                return Err(CliError::usage("the position must be a number"));
+            }
+            let ramp = match (vel, acc) {
+                (None, None) => None,
+                (v, a) => Some(Ramp {
+                    vel: Velocity(v.unwrap_or(m.get(Param::MaxVel).map_err(cli_err)?.as_f32().unwrap_or(0.1) / 2.0)),
+                    acc: Acceleration(
+                        a.unwrap_or(m.get(Param::MaxAcc).map_err(cli_err)?.as_f32().unwrap_or(0.1) / 2.0),
+                    ),
+                }),
+            };
+            let start = m.position().map_err(cli_err)?;
+            let distance = (position - start.0).abs();
+            m.move_ramp(Position(*position), ramp).map_err(cli_err)?;
+            let bar = common::progress_bar((distance * 1000.0).round() as u64, format!("module {}", args.module));
+            let r = m.wait_ramp_end(secs(*timeout)?, &mut |p: &Progress| {
+                bar.set_position(((p.position.0 - start.0).abs() * 1000.0).round() as u64);
+                bar.set_message(progress_text(p));
+            });
+            bar.finish_and_clear();
+            let s = r.map_err(cli_err)?;
+            report_done(&mut out, args.json, "reached", &m.position().map_err(cli_err)?, s)?;
+        }
+        Action::Watch { interval_ms, count } => {
+            let token = common::interrupt_token();
+            let kind = m.kind().map_err(cli_err)?;
+            let clock = Arc::clone(bus.clock());
+            let mut n = 0u64;
+            while !token.is_cancelled() && count.is_none_or(|c| n < c) {
+                let s = m.state().map_err(cli_err)?;
+                let p = m.position().map_err(cli_err)?;
+                let t = clock.now();
+                if args.json {
+                    common::print_json(
+                        &mut out,
+                        &json!({"t_ms": t.as_millis() as u64, "position": p.0, "state": state_json(s)}),
+                    )?;
+                } else {
+                    writeln!(out, "{:>9.3} s  {}  {}", t.since_origin().as_secs_f64(), p.show(kind), s)?;
+                }
+                out.flush()?;
+                n += 1;
+                clock.sleep(Duration::from_millis(*interval_ms));
+            }
+        }
+        Action::Params => {}
+    }
+    Ok(())
+}
+
+fn secs(s: f64) -> Result<Duration, CliError> {
+    Duration::try_from_secs_f64(s).map_err(|_| CliError::usage(format!("{s} is not a duration in seconds")))
+}
+
+fn progress_text(p: &Progress) -> String {
+    format!("module {}: {:.4}  {}", p.address, p.position.0, p.state)
+}
+
+fn done(out: &mut dyn Write, json: bool, what: &str) -> Result<(), CliError> {
+    if json {
+        common::print_json(out, &json!({"ok": true, "action": what}))
+    } else {
+        writeln!(out, "{what}")?;
+        Ok(())
+    }
+}
+
+fn report_done(out: &mut dyn Write, json: bool, what: &str, pos: &Position, s: CubeState) -> Result<(), CliError> {
+    if json {
+        common::print_json(out, &json!({"ok": true, "action": what, "position": pos.0, "state": state_json(s)}))
+    } else {
+        writeln!(out, "{what}: position {:.4}, state {s}", pos.0)?;
+        Ok(())
+    }
+}
+
+fn print_params(out: &mut dyn Write, as_json: bool) -> Result<(), CliError> {
+    if as_json {
+        let list: Vec<_> = Param::ALL
+            .iter()
+            .map(|p| {
+                json!({"id": p.id(), "name": p.name(), "type": p.data_type().name(), "unit": p.unit().symbol(ModuleKind::Rotary),
+                       "access": p.access().name(), "class": p.class().name(), "description": p.description()})
+            })
+            .collect();
+        return common::print_json(out, &json!(list));
+    }
+    writeln!(
+        out,
+        "{:<4}  {:<22}  {:<17}  {:<9}  {:<6}  {:<7}  description",
+        "id", "name", "type", "unit", "access", "class"
+    )?;
+    for p in Param::ALL {
+        writeln!(
+            out,
+            "0x{:02X}  {:<22}  {:<17}  {:<9}  {:<6}  {:<7}  {}",
+            p.id(),
+            p.name(),
+            p.data_type().name(),
+            p.unit().symbol(ModuleKind::Rotary),
+            p.access().name(),
+            p.class().name(),
+            p.description()
+        )?;
+    }
+    Ok(())
+}
+
+/// `motionlink sim powercube ...`
+pub fn sim(args: SimArgs) -> Result<(), CliError> {
+    let config = match (&args.config, args.modules.is_empty()) {
+        (Some(path), _) => {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| CliError::usage(format!("cannot read {}: {e}", path.display())))?;
+            SimConfig::from_toml(&text).map_err(CliError::usage)?
+        }
+        (None, true) => SimConfig::default(),
+        (None, false) => SimConfig::with_addresses(&args.modules).map_err(CliError::usage)?,
+    };
+    if args.slcan {
+        if args.strict {
+            return Err(CliError::usage("--strict is about RS232 BCCs; it has no meaning with --slcan"));
+        }
+        common::serve(&args.serve, SlcanAdapter::new(SimBus::new_can(&config)))
+    } else {
+        let mut bus = SimBus::new(&config);
+        bus.set_strict_bcc(args.strict);
+        common::serve(&args.serve, bus)
+    }
+}
+
+/// Reads the decode input as text (or raw bytes with --raw).
+fn read_input(args: &CaptureArgs) -> Result<Result<String, Vec<u8>>, CliError> {
+    if !args.hex.is_empty() {
+        let joined = args.hex.join(" ");
+        if joined.contains('#') {
+            return Ok(Ok(joined));
+        }
+        return common::read_capture(args).map(Err);
+    }
+    let mut input = Vec::new();
+    std::io::stdin().read_to_end(&mut input)?;
+    if args.raw {
+        return Ok(Err(input));
+    }
+    String::from_utf8(input).map(Ok).map_err(|_| CliError::usage("stdin is not text (use --raw for raw bytes)"))
+}
+
+/// Describes a PowerCube payload travelling in `role` (CAN) or as `kind` to/from `address` (RS232).
+fn describe_payload(is_ack: bool, broadcast: bool, payload: &Payload) -> String {
+    if broadcast {
+        return match Broadcast::decode(payload) {
+            Ok(b) => format!("broadcast: {b}"),
+            Err(e) => format!("broadcast: not understood ({e})"),
+        };
+    }
+    if is_ack {
+        match Reply::decode(payload) {
+            Ok(r) => r.to_string(),
+            Err(e) => format!("acknowledge not understood: {e}"),
+        }
+    } else {
+        match Request::decode(payload) {
+            Ok(r) => r.to_string(),
+            Err(e) => format!("command not understood: {e}"),
+        }
+    }
+}
+
+fn describe_can(frame: &CanFrame) -> String {
+    match can_wire::from_frame(frame) {
+        Ok((Role::Ack(a), p)) => format!("ack from module {a}: {}", describe_payload(true, false, &p)),
+        Ok((Role::Get(a), p)) => format!("get to module {a}: {}", describe_payload(false, false, &p)),
+        Ok((Role::Put(a), p)) => format!("put to module {a}: {}", describe_payload(false, false, &p)),
+        Ok((Role::Broadcast, p)) => describe_payload(false, true, &p),
+        Err(e) => format!("not PowerCube: {e}"),
+    }
+}
+
+fn describe_rs232(frame: &rs232::Rs232Frame) -> String {
+    let (dir, is_ack) = match frame.kind {
+        TelKind::Send if frame.address == 0 => ("to every module (address 0)", false),
+        TelKind::Send => ("to module", false),
+        TelKind::Recv => ("from module", true),
+    };
+    let mut text = if frame.kind == TelKind::Send && frame.address == 0 {
+        format!("{dir}: {}", describe_payload(false, true, &frame.payload))
+    } else {
+        format!("{dir} {}: {}", frame.address, describe_payload(is_ack, false, &frame.payload))
+    };
+    if !frame.bcc_ok() {
+        text.push_str(&format!(" [BCC 0x{:02X} wrong, expected 0x{:02X}]", frame.bcc_received, frame.bcc_computed));
+    }
+    if !frame.length_ok() {
+        text.push_str(&format!(" [TELID length {} for {} bytes]", frame.declared_len, frame.payload.len()));
+    }
+    text
+}
+
+/// `motionlink decode powercube`: RS232 bytes (hex or raw) or candump lines.
+pub fn decode(args: DecodeArgs) -> Result<(), CliError> {
+    let mut out = std::io::stdout().lock();
+    let bytes = match read_input(&args.capture)? {
+        Ok(text) if text.contains('#') => {
+            let mut bad = 0;
+            for (i, line) in text.lines().enumerate() {
+                let line = line.trim();
+                if line.is_empty() || line.starts_with("//") {
+                    continue;
+                }
+                match line.parse::<CandumpLine>() {
+                    Ok(l) => writeln!(out, "{:<24}  {}", l.frame.to_string(), describe_can(&l.frame))?,
+                    Err(e) => {
+                        bad += 1;
+                        writeln!(out, "line {}: {e}", i + 1)?;
+                    }
+                }
+            }
+            if bad > 0 {
+                return Err(CliError::usage(format!("{bad} line(s) are not candump lines")));
+            }
+            return Ok(());
+        }
+        Ok(text) => common::parse_hex(&text)?,
+        Err(raw) => raw,
+    };
+    let mut decoder = Rs232Decoder::new();
+    let mut frame_bytes = Vec::new();
+    let mut frames = 0;
+    for &b in &bytes {
+        frame_bytes.push(b);
+        if b == rs232::STX && frame_bytes.len() > 1 {
+            frame_bytes = vec![b];
+        }
+        match decoder.push(b) {
+            Some(Ok(f)) => {
+                frames += 1;
+                writeln!(out, "{:<36}  {}", common::hex(&frame_bytes), describe_rs232(&f))?;
+                frame_bytes.clear();
+            }
+            Some(Err(e)) => {
+                writeln!(out, "{:<36}  error: {e}", "")?;
+                if b != rs232::STX {
+                    frame_bytes.clear();
+                }
+            }
+            None => {}
+        }
+    }
+    if frames == 0 && !bytes.is_empty() {
+        writeln!(out, "no complete RS232 frame in {} byte(s)", bytes.len())?;
+    }
+    Ok(())
+}
+
+/// A CAN link that records every frame, for the demo.
+struct TapCan<L> {
+    inner: L,
+    log: Arc<Mutex<Vec<(bool, CanFrame)>>>,
+}
+
+impl<L: CanLink> CanLink for TapCan<L> {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), LinkError> {
+        motionlink_link::clock::lock(&self.log).push((true, *frame));
+        self.inner.send(frame)
+    }
+    fn recv(&mut self, timeout: Duration) -> Result<Option<CanFrame>, LinkError> {
+        let f = self.inner.recv(timeout)?;
+        if let Some(f) = f {
+            motionlink_link::clock::lock(&self.log).push((false, f));
+        }
+        Ok(f)
+    }
+    fn describe(&self) -> String {
+        self.inner.describe()
+    }
+}
+
+/// One example of the demo: a name and what the client does.
+type DemoStep<'a> = Box<dyn Fn() -> Result<(), PcError> + 'a>;
+
+/// The manual's chapter 8 (CAN) and 9 (RS232) examples against the emulator (module 17).
+pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
+    let color = std::io::stdout().is_terminal();
+    let title = |s: &str| if color { format!("\x1b[1m{s}\x1b[0m") } else { s.to_string() };
+    writeln!(out, "{}", title("PowerCube: chapter 8, CAN examples (module 17, emulated at 1 Mbit/s)"))?;
+    {
+        let clock = ManualClock::new_auto();
+        let _me = clock.reserve_participant().enter();
+        let sim = SimBus::new_can(&SimConfig::with_addresses(&[17]).map_err(CliError::usage)?);
+        let can = CanBus::with_emulator(sim, clock.shared(), CanBusConfig::paced(1_000_000));
+        let log = Arc::new(Mutex::new(Vec::new()));
+        let link = TapCan { inner: can.connect(), log: Arc::clone(&log) };
+        let bus = Bus::can(Box::new(link), clock.shared(), BusConfig::can());
+        let m = bus.module(17).map_err(cli_err)?;
+        let steps: Vec<(&str, DemoStep)> = vec![
+            ("Home", Box::new(|| m.home())),
+            ("Reset", Box::new(|| m.reset())),
+            ("Set ramp motion acceleration", Box::new(|| m.set(Param::TargetAcc, Value::F32(0.5)))),
+            ("Set ramp motion velocity", Box::new(|| m.set(Param::TargetVel, Value::F32(0.08)))),
+            (
+                "Ramp motion command",
+                Box::new(|| m.motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Simple).map(|_| ())),
+            ),
+            ("Retrieve module state", Box::new(|| m.state().map(|_| ()))),
+            ("Retrieve module position", Box::new(|| m.position().map(|_| ()))),
+            (
+                "Ramp motion command with extended acknowledge",
+                Box::new(|| m.motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Extended).map(|_| ())),
+            ),
+            ("Halt", Box::new(|| m.halt())),
+        ];
+        for (name, step) in steps {
+            step().map_err(cli_err)?;
+            writeln!(out, "  {name}")?;
+            for (sent, f) in motionlink_link::clock::lock(&log).drain(..) {
+                let arrow = if sent { "->" } else { "<-" };
+                writeln!(out, "    {arrow} {:<24} {}", f.to_string(), describe_can(&f))?;
+            }
+        }
+        bus.halt_started();
+    }
+    writeln!(out)?;
+    writeln!(out, "{}", title("PowerCube: chapter 9, RS232 examples (module 17, emulated at 9600 baud)"))?;
+    {
+        let clock = ManualClock::new_auto();
+        let _me = clock.reserve_participant().enter();
+        let sim = SimBus::new(&SimConfig::with_addresses(&[17]).map_err(CliError::usage)?);
+        let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(9_600));
+        let transcript = Transcript::new();
+        let link = TapLink::new(host.connect().0, clock.shared(), transcript.clone());
+        let bus = Bus::rs232(Box::new(link), clock.shared(), BusConfig::rs232());
+        let m = bus.module(17).map_err(cli_err)?;
+        let steps: Vec<(&str, DemoStep)> = vec![
+            ("Home", Box::new(|| m.home())),
+            ("Reset", Box::new(|| m.reset())),
+            ("Set ramp motion acceleration 0.5", Box::new(|| m.set(Param::TargetAcc, Value::F32(0.5)))),
+            ("Set ramp motion velocity 0.08", Box::new(|| m.set(Param::TargetVel, Value::F32(0.08)))),
+            (
+                "Ramp motion command to 0.75",
+                Box::new(|| m.motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Simple).map(|_| ())),
+            ),
+            ("Halt (0x02 escaped as 10 82)", Box::new(|| m.halt())),
+        ];
+        for (name, step) in steps {
+            step().map_err(cli_err)?;
+            writeln!(out, "  {name}")?;
+            for r in transcript.take() {
+                let arrow = if r.way == Way::Sent { "->" } else { "<-" };
+                let mut d = Rs232Decoder::new();
+                let meaning: Vec<String> =
+                    d.feed(&r.bytes).map(|f| f.map_or_else(|e| e.to_string(), |f| describe_rs232(&f))).collect();
+                writeln!(out, "    {arrow} {:<33} {}", common::hex(&r.bytes), meaning.join("; "))?;
+            }
+        }
+    }
     Ok(())
 }

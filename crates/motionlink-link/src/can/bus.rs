@@ -1,0 +1,437 @@
+//! An in-memory CAN bus for tests, benchmarks and in-process emulators.
+//!
+//! Any number of nodes ([`CanBusLink`]) and at most one emulated device ([`CanEmulator`]) share one medium.
+//! A frame occupies the bus for its [`CanFrame::bit_length`] at the configured bit rate, after every frame
+//! queued before it (first come, first served: identifier arbitration between frames queued at the same
+//! instant is not modelled), and then arrives at every other node and at the device. The device runs
+//! lazily, like [`EmulatorHost`](crate::pipe::EmulatorHost): whenever a node sends or reads, it is brought up
+//! to the clock's time, each frame delivered at the instant it arrived.
+//!
+//! ```
+//! use motionlink_link::can::{CanBus, CanBusConfig, CanFrame, CanLink};
+//! use motionlink_link::clock::{Clock, ManualClock, Timestamp};
+//! use std::time::Duration;
+//!
+//! let clock = ManualClock::new();
+//! let bus = CanBus::new(clock.shared(), CanBusConfig::paced(1_000_000));
+//! let (mut a, mut b) = (bus.connect(), bus.connect());
+//! a.send(&CanFrame::new(0x0D1, &[0x0a, 0x3c]).unwrap()).unwrap();
+//! assert_eq!(b.recv(Duration::ZERO).unwrap(), None); // still on the wire: 63 bits = 63 µs
+//! clock.advance(Duration::from_micros(63));
+//! assert_eq!(b.recv(Duration::ZERO).unwrap().unwrap().id(), 0x0D1);
+//! ```
+
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use super::{CanEmulator, CanFrame, CanLink};
+use crate::clock::{lock, SharedClock, Signal, Timestamp};
+use crate::link::LinkError;
+
+/// How the bus is paced.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct CanBusConfig {
+    /// Bits per second; `None`: frames arrive at the instant they are sent.
+    pub bitrate: Option<u32>,
+    /// Count the worst-case stuff bits ([`CanFrame::bit_length_worst_case`]) instead of none.
+    pub worst_case_stuffing: bool,
+}
+
+impl CanBusConfig {
+    /// Frames arrive at the instant they are sent.
+    pub fn instant() -> Self {
+        CanBusConfig { bitrate: None, worst_case_stuffing: false }
+    }
+
+    /// Frames take their length in bits (without stuff bits) at `bitrate` bits per second.
+    pub fn paced(bitrate: u32) -> Self {
+        CanBusConfig { bitrate: Some(bitrate), worst_case_stuffing: false }
+    }
+
+    /// How long `frame` occupies the bus.
+    pub fn frame_time(&self, frame: &CanFrame) -> Duration {
+        match self.bitrate {
+            None => Duration::ZERO,
+            Some(rate) => {
+                let bits = if self.worst_case_stuffing { frame.bit_length_worst_case() } else { frame.bit_length() };
+                Duration::from_nanos(u64::from(bits) * 1_000_000_000 / u64::from(rate.max(1)))
+            }
+        }
+    }
+}
+
+/// A bus without an emulated device: only the nodes talk.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct NoDevice;
+
+impl CanEmulator for NoDevice {
+    fn receive(&mut self, _now: Timestamp, _frame: &CanFrame, _out: &mut Vec<CanFrame>) {}
+    fn advance(&mut self, _now: Timestamp, _out: &mut Vec<CanFrame>) {}
+    fn next_wakeup(&self) -> Option<Timestamp> {
+        None
+    }
+}
+
+/// Who put a frame on the bus.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Sender {
+    Node(usize),
+    Device,
+}
+
+struct Node {
+    queue: VecDeque<(Timestamp, CanFrame)>,
+    wake: Signal,
+}
+
+struct BusState<E> {
+    config: CanBusConfig,
+    busy_until: Timestamp,
+    nodes: Vec<Option<Node>>,
+    device: Option<E>,
+    to_device: VecDeque<(Timestamp, CanFrame)>,
+    device_last: Timestamp,
+    scratch: Vec<CanFrame>,
+    drop_to_device: u64,
+    drop_from_device: u64,
+    broken: bool,
+    frames_carried: u64,
+}
+
+impl<E: CanEmulator> BusState<E> {
+    fn transmit(&mut self, from: Sender, at: Timestamp, frame: CanFrame) {
+        match from {
+            Sender::Device if self.drop_from_device > 0 => {
+                self.drop_from_device -= 1;
+                return;
+            }
+            Sender::Node(_) if self.drop_to_device > 0 && self.device.is_some() => {
+                self.drop_to_device -= 1;
+                return;
+            }
+            _ => {}
+        }
+        let start = self.busy_until.max(at);
+        let end = start + self.config.frame_time(&frame);
+        self.busy_until = end;
+        self.frames_carried += 1;
+        for (i, node) in self.nodes.iter_mut().enumerate() {
+            if let Some(node) = node {
+                if from != Sender::Node(i) {
+                    node.queue.push_back((end, frame));
+                    node.wake.raise();
+                }
+            }
+        }
+        if from != Sender::Device && self.device.is_some() {
+            self.to_device.push_back((end, frame));
+        }
+    }
+
+    /// Runs the device up to `now`: delivers frames at their arrival times, fires its timers in order.
+    fn pump(&mut self, now: Timestamp) {
+        let Some(mut device) = self.device.take() else { return };
+        loop {
+            let frame_at = self.to_device.front().map(|(t, _)| *t).filter(|t| *t <= now);
+            let timer_at = device.next_wakeup().filter(|t| *t <= now && *t >= self.device_last);
+            let (t, is_frame) = match (frame_at, timer_at) {
+                (Some(f), Some(w)) if w < f => (w, false),
+                (Some(f), _) => (f, true),
+                (None, Some(w)) => (w, false),
+                (None, None) => break,
+            };
+            let mut out = std::mem::take(&mut self.scratch);
+            out.clear();
+            if is_frame {
+                if let Some((_, frame)) = self.to_device.pop_front() {
+                    device.receive(t, &frame, &mut out);
+                }
+            } else {
+                let before = device.next_wakeup();
+                device.advance(t, &mut out);
+                if device.next_wakeup() == before && out.is_empty() {
+                    self.device_last = t;
+                    self.scratch = out;
+                    break;
+                }
+            }
+            self.device_last = self.device_last.max(t);
+            for f in out.drain(..) {
+                self.transmit(Sender::Device, t, f);
+            }
+            self.scratch = out;
+        }
+        let mut out = std::mem::take(&mut self.scratch);
+        out.clear();
+        device.advance(now, &mut out);
+        self.device_last = self.device_last.max(now);
+        for f in out.drain(..) {
+            self.transmit(Sender::Device, now, f);
+        }
+        self.scratch = out;
+        self.device = Some(device);
+    }
+}
+
+/// An in-memory CAN bus, optionally with an emulated device `E` on it; cheap to clone (clones share the bus).
+pub struct CanBus<E = NoDevice> {
+    state: Arc<Mutex<BusState<E>>>,
+    clock: SharedClock,
+}
+
+impl<E> Clone for CanBus<E> {
+    fn clone(&self) -> Self {
+        CanBus { state: Arc::clone(&self.state), clock: Arc::clone(&self.clock) }
+    }
+}
+
+impl CanBus<NoDevice> {
+    /// A bus with nodes only.
+    pub fn new(clock: SharedClock, config: CanBusConfig) -> Self {
+        Self::build(None, clock, config)
+    }
+}
+
+impl<E: CanEmulator> CanBus<E> {
+    /// A bus with `device` on it.
+    pub fn with_emulator(device: E, clock: SharedClock, config: CanBusConfig) -> Self {
+        Self::build(Some(device), clock, config)
+    }
+
+    fn build(device: Option<E>, clock: SharedClock, config: CanBusConfig) -> Self {
+        CanBus {
+            state: Arc::new(Mutex::new(BusState {
+                config,
+                busy_until: Timestamp::ZERO,
+                nodes: Vec::new(),
+                device,
+                to_device: VecDeque::new(),
+                device_last: Timestamp::ZERO,
+                scratch: Vec::new(),
+                drop_to_device: 0,
+                drop_from_device: 0,
+                broken: false,
+                frames_carried: 0,
+            })),
+            clock,
+        }
+    }
+
+    /// A new node on the bus. It receives every frame put on the bus after this call by anyone else.
+    pub fn connect(&self) -> CanBusLink<E> {
+        let wake = self.clock.signal();
+        let mut st = lock(&self.state);
+        let now = self.clock.now();
+        st.pump(now);
+        let node = Node { queue: VecDeque::new(), wake: wake.clone() };
+        let index = match st.nodes.iter().position(Option::is_none) {
+            Some(i) => {
+                st.nodes[i] = Some(node);
+                i
+            }
+            None => {
+                st.nodes.push(Some(node));
+                st.nodes.len() - 1
+            }
+        };
+        CanBusLink { bus: self.clone(), index, wake, name: format!("in-memory CAN bus (node {index})") }
+    }
+
+    /// Runs `f` on the device, brought up to the clock's current time first. `None` on a bus without one.
+    pub fn with_device<R>(&self, f: impl FnOnce(&mut E) -> R) -> Option<R> {
+        let mut st = lock(&self.state);
+        st.pump(self.clock.now());
+        st.device.as_mut().map(f)
+    }
+
+    /// Loses the next `count` frames the nodes send to the device (a device that misses them).
+    pub fn drop_next_to_device(&self, count: u64) {
+        lock(&self.state).drop_to_device += count;
+    }
+
+    /// Loses the next `count` frames the device sends.
+    pub fn drop_next_from_device(&self, count: u64) {
+        lock(&self.state).drop_from_device += count;
+    }
+
+    /// Breaks the bus (a cable pulled, a controller gone bus-off): every node's next call fails with
+    /// [`LinkError::Disconnected`].
+    pub fn disconnect(&self) {
+        let mut st = lock(&self.state);
+        st.broken = true;
+        for node in st.nodes.iter().flatten() {
+            node.wake.raise();
+        }
+    }
+
+    /// Frames carried so far (every frame counts once, however many nodes receive it).
+    pub fn frames_carried(&self) -> u64 {
+        lock(&self.state).frames_carried
+    }
+
+    /// The clock that times the bus.
+    pub fn clock(&self) -> &SharedClock {
+        &self.clock
+    }
+}
+
+/// One node of a [`CanBus`]; a [`CanLink`].
+pub struct CanBusLink<E = NoDevice> {
+    bus: CanBus<E>,
+    index: usize,
+    wake: Signal,
+    name: String,
+}
+
+impl<E> CanBusLink<E> {
+    fn gone(&self) -> LinkError {
+        LinkError::Disconnected { port: self.name.clone(), reason: "CAN bus broken".into() }
+    }
+}
+
+impl<E: CanEmulator> CanLink for CanBusLink<E> {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), LinkError> {
+        let now = self.bus.clock.now();
+        let mut st = lock(&self.bus.state);
+        if st.broken {
+            return Err(self.gone());
+        }
+        st.pump(now);
+        st.transmit(Sender::Node(self.index), now, *frame);
+        Ok(())
+    }
+
+    fn recv(&mut self, timeout: Duration) -> Result<Option<CanFrame>, LinkError> {
+        let deadline = self.bus.clock.now() + timeout;
+        loop {
+            let now = self.bus.clock.now();
+            let next = {
+                let mut st = lock(&self.bus.state);
+                if st.broken {
+                    return Err(self.gone());
+                }
+                st.pump(now);
+                let Some(Some(node)) = st.nodes.get_mut(self.index) else { return Err(self.gone()) };
+                match node.queue.front() {
+                    Some(&(t, frame)) if t <= now => {
+                        node.queue.pop_front();
+                        return Ok(Some(frame));
+                    }
+                    _ => {}
+                }
+                let own = node.queue.front().map(|(t, _)| *t);
+                let dev = st.to_device.front().map(|(t, _)| *t);
+                let timer = st.device.as_ref().and_then(|d| d.next_wakeup()).filter(|t| *t > now);
+                [own, dev, timer].into_iter().flatten().min()
+            };
+            if now >= deadline {
+                return Ok(None);
+            }
+            let until = next.map_or(deadline, |t| t.min(deadline));
+            self.wake.wait_until(Some(until));
+        }
+    }
+
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        let now = self.bus.clock.now();
+        let mut st = lock(&self.bus.state);
+        st.pump(now);
+        if let Some(Some(node)) = st.nodes.get_mut(self.index) {
+            node.queue.retain(|(t, _)| *t > now);
+        }
+        Ok(())
+    }
+
+    fn describe(&self) -> String {
+        self.name.clone()
+    }
+}
+
+impl<E> Drop for CanBusLink<E> {
+    fn drop(&mut self) {
+        let mut st = lock(&self.bus.state);
+        if let Some(slot) = st.nodes.get_mut(self.index) {
+            *slot = None;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::clock::{Clock, ManualClock};
+
+    /// Answers a frame with id X by id X + 1 and the same data; says 0x7FF by itself at 10 ms.
+    #[derive(Default)]
+    struct Plus1 {
+        seen: Vec<Timestamp>,
+        told: bool,
+    }
+
+    impl CanEmulator for Plus1 {
+        fn receive(&mut self, now: Timestamp, frame: &CanFrame, out: &mut Vec<CanFrame>) {
+            self.seen.push(now);
+            out.push(CanFrame::new(frame.id() + 1, frame.data()).unwrap());
+        }
+        fn advance(&mut self, now: Timestamp, out: &mut Vec<CanFrame>) {
+            if !self.told && now >= Timestamp::from_millis(10) {
+                self.told = true;
+                out.push(CanFrame::new(0x7FF, &[]).unwrap());
+            }
+        }
+        fn next_wakeup(&self) -> Option<Timestamp> {
+            (!self.told).then_some(Timestamp::from_millis(10))
+        }
+    }
+
+    #[test]
+    fn frames_queue_back_to_back_at_the_bit_rate() {
+        let clock = ManualClock::new();
+        let bus = CanBus::with_emulator(Plus1::default(), clock.shared(), CanBusConfig::paced(500_000));
+        let mut host = bus.connect();
+        let f = CanFrame::new(0x100, &[1, 2]).unwrap(); // 63 bits = 126 µs at 500 kbit/s
+        host.send(&f).unwrap();
+        host.send(&f).unwrap();
+        clock.advance(Duration::from_millis(1));
+        // Device saw them at 126 and 252 µs; its answers follow at 378 and 504 µs.
+        assert_eq!(
+            bus.with_device(|d| d.seen.clone()).unwrap(),
+            vec![Timestamp::from_micros(126), Timestamp::from_micros(252)]
+        );
+        assert_eq!(host.recv(Duration::ZERO).unwrap().unwrap().id(), 0x101);
+        assert_eq!(host.recv(Duration::ZERO).unwrap().unwrap().id(), 0x101);
+        assert_eq!(host.recv(Duration::ZERO).unwrap(), None);
+        assert_eq!(bus.frames_carried(), 4);
+    }
+
+    #[test]
+    fn a_waiting_node_is_woken_by_the_device_timer() {
+        let clock = ManualClock::new_auto();
+        let _me = clock.reserve_participant().enter();
+        let bus = CanBus::with_emulator(Plus1::default(), clock.shared(), CanBusConfig::paced(1_000_000));
+        let mut host = bus.connect();
+        let got = host.recv(Duration::from_secs(1)).unwrap().unwrap();
+        assert_eq!(got.id(), 0x7FF);
+        assert_eq!(clock.now(), Timestamp::from_millis(10) + Duration::from_micros(47));
+    }
+
+    #[test]
+    fn nodes_hear_each_other_not_themselves_and_faults_apply() {
+        let clock = ManualClock::new();
+        let bus = CanBus::with_emulator(Plus1::default(), clock.shared(), CanBusConfig::instant());
+        let mut a = bus.connect();
+        let mut b = bus.connect();
+        bus.drop_next_from_device(1);
+        a.send(&CanFrame::new(0x10, &[]).unwrap()).unwrap();
+        assert_eq!(b.recv(Duration::ZERO).unwrap().unwrap().id(), 0x10);
+        assert_eq!(b.recv(Duration::ZERO).unwrap(), None, "the device's answer was dropped");
+        assert_eq!(a.recv(Duration::ZERO).unwrap(), None, "a node does not hear itself");
+        bus.drop_next_to_device(1);
+        a.send(&CanFrame::new(0x20, &[]).unwrap()).unwrap();
+        assert_eq!(bus.with_device(|d| d.seen.len()).unwrap(), 1);
+        bus.disconnect();
+        assert!(a.recv(Duration::ZERO).unwrap_err().is_disconnect());
+        assert!(b.send(&CanFrame::new(1, &[]).unwrap()).unwrap_err().is_disconnect());
+    }
+}

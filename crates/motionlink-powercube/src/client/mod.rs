@@ -1,0 +1,1016 @@
+//! A session with a bus of modules over RS232 or CAN: request/acknowledge matching, timeouts, retries of
+//! reads, the watchdog refresh in a background thread, and halting what the session set in motion.
+//!
+//! ```
+//! use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+//! use motionlink_link::clock::{Clock, ManualClock};
+//! use motionlink_powercube::client::{Bus, BusConfig};
+//! use motionlink_powercube::model::{Position, StateFlag};
+//! use motionlink_powercube::sim::{SimBus, SimConfig};
+//! use std::time::Duration;
+//!
+//! let clock = ManualClock::new_auto();
+//! let _me = clock.reserve_participant().enter();
+//! let host = EmulatorHost::new(SimBus::new(&SimConfig::default()), clock.shared(), PipeConfig::paced(9_600));
+//! let bus = Bus::rs232(Box::new(host.connect().0), clock.shared(), BusConfig::rs232());
+//! let joint = bus.module(1).unwrap();
+//! joint.home().unwrap();
+//! joint.wait_home(Duration::from_secs(10), &mut |_| {}).unwrap();
+//! joint.move_ramp(Position(0.5), None).unwrap();
+//! let state = joint.wait_ramp_end(Duration::from_secs(10), &mut |_| {}).unwrap();
+//! assert!(state.contains(StateFlag::RampEnd));
+//! assert!((joint.position().unwrap().0 - 0.5).abs() < 1e-4);
+//! ```
+
+mod lock;
+mod transport;
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread;
+use std::time::Duration;
+
+use motionlink_link::can::CanLink;
+use motionlink_link::cancel::CancelToken;
+use motionlink_link::clock::lock as lock_mutex;
+use motionlink_link::{Link, LinkError, SharedClock, Signal, Timestamp};
+
+use crate::model::{
+    AckKind, Action, Broadcast, ConfigFlag, ConfigWord, CubeState, CubeVersion, Dio, ExtAck, Millis, ModelError,
+    ModuleKind, Motion, Param, Position, Ramp, Reply, Request, ShortState, StateFlag, Ticks, Value,
+};
+use crate::wire::{is_module_address, ACK_OK, MAX_ADDRESS};
+use lock::ClockLock;
+use transport::{Incoming, Transport};
+
+/// Timing and retry settings of a session; the defaults depend on the carrier.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BusConfig {
+    /// How long to wait for an acknowledge.
+    pub reply_timeout: Duration,
+    /// How often a read is repeated after a timeout or a corrupt answer (writes and motions never are).
+    pub read_retries: u32,
+    /// How long a scan waits for each address (RS232) or for all answers (CAN).
+    pub scan_timeout: Duration,
+    /// How often the watchdog refresh is broadcast while the watchdog is served (the modules wait 50 ms).
+    pub watchdog_period: Duration,
+    /// How often the state is polled while waiting for homing or a motion to end.
+    pub poll_interval: Duration,
+}
+
+impl BusConfig {
+    /// RS232: a full frame takes up to 25 ms each way at 9600 baud; acknowledges within 200 ms.
+    pub fn rs232() -> Self {
+        BusConfig {
+            reply_timeout: Duration::from_millis(200),
+            read_retries: 2,
+            scan_timeout: Duration::from_millis(60),
+            watchdog_period: Duration::from_millis(20),
+            poll_interval: Duration::from_millis(20),
+        }
+    }
+
+    /// CAN: acknowledges within 50 ms.
+    pub fn can() -> Self {
+        BusConfig {
+            reply_timeout: Duration::from_millis(50),
+            read_retries: 2,
+            scan_timeout: Duration::from_millis(50),
+            watchdog_period: Duration::from_millis(20),
+            poll_interval: Duration::from_millis(20),
+        }
+    }
+}
+
+/// What went wrong in a session. Device errors ([`Error::is_device`]) are the module's answer; transport
+/// errors ([`Error::is_transport`]) are the line's; usage errors ([`Error::is_usage`]) are the caller's.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The port or the line failed.
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    /// No acknowledge in time.
+    #[error("module {address} did not answer {request} within {} ms", waited.as_millis())]
+    Timeout {
+        /// The module.
+        address: u8,
+        /// The request, described.
+        request: String,
+        /// How long the session waited (the last attempt).
+        waited: Duration,
+    },
+    /// Only a corrupt answer came (bad BCC, broken frame, unknown content).
+    #[error("module {address}: corrupt answer to {request}: {detail}")]
+    Corrupt {
+        /// The module.
+        address: u8,
+        /// The request, described.
+        request: String,
+        /// What was wrong.
+        detail: String,
+    },
+    /// The module reports error flags; they are named.
+    #[error("module {address} reports an error: {}", fault_names(*state))]
+    Device {
+        /// The module.
+        address: u8,
+        /// Its state word (match on the flags with [`CubeState::contains`]).
+        state: CubeState,
+    },
+    /// The module is halted (STATE_HALTED) without an error flag: a Halt, or a watchdog that expired.
+    #[error("module {address} is halted (STATE_HALTED); send a reset")]
+    Halted {
+        /// The module.
+        address: u8,
+        /// Its state word.
+        state: CubeState,
+    },
+    /// The module acknowledged with a status other than 0x64.
+    #[error("module {address} refused {request} (status 0x{status:02X})")]
+    Refused {
+        /// The module.
+        address: u8,
+        /// The request, described.
+        request: String,
+        /// The status byte.
+        status: u8,
+    },
+    /// Homing or a motion did not end in time; the motion was halted.
+    #[error("module {address}: {what} did not happen within {} ms (state: {state})", waited.as_millis())]
+    WaitTimeout {
+        /// The module.
+        address: u8,
+        /// What was waited for.
+        what: &'static str,
+        /// How long.
+        waited: Duration,
+        /// The last state read.
+        state: CubeState,
+    },
+    /// The wait was cancelled (Ctrl-C); the motion was halted.
+    #[error("module {address}: cancelled, motion halted")]
+    Cancelled {
+        /// The module.
+        address: u8,
+    },
+    /// A request the manual does not allow (access, type): nothing was sent.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// An address outside 1..31.
+    #[error("module address {0} is outside 1..31")]
+    InvalidAddress(u8),
+    /// Something this client does not do.
+    #[error("{0}")]
+    Unsupported(String),
+}
+
+fn fault_names(state: CubeState) -> String {
+    let names: Vec<&str> = state.faults().map(|f| f.name()).collect();
+    if names.is_empty() {
+        state.to_string()
+    } else {
+        names.join(" | ")
+    }
+}
+
+impl Error {
+    /// The line failed: port, timeout, corrupt answer.
+    pub fn is_transport(&self) -> bool {
+        matches!(self, Error::Link(_) | Error::Timeout { .. } | Error::Corrupt { .. })
+    }
+
+    /// The module refused or reported an error, or an action did not complete.
+    pub fn is_device(&self) -> bool {
+        matches!(
+            self,
+            Error::Device { .. }
+                | Error::Halted { .. }
+                | Error::Refused { .. }
+                | Error::WaitTimeout { .. }
+                | Error::Cancelled { .. }
+        )
+    }
+
+    /// The request was wrong before anything was sent.
+    pub fn is_usage(&self) -> bool {
+        matches!(self, Error::Model(_) | Error::InvalidAddress(_) | Error::Unsupported(_))
+    }
+
+    fn retryable(&self) -> bool {
+        matches!(self, Error::Timeout { .. } | Error::Corrupt { .. })
+    }
+}
+
+/// What a scan finds at one address.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModuleInfo {
+    /// The address.
+    pub address: u8,
+    /// Rotary or linear (from the Config word).
+    pub kind: ModuleKind,
+    /// Firmware version.
+    pub version: CubeVersion,
+    /// Serial number.
+    pub serial: u32,
+    /// The state word.
+    pub state: CubeState,
+}
+
+/// One poll while waiting for homing or a motion: position and state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Progress {
+    /// The module.
+    pub address: u8,
+    /// Its position.
+    pub position: Position,
+    /// Its state.
+    pub state: CubeState,
+    /// Time waited so far.
+    pub elapsed: Duration,
+}
+
+#[derive(Debug)]
+struct WatchdogDuty {
+    serving: bool,
+    next_due: Timestamp,
+    period: Duration,
+    /// Modules whose watchdog this session switched on.
+    online: BTreeSet<u8>,
+    last_error: Option<String>,
+}
+
+struct Inner {
+    clock: SharedClock,
+    config: BusConfig,
+    io: ClockLock<Transport>,
+    description: String,
+    can: bool,
+    started: Mutex<BTreeSet<u8>>,
+    duty: Mutex<WatchdogDuty>,
+    kinds: Mutex<BTreeMap<u8, ModuleKind>>,
+    cancel: Mutex<Option<CancelToken>>,
+}
+
+struct WatchdogThread {
+    stop: Arc<AtomicBool>,
+    wake: Signal,
+    handle: Option<thread::JoinHandle<()>>,
+}
+
+/// A session with the modules on one line (RS232) or one CAN bus.
+///
+/// Dropping it stops the watchdog thread and halts every module the session set in motion that is still
+/// moving (or cannot be asked).
+pub struct Bus {
+    inner: Arc<Inner>,
+    watchdog: Mutex<Option<WatchdogThread>>,
+}
+
+impl fmt::Debug for Bus {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Bus").field("port", &self.inner.description).finish()
+    }
+}
+
+impl Bus {
+    /// A session over an RS232 byte link (a serial port, TCP, a pty, an in-memory link).
+    pub fn rs232(link: Box<dyn Link>, clock: SharedClock, config: BusConfig) -> Bus {
+        Self::build(Transport::rs232(link), clock, config)
+    }
+
+    /// A session over a CAN link (SocketCAN, SLCAN, the in-memory bus).
+    pub fn can(link: Box<dyn CanLink>, clock: SharedClock, config: BusConfig) -> Bus {
+        Self::build(Transport::can(link), clock, config)
+    }
+
+    fn build(transport: Transport, clock: SharedClock, config: BusConfig) -> Bus {
+        let description = transport.describe();
+        let can = transport.is_can();
+        let duty = WatchdogDuty {
+            serving: false,
+            next_due: Timestamp::ZERO,
+            period: config.watchdog_period,
+            online: BTreeSet::new(),
+            last_error: None,
+        };
+        Bus {
+            inner: Arc::new(Inner {
+                io: ClockLock::new(Arc::clone(&clock), transport),
+                clock,
+                config,
+                description,
+                can,
+                started: Mutex::new(BTreeSet::new()),
+                duty: Mutex::new(duty),
+                kinds: Mutex::new(BTreeMap::new()),
+                cancel: Mutex::new(None),
+            }),
+            watchdog: Mutex::new(None),
+        }
+    }
+
+    /// The port, for messages.
+    pub fn describe(&self) -> &str {
+        &self.inner.description
+    }
+
+    /// True on a CAN bus.
+    pub fn is_can(&self) -> bool {
+        self.inner.can
+    }
+
+    /// The session's settings.
+    pub fn config(&self) -> &BusConfig {
+        &self.inner.config
+    }
+
+    /// The session's clock.
+    pub fn clock(&self) -> &SharedClock {
+        &self.inner.clock
+    }
+
+    /// Every wait of this session watches `token`: when it is cancelled (Ctrl-C), the motion is halted and
+    /// the wait returns [`Error::Cancelled`].
+    pub fn set_cancel_token(&self, token: CancelToken) {
+        *lock_mutex(&self.inner.cancel) = Some(token);
+    }
+
+    /// A handle on the module at `address` (1..31). Nothing is sent.
+    pub fn module(&self, address: u8) -> Result<Module<'_>, Error> {
+        if !is_module_address(address) {
+            return Err(Error::InvalidAddress(address));
+        }
+        Ok(Module { bus: self, address })
+    }
+
+    /// One request, its acknowledge checked; reads are retried.
+    pub fn request(&self, address: u8, request: &Request) -> Result<Reply, Error> {
+        if !is_module_address(address) {
+            return Err(Error::InvalidAddress(address));
+        }
+        let attempts = if request.is_idempotent() { 1 + self.inner.config.read_retries } else { 1 };
+        if request.starts_motion() {
+            lock_mutex(&self.inner.started).insert(address);
+        }
+        let mut last = None;
+        for attempt in 0..attempts {
+            match self.inner.transact_many(&[(address, *request)], self.inner.config.reply_timeout).pop() {
+                Some(Ok(reply)) => return check_reply(address, request, reply),
+                Some(Err(e)) if e.retryable() && attempt + 1 < attempts => {
+                    tracing::debug!("{e}; trying again");
+                    last = Some(e);
+                }
+                Some(Err(e)) => return Err(e),
+                None => break,
+            }
+        }
+        Err(last.unwrap_or_else(|| Error::Unsupported("no request".into())))
+    }
+
+    /// Several requests to several modules; on CAN all are sent at once and the acknowledges collected in
+    /// any order, on RS232 one after the other. Reads that fail are retried.
+    pub fn request_many(&self, requests: &[(u8, Request)]) -> Vec<Result<Reply, Error>> {
+        let mut results: Vec<Option<Result<Reply, Error>>> = requests.iter().map(|_| None).collect();
+        for (i, (address, request)) in requests.iter().enumerate() {
+            if !is_module_address(*address) {
+                results[i] = Some(Err(Error::InvalidAddress(*address)));
+            } else if request.starts_motion() {
+                lock_mutex(&self.inner.started).insert(*address);
+            }
+        }
+        for attempt in 0..=self.inner.config.read_retries {
+            let todo: Vec<usize> = (0..requests.len())
+                .filter(|&i| match &results[i] {
+                    None => true,
+                    Some(Err(e)) => attempt > 0 && e.retryable() && requests[i].1.is_idempotent(),
+                    Some(Ok(_)) => false,
+                })
+                .collect();
+            if todo.is_empty() {
+                break;
+            }
+            let batch: Vec<(u8, Request)> = todo.iter().map(|&i| requests[i]).collect();
+            let answers = if self.inner.can {
+                self.inner.transact_many(&batch, self.inner.config.reply_timeout)
+            } else {
+                batch.iter().flat_map(|r| self.inner.transact_many(&[*r], self.inner.config.reply_timeout)).collect()
+            };
+            for (&i, answer) in todo.iter().zip(answers) {
+                let (address, request) = &requests[i];
+                results[i] = Some(answer.and_then(|r| check_reply(*address, request, r)));
+            }
+        }
+        results.into_iter().map(|r| r.unwrap_or_else(|| Err(Error::Unsupported("not sent".into())))).collect()
+    }
+
+    /// Reads `param` of every module in `addresses` (on CAN in one round).
+    pub fn read_many(&self, addresses: &[u8], param: Param) -> Vec<Result<Value, Error>> {
+        let req = match Request::get(param) {
+            Ok(r) => r,
+            Err(e) => return addresses.iter().map(|_| Err(Error::Model(e.clone()))).collect(),
+        };
+        let requests: Vec<(u8, Request)> = addresses.iter().map(|a| (*a, req)).collect();
+        self.request_many(&requests)
+            .into_iter()
+            .map(|r| match r? {
+                Reply::Get(_, v) => Ok(v),
+                other => Err(Error::Unsupported(format!("unexpected answer {other}"))),
+            })
+            .collect()
+    }
+
+    /// The positions of `addresses` (ActPos), on CAN in one round.
+    pub fn positions(&self, addresses: &[u8]) -> Vec<Result<Position, Error>> {
+        self.read_many(addresses, Param::ActPos)
+            .into_iter()
+            .map(|r| r.map(|v| Position(v.as_f32().unwrap_or(f32::NAN))))
+            .collect()
+    }
+
+    /// Sends a broadcast (never acknowledged). On RS232, where the manual defines no broadcast, it goes to
+    /// address 0, which the emulator treats as every module.
+    pub fn broadcast(&self, broadcast: Broadcast) -> Result<(), Error> {
+        match broadcast {
+            Broadcast::Halt => lock_mutex(&self.inner.started).clear(),
+            Broadcast::Home | Broadcast::StartMotion => {
+                // Every module may move: a drop must look at all of them.
+                lock_mutex(&self.inner.started).extend(1..=MAX_ADDRESS);
+            }
+            _ => {}
+        }
+        let mut io = self.inner.io.lock();
+        io.broadcast(&broadcast.encode())?;
+        Ok(())
+    }
+
+    /// Asks addresses 1..31 for their version; returns what answers, with type, serial number and state.
+    pub fn scan(&self) -> Result<Vec<ModuleInfo>, Error> {
+        let found: Vec<u8> = if self.inner.can {
+            let batch: Vec<(u8, Request)> =
+                (1..=MAX_ADDRESS).map(|a| (a, Request::Get(Param::DefCubeVersion))).collect();
+            let answers = self.inner.transact_many(&batch, self.inner.config.scan_timeout);
+            let mut found = Vec::new();
+            for ((a, _), r) in batch.iter().zip(answers) {
+                match r {
+                    Ok(_) => found.push(*a),
+                    Err(e) if e.retryable() => {}
+                    Err(e) => return Err(e),
+                }
+            }
+            found
+        } else {
+            let mut found = Vec::new();
+            for a in 1..=MAX_ADDRESS {
+                match self
+                    .inner
+                    .transact_many(&[(a, Request::Get(Param::DefCubeVersion))], self.inner.config.scan_timeout)
+                    .pop()
+                {
+                    Some(Ok(_)) => found.push(a),
+                    Some(Err(e)) if e.retryable() => {}
+                    Some(Err(e)) => return Err(e),
+                    None => {}
+                }
+            }
+            found
+        };
+        found.into_iter().map(|a| self.module(a)?.info()).collect()
+    }
+
+    /// Switches the watchdog on in `addresses`: sets CONFIGID_MOD_WATCHDOG_ENABLE in their Config word where
+    /// it is not set, starts broadcasting the refresh every [`BusConfig::watchdog_period`] from a background
+    /// thread, and sends each module its first life sign. From then on, if this session stops refreshing
+    /// (the program dies, the line breaks), the modules halt within 50 ms.
+    pub fn enable_watchdog(&self, addresses: &[u8]) -> Result<(), Error> {
+        for &a in addresses {
+            let module = self.module(a)?;
+            let config = module.config_word()?;
+            if !config.contains(ConfigFlag::WatchdogEnable) {
+                module.set(Param::Config, Value::U32(config.with(ConfigFlag::WatchdogEnable).0))?;
+            }
+        }
+        {
+            let mut duty = lock_mutex(&self.inner.duty);
+            duty.serving = true;
+            duty.next_due = self.inner.clock.now();
+        }
+        self.start_watchdog_thread();
+        for &a in addresses {
+            if lock_mutex(&self.inner.duty).online.contains(&a) {
+                continue;
+            }
+            // Modules acknowledge the life sign like any one-byte command; silence is accepted, as some
+            // firmware may not answer it (sending it again would switch the watchdog off).
+            match self.request(a, &Request::Action(Action::LifeSign)) {
+                Ok(_) | Err(Error::Timeout { .. }) => {}
+                Err(e) => return Err(e),
+            }
+            lock_mutex(&self.inner.duty).online.insert(a);
+        }
+        Ok(())
+    }
+
+    /// Switches the watchdog off again in the modules this session switched it on in (a second life sign),
+    /// and stops refreshing.
+    pub fn disable_watchdog(&self) -> Result<(), Error> {
+        let online: Vec<u8> = lock_mutex(&self.inner.duty).online.iter().copied().collect();
+        for a in online {
+            match self.request(a, &Request::Action(Action::LifeSign)) {
+                Ok(_) | Err(Error::Timeout { .. }) => {}
+                Err(e) => return Err(e),
+            }
+            lock_mutex(&self.inner.duty).online.remove(&a);
+        }
+        lock_mutex(&self.inner.duty).serving = false;
+        self.stop_watchdog_thread();
+        Ok(())
+    }
+
+    /// True while the session refreshes the watchdog.
+    pub fn watchdog_served(&self) -> bool {
+        lock_mutex(&self.inner.duty).serving
+    }
+
+    /// The last failure of the background refresh, if any.
+    pub fn watchdog_error(&self) -> Option<String> {
+        lock_mutex(&self.inner.duty).last_error.clone()
+    }
+
+    fn start_watchdog_thread(&self) {
+        let mut slot = lock_mutex(&self.watchdog);
+        if slot.is_some() {
+            return;
+        }
+        let inner = Arc::clone(&self.inner);
+        let stop = Arc::new(AtomicBool::new(false));
+        let wake = self.inner.clock.signal();
+        let ticket = self.inner.clock.reserve_participant();
+        let (stop2, wake2) = (Arc::clone(&stop), wake.clone());
+        let handle = thread::Builder::new()
+            .name("powercube-watchdog".into())
+            .spawn(move || {
+                let _participant = ticket.enter();
+                while !stop2.load(Ordering::SeqCst) {
+                    let now = inner.clock.now();
+                    let (serving, due, period) = {
+                        let d = lock_mutex(&inner.duty);
+                        (d.serving, d.next_due, d.period)
+                    };
+                    let mut until = if serving { due } else { now + Duration::from_secs(3600) };
+                    if serving && now >= due {
+                        match inner.io.try_lock() {
+                            Some(mut io) => {
+                                inner.serve_watchdog(&mut io);
+                                until = lock_mutex(&inner.duty).next_due;
+                            }
+                            // The session is in a transaction, which serves the watchdog itself; look again soon.
+                            None => until = now + period / 4,
+                        }
+                    }
+                    wake2.wait_until(Some(until));
+                }
+            })
+            .ok();
+        match handle {
+            Some(h) => *slot = Some(WatchdogThread { stop, wake, handle: Some(h) }),
+            None => tracing::error!("cannot start the watchdog thread; transactions still refresh it"),
+        }
+    }
+
+    fn stop_watchdog_thread(&self) {
+        if let Some(mut t) = lock_mutex(&self.watchdog).take() {
+            t.stop.store(true, Ordering::SeqCst);
+            t.wake.raise();
+            if let Some(h) = t.handle.take() {
+                let _ = h.join();
+            }
+        }
+    }
+
+    /// Modules this session set in motion and has not seen stop.
+    pub fn started(&self) -> Vec<u8> {
+        lock_mutex(&self.inner.started).iter().copied().collect()
+    }
+
+    /// Halts every module this session set in motion that is still moving or cannot be asked; what
+    /// [`Drop`] does, callable earlier.
+    pub fn halt_started(&self) {
+        let started: Vec<u8> = lock_mutex(&self.inner.started).iter().copied().collect();
+        if started.is_empty() {
+            return;
+        }
+        let states =
+            self.request_many(&started.iter().map(|a| (*a, Request::Get(Param::CubeState))).collect::<Vec<_>>());
+        let mut failed = false;
+        for (a, s) in started.iter().zip(states) {
+            let moving = match s {
+                Ok(Reply::Get(_, Value::U32(s))) => CubeState(s).contains(StateFlag::Motion),
+                Ok(_) => true,
+                // A module that did not answer the state poll is not one that answers: skip it, but try the
+                // broadcast below.
+                Err(Error::Timeout { .. }) => {
+                    failed = true;
+                    false
+                }
+                Err(_) => true,
+            };
+            if moving {
+                tracing::warn!("halting module {a}, set in motion by this session");
+                if self.request(*a, &Request::Action(Action::Halt)).is_err() {
+                    failed = true;
+                }
+            }
+        }
+        if failed {
+            let _ = self.broadcast(Broadcast::Halt);
+        }
+        lock_mutex(&self.inner.started).clear();
+    }
+}
+
+impl Drop for Bus {
+    fn drop(&mut self) {
+        self.halt_started();
+        self.stop_watchdog_thread();
+    }
+}
+
+fn check_reply(address: u8, request: &Request, reply: Reply) -> Result<Reply, Error> {
+    match reply {
+        Reply::Set(_, status) | Reply::Motion { status: Some(status), .. } if status != ACK_OK => {
+            Err(Error::Refused { address, request: request.to_string(), status })
+        }
+        r => Ok(r),
+    }
+}
+
+impl Inner {
+    /// Sends the watchdog refresh if it is due.
+    fn serve_watchdog(&self, io: &mut Transport) {
+        let mut duty = lock_mutex(&self.duty);
+        if !duty.serving {
+            return;
+        }
+        let now = self.clock.now();
+        if now < duty.next_due {
+            return;
+        }
+        duty.next_due = now + duty.period;
+        drop(duty);
+        if let Err(e) = io.broadcast(&Broadcast::WatchdogRefresh.encode()) {
+            tracing::warn!("watchdog refresh failed: {e}");
+            lock_mutex(&self.duty).last_error = Some(e.to_string());
+        }
+    }
+
+    fn next_watchdog_due(&self) -> Option<Timestamp> {
+        let duty = lock_mutex(&self.duty);
+        duty.serving.then_some(duty.next_due)
+    }
+
+    /// Sends every request, then collects acknowledges in any order until all came or `timeout` passed.
+    fn transact_many(&self, batch: &[(u8, Request)], timeout: Duration) -> Vec<Result<Reply, Error>> {
+        let mut io = self.io.lock();
+        let mut results: Vec<Option<Result<Reply, Error>>> = batch.iter().map(|_| None).collect();
+        let mut corrupt: Vec<Option<String>> = batch.iter().map(|_| None).collect();
+        if let Err(e) = io.discard_stale() {
+            return self.fail_all(batch, e);
+        }
+        let start = self.clock.now();
+        for (address, request) in batch {
+            if let Err(e) = io.send(*address, &request.encode()) {
+                return self.fail_all(batch, e);
+            }
+        }
+        let deadline = start + timeout;
+        let mut open = batch.len();
+        while open > 0 {
+            self.serve_watchdog(&mut io);
+            let now = self.clock.now();
+            if now >= deadline {
+                break;
+            }
+            let until = self.next_watchdog_due().map_or(deadline, |d| d.max(now).min(deadline));
+            let wait = until.saturating_since(now);
+            match io.recv(wait) {
+                Ok(None) => {}
+                Ok(Some(Incoming::Frame { address, payload })) => {
+                    let reply = Reply::decode(&payload);
+                    let slot = batch.iter().enumerate().position(|(i, (a, req))| {
+                        *a == address && results[i].is_none() && reply.as_ref().is_ok_and(|r| req.is_answered_by(r))
+                    });
+                    match (slot, reply) {
+                        (Some(i), Ok(r)) => {
+                            results[i] = Some(Ok(r));
+                            open -= 1;
+                        }
+                        (_, Err(e)) => {
+                            tracing::debug!("module {address}: undecodable answer {payload:?}: {e}");
+                            for (i, (a, _)) in batch.iter().enumerate() {
+                                if *a == address && results[i].is_none() {
+                                    corrupt[i] = Some(format!("{e} in {payload:?}"));
+                                }
+                            }
+                        }
+                        (None, Ok(r)) => tracing::debug!("module {address}: unexpected answer {r} (ignored)"),
+                    }
+                }
+                Ok(Some(Incoming::Corrupt(detail))) => {
+                    tracing::debug!("{}: {detail}", self.description);
+                    for (i, c) in corrupt.iter_mut().enumerate() {
+                        if results[i].is_none() {
+                            *c = Some(detail.clone());
+                        }
+                    }
+                }
+                Err(e) => return self.fail_all(batch, e),
+            }
+        }
+        let waited = self.clock.now().saturating_since(start);
+        if open > 0 {
+            io.stale = true;
+        }
+        results
+            .into_iter()
+            .zip(corrupt)
+            .zip(batch)
+            .map(|((r, c), (address, request))| match (r, c) {
+                (Some(r), _) => r,
+                (None, Some(detail)) => Err(Error::Corrupt { address: *address, request: request.to_string(), detail }),
+                (None, None) => Err(Error::Timeout { address: *address, request: request.to_string(), waited }),
+            })
+            .collect()
+    }
+
+    fn fail_all(&self, batch: &[(u8, Request)], e: LinkError) -> Vec<Result<Reply, Error>> {
+        let text = e.to_string();
+        let disconnect = e.is_disconnect();
+        let mut first = Some(e);
+        batch
+            .iter()
+            .map(|_| {
+                Err(Error::Link(first.take().unwrap_or_else(|| {
+                    if disconnect {
+                        LinkError::Disconnected { port: self.description.clone(), reason: text.clone() }
+                    } else {
+                        LinkError::Io { port: self.description.clone(), source: std::io::Error::other(text.clone()) }
+                    }
+                })))
+            })
+            .collect()
+    }
+}
+
+/// What a wait waits for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Until {
+    Home,
+    Motion,
+    Ramp,
+}
+
+impl Until {
+    fn what(self) -> &'static str {
+        match self {
+            Until::Home => "the end of homing",
+            Until::Motion => "the end of the motion",
+            Until::Ramp => "the end of the ramp",
+        }
+    }
+
+    fn reached(self, s: CubeState) -> bool {
+        !s.contains(StateFlag::Motion)
+            && match self {
+                Until::Home => s.contains(StateFlag::HomeOk),
+                Until::Motion => true,
+                Until::Ramp => s.contains(StateFlag::RampEnd),
+            }
+    }
+}
+
+/// One module on a [`Bus`], by address.
+#[derive(Debug, Clone, Copy)]
+pub struct Module<'a> {
+    bus: &'a Bus,
+    address: u8,
+}
+
+impl Module<'_> {
+    /// The address.
+    pub fn address(&self) -> u8 {
+        self.address
+    }
+
+    fn request(&self, request: &Request) -> Result<Reply, Error> {
+        self.bus.request(self.address, request)
+    }
+
+    /// Reads `param` (refused before sending if it is write-only).
+    pub fn get(&self, param: Param) -> Result<Value, Error> {
+        match self.request(&Request::get(param)?)? {
+            Reply::Get(_, v) => Ok(v),
+            other => Err(Error::Unsupported(format!("unexpected answer {other}"))),
+        }
+    }
+
+    /// Writes `param` (refused before sending if it is read-only or `value` has another type).
+    pub fn set(&self, param: Param, value: Value) -> Result<(), Error> {
+        if param == Param::Config && self.bus.inner.can {
+            if let Some(word) = value.as_u32() {
+                if ConfigWord(word).contains(ConfigFlag::DisableAck) {
+                    return Err(Error::Unsupported(
+                        "CONFIGID_MOD_DISABLE_ACK: this client needs the acknowledges of its commands".into(),
+                    ));
+                }
+            }
+        }
+        let request = Request::set(param, value)?;
+        self.request(&request)?;
+        if param == Param::Config {
+            lock_mutex(&self.bus.inner.kinds).remove(&self.address);
+        }
+        Ok(())
+    }
+
+    fn get_f32(&self, param: Param) -> Result<f32, Error> {
+        self.get(param)?.as_f32().ok_or_else(|| Error::Unsupported(format!("{param} is not a float")))
+    }
+
+    fn get_u32(&self, param: Param) -> Result<u32, Error> {
+        self.get(param)?.as_u32().ok_or_else(|| Error::Unsupported(format!("{param} is not an unsigned integer")))
+    }
+
+    /// The actual position (ActPos).
+    pub fn position(&self) -> Result<Position, Error> {
+        Ok(Position(self.get_f32(Param::ActPos)?))
+    }
+
+    /// The actual position in encoder ticks (ActIPos).
+    pub fn position_ticks(&self) -> Result<Ticks, Error> {
+        Ok(Ticks(self.get(Param::ActIPos)?.as_i32().unwrap_or(0)))
+    }
+
+    /// The state word (CubeState).
+    pub fn state(&self) -> Result<CubeState, Error> {
+        Ok(CubeState(self.get_u32(Param::CubeState)?))
+    }
+
+    /// Position, short state and DIO in one read (ActFPosStateDio).
+    pub fn position_state_dio(&self) -> Result<(Position, ShortState, Dio), Error> {
+        match self.get(Param::ActFPosStateDio)? {
+            Value::PosStateDio { pos, state, dio } => Ok((Position(pos), state, dio)),
+            other => Err(Error::Unsupported(format!("unexpected value {other:?}"))),
+        }
+    }
+
+    /// The Config word.
+    pub fn config_word(&self) -> Result<ConfigWord, Error> {
+        Ok(ConfigWord(self.get_u32(Param::Config)?))
+    }
+
+    /// Rotary or linear (read once from the Config word, then remembered).
+    pub fn kind(&self) -> Result<ModuleKind, Error> {
+        if let Some(k) = lock_mutex(&self.bus.inner.kinds).get(&self.address) {
+            return Ok(*k);
+        }
+        let kind =
+            if self.config_word()?.contains(ConfigFlag::Linear) { ModuleKind::Linear } else { ModuleKind::Rotary };
+        lock_mutex(&self.bus.inner.kinds).insert(self.address, kind);
+        Ok(kind)
+    }
+
+    /// Type, version, serial number and state.
+    pub fn info(&self) -> Result<ModuleInfo, Error> {
+        let version = match self.get(Param::DefCubeVersion)? {
+            Value::U16(v) => CubeVersion(v),
+            other => return Err(Error::Unsupported(format!("unexpected version {other:?}"))),
+        };
+        Ok(ModuleInfo {
+            address: self.address,
+            kind: self.kind()?,
+            version,
+            serial: self.get_u32(Param::DefCubeSerial)?,
+            state: self.state()?,
+        })
+    }
+
+    /// Reset: clears the errors that can be cleared and STATE_HALTED.
+    pub fn reset(&self) -> Result<(), Error> {
+        self.request(&Request::Action(Action::Reset)).map(|_| ())
+    }
+
+    /// Starts homing (wait for it with [`Module::wait_home`]).
+    pub fn home(&self) -> Result<(), Error> {
+        self.request(&Request::Action(Action::Home)).map(|_| ())
+    }
+
+    /// Halt: stops at once; the module stays halted until a reset.
+    pub fn halt(&self) -> Result<(), Error> {
+        self.request(&Request::Action(Action::Halt))?;
+        lock_mutex(&self.bus.inner.started).remove(&self.address);
+        Ok(())
+    }
+
+    /// RecalcPIDParam.
+    pub fn recalc_pid(&self) -> Result<(), Error> {
+        self.request(&Request::Action(Action::RecalcPid)).map(|_| ())
+    }
+
+    /// ResetTime: restarts the module's millisecond clock.
+    pub fn reset_time(&self) -> Result<(), Error> {
+        self.request(&Request::Action(Action::ResetTime)).map(|_| ())
+    }
+
+    /// A motion command in any mode; returns the extended acknowledge if `ack` asks for one.
+    pub fn motion(&self, motion: Motion, ack: AckKind) -> Result<Option<ExtAck>, Error> {
+        match self.request(&Request::motion(motion, ack)?)? {
+            Reply::Motion { ext, .. } => Ok(ext),
+            other => Err(Error::Unsupported(format!("unexpected answer {other}"))),
+        }
+    }
+
+    /// A step in encoder ticks (SetIStep).
+    pub fn istep(&self, pos: Ticks, time: Millis) -> Result<(), Error> {
+        self.request(&Request::IStep { pos, time }).map(|_| ())
+    }
+
+    /// A ramp move to `pos`, first setting TargetVel and TargetAcc if `ramp` is given.
+    pub fn move_ramp(&self, pos: Position, ramp: Option<Ramp>) -> Result<(), Error> {
+        if !pos.0.is_finite() {
+            return Err(Error::Unsupported(format!("target position {} is not a number", pos.0)));
+        }
+        if let Some(r) = ramp {
+            self.set(Param::TargetVel, Value::F32(r.vel.0))?;
+            self.set(Param::TargetAcc, Value::F32(r.acc.0))?;
+        }
+        self.motion(Motion::FRamp { pos }, AckKind::Simple).map(|_| ())
+    }
+
+    /// Waits until homing has ended (STATE_HOME_OK, not moving).
+    pub fn wait_home(&self, timeout: Duration, progress: &mut dyn FnMut(&Progress)) -> Result<CubeState, Error> {
+        self.wait(Until::Home, timeout, progress)
+    }
+
+    /// Waits until the module stands still (no STATE_MOTION).
+    pub fn wait_motion_end(&self, timeout: Duration, progress: &mut dyn FnMut(&Progress)) -> Result<CubeState, Error> {
+        self.wait(Until::Motion, timeout, progress)
+    }
+
+    /// Waits until a ramp has ended (STATE_RAMP_END, not moving).
+    pub fn wait_ramp_end(&self, timeout: Duration, progress: &mut dyn FnMut(&Progress)) -> Result<CubeState, Error> {
+        self.wait(Until::Ramp, timeout, progress)
+    }
+
+    fn halt_quietly(&self) {
+        if let Err(e) = self.halt() {
+            tracing::warn!("module {}: halt failed: {e}", self.address);
+        }
+    }
+
+    fn wait(&self, until: Until, timeout: Duration, progress: &mut dyn FnMut(&Progress)) -> Result<CubeState, Error> {
+        let clock = &self.bus.inner.clock;
+        let start = clock.now();
+        let deadline = start + timeout;
+        let cancel = lock_mutex(&self.bus.inner.cancel).clone();
+        loop {
+            let polled = self.state().and_then(|s| Ok((s, self.position()?)));
+            let (state, position) = match polled {
+                Ok(x) => x,
+                Err(e) => {
+                    // The session is failing while a motion may be running: stop it if the line allows.
+                    self.halt_quietly();
+                    return Err(e);
+                }
+            };
+            let now = clock.now();
+            progress(&Progress { address: self.address, position, state, elapsed: now.saturating_since(start) });
+            if state.has_fault() {
+                lock_mutex(&self.bus.inner.started).remove(&self.address);
+                return Err(Error::Device { address: self.address, state });
+            }
+            if state.contains(StateFlag::Halted) {
+                lock_mutex(&self.bus.inner.started).remove(&self.address);
+                return Err(Error::Halted { address: self.address, state });
+            }
+            if until.reached(state) {
+                lock_mutex(&self.bus.inner.started).remove(&self.address);
+                return Ok(state);
+            }
+            if cancel.as_ref().is_some_and(CancelToken::is_cancelled) {
+                self.halt_quietly();
+                return Err(Error::Cancelled { address: self.address });
+            }
+            if now >= deadline {
+                self.halt_quietly();
+                return Err(Error::WaitTimeout { address: self.address, what: until.what(), waited: timeout, state });
+            }
+            let next = (now + self.bus.inner.config.poll_interval).min(deadline);
+            clock.sleep_until(next);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,701 @@
+//! The parameter table (chapter 4.6), as one table: identifier, name, data type, unit, access and class.
+//!
+//! ```
+//! use motionlink_powercube::model::{Access, DataType, Param, ParamClass, Unit};
+//! let p: Param = "ActPos".parse().unwrap();
+//! assert_eq!((p.id(), p.data_type(), p.unit()), (0x3c, DataType::F32, Unit::Position));
+//! assert_eq!((p.access(), p.class()), (Access::Read, ParamClass::Actual));
+//! assert_eq!("0x4f".parse::<Param>().unwrap(), Param::TargetVel);
+//! assert!(!Param::TargetVel.access().readable());
+//! ```
+
+use std::fmt;
+use std::str::FromStr;
+
+use super::flags::{CubeState, Dio, ShortState};
+use super::units::ModuleKind;
+
+/// The data type of a parameter on the wire (little-endian).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DataType {
+    /// 32-bit float.
+    F32,
+    /// Unsigned 32-bit integer.
+    U32,
+    /// Signed 32-bit integer.
+    I32,
+    /// Unsigned 16-bit integer.
+    U16,
+    /// Signed 16-bit integer.
+    I16,
+    /// Unsigned 8-bit integer.
+    U8,
+    /// Float position, short state byte, DIO byte (6 bytes; ActFPosStateDio).
+    PosStateDio,
+    /// Float position and a UInt16 millisecond time stamp (6 bytes; ActFPosTime).
+    PosTime,
+}
+
+impl DataType {
+    /// Bytes on the wire.
+    pub fn size(self) -> usize {
+        match self {
+            DataType::F32 | DataType::U32 | DataType::I32 => 4,
+            DataType::U16 | DataType::I16 => 2,
+            DataType::U8 => 1,
+            DataType::PosStateDio | DataType::PosTime => 6,
+        }
+    }
+
+    /// The manual's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            DataType::F32 => "float",
+            DataType::U32 => "UInt32",
+            DataType::I32 => "Int32",
+            DataType::U16 => "UInt16",
+            DataType::I16 => "Int16",
+            DataType::U8 => "UInt8",
+            DataType::PosStateDio => "float/UInt8/UInt8",
+            DataType::PosTime => "float/UInt16",
+        }
+    }
+}
+
+/// The unit class of a parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Unit {
+    /// rad (rotary) or m (linear).
+    Position,
+    /// rad/s or m/s.
+    Velocity,
+    /// rad/s² or m/s².
+    Acceleration,
+    /// Encoder ticks.
+    Ticks,
+    /// Encoder ticks per second.
+    TicksPerSec,
+    /// Encoder ticks per second squared.
+    TicksPerSec2,
+    /// Encoder ticks per rad or m.
+    TicksPerUnit,
+    /// Amperes.
+    Amperes,
+    /// Volts.
+    Volts,
+    /// Degrees Celsius.
+    Celsius,
+    /// Milliseconds.
+    Millis,
+    /// Raw converter digits.
+    Digits,
+    /// A dimensionless ratio or gain.
+    Ratio,
+    /// A word of flags.
+    Flags,
+    /// A count, an address, a code or a version.
+    Plain,
+}
+
+impl Unit {
+    /// The unit's symbol for a module of `kind` ("" for dimensionless).
+    pub fn symbol(self, kind: ModuleKind) -> &'static str {
+        match (self, kind) {
+            (Unit::Position, ModuleKind::Rotary) => "rad",
+            (Unit::Position, ModuleKind::Linear) => "m",
+            (Unit::Velocity, ModuleKind::Rotary) => "rad/s",
+            (Unit::Velocity, ModuleKind::Linear) => "m/s",
+            (Unit::Acceleration, ModuleKind::Rotary) => "rad/s²",
+            (Unit::Acceleration, ModuleKind::Linear) => "m/s²",
+            (Unit::Ticks, _) => "ticks",
+            (Unit::TicksPerSec, _) => "ticks/s",
+            (Unit::TicksPerSec2, _) => "ticks/s²",
+            (Unit::TicksPerUnit, ModuleKind::Rotary) => "ticks/rad",
+            (Unit::TicksPerUnit, ModuleKind::Linear) => "ticks/m",
+            (Unit::Amperes, _) => "A",
+            (Unit::Volts, _) => "V",
+            (Unit::Celsius, _) => "°C",
+            (Unit::Millis, _) => "ms",
+            (Unit::Digits, _) => "digits",
+            (Unit::Ratio, _) | (Unit::Flags, _) | (Unit::Plain, _) => "",
+        }
+    }
+}
+
+/// Who may read and write a parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Access {
+    /// Read only.
+    Read,
+    /// Write only (targets of motion commands).
+    Write,
+    /// Read and write.
+    ReadWrite,
+}
+
+impl Access {
+    /// True if GetExtended may read it.
+    pub fn readable(self) -> bool {
+        matches!(self, Access::Read | Access::ReadWrite)
+    }
+
+    /// True if SetExtended may write it.
+    pub fn writable(self) -> bool {
+        matches!(self, Access::Write | Access::ReadWrite)
+    }
+
+    /// "r", "w" or "rw".
+    pub fn name(self) -> &'static str {
+        match self {
+            Access::Read => "r",
+            Access::Write => "w",
+            Access::ReadWrite => "rw",
+        }
+    }
+}
+
+/// The manual's classes of parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ParamClass {
+    /// Stored in the module's ROM; initialises the variables.
+    Default,
+    /// Settable limits and settings, lost at power off.
+    Limit,
+    /// Targets of motion commands.
+    Target,
+    /// Actual values.
+    Actual,
+}
+
+impl ParamClass {
+    /// Lower-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ParamClass::Default => "default",
+            ParamClass::Limit => "limit",
+            ParamClass::Target => "target",
+            ParamClass::Actual => "actual",
+        }
+    }
+}
+
+macro_rules! param_table {
+    ( $( $var:ident = ($id:literal, $name:literal, $ty:ident, $unit:ident, $access:ident, $class:ident, $doc:literal) ),* $(,)? ) => {
+        /// A module parameter: every entry of the manual's parameter table.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub enum Param {
+            $( #[doc = $doc] $var ),*
+        }
+
+        impl Param {
+            /// Every parameter, by identifier.
+            pub const ALL: &'static [Param] = &[$(Param::$var),*];
+
+            /// The ParameterID.
+            pub fn id(self) -> u8 {
+                match self { $(Param::$var => $id),* }
+            }
+
+            /// The manual's name.
+            pub fn name(self) -> &'static str {
+                match self { $(Param::$var => $name),* }
+            }
+
+            /// The data type on the wire.
+            pub fn data_type(self) -> DataType {
+                match self { $(Param::$var => DataType::$ty),* }
+            }
+
+            /// The unit class.
+            pub fn unit(self) -> Unit {
+                match self { $(Param::$var => Unit::$unit),* }
+            }
+
+            /// Read and write access.
+            pub fn access(self) -> Access {
+                match self { $(Param::$var => Access::$access),* }
+            }
+
+            /// The manual's class.
+            pub fn class(self) -> ParamClass {
+                match self { $(Param::$var => ParamClass::$class),* }
+            }
+
+            /// The manual's explanation.
+            pub fn description(self) -> &'static str {
+                match self { $(Param::$var => $doc),* }
+            }
+
+            /// The parameter with this ParameterID.
+            pub fn from_id(id: u8) -> Option<Param> {
+                match id { $($id => Some(Param::$var),)* _ => None }
+            }
+        }
+    };
+}
+
+param_table! {
+    DefHomeOffset = (0x00, "DefHomeOffset", F32, Position, Read, Default, "Offset of the home position (default)."),
+    DefGearRatio = (0x01, "DefGearRatio", F32, Ratio, Read, Default, "Gear ratio (default)."),
+    DefLinRatio = (0x02, "DefLinRatio", F32, Ratio, Read, Default, "Rotary to linear transmission factor (default)."),
+    DefMinPos = (0x03, "DefMinPos", F32, Position, Read, Default, "Minimum position (default)."),
+    DefMaxPos = (0x04, "DefMaxPos", F32, Position, Read, Default, "Maximum position (default)."),
+    DefMaxDeltaPos = (0x05, "DefMaxDeltaPos", F32, Position, Read, Default, "Maximum following error (default)."),
+    DefMaxDeltaVel = (0x06, "DefMaxDeltaVel", F32, Velocity, Read, Default,
+        "Maximum following error of velocity control (default)."),
+    DefTorqueRatio = (0x07, "DefTorqueRatio", F32, Ratio, Read, Default, "Current to torque factor (default)."),
+    DefCurRatio = (0x08, "DefCurRatio", F32, Ratio, Read, Default, "Current measurement factor (default)."),
+    DefMinVel = (0x09, "DefMinVel", F32, Velocity, Read, Default, "Minimum velocity (default)."),
+    DefMaxVel = (0x0a, "DefMaxVel", F32, Velocity, Read, Default, "Maximum velocity (default)."),
+    DefMinAcc = (0x0b, "DefMinAcc", F32, Acceleration, Read, Default, "Minimum acceleration (default)."),
+    DefMaxAcc = (0x0c, "DefMaxAcc", F32, Acceleration, Read, Default, "Maximum acceleration (default)."),
+    DefMinCur = (0x0d, "DefMinCur", F32, Amperes, Read, Default, "Minimum current (default)."),
+    DefMaxCur = (0x0e, "DefMaxCur", F32, Amperes, Read, Default, "Maximum current (default)."),
+    DefHomeVel = (0x0f, "DefHomeVel", F32, Velocity, Read, Default,
+        "Homing velocity; its sign is the homing direction (default)."),
+    DefHomeAcc = (0x10, "DefHomeAcc", F32, Acceleration, Read, Default, "Homing acceleration (default)."),
+    DefCubeSerial = (0x1a, "DefCubeSerial", U32, Plain, Read, Default, "Serial number."),
+    DefConfig = (0x1b, "DefConfig", U32, Flags, Read, Default, "Config word (default)."),
+    DefPulsesPerTurn = (0x1c, "DefPulsesPerTurn", U32, Ticks, Read, Default, "Encoder ticks per revolution."),
+    DefCubeVersion = (0x1d, "DefCubeVersion", U16, Plain, Read, Default, "Firmware version."),
+    DefServiceInterval = (0x1e, "DefServiceInterval", U16, Plain, Read, Default, "Service interval."),
+    DefBrakeTimeOut = (0x1f, "DefBrakeTimeOut", U16, Millis, Read, Default, "Delay for releasing the brake."),
+    DefAddress = (0x20, "DefAddress", U8, Plain, Read, Default, "Bus address 1..31."),
+    DefPrimBaud = (0x22, "DefPrimBaud", U8, Plain, Read, Default, "Primary baud rate setting."),
+    DefScndBaud = (0x23, "DefScndBaud", U8, Plain, Read, Default, "Secondary baud rate setting."),
+    PosCount = (0x24, "PosCount", I32, Ticks, Read, Actual, "Absolute counter value."),
+    RefPosCount = (0x25, "RefPosCount", I32, Ticks, Read, Actual, "Absolute counter value at the home position."),
+    DioSetup = (0x26, "DioSetup", U32, Flags, ReadWrite, Actual, "Digital I/O word."),
+    CubeState = (0x27, "CubeState", U32, Flags, Read, Actual, "Module state word."),
+    TargetPosInc = (0x28, "TargetPosInc", I32, Ticks, ReadWrite, Target,
+        "Target position in encoder ticks (signed; the manual prints UInt32)."),
+    TargetVelInc = (0x29, "TargetVelInc", U32, TicksPerSec, ReadWrite, Target, "Target velocity in ticks/s."),
+    TargetAccInc = (0x2a, "TargetAccInc", U32, TicksPerSec2, ReadWrite, Target, "Target acceleration in ticks/s²."),
+    StepInc = (0x2b, "StepInc", I32, Ticks, Read, Actual,
+        "Step mode target position in ticks (signed; the manual prints UInt32)."),
+    HomeOffsetInc = (0x2c, "HomeOffsetInc", I32, Ticks, Read, Actual, "Home offset in encoder ticks."),
+    RawCur = (0x35, "RawCur", I16, Digits, ReadWrite, Actual, "Commanded current in digits -500..500."),
+    HomeToZeroInc = (0x36, "HomeToZeroInc", I32, Ticks, Read, Actual,
+        "Encoder ticks between the home switch and the encoder index."),
+    Config = (0x39, "Config", U32, Flags, ReadWrite, Limit, "Config word."),
+    MoveMode = (0x3a, "MoveMode", U8, Plain, Read, Actual, "Motion mode (the MotionID last commanded)."),
+    IncRatio = (0x3b, "IncRatio", F32, TicksPerUnit, Read, Actual, "Encoder ticks per rad or m."),
+    ActPos = (0x3c, "ActPos", F32, Position, Read, Actual, "Actual position."),
+    PrevActPos = (0x3d, "ActPos_", F32, Position, Read, Actual, "Previous position."),
+    IPolPos = (0x3e, "IPolPos", F32, Position, Read, Actual, "Actual interpolated position."),
+    DeltaPos = (0x3f, "DeltaPos", F32, Position, Read, Actual, "Actual following error."),
+    MaxDeltaPos = (0x40, "MaxDeltaPos", F32, Position, ReadWrite, Limit, "Maximum following error."),
+    ActVel = (0x41, "ActVel", F32, Velocity, Read, Actual, "Actual velocity."),
+    IPolVel = (0x42, "IPolVel", F32, Velocity, Read, Actual, "Actual interpolated velocity."),
+    MinPos = (0x45, "MinPos", F32, Position, ReadWrite, Limit, "Minimum position (soft limit)."),
+    MaxPos = (0x46, "MaxPos", F32, Position, ReadWrite, Limit, "Maximum position (soft limit)."),
+    MaxVel = (0x48, "MaxVel", F32, Velocity, ReadWrite, Limit, "Maximum velocity."),
+    MaxAcc = (0x4a, "MaxAcc", F32, Acceleration, ReadWrite, Limit, "Maximum acceleration."),
+    MaxCur = (0x4c, "MaxCur", F32, Amperes, ReadWrite, Limit, "Maximum current."),
+    Cur = (0x4d, "Cur", F32, Amperes, ReadWrite, Actual, "Actual current."),
+    TargetPos = (0x4e, "TargetPos", F32, Position, Write, Target, "Target position."),
+    TargetVel = (0x4f, "TargetVel", F32, Velocity, Write, Target, "Target velocity of ramp motions."),
+    TargetAcc = (0x50, "TargetAcc", F32, Acceleration, Write, Target, "Target acceleration of ramp motions."),
+    DefC0 = (0x51, "DefC0", I16, Ratio, Read, Default, "Servo loop gain C0 (default)."),
+    DefDamp = (0x52, "DefDamp", I16, Ratio, Read, Default, "Servo loop damping (default)."),
+    DefA0 = (0x53, "DefA0", I16, Ratio, Read, Default,
+        "Servo loop parameter A0 (default; the manual marks no access, read like the other defaults)."),
+    ActC0 = (0x54, "ActC0", I16, Ratio, ReadWrite, Actual, "Servo loop gain C0."),
+    ActDamp = (0x55, "ActDamp", I16, Ratio, ReadWrite, Actual, "Servo loop damping."),
+    ActA0 = (0x56, "ActA0", I16, Ratio, ReadWrite, Actual, "Servo loop parameter A0."),
+    DefBurnCount = (0x57, "DefBurnCount", U8, Plain, Read, Default, "Number of flash downloads."),
+    Setup = (0x58, "Setup", U32, Flags, Read, Default, "Setup word."),
+    HomeOffset = (0x59, "HomeOffset", F32, Position, ReadWrite, Actual, "Home offset."),
+    ActIPos = (0x5a, "ActIPos", I32, Ticks, Read, Actual, "Actual position in encoder ticks."),
+    ActIMaxDeltaPos = (0x5b, "ActIMaxDeltaPos", I32, Ticks, ReadWrite, Limit, "Maximum following error in ticks."),
+    ActIMinPos = (0x5c, "ActIMinPos", I32, Ticks, ReadWrite, Limit, "Minimum position in ticks."),
+    ActIMaxPos = (0x5d, "ActIMaxPos", I32, Ticks, ReadWrite, Limit, "Maximum position in ticks."),
+    ActIMaxVel = (0x5e, "ActIMaxVel", I32, TicksPerSec, ReadWrite, Limit, "Maximum velocity in ticks/s."),
+    ActIMaxAcc = (0x5f, "ActIMaxAcc", I32, TicksPerSec2, ReadWrite, Limit, "Maximum acceleration in ticks/s²."),
+    ActIVel = (0x60, "ActIVel", I32, TicksPerSec, Read, Actual, "Actual velocity in ticks/s."),
+    ActIDeltaPos = (0x61, "ActIDeltaPos", I32, Ticks, Read, Actual, "Actual following error in ticks."),
+    ActFPosStateDio = (0x62, "ActFPosStateDio", PosStateDio, Position, Read, Actual,
+        "Actual position, short state and DIO in one read."),
+    ActFSavedPos = (0x63, "ActFSavedPos", F32, Position, Read, Actual, "Position saved by the last broadcast."),
+    ActFHomeVel = (0x64, "ActFHomeVel", F32, Velocity, Read, Actual, "Actual homing velocity."),
+    ActIHomeVel = (0x65, "ActIHomeVel", I32, TicksPerSec, Read, Actual, "Actual homing velocity in ticks/s."),
+    ActSyncTime = (0x66, "ActSyncTime", U16, Millis, ReadWrite, Actual, "Actual SYNC time."),
+    ActIIPolVel = (0x6a, "ActIIPolVel", I32, TicksPerSec, Read, Actual, "Actual calculated velocity in ticks/s."),
+    ActRawMotorCurrent = (0x6c, "ActRawMotorCurrent", U16, Digits, Read, Actual, "DC bus current."),
+    ActRawMotorSupply = (0x6d, "ActRawMotorSupply", U16, Digits, Read, Actual, "DC bus voltage."),
+    ActRawTemp = (0x6e, "ActRawTemp", I16, Digits, Read, Actual, "Temperature inside the housing."),
+    ActRawLogicSupply = (0x6f, "ActRawLogicSupply", U16, Digits, Read, Actual, "Logic voltage."),
+    ActFMotorCurrent = (0x70, "ActFMotorCurrent", F32, Amperes, Read, Actual, "DC bus current."),
+    ActFMotorSupply = (0x71, "ActFMotorSupply", F32, Volts, Read, Actual, "DC bus voltage."),
+    ActFTemp = (0x72, "ActFTemp", F32, Celsius, Read, Actual, "Temperature inside the housing."),
+    ActFLogicSupply = (0x73, "ActFLogicSupply", F32, Volts, Read, Actual, "Logic supply voltage."),
+    ActMinLogicSupply = (0x74, "ActMinLogicSupply", F32, Volts, ReadWrite, Limit, "Minimum logic voltage."),
+    ActMaxLogicSupply = (0x75, "ActMaxLogicSupply", F32, Volts, ReadWrite, Limit, "Maximum logic voltage."),
+    ActMinMotorSupply = (0x76, "ActMinMotorSupply", F32, Volts, ReadWrite, Limit, "Minimum motor voltage."),
+    ActMaxMotorSupply = (0x77, "ActMaxMotorSupply", F32, Volts, ReadWrite, Limit, "Maximum motor voltage."),
+    ActLogicUndershootTime = (0x7a, "ActLogicUndershootTime", U32, Millis, ReadWrite, Limit,
+        "Longest allowed logic undervoltage."),
+    ActLogicOvershootTime = (0x7b, "ActLogicOvershootTime", U32, Millis, ReadWrite, Limit,
+        "Longest allowed logic overvoltage."),
+    ActMotorUndershootTime = (0x7c, "ActMotorUndershootTime", U32, Millis, ReadWrite, Limit,
+        "Longest allowed motor undervoltage."),
+    ActMotorOvershootTime = (0x7d, "ActMotorOvershootTime", U32, Millis, ReadWrite, Limit,
+        "Longest allowed motor overvoltage."),
+    ActMaxTemp = (0x84, "ActMaxTemp", F32, Celsius, ReadWrite, Limit, "Maximum housing temperature."),
+    ActMinTemp = (0x85, "ActMinTemp", F32, Celsius, ReadWrite, Limit, "Minimum housing temperature."),
+    ActFPosTime = (0xa1, "ActFPosTime", PosTime, Position, Read, Actual, "Actual position and time stamp."),
+    ActFScanPosFallEdge = (0xa2, "ActFScanPosFallEdge", F32, Position, Read, Actual,
+        "Position saved at an edge of input SW3."),
+    ActFScanPosRisgEdge = (0xa3, "ActFScanPosRisgEdge", F32, Position, Read, Actual,
+        "Position saved at the other edge of input SW3."),
+}
+
+impl fmt::Display for Param {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A parameter name or number that is not in the table.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown parameter {0:?} (give a name such as ActPos or an id such as 60 or 0x3c)")]
+pub struct UnknownParam(pub String);
+
+impl FromStr for Param {
+    type Err = UnknownParam;
+
+    /// A name (case-insensitive) or an identifier in decimal or `0x` hex.
+    fn from_str(s: &str) -> Result<Self, UnknownParam> {
+        let t = s.trim();
+        let id = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+            Some(hex) => u8::from_str_radix(hex, 16).ok(),
+            None => t.parse::<u8>().ok(),
+        };
+        id.and_then(Param::from_id)
+            .or_else(|| Param::ALL.iter().copied().find(|p| p.name().eq_ignore_ascii_case(t)))
+            .ok_or_else(|| UnknownParam(s.to_string()))
+    }
+}
+
+/// A parameter value, typed by its data type.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Value {
+    /// A float.
+    F32(f32),
+    /// An unsigned 32-bit integer.
+    U32(u32),
+    /// A signed 32-bit integer.
+    I32(i32),
+    /// An unsigned 16-bit integer.
+    U16(u16),
+    /// A signed 16-bit integer.
+    I16(i16),
+    /// An unsigned byte.
+    U8(u8),
+    /// ActFPosStateDio: position, short state, DIO.
+    PosStateDio {
+        /// Actual position (rad or m).
+        pos: f32,
+        /// Short state.
+        state: ShortState,
+        /// Digital I/O.
+        dio: Dio,
+    },
+    /// ActFPosTime: position and time stamp.
+    PosTime {
+        /// Actual position (rad or m).
+        pos: f32,
+        /// Milliseconds.
+        time_ms: u16,
+    },
+}
+
+/// A value that does not fit a parameter.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ValueError {
+    /// The bytes are fewer than the data type needs.
+    #[error("{param}: expected {expected} bytes of {ty}, got {got}")]
+    Length {
+        /// The parameter.
+        param: &'static str,
+        /// The data type's name.
+        ty: &'static str,
+        /// Bytes needed.
+        expected: usize,
+        /// Bytes given.
+        got: usize,
+    },
+    /// A value of another type.
+    #[error("{param} is {expected}, not {got}")]
+    Type {
+        /// The parameter.
+        param: &'static str,
+        /// The data type's name.
+        expected: &'static str,
+        /// The given value's type name.
+        got: &'static str,
+    },
+    /// Text that is not a value of the type.
+    #[error("{param}: {text:?} is not a valid {ty} value")]
+    Parse {
+        /// The parameter.
+        param: &'static str,
+        /// The data type's name.
+        ty: &'static str,
+        /// The text.
+        text: String,
+    },
+}
+
+impl Value {
+    /// The data type of this value.
+    pub fn data_type(&self) -> DataType {
+        match self {
+            Value::F32(_) => DataType::F32,
+            Value::U32(_) => DataType::U32,
+            Value::I32(_) => DataType::I32,
+            Value::U16(_) => DataType::U16,
+            Value::I16(_) => DataType::I16,
+            Value::U8(_) => DataType::U8,
+            Value::PosStateDio { .. } => DataType::PosStateDio,
+            Value::PosTime { .. } => DataType::PosTime,
+        }
+    }
+
+    /// Writes the little-endian bytes into `out` (at least 6 bytes); returns how many.
+    pub fn encode(&self, out: &mut [u8; 6]) -> usize {
+        match *self {
+            Value::F32(v) => put(out, &v.to_le_bytes()),
+            Value::U32(v) => put(out, &v.to_le_bytes()),
+            Value::I32(v) => put(out, &v.to_le_bytes()),
+            Value::U16(v) => put(out, &v.to_le_bytes()),
+            Value::I16(v) => put(out, &v.to_le_bytes()),
+            Value::U8(v) => put(out, &[v]),
+            Value::PosStateDio { pos, state, dio } => {
+                put(out, &pos.to_le_bytes());
+                out[4] = state.0;
+                out[5] = dio.0;
+                6
+            }
+            Value::PosTime { pos, time_ms } => {
+                put(out, &pos.to_le_bytes());
+                out[4..6].copy_from_slice(&time_ms.to_le_bytes());
+                6
+            }
+        }
+    }
+
+    /// Reads a value of `param`'s type from the start of `bytes`.
+    pub fn decode(param: Param, bytes: &[u8]) -> Result<Value, ValueError> {
+        let ty = param.data_type();
+        let Some(b) = bytes.get(..ty.size()) else {
+            return Err(ValueError::Length {
+                param: param.name(),
+                ty: ty.name(),
+                expected: ty.size(),
+                got: bytes.len(),
+            });
+        };
+        let f4 = |b: &[u8]| [b[0], b[1], b[2], b[3]];
+        Ok(match ty {
+            DataType::F32 => Value::F32(f32::from_le_bytes(f4(b))),
+            DataType::U32 => Value::U32(u32::from_le_bytes(f4(b))),
+            DataType::I32 => Value::I32(i32::from_le_bytes(f4(b))),
+            DataType::U16 => Value::U16(u16::from_le_bytes([b[0], b[1]])),
+            DataType::I16 => Value::I16(i16::from_le_bytes([b[0], b[1]])),
+            DataType::U8 => Value::U8(b[0]),
+            DataType::PosStateDio => {
+                Value::PosStateDio { pos: f32::from_le_bytes(f4(b)), state: ShortState(b[4]), dio: Dio(b[5]) }
+            }
+            DataType::PosTime => {
+                Value::PosTime { pos: f32::from_le_bytes(f4(b)), time_ms: u16::from_le_bytes([b[4], b[5]]) }
+            }
+        })
+    }
+
+    /// Parses text as a value for `param`: a number in the parameter's type (integers also as `0x` hex).
+    pub fn parse(param: Param, text: &str) -> Result<Value, ValueError> {
+        let ty = param.data_type();
+        let t = text.trim();
+        let err = || ValueError::Parse { param: param.name(), ty: ty.name(), text: text.to_string() };
+        let int = |t: &str| -> Option<i64> {
+            let (neg, digits) = match t.strip_prefix('-') {
+                Some(d) => (true, d),
+                None => (false, t),
+            };
+            let v = match digits.strip_prefix("0x").or_else(|| digits.strip_prefix("0X")) {
+                Some(h) => i64::from_str_radix(h, 16).ok()?,
+                None => digits.parse::<i64>().ok()?,
+            };
+            Some(if neg { -v } else { v })
+        };
+        Ok(match ty {
+            DataType::F32 => {
+                let v: f32 = t.parse().map_err(|_| err())?;
+                if !v.is_finite() {
+                    return Err(err());
+                }
+                Value::F32(v)
+            }
+            DataType::U32 => Value::U32(int(t).and_then(|v| u32::try_from(v).ok()).ok_or_else(err)?),
+            DataType::I32 => Value::I32(int(t).and_then(|v| i32::try_from(v).ok()).ok_or_else(err)?),
+            DataType::U16 => Value::U16(int(t).and_then(|v| u16::try_from(v).ok()).ok_or_else(err)?),
+            DataType::I16 => Value::I16(int(t).and_then(|v| i16::try_from(v).ok()).ok_or_else(err)?),
+            DataType::U8 => Value::U8(int(t).and_then(|v| u8::try_from(v).ok()).ok_or_else(err)?),
+            DataType::PosStateDio | DataType::PosTime => return Err(err()),
+        })
+    }
+
+    /// The value as a number, for the single-number types.
+    pub fn as_f64(&self) -> Option<f64> {
+        Some(match *self {
+            Value::F32(v) => f64::from(v),
+            Value::U32(v) => f64::from(v),
+            Value::I32(v) => f64::from(v),
+            Value::U16(v) => f64::from(v),
+            Value::I16(v) => f64::from(v),
+            Value::U8(v) => f64::from(v),
+            Value::PosStateDio { .. } | Value::PosTime { .. } => return None,
+        })
+    }
+
+    /// The value as an unsigned word, for the unsigned integer types.
+    pub fn as_u32(&self) -> Option<u32> {
+        match *self {
+            Value::U32(v) => Some(v),
+            Value::U16(v) => Some(u32::from(v)),
+            Value::U8(v) => Some(u32::from(v)),
+            _ => None,
+        }
+    }
+
+    /// The value as a float, if it is one.
+    pub fn as_f32(&self) -> Option<f32> {
+        match *self {
+            Value::F32(v) => Some(v),
+            _ => None,
+        }
+    }
+
+    /// The value as a signed integer, if it is one.
+    pub fn as_i32(&self) -> Option<i32> {
+        match *self {
+            Value::I32(v) => Some(v),
+            Value::I16(v) => Some(i32::from(v)),
+            _ => None,
+        }
+    }
+
+    /// Formats the value of `param` for a person: with its unit, flag words decoded, versions as x.y.zz.
+    pub fn show(&self, param: Param, kind: ModuleKind) -> String {
+        use super::flags::{ConfigWord, DioWord, SetupWord};
+        use super::units::CubeVersion;
+        let unit = param.unit().symbol(kind);
+        let with_unit = |s: String| if unit.is_empty() { s } else { format!("{s} {unit}") };
+        match (*self, param) {
+            (Value::U32(v), Param::CubeState) => format!("{v:#010x} ({})", CubeState(v)),
+            (Value::U32(v), Param::Config | Param::DefConfig) => format!("{v:#010x} ({})", ConfigWord(v)),
+            (Value::U32(v), Param::Setup) => format!("{v:#010x} ({})", SetupWord(v)),
+            (Value::U32(v), Param::DioSetup) => format!("{v:#010x} ({})", DioWord(v)),
+            (Value::U16(v), Param::DefCubeVersion) => format!("{} ({v:#06x})", CubeVersion(v)),
+            (Value::F32(v), _) => with_unit(format!("{v:.6}")),
+            (Value::PosStateDio { pos, state, dio }, _) => {
+                format!("{pos:.6} {}, state {state}, dio {dio}", kind.unit())
+            }
+            (Value::PosTime { pos, time_ms }, _) => format!("{pos:.6} {} at {time_ms} ms", kind.unit()),
+            (v, _) => with_unit(v.as_f64().map_or_else(String::new, |n| format!("{n}"))),
+        }
+    }
+
+    fn type_name(&self) -> &'static str {
+        self.data_type().name()
+    }
+
+    /// Checks that this value has `param`'s data type.
+    pub fn check_type(&self, param: Param) -> Result<(), ValueError> {
+        if self.data_type() == param.data_type() {
+            Ok(())
+        } else {
+            Err(ValueError::Type { param: param.name(), expected: param.data_type().name(), got: self.type_name() })
+        }
+    }
+}
+
+fn put(out: &mut [u8; 6], bytes: &[u8]) -> usize {
+    out[..bytes.len()].copy_from_slice(bytes);
+    bytes.len()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ids_are_unique_and_names_parse() {
+        for (i, p) in Param::ALL.iter().enumerate() {
+            assert_eq!(Param::from_id(p.id()), Some(*p));
+            assert_eq!(p.name().parse::<Param>().unwrap(), *p);
+            assert_eq!(p.id().to_string().parse::<Param>().unwrap(), *p);
+            assert!(Param::ALL[i + 1..].iter().all(|q| q.id() != p.id()));
+            // Every GetExtended acknowledge fits 8 bytes, every SetExtended 3..6.
+            assert!(2 + p.data_type().size() <= 8);
+            if p.access().writable() {
+                assert!((3..=6).contains(&(2 + p.data_type().size())), "{p}");
+            }
+        }
+        assert_eq!(Param::ALL.len(), 100, "the manual lists 100 parameters");
+        assert!("nosuch".parse::<Param>().is_err());
+        assert!("0x11".parse::<Param>().is_err(), "0x11 is not in the table");
+    }
+
+    #[test]
+    fn the_manuals_access_rules() {
+        assert_eq!(Param::TargetAcc.access(), Access::Write);
+        assert_eq!(Param::Config.access(), Access::ReadWrite);
+        assert_eq!(Param::Setup.access(), Access::Read);
+        assert_eq!(Param::DefCubeSerial.class(), ParamClass::Default);
+        assert_eq!(Param::MaxVel.class(), ParamClass::Limit);
+        assert_eq!(Param::TargetVel.class(), ParamClass::Target);
+        assert_eq!(Param::ActPos.class(), ParamClass::Actual);
+        assert_eq!(Param::PrevActPos.name(), "ActPos_");
+    }
+
+    #[test]
+    fn values_round_trip_and_parse() {
+        let mut buf = [0u8; 6];
+        for (p, v) in [
+            (Param::TargetAcc, Value::F32(0.5)),
+            (Param::CubeState, Value::U32(0x8002)),
+            (Param::ActIPos, Value::I32(-12345)),
+            (Param::DefCubeVersion, Value::U16(0x351D)),
+            (Param::RawCur, Value::I16(-500)),
+            (Param::DefAddress, Value::U8(17)),
+            (Param::ActFPosStateDio, Value::PosStateDio { pos: 1.0, state: ShortState(0x20), dio: Dio(0x11) }),
+            (Param::ActFPosTime, Value::PosTime { pos: -1.0, time_ms: 999 }),
+        ] {
+            let n = v.encode(&mut buf);
+            assert_eq!(n, p.data_type().size());
+            assert_eq!(Value::decode(p, &buf[..n]).unwrap(), v);
+            assert!(v.check_type(p).is_ok());
+        }
+        assert_eq!(Value::parse(Param::TargetAcc, "0.5").unwrap(), Value::F32(0.5));
+        assert_eq!(Value::parse(Param::Config, "0x01000000").unwrap(), Value::U32(0x0100_0000));
+        assert_eq!(Value::parse(Param::ActIMinPos, "-100").unwrap(), Value::I32(-100));
+        assert!(Value::parse(Param::DefAddress, "256").is_err());
+        assert!(Value::parse(Param::MaxVel, "fast").is_err());
+        assert!(Value::parse(Param::MaxVel, "inf").is_err());
+        assert!(Value::decode(Param::ActPos, &[1, 2]).is_err());
+        assert!(Value::U8(1).check_type(Param::ActPos).is_err());
+    }
+
+    #[test]
+    fn values_show_units_and_flags() {
+        assert_eq!(Value::F32(1.0).show(Param::ActPos, ModuleKind::Rotary), "1.000000 rad");
+        assert_eq!(Value::F32(1.0).show(Param::ActVel, ModuleKind::Linear), "1.000000 m/s");
+        assert_eq!(Value::U16(0x351D).show(Param::DefCubeVersion, ModuleKind::Rotary), "3.5.1D (0x351d)");
+        assert_eq!(
+            Value::U32(0x8002).show(Param::CubeState, ModuleKind::Rotary),
+            "0x00008002 (STATE_HOME_OK | STATE_RAMP_END)"
+        );
+    }
+}

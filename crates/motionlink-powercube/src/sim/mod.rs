@@ -1,0 +1,292 @@
+//! An emulated bus of PowerCube modules, sans-IO.
+//!
+//! [`SimBus`] holds modules at their addresses and answers as they would. It implements
+//! [`Emulator`] (RS232 framing on a byte stream, for TCP, a pty or an in-process
+//! [`EmulatorHost`](motionlink_link::pipe::EmulatorHost)) and [`CanEmulator`] (frames on a CAN bus, for the
+//! in-memory [`CanBus`](motionlink_link::can::CanBus) or an [`SlcanAdapter`](motionlink_link::can::SlcanAdapter)
+//! on a pty), and exchanges Profibus-DP process images ([`SimBus::profibus_exchange`]).
+//!
+//! Each module's axis follows the profile of its last motion command as a function of time: nothing runs
+//! between calls, everything is computed for the timestamp given (a watchdog that expired, a soft limit
+//! crossed, a ramp that ended, all at the instant they happened). The emulator never reads a clock.
+//!
+//! ```
+//! use motionlink_powercube::sim::{SimBus, SimConfig};
+//! use motionlink_powercube::model::{Action, Param, Reply, Request, StateFlag, CubeState, Value};
+//! use motionlink_link::Timestamp;
+//!
+//! let mut bus = SimBus::new(&SimConfig::default());
+//! let at = |ms| Timestamp::from_millis(ms);
+//! assert!(bus.request(at(0), 1, &Request::Action(Action::Home)).is_some());
+//! let Some(Reply::Get(_, Value::U32(state))) = bus.request(at(5_000), 1, &Request::Get(Param::CubeState)) else {
+//!     panic!()
+//! };
+//! assert!(CubeState(state).contains(StateFlag::HomeOk));
+//! ```
+
+mod config;
+mod module;
+pub(crate) mod profile;
+
+use motionlink_link::can::{CanEmulator, CanFrame};
+use motionlink_link::emulator::Emulator;
+use motionlink_link::Timestamp;
+
+pub use config::{ModuleConfig, SimConfig, SimConfigError};
+pub use module::{SimModule, SERVO_LAG_S};
+
+use crate::model::{Broadcast, ConfigFlag, Reply, Request};
+use crate::wire::can::{self as can_wire, Role};
+use crate::wire::profibus::{InputImage, OutputImage};
+use crate::wire::rs232::{self, Rs232Decoder, TelKind};
+use crate::wire::Payload;
+
+/// Counters of what the emulator received and could not use.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SimStats {
+    /// Frames answered or acted upon.
+    pub handled: u64,
+    /// Malformed frames and garbage (RS232 decoder errors, foreign CAN frames).
+    pub malformed: u64,
+    /// Frames dropped for a wrong BCC (strict mode only).
+    pub bad_bcc: u64,
+    /// Frames with a length that differs from the TELID's (never interpreted, as the manual says).
+    pub bad_length: u64,
+    /// Commands the modules did not understand (unknown command, parameter or mode).
+    pub not_understood: u64,
+    /// Frames for addresses where no module is.
+    pub nobody: u64,
+}
+
+/// A bus of emulated modules.
+#[derive(Debug, Clone)]
+pub struct SimBus {
+    modules: Vec<SimModule>,
+    decoder: Rs232Decoder,
+    strict_bcc: bool,
+    stats: SimStats,
+    last_image: Vec<(u8, OutputImage, InputImage)>,
+}
+
+fn secs(now: Timestamp) -> f64 {
+    now.since_origin().as_secs_f64()
+}
+
+impl SimBus {
+    /// The modules of `config`, as RS232 modules (the Setup word says RS232).
+    pub fn new(config: &SimConfig) -> Self {
+        Self::build(config, false)
+    }
+
+    /// The modules of `config`, as CAN modules (the Setup word says CAN).
+    pub fn new_can(config: &SimConfig) -> Self {
+        Self::build(config, true)
+    }
+
+    fn build(config: &SimConfig, can: bool) -> Self {
+        SimBus {
+            modules: config
+                .modules
+                .iter()
+                .map(|m| SimModule::new(m.address, m, config.watchdog_timeout_ms, can))
+                .collect(),
+            decoder: Rs232Decoder::new(),
+            strict_bcc: false,
+            stats: SimStats::default(),
+            last_image: Vec::new(),
+        }
+    }
+
+    /// Check the BCC of incoming RS232 frames and drop those that are wrong. Off by default: the manual says
+    /// the modules do not check it.
+    pub fn set_strict_bcc(&mut self, strict: bool) {
+        self.strict_bcc = strict;
+    }
+
+    /// The module at `address`.
+    pub fn module(&self, address: u8) -> Option<&SimModule> {
+        self.modules.iter().find(|m| m.address() == address)
+    }
+
+    /// The module at `address`, to change it (inputs, injected faults).
+    pub fn module_mut(&mut self, address: u8) -> Option<&mut SimModule> {
+        self.modules.iter_mut().find(|m| m.address() == address)
+    }
+
+    /// Every module.
+    pub fn modules(&self) -> &[SimModule] {
+        &self.modules
+    }
+
+    /// What was received and not used.
+    pub fn stats(&self) -> SimStats {
+        self.stats
+    }
+
+    /// Brings every module to `now`.
+    pub fn update(&mut self, now: Timestamp) {
+        let t = secs(now);
+        for m in &mut self.modules {
+            m.update(t);
+        }
+    }
+
+    /// A request to the module at `address` at `now`; its acknowledge, if it answers.
+    pub fn request(&mut self, now: Timestamp, address: u8, request: &Request) -> Option<Reply> {
+        self.update(now);
+        let module = self.modules.iter_mut().find(|m| m.address() == address)?;
+        module.handle(secs(now), request)
+    }
+
+    /// A broadcast at `now` (no acknowledge).
+    pub fn broadcast(&mut self, now: Timestamp, broadcast: &Broadcast) {
+        self.update(now);
+        for m in &mut self.modules {
+            m.broadcast(secs(now), broadcast);
+        }
+    }
+
+    /// A payload for `address` (0: a broadcast); the acknowledge payload, if any.
+    fn payload(&mut self, now: Timestamp, address: u8, payload: &Payload, can: bool) -> Option<Payload> {
+        if address == 0 {
+            match Broadcast::decode(payload) {
+                Ok(b) => {
+                    self.stats.handled += 1;
+                    self.broadcast(now, &b);
+                }
+                Err(e) => {
+                    self.stats.not_understood += 1;
+                    tracing::debug!("broadcast {payload:?}: {e}");
+                }
+            }
+            return None;
+        }
+        if self.module(address).is_none() {
+            self.stats.nobody += 1;
+            return None;
+        }
+        let request = match Request::decode(payload) {
+            Ok(r) => r,
+            Err(e) => {
+                self.stats.not_understood += 1;
+                tracing::debug!("module {address}: {payload:?}: {e}");
+                return None;
+            }
+        };
+        self.stats.handled += 1;
+        // The setting in force when the command arrives decides (so the write that sets it is acknowledged).
+        let acks_off = can
+            && !matches!(request, Request::Get(_))
+            && self.module(address).is_some_and(|m| m.config_word().contains(ConfigFlag::DisableAck));
+        let reply = self.request(now, address, &request)?;
+        (!acks_off).then(|| reply.encode())
+    }
+
+    /// One Profibus-DP cycle with the module at `address`: the master's output image in, the input image
+    /// out. As on a real module, an output image identical to the previous one is not interpreted again (the
+    /// previous input image is repeated, with fresh position, state and milliseconds).
+    pub fn profibus_exchange(&mut self, now: Timestamp, address: u8, output: &OutputImage) -> Option<InputImage> {
+        self.update(now);
+        let previous = self.last_image.iter().position(|(a, _, _)| *a == address);
+        let reply = match previous {
+            Some(i) if self.last_image[i].1 == *output => self.last_image[i].2.reply(8),
+            _ => {
+                // The command's length is not in the image: try the lengths a command can have.
+                let request = (1..=8).find_map(|n| {
+                    let p = Payload::new(&output.0[..n]).ok()?;
+                    Request::decode(&p).ok()
+                });
+                match request.and_then(|r| self.request(now, address, &r)) {
+                    Some(reply) => reply.encode(),
+                    None => Payload::EMPTY,
+                }
+            }
+        };
+        let module = self.module(address)?;
+        let image = InputImage::new(
+            &reply,
+            module.position_ticks().0,
+            module.state().profibus_state().0,
+            (module.millis_now() % 256) as u8,
+        );
+        match previous {
+            Some(i) => self.last_image[i] = (address, *output, image),
+            None => self.last_image.push((address, *output, image)),
+        }
+        Some(image)
+    }
+}
+
+impl Emulator for SimBus {
+    fn receive(&mut self, now: Timestamp, bytes: &[u8], out: &mut Vec<u8>) {
+        for &b in bytes {
+            let Some(result) = self.decoder.push(b) else { continue };
+            let frame = match result {
+                Ok(f) => f,
+                Err(e) => {
+                    self.stats.malformed += 1;
+                    tracing::debug!("RS232: {e}");
+                    continue;
+                }
+            };
+            if frame.kind != TelKind::Send {
+                continue; // another module's answer on a shared line
+            }
+            if !frame.length_ok() {
+                self.stats.bad_length += 1;
+                continue;
+            }
+            if self.strict_bcc && !frame.bcc_ok() {
+                self.stats.bad_bcc += 1;
+                continue;
+            }
+            if let Some(reply) = self.payload(now, frame.address, &frame.payload, false) {
+                let mut buf = [0u8; rs232::MAX_FRAME];
+                if let Ok(n) = rs232::encode(TelKind::Recv, frame.address, &reply, &mut buf) {
+                    out.extend_from_slice(&buf[..n]);
+                }
+            }
+        }
+    }
+
+    fn advance(&mut self, now: Timestamp, _out: &mut Vec<u8>) {
+        self.update(now);
+    }
+
+    fn next_wakeup(&self) -> Option<Timestamp> {
+        // Modules never speak unasked; their state is computed for whatever time they are asked at.
+        None
+    }
+}
+
+impl CanEmulator for SimBus {
+    fn receive(&mut self, now: Timestamp, frame: &CanFrame, out: &mut Vec<CanFrame>) {
+        let (role, payload) = match can_wire::from_frame(frame) {
+            Ok(x) => x,
+            Err(e) => {
+                self.stats.malformed += 1;
+                tracing::debug!("CAN: {e}");
+                return;
+            }
+        };
+        let address = match role {
+            Role::Get(a) | Role::Put(a) => a,
+            Role::Broadcast => 0,
+            Role::Ack(_) => return, // another module's acknowledge
+        };
+        if let Some(reply) = self.payload(now, address, &payload, true) {
+            out.push(can_wire::to_frame(Role::Ack(address), &reply));
+        }
+    }
+
+    fn advance(&mut self, now: Timestamp, _out: &mut Vec<CanFrame>) {
+        self.update(now);
+    }
+
+    fn next_wakeup(&self) -> Option<Timestamp> {
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,298 @@
+//! The emulator's physical model and protocol behaviour, driven by explicit timestamps.
+
+#![allow(clippy::approx_constant)] // ±3.14 rad is the configured soft limit
+
+use super::*;
+use crate::model::{
+    AckKind, AckPosition, Action, Amperes, ConfigFlag, CubeState, Millis, Motion, Param, Position, ShortFlag,
+    StateFlag, Ticks, Value, Velocity,
+};
+use crate::wire::profibus::OutputWriter;
+
+fn at(ms: u64) -> Timestamp {
+    Timestamp::from_millis(ms)
+}
+
+fn state(bus: &mut SimBus, ms: u64) -> CubeState {
+    match bus.request(at(ms), 1, &Request::Get(Param::CubeState)) {
+        Some(Reply::Get(_, Value::U32(s))) => CubeState(s),
+        other => panic!("{other:?}"),
+    }
+}
+
+fn pos(bus: &mut SimBus, ms: u64) -> f32 {
+    match bus.request(at(ms), 1, &Request::Get(Param::ActPos)) {
+        Some(Reply::Get(_, Value::F32(p))) => p,
+        other => panic!("{other:?}"),
+    }
+}
+
+fn set(bus: &mut SimBus, ms: u64, p: Param, v: Value) {
+    assert!(matches!(bus.request(at(ms), 1, &Request::Set(p, v)), Some(Reply::Set(_, 0x64))));
+}
+
+fn homed_bus() -> SimBus {
+    let mut bus = SimBus::new(&SimConfig::default());
+    bus.request(at(0), 1, &Request::Action(Action::Home));
+    assert!(state(&mut bus, 10).contains(StateFlag::Motion), "homing moves");
+    assert!(state(&mut bus, 2_000).contains(StateFlag::HomeOk));
+    bus
+}
+
+#[test]
+fn homing_moves_then_sets_home_ok() {
+    let mut bus = SimBus::new(&SimConfig::default());
+    let s = state(&mut bus, 0);
+    assert!(!s.contains(StateFlag::HomeOk));
+    assert!((pos(&mut bus, 0) - 0.05).abs() < 1e-6);
+    bus.request(at(100), 1, &Request::Action(Action::Home));
+    let s = state(&mut bus, 150);
+    assert!(s.contains(StateFlag::Motion) && !s.contains(StateFlag::HomeOk), "{s}");
+    let p = pos(&mut bus, 150);
+    assert!(p < 0.05 && p > 0.0, "{p}");
+    let s = state(&mut bus, 1_000);
+    assert!(s.contains(StateFlag::HomeOk) && !s.contains(StateFlag::Motion), "{s}");
+    assert_eq!(pos(&mut bus, 1_000), 0.0);
+}
+
+#[test]
+fn ramp_is_a_trapezoid_with_its_phase_flags() {
+    let mut bus = homed_bus();
+    set(&mut bus, 2_000, Param::TargetVel, Value::F32(1.0));
+    set(&mut bus, 2_000, Param::TargetAcc, Value::F32(2.0));
+    // 1 rad at 1 rad/s and 2 rad/s²: 0.5 s up, 0.5 s steady, 0.5 s down.
+    let r = bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(1.0) }, AckKind::Simple));
+    assert!(matches!(r, Some(Reply::Motion { status: Some(0x64), .. })));
+    let phases = [(2_250, StateFlag::RampAcc), (2_750, StateFlag::RampSteady), (3_250, StateFlag::RampDec)];
+    for (ms, flag) in phases {
+        let s = state(&mut bus, ms);
+        assert!(s.contains(flag) && s.contains(StateFlag::Motion) && !s.contains(StateFlag::RampEnd), "{ms}: {s}");
+    }
+    // At 0.25 s: 0.5 * 2 * 0.25² = 0.0625 rad.
+    assert!((pos(&mut bus, 2_250) - 0.0625).abs() < 1e-4);
+    let s = state(&mut bus, 3_600);
+    assert!(s.contains(StateFlag::RampEnd) && !s.contains(StateFlag::Motion), "{s}");
+    assert!((pos(&mut bus, 3_600) - 1.0).abs() < 1e-6);
+    // TargetVel above MaxVel is limited to MaxVel.
+    set(&mut bus, 4_000, Param::TargetVel, Value::F32(10.0));
+    bus.request(at(4_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.0) }, AckKind::Simple));
+    assert!(state(&mut bus, 5_400).contains(StateFlag::Motion), "1 rad/s at most: still moving at 1.4 s");
+}
+
+#[test]
+fn targets_beyond_the_soft_limits_are_limited_and_velocity_runs_into_them() {
+    let mut bus = homed_bus();
+    set(&mut bus, 2_000, Param::MaxPos, Value::F32(0.5));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(3.0) }, AckKind::Simple));
+    assert!((pos(&mut bus, 10_000) - 0.5).abs() < 1e-6);
+    assert!(!state(&mut bus, 10_000).has_fault());
+    // Velocity mode runs into the lower limit -3.14: from 0.5 at 1 rad/s that takes about 3.9 s.
+    bus.request(at(10_000), 1, &Request::Motion(Motion::FVel { vel: Velocity(-1.0) }, AckKind::Simple));
+    assert!(!state(&mut bus, 12_000).has_fault());
+    let s = state(&mut bus, 20_000);
+    assert!(s.contains(StateFlag::BeyondSoft) && s.contains(StateFlag::Halted) && s.contains(StateFlag::Error), "{s}");
+    assert!((pos(&mut bus, 20_000) + 3.14).abs() < 1e-3);
+    // Halted: motion commands are acknowledged and ignored.
+    let r = bus.request(at(20_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.0) }, AckKind::Simple));
+    assert!(r.is_some());
+    assert!(!state(&mut bus, 20_100).contains(StateFlag::Motion));
+    bus.request(at(20_200), 1, &Request::Action(Action::Reset));
+    let s = state(&mut bus, 20_200);
+    assert!(!s.has_fault() && !s.contains(StateFlag::Halted) && s.contains(StateFlag::HomeOk), "{s}");
+    bus.request(at(20_300), 1, &Request::Motion(Motion::FRamp { pos: Position(0.0) }, AckKind::Simple));
+    assert!(state(&mut bus, 20_400).contains(StateFlag::Motion));
+}
+
+#[test]
+fn halt_stops_at_once_until_reset() {
+    let mut bus = homed_bus();
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FVel { vel: Velocity(0.5) }, AckKind::Simple));
+    bus.request(at(3_000), 1, &Request::Action(Action::Halt));
+    let p = pos(&mut bus, 3_000);
+    assert!(p > 0.3, "{p}");
+    assert_eq!(pos(&mut bus, 4_000), p);
+    let s = state(&mut bus, 4_000);
+    assert!(s.contains(StateFlag::Halted) && !s.contains(StateFlag::Motion));
+    bus.request(at(4_000), 1, &Request::Action(Action::Home));
+    assert!(!state(&mut bus, 4_010).contains(StateFlag::Motion), "halted: homing ignored too");
+}
+
+#[test]
+fn the_watchdog_trips_without_refresh() {
+    let mut bus = homed_bus();
+    // Without the Config flag the life sign does nothing.
+    bus.request(at(2_000), 1, &Request::Action(Action::LifeSign));
+    assert!(!bus.module(1).unwrap().watchdog_online());
+    set(&mut bus, 2_000, Param::Config, Value::U32(ConfigFlag::WatchdogEnable.mask()));
+    assert!(matches!(
+        bus.request(at(2_000), 1, &Request::Action(Action::LifeSign)),
+        Some(Reply::Action(Action::LifeSign))
+    ));
+    assert!(bus.module(1).unwrap().watchdog_online());
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FVel { vel: Velocity(0.2) }, AckKind::Simple));
+    for ms in (2_040..3_000).step_by(40) {
+        bus.broadcast(at(ms), &Broadcast::WatchdogRefresh);
+    }
+    assert!(!state(&mut bus, 3_000).has_fault());
+    // Last refresh at 2960 ms: trips at 3010 ms, motion stops there.
+    let s = state(&mut bus, 3_500);
+    assert!(s.contains(StateFlag::CommError) && s.contains(StateFlag::Halted), "{s}");
+    let p = pos(&mut bus, 3_500);
+    // TargetAcc defaults to half of MaxAcc: 0.2 s to reach 0.2 rad/s.
+    let expected = 0.2 * 0.2 / 2.0 + 0.2 * (1.010 - 0.2);
+    assert!((f64::from(p) - expected).abs() < 1e-3, "{p} vs {expected}");
+    // Refresh again and reset: running again.
+    bus.broadcast(at(3_500), &Broadcast::WatchdogRefresh);
+    bus.broadcast(at(3_500), &Broadcast::Reset);
+    assert!(!state(&mut bus, 3_520).has_fault());
+    // A second life sign switches the watchdog off: no trip any more.
+    bus.request(at(3_520), 1, &Request::Action(Action::LifeSign));
+    assert!(!state(&mut bus, 60_000).has_fault());
+}
+
+#[test]
+fn a_small_max_delta_pos_gives_a_tow_error() {
+    let mut bus = homed_bus();
+    // The servo lags 5 ms: at 0.5 rad/s that is 2.5 mrad.
+    set(&mut bus, 2_000, Param::MaxDeltaPos, Value::F32(0.001));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FVel { vel: Velocity(0.5) }, AckKind::Simple));
+    let s = state(&mut bus, 3_000);
+    assert!(s.contains(StateFlag::TowError) && s.contains(StateFlag::Error), "{s}");
+    assert!(s.faults().any(|f| f == StateFlag::TowError));
+}
+
+#[test]
+fn step_mode_buffers_one_step() {
+    let mut bus = homed_bus();
+    bus.request(
+        at(2_000),
+        1,
+        &Request::Motion(Motion::FStep { pos: Position(0.1), time: Millis(200) }, AckKind::Simple),
+    );
+    let s = state(&mut bus, 2_050);
+    assert!(s.contains(StateFlag::InProgress) && !s.contains(StateFlag::FullBuffer));
+    assert!((pos(&mut bus, 2_100) - 0.05).abs() < 1e-4, "linear in time");
+    bus.request(at(2_100), 1, &Request::IStep { pos: Ticks(0), time: Millis(100) });
+    assert!(state(&mut bus, 2_150).contains(StateFlag::FullBuffer));
+    let s = state(&mut bus, 2_250);
+    assert!(s.contains(StateFlag::InProgress) && !s.contains(StateFlag::FullBuffer), "{s}");
+    assert!(!state(&mut bus, 2_400).contains(StateFlag::InProgress));
+    assert!(pos(&mut bus, 2_400).abs() < 1e-6);
+}
+
+#[test]
+fn extended_acknowledges_carry_position_state_and_dio() {
+    let mut bus = homed_bus();
+    set(&mut bus, 2_000, Param::DioSetup, Value::U32(0x30));
+    bus.module_mut(1).unwrap().set_inputs(0x05);
+    let r = bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.5) }, AckKind::Extended));
+    let Some(Reply::Motion { ext: Some(e), .. }) = r else { panic!("{r:?}") };
+    assert_eq!(e.position, AckPosition::Unit(Position(0.0)));
+    assert_eq!(e.dio.0, 0x35);
+    assert!(!e.state.contains(ShortFlag::NotOk));
+    let r = bus.request(at(2_200), 1, &Request::Motion(Motion::IRamp { pos: Ticks(0) }, AckKind::Extended));
+    let Some(Reply::Motion { ext: Some(e), .. }) = r else { panic!("{r:?}") };
+    assert!(matches!(e.position, AckPosition::Ticks(t) if t.0 > 0));
+    assert!(e.state.contains(ShortFlag::Motion));
+}
+
+#[test]
+fn velocity_and_current_modes_move() {
+    let mut bus = homed_bus();
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FCur { cur: Amperes(2.5) }, AckKind::Simple));
+    assert!(pos(&mut bus, 3_000) > 0.1);
+    bus.request(at(3_000), 1, &Request::Motion(Motion::FVel { vel: Velocity(0.0) }, AckKind::Simple));
+    let s = state(&mut bus, 4_000);
+    assert!(!s.contains(StateFlag::Motion), "velocity 0 stops: {s}");
+}
+
+#[test]
+fn rs232_framing_and_bcc_policy() {
+    let mut bus = SimBus::new(&SimConfig::with_addresses(&[1, 17]).unwrap());
+    let mut out = Vec::new();
+    // The manual's Home to module 17.
+    Emulator::receive(&mut bus, at(0), &[0x02, 0x06, 0x21, 0x01, 0x28, 0x03], &mut out);
+    assert_eq!(out, vec![0x02, 0x0a, 0x21, 0x01, 0x2c, 0x03]);
+    // A wrong BCC is accepted by default...
+    out.clear();
+    Emulator::receive(&mut bus, at(1), &[0x02, 0x06, 0x21, 0x00, 0x00, 0x03], &mut out);
+    assert_eq!(out, vec![0x02, 0x0a, 0x21, 0x00, 0x2b, 0x03]);
+    // ...and dropped when strict.
+    bus.set_strict_bcc(true);
+    out.clear();
+    Emulator::receive(&mut bus, at(2), &[0x02, 0x06, 0x21, 0x00, 0x00, 0x03], &mut out);
+    assert!(out.is_empty());
+    assert_eq!(bus.stats().bad_bcc, 1);
+    // A length that does not match is never interpreted; address 5 has no module.
+    Emulator::receive(&mut bus, at(3), &[0x02, 0x06, 0x22, 0x00, 0x28, 0x03], &mut out);
+    Emulator::receive(&mut bus, at(3), &[0x02, 0x04, 0xA1, 0x00, 0xa5, 0x03], &mut out);
+    assert!(out.is_empty());
+    assert_eq!((bus.stats().bad_length, bus.stats().nobody), (1, 1));
+    // A broadcast (address 0) reaches every module and is not acknowledged.
+    Emulator::receive(&mut bus, at(4), &[0x02, 0x04, 0x01, 0x10, 0x82, 0x07, 0x03], &mut out);
+    assert!(out.is_empty());
+    assert!(bus.module(1).unwrap().state().contains(StateFlag::Halted));
+    assert!(bus.module(17).unwrap().state().contains(StateFlag::Halted));
+}
+
+#[test]
+fn can_frames_and_disabled_acknowledges() {
+    let mut bus = SimBus::new_can(&SimConfig::with_addresses(&[17]).unwrap());
+    let mut out = Vec::new();
+    let f = |text: &str| text.parse::<CanFrame>().unwrap();
+    CanEmulator::receive(&mut bus, at(0), &f("0D1#0A27"), &mut out);
+    assert_eq!(out.len(), 1);
+    assert_eq!(out[0].id(), 0x0B1);
+    assert_eq!(&out[0].data()[..2], &[0x0a, 0x27]);
+    out.clear();
+    CanEmulator::receive(&mut bus, at(0), &f("0F1#083900000004"), &mut out); // Config: DISABLE_ACK
+    assert_eq!(out.len(), 1, "the change itself is acknowledged");
+    out.clear();
+    CanEmulator::receive(&mut bus, at(0), &f("0F1#01"), &mut out);
+    assert!(out.is_empty(), "no acknowledge of Home any more");
+    CanEmulator::receive(&mut bus, at(0), &f("0D1#0A3C"), &mut out);
+    assert_eq!(out.len(), 1, "Get is still answered");
+    out.clear();
+    CanEmulator::receive(&mut bus, at(0), &f("100#02"), &mut out);
+    CanEmulator::receive(&mut bus, at(0), &f("0B1#0A3C00000000"), &mut out);
+    CanEmulator::receive(&mut bus, at(0), &f("3E9#01"), &mut out);
+    assert!(out.is_empty());
+    assert!(bus.module(17).unwrap().state().contains(StateFlag::Halted));
+    assert_eq!(bus.stats().malformed, 1);
+}
+
+#[test]
+fn synchronised_motion_waits_for_the_broadcast() {
+    let mut bus = homed_bus();
+    set(&mut bus, 2_000, Param::Config, Value::U32(ConfigFlag::SyncMotion.mask()));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.5) }, AckKind::Simple));
+    assert!(!state(&mut bus, 2_100).contains(StateFlag::Motion));
+    bus.broadcast(at(2_100), &Broadcast::StartMotion);
+    assert!(state(&mut bus, 2_200).contains(StateFlag::Motion));
+    bus.broadcast(at(5_000), &Broadcast::SavePosition);
+    let Some(Reply::Get(_, Value::F32(saved))) = bus.request(at(5_000), 1, &Request::Get(Param::ActFSavedPos)) else {
+        panic!()
+    };
+    assert!((saved - 0.5).abs() < 1e-6);
+}
+
+#[test]
+fn profibus_images_ignore_repeats() {
+    let mut bus = homed_bus();
+    let mut w = OutputWriter::new();
+    let halt = w.image(&Request::Action(Action::Halt).encode()).unwrap();
+    let img = bus.profibus_exchange(at(2_000), 1, &halt).unwrap();
+    assert_eq!(img.reply_bytes()[0], 0x02);
+    assert!(CubeState(bus.module(1).unwrap().state().0).contains(StateFlag::Halted));
+    assert_eq!(img.short_state() & 0x8000, 0x8000, "STATE_HALTM4");
+    let reset = w.image(&Request::Action(Action::Reset).encode()).unwrap();
+    bus.profibus_exchange(at(2_010), 1, &reset).unwrap();
+    assert!(!bus.module(1).unwrap().state().contains(StateFlag::Halted));
+    // The same output image again is not a new Halt.
+    bus.profibus_exchange(at(2_020), 1, &reset).unwrap();
+    let again = bus.profibus_exchange(at(2_030), 1, &halt).unwrap();
+    assert_eq!(again.reply_bytes()[0], 0x02, "a changed image is interpreted");
+    let same = bus.profibus_exchange(at(2_040), 1, &halt).unwrap();
+    assert_eq!(same.millis(), (2_040 % 256) as u8, "the millisecond byte runs on");
+    assert!(bus.profibus_exchange(at(0), 9, &halt).is_none());
+}

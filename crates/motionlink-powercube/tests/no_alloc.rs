@@ -1,0 +1,54 @@
+//! RS232 encode and decode (with escaping) allocate nothing: counted by a global allocator.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use motionlink_powercube::wire::rs232::{self, Rs232Decoder, TelKind};
+use motionlink_powercube::wire::Payload;
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn rs232_encode_and_decode_never_allocate() {
+    // Data full of bytes that need escaping, every address, every length.
+    let payloads: Vec<Payload> =
+        (0..=8).map(|n| Payload::new(&[0x02, 0x03, 0x10, 0x0b, 0x10, 0x02, 0x03, 0x0e][..n]).unwrap()).collect();
+    let mut decoder = Rs232Decoder::new();
+    let mut buf = [0u8; rs232::MAX_FRAME];
+    let mut frames = 0u64;
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    for round in 0..20_000u32 {
+        let p = &payloads[(round % 9) as usize];
+        let address = (round % 32) as u8;
+        let n = rs232::encode(TelKind::Send, address, p, &mut buf).unwrap();
+        for result in decoder.feed(&buf[..n]) {
+            match result {
+                Ok(f) => {
+                    assert_eq!(f.payload, *p);
+                    frames += 1;
+                }
+                Err(e) => assert_eq!(e, rs232::Rs232Error::Garbage(2)),
+            }
+        }
+        // Garbage between frames is decoded (as an error) without allocating too.
+        let _ = decoder.feed(&[0xAA, 0x55]).count();
+    }
+    let after = ALLOCATIONS.load(Ordering::SeqCst);
+    assert_eq!(frames, 20_000);
+    assert_eq!(after - before, 0, "allocations during 20000 encode/decode rounds");
+}
