@@ -1,1 +1,99 @@
-//! placeholder
+//! Parker (EMD Hauser) COMPAX servo drives over the RS485 option F1 / F5 (and RS232): the ASCII and binary
+//! protocol, a client for a multi-drop bus of up to 31 drives, and an emulator of such a bus.
+//!
+//! Layers, bottom to top, each using only those below it:
+//! - [`wire`]: the sans-IO codec. Requests `address + command [$][,][/][?] CR [BCC]` and binary telegrams,
+//!   replies `[address] text CR LF > [BCC]` (or `CR` alone), P196 as one typed [`wire::Mode`], the 24.24 and
+//!   16-bit number formats, incremental decoders that resynchronise after garbage. No allocation on the hot
+//!   path.
+//! - [`model`]: the vocabulary: [`model::Command`] (POSA, POSR, SPEED, ACCEL, ACCEL-, OUTPUT, POSA HOME and
+//!   the short forms), status values S1..S40 ([`model::StatusId`], S16 / S17 bit words, the S18 history),
+//!   parameters ([`model::ParamId`], P194 / P195 / P196), error codes ([`model::ErrorCode`]), each from one
+//!   table.
+//! - [`client`]: [`client::Bus`], a blocking session over any byte link: request / reply matching,
+//!   retries of what may be retried, moves with progress, the synchronous start of several drives, and a
+//!   stop of whatever it set in motion when it is dropped or cancelled.
+//! - [`sim`]: [`sim::CompaxBus`], a sans-IO emulator of the bus with a motion model.
+//!
+//! ```
+//! use motionlink_compax::client::{Bus, BusConfig, MoveOptions};
+//! use motionlink_compax::model::{Position, SpeedPercent};
+//! use motionlink_compax::sim::{CompaxBus, SimConfig};
+//! use motionlink_compax::wire::{Address, Mode};
+//! use motionlink_link::{clock::{Clock, ManualClock}, pipe::{EmulatorHost, PipeConfig}};
+//!
+//! let clock = ManualClock::new_auto();
+//! let _me = clock.reserve_participant().enter();
+//! let sim = CompaxBus::new(SimConfig::bus(&[1, 5], 8, 9600)).unwrap(); // P196 = 8: with BCC
+//! let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(9600));
+//! let mut bus = Bus::new(Box::new(host.connect().0), clock.shared(),
+//!                        BusConfig::new(Mode::from_p196(8).unwrap(), 9600));
+//! let one = Address::drive(1).unwrap();
+//! bus.set_speed(one, SpeedPercent::new(50.0).unwrap(), false).unwrap();
+//! bus.move_relative(one, Position::new(10.0).unwrap(), MoveOptions { binary: true, message: false }).unwrap();
+//! bus.wait_reached(&[one], None, &mut |_, p| println!("at {p}")).unwrap();
+//! assert_eq!(bus.read_position(one).unwrap().units(), 10.0);
+//! ```
+//!
+//! # Decisions
+//!
+//! No public software speaks this protocol; the RS485 option manual (V1.20, 1997) and the COMPAX-M / -S user
+//! guide are the sources. Where they are silent or contradict themselves:
+//!
+//! - **BCC** is the XOR of every character before the CR, the address included (the manual's BASIC routine
+//!   computes it so for both directions). In a reply it comes after the prompt `>` (or after the CR when
+//!   P196 has 32). A binary telegram has no CR: its BCC covers the address digits and every command byte.
+//! - **P196** accepts 0..=127: the table prints 31 as the maximum, but its valences include 32 and 64.
+//!   164 / 165 (the COMTAC fieldbus protocol) are refused. Valence 4 (even) without 2 (parity on) means no
+//!   parity. P194..P196 are "valid from power-on": a written value is stored and read back at once, and takes
+//!   effect when the drive is switched off and on ([`sim::CompaxBus::power_cycle`]).
+//! - **Reply texts**: a status value is answered `S001: 360.000` (the user guide's S18 example has the form
+//!   `S018: 99 55 10 ...`; positions with three decimals, the drives' 0.001 resolution), S16 / S17 as eight
+//!   bits, bit 1 first (`S017: 1000 0000`, as the user guide writes it), a parameter `P194=5` (the form of a
+//!   write), a command without answer the empty text (`CR LF >` alone). The client accepts the value with or
+//!   without the name in front, so either form of a real drive reads.
+//! - **`$`** (position reached) is the user guide's `$ CR LF >`, with the address prefix and BCC of P196.
+//!   The emulator holds it while a telegram is being received and sends it after the reply. Without the
+//!   address prefix a `$` cannot name its drive: the client attributes it only when one drive awaits one,
+//!   and otherwise polls S17.
+//! - **`!`** executes the command in the buffer and answers as that command would (empty for a move, the
+//!   value for a read). The buffer holds one command (user guide) and is emptied by `!`, so a repeated
+//!   `32!` cannot move an axis twice; `!` with an empty buffer is refused.
+//! - **`?`** (echo) sends the telegram back (address, command and flags, without CR) and does not execute
+//!   it. The echo ends as P196 says, like every reply (the manual writes `CR LF >`, which would break a bus in
+//!   CR-only mode).
+//! - **Binary replies** are the ASCII ones (`CR LF >` or `Exx`); binary commands take no flags. The binary
+//!   table's last row prints five bytes for the speed; the length byte 0x8F says six, as everywhere else.
+//!   "POSA 256,0 → 88 41 00 00 00 01 00" misses a byte (`88 41 00 00 00 00 01 00`); the number table's
+//!   "400,5" is 450.5 (0x1C2 = 450, the worked example's number). The 16-bit format is two's complement;
+//!   ramp times are 0..=32767 ms.
+//! - **Stop**: `OUTPUT O0=0` ("switch off drive", user guide). The command set has no stop that works while a
+//!   positioning runs: every move command is refused with E92 then. The client sends it addressed to each
+//!   drive it started (a broadcast would also stop drives that other programs run) and only if the drive
+//!   still moves (S17 "command active", or its state cannot be read). `OUTPUT O0=1` switches the drive on
+//!   again; the emulator powers up switched on.
+//! - **Lost replies**: reads, settings, POSA and buffered commands are sent again after a timeout or a corrupt
+//!   reply. A POSR is not: the client read the target S2 before sending it and reads it again; unchanged, the
+//!   move did not arrive and is sent again; moved by the distance, it arrived; otherwise the caller gets
+//!   [`client::Error::MoveUncertain`]. E70..E73 are always answered by sending the telegram again.
+//! - **Timeouts**: the manual gives none. A reply may take the wire time of request and a 48-character reply
+//!   plus 200 ms ([`client::BusConfig`]); after a broadcast the client keeps the line quiet for 20 ms.
+//! - **Threads**: COMPAX has no watchdog or keepalive, so the client is blocking and owns no thread.
+//! - **Codes the manuals do not give**: the emulator answers a syntax error, a value out of range, an empty
+//!   buffer or a move while switched off with E90 ([`sim::REFUSED`]); a real drive's codes for these are not
+//!   in our sources, and the client shows any code with "meaning not documented".
+//! - **Status values known**: S1 actual, S2 target, S3 contour error, S6 temperature, S7 / S8 voltages, S9
+//!   motion cycles, S10 operating hours, S11 loop counter, S12 absolute sensor, S16 / S17 bits, S18 history,
+//!   S30 error, S31..S39 identification (from the user guide and the fieldbus interface description). The
+//!   others read as text.
+//! - **Motion model** (emulator): SPEED is percent of a maximum speed (100 units/s by default), ACCEL the
+//!   time from standstill to that maximum speed, ACCEL- the braking time alone; preparatory commands
+//!   (SPEED, ACCEL, comparators `POSR x OUTPUT Oy=z`, speed steps `POSR x SPEED y`) apply to the next
+//!   positioning. A comparator sends its number (`1 CR LF >`) when it switches, as in the user guide.
+
+#![warn(missing_docs)]
+
+pub mod client;
+pub mod model;
+pub mod sim;
+pub mod wire;

@@ -1,0 +1,849 @@
+//! A blocking client for a bus of COMPAX drives over any byte [`Link`]: an RS485 adapter, RS232, a TCP
+//! serial gateway, a pseudo-terminal, or an in-process emulator.
+//!
+//! The protocol needs no background traffic (no watchdog, no keepalive), so the client owns no thread: every
+//! call sends, waits through the [`Clock`](motionlink_link::Clock) of the session, and returns. Unsolicited
+//! messages (the `$` position-reached message, comparator numbers) are collected whenever the client reads.
+//!
+//! Safety: a drive the client set in motion is remembered until the client has seen it stop. Dropping the
+//! [`Bus`], cancelling a wait through its [`CancelToken`], or a transport failure during a wait stops every
+//! such axis with `OUTPUT O0=0` ("switch off drive", the one documented command that ends a running
+//! positioning; every move command is refused with E92 while the axis moves). The stop is addressed to each
+//! drive, not broadcast: other drives on the bus may be someone else's.
+//!
+//! Retries: E70..E73 mean the drive discarded the telegram; the client sends it again (up to
+//! [`BusConfig::retries`] times). A timeout or a corrupt reply is retried only for idempotent commands. A
+//! move whose reply was lost is never sent again blind: the client reads the target position S2 to find out
+//! whether the drive took it (see [`Bus::move_relative`]).
+//!
+//! ```
+//! use motionlink_compax::client::{Bus, BusConfig, MoveOptions};
+//! use motionlink_compax::model::Position;
+//! use motionlink_compax::sim::{CompaxBus, SimConfig};
+//! use motionlink_compax::wire::{Address, Mode};
+//! use motionlink_link::{clock::{Clock, ManualClock}, pipe::{EmulatorHost, PipeConfig}};
+//!
+//! let clock = ManualClock::new_auto();
+//! let _me = clock.reserve_participant().enter();
+//! let host = EmulatorHost::new(CompaxBus::new(SimConfig::bus(&[1, 5], 0, 9600)).unwrap(),
+//!                              clock.shared(), PipeConfig::paced(9600));
+//! let (link, _faults) = host.connect();
+//! let mut bus = Bus::new(Box::new(link), clock.shared(), BusConfig::new(Mode::default(), 9600));
+//! let five = Address::drive(5).unwrap();
+//! bus.move_absolute(five, Position::new(25.0).unwrap(), MoveOptions::default()).unwrap();
+//! bus.wait_reached(&[five], None, &mut |_, _| {}).unwrap();
+//! assert_eq!(bus.read_position(five).unwrap().units(), 25.0);
+//! ```
+
+use std::fmt;
+use std::time::Duration;
+
+use motionlink_link::cancel::CancelToken;
+use motionlink_link::clock::{SharedClock, Timestamp};
+use motionlink_link::link::{char_time, Link, LinkError};
+
+use crate::model::{
+    parse_param_reply, Command, CommandStyle, ErrorCode, ModelError, OutputState, ParamId, Position, RampMs, S16Bits,
+    S17Bits, SpeedPercent, StatusId, StatusValue,
+};
+use crate::wire::reply::ReplyError;
+use crate::wire::{
+    Address, Body, EscapedBytes, Flags, Mode, Reply, ReplyDecoder, ReplyEvent, ReplyKind, Request, WireError, BROADCAST,
+};
+
+/// How the client talks to the bus.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BusConfig {
+    /// P196 of the drives (they must all have the same).
+    pub mode: Mode,
+    /// P195 of the drives, bit/s (it sets the wire time the timeouts allow for).
+    pub baud_rate: u32,
+    /// Time a drive may take to start answering, on top of the wire time of request and reply. The manual
+    /// gives none; 200 ms by default.
+    pub reply_timeout: Duration,
+    /// How often a telegram is sent again after E70..E73, a timeout or a corrupt reply (idempotent commands).
+    pub retries: u32,
+    /// Silence after a broadcast before the next telegram (nobody answers a broadcast); 20 ms by default.
+    pub broadcast_gap: Duration,
+    /// Interval of status polls while waiting for a position; 50 ms by default.
+    pub poll_interval: Duration,
+    /// Long or short command names.
+    pub style: CommandStyle,
+}
+
+impl BusConfig {
+    /// Defaults for drives with mode `mode` at `baud_rate`.
+    pub fn new(mode: Mode, baud_rate: u32) -> Self {
+        BusConfig {
+            mode,
+            baud_rate,
+            reply_timeout: Duration::from_millis(200),
+            retries: 3,
+            broadcast_gap: Duration::from_millis(20),
+            poll_interval: Duration::from_millis(50),
+            style: CommandStyle::Long,
+        }
+    }
+
+    fn char_time(&self) -> Duration {
+        char_time(self.baud_rate, self.mode.parity)
+    }
+}
+
+/// An error of a client call.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The drive answered with an error message.
+    #[error("drive {address}: {command:?} refused with {code}")]
+    Device {
+        /// The drive.
+        address: u8,
+        /// The command sent.
+        command: String,
+        /// The error.
+        code: ErrorCode,
+    },
+    /// No reply in time, after every retry.
+    #[error("drive {address}: no reply to {command:?} ({attempts} attempts)")]
+    Timeout {
+        /// The drive.
+        address: u8,
+        /// The command sent.
+        command: String,
+        /// Telegrams sent.
+        attempts: u32,
+    },
+    /// Replies arrived corrupt (BCC, framing), after every retry.
+    #[error("drive {address}: corrupt reply to {command:?}: {detail}")]
+    Corrupt {
+        /// The drive.
+        address: u8,
+        /// The command sent.
+        command: String,
+        /// The last corruption seen.
+        detail: ReplyError,
+    },
+    /// A reply the client cannot read.
+    #[error("drive {address}: unexpected reply {reply:?} to {command:?}")]
+    Unexpected {
+        /// The drive.
+        address: u8,
+        /// The command sent.
+        command: String,
+        /// The reply text.
+        reply: String,
+    },
+    /// The port failed.
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    /// An argument out of range.
+    #[error(transparent)]
+    Invalid(#[from] ModelError),
+    /// A telegram that cannot be built.
+    #[error(transparent)]
+    Wire(#[from] WireError),
+    /// A move's reply was lost and the drive's state does not tell whether it took the move.
+    #[error("drive {address}: the reply to {command:?} was lost and the drive's target ({target}) does not tell whether it was executed")]
+    MoveUncertain {
+        /// The drive.
+        address: u8,
+        /// The command sent.
+        command: String,
+        /// The target position S2 read afterwards.
+        target: f64,
+    },
+    /// A wait for a position did not end in time; the axes were stopped.
+    #[error("drive {address} did not reach its position within {after:?}; stopped")]
+    MoveTimeout {
+        /// The drive.
+        address: u8,
+        /// The time waited.
+        after: Duration,
+    },
+    /// The wait was cancelled (Ctrl-C); the axes were stopped.
+    #[error("cancelled; the axes this client moved were stopped")]
+    Cancelled,
+}
+
+impl Error {
+    /// True for errors of the line (timeout, corrupt reply, port), as opposed to the drive's answers.
+    pub fn is_transport(&self) -> bool {
+        matches!(self, Error::Timeout { .. } | Error::Corrupt { .. } | Error::Link(_) | Error::Unexpected { .. })
+    }
+
+    /// The drive's error code, if the drive refused.
+    pub fn device_code(&self) -> Option<ErrorCode> {
+        match self {
+            Error::Device { code, .. } => Some(*code),
+            _ => None,
+        }
+    }
+}
+
+/// A result of a client call.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// How a move is sent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct MoveOptions {
+    /// Send the binary form (no ASCII conversion in the drive).
+    pub binary: bool,
+    /// Append `$`: the drive sends the position-reached message (ASCII only).
+    pub message: bool,
+}
+
+/// When a telegram may be sent again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Retry {
+    /// After E70..E73, a timeout or a corrupt reply.
+    Idempotent,
+    /// After E70..E73 only; a lost reply is returned to the caller (who checks the drive's state).
+    DiscardedOnly,
+}
+
+/// A client for one bus of COMPAX drives.
+pub struct Bus {
+    link: Box<dyn Link>,
+    clock: SharedClock,
+    cfg: BusConfig,
+    decoder: ReplyDecoder,
+    cancel: CancelToken,
+    /// Drives this client set in motion and has not yet seen stop (bit n: address n).
+    started: u32,
+    /// Drives whose move asked for `$` and whose message has not come.
+    awaiting_message: u32,
+    /// Drives whose `$` has come.
+    message_seen: u32,
+    /// `$` messages without address that could not be attributed.
+    unattributed_messages: u32,
+    /// Drives with comparators armed (their bare-number messages are expected).
+    comparators: u32,
+    paused: bool,
+    /// Earliest time of the next send (after a broadcast).
+    quiet_until: Timestamp,
+    rx: [u8; 256],
+    rx_pos: usize,
+    rx_len: usize,
+}
+
+impl fmt::Debug for Bus {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Bus").field("port", &self.link.describe()).field("config", &self.cfg).finish()
+    }
+}
+
+fn bit(a: Address) -> u32 {
+    1 << a.get()
+}
+
+impl Bus {
+    /// A client on `link`, timed by `clock`.
+    pub fn new(link: Box<dyn Link>, clock: SharedClock, cfg: BusConfig) -> Self {
+        Bus {
+            decoder: ReplyDecoder::new(&cfg.mode),
+            link,
+            clock,
+            cfg,
+            cancel: CancelToken::new(),
+            started: 0,
+            awaiting_message: 0,
+            message_seen: 0,
+            unattributed_messages: 0,
+            comparators: 0,
+            paused: false,
+            quiet_until: Timestamp::ZERO,
+            rx: [0; 256],
+            rx_pos: 0,
+            rx_len: 0,
+        }
+    }
+
+    /// Long waits watch `token` and stop the axes when it is cancelled.
+    pub fn set_cancel(&mut self, token: CancelToken) {
+        self.cancel = token;
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &BusConfig {
+        &self.cfg
+    }
+
+    /// The drives this client set in motion and has not yet seen stop.
+    pub fn started(&self) -> Vec<Address> {
+        (1..BROADCAST).filter(|a| self.started & (1 << a) != 0).filter_map(|a| Address::drive(a).ok()).collect()
+    }
+
+    // --------------------------------------------------------------------------------------------------
+    // Transport
+
+    fn command_text(&self, body: &Body<'_>, flags: Flags) -> String {
+        match body {
+            Body::Command(t) => format!("{}{flags}", EscapedBytes(t)),
+            Body::Execute => format!("!{flags}"),
+            Body::Binary(b) => format!("{b} (binary)"),
+        }
+    }
+
+    fn handle_unsolicited(&mut self, r: &Reply) -> bool {
+        match r.kind() {
+            ReplyKind::PositionReached => {
+                match r.address() {
+                    Some(a) => self.message_seen |= 1 << a.min(31),
+                    None if self.awaiting_message.count_ones() == 1 => self.message_seen |= self.awaiting_message,
+                    None => self.unattributed_messages += 1,
+                }
+                tracing::debug!("position reached message from {:?}", r.address());
+                true
+            }
+            ReplyKind::Comparator(n) if self.comparators != 0 => {
+                tracing::info!("comparator {n} switched (drive {:?})", r.address());
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Reads whatever arrives until `until`, handling unsolicited messages; returns the first reply that is
+    /// not one, or a line error.
+    fn read_event(&mut self, until: Timestamp, want: Option<Address>) -> Result<Option<ReplyEvent>> {
+        loop {
+            if self.rx_pos >= self.rx_len {
+                let now = self.clock.now();
+                if now >= until {
+                    return Ok(None);
+                }
+                self.rx_pos = 0;
+                self.rx_len = self.link.recv(&mut self.rx, until - now)?;
+                continue;
+            }
+            let b = self.rx[self.rx_pos];
+            self.rx_pos += 1;
+            let Some(ev) = self.decoder.push(b) else { continue };
+            match ev {
+                ReplyEvent::Flow(xoff) => self.paused = xoff,
+                ReplyEvent::Reply(r) if self.handle_unsolicited(&r) => {}
+                ReplyEvent::Reply(r) if want.is_some_and(|w| r.address().is_some_and(|a| a != w.get())) => {
+                    tracing::warn!("ignoring a reply from drive {:?} while waiting for {want:?}: {r:?}", r.address());
+                }
+                other => return Ok(Some(other)),
+            }
+        }
+    }
+
+    /// Handles everything that arrives for `d` (a sleep that listens).
+    fn listen(&mut self, d: Duration) -> Result<()> {
+        let until = self.clock.now() + d;
+        while let Some(ev) = self.read_event(until, None)? {
+            tracing::debug!("unexpected while listening: {ev:?}");
+        }
+        Ok(())
+    }
+
+    /// Handles every byte already received (late replies are dropped, messages noted).
+    fn drain(&mut self) -> Result<()> {
+        loop {
+            self.listen(Duration::ZERO)?;
+            self.rx_pos = 0;
+            self.rx_len = self.link.recv(&mut self.rx, Duration::ZERO)?;
+            if self.rx_len == 0 {
+                return Ok(());
+            }
+        }
+    }
+
+    /// Sends one telegram and reads its reply (`None` when none is due).
+    fn transact(&mut self, req: &Request<'_>, retry: Retry) -> Result<Option<Reply>> {
+        let frame = req.encode(&self.cfg.mode)?;
+        let wire_time = self.cfg.char_time() * (frame.len() as u32 + 48);
+        let mut attempts = 0;
+        let mut last_corrupt = None;
+        loop {
+            attempts += 1;
+            // Whatever arrived before (late replies, messages) is handled, not mistaken for the answer.
+            let now = self.clock.now();
+            if self.quiet_until > now {
+                self.listen(self.quiet_until - now)?;
+            }
+            self.drain()?;
+            if self.paused {
+                tracing::debug!("XOFF: waiting for XON");
+                let until = self.clock.now() + self.cfg.reply_timeout;
+                while self.paused && self.clock.now() < until {
+                    self.listen(self.cfg.poll_interval.min(until - self.clock.now()))?;
+                }
+            }
+            self.decoder.reset();
+            self.decoder.expect_from(Some(req.address.get()));
+            tracing::trace!("send {:?}", EscapedBytes(frame.as_bytes()));
+            self.link.send(frame.as_bytes())?;
+            if !req.expects_reply() {
+                let on_wire = self.cfg.char_time() * frame.len() as u32;
+                self.quiet_until = self.clock.now()
+                    + on_wire
+                    + if req.address.is_broadcast() { self.cfg.broadcast_gap } else { Duration::ZERO };
+                return Ok(None);
+            }
+            let deadline = self.clock.now() + wire_time + self.cfg.reply_timeout;
+            let outcome = self.read_event(deadline, Some(req.address))?;
+            let retry_left = attempts <= self.cfg.retries;
+            match outcome {
+                Some(ReplyEvent::Reply(r)) => match r.kind() {
+                    ReplyKind::Error(code) if ErrorCode(code).is_retransmit() && retry_left => {
+                        tracing::info!("drive {} answered E{code}: sending again", req.address);
+                    }
+                    ReplyKind::Error(code) => {
+                        return Err(Error::Device {
+                            address: req.address.get(),
+                            command: self.command_text(&req.body, req.flags),
+                            code: ErrorCode(code),
+                        })
+                    }
+                    _ => return Ok(Some(r)),
+                },
+                Some(ReplyEvent::Error(e)) => {
+                    tracing::info!("drive {}: corrupt reply ({e})", req.address);
+                    last_corrupt = Some(e);
+                    // Let the rest of a broken reply pass before trying again.
+                    self.listen(self.cfg.char_time() * 4)?;
+                    if retry != Retry::Idempotent || !retry_left {
+                        return Err(Error::Corrupt {
+                            address: req.address.get(),
+                            command: self.command_text(&req.body, req.flags),
+                            detail: e,
+                        });
+                    }
+                }
+                Some(ReplyEvent::Flow(_)) => unreachable!("handled by read_event"),
+                None => {
+                    tracing::info!("drive {}: no reply (attempt {attempts})", req.address);
+                    if retry != Retry::Idempotent || !retry_left {
+                        return Err(match last_corrupt {
+                            Some(detail) if retry == Retry::Idempotent => Error::Corrupt {
+                                address: req.address.get(),
+                                command: self.command_text(&req.body, req.flags),
+                                detail,
+                            },
+                            _ => Error::Timeout {
+                                address: req.address.get(),
+                                command: self.command_text(&req.body, req.flags),
+                                attempts,
+                            },
+                        });
+                    }
+                }
+            }
+        }
+    }
+
+    fn send_command(&mut self, address: Address, cmd: &Command, flags: Flags) -> Result<Option<Reply>> {
+        let text = cmd.to_ascii(self.cfg.style)?;
+        let retry = if cmd.is_idempotent() || flags.buffer { Retry::Idempotent } else { Retry::DiscardedOnly };
+        self.transact(&Request { address, body: Body::Command(text.as_bytes()), flags }, retry)
+    }
+
+    /// Sends `cmd` to one drive and returns the reply text (empty for an acknowledgement).
+    pub fn command(&mut self, address: Address, cmd: &Command) -> Result<String> {
+        if cmd.is_move() {
+            return Err(ModelError::Syntax {
+                what: "a command (use the move methods for moves)",
+                text: cmd.to_string(),
+            }
+            .into());
+        }
+        let r = self.send_command(address, cmd, Flags::NONE)?;
+        if matches!(cmd, Command::PosROutput { .. }) {
+            self.comparators |= bit(address);
+        }
+        Ok(r.map(|r| r.text_str().to_string()).unwrap_or_default())
+    }
+
+    /// Sends `text` as it is (`S1`, `POSA 10$`, `!`, `OUTPUT O9=1/`); flag characters at its end are sent
+    /// as flags. Sent again only after E70..E73 (the drive discarded it); never after a lost reply.
+    /// Returns the reply text, or `None` when no reply is due.
+    pub fn raw(&mut self, address: Address, text: &str) -> Result<Option<String>> {
+        let (body, flags) = Flags::split(text.trim().as_bytes());
+        let body = if body == b"!" { Body::Execute } else { Body::Command(body) };
+        let r = self.transact(&Request { address, body, flags }, Retry::DiscardedOnly)?;
+        Ok(r.map(|r| r.text_str().to_string()))
+    }
+
+    /// Sends `text` with `?`: the drive sends it back. Returns the echo.
+    pub fn echo(&mut self, address: Address, text: &str) -> Result<String> {
+        let r = self.transact(
+            &Request { address, body: Body::Command(text.as_bytes()), flags: Flags { echo: true, ..Flags::NONE } },
+            Retry::Idempotent,
+        )?;
+        Ok(r.map(|r| r.text_str().to_string()).unwrap_or_default())
+    }
+
+    fn unexpected(&self, address: Address, cmd: &Command, r: &[u8]) -> Error {
+        Error::Unexpected {
+            address: address.get(),
+            command: cmd.to_string(),
+            reply: String::from_utf8_lossy(r).into_owned(),
+        }
+    }
+
+    // --------------------------------------------------------------------------------------------------
+    // Reading
+
+    /// Reads status value `id`.
+    pub fn read_status(&mut self, address: Address, id: StatusId) -> Result<StatusValue> {
+        let cmd = Command::ReadStatus(id);
+        let r = self.send_command(address, &cmd, Flags::NONE)?.ok_or(Error::Wire(WireError::Flags("no reply")))?;
+        StatusValue::parse(id, r.text()).map_err(|_| self.unexpected(address, &cmd, r.text()))
+    }
+
+    /// Reads the actual position S1.
+    pub fn read_position(&mut self, address: Address) -> Result<Position> {
+        self.read_position_value(address, StatusId::ACTUAL_POSITION)
+    }
+
+    /// Reads the target position S2.
+    pub fn read_target(&mut self, address: Address) -> Result<Position> {
+        self.read_position_value(address, StatusId::TARGET_POSITION)
+    }
+
+    fn read_position_value(&mut self, address: Address, id: StatusId) -> Result<Position> {
+        match self.read_status(address, id)? {
+            StatusValue::Position(p) => Ok(p),
+            other => {
+                Err(Error::Unexpected { address: address.get(), command: id.to_string(), reply: other.to_string() })
+            }
+        }
+    }
+
+    /// Reads the status bits S16.
+    pub fn read_s16(&mut self, address: Address) -> Result<S16Bits> {
+        match self.read_status(address, StatusId::STATUS_BITS_1)? {
+            StatusValue::S16(b) => Ok(b),
+            other => Err(Error::Unexpected { address: address.get(), command: "S16".into(), reply: other.to_string() }),
+        }
+    }
+
+    /// Reads the status bits S17.
+    pub fn read_s17(&mut self, address: Address) -> Result<S17Bits> {
+        match self.read_status(address, StatusId::STATUS_BITS_2)? {
+            StatusValue::S17(b) => Ok(b),
+            other => Err(Error::Unexpected { address: address.get(), command: "S17".into(), reply: other.to_string() }),
+        }
+    }
+
+    /// Reads parameter `id`.
+    pub fn read_param(&mut self, address: Address, id: ParamId) -> Result<f64> {
+        let cmd = Command::ReadParam(id);
+        let r = self.send_command(address, &cmd, Flags::NONE)?.ok_or(Error::Wire(WireError::Flags("no reply")))?;
+        parse_param_reply(id, r.text()).map_err(|_| self.unexpected(address, &cmd, r.text()))
+    }
+
+    /// Writes parameter `id` (checked against its known range first). P194..P196 take effect at power-on.
+    pub fn write_param(&mut self, address: Address, id: ParamId, value: f64) -> Result<()> {
+        id.check(value)?;
+        self.expect_ack(address, &Command::WriteParam(id, value))
+    }
+
+    fn expect_ack(&mut self, address: Address, cmd: &Command) -> Result<()> {
+        match self.send_command(address, cmd, Flags::NONE)? {
+            Some(r) if !r.text().is_empty() => Err(self.unexpected(address, cmd, r.text())),
+            _ => Ok(()),
+        }
+    }
+
+    /// Tries every address in `range` once with a short timeout; returns the drives that answered S1 with
+    /// their positions.
+    pub fn scan(&mut self, range: std::ops::RangeInclusive<u8>) -> Result<Vec<(Address, Position)>> {
+        let saved = self.cfg.retries;
+        self.cfg.retries = 0;
+        let mut found = Vec::new();
+        let mut result = Ok(());
+        for a in range.filter_map(|a| Address::drive(a).ok()) {
+            match self.read_position(a) {
+                Ok(p) => found.push((a, p)),
+                Err(Error::Timeout { .. } | Error::Corrupt { .. }) => {}
+                Err(e @ Error::Link(_)) => {
+                    result = Err(e);
+                    break;
+                }
+                Err(e) => tracing::warn!("drive {a}: {e}"),
+            }
+        }
+        self.cfg.retries = saved;
+        result.map(|()| found)
+    }
+
+    // --------------------------------------------------------------------------------------------------
+    // Settings and outputs
+
+    /// SPEED for the next positionings.
+    pub fn set_speed(&mut self, address: Address, speed: SpeedPercent, binary: bool) -> Result<()> {
+        self.setting(address, Command::Speed(speed), binary)
+    }
+
+    /// ACCEL (acceleration and braking time) for the next positionings.
+    pub fn set_accel(&mut self, address: Address, ramp: RampMs, binary: bool) -> Result<()> {
+        self.setting(address, Command::Accel(ramp), binary)
+    }
+
+    /// ACCEL- (braking time alone) for the next positionings.
+    pub fn set_brake(&mut self, address: Address, ramp: RampMs, binary: bool) -> Result<()> {
+        self.setting(address, Command::AccelBrake(ramp), binary)
+    }
+
+    /// OUTPUT O`output`=`state`. Output 0 is the drive itself: 0 switches it off, 1 on.
+    pub fn set_output(&mut self, address: Address, output: u16, state: OutputState, binary: bool) -> Result<()> {
+        if output == 0 && state != OutputState::ON {
+            self.started &= !bit(address);
+        }
+        self.setting(address, Command::Output { output, state }, binary)
+    }
+
+    fn setting(&mut self, address: Address, cmd: Command, binary: bool) -> Result<()> {
+        if binary {
+            let b = cmd.to_binary()?;
+            self.transact(&Request { address, body: Body::Binary(b), flags: Flags::NONE }, Retry::Idempotent)?;
+            Ok(())
+        } else {
+            self.expect_ack(address, &cmd)
+        }
+    }
+
+    // --------------------------------------------------------------------------------------------------
+    // Moves
+
+    /// POSA: moves to `target`. Returns once the drive has taken the command; see [`Bus::wait_reached`].
+    pub fn move_absolute(&mut self, address: Address, target: Position, opts: MoveOptions) -> Result<()> {
+        self.start_move(address, Command::PosA(target), opts)
+    }
+
+    /// POSR: moves by `distance`. If the reply is lost the client reads the target position S2: unchanged,
+    /// the drive did not take the move and it is sent again; moved by `distance`, it did; anything else is
+    /// [`Error::MoveUncertain`]. Never sent again blind.
+    pub fn move_relative(&mut self, address: Address, distance: Position, opts: MoveOptions) -> Result<()> {
+        self.start_move(address, Command::PosR(distance), opts)
+    }
+
+    /// POSA HOME: finds machine zero.
+    pub fn home(&mut self, address: Address, opts: MoveOptions) -> Result<()> {
+        self.start_move(address, Command::PosAHome, opts)
+    }
+
+    fn move_request<'a>(
+        &self,
+        address: Address,
+        cmd: &Command,
+        text: &'a [u8],
+        opts: MoveOptions,
+    ) -> Result<Request<'a>> {
+        if opts.binary {
+            if opts.message {
+                return Err(WireError::Flags("the binary form takes no '$'").into());
+            }
+            return Ok(Request { address, body: Body::Binary(cmd.to_binary()?), flags: Flags::NONE });
+        }
+        Ok(Request {
+            address,
+            body: Body::Command(text),
+            flags: Flags { position_message: opts.message, ..Flags::NONE },
+        })
+    }
+
+    fn start_move(&mut self, address: Address, cmd: Command, opts: MoveOptions) -> Result<()> {
+        let text = cmd.to_ascii(self.cfg.style)?;
+        let req = self.move_request(address, &cmd, text.as_bytes(), opts)?;
+        let before = match cmd {
+            Command::PosR(_) => Some(self.read_target(address)?.units()),
+            _ => None,
+        };
+        let expected = match cmd {
+            Command::PosA(p) => p.units(),
+            Command::PosR(d) => before.unwrap_or(0.0) + d.units(),
+            _ => 0.0,
+        };
+        // Counted as started before it is sent: if the session fails now, the stop still reaches it.
+        self.started |= bit(address);
+        if opts.message {
+            self.awaiting_message |= bit(address);
+            self.message_seen &= !bit(address);
+        }
+        let mut attempts = 0;
+        loop {
+            attempts += 1;
+            match self.transact(&req, Retry::DiscardedOnly) {
+                Ok(_) => return Ok(()),
+                Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. })) => {
+                    // The reply is lost: did the drive take the move? Its target position tells.
+                    let target = self.read_target(address)?.units();
+                    let close = |a: f64, b: f64| (a - b).abs() < 0.0015;
+                    if close(target, expected) && (before.is_none() || !close(expected, before.unwrap_or(0.0))) {
+                        tracing::info!("drive {address}: reply lost, but the drive took the move (S2 = {target})");
+                        return Ok(());
+                    }
+                    let not_taken = match before {
+                        Some(b) => close(target, b),
+                        None => !self.read_s17(address)?.bit(S17Bits::COMMAND_ACTIVE),
+                    };
+                    if not_taken && attempts <= self.cfg.retries {
+                        tracing::info!("drive {address}: reply lost and the move was not taken: sending it again");
+                        continue;
+                    }
+                    if not_taken {
+                        self.started &= !bit(address);
+                        return Err(e);
+                    }
+                    return Err(Error::MoveUncertain { address: address.get(), command: cmd.to_string(), target });
+                }
+                Err(e) => {
+                    if matches!(e, Error::Device { .. }) {
+                        self.started &= !bit(address);
+                        self.awaiting_message &= !bit(address);
+                    }
+                    return Err(e);
+                }
+            }
+        }
+    }
+
+    /// Starts several drives at the same instant: each move is stored in its drive's buffer (`,`), then one
+    /// broadcast `32!` executes them all. Note that every drive on the bus runs what its buffer holds.
+    pub fn sync_start(&mut self, moves: &[(Address, Command)], message: bool) -> Result<()> {
+        for (a, c) in moves {
+            if !c.is_move() || a.is_broadcast() {
+                return Err(ModelError::Syntax { what: "a move to one drive", text: format!("{a}: {c}") }.into());
+            }
+        }
+        for (a, c) in moves {
+            self.send_command(*a, c, Flags { buffer: true, position_message: message, ..Flags::NONE })?;
+        }
+        for (a, _) in moves {
+            self.started |= bit(*a);
+            if message {
+                self.awaiting_message |= bit(*a);
+                self.message_seen &= !bit(*a);
+            }
+        }
+        self.transact(
+            &Request { address: Address::BROADCAST, body: Body::Execute, flags: Flags::NONE },
+            Retry::DiscardedOnly,
+        )?;
+        Ok(())
+    }
+
+    /// Sends `cmd` to every drive at once (no reply).
+    pub fn broadcast(&mut self, cmd: &Command) -> Result<()> {
+        let text = cmd.to_ascii(self.cfg.style)?;
+        self.transact(
+            &Request { address: Address::BROADCAST, body: Body::Command(text.as_bytes()), flags: Flags::NONE },
+            Retry::DiscardedOnly,
+        )?;
+        Ok(())
+    }
+
+    /// Waits until every drive in `drives` has ended its positioning: by its `$` message when the move asked
+    /// for one, otherwise by polling S17 ("command active"). `progress` gets each polled position. On
+    /// timeout, cancellation or a line failure, every axis this client started is stopped.
+    pub fn wait_reached(
+        &mut self,
+        drives: &[Address],
+        timeout: Option<Duration>,
+        progress: &mut dyn FnMut(Address, Position),
+    ) -> Result<()> {
+        let started_at = self.clock.now();
+        let mut pending: Vec<Address> = drives.to_vec();
+        let result = (|| -> Result<()> {
+            loop {
+                if self.cancel.is_cancelled() {
+                    return Err(Error::Cancelled);
+                }
+                let mut still = Vec::new();
+                for &a in &pending {
+                    let by_message = self.awaiting_message & bit(a) != 0;
+                    if by_message && self.message_seen & bit(a) != 0 {
+                        self.finish(a);
+                        continue;
+                    }
+                    let attributable = self.cfg.mode.reply_address || self.awaiting_message.count_ones() == 1;
+                    if by_message && self.unattributed_messages == 0 && attributable {
+                        still.push(a);
+                        continue;
+                    }
+                    let s17 = self.read_s17(a)?;
+                    if let Ok(p) = self.read_position(a) {
+                        progress(a, p);
+                    }
+                    if s17.bit(S17Bits::COMMAND_ACTIVE) {
+                        still.push(a);
+                    } else {
+                        self.finish(a);
+                    }
+                }
+                pending = still;
+                if pending.is_empty() {
+                    return Ok(());
+                }
+                if let Some(t) = timeout {
+                    let waited = self.clock.now() - started_at;
+                    if waited >= t {
+                        return Err(Error::MoveTimeout { address: pending[0].get(), after: waited });
+                    }
+                }
+                self.listen(self.cfg.poll_interval)?;
+            }
+        })();
+        if let Err(e) = &result {
+            tracing::warn!("{e}: stopping the axes this client moved");
+            if let Err(stop_err) = self.stop_started() {
+                tracing::error!("stopping failed: {stop_err}");
+            }
+        }
+        result
+    }
+
+    fn finish(&mut self, a: Address) {
+        self.started &= !bit(a);
+        self.awaiting_message &= !bit(a);
+        self.message_seen &= !bit(a);
+        if self.awaiting_message == 0 {
+            self.unattributed_messages = 0;
+        }
+    }
+
+    /// Stops one drive: `OUTPUT O0=0` (switch off drive). Switch it on again with
+    /// `set_output(address, 0, OutputState::ON, false)`.
+    pub fn stop(&mut self, address: Address) -> Result<()> {
+        let r = self.expect_ack(address, &Command::SWITCH_OFF);
+        if r.is_ok() {
+            self.finish(address);
+        }
+        r
+    }
+
+    /// Stops every drive this client set in motion and has not seen stop. Tries them all; returns the first
+    /// error.
+    pub fn stop_started(&mut self) -> Result<()> {
+        let mut first = Ok(());
+        for a in self.started() {
+            if let Err(e) = self.stop(a) {
+                tracing::error!("drive {a}: stop failed: {e}");
+                if first.is_ok() {
+                    first = Err(e);
+                }
+            }
+        }
+        first
+    }
+}
+
+impl Drop for Bus {
+    /// Stops every axis this client set in motion that is still moving (or whose state cannot be read).
+    fn drop(&mut self) {
+        for a in self.started() {
+            let moving = self.read_s17(a).map(|s| s.bit(S17Bits::COMMAND_ACTIVE)).unwrap_or(true);
+            if moving {
+                tracing::warn!("drive {a} still moving as the client closes: stopping it");
+                if let Err(e) = self.stop(a) {
+                    tracing::error!("drive {a}: stop failed: {e}");
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,468 @@
+//! Replies, drive to host: `[address] text CR LF > [BCC]`, or `[address] text CR [BCC]` when P196 has 32.
+//!
+//! The text is empty for a plain acknowledgement, `Exx` for an error, `$` for the position-reached message,
+//! and the answer otherwise. The BCC is the XOR of every character before the CR, address included.
+//!
+//! ```
+//! use motionlink_compax::wire::{Mode, ReplyDecoder, ReplyEvent, ReplyKind};
+//! let mut d = ReplyDecoder::new(&Mode::default());
+//! let mut kinds = Vec::new();
+//! d.push_slice(b"S001: 360\r\n>E92\r\n>", |e| if let ReplyEvent::Reply(r) = e {
+//!     kinds.push(format!("{:?}", r.kind()));
+//! });
+//! assert_eq!(kinds, ["Text(\"S001: 360\")", "Error(92)"]);
+//! ```
+
+use std::fmt;
+
+use super::{bcc, EscapedBytes, Mode, ReplyEnd, CR, LF, PROMPT, XOFF, XON};
+
+/// The longest reply text the decoder keeps (the drive's output buffer holds 40 characters).
+pub const MAX_REPLY_LEN: usize = 60;
+
+/// One reply, decoded.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct Reply {
+    line: [u8; MAX_REPLY_LEN],
+    len: usize,
+    prefix: usize,
+    address: Option<u8>,
+}
+
+/// What a reply says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ReplyKind<'a> {
+    /// Empty text: the command was accepted.
+    Ack,
+    /// `Exx`: the command was refused or failed; the code.
+    Error(u8),
+    /// `$`: a position was reached (after POSA / POSR with `$`).
+    PositionReached,
+    /// A bare number: a comparator set by `POSR value OUTPUT` has switched (the user guide's example returns
+    /// `2 CR LF >` when the second comparator fires).
+    Comparator(u8),
+    /// Any other answer (a status value, a parameter, an echo).
+    Text(&'a str),
+}
+
+impl Reply {
+    /// The address that prefixes the reply (P196 has 64), if any.
+    #[inline]
+    pub fn address(&self) -> Option<u8> {
+        self.address
+    }
+
+    /// The reply text after the address, without CR / LF / prompt / BCC.
+    #[inline]
+    pub fn text(&self) -> &[u8] {
+        &self.line[self.prefix..self.len]
+    }
+
+    /// The whole line before the CR, address included.
+    pub fn line(&self) -> &[u8] {
+        &self.line[..self.len]
+    }
+
+    /// The text as `str` (non-ASCII bytes make it `"?"`).
+    pub fn text_str(&self) -> &str {
+        std::str::from_utf8(self.text()).unwrap_or("?")
+    }
+
+    /// Classifies the text.
+    pub fn kind(&self) -> ReplyKind<'_> {
+        classify(self.text_str())
+    }
+}
+
+impl fmt::Debug for Reply {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "Reply(address {:?}, {:?})", self.address, EscapedBytes(self.text()))
+    }
+}
+
+fn classify(text: &str) -> ReplyKind<'_> {
+    let b = text.as_bytes();
+    if b.is_empty() {
+        return ReplyKind::Ack;
+    }
+    if b == b"$" {
+        return ReplyKind::PositionReached;
+    }
+    if b.len() >= 2 && b.len() <= 3 && b[0] == b'E' && b[1..].iter().all(u8::is_ascii_digit) {
+        return ReplyKind::Error(b[1..].iter().fold(0u8, |a, d| a * 10 + (d - b'0')));
+    }
+    if b.len() <= 2 && b.iter().all(u8::is_ascii_digit) {
+        return ReplyKind::Comparator(b.iter().fold(0u8, |a, d| a * 10 + (d - b'0')));
+    }
+    ReplyKind::Text(text)
+}
+
+/// Where the address prefix of a line ends, when P196 has 64. The digits are ambiguous with texts that start
+/// with digits (an echo, a comparator number), so: a prefix followed by exactly `$` wins (the unsolicited
+/// message), then the address the host expects, then the longest valid address.
+pub fn split_address(line: &[u8], expected: Option<u8>) -> Option<(u8, usize)> {
+    let d = |i: usize| line.get(i).filter(|c| c.is_ascii_digit()).map(|c| c - b'0');
+    let one = d(0).filter(|&a| a >= 1).map(|a| (a, 1));
+    let two = match (d(0), d(1)) {
+        (Some(a), Some(b)) if (10..=31).contains(&(a * 10 + b)) => Some((a * 10 + b, 2)),
+        _ => None,
+    };
+    let candidates = [two, one];
+    let rest_is = |c: &(u8, usize), s: &[u8]| &line[c.1..] == s;
+    if let Some(c) = candidates.iter().flatten().find(|c| rest_is(c, b"$")) {
+        return Some(*c);
+    }
+    if let Some(c) = candidates.iter().flatten().find(|c| Some(c.0) == expected) {
+        return Some(*c);
+    }
+    candidates.into_iter().flatten().next()
+}
+
+/// Something the reply decoder found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ReplyEvent {
+    /// A complete reply with a good BCC (or none expected).
+    Reply(Reply),
+    /// A reply was lost to a line error; the decoder has resynchronised.
+    Error(ReplyError),
+    /// XOFF (true) or XON (false) from the drive, with XON/XOFF on.
+    Flow(bool),
+}
+
+/// A corrupt reply.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum ReplyError {
+    /// The BCC does not match.
+    #[error("reply BCC received 0x{received:02X}, computed 0x{computed:02X}")]
+    Bcc {
+        /// As received.
+        received: u8,
+        /// As computed.
+        computed: u8,
+    },
+    /// The reply end was not `CR LF >`: this byte came instead.
+    #[error("reply end broken by byte 0x{0:02X}")]
+    Framing(u8),
+    /// A reply longer than any the drive sends.
+    #[error("reply longer than {MAX_REPLY_LEN} characters")]
+    TooLong,
+    /// P196 has 64 but the reply does not start with an address.
+    #[error("reply without the address prefix P196 asks for")]
+    NoAddress,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum State {
+    Text,
+    Discard,
+    Lf,
+    Prompt,
+    Bcc,
+}
+
+/// Splits the drives' byte stream into replies, incrementally, without allocating.
+#[derive(Debug, Clone)]
+pub struct ReplyDecoder {
+    mode: Mode,
+    expected: Option<u8>,
+    state: State,
+    line: [u8; MAX_REPLY_LEN],
+    len: usize,
+}
+
+impl ReplyDecoder {
+    /// A decoder for replies in `mode`.
+    pub fn new(mode: &Mode) -> Self {
+        ReplyDecoder { mode: *mode, expected: None, state: State::Text, line: [0; MAX_REPLY_LEN], len: 0 }
+    }
+
+    /// The mode it decodes.
+    pub fn mode(&self) -> &Mode {
+        &self.mode
+    }
+
+    /// Tells the decoder which drive should answer next (resolves address prefixes; see [`split_address`]).
+    #[inline]
+    pub fn expect_from(&mut self, address: Option<u8>) {
+        self.expected = address;
+    }
+
+    /// Drops a partial reply.
+    pub fn reset(&mut self) {
+        self.state = State::Text;
+        self.len = 0;
+    }
+
+    /// True when no reply is partly received.
+    pub fn is_idle(&self) -> bool {
+        self.state == State::Text && self.len == 0
+    }
+
+    /// Feeds one byte.
+    #[inline]
+    pub fn push(&mut self, b: u8) -> Option<ReplyEvent> {
+        match self.state {
+            State::Text | State::Discard => {
+                if self.mode.xon_xoff && (b == XON || b == XOFF) {
+                    return Some(ReplyEvent::Flow(b == XOFF));
+                }
+                if b == CR {
+                    return self.after_cr();
+                }
+                if self.state == State::Discard {
+                    return None;
+                }
+                if self.len == 0 && (b == LF || b == PROMPT) && self.mode.reply_end == ReplyEnd::CrLfPrompt {
+                    // The tail of a reply whose start was lost: not a reply text.
+                    return None;
+                }
+                if self.len >= MAX_REPLY_LEN {
+                    self.state = State::Discard;
+                    return Some(ReplyEvent::Error(ReplyError::TooLong));
+                }
+                self.line[self.len] = b;
+                self.len += 1;
+                None
+            }
+            State::Lf => {
+                if b == LF {
+                    self.state = State::Prompt;
+                    None
+                } else {
+                    self.resync(b)
+                }
+            }
+            State::Prompt => {
+                if b == PROMPT {
+                    self.after_end()
+                } else {
+                    self.resync(b)
+                }
+            }
+            State::Bcc => {
+                let computed = bcc(&self.line[..self.len]);
+                if b == computed {
+                    self.emit()
+                } else {
+                    self.reset();
+                    Some(ReplyEvent::Error(ReplyError::Bcc { received: b, computed }))
+                }
+            }
+        }
+    }
+
+    /// Feeds many bytes, handing every event to `f`.
+    pub fn push_slice(&mut self, bytes: &[u8], mut f: impl FnMut(ReplyEvent)) {
+        for &b in bytes {
+            if let Some(e) = self.push(b) {
+                f(e);
+            }
+        }
+    }
+
+    #[inline]
+    fn after_cr(&mut self) -> Option<ReplyEvent> {
+        if self.state == State::Discard {
+            self.reset();
+            return None;
+        }
+        match self.mode.reply_end {
+            ReplyEnd::CrLfPrompt => {
+                self.state = State::Lf;
+                None
+            }
+            ReplyEnd::Cr => self.after_end(),
+        }
+    }
+
+    #[inline]
+    fn after_end(&mut self) -> Option<ReplyEvent> {
+        if self.mode.bcc {
+            self.state = State::Bcc;
+            None
+        } else {
+            self.emit()
+        }
+    }
+
+    fn resync(&mut self, b: u8) -> Option<ReplyEvent> {
+        // The reply end is broken: the reply is lost. The byte may start the next reply.
+        self.reset();
+        let _ = self.push(b);
+        Some(ReplyEvent::Error(ReplyError::Framing(b)))
+    }
+
+    #[inline]
+    fn emit(&mut self) -> Option<ReplyEvent> {
+        let line = &self.line[..self.len];
+        let (address, prefix) = if self.mode.reply_address {
+            match split_address(line, self.expected) {
+                Some((a, n)) => (Some(a), n),
+                None => {
+                    self.reset();
+                    return Some(ReplyEvent::Error(ReplyError::NoAddress));
+                }
+            }
+        } else {
+            (None, 0)
+        };
+        let r = Reply { line: self.line, len: self.len, prefix, address };
+        self.reset();
+        Some(ReplyEvent::Reply(r))
+    }
+}
+
+/// Appends a reply as a drive at `address` sends it in `mode` (the emulator's side).
+pub fn encode_reply(out: &mut Vec<u8>, mode: &Mode, address: u8, text: &[u8]) {
+    let start = out.len();
+    if mode.reply_address {
+        if address >= 10 {
+            out.push(b'0' + address / 10);
+        }
+        out.push(b'0' + address % 10);
+    }
+    out.extend_from_slice(text);
+    let check = bcc(&out[start..]);
+    out.push(CR);
+    if mode.reply_end == ReplyEnd::CrLfPrompt {
+        out.push(LF);
+        out.push(PROMPT);
+    }
+    if mode.bcc {
+        out.push(check);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn events(mode: &Mode, bytes: &[u8]) -> Vec<ReplyEvent> {
+        let mut d = ReplyDecoder::new(mode);
+        let mut v = Vec::new();
+        d.push_slice(bytes, |e| v.push(e));
+        v
+    }
+
+    fn replies(mode: &Mode, bytes: &[u8]) -> Vec<(Option<u8>, String)> {
+        events(mode, bytes)
+            .into_iter()
+            .map(|e| match e {
+                ReplyEvent::Reply(r) => (r.address(), r.text_str().to_string()),
+                other => panic!("{other:?}"),
+            })
+            .collect()
+    }
+
+    /// Chapter 4.5.1 reads the value up to CR, then LF and ">", then the BCC over the value.
+    #[test]
+    fn the_manuals_read_routine() {
+        let text = b"S001: 12.5";
+        let mut wire = text.to_vec();
+        wire.extend_from_slice(b"\r\n>");
+        assert_eq!(replies(&Mode::default(), &wire), [(None, "S001: 12.5".into())]);
+        wire.push(bcc(text));
+        assert_eq!(replies(&Mode::from_p196(8).unwrap(), &wire), [(None, "S001: 12.5".into())]);
+    }
+
+    #[test]
+    fn every_p196_combination_encodes_and_decodes() {
+        for p196 in 0..=Mode::MAX_P196 {
+            let m = Mode::from_p196(p196).unwrap();
+            for (addr, text) in [(1u8, &b""[..]), (5, b"S001: -3.25"), (31, b"E72"), (12, b"$"), (7, b"7S1?")] {
+                let mut out = Vec::new();
+                encode_reply(&mut out, &m, addr, text);
+                let mut d = ReplyDecoder::new(&m);
+                d.expect_from(Some(addr));
+                let mut got = Vec::new();
+                // Byte by byte and in odd chunks: the decoder is incremental.
+                for chunk in out.chunks(3) {
+                    d.push_slice(chunk, |e| got.push(e));
+                }
+                assert_eq!(got.len(), 1, "P196={p196} {got:?}");
+                let ReplyEvent::Reply(r) = got[0] else { panic!("P196={p196}: {got:?}") };
+                assert_eq!(r.text(), text, "P196={p196}");
+                assert_eq!(r.address(), m.reply_address.then_some(addr), "P196={p196}");
+                assert!(d.is_idle());
+            }
+        }
+    }
+
+    #[test]
+    fn reply_formats_on_the_wire() {
+        let mut out = Vec::new();
+        encode_reply(&mut out, &Mode::default(), 1, b"");
+        assert_eq!(out, b"\r\n>");
+        out.clear();
+        encode_reply(&mut out, &Mode::from_p196(32 + 64 + 8).unwrap(), 12, b"E92");
+        assert_eq!(out, [b'1', b'2', b'E', b'9', b'2', CR, bcc(b"12E92")]);
+    }
+
+    #[test]
+    fn kinds() {
+        let m = Mode::default();
+        let kinds: Vec<String> = events(&m, b"\r\n>E72\r\n>$\r\n>2\r\n>P194=5\r\n>")
+            .iter()
+            .map(|e| match e {
+                ReplyEvent::Reply(r) => format!("{:?}", r.kind()),
+                other => format!("{other:?}"),
+            })
+            .collect();
+        assert_eq!(kinds, ["Ack", "Error(72)", "PositionReached", "Comparator(2)", "Text(\"P194=5\")"]);
+    }
+
+    #[test]
+    fn bad_bcc_and_broken_ends_resynchronise() {
+        let m = Mode::from_p196(8).unwrap();
+        let mut wire = b"S001: 1\r\n>\x00S001: 2\r\n>".to_vec();
+        wire.push(bcc(b"S001: 2"));
+        let ev = events(&m, &wire);
+        assert!(matches!(ev[0], ReplyEvent::Error(ReplyError::Bcc { received: 0, .. })), "{ev:?}");
+        let ReplyEvent::Reply(r) = ev[1] else { panic!("{ev:?}") };
+        assert_eq!(r.text(), b"S001: 2");
+        let m = Mode::default();
+        let ev = events(&m, b"abc\rXS1\r\n>");
+        assert_eq!(ev[0], ReplyEvent::Error(ReplyError::Framing(b'X')));
+        let ReplyEvent::Reply(r) = ev[1] else { panic!("{ev:?}") };
+        assert_eq!(r.text(), b"XS1");
+        // The tail of a reply whose start was lost is skipped.
+        assert_eq!(replies(&m, b"\n>E70\r\n>"), [(None, "E70".into())]);
+        let long = [b'x'; 100];
+        let mut t = long.to_vec();
+        t.extend_from_slice(b"\r\n>E71\r\n>");
+        let ev = events(&m, &t);
+        assert_eq!(ev[0], ReplyEvent::Error(ReplyError::TooLong));
+        let ReplyEvent::Reply(r) = ev[1] else { panic!("{ev:?}") };
+        assert_eq!(r.kind(), ReplyKind::Error(71));
+    }
+
+    #[test]
+    fn address_prefix_resolution() {
+        assert_eq!(split_address(b"12$", Some(1)), Some((12, 2)));
+        assert_eq!(split_address(b"1$", None), Some((1, 1)));
+        assert_eq!(split_address(b"11S1?", Some(1)), Some((1, 1)));
+        assert_eq!(split_address(b"5S001: 1", Some(5)), Some((5, 1)));
+        assert_eq!(split_address(b"31E72", None), Some((31, 2)));
+        assert_eq!(split_address(b"S001", None), None);
+        assert_eq!(split_address(b"0E72", None), None);
+        let m = Mode::from_p196(64).unwrap();
+        assert_eq!(events(&m, b"E72\r\n>"), [ReplyEvent::Error(ReplyError::NoAddress)]);
+    }
+
+    #[test]
+    fn flow_control_characters_are_not_text() {
+        let m = Mode::from_p196(1).unwrap();
+        let ev = events(&m, b"S0\x1301\x11: 1\r\n>");
+        assert_eq!(ev[0], ReplyEvent::Flow(true));
+        assert_eq!(ev[1], ReplyEvent::Flow(false));
+        let ReplyEvent::Reply(r) = ev[2] else { panic!() };
+        assert_eq!(r.text(), b"S001: 1");
+        // With BCC, a BCC byte that happens to be XON is the BCC, not flow control.
+        let m = Mode::from_p196(1 + 8).unwrap();
+        let mut out = Vec::new();
+        let text = [b'A', b'A' ^ XON];
+        encode_reply(&mut out, &m, 1, &text);
+        assert_eq!(*out.last().unwrap(), XON);
+        assert!(matches!(events(&m, &out)[..], [ReplyEvent::Reply(_)]));
+    }
+}

@@ -1,0 +1,609 @@
+//! Requests, host to drive: building them, and decoding them incrementally (the emulator's and the capture
+//! decoder's side).
+//!
+//! ASCII: `address + (command | "!") [$] [,] [/] [?] CR [BCC]`. Binary: `address + 0x8n ... [BCC]`, no CR.
+//!
+//! ```
+//! use motionlink_compax::wire::{Address, Body, Flags, Mode, Request};
+//! let req = Request { address: Address::new(1).unwrap(), body: Body::Command(b"S1"), flags: Flags::NONE };
+//! assert_eq!(req.encode(&Mode::default()).unwrap().as_bytes(), b"1S1\r");
+//! let bcc = Mode::from_p196(8).unwrap();
+//! assert_eq!(req.encode(&bcc).unwrap().as_bytes(), b"1S1\rS"); // BCC 0x53 = 'S'
+//! ```
+
+use std::fmt;
+
+use super::binary::{announced_len, BinaryCommand, MAX_BINARY_LEN};
+use super::{
+    bcc, Address, EscapedBytes, Frame, Mode, WireError, BROADCAST, BUFFER, CR, ECHO, EXECUTE, MAX_COMMAND_LEN,
+    NO_REPLY, POSITION_MESSAGE, XOFF, XON,
+};
+
+/// The optional characters after a command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+pub struct Flags {
+    /// `$`: send the position-reached message (POSA / POSR only).
+    pub position_message: bool,
+    /// `,`: store the command in the buffer; `!` executes it later.
+    pub buffer: bool,
+    /// `/`: the drive sends no reply.
+    pub no_reply: bool,
+    /// `?`: the drive sends the telegram back (and does not execute it).
+    pub echo: bool,
+}
+
+impl Flags {
+    /// No optional character.
+    pub const NONE: Flags = Flags { position_message: false, buffer: false, no_reply: false, echo: false };
+
+    #[inline]
+    fn count(&self) -> usize {
+        [self.position_message, self.buffer, self.no_reply, self.echo].iter().filter(|f| **f).count()
+    }
+
+    #[inline]
+    fn is_none(&self) -> bool {
+        self.count() == 0
+    }
+
+    /// Splits the flag characters off the end of a command string: `POSA 100$,` is `POSA 100` with `$` and `,`.
+    /// Each may appear once, in any order.
+    #[inline]
+    pub fn split(text: &[u8]) -> (&[u8], Flags) {
+        let mut flags = Flags::NONE;
+        let mut end = text.len();
+        while end > 0 {
+            let f = match text[end - 1] {
+                POSITION_MESSAGE if !flags.position_message => &mut flags.position_message,
+                BUFFER if !flags.buffer => &mut flags.buffer,
+                NO_REPLY if !flags.no_reply => &mut flags.no_reply,
+                ECHO if !flags.echo => &mut flags.echo,
+                _ => break,
+            };
+            *f = true;
+            end -= 1;
+        }
+        (&text[..end], flags)
+    }
+}
+
+impl fmt::Display for Flags {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (on, c) in [(self.position_message, "$"), (self.buffer, ","), (self.no_reply, "/"), (self.echo, "?")] {
+            if on {
+                f.write_str(c)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// What a request carries.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Body<'a> {
+    /// An ASCII command string without the flag characters, such as `S1`, `POSA 360`, `P194=5`.
+    Command(&'a [u8]),
+    /// The execute character `!`: run the buffered command.
+    Execute,
+    /// A binary command.
+    Binary(BinaryCommand),
+}
+
+/// One request telegram.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Request<'a> {
+    /// The drive (1..=31) or every drive (32).
+    pub address: Address,
+    /// The command.
+    pub body: Body<'a>,
+    /// Optional characters (ASCII only).
+    pub flags: Flags,
+}
+
+impl Request<'_> {
+    /// True when a drive will answer: not a broadcast and not `/`.
+    #[inline]
+    pub fn expects_reply(&self) -> bool {
+        !self.address.is_broadcast() && !self.flags.no_reply
+    }
+
+    /// Builds the telegram in `mode` (only the BCC depends on it). Refuses command strings longer than the
+    /// drive's input buffer, characters that are not printable ASCII, and flags on binary commands.
+    #[inline]
+    pub fn encode(&self, mode: &Mode) -> Result<Frame, WireError> {
+        let mut f = Frame::default();
+        let (digits, n) = self.address.digits();
+        f.extend(&digits[..n])?;
+        match self.body {
+            Body::Command(text) => {
+                if text.is_empty() {
+                    return Err(WireError::Flags("empty command"));
+                }
+                if let Some(&c) = text.iter().find(|&&c| !(0x20..=0x7E).contains(&c)) {
+                    return Err(WireError::BadChar(c));
+                }
+                if text[0].is_ascii_digit() || text[0] & 0x80 != 0 {
+                    return Err(WireError::Flags("a command cannot start with a digit (it would extend the address)"));
+                }
+                let (_, trailing) = Flags::split(text);
+                if !trailing.is_none() {
+                    return Err(WireError::Flags("the command text ends with a flag character; use the flags"));
+                }
+                let len = text.len() + self.flags.count();
+                if len > MAX_COMMAND_LEN {
+                    return Err(WireError::TooLong(len));
+                }
+                f.extend(text)?;
+                self.push_flags(&mut f)?;
+                f.push(CR)?;
+                if mode.bcc {
+                    f.push(bcc(&f.as_bytes()[..f.len() - 1]))?;
+                }
+            }
+            Body::Execute => {
+                if self.flags.buffer {
+                    return Err(WireError::Flags("the execute character cannot be buffered"));
+                }
+                if self.flags.position_message {
+                    return Err(WireError::Flags("'$' belongs to the POSA / POSR command, not to '!'"));
+                }
+                f.push(EXECUTE)?;
+                self.push_flags(&mut f)?;
+                f.push(CR)?;
+                if mode.bcc {
+                    f.push(bcc(&f.as_bytes()[..f.len() - 1]))?;
+                }
+            }
+            Body::Binary(cmd) => {
+                if !self.flags.is_none() {
+                    return Err(WireError::Flags("binary commands take no optional characters"));
+                }
+                let (b, n) = cmd.encode();
+                f.extend(&b[..n])?;
+                if mode.bcc {
+                    f.push(bcc(f.as_bytes()))?;
+                }
+            }
+        }
+        Ok(f)
+    }
+
+    #[inline]
+    fn push_flags(&self, f: &mut Frame) -> Result<(), WireError> {
+        for (on, c) in [
+            (self.flags.position_message, POSITION_MESSAGE),
+            (self.flags.buffer, BUFFER),
+            (self.flags.no_reply, NO_REPLY),
+            (self.flags.echo, ECHO),
+        ] {
+            if on {
+                f.push(c)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A request telegram as received, before interpretation.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct RequestFrame {
+    raw: [u8; 64],
+    len: usize,
+    /// Digits of the address part.
+    address_len: usize,
+    /// Command characters received (they may be more than were kept).
+    command_count: usize,
+    binary: bool,
+    /// Received and computed BCC, when the mode has BCC.
+    bcc: Option<(u8, u8)>,
+}
+
+impl fmt::Debug for RequestFrame {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "RequestFrame({:?}, bcc {:?})", EscapedBytes(self.bytes()), self.bcc)
+    }
+}
+
+/// A request, interpreted.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ParsedRequest<'a> {
+    /// The address number as received (1..=32).
+    pub address: u8,
+    /// The command.
+    pub body: Body<'a>,
+    /// The optional characters.
+    pub flags: Flags,
+}
+
+/// Why a received request cannot be interpreted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum RequestError {
+    /// The address is not 1..=32.
+    #[error("address {0} is not 1..=32")]
+    Address(u8),
+    /// More than 40 characters (the drive answers E71).
+    #[error("command string of {0} characters overflows the 40-character buffer")]
+    Overflow(usize),
+    /// The BCC does not match (the drive answers E72).
+    #[error("BCC received 0x{received:02X}, computed 0x{computed:02X}")]
+    Bcc {
+        /// As received.
+        received: u8,
+        /// As computed over the telegram.
+        computed: u8,
+    },
+    /// No command after the address.
+    #[error("no command after the address")]
+    Empty,
+    /// A binary telegram that is not in the table.
+    #[error("{0}")]
+    Binary(&'static str),
+}
+
+impl RequestFrame {
+    /// The telegram as received, without CR and BCC (at most the first 60 bytes).
+    pub fn bytes(&self) -> &[u8] {
+        &self.raw[..self.len]
+    }
+
+    /// The address number (0..=99; only 1..=32 are valid).
+    pub fn address(&self) -> u8 {
+        self.raw[..self.address_len].iter().fold(0u8, |a, d| a.saturating_mul(10).saturating_add(d - b'0'))
+    }
+
+    /// True for a binary telegram.
+    pub fn is_binary(&self) -> bool {
+        self.binary
+    }
+
+    /// Received and computed BCC, if the decoder expected one.
+    pub fn bcc(&self) -> Option<(u8, u8)> {
+        self.bcc
+    }
+
+    /// The command part: after the address, before CR.
+    pub fn command_bytes(&self) -> &[u8] {
+        &self.raw[self.address_len..self.len]
+    }
+
+    /// Interprets the telegram. Errors are checked in the order a drive meets them: address, BCC,
+    /// overflow, syntax.
+    pub fn parse(&self) -> Result<ParsedRequest<'_>, RequestError> {
+        let address = self.address();
+        if self.address_len > 2 || !(1..=BROADCAST).contains(&address) {
+            return Err(RequestError::Address(address));
+        }
+        if let Some((received, computed)) = self.bcc {
+            if received != computed {
+                return Err(RequestError::Bcc { received, computed });
+            }
+        }
+        if self.command_count > MAX_COMMAND_LEN {
+            return Err(RequestError::Overflow(self.command_count));
+        }
+        let cmd = self.command_bytes();
+        if self.binary {
+            let c = BinaryCommand::decode(cmd).map_err(|e| match e {
+                WireError::Binary(m) => RequestError::Binary(m),
+                _ => RequestError::Binary("not a binary command"),
+            })?;
+            return Ok(ParsedRequest { address, body: Body::Binary(c), flags: Flags::NONE });
+        }
+        let (text, flags) = Flags::split(cmd);
+        let text = trim(text);
+        if text == [EXECUTE] {
+            return Ok(ParsedRequest { address, body: Body::Execute, flags });
+        }
+        if text.is_empty() {
+            return Err(RequestError::Empty);
+        }
+        Ok(ParsedRequest { address, body: Body::Command(text), flags })
+    }
+}
+
+fn trim(mut s: &[u8]) -> &[u8] {
+    while let [b' ', rest @ ..] = s {
+        s = rest;
+    }
+    while let [rest @ .., b' '] = s {
+        s = rest;
+    }
+    s
+}
+
+/// What a [`RequestDecoder`] found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RequestEvent {
+    /// A complete telegram.
+    Frame(RequestFrame),
+    /// XOFF (true) or XON (false) from the host, with XON/XOFF on.
+    Flow(bool),
+    /// A byte outside any telegram (not an address digit): skipped.
+    Garbage(u8),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum RxState {
+    Idle,
+    Address,
+    Text,
+    Binary { remaining: usize },
+    Bcc,
+}
+
+/// Splits the host's byte stream into request telegrams, one byte at a time (what a drive does).
+///
+/// A telegram starts with an address digit; bytes before one are skipped as garbage. ASCII telegrams end at
+/// CR (plus the BCC when the mode has it), binary ones after the length their first byte announces.
+#[derive(Debug, Clone)]
+pub struct RequestDecoder {
+    bcc: bool,
+    xon_xoff: bool,
+    state: RxState,
+    frame: RequestFrame,
+}
+
+impl RequestDecoder {
+    /// A decoder for telegrams in `mode`.
+    pub fn new(mode: &Mode) -> Self {
+        RequestDecoder {
+            bcc: mode.bcc,
+            xon_xoff: mode.xon_xoff,
+            state: RxState::Idle,
+            frame: RequestFrame { raw: [0; 64], len: 0, address_len: 0, command_count: 0, binary: false, bcc: None },
+        }
+    }
+
+    /// True between telegrams.
+    pub fn is_idle(&self) -> bool {
+        self.state == RxState::Idle
+    }
+
+    /// The address digits received so far of the telegram in progress, as a number (0 if none).
+    pub fn partial_address(&self) -> u8 {
+        if self.state == RxState::Idle {
+            0
+        } else {
+            self.frame.address()
+        }
+    }
+
+    /// True once the telegram in progress has passed its address (a command byte has arrived).
+    pub fn past_address(&self) -> bool {
+        matches!(self.state, RxState::Text | RxState::Binary { .. } | RxState::Bcc)
+    }
+
+    /// Drops the telegram in progress.
+    pub fn reset(&mut self) {
+        self.state = RxState::Idle;
+        self.frame.len = 0;
+        self.frame.address_len = 0;
+        self.frame.command_count = 0;
+        self.frame.binary = false;
+        self.frame.bcc = None;
+    }
+
+    fn store(&mut self, b: u8) {
+        if self.frame.len < 60 {
+            self.frame.raw[self.frame.len] = b;
+            self.frame.len += 1;
+        }
+    }
+
+    fn finish(&mut self) -> RequestEvent {
+        let frame = self.frame;
+        self.reset();
+        RequestEvent::Frame(frame)
+    }
+
+    fn end_of_body(&mut self) -> Option<RequestEvent> {
+        if self.bcc {
+            self.state = RxState::Bcc;
+            None
+        } else {
+            Some(self.finish())
+        }
+    }
+
+    fn running_bcc(&self) -> u8 {
+        bcc(&self.frame.raw[..self.frame.len])
+    }
+
+    /// Feeds one byte.
+    pub fn push(&mut self, b: u8) -> Option<RequestEvent> {
+        let flow = self.xon_xoff && (b == XON || b == XOFF);
+        match self.state {
+            RxState::Idle => {
+                if flow {
+                    return Some(RequestEvent::Flow(b == XOFF));
+                }
+                if b.is_ascii_digit() {
+                    self.store(b);
+                    self.frame.address_len = 1;
+                    self.state = RxState::Address;
+                    None
+                } else {
+                    Some(RequestEvent::Garbage(b))
+                }
+            }
+            RxState::Address => {
+                if flow {
+                    return Some(RequestEvent::Flow(b == XOFF));
+                }
+                if b.is_ascii_digit() {
+                    self.store(b);
+                    self.frame.address_len += 1;
+                    return None;
+                }
+                if b == CR {
+                    // An address alone: no command.
+                    return self.end_of_body();
+                }
+                if let Some(len) = announced_len(b) {
+                    self.frame.binary = true;
+                    self.store(b);
+                    self.frame.command_count = 1;
+                    let remaining = len.clamp(1, MAX_BINARY_LEN) - 1;
+                    if remaining == 0 {
+                        return self.end_of_body();
+                    }
+                    self.state = RxState::Binary { remaining };
+                    return None;
+                }
+                self.state = RxState::Text;
+                self.frame.command_count = 1;
+                self.store(b);
+                None
+            }
+            RxState::Text => {
+                if flow {
+                    return Some(RequestEvent::Flow(b == XOFF));
+                }
+                if b == CR {
+                    return self.end_of_body();
+                }
+                self.frame.command_count += 1;
+                if self.frame.command_count <= MAX_COMMAND_LEN + 8 {
+                    self.store(b);
+                }
+                None
+            }
+            RxState::Binary { remaining } => {
+                self.store(b);
+                self.frame.command_count += 1;
+                if remaining <= 1 {
+                    self.end_of_body()
+                } else {
+                    self.state = RxState::Binary { remaining: remaining - 1 };
+                    None
+                }
+            }
+            RxState::Bcc => {
+                self.frame.bcc = Some((b, self.running_bcc()));
+                Some(self.finish())
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn req(addr: u8, body: Body<'_>, flags: Flags) -> Request<'_> {
+        Request { address: Address::new(addr).unwrap(), body, flags }
+    }
+
+    fn decode_all(mode: &Mode, bytes: &[u8]) -> Vec<RequestEvent> {
+        let mut d = RequestDecoder::new(mode);
+        bytes.iter().filter_map(|&b| d.push(b)).collect()
+    }
+
+    /// Chapter 4.5: "1S1" and "5S1", printed with a concluding CR, then (4.5.1) the BCC as a character.
+    #[test]
+    fn the_manuals_basic_routine() {
+        let plain = Mode::default();
+        let with_bcc = Mode::from_p196(8).unwrap();
+        let s1 = |a| req(a, Body::Command(b"S1"), Flags::NONE);
+        assert_eq!(s1(1).encode(&plain).unwrap().as_bytes(), b"1S1\r");
+        assert_eq!(s1(5).encode(&plain).unwrap().as_bytes(), b"5S1\r");
+        assert_eq!(s1(1).encode(&with_bcc).unwrap().as_bytes(), b"1S1\r\x53");
+        assert_eq!(s1(5).encode(&with_bcc).unwrap().as_bytes(), b"5S1\r\x57");
+    }
+
+    #[test]
+    fn flags_execute_and_broadcast() {
+        let m = Mode::default();
+        let all = Flags { position_message: true, buffer: true, no_reply: true, echo: true };
+        assert_eq!(req(12, Body::Command(b"POSA 100"), all).encode(&m).unwrap().as_bytes(), b"12POSA 100$,/?\r");
+        assert_eq!(req(32, Body::Execute, Flags::NONE).encode(&m).unwrap().as_bytes(), b"32!\r");
+        assert!(!req(32, Body::Execute, Flags::NONE).expects_reply());
+        assert!(!req(3, Body::Command(b"S1"), Flags { no_reply: true, ..Flags::NONE }).expects_reply());
+        assert!(req(3, Body::Command(b"S1"), Flags::NONE).expects_reply());
+        assert!(req(1, Body::Execute, Flags { buffer: true, ..Flags::NONE }).encode(&m).is_err());
+    }
+
+    #[test]
+    fn binary_request_with_and_without_bcc() {
+        let posa = BinaryCommand::PosA(crate::wire::Fixed24::from_f64(360.0).unwrap());
+        let r = req(1, Body::Binary(posa), Flags::NONE);
+        let want = [b'1', 0x88, 0x41, 0, 0, 0, 0x68, 0x01, 0];
+        assert_eq!(r.encode(&Mode::default()).unwrap().as_bytes(), want);
+        let mut with = want.to_vec();
+        with.push(bcc(&want));
+        assert_eq!(r.encode(&Mode::from_p196(8).unwrap()).unwrap().as_bytes(), &with[..]);
+        assert!(req(1, Body::Binary(posa), Flags { echo: true, ..Flags::NONE }).encode(&Mode::default()).is_err());
+    }
+
+    #[test]
+    fn bad_commands_are_refused() {
+        let m = Mode::default();
+        let long = [b'A'; 41];
+        assert_eq!(req(1, Body::Command(&long), Flags::NONE).encode(&m), Err(WireError::TooLong(41)));
+        assert_eq!(req(1, Body::Command(&long[..40]), Flags::NONE).encode(&m).unwrap().len(), 42);
+        let forty_with_flag = Flags { buffer: true, ..Flags::NONE };
+        assert!(req(1, Body::Command(&long[..40]), forty_with_flag).encode(&m).is_err());
+        assert_eq!(req(1, Body::Command(b"S\r1"), Flags::NONE).encode(&m), Err(WireError::BadChar(CR)));
+        assert!(req(1, Body::Command(b"5S1"), Flags::NONE).encode(&m).is_err());
+        assert!(req(1, Body::Command(b""), Flags::NONE).encode(&m).is_err());
+        assert!(req(1, Body::Command(b"S1?"), Flags::NONE).encode(&m).is_err());
+    }
+
+    #[test]
+    fn decoder_splits_ascii_binary_and_garbage() {
+        let m = Mode::from_p196(8).unwrap();
+        let mut stream = b"xx\n".to_vec();
+        stream.extend_from_slice(b"1S1\rS");
+        stream.extend_from_slice(b"5S1\r\x00"); // wrong BCC
+        let bin = req(7, Body::Binary(BinaryCommand::Accel(500)), Flags::NONE).encode(&m).unwrap();
+        stream.extend_from_slice(bin.as_bytes());
+        let ev = decode_all(&m, &stream);
+        assert_eq!(ev.len(), 6, "{ev:?}");
+        assert!(matches!(ev[0], RequestEvent::Garbage(b'x')));
+        let RequestEvent::Frame(f) = ev[3] else { panic!("{ev:?}") };
+        let p = f.parse().unwrap();
+        assert_eq!((p.address, p.body, p.flags), (1, Body::Command(b"S1"), Flags::NONE));
+        let RequestEvent::Frame(f) = ev[4] else { panic!("{ev:?}") };
+        assert_eq!(f.parse(), Err(RequestError::Bcc { received: 0, computed: 0x57 }));
+        let RequestEvent::Frame(f) = ev[5] else { panic!("{ev:?}") };
+        assert!(f.is_binary());
+        assert_eq!(f.parse().unwrap().body, Body::Binary(BinaryCommand::Accel(500)));
+    }
+
+    #[test]
+    fn decoder_reports_overflow_and_flow_control() {
+        let m = Mode::from_p196(1).unwrap();
+        let mut t = b"3".to_vec();
+        t.extend_from_slice(&[b'A'; 45]);
+        t.push(CR);
+        let ev = decode_all(&m, &t);
+        let RequestEvent::Frame(f) = ev[0] else { panic!() };
+        assert_eq!(f.parse(), Err(RequestError::Overflow(45)));
+        let ev = decode_all(&m, b"\x132S1\x11\r");
+        assert_eq!(ev[0], RequestEvent::Flow(true));
+        assert_eq!(ev[1], RequestEvent::Flow(false));
+        let RequestEvent::Frame(f) = ev[2] else { panic!() };
+        assert_eq!(f.parse().unwrap().body, Body::Command(b"S1"));
+    }
+
+    #[test]
+    fn decoder_parses_flags_in_any_order_and_execute() {
+        let m = Mode::default();
+        let ev = decode_all(&m, b"4POSA1000$\r4PR 5/,\r32!\r1!?\r");
+        let parsed: Vec<_> = ev
+            .iter()
+            .map(|e| match e {
+                RequestEvent::Frame(f) => {
+                    let p = f.parse().unwrap();
+                    (p.address, format!("{:?}", p.body), p.flags)
+                }
+                other => panic!("{other:?}"),
+            })
+            .collect();
+        assert_eq!(parsed[0].2, Flags { position_message: true, ..Flags::NONE });
+        assert_eq!(parsed[1].2, Flags { buffer: true, no_reply: true, ..Flags::NONE });
+        assert_eq!(parsed[2].1, "Execute");
+        assert_eq!(parsed[2].0, 32);
+        assert_eq!(parsed[3].2, Flags { echo: true, ..Flags::NONE });
+    }
+}

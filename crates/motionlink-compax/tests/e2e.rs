@@ -1,0 +1,91 @@
+//! The client against the emulator served over real TCP sockets and pseudo-terminals, in real time:
+//! ASCII and binary end to end.
+
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use motionlink_compax::client::{Bus, BusConfig, MoveOptions};
+use motionlink_compax::model::{Command, OutputState, ParamId, Position, SpeedPercent, StatusId, StatusValue};
+use motionlink_compax::sim::{CompaxBus, SimConfig};
+use motionlink_compax::wire::{Address, Mode};
+use motionlink_link::emulator::{serve_tcp, Server};
+use motionlink_link::link::SerialSettings;
+use motionlink_link::url::PortUrl;
+use motionlink_link::RealClock;
+
+fn a(n: u8) -> Address {
+    Address::drive(n).unwrap()
+}
+
+fn pos(v: f64) -> Position {
+    Position::new(v).unwrap()
+}
+
+fn session(server: &Server, p196: u32, port: PortUrl) -> Bus {
+    let mode = Mode::from_p196(p196).unwrap();
+    let mut settings = SerialSettings::new(115_200);
+    settings.parity = mode.parity;
+    let link = port.open_byte_link(settings).unwrap();
+    let _ = server;
+    Bus::new(link, RealClock::shared(), BusConfig::new(mode, 115_200))
+}
+
+fn exercise(bus: &mut Bus) {
+    // ASCII reads and writes.
+    assert_eq!(bus.read_position(a(5)).unwrap(), pos(0.0));
+    bus.write_param(a(5), ParamId::new(12).unwrap(), 42.5).unwrap();
+    assert_eq!(bus.read_param(a(5), ParamId::new(12).unwrap()).unwrap(), 42.5);
+    // Binary settings and moves (short distances: 100 units/s in real time).
+    let bin = MoveOptions { binary: true, message: false };
+    bus.set_speed(a(1), SpeedPercent::new(100.0).unwrap(), true).unwrap();
+    bus.move_absolute(a(1), pos(1.5), bin).unwrap();
+    bus.wait_reached(&[a(1)], Some(Duration::from_secs(5)), &mut |_, _| {}).unwrap();
+    bus.move_relative(a(1), pos(-0.25), bin).unwrap();
+    bus.wait_reached(&[a(1)], Some(Duration::from_secs(5)), &mut |_, _| {}).unwrap();
+    assert_eq!(bus.read_position(a(1)).unwrap(), pos(1.25));
+    bus.set_output(a(1), 3, OutputState::ON, true).unwrap();
+    // A synchronous start with the position-reached message.
+    bus.sync_start(&[(a(1), Command::PosA(pos(0.5))), (a(5), Command::PosA(pos(0.5)))], true).unwrap();
+    bus.wait_reached(&[a(1), a(5)], Some(Duration::from_secs(5)), &mut |_, _| {}).unwrap();
+    assert_eq!(bus.read_position(a(5)).unwrap(), pos(0.5));
+    assert!(matches!(bus.read_status(a(1), StatusId::STATUS_BITS_1).unwrap(), StatusValue::S16(_)));
+}
+
+#[test]
+fn over_tcp_ascii_and_binary() {
+    for p196 in [0, 8 + 64, 2 + 4 + 8 + 16 + 32] {
+        let sim = CompaxBus::new(SimConfig::bus(&[1, 5], p196, 115_200)).unwrap();
+        let device = Arc::new(Mutex::new(sim));
+        let server = serve_tcp("127.0.0.1:0", Arc::clone(&device), RealClock::shared()).unwrap();
+        let url: PortUrl = server.address().parse().unwrap();
+        let mut bus = session(&server, p196, url);
+        exercise(&mut bus);
+        drop(bus);
+        let d = device.lock().unwrap();
+        assert_eq!(d.drive(1).unwrap().output(3), Some(1), "P196={p196}");
+        assert!(d.drive(1).unwrap().telegrams() > 5);
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn over_a_pty_ascii_and_binary() {
+    let sim = CompaxBus::new(SimConfig::bus(&[1, 5], 8, 115_200)).unwrap();
+    let server = motionlink_link::emulator::serve_pty(Arc::new(Mutex::new(sim)), RealClock::shared()).unwrap();
+    let url = PortUrl::Serial(server.address().to_string());
+    let mut bus = session(&server, 8, url);
+    exercise(&mut bus);
+}
+
+#[test]
+fn dropping_a_tcp_session_stops_the_axis() {
+    let sim = CompaxBus::new(SimConfig::bus(&[1], 0, 115_200)).unwrap();
+    let device = Arc::new(Mutex::new(sim));
+    let server = serve_tcp("127.0.0.1:0", Arc::clone(&device), RealClock::shared()).unwrap();
+    let mut bus = session(&server, 0, server.address().parse().unwrap());
+    bus.move_absolute(a(1), pos(10_000.0), MoveOptions::default()).unwrap();
+    drop(bus);
+    let d = device.lock().unwrap();
+    assert!(!d.drive(1).unwrap().is_moving());
+    assert_eq!(d.drive(1).unwrap().o0(), 0);
+}
