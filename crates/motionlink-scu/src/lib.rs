@@ -1,4 +1,72 @@
-//! Ewellix / Schaeffler SCU control unit over RS232.
+//! Ewellix / Schaeffler SCU control unit over RS232: the codec, the data list, a client that keeps the unit's
+//! watchdog fed and stops what it started, and an emulator of the unit.
+//!
+//! Layers, each importing only from those above it in this list:
+//!
+//! - [`wire`]: telegrams to and from bytes, CRC-16/XMODEM, incremental decoders that resynchronise. No I/O,
+//!   no clock, no allocation.
+//! - [`model`] and [`value`]: the data list as one table ([`model::DATA_LIST`]), functions, Safety_ID, the
+//!   named bit sets and the 32-bit error code; typed values with their units and ranges. [`describe`] turns
+//!   telegrams into text for people.
+//! - [`client`]: a session over a [`Link`](motionlink_link::Link) with the RC keepalive on its own thread.
+//! - [`sim`]: the unit as a sans-IO state machine with a physical model of its actuators.
+//!
+//! ```
+//! use motionlink_link::{pipe::{EmulatorHost, PipeConfig}, link::Link, ManualClock, Clock};
+//! use motionlink_scu::{client::{ClientConfig, ScuClient}, model::Actuator, sim::{ScuEmulator, SimConfig}};
+//!
+//! // A virtual clock: ten seconds of device time take a few milliseconds.
+//! let clock = ManualClock::new_auto();
+//! let _me = clock.reserve_participant().enter();
+//! let unit = EmulatorHost::new(ScuEmulator::new(SimConfig::default())?, clock.shared(), PipeConfig::paced(38_400));
+//! let client = ScuClient::open(
+//!     Box::new(move || Ok(Box::new(unit.connect().0) as Box<dyn Link>)),
+//!     clock.shared(),
+//!     ClientConfig::default(),
+//! )?;
+//! let a1 = Actuator::new(1).unwrap();
+//! let report = client.move_to(a1, 400, 80, &Default::default())?;
+//! assert_eq!(report.position_counts, 400);
+//! client.close()?; // RS for anything still started, then RA
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! # Decisions
+//!
+//! Where the two editions of the manual are silent or contradict each other, this crate decided as follows
+//! (the field notes' decisions are followed too: one-byte RO, bit n is mask `1 << (n - 1)`, the bytes of the
+//! RT example are the truth):
+//!
+//! - **Reply timeout and retries.** The manual allows a unit 2000 ms to reply, and the client waits that long
+//!   for a reply that has started to arrive. But the unit's watchdog expires 500 ms after the last RC, so a
+//!   request that may be repeated (RO, RA, RC, RG, RT, RS) is sent again when not one byte of its reply came
+//!   within [`client::ClientConfig::retry_after`] (150 ms). RE is repeated only after a CSE (the unit did not
+//!   execute it); a lost reply to RE is a timeout, and the function counts as started.
+//! - **Which errors.** RT of an index that is not remote data (0x3xxx), an unknown index, or a value out of
+//!   range (speed above 100 % or 1000 counts/s, a cyclic object writing read-only data) is PDE; data of the
+//!   wrong length is PCE; an RE of a function that drives no actuator, or any motion while the emergency stop
+//!   is on, is PE.
+//! - **Unknown commands.** A telegram `R?` with an unknown letter ends where its CRC matches (within 64
+//!   bytes) and is answered ICE with its letters repeated; other bytes that start no telegram are skipped.
+//! - **Safety_ID after a watchdog expiry.** 0: everything stops, and only RC, RA and RO are accepted until a
+//!   new RO. 1: everything stops; the next RC re-arms the watchdog. 2: only remote motions stop. In every
+//!   case error bit 22 enters the error history, and any command but RO/RA/RC needs an RC first.
+//! - **Cyclic objects.** "The first 6 bytes (para[0..5])" of the `UINT16[12]` definition means the first six
+//!   entries: six write indices, six read indices, -1 (0xFFFF) unused. An RC naming a cyclic object answers
+//!   with ctp and read data (ctp 0 when nothing is read); an RC with object -1 answers with the status alone.
+//! - **Groups.** RG of a group index (0x0010, 0x0080 ...) returns its members' values in index order; 0x0080
+//!   includes 0x008F and 0x00B0 includes 0x00BF; 0x0000 returns the firmware and configuration texts; 0x2000
+//!   all six UserPositionData structures. RT may write whole 0x3xxx groups, all or nothing.
+//! - **RA** fast-stops remote motions that are still running: a motion nobody can stop any more is worse.
+//! - **Emergency stop (F20)** shows as every function locked in Lock Status (0x0162) and the release flags of
+//!   actuator status 2 cleared; F21 and F22 are the hand switch's LED 1 and 2 (0x0120).
+//! - **Typos of the Ewellix edition** (0x0095 twice for Cumulated_Stroke A6, 0x00E6 for Speed A1) follow the
+//!   Schaeffler edition: 0x0096 and 0x00F1.
+//! - **Captures.** An RO ACK is byte for byte an RO request with Safety_ID 6; in a capture that mixes both
+//!   directions the reply reading wins.
+//! - **CRC.** The codec computes CRC-16/XMODEM eight bytes at a time with its own tables, because the `crc`
+//!   crate works through anything shorter than 16 bytes one byte at a time and SCU telegrams are short; the
+//!   tests check it against the `crc` crate for every length and against the manual's table.
 #![warn(missing_docs)]
 
 pub mod client;

@@ -76,7 +76,7 @@ pub enum Kind {
     ConversionFactor,
     /// STRUCT ACTUATOR_POSITIONS: 26 INT32.
     UserPositions,
-    /// UINT16[12] cyclic object definition: 6 write indices, 6 read indices.
+    /// `UINT16[12]` cyclic object definition: 6 write indices, 6 read indices.
     CyclicObject,
     /// UINT16 remote speed of a function: percent (0..100) or counts per second (0..1000).
     RemoteSpeed,
@@ -1232,7 +1232,7 @@ impl UserPositionData {
 /// the data it answers with.
 ///
 /// The manual says "the first 6 bytes (para[0..5])" define the write data and "the last 6 bytes" the read
-/// data of a UINT16[12]: it means the first and last six *entries*. -1 (0xFFFF) means unused.
+/// data of a `UINT16[12]`: it means the first and last six *entries*. -1 (0xFFFF) means unused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct CyclicObject {
     /// Indices whose values the host sends with each RC (0x3xxx only).
