@@ -609,21 +609,94 @@ pub type RequestEvent<'a> = Result<Incoming<'a>, WireError>;
 /// ```
 #[derive(Clone)]
 pub struct RequestDecoder {
-    buf: [u8; REQUEST_BUF_LEN],
-    len: usize,
-    /// Bytes at the front of `buf` already emitted as part of an event; dropped on the next call.
-    consumed_front: usize,
+    framer: Framer<REQUEST_BUF_LEN>,
 }
 
 impl fmt::Debug for RequestDecoder {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_struct("RequestDecoder").field("buffered", &&self.buf[self.consumed_front..self.len]).finish()
+        f.debug_struct("RequestDecoder").field("buffered", &self.framer.buffered()).finish()
     }
 }
 
 impl Default for RequestDecoder {
     fn default() -> Self {
         Self::new()
+    }
+}
+
+/// The receive buffer both decoders frame telegrams in: bytes of a telegram that has not come whole yet.
+#[derive(Clone)]
+struct Framer<const N: usize> {
+    buf: [u8; N],
+    len: usize,
+    /// Bytes at the front of `buf` already emitted as part of an event; dropped on the next call.
+    consumed_front: usize,
+}
+
+impl<const N: usize> Framer<N> {
+    const fn new() -> Self {
+        Framer { buf: [0; N], len: 0, consumed_front: 0 }
+    }
+
+    fn reset(&mut self) {
+        self.len = 0;
+        self.consumed_front = 0;
+    }
+
+    fn buffered(&self) -> &[u8] {
+        &self.buf[self.consumed_front..self.len]
+    }
+
+    fn compact(&mut self) {
+        if self.consumed_front > 0 {
+            self.buf.copy_within(self.consumed_front..self.len, 0);
+            self.len -= self.consumed_front;
+            self.consumed_front = 0;
+        }
+    }
+
+    /// Takes bytes from `input` and returns how many it used and at most one complete telegram (or error), as
+    /// `scan` delimits them. A telegram that lies whole in `input` while nothing is buffered is returned in
+    /// place, without copying.
+    fn next<'a>(
+        &'a mut self,
+        input: &'a [u8],
+        scan: impl Fn(&[u8]) -> Scan,
+    ) -> (usize, Option<Result<&'a [u8], WireError>>) {
+        self.compact();
+        if self.len == 0 && !input.is_empty() {
+            match scan(input) {
+                Scan::NeedMore => {}
+                Scan::Complete(n) => return (n, Some(Ok(&input[..n]))),
+                other => {
+                    let (n, e) = scan_error(other);
+                    return (n, Some(Err(e)));
+                }
+            }
+        }
+        let mut used = 0;
+        loop {
+            match scan(&self.buf[..self.len]) {
+                Scan::NeedMore => {
+                    let take = (N - self.len).min(input.len() - used);
+                    if take == 0 {
+                        return (used, None);
+                    }
+                    self.buf[self.len..self.len + take].copy_from_slice(&input[used..used + take]);
+                    self.len += take;
+                    used += take;
+                }
+                Scan::Complete(n) => {
+                    self.consumed_front = n;
+                    return (used, Some(Ok(&self.buf[..n])));
+                }
+                other => {
+                    let (n, e) = scan_error(other);
+                    self.consumed_front = n;
+                    return (used, Some(Err(e)));
+                }
+            }
+        }
     }
 }
 
@@ -742,66 +815,25 @@ fn parse_request(frame: &[u8]) -> Incoming<'_> {
 impl RequestDecoder {
     /// An empty decoder.
     pub const fn new() -> Self {
-        RequestDecoder { buf: [0; REQUEST_BUF_LEN], len: 0, consumed_front: 0 }
+        RequestDecoder { framer: Framer::new() }
     }
 
     /// Drops a partly received telegram (the line was silent too long).
     pub fn reset(&mut self) {
-        self.len = 0;
-        self.consumed_front = 0;
+        self.framer.reset();
     }
 
     /// True while part of a telegram is buffered.
     pub fn is_mid_telegram(&self) -> bool {
-        self.len > self.consumed_front
-    }
-
-    fn compact(&mut self) {
-        if self.consumed_front > 0 {
-            self.buf.copy_within(self.consumed_front..self.len, 0);
-            self.len -= self.consumed_front;
-            self.consumed_front = 0;
-        }
+        !self.framer.buffered().is_empty()
     }
 
     /// Takes bytes from `input` and returns how many it used and at most one event. Call it again with the rest
     /// of the input (and with an empty input, to drain events of bytes already buffered) until it returns
     /// `(0, None)`. A telegram that lies whole in `input` is decoded in place, without copying.
     pub fn decode<'a>(&'a mut self, input: &'a [u8]) -> (usize, Option<RequestEvent<'a>>) {
-        self.compact();
-        if self.len == 0 && !input.is_empty() {
-            match scan_request(input) {
-                Scan::NeedMore => {}
-                Scan::Complete(n) => return (n, Some(Ok(parse_request(&input[..n])))),
-                other => {
-                    let (n, e) = scan_error(other);
-                    return (n, Some(Err(e)));
-                }
-            }
-        }
-        let mut used = 0;
-        loop {
-            match scan_request(&self.buf[..self.len]) {
-                Scan::NeedMore => {
-                    let take = (self.buf.len() - self.len).min(input.len() - used);
-                    if take == 0 {
-                        return (used, None);
-                    }
-                    self.buf[self.len..self.len + take].copy_from_slice(&input[used..used + take]);
-                    self.len += take;
-                    used += take;
-                }
-                Scan::Complete(n) => {
-                    self.consumed_front = n;
-                    return (used, Some(Ok(parse_request(&self.buf[..n]))));
-                }
-                other => {
-                    let (n, e) = scan_error(other);
-                    self.consumed_front = n;
-                    return (used, Some(Err(e)));
-                }
-            }
-        }
+        let (used, event) = self.framer.next(input, scan_request);
+        (used, event.map(|e| e.map(parse_request)))
     }
 }
 
@@ -835,18 +867,13 @@ struct Expectation {
 /// ```
 #[derive(Clone)]
 pub struct ReplyDecoder {
-    buf: [u8; MAX_REPLY_LEN],
-    len: usize,
-    consumed_front: usize,
+    framer: Framer<MAX_REPLY_LEN>,
     expect: Option<Expectation>,
 }
 
 impl fmt::Debug for ReplyDecoder {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_struct("ReplyDecoder")
-            .field("buffered", &&self.buf[self.consumed_front..self.len])
-            .field("expect", &self.expect)
-            .finish()
+        f.debug_struct("ReplyDecoder").field("buffered", &self.framer.buffered()).field("expect", &self.expect).finish()
     }
 }
 
@@ -859,7 +886,7 @@ impl Default for ReplyDecoder {
 impl ReplyDecoder {
     /// An empty decoder that accepts replies of any command.
     pub const fn new() -> Self {
-        ReplyDecoder { buf: [0; MAX_REPLY_LEN], len: 0, consumed_front: 0, expect: None }
+        ReplyDecoder { framer: Framer::new(), expect: None }
     }
 
     /// Accepts only replies to `command`, of `shape` when ACKed.
@@ -874,66 +901,22 @@ impl ReplyDecoder {
 
     /// Drops buffered bytes.
     pub fn reset(&mut self) {
-        self.len = 0;
-        self.consumed_front = 0;
+        self.framer.reset();
     }
 
     /// True while the start of an expected reply (its command letters at least) is buffered, after every event
     /// of the input was taken: the unit is answering.
     pub fn is_mid_telegram(&self) -> bool {
-        self.len >= self.consumed_front + 2
-    }
-
-    fn compact(&mut self) {
-        if self.consumed_front > 0 {
-            self.buf.copy_within(self.consumed_front..self.len, 0);
-            self.len -= self.consumed_front;
-            self.consumed_front = 0;
-        }
-    }
-
-    fn scan(&self) -> Scan {
-        scan_reply(&self.buf[..self.len], self.expect)
+        self.framer.buffered().len() >= 2
     }
 
     /// Takes bytes from `input` and returns how many it used and at most one event. Call it again with the rest
     /// of the input (and with an empty input, to drain events of bytes already buffered) until it returns
     /// `(0, None)`. A telegram that lies whole in `input` is decoded in place, without copying.
     pub fn decode<'a>(&'a mut self, input: &'a [u8]) -> (usize, Option<ReplyEvent<'a>>) {
-        self.compact();
-        if self.len == 0 && !input.is_empty() {
-            match scan_reply(input, self.expect) {
-                Scan::NeedMore => {}
-                Scan::Complete(n) => return (n, Some(Ok(parse_reply(&input[..n])))),
-                other => {
-                    let (n, e) = scan_error(other);
-                    return (n, Some(Err(e)));
-                }
-            }
-        }
-        let mut used = 0;
-        loop {
-            match self.scan() {
-                Scan::NeedMore => {
-                    let take = (self.buf.len() - self.len).min(input.len() - used);
-                    if take == 0 {
-                        return (used, None);
-                    }
-                    self.buf[self.len..self.len + take].copy_from_slice(&input[used..used + take]);
-                    self.len += take;
-                    used += take;
-                }
-                Scan::Complete(n) => {
-                    self.consumed_front = n;
-                    return (used, Some(Ok(parse_reply(&self.buf[..n]))));
-                }
-                other => {
-                    let (n, e) = scan_error(other);
-                    self.consumed_front = n;
-                    return (used, Some(Err(e)));
-                }
-            }
-        }
+        let expect = self.expect;
+        let (used, event) = self.framer.next(input, |b| scan_reply(b, expect));
+        (used, event.map(|e| e.map(parse_reply)))
     }
 }
 
