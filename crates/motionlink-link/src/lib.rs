@@ -2,11 +2,11 @@
 //!
 //! - [`can`]: CAN frames and links (SocketCAN, SLCAN, in-memory bus).
 //! - [`cancel`]: a cancellation flag for long actions (Ctrl-C).
-//! - [`clock`]: the [`Clock`](clock::Clock) every timeout, period and emulator reads; real and manual.
-//! - [`link`]: the [`Link`](link::Link) trait, a byte stream with read timeouts, and its errors.
+//! - [`clock`]: the [`Clock`] every timeout, period and emulator reads; real and manual.
+//! - [`link`]: the [`Link`] trait, a byte stream with read timeouts, and its errors.
 //! - [`serial`], [`tcp`]: links to real ports and serial-over-TCP gateways; pty pairs for tests.
 //! - [`pipe`]: in-memory links with baud-rate pacing and fault injection, and in-process emulators.
-//! - [`emulator`]: the [`Emulator`](emulator::Emulator) trait and servers for `motionlink sim`.
+//! - [`emulator`]: the [`emulator::Emulator`] trait and servers for `motionlink sim`.
 //! - [`url`]: the `--port` syntax.
 //! - [`transcript`]: a recording link wrapper.
 

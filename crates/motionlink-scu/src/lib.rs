@@ -64,9 +64,10 @@
 //!   Schaeffler edition: 0x0096 and 0x00F1.
 //! - **Captures.** An RO ACK is byte for byte an RO request with Safety_ID 6; in a capture that mixes both
 //!   directions the reply reading wins.
-//! - **CRC.** The codec computes CRC-16/XMODEM eight bytes at a time with its own tables, because the `crc`
-//!   crate works through anything shorter than 16 bytes one byte at a time and SCU telegrams are short; the
-//!   tests check it against the `crc` crate for every length and against the manual's table.
+//! - **CRC.** CRC-16/XMODEM comes from the `crc` crate (its slice-by-16 tables); the codec walks them eight and
+//!   four bytes at a time, because the crate's own loop takes every byte after the last whole 16-byte block one
+//!   at a time and SCU telegrams are short. The tests check it against the crate for every length and against
+//!   the manual's table.
 #![warn(missing_docs)]
 
 pub mod client;
