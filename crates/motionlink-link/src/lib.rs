@@ -1,5 +1,6 @@
 //! Bytes and frames in motion, shared by every motionlink device family.
 //!
+//! - [`alloc_count`]: a counting global allocator, for tests that prove a codec does not allocate.
 //! - [`can`]: CAN frames and links (SocketCAN, SLCAN, in-memory bus).
 //! - [`cancel`]: a cancellation flag for long actions (Ctrl-C).
 //! - [`clock`]: the [`Clock`] every timeout, period and emulator reads; real and manual.
@@ -12,6 +13,7 @@
 
 #![warn(missing_docs)]
 
+pub mod alloc_count;
 pub mod can;
 pub mod cancel;
 pub mod clock;

@@ -1,26 +1,10 @@
 //! The codec builds and parses telegrams without touching the heap. A counting global allocator proves it.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
+use motionlink_link::alloc_count::CountingAllocator;
 use motionlink_scu::wire::*;
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static ALLOCATOR: CountingAllocator = CountingAllocator::new();
 
 #[test]
 fn encoding_and_decoding_allocate_nothing() {
@@ -33,7 +17,7 @@ fn encoding_and_decoding_allocate_nothing() {
     let position = 400i32.to_le_bytes();
     let mut checksum = 0usize;
 
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = ALLOCATOR.allocations();
     for i in 0..10_000u32 {
         let (request, reply, shape) = if i % 2 == 0 {
             (Request::Get { index: 0x0011 }, Reply::with_data(Command::Get, &position), ReplyShape::WithData)
@@ -56,7 +40,7 @@ fn encoding_and_decoding_allocate_nothing() {
         let (_, ev) = rep_dec.decode(&buf[..m]);
         checksum += usize::from(matches!(ev, Some(Ok(r)) if r == reply));
     }
-    let allocated = ALLOCATIONS.load(Ordering::SeqCst) - before;
+    let allocated = ALLOCATOR.allocations() - before;
     assert_eq!(checksum, 20_000, "every telegram round-tripped");
     assert_eq!(allocated, 0, "heap allocations while encoding and decoding");
 }
