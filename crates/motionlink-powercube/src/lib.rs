@@ -57,12 +57,27 @@
 //!   `0x0A0 + address`, whatever the manual's last CAN table shows (`0x0f1`).
 //! - **Broadcasts on RS232.** The manual defines none. The client sends them to address 0 (TELID with M = 0)
 //!   and the emulator takes address 0 as every module, without acknowledge. Real RS232 modules may ignore
-//!   address 0; on a real RS232 chain the watchdog therefore cannot be relied upon.
+//!   address 0; on a real RS232 chain the watchdog therefore cannot be relied upon
+//!   ([`client::Bus::watchdog_reliable`] is false there), and the `motionlink` command does not arm it on
+//!   RS232: it warns that a dead host will not stop the module.
 //! - **Life sign.** The individual `0x07` (switch the watchdog on, and off when sent again) is acknowledged
 //!   `[0x07]` by the emulator like every one-byte command; the client accepts silence as well and never
 //!   repeats it (a repeat would switch the watchdog off).
 //! - **Watchdog expiry** raises STATE_COMM_ERROR and STATE_HALTED (not STATE_ERROR), as chapter 13 says. A
 //!   Reset re-arms it: without refreshes it expires again 50 ms later.
+//! - **Watchdog and the Config word.** [`client::Bus::enable_watchdog`] sets CONFIGID_MOD_WATCHDOG_ENABLE
+//!   only where it is clear, and remembers the word; [`client::Bus::disable_watchdog`] first switches the
+//!   watchdog offline (a second life sign), then clears that flag again where the session set it, leaving
+//!   every other bit as it is now, so a session that ends normally leaves the Config word as it found it.
+//!   A session that dies cannot: its modules halt with STATE_COMM_ERROR, their watchdog stays online and
+//!   the flag stays set (harmless: the watchdog only runs after a life sign).
+//! - **Arming an expired watchdog.** The online state of a watchdog cannot be read and the life sign
+//!   toggles it, so the client never guesses: `enable_watchdog` refuses a module that shows
+//!   STATE_COMM_ERROR (its watchdog is most likely online, left by a host that died) with
+//!   [`client::Error::Device`] before changing anything. [`client::Module::reset_and_release_watchdog`]
+//!   follows the manual's first way to restart: Reset; if STATE_COMM_ERROR comes back within 100 ms (online
+//!   and nobody refreshes it), a life sign switches the watchdog offline and a second Reset clears it. A
+//!   watchdog that another live host serves is therefore left alone. `motionlink powercube reset` does this.
 //! - **State flags.** STATE_POW_INTEGRAL-ERR is bit 23 (0x00800000; the table prints 0x00080000).
 //!   STATE_LOGIC_VOLT and STATE_POW_SETUP_ERR are both bit 27: both are in the table, a set bit 27 is
 //!   named STATE_LOGIC_VOLT. The five flags the manual lists after STATE_LOGIC_VOLT (POW_WDG_TEMP,
@@ -92,7 +107,8 @@
 //! - **Drop.** Dropping a [`client::Bus`] reads the state of every module it set in motion and halts those
 //!   still moving or not answering (with a broadcast halt if single halts fail). A wait that times out or
 //!   is cancelled halts its module. The watchdog is left online on drop: the modules halt within 50 ms, which
-//!   is what the watchdog is for; [`client::Bus::disable_watchdog`] switches it off cleanly.
+//!   is what the watchdog is for; [`client::Bus::disable_watchdog`] switches it off cleanly (the
+//!   `motionlink` command does so at the end of `home` and `move`, also after Ctrl-C or an error).
 //! - **Timeouts.** RS232 200 ms (a frame takes up to 25 ms each way at 9600 baud), CAN 50 ms; reads are
 //!   retried twice; the scan waits 60 ms per address on RS232 and 50 ms for all 31 on CAN. All are
 //!   [`client::BusConfig`] settings.

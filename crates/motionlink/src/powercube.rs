@@ -16,8 +16,8 @@ use motionlink_link::url::PortUrl;
 use motionlink_link::{LinkError, RealClock, SerialSettings, SharedClock};
 use motionlink_powercube::client::{Bus, BusConfig, Error as PcError, ModuleInfo, Progress};
 use motionlink_powercube::model::{
-    Acceleration, AckKind, Broadcast, CubeState, ModuleKind, Motion, Param, Position, Ramp, Reply, Request, Value,
-    Velocity,
+    Acceleration, AckKind, Broadcast, CubeState, ModuleKind, Motion, Param, Position, Ramp, Reply, Request, StateFlag,
+    Value, Velocity,
 };
 use motionlink_powercube::sim::{SimBus, SimConfig};
 use motionlink_powercube::wire::can::{self as can_wire, Role};
@@ -48,6 +48,10 @@ pub struct Args {
     /// Print JSON instead of a table.
     #[arg(long, global = true)]
     pub json: bool,
+    /// Do not arm the module watchdog for `home` and `move` (the Config word is left alone; a host that dies
+    /// then leaves the module moving). Ctrl-C and errors still halt it.
+    #[arg(long, global = true)]
+    pub no_watchdog: bool,
     /// What to do.
     #[command(subcommand)]
     pub action: Action,
@@ -74,17 +78,17 @@ pub enum Action {
         /// The value, in the parameter's type and unit.
         value: String,
     },
-    /// Home the module and wait for the end of homing.
+    /// Home the module and wait for the end of homing (watchdog armed on CAN; Ctrl-C halts).
     Home {
         /// Give up (and halt) after this many seconds.
         #[arg(long, default_value_t = 60.0)]
         timeout: f64,
     },
-    /// Reset the module's error state.
+    /// Reset the module's error state (and switch off a watchdog that a dead host left expired).
     Reset,
     /// Stop the module at once (it stays halted until a reset).
     Halt,
-    /// Ramp to a position (rad or m) and wait for the end of the ramp; Ctrl-C halts.
+    /// Ramp to a position (rad or m) and wait for the end of the ramp (watchdog armed on CAN; Ctrl-C halts).
     Move {
         /// The target position.
         #[arg(allow_negative_numbers = true)]
@@ -145,6 +149,71 @@ fn cli_err(e: PcError) -> CliError {
         CliError::usage(e)
     } else {
         CliError::device(e)
+    }
+}
+
+/// Runs `action`, which sets the modules in `addresses` moving, with their watchdog armed: switched on
+/// before (CONFIGID_MOD_WATCHDOG_ENABLE set if it was not, a life sign, the refresh served by the session's
+/// background thread), so that a host that dies (SIGKILL, power loss, the adapter pulled) stops them within
+/// 50 ms; and switched off again after, whether `action` succeeded, failed or was cancelled (Ctrl-C), with
+/// the Config word restored, so that a normal run leaves the modules as it found them.
+///
+/// Not on RS232, where the manual defines no broadcast to refresh it with (a warning says so), nor with
+/// `--no-watchdog`, nor on the in-process emulator (`--port sim`), which dies with the host.
+fn with_watchdog<T>(
+    bus: &Bus,
+    args: &Args,
+    in_process: bool,
+    addresses: &[u8],
+    action: impl FnOnce() -> Result<T, CliError>,
+) -> Result<T, CliError> {
+    let list = addresses.iter().map(u8::to_string).collect::<Vec<_>>().join(", ");
+    let arm = !args.no_watchdog && !in_process && bus.watchdog_reliable();
+    if !args.no_watchdog && !in_process && !bus.watchdog_reliable() {
+        eprintln!(
+            "motionlink: warning: no watchdog on RS232 (no broadcast to refresh it): if this program dies, \
+             module {list} keeps moving (Ctrl-C and errors still halt it)"
+        );
+    }
+    if !arm {
+        return action();
+    }
+    if let Err(e) = bus.enable_watchdog(addresses) {
+        // Undo what was done before the failure (a Config word changed, a life sign sent).
+        if let Err(undo) = bus.disable_watchdog() {
+            tracing::warn!("switching the watchdog off again failed: {undo}");
+        }
+        let hint = match &e {
+            PcError::Device { state, .. } if state.contains(StateFlag::CommError) => {
+                " (its watchdog expired: a host stopped refreshing it; `reset` clears it)"
+            }
+            _ => "",
+        };
+        return Err(with_context(e, &format!("cannot arm the watchdog of module {list}"), hint));
+    }
+    tracing::info!("watchdog armed in module {list}");
+    let result = action();
+    // Whatever is still moving is stopped before the watchdog goes offline.
+    bus.halt_started();
+    match (result, bus.disable_watchdog()) {
+        (result, Ok(())) => result,
+        (Ok(_), Err(e)) => Err(with_context(e, &format!("cannot switch the watchdog of module {list} off again"), "")),
+        (Err(e), Err(undo)) => {
+            eprintln!("motionlink: cannot switch the watchdog of module {list} off again: {undo}");
+            Err(e)
+        }
+    }
+}
+
+/// `e` as a command-line error of its class, its message between `context` and `hint`.
+fn with_context(e: PcError, context: &str, hint: &str) -> CliError {
+    let text = format!("{context}: {e}{hint}");
+    if e.is_transport() {
+        CliError::transport(text)
+    } else if e.is_usage() {
+        CliError::usage(text)
+    } else {
+        CliError::device(text)
     }
 }
 
@@ -233,7 +302,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
     if let Action::Params = args.action {
         return print_params(&mut out, args.json);
     }
-    let (bus, _host) = open(&args)?;
+    let (bus, host) = open(&args)?;
+    let in_process = host.is_some();
     bus.set_cancel_token(common::interrupt_token());
     let m = bus.module(args.module).map_err(cli_err)?;
     match &args.action {
@@ -327,16 +397,27 @@ pub fn run(args: Args) -> Result<(), CliError> {
             }
         }
         Action::Home { timeout } => {
-            m.home().map_err(cli_err)?;
-            let bar = common::progress_bar(0, format!("homing module {}", args.module));
-            let r = m.wait_home(secs(*timeout)?, &mut |p: &Progress| bar.set_message(progress_text(p)));
-            bar.finish_and_clear();
-            let s = r.map_err(cli_err)?;
-            report_done(&mut out, args.json, "homed", &m.position().map_err(cli_err)?, s)?;
+            let timeout = secs(*timeout)?;
+            with_watchdog(&bus, &args, in_process, &[args.module], || {
+                m.home().map_err(cli_err)?;
+                tracing::info!("module {}: homing", args.module);
+                let bar = common::progress_bar(0, format!("homing module {}", args.module));
+                let r = m.wait_home(timeout, &mut |p: &Progress| bar.set_message(progress_text(p)));
+                bar.finish_and_clear();
+                let s = r.map_err(cli_err)?;
+                report_done(&mut out, args.json, "homed", &m.position().map_err(cli_err)?, s)
+            })?;
         }
         Action::Reset => {
-            m.reset().map_err(cli_err)?;
-            done(&mut out, args.json, "reset")?;
+            // After a host died with the watchdog online, a plain Reset would be undone 50 ms later.
+            let released = m.reset_and_release_watchdog().map_err(cli_err)?;
+            if args.json {
+                common::print_json(&mut out, &json!({"ok": true, "action": "reset", "watchdog_released": released}))?;
+            } else if released {
+                writeln!(out, "reset (the watchdog had expired with no host serving it: switched it offline)")?;
+            } else {
+                writeln!(out, "reset")?;
+            }
         }
         Action::Halt => {
             m.halt().map_err(cli_err)?;
@@ -346,26 +427,32 @@ pub fn run(args: Args) -> Result<(), CliError> {
             if !position.is_finite() {
                 return Err(CliError::usage("the position must be a number"));
             }
-            let ramp = match (vel, acc) {
-                (None, None) => None,
-                (v, a) => Some(Ramp {
-                    vel: Velocity(v.unwrap_or(m.get(Param::MaxVel).map_err(cli_err)?.as_f32().unwrap_or(0.1) / 2.0)),
-                    acc: Acceleration(
-                        a.unwrap_or(m.get(Param::MaxAcc).map_err(cli_err)?.as_f32().unwrap_or(0.1) / 2.0),
-                    ),
-                }),
-            };
-            let start = m.position().map_err(cli_err)?;
-            let distance = (position - start.0).abs();
-            m.move_ramp(Position(*position), ramp).map_err(cli_err)?;
-            let bar = common::progress_bar((distance * 1000.0).round() as u64, format!("module {}", args.module));
-            let r = m.wait_ramp_end(secs(*timeout)?, &mut |p: &Progress| {
-                bar.set_position(((p.position.0 - start.0).abs() * 1000.0).round() as u64);
-                bar.set_message(progress_text(p));
-            });
-            bar.finish_and_clear();
-            let s = r.map_err(cli_err)?;
-            report_done(&mut out, args.json, "reached", &m.position().map_err(cli_err)?, s)?;
+            let timeout = secs(*timeout)?;
+            with_watchdog(&bus, &args, in_process, &[args.module], || {
+                let ramp = match (vel, acc) {
+                    (None, None) => None,
+                    (v, a) => Some(Ramp {
+                        vel: Velocity(
+                            v.unwrap_or(m.get(Param::MaxVel).map_err(cli_err)?.as_f32().unwrap_or(0.1) / 2.0),
+                        ),
+                        acc: Acceleration(
+                            a.unwrap_or(m.get(Param::MaxAcc).map_err(cli_err)?.as_f32().unwrap_or(0.1) / 2.0),
+                        ),
+                    }),
+                };
+                let start = m.position().map_err(cli_err)?;
+                let distance = (position - start.0).abs();
+                m.move_ramp(Position(*position), ramp).map_err(cli_err)?;
+                tracing::info!("module {}: moving from {:.4} to {position}", args.module, start.0);
+                let bar = common::progress_bar((distance * 1000.0).round() as u64, format!("module {}", args.module));
+                let r = m.wait_ramp_end(timeout, &mut |p: &Progress| {
+                    bar.set_position(((p.position.0 - start.0).abs() * 1000.0).round() as u64);
+                    bar.set_message(progress_text(p));
+                });
+                bar.finish_and_clear();
+                let s = r.map_err(cli_err)?;
+                report_done(&mut out, args.json, "reached", &m.position().map_err(cli_err)?, s)
+            })?;
         }
         Action::Watch { interval_ms, count } => {
             let token = common::interrupt_token();

@@ -90,8 +90,16 @@ fn over_tcp_every_action() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("did not answer"));
 
     assert!(ok(port, &["--module", "17", "home"]).starts_with("homed"));
-    let moved = ok(port, &["--module", "17", "move", "-0.1", "--vel", "1", "--acc", "4"]);
+    let out = run(port, &["--module", "17", "move", "-0.1", "--vel", "1", "--acc", "4"]);
+    let moved = String::from_utf8_lossy(&out.stdout);
     assert!(moved.contains("reached: position -0.1000") && moved.contains("STATE_RAMP_END"), "{moved}");
+    // RS232 has no broadcast to refresh the watchdog with: the module is not armed, and the user is told.
+    let warning = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(warning.lines().filter(|l| l.contains("no watchdog on RS232")).count(), 1, "{warning}");
+    let j: serde_json::Value = serde_json::from_str(&ok(port, &["--module", "17", "--json", "get", "Config"])).unwrap();
+    assert_eq!(j["value"].as_u64().unwrap() & 0x0100_0000, 0, "the Config word is not touched on RS232");
+    let out = run(port, &["--module", "17", "--no-watchdog", "move", "-0.05", "--vel", "1", "--acc", "4"]);
+    assert!(out.status.success() && out.stderr.is_empty(), "{}", String::from_utf8_lossy(&out.stderr));
 
     let state = ok(port, &["--module", "17", "state"]);
     assert!(state.contains("STATE_HOME_OK") && state.contains("information"), "{state}");
@@ -166,6 +174,135 @@ fn over_slcan_on_a_pty() {
     assert!(ok(&port, &["--module", "9", "home"]).starts_with("homed"));
     assert!(ok(&port, &["--module", "9", "move", "0.08", "--vel", "1", "--acc", "4"]).contains("0.0800"));
     assert!(ok(&port, &["--module", "9", "get", "ActPos"]).contains("0.080000"));
+}
+
+/// Starts `motionlink -v powercube --port PORT ARGS...` (a long motion) and returns once it logs that the
+/// module is moving (the log line comes after the motion command was acknowledged), with a thread that
+/// collects its stderr.
+#[cfg(unix)]
+fn start_moving(port: &str, args: &[&str]) -> (Child, std::thread::JoinHandle<String>) {
+    let mut child = Command::new(BIN)
+        .args(["-v", "powercube", "--port", port])
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    let stderr = child.stderr.take().unwrap();
+    let log = std::thread::spawn(move || {
+        let mut all = String::new();
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            if line.contains("moving from") {
+                let _ = tx.send(());
+            }
+            all.push_str(&line);
+            all.push('\n');
+        }
+        all
+    });
+    if rx.recv_timeout(Duration::from_secs(5)).is_err() {
+        let _ = child.kill();
+        let _ = child.wait();
+        panic!("{args:?} did not start moving:\n{}", log.join().unwrap());
+    }
+    (child, log)
+}
+
+#[cfg(unix)]
+fn state_json(port: &str, module: &str) -> serde_json::Value {
+    serde_json::from_str(&ok(port, &["--module", module, "--json", "state"])).unwrap()
+}
+
+#[cfg(unix)]
+fn flags(state: &serde_json::Value) -> Vec<String> {
+    state["flags"].as_array().unwrap().iter().map(|f| f.as_str().unwrap().to_string()).collect()
+}
+
+#[cfg(unix)]
+fn json_value(port: &str, module: &str, param: &str) -> serde_json::Value {
+    let j: serde_json::Value = serde_json::from_str(&ok(port, &["--module", module, "--json", "get", param])).unwrap();
+    j["value"].clone()
+}
+
+#[cfg(unix)]
+#[test]
+fn a_killed_move_over_slcan_is_stopped_by_the_watchdog() {
+    let sim = Sim::start(&["--pty", "--slcan", "--modules", "1"]);
+    let port = format!("slcan://{}", sim.address);
+    let config_before = json_value(&port, "1", "Config");
+    // 2 rad at 0.2 rad/s: ten seconds, killed a few hundred ms in.
+    let (mut child, _) = start_moving(&port, &["move", "2.0", "--vel", "0.2", "--acc", "1"]);
+    std::thread::sleep(Duration::from_millis(300));
+    child.kill().unwrap(); // SIGKILL: no halt, no goodbye, no more watchdog refresh
+    child.wait().unwrap();
+    // The watchdog waits 50 ms for a refresh; look a little later.
+    std::thread::sleep(Duration::from_millis(100));
+    let state = state_json(&port, "1");
+    let f = flags(&state);
+    assert!(f.iter().any(|f| f == "STATE_COMM_ERROR") && f.iter().any(|f| f == "STATE_HALTED"), "{state}");
+    assert!(!f.iter().any(|f| f == "STATE_MOTION"), "{state}");
+    let stopped_at = json_value(&port, "1", "ActPos").as_f64().unwrap();
+    assert!(stopped_at > 0.06 && stopped_at < 1.0, "it had moved, and not far: {stopped_at}");
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(json_value(&port, "1", "ActPos").as_f64().unwrap(), stopped_at, "it stays where it stopped");
+
+    // A move now is refused before anything is touched; `reset` switches the expired watchdog offline.
+    let out = run(&port, &["move", "0.0"]);
+    assert_eq!(code(&out), 1);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("`reset` clears it"), "{out:?}");
+    let reset: serde_json::Value = serde_json::from_str(&ok(&port, &["--json", "reset"])).unwrap();
+    assert_eq!(reset["watchdog_released"], true, "{reset}");
+    std::thread::sleep(Duration::from_millis(200));
+    let state = state_json(&port, "1");
+    assert!(flags(&state).is_empty(), "reset for good: {state}");
+    // The dead session could not restore the Config word: only the watchdog flag differs.
+    let after = json_value(&port, "1", "Config").as_u64().unwrap();
+    assert_eq!(after, config_before.as_u64().unwrap() | 0x0100_0000);
+
+    // With --no-watchdog a killed move keeps going: that is what the flag gives up.
+    let (mut child, _) = start_moving(&port, &["--no-watchdog", "move", "-2.0", "--vel", "0.2", "--acc", "1"]);
+    child.kill().unwrap();
+    child.wait().unwrap();
+    std::thread::sleep(Duration::from_millis(100));
+    let state = state_json(&port, "1");
+    assert!(
+        flags(&state).iter().any(|f| f == "STATE_MOTION") && state["faults"].as_array().unwrap().is_empty(),
+        "{state}"
+    );
+    ok(&port, &["halt"]);
+}
+
+#[cfg(unix)]
+#[test]
+fn a_move_over_slcan_leaves_the_module_as_it_found_it() {
+    let sim = Sim::start(&["--pty", "--slcan", "--modules", "4"]);
+    let port = format!("slcan://{}", sim.address);
+    let p = port.as_str();
+    let config_before = json_value(p, "4", "Config");
+    assert!(ok(p, &["--module", "4", "home"]).starts_with("homed"));
+    let moved = ok(p, &["--module", "4", "move", "0.1", "--vel", "1", "--acc", "4"]);
+    assert!(moved.contains("reached: position 0.1000"), "{moved}");
+    // Longer than the watchdog's 50 ms: a watchdog left online would have halted the module by now.
+    std::thread::sleep(Duration::from_millis(150));
+    let state = state_json(p, "4");
+    let f = flags(&state);
+    assert!(!f.iter().any(|f| f == "STATE_HALTED" || f == "STATE_COMM_ERROR"), "{state}");
+    assert_eq!(json_value(p, "4", "Config"), config_before);
+
+    // Ctrl-C: the module is halted (by the program, not by its watchdog) and the Config word restored.
+    let (mut child, log) = start_moving(p, &["--module", "4", "move", "2.0", "--vel", "0.2", "--acc", "1"]);
+    std::thread::sleep(Duration::from_millis(100));
+    assert!(Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
+    let status = child.wait().unwrap();
+    let err = log.join().unwrap();
+    assert_eq!(status.code(), Some(1), "{err}");
+    assert!(err.contains("watchdog armed") && err.contains("cancelled"), "{err}");
+    std::thread::sleep(Duration::from_millis(150));
+    let state = state_json(p, "4");
+    let f = flags(&state);
+    assert!(f.iter().any(|f| f == "STATE_HALTED") && !f.iter().any(|f| f == "STATE_COMM_ERROR"), "{state}");
+    assert_eq!(json_value(p, "4", "Config"), config_before);
 }
 
 #[test]

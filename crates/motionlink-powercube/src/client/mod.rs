@@ -45,6 +45,9 @@ use crate::wire::{is_module_address, ACK_OK, MAX_ADDRESS};
 use lock::ClockLock;
 use transport::{Incoming, Transport};
 
+/// How long a module waits for a watchdog refresh before it halts (chapter 13 of the manual).
+pub const WATCHDOG_TIMEOUT: Duration = Duration::from_millis(50);
+
 /// Timing and retry settings of a session; the defaults depend on the carrier.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BusConfig {
@@ -238,6 +241,8 @@ struct WatchdogDuty {
     period: Duration,
     /// Modules whose watchdog this session switched on.
     online: BTreeSet<u8>,
+    /// Modules in which this session set CONFIGID_MOD_WATCHDOG_ENABLE, with their Config word before.
+    config_before: BTreeMap<u8, ConfigWord>,
     last_error: Option<String>,
 }
 
@@ -293,6 +298,7 @@ impl Bus {
             next_due: Timestamp::ZERO,
             period: config.watchdog_period,
             online: BTreeSet::new(),
+            config_before: BTreeMap::new(),
             last_error: None,
         };
         Bus {
@@ -480,15 +486,31 @@ impl Bus {
     }
 
     /// Switches the watchdog on in `addresses`: sets CONFIGID_MOD_WATCHDOG_ENABLE in their Config word where
-    /// it is not set, starts broadcasting the refresh every [`BusConfig::watchdog_period`] from a background
-    /// thread, and sends each module its first life sign. From then on, if this session stops refreshing
-    /// (the program dies, the line breaks), the modules halt within 50 ms.
+    /// it is not set (remembering the word, for [`Bus::disable_watchdog`]), starts broadcasting the refresh
+    /// every [`BusConfig::watchdog_period`] from a background thread, and sends each module its first life
+    /// sign. From then on, if this session stops refreshing (the program dies, the line breaks), the modules
+    /// halt within 50 ms.
+    ///
+    /// A module that shows STATE_COMM_ERROR (its watchdog expired: a host stopped serving it) is refused
+    /// with [`Error::Device`] before anything is changed in any module: its watchdog is probably still
+    /// online, and a life sign would switch it off. [`Module::reset_and_release_watchdog`] clears it.
+    ///
+    /// On RS232 the refresh goes to address 0, which real modules may ignore: see
+    /// [`Bus::watchdog_reliable`].
     pub fn enable_watchdog(&self, addresses: &[u8]) -> Result<(), Error> {
+        let mut words = Vec::with_capacity(addresses.len());
         for &a in addresses {
             let module = self.module(a)?;
-            let config = module.config_word()?;
+            let state = module.state()?;
+            if state.contains(StateFlag::CommError) && !lock_mutex(&self.inner.duty).online.contains(&a) {
+                return Err(Error::Device { address: a, state });
+            }
+            words.push((module, module.config_word()?));
+        }
+        for (module, config) in words {
             if !config.contains(ConfigFlag::WatchdogEnable) {
                 module.set(Param::Config, Value::U32(config.with(ConfigFlag::WatchdogEnable).0))?;
+                lock_mutex(&self.inner.duty).config_before.entry(module.address).or_insert(config);
             }
         }
         {
@@ -507,25 +529,78 @@ impl Bus {
                 Ok(_) | Err(Error::Timeout { .. }) => {}
                 Err(e) => return Err(e),
             }
+            tracing::debug!("module {a}: watchdog online");
             lock_mutex(&self.inner.duty).online.insert(a);
         }
         Ok(())
     }
 
-    /// Switches the watchdog off again in the modules this session switched it on in (a second life sign),
-    /// and stops refreshing.
+    /// Undoes [`Bus::enable_watchdog`]: switches the watchdog off again in the modules this session switched
+    /// it on in (a second life sign), stops refreshing, and clears CONFIGID_MOD_WATCHDOG_ENABLE again in the
+    /// modules where this session set it, leaving every other bit of their Config word as it is now
+    /// (normally the word is then exactly what it was before). A module whose watchdog could not be switched
+    /// off keeps its Config word and halts within 50 ms, as a session that dies would leave it; the other
+    /// modules are still handled, and the first error is returned.
     pub fn disable_watchdog(&self) -> Result<(), Error> {
+        let mut first_error = None;
         let online: Vec<u8> = lock_mutex(&self.inner.duty).online.iter().copied().collect();
         for a in online {
             match self.request(a, &Request::Action(Action::LifeSign)) {
-                Ok(_) | Err(Error::Timeout { .. }) => {}
-                Err(e) => return Err(e),
+                Ok(_) | Err(Error::Timeout { .. }) => {
+                    tracing::debug!("module {a}: watchdog offline");
+                    lock_mutex(&self.inner.duty).online.remove(&a);
+                }
+                Err(e) => {
+                    tracing::warn!("module {a}: cannot switch the watchdog off: {e}");
+                    first_error.get_or_insert(e);
+                }
             }
-            lock_mutex(&self.inner.duty).online.remove(&a);
         }
         lock_mutex(&self.inner.duty).serving = false;
         self.stop_watchdog_thread();
+        let restore: Vec<(u8, ConfigWord)> = {
+            let duty = lock_mutex(&self.inner.duty);
+            duty.config_before.iter().filter(|(a, _)| !duty.online.contains(a)).map(|(a, w)| (*a, *w)).collect()
+        };
+        for (a, before) in restore {
+            match self.restore_watchdog_flag(a, before) {
+                Ok(()) => {
+                    lock_mutex(&self.inner.duty).config_before.remove(&a);
+                }
+                Err(e) => {
+                    tracing::warn!("module {a}: cannot restore the Config word {:#010x}: {e}", before.0);
+                    first_error.get_or_insert(e);
+                }
+            }
+        }
+        first_error.map_or(Ok(()), Err)
+    }
+
+    /// Gives CONFIGID_MOD_WATCHDOG_ENABLE of module `a` back the value it had in `before`.
+    fn restore_watchdog_flag(&self, a: u8, before: ConfigWord) -> Result<(), Error> {
+        let module = self.module(a)?;
+        let now = module.config_word()?;
+        let mut word = now;
+        word.set(ConfigFlag::WatchdogEnable, before.contains(ConfigFlag::WatchdogEnable));
+        if word != before {
+            tracing::debug!(
+                "module {a}: Config word {:#010x} was {:#010x} before; only the watchdog flag is restored",
+                word.0,
+                before.0
+            );
+        }
+        if word != now {
+            module.set(Param::Config, Value::U32(word.0))?;
+        }
         Ok(())
+    }
+
+    /// True on CAN, where the watchdog refresh is a broadcast the manual defines: a host that dies (killed,
+    /// powered off, its adapter pulled) stops the modules whose watchdog it switched on. False on RS232,
+    /// where the manual defines no broadcast: the refresh goes to address 0, which real modules may ignore,
+    /// so the watchdog cannot be relied upon there.
+    pub fn watchdog_reliable(&self) -> bool {
+        self.inner.can
     }
 
     /// True while the session refreshes the watchdog.
@@ -904,6 +979,35 @@ impl Module<'_> {
     /// Starts homing (wait for it with [`Module::wait_home`]).
     pub fn home(&self) -> Result<(), Error> {
         self.request(&Request::Action(Action::Home)).map(|_| ())
+    }
+
+    /// Reset, and the manual's first way to restart after a watchdog expiry (chapter 13): if the module
+    /// showed STATE_COMM_ERROR and the flag comes back after the Reset (its watchdog is online and nobody
+    /// refreshes it: a host died), a life sign switches the watchdog offline and a second Reset clears the
+    /// flags for good. Returns true if it did that.
+    ///
+    /// The life sign is only sent once the expiry has been seen to come back: a watchdog that is offline
+    /// already, or that another live host serves, is left alone (a life sign would toggle it). That costs
+    /// one wait of [`WATCHDOG_TIMEOUT`] × 2 on the session's clock, only when STATE_COMM_ERROR was set. A
+    /// module whose watchdog this session serves only gets the Reset.
+    pub fn reset_and_release_watchdog(&self) -> Result<bool, Error> {
+        let served = lock_mutex(&self.bus.inner.duty).online.contains(&self.address);
+        let before = if served { CubeState::EMPTY } else { self.state()? };
+        self.reset()?;
+        if !before.contains(StateFlag::CommError) {
+            return Ok(false);
+        }
+        self.bus.inner.clock.sleep(WATCHDOG_TIMEOUT * 2);
+        if !self.state()?.contains(StateFlag::CommError) {
+            return Ok(false);
+        }
+        tracing::info!("module {}: its watchdog expires again after a reset; switching it offline", self.address);
+        match self.request(&Request::Action(Action::LifeSign)) {
+            Ok(_) | Err(Error::Timeout { .. }) => {}
+            Err(e) => return Err(e),
+        }
+        self.reset()?;
+        Ok(true)
     }
 
     /// Halt: stops at once; the module stays halted until a reset.

@@ -347,3 +347,130 @@ fn a_broken_line_is_a_transport_error() {
     assert!(matches!(err, Error::Link(ref l) if l.is_disconnect()) && err.is_transport(), "{err}");
     assert!(matches!(bus.module(0), Err(Error::InvalidAddress(0))));
 }
+
+/// The host dies: no more refresh, no halt, no goodbye (what SIGKILL, a power loss or a pulled adapter does
+/// to a session).
+fn kill(bus: Bus) {
+    lock_mutex(&bus.inner.duty).serving = false;
+    bus.stop_watchdog_thread();
+    lock_mutex(&bus.inner.started).clear();
+    drop(bus);
+}
+
+/// State and position of module `a` at the clock's time, straight from the emulator.
+fn device_view(canbus: &CanBus<SimBus>, clock: &ManualClock, a: u8) -> (CubeState, f32, bool, ConfigWord) {
+    canbus
+        .with_device(|d| {
+            d.update(clock.now());
+            let m = d.module(a).unwrap();
+            (m.state(), m.position().0, m.watchdog_online(), m.config_word())
+        })
+        .unwrap()
+}
+
+#[test]
+fn arming_the_watchdog_for_a_motion_leaves_the_modules_as_it_found_them() {
+    let (clock, canbus, bus) = can(&[1, 2]);
+    let _me = clock.reserve_participant().enter();
+    assert!(bus.watchdog_reliable());
+    let (m1, m2) = (bus.module(1).unwrap(), bus.module(2).unwrap());
+    let before1 = m1.config_word().unwrap();
+    assert!(!before1.contains(ConfigFlag::WatchdogEnable));
+    // Module 2's user keeps the flag set: it must stay set.
+    let before2 = m2.config_word().unwrap().with(ConfigFlag::WatchdogEnable);
+    m2.set(Param::Config, Value::U32(before2.0)).unwrap();
+
+    bus.enable_watchdog(&[1, 2]).unwrap();
+    assert!(m1.config_word().unwrap().contains(ConfigFlag::WatchdogEnable));
+    assert!(device_view(&canbus, &clock, 1).2 && device_view(&canbus, &clock, 2).2, "online");
+    m1.home().unwrap();
+    m1.wait_home(secs(10), &mut |_| {}).unwrap();
+    m1.move_ramp(Position(0.5), Some(Ramp { vel: Velocity(0.5), acc: Acceleration(1.0) })).unwrap();
+    m1.wait_ramp_end(secs(10), &mut |_| {}).unwrap();
+    bus.disable_watchdog().unwrap();
+
+    assert!(!bus.watchdog_served());
+    assert_eq!(m1.config_word().unwrap(), before1, "the flag this session set is cleared again");
+    assert_eq!(m2.config_word().unwrap(), before2, "the flag the user had set stays");
+    // Offline: a second of device time without refreshes changes nothing.
+    clock.sleep(secs(1));
+    for a in [1, 2] {
+        let (state, _, online, _) = device_view(&canbus, &clock, a);
+        assert!(!online, "module {a}");
+        assert!(!state.contains(StateFlag::Halted) && !state.contains(StateFlag::CommError), "module {a}: {state}");
+    }
+    assert!((m1.position().unwrap().0 - 0.5).abs() < 1e-4);
+    // Disabling twice is harmless.
+    bus.disable_watchdog().unwrap();
+    assert_eq!(m1.config_word().unwrap(), before1);
+    use crate::model::Acceleration;
+}
+
+#[test]
+fn a_host_that_dies_while_moving_is_stopped_by_the_watchdog_within_50_ms() {
+    let (clock, canbus, bus) = can(&[1]);
+    let _me = clock.reserve_participant().enter();
+    bus.enable_watchdog(&[1]).unwrap();
+    let m = bus.module(1).unwrap();
+    m.move_ramp(Position(2.0), Some(Ramp { vel: Velocity(0.2), acc: Acceleration(1.0) })).unwrap();
+    clock.sleep(secs(1));
+    assert!(m.state().unwrap().contains(StateFlag::Motion));
+    let died = clock.now();
+    kill(bus);
+
+    clock.sleep_until(died + Duration::from_millis(45));
+    assert!(device_view(&canbus, &clock, 1).0.contains(StateFlag::Motion), "still moving 45 ms later");
+    clock.sleep_until(died + WATCHDOG_TIMEOUT);
+    let (state, stopped_at, online, config) = device_view(&canbus, &clock, 1);
+    assert!(state.contains(StateFlag::CommError) && state.contains(StateFlag::Halted), "{state}");
+    assert!(!state.contains(StateFlag::Motion), "{state}");
+    assert!(online && config.contains(ConfigFlag::WatchdogEnable), "a dead host cannot clean up");
+    assert!(stopped_at > 0.1 && stopped_at < 1.0, "{stopped_at}");
+    clock.sleep(Duration::from_millis(500));
+    assert_eq!(device_view(&canbus, &clock, 1).1, stopped_at, "it does not move any more");
+
+    // The next session: arming is refused (a life sign would switch the expired watchdog off) and changes
+    // nothing; a reset that releases the watchdog brings the module back for good.
+    let bus = Bus::can(Box::new(canbus.connect()), clock.shared(), BusConfig::can());
+    let m = bus.module(1).unwrap();
+    let err = bus.enable_watchdog(&[1]).unwrap_err();
+    assert!(matches!(err, Error::Device { address: 1, state } if state.contains(StateFlag::CommError)), "{err}");
+    assert!(device_view(&canbus, &clock, 1).2, "still online");
+    assert!(m.reset_and_release_watchdog().unwrap());
+    clock.sleep(secs(1));
+    let (state, _, online, _) = device_view(&canbus, &clock, 1);
+    assert!(!online && !state.contains(StateFlag::Halted) && !state.contains(StateFlag::CommError), "{state}");
+    // A reset of a module whose watchdog did not expire is a plain reset.
+    assert!(!m.reset_and_release_watchdog().unwrap());
+    // And the watchdog arms again (the Config flag the dead session left is kept).
+    bus.enable_watchdog(&[1]).unwrap();
+    bus.disable_watchdog().unwrap();
+    assert!(m.config_word().unwrap().contains(ConfigFlag::WatchdogEnable));
+    use crate::model::Acceleration;
+}
+
+#[test]
+fn a_watchdog_another_host_serves_is_not_released() {
+    let (clock, canbus, host_a) = can(&[1]);
+    let _me = clock.reserve_participant().enter();
+    host_a.enable_watchdog(&[1]).unwrap();
+    // Three refreshes in a row are lost: the module halts, though host A is alive and keeps refreshing.
+    canbus.drop_next_to_device(3);
+    clock.sleep(Duration::from_millis(200));
+    assert!(device_view(&canbus, &clock, 1).0.contains(StateFlag::CommError));
+    let host_b = Bus::can(Box::new(canbus.connect()), clock.shared(), BusConfig::can());
+    assert!(!host_b.module(1).unwrap().reset_and_release_watchdog().unwrap(), "host A serves it");
+    clock.sleep(secs(1));
+    let (state, _, online, _) = device_view(&canbus, &clock, 1);
+    assert!(online, "host B did not toggle host A's watchdog");
+    assert!(!state.contains(StateFlag::CommError) && !state.contains(StateFlag::Halted), "{state}");
+    drop(host_b);
+    host_a.disable_watchdog().unwrap();
+}
+
+#[test]
+fn rs232_cannot_rely_on_the_watchdog() {
+    let (clock, _host, bus, _) = rs232(&[1]);
+    let _me = clock.reserve_participant().enter();
+    assert!(!bus.watchdog_reliable());
+}
