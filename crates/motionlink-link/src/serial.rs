@@ -22,7 +22,8 @@ impl SerialLink {
     /// Opens `path` (`/dev/ttyUSB0`, `COM3`) with `settings`: 8 data bits, 1 stop bit, no flow control, and
     /// DTR and RTS switched on if asked for (they stay on while the port is open).
     ///
-    /// A pseudo-terminal cannot drive modem lines; failing to set them there is logged, not an error.
+    /// A pseudo-terminal cannot drive modem lines; failing to set them is a warning on a real port and a debug
+    /// message on a pty, never an error (a unit that needs them will not answer, which says more).
     pub fn open(path: &str, settings: SerialSettings) -> Result<Self, LinkError> {
         let parity = match settings.parity {
             Parity::None => serialport::Parity::None,
@@ -41,9 +42,13 @@ impl SerialLink {
             let dtr = port.write_data_terminal_ready(true);
             let rts = port.write_request_to_send(true);
             if let Err(e) = dtr.and(rts) {
-                tracing::warn!(
-                    "{path}: could not switch DTR and RTS on ({e}); a device powered by them will not answer"
-                );
+                if path.starts_with("/dev/pts/") {
+                    tracing::debug!("{path}: a pseudo-terminal has no DTR and RTS ({e})");
+                } else {
+                    tracing::warn!(
+                        "{path}: could not switch DTR and RTS on ({e}); a device powered by them will not answer"
+                    );
+                }
             }
         }
         let _ = port.clear(serialport::ClearBuffer::All);

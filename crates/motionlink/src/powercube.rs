@@ -143,7 +143,9 @@ pub struct DecodeArgs {
 }
 
 fn cli_err(e: PcError) -> CliError {
-    if e.is_transport() {
+    if let PcError::Cancelled { .. } = e {
+        CliError::Interrupted(e.to_string())
+    } else if e.is_transport() {
         CliError::transport(e)
     } else if e.is_usage() {
         CliError::usage(e)
@@ -208,7 +210,9 @@ fn with_watchdog<T>(
 /// `e` as a command-line error of its class, its message between `context` and `hint`.
 fn with_context(e: PcError, context: &str, hint: &str) -> CliError {
     let text = format!("{context}: {e}{hint}");
-    if e.is_transport() {
+    if let PcError::Cancelled { .. } = e {
+        CliError::Interrupted(text)
+    } else if e.is_transport() {
         CliError::transport(text)
     } else if e.is_usage() {
         CliError::usage(text)
@@ -241,7 +245,8 @@ fn open(args: &Args) -> Result<(Bus, Option<EmulatorHost<SimBus>>), CliError> {
         PortUrl::Slcan(path) => {
             let rate = SlcanBitrate::from_bps(args.bitrate)
                 .ok_or_else(|| CliError::usage(format!("{} bit/s is not an SLCAN bit rate", args.bitrate)))?;
-            let serial = SerialLink::open(path, SerialSettings::new(115_200))?;
+            // An SLCAN adapter needs no modem lines (opening the port raises them anyway).
+            let serial = SerialLink::open(path, SerialSettings { dtr_rts_on: false, ..SerialSettings::new(115_200) })?;
             let link = SlcanLink::open(serial, Arc::clone(&clock), rate)?;
             Bus::can(Box::new(link), clock, with_timeout(BusConfig::can()))
         }

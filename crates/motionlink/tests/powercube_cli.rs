@@ -147,7 +147,7 @@ fn ctrl_c_halts_a_move() {
     let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
     assert!(status.success());
     let out = child.wait_with_output().unwrap();
-    assert_eq!(code(&out), 1, "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(code(&out), 130, "Ctrl-C exits with 130 after halting: {}", String::from_utf8_lossy(&out.stderr));
     assert!(String::from_utf8_lossy(&out.stderr).contains("cancelled"));
     let state = ok(&port, &["state"]);
     assert!(state.contains("STATE_HALTED") && !state.contains("STATE_MOTION"), "{state}");
@@ -296,7 +296,7 @@ fn a_move_over_slcan_leaves_the_module_as_it_found_it() {
     assert!(Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
     let status = child.wait().unwrap();
     let err = log.join().unwrap();
-    assert_eq!(status.code(), Some(1), "{err}");
+    assert_eq!(status.code(), Some(130), "Ctrl-C exits with 130 after halting: {err}");
     assert!(err.contains("watchdog armed") && err.contains("cancelled"), "{err}");
     std::thread::sleep(Duration::from_millis(150));
     let state = state_json(p, "4");
