@@ -1,27 +1,11 @@
 //! RS232 encode and decode (with escaping) allocate nothing: counted by a global allocator.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
+use motionlink_link::alloc_count::CountingAllocator;
 use motionlink_powercube::wire::rs232::{self, Rs232Decoder, TelKind};
 use motionlink_powercube::wire::Payload;
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static ALLOCATOR: CountingAllocator = CountingAllocator::new();
 
 #[test]
 fn rs232_encode_and_decode_never_allocate() {
@@ -31,7 +15,7 @@ fn rs232_encode_and_decode_never_allocate() {
     let mut decoder = Rs232Decoder::new();
     let mut buf = [0u8; rs232::MAX_FRAME];
     let mut frames = 0u64;
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = ALLOCATOR.allocations();
     for round in 0..20_000u32 {
         let p = &payloads[(round % 9) as usize];
         let address = (round % 32) as u8;
@@ -48,7 +32,7 @@ fn rs232_encode_and_decode_never_allocate() {
         // Garbage between frames is decoded (as an error) without allocating too.
         let _ = decoder.feed(&[0xAA, 0x55]).count();
     }
-    let after = ALLOCATIONS.load(Ordering::SeqCst);
+    let after = ALLOCATOR.allocations();
     assert_eq!(frames, 20_000);
     assert_eq!(after - before, 0, "allocations during 20000 encode/decode rounds");
 }
