@@ -5,41 +5,9 @@ use std::io::{BufRead, BufReader, Write};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::Duration;
 
-const BIN: &str = env!("CARGO_BIN_EXE_motionlink");
+mod common;
 
-/// A running `motionlink sim powercube`, killed when dropped.
-struct Sim {
-    child: Child,
-    address: String,
-}
-
-impl Sim {
-    fn start(args: &[&str]) -> Sim {
-        let mut child = Command::new(BIN)
-            .args(["sim", "powercube"])
-            .args(args)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("start the emulator");
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-        let address = line
-            .trim()
-            .strip_prefix("listening on pty ")
-            .or_else(|| line.trim().strip_prefix("listening on "))
-            .unwrap_or_else(|| panic!("unexpected first line {line:?}"))
-            .to_string();
-        Sim { child, address }
-    }
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
+use common::{Sim, BIN};
 
 fn run(port: &str, args: &[&str]) -> Output {
     Command::new(BIN).args(["powercube", "--port", port]).args(args).output().unwrap()
@@ -63,7 +31,7 @@ fn code(out: &Output) -> i32 {
 
 #[test]
 fn over_tcp_every_action() {
-    let sim = Sim::start(&["--tcp", "127.0.0.1:0", "--modules", "1,17"]);
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0", "--modules", "1,17"]);
     let port = sim.address.as_str();
     let scan = ok(port, &["scan"]);
     assert!(scan.lines().any(|l| l.starts_with("17 ") && l.contains("rotary") && l.contains("4.6.34")), "{scan}");
@@ -119,7 +87,7 @@ fn over_tcp_every_action() {
 
 #[test]
 fn a_device_error_names_its_flags() {
-    let sim = Sim::start(&["--tcp", "127.0.0.1:0"]);
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0"]);
     let port = sim.address.as_str();
     ok(port, &["home"]);
     ok(port, &["set", "MaxPos", "0.05"]);
@@ -135,7 +103,7 @@ fn a_device_error_names_its_flags() {
 
 #[test]
 fn ctrl_c_halts_a_move() {
-    let sim = Sim::start(&["--tcp", "127.0.0.1:0"]);
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0"]);
     let port = sim.address.clone();
     let child = Command::new(BIN)
         .args(["powercube", "--port", &port, "move", "2.0", "--vel", "0.2", "--acc", "1"])
@@ -156,7 +124,7 @@ fn ctrl_c_halts_a_move() {
 #[cfg(unix)]
 #[test]
 fn over_a_pty() {
-    let sim = Sim::start(&["--pty", "--modules", "2"]);
+    let sim = Sim::start("powercube", &["--pty", "--modules", "2"]);
     assert!(sim.address.starts_with("/dev/"), "{}", sim.address);
     let scan = ok(&sim.address, &["scan"]);
     assert!(scan.lines().any(|l| l.starts_with("2 ")), "{scan}");
@@ -167,7 +135,7 @@ fn over_a_pty() {
 #[cfg(unix)]
 #[test]
 fn over_slcan_on_a_pty() {
-    let sim = Sim::start(&["--pty", "--slcan", "--modules", "3,9"]);
+    let sim = Sim::start("powercube", &["--pty", "--slcan", "--modules", "3,9"]);
     let port = format!("slcan://{}", sim.address);
     let scan = ok(&port, &["scan"]);
     assert!(scan.lines().any(|l| l.starts_with("3 ")) && scan.lines().any(|l| l.starts_with("9 ")), "{scan}");
@@ -228,7 +196,7 @@ fn json_value(port: &str, module: &str, param: &str) -> serde_json::Value {
 #[cfg(unix)]
 #[test]
 fn a_killed_move_over_slcan_is_stopped_by_the_watchdog() {
-    let sim = Sim::start(&["--pty", "--slcan", "--modules", "1"]);
+    let sim = Sim::start("powercube", &["--pty", "--slcan", "--modules", "1"]);
     let port = format!("slcan://{}", sim.address);
     let config_before = json_value(&port, "1", "Config");
     // 2 rad at 0.2 rad/s: ten seconds, killed a few hundred ms in.
@@ -276,7 +244,7 @@ fn a_killed_move_over_slcan_is_stopped_by_the_watchdog() {
 #[cfg(unix)]
 #[test]
 fn a_move_over_slcan_leaves_the_module_as_it_found_it() {
-    let sim = Sim::start(&["--pty", "--slcan", "--modules", "4"]);
+    let sim = Sim::start("powercube", &["--pty", "--slcan", "--modules", "4"]);
     let port = format!("slcan://{}", sim.address);
     let p = port.as_str();
     let config_before = json_value(p, "4", "Config");
@@ -317,7 +285,7 @@ fn sim_configuration_errors_are_usage_errors() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("outside 1..31"));
     let good = dir.join("good.toml");
     std::fs::write(&good, "[[module]]\naddress = 4\nkind = \"linear\"\nmin_pos = 0.0\nmax_pos = 0.2\n").unwrap();
-    let sim = Sim::start(&["--tcp", "127.0.0.1:0", "--config", good.to_str().unwrap()]);
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0", "--config", good.to_str().unwrap()]);
     let scan = ok(&sim.address, &["scan"]);
     assert!(scan.lines().any(|l| l.starts_with("4 ") && l.contains("linear")), "{scan}");
     assert!(ok(&sim.address, &["--module", "4", "get", "ActVel"]).contains("m/s"));

@@ -1,47 +1,16 @@
 //! The built `motionlink` binary, end to end: `motionlink sim scu` serving over TCP and a pty, and
 //! `motionlink scu` talking to it.
 
-use std::io::{BufRead, BufReader, Write};
-use std::process::{Child, Command, Output, Stdio};
+use std::io::Write;
+use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-const BIN: &str = env!("CARGO_BIN_EXE_motionlink");
+mod common;
 
-/// A running `motionlink sim scu`, killed on drop.
-struct Sim {
-    child: Child,
-    port: String,
-}
+use common::{Sim, BIN};
 
-impl Sim {
-    fn start(args: &[&str]) -> Sim {
-        let mut child = Command::new(BIN)
-            .args(["sim", "scu"])
-            .args(args)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("start motionlink sim scu");
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-        let port = if let Some(addr) = line.trim().strip_prefix("listening on pty ") {
-            addr.to_string()
-        } else {
-            line.trim().strip_prefix("listening on ").expect(&line).to_string()
-        };
-        Sim { child, port }
-    }
-
-    fn tcp() -> Sim {
-        Sim::start(&["--tcp", "127.0.0.1:0"])
-    }
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
+fn sim_tcp() -> Sim {
+    Sim::tcp("scu")
 }
 
 fn scu(port: &str, args: &[&str]) -> Output {
@@ -59,56 +28,56 @@ fn json(o: &Output) -> serde_json::Value {
 
 #[test]
 fn sim_prints_one_listening_line_and_serves_info() {
-    let sim = Sim::tcp();
-    assert!(sim.port.starts_with("tcp://127.0.0.1:"), "{}", sim.port);
-    let out = scu(&sim.port, &["info"]);
+    let sim = sim_tcp();
+    assert!(sim.address.starts_with("tcp://127.0.0.1:"), "{}", sim.address);
+    let out = scu(&sim.address, &["info"]);
     assert!(out.status.success(), "{out:?}");
     let text = stdout(&out);
     assert!(text.contains("SCU V2B3"), "{text}");
     assert!(text.contains("actuator 1") && text.contains("actuator 2"), "{text}");
-    let info = json(&scu(&sim.port, &["info", "--json"]));
+    let info = json(&scu(&sim.address, &["info", "--json"]));
     assert_eq!(info["actuators"].as_array().unwrap().len(), 2);
 }
 
 #[test]
 fn get_prints_a_table_or_json_with_a_value_field() {
-    let sim = Sim::tcp();
-    let v = json(&scu(&sim.port, &["get", "0x0011", "--json"]));
+    let sim = sim_tcp();
+    let v = json(&scu(&sim.address, &["get", "0x0011", "--json"]));
     assert_eq!(v["value"], 0);
     assert_eq!(v["name"], "actual_position_a1");
-    let v = json(&scu(&sim.port, &["--json", "get", "remote_speed_f1"]));
+    let v = json(&scu(&sim.address, &["--json", "get", "remote_speed_f1"]));
     assert_eq!(v["value"], 100);
-    let group = json(&scu(&sim.port, &["get", "actuator_status1", "--json"]));
+    let group = json(&scu(&sim.address, &["get", "actuator_status1", "--json"]));
     assert_eq!(group["value"]["actuator_status1_a1"]["set"][0], "available");
-    let table = stdout(&scu(&sim.port, &["get", "error_codes"]));
+    let table = stdout(&scu(&sim.address, &["get", "error_codes"]));
     assert_eq!(table.lines().count(), 5, "{table}");
 }
 
 #[test]
 fn set_then_get_round_trips_and_the_state_persists_between_connections() {
-    let sim = Sim::tcp();
-    assert!(scu(&sim.port, &["set", "remote_speed_f2", "45"]).status.success());
-    let v = json(&scu(&sim.port, &["get", "remote_speed_f2", "--json"]));
+    let sim = sim_tcp();
+    assert!(scu(&sim.address, &["set", "remote_speed_f2", "45"]).status.success());
+    let v = json(&scu(&sim.address, &["get", "remote_speed_f2", "--json"]));
     assert_eq!(v["value"], 45);
 }
 
 #[test]
 fn move_reaches_its_target_and_the_unit_keeps_the_position() {
-    let sim = Sim::tcp();
+    let sim = sim_tcp();
     let started = Instant::now();
-    let out = scu(&sim.port, &["move", "2", "70", "--speed", "100", "--json"]);
+    let out = scu(&sim.address, &["move", "2", "70", "--speed", "100", "--json"]);
     let v = json(&out);
     assert_eq!(v["position"], 70);
     assert_eq!(v["actuator"], 2);
     // 70 counts at 110 counts/s with a 300 ms ramp: under a second and a half.
     assert!(started.elapsed() < Duration::from_secs(5));
-    let p = json(&scu(&sim.port, &["get", "actual_position_a2", "--json"]));
+    let p = json(&scu(&sim.address, &["get", "actual_position_a2", "--json"]));
     assert_eq!(p["value"], 70);
 }
 
 #[test]
 fn exit_codes_follow_the_contract() {
-    let sim = Sim::tcp();
+    let sim = sim_tcp();
     // 2: usage errors, found before the port is opened or by the client's own checks.
     for args in [
         &["get", "no_such_entry"][..],
@@ -118,12 +87,12 @@ fn exit_codes_follow_the_contract() {
         &["run", "F12", "on"],
         &["frobnicate"],
     ] {
-        let out = scu(&sim.port, args);
+        let out = scu(&sim.address, args);
         assert_eq!(out.status.code(), Some(2), "{args:?}: {out:?}");
         assert!(!out.stderr.is_empty(), "{args:?} says what is wrong");
     }
     // 1: the unit refuses (F6 drives no actuator on a two-actuator SCP11 unit: PE).
-    let out = scu(&sim.port, &["run", "F6", "out"]);
+    let out = scu(&sim.address, &["run", "F6", "out"]);
     assert_eq!(out.status.code(), Some(1), "{out:?}");
     assert!(String::from_utf8_lossy(&out.stderr).contains("PE"), "{out:?}");
     // 3: transport errors.
@@ -135,15 +104,15 @@ fn exit_codes_follow_the_contract() {
 
 #[test]
 fn errors_lists_five_codes() {
-    let sim = Sim::tcp();
-    let v = json(&scu(&sim.port, &["errors", "--json"]));
+    let sim = sim_tcp();
+    let v = json(&scu(&sim.address, &["errors", "--json"]));
     assert_eq!(v["errors"].as_array().unwrap().len(), 5);
 }
 
 #[test]
 fn watch_prints_samples() {
-    let sim = Sim::tcp();
-    let out = scu(&sim.port, &["watch", "--count", "3", "--interval", "50"]);
+    let sim = sim_tcp();
+    let out = scu(&sim.address, &["watch", "--count", "3", "--interval", "50"]);
     assert!(out.status.success(), "{out:?}");
     let text = stdout(&out);
     assert_eq!(text.lines().count(), 3, "{text}");
@@ -152,23 +121,23 @@ fn watch_prints_samples() {
 
 #[test]
 fn run_switches_a_function_for_a_while_and_stops_it() {
-    let sim = Sim::tcp();
-    let out = scu(&sim.port, &["run", "F1", "out", "--seconds", "0.5"]);
+    let sim = sim_tcp();
+    let out = scu(&sim.address, &["run", "F1", "out", "--seconds", "0.5"]);
     assert!(out.status.success(), "{out:?}");
-    let p = json(&scu(&sim.port, &["get", "actual_position_a1", "--json"]));
+    let p = json(&scu(&sim.address, &["get", "actual_position_a1", "--json"]));
     let p = p["value"].as_i64().unwrap();
     assert!((20..70).contains(&p), "moved for half a second: {p}");
-    let out = scu(&sim.port, &["run", "F11", "on", "--seconds", "0.2"]);
+    let out = scu(&sim.address, &["run", "F11", "on", "--seconds", "0.2"]);
     assert!(out.status.success(), "{out:?}");
-    let buzzer = json(&scu(&sim.port, &["get", "buzzer", "--json"]));
+    let buzzer = json(&scu(&sim.address, &["get", "buzzer", "--json"]));
     assert_eq!(buzzer["value"]["bits"], 0, "the buzzer is off again after run");
 }
 
 #[test]
 fn ctrl_c_stops_a_move() {
-    let sim = Sim::tcp();
+    let sim = sim_tcp();
     let child = Command::new(BIN)
-        .args(["scu", "--port", &sim.port, "move", "1", "800", "--speed", "100"])
+        .args(["scu", "--port", &sim.address, "move", "1", "800", "--speed", "100"])
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
@@ -179,22 +148,22 @@ fn ctrl_c_stops_a_move() {
     let out = child.wait_with_output().unwrap();
     assert_eq!(out.status.code(), Some(130), "{out:?}");
     assert!(String::from_utf8_lossy(&out.stderr).contains("stopped"), "{out:?}");
-    let p1 = json(&scu(&sim.port, &["get", "actual_position_a1", "--json"]))["value"].as_i64().unwrap();
+    let p1 = json(&scu(&sim.address, &["get", "actual_position_a1", "--json"]))["value"].as_i64().unwrap();
     std::thread::sleep(Duration::from_millis(400));
-    let p2 = json(&scu(&sim.port, &["get", "actual_position_a1", "--json"]))["value"].as_i64().unwrap();
+    let p2 = json(&scu(&sim.address, &["get", "actual_position_a1", "--json"]))["value"].as_i64().unwrap();
     assert!(p1 > 30 && p1 < 800, "it moved, and not to the end: {p1}");
     assert_eq!(p1, p2, "it stays stopped");
 }
 
 #[test]
 fn a_pty_serves_like_a_serial_port() {
-    let sim = Sim::start(&["--pty"]);
-    assert!(sim.port.starts_with("/dev/"), "{}", sim.port);
+    let sim = Sim::start("scu", &["--pty"]);
+    assert!(sim.address.starts_with("/dev/"), "{}", sim.address);
     for _ in 0..2 {
-        let v = json(&scu(&sim.port, &["get", "firmware_info", "--json"]));
+        let v = json(&scu(&sim.address, &["get", "firmware_info", "--json"]));
         assert!(v["value"].as_str().unwrap().starts_with("SCU"));
     }
-    let v = json(&scu(&sim.port, &["move", "1", "30", "--json"]));
+    let v = json(&scu(&sim.address, &["move", "1", "30", "--json"]));
     assert_eq!(v["position"], 30);
 }
 
@@ -204,8 +173,8 @@ fn sim_with_a_config_file() {
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("unit.toml");
     std::fs::write(&path, "actuators = 4\nfirmware_info = \"TEST UNIT\"\n").unwrap();
-    let sim = Sim::start(&["--tcp", "127.0.0.1:0", "--config", path.to_str().unwrap()]);
-    let info = json(&scu(&sim.port, &["info", "--json"]));
+    let sim = Sim::start("scu", &["--tcp", "127.0.0.1:0", "--config", path.to_str().unwrap()]);
+    let info = json(&scu(&sim.address, &["info", "--json"]));
     assert_eq!(info["actuators"].as_array().unwrap().len(), 4);
     assert_eq!(info["firmware"], "TEST UNIT");
     drop(sim);
