@@ -6,9 +6,9 @@ use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use motionlink_compax::client::{Bus, BusConfig};
-use motionlink_compax::model::{Command, CommandStyle, StatusId, StatusValue};
+use motionlink_compax::model::{Command, CommandStyle, CommandText, StatusId, StatusValue};
 use motionlink_compax::sim::{CompaxBus, SimConfig};
-use motionlink_compax::wire::{Address, Body, Flags, Mode, ReplyDecoder, ReplyEvent, Request};
+use motionlink_compax::wire::{Address, Body, Flags, Frame, Mode, ReplyDecoder, ReplyEventRef, Request};
 use motionlink_link::link::{char_time, Parity};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::RealClock;
@@ -23,13 +23,19 @@ fn build_and_parse(c: &mut Criterion) {
     g.bench_function("request build + reply parse (S1)", |b| {
         b.iter(|| {
             let cmd = Command::ReadStatus(StatusId::ACTUAL_POSITION);
-            let text = cmd.to_ascii(CommandStyle::Long).unwrap();
-            let frame =
-                Request { address, body: Body::Command(text.as_bytes()), flags: Flags::NONE }.encode(&mode).unwrap();
+            let mut text = CommandText::new();
+            cmd.write_ascii_into(CommandStyle::Long, &mut text).unwrap();
+            let mut frame = Frame::default();
+            Request { address, body: Body::Command(text.as_bytes()), flags: Flags::NONE }
+                .encode_into(&mode, &mut frame)
+                .unwrap();
             black_box(frame.as_bytes());
             let mut value = 0.0;
-            for &byte in black_box(reply) {
-                if let Some(ReplyEvent::Reply(r)) = decoder.push(byte) {
+            let mut rest = black_box(reply);
+            while !rest.is_empty() {
+                let (used, event) = decoder.decode(rest);
+                rest = &rest[used..];
+                if let Some(ReplyEventRef::Reply(r)) = event {
                     if let Ok(StatusValue::Position(p)) = StatusValue::parse(StatusId::ACTUAL_POSITION, r.text()) {
                         value = p.units();
                     }

@@ -316,9 +316,10 @@ impl Bus {
                 self.rx_len = self.link.recv(&mut self.rx, until - now)?;
                 continue;
             }
-            let b = self.rx[self.rx_pos];
-            self.rx_pos += 1;
-            let Some(ev) = self.decoder.push(b) else { continue };
+            let (used, event) = self.decoder.decode(&self.rx[self.rx_pos..self.rx_len]);
+            let event = event.map(ReplyEvent::from);
+            self.rx_pos += used;
+            let Some(ev) = event else { continue };
             match ev {
                 ReplyEvent::Flow(xoff) => self.paused = xoff,
                 ReplyEvent::Reply(r) if self.handle_unsolicited(&r) => {}

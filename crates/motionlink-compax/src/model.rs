@@ -15,7 +15,9 @@
 
 use std::fmt::{self, Write as _};
 
-use crate::wire::number::{parse_decimal_bytes, write_decimal, Fixed24, MAX_DECIMALS};
+use crate::wire::number::{
+    fits_fixed24, parse_decimal_bytes, parse_decimal_trimmed, write_decimal, Fixed24, MAX_DECIMALS,
+};
 use crate::wire::{BinaryCommand, TextBuf, WireError, MAX_COMMAND_LEN};
 
 /// A value or text the model cannot accept.
@@ -63,12 +65,11 @@ impl Position {
     /// A position; refused when not finite or outside the 24.24 range.
     #[inline]
     pub fn new(units: f64) -> Result<Self, ModelError> {
-        Fixed24::from_f64(units).map_err(|_| ModelError::Range {
-            what: "position",
-            value: units.to_string(),
-            range: "-8388608 to 8388607.99",
-        })?;
-        Ok(Position(units))
+        if fits_fixed24(units) {
+            Ok(Position(units))
+        } else {
+            Err(ModelError::Range { what: "position", value: units.to_string(), range: "-8388608 to 8388607.99" })
+        }
     }
 
     /// The value in the drive's position unit.
@@ -247,6 +248,20 @@ status_table! {
     39 => DEVICE_ID_9, "device identification 9", "device identification", Text, "";
 }
 
+/// Marks a status value without an entry in [`KNOWN_STATUS`].
+const NO_INFO: u8 = u8::MAX;
+
+/// For each number 0..=40, its entry's index in [`KNOWN_STATUS`] (or [`NO_INFO`]): a lookup, not a search.
+const STATUS_INDEX: [u8; StatusId::MAX as usize + 1] = {
+    let mut index = [NO_INFO; StatusId::MAX as usize + 1];
+    let mut i = 0;
+    while i < KNOWN_STATUS.len() {
+        index[KNOWN_STATUS[i].id.0 as usize] = i as u8;
+        i += 1;
+    }
+    index
+};
+
 impl StatusId {
     /// The highest status value number.
     pub const MAX: u8 = 40;
@@ -268,7 +283,10 @@ impl StatusId {
     /// What is known about it.
     #[inline]
     pub fn info(self) -> Option<&'static StatusInfo> {
-        KNOWN_STATUS.iter().find(|i| i.id == self)
+        match STATUS_INDEX.get(usize::from(self.0)) {
+            Some(&i) if i != NO_INFO => KNOWN_STATUS.get(usize::from(i)),
+            _ => None,
+        }
     }
 
     /// How to read it (text when unknown).
@@ -469,19 +487,51 @@ impl fmt::Display for StatusValue {
 /// Removes an echo of the value's name from a reply: `S001: 12`, `S1=12`, `S16 1000 0000` → the value.
 #[inline]
 fn strip_name(text: &[u8], letter: u8, number: u16) -> &[u8] {
-    let t = trim(text);
-    if t.first().is_some_and(|c| c.eq_ignore_ascii_case(&letter)) {
-        let digits = t[1..].iter().take_while(|c| c.is_ascii_digit()).count();
-        let n = t[1..1 + digits].iter().fold(0u32, |a, d| a.saturating_mul(10).saturating_add(u32::from(d - b'0')));
-        if digits > 0 && n == u32::from(number) {
-            let mut rest = &t[1 + digits..];
-            if let [b':' | b'=', r @ ..] = rest {
+    let three = [b'0' + (number / 100 % 10) as u8, b'0' + (number / 10 % 10) as u8, b'0' + (number % 10) as u8];
+    // The form the drives send, `S001: 12` or `P194=5` with no space around it, straight through.
+    if let [l, x, y, z, b':' | b'=', rest @ ..] = text {
+        if *l == letter && number < 1000 && [*x, *y, *z] == three && text.last() != Some(&b' ') {
+            let mut rest = rest;
+            while let [b' ', r @ ..] = rest {
                 rest = r;
             }
-            return trim(rest);
+            return rest;
         }
     }
-    t
+    let t = trim(text);
+    let [first, after_letter @ ..] = t else { return t };
+    if !first.eq_ignore_ascii_case(&letter) {
+        return t;
+    }
+    // Three digits compared at once; any other number of them by value.
+    let mut rest = match after_letter {
+        [x, y, z, r @ ..] if number < 1000 && [*x, *y, *z] == three && !r.first().is_some_and(u8::is_ascii_digit) => r,
+        _ => match name_digits(after_letter, number) {
+            Some(n) => &after_letter[n..],
+            None => return t,
+        },
+    };
+    if let [b':' | b'=', r @ ..] = rest {
+        rest = r;
+    }
+    // The end is trimmed already.
+    while let [b' ', r @ ..] = rest {
+        rest = r;
+    }
+    rest
+}
+
+/// How many digits `rest` starts with, when they are at least one and their value (leading zeros allowed) is
+/// `number`.
+fn name_digits(rest: &[u8], number: u16) -> Option<usize> {
+    // Held at 2^20 from above, far from any u16.
+    let mut n = 0u32;
+    let mut digits = 0;
+    while let Some(c @ b'0'..=b'9') = rest.get(digits) {
+        n = (n * 10 + u32::from(c - b'0')).min(1 << 20);
+        digits += 1;
+    }
+    (digits > 0 && n == u32::from(number)).then_some(digits)
 }
 
 #[inline]
@@ -500,12 +550,12 @@ impl StatusValue {
     #[inline]
     pub fn parse(id: StatusId, text: &[u8]) -> Result<StatusValue, ModelError> {
         let v = strip_name(text, b'S', id.0.into());
+        // Without spaces around it already.
+        let number = || parse_decimal_trimmed(v);
         let bad = || syntax("a status value", text);
         Ok(match id.kind() {
-            StatusKind::Position => {
-                StatusValue::Position(Position::new(parse_decimal_bytes(v).ok_or_else(bad)?).map_err(|_| bad())?)
-            }
-            StatusKind::Number => StatusValue::Number(parse_decimal_bytes(v).ok_or_else(bad)?),
+            StatusKind::Position => StatusValue::Position(Position::new(number().ok_or_else(bad)?).map_err(|_| bad())?),
+            StatusKind::Number => StatusValue::Number(number().ok_or_else(bad)?),
             StatusKind::BitsS16 => StatusValue::S16(S16Bits(parse_bits(v).ok_or_else(bad)?)),
             StatusKind::BitsS17 => StatusValue::S17(S17Bits(parse_bits(v).ok_or_else(bad)?)),
             StatusKind::History => {
@@ -716,7 +766,7 @@ impl fmt::Display for ParamId {
 
 /// Reads the reply text to `P<id>`: `P194=5`, `P194: 5`, or the value alone.
 pub fn parse_param_reply(id: ParamId, text: &[u8]) -> Result<f64, ModelError> {
-    parse_decimal_bytes(strip_name(text, b'P', id.0)).ok_or_else(|| syntax("a parameter value", text))
+    parse_decimal_trimmed(strip_name(text, b'P', id.0)).ok_or_else(|| syntax("a parameter value", text))
 }
 
 /// Writes the reply a drive sends for `P<id>` (the emulator's side): `P194=5`, the form of a write.
@@ -807,6 +857,21 @@ impl Command {
     #[inline]
     pub fn to_ascii(&self, style: CommandStyle) -> Result<CommandText, ModelError> {
         let mut t = CommandText::new();
+        self.write_ascii_into(style, &mut t)?;
+        Ok(t)
+    }
+
+    /// [`to_ascii`](Self::to_ascii) into `text`, replacing what it held (left empty on an error): no command
+    /// string to copy out of a returned value, and one buffer can serve every request.
+    ///
+    /// ```
+    /// use motionlink_compax::model::{Command, CommandStyle, CommandText, StatusId};
+    /// let mut text = CommandText::new();
+    /// Command::ReadStatus(StatusId::ACTUAL_POSITION).write_ascii_into(CommandStyle::Long, &mut text).unwrap();
+    /// assert_eq!(text.as_str(), "S1");
+    /// ```
+    #[inline]
+    pub fn write_ascii_into(&self, style: CommandStyle, text: &mut CommandText) -> Result<(), ModelError> {
         // The polled reads are written without the formatting machinery (the hot path).
         let fast = match self {
             Command::ReadStatus(s) => Some((b'S', u16::from(s.0))),
@@ -814,21 +879,22 @@ impl Command {
             _ => None,
         };
         if let Some((letter, n)) = fast {
-            let digits = [b'0' + (n / 100) as u8, b'0' + (n / 10 % 10) as u8, b'0' + (n % 10) as u8];
-            let skip = if letter == b'P' {
-                0
-            } else if n >= 10 {
-                1
-            } else {
-                2
-            };
-            let mut b = [letter, 0, 0, 0];
-            b[1..4 - skip].copy_from_slice(&digits[skip..]);
-            let _ = t.write_str(std::str::from_utf8(&b[..4 - skip]).unwrap_or(""));
-            return Ok(t);
+            // `S1`, `S16` (no leading zeros), `P194`, `P003` (three digits): n <= 250.
+            let digits = [letter, b'0' + (n / 100) as u8, b'0' + (n / 10 % 10) as u8, b'0' + (n % 10) as u8];
+            match (letter, n) {
+                (b'P', _) | (_, 100..) => text.set_ascii(digits, 4),
+                (_, 10..) => text.set_ascii([letter, digits[2], digits[3]], 3),
+                _ => text.set_ascii([letter, digits[3]], 2),
+            }
+            return Ok(());
         }
-        self.write_ascii(style, &mut t).map_err(|_| WireError::TooLong(t.as_bytes().len() + 1))?;
-        Ok(t)
+        text.clear();
+        if self.write_ascii(style, text).is_err() {
+            let len = text.as_bytes().len() + 1;
+            text.clear();
+            return Err(WireError::TooLong(len).into());
+        }
+        Ok(())
     }
 
     fn write_ascii(&self, style: CommandStyle, t: &mut impl fmt::Write) -> fmt::Result {
@@ -1145,5 +1211,100 @@ mod tests {
         assert_eq!(t.as_str(), "P195=9600");
         assert_eq!(ParamId::parse("p3").unwrap(), ParamId::new(3).unwrap());
         assert_eq!(StatusId::parse("S016").unwrap(), StatusId::STATUS_BITS_1);
+    }
+
+    #[test]
+    fn status_lookup_is_the_table() {
+        for n in 0..=StatusId::MAX {
+            let id = StatusId(n);
+            assert_eq!(id.info(), KNOWN_STATUS.iter().find(|i| i.id == id), "S{n}");
+            assert_eq!(id.kind(), id.info().map_or(StatusKind::Text, |i| i.kind), "S{n}");
+        }
+        assert_eq!(StatusId(200).info(), None);
+    }
+
+    #[test]
+    fn command_text_in_place() {
+        let cmds = [
+            Command::ReadStatus(StatusId::ACTUAL_POSITION),
+            Command::ReadStatus(StatusId::STATUS_BITS_2),
+            Command::ReadStatus(StatusId::new(40).unwrap()),
+            Command::ReadParam(ParamId::new(3).unwrap()),
+            Command::ReadParam(ParamId::OPERATING_MODE),
+            Command::WriteParam(ParamId::new(250).unwrap(), -1055.88),
+            Command::PosROutput { distance: p(-8_388_608.0), output: 65_535, state: OutputState::ON },
+            Command::PosA(p(0.5)),
+            Command::PosAHome,
+        ];
+        // One buffer for all, so that a short text follows a long one.
+        let mut text = CommandText::new();
+        for style in [CommandStyle::Long, CommandStyle::Short] {
+            for c in cmds.iter().chain(cmds.iter().rev()) {
+                let owned = c.to_ascii(style).unwrap();
+                c.write_ascii_into(style, &mut text).unwrap();
+                assert_eq!(text, owned, "{c:?}");
+                assert_eq!(text.as_str(), owned.as_str());
+                assert!(!text.overflowed());
+            }
+        }
+    }
+
+    /// The name stripping as it was before the three-digit form was compared at once.
+    fn strip_name_reference(text: &[u8], letter: u8, number: u16) -> &[u8] {
+        let t = trim(text);
+        if t.first().is_some_and(|c| c.eq_ignore_ascii_case(&letter)) {
+            let digits = t[1..].iter().take_while(|c| c.is_ascii_digit()).count();
+            let n = t[1..1 + digits].iter().fold(0u32, |a, d| a.saturating_mul(10).saturating_add(u32::from(d - b'0')));
+            if digits > 0 && n == u32::from(number) {
+                let mut rest = &t[1 + digits..];
+                if let [b':' | b'=', r @ ..] = rest {
+                    rest = r;
+                }
+                return trim(rest);
+            }
+        }
+        t
+    }
+
+    #[test]
+    fn names_at_the_edges_of_the_three_digit_form() {
+        for (text, number, value) in [
+            (&b"S001: 5"[..], 1, &b"5"[..]),
+            (b" s001= 5 ", 1, b"5"),
+            (b"S001", 1, b""),
+            (b"S0011: 5", 1, b"S0011: 5"),
+            (b"S0011: 5", 11, b"5"),
+            (b"S001: 5", 1001, b"S001: 5"),
+            (b"S1001: 5", 1001, b"5"),
+            (b"S000: 5", 0, b"5"),
+            (b"S01: 5", 1, b"5"),
+            (b"P194=5", 194, b"5"),
+        ] {
+            let letter = text.trim_ascii_start()[0].to_ascii_uppercase();
+            assert_eq!(strip_name(text, letter, number), value, "{:?} {number}", String::from_utf8_lossy(text));
+            assert_eq!(strip_name_reference(text, letter, number), value);
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig { cases: 3000, ..Default::default() })]
+
+        #[test]
+        fn names_are_stripped_as_before(
+            number in proptest::prop_oneof![0u16..=300, proptest::num::u16::ANY],
+            letter in proptest::sample::select(vec![b'S', b'P']),
+            // A name made for the number (zero-padded, perhaps more digits, the other case) or any text.
+            name in (0usize..7, "[0-9]{0,2}", proptest::bool::ANY, "[ ]{0,2}", "[:=]?", "[ ]{0,3}"),
+            value in "[-+0-9. a]{0,8}[ ]{0,2}",
+            noise in proptest::option::of("[ ]{0,2}[SsPpx]?[0-9]{0,7}[:=]?[ ]{0,3}[-+0-9. a]{0,8}[ ]{0,2}"),
+        ) {
+            let (width, extra, lower, lead, sep, gap) = name;
+            let l = if lower { letter.to_ascii_lowercase() } else { letter } as char;
+            let text = noise.unwrap_or_else(|| format!("{lead}{l}{number:0width$}{extra}{sep}{gap}{value}"));
+            proptest::prop_assert_eq!(
+                strip_name(text.as_bytes(), letter, number),
+                strip_name_reference(text.as_bytes(), letter, number)
+            );
+        }
     }
 }

@@ -1,5 +1,5 @@
 //! An emulator of a COMPAX RS485 bus: up to 31 drives on one byte stream, as one sans-IO
-//! [`Emulator`](motionlink_link::emulator::Emulator).
+//! [`motionlink_link::emulator::Emulator`].
 //!
 //! Every drive hears every byte and frames it with its own P196 mode; the addressed one answers, a broadcast
 //! (32) is executed by all and answered by none. Each drive has P194 / P195 / P196 (valid from power-on, as

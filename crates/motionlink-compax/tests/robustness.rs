@@ -1,16 +1,81 @@
 //! Property tests: arbitrary bytes into the reply decoder, the request decoder and the emulator never panic,
-//! and each recovers.
+//! and each recovers; the reply decoder finds the same in slices of any size as byte by byte.
 
 use motionlink_compax::model::{StatusId, StatusValue};
 use motionlink_compax::sim::{CompaxBus, SimConfig};
 use motionlink_compax::wire::reply::encode_reply;
-use motionlink_compax::wire::{bcc, Mode, ReplyDecoder, ReplyEvent, RequestDecoder, XON};
+use motionlink_compax::wire::{bcc, Mode, ReplyDecoder, ReplyEvent, RequestDecoder, CR, LF, PROMPT, XOFF, XON};
 use motionlink_link::clock::Timestamp;
 use motionlink_link::emulator::Emulator;
 use proptest::prelude::*;
 
+/// A piece of what drives send: garbage, a reply as a drive sends it (its text may hold flow control, be
+/// longer than the decoder keeps, or not be ASCII), or characters that end or break replies.
+#[derive(Debug, Clone)]
+enum Piece {
+    Bytes(Vec<u8>),
+    Reply(u8, Vec<u8>),
+}
+
+fn piece() -> impl Strategy<Value = Piece> {
+    let text_char = prop_oneof![8 => 0x20u8..0x7F, 1 => Just(XON), 1 => Just(XOFF), 1 => Just(LF), 1 => Just(0x80u8)];
+    let special = proptest::sample::select(vec![CR, LF, PROMPT, XON, XOFF, b'$', b'1', b'E', b'S', 0]);
+    prop_oneof![
+        1 => proptest::collection::vec(any::<u8>(), 0..24).prop_map(Piece::Bytes),
+        1 => proptest::collection::vec(special, 1..6).prop_map(Piece::Bytes),
+        4 => (1u8..=31, proptest::collection::vec(text_char, 0..70)).prop_map(|(a, t)| Piece::Reply(a, t)),
+    ]
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 400, ..ProptestConfig::default() })]
+
+    #[test]
+    fn decoding_slices_agrees_with_pushing_bytes(
+        p196 in 0u32..=127,
+        expected in proptest::option::of(1u8..=31),
+        pieces in proptest::collection::vec(piece(), 0..10),
+        cuts in proptest::collection::vec(1usize..24, 1..40),
+    ) {
+        let mode = Mode::from_p196(p196).unwrap();
+        let mut wire = Vec::new();
+        for p in pieces {
+            match p {
+                Piece::Bytes(b) => wire.extend_from_slice(&b),
+                Piece::Reply(a, text) => encode_reply(&mut wire, &mode, a, &text),
+            }
+        }
+        let (mut one, mut many) = (ReplyDecoder::new(&mode), ReplyDecoder::new(&mode));
+        one.expect_from(expected);
+        many.expect_from(expected);
+        // Each event with the number of bytes read when it came.
+        let (mut by_push, mut by_decode) = (Vec::new(), Vec::new());
+        let mut at = 0;
+        for cut in cuts.iter().cycle() {
+            if at >= wire.len() {
+                break;
+            }
+            let end = (at + cut).min(wire.len());
+            for (i, &b) in wire[at..end].iter().enumerate() {
+                if let Some(e) = one.push(b) {
+                    by_push.push((at + i + 1, e));
+                }
+            }
+            let mut chunk = &wire[at..end];
+            while !chunk.is_empty() {
+                let (used, event) = many.decode(chunk);
+                prop_assert!((1..=chunk.len()).contains(&used), "used {} of {}", used, chunk.len());
+                chunk = &chunk[used..];
+                if let Some(e) = event {
+                    by_decode.push((end - chunk.len(), ReplyEvent::from(e)));
+                }
+            }
+            prop_assert_eq!(many.is_idle(), one.is_idle(), "after {} bytes", end);
+            at = end;
+        }
+        prop_assert_eq!(many.decode(&[]).0, 0);
+        prop_assert_eq!(by_decode, by_push);
+    }
 
     #[test]
     fn reply_decoder_survives_garbage_and_recovers(p196 in 0u32..=127, garbage in proptest::collection::vec(any::<u8>(), 0..200)) {

@@ -17,7 +17,7 @@ fn encoding_and_decoding_allocate_nothing() {
     let position = 400i32.to_le_bytes();
     let mut checksum = 0usize;
 
-    let before = ALLOCATOR.allocations();
+    let before = CountingAllocator::allocations_on_this_thread();
     for i in 0..10_000u32 {
         let (request, reply, shape) = if i % 2 == 0 {
             (Request::Get { index: 0x0011 }, Reply::with_data(Command::Get, &position), ReplyShape::WithData)
@@ -40,7 +40,7 @@ fn encoding_and_decoding_allocate_nothing() {
         let (_, ev) = rep_dec.decode(&buf[..m]);
         checksum += usize::from(matches!(ev, Some(Ok(r)) if r == reply));
     }
-    let allocated = ALLOCATOR.allocations() - before;
+    let allocated = CountingAllocator::allocations_on_this_thread() - before;
     assert_eq!(checksum, 20_000, "every telegram round-tripped");
     assert_eq!(allocated, 0, "heap allocations while encoding and decoding");
 }

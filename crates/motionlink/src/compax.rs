@@ -13,7 +13,7 @@ use motionlink_compax::sim::{CompaxBus, SimConfig};
 use motionlink_compax::wire::binary::announced_len;
 use motionlink_compax::wire::reply::ReplyDecoder;
 use motionlink_compax::wire::request::{RequestDecoder, RequestEvent};
-use motionlink_compax::wire::{Address, Body, EscapedBytes, Mode, ReplyEvent, ReplyKind, CR};
+use motionlink_compax::wire::{Address, Body, EscapedBytes, Mode, ReplyEventRef, ReplyKind, CR};
 use motionlink_link::clock::{Clock, ManualClock, SharedClock};
 use motionlink_link::link::{Link, SerialSettings};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
@@ -46,7 +46,7 @@ pub struct Args {
     #[arg(long)]
     pub short: bool,
     /// Print JSON instead of a table.
-    #[arg(long)]
+    #[arg(long, global = true)]
     pub json: bool,
     /// What to do.
     #[command(subcommand)]
@@ -454,29 +454,26 @@ fn describe_command(c: &Command) -> String {
 
 fn annotate_reply(bytes: &[u8], mode: &Mode) -> Option<Found> {
     let mut d = ReplyDecoder::new(mode);
-    for (i, &b) in bytes.iter().enumerate() {
-        if let Some(ev) = d.push(b) {
-            let text = match ev {
-                ReplyEvent::Reply(r) if !r.line().iter().all(|c| (0x20..0x7F).contains(c)) => return None,
-                ReplyEvent::Reply(r) => {
-                    let who = r.address().map_or(String::new(), |a| format!(" from drive {a}"));
-                    let what = match r.kind() {
-                        ReplyKind::Ack => "acknowledged".to_string(),
-                        ReplyKind::Error(c) => format!("error {}", motionlink_compax::model::ErrorCode(c)),
-                        ReplyKind::PositionReached => "$ position reached".to_string(),
-                        ReplyKind::Comparator(n) => format!("comparator {n} switched"),
-                        ReplyKind::Text(t) => describe_reply_text(t),
-                    };
-                    let bcc = if mode.bcc { " [BCC ok]" } else { "" };
-                    format!("reply{who}: {what}{bcc}")
-                }
-                ReplyEvent::Error(e) => format!("reply, bad: {e}"),
-                ReplyEvent::Flow(x) => (if x { "XOFF" } else { "XON" }).to_string(),
+    // The first event, and the bytes up to the one that completed it.
+    let (used, event) = d.decode(bytes);
+    let text = match event? {
+        ReplyEventRef::Reply(r) if !r.line().iter().all(|c| (0x20..0x7F).contains(c)) => return None,
+        ReplyEventRef::Reply(r) => {
+            let who = r.address().map_or(String::new(), |a| format!(" from drive {a}"));
+            let what = match r.kind() {
+                ReplyKind::Ack => "acknowledged".to_string(),
+                ReplyKind::Error(c) => format!("error {}", motionlink_compax::model::ErrorCode(c)),
+                ReplyKind::PositionReached => "$ position reached".to_string(),
+                ReplyKind::Comparator(n) => format!("comparator {n} switched"),
+                ReplyKind::Text(t) => describe_reply_text(t),
             };
-            return Some(Found { bytes: bytes[..=i].to_vec(), text });
+            let bcc = if mode.bcc { " [BCC ok]" } else { "" };
+            format!("reply{who}: {what}{bcc}")
         }
-    }
-    None
+        ReplyEventRef::Error(e) => format!("reply, bad: {e}"),
+        ReplyEventRef::Flow(x) => (if x { "XOFF" } else { "XON" }).to_string(),
+    };
+    Some(Found { bytes: bytes[..used].to_vec(), text })
 }
 
 fn describe_reply_text(t: &str) -> String {

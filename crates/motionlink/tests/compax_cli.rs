@@ -1,36 +1,13 @@
 //! `motionlink compax` end to end: the built binary against `motionlink sim compax` over TCP and a pty.
 
-use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Command, Output};
 
-const BIN: &str = env!("CARGO_BIN_EXE_motionlink");
+mod common;
 
-struct Sim {
-    child: Child,
-    port: String,
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
+use common::{Sim, BIN};
 
 fn start_sim(args: &[&str]) -> Sim {
-    let mut child =
-        Command::new(BIN).args(["sim", "compax"]).args(args).stdout(Stdio::piped()).spawn().expect("start sim");
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let line = line.trim().to_string();
-    let port = if let Some(url) = line.strip_prefix("listening on tcp://") {
-        format!("tcp://{url}")
-    } else if let Some(path) = line.strip_prefix("listening on pty ") {
-        path.to_string()
-    } else {
-        panic!("unexpected first line {line:?}");
-    };
-    Sim { child, port }
+    Sim::start("compax", args)
 }
 
 fn compax(port: &str, args: &[&str]) -> Output {
@@ -49,7 +26,7 @@ fn json(o: &Output) -> serde_json::Value {
 #[test]
 fn over_tcp_every_action() {
     let sim = start_sim(&["--tcp", "127.0.0.1:0", "--drives", "1,5", "--mode", "72", "--baud", "115200"]);
-    let p = sim.port.as_str();
+    let p = sim.address.as_str();
     let base = ["--mode", "72", "--baud", "115200"];
     let with = |extra: &[&str]| {
         let mut v: Vec<&str> = base.to_vec();
@@ -95,7 +72,7 @@ fn over_tcp_every_action() {
 #[test]
 fn over_a_pty() {
     let sim = start_sim(&["--pty", "--drives", "3", "--baud", "38400"]);
-    let p = sim.port.as_str();
+    let p = sim.address.as_str();
     let s = json(&compax(p, &["--drive", "3", "--baud", "38400", "--json", "status", "S1"]));
     assert_eq!(s["drive"], 3);
     let m = json(&compax(p, &["--drive", "3", "--baud", "38400", "--json", "move", "--abs", "-0.75", "--binary"]));

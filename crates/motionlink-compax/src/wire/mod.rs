@@ -1,8 +1,11 @@
 //! The sans-IO codec of the COMPAX RS485 / RS232 protocol: bytes in, typed telegrams out, and back.
 //!
 //! Nothing here does I/O, reads a clock or allocates on the hot path: requests are built into a fixed
-//! [`Frame`], replies are decoded byte by byte by a [`ReplyDecoder`] into a fixed [`Reply`]. Every decoder
-//! takes any chunk of bytes, reports garbage and checksum errors as values and finds the next telegram.
+//! [`Frame`] (returned, or in place with [`Request::encode_into`]), replies are decoded by a
+//! [`ReplyDecoder`] into a fixed [`Reply`], a slice at a time with the reply lent by the decoder
+//! ([`ReplyDecoder::decode`]) or a byte at a time with the reply copied out ([`ReplyDecoder::push`]). Every
+//! decoder takes any chunk of bytes, reports garbage and checksum errors as values and finds the next
+//! telegram.
 //!
 //! - [`Mode`]: parameter P196 (XON/XOFF, parity, BCC, timeout supervision, reply end, reply address).
 //! - [`request`]: `address + command [$][,][/][?] CR [BCC]`, the execute character `!`, and binary telegrams.
@@ -21,7 +24,7 @@ pub use motionlink_link::link::Parity;
 
 pub use binary::BinaryCommand;
 pub use number::{Fixed24, NumberError};
-pub use reply::{Reply, ReplyDecoder, ReplyEvent, ReplyKind};
+pub use reply::{Reply, ReplyDecoder, ReplyEvent, ReplyEventRef, ReplyKind};
 pub use request::{Body, Flags, Request, RequestDecoder, RequestEvent, RequestFrame};
 
 /// Carriage return: the end of a request (and of a reply's text).
@@ -140,11 +143,17 @@ impl Address {
     /// The ASCII digits of the address, as sent: (bytes, count).
     #[inline]
     pub fn digits(self) -> ([u8; 2], usize) {
-        if self.0 >= 10 {
-            ([b'0' + self.0 / 10, b'0' + self.0 % 10], 2)
-        } else {
-            ([b'0' + self.0, 0], 1)
-        }
+        // A table of all 33 (0 never occurs): a load instead of a division.
+        const DIGITS: [([u8; 2], usize); BROADCAST as usize + 1] = {
+            let mut t = [([0u8; 2], 0usize); BROADCAST as usize + 1];
+            let mut a = 0;
+            while a <= BROADCAST {
+                t[a as usize] = if a >= 10 { ([b'0' + a / 10, b'0' + a % 10], 2) } else { ([b'0' + a, 0], 1) };
+                a += 1;
+            }
+            t
+        };
+        DIGITS[usize::from(self.0.min(BROADCAST))]
     }
 }
 
@@ -294,11 +303,20 @@ impl fmt::Display for Mode {
 }
 
 /// Bytes of one telegram, built without allocation.
-#[derive(Clone, Copy, PartialEq, Eq)]
+#[derive(Clone, Copy)]
 pub struct Frame {
     buf: [u8; FRAME_CAPACITY],
     len: usize,
 }
+
+impl PartialEq for Frame {
+    /// Equal bytes (the buffer after them does not count).
+    fn eq(&self, other: &Self) -> bool {
+        self.as_bytes() == other.as_bytes()
+    }
+}
+
+impl Eq for Frame {}
 
 impl Default for Frame {
     fn default() -> Self {
@@ -366,7 +384,17 @@ impl<const N: usize> TextBuf<N> {
         Self::default()
     }
 
+    /// Sets the text to the first `len` of `bytes`, which must be ASCII (as `str` they are UTF-8) and fit.
+    #[inline]
+    pub(crate) fn set_ascii<const M: usize>(&mut self, bytes: [u8; M], len: usize) {
+        debug_assert!(bytes.is_ascii() && M <= N);
+        self.buf[..M].copy_from_slice(&bytes);
+        self.len = len.min(M);
+        self.overflow = false;
+    }
+
     /// The bytes written so far.
+    #[inline]
     pub fn as_bytes(&self) -> &[u8] {
         &self.buf[..self.len]
     }

@@ -152,20 +152,97 @@ pub fn parse_decimal(text: &str) -> Result<f64, NumberError> {
 }
 
 /// [`parse_decimal`] on bytes; `None` when they are not a decimal number.
+///
+/// Numbers of up to 18 digits (every value a drive sends) are read as one integer and scaled by a power of
+/// ten: one correctly rounded division, the same arithmetic as for longer numbers, whose digits after the
+/// 18th significant one are dropped.
 #[inline]
 pub fn parse_decimal_bytes(text: &[u8]) -> Option<f64> {
-    let mut s = text;
+    let (neg, s) = split_sign(trim_spaces(text));
+    parse_digits(neg, s)
+}
+
+/// [`parse_decimal_bytes`] of a text known to have no spaces at either end (it trims none).
+#[inline]
+pub(crate) fn parse_decimal_trimmed(text: &[u8]) -> Option<f64> {
+    debug_assert_eq!(text, trim_spaces(text));
+    let (neg, s) = split_sign(text);
+    parse_digits(neg, s)
+}
+
+#[inline]
+fn trim_spaces(mut s: &[u8]) -> &[u8] {
     while let [b' ', rest @ ..] = s {
         s = rest;
     }
     while let [rest @ .., b' '] = s {
         s = rest;
     }
-    let (neg, mut s) = match s {
+    s
+}
+
+#[inline]
+fn split_sign(s: &[u8]) -> (bool, &[u8]) {
+    match s {
         [b'-', rest @ ..] => (true, rest),
         [b'+', rest @ ..] => (false, rest),
         _ => (false, s),
-    };
+    }
+}
+
+/// `s`, the digits and one point after the sign, one character at a time.
+#[inline]
+fn parse_digits(neg: bool, s: &[u8]) -> Option<f64> {
+    // 18 digits and a point: no digit can be dropped, and 19 digits still fit a u64 without overflow.
+    if s.len() > 19 {
+        return parse_decimal_general(neg, s);
+    }
+    let mut mantissa: u64 = 0;
+    let mut i = 0;
+    // Where the point is; `s.len()` when there is none.
+    let mut point = s.len();
+    while i < s.len() {
+        let d = s[i].wrapping_sub(b'0');
+        if d < 10 {
+            mantissa = mantissa * 10 + u64::from(d);
+        } else if s[i] == b'.' && point == s.len() {
+            point = i;
+        } else {
+            return None;
+        }
+        i += 1;
+    }
+    // Every character is a digit but the point, if any.
+    let (digits, decimals) = if point < s.len() { (s.len() - 1, s.len() - point - 1) } else { (s.len(), 0) };
+    if digits == 0 {
+        return None;
+    }
+    if digits > 18 {
+        return parse_decimal_general(neg, s);
+    }
+    Some(scale(neg, mantissa, decimals))
+}
+
+/// `mantissa / 10^decimals` with the sign (`decimals` <= 18: an exact power of ten from the table).
+#[inline]
+fn scale(neg: bool, mantissa: u64, decimals: usize) -> f64 {
+    // At most 18 digits: below 2^63, where the signed conversion (one instruction on x86-64) rounds the
+    // same as the unsigned one.
+    debug_assert!(mantissa < 1_000_000_000_000_000_000);
+    let m = mantissa as i64 as f64;
+    let v = if decimals == 0 { m } else { m / POW10[decimals] };
+    if neg {
+        -v
+    } else {
+        v
+    }
+}
+
+/// The general decimal reader behind [`parse_decimal_bytes`], for any length: keeps the first 18
+/// significant digits, counts the dropped ones before the point as powers of ten, ignores those after it.
+/// `s` is the text after the sign.
+#[inline(never)]
+fn parse_decimal_general(neg: bool, mut s: &[u8]) -> Option<f64> {
     let mut mantissa: u64 = 0;
     let mut digits = 0usize;
     let mut scale = 0i32;
@@ -204,14 +281,24 @@ pub fn parse_decimal_bytes(text: &[u8]) -> Option<f64> {
     Some(if neg { -v } else { v })
 }
 
+/// True when `v` is a value of the 24.24 format: exactly when [`Fixed24::from_f64`] accepts it, without
+/// rounding (`round(v * 2^24)` is in range exactly when `v * 2^24` is within half a step of it; the product
+/// is exact, the bounds `-2^47 - 0.5` and `2^47 - 0.5` are representable, and NaN compares false).
+#[inline]
+pub fn fits_fixed24(v: f64) -> bool {
+    let x = v * FIXED24_ONE as f64;
+    x > FIXED24_MIN as f64 - 0.5 && x < FIXED24_MAX as f64 + 0.5
+}
+
+const POW10: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20,
+    1e21, 1e22,
+];
+
 #[inline]
 fn pow10(e: i32) -> f64 {
-    const TABLE: [f64; 23] = [
-        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19,
-        1e20, 1e21, 1e22,
-    ];
     match usize::try_from(e) {
-        Ok(i) if i < TABLE.len() => TABLE[i],
+        Ok(i) if i < POW10.len() => POW10[i],
         _ => 10f64.powi(e),
     }
 }
@@ -281,6 +368,122 @@ mod tests {
         }
         for bad in ["", "-", ".", "1.2.3", "1e5", "--1", "1 2"] {
             assert!(parse_decimal(bad).is_err(), "{bad}");
+        }
+    }
+
+    /// The reader as it was before the fast path: the general one, after the spaces and the sign. The fast
+    /// path must give the same f64, bit for bit, or refuse the same texts.
+    fn reference(text: &[u8]) -> Option<f64> {
+        let (neg, s) = split_sign(trim_spaces(text));
+        parse_decimal_general(neg, s)
+    }
+
+    fn agrees(text: &[u8]) -> Result<(), String> {
+        let (fast, old) = (parse_decimal_bytes(text), reference(text));
+        if fast.map(f64::to_bits) == old.map(f64::to_bits) {
+            Ok(())
+        } else {
+            Err(format!("{:?}: fast {fast:?}, reference {old:?}", String::from_utf8_lossy(text)))
+        }
+    }
+
+    #[test]
+    fn fast_decimal_reader_at_its_edges() {
+        for text in [
+            "0",
+            "-0",
+            "+0",
+            "-0.000",
+            "5.",
+            ".5",
+            "-.5",
+            "360.125",
+            "-360.125",
+            "  1  ",
+            "0.1",
+            "0.3",
+            "-8388608",
+            "8388607.99999994",
+            "999999999999999999",
+            "-999999999999999999",
+            "99999999999999999.9",
+            "9999999999999999999",
+            "999999999999999999.5",
+            "1234567890123456789",
+            "12345678901234567890",
+            "0.000000000000000001",
+            "0.0000000000000000001",
+            "00000000000000000001",
+            "9007199254740993",
+            "900719925474099.35",
+            ".",
+            "-",
+            "+",
+            "",
+            " ",
+            "1..2",
+            "1.2.",
+            "12a",
+            "+-1",
+            "1e5",
+            "1 2",
+            "- 1",
+            "\t1",
+        ] {
+            agrees(text.as_bytes()).unwrap();
+        }
+    }
+
+    #[test]
+    fn fits_fixed24_at_the_edges() {
+        let one = FIXED24_ONE as f64;
+        for raw in [FIXED24_MAX as f64, FIXED24_MIN as f64, 0.0] {
+            for x in [raw - 1.0, raw - 0.5, raw, raw + 0.5, raw + 1.0] {
+                let v = x / one;
+                for v in [v.next_down(), v, v.next_up()] {
+                    assert_eq!(fits_fixed24(v), Fixed24::from_f64(v).is_ok(), "{v:e}");
+                }
+            }
+        }
+        for v in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, f64::MAX, f64::MIN, f64::MIN_POSITIVE, -0.0] {
+            assert_eq!(fits_fixed24(v), Fixed24::from_f64(v).is_ok(), "{v:e}");
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig { cases: 2000, ..Default::default() })]
+
+        #[test]
+        fn fast_decimal_reader_agrees_on_decimal_texts(
+            text in "[ ]{0,2}[+-]?[0-9]{0,22}(\\.[0-9]{0,22})?[ ]{0,2}",
+        ) {
+            proptest::prop_assert!(agrees(text.as_bytes()).is_ok(), "{}", agrees(text.as_bytes()).unwrap_err());
+        }
+
+        #[test]
+        fn fast_decimal_reader_agrees_on_texts_near_decimals(text in "[0-9.+\\- e]{0,24}") {
+            proptest::prop_assert!(agrees(text.as_bytes()).is_ok(), "{}", agrees(text.as_bytes()).unwrap_err());
+        }
+
+        #[test]
+        fn fast_decimal_reader_agrees_on_printed_numbers(v in proptest::num::f64::ANY, decimals in 0usize..20) {
+            for text in [format!("{v:.decimals$}"), format!("{v}"), format!("{:.3}", v / 1e9)] {
+                proptest::prop_assert!(agrees(text.as_bytes()).is_ok(), "{}", agrees(text.as_bytes()).unwrap_err());
+            }
+        }
+
+        #[test]
+        fn fast_decimal_reader_agrees_on_arbitrary_bytes(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..24)) {
+            proptest::prop_assert!(agrees(&bytes).is_ok(), "{}", agrees(&bytes).unwrap_err());
+        }
+
+        #[test]
+        fn fits_fixed24_agrees_with_the_conversion(v in proptest::num::f64::ANY, raw in -(1i64 << 48)..(1i64 << 48)) {
+            proptest::prop_assert_eq!(fits_fixed24(v), Fixed24::from_f64(v).is_ok());
+            // Values near the range, and halfway between two steps of 2^-24.
+            for x in [raw as f64 / FIXED24_ONE as f64, (raw as f64 + 0.5) / FIXED24_ONE as f64] {
+                proptest::prop_assert_eq!(fits_fixed24(x), Fixed24::from_f64(x).is_ok(), "{:e}", x);
+            }
         }
     }
 }

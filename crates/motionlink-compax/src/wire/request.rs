@@ -38,7 +38,16 @@ impl Flags {
 
     #[inline]
     fn count(&self) -> usize {
-        [self.position_message, self.buffer, self.no_reply, self.echo].iter().filter(|f| **f).count()
+        usize::from(self.position_message)
+            + usize::from(self.buffer)
+            + usize::from(self.no_reply)
+            + usize::from(self.echo)
+    }
+
+    /// Each flag with its character, in the order they are sent.
+    #[inline]
+    fn chars(&self) -> [(bool, u8); 4] {
+        [(self.position_message, POSITION_MESSAGE), (self.buffer, BUFFER), (self.no_reply, NO_REPLY), (self.echo, ECHO)]
     }
 
     #[inline]
@@ -112,33 +121,65 @@ impl Request<'_> {
     #[inline]
     pub fn encode(&self, mode: &Mode) -> Result<Frame, WireError> {
         let mut f = Frame::default();
+        self.encode_into(mode, &mut f)?;
+        Ok(f)
+    }
+
+    /// [`encode`](Self::encode) into `frame`, replacing what it held (left empty on an error). Building in
+    /// place spares the copy of a returned frame; a client can keep one frame for all its requests.
+    ///
+    /// ```
+    /// use motionlink_compax::wire::{Address, Body, Flags, Frame, Mode, Request};
+    /// let mut frame = Frame::default();
+    /// let req = Request { address: Address::new(1).unwrap(), body: Body::Command(b"S1"), flags: Flags::NONE };
+    /// req.encode_into(&Mode::default(), &mut frame).unwrap();
+    /// assert_eq!(frame.as_bytes(), b"1S1\r");
+    /// ```
+    #[inline]
+    pub fn encode_into(&self, mode: &Mode, frame: &mut Frame) -> Result<(), WireError> {
+        let r = self.build(mode, frame);
+        if r.is_err() {
+            frame.len = 0;
+        }
+        r
+    }
+
+    #[inline]
+    fn build(&self, mode: &Mode, f: &mut Frame) -> Result<(), WireError> {
         let (digits, n) = self.address.digits();
-        f.extend(&digits[..n])?;
+        f.buf[..2].copy_from_slice(&digits);
+        f.len = n;
         match self.body {
             Body::Command(text) => {
-                if text.is_empty() {
-                    return Err(WireError::Flags("empty command"));
-                }
-                if let Some(&c) = text.iter().find(|&&c| !(0x20..=0x7E).contains(&c)) {
-                    return Err(WireError::BadChar(c));
-                }
-                if text[0].is_ascii_digit() || text[0] & 0x80 != 0 {
-                    return Err(WireError::Flags("a command cannot start with a digit (it would extend the address)"));
-                }
-                let (_, trailing) = Flags::split(text);
-                if !trailing.is_none() {
-                    return Err(WireError::Flags("the command text ends with a flag character; use the flags"));
-                }
                 let len = text.len() + self.flags.count();
-                if len > MAX_COMMAND_LEN {
-                    return Err(WireError::TooLong(len));
+                let (&first, &last) = match (text.first(), text.last()) {
+                    (Some(first), Some(last)) => (first, last),
+                    _ => return Err(command_error(text, len)),
+                };
+                if len > MAX_COMMAND_LEN || first.is_ascii_digit() || is_flag_char(last) {
+                    return Err(command_error(text, len));
                 }
-                f.extend(text)?;
-                self.push_flags(&mut f)?;
-                f.push(CR)?;
+                // Copied and checked in one pass. Address, 40 characters with the flags, CR and BCC fit the
+                // frame: no more checks of its room.
+                let mut at = n + text.len();
+                let mut printable = true;
+                for (slot, &c) in f.buf[n..at].iter_mut().zip(text) {
+                    *slot = c;
+                    printable &= (0x20..=0x7E).contains(&c);
+                }
+                if !printable {
+                    return Err(command_error(text, len));
+                }
+                for (on, c) in self.flags.chars() {
+                    f.buf[at] = c;
+                    at += usize::from(on);
+                }
+                f.buf[at] = CR;
                 if mode.bcc {
-                    f.push(bcc(&f.as_bytes()[..f.len() - 1]))?;
+                    f.buf[at + 1] = bcc(&f.buf[..at]);
+                    at += 1;
                 }
+                f.len = at + 1;
             }
             Body::Execute => {
                 if self.flags.buffer {
@@ -148,7 +189,7 @@ impl Request<'_> {
                     return Err(WireError::Flags("'$' belongs to the POSA / POSR command, not to '!'"));
                 }
                 f.push(EXECUTE)?;
-                self.push_flags(&mut f)?;
+                self.push_flags(f)?;
                 f.push(CR)?;
                 if mode.bcc {
                     f.push(bcc(&f.as_bytes()[..f.len() - 1]))?;
@@ -165,23 +206,44 @@ impl Request<'_> {
                 }
             }
         }
-        Ok(f)
+        Ok(())
     }
 
     #[inline]
     fn push_flags(&self, f: &mut Frame) -> Result<(), WireError> {
-        for (on, c) in [
-            (self.flags.position_message, POSITION_MESSAGE),
-            (self.flags.buffer, BUFFER),
-            (self.flags.no_reply, NO_REPLY),
-            (self.flags.echo, ECHO),
-        ] {
+        for (on, c) in self.flags.chars() {
             if on {
                 f.push(c)?;
             }
         }
         Ok(())
     }
+}
+
+/// True for the characters that are flags at the end of a command (`$`, `,`, `/`, `?`).
+#[inline]
+fn is_flag_char(c: u8) -> bool {
+    matches!(c, POSITION_MESSAGE | BUFFER | NO_REPLY | ECHO)
+}
+
+/// Why a command string of `len` characters (flags included) cannot be sent, the first reason in this
+/// order: empty, a character that is not printable ASCII, a leading digit, a flag character at its end,
+/// too long. Called only for a string that fails one of them.
+#[cold]
+fn command_error(text: &[u8], len: usize) -> WireError {
+    if text.is_empty() {
+        return WireError::Flags("empty command");
+    }
+    if let Some(&c) = text.iter().find(|&&c| !(0x20..=0x7E).contains(&c)) {
+        return WireError::BadChar(c);
+    }
+    if text[0].is_ascii_digit() {
+        return WireError::Flags("a command cannot start with a digit (it would extend the address)");
+    }
+    if is_flag_char(text[text.len() - 1]) {
+        return WireError::Flags("the command text ends with a flag character; use the flags");
+    }
+    WireError::TooLong(len)
 }
 
 /// A request telegram as received, before interpretation.
@@ -605,5 +667,86 @@ mod tests {
         assert_eq!(parsed[2].1, "Execute");
         assert_eq!(parsed[2].0, 32);
         assert_eq!(parsed[3].2, Flags { echo: true, ..Flags::NONE });
+    }
+
+    /// A command telegram as it was built before the single-pass copy: every check in its order, every byte
+    /// pushed with a check of the room.
+    fn reference(req: &Request<'_>, mode: &Mode) -> Result<Vec<u8>, WireError> {
+        let Body::Command(text) = req.body else { unreachable!() };
+        if text.is_empty() {
+            return Err(WireError::Flags("empty command"));
+        }
+        if let Some(&c) = text.iter().find(|&&c| !(0x20..=0x7E).contains(&c)) {
+            return Err(WireError::BadChar(c));
+        }
+        if text[0].is_ascii_digit() || text[0] & 0x80 != 0 {
+            return Err(WireError::Flags("a command cannot start with a digit (it would extend the address)"));
+        }
+        if !Flags::split(text).1.is_none() {
+            return Err(WireError::Flags("the command text ends with a flag character; use the flags"));
+        }
+        let len = text.len() + req.flags.count();
+        if len > MAX_COMMAND_LEN {
+            return Err(WireError::TooLong(len));
+        }
+        let (digits, n) = req.address.digits();
+        let mut f = Frame::default();
+        f.extend(&digits[..n])?;
+        f.extend(text)?;
+        for (on, c) in [
+            (req.flags.position_message, POSITION_MESSAGE),
+            (req.flags.buffer, BUFFER),
+            (req.flags.no_reply, NO_REPLY),
+            (req.flags.echo, ECHO),
+        ] {
+            if on {
+                f.push(c)?;
+            }
+        }
+        f.push(CR)?;
+        if mode.bcc {
+            f.push(bcc(&f.as_bytes()[..f.len() - 1]))?;
+        }
+        Ok(f.as_bytes().to_vec())
+    }
+
+    #[test]
+    fn addresses_as_digits() {
+        for a in 1..=BROADCAST {
+            let text = a.to_string();
+            let (digits, n) = Address::new(a).unwrap().digits();
+            assert_eq!(&digits[..n], text.as_bytes());
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig { cases: 2000, ..Default::default() })]
+
+        #[test]
+        fn command_telegrams_are_built_as_before(
+            address in 1u8..=BROADCAST,
+            p196 in 0u32..=Mode::MAX_P196,
+            flags in proptest::array::uniform4(proptest::bool::ANY),
+            text in proptest::collection::vec(
+                proptest::prop_oneof![
+                    6 => 0x20u8..0x7F,
+                    1 => proptest::sample::select(vec![b'$', b',', b'/', b'?', b'0', b'9', CR, 0x7F, 0x80, 0]),
+                ],
+                0..46,
+            ),
+        ) {
+            let mode = Mode::from_p196(p196).unwrap();
+            let flags = Flags { position_message: flags[0], buffer: flags[1], no_reply: flags[2], echo: flags[3] };
+            let r = req(address, Body::Command(&text), flags);
+            let expected = reference(&r, &mode);
+            proptest::prop_assert_eq!(r.encode(&mode).map(|f| f.as_bytes().to_vec()), expected.clone());
+            // In place, over whatever the frame held.
+            let mut frame = req(1, Body::Command(b"POSA 12345.678"), Flags::NONE).encode(&mode).unwrap();
+            let result = r.encode_into(&mode, &mut frame);
+            proptest::prop_assert_eq!(result.map(|()| frame.as_bytes().to_vec()), expected.clone());
+            if expected.is_err() {
+                proptest::prop_assert!(frame.is_empty());
+            }
+        }
     }
 }
