@@ -1,6 +1,6 @@
 //! A global allocator that counts allocations, for tests that prove a codec allocates nothing per telegram.
 //!
-//! ```ignore
+//! ```no_run
 //! use motionlink_link::alloc_count::CountingAllocator;
 //!
 //! #[global_allocator]

@@ -4,6 +4,7 @@
 //! - [`can`]: CAN frames and links (SocketCAN, SLCAN, in-memory bus).
 //! - [`cancel`]: a cancellation flag for long actions (Ctrl-C).
 //! - [`clock`]: the [`Clock`] every timeout, period and emulator reads; real and manual.
+//! - [`clock_lock`]: a mutex whose waiters wait on the clock (a session's shared half-duplex line).
 //! - [`link`]: the [`Link`] trait, a byte stream with read timeouts, and its errors.
 //! - [`serial`], [`tcp`]: links to real ports and serial-over-TCP gateways; pty pairs for tests.
 //! - [`pipe`]: in-memory links with baud-rate pacing and fault injection, and in-process emulators.
@@ -17,6 +18,7 @@ pub mod alloc_count;
 pub mod can;
 pub mod cancel;
 pub mod clock;
+pub mod clock_lock;
 pub mod emulator;
 pub mod link;
 pub mod pipe;

@@ -17,16 +17,19 @@
 //!
 //! # How it works
 //!
-//! The session owns one I/O thread. It sends RO and a first RC, then an RC every
-//! [`ClientConfig::keepalive_period`] (200 ms by default; the unit's watchdog is 500 ms), and in between the
-//! caller's requests, one at a time, as the half-duplex line wants. It blocks only on the session's
-//! [`Clock`](motionlink_link::Clock): an idle session wakes five times a second and costs no measurable CPU.
+//! The session sends RO and a first RC, then an RC every [`ClientConfig::keepalive_period`] (200 ms by
+//! default; the unit's watchdog is 500 ms). The line is half-duplex, so it is shared through a lock that waits
+//! on the session's [`Clock`](motionlink_link::Clock): a caller's request runs on the caller's own thread (no
+//! hand-over to another thread, which would cost two wake-ups per request), and sends a keepalive that fell due
+//! first; a background thread sends the keepalive when the line is free. It sleeps until the next one is due:
+//! an idle session wakes five times a second and costs no measurable CPU.
 //!
 //! A reply must come within [`ClientConfig::reply_timeout`] (2000 ms, the manual's maximum request delay).
 //! Requests that can be repeated safely (RO, RA, RC, RG, RT, RS) are sent again, up to [`ClientConfig::retries`]
 //! times, after a corrupt reply, or when not one byte of the reply came within [`ClientConfig::retry_after`]
-//! (150 ms): waiting 2000 ms for a lost reply would let the unit's 500 ms watchdog expire every time. RE is never repeated unless the unit answered CSE (it then did
-//! not execute it): a lost reply to RE may mean the motion started. Every function the session sent RE for,
+//! (150 ms): waiting 2000 ms for a lost reply would let the unit's 500 ms watchdog expire every time. RE is
+//! never repeated unless the unit answered CSE (it then did not execute it): a lost reply to RE may mean the
+//! motion started. Every function the session sent RE for,
 //! answered or not, counts as started until an RS for it is acknowledged.
 //!
 //! When the session ends (dropped, [`ScuClient::close`], or the process interrupted and the caller drops it),
@@ -35,13 +38,15 @@
 //! [`ClientConfig::auto_reconnect`]) opens the port again, sends RO and RC, and sends RS for the functions
 //! that were started.
 
-use std::collections::{BTreeSet, VecDeque};
+use std::collections::BTreeSet;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::clock::{lock, ParticipantTicket};
+use motionlink_link::clock_lock::ClockLock;
 use motionlink_link::link::{Connector, Link, LinkError, SerialSettings};
 use motionlink_link::url::PortUrl;
 use motionlink_link::{SharedClock, Signal, Timestamp};
@@ -370,41 +375,6 @@ struct OwnedReply {
     data: Option<Vec<u8>>,
 }
 
-/// A one-shot result slot the I/O thread fills and the caller waits on.
-struct Slot<T> {
-    value: Mutex<Option<T>>,
-    signal: Signal,
-}
-
-impl<T> Slot<T> {
-    fn new(clock: &SharedClock) -> Arc<Self> {
-        Arc::new(Slot { value: Mutex::new(None), signal: clock.signal() })
-    }
-
-    fn put(&self, v: T) {
-        *lock(&self.value) = Some(v);
-        self.signal.raise();
-    }
-
-    /// Waits for the value, at most until `deadline`.
-    fn take(&self, deadline: Timestamp) -> Option<T> {
-        loop {
-            if let Some(v) = lock(&self.value).take() {
-                return Some(v);
-            }
-            if self.signal.wait_until(Some(deadline)) == motionlink_link::clock::Wake::Deadline {
-                return lock(&self.value).take();
-            }
-        }
-    }
-}
-
-enum Job {
-    Transact { request: OwnedRequest, slot: Arc<Slot<Result<OwnedReply, ScuError>>> },
-    Reconnect { slot: Arc<Slot<Result<(), ScuError>>> },
-    Close { slot: Arc<Slot<Result<(), ScuError>>> },
-}
-
 #[derive(Debug, Clone)]
 enum SessionState {
     Open,
@@ -420,25 +390,39 @@ struct CyclicUse {
     write: Vec<u8>,
 }
 
+/// What the session knows besides the line itself; locked only for short moments.
 struct State {
-    jobs: VecDeque<Job>,
     session: SessionState,
+    /// Functions started with RE and not yet stopped with an acknowledged RS (wire ids).
     started: BTreeSet<u8>,
     cyclic: Option<CyclicUse>,
     last_cyclic_read: Option<(Timestamp, Vec<u8>)>,
     stats: ClientStats,
+    /// When the next RC is due.
+    next_keepalive: Timestamp,
+    /// When the next automatic reconnection may be tried.
+    next_reconnect: Timestamp,
 }
 
-struct Shared {
+/// The half-duplex line: one exchange at a time, by a caller or by the keepalive thread.
+struct Line {
+    link: Option<Box<dyn Link>>,
+    connector: Connector,
+    decoder: ReplyDecoder,
+}
+
+struct Inner {
+    clock: SharedClock,
+    config: ClientConfig,
+    line: ClockLock<Line>,
     state: Mutex<State>,
-    wake_io: Signal,
+    stop: AtomicBool,
+    wake_keepalive: Signal,
 }
 
 /// A session with an SCU control unit. See the [module documentation](self).
 pub struct ScuClient {
-    shared: Arc<Shared>,
-    clock: SharedClock,
-    config: ClientConfig,
+    inner: Arc<Inner>,
     thread: Option<thread::JoinHandle<()>>,
     description: String,
 }
@@ -464,6 +448,9 @@ impl ScuClient {
 
     /// Opens a session: connects, sends RO with the configured Safety_ID and a first RC, and starts the
     /// keepalive. `connector` is called again to reconnect.
+    ///
+    /// Requests run on the calling thread; with an auto-advancing
+    /// [`ManualClock`](motionlink_link::ManualClock) the calling thread must be one of its participants.
     pub fn open(mut connector: Connector, clock: SharedClock, config: ClientConfig) -> Result<Self, ScuError> {
         if config.keepalive_period.is_zero() || config.keepalive_period > MAX_KEEPALIVE_PERIOD {
             return Err(ScuError::InvalidArgument(format!(
@@ -476,47 +463,34 @@ impl ScuClient {
         }
         let link = connector()?;
         let description = link.describe();
-        let shared = Arc::new(Shared {
+        let now = clock.now();
+        let inner = Arc::new(Inner {
+            line: ClockLock::new(
+                Arc::clone(&clock),
+                Line { link: Some(link), connector, decoder: ReplyDecoder::new() },
+            ),
             state: Mutex::new(State {
-                jobs: VecDeque::new(),
                 session: SessionState::Open,
                 started: BTreeSet::new(),
                 cyclic: None,
                 last_cyclic_read: None,
                 stats: ClientStats::default(),
+                next_keepalive: now,
+                next_reconnect: now,
             }),
-            wake_io: clock.signal(),
+            stop: AtomicBool::new(false),
+            wake_keepalive: clock.signal(),
+            clock,
+            config,
         });
-        let opened = Slot::new(&clock);
-        let ticket = clock.reserve_participant();
-        let mut io = IoThread {
-            shared: Arc::clone(&shared),
-            clock: Arc::clone(&clock),
-            config: config.clone(),
-            link: Some(link),
-            connector,
-            decoder: ReplyDecoder::new(),
-            next_keepalive: Timestamp::ZERO,
-            next_reconnect: Timestamp::ZERO,
-        };
-        let opened2 = Arc::clone(&opened);
+        inner.open_remote(&mut inner.line.lock())?;
+        let ticket = inner.clock.reserve_participant();
+        let keepalive = Arc::clone(&inner);
         let thread = thread::Builder::new()
-            .name("scu-io".into())
-            .spawn(move || io.run(ticket, opened2))
-            .map_err(|e| ScuError::Link(format!("cannot start the I/O thread: {e}")))?;
-        let mut client = ScuClient { shared, clock, config, thread: Some(thread), description };
-        let deadline = client.clock.now() + client.job_deadline() * 3;
-        match opened.take(deadline) {
-            Some(Ok(())) => Ok(client),
-            Some(Err(e)) => {
-                client.stop_thread();
-                Err(e)
-            }
-            None => {
-                client.stop_thread();
-                Err(ScuError::SessionLost("the I/O thread did not answer".into()))
-            }
-        }
+            .name("scu-keepalive".into())
+            .spawn(move || keepalive.keepalive_loop(ticket))
+            .map_err(|e| ScuError::Link(format!("cannot start the keepalive thread: {e}")))?;
+        Ok(ScuClient { inner, thread: Some(thread), description })
     }
 
     /// The port, as the link describes it.
@@ -526,47 +500,34 @@ impl ScuClient {
 
     /// The session's settings.
     pub fn config(&self) -> &ClientConfig {
-        &self.config
+        &self.inner.config
     }
 
     /// The session's clock.
     pub fn clock(&self) -> &SharedClock {
-        &self.clock
+        &self.inner.clock
     }
 
     /// Counters of the session.
     pub fn stats(&self) -> ClientStats {
-        lock(&self.shared.state).stats
+        lock(&self.inner.state).stats
     }
 
     /// Functions started with RE and not yet stopped (wire ids).
     pub fn started_functions(&self) -> Vec<u8> {
-        lock(&self.shared.state).started.iter().copied().collect()
+        lock(&self.inner.state).started.iter().copied().collect()
     }
 
     /// True while the session is open (not lost, not closed).
     pub fn is_open(&self) -> bool {
-        matches!(lock(&self.shared.state).session, SessionState::Open)
-    }
-
-    fn job_deadline(&self) -> Duration {
-        self.config.reply_timeout * (self.config.retries + 1) * 2 + self.config.keepalive_period * 2
-    }
-
-    fn submit<T>(&self, job: Job, slot: &Arc<Slot<Result<T, ScuError>>>) -> Result<T, ScuError> {
-        lock(&self.shared.state).jobs.push_back(job);
-        self.shared.wake_io.raise();
-        let deadline = self.clock.now() + self.job_deadline();
-        slot.take(deadline).unwrap_or_else(|| Err(ScuError::SessionLost("the I/O thread did not answer".into())))
+        matches!(lock(&self.inner.state).session, SessionState::Open)
     }
 
     fn transact(&self, request: &Request<'_>) -> Result<OwnedReply, ScuError> {
         let owned = OwnedRequest::new(request)?;
-        let command = owned.command;
-        let slot = Slot::new(&self.clock);
-        let reply = self.submit(Job::Transact { request: owned, slot: Arc::clone(&slot) }, &slot)?;
+        let reply = self.inner.transact(&owned)?;
         if reply.status != Status::Ack {
-            return Err(ScuError::Refused { command, status: reply.status });
+            return Err(ScuError::Refused { command: owned.command, status: reply.status });
         }
         Ok(reply)
     }
@@ -623,7 +584,7 @@ impl ScuClient {
             )));
         }
         value
-            .check_range(self.config.speed_mode)
+            .check_range(self.inner.config.speed_mode)
             .map_err(|err| ScuError::InvalidArgument(format!("{}: {err}", e.name)))?;
         let mut data = Vec::with_capacity(e.size());
         value.encode(e.kind, &mut data);
@@ -739,14 +700,14 @@ impl ScuClient {
         let Value::CyclicObject(object) = self.get_value(index)? else {
             return Err(ScuError::UnexpectedReply { command: Command::Get, detail: "not a cyclic object".into() });
         };
-        let bytes = Self::encode_cyclic_write(&object, write, self.config.speed_mode)?;
-        lock(&self.shared.state).cyclic = Some(CyclicUse { slot, object, write: bytes });
+        let bytes = Self::encode_cyclic_write(&object, write, self.inner.config.speed_mode)?;
+        lock(&self.inner.state).cyclic = Some(CyclicUse { slot, object, write: bytes });
         Ok(())
     }
 
     /// Keepalive RCs carry no cyclic object again.
     pub fn stop_cyclic(&self) {
-        lock(&self.shared.state).cyclic = None;
+        lock(&self.inner.state).cyclic = None;
     }
 
     /// One RC with CyclicObj `slot` now: writes `write`, returns the read data decoded.
@@ -755,14 +716,14 @@ impl ScuClient {
         let Value::CyclicObject(object) = self.get_value(index)? else {
             return Err(ScuError::UnexpectedReply { command: Command::Get, detail: "not a cyclic object".into() });
         };
-        let bytes = Self::encode_cyclic_write(&object, write, self.config.speed_mode)?;
+        let bytes = Self::encode_cyclic_write(&object, write, self.inner.config.speed_mode)?;
         let reply = self.transact(&Request::Cyclic { object: slot - 1, write: &bytes })?;
         decode_cyclic_read(&object, reply.data.as_deref().unwrap_or_default())
     }
 
     /// The read data of the latest keepalive RC that carried a cyclic object, with its time.
     pub fn last_cyclic_read(&self) -> Option<(Timestamp, Vec<(&'static DataEntry, Value)>)> {
-        let st = lock(&self.shared.state);
+        let st = lock(&self.inner.state);
         let (t, data) = st.last_cyclic_read.clone()?;
         let object = st.cyclic.as_ref()?.object;
         drop(st);
@@ -783,11 +744,11 @@ impl ScuClient {
         speed: u16,
         options: &MoveOptions<'_>,
     ) -> Result<MoveReport, ScuError> {
-        let function = options.function.unwrap_or_else(|| self.config.function_map.function_for(actuator));
+        let function = options.function.unwrap_or_else(|| self.inner.config.function_map.function_for(actuator));
         Value::RemoteSpeed(speed)
-            .check_range(self.config.speed_mode)
+            .check_range(self.inner.config.speed_mode)
             .map_err(|e| ScuError::InvalidArgument(format!("speed: {e}")))?;
-        let started_at = self.clock.now();
+        let started_at = self.inner.clock.now();
         let start_counts = self.position(actuator)?;
         self.set(actuator.remote_position_index(), &Value::RemotePosition(target_counts))?;
         self.set(function.remote_speed_index(), &Value::RemoteSpeed(speed))?;
@@ -796,7 +757,7 @@ impl ScuClient {
         match result {
             Ok(position_counts) => {
                 self.stop_motion(function, StopMode::Soft)?;
-                Ok(MoveReport { actuator, function, position_counts, duration: self.clock.now() - started_at })
+                Ok(MoveReport { actuator, function, position_counts, duration: self.inner.clock.now() - started_at })
             }
             Err(e) => {
                 if let Err(stop_err) = self.stop_motion(function, StopMode::Fast) {
@@ -816,25 +777,25 @@ impl ScuClient {
         started_at: Timestamp,
         options: &MoveOptions<'_>,
     ) -> Result<i32, ScuError> {
-        let tolerance = i64::from(self.config.position_tolerance_counts);
-        let pause = self.clock.signal();
+        let tolerance = i64::from(self.inner.config.position_tolerance_counts);
+        let pause = self.inner.clock.signal();
         let mut last_position = start_counts;
         let mut last_progress_at = started_at;
         loop {
             // Wait a poll interval, but notice a cancel within it.
-            let until = self.clock.now() + self.config.poll_interval;
-            while self.clock.now() < until {
+            let until = self.inner.clock.now() + self.inner.config.poll_interval;
+            while self.inner.clock.now() < until {
                 if options.cancel.is_some_and(CancelToken::is_cancelled) {
                     break;
                 }
-                pause.wait_until(Some(until.min(self.clock.now() + Duration::from_millis(50))));
+                pause.wait_until(Some(until.min(self.inner.clock.now() + Duration::from_millis(50))));
             }
             let position_counts = self.position(actuator)?;
             let status = self.status1(actuator)?.bits as u8;
             if let Some(report) = options.progress {
                 report(&MoveProgress { actuator, position_counts, start_counts, target_counts, status });
             }
-            let now = self.clock.now();
+            let now = self.inner.clock.now();
             if options.cancel.is_some_and(CancelToken::is_cancelled) {
                 return Err(ScuError::Cancelled { actuator, position_counts });
             }
@@ -843,19 +804,19 @@ impl ScuClient {
             if !moving && on_target {
                 return Ok(position_counts);
             }
-            if !moving && now - started_at >= self.config.start_grace {
+            if !moving && now - started_at >= self.inner.config.start_grace {
                 let error_code = self.error_history().map(|h| h[0]).unwrap_or_default();
                 return Err(ScuError::MotionEnded { actuator, position_counts, target_counts, error_code });
             }
             if position_counts != last_position {
                 last_position = position_counts;
                 last_progress_at = now;
-            } else if moving && now - last_progress_at >= self.config.stall_timeout {
+            } else if moving && now - last_progress_at >= self.inner.config.stall_timeout {
                 tracing::warn!("{actuator} on {function} stalled at {position_counts}");
                 return Err(ScuError::Stalled { actuator, position_counts, after: now - last_progress_at });
             }
-            if now - started_at >= self.config.move_timeout {
-                return Err(ScuError::MoveTimeout { actuator, position_counts, after: self.config.move_timeout });
+            if now - started_at >= self.inner.config.move_timeout {
+                return Err(ScuError::MoveTimeout { actuator, position_counts, after: self.inner.config.move_timeout });
             }
         }
     }
@@ -864,8 +825,7 @@ impl ScuClient {
 
     /// Opens the port again (after a loss): RO, RC, and RS for every function that was started.
     pub fn reconnect(&self) -> Result<(), ScuError> {
-        let slot = Slot::new(&self.clock);
-        self.submit(Job::Reconnect { slot: Arc::clone(&slot) }, &slot)
+        self.inner.reconnect(&mut self.inner.line.lock())
     }
 
     /// Ends the session: RS for every started function (motions fast), then RA. The session is closed even if
@@ -877,16 +837,18 @@ impl ScuClient {
     }
 
     fn close_inner(&self) -> Result<(), ScuError> {
-        if matches!(lock(&self.shared.state).session, SessionState::Closed) {
+        if matches!(lock(&self.inner.state).session, SessionState::Closed) {
             return Ok(());
         }
-        let slot = Slot::new(&self.clock);
-        self.submit(Job::Close { slot: Arc::clone(&slot) }, &slot)
+        let mut line = self.inner.line.lock();
+        let r = self.inner.close(&mut line);
+        lock(&self.inner.state).session = SessionState::Closed;
+        r
     }
 
     fn stop_thread(&mut self) {
-        lock(&self.shared.state).session = SessionState::Closed;
-        self.shared.wake_io.raise();
+        self.inner.stop.store(true, Ordering::SeqCst);
+        self.inner.wake_keepalive.raise();
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
@@ -924,18 +886,7 @@ fn decode_cyclic_read(object: &CyclicObject, data: &[u8]) -> Result<Vec<(&'stati
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// The I/O thread
-
-struct IoThread {
-    shared: Arc<Shared>,
-    clock: SharedClock,
-    config: ClientConfig,
-    link: Option<Box<dyn Link>>,
-    connector: Connector,
-    decoder: ReplyDecoder,
-    next_keepalive: Timestamp,
-    next_reconnect: Timestamp,
-}
+// The line and the keepalive
 
 /// Why one exchange failed.
 enum ExchangeError {
@@ -944,93 +895,87 @@ enum ExchangeError {
     Link(LinkError),
 }
 
-impl IoThread {
-    fn run(&mut self, ticket: ParticipantTicket, opened: Arc<Slot<Result<(), ScuError>>>) {
+impl Inner {
+    /// The keepalive thread: sends the RC when one is due and the line is free (a caller holding the line sends
+    /// it itself before its next exchange), and reconnects if told to.
+    fn keepalive_loop(&self, ticket: ParticipantTicket) {
         let _participant = ticket.enter();
-        let first = self.open_remote();
-        let ok = first.is_ok();
-        opened.put(first);
-        if !ok {
-            return;
-        }
-        loop {
-            let job = {
-                let mut st = lock(&self.shared.state);
-                if matches!(st.session, SessionState::Closed) && st.jobs.is_empty() {
-                    return;
-                }
-                st.jobs.pop_front()
-            };
+        while !self.stop.load(Ordering::SeqCst) {
             let now = self.clock.now();
-            let open = self.link.is_some();
-            if open && now >= self.next_keepalive {
-                self.keepalive();
-            }
-            if !open && self.config.auto_reconnect && now >= self.next_reconnect {
-                self.next_reconnect = now + self.config.reconnect_interval;
-                if let Err(e) = self.reconnect() {
-                    tracing::info!("reconnect failed: {e}");
+            let wake_at = {
+                let st = lock(&self.state);
+                match st.session {
+                    SessionState::Open => Some(st.next_keepalive),
+                    SessionState::Lost(_) if self.config.auto_reconnect => Some(st.next_reconnect),
+                    _ => None,
                 }
-            }
-            match job {
-                Some(Job::Transact { request, slot }) => slot.put(self.transact_job(&request)),
-                Some(Job::Reconnect { slot }) => slot.put(self.reconnect()),
-                Some(Job::Close { slot }) => {
-                    let r = self.close();
-                    lock(&self.shared.state).session = SessionState::Closed;
-                    slot.put(r);
-                    return;
-                }
-                None => {
-                    let wake = if self.link.is_some() {
-                        Some(self.next_keepalive)
-                    } else if self.config.auto_reconnect {
-                        Some(self.next_reconnect)
-                    } else {
-                        None
-                    };
-                    self.shared.wake_io.wait_until(wake);
+            };
+            match wake_at {
+                Some(t) if now >= t => match self.line.try_lock() {
+                    Some(mut line) => {
+                        if line.link.is_some() {
+                            self.keepalive_if_due(&mut line);
+                        } else {
+                            self.try_auto_reconnect(&mut line);
+                        }
+                    }
+                    // A caller is using the line: look again shortly.
+                    None => {
+                        self.wake_keepalive.wait_until(Some(now + self.config.keepalive_period / 8));
+                    }
+                },
+                other => {
+                    self.wake_keepalive.wait_until(other);
                 }
             }
         }
     }
 
-    fn lost(&mut self, why: String) -> ScuError {
+    fn lost(&self, line: &mut Line, why: String) -> ScuError {
         tracing::warn!("SCU session lost: {why}");
-        self.link = None;
-        lock(&self.shared.state).session = SessionState::Lost(why.clone());
-        self.next_reconnect = self.clock.now() + self.config.reconnect_interval;
+        line.link = None;
+        let mut st = lock(&self.state);
+        st.session = SessionState::Lost(why.clone());
+        st.next_reconnect = self.clock.now() + self.config.reconnect_interval;
         ScuError::SessionLost(why)
     }
 
     /// RO (sent again on no answer: a unit asleep after a long silence often ignores the first) and RC.
-    fn open_remote(&mut self) -> Result<(), ScuError> {
+    fn open_remote(&self, line: &mut Line) -> Result<(), ScuError> {
         let ro = OwnedRequest::new(&Request::Open { safety_id: self.config.safety_id.code() })?;
-        let reply = self.exchange_with_retries(&ro)?;
+        let reply = self.exchange_with_retries(line, &ro)?;
         if reply.status != Status::Ack {
             return Err(ScuError::Refused { command: Command::Open, status: reply.status });
         }
         let rc = OwnedRequest::new(&Request::Cyclic { object: UNUSED, write: &[] })?;
-        let reply = self.exchange_with_retries(&rc)?;
+        let reply = self.exchange_with_retries(line, &rc)?;
         if reply.status != Status::Ack {
             return Err(ScuError::Refused { command: Command::Cyclic, status: reply.status });
         }
-        self.next_keepalive = self.clock.now() + self.config.keepalive_period;
+        lock(&self.state).next_keepalive = self.clock.now() + self.config.keepalive_period;
         Ok(())
     }
 
-    fn keepalive(&mut self) {
-        let cyclic = lock(&self.shared.state).cyclic.clone();
+    /// Sends the RC (with the cyclic object in use) if one is due.
+    fn keepalive_if_due(&self, line: &mut Line) {
+        let now = self.clock.now();
+        let cyclic = {
+            let mut st = lock(&self.state);
+            if !matches!(st.session, SessionState::Open) || now < st.next_keepalive || line.link.is_none() {
+                return;
+            }
+            // The next keepalive is due one period after this one was sent, whatever happens to it.
+            st.next_keepalive = now + self.config.keepalive_period;
+            st.cyclic.clone()
+        };
         let request = match &cyclic {
             Some(c) => Request::Cyclic { object: c.slot - 1, write: &c.write },
             None => Request::Cyclic { object: UNUSED, write: &[] },
         };
         let Ok(rc) = OwnedRequest::new(&request) else { return };
-        // The next keepalive is due one period after this one was sent, whatever happens to it.
-        self.next_keepalive = self.clock.now() + self.config.keepalive_period;
-        match self.exchange_with_retries(&rc) {
+        match self.exchange_with_retries(line, &rc) {
             Ok(reply) if reply.status == Status::Ack => {
-                let mut st = lock(&self.shared.state);
+                let mut st = lock(&self.state);
                 st.stats.keepalives += 1;
                 if let (Some(_), Some(data)) = (&cyclic, reply.data) {
                     st.last_cyclic_read = Some((self.clock.now(), data));
@@ -1038,46 +983,53 @@ impl IoThread {
             }
             Ok(reply) => tracing::warn!("keepalive RC refused: {}", reply.status),
             Err(e) => {
-                if self.link.is_some() {
-                    let _ = self.lost(format!("keepalive failed: {e}"));
+                if line.link.is_some() {
+                    let _ = self.lost(line, format!("keepalive failed: {e}"));
                 }
             }
         }
     }
 
-    fn transact_job(&mut self, request: &OwnedRequest) -> Result<OwnedReply, ScuError> {
-        match &lock(&self.shared.state).session {
-            SessionState::Open => {}
-            SessionState::Lost(why) => return Err(ScuError::SessionLost(why.clone())),
-            SessionState::Closed => return Err(ScuError::Closed),
-        }
-        if self.link.is_none() {
+    /// One request of a caller, on the caller's thread.
+    fn transact(&self, request: &OwnedRequest) -> Result<OwnedReply, ScuError> {
+        let check = || match &lock(&self.state).session {
+            SessionState::Open => Ok(()),
+            SessionState::Lost(why) => Err(ScuError::SessionLost(why.clone())),
+            SessionState::Closed => Err(ScuError::Closed),
+        };
+        check()?;
+        let mut line = self.line.lock();
+        // The line is ours: a keepalive that fell due goes first.
+        self.keepalive_if_due(&mut line);
+        check()?;
+        if line.link.is_none() {
             return Err(ScuError::SessionLost("port not connected".into()));
         }
         if let Some(f) = request.starts {
             // Counted as started before it is sent: a lost reply may hide a started motion.
-            lock(&self.shared.state).started.insert(f);
+            lock(&self.state).started.insert(f);
         }
-        let reply = self.exchange_with_retries(request)?;
+        let reply = self.exchange_with_retries(&mut line, request)?;
+        let mut st = lock(&self.state);
         if reply.status == Status::Ack {
             if let Some(f) = request.stops {
-                lock(&self.shared.state).started.remove(&f);
+                st.started.remove(&f);
             }
             if request.command == Command::Cyclic {
-                self.next_keepalive = self.clock.now() + self.config.keepalive_period;
+                st.next_keepalive = self.clock.now() + self.config.keepalive_period;
             }
         }
-        lock(&self.shared.state).stats.transactions += 1;
+        st.stats.transactions += 1;
         Ok(reply)
     }
 
     /// Sends `request`, retrying repeatable requests after timeouts and corrupt replies, and any request the
     /// unit answered with CSE (it did not execute it).
-    fn exchange_with_retries(&mut self, request: &OwnedRequest) -> Result<OwnedReply, ScuError> {
+    fn exchange_with_retries(&self, line: &mut Line, request: &OwnedRequest) -> Result<OwnedReply, ScuError> {
         let mut attempts = 0;
         loop {
             attempts += 1;
-            let outcome = self.exchange(request);
+            let outcome = self.exchange(line, request);
             let may_retry = attempts <= self.config.retries;
             match outcome {
                 Ok(reply) if reply.status == Status::ChecksumError && may_retry => {
@@ -1086,7 +1038,7 @@ impl IoThread {
                 Ok(reply) => return Ok(reply),
                 Err(ExchangeError::Link(e)) => {
                     if e.is_disconnect() || matches!(e, LinkError::Io { .. }) {
-                        return Err(self.lost(e.to_string()));
+                        return Err(self.lost(line, e.to_string()));
                     }
                     return Err(ScuError::from(e));
                 }
@@ -1107,24 +1059,25 @@ impl IoThread {
                     return Err(ScuError::Corrupt { command: request.command, error, attempts })
                 }
             }
-            lock(&self.shared.state).stats.retries += 1;
-            if let Some(link) = self.link.as_mut() {
+            lock(&self.state).stats.retries += 1;
+            if let Some(link) = line.link.as_mut() {
                 let _ = link.discard_input();
             }
-            self.decoder.reset();
+            line.decoder.reset();
         }
     }
 
     /// One request, one reply.
-    fn exchange(&mut self, request: &OwnedRequest) -> Result<OwnedReply, ExchangeError> {
-        let Some(link) = self.link.as_mut() else {
+    fn exchange(&self, line: &mut Line, request: &OwnedRequest) -> Result<OwnedReply, ExchangeError> {
+        let Line { link, decoder, .. } = line;
+        let Some(link) = link.as_mut() else {
             return Err(ExchangeError::Link(LinkError::Disconnected {
                 port: "scu".into(),
                 reason: "not connected".into(),
             }));
         };
-        self.decoder.reset();
-        self.decoder.expect(request.command, request.shape);
+        decoder.reset();
+        decoder.expect(request.command, request.shape);
         link.send(&request.bytes).map_err(ExchangeError::Link)?;
         let sent = self.clock.now();
         let deadline = sent + self.config.reply_timeout;
@@ -1141,7 +1094,7 @@ impl IoThread {
             let n = link.recv(&mut buf, until - now).map_err(ExchangeError::Link)?;
             let mut input = &buf[..n];
             loop {
-                let (used, event) = self.decoder.decode(input);
+                let (used, event) = decoder.decode(input);
                 input = &input[used..];
                 match event {
                     Some(Ok(reply)) => {
@@ -1154,60 +1107,74 @@ impl IoThread {
                 }
             }
             // The unit is answering once the start of a reply is in: give it the full reply timeout.
-            heard |= self.decoder.is_mid_telegram();
+            heard |= decoder.is_mid_telegram();
         }
     }
 
-    fn reconnect(&mut self) -> Result<(), ScuError> {
+    fn try_auto_reconnect(&self, line: &mut Line) {
+        let now = self.clock.now();
+        {
+            let mut st = lock(&self.state);
+            if now < st.next_reconnect {
+                return;
+            }
+            st.next_reconnect = now + self.config.reconnect_interval;
+        }
+        if let Err(e) = self.reconnect(line) {
+            tracing::info!("reconnect failed: {e}");
+        }
+    }
+
+    fn reconnect(&self, line: &mut Line) -> Result<(), ScuError> {
         // Close the old port first: a serial device can be opened only once.
-        self.link = None;
-        let mut link = (self.connector)()?;
+        line.link = None;
+        let mut link = (line.connector)()?;
         let _ = link.discard_input();
-        self.link = Some(link);
-        self.decoder.reset();
-        if let Err(e) = self.open_remote() {
-            self.link = None;
+        line.link = Some(link);
+        line.decoder.reset();
+        if let Err(e) = self.open_remote(line) {
+            line.link = None;
             return Err(e);
         }
         let started: Vec<u8> = {
-            let mut st = lock(&self.shared.state);
+            let mut st = lock(&self.state);
             st.session = SessionState::Open;
             st.stats.reconnects += 1;
             st.started.iter().copied().collect()
         };
         // Every RE needs its RS, even when the unit already stopped the drive (the watchdog did).
         for f in started {
-            let _ = self.stop_function(f);
+            let _ = self.stop_function(line, f);
         }
         Ok(())
     }
 
-    fn stop_function(&mut self, f: u8) -> Result<(), ScuError> {
+    fn stop_function(&self, line: &mut Line, f: u8) -> Result<(), ScuError> {
         let param = if f <= 9 { StopMode::Fast.code() } else { UNUSED };
         let rs = OwnedRequest::new(&Request::Stop { function: f, param })?;
-        let reply = self.exchange_with_retries(&rs)?;
+        let reply = self.exchange_with_retries(line, &rs)?;
         if reply.status == Status::Ack {
-            lock(&self.shared.state).started.remove(&f);
+            lock(&self.state).started.remove(&f);
             Ok(())
         } else {
             Err(ScuError::Refused { command: Command::Stop, status: reply.status })
         }
     }
 
-    fn close(&mut self) -> Result<(), ScuError> {
-        if self.link.is_none() {
+    fn close(&self, line: &mut Line) -> Result<(), ScuError> {
+        if line.link.is_none() {
             return Err(ScuError::SessionLost("port not connected: the unit's watchdog stops the drives".into()));
         }
-        let started: Vec<u8> = lock(&self.shared.state).started.iter().copied().collect();
+        let started: Vec<u8> = lock(&self.state).started.iter().copied().collect();
         let mut first_error = None;
         for f in started {
-            if let Err(e) = self.stop_function(f) {
+            if let Err(e) = self.stop_function(line, f) {
                 tracing::error!("RS of function id {f} failed: {e}");
                 first_error.get_or_insert(e);
             }
         }
         let ra = OwnedRequest::new(&Request::Abort)?;
-        match self.exchange_with_retries(&ra) {
+        match self.exchange_with_retries(line, &ra) {
             Ok(r) if r.status == Status::Ack => {}
             Ok(r) => {
                 first_error.get_or_insert(ScuError::Refused { command: Command::Abort, status: r.status });
@@ -1216,7 +1183,7 @@ impl IoThread {
                 first_error.get_or_insert(e);
             }
         }
-        self.link = None;
+        line.link = None;
         first_error.map_or(Ok(()), Err)
     }
 }

@@ -22,7 +22,6 @@
 //! assert!((joint.position().unwrap().0 - 0.5).abs() < 1e-4);
 //! ```
 
-mod lock;
 mod transport;
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -42,7 +41,7 @@ use crate::model::{
     ModuleKind, Motion, Param, Position, Ramp, Reply, Request, ShortState, StateFlag, Ticks, Value,
 };
 use crate::wire::{is_module_address, ACK_OK, MAX_ADDRESS};
-use lock::ClockLock;
+use motionlink_link::clock_lock::ClockLock;
 use transport::{Incoming, Transport};
 
 /// How long a module waits for a watchdog refresh before it halts (chapter 13 of the manual).
