@@ -557,7 +557,7 @@ fn decode_lines(bytes: &[u8], mode: &Mode, dir: Direction) -> Vec<String> {
 
 /// The COMPAX part of `motionlink demo`: the manual's chapter 4.5 example and a move.
 pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
-    writeln!(out, "== COMPAX: manual chapter 4.5, S1 of drives 1 and 5 (P194 = 1 and 5, P195 = 9600) ==")?;
+    writeln!(out, "== Parker COMPAX: the manual's chapter 4.5, S1 of drives 1 and 5 (P194 = 1 and 5, P195 = 9600) ==")?;
     for (p196, title) in
         [(8, "4.5.1 BASIC program with BCC (P196 = 8)"), (0, "4.5.2 BASIC program without BCC (P196 = 0)")]
     {

@@ -721,7 +721,11 @@ type DemoStep<'a> = Box<dyn Fn() -> Result<(), PcError> + 'a>;
 pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
     let color = std::io::stdout().is_terminal();
     let title = |s: &str| if color { format!("\x1b[1m{s}\x1b[0m") } else { s.to_string() };
-    writeln!(out, "{}", title("PowerCube: chapter 8, CAN examples (module 17, emulated at 1 Mbit/s)"))?;
+    writeln!(
+        out,
+        "{}",
+        title("== Schunk / Amtec PowerCube: the manual's chapter 8, CAN examples (module 17, emulated at 1 Mbit/s) ==")
+    )?;
     {
         let clock = ManualClock::new_auto();
         let _me = clock.reserve_participant().enter();
@@ -759,7 +763,13 @@ pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
         bus.halt_started();
     }
     writeln!(out)?;
-    writeln!(out, "{}", title("PowerCube: chapter 9, RS232 examples (module 17, emulated at 9600 baud)"))?;
+    writeln!(
+        out,
+        "{}",
+        title(
+            "== Schunk / Amtec PowerCube: the manual's chapter 9, RS232 examples (module 17, emulated at 9600 baud) =="
+        )
+    )?;
     {
         let clock = ManualClock::new_auto();
         let _me = clock.reserve_participant().enter();
