@@ -43,86 +43,59 @@ fn exchange(
     n + m + data_len + usize::from(got_request)
 }
 
+/// A codec bench: both telegrams of an exchange, encoded and decoded.
+struct Exchange<'a> {
+    name: &'static str,
+    request: Request<'a>,
+    reply: Reply<'a>,
+}
+
 fn codec(c: &mut Criterion) {
-    let mut g = c.benchmark_group("codec");
-    g.throughput(Throughput::Elements(2));
-    let mut req_dec = RequestDecoder::new();
-    let mut rep_dec = ReplyDecoder::new();
-    let mut buf = [0u8; 64];
-
     let position = 400i32.to_le_bytes();
-    rep_dec.expect(Command::Get, ReplyShape::WithData);
-    g.bench_function("rg_position_exchange", |b| {
-        b.iter(|| {
-            exchange(
-                black_box(&Request::Get { index: 0x0011 }),
-                black_box(&Reply::with_data(Command::Get, &position)),
-                &mut req_dec,
-                &mut rep_dec,
-                &mut buf,
-            )
-        })
-    });
-
     // CyclicObj 1 with 12 words: writes the six remote positions, reads the six actual positions.
     let write = [0x5Au8; 24];
     let read = [0xA5u8; 24];
-    rep_dec.expect(Command::Cyclic, ReplyShape::WithData);
-    g.bench_function("rc_12_word_cyclic_exchange", |b| {
-        b.iter(|| {
-            exchange(
-                black_box(&Request::Cyclic { object: 0, write: &write }),
-                black_box(&Reply::with_data(Command::Cyclic, &read)),
-                &mut req_dec,
-                &mut rep_dec,
-                &mut buf,
-            )
-        })
-    });
-    g.finish();
-
-    // The same work as fastest-of-many short trials: on a shared virtual machine the host takes the processor
-    // away now and then, which criterion's mean counts and the fastest trial does not.
-    let best = |f: &mut dyn FnMut() -> usize| {
-        (0..300)
+    let exchanges = [
+        Exchange {
+            name: "rg_position_exchange",
+            request: Request::Get { index: 0x0011 },
+            reply: Reply::with_data(Command::Get, &position),
+        },
+        Exchange {
+            name: "rc_12_word_cyclic_exchange",
+            request: Request::Cyclic { object: 0, write: &write },
+            reply: Reply::with_data(Command::Cyclic, &read),
+        },
+    ];
+    let mut req_dec = RequestDecoder::new();
+    let mut rep_dec = ReplyDecoder::new();
+    let mut buf = [0u8; 64];
+    let mut g = c.benchmark_group("codec");
+    g.throughput(Throughput::Elements(2));
+    for x in &exchanges {
+        rep_dec.expect(x.request.command(), x.request.reply_shape());
+        let mut run = || exchange(black_box(&x.request), black_box(&x.reply), &mut req_dec, &mut rep_dec, &mut buf);
+        g.bench_function(x.name, |b| b.iter(&mut run));
+        // The same work as the fastest of many short trials: on a shared virtual machine the host takes the
+        // processor away now and then, which criterion's mean counts and the fastest trial does not.
+        let fastest = (0..300)
             .map(|_| {
                 let t = Instant::now();
                 for _ in 0..10_000 {
-                    black_box(f());
+                    black_box(run());
                 }
                 t.elapsed() / 10_000
             })
             .min()
-            .unwrap_or_default()
-    };
-    rep_dec.expect(Command::Get, ReplyShape::WithData);
-    let rg = best(&mut || {
-        exchange(
-            black_box(&Request::Get { index: 0x0011 }),
-            black_box(&Reply::with_data(Command::Get, &position)),
-            &mut req_dec,
-            &mut rep_dec,
-            &mut buf,
-        )
-    });
-    rep_dec.expect(Command::Cyclic, ReplyShape::WithData);
-    let rc = best(&mut || {
-        exchange(
-            black_box(&Request::Cyclic { object: 0, write: &write }),
-            black_box(&Reply::with_data(Command::Cyclic, &read)),
-            &mut req_dec,
-            &mut rep_dec,
-            &mut buf,
-        )
-    });
-    for (name, per_exchange) in [("RG position exchange", rg), ("RC exchange, 12-word cyclic object", rc)] {
-        let rate = 2.0 / per_exchange.as_secs_f64() / 1e6;
+            .unwrap_or_default();
+        let rate = 2.0 / fastest.as_secs_f64() / 1e6;
         eprintln!(
-            "{name}: fastest trial {per_exchange:?} per exchange = {rate:.1} million telegrams/s \
-             (target: at least 20: {})",
+            "{}: fastest trial {fastest:?} per exchange = {rate:.1} million telegrams/s (target: at least 20: {})",
+            x.name,
             if rate >= 20.0 { "met" } else { "NOT met" }
         );
     }
+    g.finish();
 }
 
 fn transaction(c: &mut Criterion) {
