@@ -94,6 +94,12 @@ impl Bench {
         self.get(0x0170 + u16::from(actuator))[0]
     }
 
+    /// Sets actuator `a`'s remote position and starts its SCP11 function towards it (RE direction 9).
+    fn go(&mut self, a: u8, position_counts: i32) {
+        assert_eq!(self.set(0x3020 + u16::from(a), &position_counts.to_le_bytes()), Status::Ack);
+        assert_eq!(self.status(Request::Execute { function: a - 1, params: [9, 0xFF] }), Status::Ack);
+    }
+
     fn set(&mut self, index: u16, data: &[u8]) -> Status {
         self.status(Request::Transfer { index, data })
     }
@@ -180,8 +186,7 @@ fn speed_scales_the_motion() {
     let mut b = Bench::new(SimConfig::default());
     b.open(1);
     b.set(0x3012, &50u16.to_le_bytes());
-    b.set(0x3022, &300i32.to_le_bytes());
-    b.status(Request::Execute { function: 1, params: [9, 0xFF] });
+    b.go(2, 300);
     b.keep_alive(2000);
     let p = b.position(2);
     // 55 counts/s at 50 %: about 100 counts in 2 s after the ramp.
@@ -195,10 +200,8 @@ fn speed_scales_the_motion() {
 fn rs_fast_stops_at_once_and_soft_stops_along_the_ramp() {
     let mut b = Bench::new(SimConfig::default());
     b.open(1);
-    b.set(0x3021, &800i32.to_le_bytes());
-    b.set(0x3022, &800i32.to_le_bytes());
-    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
-    b.status(Request::Execute { function: 1, params: [9, 0xFF] });
+    b.go(1, 800);
+    b.go(2, 800);
     b.keep_alive(1000);
     let (p1, p2) = (b.position(1), b.position(2));
     assert_eq!(b.status(Request::Stop { function: 0, param: 0 }), Status::Ack);
@@ -238,8 +241,7 @@ fn motion_directions_go_to_the_stroke_ends_and_stored_positions() {
 fn targets_beyond_the_stroke_stop_at_its_end() {
     let mut b = Bench::new(SimConfig::default());
     b.open(1);
-    b.set(0x3021, &5000i32.to_le_bytes());
-    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+    b.go(1, 5000);
     b.keep_alive(10_000);
     assert_eq!(b.position(1), 865);
 }
@@ -248,8 +250,7 @@ fn targets_beyond_the_stroke_stop_at_its_end() {
 fn watchdog_with_safety_id_0_stops_and_locks_until_ro() {
     let mut b = Bench::new(SimConfig::default());
     b.open(0);
-    b.set(0x3021, &800i32.to_le_bytes());
-    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+    b.go(1, 800);
     b.keep_alive(1000);
     let p = b.position(1);
     assert!(b.unit.is_moving(a(1)));
@@ -276,8 +277,7 @@ fn watchdog_with_safety_id_0_stops_and_locks_until_ro() {
 fn watchdog_with_safety_id_1_stops_and_the_next_rc_rearms() {
     let mut b = Bench::new(SimConfig::default());
     b.open(1);
-    b.set(0x3021, &800i32.to_le_bytes());
-    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+    b.go(1, 800);
     b.wait(600);
     assert!(!b.unit.is_moving(a(1)));
     assert!(matches!(b.unit.mode(), RemoteMode::TimedOut(_)));
@@ -293,8 +293,7 @@ fn watchdog_with_safety_id_1_stops_and_the_next_rc_rearms() {
 fn watchdog_with_safety_id_2_stops_only_remote_motions() {
     let mut b = Bench::new(SimConfig::default());
     b.open(2);
-    b.set(0x3021, &800i32.to_le_bytes());
-    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+    b.go(1, 800);
     b.unit.press_hand_switch(2, true);
     assert_ne!(b.get(0x0040)[0] & 0b1000, 0, "key K4 (F2 out) shows as pressed");
     b.wait(600);
@@ -475,8 +474,7 @@ fn switching_functions_show_in_the_data_list() {
 fn emergency_stop_stops_everything_and_blocks_motion_until_released() {
     let mut b = Bench::new(SimConfig::default());
     b.open(1);
-    b.set(0x3021, &800i32.to_le_bytes());
-    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+    b.go(1, 800);
     b.keep_alive(500);
     assert!(b.unit.is_moving(a(1)));
     assert_eq!(b.status(Request::Execute { function: 19, params: [0xFF, 0xFF] }), Status::Ack);
@@ -492,10 +490,8 @@ fn emergency_stop_stops_everything_and_blocks_motion_until_released() {
 fn a_drive_error_fast_stops_its_drive_and_enters_the_history() {
     let mut b = Bench::new(SimConfig::default());
     b.open(1);
-    b.set(0x3021, &800i32.to_le_bytes());
-    b.set(0x3022, &800i32.to_le_bytes());
-    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
-    b.status(Request::Execute { function: 1, params: [9, 0xFF] });
+    b.go(1, 800);
+    b.go(2, 800);
     b.keep_alive(500);
     b.unit.inject_error(ErrorCode::from_bit(15));
     assert!(!b.unit.is_moving(a(1)));
@@ -511,8 +507,7 @@ fn a_drive_error_fast_stops_its_drive_and_enters_the_history() {
 fn ra_ends_remote_mode_and_stops_remote_motions() {
     let mut b = Bench::new(SimConfig::default());
     b.open(1);
-    b.set(0x3021, &800i32.to_le_bytes());
-    b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+    b.go(1, 800);
     b.keep_alive(300);
     assert_eq!(b.status(Request::Abort), Status::Ack);
     assert!(!b.unit.any_moving());
