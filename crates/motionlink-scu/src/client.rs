@@ -52,7 +52,7 @@ use motionlink_link::url::PortUrl;
 use motionlink_link::{SharedClock, Signal, Timestamp};
 
 use crate::model::{
-    item, status1, Actuator, CyclicObject, DataEntry, DataIndex, ErrorCode, FlagSet, Flags, Function, Item,
+    item, status1, timing, Actuator, CyclicObject, DataEntry, DataIndex, ErrorCode, FlagSet, Flags, Function, Item,
     MotionDirection, MotionFunction, SafetyId, StopMode, UNUSED,
 };
 use crate::value::{decode_item, SpeedMode, Value};
@@ -60,7 +60,7 @@ use crate::wire::{request_to_vec, Command, ReplyDecoder, ReplyShape, Request, St
 
 /// The longest keepalive period accepted: the unit's watchdog is 500 ms, and a period must leave room for a
 /// reply and the caller's requests in between.
-pub const MAX_KEEPALIVE_PERIOD: Duration = Duration::from_millis(450);
+pub const MAX_KEEPALIVE_PERIOD: Duration = Duration::from_millis(timing::WATCHDOG.as_millis() as u64 - 50);
 
 /// Which motion function drives each actuator, for [`ScuClient::move_to`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -132,7 +132,7 @@ impl Default for ClientConfig {
         ClientConfig {
             safety_id: SafetyId::StopAllAndLock,
             keepalive_period: Duration::from_millis(200),
-            reply_timeout: Duration::from_millis(2000),
+            reply_timeout: timing::MAX_REPLY_DELAY,
             retry_after: Duration::from_millis(150),
             retries: 2,
             function_map: FunctionMap::scp11(),

@@ -441,6 +441,22 @@ pub const fn per_actuator(base: u16, actuator: Actuator) -> DataIndex {
 }
 
 // ---------------------------------------------------------------------------------------------------------
+// Timing rules (chapter 3.4, network layer, and 4.1, command set)
+
+/// The timing rules of the protocol, as the manual states them.
+pub mod timing {
+    use std::time::Duration;
+
+    /// The RC watchdog of remote mode: with no RC for this long the unit stops the drives (and reacts as the
+    /// Safety_ID says).
+    pub const WATCHDOG: Duration = Duration::from_millis(500);
+    /// The most time between two bytes of one telegram; the unit drops a telegram left incomplete longer.
+    pub const INTER_BYTE_LIMIT: Duration = Duration::from_millis(1000);
+    /// The most time the unit takes to reply ("maximum request delay").
+    pub const MAX_REPLY_DELAY: Duration = Duration::from_millis(2000);
+}
+
+// ---------------------------------------------------------------------------------------------------------
 // Actuators and functions
 
 /// One of the up to six actuators (drives) of a control unit, numbered 1..6.

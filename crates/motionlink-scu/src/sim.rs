@@ -49,10 +49,7 @@ use crate::model::{
 use crate::value::{SpeedMode, Value};
 use crate::wire::{encode_reply, Command, Incoming, Reply, Request, RequestDecoder, Status, MAX_REPLY_LEN};
 
-/// The RC watchdog of remote mode.
-pub const WATCHDOG: Duration = Duration::from_millis(500);
-/// The most time between two bytes of one telegram.
-pub const INTER_BYTE_LIMIT: Duration = Duration::from_millis(1000);
+pub use crate::model::timing::{INTER_BYTE_LIMIT, WATCHDOG};
 /// Step of the physical model.
 const STEP: Duration = Duration::from_millis(5);
 
