@@ -80,6 +80,22 @@ fn open_sends_ro_and_rc_and_close_leaves_remote_mode() {
 }
 
 #[test]
+fn a_unit_that_ignores_the_first_ro_after_a_long_silence_is_opened_by_the_second() {
+    // Real units often sleep through the first RO; the client sends it again when no reply comes.
+    let rig = Rig::new(SimConfig::default());
+    let host = rig.host.clone();
+    let connector: Connector = Box::new(move || {
+        let (link, faults) = host.connect();
+        faults.drop_next(Direction::HostToDevice, 5); // the first RO, all five bytes
+        Ok(Box::new(link) as Box<dyn Link>)
+    });
+    let client = ScuClient::open(connector, rig.clock.shared(), ClientConfig::default()).unwrap();
+    assert_eq!(client.stats().retries, 1);
+    assert!(matches!(rig.unit(|u| u.mode()), RemoteMode::Active(_)));
+    client.close().unwrap();
+}
+
+#[test]
 fn the_chosen_safety_id_goes_into_ro() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig { safety_id: SafetyId::StopRemoteOnly, ..Default::default() });
