@@ -44,8 +44,7 @@ use crate::wire::{is_module_address, ACK_OK, MAX_ADDRESS};
 use motionlink_link::clock_lock::ClockLock;
 use transport::{Incoming, Transport};
 
-/// How long a module waits for a watchdog refresh before it halts (chapter 13 of the manual).
-pub const WATCHDOG_TIMEOUT: Duration = Duration::from_millis(50);
+pub use crate::model::WATCHDOG_TIMEOUT;
 
 /// Timing and retry settings of a session; the defaults depend on the carrier.
 #[derive(Debug, Clone, PartialEq)]

@@ -2,6 +2,9 @@
 //! flags, and commands, acknowledges and broadcasts with their payloads. Each table is written once
 //! ([`Param`], [`MotionId`] and every flag set come from one `macro_rules!` table each).
 
+/// How long a module waits for a watchdog refresh before it halts (chapter 13 of the manual).
+pub const WATCHDOG_TIMEOUT: std::time::Duration = std::time::Duration::from_millis(50);
+
 mod flags;
 mod message;
 mod motion;

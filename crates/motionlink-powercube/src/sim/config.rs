@@ -117,7 +117,10 @@ pub struct SimConfig {
 impl Default for SimConfig {
     /// One rotary module at address 1.
     fn default() -> Self {
-        SimConfig { watchdog_timeout_ms: 50, modules: vec![ModuleConfig::at(1)] }
+        SimConfig {
+            watchdog_timeout_ms: crate::model::WATCHDOG_TIMEOUT.as_millis() as u64,
+            modules: vec![ModuleConfig::at(1)],
+        }
     }
 }
 
