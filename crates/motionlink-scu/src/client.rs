@@ -24,13 +24,20 @@
 //! first; a background thread sends the keepalive when the line is free. It sleeps until the next one is due:
 //! an idle session wakes five times a second and costs no measurable CPU.
 //!
-//! A reply must come within [`ClientConfig::reply_timeout`] (2000 ms, the manual's maximum request delay).
-//! Requests that can be repeated safely (RO, RA, RC, RG, RT, RS) are sent again, up to [`ClientConfig::retries`]
-//! times, after a corrupt reply, or when not one byte of the reply came within [`ClientConfig::retry_after`]
-//! (150 ms): waiting 2000 ms for a lost reply would let the unit's 500 ms watchdog expire every time. RE is
-//! never repeated unless the unit answered CSE (it then did not execute it): a lost reply to RE may mean the
-//! motion started. Every function the session sent RE for,
-//! answered or not, counts as started until an RS for it is acknowledged.
+//! A reply must come within [`ClientConfig::reply_timeout`] (2000 ms, the manual's maximum request delay)
+//! of the request's first sending. Requests that can be repeated safely (RO, RA, RC, RG, RT, RS) are sent
+//! again when not one byte of the reply came within [`ClientConfig::retry_after`] (150 ms), then after
+//! 300 ms, 600 ms ... of silence until the reply timeout (a lost byte costs 150 ms, not the unit's 500 ms
+//! watchdog; a slow unit still has its 2000 ms, and the reply to any sending counts; the replies to the
+//! other sendings are read and dropped before the next request), and up to [`ClientConfig::retries`] times
+//! after a corrupt reply or a CSE. RE is never repeated unless the unit answered CSE (it then did not execute
+//! it): a lost reply to RE may mean the motion started. Every function the session sent RE for, answered or
+//! not, counts as started until an RS for it is acknowledged.
+//!
+//! While the session waits for the reply to an RE no RC can go out, so a unit that never answers it lets its
+//! watchdog expire; with Safety_ID 0 it then refuses everything but RO, RA and RC with PE. Whenever the unit
+//! answers PE, the session opens remote mode again (RO, RC) and sends the request once more, unless it is an
+//! RE: so the RS of a started function always reaches the unit.
 //!
 //! When the session ends (dropped, [`ScuClient::close`], or the process interrupted and the caller drops it),
 //! every started function gets its RS (fast stop for motions), then RA. If the port is lost, the session
@@ -100,11 +107,13 @@ pub struct ClientConfig {
     /// How long to wait for a reply. Default 2000 ms (the manual's maximum request delay).
     pub reply_timeout: Duration,
     /// A request that may be repeated is sent again when not one byte of its reply has come this long after
-    /// it was sent. Default 150 ms: the unit's watchdog expires 500 ms after the last RC, so waiting the full
-    /// reply timeout for a reply that was lost would always cost the session; a unit that is answering (bytes
-    /// are arriving) is given the full reply timeout.
+    /// it was sent, then after twice this, four times this ... of silence, within the reply timeout. Default
+    /// 150 ms: the unit's watchdog expires 500 ms after the last RC, so waiting the full reply timeout for a
+    /// reply that was lost would always cost the session; a unit that is answering (bytes are arriving) is
+    /// given the full reply timeout.
     pub retry_after: Duration,
-    /// How many times an idempotent request is sent again after a timeout or a corrupt reply. Default 2.
+    /// How many times an idempotent request is sent again after a corrupt reply, and any request after a
+    /// CSE. Default 2.
     pub retries: u32,
     /// Which function drives each actuator. Default SCP11.
     pub function_map: FunctionMap,
@@ -326,12 +335,14 @@ pub struct MoveReport {
 pub struct ClientStats {
     /// RC keepalives acknowledged.
     pub keepalives: u64,
-    /// Requests sent again after a timeout or corrupt reply.
+    /// Requests sent again after silence, a corrupt reply or a CSE.
     pub retries: u64,
     /// Successful reconnections.
     pub reconnects: u64,
     /// Transactions completed (any outcome from the unit).
     pub transactions: u64,
+    /// Times remote mode was opened again after the unit answered PE (it had left remote mode).
+    pub reopens: u64,
 }
 
 /// A request owned by a job.
@@ -409,6 +420,18 @@ struct Line {
     link: Option<Box<dyn Link>>,
     connector: Connector,
     decoder: ReplyDecoder,
+    /// Replies that may still arrive for a request that was sent more than once.
+    late_replies: Option<LateReplies>,
+}
+
+/// The replies still owed for the other sendings of a request that was answered.
+struct LateReplies {
+    /// How many.
+    count: u32,
+    /// They are awaited no longer than this.
+    until: Timestamp,
+    command: Command,
+    shape: ReplyShape,
 }
 
 struct Inner {
@@ -467,7 +490,7 @@ impl ScuClient {
         let inner = Arc::new(Inner {
             line: ClockLock::new(
                 Arc::clone(&clock),
-                Line { link: Some(link), connector, decoder: ReplyDecoder::new() },
+                Line { link: Some(link), connector, decoder: ReplyDecoder::new(), late_replies: None },
             ),
             state: Mutex::new(State {
                 session: SessionState::Open,
@@ -890,7 +913,9 @@ fn decode_cyclic_read(object: &CyclicObject, data: &[u8]) -> Result<Vec<(&'stati
 
 /// Why one exchange failed.
 enum ExchangeError {
-    Timeout,
+    /// Not one byte of a reply in time. `stray`: bytes came, but none that started a reply (a reply whose
+    /// first byte was lost or corrupt: it will not come any more).
+    Silent { stray: bool },
     Corrupt(WireError),
     Link(LinkError),
 }
@@ -1009,7 +1034,7 @@ impl Inner {
             // Counted as started before it is sent: a lost reply may hide a started motion.
             lock(&self.state).started.insert(f);
         }
-        let reply = self.exchange_with_retries(&mut line, request)?;
+        let reply = self.exchange_reopening(&mut line, request)?;
         let mut st = lock(&self.state);
         if reply.status == Status::Ack {
             if let Some(f) = request.stops {
@@ -1023,32 +1048,82 @@ impl Inner {
         Ok(reply)
     }
 
-    /// Sends `request`, retrying repeatable requests after timeouts and corrupt replies, and any request the
+    /// Sends `request`; if the unit answers PE because it left remote mode (its watchdog expired while the
+    /// line was busy, or it was reset), opens remote mode again with RO and RC and, for a request that may be
+    /// repeated, sends it once more. RE is not repeated: the caller learns that it was refused.
+    fn exchange_reopening(&self, line: &mut Line, request: &OwnedRequest) -> Result<OwnedReply, ScuError> {
+        let reply = self.exchange_with_retries(line, request)?;
+        if reply.status != Status::PermissionError || request.command == Command::Open {
+            return Ok(reply);
+        }
+        tracing::warn!("{} answered PE: opening remote mode again (RO, RC)", request.command);
+        self.open_remote(line)?;
+        lock(&self.state).stats.reopens += 1;
+        if request.repeatable {
+            self.exchange_with_retries(line, request)
+        } else {
+            Ok(reply)
+        }
+    }
+
+    /// Sends `request`, retrying repeatable requests after silence and corrupt replies, and any request the
     /// unit answered with CSE (it did not execute it).
+    ///
+    /// The unit has [`ClientConfig::reply_timeout`] from the first sending to answer. A repeatable request is
+    /// sent again when not one byte came for [`ClientConfig::retry_after`], then for twice that, four times
+    /// that ... until the reply timeout; a reply to any of the sendings is its answer. Replies to the other
+    /// sendings may still come: they are read and discarded before the next request goes out. After a
+    /// corrupt reply or a CSE the request is sent again at most [`ClientConfig::retries`] times.
     fn exchange_with_retries(&self, line: &mut Line, request: &OwnedRequest) -> Result<OwnedReply, ScuError> {
+        self.drain_late_replies(line);
+        let first_sent = self.clock.now();
+        let deadline = first_sent + self.config.reply_timeout;
         let mut attempts = 0;
+        let mut repairs = 0;
+        let mut silent_resends = 0u32;
+        let mut silence_window = self.config.retry_after;
         loop {
             attempts += 1;
-            let outcome = self.exchange(line, request);
-            let may_retry = attempts <= self.config.retries;
+            let may_retry = repairs < self.config.retries;
+            let last_sent = if attempts == 1 { first_sent } else { self.clock.now() };
+            let window = if request.repeatable { Some(silence_window) } else { None };
+            let outcome = self.exchange(line, request, deadline, window);
             match outcome {
                 Ok(reply) if reply.status == Status::ChecksumError && may_retry => {
                     tracing::debug!("{} answered CSE; sending again", request.command);
+                    repairs += 1;
                 }
-                Ok(reply) => return Ok(reply),
+                Ok(reply) => {
+                    if silent_resends > 0 {
+                        // The unit may answer the other sendings too, as late as it answered this one.
+                        let late_by = self.clock.now() - first_sent;
+                        line.late_replies = Some(LateReplies {
+                            count: silent_resends,
+                            until: last_sent + late_by + self.config.retry_after,
+                            command: request.command,
+                            shape: request.shape,
+                        });
+                    }
+                    return Ok(reply);
+                }
                 Err(ExchangeError::Link(e)) => {
                     if e.is_disconnect() || matches!(e, LinkError::Io { .. }) {
                         return Err(self.lost(line, e.to_string()));
                     }
                     return Err(ScuError::from(e));
                 }
-                Err(ExchangeError::Timeout) if request.repeatable && may_retry => {
-                    tracing::debug!("no reply to {}; sending again", request.command);
+                Err(ExchangeError::Silent { stray }) if request.repeatable && self.clock.now() < deadline => {
+                    tracing::debug!("no reply to {} yet; sending again", request.command);
+                    if !stray {
+                        silent_resends += 1;
+                    }
+                    silence_window = silence_window.saturating_mul(2);
                 }
-                Err(ExchangeError::Corrupt(e)) if request.repeatable && may_retry => {
+                Err(ExchangeError::Corrupt(e)) if request.repeatable && may_retry && self.clock.now() < deadline => {
                     tracing::debug!("corrupt reply to {} ({e}); sending again", request.command);
+                    repairs += 1;
                 }
-                Err(ExchangeError::Timeout) => {
+                Err(ExchangeError::Silent { .. }) => {
                     return Err(ScuError::Timeout {
                         command: request.command,
                         timeout: self.config.reply_timeout,
@@ -1067,8 +1142,48 @@ impl Inner {
         }
     }
 
-    /// One request, one reply.
-    fn exchange(&self, line: &mut Line, request: &OwnedRequest) -> Result<OwnedReply, ExchangeError> {
+    /// Reads and drops the late replies to the other sendings of the last request, or what arrives until
+    /// they are no longer expected.
+    fn drain_late_replies(&self, line: &mut Line) {
+        let Some(late) = line.late_replies.take() else { return };
+        let Line { link: Some(link), decoder, .. } = line else { return };
+        decoder.reset();
+        decoder.expect(late.command, late.shape);
+        let mut owed = late.count;
+        let mut buf = [0u8; 256];
+        while owed > 0 {
+            let now = self.clock.now();
+            if now >= late.until {
+                break;
+            }
+            let Ok(n) = link.recv(&mut buf, late.until - now) else { break };
+            let mut input = &buf[..n];
+            while !input.is_empty() {
+                let (used, event) = decoder.decode(input);
+                input = &input[used..];
+                match event {
+                    Some(Ok(_)) => {
+                        tracing::debug!("late reply to {} dropped", late.command);
+                        owed = owed.saturating_sub(1);
+                    }
+                    None if used == 0 => break,
+                    _ => {}
+                }
+            }
+        }
+        decoder.reset();
+    }
+
+    /// One sending of a request, and its reply. Without a byte of reply for `silence_window` (when given) or
+    /// until `deadline`, [`ExchangeError::Silent`]; a reply that has started to arrive is awaited until
+    /// `deadline`.
+    fn exchange(
+        &self,
+        line: &mut Line,
+        request: &OwnedRequest,
+        deadline: Timestamp,
+        silence_window: Option<Duration>,
+    ) -> Result<OwnedReply, ExchangeError> {
         let Line { link, decoder, .. } = line;
         let Some(link) = link.as_mut() else {
             return Err(ExchangeError::Link(LinkError::Disconnected {
@@ -1080,18 +1195,18 @@ impl Inner {
         decoder.expect(request.command, request.shape);
         link.send(&request.bytes).map_err(ExchangeError::Link)?;
         let sent = self.clock.now();
-        let deadline = sent + self.config.reply_timeout;
-        let silent_deadline =
-            if request.repeatable { (sent + self.config.retry_after).min(deadline) } else { deadline };
+        let silent_deadline = silence_window.map_or(deadline, |w| (sent + w).min(deadline));
         let mut heard = false;
+        let mut stray = false;
         let mut buf = [0u8; 256];
         loop {
             let now = self.clock.now();
             let until = if heard { deadline } else { silent_deadline };
             if now >= until {
-                return Err(ExchangeError::Timeout);
+                return Err(ExchangeError::Silent { stray });
             }
             let n = link.recv(&mut buf, until - now).map_err(ExchangeError::Link)?;
+            stray |= n > 0;
             let mut input = &buf[..n];
             loop {
                 let (used, event) = decoder.decode(input);
@@ -1152,7 +1267,7 @@ impl Inner {
     fn stop_function(&self, line: &mut Line, f: u8) -> Result<(), ScuError> {
         let param = if f <= 9 { StopMode::Fast.code() } else { UNUSED };
         let rs = OwnedRequest::new(&Request::Stop { function: f, param })?;
-        let reply = self.exchange_with_retries(line, &rs)?;
+        let reply = self.exchange_reopening(line, &rs)?;
         if reply.status == Status::Ack {
             lock(&self.state).started.remove(&f);
             Ok(())

@@ -37,11 +37,16 @@
 //! (the field notes' decisions are followed too: one-byte RO, bit n is mask `1 << (n - 1)`, the bytes of the
 //! RT example are the truth):
 //!
-//! - **Reply timeout and retries.** The manual allows a unit 2000 ms to reply, and the client waits that long
-//!   for a reply that has started to arrive. But the unit's watchdog expires 500 ms after the last RC, so a
-//!   request that may be repeated (RO, RA, RC, RG, RT, RS) is sent again when not one byte of its reply came
-//!   within [`client::ClientConfig::retry_after`] (150 ms). RE is repeated only after a CSE (the unit did not
-//!   execute it); a lost reply to RE is a timeout, and the function counts as started.
+//! - **Reply timeout and retries.** The manual allows a unit 2000 ms to reply, and the client gives it that
+//!   long from the first sending. But the unit's watchdog expires 500 ms after the last RC, and no RC can go
+//!   out while a reply is awaited, so a request that may be repeated (RO, RA, RC, RG, RT, RS) is sent again
+//!   when not one byte of its reply came within [`client::ClientConfig::retry_after`] (150 ms), then after
+//!   300, 600 ... ms of silence; the reply to any sending is accepted, the others are read and dropped. RE is
+//!   repeated only after a CSE (the unit did not execute it); a lost reply to RE is a timeout, and the
+//!   function counts as started.
+//! - **PE from a unit that left remote mode.** A watchdog expiry (for example while an RE's reply was
+//!   awaited) or a reset makes the unit answer PE. The client then sends RO and RC again and repeats the
+//!   request once if it may be repeated; RE is not repeated, the caller gets the PE.
 //! - **Which errors.** RT of an index that is not remote data (0x3xxx), an unknown index, or a value out of
 //!   range (speed above 100 % or 1000 counts/s, a cyclic object writing read-only data) is PDE; data of the
 //!   wrong length is PCE; an RE of a function that drives no actuator, or any motion while the emergency stop

@@ -400,19 +400,70 @@ fn a_lost_reply_to_re_is_not_repeated() {
     assert!(matches!(err, ScuError::Timeout { command: Command::Execute, attempts: 1, .. }), "{err}");
     assert_eq!(client.stats().retries, 0);
     assert_eq!(client.started_functions(), vec![0], "counted as started: the motion may be running");
-    // The keepalive did not run for the 2 s the reply was awaited: the unit stopped the drive itself.
+    // The keepalive did not run for the 2 s the reply was awaited: the unit stopped the drive itself, and
+    // with Safety_ID 0 it refuses everything but RO, RA and RC.
     assert!(!rig.unit(|u| u.is_moving(a(1))));
+    assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Locked);
+    assert_eq!(rig.unit(|u| u.executed_functions()), vec![1]);
+    // Dropping the client still gets the RS to the unit: the PE makes it open remote mode again first.
     drop(client);
+    assert!(rig.unit(|u| u.executed_functions().is_empty()), "the RE got its RS");
+    assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Off, "RA");
+}
+
+#[test]
+fn after_a_watchdog_lockout_the_session_opens_remote_mode_again() {
+    let (rig, client) = watchdog_expires_after_500_ms(SafetyId::StopAllAndLock);
+    assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Locked);
+    rig.faults().heal();
+    // The keepalive's RC, sent again, reaches the unit; the read is refused with PE, and the session sends RO
+    // and RC before reading again.
+    assert_eq!(client.position(a(1)).unwrap(), rig.unit(|u| u.position(a(1)).unwrap()));
+    assert_eq!(client.stats().reopens, 1);
+    assert!(matches!(rig.unit(|u| u.mode()), RemoteMode::Active(SafetyId::StopAllAndLock)));
+    // An RE after the lockout is not repeated for the caller, but is accepted once remote mode is open again.
+    client.start_motion(f(1), MotionDirection::In).unwrap();
+    drop(client);
+    assert!(rig.unit(|u| u.executed_functions().is_empty()), "every RE got its RS");
+}
+
+#[test]
+fn a_slow_unit_is_given_the_full_reply_timeout_and_its_late_replies_are_dropped() {
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(ClientConfig::default());
+    client.set(DataIndex(0x3022), &Value::RemotePosition(800)).unwrap();
+    client.start_motion(f(2), MotionDirection::RemotePosition).unwrap();
+    rig.sleep(1000);
+    client.stop_motion(f(2), StopMode::Fast).unwrap();
+    rig.sleep(300);
+    let a2 = rig.unit(|u| u.position(a(2)).unwrap());
+    assert!(a2 > 50, "actuator 2 moved: {a2}");
+    let telegrams = rig.unit(|u| u.stats().telegrams);
+    // The unit's replies take 300 ms more: the RG is sent again after 150 ms of silence, and the reply to the
+    // first sending is the answer.
+    rig.faults().delay_next(Direction::DeviceToHost, Duration::from_millis(300));
+    let started = rig.clock.now();
+    assert_eq!(client.position(a(1)).unwrap(), 0);
+    assert!(rig.clock.now() - started >= Duration::from_millis(300));
+    assert_eq!(client.stats().retries, 1);
+    assert_eq!(rig.unit(|u| u.stats().telegrams), telegrams + 2, "two sendings of the RG");
+    // The reply to the second sending (position 0 as well) must not answer the next read.
+    assert_eq!(client.position(a(2)).unwrap(), a2);
+    assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0);
 }
 
 #[test]
 fn reads_give_up_after_the_retries_with_a_timeout() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig { reply_timeout: Duration::from_millis(100), ..Default::default() });
+    let client = rig.client(ClientConfig::default());
     rig.sleep(50);
     rig.faults().drop_next(Direction::DeviceToHost, 10_000);
+    let started = rig.clock.now();
     let err = client.position(a(1)).unwrap_err();
-    assert!(matches!(err, ScuError::Timeout { command: Command::Get, attempts: 3, .. }), "{err}");
+    // Sent at 0, 150, 450 and 1050 ms; no reply within the manual's 2000 ms.
+    assert!(matches!(err, ScuError::Timeout { command: Command::Get, attempts: 4, .. }), "{err}");
+    let waited = rig.clock.now() - started;
+    assert!(waited >= Duration::from_millis(2000) && waited < Duration::from_millis(2100), "{waited:?}");
     assert_eq!(err.class(), ErrorClass::Transport);
 }
 
