@@ -998,7 +998,7 @@ impl Inner {
             None => Request::Cyclic { object: UNUSED, write: &[] },
         };
         let Ok(rc) = OwnedRequest::new(&request) else { return };
-        match self.exchange_with_retries(line, &rc) {
+        match self.exchange_reopening(line, &rc) {
             Ok(reply) if reply.status == Status::Ack => {
                 let mut st = lock(&self.state);
                 st.stats.keepalives += 1;

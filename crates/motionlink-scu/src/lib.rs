@@ -60,8 +60,11 @@
 //!   entries: six write indices, six read indices, -1 (0xFFFF) unused. An RC naming a cyclic object answers
 //!   with ctp and read data (ctp 0 when nothing is read); an RC with object -1 answers with the status alone.
 //! - **Groups.** RG of a group index (0x0010, 0x0080 ...) returns its members' values in index order; 0x0080
-//!   includes 0x008F and 0x00B0 includes 0x00BF; 0x0000 returns the firmware and configuration texts; 0x2000
-//!   all six UserPositionData structures. RT may write whole 0x3xxx groups, all or nothing.
+//!   includes 0x008F and 0x00B0 includes 0x00BF; the collection indices 0x1000, 0x2000 and 0x3000 return
+//!   every entry of their collection (0x2000: all six UserPositionData structures; 0x3000: the cyclic
+//!   objects, remote speeds and remote positions), but 0x0000 returns only the firmware and configuration
+//!   texts (0x0001, 0x0002): the whole 0000 collection is two dozen groups that have their own indices.
+//!   RT may write whole 0x3xxx groups and the 0x3000 collection, all or nothing.
 //! - **RA** fast-stops remote motions that are still running: a motion nobody can stop any more is worse.
 //! - **Emergency stop (F20)** shows as every function locked in Lock Status (0x0162) and the release flags of
 //!   actuator status 2 cleared; F21 and F22 are the hand switch's LED 1 and 2 (0x0120).

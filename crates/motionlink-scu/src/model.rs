@@ -335,9 +335,10 @@ pub const GROUPS: &[Group] = &[
     Group { index: DataIndex(0x00E0), name: "actuator_status2", first: 0x00E1, last: 0x00E6 },
     Group { index: DataIndex(0x00F0), name: "speeds", first: 0x00F1, last: 0x00F6 },
     Group { index: DataIndex(0x0170), name: "actuator_status1", first: 0x0171, last: 0x0176 },
+    Group { index: DataIndex(0x1000), name: "collection_1000", first: 0x1001, last: 0x1FFF },
     Group { index: DataIndex(0x1010), name: "conversion_factors", first: 0x1011, last: 0x1016 },
     Group { index: DataIndex(0x2000), name: "user_positions", first: 0x2001, last: 0x2006 },
-    Group { index: DataIndex(0x3000), name: "cyclic_objs", first: 0x3001, last: 0x3005 },
+    Group { index: DataIndex(0x3000), name: "remote_data", first: 0x3001, last: 0x3FFF },
     Group { index: DataIndex(0x3010), name: "remote_speeds", first: 0x3011, last: 0x301A },
     Group { index: DataIndex(0x3020), name: "remote_positions", first: 0x3021, last: 0x3026 },
 ];

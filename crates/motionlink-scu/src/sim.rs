@@ -727,7 +727,16 @@ impl ScuEmulator {
         self.reply.resize(start + reply.encoded_len(), 0);
         match encode_reply(reply, &mut self.reply[start..]) {
             Ok(n) => self.reply.truncate(start + n),
-            Err(_) => self.reply.truncate(start),
+            Err(e) => {
+                // Data that does not fit a reply (every path that reads data is bounded by the value checks,
+                // so this is a defect): the unit answers PDE rather than nothing.
+                tracing::error!("SCU emulator: {} reply not encodable ({e}); answering PDE", reply.command);
+                self.reply.truncate(start);
+                let pde = Reply::status_only(reply.command, Status::ParameterDataError);
+                self.reply.resize(start + pde.encoded_len(), 0);
+                let n = encode_reply(&pde, &mut self.reply[start..]).unwrap_or(0);
+                self.reply.truncate(start + n);
+            }
         }
         self.stats.telegrams += 1;
     }

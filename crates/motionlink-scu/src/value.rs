@@ -295,6 +295,21 @@ impl Value {
                         range: "not an index of the data list".into(),
                     });
                 }
+                // The exchange must fit one RC request and one reply.
+                let write_size = obj.write_size().unwrap_or(0);
+                if write_size > crate::wire::MAX_REQUEST_DATA {
+                    return Err(ValueError::Range {
+                        value: format!("{write_size} bytes of write data"),
+                        range: format!("an RC carries at most {} bytes", crate::wire::MAX_REQUEST_DATA),
+                    });
+                }
+                let read_size = obj.read_size().unwrap_or(0);
+                if read_size > crate::wire::MAX_REPLY_DATA {
+                    return Err(ValueError::Range {
+                        value: format!("{read_size} bytes of read data"),
+                        range: format!("an RC reply carries at most {} bytes", crate::wire::MAX_REPLY_DATA),
+                    });
+                }
                 Ok(())
             }
             _ => Ok(()),

@@ -437,6 +437,21 @@ fn a_cyclic_object_may_not_write_read_only_data() {
 }
 
 #[test]
+fn a_cyclic_object_whose_data_would_not_fit_one_reply_is_refused() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    // Six times all UserPositionData (624 bytes each): more than one reply carries.
+    let huge = CyclicObject::new(&[], &[DataIndex(0x2000); 6]).unwrap();
+    assert_eq!(b.set(0x3001, &huge.to_bytes()), Status::ParameterDataError);
+    // The largest that fits still works: one group of 624 bytes, answered with every RC.
+    let big = CyclicObject::new(&[], &[DataIndex(0x2000)]).unwrap();
+    assert_eq!(b.set(0x3001, &big.to_bytes()), Status::Ack);
+    let answer = b.send(Request::Cyclic { object: 0, write: &[] });
+    assert_eq!(answer.status, Status::Ack);
+    assert_eq!(answer.data.map(|d| d.len()), Some(624));
+}
+
+#[test]
 fn every_index_of_the_data_list_answers_with_its_size() {
     let mut b = Bench::new(SimConfig::scp11(6));
     b.open(1);
@@ -453,6 +468,29 @@ fn every_index_of_the_data_list_answers_with_its_size() {
     assert_eq!(b.get(0x3021), 100i32.to_le_bytes(), "remote position defaults to memory 1 of user 1");
     assert_eq!(b.get(0x3011), 100u16.to_le_bytes(), "remote speed defaults to the function speed");
     assert_eq!(b.get(0x0100)[0] & 1, 1, "mains connected");
+    // The collection indices of the manual's first column.
+    assert_eq!(b.get(0x1000), b.get(0x1010), "the 1000 collection is the conversion factors");
+    assert_eq!(b.get(0x1000).len(), 6 * 4);
+    assert_eq!(b.get(0x3000).len(), 5 * 24 + 10 * 2 + 6 * 4, "cyclic objects, remote speeds, remote positions");
+}
+
+#[test]
+fn the_3000_collection_is_written_whole_or_not_at_all() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    let mut block = b.get(0x3000);
+    // Remote speed F2 (after the five 24-byte cyclic objects and F1's speed) and remote position A1.
+    block[5 * 24 + 2..5 * 24 + 4].copy_from_slice(&40u16.to_le_bytes());
+    block[5 * 24 + 20..5 * 24 + 24].copy_from_slice(&321i32.to_le_bytes());
+    assert_eq!(b.set(0x3000, &block), Status::Ack);
+    assert_eq!(b.get(0x3012), 40u16.to_le_bytes());
+    assert_eq!(b.get(0x3021), 321i32.to_le_bytes());
+    // A speed out of range anywhere refuses the whole block.
+    block[5 * 24..5 * 24 + 2].copy_from_slice(&101u16.to_le_bytes());
+    block[5 * 24 + 20..5 * 24 + 24].copy_from_slice(&5i32.to_le_bytes());
+    assert_eq!(b.set(0x3000, &block), Status::ParameterDataError);
+    assert_eq!(b.get(0x3021), 321i32.to_le_bytes(), "nothing written");
+    assert_eq!(b.set(0x3000, &block[1..]), Status::ParameterCountError);
 }
 
 #[test]

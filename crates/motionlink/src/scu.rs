@@ -19,7 +19,7 @@ use motionlink_scu::model::{
     MotionFunction, SafetyId, StopMode,
 };
 use motionlink_scu::sim::{ScuEmulator, SimConfig};
-use motionlink_scu::value::Value;
+use motionlink_scu::value::{SpeedMode, Value};
 use motionlink_scu::wire::{
     capture_step, request_to_vec, CaptureDirection, CaptureItem, Incoming, Request, Telegram, WireError,
 };
@@ -44,6 +44,10 @@ pub struct Args {
     /// How long to wait for a reply, in ms (the manual allows the unit 2000 ms).
     #[arg(long, default_value_t = 2000, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000))]
     pub reply_timeout: u64,
+    /// How the unit takes remote speeds: percent (standard units, "speed select relative") or
+    /// counts-per-second (units parameterised for "speed select absolute", 0..1000 counts/s).
+    #[arg(long, value_enum, default_value_t = SpeedModeArg::Percent, value_name = "MODE")]
+    pub speed_mode: SpeedModeArg,
     /// Emulator configuration (TOML) when the port is sim.
     #[arg(long, value_name = "FILE")]
     pub sim_config: Option<PathBuf>,
@@ -52,6 +56,24 @@ pub struct Args {
     pub json: bool,
     #[command(subcommand)]
     pub action: Action,
+}
+
+/// `--speed-mode`: how the unit's parameterisation gives remote speeds.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpeedModeArg {
+    /// Percent of the full speed, 0..100.
+    Percent,
+    /// Encoder counts per second, 0..1000.
+    CountsPerSecond,
+}
+
+impl From<SpeedModeArg> for SpeedMode {
+    fn from(m: SpeedModeArg) -> SpeedMode {
+        match m {
+            SpeedModeArg::Percent => SpeedMode::Percent,
+            SpeedModeArg::CountsPerSecond => SpeedMode::CountsPerSecond,
+        }
+    }
 }
 
 /// What to do.
@@ -175,16 +197,23 @@ fn load_sim_config(path: Option<&PathBuf>, preset: Option<&str>) -> Result<SimCo
 
 fn connect(args: &Args) -> Result<ScuClient, CliError> {
     let port: PortUrl = args.port.parse()?;
+    let safety_id = SafetyId::from_code(args.safety)
+        .ok_or_else(|| CliError::usage(format!("--safety {}: the Safety_ID is 0, 1 or 2", args.safety)))?;
     let config = ClientConfig {
-        safety_id: SafetyId::from_code(args.safety).unwrap_or_default(),
+        safety_id,
         reply_timeout: Duration::from_millis(args.reply_timeout),
+        speed_mode: args.speed_mode.into(),
         ..ClientConfig::default()
     };
     let clock = RealClock::shared();
     let connector: Connector = match &port {
         PortUrl::Sim => {
-            let sim = ScuEmulator::new(load_sim_config(args.sim_config.as_ref(), None)?)
-                .map_err(|e| CliError::usage(e.to_string()))?;
+            let mut sim_config = load_sim_config(args.sim_config.as_ref(), None)?;
+            if args.sim_config.is_none() {
+                // The emulated unit is parameterised the way the command was told the unit is.
+                sim_config.speed_mode = args.speed_mode.into();
+            }
+            let sim = ScuEmulator::new(sim_config).map_err(|e| CliError::usage(e.to_string()))?;
             let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(args.baud));
             Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>))
         }
@@ -323,13 +352,19 @@ fn act(client: &ScuClient, args: &Args, out: &mut dyn Write, interrupt: &CancelT
         }
         Action::Move { actuator, position, speed, function } => {
             let a = parse_actuator(*actuator)?;
+            let function = match function {
+                Some(n) => Some(MotionFunction::new(*n).ok_or_else(|| {
+                    CliError::usage(format!("--function {n}: the motion functions are F1..F10"))
+                })?),
+                None => None,
+            };
             let start = client.position(a).map_err(scu_error)?;
             let bar = common::progress_bar(u64::from(start.abs_diff(*position)), format!("{a} -> {position}"));
             let progress = |p: &MoveProgress| bar.set_position(u64::from(p.position_counts.abs_diff(p.start_counts)));
             let options = MoveOptions {
                 cancel: Some(interrupt),
                 progress: Some(&progress),
-                function: function.and_then(MotionFunction::new),
+                function,
             };
             let result = client.move_to(a, *position, *speed, &options);
             bar.finish_and_clear();
@@ -468,22 +503,30 @@ fn watch(
         let currents = client.get(DataIndex(0x00A0)).map_err(scu_error)?;
         let last_error = client.get_value(DataIndex(0x00D1)).map_err(scu_error)?;
         let t = (clock.now() - started).as_secs_f64();
+        // One row per connected actuator, from the three group reads (a short reply is an error, not a panic).
+        let mut rows = Vec::with_capacity(actuators.len());
+        for (a, _) in &actuators {
+            let i = usize::from(a.number() - 1);
+            let short = |what: &str| CliError::transport(format!("the unit's {what} reply has no entry for {a}"));
+            let position = &positions.get(i).ok_or_else(|| short("position (0x0010)"))?.1;
+            let status = *status.get(i).ok_or_else(|| short("status (0x0170)"))?;
+            let current = &currents.get(i).ok_or_else(|| short("current (0x00A0)"))?.1;
+            rows.push((a, position, status, current));
+        }
         if json {
-            let acts: Vec<_> = actuators
+            let acts: Vec<_> = rows
                 .iter()
-                .map(|(a, _)| {
-                    let i = usize::from(a.number() - 1);
-                    json!({"actuator": a.number(), "position": positions[i].1.to_json(), "status": status[i],
-                           "moving": status[i] & status1::MOTION != 0, "current_deci_amps": currents[i].1.to_json()})
+                .map(|(a, position, status, current)| {
+                    json!({"actuator": a.number(), "position": position.to_json(), "status": status,
+                           "moving": status & status1::MOTION != 0, "current_deci_amps": current.to_json()})
                 })
                 .collect();
             common::print_json(out, &json!({"t": t, "actuators": acts, "last_error": last_error.to_json()}))?;
         } else {
             let mut line = format!("{t:7.2} s");
-            for (a, _) in &actuators {
-                let i = usize::from(a.number() - 1);
-                let moving = if status[i] & status1::MOTION != 0 { "moving" } else { "stopped" };
-                line.push_str(&format!("  {a}: {} {moving} {}", positions[i].1, currents[i].1));
+            for (a, position, status, current) in &rows {
+                let moving = if status & status1::MOTION != 0 { "moving" } else { "stopped" };
+                line.push_str(&format!("  {a}: {position} {moving} {current}"));
             }
             if let Value::ErrorCode(c) = last_error {
                 if c != ErrorCode::NONE {
