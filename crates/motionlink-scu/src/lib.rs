@@ -68,6 +68,13 @@
 //! - **RA** fast-stops remote motions that are still running: a motion nobody can stop any more is worse.
 //! - **Emergency stop (F20)** shows as every function locked in Lock Status (0x0162) and the release flags of
 //!   actuator status 2 cleared; F21 and F22 are the hand switch's LED 1 and 2 (0x0120).
+//! - **Where the editions differ in a text**, the reading that fits the rest of the table wins. Battery
+//!   Mains bit 2: the Ewellix edition says "0/1: charging control on/off", the Schaeffler edition "charge
+//!   controller off/on"; every other bit of the entry reads 0 = off / absent, so bit 2 set means the charge
+//!   controller is on (Schaeffler). Error bit 30: the Schaeffler edition repeats bit 29's "calibration data",
+//!   the Ewellix edition has "HW settings", which no other bit covers (Ewellix). Error bit 32: "IDF operating
+//!   system error" (Ewellix) rather than the Schaeffler edition's cause column, which repeats the reaction.
+//!   F22: "LED2" (Ewellix); the Schaeffler edition repeats F21's "LED1", and 0x0120 has an LED 2.
 //! - **Typos of the Ewellix edition** (0x0095 twice for Cumulated_Stroke A6, 0x00E6 for Speed A1) follow the
 //!   Schaeffler edition: 0x0096 and 0x00F1.
 //! - **Captures.** An RO ACK is byte for byte an RO request with Safety_ID 6; in a capture that mixes both

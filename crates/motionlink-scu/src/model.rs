@@ -853,7 +853,7 @@ const KEYS: &[FlagBit] = &[
 const BATTERY_MAINS: &[FlagBit] = &[
     fb(0, "mains_connected", "mains not connected", "mains connected"),
     fb(1, "battery_connected", "battery disconnected", "battery connected"),
-    fb(2, "charging_control", "charging control on", "charging control off"),
+    fb(2, "charge_controller", "charge controller off", "charge controller on"),
     fb(3, "charging", "charging inactive", "charging active"),
 ];
 const BINARY_OUTPUTS: &[FlagBit] = &[fb(0, "output1", "off", "on"), fb(1, "output2", "off", "on")];
@@ -1363,6 +1363,19 @@ mod tests {
         let before = names.len();
         names.dedup();
         assert_eq!(before, names.len(), "duplicate names");
+    }
+
+    #[test]
+    fn where_the_editions_differ_the_decisions_hold() {
+        // Battery Mains bit 2 set: the charge controller is on (the Schaeffler edition's reading).
+        let b = FlagSet::BatteryMains.bit("charge_controller").unwrap();
+        assert_eq!((b.bit, b.set, b.clear), (2, "charge controller on", "charge controller off"));
+        // Error bits 29, 30 and 32 have causes of their own (the Ewellix edition's).
+        let cause = |n: u8| ERROR_BITS.iter().find(|b| b.number == n).unwrap().cause;
+        assert!(cause(29).contains("calibration"));
+        assert!(cause(30).contains("hardware settings"));
+        assert!(cause(32).contains("operating system"));
+        assert_eq!(Function::from_id(21).map(Function::description), Some("operating unit LED 2"));
     }
 
     #[test]
