@@ -176,6 +176,24 @@ fn chapter5_replies_decode() {
 }
 
 #[test]
+fn chapter5_acks_of_rt_re_rs_ra_byte_for_byte() {
+    // The manual gives these replies as "ACK" only: the bytes are command, 0x06 and the CRC-16/XMODEM of the
+    // three (computed independently of this codec), low byte first as in the manual's replies.
+    let acks: [(Command, [u8; 5]); 4] = [
+        (Command::Transfer, [0x52, 0x54, 0x06, 0x13, 0x92]),
+        (Command::Execute, [0x52, 0x45, 0x06, 0x51, 0xA2]),
+        (Command::Stop, [0x52, 0x53, 0x06, 0x84, 0x0B]),
+        (Command::Abort, [0x52, 0x41, 0x06, 0x95, 0x6E]),
+    ];
+    for (command, bytes) in acks {
+        assert_eq!(reply_to_vec(&Reply::status_only(command, Status::Ack)).unwrap(), bytes, "{command}");
+        let mut dec = ReplyDecoder::new();
+        dec.expect(command, ReplyShape::StatusOnly);
+        assert_eq!(decode_replies(&mut dec, &bytes), [Ok((command, Status::Ack, None))], "{command}");
+    }
+}
+
+#[test]
 fn replies_encode_to_the_same_bytes() {
     let v = reply_to_vec(&Reply::with_data(Command::Get, &400i32.to_le_bytes())).unwrap();
     assert_eq!(v, [0x52, 0x47, 0x06, 0x04, 0x00, 0x90, 0x01, 0x00, 0x00, 0xA3, 0xAD]);
@@ -337,6 +355,26 @@ proptest! {
         dec.expect(Command::Get, ReplyShape::WithData);
         let good = reply_to_vec(&Reply::with_data(Command::Get, &[1, 2])).unwrap();
         prop_assert_eq!(decode_replies(&mut dec, &good), vec![Ok((Command::Get, Status::Ack, Some(vec![1, 2])))]);
+    }
+
+    /// After arbitrary bytes, a stream of replies is found again without any reset: once the decoder is back
+    /// in step, every following reply decodes.
+    #[test]
+    fn reply_stream_recovers_without_a_reset(garbage in proptest::collection::vec(any::<u8>(), 0..300)) {
+        let mut dec = ReplyDecoder::new();
+        dec.expect_any();
+        let good = reply_to_vec(&Reply::with_data(Command::Get, &[1, 2])).unwrap();
+        let mut stream = garbage.clone();
+        // Enough copies to outlast the longest telegram the garbage could seem to start.
+        let copies = MAX_REPLY_LEN / good.len() + 20;
+        for _ in 0..copies {
+            stream.extend(&good);
+        }
+        let decoded = decode_replies(&mut dec, &stream);
+        let want = Ok((Command::Get, Status::Ack, Some(vec![1, 2])));
+        let last_bad = decoded.iter().rposition(|r| *r != want);
+        let good_tail = decoded.len() - last_bad.map_or(0, |i| i + 1);
+        prop_assert!(good_tail >= 10, "only {} good replies at the end of {:?}", good_tail, decoded);
     }
 
     /// Any request round-trips.
