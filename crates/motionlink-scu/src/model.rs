@@ -413,7 +413,7 @@ pub fn item(index: DataIndex) -> Option<Item> {
     entry(index).map(Item::Entry).or_else(|| GROUPS.iter().find(|g| g.index == index).map(Item::Group))
 }
 
-/// Finds an entry or group by command-line name (case-insensitive) or by index written as `0x0011` / `0011` / `17`.
+/// Finds an entry or group by command-line name (case-insensitive) or by index written as `0x0011` or `0011`.
 pub fn lookup(text: &str) -> Option<Item> {
     let t = text.trim();
     if let Some(e) = DATA_LIST.iter().find(|e| e.name.eq_ignore_ascii_case(t)) {

@@ -548,6 +548,17 @@ pub enum WireError {
 // ---------------------------------------------------------------------------------------------------------
 // Request decoding (the unit's side)
 
+/// `R?` with an unknown letter, an error status and a matching CRC: the unit's answer to an unknown command.
+fn unknown_command_reply(b: &[u8]) -> Option<Telegram<'_>> {
+    let t = b.get(..5)?;
+    if t[0] != b'R' || Command::from_code(t[0], t[1]).is_some() {
+        return None;
+    }
+    let status = Status::from_code(t[2]).filter(|s| *s != Status::Ack)?;
+    check_crc(t).ok()?;
+    Some(Telegram::UnknownCommandReply { code: [t[0], t[1]], status })
+}
+
 /// A decoded request, or an unknown command that arrived intact.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Incoming<'a> {
@@ -977,6 +988,13 @@ pub enum Telegram<'a> {
     Request(Incoming<'a>),
     /// Unit to host.
     Reply(Reply<'a>),
+    /// Unit to host: the error reply (ICE) to a command it does not know, which repeats the unknown letters.
+    UnknownCommandReply {
+        /// The letters of the unknown command.
+        code: [u8; 2],
+        /// The error status (ICE).
+        status: Status,
+    },
 }
 
 /// What [`capture_step`] found at the start of its input.
@@ -1018,6 +1036,11 @@ pub enum CaptureDirection {
 pub fn capture_step(bytes: &[u8], direction: CaptureDirection) -> (usize, CaptureItem<'_>) {
     if bytes.is_empty() {
         return (0, CaptureItem::Truncated);
+    }
+    if direction != CaptureDirection::FromHost {
+        if let Some(t) = unknown_command_reply(bytes) {
+            return (5, CaptureItem::Telegram(t));
+        }
     }
     let as_request = if direction == CaptureDirection::FromUnit { Scan::Garbage(1) } else { scan_request(bytes) };
     let as_reply = if direction == CaptureDirection::FromHost { Scan::Garbage(1) } else { scan_reply(bytes, None) };

@@ -637,6 +637,16 @@ fn annotate(bytes: &[u8], direction: CaptureDirection, last_request: &mut Option
                     });
                 ("<-", describe_reply(r, context.as_ref()))
             }
+            CaptureItem::Telegram(Telegram::UnknownCommandReply { code, status }) => (
+                "<-",
+                format!(
+                    "{}{} {}: {} (the reply to an unknown command)",
+                    char::from(code[0]),
+                    char::from(code[1]),
+                    status.abbreviation(),
+                    status.description()
+                ),
+            ),
             CaptureItem::Error(WireError::Garbage { count }) => {
                 ("!!", format!("{count} byte(s) that start no telegram"))
             }

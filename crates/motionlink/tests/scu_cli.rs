@@ -165,6 +165,10 @@ fn a_pty_serves_like_a_serial_port() {
     }
     let v = json(&scu(&sim.address, &["move", "1", "30", "--json"]));
     assert_eq!(v["position"], 30);
+    let info = json(&scu(&sim.address, &["info", "--json"]));
+    assert_eq!(info["actuators"].as_array().unwrap().len(), 2);
+    let sample = json(&scu(&sim.address, &["watch", "--count", "1", "--json"]));
+    assert_eq!(sample["actuators"][0]["position"], 30);
 }
 
 #[test]
@@ -215,6 +219,39 @@ fn decode_reads_hex_from_arguments_and_stdin() {
 
     let out = Command::new(BIN).args(["decode", "scu", "52 4"]).output().unwrap();
     assert_eq!(out.status.code(), Some(2), "bad hex is a usage error");
+}
+
+#[test]
+fn decode_reads_raw_bytes_and_names_the_reply_to_an_unknown_command() {
+    // An unknown command "RX" and the unit's ICE, which repeats its letters; then the RO example.
+    let capture = [0x52, 0x58, 0x20, 0xB3, 0x52, 0x58, 0x83, 0x53, 0x16, 0x52, 0x4F, 0x00, 0x5C, 0x2D];
+    let mut child = Command::new(BIN)
+        .args(["decode", "scu", "--raw"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(&capture).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let text = stdout(&out);
+    let lines: Vec<_> = text.lines().collect();
+    assert_eq!(lines.len(), 3, "{text}");
+    assert!(lines[0].starts_with("->") && lines[0].contains("RX: unknown command"), "{text}");
+    assert!(lines[1].starts_with("<-") && lines[1].contains("RX ICE"), "{text}");
+    assert!(lines[2].starts_with("->") && lines[2].contains("RO"), "{text}");
+}
+
+#[test]
+fn a_counts_per_second_unit_takes_speeds_up_to_1000() {
+    let out = scu("sim", &["--speed-mode", "counts-per-second", "set", "remote_speed_f1", "500"]);
+    assert!(out.status.success(), "{out:?}");
+    let out = scu("sim", &["set", "remote_speed_f1", "500"]);
+    assert_eq!(out.status.code(), Some(2), "500 % is refused before sending: {out:?}");
+    let out = scu("sim", &["--speed-mode", "counts-per-second", "move", "1", "40", "--speed", "400", "--json"]);
+    assert_eq!(json(&out)["position"], 40);
+    let out = scu("sim", &["move", "1", "40", "--function", "12"]);
+    assert_eq!(out.status.code(), Some(2), "F12 is no motion function: {out:?}");
 }
 
 #[test]
