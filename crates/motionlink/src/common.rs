@@ -87,19 +87,24 @@ pub fn init_logging(verbose: u8) {
 }
 
 /// The token Ctrl-C cancels. The first Ctrl-C cancels it (the running action stops its motion and returns);
-/// a second one exits at once.
+/// a second one only says that the stop is under way (stopping the motion matters more than a quick exit);
+/// a third exits at once, without waiting for the stop.
 pub fn interrupt_token() -> CancelToken {
     static TOKEN: OnceLock<CancelToken> = OnceLock::new();
+    static PRESSES: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
     TOKEN
         .get_or_init(|| {
             let token = CancelToken::new();
             let handler_token = token.clone();
             if let Err(e) = ctrlc::set_handler(move || {
-                if handler_token.is_cancelled() {
-                    eprintln!("motionlink: interrupted again, exiting");
-                    std::process::exit(130);
+                match PRESSES.fetch_add(1, std::sync::atomic::Ordering::SeqCst) {
+                    0 => eprintln!("motionlink: interrupted, stopping"),
+                    1 => eprintln!("motionlink: still stopping the motion; Ctrl-C once more exits without waiting"),
+                    _ => {
+                        eprintln!("motionlink: interrupted again, exiting before the stop was confirmed");
+                        std::process::exit(130);
+                    }
                 }
-                eprintln!("motionlink: interrupted, stopping");
                 handler_token.cancel();
             }) {
                 tracing::warn!("cannot install the Ctrl-C handler: {e}");
