@@ -915,7 +915,9 @@ fn decode_cyclic_read(object: &CyclicObject, data: &[u8]) -> Result<Vec<(&'stati
 enum ExchangeError {
     /// Not one byte of a reply in time. `stray`: bytes came, but none that started a reply (a reply whose
     /// first byte was lost or corrupt: it will not come any more).
-    Silent { stray: bool },
+    Silent {
+        stray: bool,
+    },
     Corrupt(WireError),
     Link(LinkError),
 }

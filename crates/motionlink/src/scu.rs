@@ -353,19 +353,16 @@ fn act(client: &ScuClient, args: &Args, out: &mut dyn Write, interrupt: &CancelT
         Action::Move { actuator, position, speed, function } => {
             let a = parse_actuator(*actuator)?;
             let function = match function {
-                Some(n) => Some(MotionFunction::new(*n).ok_or_else(|| {
-                    CliError::usage(format!("--function {n}: the motion functions are F1..F10"))
-                })?),
+                Some(n) => Some(
+                    MotionFunction::new(*n)
+                        .ok_or_else(|| CliError::usage(format!("--function {n}: the motion functions are F1..F10")))?,
+                ),
                 None => None,
             };
             let start = client.position(a).map_err(scu_error)?;
             let bar = common::progress_bar(u64::from(start.abs_diff(*position)), format!("{a} -> {position}"));
             let progress = |p: &MoveProgress| bar.set_position(u64::from(p.position_counts.abs_diff(p.start_counts)));
-            let options = MoveOptions {
-                cancel: Some(interrupt),
-                progress: Some(&progress),
-                function,
-            };
+            let options = MoveOptions { cancel: Some(interrupt), progress: Some(&progress), function };
             let result = client.move_to(a, *position, *speed, &options);
             bar.finish_and_clear();
             let report = result.map_err(scu_error)?;
