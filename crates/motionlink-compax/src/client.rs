@@ -9,12 +9,19 @@
 //! [`Bus`], cancelling a wait through its [`CancelToken`], or a transport failure during a wait stops every
 //! such axis with `OUTPUT O0=0` ("switch off drive", the one documented command that ends a running
 //! positioning; every move command is refused with E92 while the axis moves). The stop is addressed to each
-//! drive, not broadcast: other drives on the bus may be someone else's.
+//! drive, not broadcast: other drives on the bus may be someone else's. Moves sent with [`Bus::raw`] or
+//! [`Bus::broadcast`] count too (a broadcast move counts for every drive that has answered this client).
+//! [`Bus::release`] hands a running move over to the caller: the client forgets it and does not stop it.
 //!
-//! Retries: E70..E73 mean the drive discarded the telegram; the client sends it again (up to
-//! [`BusConfig::retries`] times). A timeout or a corrupt reply is retried only for idempotent commands. A
-//! move whose reply was lost is never sent again blind: the client reads the target position S2 to find out
-//! whether the drive took it (see [`Bus::move_relative`]).
+//! Retries: E70, E72 and E73 mean the drive discarded the telegram; the client sends it again (up to
+//! [`BusConfig::retries`] times). E71 (more than 40 characters) is reported: the same telegram would overflow
+//! again, and the manual's measure is to send fewer characters. A timeout or a corrupt reply is retried only
+//! for idempotent commands. A move whose reply was lost is never sent again blind: the client reads the
+//! target position S2 to find out whether the drive took it (see [`Bus::move_relative`]).
+//!
+//! Address 32 reaches every drive and none answers it: reads, echoes, moves to one drive and waits refuse it
+//! with [`Error::Broadcast`]; settings, outputs, [`Bus::stop`], [`Bus::raw`] and [`Bus::broadcast`] send it.
+//! A [`Drive`] is a handle on one drive (1..=31) of a bus.
 //!
 //! ```
 //! use motionlink_compax::client::{Bus, BusConfig, MoveOptions};
@@ -61,12 +68,18 @@ pub struct BusConfig {
     /// Time a drive may take to start answering, on top of the wire time of request and reply. The manual
     /// gives none; 200 ms by default.
     pub reply_timeout: Duration,
-    /// How often a telegram is sent again after E70..E73, a timeout or a corrupt reply (idempotent commands).
+    /// How often a telegram is sent again after E70, E72, E73, a timeout or a corrupt reply (idempotent
+    /// commands).
     pub retries: u32,
     /// Silence after a broadcast before the next telegram (nobody answers a broadcast); 20 ms by default.
     pub broadcast_gap: Duration,
     /// Interval of status polls while waiting for a position; 50 ms by default.
     pub poll_interval: Duration,
+    /// While a wait listens for `$` messages, how often it still reads each drive's state (a `$` may be lost
+    /// to a line error, or the axis stopped by someone else, and then none comes); 1 s by default.
+    pub message_check_interval: Duration,
+    /// How long [`Bus::wait_reached`] waits when it is given no timeout; 600 s by default.
+    pub wait_timeout: Duration,
     /// Long or short command names.
     pub style: CommandStyle,
 }
@@ -81,6 +94,8 @@ impl BusConfig {
             retries: 3,
             broadcast_gap: Duration::from_millis(20),
             poll_interval: Duration::from_millis(50),
+            message_check_interval: Duration::from_secs(1),
+            wait_timeout: Duration::from_secs(600),
             style: CommandStyle::Long,
         }
     }
@@ -160,9 +175,14 @@ pub enum Error {
         /// The time waited.
         after: Duration,
     },
-    /// The wait was cancelled (Ctrl-C); the axes were stopped.
-    #[error("cancelled; the axes this client moved were stopped")]
+    /// The action was cancelled through the [`CancelToken`] (Ctrl-C): no move is sent once it is; a
+    /// cancelled wait has stopped every axis this client set in motion (otherwise dropping the client does).
+    #[error("cancelled: no further motion is sent, and the axes this client set in motion are stopped")]
     Cancelled,
+    /// Address 32 where one drive's answer or one drive is needed: every drive executes a broadcast and none
+    /// answers it.
+    #[error("address 32 is the broadcast: every drive executes it and none answers; {0}")]
+    Broadcast(&'static str),
 }
 
 impl Error {
@@ -195,9 +215,9 @@ pub struct MoveOptions {
 /// When a telegram may be sent again.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Retry {
-    /// After E70..E73, a timeout or a corrupt reply.
+    /// After E70 / E72 / E73, a timeout or a corrupt reply.
     Idempotent,
-    /// After E70..E73 only; a lost reply is returned to the caller (who checks the drive's state).
+    /// After E70 / E72 / E73 only; a lost reply is returned to the caller (who checks the drive's state).
     DiscardedOnly,
 }
 
@@ -210,6 +230,8 @@ pub struct Bus {
     cancel: CancelToken,
     /// Drives this client set in motion and has not yet seen stop (bit n: address n).
     started: u32,
+    /// Drives that have answered this client (a broadcast move counts as started for each of them).
+    known: u32,
     /// Drives whose move asked for `$` and whose message has not come.
     awaiting_message: u32,
     /// Drives whose `$` has come.
@@ -232,8 +254,53 @@ impl fmt::Debug for Bus {
     }
 }
 
+/// Bits 1..=31: every drive address.
+const ALL_DRIVES: u32 = !1;
+
+/// The bit of drive `a` in the client's sets of drives; for the broadcast address 32, every drive's.
 fn bit(a: Address) -> u32 {
-    1 << a.get()
+    if a.is_broadcast() {
+        ALL_DRIVES
+    } else {
+        1 << a.get()
+    }
+}
+
+/// What a command does to the client's record of the axes it moves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Effect {
+    /// Nothing the client tracks.
+    None,
+    /// It may start a positioning (a move, or `!`, which runs whatever the buffer holds).
+    Starts,
+    /// `OUTPUT O0=0` / `=2`: the drive is switched off, its positioning ends.
+    SwitchesOff,
+    /// `POSR x OUTPUT Oy=z`: a comparator, whose number the drive will send unasked.
+    Comparator,
+}
+
+impl Effect {
+    fn of_command(c: &Command) -> Effect {
+        match c {
+            c if c.is_move() => Effect::Starts,
+            Command::Output { output: 0, state } if *state != OutputState::ON => Effect::SwitchesOff,
+            Command::PosROutput { .. } => Effect::Comparator,
+            _ => Effect::None,
+        }
+    }
+
+    /// Of a telegram as [`Bus::raw`] sends it. A stored (`,`) or echoed (`?`) command is not executed;
+    /// `!` may start anything. Text the model cannot read is not tracked.
+    fn of_request(body: &Body<'_>, flags: Flags) -> Effect {
+        if flags.echo || flags.buffer {
+            return Effect::None;
+        }
+        match body {
+            Body::Execute => Effect::Starts,
+            Body::Command(t) => Command::parse(t).map_or(Effect::None, |c| Effect::of_command(&c)),
+            Body::Binary(b) => Command::from_binary(b).map_or(Effect::None, |c| Effect::of_command(&c)),
+        }
+    }
 }
 
 impl Bus {
@@ -246,6 +313,7 @@ impl Bus {
             cfg,
             cancel: CancelToken::new(),
             started: 0,
+            known: 0,
             awaiting_message: 0,
             message_seen: 0,
             unattributed_messages: 0,
@@ -258,9 +326,32 @@ impl Bus {
         }
     }
 
-    /// Long waits watch `token` and stop the axes when it is cancelled.
+    /// Long actions watch `token`: a wait stops the axes when it is cancelled, a scan ends, and no move is
+    /// sent once it is cancelled (until the token is reset). All of them return [`Error::Cancelled`].
     pub fn set_cancel(&mut self, token: CancelToken) {
         self.cancel = token;
+    }
+
+    /// True once the cancel token is cancelled (see [`Bus::set_cancel`]).
+    pub fn is_cancelled(&self) -> bool {
+        self.cancel.is_cancelled()
+    }
+
+    fn check_cancel(&self) -> Result<()> {
+        if self.cancel.is_cancelled() {
+            Err(Error::Cancelled)
+        } else {
+            Ok(())
+        }
+    }
+
+    /// A handle on drive `address` (1..=31) of this bus; the broadcast address 32 is refused
+    /// ([`Error::Broadcast`]).
+    pub fn drive(&mut self, address: Address) -> Result<Drive<'_>> {
+        if address.is_broadcast() {
+            return Err(Error::Broadcast("a drive handle is one drive (1..=31)"));
+        }
+        Ok(Drive { bus: self, address })
     }
 
     /// The configuration.
@@ -270,7 +361,51 @@ impl Bus {
 
     /// The drives this client set in motion and has not yet seen stop.
     pub fn started(&self) -> Vec<Address> {
-        (1..BROADCAST).filter(|a| self.started & (1 << a) != 0).filter_map(|a| Address::drive(a).ok()).collect()
+        drives_in(self.started)
+    }
+
+    /// The drives that have answered this client.
+    pub fn known(&self) -> Vec<Address> {
+        drives_in(self.known)
+    }
+
+    /// Hands the motion of `drives` over to the caller: the client forgets that it set them in motion, so
+    /// neither dropping it nor a cancelled wait stops them, and it no longer waits for their `$` messages.
+    /// What `motionlink compax move --no-wait` does to leave a move running after it exits. The broadcast
+    /// address releases every drive.
+    pub fn release(&mut self, drives: &[Address]) {
+        for &a in drives {
+            self.started &= !bit(a);
+            self.awaiting_message &= !bit(a);
+            self.message_seen &= !bit(a);
+        }
+        if self.awaiting_message == 0 {
+            self.unattributed_messages = 0;
+        }
+    }
+
+    /// Records what sending a command with `effect` to `address` does, before it is sent (a move counts as
+    /// started before it is sent: if the session fails then, the stop still reaches it). Returns the state
+    /// to restore if the drive refuses the command.
+    fn before_send(&mut self, address: Address, effect: Effect) -> u32 {
+        let saved = self.started;
+        if effect == Effect::Starts {
+            let drives = if address.is_broadcast() { self.known } else { bit(address) };
+            if address.is_broadcast() && drives == 0 {
+                tracing::warn!("a broadcast that may start motion before any drive answered: none can be stopped");
+            }
+            self.started |= drives;
+        }
+        saved
+    }
+
+    /// Records what a command with `effect` did once the drive took it.
+    fn after_send(&mut self, address: Address, effect: Effect) {
+        match effect {
+            Effect::SwitchesOff => self.finish(address),
+            Effect::Comparator => self.comparators |= bit(address),
+            Effect::Starts | Effect::None => {}
+        }
     }
 
     // --------------------------------------------------------------------------------------------------
@@ -295,11 +430,20 @@ impl Bus {
                 tracing::debug!("position reached message from {:?}", r.address());
                 true
             }
-            ReplyKind::Comparator(n) if self.comparators != 0 => {
+            ReplyKind::Comparator(n) if self.expects_comparator(r.address()) => {
                 tracing::info!("comparator {n} switched (drive {:?})", r.address());
                 true
             }
             _ => false,
+        }
+    }
+
+    /// True when a bare number from `from` (the reply's address prefix, if any) is a comparator message: a
+    /// comparator is armed on that drive (on any, when replies carry no address).
+    fn expects_comparator(&self, from: Option<u8>) -> bool {
+        match from {
+            Some(a) => a < BROADCAST && self.comparators & (1 << a) != 0,
+            None => self.comparators != 0,
         }
     }
 
@@ -387,6 +531,9 @@ impl Bus {
             let deadline = self.clock.now() + wire_time + self.cfg.reply_timeout;
             let outcome = self.read_event(deadline, Some(req.address))?;
             let retry_left = attempts <= self.cfg.retries;
+            if matches!(outcome, Some(ReplyEvent::Reply(_))) && !req.address.is_broadcast() {
+                self.known |= bit(req.address);
+            }
             match outcome {
                 Some(ReplyEvent::Reply(r)) => match r.kind() {
                     ReplyKind::Error(code) if ErrorCode(code).is_retransmit() && retry_left => {
@@ -442,7 +589,8 @@ impl Bus {
         self.transact(&Request { address, body: Body::Command(text.as_bytes()), flags }, retry)
     }
 
-    /// Sends `cmd` to one drive and returns the reply text (empty for an acknowledgement).
+    /// Sends `cmd` to one drive (or, with address 32, to all: then only commands without an answer) and
+    /// returns the reply text (empty for an acknowledgement). Moves have their own methods.
     pub fn command(&mut self, address: Address, cmd: &Command) -> Result<String> {
         if cmd.is_move() {
             return Err(ModelError::Syntax {
@@ -451,25 +599,50 @@ impl Bus {
             }
             .into());
         }
-        let r = self.send_command(address, cmd, Flags::NONE)?;
-        if matches!(cmd, Command::PosROutput { .. }) {
-            self.comparators |= bit(address);
+        if address.is_broadcast() && matches!(cmd, Command::ReadStatus(_) | Command::ReadParam(_)) {
+            return Err(Error::Broadcast("nothing can be read from it"));
         }
+        let effect = Effect::of_command(cmd);
+        let r = self.send_command(address, cmd, Flags::NONE)?;
+        self.after_send(address, effect);
         Ok(r.map(|r| r.text_str().to_string()).unwrap_or_default())
     }
 
     /// Sends `text` as it is (`S1`, `POSA 10$`, `!`, `OUTPUT O9=1/`); flag characters at its end are sent
-    /// as flags. Sent again only after E70..E73 (the drive discarded it); never after a lost reply.
-    /// Returns the reply text, or `None` when no reply is due.
+    /// as flags. Sent again only after E70, E72 or E73 (the drive discarded it); never after a lost reply.
+    /// Returns the reply text, or `None` when no reply is due (a broadcast, `/`).
+    ///
+    /// A move or `!` counts as started (for address 32: every drive that has answered this client), so
+    /// dropping the client or a cancelled wait stops it; `OUTPUT O0=0` counts as a stop. Text the model
+    /// cannot read is sent but not tracked.
     pub fn raw(&mut self, address: Address, text: &str) -> Result<Option<String>> {
         let (body, flags) = Flags::split(text.trim().as_bytes());
         let body = if body == b"!" { Body::Execute } else { Body::Command(body) };
-        let r = self.transact(&Request { address, body, flags }, Retry::DiscardedOnly)?;
-        Ok(r.map(|r| r.text_str().to_string()))
+        let effect = Effect::of_request(&body, flags);
+        if effect == Effect::Starts {
+            self.check_cancel()?;
+        }
+        let saved = self.before_send(address, effect);
+        match self.transact(&Request { address, body, flags }, Retry::DiscardedOnly) {
+            Ok(r) => {
+                self.after_send(address, effect);
+                Ok(r.map(|r| r.text_str().to_string()))
+            }
+            Err(e) => {
+                if matches!(e, Error::Device { .. }) {
+                    // Refused: it started nothing (an axis that was moving before still is).
+                    self.started = saved;
+                }
+                Err(e)
+            }
+        }
     }
 
     /// Sends `text` with `?`: the drive sends it back. Returns the echo.
     pub fn echo(&mut self, address: Address, text: &str) -> Result<String> {
+        if address.is_broadcast() {
+            return Err(Error::Broadcast("no echo comes back"));
+        }
         let r = self.transact(
             &Request { address, body: Body::Command(text.as_bytes()), flags: Flags { echo: true, ..Flags::NONE } },
             Retry::Idempotent,
@@ -488,10 +661,18 @@ impl Bus {
     // --------------------------------------------------------------------------------------------------
     // Reading
 
-    /// Reads status value `id`.
+    /// Sends a command whose answer is wanted; refuses the broadcast address (nobody answers it).
+    fn ask(&mut self, address: Address, cmd: &Command, what: &'static str) -> Result<Reply> {
+        if address.is_broadcast() {
+            return Err(Error::Broadcast(what));
+        }
+        self.send_command(address, cmd, Flags::NONE)?.ok_or(Error::Broadcast(what))
+    }
+
+    /// Reads status value `id`. Address 32 is refused with [`Error::Broadcast`].
     pub fn read_status(&mut self, address: Address, id: StatusId) -> Result<StatusValue> {
         let cmd = Command::ReadStatus(id);
-        let r = self.send_command(address, &cmd, Flags::NONE)?.ok_or(Error::Wire(WireError::Flags("no reply")))?;
+        let r = self.ask(address, &cmd, "a status value cannot be read from it")?;
         StatusValue::parse(id, r.text()).map_err(|_| self.unexpected(address, &cmd, r.text()))
     }
 
@@ -530,10 +711,10 @@ impl Bus {
         }
     }
 
-    /// Reads parameter `id`.
+    /// Reads parameter `id`. Address 32 is refused with [`Error::Broadcast`].
     pub fn read_param(&mut self, address: Address, id: ParamId) -> Result<f64> {
         let cmd = Command::ReadParam(id);
-        let r = self.send_command(address, &cmd, Flags::NONE)?.ok_or(Error::Wire(WireError::Flags("no reply")))?;
+        let r = self.ask(address, &cmd, "a parameter cannot be read from it")?;
         parse_param_reply(id, r.text()).map_err(|_| self.unexpected(address, &cmd, r.text()))
     }
 
@@ -551,13 +732,18 @@ impl Bus {
     }
 
     /// Tries every address in `range` once with a short timeout; returns the drives that answered S1 with
-    /// their positions.
+    /// their positions. Ends with [`Error::Cancelled`] when the cancel token is cancelled (checked before
+    /// each address).
     pub fn scan(&mut self, range: std::ops::RangeInclusive<u8>) -> Result<Vec<(Address, Position)>> {
         let saved = self.cfg.retries;
         self.cfg.retries = 0;
         let mut found = Vec::new();
         let mut result = Ok(());
         for a in range.filter_map(|a| Address::drive(a).ok()) {
+            if let Err(e) = self.check_cancel() {
+                result = Err(e);
+                break;
+            }
             match self.read_position(a) {
                 Ok(p) => found.push((a, p)),
                 Err(Error::Timeout { .. } | Error::Corrupt { .. }) => {}
@@ -590,12 +776,13 @@ impl Bus {
         self.setting(address, Command::AccelBrake(ramp), binary)
     }
 
-    /// OUTPUT O`output`=`state`. Output 0 is the drive itself: 0 switches it off, 1 on.
+    /// OUTPUT O`output`=`state`. Output 0 is the drive itself: 0 switches it off, 1 on. To address 32, every
+    /// drive's output (and `O0=0` switches every drive off: the client forgets every axis it moved).
     pub fn set_output(&mut self, address: Address, output: u16, state: OutputState, binary: bool) -> Result<()> {
-        if output == 0 && state != OutputState::ON {
-            self.started &= !bit(address);
-        }
-        self.setting(address, Command::Output { output, state }, binary)
+        let cmd = Command::Output { output, state };
+        self.setting(address, cmd, binary)?;
+        self.after_send(address, Effect::of_command(&cmd));
+        Ok(())
     }
 
     fn setting(&mut self, address: Address, cmd: Command, binary: bool) -> Result<()> {
@@ -612,6 +799,8 @@ impl Bus {
     // Moves
 
     /// POSA: moves to `target`. Returns once the drive has taken the command; see [`Bus::wait_reached`].
+    /// Moves go to one drive (address 32 is refused with [`Error::Broadcast`]: see [`Bus::broadcast`] and
+    /// [`Bus::sync_start`]) and are not sent once the cancel token is cancelled ([`Error::Cancelled`]).
     pub fn move_absolute(&mut self, address: Address, target: Position, opts: MoveOptions) -> Result<()> {
         self.start_move(address, Command::PosA(target), opts)
     }
@@ -649,6 +838,12 @@ impl Bus {
     }
 
     fn start_move(&mut self, address: Address, cmd: Command, opts: MoveOptions) -> Result<()> {
+        if address.is_broadcast() {
+            return Err(Error::Broadcast(
+                "a move needs one drive's answer (broadcast() moves every drive, sync_start() several at once)",
+            ));
+        }
+        self.check_cancel()?;
         let text = cmd.to_ascii(self.cfg.style)?;
         let req = self.move_request(address, &cmd, text.as_bytes(), opts)?;
         let before = match cmd {
@@ -660,8 +855,11 @@ impl Bus {
             Command::PosR(d) => before.unwrap_or(0.0) + d.units(),
             _ => 0.0,
         };
+        // The read above may have taken a while: a cancel that came meanwhile still keeps the move unsent.
+        self.check_cancel()?;
         // Counted as started before it is sent: if the session fails now, the stop still reaches it.
-        self.started |= bit(address);
+        let saved = self.before_send(address, Effect::Starts);
+        let saved_awaiting = self.awaiting_message;
         if opts.message {
             self.awaiting_message |= bit(address);
             self.message_seen &= !bit(address);
@@ -688,15 +886,18 @@ impl Bus {
                         continue;
                     }
                     if not_taken {
-                        self.started &= !bit(address);
+                        self.started = saved;
+                        self.awaiting_message = saved_awaiting;
                         return Err(e);
                     }
                     return Err(Error::MoveUncertain { address: address.get(), command: cmd.to_string(), target });
                 }
                 Err(e) => {
                     if matches!(e, Error::Device { .. }) {
-                        self.started &= !bit(address);
-                        self.awaiting_message &= !bit(address);
+                        // Refused (E92 while it still moves, for one): it started nothing new, and an axis
+                        // this client set moving before is still its to stop.
+                        self.started = saved;
+                        self.awaiting_message = saved_awaiting;
                     }
                     return Err(e);
                 }
@@ -712,9 +913,11 @@ impl Bus {
                 return Err(ModelError::Syntax { what: "a move to one drive", text: format!("{a}: {c}") }.into());
             }
         }
+        self.check_cancel()?;
         for (a, c) in moves {
             self.send_command(*a, c, Flags { buffer: true, position_message: message, ..Flags::NONE })?;
         }
+        self.check_cancel()?;
         for (a, _) in moves {
             self.started |= bit(*a);
             if message {
@@ -729,32 +932,51 @@ impl Bus {
         Ok(())
     }
 
-    /// Sends `cmd` to every drive at once (no reply).
+    /// Sends `cmd` to every drive at once (no reply). A move counts as started for every drive that has
+    /// answered this client (drives it has never heard cannot be stopped by it); `OUTPUT O0=0` ends every
+    /// record of a started axis.
     pub fn broadcast(&mut self, cmd: &Command) -> Result<()> {
+        let effect = Effect::of_command(cmd);
+        if effect == Effect::Starts {
+            self.check_cancel()?;
+        }
         let text = cmd.to_ascii(self.cfg.style)?;
+        self.before_send(Address::BROADCAST, effect);
         self.transact(
             &Request { address: Address::BROADCAST, body: Body::Command(text.as_bytes()), flags: Flags::NONE },
             Retry::DiscardedOnly,
         )?;
+        self.after_send(Address::BROADCAST, effect);
         Ok(())
     }
 
     /// Waits until every drive in `drives` has ended its positioning: by its `$` message when the move asked
-    /// for one, otherwise by polling S17 ("command active"). `progress` gets each polled position. On
-    /// timeout, cancellation or a line failure, every axis this client started is stopped.
+    /// for one, otherwise by polling S17 ("command active"). `progress` gets each polled position.
+    ///
+    /// While it listens for `$` messages it still reads each drive's S17 every
+    /// [`BusConfig::message_check_interval`]: a `$` lost to a line error, or a positioning that someone else
+    /// ended (no `$` comes then), ends the wait too. Without a `timeout` it waits at most
+    /// [`BusConfig::wait_timeout`]. On timeout, cancellation or a line failure, every axis this client
+    /// started is stopped. Address 32 is refused ([`Error::Broadcast`]): a broadcast has no state to read.
     pub fn wait_reached(
         &mut self,
         drives: &[Address],
         timeout: Option<Duration>,
         progress: &mut dyn FnMut(Address, Position),
     ) -> Result<()> {
+        if drives.iter().any(|a| a.is_broadcast()) {
+            return Err(Error::Broadcast("a wait reads each drive's state: name the drives"));
+        }
+        let timeout = timeout.unwrap_or(self.cfg.wait_timeout);
         let started_at = self.clock.now();
+        let mut next_check = started_at + self.cfg.message_check_interval;
         let mut pending: Vec<Address> = drives.to_vec();
+        pending.sort();
+        pending.dedup();
         let result = (|| -> Result<()> {
             loop {
-                if self.cancel.is_cancelled() {
-                    return Err(Error::Cancelled);
-                }
+                self.check_cancel()?;
+                let check_due = self.clock.now() >= next_check;
                 let mut still = Vec::new();
                 for &a in &pending {
                     let by_message = self.awaiting_message & bit(a) != 0;
@@ -763,7 +985,7 @@ impl Bus {
                         continue;
                     }
                     let attributable = self.cfg.mode.reply_address || self.awaiting_message.count_ones() == 1;
-                    if by_message && self.unattributed_messages == 0 && attributable {
+                    if by_message && self.unattributed_messages == 0 && attributable && !check_due {
                         still.push(a);
                         continue;
                     }
@@ -774,18 +996,22 @@ impl Bus {
                     if s17.bit(S17Bits::COMMAND_ACTIVE) {
                         still.push(a);
                     } else {
+                        if by_message && self.message_seen & bit(a) == 0 {
+                            tracing::info!("drive {a}: positioning ended without its '$' message (lost, or stopped)");
+                        }
                         self.finish(a);
                     }
+                }
+                if check_due {
+                    next_check = self.clock.now() + self.cfg.message_check_interval;
                 }
                 pending = still;
                 if pending.is_empty() {
                     return Ok(());
                 }
-                if let Some(t) = timeout {
-                    let waited = self.clock.now() - started_at;
-                    if waited >= t {
-                        return Err(Error::MoveTimeout { address: pending[0].get(), after: waited });
-                    }
+                let waited = self.clock.now() - started_at;
+                if waited >= timeout {
+                    return Err(Error::MoveTimeout { address: pending[0].get(), after: waited });
                 }
                 self.listen(self.cfg.poll_interval)?;
             }
@@ -799,17 +1025,20 @@ impl Bus {
         result
     }
 
+    /// Forgets `a` as moving: its positioning ended (or the broadcast address: every drive's). Its
+    /// comparators belonged to that positioning, so bare numbers are replies again.
     fn finish(&mut self, a: Address) {
         self.started &= !bit(a);
         self.awaiting_message &= !bit(a);
         self.message_seen &= !bit(a);
+        self.comparators &= !bit(a);
         if self.awaiting_message == 0 {
             self.unattributed_messages = 0;
         }
     }
 
     /// Stops one drive: `OUTPUT O0=0` (switch off drive). Switch it on again with
-    /// `set_output(address, 0, OutputState::ON, false)`.
+    /// `set_output(address, 0, OutputState::ON, false)`. Address 32 switches every drive on the bus off.
     pub fn stop(&mut self, address: Address) -> Result<()> {
         let r = self.expect_ack(address, &Command::SWITCH_OFF);
         if r.is_ok() {
@@ -832,6 +1061,159 @@ impl Bus {
         }
         first
     }
+}
+
+/// A handle on one drive (address 1..=31) of a [`Bus`]: the bus's single-drive operations without the
+/// address. Made by [`Bus::drive`], which refuses the broadcast address 32, so nothing called on a `Drive`
+/// waits for the answer of a broadcast.
+///
+/// It borrows the bus mutably, as every exchange on the one line does: make one when needed, or keep the
+/// [`Address`] and call the [`Bus`] (whose methods also take several drives: [`Bus::sync_start`],
+/// [`Bus::wait_reached`]).
+///
+/// ```
+/// use motionlink_compax::client::{Bus, BusConfig, MoveOptions};
+/// use motionlink_compax::model::Position;
+/// use motionlink_compax::sim::{CompaxBus, SimConfig};
+/// use motionlink_compax::wire::{Address, Mode};
+/// use motionlink_link::{clock::{Clock, ManualClock}, pipe::{EmulatorHost, PipeConfig}};
+///
+/// let clock = ManualClock::new_auto();
+/// let _me = clock.reserve_participant().enter();
+/// let host = EmulatorHost::new(CompaxBus::new(SimConfig::bus(&[3], 0, 9600)).unwrap(),
+///                              clock.shared(), PipeConfig::paced(9600));
+/// let mut bus = Bus::new(Box::new(host.connect().0), clock.shared(), BusConfig::new(Mode::default(), 9600));
+/// assert!(bus.drive(Address::BROADCAST).is_err());
+/// let mut three = bus.drive(Address::drive(3).unwrap()).unwrap();
+/// three.move_absolute(Position::new(2.5).unwrap(), MoveOptions::default()).unwrap();
+/// three.wait_reached(None, &mut |_| {}).unwrap();
+/// assert_eq!(three.read_position().unwrap().units(), 2.5);
+/// ```
+pub struct Drive<'a> {
+    bus: &'a mut Bus,
+    address: Address,
+}
+
+impl fmt::Debug for Drive<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Drive").field("address", &self.address).field("bus", &self.bus).finish()
+    }
+}
+
+impl Drive<'_> {
+    /// The drive's address (1..=31).
+    pub fn address(&self) -> Address {
+        self.address
+    }
+
+    /// The bus, for what involves several drives.
+    pub fn bus(&mut self) -> &mut Bus {
+        self.bus
+    }
+
+    /// [`Bus::read_status`].
+    pub fn read_status(&mut self, id: StatusId) -> Result<StatusValue> {
+        self.bus.read_status(self.address, id)
+    }
+
+    /// [`Bus::read_position`]: S1.
+    pub fn read_position(&mut self) -> Result<Position> {
+        self.bus.read_position(self.address)
+    }
+
+    /// [`Bus::read_target`]: S2.
+    pub fn read_target(&mut self) -> Result<Position> {
+        self.bus.read_target(self.address)
+    }
+
+    /// [`Bus::read_s16`].
+    pub fn read_s16(&mut self) -> Result<S16Bits> {
+        self.bus.read_s16(self.address)
+    }
+
+    /// [`Bus::read_s17`].
+    pub fn read_s17(&mut self) -> Result<S17Bits> {
+        self.bus.read_s17(self.address)
+    }
+
+    /// [`Bus::read_param`].
+    pub fn read_param(&mut self, id: ParamId) -> Result<f64> {
+        self.bus.read_param(self.address, id)
+    }
+
+    /// [`Bus::write_param`].
+    pub fn write_param(&mut self, id: ParamId, value: f64) -> Result<()> {
+        self.bus.write_param(self.address, id, value)
+    }
+
+    /// [`Bus::set_speed`].
+    pub fn set_speed(&mut self, speed: SpeedPercent, binary: bool) -> Result<()> {
+        self.bus.set_speed(self.address, speed, binary)
+    }
+
+    /// [`Bus::set_accel`].
+    pub fn set_accel(&mut self, ramp: RampMs, binary: bool) -> Result<()> {
+        self.bus.set_accel(self.address, ramp, binary)
+    }
+
+    /// [`Bus::set_brake`].
+    pub fn set_brake(&mut self, ramp: RampMs, binary: bool) -> Result<()> {
+        self.bus.set_brake(self.address, ramp, binary)
+    }
+
+    /// [`Bus::set_output`].
+    pub fn set_output(&mut self, output: u16, state: OutputState, binary: bool) -> Result<()> {
+        self.bus.set_output(self.address, output, state, binary)
+    }
+
+    /// [`Bus::move_absolute`].
+    pub fn move_absolute(&mut self, target: Position, opts: MoveOptions) -> Result<()> {
+        self.bus.move_absolute(self.address, target, opts)
+    }
+
+    /// [`Bus::move_relative`].
+    pub fn move_relative(&mut self, distance: Position, opts: MoveOptions) -> Result<()> {
+        self.bus.move_relative(self.address, distance, opts)
+    }
+
+    /// [`Bus::home`].
+    pub fn home(&mut self, opts: MoveOptions) -> Result<()> {
+        self.bus.home(self.address, opts)
+    }
+
+    /// [`Bus::wait_reached`] for this drive.
+    pub fn wait_reached(&mut self, timeout: Option<Duration>, progress: &mut dyn FnMut(Position)) -> Result<()> {
+        self.bus.wait_reached(&[self.address], timeout, &mut |_, p| progress(p))
+    }
+
+    /// [`Bus::stop`]: `OUTPUT O0=0`.
+    pub fn stop(&mut self) -> Result<()> {
+        self.bus.stop(self.address)
+    }
+
+    /// [`Bus::release`]: leaves this drive's move running when the bus is dropped.
+    pub fn release(&mut self) {
+        self.bus.release(&[self.address])
+    }
+
+    /// [`Bus::command`].
+    pub fn command(&mut self, cmd: &Command) -> Result<String> {
+        self.bus.command(self.address, cmd)
+    }
+
+    /// [`Bus::raw`].
+    pub fn raw(&mut self, text: &str) -> Result<Option<String>> {
+        self.bus.raw(self.address, text)
+    }
+
+    /// [`Bus::echo`].
+    pub fn echo(&mut self, text: &str) -> Result<String> {
+        self.bus.echo(self.address, text)
+    }
+}
+
+fn drives_in(set: u32) -> Vec<Address> {
+    (1..BROADCAST).filter(|a| set & (1 << a) != 0).filter_map(|a| Address::drive(a).ok()).collect()
 }
 
 impl Drop for Bus {

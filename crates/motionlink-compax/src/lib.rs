@@ -12,7 +12,8 @@
 //!   table.
 //! - [`client`]: [`client::Bus`], a blocking session over any byte link: request / reply matching,
 //!   retries of what may be retried, moves with progress, the synchronous start of several drives, and a
-//!   stop of whatever it set in motion when it is dropped or cancelled.
+//!   stop of whatever it set in motion when it is dropped or cancelled (unless handed over with
+//!   [`client::Bus::release`]); [`client::Drive`], a handle on one drive of the bus.
 //! - [`sim`]: [`sim::CompaxBus`], a sans-IO emulator of the bus with a motion model.
 //!
 //! ```
@@ -55,7 +56,8 @@
 //! - **`$`** (position reached) is the user guide's `$ CR LF >`, with the address prefix and BCC of P196.
 //!   The emulator holds it while a telegram is being received and sends it after the reply. Without the
 //!   address prefix a `$` cannot name its drive: the client attributes it only when one drive awaits one,
-//!   and otherwise polls S17.
+//!   and otherwise polls S17. A `$` can be lost (a line error), and none comes for a positioning that
+//!   someone else ends, so a wait for `$` also reads S17 once a second; a wait has a default limit of 600 s.
 //! - **`!`** executes the command in the buffer and answers as that command would (empty for a move, the
 //!   value for a read). The buffer holds one command (user guide) and is emptied by `!`, so a repeated
 //!   `32!` cannot move an axis twice; `!` with an empty buffer is refused.
@@ -75,10 +77,19 @@
 //! - **Lost replies**: reads, settings, POSA and buffered commands are sent again after a timeout or a corrupt
 //!   reply. A POSR is not: the client read the target S2 before sending it and reads it again; unchanged, the
 //!   move did not arrive and is sent again; moved by the distance, it arrived; otherwise the caller gets
-//!   [`client::Error::MoveUncertain`]. E70..E73 are always answered by sending the telegram again.
+//!   [`client::Error::MoveUncertain`]. E70, E72 and E73 are always answered by sending the telegram again;
+//!   E71 (buffer overflow) is reported, since the manual asks for fewer characters, not the same again.
 //! - **Timeouts**: the manual gives none. A reply may take the wire time of request and a 48-character reply
 //!   plus 200 ms ([`client::BusConfig`]); after a broadcast the client keeps the line quiet for 20 ms.
 //! - **Threads**: COMPAX has no watchdog or keepalive, so the client is blocking and owns no thread.
+//! - **Broadcast (32)**: nobody answers it, so the client refuses it for reads, echoes, single-drive moves
+//!   and waits ([`client::Error::Broadcast`]) instead of waiting for a reply that cannot come. A move sent to
+//!   every drive ([`client::Bus::broadcast`], or `32...` through [`client::Bus::raw`]) counts as started for
+//!   each drive that has answered the client: the others it does not know of, and cannot stop.
+//! - **Addresses of more than two digits** address no drive: the request decoder keeps two digits and counts
+//!   the rest, and such a telegram parses as [`wire::request::RequestError::AddressTooLong`]. It ends at its
+//!   CR like any telegram (a drive cannot tell where a run of digits stops either). The BCC a drive checks
+//!   is over every character it received, kept or not, so a long telegram with a good BCC is E71, not E72.
 //! - **Codes the manuals do not give**: the emulator answers a syntax error, a value out of range, an empty
 //!   buffer or a move while switched off with E90 ([`sim::REFUSED`]); a real drive's codes for these are not
 //!   in our sources, and the client shows any code with "meaning not documented".

@@ -545,8 +545,20 @@ fn trim(mut s: &[u8]) -> &[u8] {
     s
 }
 
+/// As much of `s` as fits a text value (48 bytes), cut between characters, never inside one.
+fn text_prefix(s: &str) -> TextBuf<48> {
+    let mut end = s.len().min(48);
+    while !s.is_char_boundary(end) {
+        end -= 1;
+    }
+    let mut t = TextBuf::new();
+    // Fits: at most 48 bytes.
+    let _ = t.write_str(&s[..end]);
+    t
+}
+
 impl StatusValue {
-    /// Reads the reply text to `S<id>`. Accepts the value alone or after its name (`S001: `, `S1=`).
+    /// Reads the reply text to `S<id>`. A text value keeps its first 48 bytes (whole characters). Accepts the value alone or after its name (`S001: `, `S1=`).
     #[inline]
     pub fn parse(id: StatusId, text: &[u8]) -> Result<StatusValue, ModelError> {
         let v = strip_name(text, b'S', id.0.into());
@@ -574,10 +586,8 @@ impl StatusValue {
                 StatusValue::History(h)
             }
             StatusKind::Text => {
-                let mut t = TextBuf::new();
                 let s = std::str::from_utf8(v).map_err(|_| bad())?;
-                let _ = t.write_str(&s[..s.len().min(48)]);
-                StatusValue::Text(t)
+                StatusValue::Text(text_prefix(s))
             }
         })
     }
@@ -631,9 +641,11 @@ impl ErrorCode {
         Self::KNOWN.iter().find(|(c, _)| *c == self).map(|(_, m)| *m)
     }
 
-    /// E70..E73: the drive discarded the telegram; sending it again is safe and is what the manual asks for.
+    /// E70, E72, E73: the drive discarded the telegram (parity, BCC, timeout); sending the same telegram
+    /// again is safe and is what the manual asks for. Not E71: its measure is "retransmit with fewer
+    /// characters", and the same telegram would overflow the buffer again.
     pub fn is_retransmit(self) -> bool {
-        (70..=73).contains(&self.0)
+        matches!(self.0, 70 | 72 | 73)
     }
 }
 
@@ -1190,12 +1202,29 @@ mod tests {
     }
 
     #[test]
+    fn long_text_values_are_cut_between_characters() {
+        let id = StatusId::DEVICE_ID_1;
+        // 'a' and then two-byte characters: byte 48 falls inside one.
+        let text = format!("a{}", "é".repeat(30));
+        let StatusValue::Text(t) = StatusValue::parse(id, text.as_bytes()).unwrap() else { panic!() };
+        assert_eq!(t.as_str(), format!("a{}", "é".repeat(23)));
+        assert_eq!(t.as_str().len(), 47);
+        let text = "€".repeat(20); // three bytes each: 48 is a boundary
+        let StatusValue::Text(t) = StatusValue::parse(id, text.as_bytes()).unwrap() else { panic!() };
+        assert_eq!(t.as_str(), "€".repeat(16));
+        let StatusValue::Text(t) = StatusValue::parse(id, b"S031: COMPAX 0260M").unwrap() else { panic!() };
+        assert_eq!(t.as_str(), "COMPAX 0260M");
+    }
+
+    #[test]
     fn errors_and_params() {
         assert_eq!(
             ErrorCode(72).to_string(),
             "E72 (block-check character error: the telegram was discarded, retransmit it)"
         );
         assert!(ErrorCode(73).is_retransmit() && !ErrorCode(74).is_retransmit());
+        assert!(ErrorCode(70).is_retransmit() && ErrorCode(72).is_retransmit());
+        assert!(!ErrorCode(71).is_retransmit(), "E71: retransmit with fewer characters, not the same telegram");
         assert_eq!(ErrorCode(10).meaning(), None);
         assert_eq!(parse_param_reply(ParamId::DEVICE_ADDRESS, b"P194=5").unwrap(), 5.0);
         assert_eq!(parse_param_reply(ParamId::DEVICE_ADDRESS, b"5").unwrap(), 5.0);

@@ -551,7 +551,7 @@ impl Drive {
                     let code = match e {
                         RequestError::Bcc { .. } => ErrorCode::BCC,
                         RequestError::Overflow(_) => ErrorCode::BUFFER_OVERFLOW,
-                        RequestError::Address(_) => return,
+                        RequestError::Address(_) | RequestError::AddressTooLong(_) => return,
                         RequestError::Empty | RequestError::Binary(_) => REFUSED,
                     };
                     self.error(out, code);
@@ -851,6 +851,77 @@ mod tests {
         assert_eq!(b.drive(5).unwrap().position(), -5.0);
         assert_eq!(ask(&mut b, 201, b"32!\r"), b"", "the buffer is consumed by '!'");
         assert_eq!(ask(&mut b, 202, b"1!\r"), b"E90\r\n>");
+    }
+
+    #[test]
+    fn a_configuration_file_sets_each_drive() {
+        let cfg = SimConfig::from_toml(
+            r#"
+            baud_rate = 19200
+            p196 = 8
+            max_speed_units_per_s = 50.0
+
+            [[drive]]
+            address = 1
+
+            [[drive]]
+            address = 5
+            position = -12.5
+            p196 = 72
+
+            [[drive]]
+            address = 9
+            baud_rate = 9600
+            "#,
+        )
+        .unwrap();
+        assert_eq!((cfg.baud_rate, cfg.p196, cfg.max_speed_units_per_s), (19_200, 8, 50.0));
+        let mut b = CompaxBus::new(cfg).unwrap();
+        let one = b.drive(1).unwrap();
+        assert_eq!((one.mode().to_p196(), one.baud_rate(), one.position()), (8, 19_200, 0.0));
+        let five = b.drive(5).unwrap();
+        assert_eq!((five.mode().to_p196(), five.position(), five.target()), (72, -12.5, -12.5));
+        assert_eq!(five.param(ParamId::OPERATING_MODE), 72.0);
+        assert_eq!(b.drive(9).unwrap().baud_rate(), 9600);
+        // Each answers in its own mode: drive 5 with its address in front; drive 9 hears only noise.
+        let with_bcc = |text: &[u8]| {
+            let mut t = text.to_vec();
+            t.push(crate::wire::bcc(&text[..text.len() - 1]));
+            t
+        };
+        let mut want = b"5S001: -12.500\r\n>".to_vec();
+        want.push(crate::wire::bcc(b"5S001: -12.500"));
+        assert_eq!(ask(&mut b, 0, &with_bcc(b"5S1\r")), want);
+        assert!(ask(&mut b, 1, &with_bcc(b"9S1\r")).is_empty());
+        // SPEED 100 is 50 units/s: 10 units take 200 ms.
+        assert_eq!(ask(&mut b, 2, &with_bcc(b"1POSA 10\r"))[..3], *b"\r\n>");
+        let mut out = Vec::new();
+        b.advance(Timestamp::from_millis(102), &mut out);
+        assert!((b.drive(1).unwrap().position() - 5.0).abs() < 0.1, "{}", b.drive(1).unwrap().position());
+        b.advance(Timestamp::from_millis(210), &mut out);
+        assert_eq!(b.drive(1).unwrap().position(), 10.0);
+        // Every key has a default.
+        assert_eq!(SimConfig::from_toml("").unwrap(), SimConfig::default());
+    }
+
+    #[test]
+    fn a_bad_configuration_file_says_what_is_wrong() {
+        for (text, says) in [
+            ("[[drive]]\naddress = 32\n", "address 32"),
+            ("[[drive]]\naddress = 3\n[[drive]]\naddress = 3\n", "two drives have address 3"),
+            ("p196 = 164\n", "COMTAC"),
+            ("[[drive]]\naddress = 1\np196 = 200\n", "P196 = 200"),
+            ("baud_rate = 1234\n", "1234"),
+            ("[[drive]]\naddress = 1\nbaud_rate = 777\n", "777"),
+            ("[[drive]]\naddress = 1\nposition = 1e9\n", "position"),
+            ("max_speed_units_per_s = 0.0\n", "max_speed_units_per_s"),
+            ("[[drive]]\naddress = 1\nspeed = 5\n", "unknown field `speed`"),
+            ("drive = []\n", "0 drives"),
+            ("baud_rate = \"fast\"\n", "baud_rate"),
+        ] {
+            let e = SimConfig::from_toml(text).unwrap_err();
+            assert!(e.to_string().contains(says), "{text:?}: {e}");
+        }
     }
 
     #[test]

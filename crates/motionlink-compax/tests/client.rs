@@ -259,20 +259,391 @@ fn binary_moves_end_to_end_in_process() {
     ));
 }
 
+/// Sends `telegram` over a second connection to the emulator (another program on the bus) and reads the
+/// drive's answer.
+fn someone_else_sends(r: &Rig, telegram: &[u8]) -> Vec<u8> {
+    use motionlink_link::link::Link;
+    let (mut other, _) = r.host.connect();
+    other.send(telegram).unwrap();
+    let mut got = Vec::new();
+    let mut buf = [0u8; 32];
+    while !got.ends_with(b">") {
+        let n = other.recv(&mut buf, Duration::from_secs(1)).unwrap();
+        assert!(n > 0, "no answer to {telegram:?}");
+        got.extend_from_slice(&buf[..n]);
+    }
+    got
+}
+
 #[test]
 fn dropping_the_client_stops_the_axis_it_moved() {
     let (r, mut bus) = rig(&[1, 2], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
-    // Drive 2 was moved by someone else: not ours to stop.
-    use motionlink_link::link::Link;
-    let (mut other, _) = r.host.connect();
+    // Drive 2 is moved by someone else: not ours to stop.
+    assert_eq!(someone_else_sends(&r, b"2POSA 1000\r"), b"\r\n>");
+    assert!(r.host.with_device(|d| d.drive(2).unwrap().is_moving()));
     drop(bus);
     assert!(!r.host.with_device(|d| d.drive(1).unwrap().is_moving()));
     assert_eq!(r.host.with_device(|d| d.drive(1).unwrap().o0()), 0);
     let sent_cmds = sent(&r.transcript);
     assert_eq!(sent_cmds.last().unwrap(), b"1OUTPUT O0=0\r");
-    other.send(b"2S1\r").unwrap();
+    assert!(!sent_cmds.iter().any(|f| f.starts_with(b"2")), "nothing sent to drive 2: {sent_cmds:?}");
+    let (moving, o0) = r.host.with_device(|d| (d.drive(2).unwrap().is_moving(), d.drive(2).unwrap().o0()));
+    assert!(moving && o0 == 1, "drive 2 still runs its own move");
+}
+
+#[test]
+fn a_released_move_keeps_running_when_the_client_is_dropped() {
+    let (r, mut bus) = rig(&[1, 2], 0, 9600);
+    let _me = r.clock.reserve_participant().enter();
+    bus.move_absolute(a(1), pos(100.0), MoveOptions::default()).unwrap();
+    bus.move_absolute(a(2), pos(100.0), MoveOptions::default()).unwrap();
+    bus.release(&[a(1)]);
+    assert_eq!(bus.started(), [a(2)]);
+    drop(bus);
+    let (m1, o1, m2) = r
+        .host
+        .with_device(|d| (d.drive(1).unwrap().is_moving(), d.drive(1).unwrap().o0(), d.drive(2).unwrap().is_moving()));
+    assert!(m1 && o1 == 1, "the released axis was left alone");
+    assert!(!m2, "the other was stopped");
+    assert!(!sent(&r.transcript).iter().any(|f| f.starts_with(b"1OUTPUT")));
+    r.clock.sleep(Duration::from_secs(2));
+    assert_eq!(r.host.with_device(|d| d.drive(1).unwrap().position()), 100.0);
+}
+
+#[test]
+fn moves_sent_raw_or_by_broadcast_are_stopped_on_drop() {
+    // A raw POSA.
+    let (r, mut bus) = rig(&[1, 5], 0, 9600);
+    let _me = r.clock.reserve_participant().enter();
+    assert_eq!(bus.raw(a(1), "POSA 1000").unwrap().as_deref(), Some(""));
+    assert_eq!(bus.started(), [a(1)]);
+    drop(bus);
+    assert!(!r.host.with_device(|d| d.drive(1).unwrap().is_moving()));
+    assert_eq!(sent(&r.transcript).last().unwrap(), b"1OUTPUT O0=0\r");
+    drop(_me);
+
+    // A buffered move run by "!", with no reply ("/").
+    let (r, mut bus) = rig(&[1, 5], 0, 9600);
+    let _me = r.clock.reserve_participant().enter();
+    bus.raw(a(5), "PR 500,").unwrap();
+    assert!(bus.started().is_empty(), "stored, not run");
+    assert_eq!(bus.raw(a(5), "!/").unwrap(), None);
+    assert_eq!(bus.started(), [a(5)]);
+    r.clock.sleep(Duration::from_millis(100));
+    assert!(r.host.with_device(|d| d.drive(5).unwrap().is_moving()));
+    drop(bus);
+    assert!(!r.host.with_device(|d| d.drive(5).unwrap().is_moving()));
+    drop(_me);
+
+    // A broadcast move: every drive that has answered this client counts as started.
+    let (r, mut bus) = rig(&[1, 5, 7], 0, 9600);
+    let _me = r.clock.reserve_participant().enter();
+    bus.read_position(a(1)).unwrap();
+    bus.read_position(a(5)).unwrap();
+    assert_eq!(bus.known(), [a(1), a(5)]);
+    bus.broadcast(&Command::PosR(pos(800.0))).unwrap();
+    assert_eq!(bus.started(), [a(1), a(5)]);
+    r.clock.sleep(Duration::from_millis(100));
+    drop(bus);
+    let moving: Vec<bool> = r.host.with_device(|d| [1, 5, 7].map(|n| d.drive(n).unwrap().is_moving()).to_vec());
+    assert_eq!(moving, [false, false, true], "drive 7 never answered this client: it cannot know it");
+    drop(_me);
+
+    // The same through raw to address 32.
+    let (r, mut bus) = rig(&[1, 5], 0, 9600);
+    let _me = r.clock.reserve_participant().enter();
+    bus.read_position(a(5)).unwrap();
+    assert_eq!(bus.raw(Address::BROADCAST, "POSA 900").unwrap(), None);
+    assert_eq!(bus.started(), [a(5)]);
+    drop(bus);
+    assert!(!r.host.with_device(|d| d.drive(5).unwrap().is_moving()));
+}
+
+#[test]
+fn a_refused_move_does_not_forget_the_move_that_runs() {
+    let (r, mut bus) = rig(&[1], 0, 9600);
+    let _me = r.clock.reserve_participant().enter();
+    bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
+    let e = bus.move_absolute(a(1), pos(5.0), MoveOptions::default()).unwrap_err();
+    assert_eq!(e.device_code(), Some(ErrorCode::COMMAND_ACTIVE));
+    assert_eq!(bus.raw(a(1), "POSR 1").unwrap_err().device_code(), Some(ErrorCode::COMMAND_ACTIVE));
+    assert_eq!(bus.started(), [a(1)], "still moving from the first move");
+    drop(bus);
+    assert!(!r.host.with_device(|d| d.drive(1).unwrap().is_moving()));
+}
+
+#[test]
+fn the_broadcast_address_is_refused_where_an_answer_is_needed_and_outputs_reach_every_drive() {
+    let (r, mut bus) = rig(&[1, 5], 0, 9600);
+    let _me = r.clock.reserve_participant().enter();
+    let all = Address::BROADCAST;
+    for e in [
+        bus.read_status(all, StatusId::ACTUAL_POSITION).unwrap_err(),
+        bus.read_param(all, ParamId::DEVICE_ADDRESS).unwrap_err(),
+        bus.echo(all, "S1").unwrap_err(),
+        bus.command(all, &Command::ReadStatus(StatusId::STATUS_BITS_1)).unwrap_err(),
+        bus.move_absolute(all, pos(10.0), MoveOptions::default()).unwrap_err(),
+        bus.wait_reached(&[a(1), all], None, &mut |_, _| {}).unwrap_err(),
+    ] {
+        assert!(matches!(e, Error::Broadcast(_)), "{e}");
+        assert!(e.to_string().contains("none answers"), "{e}");
+    }
+    assert!(sent(&r.transcript).is_empty(), "nothing was sent: {:?}", sent(&r.transcript));
+    // Outputs and settings go to every drive; O0=0 switches every one off and ends every started move.
+    bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
+    bus.move_absolute(a(5), pos(1000.0), MoveOptions::default()).unwrap();
+    bus.set_output(all, 3, OutputState::ON, false).unwrap();
+    bus.set_output(all, 0, OutputState::OFF, false).unwrap();
+    assert!(bus.started().is_empty());
+    r.clock.sleep(Duration::from_millis(50));
+    let (o3, moving) = r.host.with_device(|d| {
+        ([1, 5].map(|n| d.drive(n).unwrap().output(3)), [1, 5].map(|n| d.drive(n).unwrap().is_moving()))
+    });
+    assert_eq!(o3, [Some(1), Some(1)]);
+    assert_eq!(moving, [false, false]);
+}
+
+#[test]
+fn a_drive_handle_is_one_drive() {
+    let (r, mut bus) = rig(&[4], 8, 9600);
+    let _me = r.clock.reserve_participant().enter();
+    assert!(matches!(bus.drive(Address::BROADCAST), Err(Error::Broadcast(_))));
+    let mut four = bus.drive(a(4)).unwrap();
+    assert_eq!(four.address(), a(4));
+    four.set_speed(SpeedPercent::new(50.0).unwrap(), true).unwrap();
+    four.write_param(ParamId::new(20).unwrap(), 2.5).unwrap();
+    assert_eq!(four.read_param(ParamId::new(20).unwrap()).unwrap(), 2.5);
+    four.move_relative(pos(5.0), MoveOptions::default()).unwrap();
+    let mut seen = Vec::new();
+    four.wait_reached(None, &mut |p| seen.push(p.units())).unwrap();
+    assert!(!seen.is_empty());
+    assert_eq!(four.read_position().unwrap(), pos(5.0));
+    assert!(four.read_s16().unwrap().bit(S16Bits::POSITION_REACHED));
+    assert_eq!(four.raw("S2").unwrap().as_deref(), Some("S002: 5.000"));
+    four.move_absolute(pos(500.0), MoveOptions::default()).unwrap();
+    four.stop().unwrap();
+    assert!(four.bus().started().is_empty());
+    assert_eq!(r.host.with_device(|d| d.drive(4).unwrap().o0()), 0);
+}
+
+#[test]
+fn an_e71_is_reported_not_sent_again_unchanged() {
+    let (r, mut bus) = rig(&[1], 0, 9600);
+    let _me = r.clock.reserve_participant().enter();
+    // The CR of the first telegram is damaged: the drive waits on, the client times out and sends the (20
+    // character) telegram again; to the drive both are one command of 42 characters: E71.
+    let p12 = ParamId::new(12).unwrap();
+    let at = r.faults.bytes_sent(Direction::HostToDevice);
+    r.faults.inject(Direction::HostToDevice, at + 21, motionlink_link::pipe::Fault::Corrupt { xor: 0x55 });
+    let e = bus.write_param(a(1), p12, -8_388_607.999_999).unwrap_err();
+    assert_eq!(e.device_code(), Some(ErrorCode::BUFFER_OVERFLOW), "{e}");
+    let frames = sent(&r.transcript);
+    assert_eq!(frames.len(), 2, "sent, timed out, sent again, E71, and not a third time: {frames:?}");
+    assert_eq!(frames[0], b"1P012=-8388607.999999\r");
+    assert_eq!(frames[0], frames[1]);
+    assert!(r.transcript.bytes(Way::Received).starts_with(b"E71\r\n>"));
+    // E70 / E72 / E73 still are (see the tests above); and the next telegram is fine.
+    bus.write_param(a(1), p12, 1.0).unwrap();
+}
+
+#[test]
+fn a_lost_position_message_does_not_hang_the_wait() {
+    for (p196, fault) in [(0, "dropped"), (8, "bad BCC"), (0, "garbled")] {
+        let (r, mut bus) = rig(&[1], p196, 9600);
+        let _me = r.clock.reserve_participant().enter();
+        // 20 units at 100 units/s: 200 ms.
+        bus.move_absolute(a(1), pos(20.0), MoveOptions { binary: false, message: true }).unwrap();
+        // The next bytes the drive sends are its "$ CR LF > [BCC]".
+        let at = r.faults.bytes_sent(Direction::DeviceToHost);
+        match fault {
+            "dropped" => r.faults.drop_next(Direction::DeviceToHost, 4),
+            "bad BCC" => {
+                r.faults.inject(Direction::DeviceToHost, at + 4, motionlink_link::pipe::Fault::Corrupt { xor: 1 })
+            }
+            _ => r.faults.inject(Direction::DeviceToHost, at, motionlink_link::pipe::Fault::Corrupt { xor: 0x40 }),
+        }
+        let t0 = r.clock.now();
+        bus.wait_reached(&[a(1)], Some(Duration::from_secs(60)), &mut |_, _| {}).unwrap();
+        let took = (r.clock.now() - t0).as_secs_f64();
+        assert!(took < 1.5, "P196={p196} {fault}: found by the state check after about a second, took {took} s");
+        let received = String::from_utf8_lossy(&r.transcript.bytes(Way::Received)).into_owned();
+        assert_eq!(received.contains("$\r"), fault == "bad BCC", "{fault}: {received:?}");
+        assert_eq!(bus.read_position(a(1)).unwrap(), pos(20.0));
+        assert!(bus.started().is_empty());
+    }
+}
+
+#[test]
+fn a_wait_for_a_message_ends_when_someone_else_stops_the_axis() {
+    let (r, mut bus) = rig(&[1], 0, 9600);
+    let _me = r.clock.reserve_participant().enter();
+    bus.move_absolute(a(1), pos(1000.0), MoveOptions { binary: false, message: true }).unwrap();
+    r.clock.sleep(Duration::from_millis(300));
+    // Switched off by another program: the positioning ends where it is, and no "$" will come.
+    assert_eq!(someone_else_sends(&r, b"1OUTPUT O0=0\r"), b"\r\n>");
+    let t0 = r.clock.now();
+    bus.wait_reached(&[a(1)], Some(Duration::from_secs(60)), &mut |_, _| {}).unwrap();
+    assert!((r.clock.now() - t0) < Duration::from_millis(1500));
+    let p = bus.read_position(a(1)).unwrap().units();
+    assert!(p > 20.0 && p < 1000.0, "{p}");
+}
+
+#[test]
+fn a_wait_without_a_timeout_ends_after_the_default_one() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let host = EmulatorHost::new(
+        CompaxBus::new(SimConfig::bus(&[1], 0, 9600)).unwrap(),
+        clock.shared(),
+        PipeConfig::paced(9600),
+    );
+    let mut cfg = BusConfig::new(Mode::default(), 9600);
+    assert_eq!(cfg.wait_timeout, Duration::from_secs(600));
+    cfg.wait_timeout = Duration::from_secs(3);
+    let mut bus = Bus::new(Box::new(host.connect().0), clock.shared(), cfg);
+    // 1000 units at 100 units/s: 10 s.
+    bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
+    let t0 = clock.now();
+    let e = bus.wait_reached(&[a(1)], None, &mut |_, _| {}).unwrap_err();
+    assert!(matches!(e, Error::MoveTimeout { address: 1, .. }), "{e}");
+    let took = clock.now() - t0;
+    assert!(took >= Duration::from_secs(3) && took < Duration::from_secs(4), "{took:?}");
+    assert!(!host.with_device(|d| d.drive(1).unwrap().is_moving()), "stopped");
+}
+
+/// Counts telegrams sent and cancels a token when the `n`th goes out (Ctrl-C in the middle of a long action).
+struct CancelAfter<L> {
+    inner: L,
+    token: CancelToken,
+    sends: usize,
+    n: usize,
+}
+
+impl<L: motionlink_link::link::Link> motionlink_link::link::Link for CancelAfter<L> {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), motionlink_link::link::LinkError> {
+        self.sends += 1;
+        if self.sends == self.n {
+            self.token.cancel();
+        }
+        self.inner.send(bytes)
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, motionlink_link::link::LinkError> {
+        self.inner.recv(buf, timeout)
+    }
+    fn discard_input(&mut self) -> Result<(), motionlink_link::link::LinkError> {
+        self.inner.discard_input()
+    }
+    fn describe(&self) -> String {
+        self.inner.describe()
+    }
+}
+
+#[test]
+fn a_cancelled_scan_ends_between_drives_and_a_cancelled_token_keeps_moves_unsent() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let host = EmulatorHost::new(
+        CompaxBus::new(SimConfig::bus(&[1, 31], 0, 9600)).unwrap(),
+        clock.shared(),
+        PipeConfig::paced(9600),
+    );
+    let token = CancelToken::new();
+    let transcript = Transcript::new();
+    let link = TapLink::new(host.connect().0, clock.shared(), transcript.clone());
+    let link = CancelAfter { inner: link, token: token.clone(), sends: 0, n: 3 };
+    let mut bus = Bus::new(Box::new(link), clock.shared(), BusConfig::new(Mode::default(), 9600));
+    bus.set_cancel(token.clone());
+    // Cancelled while the third address is asked: that answer is awaited, the fourth is not asked.
+    assert!(matches!(bus.scan(1..=31), Err(Error::Cancelled)));
+    assert_eq!(sent(&transcript), [b"1S1\r".to_vec(), b"2S1\r".to_vec(), b"3S1\r".to_vec()]);
+    assert!(bus.is_cancelled());
+    // No move goes out while the token is cancelled, in any form.
+    assert!(matches!(bus.move_absolute(a(1), pos(10.0), MoveOptions::default()), Err(Error::Cancelled)));
+    assert!(matches!(bus.move_relative(a(1), pos(10.0), MoveOptions::default()), Err(Error::Cancelled)));
+    assert!(matches!(bus.sync_start(&[(a(1), Command::PosA(pos(1.0)))], false), Err(Error::Cancelled)));
+    assert!(matches!(bus.raw(a(1), "POSA 10"), Err(Error::Cancelled)));
+    assert!(matches!(bus.broadcast(&Command::PosA(pos(1.0))), Err(Error::Cancelled)));
+    assert_eq!(sent(&transcript).len(), 3, "{:?}", sent(&transcript));
+    // Reads and stops still work; after a reset, moves too.
+    assert_eq!(bus.read_position(a(1)).unwrap(), pos(0.0));
+    token.reset();
+    bus.move_absolute(a(1), pos(1.0), MoveOptions::default()).unwrap();
+    bus.wait_reached(&[a(1)], None, &mut |_, _| {}).unwrap();
+    assert!(!host.with_device(|d| d.drive(1).unwrap().is_moving()));
+}
+
+/// What a scripted drive answers to each telegram.
+type Script = Box<dyn FnMut(&[u8]) -> Vec<u8> + Send>;
+
+/// A link whose drive is a script: each telegram sent gets the bytes `answer` returns (a drive that answers
+/// in ways the emulator does not, such as a bare parameter value).
+struct Scripted {
+    clock: motionlink_link::clock::SharedClock,
+    answer: Script,
+    pending: std::collections::VecDeque<u8>,
+}
+
+impl motionlink_link::link::Link for Scripted {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), motionlink_link::link::LinkError> {
+        let reply = (self.answer)(bytes);
+        self.pending.extend(reply);
+        Ok(())
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, motionlink_link::link::LinkError> {
+        if self.pending.is_empty() {
+            self.clock.sleep(timeout);
+            return Ok(0);
+        }
+        let n = buf.len().min(self.pending.len());
+        for (slot, b) in buf.iter_mut().zip(self.pending.drain(..n)) {
+            *slot = b;
+        }
+        Ok(n)
+    }
+    fn discard_input(&mut self) -> Result<(), motionlink_link::link::LinkError> {
+        self.pending.clear();
+        Ok(())
+    }
+    fn describe(&self) -> String {
+        "scripted drive".into()
+    }
+}
+
+#[test]
+fn comparator_numbers_are_expected_only_until_the_positioning_ends() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let mut polls = 0;
+    let answer = move |t: &[u8]| -> Vec<u8> {
+        match t {
+            b"1POSR 5 OUTPUT O9=1\r" | b"1POSA 10\r" => b"\r\n>".to_vec(),
+            b"1S17\r" => {
+                polls += 1;
+                match polls {
+                    // The comparator switches during the first poll: its number comes first.
+                    1 => b"1\r\n>S017: 0010 0010\r\n>".to_vec(),
+                    2 => b"S017: 0010 0010\r\n>".to_vec(),
+                    _ => b"S017: 0000 0010\r\n>".to_vec(),
+                }
+            }
+            b"1S1\r" => b"S001: 10.000\r\n>".to_vec(),
+            // A drive that answers a parameter with the bare value.
+            b"1P194\r" => b"1\r\n>".to_vec(),
+            other => panic!("unexpected telegram {other:?}"),
+        }
+    };
+    let link = Scripted { clock: clock.shared(), answer: Box::new(answer), pending: Default::default() };
+    let mut bus = Bus::new(Box::new(link), clock.shared(), BusConfig::new(Mode::default(), 9600));
+    let comparator = Command::PosROutput { distance: pos(5.0), output: 9, state: OutputState::ON };
+    assert_eq!(bus.command(a(1), &comparator).unwrap(), "");
+    bus.move_absolute(a(1), pos(10.0), MoveOptions::default()).unwrap();
+    let mut positions = Vec::new();
+    bus.wait_reached(&[a(1)], None, &mut |_, p| positions.push(p.units())).unwrap();
+    assert_eq!(positions, [10.0; 3], "three polls; the comparator's number was taken for what it is, not as a reply");
+    // The positioning has ended, and with it the comparator: a bare number is a reply again.
+    assert_eq!(bus.read_param(a(1), ParamId::DEVICE_ADDRESS).unwrap(), 1.0);
 }
 
 #[test]
@@ -374,6 +745,13 @@ fn refused_commands_are_device_errors_and_raw_is_sent_once() {
     r.faults.drop_next(Direction::DeviceToHost, 3);
     assert!(matches!(bus.raw(a(1), "POSR 1"), Err(Error::Timeout { attempts: 1, .. })));
     assert_eq!(sent(&r.transcript).iter().filter(|f| f.starts_with(b"1POSR")).count(), 1);
+    // The drive may have taken it: the client counts it as moving until it has seen otherwise.
+    assert_eq!(bus.started(), [a(1)]);
+    r.clock.sleep(Duration::from_secs(1));
+    drop(bus); // (while this thread still drives the clock)
+    assert_eq!(r.host.with_device(|d| d.drive(1).unwrap().position()), 1.0);
+    let frames = sent(&r.transcript);
+    assert_eq!(frames.last().unwrap(), b"1S17\r", "checked on drop; it had stopped, so no OUTPUT O0=0");
 }
 
 #[test]

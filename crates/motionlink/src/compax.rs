@@ -76,7 +76,8 @@ pub enum Action {
         #[arg(allow_negative_numbers = true)]
         value: f64,
     },
-    /// Move the axis and wait until the position is reached (Ctrl-C stops it).
+    /// Move the axis and wait until the position is reached (Ctrl-C stops it). Every argument is checked
+    /// before anything is sent.
     Move {
         /// Move to this absolute position (drive's unit).
         #[arg(long, allow_negative_numbers = true, conflicts_with = "rel", required_unless_present = "rel")]
@@ -93,11 +94,12 @@ pub enum Action {
         /// Send the binary commands.
         #[arg(long)]
         binary: bool,
-        /// Give up (and stop the axis) after this many seconds.
-        #[arg(long, default_value_t = 600.0)]
+        /// Give up (and stop the axis) after this many seconds (more than 0).
+        #[arg(long, default_value_t = 600.0, allow_negative_numbers = true)]
         timeout_s: f64,
-        /// Return once the drive has taken the move, without waiting.
-        #[arg(long)]
+        /// Return once the drive has taken the move, without waiting: the move is handed over and keeps
+        /// running after the command exits (nothing stops it).
+        #[arg(long, conflicts_with = "timeout_s")]
         no_wait: bool,
     },
     /// Switch an output: OUTPUT ON=S (output 0 is the drive itself: 0 switches it off, 1 on).
@@ -108,7 +110,7 @@ pub enum Action {
         state: u8,
     },
     /// Send a command as it is, such as "S1", "POSA 10$", "!" (flag characters $ , / ? at the end are sent as
-    /// flags); prints the reply.
+    /// flags); prints the reply. A move it starts keeps running after the command exits.
     Raw {
         /// The command.
         command: String,
@@ -160,8 +162,9 @@ pub enum Direction {
 
 fn bus_error(e: BusError) -> CliError {
     match e {
-        BusError::Device { .. } | BusError::MoveTimeout { .. } | BusError::Cancelled => CliError::device(e),
-        BusError::Invalid(_) | BusError::Wire(_) => CliError::usage(e),
+        BusError::Cancelled => CliError::Interrupted(e.to_string()),
+        BusError::Device { .. } | BusError::MoveTimeout { .. } => CliError::device(e),
+        BusError::Invalid(_) | BusError::Wire(_) | BusError::Broadcast(_) => CliError::usage(e),
         BusError::Link(l) => l.into(),
         _ => CliError::transport(e),
     }
@@ -169,6 +172,48 @@ fn bus_error(e: BusError) -> CliError {
 
 fn model_error(e: ModelError) -> CliError {
     CliError::usage(e)
+}
+
+/// Ctrl-C came before anything was sent (or between reads): ends the action with exit code 130.
+fn check_interrupt(bus: &Bus, what: &str) -> Result<(), CliError> {
+    if bus.is_cancelled() {
+        return Err(CliError::Interrupted(format!("interrupted; {what}")));
+    }
+    Ok(())
+}
+
+/// The arguments of `move`, checked before anything is sent.
+struct MovePlan {
+    target: MoveTarget,
+    speed: Option<SpeedPercent>,
+    accel: Option<RampMs>,
+    timeout: Duration,
+}
+
+enum MoveTarget {
+    Absolute(Position),
+    Relative(Position),
+}
+
+fn plan_move(
+    abs: Option<f64>,
+    rel: Option<f64>,
+    speed: Option<f64>,
+    accel: Option<u32>,
+    timeout_s: f64,
+) -> Result<MovePlan, CliError> {
+    let target = match (abs, rel) {
+        (Some(a), None) => MoveTarget::Absolute(Position::new(a).map_err(|e| CliError::usage(format!("--abs: {e}")))?),
+        (None, Some(r)) => MoveTarget::Relative(Position::new(r).map_err(|e| CliError::usage(format!("--rel: {e}")))?),
+        _ => return Err(CliError::usage("give one of --abs and --rel")),
+    };
+    let speed = speed.map(SpeedPercent::new).transpose().map_err(|e| CliError::usage(format!("--speed: {e}")))?;
+    let accel = accel.map(RampMs::new).transpose().map_err(|e| CliError::usage(format!("--accel: {e}")))?;
+    let timeout = Duration::try_from_secs_f64(timeout_s)
+        .ok()
+        .filter(|t| !t.is_zero())
+        .ok_or_else(|| CliError::usage(format!("--timeout-s {timeout_s}: give a number of seconds above 0")))?;
+    Ok(MovePlan { target, speed, accel, timeout })
 }
 
 fn parse_mode(p196: u32) -> Result<Mode, CliError> {
@@ -224,10 +269,19 @@ fn status_rows(id: StatusId, v: &StatusValue) -> (Row, serde_json::Value) {
 /// Runs `motionlink compax`.
 pub fn run(args: Args) -> Result<(), CliError> {
     let mut out = std::io::stdout().lock();
+    // A move's arguments are checked before the port is opened: nothing is sent for a move that cannot be
+    // made.
+    let mut move_plan = match &args.action {
+        Action::Move { abs, rel, speed, accel, timeout_s, .. } => {
+            Some(plan_move(*abs, *rel, *speed, *accel, *timeout_s)?)
+        }
+        _ => None,
+    };
     let mut bus = open(&args)?;
     let drive = Address::drive(args.drive).map_err(CliError::usage)?;
     match &args.action {
         Action::Scan => {
+            // Ctrl-C ends the scan between two addresses.
             let found = bus.scan(1..=31).map_err(bus_error)?;
             if args.json {
                 let list: Vec<_> =
@@ -252,6 +306,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             let mut rows = Vec::new();
             let mut js = Vec::new();
             for id in ids {
+                check_interrupt(&bus, "status read stopped")?;
                 let v = bus.read_status(drive, id).map_err(bus_error)?;
                 let (row, j) = status_rows(id, &v);
                 rows.push(row);
@@ -288,33 +343,37 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 writeln!(out, "{id} = {value}{note}")?;
             }
         }
-        Action::Move { abs, rel, speed, accel, binary, timeout_s, no_wait } => {
-            if let Some(s) = speed {
-                let s = SpeedPercent::new(*s).map_err(model_error)?;
+        Action::Move { binary, no_wait, .. } => {
+            let plan = move_plan.take().ok_or_else(|| CliError::usage("move: no plan"))?;
+            let opts = MoveOptions { binary: *binary, message: false };
+            check_interrupt(&bus, "nothing was sent")?;
+            let start = bus.read_position(drive).map_err(bus_error)?;
+            let target = match plan.target {
+                MoveTarget::Absolute(p) => p,
+                MoveTarget::Relative(d) => Position::new(start.units() + d.units())
+                    .map_err(|e| CliError::usage(format!("--rel {d} from {start}: {e}")))?,
+            };
+            let distance = (target.units() - start.units()).abs();
+            check_interrupt(&bus, "nothing was moved")?;
+            if let Some(s) = plan.speed {
                 bus.set_speed(drive, s, *binary).map_err(bus_error)?;
             }
-            if let Some(a) = accel {
-                let a = RampMs::new(*a).map_err(model_error)?;
+            if let Some(a) = plan.accel {
                 bus.set_accel(drive, a, *binary).map_err(bus_error)?;
             }
-            let opts = MoveOptions { binary: *binary, message: false };
-            let start = bus.read_position(drive).map_err(bus_error)?;
-            let (target, distance) = match (abs, rel) {
-                (Some(a), _) => (Position::new(*a).map_err(model_error)?, (a - start.units()).abs()),
-                (None, Some(r)) => (Position::new(start.units() + r).map_err(model_error)?, r.abs()),
-                (None, None) => return Err(CliError::usage("give --abs or --rel")),
-            };
-            match (abs, rel) {
-                (Some(_), _) => bus.move_absolute(drive, target, opts),
-                (None, Some(r)) => bus.move_relative(drive, Position::new(*r).map_err(model_error)?, opts),
-                _ => unreachable!(),
+            // The move itself is not sent once Ctrl-C has come (Error::Cancelled).
+            match plan.target {
+                MoveTarget::Absolute(p) => bus.move_absolute(drive, p, opts),
+                MoveTarget::Relative(d) => bus.move_relative(drive, d, opts),
             }
             .map_err(bus_error)?;
-            if !*no_wait {
+            if *no_wait {
+                // Handed over: the move runs on after this command exits.
+                bus.release(&[drive]);
+            } else {
                 let bar =
                     common::progress_bar((distance * 1000.0).round() as u64, format!("drive {drive} to {target}"));
-                let timeout = Duration::try_from_secs_f64(*timeout_s).map_err(CliError::usage)?;
-                let r = bus.wait_reached(&[drive], Some(timeout), &mut |_, p| {
+                let r = bus.wait_reached(&[drive], Some(plan.timeout), &mut |_, p| {
                     bar.set_position(((p.units() - start.units()).abs() * 1000.0).round() as u64);
                 });
                 bar.finish_and_clear();
@@ -327,6 +386,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
                     &json!({"drive": drive.get(), "target": target.units(), "position": end.units(),
                             "waited": !*no_wait}),
                 )?;
+            } else if *no_wait {
+                writeln!(out, "drive {drive}: target {target}, position {end} (moving on)")?;
             } else {
                 writeln!(out, "drive {drive}: target {target}, position {end}")?;
             }
@@ -342,6 +403,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
         Action::Raw { command } => {
             let reply = bus.raw(drive, command).map_err(bus_error)?;
+            // A move sent raw runs on after the command exits (as with move --no-wait): handed over.
+            let started = bus.started();
+            bus.release(&started);
             if args.json {
                 common::print_json(&mut out, &json!({"drive": drive.get(), "command": command, "reply": reply}))?;
             } else {

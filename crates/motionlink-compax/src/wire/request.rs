@@ -246,16 +246,23 @@ fn command_error(text: &[u8], len: usize) -> WireError {
     WireError::TooLong(len)
 }
 
+/// The most digits of a valid address (1..=32).
+pub const MAX_ADDRESS_DIGITS: usize = 2;
+
 /// A request telegram as received, before interpretation.
 #[derive(Clone, Copy, PartialEq, Eq)]
 pub struct RequestFrame {
     raw: [u8; 64],
     len: usize,
-    /// Digits of the address part.
+    /// Digits of the address part kept in `raw` (at most [`MAX_ADDRESS_DIGITS`]).
     address_len: usize,
+    /// Digits of the address part received (they may be more than were kept).
+    address_digits: usize,
     /// Command characters received (they may be more than were kept).
     command_count: usize,
     binary: bool,
+    /// XOR of every byte of the telegram received so far (kept or not): the BCC it should have.
+    xor: u8,
     /// Received and computed BCC, when the mode has BCC.
     bcc: Option<(u8, u8)>,
 }
@@ -283,6 +290,9 @@ pub enum RequestError {
     /// The address is not 1..=32.
     #[error("address {0} is not 1..=32")]
     Address(u8),
+    /// The address has more digits than any address (1..=32): no drive is addressed.
+    #[error("an address of {0} digits (a drive's address has one or two)")]
+    AddressTooLong(usize),
     /// More than 40 characters (the drive answers E71).
     #[error("command string of {0} characters overflows the 40-character buffer")]
     Overflow(usize),
@@ -303,14 +313,26 @@ pub enum RequestError {
 }
 
 impl RequestFrame {
-    /// The telegram as received, without CR and BCC (at most the first 60 bytes).
+    /// The telegram as received, without CR and BCC (at most the first 60 bytes; of an address longer than
+    /// two digits, the first two).
     pub fn bytes(&self) -> &[u8] {
         &self.raw[..self.len]
     }
 
-    /// The address number (0..=99; only 1..=32 are valid).
+    /// The address number (0..=99; only 1..=32 are valid). An address of more than two digits, which no
+    /// drive has, is 0 (as no address at all).
     pub fn address(&self) -> u8 {
-        self.raw[..self.address_len].iter().fold(0u8, |a, d| a.saturating_mul(10).saturating_add(d - b'0'))
+        if self.address_digits > MAX_ADDRESS_DIGITS {
+            return 0;
+        }
+        self.raw[..self.address_len]
+            .iter()
+            .fold(0u8, |a, d| a.saturating_mul(10).saturating_add(d.saturating_sub(b'0')))
+    }
+
+    /// The number of address digits received.
+    pub fn address_digits(&self) -> usize {
+        self.address_digits
     }
 
     /// True for a binary telegram.
@@ -331,6 +353,9 @@ impl RequestFrame {
     /// Interprets the telegram. Errors are checked in the order a drive meets them: address, BCC,
     /// overflow, syntax.
     pub fn parse(&self) -> Result<ParsedRequest<'_>, RequestError> {
+        if self.address_digits > MAX_ADDRESS_DIGITS {
+            return Err(RequestError::AddressTooLong(self.address_digits));
+        }
         let address = self.address();
         if self.address_len > 2 || !(1..=BROADCAST).contains(&address) {
             return Err(RequestError::Address(address));
@@ -397,6 +422,13 @@ enum RxState {
 ///
 /// A telegram starts with an address digit; bytes before one are skipped as garbage. ASCII telegrams end at
 /// CR (plus the BCC when the mode has it), binary ones after the length their first byte announces.
+///
+/// Nothing that arrives can make it keep more than a fixed number of bytes: of the address it keeps two
+/// digits and counts the rest (a telegram whose address has more digits addresses no drive: its
+/// [`RequestFrame::parse`] is [`RequestError::AddressTooLong`] and its [`RequestFrame::address`] 0), of the
+/// command 48 characters (more than 40 is [`RequestError::Overflow`], E71). Such a telegram ends at its CR
+/// like any other, and the next one is decoded normally. The BCC is checked against every byte received,
+/// kept or not.
 #[derive(Debug, Clone)]
 pub struct RequestDecoder {
     bcc: bool,
@@ -412,7 +444,16 @@ impl RequestDecoder {
             bcc: mode.bcc,
             xon_xoff: mode.xon_xoff,
             state: RxState::Idle,
-            frame: RequestFrame { raw: [0; 64], len: 0, address_len: 0, command_count: 0, binary: false, bcc: None },
+            frame: RequestFrame {
+                raw: [0; 64],
+                len: 0,
+                address_len: 0,
+                address_digits: 0,
+                command_count: 0,
+                binary: false,
+                xor: 0,
+                bcc: None,
+            },
         }
     }
 
@@ -440,15 +481,30 @@ impl RequestDecoder {
         self.state = RxState::Idle;
         self.frame.len = 0;
         self.frame.address_len = 0;
+        self.frame.address_digits = 0;
         self.frame.command_count = 0;
         self.frame.binary = false;
+        self.frame.xor = 0;
         self.frame.bcc = None;
     }
 
+    /// Keeps `b` if there is room (the BCC counts it either way).
     fn store(&mut self, b: u8) {
+        self.frame.xor ^= b;
         if self.frame.len < 60 {
             self.frame.raw[self.frame.len] = b;
             self.frame.len += 1;
+        }
+    }
+
+    /// An address digit: kept while the address is not longer than any valid one, counted always.
+    fn address_digit(&mut self, b: u8) {
+        self.frame.address_digits = self.frame.address_digits.saturating_add(1);
+        if self.frame.address_digits <= MAX_ADDRESS_DIGITS {
+            self.store(b);
+            self.frame.address_len += 1;
+        } else {
+            self.frame.xor ^= b;
         }
     }
 
@@ -467,10 +523,6 @@ impl RequestDecoder {
         }
     }
 
-    fn running_bcc(&self) -> u8 {
-        bcc(&self.frame.raw[..self.frame.len])
-    }
-
     /// Feeds one byte.
     pub fn push(&mut self, b: u8) -> Option<RequestEvent> {
         let flow = self.xon_xoff && (b == XON || b == XOFF);
@@ -480,8 +532,7 @@ impl RequestDecoder {
                     return Some(RequestEvent::Flow(b == XOFF));
                 }
                 if b.is_ascii_digit() {
-                    self.store(b);
-                    self.frame.address_len = 1;
+                    self.address_digit(b);
                     self.state = RxState::Address;
                     None
                 } else {
@@ -493,8 +544,7 @@ impl RequestDecoder {
                     return Some(RequestEvent::Flow(b == XOFF));
                 }
                 if b.is_ascii_digit() {
-                    self.store(b);
-                    self.frame.address_len += 1;
+                    self.address_digit(b);
                     return None;
                 }
                 if b == CR {
@@ -524,9 +574,11 @@ impl RequestDecoder {
                 if b == CR {
                     return self.end_of_body();
                 }
-                self.frame.command_count += 1;
+                self.frame.command_count = self.frame.command_count.saturating_add(1);
                 if self.frame.command_count <= MAX_COMMAND_LEN + 8 {
                     self.store(b);
+                } else {
+                    self.frame.xor ^= b;
                 }
                 None
             }
@@ -541,7 +593,7 @@ impl RequestDecoder {
                 }
             }
             RxState::Bcc => {
-                self.frame.bcc = Some((b, self.running_bcc()));
+                self.frame.bcc = Some((b, self.frame.xor));
                 Some(self.finish())
             }
         }
@@ -646,6 +698,68 @@ mod tests {
         assert_eq!(ev[1], RequestEvent::Flow(false));
         let RequestEvent::Frame(f) = ev[2] else { panic!() };
         assert_eq!(f.parse().unwrap().body, Body::Command(b"S1"));
+    }
+
+    #[test]
+    fn an_address_longer_than_any_is_an_error_and_the_next_telegram_decodes() {
+        for mode in [Mode::default(), Mode::from_p196(8 + 16).unwrap()] {
+            for digits in [3usize, 59, 60, 61, 64, 65, 200, 5000] {
+                let mut t = vec![b'1'; digits];
+                t.extend_from_slice(b"S1");
+                let check = bcc(&t);
+                t.push(CR);
+                if mode.bcc {
+                    t.push(check);
+                }
+                let mut d = RequestDecoder::new(&mode);
+                let mut events = Vec::new();
+                for (i, &b) in t.iter().enumerate() {
+                    events.extend(d.push(b));
+                    // What the emulator asks while a telegram comes in: no drive's address once it is too long.
+                    let want = match (d.is_idle(), (i + 1).min(digits)) {
+                        (true, _) => 0,
+                        (false, 1) => 1,
+                        (false, 2) => 11,
+                        _ => 0,
+                    };
+                    assert_eq!(d.partial_address(), want, "{digits} digits, byte {i}");
+                }
+                let [RequestEvent::Frame(f)] = events[..] else { panic!("{digits}: {events:?}") };
+                assert_eq!(f.parse(), Err(RequestError::AddressTooLong(digits)), "{digits} digits");
+                assert_eq!(f.address(), 0);
+                assert_eq!(f.address_digits(), digits);
+                assert_eq!(f.command_bytes(), b"S1");
+                // The BCC covers every digit received, kept or not.
+                if mode.bcc {
+                    let (received, computed) = f.bcc().unwrap();
+                    assert_eq!(received, computed);
+                }
+                assert!(d.is_idle());
+                let good = req(5, Body::Command(b"S1"), Flags::NONE).encode(&mode).unwrap();
+                let ev: Vec<_> = good.as_bytes().iter().filter_map(|&b| d.push(b)).collect();
+                let [RequestEvent::Frame(f)] = ev[..] else { panic!("{ev:?}") };
+                assert_eq!(f.parse().unwrap().address, 5);
+            }
+        }
+    }
+
+    #[test]
+    fn an_overflowing_telegram_with_a_good_bcc_is_an_overflow_not_a_bcc_error() {
+        // The drive answers E71 for more than 40 characters; the BCC over all of them is right.
+        let m = Mode::from_p196(8).unwrap();
+        let mut t = b"4".to_vec();
+        t.extend_from_slice(&[b'A'; 70]);
+        let check = bcc(&t);
+        t.push(CR);
+        t.push(check);
+        let ev = decode_all(&m, &t);
+        let [RequestEvent::Frame(f)] = ev[..] else { panic!("{ev:?}") };
+        assert_eq!(f.parse(), Err(RequestError::Overflow(70)));
+        let mut bad = t.clone();
+        *bad.last_mut().unwrap() ^= 1;
+        let ev = decode_all(&m, &bad);
+        let [RequestEvent::Frame(f)] = ev[..] else { panic!("{ev:?}") };
+        assert!(matches!(f.parse(), Err(RequestError::Bcc { .. })));
     }
 
     #[test]
