@@ -51,8 +51,60 @@ fn an_adapter_with_its_channel_closed_rings_the_bell() {
     let (link, _) = host.connect();
     let mut can = SlcanLink::wrap(link, clock.shared());
     can.send(&CanFrame::new(0x10, &[]).unwrap()).unwrap();
-    assert_eq!(can.recv(Duration::from_millis(10)).unwrap(), None);
+    // The refusal is an error of the exchange, not a silence that looks like a device that does not answer.
+    let t0 = clock.now();
+    let err = can.recv(Duration::from_millis(100)).unwrap_err();
+    assert!(err.to_string().contains("refused to send 010#"), "{err}");
+    assert!(!err.is_disconnect());
+    assert!(clock.now() - t0 < Duration::from_millis(100), "reported at once, not after the timeout");
     assert_eq!(can.refused(), 1);
+    // Reported once; the link goes on.
+    assert_eq!(can.recv(Duration::from_millis(10)).unwrap(), None);
+}
+
+#[test]
+fn a_refused_frame_is_an_error_of_the_exchange_and_the_others_are_matched_in_order() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let host = EmulatorHost::new(SlcanAdapter::new(Mirror), clock.shared(), PipeConfig::paced(115_200));
+    let (link, _) = host.connect();
+    let mut can = SlcanLink::open(link, clock.shared(), SlcanBitrate::M1).unwrap();
+    let frames = [1u8, 2, 3].map(|i| CanFrame::new(0x0D0 + u32::from(i), &[i]).unwrap());
+    can.send(&frames[0]).unwrap();
+    assert_eq!(can.recv(Duration::from_millis(20)).unwrap().map(|f| f.id()), Some(0x0E1));
+    // A full transmit queue: the first of the next three frames is refused, the others go out. The answers
+    // come in the order the frames were sent, so the bell is the second frame's.
+    host.with_device(|a| a.refuse_next(1));
+    for f in [&frames[1], &frames[2], &frames[0]] {
+        can.send(f).unwrap();
+    }
+    let t0 = clock.now();
+    let mut events = Vec::new();
+    let mut error_after = None;
+    loop {
+        match can.recv(Duration::from_millis(100)) {
+            Ok(Some(f)) => events.push(format!("{:03X}", f.id())),
+            Ok(None) => break,
+            Err(e) => {
+                error_after.get_or_insert(clock.now() - t0);
+                events.push(e.to_string());
+            }
+        }
+    }
+    // The frames that went out are answered as usual; the refusal is reported where the bell came, naming
+    // the frame refused.
+    assert_eq!(events.len(), 3, "{events:?}");
+    let err = events.iter().position(|e| e.contains("refused")).expect("the refusal is reported");
+    assert!(events[err].contains("refused to send 0D2#02"), "{events:?}");
+    assert_eq!(err, 0, "the bell comes before the other answers: {events:?}");
+    events.remove(err);
+    assert_eq!(events, vec!["0E3", "0E1"]);
+    let error_after = error_after.unwrap();
+    assert!(error_after < Duration::from_millis(10), "at once, not after a timeout: {error_after:?}");
+    assert_eq!(can.refused(), 1);
+    // And later frames are accepted again.
+    can.send(&frames[1]).unwrap();
+    assert_eq!(can.recv(Duration::from_millis(20)).unwrap().map(|f| f.id()), Some(0x0E2));
 }
 
 #[test]

@@ -58,8 +58,15 @@
 //! - **Broadcasts on RS232.** The manual defines none. The client sends them to address 0 (TELID with M = 0)
 //!   and the emulator takes address 0 as every module, without acknowledge. Real RS232 modules may ignore
 //!   address 0; on a real RS232 chain the watchdog therefore cannot be relied upon
-//!   ([`client::Bus::watchdog_reliable`] is false there), and the `motionlink` command does not arm it on
-//!   RS232: it warns that a dead host will not stop the module.
+//!   ([`client::Bus::watchdog_reliable`] is false there): [`client::Bus::enable_watchdog`] refuses on RS232
+//!   with [`client::Error::Unsupported`] unless [`client::BusConfig::watchdog_on_rs232`] opts in, and the
+//!   `motionlink` command does not arm it on RS232: it warns that a dead host will not stop the module. For
+//!   the same reason a broadcast Halt on RS232 does not count as stopping anything: the session still asks
+//!   each module it started on drop and halts it by address.
+//! - **What a broadcast sets in motion.** Home and StartMotion count as starting the modules the session
+//!   knows exist ([`client::Bus::known`]: every address that has answered it), not all 31 addresses: a drop
+//!   then asks only those. A module that never answered and does not answer the drop's question is taken as
+//!   absent (no broadcast Halt of the whole bus for it); a known module that stops answering still gets one.
 //! - **Life sign.** The individual `0x07` (switch the watchdog on, and off when sent again) is acknowledged
 //!   `[0x07]` by the emulator like every one-byte command; the client accepts silence as well and never
 //!   repeats it (a repeat would switch the watchdog off).
@@ -88,12 +95,23 @@
 //!   manual prints UInt32. DefA0 has no access mark in the manual: it is read-only like the other defaults.
 //!   ActFPosStateDio (0x62) carries 6 bytes (float, short state, DIO) and ActFPosTime (0xA1) 6 (float,
 //!   UInt16 ms), so their GetExtended acknowledges are 8 bytes long.
+//! - **Profibus short state.** [`wire::profibus::InputImage::short_state`] is the typed
+//!   [`model::ProfibusState`] (the method lives in `model`, which gives the bits their meaning; the wire has
+//!   `short_state_raw`).
 //! - **Profibus byte 7.** Commands of up to 7 bytes get a rolling counter in byte 7. An 8-byte command
 //!   (FSTEP, ISTEP, FCOSLOOP) fills byte 7 itself; sent twice in a row the image would not change, so the
 //!   writer refuses the repeat rather than letting the module ignore it silently.
 //! - **Writes the module cannot apply.** The emulator acknowledges a write of a read-only parameter and
-//!   ignores it; unknown commands, parameters and modes get no acknowledge. The client refuses such
-//!   requests before sending ([`model::Request::set`], [`model::Request::get`]).
+//!   ignores it; unknown commands, parameters and modes get no acknowledge. The same for values it cannot
+//!   limit to anything: a NaN or infinite value, a motion to a NaN or infinite target, a soft limit that
+//!   would cross the other one (MinPos above MaxPos): acknowledged with 0x64 (the manual defines no other
+//!   status for SetExtended) and ignored, so MinPos <= MaxPos always holds. The client refuses such requests
+//!   before sending, however they were built: every request goes through [`model::Request::validate`] (the
+//!   rules of [`model::Request::set`], [`model::Request::get`], [`model::Request::motion`]: access, type,
+//!   finite floats, a MotionID for the acknowledge asked).
+//! - **Config's class.** The manual marks Config "(Vorgabe)", a label no other parameter has and which is
+//!   none of its four classes: it is not in ROM (DefConfig is), limits nothing and is no motion target. It
+//!   is [`model::ParamClass::Setting`]: written by the host, lost at power off.
 //! - **Limits.** Soft limits apply only after homing (chapter 12). Ramp targets beyond them are limited to
 //!   them; velocity, current and loop motions that reach them stop with STATE_BEYOND_SOFT, STATE_ERROR and
 //!   STATE_HALTED. TargetVel and TargetAcc are limited to MaxVel and MaxAcc when a ramp starts. Motion
@@ -101,14 +119,24 @@
 //! - **Emulated physics.** Homing ramps to the home switch at position 0 with DefHomeVel and DefHomeAcc.
 //!   Velocity mode accelerates with TargetAcc; current mode moves at `current / MaxCur × MaxVel`. Step mode
 //!   moves at constant speed and buffers one more step (a newer one replaces it). FCOSLOOP oscillates on a
-//!   cosine between the start and the target with the given period; FRAMPLOOP ramps back and forth. The servo
-//!   lags 5 ms: the following error is the velocity × 5 ms, and a tow error is raised when it exceeds
-//!   MaxDeltaPos.
+//!   cosine between the start and the target with the given period; FRAMPLOOP ramps back and forth (a loop
+//!   whose legs would last under 1 ms ends after its first leg). The servo lags 5 ms: the following error
+//!   is the velocity × 5 ms, and a tow error is raised when it exceeds MaxDeltaPos.
 //! - **Drop.** Dropping a [`client::Bus`] reads the state of every module it set in motion and halts those
 //!   still moving or not answering (with a broadcast halt if single halts fail). A wait that times out or
-//!   is cancelled halts its module. The watchdog is left online on drop: the modules halt within 50 ms, which
-//!   is what the watchdog is for; [`client::Bus::disable_watchdog`] switches it off cleanly (the
-//!   `motionlink` command does so at the end of `home` and `move`, also after Ctrl-C or an error).
+//!   is cancelled halts its module. Then the session stops serving cleanly: if it switched watchdogs on,
+//!   it switches them off and restores the Config words ([`client::Bus::disable_watchdog`]) before it stops
+//!   the refresh thread, so a program that ends normally leaves no module to halt 50 ms later. Unless the
+//!   session failed ([`client::Bus::failed`]: a link error, a refresh that could not be sent, a module it
+//!   started that stopped answering): then the watchdogs stay online and the modules halt within 50 ms,
+//!   which is what the watchdog is for. (The `motionlink` command switches it off itself at the end of
+//!   `home` and `move`, also after Ctrl-C or an error.)
+//! - **Scan.** Silence is absence; a corrupt answer is something there, asked again like any read; a module
+//!   that answers the scan but cannot then be read is listed with its error ([`client::ScanEntry`]) rather
+//!   than failing the scan.
+//! - **SLCAN refusals.** An adapter that rings the bell for a frame (channel closed, queue full, bus off)
+//!   makes the next receive fail with a [`LinkError`](motionlink_link::LinkError) naming the frame: the
+//!   request fails at once as a transport error, not after a timeout.
 //! - **Timeouts.** RS232 200 ms (a frame takes up to 25 ms each way at 9600 baud), CAN 50 ms; reads are
 //!   retried twice; the scan waits 60 ms per address on RS232 and 50 ms for all 31 on CAN. All are
 //!   [`client::BusConfig`] settings.

@@ -5,7 +5,8 @@ use motionlink_link::can::{CanEmulator, CanFrame};
 use motionlink_link::emulator::Emulator;
 use motionlink_link::Timestamp;
 use motionlink_powercube::model::{
-    AckKind, AckPosition, Action, CubeState, Motion, Param, Position, Reply, Request, StateFlag, Value,
+    AckKind, AckPosition, Action, CubeState, Motion, Param, Position, ProfibusFlag, ProfibusState, Reply, Request,
+    StateFlag, Value,
 };
 use motionlink_powercube::sim::{SimBus, SimConfig};
 use motionlink_powercube::wire::can::{self, Role};
@@ -186,28 +187,61 @@ fn chapter_9_the_emulator_answers_with_the_true_length() {
 // ---------------------------------------------------------------------------------------------------------
 // Chapter 10: Profibus-DP
 
+/// Chapter 10's examples: the command's output bytes 0..6 (byte 7 is "X", the rolling counter) and the
+/// acknowledge in input bytes 0..7, as printed ("-" is 0x00).
+const PROFIBUS_EXAMPLES: [([u8; 7], [u8; 8]); 5] = [
+    // Home
+    ([0x01, 0, 0, 0, 0, 0, 0], [0x01, 0, 0, 0, 0, 0, 0, 0]),
+    // Reset
+    ([0x00, 0, 0, 0, 0, 0, 0], [0x00, 0, 0, 0, 0, 0, 0, 0]),
+    // Set ramp motion acceleration (0.5)
+    ([0x08, 0x50, 0x00, 0x00, 0x00, 0x3f, 0], [0x08, 0x50, 0x64, 0, 0, 0, 0, 0]),
+    // Set ramp motion velocity (0.08)
+    ([0x08, 0x4f, 0x0a, 0xd7, 0xa3, 0x3d, 0], [0x08, 0x4f, 0x64, 0, 0, 0, 0, 0]),
+    // Ramp motion command (0.75)
+    ([0x0b, 0x04, 0x00, 0x00, 0x40, 0x3f, 0], [0x0b, 0x04, 0x64, 0, 0, 0, 0, 0]),
+];
+
+fn profibus_requests() -> [Request; 5] {
+    [
+        Request::Action(Action::Home),
+        Request::Action(Action::Reset),
+        Request::Set(Param::TargetAcc, Value::F32(0.5)),
+        Request::Set(Param::TargetVel, Value::F32(0.08)),
+        Request::Motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Simple),
+    ]
+}
+
 #[test]
 fn chapter_10_profibus_images() {
     let mut w = OutputWriter::new();
-    let home = w.image(&Request::Action(Action::Home).encode()).unwrap();
-    assert_eq!(&home.0[..7], &[0x01, 0, 0, 0, 0, 0, 0]);
-    let reset = w.image(&Request::Action(Action::Reset).encode()).unwrap();
-    assert_eq!(reset.0[0], 0x00);
-    let acc = w.image(&Request::Set(Param::TargetAcc, Value::F32(0.5)).encode()).unwrap();
-    assert_eq!(&acc.0[..7], &[0x08, 0x50, 0x00, 0x00, 0x00, 0x3f, 0x00]);
-    let vel = w.image(&Request::Set(Param::TargetVel, Value::F32(0.08)).encode()).unwrap();
-    assert_eq!(&vel.0[..6], &[0x08, 0x4f, 0x0a, 0xd7, 0xa3, 0x3d]);
-    let ramp = w.image(&Request::Motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Simple).encode()).unwrap();
-    assert_eq!(&ramp.0[..6], &[0x0b, 0x04, 0x00, 0x00, 0x40, 0x3f]);
+    let expected_replies = [
+        Reply::Action(Action::Home),
+        Reply::Action(Action::Reset),
+        Reply::Set(Param::TargetAcc, ACK_OK),
+        Reply::Set(Param::TargetVel, ACK_OK),
+        Reply::Motion { id: motionlink_powercube::model::MotionId::FRamp, status: Some(ACK_OK), ext: None },
+    ];
+    let mut counters = Vec::new();
+    for ((req, (send, ack)), reply) in profibus_requests().iter().zip(PROFIBUS_EXAMPLES).zip(expected_replies) {
+        let image = w.image(&req.encode()).unwrap();
+        assert_eq!(&image.0[..7], &send, "{req}");
+        counters.push(image.counter());
+        // The printed acknowledge in input bytes 0..7, with the cyclic bytes 8..15 after it.
+        let input = InputImage::new(&Payload::new(&ack[..req.ack_len()]).unwrap(), 123_456, 0x0084, 17);
+        assert_eq!(input.reply_bytes(), &ack, "{req}");
+        assert_eq!(req.reply_from_image(&input).unwrap(), reply, "{req}");
+        assert_eq!(input.0[8], 0, "byte 8 is unused");
+        assert_eq!(&input.0[9..13], &123_456i32.to_le_bytes());
+        assert_eq!(&input.0[13..15], &[0x84, 0x00]);
+        assert_eq!(input.0[15], 17);
+        assert_eq!((input.position_ticks(), input.short_state_raw(), input.millis()), (123_456, 0x0084, 17));
+        assert_eq!(input.short_state(), ProfibusState(0x0084));
+        assert!(input.short_state().contains(ProfibusFlag::ReadyToPos));
+        assert!(input.short_state().contains(ProfibusFlag::EndMotion));
+    }
     // X: byte 7 changes with every command.
-    let counters = [home, reset, acc, vel, ramp].map(|i| i.counter());
     assert!(counters.windows(2).all(|w| w[0] != w[1]), "{counters:?}");
-    // The 16 input bytes: acknowledge, then position (Int32), short state (UInt16), ms.
-    let input = InputImage::new(&Payload::new(&[0x08, 0x50, 0x64]).unwrap(), 123_456, 0x0084, 17);
-    let req = Request::Set(Param::TargetAcc, Value::F32(0.5));
-    assert_eq!(req.reply_from_image(&input).unwrap(), Reply::Set(Param::TargetAcc, ACK_OK));
-    assert_eq!(&input.0[9..13], &123_456i32.to_le_bytes());
-    assert_eq!((input.position_ticks(), input.short_state(), input.millis()), (123_456, 0x0084, 17));
 }
 
 #[test]
@@ -215,13 +249,23 @@ fn chapter_10_the_emulator_exchanges_images() {
     let mut bus = SimBus::new(&SimConfig::with_addresses(&[17]).unwrap());
     let mut w = OutputWriter::new();
     let at = Timestamp::from_millis;
-    let req = Request::Action(Action::Home);
-    let img = bus.profibus_exchange(at(0), 17, &w.image(&req.encode()).unwrap()).unwrap();
-    assert_eq!(req.reply_from_image(&img).unwrap(), Reply::Action(Action::Home));
+    // Each example command in turn, one second apart: the acknowledge bytes are the manual's, byte for byte.
+    for (i, (req, (_, ack))) in profibus_requests().iter().zip(PROFIBUS_EXAMPLES).enumerate() {
+        let img = bus.profibus_exchange(at(1000 * i as u64), 17, &w.image(&req.encode()).unwrap()).unwrap();
+        assert_eq!(img.reply_bytes(), &ack, "{req}");
+        assert!(req.reply_from_image(&img).is_ok(), "{req}");
+        assert_eq!(img.0[8], 0, "byte 8 is unused");
+    }
     let req = Request::Get(Param::CubeState);
-    let img = bus.profibus_exchange(at(5_000), 17, &w.image(&req.encode()).unwrap()).unwrap();
+    let img = bus.profibus_exchange(at(20_000), 17, &w.image(&req.encode()).unwrap()).unwrap();
     let Reply::Get(_, Value::U32(s)) = req.reply_from_image(&img).unwrap() else { panic!() };
-    assert!(CubeState(s).contains(StateFlag::HomeOk));
-    assert_eq!(img.short_state() & 0x0004, 0x0004, "STATE_READYTOPOS");
-    assert_eq!(img.position_ticks(), 0);
+    let s = CubeState(s);
+    assert!(s.contains(StateFlag::HomeOk) && s.contains(StateFlag::RampEnd), "{s}");
+    // The cyclic bytes follow the module: homed, at rest at 0.75 rad, the short state mapped from CubeState.
+    assert_eq!(img.short_state(), s.profibus_state());
+    assert!(img.short_state().contains(ProfibusFlag::ReadyToPos), "STATE_READYTOPOS: {}", img.short_state());
+    let ticks = bus.module(17).unwrap().position_ticks().0;
+    assert_eq!(img.position_ticks(), ticks);
+    assert!(ticks > 0);
+    assert_eq!(img.millis(), (20_000 % 256) as u8);
 }

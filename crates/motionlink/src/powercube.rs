@@ -16,8 +16,8 @@ use motionlink_link::url::PortUrl;
 use motionlink_link::{LinkError, RealClock, SerialSettings, SharedClock};
 use motionlink_powercube::client::{Bus, BusConfig, Error as PcError, ModuleInfo, Progress};
 use motionlink_powercube::model::{
-    Acceleration, AckKind, Broadcast, CubeState, ModuleKind, Motion, Param, Position, Ramp, Reply, Request, StateFlag,
-    Value, Velocity,
+    Acceleration, AckKind, Broadcast, CubeState, ModuleKind, Motion, Param, Position, Reply, Request, StateFlag, Value,
+    Velocity,
 };
 use motionlink_powercube::sim::{SimBus, SimConfig};
 use motionlink_powercube::wire::can::{self as can_wire, Role};
@@ -42,8 +42,8 @@ pub struct Args {
     /// CAN bit rate of an SLCAN adapter (10000 .. 1000000).
     #[arg(long, default_value_t = 1_000_000)]
     pub bitrate: u32,
-    /// Acknowledge timeout in ms (default: 200 on RS232, 50 on CAN).
-    #[arg(long, value_name = "MS")]
+    /// Acknowledge timeout in ms, at least 1 (default: 200 on RS232, 50 on CAN).
+    #[arg(long, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..))]
     pub timeout_ms: Option<u64>,
     /// Print JSON instead of a table.
     #[arg(long, global = true)]
@@ -93,10 +93,12 @@ pub enum Action {
         /// The target position.
         #[arg(allow_negative_numbers = true)]
         position: f32,
-        /// Velocity (rad/s or m/s); the module's TargetVel if not given.
+        /// Velocity (rad/s or m/s, above 0), written to TargetVel first; if not given, the module's
+        /// TargetVel is used as it is.
         #[arg(long)]
         vel: Option<f32>,
-        /// Acceleration (rad/s² or m/s²); the module's TargetAcc if not given.
+        /// Acceleration (rad/s² or m/s², above 0), written to TargetAcc first; if not given, the module's
+        /// TargetAcc is used as it is.
         #[arg(long)]
         acc: Option<f32>,
         /// Give up (and halt) after this many seconds.
@@ -301,12 +303,34 @@ fn info_json(m: &ModuleInfo) -> serde_json::Value {
     })
 }
 
+/// Checks what can be checked before the port is opened: numbers that must be finite and positive.
+fn check_args(action: &Action) -> Result<(), CliError> {
+    match action {
+        Action::Move { position, vel, acc, timeout } => {
+            if !position.is_finite() {
+                return Err(CliError::usage(format!("the position must be a number, not {position}")));
+            }
+            for (name, value) in [("--vel", vel), ("--acc", acc)] {
+                if let Some(v) = value {
+                    if !(v.is_finite() && *v > 0.0) {
+                        return Err(CliError::usage(format!("{name} must be a number above 0, not {v}")));
+                    }
+                }
+            }
+            secs(*timeout).map(|_| ())
+        }
+        Action::Home { timeout } => secs(*timeout).map(|_| ()),
+        _ => Ok(()),
+    }
+}
+
 /// `motionlink powercube ...`
 pub fn run(args: Args) -> Result<(), CliError> {
     let mut out = std::io::stdout().lock();
     if let Action::Params = args.action {
         return print_params(&mut out, args.json);
     }
+    check_args(&args.action)?;
     let (bus, host) = open(&args)?;
     let in_process = host.is_some();
     bus.set_cancel_token(common::interrupt_token());
@@ -315,25 +339,39 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Action::Scan => {
             let found = bus.scan().map_err(cli_err)?;
             if args.json {
-                common::print_json(&mut out, &json!(found.iter().map(info_json).collect::<Vec<_>>()))?;
+                let entries: Vec<_> = found
+                    .iter()
+                    .map(|e| match &e.info {
+                        Ok(info) => info_json(info),
+                        Err(err) => json!({"address": e.address, "error": err.to_string()}),
+                    })
+                    .collect();
+                common::print_json(&mut out, &json!(entries))?;
             } else if found.is_empty() {
                 writeln!(out, "no module answered on {}", bus.describe())?;
             } else {
                 writeln!(out, "{:<7}  {:<6}  {:<7}  {:<8}  state", "address", "type", "version", "serial")?;
-                for i in &found {
-                    writeln!(
-                        out,
-                        "{:<7}  {:<6}  {:<7}  {:<8}  {}",
-                        i.address,
-                        i.kind.name(),
-                        i.version.to_string(),
-                        i.serial,
-                        i.state
-                    )?;
+                for e in &found {
+                    match &e.info {
+                        Ok(i) => writeln!(
+                            out,
+                            "{:<7}  {:<6}  {:<7}  {:<8}  {}",
+                            i.address,
+                            i.kind.name(),
+                            i.version.to_string(),
+                            i.serial,
+                            i.state
+                        )?,
+                        Err(err) => writeln!(out, "{:<7}  answered the scan, then: {err}", e.address)?,
+                    }
                 }
             }
             if found.is_empty() {
                 return Err(CliError::transport(format!("no module answered on {}", bus.describe())));
+            }
+            // Every module is listed; the exit code still says that one could not be read.
+            if let Some(e) = found.into_iter().find_map(|e| e.info.err()) {
+                return Err(cli_err(e));
             }
         }
         Action::Info => {
@@ -429,25 +467,12 @@ pub fn run(args: Args) -> Result<(), CliError> {
             done(&mut out, args.json, "halted")?;
         }
         Action::Move { position, vel, acc, timeout } => {
-            if !position.is_finite() {
-                return Err(CliError::usage("the position must be a number"));
-            }
             let timeout = secs(*timeout)?;
             with_watchdog(&bus, &args, in_process, &[args.module], || {
-                let ramp = match (vel, acc) {
-                    (None, None) => None,
-                    (v, a) => Some(Ramp {
-                        vel: Velocity(
-                            v.unwrap_or(m.get(Param::MaxVel).map_err(cli_err)?.as_f32().unwrap_or(0.1) / 2.0),
-                        ),
-                        acc: Acceleration(
-                            a.unwrap_or(m.get(Param::MaxAcc).map_err(cli_err)?.as_f32().unwrap_or(0.1) / 2.0),
-                        ),
-                    }),
-                };
                 let start = m.position().map_err(cli_err)?;
                 let distance = (position - start.0).abs();
-                m.move_ramp(Position(*position), ramp).map_err(cli_err)?;
+                // Only what was given is written; TargetVel / TargetAcc otherwise stay as the module has them.
+                m.move_ramp_with(Position(*position), vel.map(Velocity), acc.map(Acceleration)).map_err(cli_err)?;
                 tracing::info!("module {}: moving from {:.4} to {position}", args.module, start.0);
                 let bar = common::progress_bar((distance * 1000.0).round() as u64, format!("module {}", args.module));
                 let r = m.wait_ramp_end(timeout, &mut |p: &Progress| {
@@ -570,11 +595,8 @@ pub fn sim(args: SimArgs) -> Result<(), CliError> {
 /// Reads the decode input as text (or raw bytes with --raw).
 fn read_input(args: &CaptureArgs) -> Result<Result<String, Vec<u8>>, CliError> {
     if !args.hex.is_empty() {
-        let joined = args.hex.join(" ");
-        if joined.contains('#') {
-            return Ok(Ok(joined));
-        }
-        return common::read_capture(args).map(Err);
+        // Hex bytes or one candump frame; `decode` tells them apart by their shape.
+        return Ok(Ok(args.hex.join(" ")));
     }
     let mut input = Vec::new();
     std::io::stdin().read_to_end(&mut input)?;
@@ -635,15 +657,40 @@ fn describe_rs232(frame: &rs232::Rs232Frame) -> String {
     text
 }
 
+/// A comment line of a capture: `# ...` or `// ...`.
+fn is_comment(line: &str) -> bool {
+    let line = line.trim_start();
+    line.starts_with('#') || line.starts_with("//")
+}
+
+/// True if `line` has the shape of a candump line: a log line `(1700000000.000000) can0 0F1#01`, a frame
+/// `0F1#01` or `can0 0F1#01`, or a screen line `can0  0F1   [1]  01`. A hex capture (with `#` comment lines)
+/// never has it: its words are hex bytes, none with a `#` inside.
+fn looks_like_candump(line: &str) -> bool {
+    if is_comment(line) {
+        return false;
+    }
+    let words: Vec<&str> = line.split_whitespace().collect();
+    let frame_word =
+        |w: &str| w.split_once('#').is_some_and(|(id, _)| !id.is_empty() && id.chars().all(|c| c.is_ascii_hexdigit()));
+    match words.as_slice() {
+        [first, ..] if first.starts_with('(') && first.ends_with(')') => true,
+        [frame] => frame_word(frame),
+        [_, frame, ..] if frame_word(frame) => true,
+        [_, _, len, ..] => len.starts_with('[') && len.ends_with(']'),
+        _ => false,
+    }
+}
+
 /// `motionlink decode powercube`: RS232 bytes (hex or raw) or candump lines.
 pub fn decode(args: DecodeArgs) -> Result<(), CliError> {
     let mut out = std::io::stdout().lock();
     let bytes = match read_input(&args.capture)? {
-        Ok(text) if text.contains('#') => {
+        Ok(text) if text.lines().any(looks_like_candump) => {
             let mut bad = 0;
             for (i, line) in text.lines().enumerate() {
                 let line = line.trim();
-                if line.is_empty() || line.starts_with("//") {
+                if line.is_empty() || is_comment(line) {
                     continue;
                 }
                 match line.parse::<CandumpLine>() {

@@ -278,11 +278,20 @@ fn sim_configuration_errors_are_usage_errors() {
     let dir = std::env::temp_dir().join(format!("motionlink-pc-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let bad = dir.join("bad.toml");
-    std::fs::write(&bad, "[[module]]\naddress = 40\n").unwrap();
-    let out =
-        Command::new(BIN).args(["sim", "powercube", "--tcp", "127.0.0.1:0", "--config"]).arg(&bad).output().unwrap();
-    assert_eq!(code(&out), 2);
-    assert!(String::from_utf8_lossy(&out.stderr).contains("outside 1..31"));
+    for (text, needle) in [
+        ("[[module]]\naddress = 40\n", "outside 1..31"),
+        // A module without an address is a mistake, not module 1.
+        ("[[module]]\nkind = \"linear\"\n", "missing field `address`"),
+    ] {
+        std::fs::write(&bad, text).unwrap();
+        let out = Command::new(BIN)
+            .args(["sim", "powercube", "--tcp", "127.0.0.1:0", "--config"])
+            .arg(&bad)
+            .output()
+            .unwrap();
+        assert_eq!(code(&out), 2, "{text}");
+        assert!(String::from_utf8_lossy(&out.stderr).contains(needle), "{text}: {out:?}");
+    }
     let good = dir.join("good.toml");
     std::fs::write(&good, "[[module]]\naddress = 4\nkind = \"linear\"\nmin_pos = 0.0\nmax_pos = 0.2\n").unwrap();
     let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0", "--config", good.to_str().unwrap()]);
@@ -308,6 +317,26 @@ fn decode(input: &str) -> Output {
         .unwrap();
     child.stdin.take().unwrap().write_all(input.as_bytes()).unwrap();
     child.wait_with_output().unwrap()
+}
+
+#[test]
+fn a_hex_capture_with_comment_lines_is_not_taken_for_candump() {
+    let out = decode("# Home to module 17, and its acknowledge\n02 06 21 01 28 03\n# ack:\n02 0a 21 01 2c 03\n");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("to module 17: Home"), "{text}");
+    assert!(text.contains("from module 17: Home acknowledged"), "{text}");
+    // And a candump log may have comment lines too.
+    let out = decode("# candump -l can0\n(1700000000.000000) can0 0F1#01\n// ack\n(1700000000.000100) can0 0B1#01\n");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("put to module 17: Home") && text.contains("ack from module 17: Home acknowledged"),
+        "{text}"
+    );
+    // One frame given as an argument.
+    let out = Command::new(BIN).args(["decode", "powercube", "0D1#0A3C"]).output().unwrap();
+    assert!(String::from_utf8_lossy(&out.stdout).contains("get to module 17: GetExtended ActPos"), "{out:?}");
 }
 
 #[test]
@@ -352,4 +381,58 @@ fn demo_shows_the_manuals_examples() {
     ] {
         assert!(text.contains(needle), "{needle} missing in\n{text}");
     }
+}
+
+/// `get PARAM --json` of module 1, as a number.
+fn number(port: &str, param: &str) -> f64 {
+    let j: serde_json::Value = serde_json::from_str(&ok(port, &["--json", "get", param])).unwrap();
+    j["value"].as_f64().unwrap_or_else(|| panic!("{param}: {j}"))
+}
+
+#[test]
+fn move_writes_only_the_ramp_values_it_is_given() {
+    let sim = Sim::tcp("powercube");
+    let port = sim.address.as_str();
+    ok(port, &["home"]);
+    // TargetVel and TargetAcc are write-only; the emulator shows them in ticks (TargetVelInc, TargetAccInc).
+    let ratio = number(port, "IncRatio");
+    let ticks = |v: f64| (v * ratio).round();
+    ok(port, &["set", "TargetVel", "0.5"]);
+    ok(port, &["set", "TargetAcc", "4"]);
+    assert!(ok(port, &["move", "0.1", "--vel", "1"]).contains("reached: position 0.1000"));
+    assert_eq!(number(port, "TargetVelInc"), ticks(1.0));
+    assert_eq!(number(port, "TargetAccInc"), ticks(4.0), "TargetAcc kept, not replaced by a default");
+    assert!(ok(port, &["move", "0.0", "--acc", "2"]).contains("reached: position 0.0000"));
+    assert_eq!(number(port, "TargetVelInc"), ticks(1.0), "TargetVel kept");
+    assert_eq!(number(port, "TargetAccInc"), ticks(2.0));
+    assert!(ok(port, &["move", "0.05"]).contains("reached: position 0.0500"));
+    assert_eq!((number(port, "TargetVelInc"), number(port, "TargetAccInc")), (ticks(1.0), ticks(2.0)));
+}
+
+#[test]
+fn numbers_that_make_no_sense_are_usage_errors_and_nothing_is_sent() {
+    let sim = Sim::tcp("powercube");
+    let port = sim.address.as_str();
+    ok(port, &["set", "TargetVel", "0.5"]);
+    let vel = number(port, "TargetVelInc");
+    for args in [
+        &["move", "nan"][..],
+        &["move", "inf"],
+        &["move", "0.1", "--vel", "inf"],
+        &["move", "0.1", "--vel", "NaN"],
+        &["move", "0.1", "--acc", "nan"],
+        &["move", "0.1", "--vel", "0"],
+        &["move", "0.1", "--acc=-1"],
+        &["move", "0.1", "--timeout", "nan"],
+        &["--timeout-ms", "0", "state"],
+        &["--timeout-ms", "0", "move", "0.1"],
+    ] {
+        let out = run(port, args);
+        assert_eq!(code(&out), 2, "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    }
+    // Nothing moved, nothing was written.
+    assert_eq!(number(port, "ActPos"), f64::from(0.05f32));
+    assert_eq!(number(port, "TargetVelInc"), vel);
+    let state: serde_json::Value = serde_json::from_str(&ok(port, &["--json", "state"])).unwrap();
+    assert!(!state["flags"].as_array().unwrap().iter().any(|f| f == "STATE_MOTION"), "{state}");
 }

@@ -319,13 +319,29 @@ fn parse_frame(letter: u8, args: &[u8]) -> Result<SlcanMessage, SlcanError> {
 /// How long [`SlcanLink::open`] waits for the adapter to answer each setup command.
 pub const SETUP_TIMEOUT: Duration = Duration::from_millis(500);
 
+/// How many sent frames [`SlcanLink`] remembers while their answer (`z`, `Z`, an empty line or a bell) is
+/// on its way; an adapter that never answers sends only makes it forget the oldest.
+const MAX_AWAITING: usize = 64;
+
 /// A [`CanLink`] through a serial SLCAN adapter on any byte [`Link`] (a serial port, a pty, TCP).
+///
+/// The adapter answers every frame it is given: `z` (`Z` for an extended frame; some firmware sends an
+/// empty line) once queued, a bell (0x07) if it refuses it (channel closed, transmit queue full, bus off).
+/// [`CanLink::send`] does not wait for that answer (waiting would cost a serial round trip per frame, up
+/// to 16 ms on an FTDI-based adapter, and serialise a batch of requests); the answers are matched to the
+/// frames in order, and a refusal is returned as a [`LinkError`] naming the refused frame by the next
+/// [`CanLink::recv`], before any frame received: within the same exchange, so a caller waiting for an answer
+/// learns at once that its frame never went out instead of waiting for a timeout.
 pub struct SlcanLink<L> {
     inner: L,
     clock: SharedClock,
     decoder: SlcanDecoder,
     frames: VecDeque<CanFrame>,
-    /// Bells seen since the last send (refused frames).
+    /// Frames sent whose answer has not come yet, oldest first.
+    awaiting: VecDeque<CanFrame>,
+    /// A refusal not reported yet: the refused frame, if known.
+    refusal: Option<Option<CanFrame>>,
+    /// Bells seen (refused frames).
     refused: u64,
     name: String,
 }
@@ -350,10 +366,19 @@ impl<L: Link> SlcanLink<L> {
     /// Wraps an adapter whose channel is already open (no setup commands are sent).
     pub fn wrap(inner: L, clock: SharedClock) -> Self {
         let name = format!("slcan://{}", inner.describe());
-        SlcanLink { inner, clock, decoder: SlcanDecoder::new(), frames: VecDeque::new(), refused: 0, name }
+        SlcanLink {
+            inner,
+            clock,
+            decoder: SlcanDecoder::new(),
+            frames: VecDeque::new(),
+            awaiting: VecDeque::new(),
+            refusal: None,
+            refused: 0,
+            name,
+        }
     }
 
-    /// Number of bells (refused commands) seen so far.
+    /// Number of bells (refused frames) seen so far.
     pub fn refused(&self) -> u64 {
         self.refused
     }
@@ -395,14 +420,31 @@ impl<L: Link> SlcanLink<L> {
         for &b in bytes {
             match self.decoder.push(b) {
                 Some(Ok(SlcanMessage::Frame { frame, .. })) => self.frames.push_back(frame),
+                Some(Ok(SlcanMessage::Sent { .. } | SlcanMessage::Ok)) => {
+                    self.awaiting.pop_front();
+                }
                 Some(Ok(SlcanMessage::Bell)) => {
                     self.refused += 1;
-                    tracing::debug!("{}: the adapter refused a command", self.name);
+                    let frame = self.awaiting.pop_front();
+                    tracing::debug!("{}: the adapter refused {frame:?}", self.name);
+                    // The first refusal is reported; later ones are counted.
+                    self.refusal.get_or_insert(frame);
                 }
                 Some(Ok(_)) => {}
                 Some(Err(e)) => tracing::debug!("{}: {e}", self.name),
                 None => {}
             }
+        }
+    }
+
+    fn refusal_error(&self, frame: Option<CanFrame>) -> LinkError {
+        let what = frame.map_or_else(|| "a frame".to_string(), |f| f.to_string());
+        LinkError::Io {
+            port: self.name.clone(),
+            source: std::io::Error::other(format!(
+                "the adapter refused to send {what} (it rang the bell: channel closed, transmit queue full or \
+                 bus off)"
+            )),
         }
     }
 }
@@ -411,13 +453,22 @@ impl<L: Link> CanLink for SlcanLink<L> {
     fn send(&mut self, frame: &CanFrame) -> Result<(), LinkError> {
         let mut line = [0u8; MAX_LINE];
         let n = encode_frame(frame, &mut line);
-        self.inner.send(&line[..n])
+        self.inner.send(&line[..n])?;
+        if self.awaiting.len() >= MAX_AWAITING {
+            self.awaiting.pop_front();
+        }
+        self.awaiting.push_back(*frame);
+        Ok(())
     }
 
+    /// The next frame received; first, a [`LinkError`] if the adapter refused a frame sent earlier.
     fn recv(&mut self, timeout: Duration) -> Result<Option<CanFrame>, LinkError> {
         let deadline = self.clock.now() + timeout;
         let mut buf = [0u8; 256];
         loop {
+            if let Some(frame) = self.refusal.take() {
+                return Err(self.refusal_error(frame));
+            }
             if let Some(f) = self.frames.pop_front() {
                 return Ok(Some(f));
             }
@@ -431,8 +482,11 @@ impl<L: Link> CanLink for SlcanLink<L> {
         }
     }
 
+    /// Drops the frames received and not read. The answers to frames sent may be among the bytes dropped,
+    /// so they are no longer expected; a refusal already seen is still reported.
     fn discard_input(&mut self) -> Result<(), LinkError> {
         self.frames.clear();
+        self.awaiting.clear();
         self.inner.discard_input()
     }
 
@@ -447,7 +501,9 @@ impl<L: Link> CanLink for SlcanLink<L> {
 /// Serves a [`CanEmulator`] on a byte stream as a serial SLCAN adapter would: setup commands answered, frames
 /// from the host handed to the device while the channel is open, the device's frames sent as `t` lines.
 ///
-/// Frames sent by the host while the channel is closed are refused with a bell, as adapters do.
+/// Frames sent by the host while the channel is closed are refused with a bell, as adapters do;
+/// [`SlcanAdapter::refuse_next`] makes it refuse frames while open (a full transmit queue, a controller gone
+/// bus off).
 pub struct SlcanAdapter<E> {
     device: E,
     decoder: SlcanDecoder,
@@ -455,6 +511,7 @@ pub struct SlcanAdapter<E> {
     timestamps: bool,
     bitrate: Option<SlcanBitrate>,
     frames: Vec<CanFrame>,
+    refuse: u64,
 }
 
 impl<E: CanEmulator> SlcanAdapter<E> {
@@ -467,7 +524,14 @@ impl<E: CanEmulator> SlcanAdapter<E> {
             timestamps: false,
             bitrate: None,
             frames: Vec::new(),
+            refuse: 0,
         }
+    }
+
+    /// Refuses the next `count` frames from the host with a bell, as an adapter whose transmit queue is full
+    /// or whose controller is bus off does (a test hook).
+    pub fn refuse_next(&mut self, count: u64) {
+        self.refuse = count;
     }
 
     /// The device behind the adapter.
@@ -511,6 +575,11 @@ impl<E: CanEmulator> SlcanAdapter<E> {
         match msg {
             Ok(SlcanMessage::Frame { frame, .. }) => {
                 if !self.open {
+                    out.push(BELL);
+                    return;
+                }
+                if self.refuse > 0 {
+                    self.refuse -= 1;
                     out.push(BELL);
                     return;
                 }

@@ -37,8 +37,9 @@ use motionlink_link::clock::lock as lock_mutex;
 use motionlink_link::{Link, LinkError, SharedClock, Signal, Timestamp};
 
 use crate::model::{
-    AckKind, Action, Broadcast, ConfigFlag, ConfigWord, CubeState, CubeVersion, Dio, ExtAck, Millis, ModelError,
-    ModuleKind, Motion, Param, Position, Ramp, Reply, Request, ShortState, StateFlag, Ticks, Value,
+    Acceleration, AckKind, Action, Broadcast, ConfigFlag, ConfigWord, CubeState, CubeVersion, Dio, ExtAck, Millis,
+    ModelError, ModuleKind, Motion, Param, Position, Ramp, Reply, Request, ShortState, StateFlag, Ticks, Value,
+    Velocity,
 };
 use crate::wire::{is_module_address, ACK_OK, MAX_ADDRESS};
 use motionlink_link::clock_lock::ClockLock;
@@ -59,6 +60,11 @@ pub struct BusConfig {
     pub watchdog_period: Duration,
     /// How often the state is polled while waiting for homing or a motion to end.
     pub poll_interval: Duration,
+    /// Let [`Bus::enable_watchdog`] arm modules on RS232 (default false). The manual defines no broadcast
+    /// on RS232: the refresh goes to address 0, a guess that real modules may ignore (they would then halt
+    /// 50 ms after the life sign, or, worse, the watchdog would not protect anything). Opt in only for a
+    /// chain known to take address 0, or for the emulator.
+    pub watchdog_on_rs232: bool,
 }
 
 impl BusConfig {
@@ -70,6 +76,7 @@ impl BusConfig {
             scan_timeout: Duration::from_millis(60),
             watchdog_period: Duration::from_millis(20),
             poll_interval: Duration::from_millis(20),
+            watchdog_on_rs232: false,
         }
     }
 
@@ -81,6 +88,7 @@ impl BusConfig {
             scan_timeout: Duration::from_millis(50),
             watchdog_period: Duration::from_millis(20),
             poll_interval: Duration::from_millis(20),
+            watchdog_on_rs232: false,
         }
     }
 }
@@ -204,6 +212,23 @@ impl Error {
     }
 }
 
+/// One module a scan found: its address, and its type, version, serial number and state, or the error that
+/// kept the session from reading them (the module answered the scan, so it is there; the rest of the scan
+/// goes on without it).
+#[derive(Debug)]
+pub struct ScanEntry {
+    /// The address that answered.
+    pub address: u8,
+    /// What [`Module::info`] read, or why it could not (also a scan answer that stayed corrupt on every
+    /// retry).
+    pub info: Result<ModuleInfo, Error>,
+}
+
+/// An answer that decoded but is not what `request` asks for (a value of another type, another reply).
+fn unexpected(address: u8, request: &Request, what: impl fmt::Display) -> Error {
+    Error::Corrupt { address, request: request.to_string(), detail: format!("unexpected answer {what}") }
+}
+
 /// What a scan finds at one address.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ModuleInfo {
@@ -250,7 +275,13 @@ struct Inner {
     io: ClockLock<Transport>,
     description: String,
     can: bool,
+    /// Modules this session may have set in motion and has not seen stop (halted on drop).
     started: Mutex<BTreeSet<u8>>,
+    /// Modules known to exist: every address that has answered this session (a scan, any request).
+    known: Mutex<BTreeSet<u8>>,
+    /// The session lost its line or could not stop what it started: a link error, a failed watchdog
+    /// refresh, a known module that stopped answering. A failed session leaves the watchdog online on drop.
+    failed: AtomicBool,
     duty: Mutex<WatchdogDuty>,
     kinds: Mutex<BTreeMap<u8, ModuleKind>>,
     cancel: Mutex<Option<CancelToken>>,
@@ -264,8 +295,11 @@ struct WatchdogThread {
 
 /// A session with the modules on one line (RS232) or one CAN bus.
 ///
-/// Dropping it stops the watchdog thread and halts every module the session set in motion that is still
-/// moving (or cannot be asked).
+/// Dropping it halts every module the session set in motion that is still moving (or cannot be asked),
+/// then, if the session switched watchdogs on and has not failed, switches them off again and restores the
+/// Config words as [`Bus::disable_watchdog`] does, and stops the refresh thread. A session that failed (its
+/// line broke, a refresh could not be sent, a module it started stopped answering) leaves the watchdogs
+/// online: the modules halt within 50 ms, which is the watchdog's purpose.
 pub struct Bus {
     inner: Arc<Inner>,
     watchdog: Mutex<Option<WatchdogThread>>,
@@ -307,6 +341,8 @@ impl Bus {
                 description,
                 can,
                 started: Mutex::new(BTreeSet::new()),
+                known: Mutex::new(BTreeSet::new()),
+                failed: AtomicBool::new(false),
                 duty: Mutex::new(duty),
                 kinds: Mutex::new(BTreeMap::new()),
                 cancel: Mutex::new(None),
@@ -349,11 +385,41 @@ impl Bus {
         Ok(Module { bus: self, address })
     }
 
-    /// One request, its acknowledge checked; reads are retried.
-    pub fn request(&self, address: u8, request: &Request) -> Result<Reply, Error> {
+    /// Checks a request before it is sent: the address (1..31), the manual's rules
+    /// ([`Request::validate`]: access, value type, finite floats, the MotionID for the acknowledge asked),
+    /// and, on CAN, no CONFIGID_MOD_DISABLE_ACK (this client needs acknowledges). Every request goes through
+    /// here.
+    fn check(&self, address: u8, request: &Request) -> Result<(), Error> {
         if !is_module_address(address) {
             return Err(Error::InvalidAddress(address));
         }
+        request.validate()?;
+        if let Request::Set(Param::Config, value) = request {
+            let word = value.as_u32().map(ConfigWord);
+            if self.inner.can && word.is_some_and(|w| w.contains(ConfigFlag::DisableAck)) {
+                return Err(Error::Unsupported(
+                    "CONFIGID_MOD_DISABLE_ACK: this client needs the acknowledges of its commands".into(),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// True once the session has failed: its line broke, a watchdog refresh could not be sent, or a module it
+    /// set in motion stopped answering. A failed session leaves the watchdog online when dropped.
+    pub fn failed(&self) -> bool {
+        self.inner.failed.load(Ordering::SeqCst)
+    }
+
+    /// Modules known to exist: every address that answered this session.
+    pub fn known(&self) -> Vec<u8> {
+        lock_mutex(&self.inner.known).iter().copied().collect()
+    }
+
+    /// One request, checked before it is sent ([`Request::validate`]; nothing is sent if it breaks the
+    /// manual's rules), its acknowledge checked; reads are retried.
+    pub fn request(&self, address: u8, request: &Request) -> Result<Reply, Error> {
+        self.check(address, request)?;
         let attempts = if request.is_idempotent() { 1 + self.inner.config.read_retries } else { 1 };
         if request.starts_motion() {
             lock_mutex(&self.inner.started).insert(address);
@@ -374,12 +440,13 @@ impl Bus {
     }
 
     /// Several requests to several modules; on CAN all are sent at once and the acknowledges collected in
-    /// any order, on RS232 one after the other. Reads that fail are retried.
+    /// any order, on RS232 one after the other. Each is checked as [`Bus::request`] checks it (one that
+    /// breaks the rules gets its error and is not sent; the others are). Reads that fail are retried.
     pub fn request_many(&self, requests: &[(u8, Request)]) -> Vec<Result<Reply, Error>> {
         let mut results: Vec<Option<Result<Reply, Error>>> = requests.iter().map(|_| None).collect();
         for (i, (address, request)) in requests.iter().enumerate() {
-            if !is_module_address(*address) {
-                results[i] = Some(Err(Error::InvalidAddress(*address)));
+            if let Err(e) = self.check(*address, request) {
+                results[i] = Some(Err(e));
             } else if request.starts_motion() {
                 lock_mutex(&self.inner.started).insert(*address);
             }
@@ -418,69 +485,96 @@ impl Bus {
         let requests: Vec<(u8, Request)> = addresses.iter().map(|a| (*a, req)).collect();
         self.request_many(&requests)
             .into_iter()
-            .map(|r| match r? {
+            .zip(addresses)
+            .map(|(r, a)| match r? {
                 Reply::Get(_, v) => Ok(v),
-                other => Err(Error::Unsupported(format!("unexpected answer {other}"))),
+                other => Err(unexpected(*a, &req, other)),
             })
             .collect()
     }
 
     /// The positions of `addresses` (ActPos), on CAN in one round.
     pub fn positions(&self, addresses: &[u8]) -> Vec<Result<Position, Error>> {
+        let req = Request::Get(Param::ActPos);
         self.read_many(addresses, Param::ActPos)
             .into_iter()
-            .map(|r| r.map(|v| Position(v.as_f32().unwrap_or(f32::NAN))))
+            .zip(addresses)
+            .map(|(r, a)| {
+                r.and_then(|v| v.as_f32().map(Position).ok_or_else(|| unexpected(*a, &req, format!("{v:?}"))))
+            })
             .collect()
     }
 
     /// Sends a broadcast (never acknowledged). On RS232, where the manual defines no broadcast, it goes to
-    /// address 0, which the emulator treats as every module.
+    /// address 0, which the emulator treats as every module and real modules may ignore.
+    ///
+    /// Home and StartMotion count as setting in motion every module the session knows ([`Bus::known`]: the
+    /// addresses that have answered it, so scan first or talk to the modules first), so that a drop looks at
+    /// them; absent addresses are not. A Halt clears that list on CAN only: on RS232 the modules may have
+    /// ignored it, so a drop still asks each one and halts it by address if it moves.
     pub fn broadcast(&self, broadcast: Broadcast) -> Result<(), Error> {
         match broadcast {
-            Broadcast::Halt => lock_mutex(&self.inner.started).clear(),
+            Broadcast::Halt if self.inner.can => lock_mutex(&self.inner.started).clear(),
             Broadcast::Home | Broadcast::StartMotion => {
-                // Every module may move: a drop must look at all of them.
-                lock_mutex(&self.inner.started).extend(1..=MAX_ADDRESS);
+                let known = lock_mutex(&self.inner.known).clone();
+                lock_mutex(&self.inner.started).extend(known);
             }
             _ => {}
         }
         let mut io = self.inner.io.lock();
-        io.broadcast(&broadcast.encode())?;
+        if let Err(e) = io.broadcast(&broadcast.encode()) {
+            self.inner.failed.store(true, Ordering::SeqCst);
+            return Err(e.into());
+        }
         Ok(())
     }
 
-    /// Asks addresses 1..31 for their version; returns what answers, with type, serial number and state.
-    pub fn scan(&self) -> Result<Vec<ModuleInfo>, Error> {
-        let found: Vec<u8> = if self.inner.can {
-            let batch: Vec<(u8, Request)> =
-                (1..=MAX_ADDRESS).map(|a| (a, Request::Get(Param::DefCubeVersion))).collect();
-            let answers = self.inner.transact_many(&batch, self.inner.config.scan_timeout);
-            let mut found = Vec::new();
+    /// Asks addresses 1..31 for their version; returns every address that answers, with its type, serial
+    /// number and state, or the error that kept them from being read (per module: one module that fails
+    /// does not fail the scan). Silence is absence; a corrupt answer is something there and is asked again
+    /// (up to [`BusConfig::read_retries`] times) before it is reported as that module's error. Only a failed
+    /// line fails the whole scan.
+    pub fn scan(&self) -> Result<Vec<ScanEntry>, Error> {
+        let probe = Request::Get(Param::DefCubeVersion);
+        let timeout = self.inner.config.scan_timeout;
+        let mut todo: Vec<u8> = (1..=MAX_ADDRESS).collect();
+        let mut answered = BTreeSet::new();
+        let mut broken: BTreeMap<u8, Error> = BTreeMap::new();
+        for _ in 0..=self.inner.config.read_retries {
+            if todo.is_empty() {
+                break;
+            }
+            let batch: Vec<(u8, Request)> = todo.iter().map(|a| (*a, probe)).collect();
+            let answers = if self.inner.can {
+                self.inner.transact_many(&batch, timeout)
+            } else {
+                batch.iter().flat_map(|r| self.inner.transact_many(&[*r], timeout)).collect()
+            };
+            todo.clear();
             for ((a, _), r) in batch.iter().zip(answers) {
                 match r {
-                    Ok(_) => found.push(*a),
-                    Err(e) if e.retryable() => {}
+                    Ok(_) => {
+                        broken.remove(a);
+                        answered.insert(*a);
+                    }
+                    Err(e @ Error::Corrupt { .. }) => {
+                        tracing::debug!("scan: {e}; asking again");
+                        todo.push(*a);
+                        broken.insert(*a, e);
+                    }
+                    // Nobody there (or, after a corrupt answer, silence: `broken` keeps that error).
+                    Err(Error::Timeout { .. }) => {}
                     Err(e) => return Err(e),
                 }
             }
-            found
-        } else {
-            let mut found = Vec::new();
-            for a in 1..=MAX_ADDRESS {
-                match self
-                    .inner
-                    .transact_many(&[(a, Request::Get(Param::DefCubeVersion))], self.inner.config.scan_timeout)
-                    .pop()
-                {
-                    Some(Ok(_)) => found.push(a),
-                    Some(Err(e)) if e.retryable() => {}
-                    Some(Err(e)) => return Err(e),
-                    None => {}
-                }
-            }
-            found
-        };
-        found.into_iter().map(|a| self.module(a)?.info()).collect()
+        }
+        let mut entries: Vec<ScanEntry> = answered
+            .into_iter()
+            .map(|address| ScanEntry { address, info: self.module(address).and_then(|m| m.info()) })
+            .collect();
+        entries.extend(broken.into_iter().map(|(address, e)| ScanEntry { address, info: Err(e) }));
+        entries.sort_by_key(|e| e.address);
+        Ok(entries)
     }
 
     /// Switches the watchdog on in `addresses`: sets CONFIGID_MOD_WATCHDOG_ENABLE in their Config word where
@@ -493,9 +587,17 @@ impl Bus {
     /// with [`Error::Device`] before anything is changed in any module: its watchdog is probably still
     /// online, and a life sign would switch it off. [`Module::reset_and_release_watchdog`] clears it.
     ///
-    /// On RS232 the refresh goes to address 0, which real modules may ignore: see
-    /// [`Bus::watchdog_reliable`].
+    /// On RS232 the refresh goes to address 0, which the manual does not define and real modules may ignore
+    /// (see [`Bus::watchdog_reliable`]): there it is refused with [`Error::Unsupported`] unless
+    /// [`BusConfig::watchdog_on_rs232`] opts in.
     pub fn enable_watchdog(&self, addresses: &[u8]) -> Result<(), Error> {
+        if !self.inner.can && !self.inner.config.watchdog_on_rs232 {
+            return Err(Error::Unsupported(
+                "no watchdog on RS232: the manual defines no broadcast there, so the refresh (sent to address 0) \
+                 may never reach the modules; set BusConfig::watchdog_on_rs232 to arm it anyway"
+                    .into(),
+            ));
+        }
         let mut words = Vec::with_capacity(addresses.len());
         for &a in addresses {
             let module = self.module(a)?;
@@ -669,22 +771,36 @@ impl Bus {
 
     /// Halts every module this session set in motion that is still moving or cannot be asked; what
     /// [`Drop`] does, callable earlier.
+    ///
+    /// Each one is asked for its state and halted by address if it moves. A module that never answered this
+    /// session and does not answer now is taken as absent. A known module that does not answer, or a halt
+    /// that fails, calls for a broadcast Halt of the whole bus and marks the session failed.
     pub fn halt_started(&self) {
+        self.halt_started_clean();
+    }
+
+    /// [`Bus::halt_started`]; false if a broadcast Halt was needed (the session failed).
+    fn halt_started_clean(&self) -> bool {
         let started: Vec<u8> = lock_mutex(&self.inner.started).iter().copied().collect();
         if started.is_empty() {
-            return;
+            return true;
         }
+        let known = lock_mutex(&self.inner.known).clone();
         let states =
             self.request_many(&started.iter().map(|a| (*a, Request::Get(Param::CubeState))).collect::<Vec<_>>());
-        let mut failed = false;
+        let mut halt_all = false;
         for (a, s) in started.iter().zip(states) {
             let moving = match s {
                 Ok(Reply::Get(_, Value::U32(s))) => CubeState(s).contains(StateFlag::Motion),
                 Ok(_) => true,
-                // A module that did not answer the state poll is not one that answers: skip it, but try the
-                // broadcast below.
+                // Never answered this session and silent now: nobody is there.
+                Err(Error::Timeout { .. }) if !known.contains(a) => {
+                    tracing::debug!("module {a} never answered this session: taken as absent");
+                    false
+                }
+                // A module that answered before and not now cannot be halted by address: broadcast below.
                 Err(Error::Timeout { .. }) => {
-                    failed = true;
+                    halt_all = true;
                     false
                 }
                 Err(_) => true,
@@ -692,20 +808,39 @@ impl Bus {
             if moving {
                 tracing::warn!("halting module {a}, set in motion by this session");
                 if self.request(*a, &Request::Action(Action::Halt)).is_err() {
-                    failed = true;
+                    halt_all = true;
                 }
             }
         }
-        if failed {
+        if halt_all {
+            tracing::warn!("{}: a module this session started cannot be asked; halting every module", self.describe());
+            self.inner.failed.store(true, Ordering::SeqCst);
             let _ = self.broadcast(Broadcast::Halt);
         }
         lock_mutex(&self.inner.started).clear();
+        !halt_all
     }
 }
 
 impl Drop for Bus {
+    /// Halts what the session started and still moves; then, unless the session failed, switches off the
+    /// watchdogs it switched on and restores their Config words ([`Bus::disable_watchdog`]); then stops the
+    /// refresh thread. After a failure the watchdogs stay online and the modules halt within 50 ms.
     fn drop(&mut self) {
-        self.halt_started();
+        let clean = self.halt_started_clean();
+        let armed = {
+            let duty = lock_mutex(&self.inner.duty);
+            duty.serving || !duty.online.is_empty() || !duty.config_before.is_empty()
+        };
+        if armed {
+            if clean && !self.failed() {
+                if let Err(e) = self.disable_watchdog() {
+                    tracing::warn!("switching the watchdog off on drop failed (those modules halt within 50 ms): {e}");
+                }
+            } else {
+                tracing::warn!("the session failed: the watchdog stays online and the modules halt within 50 ms");
+            }
+        }
         self.stop_watchdog_thread();
     }
 }
@@ -735,6 +870,7 @@ impl Inner {
         if let Err(e) = io.broadcast(&Broadcast::WatchdogRefresh.encode()) {
             tracing::warn!("watchdog refresh failed: {e}");
             lock_mutex(&self.duty).last_error = Some(e.to_string());
+            self.failed.store(true, Ordering::SeqCst);
         }
     }
 
@@ -777,6 +913,7 @@ impl Inner {
                     match (slot, reply) {
                         (Some(i), Ok(r)) => {
                             results[i] = Some(Ok(r));
+                            lock_mutex(&self.known).insert(address);
                             open -= 1;
                         }
                         (_, Err(e)) => {
@@ -818,6 +955,7 @@ impl Inner {
     }
 
     fn fail_all(&self, batch: &[(u8, Request)], e: LinkError) -> Vec<Result<Reply, Error>> {
+        self.failed.store(true, Ordering::SeqCst);
         let text = e.to_string();
         let disconnect = e.is_disconnect();
         let mut first = Some(e);
@@ -882,23 +1020,16 @@ impl Module<'_> {
 
     /// Reads `param` (refused before sending if it is write-only).
     pub fn get(&self, param: Param) -> Result<Value, Error> {
-        match self.request(&Request::get(param)?)? {
+        let request = Request::get(param)?;
+        match self.request(&request)? {
             Reply::Get(_, v) => Ok(v),
-            other => Err(Error::Unsupported(format!("unexpected answer {other}"))),
+            other => Err(unexpected(self.address, &request, other)),
         }
     }
 
-    /// Writes `param` (refused before sending if it is read-only or `value` has another type).
+    /// Writes `param` (refused before sending if it is read-only, `value` has another type or is not a
+    /// finite number, or, on CAN, it would disable the acknowledges).
     pub fn set(&self, param: Param, value: Value) -> Result<(), Error> {
-        if param == Param::Config && self.bus.inner.can {
-            if let Some(word) = value.as_u32() {
-                if ConfigWord(word).contains(ConfigFlag::DisableAck) {
-                    return Err(Error::Unsupported(
-                        "CONFIGID_MOD_DISABLE_ACK: this client needs the acknowledges of its commands".into(),
-                    ));
-                }
-            }
-        }
         let request = Request::set(param, value)?;
         self.request(&request)?;
         if param == Param::Config {
@@ -907,12 +1038,18 @@ impl Module<'_> {
         Ok(())
     }
 
+    /// Reads `param` and converts it with `convert`; a value of another type is a corrupt answer.
+    fn get_as<T>(&self, param: Param, convert: impl FnOnce(&Value) -> Option<T>) -> Result<T, Error> {
+        let value = self.get(param)?;
+        convert(&value).ok_or_else(|| unexpected(self.address, &Request::Get(param), format!("{value:?}")))
+    }
+
     fn get_f32(&self, param: Param) -> Result<f32, Error> {
-        self.get(param)?.as_f32().ok_or_else(|| Error::Unsupported(format!("{param} is not a float")))
+        self.get_as(param, Value::as_f32)
     }
 
     fn get_u32(&self, param: Param) -> Result<u32, Error> {
-        self.get(param)?.as_u32().ok_or_else(|| Error::Unsupported(format!("{param} is not an unsigned integer")))
+        self.get_as(param, Value::as_u32)
     }
 
     /// The actual position (ActPos).
@@ -922,7 +1059,7 @@ impl Module<'_> {
 
     /// The actual position in encoder ticks (ActIPos).
     pub fn position_ticks(&self) -> Result<Ticks, Error> {
-        Ok(Ticks(self.get(Param::ActIPos)?.as_i32().unwrap_or(0)))
+        Ok(Ticks(self.get_as(Param::ActIPos, Value::as_i32)?))
     }
 
     /// The state word (CubeState).
@@ -932,10 +1069,10 @@ impl Module<'_> {
 
     /// Position, short state and DIO in one read (ActFPosStateDio).
     pub fn position_state_dio(&self) -> Result<(Position, ShortState, Dio), Error> {
-        match self.get(Param::ActFPosStateDio)? {
-            Value::PosStateDio { pos, state, dio } => Ok((Position(pos), state, dio)),
-            other => Err(Error::Unsupported(format!("unexpected value {other:?}"))),
-        }
+        self.get_as(Param::ActFPosStateDio, |v| match *v {
+            Value::PosStateDio { pos, state, dio } => Some((Position(pos), state, dio)),
+            _ => None,
+        })
     }
 
     /// The Config word.
@@ -956,10 +1093,10 @@ impl Module<'_> {
 
     /// Type, version, serial number and state.
     pub fn info(&self) -> Result<ModuleInfo, Error> {
-        let version = match self.get(Param::DefCubeVersion)? {
-            Value::U16(v) => CubeVersion(v),
-            other => return Err(Error::Unsupported(format!("unexpected version {other:?}"))),
-        };
+        let version = self.get_as(Param::DefCubeVersion, |v| match *v {
+            Value::U16(v) => Some(CubeVersion(v)),
+            _ => None,
+        })?;
         Ok(ModuleInfo {
             address: self.address,
             kind: self.kind()?,
@@ -1027,9 +1164,10 @@ impl Module<'_> {
 
     /// A motion command in any mode; returns the extended acknowledge if `ack` asks for one.
     pub fn motion(&self, motion: Motion, ack: AckKind) -> Result<Option<ExtAck>, Error> {
-        match self.request(&Request::motion(motion, ack)?)? {
+        let request = Request::motion(motion, ack)?;
+        match self.request(&request)? {
             Reply::Motion { ext, .. } => Ok(ext),
-            other => Err(Error::Unsupported(format!("unexpected answer {other}"))),
+            other => Err(unexpected(self.address, &request, other)),
         }
     }
 
@@ -1038,16 +1176,22 @@ impl Module<'_> {
         self.request(&Request::IStep { pos, time }).map(|_| ())
     }
 
-    /// A ramp move to `pos`, first setting TargetVel and TargetAcc if `ramp` is given.
+    /// A ramp move to `pos`, first setting TargetVel and TargetAcc if `ramp` is given. Every value is checked
+    /// before anything is sent (a NaN or infinite one is [`ModelError::NotFinite`]).
     pub fn move_ramp(&self, pos: Position, ramp: Option<Ramp>) -> Result<(), Error> {
-        if !pos.0.is_finite() {
-            return Err(Error::Unsupported(format!("target position {} is not a number", pos.0)));
+        self.move_ramp_with(pos, ramp.map(|r| r.vel), ramp.map(|r| r.acc))
+    }
+
+    /// A ramp move to `pos`, first setting TargetVel if `vel` is given and TargetAcc if `acc` is given; what
+    /// is not given stays as the module has it. Every value is checked before anything is sent.
+    pub fn move_ramp_with(&self, pos: Position, vel: Option<Velocity>, acc: Option<Acceleration>) -> Result<(), Error> {
+        let motion = Request::motion(Motion::FRamp { pos }, AckKind::Simple)?;
+        let vel = vel.map(|v| Request::set(Param::TargetVel, Value::F32(v.0))).transpose()?;
+        let acc = acc.map(|a| Request::set(Param::TargetAcc, Value::F32(a.0))).transpose()?;
+        for r in [vel, acc].iter().flatten() {
+            self.request(r)?;
         }
-        if let Some(r) = ramp {
-            self.set(Param::TargetVel, Value::F32(r.vel.0))?;
-            self.set(Param::TargetAcc, Value::F32(r.acc.0))?;
-        }
-        self.motion(Motion::FRamp { pos }, AckKind::Simple).map(|_| ())
+        self.request(&motion).map(|_| ())
     }
 
     /// Waits until homing has ended (STATE_HOME_OK, not moving).

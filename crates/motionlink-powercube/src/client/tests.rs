@@ -3,17 +3,31 @@
 use super::*;
 use crate::model::{Amperes, Velocity};
 use crate::sim::{SimBus, SimConfig};
+use crate::wire::ACK_OK;
 use motionlink_link::can::{CanBus, CanBusConfig};
 use motionlink_link::clock::{Clock, ManualClock};
 use motionlink_link::pipe::{Direction, EmulatorHost, FaultControl, PipeConfig};
 
 fn rs232(addresses: &[u8]) -> (ManualClock, EmulatorHost<SimBus>, Bus, FaultControl) {
+    rs232_with(addresses, BusConfig::rs232())
+}
+
+fn rs232_with(addresses: &[u8], config: BusConfig) -> (ManualClock, EmulatorHost<SimBus>, Bus, FaultControl) {
     let clock = ManualClock::new_auto();
     let sim = SimBus::new(&SimConfig::with_addresses(addresses).unwrap());
     let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(9_600));
     let (link, faults) = host.connect();
-    let bus = Bus::rs232(Box::new(link), clock.shared(), BusConfig::rs232());
+    let bus = Bus::rs232(Box::new(link), clock.shared(), config);
     (clock, host, bus, faults)
+}
+
+/// The infos of a scan in which every module could be read.
+fn scan_infos(bus: &Bus) -> Vec<ModuleInfo> {
+    bus.scan()
+        .unwrap()
+        .into_iter()
+        .map(|e| e.info.unwrap_or_else(|err| panic!("module {}: {err}", e.address)))
+        .collect()
 }
 
 fn can(addresses: &[u8]) -> (ManualClock, CanBus<SimBus>, Bus) {
@@ -32,7 +46,7 @@ fn secs(s: u64) -> Duration {
 fn scan_finds_every_module_on_rs232_and_can() {
     let (clock, _host, bus, _) = rs232(&[1, 17, 31]);
     let _me = clock.reserve_participant().enter();
-    let found = bus.scan().unwrap();
+    let found = scan_infos(&bus);
     assert_eq!(found.iter().map(|m| m.address).collect::<Vec<_>>(), vec![1, 17, 31]);
     assert_eq!(found[1].serial, 1017);
     assert_eq!(found[1].version, CubeVersion(0x4634));
@@ -43,7 +57,7 @@ fn scan_finds_every_module_on_rs232_and_can() {
     let (clock, _canbus, bus) = can(&[2, 5]);
     let _me = clock.reserve_participant().enter();
     let t0 = clock.now();
-    let found = bus.scan().unwrap();
+    let found = scan_infos(&bus);
     assert_eq!(found.iter().map(|m| m.address).collect::<Vec<_>>(), vec![2, 5]);
     // On CAN the 31 questions go out at once: the scan takes one timeout, not 31.
     assert!(clock.now() - t0 < Duration::from_millis(200), "{:?}", clock.now() - t0);
@@ -199,7 +213,7 @@ fn the_watchdog_is_served_in_the_background_and_trips_when_the_session_dies() {
         assert!(!s.contains(StateFlag::CommError), "{s}");
     }
     assert!(bus.watchdog_served());
-    drop(bus);
+    kill(bus);
     clock.sleep(Duration::from_millis(100));
     let s = host.with_device(|d| d.module(2).unwrap().state()).unwrap();
     assert!(s.contains(StateFlag::CommError) && s.contains(StateFlag::Halted), "{s}");
@@ -211,7 +225,8 @@ fn can_host() -> (ManualClock, CanBus<SimBus>, Bus) {
 
 #[test]
 fn disabling_the_watchdog_switches_it_off_in_the_modules() {
-    let (clock, host, bus, _) = rs232(&[1]);
+    // RS232 with the opt-in: the emulator takes address 0 as every module.
+    let (clock, host, bus, _) = rs232_with(&[1], BusConfig { watchdog_on_rs232: true, ..BusConfig::rs232() });
     let _me = clock.reserve_participant().enter();
     bus.enable_watchdog(&[1]).unwrap();
     clock.sleep(secs(2));
@@ -318,6 +333,13 @@ fn six_joints_in_a_control_loop_with_the_watchdog() {
         assert!(!bus.module(*a).unwrap().state().unwrap().has_fault());
     }
     assert!(canbus.frames_carried() > 2_400);
+    // The session ends normally: the watchdogs go offline, nothing halts.
+    drop(bus);
+    clock.sleep(Duration::from_millis(200));
+    for a in &addresses {
+        let (state, _, online, _) = device_view(&canbus, &clock, *a);
+        assert!(!online && !state.contains(StateFlag::Halted), "module {a}: {state}");
+    }
 }
 
 #[test]
@@ -351,7 +373,12 @@ fn a_broken_line_is_a_transport_error() {
 /// The host dies: no more refresh, no halt, no goodbye (what SIGKILL, a power loss or a pulled adapter does
 /// to a session).
 fn kill(bus: Bus) {
-    lock_mutex(&bus.inner.duty).serving = false;
+    {
+        let mut duty = lock_mutex(&bus.inner.duty);
+        duty.serving = false;
+        duty.online.clear();
+        duty.config_before.clear();
+    }
     bus.stop_watchdog_thread();
     lock_mutex(&bus.inner.started).clear();
     drop(bus);
@@ -469,8 +496,354 @@ fn a_watchdog_another_host_serves_is_not_released() {
 }
 
 #[test]
-fn rs232_cannot_rely_on_the_watchdog() {
-    let (clock, _host, bus, _) = rs232(&[1]);
+fn rs232_cannot_rely_on_the_watchdog_and_arms_it_only_when_told_to() {
+    let (clock, host, bus, faults) = rs232(&[1]);
     let _me = clock.reserve_participant().enter();
     assert!(!bus.watchdog_reliable());
+    let sent = faults.bytes_sent(Direction::HostToDevice);
+    let err = bus.enable_watchdog(&[1]).unwrap_err();
+    assert!(matches!(err, Error::Unsupported(_)) && err.is_usage(), "{err}");
+    assert!(err.to_string().contains("watchdog_on_rs232"), "the way to opt in is named: {err}");
+    assert_eq!(faults.bytes_sent(Direction::HostToDevice), sent, "nothing was sent");
+    assert!(!bus.watchdog_served());
+    assert!(!host.with_device(|d| d.module(1).unwrap().config_word().contains(ConfigFlag::WatchdogEnable)));
+    drop(bus);
+
+    let (clock, host, bus, _) = rs232_with(&[1], BusConfig { watchdog_on_rs232: true, ..BusConfig::rs232() });
+    let _me = clock.reserve_participant().enter();
+    bus.enable_watchdog(&[1]).unwrap();
+    assert!(host.with_device(|d| d.module(1).unwrap().watchdog_online()));
+    bus.disable_watchdog().unwrap();
+}
+
+#[test]
+fn a_broadcast_home_sets_only_known_modules_moving_and_the_drop_is_quick() {
+    let (clock, host, bus, _) = rs232(&[1, 2]);
+    let _me = clock.reserve_participant().enter();
+    // Before anything answered, a broadcast Home marks nobody (the session knows of no module).
+    bus.broadcast(Broadcast::Home).unwrap();
+    assert!(bus.started().is_empty(), "{:?}", bus.started());
+    clock.sleep(secs(2));
+    assert_eq!(scan_infos(&bus).len(), 2);
+    assert_eq!(bus.known(), vec![1, 2]);
+    bus.broadcast(Broadcast::Home).unwrap();
+    assert_eq!(bus.started(), vec![1, 2], "the modules that exist, not 1..31");
+    // Module 1 is seen to end homing; module 2 ends it unwatched and sits idle.
+    bus.module(1).unwrap().wait_home(secs(10), &mut |_| {}).unwrap();
+    clock.sleep(secs(2));
+    assert_eq!(bus.started(), vec![2]);
+    let t0 = clock.now();
+    drop(bus);
+    // One state poll of module 2 (about 25 ms at 9600 baud): no 29 absent addresses timing out three times
+    // each (17 s), and no broadcast Halt.
+    let took = clock.now() - t0;
+    assert!(took < Duration::from_millis(100), "{took:?}");
+    for a in [1, 2] {
+        let s = host.with_device(|d| d.module(a).unwrap().state());
+        assert!(s.contains(StateFlag::HomeOk) && !s.contains(StateFlag::Halted), "module {a}: {s}");
+    }
+}
+
+#[test]
+fn a_drop_halts_a_known_module_still_homing_but_not_for_an_address_that_never_answered() {
+    let (clock, host, bus, _) = rs232(&[1, 2]);
+    let _me = clock.reserve_participant().enter();
+    bus.module(1).unwrap().state().unwrap();
+    bus.broadcast(Broadcast::Home).unwrap();
+    // Module 2 exists but the session does not know it; it homes too (no harm) and is idle at the drop.
+    // A motion command to an address where nobody is: no acknowledge.
+    let err = bus.module(9).unwrap().motion(Motion::FVel { vel: Velocity(0.1) }, AckKind::Simple).unwrap_err();
+    assert!(matches!(err, Error::Timeout { address: 9, .. }), "{err}");
+    assert_eq!(bus.started(), vec![1, 9]);
+    drop(bus);
+    let s = host.with_device(|d| d.module(1).unwrap().state());
+    assert!(s.contains(StateFlag::Halted) && !s.contains(StateFlag::Motion), "halted by address: {s}");
+    let s = host.with_device(|d| d.module(2).unwrap().state());
+    assert!(!s.contains(StateFlag::Halted), "no broadcast Halt for the silence at 9: {s}");
+    assert_eq!(host.with_device(|d| d.stats().nobody), 4, "one motion and three state polls to 9");
+}
+
+#[test]
+fn on_rs232_a_broadcast_halt_does_not_forget_what_was_started() {
+    let (clock, host, bus, _) = rs232(&[1]);
+    let _me = clock.reserve_participant().enter();
+    // Real RS232 modules may ignore address 0, where the client sends broadcasts.
+    host.with_device(|d| d.set_rs232_broadcasts(false));
+    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity(0.3) }, AckKind::Simple).unwrap();
+    bus.broadcast(Broadcast::Halt).unwrap();
+    clock.sleep(Duration::from_millis(500));
+    assert!(bus.module(1).unwrap().state().unwrap().contains(StateFlag::Motion), "the broadcast was ignored");
+    assert_eq!(bus.started(), vec![1], "so the session still counts module 1 as moving");
+    drop(bus);
+    let s = host.with_device(|d| d.module(1).unwrap().state());
+    assert!(s.contains(StateFlag::Halted) && !s.contains(StateFlag::Motion), "halted by address on drop: {s}");
+
+    // On CAN a broadcast is the manual's and reaches every module: it ends the list.
+    let (clock, canbus, bus) = can(&[1]);
+    let _me = clock.reserve_participant().enter();
+    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity(0.3) }, AckKind::Simple).unwrap();
+    bus.broadcast(Broadcast::Halt).unwrap();
+    assert!(bus.started().is_empty());
+    clock.sleep(Duration::from_millis(1)); // the frame's time on the bus
+    assert!(device_view(&canbus, &clock, 1).0.contains(StateFlag::Halted));
+}
+
+#[test]
+fn a_normal_drop_switches_the_watchdog_off_and_a_new_session_can_arm_it_again() {
+    let (clock, canbus, bus) = can(&[1, 2]);
+    let _me = clock.reserve_participant().enter();
+    let before = device_view(&canbus, &clock, 1).3;
+    bus.enable_watchdog(&[1, 2]).unwrap();
+    let m = bus.module(1).unwrap();
+    m.home().unwrap();
+    m.wait_home(secs(10), &mut |_| {}).unwrap();
+    m.motion(Motion::FVel { vel: Velocity(0.2) }, AckKind::Simple).unwrap();
+    assert!(device_view(&canbus, &clock, 1).2 && device_view(&canbus, &clock, 2).2, "online");
+    drop(bus);
+    // Well past the watchdog's 50 ms: a watchdog left online would have halted both modules.
+    clock.sleep(secs(1));
+    for a in [1, 2] {
+        let (state, _, online, config) = device_view(&canbus, &clock, a);
+        assert!(!online, "module {a}: switched off");
+        assert!(!state.contains(StateFlag::CommError), "module {a}: {state}");
+        assert_eq!(config, before, "module {a}: the Config word as it was");
+    }
+    // Module 1 was moving: halted by the drop (by address), not by its watchdog.
+    assert!(device_view(&canbus, &clock, 1).0.contains(StateFlag::Halted));
+    assert!(!device_view(&canbus, &clock, 2).0.contains(StateFlag::Halted));
+    // A new session arms them again (a watchdog left online and expired would be refused).
+    let bus = Bus::can(Box::new(canbus.connect()), clock.shared(), BusConfig::can());
+    bus.module(1).unwrap().reset().unwrap();
+    bus.enable_watchdog(&[1, 2]).unwrap();
+    assert!(device_view(&canbus, &clock, 1).2 && device_view(&canbus, &clock, 2).2);
+    drop(bus);
+    clock.sleep(secs(1));
+    assert!(!device_view(&canbus, &clock, 2).2);
+}
+
+#[test]
+fn a_session_that_failed_leaves_the_watchdog_armed_on_drop() {
+    let (clock, canbus, bus) = can(&[1, 2]);
+    let _me = clock.reserve_participant().enter();
+    bus.enable_watchdog(&[1, 2]).unwrap();
+    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity(0.2) }, AckKind::Simple).unwrap();
+    // The modules' answers are lost from now on: the drop cannot see module 1 stop.
+    canbus.drop_next_from_device(u64::MAX);
+    drop(bus);
+    clock.sleep(Duration::from_millis(100));
+    for a in [1, 2] {
+        let (state, _, online, config) = device_view(&canbus, &clock, a);
+        assert!(online && config.contains(ConfigFlag::WatchdogEnable), "module {a}: left armed");
+        assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "module {a}: {state}");
+        assert!(state.contains(StateFlag::CommError), "module {a}: its watchdog expired: {state}");
+    }
+}
+
+#[test]
+fn every_request_is_checked_before_it_is_sent() {
+    let (clock, host, bus, faults) = rs232(&[1]);
+    let _me = clock.reserve_participant().enter();
+    let bad = [
+        Request::Set(Param::ActPos, Value::F32(0.0)),
+        Request::Set(Param::MaxVel, Value::U32(1)),
+        Request::Get(Param::TargetAcc),
+        Request::Set(Param::TargetVel, Value::F32(f32::NAN)),
+        Request::Motion(Motion::FRampLoop { pos: Position(1.0) }, AckKind::Extended),
+        Request::Motion(Motion::FRamp { pos: Position(f32::INFINITY) }, AckKind::Simple),
+    ];
+    let sent = faults.bytes_sent(Direction::HostToDevice);
+    for r in &bad {
+        let err = bus.request(1, r).unwrap_err();
+        assert!(matches!(err, Error::Model(_)) && err.is_usage(), "{r}: {err}");
+    }
+    assert_eq!(faults.bytes_sent(Direction::HostToDevice), sent, "nothing was sent");
+    assert!(bus.started().is_empty(), "a refused motion starts nothing");
+    // Several at once: the bad ones get their error, the good ones go out and are answered.
+    let mixed = [
+        (1, Request::Get(Param::ActPos)),
+        (1, bad[0]),
+        (1, bad[4]),
+        (0, Request::Get(Param::ActPos)),
+        (1, Request::Get(Param::CubeState)),
+    ];
+    let r = bus.request_many(&mixed);
+    assert!(matches!(r[0], Ok(Reply::Get(Param::ActPos, _))), "{:?}", r[0]);
+    assert!(matches!(r[1], Err(Error::Model(ModelError::NotWritable(Param::ActPos)))), "{:?}", r[1]);
+    assert!(matches!(r[2], Err(Error::Model(ModelError::NoExtendedAck(_)))), "{:?}", r[2]);
+    assert!(matches!(r[3], Err(Error::InvalidAddress(0))), "{:?}", r[3]);
+    assert!(matches!(r[4], Ok(Reply::Get(Param::CubeState, _))), "{:?}", r[4]);
+    clock.sleep(secs(1));
+    let s = host.with_device(|d| d.module(1).unwrap().state());
+    assert!(!s.contains(StateFlag::Motion), "no loop was started under another MotionID: {s}");
+    // On CAN, a Config word that would switch the acknowledges off is refused the same way.
+    let (clock, _canbus, bus) = can(&[1]);
+    let _me = clock.reserve_participant().enter();
+    let err = bus.request(1, &Request::Set(Param::Config, Value::U32(0x0400_0000))).unwrap_err();
+    assert!(matches!(err, Error::Unsupported(_)), "{err}");
+}
+
+/// A CAN link that hands over what it receives in reverse order: whatever arrives within `window` of a
+/// frame is held back and delivered last first.
+struct Reversing<L> {
+    inner: L,
+    held: Vec<motionlink_link::can::CanFrame>,
+    window: Duration,
+    reordered: Arc<std::sync::atomic::AtomicU64>,
+}
+
+impl<L: CanLink> CanLink for Reversing<L> {
+    fn send(&mut self, frame: &motionlink_link::can::CanFrame) -> Result<(), LinkError> {
+        self.inner.send(frame)
+    }
+
+    fn recv(&mut self, timeout: Duration) -> Result<Option<motionlink_link::can::CanFrame>, LinkError> {
+        if self.held.is_empty() {
+            let Some(first) = self.inner.recv(timeout)? else { return Ok(None) };
+            self.held.push(first);
+            while let Some(f) = self.inner.recv(self.window)? {
+                self.held.push(f);
+            }
+            if self.held.len() > 1 {
+                self.reordered.fetch_add(1, Ordering::SeqCst);
+            }
+        }
+        Ok(self.held.pop())
+    }
+
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        self.held.clear();
+        self.inner.discard_input()
+    }
+
+    fn describe(&self) -> String {
+        format!("reversing {}", self.inner.describe())
+    }
+}
+
+#[test]
+fn on_can_acknowledges_are_matched_in_whatever_order_they_arrive() {
+    let addresses: Vec<u8> = (1..=6).collect();
+    let clock = ManualClock::new_auto();
+    let sim = SimBus::new_can(&SimConfig::with_addresses(&addresses).unwrap());
+    let canbus = CanBus::with_emulator(sim, clock.shared(), CanBusConfig::paced(1_000_000));
+    let reordered = Arc::new(std::sync::atomic::AtomicU64::new(0));
+    let link = Reversing {
+        inner: canbus.connect(),
+        held: Vec::new(),
+        window: Duration::from_millis(1),
+        reordered: Arc::clone(&reordered),
+    };
+    let _me = clock.reserve_participant().enter();
+    let bus = Bus::can(Box::new(link), clock.shared(), BusConfig::can());
+
+    // Each module's own serial number comes back to it, however the answers are ordered.
+    let t0 = clock.now();
+    let serials = bus.read_many(&addresses, Param::DefCubeSerial);
+    assert!(clock.now() - t0 < bus.config().reply_timeout, "one round, nothing timed out or retried");
+    for (a, s) in addresses.iter().zip(serials) {
+        assert_eq!(s.unwrap(), Value::U32(1000 + u32::from(*a)), "module {a}");
+    }
+    assert!(reordered.load(Ordering::SeqCst) > 0, "the answers did arrive out of order");
+
+    // Several requests to one module, and writes and motions among reads: each matched to its own.
+    let requests = [
+        (1, Request::Get(Param::ActPos)),
+        (1, Request::Get(Param::CubeState)),
+        (1, Request::Get(Param::DefCubeSerial)),
+        (2, Request::Get(Param::DefAddress)),
+        (3, Request::Set(Param::TargetVel, Value::F32(0.5))),
+        (4, Request::Motion(Motion::FRamp { pos: Position(0.1) }, AckKind::Extended)),
+        (5, Request::Action(Action::Reset)),
+        (6, Request::Get(Param::DefAddress)),
+    ];
+    let before = reordered.load(Ordering::SeqCst);
+    let t0 = clock.now();
+    let r = bus.request_many(&requests);
+    assert!(clock.now() - t0 < bus.config().reply_timeout);
+    assert!(reordered.load(Ordering::SeqCst) > before);
+    assert!(matches!(r[0], Ok(Reply::Get(Param::ActPos, Value::F32(_)))), "{:?}", r[0]);
+    assert!(matches!(r[1], Ok(Reply::Get(Param::CubeState, Value::U32(_)))), "{:?}", r[1]);
+    assert!(matches!(r[2], Ok(Reply::Get(Param::DefCubeSerial, Value::U32(1001)))), "{:?}", r[2]);
+    assert!(matches!(r[3], Ok(Reply::Get(Param::DefAddress, Value::U8(2)))), "{:?}", r[3]);
+    assert!(matches!(r[4], Ok(Reply::Set(Param::TargetVel, ACK_OK))), "{:?}", r[4]);
+    assert!(matches!(r[5], Ok(Reply::Motion { id: crate::model::MotionId::FRampAck, ext: Some(_), .. })), "{:?}", r[5]);
+    assert!(matches!(r[6], Ok(Reply::Action(Action::Reset))), "{:?}", r[6]);
+    assert!(matches!(r[7], Ok(Reply::Get(Param::DefAddress, Value::U8(6)))), "{:?}", r[7]);
+
+    // Polling in a loop: every round complete.
+    for _ in 0..20 {
+        assert!(bus.positions(&addresses).iter().all(Result::is_ok));
+        assert!(bus
+            .read_many(&addresses, Param::DefAddress)
+            .iter()
+            .zip(&addresses)
+            .all(|(v, a)| *v.as_ref().unwrap() == Value::U8(*a)));
+    }
+}
+
+/// The length on the wire of `reply` from module `address` in an RS232 frame.
+fn rs232_len(address: u8, reply: &Reply) -> u64 {
+    let mut buf = [0u8; crate::wire::rs232::MAX_FRAME];
+    crate::wire::rs232::encode(crate::wire::rs232::TelKind::Recv, address, &reply.encode(), &mut buf).unwrap() as u64
+}
+
+#[test]
+fn a_scan_asks_again_after_a_corrupt_answer() {
+    let (clock, _host, bus, faults) = rs232(&[1, 17]);
+    let _me = clock.reserve_participant().enter();
+    // Module 17's answer to the scan comes after module 1's: flip a bit of its parameter id (BCC mismatch).
+    let version = Reply::Get(Param::DefCubeVersion, Value::U16(0x4634));
+    faults.inject(
+        Direction::DeviceToHost,
+        rs232_len(1, &version) + 4,
+        motionlink_link::pipe::Fault::Corrupt { xor: 1 },
+    );
+    let found = scan_infos(&bus);
+    assert_eq!(found.iter().map(|m| m.address).collect::<Vec<_>>(), vec![1, 17], "read again, not taken as absent");
+    assert_eq!(found[1].serial, 1017);
+}
+
+#[test]
+fn a_module_that_cannot_be_read_is_reported_and_the_scan_goes_on() {
+    let (clock, _host, bus, faults) = rs232(&[1, 17]);
+    let _me = clock.reserve_participant().enter();
+    // What the modules send before module 17's info: both scan answers, then module 1's info (version,
+    // Config, serial, state), as a twin emulator answers them.
+    let mut twin = SimBus::new(&SimConfig::with_addresses(&[1, 17]).unwrap());
+    let mut ask = |a: u8, p: Param| twin.request(Timestamp::ZERO, a, &Request::Get(p)).unwrap();
+    let mut offset = rs232_len(1, &ask(1, Param::DefCubeVersion)) + rs232_len(17, &ask(17, Param::DefCubeVersion));
+    for p in [Param::DefCubeVersion, Param::Config, Param::DefCubeSerial, Param::CubeState] {
+        offset += rs232_len(1, &ask(1, p));
+    }
+    // From there on, everything module 17 says is lost.
+    for o in offset..offset + 200 {
+        faults.inject(Direction::DeviceToHost, o, motionlink_link::pipe::Fault::Drop);
+    }
+    let entries = bus.scan().unwrap();
+    assert_eq!(entries.iter().map(|e| e.address).collect::<Vec<_>>(), vec![1, 17]);
+    assert_eq!(entries[0].info.as_ref().unwrap().serial, 1001);
+    let err = entries[1].info.as_ref().unwrap_err();
+    assert!(matches!(err, Error::Timeout { address: 17, .. }), "{err}");
+}
+
+#[test]
+fn an_slcan_adapter_that_refuses_a_frame_is_a_link_error_not_a_timeout() {
+    use motionlink_link::can::{SlcanAdapter, SlcanBitrate, SlcanLink};
+    let clock = ManualClock::new_auto();
+    let adapter = SlcanAdapter::new(SimBus::new_can(&SimConfig::with_addresses(&[3]).unwrap()));
+    let host = EmulatorHost::new(adapter, clock.shared(), PipeConfig::paced(115_200));
+    let _me = clock.reserve_participant().enter();
+    let link = SlcanLink::open(host.connect().0, clock.shared(), SlcanBitrate::M1).unwrap();
+    let bus = Bus::can(Box::new(link), clock.shared(), BusConfig::can());
+    let m = bus.module(3).unwrap();
+    assert!(m.state().is_ok());
+    // The adapter's transmit queue is full: it rings the bell instead of sending the write.
+    host.with_device(|a| a.refuse_next(1));
+    let t0 = clock.now();
+    let err = m.set(Param::TargetVel, Value::F32(0.5)).unwrap_err();
+    assert!(matches!(err, Error::Link(_)) && err.is_transport(), "{err}");
+    assert!(err.to_string().contains("refused to send 0E3#084F"), "{err}");
+    assert!(clock.now() - t0 < bus.config().reply_timeout, "at once, not after the reply timeout");
+    // The line goes on.
+    assert!(m.state().is_ok());
 }

@@ -13,7 +13,7 @@
 
 use std::fmt;
 
-use super::flags::{Dio, ShortState};
+use super::flags::{Dio, ProfibusState, ShortState};
 use super::motion::{AckKind, Motion, MotionId};
 use super::params::{Param, Value, ValueError};
 use super::units::{Millis, Position, Ticks};
@@ -115,6 +115,9 @@ pub enum ModelError {
     /// An extended acknowledge asked of a loop mode.
     #[error("{0} has no mode with extended acknowledge")]
     NoExtendedAck(&'static str),
+    /// A float that is not a number (NaN or infinite) as a value or a motion parameter.
+    #[error("{0} is not a finite number")]
+    NotFinite(&'static str),
     /// An empty payload.
     #[error("empty message")]
     Empty,
@@ -151,28 +154,54 @@ fn payload(parts: &[&[u8]]) -> Payload {
 impl Request {
     /// GetExtended of `param`, if it can be read.
     pub fn get(param: Param) -> Result<Request, ModelError> {
-        if param.access().readable() {
-            Ok(Request::Get(param))
-        } else {
-            Err(ModelError::NotReadable(param))
-        }
+        Request::Get(param).validated()
     }
 
-    /// SetExtended of `param` to `value`, if it can be written and the value has its type.
+    /// SetExtended of `param` to `value`, if it can be written, the value has its type and is a finite
+    /// number (for a float).
     pub fn set(param: Param, value: Value) -> Result<Request, ModelError> {
-        if !param.access().writable() {
-            return Err(ModelError::NotWritable(param));
-        }
-        value.check_type(param)?;
-        Ok(Request::Set(param, value))
+        Request::Set(param, value).validated()
     }
 
-    /// SetMotion in `motion`'s mode with acknowledge `ack`.
+    /// SetMotion in `motion`'s mode with acknowledge `ack`, if the mode has that acknowledge and its float
+    /// parameters are finite.
     pub fn motion(motion: Motion, ack: AckKind) -> Result<Request, ModelError> {
-        match motion.id(ack) {
-            Some(_) => Ok(Request::Motion(motion, ack)),
-            None => Err(ModelError::NoExtendedAck(motion.id(AckKind::Simple).map_or("?", |m| m.name()))),
+        Request::Motion(motion, ack).validated()
+    }
+
+    /// Checks a request against the manual's rules, as the constructors do: a parameter is read only if it
+    /// is readable and written only if it is writable, with a value of its type; a motion has a MotionID for
+    /// the acknowledge asked (the loops have no extended one); floats are finite numbers. The variants are
+    /// public, so a request built without a constructor may break them: the client checks every request
+    /// with this before sending it.
+    pub fn validate(&self) -> Result<(), ModelError> {
+        match *self {
+            Request::Action(_) | Request::IStep { .. } => Ok(()),
+            Request::Get(param) if param.access().readable() => Ok(()),
+            Request::Get(param) => Err(ModelError::NotReadable(param)),
+            Request::Set(param, _) if !param.access().writable() => Err(ModelError::NotWritable(param)),
+            Request::Set(param, value) => {
+                value.check_type(param)?;
+                match value {
+                    Value::F32(v) if !v.is_finite() => Err(ModelError::NotFinite(param.name())),
+                    _ => Ok(()),
+                }
+            }
+            Request::Motion(motion, ack) => {
+                let Some(id) = motion.id(ack) else {
+                    return Err(ModelError::NoExtendedAck(motion.id(AckKind::Simple).map_or("?", |m| m.name())));
+                };
+                if motion.is_finite() {
+                    Ok(())
+                } else {
+                    Err(ModelError::NotFinite(id.name()))
+                }
+            }
         }
+    }
+
+    fn validated(self) -> Result<Request, ModelError> {
+        self.validate().map(|()| self)
     }
 
     /// The payload.
@@ -186,6 +215,8 @@ impl Request {
                 payload(&[&[cmd::SET_EXTENDED, p.id()], &buf[..n]])
             }
             Request::Motion(m, ack) => {
+                // A loop mode has no extended acknowledge ([`Request::validate`] refuses that combination);
+                // encoding stays total and sends the simple mode.
                 let id = m.id(ack).or(m.id(AckKind::Simple)).map_or(0, MotionId::code);
                 let n = m.encode_params(&mut buf);
                 payload(&[&[cmd::SET_MOTION, id], &buf[..n]])
@@ -273,6 +304,22 @@ impl Request {
     /// The acknowledge this request gets in a Profibus input image, decoded with the right length.
     pub fn reply_from_image(&self, image: &crate::wire::profibus::InputImage) -> Result<Reply, ModelError> {
         Reply::decode(&image.reply(self.ack_len()))
+    }
+}
+
+impl crate::wire::profibus::InputImage {
+    /// Bytes 13..14: the Profibus short state, typed (the raw word is
+    /// [`InputImage::short_state_raw`](crate::wire::profibus::InputImage::short_state_raw)).
+    ///
+    /// ```
+    /// use motionlink_powercube::model::{ProfibusFlag, ProfibusState};
+    /// use motionlink_powercube::wire::{profibus::InputImage, Payload};
+    /// let img = InputImage::new(&Payload::new(&[0x02]).unwrap(), 0, 0x8004, 0);
+    /// assert_eq!(img.short_state(), ProfibusState(0x8004));
+    /// assert!(img.short_state().contains(ProfibusFlag::HaltM4));
+    /// ```
+    pub fn short_state(&self) -> ProfibusState {
+        ProfibusState(self.short_state_raw())
     }
 }
 
@@ -621,6 +668,49 @@ mod tests {
         assert!(matches!(Reply::decode(&p(&[0x0b, 0x04, 0x64, 0])), Err(ModelError::Length { .. })));
         assert!(Request::motion(Motion::FRampLoop { pos: Position(0.0) }, AckKind::Extended).is_err());
         assert!(Request::set(Param::TargetVel, Value::U32(1)).is_err());
+    }
+
+    #[test]
+    fn validate_applies_the_constructors_rules_to_any_request() {
+        let bad = [
+            (Request::Set(Param::ActPos, Value::F32(0.0)), ModelError::NotWritable(Param::ActPos)),
+            (Request::Get(Param::TargetVel), ModelError::NotReadable(Param::TargetVel)),
+            (Request::Set(Param::TargetVel, Value::F32(f32::NAN)), ModelError::NotFinite("TargetVel")),
+            (Request::Set(Param::MaxPos, Value::F32(f32::INFINITY)), ModelError::NotFinite("MaxPos")),
+            (
+                Request::Motion(Motion::FCosLoop { pos: Position(1.0), time: Millis(10) }, AckKind::Extended),
+                ModelError::NoExtendedAck("FCOSLOOP"),
+            ),
+            (
+                Request::Motion(Motion::FRamp { pos: Position(f32::NAN) }, AckKind::Simple),
+                ModelError::NotFinite("FRAMP_MODE"),
+            ),
+            (
+                Request::Motion(Motion::FVel { vel: Velocity(f32::NEG_INFINITY) }, AckKind::Extended),
+                ModelError::NotFinite("FVEL_ACK"),
+            ),
+        ];
+        for (req, err) in bad {
+            assert_eq!(req.validate(), Err(err), "{req}");
+        }
+        assert!(matches!(
+            Request::Set(Param::MaxVel, Value::U32(1)).validate(),
+            Err(ModelError::Value(ValueError::Type { .. }))
+        ));
+        // The constructors say the same.
+        assert_eq!(Request::set(Param::TargetVel, Value::F32(f32::NAN)), Err(ModelError::NotFinite("TargetVel")));
+        assert!(Request::motion(Motion::FRamp { pos: Position(f32::INFINITY) }, AckKind::Simple).is_err());
+        for good in [
+            Request::Set(Param::TargetVel, Value::F32(0.5)),
+            Request::Set(Param::Config, Value::U32(u32::MAX)),
+            Request::Get(Param::ActPos),
+            Request::Motion(Motion::IRamp { pos: Ticks(i32::MIN) }, AckKind::Extended),
+            Request::Motion(Motion::FRampLoop { pos: Position(1.0) }, AckKind::Simple),
+            Request::Action(Action::Halt),
+            Request::IStep { pos: Ticks(5), time: Millis(0) },
+        ] {
+            assert_eq!(good.validate(), Ok(()), "{good}");
+        }
     }
 
     #[test]

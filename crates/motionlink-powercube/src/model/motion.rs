@@ -201,6 +201,17 @@ impl Motion {
         }
     }
 
+    /// False if a float parameter (position, velocity, current) is NaN or infinite.
+    pub fn is_finite(&self) -> bool {
+        match *self {
+            Motion::FRamp { pos } | Motion::FRampLoop { pos } => pos.0.is_finite(),
+            Motion::FStep { pos, .. } | Motion::FCosLoop { pos, .. } => pos.0.is_finite(),
+            Motion::FVel { vel } => vel.0.is_finite(),
+            Motion::FCur { cur } => cur.0.is_finite(),
+            Motion::IRamp { .. } | Motion::IStep { .. } | Motion::IVel { .. } | Motion::ICur { .. } => true,
+        }
+    }
+
     /// Writes the parameters (little-endian) into `out`; returns how many bytes.
     pub fn encode_params(&self, out: &mut [u8; 6]) -> usize {
         let mut put = |parts: &[&[u8]]| {

@@ -165,6 +165,9 @@ pub enum ParamClass {
     Target,
     /// Actual values.
     Actual,
+    /// "Vorgabe": a setting the host gives (only Config): written after power on, lost at power off like a
+    /// limit, though it limits nothing; its ROM default is DefConfig.
+    Setting,
 }
 
 impl ParamClass {
@@ -175,6 +178,7 @@ impl ParamClass {
             ParamClass::Limit => "limit",
             ParamClass::Target => "target",
             ParamClass::Actual => "actual",
+            ParamClass::Setting => "setting",
         }
     }
 }
@@ -277,7 +281,8 @@ param_table! {
     RawCur = (0x35, "RawCur", I16, Digits, ReadWrite, Actual, "Commanded current in digits -500..500."),
     HomeToZeroInc = (0x36, "HomeToZeroInc", I32, Ticks, Read, Actual,
         "Encoder ticks between the home switch and the encoder index."),
-    Config = (0x39, "Config", U32, Flags, ReadWrite, Limit, "Config word."),
+    Config = (0x39, "Config", U32, Flags, ReadWrite, Setting,
+        "Config word (the manual's class \"Vorgabe\": a setting, lost at power off; DefConfig is its default)."),
     MoveMode = (0x3a, "MoveMode", U8, Plain, Read, Actual, "Motion mode (the MotionID last commanded)."),
     IncRatio = (0x3b, "IncRatio", F32, TicksPerUnit, Read, Actual, "Encoder ticks per rad or m."),
     ActPos = (0x3c, "ActPos", F32, Position, Read, Actual, "Actual position."),
@@ -658,6 +663,11 @@ mod tests {
         assert_eq!(Param::TargetVel.class(), ParamClass::Target);
         assert_eq!(Param::ActPos.class(), ParamClass::Actual);
         assert_eq!(Param::PrevActPos.name(), "ActPos_");
+        // "Config word (Vorgabe)": the only parameter of its class; not a ROM default (that is DefConfig),
+        // not a limit.
+        assert_eq!(Param::Config.class(), ParamClass::Setting);
+        assert_eq!(Param::DefConfig.class(), ParamClass::Default);
+        assert_eq!(Param::ALL.iter().filter(|p| p.class() == ParamClass::Setting).count(), 1);
     }
 
     #[test]

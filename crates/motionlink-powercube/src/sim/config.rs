@@ -20,16 +20,18 @@
 //! max_acc = 0.5
 //! ```
 //!
-//! Every key but `address` may be left out; see [`ModuleConfig`] for the defaults.
+//! `address` is required in every `[[module]]`; every other key may be left out, see [`ModuleConfig`] for
+//! the defaults.
 
 use serde::Deserialize;
 
 use crate::model::ModuleKind;
 use crate::wire::is_module_address;
 
-/// One module's defaults.
+/// One module's defaults. In TOML (and any serde format) `address` is required; every other key may be
+/// left out and takes the value of [`ModuleConfig::at`] that address.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(from = "ModuleToml")]
 pub struct ModuleConfig {
     /// Bus address, 1..31.
     pub address: u8,
@@ -103,6 +105,57 @@ impl ModuleConfig {
     }
 }
 
+/// A `[[module]]` table as written: `address` required (a module without one is a mistake, not module 1),
+/// everything else optional.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ModuleToml {
+    address: u8,
+    kind: Option<ModuleKind>,
+    min_pos: Option<f64>,
+    max_pos: Option<f64>,
+    max_vel: Option<f64>,
+    max_acc: Option<f64>,
+    max_cur: Option<f64>,
+    max_delta_pos: Option<f64>,
+    home_vel: Option<f64>,
+    home_acc: Option<f64>,
+    start_position: Option<f64>,
+    inc_ratio: Option<f64>,
+    pulses_per_turn: Option<u32>,
+    gear_ratio: Option<f64>,
+    serial: Option<u32>,
+    version: Option<u16>,
+    brake: Option<bool>,
+    inputs: Option<u8>,
+}
+
+impl From<ModuleToml> for ModuleConfig {
+    fn from(t: ModuleToml) -> Self {
+        let d = ModuleConfig::at(t.address);
+        ModuleConfig {
+            address: t.address,
+            kind: t.kind.unwrap_or(d.kind),
+            min_pos: t.min_pos.unwrap_or(d.min_pos),
+            max_pos: t.max_pos.unwrap_or(d.max_pos),
+            max_vel: t.max_vel.unwrap_or(d.max_vel),
+            max_acc: t.max_acc.unwrap_or(d.max_acc),
+            max_cur: t.max_cur.unwrap_or(d.max_cur),
+            max_delta_pos: t.max_delta_pos.unwrap_or(d.max_delta_pos),
+            home_vel: t.home_vel.unwrap_or(d.home_vel),
+            home_acc: t.home_acc.unwrap_or(d.home_acc),
+            start_position: t.start_position.unwrap_or(d.start_position),
+            inc_ratio: t.inc_ratio.unwrap_or(d.inc_ratio),
+            pulses_per_turn: t.pulses_per_turn.unwrap_or(d.pulses_per_turn),
+            gear_ratio: t.gear_ratio.unwrap_or(d.gear_ratio),
+            serial: t.serial.unwrap_or(d.serial),
+            version: t.version.unwrap_or(d.version),
+            brake: t.brake.unwrap_or(d.brake),
+            inputs: t.inputs.unwrap_or(d.inputs),
+        }
+    }
+}
+
 /// The emulated bus.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -145,12 +198,7 @@ impl SimConfig {
 
     /// Parses TOML text (see the module documentation) and checks it.
     pub fn from_toml(text: &str) -> Result<Self, SimConfigError> {
-        let mut config: SimConfig = toml::from_str(text).map_err(|e| SimConfigError::Toml(e.to_string()))?;
-        for m in &mut config.modules {
-            if m.serial == 0 {
-                m.serial = 1000 + u32::from(m.address);
-            }
-        }
+        let config: SimConfig = toml::from_str(text).map_err(|e| SimConfigError::Toml(e.to_string()))?;
         config.validate()?;
         Ok(config)
     }
@@ -216,6 +264,19 @@ mod tests {
         assert_eq!(c.modules[1].kind, ModuleKind::Linear);
         assert_eq!(c.modules[1].version, 0x351D);
         assert_eq!(c.modules[0].serial, 1003);
+        assert_eq!(c.modules[0], ModuleConfig::at(3), "every key left out takes the default");
+        let c = SimConfig::from_toml("[[module]]\naddress = 5\nserial = 77\n").unwrap();
+        assert_eq!(c.modules[0].serial, 77);
+    }
+
+    #[test]
+    fn a_module_without_an_address_is_refused() {
+        // Not quietly module 1: a second module at the default address would shadow the first.
+        for text in ["[[module]]\nkind = \"linear\"\n", "[[module]]\naddress = 1\n[[module]]\nmax_vel = 2.0\n"] {
+            let e = SimConfig::from_toml(text).unwrap_err();
+            assert!(matches!(e, SimConfigError::Toml(_)), "{text}: {e:?}");
+            assert!(e.to_string().contains("missing field `address`"), "{text}: {e}");
+        }
     }
 
     #[test]

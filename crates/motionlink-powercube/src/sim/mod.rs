@@ -64,6 +64,7 @@ pub struct SimBus {
     modules: Vec<SimModule>,
     decoder: Rs232Decoder,
     strict_bcc: bool,
+    rs232_broadcasts: bool,
     stats: SimStats,
     last_image: Vec<(u8, OutputImage, InputImage)>,
 }
@@ -92,6 +93,7 @@ impl SimBus {
                 .collect(),
             decoder: Rs232Decoder::new(),
             strict_bcc: false,
+            rs232_broadcasts: true,
             stats: SimStats::default(),
             last_image: Vec::new(),
         }
@@ -101,6 +103,12 @@ impl SimBus {
     /// the modules do not check it.
     pub fn set_strict_bcc(&mut self, strict: bool) {
         self.strict_bcc = strict;
+    }
+
+    /// Take RS232 frames to address 0 as broadcasts to every module (the default), or ignore them, as real
+    /// RS232 modules may: the manual defines no broadcast on RS232.
+    pub fn set_rs232_broadcasts(&mut self, on: bool) {
+        self.rs232_broadcasts = on;
     }
 
     /// The module at `address`.
@@ -238,6 +246,10 @@ impl Emulator for SimBus {
             }
             if self.strict_bcc && !frame.bcc_ok() {
                 self.stats.bad_bcc += 1;
+                continue;
+            }
+            if frame.address == 0 && !self.rs232_broadcasts {
+                self.stats.nobody += 1;
                 continue;
             }
             if let Some(reply) = self.payload(now, frame.address, &frame.payload, false) {

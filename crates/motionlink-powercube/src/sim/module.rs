@@ -14,6 +14,9 @@ use crate::wire::ACK_OK;
 /// The following error of the emulated servo loop is the velocity times this lag (seconds).
 pub const SERVO_LAG_S: f64 = 0.005;
 
+/// The shortest leg of a ramp loop (FRAMPLOOP); a shorter loop ends after its first leg.
+const MIN_LOOP_LEG_S: f64 = 0.001;
+
 /// What kind of motion is running (for flags and for what happens at its end).
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum MotionKind {
@@ -269,7 +272,7 @@ impl SimModule {
                     self.flags = self.flags.with(StateFlag::TowError).with(StateFlag::Error).with(StateFlag::Halted);
                 }
                 2 => {
-                    let p = self.pos_at(t).clamp(self.min_pos, self.max_pos);
+                    let p = within(self.pos_at(t), self.min_pos, self.max_pos);
                     self.stop_at(t);
                     self.pos = p;
                     self.flags = self.flags.with(StateFlag::BeyondSoft).with(StateFlag::Error).with(StateFlag::Halted);
@@ -295,7 +298,13 @@ impl SimModule {
             MotionKind::Ramp => self.flags = self.flags.with(StateFlag::RampEnd),
             MotionKind::RampLoop { from, to } => {
                 let back = profile::ramp(t, self.pos, 0.0, from, self.ramp_vel(), self.ramp_acc());
-                self.motion = Some((MotionKind::RampLoop { from: to, to: from }, Profile::Pieces(back)));
+                let leg = back.last().map_or(0.0, |s| s.end() - t);
+                if leg >= MIN_LOOP_LEG_S {
+                    self.motion = Some((MotionKind::RampLoop { from: to, to: from }, Profile::Pieces(back)));
+                } else {
+                    // A loop this short would turn round thousands of times a second: it ends here.
+                    self.flags = self.flags.with(StateFlag::RampEnd);
+                }
             }
             MotionKind::Step => {
                 if let Some((target, duration)) = self.step_buffer.take() {
@@ -316,7 +325,7 @@ impl SimModule {
 
     fn clamp_target(&self, p: f64) -> f64 {
         if self.homed() {
-            p.clamp(self.min_pos, self.max_pos)
+            within(p, self.min_pos, self.max_pos)
         } else {
             p
         }
@@ -355,11 +364,16 @@ impl SimModule {
         if !self.accepts_motion(request) {
             return;
         }
+        if matches!(request, Request::Motion(m, _) if !m.is_finite()) {
+            // A NaN or infinite target cannot be limited to anything: ignored, like a value the module
+            // cannot apply (the acknowledge still comes).
+            return;
+        }
         let p = self.pos_at(t);
         let v = self.vel_at(t);
         let ratio = self.inc_ratio();
         let velocity = |this: &mut Self, target_v: f64, mode: u8| {
-            let v1 = target_v.clamp(-this.max_vel, this.max_vel);
+            let v1 = within(target_v, -this.max_vel, this.max_vel);
             let prof = profile::to_velocity(t, p, v, v1, this.ramp_acc());
             this.move_mode = mode;
             if prof.is_empty() {
@@ -383,11 +397,11 @@ impl SimModule {
                     Motion::FCur { cur } => {
                         let c = f64::from(cur.0);
                         self.flags.set(StateFlag::CurLimit, c.abs() > self.max_cur);
-                        let c = c.clamp(-self.max_cur, self.max_cur);
+                        let c = within(c, -self.max_cur, self.max_cur);
                         velocity(self, c / self.max_cur.max(1e-9) * self.max_vel, mode)
                     }
                     Motion::ICur { cur } => {
-                        let c = f64::from(cur.0).clamp(-500.0, 500.0) / 500.0;
+                        let c = within(f64::from(cur.0), -500.0, 500.0) / 500.0;
                         velocity(self, c * self.max_vel, mode)
                     }
                     Motion::FCosLoop { pos, time } => {
@@ -667,6 +681,28 @@ impl SimModule {
         })
     }
 
+    /// A new lower soft limit: limited to the ROM default range (chapter 12: commanded values are limited);
+    /// a limit above the upper one is not applied (the module keeps its old limit), so that
+    /// `min_pos <= max_pos` always holds.
+    fn set_min_pos(&mut self, p: f64) {
+        let p = p.max(self.cfg.min_pos);
+        if p <= self.max_pos {
+            self.min_pos = p;
+        } else {
+            tracing::debug!("module {}: MinPos {p} above MaxPos {} ignored", self.address, self.max_pos);
+        }
+    }
+
+    /// A new upper soft limit; see [`SimModule::set_min_pos`].
+    fn set_max_pos(&mut self, p: f64) {
+        let p = p.min(self.cfg.max_pos);
+        if p >= self.min_pos {
+            self.max_pos = p;
+        } else {
+            tracing::debug!("module {}: MaxPos {p} below MinPos {} ignored", self.address, self.min_pos);
+        }
+    }
+
     fn stored(&self, param: Param, default: Value) -> Value {
         self.store.get(&param.id()).copied().unwrap_or(default)
     }
@@ -685,9 +721,12 @@ impl SimModule {
             // A real module ignores what it cannot apply; the acknowledge still comes.
             return;
         }
+        let Some(fl) = value.as_f64().filter(|v| v.is_finite()) else {
+            // NaN or infinite: nothing to limit it to; ignored the same way.
+            return;
+        };
         let ratio = self.inc_ratio();
         let c = self.cfg.clone();
-        let fl = value.as_f64().unwrap_or(0.0);
         let from_ticks = fl / ratio;
         use Param as P;
         match param {
@@ -698,10 +737,10 @@ impl SimModule {
             P::Config => self.config = ConfigWord(value.as_u32().unwrap_or(0)),
             P::MaxDeltaPos => self.max_delta_pos = fl.abs(),
             P::ActIMaxDeltaPos => self.max_delta_pos = from_ticks.abs(),
-            P::MinPos => self.min_pos = fl.max(c.min_pos),
-            P::ActIMinPos => self.min_pos = from_ticks.max(c.min_pos),
-            P::MaxPos => self.max_pos = fl.min(c.max_pos),
-            P::ActIMaxPos => self.max_pos = from_ticks.min(c.max_pos),
+            P::MinPos => self.set_min_pos(fl),
+            P::ActIMinPos => self.set_min_pos(from_ticks),
+            P::MaxPos => self.set_max_pos(fl),
+            P::ActIMaxPos => self.set_max_pos(from_ticks),
             P::MaxVel => self.max_vel = fl.abs().min(c.max_vel),
             P::ActIMaxVel => self.max_vel = from_ticks.abs().min(c.max_vel),
             P::MaxAcc => self.max_acc = fl.abs().min(c.max_acc),
@@ -720,4 +759,10 @@ impl SimModule {
 
 fn kind_is_step(kind: MotionKind) -> bool {
     kind == MotionKind::Step
+}
+
+/// `x` limited to `[lo, hi]` without ever panicking (`f64::clamp` panics when `lo > hi` or a bound is NaN);
+/// if `lo > hi`, `hi` wins. The emulator's limits keep `lo <= hi`; this is the second line of defence.
+fn within(x: f64, lo: f64, hi: f64) -> f64 {
+    x.max(lo).min(hi)
 }

@@ -29,7 +29,8 @@ impl Segment {
     }
 
     fn tau(&self, t: f64) -> f64 {
-        (t - self.start).clamp(0.0, self.duration)
+        // Not `clamp`: it panics on a NaN bound, and nothing here may panic on what came over a wire.
+        (t - self.start).max(0.0).min(self.duration)
     }
 
     pub fn pos(&self, t: f64) -> f64 {

@@ -284,7 +284,7 @@ fn profibus_images_ignore_repeats() {
     let img = bus.profibus_exchange(at(2_000), 1, &halt).unwrap();
     assert_eq!(img.reply_bytes()[0], 0x02);
     assert!(CubeState(bus.module(1).unwrap().state().0).contains(StateFlag::Halted));
-    assert_eq!(img.short_state() & 0x8000, 0x8000, "STATE_HALTM4");
+    assert!(img.short_state().contains(crate::model::ProfibusFlag::HaltM4), "{}", img.short_state());
     let reset = w.image(&Request::Action(Action::Reset).encode()).unwrap();
     bus.profibus_exchange(at(2_010), 1, &reset).unwrap();
     assert!(!bus.module(1).unwrap().state().contains(StateFlag::Halted));
@@ -295,4 +295,70 @@ fn profibus_images_ignore_repeats() {
     let same = bus.profibus_exchange(at(2_040), 1, &halt).unwrap();
     assert_eq!(same.millis(), (2_040 % 256) as u8, "the millisecond byte runs on");
     assert!(bus.profibus_exchange(at(0), 9, &halt).is_none());
+}
+
+fn get(bus: &mut SimBus, ms: u64, p: Param) -> Value {
+    match bus.request(at(ms), 1, &Request::Get(p)) {
+        Some(Reply::Get(_, v)) => v,
+        other => panic!("{p}: {other:?}"),
+    }
+}
+
+#[test]
+fn soft_limits_never_cross_and_values_that_cannot_apply_are_ignored() {
+    let mut bus = homed_bus();
+    set(&mut bus, 2_000, Param::MaxPos, Value::F32(0.5));
+    // A lower limit above the upper one is not applied (acknowledged, as every write): the old one stays.
+    set(&mut bus, 2_000, Param::MinPos, Value::F32(1.0));
+    set(&mut bus, 2_000, Param::ActIMinPos, Value::I32(i32::MAX));
+    // Nor an upper limit below the lower one, nor a limit that is not a number.
+    set(&mut bus, 2_000, Param::MaxPos, Value::F32(-5.0));
+    for v in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        set(&mut bus, 2_000, Param::MinPos, Value::F32(v));
+        set(&mut bus, 2_000, Param::MaxPos, Value::F32(v));
+        set(&mut bus, 2_000, Param::MaxDeltaPos, Value::F32(v));
+        set(&mut bus, 2_000, Param::TargetVel, Value::F32(v));
+    }
+    assert_eq!(get(&mut bus, 2_000, Param::MinPos), Value::F32(-3.14));
+    assert_eq!(get(&mut bus, 2_000, Param::MaxPos), Value::F32(0.5));
+    assert_eq!(get(&mut bus, 2_000, Param::MaxDeltaPos), Value::F32(0.1));
+    // Limits that meet are allowed: the axis may only stand there.
+    set(&mut bus, 2_000, Param::MinPos, Value::F32(0.5));
+    assert_eq!(get(&mut bus, 2_000, Param::MinPos), Value::F32(0.5));
+    set(&mut bus, 2_000, Param::MinPos, Value::F32(-1.0));
+    // A ramp beyond the limit is limited to it; a velocity motion stops at it: no panic on the way.
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(2.0) }, AckKind::Simple));
+    assert!((pos(&mut bus, 5_000) - 0.5).abs() < 1e-6);
+    bus.request(at(5_000), 1, &Request::Motion(Motion::FVel { vel: Velocity(-1.0) }, AckKind::Simple));
+    let s = state(&mut bus, 8_000);
+    assert!(s.contains(StateFlag::BeyondSoft), "{s}");
+    assert!((pos(&mut bus, 8_000) + 1.0).abs() < 1e-3);
+    // A motion to a position that is not a number is acknowledged and ignored.
+    bus.request(at(8_000), 1, &Request::Action(Action::Reset));
+    for m in [
+        Motion::FRamp { pos: Position(f32::NAN) },
+        Motion::FStep { pos: Position(f32::INFINITY), time: Millis(10) },
+        Motion::FVel { vel: Velocity(f32::NAN) },
+        Motion::FCur { cur: Amperes(f32::NEG_INFINITY) },
+        Motion::FCosLoop { pos: Position(f32::NAN), time: Millis(100) },
+        Motion::FRampLoop { pos: Position(f32::NAN) },
+    ] {
+        assert!(bus.request(at(8_000), 1, &Request::Motion(m, AckKind::Simple)).is_some(), "{m:?}");
+    }
+    let p = pos(&mut bus, 9_000);
+    assert!(!state(&mut bus, 9_000).contains(StateFlag::Motion));
+    assert!((p + 1.0).abs() < 1e-3, "{p}");
+}
+
+#[test]
+fn a_ramp_loop_too_short_to_turn_round_ends() {
+    let mut bus = homed_bus();
+    // A loop of a tenth of a microradian at 1 rad/s² would turn round every 0.6 ms, millions of times in an
+    // hour of device time.
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FRampLoop { pos: Position(1e-7) }, AckKind::Simple));
+    let s = state(&mut bus, 3_600_000);
+    assert!(!s.contains(StateFlag::Motion) && s.contains(StateFlag::RampEnd), "{s}");
+    // A real one goes on.
+    bus.request(at(3_600_000), 1, &Request::Motion(Motion::FRampLoop { pos: Position(0.5) }, AckKind::Simple));
+    assert!(state(&mut bus, 3_700_000).contains(StateFlag::Motion));
 }

@@ -113,8 +113,10 @@ impl InputImage {
         i32::from_le_bytes([self.0[9], self.0[10], self.0[11], self.0[12]])
     }
 
-    /// Bytes 13..14: the Profibus short state word.
-    pub fn short_state(&self) -> u16 {
+    /// Bytes 13..14: the Profibus short state word as a number. The flags, typed, are
+    /// [`InputImage::short_state`] (a [`ProfibusState`](crate::model::ProfibusState); the meaning of the
+    /// bits is the model's, so that method lives there).
+    pub fn short_state_raw(&self) -> u16 {
         u16::from_le_bytes([self.0[13], self.0[14]])
     }
 
@@ -155,7 +157,7 @@ mod tests {
     fn input_image_fields() {
         let img = InputImage::new(&Payload::new(&[0x01]).unwrap(), -1000, 0x8081, 42);
         assert_eq!(img.position_ticks(), -1000);
-        assert_eq!(img.short_state(), 0x8081);
+        assert_eq!(img.short_state_raw(), 0x8081);
         assert_eq!(img.millis(), 42);
         assert_eq!(img.reply(1).as_bytes(), &[0x01]);
         assert_eq!(img.0[8], 0);
