@@ -775,8 +775,11 @@ impl ScuClient {
         let start_counts = self.position(actuator)?;
         self.set(actuator.remote_position_index(), &Value::RemotePosition(target_counts))?;
         self.set(function.remote_speed_index(), &Value::RemoteSpeed(speed))?;
-        self.start_motion(function, MotionDirection::RemotePosition)?;
-        let result = self.follow_move(actuator, function, start_counts, target_counts, started_at, options);
+        // An RE that failed (refused, a lost or corrupt reply) may still have started the motion: it gets its
+        // RS like any other failure.
+        let result = self
+            .start_motion(function, MotionDirection::RemotePosition)
+            .and_then(|()| self.follow_move(actuator, function, start_counts, target_counts, started_at, options));
         match result {
             Ok(position_counts) => {
                 self.stop_motion(function, StopMode::Soft)?;
@@ -1009,11 +1012,10 @@ impl Inner {
                 }
             }
             Ok(reply) => tracing::warn!("keepalive RC refused: {}", reply.status),
-            Err(e) => {
-                if line.link.is_some() {
-                    let _ = self.lost(line, format!("keepalive failed: {e}"));
-                }
-            }
+            // A lost port has already been recorded; a unit that did not answer (or answered garbage) is
+            // not a lost port: the next keepalive and the caller's next request try again, and the caller
+            // learns of it from its own request; close and drop still send RS and RA.
+            Err(e) => tracing::warn!("keepalive failed: {e}"),
         }
     }
 
@@ -1245,12 +1247,15 @@ impl Inner {
     fn reconnect(&self, line: &mut Line) -> Result<(), ScuError> {
         // Close the old port first: a serial device can be opened only once.
         line.link = None;
-        let mut link = (line.connector)()?;
-        let _ = link.discard_input();
-        line.link = Some(link);
-        line.decoder.reset();
-        if let Err(e) = self.open_remote(line) {
-            line.link = None;
+        let attempt = (line.connector)().map_err(ScuError::from).and_then(|mut link| {
+            let _ = link.discard_input();
+            line.link = Some(link);
+            line.decoder.reset();
+            self.open_remote(line)
+        });
+        if let Err(e) = attempt {
+            // Without a port the session is lost (and the keepalive thread sleeps until the next attempt).
+            let _ = self.lost(line, format!("reconnect failed: {e}"));
             return Err(e);
         }
         let started: Vec<u8> = {

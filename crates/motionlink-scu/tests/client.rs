@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::clock::{Clock, ManualClock, ParticipantGuard};
-use motionlink_link::link::{Connector, Link};
+use motionlink_link::link::{Connector, Link, LinkError};
 use motionlink_link::pipe::{Direction, EmulatorHost, Fault, FaultControl, PipeConfig};
 use motionlink_scu::client::{ClientConfig, ErrorClass, MoveOptions, ScuClient, ScuError};
 use motionlink_scu::model::{
@@ -22,6 +22,8 @@ struct Rig {
     host: EmulatorHost<ScuEmulator>,
     faults: Arc<Mutex<Option<FaultControl>>>,
     connects: Arc<Mutex<u32>>,
+    /// While set, opening the port fails (the adapter is unplugged).
+    unplugged: Arc<Mutex<bool>>,
     _me: ParticipantGuard,
 }
 
@@ -30,14 +32,18 @@ impl Rig {
         let clock = ManualClock::new_auto();
         let me = clock.reserve_participant().enter();
         let host = EmulatorHost::new(ScuEmulator::new(config).unwrap(), clock.shared(), PipeConfig::paced(38_400));
-        Rig { clock, host, faults: Arc::default(), connects: Arc::default(), _me: me }
+        Rig { clock, host, faults: Arc::default(), connects: Arc::default(), unplugged: Arc::default(), _me: me }
     }
 
     fn connector(&self) -> Connector {
         let host = self.host.clone();
         let faults = Arc::clone(&self.faults);
         let connects = Arc::clone(&self.connects);
+        let unplugged = Arc::clone(&self.unplugged);
         Box::new(move || {
+            if *unplugged.lock().unwrap() {
+                return Err(LinkError::Disconnected { port: "sim".into(), reason: "unplugged".into() });
+            }
             let (link, f) = host.connect();
             *faults.lock().unwrap() = Some(f);
             *connects.lock().unwrap() += 1;
@@ -488,6 +494,62 @@ fn port_loss_is_reported_and_reconnect_restores_the_session() {
     assert!(rig.unit(|u| u.executed_functions().is_empty()));
     assert!(client.position(a(1)).unwrap() > 0);
     assert_eq!(client.stats().reconnects, 1);
+}
+
+#[test]
+fn a_failed_reconnect_leaves_the_session_lost_and_idle() {
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(ClientConfig::default());
+    *rig.unplugged.lock().unwrap() = true;
+    assert!(client.reconnect().is_err());
+    assert!(!client.is_open(), "no port: the session is lost");
+    assert!(matches!(client.position(a(1)), Err(ScuError::SessionLost(_))));
+    // Without auto_reconnect nothing tries again by itself, and the keepalive thread sleeps (on a spinning
+    // thread the manual clock could not advance ten seconds).
+    rig.sleep(10_000);
+    assert_eq!(*rig.connects.lock().unwrap(), 1);
+    *rig.unplugged.lock().unwrap() = false;
+    client.reconnect().unwrap();
+    assert_eq!(client.position(a(1)).unwrap(), 0);
+}
+
+#[test]
+fn a_move_whose_re_reply_is_corrupt_still_ends_with_rs() {
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(ClientConfig::default());
+    rig.sleep(50);
+    // move_to reads the position (11-byte reply), writes position and speed (two 5-byte ACKs), then RE:
+    // corrupt the CRC of the RE's ACK.
+    let faults = rig.faults();
+    faults.inject(
+        Direction::DeviceToHost,
+        faults.bytes_sent(Direction::DeviceToHost) + 11 + 5 + 5 + 3,
+        Fault::Corrupt { xor: 0x01 },
+    );
+    let err = client.move_to(a(1), 800, 100, &MoveOptions::default()).unwrap_err();
+    assert!(matches!(err, ScuError::Corrupt { command: Command::Execute, .. }), "{err}");
+    assert!(client.started_functions().is_empty(), "the RE that may have started the motion got its RS");
+    assert!(rig.unit(|u| u.executed_functions().is_empty()));
+    rig.sleep(500);
+    assert!(!rig.unit(|u| u.any_moving()));
+}
+
+#[test]
+fn a_keepalive_without_answer_does_not_give_up_the_port() {
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(ClientConfig::default());
+    client.set(DataIndex(0x3021), &Value::RemotePosition(800)).unwrap();
+    client.start_motion(f(1), MotionDirection::RemotePosition).unwrap();
+    // The unit's answers are lost for three seconds: keepalives fail, the port is still there.
+    rig.faults().drop_next(Direction::DeviceToHost, 3 * 3840 / 10);
+    rig.sleep(3_000);
+    rig.faults().heal();
+    rig.sleep(1_000);
+    assert!(client.is_open());
+    // Dropping the client still sends the RS of the started function and the RA.
+    drop(client);
+    assert!(rig.unit(|u| u.executed_functions().is_empty()), "the RE got its RS");
+    assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Off, "RA");
 }
 
 #[test]
