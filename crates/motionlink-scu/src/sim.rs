@@ -541,6 +541,10 @@ pub struct ScuEmulator {
     buzzer: bool,
     emergency_stop: bool,
     keys: u32,
+    /// Total over-current events (0x008F).
+    total_over_current_count: u32,
+    /// The highest total current of all actuators together, in 0.1 A (0x00BF).
+    max_total_current: u16,
     stats: SimStats,
     reply: Vec<u8>,
 }
@@ -572,6 +576,8 @@ impl ScuEmulator {
             led_hand_switch: 0,
             buzzer: false,
             emergency_stop: false,
+            total_over_current_count: 0,
+            max_total_current: 0,
             keys: 0,
             stats: SimStats::default(),
             reply: Vec::with_capacity(MAX_REPLY_LEN),
@@ -632,6 +638,7 @@ impl ScuEmulator {
         }
         if code.has(error_bits::TOTAL_CURRENT) {
             self.actuators.iter_mut().for_each(ActuatorState::fast_stop);
+            self.total_over_current_count += 1;
         }
     }
 
@@ -684,6 +691,8 @@ impl ScuEmulator {
                     for a in &mut self.actuators {
                         a.step(dt);
                     }
+                    let total: u16 = self.actuators.iter().map(ActuatorState::current).sum();
+                    self.max_total_current = self.max_total_current.max(total);
                 } else if to - self.now > STEP {
                     // Nothing moves: jump to the next event.
                     let jump_to = watchdog_at.map_or(to, |w| w.min(to)).max(next);
@@ -743,9 +752,26 @@ impl ScuEmulator {
 
     /// The value bytes of data-list entry `e`.
     fn read_entry(&self, e: &DataEntry, out: &mut Vec<u8>) {
+        let v = self.entry_value(e).unwrap_or_else(|| {
+            tracing::error!("SCU emulator: {} ({}) has no modelled value; answering zeros", e.name, e.index);
+            Value::Counter(0)
+        });
+        // Entries of raw-number kinds are encoded through their own kind's size.
+        let start = out.len();
+        match (&v, e.kind) {
+            (Value::Number(n), _) => out.push(*n),
+            (Value::Counter(n), k) => out.extend_from_slice(&n.to_le_bytes()[..k.size()]),
+            (v, k) => v.encode(k, out),
+        }
+        out.resize(start + e.size(), 0);
+    }
+
+    /// The emulated unit's value of entry `e`; `None` for an entry the emulator does not model (a test
+    /// checks that there is none).
+    fn entry_value(&self, e: &DataEntry) -> Option<Value> {
         let i = e.index.0;
         let actuator = |base: u16| self.actuators.get(usize::from(i - base).wrapping_sub(1));
-        let v: Value = match i {
+        Some(match i {
             0x0001 => Value::Text(self.config.firmware_info.clone()),
             0x0002 => Value::Text(self.config.configuration_info.clone()),
             0x0011..=0x0016 => Value::PositionCounts(actuator(0x0010).map_or(0, ActuatorState::reported_position)),
@@ -756,7 +782,7 @@ impl ScuEmulator {
             0x0091..=0x0096 => Value::StrokeCounts(actuator(0x0090).map_or(0, |a| a.cumulated_stroke.round() as u32)),
             0x00A1..=0x00A6 => Value::CurrentDeciAmps(actuator(0x00A0).map_or(0, ActuatorState::current)),
             0x00B1..=0x00B6 => Value::CurrentDeciAmps(actuator(0x00B0).map_or(0, |a| a.max_current)),
-            0x00BF => Value::CurrentDeciAmps(self.actuators.iter().map(|a| a.max_current).sum()),
+            0x00BF => Value::CurrentDeciAmps(self.max_total_current),
             0x00C0 => Value::TemperatureAdc(96),
             0x00D1..=0x00D5 => Value::ErrorCode(ErrorCode(self.error_history[usize::from(i - 0x00D1)])),
             0x00E1..=0x00E6 => Value::Number(actuator(0x00E0).map_or(0, |_| {
@@ -784,16 +810,15 @@ impl ScuEmulator {
             0x3001..=0x3005 => Value::CyclicObject(self.cyclic_objects[usize::from(i - 0x3001)]),
             0x3011..=0x301A => Value::RemoteSpeed(self.remote_speed[usize::from(i - 0x3011)]),
             0x3021..=0x3026 => Value::RemotePosition(self.remote_position[usize::from(i - 0x3021)]),
-            _ => Value::Counter(0),
-        };
-        // Entries of raw-number kinds are encoded through their own kind's size.
-        let start = out.len();
-        match (&v, e.kind) {
-            (Value::Number(n), _) => out.push(*n),
-            (Value::Counter(n), k) => out.extend_from_slice(&n.to_le_bytes()[..k.size()]),
-            (v, k) => v.encode(k, out),
-        }
-        out.resize(start + e.size(), 0);
+            // Nothing is wired to the binary inputs, no locking box is connected, and the model has no
+            // temperature rise.
+            0x0020 => Value::Number(0),
+            0x008F => Value::Counter(self.total_over_current_count),
+            0x00C1 => Value::Counter(0),
+            0x0130 => Value::Number(0),
+            0x0165 => Value::Number(0),
+            _ => return None,
+        })
     }
 
     fn read_item(&self, it: Item, out: &mut Vec<u8>) {
@@ -1182,5 +1207,19 @@ impl OwnedIncoming {
             OwnedIncoming::Execute(function, params) => Request::Execute { function, params },
             OwnedIncoming::Stop(function, param) => Request::Stop { function, param },
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::DATA_LIST;
+
+    #[test]
+    fn every_entry_of_the_data_list_has_a_modelled_value() {
+        let unit = ScuEmulator::new(SimConfig::scp11(6)).unwrap();
+        for e in DATA_LIST {
+            assert!(unit.entry_value(e).is_some(), "{} ({}) is not modelled", e.name, e.index);
+        }
     }
 }

@@ -542,6 +542,27 @@ fn a_drive_error_fast_stops_its_drive_and_enters_the_history() {
 }
 
 #[test]
+fn total_current_is_counted_and_its_maximum_is_of_the_sum_at_one_time() {
+    let mut b = Bench::new(SimConfig::default());
+    b.open(1);
+    b.go(1, 800);
+    b.keep_alive(1500);
+    let current = |b: &mut Bench, index: u16| u16::from_le_bytes(b.get(index).try_into().unwrap());
+    let max_a1 = current(&mut b, 0x00B1);
+    assert!(max_a1 > 0);
+    // Only actuator 1 has moved: the highest total is its own highest current.
+    assert_eq!(current(&mut b, 0x00BF), max_a1);
+    b.go(2, 800);
+    b.keep_alive(500);
+    let total_now = current(&mut b, 0x00A1) + current(&mut b, 0x00A2);
+    assert!(current(&mut b, 0x00BF) >= total_now);
+    assert_eq!(u16::from_le_bytes(b.get(0x008F)[..2].try_into().unwrap()), 0);
+    b.unit.inject_error(ErrorCode::from_bit(14));
+    assert!(!b.unit.any_moving(), "a total over-current fast-stops every drive");
+    assert_eq!(u16::from_le_bytes(b.get(0x008F)[..2].try_into().unwrap()), 1, "Number_Total_Over_Current");
+}
+
+#[test]
 fn ra_ends_remote_mode_and_stops_remote_motions() {
     let mut b = Bench::new(SimConfig::default());
     b.open(1);
