@@ -319,6 +319,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
 }
 
 fn act(client: &ScuClient, args: &Args, out: &mut dyn Write, interrupt: &CancelToken) -> Result<(), CliError> {
+    // A Ctrl-C while the session was being opened: nothing was started; the session is closed (RA).
+    if interrupt.is_cancelled() {
+        return Err(CliError::Interrupted("interrupted before the action started".into()));
+    }
     match &args.action {
         Action::Info => info(client, args.json, out),
         Action::Get { item } => {
