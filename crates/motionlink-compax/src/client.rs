@@ -7,9 +7,11 @@
 //!
 //! Safety: a drive the client set in motion is remembered until the client has seen it stop. Dropping the
 //! [`Bus`], cancelling a wait through its [`CancelToken`], or a transport failure during a wait stops every
-//! such axis with `OUTPUT O0=0` ("switch off drive", the one documented command that ends a running
-//! positioning; every move command is refused with E92 while the axis moves). The stop is addressed to each
-//! drive, not broadcast: other drives on the bus may be someone else's. Moves sent with [`Bus::raw`] or
+//! such axis that still moves with `OUTPUT O0=0` ("switch off drive", the one documented command that ends a
+//! running positioning; every move command is refused with E92 while the axis moves): the client reads the
+//! drive's S17 first and switches it off only if "command active" is set, or if S17 cannot be read (on a
+//! failing line the stop is sent anyway). The stop is addressed to each drive, not broadcast: other drives
+//! on the bus may be someone else's. Moves sent with [`Bus::raw`] or
 //! [`Bus::broadcast`] count too (a broadcast move counts for every drive that has answered this client).
 //! [`Bus::release`] hands a running move over to the caller: the client forgets it and does not stop it.
 //!
@@ -179,6 +181,20 @@ pub enum Error {
     /// cancelled wait has stopped every axis this client set in motion (otherwise dropping the client does).
     #[error("cancelled: no further motion is sent, and the axes this client set in motion are stopped")]
     Cancelled,
+    /// [`Bus::sync_start`] could not store every move, and sent no `!`. The drives in `buffered` acknowledged
+    /// storing theirs (and the failed drive may have stored its own if its reply was lost): the manual has
+    /// no command that empties a drive's buffer, so the next `!` to such a drive, or any `32!` on the bus,
+    /// starts that move. The client counts them as started once it sends such a `!` itself.
+    #[error("drive {failed}: storing the synchronous move failed ({source}); no '!' was sent, but drives {buffered:?} still hold a buffered move that the next '!' to them or '32!' starts (the manual has no command to empty a buffer)")]
+    SyncIncomplete {
+        /// The drive whose move could not be stored.
+        failed: u8,
+        /// Why.
+        source: Box<Error>,
+        /// Drives that hold a buffered move from this call (ascending), the failed one included when its
+        /// reply was lost.
+        buffered: Vec<u8>,
+    },
     /// Address 32 where one drive's answer or one drive is needed: every drive executes a broadcast and none
     /// answers it.
     #[error("address 32 is the broadcast: every drive executes it and none answers; {0}")]
@@ -240,6 +256,12 @@ pub struct Bus {
     unattributed_messages: u32,
     /// Drives with comparators armed (their bare-number messages are expected).
     comparators: u32,
+    /// Drives that may hold a move in their buffer, stored by this client and not yet executed: a `!` to
+    /// them (or `32!`) starts it.
+    buffered: u32,
+    /// The request awaiting its reply, while [`Bus::transact`] reads it: a bare number that can be its reply
+    /// is taken as the reply, not as a comparator message.
+    awaiting_reply: Option<(Address, ReplyShape)>,
     paused: bool,
     /// Earliest time of the next send (after a broadcast).
     quiet_until: Timestamp,
@@ -263,6 +285,48 @@ fn bit(a: Address) -> u32 {
         ALL_DRIVES
     } else {
         1 << a.get()
+    }
+}
+
+/// What the reply to a request can be, as far as a bare number (`35`, which is also what a comparator sends)
+/// is concerned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum ReplyShape {
+    /// The value of a status read: a bare number is its reply if it reads as that status value.
+    Status(StatusId),
+    /// The value of a parameter read: a bare number is its reply if it reads as a value.
+    Param(ParamId),
+    /// An acknowledgement or `Exx` only (moves, settings, outputs, binary telegrams): never a bare number.
+    AckOnly,
+    /// Anything (an echo, `!`, text the model cannot read): a bare number may be its reply.
+    Any,
+}
+
+impl ReplyShape {
+    fn of(req: &Request<'_>) -> ReplyShape {
+        if req.flags.echo {
+            return ReplyShape::Any;
+        }
+        match req.body {
+            Body::Execute => ReplyShape::Any,
+            Body::Binary(_) => ReplyShape::AckOnly,
+            Body::Command(t) => match Command::parse(t) {
+                Ok(Command::ReadStatus(id)) => ReplyShape::Status(id),
+                Ok(Command::ReadParam(id)) => ReplyShape::Param(id),
+                Ok(_) => ReplyShape::AckOnly,
+                Err(_) => ReplyShape::Any,
+            },
+        }
+    }
+
+    /// True if `text` can be the reply.
+    fn fits(self, text: &[u8]) -> bool {
+        match self {
+            ReplyShape::Status(id) => StatusValue::parse(id, text).is_ok(),
+            ReplyShape::Param(id) => parse_param_reply(id, text).is_ok(),
+            ReplyShape::AckOnly => false,
+            ReplyShape::Any => true,
+        }
     }
 }
 
@@ -318,6 +382,8 @@ impl Bus {
             message_seen: 0,
             unattributed_messages: 0,
             comparators: 0,
+            buffered: 0,
+            awaiting_reply: None,
             paused: false,
             quiet_until: Timestamp::ZERO,
             rx: [0; 256],
@@ -430,7 +496,7 @@ impl Bus {
                 tracing::debug!("position reached message from {:?}", r.address());
                 true
             }
-            ReplyKind::Comparator(n) if self.expects_comparator(r.address()) => {
+            ReplyKind::Comparator(n) if self.expects_comparator(r.address()) && !self.may_be_the_reply(r) => {
                 tracing::info!("comparator {n} switched (drive {:?})", r.address());
                 true
             }
@@ -444,6 +510,16 @@ impl Bus {
         match from {
             Some(a) => a < BROADCAST && self.comparators & (1 << a) != 0,
             None => self.comparators != 0,
+        }
+    }
+
+    /// True when `r` can be the reply to the request awaiting one (from its drive, when replies carry an
+    /// address, and of the form that request is answered with). A reply to an outstanding request is that
+    /// request's reply first: a bare number is a comparator message only when it cannot be.
+    fn may_be_the_reply(&self, r: &Reply) -> bool {
+        match self.awaiting_reply {
+            None => false,
+            Some((a, shape)) => r.address().is_none_or(|from| from == a.get()) && shape.fits(r.text()),
         }
     }
 
@@ -529,7 +605,13 @@ impl Bus {
                 return Ok(None);
             }
             let deadline = self.clock.now() + wire_time + self.cfg.reply_timeout;
-            let outcome = self.read_event(deadline, Some(req.address))?;
+            // Only with comparators armed can a bare number be anything but the reply: work out then what
+            // the reply can be.
+            let shape = if self.comparators != 0 { ReplyShape::of(req) } else { ReplyShape::Any };
+            self.awaiting_reply = Some((req.address, shape));
+            let outcome = self.read_event(deadline, Some(req.address));
+            self.awaiting_reply = None;
+            let outcome = outcome?;
             let retry_left = attempts <= self.cfg.retries;
             if matches!(outcome, Some(ReplyEvent::Reply(_))) && !req.address.is_broadcast() {
                 self.known |= bit(req.address);
@@ -623,8 +705,19 @@ impl Bus {
             self.check_cancel()?;
         }
         let saved = self.before_send(address, effect);
+        let executes = matches!(body, Body::Execute) && !flags.echo && !flags.buffer;
+        if executes {
+            self.execute_buffers(address);
+        }
+        let stores_move = flags.buffer
+            && !flags.echo
+            && matches!(body, Body::Command(t) if Command::parse(t).is_ok_and(|c| c.is_move()));
         match self.transact(&Request { address, body, flags }, Retry::DiscardedOnly) {
             Ok(r) => {
+                if stores_move {
+                    // A broadcast store reaches every drive; the client can stop only those it knows.
+                    self.buffered |= if address.is_broadcast() { self.known } else { bit(address) };
+                }
                 self.after_send(address, effect);
                 Ok(r.map(|r| r.text_str().to_string()))
             }
@@ -907,6 +1000,12 @@ impl Bus {
 
     /// Starts several drives at the same instant: each move is stored in its drive's buffer (`,`), then one
     /// broadcast `32!` executes them all. Note that every drive on the bus runs what its buffer holds.
+    ///
+    /// Hazard: if storing the move fails for one drive, no `!` is sent, but the drives before it keep their
+    /// buffered move, and the manual has no command that empties a buffer (only `!` does, by executing
+    /// it). The call then returns [`Error::SyncIncomplete`], which names those drives: the next `!` to one
+    /// of them, or any `32!` on the bus, starts its move. If this client sends that `!` (through
+    /// [`Bus::raw`] or another `sync_start`), it counts those drives as started, so dropping it stops them.
     pub fn sync_start(&mut self, moves: &[(Address, Command)], message: bool) -> Result<()> {
         for (a, c) in moves {
             if !c.is_move() || a.is_broadcast() {
@@ -914,22 +1013,48 @@ impl Bus {
             }
         }
         self.check_cancel()?;
+        let mut stored = 0u32;
         for (a, c) in moves {
-            self.send_command(*a, c, Flags { buffer: true, position_message: message, ..Flags::NONE })?;
+            match self.send_command(*a, c, Flags { buffer: true, position_message: message, ..Flags::NONE }) {
+                Ok(_) => {
+                    stored |= bit(*a);
+                    self.buffered |= bit(*a);
+                }
+                Err(e) => {
+                    if e.is_transport() {
+                        // The reply was lost: the drive may have stored the move.
+                        self.buffered |= bit(*a);
+                        stored |= bit(*a);
+                    }
+                    tracing::error!("drive {a}: storing the synchronous move failed ({e}); buffered moves remain");
+                    return Err(Error::SyncIncomplete {
+                        failed: a.get(),
+                        source: Box::new(e),
+                        buffered: drives_in(stored).iter().map(|d| d.get()).collect(),
+                    });
+                }
+            }
         }
         self.check_cancel()?;
         for (a, _) in moves {
-            self.started |= bit(*a);
             if message {
                 self.awaiting_message |= bit(*a);
                 self.message_seen &= !bit(*a);
             }
         }
+        self.execute_buffers(Address::BROADCAST);
         self.transact(
             &Request { address: Address::BROADCAST, body: Body::Execute, flags: Flags::NONE },
             Retry::DiscardedOnly,
         )?;
         Ok(())
+    }
+
+    /// Before a `!` to `address` (32: every drive) is sent: the buffered moves it executes count as started.
+    fn execute_buffers(&mut self, address: Address) {
+        let executed = self.buffered & bit(address);
+        self.started |= executed;
+        self.buffered &= !executed;
     }
 
     /// Sends `cmd` to every drive at once (no reply). A move counts as started for every drive that has
@@ -1047,11 +1172,26 @@ impl Bus {
         r
     }
 
-    /// Stops every drive this client set in motion and has not seen stop. Tries them all; returns the first
-    /// error.
+    /// Stops every drive this client set in motion and has not seen stop, if it still moves: it reads the
+    /// drive's S17 first (one attempt, no retries) and sends `OUTPUT O0=0` when "command active" is set. A
+    /// drive whose S17 cannot be read (a line failure, a corrupt or unexpected reply, a refusal) is sent the
+    /// stop anyway: on a failing line a moving axis must not be left running. A drive found at rest is
+    /// forgotten without being switched off. Tries them all; returns the first error of a stop.
     pub fn stop_started(&mut self) -> Result<()> {
         let mut first = Ok(());
         for a in self.started() {
+            let saved = std::mem::replace(&mut self.cfg.retries, 0);
+            let s17 = self.read_s17(a);
+            self.cfg.retries = saved;
+            match s17 {
+                Ok(s) if !s.bit(S17Bits::COMMAND_ACTIVE) => {
+                    tracing::debug!("drive {a}: at rest, not switched off");
+                    self.finish(a);
+                    continue;
+                }
+                Ok(_) => tracing::warn!("drive {a} still moves: stopping it"),
+                Err(e) => tracing::warn!("drive {a}: S17 unreadable ({e}): stopping it anyway"),
+            }
             if let Err(e) = self.stop(a) {
                 tracing::error!("drive {a}: stop failed: {e}");
                 if first.is_ok() {
@@ -1217,16 +1357,14 @@ fn drives_in(set: u32) -> Vec<Address> {
 }
 
 impl Drop for Bus {
-    /// Stops every axis this client set in motion that is still moving (or whose state cannot be read).
+    /// Stops every axis this client set in motion that is still moving (or whose state cannot be read):
+    /// [`Bus::stop_started`].
     fn drop(&mut self) {
-        for a in self.started() {
-            let moving = self.read_s17(a).map(|s| s.bit(S17Bits::COMMAND_ACTIVE)).unwrap_or(true);
-            if moving {
-                tracing::warn!("drive {a} still moving as the client closes: stopping it");
-                if let Err(e) = self.stop(a) {
-                    tracing::error!("drive {a}: stop failed: {e}");
-                }
-            }
+        if self.started != 0 {
+            tracing::debug!("the client closes: stopping the axes it moved that still move");
+        }
+        if let Err(e) = self.stop_started() {
+            tracing::error!("stopping as the client closes failed: {e}");
         }
     }
 }

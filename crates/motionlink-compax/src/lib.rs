@@ -72,7 +72,10 @@
 //! - **Stop**: `OUTPUT O0=0` ("switch off drive", user guide). The command set has no stop that works while a
 //!   positioning runs: every move command is refused with E92 then. The client sends it addressed to each
 //!   drive it started (a broadcast would also stop drives that other programs run) and only if the drive
-//!   still moves (S17 "command active", or its state cannot be read). `OUTPUT O0=1` switches the drive on
+//!   still moves: [`client::Bus::stop_started`] (used on drop, on a cancelled or failed wait) reads S17 first
+//!   and sends the stop when "command active" is set, and also when S17 cannot be read (a line failure: the
+//!   stop is sent anyway, so an axis is never left running because its state was unreadable).
+//!   [`client::Bus::stop`] switches the drive off unconditionally. `OUTPUT O0=1` switches the drive on
 //!   again; the emulator powers up switched on.
 //! - **Lost replies**: reads, settings, POSA and buffered commands are sent again after a timeout or a corrupt
 //!   reply. A POSR is not: the client read the target S2 before sending it and reads it again; unchanged, the
@@ -101,6 +104,21 @@
 //!   time from standstill to that maximum speed, ACCEL- the braking time alone; preparatory commands
 //!   (SPEED, ACCEL, comparators `POSR x OUTPUT Oy=z`, speed steps `POSR x SPEED y`) apply to the next
 //!   positioning. A comparator sends its number (`1 CR LF >`) when it switches, as in the user guide.
+//! - **Bare numbers**: a comparator's message (`1 CR LF >`) looks like a read answered with the bare value
+//!   (`35 CR LF >`). A reply to an outstanding request is that request's reply first: while a request
+//!   awaits its reply, a bare number is taken as the reply if the request can be answered with it (a status
+//!   or parameter read whose value it reads as, an echo, `!`, text the model cannot read), and as a
+//!   comparator message otherwise (moves, settings, outputs, S16 / S17 / S18) or when no request awaits one.
+//! - **`OUTPUT Ayy`**: the binary table (4.4.1) writes outputs as `Ayy` while its code byte is `4F` (`O`) and
+//!   the user guide writes `O9=1`: both spellings are read, `O` is written.
+//! - **Synchronous start**: the manual has no command that empties a drive's buffer. If
+//!   [`client::Bus::sync_start`] fails to store one move, it sends no `!` and returns
+//!   [`client::Error::SyncIncomplete`] naming the drives that still hold a buffered move (the next `!` to
+//!   them, or any `32!`, starts it); a `!` the client sends later counts them as started.
+//! - **Emulator parameters and status values**: the manual defines P194..P196 and no error code for an
+//!   invalid parameter or status number (it lists E70..E74 only), so the emulator answers a read or write
+//!   of a parameter it does not model ([`sim::SimConfig::params`] adds some) and a status value it does not
+//!   model with E90 ([`sim::REFUSED`]), never with a made-up 0. S18 records every error a drive meets.
 
 #![warn(missing_docs)]
 

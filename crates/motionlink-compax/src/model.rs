@@ -1074,9 +1074,11 @@ fn small_number(digits: &[u8]) -> Option<u16> {
     Some(digits.iter().fold(0u16, |a, d| a * 10 + u16::from(d - b'0')))
 }
 
-/// `O9=1` → (9, 1).
+/// `O9=1` → (9, 1). The RS485 manual's binary table (4.4.1) writes the output as `Ayy` (`OUTPUT Ayy=0`),
+/// while its binary code is `4F` (`O`) and the user guide writes `O9=1`: both spellings are read; the
+/// command is always written back with `O`.
 fn parse_output(t: &[u8]) -> Option<(u16, OutputState)> {
-    let rest = t.strip_prefix(b"O")?;
+    let rest = t.strip_prefix(b"O").or_else(|| t.strip_prefix(b"A"))?;
     let eq = rest.iter().position(|&c| c == b'=')?;
     let output = small_number(trim(&rest[..eq]))?;
     let state = small_number(trim(&rest[eq + 1..]))?;
@@ -1089,6 +1091,18 @@ mod tests {
 
     fn p(v: f64) -> Position {
         Position::new(v).unwrap()
+    }
+
+    #[test]
+    fn the_manuals_a_spelling_of_outputs_is_read_and_written_as_o() {
+        // Manual 4.4.1: `OUTPUT Ayy=0|1` and `POSR value OUTPUT Ayy=0|1`.
+        let c = Command::parse(b"OUTPUT A09=1").unwrap();
+        assert_eq!(c, Command::Output { output: 9, state: OutputState::ON });
+        assert_eq!(c.to_ascii(CommandStyle::Long).unwrap().as_str(), "OUTPUT O9=1");
+        let c = Command::parse(b"POSR 200 OUTPUT A9=0").unwrap();
+        assert_eq!(c, Command::PosROutput { distance: p(200.0), output: 9, state: OutputState::new(9, 0).unwrap() });
+        assert_eq!(c.to_ascii(CommandStyle::Short).unwrap().as_str(), "PR 200 OT O9=0");
+        assert!(Command::parse(b"OUTPUT B9=1").is_err());
     }
 
     #[test]

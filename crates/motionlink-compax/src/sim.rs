@@ -18,6 +18,14 @@
 //! Choices where the manuals are silent (see also the crate's decisions):
 //! - A drive answers a command it cannot parse, a value out of range, `!` with an empty buffer, or a move
 //!   while switched off with [`REFUSED`] (E90): the code a real drive uses for these is not in our sources.
+//!   The RS485 manual lists only E70..E74, and no code for an invalid parameter or status number.
+//! - Parameters: the manual defines P194..P196 only. A read or write of any other parameter is refused with
+//!   E90, unless the configuration lists it ([`SimConfig::params`]); nothing reads as a made-up 0.
+//! - Status values the emulator does not model (S4, S5, S11, S13..S15, S19..S30, S33..S40) are refused with
+//!   E90 rather than answered with 0.
+//! - S18 (the last eight errors, newest first) records every error a drive meets (E70..E73, E90, E92, ...),
+//!   also those of telegrams it does not answer; E70..E73 are followed by 99 (acknowledged) at the next
+//!   error-free transmission, as the manual's chapter 6 says they need no acknowledgement.
 //! - A drive with a baud rate (P195) other than the line's hears only noise: it never answers.
 //! - A drive with address 0 (the factory setting) answers nothing, but executes broadcasts.
 
@@ -83,6 +91,11 @@ pub struct SimConfig {
     /// The drives.
     #[serde(default = "default_drives", rename = "drive")]
     pub drives: Vec<DriveConfig>,
+    /// Parameters besides P194..P196 that every drive models, with their values at power-on (`P12 = 0.0`).
+    /// The manual defines only P194..P196: a drive answers a read or write of any other parameter with
+    /// [`REFUSED`] (E90) unless it is listed here.
+    #[serde(default)]
+    pub params: BTreeMap<String, f64>,
 }
 
 fn default_baud() -> u32 {
@@ -98,7 +111,13 @@ fn default_drives() -> Vec<DriveConfig> {
 impl Default for SimConfig {
     /// One drive at address 1, 9600 baud, P196 = 0, 100 units/s.
     fn default() -> Self {
-        SimConfig { baud_rate: 9600, p196: 0, max_speed_units_per_s: 100.0, drives: default_drives() }
+        SimConfig {
+            baud_rate: 9600,
+            p196: 0,
+            max_speed_units_per_s: 100.0,
+            drives: default_drives(),
+            params: BTreeMap::new(),
+        }
     }
 }
 
@@ -113,7 +132,29 @@ impl SimConfig {
                 .iter()
                 .map(|&address| DriveConfig { address, baud_rate: None, p196: None, position: 0.0 })
                 .collect(),
+            params: BTreeMap::new(),
         }
+    }
+
+    /// Lets every drive model parameter `id` (besides P194..P196), starting at `value`.
+    pub fn with_param(mut self, id: ParamId, value: f64) -> Self {
+        self.params.insert(id.to_string(), value);
+        self
+    }
+
+    /// The extra parameters as numbers (see [`SimConfig::params`]).
+    fn param_ids(&self) -> Result<Vec<(ParamId, f64)>, SimConfigError> {
+        self.params
+            .iter()
+            .map(|(name, &v)| {
+                let id = ParamId::parse(name).map_err(|e| SimConfigError(format!("params: {e}")))?;
+                if id.info().is_some() {
+                    return Err(SimConfigError(format!("params: {id} is set by the drive's own settings")));
+                }
+                id.check(v).map_err(|e| SimConfigError(format!("params: {e}")))?;
+                Ok((id, v))
+            })
+            .collect()
     }
 
     /// Reads a TOML configuration:
@@ -122,6 +163,7 @@ impl SimConfig {
     /// baud_rate = 9600
     /// p196 = 8
     /// max_speed_units_per_s = 100.0
+    /// params = { P12 = 0.0 }
     /// [[drive]]
     /// address = 1
     /// [[drive]]
@@ -161,6 +203,7 @@ impl SimConfig {
         if !BAUD_RATES.contains(&self.baud_rate) {
             return err(format!("line baud rate {} is not one P195 accepts", self.baud_rate));
         }
+        self.param_ids()?;
         Ok(())
     }
 }
@@ -224,6 +267,8 @@ pub struct Drive {
     idle_after_stop: bool,
     motion_cycles: u64,
     history: [u8; 8],
+    /// The newest S18 entry is an RS485 error that the next error-free transmission acknowledges.
+    auto_ack: bool,
     powered_at: Timestamp,
     /// Unsolicited messages waiting for the line to be free: texts such as `$` or a comparator number.
     pending: Vec<TextBuf<4>>,
@@ -242,6 +287,10 @@ impl Drive {
         params.insert(ParamId::DEVICE_ADDRESS.get(), f64::from(cfg.address));
         params.insert(ParamId::BAUD_RATE.get(), f64::from(baud));
         params.insert(ParamId::OPERATING_MODE.get(), f64::from(p196));
+        // Validated with the configuration.
+        for (id, v) in bus.param_ids().unwrap_or_default() {
+            params.insert(id.get(), v);
+        }
         Drive {
             params,
             address: cfg.address,
@@ -268,6 +317,7 @@ impl Drive {
             idle_after_stop: false,
             motion_cycles: 0,
             history: [99; 8],
+            auto_ack: false,
             powered_at: Timestamp::ZERO,
             pending: Vec::new(),
             xoff: false,
@@ -322,9 +372,23 @@ impl Drive {
         self.outputs.get(usize::from(n)).copied()
     }
 
-    /// A parameter as stored (written values of P194..P196 take effect at power-on).
-    pub fn param(&self, id: ParamId) -> f64 {
-        self.params.get(&id.get()).copied().unwrap_or(0.0)
+    /// A parameter as stored (written values of P194..P196 take effect at power-on); `None` for one the drive
+    /// does not model (see [`SimConfig::params`]).
+    pub fn param(&self, id: ParamId) -> Option<f64> {
+        self.params.get(&id.get()).copied()
+    }
+
+    /// The error history S18, newest first (99: acknowledged).
+    pub fn history(&self) -> [u8; 8] {
+        self.history
+    }
+
+    /// Records error `code` in S18. The RS485 errors E70..E73 need no acknowledgement (manual chapter 6):
+    /// the next error-free transmission acknowledges them, which S18 shows as 99.
+    fn record(&mut self, code: ErrorCode) {
+        self.history.rotate_right(1);
+        self.history[0] = code.0;
+        self.auto_ack = (70..=73).contains(&code.0);
     }
 
     /// Number of telegrams addressed to this drive (or broadcast) that it executed or answered.
@@ -357,14 +421,15 @@ impl Drive {
         b
     }
 
-    fn status(&self, id: StatusId, now: Timestamp) -> StatusValue {
+    /// Status value `id`, or [`REFUSED`] for one the emulator does not model.
+    fn status(&self, id: StatusId, now: Timestamp) -> Result<StatusValue, ErrorCode> {
         let pos = |v: f64| StatusValue::Position(Position::new(v).unwrap_or_default());
         let text = |s: &str| {
             let mut t = TextBuf::new();
             let _ = t.write_str(s);
             StatusValue::Text(t)
         };
-        match id {
+        Ok(match id {
             StatusId::ACTUAL_POSITION | StatusId::ABSOLUTE_SENSOR => pos(self.position),
             StatusId::TARGET_POSITION => pos(self.target),
             StatusId::CONTOUR_ERROR => pos(0.0),
@@ -380,8 +445,9 @@ impl Drive {
             StatusId::ERROR_HISTORY => StatusValue::History(self.history.map(HistoryEntry::from_number)),
             StatusId::DEVICE_ID_1 => text("COMPAX EMULATOR"),
             StatusId::DEVICE_ID_2 => text("MOTIONLINK"),
-            _ => StatusValue::Number(0.0),
-        }
+            // Not modelled (S4, S5, S11 without programs, S13..S15, S19..S30, S33..S40): refused, not 0.
+            _ => return Err(REFUSED),
+        })
     }
 
     /// Runs the motion model up to `now`.
@@ -479,6 +545,7 @@ impl Drive {
     }
 
     fn error(&mut self, out: &mut Vec<u8>, code: ErrorCode) {
+        self.record(code);
         let mut t = TextBuf::<4>::new();
         let _ = write!(t, "E{:02}", code.0);
         self.reply(out, t.as_bytes());
@@ -559,6 +626,11 @@ impl Drive {
                 return;
             }
         };
+        if std::mem::take(&mut self.auto_ack) {
+            // An error-free transmission acknowledges the RS485 error (E70..E73) before it.
+            self.history.rotate_right(1);
+            self.history[0] = 99;
+        }
         let answer = answer && !p.flags.no_reply;
         if p.flags.echo {
             if answer {
@@ -568,11 +640,12 @@ impl Drive {
             return;
         }
         let result = self.execute(now, &p);
-        if answer {
-            match result {
-                Ok(text) => self.reply(out, text.as_bytes()),
-                Err(code) => self.error(out, code),
-            }
+        match result {
+            Ok(text) if answer => self.reply(out, text.as_bytes()),
+            Ok(_) => {}
+            Err(code) if answer => self.error(out, code),
+            // Unanswered (a broadcast, `/`): the error still happened.
+            Err(code) => self.record(code),
         }
     }
 
@@ -686,17 +759,17 @@ impl Drive {
             }
             Command::ReadStatus(id) => {
                 let mut t = TextBuf::new();
-                let _ = self.status(id, now).write_reply(id, &mut t);
+                let _ = self.status(id, now)?.write_reply(id, &mut t);
                 Ok(t)
             }
             Command::ReadParam(id) => {
                 let mut t = TextBuf::new();
-                let _ = write_param_reply(id, self.param(id), &mut t);
+                let _ = write_param_reply(id, self.param(id).ok_or(REFUSED)?, &mut t);
                 Ok(t)
             }
             Command::WriteParam(id, v) => {
                 id.check(v).map_err(|_| REFUSED)?;
-                self.params.insert(id.get(), v);
+                *self.params.get_mut(&id.get()).ok_or(REFUSED)? = v;
                 Ok(ack)
             }
         }
@@ -881,7 +954,7 @@ mod tests {
         assert_eq!((one.mode().to_p196(), one.baud_rate(), one.position()), (8, 19_200, 0.0));
         let five = b.drive(5).unwrap();
         assert_eq!((five.mode().to_p196(), five.position(), five.target()), (72, -12.5, -12.5));
-        assert_eq!(five.param(ParamId::OPERATING_MODE), 72.0);
+        assert_eq!(five.param(ParamId::OPERATING_MODE), Some(72.0));
         assert_eq!(b.drive(9).unwrap().baud_rate(), 9600);
         // Each answers in its own mode: drive 5 with its address in front; drive 9 hears only noise.
         let with_bcc = |text: &[u8]| {
@@ -922,6 +995,54 @@ mod tests {
             let e = SimConfig::from_toml(text).unwrap_err();
             assert!(e.to_string().contains(says), "{text:?}: {e}");
         }
+    }
+
+    #[test]
+    fn unmodelled_parameters_and_status_values_are_refused_not_zero() {
+        let mut b = bus(&[1], 0);
+        // The manual defines P194..P196 only: others are refused, read or written.
+        assert_eq!(ask(&mut b, 0, b"1P12\r"), b"E90\r\n>");
+        assert_eq!(ask(&mut b, 1, b"1P12=3\r"), b"E90\r\n>");
+        assert_eq!(ask(&mut b, 2, b"1P12\r"), b"E90\r\n>", "the refused write stored nothing");
+        assert_eq!(b.drive(1).unwrap().param(ParamId::new(12).unwrap()), None);
+        assert_eq!(ask(&mut b, 3, b"1P194\r"), b"P194=1\r\n>");
+        // Status values the emulator does not model.
+        for s in ["S4", "S11", "S20", "S30", "S40"] {
+            assert_eq!(ask(&mut b, 4, format!("1{s}\r").as_bytes()), b"E90\r\n>", "{s}");
+        }
+        // A parameter the configuration lists is modelled.
+        let cfg = SimConfig::bus(&[1], 0, 9600).with_param(ParamId::new(12).unwrap(), 1.5);
+        let mut b = CompaxBus::new(cfg).unwrap();
+        assert_eq!(ask(&mut b, 0, b"1P12\r"), b"P012=1.5\r\n>");
+        assert_eq!(ask(&mut b, 1, b"1P12=-3\r"), b"\r\n>");
+        assert_eq!(b.drive(1).unwrap().param(ParamId::new(12).unwrap()), Some(-3.0));
+        let bad = SimConfig::bus(&[1], 0, 9600).with_param(ParamId::DEVICE_ADDRESS, 1.0);
+        assert!(CompaxBus::new(bad).is_err(), "P194 comes from the drive's address");
+        assert!(SimConfig::from_toml("params = { Q1 = 0.0 }").is_err());
+    }
+
+    #[test]
+    fn the_error_history_s18_records_errors() {
+        let mut b = bus(&[1], 8);
+        let with_bcc = |text: &[u8]| {
+            let mut t = text.to_vec();
+            t.push(crate::wire::bcc(&text[..text.len() - 1]));
+            t
+        };
+        let s18 = |b: &mut CompaxBus, now: u64| {
+            let r = ask(b, now, &with_bcc(b"1S18\r"));
+            String::from_utf8_lossy(&r[..r.len() - 4]).into_owned()
+        };
+        assert_eq!(s18(&mut b, 0), "S018: 99 99 99 99 99 99 99 99");
+        // E72: a wrong BCC; acknowledged (99) by the next error-free transmission, the S18 read itself.
+        assert_eq!(&ask(&mut b, 1, b"1S1\rX")[..3], b"E72");
+        assert_eq!(s18(&mut b, 2), "S018: 99 72 99 99 99 99 99 99");
+        // E92: a move while moving; E90: an empty buffer.
+        assert_eq!(&ask(&mut b, 3, &with_bcc(b"1POSA 50\r"))[..3], b"\r\n>");
+        assert_eq!(&ask(&mut b, 10, &with_bcc(b"1POSA 20\r"))[..3], b"E92");
+        assert_eq!(&ask(&mut b, 11, &with_bcc(b"1!\r"))[..3], b"E90");
+        assert_eq!(s18(&mut b, 12), "S018: 90 92 99 72 99 99 99 99");
+        assert_eq!(b.drive(1).unwrap().history()[..2], [90, 92]);
     }
 
     #[test]

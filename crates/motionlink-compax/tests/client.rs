@@ -22,7 +22,12 @@ struct Rig {
 
 fn rig(addrs: &[u8], p196: u32, baud: u32) -> (Rig, Bus) {
     let clock = ManualClock::new_auto();
-    let sim = CompaxBus::new(SimConfig::bus(addrs, p196, baud)).unwrap();
+    // The parameters the tests write besides P194..P196 (the emulator refuses the others).
+    let mut cfg = SimConfig::bus(addrs, p196, baud);
+    for n in [3, 10, 12, 20] {
+        cfg = cfg.with_param(ParamId::new(n).unwrap(), 0.0);
+    }
+    let sim = CompaxBus::new(cfg).unwrap();
     let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(baud));
     let (link, faults) = host.connect();
     let transcript = Transcript::new();
@@ -318,7 +323,7 @@ fn moves_sent_raw_or_by_broadcast_are_stopped_on_drop() {
     let (r, mut bus) = rig(&[1, 5], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     assert_eq!(bus.raw(a(1), "POSA 1000").unwrap().as_deref(), Some(""));
-    assert_eq!(bus.started(), [a(1)]);
+    assert!(bus.started().contains(&a(1)), "{:?}", bus.started());
     drop(bus);
     assert!(!r.host.with_device(|d| d.drive(1).unwrap().is_moving()));
     assert_eq!(sent(&r.transcript).last().unwrap(), b"1OUTPUT O0=0\r");
@@ -771,4 +776,119 @@ fn xoff_from_the_host_holds_the_drives_reply() {
         got.extend_from_slice(&buf[..n]);
     }
     assert_eq!(got, b"S001: 0.000\r\n>");
+}
+
+#[test]
+fn bare_values_answering_a_read_are_replies_while_a_comparator_is_armed() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let answer = move |t: &[u8]| -> Vec<u8> {
+        match t {
+            b"1POSR 5 OUTPUT O9=1\r" | b"1POSA 10\r" => b"\r\n>".to_vec(),
+            // A drive that answers reads with the bare value.
+            b"1S6\r" => b"35\r\n>".to_vec(),
+            b"1P194\r" => b"5\r\n>".to_vec(),
+            // The comparator switches while a setting is sent: its number comes before the acknowledgement,
+            // and a setting is never answered with a number.
+            b"1SPEED 50\r" => b"1\r\n>\r\n>".to_vec(),
+            // S17 cannot be "2": the comparator's number, then the reply.
+            b"1S17\r" => b"2\r\n>S017: 0010 0010\r\n>".to_vec(),
+            other => panic!("unexpected telegram {other:?}"),
+        }
+    };
+    let link = Scripted { clock: clock.shared(), answer: Box::new(answer), pending: Default::default() };
+    let mut bus = Bus::new(Box::new(link), clock.shared(), BusConfig::new(Mode::default(), 9600));
+    let comparator = Command::PosROutput { distance: pos(5.0), output: 9, state: OutputState::ON };
+    assert_eq!(bus.command(a(1), &comparator).unwrap(), "");
+    bus.move_absolute(a(1), pos(10.0), MoveOptions::default()).unwrap();
+    // The comparator is armed and the positioning runs: the bare values are still the reads' replies.
+    assert_eq!(bus.read_status(a(1), StatusId::TEMPERATURE).unwrap(), StatusValue::Number(35.0));
+    assert_eq!(bus.read_param(a(1), ParamId::DEVICE_ADDRESS).unwrap(), 5.0);
+    bus.set_speed(a(1), SpeedPercent::new(50.0).unwrap(), false).unwrap();
+    assert!(bus.read_s17(a(1)).unwrap().bit(S17Bits::COMMAND_ACTIVE));
+    bus.release(&[a(1)]);
+}
+
+#[test]
+fn a_failed_synchronous_store_names_the_drives_left_with_a_buffered_move() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let sent_frames = std::sync::Arc::new(std::sync::Mutex::new(Vec::<Vec<u8>>::new()));
+    let log = sent_frames.clone();
+    let answer = move |t: &[u8]| -> Vec<u8> {
+        log.lock().unwrap().push(t.to_vec());
+        match t {
+            b"1POSA 100,\r" | b"1OUTPUT O0=0\r" => b"\r\n>".to_vec(),
+            // Drive 5 refuses to store its move.
+            b"5POSA 100,\r" => b"E90\r\n>".to_vec(),
+            b"32!\r" => Vec::new(),
+            // Drive 1 runs the move the later `32!` started.
+            b"1S17\r" => b"S017: 0010 0010\r\n>".to_vec(),
+            // Drive 5 has nothing buffered: it does not move.
+            b"5S17\r" => b"S017: 0000 0010\r\n>".to_vec(),
+            other => panic!("unexpected telegram {other:?}"),
+        }
+    };
+    let link = Scripted { clock: clock.shared(), answer: Box::new(answer), pending: Default::default() };
+    let mut bus = Bus::new(Box::new(link), clock.shared(), BusConfig::new(Mode::default(), 9600));
+    let e = bus.sync_start(&[(a(1), Command::PosA(pos(100.0))), (a(5), Command::PosA(pos(100.0)))], false).unwrap_err();
+    match &e {
+        Error::SyncIncomplete { failed, source, buffered } => {
+            assert_eq!(*failed, 5);
+            assert_eq!(source.device_code(), Some(ErrorCode(90)));
+            assert_eq!(buffered, &[1]);
+        }
+        other => panic!("{other}"),
+    }
+    assert!(e.to_string().contains("drives [1] still hold a buffered move"), "{e}");
+    assert!(!sent_frames.lock().unwrap().iter().any(|f| f == b"32!\r"), "no '!' after a failed store");
+    assert!(bus.started().is_empty(), "nothing runs yet");
+    // The `!` this client sends later starts drive 1's buffered move: dropping the client stops it.
+    assert_eq!(bus.raw(Address::BROADCAST, "!").unwrap(), None);
+    assert!(bus.started().contains(&a(1)), "{:?}", bus.started());
+    drop(bus);
+    let frames = sent_frames.lock().unwrap();
+    assert!(frames.iter().any(|f| f == b"1OUTPUT O0=0\r"), "drive 1 stopped on drop");
+    assert!(!frames.iter().any(|f| f == b"5OUTPUT O0=0\r"), "drive 5 does not move");
+}
+
+#[test]
+fn stop_started_switches_off_only_the_axes_that_still_move() {
+    let (r, mut bus) = rig(&[1, 5], 0, 9600);
+    let _me = r.clock.reserve_participant().enter();
+    bus.move_absolute(a(1), pos(1.0), MoveOptions::default()).unwrap();
+    bus.move_absolute(a(5), pos(1000.0), MoveOptions::default()).unwrap();
+    r.clock.sleep(Duration::from_secs(1));
+    bus.stop_started().unwrap();
+    let frames = sent(&r.transcript);
+    assert!(frames.iter().any(|f| f == b"1S17\r") && frames.iter().any(|f| f == b"5S17\r"), "S17 read first");
+    assert!(!frames.iter().any(|f| f.starts_with(b"1OUTPUT")), "drive 1 is at rest: not switched off");
+    assert!(frames.iter().any(|f| f == b"5OUTPUT O0=0\r"), "drive 5 still moves: switched off");
+    assert_eq!(r.host.with_device(|d| (d.drive(1).unwrap().o0(), d.drive(5).unwrap().o0())), (1, 0));
+    assert!(bus.started().is_empty());
+}
+
+#[test]
+fn stop_started_sends_the_stop_when_s17_cannot_be_read() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let sent_frames = std::sync::Arc::new(std::sync::Mutex::new(Vec::<Vec<u8>>::new()));
+    let log = sent_frames.clone();
+    let answer = move |t: &[u8]| -> Vec<u8> {
+        log.lock().unwrap().push(t.to_vec());
+        match t {
+            b"1POSA 10\r" | b"1OUTPUT O0=0\r" => b"\r\n>".to_vec(),
+            // The status read is lost.
+            b"1S17\r" => Vec::new(),
+            other => panic!("unexpected telegram {other:?}"),
+        }
+    };
+    let link = Scripted { clock: clock.shared(), answer: Box::new(answer), pending: Default::default() };
+    let mut bus = Bus::new(Box::new(link), clock.shared(), BusConfig::new(Mode::default(), 9600));
+    bus.move_absolute(a(1), pos(10.0), MoveOptions::default()).unwrap();
+    bus.stop_started().unwrap();
+    let frames = sent_frames.lock().unwrap().clone();
+    assert_eq!(frames.iter().filter(|f| *f == b"1S17\r").count(), 1, "one attempt: {frames:?}");
+    assert_eq!(frames.last().map(Vec::as_slice), Some(&b"1OUTPUT O0=0\r"[..]), "stopped anyway: {frames:?}");
+    assert!(bus.started().is_empty());
 }

@@ -54,7 +54,8 @@ fn exercise(bus: &mut Bus) {
 #[test]
 fn over_tcp_ascii_and_binary() {
     for p196 in [0, 8 + 64, 2 + 4 + 8 + 16 + 32] {
-        let sim = CompaxBus::new(SimConfig::bus(&[1, 5], p196, 115_200)).unwrap();
+        let sim =
+            CompaxBus::new(SimConfig::bus(&[1, 5], p196, 115_200).with_param(ParamId::new(12).unwrap(), 0.0)).unwrap();
         let device = Arc::new(Mutex::new(sim));
         let server = serve_tcp("127.0.0.1:0", Arc::clone(&device), RealClock::shared()).unwrap();
         let url: PortUrl = server.address().parse().unwrap();
@@ -70,7 +71,7 @@ fn over_tcp_ascii_and_binary() {
 #[cfg(unix)]
 #[test]
 fn over_a_pty_ascii_and_binary() {
-    let sim = CompaxBus::new(SimConfig::bus(&[1, 5], 8, 115_200)).unwrap();
+    let sim = CompaxBus::new(SimConfig::bus(&[1, 5], 8, 115_200).with_param(ParamId::new(12).unwrap(), 0.0)).unwrap();
     let server = motionlink_link::emulator::serve_pty(Arc::new(Mutex::new(sim)), RealClock::shared()).unwrap();
     let url = PortUrl::Serial(server.address().to_string());
     let mut bus = session(&server, 8, url);

@@ -11,8 +11,8 @@ use motionlink_compax::model::{
 };
 use motionlink_compax::sim::{CompaxBus, SimConfig};
 use motionlink_compax::wire::binary::announced_len;
-use motionlink_compax::wire::reply::ReplyDecoder;
-use motionlink_compax::wire::request::{RequestDecoder, RequestEvent};
+use motionlink_compax::wire::reply::{ReplyDecoder, ReplyError};
+use motionlink_compax::wire::request::{ParsedRequest, RequestDecoder, RequestError, RequestEvent};
 use motionlink_compax::wire::{Address, Body, EscapedBytes, Mode, ReplyEventRef, ReplyKind, CR};
 use motionlink_link::clock::{Clock, ManualClock, SharedClock};
 use motionlink_link::link::{Link, SerialSettings};
@@ -134,6 +134,10 @@ pub struct SimArgs {
     /// A TOML file describing the bus (see the motionlink-compax README); the options above override it.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// A parameter besides P194..P196 that every drive models, with its value at power-on, such as P12=0
+    /// (repeatable). The drives refuse (E90) every other parameter.
+    #[arg(long = "param", value_name = "PNNN=VALUE")]
+    pub params: Vec<String>,
 }
 
 /// `motionlink decode compax` arguments.
@@ -164,6 +168,7 @@ fn bus_error(e: BusError) -> CliError {
     match e {
         BusError::Cancelled => CliError::Interrupted(e.to_string()),
         BusError::Device { .. } | BusError::MoveTimeout { .. } => CliError::device(e),
+        BusError::SyncIncomplete { ref source, .. } if source.device_code().is_some() => CliError::device(e),
         BusError::Invalid(_) | BusError::Wire(_) | BusError::Broadcast(_) => CliError::usage(e),
         BusError::Link(l) => l.into(),
         _ => CliError::transport(e),
@@ -443,6 +448,14 @@ pub fn sim(args: SimArgs) -> Result<(), CliError> {
         cfg.baud_rate = b;
         cfg.drives.iter_mut().for_each(|d| d.baud_rate = None);
     }
+    for p in &args.params {
+        let (name, value) =
+            p.split_once('=').ok_or_else(|| CliError::usage(format!("--param {p}: expected PNNN=VALUE")))?;
+        let id = ParamId::parse(name).map_err(|e| CliError::usage(format!("--param {p}: {e}")))?;
+        let value: f64 =
+            value.trim().parse().map_err(|_| CliError::usage(format!("--param {p}: {value:?} is not a number")))?;
+        cfg = cfg.with_param(id, value);
+    }
     let bus = CompaxBus::new(cfg).map_err(CliError::usage)?;
     common::serve(&args.serve, bus)
 }
@@ -451,6 +464,11 @@ pub fn sim(args: SimArgs) -> Result<(), CliError> {
 struct Found {
     bytes: Vec<u8>,
     text: String,
+    /// For a request: its command was recognised (an `Execute`, a known command or binary telegram),
+    /// even if its BCC is wrong.
+    recognised: bool,
+    /// For a request: its BCC is wrong (the drive answers E72).
+    bad_bcc: bool,
 }
 
 fn annotate_request(bytes: &[u8], mode: &Mode) -> Option<Found> {
@@ -459,50 +477,66 @@ fn annotate_request(bytes: &[u8], mode: &Mode) -> Option<Found> {
         match d.push(b) {
             None => {}
             Some(RequestEvent::Frame(f)) => {
-                let p = f.parse();
-                let text = match p {
+                let found = |text: String, recognised: bool, bad_bcc: bool| {
+                    Some(Found { bytes: bytes[..=i].to_vec(), text, recognised, bad_bcc })
+                };
+                return match f.parse() {
                     Ok(p) => {
-                        let who =
-                            if p.address == 32 { "all drives".to_string() } else { format!("drive {}", p.address) };
-                        let what = match p.body {
-                            Body::Execute => "! execute the buffered command".to_string(),
-                            Body::Binary(b) => match Command::from_binary(&b) {
-                                Ok(c) => format!("binary {c}"),
-                                Err(e) => format!("binary {b} ({e})"),
-                            },
-                            Body::Command(t) => match Command::parse(t) {
-                                Ok(c) => describe_command(&c),
-                                Err(_) => format!("{:?} (not a known command)", String::from_utf8_lossy(t)),
-                            },
-                        };
-                        let mut flags = Vec::new();
-                        if p.flags.position_message {
-                            flags.push("$ position-reached message");
-                        }
-                        if p.flags.buffer {
-                            flags.push(", store in buffer");
-                        }
-                        if p.flags.no_reply {
-                            flags.push("/ no reply");
-                        }
-                        if p.flags.echo {
-                            flags.push("? echo");
-                        }
                         let bcc = match f.bcc() {
                             Some((r, _)) => format!(" [BCC {r:02X} ok]"),
                             None => String::new(),
                         };
-                        let flags = if flags.is_empty() { String::new() } else { format!(" [{}]", flags.join(", ")) };
-                        format!("request to {who}: {what}{flags}{bcc}")
+                        let (what, recognised) = describe_request(&p);
+                        found(format!("{what}{bcc}"), recognised, false)
                     }
-                    Err(e) => format!("request, bad: {e}"),
+                    Err(RequestError::Bcc { received, computed }) => match f.parse_ignoring_bcc() {
+                        // What it says, and that the drive refuses it for its BCC.
+                        Ok(p) => {
+                            let (what, recognised) = describe_request(&p);
+                            let bcc =
+                                format!(" [BCC {received:02X} wrong, computed {computed:02X}: the drive answers E72]");
+                            found(format!("{what}{bcc}"), recognised, true)
+                        }
+                        Err(e) => found(format!("request, bad: {e}"), false, true),
+                    },
+                    Err(e) => found(format!("request, bad: {e}"), false, false),
                 };
-                return Some(Found { bytes: bytes[..=i].to_vec(), text });
             }
             Some(_) => return None,
         }
     }
     None
+}
+
+/// `request to drive 1: S1 read ...` and whether the command was recognised.
+fn describe_request(p: &ParsedRequest<'_>) -> (String, bool) {
+    let who = if p.address == 32 { "all drives".to_string() } else { format!("drive {}", p.address) };
+    let (what, recognised) = match p.body {
+        Body::Execute => ("! execute the buffered command".to_string(), true),
+        Body::Binary(b) => match Command::from_binary(&b) {
+            Ok(c) => (format!("binary {c}"), true),
+            Err(e) => (format!("binary {b} ({e})"), false),
+        },
+        Body::Command(t) => match Command::parse(t) {
+            Ok(c) => (describe_command(&c), true),
+            Err(_) => (format!("{:?} (not a known command)", String::from_utf8_lossy(t)), false),
+        },
+    };
+    let mut flags = Vec::new();
+    if p.flags.position_message {
+        flags.push("$ position-reached message");
+    }
+    if p.flags.buffer {
+        flags.push(", store in buffer");
+    }
+    if p.flags.no_reply {
+        flags.push("/ no reply");
+    }
+    if p.flags.echo {
+        flags.push("? echo");
+    }
+    let flags = if flags.is_empty() { String::new() } else { format!(" [{}]", flags.join(", ")) };
+    (format!("request to {who}: {what}{flags}"), recognised)
 }
 
 fn describe_command(c: &Command) -> String {
@@ -534,10 +568,18 @@ fn annotate_reply(bytes: &[u8], mode: &Mode) -> Option<Found> {
             let bcc = if mode.bcc { " [BCC ok]" } else { "" };
             format!("reply{who}: {what}{bcc}")
         }
-        ReplyEventRef::Error(e) => format!("reply, bad: {e}"),
+        ReplyEventRef::Error(e) => {
+            return Some(Found {
+                bytes: bytes[..used].to_vec(),
+                text: format!("reply, bad: {e}"),
+                recognised: false,
+                bad_bcc: matches!(e, ReplyError::Bcc { .. }),
+            })
+        }
         ReplyEventRef::Flow(x) => (if x { "XOFF" } else { "XON" }).to_string(),
     };
-    Some(Found { bytes: bytes[..used].to_vec(), text })
+    // A reply that decoded cleanly.
+    Some(Found { bytes: bytes[..used].to_vec(), text, recognised: true, bad_bcc: false })
 }
 
 fn describe_reply_text(t: &str) -> String {
@@ -598,7 +640,13 @@ fn decode_lines(bytes: &[u8], mode: &Mode, dir: Direction) -> Vec<String> {
             Direction::Auto => {
                 let req = if looks_like_request { annotate_request(rest, mode) } else { None };
                 match req {
-                    Some(f) if !f.text.contains("not a known command") && !f.text.contains("bad:") => Some(f),
+                    Some(f) if f.recognised && !f.bad_bcc => Some(f),
+                    // A recognised request whose BCC alone is wrong is that request, unless the bytes also
+                    // read as a good reply.
+                    Some(f) if f.recognised => match annotate_reply(rest, mode) {
+                        Some(r) if r.recognised => Some(r),
+                        _ => Some(f),
+                    },
                     other => annotate_reply(rest, mode).or(other),
                 }
             }
@@ -699,6 +747,23 @@ mod tests {
         assert!(lines[0].contains("request to drive 1: S1 read actual position"), "{lines:?}");
         assert!(lines[0].contains("BCC 53 ok"), "{lines:?}");
         assert!(lines[1].contains("S1 (actual position) = 0"), "{lines:?}");
+    }
+
+    #[test]
+    fn decode_auto_reads_a_request_with_a_bad_bcc_as_that_request() {
+        let mode = Mode::from_p196(8).unwrap();
+        // The manual's `1S1` with a wrong BCC ('X', not 0x53), then the drive's E72.
+        let mut bytes = b"1S1\rX".to_vec();
+        bytes.extend_from_slice(b"E72\r\n>");
+        bytes.push(motionlink_compax::wire::bcc(b"E72"));
+        let lines = decode_lines(&bytes, &mode, Direction::Auto);
+        assert_eq!(lines.len(), 2, "{lines:?}");
+        assert!(lines[0].contains("request to drive 1: S1 read actual position"), "{lines:?}");
+        assert!(lines[0].contains("BCC 58 wrong, computed 53"), "{lines:?}");
+        assert!(lines[1].contains("E72"), "{lines:?}");
+        // An unknown command with a bad BCC is still not taken for a request.
+        let lines = decode_lines(b"1XYZ\rQ", &mode, Direction::Auto);
+        assert!(!lines.iter().any(|l| l.contains("request to drive 1")), "{lines:?}");
     }
 
     #[test]

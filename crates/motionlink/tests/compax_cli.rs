@@ -26,7 +26,8 @@ fn json(o: &Output) -> serde_json::Value {
 
 #[test]
 fn over_tcp_every_action() {
-    let sim = start_sim(&["--tcp", "127.0.0.1:0", "--drives", "1,5", "--mode", "72", "--baud", "115200"]);
+    let sim =
+        start_sim(&["--tcp", "127.0.0.1:0", "--drives", "1,5", "--mode", "72", "--baud", "115200", "--param", "P12=0"]);
     let p = sim.address.as_str();
     let base = ["--mode", "72", "--baud", "115200"];
     let with = |extra: &[&str]| {
@@ -46,6 +47,10 @@ fn over_tcp_every_action() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let g = json(&with(&["--drive", "5", "--json", "get", "P12"]));
     assert_eq!(g["value"], -3.5);
+    // A parameter the emulator does not model is refused (E90), not read as 0.
+    let o = with(&["--drive", "5", "get", "P13"]);
+    assert_eq!(o.status.code(), Some(1), "{}\n{}", stdout(&o), String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("E90"), "{}", String::from_utf8_lossy(&o.stderr));
 
     let m = json(&with(&["--drive", "5", "--json", "move", "--abs", "1.5", "--speed", "100", "--accel", "10"]));
     assert_eq!(m["position"], 1.5);

@@ -52,7 +52,9 @@ pub enum ReplyKind<'a> {
     /// `$`: a position was reached (after POSA / POSR with `$`).
     PositionReached,
     /// A bare number: a comparator set by `POSR value OUTPUT` has switched (the user guide's example returns
-    /// `2 CR LF >` when the second comparator fires).
+    /// `2 CR LF >` when the second comparator fires). The form alone cannot tell it from a read answered with
+    /// a bare value (`35`): the client takes it as the reply to a request awaiting one when it can be that
+    /// reply, and as a comparator message otherwise.
     Comparator(u8),
     /// Any other answer (a status value, a parameter, an echo).
     Text(&'a str),

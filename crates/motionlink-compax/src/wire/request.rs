@@ -353,6 +353,16 @@ impl RequestFrame {
     /// Interprets the telegram. Errors are checked in the order a drive meets them: address, BCC,
     /// overflow, syntax.
     pub fn parse(&self) -> Result<ParsedRequest<'_>, RequestError> {
+        self.parse_checking(true)
+    }
+
+    /// [`RequestFrame::parse`] without the BCC check: what the telegram says even though its BCC is wrong
+    /// (a drive answers such a telegram with E72 and executes nothing). For reading captures.
+    pub fn parse_ignoring_bcc(&self) -> Result<ParsedRequest<'_>, RequestError> {
+        self.parse_checking(false)
+    }
+
+    fn parse_checking(&self, check_bcc: bool) -> Result<ParsedRequest<'_>, RequestError> {
         if self.address_digits > MAX_ADDRESS_DIGITS {
             return Err(RequestError::AddressTooLong(self.address_digits));
         }
@@ -360,7 +370,7 @@ impl RequestFrame {
         if self.address_len > 2 || !(1..=BROADCAST).contains(&address) {
             return Err(RequestError::Address(address));
         }
-        if let Some((received, computed)) = self.bcc {
+        if let Some((received, computed)) = self.bcc.filter(|_| check_bcc) {
             if received != computed {
                 return Err(RequestError::Bcc { received, computed });
             }
