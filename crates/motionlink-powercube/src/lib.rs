@@ -68,10 +68,19 @@
 //!   then asks only those. A module that never answered and does not answer the drop's question is taken as
 //!   absent (no broadcast Halt of the whole bus for it); a known module that stops answering still gets one.
 //! - **Life sign.** The individual `0x07` (switch the watchdog on, and off when sent again) is acknowledged
-//!   `[0x07]` by the emulator like every one-byte command; the client accepts silence as well and never
-//!   repeats it (a repeat would switch the watchdog off).
-//! - **Watchdog expiry** raises STATE_COMM_ERROR and STATE_HALTED (not STATE_ERROR), as chapter 13 says. A
-//!   Reset re-arms it: without refreshes it expires again 50 ms later.
+//!   `[0x07]` by the emulator like every one-byte command. The acknowledge is the only confirmation the
+//!   manual offers (no flag shows an online watchdog): silence is `client::Error::WatchdogUnconfirmed`
+//!   naming the module, and the life sign is never repeated (a repeat could switch the watchdog the wrong
+//!   way). Such a module is refreshed while the session serves; `disable_watchdog` stops the refresh and
+//!   observes it (an online watchdog expires: STATE_COMM_ERROR after 2 × 50 ms) instead of toggling it.
+//! - **Watchdog expiry** raises STATE_COMM_ERROR, STATE_HALTED and STATE_ERROR (the manual: "enter an error
+//!   state"; Profibus shows STATE_ERRORM4). A Reset re-arms it: without refreshes it expires again 50 ms
+//!   later.
+//! - **CAN-only Config flags.** CONFIGID_MOD_SYNC_MOTION and CONFIGID_MOD_DISABLE_ACK are "valid only for
+//!   CAN-Bus": the emulator stores them on RS232 but ignores them there.
+//! - **Change baud rate.** The emulator decodes the broadcast and records the rate (`SimBus::can_baud`,
+//!   `SimModule::can_baud`); the in-memory link keeps its pace (a real bus needs every node and the host to
+//!   switch together).
 //! - **Watchdog and the Config word.** [`client::Bus::enable_watchdog`] sets CONFIGID_MOD_WATCHDOG_ENABLE
 //!   only where it is clear, and remembers the word; [`client::Bus::disable_watchdog`] first switches the
 //!   watchdog offline (a second life sign), then clears that flag again where the session set it, leaving
@@ -87,7 +96,7 @@
 //!   watchdog that another live host serves is therefore left alone. `motionlink powercube reset` does this.
 //! - **State flags.** STATE_POW_INTEGRAL-ERR is bit 23 (0x00800000; the table prints 0x00080000).
 //!   STATE_LOGIC_VOLT and STATE_POW_SETUP_ERR are both bit 27: both are in the table, a set bit 27 is
-//!   named STATE_LOGIC_VOLT. The five flags the manual lists after STATE_LOGIC_VOLT (POW_WDG_TEMP,
+//!   one flag (one fault), shown as "STATE_LOGIC_VOLT (STATE_POW_SETUP_ERR)" so both names are findable. The five flags the manual lists after STATE_LOGIC_VOLT (POW_WDG_TEMP,
 //!   POW_SHORTCUR, POW_HALLERR, CPU_OVERLOAD, POW_SETUP_ERR) are classed obsolete (the manual's colour
 //!   legend is lost in the text); STATE_HALTED and STATE_CURLIMIT are information. A client error names
 //!   every set flag that is not information.
@@ -131,7 +140,8 @@
 //!   started that stopped answering): then the watchdogs stay online and the modules halt within 50 ms,
 //!   which is what the watchdog is for. (The `motionlink` command switches it off itself at the end of
 //!   `home` and `move`, also after Ctrl-C or an error.)
-//! - **Scan.** Silence is absence; a corrupt answer is something there, asked again like any read; a module
+//! - **Scan.** Silence is absence; a corrupt answer is asked again like any read, and silence then is
+//!   absence too (with a warning: on RS232 a frame with a wrong BCC names no trustworthy address); a module
 //!   that answers the scan but cannot then be read is listed with its error ([`client::ScanEntry`]) rather
 //!   than failing the scan.
 //! - **SLCAN refusals.** An adapter that rings the bell for a frame (channel closed, queue full, bus off)

@@ -288,8 +288,8 @@ fn value_json(v: &Value) -> serde_json::Value {
 fn state_json(s: CubeState) -> serde_json::Value {
     json!({
         "word": s.0,
-        "flags": s.iter().map(|f| f.name()).collect::<Vec<_>>(),
-        "faults": s.faults().map(|f| f.name()).collect::<Vec<_>>(),
+        "flags": s.iter().map(|f| f.label()).collect::<Vec<_>>(),
+        "faults": s.faults().map(|f| f.label()).collect::<Vec<_>>(),
     })
 }
 
@@ -406,10 +406,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 common::print_json(&mut out, &state_json(s))?;
             } else {
                 writeln!(out, "CubeState {:#010x}", s.0)?;
-                let rows: Vec<_> = s
-                    .iter()
-                    .map(|f| (f.name().to_string(), format!("{:<11}  {}", f.class().name(), f.meaning())))
-                    .collect();
+                let rows: Vec<_> =
+                    s.iter().map(|f| (f.label(), format!("{:<11}  {}", f.class().name(), f.meaning()))).collect();
                 common::print_table(&mut out, &rows)?;
                 if s.is_empty() {
                     writeln!(out, "(no flag set)")?;
@@ -419,7 +417,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Action::Get { param } => {
             let p = parse_param(param)?;
             let v = m.get(p).map_err(cli_err)?;
-            let kind = m.kind().unwrap_or(ModuleKind::Rotary);
+            // The unit depends on the module type (rad or m): no guessing when it cannot be read.
+            let kind = m.kind().map_err(|e| {
+                with_context(e, &format!("{} read, but the module type (and so its unit) cannot be read", p.name()), "")
+            })?;
             if args.json {
                 common::print_json(
                     &mut out,
@@ -436,7 +437,14 @@ pub fn run(args: Args) -> Result<(), CliError> {
             if args.json {
                 common::print_json(&mut out, &json!({"param": p.name(), "value": value_json(&v), "ok": true}))?;
             } else {
-                writeln!(out, "{} set to {}", p.name(), v.show(p, m.kind().unwrap_or_default()))?;
+                let kind = m.kind().map_err(|e| {
+                    with_context(
+                        e,
+                        &format!("{} was set, but the module type (and so its unit) cannot be read", p.name()),
+                        "",
+                    )
+                })?;
+                writeln!(out, "{} set to {}", p.name(), v.show(p, kind))?;
             }
         }
         Action::Home { timeout } => {

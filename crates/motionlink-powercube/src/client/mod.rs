@@ -173,10 +173,21 @@ pub enum Error {
     /// Something this client does not do.
     #[error("{0}")]
     Unsupported(String),
+    /// A watchdog toggle (the life sign, chapter 13) was not confirmed: whether the module's watchdog is
+    /// online is not known. No second life sign is sent blindly (it could switch the watchdog the wrong way).
+    #[error("module {address}: watchdog not confirmed {}: {detail}", if *on { "online" } else { "offline" })]
+    WatchdogUnconfirmed {
+        /// The module.
+        address: u8,
+        /// True when switching on, false when switching off.
+        on: bool,
+        /// What was seen.
+        detail: String,
+    },
 }
 
 fn fault_names(state: CubeState) -> String {
-    let names: Vec<&str> = state.faults().map(|f| f.name()).collect();
+    let names: Vec<String> = state.faults().map(|f| f.label()).collect();
     if names.is_empty() {
         state.to_string()
     } else {
@@ -198,6 +209,7 @@ impl Error {
                 | Error::Halted { .. }
                 | Error::Refused { .. }
                 | Error::WaitTimeout { .. }
+                | Error::WatchdogUnconfirmed { .. }
                 | Error::Cancelled { .. }
         )
     }
@@ -266,6 +278,8 @@ struct WatchdogDuty {
     online: BTreeSet<u8>,
     /// Modules in which this session set CONFIGID_MOD_WATCHDOG_ENABLE, with their Config word before.
     config_before: BTreeMap<u8, ConfigWord>,
+    /// Modules that got a life sign this session could not confirm: their watchdog may be online or not.
+    uncertain: BTreeSet<u8>,
     last_error: Option<String>,
 }
 
@@ -331,6 +345,7 @@ impl Bus {
             period: config.watchdog_period,
             online: BTreeSet::new(),
             config_before: BTreeMap::new(),
+            uncertain: BTreeSet::new(),
             last_error: None,
         };
         Bus {
@@ -531,9 +546,10 @@ impl Bus {
 
     /// Asks addresses 1..31 for their version; returns every address that answers, with its type, serial
     /// number and state, or the error that kept them from being read (per module: one module that fails
-    /// does not fail the scan). Silence is absence; a corrupt answer is something there and is asked again
-    /// (up to [`BusConfig::read_retries`] times) before it is reported as that module's error. Only a failed
-    /// line fails the whole scan.
+    /// does not fail the scan). Silence is absence; a corrupt answer is asked again (up to
+    /// [`BusConfig::read_retries`] times): an address that answers corruptly every time is reported with
+    /// that error, one that is silent when asked again is absent (a warning is logged: the garbage was line
+    /// noise or another module's late answer). Only a failed line fails the whole scan.
     pub fn scan(&self) -> Result<Vec<ScanEntry>, Error> {
         let probe = Request::Get(Param::DefCubeVersion);
         let timeout = self.inner.config.scan_timeout;
@@ -562,8 +578,13 @@ impl Bus {
                         todo.push(*a);
                         broken.insert(*a, e);
                     }
-                    // Nobody there (or, after a corrupt answer, silence: `broken` keeps that error).
-                    Err(Error::Timeout { .. }) => {}
+                    // Nobody there. After a corrupt answer, silence means the garbage was not this module's
+                    // (on RS232 a frame with a wrong BCC names no trustworthy address): absent, with a warning.
+                    Err(Error::Timeout { .. }) => {
+                        if let Some(e) = broken.remove(a) {
+                            tracing::warn!("scan: address {a}: {e}, then silence when asked again: taken as absent");
+                        }
+                    }
                     Err(e) => return Err(e),
                 }
             }
@@ -582,6 +603,11 @@ impl Bus {
     /// every [`BusConfig::watchdog_period`] from a background thread, and sends each module its first life
     /// sign. From then on, if this session stops refreshing (the program dies, the line breaks), the modules
     /// halt within 50 ms.
+    ///
+    /// The life sign toggles the watchdog, and its acknowledge is the only confirmation the manual offers.
+    /// A module that does not acknowledge it gets [`Error::WatchdogUnconfirmed`] naming it (the first such
+    /// error is returned after the other modules are handled): its watchdog may be online, so it is refreshed
+    /// like the others, but it never gets a second life sign; [`Bus::disable_watchdog`] finds out its state.
     ///
     /// A module that shows STATE_COMM_ERROR (its watchdog expired: a host stopped serving it) is refused
     /// with [`Error::Device`] before anything is changed in any module: its watchdog is probably still
@@ -619,20 +645,45 @@ impl Bus {
             duty.next_due = self.inner.clock.now();
         }
         self.start_watchdog_thread();
+        let mut first_error = None;
         for &a in addresses {
-            if lock_mutex(&self.inner.duty).online.contains(&a) {
-                continue;
+            {
+                let duty = lock_mutex(&self.inner.duty);
+                if duty.online.contains(&a) {
+                    continue;
+                }
+                if duty.uncertain.contains(&a) {
+                    first_error.get_or_insert(Error::WatchdogUnconfirmed {
+                        address: a,
+                        on: true,
+                        detail: "an earlier life sign was not acknowledged; not toggled again (disable_watchdog \
+                                 finds out its state)"
+                            .into(),
+                    });
+                    continue;
+                }
             }
-            // Modules acknowledge the life sign like any one-byte command; silence is accepted, as some
-            // firmware may not answer it (sending it again would switch the watchdog off).
+            // The acknowledge of the life sign is the only confirmation the manual offers that the toggle
+            // arrived (no state flag shows an online watchdog). Silence leaves the watchdog in an unknown
+            // state: it is served (refreshed) as if online, reported, and never toggled again blindly.
             match self.request(a, &Request::Action(Action::LifeSign)) {
-                Ok(_) | Err(Error::Timeout { .. }) => {}
+                Ok(_) => {
+                    tracing::debug!("module {a}: watchdog online");
+                    lock_mutex(&self.inner.duty).online.insert(a);
+                }
+                Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. })) => {
+                    tracing::warn!("module {a}: life sign not acknowledged ({e}); its watchdog state is unknown");
+                    lock_mutex(&self.inner.duty).uncertain.insert(a);
+                    first_error.get_or_insert(Error::WatchdogUnconfirmed {
+                        address: a,
+                        on: true,
+                        detail: format!("the life sign was not acknowledged ({e}); not sent again"),
+                    });
+                }
                 Err(e) => return Err(e),
             }
-            tracing::debug!("module {a}: watchdog online");
-            lock_mutex(&self.inner.duty).online.insert(a);
         }
-        Ok(())
+        first_error.map_or(Ok(()), Err)
     }
 
     /// Undoes [`Bus::enable_watchdog`]: switches the watchdog off again in the modules this session switched
@@ -641,14 +692,27 @@ impl Bus {
     /// (normally the word is then exactly what it was before). A module whose watchdog could not be switched
     /// off keeps its Config word and halts within 50 ms, as a session that dies would leave it; the other
     /// modules are still handled, and the first error is returned.
+    ///
+    /// A life sign that is not acknowledged is not sent again (it could switch the watchdog back on). For
+    /// those modules, and those whose first life sign was not confirmed, the refresh is stopped and, after
+    /// twice [`WATCHDOG_TIMEOUT`], their state is read: STATE_COMM_ERROR means the watchdog was online (the
+    /// module is now halted; [`Error::WatchdogUnconfirmed`] names it and its Config word is left as is),
+    /// without it the watchdog is offline and the Config word is restored.
     pub fn disable_watchdog(&self) -> Result<(), Error> {
         let mut first_error = None;
         let online: Vec<u8> = lock_mutex(&self.inner.duty).online.iter().copied().collect();
         for a in online {
             match self.request(a, &Request::Action(Action::LifeSign)) {
-                Ok(_) | Err(Error::Timeout { .. }) => {
+                Ok(_) => {
                     tracing::debug!("module {a}: watchdog offline");
                     lock_mutex(&self.inner.duty).online.remove(&a);
+                }
+                Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. })) => {
+                    // It may or may not have arrived: a second life sign could switch the watchdog on again.
+                    tracing::warn!("module {a}: life sign not acknowledged ({e}); its watchdog state is unknown");
+                    let mut duty = lock_mutex(&self.inner.duty);
+                    duty.online.remove(&a);
+                    duty.uncertain.insert(a);
                 }
                 Err(e) => {
                     tracing::warn!("module {a}: cannot switch the watchdog off: {e}");
@@ -658,9 +722,16 @@ impl Bus {
         }
         lock_mutex(&self.inner.duty).serving = false;
         self.stop_watchdog_thread();
+        if let Err(e) = self.observe_uncertain_watchdogs() {
+            first_error.get_or_insert(e);
+        }
         let restore: Vec<(u8, ConfigWord)> = {
             let duty = lock_mutex(&self.inner.duty);
-            duty.config_before.iter().filter(|(a, _)| !duty.online.contains(a)).map(|(a, w)| (*a, *w)).collect()
+            duty.config_before
+                .iter()
+                .filter(|(a, _)| !duty.online.contains(a) && !duty.uncertain.contains(a))
+                .map(|(a, w)| (*a, *w))
+                .collect()
         };
         for (a, before) in restore {
             match self.restore_watchdog_flag(a, before) {
@@ -670,6 +741,48 @@ impl Bus {
                 Err(e) => {
                     tracing::warn!("module {a}: cannot restore the Config word {:#010x}: {e}", before.0);
                     first_error.get_or_insert(e);
+                }
+            }
+        }
+        first_error.map_or(Ok(()), Err)
+    }
+
+    /// With the refresh stopped, finds out whether the modules whose life sign was not confirmed have their
+    /// watchdog online, the only way the manual offers to observe it: an online watchdog that is not
+    /// refreshed expires (STATE_COMM_ERROR, STATE_HALTED) within [`WATCHDOG_TIMEOUT`]. Waits twice that on
+    /// the session's clock, then reads each one's state. A module without STATE_COMM_ERROR is offline (and
+    /// forgotten); one with it had its watchdog online and is now halted: that is an error naming it
+    /// ([`Module::reset_and_release_watchdog`] clears it), as is one that cannot be read.
+    fn observe_uncertain_watchdogs(&self) -> Result<(), Error> {
+        let uncertain: Vec<u8> = lock_mutex(&self.inner.duty).uncertain.iter().copied().collect();
+        if uncertain.is_empty() {
+            return Ok(());
+        }
+        self.inner.clock.sleep(WATCHDOG_TIMEOUT * 2);
+        let mut first_error = None;
+        for a in uncertain {
+            let seen = self.module(a).and_then(|m| m.state());
+            match seen {
+                Ok(state) if !state.contains(StateFlag::CommError) => {
+                    tracing::debug!("module {a}: watchdog seen offline");
+                    lock_mutex(&self.inner.duty).uncertain.remove(&a);
+                }
+                Ok(state) => {
+                    first_error.get_or_insert(Error::WatchdogUnconfirmed {
+                        address: a,
+                        on: false,
+                        detail: format!(
+                            "its watchdog was still online and has expired ({state}); the module is halted, \
+                             reset_and_release_watchdog clears it"
+                        ),
+                    });
+                }
+                Err(e) => {
+                    first_error.get_or_insert(Error::WatchdogUnconfirmed {
+                        address: a,
+                        on: false,
+                        detail: format!("its state cannot be read to check: {e}"),
+                    });
                 }
             }
         }
@@ -830,7 +943,7 @@ impl Drop for Bus {
         let clean = self.halt_started_clean();
         let armed = {
             let duty = lock_mutex(&self.inner.duty);
-            duty.serving || !duty.online.is_empty() || !duty.config_before.is_empty()
+            duty.serving || !duty.online.is_empty() || !duty.config_before.is_empty() || !duty.uncertain.is_empty()
         };
         if armed {
             if clean && !self.failed() {
@@ -1141,6 +1254,7 @@ impl Module<'_> {
             Ok(_) | Err(Error::Timeout { .. }) => {}
             Err(e) => return Err(e),
         }
+        lock_mutex(&self.bus.inner.duty).uncertain.remove(&self.address);
         self.reset()?;
         Ok(true)
     }

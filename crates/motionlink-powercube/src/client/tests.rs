@@ -847,3 +847,120 @@ fn an_slcan_adapter_that_refuses_a_frame_is_a_link_error_not_a_timeout() {
     // The line goes on.
     assert!(m.state().is_ok());
 }
+
+#[test]
+fn a_corrupt_answer_then_silence_is_absence_not_a_module() {
+    let (clock, _host, bus, faults) = rs232(&[1, 17]);
+    let _me = clock.reserve_participant().enter();
+    // Module 17's first answer to the scan is corrupt, and its answer when asked again is lost: what came
+    // could as well have been noise or a late frame. It is not listed as a module that answered.
+    let version = Reply::Get(Param::DefCubeVersion, Value::U16(0x4634));
+    let first = rs232_len(1, &version);
+    let len17 = rs232_len(17, &version);
+    faults.inject(Direction::DeviceToHost, first + 4, motionlink_link::pipe::Fault::Corrupt { xor: 1 });
+    for o in first + len17..first + 2 * len17 {
+        faults.inject(Direction::DeviceToHost, o, motionlink_link::pipe::Fault::Drop);
+    }
+    let entries = bus.scan().unwrap();
+    assert_eq!(entries.iter().map(|e| e.address).collect::<Vec<_>>(), vec![1], "{entries:?}");
+    assert!(entries[0].info.is_ok());
+}
+
+/// A CAN link that loses the first `left` life signs it sends to a module (`outgoing`), or the first
+/// `left` acknowledges of one it receives.
+struct LoseLifeSign<L> {
+    inner: L,
+    outgoing: bool,
+    left: usize,
+}
+
+fn is_life_sign(frame: &motionlink_link::can::CanFrame) -> bool {
+    frame.data() == [0x07] && frame.id() < 0x100
+}
+
+impl<L: CanLink> CanLink for LoseLifeSign<L> {
+    fn send(&mut self, frame: &motionlink_link::can::CanFrame) -> Result<(), LinkError> {
+        if self.outgoing && self.left > 0 && is_life_sign(frame) {
+            self.left -= 1;
+            return Ok(());
+        }
+        self.inner.send(frame)
+    }
+
+    fn recv(&mut self, timeout: Duration) -> Result<Option<motionlink_link::can::CanFrame>, LinkError> {
+        let frame = self.inner.recv(timeout)?;
+        match frame {
+            Some(f) if !self.outgoing && self.left > 0 && is_life_sign(&f) => {
+                self.left -= 1;
+                Ok(None)
+            }
+            other => Ok(other),
+        }
+    }
+
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        self.inner.discard_input()
+    }
+
+    fn describe(&self) -> String {
+        format!("lossy {}", self.inner.describe())
+    }
+}
+
+fn can_losing(addresses: &[u8], outgoing: bool) -> (ManualClock, CanBus<SimBus>, Bus) {
+    let clock = ManualClock::new_auto();
+    let sim = SimBus::new_can(&SimConfig::with_addresses(addresses).unwrap());
+    let canbus = CanBus::with_emulator(sim, clock.shared(), CanBusConfig::paced(1_000_000));
+    let link = LoseLifeSign { inner: canbus.connect(), outgoing, left: 1 };
+    let bus = Bus::can(Box::new(link), clock.shared(), BusConfig::can());
+    (clock, canbus, bus)
+}
+
+#[test]
+fn a_lost_life_sign_is_reported_and_never_toggled_again_blindly() {
+    let (clock, canbus, bus) = can_losing(&[1, 2], true);
+    let _me = clock.reserve_participant().enter();
+    let before = bus.module(1).unwrap().config_word().unwrap();
+    let err = bus.enable_watchdog(&[1, 2]).unwrap_err();
+    assert!(matches!(err, Error::WatchdogUnconfirmed { address: 1, on: true, .. }), "{err}");
+    assert!(err.to_string().contains("module 1"), "{err}");
+    // Module 1 never got the toggle; module 2 did.
+    assert!(!device_view(&canbus, &clock, 1).2);
+    assert!(device_view(&canbus, &clock, 2).2);
+    // Served anyway: nothing trips meanwhile.
+    clock.sleep(secs(1));
+    assert!(!device_view(&canbus, &clock, 2).0.has_fault());
+    // Switching off: module 1 gets no life sign (it would switch its watchdog ON); its state is observed.
+    bus.disable_watchdog().unwrap();
+    for a in [1, 2] {
+        let (state, _, online, _) = device_view(&canbus, &clock, a);
+        assert!(!online, "module {a}");
+        assert!(!state.has_fault(), "module {a}: {state}");
+    }
+    assert_eq!(bus.module(1).unwrap().config_word().unwrap(), before, "Config word restored");
+    clock.sleep(secs(1));
+    assert!(!device_view(&canbus, &clock, 1).2, "still offline");
+}
+
+#[test]
+fn a_lost_acknowledge_of_the_life_sign_is_found_out_when_switching_off() {
+    let (clock, canbus, bus) = can_losing(&[1], false);
+    let _me = clock.reserve_participant().enter();
+    let err = bus.enable_watchdog(&[1]).unwrap_err();
+    assert!(matches!(err, Error::WatchdogUnconfirmed { address: 1, on: true, .. }), "{err}");
+    // The toggle did arrive: the watchdog is online and the session refreshes it.
+    assert!(device_view(&canbus, &clock, 1).2);
+    clock.sleep(secs(1));
+    assert!(!device_view(&canbus, &clock, 1).0.has_fault());
+    // No blind second life sign: with the refresh stopped it expires, which names the module.
+    let err = bus.disable_watchdog().unwrap_err();
+    assert!(matches!(err, Error::WatchdogUnconfirmed { address: 1, on: false, .. }), "{err}");
+    let (state, _, online, config) = device_view(&canbus, &clock, 1);
+    assert!(online && state.contains(StateFlag::CommError) && state.contains(StateFlag::Halted), "{state}");
+    assert!(config.contains(ConfigFlag::WatchdogEnable), "Config word left as is");
+    // The manual's way back.
+    assert!(bus.module(1).unwrap().reset_and_release_watchdog().unwrap());
+    assert!(!device_view(&canbus, &clock, 1).2);
+    drop(bus);
+    assert!(!device_view(&canbus, &clock, 1).3.contains(ConfigFlag::WatchdogEnable), "restored on drop");
+}

@@ -64,6 +64,19 @@ macro_rules! flag_set {
                 match self { $($flag::$var => $doc),* }
             }
 
+            /// The name to show for the flag's bit: its name, followed in parentheses by the other names
+            /// the manual gives the same bit (so a bit named twice is listed once, under both names, e.g.
+            /// "STATE_LOGIC_VOLT (STATE_POW_SETUP_ERR)").
+            pub fn label(self) -> String {
+                let mut label = self.name().to_string();
+                for other in $flag::ALL.iter().filter(|g| **g != self && g.mask() == self.mask()) {
+                    label.push_str(" (");
+                    label.push_str(other.name());
+                    label.push(')');
+                }
+                label
+            }
+
             /// The flag with this name (case-insensitive), if any.
             pub fn from_name(name: &str) -> Option<$flag> {
                 Self::ALL.iter().copied().find(|f| f.name().eq_ignore_ascii_case(name))
@@ -106,7 +119,7 @@ macro_rules! flag_set {
             }
 
             /// The flags set, in the manual's order. Where the manual gives two names to one bit, the first
-            /// is reported.
+            /// is reported, once (its `label()` names the other too).
             pub fn iter(self) -> impl Iterator<Item = $flag> {
                 $flag::ALL.iter().enumerate().filter_map(move |(i, &f)| {
                     let first = !$flag::ALL[..i].iter().any(|g| g.mask() == f.mask());
@@ -140,7 +153,7 @@ macro_rules! flag_set {
                     if !first {
                         f.write_str(" | ")?;
                     }
-                    f.write_str(flag.name())?;
+                    f.write_str(&flag.label())?;
                     first = false;
                 }
                 let unknown = self.unknown_bits();
@@ -425,11 +438,24 @@ mod tests {
         assert_eq!(StateFlag::PowSetupErr.mask(), 1 << 27);
         // Bit 27 is named once, by its current name.
         assert_eq!(CubeState(1 << 27).iter().collect::<Vec<_>>(), vec![StateFlag::LogicVolt]);
+        assert_eq!(CubeState(1 << 27).faults().collect::<Vec<_>>(), vec![StateFlag::LogicVolt]);
         // Every bit 0..27 is named, 28..31 are not.
         for bit in 0..32 {
             let named = CubeState(1 << bit).unknown_bits() == 0;
             assert_eq!(named, bit < 28, "bit {bit}");
         }
+    }
+
+    #[test]
+    fn bit_27_is_one_fault_listed_under_both_names() {
+        let s = CubeState(1 << 27).with(StateFlag::Error);
+        assert_eq!(s.faults().count(), 2, "STATE_ERROR and bit 27, not bit 27 twice");
+        assert_eq!(s.to_string(), "STATE_ERROR | STATE_LOGIC_VOLT (STATE_POW_SETUP_ERR)");
+        assert_eq!(StateFlag::LogicVolt.label(), "STATE_LOGIC_VOLT (STATE_POW_SETUP_ERR)");
+        assert_eq!(StateFlag::PowSetupErr.label(), "STATE_POW_SETUP_ERR (STATE_LOGIC_VOLT)");
+        assert_eq!(StateFlag::Error.label(), "STATE_ERROR");
+        assert_eq!(StateFlag::from_name("state_pow_setup_err"), Some(StateFlag::PowSetupErr));
+        assert_eq!(StateFlag::from_name("STATE_LOGIC_VOLT"), Some(StateFlag::LogicVolt));
     }
 
     #[test]

@@ -67,6 +67,7 @@ pub struct SimBus {
     rs232_broadcasts: bool,
     stats: SimStats,
     last_image: Vec<(u8, OutputImage, InputImage)>,
+    can_baud: Option<crate::model::CanBaud>,
 }
 
 fn secs(now: Timestamp) -> f64 {
@@ -96,6 +97,7 @@ impl SimBus {
             rs232_broadcasts: true,
             stats: SimStats::default(),
             last_image: Vec::new(),
+            can_baud: None,
         }
     }
 
@@ -146,9 +148,19 @@ impl SimBus {
         module.handle(secs(now), request)
     }
 
+    /// The CAN bit rate the last change-baud-rate broadcast switched the bus to (`None`: none came). The
+    /// emulator only records it (each module too, [`SimModule::can_baud`]): the in-memory link keeps its
+    /// pace, where a real bus would need every node and the host to switch together.
+    pub fn can_baud(&self) -> Option<crate::model::CanBaud> {
+        self.can_baud
+    }
+
     /// A broadcast at `now` (no acknowledge).
     pub fn broadcast(&mut self, now: Timestamp, broadcast: &Broadcast) {
         self.update(now);
+        if let Broadcast::ChangeBaudRate(b) = broadcast {
+            self.can_baud = Some(*b);
+        }
         for m in &mut self.modules {
             m.broadcast(secs(now), broadcast);
         }

@@ -65,6 +65,10 @@ pub struct SimModule {
     step_buffer: Option<(f64, f64)>,
     move_mode: u8,
     pending: Vec<Request>,
+    /// On a CAN bus (CONFIGID_MOD_SYNC_MOTION and CONFIGID_MOD_DISABLE_ACK are valid only there).
+    can: bool,
+    /// The bit rate the last change-baud-rate broadcast asked for, if any.
+    can_baud: Option<crate::model::CanBaud>,
     // Watchdog.
     watchdog_online: bool,
     last_refresh: f64,
@@ -109,6 +113,8 @@ impl SimModule {
             step_buffer: None,
             move_mode: 0,
             pending: Vec::new(),
+            can,
+            can_baud: None,
             watchdog_online: false,
             last_refresh: 0.0,
             watchdog_timeout: watchdog_timeout_ms as f64 / 1000.0,
@@ -149,6 +155,13 @@ impl SimModule {
     /// The position in encoder ticks at the module's last update.
     pub fn position_ticks(&self) -> Ticks {
         Ticks((self.pos_at(self.t) * self.inc_ratio()).round() as i32)
+    }
+
+    /// The CAN bit rate the last change-baud-rate broadcast asked for (`None`: none came). Only recorded:
+    /// the in-memory link keeps its pace, as switching a real bus needs every node and the host to switch
+    /// together.
+    pub fn can_baud(&self) -> Option<crate::model::CanBaud> {
+        self.can_baud
     }
 
     /// True while the watchdog is online (switched on by a life sign).
@@ -264,8 +277,10 @@ impl SimModule {
             let t = t.max(self.t);
             match which {
                 0 => {
+                    // The manual (STATE_COMM_ERROR): the drive follows the emergency stop routine and enters
+                    // an error state, so STATE_ERROR too (which Profibus shows as STATE_ERRORM4).
                     self.stop_at(t);
-                    self.flags = self.flags.with(StateFlag::CommError).with(StateFlag::Halted);
+                    self.flags = self.flags.with(StateFlag::CommError).with(StateFlag::Error).with(StateFlag::Halted);
                 }
                 1 => {
                     self.stop_at(t);
@@ -518,7 +533,9 @@ impl SimModule {
     }
 
     fn motion_or_pending(&mut self, t: f64, request: &Request) {
-        if self.config.contains(ConfigFlag::SyncMotion) && !matches!(request, Request::Action(Action::Home)) {
+        // CONFIGID_MOD_SYNC_MOTION is "valid only for CAN-Bus": elsewhere the flag is stored but ignored.
+        let sync = self.can && self.config.contains(ConfigFlag::SyncMotion);
+        if sync && !matches!(request, Request::Action(Action::Home)) {
             self.pending.push(*request);
         } else {
             self.execute_motion(t, request);
@@ -571,7 +588,11 @@ impl SimModule {
                     self.last_refresh = now;
                 }
             }
-            B::ChangeBaudRate(b) => tracing::info!("module {}: CAN bit rate {} bit/s", self.address, b.bps()),
+            B::ChangeBaudRate(b) => {
+                // Recorded only: the emulated link keeps its pace (see `SimModule::can_baud`).
+                tracing::info!("module {}: CAN bit rate {} bit/s", self.address, b.bps());
+                self.can_baud = Some(*b);
+            }
             B::SavePosition => self.saved_pos = self.pos_at(now),
             B::StartMotion => {
                 for r in std::mem::take(&mut self.pending) {

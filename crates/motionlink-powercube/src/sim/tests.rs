@@ -39,6 +39,13 @@ fn homed_bus() -> SimBus {
     bus
 }
 
+fn homed_can_bus() -> SimBus {
+    let mut bus = SimBus::new_can(&SimConfig::default());
+    bus.request(at(0), 1, &Request::Action(Action::Home));
+    assert!(state(&mut bus, 2_000).contains(StateFlag::HomeOk));
+    bus
+}
+
 #[test]
 fn homing_moves_then_sets_home_ok() {
     let mut bus = SimBus::new(&SimConfig::default());
@@ -137,6 +144,9 @@ fn the_watchdog_trips_without_refresh() {
     // Last refresh at 2960 ms: trips at 3010 ms, motion stops there.
     let s = state(&mut bus, 3_500);
     assert!(s.contains(StateFlag::CommError) && s.contains(StateFlag::Halted), "{s}");
+    // "... and enter an error state": STATE_ERROR too, which Profibus shows as STATE_ERRORM4.
+    assert!(s.contains(StateFlag::Error), "{s}");
+    assert!(s.profibus_state().contains(crate::model::ProfibusFlag::ErrorM4), "{}", s.profibus_state());
     let p = pos(&mut bus, 3_500);
     // TargetAcc defaults to half of MaxAcc: 0.2 s to reach 0.2 rad/s.
     let expected = 0.2 * 0.2 / 2.0 + 0.2 * (1.010 - 0.2);
@@ -263,7 +273,7 @@ fn can_frames_and_disabled_acknowledges() {
 
 #[test]
 fn synchronised_motion_waits_for_the_broadcast() {
-    let mut bus = homed_bus();
+    let mut bus = homed_can_bus();
     set(&mut bus, 2_000, Param::Config, Value::U32(ConfigFlag::SyncMotion.mask()));
     bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.5) }, AckKind::Simple));
     assert!(!state(&mut bus, 2_100).contains(StateFlag::Motion));
@@ -274,6 +284,37 @@ fn synchronised_motion_waits_for_the_broadcast() {
         panic!()
     };
     assert!((saved - 0.5).abs() < 1e-6);
+}
+
+#[test]
+fn synchronised_motion_is_valid_only_on_can() {
+    // RS232 (`homed_bus`): the flag is stored but ignored, the motion starts at once.
+    let mut bus = homed_bus();
+    set(&mut bus, 2_000, Param::Config, Value::U32(ConfigFlag::SyncMotion.mask()));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.5) }, AckKind::Simple));
+    assert!(state(&mut bus, 2_100).contains(StateFlag::Motion), "no StartMotion needed on RS232");
+    // CAN: the motion waits for the broadcast.
+    let mut bus = homed_can_bus();
+    set(&mut bus, 2_000, Param::Config, Value::U32(ConfigFlag::SyncMotion.mask()));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.5) }, AckKind::Simple));
+    assert!(!state(&mut bus, 2_100).contains(StateFlag::Motion));
+    bus.broadcast(at(2_100), &Broadcast::StartMotion);
+    assert!(state(&mut bus, 2_200).contains(StateFlag::Motion));
+}
+
+#[test]
+fn the_change_baud_rate_broadcast_is_decoded_and_recorded() {
+    let mut bus = SimBus::new_can(&SimConfig::with_addresses(&[17]).unwrap());
+    assert_eq!(bus.can_baud(), None);
+    let mut out = Vec::new();
+    // CANID_CMDALL: Change Baudrate (0x09) to 2 = 500 kbit/s.
+    CanEmulator::receive(&mut bus, at(0), &"100#0902".parse::<CanFrame>().unwrap(), &mut out);
+    assert!(out.is_empty(), "broadcasts are not acknowledged");
+    assert_eq!(bus.can_baud(), Some(crate::model::CanBaud::K500));
+    assert_eq!(bus.module(17).unwrap().can_baud(), Some(crate::model::CanBaud::K500));
+    // Recorded only: the module still answers on the same link.
+    CanEmulator::receive(&mut bus, at(10), &"0D1#0A27".parse::<CanFrame>().unwrap(), &mut out);
+    assert_eq!(out.len(), 1);
 }
 
 #[test]
