@@ -158,16 +158,7 @@ fn request() -> impl Strategy<Value = Request> {
             pos: motionlink_powercube::model::Ticks(p),
             time: motionlink_powercube::model::Millis(t)
         }),
-        prop::sample::select(vec![
-            Action::Reset,
-            Action::Home,
-            Action::Halt,
-            Action::RecalcPid,
-            Action::ResetTime,
-            Action::SaveParameters,
-            Action::LifeSign,
-        ])
-        .prop_map(Request::Action),
+        prop::sample::select(Action::ALL.to_vec()).prop_map(Request::Action),
     ]
 }
 

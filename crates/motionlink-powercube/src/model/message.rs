@@ -39,7 +39,8 @@ pub enum Action {
 }
 
 impl Action {
-    const ALL: [Action; 7] = [
+    /// Every action.
+    pub const ALL: [Action; 7] = [
         Action::Reset,
         Action::Home,
         Action::Halt,

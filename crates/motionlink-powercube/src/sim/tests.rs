@@ -288,18 +288,12 @@ fn synchronised_motion_waits_for_the_broadcast() {
 
 #[test]
 fn synchronised_motion_is_valid_only_on_can() {
-    // RS232 (`homed_bus`): the flag is stored but ignored, the motion starts at once.
+    // RS232 (`homed_bus`): the flag is stored but ignored, the motion starts at once (on CAN it waits for the
+    // broadcast: `synchronised_motion_waits_for_the_broadcast`).
     let mut bus = homed_bus();
     set(&mut bus, 2_000, Param::Config, Value::U32(ConfigFlag::SyncMotion.mask()));
     bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.5) }, AckKind::Simple));
     assert!(state(&mut bus, 2_100).contains(StateFlag::Motion), "no StartMotion needed on RS232");
-    // CAN: the motion waits for the broadcast.
-    let mut bus = homed_can_bus();
-    set(&mut bus, 2_000, Param::Config, Value::U32(ConfigFlag::SyncMotion.mask()));
-    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.5) }, AckKind::Simple));
-    assert!(!state(&mut bus, 2_100).contains(StateFlag::Motion));
-    bus.broadcast(at(2_100), &Broadcast::StartMotion);
-    assert!(state(&mut bus, 2_200).contains(StateFlag::Motion));
 }
 
 #[test]
