@@ -878,6 +878,15 @@ impl Emulator for CompaxBus {
     fn next_wakeup(&self) -> Option<Timestamp> {
         self.drives.iter().filter_map(Drive::next_wakeup).min()
     }
+
+    /// A telegram the host left half-sent is dropped by every drive; motion, XON/XOFF and buffers stay.
+    fn connection_closed(&mut self, _now: Timestamp) {
+        self.parity_error_next = false;
+        for d in &mut self.drives {
+            d.rx.reset();
+            d.rx_parity_error = false;
+        }
+    }
 }
 
 #[cfg(test)]

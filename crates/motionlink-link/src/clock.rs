@@ -266,8 +266,10 @@ impl Clock for RealClock {
     }
 }
 
-/// The last stretch before a deadline that a real wait spends yielding instead of sleeping: the operating
-/// system's timer slack (50 µs on Linux) would otherwise make every timed wait late by about that much.
+/// The last stretch before a deadline that a real wait spends spinning on the CPU instead of sleeping: the
+/// operating system's timer slack (50 µs on Linux) would otherwise make every timed wait late by about that
+/// much. The spin keeps the CPU: it does not yield, because on a busy machine a yielding thread can get the
+/// CPU back only milliseconds later, and a keepalive would drift by that much.
 const REAL_SPIN: Duration = Duration::from_micros(100);
 
 struct RealSignal {
@@ -300,7 +302,7 @@ impl RawSignal for RealSignal {
                 }
             };
             match remaining {
-                Some(r) if r <= REAL_SPIN => std::thread::yield_now(),
+                Some(r) if r <= REAL_SPIN => std::hint::spin_loop(),
                 _ => {
                     let g = lock(&self.lock);
                     // Raised between the check above and taking the lock: do not sleep.

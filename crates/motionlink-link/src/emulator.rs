@@ -24,8 +24,21 @@ pub trait Emulator: Send {
     fn advance(&mut self, now: Timestamp, out: &mut Vec<u8>);
 
     /// The next time at which [`Emulator::advance`] would do something observable (a timer, a message the
-    /// device sends unasked), or `None`.
+    /// device sends unasked, the end of a motion), or `None`.
     fn next_wakeup(&self) -> Option<Timestamp>;
+
+    /// The host's connection ended at `now` (a TCP client closed its socket): a telegram received in part is
+    /// discarded, so that it cannot be completed by the bytes of the next connection. Everything else the
+    /// device holds (its state, its motion, its watchdog) goes on as on a real device whose cable was
+    /// pulled.
+    fn connection_closed(&mut self, now: Timestamp);
+
+    /// What the device did since the last call that a test or an operator watching `motionlink sim
+    /// --events` wants to see (a motion started, an axis came to rest, a watchdog halted the drives), one
+    /// line of text each, oldest first. A device without such changes returns nothing.
+    fn take_events(&mut self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 impl<E: Emulator + ?Sized> Emulator for Box<E> {
@@ -38,10 +51,40 @@ impl<E: Emulator + ?Sized> Emulator for Box<E> {
     fn next_wakeup(&self) -> Option<Timestamp> {
         (**self).next_wakeup()
     }
+    fn connection_closed(&mut self, now: Timestamp) {
+        (**self).connection_closed(now)
+    }
+    fn take_events(&mut self) -> Vec<String> {
+        (**self).take_events()
+    }
 }
 
-/// How often a serve loop looks at the device when nothing arrives.
+/// Where a server reports the device's events ([`Emulator::take_events`]); called on the serving thread
+/// right after the device produced them.
+pub type EventSink = Arc<dyn Fn(&str) + Send + Sync>;
+
+/// Options of [`serve_tcp_with`] and [`serve_pty_with`].
+#[derive(Clone, Default)]
+pub struct ServeOptions {
+    /// Receives each of the device's events as it happens; `None` drops them.
+    pub on_event: Option<EventSink>,
+}
+
+impl std::fmt::Debug for ServeOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ServeOptions").field("on_event", &self.on_event.is_some()).finish()
+    }
+}
+
+/// The line a TCP server writes to a second client before it closes that connection.
+pub const BUSY_MESSAGE: &str = "motionlink sim: busy: another client is connected; this connection is closed\n";
+
+/// How often a serve loop looks at the device when nothing arrives and the device has no timer due: it
+/// bounds how late a motion model's end is seen, and how long a stopping server takes to notice.
 const IDLE_POLL: Duration = Duration::from_millis(10);
+
+/// How long the TCP server waits for a client while the device has no timer due.
+const IDLE_WAIT: Duration = Duration::from_millis(50);
 
 /// A byte stream a serve loop can use.
 trait Stream: Read + Write {
@@ -77,6 +120,16 @@ impl Stream for SerialStream {
     }
 }
 
+/// Hands the device's events to the sink, if there is one.
+fn report_events<E: Emulator + ?Sized>(device: &mut E, options: &ServeOptions) {
+    let events = device.take_events();
+    if let Some(sink) = &options.on_event {
+        for e in &events {
+            sink(e);
+        }
+    }
+}
+
 /// Serves `device` on one connected stream until the peer closes it or `stop` is set.
 fn serve_stream<E: Emulator>(
     stream: &mut dyn Stream,
@@ -84,6 +137,7 @@ fn serve_stream<E: Emulator>(
     clock: &SharedClock,
     stop: &AtomicBool,
     end_of_stream_is_close: bool,
+    options: &ServeOptions,
 ) -> std::io::Result<()> {
     let mut buf = [0u8; 4096];
     let mut out = Vec::with_capacity(4096);
@@ -114,6 +168,7 @@ fn serve_stream<E: Emulator>(
                 dev.receive(now, &buf[..n], &mut out);
             }
             dev.advance(now, &mut out);
+            report_events(&mut *dev, options);
         }
         if !out.is_empty() {
             match stream.write_all(&out).and_then(|_| stream.flush()) {
@@ -129,11 +184,13 @@ fn serve_stream<E: Emulator>(
     Ok(())
 }
 
-/// A running emulator server; stops (and joins its thread) when dropped.
+/// A running emulator server; stops (and joins its threads) when dropped.
 pub struct Server {
     address: String,
     stop: Arc<AtomicBool>,
-    thread: Option<thread::JoinHandle<()>>,
+    /// A TCP server's own address, connected to once on drop to wake its blocking `accept`.
+    wake: Option<std::net::SocketAddr>,
+    threads: Vec<thread::JoinHandle<()>>,
 }
 
 impl std::fmt::Debug for Server {
@@ -150,7 +207,7 @@ impl Server {
 
     /// Blocks until the server stops (it does not by itself; for `motionlink sim`, which runs until killed).
     pub fn wait(mut self) {
-        if let Some(t) = self.thread.take() {
+        for t in self.threads.drain(..) {
             let _ = t.join();
         }
     }
@@ -158,59 +215,130 @@ impl Server {
 
 impl Drop for Server {
     fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(addr) = self.wake {
+            let _ = TcpStream::connect_timeout(&addr, Duration::from_secs(1));
+        }
+        for t in self.threads.drain(..) {
             let _ = t.join();
         }
     }
 }
 
-/// Serves `device` over TCP at `bind` (such as `127.0.0.1:0`), one client at a time, accepting a new client
-/// after the previous one closed. The device keeps its state across connections, as a real one would.
+/// Serves `device` over TCP at `bind` (such as `127.0.0.1:0`); see [`serve_tcp_with`].
 pub fn serve_tcp<E: Emulator + 'static>(
     bind: &str,
     device: Arc<Mutex<E>>,
     clock: SharedClock,
 ) -> std::io::Result<Server> {
+    serve_tcp_with(bind, device, clock, ServeOptions::default())
+}
+
+/// Serves `device` over TCP at `bind` (such as `127.0.0.1:0`), one client at a time, as a serial-over-TCP
+/// gateway does: a client that connects while another is served gets the one line [`BUSY_MESSAGE`] and is
+/// closed at once; a new client is accepted as soon as the previous one closed. The device keeps its state
+/// across connections, as a real one would, and its time runs on between them (its watchdog, its motion);
+/// a telegram left incomplete by a closed connection is discarded ([`Emulator::connection_closed`]).
+///
+/// A connection is accepted, and a request answered, as soon as it arrives: the accepting thread blocks in
+/// `accept`, the serving thread in a read whose timeout is the device's next wake-up.
+pub fn serve_tcp_with<E: Emulator + 'static>(
+    bind: &str,
+    device: Arc<Mutex<E>>,
+    clock: SharedClock,
+    options: ServeOptions,
+) -> std::io::Result<Server> {
     let listener = TcpListener::bind(bind)?;
-    let address = format!("tcp://{}", listener.local_addr()?);
-    listener.set_nonblocking(true)?;
+    let local = listener.local_addr()?;
+    let address = format!("tcp://{local}");
+    let wake = if local.ip().is_unspecified() {
+        std::net::SocketAddr::new(
+            if local.is_ipv4() { std::net::Ipv4Addr::LOCALHOST.into() } else { std::net::Ipv6Addr::LOCALHOST.into() },
+            local.port(),
+        )
+    } else {
+        local
+    };
     let stop = Arc::new(AtomicBool::new(false));
-    let stop2 = Arc::clone(&stop);
-    let thread = thread::Builder::new().name("emulator-tcp".into()).spawn(move || {
-        let mut out = Vec::new();
-        while !stop2.load(Ordering::Relaxed) {
-            match listener.accept() {
-                Ok((mut stream, peer)) => {
-                    tracing::info!("client connected from {peer}");
-                    let _ = stream.set_nonblocking(false);
-                    let _ = stream.set_nodelay(true);
-                    if let Err(e) = serve_stream(&mut stream, &device, &clock, &stop2, true) {
-                        tracing::warn!("connection from {peer} ended: {e}");
-                    } else {
-                        tracing::info!("client {peer} disconnected");
-                    }
+    let busy = Arc::new(AtomicBool::new(false));
+    let (tx, rx) = std::sync::mpsc::channel::<(TcpStream, std::net::SocketAddr)>();
+
+    let (accept_stop, accept_busy) = (Arc::clone(&stop), Arc::clone(&busy));
+    let acceptor = thread::Builder::new().name("emulator-accept".into()).spawn(move || loop {
+        let accepted = listener.accept();
+        if accept_stop.load(Ordering::SeqCst) {
+            return;
+        }
+        match accepted {
+            Ok((mut stream, peer)) => {
+                if accept_busy.swap(true, Ordering::SeqCst) {
+                    tracing::info!("refused {peer}: another client is connected");
+                    let _ = stream.write_all(BUSY_MESSAGE.as_bytes());
+                    let _ = stream.shutdown(std::net::Shutdown::Both);
+                    continue;
                 }
-                Err(e) if e.kind() == ErrorKind::WouldBlock => {
-                    // Keep the device's time moving while nobody is connected (its watchdog, its motion).
-                    out.clear();
-                    lock(&device).advance(clock.now(), &mut out);
-                    thread::sleep(IDLE_POLL);
+                if tx.send((stream, peer)).is_err() {
+                    return;
                 }
-                Err(e) => {
-                    tracing::warn!("accept failed: {e}");
-                    thread::sleep(IDLE_POLL);
-                }
+            }
+            Err(e) => {
+                tracing::warn!("accept failed: {e}");
+                thread::sleep(IDLE_POLL);
             }
         }
     })?;
-    Ok(Server { address, stop, thread: Some(thread) })
+
+    let serve_stop = Arc::clone(&stop);
+    let server = thread::Builder::new().name("emulator-tcp".into()).spawn(move || {
+        let mut out = Vec::new();
+        while !serve_stop.load(Ordering::SeqCst) {
+            // Keep the device's time moving while nobody is connected (its watchdog, its motion).
+            let wait = {
+                let mut dev = lock(&device);
+                let now = clock.now();
+                out.clear();
+                dev.advance(now, &mut out);
+                report_events(&mut *dev, &options);
+                dev.next_wakeup()
+                    .map_or(IDLE_WAIT, |t| t.saturating_since(now).clamp(Duration::from_micros(100), IDLE_WAIT))
+            };
+            let (mut stream, peer) = match rx.recv_timeout(wait) {
+                Ok(accepted) => accepted,
+                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => continue,
+                Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => return,
+            };
+            tracing::info!("client connected from {peer}");
+            let _ = stream.set_nodelay(true);
+            match serve_stream(&mut stream, &device, &clock, &serve_stop, true, &options) {
+                Ok(()) => tracing::info!("client {peer} disconnected"),
+                Err(e) => tracing::warn!("connection from {peer} ended: {e}"),
+            }
+            {
+                let mut dev = lock(&device);
+                dev.connection_closed(clock.now());
+                report_events(&mut *dev, &options);
+            }
+            busy.store(false, Ordering::SeqCst);
+        }
+    })?;
+    Ok(Server { address, stop, wake: Some(wake), threads: vec![acceptor, server] })
 }
 
 /// Serves `device` on a new pseudo-terminal. [`Server::address`] is the device path (`/dev/pts/N`) that a
 /// client opens as if it were a serial port. Clients may close and reopen it.
 #[cfg(unix)]
 pub fn serve_pty<E: Emulator + 'static>(device: Arc<Mutex<E>>, clock: SharedClock) -> std::io::Result<Server> {
+    serve_pty_with(device, clock, ServeOptions::default())
+}
+
+/// [`serve_pty`] with options. A pseudo-terminal cannot tell when a client closes it, so a telegram left
+/// incomplete is discarded only by the device's own inter-byte timeout, as on a serial line.
+#[cfg(unix)]
+pub fn serve_pty_with<E: Emulator + 'static>(
+    device: Arc<Mutex<E>>,
+    clock: SharedClock,
+    options: ServeOptions,
+) -> std::io::Result<Server> {
     let (master, slave) = serialport::TTYPort::pair().map_err(std::io::Error::from)?;
     let address = serialport::SerialPort::name(&slave)
         .ok_or_else(|| std::io::Error::other("the pseudo-terminal has no device path"))?;
@@ -220,9 +348,9 @@ pub fn serve_pty<E: Emulator + 'static>(device: Arc<Mutex<E>>, clock: SharedCloc
         // Holding the slave side open keeps the master readable between clients.
         let _keep_open = slave;
         let mut stream = SerialStream(Box::new(master));
-        if let Err(e) = serve_stream(&mut stream, &device, &clock, &stop2, false) {
+        if let Err(e) = serve_stream(&mut stream, &device, &clock, &stop2, false, &options) {
             tracing::error!("pty server stopped: {e}");
         }
     })?;
-    Ok(Server { address, stop, thread: Some(thread) })
+    Ok(Server { address, stop, wake: None, threads: vec![thread] })
 }

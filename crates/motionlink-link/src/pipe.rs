@@ -463,6 +463,10 @@ impl<E: Emulator> EmulatorHost<E> {
     /// still in flight on an earlier connection are lost, as on a real line.
     pub fn connect(&self) -> (EmulatorLink<E>, FaultControl) {
         self.bring_up_to_date();
+        if lock(&self.current).is_some() {
+            // The earlier connection is unplugged: a telegram it left half-sent is not completed by this one.
+            lock(&self.side).device.connection_closed(self.clock.now());
+        }
         let wires = Arc::new(Mutex::new(Shared {
             faults: Faults {
                 wires: [Wire::new(self.config.byte_time()), Wire::new(self.config.byte_time())],
@@ -693,6 +697,7 @@ mod tests {
         fn next_wakeup(&self) -> Option<Timestamp> {
             (!self.told).then_some(Timestamp::from_millis(100))
         }
+        fn connection_closed(&mut self, _now: Timestamp) {}
     }
 
     #[test]

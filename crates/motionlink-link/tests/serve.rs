@@ -27,6 +27,9 @@ impl Emulator for Upper {
     fn next_wakeup(&self) -> Option<Timestamp> {
         None
     }
+    fn connection_closed(&mut self, _now: Timestamp) {
+        self.line.clear();
+    }
 }
 
 fn read_line(link: &mut dyn Link) -> Vec<u8> {
@@ -62,4 +65,54 @@ fn pty_server_serves_a_client_that_reopens_the_port() {
         link.send(format!("pty {round}\n").as_bytes()).unwrap();
         assert_eq!(read_line(&mut link), format!("PTY {round}\n").into_bytes());
     }
+}
+
+#[test]
+fn a_second_tcp_client_is_refused_with_a_line_and_the_next_one_is_served() {
+    let server = serve_tcp("127.0.0.1:0", Arc::new(Mutex::new(Upper::default())), RealClock::shared()).unwrap();
+    let url: PortUrl = server.address().parse().unwrap();
+    let mut first = url.open_byte_link(SerialSettings::new(38_400)).unwrap();
+    first.send(b"one\n").unwrap();
+    assert_eq!(read_line(&mut first), b"ONE\n");
+
+    // A second client while the first is connected: one line, then the connection is closed.
+    let mut second = url.open_byte_link(SerialSettings::new(38_400)).unwrap();
+    assert_eq!(read_line(&mut second), motionlink_link::emulator::BUSY_MESSAGE.as_bytes());
+    let mut buf = [0u8; 8];
+    let end = second.recv(&mut buf, Duration::from_secs(2));
+    assert!(matches!(end, Err(ref e) if e.is_disconnect()), "{end:?}");
+
+    // The first is still served; once it closes, a new client is.
+    first.send(b"still\n").unwrap();
+    assert_eq!(read_line(&mut first), b"STILL\n");
+    drop(first);
+    let mut third = url.open_byte_link(SerialSettings::new(38_400)).unwrap();
+    third.send(b"three\n").unwrap();
+    assert_eq!(read_line(&mut third), b"THREE\n");
+}
+
+#[test]
+fn a_line_half_sent_on_a_closed_connection_is_not_completed_by_the_next() {
+    let server = serve_tcp("127.0.0.1:0", Arc::new(Mutex::new(Upper::default())), RealClock::shared()).unwrap();
+    let url: PortUrl = server.address().parse().unwrap();
+    let mut first = url.open_byte_link(SerialSettings::new(38_400)).unwrap();
+    first.send(b"half").unwrap();
+    // Make sure the server has the half line before the connection goes.
+    first.send(b"-done\n").unwrap();
+    assert_eq!(read_line(&mut first), b"HALF-DONE\n");
+    first.send(b"left").unwrap();
+    std::thread::sleep(Duration::from_millis(50));
+    drop(first);
+    // The server may take a moment to see the close; a refused attempt is retried.
+    let mut next = loop {
+        let mut link = url.open_byte_link(SerialSettings::new(38_400)).unwrap();
+        link.send(b"new\n").unwrap();
+        let line = read_line(&mut link);
+        if line != motionlink_link::emulator::BUSY_MESSAGE.as_bytes() {
+            assert_eq!(line, b"NEW\n", "the half line of the closed connection was carried over");
+            break link;
+        }
+    };
+    next.send(b"x\n").unwrap();
+    assert_eq!(read_line(&mut next), b"X\n");
 }

@@ -1160,6 +1160,11 @@ impl Emulator for ScuEmulator {
         // The unit never speaks unasked; its state is computed exactly whenever it is looked at.
         None
     }
+
+    /// A telegram the host left half-sent is dropped; remote mode, its watchdog and any motion go on.
+    fn connection_closed(&mut self, _now: Timestamp) {
+        self.decoder.reset();
+    }
 }
 
 /// A request copied out of the decoder's buffer, so the emulator can borrow itself mutably to handle it.

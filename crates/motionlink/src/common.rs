@@ -7,13 +7,14 @@ use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use motionlink_link::cancel::CancelToken;
-use motionlink_link::emulator::{serve_tcp, Emulator};
+use motionlink_link::emulator::{serve_tcp_with, Emulator, ServeOptions};
 use motionlink_link::{LinkError, RealClock};
 
 /// An error of the command line, classed by what went wrong.
 #[derive(Debug, thiserror::Error)]
 pub enum CliError {
-    /// The device refused a command or reported an error (exit code 1).
+    /// The device refused a command or reported an error, or a move did not end where it was asked to
+    /// (exit code 1).
     #[error("{0}")]
     Device(String),
     /// The command line itself is wrong (exit code 2).
@@ -22,9 +23,14 @@ pub enum CliError {
     /// The port, the line or the timing failed (exit code 3).
     #[error("{0}")]
     Transport(String),
-    /// The user pressed Ctrl-C; what was running was stopped (exit code 130, as for SIGINT).
+    /// A signal or a closed stdout ended the action; what it had started was stopped first (exit code
+    /// 128 + the signal's number: 130 for SIGINT, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT, 141 a closed pipe).
     #[error("{0}")]
     Interrupted(String),
+    /// stdout was closed by its reader (`motionlink ... watch | head`): the command ends quietly with exit
+    /// code 0 after stopping anything it started.
+    #[error("stdout was closed")]
+    OutputClosed,
 }
 
 impl CliError {
@@ -34,7 +40,8 @@ impl CliError {
             CliError::Device(_) => 1,
             CliError::Usage(_) => 2,
             CliError::Transport(_) => 3,
-            CliError::Interrupted(_) => 130,
+            CliError::Interrupted(_) => stop_cause().unwrap_or(StopCause::Signal(SIGINT)).exit_code(),
+            CliError::OutputClosed => 0,
         }
     }
 
@@ -65,8 +72,18 @@ impl From<LinkError> for CliError {
 
 impl From<std::io::Error> for CliError {
     fn from(e: std::io::Error) -> Self {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            record_stop_cause(StopCause::OutputClosed);
+            return CliError::OutputClosed;
+        }
         CliError::Transport(e.to_string())
     }
+}
+
+/// Writes one line on stderr and ignores a failure: after SIGHUP the terminal may be gone, and a message
+/// that cannot be shown must not keep the motion from being stopped (`eprintln!` would panic).
+pub fn say(line: impl std::fmt::Display) {
+    let _ = writeln!(std::io::stderr(), "{line}");
 }
 
 /// Sets up logging to stderr: warnings by default, more with each `-v`, or as `RUST_LOG` says.
@@ -86,32 +103,168 @@ pub fn init_logging(verbose: u8) {
         .try_init();
 }
 
-/// The token Ctrl-C cancels. The first Ctrl-C cancels it (the running action stops its motion and returns);
-/// a second one only says that the stop is under way (stopping the motion matters more than a quick exit);
-/// a third exits at once, without waiting for the stop.
+/// SIGINT's number, the cause assumed when a cancellation has no recorded cause.
+const SIGINT: i32 = 2;
+
+/// Why a command was asked to stop before its action ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StopCause {
+    /// A signal: SIGINT (Ctrl-C), SIGTERM (`kill`), SIGHUP (the terminal or SSH session went away) or
+    /// SIGQUIT (Ctrl-\\).
+    Signal(i32),
+    /// stdout was closed by its reader.
+    OutputClosed,
+}
+
+impl StopCause {
+    /// 128 + the signal's number; a closed stdout counts as SIGPIPE (13), as a shell reports it.
+    pub fn exit_code(self) -> u8 {
+        let n = match self {
+            StopCause::Signal(n) => n,
+            StopCause::OutputClosed => 13,
+        };
+        u8::try_from(128 + n).unwrap_or(u8::MAX)
+    }
+
+    /// The cause as a user reads it: "SIGTERM", "stdout closed".
+    pub fn name(self) -> String {
+        match self {
+            StopCause::Signal(n) => signal_name(n),
+            StopCause::OutputClosed => "stdout closed".into(),
+        }
+    }
+}
+
+fn signal_name(n: i32) -> String {
+    match n {
+        1 => "SIGHUP".into(),
+        2 => "SIGINT".into(),
+        3 => "SIGQUIT".into(),
+        13 => "SIGPIPE".into(),
+        15 => "SIGTERM".into(),
+        n => format!("signal {n}"),
+    }
+}
+
+static STOP_CAUSE: OnceLock<Mutex<Option<StopCause>>> = OnceLock::new();
+
+/// The first reason the command was asked to stop, if any.
+pub fn stop_cause() -> Option<StopCause> {
+    *STOP_CAUSE.get_or_init(|| Mutex::new(None)).lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Records why the command stops; the first cause wins.
+fn record_stop_cause(cause: StopCause) {
+    let mut slot = STOP_CAUSE.get_or_init(|| Mutex::new(None)).lock().unwrap_or_else(|e| e.into_inner());
+    slot.get_or_insert(cause);
+}
+
+/// The token that SIGINT, SIGTERM, SIGHUP, SIGQUIT and a closed stdout cancel; the handlers are installed
+/// by the first call, which every command that may start a motion makes before it opens the port.
+///
+/// The first signal cancels the token (the running action stops its motion and returns; the command then
+/// exits with 128 + the signal's number); a second one only says that the stop is under way (stopping the
+/// motion matters more than a quick exit); a third exits at once, without waiting for the stop. A closed
+/// stdout (its reader went away: `motionlink ... | head`) cancels the token as well.
 pub fn interrupt_token() -> CancelToken {
     static TOKEN: OnceLock<CancelToken> = OnceLock::new();
-    static PRESSES: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
     TOKEN
         .get_or_init(|| {
             let token = CancelToken::new();
-            let handler_token = token.clone();
-            if let Err(e) = ctrlc::set_handler(move || {
-                match PRESSES.fetch_add(1, std::sync::atomic::Ordering::SeqCst) {
-                    0 => eprintln!("motionlink: interrupted, stopping"),
-                    1 => eprintln!("motionlink: still stopping the motion; Ctrl-C once more exits without waiting"),
-                    _ => {
-                        eprintln!("motionlink: interrupted again, exiting before the stop was confirmed");
-                        std::process::exit(130);
-                    }
-                }
-                handler_token.cancel();
-            }) {
-                tracing::warn!("cannot install the Ctrl-C handler: {e}");
-            }
+            install_signal_handlers(token.clone());
+            #[cfg(unix)]
+            watch_stdout(token.clone());
             token
         })
         .clone()
+}
+
+fn on_signal(token: &CancelToken, presses: &mut u32, n: i32) {
+    record_stop_cause(StopCause::Signal(n));
+    *presses += 1;
+    let name = signal_name(n);
+    match *presses {
+        1 => say(format!("motionlink: {name} received, stopping what this command started")),
+        2 => say(format!("motionlink: {name}: still stopping the motion; once more exits without waiting")),
+        _ => {
+            say(format!("motionlink: {name} again, exiting before the stop was confirmed"));
+            std::process::exit(i32::from(StopCause::Signal(n).exit_code()));
+        }
+    }
+    token.cancel();
+}
+
+#[cfg(unix)]
+fn install_signal_handlers(token: CancelToken) {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGQUIT, SIGTERM};
+    match signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP, SIGQUIT]) {
+        Ok(mut signals) => {
+            let spawned = std::thread::Builder::new().name("signals".into()).spawn(move || {
+                let mut presses = 0;
+                for n in signals.forever() {
+                    on_signal(&token, &mut presses, n);
+                }
+            });
+            if let Err(e) = spawned {
+                tracing::warn!("cannot start the signal thread: {e}");
+            }
+        }
+        Err(e) => tracing::warn!("cannot install the signal handlers: {e}"),
+    }
+}
+
+#[cfg(not(unix))]
+fn install_signal_handlers(token: CancelToken) {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let raised = Arc::new(AtomicBool::new(false));
+    for n in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        if let Err(e) = signal_hook::flag::register(n, Arc::clone(&raised)) {
+            tracing::warn!("cannot install the handler of signal {n}: {e}");
+        }
+    }
+    let _ = std::thread::Builder::new().name("signals".into()).spawn(move || {
+        let mut presses = 0;
+        loop {
+            std::thread::sleep(Duration::from_millis(20));
+            if raised.swap(false, Ordering::SeqCst) {
+                on_signal(&token, &mut presses, SIGINT);
+            }
+        }
+    });
+}
+
+/// When stdout is a pipe or a socket, a thread waits (in `poll`, without a timeout) for its reader to go
+/// away, and then cancels `token`: a move whose output nobody reads any more is stopped like one
+/// interrupted by a signal. A terminal that goes away sends SIGHUP instead; a file never closes.
+#[cfg(unix)]
+fn watch_stdout(token: CancelToken) {
+    // SAFETY: fstat on descriptor 1 writes only into the zeroed struct we own.
+    let kind = unsafe {
+        let mut st: libc::stat = std::mem::zeroed();
+        if libc::fstat(1, &mut st) != 0 {
+            return;
+        }
+        st.st_mode & libc::S_IFMT
+    };
+    if kind != libc::S_IFIFO && kind != libc::S_IFSOCK {
+        return;
+    }
+    let _ = std::thread::Builder::new().name("stdout-watch".into()).spawn(move || loop {
+        let mut fd = libc::pollfd { fd: 1, events: 0, revents: 0 };
+        // SAFETY: one valid pollfd; POLLERR and POLLHUP are reported whatever `events` asks for.
+        let n = unsafe { libc::poll(&mut fd, 1, -1) };
+        if n < 0 {
+            if std::io::Error::last_os_error().kind() == std::io::ErrorKind::Interrupted {
+                continue;
+            }
+            return;
+        }
+        if fd.revents & (libc::POLLERR | libc::POLLHUP | libc::POLLNVAL) != 0 {
+            record_stop_cause(StopCause::OutputClosed);
+            token.cancel();
+            return;
+        }
+    });
 }
 
 /// One row of a human-readable table: a name and a value.
@@ -147,10 +300,21 @@ pub fn progress_bar(length: u64, message: impl Into<String>) -> ProgressBar {
     bar
 }
 
-/// Where `motionlink sim` serves.
+/// Where `motionlink sim` serves, and what it reports.
+#[derive(clap::Args, Debug, Clone)]
+pub struct ServeArgs {
+    #[command(flatten)]
+    pub target: ServeTarget,
+    /// Print what the emulated device does (a motion started, an axis at rest, a watchdog expired) on
+    /// stderr, one line each: `event <unix time in s> <what>`.
+    #[arg(long)]
+    pub events: bool,
+}
+
+/// `--tcp ADDR` or `--pty`.
 #[derive(clap::Args, Debug, Clone)]
 #[group(required = true, multiple = false)]
-pub struct ServeArgs {
+pub struct ServeTarget {
     /// Serve over TCP at this address, such as 127.0.0.1:0 (port 0: any free port).
     #[arg(long, value_name = "ADDR")]
     pub tcp: Option<String>,
@@ -163,12 +327,33 @@ pub struct ServeArgs {
 pub fn serve<E: Emulator + 'static>(args: &ServeArgs, device: E) -> Result<(), CliError> {
     let device = Arc::new(Mutex::new(device));
     let clock = RealClock::shared();
-    let server = if let Some(addr) = &args.tcp {
-        serve_tcp(addr, device, clock).map_err(|e| CliError::transport(format!("cannot listen on {addr}: {e}")))?
+    let mut options = ServeOptions::default();
+    if args.events {
+        options.on_event = Some(Arc::new(|event: &str| {
+            let t = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
+            let mut err = std::io::stderr().lock();
+            let _ = writeln!(err, "event {:.6} {event}", t.as_secs_f64());
+            let _ = err.flush();
+        }));
+    }
+    let server = if let Some(addr) = &args.target.tcp {
+        let unspecified = std::net::ToSocketAddrs::to_socket_addrs(addr.as_str())
+            .map_err(|e| {
+                CliError::usage(format!("--tcp {addr:?}: give an address and port such as 127.0.0.1:0 ({e})"))
+            })?
+            .any(|a| a.ip().is_unspecified());
+        if unspecified {
+            say(format!(
+                "motionlink sim: warning: {addr} listens on every network interface; the emulator can be reached and \
+                 driven from the network. Use 127.0.0.1 to keep it on this machine."
+            ));
+        }
+        serve_tcp_with(addr, device, clock, options)
+            .map_err(|e| CliError::transport(format!("cannot listen on {addr}: {e}")))?
     } else {
         #[cfg(unix)]
         {
-            motionlink_link::emulator::serve_pty(device, clock)
+            motionlink_link::emulator::serve_pty_with(device, clock, options)
                 .map_err(|e| CliError::transport(format!("cannot create a pseudo-terminal: {e}")))?
         }
         #[cfg(not(unix))]
@@ -176,7 +361,7 @@ pub fn serve<E: Emulator + 'static>(args: &ServeArgs, device: E) -> Result<(), C
             return Err(CliError::usage("--pty needs a Unix system"));
         }
     };
-    let line = if args.tcp.is_some() {
+    let line = if args.target.tcp.is_some() {
         format!("listening on {}", server.address())
     } else {
         format!("listening on pty {}", server.address())

@@ -7,7 +7,8 @@
 //! motionlink demo                                the manuals' examples against built-in emulators
 //! ```
 //!
-//! Exit codes: 0 success, 1 device refused or device error, 2 usage error, 3 transport error.
+//! Exit codes: 0 success, 1 device refused or device error (or a move that did not reach its target),
+//! 2 usage error, 3 transport error, 128 + n when ended by signal n (after stopping what was started).
 
 mod common;
 mod compax;
@@ -121,10 +122,18 @@ fn run(cli: Cli) -> Result<(), CliError> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     common::init_logging(cli.verbose);
-    match run(cli) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("motionlink: {e}");
+    let result = run(cli);
+    match (result, common::stop_cause()) {
+        (Ok(()), Some(common::StopCause::Signal(n))) => {
+            // The action ended (a read, or a stop it completed) but a signal asked the command to end.
+            let cause = common::StopCause::Signal(n);
+            common::say(format!("motionlink: ended by {}", cause.name()));
+            ExitCode::from(cause.exit_code())
+        }
+        (Ok(()), _) => ExitCode::SUCCESS,
+        (Err(common::CliError::OutputClosed), _) => ExitCode::SUCCESS,
+        (Err(e), _) => {
+            common::say(format!("motionlink: {e}"));
             ExitCode::from(e.exit_code())
         }
     }

@@ -330,6 +330,12 @@ pub trait CanEmulator: Send {
 
     /// The next time at which [`CanEmulator::advance`] would do something observable, or `None`.
     fn next_wakeup(&self) -> Option<Timestamp>;
+
+    /// What the device did since the last call, as [`Emulator::take_events`](crate::emulator::Emulator::take_events)
+    /// describes; nothing by default.
+    fn take_events(&mut self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 impl<E: CanEmulator + ?Sized> CanEmulator for Box<E> {
@@ -341,6 +347,9 @@ impl<E: CanEmulator + ?Sized> CanEmulator for Box<E> {
     }
     fn next_wakeup(&self) -> Option<Timestamp> {
         (**self).next_wakeup()
+    }
+    fn take_events(&mut self) -> Vec<String> {
+        (**self).take_events()
     }
 }
 

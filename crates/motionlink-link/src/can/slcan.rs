@@ -228,6 +228,12 @@ impl SlcanDecoder {
         }
     }
 
+    /// Forgets a line received in part.
+    pub fn reset(&mut self) {
+        self.len = 0;
+        self.overflow = false;
+    }
+
     /// Feeds a chunk; yields every message or error it completes.
     pub fn feed<'a>(&'a mut self, chunk: &'a [u8]) -> impl Iterator<Item = Result<SlcanMessage, SlcanError>> + 'a {
         chunk.iter().filter_map(move |&b| self.push(b))
@@ -628,6 +634,16 @@ impl<E: CanEmulator> Emulator for SlcanAdapter<E> {
 
     fn next_wakeup(&self) -> Option<Timestamp> {
         self.device.next_wakeup()
+    }
+
+    /// The host closed the serial port: a command line it left unfinished is dropped. The CAN channel stays
+    /// open, as on a real adapter, and the modules behind it run on.
+    fn connection_closed(&mut self, _now: Timestamp) {
+        self.decoder.reset();
+    }
+
+    fn take_events(&mut self) -> Vec<String> {
+        self.device.take_events()
     }
 }
 

@@ -281,6 +281,11 @@ impl Emulator for SimBus {
         // Modules never speak unasked; their state is computed for whatever time they are asked at.
         None
     }
+
+    /// A frame the host left half-sent is dropped; the modules, their motion and watchdogs run on.
+    fn connection_closed(&mut self, _now: Timestamp) {
+        self.decoder.reset();
+    }
 }
 
 impl CanEmulator for SimBus {

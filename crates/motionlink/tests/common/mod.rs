@@ -1,48 +1,243 @@
-//! What the end-to-end tests of the built binary share: the binary, and a `motionlink sim` child process.
+//! What the end-to-end tests of the built binary share: the binary, a `motionlink sim` child process whose
+//! device events can be waited for, and a running command that can be sent signals.
+//!
+//! Tests that send signals or wait for motion do so on events (a line on the command's stderr, an event of
+//! the emulated device), never after a fixed sleep.
 
 #![allow(dead_code)] // each test file uses a different part
 
 use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 /// The built `motionlink` binary.
 pub const BIN: &str = env!("CARGO_BIN_EXE_motionlink");
 
-/// A running `motionlink sim FAMILY ...`, killed when dropped.
+/// Seconds since the Unix epoch, as `motionlink sim --events` stamps its events.
+pub fn unix_now() -> f64 {
+    SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default().as_secs_f64()
+}
+
+/// Lines read from a child's pipe, as they arrive, with a way to wait for one.
+#[derive(Clone, Default)]
+pub struct Lines(Arc<(Mutex<Received>, Condvar)>);
+
+/// The lines so far, and whether the pipe has ended.
+type Received = (Vec<String>, bool);
+
+impl Lines {
+    /// Reads `pipe` on a thread until it ends.
+    fn follow(pipe: impl std::io::Read + Send + 'static) -> Lines {
+        let lines = Lines::default();
+        let filler = lines.clone();
+        std::thread::spawn(move || {
+            for line in BufReader::new(pipe).lines().map_while(Result::ok) {
+                let (m, cv) = &*filler.0;
+                m.lock().unwrap().0.push(line);
+                cv.notify_all();
+            }
+            let (m, cv) = &*filler.0;
+            m.lock().unwrap().1 = true;
+            cv.notify_all();
+        });
+        lines
+    }
+
+    /// Every line so far.
+    pub fn all(&self) -> Vec<String> {
+        self.0 .0.lock().unwrap().0.clone()
+    }
+
+    /// Every line so far, joined, for assertion messages.
+    pub fn text(&self) -> String {
+        self.all().join("\n")
+    }
+
+    /// Waits up to `timeout` for a line (among all lines so far, from the first) for which `pred` holds.
+    pub fn wait_for(&self, timeout: Duration, pred: impl Fn(&str) -> bool) -> Option<String> {
+        let deadline = Instant::now() + timeout;
+        let (m, cv) = &*self.0;
+        let mut g = m.lock().unwrap();
+        loop {
+            if let Some(l) = g.0.iter().find(|l| pred(l)) {
+                return Some(l.clone());
+            }
+            let now = Instant::now();
+            if g.1 || now >= deadline {
+                return None;
+            }
+            g = cv.wait_timeout(g, deadline - now).unwrap().0;
+        }
+    }
+}
+
+/// One event of the emulated device: `event <unix time> <text>` on `motionlink sim --events`' stderr.
+#[derive(Debug, Clone)]
+pub struct Event {
+    /// When the emulator saw it, in seconds since the Unix epoch.
+    pub at: f64,
+    /// What happened, as the emulator says it.
+    pub text: String,
+}
+
+fn parse_event(line: &str) -> Option<Event> {
+    let rest = line.strip_prefix("event ")?;
+    let (at, text) = rest.split_once(' ')?;
+    Some(Event { at: at.parse().ok()?, text: text.to_string() })
+}
+
+/// A running `motionlink sim FAMILY ... --events`, killed when dropped.
 pub struct Sim {
     child: Child,
     /// Where it serves: `tcp://127.0.0.1:PORT` or a pty's device path.
     pub address: String,
+    /// Its stderr: warnings and `event ...` lines.
+    pub stderr: Lines,
 }
 
 impl Sim {
-    /// Starts `motionlink sim <family> <args>` and waits for its one `listening on ...` line.
+    /// Starts `motionlink sim <family> <args> --events` and waits for its one `listening on ...` line.
     pub fn start(family: &str, args: &[&str]) -> Sim {
         let mut child = Command::new(BIN)
             .args(["sim", family])
             .args(args)
+            .arg("--events")
             .stdout(Stdio::piped())
-            .stderr(Stdio::null())
+            .stderr(Stdio::piped())
             .spawn()
             .expect("start motionlink sim");
+        let stderr = Lines::follow(child.stderr.take().expect("piped stderr"));
         let mut line = String::new();
         BufReader::new(child.stdout.take().expect("piped stdout")).read_line(&mut line).expect("read its first line");
         let address = line
             .trim()
             .strip_prefix("listening on pty ")
             .or_else(|| line.trim().strip_prefix("listening on "))
-            .unwrap_or_else(|| panic!("unexpected first line {line:?}"))
+            .unwrap_or_else(|| panic!("unexpected first line {line:?}; stderr: {}", stderr.text()))
             .to_string();
-        Sim { child, address }
+        Sim { child, address, stderr }
     }
 
     /// Starts `motionlink sim <family> --tcp 127.0.0.1:0`.
     pub fn tcp(family: &str) -> Sim {
         Sim::start(family, &["--tcp", "127.0.0.1:0"])
     }
+
+    /// Every device event so far.
+    pub fn events(&self) -> Vec<Event> {
+        self.stderr.all().iter().filter_map(|l| parse_event(l)).collect()
+    }
+
+    /// Waits up to `timeout` for a device event (from the first) whose text satisfies `pred`.
+    pub fn wait_event(&self, timeout: Duration, pred: impl Fn(&str) -> bool) -> Option<Event> {
+        self.stderr.wait_for(timeout, |l| parse_event(l).is_some_and(|e| pred(&e.text))).and_then(|l| parse_event(&l))
+    }
+
+    /// Waits up to `timeout` for a device event after Unix time `after` whose text satisfies `pred`.
+    pub fn wait_event_after(&self, after: f64, timeout: Duration, pred: impl Fn(&str) -> bool) -> Option<Event> {
+        self.stderr
+            .wait_for(timeout, |l| parse_event(l).is_some_and(|e| e.at >= after && pred(&e.text)))
+            .and_then(|l| parse_event(&l))
+    }
 }
 
 impl Drop for Sim {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A `motionlink` command running in the background, its stdout and stderr followed line by line.
+pub struct Running {
+    child: Child,
+    /// Its stdout.
+    pub stdout: Lines,
+    /// Its stderr (with `-v`: the log).
+    pub stderr: Lines,
+}
+
+/// What a [`Running`] command ended with.
+#[derive(Debug)]
+pub struct Ended {
+    /// Its exit status.
+    pub status: ExitStatus,
+    /// Everything it printed on stdout.
+    pub stdout: String,
+    /// Everything it printed on stderr.
+    pub stderr: String,
+}
+
+impl Ended {
+    /// The exit code (-1 when ended by a signal).
+    pub fn code(&self) -> i32 {
+        self.status.code().unwrap_or(-1)
+    }
+}
+
+impl Running {
+    /// Starts `motionlink <args>`.
+    pub fn start(args: &[&str]) -> Running {
+        let mut child = Command::new(BIN)
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start motionlink");
+        let stdout = Lines::follow(child.stdout.take().expect("piped stdout"));
+        let stderr = Lines::follow(child.stderr.take().expect("piped stderr"));
+        Running { child, stdout, stderr }
+    }
+
+    /// The process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// Sends signal `sig` (such as `libc::SIGTERM`) and returns the Unix time just before it was sent.
+    #[cfg(unix)]
+    pub fn signal(&self, sig: i32) -> f64 {
+        let at = unix_now();
+        // SAFETY: kill(2) on our own child's pid.
+        let rc = unsafe { libc::kill(self.child.id() as i32, sig) };
+        assert_eq!(rc, 0, "kill({}, {sig}) failed", self.child.id());
+        at
+    }
+
+    /// SIGKILL: the process ends at once, without a chance to stop anything.
+    pub fn kill(&mut self) -> f64 {
+        let at = unix_now();
+        self.child.kill().expect("kill the command");
+        at
+    }
+
+    /// Waits up to `timeout` for the command to end; kills it and panics with its output if it does not.
+    pub fn wait(mut self, timeout: Duration) -> Ended {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(status) = self.child.try_wait().expect("wait for the command") {
+                // Let the readers see the end of both pipes.
+                self.stdout.wait_for(Duration::from_secs(2), |_| false);
+                self.stderr.wait_for(Duration::from_secs(2), |_| false);
+                return Ended { status, stdout: self.stdout.text(), stderr: self.stderr.text() };
+            }
+            if Instant::now() >= deadline {
+                let _ = self.child.kill();
+                let _ = self.child.wait();
+                panic!(
+                    "the command did not end within {timeout:?}\nstdout:\n{}\nstderr:\n{}",
+                    self.stdout.text(),
+                    self.stderr.text()
+                );
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+}
+
+impl Drop for Running {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
