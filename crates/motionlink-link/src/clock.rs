@@ -151,6 +151,11 @@ impl Signal {
     pub fn wait_until(&self, deadline: Option<Timestamp>) -> Wake {
         self.0.wait_until(deadline)
     }
+
+    /// True when `other` is a handle to this same signal.
+    pub fn same_as(&self, other: &Signal) -> bool {
+        Arc::ptr_eq(&self.0, &other.0)
+    }
 }
 
 trait RawSignal: Send + Sync {

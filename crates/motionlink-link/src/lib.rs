@@ -5,6 +5,11 @@
 //! - [`cancel`]: a cancellation flag for long actions (Ctrl-C).
 //! - [`clock`]: the [`Clock`] every timeout, period and emulator reads; real and manual.
 //! - [`clock_lock`]: a mutex whose waiters wait on the clock (a session's shared half-duplex line).
+//! - [`error`]: the one classification of errors every family uses.
+//! - [`session`]: the sans-IO [`session::Session`] every family's protocol logic implements.
+//! - [`driver`]: the drivers that run a session over a link, for blocking and async callers.
+//! - [`flags`], [`table`]: the one flag-set and the one parameter-table mechanism of every family.
+//! - [`describe`]: the one decoder signature of every family (decode, wire trace, captures).
 //! - [`link`]: the [`Link`] trait, a byte stream with read timeouts, and its errors.
 //! - [`serial`], [`tcp`]: links to real ports and serial-over-TCP gateways; pty pairs for tests.
 //! - [`pipe`]: in-memory links with baud-rate pacing and fault injection, and in-process emulators.
@@ -19,10 +24,16 @@ pub mod can;
 pub mod cancel;
 pub mod clock;
 pub mod clock_lock;
+pub mod describe;
+pub mod driver;
 pub mod emulator;
+pub mod error;
+pub mod flags;
 pub mod link;
 pub mod pipe;
 pub mod serial;
+pub mod session;
+pub mod table;
 pub mod tcp;
 pub mod transcript;
 pub mod url;

@@ -1,0 +1,684 @@
+//! Drivers that run a [`Session`] over a link: [`Driver`] for blocking callers (any number of threads)
+//! and [`OpFuture`] for async ones, on the same session and the same background duty.
+//!
+//! A driver owns the session, the port, and one background thread. Whoever needs the link drives it:
+//! a blocking caller whose operation is under way drives the port itself while it is free (no thread
+//! hand-off on the fast path), and the background thread drives it when nobody else does: for a
+//! keepalive or watchdog deadline of the session, or for operations of async callers. Every wait is a wait
+//! on the [`Clock`](crate::clock::Clock), so a session runs on a manual clock in tests exactly as on the
+//! real one.
+//!
+//! Safety: dropping a [`Driver`] (or calling [`Driver::close`]) runs the session's close sequence, which
+//! stops everything the session started, and waits for it at most [`DriverConfig::close_bound`]. Dropping
+//! an [`OpFuture`] before it is done cancels its operation, which stops any motion it started.
+
+use std::collections::HashMap;
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::task::{Context, Poll, Waker};
+use std::thread;
+use std::time::Duration;
+
+use crate::can::{CanFrame, CanLink};
+use crate::cancel::CancelToken;
+use crate::clock::{lock, SharedClock, Signal, Timestamp};
+use crate::link::{Link, LinkError};
+use crate::session::{Action, Event, Input, OpId, Session, SessionError};
+
+/// The link a driver runs a session over.
+pub enum Port {
+    /// A byte stream: a serial port, a TCP gateway, a pty, an in-memory pipe.
+    Bytes(Box<dyn Link>),
+    /// A CAN bus.
+    Can(Box<dyn CanLink>),
+    /// No port: the last one was lost and could not be reopened. Every use fails as disconnected.
+    Closed(String),
+}
+
+impl std::fmt::Debug for Port {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.describe())
+    }
+}
+
+/// One thing received from a port.
+enum Received {
+    Bytes(usize),
+    Frame(CanFrame),
+}
+
+impl Port {
+    /// The port as a user would name it.
+    pub fn describe(&self) -> String {
+        match self {
+            Port::Bytes(l) => l.describe(),
+            Port::Can(l) => l.describe(),
+            Port::Closed(name) => name.clone(),
+        }
+    }
+
+    fn gone(&self) -> LinkError {
+        LinkError::Disconnected { port: self.describe(), reason: "the port is closed".into() }
+    }
+
+    fn perform(&mut self, action: &Action) -> Result<(), LinkError> {
+        match (self, action) {
+            (Port::Bytes(l), Action::Send(bytes)) => l.send(bytes),
+            (Port::Can(l), Action::SendFrame(frame)) => l.send(frame),
+            (Port::Bytes(l), Action::DiscardInput) => l.discard_input(),
+            (Port::Can(l), Action::DiscardInput) => l.discard_input(),
+            (p @ Port::Closed(_), _) => Err(p.gone()),
+            (p, a) => Err(LinkError::Io {
+                port: p.describe(),
+                source: std::io::Error::other(format!("{a:?} does not fit this kind of port")),
+            }),
+        }
+    }
+
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<Option<Received>, LinkError> {
+        match self {
+            Port::Bytes(l) => l.recv(buf, timeout).map(|n| (n > 0).then_some(Received::Bytes(n))),
+            Port::Can(l) => l.recv(timeout).map(|f| f.map(Received::Frame)),
+            Port::Closed(_) => Err(self.gone()),
+        }
+    }
+}
+
+/// Opens (and reopens, after a loss) a driver's port.
+pub type PortOpener = Box<dyn FnMut() -> Result<Port, LinkError> + Send>;
+
+/// How a driver waits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DriverConfig {
+    /// The longest [`Driver::close`] (and `Drop`) waits for the session's close sequence before it gives
+    /// up and reports that the stop was not confirmed. Default 5 s.
+    pub close_bound: Duration,
+    /// The longest single read of the link while the session waits for input, so that an operation
+    /// started meanwhile by another caller is sent without waiting for the whole answer timeout. Default
+    /// 20 ms.
+    pub read_slice: Duration,
+}
+
+impl Default for DriverConfig {
+    fn default() -> Self {
+        DriverConfig { close_bound: Duration::from_secs(5), read_slice: Duration::from_millis(20) }
+    }
+}
+
+enum Waiter {
+    Signal(Signal),
+    Waker(Option<Waker>),
+}
+
+struct Slot<S: Session> {
+    result: Option<Result<S::Output, S::Error>>,
+    progress: Option<S::Progress>,
+    waiter: Waiter,
+    /// The caller went away (a dropped future): the result is dropped when it comes.
+    abandoned: bool,
+}
+
+struct Core<S: Session> {
+    session: S,
+    /// The port while nobody drives it.
+    port: Option<Port>,
+    opener: Option<PortOpener>,
+    ops: HashMap<OpId, Slot<S>>,
+    /// The wake-up of whoever drives the port now.
+    driver_wake: Option<Signal>,
+    /// Callers waiting for the port to be free.
+    port_waiters: Vec<Signal>,
+    /// The close sequence's outcome, once known.
+    closed: Option<Result<(), S::Error>>,
+    close_started: bool,
+    close_waiter: Option<Signal>,
+    stop_thread: bool,
+}
+
+impl<S: Session> Core<S> {
+    /// Hands every event of the session to whoever waits for it.
+    fn dispatch(&mut self) {
+        while let Some(event) = self.session.poll_event() {
+            match event {
+                Event::Progress(id, p) => {
+                    if let Some(slot) = self.ops.get_mut(&id) {
+                        slot.progress = Some(p);
+                        if let Waiter::Signal(s) = &slot.waiter {
+                            s.raise();
+                        }
+                    }
+                }
+                Event::Done(id, result) => {
+                    let abandoned = self.ops.get(&id).is_none_or(|s| s.abandoned);
+                    if abandoned {
+                        self.ops.remove(&id);
+                        if let Err(e) = result {
+                            tracing::debug!("{id} of a caller that went away ended: {e}");
+                        }
+                        continue;
+                    }
+                    if let Some(slot) = self.ops.get_mut(&id) {
+                        slot.result = Some(result);
+                        match &mut slot.waiter {
+                            Waiter::Signal(s) => s.raise(),
+                            Waiter::Waker(w) => {
+                                if let Some(w) = w.take() {
+                                    w.wake();
+                                }
+                            }
+                        }
+                    }
+                }
+                Event::Closed(result) => {
+                    self.closed = Some(result);
+                    if let Some(s) = &self.close_waiter {
+                        s.raise();
+                    }
+                }
+            }
+        }
+    }
+
+    fn wake_driver(&self, background: &Signal) {
+        match &self.driver_wake {
+            Some(s) => s.raise(),
+            None => background.raise(),
+        }
+    }
+}
+
+struct Shared<S: Session> {
+    clock: SharedClock,
+    config: DriverConfig,
+    core: Mutex<Core<S>>,
+    /// The background thread's wake-up.
+    background: Signal,
+    /// Raised by the background thread when it ends: joining waits on the clock first, so that a manual
+    /// clock sees the joining thread as waiting.
+    exited: Signal,
+    exited_flag: std::sync::atomic::AtomicBool,
+}
+
+/// What a blocking caller that drives the port does on the way: its progress and its cancellation.
+struct Caller<'a, P> {
+    id: OpId,
+    progress: &'a mut dyn FnMut(&P),
+    cancel: Option<&'a CancelToken>,
+    cancel_sent: bool,
+}
+
+impl<S: Session> Shared<S> {
+    fn core(&self) -> MutexGuard<'_, Core<S>> {
+        lock(&self.core)
+    }
+
+    /// Drives the port until `until` holds (checked whenever nothing is left to send) or `hard_deadline`
+    /// passes, then puts the port back and wakes those who wait for it.
+    fn drive(
+        &self,
+        mut port: Port,
+        me: &Signal,
+        hard_deadline: Option<Timestamp>,
+        mut caller: Option<&mut Caller<'_, S::Progress>>,
+        until: &dyn Fn(&mut Core<S>, Timestamp) -> bool,
+    ) {
+        let mut buf = [0u8; 1024];
+        loop {
+            // Cancellation and progress of the caller that drives.
+            let mut progress = None;
+            if let Some(c) = caller.as_deref_mut() {
+                let mut core = self.core();
+                if !c.cancel_sent && c.cancel.is_some_and(CancelToken::is_cancelled) {
+                    c.cancel_sent = true;
+                    let now = self.clock.now();
+                    core.session.cancel(c.id, now);
+                }
+                progress = core.ops.get_mut(&c.id).and_then(|s| s.progress.take());
+            }
+            if let (Some(p), Some(c)) = (progress, caller.as_deref_mut()) {
+                (c.progress)(&p);
+            }
+            // Everything there is to send, one action at a time (the lock is not held during I/O).
+            let mut acted = false;
+            loop {
+                let action = {
+                    let mut core = self.core();
+                    core.driver_wake = Some(me.clone());
+                    let now = self.clock.now();
+                    if core.session.poll_timeout().is_some_and(|t| t <= now) {
+                        core.session.handle_timeout(now);
+                    }
+                    let a = core.session.poll_transmit(now);
+                    core.dispatch();
+                    a
+                };
+                let Some(action) = action else { break };
+                acted = true;
+                let result = match action {
+                    Action::Reopen => self.reopen(&mut port),
+                    a => port.perform(&a).map_err(|e| (e, false)),
+                };
+                if let Err((e, reopen)) = result {
+                    let mut core = self.core();
+                    let now = self.clock.now();
+                    if reopen {
+                        core.session.handle_reopened(Err(e), now);
+                    } else {
+                        core.session.handle_link_error(e, now);
+                    }
+                    core.dispatch();
+                }
+            }
+            let (deadline, wants_input) = {
+                let mut core = self.core();
+                let now = self.clock.now();
+                core.dispatch();
+                let done = until(&mut core, now) || hard_deadline.is_some_and(|d| now >= d);
+                if !acted && done {
+                    core.driver_wake = None;
+                    core.port = Some(port);
+                    for w in core.port_waiters.drain(..) {
+                        w.raise();
+                    }
+                    drop(core);
+                    self.background.raise();
+                    return;
+                }
+                if acted {
+                    continue;
+                }
+                let deadline = match (core.session.poll_timeout(), hard_deadline) {
+                    (Some(a), Some(b)) => Some(a.min(b)),
+                    (a, b) => a.or(b),
+                };
+                (deadline, core.session.wants_input())
+            };
+            let now = self.clock.now();
+            if deadline.is_some_and(|d| d <= now) {
+                continue;
+            }
+            if wants_input {
+                let slice = deadline.map_or(self.config.read_slice, |d| (d - now).min(self.config.read_slice));
+                let received = port.recv(&mut buf, slice);
+                let mut core = self.core();
+                let now = self.clock.now();
+                match received {
+                    Ok(Some(Received::Bytes(n))) => core.session.handle_input(Input::Bytes(&buf[..n]), now),
+                    Ok(Some(Received::Frame(f))) => core.session.handle_input(Input::Frame(&f), now),
+                    Ok(None) => {}
+                    Err(e) => core.session.handle_link_error(e, now),
+                }
+                core.dispatch();
+            } else {
+                me.wait_until(deadline);
+            }
+        }
+    }
+
+    /// Replaces the port by a new one from the opener. The error says whether it was the reopening that
+    /// failed (true) or something else.
+    fn reopen(&self, port: &mut Port) -> Result<(), (LinkError, bool)> {
+        let name = port.describe();
+        *port = Port::Closed(name.clone());
+        let opener = self.core().opener.take();
+        let Some(mut opener) = opener else {
+            let e = LinkError::Open { port: name, reason: "this session has no way to reopen its port".into() };
+            return Err((e, true));
+        };
+        let result = opener();
+        self.core().opener = Some(opener);
+        match result {
+            Ok(p) => {
+                *port = p;
+                let mut core = self.core();
+                let now = self.clock.now();
+                core.session.handle_reopened(Ok(()), now);
+                core.dispatch();
+                Ok(())
+            }
+            Err(e) => Err((e, true)),
+        }
+    }
+
+    fn background_loop(&self) {
+        let me = self.background.clone();
+        loop {
+            let deadline = {
+                let mut core = self.core();
+                if core.stop_thread {
+                    return;
+                }
+                let now = self.clock.now();
+                let due = core.session.poll_timeout().is_some_and(|t| t <= now);
+                if core.port.is_some() && (due || !core.session.is_idle()) {
+                    let port = core.port.take().expect("checked");
+                    drop(core);
+                    self.drive(port, &me, None, None, &|core, now| {
+                        core.stop_thread
+                            || (core.session.is_idle() && core.session.poll_timeout().is_none_or(|t| t > now))
+                    });
+                    continue;
+                }
+                core.session.poll_timeout()
+            };
+            me.wait_until(deadline);
+        }
+    }
+}
+
+/// Runs a session over a port; see the [module documentation](self).
+///
+/// `Driver` is `Sync`: share it (`&Driver`, `Arc<Driver>`) between threads; their operations interleave on
+/// the line as the session schedules them.
+pub struct Driver<S: Session> {
+    shared: Arc<Shared<S>>,
+    thread: Option<thread::JoinHandle<()>>,
+    describe: String,
+}
+
+impl<S: Session> std::fmt::Debug for Driver<S> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Driver").field("port", &self.describe).finish()
+    }
+}
+
+impl<S: Session> Driver<S> {
+    /// Starts driving `session` over `port`; `opener` reopens the port when the session asks for it
+    /// ([`Action::Reopen`]). Spawns the background thread (a participant of `clock`).
+    pub fn new(
+        session: S,
+        port: Port,
+        opener: Option<PortOpener>,
+        clock: SharedClock,
+        config: DriverConfig,
+    ) -> std::io::Result<Self> {
+        let describe = port.describe();
+        let shared = Arc::new(Shared {
+            background: clock.signal(),
+            exited: clock.signal(),
+            exited_flag: std::sync::atomic::AtomicBool::new(false),
+            clock: Arc::clone(&clock),
+            config,
+            core: Mutex::new(Core {
+                session,
+                port: Some(port),
+                opener,
+                ops: HashMap::new(),
+                driver_wake: None,
+                port_waiters: Vec::new(),
+                closed: None,
+                close_started: false,
+                close_waiter: None,
+                stop_thread: false,
+            }),
+        });
+        let ticket = clock.reserve_participant();
+        let for_thread = Arc::clone(&shared);
+        let thread = thread::Builder::new().name("motionlink-driver".into()).spawn(move || {
+            let _participant = ticket.enter();
+            for_thread.background_loop();
+            for_thread.exited_flag.store(true, std::sync::atomic::Ordering::SeqCst);
+            for_thread.exited.raise();
+        })?;
+        Ok(Driver { shared, thread: Some(thread), describe })
+    }
+
+    /// The port as the user named it.
+    pub fn port_name(&self) -> &str {
+        &self.describe
+    }
+
+    /// The clock the session runs on.
+    pub fn clock(&self) -> &SharedClock {
+        &self.shared.clock
+    }
+
+    /// Runs `f` on the session (to read its statistics or change a setting), then lets the driver look at
+    /// it again.
+    pub fn with_session<R>(&self, f: impl FnOnce(&mut S) -> R) -> R {
+        let mut core = self.shared.core();
+        let r = f(&mut core.session);
+        core.dispatch();
+        core.wake_driver(&self.shared.background);
+        r
+    }
+
+    /// Starts `op`, returns its id and the waiter's registration.
+    fn submit(&self, op: S::Op, waiter: Waiter) -> Result<OpId, S::Error> {
+        let mut core = self.shared.core();
+        if core.close_started {
+            return Err(S::Error::session_closed());
+        }
+        let now = self.shared.clock.now();
+        let id = core.session.start(op, now);
+        core.ops.insert(id, Slot { result: None, progress: None, waiter, abandoned: false });
+        core.dispatch();
+        core.wake_driver(&self.shared.background);
+        Ok(id)
+    }
+
+    /// Runs `op` to its end on the calling thread.
+    pub fn run(&self, op: S::Op) -> Result<S::Output, S::Error> {
+        self.run_with(op, &mut |_| {}, None)
+    }
+
+    /// Runs `op` to its end on the calling thread, calling `progress` with each progress report, and
+    /// cancelling the operation (which stops what it started) when `cancel` is cancelled.
+    pub fn run_with(
+        &self,
+        op: S::Op,
+        progress: &mut dyn FnMut(&S::Progress),
+        cancel: Option<&CancelToken>,
+    ) -> Result<S::Output, S::Error> {
+        let shared = &*self.shared;
+        let me = shared.clock.signal();
+        if let Some(t) = cancel {
+            t.watch(&me);
+        }
+        let result = self.submit(op, Waiter::Signal(me.clone())).and_then(|id| {
+            let mut caller = Caller { id, progress, cancel, cancel_sent: false };
+            loop {
+                let (port, progress) = {
+                    let mut core = shared.core();
+                    let slot = core.ops.get_mut(&id).expect("a waited-for operation keeps its slot");
+                    if let Some(r) = slot.result.take() {
+                        core.ops.remove(&id);
+                        return r;
+                    }
+                    let progress = slot.progress.take();
+                    if !caller.cancel_sent && cancel.is_some_and(CancelToken::is_cancelled) {
+                        caller.cancel_sent = true;
+                        let now = shared.clock.now();
+                        core.session.cancel(id, now);
+                        core.dispatch();
+                        core.wake_driver(&shared.background);
+                    }
+                    let port = core.port.take();
+                    if port.is_none() {
+                        core.port_waiters.push(me.clone());
+                    }
+                    (port, progress)
+                };
+                if let Some(p) = progress {
+                    (caller.progress)(&p);
+                }
+                match port {
+                    Some(port) => shared.drive(port, &me, None, Some(&mut caller), &|core, _| {
+                        core.ops.get(&id).is_none_or(|s| s.result.is_some() || s.progress.is_some())
+                    }),
+                    None => {
+                        me.wait_until(None);
+                    }
+                }
+            }
+        });
+        if let Some(t) = cancel {
+            t.unwatch(&me);
+        }
+        result
+    }
+
+    /// Starts `op` for an async caller: the background thread drives it, and the returned future ends
+    /// with its result. Dropping the future before it is done cancels the operation (which stops any
+    /// motion it started).
+    pub fn start(self: &Arc<Self>, op: S::Op) -> OpFuture<S> {
+        match self.submit(op, Waiter::Waker(None)) {
+            Ok(id) => OpFuture { shared: Some(Arc::clone(&self.shared)), id, early: None },
+            Err(e) => OpFuture { shared: None, id: OpId(0), early: Some(e) },
+        }
+    }
+
+    /// Runs the session's close sequence (stop everything it started) and waits for its outcome at most
+    /// [`DriverConfig::close_bound`]; then stops the background thread. Operations started afterwards fail.
+    pub fn close(mut self) -> Result<(), S::Error> {
+        self.close_inner()
+    }
+
+    fn close_inner(&mut self) -> Result<(), S::Error> {
+        let shared = &*self.shared;
+        let me = shared.clock.signal();
+        let bound = shared.config.close_bound;
+        let give_up = shared.clock.now() + bound;
+        {
+            let mut core = shared.core();
+            core.close_waiter = Some(me.clone());
+            if !core.close_started {
+                core.close_started = true;
+                let now = shared.clock.now();
+                core.session.close(now);
+                core.dispatch();
+            }
+            core.wake_driver(&shared.background);
+        }
+        let result = loop {
+            let port = {
+                let mut core = shared.core();
+                if let Some(r) = core.closed.take() {
+                    break r;
+                }
+                if shared.clock.now() >= give_up {
+                    break Err(S::Error::close_unconfirmed(bound));
+                }
+                let port = core.port.take();
+                if port.is_none() {
+                    core.port_waiters.push(me.clone());
+                }
+                port
+            };
+            match port {
+                Some(port) => shared.drive(port, &me, Some(give_up), None, &|core, _| core.closed.is_some()),
+                None => {
+                    me.wait_until(Some(give_up));
+                }
+            }
+        };
+        {
+            let mut core = shared.core();
+            core.stop_thread = true;
+            // A result kept for later is no use once the session is closed.
+            core.closed = Some(Ok(()));
+        }
+        shared.background.raise();
+        if let Some(t) = self.thread.take() {
+            while !shared.exited_flag.load(std::sync::atomic::Ordering::SeqCst) {
+                shared.exited.wait_until(None);
+            }
+            let _ = t.join();
+        }
+        result
+    }
+}
+
+impl<S: Session> Drop for Driver<S> {
+    fn drop(&mut self) {
+        if self.thread.is_some() {
+            if let Err(e) = self.close_inner() {
+                tracing::warn!("{}: closing the session on drop: {e}", self.describe);
+            }
+        }
+    }
+}
+
+/// The result of an operation started by [`Driver::start`], for async callers. Runtime-agnostic: the
+/// driver's thread does the I/O and wakes the task.
+pub struct OpFuture<S: Session> {
+    shared: Option<Arc<Shared<S>>>,
+    id: OpId,
+    early: Option<S::Error>,
+}
+
+impl<S: Session> OpFuture<S> {
+    /// The operation's id.
+    pub fn id(&self) -> OpId {
+        self.id
+    }
+
+    /// The latest progress report not yet taken, if any.
+    pub fn take_progress(&self) -> Option<S::Progress> {
+        let shared = self.shared.as_ref()?;
+        shared.core().ops.get_mut(&self.id).and_then(|s| s.progress.take())
+    }
+
+    /// Cancels the operation (it stops what it started and ends with a cancelled error, or with its result
+    /// if it had already ended); the future still ends with that outcome.
+    pub fn cancel(&self) {
+        if let Some(shared) = &self.shared {
+            let mut core = shared.core();
+            let now = shared.clock.now();
+            core.session.cancel(self.id, now);
+            core.dispatch();
+            core.wake_driver(&shared.background);
+        }
+    }
+}
+
+// Nothing in an OpFuture is pinned: its fields are moved freely.
+impl<S: Session> Unpin for OpFuture<S> {}
+
+impl<S: Session> Future for OpFuture<S> {
+    type Output = Result<S::Output, S::Error>;
+
+    fn poll(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Self::Output> {
+        if let Some(e) = self.early.take() {
+            return Poll::Ready(Err(e));
+        }
+        let id = self.id;
+        let Some(shared) = self.shared.clone() else {
+            return Poll::Ready(Err(S::Error::session_closed()));
+        };
+        let mut core = shared.core();
+        let Some(slot) = core.ops.get_mut(&id) else {
+            drop(core);
+            self.shared = None;
+            return Poll::Ready(Err(S::Error::session_closed()));
+        };
+        if let Some(r) = slot.result.take() {
+            core.ops.remove(&id);
+            drop(core);
+            self.shared = None;
+            return Poll::Ready(r);
+        }
+        slot.waiter = Waiter::Waker(Some(cx.waker().clone()));
+        Poll::Pending
+    }
+}
+
+impl<S: Session> Drop for OpFuture<S> {
+    fn drop(&mut self) {
+        let Some(shared) = self.shared.take() else { return };
+        let mut core = shared.core();
+        let finished = core.ops.get(&self.id).is_none_or(|s| s.result.is_some());
+        if finished {
+            core.ops.remove(&self.id);
+            return;
+        }
+        if let Some(slot) = core.ops.get_mut(&self.id) {
+            slot.abandoned = true;
+        }
+        let now = shared.clock.now();
+        core.session.cancel(self.id, now);
+        core.dispatch();
+        core.wake_driver(&shared.background);
+    }
+}

@@ -1,0 +1,132 @@
+//! One classification of errors for every family: what went wrong, in terms a caller (and the command
+//! line's exit codes, and Python's exception classes) can act on.
+//!
+//! Each family keeps its own `Error` type with the device's own codes and named bits; every such type
+//! implements [`Classify`], so that a front end maps classes, not families.
+//!
+//! ```
+//! use motionlink_link::error::{Classify, ErrorClass, TransportKind};
+//! use motionlink_link::LinkError;
+//! let e = LinkError::Disconnected { port: "tcp://127.0.0.1:9".into(), reason: "reset".into() };
+//! assert_eq!(e.class(), ErrorClass::Transport(TransportKind::Disconnected));
+//! assert_eq!(e.class().exit_code(), 3);
+//! ```
+
+use std::fmt;
+
+use crate::link::LinkError;
+
+/// What kind of failure an error is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ErrorClass {
+    /// The device answered and refused the request (it saw a bad checksum, the command is not allowed in
+    /// its state, the data is out of its range).
+    Refused,
+    /// The device reports an error (an error code with named bits, an error state), or a motion did not end
+    /// where it was asked to.
+    Device,
+    /// The link failed; the kind says how.
+    Transport(TransportKind),
+    /// The caller asked for something invalid; found before anything was sent.
+    Usage,
+    /// The caller cancelled (a signal, a dropped future); what had been started was stopped.
+    Cancelled,
+}
+
+/// How a link failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum TransportKind {
+    /// No (complete) answer within the time the protocol allows.
+    Timeout,
+    /// The port went away or the peer closed the connection; it cannot be used until reopened.
+    Disconnected,
+    /// Bytes arrived that are not a valid answer (checksum, framing, length, an answer to something else).
+    Corrupt,
+    /// The port could not be opened, or another I/O failure.
+    Io,
+}
+
+impl ErrorClass {
+    /// The command line's exit code for this class: 1 device refused or device error, 2 usage, 3 transport,
+    /// 130 cancelled (the command line replaces it with 128 + the signal that cancelled).
+    pub fn exit_code(self) -> u8 {
+        match self {
+            ErrorClass::Refused | ErrorClass::Device => 1,
+            ErrorClass::Usage => 2,
+            ErrorClass::Transport(_) => 3,
+            ErrorClass::Cancelled => 130,
+        }
+    }
+
+    /// A short snake_case name, for JSON output and logs: `refused`, `device`, `timeout`, `disconnected`,
+    /// `corrupt`, `io`, `usage`, `cancelled`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ErrorClass::Refused => "refused",
+            ErrorClass::Device => "device",
+            ErrorClass::Transport(TransportKind::Timeout) => "timeout",
+            ErrorClass::Transport(TransportKind::Disconnected) => "disconnected",
+            ErrorClass::Transport(TransportKind::Corrupt) => "corrupt",
+            ErrorClass::Transport(TransportKind::Io) => "io",
+            ErrorClass::Usage => "usage",
+            ErrorClass::Cancelled => "cancelled",
+        }
+    }
+
+    /// True for every transport kind.
+    pub fn is_transport(self) -> bool {
+        matches!(self, ErrorClass::Transport(_))
+    }
+}
+
+impl fmt::Display for ErrorClass {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// An error that knows its [`ErrorClass`].
+pub trait Classify {
+    /// The class of this error.
+    fn class(&self) -> ErrorClass;
+}
+
+impl Classify for LinkError {
+    fn class(&self) -> ErrorClass {
+        match self {
+            LinkError::Disconnected { .. } => ErrorClass::Transport(TransportKind::Disconnected),
+            LinkError::Open { .. } | LinkError::Io { .. } => ErrorClass::Transport(TransportKind::Io),
+            LinkError::InvalidPort { .. } => ErrorClass::Usage,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_class_has_its_exit_code_and_name() {
+        let all = [
+            (ErrorClass::Refused, 1, "refused"),
+            (ErrorClass::Device, 1, "device"),
+            (ErrorClass::Transport(TransportKind::Timeout), 3, "timeout"),
+            (ErrorClass::Transport(TransportKind::Disconnected), 3, "disconnected"),
+            (ErrorClass::Transport(TransportKind::Corrupt), 3, "corrupt"),
+            (ErrorClass::Transport(TransportKind::Io), 3, "io"),
+            (ErrorClass::Usage, 2, "usage"),
+            (ErrorClass::Cancelled, 130, "cancelled"),
+        ];
+        for (class, code, name) in all {
+            assert_eq!((class.exit_code(), class.name()), (code, name));
+        }
+    }
+
+    #[test]
+    fn link_errors_keep_their_kind() {
+        let invalid = LinkError::InvalidPort { port: "x".into(), reason: "y".into() };
+        assert_eq!(invalid.class(), ErrorClass::Usage);
+        let io = LinkError::Io { port: "x".into(), source: std::io::Error::other("z") };
+        assert_eq!(io.class(), ErrorClass::Transport(TransportKind::Io));
+    }
+}

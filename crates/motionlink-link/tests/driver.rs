@@ -1,0 +1,534 @@
+//! The drivers, on a toy protocol whose session has every duty a device session has: requests with answer
+//! timeouts and retries, a keepalive on its own deadlines, a move that polls until it arrives and reports
+//! progress, cancellation that stops the motion, and a close sequence that stops what was started.
+//!
+//! The toy device answers `GET` with `VAL <position>`, `MOVE <target>` with `OK` (then moves one unit per
+//! 10 ms), `STOP` with `OK`, `PING` with `PONG`; it stops by itself when no `PING` came for 100 ms.
+
+use std::collections::{HashMap, VecDeque};
+use std::future::Future;
+use std::sync::{Arc, Mutex};
+use std::task::{Context, Poll, Wake, Waker};
+use std::time::Duration;
+
+use motionlink_link::cancel::CancelToken;
+use motionlink_link::clock::{Clock, ManualClock, RealClock, SharedClock, Timestamp};
+use motionlink_link::driver::{Driver, DriverConfig, Port};
+use motionlink_link::emulator::Emulator;
+use motionlink_link::error::{Classify, ErrorClass, TransportKind};
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::session::{Action, Event, Input, OpId, OpIds, Session, SessionError};
+use motionlink_link::LinkError;
+
+// ----------------------------------------------------------------------------------------------------------
+// The toy device
+
+#[derive(Default)]
+struct Toy {
+    line: Vec<u8>,
+    position: i64,
+    target: i64,
+    moving_since: Option<Timestamp>,
+    last_ping: Timestamp,
+    watchdog_stops: u32,
+    pings: Vec<Timestamp>,
+    commands: Vec<String>,
+}
+
+impl Toy {
+    fn run_until(&mut self, now: Timestamp) {
+        while let Some(since) = self.moving_since {
+            let step = since + Duration::from_millis(10);
+            if step > now {
+                break;
+            }
+            if step > self.last_ping + Duration::from_millis(100) {
+                self.moving_since = None;
+                self.watchdog_stops += 1;
+                break;
+            }
+            self.position += (self.target - self.position).signum();
+            self.moving_since = (self.position != self.target).then_some(step);
+        }
+    }
+}
+
+impl Emulator for Toy {
+    fn receive(&mut self, now: Timestamp, bytes: &[u8], out: &mut Vec<u8>) {
+        self.run_until(now);
+        for &b in bytes {
+            if b != b'\n' {
+                self.line.push(b);
+                continue;
+            }
+            let line = String::from_utf8_lossy(&std::mem::take(&mut self.line)).to_string();
+            self.commands.push(line.clone());
+            let reply = match line.split_once(' ').unwrap_or((&line, "")) {
+                ("GET", _) => format!("VAL {}", self.position),
+                ("MOVE", t) => {
+                    self.target = t.parse().unwrap_or(self.position);
+                    if self.target != self.position {
+                        self.moving_since = Some(now);
+                    }
+                    "OK".into()
+                }
+                ("STOP", _) => {
+                    self.moving_since = None;
+                    "OK".into()
+                }
+                ("PING", _) => {
+                    self.last_ping = now;
+                    self.pings.push(now);
+                    "PONG".into()
+                }
+                _ => "ERR".into(),
+            };
+            out.extend_from_slice(reply.as_bytes());
+            out.push(b'\n');
+        }
+    }
+    fn advance(&mut self, now: Timestamp, _out: &mut Vec<u8>) {
+        self.run_until(now);
+    }
+    fn next_wakeup(&self) -> Option<Timestamp> {
+        self.moving_since.map(|t| t + Duration::from_millis(10))
+    }
+    fn connection_closed(&mut self, _now: Timestamp) {
+        self.line.clear();
+    }
+}
+
+// ----------------------------------------------------------------------------------------------------------
+// The toy session
+
+#[derive(Debug, thiserror::Error)]
+enum ToyError {
+    #[error("no answer")]
+    Timeout,
+    #[error("cancelled")]
+    Cancelled,
+    #[error("closed")]
+    Closed,
+    #[error("close unconfirmed")]
+    Unconfirmed,
+    #[error("{0}")]
+    Link(#[from] LinkError),
+}
+
+impl Classify for ToyError {
+    fn class(&self) -> ErrorClass {
+        match self {
+            ToyError::Timeout | ToyError::Unconfirmed => ErrorClass::Transport(TransportKind::Timeout),
+            ToyError::Cancelled => ErrorClass::Cancelled,
+            ToyError::Closed => ErrorClass::Usage,
+            ToyError::Link(e) => e.class(),
+        }
+    }
+}
+
+impl SessionError for ToyError {
+    fn close_unconfirmed(_bound: Duration) -> Self {
+        ToyError::Unconfirmed
+    }
+    fn session_closed() -> Self {
+        ToyError::Closed
+    }
+}
+
+enum Op {
+    Get,
+    Move(i64),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Who {
+    Op(OpId),
+    Keepalive,
+    Close,
+}
+
+enum Phase {
+    Get,
+    Moving { next_poll: Option<Timestamp> },
+    Stopping,
+}
+
+struct ToySession {
+    ids: OpIds,
+    ops: HashMap<OpId, (Phase, i64)>,
+    queue: VecDeque<(Who, String)>,
+    in_flight: Option<(Who, String, Timestamp, u32)>,
+    rx: Vec<u8>,
+    events: VecDeque<Event<ToySession>>,
+    next_ping: Timestamp,
+    moving: bool,
+    closing: bool,
+    sent: Vec<String>,
+    retries: HashMap<String, u32>,
+}
+
+const ANSWER: Duration = Duration::from_millis(20);
+const PING: Duration = Duration::from_millis(30);
+const POLL: Duration = Duration::from_millis(10);
+
+impl ToySession {
+    fn new(now: Timestamp) -> Self {
+        ToySession {
+            ids: OpIds::default(),
+            ops: HashMap::new(),
+            queue: VecDeque::new(),
+            in_flight: None,
+            rx: Vec::new(),
+            events: VecDeque::new(),
+            next_ping: now,
+            moving: false,
+            closing: false,
+            sent: Vec::new(),
+            retries: HashMap::new(),
+        }
+    }
+
+    fn finish(&mut self, id: OpId, r: Result<i64, ToyError>) {
+        if self.ops.remove(&id).is_some() {
+            self.events.push_back(Event::Done(id, r));
+        }
+    }
+
+    fn stop(&mut self, who: Who) {
+        self.queue.push_front((who, "STOP".into()));
+    }
+
+    fn answer(&mut self, who: Who, request: &str, reply: &str, now: Timestamp) {
+        match who {
+            Who::Keepalive => {}
+            Who::Close => {
+                self.moving = false;
+                self.events.push_back(Event::Closed(Ok(())));
+            }
+            Who::Op(id) => {
+                let value: i64 = reply.strip_prefix("VAL ").and_then(|v| v.parse().ok()).unwrap_or(0);
+                let Some((phase, target)) = self.ops.get_mut(&id) else { return };
+                let target = *target;
+                match phase {
+                    Phase::Get => self.finish(id, Ok(value)),
+                    Phase::Stopping => {
+                        self.moving = false;
+                        self.finish(id, Err(ToyError::Cancelled));
+                    }
+                    Phase::Moving { next_poll } => {
+                        if request.starts_with("MOVE") {
+                            self.moving = true;
+                            *next_poll = Some(now + POLL);
+                        } else if value == target {
+                            self.moving = false;
+                            self.finish(id, Ok(value));
+                        } else {
+                            *next_poll = Some(now + POLL);
+                            self.events.push_back(Event::Progress(id, value));
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl Session for ToySession {
+    type Op = Op;
+    type Output = i64;
+    type Progress = i64;
+    type Error = ToyError;
+
+    fn start(&mut self, op: Op, _now: Timestamp) -> OpId {
+        let id = self.ids.next_id();
+        match op {
+            Op::Get => {
+                self.ops.insert(id, (Phase::Get, 0));
+                self.queue.push_back((Who::Op(id), "GET".into()));
+            }
+            Op::Move(t) => {
+                self.ops.insert(id, (Phase::Moving { next_poll: None }, t));
+                self.queue.push_back((Who::Op(id), format!("MOVE {t}")));
+            }
+        }
+        id
+    }
+
+    fn cancel(&mut self, id: OpId, _now: Timestamp) {
+        match self.ops.get_mut(&id) {
+            Some((phase @ Phase::Moving { .. }, _)) => {
+                *phase = Phase::Stopping;
+                self.queue.retain(|(w, _)| *w != Who::Op(id));
+                self.stop(Who::Op(id));
+            }
+            Some(_) => self.finish(id, Err(ToyError::Cancelled)),
+            None => {}
+        }
+    }
+
+    fn close(&mut self, now: Timestamp) {
+        self.closing = true;
+        let ids: Vec<OpId> = self.ops.keys().copied().collect();
+        for id in ids {
+            self.cancel(id, now);
+        }
+        self.stop(Who::Close);
+    }
+
+    fn handle_input(&mut self, input: Input<'_>, now: Timestamp) {
+        let Input::Bytes(bytes) = input else { return };
+        for &b in bytes {
+            if b != b'\n' {
+                self.rx.push(b);
+                continue;
+            }
+            let reply = String::from_utf8_lossy(&std::mem::take(&mut self.rx)).to_string();
+            if let Some((who, request, _, _)) = self.in_flight.take() {
+                self.answer(who, &request, &reply, now);
+            }
+        }
+    }
+
+    fn handle_link_error(&mut self, error: LinkError, _now: Timestamp) {
+        let ids: Vec<OpId> = self.ops.keys().copied().collect();
+        let text = error.to_string();
+        for id in ids {
+            self.finish(id, Err(ToyError::Link(LinkError::Disconnected { port: "toy".into(), reason: text.clone() })));
+        }
+    }
+
+    fn handle_reopened(&mut self, _result: Result<(), LinkError>, _now: Timestamp) {}
+
+    fn poll_transmit(&mut self, now: Timestamp) -> Option<Action> {
+        if self.in_flight.is_some() {
+            return None;
+        }
+        let (who, text) = self.queue.pop_front()?;
+        self.sent.push(text.clone());
+        let bytes = format!("{text}\n").into_bytes();
+        let tries = self.retries.remove(&text).unwrap_or(0);
+        self.in_flight = Some((who, text, now, tries));
+        Some(Action::Send(bytes))
+    }
+
+    fn poll_timeout(&self) -> Option<Timestamp> {
+        let polls = self.ops.values().filter_map(|(p, _)| match p {
+            Phase::Moving { next_poll } => *next_poll,
+            _ => None,
+        });
+        let answer = self.in_flight.as_ref().map(|(_, _, at, _)| *at + ANSWER);
+        let ping = (!self.closing).then_some(self.next_ping);
+        polls.chain(answer).chain(ping).min()
+    }
+
+    fn handle_timeout(&mut self, now: Timestamp) {
+        if let Some((who, text, at, tries)) = &mut self.in_flight {
+            if now >= *at + ANSWER {
+                if *tries < 2 {
+                    self.retries.insert(text.clone(), *tries + 1);
+                    let (who, text) = (*who, text.clone());
+                    self.in_flight = None;
+                    self.queue.push_front((who, text));
+                } else if let Who::Op(id) = *who {
+                    self.in_flight = None;
+                    self.finish(id, Err(ToyError::Timeout));
+                } else {
+                    self.in_flight = None;
+                }
+            }
+        }
+        if !self.closing && now >= self.next_ping {
+            // Deadline-based: the next ping is due one period after the last due time, not after sending.
+            while self.next_ping <= now {
+                self.next_ping += PING;
+            }
+            self.queue.push_front((Who::Keepalive, "PING".into()));
+        }
+        for (id, (phase, _)) in self.ops.iter_mut() {
+            if let Phase::Moving { next_poll: Some(t) } = phase {
+                if now >= *t {
+                    *phase = Phase::Moving { next_poll: None };
+                    self.queue.push_back((Who::Op(*id), "GET".into()));
+                }
+            }
+        }
+    }
+
+    fn poll_event(&mut self) -> Option<Event<Self>> {
+        self.events.pop_front()
+    }
+
+    fn wants_input(&self) -> bool {
+        self.in_flight.is_some()
+    }
+
+    fn is_idle(&self) -> bool {
+        self.ops.is_empty() && self.queue.is_empty() && self.in_flight.is_none()
+    }
+}
+
+// ----------------------------------------------------------------------------------------------------------
+
+fn setup(clock: SharedClock) -> (Driver<ToySession>, EmulatorHost<Toy>) {
+    let host = EmulatorHost::new(Toy::default(), Arc::clone(&clock), PipeConfig::paced(115_200));
+    let port = Port::Bytes(Box::new(host.connect().0));
+    let session = ToySession::new(clock.now());
+    let driver = Driver::new(session, port, None, clock, DriverConfig::default()).unwrap();
+    (driver, host)
+}
+
+#[test]
+fn the_background_thread_keeps_the_device_alive_on_its_own_deadlines() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let (driver, host) = setup(clock.shared());
+    clock.sleep(Duration::from_secs(3));
+    let pings = host.with_device(|d| d.pings.clone());
+    assert!(pings.len() >= 100, "{} pings in 3 s", pings.len());
+    // Sent on the 30 ms grid (plus wire time), never drifting.
+    for (i, at) in pings.iter().enumerate() {
+        let due = Duration::from_millis(30 * i as u64);
+        let late = at.since_origin().saturating_sub(due);
+        assert!(late < Duration::from_millis(2), "ping {i} at {at} is {late:?} late");
+    }
+    driver.close().unwrap();
+}
+
+#[test]
+fn a_blocking_move_reports_progress_and_ends_at_the_target() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let (driver, host) = setup(clock.shared());
+    let mut seen = Vec::new();
+    let end = driver.run_with(Op::Move(20), &mut |p| seen.push(*p), None).unwrap();
+    assert_eq!(end, 20);
+    assert!(seen.len() >= 5 && seen.windows(2).all(|w| w[0] <= w[1]), "{seen:?}");
+    assert_eq!(host.with_device(|d| (d.position, d.watchdog_stops)), (20, 0));
+    driver.close().unwrap();
+}
+
+#[test]
+fn another_thread_reads_while_a_move_runs() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let (driver, host) = setup(clock.shared());
+    let reader_ticket = clock.reserve_participant();
+    std::thread::scope(|s| {
+        let reader = s.spawn(|| {
+            let _p = reader_ticket.enter();
+            let mut reads = Vec::new();
+            for _ in 0..10 {
+                reads.push(driver.run(Op::Get).unwrap());
+                clock.sleep(Duration::from_millis(25));
+            }
+            reads
+        });
+        assert_eq!(driver.run(Op::Move(30)).unwrap(), 30);
+        let reads = reader.join().unwrap();
+        assert!(reads.iter().any(|&p| p > 0 && p < 30), "reads during the move: {reads:?}");
+    });
+    assert_eq!(host.with_device(|d| d.watchdog_stops), 0);
+    driver.close().unwrap();
+}
+
+#[test]
+fn a_cancelled_blocking_move_is_stopped_on_the_device() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let (driver, host) = setup(clock.shared());
+    let token = CancelToken::new();
+    let mut n = 0;
+    let t = token.clone();
+    let r = driver.run_with(
+        Op::Move(100),
+        &mut |_| {
+            n += 1;
+            if n == 3 {
+                t.cancel();
+            }
+        },
+        Some(&token),
+    );
+    assert!(matches!(r, Err(ToyError::Cancelled)), "{r:?}");
+    let (position, moving) = host.with_device(|d| (d.position, d.moving_since.is_some()));
+    assert!(!moving && position < 100, "stopped at {position}");
+    clock.sleep(Duration::from_millis(200));
+    assert_eq!(host.with_device(|d| d.position), position, "it stays stopped");
+    driver.close().unwrap();
+}
+
+#[test]
+fn dropping_the_driver_stops_what_it_started() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let (driver, host) = setup(clock.shared());
+    let driver = Arc::new(driver);
+    let future = driver.start(Op::Move(100));
+    std::mem::forget(future); // nobody waits for it; the driver still drives it
+    clock.sleep(Duration::from_millis(100));
+    assert!(host.with_device(|d| d.moving_since.is_some()));
+    drop(Arc::try_unwrap(driver).unwrap());
+    let (moving, last) = host.with_device(|d| (d.moving_since.is_some(), d.commands.last().cloned()));
+    assert!(!moving, "the drop stopped the motion");
+    assert_eq!(last.as_deref(), Some("STOP"));
+}
+
+/// A minimal executor: polls the future on this thread, parking between wake-ups.
+fn block_on<F: Future>(future: F) -> F::Output {
+    struct Unpark(std::thread::Thread);
+    impl Wake for Unpark {
+        fn wake(self: Arc<Self>) {
+            self.0.unpark();
+        }
+    }
+    let waker = Waker::from(Arc::new(Unpark(std::thread::current())));
+    let mut cx = Context::from_waker(&waker);
+    let mut future = std::pin::pin!(future);
+    loop {
+        if let Poll::Ready(v) = future.as_mut().poll(&mut cx) {
+            return v;
+        }
+        std::thread::park_timeout(Duration::from_millis(100));
+    }
+}
+
+#[test]
+fn an_async_move_runs_on_the_background_thread_and_a_dropped_future_stops_it() {
+    let clock = RealClock::shared();
+    let (driver, host) = setup(Arc::clone(&clock));
+    let driver = Arc::new(driver);
+    assert_eq!(block_on(driver.start(Op::Move(3))).unwrap(), 3);
+
+    let future = driver.start(Op::Move(1000));
+    clock.sleep(Duration::from_millis(60));
+    assert!(host.with_device(|d| d.moving_since.is_some()));
+    drop(future);
+    let stopped = Arc::new(Mutex::new(false));
+    for _ in 0..100 {
+        if host.with_device(|d| d.moving_since.is_none()) {
+            *stopped.lock().unwrap() = true;
+            break;
+        }
+        clock.sleep(Duration::from_millis(5));
+    }
+    assert!(*stopped.lock().unwrap(), "the dropped future's move was stopped");
+    assert_eq!(host.with_device(|d| d.commands.last().cloned()).as_deref(), Some("STOP"));
+    Arc::try_unwrap(driver).unwrap().close().unwrap();
+}
+
+#[test]
+fn operations_after_close_fail_and_a_dead_device_bounds_the_close() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let host = EmulatorHost::new(Toy::default(), clock.shared(), PipeConfig::instant());
+    let (link, faults) = host.connect();
+    let config = DriverConfig { close_bound: Duration::from_millis(500), ..DriverConfig::default() };
+    let driver =
+        Driver::new(ToySession::new(clock.now()), Port::Bytes(Box::new(link)), None, clock.shared(), config).unwrap();
+    driver.run(Op::Get).unwrap();
+    faults.drop_next(motionlink_link::pipe::Direction::DeviceToHost, u64::MAX / 2);
+    let started = clock.now();
+    let r = driver.close();
+    assert!(matches!(r, Err(ToyError::Unconfirmed)), "{r:?}");
+    assert!(clock.now() - started <= Duration::from_millis(500));
+}
