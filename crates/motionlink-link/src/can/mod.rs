@@ -8,6 +8,7 @@
 //! - [`bus`]: an in-memory bus, paced at a bit rate, with an optional emulated device on it.
 //! - [`slcan`]: the ASCII protocol of serial CAN adapters, as a codec, as a [`CanLink`] over any byte
 //!   [`Link`](crate::link::Link), and as an adapter that serves a [`CanEmulator`] on a byte stream.
+//! - [`embedded`]: the `embedded-can` traits, so any embedded-can driver is a [`CanLink`].
 //! - `socketcan` (Linux): a [`CanLink`] on a SocketCAN interface such as `can0`.
 //!
 //! ```
@@ -20,6 +21,7 @@
 //! ```
 
 pub mod bus;
+pub mod embedded;
 pub mod slcan;
 #[cfg(target_os = "linux")]
 pub mod socketcan;
