@@ -522,7 +522,7 @@ impl<S: Session> Driver<S> {
     /// Starts `op` for an async caller: the background thread drives it, and the returned future ends
     /// with its result. Dropping the future before it is done cancels the operation (which stops any
     /// motion it started).
-    pub fn start(self: &Arc<Self>, op: S::Op) -> OpFuture<S> {
+    pub fn start(&self, op: S::Op) -> OpFuture<S> {
         match self.submit(op, Waiter::Waker(None)) {
             Ok(id) => OpFuture { shared: Some(Arc::clone(&self.shared)), id, early: None },
             Err(e) => OpFuture { shared: None, id: OpId(0), early: Some(e) },
@@ -680,5 +680,82 @@ impl<S: Session> Drop for OpFuture<S> {
         core.session.cancel(self.id, now);
         core.dispatch();
         core.wake_driver(&shared.background);
+    }
+}
+
+/// A [`Driver`] for async code (tokio): operations are futures ([`OpFuture`]); opening and closing, which
+/// block on I/O, run on tokio's blocking pool. Dropping it closes the session there as well (stopping
+/// everything it started, bounded by [`DriverConfig::close_bound`]).
+#[cfg(feature = "tokio")]
+pub struct AsyncDriver<S: Session> {
+    driver: Option<Driver<S>>,
+}
+
+#[cfg(feature = "tokio")]
+impl<S: Session> std::fmt::Debug for AsyncDriver<S> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AsyncDriver").field("driver", &self.driver).finish()
+    }
+}
+
+#[cfg(feature = "tokio")]
+impl<S: Session> AsyncDriver<S> {
+    /// Runs `open` (which opens the port and makes the driver: blocking work) on tokio's blocking pool.
+    pub async fn open<E>(open: impl FnOnce() -> Result<Driver<S>, E> + Send + 'static) -> Result<Self, E>
+    where
+        E: From<LinkError> + Send + 'static,
+    {
+        match tokio::task::spawn_blocking(open).await {
+            Ok(r) => r.map(|driver| AsyncDriver { driver: Some(driver) }),
+            Err(e) => {
+                Err(E::from(LinkError::Open { port: "?".into(), reason: format!("the opening task failed: {e}") }))
+            }
+        }
+    }
+
+    /// Wraps a driver made already.
+    pub fn from_driver(driver: Driver<S>) -> Self {
+        AsyncDriver { driver: Some(driver) }
+    }
+
+    /// The blocking driver underneath (for [`Driver::with_session`] and the like).
+    pub fn driver(&self) -> &Driver<S> {
+        self.driver.as_ref().expect("only close() takes the driver, and it consumes self")
+    }
+
+    /// Starts `op`; see [`Driver::start`].
+    pub fn start(&self, op: S::Op) -> OpFuture<S> {
+        self.driver().start(op)
+    }
+
+    /// Runs `op` to its end.
+    pub async fn run(&self, op: S::Op) -> Result<S::Output, S::Error> {
+        self.start(op).await
+    }
+
+    /// Closes the session on tokio's blocking pool; see [`Driver::close`].
+    pub async fn close(mut self) -> Result<(), S::Error> {
+        let driver = self.driver.take().expect("close consumes self");
+        match tokio::task::spawn_blocking(move || driver.close()).await {
+            Ok(r) => r,
+            Err(e) => Err(S::Error::from(LinkError::Io {
+                port: "?".into(),
+                source: std::io::Error::other(format!("the closing task failed: {e}")),
+            })),
+        }
+    }
+}
+
+#[cfg(feature = "tokio")]
+impl<S: Session> Drop for AsyncDriver<S> {
+    fn drop(&mut self) {
+        let Some(driver) = self.driver.take() else { return };
+        match tokio::runtime::Handle::try_current() {
+            // Do not block a runtime thread: the close runs on the blocking pool (still bounded in time).
+            Ok(handle) => {
+                handle.spawn_blocking(move || drop(driver));
+            }
+            Err(_) => drop(driver),
+        }
     }
 }

@@ -462,12 +462,11 @@ fn dropping_the_driver_stops_what_it_started() {
     let clock = ManualClock::new_auto();
     let _me = clock.reserve_participant().enter();
     let (driver, host) = setup(clock.shared());
-    let driver = Arc::new(driver);
     let future = driver.start(Op::Move(100));
     std::mem::forget(future); // nobody waits for it; the driver still drives it
     clock.sleep(Duration::from_millis(100));
     assert!(host.with_device(|d| d.moving_since.is_some()));
-    drop(Arc::try_unwrap(driver).unwrap());
+    drop(driver);
     let (moving, last) = host.with_device(|d| (d.moving_since.is_some(), d.commands.last().cloned()));
     assert!(!moving, "the drop stopped the motion");
     assert_eq!(last.as_deref(), Some("STOP"));
@@ -496,7 +495,6 @@ fn block_on<F: Future>(future: F) -> F::Output {
 fn an_async_move_runs_on_the_background_thread_and_a_dropped_future_stops_it() {
     let clock = RealClock::shared();
     let (driver, host) = setup(Arc::clone(&clock));
-    let driver = Arc::new(driver);
     assert_eq!(block_on(driver.start(Op::Move(3))).unwrap(), 3);
 
     let future = driver.start(Op::Move(1000));
@@ -513,7 +511,7 @@ fn an_async_move_runs_on_the_background_thread_and_a_dropped_future_stops_it() {
     }
     assert!(*stopped.lock().unwrap(), "the dropped future's move was stopped");
     assert_eq!(host.with_device(|d| d.commands.last().cloned()).as_deref(), Some("STOP"));
-    Arc::try_unwrap(driver).unwrap().close().unwrap();
+    driver.close().unwrap();
 }
 
 #[test]
@@ -531,4 +529,35 @@ fn operations_after_close_fail_and_a_dead_device_bounds_the_close() {
     let r = driver.close();
     assert!(matches!(r, Err(ToyError::Unconfirmed)), "{r:?}");
     assert!(clock.now() - started <= Duration::from_millis(500));
+}
+
+#[cfg(feature = "tokio")]
+#[tokio::test]
+async fn on_tokio_positions_are_read_while_a_move_runs_and_a_dropped_task_stops_it() {
+    use motionlink_link::driver::AsyncDriver;
+    let clock = RealClock::shared();
+    let (driver, host) = setup(Arc::clone(&clock));
+    let driver = Arc::new(AsyncDriver::from_driver(driver));
+    let mover = {
+        let d = Arc::clone(&driver);
+        tokio::spawn(async move { d.run(Op::Move(1000)).await })
+    };
+    let mut reads = Vec::new();
+    for _ in 0..5 {
+        reads.push(driver.run(Op::Get).await.unwrap());
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    assert!(reads.windows(2).any(|w| w[1] > w[0]), "positions change during the move: {reads:?}");
+    mover.abort(); // the task's future is dropped: its move is cancelled and stopped
+    let _ = mover.await;
+    let mut stopped = false;
+    for _ in 0..100 {
+        if host.with_device(|d| d.moving_since.is_none()) {
+            stopped = true;
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    assert!(stopped, "aborting the task stopped the motion");
+    Arc::try_unwrap(driver).unwrap().close().await.unwrap();
 }
