@@ -8,6 +8,7 @@ use std::time::Duration;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::emulator::{serve_tcp_with, Emulator, ServeOptions};
+use motionlink_link::error::{Classify, ErrorClass};
 use motionlink_link::{LinkError, RealClock};
 
 /// An error of the command line, classed by what went wrong.
@@ -63,10 +64,7 @@ impl CliError {
 
 impl From<LinkError> for CliError {
     fn from(e: LinkError) -> Self {
-        match e {
-            LinkError::InvalidPort { .. } => CliError::Usage(e.to_string()),
-            _ => CliError::Transport(e.to_string()),
-        }
+        classified(&e)
     }
 }
 
@@ -77,6 +75,18 @@ impl From<std::io::Error> for CliError {
             return CliError::OutputClosed;
         }
         CliError::Transport(e.to_string())
+    }
+}
+
+/// The command line's error for any classified library error: the one place where error classes become
+/// exit codes.
+pub fn classified<E: Classify + std::fmt::Display + ?Sized>(e: &E) -> CliError {
+    let msg = e.to_string();
+    match e.class() {
+        ErrorClass::Refused | ErrorClass::Device => CliError::Device(msg),
+        ErrorClass::Usage => CliError::Usage(msg),
+        ErrorClass::Transport(_) => CliError::Transport(msg),
+        ErrorClass::Cancelled => CliError::Interrupted(msg),
     }
 }
 
