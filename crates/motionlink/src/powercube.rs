@@ -16,8 +16,8 @@ use motionlink_link::url::PortUrl;
 use motionlink_link::{LinkError, RealClock, SerialSettings, SharedClock};
 use motionlink_powercube::client::{Bus, BusConfig, Error as PcError, ModuleInfo, Progress};
 use motionlink_powercube::model::{
-    Acceleration, AckKind, Broadcast, CubeState, ModuleKind, Motion, Param, Position, Reply, Request, StateFlag, Value,
-    Velocity,
+    Acceleration, AckKind, Broadcast, BroadcastForm, CubeState, ModuleKind, Motion, Param, Position, Reply, Request,
+    StateFlag, Value, Velocity,
 };
 use motionlink_powercube::sim::{SimBus, SimConfig};
 use motionlink_powercube::wire::can::{self as can_wire, Role};
@@ -617,8 +617,9 @@ fn read_input(args: &CaptureArgs) -> Result<Result<String, Vec<u8>>, CliError> {
 /// Describes a PowerCube payload travelling in `role` (CAN) or as `kind` to/from `address` (RS232).
 fn describe_payload(is_ack: bool, broadcast: bool, payload: &Payload) -> String {
     if broadcast {
-        return match Broadcast::decode(payload) {
-            Ok(b) => format!("broadcast: {b}"),
+        return match Broadcast::decode_form(payload) {
+            Ok((b, BroadcastForm::Manual)) => format!("broadcast: {b}"),
+            Ok((b, BroadcastForm::Padded)) => format!("broadcast: {b} (command + 0x00, as libm5api sends it)"),
             Err(e) => format!("broadcast: not understood ({e})"),
         };
     }

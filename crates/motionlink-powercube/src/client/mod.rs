@@ -537,7 +537,7 @@ impl Bus {
             _ => {}
         }
         let mut io = self.inner.io.lock();
-        if let Err(e) = io.broadcast(&broadcast.encode()) {
+        if let Err(e) = io.broadcast(&broadcast) {
             self.inner.failed.store(true, Ordering::SeqCst);
             return Err(e.into());
         }
@@ -980,7 +980,7 @@ impl Inner {
         }
         duty.next_due = now + duty.period;
         drop(duty);
-        if let Err(e) = io.broadcast(&Broadcast::WatchdogRefresh.encode()) {
+        if let Err(e) = io.broadcast(&Broadcast::WatchdogRefresh) {
             tracing::warn!("watchdog refresh failed: {e}");
             lock_mutex(&self.duty).last_error = Some(e.to_string());
             self.failed.store(true, Ordering::SeqCst);

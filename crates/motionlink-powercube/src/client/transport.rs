@@ -6,6 +6,7 @@ use std::time::Duration;
 use motionlink_link::can::CanLink;
 use motionlink_link::{Link, LinkError};
 
+use crate::model::{Broadcast, BroadcastForm};
 use crate::wire::can::{self as can_wire, Role};
 use crate::wire::rs232::{self, Rs232Decoder, TelKind};
 use crate::wire::Payload;
@@ -85,11 +86,12 @@ impl Transport {
         }
     }
 
-    /// Sends a broadcast: the CAN broadcast identifier, or RS232 address 0.
-    pub fn broadcast(&mut self, payload: &Payload) -> Result<(), LinkError> {
+    /// Sends a broadcast: on CAN the broadcast identifier with the manual's payload; on RS232 module address
+    /// 0 with the command followed by 0x00, as Schunk's libm5api sends it ([`BroadcastForm::Padded`]).
+    pub fn broadcast(&mut self, broadcast: &Broadcast) -> Result<(), LinkError> {
         match &mut self.carrier {
-            Carrier::Rs232 { .. } => self.send(0, payload),
-            Carrier::Can { link } => link.send(&can_wire::to_frame(Role::Broadcast, payload)),
+            Carrier::Rs232 { .. } => self.send(0, &broadcast.encode_as(BroadcastForm::Padded)),
+            Carrier::Can { link } => link.send(&can_wire::to_frame(Role::Broadcast, &broadcast.encode())),
         }
     }
 
