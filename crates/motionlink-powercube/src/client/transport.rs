@@ -111,17 +111,17 @@ impl Transport {
                             "frame from module {} with a wrong BCC (0x{:02X}, expected 0x{:02X})",
                             f.address, f.bcc_received, f.bcc_computed
                         ))),
-                        Ok(f) => {
-                            if !f.length_ok() {
-                                tracing::debug!(
-                                    "module {}: TELID length {} for {} data bytes (accepted)",
-                                    f.address,
-                                    f.declared_len,
-                                    f.payload.len()
-                                );
-                            }
-                            pending.push_back(Incoming::Frame { address: f.address, payload: f.payload });
-                        }
+                        // The manual's own acknowledge examples carry TELID length 6 for 3 data bytes: that
+                        // one slip is accepted; any other length that differs from the data is corruption
+                        // the BCC let through.
+                        Ok(f) if !(f.length_ok() || (f.declared_len == 6 && f.payload.len() == 3)) => pending
+                            .push_back(Incoming::Corrupt(format!(
+                                "frame from module {} with TELID length {} for {} data bytes",
+                                f.address,
+                                f.declared_len,
+                                f.payload.len()
+                            ))),
+                        Ok(f) => pending.push_back(Incoming::Frame { address: f.address, payload: f.payload }),
                         Err(e) => pending.push_back(Incoming::Corrupt(e.to_string())),
                     }
                 }

@@ -368,7 +368,11 @@ impl SimModule {
                 self.flags = self.flags.with(StateFlag::HomeOk).with(StateFlag::RampEnd);
                 self.event(t, "homed");
             }
-            MotionKind::Ramp => self.flags = self.flags.with(StateFlag::RampEnd),
+            MotionKind::Ramp => {
+                // A module that does not settle on its target (configured, for testing in-position checks).
+                self.pos += self.cfg.settle_offset;
+                self.flags = self.flags.with(StateFlag::RampEnd);
+            }
             MotionKind::RampLoop { from, to } => {
                 let back = profile::ramp(t, self.pos, 0.0, from, self.ramp_vel(), self.ramp_acc());
                 let leg = back.last().map_or(0.0, |s| s.end() - t);
