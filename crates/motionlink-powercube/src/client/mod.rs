@@ -231,7 +231,7 @@ pub enum Error {
     },
     /// A value outside one of the module's limits: refused before anything was sent that moves (the module
     /// would have limited it silently).
-    #[error("module {address}: {what} {value} is outside the module's limit {limit} = {limit_value}")]
+    #[error("module {address}: {what} {} is outside the module's limit {limit} = {}", number(*value), number(*limit_value))]
     BeyondLimit {
         /// The module.
         address: u8,
@@ -327,6 +327,17 @@ pub enum Error {
         /// What was seen.
         detail: String,
     },
+}
+
+/// A number for messages: a value that came from a float parameter is shown as that float (0.05, not
+/// 0.05000000074505806).
+fn number(x: f64) -> String {
+    let single = x as f32;
+    if f64::from(single) == x {
+        single.to_string()
+    } else {
+        x.to_string()
+    }
 }
 
 fn fault_names(state: CubeState) -> String {
@@ -1627,6 +1638,19 @@ impl Module<'_> {
         lock_mutex(&self.bus.inner.cancel).as_ref().is_some_and(CancelToken::is_cancelled)
     }
 
+    /// Refuses a module that would ignore a motion command: one with an error flag ([`Error::Device`]) or
+    /// halted ([`Error::Halted`]; a reset clears it).
+    fn ready_for_motion(&self) -> Result<(), Error> {
+        let state = self.state()?;
+        if state.has_fault() {
+            return Err(Error::Device { address: self.address, state });
+        }
+        if state.contains(StateFlag::Halted) {
+            return Err(Error::Halted { address: self.address, state });
+        }
+        Ok(())
+    }
+
     /// Reads a float parameter that must be a finite number.
     fn get_finite(&self, param: Param) -> Result<f32, Error> {
         let v = self.get_f32(param)?;
@@ -1807,6 +1831,7 @@ impl Module<'_> {
         if timeout.is_zero() {
             return Err(Error::InvalidArgument { what: "the timeout", must: "above 0", value: "0".into() });
         }
+        self.ready_for_motion()?;
         if self.cancelled() {
             return Err(Error::Cancelled { address: self.address, stop: StopOutcome::NotStarted });
         }
@@ -1837,6 +1862,7 @@ impl Module<'_> {
     /// cannot make a move that ended elsewhere look like a success.
     pub fn move_to(&self, spec: &MoveSpec, progress: &mut dyn FnMut(&Progress)) -> Result<MoveReport, Error> {
         spec.validate()?;
+        self.ready_for_motion()?;
         let target = f64::from(spec.target.0);
         self.within_limit("the target position", target, Param::MinPos, false)?;
         self.within_limit("the target position", target, Param::MaxPos, true)?;

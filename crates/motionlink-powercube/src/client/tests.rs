@@ -1043,6 +1043,14 @@ fn a_checked_move_refuses_targets_beyond_the_limits_before_anything_moves() {
     let err = m.move_to(&MoveSpec::to(Position(0.5)), &mut |_| {}).unwrap_err();
     assert!(matches!(err, Error::InvalidArgument { what: "the velocity", .. }), "{err}");
     assert!(!sim_module(&host, 1).0.contains(StateFlag::Motion));
+    // A halted module would ignore the motion command: refused, named, before anything is written.
+    m.halt().unwrap();
+    let err = m.move_to(&spec(0.5), &mut |_| {}).unwrap_err();
+    assert!(matches!(err, Error::Halted { address: 1, .. }), "{err}");
+    let err = m.home_and_wait(secs(10), &mut |_| {}).unwrap_err();
+    assert!(matches!(err, Error::Halted { address: 1, .. }), "{err}");
+    let events = host.with_device(|d| d.take_events());
+    assert_eq!(events, ["module 1 halted"], "no write, no motion command after the halt");
 }
 
 #[test]
@@ -1088,10 +1096,11 @@ fn a_checked_move_reads_back_its_ramp_and_target_and_halts_a_corrupted_command()
     let set_vel = Request::set(Param::TargetVel, Value::F32(1.0)).unwrap();
     let mut frame = [0u8; crate::wire::rs232::MAX_FRAME];
     let n = crate::wire::rs232::encode(crate::wire::rs232::TelKind::Send, 1, &set_vel.encode(), &mut frame).unwrap();
-    // The reads before it: MinPos, MaxPos, MaxVel, MaxAcc, IncRatio, ActPos, each 7 or 8 bytes; find the
-    // frame by running once without faults is more robust: corrupt the float's last byte instead.
+    // The reads before it (state, limits, IncRatio, ActPos) are counted frame by frame; the byte hit is
+    // the float's most significant one.
     let before = faults.bytes_sent(Direction::HostToDevice);
-    let reads = [Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::IncRatio, Param::ActPos];
+    let reads =
+        [Param::CubeState, Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::IncRatio, Param::ActPos];
     let read_bytes: u64 = reads.iter().map(|p| rs232_request_len(1, &Request::Get(*p))).sum();
     let value_msb = before + read_bytes + (n as u64 - 3); // STX TELID TELID 08 4F v0 v1 v2 v3 BCC ETX
     assert_eq!(frame[n - 3], 0x3f, "1.0f32 ends in 0x3f");
