@@ -352,7 +352,10 @@ impl<E: CanEmulator> CanLink for CanBusLink<E> {
                 return Ok(None);
             }
             let until = next.map_or(deadline, |t| t.min(deadline));
-            self.wake.wait_until(Some(until));
+            // As a reader of a kernel socket does: asleep until the frame is there, leaving the CPU to others
+            // (a frame read a little late is still read; spinning would make this thread compete for the
+            // CPU it waits on).
+            self.wake.wait_until_sleeping(Some(until));
         }
     }
 
