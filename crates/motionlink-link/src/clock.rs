@@ -156,11 +156,23 @@ impl Signal {
     pub fn same_as(&self, other: &Signal) -> bool {
         Arc::ptr_eq(&self.0, &other.0)
     }
+
+    /// [`Signal::wait_until`], except that a real clock sleeps all the way to the deadline instead of
+    /// spinning through its last 100 µs: the wake-up comes as late as the operating system makes it (its
+    /// timer slack, a busy CPU), and the thread leaves the CPU to others meanwhile. For waits whose
+    /// lateness costs nothing more than the wait itself, such as an in-memory link waiting for a frame that
+    /// is read whenever the reader wakes. A manual clock waits exactly as [`Signal::wait_until`] does.
+    pub fn wait_until_sleeping(&self, deadline: Option<Timestamp>) -> Wake {
+        self.0.wait_until_sleeping(deadline)
+    }
 }
 
 trait RawSignal: Send + Sync {
     fn raise(&self);
     fn wait_until(&self, deadline: Option<Timestamp>) -> Wake;
+    fn wait_until_sleeping(&self, deadline: Option<Timestamp>) -> Wake {
+        self.wait_until(deadline)
+    }
 }
 
 /// Hands a participant slot of an auto-advancing [`ManualClock`] to the thread that will use it.
@@ -292,6 +304,17 @@ impl RawSignal for RealSignal {
     }
 
     fn wait_until(&self, deadline: Option<Timestamp>) -> Wake {
+        self.wait(deadline, REAL_SPIN)
+    }
+
+    fn wait_until_sleeping(&self, deadline: Option<Timestamp>) -> Wake {
+        self.wait(deadline, Duration::ZERO)
+    }
+}
+
+impl RealSignal {
+    /// Waits for the signal or `deadline`, spinning through the last `spin` before the deadline.
+    fn wait(&self, deadline: Option<Timestamp>, spin: Duration) -> Wake {
         loop {
             if self.raised.swap(false, Ordering::SeqCst) {
                 return Wake::Raised;
@@ -307,7 +330,7 @@ impl RawSignal for RealSignal {
                 }
             };
             match remaining {
-                Some(r) if r <= REAL_SPIN => std::hint::spin_loop(),
+                Some(r) if r <= spin => std::hint::spin_loop(),
                 _ => {
                     let g = lock(&self.lock);
                     // Raised between the check above and taking the lock: do not sleep.
@@ -316,7 +339,7 @@ impl RawSignal for RealSignal {
                     }
                     match remaining {
                         None => drop(self.cv.wait(g).unwrap_or_else(|e| e.into_inner())),
-                        Some(r) => drop(self.cv.wait_timeout(g, r - REAL_SPIN).unwrap_or_else(|e| e.into_inner())),
+                        Some(r) => drop(self.cv.wait_timeout(g, r - spin).unwrap_or_else(|e| e.into_inner())),
                     }
                 }
             }
@@ -546,6 +569,22 @@ mod tests {
         assert_eq!(s.wait_until(Some(clock.now() + Duration::from_secs(10))), Wake::Raised);
         // Lowered again: now it times out.
         assert_eq!(s.wait_until(Some(clock.now() + Duration::from_millis(5))), Wake::Deadline);
+    }
+
+    #[test]
+    fn a_sleeping_wait_ends_at_its_deadline_or_when_raised() {
+        let clock = RealClock::new();
+        let s = clock.signal();
+        let deadline = clock.now() + Duration::from_millis(5);
+        assert_eq!(s.wait_until_sleeping(Some(deadline)), Wake::Deadline);
+        assert!(clock.now() >= deadline, "never before its deadline");
+        s.raise();
+        assert_eq!(s.wait_until_sleeping(Some(clock.now() + Duration::from_secs(10))), Wake::Raised);
+        // A manual clock waits as wait_until does.
+        let manual = ManualClock::new_auto();
+        let _me = manual.reserve_participant().enter();
+        assert_eq!(manual.signal().wait_until_sleeping(Some(Timestamp::from_millis(7))), Wake::Deadline);
+        assert_eq!(manual.now(), Timestamp::from_millis(7));
     }
 
     #[test]

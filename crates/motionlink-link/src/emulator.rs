@@ -225,6 +225,24 @@ impl Drop for Server {
     }
 }
 
+/// How long a new TCP connection waits, when another client is being served, for that client's closed
+/// connection to be noticed before it is refused: a command that runs right after another one (a script,
+/// a test) connects a moment after the previous process closed its socket.
+const BUSY_GRACE: Duration = Duration::from_millis(100);
+
+/// Waits up to [`BUSY_GRACE`] for the client being served to turn out gone (`busy` cleared by the serving
+/// thread), and takes the slot if it does. False if it is still connected.
+fn previous_client_gone(busy: &AtomicBool) -> bool {
+    let deadline = std::time::Instant::now() + BUSY_GRACE;
+    while std::time::Instant::now() < deadline {
+        if !busy.swap(true, Ordering::SeqCst) {
+            return true;
+        }
+        thread::sleep(Duration::from_millis(1));
+    }
+    false
+}
+
 /// Serves `device` over TCP at `bind` (such as `127.0.0.1:0`); see [`serve_tcp_with`].
 pub fn serve_tcp<E: Emulator + 'static>(
     bind: &str,
@@ -236,7 +254,7 @@ pub fn serve_tcp<E: Emulator + 'static>(
 
 /// Serves `device` over TCP at `bind` (such as `127.0.0.1:0`), one client at a time, as a serial-over-TCP
 /// gateway does: a client that connects while another is served gets the one line [`BUSY_MESSAGE`] and is
-/// closed at once; a new client is accepted as soon as the previous one closed. The device keeps its state
+/// closed (after at most 100 ms in which the other client's closing connection may still be noticed); a new client is accepted as soon as the previous one closed. The device keeps its state
 /// across connections, as a real one would, and its time runs on between them (its watchdog, its motion);
 /// a telegram left incomplete by a closed connection is discarded ([`Emulator::connection_closed`]).
 ///
@@ -271,7 +289,7 @@ pub fn serve_tcp_with<E: Emulator + 'static>(
         }
         match accepted {
             Ok((mut stream, peer)) => {
-                if accept_busy.swap(true, Ordering::SeqCst) {
+                if accept_busy.swap(true, Ordering::SeqCst) && !previous_client_gone(&accept_busy) {
                     tracing::info!("refused {peer}: another client is connected");
                     let _ = stream.write_all(BUSY_MESSAGE.as_bytes());
                     let _ = stream.shutdown(std::net::Shutdown::Both);

@@ -51,18 +51,20 @@
 //!   and reports a mismatch as [`client::Error::Corrupt`] (reads are then retried).
 //! - **TELID length.** The manual's RS232 acknowledge examples carry length 6 for 3 data bytes. The
 //!   emulator sends the true length and, as the manual says, ignores commands whose length does not match;
-//!   the client accepts acknowledges with either.
+//!   the client accepts acknowledges with the true length or that one slip (6 for 3); any other mismatch
+//!   is a corrupt answer.
 //! - **CAN identifiers.** The DLC is the data length; "+ number of data bytes" in the manual's formulas is
 //!   not added to the identifier. Extended motion acknowledges come on the acknowledge identifier
 //!   `0x0A0 + address`, whatever the manual's last CAN table shows (`0x0f1`).
-//! - **Broadcasts on RS232.** The manual defines none. The client sends them to address 0 (TELID with M = 0)
-//!   and the emulator takes address 0 as every module, without acknowledge. Real RS232 modules may ignore
-//!   address 0; on a real RS232 chain the watchdog therefore cannot be relied upon
-//!   ([`client::Bus::watchdog_reliable`] is false there): [`client::Bus::enable_watchdog`] refuses on RS232
-//!   with [`client::Error::Unsupported`] unless [`client::BusConfig::watchdog_on_rs232`] opts in, and the
-//!   `motionlink` command does not arm it on RS232: it warns that a dead host will not stop the module. For
-//!   the same reason a broadcast Halt on RS232 does not count as stopping anything: the session still asks
-//!   each module it started on drop and halts it by address.
+//! - **Broadcasts on RS232.** The manual lists broadcasts for CAN only (4.1.2). Schunk's own library,
+//!   libm5api, sends them over RS232 to module address 0 with the command followed by 0x00 (haltAll is
+//!   `02 04 10 82 10 82 00 08 03`), and real modules act on them: the client sends that form
+//!   ([`model::BroadcastForm::Padded`]) on RS232 and the manual's one-byte form on CAN; the emulator and
+//!   `decode` take both forms, on both carriers. The padded form has a second merit: a bit flipped in its
+//!   address cannot make it the life sign of one module (`07` alone to one module toggles its watchdog;
+//!   `07 00` to one module is no command). The watchdog is therefore armed on RS232 by default
+//!   ([`client::BusConfig::watchdog_on_rs232`] switches that off). A broadcast Halt on RS232 still does not
+//!   count as stopping anything: the session asks each module it started on drop and halts it by address.
 //! - **What a broadcast sets in motion.** Home and StartMotion count as starting the modules the session
 //!   knows exist ([`client::Bus::known`]: every address that has answered it), not all 31 addresses: a drop
 //!   then asks only those. A module that never answered and does not answer the drop's question is taken as
@@ -148,8 +150,26 @@
 //!   makes the next receive fail with a [`LinkError`](motionlink_link::LinkError) naming the frame: the
 //!   request fails at once as a transport error, not after a timeout.
 //! - **Timeouts.** RS232 200 ms (a frame takes up to 25 ms each way at 9600 baud), CAN 50 ms; reads are
-//!   retried twice; the scan waits 60 ms per address on RS232 and 50 ms for all 31 on CAN. All are
-//!   [`client::BusConfig`] settings.
+//!   retried twice; the scan waits 60 ms per address on RS232 and 50 ms for all 31 on CAN. Waits poll every
+//!   10 ms on a fixed schedule, never faster. All are [`client::BusConfig`] settings.
+//! - **In-position.** The manual has no in-position window parameter: [`client::Module::move_to`] takes the
+//!   tolerance from its caller ([`client::MoveSpec::DEFAULT_TOLERANCE`]: 0.001 rad or m) and reads the final
+//!   position twice; both readings must lie within it.
+//! - **Limits are refused, not clamped.** The modules limit targets to MinPos/MaxPos (once homed), MaxVel,
+//!   MaxAcc, MaxCur (chapter 12). [`client::Module::move_to`] and [`client::Module::set_checked`] refuse such
+//!   values before anything moves ([`client::Error::BeyondLimit`]), homed or not, and read back what they
+//!   write ([`client::Error::Mismatch`]); a module's own limits, when written, are read back as well.
+//! - **The target of a running motion.** TargetPosInc is taken as the target of the motion the module runs
+//!   (the emulator sets it from FRAMP); `move_to` reads it right after the motion command and halts the
+//!   module on a difference of more than one tick: the modules ignore the BCC, so a corrupted command would
+//!   otherwise run to a wrong place. To be confirmed on real hardware.
+//! - **Stops that cannot be confirmed.** When an action that may have set a module in motion cannot go on,
+//!   the module is halted: up to three Halts by address (a Halt may be repeated), then a broadcast Halt and,
+//!   if none was acknowledged, the watchdog refresh stopped on purpose ([`client::Bus::abandon_watchdog`]):
+//!   an armed module then halts itself within 50 ms. The error carries a [`client::StopOutcome`] whose text
+//!   says whether the module confirmed the stop, and if not, that the axis may still be moving.
+//! - **Acknowledges nobody asked for.** A module that acknowledges a motion command it was not sent in this
+//!   exchange (an address corrupted on the way) is counted as set in motion, so that the session halts it.
 //! - **DISABLE_ACK.** The client refuses to set CONFIGID_MOD_DISABLE_ACK on CAN (it needs acknowledges).
 //!   The emulator honours it; the write that sets it is still acknowledged.
 

@@ -14,10 +14,10 @@ use motionlink_link::serial::SerialLink;
 use motionlink_link::transcript::{TapLink, Transcript, Way};
 use motionlink_link::url::PortUrl;
 use motionlink_link::{LinkError, RealClock, SerialSettings, SharedClock};
-use motionlink_powercube::client::{Bus, BusConfig, Error as PcError, ModuleInfo, Progress};
+use motionlink_powercube::client::{Bus, BusConfig, Error as PcError, ModuleInfo, MoveSpec, Progress, Readback};
 use motionlink_powercube::model::{
-    Acceleration, AckKind, Broadcast, CubeState, ModuleKind, Motion, Param, Position, Reply, Request, StateFlag, Value,
-    Velocity,
+    Acceleration, AckKind, Broadcast, BroadcastForm, CubeState, ModuleKind, Motion, Param, Position, Reply, Request,
+    StateFlag, Value, Velocity,
 };
 use motionlink_powercube::sim::{SimBus, SimConfig};
 use motionlink_powercube::wire::can::{self as can_wire, Role};
@@ -37,19 +37,23 @@ pub struct Args {
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=31))]
     pub module: u8,
     /// RS232 baud rate.
-    #[arg(long, default_value_t = 9600)]
+    #[arg(long, default_value_t = 9600, value_parser = clap::value_parser!(u32).range(1..))]
     pub baud: u32,
     /// CAN bit rate of an SLCAN adapter (10000 .. 1000000).
     #[arg(long, default_value_t = 1_000_000)]
     pub bitrate: u32,
-    /// Acknowledge timeout in ms, at least 1 (default: 200 on RS232, 50 on CAN).
-    #[arg(long, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..))]
+    /// Acknowledge timeout in ms, 1 to 60000 (default: 200 on RS232, 50 on CAN).
+    #[arg(long, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000))]
     pub timeout_ms: Option<u64>,
+    /// How often `home` and `move` read the module's state while they wait, in ms (1 to 10000): polls are
+    /// never sent faster than this, however quickly the line answers.
+    #[arg(long, value_name = "MS", default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    pub poll_ms: u64,
     /// Print JSON instead of a table.
     #[arg(long, global = true)]
     pub json: bool,
     /// Do not arm the module watchdog for `home` and `move` (the Config word is left alone; a host that dies
-    /// then leaves the module moving). Ctrl-C and errors still halt it.
+    /// then leaves the module moving). Signals, a closed stdout and errors still halt it.
     #[arg(long, global = true)]
     pub no_watchdog: bool,
     /// What to do.
@@ -78,9 +82,9 @@ pub enum Action {
         /// The value, in the parameter's type and unit.
         value: String,
     },
-    /// Home the module and wait for the end of homing (watchdog armed on CAN; Ctrl-C halts).
+    /// Home the module and wait for the end of homing (watchdog armed; a signal halts it).
     Home {
-        /// Give up (and halt) after this many seconds.
+        /// Give up (and halt) after this many seconds (above 0).
         #[arg(long, default_value_t = 60.0)]
         timeout: f64,
     },
@@ -88,7 +92,8 @@ pub enum Action {
     Reset,
     /// Stop the module at once (it stays halted until a reset).
     Halt,
-    /// Ramp to a position (rad or m) and wait for the end of the ramp (watchdog armed on CAN; Ctrl-C halts).
+    /// Ramp to a position (rad or m) and wait for the end of the ramp (watchdog armed; a signal halts it).
+    /// Succeeds only if the final position read from the module lies within --tolerance of the target.
     Move {
         /// The target position.
         #[arg(allow_negative_numbers = true)]
@@ -101,17 +106,21 @@ pub enum Action {
         /// TargetAcc is used as it is.
         #[arg(long)]
         acc: Option<f32>,
-        /// Give up (and halt) after this many seconds.
+        /// Give up (and halt) after this many seconds (above 0).
         #[arg(long, default_value_t = 60.0)]
         timeout: f64,
+        /// In-position tolerance (rad or m, above 0): the move succeeds only if the final actual position is
+        /// at most this far from the target. The manual has no in-position window parameter.
+        #[arg(long, default_value_t = MoveSpec::DEFAULT_TOLERANCE.0)]
+        tolerance: f32,
     },
     /// Print position and state until Ctrl-C (or --count samples).
     Watch {
-        /// Milliseconds between samples.
-        #[arg(long, default_value_t = 200)]
+        /// Milliseconds between samples (1 to 3600000).
+        #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..=3_600_000))]
         interval_ms: u64,
-        /// Stop after this many samples.
-        #[arg(long)]
+        /// Stop after this many samples (at least 1).
+        #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
         count: Option<u64>,
     },
     /// List the parameter table.
@@ -158,12 +167,13 @@ fn cli_err(e: PcError) -> CliError {
 
 /// Runs `action`, which sets the modules in `addresses` moving, with their watchdog armed: switched on
 /// before (CONFIGID_MOD_WATCHDOG_ENABLE set if it was not, a life sign, the refresh served by the session's
-/// background thread), so that a host that dies (SIGKILL, power loss, the adapter pulled) stops them within
-/// 50 ms; and switched off again after, whether `action` succeeded, failed or was cancelled (Ctrl-C), with
-/// the Config word restored, so that a normal run leaves the modules as it found them.
+/// background thread: the CAN broadcast, or on RS232 the broadcast to address 0 as libm5api sends it), so
+/// that a host that dies (SIGKILL, power loss, the adapter or cable pulled) stops them within 50 ms; and
+/// switched off again after, whether `action` succeeded, failed or was cancelled (a signal), with the
+/// Config word restored, so that a normal run leaves the modules as it found them. A session that failed
+/// (its line broke, a stop was not confirmed) leaves the watchdog online: it is what stops them then.
 ///
-/// Not on RS232, where the manual defines no broadcast to refresh it with (a warning says so), nor with
-/// `--no-watchdog`, nor on the in-process emulator (`--port sim`), which dies with the host.
+/// Not with `--no-watchdog`, nor on the in-process emulator (`--port sim`), which dies with the host.
 fn with_watchdog<T>(
     bus: &Bus,
     args: &Args,
@@ -173,14 +183,10 @@ fn with_watchdog<T>(
 ) -> Result<T, CliError> {
     let list = addresses.iter().map(u8::to_string).collect::<Vec<_>>().join(", ");
     let arm = !args.no_watchdog && !in_process && bus.watchdog_reliable();
-    if !args.no_watchdog && !in_process && !bus.watchdog_reliable() {
-        eprintln!(
-            "motionlink: warning: no watchdog on RS232 (no broadcast to refresh it): if this program dies, \
-             module {list} keeps moving (Ctrl-C and errors still halt it)"
-        );
-    }
     if !arm {
-        return action();
+        let result = action();
+        bus.halt_started();
+        return result;
     }
     if let Err(e) = bus.enable_watchdog(addresses) {
         // Undo what was done before the failure (a Config word changed, a life sign sent).
@@ -203,7 +209,7 @@ fn with_watchdog<T>(
         (result, Ok(())) => result,
         (Ok(_), Err(e)) => Err(with_context(e, &format!("cannot switch the watchdog of module {list} off again"), "")),
         (Err(e), Err(undo)) => {
-            eprintln!("motionlink: cannot switch the watchdog of module {list} off again: {undo}");
+            common::say(format!("motionlink: {undo}"));
             Err(e)
         }
     }
@@ -234,6 +240,8 @@ fn open(args: &Args) -> Result<(Bus, Option<EmulatorHost<SimBus>>), CliError> {
         }
         c
     };
+    let poll = Duration::from_millis(args.poll_ms);
+    let with_timeout = |c: BusConfig| BusConfig { poll_interval: poll, ..with_timeout(c) };
     let bus = match &url {
         PortUrl::Serial(_) | PortUrl::Tcp { .. } => {
             let link = url.open_byte_link(SerialSettings { dtr_rts_on: false, ..SerialSettings::new(args.baud) })?;
@@ -303,23 +311,33 @@ fn info_json(m: &ModuleInfo) -> serde_json::Value {
     })
 }
 
-/// Checks what can be checked before the port is opened: numbers that must be finite and positive.
+/// A duration in seconds that must be a number above 0, for `--timeout`.
+fn positive_secs(name: &str, s: f64) -> Result<Duration, CliError> {
+    if !(s.is_finite() && s > 0.0) {
+        return Err(CliError::usage(format!("{name} must be a number of seconds above 0, not {s}")));
+    }
+    Duration::try_from_secs_f64(s).map_err(|_| CliError::usage(format!("{name} {s} is not a duration in seconds")))
+}
+
+/// Checks what can be checked before the port is opened: numbers that must be finite and positive. (The
+/// limits of the module itself, such as MaxPos or MaxVel, are checked against the module before anything is
+/// written or moved.)
 fn check_args(action: &Action) -> Result<(), CliError> {
     match action {
-        Action::Move { position, vel, acc, timeout } => {
+        Action::Move { position, vel, acc, timeout, tolerance } => {
             if !position.is_finite() {
                 return Err(CliError::usage(format!("the position must be a number, not {position}")));
             }
-            for (name, value) in [("--vel", vel), ("--acc", acc)] {
+            for (name, value) in [("--vel", vel), ("--acc", acc), ("--tolerance", &Some(*tolerance))] {
                 if let Some(v) = value {
                     if !(v.is_finite() && *v > 0.0) {
                         return Err(CliError::usage(format!("{name} must be a number above 0, not {v}")));
                     }
                 }
             }
-            secs(*timeout).map(|_| ())
+            positive_secs("--timeout", *timeout).map(|_| ())
         }
-        Action::Home { timeout } => secs(*timeout).map(|_| ()),
+        Action::Home { timeout } => positive_secs("--timeout", *timeout).map(|_| ()),
         _ => Ok(()),
     }
 }
@@ -433,9 +451,18 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Action::Set { param, value } => {
             let p = parse_param(param)?;
             let v = Value::parse(p, value).map_err(CliError::usage)?;
-            m.set(p, v).map_err(cli_err)?;
+            // Targets beyond their limits are refused; what was written is read back.
+            let readback = m.set_checked(p, v).map_err(cli_err)?;
+            let (read_back, not_verifiable) = match readback {
+                Readback::Same(r) => (Some(r), None),
+                Readback::NotReadable(why) => (None, Some(why)),
+            };
             if args.json {
-                common::print_json(&mut out, &json!({"param": p.name(), "value": value_json(&v), "ok": true}))?;
+                common::print_json(
+                    &mut out,
+                    &json!({"param": p.name(), "value": value_json(&v), "ok": true,
+                            "read_back": read_back.as_ref().map(value_json), "not_verifiable": not_verifiable}),
+                )?;
             } else {
                 let kind = m.kind().map_err(|e| {
                     with_context(
@@ -444,19 +471,21 @@ pub fn run(args: Args) -> Result<(), CliError> {
                         "",
                     )
                 })?;
-                writeln!(out, "{} set to {}", p.name(), v.show(p, kind))?;
+                let how = match not_verifiable {
+                    None => "read back".to_string(),
+                    Some(why) => format!("not verified: {why}"),
+                };
+                writeln!(out, "{} set to {} ({how})", p.name(), v.show(p, kind))?;
             }
         }
         Action::Home { timeout } => {
-            let timeout = secs(*timeout)?;
+            let timeout = positive_secs("--timeout", *timeout)?;
             with_watchdog(&bus, &args, in_process, &[args.module], || {
-                m.home().map_err(cli_err)?;
-                tracing::info!("module {}: homing", args.module);
                 let bar = common::progress_bar(0, format!("homing module {}", args.module));
-                let r = m.wait_home(timeout, &mut |p: &Progress| bar.set_message(progress_text(p)));
+                let r = m.home_and_wait(timeout, &mut |p: &Progress| bar.set_message(progress_text(p)));
                 bar.finish_and_clear();
-                let s = r.map_err(cli_err)?;
-                report_done(&mut out, args.json, "homed", &m.position().map_err(cli_err)?, s)
+                let (position, s) = r.map_err(cli_err)?;
+                report_done(&mut out, args.json, "homed", &position, s)
             })?;
         }
         Action::Reset => {
@@ -474,28 +503,35 @@ pub fn run(args: Args) -> Result<(), CliError> {
             m.halt().map_err(cli_err)?;
             done(&mut out, args.json, "halted")?;
         }
-        Action::Move { position, vel, acc, timeout } => {
-            let timeout = secs(*timeout)?;
-            with_watchdog(&bus, &args, in_process, &[args.module], || {
-                let start = m.position().map_err(cli_err)?;
-                let distance = (position - start.0).abs();
+        Action::Move { position, vel, acc, timeout, tolerance } => {
+            let spec = MoveSpec {
+                target: Position(*position),
                 // Only what was given is written; TargetVel / TargetAcc otherwise stay as the module has them.
-                m.move_ramp_with(Position(*position), vel.map(Velocity), acc.map(Acceleration)).map_err(cli_err)?;
-                tracing::info!("module {}: moving from {:.4} to {position}", args.module, start.0);
-                let bar = common::progress_bar((distance * 1000.0).round() as u64, format!("module {}", args.module));
-                let r = m.wait_ramp_end(timeout, &mut |p: &Progress| {
-                    bar.set_position(((p.position.0 - start.0).abs() * 1000.0).round() as u64);
+                vel: vel.map(Velocity),
+                acc: acc.map(Acceleration),
+                tolerance: Position(*tolerance),
+                timeout: positive_secs("--timeout", *timeout)?,
+            };
+            with_watchdog(&bus, &args, in_process, &[args.module], || {
+                let bar = common::progress_bar(0, format!("module {}", args.module));
+                let mut start = None;
+                let r = m.move_to(&spec, &mut |p: &Progress| {
+                    let from = *start.get_or_insert(p.position.0);
+                    bar.set_length(((position - from).abs() * 1000.0).round() as u64);
+                    bar.set_position(((p.position.0 - from).abs() * 1000.0).round() as u64);
                     bar.set_message(progress_text(p));
                 });
                 bar.finish_and_clear();
-                let s = r.map_err(cli_err)?;
-                report_done(&mut out, args.json, "reached", &m.position().map_err(cli_err)?, s)
+                let report = r.map_err(cli_err)?;
+                report_done(&mut out, args.json, "reached", &report.reached, report.state)
             })?;
         }
         Action::Watch { interval_ms, count } => {
             let token = common::interrupt_token();
             let kind = m.kind().map_err(cli_err)?;
             let clock = Arc::clone(bus.clock());
+            let interval = Duration::from_millis(*interval_ms);
+            let mut due = clock.now();
             let mut n = 0u64;
             while !token.is_cancelled() && count.is_none_or(|c| n < c) {
                 let s = m.state().map_err(cli_err)?;
@@ -511,16 +547,19 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 }
                 out.flush()?;
                 n += 1;
-                clock.sleep(Duration::from_millis(*interval_ms));
+                if count.is_some_and(|c| n >= c) {
+                    break;
+                }
+                // The next sample on a fixed schedule; a signal ends the wait within 20 ms.
+                due += interval;
+                while !token.is_cancelled() && clock.now() < due {
+                    clock.sleep_until(due.min(clock.now() + Duration::from_millis(20)));
+                }
             }
         }
         Action::Params => {}
     }
     Ok(())
-}
-
-fn secs(s: f64) -> Result<Duration, CliError> {
-    Duration::try_from_secs_f64(s).map_err(|_| CliError::usage(format!("{s} is not a duration in seconds")))
 }
 
 fn progress_text(p: &Progress) -> String {
@@ -617,8 +656,9 @@ fn read_input(args: &CaptureArgs) -> Result<Result<String, Vec<u8>>, CliError> {
 /// Describes a PowerCube payload travelling in `role` (CAN) or as `kind` to/from `address` (RS232).
 fn describe_payload(is_ack: bool, broadcast: bool, payload: &Payload) -> String {
     if broadcast {
-        return match Broadcast::decode(payload) {
-            Ok(b) => format!("broadcast: {b}"),
+        return match Broadcast::decode_form(payload) {
+            Ok((b, BroadcastForm::Manual)) => format!("broadcast: {b}"),
+            Ok((b, BroadcastForm::Padded)) => format!("broadcast: {b} (command + 0x00, as libm5api sends it)"),
             Err(e) => format!("broadcast: not understood ({e})"),
         };
     }

@@ -1,12 +1,14 @@
 //! `motionlink powercube`, `motionlink sim powercube`, `motionlink decode powercube` and the demo, end to end
 //! through the built binary: over TCP, over a pty, and over SLCAN on a pty.
 
-use std::io::{BufRead, BufReader, Write};
-use std::process::{Child, Command, Output, Stdio};
+use std::io::Write;
+use std::process::{Command, Output, Stdio};
 use std::time::Duration;
 
 mod common;
 
+#[cfg(unix)]
+use common::{unix_now, Running};
 use common::{Sim, BIN};
 
 fn run(port: &str, args: &[&str]) -> Output {
@@ -44,8 +46,9 @@ fn over_tcp_every_action() {
     assert!(ok(port, &["--module", "17", "get", "ActPos"]).contains("0.050000 rad"));
     let j: serde_json::Value = serde_json::from_str(&ok(port, &["--module", "17", "--json", "get", "0x1d"])).unwrap();
     assert_eq!(j["value"], 0x4634);
-    assert!(ok(port, &["--module", "17", "set", "TargetVel", "1.0"]).contains("TargetVel set"));
-    assert!(ok(port, &["--module", "17", "set", "TargetAcc", "4"]).contains("TargetAcc set"));
+    assert!(ok(port, &["--module", "17", "set", "TargetVel", "1.0"])
+        .contains("TargetVel set to 1.000000 rad/s (read back)"));
+    assert!(ok(port, &["--module", "17", "set", "TargetAcc", "2"]).contains("TargetAcc set"));
 
     // Usage errors: unknown parameter, read-only parameter, bad value: exit 2, nothing moved.
     for args in [&["get", "Nope"][..], &["set", "ActPos", "1"], &["set", "MaxVel", "fast"], &["get", "TargetVel"]] {
@@ -58,21 +61,23 @@ fn over_tcp_every_action() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("did not answer"));
 
     assert!(ok(port, &["--module", "17", "home"]).starts_with("homed"));
-    let out = run(port, &["--module", "17", "move", "-0.1", "--vel", "1", "--acc", "4"]);
+    let config_before = ok(port, &["--module", "17", "--json", "get", "Config"]);
+    let out = run(port, &["--module", "17", "move", "-0.1", "--vel", "1", "--acc", "2"]);
     let moved = String::from_utf8_lossy(&out.stdout);
     assert!(moved.contains("reached: position -0.1000") && moved.contains("STATE_RAMP_END"), "{moved}");
-    // RS232 has no broadcast to refresh the watchdog with: the module is not armed, and the user is told.
-    let warning = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(warning.lines().filter(|l| l.contains("no watchdog on RS232")).count(), 1, "{warning}");
-    let j: serde_json::Value = serde_json::from_str(&ok(port, &["--module", "17", "--json", "get", "Config"])).unwrap();
-    assert_eq!(j["value"].as_u64().unwrap() & 0x0100_0000, 0, "the Config word is not touched on RS232");
-    let out = run(port, &["--module", "17", "--no-watchdog", "move", "-0.05", "--vel", "1", "--acc", "4"]);
+    // The watchdog was armed on RS232 too (libm5api's serveWatchdogAll form), and switched off after: the
+    // emulator saw it, and the Config word is as it was. Nothing is printed about it.
+    assert!(out.stderr.is_empty(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(sim.wait_event(Duration::from_secs(5), |e| e == "module 17 watchdog online").is_some());
+    assert!(sim.wait_event(Duration::from_secs(5), |e| e == "module 17 watchdog offline").is_some());
+    assert_eq!(ok(port, &["--module", "17", "--json", "get", "Config"]), config_before);
+    let out = run(port, &["--module", "17", "--no-watchdog", "move", "-0.05", "--vel", "1", "--acc", "2"]);
     assert!(out.status.success() && out.stderr.is_empty(), "{}", String::from_utf8_lossy(&out.stderr));
 
     let state = ok(port, &["--module", "17", "state"]);
     assert!(state.contains("STATE_HOME_OK") && state.contains("information"), "{state}");
     ok(port, &["--module", "17", "halt"]);
-    // Halted: a move is refused by the module and reported as a device error (exit 1).
+    // Halted: the module would ignore a move; it is refused before anything is sent (a device error, exit 1).
     let out = run(port, &["--module", "17", "move", "0.0"]);
     assert_eq!(code(&out), 1, "{}", String::from_utf8_lossy(&out.stderr));
     assert!(String::from_utf8_lossy(&out.stderr).contains("halted"));
@@ -91,34 +96,19 @@ fn a_device_error_names_its_flags() {
     let port = sim.address.as_str();
     ok(port, &["home"]);
     ok(port, &["set", "MaxPos", "0.05"]);
-    // The ramp target is limited to the soft limit, so this move ends at 0.05 without error...
-    assert!(ok(port, &["move", "1.0", "--vel", "1", "--acc", "4"]).contains("0.0500"));
-    // ...a tow error is another matter.
+    // A target beyond the soft limit would be limited to it by the module and reported as reached: refused
+    // before anything moves, naming the limit (exit 2).
+    let out = run(port, &["move", "1.0", "--vel", "1", "--acc", "2"]);
+    assert_eq!(code(&out), 2, "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("target position 1 is outside the module's limit MaxPos = 0.05"), "{err}");
+    assert!(ok(port, &["get", "ActPos"]).contains("0.000000"), "nothing moved");
+    // A tow error names its flags.
     ok(port, &["set", "MaxDeltaPos", "0.0001"]);
-    let out = run(port, &["move", "0.0", "--vel", "1", "--acc", "4"]);
+    let out = run(port, &["move", "0.03", "--vel", "1", "--acc", "2"]);
     assert_eq!(code(&out), 1);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("STATE_TOW_ERROR") && err.contains("STATE_ERROR"), "{err}");
-}
-
-#[test]
-fn ctrl_c_halts_a_move() {
-    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0"]);
-    let port = sim.address.clone();
-    let child = Command::new(BIN)
-        .args(["powercube", "--port", &port, "move", "2.0", "--vel", "0.2", "--acc", "1"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::thread::sleep(Duration::from_millis(600));
-    let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
-    assert!(status.success());
-    let out = child.wait_with_output().unwrap();
-    assert_eq!(code(&out), 130, "Ctrl-C exits with 130 after halting: {}", String::from_utf8_lossy(&out.stderr));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("cancelled"));
-    let state = ok(&port, &["state"]);
-    assert!(state.contains("STATE_HALTED") && !state.contains("STATE_MOTION"), "{state}");
 }
 
 #[cfg(unix)]
@@ -129,7 +119,7 @@ fn over_a_pty() {
     let scan = ok(&sim.address, &["scan"]);
     assert!(scan.lines().any(|l| l.starts_with("2 ")), "{scan}");
     assert!(ok(&sim.address, &["--module", "2", "home"]).starts_with("homed"));
-    assert!(ok(&sim.address, &["--module", "2", "move", "0.05", "--vel", "1", "--acc", "4"]).contains("0.0500"));
+    assert!(ok(&sim.address, &["--module", "2", "move", "0.05", "--vel", "1", "--acc", "2"]).contains("0.0500"));
 }
 
 #[cfg(unix)]
@@ -140,41 +130,44 @@ fn over_slcan_on_a_pty() {
     let scan = ok(&port, &["scan"]);
     assert!(scan.lines().any(|l| l.starts_with("3 ")) && scan.lines().any(|l| l.starts_with("9 ")), "{scan}");
     assert!(ok(&port, &["--module", "9", "home"]).starts_with("homed"));
-    assert!(ok(&port, &["--module", "9", "move", "0.08", "--vel", "1", "--acc", "4"]).contains("0.0800"));
+    assert!(ok(&port, &["--module", "9", "move", "0.08", "--vel", "1", "--acc", "2"]).contains("0.0800"));
     assert!(ok(&port, &["--module", "9", "get", "ActPos"]).contains("0.080000"));
 }
 
-/// Starts `motionlink -v powercube --port PORT ARGS...` (a long motion) and returns once it logs that the
-/// module is moving (the log line comes after the motion command was acknowledged), with a thread that
-/// collects its stderr.
+/// Starts `motionlink powercube --port PORT --module MODULE ARGS...` in the background and returns it once
+/// the emulator reports that the module started moving (an event, not a sleep).
 #[cfg(unix)]
-fn start_moving(port: &str, args: &[&str]) -> (Child, std::thread::JoinHandle<String>) {
-    let mut child = Command::new(BIN)
-        .args(["-v", "powercube", "--port", port])
-        .args(args)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let (tx, rx) = std::sync::mpsc::channel();
-    let stderr = child.stderr.take().unwrap();
-    let log = std::thread::spawn(move || {
-        let mut all = String::new();
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            if line.contains("moving from") {
-                let _ = tx.send(());
-            }
-            all.push_str(&line);
-            all.push('\n');
-        }
-        all
-    });
-    if rx.recv_timeout(Duration::from_secs(5)).is_err() {
-        let _ = child.kill();
-        let _ = child.wait();
-        panic!("{args:?} did not start moving:\n{}", log.join().unwrap());
+fn start_moving(sim: &Sim, port: &str, module: &str, args: &[&str]) -> Running {
+    let t0 = unix_now();
+    let mut full = vec!["-v", "powercube", "--port", port, "--module", module];
+    full.extend_from_slice(args);
+    let running = Running::start(&full);
+    let started = format!("module {module} motion started");
+    if sim.wait_event_after(t0, Duration::from_secs(10), |e| e.starts_with(&started)).is_none() {
+        let ended = running.wait(Duration::from_secs(5));
+        panic!("{args:?} did not start moving: {ended:?}\nevents: {:?}", sim.events());
     }
-    (child, log)
+    running
+}
+
+/// Sends `sig` to a running move and asserts what must follow: the module at rest within 100 ms of the
+/// signal (the emulator's event), the command's exit code 128 + n, a stop the module confirmed.
+#[cfg(unix)]
+fn interrupt_and_check(sim: &Sim, running: Running, module: &str, sig: i32) -> f64 {
+    let at = running.signal(sig);
+    let at_rest = format!("module {module} at rest");
+    let rest = sim
+        .wait_event_after(at, Duration::from_secs(5), |e| e.starts_with(&at_rest))
+        .unwrap_or_else(|| panic!("signal {sig}: module {module} not at rest; events: {:?}", sim.events()));
+    let ended = running.wait(Duration::from_secs(10));
+    assert!(rest.at - at < 0.100, "signal {sig}: at rest {:.1} ms after the signal", (rest.at - at) * 1e3);
+    assert_eq!(ended.code(), 128 + sig, "signal {sig}: {ended:?}");
+    assert!(
+        ended.stderr.contains("the module acknowledged the halt: it has stopped"),
+        "signal {sig}: {}",
+        ended.stderr
+    );
+    at
 }
 
 #[cfg(unix)]
@@ -193,52 +186,150 @@ fn json_value(port: &str, module: &str, param: &str) -> serde_json::Value {
     j["value"].clone()
 }
 
+/// After a move ended by a signal: halted by the command (not by its watchdog), the watchdog switched off
+/// again (its event after `since`) and the Config word as it was.
+#[cfg(unix)]
+fn left_halted_as_found(sim: &Sim, port: &str, module: &str, since: f64, config_before: &serde_json::Value) {
+    let offline = format!("module {module} watchdog offline");
+    assert!(sim.wait_event_after(since, Duration::from_secs(5), |e| e == offline).is_some(), "{:?}", sim.events());
+    let state = state_json(port, module);
+    let f = flags(&state);
+    assert!(f.iter().any(|f| f == "STATE_HALTED"), "{state}");
+    assert!(!f.iter().any(|f| f == "STATE_COMM_ERROR" || f == "STATE_MOTION"), "{state}");
+    assert_eq!(&json_value(port, module, "Config"), config_before);
+}
+
 #[cfg(unix)]
 #[test]
-fn a_killed_move_over_slcan_is_stopped_by_the_watchdog() {
-    let sim = Sim::start("powercube", &["--pty", "--slcan", "--modules", "1"]);
-    let port = format!("slcan://{}", sim.address);
+fn every_signal_during_a_move_over_tcp_halts_it_within_100_ms() {
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0"]);
+    let port = sim.address.clone();
+    ok(&port, &["home"]);
     let config_before = json_value(&port, "1", "Config");
-    // 2 rad at 0.2 rad/s: ten seconds, killed a few hundred ms in.
-    let (mut child, _) = start_moving(&port, &["move", "2.0", "--vel", "0.2", "--acc", "1"]);
-    std::thread::sleep(Duration::from_millis(300));
-    child.kill().unwrap(); // SIGKILL: no halt, no goodbye, no more watchdog refresh
-    child.wait().unwrap();
-    // The watchdog waits 50 ms for a refresh; look a little later.
-    std::thread::sleep(Duration::from_millis(100));
-    let state = state_json(&port, "1");
+    for (sig, target) in
+        [(libc::SIGINT, "2.0"), (libc::SIGTERM, "-2.0"), (libc::SIGHUP, "2.0"), (libc::SIGQUIT, "-2.0")]
+    {
+        let running = start_moving(&sim, &port, "1", &["move", target, "--vel", "0.5", "--acc", "2"]);
+        let at = interrupt_and_check(&sim, running, "1", sig);
+        left_halted_as_found(&sim, &port, "1", at, &config_before);
+        ok(&port, &["reset"]);
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn sigterm_during_homing_halts_it() {
+    let dir = std::env::temp_dir().join(format!("motionlink-pc-home-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let far = dir.join("far.toml");
+    // Far from the home switch: homing takes seconds.
+    std::fs::write(&far, "[[module]]\naddress = 1\nstart_position = 2.5\n").unwrap();
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0", "--config", far.to_str().unwrap()]);
+    let running = start_moving(&sim, &sim.address, "1", &["home"]);
+    interrupt_and_check(&sim, running, "1", libc::SIGTERM);
+    let state = state_json(&sim.address, "1");
+    assert!(!flags(&state).iter().any(|f| f == "STATE_HOME_OK" || f == "STATE_MOTION"), "{state}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[cfg(unix)]
+#[test]
+fn a_closed_stdout_during_a_move_stops_it() {
+    let sim = Sim::tcp("powercube");
+    let t0 = unix_now();
+    let mut child = Command::new(BIN)
+        .args(["powercube", "--port", &sim.address, "move", "2.0", "--vel", "0.5", "--acc", "2"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    assert!(sim.wait_event_after(t0, Duration::from_secs(10), |e| e.starts_with("module 1 motion started")).is_some());
+    let at = unix_now();
+    drop(child.stdout.take()); // the reader goes away (`motionlink ... | head` after head exits)
+    let rest = sim.wait_event_after(at, Duration::from_secs(5), |e| e.starts_with("module 1 at rest"));
+    let out = child.wait_with_output().unwrap();
+    let rest = rest.unwrap_or_else(|| panic!("not stopped: {out:?}"));
+    assert!(rest.at - at < 0.100, "at rest {:.1} ms after stdout closed", (rest.at - at) * 1e3);
+    assert_eq!(code(&out), 141, "{}", String::from_utf8_lossy(&out.stderr));
+    let state = state_json(&sim.address, "1");
+    assert!(flags(&state).iter().any(|f| f == "STATE_HALTED"), "{state}");
+}
+
+#[cfg(unix)]
+#[test]
+fn watch_interrupted_exits_130() {
+    let sim = Sim::tcp("powercube");
+    let running = Running::start(&["powercube", "--port", &sim.address, "watch", "--interval-ms", "50"]);
+    assert!(running.stdout.wait_for(Duration::from_secs(5), |_| true).is_some(), "a first sample");
+    running.signal(libc::SIGINT);
+    let ended = running.wait(Duration::from_secs(5));
+    assert_eq!(ended.code(), 130, "{ended:?}");
+}
+
+/// SIGKILL of a move: no halt, no goodbye; the module's watchdog halts it with STATE_COMM_ERROR within
+/// 100 ms of the kill. `reset` then clears it for good. With `--no-watchdog` it keeps moving.
+#[cfg(unix)]
+fn a_killed_move_is_stopped_by_the_watchdog(sim: &Sim, port: &str) {
+    let config_before = json_value(port, "1", "Config");
+    // 2 rad at 0.2 rad/s: ten seconds.
+    let mut running = start_moving(sim, port, "1", &["move", "2.0", "--vel", "0.2", "--acc", "1"]);
+    let at = running.kill();
+    let expired = sim
+        .wait_event_after(at, Duration::from_secs(5), |e| e == "module 1 watchdog expired: STATE_COMM_ERROR")
+        .unwrap_or_else(|| panic!("no watchdog expiry: {:?}", sim.events()));
+    let rest = sim.wait_event_after(at, Duration::from_secs(5), |e| e.starts_with("module 1 at rest")).unwrap();
+    running.wait(Duration::from_secs(5));
+    assert!(expired.at - at < 0.100, "expired {:.1} ms after the kill", (expired.at - at) * 1e3);
+    assert!(rest.at - at < 0.100, "at rest {:.1} ms after the kill", (rest.at - at) * 1e3);
+    let state = state_json(port, "1");
     let f = flags(&state);
     assert!(f.iter().any(|f| f == "STATE_COMM_ERROR") && f.iter().any(|f| f == "STATE_HALTED"), "{state}");
     assert!(!f.iter().any(|f| f == "STATE_MOTION"), "{state}");
-    let stopped_at = json_value(&port, "1", "ActPos").as_f64().unwrap();
-    assert!(stopped_at > 0.06 && stopped_at < 1.0, "it had moved, and not far: {stopped_at}");
-    std::thread::sleep(Duration::from_millis(300));
-    assert_eq!(json_value(&port, "1", "ActPos").as_f64().unwrap(), stopped_at, "it stays where it stopped");
+    // It stays where it stopped: the position of its "at rest" event.
+    let stopped_at = json_value(port, "1", "ActPos").as_f64().unwrap();
+    assert_eq!(rest.text, format!("module 1 at rest {stopped_at:.4} rad"));
+    assert!(stopped_at > 0.0 && stopped_at < 1.0, "it had moved, and not far: {stopped_at}");
 
     // A move now is refused before anything is touched; `reset` switches the expired watchdog offline.
-    let out = run(&port, &["move", "0.0"]);
+    let out = run(port, &["move", "0.0"]);
     assert_eq!(code(&out), 1);
     assert!(String::from_utf8_lossy(&out.stderr).contains("`reset` clears it"), "{out:?}");
-    let reset: serde_json::Value = serde_json::from_str(&ok(&port, &["--json", "reset"])).unwrap();
+    let t0 = unix_now();
+    let reset: serde_json::Value = serde_json::from_str(&ok(port, &["--json", "reset"])).unwrap();
     assert_eq!(reset["watchdog_released"], true, "{reset}");
-    std::thread::sleep(Duration::from_millis(200));
-    let state = state_json(&port, "1");
+    assert!(sim.wait_event_after(t0, Duration::from_secs(5), |e| e == "module 1 watchdog offline").is_some());
+    let state = state_json(port, "1");
     assert!(flags(&state).is_empty(), "reset for good: {state}");
     // The dead session could not restore the Config word: only the watchdog flag differs.
-    let after = json_value(&port, "1", "Config").as_u64().unwrap();
+    let after = json_value(port, "1", "Config").as_u64().unwrap();
     assert_eq!(after, config_before.as_u64().unwrap() | 0x0100_0000);
 
     // With --no-watchdog a killed move keeps going: that is what the flag gives up.
-    let (mut child, _) = start_moving(&port, &["--no-watchdog", "move", "-2.0", "--vel", "0.2", "--acc", "1"]);
-    child.kill().unwrap();
-    child.wait().unwrap();
-    std::thread::sleep(Duration::from_millis(100));
-    let state = state_json(&port, "1");
+    let t0 = unix_now();
+    let mut running = start_moving(sim, port, "1", &["--no-watchdog", "move", "-2.0", "--vel", "0.2", "--acc", "1"]);
+    running.kill();
+    running.wait(Duration::from_secs(5));
+    let state = state_json(port, "1");
     assert!(
         flags(&state).iter().any(|f| f == "STATE_MOTION") && state["faults"].as_array().unwrap().is_empty(),
         "{state}"
     );
-    ok(&port, &["halt"]);
+    assert!(!sim.events().iter().any(|e| e.at >= t0 && e.text.contains("watchdog online")), "never armed");
+    ok(port, &["halt"]);
+}
+
+#[cfg(unix)]
+#[test]
+fn a_killed_move_over_slcan_is_stopped_by_the_watchdog() {
+    let sim = Sim::start("powercube", &["--pty", "--slcan", "--modules", "1"]);
+    a_killed_move_is_stopped_by_the_watchdog(&sim, &format!("slcan://{}", sim.address));
+}
+
+#[cfg(unix)]
+#[test]
+fn a_killed_move_over_rs232_is_stopped_by_the_watchdog() {
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0"]);
+    a_killed_move_is_stopped_by_the_watchdog(&sim, &sim.address.clone());
 }
 
 #[cfg(unix)]
@@ -249,28 +340,41 @@ fn a_move_over_slcan_leaves_the_module_as_it_found_it() {
     let p = port.as_str();
     let config_before = json_value(p, "4", "Config");
     assert!(ok(p, &["--module", "4", "home"]).starts_with("homed"));
-    let moved = ok(p, &["--module", "4", "move", "0.1", "--vel", "1", "--acc", "4"]);
+    let t0 = unix_now();
+    let moved = ok(p, &["--module", "4", "move", "0.1", "--vel", "1", "--acc", "2"]);
     assert!(moved.contains("reached: position 0.1000"), "{moved}");
-    // Longer than the watchdog's 50 ms: a watchdog left online would have halted the module by now.
-    std::thread::sleep(Duration::from_millis(150));
+    // The watchdog was switched off again by the command (its event), so it cannot halt the module later.
+    assert!(sim.wait_event_after(t0, Duration::from_secs(5), |e| e == "module 4 watchdog offline").is_some());
     let state = state_json(p, "4");
     let f = flags(&state);
     assert!(!f.iter().any(|f| f == "STATE_HALTED" || f == "STATE_COMM_ERROR"), "{state}");
     assert_eq!(json_value(p, "4", "Config"), config_before);
 
-    // Ctrl-C: the module is halted (by the program, not by its watchdog) and the Config word restored.
-    let (mut child, log) = start_moving(p, &["--module", "4", "move", "2.0", "--vel", "0.2", "--acc", "1"]);
-    std::thread::sleep(Duration::from_millis(100));
-    assert!(Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
-    let status = child.wait().unwrap();
-    let err = log.join().unwrap();
-    assert_eq!(status.code(), Some(130), "Ctrl-C exits with 130 after halting: {err}");
-    assert!(err.contains("watchdog armed") && err.contains("cancelled"), "{err}");
-    std::thread::sleep(Duration::from_millis(150));
-    let state = state_json(p, "4");
-    let f = flags(&state);
-    assert!(f.iter().any(|f| f == "STATE_HALTED") && !f.iter().any(|f| f == "STATE_COMM_ERROR"), "{state}");
-    assert_eq!(json_value(p, "4", "Config"), config_before);
+    // SIGINT and SIGTERM: the module is halted (by the program, not by its watchdog) within 100 ms, and
+    // the Config word restored.
+    for (sig, target) in [(libc::SIGINT, "2.0"), (libc::SIGTERM, "-2.0")] {
+        let running = start_moving(&sim, p, "4", &["move", target, "--vel", "0.2", "--acc", "1"]);
+        assert!(running.stderr.wait_for(Duration::from_secs(5), |l| l.contains("watchdog armed")).is_some());
+        let at = interrupt_and_check(&sim, running, "4", sig);
+        left_halted_as_found(&sim, p, "4", at, &config_before);
+        ok(p, &["--module", "4", "reset"]);
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn a_line_that_dies_during_a_move_is_reported_with_what_that_means() {
+    let sim = Sim::tcp("powercube");
+    let port = sim.address.clone();
+    let running = start_moving(&sim, &port, "1", &["move", "2.0", "--vel", "0.2", "--acc", "1"]);
+    drop(sim); // the emulator (and with it the line) is gone
+    let ended = running.wait(Duration::from_secs(10));
+    assert_eq!(ended.code(), 3, "{ended:?}");
+    assert!(ended.stderr.contains("the halt was not confirmed"), "{}", ended.stderr);
+    assert!(ended.stderr.contains("the axis may still be moving"), "{}", ended.stderr);
+    // Its watchdog was armed: the message says what that does, and that it is left online.
+    assert!(ended.stderr.contains("halts itself within 50 ms"), "{}", ended.stderr);
+    assert!(ended.stderr.contains("is left online"), "{}", ended.stderr);
 }
 
 #[test]
@@ -398,10 +502,10 @@ fn move_writes_only_the_ramp_values_it_is_given() {
     let ratio = number(port, "IncRatio");
     let ticks = |v: f64| (v * ratio).round();
     ok(port, &["set", "TargetVel", "0.5"]);
-    ok(port, &["set", "TargetAcc", "4"]);
+    ok(port, &["set", "TargetAcc", "1.5"]);
     assert!(ok(port, &["move", "0.1", "--vel", "1"]).contains("reached: position 0.1000"));
     assert_eq!(number(port, "TargetVelInc"), ticks(1.0));
-    assert_eq!(number(port, "TargetAccInc"), ticks(4.0), "TargetAcc kept, not replaced by a default");
+    assert_eq!(number(port, "TargetAccInc"), ticks(1.5), "TargetAcc kept, not replaced by a default");
     assert!(ok(port, &["move", "0.0", "--acc", "2"]).contains("reached: position 0.0000"));
     assert_eq!(number(port, "TargetVelInc"), ticks(1.0), "TargetVel kept");
     assert_eq!(number(port, "TargetAccInc"), ticks(2.0));
@@ -415,24 +519,126 @@ fn numbers_that_make_no_sense_are_usage_errors_and_nothing_is_sent() {
     let port = sim.address.as_str();
     ok(port, &["set", "TargetVel", "0.5"]);
     let vel = number(port, "TargetVelInc");
-    for args in [
-        &["move", "nan"][..],
-        &["move", "inf"],
-        &["move", "0.1", "--vel", "inf"],
-        &["move", "0.1", "--vel", "NaN"],
-        &["move", "0.1", "--acc", "nan"],
-        &["move", "0.1", "--vel", "0"],
-        &["move", "0.1", "--acc=-1"],
-        &["move", "0.1", "--timeout", "nan"],
-        &["--timeout-ms", "0", "state"],
-        &["--timeout-ms", "0", "move", "0.1"],
+    for (args, named) in [
+        (&["move", "nan"][..], "position"),
+        (&["move", "inf"], "position"),
+        (&["move", "1e39"], "position"),
+        (&["move", "0.1", "--vel", "inf"], "--vel"),
+        (&["move", "0.1", "--vel", "NaN"], "--vel"),
+        (&["move", "0.1", "--acc", "nan"], "--acc"),
+        (&["move", "0.1", "--vel", "0"], "--vel"),
+        (&["move", "0.1", "--vel=-0.5"], "--vel"),
+        (&["move", "0.1", "--acc=-1"], "--acc"),
+        (&["move", "0.1", "--tolerance", "0"], "--tolerance"),
+        (&["move", "0.1", "--tolerance", "nan"], "--tolerance"),
+        (&["move", "0.1", "--timeout", "nan"], "--timeout"),
+        (&["move", "0.1", "--timeout", "0"], "--timeout"),
+        (&["move", "0.1", "--timeout=-3"], "--timeout"),
+        (&["home", "--timeout", "0"], "--timeout"),
+        (&["home", "--timeout", "inf"], "--timeout"),
+        (&["--timeout-ms", "0", "state"], "--timeout-ms"),
+        (&["--timeout-ms", "0", "move", "0.1"], "--timeout-ms"),
+        (&["--timeout-ms=-5", "state"], "--timeout-ms"),
+        (&["--poll-ms", "0", "move", "0.1"], "--poll-ms"),
+        (&["--module", "0", "state"], "--module"),
+        (&["--module", "32", "move", "0.1"], "--module"),
+        (&["--module=-1", "state"], "--module"),
+        (&["--baud", "0", "state"], "--baud"),
+        (&["watch", "--interval-ms", "0"], "--interval-ms"),
+        (&["watch", "--count", "0"], "--count"),
+        // Beyond the module's own limits: refused before anything is written or moved, naming the limit.
+        (&["move", "3.5"], "MaxPos"),
+        (&["move", "-3.5"], "MinPos"),
+        (&["move", "0.1", "--vel", "1.5"], "MaxVel"),
+        (&["move", "0.1", "--acc", "2.5"], "MaxAcc"),
+        (&["set", "TargetVel", "1.5"], "MaxVel"),
     ] {
         let out = run(port, args);
-        assert_eq!(code(&out), 2, "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(code(&out), 2, "{args:?}: {err}");
+        assert!(err.contains(named), "{args:?} names {named}: {err}");
     }
     // Nothing moved, nothing was written.
     assert_eq!(number(port, "ActPos"), f64::from(0.05f32));
     assert_eq!(number(port, "TargetVelInc"), vel);
     let state: serde_json::Value = serde_json::from_str(&ok(port, &["--json", "state"])).unwrap();
     assert!(!state["flags"].as_array().unwrap().iter().any(|f| f == "STATE_MOTION"), "{state}");
+}
+
+#[test]
+fn a_move_that_ends_beside_its_target_exits_1_and_says_where() {
+    let dir = std::env::temp_dir().join(format!("motionlink-pc-settle-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let config = dir.join("settle.toml");
+    // A module that comes to rest 5 mrad beyond its target.
+    std::fs::write(&config, "[[module]]\naddress = 1\nsettle_offset = 0.005\n").unwrap();
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0", "--config", config.to_str().unwrap()]);
+    let port = sim.address.as_str();
+    ok(port, &["home"]);
+    let out = run(port, &["move", "0.5", "--vel", "1", "--acc", "2"]);
+    assert_eq!(code(&out), 1, "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("target 0.5 not reached: the module stands at 0.505"), "{err}");
+    assert!(err.contains("0.005000 away (tolerance 0.001"), "{err}");
+    // A tolerance that allows it: success, with the position the module reports.
+    assert!(ok(port, &["move", "0.3", "--vel", "1", "--acc", "2", "--tolerance", "0.01"])
+        .contains("reached: position 0.3050"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn set_reads_back_what_it_wrote() {
+    let sim = Sim::tcp("powercube");
+    let port = sim.address.as_str();
+    // The module limits MaxVel to its ROM default (1 rad/s): reported, not a silent success.
+    let out = run(port, &["set", "MaxVel", "10"]);
+    assert_eq!(code(&out), 1, "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("MaxVel was written as 10.000000 but reads back as 1.000000"), "{err}");
+    assert!(ok(port, &["set", "MaxVel", "0.5"]).contains("MaxVel set to 0.500000 rad/s (read back)"));
+    let j: serde_json::Value = serde_json::from_str(&ok(port, &["--json", "set", "TargetVel", "0.25"])).unwrap();
+    assert!(j["read_back"].is_number() && j["not_verifiable"].is_null(), "{j}");
+    assert!(ok(port, &["set", "Cur", "1"]).contains("not verified: reading Cur gives the measured current"));
+}
+
+#[test]
+fn decode_names_libm5api_broadcasts() {
+    let out = decode(
+        "02 04 10 82 10 82 00 08 03\n02 04 10 82 00 00 06 03\n02 04 10 82 01 00 07 03\n\
+         02 04 10 82 07 00 0D 03\n02 04 10 82 0E 00 14 03\n02 04 01 10 82 07 03\n",
+    );
+    assert!(out.status.success(), "{out:?}");
+    let text = String::from_utf8_lossy(&out.stdout);
+    let lines: Vec<&str> = text.lines().collect();
+    let libm5api = "(command + 0x00, as libm5api sends it)";
+    for (line, what) in lines.iter().zip(["Halt all", "Reset all", "Home all", "Watchdog refresh", "Save position"]) {
+        assert!(line.contains(&format!("to every module (address 0): broadcast: {what} {libm5api}")), "{line}");
+    }
+    assert!(lines[5].ends_with("to every module (address 0): broadcast: Halt all"), "{}", lines[5]);
+    assert!(!text.contains("not understood") && !text.contains("BCC"), "{text}");
+}
+
+#[test]
+fn libm5api_broadcasts_over_tcp_reach_every_module() {
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0", "--modules", "1,2"]);
+    let addr = sim.address.strip_prefix("tcp://").unwrap();
+    let mut line = std::net::TcpStream::connect(addr).unwrap();
+    let t0 = common::unix_now();
+    let mut replay = |bytes: &[u8], each: &str| {
+        let before = common::unix_now();
+        line.write_all(bytes).unwrap();
+        for a in [1, 2] {
+            let want = format!("module {a} {each}");
+            assert!(
+                sim.wait_event_after(before, Duration::from_secs(5), |e| e.starts_with(&want)).is_some(),
+                "{want}: {:?}",
+                sim.events()
+            );
+        }
+    };
+    replay(&[0x02, 0x04, 0x10, 0x82, 0x01, 0x00, 0x07, 0x03], "motion started: homing"); // homeAll
+    replay(&[0x02, 0x04, 0x10, 0x82, 0x10, 0x82, 0x00, 0x08, 0x03], "halted"); // haltAll
+    replay(&[0x02, 0x04, 0x10, 0x82, 0x00, 0x00, 0x06, 0x03], "reset"); // resetAll
+    replay(&[0x02, 0x04, 0x10, 0x82, 0x0E, 0x00, 0x14, 0x03], "position saved"); // savePosAll
+    assert!(sim.events().iter().all(|e| e.at < t0 || !e.text.contains("ignored")), "{:?}", sim.events());
 }

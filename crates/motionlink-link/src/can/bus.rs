@@ -1,7 +1,8 @@
 //! An in-memory CAN bus for tests, benchmarks and in-process emulators.
 //!
 //! Any number of nodes ([`CanBusLink`]) and at most one emulated device ([`CanEmulator`]) share one medium.
-//! A frame occupies the bus for its [`CanFrame::bit_length`] at the configured bit rate, after every frame
+//! A frame occupies the bus for its real length with stuff bits ([`CanFrame::bit_length_stuffed`]) at the
+//! configured bit rate, after every frame
 //! queued before it (first come, first served: identifier arbitration between frames queued at the same
 //! instant is not modelled), and then arrives at every other node and at the device. The device runs
 //! lazily, like [`EmulatorHost`](crate::pipe::EmulatorHost): whenever a node sends or reads, it is brought up
@@ -16,8 +17,9 @@
 //! let bus = CanBus::new(clock.shared(), CanBusConfig::paced(1_000_000));
 //! let (mut a, mut b) = (bus.connect(), bus.connect());
 //! a.send(&CanFrame::new(0x0D1, &[0x0a, 0x3c]).unwrap()).unwrap();
-//! assert_eq!(b.recv(Duration::ZERO).unwrap(), None); // still on the wire: 63 bits = 63 µs
-//! clock.advance(Duration::from_micros(63));
+//! // still on the wire: 63 bits and 2 stuff bits = 65 µs
+//! assert_eq!(b.recv(Duration::ZERO).unwrap(), None);
+//! clock.advance(Duration::from_micros(65));
 //! assert_eq!(b.recv(Duration::ZERO).unwrap().unwrap().id(), 0x0D1);
 //! ```
 
@@ -29,24 +31,46 @@ use super::{CanEmulator, CanFrame, CanLink};
 use crate::clock::{lock, SharedClock, Signal, Timestamp};
 use crate::link::LinkError;
 
+/// Which stuff bits a paced bus counts in a frame's time on the wire.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum StuffBits {
+    /// The stuff bits each frame's own bits call for ([`CanFrame::bit_length_stuffed`]): what a real bus
+    /// carries. The default.
+    #[default]
+    Actual,
+    /// The most any frame of that length can have ([`CanFrame::bit_length_worst_case`]).
+    WorstCase,
+    /// None ([`CanFrame::bit_length`]): shorter than any real bus.
+    Ignored,
+}
+
 /// How the bus is paced.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct CanBusConfig {
     /// Bits per second; `None`: frames arrive at the instant they are sent.
     pub bitrate: Option<u32>,
-    /// Count the worst-case stuff bits ([`CanFrame::bit_length_worst_case`]) instead of none.
-    pub worst_case_stuffing: bool,
+    /// Which stuff bits count in a frame's time on the wire.
+    pub stuffing: StuffBits,
 }
 
 impl CanBusConfig {
     /// Frames arrive at the instant they are sent.
     pub fn instant() -> Self {
-        CanBusConfig { bitrate: None, worst_case_stuffing: false }
+        CanBusConfig { bitrate: None, stuffing: StuffBits::Actual }
     }
 
-    /// Frames take their length in bits (without stuff bits) at `bitrate` bits per second.
+    /// Frames take their real length in bits, stuff bits included, at `bitrate` bits per second.
     pub fn paced(bitrate: u32) -> Self {
-        CanBusConfig { bitrate: Some(bitrate), worst_case_stuffing: false }
+        CanBusConfig { bitrate: Some(bitrate), stuffing: StuffBits::Actual }
+    }
+
+    /// The length in bits that times `frame` on this bus.
+    pub fn frame_bits(&self, frame: &CanFrame) -> u32 {
+        match self.stuffing {
+            StuffBits::Actual => frame.bit_length_stuffed(),
+            StuffBits::WorstCase => frame.bit_length_worst_case(),
+            StuffBits::Ignored => frame.bit_length(),
+        }
     }
 
     /// How long `frame` occupies the bus.
@@ -54,8 +78,7 @@ impl CanBusConfig {
         match self.bitrate {
             None => Duration::ZERO,
             Some(rate) => {
-                let bits = if self.worst_case_stuffing { frame.bit_length_worst_case() } else { frame.bit_length() };
-                Duration::from_nanos(u64::from(bits) * 1_000_000_000 / u64::from(rate.max(1)))
+                Duration::from_nanos(u64::from(self.frame_bits(frame)) * 1_000_000_000 / u64::from(rate.max(1)))
             }
         }
     }
@@ -329,7 +352,10 @@ impl<E: CanEmulator> CanLink for CanBusLink<E> {
                 return Ok(None);
             }
             let until = next.map_or(deadline, |t| t.min(deadline));
-            self.wake.wait_until(Some(until));
+            // As a reader of a kernel socket does: asleep until the frame is there, leaving the CPU to others
+            // (a frame read a little late is still read; spinning would make this thread compete for the
+            // CPU it waits on).
+            self.wake.wait_until_sleeping(Some(until));
         }
     }
 
@@ -390,19 +416,32 @@ mod tests {
         let clock = ManualClock::new();
         let bus = CanBus::with_emulator(Plus1::default(), clock.shared(), CanBusConfig::paced(500_000));
         let mut host = bus.connect();
-        let f = CanFrame::new(0x100, &[1, 2]).unwrap(); // 63 bits = 126 µs at 500 kbit/s
+        // 63 bits and 4 stuff bits = 134 µs at 500 kbit/s.
+        let f = CanFrame::new(0x100, &[1, 2]).unwrap();
+        assert_eq!(f.bit_length_stuffed(), 67);
         host.send(&f).unwrap();
         host.send(&f).unwrap();
         clock.advance(Duration::from_millis(1));
-        // Device saw them at 126 and 252 µs; its answers follow at 378 and 504 µs.
+        // Device saw them at 134 and 268 µs; its answers follow at 402 and 536 µs.
         assert_eq!(
             bus.with_device(|d| d.seen.clone()).unwrap(),
-            vec![Timestamp::from_micros(126), Timestamp::from_micros(252)]
+            vec![Timestamp::from_micros(134), Timestamp::from_micros(268)]
         );
         assert_eq!(host.recv(Duration::ZERO).unwrap().unwrap().id(), 0x101);
         assert_eq!(host.recv(Duration::ZERO).unwrap().unwrap().id(), 0x101);
         assert_eq!(host.recv(Duration::ZERO).unwrap(), None);
         assert_eq!(bus.frames_carried(), 4);
+    }
+
+    #[test]
+    fn the_stuffing_model_times_the_frames() {
+        let f = CanFrame::new(0x0D1, &[0x0a, 0x3c]).unwrap();
+        let at = |stuffing| CanBusConfig { bitrate: Some(1_000_000), stuffing }.frame_time(&f);
+        assert_eq!(at(StuffBits::Actual), Duration::from_micros(65));
+        assert_eq!(at(StuffBits::WorstCase), Duration::from_micros(75));
+        assert_eq!(at(StuffBits::Ignored), Duration::from_micros(63));
+        assert_eq!(CanBusConfig::paced(1_000_000).stuffing, StuffBits::Actual);
+        assert_eq!(CanBusConfig::instant().frame_time(&f), Duration::ZERO);
     }
 
     #[test]
@@ -413,7 +452,8 @@ mod tests {
         let mut host = bus.connect();
         let got = host.recv(Duration::from_secs(1)).unwrap().unwrap();
         assert_eq!(got.id(), 0x7FF);
-        assert_eq!(clock.now(), Timestamp::from_millis(10) + Duration::from_micros(47));
+        // 0x7FF without data: 47 bits and 3 stuff bits.
+        assert_eq!(clock.now(), Timestamp::from_millis(10) + Duration::from_micros(50));
     }
 
     #[test]

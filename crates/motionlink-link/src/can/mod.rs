@@ -33,7 +33,7 @@ use std::time::Duration;
 use crate::clock::Timestamp;
 use crate::link::LinkError;
 
-pub use bus::{CanBus, CanBusConfig, CanBusLink, NoDevice};
+pub use bus::{CanBus, CanBusConfig, CanBusLink, NoDevice, StuffBits};
 pub use slcan::{SlcanAdapter, SlcanBitrate, SlcanLink};
 
 /// The largest 11-bit identifier.
@@ -145,6 +145,99 @@ impl CanFrame {
     pub fn bit_length_worst_case(&self) -> u32 {
         let stuffed = if self.extended { 54 } else { 34 } + 8 * self.data().len() as u32;
         self.bit_length() + (stuffed - 1) / 4
+    }
+
+    /// The frame's real length on the wire in bits: [`CanFrame::bit_length`] plus the stuff bits this
+    /// frame's own bits call for ([`CanFrame::stuff_bits`]). This is how long it occupies the bus.
+    ///
+    /// ```
+    /// use motionlink_link::can::CanFrame;
+    /// let f = CanFrame::new(0x0D1, &[0x0a, 0x3c]).unwrap();
+    /// assert_eq!(f.bit_length(), 63);
+    /// assert_eq!(f.bit_length_stuffed(), 63 + f.stuff_bits());
+    /// assert!(f.bit_length_stuffed() <= f.bit_length_worst_case());
+    /// ```
+    pub fn bit_length_stuffed(&self) -> u32 {
+        self.bit_length() + self.stuff_bits()
+    }
+
+    /// How many stuff bits the transmitter inserts into this frame (ISO 11898-1): after five consecutive
+    /// bits of the same level, from the start of frame to the end of the CRC sequence, one bit of the
+    /// opposite level, which itself counts towards the next run. Computed from the frame's real bit stream:
+    /// start of frame, arbitration and control fields (SRR/IDE/r1/r0 for a 29-bit identifier), data, and
+    /// the CRC-15 over all of them.
+    pub fn stuff_bits(&self) -> u32 {
+        let mut bits = BitStream::default();
+        bits.push(0, 1); // start of frame
+        if self.extended {
+            bits.push(self.id >> 18, 11);
+            bits.push(1, 1); // SRR
+            bits.push(1, 1); // IDE
+            bits.push(self.id & 0x3_FFFF, 18);
+            bits.push(u32::from(self.remote), 1); // RTR
+            bits.push(0, 2); // r1, r0
+        } else {
+            bits.push(self.id, 11);
+            bits.push(u32::from(self.remote), 1); // RTR
+            bits.push(0, 2); // IDE, r0
+        }
+        bits.push(u32::from(self.len), 4);
+        for &b in self.data() {
+            bits.push(u32::from(b), 8);
+        }
+        let crc = bits.crc;
+        bits.push_unchecked(u32::from(crc), 15);
+        bits.stuffed
+    }
+}
+
+/// The stuffed part of a CAN frame as it is transmitted, bit by bit: the CRC-15 of what was pushed and the
+/// stuff bits counted so far.
+#[derive(Default)]
+struct BitStream {
+    crc: u16,
+    run_level: u8,
+    run_length: u32,
+    stuffed: u32,
+}
+
+impl BitStream {
+    /// CRC-15/CAN: polynomial 0x4599, initial value 0.
+    const CRC15_POLY: u16 = 0x4599;
+
+    /// Appends the `count` low bits of `value`, most significant first, and runs them through the CRC.
+    fn push(&mut self, value: u32, count: u32) {
+        for i in (0..count).rev() {
+            let bit = ((value >> i) & 1) as u16;
+            let feedback = bit ^ ((self.crc >> 14) & 1);
+            self.crc = (self.crc << 1) & 0x7FFF;
+            if feedback == 1 {
+                self.crc ^= Self::CRC15_POLY;
+            }
+            self.stuff(bit as u8);
+        }
+    }
+
+    /// Appends bits that are not part of the CRC (the CRC sequence itself).
+    fn push_unchecked(&mut self, value: u32, count: u32) {
+        for i in (0..count).rev() {
+            self.stuff(((value >> i) & 1) as u8);
+        }
+    }
+
+    fn stuff(&mut self, bit: u8) {
+        if self.run_length > 0 && bit == self.run_level {
+            self.run_length += 1;
+        } else {
+            self.run_level = bit;
+            self.run_length = 1;
+        }
+        if self.run_length == 5 {
+            // The stuff bit has the other level and starts a new run of one.
+            self.stuffed += 1;
+            self.run_level ^= 1;
+            self.run_length = 1;
+        }
     }
 }
 
@@ -380,6 +473,48 @@ mod tests {
         assert_eq!(CanFrame::new(1, &[0; 8]).unwrap().bit_length_worst_case(), 111 + 24);
         let remote = CanFrame::new_remote(0x0D1, false, 2).unwrap();
         assert_eq!(remote.bit_length(), 47);
+    }
+
+    #[test]
+    fn the_crc_is_crc15_can() {
+        // The catalogued check value of CRC-15/CAN over "123456789".
+        let mut bits = BitStream::default();
+        for b in b"123456789" {
+            bits.push(u32::from(*b), 8);
+        }
+        assert_eq!(bits.crc, 0x059E);
+    }
+
+    #[test]
+    fn stuff_bits_follow_the_frames_own_bits() {
+        // Identifier 0, DLC 0: 19 dominant bits (SOF, 11 identifier bits, RTR, IDE, r0, 4 DLC bits), then a
+        // CRC of 0 (15 more dominant bits). 34 zeros get a recessive stuff bit after every 5 of them (the
+        // stuff bit is a run of its own level): 6 stuff bits. The worst case (8) needs runs that continue
+        // through the stuff bits: 00000 s=1 1111 s=0 0000 ...
+        let zero = CanFrame::new(0x000, &[]).unwrap();
+        assert_eq!(zero.stuff_bits(), 6);
+        assert_eq!(zero.bit_length_stuffed(), 47 + 6);
+        assert_eq!(zero.bit_length_worst_case(), 47 + 8);
+        // Alternating bits need no stuffing at all where they alternate: 0x555 keeps SOF 0 then 1010...
+        let alt = CanFrame::new(0x555, &[0x55, 0x55]).unwrap();
+        assert!(alt.stuff_bits() <= 3, "{}", alt.stuff_bits());
+        // Never more than the worst case, for every DLC and some identifiers, both formats.
+        for id in [0x000, 0x0A1, 0x0C1, 0x100, 0x3FF, 0x7FF] {
+            for n in 0..=8usize {
+                for fill in [0x00u8, 0xFF, 0x0F, 0xAA, 0x3C] {
+                    let data = vec![fill; n];
+                    for f in [CanFrame::new(id, &data).unwrap(), CanFrame::new_extended(id << 10, &data).unwrap()] {
+                        assert!(f.bit_length_stuffed() <= f.bit_length_worst_case(), "{f}");
+                        assert!(f.bit_length_stuffed() >= f.bit_length(), "{f}");
+                    }
+                }
+            }
+        }
+        // The CRC-15 of the bit stream is part of the count: two frames that differ in one data bit can
+        // differ in their stuffing beyond that bit.
+        let a = CanFrame::new(0x0B1, &[0x0a, 0x3c, 0, 0, 0x80, 0x3f]).unwrap();
+        assert_eq!(a.bit_length(), 95);
+        assert!(a.stuff_bits() > 0 && a.stuff_bits() <= 20, "{}", a.stuff_bits());
     }
 
     #[test]

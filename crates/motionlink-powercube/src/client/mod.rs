@@ -58,12 +58,14 @@ pub struct BusConfig {
     pub scan_timeout: Duration,
     /// How often the watchdog refresh is broadcast while the watchdog is served (the modules wait 50 ms).
     pub watchdog_period: Duration,
-    /// How often the state is polled while waiting for homing or a motion to end.
+    /// How often the state is polled while waiting for homing or a motion to end (10 ms by default): the
+    /// polls are scheduled at this period from the first one (absolute deadlines), never faster, however
+    /// quickly the line answers, so that a wait leaves the bus to the other modules and hosts on it.
     pub poll_interval: Duration,
-    /// Let [`Bus::enable_watchdog`] arm modules on RS232 (default false). The manual defines no broadcast
-    /// on RS232: the refresh goes to address 0, a guess that real modules may ignore (they would then halt
-    /// 50 ms after the life sign, or, worse, the watchdog would not protect anything). Opt in only for a
-    /// chain known to take address 0, or for the emulator.
+    /// Let [`Bus::enable_watchdog`] arm modules on RS232 (default true). The manual lists the broadcasts
+    /// for CAN only; on RS232 the refresh goes to module address 0 as the command followed by 0x00, the form
+    /// Schunk's own library (libm5api, serveWatchdogAll) sends over RS232. Set false to refuse arming on
+    /// RS232 for a chain known not to take it.
     pub watchdog_on_rs232: bool,
 }
 
@@ -75,8 +77,8 @@ impl BusConfig {
             read_retries: 2,
             scan_timeout: Duration::from_millis(60),
             watchdog_period: Duration::from_millis(20),
-            poll_interval: Duration::from_millis(20),
-            watchdog_on_rs232: false,
+            poll_interval: Duration::from_millis(10),
+            watchdog_on_rs232: true,
         }
     }
 
@@ -87,8 +89,53 @@ impl BusConfig {
             read_retries: 2,
             scan_timeout: Duration::from_millis(50),
             watchdog_period: Duration::from_millis(20),
-            poll_interval: Duration::from_millis(20),
-            watchdog_on_rs232: false,
+            poll_interval: Duration::from_millis(10),
+            watchdog_on_rs232: true,
+        }
+    }
+}
+
+/// What became of the Halt an action sent to a module it had set in motion, when the action could not go
+/// on (a failing line, a timeout, a cancellation).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum StopOutcome {
+    /// Nothing had been set in motion yet: nothing to stop.
+    NotStarted,
+    /// The module acknowledged the Halt: it stopped at once (and stays halted until a reset).
+    Confirmed,
+    /// No Halt was acknowledged (it was tried three times, then broadcast): the axis may still be moving.
+    Unconfirmed {
+        /// Why: the last Halt's error.
+        reason: String,
+        /// The session had switched the module's watchdog on: its refresh has been stopped, so a module
+        /// that the Halt did not reach halts itself within 50 ms of the last refresh that reached it.
+        watchdog_armed: bool,
+    },
+}
+
+impl StopOutcome {
+    /// True unless a Halt was needed and not confirmed.
+    pub fn is_confirmed(&self) -> bool {
+        !matches!(self, StopOutcome::Unconfirmed { .. })
+    }
+}
+
+impl fmt::Display for StopOutcome {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            StopOutcome::NotStarted => f.write_str("nothing had been set in motion"),
+            StopOutcome::Confirmed => f.write_str("the module acknowledged the halt: it has stopped"),
+            StopOutcome::Unconfirmed { reason, watchdog_armed } => {
+                write!(f, "the halt was not confirmed ({reason}): the axis may still be moving")?;
+                if *watchdog_armed {
+                    f.write_str(
+                        "; its watchdog is online and no longer refreshed, so if the halt did not reach it the \
+                         module halts itself within 50 ms of the last refresh that did",
+                    )
+                } else {
+                    f.write_str("; no watchdog is armed on it: only a halt or the emergency stop stops it now")
+                }
+            }
         }
     }
 }
@@ -146,8 +193,9 @@ pub enum Error {
         /// The status byte.
         status: u8,
     },
-    /// Homing or a motion did not end in time; the motion was halted.
-    #[error("module {address}: {what} did not happen within {} ms (state: {state})", waited.as_millis())]
+    /// Homing or a motion did not end in time; the motion was halted ([`Error::WaitTimeout::stop`] says
+    /// whether that was confirmed).
+    #[error("module {address}: {what} did not happen within {} ms (state: {state}); {stop}", waited.as_millis())]
     WaitTimeout {
         /// The module.
         address: u8,
@@ -157,12 +205,97 @@ pub enum Error {
         waited: Duration,
         /// The last state read.
         state: CubeState,
+        /// What became of the Halt.
+        stop: StopOutcome,
     },
-    /// The wait was cancelled (Ctrl-C); the motion was halted.
-    #[error("module {address}: cancelled, motion halted")]
+    /// The action was cancelled (Ctrl-C, a signal, [`Bus::set_cancel_token`]); what it had set in motion was
+    /// halted ([`Error::Cancelled::stop`] says whether that was confirmed).
+    #[error("module {address}: cancelled; {stop}")]
     Cancelled {
         /// The module.
         address: u8,
+        /// What became of the Halt.
+        stop: StopOutcome,
+    },
+    /// The line failed, or the module stopped answering, while a motion this session started may have been
+    /// running: the session tried to halt it, and [`Error::LostDuringMotion::stop`] says whether the module
+    /// confirmed that.
+    #[error("while module {address} may have been moving: {cause}; {stop}")]
+    LostDuringMotion {
+        /// The module.
+        address: u8,
+        /// What failed.
+        cause: Box<Error>,
+        /// What became of the Halt.
+        stop: StopOutcome,
+    },
+    /// A value outside one of the module's limits: refused before anything was sent that moves (the module
+    /// would have limited it silently).
+    #[error("module {address}: {what} {} is outside the module's limit {limit} = {}", number(*value), number(*limit_value))]
+    BeyondLimit {
+        /// The module.
+        address: u8,
+        /// What the value is ("target position", "--vel", "TargetVel").
+        what: String,
+        /// The value asked for.
+        value: f64,
+        /// The limit parameter (MinPos, MaxPos, MaxVel, MaxAcc, MaxCur ...).
+        limit: Param,
+        /// Its value in the module.
+        limit_value: f64,
+    },
+    /// A parameter read back after it was written differs from what was written: the module limited it, or
+    /// the write was corrupted on the way (the modules ignore the checksum).
+    #[error("module {address}: {param} was written as {wrote} but reads back as {read} (the module limited it, or the write was corrupted on the way)")]
+    Mismatch {
+        /// The module.
+        address: u8,
+        /// The parameter written.
+        param: Param,
+        /// What was written.
+        wrote: String,
+        /// What the module holds.
+        read: String,
+    },
+    /// After the motion command, the module's target (TargetPosInc) is not the target sent: the command
+    /// was corrupted on the way; the motion was halted.
+    #[error("module {address}: the motion command was sent with target {sent} ticks but the module took {taken} ticks (a corrupted command); {stop}")]
+    TargetMismatch {
+        /// The module.
+        address: u8,
+        /// The target sent, in encoder ticks.
+        sent: i32,
+        /// The target the module holds.
+        taken: i32,
+        /// What became of the Halt.
+        stop: StopOutcome,
+    },
+    /// The motion ended, but not where it was asked to: the final position read from the module is further
+    /// from the target than the in-position tolerance.
+    #[error("module {address}: target {target} not reached: the module stands at {reached}, {difference:.6} away (tolerance {tolerance}; state: {state})")]
+    NotReached {
+        /// The module.
+        address: u8,
+        /// The target.
+        target: f32,
+        /// The final actual position read from the module.
+        reached: f32,
+        /// `reached - target`.
+        difference: f32,
+        /// The tolerance allowed.
+        tolerance: f32,
+        /// The state word at the end.
+        state: CubeState,
+    },
+    /// A value given to an action that makes no sense (not a finite number, not above 0): nothing was sent.
+    #[error("{what} must be {must}, not {value}")]
+    InvalidArgument {
+        /// The argument.
+        what: &'static str,
+        /// What it must be.
+        must: &'static str,
+        /// What it was.
+        value: String,
     },
     /// A request the manual does not allow (access, type): nothing was sent.
     #[error(transparent)]
@@ -173,6 +306,16 @@ pub enum Error {
     /// Something this client does not do.
     #[error("{0}")]
     Unsupported(String),
+    /// The session failed with the watchdog of these modules online: it was left online (its refresh
+    /// stopped), so they halt within 50 ms with STATE_COMM_ERROR; `reset_and_release_watchdog` (the `reset`
+    /// command) clears them afterwards.
+    #[error("the watchdog of module {} is left online: {detail}; the module halts within 50 ms of the last refresh (STATE_COMM_ERROR; `reset` clears it)", addresses.iter().map(u8::to_string).collect::<Vec<_>>().join(", "))]
+    WatchdogLeftOnline {
+        /// The modules.
+        addresses: Vec<u8>,
+        /// Why.
+        detail: String,
+    },
     /// A watchdog toggle (the life sign, chapter 13) was not confirmed: whether the module's watchdog is
     /// online is not known. No second life sign is sent blindly (it could switch the watchdog the wrong way).
     #[error("module {address}: watchdog not confirmed {}: {detail}", if *on { "online" } else { "offline" })]
@@ -184,6 +327,17 @@ pub enum Error {
         /// What was seen.
         detail: String,
     },
+}
+
+/// A number for messages: a value that came from a float parameter is shown as that float (0.05, not
+/// 0.05000000074505806).
+fn number(x: f64) -> String {
+    let single = x as f32;
+    if f64::from(single) == x {
+        single.to_string()
+    } else {
+        x.to_string()
+    }
 }
 
 fn fault_names(state: CubeState) -> String {
@@ -198,7 +352,7 @@ fn fault_names(state: CubeState) -> String {
 impl Error {
     /// The line failed: port, timeout, corrupt answer.
     pub fn is_transport(&self) -> bool {
-        matches!(self, Error::Link(_) | Error::Timeout { .. } | Error::Corrupt { .. })
+        matches!(self, Error::Link(_) | Error::Timeout { .. } | Error::Corrupt { .. } | Error::LostDuringMotion { .. })
     }
 
     /// The module refused or reported an error, or an action did not complete.
@@ -210,13 +364,35 @@ impl Error {
                 | Error::Refused { .. }
                 | Error::WaitTimeout { .. }
                 | Error::WatchdogUnconfirmed { .. }
+                | Error::WatchdogLeftOnline { .. }
                 | Error::Cancelled { .. }
+                | Error::Mismatch { .. }
+                | Error::TargetMismatch { .. }
+                | Error::NotReached { .. }
         )
     }
 
     /// The request was wrong before anything was sent.
     pub fn is_usage(&self) -> bool {
-        matches!(self, Error::Model(_) | Error::InvalidAddress(_) | Error::Unsupported(_))
+        matches!(
+            self,
+            Error::Model(_)
+                | Error::InvalidAddress(_)
+                | Error::Unsupported(_)
+                | Error::BeyondLimit { .. }
+                | Error::InvalidArgument { .. }
+        )
+    }
+
+    /// What became of the stop of a motion this error interrupted, if it interrupted one.
+    pub fn stop(&self) -> Option<&StopOutcome> {
+        match self {
+            Error::WaitTimeout { stop, .. }
+            | Error::Cancelled { stop, .. }
+            | Error::LostDuringMotion { stop, .. }
+            | Error::TargetMismatch { stop, .. } => Some(stop),
+            _ => None,
+        }
     }
 
     fn retryable(&self) -> bool {
@@ -537,7 +713,7 @@ impl Bus {
             _ => {}
         }
         let mut io = self.inner.io.lock();
-        if let Err(e) = io.broadcast(&broadcast.encode()) {
+        if let Err(e) = io.broadcast(&broadcast) {
             self.inner.failed.store(true, Ordering::SeqCst);
             return Err(e.into());
         }
@@ -613,14 +789,19 @@ impl Bus {
     /// with [`Error::Device`] before anything is changed in any module: its watchdog is probably still
     /// online, and a life sign would switch it off. [`Module::reset_and_release_watchdog`] clears it.
     ///
-    /// On RS232 the refresh goes to address 0, which the manual does not define and real modules may ignore
-    /// (see [`Bus::watchdog_reliable`]): there it is refused with [`Error::Unsupported`] unless
-    /// [`BusConfig::watchdog_on_rs232`] opts in.
+    /// On RS232 the refresh goes to module address 0 as the command followed by 0x00, as Schunk's libm5api
+    /// sends it (the manual lists broadcasts for CAN only); [`BusConfig::watchdog_on_rs232`] set to false
+    /// refuses arming there with [`Error::Unsupported`].
     pub fn enable_watchdog(&self, addresses: &[u8]) -> Result<(), Error> {
         if !self.inner.can && !self.inner.config.watchdog_on_rs232 {
             return Err(Error::Unsupported(
-                "no watchdog on RS232: the manual defines no broadcast there, so the refresh (sent to address 0) \
-                 may never reach the modules; set BusConfig::watchdog_on_rs232 to arm it anyway"
+                "the watchdog on RS232 is switched off in this session's settings (BusConfig::watchdog_on_rs232)"
+                    .into(),
+            ));
+        }
+        if self.failed() {
+            return Err(Error::Unsupported(
+                "this session has failed (its line broke or a stop was not confirmed): it cannot serve a watchdog"
                     .into(),
             ));
         }
@@ -635,8 +816,10 @@ impl Bus {
         }
         for (module, config) in words {
             if !config.contains(ConfigFlag::WatchdogEnable) {
-                module.set(Param::Config, Value::U32(config.with(ConfigFlag::WatchdogEnable).0))?;
+                // Remembered before the write: a write that fails may still have arrived.
                 lock_mutex(&self.inner.duty).config_before.entry(module.address).or_insert(config);
+                // Read back: a Config word corrupted on the way (the modules ignore the BCC) is not used.
+                module.set_checked(Param::Config, Value::U32(config.with(ConfigFlag::WatchdogEnable).0))?;
             }
         }
         {
@@ -699,6 +882,23 @@ impl Bus {
     /// module is now halted; [`Error::WatchdogUnconfirmed`] names it and its Config word is left as is),
     /// without it the watchdog is offline and the Config word is restored.
     pub fn disable_watchdog(&self) -> Result<(), Error> {
+        if self.failed() {
+            // A failed session may have left something moving that it could not stop: the watchdog is what
+            // stops it now. It is not switched off.
+            let left: Vec<u8> = {
+                let duty = lock_mutex(&self.inner.duty);
+                duty.online.iter().chain(duty.uncertain.iter()).copied().collect()
+            };
+            self.abandon_watchdog();
+            self.stop_watchdog_thread();
+            if left.is_empty() {
+                return Ok(());
+            }
+            return Err(Error::WatchdogLeftOnline {
+                addresses: left,
+                detail: "the session failed (its line broke, or a stop it sent was not confirmed)".into(),
+            });
+        }
         let mut first_error = None;
         let online: Vec<u8> = lock_mutex(&self.inner.duty).online.iter().copied().collect();
         for a in online {
@@ -803,17 +1003,39 @@ impl Bus {
             );
         }
         if word != now {
-            module.set(Param::Config, Value::U32(word.0))?;
+            module.set_checked(Param::Config, Value::U32(word.0))?;
         }
         Ok(())
     }
 
-    /// True on CAN, where the watchdog refresh is a broadcast the manual defines: a host that dies (killed,
-    /// powered off, its adapter pulled) stops the modules whose watchdog it switched on. False on RS232,
-    /// where the manual defines no broadcast: the refresh goes to address 0, which real modules may ignore,
-    /// so the watchdog cannot be relied upon there.
+    /// True when this session can arm the watchdog: on CAN, where the refresh is the broadcast of the
+    /// manual's chapter 13, and on RS232 (unless [`BusConfig::watchdog_on_rs232`] is false), where it is the
+    /// broadcast to address 0 in the form Schunk's libm5api sends. A host that dies (killed, powered off, its
+    /// adapter or cable pulled) then stops the modules whose watchdog it switched on within 50 ms.
     pub fn watchdog_reliable(&self) -> bool {
-        self.inner.can
+        self.inner.can || self.inner.config.watchdog_on_rs232
+    }
+
+    /// Stops refreshing the watchdog and marks the session failed: every module whose watchdog this session
+    /// switched on halts itself within 50 ms of the last refresh that reached it. What a session does when it
+    /// can no longer confirm that it stopped what it started. Returns true if any module's watchdog was
+    /// (or may have been) online.
+    pub fn abandon_watchdog(&self) -> bool {
+        self.inner.failed.store(true, Ordering::SeqCst);
+        let mut duty = lock_mutex(&self.inner.duty);
+        let was_serving = duty.serving;
+        duty.serving = false;
+        if was_serving {
+            tracing::warn!("watchdog refresh stopped: the modules it protects halt within 50 ms");
+        }
+        was_serving && !(duty.online.is_empty() && duty.uncertain.is_empty())
+    }
+
+    /// True if this session switched the watchdog of module `address` on (or may have) and still
+    /// refreshes it.
+    pub fn watchdog_armed(&self, address: u8) -> bool {
+        let duty = lock_mutex(&self.inner.duty);
+        duty.serving && (duty.online.contains(&address) || duty.uncertain.contains(&address))
     }
 
     /// True while the session refreshes the watchdog.
@@ -978,9 +1200,13 @@ impl Inner {
         if now < duty.next_due {
             return;
         }
-        duty.next_due = now + duty.period;
+        // Absolute deadlines: the next refresh is due one period after this one was due, so late sends do
+        // not make the schedule drift; a refresh more than a period late is followed by the next one a
+        // period after it went out.
+        let next = duty.next_due + duty.period;
+        duty.next_due = if next > now { next } else { now + duty.period };
         drop(duty);
-        if let Err(e) = io.broadcast(&Broadcast::WatchdogRefresh.encode()) {
+        if let Err(e) = io.broadcast(&Broadcast::WatchdogRefresh) {
             tracing::warn!("watchdog refresh failed: {e}");
             lock_mutex(&self.duty).last_error = Some(e.to_string());
             self.failed.store(true, Ordering::SeqCst);
@@ -1037,7 +1263,28 @@ impl Inner {
                                 }
                             }
                         }
-                        (None, Ok(r)) => tracing::debug!("module {address}: unexpected answer {r} (ignored)"),
+                        (None, Ok(r)) => {
+                            // A module acknowledged a motion command it was not sent in this exchange: a command
+                            // whose address or content was corrupted on the way (the modules ignore the BCC).
+                            // It may be moving: the session halts it when it stops what it started.
+                            let expected_motion = batch.iter().any(|(a, req)| *a == address && req.is_answered_by(&r));
+                            let moves = matches!(r, Reply::Motion { .. } | Reply::IStep | Reply::Action(Action::Home));
+                            if moves && !expected_motion {
+                                tracing::warn!(
+                                    "module {address} acknowledged {r}, which it was not sent: it may be moving"
+                                );
+                                lock_mutex(&self.started).insert(address);
+                            }
+                            // On a line that carries one request at a time, a frame from the module asked that
+                            // answers something else is a corrupted answer (its echoed command or parameter is
+                            // wrong), not silence.
+                            if let [(a, req)] = batch {
+                                if *a == address && results[0].is_none() {
+                                    corrupt[0] = Some(format!("answer {r} does not echo {req}"));
+                                }
+                            }
+                            tracing::debug!("module {address}: unexpected answer {r} (ignored)");
+                        }
                     }
                 }
                 Ok(Some(Incoming::Corrupt(detail))) => {
@@ -1084,6 +1331,88 @@ impl Inner {
                 })))
             })
             .collect()
+    }
+}
+
+/// A checked ramp move ([`Module::move_to`]): where to, how fast, how close counts as arrived, how long to
+/// wait.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MoveSpec {
+    /// The target position (rad or m).
+    pub target: Position,
+    /// Velocity to write to TargetVel first (above 0); `None` leaves the module's TargetVel as it is.
+    pub vel: Option<Velocity>,
+    /// Acceleration to write to TargetAcc first (above 0); `None` leaves the module's TargetAcc as it is.
+    pub acc: Option<Acceleration>,
+    /// The in-position tolerance: the move succeeds only if the final actual position is at most this far
+    /// from the target (rad or m, above 0). The manual offers no in-position window parameter, so this is
+    /// the caller's; [`MoveSpec::DEFAULT_TOLERANCE`] by default.
+    pub tolerance: Position,
+    /// How long to wait for the end of the ramp before halting it.
+    pub timeout: Duration,
+}
+
+impl MoveSpec {
+    /// The default in-position tolerance: 0.001 rad (0.057°) on a rotary module, 1 mm on a linear one.
+    pub const DEFAULT_TOLERANCE: Position = Position(0.001);
+
+    /// A move to `target` with the module's own TargetVel and TargetAcc, the default tolerance, and 60 s to
+    /// get there.
+    pub fn to(target: Position) -> MoveSpec {
+        MoveSpec { target, vel: None, acc: None, tolerance: Self::DEFAULT_TOLERANCE, timeout: Duration::from_secs(60) }
+    }
+
+    /// Checks that every number makes sense (finite; velocity, acceleration, tolerance and timeout above 0).
+    pub fn validate(&self) -> Result<(), Error> {
+        let bad = |what, must, value: String| Err(Error::InvalidArgument { what, must, value });
+        if !self.target.0.is_finite() {
+            return bad("the target position", "a finite number", self.target.0.to_string());
+        }
+        for (what, v) in [("the velocity", self.vel.map(|v| v.0)), ("the acceleration", self.acc.map(|a| a.0))] {
+            if let Some(v) = v {
+                if !(v.is_finite() && v > 0.0) {
+                    return bad(what, "a number above 0", v.to_string());
+                }
+            }
+        }
+        if !(self.tolerance.0.is_finite() && self.tolerance.0 > 0.0) {
+            return bad("the tolerance", "a number above 0", self.tolerance.0.to_string());
+        }
+        if self.timeout.is_zero() {
+            return bad("the timeout", "above 0", format!("{:?}", self.timeout));
+        }
+        Ok(())
+    }
+}
+
+/// What a checked move ([`Module::move_to`]) did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MoveReport {
+    /// Where the module stood before.
+    pub start: Position,
+    /// The final actual position, read from the module after the ramp ended (twice, both within the
+    /// tolerance of the target).
+    pub reached: Position,
+    /// The state word at the end.
+    pub state: CubeState,
+}
+
+/// How a parameter written with [`Module::set_checked`] was verified.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Readback {
+    /// Read back (the parameter itself, or for the write-only TargetPos / TargetVel / TargetAcc their
+    /// encoder-tick twin) and found as written; the value read.
+    Same(Value),
+    /// The parameter cannot be read back meaningfully; why.
+    NotReadable(&'static str),
+}
+
+/// A value for messages: the number alone, floats with six decimals.
+fn raw(v: &Value) -> String {
+    match *v {
+        Value::F32(x) => format!("{x:.6}"),
+        Value::U32(x) if x > 0xFFFF => format!("{x:#010x}"),
+        other => other.as_f64().map_or_else(|| format!("{other:?}"), |n| format!("{n}")),
     }
 }
 
@@ -1266,6 +1595,171 @@ impl Module<'_> {
         Ok(())
     }
 
+    /// Stops the module after an action that may have set it in motion cannot go on, and says whether the
+    /// module confirmed it: up to three Halts by address (a Halt may be repeated safely; not after the line
+    /// itself failed), then, if none was acknowledged, a Halt broadcast to every module and the watchdog
+    /// refresh stopped ([`Bus::abandon_watchdog`]), so that an armed module halts itself within 50 ms.
+    pub fn stop_motion(&self) -> StopOutcome {
+        let attempts = 1 + self.bus.inner.config.read_retries;
+        let mut last = None;
+        for _ in 0..attempts {
+            match self.halt() {
+                Ok(()) => return StopOutcome::Confirmed,
+                Err(e) => {
+                    let line_failed = matches!(e, Error::Link(_));
+                    last = Some(e);
+                    if line_failed {
+                        break;
+                    }
+                }
+            }
+        }
+        let reason = last.map_or_else(|| "no halt could be sent".to_string(), |e| e.to_string());
+        tracing::warn!(
+            "module {}: halt not confirmed ({reason}); broadcasting a halt and stopping the watchdog refresh",
+            self.address
+        );
+        let watchdog_armed = self.bus.watchdog_armed(self.address);
+        if let Err(e) = self.bus.broadcast(Broadcast::Halt) {
+            tracing::warn!("the halt broadcast could not be sent either: {e}");
+        }
+        self.bus.abandon_watchdog();
+        StopOutcome::Unconfirmed { reason, watchdog_armed }
+    }
+
+    /// An error of a request sent while this module may be moving: the motion is stopped, and the error
+    /// says whether that was confirmed.
+    fn lost(&self, cause: Error) -> Error {
+        let stop = self.stop_motion();
+        Error::LostDuringMotion { address: self.address, cause: Box::new(cause), stop }
+    }
+
+    fn cancelled(&self) -> bool {
+        lock_mutex(&self.bus.inner.cancel).as_ref().is_some_and(CancelToken::is_cancelled)
+    }
+
+    /// Refuses a module that would ignore a motion command: one with an error flag ([`Error::Device`]) or
+    /// halted ([`Error::Halted`]; a reset clears it).
+    fn ready_for_motion(&self) -> Result<(), Error> {
+        let state = self.state()?;
+        if state.has_fault() {
+            return Err(Error::Device { address: self.address, state });
+        }
+        if state.contains(StateFlag::Halted) {
+            return Err(Error::Halted { address: self.address, state });
+        }
+        Ok(())
+    }
+
+    /// Reads a float parameter that must be a finite number.
+    fn get_finite(&self, param: Param) -> Result<f32, Error> {
+        let v = self.get_f32(param)?;
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(unexpected(self.address, &Request::Get(param), format!("{v} (not a finite number)")))
+        }
+    }
+
+    /// The encoder ticks per unit (IncRatio), which must be a number above 0.
+    fn inc_ratio(&self) -> Result<f64, Error> {
+        let r = self.get_finite(Param::IncRatio)?;
+        if r > 0.0 {
+            Ok(f64::from(r))
+        } else {
+            Err(unexpected(self.address, &Request::Get(Param::IncRatio), format!("{r} (not above 0)")))
+        }
+    }
+
+    /// Refuses `value` (named `what`) if it lies beyond the limit `param` of the module (`upper`: a maximum).
+    fn within_limit(&self, what: &str, value: f64, param: Param, upper: bool) -> Result<(), Error> {
+        let limit = f64::from(self.get_finite(param)?);
+        let beyond = if upper { value > limit } else { value < limit };
+        if beyond {
+            return Err(Error::BeyondLimit {
+                address: self.address,
+                what: what.into(),
+                value,
+                limit: param,
+                limit_value: limit,
+            });
+        }
+        Ok(())
+    }
+
+    /// Reads the integer parameter `param` (in encoder ticks) and compares it with `value` units times
+    /// `ratio`, allowing one tick for rounding; a difference is [`Error::Mismatch`] naming `written`.
+    fn check_ticks(&self, written: Param, param: Param, value: f64, ratio: f64) -> Result<Value, Error> {
+        let read = self.get(param)?;
+        let ticks = read.as_f64().ok_or_else(|| unexpected(self.address, &Request::Get(param), format!("{read:?}")))?;
+        let expected = (value * ratio).round();
+        if (ticks - expected).abs() > 1.0 {
+            return Err(Error::Mismatch {
+                address: self.address,
+                param: written,
+                wrote: format!("{value:.6} ({expected} ticks)"),
+                read: format!("{:.6} ({ticks} ticks in {param})", ticks / ratio),
+            });
+        }
+        Ok(read)
+    }
+
+    /// Writes `param` and checks that the module took it: a target (TargetPos, TargetVel, TargetAcc, Cur and
+    /// their tick twins) beyond the module's limit (MinPos / MaxPos, MaxVel, MaxAcc, MaxCur) is refused with
+    /// [`Error::BeyondLimit`] before anything is sent; then the value is read back (the write-only targets
+    /// through TargetPosInc / TargetVelInc / TargetAccInc) and a difference is [`Error::Mismatch`]: the
+    /// module limited it, or the write was corrupted on the way (the modules ignore the BCC). DioSetup is
+    /// compared on its output bits; Cur cannot be read back (a read gives the measured current).
+    pub fn set_checked(&self, param: Param, value: Value) -> Result<Readback, Error> {
+        Request::set(param, value)?;
+        let number = value.as_f64();
+        let name = param.name();
+        match (param, number) {
+            (Param::TargetPos, Some(v)) => {
+                self.within_limit(name, v, Param::MinPos, false)?;
+                self.within_limit(name, v, Param::MaxPos, true)?;
+            }
+            (Param::TargetPosInc, Some(v)) => {
+                self.within_limit(name, v, Param::ActIMinPos, false)?;
+                self.within_limit(name, v, Param::ActIMaxPos, true)?;
+            }
+            (Param::TargetVel, Some(v)) => self.within_limit(name, v.abs(), Param::MaxVel, true)?,
+            (Param::TargetVelInc, Some(v)) => self.within_limit(name, v, Param::ActIMaxVel, true)?,
+            (Param::TargetAcc, Some(v)) => self.within_limit(name, v.abs(), Param::MaxAcc, true)?,
+            (Param::TargetAccInc, Some(v)) => self.within_limit(name, v, Param::ActIMaxAcc, true)?,
+            (Param::Cur, Some(v)) => self.within_limit(name, v.abs(), Param::MaxCur, true)?,
+            _ => {}
+        }
+        self.set(param, value)?;
+        let twin = match param {
+            Param::TargetPos => Some(Param::TargetPosInc),
+            Param::TargetVel => Some(Param::TargetVelInc),
+            Param::TargetAcc => Some(Param::TargetAccInc),
+            _ => None,
+        };
+        if let (Some(twin), Some(v)) = (twin, number) {
+            let ratio = self.inc_ratio()?;
+            return self.check_ticks(param, twin, v, ratio).map(Readback::Same);
+        }
+        if param == Param::Cur {
+            return Ok(Readback::NotReadable("reading Cur gives the measured current, not the value written"));
+        }
+        if !param.access().readable() {
+            return Ok(Readback::NotReadable("the manual has no way to read it"));
+        }
+        let read = self.get(param)?;
+        let same = match (param, value.as_u32(), read.as_u32()) {
+            // Only the outputs of the DIO word are written; the inputs and switches are the outside world's.
+            (Param::DioSetup, Some(w), Some(r)) => w & 0xF0 == r & 0xF0,
+            _ => read == value,
+        };
+        if same {
+            Ok(Readback::Same(read))
+        } else {
+            Err(Error::Mismatch { address: self.address, param, wrote: raw(&value), read: raw(&read) })
+        }
+    }
+
     /// RecalcPIDParam.
     pub fn recalc_pid(&self) -> Result<(), Error> {
         self.request(&Request::Action(Action::RecalcPid)).map(|_| ())
@@ -1323,26 +1817,135 @@ impl Module<'_> {
         self.wait(Until::Ramp, timeout, progress)
     }
 
-    fn halt_quietly(&self) {
-        if let Err(e) = self.halt() {
-            tracing::warn!("module {}: halt failed: {e}", self.address);
+    /// Homes the module and waits for the end of homing ([`Module::home`], [`Module::wait_home`]), with
+    /// what a failure needs: nothing is sent if the session's cancel token is already cancelled
+    /// ([`Error::Cancelled`] with [`StopOutcome::NotStarted`]); a Home that is not acknowledged may still
+    /// have started homing, so the module is halted ([`Error::LostDuringMotion`] says whether that was
+    /// confirmed); the wait halts on a timeout, a cancellation or a failing line. Returns the position and
+    /// state at the end.
+    pub fn home_and_wait(
+        &self,
+        timeout: Duration,
+        progress: &mut dyn FnMut(&Progress),
+    ) -> Result<(Position, CubeState), Error> {
+        if timeout.is_zero() {
+            return Err(Error::InvalidArgument { what: "the timeout", must: "above 0", value: "0".into() });
         }
+        self.ready_for_motion()?;
+        if self.cancelled() {
+            return Err(Error::Cancelled { address: self.address, stop: StopOutcome::NotStarted });
+        }
+        if let Err(e) = self.home() {
+            return Err(self.lost(e));
+        }
+        tracing::info!("module {}: homing", self.address);
+        let state = self.wait_home(timeout, progress)?;
+        Ok((self.position()?, state))
+    }
+
+    /// A ramp move with every check this protocol allows; what `motionlink powercube move` does.
+    ///
+    /// Before anything moves: the numbers are checked ([`MoveSpec::validate`]); the target is compared with
+    /// MinPos and MaxPos, a velocity with MaxVel and an acceleration with MaxAcc, and one beyond its limit
+    /// is refused ([`Error::BeyondLimit`]) instead of being limited silently by the module; TargetVel and
+    /// TargetAcc are written if given and read back through TargetVelInc and TargetAccInc (a module whose
+    /// TargetVel or TargetAcc is 0 is refused: the ramp would never get anywhere); a cancelled token stops
+    /// here.
+    ///
+    /// Then the FRAMP motion command; right after its acknowledge the module's target (TargetPosInc) is read
+    /// back and compared with the target sent (the modules ignore the BCC, so a corrupted command would
+    /// otherwise run to a wrong place): a difference halts the module ([`Error::TargetMismatch`]). Then the
+    /// wait for STATE_RAMP_END (polled every [`BusConfig::poll_interval`]), which halts on a timeout, a
+    /// cancellation, a failing line or a module that stops answering (the error says whether the halt was
+    /// confirmed). Finally the actual position is read twice, and both readings must lie within
+    /// [`MoveSpec::tolerance`] of the target ([`Error::NotReached`] otherwise): one corrupted telegram
+    /// cannot make a move that ended elsewhere look like a success.
+    pub fn move_to(&self, spec: &MoveSpec, progress: &mut dyn FnMut(&Progress)) -> Result<MoveReport, Error> {
+        spec.validate()?;
+        self.ready_for_motion()?;
+        let target = f64::from(spec.target.0);
+        self.within_limit("the target position", target, Param::MinPos, false)?;
+        self.within_limit("the target position", target, Param::MaxPos, true)?;
+        if let Some(v) = spec.vel {
+            self.within_limit("the velocity", f64::from(v.0), Param::MaxVel, true)?;
+        }
+        if let Some(a) = spec.acc {
+            self.within_limit("the acceleration", f64::from(a.0), Param::MaxAcc, true)?;
+        }
+        let ratio = self.inc_ratio()?;
+        let start = self.position()?;
+        let motion = Request::motion(Motion::FRamp { pos: spec.target }, AckKind::Simple)?;
+        for (param, twin, given) in [
+            (Param::TargetVel, Param::TargetVelInc, spec.vel.map(|v| v.0)),
+            (Param::TargetAcc, Param::TargetAccInc, spec.acc.map(|a| a.0)),
+        ] {
+            match given {
+                Some(v) => {
+                    self.set(param, Value::F32(v))?;
+                    self.check_ticks(param, twin, f64::from(v), ratio)?;
+                }
+                None => {
+                    let ticks = self.get(twin)?;
+                    if ticks.as_f64() == Some(0.0) {
+                        return Err(Error::InvalidArgument {
+                            what: if param == Param::TargetVel { "the velocity" } else { "the acceleration" },
+                            must: "given: the module's own value is 0, and a ramp with it would not move",
+                            value: "none".into(),
+                        });
+                    }
+                }
+            }
+        }
+        if self.cancelled() {
+            return Err(Error::Cancelled { address: self.address, stop: StopOutcome::NotStarted });
+        }
+        if let Err(e) = self.request(&motion) {
+            // It may have arrived and started the ramp.
+            return Err(self.lost(e));
+        }
+        tracing::info!("module {}: moving from {:.4} to {}", self.address, start.0, spec.target.0);
+        let sent = (target * ratio).round() as i32;
+        match self.get_as(Param::TargetPosInc, Value::as_i32) {
+            Ok(taken) if (i64::from(taken) - i64::from(sent)).abs() <= 1 => {}
+            Ok(taken) => {
+                let stop = self.stop_motion();
+                return Err(Error::TargetMismatch { address: self.address, sent, taken, stop });
+            }
+            Err(e) => return Err(self.lost(e)),
+        }
+        let state = self.wait_ramp_end(spec.timeout, progress)?;
+        let mut reached = start;
+        for _ in 0..2 {
+            reached = self.position()?;
+            let difference = reached.0 - spec.target.0;
+            // A NaN reading is not within any tolerance.
+            let within = difference.abs() <= spec.tolerance.0;
+            if !within {
+                return Err(Error::NotReached {
+                    address: self.address,
+                    target: spec.target.0,
+                    reached: reached.0,
+                    difference,
+                    tolerance: spec.tolerance.0,
+                    state,
+                });
+            }
+        }
+        Ok(MoveReport { start, reached, state })
     }
 
     fn wait(&self, until: Until, timeout: Duration, progress: &mut dyn FnMut(&Progress)) -> Result<CubeState, Error> {
         let clock = &self.bus.inner.clock;
         let start = clock.now();
         let deadline = start + timeout;
-        let cancel = lock_mutex(&self.bus.inner.cancel).clone();
+        let period = self.bus.inner.config.poll_interval.max(Duration::from_micros(100));
+        let mut due = start;
         loop {
             let polled = self.state().and_then(|s| Ok((s, self.position()?)));
             let (state, position) = match polled {
                 Ok(x) => x,
-                Err(e) => {
-                    // The session is failing while a motion may be running: stop it if the line allows.
-                    self.halt_quietly();
-                    return Err(e);
-                }
+                // The line is failing, or the module stopped answering, while a motion may be running.
+                Err(e) => return Err(self.lost(e)),
             };
             let now = clock.now();
             progress(&Progress { address: self.address, position, state, elapsed: now.saturating_since(start) });
@@ -1358,16 +1961,27 @@ impl Module<'_> {
                 lock_mutex(&self.bus.inner.started).remove(&self.address);
                 return Ok(state);
             }
-            if cancel.as_ref().is_some_and(CancelToken::is_cancelled) {
-                self.halt_quietly();
-                return Err(Error::Cancelled { address: self.address });
+            if self.cancelled() {
+                return Err(Error::Cancelled { address: self.address, stop: self.stop_motion() });
             }
             if now >= deadline {
-                self.halt_quietly();
-                return Err(Error::WaitTimeout { address: self.address, what: until.what(), waited: timeout, state });
+                let stop = self.stop_motion();
+                return Err(Error::WaitTimeout {
+                    address: self.address,
+                    what: until.what(),
+                    waited: timeout,
+                    state,
+                    stop,
+                });
             }
-            let next = (now + self.bus.inner.config.poll_interval).min(deadline);
-            clock.sleep_until(next);
+            // Polls on a fixed schedule from the first one: never faster than the period, whatever the line;
+            // a poll that took longer than a period skips the slots it missed.
+            due += period;
+            if due <= now {
+                let missed = (now - due).as_nanos() / period.as_nanos() + 1;
+                due += period * u32::try_from(missed).unwrap_or(u32::MAX);
+            }
+            clock.sleep_until(due.min(deadline));
         }
     }
 }

@@ -6,6 +6,7 @@ use std::time::Duration;
 use motionlink_link::can::CanLink;
 use motionlink_link::{Link, LinkError};
 
+use crate::model::{Broadcast, BroadcastForm};
 use crate::wire::can::{self as can_wire, Role};
 use crate::wire::rs232::{self, Rs232Decoder, TelKind};
 use crate::wire::Payload;
@@ -85,11 +86,12 @@ impl Transport {
         }
     }
 
-    /// Sends a broadcast: the CAN broadcast identifier, or RS232 address 0.
-    pub fn broadcast(&mut self, payload: &Payload) -> Result<(), LinkError> {
+    /// Sends a broadcast: on CAN the broadcast identifier with the manual's payload; on RS232 module address
+    /// 0 with the command followed by 0x00, as Schunk's libm5api sends it ([`BroadcastForm::Padded`]).
+    pub fn broadcast(&mut self, broadcast: &Broadcast) -> Result<(), LinkError> {
         match &mut self.carrier {
-            Carrier::Rs232 { .. } => self.send(0, payload),
-            Carrier::Can { link } => link.send(&can_wire::to_frame(Role::Broadcast, payload)),
+            Carrier::Rs232 { .. } => self.send(0, &broadcast.encode_as(BroadcastForm::Padded)),
+            Carrier::Can { link } => link.send(&can_wire::to_frame(Role::Broadcast, &broadcast.encode())),
         }
     }
 
@@ -109,17 +111,17 @@ impl Transport {
                             "frame from module {} with a wrong BCC (0x{:02X}, expected 0x{:02X})",
                             f.address, f.bcc_received, f.bcc_computed
                         ))),
-                        Ok(f) => {
-                            if !f.length_ok() {
-                                tracing::debug!(
-                                    "module {}: TELID length {} for {} data bytes (accepted)",
-                                    f.address,
-                                    f.declared_len,
-                                    f.payload.len()
-                                );
-                            }
-                            pending.push_back(Incoming::Frame { address: f.address, payload: f.payload });
-                        }
+                        // The manual's own acknowledge examples carry TELID length 6 for 3 data bytes: that
+                        // one slip is accepted; any other length that differs from the data is corruption
+                        // the BCC let through.
+                        Ok(f) if !(f.length_ok() || (f.declared_len == 6 && f.payload.len() == 3)) => pending
+                            .push_back(Incoming::Corrupt(format!(
+                                "frame from module {} with TELID length {} for {} data bytes",
+                                f.address,
+                                f.declared_len,
+                                f.payload.len()
+                            ))),
+                        Ok(f) => pending.push_back(Incoming::Frame { address: f.address, payload: f.payload }),
                         Err(e) => pending.push_back(Incoming::Corrupt(e.to_string())),
                     }
                 }

@@ -15,7 +15,7 @@ pub use flags::{
     ConfigFlag, ConfigWord, CubeState, Dio, DioFlag, DioWord, DioWordFlag, FlagClass, ProfibusFlag, ProfibusState,
     SetupFlag, SetupWord, ShortFlag, ShortState, StateFlag,
 };
-pub use message::{AckPosition, Action, Broadcast, CanBaud, ExtAck, ModelError, Reply, Request};
+pub use message::{AckPosition, Action, Broadcast, BroadcastForm, CanBaud, ExtAck, ModelError, Reply, Request};
 pub use motion::{AckKind, Motion, MotionId, MotionShape, Ramp};
 pub use params::{Access, DataType, Param, ParamClass, Unit, UnknownParam, Value, ValueError};
 pub use units::{

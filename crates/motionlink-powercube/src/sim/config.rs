@@ -69,6 +69,9 @@ pub struct ModuleConfig {
     pub brake: bool,
     /// Digital inputs 0..3 (default 0).
     pub inputs: u8,
+    /// How far beyond its target a ramp comes to rest (default 0): a module that does not settle where it
+    /// is told (a load that pushes, a worn gear), for trying out in-position checks.
+    pub settle_offset: f64,
 }
 
 impl Default for ModuleConfig {
@@ -94,6 +97,7 @@ impl Default for ModuleConfig {
             version: 0x4634,
             brake: false,
             inputs: 0,
+            settle_offset: 0.0,
         }
     }
 }
@@ -128,6 +132,7 @@ struct ModuleToml {
     version: Option<u16>,
     brake: Option<bool>,
     inputs: Option<u8>,
+    settle_offset: Option<f64>,
 }
 
 impl From<ModuleToml> for ModuleConfig {
@@ -152,6 +157,7 @@ impl From<ModuleToml> for ModuleConfig {
             version: t.version.unwrap_or(d.version),
             brake: t.brake.unwrap_or(d.brake),
             inputs: t.inputs.unwrap_or(d.inputs),
+            settle_offset: t.settle_offset.unwrap_or(d.settle_offset),
         }
     }
 }
@@ -240,6 +246,9 @@ impl SimConfig {
             }
             if !m.start_position.is_finite() {
                 return invalid(format!("module {}: start_position must be a number", m.address));
+            }
+            if !m.settle_offset.is_finite() {
+                return invalid(format!("module {}: settle_offset must be a number", m.address));
             }
         }
         Ok(())

@@ -133,6 +133,29 @@ impl SimBus {
         self.stats
     }
 
+    /// What the modules did since the last call, oldest first, one line each: "module 1 motion started: ramp
+    /// to 1.2000 rad", "module 1 at rest 1.2000 rad", "module 1 homed", "module 1 halted", "module 1 reset",
+    /// "module 1 watchdog online" / "offline", "module 1 watchdog expired: STATE_COMM_ERROR", "module 1 error:
+    /// STATE_TOW_ERROR", "module 1 position saved: 0.3000 rad", "module 1 ignored SetMotion ...: halted or
+    /// not homed". Watchdog refreshes and reads are not events. `motionlink sim powercube --events` prints
+    /// them.
+    pub fn take_events(&mut self) -> Vec<String> {
+        let mut all: Vec<(f64, String)> = self.modules.iter_mut().flat_map(SimModule::take_events).collect();
+        all.sort_by(|a, b| a.0.total_cmp(&b.0));
+        all.into_iter().map(|(_, text)| text).collect()
+    }
+
+    /// The time of the next change a module makes by itself (a watchdog expiry, the end of a motion, a
+    /// limit or tow error), rounded up to the nanosecond: a server that looks at the bus then sees it happen
+    /// on time, and reports its event at once.
+    pub fn next_change(&self) -> Option<Timestamp> {
+        self.modules
+            .iter()
+            .filter_map(SimModule::next_change_at)
+            .min_by(f64::total_cmp)
+            .map(|t| Timestamp::from_duration(std::time::Duration::from_nanos((t.max(0.0) * 1e9).ceil() as u64)))
+    }
+
     /// Brings every module to `now`.
     pub fn update(&mut self, now: Timestamp) {
         let t = secs(now);
@@ -277,14 +300,20 @@ impl Emulator for SimBus {
         self.update(now);
     }
 
+    /// Modules never speak unasked, and their state is computed for whatever time they are asked at; the
+    /// wake-up is the next change a module makes by itself ([`SimBus::next_change`]), so that a server
+    /// reports its event when it happens.
     fn next_wakeup(&self) -> Option<Timestamp> {
-        // Modules never speak unasked; their state is computed for whatever time they are asked at.
-        None
+        self.next_change()
     }
 
     /// A frame the host left half-sent is dropped; the modules, their motion and watchdogs run on.
     fn connection_closed(&mut self, _now: Timestamp) {
         self.decoder.reset();
+    }
+
+    fn take_events(&mut self) -> Vec<String> {
+        SimBus::take_events(self)
     }
 }
 
@@ -313,7 +342,11 @@ impl CanEmulator for SimBus {
     }
 
     fn next_wakeup(&self) -> Option<Timestamp> {
-        None
+        self.next_change()
+    }
+
+    fn take_events(&mut self) -> Vec<String> {
+        SimBus::take_events(self)
     }
 }
 

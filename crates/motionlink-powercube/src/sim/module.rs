@@ -17,6 +17,19 @@ pub const SERVO_LAG_S: f64 = 0.005;
 /// The shortest leg of a ramp loop (FRAMPLOOP); a shorter loop ends after its first leg.
 const MIN_LOOP_LEG_S: f64 = 0.001;
 
+/// How many events a module keeps for [`SimModule::take_events`] when nobody takes them (an in-process
+/// emulator that runs for days): the oldest are dropped beyond this.
+const MAX_EVENTS: usize = 1_000;
+
+/// The next thing the physical model does by itself, in the order they win a tie.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum Change {
+    WatchdogExpiry,
+    TowError,
+    SoftLimit,
+    MotionEnd,
+}
+
 /// What kind of motion is running (for flags and for what happens at its end).
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum MotionKind {
@@ -75,6 +88,8 @@ pub struct SimModule {
     watchdog_timeout: f64,
     time_base: f64,
     saved_pos: f64,
+    /// Notable changes, with the module time they happened at, for [`SimModule::take_events`].
+    events: Vec<(f64, String)>,
 }
 
 impl SimModule {
@@ -120,7 +135,60 @@ impl SimModule {
             watchdog_timeout: watchdog_timeout_ms as f64 / 1000.0,
             time_base: 0.0,
             saved_pos: 0.0,
+            events: Vec::new(),
         }
+    }
+
+    /// What the module did since the last call, oldest first, each with the module time (seconds) it
+    /// happened at: "module 1 motion started: ramp to 1.2000 rad", "module 1 at rest 1.2000 rad",
+    /// "module 1 halted", "module 1 watchdog expired: STATE_COMM_ERROR", ... (see
+    /// [`SimBus`](super::SimBus)'s `take_events`).
+    pub fn take_events(&mut self) -> Vec<(f64, String)> {
+        std::mem::take(&mut self.events)
+    }
+
+    fn event(&mut self, t: f64, what: impl std::fmt::Display) {
+        if self.events.len() >= MAX_EVENTS {
+            self.events.remove(0);
+        }
+        self.events.push((t, format!("module {} {what}", self.address)));
+    }
+
+    /// A position with the module's unit, for events.
+    fn show_pos(&self, p: f64) -> String {
+        let unit = if self.kind() == ModuleKind::Linear { "m" } else { "rad" };
+        format!("{p:.4} {unit}")
+    }
+
+    /// The module time (seconds) of the next change the physical model makes by itself (a watchdog that
+    /// expires, a tow error, a soft limit reached, a motion that ends), if any: when a server has to look
+    /// at the module again for it to happen on time.
+    pub fn next_change_at(&self) -> Option<f64> {
+        self.next_change().map(|(t, _)| t.max(self.t))
+    }
+
+    fn next_change(&self) -> Option<(f64, Change)> {
+        let watchdog = (self.watchdog_online && !self.flags.contains(StateFlag::CommError))
+            .then_some(self.last_refresh + self.watchdog_timeout);
+        let (end, outside, tow) = match &self.motion {
+            Some((kind, p)) => {
+                let outside = (self.homed() && *kind != MotionKind::Homing)
+                    .then(|| p.first_outside(self.t, self.min_pos, self.max_pos))
+                    .flatten();
+                let tow = p.first_over_speed(self.t, self.max_delta_pos / SERVO_LAG_S);
+                (p.end(), outside, tow)
+            }
+            None => (None, None, None),
+        };
+        [
+            (watchdog, Change::WatchdogExpiry),
+            (tow, Change::TowError),
+            (outside, Change::SoftLimit),
+            (end, Change::MotionEnd),
+        ]
+        .into_iter()
+        .filter_map(|(t, c)| t.map(|t| (t, c)))
+        .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
     }
 
     /// The bus address.
@@ -183,8 +251,9 @@ impl SimModule {
     /// with them and the motion stops.
     pub fn inject_fault(&mut self, flags: CubeState) {
         let t = self.t;
-        self.stop_at(t);
+        self.event(t, format!("error injected: {}", CubeState(flags.0)));
         self.flags = CubeState(self.flags.0 | flags.0).with(StateFlag::Error).with(StateFlag::Halted);
+        self.stop_at(t);
     }
 
     fn inc_ratio(&self) -> f64 {
@@ -246,53 +315,41 @@ impl SimModule {
 
     fn stop_at(&mut self, t: f64) {
         self.pos = self.pos_at(t);
-        self.motion = None;
+        let was_moving = self.motion.take().is_some();
         self.step_buffer = None;
+        if was_moving {
+            self.event(t, format!("at rest {}", self.show_pos(self.pos)));
+        }
     }
 
     /// Brings the physical model to `now`: motion ends, soft limits, following errors and the watchdog, in
     /// the order they happen.
     pub fn update(&mut self, now: f64) {
-        loop {
-            let watchdog = (self.watchdog_online && !self.flags.contains(StateFlag::CommError))
-                .then_some(self.last_refresh + self.watchdog_timeout);
-            let (end, outside, tow) = match &self.motion {
-                Some((kind, p)) => {
-                    let outside = (self.homed() && *kind != MotionKind::Homing)
-                        .then(|| p.first_outside(self.t, self.min_pos, self.max_pos))
-                        .flatten();
-                    let tow = p.first_over_speed(self.t, self.max_delta_pos / SERVO_LAG_S);
-                    (p.end(), outside, tow)
-                }
-                None => (None, None, None),
-            };
-            let events = [(watchdog, 0u8), (tow, 1), (outside, 2), (end, 3)];
-            let Some((t, which)) = events
-                .iter()
-                .filter_map(|(t, w)| t.filter(|t| *t <= now).map(|t| (t, *w)))
-                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
-            else {
-                break;
-            };
+        while let Some((t, change)) = self.next_change().filter(|(t, _)| *t <= now) {
             let t = t.max(self.t);
-            match which {
-                0 => {
+            match change {
+                Change::WatchdogExpiry => {
                     // The manual (STATE_COMM_ERROR): the drive follows the emergency stop routine and enters
                     // an error state, so STATE_ERROR too (which Profibus shows as STATE_ERRORM4).
-                    self.stop_at(t);
+                    self.event(t, "watchdog expired: STATE_COMM_ERROR");
                     self.flags = self.flags.with(StateFlag::CommError).with(StateFlag::Error).with(StateFlag::Halted);
-                }
-                1 => {
                     self.stop_at(t);
+                }
+                Change::TowError => {
+                    self.event(t, "error: STATE_TOW_ERROR");
                     self.flags = self.flags.with(StateFlag::TowError).with(StateFlag::Error).with(StateFlag::Halted);
-                }
-                2 => {
-                    let p = within(self.pos_at(t), self.min_pos, self.max_pos);
                     self.stop_at(t);
-                    self.pos = p;
-                    self.flags = self.flags.with(StateFlag::BeyondSoft).with(StateFlag::Error).with(StateFlag::Halted);
                 }
-                _ => self.motion_ended(t),
+                Change::SoftLimit => {
+                    let p = within(self.pos_at(t), self.min_pos, self.max_pos);
+                    self.event(t, "error: STATE_BEYOND_SOFT");
+                    self.flags = self.flags.with(StateFlag::BeyondSoft).with(StateFlag::Error).with(StateFlag::Halted);
+                    self.motion = None;
+                    self.step_buffer = None;
+                    self.pos = p;
+                    self.event(t, format!("at rest {}", self.show_pos(p)));
+                }
+                Change::MotionEnd => self.motion_ended(t),
             }
             self.t = t;
         }
@@ -309,8 +366,13 @@ impl SimModule {
             MotionKind::Homing => {
                 self.pos = 0.0;
                 self.flags = self.flags.with(StateFlag::HomeOk).with(StateFlag::RampEnd);
+                self.event(t, "homed");
             }
-            MotionKind::Ramp => self.flags = self.flags.with(StateFlag::RampEnd),
+            MotionKind::Ramp => {
+                // A module that does not settle on its target (configured, for testing in-position checks).
+                self.pos += self.cfg.settle_offset;
+                self.flags = self.flags.with(StateFlag::RampEnd);
+            }
             MotionKind::RampLoop { from, to } => {
                 let back = profile::ramp(t, self.pos, 0.0, from, self.ramp_vel(), self.ramp_acc());
                 let leg = back.last().map_or(0.0, |s| s.end() - t);
@@ -327,6 +389,9 @@ impl SimModule {
                 }
             }
             MotionKind::Velocity | MotionKind::CosLoop => {}
+        }
+        if self.motion.is_none() {
+            self.event(t, format!("at rest {}", self.show_pos(self.pos)));
         }
     }
 
@@ -356,6 +421,15 @@ impl SimModule {
         if !kind_is_step(kind) {
             self.step_buffer = None;
         }
+        let what = match kind {
+            MotionKind::Homing => "homing".to_string(),
+            MotionKind::Ramp => format!("ramp to {}", self.show_pos(self.target_pos)),
+            MotionKind::RampLoop { to, .. } => format!("ramp loop to {}", self.show_pos(to)),
+            MotionKind::Step => format!("step to {}", self.show_pos(self.step_target)),
+            MotionKind::Velocity => "velocity or current mode".to_string(),
+            MotionKind::CosLoop => "cosine loop".to_string(),
+        };
+        self.event(t, format!("motion started: {what}"));
         self.motion = Some((kind, profile));
     }
 
@@ -377,6 +451,7 @@ impl SimModule {
 
     fn execute_motion(&mut self, t: f64, request: &Request) {
         if !self.accepts_motion(request) {
+            self.event(t, format!("ignored {request}: halted or not homed"));
             return;
         }
         if matches!(request, Request::Motion(m, _) if !m.is_finite()) {
@@ -441,7 +516,7 @@ impl SimModule {
                 let prof = profile::ramp(t, p, v, 0.0, self.cfg.home_vel.abs(), self.cfg.home_acc);
                 if prof.is_empty() {
                     self.stop_at(t);
-                    self.motion_ended_homing_at_once();
+                    self.motion_ended_homing_at_once(t);
                 } else {
                     self.start(t, MotionKind::Homing, Profile::Pieces(prof));
                 }
@@ -450,9 +525,10 @@ impl SimModule {
         }
     }
 
-    fn motion_ended_homing_at_once(&mut self) {
+    fn motion_ended_homing_at_once(&mut self, t: f64) {
         self.pos = 0.0;
         self.flags = self.flags.with(StateFlag::HomeOk).with(StateFlag::RampEnd);
+        self.event(t, "homed");
     }
 
     fn ramp_to(&mut self, t: f64, target: f64, mode: u8) {
@@ -493,6 +569,7 @@ impl SimModule {
                         if self.config.contains(ConfigFlag::WatchdogEnable) {
                             self.watchdog_online = !self.watchdog_online;
                             self.last_refresh = t;
+                            self.event(t, if self.watchdog_online { "watchdog online" } else { "watchdog offline" });
                         }
                     }
                     Action::RecalcPid | Action::SaveParameters => {}
@@ -545,6 +622,7 @@ impl SimModule {
     /// Reset: clears the errors that can be reset and STATE_HALTED.
     pub fn reset(&mut self, t: f64) {
         self.update(t);
+        self.event(t, "reset");
         for f in [
             StateFlag::Error,
             StateFlag::Halted,
@@ -570,9 +648,10 @@ impl SimModule {
     /// Halt: stop at once, STATE_HALTED until a Reset.
     pub fn halt(&mut self, t: f64) {
         self.update(t);
+        self.event(t, "halted");
+        self.flags = self.flags.with(StateFlag::Halted);
         self.stop_at(t);
         self.pending.clear();
-        self.flags = self.flags.with(StateFlag::Halted);
     }
 
     /// A broadcast arrived at `now`.
@@ -593,7 +672,10 @@ impl SimModule {
                 tracing::info!("module {}: CAN bit rate {} bit/s", self.address, b.bps());
                 self.can_baud = Some(*b);
             }
-            B::SavePosition => self.saved_pos = self.pos_at(now),
+            B::SavePosition => {
+                self.saved_pos = self.pos_at(now);
+                self.event(now, format!("position saved: {}", self.show_pos(self.saved_pos)));
+            }
             B::StartMotion => {
                 for r in std::mem::take(&mut self.pending) {
                     self.execute_motion(now, &r);

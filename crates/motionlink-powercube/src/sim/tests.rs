@@ -397,3 +397,197 @@ fn a_ramp_loop_too_short_to_turn_round_ends() {
     bus.request(at(3_600_000), 1, &Request::Motion(Motion::FRampLoop { pos: Position(0.5) }, AckKind::Simple));
     assert!(state(&mut bus, 3_700_000).contains(StateFlag::Motion));
 }
+
+/// Feeds `bytes` to the bus as RS232 at `ms`; returns what it answered.
+fn rs232_in(bus: &mut SimBus, ms: u64, bytes: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    Emulator::receive(bus, at(ms), bytes, &mut out);
+    out
+}
+
+fn homed_pair() -> SimBus {
+    let mut bus = SimBus::new(&SimConfig::with_addresses(&[1, 2]).unwrap());
+    for a in [1, 2] {
+        bus.request(at(0), a, &Request::Action(Action::Home));
+    }
+    bus.update(at(2_000));
+    bus
+}
+
+fn module_state(bus: &SimBus, a: u8) -> CubeState {
+    bus.module(a).unwrap().state()
+}
+
+#[test]
+fn libm5api_broadcasts_reach_every_module_byte_for_byte() {
+    // The exact bytes Schunk's libm5api sends over RS232 (field notes): address 0, command + 0x00.
+    const HALT_ALL: &[u8] = &[0x02, 0x04, 0x10, 0x82, 0x10, 0x82, 0x00, 0x08, 0x03];
+    const RESET_ALL: &[u8] = &[0x02, 0x04, 0x10, 0x82, 0x00, 0x00, 0x06, 0x03];
+    const HOME_ALL: &[u8] = &[0x02, 0x04, 0x10, 0x82, 0x01, 0x00, 0x07, 0x03];
+    const SERVE_WATCHDOG_ALL: &[u8] = &[0x02, 0x04, 0x10, 0x82, 0x07, 0x00, 0x0D, 0x03];
+    // savePosAll: 0x0E 0x00; BCC = 04 + 02 + 0E + 00 = 0x14.
+    const SAVE_POS_ALL: &[u8] = &[0x02, 0x04, 0x10, 0x82, 0x0E, 0x00, 0x14, 0x03];
+
+    // homeAll starts homing in both modules; no acknowledge.
+    let mut bus = SimBus::new(&SimConfig::with_addresses(&[1, 2]).unwrap());
+    assert!(rs232_in(&mut bus, 0, HOME_ALL).is_empty());
+    bus.update(at(10));
+    for a in [1, 2] {
+        assert!(module_state(&bus, a).contains(StateFlag::Motion), "module {a} homes");
+    }
+    bus.update(at(2_000));
+    for a in [1, 2] {
+        assert!(module_state(&bus, a).contains(StateFlag::HomeOk), "module {a} homed");
+    }
+    let events = bus.take_events();
+    for a in [1, 2] {
+        assert!(events.contains(&format!("module {a} motion started: homing")), "{events:?}");
+        assert!(events.contains(&format!("module {a} homed")), "{events:?}");
+    }
+
+    // haltAll stops both, moving or not.
+    for (a, target) in [(1u8, 1.0f32), (2, -1.0)] {
+        bus.request(at(2_000), a, &Request::Motion(Motion::FRamp { pos: Position(target) }, AckKind::Simple));
+    }
+    assert!(rs232_in(&mut bus, 2_300, HALT_ALL).is_empty());
+    for a in [1, 2] {
+        let s = module_state(&bus, a);
+        assert!(s.contains(StateFlag::Halted) && !s.contains(StateFlag::Motion), "module {a}: {s}");
+    }
+    let (p1, p2) = (pos(&mut bus, 2_300), bus.module(2).unwrap().position().0);
+    assert!(p1 > 0.0 && p2 < 0.0, "{p1} {p2}");
+
+    // resetAll clears both.
+    assert!(rs232_in(&mut bus, 2_400, RESET_ALL).is_empty());
+    for a in [1, 2] {
+        assert!(!module_state(&bus, a).contains(StateFlag::Halted), "module {a} reset");
+    }
+
+    // savePosAll stores each one's own position.
+    assert!(rs232_in(&mut bus, 2_500, SAVE_POS_ALL).is_empty());
+    for (a, p) in [(1, p1), (2, p2)] {
+        assert_eq!(
+            bus.request(at(2_500), a, &Request::Get(Param::ActFSavedPos)),
+            Some(Reply::Get(Param::ActFSavedPos, Value::F32(p)))
+        );
+    }
+
+    // serveWatchdogAll keeps both watchdogs alive; without it both expire.
+    for a in [1, 2] {
+        set_on(&mut bus, a, 2_600, Param::Config, Value::U32(ConfigFlag::WatchdogEnable.mask()));
+        bus.request(at(2_600), a, &Request::Action(Action::LifeSign));
+        assert!(bus.module(a).unwrap().watchdog_online());
+    }
+    for ms in (2_620..3_600).step_by(20) {
+        assert!(rs232_in(&mut bus, ms, SERVE_WATCHDOG_ALL).is_empty());
+    }
+    bus.update(at(3_600));
+    for a in [1, 2] {
+        assert!(!module_state(&bus, a).has_fault(), "module {a} served: {}", module_state(&bus, a));
+    }
+    bus.update(at(3_700));
+    for a in [1, 2] {
+        assert!(module_state(&bus, a).contains(StateFlag::CommError), "module {a} not served any more");
+    }
+    assert_eq!(bus.stats().not_understood, 0);
+    assert_eq!(bus.stats().malformed, 0);
+
+    // The one-byte form (the manual's, and what this crate sent on RS232 before) still works.
+    let mut bus = homed_pair();
+    let mut one_byte = [0u8; crate::wire::rs232::MAX_FRAME];
+    let n = crate::wire::rs232::encode(TelKind::Send, 0, &Broadcast::Halt.encode(), &mut one_byte).unwrap();
+    assert!(rs232_in(&mut bus, 2_000, &one_byte[..n]).is_empty());
+    assert!(module_state(&bus, 1).contains(StateFlag::Halted) && module_state(&bus, 2).contains(StateFlag::Halted));
+}
+
+fn set_on(bus: &mut SimBus, a: u8, ms: u64, p: Param, v: Value) {
+    assert!(matches!(bus.request(at(ms), a, &Request::Set(p, v)), Some(Reply::Set(_, 0x64))));
+}
+
+#[test]
+fn events_say_what_the_modules_did() {
+    let mut bus = SimBus::new(&SimConfig::with_addresses(&[1]).unwrap());
+    bus.request(at(0), 1, &Request::Action(Action::Home));
+    bus.update(at(2_000));
+    assert_eq!(bus.take_events(), ["module 1 motion started: homing", "module 1 homed", "module 1 at rest 0.0000 rad"]);
+    assert!(bus.take_events().is_empty(), "taken once");
+    set(&mut bus, 2_000, Param::TargetVel, Value::F32(1.0));
+    set(&mut bus, 2_000, Param::TargetAcc, Value::F32(2.0));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(1.2) }, AckKind::Simple));
+    // Reads are no events; the end of the ramp is, when it happens, however late someone looks.
+    state(&mut bus, 2_100);
+    bus.update(at(9_000));
+    assert_eq!(bus.take_events(), ["module 1 motion started: ramp to 1.2000 rad", "module 1 at rest 1.2000 rad"]);
+    bus.request(at(9_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.0) }, AckKind::Simple));
+    bus.request(at(9_500), 1, &Request::Action(Action::Halt));
+    let events = bus.take_events();
+    assert_eq!(events[..2], ["module 1 motion started: ramp to 0.0000 rad".to_string(), "module 1 halted".into()]);
+    assert!(events[2].starts_with("module 1 at rest 0.9"), "{events:?}");
+    bus.request(at(9_600), 1, &Request::Motion(Motion::FRamp { pos: Position(0.0) }, AckKind::Simple));
+    bus.request(at(9_700), 1, &Request::Action(Action::Reset));
+    assert_eq!(
+        bus.take_events(),
+        ["module 1 ignored SetMotion FRAMP_MODE ramp to 0: halted or not homed", "module 1 reset"]
+    );
+    // The watchdog: online, expiry with the stop, offline.
+    set(&mut bus, 10_000, Param::Config, Value::U32(ConfigFlag::WatchdogEnable.mask()));
+    bus.request(at(10_000), 1, &Request::Action(Action::LifeSign));
+    bus.request(at(10_000), 1, &Request::Motion(Motion::FVel { vel: Velocity(0.1) }, AckKind::Simple));
+    bus.update(at(11_000));
+    let events = bus.take_events();
+    assert_eq!(
+        events[..3],
+        [
+            "module 1 watchdog online".to_string(),
+            "module 1 motion started: velocity or current mode".into(),
+            "module 1 watchdog expired: STATE_COMM_ERROR".into()
+        ]
+    );
+    assert!(events[3].starts_with("module 1 at rest 0.9"), "{events:?}");
+    bus.request(at(11_000), 1, &Request::Action(Action::LifeSign));
+    assert_eq!(bus.take_events(), ["module 1 watchdog offline"]);
+    // A tow error.
+    bus.request(at(11_000), 1, &Request::Action(Action::Reset));
+    set(&mut bus, 11_000, Param::MaxDeltaPos, Value::F32(0.0001));
+    bus.request(at(11_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.0) }, AckKind::Simple));
+    bus.update(at(12_000));
+    let events = bus.take_events();
+    assert!(events.contains(&"module 1 error: STATE_TOW_ERROR".to_string()), "{events:?}");
+    assert!(events.last().unwrap().starts_with("module 1 at rest"), "{events:?}");
+}
+
+#[test]
+fn the_next_wakeup_is_the_next_change_a_module_makes() {
+    let mut bus = homed_bus();
+    assert_eq!(Emulator::next_wakeup(&bus), None, "at rest, no watchdog: nothing will happen by itself");
+    set(&mut bus, 2_000, Param::TargetVel, Value::F32(1.0));
+    set(&mut bus, 2_000, Param::TargetAcc, Value::F32(2.0));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(1.0) }, AckKind::Simple));
+    // 1 rad at 1 rad/s, 2 rad/s²: ends 1.5 s later.
+    let end = Emulator::next_wakeup(&bus).unwrap();
+    assert!(end >= at(3_500) && end <= at(3_500) + std::time::Duration::from_micros(1), "{end}");
+    assert_eq!(CanEmulator::next_wakeup(&bus), Some(end));
+    // A watchdog that expires earlier comes first.
+    set(&mut bus, 2_000, Param::Config, Value::U32(ConfigFlag::WatchdogEnable.mask()));
+    bus.request(at(2_000), 1, &Request::Action(Action::LifeSign));
+    let expiry = Emulator::next_wakeup(&bus).unwrap();
+    assert!(expiry >= at(2_050) && expiry <= at(2_050) + std::time::Duration::from_micros(1), "{expiry}");
+    // Advancing to that instant makes it happen: the wake-up moves on.
+    let mut out = Vec::new();
+    Emulator::advance(&mut bus, expiry, &mut out);
+    assert!(bus.module(1).unwrap().state().contains(StateFlag::CommError));
+    assert_eq!(Emulator::next_wakeup(&bus), None, "expired and halted: nothing more");
+}
+
+#[test]
+fn the_can_emulator_reports_the_same_events() {
+    let mut bus = SimBus::new_can(&SimConfig::with_addresses(&[3]).unwrap());
+    let mut out = Vec::new();
+    let home = crate::wire::can::to_frame(crate::wire::can::Role::Put(3), &Request::Action(Action::Home).encode());
+    CanEmulator::receive(&mut bus, at(0), &home, &mut out);
+    let halt = crate::wire::can::to_frame(crate::wire::can::Role::Broadcast, &Broadcast::Halt.encode());
+    CanEmulator::receive(&mut bus, at(10), &halt, &mut out);
+    let events = CanEmulator::take_events(&mut bus);
+    assert_eq!(events[..2], ["module 3 motion started: homing".to_string(), "module 3 halted".into()]);
+    assert!(events[2].starts_with("module 3 at rest 0.04"), "{events:?}");
+}
