@@ -1492,7 +1492,8 @@ impl Emulator for ScuEmulator {
                 }
                 Err(
                     crate::wire::WireError::Oversized { command, .. }
-                    | crate::wire::WireError::Undersized { command, .. },
+                    | crate::wire::WireError::Undersized { command, .. }
+                    | crate::wire::WireError::UnexpectedLength { command, .. },
                 ) => self.reply_status(command, Status::ParameterCountError),
             }
         }
