@@ -33,8 +33,7 @@
 //! RO may take the manual's 2000 ms ([`ClientConfig::reply_timeout`]). In remote mode a reply is awaited at
 //! most [`SESSION_REPLY_LIMIT`] (1000 ms, twice the unit's watchdog: no RC can go out while a reply is
 //! awaited, so a unit that has not answered by then has stopped its drives and left remote mode if it is
-//! alive at all). Every request is repeatable except RS and RA when they were sent as part of the end of a
-//! session on a silent line: a request is sent again when not one byte of its reply came within
+//! alive at all). A request is sent again when not one byte of its reply came within
 //! [`ClientConfig::retry_after`] (150 ms, or twice the round trip measured so far if that is longer), then
 //! after twice and four times that; the reply to any sending counts, and the replies to the others are read
 //! and dropped. Before the first repetition the session sends [`FLUSH_LEN`] zero bytes: a request whose
@@ -1994,6 +1993,12 @@ impl Inner {
             st.started.iter().copied().filter(|f| Some(*f) != request.starts).collect()
         };
         if !started_before.is_empty() {
+            // The unit stopped them; each still gets the RS the manual asks for after every RE.
+            for f in &started_before {
+                if let Err(e) = self.stop_function(line, *f) {
+                    tracing::warn!("RS of function id {f} after the watchdog lapse: {e}");
+                }
+            }
             let stopped = match self.config.safety_id {
                 SafetyId::StopRemoteOnly => "the remote motions",
                 _ => "every motion",
