@@ -45,7 +45,8 @@ pub struct Args {
     pub safety: u8,
     /// How long to wait for the reply to RO, in ms (the manual allows the unit 2000 ms). In remote mode replies
     /// are awaited at most 1000 ms (twice the unit's watchdog), or this if it is shorter.
-    #[arg(long, default_value_t = 2000, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    #[arg(long, default_value_t = 2000, value_name = "MS", allow_hyphen_values = true,
+          value_parser = clap::value_parser!(u64).range(1..=60_000))]
     pub reply_timeout: u64,
     /// Which actuators each motion function drives (the unit's parameterisation, which the data list does not
     /// show): a preset, scp11 (Fn drives An), tlt (F1 both columns, F2 A1, F3 A2) or liftkit (F1 A1, F2 A2, F8
@@ -58,10 +59,12 @@ pub struct Args {
     #[arg(long = "stroke", value_name = "A=MIN:MAX")]
     pub stroke: Vec<String>,
     /// How close to its target a move must end to succeed, in counts.
-    #[arg(long, default_value_t = 5, value_name = "COUNTS", value_parser = clap::value_parser!(u32).range(0..=10_000))]
+    #[arg(long, default_value_t = 5, value_name = "COUNTS", allow_hyphen_values = true,
+          value_parser = clap::value_parser!(u32).range(0..=10_000))]
     pub tolerance: u32,
     /// How often a move polls the actuators, in ms (each poll is two reads, 8 ms of the 38400-baud line).
-    #[arg(long, default_value_t = 50, value_name = "MS", value_parser = clap::value_parser!(u64).range(5..=10_000))]
+    #[arg(long, default_value_t = 50, value_name = "MS", allow_hyphen_values = true,
+          value_parser = clap::value_parser!(u64).range(5..=10_000))]
     pub poll_interval: u64,
     /// How the unit takes remote speeds: percent (standard units, "speed select relative") or
     /// counts-per-second (units parameterised for "speed select absolute", 0..1000 counts/s).
@@ -121,7 +124,7 @@ pub enum Action {
         #[arg(allow_negative_numbers = true)]
         position: i32,
         /// Speed in percent, 1..100 (or counts/s, 1..1000, on units set to absolute speed).
-        #[arg(long, default_value = "100", value_name = "SPEED")]
+        #[arg(long, default_value = "100", value_name = "SPEED", allow_hyphen_values = true)]
         speed: String,
         /// Motion function (1..10) that drives the actuator; default: the one with its number (F1 for A1).
         #[arg(long)]
@@ -138,11 +141,11 @@ pub enum Action {
         #[arg(long)]
         function: Option<u8>,
         /// Speed in percent, 1..100 (or counts/s, 1..1000, on units set to absolute speed).
-        #[arg(long, default_value = "100", value_name = "SPEED")]
+        #[arg(long, default_value = "100", value_name = "SPEED", allow_hyphen_values = true)]
         speed: String,
         /// At most this many setpoint updates per second (1..100); lines that come faster are merged: the
         /// newest target wins.
-        #[arg(long, default_value = "20", value_name = "HZ")]
+        #[arg(long, default_value = "20", value_name = "HZ", allow_hyphen_values = true)]
         rate: String,
     },
     /// Run a function until it ends or Ctrl-C: a motion function (F1..F10) with a direction (in, out, mem1..mem4,
@@ -153,7 +156,7 @@ pub enum Action {
         /// Direction of a motion function, or "on".
         direction: String,
         /// Stop after this many seconds (default: when the motion ends, or Ctrl-C).
-        #[arg(long, value_name = "S")]
+        #[arg(long, value_name = "S", allow_hyphen_values = true)]
         seconds: Option<String>,
     },
     /// Stop a function (RS): motions fast, or along the ramp with --soft.
@@ -167,10 +170,11 @@ pub enum Action {
     /// Live positions and state until Ctrl-C.
     Watch {
         /// Time between samples, in ms (10 .. 3600000).
-        #[arg(long, default_value_t = 250, value_name = "MS", value_parser = clap::value_parser!(u64).range(10..=3_600_000))]
+        #[arg(long, default_value_t = 250, value_name = "MS", allow_hyphen_values = true,
+              value_parser = clap::value_parser!(u64).range(10..=3_600_000))]
         interval: u64,
         /// Stop after this many samples (at least 1).
-        #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+        #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u64).range(1..))]
         count: Option<u64>,
     },
     /// The error history (Error_Code 1..5) with each bit's cause.
