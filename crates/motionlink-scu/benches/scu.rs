@@ -171,8 +171,7 @@ fn transaction(c: &mut Criterion) {
     g.sample_size(40).measurement_time(Duration::from_secs(8));
     for loaded in [false, true] {
         let _load = loaded.then(|| Load::start(2));
-        let name =
-            if loaded { "rg_position_38400_baud_overhead_loaded" } else { "rg_position_38400_baud_overhead" };
+        let name = if loaded { "rg_position_38400_baud_overhead_loaded" } else { "rg_position_38400_baud_overhead" };
         g.bench_function(name, |b| {
             b.iter_custom(|iters| {
                 let mut overhead = Duration::ZERO;
@@ -241,8 +240,7 @@ fn keepalive_lateness(duration: Duration) -> Vec<Duration> {
     let slot = |t: Instant| ((t - t0).as_secs_f64() / period.as_secs_f64()).round() as u32;
     // The grid: the earliest any keepalive could have been due.
     let base = times.iter().map(|t| (*t - t0).saturating_sub(period * slot(*t))).min().unwrap_or_default();
-    let mut late: Vec<Duration> =
-        times.iter().map(|t| (*t - t0).saturating_sub(base + period * slot(*t))).collect();
+    let mut late: Vec<Duration> = times.iter().map(|t| (*t - t0).saturating_sub(base + period * slot(*t))).collect();
     late.sort();
     late
 }

@@ -1351,7 +1351,16 @@ impl ScuClient {
             if status[usize::from(a.number() - 1)] & status1::AVAILABLE == 0 {
                 return Err(ScuError::NotConnected(a));
             }
-            self.check_stroke(a, target)?;
+            match self.check_stroke(a, target) {
+                Err(e @ ScuError::OutsideStroke { .. }) if drives_unknown && a != primary => {
+                    return Err(ScuError::InvalidArgument(format!(
+                        "{e}. The function map does not say which actuators {function} drives, so every connected \
+                         actuator gets the target; say which ones it drives (ClientConfig::function_map, \
+                         --functions)"
+                    )));
+                }
+                other => other?,
+            }
         }
         let start = self.positions()?;
         for &(a, target) in targets {

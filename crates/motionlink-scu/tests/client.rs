@@ -1275,3 +1275,21 @@ fn set_reads_the_value_back_and_a_mismatch_is_an_error() {
     assert!(matches!(err, ScuError::ReadBack { .. }), "{err}");
     assert!(client.started_functions().is_empty(), "no RE was sent");
 }
+
+#[test]
+fn function_maps_from_presets_and_specifications() {
+    let m = FunctionMap::unknown().apply("tlt").unwrap();
+    assert_eq!(m, FunctionMap::tlt());
+    assert_eq!(m.drives(f(1)), Some(vec![a(1), a(2)]));
+    assert_eq!(m.drives(f(4)), Some(vec![]), "a preset says the other functions drive nothing");
+    let m = FunctionMap::unknown().apply("F1=1+3").unwrap().apply("f2 = a2, a4").unwrap().apply("F9=").unwrap();
+    assert_eq!(m.drives(f(1)), Some(vec![a(1), a(3)]));
+    assert_eq!(m.drives(f(2)), Some(vec![a(2), a(4)]));
+    assert_eq!(m.drives(f(9)), Some(vec![]));
+    assert_eq!(m.drives(f(3)), None, "not given: unknown");
+    assert_eq!(FunctionMap::liftkit().drives(f(8)), Some(vec![a(1), a(2)]));
+    assert_eq!(FunctionMap::scp11().drives(f(6)), Some(vec![a(6)]));
+    for bad in ["F11=1", "F1=7", "F1", "xyz", "F0=1"] {
+        assert!(FunctionMap::unknown().apply(bad).is_err(), "{bad}");
+    }
+}

@@ -1006,6 +1006,17 @@ fn the_bytes_the_public_ros_drivers_send_are_understood() {
     // RS of F8 fast stops both.
     assert_eq!(exchange(&mut b, "52 53 07 00 5A 06"), ack(b"RS"));
     assert!(!b.unit.any_moving());
+    // Column 1 to its In end (RE F1 direction 1): a TLT reads a few counts below zero there. The manual's
+    // INT32 is -3; drivers that decode 16 bits read 65533.
+    assert_eq!(exchange(&mut b, "52 45 00 01 FF A9 AE"), ack(b"RE"));
+    for _ in 0..80 {
+        b.wait(100);
+        assert_eq!(exchange(&mut b, "52 43 01 00 FF 31 8D"), ack(b"RC"));
+    }
+    let (_, data) = reply(exchange(&mut b, "52 47 11 00 2C 30"));
+    assert_eq!(data, (-3i32).to_le_bytes());
+    assert_eq!(u16::from_le_bytes([data[0], data[1]]), 65533);
+    assert_eq!(exchange(&mut b, "52 53 00 00 CD 9F"), ack(b"RS"));
     assert_eq!(exchange(&mut b, "52 41 38 30"), ack(b"RA"));
     assert_eq!(b.unit.mode(), RemoteMode::Off);
 }

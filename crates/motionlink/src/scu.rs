@@ -1179,3 +1179,55 @@ pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
     writeln!(out)?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn a(n: u8) -> Actuator {
+        Actuator::new(n).unwrap()
+    }
+
+    #[test]
+    fn follow_lines_give_one_target_for_all_one_each_or_named_ones() {
+        let two = [a(1), a(2)];
+        let p = |l: &str| parse_follow_line(l, &two, SpeedMode::Percent);
+        assert_eq!(p("400"), Ok(FollowLine::Targets(vec![400, 400])));
+        assert_eq!(p(" 400  410 "), Ok(FollowLine::Targets(vec![400, 410])));
+        assert_eq!(p("a2=410 A1=-3"), Ok(FollowLine::Targets(vec![-3, 410])));
+        assert_eq!(p("speed 60"), Ok(FollowLine::Speed(60)));
+        assert_eq!(p("speed=60 # slower"), Ok(FollowLine::Speed(60)));
+        assert_eq!(p("   # only a comment"), Ok(FollowLine::Skip));
+        assert_eq!(p(""), Ok(FollowLine::Skip));
+        for bad in ["400 410 420", "a1=400", "a3=1 a1=2 a2=3", "four hundred", "speed 0", "speed 101", "a1=x a2=1"] {
+            assert!(p(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn speeds_are_whole_numbers_from_1_to_the_mode_maximum() {
+        assert_eq!(parse_speed("1", SpeedMode::Percent).unwrap(), 1);
+        assert_eq!(parse_speed("100", SpeedMode::Percent).unwrap(), 100);
+        assert_eq!(parse_speed("1000", SpeedMode::CountsPerSecond).unwrap(), 1000);
+        for bad in ["0", "-1", "101", "NaN", "inf", "50.5", "", "1e2"] {
+            let e = parse_speed(bad, SpeedMode::Percent).unwrap_err();
+            assert!(matches!(&e, CliError::Usage(m) if m.contains("--speed")), "{bad}: {e}");
+        }
+        assert!(parse_seconds("NaN").is_err() && parse_seconds("-1").is_err() && parse_seconds("0.5").is_ok());
+        assert!(parse_rate("0").is_err() && parse_rate("101").is_err() && parse_rate("100").is_ok());
+        assert!(parse_stroke("1=0:865").is_ok() && parse_stroke("1=9:1").is_err() && parse_stroke("7=0:1").is_err());
+    }
+
+    #[test]
+    fn a_failed_stop_at_the_end_keeps_the_exit_code_and_says_the_actuators_may_move() {
+        let lost = ScuError::SessionLost("port gone".into());
+        let e = finish(Err(CliError::Interrupted("interrupted".into())), Err(lost.clone()), &[0]).unwrap_err();
+        assert!(matches!(&e, CliError::Interrupted(m) if m.contains("may still be moving") && m.contains("F1")), "{e}");
+        let e = finish(Ok(()), Err(lost.clone()), &[1]).unwrap_err();
+        assert!(matches!(&e, CliError::Transport(m) if m.contains("F2")), "{e}");
+        let e = finish(Err(CliError::Device("stalled".into())), Ok(()), &[0]).unwrap_err();
+        assert!(matches!(&e, CliError::Device(m) if m.contains("acknowledged RS")), "{e}");
+        assert!(finish(Ok(()), Ok(()), &[]).is_ok());
+        assert!(matches!(finish(Ok(()), Err(lost), &[]), Err(CliError::Transport(_))));
+    }
+}
