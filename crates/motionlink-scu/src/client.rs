@@ -1430,7 +1430,10 @@ impl ScuClient {
         let mut last_progress_at = [started_at; 6];
         let mut next_poll = started_at + config.poll_interval;
         loop {
-            let cancelled = self.wait_or_cancel(&signal, next_poll, options.cancel);
+            if self.wait_or_cancel(&signal, next_poll, options.cancel) {
+                // Stop first; where it came to rest is read after the stop.
+                return Err(ScuError::Cancelled { actuator: primary, position_counts: last_position[idx(primary)] });
+            }
             let now = self.inner.clock.now();
             // The next poll is due one interval after this one was due (no drift), and never in the past.
             while next_poll <= now {
@@ -1456,7 +1459,7 @@ impl ScuClient {
                     status: status[idx(primary)],
                 });
             }
-            if cancelled || options.cancel.is_some_and(CancelToken::is_cancelled) {
+            if options.cancel.is_some_and(CancelToken::is_cancelled) {
                 return Err(ScuError::Cancelled { actuator: primary, position_counts: positions[idx(primary)] });
             }
             let now = self.inner.clock.now();
@@ -1531,7 +1534,7 @@ impl ScuClient {
             tracing::error!("could not stop {function} after a failed action: {e}");
             return ScuError::StopUnconfirmed { cause: Box::new(cause), stop, detail: e.to_string() };
         }
-        match self.confirm_at_rest(watch) {
+        match self.confirm_at_rest(watch, StopMode::Fast) {
             Ok(positions) => match cause {
                 ScuError::Cancelled { actuator, .. } => {
                     ScuError::Cancelled { actuator, position_counts: positions[usize::from(actuator.number() - 1)] }
@@ -1542,11 +1545,15 @@ impl ScuClient {
         }
     }
 
-    /// Reads the status of `watch` until none reports motion (a few poll intervals at most), then the
-    /// positions.
-    fn confirm_at_rest(&self, watch: &[Actuator]) -> Result<[i32; 6], String> {
+    /// Reads the status of `watch` until none reports motion (500 ms at most after a fast stop, 3 s after a
+    /// soft one, which follows the unit's stop ramp), then the positions.
+    fn confirm_at_rest(&self, watch: &[Actuator], mode: StopMode) -> Result<[i32; 6], String> {
         let signal = self.inner.clock.signal();
-        let give_up = self.inner.clock.now() + Duration::from_millis(500);
+        let patience = match mode {
+            StopMode::Fast => Duration::from_millis(500),
+            StopMode::Soft => Duration::from_secs(3),
+        };
+        let give_up = self.inner.clock.now() + patience;
         loop {
             let status = self.statuses().map_err(|e| format!("the status could not be read: {e}"))?;
             let moving: Vec<Actuator> =
@@ -1733,7 +1740,7 @@ impl SetpointStream<'_> {
             .client
             .stop_motion(self.function, mode)
             .map_err(|e| e.to_string())
-            .and_then(|()| self.client.confirm_at_rest(&self.actuators));
+            .and_then(|()| self.client.confirm_at_rest(&self.actuators, mode));
         match result {
             Ok(p) => Ok(self.actuators.iter().map(|a| (*a, p[usize::from(a.number() - 1)])).collect()),
             Err(detail) => Err(ScuError::StopUnconfirmed {
