@@ -26,7 +26,8 @@
 //! )?;
 //! let a1 = Actuator::new(1).unwrap();
 //! let report = client.move_to(a1, 400, 80, &Default::default())?;
-//! assert_eq!(report.position_counts, 400);
+//! assert_eq!(report.position_counts, 400); // read after the unit reported the end of the motion
+//! assert!(report.actuators.iter().all(|a| a.difference_counts().abs() <= 5 || !a.moved));
 //! client.close()?; // RS for anything still started, then RA
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
@@ -37,16 +38,41 @@
 //! (the field notes' decisions are followed too: one-byte RO, bit n is mask `1 << (n - 1)`, the bytes of the
 //! RT example are the truth):
 //!
-//! - **Reply timeout and retries.** The manual allows a unit 2000 ms to reply, and the client gives it that
-//!   long from the first sending. But the unit's watchdog expires 500 ms after the last RC, and no RC can go
-//!   out while a reply is awaited, so a request that may be repeated (RO, RA, RC, RG, RT, RS) is sent again
-//!   when not one byte of its reply came within [`client::ClientConfig::retry_after`] (150 ms), then after
-//!   300, 600 ... ms of silence; the reply to any sending is accepted, the others are read and dropped. RE is
-//!   repeated only after a CSE (the unit did not execute it); a lost reply to RE is a timeout, and the
-//!   function counts as started.
-//! - **PE from a unit that left remote mode.** A watchdog expiry (for example while an RE's reply was
-//!   awaited) or a reset makes the unit answer PE. The client then sends RO and RC again and repeats the
-//!   request once if it may be repeated; RE is not repeated, the caller gets the PE.
+//! - **Reply timeout and retries.** The manual allows a unit 2000 ms to reply, and the client gives RO that
+//!   long. But the unit's watchdog expires 500 ms after the last RC, and no RC can go out while a reply is
+//!   awaited, so in remote mode a reply is awaited at most 1000 ms: a unit silent that long has stopped its
+//!   drives and left remote mode anyway. A request is sent again when not one byte of its reply came within
+//!   [`client::ClientConfig::retry_after`] (150 ms, or twice the measured round trip), then after 300, 600 ms
+//!   of silence; the reply to any sending is accepted, the others are read and dropped. Before the first
+//!   repetition the client sends 256 zero bytes, which complete a telegram whose corrupted length byte left
+//!   the unit waiting (it answers CSE) and are otherwise skipped as garbage. After a whole request without a
+//!   byte of reply the line counts as silent: keepalives pause, and each request gets one sending and 300 ms.
+//! - **RE is repeated** like the other requests (after silence, a corrupt reply, a CSE or PCE): every RE names
+//!   an absolute destination (an end, a stored position, the remote position) or switches a function on, so
+//!   a second sending has the effect of the first. RS after a failed RE is sent in any case.
+//! - **PE from a unit that left remote mode** (a watchdog expiry, a reset, someone else's RA): the client
+//!   sends an RC and tries once more. Still PE: the unit ended remote mode (with Safety_ID 0 it takes RC but
+//!   no remote motion until RO); the caller gets `RemoteEnded`, and the client never sends RO by itself:
+//!   [`client::ScuClient::reopen`] is the caller's decision. Only the end of a session opens remote mode to
+//!   send the RS every RE needs, then RA. Accepted after the RC (Safety_ID 1 or 2, whose next RC re-arms the
+//!   watchdog): the session goes on; a caller with functions started gets `RemoteEnded` once (their motion
+//!   was stopped by the unit), and they get their RS.
+//! - **Which actuators a function drives** is the unit's parameterisation, which the data list does not show.
+//!   The caller gives it ([`client::FunctionMap`]; presets for SCP11, TLT and LIFTKIT); where it is not given,
+//!   a move writes the target into every connected actuator's remote position and reports the actuators that
+//!   moved, rather than guessing.
+//! - **The stroke** of an actuator, for refusing targets before anything moves, is read from the virtual
+//!   limits of its UserPositionData (0x2001..0x2006, "Position_Virtual_Limit_In/Out"), the only limits in the
+//!   data list; both 0 means none are set. The emulator stops every motion at the stroke ends and at the
+//!   virtual limits.
+//! - **In-position tolerance**: 5 counts by default (1.5 mm on a TLT column of about 3225 counts per metre);
+//!   real columns read a few counts off after homing.
+//! - **Error bits reset on the next motion** (14, 15..20, 21) are cleared from Error_Code 1 when an RE of a
+//!   motion function with a direction other than 0 ("undefined direction, no motion") is accepted, or the
+//!   hand switch starts a motion; the history keeps them.
+//! - **Speed changes during motion** ("the speed can be changed during motion") apply to the running remote
+//!   motions of the function whose remote speed is written; a new remote position takes effect with the next
+//!   RE, so streamed setpoints are RT and RE each time.
 //! - **Which errors.** RT of an index that is not remote data (0x3xxx), an unknown index, or a value out of
 //!   range (speed above 100 % or 1000 counts/s, a cyclic object writing read-only data) is PDE; data of the
 //!   wrong length is PCE; an RE of a function that drives no actuator, or any motion while the emergency stop

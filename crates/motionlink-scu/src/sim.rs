@@ -36,6 +36,22 @@
 //! - Every data-list index answers: positions, status bits (motion, in/out position reached, limit signals),
 //!   currents and their maxima, speeds, cumulated stroke, relay cycle counters, error codes with a history of
 //!   five, and fixed plausible values for the rest.
+//! - A motion never passes the stroke ends, nor the virtual limits of UserPositionData (0x2001..0x2006; both 0
+//!   means none): a target beyond them is clamped, as a unit stops at its limits. A new remote speed (RT of
+//!   0x3011..0x301A) changes the running remote motions of that function along the ramp ("the speed can be
+//!   changed during motion"); a new remote position takes effect with the next RE.
+//! - Errors (Error_Code 1 is the newest of a history of five): a drive that stays stalled (below
+//!   `stall_below_percent`, or pushing against a configured `obstacle_counts`) for `stall_error_after_ms`
+//!   (5 s by default) stops with its drive error bit (15 + n - 1); a total current above
+//!   `total_current_limit_deci_amps` sets bit 14 and fast-stops every drive; `[[error]]` entries of the
+//!   configuration raise a chosen bit at a chosen time. Reactions follow the manual's table (a drive error
+//!   stops its drive, bits 1..5 reset the unit, which ends remote mode, the other bits stop every motion).
+//!   When the next motion starts (an RE of a motion function with a direction other than 0, or the hand
+//!   switch), bits 14..21 ("bit reset on next motion") leave Error_Code 1; the other bits stay, and the
+//!   history keeps what happened.
+//! - Events ([`Emulator::take_events`], printed by `motionlink sim scu --events`): remote mode opened, closed
+//!   or ended by the watchdog, a function started or stopped, an actuator at rest with its position, an error
+//!   bit set or reset, a switching function on or off.
 
 use std::time::Duration;
 
@@ -74,7 +90,14 @@ pub struct ActuatorConfig {
     pub stall_below_percent: u16,
     /// On reaching the In end, the position reads this many counts below it (as real units do after homing).
     pub in_end_undershoot_counts: i32,
-    /// Stored positions (UserPositionData).
+    /// A drive that stays stalled (below [`ActuatorConfig::stall_below_percent`], or pushing against
+    /// [`ActuatorConfig::obstacle_counts`]) this long while its motion is on is stopped with its drive error
+    /// bit (15 for drive 1 .. 20 for drive 6) set, as the unit's drive time-out does. 0: never.
+    pub stall_error_after_ms: u64,
+    /// An obstacle at this position: the drive cannot pass it and stalls there, pushing (twice its full-speed
+    /// current), until its stall error stops it. None: no obstacle.
+    pub obstacle_counts: Option<i32>,
+    /// Stored positions (UserPositionData). Its virtual limits bound every motion of the drive.
     pub user_positions: UserPositionData,
 }
 
@@ -99,23 +122,41 @@ impl Default for ActuatorConfig {
             current_at_full_speed_deci_amps: 30,
             stall_below_percent: 0,
             in_end_undershoot_counts: 0,
+            stall_error_after_ms: 5000,
+            obstacle_counts: None,
             user_positions,
         }
     }
 }
 
-/// The emulated unit's parameterisation: actuators, function mapping, speeds. Loaded from TOML by
-/// `motionlink sim scu --config FILE`.
+/// An error the emulated unit raises by itself at a chosen time, for tests of how a host reacts
+/// (`[[error]]` in the TOML configuration).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScheduledError {
+    /// The manual's bit number, 1..32 ("Bit 15" is drive 1).
+    pub bit: u8,
+    /// When, in ms after the emulator started (power-on).
+    pub at_ms: u64,
+}
+
+/// The emulated unit's parameterisation: actuators, function mapping, speeds, limits and errors. Loaded from
+/// TOML by `motionlink sim scu --config FILE`.
 ///
 /// ```toml
-/// preset = "tlt"            # or "scp11" (the default): starting point, then the fields below override it
+/// preset = "tlt"            # or "scp11" (the default) or "liftkit": starting point, the keys below override it
 /// actuators = 2             # how many actuators are connected (1..6)
 /// speed_mode = "percent"    # or "counts_per_second"
+/// total_current_limit_deci_amps = 50   # above this total current (0.1 A) error bit 14 stops everything; 0: none
 /// [functions]               # which actuators each function F1..F10 drives
 /// F1 = [1, 2]
 /// [[actuator]]              # per actuator, in order (missing ones take the defaults)
 /// stroke_max_counts = 865
 /// counts_per_second_at_full_speed = 110.0
+/// obstacle_counts = 500     # the drive stalls here and stops with its drive error bit set
+/// [[error]]                 # raise error bit 12 five seconds after power-on
+/// bit = 12
+/// at_ms = 5000
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimConfig {
@@ -131,6 +172,11 @@ pub struct SimConfig {
     pub firmware_info: String,
     /// Configuration info (0x0002).
     pub configuration_info: String,
+    /// Above this total current of all drives, in 0.1 A, error bit 14 is set and every motion fast-stops.
+    /// 0: no limit.
+    pub total_current_limit_deci_amps: u16,
+    /// Errors the unit raises by itself at chosen times.
+    pub scheduled_errors: Vec<ScheduledError>,
 }
 
 impl SimConfig {
@@ -148,6 +194,8 @@ impl SimConfig {
             default_speed: 100,
             firmware_info: "SCU V2B3 motionlink-sim".into(),
             configuration_info: "SCP11 motionlink emulator".into(),
+            total_current_limit_deci_amps: 0,
+            scheduled_errors: Vec::new(),
         }
     }
 
@@ -169,6 +217,33 @@ impl SimConfig {
         c
     }
 
+    /// The mapping the public LIFTKIT and TLT drivers assume: F1 (function index 0) drives actuator 1, F2
+    /// (index 1) actuator 2, F8 (index 7) both together; the columns behave like the TLT preset's.
+    pub fn liftkit() -> Self {
+        let mut c = SimConfig::tlt();
+        let a1 = Actuator::new(1).expect("1 is an actuator");
+        let a2 = Actuator::new(2).expect("2 is an actuator");
+        c.functions = Default::default();
+        c.functions[0] = vec![a1];
+        c.functions[1] = vec![a2];
+        c.functions[7] = vec![a1, a2];
+        c.configuration_info = "LIFTKIT motionlink emulator".into();
+        c
+    }
+
+    /// The preset called `name` (scp11 with two actuators, tlt, liftkit).
+    pub fn preset(name: &str) -> Option<Self> {
+        match name {
+            "scp11" => Some(SimConfig::scp11(2)),
+            "tlt" => Some(SimConfig::tlt()),
+            "liftkit" => Some(SimConfig::liftkit()),
+            _ => None,
+        }
+    }
+
+    /// The names of the presets.
+    pub const PRESETS: [&'static str; 3] = ["scp11", "tlt", "liftkit"];
+
     /// Reads a configuration from TOML text (see the type's documentation).
     pub fn from_toml(text: &str) -> Result<Self, SimConfigError> {
         #[derive(serde::Deserialize)]
@@ -181,14 +256,23 @@ impl SimConfig {
             firmware_info: Option<String>,
             configuration_info: Option<String>,
             functions: Option<std::collections::BTreeMap<String, Vec<u8>>>,
-            actuator: Option<Vec<ActuatorConfig>>,
+            actuator: Option<Vec<toml::Table>>,
+            total_current_limit_deci_amps: Option<u16>,
+            error: Option<Vec<ScheduledError>>,
         }
         let f: File = toml::from_str(text).map_err(|e| SimConfigError(e.to_string()))?;
         let mut c = match f.preset.as_deref() {
             None | Some("scp11") => SimConfig::scp11(f.actuators.unwrap_or(2)),
-            Some("tlt") => SimConfig::tlt(),
-            Some(other) => return Err(SimConfigError(format!("unknown preset {other:?} (known: scp11, tlt)"))),
+            Some(name) => SimConfig::preset(name).ok_or_else(|| {
+                SimConfigError(format!("unknown preset {name:?} (known: {})", SimConfig::PRESETS.join(", ")))
+            })?,
         };
+        if let Some(limit) = f.total_current_limit_deci_amps {
+            c.total_current_limit_deci_amps = limit;
+        }
+        if let Some(errors) = f.error {
+            c.scheduled_errors = errors;
+        }
         if let Some(n) = f.actuators {
             if !(1..=6).contains(&n) {
                 return Err(SimConfigError(format!("actuators = {n}: a unit has 1 to 6 actuators")));
@@ -202,7 +286,19 @@ impl SimConfig {
             if list.len() > c.actuators.len() {
                 c.actuators.resize(list.len(), ActuatorConfig::default());
             }
-            for (slot, a) in c.actuators.iter_mut().zip(list) {
+            for (i, (slot, given)) in c.actuators.iter_mut().zip(list).enumerate() {
+                // The keys given override the preset's actuator; a stroke given without stored positions
+                // moves the virtual limits with it.
+                let mut merged = toml::Table::try_from(&*slot).map_err(|e| SimConfigError(e.to_string()))?;
+                let new_stroke = given.contains_key("stroke_min_counts") || given.contains_key("stroke_max_counts");
+                let positions_given = given.contains_key("user_positions");
+                merged.extend(given);
+                let mut a: ActuatorConfig =
+                    merged.try_into().map_err(|e| SimConfigError(format!("[[actuator]] {}: {e}", i + 1)))?;
+                if new_stroke && !positions_given {
+                    a.user_positions.virtual_limit_in_counts = a.stroke_min_counts;
+                    a.user_positions.virtual_limit_out_counts = a.stroke_max_counts;
+                }
                 *slot = a;
             }
         }
@@ -267,6 +363,22 @@ impl SimConfig {
                 return Err(SimConfigError(format!("actuator {}: counts_per_second_at_full_speed must be > 0", i + 1)));
             }
         }
+        for e in &self.scheduled_errors {
+            if !(1..=32).contains(&e.bit) {
+                return Err(SimConfigError(format!("[[error]] bit = {}: the error bits are 1..32", e.bit)));
+            }
+        }
+        for (i, a) in self.actuators.iter().enumerate() {
+            let v = &a.user_positions;
+            if v.virtual_limit_in_counts > v.virtual_limit_out_counts {
+                return Err(SimConfigError(format!(
+                    "actuator {}: the virtual limit In ({}) is above the virtual limit Out ({})",
+                    i + 1,
+                    v.virtual_limit_in_counts,
+                    v.virtual_limit_out_counts
+                )));
+            }
+        }
         if self.default_speed > self.speed_mode.max() {
             return Err(SimConfigError(format!(
                 "default_speed {} is above {}",
@@ -315,7 +427,14 @@ struct ActuatorState {
     /// Decelerating to a stop along the ramp.
     soft_stopping: bool,
     origin: Origin,
+    /// The motion function (wire id 0..9) whose RE started the motion, if a remote one did.
+    function: Option<u8>,
+    /// Too slow to move (below the stall speed).
     stalled: bool,
+    /// Pushing against the configured obstacle.
+    blocked: bool,
+    /// How long it has been stalled or blocked with its motion on, s.
+    stalled_for: f64,
     cumulated_stroke: f64,
     relay_in_cycles: u32,
     relay_out_cycles: u32,
@@ -334,7 +453,10 @@ impl ActuatorState {
             commanded_percent: 0,
             soft_stopping: false,
             origin: Origin::Remote,
+            function: None,
             stalled: false,
+            blocked: false,
+            stalled_for: 0.0,
             cumulated_stroke: 0.0,
             relay_in_cycles: 0,
             relay_out_cycles: 0,
@@ -353,6 +475,18 @@ impl ActuatorState {
         self.cfg.counts_per_second_at_full_speed / ramp
     }
 
+    /// The range a motion may reach: the stroke, narrowed by the virtual limits of UserPositionData (both 0:
+    /// none set).
+    fn travel_range(&self) -> (i32, i32) {
+        let v = &self.cfg.user_positions;
+        let (mut lo, mut hi) = (self.cfg.stroke_min_counts, self.cfg.stroke_max_counts);
+        if (v.virtual_limit_in_counts, v.virtual_limit_out_counts) != (0, 0) {
+            lo = lo.max(v.virtual_limit_in_counts);
+            hi = hi.min(v.virtual_limit_out_counts).max(lo);
+        }
+        (lo, hi)
+    }
+
     fn reported_position(&self) -> i32 {
         let p = self.position.round() as i32;
         if !self.moving() && p <= self.cfg.stroke_min_counts {
@@ -362,12 +496,22 @@ impl ActuatorState {
         }
     }
 
-    fn start(&mut self, target: i32, speed_counts_per_s: f64, percent: u16, origin: Origin) {
-        let target = target.clamp(self.cfg.stroke_min_counts, self.cfg.stroke_max_counts);
+    /// Starts a motion to `target` (clamped to the travel range, as a unit stops at its limits). Returns false
+    /// if the actuator is already there and nothing moves.
+    fn start(
+        &mut self,
+        target: i32,
+        speed_counts_per_s: f64,
+        percent: u16,
+        origin: Origin,
+        function: Option<u8>,
+    ) -> bool {
+        let (lo, hi) = self.travel_range();
+        let target = target.clamp(lo, hi);
         let t = f64::from(target);
         if (t - self.position).abs() < 0.5 {
             // Already there: nothing moves.
-            return;
+            return false;
         }
         if t < self.position {
             self.relay_in_cycles += 1;
@@ -375,11 +519,24 @@ impl ActuatorState {
             self.relay_out_cycles += 1;
         }
         self.target = Some(t);
-        self.commanded_speed = speed_counts_per_s;
-        self.commanded_percent = percent;
         self.soft_stopping = false;
         self.origin = origin;
-        self.stalled = self.cfg.stall_below_percent > 0 && percent < self.cfg.stall_below_percent;
+        self.function = function;
+        self.blocked = false;
+        self.stalled_for = 0.0;
+        self.set_speed(speed_counts_per_s, percent);
+        true
+    }
+
+    /// A new commanded speed; the motion follows it along the ramp.
+    fn set_speed(&mut self, speed_counts_per_s: f64, percent: u16) {
+        self.commanded_speed = speed_counts_per_s;
+        self.commanded_percent = percent;
+        let stalls = self.cfg.stall_below_percent > 0 && percent < self.cfg.stall_below_percent;
+        if !stalls {
+            self.stalled_for = if self.blocked { self.stalled_for } else { 0.0 };
+        }
+        self.stalled = stalls;
     }
 
     fn fast_stop(&mut self) {
@@ -387,6 +544,8 @@ impl ActuatorState {
         self.velocity = 0.0;
         self.soft_stopping = false;
         self.stalled = false;
+        self.blocked = false;
+        self.stalled_for = 0.0;
     }
 
     fn soft_stop(&mut self) {
@@ -395,13 +554,15 @@ impl ActuatorState {
             self.target = None;
         }
         self.stalled = false;
+        self.blocked = false;
+        self.stalled_for = 0.0;
         if self.velocity == 0.0 {
             self.soft_stopping = false;
         }
     }
 
     fn current(&self) -> u16 {
-        if self.stalled {
+        if (self.stalled || self.blocked) && self.target.is_some() {
             return self.cfg.current_at_full_speed_deci_amps.saturating_mul(2);
         }
         if !self.moving() {
@@ -416,8 +577,9 @@ impl ActuatorState {
         ((self.velocity.abs() / self.cfg.counts_per_second_at_full_speed) * 100.0).round() as u16
     }
 
-    /// Runs the model for `dt`.
-    fn step(&mut self, dt: f64) {
+    /// Runs the model for `dt`. Returns true when the drive's stall time-out expired: the caller raises its
+    /// drive error.
+    fn step(&mut self, dt: f64) -> bool {
         let accel = self.acceleration();
         if self.soft_stopping {
             let dv = accel * dt;
@@ -428,16 +590,23 @@ impl ActuatorState {
                 self.soft_stopping = false;
             }
         } else if let Some(target) = self.target {
-            if self.stalled {
+            if self.stalled || self.blocked {
                 self.velocity = 0.0;
             } else {
                 let remaining = target - self.position;
                 let dir = remaining.signum();
-                // Slow down in time to stop at the target along the ramp.
+                // Slow down in time to stop at the target along the ramp; follow a lower commanded speed
+                // along the ramp too.
                 let brake_limit = (2.0 * accel * remaining.abs()).sqrt();
-                let wanted = self.commanded_speed.min(brake_limit);
                 let speed = self.velocity.abs();
-                let new_speed = if wanted > speed { (speed + accel * dt).min(wanted) } else { wanted };
+                let wanted = self.commanded_speed.min(brake_limit);
+                let new_speed = if wanted > speed {
+                    (speed + accel * dt).min(wanted)
+                } else if wanted < brake_limit {
+                    (speed - accel * dt).max(wanted)
+                } else {
+                    wanted
+                };
                 let travel = ((speed + new_speed) / 2.0 * dt).max(new_speed * dt * 0.5);
                 if travel >= remaining.abs() || remaining.abs() < 0.5 {
                     self.integrate(remaining);
@@ -447,6 +616,18 @@ impl ActuatorState {
                 } else {
                     self.integrate(dir * travel);
                     self.velocity = dir * new_speed;
+                }
+                // An obstacle in the way stops the drive there, still pushing.
+                if let Some(o) = self.cfg.obstacle_counts.map(f64::from) {
+                    let before = self.position - dir * travel;
+                    let crossed = (before < o && self.position >= o && dir > 0.0)
+                        || (before > o && self.position <= o && dir < 0.0);
+                    if crossed && (target - o).abs() >= 0.5 {
+                        self.position = o;
+                        self.velocity = 0.0;
+                        self.blocked = true;
+                        self.target = Some(target);
+                    }
                 }
             }
         }
@@ -459,6 +640,12 @@ impl ActuatorState {
             self.soft_stopping = false;
         }
         self.max_current = self.max_current.max(self.current());
+        if (self.stalled || self.blocked) && self.target.is_some() {
+            self.stalled_for += dt;
+            let limit = self.cfg.stall_error_after_ms as f64 / 1000.0;
+            return self.cfg.stall_error_after_ms > 0 && self.stalled_for >= limit - 1e-9;
+        }
+        false
     }
 
     fn integrate(&mut self, delta: f64) {
@@ -547,7 +734,22 @@ pub struct ScuEmulator {
     max_total_current: u16,
     stats: SimStats,
     reply: Vec<u8>,
+    /// What happened, for [`Emulator::take_events`]; the oldest are dropped beyond [`MAX_EVENTS`].
+    events: std::collections::VecDeque<String>,
+    /// Whether each actuator was moving when last looked at (to report when it comes to rest).
+    was_moving: [bool; 6],
+    /// The scheduled errors, by time, and how many of them were raised.
+    scheduled_errors: Vec<ScheduledError>,
+    scheduled_raised: usize,
 }
+
+/// The most events an emulator keeps for [`Emulator::take_events`] (a host that never takes them loses the
+/// oldest).
+pub const MAX_EVENTS: usize = 1024;
+
+/// Error bits the manual resets on the next motion: 14 (total current), 15..20 (drives 1..6), 21 (position
+/// difference of synchronised drives).
+pub const RESET_ON_NEXT_MOTION: u32 = ((1u32 << 21) - 1) & !((1u32 << 13) - 1);
 
 impl ScuEmulator {
     /// A unit with `config`, powered on at time zero.
@@ -559,6 +761,8 @@ impl ScuEmulator {
             // "Default value: memory 1 / user 1 position of UserPositionData".
             *slot = a.user_positions.users[0].memory_counts[0];
         }
+        let mut scheduled_errors = config.scheduled_errors.clone();
+        scheduled_errors.sort_by_key(|e| e.at_ms);
         Ok(ScuEmulator {
             remote_speed: [config.default_speed; 10],
             config,
@@ -581,6 +785,10 @@ impl ScuEmulator {
             keys: 0,
             stats: SimStats::default(),
             reply: Vec::with_capacity(MAX_REPLY_LEN),
+            events: std::collections::VecDeque::new(),
+            was_moving: [false; 6],
+            scheduled_errors,
+            scheduled_raised: 0,
         })
     }
 
@@ -624,22 +832,43 @@ impl ScuEmulator {
         ErrorCode(self.error_history[0])
     }
 
-    /// Records an error: shifts the history, and applies the manual's reaction for drive and total-current
-    /// errors (fast stop). For tests that need a unit in trouble.
+    /// Raises an error now: enters it in the history (Error_Code 1 is the newest) and applies the manual's
+    /// reaction: a drive error (bits 15..20) fast-stops that drive; bit 22 (remote time-out) only records;
+    /// bits 1..5 stop everything and reset the unit, which leaves remote mode; every other defined bit
+    /// fast-stops every motion. For tests that need a unit in trouble.
     pub fn inject_error(&mut self, code: ErrorCode) {
         self.record_error(code);
-        for n in error_bits::DRIVE1..error_bits::DRIVE1 + 6 {
-            if code.has(n) {
-                if let Some(a) = self.actuators.get_mut(usize::from(n - error_bits::DRIVE1)) {
-                    a.fast_stop();
-                    a.error_count += 1;
+        let mut stop_all = false;
+        for n in 1..=32u8 {
+            if !code.has(n) {
+                continue;
+            }
+            match n {
+                15..=20 => {
+                    if let Some(a) = self.actuators.get_mut(usize::from(n - error_bits::DRIVE1)) {
+                        a.fast_stop();
+                        a.error_count += 1;
+                    }
                 }
+                error_bits::TOTAL_CURRENT => {
+                    self.total_over_current_count += 1;
+                    stop_all = true;
+                }
+                error_bits::REMOTE_TIMEOUT | 9 | 23 => {}
+                1..=5 => {
+                    stop_all = true;
+                    if self.mode != RemoteMode::Off {
+                        self.push_event("remote mode ended by a reset of the unit".into());
+                    }
+                    self.mode = RemoteMode::Off;
+                }
+                _ => stop_all = true,
             }
         }
-        if code.has(error_bits::TOTAL_CURRENT) {
+        if stop_all {
             self.actuators.iter_mut().for_each(ActuatorState::fast_stop);
-            self.total_over_current_count += 1;
         }
+        self.note_rest();
     }
 
     /// Presses the hand switch: moves the actuators of motion function `function` (1..10) In or Out as a
@@ -650,13 +879,16 @@ impl ScuEmulator {
             return;
         }
         self.keys |= 1 << (2 * f + usize::from(out));
+        self.reset_errors_on_motion();
+        self.push_event(format!("hand switch: F{function} {}", if out { "out" } else { "in" }));
         for a in self.config.functions[f].clone() {
             let i = usize::from(a.number()) - 1;
             let cfg = &self.config.actuators[i];
             let target = if out { cfg.stroke_max_counts } else { cfg.stroke_min_counts };
             let speed = cfg.counts_per_second_at_full_speed;
-            self.actuators[i].start(target, speed, 100, Origin::Local);
+            self.actuators[i].start(target, speed, 100, Origin::Local, None);
         }
+        self.note_rest();
     }
 
     /// Releases the hand switch: local motions stop along the ramp.
@@ -667,42 +899,109 @@ impl ScuEmulator {
                 a.soft_stop();
             }
         }
+        self.note_rest();
     }
 
     fn record_error(&mut self, code: ErrorCode) {
         self.error_history.rotate_right(1);
         self.error_history[0] = code.0;
+        for b in 1..=32u8 {
+            if code.has(b) {
+                let cause = crate::model::error_bit(b).map_or("undefined", |e| e.cause);
+                self.push_event(format!("error bit {b} set ({cause})"));
+            }
+        }
     }
 
-    /// Runs the physical model and the watchdog up to `to`.
+    /// A motion starts: the bits the manual resets "on the next motion" (14, 15..20, 21) leave Error_Code 1.
+    fn reset_errors_on_motion(&mut self) {
+        let cleared = self.error_history[0] & RESET_ON_NEXT_MOTION;
+        if cleared == 0 {
+            return;
+        }
+        self.error_history[0] &= !RESET_ON_NEXT_MOTION;
+        let bits: Vec<String> = (1..=32u8).filter(|&b| ErrorCode(cleared).has(b)).map(|b| b.to_string()).collect();
+        self.push_event(format!("error bit {} reset by the next motion", bits.join(", ")));
+    }
+
+    fn push_event(&mut self, text: String) {
+        if self.events.len() >= MAX_EVENTS {
+            self.events.pop_front();
+        }
+        self.events.push_back(text);
+    }
+
+    /// Reports actuators that came to rest since the last look.
+    fn note_rest(&mut self) {
+        for i in 0..self.actuators.len() {
+            let moving = self.actuators[i].moving();
+            if self.was_moving[i] && !moving {
+                let p = self.actuators[i].reported_position();
+                self.push_event(format!("A{} at rest {p} counts", i + 1));
+            }
+            self.was_moving[i] = moving;
+        }
+    }
+
+    /// The next scheduled error's time, if any is left.
+    fn next_scheduled_error(&self) -> Option<Timestamp> {
+        self.scheduled_errors.get(self.scheduled_raised).map(|e| Timestamp::from_millis(e.at_ms))
+    }
+
+    /// Runs the physical model, the watchdog and the scheduled errors up to `to`.
     fn run_until(&mut self, to: Timestamp) {
         while self.now < to {
             let watchdog_at = match self.mode {
                 RemoteMode::AwaitingRc(_) | RemoteMode::Active(_) => Some(self.last_rc + WATCHDOG),
                 _ => None,
             };
+            let timer_at = [watchdog_at, self.next_scheduled_error()].into_iter().flatten().min();
             let mut next = (self.now + STEP).min(to);
-            if let Some(w) = watchdog_at {
+            if let Some(w) = timer_at {
                 next = next.min(w.max(self.now));
             }
             let dt = (next - self.now).as_secs_f64();
             if dt > 0.0 {
                 if self.any_moving() {
-                    for a in &mut self.actuators {
-                        a.step(dt);
+                    let mut drive_errors = 0u32;
+                    for (i, a) in self.actuators.iter_mut().enumerate() {
+                        if a.step(dt) {
+                            drive_errors |= 1 << (u32::from(error_bits::DRIVE1) - 1 + i as u32);
+                        }
                     }
                     let total: u16 = self.actuators.iter().map(ActuatorState::current).sum();
                     self.max_total_current = self.max_total_current.max(total);
+                    self.now = next;
+                    if drive_errors != 0 {
+                        self.inject_error(ErrorCode(drive_errors));
+                    }
+                    let limit = self.config.total_current_limit_deci_amps;
+                    if limit > 0 && total > limit && self.any_moving() {
+                        self.inject_error(ErrorCode::from_bit(error_bits::TOTAL_CURRENT));
+                    }
+                    self.note_rest();
                 } else if to - self.now > STEP {
-                    // Nothing moves: jump to the next event.
-                    let jump_to = watchdog_at.map_or(to, |w| w.min(to)).max(next);
+                    // Nothing moves: jump to the next timer.
+                    let jump_to = timer_at.map_or(to, |w| w.min(to)).max(next);
                     self.now = jump_to;
-                    self.check_watchdog();
-                    continue;
+                } else {
+                    self.now = next;
                 }
+            } else {
+                self.now = next;
             }
-            self.now = next;
             self.check_watchdog();
+            self.raise_scheduled_errors();
+        }
+    }
+
+    fn raise_scheduled_errors(&mut self) {
+        while let Some(e) = self.scheduled_errors.get(self.scheduled_raised).copied() {
+            if self.now < Timestamp::from_millis(e.at_ms) {
+                break;
+            }
+            self.scheduled_raised += 1;
+            self.inject_error(ErrorCode::from_bit(e.bit));
         }
     }
 
@@ -725,6 +1024,13 @@ impl ScuEmulator {
             SafetyId::StopAllAndLock => RemoteMode::Locked,
             s => RemoteMode::TimedOut(s),
         };
+        let what = match safety {
+            SafetyId::StopAllAndLock => "all motions stopped; remote motion locked until RO",
+            SafetyId::StopAll => "all motions stopped; the next RC re-arms it",
+            SafetyId::StopRemoteOnly => "remote motions stopped; the next RC re-arms it",
+        };
+        self.push_event(format!("remote mode ended by watchdog (Safety_ID {}): {what}", safety.code()));
+        self.note_rest();
     }
 
     fn reply_status(&mut self, command: Command, status: Status) {
@@ -835,7 +1141,19 @@ impl ScuEmulator {
         let i = e.index.0;
         match (i, v) {
             (0x3001..=0x3005, Value::CyclicObject(o)) => self.cyclic_objects[usize::from(i - 0x3001)] = o,
-            (0x3011..=0x301A, Value::RemoteSpeed(s)) => self.remote_speed[usize::from(i - 0x3011)] = s,
+            (0x3011..=0x301A, Value::RemoteSpeed(s)) => {
+                let function = (i - 0x3011) as u8;
+                self.remote_speed[usize::from(function)] = s;
+                // "The speed can be changed during motion": the function's running remote motions follow
+                // it along the ramp.
+                for k in 0..self.actuators.len() {
+                    let a = &self.actuators[k];
+                    if a.function == Some(function) && a.origin == Origin::Remote && a.target.is_some() {
+                        let (counts_per_s, percent) = self.speed_of(k, s);
+                        self.actuators[k].set_speed(counts_per_s, percent);
+                    }
+                }
+            }
             (0x3021..=0x3026, Value::RemotePosition(p)) => self.remote_position[usize::from(i - 0x3021)] = p,
             _ => return Err(Status::ParameterDataError),
         }
@@ -905,6 +1223,7 @@ impl ScuEmulator {
                     self.mode = RemoteMode::AwaitingRc(s);
                     self.last_rc = self.now;
                     self.reply_status(command, Status::Ack);
+                    self.push_event(format!("remote mode opened (Safety_ID {safety_id})"));
                 }
                 None => self.reply_status(command, Status::ParameterDataError),
             },
@@ -912,9 +1231,11 @@ impl ScuEmulator {
                 // Leaving remote mode ends remote control: remote motions stop (a decision; the manual is silent).
                 if self.mode != RemoteMode::Off {
                     self.actuators.iter_mut().filter(|a| a.origin == Origin::Remote).for_each(ActuatorState::fast_stop);
+                    self.push_event("remote mode closed by RA".into());
                 }
                 self.mode = RemoteMode::Off;
                 self.reply_status(command, Status::Ack);
+                self.note_rest();
             }
             Request::Cyclic { object, write } => self.handle_cyclic(object, write),
             Request::Get { index } => match item(DataIndex(index)) {
@@ -1009,7 +1330,11 @@ impl ScuEmulator {
                     return Err(Status::PermissionError);
                 }
                 self.executed[usize::from(function)] = true;
+                if direction != MotionDirection::Undefined {
+                    self.reset_errors_on_motion();
+                }
                 let speed = self.remote_speed[usize::from(m.id())];
+                let mut moves = Vec::new();
                 for a in drives {
                     let i = usize::from(a.number()) - 1;
                     let cfg = &self.config.actuators[i];
@@ -1026,15 +1351,24 @@ impl ScuEmulator {
                         MotionDirection::IntermediateOut => user.intermediate_out_counts,
                         MotionDirection::RemotePosition => self.remote_position[i],
                     };
-                    let (counts_per_s, percent) = match self.config.speed_mode {
-                        SpeedMode::Percent => (cfg.counts_per_second_at_full_speed * f64::from(speed) / 100.0, speed),
-                        SpeedMode::CountsPerSecond => (
-                            f64::from(speed),
-                            (f64::from(speed) / cfg.counts_per_second_at_full_speed * 100.0).round() as u16,
-                        ),
-                    };
-                    self.actuators[i].start(target, counts_per_s, percent, Origin::Remote);
+                    let (counts_per_s, percent) = self.speed_of(i, speed);
+                    let moves_now =
+                        self.actuators[i].start(target, counts_per_s, percent, Origin::Remote, Some(m.id()));
+                    let (lo, hi) = self.actuators[i].travel_range();
+                    moves.push(format!(
+                        "{a} -> {}{}",
+                        target.clamp(lo, hi),
+                        if moves_now { "" } else { " (already there)" }
+                    ));
                 }
+                self.push_event(format!(
+                    "{} started direction {} ({}): {}",
+                    m,
+                    direction.code(),
+                    direction.description(),
+                    if moves.is_empty() { "nothing moves".to_string() } else { moves.join(", ") }
+                ));
+                self.note_rest();
                 Ok(())
             }
             other => {
@@ -1044,6 +1378,17 @@ impl ScuEmulator {
                 self.executed[usize::from(function)] = true;
                 self.switch(other, true);
                 Ok(())
+            }
+        }
+    }
+
+    /// Counts per second and percent of actuator `i` at remote speed `speed` (in the unit's speed mode).
+    fn speed_of(&self, i: usize, speed: u16) -> (f64, u16) {
+        let cfg = &self.config.actuators[i];
+        match self.config.speed_mode {
+            SpeedMode::Percent => (cfg.counts_per_second_at_full_speed * f64::from(speed) / 100.0, speed),
+            SpeedMode::CountsPerSecond => {
+                (f64::from(speed), (f64::from(speed) / cfg.counts_per_second_at_full_speed * 100.0).round() as u16)
             }
         }
     }
@@ -1063,6 +1408,12 @@ impl ScuEmulator {
                         }
                     }
                 }
+                let how = match mode {
+                    StopMode::Fast => "fast",
+                    StopMode::Soft => "soft",
+                };
+                self.push_event(format!("{m} stopped (RS {how})"));
+                self.note_rest();
                 Ok(())
             }
             other => {
@@ -1098,6 +1449,8 @@ impl ScuEmulator {
             }
             Function::Motion(_) => {}
         }
+        self.push_event(format!("F{} {} ({})", f.number(), if on { "on" } else { "off" }, f.description()));
+        self.note_rest();
     }
 }
 
@@ -1139,7 +1492,8 @@ impl Emulator for ScuEmulator {
                 }
                 Err(
                     crate::wire::WireError::Oversized { command, .. }
-                    | crate::wire::WireError::Undersized { command, .. },
+                    | crate::wire::WireError::Undersized { command, .. }
+                    | crate::wire::WireError::UnexpectedLength { command, .. },
                 ) => self.reply_status(command, Status::ParameterCountError),
             }
         }
@@ -1156,9 +1510,23 @@ impl Emulator for ScuEmulator {
         }
     }
 
+    /// The unit never speaks unasked, and its state is computed exactly whenever it is looked at; but a
+    /// server that reports events wants to look when something happens: while an actuator moves (every
+    /// model step), when the watchdog would expire, when a scheduled error is due.
     fn next_wakeup(&self) -> Option<Timestamp> {
-        // The unit never speaks unasked; its state is computed exactly whenever it is looked at.
-        None
+        let watchdog = match self.mode {
+            RemoteMode::AwaitingRc(_) | RemoteMode::Active(_) => Some(self.last_rc + WATCHDOG),
+            _ => None,
+        };
+        let motion = self.any_moving().then(|| self.now + STEP);
+        [watchdog, motion, self.next_scheduled_error()].into_iter().flatten().min()
+    }
+
+    /// One line per notable change since the last call, oldest first: remote mode opened, closed or ended by
+    /// the watchdog; a function started ("F1 started direction 9 ...") or stopped; an actuator at rest
+    /// ("A1 at rest 400 counts"); an error bit set or reset; a switching function on or off.
+    fn take_events(&mut self) -> Vec<String> {
+        self.events.drain(..).collect()
     }
 
     /// A telegram the host left half-sent is dropped; remote mode, its watchdog and any motion go on.
@@ -1219,6 +1587,49 @@ impl OwnedIncoming {
 mod tests {
     use super::*;
     use crate::model::DATA_LIST;
+
+    fn send(unit: &mut ScuEmulator, at_ms: u64, r: Request<'_>) -> Vec<u8> {
+        let mut out = Vec::new();
+        unit.receive(Timestamp::from_millis(at_ms), &crate::wire::request_to_vec(&r).unwrap(), &mut out);
+        out
+    }
+
+    #[test]
+    fn take_events_reports_switching_and_keeps_only_the_newest_when_nobody_takes_them() {
+        let mut unit = ScuEmulator::new(SimConfig::default()).unwrap();
+        send(&mut unit, 0, Request::Open { safety_id: 2 });
+        send(&mut unit, 0, Request::Cyclic { object: UNUSED, write: &[] });
+        send(&mut unit, 1, Request::Execute { function: 10, params: [UNUSED, UNUSED] });
+        send(&mut unit, 2, Request::Stop { function: 10, param: UNUSED });
+        assert_eq!(unit.take_events(), ["remote mode opened (Safety_ID 2)", "F11 on (buzzer)", "F11 off (buzzer)"]);
+        for i in 0..MAX_EVENTS as u64 {
+            send(&mut unit, 3 + i / 10, Request::Execute { function: 20, params: [UNUSED, UNUSED] });
+            send(&mut unit, 3 + i / 10, Request::Stop { function: 20, param: UNUSED });
+            send(&mut unit, 3 + i / 10, Request::Cyclic { object: UNUSED, write: &[] });
+        }
+        let events = unit.take_events();
+        assert_eq!(events.len(), MAX_EVENTS);
+        assert_eq!(events.last().map(String::as_str), Some("F21 off (operating unit LED 1)"));
+    }
+
+    #[test]
+    fn next_wakeup_is_the_watchdog_while_idle_and_every_model_step_while_moving() {
+        let mut unit = ScuEmulator::new(SimConfig::default()).unwrap();
+        assert_eq!(unit.next_wakeup(), None, "outside remote mode nothing happens by itself");
+        send(&mut unit, 100, Request::Open { safety_id: 0 });
+        assert_eq!(unit.next_wakeup(), Some(Timestamp::from_millis(600)));
+        send(&mut unit, 200, Request::Cyclic { object: UNUSED, write: &[] });
+        send(&mut unit, 200, Request::Execute { function: 0, params: [2, UNUSED] });
+        assert_eq!(unit.next_wakeup(), Some(Timestamp::from_millis(205)));
+        let mut out = Vec::new();
+        unit.advance(Timestamp::from_millis(700), &mut out);
+        assert!(out.is_empty());
+        assert!(!unit.any_moving(), "the watchdog stopped it at 700 ms");
+        assert_eq!(unit.next_wakeup(), None, "locked: nothing is due");
+        let events = unit.take_events();
+        assert!(events.iter().any(|e| e.starts_with("A1 at rest")), "{events:?}");
+        assert!(events.iter().any(|e| e.starts_with("remote mode ended by watchdog (Safety_ID 0)")), "{events:?}");
+    }
 
     #[test]
     fn every_entry_of_the_data_list_has_a_modelled_value() {

@@ -563,6 +563,16 @@ pub enum WireError {
         /// The ctp received.
         ctp: u16,
     },
+    /// A reply announces another number of data bytes than the request asks for (a corrupt length byte).
+    #[error("{command} reply announces {ctp} data bytes; the request asks for {expected}")]
+    UnexpectedLength {
+        /// The command.
+        command: Command,
+        /// The ctp received.
+        ctp: u16,
+        /// The number of data bytes the request asks for.
+        expected: u16,
+    },
 }
 
 // ---------------------------------------------------------------------------------------------------------
@@ -855,6 +865,8 @@ pub type ReplyEvent<'a> = Result<Reply<'a>, WireError>;
 struct Expectation {
     command: Command,
     shape: ReplyShape,
+    /// The number of data bytes of an ACK with data, when the request fixes it.
+    data_len: Option<u16>,
 }
 
 /// Incremental decoder of replies: feed it any chunk of bytes, get telegrams out.
@@ -898,7 +910,14 @@ impl ReplyDecoder {
 
     /// Accepts only replies to `command`, of `shape` when ACKed.
     pub fn expect(&mut self, command: Command, shape: ReplyShape) {
-        self.expect = Some(Expectation { command, shape });
+        self.expect = Some(Expectation { command, shape, data_len: None });
+    }
+
+    /// Like [`ReplyDecoder::expect`], and an ACK with data must carry exactly `data_len` bytes: a reply that
+    /// announces another count (its length byte was corrupted) is reported at once as
+    /// [`WireError::UnexpectedLength`] instead of being waited for.
+    pub fn expect_len(&mut self, command: Command, shape: ReplyShape, data_len: u16) {
+        self.expect = Some(Expectation { command, shape, data_len: Some(data_len) });
     }
 
     /// Accepts replies of any command again.
@@ -985,6 +1004,9 @@ fn scan_reply(b: &[u8], expect: Option<Expectation>) -> Scan {
                 return Scan::NeedMore;
             }
             let ctp = u16::from_le_bytes([b[3], b[4]]);
+            if let Some(expected) = expect.and_then(|e| e.data_len).filter(|&n| n != ctp) {
+                return Scan::BadLength(WireError::UnexpectedLength { command, ctp, expected });
+            }
             if usize::from(ctp) > MAX_REPLY_DATA {
                 return Scan::BadLength(WireError::Oversized { command, ctp, max: MAX_REPLY_DATA });
             }

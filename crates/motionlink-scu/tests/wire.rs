@@ -394,3 +394,32 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn a_reply_whose_length_byte_disagrees_with_the_request_is_rejected_at_once() {
+    // The manual's RG 0x0011 reply (400 counts) with its ctp corrupted to 0x84: without the expected length the
+    // decoder would wait for 128 more bytes.
+    let good = [0x52, 0x47, 0x06, 0x04, 0x00, 0x90, 0x01, 0x00, 0x00, 0xA3, 0xAD];
+    let mut bad = good;
+    bad[3] ^= 0x80;
+    let mut dec = ReplyDecoder::new();
+    dec.expect(Command::Get, ReplyShape::WithData);
+    assert!(decode_replies(&mut dec, &bad).is_empty(), "waits for 132 data bytes");
+    let mut dec = ReplyDecoder::new();
+    dec.expect_len(Command::Get, ReplyShape::WithData, 4);
+    let events = decode_replies(&mut dec, &bad);
+    assert_eq!(
+        events[0],
+        Err(WireError::UnexpectedLength { command: Command::Get, ctp: 0x84, expected: 4 }),
+        "{events:?}"
+    );
+    // The next good reply is found.
+    dec.reset();
+    dec.expect_len(Command::Get, ReplyShape::WithData, 4);
+    assert_eq!(decode_replies(&mut dec, &good), [Ok((Command::Get, Status::Ack, Some(400i32.to_le_bytes().to_vec())))]);
+    // An error status has no length byte: a PE is taken as such.
+    assert_eq!(
+        decode_replies(&mut dec, &[0x52, 0x47, 0x84, 0xF9, 0x75]),
+        [Ok((Command::Get, Status::PermissionError, None))]
+    );
+}

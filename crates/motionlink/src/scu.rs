@@ -12,7 +12,9 @@ use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::transcript::{TapLink, Transcript, Way};
 use motionlink_link::url::PortUrl;
 use motionlink_link::{ManualClock, RealClock, SharedClock, Timestamp};
-use motionlink_scu::client::{ClientConfig, ErrorClass, MoveOptions, MoveProgress, ScuClient, ScuError};
+use motionlink_scu::client::{
+    ClientConfig, ErrorClass, FunctionMap, MoveOptions, MoveProgress, MoveReport, ScuClient, ScuError, StrokeLimits,
+};
 use motionlink_scu::describe::{describe_incoming, describe_reply, describe_request};
 use motionlink_scu::model::{
     lookup, status1, Actuator, DataEntry, DataIndex, ErrorCode, FlagSet, Flags, Function, Item, MotionDirection,
@@ -41,9 +43,29 @@ pub struct Args {
     /// motion, 2 stops remote motion only.
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=2))]
     pub safety: u8,
-    /// How long to wait for a reply, in ms (the manual allows the unit 2000 ms).
-    #[arg(long, default_value_t = 2000, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    /// How long to wait for the reply to RO, in ms (the manual allows the unit 2000 ms). In remote mode replies
+    /// are awaited at most 1000 ms (twice the unit's watchdog), or this if it is shorter.
+    #[arg(long, default_value_t = 2000, value_name = "MS", allow_hyphen_values = true,
+          value_parser = clap::value_parser!(u64).range(1..=60_000))]
     pub reply_timeout: u64,
+    /// Which actuators each motion function drives (the unit's parameterisation, which the data list does not
+    /// show): a preset, scp11 (Fn drives An), tlt (F1 both columns, F2 A1, F3 A2) or liftkit (F1 A1, F2 A2, F8
+    /// both), or one function, F1=1,2. Repeat to combine (--functions scp11 --functions F7=1,2). Without it,
+    /// move gives every connected actuator the target and reports the ones that moved.
+    #[arg(long = "functions", value_name = "MAP")]
+    pub functions: Vec<String>,
+    /// The travel range of an actuator for move targets, ACTUATOR=MIN:MAX in counts (such as 1=0:865), instead of
+    /// the virtual limits the unit reports in its UserPositionData. Repeat for several actuators.
+    #[arg(long = "stroke", value_name = "A=MIN:MAX")]
+    pub stroke: Vec<String>,
+    /// How close to its target a move must end to succeed, in counts.
+    #[arg(long, default_value_t = 5, value_name = "COUNTS", allow_hyphen_values = true,
+          value_parser = clap::value_parser!(u32).range(0..=10_000))]
+    pub tolerance: u32,
+    /// How often a move polls the actuators, in ms (each poll is two reads, 8 ms of the 38400-baud line).
+    #[arg(long, default_value_t = 50, value_name = "MS", allow_hyphen_values = true,
+          value_parser = clap::value_parser!(u64).range(5..=10_000))]
+    pub poll_interval: u64,
     /// How the unit takes remote speeds: percent (standard units, "speed select relative") or
     /// counts-per-second (units parameterised for "speed select absolute", 0..1000 counts/s).
     #[arg(long, value_enum, default_value_t = SpeedModeArg::Percent, value_name = "MODE")]
@@ -93,19 +115,38 @@ pub enum Action {
         /// The value, in the entry's unit (percent, counts...).
         value: String,
     },
-    /// Move an actuator to a position (counts) and wait until it is there. Ctrl-C stops it.
+    /// Move an actuator to a position (counts) and wait until it is there; every actuator the function drives
+    /// goes there too. Exits 0 only if each ended within --tolerance of the target. Ctrl-C stops it.
     Move {
         /// Actuator 1..6.
         actuator: u8,
         /// Target position in encoder counts.
         #[arg(allow_negative_numbers = true)]
         position: i32,
-        /// Speed in percent (or counts/s on units set to absolute speed).
-        #[arg(long, default_value_t = 100)]
-        speed: u16,
-        /// Motion function (1..10) that drives the actuator; default: the same number (SCP11).
+        /// Speed in percent, 1..100 (or counts/s, 1..1000, on units set to absolute speed).
+        #[arg(long, default_value = "100", value_name = "SPEED", allow_hyphen_values = true)]
+        speed: String,
+        /// Motion function (1..10) that drives the actuator; default: the one with its number (F1 for A1).
         #[arg(long)]
         function: Option<u8>,
+    },
+    /// Follow targets read from stdin while the motion runs (streamed setpoints): each line gives the target
+    /// in counts, one number for every actuator the function drives or one per actuator ("400" or "400 410"
+    /// or "a1=400 a2=410"), or a new speed ("speed 60"); "#" starts a comment. EOF, Ctrl-C or a bad line stops
+    /// the motion.
+    Follow {
+        /// Actuator 1..6 (its function, and every actuator that function drives, follow the targets).
+        actuator: u8,
+        /// Motion function (1..10); default: the one with the actuator's number.
+        #[arg(long)]
+        function: Option<u8>,
+        /// Speed in percent, 1..100 (or counts/s, 1..1000, on units set to absolute speed).
+        #[arg(long, default_value = "100", value_name = "SPEED", allow_hyphen_values = true)]
+        speed: String,
+        /// At most this many setpoint updates per second (1..100); lines that come faster are merged: the
+        /// newest target wins.
+        #[arg(long, default_value = "20", value_name = "HZ", allow_hyphen_values = true)]
+        rate: String,
     },
     /// Run a function until it ends or Ctrl-C: a motion function (F1..F10) with a direction (in, out, mem1..mem4,
     /// int-in, int-out, remote, or 0..9), or F11 buzzer, F17/F18 outputs, F20 emergency stop, F21/F22 LEDs with "on".
@@ -115,8 +156,8 @@ pub enum Action {
         /// Direction of a motion function, or "on".
         direction: String,
         /// Stop after this many seconds (default: when the motion ends, or Ctrl-C).
-        #[arg(long, value_name = "S")]
-        seconds: Option<f64>,
+        #[arg(long, value_name = "S", allow_hyphen_values = true)]
+        seconds: Option<String>,
     },
     /// Stop a function (RS): motions fast, or along the ramp with --soft.
     Stop {
@@ -128,11 +169,12 @@ pub enum Action {
     },
     /// Live positions and state until Ctrl-C.
     Watch {
-        /// Time between samples, in ms.
-        #[arg(long, default_value_t = 250, value_name = "MS")]
+        /// Time between samples, in ms (10 .. 3600000).
+        #[arg(long, default_value_t = 250, value_name = "MS", allow_hyphen_values = true,
+              value_parser = clap::value_parser!(u64).range(10..=3_600_000))]
         interval: u64,
-        /// Stop after this many samples.
-        #[arg(long)]
+        /// Stop after this many samples (at least 1).
+        #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u64).range(1..))]
         count: Option<u64>,
     },
     /// The error history (Error_Code 1..5) with each bit's cause.
@@ -147,8 +189,9 @@ pub struct SimArgs {
     /// Parameterisation (TOML): actuators, function mapping, stroke, speed. See the README.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
-    /// Start from a preset: scp11 (default; actuator n on Fn) or tlt (F1 drives two columns).
-    #[arg(long, value_parser = ["scp11", "tlt"])]
+    /// Start from a preset: scp11 (default; actuator n on Fn), tlt (F1 drives both columns, F2 and F3 one each)
+    /// or liftkit (F1 actuator 1, F2 actuator 2, F8 both, as the public LIFTKIT/TLT drivers assume).
+    #[arg(long, value_parser = ["scp11", "tlt", "liftkit"])]
     pub preset: Option<String>,
 }
 
@@ -179,10 +222,7 @@ fn scu_error(e: ScuError) -> CliError {
 }
 
 fn load_sim_config(path: Option<&PathBuf>, preset: Option<&str>) -> Result<SimConfig, CliError> {
-    let mut config = match preset {
-        Some("tlt") => SimConfig::tlt(),
-        _ => SimConfig::default(),
-    };
+    let mut config = preset.and_then(SimConfig::preset).unwrap_or_default();
     if let Some(path) = path {
         let text = std::fs::read_to_string(path)
             .map_err(|e| CliError::usage(format!("cannot read {}: {e}", path.display())))?;
@@ -195,16 +235,84 @@ fn load_sim_config(path: Option<&PathBuf>, preset: Option<&str>) -> Result<SimCo
     Ok(config)
 }
 
-fn connect(args: &Args) -> Result<ScuClient, CliError> {
-    let port: PortUrl = args.port.parse()?;
+/// The session's settings from the command line, checked before anything is sent.
+fn client_config(args: &Args) -> Result<ClientConfig, CliError> {
     let safety_id = SafetyId::from_code(args.safety)
         .ok_or_else(|| CliError::usage(format!("--safety {}: the Safety_ID is 0, 1 or 2", args.safety)))?;
+    let mut function_map = FunctionMap::unknown();
+    for spec in &args.functions {
+        function_map = function_map.apply(spec).map_err(|e| CliError::usage(format!("--functions {e}")))?;
+    }
+    let mut stroke_limits = [None; 6];
+    for spec in &args.stroke {
+        let (a, limits) = parse_stroke(spec)?;
+        stroke_limits[usize::from(a.number() - 1)] = Some(limits);
+    }
     let config = ClientConfig {
         safety_id,
         reply_timeout: Duration::from_millis(args.reply_timeout),
         speed_mode: args.speed_mode.into(),
+        function_map,
+        stroke_limits,
+        position_tolerance_counts: args.tolerance,
+        poll_interval: Duration::from_millis(args.poll_interval),
         ..ClientConfig::default()
     };
+    config.validate().map_err(|e| CliError::usage(e.to_string()))?;
+    Ok(config)
+}
+
+/// `--stroke 1=0:865`.
+fn parse_stroke(spec: &str) -> Result<(Actuator, StrokeLimits), CliError> {
+    let bad = || CliError::usage(format!("--stroke {spec:?}: give ACTUATOR=MIN:MAX in counts, such as 1=0:865"));
+    let (a, range) = spec.split_once('=').ok_or_else(bad)?;
+    let a = a.trim().trim_start_matches(['A', 'a']).parse::<u8>().ok().and_then(Actuator::new).ok_or_else(bad)?;
+    let (lo, hi) = range.split_once(':').ok_or_else(bad)?;
+    let lo: i32 = lo.trim().parse().map_err(|_| bad())?;
+    let hi: i32 = hi.trim().parse().map_err(|_| bad())?;
+    if lo > hi {
+        return Err(CliError::usage(format!("--stroke {spec:?}: {lo} is above {hi}")));
+    }
+    Ok((a, StrokeLimits { min_counts: lo, max_counts: hi }))
+}
+
+/// `--speed` of a motion: a whole number from 1 to the speed mode's maximum (0 would never move).
+fn parse_speed(text: &str, mode: SpeedMode) -> Result<u16, CliError> {
+    let range = format!("1..{} {}", mode.max(), mode.unit());
+    match text.trim().parse::<i64>() {
+        Ok(v) if (1..=i64::from(mode.max())).contains(&v) => Ok(v as u16),
+        Ok(v) => Err(CliError::usage(format!(
+            "--speed {v}: a motion needs {range}{}",
+            if v == 0 { " (0 would never move)" } else { "" }
+        ))),
+        Err(_) => Err(CliError::usage(format!("--speed {text:?}: give a whole number, {range}"))),
+    }
+}
+
+/// `--rate` of `follow`: 1..100 updates per second.
+fn parse_rate(text: &str) -> Result<u32, CliError> {
+    match text.trim().parse::<i64>() {
+        Ok(v) if (1..=100).contains(&v) => Ok(v as u32),
+        _ => Err(CliError::usage(format!("--rate {text:?}: give 1..100 updates per second"))),
+    }
+}
+
+/// `--seconds` of `run`: a finite, non-negative number of seconds (at most a day).
+fn parse_seconds(text: &str) -> Result<Duration, CliError> {
+    match text.trim().parse::<f64>() {
+        Ok(s) if s.is_finite() && (0.0..=86_400.0).contains(&s) => Ok(Duration::from_secs_f64(s)),
+        _ => Err(CliError::usage(format!("--seconds {text:?}: give a number of seconds, 0 .. 86400"))),
+    }
+}
+
+/// The motion function of `move` and `follow`: `--function`, or the one with the actuator's number.
+fn motion_function(actuator: Actuator, function: Option<u8>) -> Result<MotionFunction, CliError> {
+    let n = function.unwrap_or(actuator.number());
+    MotionFunction::new(n).ok_or_else(|| CliError::usage(format!("--function {n}: the motion functions are F1..F10")))
+}
+
+fn connect(args: &Args, config: ClientConfig) -> Result<ScuClient, CliError> {
+    let port: PortUrl = args.port.parse()?;
     let clock = RealClock::shared();
     let connector: Connector = match &port {
         PortUrl::Sim => {
@@ -285,23 +393,30 @@ fn values_json(values: &[(&'static DataEntry, Value)]) -> serde_json::Value {
 
 /// `motionlink scu ...`
 pub fn run(args: Args) -> Result<(), CliError> {
-    // Check what can be checked before the port is opened.
+    // Check everything that can be checked before the port is opened: nothing is sent for bad input.
+    let config = client_config(&args)?;
+    let mode: SpeedMode = args.speed_mode.into();
     match &args.action {
         Action::Get { item } | Action::Set { item, .. } => {
             parse_item(item)?;
         }
-        Action::Move { actuator, function, .. } => {
-            parse_actuator(*actuator)?;
-            if let Some(f) = function {
-                MotionFunction::new(*f)
-                    .ok_or_else(|| CliError::usage(format!("function {f}: motion functions are 1..10")))?;
-            }
+        Action::Move { actuator, function, speed, .. } => {
+            motion_function(parse_actuator(*actuator)?, *function)?;
+            parse_speed(speed, mode)?;
         }
-        Action::Run { function, direction, .. } => {
+        Action::Follow { actuator, function, speed, rate } => {
+            motion_function(parse_actuator(*actuator)?, *function)?;
+            parse_speed(speed, mode)?;
+            parse_rate(rate)?;
+        }
+        Action::Run { function, direction, seconds } => {
             if let Function::Motion(_) = parse_function(function)? {
                 parse_direction(direction)?;
             } else if !direction.eq_ignore_ascii_case("on") {
                 return Err(CliError::usage(format!("{function} is switched with \"on\", not {direction:?}")));
+            }
+            if let Some(s) = seconds {
+                parse_seconds(s)?;
             }
         }
         Action::Stop { function, .. } => {
@@ -310,12 +425,52 @@ pub fn run(args: Args) -> Result<(), CliError> {
         _ => {}
     }
     let interrupt = common::interrupt_token();
-    let client = connect(&args)?;
+    let client = connect(&args, config)?;
     let mut out = std::io::stdout().lock();
     let result = act(&client, &args, &mut out, &interrupt);
     // Stop what was started and leave remote mode, whatever happened.
-    let closed = client.close().map_err(scu_error);
-    result.and(closed)
+    let started = client.started_functions();
+    let closed = client.close();
+    finish(result, closed, &started)
+}
+
+/// The command's result after the session was closed: a failed close while functions were still started means
+/// their stop was not confirmed, and the message says so (keeping the exit code of what went wrong first).
+fn finish(result: Result<(), CliError>, closed: Result<(), ScuError>, started: &[u8]) -> Result<(), CliError> {
+    let close_error = match closed {
+        Ok(()) if started.is_empty() => return result,
+        Ok(()) => {
+            // The end of the session stopped what the action had left started, and the unit acknowledged it.
+            let functions: Vec<String> = started.iter().map(|id| format!("F{}", id + 1)).collect();
+            let stopped = format!("{} stopped (the unit acknowledged RS)", functions.join(", "));
+            return result.map_err(|e| match e {
+                CliError::Device(m) => CliError::Device(format!("{m}; {stopped}")),
+                CliError::Usage(m) => CliError::Usage(format!("{m}; {stopped}")),
+                CliError::Transport(m) => CliError::Transport(format!("{m}; {stopped}")),
+                CliError::Interrupted(m) => CliError::Interrupted(format!("{m}; {stopped}")),
+                CliError::OutputClosed => CliError::OutputClosed,
+            });
+        }
+        Err(e) => e,
+    };
+    if started.is_empty() {
+        return result.and(Err(scu_error(close_error)));
+    }
+    let functions: Vec<String> = started.iter().map(|id| format!("F{}", id + 1)).collect();
+    let unconfirmed = format!(
+        "stopping {} was NOT confirmed by the unit ({close_error}): the actuators may still be moving. The unit \
+         stops remote motions by itself 500 ms after the last RC it receives (its watchdog); this program sends \
+         none once it has ended",
+        functions.join(", ")
+    );
+    Err(match result {
+        Ok(()) => CliError::Transport(unconfirmed),
+        Err(CliError::Device(m)) => CliError::Device(format!("{m}; then {unconfirmed}")),
+        Err(CliError::Usage(m)) => CliError::Usage(format!("{m}; then {unconfirmed}")),
+        Err(CliError::Transport(m)) => CliError::Transport(format!("{m}; then {unconfirmed}")),
+        Err(CliError::Interrupted(m)) => CliError::Interrupted(format!("{m}; then {unconfirmed}")),
+        Err(CliError::OutputClosed) => CliError::Interrupted(format!("stdout closed; {unconfirmed}")),
+    })
 }
 
 fn act(client: &ScuClient, args: &Args, out: &mut dyn Write, interrupt: &CancelToken) -> Result<(), CliError> {
@@ -347,48 +502,39 @@ fn act(client: &ScuClient, args: &Args, out: &mut dyn Write, interrupt: &CancelT
                 return Err(CliError::usage(format!("{} is a group; set its entries one by one", it.name())));
             };
             let v = Value::parse(e.kind, value).map_err(|err| CliError::usage(format!("{}: {err}", e.name)))?;
+            // set() reads the value back and fails if the unit holds another.
             client.set(e.index, &v).map_err(scu_error)?;
             if args.json {
-                common::print_json(out, &json!({"index": e.index.to_string(), "name": e.name, "value": v.to_json()}))
+                common::print_json(
+                    out,
+                    &json!({"index": e.index.to_string(), "name": e.name, "value": v.to_json(), "read_back": true}),
+                )
             } else {
-                common::print_table(out, &[(format!("{} ({})", e.name, e.index), format!("{v} (written)"))])
+                common::print_table(out, &[(format!("{} ({})", e.name, e.index), format!("{v} (written, read back)"))])
             }
         }
         Action::Move { actuator, position, speed, function } => {
             let a = parse_actuator(*actuator)?;
-            let function = match function {
-                Some(n) => Some(
-                    MotionFunction::new(*n)
-                        .ok_or_else(|| CliError::usage(format!("--function {n}: the motion functions are F1..F10")))?,
-                ),
-                None => None,
-            };
+            let function = motion_function(a, *function)?;
+            let speed = parse_speed(speed, client.config().speed_mode)?;
             let start = client.position(a).map_err(scu_error)?;
             let bar = common::progress_bar(u64::from(start.abs_diff(*position)), format!("{a} -> {position}"));
             let progress = |p: &MoveProgress| bar.set_position(u64::from(p.position_counts.abs_diff(p.start_counts)));
-            let options = MoveOptions { cancel: Some(interrupt), progress: Some(&progress), function };
-            let result = client.move_to(a, *position, *speed, &options);
+            let options = MoveOptions { cancel: Some(interrupt), progress: Some(&progress), function: Some(function) };
+            let result = client.move_to(a, *position, speed, &options);
             bar.finish_and_clear();
             let report = result.map_err(scu_error)?;
-            if args.json {
-                common::print_json(
-                    out,
-                    &json!({"actuator": a.number(), "function": report.function.number(),
-                            "position": report.position_counts, "seconds": report.duration.as_secs_f64()}),
-                )
-            } else {
-                common::print_table(
-                    out,
-                    &[
-                        ("actuator".into(), a.to_string()),
-                        ("position".into(), format!("{} counts", report.position_counts)),
-                        ("time".into(), format!("{:.1} s", report.duration.as_secs_f64())),
-                    ],
-                )
-            }
+            print_move_report(out, &report, args.json)
+        }
+        Action::Follow { actuator, function, speed, rate } => {
+            let a = parse_actuator(*actuator)?;
+            let function = motion_function(a, *function)?;
+            let speed = parse_speed(speed, client.config().speed_mode)?;
+            follow(client, a, function, speed, parse_rate(rate)?, args.json, interrupt, out)
         }
         Action::Run { function, direction, seconds } => {
-            run_function(client, function, direction, *seconds, interrupt, out)
+            let limit = seconds.as_deref().map(parse_seconds).transpose()?;
+            run_function(client, function, direction, limit, interrupt, out)
         }
         Action::Stop { function, soft } => {
             match parse_function(function)? {
@@ -482,7 +628,7 @@ fn pause(client: &ScuClient, duration: Duration, interrupt: &CancelToken) {
     let signal = clock.signal();
     let until = clock.now() + duration;
     while clock.now() < until && !interrupt.is_cancelled() {
-        signal.wait_until(Some(until.min(clock.now() + Duration::from_millis(50))));
+        signal.wait_until(Some(until.min(clock.now() + Duration::from_millis(10))));
     }
 }
 
@@ -549,16 +695,11 @@ fn run_function(
     client: &ScuClient,
     function: &str,
     direction: &str,
-    seconds: Option<f64>,
+    limit: Option<Duration>,
     interrupt: &CancelToken,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let f = parse_function(function)?;
-    let limit = match seconds {
-        Some(s) if s.is_finite() && s >= 0.0 => Some(Duration::from_secs_f64(s)),
-        Some(s) => return Err(CliError::usage(format!("--seconds {s}: give a number of seconds"))),
-        None => None,
-    };
     let clock = Arc::clone(client.clock());
     let started = clock.now();
     match f {
@@ -569,14 +710,14 @@ fn run_function(
     out.flush()?;
     let mut seen_motion = false;
     loop {
-        pause(client, Duration::from_millis(200), interrupt);
+        pause(client, client.config().poll_interval, interrupt);
         let elapsed = clock.now() - started;
         if interrupt.is_cancelled() || limit.is_some_and(|l| elapsed >= l) {
             break;
         }
         if let (Function::Motion(_), None) = (f, limit) {
             // A motion function ends when none of the actuators moves any more.
-            let status = client.get_raw(DataIndex(0x0170)).map_err(scu_error)?;
+            let status = client.statuses().map_err(scu_error)?;
             let moving = status.iter().any(|s| s & status1::MOTION != 0);
             seen_motion |= moving;
             if !moving && (seen_motion || elapsed >= client.config().start_grace) {
@@ -588,17 +729,226 @@ fn run_function(
         Function::Motion(m) => client.stop_motion(m, StopMode::Fast).map_err(scu_error)?,
         other => client.switch(other, false).map_err(scu_error)?,
     }
-    let positions = client.get(DataIndex(0x0010)).map_err(scu_error)?;
-    let rows: Vec<Row> = connected_actuators(client)?
-        .iter()
-        .map(|(a, _)| (a.to_string(), positions[usize::from(a.number() - 1)].1.to_string()))
+    // The stop is confirmed by the unit's status: no actuator reports motion.
+    let status = client.statuses().map_err(scu_error)?;
+    let positions = client.positions().map_err(scu_error)?;
+    let moving: Vec<String> = Actuator::all()
+        .filter(|a| status[usize::from(a.number() - 1)] & status1::MOTION != 0)
+        .map(|a| a.to_string())
         .collect();
+    let rows: Vec<Row> = Actuator::all()
+        .filter(|a| status[usize::from(a.number() - 1)] & status1::AVAILABLE != 0)
+        .map(|a| (a.to_string(), format!("{} counts", positions[usize::from(a.number() - 1)])))
+        .collect();
+    if !moving.is_empty() && matches!(f, Function::Motion(_)) {
+        return Err(CliError::device(format!(
+            "{f} was stopped (RS acknowledged), but {} still report(s) motion: another function or the hand \
+             switch may be driving them",
+            moving.join(", ")
+        )));
+    }
     writeln!(out, "{f} stopped")?;
     common::print_table(out, &rows)?;
     if interrupt.is_cancelled() {
-        return Err(CliError::Interrupted(format!("interrupted; {f} stopped")));
+        return Err(CliError::Interrupted(format!("interrupted; {f} stopped (the unit confirmed it)")));
     }
     Ok(())
+}
+
+/// Prints how a move ended: each actuator whose remote position it wrote, with its target and difference.
+fn print_move_report(out: &mut dyn Write, report: &MoveReport, json: bool) -> Result<(), CliError> {
+    if json {
+        let actuators: Vec<_> = report
+            .actuators
+            .iter()
+            .map(|o| {
+                json!({"actuator": o.actuator.number(), "target": o.target_counts, "position": o.position_counts,
+                       "difference": o.difference_counts(), "moved": o.moved})
+            })
+            .collect();
+        let target = report.actuators.iter().find(|o| o.actuator == report.actuator).map(|o| o.target_counts);
+        return common::print_json(
+            out,
+            &json!({"actuator": report.actuator.number(), "function": report.function.number(),
+                    "position": report.position_counts, "target": target,
+                    "seconds": report.duration.as_secs_f64(), "actuators": actuators}),
+        );
+    }
+    let mut rows: Vec<Row> = vec![("function".into(), report.function.to_string())];
+    for o in &report.actuators {
+        let text = if o.moved || o.actuator == report.actuator {
+            format!("{} counts (target {}, difference {})", o.position_counts, o.target_counts, o.difference_counts())
+        } else {
+            format!("{} counts (did not move: not driven by {})", o.position_counts, report.function)
+        };
+        rows.push((o.actuator.to_string(), text));
+    }
+    rows.push(("time".into(), format!("{:.1} s", report.duration.as_secs_f64())));
+    common::print_table(out, &rows)
+}
+
+/// One line of `follow`'s input.
+#[derive(Debug, PartialEq)]
+enum FollowLine {
+    /// Nothing (blank or a comment).
+    Skip,
+    /// New targets, one per actuator of the stream.
+    Targets(Vec<i32>),
+    /// A new speed.
+    Speed(u16),
+}
+
+/// Parses a line of `follow`'s input for a stream of `actuators`: `400` (all), `400 410` (one each, in
+/// order), `a1=400 a2=410` (each named), `speed 60`; `#` starts a comment.
+fn parse_follow_line(line: &str, actuators: &[Actuator], mode: SpeedMode) -> Result<FollowLine, String> {
+    let text = line.split('#').next().unwrap_or("").trim();
+    if text.is_empty() {
+        return Ok(FollowLine::Skip);
+    }
+    let words: Vec<&str> = text.split([' ', '\t', ',']).filter(|w| !w.is_empty()).collect();
+    if let Some(rest) = text.strip_prefix("speed") {
+        let value = rest.trim().trim_start_matches('=').trim();
+        return parse_speed(value, mode).map(FollowLine::Speed).map_err(|e| e.to_string());
+    }
+    let count = |w: &str| w.parse::<i32>().map_err(|_| format!("{w:?} is not a position in counts"));
+    if words.iter().all(|w| !w.contains('=')) {
+        let values = words.iter().map(|w| count(w)).collect::<Result<Vec<_>, _>>()?;
+        return match values.len() {
+            1 => Ok(FollowLine::Targets(vec![values[0]; actuators.len()])),
+            n if n == actuators.len() => Ok(FollowLine::Targets(values)),
+            n => Err(format!("{n} targets for {} actuator(s): give one for all, or one each", actuators.len())),
+        };
+    }
+    let mut targets = vec![None; actuators.len()];
+    for w in words {
+        let (name, value) = w.split_once('=').ok_or_else(|| format!("{w:?}: give ACTUATOR=COUNTS, such as a1=400"))?;
+        let a = name.trim_start_matches(['A', 'a']).parse::<u8>().ok().and_then(Actuator::new);
+        let i = a
+            .and_then(|a| actuators.iter().position(|x| *x == a))
+            .ok_or_else(|| format!("{name:?} is not one of the actuators followed ({})", names(actuators)))?;
+        targets[i] = Some(count(value)?);
+    }
+    if let Some(i) = targets.iter().position(Option::is_none) {
+        return Err(format!("no target for {} (every actuator followed needs one)", actuators[i]));
+    }
+    Ok(FollowLine::Targets(targets.into_iter().flatten().collect()))
+}
+
+fn names(actuators: &[Actuator]) -> String {
+    actuators.iter().map(Actuator::to_string).collect::<Vec<_>>().join(", ")
+}
+
+/// What the stdin reader hands over.
+enum Input {
+    Line(String),
+    End,
+    Failed(String),
+}
+
+/// `scu follow`: targets from stdin, applied at most `rate_hz` times a second while the motion runs.
+#[allow(clippy::too_many_arguments)]
+fn follow(
+    client: &ScuClient,
+    actuator: Actuator,
+    function: MotionFunction,
+    speed: u16,
+    rate_hz: u32,
+    json: bool,
+    interrupt: &CancelToken,
+    out: &mut dyn Write,
+) -> Result<(), CliError> {
+    let actuators = match client.config().function_map.drives(function) {
+        Some(drives) if drives.contains(&actuator) => drives,
+        Some(drives) => {
+            return Err(CliError::usage(format!(
+                "{function} does not drive {actuator} (--functions says it drives {})",
+                names(&drives)
+            )))
+        }
+        // Not known: every connected actuator follows, so that none runs to a stale remote position.
+        None => client.connected_actuators().map_err(scu_error)?,
+    };
+    let mode = client.config().speed_mode;
+    let mut stream = client.stream(function, &actuators, speed).map_err(scu_error)?;
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::Builder::new()
+        .name("follow-stdin".into())
+        .spawn(move || {
+            use std::io::BufRead;
+            for line in std::io::stdin().lock().lines() {
+                let message = match line {
+                    Ok(l) => Input::Line(l),
+                    Err(e) => Input::Failed(e.to_string()),
+                };
+                let failed = matches!(message, Input::Failed(_));
+                if tx.send(message).is_err() || failed {
+                    return;
+                }
+            }
+            let _ = tx.send(Input::End);
+        })
+        .map_err(|e| CliError::transport(format!("cannot read stdin: {e}")))?;
+    writeln!(out, "following {function} ({}): targets from stdin", names(&actuators))?;
+    out.flush()?;
+    let clock = Arc::clone(client.clock());
+    let gap = Duration::from_secs(1) / rate_hz;
+    let mut last_update: Option<motionlink_link::Timestamp> = None;
+    let mut pending: Option<Vec<i32>> = None;
+    let mut updates = 0u64;
+    let failure: Option<Result<CliError, ScuError>> = loop {
+        if interrupt.is_cancelled() {
+            break Some(Ok(CliError::Interrupted(format!("interrupted; {function} stopped"))));
+        }
+        match rx.recv_timeout(Duration::from_millis(10)) {
+            Ok(Input::Line(line)) => match parse_follow_line(&line, &actuators, mode) {
+                Ok(FollowLine::Skip) => {}
+                Ok(FollowLine::Targets(t)) => pending = Some(t),
+                Ok(FollowLine::Speed(s)) => {
+                    if let Err(e) = stream.set_speed(s) {
+                        break Some(Err(e));
+                    }
+                }
+                Err(e) => break Some(Ok(CliError::usage(format!("stdin line {line:?}: {e}")))),
+            },
+            Ok(Input::End) | Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break None,
+            Ok(Input::Failed(e)) => break Some(Ok(CliError::transport(format!("reading stdin: {e}")))),
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+        }
+        let now = clock.now();
+        if pending.is_some() && last_update.is_none_or(|t| now - t >= gap) {
+            let targets = pending.take().unwrap_or_default();
+            if let Err(e) = stream.set_targets(&targets) {
+                break Some(Err(e));
+            }
+            last_update = Some(now);
+            updates += 1;
+            let text: Vec<String> = actuators.iter().zip(&targets).map(|(a, t)| format!("{a}={t}")).collect();
+            if json {
+                let map: serde_json::Map<String, serde_json::Value> =
+                    actuators.iter().zip(&targets).map(|(a, t)| (a.to_string(), json!(t))).collect();
+                common::print_json(out, &json!({"targets": map}))?;
+            } else {
+                writeln!(out, "target {}", text.join(" "))?;
+            }
+            out.flush()?;
+        }
+    };
+    // The stream ends: on EOF along the ramp, on anything else at once; where each actuator came to rest.
+    let (mode, error) = match failure {
+        None => (StopMode::Soft, None),
+        Some(Ok(cli)) => (StopMode::Fast, Some(cli)),
+        Some(Err(scu)) => return Err(scu_error(stream.abort(scu))),
+    };
+    let rest = stream.stop(mode).map_err(scu_error)?;
+    let text: Vec<String> = rest.iter().map(|(a, p)| format!("{a}={p}")).collect();
+    if json {
+        let map: serde_json::Map<String, serde_json::Value> =
+            rest.iter().map(|(a, p)| (a.to_string(), json!(p))).collect();
+        common::print_json(out, &json!({"stopped": map, "updates": updates}))?;
+    } else {
+        writeln!(out, "stopped after {updates} update(s): {}", text.join(" "))?;
+    }
+    error.map_or(Ok(()), Err)
 }
 
 /// `motionlink sim scu`
@@ -828,4 +1178,56 @@ pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
     writeln!(out, "The unit's last error code: {idle_error}")?;
     writeln!(out)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn a(n: u8) -> Actuator {
+        Actuator::new(n).unwrap()
+    }
+
+    #[test]
+    fn follow_lines_give_one_target_for_all_one_each_or_named_ones() {
+        let two = [a(1), a(2)];
+        let p = |l: &str| parse_follow_line(l, &two, SpeedMode::Percent);
+        assert_eq!(p("400"), Ok(FollowLine::Targets(vec![400, 400])));
+        assert_eq!(p(" 400  410 "), Ok(FollowLine::Targets(vec![400, 410])));
+        assert_eq!(p("a2=410 A1=-3"), Ok(FollowLine::Targets(vec![-3, 410])));
+        assert_eq!(p("speed 60"), Ok(FollowLine::Speed(60)));
+        assert_eq!(p("speed=60 # slower"), Ok(FollowLine::Speed(60)));
+        assert_eq!(p("   # only a comment"), Ok(FollowLine::Skip));
+        assert_eq!(p(""), Ok(FollowLine::Skip));
+        for bad in ["400 410 420", "a1=400", "a3=1 a1=2 a2=3", "four hundred", "speed 0", "speed 101", "a1=x a2=1"] {
+            assert!(p(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn speeds_are_whole_numbers_from_1_to_the_mode_maximum() {
+        assert_eq!(parse_speed("1", SpeedMode::Percent).unwrap(), 1);
+        assert_eq!(parse_speed("100", SpeedMode::Percent).unwrap(), 100);
+        assert_eq!(parse_speed("1000", SpeedMode::CountsPerSecond).unwrap(), 1000);
+        for bad in ["0", "-1", "101", "NaN", "inf", "50.5", "", "1e2"] {
+            let e = parse_speed(bad, SpeedMode::Percent).unwrap_err();
+            assert!(matches!(&e, CliError::Usage(m) if m.contains("--speed")), "{bad}: {e}");
+        }
+        assert!(parse_seconds("NaN").is_err() && parse_seconds("-1").is_err() && parse_seconds("0.5").is_ok());
+        assert!(parse_rate("0").is_err() && parse_rate("101").is_err() && parse_rate("100").is_ok());
+        assert!(parse_stroke("1=0:865").is_ok() && parse_stroke("1=9:1").is_err() && parse_stroke("7=0:1").is_err());
+    }
+
+    #[test]
+    fn a_failed_stop_at_the_end_keeps_the_exit_code_and_says_the_actuators_may_move() {
+        let lost = ScuError::SessionLost("port gone".into());
+        let e = finish(Err(CliError::Interrupted("interrupted".into())), Err(lost.clone()), &[0]).unwrap_err();
+        assert!(matches!(&e, CliError::Interrupted(m) if m.contains("may still be moving") && m.contains("F1")), "{e}");
+        let e = finish(Ok(()), Err(lost.clone()), &[1]).unwrap_err();
+        assert!(matches!(&e, CliError::Transport(m) if m.contains("F2")), "{e}");
+        let e = finish(Err(CliError::Device("stalled".into())), Ok(()), &[0]).unwrap_err();
+        assert!(matches!(&e, CliError::Device(m) if m.contains("acknowledged RS")), "{e}");
+        assert!(finish(Ok(()), Ok(()), &[]).is_ok());
+        assert!(matches!(finish(Ok(()), Err(lost), &[]), Err(CliError::Transport(_))));
+    }
 }

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 mod common;
 
-use common::{Sim, BIN};
+use common::{unix_now, Running, Sim, BIN};
 
 fn sim_tcp() -> Sim {
     Sim::tcp("scu")
@@ -134,28 +134,6 @@ fn run_switches_a_function_for_a_while_and_stops_it() {
 }
 
 #[test]
-fn ctrl_c_stops_a_move() {
-    let sim = sim_tcp();
-    let child = Command::new(BIN)
-        .args(["scu", "--port", &sim.address, "move", "1", "800", "--speed", "100"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::thread::sleep(Duration::from_millis(1200));
-    let killed = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
-    assert!(killed.success());
-    let out = child.wait_with_output().unwrap();
-    assert_eq!(out.status.code(), Some(130), "{out:?}");
-    assert!(String::from_utf8_lossy(&out.stderr).contains("stopped"), "{out:?}");
-    let p1 = json(&scu(&sim.address, &["get", "actual_position_a1", "--json"]))["value"].as_i64().unwrap();
-    std::thread::sleep(Duration::from_millis(400));
-    let p2 = json(&scu(&sim.address, &["get", "actual_position_a1", "--json"]))["value"].as_i64().unwrap();
-    assert!(p1 > 30 && p1 < 800, "it moved, and not to the end: {p1}");
-    assert_eq!(p1, p2, "it stays stopped");
-}
-
-#[test]
 fn a_pty_serves_like_a_serial_port() {
     let sim = Sim::start("scu", &["--pty"]);
     assert!(sim.address.starts_with("/dev/"), "{}", sim.address);
@@ -262,4 +240,341 @@ fn demo_runs_the_manual_routine() {
     assert!(text.contains("52 54 04 00 11 30 01 00 B5 F2"), "the manual's RT example, encoded");
     assert!(text.contains("actual_position_a1 = 400 counts"), "{text}");
     assert!(text.contains("RA ACK"), "{text}");
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Signals, a dead host, a dead link, verified moves, bad input, follow
+
+/// Waits for the emulator to report that `function` started.
+fn wait_started(sim: &Sim, function: &str) -> common::Event {
+    sim.wait_event(Duration::from_secs(10), |e| e.starts_with(&format!("{function} started")))
+        .unwrap_or_else(|| panic!("{function} did not start: {}", sim.stderr.text()))
+}
+
+/// Waits for `actuator` to come to rest after `after`; returns the event and the position it reports.
+fn wait_at_rest(sim: &Sim, actuator: &str, after: f64) -> (common::Event, i64) {
+    let prefix = format!("{actuator} at rest ");
+    let e = sim
+        .wait_event_after(after, Duration::from_secs(10), |e| e.starts_with(&prefix))
+        .unwrap_or_else(|| panic!("{actuator} did not come to rest: {}", sim.stderr.text()));
+    let p = e.text[prefix.len()..].trim_end_matches(" counts").parse().unwrap();
+    (e, p)
+}
+
+/// A long move, interrupted by `signal` once the unit reports it started: the actuator is at rest within
+/// 100 ms of the signal, and the command exits with 128 + the signal's number.
+fn a_signal_stops_a_move(signal: i32) {
+    let sim = sim_tcp();
+    let running = Running::start(&["scu", "--port", &sim.address, "move", "1", "800", "--speed", "100"]);
+    let started = wait_started(&sim, "F1");
+    let sent = running.signal(signal);
+    let (rest, position) = wait_at_rest(&sim, "A1", sent);
+    let ended = running.wait(Duration::from_secs(10));
+    assert_eq!(ended.code(), 128 + signal, "{ended:?}");
+    assert!(rest.at - sent < 0.100, "at rest {:.0} ms after the signal", (rest.at - sent) * 1e3);
+    assert!(rest.at >= started.at);
+    assert!(position < 800, "stopped on the way: {position}");
+    assert!(ended.stderr.contains("stopped"), "{ended:?}");
+    // It stays where it stopped; RS and RA were sent.
+    let p = json(&scu(&sim.address, &["get", "actual_position_a1", "--json"]))["value"].as_i64().unwrap();
+    assert_eq!(p, position);
+    assert!(sim.events().iter().any(|e| e.text == "remote mode closed by RA"));
+    assert!(sim.events().iter().any(|e| e.text.starts_with("F1 stopped (RS fast)")));
+}
+
+#[test]
+fn sigint_stops_a_move_within_100_ms_and_exits_130() {
+    a_signal_stops_a_move(libc::SIGINT);
+}
+
+#[test]
+fn sigterm_stops_a_move_within_100_ms_and_exits_143() {
+    a_signal_stops_a_move(libc::SIGTERM);
+}
+
+#[test]
+fn sighup_stops_a_move_within_100_ms_and_exits_129() {
+    a_signal_stops_a_move(libc::SIGHUP);
+}
+
+#[test]
+fn sigquit_stops_a_move_within_100_ms_and_exits_131() {
+    a_signal_stops_a_move(libc::SIGQUIT);
+}
+
+#[test]
+fn sigterm_stops_run_within_100_ms_and_exits_143() {
+    let sim = sim_tcp();
+    let running = Running::start(&["scu", "--port", &sim.address, "run", "F2", "out"]);
+    wait_started(&sim, "F2");
+    running.stdout.wait_for(Duration::from_secs(5), |l| l.contains("running")).expect("run says it runs");
+    let sent = running.signal(libc::SIGTERM);
+    let (rest, _) = wait_at_rest(&sim, "A2", sent);
+    let ended = running.wait(Duration::from_secs(10));
+    assert_eq!(ended.code(), 143, "{ended:?}");
+    assert!(rest.at - sent < 0.100, "at rest {:.0} ms after the signal", (rest.at - sent) * 1e3);
+    assert!(ended.stdout.contains("stopped"), "{ended:?}");
+}
+
+#[test]
+fn a_closed_stdout_stops_a_move() {
+    let sim = sim_tcp();
+    let (running, stdout) =
+        Running::start_with_stdout(&["scu", "--port", &sim.address, "move", "1", "800", "--speed", "100"]);
+    wait_started(&sim, "F1");
+    let closed_at = unix_now();
+    drop(stdout); // the reader goes away (`motionlink ... | head`)
+    let (rest, position) = wait_at_rest(&sim, "A1", closed_at);
+    let ended = running.wait(Duration::from_secs(10));
+    assert!(position < 800, "{position}");
+    assert!(rest.at - closed_at < 0.100, "at rest {:.0} ms after stdout closed", (rest.at - closed_at) * 1e3);
+    assert_eq!(ended.code(), 141, "{ended:?}");
+}
+
+#[test]
+fn watch_interrupted_exits_130() {
+    let sim = sim_tcp();
+    let running = Running::start(&["scu", "--port", &sim.address, "watch", "--interval", "50"]);
+    running.stdout.wait_for(Duration::from_secs(5), |l| l.contains("A1:")).expect("a first sample");
+    running.signal(libc::SIGINT);
+    let ended = running.wait(Duration::from_secs(5));
+    assert_eq!(ended.code(), 130, "{ended:?}");
+    assert!(sim.wait_event(Duration::from_secs(5), |e| e == "remote mode closed by RA").is_some());
+}
+
+#[test]
+fn a_killed_command_leaves_the_unit_to_stop_by_its_own_watchdog_within_500_ms() {
+    for safety in ["0", "1", "2"] {
+        let sim = sim_tcp();
+        let mut running =
+            Running::start(&["scu", "--port", &sim.address, "--safety", safety, "move", "1", "800", "--speed", "100"]);
+        wait_started(&sim, "F1");
+        let killed = running.kill();
+        let expiry = sim
+            .wait_event_after(killed, Duration::from_secs(5), |e| e.starts_with("remote mode ended by watchdog"))
+            .unwrap_or_else(|| panic!("{}", sim.stderr.text()));
+        assert!(expiry.text.contains(&format!("(Safety_ID {safety})")), "{}", expiry.text);
+        let (rest, _) = wait_at_rest(&sim, "A1", killed);
+        // The last RC went out at most 200 ms before the kill; the watchdog is 500 ms.
+        assert!(
+            rest.at - killed < 0.550,
+            "Safety_ID {safety}: at rest {:.0} ms after SIGKILL",
+            (rest.at - killed) * 1e3
+        );
+        assert!(rest.at - killed > 0.250, "stopped by the watchdog, not by the command");
+    }
+}
+
+#[test]
+fn a_dead_link_during_a_move_ends_the_command_within_3_s_saying_the_axis_may_still_move() {
+    let sim = sim_tcp();
+    let running = Running::start(&["scu", "--port", &sim.address, "move", "1", "800", "--speed", "100"]);
+    wait_started(&sim, "F1");
+    // The emulator stops answering (the TCP connection stays up): as a cut cable behind a serial gateway.
+    // SAFETY: kill(2) on our own child.
+    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGSTOP) }, 0);
+    let cut = std::time::Instant::now();
+    let ended = running.wait(Duration::from_secs(10));
+    let took = cut.elapsed();
+    // SAFETY: as above.
+    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGCONT) }, 0);
+    assert!(took < Duration::from_secs(3), "the command took {took:?} to give up");
+    assert_eq!(ended.code(), 3, "{ended:?}");
+    assert!(ended.stderr.contains("may still be moving"), "{}", ended.stderr);
+    // What really happened: the unit's watchdog stopped the drive.
+    assert!(sim.wait_event(Duration::from_secs(5), |e| e.starts_with("remote mode ended by watchdog")).is_some());
+    assert!(sim.wait_event(Duration::from_secs(5), |e| e.starts_with("A1 at rest")).is_some());
+}
+
+#[test]
+fn a_dead_link_before_the_session_opens_ends_the_command_within_3_s() {
+    let sim = sim_tcp();
+    // SAFETY: kill(2) on our own child.
+    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGSTOP) }, 0);
+    let started = std::time::Instant::now();
+    let out = scu(&sim.address, &["info"]);
+    let took = started.elapsed();
+    // SAFETY: as above.
+    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGCONT) }, 0);
+    assert!(took < Duration::from_secs(3), "{took:?}");
+    assert_eq!(out.status.code(), Some(3), "{out:?}");
+}
+
+#[test]
+fn move_on_a_tlt_moves_both_columns_of_f1_and_reports_each() {
+    let sim = Sim::start("scu", &["--tcp", "127.0.0.1:0", "--preset", "tlt"]);
+    // Not told the mapping: every connected actuator gets the target; both columns of F1 move.
+    let v = json(&scu(&sim.address, &["move", "1", "400", "--json"]));
+    assert_eq!(v["position"], 400);
+    let each: Vec<(i64, i64, bool)> = v["actuators"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|o| (o["actuator"].as_i64().unwrap(), o["position"].as_i64().unwrap(), o["moved"].as_bool().unwrap()))
+        .collect();
+    assert_eq!(each, [(1, 400, true), (2, 400, true)]);
+    for a in ["actual_position_a1", "actual_position_a2"] {
+        assert_eq!(json(&scu(&sim.address, &["get", a, "--json"]))["value"], 400, "{a}");
+    }
+    // Told the mapping: the same, and F3 moves column 2 alone.
+    let out = scu(&sim.address, &["--functions", "tlt", "move", "2", "200", "--function", "3"]);
+    assert!(out.status.success(), "{out:?}");
+    let text = stdout(&out);
+    assert!(text.contains("A2") && text.contains("200 counts (target 200, difference 0)"), "{text}");
+    assert!(!text.contains("A1 "), "F3 drives A2 only: {text}");
+    assert_eq!(json(&scu(&sim.address, &["get", "actual_position_a1", "--json"]))["value"], 400);
+    // A function the map says does not drive the actuator is refused before anything is sent.
+    let out = scu(&sim.address, &["--functions", "tlt", "move", "1", "100", "--function", "3"]);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+}
+
+#[test]
+fn move_on_liftkit_with_f8_moves_both() {
+    let sim = Sim::start("scu", &["--tcp", "127.0.0.1:0", "--preset", "liftkit"]);
+    let v = json(&scu(&sim.address, &["--functions", "liftkit", "move", "1", "250", "--function", "8", "--json"]));
+    assert_eq!(v["function"], 8);
+    assert_eq!(v["actuators"].as_array().unwrap().len(), 2);
+    assert_eq!(json(&scu(&sim.address, &["get", "actual_position_a2", "--json"]))["value"], 250);
+    assert!(sim.events().iter().any(|e| e.text.starts_with("F8 started direction 9")));
+}
+
+#[test]
+fn a_target_outside_the_stroke_is_refused_naming_the_limit_and_nothing_moves() {
+    let sim = sim_tcp();
+    let out = scu(&sim.address, &["--functions", "scp11", "move", "1", "2000"]);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("0..865") && err.contains("2000"), "{err}");
+    assert!(!sim.events().iter().any(|e| e.text.contains("started")), "nothing started: {}", sim.stderr.text());
+    // A configured stroke is used instead of the unit's virtual limits.
+    let out = scu(&sim.address, &["--functions", "scp11", "--stroke", "1=0:300", "move", "1", "400"]);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("as configured"), "{out:?}");
+}
+
+#[test]
+fn a_move_that_ends_away_from_its_target_exits_1_naming_target_position_and_difference() {
+    let dir = std::env::temp_dir().join(format!("motionlink-scu-obstacle-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("unit.toml");
+    std::fs::write(&path, "[[actuator]]\nobstacle_counts = 150\nstall_error_after_ms = 1000\n").unwrap();
+    let sim = Sim::start("scu", &["--tcp", "127.0.0.1:0", "--config", path.to_str().unwrap()]);
+    let out = scu(&sim.address, &["--functions", "scp11", "move", "1", "300"]);
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("150 counts") && err.contains("300") && err.contains("-150"), "{err}");
+    assert!(err.contains("bit 15"), "the drive error is named: {err}");
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn bad_input_is_refused_with_exit_2_before_anything_is_sent() {
+    let sim = sim_tcp();
+    let cases: &[&[&str]] = &[
+        &["move", "1", "100", "--speed", "0"],
+        &["move", "1", "100", "--speed", "-5"],
+        &["move", "1", "100", "--speed", "NaN"],
+        &["move", "1", "100", "--speed", "101"],
+        &["move", "1", "100", "--speed", "50.5"],
+        &["--speed-mode", "counts-per-second", "move", "1", "100", "--speed", "1001"],
+        &["move", "0", "100"],
+        &["move", "7", "100"],
+        &["move", "1", "100", "--function", "11"],
+        &["--tolerance", "-1", "move", "1", "100"],
+        &["--poll-interval", "0", "move", "1", "100"],
+        &["--poll-interval", "NaN", "move", "1", "100"],
+        &["--reply-timeout", "0", "info"],
+        &["--safety", "3", "info"],
+        &["--functions", "F11=1", "info"],
+        &["--functions", "F1=7", "info"],
+        &["--stroke", "1=500:100", "info"],
+        &["--stroke", "9=0:100", "info"],
+        &["run", "F1", "out", "--seconds", "NaN"],
+        &["run", "F1", "out", "--seconds", "-1"],
+        &["watch", "--interval", "0"],
+        &["watch", "--count", "0"],
+        &["follow", "1", "--rate", "0"],
+        &["follow", "1", "--rate", "101"],
+        &["follow", "1", "--speed", "0"],
+    ];
+    for args in cases {
+        let out = scu(&sim.address, args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {out:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        // The message names the argument (clap names it too, as "--speed <SPEED>" and the like): the last
+        // option given, or the actuator.
+        let named = args.iter().rev().find(|a| a.starts_with("--")).map_or("actuator", |a| &a[2..]);
+        assert!(err.contains(named) || (named == "actuator" && err.contains("actuator")), "{args:?}: {err}");
+    }
+    assert!(sim.events().is_empty(), "nothing reached the unit: {}", sim.stderr.text());
+}
+
+#[test]
+fn set_reads_the_value_back() {
+    let sim = sim_tcp();
+    let out = scu(&sim.address, &["set", "remote_position_a2", "321"]);
+    assert!(out.status.success(), "{out:?}");
+    assert!(stdout(&out).contains("321 counts (written, read back)"), "{}", stdout(&out));
+    let v = json(&scu(&sim.address, &["set", "remote_speed_f1", "33", "--json"]));
+    assert_eq!(v["read_back"], true);
+}
+
+#[test]
+fn the_safety_id_goes_into_ro() {
+    let sim = sim_tcp();
+    assert!(scu(&sim.address, &["--safety", "2", "info"]).status.success());
+    assert!(sim.wait_event(Duration::from_secs(5), |e| e == "remote mode opened (Safety_ID 2)").is_some());
+}
+
+#[test]
+fn follow_streams_targets_from_stdin_and_stops_on_eof() {
+    let sim = Sim::start("scu", &["--tcp", "127.0.0.1:0", "--preset", "tlt"]);
+    let (running, mut stdin) =
+        Running::start_with_stdin(&["scu", "--port", &sim.address, "--functions", "tlt", "follow", "1"]);
+    running.stdout.wait_for(Duration::from_secs(5), |l| l.starts_with("following F1 (A1, A2)")).expect("ready");
+    writeln!(stdin, "# both columns to 200\n200").unwrap();
+    running.stdout.wait_for(Duration::from_secs(5), |l| l == "target A1=200 A2=200").expect("applied");
+    let (_, p) = wait_at_rest(&sim, "A1", 0.0);
+    assert_eq!(p, 200);
+    // Each its own target, then a new speed, then named targets.
+    writeln!(stdin, "150 160\nspeed 60\na2=120 a1=110").unwrap();
+    running.stdout.wait_for(Duration::from_secs(5), |l| l == "target A1=110 A2=120").expect("applied");
+    let t = unix_now();
+    wait_at_rest(&sim, "A1", t);
+    drop(stdin); // EOF: the stream ends, the motion is stopped
+    let ended = running.wait(Duration::from_secs(10));
+    assert_eq!(ended.code(), 0, "{ended:?}");
+    assert!(ended.stdout.contains("stopped after"), "{}", ended.stdout);
+    assert!(sim.events().iter().any(|e| e.text == "F1 stopped (RS soft)"), "{}", sim.stderr.text());
+    assert_eq!(json(&scu(&sim.address, &["get", "actual_position_a2", "--json"]))["value"], 120);
+}
+
+#[test]
+fn follow_stops_on_a_bad_line_and_on_a_signal() {
+    let sim = sim_tcp();
+    let (running, mut stdin) =
+        Running::start_with_stdin(&["scu", "--port", &sim.address, "--functions", "scp11", "follow", "1"]);
+    running.stdout.wait_for(Duration::from_secs(5), |l| l.starts_with("following F1 (A1)")).expect("ready");
+    writeln!(stdin, "800").unwrap();
+    wait_started(&sim, "F1");
+    writeln!(stdin, "eight hundred").unwrap();
+    let ended = running.wait(Duration::from_secs(10));
+    assert_eq!(ended.code(), 2, "{ended:?}");
+    assert!(ended.stderr.contains("eight hundred"), "{}", ended.stderr);
+    let (_, p) = wait_at_rest(&sim, "A1", 0.0);
+    assert!(p < 800, "stopped on the way: {p}");
+
+    let (running, mut stdin) =
+        Running::start_with_stdin(&["scu", "--port", &sim.address, "--functions", "scp11", "follow", "1"]);
+    running.stdout.wait_for(Duration::from_secs(5), |l| l.starts_with("following")).expect("ready");
+    let t = unix_now();
+    writeln!(stdin, "400").unwrap();
+    running.stdout.wait_for(Duration::from_secs(5), |l| l == "target A1=400").expect("applied");
+    sim.wait_event_after(t, Duration::from_secs(5), |e| e.starts_with("F1 started")).expect("moving back");
+    let sent = running.signal(libc::SIGTERM);
+    let (rest, _) = wait_at_rest(&sim, "A1", sent);
+    assert!(rest.at - sent < 0.100, "at rest {:.0} ms after the signal", (rest.at - sent) * 1e3);
+    let ended = running.wait(Duration::from_secs(10));
+    assert_eq!(ended.code(), 143, "{ended:?}");
+    drop(stdin);
 }

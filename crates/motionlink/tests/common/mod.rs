@@ -124,6 +124,11 @@ impl Sim {
         Sim::start(family, &["--tcp", "127.0.0.1:0"])
     }
 
+    /// The process id (to stop the emulator with SIGSTOP: a link that carries nothing any more).
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
     /// Every device event so far.
     pub fn events(&self) -> Vec<Event> {
         self.stderr.all().iter().filter_map(|l| parse_event(l)).collect()
@@ -189,6 +194,39 @@ impl Running {
         let stdout = Lines::follow(child.stdout.take().expect("piped stdout"));
         let stderr = Lines::follow(child.stderr.take().expect("piped stderr"));
         Running { child, stdout, stderr }
+    }
+
+    /// Starts `motionlink <args>` with a pipe to its stdin, which the caller writes and closes.
+    pub fn start_with_stdin(args: &[&str]) -> (Running, std::process::ChildStdin) {
+        let mut child = Command::new(BIN)
+            .args(args)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start motionlink");
+        let stdin = child.stdin.take().expect("piped stdin");
+        let stdout = Lines::follow(child.stdout.take().expect("piped stdout"));
+        let stderr = Lines::follow(child.stderr.take().expect("piped stderr"));
+        (Running { child, stdout, stderr }, stdin)
+    }
+
+    /// Starts `motionlink <args>` with its stdout a pipe that the caller holds and may close (its reader going
+    /// away); stderr is followed.
+    pub fn start_with_stdout(args: &[&str]) -> (Running, std::process::ChildStdout) {
+        let mut child = Command::new(BIN)
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start motionlink");
+        let stdout = child.stdout.take().expect("piped stdout");
+        let stderr = Lines::follow(child.stderr.take().expect("piped stderr"));
+        // Nothing follows stdout here: its lines are the caller's.
+        let none = Lines::default();
+        none.0 .0.lock().unwrap().1 = true;
+        (Running { child, stdout: none, stderr }, stdout)
     }
 
     /// The process id.
