@@ -1557,6 +1557,14 @@ impl Bus {
         result.map_err(|e| self.abort(e))
     }
 
+    /// Waits `d` on the session's clock, handling what arrives meanwhile (`$` and comparator messages),
+    /// and ends early with [`Error::Cancelled`] once the cancel token is cancelled (it looks every 5 ms). For
+    /// callers that poll at their own rate (`motionlink compax watch`).
+    pub fn pause(&mut self, d: Duration) -> Result<()> {
+        let until = self.clock.now() + d;
+        self.listen_until(until)
+    }
+
     /// Handles what arrives until `until`, looking at the cancel token every [`CANCEL_CHECK`].
     fn listen_until(&mut self, until: Timestamp) -> Result<()> {
         loop {
