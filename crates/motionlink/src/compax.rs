@@ -245,6 +245,10 @@ fn bus_error_for(args: &Args, e: BusError) -> CliError {
 
 fn bus_error(e: BusError) -> CliError {
     match e.root() {
+        BusError::Cancelled if e.stop_report().is_none() => {
+            let cause = common::stop_cause().map_or("interrupted".to_string(), |c| format!("{} received", c.name()));
+            CliError::Interrupted(format!("{cause}: the action ended before it was done"))
+        }
         BusError::Cancelled => CliError::Interrupted(e.to_string()),
         BusError::Device { .. } | BusError::MoveTimeout { .. } => CliError::device(e),
         BusError::SyncIncomplete { source, .. } if source.device_code().is_some() => CliError::device(e),
