@@ -1363,8 +1363,9 @@ impl Bus {
             attempts += 1;
             match self.transact(&req, Retry::DiscardedOnly) {
                 Ok(_) => return Ok(()),
-                Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. })) => {
-                    // The reply is lost: did the drive take the move? Its target position tells.
+                Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. } | Error::Unexpected { .. })) => {
+                    // The reply is lost (or only a reply that cannot be the acknowledgement came): did the
+                    // drive take the move? Its target position tells.
                     let target = self.read_target(address)?.units();
                     let close = |a: f64, b: f64| (a - b).abs() < 0.0015;
                     if close(target, expected) && (before.is_none() || !close(expected, before.unwrap_or(0.0))) {
