@@ -6,14 +6,27 @@
 //! messages (the `$` position-reached message, comparator numbers) are collected whenever the client reads.
 //!
 //! Safety: a drive the client set in motion is remembered until the client has seen it stop. Dropping the
-//! [`Bus`], cancelling a wait through its [`CancelToken`], or a transport failure during a wait stops every
-//! such axis that still moves with `OUTPUT O0=0` ("switch off drive", the one documented command that ends a
-//! running positioning; every move command is refused with E92 while the axis moves): the client reads the
-//! drive's S17 first and switches it off only if "command active" is set, or if S17 cannot be read (on a
-//! failing line the stop is sent anyway). The stop is addressed to each drive, not broadcast: other drives
-//! on the bus may be someone else's. Moves sent with [`Bus::raw`] or
-//! [`Bus::broadcast`] count too (a broadcast move counts for every drive that has answered this client).
-//! [`Bus::release`] hands a running move over to the caller: the client forgets it and does not stop it.
+//! [`Bus`], cancelling a wait through its [`CancelToken`], or a failure during a wait or a checked move
+//! stops every such axis that still moves with `OUTPUT O0=0` ("switch off drive", the one documented
+//! command that ends a running positioning; every move command is refused with E92 while the axis moves):
+//! the client reads the drive's S17 first and switches it off only if "command active" is set, or if S17
+//! cannot be read (on a failing line the stop is sent anyway), then reads S17 again to confirm the axis is
+//! at rest. The error says per drive whether the drive confirmed the stop ([`Error::Aborted`],
+//! [`StopReport`]); if not, that the axis may still be moving. A drive switched off this way takes no move
+//! until `OUTPUT O0=1` switches it on again; a checked move to it says so ([`Error::SwitchedOff`]). The stop
+//! is addressed to each drive, not broadcast: other drives on the bus may be someone else's. Moves sent
+//! with [`Bus::raw`] or [`Bus::broadcast`] count too (a broadcast move counts for every drive that has
+//! answered this client). [`Bus::release`] hands a running move over to the caller: the client forgets it
+//! and does not stop it.
+//!
+//! What the drives do not do: COMPAX has no host watchdog. A host that dies (killed, crashed, unplugged)
+//! leaves a running positioning running to its target; nothing on the link stops it. P196's "timeout
+//! supervision" (valence 16) only discards a telegram that stalls for five character times (E73); it never
+//! stops an axis.
+//!
+//! Success means the drive did it: [`Bus::move_to`] reads the target back (S2) right after the move and
+//! the actual position (S1) at rest, and fails unless the axis came to rest within
+//! [`BusConfig::in_position_tolerance`] of its target; [`Bus::write_param`] reads the value back.
 //!
 //! Retries: E70, E72 and E73 mean the drive discarded the telegram; the client sends it again (up to
 //! [`BusConfig::retries`] times). E71 (more than 40 characters) is reported: the same telegram would overflow
@@ -60,8 +73,15 @@ use crate::wire::{
     Address, Body, EscapedBytes, Flags, Mode, Reply, ReplyDecoder, ReplyEvent, ReplyKind, Request, WireError, BROADCAST,
 };
 
+/// The default of [`BusConfig::in_position_tolerance`], in the drive's position unit.
+pub const DEFAULT_IN_POSITION_TOLERANCE: f64 = 0.01;
+
+/// While a wait listens (between polls, or for `$` messages), how often it looks at the cancel token: a
+/// cancelled wait stops the axes within this time plus two exchanges.
+const CANCEL_CHECK: Duration = Duration::from_millis(5);
+
 /// How the client talks to the bus.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct BusConfig {
     /// P196 of the drives (they must all have the same).
     pub mode: Mode,
@@ -75,7 +95,10 @@ pub struct BusConfig {
     pub retries: u32,
     /// Silence after a broadcast before the next telegram (nobody answers a broadcast); 20 ms by default.
     pub broadcast_gap: Duration,
-    /// Interval of status polls while waiting for a position; 50 ms by default.
+    /// Interval of status polls while waiting for a position (S17, and S1 for progress): a poll starts
+    /// every `poll_interval`, counted from the start of the previous one (when a poll takes longer than
+    /// that, as at 9600 baud with a short interval, the next one starts at once, never several to catch
+    /// up). 50 ms by default: at 9600 baud the two reads of one poll take about 40 ms of line time.
     pub poll_interval: Duration,
     /// While a wait listens for `$` messages, how often it still reads each drive's state (a `$` may be lost
     /// to a line error, or the axis stopped by someone else, and then none comes); 1 s by default.
@@ -84,6 +107,11 @@ pub struct BusConfig {
     pub wait_timeout: Duration,
     /// Long or short command names.
     pub style: CommandStyle,
+    /// How far from its target (in the drive's position unit) an axis may come to rest for a move to count
+    /// as done ([`Bus::move_to`]), and how far the target a drive reports (S2) may be from the one sent.
+    /// The manuals give no position window for the ASCII protocol; 0.01 by default (the user guide gives
+    /// positions two decimals in mm).
+    pub in_position_tolerance: f64,
 }
 
 impl BusConfig {
@@ -99,6 +127,7 @@ impl BusConfig {
             message_check_interval: Duration::from_secs(1),
             wait_timeout: Duration::from_secs(600),
             style: CommandStyle::Long,
+            in_position_tolerance: DEFAULT_IN_POSITION_TOLERANCE,
         }
     }
 
@@ -177,10 +206,89 @@ pub enum Error {
         /// The time waited.
         after: Duration,
     },
-    /// The action was cancelled through the [`CancelToken`] (Ctrl-C): no move is sent once it is; a
-    /// cancelled wait has stopped every axis this client set in motion (otherwise dropping the client does).
-    #[error("cancelled: no further motion is sent, and the axes this client set in motion are stopped")]
+    /// The action was cancelled through the [`CancelToken`] (Ctrl-C): no move is sent once it is. A
+    /// cancelled wait or move returns it inside [`Error::Aborted`], which says how the axes were stopped.
+    #[error("cancelled: no further motion is sent")]
     Cancelled,
+    /// An action failed, or was cancelled, while axes this client set in motion may have been moving: the
+    /// client tried to stop them, and `stop` says for each drive whether the drive confirmed it (and, if
+    /// not, that the axis may still be moving).
+    #[error("{cause}; {stop}")]
+    Aborted {
+        /// What went wrong.
+        cause: Box<Error>,
+        /// What the client did to stop the axes, drive by drive.
+        stop: StopReport,
+    },
+    /// A move ended with the axis at rest away from its target.
+    #[error(
+        "drive {address} did not reach its target: target {target}, reached {reached}, difference {difference:.3} \
+         (in-position tolerance {tolerance})"
+    )]
+    NotReached {
+        /// The drive.
+        address: u8,
+        /// The target asked for.
+        target: f64,
+        /// The actual position S1 read at rest.
+        reached: f64,
+        /// `reached - target`.
+        difference: f64,
+        /// [`BusConfig::in_position_tolerance`].
+        tolerance: f64,
+    },
+    /// The target a drive reports (S2, read twice after the move was sent) is not the one sent: a telegram
+    /// was corrupted on the way (without a BCC a flipped bit in a digit is still a valid command). Returned
+    /// inside [`Error::Aborted`]: the client stops the axis at once.
+    #[error(
+        "drive {address} took target {taken} instead of {requested} (its S2 after the move; a corrupted telegram?)"
+    )]
+    TargetMismatch {
+        /// The drive.
+        address: u8,
+        /// The target sent.
+        requested: f64,
+        /// The target S2 read back.
+        taken: f64,
+    },
+    /// A target outside the travel limits the caller gave ([`TravelLimits`]); nothing was sent to move.
+    #[error("drive {address}: target {target} is outside the travel limits: it is {side} {limit}")]
+    OutsideLimits {
+        /// The drive.
+        address: u8,
+        /// The target.
+        target: f64,
+        /// "below the minimum" or "above the maximum".
+        side: &'static str,
+        /// The limit crossed.
+        limit: f64,
+    },
+    /// The drive is switched off (`OUTPUT O0=0`, S16 bits 7 and 8): it takes no move until it is switched on
+    /// again with `OUTPUT O0=1`. `refused` is the code it answered a move with, if one was sent.
+    #[error("drive {address} is switched off (O0={o0}, S16){}: it moves only once it is switched on again with OUTPUT O0=1", refused.map(|c| format!(" and refused the move with {c}")).unwrap_or_default())]
+    SwitchedOff {
+        /// The drive.
+        address: u8,
+        /// The O0 state S16 shows (0, or 2).
+        o0: u8,
+        /// The drive's answer to the move, when the move was sent.
+        refused: Option<ErrorCode>,
+    },
+    /// A parameter written reads back another value.
+    #[error(
+        "drive {address}: {param} reads back {read} after {wrote} was written: the drive did not store the value \
+         (without a BCC a corrupted telegram may even have written another parameter; P196 valence 8 adds one)"
+    )]
+    ReadBack {
+        /// The drive.
+        address: u8,
+        /// The parameter.
+        param: ParamId,
+        /// The value written.
+        wrote: f64,
+        /// The value read back.
+        read: f64,
+    },
     /// [`Bus::sync_start`] could not store every move, and sent no `!`. The drives in `buffered` acknowledged
     /// storing theirs (and the failed drive may have stored its own if its reply was lost): the manual has
     /// no command that empties a drive's buffer, so the next `!` to such a drive, or any `32!` on the bus,
@@ -202,17 +310,212 @@ pub enum Error {
 }
 
 impl Error {
-    /// True for errors of the line (timeout, corrupt reply, port), as opposed to the drive's answers.
+    /// True for errors of the line (timeout, corrupt reply, port), as opposed to the drive's answers (for
+    /// [`Error::Aborted`]: of its cause).
     pub fn is_transport(&self) -> bool {
-        matches!(self, Error::Timeout { .. } | Error::Corrupt { .. } | Error::Link(_) | Error::Unexpected { .. })
+        matches!(self.root(), Error::Timeout { .. } | Error::Corrupt { .. } | Error::Link(_) | Error::Unexpected { .. })
     }
 
-    /// The drive's error code, if the drive refused.
+    /// The drive's error code, if the drive refused (for [`Error::Aborted`]: in its cause).
     pub fn device_code(&self) -> Option<ErrorCode> {
-        match self {
+        match self.root() {
             Error::Device { code, .. } => Some(*code),
+            Error::SwitchedOff { refused, .. } => *refused,
             _ => None,
         }
+    }
+
+    /// What went wrong in the first place: the cause of an [`Error::Aborted`], or the error itself.
+    pub fn root(&self) -> &Error {
+        match self {
+            Error::Aborted { cause, .. } => cause.root(),
+            other => other,
+        }
+    }
+
+    /// What the client did to stop the axes, when the error ended an action that may have left them
+    /// moving ([`Error::Aborted`]).
+    pub fn stop_report(&self) -> Option<&StopReport> {
+        match self {
+            Error::Aborted { stop, .. } => Some(stop),
+            _ => None,
+        }
+    }
+}
+
+/// How stopping one drive ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum StopOutcome {
+    /// The drive reported no command active (S17): its positioning had ended; it was not switched off.
+    AtRest,
+    /// `OUTPUT O0=0` was acknowledged and the drive then reported no command active (S17): the axis is at
+    /// rest and the drive is switched off; it takes no move until `OUTPUT O0=1` switches it on.
+    SwitchedOff,
+    /// The drive did not confirm the stop (no acknowledgement of `OUTPUT O0=0`, or S17 unreadable or still
+    /// "command active" after it): the axis may still be moving.
+    NotConfirmed {
+        /// What happened.
+        reason: String,
+    },
+}
+
+/// What [`Bus::stop_started`] did, drive by drive.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct StopReport {
+    /// Each drive the client had set in motion, and how stopping it ended.
+    pub drives: Vec<(Address, StopOutcome)>,
+}
+
+impl StopReport {
+    /// True when there was nothing to stop.
+    pub fn is_empty(&self) -> bool {
+        self.drives.is_empty()
+    }
+
+    /// True when every drive confirmed it is at rest (found at rest, or switched off and then at rest).
+    pub fn all_confirmed(&self) -> bool {
+        self.drives.iter().all(|(_, o)| !matches!(o, StopOutcome::NotConfirmed { .. }))
+    }
+
+    /// The drives switched off (they need `OUTPUT O0=1` before the next move).
+    pub fn switched_off(&self) -> Vec<Address> {
+        self.drives.iter().filter(|(_, o)| *o == StopOutcome::SwitchedOff).map(|(a, _)| *a).collect()
+    }
+
+    /// The drives whose stop was not confirmed (they may still be moving).
+    pub fn unconfirmed(&self) -> Vec<Address> {
+        self.drives.iter().filter(|(_, o)| matches!(o, StopOutcome::NotConfirmed { .. })).map(|(a, _)| *a).collect()
+    }
+}
+
+impl fmt::Display for StopReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.drives.is_empty() {
+            return f.write_str("no axis of this client was moving");
+        }
+        for (i, (a, o)) in self.drives.iter().enumerate() {
+            if i > 0 {
+                f.write_str("; ")?;
+            }
+            match o {
+                StopOutcome::AtRest => write!(f, "drive {a} was already at rest (left switched on)")?,
+                StopOutcome::SwitchedOff => write!(
+                    f,
+                    "drive {a} was stopped by switching it off (OUTPUT O0=0, confirmed by the drive): the drive is \
+                     now switched off and takes no move until OUTPUT O0=1 switches it on"
+                )?,
+                StopOutcome::NotConfirmed { reason } => write!(
+                    f,
+                    "drive {a}: the stop was NOT confirmed by the drive ({reason}): the axis may still be moving"
+                )?,
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Where a move goes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MoveTarget {
+    /// To this position (POSA).
+    Absolute(Position),
+    /// By this distance from the drive's current target S2 (POSR).
+    Relative(Position),
+}
+
+/// Travel limits the caller knows for an axis (the drive's own limits are not in the RS485 manual, and
+/// the client does not read them): a target outside them is refused before anything moves.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TravelLimits {
+    /// The lowest target allowed.
+    pub min: Option<Position>,
+    /// The highest target allowed.
+    pub max: Option<Position>,
+}
+
+impl TravelLimits {
+    /// Limits; refused when `min` is above `max`.
+    pub fn new(min: Option<Position>, max: Option<Position>) -> Result<Self, ModelError> {
+        if let (Some(lo), Some(hi)) = (min, max) {
+            if lo.units() > hi.units() {
+                return Err(ModelError::Range {
+                    what: "travel limits",
+                    value: format!("minimum {lo} above maximum {hi}"),
+                    range: "minimum at most the maximum",
+                });
+            }
+        }
+        Ok(TravelLimits { min, max })
+    }
+
+    fn check(&self, address: Address, target: Position) -> Result<()> {
+        let t = target.units();
+        let outside = |side, limit: Position| Error::OutsideLimits {
+            address: address.get(),
+            target: t,
+            side,
+            limit: limit.units(),
+        };
+        match (self.min, self.max) {
+            (Some(lo), _) if t < lo.units() => Err(outside("below the minimum", lo)),
+            (_, Some(hi)) if t > hi.units() => Err(outside("above the maximum", hi)),
+            _ => Ok(()),
+        }
+    }
+}
+
+/// A move as [`Bus::move_to`] makes it: checked, sent, read back, waited for, verified.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MoveRequest {
+    /// Where to.
+    pub target: MoveTarget,
+    /// SPEED for this move (the drive's current setting if `None`).
+    pub speed: Option<SpeedPercent>,
+    /// ACCEL for this move (the drive's current setting if `None`).
+    pub accel: Option<RampMs>,
+    /// Send the binary forms.
+    pub binary: bool,
+    /// Targets outside these are refused before anything is sent.
+    pub limits: TravelLimits,
+    /// How long the wait may take ([`BusConfig::wait_timeout`] if `None`); then the axis is stopped.
+    pub timeout: Option<Duration>,
+}
+
+impl MoveRequest {
+    /// A move to `target` with the drive's current settings, no limits and the default timeout.
+    pub fn new(target: MoveTarget) -> Self {
+        MoveRequest { target, speed: None, accel: None, binary: false, limits: TravelLimits::default(), timeout: None }
+    }
+}
+
+/// A move the drive has taken, with its target confirmed by S2 ([`Bus::start_checked_move`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StartedMove {
+    /// The drive.
+    pub address: Address,
+    /// S1 before the move.
+    pub start: Position,
+    /// The absolute target (for a relative move: S2 before it plus the distance, as the drive computes it).
+    pub target: Position,
+}
+
+/// A move that ended at its target ([`Bus::move_to`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MoveReport {
+    /// The drive.
+    pub address: Address,
+    /// S1 before the move.
+    pub start: Position,
+    /// The target.
+    pub target: Position,
+    /// S1 at rest afterwards (within [`BusConfig::in_position_tolerance`] of the target).
+    pub reached: Position,
+}
+
+impl MoveReport {
+    /// `reached - target`.
+    pub fn difference(&self) -> f64 {
+        self.reached.units() - self.target.units()
     }
 }
 
@@ -316,6 +619,17 @@ impl ReplyShape {
                 Ok(_) => ReplyShape::AckOnly,
                 Err(_) => ReplyShape::Any,
             },
+        }
+    }
+
+    /// True if `text` (not an error message) can answer the request at all: an acknowledgement is empty,
+    /// a read's reply reads as its value.
+    fn accepts(self, text: &[u8]) -> bool {
+        match self {
+            ReplyShape::Status(id) => StatusValue::parse(id, text).is_ok(),
+            ReplyShape::Param(id) => parse_param_reply(id, text).is_ok(),
+            ReplyShape::AckOnly => text.is_empty(),
+            ReplyShape::Any => true,
         }
     }
 
@@ -578,6 +892,7 @@ impl Bus {
         let wire_time = self.cfg.char_time() * (frame.len() as u32 + 48);
         let mut attempts = 0;
         let mut last_corrupt = None;
+        let mut unfit: Option<String> = None;
         loop {
             attempts += 1;
             // Whatever arrived before (late replies, messages) is handled, not mistaken for the answer.
@@ -609,7 +924,20 @@ impl Bus {
             // the reply can be.
             let shape = if self.comparators != 0 { ReplyShape::of(req) } else { ReplyShape::Any };
             self.awaiting_reply = Some((req.address, shape));
-            let outcome = self.read_event(deadline, Some(req.address));
+            // A reply that cannot answer this request (text to a move or setting, an acknowledgement or
+            // another value to a read) is a late reply to an earlier one, or garbled: it is not taken.
+            let accept = ReplyShape::of(req);
+            let outcome = loop {
+                match self.read_event(deadline, Some(req.address)) {
+                    Ok(Some(ReplyEvent::Reply(r)))
+                        if !matches!(r.kind(), ReplyKind::Error(_)) && !accept.accepts(r.text()) =>
+                    {
+                        tracing::info!("drive {}: {:?} cannot answer this request: ignored", req.address, r.text_str());
+                        unfit = Some(r.text_str().to_string());
+                    }
+                    other => break other,
+                }
+            };
             self.awaiting_reply = None;
             let outcome = outcome?;
             let retry_left = attempts <= self.cfg.retries;
@@ -647,6 +975,13 @@ impl Bus {
                 None => {
                     tracing::info!("drive {}: no reply (attempt {attempts})", req.address);
                     if retry != Retry::Idempotent || !retry_left {
+                        if let Some(reply) = unfit {
+                            return Err(Error::Unexpected {
+                                address: req.address.get(),
+                                command: self.command_text(&req.body, req.flags),
+                                reply,
+                            });
+                        }
                         return Err(match last_corrupt {
                             Some(detail) if retry == Retry::Idempotent => Error::Corrupt {
                                 address: req.address.get(),
@@ -725,9 +1060,27 @@ impl Bus {
                 if matches!(e, Error::Device { .. }) {
                     // Refused: it started nothing (an axis that was moving before still is).
                     self.started = saved;
+                    if effect == Effect::Starts {
+                        return Err(self.explain_refused_move(address, e));
+                    }
                 }
                 Err(e)
             }
+        }
+    }
+
+    /// A move `address` refused: if the drive is switched off (S16), that is the reason to give
+    /// ([`Error::SwitchedOff`]) rather than the bare code. E92 (the axis still moves) needs no reading.
+    fn explain_refused_move(&mut self, address: Address, e: Error) -> Error {
+        let Error::Device { code, .. } = e else { return e };
+        if code == ErrorCode::COMMAND_ACTIVE || address.is_broadcast() {
+            return e;
+        }
+        match self.read_s16(address) {
+            Ok(s16) if s16.o0_state() != 1 => {
+                Error::SwitchedOff { address: address.get(), o0: s16.o0_state(), refused: Some(code) }
+            }
+            _ => e,
         }
     }
 
@@ -763,10 +1116,23 @@ impl Bus {
     }
 
     /// Reads status value `id`. Address 32 is refused with [`Error::Broadcast`].
+    ///
+    /// A reply that does not read as that value (without a BCC, a flipped bit can garble a reply beyond
+    /// recognition) is asked for again, up to [`BusConfig::retries`] times: a read changes nothing.
     pub fn read_status(&mut self, address: Address, id: StatusId) -> Result<StatusValue> {
         let cmd = Command::ReadStatus(id);
-        let r = self.ask(address, &cmd, "a status value cannot be read from it")?;
-        StatusValue::parse(id, r.text()).map_err(|_| self.unexpected(address, &cmd, r.text()))
+        let mut attempts = 0;
+        loop {
+            attempts += 1;
+            let r = self.ask(address, &cmd, "a status value cannot be read from it")?;
+            match StatusValue::parse(id, r.text()) {
+                Ok(v) => return Ok(v),
+                Err(_) if attempts <= self.cfg.retries => {
+                    tracing::info!("drive {address}: {id} answered {:?}, not a value: reading again", r.text_str());
+                }
+                Err(_) => return Err(self.unexpected(address, &cmd, r.text())),
+            }
+        }
     }
 
     /// Reads the actual position S1.
@@ -805,16 +1171,39 @@ impl Bus {
     }
 
     /// Reads parameter `id`. Address 32 is refused with [`Error::Broadcast`].
+    ///
+    /// A reply that does not read as a value is asked for again, as for [`Bus::read_status`].
     pub fn read_param(&mut self, address: Address, id: ParamId) -> Result<f64> {
         let cmd = Command::ReadParam(id);
-        let r = self.ask(address, &cmd, "a parameter cannot be read from it")?;
-        parse_param_reply(id, r.text()).map_err(|_| self.unexpected(address, &cmd, r.text()))
+        let mut attempts = 0;
+        loop {
+            attempts += 1;
+            let r = self.ask(address, &cmd, "a parameter cannot be read from it")?;
+            match parse_param_reply(id, r.text()) {
+                Ok(v) => return Ok(v),
+                Err(_) if attempts <= self.cfg.retries => {
+                    tracing::info!("drive {address}: {id} answered {:?}, not a value: reading again", r.text_str());
+                }
+                Err(_) => return Err(self.unexpected(address, &cmd, r.text())),
+            }
+        }
     }
 
-    /// Writes parameter `id` (checked against its known range first). P194..P196 take effect at power-on.
+    /// Writes parameter `id` (checked against its known range first) and reads it back: a value that reads
+    /// back otherwise is [`Error::ReadBack`]. P194..P196 take effect at power-on (they read back at once).
+    /// To address 32 (every drive) the value is written and cannot be read back (nobody answers).
     pub fn write_param(&mut self, address: Address, id: ParamId, value: f64) -> Result<()> {
         id.check(value)?;
-        self.expect_ack(address, &Command::WriteParam(id, value))
+        self.expect_ack(address, &Command::WriteParam(id, value))?;
+        if address.is_broadcast() {
+            return Ok(());
+        }
+        let read = self.read_param(address, id)?;
+        // The reply is decimal text: what was written reads back as the same number, at any magnitude.
+        if (read - value).abs() > 1e-9 * value.abs().max(1.0) {
+            return Err(Error::ReadBack { address: address.get(), param: id, wrote: value, read });
+        }
+        Ok(())
     }
 
     fn expect_ack(&mut self, address: Address, cmd: &Command) -> Result<()> {
@@ -931,6 +1320,17 @@ impl Bus {
     }
 
     fn start_move(&mut self, address: Address, cmd: Command, opts: MoveOptions) -> Result<()> {
+        self.start_move_from(address, cmd, opts, None)
+    }
+
+    /// Sends move `cmd`; for a POSR, `target_before` is the drive's S2 if the caller has just read it.
+    fn start_move_from(
+        &mut self,
+        address: Address,
+        cmd: Command,
+        opts: MoveOptions,
+        target_before: Option<f64>,
+    ) -> Result<()> {
         if address.is_broadcast() {
             return Err(Error::Broadcast(
                 "a move needs one drive's answer (broadcast() moves every drive, sync_start() several at once)",
@@ -939,8 +1339,9 @@ impl Bus {
         self.check_cancel()?;
         let text = cmd.to_ascii(self.cfg.style)?;
         let req = self.move_request(address, &cmd, text.as_bytes(), opts)?;
-        let before = match cmd {
-            Command::PosR(_) => Some(self.read_target(address)?.units()),
+        let before = match (cmd, target_before) {
+            (Command::PosR(_), Some(b)) => Some(b),
+            (Command::PosR(_), None) => Some(self.read_target(address)?.units()),
             _ => None,
         };
         let expected = match cmd {
@@ -962,8 +1363,9 @@ impl Bus {
             attempts += 1;
             match self.transact(&req, Retry::DiscardedOnly) {
                 Ok(_) => return Ok(()),
-                Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. })) => {
-                    // The reply is lost: did the drive take the move? Its target position tells.
+                Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. } | Error::Unexpected { .. })) => {
+                    // The reply is lost (or only a reply that cannot be the acknowledgement came): did the
+                    // drive take the move? Its target position tells.
                     let target = self.read_target(address)?.units();
                     let close = |a: f64, b: f64| (a - b).abs() < 0.0015;
                     if close(target, expected) && (before.is_none() || !close(expected, before.unwrap_or(0.0))) {
@@ -991,6 +1393,7 @@ impl Bus {
                         // this client set moving before is still its to stop.
                         self.started = saved;
                         self.awaiting_message = saved_awaiting;
+                        return Err(self.explain_refused_move(address, e));
                     }
                     return Err(e);
                 }
@@ -1076,13 +1479,19 @@ impl Bus {
     }
 
     /// Waits until every drive in `drives` has ended its positioning: by its `$` message when the move asked
-    /// for one, otherwise by polling S17 ("command active"). `progress` gets each polled position.
+    /// for one, otherwise by polling S17 ("command active") every [`BusConfig::poll_interval`]. `progress`
+    /// gets each polled position.
     ///
     /// While it listens for `$` messages it still reads each drive's S17 every
     /// [`BusConfig::message_check_interval`]: a `$` lost to a line error, or a positioning that someone else
     /// ended (no `$` comes then), ends the wait too. Without a `timeout` it waits at most
-    /// [`BusConfig::wait_timeout`]. On timeout, cancellation or a line failure, every axis this client
-    /// started is stopped. Address 32 is refused ([`Error::Broadcast`]): a broadcast has no state to read.
+    /// [`BusConfig::wait_timeout`]. Between polls it looks at the cancel token every few milliseconds. On
+    /// timeout, cancellation or a line failure, every axis this client started is stopped
+    /// ([`Bus::stop_started`]) and the error is [`Error::Aborted`], which says whether each drive confirmed
+    /// its stop. Address 32 is refused ([`Error::Broadcast`]): a broadcast has no state to read.
+    ///
+    /// The end of a positioning is not the end of a move: [`Bus::move_to`] also checks where the axis came
+    /// to rest.
     pub fn wait_reached(
         &mut self,
         drives: &[Address],
@@ -1094,7 +1503,9 @@ impl Bus {
         }
         let timeout = timeout.unwrap_or(self.cfg.wait_timeout);
         let started_at = self.clock.now();
+        let give_up_at = started_at + timeout;
         let mut next_check = started_at + self.cfg.message_check_interval;
+        let mut poll_at = started_at;
         let mut pending: Vec<Address> = drives.to_vec();
         pending.sort();
         pending.dedup();
@@ -1134,20 +1545,48 @@ impl Bus {
                 if pending.is_empty() {
                     return Ok(());
                 }
-                let waited = self.clock.now() - started_at;
-                if waited >= timeout {
-                    return Err(Error::MoveTimeout { address: pending[0].get(), after: waited });
+                let now = self.clock.now();
+                if now >= give_up_at {
+                    return Err(Error::MoveTimeout { address: pending[0].get(), after: now - started_at });
                 }
-                self.listen(self.cfg.poll_interval)?;
+                // The next poll is due one interval after the start of this one (at once if this one took
+                // longer), never later than the end of the wait.
+                poll_at = (poll_at + self.cfg.poll_interval).max(now).min(give_up_at);
+                self.listen_until(poll_at)?;
             }
         })();
-        if let Err(e) = &result {
-            tracing::warn!("{e}: stopping the axes this client moved");
-            if let Err(stop_err) = self.stop_started() {
-                tracing::error!("stopping failed: {stop_err}");
+        result.map_err(|e| self.abort(e))
+    }
+
+    /// Waits `d` on the session's clock, handling what arrives meanwhile (`$` and comparator messages),
+    /// and ends early with [`Error::Cancelled`] once the cancel token is cancelled (it looks every 5 ms). For
+    /// callers that poll at their own rate (`motionlink compax watch`).
+    pub fn pause(&mut self, d: Duration) -> Result<()> {
+        let until = self.clock.now() + d;
+        self.listen_until(until)
+    }
+
+    /// Handles what arrives until `until`, looking at the cancel token every [`CANCEL_CHECK`].
+    fn listen_until(&mut self, until: Timestamp) -> Result<()> {
+        loop {
+            self.check_cancel()?;
+            let now = self.clock.now();
+            if now >= until {
+                return Ok(());
             }
+            self.listen((until - now).min(CANCEL_CHECK))?;
         }
-        result
+    }
+
+    /// `cause` ended an action while axes of this client may be moving: stops them and says how that went
+    /// ([`Error::Aborted`]); with nothing to stop, `cause` alone.
+    fn abort(&mut self, cause: Error) -> Error {
+        if self.started == 0 {
+            return cause;
+        }
+        tracing::warn!("{cause}: stopping the axes this client moved");
+        let stop = self.stop_started();
+        Error::Aborted { cause: Box::new(cause), stop }
     }
 
     /// Forgets `a` as moving: its positioning ended (or the broadcast address: every drive's). Its
@@ -1162,8 +1601,9 @@ impl Bus {
         }
     }
 
-    /// Stops one drive: `OUTPUT O0=0` (switch off drive). Switch it on again with
+    /// Stops one drive: `OUTPUT O0=0` (switch off drive), acknowledged. Switch it on again with
     /// `set_output(address, 0, OutputState::ON, false)`. Address 32 switches every drive on the bus off.
+    /// [`Bus::stop_started`] also confirms the stop by reading S17.
     pub fn stop(&mut self, address: Address) -> Result<()> {
         let r = self.expect_ack(address, &Command::SWITCH_OFF);
         if r.is_ok() {
@@ -1172,13 +1612,18 @@ impl Bus {
         r
     }
 
-    /// Stops every drive this client set in motion and has not seen stop, if it still moves: it reads the
-    /// drive's S17 first (one attempt, no retries) and sends `OUTPUT O0=0` when "command active" is set. A
-    /// drive whose S17 cannot be read (a line failure, a corrupt or unexpected reply, a refusal) is sent the
-    /// stop anyway: on a failing line a moving axis must not be left running. A drive found at rest is
-    /// forgotten without being switched off. Tries them all; returns the first error of a stop.
-    pub fn stop_started(&mut self) -> Result<()> {
-        let mut first = Ok(());
+    /// Stops every drive this client set in motion and has not seen stop, if it still moves, and reports
+    /// per drive how that ended. It reads the drive's S17 first (one attempt, no retries): a drive at rest
+    /// is forgotten without being switched off ([`StopOutcome::AtRest`]). A drive whose S17 says "command
+    /// active", or cannot be read (a line failure, a corrupt or unexpected reply, a refusal: on a failing
+    /// line a moving axis must not be left running), is sent `OUTPUT O0=0`; once acknowledged, S17 is read
+    /// again to confirm that no command is active ([`StopOutcome::SwitchedOff`]). Without a BCC the
+    /// acknowledgement alone proves little (a flipped bit can turn `O0=0` into `O0=1`, which is
+    /// acknowledged alike): if S17 still shows the positioning, the stop is sent once more. A drive that
+    /// does not confirm is [`StopOutcome::NotConfirmed`]: the axis may still be moving, and the client
+    /// keeps it on its list, so dropping the client tries once more.
+    pub fn stop_started(&mut self) -> StopReport {
+        let mut report = StopReport::default();
         for a in self.started() {
             let saved = std::mem::replace(&mut self.cfg.retries, 0);
             let s17 = self.read_s17(a);
@@ -1187,19 +1632,194 @@ impl Bus {
                 Ok(s) if !s.bit(S17Bits::COMMAND_ACTIVE) => {
                     tracing::debug!("drive {a}: at rest, not switched off");
                     self.finish(a);
+                    report.drives.push((a, StopOutcome::AtRest));
                     continue;
                 }
                 Ok(_) => tracing::warn!("drive {a} still moves: stopping it"),
                 Err(e) => tracing::warn!("drive {a}: S17 unreadable ({e}): stopping it anyway"),
             }
-            if let Err(e) = self.stop(a) {
-                tracing::error!("drive {a}: stop failed: {e}");
-                if first.is_ok() {
-                    first = Err(e);
+            let outcome = self.switch_off_confirmed(a);
+            match &outcome {
+                StopOutcome::NotConfirmed { reason } => tracing::error!("drive {a}: stop not confirmed: {reason}"),
+                _ => tracing::info!("drive {a}: switched off, at rest"),
+            }
+            report.drives.push((a, outcome));
+        }
+        report
+    }
+
+    /// `OUTPUT O0=0` to `a`, confirmed by S17 ("command active" clear) afterwards.
+    fn switch_off_confirmed(&mut self, a: Address) -> StopOutcome {
+        for _ in 0..2 {
+            if let Err(e) = self.expect_ack(a, &Command::SWITCH_OFF) {
+                return StopOutcome::NotConfirmed { reason: format!("OUTPUT O0=0 was not acknowledged: {e}") };
+            }
+            match self.read_s17(a) {
+                Ok(s) if !s.bit(S17Bits::COMMAND_ACTIVE) => {
+                    self.finish(a);
+                    return StopOutcome::SwitchedOff;
+                }
+                Ok(_) => {
+                    tracing::warn!("drive {a}: S17 still shows a command active after OUTPUT O0=0: sending it again")
+                }
+                Err(e) => {
+                    return StopOutcome::NotConfirmed {
+                        reason: format!("OUTPUT O0=0 was acknowledged, but S17 could not be read afterwards: {e}"),
+                    }
                 }
             }
         }
-        first
+        StopOutcome::NotConfirmed {
+            reason: "S17 still shows a command active after OUTPUT O0=0 was acknowledged twice".into(),
+        }
+    }
+
+    // --------------------------------------------------------------------------------------------------
+    // Checked moves
+
+    /// Moves one drive and makes sure it got there: [`Bus::start_checked_move`], then
+    /// [`Bus::finish_checked_move`]. `progress` gets each polled position. Returns where the axis came to
+    /// rest, within [`BusConfig::in_position_tolerance`] of the target; any other outcome is an error,
+    /// and an error while the axis may move has stopped it ([`Error::Aborted`] says whether the drive
+    /// confirmed that).
+    pub fn move_to(
+        &mut self,
+        address: Address,
+        request: &MoveRequest,
+        progress: &mut dyn FnMut(Position),
+    ) -> Result<MoveReport> {
+        let started = self.start_checked_move(address, request)?;
+        self.finish_checked_move(&started, request.timeout, progress)
+    }
+
+    /// Starts a move and confirms the drive took the right target, in this order:
+    ///
+    /// 1. an absolute target outside `request.limits` is refused ([`Error::OutsideLimits`]) before anything
+    ///    is sent;
+    /// 2. S16: a drive that is switched off is refused ([`Error::SwitchedOff`]) before anything moves;
+    /// 3. S1 (the start), and for a relative move S2 (the drive adds the distance to its target S2), then the
+    ///    limits for the target that makes;
+    /// 4. SPEED and ACCEL if given, then the move (POSA / POSR, ASCII or binary; see
+    ///    [`Bus::move_absolute`] for what happens when its reply is lost);
+    /// 5. S2 read back: the protocol starts a positioning with the move telegram itself (a move stored with
+    ///    `,` cannot be read back before `!` executes it), so the target is checked as early as it can be,
+    ///    just after. A target off by more than the tolerance is read once more (a reply can be garbled
+    ///    too); still off, the axis is switched off at once and the error is [`Error::TargetMismatch`]
+    ///    inside [`Error::Aborted`].
+    ///
+    /// Once the move may have been sent, any error stops the axis ([`Error::Aborted`]). Nothing is sent once
+    /// the cancel token is cancelled.
+    pub fn start_checked_move(&mut self, address: Address, request: &MoveRequest) -> Result<StartedMove> {
+        if address.is_broadcast() {
+            return Err(Error::Broadcast("a checked move reads one drive's state"));
+        }
+        self.check_cancel()?;
+        if let MoveTarget::Absolute(p) = request.target {
+            request.limits.check(address, p)?;
+        }
+        let s16 = self.read_s16(address)?;
+        if s16.o0_state() != 1 {
+            return Err(Error::SwitchedOff { address: address.get(), o0: s16.o0_state(), refused: None });
+        }
+        if self.read_s17(address)?.bit(S17Bits::COMMAND_ACTIVE) {
+            // Someone else's positioning (or one this client handed over): not this call's to stop.
+            return Err(Error::Device {
+                address: address.get(),
+                command: "S17".into(),
+                code: ErrorCode::COMMAND_ACTIVE,
+            });
+        }
+        let start = self.read_position(address)?;
+        let (cmd, target, before) = match request.target {
+            MoveTarget::Absolute(p) => (Command::PosA(p), p, None),
+            MoveTarget::Relative(d) => {
+                let s2 = self.read_target(address)?;
+                (Command::PosR(d), Position::new(s2.units() + d.units())?, Some(s2.units()))
+            }
+        };
+        request.limits.check(address, target)?;
+        self.check_cancel()?;
+        // The axis is at rest and switched on. From the first telegram that can change that on, it counts as
+        // this client's to stop: without a BCC one flipped bit turns a binary SPEED into a POSR (53 -> 52),
+        // and a move the drive then refuses with E92 means exactly that.
+        self.started |= bit(address);
+        let opts = MoveOptions { binary: request.binary, message: false };
+        let sent = (|| {
+            if let Some(speed) = request.speed {
+                self.set_speed(address, speed, request.binary)?;
+            }
+            if let Some(ramp) = request.accel {
+                self.set_accel(address, ramp, request.binary)?;
+            }
+            self.start_move_from(address, cmd, opts, before)
+        })();
+        if let Err(e) = sent {
+            self.started |= bit(address);
+            return Err(self.abort(e));
+        }
+        if let Err(e) = self.confirm_target(address, target) {
+            return Err(self.abort(e));
+        }
+        Ok(StartedMove { address, start, target })
+    }
+
+    /// Reads S2 after a move was sent; [`Error::TargetMismatch`] when it is off the target twice.
+    fn confirm_target(&mut self, address: Address, target: Position) -> Result<()> {
+        let tolerance = self.cfg.in_position_tolerance;
+        let mut taken = target.units();
+        for attempt in 0..2 {
+            taken = self.read_target(address)?.units();
+            if (taken - target.units()).abs() <= tolerance {
+                return Ok(());
+            }
+            tracing::warn!("drive {address}: S2 reads {taken}, not the target {target} (read {})", attempt + 1);
+        }
+        Err(Error::TargetMismatch { address: address.get(), requested: target.units(), taken })
+    }
+
+    /// Waits for a move [`Bus::start_checked_move`] started and checks where the axis came to rest: the
+    /// actual position S1 must lie within [`BusConfig::in_position_tolerance`] of the target, or the
+    /// error is [`Error::NotReached`] naming target, reached position and difference. A position off the
+    /// target is checked against S17 and read once more before it counts: if S17 still shows the
+    /// positioning (a garbled status reply ended the wait early), the wait goes on; a second S1 read
+    /// decides (a garbled position reply is not the axis's position). Errors during the wait stop the axis
+    /// ([`Bus::wait_reached`]).
+    pub fn finish_checked_move(
+        &mut self,
+        started: &StartedMove,
+        timeout: Option<Duration>,
+        progress: &mut dyn FnMut(Position),
+    ) -> Result<MoveReport> {
+        let a = started.address;
+        let tolerance = self.cfg.in_position_tolerance;
+        let target = started.target;
+        let give_up_at = self.clock.now() + timeout.unwrap_or(self.cfg.wait_timeout);
+        let report = |reached: Position| MoveReport { address: a, start: started.start, target, reached };
+        let close = |p: Position| (p.units() - target.units()).abs() <= tolerance;
+        loop {
+            let left = give_up_at.saturating_since(self.clock.now()).max(Duration::from_millis(1));
+            self.wait_reached(&[a], Some(left), &mut |_, p| progress(p))?;
+            let reached = self.read_position(a)?;
+            if close(reached) {
+                return Ok(report(reached));
+            }
+            if self.read_s17(a)?.bit(S17Bits::COMMAND_ACTIVE) {
+                tracing::info!("drive {a}: the positioning still runs (a garbled status reply?): waiting on");
+                self.started |= bit(a);
+                continue;
+            }
+            let again = self.read_position(a)?;
+            if close(again) {
+                return Ok(report(again));
+            }
+            return Err(Error::NotReached {
+                address: a.get(),
+                target: target.units(),
+                reached: again.units(),
+                difference: again.units() - target.units(),
+                tolerance,
+            });
+        }
     }
 }
 
@@ -1321,6 +1941,11 @@ impl Drive<'_> {
         self.bus.home(self.address, opts)
     }
 
+    /// [`Bus::move_to`]: a move that is checked, read back, waited for and verified.
+    pub fn move_to(&mut self, request: &MoveRequest, progress: &mut dyn FnMut(Position)) -> Result<MoveReport> {
+        self.bus.move_to(self.address, request, progress)
+    }
+
     /// [`Bus::wait_reached`] for this drive.
     pub fn wait_reached(&mut self, timeout: Option<Duration>, progress: &mut dyn FnMut(Position)) -> Result<()> {
         self.bus.wait_reached(&[self.address], timeout, &mut |_, p| progress(p))
@@ -1360,11 +1985,15 @@ impl Drop for Bus {
     /// Stops every axis this client set in motion that is still moving (or whose state cannot be read):
     /// [`Bus::stop_started`].
     fn drop(&mut self) {
-        if self.started != 0 {
-            tracing::debug!("the client closes: stopping the axes it moved that still move");
+        if self.started == 0 {
+            return;
         }
-        if let Err(e) = self.stop_started() {
-            tracing::error!("stopping as the client closes failed: {e}");
+        tracing::debug!("the client closes: stopping the axes it moved that still move");
+        let report = self.stop_started();
+        if report.all_confirmed() {
+            tracing::info!("as the client closes: {report}");
+        } else {
+            tracing::error!("as the client closes: {report}");
         }
     }
 }

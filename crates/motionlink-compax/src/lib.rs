@@ -74,9 +74,22 @@
 //!   drive it started (a broadcast would also stop drives that other programs run) and only if the drive
 //!   still moves: [`client::Bus::stop_started`] (used on drop, on a cancelled or failed wait) reads S17 first
 //!   and sends the stop when "command active" is set, and also when S17 cannot be read (a line failure: the
-//!   stop is sent anyway, so an axis is never left running because its state was unreadable).
-//!   [`client::Bus::stop`] switches the drive off unconditionally. `OUTPUT O0=1` switches the drive on
-//!   again; the emulator powers up switched on.
+//!   stop is sent anyway, so an axis is never left running because its state was unreadable), then reads
+//!   S17 again to confirm the axis is at rest (sending the stop once more if not): the
+//!   [`client::StopReport`] says per drive whether the drive confirmed it, and if not, that the axis may
+//!   still be moving. [`client::Bus::stop`] switches the drive off unconditionally. `OUTPUT O0=1` switches
+//!   the drive on again; the emulator powers up switched on, and refuses moves while switched off.
+//! - **No host watchdog**: the manual has none, so a host that dies leaves a positioning running. P196's
+//!   timeout supervision (valence 16) is an inter-character timeout inside one telegram (E73), not a
+//!   watchdog.
+//! - **Checked moves** ([`client::Bus::move_to`]): the manuals give no position window for this protocol,
+//!   so the in-position tolerance is [`client::BusConfig::in_position_tolerance`] (0.01 by default); they
+//!   name no travel limits, so the caller gives them ([`client::TravelLimits`]). A target cannot be read
+//!   back before the start (the move telegram starts it, and a buffered move cannot be read before `!`): S2
+//!   is read right after the move, and a mismatch switches the axis off. The drive counts as started from
+//!   the first setting of the move on (in binary without BCC one flipped bit turns SPEED into POSR).
+//! - **Replies that cannot answer the request** (text to a move, an acknowledgement or another value to a
+//!   read) are taken for late or garbled ones and not used; a read whose reply does not parse is sent again.
 //! - **Lost replies**: reads, settings, POSA and buffered commands are sent again after a timeout or a corrupt
 //!   reply. A POSR is not: the client read the target S2 before sending it and reads it again; unchanged, the
 //!   move did not arrive and is sent again; moved by the distance, it arrived; otherwise the caller gets
@@ -118,7 +131,8 @@
 //! - **Emulator parameters and status values**: the manual defines P194..P196 and no error code for an
 //!   invalid parameter or status number (it lists E70..E74 only), so the emulator answers a read or write
 //!   of a parameter it does not model ([`sim::SimConfig::params`] adds some) and a status value it does not
-//!   model with E90 ([`sim::REFUSED`]), never with a made-up 0. S18 records every error a drive meets.
+//!   model with E90 ([`sim::REFUSED`]), never with a made-up 0. P003, which the user guide writes in its
+//!   example, is modelled. S18 records every error a drive meets.
 
 #![warn(missing_docs)]
 

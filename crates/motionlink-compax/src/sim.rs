@@ -20,7 +20,13 @@
 //!   while switched off with [`REFUSED`] (E90): the code a real drive uses for these is not in our sources.
 //!   The RS485 manual lists only E70..E74, and no code for an invalid parameter or status number.
 //! - Parameters: the manual defines P194..P196 only. A read or write of any other parameter is refused with
-//!   E90, unless the configuration lists it ([`SimConfig::params`]); nothing reads as a made-up 0.
+//!   E90, unless the configuration lists it ([`SimConfig::params`]); nothing reads as a made-up 0. P003 is
+//!   the exception: the user guide writes it in its example (`P003=-1055.88`), so every drive models it (0
+//!   at power-on; its meaning is not in our sources).
+//! - Switched off (`OUTPUT O0=0`, or 2): S16 shows it (bits 7 / 8), S17 "RUN" is clear, a running
+//!   positioning ends where the axis is, and every move is refused with E90 until `OUTPUT O0=1`.
+//! - Events ([`Emulator::take_events`], shown by `motionlink sim compax --events`): a positioning started
+//!   or ended (`drive 1 at rest 12.500`), the drive switched off or on, an error recorded in S18.
 //! - Status values the emulator does not model (S4, S5, S11, S13..S15, S19..S30, S33..S40) are refused with
 //!   E90 rather than answered with 0.
 //! - S18 (the last eight errors, newest first) records every error a drive meets (E70..E73, E90, E92, ...),
@@ -49,6 +55,11 @@ use crate::wire::{Mode, TextBuf, BROADCAST};
 /// The error the emulator answers to a command it refuses for a reason the manuals give no code for (syntax,
 /// range, empty buffer, drive switched off). Not a documented COMPAX code.
 pub const REFUSED: ErrorCode = ErrorCode(90);
+
+/// P003, the parameter of the user guide's example of a write (`P003=-1055.88`): every emulated drive
+/// models it (0 at power-on), so the example in the README works against the emulator. Its meaning is not
+/// in our sources; the emulator stores it as a plain number.
+const USER_GUIDE_EXAMPLE_PARAM: u16 = 3;
 
 /// The motion model's step.
 const TICK: Duration = Duration::from_millis(1);
@@ -276,6 +287,8 @@ pub struct Drive {
     held: Vec<u8>,
     max_speed: f64,
     telegrams: u64,
+    /// What happened since the last [`CompaxBus::take_events`](Emulator::take_events), one line each.
+    events: Vec<String>,
 }
 
 impl Drive {
@@ -287,6 +300,8 @@ impl Drive {
         params.insert(ParamId::DEVICE_ADDRESS.get(), f64::from(cfg.address));
         params.insert(ParamId::BAUD_RATE.get(), f64::from(baud));
         params.insert(ParamId::OPERATING_MODE.get(), f64::from(p196));
+        // The user guide's example of a parameter write (`P003=-1055.88`): every drive models it.
+        params.insert(USER_GUIDE_EXAMPLE_PARAM, 0.0);
         // Validated with the configuration.
         for (id, v) in bus.param_ids().unwrap_or_default() {
             params.insert(id.get(), v);
@@ -324,6 +339,7 @@ impl Drive {
             held: Vec::new(),
             max_speed: bus.max_speed_units_per_s,
             telegrams: 0,
+            events: Vec::new(),
         }
     }
 
@@ -386,9 +402,15 @@ impl Drive {
     /// Records error `code` in S18. The RS485 errors E70..E73 need no acknowledgement (manual chapter 6):
     /// the next error-free transmission acknowledges them, which S18 shows as 99.
     fn record(&mut self, code: ErrorCode) {
+        self.event(format!("error {code}"));
         self.history.rotate_right(1);
         self.history[0] = code.0;
         self.auto_ack = (70..=73).contains(&code.0);
+    }
+
+    /// Notes an event of this drive (`drive N ...`) for [`Emulator::take_events`].
+    fn event(&mut self, what: String) {
+        self.events.push(format!("drive {} {what}", self.address));
     }
 
     /// Number of telegrams addressed to this drive (or broadcast) that it executed or answered.
@@ -492,6 +514,7 @@ impl Drive {
                 let m = self.motion.take().expect("checked above");
                 self.reached = true;
                 self.motion_cycles += 1;
+                self.event(format!("at rest {:.3}", self.position));
                 if m.homing {
                     self.homed = true;
                 }
@@ -703,6 +726,11 @@ impl Drive {
                 self.next.comparators.clear();
                 self.next.speed_step = None;
                 settings.comparators.sort_by(|a, b| a.distance.total_cmp(&b.distance));
+                if c == Command::PosAHome {
+                    self.event(format!("homing started from {:.3}", self.position));
+                } else {
+                    self.event(format!("motion started to {target:.3} from {:.3}", self.position));
+                }
                 self.motion = Some(Motion {
                     target,
                     start: self.position,
@@ -728,11 +756,19 @@ impl Drive {
                 Ok(ack)
             }
             Command::Output { output: 0, state } => {
-                self.o0 = state.get();
+                let was = std::mem::replace(&mut self.o0, state.get());
+                if self.o0 != was {
+                    self.event(if self.o0 == 1 {
+                        "switched on (O0=1)".to_string()
+                    } else {
+                        format!("switched off (O0={})", self.o0)
+                    });
+                }
                 if self.o0 != 1 && self.motion.take().is_some() {
                     // Switched off: the positioning ends where the axis is.
                     self.target = self.position;
                     self.idle_after_stop = true;
+                    self.event(format!("at rest {:.3}", self.position));
                 }
                 Ok(ack)
             }
@@ -783,9 +819,12 @@ impl Drive {
         self.rx = RequestDecoder::new(&self.mode);
         self.rx_parity_error = false;
         self.buffer = None;
-        self.motion = None;
+        if self.motion.take().is_some() {
+            self.event(format!("at rest {:.3}", self.position));
+        }
         self.target = self.position;
         self.o0 = 1;
+        self.event("powered on (switched on, O0=1)".to_string());
         self.pending.clear();
         self.xoff = false;
         self.held.clear();
@@ -831,6 +870,7 @@ impl CompaxBus {
     /// Switches every drive off and on at `now`: written P194 / P195 / P196 take effect, motions end.
     pub fn power_cycle(&mut self, now: Timestamp) {
         for d in &mut self.drives {
+            d.update(now);
             d.power_cycle(now);
         }
     }
@@ -877,6 +917,15 @@ impl Emulator for CompaxBus {
 
     fn next_wakeup(&self) -> Option<Timestamp> {
         self.drives.iter().filter_map(Drive::next_wakeup).min()
+    }
+
+    /// Each drive's events since the last call, drive by drive (oldest first within a drive): `drive 1
+    /// motion started to 100.000 from 0.000`, `drive 1 at rest 100.000` (a positioning ended: reached, or
+    /// ended by switching the drive off), `drive 1 switched off (O0=0)`, `drive 1 switched on (O0=1)`,
+    /// `drive 1 homing started from 0.000`, `drive 1 error E92 (...)` (every error recorded in S18),
+    /// `drive 1 powered on (switched on, O0=1)`.
+    fn take_events(&mut self) -> Vec<String> {
+        self.drives.iter_mut().flat_map(|d| std::mem::take(&mut d.events)).collect()
     }
 
     /// A telegram the host left half-sent is dropped by every drive; motion, XON/XOFF and buffers stay.
@@ -1052,6 +1101,67 @@ mod tests {
         assert_eq!(&ask(&mut b, 11, &with_bcc(b"1!\r"))[..3], b"E90");
         assert_eq!(s18(&mut b, 12), "S018: 90 92 99 72 99 99 99 99");
         assert_eq!(b.drive(1).unwrap().history()[..2], [90, 92]);
+    }
+
+    #[test]
+    fn events_tell_what_each_drive_did() {
+        let mut b = bus(&[1, 5], 0);
+        assert!(b.take_events().is_empty(), "nothing happened yet");
+        assert_eq!(ask(&mut b, 0, b"1POSA 10\r"), b"\r\n>");
+        assert_eq!(b.take_events(), ["drive 1 motion started to 10.000 from 0.000"]);
+        assert!(b.take_events().is_empty(), "taken once");
+        // 100 units/s: at rest after 100 ms, with its position.
+        let mut out = Vec::new();
+        b.advance(Timestamp::from_millis(150), &mut out);
+        assert_eq!(b.take_events(), ["drive 1 at rest 10.000"]);
+        // A move while moving is refused: the error is an event.
+        assert_eq!(ask(&mut b, 200, b"5POSA 100\r"), b"\r\n>");
+        assert_eq!(ask(&mut b, 210, b"5POSA 50\r"), b"E92\r\n>");
+        let ev = b.take_events();
+        assert_eq!(ev[0], "drive 5 motion started to 100.000 from 0.000");
+        assert!(ev[1].starts_with("drive 5 error E92"), "{ev:?}");
+        // Switched off while moving: switched off, then at rest where it was.
+        assert_eq!(ask(&mut b, 300, b"5OUTPUT O0=0\r"), b"\r\n>");
+        assert_eq!(b.take_events(), ["drive 5 switched off (O0=0)", "drive 5 at rest 10.000"]);
+        // Switched off, it refuses moves; switching off again is no event.
+        assert_eq!(ask(&mut b, 310, b"5POSA 1\r"), b"E90\r\n>");
+        assert_eq!(ask(&mut b, 311, b"5OUTPUT O0=0\r"), b"\r\n>");
+        let ev = b.take_events();
+        assert_eq!(ev.len(), 1, "{ev:?}");
+        assert!(ev[0].starts_with("drive 5 error E90"), "{ev:?}");
+        assert_eq!(ask(&mut b, 320, b"5OUTPUT O0=1\r"), b"\r\n>");
+        assert_eq!(b.take_events(), ["drive 5 switched on (O0=1)"]);
+        // A broadcast move: every drive tells.
+        assert_eq!(ask(&mut b, 400, b"32POSR 1\r"), b"");
+        assert_eq!(
+            b.take_events(),
+            ["drive 1 motion started to 11.000 from 10.000", "drive 5 motion started to 11.000 from 10.000"]
+        );
+        b.power_cycle(Timestamp::from_millis(401));
+        let ev = b.take_events();
+        assert_eq!(
+            ev,
+            [
+                "drive 1 at rest 10.100",
+                "drive 1 powered on (switched on, O0=1)",
+                "drive 5 at rest 10.100",
+                "drive 5 powered on (switched on, O0=1)"
+            ]
+        );
+        assert_eq!(ask(&mut b, 500, b"1POSA HOME\r"), b"\r\n>");
+        assert_eq!(b.take_events(), ["drive 1 homing started from 10.100"]);
+    }
+
+    #[test]
+    fn the_user_guides_example_parameter_p003_is_modelled() {
+        let mut b = bus(&[1], 0);
+        assert_eq!(ask(&mut b, 0, b"1P003\r"), b"P003=0\r\n>");
+        assert_eq!(ask(&mut b, 1, b"1P003=-1055.88\r"), b"\r\n>");
+        assert_eq!(ask(&mut b, 2, b"1P3\r"), b"P003=-1055.88\r\n>");
+        assert_eq!(b.drive(1).unwrap().param(ParamId::new(3).unwrap()), Some(-1055.88));
+        // Its neighbours are not modelled.
+        assert_eq!(ask(&mut b, 3, b"1P2\r"), b"E90\r\n>");
+        assert_eq!(ask(&mut b, 4, b"1P4=1\r"), b"E90\r\n>");
     }
 
     #[test]

@@ -2,7 +2,7 @@
 
 use std::time::Duration;
 
-use motionlink_compax::client::{Bus, BusConfig, Error, MoveOptions};
+use motionlink_compax::client::{Bus, BusConfig, Error, MoveOptions, StopOutcome};
 use motionlink_compax::model::{
     Command, ErrorCode, OutputState, ParamId, Position, RampMs, S16Bits, S17Bits, SpeedPercent, StatusId, StatusValue,
 };
@@ -126,7 +126,8 @@ fn a_gap_inside_a_telegram_gives_e73_and_a_resend() {
     r.faults.inject(Direction::HostToDevice, at + 2, motionlink_link::pipe::Fault::Delay(Duration::from_millis(10)));
     bus.write_param(a(2), ParamId::new(10).unwrap(), 7.0).unwrap();
     assert!(r.transcript.bytes(Way::Received).starts_with(b"E73\r\n>"));
-    assert_eq!(sent(&r.transcript).len(), 2);
+    // Sent, E73, sent again; then read back.
+    assert_eq!(sent(&r.transcript), [b"2P010=7\r".to_vec(), b"2P010=7\r".to_vec(), b"2P010\r".to_vec()]);
     assert_eq!(bus.read_param(a(2), ParamId::new(10).unwrap()).unwrap(), 7.0);
 }
 
@@ -292,7 +293,9 @@ fn dropping_the_client_stops_the_axis_it_moved() {
     assert!(!r.host.with_device(|d| d.drive(1).unwrap().is_moving()));
     assert_eq!(r.host.with_device(|d| d.drive(1).unwrap().o0()), 0);
     let sent_cmds = sent(&r.transcript);
-    assert_eq!(sent_cmds.last().unwrap(), b"1OUTPUT O0=0\r");
+    // The stop, then S17 to confirm it.
+    assert_eq!(sent_cmds[sent_cmds.len() - 2], b"1OUTPUT O0=0\r");
+    assert_eq!(sent_cmds.last().unwrap(), b"1S17\r");
     assert!(!sent_cmds.iter().any(|f| f.starts_with(b"2")), "nothing sent to drive 2: {sent_cmds:?}");
     let (moving, o0) = r.host.with_device(|d| (d.drive(2).unwrap().is_moving(), d.drive(2).unwrap().o0()));
     assert!(moving && o0 == 1, "drive 2 still runs its own move");
@@ -326,7 +329,8 @@ fn moves_sent_raw_or_by_broadcast_are_stopped_on_drop() {
     assert!(bus.started().contains(&a(1)), "{:?}", bus.started());
     drop(bus);
     assert!(!r.host.with_device(|d| d.drive(1).unwrap().is_moving()));
-    assert_eq!(sent(&r.transcript).last().unwrap(), b"1OUTPUT O0=0\r");
+    // The stop, then S17 to confirm it.
+    assert_eq!(sent(&r.transcript).iter().rev().take(2).collect::<Vec<_>>(), [b"1S17\r".as_slice(), b"1OUTPUT O0=0\r"]);
     drop(_me);
 
     // A buffered move run by "!", with no reply ("/").
@@ -512,7 +516,7 @@ fn a_wait_without_a_timeout_ends_after_the_default_one() {
     bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
     let t0 = clock.now();
     let e = bus.wait_reached(&[a(1)], None, &mut |_, _| {}).unwrap_err();
-    assert!(matches!(e, Error::MoveTimeout { address: 1, .. }), "{e}");
+    assert!(matches!(e.root(), Error::MoveTimeout { address: 1, .. }), "{e}");
     let took = clock.now() - t0;
     assert!(took >= Duration::from_secs(3) && took < Duration::from_secs(4), "{took:?}");
     assert!(!host.with_device(|d| d.drive(1).unwrap().is_moving()), "stopped");
@@ -678,7 +682,10 @@ fn cancelling_a_wait_stops_the_axes() {
             }
         })
         .unwrap_err();
-    assert!(matches!(e, Error::Cancelled), "{e}");
+    assert!(matches!(e.root(), Error::Cancelled), "{e}");
+    let stop = e.stop_report().expect("the wait stopped the axes");
+    assert_eq!(stop.switched_off(), [a(1), a(5)], "{e}");
+    assert!(stop.all_confirmed());
     let (m1, m5) = r.host.with_device(|d| (d.drive(1).unwrap().is_moving(), d.drive(5).unwrap().is_moving()));
     assert!(!m1 && !m5);
     assert!(bus.started().is_empty());
@@ -697,7 +704,8 @@ fn a_wait_that_takes_too_long_stops_the_axis() {
     let _me = r.clock.reserve_participant().enter();
     bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
     let e = bus.wait_reached(&[a(1)], Some(Duration::from_secs(2)), &mut |_, _| {}).unwrap_err();
-    assert!(matches!(e, Error::MoveTimeout { address: 1, .. }), "{e}");
+    assert!(matches!(e.root(), Error::MoveTimeout { address: 1, .. }), "{e}");
+    assert_eq!(e.stop_report().unwrap().switched_off(), [a(1)], "{e}");
     assert!(!r.host.with_device(|d| d.drive(1).unwrap().is_moving()));
 }
 
@@ -708,7 +716,14 @@ fn a_broken_link_during_a_wait_is_a_transport_error() {
     bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
     r.faults.disconnect();
     let e = bus.wait_reached(&[a(1)], None, &mut |_, _| {}).unwrap_err();
-    assert!(matches!(e, Error::Link(_)), "{e}");
+    assert!(matches!(e.root(), Error::Link(_)), "{e}");
+    assert!(e.is_transport());
+    // The stop cannot go out on a broken link: the error says so, in words.
+    let stop = e.stop_report().expect("a stop was tried");
+    assert_eq!(stop.unconfirmed(), [a(1)]);
+    assert!(e.to_string().contains("the axis may still be moving"), "{e}");
+    assert!(r.host.with_device(|d| d.drive(1).unwrap().is_moving()), "and indeed it moves on");
+    bus.release(&[a(1)]);
 }
 
 #[test]
@@ -859,9 +874,16 @@ fn stop_started_switches_off_only_the_axes_that_still_move() {
     bus.move_absolute(a(1), pos(1.0), MoveOptions::default()).unwrap();
     bus.move_absolute(a(5), pos(1000.0), MoveOptions::default()).unwrap();
     r.clock.sleep(Duration::from_secs(1));
-    bus.stop_started().unwrap();
+    let report = bus.stop_started();
+    assert_eq!(report.drives, [(a(1), StopOutcome::AtRest), (a(5), StopOutcome::SwitchedOff)]);
+    assert!(report.all_confirmed());
+    assert_eq!(report.switched_off(), [a(5)]);
+    let text = report.to_string();
+    assert!(text.contains("drive 1 was already at rest"), "{text}");
+    assert!(text.contains("drive 5 was stopped by switching it off") && text.contains("OUTPUT O0=1"), "{text}");
     let frames = sent(&r.transcript);
     assert!(frames.iter().any(|f| f == b"1S17\r") && frames.iter().any(|f| f == b"5S17\r"), "S17 read first");
+    assert_eq!(frames.last().unwrap(), b"5S17\r", "the stop confirmed by S17 afterwards: {frames:?}");
     assert!(!frames.iter().any(|f| f.starts_with(b"1OUTPUT")), "drive 1 is at rest: not switched off");
     assert!(frames.iter().any(|f| f == b"5OUTPUT O0=0\r"), "drive 5 still moves: switched off");
     assert_eq!(r.host.with_device(|d| (d.drive(1).unwrap().o0(), d.drive(5).unwrap().o0())), (1, 0));
@@ -886,9 +908,16 @@ fn stop_started_sends_the_stop_when_s17_cannot_be_read() {
     let link = Scripted { clock: clock.shared(), answer: Box::new(answer), pending: Default::default() };
     let mut bus = Bus::new(Box::new(link), clock.shared(), BusConfig::new(Mode::default(), 9600));
     bus.move_absolute(a(1), pos(10.0), MoveOptions::default()).unwrap();
-    bus.stop_started().unwrap();
+    let report = bus.stop_started();
     let frames = sent_frames.lock().unwrap().clone();
-    assert_eq!(frames.iter().filter(|f| *f == b"1S17\r").count(), 1, "one attempt: {frames:?}");
-    assert_eq!(frames.last().map(Vec::as_slice), Some(&b"1OUTPUT O0=0\r"[..]), "stopped anyway: {frames:?}");
-    assert!(bus.started().is_empty());
+    let stop_at = frames.iter().position(|f| f == b"1OUTPUT O0=0\r").expect("stopped anyway");
+    assert_eq!(frames[..stop_at].iter().filter(|f| *f == b"1S17\r").count(), 1, "one attempt first: {frames:?}");
+    // The acknowledged stop cannot be confirmed (S17 still unreadable): the report says so in words, and the
+    // client keeps the drive on its list (dropping it tries again).
+    assert!(!report.all_confirmed());
+    assert_eq!(report.unconfirmed(), [a(1)]);
+    let text = report.to_string();
+    assert!(text.contains("NOT confirmed") && text.contains("may still be moving"), "{text}");
+    assert_eq!(bus.started(), [a(1)]);
+    bus.release(&[a(1)]);
 }

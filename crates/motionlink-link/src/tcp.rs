@@ -42,6 +42,20 @@ impl Link for TcpLink {
     }
 
     fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
+        if timeout.is_zero() {
+            // Only what has arrived: a non-blocking read. (The shortest socket timeout is a whole kernel
+            // tick, 4 to 10 ms, which a client that looks for late bytes before every request would pay on
+            // every exchange.)
+            self.stream.set_nonblocking(true).map_err(|e| LinkError::from_io(&self.name, e))?;
+            let r = self.stream.read(buf);
+            self.stream.set_nonblocking(false).map_err(|e| LinkError::from_io(&self.name, e))?;
+            return match r {
+                Ok(0) => Err(LinkError::Disconnected { port: self.name.clone(), reason: "closed by peer".into() }),
+                Ok(n) => Ok(n),
+                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::Interrupted) => Ok(0),
+                Err(e) => Err(LinkError::from_io(&self.name, e)),
+            };
+        }
         // A zero read timeout means "block forever" to the OS; the shortest real wait stands in for it.
         self.stream
             .set_read_timeout(Some(timeout.max(Duration::from_micros(1))))

@@ -4,10 +4,13 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use motionlink_compax::client::{Bus, BusConfig, Error as BusError, MoveOptions};
+use motionlink_compax::client::{
+    Bus, BusConfig, Error as BusError, MoveOptions, MoveRequest, MoveTarget, TravelLimits,
+    DEFAULT_IN_POSITION_TOLERANCE,
+};
 use motionlink_compax::model::{
     Command, CommandStyle, ModelError, OutputState, ParamId, Position, RampMs, S16Bits, S17Bits, SpeedPercent,
-    StatusId, StatusKind, StatusValue,
+    StatusId, StatusKind, StatusValue, BAUD_RATES,
 };
 use motionlink_compax::sim::{CompaxBus, SimConfig};
 use motionlink_compax::wire::binary::announced_len;
@@ -31,16 +34,16 @@ pub struct Args {
     #[arg(long)]
     pub port: String,
     /// The drive's address (P194), 1..=31.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub drive: u8,
     /// The drives' operating mode P196 (0..=127): BCC, parity, reply end, address prefix...
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub mode: u32,
-    /// The drives' baud rate P195.
-    #[arg(long, default_value_t = 9600)]
+    /// The drives' baud rate P195 (150, 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200).
+    #[arg(long, default_value_t = 9600, allow_negative_numbers = true)]
     pub baud: u32,
-    /// Time a drive may take to start answering, in ms (on top of the wire time).
-    #[arg(long, default_value_t = 200)]
+    /// Time a drive may take to start answering, in ms (1..=60000, on top of the wire time).
+    #[arg(long, default_value_t = 200, allow_negative_numbers = true)]
     pub timeout_ms: u64,
     /// Send the short command names (PA, PR, SD, AL, OT) instead of the long ones.
     #[arg(long)]
@@ -68,7 +71,8 @@ pub enum Action {
         /// The parameter.
         param: String,
     },
-    /// Write a parameter, such as P196 8 (P194..P196 take effect at the drive's next power-on).
+    /// Write a parameter, such as P196 8, and read it back (P194..P196 take effect at the drive's next
+    /// power-on).
     Set {
         /// The parameter.
         param: String,
@@ -76,20 +80,20 @@ pub enum Action {
         #[arg(allow_negative_numbers = true)]
         value: f64,
     },
-    /// Move the axis and wait until the position is reached (Ctrl-C stops it). Every argument is checked
-    /// before anything is sent.
+    /// Move the axis, wait until it is at rest, and check it is at its target (a signal stops it). Every
+    /// argument is checked before anything is sent.
     Move {
         /// Move to this absolute position (drive's unit).
         #[arg(long, allow_negative_numbers = true, conflicts_with = "rel", required_unless_present = "rel")]
         abs: Option<f64>,
-        /// Move by this distance (drive's unit).
+        /// Move by this distance from the drive's target S2 (drive's unit).
         #[arg(long, allow_negative_numbers = true)]
         rel: Option<f64>,
-        /// SPEED in percent of the drive's maximum speed.
-        #[arg(long)]
+        /// SPEED in percent of the drive's maximum speed (more than 0, at most 100).
+        #[arg(long, allow_negative_numbers = true)]
         speed: Option<f64>,
-        /// ACCEL: ramp time in ms.
-        #[arg(long)]
+        /// ACCEL: ramp time in ms (0..=32767).
+        #[arg(long, allow_negative_numbers = true)]
         accel: Option<u32>,
         /// Send the binary commands.
         #[arg(long)]
@@ -97,10 +101,28 @@ pub enum Action {
         /// Give up (and stop the axis) after this many seconds (more than 0).
         #[arg(long, default_value_t = 600.0, allow_negative_numbers = true)]
         timeout_s: f64,
-        /// Return once the drive has taken the move, without waiting: the move is handed over and keeps
-        /// running after the command exits (nothing stops it).
+        /// Success only if the axis comes to rest this close to its target (drive's unit, more than 0).
+        #[arg(long, default_value_t = DEFAULT_IN_POSITION_TOLERANCE, allow_negative_numbers = true)]
+        tolerance: f64,
+        /// Refuse targets below this position (checked before anything moves).
+        #[arg(long, allow_negative_numbers = true)]
+        min_pos: Option<f64>,
+        /// Refuse targets above this position (checked before anything moves).
+        #[arg(long, allow_negative_numbers = true)]
+        max_pos: Option<f64>,
+        /// Interval of the status polls while waiting, in ms (1..=10000).
+        #[arg(long, default_value_t = 50, allow_negative_numbers = true)]
+        poll_ms: u64,
+        /// Return once the drive has taken the move (its target read back), without waiting: the move is
+        /// handed over and keeps running after the command exits (nothing stops it).
         #[arg(long, conflicts_with = "timeout_s")]
         no_wait: bool,
+    },
+    /// Read S1 and S17 over and over and print them, one line each, until interrupted.
+    Watch {
+        /// Interval between two lines, in ms (1..=60000).
+        #[arg(long, default_value_t = 200, allow_negative_numbers = true)]
+        interval_ms: u64,
     },
     /// Switch an output: OUTPUT ON=S (output 0 is the drive itself: 0 switches it off, 1 on).
     Output {
@@ -110,10 +132,20 @@ pub enum Action {
         state: u8,
     },
     /// Send a command as it is, such as "S1", "POSA 10$", "!" (flag characters $ , / ? at the end are sent as
-    /// flags); prints the reply. A move it starts keeps running after the command exits.
+    /// flags); prints the reply. A move it starts keeps running after the command exits, unless --wait.
     Raw {
         /// The command.
         command: String,
+        /// Wait until a move the command started has ended (a signal stops it; its position is not
+        /// checked: use move for that).
+        #[arg(long)]
+        wait: bool,
+        /// With --wait: give up (and stop the axis) after this many seconds (more than 0).
+        #[arg(long, default_value_t = 600.0, allow_negative_numbers = true, requires = "wait")]
+        timeout_s: f64,
+        /// With --wait: interval of the status polls, in ms (1..=10000).
+        #[arg(long, default_value_t = 50, requires = "wait", allow_negative_numbers = true)]
+        poll_ms: u64,
     },
 }
 
@@ -146,7 +178,7 @@ pub struct DecodeArgs {
     #[command(flatten)]
     pub capture: CaptureArgs,
     /// P196 of the capture (BCC, reply end, address prefix).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub mode: u32,
     /// Which way the bytes went: auto (guess each telegram), host (requests only), drive (replies only).
     #[arg(long, value_enum, default_value_t = Direction::Auto)]
@@ -164,13 +196,63 @@ pub enum Direction {
     Drive,
 }
 
+/// How to switch drive `a` on again, as a command line on the same port and bus settings.
+fn switch_on_hint(args: &Args, a: u8) -> String {
+    let mut cmd = format!("motionlink compax --port {}", args.port);
+    if args.mode != 0 {
+        cmd.push_str(&format!(" --mode {}", args.mode));
+    }
+    if args.baud != 9600 {
+        cmd.push_str(&format!(" --baud {}", args.baud));
+    }
+    format!("drive {a} is switched off; to switch it on again: {cmd} --drive {a} output 0 1")
+}
+
+/// The error as the user reads it, with how to switch on a drive the error left (or found) switched off;
+/// classed by what went wrong in the first place.
+fn bus_error_for(args: &Args, e: BusError) -> CliError {
+    let mut msg = match (e.root(), common::stop_cause()) {
+        (BusError::Cancelled, Some(cause)) => match e.stop_report() {
+            Some(stop) => format!("{} received: {stop}", cause.name()),
+            None => format!("{} received: nothing was moved", cause.name()),
+        },
+        _ => e.to_string(),
+    };
+    let off: Vec<u8> = match &e {
+        BusError::SwitchedOff { address, .. } => vec![*address],
+        _ => e.stop_report().map(|r| r.switched_off().iter().map(|a| a.get()).collect()).unwrap_or_default(),
+    };
+    for a in off {
+        msg.push('\n');
+        msg.push_str(&switch_on_hint(args, a));
+    }
+    match e.root() {
+        BusError::Cancelled => CliError::Interrupted(msg),
+        BusError::Device { .. }
+        | BusError::MoveTimeout { .. }
+        | BusError::NotReached { .. }
+        | BusError::TargetMismatch { .. }
+        | BusError::SwitchedOff { .. }
+        | BusError::ReadBack { .. } => CliError::Device(msg),
+        BusError::SyncIncomplete { source, .. } if source.device_code().is_some() => CliError::Device(msg),
+        BusError::Invalid(_) | BusError::Wire(_) | BusError::Broadcast(_) | BusError::OutsideLimits { .. } => {
+            CliError::Usage(msg)
+        }
+        BusError::Link(motionlink_link::LinkError::InvalidPort { .. }) => CliError::Usage(msg),
+        _ => CliError::Transport(msg),
+    }
+}
+
 fn bus_error(e: BusError) -> CliError {
-    match e {
+    match e.root() {
+        BusError::Cancelled if e.stop_report().is_none() => {
+            let cause = common::stop_cause().map_or("interrupted".to_string(), |c| format!("{} received", c.name()));
+            CliError::Interrupted(format!("{cause}: the action ended before it was done"))
+        }
         BusError::Cancelled => CliError::Interrupted(e.to_string()),
         BusError::Device { .. } | BusError::MoveTimeout { .. } => CliError::device(e),
-        BusError::SyncIncomplete { ref source, .. } if source.device_code().is_some() => CliError::device(e),
+        BusError::SyncIncomplete { source, .. } if source.device_code().is_some() => CliError::device(e),
         BusError::Invalid(_) | BusError::Wire(_) | BusError::Broadcast(_) => CliError::usage(e),
-        BusError::Link(l) => l.into(),
         _ => CliError::transport(e),
     }
 }
@@ -179,33 +261,50 @@ fn model_error(e: ModelError) -> CliError {
     CliError::usage(e)
 }
 
-/// Ctrl-C came before anything was sent (or between reads): ends the action with exit code 130.
+/// A signal came before anything was sent (or between reads): ends the action with exit code 128 + n.
 fn check_interrupt(bus: &Bus, what: &str) -> Result<(), CliError> {
     if bus.is_cancelled() {
-        return Err(CliError::Interrupted(format!("interrupted; {what}")));
+        let cause = common::stop_cause().map_or("interrupted".to_string(), |c| format!("{} received", c.name()));
+        return Err(CliError::Interrupted(format!("{cause}; {what}")));
     }
     Ok(())
 }
 
+/// A duration in ms given as `name`, within `min..=max`.
+fn checked_ms(name: &str, ms: u64, min: u64, max: u64) -> Result<Duration, CliError> {
+    if (min..=max).contains(&ms) {
+        Ok(Duration::from_millis(ms))
+    } else {
+        Err(CliError::usage(format!("{name} {ms}: give {min} to {max} ms")))
+    }
+}
+
+/// A duration in seconds given as `name`: more than 0, finite.
+fn checked_s(name: &str, s: f64) -> Result<Duration, CliError> {
+    Duration::try_from_secs_f64(s)
+        .ok()
+        .filter(|t| !t.is_zero())
+        .ok_or_else(|| CliError::usage(format!("{name} {s}: give a number of seconds above 0")))
+}
+
 /// The arguments of `move`, checked before anything is sent.
 struct MovePlan {
-    target: MoveTarget,
-    speed: Option<SpeedPercent>,
-    accel: Option<RampMs>,
-    timeout: Duration,
+    request: MoveRequest,
+    tolerance: f64,
+    poll: Duration,
 }
 
-enum MoveTarget {
-    Absolute(Position),
-    Relative(Position),
-}
-
+#[allow(clippy::too_many_arguments)]
 fn plan_move(
     abs: Option<f64>,
     rel: Option<f64>,
     speed: Option<f64>,
     accel: Option<u32>,
+    binary: bool,
     timeout_s: f64,
+    tolerance: f64,
+    (min_pos, max_pos): (Option<f64>, Option<f64>),
+    poll_ms: u64,
 ) -> Result<MovePlan, CliError> {
     let target = match (abs, rel) {
         (Some(a), None) => MoveTarget::Absolute(Position::new(a).map_err(|e| CliError::usage(format!("--abs: {e}")))?),
@@ -214,22 +313,36 @@ fn plan_move(
     };
     let speed = speed.map(SpeedPercent::new).transpose().map_err(|e| CliError::usage(format!("--speed: {e}")))?;
     let accel = accel.map(RampMs::new).transpose().map_err(|e| CliError::usage(format!("--accel: {e}")))?;
-    let timeout = Duration::try_from_secs_f64(timeout_s)
-        .ok()
-        .filter(|t| !t.is_zero())
-        .ok_or_else(|| CliError::usage(format!("--timeout-s {timeout_s}: give a number of seconds above 0")))?;
-    Ok(MovePlan { target, speed, accel, timeout })
+    let timeout = checked_s("--timeout-s", timeout_s)?;
+    if !(tolerance.is_finite() && tolerance > 0.0 && tolerance <= 1e6) {
+        return Err(CliError::usage(format!("--tolerance {tolerance}: give a distance above 0 (at most 1000000)")));
+    }
+    let limit = |name: &str, v: Option<f64>| {
+        v.map(Position::new).transpose().map_err(|e| CliError::usage(format!("{name}: {e}")))
+    };
+    let limits = TravelLimits::new(limit("--min-pos", min_pos)?, limit("--max-pos", max_pos)?)
+        .map_err(|e| CliError::usage(format!("--min-pos / --max-pos: {e}")))?;
+    let poll = checked_ms("--poll-ms", poll_ms, 1, 10_000)?;
+    let request = MoveRequest { target, speed, accel, binary, limits, timeout: Some(timeout) };
+    Ok(MovePlan { request, tolerance, poll })
 }
 
 fn parse_mode(p196: u32) -> Result<Mode, CliError> {
     Mode::from_p196(p196).map_err(|e| CliError::usage(format!("--mode: {e}")))
 }
 
-fn open(args: &Args) -> Result<Bus, CliError> {
+/// Checks the bus arguments (before anything is opened or sent) and opens the port.
+fn open(args: &Args, configure: impl FnOnce(&mut BusConfig)) -> Result<Bus, CliError> {
     let mode = parse_mode(args.mode)?;
-    Address::drive(args.drive).map_err(|e| CliError::usage(format!("--drive: {e}")))?;
+    Address::drive(args.drive).map_err(|e| CliError::usage(format!("--drive {}: {e}", args.drive)))?;
+    if !BAUD_RATES.contains(&args.baud) {
+        return Err(CliError::usage(format!("--baud {}: not a rate P195 accepts ({BAUD_RATES:?})", args.baud)));
+    }
+    let reply_timeout = checked_ms("--timeout-ms", args.timeout_ms, 1, 60_000)?;
     let url: PortUrl = args.port.parse()?;
     let clock: SharedClock = RealClock::shared();
+    // Installed before the port opens: a signal from here on stops what the command starts.
+    let token = common::interrupt_token();
     let link: Box<dyn Link> = match url {
         PortUrl::Sim => {
             let cfg = SimConfig::bus(&[args.drive], args.mode, args.baud);
@@ -244,10 +357,11 @@ fn open(args: &Args) -> Result<Bus, CliError> {
         }
     };
     let mut cfg = BusConfig::new(mode, args.baud);
-    cfg.reply_timeout = Duration::from_millis(args.timeout_ms);
+    cfg.reply_timeout = reply_timeout;
     cfg.style = if args.short { CommandStyle::Short } else { CommandStyle::Long };
+    configure(&mut cfg);
     let mut bus = Bus::new(link, clock, cfg);
-    bus.set_cancel(common::interrupt_token());
+    bus.set_cancel(token);
     Ok(bus)
 }
 
@@ -274,19 +388,52 @@ fn status_rows(id: StatusId, v: &StatusValue) -> (Row, serde_json::Value) {
 /// Runs `motionlink compax`.
 pub fn run(args: Args) -> Result<(), CliError> {
     let mut out = std::io::stdout().lock();
-    // A move's arguments are checked before the port is opened: nothing is sent for a move that cannot be
-    // made.
-    let mut move_plan = match &args.action {
-        Action::Move { abs, rel, speed, accel, timeout_s, .. } => {
-            Some(plan_move(*abs, *rel, *speed, *accel, *timeout_s)?)
-        }
+    // Every argument of an action is checked before the port is opened: nothing is sent for an action that
+    // cannot be made.
+    let move_plan = match &args.action {
+        Action::Move { abs, rel, speed, accel, binary, timeout_s, tolerance, min_pos, max_pos, poll_ms, .. } => Some(
+            plan_move(*abs, *rel, *speed, *accel, *binary, *timeout_s, *tolerance, (*min_pos, *max_pos), *poll_ms)?,
+        ),
         _ => None,
     };
-    let mut bus = open(&args)?;
+    let mut poll = move_plan.as_ref().map(|p| p.poll);
+    let mut raw_wait = None;
+    let mut watch_interval = None;
+    match &args.action {
+        Action::Raw { wait: true, timeout_s, poll_ms, .. } => {
+            raw_wait = Some(checked_s("--timeout-s", *timeout_s)?);
+            poll = Some(checked_ms("--poll-ms", *poll_ms, 1, 10_000)?);
+        }
+        Action::Watch { interval_ms } => watch_interval = Some(checked_ms("--interval-ms", *interval_ms, 1, 60_000)?),
+        Action::Output { number, state } => {
+            OutputState::new(*number, *state).map_err(model_error)?;
+        }
+        Action::Get { param } => {
+            ParamId::parse(param).map_err(model_error)?;
+        }
+        Action::Set { param, value } => {
+            ParamId::parse(param).and_then(|id| id.check(*value)).map_err(model_error)?;
+        }
+        Action::Status { values } => {
+            for v in values {
+                StatusId::parse(v).map_err(model_error)?;
+            }
+        }
+        _ => {}
+    }
+    let tolerance = move_plan.as_ref().map(|p| p.tolerance);
+    let mut bus = open(&args, |cfg| {
+        if let Some(p) = poll {
+            cfg.poll_interval = p;
+        }
+        if let Some(t) = tolerance {
+            cfg.in_position_tolerance = t;
+        }
+    })?;
     let drive = Address::drive(args.drive).map_err(CliError::usage)?;
     match &args.action {
         Action::Scan => {
-            // Ctrl-C ends the scan between two addresses.
+            // A signal ends the scan between two addresses.
             let found = bus.scan(1..=31).map_err(bus_error)?;
             if args.json {
                 let list: Vec<_> =
@@ -335,7 +482,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
         Action::Set { param, value } => {
             let id = ParamId::parse(param).map_err(model_error)?;
-            bus.write_param(drive, id, *value).map_err(bus_error)?;
+            // Written and read back: a value that reads back otherwise is an error (exit code 1).
+            bus.write_param(drive, id, *value).map_err(|e| bus_error_for(&args, e))?;
             let note = match id.info() {
                 Some(i) if i.valid_from == motionlink_compax::model::ValidFrom::PowerOn => {
                     " (takes effect at the drive's next power-on)"
@@ -343,58 +491,92 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 _ => "",
             };
             if args.json {
-                common::print_json(&mut out, &json!({"drive": drive.get(), "param": id.to_string(), "value": value}))?;
-            } else {
-                writeln!(out, "{id} = {value}{note}")?;
-            }
-        }
-        Action::Move { binary, no_wait, .. } => {
-            let plan = move_plan.take().ok_or_else(|| CliError::usage("move: no plan"))?;
-            let opts = MoveOptions { binary: *binary, message: false };
-            check_interrupt(&bus, "nothing was sent")?;
-            let start = bus.read_position(drive).map_err(bus_error)?;
-            let target = match plan.target {
-                MoveTarget::Absolute(p) => p,
-                MoveTarget::Relative(d) => Position::new(start.units() + d.units())
-                    .map_err(|e| CliError::usage(format!("--rel {d} from {start}: {e}")))?,
-            };
-            let distance = (target.units() - start.units()).abs();
-            check_interrupt(&bus, "nothing was moved")?;
-            if let Some(s) = plan.speed {
-                bus.set_speed(drive, s, *binary).map_err(bus_error)?;
-            }
-            if let Some(a) = plan.accel {
-                bus.set_accel(drive, a, *binary).map_err(bus_error)?;
-            }
-            // The move itself is not sent once Ctrl-C has come (Error::Cancelled).
-            match plan.target {
-                MoveTarget::Absolute(p) => bus.move_absolute(drive, p, opts),
-                MoveTarget::Relative(d) => bus.move_relative(drive, d, opts),
-            }
-            .map_err(bus_error)?;
-            if *no_wait {
-                // Handed over: the move runs on after this command exits.
-                bus.release(&[drive]);
-            } else {
-                let bar =
-                    common::progress_bar((distance * 1000.0).round() as u64, format!("drive {drive} to {target}"));
-                let r = bus.wait_reached(&[drive], Some(plan.timeout), &mut |_, p| {
-                    bar.set_position(((p.units() - start.units()).abs() * 1000.0).round() as u64);
-                });
-                bar.finish_and_clear();
-                r.map_err(bus_error)?;
-            }
-            let end = bus.read_position(drive).map_err(bus_error)?;
-            if args.json {
                 common::print_json(
                     &mut out,
-                    &json!({"drive": drive.get(), "target": target.units(), "position": end.units(),
-                            "waited": !*no_wait}),
+                    &json!({"drive": drive.get(), "param": id.to_string(), "value": value, "read_back": true}),
                 )?;
-            } else if *no_wait {
-                writeln!(out, "drive {drive}: target {target}, position {end} (moving on)")?;
             } else {
-                writeln!(out, "drive {drive}: target {target}, position {end}")?;
+                writeln!(out, "{id} = {value}, read back{note}")?;
+            }
+        }
+        Action::Move { no_wait, .. } => {
+            let plan = move_plan.ok_or_else(|| CliError::usage("move: no plan"))?;
+            check_interrupt(&bus, "nothing was sent")?;
+            if *no_wait {
+                let started = bus.start_checked_move(drive, &plan.request).map_err(|e| bus_error_for(&args, e))?;
+                if bus.is_cancelled() {
+                    // A signal came while the move was being sent: it is stopped, not handed over.
+                    return Err(bus_error_for(
+                        &args,
+                        BusError::Aborted { cause: Box::new(BusError::Cancelled), stop: bus.stop_started() },
+                    ));
+                }
+                // Handed over: the move runs on after this command exits.
+                bus.release(&[drive]);
+                let now = bus.read_position(drive).map_err(bus_error)?;
+                if args.json {
+                    common::print_json(
+                        &mut out,
+                        &json!({"drive": drive.get(), "target": started.target.units(), "position": now.units(),
+                                "waited": false}),
+                    )?;
+                } else {
+                    writeln!(out, "drive {drive}: target {}, position {now} (moving on)", started.target)?;
+                }
+            } else {
+                let bar = common::progress_bar(0, format!("drive {drive}"));
+                let mut started_at: Option<f64> = None;
+                let report = bus.move_to(drive, &plan.request, &mut |p| {
+                    let s = *started_at.get_or_insert_with(|| {
+                        let distance = match plan.request.target {
+                            MoveTarget::Absolute(t) => t.units() - p.units(),
+                            MoveTarget::Relative(d) => d.units(),
+                        };
+                        bar.set_length((distance.abs() * 1000.0).round() as u64);
+                        p.units()
+                    });
+                    bar.set_position(((p.units() - s).abs() * 1000.0).round() as u64);
+                });
+                bar.finish_and_clear();
+                let report = report.map_err(|e| bus_error_for(&args, e))?;
+                if args.json {
+                    common::print_json(
+                        &mut out,
+                        &json!({"drive": drive.get(), "target": report.target.units(), "position": report.reached.units(),
+                                "difference": report.difference(), "tolerance": plan.tolerance, "waited": true}),
+                    )?;
+                } else {
+                    writeln!(out, "drive {drive}: target {}, position {}", report.target, report.reached)?;
+                }
+            }
+        }
+        Action::Watch { .. } => {
+            let interval = watch_interval.unwrap_or(Duration::from_millis(200));
+            loop {
+                if bus.is_cancelled() {
+                    break;
+                }
+                let s1 = bus.read_position(drive).map_err(bus_error)?;
+                let s17 = bus.read_s17(drive).map_err(bus_error)?;
+                let moving = s17.bit(S17Bits::COMMAND_ACTIVE);
+                if args.json {
+                    common::print_json(
+                        &mut out,
+                        &json!({"drive": drive.get(), "position": s1.units(), "s17": s17.to_string(), "moving": moving}),
+                    )?;
+                } else {
+                    writeln!(out, "drive {drive}  S1 = {s1}  {}", if moving { "moving" } else { "at rest" })?;
+                }
+                out.flush()?;
+                match bus.pause(interval) {
+                    Ok(()) => {}
+                    Err(BusError::Cancelled) => break,
+                    Err(e) => return Err(bus_error(e)),
+                }
+            }
+            // Interrupted: a signal ends the command with 128 + n (main), a closed stdout quietly.
+            if common::stop_cause() == Some(common::StopCause::OutputClosed) {
+                return Err(CliError::OutputClosed);
             }
         }
         Action::Output { number, state } => {
@@ -406,13 +588,29 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 writeln!(out, "drive {drive}: OUTPUT O{number}={state}")?;
             }
         }
-        Action::Raw { command } => {
-            let reply = bus.raw(drive, command).map_err(bus_error)?;
-            // A move sent raw runs on after the command exits (as with move --no-wait): handed over.
+        Action::Raw { command, .. } => {
+            let reply = bus.raw(drive, command).map_err(|e| bus_error_for(&args, e))?;
             let started = bus.started();
-            bus.release(&started);
+            let mut waited = false;
+            if bus.is_cancelled() && !started.is_empty() {
+                // A signal came while it was being sent: what it started is stopped, not handed over.
+                return Err(bus_error_for(
+                    &args,
+                    BusError::Aborted { cause: Box::new(BusError::Cancelled), stop: bus.stop_started() },
+                ));
+            }
+            if let (Some(timeout), false) = (raw_wait, started.is_empty()) {
+                bus.wait_reached(&started, Some(timeout), &mut |_, _| {}).map_err(|e| bus_error_for(&args, e))?;
+                waited = true;
+            } else {
+                // A move sent raw runs on after the command exits (as with move --no-wait): handed over.
+                bus.release(&started);
+            }
             if args.json {
-                common::print_json(&mut out, &json!({"drive": drive.get(), "command": command, "reply": reply}))?;
+                common::print_json(
+                    &mut out,
+                    &json!({"drive": drive.get(), "command": command, "reply": reply, "waited": waited}),
+                )?;
             } else {
                 match reply {
                     Some(r) if r.is_empty() => writeln!(out, "(acknowledged)")?,
@@ -735,6 +933,60 @@ fn print_transcript(out: &mut dyn Write, transcript: &Transcript, mode: &Mode) -
 #[cfg(test)]
 mod tests {
     use super::*;
+    use clap::Parser;
+
+    #[derive(clap::Parser, Debug)]
+    struct TestCli {
+        #[command(flatten)]
+        args: Args,
+    }
+
+    fn args(line: &[&str]) -> Args {
+        TestCli::parse_from(std::iter::once("compax").chain(line.iter().copied())).args
+    }
+
+    #[test]
+    fn errors_map_to_exit_codes_and_say_how_to_switch_a_drive_on() {
+        let a = args(&["--port", "tcp://gw:4001", "--mode", "8", "--drive", "3", "status"]);
+        let not_reached =
+            BusError::NotReached { address: 3, target: 100.0, reached: 37.5, difference: -62.5, tolerance: 0.01 };
+        let e = bus_error_for(&a, not_reached);
+        assert_eq!(e.exit_code(), 1);
+        assert!(e.to_string().contains("target 100, reached 37.5, difference -62.500"), "{e}");
+        let stop = motionlink_compax::client::StopReport {
+            drives: vec![(Address::drive(3).unwrap(), motionlink_compax::client::StopOutcome::SwitchedOff)],
+        };
+        let mismatch = BusError::Aborted {
+            cause: Box::new(BusError::TargetMismatch { address: 3, requested: 15.0, taken: 14.0 }),
+            stop,
+        };
+        let e = bus_error_for(&a, mismatch);
+        assert_eq!(e.exit_code(), 1);
+        let text = e.to_string();
+        assert!(text.contains("took target 14 instead of 15"), "{text}");
+        assert!(text.contains("motionlink compax --port tcp://gw:4001 --mode 8 --drive 3 output 0 1"), "{text}");
+        let lost = BusError::Aborted {
+            cause: Box::new(BusError::Timeout { address: 3, command: "S17".into(), attempts: 4 }),
+            stop: motionlink_compax::client::StopReport {
+                drives: vec![(
+                    Address::drive(3).unwrap(),
+                    motionlink_compax::client::StopOutcome::NotConfirmed { reason: "no reply".into() },
+                )],
+            },
+        };
+        let e = bus_error_for(&a, lost);
+        assert_eq!(e.exit_code(), 3);
+        assert!(e.to_string().contains("may still be moving") && !e.to_string().contains("output 0 1"), "{e}");
+        let limits = BusError::OutsideLimits { address: 3, target: 50.0, side: "above the maximum", limit: 40.0 };
+        assert_eq!(bus_error_for(&a, limits).exit_code(), 2);
+        let off = BusError::SwitchedOff { address: 3, o0: 0, refused: None };
+        let e = bus_error_for(&a, off);
+        assert_eq!(e.exit_code(), 1);
+        assert!(e.to_string().contains("--drive 3 output 0 1"), "{e}");
+        let read_back =
+            BusError::ReadBack { address: 3, param: ParamId::new(3).unwrap(), wrote: -1055.88, read: -1055.89 };
+        assert_eq!(bus_error_for(&a, read_back).exit_code(), 1);
+    }
 
     #[test]
     fn decode_both_directions_of_the_manuals_example() {

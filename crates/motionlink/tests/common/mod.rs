@@ -54,6 +54,24 @@ impl Lines {
         self.all().join("\n")
     }
 
+    /// Waits up to `timeout` until `n` lines (among all lines so far, from the first) satisfy `pred`;
+    /// returns the `n`th.
+    pub fn wait_for_nth(&self, timeout: Duration, n: usize, pred: impl Fn(&str) -> bool) -> Option<String> {
+        let deadline = Instant::now() + timeout;
+        let (m, cv) = &*self.0;
+        let mut g = m.lock().unwrap();
+        loop {
+            if let Some(l) = g.0.iter().filter(|l| pred(l)).nth(n.saturating_sub(1)) {
+                return Some(l.clone());
+            }
+            let now = Instant::now();
+            if g.1 || now >= deadline {
+                return None;
+            }
+            g = cv.wait_timeout(g, deadline - now).unwrap().0;
+        }
+    }
+
     /// Waits up to `timeout` for a line (among all lines so far, from the first) for which `pred` holds.
     pub fn wait_for(&self, timeout: Duration, pred: impl Fn(&str) -> bool) -> Option<String> {
         let deadline = Instant::now() + timeout;
