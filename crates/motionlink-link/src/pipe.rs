@@ -138,6 +138,13 @@ impl Wire {
         self.in_flight.front().map(|(t, _)| *t)
     }
 
+    /// When the last byte in flight arrives. A reader waits for that rather than for each byte, as a UART
+    /// driver hands a burst over at once: one exact wake-up per telegram instead of one per byte time
+    /// (87 µs at 115200 baud, each spun through on a real clock).
+    fn last_arrival(&self) -> Option<Timestamp> {
+        self.in_flight.back().map(|(t, _)| *t)
+    }
+
     /// Moves bytes that have arrived by `now` into `buf`.
     fn take_arrived(&mut self, now: Timestamp, buf: &mut [u8]) -> usize {
         let mut n = 0;
@@ -345,7 +352,7 @@ impl Link for PipeEnd {
                 if n > 0 {
                     return Ok(n);
                 }
-                let next = wire.next_arrival();
+                let next = wire.last_arrival();
                 if next.is_none() && sh.closed[self.rx().index()] {
                     return Err(self.gone("the other end was closed"));
                 }
@@ -561,8 +568,8 @@ impl<E: Emulator> Link for EmulatorLink<E> {
                 // Wake for the next byte to the host, the next byte the device must see, or a device timer
                 // (which may make it speak unasked).
                 [
-                    sh.faults.wires[Direction::DeviceToHost.index()].next_arrival(),
-                    sh.faults.wires[Direction::HostToDevice.index()].next_arrival(),
+                    sh.faults.wires[Direction::DeviceToHost.index()].last_arrival(),
+                    sh.faults.wires[Direction::HostToDevice.index()].last_arrival(),
                     side.device.next_wakeup().filter(|t| *t > now),
                 ]
                 .into_iter()
