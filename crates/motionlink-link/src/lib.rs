@@ -2,6 +2,7 @@
 //!
 //! - [`alloc_count`]: a counting global allocator, for tests that prove a codec does not allocate.
 //! - [`can`]: CAN frames and links (SocketCAN, SLCAN, in-memory bus).
+//! - [`capture`]: taps on links, capture files that `decode` reads back, live traces.
 //! - [`cancel`]: a cancellation flag for long actions (Ctrl-C).
 //! - [`clock`]: the [`Clock`] every timeout, period and emulator reads; real and manual.
 //! - [`clock_lock`]: a mutex whose waiters wait on the clock (a session's shared half-duplex line).
@@ -22,6 +23,7 @@
 pub mod alloc_count;
 pub mod can;
 pub mod cancel;
+pub mod capture;
 pub mod clock;
 pub mod clock_lock;
 pub mod describe;

@@ -1,11 +1,10 @@
-//! A [`Link`] wrapper that records every byte sent and received with its time, for the demo and for tests
-//! that check what went over the line.
+//! An in-memory record of every byte (or CAN frame) sent and received with its time, for the demo and for
+//! tests that check what went over the line: a [`Transcript`] is a [`TapSink`](crate::capture::TapSink) of a
+//! [`TapLink`] or [`TapCanLink`].
 
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
 
-use crate::clock::{lock, SharedClock, Timestamp};
-use crate::link::{Link, LinkError};
+use crate::clock::{lock, Timestamp};
 
 /// Which way a recorded chunk went.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -23,8 +22,10 @@ pub struct Record {
     pub at: Timestamp,
     /// Which way.
     pub way: Way,
-    /// The bytes.
+    /// The bytes (a frame's data).
     pub bytes: Vec<u8>,
+    /// The CAN frame, for a record of a CAN link.
+    pub frame: Option<crate::can::CanFrame>,
 }
 
 /// The shared log a [`TapLink`] writes to.
@@ -52,49 +53,26 @@ impl Transcript {
         lock(&self.0).iter().filter(|r| r.way == way).flat_map(|r| r.bytes.iter().copied()).collect()
     }
 
-    fn push(&self, at: Timestamp, way: Way, bytes: &[u8]) {
+    fn push(&self, at: Timestamp, way: Way, bytes: &[u8], frame: Option<crate::can::CanFrame>) {
         let mut log = lock(&self.0);
         // Consecutive chunks the same way are one stream; merge them so a telegram is one record.
         match log.last_mut() {
-            Some(last) if last.way == way && way == Way::Received => last.bytes.extend_from_slice(bytes),
-            _ => log.push(Record { at, way, bytes: bytes.to_vec() }),
+            Some(last) if frame.is_none() && last.frame.is_none() && last.way == way && way == Way::Received => {
+                last.bytes.extend_from_slice(bytes)
+            }
+            _ => log.push(Record { at, way, bytes: bytes.to_vec(), frame }),
         }
     }
 }
 
-/// Records what passes through the wrapped link into a [`Transcript`].
-pub struct TapLink<L> {
-    inner: L,
-    clock: SharedClock,
-    transcript: Transcript,
-}
+pub use crate::capture::{TapCanLink, TapLink};
 
-impl<L: Link> TapLink<L> {
-    /// Wraps `inner`; records go to `transcript`, stamped by `clock`.
-    pub fn new(inner: L, clock: SharedClock, transcript: Transcript) -> Self {
-        TapLink { inner, clock, transcript }
-    }
-}
-
-impl<L: Link> Link for TapLink<L> {
-    fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
-        self.transcript.push(self.clock.now(), Way::Sent, bytes);
-        self.inner.send(bytes)
-    }
-
-    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
-        let n = self.inner.recv(buf, timeout)?;
-        if n > 0 {
-            self.transcript.push(self.clock.now(), Way::Received, &buf[..n]);
+impl crate::capture::TapSink for Transcript {
+    fn record(&self, at: Timestamp, direction: crate::describe::Direction, data: crate::capture::Tapped<'_>) {
+        let way = if direction == crate::describe::Direction::FromDevice { Way::Received } else { Way::Sent };
+        match data {
+            crate::capture::Tapped::Bytes(b) => self.push(at, way, b, None),
+            crate::capture::Tapped::Frame(f) => self.push(at, way, f.data(), Some(*f)),
         }
-        Ok(n)
-    }
-
-    fn discard_input(&mut self) -> Result<(), LinkError> {
-        self.inner.discard_input()
-    }
-
-    fn describe(&self) -> String {
-        self.inner.describe()
     }
 }

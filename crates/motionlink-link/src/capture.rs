@@ -1,0 +1,363 @@
+//! Captures of a session's traffic: a tap on any link ([`TapLink`], [`TapCanLink`]) hands every chunk or
+//! frame, stamped, to a [`TapSink`]: an in-memory [`Transcript`](crate::transcript::Transcript), a capture file
+//! ([`CaptureWriter`]) that `motionlink decode` reads back, or a live trace.
+//!
+//! The capture file format, one line per chunk or frame:
+//!
+//! - serial lines: `(<Unix time in s, 6 decimals>) <direction> <hex bytes>`, where the direction is `->`
+//!   (host to device) or `<-` (device to host): `(1732470000.123456) -> 52 47 11 00 2C 30`;
+//! - CAN: the `candump -l` log form, `(1732470000.123456) can0 0F1#01`.
+//!
+//! Lines starting with `#` are comments (the writer starts with one naming the family and the port).
+//!
+//! ```
+//! use motionlink_link::capture::{parse_line, CapturedLine};
+//! use motionlink_link::describe::Direction;
+//! let line = parse_line("(1732470000.5) <- 52 47 06").unwrap().unwrap();
+//! assert_eq!(line.direction, Direction::FromDevice);
+//! assert_eq!(line.data, CapturedLine::Bytes(vec![0x52, 0x47, 0x06]));
+//! ```
+
+use std::io::Write;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use crate::can::{CanFrame, CanLink, CandumpLine};
+use crate::clock::{lock, SharedClock, Timestamp};
+use crate::describe::Direction;
+use crate::link::{Link, LinkError};
+
+/// One chunk or frame seen by a tap.
+#[derive(Debug, Clone, Copy)]
+pub enum Tapped<'a> {
+    /// Bytes of a serial line.
+    Bytes(&'a [u8]),
+    /// A CAN frame.
+    Frame(&'a CanFrame),
+}
+
+/// Where a tap sends what it sees.
+pub trait TapSink: Send + Sync {
+    /// `data` went `direction` at `at` (on the tap's clock).
+    fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>);
+}
+
+impl<T: TapSink + ?Sized> TapSink for Arc<T> {
+    fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>) {
+        (**self).record(at, direction, data)
+    }
+}
+
+/// Several sinks at once (a capture file and a live trace).
+pub struct Fanout(pub Vec<Arc<dyn TapSink>>);
+
+impl TapSink for Fanout {
+    fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>) {
+        for s in &self.0 {
+            s.record(at, direction, data);
+        }
+    }
+}
+
+/// A byte link whose traffic goes to a [`TapSink`] as well.
+pub struct TapLink<L> {
+    inner: L,
+    clock: SharedClock,
+    sink: Arc<dyn TapSink>,
+}
+
+impl<L: Link> TapLink<L> {
+    /// Wraps `inner`; what passes goes to `sink`, stamped by `clock`.
+    pub fn new(inner: L, clock: SharedClock, sink: impl TapSink + 'static) -> Self {
+        TapLink { inner, clock, sink: Arc::new(sink) }
+    }
+}
+
+impl<L: Link> Link for TapLink<L> {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        self.sink.record(self.clock.now(), Direction::ToDevice, Tapped::Bytes(bytes));
+        self.inner.send(bytes)
+    }
+
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
+        let n = self.inner.recv(buf, timeout)?;
+        if n > 0 {
+            self.sink.record(self.clock.now(), Direction::FromDevice, Tapped::Bytes(&buf[..n]));
+        }
+        Ok(n)
+    }
+
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        self.inner.discard_input()
+    }
+
+    fn describe(&self) -> String {
+        self.inner.describe()
+    }
+}
+
+/// A CAN link whose frames go to a [`TapSink`] as well.
+pub struct TapCanLink<L> {
+    inner: L,
+    clock: SharedClock,
+    sink: Arc<dyn TapSink>,
+}
+
+impl<L: CanLink> TapCanLink<L> {
+    /// Wraps `inner`; frames go to `sink`, stamped by `clock`.
+    pub fn new(inner: L, clock: SharedClock, sink: impl TapSink + 'static) -> Self {
+        TapCanLink { inner, clock, sink: Arc::new(sink) }
+    }
+}
+
+impl<L: CanLink> CanLink for TapCanLink<L> {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), LinkError> {
+        self.sink.record(self.clock.now(), Direction::ToDevice, Tapped::Frame(frame));
+        self.inner.send(frame)
+    }
+
+    fn recv(&mut self, timeout: Duration) -> Result<Option<CanFrame>, LinkError> {
+        let frame = self.inner.recv(timeout)?;
+        if let Some(f) = &frame {
+            self.sink.record(self.clock.now(), Direction::FromDevice, Tapped::Frame(f));
+        }
+        Ok(frame)
+    }
+
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        self.inner.discard_input()
+    }
+
+    fn describe(&self) -> String {
+        self.inner.describe()
+    }
+}
+
+/// Maps a clock's timestamps to Unix time: the Unix time of the clock's origin, taken when made.
+#[derive(Debug, Clone, Copy)]
+pub struct UnixTime {
+    origin: Duration,
+}
+
+impl UnixTime {
+    /// The mapping for `clock`, read now.
+    pub fn of(clock: &SharedClock) -> Self {
+        let wall = SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default();
+        UnixTime { origin: wall.saturating_sub(clock.now().since_origin()) }
+    }
+
+    /// The Unix time of `at`.
+    pub fn at(self, at: Timestamp) -> Duration {
+        self.origin + at.since_origin()
+    }
+}
+
+/// Formats a Unix time as a capture does: `(1732470000.123456)`.
+pub fn format_time(unix: Duration) -> String {
+    format!("({}.{:06})", unix.as_secs(), unix.subsec_micros())
+}
+
+/// Formats bytes as spaced upper-case hex.
+pub fn hex(bytes: &[u8]) -> String {
+    let mut s = String::with_capacity(bytes.len() * 3);
+    for (i, b) in bytes.iter().enumerate() {
+        if i > 0 {
+            s.push(' ');
+        }
+        s.push_str(&format!("{b:02X}"));
+    }
+    s
+}
+
+/// One line of a capture file, formatted.
+pub fn format_line(unix: Duration, direction: Direction, data: Tapped<'_>, can_interface: &str) -> String {
+    match data {
+        Tapped::Bytes(b) => format!("{} {} {}", format_time(unix), direction.arrow(), hex(b)),
+        Tapped::Frame(f) => format!("{} {can_interface} {f}", format_time(unix)),
+    }
+}
+
+/// Writes a capture file (see the [module documentation](self)); a failed write is logged once and the
+/// session goes on.
+pub struct CaptureWriter {
+    out: Mutex<(Box<dyn Write + Send>, bool)>,
+    time: UnixTime,
+    can_interface: String,
+}
+
+impl CaptureWriter {
+    /// Writes to `out`, starting with a `#` line that says `what` (family and port). `can_interface` names
+    /// the interface in CAN lines (`can0`).
+    pub fn new(
+        mut out: Box<dyn Write + Send>,
+        clock: &SharedClock,
+        what: &str,
+        can_interface: &str,
+    ) -> std::io::Result<Self> {
+        writeln!(out, "# motionlink capture: {what}")?;
+        Ok(CaptureWriter {
+            out: Mutex::new((out, false)),
+            time: UnixTime::of(clock),
+            can_interface: can_interface.into(),
+        })
+    }
+
+    /// Flushes what was written.
+    pub fn flush(&self) -> std::io::Result<()> {
+        lock(&self.out).0.flush()
+    }
+}
+
+impl TapSink for CaptureWriter {
+    fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>) {
+        let line = format_line(self.time.at(at), direction, data, &self.can_interface);
+        let mut out = lock(&self.out);
+        let (w, failed) = &mut *out;
+        if let Err(e) = writeln!(w, "{line}").and_then(|_| w.flush()) {
+            if !*failed {
+                tracing::warn!("cannot write the capture: {e}");
+                *failed = true;
+            }
+        }
+    }
+}
+
+/// What one line of a capture holds.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CapturedLine {
+    /// Bytes of a serial line.
+    Bytes(Vec<u8>),
+    /// A CAN frame, with the interface the line names.
+    Frame {
+        /// The frame.
+        frame: CanFrame,
+        /// The interface (`can0`), if named.
+        interface: Option<String>,
+    },
+}
+
+/// One parsed line of a capture.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ParsedLine {
+    /// The Unix time the line gives, if any.
+    pub unix: Option<Duration>,
+    /// The direction the line gives (`Unknown` for plain hex and candump lines).
+    pub direction: Direction,
+    /// Its bytes or frame.
+    pub data: CapturedLine,
+}
+
+/// Parses one line of a capture: a capture line with time and direction, a candump line (log or screen
+/// form), or plain hex (pairs of digits, optionally separated by spaces, `,`, `:` or `-`, each optionally
+/// with `0x`). `Ok(None)` for a blank or `#` comment line; an error names what is wrong.
+pub fn parse_line(line: &str) -> Result<Option<ParsedLine>, String> {
+    let t = line.trim();
+    if t.is_empty() || t.starts_with('#') {
+        return Ok(None);
+    }
+    let (unix, rest) = match t.strip_prefix('(').and_then(|r| r.split_once(')')) {
+        Some((time, rest)) => {
+            (Some(parse_unix(time).ok_or_else(|| format!("{time:?} is not a time stamp"))?), rest.trim())
+        }
+        None => (None, t),
+    };
+    for (arrow, direction) in [("->", Direction::ToDevice), ("<-", Direction::FromDevice)] {
+        if let Some(hex_text) = rest.strip_prefix(arrow) {
+            return Ok(Some(ParsedLine { unix, direction, data: CapturedLine::Bytes(parse_hex(hex_text)?) }));
+        }
+    }
+    if looks_like_candump(rest) {
+        let c: CandumpLine = t.parse().map_err(|e| format!("{e}"))?;
+        return Ok(Some(ParsedLine {
+            unix: c.timestamp,
+            direction: Direction::Unknown,
+            data: CapturedLine::Frame { frame: c.frame, interface: c.interface },
+        }));
+    }
+    Ok(Some(ParsedLine { unix, direction: Direction::Unknown, data: CapturedLine::Bytes(parse_hex(rest)?) }))
+}
+
+/// True if `rest` (a line without its time stamp) has the shape of a candump line: `can0 0F1#01`,
+/// `0F1#01`, or the screen form `can0  0F1   [1]  01`.
+fn looks_like_candump(rest: &str) -> bool {
+    let words: Vec<&str> = rest.split_whitespace().collect();
+    match words.as_slice() {
+        [frame] => frame.contains('#'),
+        [_, frame, ..] if frame.contains('#') => true,
+        [_, _, len, ..] => len.starts_with('[') && len.ends_with(']'),
+        _ => false,
+    }
+}
+
+fn parse_unix(text: &str) -> Option<Duration> {
+    let (secs, frac) = text.split_once('.').unwrap_or((text, ""));
+    let secs: u64 = secs.parse().ok()?;
+    if frac.len() > 9 || !frac.chars().all(|c| c.is_ascii_digit()) {
+        return None;
+    }
+    let nanos: u32 = if frac.is_empty() { 0 } else { format!("{frac:0<9}").parse().ok()? };
+    Some(Duration::new(secs, nanos))
+}
+
+/// Parses hex bytes: pairs of digits, optionally separated by whitespace, `,`, `:` or `-`, each optionally
+/// prefixed with `0x`.
+pub fn parse_hex(text: &str) -> Result<Vec<u8>, String> {
+    let mut bytes = Vec::new();
+    for token in text.split(|c: char| c.is_whitespace() || matches!(c, ',' | ':' | '-')).filter(|t| !t.is_empty()) {
+        let digits = token.strip_prefix("0x").or_else(|| token.strip_prefix("0X")).unwrap_or(token);
+        if digits.len() % 2 != 0 || !digits.chars().all(|c| c.is_ascii_hexdigit()) {
+            return Err(format!("{token:?} is not hex bytes (expected pairs of hex digits such as 52 47 or 5247)"));
+        }
+        for i in (0..digits.len()).step_by(2) {
+            bytes.push(u8::from_str_radix(&digits[i..i + 2], 16).map_err(|e| e.to_string())?);
+        }
+    }
+    Ok(bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::clock::ManualClock;
+
+    /// A sink that keeps the formatted lines.
+    #[derive(Default)]
+    struct Lines(Mutex<Vec<String>>);
+
+    impl TapSink for Lines {
+        fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>) {
+            let unix = Duration::from_secs(1_732_470_000) + at.since_origin();
+            lock(&self.0).push(format_line(unix, direction, data, "can0"));
+        }
+    }
+
+    #[test]
+    fn what_is_written_is_read_back() {
+        let clock = ManualClock::new();
+        let frame = CanFrame::new(0x0F1, &[0x01]).unwrap();
+        let sink = Lines::default();
+        sink.record(Timestamp::from_micros(1_500), Direction::ToDevice, Tapped::Bytes(&[0x52, 0x47]));
+        sink.record(Timestamp::from_micros(2_000_250), Direction::FromDevice, Tapped::Frame(&frame));
+        let lines = lock(&sink.0).clone();
+        assert_eq!(lines, vec!["(1732470000.001500) -> 52 47", "(1732470002.000250) can0 0F1#01"]);
+        let first = parse_line(&lines[0]).unwrap().unwrap();
+        assert_eq!(first.unix, Some(Duration::new(1_732_470_000, 1_500_000)));
+        assert_eq!(first.direction, Direction::ToDevice);
+        assert_eq!(first.data, CapturedLine::Bytes(vec![0x52, 0x47]));
+        let second = parse_line(&lines[1]).unwrap().unwrap();
+        assert_eq!(second.data, CapturedLine::Frame { frame, interface: Some("can0".into()) });
+        let _ = clock;
+    }
+
+    #[test]
+    fn plain_hex_comments_and_bad_lines() {
+        assert_eq!(parse_line("# note").unwrap(), None);
+        assert_eq!(parse_line("   ").unwrap(), None);
+        let plain = parse_line("0x52,47:11-00").unwrap().unwrap();
+        assert_eq!((plain.direction, plain.data), (Direction::Unknown, CapturedLine::Bytes(vec![0x52, 0x47, 0x11, 0])));
+        assert!(parse_line("(12x) -> 52").unwrap_err().contains("time stamp"));
+        assert!(parse_line("-> 5").unwrap_err().contains("not hex"));
+        let screen = parse_line("  can0  0F1   [1]  01").unwrap().unwrap();
+        assert!(matches!(screen.data, CapturedLine::Frame { .. }));
+    }
+}
