@@ -1,11 +1,9 @@
 //! What every family's commands share: errors with exit codes, output as a table or JSON, Ctrl-C, progress
 //! bars, emulator servers, and reading captures.
 
-use std::io::{IsTerminal, Read, Write};
+use std::io::{Read, Write};
 use std::sync::{Arc, Mutex, OnceLock};
-use std::time::Duration;
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::emulator::{serve_tcp_with, Emulator, ServeOptions};
 use motionlink_link::error::{Classify, ErrorClass};
@@ -91,26 +89,10 @@ pub fn classified<E: Classify + std::fmt::Display + ?Sized>(e: &E) -> CliError {
 }
 
 /// Writes one line on stderr and ignores a failure: after SIGHUP the terminal may be gone, and a message
-/// that cannot be shown must not keep the motion from being stopped (`eprintln!` would panic).
+/// that cannot be shown must not keep the motion from being stopped (`eprintln!` would panic). A progress
+/// bar on screen is hidden while the line is written.
 pub fn say(line: impl std::fmt::Display) {
-    let _ = writeln!(std::io::stderr(), "{line}");
-}
-
-/// Sets up logging to stderr: warnings by default, more with each `-v`, or as `RUST_LOG` says.
-pub fn init_logging(verbose: u8) {
-    let default = match verbose {
-        0 => "warn",
-        1 => "info",
-        2 => "debug",
-        _ => "trace",
-    };
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        .with_ansi(std::io::stderr().is_terminal())
-        .try_init();
+    crate::term::write_stderr(&format!("{line}\n"));
 }
 
 /// SIGINT's number, the cause assumed when a cancellation has no recorded cause.
@@ -235,7 +217,7 @@ fn install_signal_handlers(token: CancelToken) {
     let _ = std::thread::Builder::new().name("signals".into()).spawn(move || {
         let mut presses = 0;
         loop {
-            std::thread::sleep(Duration::from_millis(20));
+            std::thread::sleep(std::time::Duration::from_millis(20));
             if raised.swap(false, Ordering::SeqCst) {
                 on_signal(&token, &mut presses, SIGINT);
             }
@@ -295,20 +277,7 @@ pub fn print_json(out: &mut dyn Write, value: &serde_json::Value) -> Result<(), 
     Ok(())
 }
 
-/// A progress bar on stderr, drawn only when stderr is a terminal.
-pub fn progress_bar(length: u64, message: impl Into<String>) -> ProgressBar {
-    let target =
-        if std::io::stderr().is_terminal() { ProgressDrawTarget::stderr() } else { ProgressDrawTarget::hidden() };
-    let bar = ProgressBar::with_draw_target(Some(length), target);
-    bar.set_style(
-        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} {elapsed}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    bar.set_message(message.into());
-    bar.enable_steady_tick(Duration::from_millis(200));
-    bar
-}
+pub use crate::term::progress_bar;
 
 /// Where `motionlink sim` serves, and what it reports.
 #[derive(clap::Args, Debug, Clone)]

@@ -12,21 +12,30 @@
 
 mod common;
 mod compax;
+mod ports;
 mod powercube;
 mod scu;
+mod term;
 
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 
 use crate::common::CliError;
 
 #[derive(Parser, Debug)]
 #[command(name = "motionlink", version, about = "Operate, script, emulate and decode industrial motion devices")]
 struct Cli {
-    /// More log output on stderr (-v info, -vv debug, -vvv trace). RUST_LOG overrides it.
+    /// More on stderr: -v the live wire trace (each telegram with time, direction, hex and meaning), -vv
+    /// debug logs, -vvv trace logs. RUST_LOG overrides the logs.
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     verbose: u8,
+    /// Only errors on stderr.
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    quiet: bool,
+    /// Colours on stderr: auto (a terminal, unless NO_COLOR is set), always or never.
+    #[arg(long, value_enum, default_value_t = term::ColorChoice::Auto, global = true, value_name = "WHEN")]
+    color: term::ColorChoice,
     #[command(subcommand)]
     command: Command,
 }
@@ -51,6 +60,20 @@ enum Command {
     },
     /// Run the manuals' examples against the built-in emulators and print each telegram with its meaning.
     Demo(DemoArgs),
+    /// List the serial ports and CAN interfaces of this machine.
+    ListPorts {
+        /// Print JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell) on stdout.
+    Completions {
+        /// The shell.
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
+    /// Print the manual page (roff) on stdout: `motionlink man | man -l -`.
+    Man,
 }
 
 #[derive(Subcommand, Debug)]
@@ -102,6 +125,20 @@ fn run(cli: Cli) -> Result<(), CliError> {
             DecodeFamily::Powercube(args) => powercube::decode(args),
             DecodeFamily::Compax(args) => compax::decode(args),
         },
+        Command::ListPorts { json } => ports::list(json),
+        Command::Completions { shell } => {
+            // Into a buffer first: clap_complete panics on a failed write (a closed pipe).
+            let mut script = Vec::new();
+            clap_complete::generate(shell, &mut Cli::command(), "motionlink", &mut script);
+            std::io::Write::write_all(&mut std::io::stdout(), &script)?;
+            Ok(())
+        }
+        Command::Man => {
+            let mut page = Vec::new();
+            clap_mangen::Man::new(Cli::command()).render(&mut page)?;
+            std::io::Write::write_all(&mut std::io::stdout(), &page)?;
+            Ok(())
+        }
         Command::Demo(args) => {
             let mut out = std::io::stdout().lock();
             let parts = [
@@ -121,7 +158,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    common::init_logging(cli.verbose);
+    term::init(cli.verbose, cli.quiet, cli.color);
     let result = run(cli);
     match (result, common::stop_cause()) {
         (Ok(()), Some(common::StopCause::Signal(n))) => {
@@ -133,7 +170,7 @@ fn main() -> ExitCode {
         (Ok(()), _) => ExitCode::SUCCESS,
         (Err(common::CliError::OutputClosed), _) => ExitCode::SUCCESS,
         (Err(e), _) => {
-            common::say(format!("motionlink: {e}"));
+            term::write_stderr(&term::error_line(&format!("motionlink: {e}")));
             ExitCode::from(e.exit_code())
         }
     }

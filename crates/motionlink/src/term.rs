@@ -1,0 +1,203 @@
+//! The terminal: colours (`--color`, NO_COLOR), quiet and verbose output, log lines that never garble a
+//! progress bar, and the live wire trace of `-v`.
+
+use std::io::{IsTerminal, Write};
+use std::sync::{Mutex, OnceLock};
+use std::time::Duration;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle, WeakProgressBar};
+use motionlink_link::capture::{hex, TapSink, Tapped, UnixTime};
+use motionlink_link::clock::{lock, SharedClock, Timestamp};
+use motionlink_link::describe::{Annotation, Captured, Describe, Direction};
+
+/// `--color`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ColorChoice {
+    /// Colours when stderr is a terminal and NO_COLOR is not set.
+    #[default]
+    Auto,
+    /// Always colours.
+    Always,
+    /// Never colours.
+    Never,
+}
+
+/// How the command talks on stderr.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Output {
+    /// Colours on stderr.
+    pub color: bool,
+    /// `-q`: only errors.
+    pub quiet: bool,
+    /// `-v` count: 1 the wire trace, 2 debug logs, 3 trace logs.
+    pub verbose: u8,
+}
+
+static OUTPUT: OnceLock<Output> = OnceLock::new();
+
+/// The output settings (defaults before [`init`]).
+pub fn output() -> Output {
+    *OUTPUT.get().unwrap_or(&Output { color: false, quiet: false, verbose: 0 })
+}
+
+/// Decides colours: `--color always` and `never` win; `auto` colours a terminal unless NO_COLOR is set and
+/// not empty (<https://no-color.org>).
+pub fn use_color(choice: ColorChoice, no_color: Option<&str>, terminal: bool) -> bool {
+    match choice {
+        ColorChoice::Always => true,
+        ColorChoice::Never => false,
+        ColorChoice::Auto => terminal && no_color.is_none_or(str::is_empty),
+    }
+}
+
+/// Sets up the output and the logging: errors only with `-q`, warnings by default, more with each `-v`,
+/// or as `RUST_LOG` says.
+pub fn init(verbose: u8, quiet: bool, color: ColorChoice) {
+    let no_color = std::env::var("NO_COLOR").ok();
+    let out = Output {
+        color: use_color(color, no_color.as_deref(), std::io::stderr().is_terminal()),
+        quiet,
+        verbose: if quiet { 0 } else { verbose },
+    };
+    let _ = OUTPUT.set(out);
+    let default = match (quiet, verbose) {
+        (true, _) => "error",
+        (_, 0) | (_, 1) => "warn",
+        (_, 2) => "debug",
+        _ => "trace",
+    };
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(|| LineWriter::default())
+        .with_ansi(out.color)
+        .try_init();
+}
+
+/// The progress bars on screen: a line written on stderr first hides them, then draws them again.
+static BARS: Mutex<Vec<WeakProgressBar>> = Mutex::new(Vec::new());
+
+/// Writes `text` (one or more whole lines) on stderr without garbling a progress bar, ignoring failures
+/// (after SIGHUP the terminal may be gone).
+pub fn write_stderr(text: &str) {
+    let bar = {
+        let mut bars = lock(&BARS);
+        bars.retain(|b| b.upgrade().is_some_and(|b| !b.is_finished()));
+        bars.first().and_then(WeakProgressBar::upgrade)
+    };
+    let write = || {
+        let mut err = std::io::stderr().lock();
+        let _ = err.write_all(text.as_bytes());
+        let _ = err.flush();
+    };
+    match bar {
+        Some(bar) => bar.suspend(write),
+        None => write(),
+    }
+}
+
+/// Collects one log event and writes it in one piece when dropped.
+#[derive(Default)]
+struct LineWriter(Vec<u8>);
+
+impl Write for LineWriter {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.extend_from_slice(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Drop for LineWriter {
+    fn drop(&mut self) {
+        if !self.0.is_empty() {
+            write_stderr(&String::from_utf8_lossy(&self.0));
+        }
+    }
+}
+
+/// An error message on stderr, in red when colours are on.
+pub fn error_line(text: &str) -> String {
+    if output().color {
+        format!("\x1b[31m{text}\x1b[0m\n")
+    } else {
+        format!("{text}\n")
+    }
+}
+
+/// A progress bar on stderr, drawn only when stderr is a terminal and the command is not quiet; log lines
+/// and messages are written around it.
+pub fn progress_bar(length: u64, message: impl Into<String>) -> ProgressBar {
+    let visible = std::io::stderr().is_terminal() && !output().quiet;
+    let target = if visible { ProgressDrawTarget::stderr() } else { ProgressDrawTarget::hidden() };
+    let bar = ProgressBar::with_draw_target(Some(length), target);
+    let template = if output().color {
+        "{msg} [{bar:40.cyan/blue}] {pos}/{len} {elapsed}"
+    } else {
+        "{msg} [{bar:40}] {pos}/{len} {elapsed}"
+    };
+    bar.set_style(
+        ProgressStyle::with_template(template).unwrap_or_else(|_| ProgressStyle::default_bar()).progress_chars("=> "),
+    );
+    bar.set_message(message.into());
+    bar.enable_steady_tick(Duration::from_millis(200));
+    lock(&BARS).push(bar.downgrade());
+    bar
+}
+
+/// The live wire trace of `-v`: every telegram, with direction, time, hex and meaning, on stderr.
+#[allow(dead_code)] // taken up by each family's command as it moves to the shared Describe (issue 7)
+pub struct WireTrace {
+    describer: Mutex<Box<dyn Describe + Send>>,
+    time: UnixTime,
+}
+
+#[allow(dead_code)]
+impl WireTrace {
+    /// A trace that explains telegrams with `describer`; times from `clock`.
+    pub fn new(describer: Box<dyn Describe + Send>, clock: &SharedClock) -> Self {
+        WireTrace { describer: Mutex::new(describer), time: UnixTime::of(clock) }
+    }
+
+    fn print(&self, annotations: &[Annotation], fallback_at: Timestamp) {
+        for a in annotations {
+            let at = self.time.at(a.at.unwrap_or(fallback_at));
+            let local = at.as_secs() % 86_400;
+            let stamp =
+                format!("{:02}:{:02}:{:02}.{:06}", local / 3600, (local / 60) % 60, local % 60, at.subsec_micros());
+            let id = a.can_id.map(|id| format!("{id:03X}# ")).unwrap_or_default();
+            let mark = if a.bad { "!!" } else { a.direction.arrow() };
+            write_stderr(&format!("{stamp} {mark} {id}{:<30} {}\n", hex(&a.bytes), a.meaning));
+        }
+    }
+}
+
+impl TapSink for WireTrace {
+    fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>) {
+        let mut out = Vec::new();
+        let captured = match data {
+            Tapped::Bytes(b) => Captured::Bytes(b),
+            Tapped::Frame(f) => Captured::Frame(f),
+        };
+        lock(&self.describer).describe(captured, direction, Some(at), &mut out);
+        self.print(&out, at);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn colours_follow_the_flag_then_no_color_then_the_terminal() {
+        assert!(use_color(ColorChoice::Always, Some("1"), false));
+        assert!(!use_color(ColorChoice::Never, None, true));
+        assert!(use_color(ColorChoice::Auto, None, true));
+        assert!(use_color(ColorChoice::Auto, Some(""), true), "an empty NO_COLOR does not count");
+        assert!(!use_color(ColorChoice::Auto, Some("1"), true));
+        assert!(!use_color(ColorChoice::Auto, None, false));
+    }
+}
