@@ -26,7 +26,8 @@ use crate::common::CliError;
 #[derive(Parser, Debug)]
 #[command(name = "motionlink", version, about = "Operate, script, emulate and decode industrial motion devices")]
 struct Cli {
-    /// More on stderr: -v the live wire trace (each telegram with time, direction, hex and meaning), -vv
+    /// More on stderr: -v the live wire trace (each telegram with time, direction, hex and meaning) and
+    /// information, -vv
     /// debug logs, -vvv trace logs. RUST_LOG overrides the logs.
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     verbose: u8,

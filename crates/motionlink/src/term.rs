@@ -51,7 +51,7 @@ pub fn use_color(choice: ColorChoice, no_color: Option<&str>, terminal: bool) ->
 }
 
 /// Sets up the output and the logging: errors only with `-q`, warnings by default, more with each `-v`,
-/// or as `RUST_LOG` says.
+/// (-v: information and the wire trace), or as `RUST_LOG` says.
 pub fn init(verbose: u8, quiet: bool, color: ColorChoice) {
     let no_color = std::env::var("NO_COLOR").ok();
     let out = Output {
@@ -62,7 +62,8 @@ pub fn init(verbose: u8, quiet: bool, color: ColorChoice) {
     let _ = OUTPUT.set(out);
     let default = match (quiet, verbose) {
         (true, _) => "error",
-        (_, 0) | (_, 1) => "warn",
+        (_, 0) => "warn",
+        (_, 1) => "info",
         (_, 2) => "debug",
         _ => "trace",
     };
@@ -70,7 +71,7 @@ pub fn init(verbose: u8, quiet: bool, color: ColorChoice) {
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
-        .with_writer(|| LineWriter::default())
+        .with_writer(LineWriter::default)
         .with_ansi(out.color)
         .try_init();
 }
