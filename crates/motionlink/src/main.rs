@@ -12,6 +12,8 @@
 
 mod common;
 mod compax;
+#[allow(dead_code)] // taken up by each family's --port/--device when its command is rebuilt (issue 8)
+mod devices;
 mod ports;
 mod powercube;
 mod scu;
