@@ -28,7 +28,7 @@ fn chapter_8_can_commands_encode_as_printed() {
         (Request::Action(Action::Reset), "0F1#00"),
         (Request::Set(Param::TargetAcc, Value::F32(0.5)), "0F1#08500000003F"),
         (Request::Set(Param::TargetVel, Value::F32(0.08)), "0F1#084F0AD7A33D"),
-        (Request::Motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Simple), "0F1#0B040000403F"),
+        (Request::Motion(Motion::FRamp { pos: Position::native(0.75) }, AckKind::Simple), "0F1#0B040000403F"),
         (Request::Get(Param::CubeState), "0D1#0A27"),
         (Request::Get(Param::ActPos), "0D1#0A3C"),
     ];
@@ -42,7 +42,7 @@ fn chapter_8_can_commands_encode_as_printed() {
         assert_eq!(Request::decode(&p).unwrap(), req);
     }
     // The extended acknowledge variant of the ramp: MotionID 0x0e.
-    let req = Request::Motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Extended);
+    let req = Request::Motion(Motion::FRamp { pos: Position::native(0.75) }, AckKind::Extended);
     assert_eq!(can::to_frame(Role::Put(17), &req.encode()).to_string(), "0F1#0B0E0000403F");
 }
 
@@ -71,7 +71,7 @@ fn chapter_8_can_acknowledges_decode_as_printed() {
     // Extended acknowledge: DLC 8, actual position, state, DIO (on the acknowledge identifier).
     let (_, p) = can::from_frame(&frame("0B1#0B0E0000803E3100")).unwrap();
     let Reply::Motion { ext: Some(e), .. } = Reply::decode(&p).unwrap() else { panic!() };
-    assert_eq!(e.position, AckPosition::Unit(Position(0.25)));
+    assert_eq!(e.position, AckPosition::Unit(Position::native(0.25)));
     assert_eq!(e.state.0, 0x31);
 }
 
@@ -133,7 +133,7 @@ fn chapter_9_rs232_commands_encode_byte_for_byte() {
         Request::Action(Action::Reset),
         Request::Set(Param::TargetAcc, Value::F32(0.5)),
         Request::Set(Param::TargetVel, Value::F32(0.08)),
-        Request::Motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Simple),
+        Request::Motion(Motion::FRamp { pos: Position::native(0.75) }, AckKind::Simple),
     ];
     for (req, (send, _)) in requests.iter().zip(RS232_EXAMPLES) {
         let mut buf = [0u8; rs232::MAX_FRAME];
@@ -208,7 +208,7 @@ fn profibus_requests() -> [Request; 5] {
         Request::Action(Action::Reset),
         Request::Set(Param::TargetAcc, Value::F32(0.5)),
         Request::Set(Param::TargetVel, Value::F32(0.08)),
-        Request::Motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Simple),
+        Request::Motion(Motion::FRamp { pos: Position::native(0.75) }, AckKind::Simple),
     ]
 }
 

@@ -111,7 +111,7 @@ pub enum Action {
         timeout: f64,
         /// In-position tolerance (rad or m, above 0): the move succeeds only if the final actual position is
         /// at most this far from the target. The manual has no in-position window parameter.
-        #[arg(long, default_value_t = MoveSpec::DEFAULT_TOLERANCE.0)]
+        #[arg(long, default_value_t = MoveSpec::DEFAULT_TOLERANCE.value())]
         tolerance: f32,
     },
     /// Print position and state until Ctrl-C (or --count samples).
@@ -505,20 +505,20 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
         Action::Move { position, vel, acc, timeout, tolerance } => {
             let spec = MoveSpec {
-                target: Position(*position),
+                target: Position::native(*position),
                 // Only what was given is written; TargetVel / TargetAcc otherwise stay as the module has them.
-                vel: vel.map(Velocity),
-                acc: acc.map(Acceleration),
-                tolerance: Position(*tolerance),
+                vel: vel.map(Velocity::native),
+                acc: acc.map(Acceleration::native),
+                tolerance: Position::native(*tolerance),
                 timeout: positive_secs("--timeout", *timeout)?,
             };
             with_watchdog(&bus, &args, in_process, &[args.module], || {
                 let bar = common::progress_bar(0, format!("module {}", args.module));
                 let mut start = None;
                 let r = m.move_to(&spec, &mut |p: &Progress| {
-                    let from = *start.get_or_insert(p.position.0);
+                    let from = *start.get_or_insert(p.position.value());
                     bar.set_length(((position - from).abs() * 1000.0).round() as u64);
-                    bar.set_position(((p.position.0 - from).abs() * 1000.0).round() as u64);
+                    bar.set_position(((p.position.value() - from).abs() * 1000.0).round() as u64);
                     bar.set_message(progress_text(p));
                 });
                 bar.finish_and_clear();
@@ -540,7 +540,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 if args.json {
                     common::print_json(
                         &mut out,
-                        &json!({"t_ms": t.as_millis() as u64, "position": p.0, "state": state_json(s)}),
+                        &json!({"t_ms": t.as_millis() as u64, "position": p.value(), "state": state_json(s)}),
                     )?;
                 } else {
                     writeln!(out, "{:>9.3} s  {}  {}", t.since_origin().as_secs_f64(), p.show(kind), s)?;
@@ -563,7 +563,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
 }
 
 fn progress_text(p: &Progress) -> String {
-    format!("module {}: {:.4}  {}", p.address, p.position.0, p.state)
+    format!("module {}: {:.4}  {}", p.address, p.position.value(), p.state)
 }
 
 fn done(out: &mut dyn Write, json: bool, what: &str) -> Result<(), CliError> {
@@ -577,9 +577,9 @@ fn done(out: &mut dyn Write, json: bool, what: &str) -> Result<(), CliError> {
 
 fn report_done(out: &mut dyn Write, json: bool, what: &str, pos: &Position, s: CubeState) -> Result<(), CliError> {
     if json {
-        common::print_json(out, &json!({"ok": true, "action": what, "position": pos.0, "state": state_json(s)}))
+        common::print_json(out, &json!({"ok": true, "action": what, "position": pos.value(), "state": state_json(s)}))
     } else {
-        writeln!(out, "{what}: position {:.4}, state {s}", pos.0)?;
+        writeln!(out, "{what}: position {:.4}, state {s}", pos.value())?;
         Ok(())
     }
 }
@@ -590,7 +590,7 @@ fn print_params(out: &mut dyn Write, as_json: bool) -> Result<(), CliError> {
             .iter()
             .map(|p| {
                 json!({"id": p.id(), "name": p.name(), "type": p.data_type().name(), "unit": p.unit().symbol(ModuleKind::Rotary),
-                       "access": p.access().name(), "class": p.class().name(), "description": p.description()})
+                       "access": p.access().short(), "class": p.class().name(), "description": p.description()})
             })
             .collect();
         return common::print_json(out, &json!(list));
@@ -608,7 +608,7 @@ fn print_params(out: &mut dyn Write, as_json: bool) -> Result<(), CliError> {
             p.name(),
             p.data_type().name(),
             p.unit().symbol(ModuleKind::Rotary),
-            p.access().name(),
+            p.access().short(),
             p.class().name(),
             p.description()
         )?;
@@ -837,13 +837,13 @@ pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
             ("Set ramp motion velocity", Box::new(|| m.set(Param::TargetVel, Value::F32(0.08)))),
             (
                 "Ramp motion command",
-                Box::new(|| m.motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Simple).map(|_| ())),
+                Box::new(|| m.motion(Motion::FRamp { pos: Position::native(0.75) }, AckKind::Simple).map(|_| ())),
             ),
             ("Retrieve module state", Box::new(|| m.state().map(|_| ()))),
             ("Retrieve module position", Box::new(|| m.position().map(|_| ()))),
             (
                 "Ramp motion command with extended acknowledge",
-                Box::new(|| m.motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Extended).map(|_| ())),
+                Box::new(|| m.motion(Motion::FRamp { pos: Position::native(0.75) }, AckKind::Extended).map(|_| ())),
             ),
             ("Halt", Box::new(|| m.halt())),
         ];
@@ -881,7 +881,7 @@ pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
             ("Set ramp motion velocity 0.08", Box::new(|| m.set(Param::TargetVel, Value::F32(0.08)))),
             (
                 "Ramp motion command to 0.75",
-                Box::new(|| m.motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Simple).map(|_| ())),
+                Box::new(|| m.motion(Motion::FRamp { pos: Position::native(0.75) }, AckKind::Simple).map(|_| ())),
             ),
             ("Halt (0x02 escaped as 10 82)", Box::new(|| m.halt())),
         ];

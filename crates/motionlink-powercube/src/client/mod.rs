@@ -16,10 +16,10 @@
 //! let joint = bus.module(1).unwrap();
 //! joint.home().unwrap();
 //! joint.wait_home(Duration::from_secs(10), &mut |_| {}).unwrap();
-//! joint.move_ramp(Position(0.5), None).unwrap();
+//! joint.move_ramp(Position::native(0.5), None).unwrap();
 //! let state = joint.wait_ramp_end(Duration::from_secs(10), &mut |_| {}).unwrap();
 //! assert!(state.contains(StateFlag::RampEnd));
-//! assert!((joint.position().unwrap().0 - 0.5).abs() < 1e-4);
+//! assert!((joint.position().unwrap().value() - 0.5).abs() < 1e-4);
 //! ```
 
 mod transport;
@@ -691,7 +691,7 @@ impl Bus {
             .into_iter()
             .zip(addresses)
             .map(|(r, a)| {
-                r.and_then(|v| v.as_f32().map(Position).ok_or_else(|| unexpected(*a, &req, format!("{v:?}"))))
+                r.and_then(|v| v.as_f32().map(Position::native).ok_or_else(|| unexpected(*a, &req, format!("{v:?}"))))
             })
             .collect()
     }
@@ -1354,7 +1354,7 @@ pub struct MoveSpec {
 
 impl MoveSpec {
     /// The default in-position tolerance: 0.001 rad (0.057°) on a rotary module, 1 mm on a linear one.
-    pub const DEFAULT_TOLERANCE: Position = Position(0.001);
+    pub const DEFAULT_TOLERANCE: Position = Position::native(0.001);
 
     /// A move to `target` with the module's own TargetVel and TargetAcc, the default tolerance, and 60 s to
     /// get there.
@@ -1365,18 +1365,20 @@ impl MoveSpec {
     /// Checks that every number makes sense (finite; velocity, acceleration, tolerance and timeout above 0).
     pub fn validate(&self) -> Result<(), Error> {
         let bad = |what, must, value: String| Err(Error::InvalidArgument { what, must, value });
-        if !self.target.0.is_finite() {
-            return bad("the target position", "a finite number", self.target.0.to_string());
+        if !self.target.value().is_finite() {
+            return bad("the target position", "a finite number", self.target.value().to_string());
         }
-        for (what, v) in [("the velocity", self.vel.map(|v| v.0)), ("the acceleration", self.acc.map(|a| a.0))] {
+        for (what, v) in
+            [("the velocity", self.vel.map(|v| v.value())), ("the acceleration", self.acc.map(|a| a.value()))]
+        {
             if let Some(v) = v {
                 if !(v.is_finite() && v > 0.0) {
                     return bad(what, "a number above 0", v.to_string());
                 }
             }
         }
-        if !(self.tolerance.0.is_finite() && self.tolerance.0 > 0.0) {
-            return bad("the tolerance", "a number above 0", self.tolerance.0.to_string());
+        if !(self.tolerance.value().is_finite() && self.tolerance.value() > 0.0) {
+            return bad("the tolerance", "a number above 0", self.tolerance.value().to_string());
         }
         if self.timeout.is_zero() {
             return bad("the timeout", "above 0", format!("{:?}", self.timeout));
@@ -1496,7 +1498,7 @@ impl Module<'_> {
 
     /// The actual position (ActPos).
     pub fn position(&self) -> Result<Position, Error> {
-        Ok(Position(self.get_f32(Param::ActPos)?))
+        Ok(Position::native(self.get_f32(Param::ActPos)?))
     }
 
     /// The actual position in encoder ticks (ActIPos).
@@ -1512,7 +1514,7 @@ impl Module<'_> {
     /// Position, short state and DIO in one read (ActFPosStateDio).
     pub fn position_state_dio(&self) -> Result<(Position, ShortState, Dio), Error> {
         self.get_as(Param::ActFPosStateDio, |v| match *v {
-            Value::PosStateDio { pos, state, dio } => Some((Position(pos), state, dio)),
+            Value::PosStateDio { pos, state, dio } => Some((Position::native(pos), state, dio)),
             _ => None,
         })
     }
@@ -1794,8 +1796,8 @@ impl Module<'_> {
     /// is not given stays as the module has it. Every value is checked before anything is sent.
     pub fn move_ramp_with(&self, pos: Position, vel: Option<Velocity>, acc: Option<Acceleration>) -> Result<(), Error> {
         let motion = Request::motion(Motion::FRamp { pos }, AckKind::Simple)?;
-        let vel = vel.map(|v| Request::set(Param::TargetVel, Value::F32(v.0))).transpose()?;
-        let acc = acc.map(|a| Request::set(Param::TargetAcc, Value::F32(a.0))).transpose()?;
+        let vel = vel.map(|v| Request::set(Param::TargetVel, Value::F32(v.value()))).transpose()?;
+        let acc = acc.map(|a| Request::set(Param::TargetAcc, Value::F32(a.value()))).transpose()?;
         for r in [vel, acc].iter().flatten() {
             self.request(r)?;
         }
@@ -1863,21 +1865,21 @@ impl Module<'_> {
     pub fn move_to(&self, spec: &MoveSpec, progress: &mut dyn FnMut(&Progress)) -> Result<MoveReport, Error> {
         spec.validate()?;
         self.ready_for_motion()?;
-        let target = f64::from(spec.target.0);
+        let target = f64::from(spec.target.value());
         self.within_limit("the target position", target, Param::MinPos, false)?;
         self.within_limit("the target position", target, Param::MaxPos, true)?;
         if let Some(v) = spec.vel {
-            self.within_limit("the velocity", f64::from(v.0), Param::MaxVel, true)?;
+            self.within_limit("the velocity", f64::from(v.value()), Param::MaxVel, true)?;
         }
         if let Some(a) = spec.acc {
-            self.within_limit("the acceleration", f64::from(a.0), Param::MaxAcc, true)?;
+            self.within_limit("the acceleration", f64::from(a.value()), Param::MaxAcc, true)?;
         }
         let ratio = self.inc_ratio()?;
         let start = self.position()?;
         let motion = Request::motion(Motion::FRamp { pos: spec.target }, AckKind::Simple)?;
         for (param, twin, given) in [
-            (Param::TargetVel, Param::TargetVelInc, spec.vel.map(|v| v.0)),
-            (Param::TargetAcc, Param::TargetAccInc, spec.acc.map(|a| a.0)),
+            (Param::TargetVel, Param::TargetVelInc, spec.vel.map(|v| v.value())),
+            (Param::TargetAcc, Param::TargetAccInc, spec.acc.map(|a| a.value())),
         ] {
             match given {
                 Some(v) => {
@@ -1903,7 +1905,7 @@ impl Module<'_> {
             // It may have arrived and started the ramp.
             return Err(self.lost(e));
         }
-        tracing::info!("module {}: moving from {:.4} to {}", self.address, start.0, spec.target.0);
+        tracing::info!("module {}: moving from {:.4} to {}", self.address, start.value(), spec.target.value());
         let sent = (target * ratio).round() as i32;
         match self.get_as(Param::TargetPosInc, Value::as_i32) {
             Ok(taken) if (i64::from(taken) - i64::from(sent)).abs() <= 1 => {}
@@ -1917,16 +1919,16 @@ impl Module<'_> {
         let mut reached = start;
         for _ in 0..2 {
             reached = self.position()?;
-            let difference = reached.0 - spec.target.0;
+            let difference = reached.value() - spec.target.value();
             // A NaN reading is not within any tolerance.
-            let within = difference.abs() <= spec.tolerance.0;
+            let within = difference.abs() <= spec.tolerance.value();
             if !within {
                 return Err(Error::NotReached {
                     address: self.address,
-                    target: spec.target.0,
-                    reached: reached.0,
+                    target: spec.target.value(),
+                    reached: reached.value(),
                     difference,
-                    tolerance: spec.tolerance.0,
+                    tolerance: spec.tolerance.value(),
                     state,
                 });
             }

@@ -107,16 +107,16 @@ fn home_and_move_with_progress() {
     let s = m.wait_home(secs(10), &mut |_| polls += 1).unwrap();
     assert!(s.contains(StateFlag::HomeOk));
     assert!(polls >= 2, "{polls}");
-    let ramp = Ramp { vel: Velocity(0.5), acc: Acceleration(1.0) };
-    m.move_ramp(Position(-1.0), Some(ramp)).unwrap();
+    let ramp = Ramp { vel: Velocity::native(0.5), acc: Acceleration::native(1.0) };
+    m.move_ramp(Position::native(-1.0), Some(ramp)).unwrap();
     let mut seen = Vec::new();
     let t0 = clock.now();
-    m.wait_ramp_end(secs(10), &mut |p| seen.push(p.position.0)).unwrap();
+    m.wait_ramp_end(secs(10), &mut |p| seen.push(p.position.value())).unwrap();
     // 1 rad at 0.5 rad/s, 1 rad/s²: 2.5 s.
     let took = (clock.now() - t0).as_secs_f64();
     assert!((2.4..2.7).contains(&took), "{took}");
     assert!(seen.windows(2).all(|w| w[1] <= w[0] + 1e-6), "monotonic progress");
-    assert!((m.position().unwrap().0 + 1.0).abs() < 1e-4);
+    assert!((m.position().unwrap().value() + 1.0).abs() < 1e-4);
     assert!(bus.started().is_empty(), "the motion was seen to end");
     assert!(host.with_device(|d| d.module(1).unwrap().state().contains(StateFlag::RampEnd)));
     use crate::model::Acceleration;
@@ -130,7 +130,7 @@ fn device_errors_name_their_flags() {
     m.home().unwrap();
     m.wait_home(secs(10), &mut |_| {}).unwrap();
     m.set(Param::MaxPos, Value::F32(0.2)).unwrap();
-    m.motion(Motion::FVel { vel: Velocity(0.5) }, AckKind::Simple).unwrap();
+    m.motion(Motion::FVel { vel: Velocity::native(0.5) }, AckKind::Simple).unwrap();
     let err = m.wait_motion_end(secs(10), &mut |_| {}).unwrap_err();
     match &err {
         Error::Device { address: 1, state } => assert!(state.contains(StateFlag::BeyondSoft)),
@@ -141,7 +141,7 @@ fn device_errors_name_their_flags() {
     // Halted: motions are ignored, the wait says so; a reset clears it.
     m.reset().unwrap();
     m.halt().unwrap();
-    m.move_ramp(Position(0.0), None).unwrap();
+    m.move_ramp(Position::native(0.0), None).unwrap();
     assert!(matches!(m.wait_motion_end(secs(1), &mut |_| {}), Err(Error::Halted { .. })));
     m.reset().unwrap();
     assert!(!m.state().unwrap().contains(StateFlag::Halted));
@@ -240,8 +240,8 @@ fn disabling_the_watchdog_switches_it_off_in_the_modules() {
 fn dropping_the_session_halts_what_it_started() {
     let (clock, host, bus, _) = rs232(&[1, 2]);
     let _me = clock.reserve_participant().enter();
-    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity(0.3) }, AckKind::Simple).unwrap();
-    bus.module(2).unwrap().motion(Motion::FRamp { pos: Position(0.06) }, AckKind::Simple).unwrap();
+    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.3) }, AckKind::Simple).unwrap();
+    bus.module(2).unwrap().motion(Motion::FRamp { pos: Position::native(0.06) }, AckKind::Simple).unwrap();
     clock.sleep(secs(1));
     drop(bus);
     host.with_device(|d| {
@@ -273,7 +273,7 @@ fn cancelling_a_wait_halts_the_motion() {
     // A wait that times out halts too.
     token.reset();
     m.reset().unwrap();
-    m.motion(Motion::FVel { vel: Velocity(0.1) }, AckKind::Simple).unwrap();
+    m.motion(Motion::FVel { vel: Velocity::native(0.1) }, AckKind::Simple).unwrap();
     let err = m.wait_motion_end(Duration::from_millis(300), &mut |_| {}).unwrap_err();
     assert!(matches!(err, Error::WaitTimeout { stop: StopOutcome::Confirmed, .. }), "{err}");
     assert!(host.with_device(|d| d.module(1).unwrap().state().contains(StateFlag::Halted)));
@@ -328,7 +328,12 @@ fn six_joints_in_a_control_loop_with_the_watchdog() {
         let target = 0.2 * cycle as f32 / 100.0;
         let reqs: Vec<(u8, Request)> = addresses
             .iter()
-            .map(|a| (*a, Request::Motion(Motion::FStep { pos: Position(target), time: Millis(10) }, AckKind::Simple)))
+            .map(|a| {
+                (
+                    *a,
+                    Request::Motion(Motion::FStep { pos: Position::native(target), time: Millis(10) }, AckKind::Simple),
+                )
+            })
             .collect();
         assert!(bus.request_many(&reqs).iter().all(Result::is_ok));
         next += period;
@@ -336,7 +341,7 @@ fn six_joints_in_a_control_loop_with_the_watchdog() {
     }
     clock.sleep(Duration::from_millis(50));
     for p in bus.positions(&addresses) {
-        assert!((p.unwrap().0 - 0.2).abs() < 1e-4);
+        assert!((p.unwrap().value() - 0.2).abs() < 1e-4);
     }
     for a in &addresses {
         assert!(!bus.module(*a).unwrap().state().unwrap().has_fault());
@@ -399,7 +404,7 @@ fn device_view(canbus: &CanBus<SimBus>, clock: &ManualClock, a: u8) -> (CubeStat
         .with_device(|d| {
             d.update(clock.now());
             let m = d.module(a).unwrap();
-            (m.state(), m.position().0, m.watchdog_online(), m.config_word())
+            (m.state(), m.position().value(), m.watchdog_online(), m.config_word())
         })
         .unwrap()
 }
@@ -421,7 +426,8 @@ fn arming_the_watchdog_for_a_motion_leaves_the_modules_as_it_found_them() {
     assert!(device_view(&canbus, &clock, 1).2 && device_view(&canbus, &clock, 2).2, "online");
     m1.home().unwrap();
     m1.wait_home(secs(10), &mut |_| {}).unwrap();
-    m1.move_ramp(Position(0.5), Some(Ramp { vel: Velocity(0.5), acc: Acceleration(1.0) })).unwrap();
+    m1.move_ramp(Position::native(0.5), Some(Ramp { vel: Velocity::native(0.5), acc: Acceleration::native(1.0) }))
+        .unwrap();
     m1.wait_ramp_end(secs(10), &mut |_| {}).unwrap();
     bus.disable_watchdog().unwrap();
 
@@ -435,7 +441,7 @@ fn arming_the_watchdog_for_a_motion_leaves_the_modules_as_it_found_them() {
         assert!(!online, "module {a}");
         assert!(!state.contains(StateFlag::Halted) && !state.contains(StateFlag::CommError), "module {a}: {state}");
     }
-    assert!((m1.position().unwrap().0 - 0.5).abs() < 1e-4);
+    assert!((m1.position().unwrap().value() - 0.5).abs() < 1e-4);
     // Disabling twice is harmless.
     bus.disable_watchdog().unwrap();
     assert_eq!(m1.config_word().unwrap(), before1);
@@ -448,7 +454,8 @@ fn a_host_that_dies_while_moving_is_stopped_by_the_watchdog_within_50_ms() {
     let _me = clock.reserve_participant().enter();
     bus.enable_watchdog(&[1]).unwrap();
     let m = bus.module(1).unwrap();
-    m.move_ramp(Position(2.0), Some(Ramp { vel: Velocity(0.2), acc: Acceleration(1.0) })).unwrap();
+    m.move_ramp(Position::native(2.0), Some(Ramp { vel: Velocity::native(0.2), acc: Acceleration::native(1.0) }))
+        .unwrap();
     clock.sleep(secs(1));
     assert!(m.state().unwrap().contains(StateFlag::Motion));
     let died = clock.now();
@@ -568,7 +575,7 @@ fn a_drop_halts_a_known_module_still_homing_but_not_for_an_address_that_never_an
     bus.broadcast(Broadcast::Home).unwrap();
     // Module 2 exists but the session does not know it; it homes too (no harm) and is idle at the drop.
     // A motion command to an address where nobody is: no acknowledge.
-    let err = bus.module(9).unwrap().motion(Motion::FVel { vel: Velocity(0.1) }, AckKind::Simple).unwrap_err();
+    let err = bus.module(9).unwrap().motion(Motion::FVel { vel: Velocity::native(0.1) }, AckKind::Simple).unwrap_err();
     assert!(matches!(err, Error::Timeout { address: 9, .. }), "{err}");
     assert_eq!(bus.started(), vec![1, 9]);
     drop(bus);
@@ -585,7 +592,7 @@ fn on_rs232_a_broadcast_halt_does_not_forget_what_was_started() {
     let _me = clock.reserve_participant().enter();
     // Real RS232 modules may ignore address 0, where the client sends broadcasts.
     host.with_device(|d| d.set_rs232_broadcasts(false));
-    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity(0.3) }, AckKind::Simple).unwrap();
+    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.3) }, AckKind::Simple).unwrap();
     bus.broadcast(Broadcast::Halt).unwrap();
     clock.sleep(Duration::from_millis(500));
     assert!(bus.module(1).unwrap().state().unwrap().contains(StateFlag::Motion), "the broadcast was ignored");
@@ -597,7 +604,7 @@ fn on_rs232_a_broadcast_halt_does_not_forget_what_was_started() {
     // On CAN a broadcast is the manual's and reaches every module: it ends the list.
     let (clock, canbus, bus) = can(&[1]);
     let _me = clock.reserve_participant().enter();
-    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity(0.3) }, AckKind::Simple).unwrap();
+    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.3) }, AckKind::Simple).unwrap();
     bus.broadcast(Broadcast::Halt).unwrap();
     assert!(bus.started().is_empty());
     clock.sleep(Duration::from_millis(1)); // the frame's time on the bus
@@ -613,7 +620,7 @@ fn a_normal_drop_switches_the_watchdog_off_and_a_new_session_can_arm_it_again() 
     let m = bus.module(1).unwrap();
     m.home().unwrap();
     m.wait_home(secs(10), &mut |_| {}).unwrap();
-    m.motion(Motion::FVel { vel: Velocity(0.2) }, AckKind::Simple).unwrap();
+    m.motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
     assert!(device_view(&canbus, &clock, 1).2 && device_view(&canbus, &clock, 2).2, "online");
     drop(bus);
     // Well past the watchdog's 50 ms: a watchdog left online would have halted both modules.
@@ -642,7 +649,7 @@ fn a_session_that_failed_leaves_the_watchdog_armed_on_drop() {
     let (clock, canbus, bus) = can(&[1, 2]);
     let _me = clock.reserve_participant().enter();
     bus.enable_watchdog(&[1, 2]).unwrap();
-    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity(0.2) }, AckKind::Simple).unwrap();
+    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
     // The modules' answers are lost from now on: the drop cannot see module 1 stop.
     canbus.drop_next_from_device(u64::MAX);
     drop(bus);
@@ -664,8 +671,8 @@ fn every_request_is_checked_before_it_is_sent() {
         Request::Set(Param::MaxVel, Value::U32(1)),
         Request::Get(Param::TargetAcc),
         Request::Set(Param::TargetVel, Value::F32(f32::NAN)),
-        Request::Motion(Motion::FRampLoop { pos: Position(1.0) }, AckKind::Extended),
-        Request::Motion(Motion::FRamp { pos: Position(f32::INFINITY) }, AckKind::Simple),
+        Request::Motion(Motion::FRampLoop { pos: Position::native(1.0) }, AckKind::Extended),
+        Request::Motion(Motion::FRamp { pos: Position::native(f32::INFINITY) }, AckKind::Simple),
     ];
     let sent = faults.bytes_sent(Direction::HostToDevice);
     for r in &bad {
@@ -768,7 +775,7 @@ fn on_can_acknowledges_are_matched_in_whatever_order_they_arrive() {
         (1, Request::Get(Param::DefCubeSerial)),
         (2, Request::Get(Param::DefAddress)),
         (3, Request::Set(Param::TargetVel, Value::F32(0.5))),
-        (4, Request::Motion(Motion::FRamp { pos: Position(0.1) }, AckKind::Extended)),
+        (4, Request::Motion(Motion::FRamp { pos: Position::native(0.1) }, AckKind::Extended)),
         (5, Request::Action(Action::Reset)),
         (6, Request::Get(Param::DefAddress)),
     ];
@@ -995,13 +1002,17 @@ fn rs232_instant(addresses: &[u8]) -> (ManualClock, EmulatorHost<SimBus>, Bus, F
 }
 
 fn spec(target: f32) -> MoveSpec {
-    MoveSpec { vel: Some(Velocity(1.0)), acc: Some(crate::model::Acceleration(2.0)), ..MoveSpec::to(Position(target)) }
+    MoveSpec {
+        vel: Some(Velocity::native(1.0)),
+        acc: Some(crate::model::Acceleration::native(2.0)),
+        ..MoveSpec::to(Position::native(target))
+    }
 }
 
 fn sim_module(host: &EmulatorHost<SimBus>, a: u8) -> (CubeState, f32) {
     host.with_device(|d| {
         let m = d.module(a).unwrap();
-        (m.state(), m.position().0)
+        (m.state(), m.position().value())
     })
 }
 
@@ -1013,10 +1024,13 @@ fn a_checked_move_refuses_targets_beyond_the_limits_before_anything_moves() {
     m.set(Param::TargetVel, Value::F32(0.5)).unwrap();
     host.with_device(|d| d.take_events());
     for (s, limit) in [
-        (MoveSpec::to(Position(10.0)), Param::MaxPos),
-        (MoveSpec::to(Position(-3.2)), Param::MinPos),
-        (MoveSpec { vel: Some(Velocity(1.5)), ..MoveSpec::to(Position(0.5)) }, Param::MaxVel),
-        (MoveSpec { acc: Some(crate::model::Acceleration(9.0)), ..MoveSpec::to(Position(0.5)) }, Param::MaxAcc),
+        (MoveSpec::to(Position::native(10.0)), Param::MaxPos),
+        (MoveSpec::to(Position::native(-3.2)), Param::MinPos),
+        (MoveSpec { vel: Some(Velocity::native(1.5)), ..MoveSpec::to(Position::native(0.5)) }, Param::MaxVel),
+        (
+            MoveSpec { acc: Some(crate::model::Acceleration::native(9.0)), ..MoveSpec::to(Position::native(0.5)) },
+            Param::MaxAcc,
+        ),
     ] {
         let err = m.move_to(&s, &mut |_| {}).unwrap_err();
         match &err {
@@ -1030,17 +1044,17 @@ fn a_checked_move_refuses_targets_beyond_the_limits_before_anything_moves() {
     assert_eq!(sim_module(&host, 1).1, 0.05);
     // Numbers that make no sense are refused before anything is read.
     for s in [
-        MoveSpec::to(Position(f32::NAN)),
-        MoveSpec { vel: Some(Velocity(0.0)), ..MoveSpec::to(Position(0.1)) },
-        MoveSpec { acc: Some(crate::model::Acceleration(-1.0)), ..MoveSpec::to(Position(0.1)) },
-        MoveSpec { tolerance: Position(0.0), ..MoveSpec::to(Position(0.1)) },
-        MoveSpec { timeout: Duration::ZERO, ..MoveSpec::to(Position(0.1)) },
+        MoveSpec::to(Position::native(f32::NAN)),
+        MoveSpec { vel: Some(Velocity::native(0.0)), ..MoveSpec::to(Position::native(0.1)) },
+        MoveSpec { acc: Some(crate::model::Acceleration::native(-1.0)), ..MoveSpec::to(Position::native(0.1)) },
+        MoveSpec { tolerance: Position::native(0.0), ..MoveSpec::to(Position::native(0.1)) },
+        MoveSpec { timeout: Duration::ZERO, ..MoveSpec::to(Position::native(0.1)) },
     ] {
         assert!(matches!(m.move_to(&s, &mut |_| {}), Err(Error::InvalidArgument { .. })), "{s:?}");
     }
     // A module whose own TargetVel is 0 would never arrive: refused when no velocity is given.
     m.set(Param::TargetVel, Value::F32(0.0)).unwrap();
-    let err = m.move_to(&MoveSpec::to(Position(0.5)), &mut |_| {}).unwrap_err();
+    let err = m.move_to(&MoveSpec::to(Position::native(0.5)), &mut |_| {}).unwrap_err();
     assert!(matches!(err, Error::InvalidArgument { what: "the velocity", .. }), "{err}");
     assert!(!sim_module(&host, 1).0.contains(StateFlag::Motion));
     // A halted module would ignore the motion command: refused, named, before anything is written.
@@ -1059,8 +1073,8 @@ fn a_checked_move_ends_within_the_tolerance_or_says_where_it_ended() {
     let _me = clock.reserve_participant().enter();
     let m = bus.module(1).unwrap();
     let report = m.move_to(&spec(0.5), &mut |_| {}).unwrap();
-    assert!((report.reached.0 - 0.5).abs() < 1e-6 && report.state.contains(StateFlag::RampEnd), "{report:?}");
-    assert_eq!(report.start, Position(0.05));
+    assert!((report.reached.value() - 0.5).abs() < 1e-6 && report.state.contains(StateFlag::RampEnd), "{report:?}");
+    assert_eq!(report.start, Position::native(0.05));
     assert!(bus.started().is_empty());
     // A module that settles 5 mrad beyond its target: outside the default 1 mrad tolerance.
     host.with_device(|d| {
@@ -1082,8 +1096,8 @@ fn a_checked_move_ends_within_the_tolerance_or_says_where_it_ended() {
     let text = err.to_string();
     assert!(text.contains("target 0.5") && text.contains("0.505") && text.contains("0.005"), "{text}");
     // A wider tolerance accepts it.
-    let wide = MoveSpec { tolerance: Position(0.01), ..spec(0.3) };
-    assert!((m.move_to(&wide, &mut |_| {}).unwrap().reached.0 - 0.305).abs() < 1e-6);
+    let wide = MoveSpec { tolerance: Position::native(0.01), ..spec(0.3) };
+    assert!((m.move_to(&wide, &mut |_| {}).unwrap().reached.value() - 0.305).abs() < 1e-6);
 }
 
 #[test]
@@ -1112,7 +1126,7 @@ fn a_checked_move_reads_back_its_ramp_and_target_and_halts_a_corrupted_command()
     // that the module's TargetPosInc shows it; the module is halted at once.
     faults.heal();
     let start = faults.bytes_sent(Direction::HostToDevice);
-    let motion = Request::motion(Motion::FRamp { pos: Position(2.0) }, AckKind::Simple).unwrap();
+    let motion = Request::motion(Motion::FRamp { pos: Position::native(2.0) }, AckKind::Simple).unwrap();
     let all_before_motion: u64 = reads.iter().map(|p| rs232_request_len(1, &Request::Get(*p))).sum::<u64>()
         + rs232_request_len(1, &Request::set(Param::TargetVel, Value::F32(1.0)).unwrap())
         + rs232_request_len(1, &Request::Get(Param::TargetVelInc))
@@ -1176,7 +1190,7 @@ fn a_line_that_fails_during_a_move_is_stopped_and_the_error_says_so() {
     let m = bus.module(1).unwrap();
     let mut dropped = false;
     let err = m
-        .move_to(&MoveSpec { vel: Some(Velocity(0.2)), ..spec(1.0) }, &mut |p| {
+        .move_to(&MoveSpec { vel: Some(Velocity::native(0.2)), ..spec(1.0) }, &mut |p| {
             if !dropped && p.elapsed > Duration::from_millis(200) {
                 dropped = true;
                 // Enough to lose the three tries of the next state read, not the halt after them.
@@ -1204,7 +1218,7 @@ fn a_line_that_fails_during_a_move_is_stopped_and_the_error_says_so() {
     let m = bus.module(1).unwrap();
     let mut broke_at = None;
     let err = m
-        .move_to(&MoveSpec { vel: Some(Velocity(0.2)), ..spec(1.0) }, &mut |p| {
+        .move_to(&MoveSpec { vel: Some(Velocity::native(0.2)), ..spec(1.0) }, &mut |p| {
             if broke_at.is_none() && p.elapsed > Duration::from_millis(200) {
                 broke_at = Some(clock.now());
                 faults.drop_next(Direction::HostToDevice, u64::MAX);
@@ -1234,7 +1248,7 @@ fn a_line_that_fails_during_a_move_is_stopped_and_the_error_says_so() {
     let m = bus.module(1).unwrap();
     let mut broke = false;
     let err = m
-        .move_to(&MoveSpec { vel: Some(Velocity(0.2)), ..spec(1.0) }, &mut |p| {
+        .move_to(&MoveSpec { vel: Some(Velocity::native(0.2)), ..spec(1.0) }, &mut |p| {
             if !broke && p.elapsed > Duration::from_millis(200) {
                 broke = true;
                 faults.disconnect();
@@ -1259,7 +1273,7 @@ fn waiting_polls_at_the_set_rate_not_as_fast_as_the_line_answers() {
     let t0 = clock.now();
     let sent0 = host.with_device(|d| d.stats().handled);
     // 0.95 rad at 0.5 rad/s, 2 rad/s²: 0.25 s up, 1.65 s steady, 0.25 s down: 2.15 s.
-    m.move_to(&MoveSpec { vel: Some(Velocity(0.5)), ..spec(1.0) }, &mut |p| polls.push(p.elapsed)).unwrap();
+    m.move_to(&MoveSpec { vel: Some(Velocity::native(0.5)), ..spec(1.0) }, &mut |p| polls.push(p.elapsed)).unwrap();
     let took = clock.now() - t0;
     let requests = host.with_device(|d| d.stats().handled) - sent0;
     assert!((2.15..2.2).contains(&took.as_secs_f64()), "{took:?}");
@@ -1284,7 +1298,10 @@ fn waiting_polls_at_the_set_rate_not_as_fast_as_the_line_answers() {
     };
     let _me = clock.reserve_participant().enter();
     let mut polls = 0;
-    bus.module(1).unwrap().move_to(&MoveSpec { vel: Some(Velocity(0.5)), ..spec(1.0) }, &mut |_| polls += 1).unwrap();
+    bus.module(1)
+        .unwrap()
+        .move_to(&MoveSpec { vel: Some(Velocity::native(0.5)), ..spec(1.0) }, &mut |_| polls += 1)
+        .unwrap();
     assert!((43..=45).contains(&polls), "{polls}");
 }
 
@@ -1412,7 +1429,7 @@ fn one_flipped_bit_anywhere_never_gives_a_false_success() {
                 );
                 match &run.result {
                     Ok(report) => {
-                        assert!((report.reached.0 - 0.3).abs() <= 0.001, "{what}: {report:?}");
+                        assert!((report.reached.value() - 0.3).abs() <= 0.001, "{what}: {report:?}");
                         assert!(
                             (run.after.1 - 0.3).abs() <= 0.001,
                             "{what}: success, but module 1 is at {}",

@@ -207,7 +207,7 @@ impl SimModule {
 
     /// The position at the module's last update.
     pub fn position(&self) -> Position {
-        Position(self.pos_at(self.t) as f32)
+        Position::native(self.pos_at(self.t) as f32)
     }
 
     /// The state word at the module's last update.
@@ -476,13 +476,15 @@ impl SimModule {
             Request::Motion(motion, ack) => {
                 let mode = motion.id(ack).map_or(0, |m| m.code());
                 match motion {
-                    Motion::FRamp { pos } => self.ramp_to(t, f64::from(pos.0), mode),
+                    Motion::FRamp { pos } => self.ramp_to(t, f64::from(pos.value()), mode),
                     Motion::IRamp { pos } => self.ramp_to(t, f64::from(pos.0) / ratio, mode),
-                    Motion::FStep { pos, time } => self.step_to(t, f64::from(pos.0), f64::from(time.0) / 1000.0, mode),
+                    Motion::FStep { pos, time } => {
+                        self.step_to(t, f64::from(pos.value()), f64::from(time.0) / 1000.0, mode)
+                    }
                     Motion::IStep { pos, time } => {
                         self.step_to(t, f64::from(pos.0) / ratio, f64::from(time.0) / 1000.0, mode)
                     }
-                    Motion::FVel { vel } => velocity(self, f64::from(vel.0), mode),
+                    Motion::FVel { vel } => velocity(self, f64::from(vel.value()), mode),
                     Motion::IVel { vel } => velocity(self, f64::from(vel.0) / ratio, mode),
                     Motion::FCur { cur } => {
                         let c = f64::from(cur.0);
@@ -495,13 +497,13 @@ impl SimModule {
                         velocity(self, c * self.max_vel, mode)
                     }
                     Motion::FCosLoop { pos, time } => {
-                        let p1 = self.clamp_target(f64::from(pos.0));
+                        let p1 = self.clamp_target(f64::from(pos.value()));
                         let period = (f64::from(time.0) / 1000.0).max(1e-3);
                         self.move_mode = mode;
                         self.start(t, MotionKind::CosLoop, Profile::Cos { start: t, p0: p, p1, period });
                     }
                     Motion::FRampLoop { pos } => {
-                        let to = self.clamp_target(f64::from(pos.0));
+                        let to = self.clamp_target(f64::from(pos.value()));
                         self.move_mode = mode;
                         let prof = profile::ramp(t, p, v, to, self.ramp_vel(), self.ramp_acc());
                         self.start(t, MotionKind::RampLoop { from: p, to }, Profile::Pieces(prof));
@@ -589,7 +591,7 @@ impl SimModule {
                     AckKind::Extended => {
                         let p = self.pos_at(t);
                         let position = if id.shape().float_position() {
-                            AckPosition::Unit(Position(p as f32))
+                            AckPosition::Unit(Position::native(p as f32))
                         } else {
                             AckPosition::Ticks(Ticks((p * self.inc_ratio()).round() as i32))
                         };
