@@ -2,13 +2,13 @@
 //! byte for byte, in both directions, and answered by the emulator.
 
 use motionlink_link::can::{CanEmulator, CanFrame};
-use motionlink_link::emulator::Emulator;
+use motionlink_link::emulator::Emulator as ByteEmulator;
 use motionlink_link::Timestamp;
 use motionlink_powercube::model::{
     AckKind, AckPosition, Action, CubeState, Motion, Param, Position, ProfibusFlag, ProfibusState, Reply, Request,
     StateFlag, Value,
 };
-use motionlink_powercube::sim::{SimBus, SimConfig};
+use motionlink_powercube::sim::{Emulator, SimConfig};
 use motionlink_powercube::wire::can::{self, Role};
 use motionlink_powercube::wire::profibus::{InputImage, OutputWriter};
 use motionlink_powercube::wire::rs232::{self, Rs232Decoder, TelKind};
@@ -77,7 +77,7 @@ fn chapter_8_can_acknowledges_decode_as_printed() {
 
 #[test]
 fn chapter_8_the_emulator_answers_each_example() {
-    let mut bus = SimBus::new_can(&SimConfig::with_addresses(&[17]).unwrap());
+    let mut bus = Emulator::new_can(&SimConfig::with_addresses(&[17]).unwrap());
     let mut t = 0u64;
     let mut ask = |text: &str| -> Vec<CanFrame> {
         let mut out = Vec::new();
@@ -167,10 +167,10 @@ fn chapter_9_the_escaped_halt() {
 
 #[test]
 fn chapter_9_the_emulator_answers_with_the_true_length() {
-    let mut bus = SimBus::new(&SimConfig::with_addresses(&[17]).unwrap());
+    let mut bus = Emulator::new(&SimConfig::with_addresses(&[17]).unwrap());
     for (i, (send, printed_ack)) in RS232_EXAMPLES.iter().enumerate() {
         let mut out = Vec::new();
-        Emulator::receive(&mut bus, Timestamp::from_millis(1000 * i as u64), send, &mut out);
+        ByteEmulator::receive(&mut bus, Timestamp::from_millis(1000 * i as u64), send, &mut out);
         let f = Rs232Decoder::new().feed(&out).next().unwrap().unwrap();
         let printed = Rs232Decoder::new().feed(printed_ack).next().unwrap().unwrap();
         assert_eq!(f.payload, printed.payload, "same acknowledge data");
@@ -180,7 +180,12 @@ fn chapter_9_the_emulator_answers_with_the_true_length() {
         }
     }
     let mut out = Vec::new();
-    Emulator::receive(&mut bus, Timestamp::from_millis(9000), &[0x02, 0x06, 0x21, 0x10, 0x82, 0x29, 0x03], &mut out);
+    ByteEmulator::receive(
+        &mut bus,
+        Timestamp::from_millis(9000),
+        &[0x02, 0x06, 0x21, 0x10, 0x82, 0x29, 0x03],
+        &mut out,
+    );
     assert_eq!(out, vec![0x02, 0x0a, 0x21, 0x10, 0x82, 0x2d, 0x03], "the Halt acknowledge is escaped too");
 }
 
@@ -246,7 +251,7 @@ fn chapter_10_profibus_images() {
 
 #[test]
 fn chapter_10_the_emulator_exchanges_images() {
-    let mut bus = SimBus::new(&SimConfig::with_addresses(&[17]).unwrap());
+    let mut bus = Emulator::new(&SimConfig::with_addresses(&[17]).unwrap());
     let mut w = OutputWriter::new();
     let at = Timestamp::from_millis;
     // Each example command in turn, one second apart: the acknowledge bytes are the manual's, byte for byte.

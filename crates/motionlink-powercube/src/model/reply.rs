@@ -134,12 +134,12 @@ impl fmt::Display for Reply {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Reply::Action(a) => write!(f, "{} acknowledged", a.name()),
-            Reply::Get(p, v) => write!(f, "{p} = {}", v.show(*p, super::ModuleKind::Rotary)),
+            Reply::Get(p, v) => write!(f, "{p} = {}", v.show_in(*p, None)),
             Reply::Set(p, s) if *s == ACK_OK => write!(f, "{p} set"),
             Reply::Set(p, s) => write!(f, "{p} set, status 0x{s:02X}"),
             Reply::Motion { id, ext: Some(e), .. } => {
                 let pos = match e.position {
-                    AckPosition::Unit(p) => format!("{}", p.value()),
+                    AckPosition::Unit(p) => p.to_string(),
                     AckPosition::Ticks(t) => format!("{} ticks", t.0),
                 };
                 write!(f, "{} acknowledged: position {pos}, state {}, dio {}", id.name(), e.state, e.dio)

@@ -332,7 +332,7 @@ impl fmt::Display for Request {
         match self {
             Request::Action(a) => f.write_str(a.name()),
             Request::Get(p) => write!(f, "GetExtended {p}"),
-            Request::Set(p, v) => write!(f, "SetExtended {p} = {}", v.show(*p, super::ModuleKind::Rotary)),
+            Request::Set(p, v) => write!(f, "SetExtended {p} = {}", v.show_in(*p, None)),
             Request::Motion(m, ack) => {
                 let name = m.id(*ack).map_or("?", MotionId::name);
                 write!(f, "SetMotion {name} {}", m.describe())

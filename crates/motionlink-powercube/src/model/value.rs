@@ -215,9 +215,16 @@ impl Value {
 
     /// Formats the value of `param` for a person: with its unit, flag words decoded, versions as x.y.zz.
     pub fn show(&self, param: Param, kind: ModuleKind) -> String {
+        self.show_in(param, Some(kind))
+    }
+
+    /// Formats the value of `param` with the unit of `kind`, or, where the kind is not known, with both
+    /// ("rad|m").
+    pub fn show_in(&self, param: Param, kind: Option<ModuleKind>) -> String {
         use super::flags::{ConfigWord, DioWord, SetupWord};
         use super::units::CubeVersion;
-        let unit = param.unit().symbol(kind);
+        let unit = kind.map_or(param.unit().generic_symbol(), |k| param.unit().symbol(k));
+        let pos_unit = kind.map_or("rad|m", ModuleKind::unit);
         let with_unit = |s: String| if unit.is_empty() { s } else { format!("{s} {unit}") };
         match (*self, param) {
             (Value::U32(v), Param::CubeState) => format!("{v:#010x} ({})", CubeState(v)),
@@ -227,9 +234,9 @@ impl Value {
             (Value::U16(v), Param::DefCubeVersion) => format!("{} ({v:#06x})", CubeVersion(v)),
             (Value::F32(v), _) => with_unit(format!("{v:.6}")),
             (Value::PosStateDio { pos, state, dio }, _) => {
-                format!("{pos:.6} {}, state {state}, dio {dio}", kind.unit())
+                format!("{pos:.6} {pos_unit}, state {state}, dio {dio}")
             }
-            (Value::PosTime { pos, time_ms }, _) => format!("{pos:.6} {} at {time_ms} ms", kind.unit()),
+            (Value::PosTime { pos, time_ms }, _) => format!("{pos:.6} {pos_unit} at {time_ms} ms"),
             (v, _) => with_unit(v.as_f64().map_or_else(String::new, |n| format!("{n}"))),
         }
     }

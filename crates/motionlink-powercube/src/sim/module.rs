@@ -142,7 +142,7 @@ impl SimModule {
     /// What the module did since the last call, oldest first, each with the module time (seconds) it
     /// happened at: "module 1 motion started: ramp to 1.2000 rad", "module 1 at rest 1.2000 rad",
     /// "module 1 halted", "module 1 watchdog expired: STATE_COMM_ERROR", ... (see
-    /// [`SimBus`](super::SimBus)'s `take_events`).
+    /// [`Emulator`](super::Emulator)'s `take_events`).
     pub fn take_events(&mut self) -> Vec<(f64, String)> {
         std::mem::take(&mut self.events)
     }

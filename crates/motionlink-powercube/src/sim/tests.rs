@@ -13,34 +13,34 @@ fn at(ms: u64) -> Timestamp {
     Timestamp::from_millis(ms)
 }
 
-fn state(bus: &mut SimBus, ms: u64) -> CubeState {
+fn state(bus: &mut Emulator, ms: u64) -> CubeState {
     match bus.request(at(ms), 1, &Request::Get(Param::CubeState)) {
         Some(Reply::Get(_, Value::U32(s))) => CubeState(s),
         other => panic!("{other:?}"),
     }
 }
 
-fn pos(bus: &mut SimBus, ms: u64) -> f32 {
+fn pos(bus: &mut Emulator, ms: u64) -> f32 {
     match bus.request(at(ms), 1, &Request::Get(Param::ActPos)) {
         Some(Reply::Get(_, Value::F32(p))) => p,
         other => panic!("{other:?}"),
     }
 }
 
-fn set(bus: &mut SimBus, ms: u64, p: Param, v: Value) {
+fn set(bus: &mut Emulator, ms: u64, p: Param, v: Value) {
     assert!(matches!(bus.request(at(ms), 1, &Request::Set(p, v)), Some(Reply::Set(_, 0x64))));
 }
 
-fn homed_bus() -> SimBus {
-    let mut bus = SimBus::new(&SimConfig::default());
+fn homed_bus() -> Emulator {
+    let mut bus = Emulator::new(&SimConfig::default());
     bus.request(at(0), 1, &Request::Action(Action::Home));
     assert!(state(&mut bus, 10).contains(StateFlag::Motion), "homing moves");
     assert!(state(&mut bus, 2_000).contains(StateFlag::HomeOk));
     bus
 }
 
-fn homed_can_bus() -> SimBus {
-    let mut bus = SimBus::new_can(&SimConfig::default());
+fn homed_can_bus() -> Emulator {
+    let mut bus = Emulator::new_can(&SimConfig::default());
     bus.request(at(0), 1, &Request::Action(Action::Home));
     assert!(state(&mut bus, 2_000).contains(StateFlag::HomeOk));
     bus
@@ -48,7 +48,7 @@ fn homed_can_bus() -> SimBus {
 
 #[test]
 fn homing_moves_then_sets_home_ok() {
-    let mut bus = SimBus::new(&SimConfig::default());
+    let mut bus = Emulator::new(&SimConfig::default());
     let s = state(&mut bus, 0);
     assert!(!s.contains(StateFlag::HomeOk));
     assert!((pos(&mut bus, 0) - 0.05).abs() < 1e-6);
@@ -219,28 +219,28 @@ fn velocity_and_current_modes_move() {
 
 #[test]
 fn rs232_framing_and_bcc_policy() {
-    let mut bus = SimBus::new(&SimConfig::with_addresses(&[1, 17]).unwrap());
+    let mut bus = Emulator::new(&SimConfig::with_addresses(&[1, 17]).unwrap());
     let mut out = Vec::new();
     // The manual's Home to module 17.
-    Emulator::receive(&mut bus, at(0), &[0x02, 0x06, 0x21, 0x01, 0x28, 0x03], &mut out);
+    ByteEmulator::receive(&mut bus, at(0), &[0x02, 0x06, 0x21, 0x01, 0x28, 0x03], &mut out);
     assert_eq!(out, vec![0x02, 0x0a, 0x21, 0x01, 0x2c, 0x03]);
     // A wrong BCC is accepted by default...
     out.clear();
-    Emulator::receive(&mut bus, at(1), &[0x02, 0x06, 0x21, 0x00, 0x00, 0x03], &mut out);
+    ByteEmulator::receive(&mut bus, at(1), &[0x02, 0x06, 0x21, 0x00, 0x00, 0x03], &mut out);
     assert_eq!(out, vec![0x02, 0x0a, 0x21, 0x00, 0x2b, 0x03]);
     // ...and dropped when strict.
     bus.set_strict_bcc(true);
     out.clear();
-    Emulator::receive(&mut bus, at(2), &[0x02, 0x06, 0x21, 0x00, 0x00, 0x03], &mut out);
+    ByteEmulator::receive(&mut bus, at(2), &[0x02, 0x06, 0x21, 0x00, 0x00, 0x03], &mut out);
     assert!(out.is_empty());
     assert_eq!(bus.stats().bad_bcc, 1);
     // A length that does not match is never interpreted; address 5 has no module.
-    Emulator::receive(&mut bus, at(3), &[0x02, 0x06, 0x22, 0x00, 0x28, 0x03], &mut out);
-    Emulator::receive(&mut bus, at(3), &[0x02, 0x04, 0xA1, 0x00, 0xa5, 0x03], &mut out);
+    ByteEmulator::receive(&mut bus, at(3), &[0x02, 0x06, 0x22, 0x00, 0x28, 0x03], &mut out);
+    ByteEmulator::receive(&mut bus, at(3), &[0x02, 0x04, 0xA1, 0x00, 0xa5, 0x03], &mut out);
     assert!(out.is_empty());
     assert_eq!((bus.stats().bad_length, bus.stats().nobody), (1, 1));
     // A broadcast (address 0) reaches every module and is not acknowledged.
-    Emulator::receive(&mut bus, at(4), &[0x02, 0x04, 0x01, 0x10, 0x82, 0x07, 0x03], &mut out);
+    ByteEmulator::receive(&mut bus, at(4), &[0x02, 0x04, 0x01, 0x10, 0x82, 0x07, 0x03], &mut out);
     assert!(out.is_empty());
     assert!(bus.module(1).unwrap().state().contains(StateFlag::Halted));
     assert!(bus.module(17).unwrap().state().contains(StateFlag::Halted));
@@ -248,7 +248,7 @@ fn rs232_framing_and_bcc_policy() {
 
 #[test]
 fn can_frames_and_disabled_acknowledges() {
-    let mut bus = SimBus::new_can(&SimConfig::with_addresses(&[17]).unwrap());
+    let mut bus = Emulator::new_can(&SimConfig::with_addresses(&[17]).unwrap());
     let mut out = Vec::new();
     let f = |text: &str| text.parse::<CanFrame>().unwrap();
     CanEmulator::receive(&mut bus, at(0), &f("0D1#0A27"), &mut out);
@@ -299,7 +299,7 @@ fn synchronised_motion_is_valid_only_on_can() {
 
 #[test]
 fn the_change_baud_rate_broadcast_is_decoded_and_recorded() {
-    let mut bus = SimBus::new_can(&SimConfig::with_addresses(&[17]).unwrap());
+    let mut bus = Emulator::new_can(&SimConfig::with_addresses(&[17]).unwrap());
     assert_eq!(bus.can_baud(), None);
     let mut out = Vec::new();
     // CANID_CMDALL: Change Baudrate (0x09) to 2 = 500 kbit/s.
@@ -333,7 +333,7 @@ fn profibus_images_ignore_repeats() {
     assert!(bus.profibus_exchange(at(0), 9, &halt).is_none());
 }
 
-fn get(bus: &mut SimBus, ms: u64, p: Param) -> Value {
+fn get(bus: &mut Emulator, ms: u64, p: Param) -> Value {
     match bus.request(at(ms), 1, &Request::Get(p)) {
         Some(Reply::Get(_, v)) => v,
         other => panic!("{p}: {other:?}"),
@@ -400,14 +400,14 @@ fn a_ramp_loop_too_short_to_turn_round_ends() {
 }
 
 /// Feeds `bytes` to the bus as RS232 at `ms`; returns what it answered.
-fn rs232_in(bus: &mut SimBus, ms: u64, bytes: &[u8]) -> Vec<u8> {
+fn rs232_in(bus: &mut Emulator, ms: u64, bytes: &[u8]) -> Vec<u8> {
     let mut out = Vec::new();
-    Emulator::receive(bus, at(ms), bytes, &mut out);
+    ByteEmulator::receive(bus, at(ms), bytes, &mut out);
     out
 }
 
-fn homed_pair() -> SimBus {
-    let mut bus = SimBus::new(&SimConfig::with_addresses(&[1, 2]).unwrap());
+fn homed_pair() -> Emulator {
+    let mut bus = Emulator::new(&SimConfig::with_addresses(&[1, 2]).unwrap());
     for a in [1, 2] {
         bus.request(at(0), a, &Request::Action(Action::Home));
     }
@@ -415,7 +415,7 @@ fn homed_pair() -> SimBus {
     bus
 }
 
-fn module_state(bus: &SimBus, a: u8) -> CubeState {
+fn module_state(bus: &Emulator, a: u8) -> CubeState {
     bus.module(a).unwrap().state()
 }
 
@@ -430,7 +430,7 @@ fn libm5api_broadcasts_reach_every_module_byte_for_byte() {
     const SAVE_POS_ALL: &[u8] = &[0x02, 0x04, 0x10, 0x82, 0x0E, 0x00, 0x14, 0x03];
 
     // homeAll starts homing in both modules; no acknowledge.
-    let mut bus = SimBus::new(&SimConfig::with_addresses(&[1, 2]).unwrap());
+    let mut bus = Emulator::new(&SimConfig::with_addresses(&[1, 2]).unwrap());
     assert!(rs232_in(&mut bus, 0, HOME_ALL).is_empty());
     bus.update(at(10));
     for a in [1, 2] {
@@ -501,13 +501,13 @@ fn libm5api_broadcasts_reach_every_module_byte_for_byte() {
     assert!(module_state(&bus, 1).contains(StateFlag::Halted) && module_state(&bus, 2).contains(StateFlag::Halted));
 }
 
-fn set_on(bus: &mut SimBus, a: u8, ms: u64, p: Param, v: Value) {
+fn set_on(bus: &mut Emulator, a: u8, ms: u64, p: Param, v: Value) {
     assert!(matches!(bus.request(at(ms), a, &Request::Set(p, v)), Some(Reply::Set(_, 0x64))));
 }
 
 #[test]
 fn events_say_what_the_modules_did() {
-    let mut bus = SimBus::new(&SimConfig::with_addresses(&[1]).unwrap());
+    let mut bus = Emulator::new(&SimConfig::with_addresses(&[1]).unwrap());
     bus.request(at(0), 1, &Request::Action(Action::Home));
     bus.update(at(2_000));
     assert_eq!(bus.take_events(), ["module 1 motion started: homing", "module 1 homed", "module 1 at rest 0.0000 rad"]);
@@ -560,29 +560,29 @@ fn events_say_what_the_modules_did() {
 #[test]
 fn the_next_wakeup_is_the_next_change_a_module_makes() {
     let mut bus = homed_bus();
-    assert_eq!(Emulator::next_wakeup(&bus), None, "at rest, no watchdog: nothing will happen by itself");
+    assert_eq!(ByteEmulator::next_wakeup(&bus), None, "at rest, no watchdog: nothing will happen by itself");
     set(&mut bus, 2_000, Param::TargetVel, Value::F32(1.0));
     set(&mut bus, 2_000, Param::TargetAcc, Value::F32(2.0));
     bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position::native(1.0) }, AckKind::Simple));
     // 1 rad at 1 rad/s, 2 rad/s²: ends 1.5 s later.
-    let end = Emulator::next_wakeup(&bus).unwrap();
+    let end = ByteEmulator::next_wakeup(&bus).unwrap();
     assert!(end >= at(3_500) && end <= at(3_500) + std::time::Duration::from_micros(1), "{end}");
     assert_eq!(CanEmulator::next_wakeup(&bus), Some(end));
     // A watchdog that expires earlier comes first.
     set(&mut bus, 2_000, Param::Config, Value::U32(ConfigFlag::WatchdogEnable.mask()));
     bus.request(at(2_000), 1, &Request::Action(Action::LifeSign));
-    let expiry = Emulator::next_wakeup(&bus).unwrap();
+    let expiry = ByteEmulator::next_wakeup(&bus).unwrap();
     assert!(expiry >= at(2_050) && expiry <= at(2_050) + std::time::Duration::from_micros(1), "{expiry}");
     // Advancing to that instant makes it happen: the wake-up moves on.
     let mut out = Vec::new();
-    Emulator::advance(&mut bus, expiry, &mut out);
+    ByteEmulator::advance(&mut bus, expiry, &mut out);
     assert!(bus.module(1).unwrap().state().contains(StateFlag::CommError));
-    assert_eq!(Emulator::next_wakeup(&bus), None, "expired and halted: nothing more");
+    assert_eq!(ByteEmulator::next_wakeup(&bus), None, "expired and halted: nothing more");
 }
 
 #[test]
 fn the_can_emulator_reports_the_same_events() {
-    let mut bus = SimBus::new_can(&SimConfig::with_addresses(&[3]).unwrap());
+    let mut bus = Emulator::new_can(&SimConfig::with_addresses(&[3]).unwrap());
     let mut out = Vec::new();
     let home = crate::wire::can::to_frame(crate::wire::can::Role::Put(3), &Request::Action(Action::Home).encode());
     CanEmulator::receive(&mut bus, at(0), &home, &mut out);
