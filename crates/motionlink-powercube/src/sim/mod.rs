@@ -26,6 +26,8 @@
 
 mod config;
 mod module;
+mod module_commands;
+mod module_params;
 pub(crate) mod profile;
 
 use motionlink_link::can::{CanEmulator, CanFrame};

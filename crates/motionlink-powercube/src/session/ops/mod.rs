@@ -4,7 +4,10 @@
 
 mod basic;
 mod motion;
+mod run;
 mod watchdog;
+
+pub(crate) use run::run;
 
 use std::collections::{BTreeMap, BTreeSet};
 
