@@ -28,7 +28,7 @@ use crate::session::{
 /// Closing ([`Client::close`], or dropping it) halts every module the session set in motion that is still
 /// moving (or cannot be asked), then, if the session switched watchdogs on and has not failed, switches them
 /// off again and restores the Config words. It waits for that at most [`BusConfig::close_bound`] (5 s by
-/// default); then the refresh stops. A session that failed (its line broke, a refresh could not be sent, a
+/// default; the call returns at most one read slice of the driver, 20 ms, later); then the refresh stops. A session that failed (its line broke, a refresh could not be sent, a
 /// module it started could not be confirmed stopped) leaves the watchdogs online: the modules halt within
 /// 50 ms, which is the watchdog's purpose.
 pub struct Client {

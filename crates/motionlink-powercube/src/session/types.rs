@@ -28,7 +28,10 @@ pub struct BusConfig {
     /// chain known not to take it.
     pub watchdog_on_rs232: bool,
     /// The longest a client's `close()` (and its drop) waits for the close sequence (halt what still
-    /// moves, switch the watchdogs off) before it gives up and says the stop was not confirmed. 5 s.
+    /// moves, switch the watchdogs off) before it gives up and says the stop was not confirmed
+    /// ([`Error::CloseTimedOut`]); it returns at most one read slice of the driver (20 ms) later. 5 s by
+    /// default. When it gives up, the watchdog refresh stops with the session: a module whose watchdog it
+    /// armed halts itself within 50 ms.
     pub close_bound: Duration,
 }
 

@@ -4,6 +4,7 @@
 
 mod basics;
 mod checked;
+mod close;
 mod watchdog;
 
 use std::sync::atomic::Ordering;
