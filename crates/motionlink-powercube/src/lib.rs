@@ -178,6 +178,18 @@
 //!   says whether the module confirmed the stop, and if not, that the axis may still be moving.
 //! - **Acknowledges nobody asked for.** A module that acknowledges a motion command it was not sent in this
 //!   exchange (an address corrupted on the way) is counted as set in motion, so that the session halts it.
+//! - **Units.** The manual's floats are in the module's unit (rad rotary, m linear). [`model::Position`] and
+//!   its siblings say rad or m, or explicitly [`model::AxisUnit::ModuleUnit`] (a bare command-line number, a
+//!   value decoded from the wire); a quantity in rad or m is checked against the module's kind (read once
+//!   from its Config word) before anything is sent ([`Error::UnitMismatch`]).
+//! - **Operations as `async fn`s.** Each multi-step operation of the [`Session`] is an `async fn` over the
+//!   session's state, which the compiler makes a state machine; the session resumes it with a no-op waker
+//!   when what it waits for is there (no executor, no thread, no I/O).
+//! - **Cancelling.** A read or a scan that is cancelled ends at once ([`Error::Aborted`]); a motion, a
+//!   wait or homing is halted first ([`Error::Cancelled`] says whether that was confirmed); writes and
+//!   watchdog changes run to their end.
+//! - **Closing is bounded** ([`session::BusConfig::close_bound`], 5 s): past it, [`Error::CloseTimedOut`],
+//!   and the refresh stops with the session, so an armed module halts itself within 50 ms.
 //! - **DISABLE_ACK.** The client refuses to set CONFIGID_MOD_DISABLE_ACK on CAN (it needs acknowledges).
 //!   The emulator honours it; the write that sets it is still acknowledged.
 
