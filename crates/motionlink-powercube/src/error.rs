@@ -127,8 +127,9 @@ pub enum Error {
         /// What became of the Halt.
         stop: StopOutcome,
     },
-    /// The action was cancelled (Ctrl-C, a signal, [`Bus::set_cancel_token`]); what it had set in motion was
-    /// halted ([`Error::Cancelled::stop`] says whether that was confirmed).
+    /// The action was cancelled (Ctrl-C, a signal, [`Client::set_cancel_token`](crate::Client::set_cancel_token),
+    /// a dropped future); what it had set in motion was halted ([`Error::Cancelled::stop`] says whether that
+    /// was confirmed).
     #[error("module {address}: cancelled; {stop}")]
     Cancelled {
         /// The module.
