@@ -402,3 +402,85 @@ fn a_bus_that_answers_in_reverse_order_is_still_matched() {
     let got: Vec<Value> = v.into_iter().map(Result::unwrap).collect();
     assert_eq!(got, vec![Value::U8(1), Value::U8(2), Value::U8(3)]);
 }
+
+#[test]
+fn a_scan_asks_each_address_on_rs232_and_all_at_once_on_can() {
+    let mut b = Bench::rs232(&[2, 17]);
+    let t0 = b.now;
+    let Ok(Output::Scan(found)) = b.run(Op::Scan) else { panic!() };
+    let infos: Vec<(u8, u32)> = found.iter().map(|e| (e.address.get(), e.info.as_ref().unwrap().serial)).collect();
+    assert_eq!(infos, vec![(2, 1002), (17, 1017)]);
+    // 29 silent addresses, 60 ms each, one after the other (silence is absence: not asked again).
+    assert_eq!(b.now - t0, ms(29 * 60));
+    assert_eq!(b.session.known(), vec![2, 17]);
+    assert_eq!(b.session.kind_of(addr(17)), Some(ModuleKind::Rotary), "the scan taught the kinds");
+
+    let mut b = Bench::can(&[2, 17]);
+    let t0 = b.now;
+    let Ok(Output::Scan(found)) = b.run(Op::Scan) else { panic!() };
+    assert_eq!(found.len(), 2);
+    assert_eq!(b.now - t0, ms(50), "31 questions out at once, one timeout for the silent ones");
+}
+
+#[test]
+fn homing_is_waited_for_with_progress_at_the_poll_rate() {
+    let mut b = Bench::rs232(&[1]);
+    let Ok(Output::Homed(p, s)) = b.run(Op::HomeAndWait(addr(1), Duration::from_secs(10))) else { panic!() };
+    assert!(s.contains(StateFlag::HomeOk) && !s.contains(StateFlag::Motion), "{s}");
+    assert!(p.value().abs() < 1e-6, "homed at the switch: {p}");
+    let polls = b.events.iter().filter(|e| matches!(e, Event::Progress(..))).count();
+    assert!(polls >= 5, "{polls}");
+    assert!(b.session.started().is_empty(), "seen to end");
+}
+
+#[test]
+fn an_answer_that_echoes_another_parameter_is_corrupt_and_a_read_is_asked_again() {
+    let mut b = Bench::rs232(&[1]);
+    let id = b.session.start(Op::Get(addr(1), Param::ActPos), b.now);
+    let Some(LinkAction::Send(_)) = b.session.poll_transmit(b.now) else { panic!() };
+    // The module answers with PrevActPos (0x3d) instead of ActPos (0x3c): a corrupted echo.
+    let wrong = crate::model::Reply::Get(Param::PrevActPos, Value::F32(0.0)).encode();
+    let mut frame = [0u8; crate::wire::rs232::MAX_FRAME];
+    let n = crate::wire::rs232::encode(crate::wire::rs232::TelKind::Recv, 1, &wrong, &mut frame).unwrap();
+    b.session.handle_input(Input::Bytes(&frame[..n]), b.now);
+    b.sent.clear();
+    // At the answer's deadline the read is asked again (a read may be), and the emulator answers it.
+    let Ok(Output::Value(v)) = ({
+        let limit = b.now + Duration::from_secs(1);
+        loop {
+            b.pump();
+            if let Some(r) = b.done(id) {
+                break r;
+            }
+            assert!(b.step(limit));
+        }
+    }) else {
+        panic!()
+    };
+    assert_eq!(v, Value::F32(0.05));
+    assert_eq!(b.sent.len(), 1, "asked once more");
+}
+
+#[test]
+fn a_motion_command_cancelled_before_its_acknowledge_is_halted() {
+    let mut b = Bench::can(&[1]);
+    b.deaf = true; // the command arrives; its acknowledge is lost
+    let motion = Motion::FVel { vel: Velocity::native(0.2) };
+    let id = b.session.start(Op::Motion(addr(1), motion, AckKind::Simple), b.now);
+    b.pump();
+    assert!(b.module(1).0.contains(StateFlag::Motion), "the module took it");
+    b.session.cancel(id, b.now);
+    b.deaf = false;
+    let limit = b.now + Duration::from_secs(1);
+    let r = loop {
+        b.pump();
+        if let Some(r) = b.done(id) {
+            break r;
+        }
+        assert!(b.step(limit));
+    };
+    let err = r.unwrap_err();
+    assert!(matches!(err, Error::Cancelled { address: 1, stop: StopOutcome::Confirmed }), "{err}");
+    let (state, ..) = b.module(1);
+    assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
+}
