@@ -281,8 +281,14 @@ impl<S: Session> Shared<S> {
                     for w in core.port_waiters.drain(..) {
                         w.raise();
                     }
+                    // The background thread looks at the session again only if it has something to do
+                    // (a deadline, an operation under way): waking it after every operation would cost a
+                    // thread switch on the fast path for nothing.
+                    let needed = !core.session.is_idle() || core.session.poll_timeout().is_some();
                     drop(core);
-                    self.background.raise();
+                    if needed {
+                        self.background.raise();
+                    }
                     return;
                 }
                 if acted {
@@ -444,8 +450,11 @@ impl<S: Session> Driver<S> {
         r
     }
 
-    /// Starts `op`, returns its id and the waiter's registration.
-    fn submit(&self, op: S::Op, waiter: Waiter) -> Result<OpId, S::Error> {
+    /// Starts `op`, returns its id and the waiter's registration. The driver of the port (if one drives it
+    /// now) is woken to send it; if nobody does, the background thread is, unless the caller is about to
+    /// drive the port itself (`caller_drives`): waking a thread it would only race for the port costs a
+    /// hand-off on the fast path.
+    fn submit(&self, op: S::Op, waiter: Waiter, caller_drives: bool) -> Result<OpId, S::Error> {
         let mut core = self.shared.core();
         if core.close_started {
             return Err(S::Error::session_closed());
@@ -454,7 +463,11 @@ impl<S: Session> Driver<S> {
         let id = core.session.start(op, now);
         core.ops.insert(id, Slot { result: None, progress: None, waiter, abandoned: false });
         core.dispatch();
-        core.wake_driver(&self.shared.background);
+        match &core.driver_wake {
+            Some(s) => s.raise(),
+            None if caller_drives => {}
+            None => self.shared.background.raise(),
+        }
         Ok(id)
     }
 
@@ -476,7 +489,7 @@ impl<S: Session> Driver<S> {
         if let Some(t) = cancel {
             t.watch(&me);
         }
-        let result = self.submit(op, Waiter::Signal(me.clone())).and_then(|id| {
+        let result = self.submit(op, Waiter::Signal(me.clone()), true).and_then(|id| {
             let mut caller = Caller { id, progress, cancel, cancel_sent: false };
             loop {
                 let (port, progress) = {
@@ -523,7 +536,7 @@ impl<S: Session> Driver<S> {
     /// with its result. Dropping the future before it is done cancels the operation (which stops any
     /// motion it started).
     pub fn start(&self, op: S::Op) -> OpFuture<S> {
-        match self.submit(op, Waiter::Waker(None)) {
+        match self.submit(op, Waiter::Waker(None), false) {
             Ok(id) => OpFuture { shared: Some(Arc::clone(&self.shared)), id, early: None },
             Err(e) => OpFuture { shared: None, id: OpId(0), early: Some(e) },
         }

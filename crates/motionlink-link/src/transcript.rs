@@ -4,6 +4,7 @@
 
 use std::sync::{Arc, Mutex};
 
+use crate::can::CanFrame;
 use crate::clock::{lock, Timestamp};
 
 /// Which way a recorded chunk went.
@@ -74,5 +75,85 @@ impl crate::capture::TapSink for Transcript {
             crate::capture::Tapped::Bytes(b) => self.push(at, way, b, None),
             crate::capture::Tapped::Frame(f) => self.push(at, way, f.data(), Some(*f)),
         }
+    }
+}
+
+/// One recorded CAN frame.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FrameRecord {
+    /// When it was sent or received.
+    pub at: Timestamp,
+    /// Which way.
+    pub way: Way,
+    /// The frame.
+    pub frame: CanFrame,
+}
+
+/// The shared log a [`TapCanLink`] writes to.
+#[derive(Debug, Clone, Default)]
+pub struct FrameTranscript(Arc<Mutex<Vec<FrameRecord>>>);
+
+impl FrameTranscript {
+    /// An empty transcript.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Takes every record so far, leaving the transcript empty.
+    pub fn take(&self) -> Vec<FrameRecord> {
+        std::mem::take(&mut *lock(&self.0))
+    }
+
+    fn push(&self, at: Timestamp, way: Way, frame: &CanFrame) {
+        lock(&self.0).push(FrameRecord { at, way, frame: *frame });
+    }
+}
+
+impl crate::capture::TapSink for FrameTranscript {
+    /// Keeps CAN frames; bytes of a serial line are not frames and are left out.
+    fn record(&self, at: Timestamp, direction: crate::describe::Direction, data: crate::capture::Tapped<'_>) {
+        if let crate::capture::Tapped::Frame(f) = data {
+            let way = if direction == crate::describe::Direction::FromDevice { Way::Received } else { Way::Sent };
+            self.push(at, way, f);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::can::{CanBus, CanBusConfig, CanEmulator, CanLink};
+    use crate::clock::{Clock, ManualClock};
+    use std::time::Duration;
+
+    /// Answers every frame with the same frame on identifier + 1.
+    struct Echo;
+    impl CanEmulator for Echo {
+        fn receive(&mut self, _now: Timestamp, frame: &CanFrame, out: &mut Vec<CanFrame>) {
+            out.extend(CanFrame::new(frame.id() + 1, frame.data()));
+        }
+        fn advance(&mut self, _now: Timestamp, _out: &mut Vec<CanFrame>) {}
+        fn next_wakeup(&self) -> Option<Timestamp> {
+            None
+        }
+    }
+
+    #[test]
+    fn a_tapped_can_link_records_both_ways_in_order() {
+        let clock = ManualClock::new_auto();
+        let _me = clock.reserve_participant().enter();
+        let bus = CanBus::with_emulator(Echo, clock.shared(), CanBusConfig::paced(1_000_000));
+        let transcript = FrameTranscript::new();
+        let mut link = TapCanLink::new(bus.connect(), clock.shared(), transcript.clone());
+        let sent = CanFrame::new(0x0F1, &[0x01]).unwrap();
+        link.send(&sent).unwrap();
+        let got = link.recv(Duration::from_millis(10)).unwrap().unwrap();
+        let records = transcript.take();
+        assert_eq!(
+            records.iter().map(|r| (r.way, r.frame)).collect::<Vec<_>>(),
+            vec![(Way::Sent, sent), (Way::Received, got)]
+        );
+        assert!(records[1].at > records[0].at, "stamped when they passed");
+        assert!(transcript.take().is_empty());
     }
 }

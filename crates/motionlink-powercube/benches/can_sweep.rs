@@ -21,10 +21,11 @@ use std::time::{Duration, Instant};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use motionlink_link::can::{CanBus, CanBusConfig, CanEmulator, CanFrame};
 use motionlink_link::{RealClock, Timestamp};
-use motionlink_powercube::client::{Bus, BusConfig};
+use motionlink_powercube::client::{BusConfig, Client};
 use motionlink_powercube::model::{Param, Request};
-use motionlink_powercube::sim::{SimBus, SimConfig};
+use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::wire::can::{to_frame, Role};
+use motionlink_powercube::Emulator;
 
 const BITRATE: u32 = 1_000_000;
 const MODULES: u8 = 31;
@@ -33,7 +34,7 @@ const TARGET: f64 = 0.97;
 /// The frames of one sweep: every request and the acknowledge the emulated module gives to it.
 fn sweep_frames() -> Vec<CanFrame> {
     let addresses: Vec<u8> = (1..=MODULES).collect();
-    let mut sim = SimBus::new_can(&SimConfig::with_addresses(&addresses).expect("31 addresses"));
+    let mut sim = Emulator::new_can(&SimConfig::with_addresses(&addresses).expect("31 addresses"));
     let mut frames = Vec::new();
     for a in addresses {
         let get = to_frame(Role::Get(a), &Request::Get(Param::ActPos).encode());
@@ -53,16 +54,16 @@ fn bits_per_sweep() -> (u32, u32, u32) {
     (sum(CanFrame::bit_length), sum(CanFrame::bit_length_stuffed), sum(CanFrame::bit_length_worst_case))
 }
 
-fn setup() -> (Bus, Vec<u8>) {
+fn setup() -> (Client, Vec<u8>) {
     let addresses: Vec<u8> = (1..=MODULES).collect();
     let clock = RealClock::shared();
-    let sim = SimBus::new_can(&SimConfig::with_addresses(&addresses).expect("31 addresses"));
+    let sim = Emulator::new_can(&SimConfig::with_addresses(&addresses).expect("31 addresses"));
     let can = CanBus::with_emulator(sim, clock.clone(), CanBusConfig::paced(BITRATE));
-    let bus = Bus::can(Box::new(can.connect()), clock, BusConfig::can());
+    let bus = Client::can(Box::new(can.connect()), clock, BusConfig::can()).expect("the session starts");
     (bus, addresses)
 }
 
-fn sweep(bus: &Bus, addresses: &[u8]) {
+fn sweep(bus: &Client, addresses: &[u8]) {
     for p in bus.positions(addresses) {
         black_box(p.expect("every module answers"));
     }
@@ -101,7 +102,7 @@ impl Drop for Load {
     }
 }
 
-fn measured_rate(bus: &Bus, addresses: &[u8]) -> f64 {
+fn measured_rate(bus: &Client, addresses: &[u8]) -> f64 {
     let sweeps = 300;
     let start = Instant::now();
     for _ in 0..sweeps {

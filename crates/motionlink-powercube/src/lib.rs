@@ -8,36 +8,44 @@
 //!   bytes), the RS232 frame with TELID, BCC and DLE escaping and an incremental decoder that resynchronises
 //!   on STX ([`wire::rs232`]), CAN identifiers ([`wire::can`]) and the Profibus-DP process images
 //!   ([`wire::profibus`]). No I/O, no clock, no allocation.
-//! - [`model`]: the vocabulary. The parameter table ([`model::Param`]: id, name, data type, unit class,
-//!   access, class), the 18 motion modes ([`model::MotionId`], [`model::Motion`]), the state word and every
-//!   other flag word ([`model::CubeState`], [`model::ShortState`], [`model::ProfibusState`], [`model::Dio`],
-//!   [`model::DioWord`], [`model::SetupWord`], [`model::ConfigWord`]), and typed commands, acknowledges and
-//!   broadcasts ([`model::Request`], [`model::Reply`], [`model::Broadcast`]). Each table is written once.
-//! - [`client`]: [`client::Bus`] over a byte link (RS232) or a CAN link, [`client::Module`] handles by
-//!   address; timeouts, retries of reads only, the watchdog refresh from a background thread, halting on
-//!   drop, on cancellation and on a failing session.
-//! - [`sim`]: [`sim::SimBus`], modules at configurable addresses with a physical model of the axis, as an
+//! - [`model`]: the vocabulary. The parameter table ([`model::Param`], rows of the shared
+//!   [`Table`](motionlink_link::table::Table): [`model::PARAMS`]), the 18 motion modes ([`model::MotionId`],
+//!   [`model::Motion`]), every flag word through the shared `flag_set!` ([`model::CubeState`],
+//!   [`model::ConfigWord`] ...), typed commands, acknowledges and broadcasts ([`model::Request`],
+//!   [`model::Reply`], [`model::Broadcast`]), and quantities with their unit ([`model::Position`] in rad, m or
+//!   explicitly the module's own unit; [`model::Address`] checked once).
+//! - [`session`]: the protocol as a sans-IO [`Session`]: request matching, retries of reads only, the
+//!   watchdog refresh on its 20 ms grid, and every multi-step operation ([`session::Op`]: checked moves,
+//!   homing, scans, arming and disarming watchdogs, the close sequence that stops what was started) as a
+//!   state machine, tested with a manual clock and no link.
+//! - [`client`]: [`Client`] (blocking) and, with the `tokio` feature, `AsyncClient`: the same typed
+//!   operations over [`motionlink_link::driver`] running the session; closing stops what was started,
+//!   bounded in time.
+//! - [`sim`]: [`Emulator`], modules at configurable addresses with a physical model of the axis, as an
 //!   [`Emulator`](motionlink_link::emulator::Emulator) (RS232 framing) and a
 //!   [`CanEmulator`](motionlink_link::can::CanEmulator).
+//! - [`describe`]: [`Describe`](motionlink_link::describe::Describe) for captures, the wire trace and
+//!   `motionlink decode powercube`.
+//! - [`Error`]: one error type, classified ([`Classify`](motionlink_link::error::Classify)).
 //!
 //! ```
 //! use motionlink_link::can::{CanBus, CanBusConfig};
 //! use motionlink_link::clock::{Clock, ManualClock};
-//! use motionlink_powercube::client::{Bus, BusConfig};
-//! use motionlink_powercube::model::{Param, Position};
-//! use motionlink_powercube::sim::{SimBus, SimConfig};
-//! use std::time::Duration;
+//! use motionlink_powercube::client::BusConfig;
+//! use motionlink_powercube::sim::SimConfig;
+//! use motionlink_powercube::{Client, Emulator};
 //!
 //! let clock = ManualClock::new_auto();
 //! let _me = clock.reserve_participant().enter();
-//! let sim = SimBus::new_can(&SimConfig::with_addresses(&[1, 2, 3]).unwrap());
+//! let sim = Emulator::new_can(&SimConfig::with_addresses(&[1, 2, 3]).unwrap());
 //! let can = CanBus::with_emulator(sim, clock.shared(), CanBusConfig::paced(1_000_000));
-//! let bus = Bus::can(Box::new(can.connect()), clock.shared(), BusConfig::can());
+//! let bus = Client::can(Box::new(can.connect()), clock.shared(), BusConfig::can()).unwrap();
 //! let found = bus.scan().unwrap();
 //! assert_eq!(found.len(), 3);
-//! bus.enable_watchdog(&[1, 2, 3]).unwrap(); // refreshed in the background from now on
+//! bus.enable_watchdog(&[1, 2, 3]).unwrap(); // refreshed by the session from now on
 //! let positions = bus.positions(&[1, 2, 3]); // three requests out, three acknowledges in, any order
 //! assert!(positions.iter().all(|p| p.is_ok()));
+//! bus.close().unwrap(); // watchdogs off again, Config words as they were
 //! ```
 //!
 //! # Decisions
@@ -48,7 +56,7 @@
 //!   (Home to module 17 is `02 06 21 01 28 03`). DLE escaping covers TELID, data and BCC.
 //! - **BCC checking.** The modules do not check the BCC "for compatibility reasons": the emulator accepts a
 //!   wrong BCC unless told to be strict (`--strict`); the client always checks the BCC of what it receives
-//!   and reports a mismatch as [`client::Error::Corrupt`] (reads are then retried).
+//!   and reports a mismatch as [`Error::Corrupt`] (reads are then retried).
 //! - **TELID length.** The manual's RS232 acknowledge examples carry length 6 for 3 data bytes. The
 //!   emulator sends the true length and, as the manual says, ignores commands whose length does not match;
 //!   the client accepts acknowledges with the true length or that one slip (6 for 3); any other mismatch
@@ -63,15 +71,15 @@
 //!   `decode` take both forms, on both carriers. The padded form has a second merit: a bit flipped in its
 //!   address cannot make it the life sign of one module (`07` alone to one module toggles its watchdog;
 //!   `07 00` to one module is no command). The watchdog is therefore armed on RS232 by default
-//!   ([`client::BusConfig::watchdog_on_rs232`] switches that off). A broadcast Halt on RS232 still does not
+//!   ([`session::BusConfig::watchdog_on_rs232`] switches that off). A broadcast Halt on RS232 still does not
 //!   count as stopping anything: the session asks each module it started on drop and halts it by address.
 //! - **What a broadcast sets in motion.** Home and StartMotion count as starting the modules the session
-//!   knows exist ([`client::Bus::known`]: every address that has answered it), not all 31 addresses: a drop
+//!   knows exist ([`Session::known`]: every address that has answered it), not all 31 addresses: a drop
 //!   then asks only those. A module that never answered and does not answer the drop's question is taken as
 //!   absent (no broadcast Halt of the whole bus for it); a known module that stops answering still gets one.
 //! - **Life sign.** The individual `0x07` (switch the watchdog on, and off when sent again) is acknowledged
 //!   `[0x07]` by the emulator like every one-byte command. The acknowledge is the only confirmation the
-//!   manual offers (no flag shows an online watchdog): silence is `client::Error::WatchdogUnconfirmed`
+//!   manual offers (no flag shows an online watchdog): silence is [`Error::WatchdogUnconfirmed`]
 //!   naming the module, and the life sign is never repeated (a repeat could switch the watchdog the wrong
 //!   way). Such a module is refreshed while the session serves; `disable_watchdog` stops the refresh and
 //!   observes it (an online watchdog expires: STATE_COMM_ERROR after 2 × 50 ms) instead of toggling it.
@@ -80,11 +88,11 @@
 //!   later.
 //! - **CAN-only Config flags.** CONFIGID_MOD_SYNC_MOTION and CONFIGID_MOD_DISABLE_ACK are "valid only for
 //!   CAN-Bus": the emulator stores them on RS232 but ignores them there.
-//! - **Change baud rate.** The emulator decodes the broadcast and records the rate (`SimBus::can_baud`,
+//! - **Change baud rate.** The emulator decodes the broadcast and records the rate (`Emulator::can_baud`,
 //!   `SimModule::can_baud`); the in-memory link keeps its pace (a real bus needs every node and the host to
 //!   switch together).
-//! - **Watchdog and the Config word.** [`client::Bus::enable_watchdog`] sets CONFIGID_MOD_WATCHDOG_ENABLE
-//!   only where it is clear, and remembers the word; [`client::Bus::disable_watchdog`] first switches the
+//! - **Watchdog and the Config word.** [`Client::enable_watchdog`] sets CONFIGID_MOD_WATCHDOG_ENABLE
+//!   only where it is clear, and remembers the word; [`Client::disable_watchdog`] first switches the
 //!   watchdog offline (a second life sign), then clears that flag again where the session set it, leaving
 //!   every other bit as it is now, so a session that ends normally leaves the Config word as it found it.
 //!   A session that dies cannot: its modules halt with STATE_COMM_ERROR, their watchdog stays online and
@@ -92,7 +100,7 @@
 //! - **Arming an expired watchdog.** The online state of a watchdog cannot be read and the life sign
 //!   toggles it, so the client never guesses: `enable_watchdog` refuses a module that shows
 //!   STATE_COMM_ERROR (its watchdog is most likely online, left by a host that died) with
-//!   [`client::Error::Device`] before changing anything. [`client::Module::reset_and_release_watchdog`]
+//!   [`Error::Device`] before changing anything. [`client::Module::reset_and_release_watchdog`]
 //!   follows the manual's first way to restart: Reset; if STATE_COMM_ERROR comes back within 100 ms (online
 //!   and nobody refreshes it), a life sign switches the watchdog offline and a second Reset clears it. A
 //!   watchdog that another live host serves is therefore left alone. `motionlink powercube reset` does this.
@@ -133,49 +141,71 @@
 //!   cosine between the start and the target with the given period; FRAMPLOOP ramps back and forth (a loop
 //!   whose legs would last under 1 ms ends after its first leg). The servo lags 5 ms: the following error
 //!   is the velocity × 5 ms, and a tow error is raised when it exceeds MaxDeltaPos.
-//! - **Drop.** Dropping a [`client::Bus`] reads the state of every module it set in motion and halts those
+//! - **Close.** Closing (or dropping) a [`Client`] reads the state of every module it set in motion and halts those
 //!   still moving or not answering (with a broadcast halt if single halts fail). A wait that times out or
 //!   is cancelled halts its module. Then the session stops serving cleanly: if it switched watchdogs on,
-//!   it switches them off and restores the Config words ([`client::Bus::disable_watchdog`]) before it stops
+//!   it switches them off and restores the Config words ([`Client::disable_watchdog`]) before it stops
 //!   the refresh thread, so a program that ends normally leaves no module to halt 50 ms later. Unless the
-//!   session failed ([`client::Bus::failed`]: a link error, a refresh that could not be sent, a module it
+//!   session failed ([`Session::failed`]: a link error, a refresh that could not be sent, a module it
 //!   started that stopped answering): then the watchdogs stay online and the modules halt within 50 ms,
 //!   which is what the watchdog is for. (The `motionlink` command switches it off itself at the end of
 //!   `home` and `move`, also after Ctrl-C or an error.)
 //! - **Scan.** Silence is absence; a corrupt answer is asked again like any read, and silence then is
 //!   absence too (with a warning: on RS232 a frame with a wrong BCC names no trustworthy address); a module
-//!   that answers the scan but cannot then be read is listed with its error ([`client::ScanEntry`]) rather
+//!   that answers the scan but cannot then be read is listed with its error ([`session::ScanEntry`]) rather
 //!   than failing the scan.
 //! - **SLCAN refusals.** An adapter that rings the bell for a frame (channel closed, queue full, bus off)
 //!   makes the next receive fail with a [`LinkError`](motionlink_link::LinkError) naming the frame: the
 //!   request fails at once as a transport error, not after a timeout.
 //! - **Timeouts.** RS232 200 ms (a frame takes up to 25 ms each way at 9600 baud), CAN 50 ms; reads are
 //!   retried twice; the scan waits 60 ms per address on RS232 and 50 ms for all 31 on CAN. Waits poll every
-//!   10 ms on a fixed schedule, never faster. All are [`client::BusConfig`] settings.
+//!   10 ms on a fixed schedule, never faster. All are [`session::BusConfig`] settings.
 //! - **In-position.** The manual has no in-position window parameter: [`client::Module::move_to`] takes the
-//!   tolerance from its caller ([`client::MoveSpec::DEFAULT_TOLERANCE`]: 0.001 rad or m) and reads the final
+//!   tolerance from its caller ([`session::MoveSpec::DEFAULT_TOLERANCE`]: 0.001 rad or m) and reads the final
 //!   position twice; both readings must lie within it.
 //! - **Limits are refused, not clamped.** The modules limit targets to MinPos/MaxPos (once homed), MaxVel,
 //!   MaxAcc, MaxCur (chapter 12). [`client::Module::move_to`] and [`client::Module::set_checked`] refuse such
-//!   values before anything moves ([`client::Error::BeyondLimit`]), homed or not, and read back what they
-//!   write ([`client::Error::Mismatch`]); a module's own limits, when written, are read back as well.
+//!   values before anything moves ([`Error::BeyondLimit`]), homed or not, and read back what they
+//!   write ([`Error::Mismatch`]); a module's own limits, when written, are read back as well.
 //! - **The target of a running motion.** TargetPosInc is taken as the target of the motion the module runs
 //!   (the emulator sets it from FRAMP); `move_to` reads it right after the motion command and halts the
 //!   module on a difference of more than one tick: the modules ignore the BCC, so a corrupted command would
 //!   otherwise run to a wrong place. To be confirmed on real hardware.
 //! - **Stops that cannot be confirmed.** When an action that may have set a module in motion cannot go on,
 //!   the module is halted: up to three Halts by address (a Halt may be repeated), then a broadcast Halt and,
-//!   if none was acknowledged, the watchdog refresh stopped on purpose ([`client::Bus::abandon_watchdog`]):
-//!   an armed module then halts itself within 50 ms. The error carries a [`client::StopOutcome`] whose text
+//!   if none was acknowledged, the watchdog refresh stopped on purpose ([`Session::abandon_watchdog`]):
+//!   an armed module then halts itself within 50 ms. The error carries a [`error::StopOutcome`] whose text
 //!   says whether the module confirmed the stop, and if not, that the axis may still be moving.
 //! - **Acknowledges nobody asked for.** A module that acknowledges a motion command it was not sent in this
 //!   exchange (an address corrupted on the way) is counted as set in motion, so that the session halts it.
+//! - **Units.** The manual's floats are in the module's unit (rad rotary, m linear). [`model::Position`] and
+//!   its siblings say rad or m, or explicitly [`model::AxisUnit::ModuleUnit`] (a bare command-line number, a
+//!   value decoded from the wire); a quantity in rad or m is checked against the module's kind (read once
+//!   from its Config word) before anything is sent ([`Error::UnitMismatch`]).
+//! - **Operations as `async fn`s.** Each multi-step operation of the [`Session`] is an `async fn` over the
+//!   session's state, which the compiler makes a state machine; the session resumes it with a no-op waker
+//!   when what it waits for is there (no executor, no thread, no I/O).
+//! - **Cancelling.** A read or a scan that is cancelled ends at once ([`Error::Aborted`]); a motion, a
+//!   wait or homing is halted first ([`Error::Cancelled`] says whether that was confirmed); writes and
+//!   watchdog changes run to their end.
+//! - **Closing is bounded** ([`session::BusConfig::close_bound`], 5 s): past it, [`Error::CloseTimedOut`],
+//!   and the refresh stops with the session, so an armed module halts itself within 50 ms.
 //! - **DISABLE_ACK.** The client refuses to set CONFIGID_MOD_DISABLE_ACK on CAN (it needs acknowledges).
 //!   The emulator honours it; the write that sets it is still acknowledged.
 
 #![warn(missing_docs)]
 
 pub mod client;
+pub mod describe;
+pub mod error;
 pub mod model;
+pub mod session;
 pub mod sim;
 pub mod wire;
+
+#[cfg(feature = "tokio")]
+pub use client::AsyncClient;
+pub use client::Client;
+pub use error::Error;
+pub use session::Session;
+pub use sim::Emulator;

@@ -5,12 +5,12 @@
 
 use motionlink_link::can::slcan::{self, SlcanDecoder, SlcanMessage};
 use motionlink_link::can::{CanEmulator, CanFrame, SlcanAdapter};
-use motionlink_link::emulator::Emulator;
+use motionlink_link::emulator::Emulator as ByteEmulator;
 use motionlink_link::Timestamp;
 use motionlink_powercube::model::{
     Action, Broadcast, CanBaud, CubeState, DataType, Motion, MotionId, Param, Reply, Request, Value,
 };
-use motionlink_powercube::sim::{SimBus, SimConfig};
+use motionlink_powercube::sim::{Emulator, SimConfig};
 use motionlink_powercube::wire::can::{self as can_wire, Role};
 use motionlink_powercube::wire::profibus::OutputWriter;
 use motionlink_powercube::wire::rs232::{self, Rs232Decoder, TelKind};
@@ -54,21 +54,21 @@ proptest! {
 
     #[test]
     fn the_rs232_emulator_survives_garbage_and_still_answers(garbage in proptest::collection::vec(any::<u8>(), 0..300)) {
-        let mut bus = SimBus::new(&SimConfig::with_addresses(&[1, 17]).unwrap());
+        let mut bus = Emulator::new(&SimConfig::with_addresses(&[1, 17]).unwrap());
         let mut out = Vec::new();
-        Emulator::receive(&mut bus, Timestamp::from_millis(1), &garbage, &mut out);
-        Emulator::advance(&mut bus, Timestamp::from_millis(100), &mut out);
+        ByteEmulator::receive(&mut bus, Timestamp::from_millis(1), &garbage, &mut out);
+        ByteEmulator::advance(&mut bus, Timestamp::from_millis(100), &mut out);
         out.clear();
         // An ETX closes any frame the garbage opened; then the manual's Home is answered.
-        Emulator::receive(&mut bus, Timestamp::from_millis(200), &[0x03], &mut out);
+        ByteEmulator::receive(&mut bus, Timestamp::from_millis(200), &[0x03], &mut out);
         out.clear();
-        Emulator::receive(&mut bus, Timestamp::from_millis(300), &HOME_17, &mut out);
+        ByteEmulator::receive(&mut bus, Timestamp::from_millis(300), &HOME_17, &mut out);
         prop_assert_eq!(&out[..], &[0x02, 0x0a, 0x21, 0x01, 0x2c, 0x03]);
     }
 
     #[test]
     fn the_can_emulator_survives_any_frame(frames in proptest::collection::vec((0u32..0x800, proptest::collection::vec(any::<u8>(), 0..=8)), 0..60)) {
-        let mut bus = SimBus::new_can(&SimConfig::with_addresses(&[1, 2]).unwrap());
+        let mut bus = Emulator::new_can(&SimConfig::with_addresses(&[1, 2]).unwrap());
         let mut out = Vec::new();
         for (i, (id, data)) in frames.iter().enumerate() {
             CanEmulator::receive(&mut bus, Timestamp::from_millis(i as u64 * 10), &CanFrame::new(*id, data).unwrap(), &mut out);
@@ -82,11 +82,11 @@ proptest! {
 
     #[test]
     fn the_slcan_adapter_survives_garbage(garbage in proptest::collection::vec(any::<u8>(), 0..300)) {
-        let mut adapter = SlcanAdapter::new(SimBus::new_can(&SimConfig::default()));
+        let mut adapter = SlcanAdapter::new(Emulator::new_can(&SimConfig::default()));
         let mut out = Vec::new();
-        Emulator::receive(&mut adapter, Timestamp::from_millis(1), &garbage, &mut out);
+        ByteEmulator::receive(&mut adapter, Timestamp::from_millis(1), &garbage, &mut out);
         out.clear();
-        Emulator::receive(&mut adapter, Timestamp::from_millis(2), b"\rC\rS8\rO\rt0C120A27\r", &mut out);
+        ByteEmulator::receive(&mut adapter, Timestamp::from_millis(2), b"\rC\rS8\rO\rt0C120A27\r", &mut out);
         let text = String::from_utf8_lossy(&out).to_string();
         // (time stamps may be on if the garbage said Z1)
         prop_assert!(text.contains("z\rt0A160A2700000000"), "{:?}", text);
@@ -198,7 +198,7 @@ fn step() -> impl Strategy<Value = Step> {
 }
 
 /// The module's own view of `param`, asked directly.
-fn read(bus: &mut SimBus, now: Timestamp, a: u8, param: Param) -> Value {
+fn read(bus: &mut Emulator, now: Timestamp, a: u8, param: Param) -> Value {
     match bus.request(now, a, &Request::Get(param)) {
         Some(Reply::Get(p, v)) if p == param && v.data_type() == param.data_type() => v,
         other => panic!("module {a}, {param}: {other:?}"),
@@ -214,7 +214,7 @@ proptest! {
         config in prop_oneof![Just(None), any::<u32>().prop_map(Some)],
         steps in proptest::collection::vec((step(), 0u64..3_000), 1..40),
     ) {
-        let mut bus = SimBus::new_can(&SimConfig::with_addresses(&[1, 2]).unwrap());
+        let mut bus = Emulator::new_can(&SimConfig::with_addresses(&[1, 2]).unwrap());
         let mut now = Timestamp::from_millis(0);
         // A random starting state: homed or not, any Config word (watchdog, synchronised motion, M3
         // compatibility, linear, disabled acknowledges...), a watchdog switched on.
@@ -246,7 +246,7 @@ proptest! {
                 Step::Request(a, r, Carrier::Rs232) => {
                     let mut buf = [0u8; rs232::MAX_FRAME];
                     let n = rs232::encode(TelKind::Send, a, &r.encode(), &mut buf).unwrap();
-                    Emulator::receive(&mut bus, now, &buf[..n], &mut out);
+                    ByteEmulator::receive(&mut bus, now, &buf[..n], &mut out);
                     out.clear();
                 }
                 Step::Request(a, r, Carrier::Profibus) => {

@@ -2,13 +2,13 @@
 //! byte for byte, in both directions, and answered by the emulator.
 
 use motionlink_link::can::{CanEmulator, CanFrame};
-use motionlink_link::emulator::Emulator;
+use motionlink_link::emulator::Emulator as ByteEmulator;
 use motionlink_link::Timestamp;
 use motionlink_powercube::model::{
     AckKind, AckPosition, Action, CubeState, Motion, Param, Position, ProfibusFlag, ProfibusState, Reply, Request,
     StateFlag, Value,
 };
-use motionlink_powercube::sim::{SimBus, SimConfig};
+use motionlink_powercube::sim::{Emulator, SimConfig};
 use motionlink_powercube::wire::can::{self, Role};
 use motionlink_powercube::wire::profibus::{InputImage, OutputWriter};
 use motionlink_powercube::wire::rs232::{self, Rs232Decoder, TelKind};
@@ -28,7 +28,7 @@ fn chapter_8_can_commands_encode_as_printed() {
         (Request::Action(Action::Reset), "0F1#00"),
         (Request::Set(Param::TargetAcc, Value::F32(0.5)), "0F1#08500000003F"),
         (Request::Set(Param::TargetVel, Value::F32(0.08)), "0F1#084F0AD7A33D"),
-        (Request::Motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Simple), "0F1#0B040000403F"),
+        (Request::Motion(Motion::FRamp { pos: Position::native(0.75) }, AckKind::Simple), "0F1#0B040000403F"),
         (Request::Get(Param::CubeState), "0D1#0A27"),
         (Request::Get(Param::ActPos), "0D1#0A3C"),
     ];
@@ -42,7 +42,7 @@ fn chapter_8_can_commands_encode_as_printed() {
         assert_eq!(Request::decode(&p).unwrap(), req);
     }
     // The extended acknowledge variant of the ramp: MotionID 0x0e.
-    let req = Request::Motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Extended);
+    let req = Request::Motion(Motion::FRamp { pos: Position::native(0.75) }, AckKind::Extended);
     assert_eq!(can::to_frame(Role::Put(17), &req.encode()).to_string(), "0F1#0B0E0000403F");
 }
 
@@ -71,13 +71,13 @@ fn chapter_8_can_acknowledges_decode_as_printed() {
     // Extended acknowledge: DLC 8, actual position, state, DIO (on the acknowledge identifier).
     let (_, p) = can::from_frame(&frame("0B1#0B0E0000803E3100")).unwrap();
     let Reply::Motion { ext: Some(e), .. } = Reply::decode(&p).unwrap() else { panic!() };
-    assert_eq!(e.position, AckPosition::Unit(Position(0.25)));
+    assert_eq!(e.position, AckPosition::Unit(Position::native(0.25)));
     assert_eq!(e.state.0, 0x31);
 }
 
 #[test]
 fn chapter_8_the_emulator_answers_each_example() {
-    let mut bus = SimBus::new_can(&SimConfig::with_addresses(&[17]).unwrap());
+    let mut bus = Emulator::new_can(&SimConfig::with_addresses(&[17]).unwrap());
     let mut t = 0u64;
     let mut ask = |text: &str| -> Vec<CanFrame> {
         let mut out = Vec::new();
@@ -133,7 +133,7 @@ fn chapter_9_rs232_commands_encode_byte_for_byte() {
         Request::Action(Action::Reset),
         Request::Set(Param::TargetAcc, Value::F32(0.5)),
         Request::Set(Param::TargetVel, Value::F32(0.08)),
-        Request::Motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Simple),
+        Request::Motion(Motion::FRamp { pos: Position::native(0.75) }, AckKind::Simple),
     ];
     for (req, (send, _)) in requests.iter().zip(RS232_EXAMPLES) {
         let mut buf = [0u8; rs232::MAX_FRAME];
@@ -167,10 +167,10 @@ fn chapter_9_the_escaped_halt() {
 
 #[test]
 fn chapter_9_the_emulator_answers_with_the_true_length() {
-    let mut bus = SimBus::new(&SimConfig::with_addresses(&[17]).unwrap());
+    let mut bus = Emulator::new(&SimConfig::with_addresses(&[17]).unwrap());
     for (i, (send, printed_ack)) in RS232_EXAMPLES.iter().enumerate() {
         let mut out = Vec::new();
-        Emulator::receive(&mut bus, Timestamp::from_millis(1000 * i as u64), send, &mut out);
+        ByteEmulator::receive(&mut bus, Timestamp::from_millis(1000 * i as u64), send, &mut out);
         let f = Rs232Decoder::new().feed(&out).next().unwrap().unwrap();
         let printed = Rs232Decoder::new().feed(printed_ack).next().unwrap().unwrap();
         assert_eq!(f.payload, printed.payload, "same acknowledge data");
@@ -180,7 +180,12 @@ fn chapter_9_the_emulator_answers_with_the_true_length() {
         }
     }
     let mut out = Vec::new();
-    Emulator::receive(&mut bus, Timestamp::from_millis(9000), &[0x02, 0x06, 0x21, 0x10, 0x82, 0x29, 0x03], &mut out);
+    ByteEmulator::receive(
+        &mut bus,
+        Timestamp::from_millis(9000),
+        &[0x02, 0x06, 0x21, 0x10, 0x82, 0x29, 0x03],
+        &mut out,
+    );
     assert_eq!(out, vec![0x02, 0x0a, 0x21, 0x10, 0x82, 0x2d, 0x03], "the Halt acknowledge is escaped too");
 }
 
@@ -208,7 +213,7 @@ fn profibus_requests() -> [Request; 5] {
         Request::Action(Action::Reset),
         Request::Set(Param::TargetAcc, Value::F32(0.5)),
         Request::Set(Param::TargetVel, Value::F32(0.08)),
-        Request::Motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Simple),
+        Request::Motion(Motion::FRamp { pos: Position::native(0.75) }, AckKind::Simple),
     ]
 }
 
@@ -246,7 +251,7 @@ fn chapter_10_profibus_images() {
 
 #[test]
 fn chapter_10_the_emulator_exchanges_images() {
-    let mut bus = SimBus::new(&SimConfig::with_addresses(&[17]).unwrap());
+    let mut bus = Emulator::new(&SimConfig::with_addresses(&[17]).unwrap());
     let mut w = OutputWriter::new();
     let at = Timestamp::from_millis;
     // Each example command in turn, one second apart: the acknowledge bytes are the manual's, byte for byte.

@@ -1,31 +1,29 @@
 //! `motionlink powercube`, `motionlink sim powercube`, `motionlink decode powercube` and the PowerCube part
-//! of `motionlink demo`.
+//! of `motionlink demo`: argument parsing, output and exit codes. What stops a module, when its watchdog is
+//! armed and how a move is checked are the library's ([`Guard`], [`Module::move_to_guarded`]).
 
-use std::io::{IsTerminal, Read, Write};
-use std::sync::{Arc, Mutex};
+mod decode;
+mod demo;
+
+use std::io::Write;
+use std::sync::Arc;
 use std::time::Duration;
 
-use motionlink_link::can::{
-    CanBus, CanBusConfig, CanFrame, CanLink, CandumpLine, SlcanAdapter, SlcanBitrate, SlcanLink,
-};
-use motionlink_link::clock::{Clock, ManualClock};
+use motionlink_link::can::{SlcanAdapter, SlcanBitrate, SlcanLink};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::serial::SerialLink;
-use motionlink_link::transcript::{TapLink, Transcript, Way};
 use motionlink_link::url::PortUrl;
-use motionlink_link::{LinkError, RealClock, SerialSettings, SharedClock};
-use motionlink_powercube::client::{Bus, BusConfig, Error as PcError, ModuleInfo, MoveSpec, Progress, Readback};
-use motionlink_powercube::model::{
-    Acceleration, AckKind, Broadcast, BroadcastForm, CubeState, ModuleKind, Motion, Param, Position, Reply, Request,
-    StateFlag, Value, Velocity,
-};
-use motionlink_powercube::sim::{SimBus, SimConfig};
-use motionlink_powercube::wire::can::{self as can_wire, Role};
-use motionlink_powercube::wire::rs232::{self, Rs232Decoder, TelKind};
-use motionlink_powercube::wire::Payload;
+use motionlink_link::{RealClock, SerialSettings, SharedClock};
+use motionlink_powercube::client::{BusConfig, Client, Guard, Module, ModuleInfo, MoveSpec, Progress, Readback};
+use motionlink_powercube::model::{Acceleration, CubeState, Param, Position, Value, Velocity, PARAMS};
+use motionlink_powercube::sim::SimConfig;
+use motionlink_powercube::{Emulator, Error};
 use serde_json::json;
 
-use crate::common::{self, CaptureArgs, CliError, ServeArgs};
+pub use decode::{decode, DecodeArgs};
+pub use demo::demo;
+
+use crate::common::{self, CliError, ServeArgs};
 
 /// `motionlink powercube` arguments.
 #[derive(clap::Args, Debug)]
@@ -111,7 +109,7 @@ pub enum Action {
         timeout: f64,
         /// In-position tolerance (rad or m, above 0): the move succeeds only if the final actual position is
         /// at most this far from the target. The manual has no in-position window parameter.
-        #[arg(long, default_value_t = MoveSpec::DEFAULT_TOLERANCE.0)]
+        #[arg(long, default_value_t = MoveSpec::DEFAULT_TOLERANCE.value())]
         tolerance: f32,
     },
     /// Print position and state until Ctrl-C (or --count samples).
@@ -146,111 +144,38 @@ pub struct SimArgs {
     pub strict: bool,
 }
 
-/// `motionlink decode powercube` arguments.
-#[derive(clap::Args, Debug)]
-pub struct DecodeArgs {
-    #[command(flatten)]
-    pub capture: CaptureArgs,
+/// A library error as a command-line error (its class decides the exit code).
+fn failed(e: Error) -> CliError {
+    common::classified(&e)
 }
 
-fn cli_err(e: PcError) -> CliError {
-    if let PcError::Cancelled { .. } = e {
-        CliError::Interrupted(e.to_string())
-    } else if e.is_transport() {
-        CliError::transport(e)
-    } else if e.is_usage() {
-        CliError::usage(e)
-    } else {
-        CliError::device(e)
-    }
+/// `e` with what the command was doing when it happened.
+fn context(e: Error, context: String) -> CliError {
+    failed(Error::Context { context, source: Box::new(e), hint: "" })
 }
 
-/// Runs `action`, which sets the modules in `addresses` moving, with their watchdog armed: switched on
-/// before (CONFIGID_MOD_WATCHDOG_ENABLE set if it was not, a life sign, the refresh served by the session's
-/// background thread: the CAN broadcast, or on RS232 the broadcast to address 0 as libm5api sends it), so
-/// that a host that dies (SIGKILL, power loss, the adapter or cable pulled) stops them within 50 ms; and
-/// switched off again after, whether `action` succeeded, failed or was cancelled (a signal), with the
-/// Config word restored, so that a normal run leaves the modules as it found them. A session that failed
-/// (its line broke, a stop was not confirmed) leaves the watchdog online: it is what stops them then.
-///
-/// Not with `--no-watchdog`, nor on the in-process emulator (`--port sim`), which dies with the host.
-fn with_watchdog<T>(
-    bus: &Bus,
-    args: &Args,
-    in_process: bool,
-    addresses: &[u8],
-    action: impl FnOnce() -> Result<T, CliError>,
-) -> Result<T, CliError> {
-    let list = addresses.iter().map(u8::to_string).collect::<Vec<_>>().join(", ");
-    let arm = !args.no_watchdog && !in_process && bus.watchdog_reliable();
-    if !arm {
-        let result = action();
-        bus.halt_started();
-        return result;
-    }
-    if let Err(e) = bus.enable_watchdog(addresses) {
-        // Undo what was done before the failure (a Config word changed, a life sign sent).
-        if let Err(undo) = bus.disable_watchdog() {
-            tracing::warn!("switching the watchdog off again failed: {undo}");
-        }
-        let hint = match &e {
-            PcError::Device { state, .. } if state.contains(StateFlag::CommError) => {
-                " (its watchdog expired: a host stopped refreshing it; `reset` clears it)"
-            }
-            _ => "",
-        };
-        return Err(with_context(e, &format!("cannot arm the watchdog of module {list}"), hint));
-    }
-    tracing::info!("watchdog armed in module {list}");
-    let result = action();
-    // Whatever is still moving is stopped before the watchdog goes offline.
-    bus.halt_started();
-    match (result, bus.disable_watchdog()) {
-        (result, Ok(())) => result,
-        (Ok(_), Err(e)) => Err(with_context(e, &format!("cannot switch the watchdog of module {list} off again"), "")),
-        (Err(e), Err(undo)) => {
-            common::say(format!("motionlink: {undo}"));
-            Err(e)
-        }
-    }
-}
-
-/// `e` as a command-line error of its class, its message between `context` and `hint`.
-fn with_context(e: PcError, context: &str, hint: &str) -> CliError {
-    let text = format!("{context}: {e}{hint}");
-    if let PcError::Cancelled { .. } = e {
-        CliError::Interrupted(text)
-    } else if e.is_transport() {
-        CliError::transport(text)
-    } else if e.is_usage() {
-        CliError::usage(text)
-    } else {
-        CliError::device(text)
-    }
-}
-
-/// Opens the session `args` ask for.
-fn open(args: &Args) -> Result<(Bus, Option<EmulatorHost<SimBus>>), CliError> {
+/// Opens the session `args` ask for; the in-process emulator's host with it for `--port sim`.
+fn open(args: &Args) -> Result<(Client, Option<EmulatorHost<Emulator>>), CliError> {
     let url: PortUrl = args.port.parse()?;
     let clock = RealClock::shared();
-    let timeout = args.timeout_ms.map(Duration::from_millis);
-    let with_timeout = |mut c: BusConfig| {
-        if let Some(t) = timeout {
-            c.reply_timeout = t;
+    let settings = |mut c: BusConfig| {
+        if let Some(t) = args.timeout_ms {
+            c.reply_timeout = Duration::from_millis(t);
         }
+        c.poll_interval = Duration::from_millis(args.poll_ms);
         c
     };
-    let poll = Duration::from_millis(args.poll_ms);
-    let with_timeout = |c: BusConfig| BusConfig { poll_interval: poll, ..with_timeout(c) };
-    let bus = match &url {
+    let client = match &url {
         PortUrl::Serial(_) | PortUrl::Tcp { .. } => {
             let link = url.open_byte_link(SerialSettings { dtr_rts_on: false, ..SerialSettings::new(args.baud) })?;
-            Bus::rs232(link, clock, with_timeout(BusConfig::rs232()))
+            Client::rs232(link, clock, settings(BusConfig::rs232()))
         }
         PortUrl::Sim => {
-            let host = EmulatorHost::new(SimBus::new(&SimConfig::default()), Arc::clone(&clock), PipeConfig::instant());
-            let bus = Bus::rs232(Box::new(host.connect().0), clock, with_timeout(BusConfig::rs232()));
-            return Ok((bus, Some(host)));
+            let host =
+                EmulatorHost::new(Emulator::new(&SimConfig::default()), Arc::clone(&clock), PipeConfig::instant());
+            let client =
+                Client::rs232(Box::new(host.connect().0), clock, settings(BusConfig::rs232())).map_err(failed)?;
+            return Ok((client, Some(host)));
         }
         PortUrl::Slcan(path) => {
             let rate = SlcanBitrate::from_bps(args.bitrate)
@@ -258,21 +183,21 @@ fn open(args: &Args) -> Result<(Bus, Option<EmulatorHost<SimBus>>), CliError> {
             // An SLCAN adapter needs no modem lines (opening the port raises them anyway).
             let serial = SerialLink::open(path, SerialSettings { dtr_rts_on: false, ..SerialSettings::new(115_200) })?;
             let link = SlcanLink::open(serial, Arc::clone(&clock), rate)?;
-            Bus::can(Box::new(link), clock, with_timeout(BusConfig::can()))
+            Client::can(Box::new(link), clock, settings(BusConfig::can()))
         }
-        PortUrl::SocketCan(ifname) => open_socketcan(ifname, clock, with_timeout(BusConfig::can()))?,
+        PortUrl::SocketCan(ifname) => open_socketcan(ifname, clock, settings(BusConfig::can()))?,
     };
-    Ok((bus, None))
+    Ok((client.map_err(failed)?, None))
 }
 
 #[cfg(target_os = "linux")]
-fn open_socketcan(ifname: &str, clock: SharedClock, config: BusConfig) -> Result<Bus, CliError> {
+fn open_socketcan(ifname: &str, clock: SharedClock, config: BusConfig) -> Result<Result<Client, Error>, CliError> {
     let link = motionlink_link::can::socketcan::SocketCanLink::open(ifname)?;
-    Ok(Bus::can(Box::new(link), clock, config))
+    Ok(Client::can(Box::new(link), clock, config))
 }
 
 #[cfg(not(target_os = "linux"))]
-fn open_socketcan(_ifname: &str, _clock: SharedClock, _config: BusConfig) -> Result<Bus, CliError> {
+fn open_socketcan(_ifname: &str, _clock: SharedClock, _config: BusConfig) -> Result<Result<Client, Error>, CliError> {
     Err(CliError::usage("socketcan:// ports need Linux"))
 }
 
@@ -303,7 +228,7 @@ fn state_json(s: CubeState) -> serde_json::Value {
 
 fn info_json(m: &ModuleInfo) -> serde_json::Value {
     json!({
-        "address": m.address,
+        "address": m.address.get(),
         "kind": m.kind.name(),
         "version": m.version.to_string(),
         "serial": m.serial,
@@ -320,8 +245,8 @@ fn positive_secs(name: &str, s: f64) -> Result<Duration, CliError> {
 }
 
 /// Checks what can be checked before the port is opened: numbers that must be finite and positive. (The
-/// limits of the module itself, such as MaxPos or MaxVel, are checked against the module before anything is
-/// written or moved.)
+/// limits of the module itself, such as MaxPos or MaxVel, are checked by the library against the module
+/// before anything is written or moved.)
 fn check_args(action: &Action) -> Result<(), CliError> {
     match action {
         Action::Move { position, vel, acc, timeout, tolerance } => {
@@ -349,77 +274,33 @@ pub fn run(args: Args) -> Result<(), CliError> {
         return print_params(&mut out, args.json);
     }
     check_args(&args.action)?;
-    let (bus, host) = open(&args)?;
-    let in_process = host.is_some();
-    bus.set_cancel_token(common::interrupt_token());
-    let m = bus.module(args.module).map_err(cli_err)?;
+    let (client, host) = open(&args)?;
+    client.set_cancel_token(common::interrupt_token());
+    // The watchdog protects a motion against a host that dies; an emulator in this process dies with it.
+    let guard = if args.no_watchdog || host.is_some() { Guard::HaltOnly } else { Guard::Watchdog };
+    let result = act(&args, &client, guard, &mut out);
+    // Closing stops what is still moving and switches off what was armed, and says whether it could;
+    // the in-process emulator goes only after that.
+    let closed = client.close().map_err(failed);
+    drop(host);
+    match (result, closed) {
+        (Err(e), Err(also)) => {
+            common::say(format!("motionlink: {also}"));
+            Err(e)
+        }
+        (result, closed) => result.and(closed),
+    }
+}
+
+/// Does what `args` ask of the module, on `client`.
+fn act(args: &Args, client: &Client, guard: Guard, out: &mut dyn Write) -> Result<(), CliError> {
+    let mut out = out;
+    let m = client.module(args.module).map_err(failed)?;
     match &args.action {
-        Action::Scan => {
-            let found = bus.scan().map_err(cli_err)?;
-            if args.json {
-                let entries: Vec<_> = found
-                    .iter()
-                    .map(|e| match &e.info {
-                        Ok(info) => info_json(info),
-                        Err(err) => json!({"address": e.address, "error": err.to_string()}),
-                    })
-                    .collect();
-                common::print_json(&mut out, &json!(entries))?;
-            } else if found.is_empty() {
-                writeln!(out, "no module answered on {}", bus.describe())?;
-            } else {
-                writeln!(out, "{:<7}  {:<6}  {:<7}  {:<8}  state", "address", "type", "version", "serial")?;
-                for e in &found {
-                    match &e.info {
-                        Ok(i) => writeln!(
-                            out,
-                            "{:<7}  {:<6}  {:<7}  {:<8}  {}",
-                            i.address,
-                            i.kind.name(),
-                            i.version.to_string(),
-                            i.serial,
-                            i.state
-                        )?,
-                        Err(err) => writeln!(out, "{:<7}  answered the scan, then: {err}", e.address)?,
-                    }
-                }
-            }
-            if found.is_empty() {
-                return Err(CliError::transport(format!("no module answered on {}", bus.describe())));
-            }
-            // Every module is listed; the exit code still says that one could not be read.
-            if let Some(e) = found.into_iter().find_map(|e| e.info.err()) {
-                return Err(cli_err(e));
-            }
-        }
-        Action::Info => {
-            let info = m.info().map_err(cli_err)?;
-            let limits: Vec<(Param, Value)> =
-                [Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::ActPos]
-                    .into_iter()
-                    .map(|p| m.get(p).map(|v| (p, v)))
-                    .collect::<Result<_, _>>()
-                    .map_err(cli_err)?;
-            if args.json {
-                let mut j = info_json(&info);
-                for (p, v) in &limits {
-                    j[p.name()] = value_json(v);
-                }
-                common::print_json(&mut out, &j)?;
-            } else {
-                let mut rows = vec![
-                    ("address".to_string(), info.address.to_string()),
-                    ("type".to_string(), info.kind.name().to_string()),
-                    ("version".to_string(), info.version.to_string()),
-                    ("serial".to_string(), info.serial.to_string()),
-                    ("state".to_string(), info.state.to_string()),
-                ];
-                rows.extend(limits.iter().map(|(p, v)| (p.name().to_string(), v.show(*p, info.kind))));
-                common::print_table(&mut out, &rows)?;
-            }
-        }
+        Action::Scan => scan(client, &mut out, args.json)?,
+        Action::Info => info(&m, &mut out, args.json)?,
         Action::State => {
-            let s = m.state().map_err(cli_err)?;
+            let s = m.state().map_err(failed)?;
             if args.json {
                 common::print_json(&mut out, &state_json(s))?;
             } else {
@@ -434,10 +315,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
         Action::Get { param } => {
             let p = parse_param(param)?;
-            let v = m.get(p).map_err(cli_err)?;
+            let v = m.get(p).map_err(failed)?;
             // The unit depends on the module type (rad or m): no guessing when it cannot be read.
             let kind = m.kind().map_err(|e| {
-                with_context(e, &format!("{} read, but the module type (and so its unit) cannot be read", p.name()), "")
+                context(e, format!("{} read, but the module type (and so its unit) cannot be read", p.name()))
             })?;
             if args.json {
                 common::print_json(
@@ -452,8 +333,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             let p = parse_param(param)?;
             let v = Value::parse(p, value).map_err(CliError::usage)?;
             // Targets beyond their limits are refused; what was written is read back.
-            let readback = m.set_checked(p, v).map_err(cli_err)?;
-            let (read_back, not_verifiable) = match readback {
+            let (read_back, not_verifiable) = match m.set_checked(p, v).map_err(failed)? {
                 Readback::Same(r) => (Some(r), None),
                 Readback::NotReadable(why) => (None, Some(why)),
             };
@@ -465,32 +345,23 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 )?;
             } else {
                 let kind = m.kind().map_err(|e| {
-                    with_context(
-                        e,
-                        &format!("{} was set, but the module type (and so its unit) cannot be read", p.name()),
-                        "",
-                    )
+                    context(e, format!("{} was set, but the module type (and so its unit) cannot be read", p.name()))
                 })?;
-                let how = match not_verifiable {
-                    None => "read back".to_string(),
-                    Some(why) => format!("not verified: {why}"),
-                };
+                let how = not_verifiable.map_or_else(|| "read back".to_string(), |why| format!("not verified: {why}"));
                 writeln!(out, "{} set to {} ({how})", p.name(), v.show(p, kind))?;
             }
         }
         Action::Home { timeout } => {
             let timeout = positive_secs("--timeout", *timeout)?;
-            with_watchdog(&bus, &args, in_process, &[args.module], || {
-                let bar = common::progress_bar(0, format!("homing module {}", args.module));
-                let r = m.home_and_wait(timeout, &mut |p: &Progress| bar.set_message(progress_text(p)));
-                bar.finish_and_clear();
-                let (position, s) = r.map_err(cli_err)?;
-                report_done(&mut out, args.json, "homed", &position, s)
-            })?;
+            let bar = common::progress_bar(0, format!("homing module {}", args.module));
+            let r = m.home_guarded(timeout, guard, &mut |p: &Progress| bar.set_message(progress_text(p)));
+            bar.finish_and_clear();
+            let (position, s) = r.map_err(failed)?;
+            report_done(&mut out, args.json, "homed", position, s)?;
         }
         Action::Reset => {
             // After a host died with the watchdog online, a plain Reset would be undone 50 ms later.
-            let released = m.reset_and_release_watchdog().map_err(cli_err)?;
+            let released = m.reset_and_release_watchdog().map_err(failed)?;
             if args.json {
                 common::print_json(&mut out, &json!({"ok": true, "action": "reset", "watchdog_released": released}))?;
             } else if released {
@@ -500,97 +371,167 @@ pub fn run(args: Args) -> Result<(), CliError> {
             }
         }
         Action::Halt => {
-            m.halt().map_err(cli_err)?;
-            done(&mut out, args.json, "halted")?;
-        }
-        Action::Move { position, vel, acc, timeout, tolerance } => {
-            let spec = MoveSpec {
-                target: Position(*position),
-                // Only what was given is written; TargetVel / TargetAcc otherwise stay as the module has them.
-                vel: vel.map(Velocity),
-                acc: acc.map(Acceleration),
-                tolerance: Position(*tolerance),
-                timeout: positive_secs("--timeout", *timeout)?,
-            };
-            with_watchdog(&bus, &args, in_process, &[args.module], || {
-                let bar = common::progress_bar(0, format!("module {}", args.module));
-                let mut start = None;
-                let r = m.move_to(&spec, &mut |p: &Progress| {
-                    let from = *start.get_or_insert(p.position.0);
-                    bar.set_length(((position - from).abs() * 1000.0).round() as u64);
-                    bar.set_position(((p.position.0 - from).abs() * 1000.0).round() as u64);
-                    bar.set_message(progress_text(p));
-                });
-                bar.finish_and_clear();
-                let report = r.map_err(cli_err)?;
-                report_done(&mut out, args.json, "reached", &report.reached, report.state)
-            })?;
-        }
-        Action::Watch { interval_ms, count } => {
-            let token = common::interrupt_token();
-            let kind = m.kind().map_err(cli_err)?;
-            let clock = Arc::clone(bus.clock());
-            let interval = Duration::from_millis(*interval_ms);
-            let mut due = clock.now();
-            let mut n = 0u64;
-            while !token.is_cancelled() && count.is_none_or(|c| n < c) {
-                let s = m.state().map_err(cli_err)?;
-                let p = m.position().map_err(cli_err)?;
-                let t = clock.now();
-                if args.json {
-                    common::print_json(
-                        &mut out,
-                        &json!({"t_ms": t.as_millis() as u64, "position": p.0, "state": state_json(s)}),
-                    )?;
-                } else {
-                    writeln!(out, "{:>9.3} s  {}  {}", t.since_origin().as_secs_f64(), p.show(kind), s)?;
-                }
-                out.flush()?;
-                n += 1;
-                if count.is_some_and(|c| n >= c) {
-                    break;
-                }
-                // The next sample on a fixed schedule; a signal ends the wait within 20 ms.
-                due += interval;
-                while !token.is_cancelled() && clock.now() < due {
-                    clock.sleep_until(due.min(clock.now() + Duration::from_millis(20)));
-                }
+            m.halt().map_err(failed)?;
+            if args.json {
+                common::print_json(&mut out, &json!({"ok": true, "action": "halted"}))?;
+            } else {
+                writeln!(out, "halted")?;
             }
         }
+        Action::Move { position, vel, acc, timeout, tolerance } => {
+            // Numbers on the command line are in the module's own unit (rad or m).
+            let spec = MoveSpec {
+                target: Position::native(*position),
+                // Only what was given is written; TargetVel / TargetAcc otherwise stay as the module has them.
+                vel: vel.map(Velocity::native),
+                acc: acc.map(Acceleration::native),
+                tolerance: Some(Position::native(*tolerance)),
+                timeout: positive_secs("--timeout", *timeout)?,
+            };
+            let bar = common::progress_bar(0, format!("module {}", args.module));
+            let mut start = None;
+            let r = m.move_to_guarded(&spec, guard, &mut |p: &Progress| {
+                let from = *start.get_or_insert(p.position.value());
+                bar.set_length(((position - from).abs() * 1000.0).round() as u64);
+                bar.set_position(((p.position.value() - from).abs() * 1000.0).round() as u64);
+                bar.set_message(progress_text(p));
+            });
+            bar.finish_and_clear();
+            let report = r.map_err(failed)?;
+            report_done(&mut out, args.json, "reached", report.reached, report.state)?;
+        }
+        Action::Watch { interval_ms, count } => watch(client, &m, &mut out, args.json, *interval_ms, *count)?,
         Action::Params => {}
     }
     Ok(())
 }
 
-fn progress_text(p: &Progress) -> String {
-    format!("module {}: {:.4}  {}", p.address, p.position.0, p.state)
-}
-
-fn done(out: &mut dyn Write, json: bool, what: &str) -> Result<(), CliError> {
+fn scan(client: &Client, out: &mut dyn Write, json: bool) -> Result<(), CliError> {
+    let found = client.scan().map_err(failed)?;
     if json {
-        common::print_json(out, &json!({"ok": true, "action": what}))
+        let entries: Vec<_> = found
+            .iter()
+            .map(|e| match &e.info {
+                Ok(info) => info_json(info),
+                Err(err) => json!({"address": e.address.get(), "error": err.to_string()}),
+            })
+            .collect();
+        common::print_json(out, &json!(entries))?;
+    } else if found.is_empty() {
+        writeln!(out, "no module answered on {}", client.describe())?;
     } else {
-        writeln!(out, "{what}")?;
-        Ok(())
+        writeln!(out, "{:<7}  {:<6}  {:<7}  {:<8}  state", "address", "type", "version", "serial")?;
+        for e in &found {
+            match &e.info {
+                Ok(i) => writeln!(
+                    out,
+                    "{:<7}  {:<6}  {:<7}  {:<8}  {}",
+                    i.address.get(),
+                    i.kind.name(),
+                    i.version.to_string(),
+                    i.serial,
+                    i.state
+                )?,
+                Err(err) => writeln!(out, "{:<7}  answered the scan, then: {err}", e.address.get())?,
+            }
+        }
+    }
+    if found.is_empty() {
+        return Err(CliError::transport(format!("no module answered on {}", client.describe())));
+    }
+    // Every module is listed; the exit code still says that one could not be read.
+    match found.into_iter().find_map(|e| e.info.err()) {
+        Some(e) => Err(failed(e)),
+        None => Ok(()),
     }
 }
 
-fn report_done(out: &mut dyn Write, json: bool, what: &str, pos: &Position, s: CubeState) -> Result<(), CliError> {
+fn info(m: &Module<'_>, out: &mut dyn Write, json: bool) -> Result<(), CliError> {
+    let info = m.info().map_err(failed)?;
+    let limits: Vec<(Param, Value)> = [Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::ActPos]
+        .into_iter()
+        .map(|p| m.get(p).map(|v| (p, v)))
+        .collect::<Result<_, _>>()
+        .map_err(failed)?;
     if json {
-        common::print_json(out, &json!({"ok": true, "action": what, "position": pos.0, "state": state_json(s)}))
+        let mut j = info_json(&info);
+        for (p, v) in &limits {
+            j[p.name()] = value_json(v);
+        }
+        common::print_json(out, &j)
     } else {
-        writeln!(out, "{what}: position {:.4}, state {s}", pos.0)?;
+        let mut rows = vec![
+            ("address".to_string(), info.address.to_string()),
+            ("type".to_string(), info.kind.name().to_string()),
+            ("version".to_string(), info.version.to_string()),
+            ("serial".to_string(), info.serial.to_string()),
+            ("state".to_string(), info.state.to_string()),
+        ];
+        rows.extend(limits.iter().map(|(p, v)| (p.name().to_string(), v.show(*p, info.kind))));
+        common::print_table(out, &rows)
+    }
+}
+
+fn watch(
+    client: &Client,
+    m: &Module<'_>,
+    out: &mut dyn Write,
+    json: bool,
+    interval_ms: u64,
+    count: Option<u64>,
+) -> Result<(), CliError> {
+    let token = common::interrupt_token();
+    let kind = m.kind().map_err(failed)?;
+    let clock = Arc::clone(client.clock());
+    let interval = Duration::from_millis(interval_ms);
+    let mut due = clock.now();
+    let mut n = 0u64;
+    while !token.is_cancelled() && count.is_none_or(|c| n < c) {
+        let s = m.state().map_err(failed)?;
+        let p = m.position().map_err(failed)?;
+        let t = clock.now();
+        if json {
+            common::print_json(
+                out,
+                &json!({"t_ms": t.as_millis() as u64, "position": p.value(), "state": state_json(s)}),
+            )?;
+        } else {
+            writeln!(out, "{:>9.3} s  {}  {}", t.since_origin().as_secs_f64(), p.show(kind), s)?;
+        }
+        out.flush()?;
+        n += 1;
+        if count.is_some_and(|c| n >= c) {
+            break;
+        }
+        // The next sample on a fixed schedule; a signal ends the wait within 20 ms.
+        due += interval;
+        while !token.is_cancelled() && clock.now() < due {
+            clock.sleep_until(due.min(clock.now() + Duration::from_millis(20)));
+        }
+    }
+    Ok(())
+}
+
+fn progress_text(p: &Progress) -> String {
+    format!("module {}: {:.4}  {}", p.address, p.position.value(), p.state)
+}
+
+fn report_done(out: &mut dyn Write, json: bool, what: &str, pos: Position, s: CubeState) -> Result<(), CliError> {
+    if json {
+        common::print_json(out, &json!({"ok": true, "action": what, "position": pos.value(), "state": state_json(s)}))
+    } else {
+        writeln!(out, "{what}: position {:.4}, state {s}", pos.value())?;
         Ok(())
     }
 }
 
 fn print_params(out: &mut dyn Write, as_json: bool) -> Result<(), CliError> {
     if as_json {
-        let list: Vec<_> = Param::ALL
+        let list: Vec<_> = PARAMS
             .iter()
-            .map(|p| {
-                json!({"id": p.id(), "name": p.name(), "type": p.data_type().name(), "unit": p.unit().symbol(ModuleKind::Rotary),
-                       "access": p.access().name(), "class": p.class().name(), "description": p.description()})
+            .map(|e| {
+                json!({"id": e.id, "name": e.name, "type": e.kind.data_type.name(), "unit": e.unit,
+                       "access": e.access.short(), "class": e.kind.class.name(), "description": e.title})
             })
             .collect();
         return common::print_json(out, &json!(list));
@@ -600,17 +541,17 @@ fn print_params(out: &mut dyn Write, as_json: bool) -> Result<(), CliError> {
         "{:<4}  {:<22}  {:<17}  {:<9}  {:<6}  {:<7}  description",
         "id", "name", "type", "unit", "access", "class"
     )?;
-    for p in Param::ALL {
+    for e in PARAMS.iter() {
         writeln!(
             out,
             "0x{:02X}  {:<22}  {:<17}  {:<9}  {:<6}  {:<7}  {}",
-            p.id(),
-            p.name(),
-            p.data_type().name(),
-            p.unit().symbol(ModuleKind::Rotary),
-            p.access().name(),
-            p.class().name(),
-            p.description()
+            e.id,
+            e.name,
+            e.kind.data_type.name(),
+            e.unit,
+            e.access.short(),
+            e.kind.class.name(),
+            e.title
         )?;
     }
     Ok(())
@@ -631,271 +572,10 @@ pub fn sim(args: SimArgs) -> Result<(), CliError> {
         if args.strict {
             return Err(CliError::usage("--strict is about RS232 BCCs; it has no meaning with --slcan"));
         }
-        common::serve(&args.serve, SlcanAdapter::new(SimBus::new_can(&config)))
+        common::serve(&args.serve, SlcanAdapter::new(Emulator::new_can(&config)))
     } else {
-        let mut bus = SimBus::new(&config);
+        let mut bus = Emulator::new(&config);
         bus.set_strict_bcc(args.strict);
         common::serve(&args.serve, bus)
     }
-}
-
-/// Reads the decode input as text (or raw bytes with --raw).
-fn read_input(args: &CaptureArgs) -> Result<Result<String, Vec<u8>>, CliError> {
-    if !args.hex.is_empty() {
-        // Hex bytes or one candump frame; `decode` tells them apart by their shape.
-        return Ok(Ok(args.hex.join(" ")));
-    }
-    let mut input = Vec::new();
-    std::io::stdin().read_to_end(&mut input)?;
-    if args.raw {
-        return Ok(Err(input));
-    }
-    String::from_utf8(input).map(Ok).map_err(|_| CliError::usage("stdin is not text (use --raw for raw bytes)"))
-}
-
-/// Describes a PowerCube payload travelling in `role` (CAN) or as `kind` to/from `address` (RS232).
-fn describe_payload(is_ack: bool, broadcast: bool, payload: &Payload) -> String {
-    if broadcast {
-        return match Broadcast::decode_form(payload) {
-            Ok((b, BroadcastForm::Manual)) => format!("broadcast: {b}"),
-            Ok((b, BroadcastForm::Padded)) => format!("broadcast: {b} (command + 0x00, as libm5api sends it)"),
-            Err(e) => format!("broadcast: not understood ({e})"),
-        };
-    }
-    if is_ack {
-        match Reply::decode(payload) {
-            Ok(r) => r.to_string(),
-            Err(e) => format!("acknowledge not understood: {e}"),
-        }
-    } else {
-        match Request::decode(payload) {
-            Ok(r) => r.to_string(),
-            Err(e) => format!("command not understood: {e}"),
-        }
-    }
-}
-
-fn describe_can(frame: &CanFrame) -> String {
-    match can_wire::from_frame(frame) {
-        Ok((Role::Ack(a), p)) => format!("ack from module {a}: {}", describe_payload(true, false, &p)),
-        Ok((Role::Get(a), p)) => format!("get to module {a}: {}", describe_payload(false, false, &p)),
-        Ok((Role::Put(a), p)) => format!("put to module {a}: {}", describe_payload(false, false, &p)),
-        Ok((Role::Broadcast, p)) => describe_payload(false, true, &p),
-        Err(e) => format!("not PowerCube: {e}"),
-    }
-}
-
-fn describe_rs232(frame: &rs232::Rs232Frame) -> String {
-    let (dir, is_ack) = match frame.kind {
-        TelKind::Send if frame.address == 0 => ("to every module (address 0)", false),
-        TelKind::Send => ("to module", false),
-        TelKind::Recv => ("from module", true),
-    };
-    let mut text = if frame.kind == TelKind::Send && frame.address == 0 {
-        format!("{dir}: {}", describe_payload(false, true, &frame.payload))
-    } else {
-        format!("{dir} {}: {}", frame.address, describe_payload(is_ack, false, &frame.payload))
-    };
-    if !frame.bcc_ok() {
-        text.push_str(&format!(" [BCC 0x{:02X} wrong, expected 0x{:02X}]", frame.bcc_received, frame.bcc_computed));
-    }
-    if !frame.length_ok() {
-        text.push_str(&format!(" [TELID length {} for {} bytes]", frame.declared_len, frame.payload.len()));
-    }
-    text
-}
-
-/// A comment line of a capture: `# ...` or `// ...`.
-fn is_comment(line: &str) -> bool {
-    let line = line.trim_start();
-    line.starts_with('#') || line.starts_with("//")
-}
-
-/// True if `line` has the shape of a candump line: a log line `(1700000000.000000) can0 0F1#01`, a frame
-/// `0F1#01` or `can0 0F1#01`, or a screen line `can0  0F1   [1]  01`. A hex capture (with `#` comment lines)
-/// never has it: its words are hex bytes, none with a `#` inside.
-fn looks_like_candump(line: &str) -> bool {
-    if is_comment(line) {
-        return false;
-    }
-    let words: Vec<&str> = line.split_whitespace().collect();
-    let frame_word =
-        |w: &str| w.split_once('#').is_some_and(|(id, _)| !id.is_empty() && id.chars().all(|c| c.is_ascii_hexdigit()));
-    match words.as_slice() {
-        [first, ..] if first.starts_with('(') && first.ends_with(')') => true,
-        [frame] => frame_word(frame),
-        [_, frame, ..] if frame_word(frame) => true,
-        [_, _, len, ..] => len.starts_with('[') && len.ends_with(']'),
-        _ => false,
-    }
-}
-
-/// `motionlink decode powercube`: RS232 bytes (hex or raw) or candump lines.
-pub fn decode(args: DecodeArgs) -> Result<(), CliError> {
-    let mut out = std::io::stdout().lock();
-    let bytes = match read_input(&args.capture)? {
-        Ok(text) if text.lines().any(looks_like_candump) => {
-            let mut bad = 0;
-            for (i, line) in text.lines().enumerate() {
-                let line = line.trim();
-                if line.is_empty() || is_comment(line) {
-                    continue;
-                }
-                match line.parse::<CandumpLine>() {
-                    Ok(l) => writeln!(out, "{:<24}  {}", l.frame.to_string(), describe_can(&l.frame))?,
-                    Err(e) => {
-                        bad += 1;
-                        writeln!(out, "line {}: {e}", i + 1)?;
-                    }
-                }
-            }
-            if bad > 0 {
-                return Err(CliError::usage(format!("{bad} line(s) are not candump lines")));
-            }
-            return Ok(());
-        }
-        Ok(text) => common::parse_hex(&text)?,
-        Err(raw) => raw,
-    };
-    let mut decoder = Rs232Decoder::new();
-    let mut frame_bytes = Vec::new();
-    let mut frames = 0;
-    for &b in &bytes {
-        frame_bytes.push(b);
-        if b == rs232::STX && frame_bytes.len() > 1 {
-            frame_bytes = vec![b];
-        }
-        match decoder.push(b) {
-            Some(Ok(f)) => {
-                frames += 1;
-                writeln!(out, "{:<36}  {}", common::hex(&frame_bytes), describe_rs232(&f))?;
-                frame_bytes.clear();
-            }
-            Some(Err(e)) => {
-                writeln!(out, "{:<36}  error: {e}", "")?;
-                if b != rs232::STX {
-                    frame_bytes.clear();
-                }
-            }
-            None => {}
-        }
-    }
-    if frames == 0 && !bytes.is_empty() {
-        writeln!(out, "no complete RS232 frame in {} byte(s)", bytes.len())?;
-    }
-    Ok(())
-}
-
-/// A CAN link that records every frame, for the demo.
-struct TapCan<L> {
-    inner: L,
-    log: Arc<Mutex<Vec<(bool, CanFrame)>>>,
-}
-
-impl<L: CanLink> CanLink for TapCan<L> {
-    fn send(&mut self, frame: &CanFrame) -> Result<(), LinkError> {
-        motionlink_link::clock::lock(&self.log).push((true, *frame));
-        self.inner.send(frame)
-    }
-    fn recv(&mut self, timeout: Duration) -> Result<Option<CanFrame>, LinkError> {
-        let f = self.inner.recv(timeout)?;
-        if let Some(f) = f {
-            motionlink_link::clock::lock(&self.log).push((false, f));
-        }
-        Ok(f)
-    }
-    fn describe(&self) -> String {
-        self.inner.describe()
-    }
-}
-
-/// One example of the demo: a name and what the client does.
-type DemoStep<'a> = Box<dyn Fn() -> Result<(), PcError> + 'a>;
-
-/// The manual's chapter 8 (CAN) and 9 (RS232) examples against the emulator (module 17).
-pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
-    let color = std::io::stdout().is_terminal();
-    let title = |s: &str| if color { format!("\x1b[1m{s}\x1b[0m") } else { s.to_string() };
-    writeln!(
-        out,
-        "{}",
-        title("== Schunk / Amtec PowerCube: the manual's chapter 8, CAN examples (module 17, emulated at 1 Mbit/s) ==")
-    )?;
-    {
-        let clock = ManualClock::new_auto();
-        let _me = clock.reserve_participant().enter();
-        let sim = SimBus::new_can(&SimConfig::with_addresses(&[17]).map_err(CliError::usage)?);
-        let can = CanBus::with_emulator(sim, clock.shared(), CanBusConfig::paced(1_000_000));
-        let log = Arc::new(Mutex::new(Vec::new()));
-        let link = TapCan { inner: can.connect(), log: Arc::clone(&log) };
-        let bus = Bus::can(Box::new(link), clock.shared(), BusConfig::can());
-        let m = bus.module(17).map_err(cli_err)?;
-        let steps: Vec<(&str, DemoStep)> = vec![
-            ("Home", Box::new(|| m.home())),
-            ("Reset", Box::new(|| m.reset())),
-            ("Set ramp motion acceleration", Box::new(|| m.set(Param::TargetAcc, Value::F32(0.5)))),
-            ("Set ramp motion velocity", Box::new(|| m.set(Param::TargetVel, Value::F32(0.08)))),
-            (
-                "Ramp motion command",
-                Box::new(|| m.motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Simple).map(|_| ())),
-            ),
-            ("Retrieve module state", Box::new(|| m.state().map(|_| ()))),
-            ("Retrieve module position", Box::new(|| m.position().map(|_| ()))),
-            (
-                "Ramp motion command with extended acknowledge",
-                Box::new(|| m.motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Extended).map(|_| ())),
-            ),
-            ("Halt", Box::new(|| m.halt())),
-        ];
-        for (name, step) in steps {
-            step().map_err(cli_err)?;
-            writeln!(out, "  {name}")?;
-            for (sent, f) in motionlink_link::clock::lock(&log).drain(..) {
-                let arrow = if sent { "->" } else { "<-" };
-                writeln!(out, "    {arrow} {:<24} {}", f.to_string(), describe_can(&f))?;
-            }
-        }
-        bus.halt_started();
-    }
-    writeln!(out)?;
-    writeln!(
-        out,
-        "{}",
-        title(
-            "== Schunk / Amtec PowerCube: the manual's chapter 9, RS232 examples (module 17, emulated at 9600 baud) =="
-        )
-    )?;
-    {
-        let clock = ManualClock::new_auto();
-        let _me = clock.reserve_participant().enter();
-        let sim = SimBus::new(&SimConfig::with_addresses(&[17]).map_err(CliError::usage)?);
-        let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(9_600));
-        let transcript = Transcript::new();
-        let link = TapLink::new(host.connect().0, clock.shared(), transcript.clone());
-        let bus = Bus::rs232(Box::new(link), clock.shared(), BusConfig::rs232());
-        let m = bus.module(17).map_err(cli_err)?;
-        let steps: Vec<(&str, DemoStep)> = vec![
-            ("Home", Box::new(|| m.home())),
-            ("Reset", Box::new(|| m.reset())),
-            ("Set ramp motion acceleration 0.5", Box::new(|| m.set(Param::TargetAcc, Value::F32(0.5)))),
-            ("Set ramp motion velocity 0.08", Box::new(|| m.set(Param::TargetVel, Value::F32(0.08)))),
-            (
-                "Ramp motion command to 0.75",
-                Box::new(|| m.motion(Motion::FRamp { pos: Position(0.75) }, AckKind::Simple).map(|_| ())),
-            ),
-            ("Halt (0x02 escaped as 10 82)", Box::new(|| m.halt())),
-        ];
-        for (name, step) in steps {
-            step().map_err(cli_err)?;
-            writeln!(out, "  {name}")?;
-            for r in transcript.take() {
-                let arrow = if r.way == Way::Sent { "->" } else { "<-" };
-                let mut d = Rs232Decoder::new();
-                let meaning: Vec<String> =
-                    d.feed(&r.bytes).map(|f| f.map_or_else(|e| e.to_string(), |f| describe_rs232(&f))).collect();
-                writeln!(out, "    {arrow} {:<33} {}", common::hex(&r.bytes), meaning.join("; "))?;
-            }
-        }
-    }
-    Ok(())
 }

@@ -2,7 +2,7 @@
 //!
 //! ```
 //! use motionlink_powercube::model::{AckKind, Motion, MotionId, Position};
-//! let m = Motion::FRamp { pos: Position(0.5) };
+//! let m = Motion::FRamp { pos: Position::rad(0.5) };
 //! assert_eq!(m.id(AckKind::Simple), Some(MotionId::FRamp));
 //! assert_eq!(m.id(AckKind::Extended), Some(MotionId::FRampAck));
 //! assert_eq!(MotionId::FRampAck.code(), 14);
@@ -204,9 +204,9 @@ impl Motion {
     /// False if a float parameter (position, velocity, current) is NaN or infinite.
     pub fn is_finite(&self) -> bool {
         match *self {
-            Motion::FRamp { pos } | Motion::FRampLoop { pos } => pos.0.is_finite(),
-            Motion::FStep { pos, .. } | Motion::FCosLoop { pos, .. } => pos.0.is_finite(),
-            Motion::FVel { vel } => vel.0.is_finite(),
+            Motion::FRamp { pos } | Motion::FRampLoop { pos } => pos.value().is_finite(),
+            Motion::FStep { pos, .. } | Motion::FCosLoop { pos, .. } => pos.value().is_finite(),
+            Motion::FVel { vel } => vel.value().is_finite(),
             Motion::FCur { cur } => cur.0.is_finite(),
             Motion::IRamp { .. } | Motion::IStep { .. } | Motion::IVel { .. } | Motion::ICur { .. } => true,
         }
@@ -223,11 +223,11 @@ impl Motion {
             n
         };
         match *self {
-            Motion::FRamp { pos } | Motion::FRampLoop { pos } => put(&[&pos.0.to_le_bytes()]),
+            Motion::FRamp { pos } | Motion::FRampLoop { pos } => put(&[&pos.value().to_le_bytes()]),
             Motion::FStep { pos, time } | Motion::FCosLoop { pos, time } => {
-                put(&[&pos.0.to_le_bytes(), &time.0.to_le_bytes()])
+                put(&[&pos.value().to_le_bytes(), &time.0.to_le_bytes()])
             }
-            Motion::FVel { vel } => put(&[&vel.0.to_le_bytes()]),
+            Motion::FVel { vel } => put(&[&vel.value().to_le_bytes()]),
             Motion::FCur { cur } => put(&[&cur.0.to_le_bytes()]),
             Motion::IRamp { pos } => put(&[&pos.0.to_le_bytes()]),
             Motion::IStep { pos, time } => put(&[&pos.0.to_le_bytes(), &time.0.to_le_bytes()]),
@@ -236,7 +236,9 @@ impl Motion {
         }
     }
 
-    /// Reads the parameters of mode `id` from `bytes` (exactly the mode's size).
+    /// Reads the parameters of mode `id` from `bytes` (exactly the mode's size). Positions and velocities
+    /// are in the module's own unit ([`AxisUnit::ModuleUnit`](super::AxisUnit::ModuleUnit)): the bytes do not
+    /// say which.
     pub fn decode_params(id: MotionId, bytes: &[u8]) -> Option<Motion> {
         if bytes.len() != id.shape().size() {
             return None;
@@ -246,32 +248,32 @@ impl Motion {
         let t = || Millis(u16::from_le_bytes([bytes[4], bytes[5]]));
         use MotionId as M;
         Some(match id {
-            M::FRamp | M::FRampAck => Motion::FRamp { pos: Position(f()) },
-            M::FStep | M::FStepAck => Motion::FStep { pos: Position(f()), time: t() },
-            M::FVel | M::FVelAck => Motion::FVel { vel: Velocity(f()) },
+            M::FRamp | M::FRampAck => Motion::FRamp { pos: Position::native(f()) },
+            M::FStep | M::FStepAck => Motion::FStep { pos: Position::native(f()), time: t() },
+            M::FVel | M::FVelAck => Motion::FVel { vel: Velocity::native(f()) },
             M::FCur | M::FCurAck => Motion::FCur { cur: Amperes(f()) },
             M::IRamp | M::IRampAck => Motion::IRamp { pos: Ticks(i()) },
             M::IStep | M::IStepAck => Motion::IStep { pos: Ticks(i()), time: t() },
             M::IVel | M::IVelAck => Motion::IVel { vel: TicksPerSec(i()) },
             M::ICur | M::ICurAck => Motion::ICur { cur: CurrentDigits(i16::from_le_bytes([bytes[0], bytes[1]])) },
-            M::FCosLoop => Motion::FCosLoop { pos: Position(f()), time: t() },
-            M::FRampLoop => Motion::FRampLoop { pos: Position(f()) },
+            M::FCosLoop => Motion::FCosLoop { pos: Position::native(f()), time: t() },
+            M::FRampLoop => Motion::FRampLoop { pos: Position::native(f()) },
         })
     }
 
     /// A short description: `FRAMP to 0.5`.
     pub fn describe(&self) -> String {
         match *self {
-            Motion::FRamp { pos } => format!("ramp to {}", pos.0),
-            Motion::FStep { pos, time } => format!("step to {} in {} ms", pos.0, time.0),
-            Motion::FVel { vel } => format!("velocity {}", vel.0),
+            Motion::FRamp { pos } => format!("ramp to {}", pos.value()),
+            Motion::FStep { pos, time } => format!("step to {} in {} ms", pos.value(), time.0),
+            Motion::FVel { vel } => format!("velocity {}", vel.value()),
             Motion::FCur { cur } => format!("current {} A", cur.0),
             Motion::IRamp { pos } => format!("ramp to {} ticks", pos.0),
             Motion::IStep { pos, time } => format!("step to {} ticks in {} ms", pos.0, time.0),
             Motion::IVel { vel } => format!("velocity {} ticks/s", vel.0),
             Motion::ICur { cur } => format!("current {} digits", cur.0),
-            Motion::FCosLoop { pos, time } => format!("cosine loop to {} period {} ms", pos.0, time.0),
-            Motion::FRampLoop { pos } => format!("ramp loop to {}", pos.0),
+            Motion::FCosLoop { pos, time } => format!("cosine loop to {} period {} ms", pos.value(), time.0),
+            Motion::FRampLoop { pos } => format!("ramp loop to {}", pos.value()),
         }
     }
 }
@@ -303,16 +305,16 @@ mod tests {
     #[test]
     fn parameters_round_trip_in_every_mode() {
         let motions = [
-            Motion::FRamp { pos: Position(0.5) },
-            Motion::FStep { pos: Position(-0.25), time: Millis(1000) },
-            Motion::FVel { vel: Velocity(0.1) },
+            Motion::FRamp { pos: Position::native(0.5) },
+            Motion::FStep { pos: Position::native(-0.25), time: Millis(1000) },
+            Motion::FVel { vel: Velocity::native(0.1) },
             Motion::FCur { cur: Amperes(1.5) },
             Motion::IRamp { pos: Ticks(-4096) },
             Motion::IStep { pos: Ticks(100), time: Millis(20) },
             Motion::IVel { vel: TicksPerSec(-300) },
             Motion::ICur { cur: CurrentDigits(-250) },
-            Motion::FCosLoop { pos: Position(1.0), time: Millis(2000) },
-            Motion::FRampLoop { pos: Position(1.0) },
+            Motion::FCosLoop { pos: Position::native(1.0), time: Millis(2000) },
+            Motion::FRampLoop { pos: Position::native(1.0) },
         ];
         let mut ids = 0;
         for m in motions {

@@ -1,18 +1,24 @@
-//! The parameter table (chapter 4.6), as one table: identifier, name, data type, unit, access and class.
+//! The parameter table (chapter 4.6): one row per parameter (identifier, name, data type, unit, access and
+//! class), made into the shared [`Table`] of [`Entry`] rows ([`PARAMS`]) that every family uses, and the
+//! [`Param`] enum that names them.
 //!
 //! ```
-//! use motionlink_powercube::model::{Access, DataType, Param, ParamClass, Unit};
+//! use motionlink_powercube::model::{Access, DataType, Param, ParamClass, Unit, PARAMS};
 //! let p: Param = "ActPos".parse().unwrap();
 //! assert_eq!((p.id(), p.data_type(), p.unit()), (0x3c, DataType::F32, Unit::Position));
 //! assert_eq!((p.access(), p.class()), (Access::Read, ParamClass::Actual));
 //! assert_eq!("0x4f".parse::<Param>().unwrap(), Param::TargetVel);
 //! assert!(!Param::TargetVel.access().readable());
+//! assert_eq!(PARAMS.lookup("actpos").map(|e| e.kind.param), Some(Param::ActPos));
+//! assert_eq!(PARAMS.by_id(0x3c).map(|e| e.unit), Some("rad|m"));
 //! ```
 
 use std::fmt;
 use std::str::FromStr;
 
-use super::flags::{CubeState, Dio, ShortState};
+pub use motionlink_link::table::Access;
+use motionlink_link::table::{Entry, Table};
+
 use super::units::ModuleKind;
 
 /// The data type of a parameter on the wire (little-endian).
@@ -120,36 +126,23 @@ impl Unit {
             (Unit::Ratio, _) | (Unit::Flags, _) | (Unit::Plain, _) => "",
         }
     }
-}
 
-/// Who may read and write a parameter.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Access {
-    /// Read only.
-    Read,
-    /// Write only (targets of motion commands).
-    Write,
-    /// Read and write.
-    ReadWrite,
-}
-
-impl Access {
-    /// True if GetExtended may read it.
-    pub fn readable(self) -> bool {
-        matches!(self, Access::Read | Access::ReadWrite)
-    }
-
-    /// True if SetExtended may write it.
-    pub fn writable(self) -> bool {
-        matches!(self, Access::Write | Access::ReadWrite)
-    }
-
-    /// "r", "w" or "rw".
-    pub fn name(self) -> &'static str {
+    /// The unit's symbol whatever the module's kind ("rad|m" where it depends on it), as the table shows it.
+    pub const fn generic_symbol(self) -> &'static str {
         match self {
-            Access::Read => "r",
-            Access::Write => "w",
-            Access::ReadWrite => "rw",
+            Unit::Position => "rad|m",
+            Unit::Velocity => "rad|m/s",
+            Unit::Acceleration => "rad|m/s²",
+            Unit::Ticks => "ticks",
+            Unit::TicksPerSec => "ticks/s",
+            Unit::TicksPerSec2 => "ticks/s²",
+            Unit::TicksPerUnit => "ticks/(rad|m)",
+            Unit::Amperes => "A",
+            Unit::Volts => "V",
+            Unit::Celsius => "°C",
+            Unit::Millis => "ms",
+            Unit::Digits => "digits",
+            Unit::Ratio | Unit::Flags | Unit::Plain => "",
         }
     }
 }
@@ -183,6 +176,21 @@ impl ParamClass {
     }
 }
 
+/// What the shared table's rows carry besides id, name, title, unit and access: the PowerCube's own
+/// details of a parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ParamKind {
+    /// The parameter.
+    pub param: Param,
+    /// Its data type on the wire.
+    pub data_type: DataType,
+    /// Its unit class (the table row's `unit` is its [`Unit::generic_symbol`]).
+    pub unit: Unit,
+    /// The manual's class.
+    pub class: ParamClass,
+}
+
+/// Makes the [`Param`] enum and the [`Entry`] rows of the shared table from one list of rows.
 macro_rules! param_table {
     ( $( $var:ident = ($id:literal, $name:literal, $ty:ident, $unit:ident, $access:ident, $class:ident, $doc:literal) ),* $(,)? ) => {
         /// A module parameter: every entry of the manual's parameter table.
@@ -191,51 +199,79 @@ macro_rules! param_table {
             $( #[doc = $doc] $var ),*
         }
 
+        /// The rows of the parameter table, in the order of [`Param`].
+        pub static PARAM_ENTRIES: &[Entry<ParamKind>] = &[
+            $( Entry {
+                id: $id,
+                name: $name,
+                title: $doc,
+                unit: Unit::$unit.generic_symbol(),
+                access: Access::$access,
+                kind: ParamKind {
+                    param: Param::$var,
+                    data_type: DataType::$ty,
+                    unit: Unit::$unit,
+                    class: ParamClass::$class,
+                },
+            } ),*
+        ];
+
         impl Param {
             /// Every parameter, by identifier.
             pub const ALL: &'static [Param] = &[$(Param::$var),*];
 
-            /// The ParameterID.
-            pub fn id(self) -> u8 {
-                match self { $(Param::$var => $id),* }
-            }
-
-            /// The manual's name.
-            pub fn name(self) -> &'static str {
-                match self { $(Param::$var => $name),* }
-            }
-
-            /// The data type on the wire.
-            pub fn data_type(self) -> DataType {
-                match self { $(Param::$var => DataType::$ty),* }
-            }
-
-            /// The unit class.
-            pub fn unit(self) -> Unit {
-                match self { $(Param::$var => Unit::$unit),* }
-            }
-
-            /// Read and write access.
-            pub fn access(self) -> Access {
-                match self { $(Param::$var => Access::$access),* }
-            }
-
-            /// The manual's class.
-            pub fn class(self) -> ParamClass {
-                match self { $(Param::$var => ParamClass::$class),* }
-            }
-
-            /// The manual's explanation.
-            pub fn description(self) -> &'static str {
-                match self { $(Param::$var => $doc),* }
-            }
-
-            /// The parameter with this ParameterID.
+            /// The parameter with this ParameterID (the same rows, as a `match` for the decoder).
             pub fn from_id(id: u8) -> Option<Param> {
                 match id { $($id => Some(Param::$var),)* _ => None }
             }
         }
     };
+}
+
+/// The parameter table, searchable by name or number as every family's table is.
+pub static PARAMS: Table<ParamKind> = Table::new("parameter", PARAM_ENTRIES);
+
+impl Param {
+    /// The parameter's row of [`PARAMS`].
+    pub fn entry(self) -> &'static Entry<ParamKind> {
+        &PARAM_ENTRIES[self as usize]
+    }
+
+    /// The ParameterID.
+    pub fn id(self) -> u8 {
+        // Every id in the table is a byte (the rows are written as byte literals).
+        self.entry().id as u8
+    }
+
+    /// The manual's name.
+    pub fn name(self) -> &'static str {
+        self.entry().name
+    }
+
+    /// The data type on the wire.
+    pub fn data_type(self) -> DataType {
+        self.entry().kind.data_type
+    }
+
+    /// The unit class.
+    pub fn unit(self) -> Unit {
+        self.entry().kind.unit
+    }
+
+    /// Read and write access.
+    pub fn access(self) -> Access {
+        self.entry().access
+    }
+
+    /// The manual's class.
+    pub fn class(self) -> ParamClass {
+        self.entry().kind.class
+    }
+
+    /// The manual's explanation.
+    pub fn description(self) -> &'static str {
+        self.entry().title
+    }
 }
 
 param_table! {
@@ -369,266 +405,10 @@ pub struct UnknownParam(pub String);
 impl FromStr for Param {
     type Err = UnknownParam;
 
-    /// A name (case-insensitive) or an identifier in decimal or `0x` hex.
+    /// A name (case-insensitive) or an identifier in decimal or `0x` hex, looked up in [`PARAMS`].
     fn from_str(s: &str) -> Result<Self, UnknownParam> {
-        let t = s.trim();
-        let id = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
-            Some(hex) => u8::from_str_radix(hex, 16).ok(),
-            None => t.parse::<u8>().ok(),
-        };
-        id.and_then(Param::from_id)
-            .or_else(|| Param::ALL.iter().copied().find(|p| p.name().eq_ignore_ascii_case(t)))
-            .ok_or_else(|| UnknownParam(s.to_string()))
+        PARAMS.lookup(s).map(|e| e.kind.param).ok_or_else(|| UnknownParam(s.to_string()))
     }
-}
-
-/// A parameter value, typed by its data type.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Value {
-    /// A float.
-    F32(f32),
-    /// An unsigned 32-bit integer.
-    U32(u32),
-    /// A signed 32-bit integer.
-    I32(i32),
-    /// An unsigned 16-bit integer.
-    U16(u16),
-    /// A signed 16-bit integer.
-    I16(i16),
-    /// An unsigned byte.
-    U8(u8),
-    /// ActFPosStateDio: position, short state, DIO.
-    PosStateDio {
-        /// Actual position (rad or m).
-        pos: f32,
-        /// Short state.
-        state: ShortState,
-        /// Digital I/O.
-        dio: Dio,
-    },
-    /// ActFPosTime: position and time stamp.
-    PosTime {
-        /// Actual position (rad or m).
-        pos: f32,
-        /// Milliseconds.
-        time_ms: u16,
-    },
-}
-
-/// A value that does not fit a parameter.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum ValueError {
-    /// The bytes are fewer than the data type needs.
-    #[error("{param}: expected {expected} bytes of {ty}, got {got}")]
-    Length {
-        /// The parameter.
-        param: &'static str,
-        /// The data type's name.
-        ty: &'static str,
-        /// Bytes needed.
-        expected: usize,
-        /// Bytes given.
-        got: usize,
-    },
-    /// A value of another type.
-    #[error("{param} is {expected}, not {got}")]
-    Type {
-        /// The parameter.
-        param: &'static str,
-        /// The data type's name.
-        expected: &'static str,
-        /// The given value's type name.
-        got: &'static str,
-    },
-    /// Text that is not a value of the type.
-    #[error("{param}: {text:?} is not a valid {ty} value")]
-    Parse {
-        /// The parameter.
-        param: &'static str,
-        /// The data type's name.
-        ty: &'static str,
-        /// The text.
-        text: String,
-    },
-}
-
-impl Value {
-    /// The data type of this value.
-    pub fn data_type(&self) -> DataType {
-        match self {
-            Value::F32(_) => DataType::F32,
-            Value::U32(_) => DataType::U32,
-            Value::I32(_) => DataType::I32,
-            Value::U16(_) => DataType::U16,
-            Value::I16(_) => DataType::I16,
-            Value::U8(_) => DataType::U8,
-            Value::PosStateDio { .. } => DataType::PosStateDio,
-            Value::PosTime { .. } => DataType::PosTime,
-        }
-    }
-
-    /// Writes the little-endian bytes into `out` (at least 6 bytes); returns how many.
-    pub fn encode(&self, out: &mut [u8; 6]) -> usize {
-        match *self {
-            Value::F32(v) => put(out, &v.to_le_bytes()),
-            Value::U32(v) => put(out, &v.to_le_bytes()),
-            Value::I32(v) => put(out, &v.to_le_bytes()),
-            Value::U16(v) => put(out, &v.to_le_bytes()),
-            Value::I16(v) => put(out, &v.to_le_bytes()),
-            Value::U8(v) => put(out, &[v]),
-            Value::PosStateDio { pos, state, dio } => {
-                put(out, &pos.to_le_bytes());
-                out[4] = state.0;
-                out[5] = dio.0;
-                6
-            }
-            Value::PosTime { pos, time_ms } => {
-                put(out, &pos.to_le_bytes());
-                out[4..6].copy_from_slice(&time_ms.to_le_bytes());
-                6
-            }
-        }
-    }
-
-    /// Reads a value of `param`'s type from the start of `bytes`.
-    pub fn decode(param: Param, bytes: &[u8]) -> Result<Value, ValueError> {
-        let ty = param.data_type();
-        let Some(b) = bytes.get(..ty.size()) else {
-            return Err(ValueError::Length {
-                param: param.name(),
-                ty: ty.name(),
-                expected: ty.size(),
-                got: bytes.len(),
-            });
-        };
-        let f4 = |b: &[u8]| [b[0], b[1], b[2], b[3]];
-        Ok(match ty {
-            DataType::F32 => Value::F32(f32::from_le_bytes(f4(b))),
-            DataType::U32 => Value::U32(u32::from_le_bytes(f4(b))),
-            DataType::I32 => Value::I32(i32::from_le_bytes(f4(b))),
-            DataType::U16 => Value::U16(u16::from_le_bytes([b[0], b[1]])),
-            DataType::I16 => Value::I16(i16::from_le_bytes([b[0], b[1]])),
-            DataType::U8 => Value::U8(b[0]),
-            DataType::PosStateDio => {
-                Value::PosStateDio { pos: f32::from_le_bytes(f4(b)), state: ShortState(b[4]), dio: Dio(b[5]) }
-            }
-            DataType::PosTime => {
-                Value::PosTime { pos: f32::from_le_bytes(f4(b)), time_ms: u16::from_le_bytes([b[4], b[5]]) }
-            }
-        })
-    }
-
-    /// Parses text as a value for `param`: a number in the parameter's type (integers also as `0x` hex).
-    pub fn parse(param: Param, text: &str) -> Result<Value, ValueError> {
-        let ty = param.data_type();
-        let t = text.trim();
-        let err = || ValueError::Parse { param: param.name(), ty: ty.name(), text: text.to_string() };
-        let int = |t: &str| -> Option<i64> {
-            let (neg, digits) = match t.strip_prefix('-') {
-                Some(d) => (true, d),
-                None => (false, t),
-            };
-            let v = match digits.strip_prefix("0x").or_else(|| digits.strip_prefix("0X")) {
-                Some(h) => i64::from_str_radix(h, 16).ok()?,
-                None => digits.parse::<i64>().ok()?,
-            };
-            Some(if neg { -v } else { v })
-        };
-        Ok(match ty {
-            DataType::F32 => {
-                let v: f32 = t.parse().map_err(|_| err())?;
-                if !v.is_finite() {
-                    return Err(err());
-                }
-                Value::F32(v)
-            }
-            DataType::U32 => Value::U32(int(t).and_then(|v| u32::try_from(v).ok()).ok_or_else(err)?),
-            DataType::I32 => Value::I32(int(t).and_then(|v| i32::try_from(v).ok()).ok_or_else(err)?),
-            DataType::U16 => Value::U16(int(t).and_then(|v| u16::try_from(v).ok()).ok_or_else(err)?),
-            DataType::I16 => Value::I16(int(t).and_then(|v| i16::try_from(v).ok()).ok_or_else(err)?),
-            DataType::U8 => Value::U8(int(t).and_then(|v| u8::try_from(v).ok()).ok_or_else(err)?),
-            DataType::PosStateDio | DataType::PosTime => return Err(err()),
-        })
-    }
-
-    /// The value as a number, for the single-number types.
-    pub fn as_f64(&self) -> Option<f64> {
-        Some(match *self {
-            Value::F32(v) => f64::from(v),
-            Value::U32(v) => f64::from(v),
-            Value::I32(v) => f64::from(v),
-            Value::U16(v) => f64::from(v),
-            Value::I16(v) => f64::from(v),
-            Value::U8(v) => f64::from(v),
-            Value::PosStateDio { .. } | Value::PosTime { .. } => return None,
-        })
-    }
-
-    /// The value as an unsigned word, for the unsigned integer types.
-    pub fn as_u32(&self) -> Option<u32> {
-        match *self {
-            Value::U32(v) => Some(v),
-            Value::U16(v) => Some(u32::from(v)),
-            Value::U8(v) => Some(u32::from(v)),
-            _ => None,
-        }
-    }
-
-    /// The value as a float, if it is one.
-    pub fn as_f32(&self) -> Option<f32> {
-        match *self {
-            Value::F32(v) => Some(v),
-            _ => None,
-        }
-    }
-
-    /// The value as a signed integer, if it is one.
-    pub fn as_i32(&self) -> Option<i32> {
-        match *self {
-            Value::I32(v) => Some(v),
-            Value::I16(v) => Some(i32::from(v)),
-            _ => None,
-        }
-    }
-
-    /// Formats the value of `param` for a person: with its unit, flag words decoded, versions as x.y.zz.
-    pub fn show(&self, param: Param, kind: ModuleKind) -> String {
-        use super::flags::{ConfigWord, DioWord, SetupWord};
-        use super::units::CubeVersion;
-        let unit = param.unit().symbol(kind);
-        let with_unit = |s: String| if unit.is_empty() { s } else { format!("{s} {unit}") };
-        match (*self, param) {
-            (Value::U32(v), Param::CubeState) => format!("{v:#010x} ({})", CubeState(v)),
-            (Value::U32(v), Param::Config | Param::DefConfig) => format!("{v:#010x} ({})", ConfigWord(v)),
-            (Value::U32(v), Param::Setup) => format!("{v:#010x} ({})", SetupWord(v)),
-            (Value::U32(v), Param::DioSetup) => format!("{v:#010x} ({})", DioWord(v)),
-            (Value::U16(v), Param::DefCubeVersion) => format!("{} ({v:#06x})", CubeVersion(v)),
-            (Value::F32(v), _) => with_unit(format!("{v:.6}")),
-            (Value::PosStateDio { pos, state, dio }, _) => {
-                format!("{pos:.6} {}, state {state}, dio {dio}", kind.unit())
-            }
-            (Value::PosTime { pos, time_ms }, _) => format!("{pos:.6} {} at {time_ms} ms", kind.unit()),
-            (v, _) => with_unit(v.as_f64().map_or_else(String::new, |n| format!("{n}"))),
-        }
-    }
-
-    fn type_name(&self) -> &'static str {
-        self.data_type().name()
-    }
-
-    /// Checks that this value has `param`'s data type.
-    pub fn check_type(&self, param: Param) -> Result<(), ValueError> {
-        if self.data_type() == param.data_type() {
-            Ok(())
-        } else {
-            Err(ValueError::Type { param: param.name(), expected: param.data_type().name(), got: self.type_name() })
-        }
-    }
-}
-
-fn put(out: &mut [u8; 6], bytes: &[u8]) -> usize {
-    out[..bytes.len()].copy_from_slice(bytes);
-    bytes.len()
 }
 
 #[cfg(test)]
@@ -671,41 +451,12 @@ mod tests {
     }
 
     #[test]
-    fn values_round_trip_and_parse() {
-        let mut buf = [0u8; 6];
-        for (p, v) in [
-            (Param::TargetAcc, Value::F32(0.5)),
-            (Param::CubeState, Value::U32(0x8002)),
-            (Param::ActIPos, Value::I32(-12345)),
-            (Param::DefCubeVersion, Value::U16(0x351D)),
-            (Param::RawCur, Value::I16(-500)),
-            (Param::DefAddress, Value::U8(17)),
-            (Param::ActFPosStateDio, Value::PosStateDio { pos: 1.0, state: ShortState(0x20), dio: Dio(0x11) }),
-            (Param::ActFPosTime, Value::PosTime { pos: -1.0, time_ms: 999 }),
-        ] {
-            let n = v.encode(&mut buf);
-            assert_eq!(n, p.data_type().size());
-            assert_eq!(Value::decode(p, &buf[..n]).unwrap(), v);
-            assert!(v.check_type(p).is_ok());
+    fn the_table_rows_follow_the_enum() {
+        for (i, p) in Param::ALL.iter().enumerate() {
+            assert_eq!(PARAM_ENTRIES[i].kind.param, *p);
+            assert_eq!(PARAMS.by_name(p.name()).map(|e| e.kind.param), Some(*p));
         }
-        assert_eq!(Value::parse(Param::TargetAcc, "0.5").unwrap(), Value::F32(0.5));
-        assert_eq!(Value::parse(Param::Config, "0x01000000").unwrap(), Value::U32(0x0100_0000));
-        assert_eq!(Value::parse(Param::ActIMinPos, "-100").unwrap(), Value::I32(-100));
-        assert!(Value::parse(Param::DefAddress, "256").is_err());
-        assert!(Value::parse(Param::MaxVel, "fast").is_err());
-        assert!(Value::parse(Param::MaxVel, "inf").is_err());
-        assert!(Value::decode(Param::ActPos, &[1, 2]).is_err());
-        assert!(Value::U8(1).check_type(Param::ActPos).is_err());
-    }
-
-    #[test]
-    fn values_show_units_and_flags() {
-        assert_eq!(Value::F32(1.0).show(Param::ActPos, ModuleKind::Rotary), "1.000000 rad");
-        assert_eq!(Value::F32(1.0).show(Param::ActVel, ModuleKind::Linear), "1.000000 m/s");
-        assert_eq!(Value::U16(0x351D).show(Param::DefCubeVersion, ModuleKind::Rotary), "3.5.1D (0x351d)");
-        assert_eq!(
-            Value::U32(0x8002).show(Param::CubeState, ModuleKind::Rotary),
-            "0x00008002 (STATE_HOME_OK | STATE_RAMP_END)"
-        );
+        assert_eq!(PARAMS.what, "parameter");
+        assert_eq!(Param::TargetVel.access().short(), "w");
     }
 }

@@ -1,21 +1,21 @@
 //! An emulated bus of PowerCube modules, sans-IO.
 //!
-//! [`SimBus`] holds modules at their addresses and answers as they would. It implements
+//! [`Emulator`] holds modules at their addresses and answers as they would. It implements
 //! [`Emulator`] (RS232 framing on a byte stream, for TCP, a pty or an in-process
 //! [`EmulatorHost`](motionlink_link::pipe::EmulatorHost)) and [`CanEmulator`] (frames on a CAN bus, for the
 //! in-memory [`CanBus`](motionlink_link::can::CanBus) or an [`SlcanAdapter`](motionlink_link::can::SlcanAdapter)
-//! on a pty), and exchanges Profibus-DP process images ([`SimBus::profibus_exchange`]).
+//! on a pty), and exchanges Profibus-DP process images ([`Emulator::profibus_exchange`]).
 //!
 //! Each module's axis follows the profile of its last motion command as a function of time: nothing runs
 //! between calls, everything is computed for the timestamp given (a watchdog that expired, a soft limit
 //! crossed, a ramp that ended, all at the instant they happened). The emulator never reads a clock.
 //!
 //! ```
-//! use motionlink_powercube::sim::{SimBus, SimConfig};
+//! use motionlink_powercube::sim::{Emulator, SimConfig};
 //! use motionlink_powercube::model::{Action, Param, Reply, Request, StateFlag, CubeState, Value};
 //! use motionlink_link::Timestamp;
 //!
-//! let mut bus = SimBus::new(&SimConfig::default());
+//! let mut bus = Emulator::new(&SimConfig::default());
 //! let at = |ms| Timestamp::from_millis(ms);
 //! assert!(bus.request(at(0), 1, &Request::Action(Action::Home)).is_some());
 //! let Some(Reply::Get(_, Value::U32(state))) = bus.request(at(5_000), 1, &Request::Get(Param::CubeState)) else {
@@ -26,10 +26,12 @@
 
 mod config;
 mod module;
+mod module_commands;
+mod module_params;
 pub(crate) mod profile;
 
 use motionlink_link::can::{CanEmulator, CanFrame};
-use motionlink_link::emulator::Emulator;
+use motionlink_link::emulator::Emulator as ByteEmulator;
 use motionlink_link::Timestamp;
 
 pub use config::{ModuleConfig, SimConfig, SimConfigError};
@@ -60,7 +62,7 @@ pub struct SimStats {
 
 /// A bus of emulated modules.
 #[derive(Debug, Clone)]
-pub struct SimBus {
+pub struct Emulator {
     modules: Vec<SimModule>,
     decoder: Rs232Decoder,
     strict_bcc: bool,
@@ -74,7 +76,7 @@ fn secs(now: Timestamp) -> f64 {
     now.since_origin().as_secs_f64()
 }
 
-impl SimBus {
+impl Emulator {
     /// The modules of `config`, as RS232 modules (the Setup word says RS232).
     pub fn new(config: &SimConfig) -> Self {
         Self::build(config, false)
@@ -86,7 +88,7 @@ impl SimBus {
     }
 
     fn build(config: &SimConfig, can: bool) -> Self {
-        SimBus {
+        Emulator {
             modules: config
                 .modules
                 .iter()
@@ -260,7 +262,7 @@ impl SimBus {
     }
 }
 
-impl Emulator for SimBus {
+impl ByteEmulator for Emulator {
     fn receive(&mut self, now: Timestamp, bytes: &[u8], out: &mut Vec<u8>) {
         for &b in bytes {
             let Some(result) = self.decoder.push(b) else { continue };
@@ -301,7 +303,7 @@ impl Emulator for SimBus {
     }
 
     /// Modules never speak unasked, and their state is computed for whatever time they are asked at; the
-    /// wake-up is the next change a module makes by itself ([`SimBus::next_change`]), so that a server
+    /// wake-up is the next change a module makes by itself ([`Emulator::next_change`]), so that a server
     /// reports its event when it happens.
     fn next_wakeup(&self) -> Option<Timestamp> {
         self.next_change()
@@ -313,11 +315,11 @@ impl Emulator for SimBus {
     }
 
     fn take_events(&mut self) -> Vec<String> {
-        SimBus::take_events(self)
+        Emulator::take_events(self)
     }
 }
 
-impl CanEmulator for SimBus {
+impl CanEmulator for Emulator {
     fn receive(&mut self, now: Timestamp, frame: &CanFrame, out: &mut Vec<CanFrame>) {
         let (role, payload) = match can_wire::from_frame(frame) {
             Ok(x) => x,
@@ -346,7 +348,7 @@ impl CanEmulator for SimBus {
     }
 
     fn take_events(&mut self) -> Vec<String> {
-        SimBus::take_events(self)
+        Emulator::take_events(self)
     }
 }
 

@@ -13,34 +13,34 @@ fn at(ms: u64) -> Timestamp {
     Timestamp::from_millis(ms)
 }
 
-fn state(bus: &mut SimBus, ms: u64) -> CubeState {
+fn state(bus: &mut Emulator, ms: u64) -> CubeState {
     match bus.request(at(ms), 1, &Request::Get(Param::CubeState)) {
         Some(Reply::Get(_, Value::U32(s))) => CubeState(s),
         other => panic!("{other:?}"),
     }
 }
 
-fn pos(bus: &mut SimBus, ms: u64) -> f32 {
+fn pos(bus: &mut Emulator, ms: u64) -> f32 {
     match bus.request(at(ms), 1, &Request::Get(Param::ActPos)) {
         Some(Reply::Get(_, Value::F32(p))) => p,
         other => panic!("{other:?}"),
     }
 }
 
-fn set(bus: &mut SimBus, ms: u64, p: Param, v: Value) {
+fn set(bus: &mut Emulator, ms: u64, p: Param, v: Value) {
     assert!(matches!(bus.request(at(ms), 1, &Request::Set(p, v)), Some(Reply::Set(_, 0x64))));
 }
 
-fn homed_bus() -> SimBus {
-    let mut bus = SimBus::new(&SimConfig::default());
+fn homed_bus() -> Emulator {
+    let mut bus = Emulator::new(&SimConfig::default());
     bus.request(at(0), 1, &Request::Action(Action::Home));
     assert!(state(&mut bus, 10).contains(StateFlag::Motion), "homing moves");
     assert!(state(&mut bus, 2_000).contains(StateFlag::HomeOk));
     bus
 }
 
-fn homed_can_bus() -> SimBus {
-    let mut bus = SimBus::new_can(&SimConfig::default());
+fn homed_can_bus() -> Emulator {
+    let mut bus = Emulator::new_can(&SimConfig::default());
     bus.request(at(0), 1, &Request::Action(Action::Home));
     assert!(state(&mut bus, 2_000).contains(StateFlag::HomeOk));
     bus
@@ -48,7 +48,7 @@ fn homed_can_bus() -> SimBus {
 
 #[test]
 fn homing_moves_then_sets_home_ok() {
-    let mut bus = SimBus::new(&SimConfig::default());
+    let mut bus = Emulator::new(&SimConfig::default());
     let s = state(&mut bus, 0);
     assert!(!s.contains(StateFlag::HomeOk));
     assert!((pos(&mut bus, 0) - 0.05).abs() < 1e-6);
@@ -68,7 +68,7 @@ fn ramp_is_a_trapezoid_with_its_phase_flags() {
     set(&mut bus, 2_000, Param::TargetVel, Value::F32(1.0));
     set(&mut bus, 2_000, Param::TargetAcc, Value::F32(2.0));
     // 1 rad at 1 rad/s and 2 rad/s²: 0.5 s up, 0.5 s steady, 0.5 s down.
-    let r = bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(1.0) }, AckKind::Simple));
+    let r = bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position::native(1.0) }, AckKind::Simple));
     assert!(matches!(r, Some(Reply::Motion { status: Some(0x64), .. })));
     let phases = [(2_250, StateFlag::RampAcc), (2_750, StateFlag::RampSteady), (3_250, StateFlag::RampDec)];
     for (ms, flag) in phases {
@@ -82,7 +82,7 @@ fn ramp_is_a_trapezoid_with_its_phase_flags() {
     assert!((pos(&mut bus, 3_600) - 1.0).abs() < 1e-6);
     // TargetVel above MaxVel is limited to MaxVel.
     set(&mut bus, 4_000, Param::TargetVel, Value::F32(10.0));
-    bus.request(at(4_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.0) }, AckKind::Simple));
+    bus.request(at(4_000), 1, &Request::Motion(Motion::FRamp { pos: Position::native(0.0) }, AckKind::Simple));
     assert!(state(&mut bus, 5_400).contains(StateFlag::Motion), "1 rad/s at most: still moving at 1.4 s");
 }
 
@@ -90,30 +90,30 @@ fn ramp_is_a_trapezoid_with_its_phase_flags() {
 fn targets_beyond_the_soft_limits_are_limited_and_velocity_runs_into_them() {
     let mut bus = homed_bus();
     set(&mut bus, 2_000, Param::MaxPos, Value::F32(0.5));
-    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(3.0) }, AckKind::Simple));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position::native(3.0) }, AckKind::Simple));
     assert!((pos(&mut bus, 10_000) - 0.5).abs() < 1e-6);
     assert!(!state(&mut bus, 10_000).has_fault());
     // Velocity mode runs into the lower limit -3.14: from 0.5 at 1 rad/s that takes about 3.9 s.
-    bus.request(at(10_000), 1, &Request::Motion(Motion::FVel { vel: Velocity(-1.0) }, AckKind::Simple));
+    bus.request(at(10_000), 1, &Request::Motion(Motion::FVel { vel: Velocity::native(-1.0) }, AckKind::Simple));
     assert!(!state(&mut bus, 12_000).has_fault());
     let s = state(&mut bus, 20_000);
     assert!(s.contains(StateFlag::BeyondSoft) && s.contains(StateFlag::Halted) && s.contains(StateFlag::Error), "{s}");
     assert!((pos(&mut bus, 20_000) + 3.14).abs() < 1e-3);
     // Halted: motion commands are acknowledged and ignored.
-    let r = bus.request(at(20_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.0) }, AckKind::Simple));
+    let r = bus.request(at(20_000), 1, &Request::Motion(Motion::FRamp { pos: Position::native(0.0) }, AckKind::Simple));
     assert!(r.is_some());
     assert!(!state(&mut bus, 20_100).contains(StateFlag::Motion));
     bus.request(at(20_200), 1, &Request::Action(Action::Reset));
     let s = state(&mut bus, 20_200);
     assert!(!s.has_fault() && !s.contains(StateFlag::Halted) && s.contains(StateFlag::HomeOk), "{s}");
-    bus.request(at(20_300), 1, &Request::Motion(Motion::FRamp { pos: Position(0.0) }, AckKind::Simple));
+    bus.request(at(20_300), 1, &Request::Motion(Motion::FRamp { pos: Position::native(0.0) }, AckKind::Simple));
     assert!(state(&mut bus, 20_400).contains(StateFlag::Motion));
 }
 
 #[test]
 fn halt_stops_at_once_until_reset() {
     let mut bus = homed_bus();
-    bus.request(at(2_000), 1, &Request::Motion(Motion::FVel { vel: Velocity(0.5) }, AckKind::Simple));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FVel { vel: Velocity::native(0.5) }, AckKind::Simple));
     bus.request(at(3_000), 1, &Request::Action(Action::Halt));
     let p = pos(&mut bus, 3_000);
     assert!(p > 0.3, "{p}");
@@ -136,7 +136,7 @@ fn the_watchdog_trips_without_refresh() {
         Some(Reply::Action(Action::LifeSign))
     ));
     assert!(bus.module(1).unwrap().watchdog_online());
-    bus.request(at(2_000), 1, &Request::Motion(Motion::FVel { vel: Velocity(0.2) }, AckKind::Simple));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple));
     for ms in (2_040..3_000).step_by(40) {
         bus.broadcast(at(ms), &Broadcast::WatchdogRefresh);
     }
@@ -165,7 +165,7 @@ fn a_small_max_delta_pos_gives_a_tow_error() {
     let mut bus = homed_bus();
     // The servo lags 5 ms: at 0.5 rad/s that is 2.5 mrad.
     set(&mut bus, 2_000, Param::MaxDeltaPos, Value::F32(0.001));
-    bus.request(at(2_000), 1, &Request::Motion(Motion::FVel { vel: Velocity(0.5) }, AckKind::Simple));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FVel { vel: Velocity::native(0.5) }, AckKind::Simple));
     let s = state(&mut bus, 3_000);
     assert!(s.contains(StateFlag::TowError) && s.contains(StateFlag::Error), "{s}");
     assert!(s.faults().any(|f| f == StateFlag::TowError));
@@ -177,7 +177,7 @@ fn step_mode_buffers_one_step() {
     bus.request(
         at(2_000),
         1,
-        &Request::Motion(Motion::FStep { pos: Position(0.1), time: Millis(200) }, AckKind::Simple),
+        &Request::Motion(Motion::FStep { pos: Position::native(0.1), time: Millis(200) }, AckKind::Simple),
     );
     let s = state(&mut bus, 2_050);
     assert!(s.contains(StateFlag::InProgress) && !s.contains(StateFlag::FullBuffer));
@@ -195,9 +195,10 @@ fn extended_acknowledges_carry_position_state_and_dio() {
     let mut bus = homed_bus();
     set(&mut bus, 2_000, Param::DioSetup, Value::U32(0x30));
     bus.module_mut(1).unwrap().set_inputs(0x05);
-    let r = bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.5) }, AckKind::Extended));
+    let r =
+        bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position::native(0.5) }, AckKind::Extended));
     let Some(Reply::Motion { ext: Some(e), .. }) = r else { panic!("{r:?}") };
-    assert_eq!(e.position, AckPosition::Unit(Position(0.0)));
+    assert_eq!(e.position, AckPosition::Unit(Position::native(0.0)));
     assert_eq!(e.dio.0, 0x35);
     assert!(!e.state.contains(ShortFlag::NotOk));
     let r = bus.request(at(2_200), 1, &Request::Motion(Motion::IRamp { pos: Ticks(0) }, AckKind::Extended));
@@ -211,35 +212,35 @@ fn velocity_and_current_modes_move() {
     let mut bus = homed_bus();
     bus.request(at(2_000), 1, &Request::Motion(Motion::FCur { cur: Amperes(2.5) }, AckKind::Simple));
     assert!(pos(&mut bus, 3_000) > 0.1);
-    bus.request(at(3_000), 1, &Request::Motion(Motion::FVel { vel: Velocity(0.0) }, AckKind::Simple));
+    bus.request(at(3_000), 1, &Request::Motion(Motion::FVel { vel: Velocity::native(0.0) }, AckKind::Simple));
     let s = state(&mut bus, 4_000);
     assert!(!s.contains(StateFlag::Motion), "velocity 0 stops: {s}");
 }
 
 #[test]
 fn rs232_framing_and_bcc_policy() {
-    let mut bus = SimBus::new(&SimConfig::with_addresses(&[1, 17]).unwrap());
+    let mut bus = Emulator::new(&SimConfig::with_addresses(&[1, 17]).unwrap());
     let mut out = Vec::new();
     // The manual's Home to module 17.
-    Emulator::receive(&mut bus, at(0), &[0x02, 0x06, 0x21, 0x01, 0x28, 0x03], &mut out);
+    ByteEmulator::receive(&mut bus, at(0), &[0x02, 0x06, 0x21, 0x01, 0x28, 0x03], &mut out);
     assert_eq!(out, vec![0x02, 0x0a, 0x21, 0x01, 0x2c, 0x03]);
     // A wrong BCC is accepted by default...
     out.clear();
-    Emulator::receive(&mut bus, at(1), &[0x02, 0x06, 0x21, 0x00, 0x00, 0x03], &mut out);
+    ByteEmulator::receive(&mut bus, at(1), &[0x02, 0x06, 0x21, 0x00, 0x00, 0x03], &mut out);
     assert_eq!(out, vec![0x02, 0x0a, 0x21, 0x00, 0x2b, 0x03]);
     // ...and dropped when strict.
     bus.set_strict_bcc(true);
     out.clear();
-    Emulator::receive(&mut bus, at(2), &[0x02, 0x06, 0x21, 0x00, 0x00, 0x03], &mut out);
+    ByteEmulator::receive(&mut bus, at(2), &[0x02, 0x06, 0x21, 0x00, 0x00, 0x03], &mut out);
     assert!(out.is_empty());
     assert_eq!(bus.stats().bad_bcc, 1);
     // A length that does not match is never interpreted; address 5 has no module.
-    Emulator::receive(&mut bus, at(3), &[0x02, 0x06, 0x22, 0x00, 0x28, 0x03], &mut out);
-    Emulator::receive(&mut bus, at(3), &[0x02, 0x04, 0xA1, 0x00, 0xa5, 0x03], &mut out);
+    ByteEmulator::receive(&mut bus, at(3), &[0x02, 0x06, 0x22, 0x00, 0x28, 0x03], &mut out);
+    ByteEmulator::receive(&mut bus, at(3), &[0x02, 0x04, 0xA1, 0x00, 0xa5, 0x03], &mut out);
     assert!(out.is_empty());
     assert_eq!((bus.stats().bad_length, bus.stats().nobody), (1, 1));
     // A broadcast (address 0) reaches every module and is not acknowledged.
-    Emulator::receive(&mut bus, at(4), &[0x02, 0x04, 0x01, 0x10, 0x82, 0x07, 0x03], &mut out);
+    ByteEmulator::receive(&mut bus, at(4), &[0x02, 0x04, 0x01, 0x10, 0x82, 0x07, 0x03], &mut out);
     assert!(out.is_empty());
     assert!(bus.module(1).unwrap().state().contains(StateFlag::Halted));
     assert!(bus.module(17).unwrap().state().contains(StateFlag::Halted));
@@ -247,7 +248,7 @@ fn rs232_framing_and_bcc_policy() {
 
 #[test]
 fn can_frames_and_disabled_acknowledges() {
-    let mut bus = SimBus::new_can(&SimConfig::with_addresses(&[17]).unwrap());
+    let mut bus = Emulator::new_can(&SimConfig::with_addresses(&[17]).unwrap());
     let mut out = Vec::new();
     let f = |text: &str| text.parse::<CanFrame>().unwrap();
     CanEmulator::receive(&mut bus, at(0), &f("0D1#0A27"), &mut out);
@@ -275,7 +276,7 @@ fn can_frames_and_disabled_acknowledges() {
 fn synchronised_motion_waits_for_the_broadcast() {
     let mut bus = homed_can_bus();
     set(&mut bus, 2_000, Param::Config, Value::U32(ConfigFlag::SyncMotion.mask()));
-    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.5) }, AckKind::Simple));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position::native(0.5) }, AckKind::Simple));
     assert!(!state(&mut bus, 2_100).contains(StateFlag::Motion));
     bus.broadcast(at(2_100), &Broadcast::StartMotion);
     assert!(state(&mut bus, 2_200).contains(StateFlag::Motion));
@@ -292,13 +293,13 @@ fn synchronised_motion_is_valid_only_on_can() {
     // broadcast: `synchronised_motion_waits_for_the_broadcast`).
     let mut bus = homed_bus();
     set(&mut bus, 2_000, Param::Config, Value::U32(ConfigFlag::SyncMotion.mask()));
-    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.5) }, AckKind::Simple));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position::native(0.5) }, AckKind::Simple));
     assert!(state(&mut bus, 2_100).contains(StateFlag::Motion), "no StartMotion needed on RS232");
 }
 
 #[test]
 fn the_change_baud_rate_broadcast_is_decoded_and_recorded() {
-    let mut bus = SimBus::new_can(&SimConfig::with_addresses(&[17]).unwrap());
+    let mut bus = Emulator::new_can(&SimConfig::with_addresses(&[17]).unwrap());
     assert_eq!(bus.can_baud(), None);
     let mut out = Vec::new();
     // CANID_CMDALL: Change Baudrate (0x09) to 2 = 500 kbit/s.
@@ -332,7 +333,7 @@ fn profibus_images_ignore_repeats() {
     assert!(bus.profibus_exchange(at(0), 9, &halt).is_none());
 }
 
-fn get(bus: &mut SimBus, ms: u64, p: Param) -> Value {
+fn get(bus: &mut Emulator, ms: u64, p: Param) -> Value {
     match bus.request(at(ms), 1, &Request::Get(p)) {
         Some(Reply::Get(_, v)) => v,
         other => panic!("{p}: {other:?}"),
@@ -362,21 +363,21 @@ fn soft_limits_never_cross_and_values_that_cannot_apply_are_ignored() {
     assert_eq!(get(&mut bus, 2_000, Param::MinPos), Value::F32(0.5));
     set(&mut bus, 2_000, Param::MinPos, Value::F32(-1.0));
     // A ramp beyond the limit is limited to it; a velocity motion stops at it: no panic on the way.
-    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(2.0) }, AckKind::Simple));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position::native(2.0) }, AckKind::Simple));
     assert!((pos(&mut bus, 5_000) - 0.5).abs() < 1e-6);
-    bus.request(at(5_000), 1, &Request::Motion(Motion::FVel { vel: Velocity(-1.0) }, AckKind::Simple));
+    bus.request(at(5_000), 1, &Request::Motion(Motion::FVel { vel: Velocity::native(-1.0) }, AckKind::Simple));
     let s = state(&mut bus, 8_000);
     assert!(s.contains(StateFlag::BeyondSoft), "{s}");
     assert!((pos(&mut bus, 8_000) + 1.0).abs() < 1e-3);
     // A motion to a position that is not a number is acknowledged and ignored.
     bus.request(at(8_000), 1, &Request::Action(Action::Reset));
     for m in [
-        Motion::FRamp { pos: Position(f32::NAN) },
-        Motion::FStep { pos: Position(f32::INFINITY), time: Millis(10) },
-        Motion::FVel { vel: Velocity(f32::NAN) },
+        Motion::FRamp { pos: Position::native(f32::NAN) },
+        Motion::FStep { pos: Position::native(f32::INFINITY), time: Millis(10) },
+        Motion::FVel { vel: Velocity::native(f32::NAN) },
         Motion::FCur { cur: Amperes(f32::NEG_INFINITY) },
-        Motion::FCosLoop { pos: Position(f32::NAN), time: Millis(100) },
-        Motion::FRampLoop { pos: Position(f32::NAN) },
+        Motion::FCosLoop { pos: Position::native(f32::NAN), time: Millis(100) },
+        Motion::FRampLoop { pos: Position::native(f32::NAN) },
     ] {
         assert!(bus.request(at(8_000), 1, &Request::Motion(m, AckKind::Simple)).is_some(), "{m:?}");
     }
@@ -390,23 +391,23 @@ fn a_ramp_loop_too_short_to_turn_round_ends() {
     let mut bus = homed_bus();
     // A loop of a tenth of a microradian at 1 rad/s² would turn round every 0.6 ms, millions of times in an
     // hour of device time.
-    bus.request(at(2_000), 1, &Request::Motion(Motion::FRampLoop { pos: Position(1e-7) }, AckKind::Simple));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FRampLoop { pos: Position::native(1e-7) }, AckKind::Simple));
     let s = state(&mut bus, 3_600_000);
     assert!(!s.contains(StateFlag::Motion) && s.contains(StateFlag::RampEnd), "{s}");
     // A real one goes on.
-    bus.request(at(3_600_000), 1, &Request::Motion(Motion::FRampLoop { pos: Position(0.5) }, AckKind::Simple));
+    bus.request(at(3_600_000), 1, &Request::Motion(Motion::FRampLoop { pos: Position::native(0.5) }, AckKind::Simple));
     assert!(state(&mut bus, 3_700_000).contains(StateFlag::Motion));
 }
 
 /// Feeds `bytes` to the bus as RS232 at `ms`; returns what it answered.
-fn rs232_in(bus: &mut SimBus, ms: u64, bytes: &[u8]) -> Vec<u8> {
+fn rs232_in(bus: &mut Emulator, ms: u64, bytes: &[u8]) -> Vec<u8> {
     let mut out = Vec::new();
-    Emulator::receive(bus, at(ms), bytes, &mut out);
+    ByteEmulator::receive(bus, at(ms), bytes, &mut out);
     out
 }
 
-fn homed_pair() -> SimBus {
-    let mut bus = SimBus::new(&SimConfig::with_addresses(&[1, 2]).unwrap());
+fn homed_pair() -> Emulator {
+    let mut bus = Emulator::new(&SimConfig::with_addresses(&[1, 2]).unwrap());
     for a in [1, 2] {
         bus.request(at(0), a, &Request::Action(Action::Home));
     }
@@ -414,7 +415,7 @@ fn homed_pair() -> SimBus {
     bus
 }
 
-fn module_state(bus: &SimBus, a: u8) -> CubeState {
+fn module_state(bus: &Emulator, a: u8) -> CubeState {
     bus.module(a).unwrap().state()
 }
 
@@ -429,7 +430,7 @@ fn libm5api_broadcasts_reach_every_module_byte_for_byte() {
     const SAVE_POS_ALL: &[u8] = &[0x02, 0x04, 0x10, 0x82, 0x0E, 0x00, 0x14, 0x03];
 
     // homeAll starts homing in both modules; no acknowledge.
-    let mut bus = SimBus::new(&SimConfig::with_addresses(&[1, 2]).unwrap());
+    let mut bus = Emulator::new(&SimConfig::with_addresses(&[1, 2]).unwrap());
     assert!(rs232_in(&mut bus, 0, HOME_ALL).is_empty());
     bus.update(at(10));
     for a in [1, 2] {
@@ -447,14 +448,14 @@ fn libm5api_broadcasts_reach_every_module_byte_for_byte() {
 
     // haltAll stops both, moving or not.
     for (a, target) in [(1u8, 1.0f32), (2, -1.0)] {
-        bus.request(at(2_000), a, &Request::Motion(Motion::FRamp { pos: Position(target) }, AckKind::Simple));
+        bus.request(at(2_000), a, &Request::Motion(Motion::FRamp { pos: Position::native(target) }, AckKind::Simple));
     }
     assert!(rs232_in(&mut bus, 2_300, HALT_ALL).is_empty());
     for a in [1, 2] {
         let s = module_state(&bus, a);
         assert!(s.contains(StateFlag::Halted) && !s.contains(StateFlag::Motion), "module {a}: {s}");
     }
-    let (p1, p2) = (pos(&mut bus, 2_300), bus.module(2).unwrap().position().0);
+    let (p1, p2) = (pos(&mut bus, 2_300), bus.module(2).unwrap().position().value());
     assert!(p1 > 0.0 && p2 < 0.0, "{p1} {p2}");
 
     // resetAll clears both.
@@ -500,30 +501,30 @@ fn libm5api_broadcasts_reach_every_module_byte_for_byte() {
     assert!(module_state(&bus, 1).contains(StateFlag::Halted) && module_state(&bus, 2).contains(StateFlag::Halted));
 }
 
-fn set_on(bus: &mut SimBus, a: u8, ms: u64, p: Param, v: Value) {
+fn set_on(bus: &mut Emulator, a: u8, ms: u64, p: Param, v: Value) {
     assert!(matches!(bus.request(at(ms), a, &Request::Set(p, v)), Some(Reply::Set(_, 0x64))));
 }
 
 #[test]
 fn events_say_what_the_modules_did() {
-    let mut bus = SimBus::new(&SimConfig::with_addresses(&[1]).unwrap());
+    let mut bus = Emulator::new(&SimConfig::with_addresses(&[1]).unwrap());
     bus.request(at(0), 1, &Request::Action(Action::Home));
     bus.update(at(2_000));
     assert_eq!(bus.take_events(), ["module 1 motion started: homing", "module 1 homed", "module 1 at rest 0.0000 rad"]);
     assert!(bus.take_events().is_empty(), "taken once");
     set(&mut bus, 2_000, Param::TargetVel, Value::F32(1.0));
     set(&mut bus, 2_000, Param::TargetAcc, Value::F32(2.0));
-    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(1.2) }, AckKind::Simple));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position::native(1.2) }, AckKind::Simple));
     // Reads are no events; the end of the ramp is, when it happens, however late someone looks.
     state(&mut bus, 2_100);
     bus.update(at(9_000));
     assert_eq!(bus.take_events(), ["module 1 motion started: ramp to 1.2000 rad", "module 1 at rest 1.2000 rad"]);
-    bus.request(at(9_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.0) }, AckKind::Simple));
+    bus.request(at(9_000), 1, &Request::Motion(Motion::FRamp { pos: Position::native(0.0) }, AckKind::Simple));
     bus.request(at(9_500), 1, &Request::Action(Action::Halt));
     let events = bus.take_events();
     assert_eq!(events[..2], ["module 1 motion started: ramp to 0.0000 rad".to_string(), "module 1 halted".into()]);
     assert!(events[2].starts_with("module 1 at rest 0.9"), "{events:?}");
-    bus.request(at(9_600), 1, &Request::Motion(Motion::FRamp { pos: Position(0.0) }, AckKind::Simple));
+    bus.request(at(9_600), 1, &Request::Motion(Motion::FRamp { pos: Position::native(0.0) }, AckKind::Simple));
     bus.request(at(9_700), 1, &Request::Action(Action::Reset));
     assert_eq!(
         bus.take_events(),
@@ -532,7 +533,7 @@ fn events_say_what_the_modules_did() {
     // The watchdog: online, expiry with the stop, offline.
     set(&mut bus, 10_000, Param::Config, Value::U32(ConfigFlag::WatchdogEnable.mask()));
     bus.request(at(10_000), 1, &Request::Action(Action::LifeSign));
-    bus.request(at(10_000), 1, &Request::Motion(Motion::FVel { vel: Velocity(0.1) }, AckKind::Simple));
+    bus.request(at(10_000), 1, &Request::Motion(Motion::FVel { vel: Velocity::native(0.1) }, AckKind::Simple));
     bus.update(at(11_000));
     let events = bus.take_events();
     assert_eq!(
@@ -549,7 +550,7 @@ fn events_say_what_the_modules_did() {
     // A tow error.
     bus.request(at(11_000), 1, &Request::Action(Action::Reset));
     set(&mut bus, 11_000, Param::MaxDeltaPos, Value::F32(0.0001));
-    bus.request(at(11_000), 1, &Request::Motion(Motion::FRamp { pos: Position(0.0) }, AckKind::Simple));
+    bus.request(at(11_000), 1, &Request::Motion(Motion::FRamp { pos: Position::native(0.0) }, AckKind::Simple));
     bus.update(at(12_000));
     let events = bus.take_events();
     assert!(events.contains(&"module 1 error: STATE_TOW_ERROR".to_string()), "{events:?}");
@@ -559,29 +560,29 @@ fn events_say_what_the_modules_did() {
 #[test]
 fn the_next_wakeup_is_the_next_change_a_module_makes() {
     let mut bus = homed_bus();
-    assert_eq!(Emulator::next_wakeup(&bus), None, "at rest, no watchdog: nothing will happen by itself");
+    assert_eq!(ByteEmulator::next_wakeup(&bus), None, "at rest, no watchdog: nothing will happen by itself");
     set(&mut bus, 2_000, Param::TargetVel, Value::F32(1.0));
     set(&mut bus, 2_000, Param::TargetAcc, Value::F32(2.0));
-    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position(1.0) }, AckKind::Simple));
+    bus.request(at(2_000), 1, &Request::Motion(Motion::FRamp { pos: Position::native(1.0) }, AckKind::Simple));
     // 1 rad at 1 rad/s, 2 rad/s²: ends 1.5 s later.
-    let end = Emulator::next_wakeup(&bus).unwrap();
+    let end = ByteEmulator::next_wakeup(&bus).unwrap();
     assert!(end >= at(3_500) && end <= at(3_500) + std::time::Duration::from_micros(1), "{end}");
     assert_eq!(CanEmulator::next_wakeup(&bus), Some(end));
     // A watchdog that expires earlier comes first.
     set(&mut bus, 2_000, Param::Config, Value::U32(ConfigFlag::WatchdogEnable.mask()));
     bus.request(at(2_000), 1, &Request::Action(Action::LifeSign));
-    let expiry = Emulator::next_wakeup(&bus).unwrap();
+    let expiry = ByteEmulator::next_wakeup(&bus).unwrap();
     assert!(expiry >= at(2_050) && expiry <= at(2_050) + std::time::Duration::from_micros(1), "{expiry}");
     // Advancing to that instant makes it happen: the wake-up moves on.
     let mut out = Vec::new();
-    Emulator::advance(&mut bus, expiry, &mut out);
+    ByteEmulator::advance(&mut bus, expiry, &mut out);
     assert!(bus.module(1).unwrap().state().contains(StateFlag::CommError));
-    assert_eq!(Emulator::next_wakeup(&bus), None, "expired and halted: nothing more");
+    assert_eq!(ByteEmulator::next_wakeup(&bus), None, "expired and halted: nothing more");
 }
 
 #[test]
 fn the_can_emulator_reports_the_same_events() {
-    let mut bus = SimBus::new_can(&SimConfig::with_addresses(&[3]).unwrap());
+    let mut bus = Emulator::new_can(&SimConfig::with_addresses(&[3]).unwrap());
     let mut out = Vec::new();
     let home = crate::wire::can::to_frame(crate::wire::can::Role::Put(3), &Request::Action(Action::Home).encode());
     CanEmulator::receive(&mut bus, at(0), &home, &mut out);

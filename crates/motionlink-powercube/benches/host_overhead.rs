@@ -1,0 +1,94 @@
+//! The host's own time per request, blocking and async side by side: one ActPos read of one module over the
+//! in-memory CAN bus paced at 1 Mbit/s (real clock), minus the time the two frames take on the bus (their
+//! real stuff bits counted). The blocking client drives the link on the caller's thread; the async client
+//! hands each operation to the driver's thread and is woken by it: the difference is what that costs.
+//!
+//! `cargo bench -p motionlink-powercube --bench host_overhead -- --warm-up-time 1 --measurement-time 3` is
+//! a quick run.
+
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use motionlink_link::can::{CanBus, CanBusConfig, CanEmulator, CanFrame};
+use motionlink_link::{RealClock, Timestamp};
+use motionlink_powercube::client::{AsyncClient, BusConfig, Client};
+use motionlink_powercube::model::{Param, Request};
+use motionlink_powercube::sim::SimConfig;
+use motionlink_powercube::wire::can::{to_frame, Role};
+use motionlink_powercube::Emulator;
+
+const BITRATE: u32 = 1_000_000;
+
+fn bus() -> CanBus<Emulator> {
+    let sim = Emulator::new_can(&SimConfig::with_addresses(&[1]).expect("one module"));
+    CanBus::with_emulator(sim, RealClock::shared(), CanBusConfig::paced(BITRATE))
+}
+
+/// The time one read takes on the bus: the request and the acknowledge, with their stuff bits.
+fn wire_time() -> Duration {
+    let mut sim = Emulator::new_can(&SimConfig::with_addresses(&[1]).expect("one module"));
+    let get = to_frame(Role::Get(1), &Request::Get(Param::ActPos).encode());
+    let mut out = Vec::new();
+    CanEmulator::receive(&mut sim, Timestamp::ZERO, &get, &mut out);
+    let bits: u32 = std::iter::once(&get).chain(&out).map(CanFrame::bit_length_stuffed).sum();
+    Duration::from_secs_f64(f64::from(bits) / f64::from(BITRATE))
+}
+
+fn mean(n: u32, mut read: impl FnMut()) -> Duration {
+    let start = Instant::now();
+    for _ in 0..n {
+        read();
+    }
+    start.elapsed() / n
+}
+
+fn bench(c: &mut Criterion) {
+    let blocking_bus = bus();
+    let blocking = Client::can(Box::new(blocking_bus.connect()), RealClock::shared(), BusConfig::can())
+        .expect("the session starts");
+    let module = blocking.module(1).expect("address 1");
+
+    let runtime = tokio::runtime::Builder::new_current_thread().enable_time().build().expect("a tokio runtime");
+    let async_bus = bus();
+    let asynchronous = AsyncClient::can(Box::new(async_bus.connect()), RealClock::shared(), BusConfig::can())
+        .expect("the session starts");
+    let async_module = asynchronous.module(1).expect("address 1");
+
+    let mut group = c.benchmark_group("host overhead");
+    group.sample_size(50).measurement_time(Duration::from_secs(4));
+    group.bench_function("ActPos read at 1 Mbit/s, blocking client", |b| {
+        b.iter(|| black_box(module.position().expect("answers")))
+    });
+    group.bench_function("ActPos read at 1 Mbit/s, async client (tokio)", |b| {
+        b.iter(|| black_box(runtime.block_on(async_module.position()).expect("answers")))
+    });
+    group.finish();
+
+    let n = 2_000;
+    let blocking_mean = mean(n, || {
+        black_box(module.position().expect("answers"));
+    });
+    let async_mean = runtime.block_on(async {
+        let start = Instant::now();
+        for _ in 0..n {
+            black_box(async_module.position().await.expect("answers"));
+        }
+        start.elapsed() / n
+    });
+    let wire = wire_time();
+    println!("one ActPos read of one module on the in-memory CAN bus at 1 Mbit/s (request + acknowledge)");
+    println!("  on the bus (stuff bits counted):  {:>7.1} us", wire.as_secs_f64() * 1e6);
+    for (name, m) in [("blocking client", blocking_mean), ("async client (tokio)", async_mean)] {
+        println!(
+            "  {name:<22} {:>7.1} us per read, host overhead {:>6.1} us",
+            m.as_secs_f64() * 1e6,
+            m.saturating_sub(wire).as_secs_f64() * 1e6
+        );
+    }
+    runtime.block_on(asynchronous.close()).expect("closes");
+    blocking.close().expect("closes");
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,217 @@
+//! [`AsyncClient`]: the same operations as [`Client`](super::Client), as futures on tokio, over an
+//! [`AsyncDriver`] running the same [`Session`]. Dropping a future before it is done cancels its
+//! operation: a motion it started is halted (and the halt's outcome logged), a read is dropped.
+
+use std::time::Duration;
+
+use motionlink_link::can::CanLink;
+use motionlink_link::driver::{AsyncDriver, Port};
+use motionlink_link::{Link, SharedClock};
+
+use super::blocking::{driver, fail_all};
+use super::calls::{self, Call};
+use crate::error::Error;
+use crate::model::{
+    AckKind, Action, Address, Broadcast, CubeState, ExtAck, ModuleKind, Motion, Param, Position, Reply, Request, Value,
+};
+use crate::session::{BusConfig, Guard, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry, Session};
+
+/// A session with the modules on one line or one CAN bus, for async callers (tokio). Share it by
+/// reference or in an `Arc`: concurrent operations interleave on the line as the session schedules them.
+///
+/// Closing ([`AsyncClient::close`]) halts what the session set in motion and switches off the watchdogs it
+/// switched on, bounded by [`BusConfig::close_bound`]; dropping it does the same on tokio's blocking pool.
+pub struct AsyncClient {
+    driver: AsyncDriver<Session>,
+}
+
+impl std::fmt::Debug for AsyncClient {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AsyncClient").field("port", &self.driver.driver().port_name()).finish()
+    }
+}
+
+impl AsyncClient {
+    /// A session over an RS232 byte link.
+    pub fn rs232(link: Box<dyn Link>, clock: SharedClock, config: BusConfig) -> Result<AsyncClient, Error> {
+        let session = Session::rs232(config.clone(), link.describe(), clock.now());
+        Ok(AsyncClient { driver: AsyncDriver::from_driver(driver(session, Port::Bytes(link), clock, &config)?) })
+    }
+
+    /// A session over a CAN link (any [`CanLink`], embedded-can drivers included).
+    pub fn can(link: Box<dyn CanLink>, clock: SharedClock, config: BusConfig) -> Result<AsyncClient, Error> {
+        let session = Session::can(config.clone(), link.describe(), clock.now());
+        Ok(AsyncClient { driver: AsyncDriver::from_driver(driver(session, Port::Can(link), clock, &config)?) })
+    }
+
+    /// Opens a port with `open` (blocking work: it runs on tokio's blocking pool) and makes the client.
+    pub async fn open(
+        open: impl FnOnce() -> Result<super::Client, Error> + Send + 'static,
+    ) -> Result<AsyncClient, Error> {
+        let client = match tokio::task::spawn_blocking(open).await {
+            Ok(r) => r?,
+            Err(e) => return Err(Error::Unsupported(format!("the opening task failed: {e}"))),
+        };
+        Ok(AsyncClient { driver: AsyncDriver::from_driver(client.into_driver()) })
+    }
+
+    /// Runs `f` on the session (its statistics, its watchdog duty).
+    pub fn session<R>(&self, f: impl FnOnce(&mut Session) -> R) -> R {
+        self.driver.driver().with_session(f)
+    }
+
+    /// Runs `op` to its end; dropping the future cancels it (halting a motion it started).
+    pub async fn run(&self, op: Op) -> Result<Output, Error> {
+        self.driver.run(op).await
+    }
+
+    async fn call<T>(&self, call: Call<T>) -> Result<T, Error> {
+        let output = self.driver.run(call.op.clone()).await;
+        call.result(output)
+    }
+
+    /// A handle on the module at `address` (1..31). Nothing is sent.
+    pub fn module(&self, address: u8) -> Result<AsyncModule<'_>, Error> {
+        Ok(AsyncModule { client: self, address: Address::new(address)? })
+    }
+
+    /// One request, checked, reads retried (see [`Client::request`](super::Client::request)).
+    pub async fn request(&self, address: u8, request: Request) -> Result<Reply, Error> {
+        let a = Address::new(address)?;
+        request.validate()?;
+        self.call(calls::request(a, request)).await
+    }
+
+    /// Reads `param` of every module in `addresses` (on CAN in one round).
+    pub async fn read_many(&self, addresses: &[u8], param: Param) -> Vec<Result<Value, Error>> {
+        let n = addresses.len();
+        self.call(calls::read_many(addresses.to_vec(), param)).await.unwrap_or_else(|e| fail_all(n, &e))
+    }
+
+    /// The positions of `addresses` (ActPos), on CAN in one round.
+    pub async fn positions(&self, addresses: &[u8]) -> Vec<Result<Position, Error>> {
+        let n = addresses.len();
+        self.call(calls::positions(addresses.to_vec())).await.unwrap_or_else(|e| fail_all(n, &e))
+    }
+
+    /// Sends a broadcast.
+    pub async fn broadcast(&self, broadcast: Broadcast) -> Result<(), Error> {
+        self.call(calls::done(Op::Broadcast(broadcast))).await
+    }
+
+    /// Every module on the bus (see [`Client::scan`](super::Client::scan)).
+    pub async fn scan(&self) -> Result<Vec<ScanEntry>, Error> {
+        self.call(calls::scan()).await
+    }
+
+    /// Switches the watchdog on in `addresses`; refreshed from then on.
+    pub async fn enable_watchdog(&self, addresses: &[u8]) -> Result<(), Error> {
+        self.call(calls::done(Op::EnableWatchdog(addresses.to_vec()))).await
+    }
+
+    /// Switches the watchdogs this session switched on off again.
+    pub async fn disable_watchdog(&self) -> Result<(), Error> {
+        self.call(calls::done(Op::DisableWatchdog)).await
+    }
+
+    /// Halts every module this session set in motion that still moves.
+    pub async fn halt_started(&self) -> Result<(), Error> {
+        self.call(calls::done(Op::HaltStarted)).await
+    }
+
+    /// Ends the session (see [`Client::close`](super::Client::close)).
+    pub async fn close(self) -> Result<(), Error> {
+        self.driver.close().await
+    }
+}
+
+/// One module on an [`AsyncClient`], by address.
+#[derive(Debug, Clone, Copy)]
+pub struct AsyncModule<'a> {
+    client: &'a AsyncClient,
+    address: Address,
+}
+
+impl AsyncModule<'_> {
+    /// The address.
+    pub fn address(&self) -> Address {
+        self.address
+    }
+
+    /// Reads `param`.
+    pub async fn get(&self, param: Param) -> Result<Value, Error> {
+        self.client.call(calls::get(self.address, param)).await
+    }
+
+    /// Writes `param` (no read-back).
+    pub async fn set(&self, param: Param, value: Value) -> Result<(), Error> {
+        Request::set(param, value)?;
+        self.client.call(calls::done(Op::Set(self.address, param, value))).await
+    }
+
+    /// Writes `param` with the limit check and the read-back.
+    pub async fn set_checked(&self, param: Param, value: Value) -> Result<Readback, Error> {
+        self.client.call(calls::set_checked(self.address, param, value)).await
+    }
+
+    /// The actual position.
+    pub async fn position(&self) -> Result<Position, Error> {
+        self.client.call(calls::position(self.address)).await
+    }
+
+    /// The state word.
+    pub async fn state(&self) -> Result<CubeState, Error> {
+        self.client.call(calls::state(self.address)).await
+    }
+
+    /// Rotary or linear.
+    pub async fn kind(&self) -> Result<ModuleKind, Error> {
+        self.client.call(calls::kind(self.address)).await
+    }
+
+    /// Type, version, serial number and state.
+    pub async fn info(&self) -> Result<ModuleInfo, Error> {
+        self.client.call(calls::info(self.address)).await
+    }
+
+    /// Reset.
+    pub async fn reset(&self) -> Result<(), Error> {
+        self.client.call(calls::action(self.address, Action::Reset)).await
+    }
+
+    /// Reset, releasing a watchdog a dead host left expired.
+    pub async fn reset_and_release_watchdog(&self) -> Result<bool, Error> {
+        self.client.call(calls::reset_and_release_watchdog(self.address)).await
+    }
+
+    /// Halt.
+    pub async fn halt(&self) -> Result<(), Error> {
+        self.client.call(calls::done(Op::Halt(self.address))).await
+    }
+
+    /// A motion command, its units checked; dropping the future before its acknowledge halts the module.
+    pub async fn motion(&self, motion: Motion, ack: AckKind) -> Result<Option<ExtAck>, Error> {
+        Request::motion(motion, ack)?;
+        self.client.call(calls::motion(self.address, motion, ack)).await
+    }
+
+    /// Homes and waits for the end of homing; dropping the future halts the module.
+    pub async fn home_and_wait(&self, timeout: Duration) -> Result<(Position, CubeState), Error> {
+        self.client.call(calls::home_and_wait(self.address, timeout, None)).await
+    }
+
+    /// [`AsyncModule::home_and_wait`] under `guard`.
+    pub async fn home_guarded(&self, timeout: Duration, guard: Guard) -> Result<(Position, CubeState), Error> {
+        self.client.call(calls::home_and_wait(self.address, timeout, Some(guard))).await
+    }
+
+    /// A checked ramp move (see [`Op::MoveTo`]); dropping the future halts the module.
+    pub async fn move_to(&self, spec: &MoveSpec) -> Result<MoveReport, Error> {
+        self.client.call(calls::move_to(self.address, *spec, None)).await
+    }
+
+    /// [`AsyncModule::move_to`] under `guard`.
+    pub async fn move_to_guarded(&self, spec: &MoveSpec, guard: Guard) -> Result<MoveReport, Error> {
+        self.client.call(calls::move_to(self.address, *spec, Some(guard))).await
+    }
+}

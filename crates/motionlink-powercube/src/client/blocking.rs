@@ -1,0 +1,461 @@
+//! [`Client`]: the blocking client, thin typed methods over a [`Driver`] running the [`Session`].
+
+use std::sync::Mutex;
+use std::time::Duration;
+
+use motionlink_link::can::CanLink;
+use motionlink_link::cancel::CancelToken;
+use motionlink_link::clock::lock;
+use motionlink_link::driver::{Driver, DriverConfig, Port};
+use motionlink_link::{Link, LinkError, SharedClock};
+
+use super::calls::{self, Call};
+use crate::error::{Error, StopOutcome};
+use crate::model::{
+    Acceleration, AckKind, Action, Address, Broadcast, ConfigWord, CubeState, Dio, ExtAck, Millis, ModuleKind, Motion,
+    Param, Position, Ramp, Reply, Request, ShortState, Ticks, Value, Velocity,
+};
+use crate::session::{
+    BusConfig, Guard, ModuleInfo, MoveReport, MoveSpec, Op, Output, Progress, Readback, ScanEntry, Session, Until,
+};
+
+/// A session with the modules on one line (RS232) or one CAN bus, for blocking callers (any number of
+/// threads: share it by reference; their requests interleave on the line as the session schedules them).
+///
+/// The session runs in a [`Driver`]: a caller whose operation is under way drives the line itself, and
+/// one background thread refreshes the watchdog between calls.
+///
+/// Closing ([`Client::close`], or dropping it) halts every module the session set in motion that is still
+/// moving (or cannot be asked), then, if the session switched watchdogs on and has not failed, switches them
+/// off again and restores the Config words. It waits for that at most [`BusConfig::close_bound`] (5 s by
+/// default; the call returns at most one read slice of the driver, 20 ms, later); then the refresh stops. A session that failed (its line broke, a refresh could not be sent, a
+/// module it started could not be confirmed stopped) leaves the watchdogs online: the modules halt within
+/// 50 ms, which is the watchdog's purpose.
+pub struct Client {
+    driver: Driver<Session>,
+    cancel: Mutex<Option<CancelToken>>,
+    config: BusConfig,
+    can: bool,
+}
+
+impl std::fmt::Debug for Client {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Client").field("port", &self.driver.port_name()).finish()
+    }
+}
+
+/// The driver for `session` over `port`, closing within the session's bound.
+pub(crate) fn driver(
+    session: Session,
+    port: Port,
+    clock: SharedClock,
+    config: &BusConfig,
+) -> Result<Driver<Session>, Error> {
+    let name = port.describe();
+    let driver_config = DriverConfig { close_bound: config.close_bound, ..DriverConfig::default() };
+    Driver::new(session, port, None, clock, driver_config).map_err(|e| {
+        Error::Link(LinkError::Open { port: name, reason: format!("cannot start the session's thread: {e}") })
+    })
+}
+
+impl Client {
+    /// A session over an RS232 byte link (a serial port, TCP, a pty, an in-memory link).
+    pub fn rs232(link: Box<dyn Link>, clock: SharedClock, config: BusConfig) -> Result<Client, Error> {
+        let session = Session::rs232(config.clone(), link.describe(), clock.now());
+        Client::with_driver(driver(session, Port::Bytes(link), clock, &config)?, config, false)
+    }
+
+    /// A session over a CAN link: SocketCAN, SLCAN, the in-memory bus, or any embedded-can driver through
+    /// [`EmbeddedCanLink`](motionlink_link::can::embedded::EmbeddedCanLink).
+    pub fn can(link: Box<dyn CanLink>, clock: SharedClock, config: BusConfig) -> Result<Client, Error> {
+        let session = Session::can(config.clone(), link.describe(), clock.now());
+        Client::with_driver(driver(session, Port::Can(link), clock, &config)?, config, true)
+    }
+
+    fn with_driver(driver: Driver<Session>, config: BusConfig, can: bool) -> Result<Client, Error> {
+        Ok(Client { driver, cancel: Mutex::new(None), config, can })
+    }
+
+    /// The port, for messages.
+    pub fn describe(&self) -> &str {
+        self.driver.port_name()
+    }
+
+    /// True on a CAN bus.
+    pub fn is_can(&self) -> bool {
+        self.can
+    }
+
+    /// The session's settings.
+    pub fn config(&self) -> &BusConfig {
+        &self.config
+    }
+
+    /// The session's clock.
+    pub fn clock(&self) -> &SharedClock {
+        self.driver.clock()
+    }
+
+    /// Every motion and wait of this client watches `token`: when it is cancelled (a signal), the motion is
+    /// halted and the call returns [`Error::Cancelled`] saying whether the module confirmed the halt.
+    pub fn set_cancel_token(&self, token: CancelToken) {
+        *lock(&self.cancel) = Some(token);
+    }
+
+    /// Runs `f` on the session (its statistics, its watchdog duty).
+    pub fn session<R>(&self, f: impl FnOnce(&mut Session) -> R) -> R {
+        self.driver.with_session(f)
+    }
+
+    /// Runs `op` to its end, with `progress` for its progress reports; a motion or wait is cancelled (and
+    /// its motion halted) when the token of [`Client::set_cancel_token`] is.
+    pub fn run_with(&self, op: Op, progress: &mut dyn FnMut(&Progress)) -> Result<Output, Error> {
+        // Reads set nothing in motion: a cancellation does not cut them short (a program that was asked to
+        // stop still reads what it needs to report).
+        let token = if op_is_read(&op) { None } else { lock(&self.cancel).clone() };
+        self.driver.run_with(op, progress, token.as_ref())
+    }
+
+    /// Runs `op` to its end.
+    pub fn run(&self, op: Op) -> Result<Output, Error> {
+        self.run_with(op, &mut |_| {})
+    }
+
+    pub(crate) fn call<T>(&self, call: Call<T>) -> Result<T, Error> {
+        self.call_with(call, &mut |_| {})
+    }
+
+    pub(crate) fn call_with<T>(&self, call: Call<T>, progress: &mut dyn FnMut(&Progress)) -> Result<T, Error> {
+        let output = self.run_with(call.op.clone(), progress);
+        call.result(output)
+    }
+
+    /// A handle on the module at `address` (1..31). Nothing is sent.
+    pub fn module(&self, address: u8) -> Result<Module<'_>, Error> {
+        Ok(Module { client: self, address: Address::new(address)? })
+    }
+
+    /// A handle on the module at `address`.
+    pub fn module_at(&self, address: Address) -> Module<'_> {
+        Module { client: self, address }
+    }
+
+    /// One request, checked before it is sent ([`Request::validate`]; nothing is sent if it breaks the
+    /// manual's rules), its acknowledge checked; reads are retried. Floats go on the wire as numbers in the
+    /// module's own unit: no unit check.
+    pub fn request(&self, address: u8, request: &Request) -> Result<Reply, Error> {
+        let a = Address::new(address)?;
+        request.validate()?;
+        self.call(calls::request(a, *request))
+    }
+
+    /// Several requests to several modules; on CAN all are sent at once and the acknowledges collected in
+    /// any order, on RS232 one after the other. Each is checked (one that breaks the rules gets its error and
+    /// is not sent; the others are). Reads that fail are retried.
+    pub fn request_many(&self, requests: &[(u8, Request)]) -> Vec<Result<Reply, Error>> {
+        let n = requests.len();
+        self.call(calls::request_many(requests.to_vec())).unwrap_or_else(|e| fail_all(n, &e))
+    }
+
+    /// Reads `param` of every module in `addresses` (on CAN in one round).
+    pub fn read_many(&self, addresses: &[u8], param: Param) -> Vec<Result<Value, Error>> {
+        let n = addresses.len();
+        self.call(calls::read_many(addresses.to_vec(), param)).unwrap_or_else(|e| fail_all(n, &e))
+    }
+
+    /// The positions of `addresses` (ActPos), on CAN in one round: in rad or m for a module whose kind the
+    /// session has read ([`Module::kind`], a scan, arming its watchdog), in the module's own unit otherwise.
+    pub fn positions(&self, addresses: &[u8]) -> Vec<Result<Position, Error>> {
+        let n = addresses.len();
+        self.call(calls::positions(addresses.to_vec())).unwrap_or_else(|e| fail_all(n, &e))
+    }
+
+    /// Sends a broadcast (see [`Op::Broadcast`]).
+    pub fn broadcast(&self, broadcast: Broadcast) -> Result<(), Error> {
+        self.call(calls::done(Op::Broadcast(broadcast)))
+    }
+
+    /// Asks addresses 1..31 for their version; returns every address that answers, with its type, serial
+    /// number and state, or the error that kept them from being read. Silence is absence; a corrupt answer
+    /// is asked again. Only a failed line fails the whole scan.
+    pub fn scan(&self) -> Result<Vec<ScanEntry>, Error> {
+        self.call(calls::scan())
+    }
+
+    /// Switches the watchdog on in `addresses` (see [`Op::EnableWatchdog`]); refreshed from then on.
+    pub fn enable_watchdog(&self, addresses: &[u8]) -> Result<(), Error> {
+        self.call(calls::done(Op::EnableWatchdog(addresses.to_vec())))
+    }
+
+    /// Undoes [`Client::enable_watchdog`] (see [`Op::DisableWatchdog`]).
+    pub fn disable_watchdog(&self) -> Result<(), Error> {
+        self.call(calls::done(Op::DisableWatchdog))
+    }
+
+    /// True when this session can arm the watchdog (CAN; RS232 unless [`BusConfig::watchdog_on_rs232`] is
+    /// false). A host that dies then stops the modules whose watchdog it switched on within 50 ms.
+    pub fn watchdog_reliable(&self) -> bool {
+        self.session(|s| s.watchdog_reliable())
+    }
+
+    /// Stops refreshing the watchdog on purpose and marks the session failed (see
+    /// [`Session::abandon_watchdog`]).
+    pub fn abandon_watchdog(&self) -> bool {
+        self.session(Session::abandon_watchdog)
+    }
+
+    /// True if this session switched the watchdog of `address` on (or may have) and still refreshes it.
+    pub fn watchdog_armed(&self, address: u8) -> bool {
+        self.session(|s| s.watchdog_armed(address))
+    }
+
+    /// True while the session refreshes the watchdog.
+    pub fn watchdog_served(&self) -> bool {
+        self.session(|s| s.watchdog_served())
+    }
+
+    /// The last failure of the refresh, if any.
+    pub fn watchdog_error(&self) -> Option<String> {
+        self.session(|s| s.watchdog_error())
+    }
+
+    /// True once the session has failed (see [`Session::failed`]).
+    pub fn failed(&self) -> bool {
+        self.session(|s| s.failed())
+    }
+
+    /// Modules known to exist: every address that answered this session.
+    pub fn known(&self) -> Vec<u8> {
+        self.session(|s| s.known())
+    }
+
+    /// Modules this session set in motion and has not seen stop.
+    pub fn started(&self) -> Vec<u8> {
+        self.session(|s| s.started())
+    }
+
+    /// Halts every module this session set in motion that is still moving or cannot be asked; what closing
+    /// does first, callable earlier. An error if one could not be confirmed stopped (a Halt was broadcast).
+    pub fn halt_started(&self) -> Result<(), Error> {
+        self.call(calls::done(Op::HaltStarted))
+    }
+
+    #[cfg(feature = "tokio")]
+    pub(crate) fn into_driver(self) -> Driver<Session> {
+        self.driver
+    }
+
+    /// Ends the session: halts what it set in motion and still moves, switches off the watchdogs it switched
+    /// on (unless it failed), and says whether that was confirmed, within [`BusConfig::close_bound`].
+    pub fn close(self) -> Result<(), Error> {
+        self.driver.close()
+    }
+}
+
+fn op_is_read(op: &Op) -> bool {
+    matches!(
+        op,
+        Op::ReadMany(..)
+            | Op::Positions(_)
+            | Op::Get(..)
+            | Op::Position(_)
+            | Op::PositionTicks(_)
+            | Op::State(_)
+            | Op::PositionStateDio(_)
+            | Op::ConfigWord(_)
+            | Op::Kind(_)
+            | Op::Info(_)
+            | Op::Scan
+    ) || matches!(op, Op::Request(_, r) if r.is_idempotent())
+}
+
+/// One copy of `e` per request (an operation that failed as a whole: the session was closed).
+pub(crate) fn fail_all<T>(n: usize, e: &Error) -> Vec<Result<T, Error>> {
+    (0..n).map(|_| Err(Error::Unsupported(e.to_string()))).collect()
+}
+
+/// One module on a [`Client`], by address.
+#[derive(Debug, Clone, Copy)]
+pub struct Module<'a> {
+    client: &'a Client,
+    address: Address,
+}
+
+impl Module<'_> {
+    /// The address.
+    pub fn address(&self) -> Address {
+        self.address
+    }
+
+    /// Reads `param` (refused before sending if it is write-only).
+    pub fn get(&self, param: Param) -> Result<Value, Error> {
+        self.client.call(calls::get(self.address, param))
+    }
+
+    /// Writes `param` (refused before sending if it is read-only, `value` has another type or is not a
+    /// finite number, or, on CAN, it would disable the acknowledges). No read-back: see
+    /// [`Module::set_checked`].
+    pub fn set(&self, param: Param, value: Value) -> Result<(), Error> {
+        Request::set(param, value)?;
+        self.client.call(calls::done(Op::Set(self.address, param, value)))
+    }
+
+    /// Writes `param` and checks that the module took it: a target beyond the module's limit is refused
+    /// ([`Error::BeyondLimit`]) before anything is sent; then the value is read back (the write-only targets
+    /// through their tick twins) and a difference is [`Error::Mismatch`].
+    pub fn set_checked(&self, param: Param, value: Value) -> Result<Readback, Error> {
+        self.client.call(calls::set_checked(self.address, param, value))
+    }
+
+    /// The actual position (ActPos): in rad or m once the session knows the module's kind.
+    pub fn position(&self) -> Result<Position, Error> {
+        self.client.call(calls::position(self.address))
+    }
+
+    /// The actual position in encoder ticks (ActIPos).
+    pub fn position_ticks(&self) -> Result<Ticks, Error> {
+        self.client.call(calls::position_ticks(self.address))
+    }
+
+    /// The state word (CubeState).
+    pub fn state(&self) -> Result<CubeState, Error> {
+        self.client.call(calls::state(self.address))
+    }
+
+    /// Position, short state and DIO in one read (ActFPosStateDio).
+    pub fn position_state_dio(&self) -> Result<(Position, ShortState, Dio), Error> {
+        self.client.call(calls::position_state_dio(self.address))
+    }
+
+    /// The Config word.
+    pub fn config_word(&self) -> Result<ConfigWord, Error> {
+        self.client.call(calls::config_word(self.address))
+    }
+
+    /// Rotary or linear (read once from the Config word, then remembered).
+    pub fn kind(&self) -> Result<ModuleKind, Error> {
+        self.client.call(calls::kind(self.address))
+    }
+
+    /// Type, version, serial number and state.
+    pub fn info(&self) -> Result<ModuleInfo, Error> {
+        self.client.call(calls::info(self.address))
+    }
+
+    /// Reset: clears the errors that can be cleared and STATE_HALTED.
+    pub fn reset(&self) -> Result<(), Error> {
+        self.client.call(calls::action(self.address, Action::Reset))
+    }
+
+    /// Starts homing (wait for it with [`Module::wait_home`]).
+    pub fn home(&self) -> Result<(), Error> {
+        self.client.call(calls::action(self.address, Action::Home))
+    }
+
+    /// Reset, and the manual's first way to restart after a watchdog expiry (see
+    /// [`Op::ResetAndReleaseWatchdog`]); true if it switched an expired watchdog offline.
+    pub fn reset_and_release_watchdog(&self) -> Result<bool, Error> {
+        self.client.call(calls::reset_and_release_watchdog(self.address))
+    }
+
+    /// Halt: stops at once; the module stays halted until a reset.
+    pub fn halt(&self) -> Result<(), Error> {
+        self.client.call(calls::done(Op::Halt(self.address)))
+    }
+
+    /// Stops the module after an action that may have set it in motion cannot go on (see
+    /// [`Op::StopMotion`]), and says whether the module confirmed it.
+    pub fn stop_motion(&self) -> StopOutcome {
+        self.client.call(calls::stop_motion(self.address)).unwrap_or_else(|e| StopOutcome::Unconfirmed {
+            reason: e.to_string(),
+            watchdog_armed: self.client.watchdog_armed(self.address.get()),
+        })
+    }
+
+    /// RecalcPIDParam.
+    pub fn recalc_pid(&self) -> Result<(), Error> {
+        self.client.call(calls::action(self.address, Action::RecalcPid))
+    }
+
+    /// ResetTime: restarts the module's millisecond clock.
+    pub fn reset_time(&self) -> Result<(), Error> {
+        self.client.call(calls::action(self.address, Action::ResetTime))
+    }
+
+    /// A motion command in any mode, its units checked against the module's kind (rad for a linear module
+    /// is refused); returns the extended acknowledge if `ack` asks for one.
+    pub fn motion(&self, motion: Motion, ack: AckKind) -> Result<Option<ExtAck>, Error> {
+        Request::motion(motion, ack)?;
+        self.client.call(calls::motion(self.address, motion, ack))
+    }
+
+    /// A step in encoder ticks (SetIStep).
+    pub fn istep(&self, pos: Ticks, time: Millis) -> Result<(), Error> {
+        self.client.call(calls::istep(self.address, pos, time))
+    }
+
+    /// A ramp move to `pos`, first setting TargetVel and TargetAcc if `ramp` is given (no limit checks,
+    /// no read-back, no wait: [`Module::move_to`] has them).
+    pub fn move_ramp(&self, pos: Position, ramp: Option<Ramp>) -> Result<(), Error> {
+        self.move_ramp_with(pos, ramp.map(|r| r.vel), ramp.map(|r| r.acc))
+    }
+
+    /// A ramp move to `pos`, first setting TargetVel if `vel` is given and TargetAcc if `acc` is given.
+    pub fn move_ramp_with(&self, pos: Position, vel: Option<Velocity>, acc: Option<Acceleration>) -> Result<(), Error> {
+        self.client.call(calls::move_ramp(self.address, pos, vel, acc))
+    }
+
+    fn wait(&self, until: Until, timeout: Duration, progress: &mut dyn FnMut(&Progress)) -> Result<CubeState, Error> {
+        self.client.call_with(calls::wait(self.address, until, timeout), progress)
+    }
+
+    /// Waits until homing has ended (STATE_HOME_OK, not moving); halts on a timeout or a cancellation.
+    pub fn wait_home(&self, timeout: Duration, progress: &mut dyn FnMut(&Progress)) -> Result<CubeState, Error> {
+        self.wait(Until::Home, timeout, progress)
+    }
+
+    /// Waits until the module stands still (no STATE_MOTION); halts on a timeout or a cancellation.
+    pub fn wait_motion_end(&self, timeout: Duration, progress: &mut dyn FnMut(&Progress)) -> Result<CubeState, Error> {
+        self.wait(Until::Motion, timeout, progress)
+    }
+
+    /// Waits until a ramp has ended (STATE_RAMP_END, not moving); halts on a timeout or a cancellation.
+    pub fn wait_ramp_end(&self, timeout: Duration, progress: &mut dyn FnMut(&Progress)) -> Result<CubeState, Error> {
+        self.wait(Until::Ramp, timeout, progress)
+    }
+
+    /// Homes the module and waits for the end of homing (see [`Op::HomeAndWait`]); position and state at
+    /// the end.
+    pub fn home_and_wait(
+        &self,
+        timeout: Duration,
+        progress: &mut dyn FnMut(&Progress),
+    ) -> Result<(Position, CubeState), Error> {
+        self.client.call_with(calls::home_and_wait(self.address, timeout, None), progress)
+    }
+
+    /// [`Module::home_and_wait`] under `guard` (see [`Guard`]): what `motionlink powercube home` does.
+    pub fn home_guarded(
+        &self,
+        timeout: Duration,
+        guard: Guard,
+        progress: &mut dyn FnMut(&Progress),
+    ) -> Result<(Position, CubeState), Error> {
+        self.client.call_with(calls::home_and_wait(self.address, timeout, Some(guard)), progress)
+    }
+
+    /// A ramp move with every check this protocol allows (see [`Op::MoveTo`]).
+    pub fn move_to(&self, spec: &MoveSpec, progress: &mut dyn FnMut(&Progress)) -> Result<MoveReport, Error> {
+        self.client.call_with(calls::move_to(self.address, *spec, None), progress)
+    }
+
+    /// [`Module::move_to`] under `guard` (see [`Guard`]): what `motionlink powercube move` does.
+    pub fn move_to_guarded(
+        &self,
+        spec: &MoveSpec,
+        guard: Guard,
+        progress: &mut dyn FnMut(&Progress),
+    ) -> Result<MoveReport, Error> {
+        self.client.call_with(calls::move_to(self.address, *spec, Some(guard)), progress)
+    }
+}

@@ -1,0 +1,87 @@
+//! Closing a client: what it stops, what it reports, and how long it may take.
+
+use super::*;
+use crate::client::Guard;
+use crate::error::Error;
+use crate::model::*;
+
+#[test]
+fn close_stops_what_was_started_and_says_it_was_confirmed() {
+    let (clock, canbus, bus) = can(&[1, 2]);
+    let _me = clock.reserve_participant().enter();
+    let before = device_view(&canbus, &clock, 1).3;
+    bus.enable_watchdog(&[1, 2]).unwrap();
+    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
+    clock.sleep(Duration::from_millis(300));
+    assert_eq!(bus.close().map_err(|e| e.to_string()), Ok(()));
+    let (state, _, online, config) = device_view(&canbus, &clock, 1);
+    assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
+    assert!(!online && config == before, "watchdog off, Config word as it was");
+    clock.sleep(Duration::from_secs(1));
+    assert!(!device_view(&canbus, &clock, 2).0.has_fault(), "nothing left to expire");
+}
+
+#[test]
+fn close_on_a_dead_line_says_the_stop_was_not_confirmed_and_the_watchdog_stops_the_module() {
+    let (clock, canbus, bus) = can(&[1]);
+    let _me = clock.reserve_participant().enter();
+    bus.enable_watchdog(&[1]).unwrap();
+    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
+    canbus.drop_next_from_device(u64::MAX);
+    let t0 = clock.now();
+    let err = bus.close().unwrap_err();
+    assert!(matches!(err, Error::StopUnconfirmed { watchdog_armed: true, .. }), "{err}");
+    assert!(err.is_transport() && err.to_string().contains("the axis may still be moving"), "{err}");
+    assert!(clock.now() - t0 < Duration::from_millis(300), "three state polls of 50 ms, then the broadcast");
+    clock.sleep(Duration::from_millis(100));
+    let (state, _, online, _) = device_view(&canbus, &clock, 1);
+    assert!(!state.contains(StateFlag::Motion) && online, "halted (the broadcast reached it), watchdog left: {state}");
+}
+
+#[test]
+fn close_and_drop_are_bounded_in_time_and_a_missed_bound_is_reported() {
+    // RS232 with a 300 ms bound: the close sequence would take 600 ms asking a silent module for its state.
+    let config = BusConfig { close_bound: Duration::from_millis(300), ..BusConfig::rs232() };
+    let (clock, host, bus, faults) = rs232_with(&[1], config.clone());
+    let _me = clock.reserve_participant().enter();
+    bus.enable_watchdog(&[1]).unwrap();
+    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
+    faults.drop_next(Direction::DeviceToHost, u64::MAX);
+    let t0 = clock.now();
+    let err = bus.close().unwrap_err();
+    assert!(matches!(err, Error::CloseTimedOut { .. }) && err.is_transport(), "{err}");
+    assert!(err.to_string().contains("the axis may still be moving"), "{err}");
+    // The bound, and at most one read slice of the driver (20 ms) that was under way when it passed.
+    let most = Duration::from_millis(300 + 20 + 1);
+    assert!(clock.now() - t0 <= most, "{:?}", clock.now() - t0);
+    // The refresh stopped with the session: the module's watchdog halts it.
+    clock.sleep(Duration::from_millis(100));
+    let s = host.with_device(|d| d.module(1).unwrap().state());
+    assert!(s.contains(StateFlag::CommError) && !s.contains(StateFlag::Motion), "{s}");
+
+    // Dropping is bounded the same way.
+    let (clock, _host, bus, faults) = rs232_with(&[1], config);
+    let _me = clock.reserve_participant().enter();
+    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
+    faults.drop_next(Direction::DeviceToHost, u64::MAX);
+    let t0 = clock.now();
+    drop(bus);
+    assert!(clock.now() - t0 <= most, "{:?}", clock.now() - t0);
+}
+
+#[test]
+fn a_guarded_move_through_the_client_is_what_the_command_line_runs() {
+    let (clock, host, bus, _) = rs232_instant(&[1]);
+    let _me = clock.reserve_participant().enter();
+    let m = bus.module(1).unwrap();
+    let report = m.move_to_guarded(&spec(0.4), Guard::Watchdog, &mut |_| {}).unwrap();
+    assert!((report.reached.value() - 0.4).abs() <= 0.001);
+    let events = host.with_device(|d| d.take_events());
+    assert!(events.iter().any(|e| e == "module 1 watchdog online"), "{events:?}");
+    assert!(events.last().is_some_and(|e| e == "module 1 watchdog offline"), "{events:?}");
+    // After a module died with its watchdog online: refused with the hint, nothing moved.
+    host.with_device(|d| d.module_mut(1).unwrap().inject_fault(CubeState::EMPTY.with(StateFlag::CommError)));
+    let err = m.move_to_guarded(&spec(0.1), Guard::Watchdog, &mut |_| {}).unwrap_err();
+    assert!(err.to_string().contains("cannot arm the watchdog of module 1") && err.is_device(), "{err}");
+    assert!(err.to_string().contains("`reset` clears it"), "{err}");
+}

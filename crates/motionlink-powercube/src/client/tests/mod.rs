@@ -1,0 +1,115 @@
+//! The client against the emulator, in-process, with an auto-advancing manual clock: the tests of the
+//! blocking client before the session became sans-IO, on the same API (renamed: `Bus` is `Client`,
+//! `SimBus` is `Emulator`), asserting what they asserted.
+
+mod basics;
+mod checked;
+mod close;
+mod watchdog;
+
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::Duration;
+
+use motionlink_link::can::{CanBus, CanBusConfig, CanLink};
+use motionlink_link::clock::{Clock, ManualClock};
+use motionlink_link::pipe::{Direction, EmulatorHost, FaultControl, PipeConfig};
+use motionlink_link::LinkError;
+
+use crate::client::{BusConfig, Client, ModuleInfo, MoveSpec};
+use crate::model::{ConfigWord, CubeState, Position, Reply, Request, Velocity};
+use crate::sim::SimConfig;
+use crate::Emulator;
+
+fn rs232(addresses: &[u8]) -> (ManualClock, EmulatorHost<Emulator>, Client, FaultControl) {
+    rs232_with(addresses, BusConfig::rs232())
+}
+
+fn rs232_with(addresses: &[u8], config: BusConfig) -> (ManualClock, EmulatorHost<Emulator>, Client, FaultControl) {
+    let clock = ManualClock::new_auto();
+    let sim = Emulator::new(&SimConfig::with_addresses(addresses).unwrap());
+    let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(9_600));
+    let (link, faults) = host.connect();
+    let bus = Client::rs232(Box::new(link), clock.shared(), config).unwrap();
+    (clock, host, bus, faults)
+}
+
+/// The infos of a scan in which every module could be read.
+fn scan_infos(bus: &Client) -> Vec<ModuleInfo> {
+    bus.scan()
+        .unwrap()
+        .into_iter()
+        .map(|e| e.info.unwrap_or_else(|err| panic!("module {}: {err}", e.address)))
+        .collect()
+}
+
+fn can(addresses: &[u8]) -> (ManualClock, CanBus<Emulator>, Client) {
+    let clock = ManualClock::new_auto();
+    let sim = Emulator::new_can(&SimConfig::with_addresses(addresses).unwrap());
+    let canbus = CanBus::with_emulator(sim, clock.shared(), CanBusConfig::paced(1_000_000));
+    let bus = Client::can(Box::new(canbus.connect()), clock.shared(), BusConfig::can()).unwrap();
+    (clock, canbus, bus)
+}
+
+fn secs(s: u64) -> Duration {
+    Duration::from_secs(s)
+}
+
+fn can_host() -> (ManualClock, CanBus<Emulator>, Client) {
+    can(&[1, 2])
+}
+
+/// State and position of module `a` at the clock's time, straight from the emulator.
+fn device_view(canbus: &CanBus<Emulator>, clock: &ManualClock, a: u8) -> (CubeState, f32, bool, ConfigWord) {
+    canbus
+        .with_device(|d| {
+            d.update(clock.now());
+            let m = d.module(a).unwrap();
+            (m.state(), m.position().value(), m.watchdog_online(), m.config_word())
+        })
+        .unwrap()
+}
+
+/// The length on the wire of `reply` from module `address` in an RS232 frame.
+fn rs232_len(address: u8, reply: &Reply) -> u64 {
+    let mut buf = [0u8; crate::wire::rs232::MAX_FRAME];
+    crate::wire::rs232::encode(crate::wire::rs232::TelKind::Recv, address, &reply.encode(), &mut buf).unwrap() as u64
+}
+
+/// An RS232 session whose bytes arrive at once (no 9600 baud pacing): only the session's own timing counts.
+fn rs232_instant(addresses: &[u8]) -> (ManualClock, EmulatorHost<Emulator>, Client, FaultControl) {
+    let clock = ManualClock::new_auto();
+    let sim = Emulator::new(&SimConfig::with_addresses(addresses).unwrap());
+    let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::instant());
+    let (link, faults) = host.connect();
+    let bus = Client::rs232(Box::new(link), clock.shared(), BusConfig::rs232()).unwrap();
+    (clock, host, bus, faults)
+}
+
+fn spec(target: f32) -> MoveSpec {
+    MoveSpec {
+        vel: Some(Velocity::native(1.0)),
+        acc: Some(crate::model::Acceleration::native(2.0)),
+        ..MoveSpec::to(Position::native(target))
+    }
+}
+
+fn sim_module(host: &EmulatorHost<Emulator>, a: u8) -> (CubeState, f32) {
+    host.with_device(|d| {
+        let m = d.module(a).unwrap();
+        (m.state(), m.position().value())
+    })
+}
+
+/// The length of the RS232 frame of `request` to `address`, DLE escapes included.
+fn rs232_request_len(address: u8, request: &Request) -> u64 {
+    let mut buf = [0u8; crate::wire::rs232::MAX_FRAME];
+    crate::wire::rs232::encode(crate::wire::rs232::TelKind::Send, address, &request.encode(), &mut buf).unwrap() as u64
+}
+
+/// The host dies: no more refresh, no halt, no goodbye (what SIGKILL, a power loss or a pulled adapter does
+/// to a session).
+fn kill(bus: Client) {
+    bus.session(|s| s.die());
+    drop(bus);
+}

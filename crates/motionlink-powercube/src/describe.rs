@@ -1,0 +1,255 @@
+//! Captured PowerCube traffic, explained: RS232 bytes (framed, unescaped, BCC and TELID length checked,
+//! libm5api's broadcast form named) and CAN frames (by identifier role), through the one decoder signature
+//! of every family ([`Describe`]). `motionlink decode powercube`, the demo's transcript and any capture
+//! writer call it.
+//!
+//! ```
+//! use motionlink_link::describe::{Captured, Describe, Direction};
+//! use motionlink_powercube::describe::Describer;
+//! let mut d = Describer::new();
+//! let mut out = Vec::new();
+//! d.describe(Captured::Bytes(&[0x02, 0x06, 0x21, 0x01, 0x28, 0x03]), Direction::Unknown, None, &mut out);
+//! assert_eq!(out[0].meaning, "to module 17: Home");
+//! assert_eq!(out[0].direction, Direction::ToDevice);
+//! ```
+
+use motionlink_link::can::CanFrame;
+use motionlink_link::describe::{Annotation, Captured, Describe, Direction};
+use motionlink_link::Timestamp;
+
+use crate::model::{Broadcast, BroadcastForm, ConfigFlag, ConfigWord, ModuleKind, Param, Reply, Request, Value};
+use crate::wire::can::{self as can_wire, Role};
+use crate::wire::rs232::{self, Rs232Decoder, Rs232Frame, TelKind};
+use crate::wire::Payload;
+
+/// The PowerCube describer: keeps the RS232 decoder's state between chunks, and the kind of each module
+/// as its Config word goes by (so that a position read is shown in rad or m once that is known, and as
+/// "rad|m" before).
+#[derive(Debug, Clone, Default)]
+pub struct Describer {
+    decoder: Rs232Decoder,
+    /// The bytes of the RS232 frame in progress, escapes included.
+    frame: Vec<u8>,
+    frames: u64,
+    bytes: u64,
+    kinds: [Option<ModuleKind>; 32],
+}
+
+impl Describer {
+    /// A describer that has seen nothing yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    fn kind(&self, address: u8) -> Option<ModuleKind> {
+        self.kinds.get(usize::from(address)).copied().flatten()
+    }
+
+    /// Learns a module's kind from its Config word going by.
+    fn learn(&mut self, address: u8, reply: &Reply) {
+        if let Reply::Get(Param::Config, Value::U32(w)) = reply {
+            let kind =
+                if ConfigWord(*w).contains(ConfigFlag::Linear) { ModuleKind::Linear } else { ModuleKind::Rotary };
+            if let Some(slot) = self.kinds.get_mut(usize::from(address)) {
+                *slot = Some(kind);
+            }
+        }
+    }
+
+    /// A payload that went as a broadcast.
+    fn broadcast(payload: &Payload) -> String {
+        match Broadcast::decode_form(payload) {
+            Ok((b, BroadcastForm::Manual)) => format!("broadcast: {b}"),
+            Ok((b, BroadcastForm::Padded)) => format!("broadcast: {b} (command + 0x00, as libm5api sends it)"),
+            Err(e) => format!("broadcast: not understood ({e})"),
+        }
+    }
+
+    /// An acknowledge from `address`, with the unit of its kind where known.
+    fn reply(&mut self, address: u8, payload: &Payload) -> String {
+        match Reply::decode(payload) {
+            Ok(r) => {
+                self.learn(address, &r);
+                match r {
+                    Reply::Get(p, v) => format!("{p} = {}", v.show_in(p, self.kind(address))),
+                    other => other.to_string(),
+                }
+            }
+            Err(e) => format!("acknowledge not understood: {e}"),
+        }
+    }
+
+    fn request(payload: &Payload) -> String {
+        match Request::decode(payload) {
+            Ok(r) => r.to_string(),
+            Err(e) => format!("command not understood: {e}"),
+        }
+    }
+
+    /// One CAN frame: its role, module and meaning; the direction its identifier gives.
+    pub fn describe_frame(&mut self, frame: &CanFrame) -> (String, Direction, bool) {
+        match can_wire::from_frame(frame) {
+            Ok((Role::Ack(a), p)) => {
+                (format!("ack from module {a}: {}", self.reply(a, &p)), Direction::FromDevice, false)
+            }
+            Ok((Role::Get(a), p)) => (format!("get to module {a}: {}", Self::request(&p)), Direction::ToDevice, false),
+            Ok((Role::Put(a), p)) => (format!("put to module {a}: {}", Self::request(&p)), Direction::ToDevice, false),
+            Ok((Role::Broadcast, p)) => (Self::broadcast(&p), Direction::ToDevice, false),
+            Err(e) => (format!("not PowerCube: {e}"), Direction::Unknown, true),
+        }
+    }
+
+    /// One RS232 frame: to or from which module, its meaning, and what is wrong with it (BCC, TELID
+    /// length).
+    pub fn describe_rs232(&mut self, frame: &Rs232Frame) -> String {
+        let mut text = match frame.kind {
+            TelKind::Send if frame.address == 0 => {
+                format!("to every module (address 0): {}", Self::broadcast(&frame.payload))
+            }
+            TelKind::Send => format!("to module {}: {}", frame.address, Self::request(&frame.payload)),
+            TelKind::Recv => format!("from module {}: {}", frame.address, self.reply(frame.address, &frame.payload)),
+        };
+        if !frame.bcc_ok() {
+            text.push_str(&format!(" [BCC 0x{:02X} wrong, expected 0x{:02X}]", frame.bcc_received, frame.bcc_computed));
+        }
+        if !frame.length_ok() {
+            text.push_str(&format!(" [TELID length {} for {} bytes]", frame.declared_len, frame.payload.len()));
+        }
+        text
+    }
+
+    fn bytes(&mut self, bytes: &[u8], direction: Direction, at: Option<Timestamp>, out: &mut Vec<Annotation>) {
+        for &b in bytes {
+            self.bytes += 1;
+            self.frame.push(b);
+            if b == rs232::STX && self.frame.len() > 1 {
+                self.frame = vec![b];
+            }
+            match self.decoder.push(b) {
+                Some(Ok(f)) => {
+                    self.frames += 1;
+                    let from_bytes = match f.kind {
+                        TelKind::Send => Direction::ToDevice,
+                        TelKind::Recv => Direction::FromDevice,
+                    };
+                    let meaning = self.describe_rs232(&f);
+                    out.push(Annotation {
+                        at,
+                        direction: if direction == Direction::Unknown { from_bytes } else { direction },
+                        can_id: None,
+                        bytes: std::mem::take(&mut self.frame),
+                        meaning,
+                        bad: !f.bcc_ok() || !f.length_ok(),
+                    });
+                }
+                Some(Err(e)) => {
+                    out.push(Annotation {
+                        at,
+                        direction,
+                        can_id: None,
+                        bytes: Vec::new(),
+                        meaning: format!("error: {e}"),
+                        bad: true,
+                    });
+                    if b != rs232::STX {
+                        self.frame.clear();
+                    }
+                }
+                None => {}
+            }
+        }
+    }
+}
+
+impl Describe for Describer {
+    fn describe(
+        &mut self,
+        captured: Captured<'_>,
+        direction: Direction,
+        at: Option<Timestamp>,
+        out: &mut Vec<Annotation>,
+    ) {
+        match captured {
+            Captured::Bytes(bytes) => self.bytes(bytes, direction, at, out),
+            Captured::Frame(frame) => {
+                let (meaning, from_id, bad) = self.describe_frame(frame);
+                out.push(Annotation {
+                    at,
+                    direction: if direction == Direction::Unknown { from_id } else { direction },
+                    can_id: Some(frame.id()),
+                    bytes: frame.data().to_vec(),
+                    meaning,
+                    bad,
+                });
+            }
+        }
+    }
+
+    fn finish(&mut self, out: &mut Vec<Annotation>) {
+        if self.frames == 0 && self.bytes > 0 {
+            out.push(Annotation {
+                at: None,
+                direction: Direction::Unknown,
+                can_id: None,
+                bytes: Vec::new(),
+                meaning: format!("no complete RS232 frame in {} byte(s)", self.bytes),
+                bad: true,
+            });
+        } else if self.frame.len() > 1 || self.frame.first().is_some_and(|b| *b != rs232::STX) {
+            out.push(Annotation {
+                at: None,
+                direction: Direction::Unknown,
+                can_id: None,
+                bytes: std::mem::take(&mut self.frame),
+                meaning: "incomplete frame at the end of the capture".into(),
+                bad: true,
+            });
+        }
+        self.decoder.reset();
+        self.frame.clear();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn all(d: &mut Describer, captured: Captured<'_>) -> Vec<Annotation> {
+        let mut out = Vec::new();
+        d.describe(captured, Direction::Unknown, None, &mut out);
+        out
+    }
+
+    #[test]
+    fn rs232_in_pieces_with_garbage_and_a_bad_bcc() {
+        let mut d = Describer::new();
+        assert!(all(&mut d, Captured::Bytes(&[0x02, 0x06, 0x21])).is_empty(), "a frame in progress");
+        let a = all(&mut d, Captured::Bytes(&[0x10, 0x82, 0x29, 0x03, 0xff, 0x02, 0x06, 0x21, 0x01, 0x00, 0x03]));
+        assert_eq!(a.len(), 3, "{a:?}");
+        assert_eq!((a[0].meaning.as_str(), a[0].bytes.len(), a[0].bad), ("to module 17: Halt", 7, false));
+        assert_eq!(a[1].meaning, "error: 1 byte(s) outside a frame skipped");
+        assert!(a[2].bad && a[2].meaning.ends_with("Home [BCC 0x00 wrong, expected 0x28]"), "{}", a[2].meaning);
+        let mut tail = Vec::new();
+        all(&mut d, Captured::Bytes(&[0x02, 0x06]));
+        d.finish(&mut tail);
+        assert!(tail[0].bad && tail[0].meaning.contains("incomplete"), "{tail:?}");
+    }
+
+    #[test]
+    fn positions_get_their_unit_once_the_config_word_went_by() {
+        let mut d = Describer::new();
+        let get = |p: &Reply| CanFrame::new(0x0A4, p.encode().as_bytes()).unwrap();
+        let pos = Reply::Get(Param::ActPos, Value::F32(0.1));
+        assert_eq!(d.describe_frame(&get(&pos)).0, "ack from module 4: ActPos = 0.100000 rad|m");
+        d.describe_frame(&get(&Reply::Get(Param::Config, Value::U32(ConfigFlag::Linear.mask()))));
+        let (text, direction, bad) = d.describe_frame(&get(&pos));
+        assert_eq!(
+            (text.as_str(), direction, bad),
+            ("ack from module 4: ActPos = 0.100000 m", Direction::FromDevice, false)
+        );
+        let mut out = Vec::new();
+        let frame = CanFrame::new(0x0C4, &[0x0a, 0x3c]).unwrap();
+        d.describe(Captured::Frame(&frame), Direction::Unknown, None, &mut out);
+        assert_eq!((out[0].can_id, out[0].direction), (Some(0x0C4), Direction::ToDevice));
+    }
+}

@@ -1,0 +1,463 @@
+//! The one error type of the PowerCube family: device answers and named state flags as values, each error
+//! classified ([`Classify`]) as device refused, device error, transport (timeout, disconnected, corrupt),
+//! usage or cancelled, so that every front end maps classes, not variants.
+
+use std::fmt;
+use std::time::Duration;
+
+use motionlink_link::error::{Classify, ErrorClass, TransportKind};
+use motionlink_link::session::SessionError;
+use motionlink_link::LinkError;
+
+use crate::model::{CubeState, InvalidAddress, ModelError, ModuleKind, Param, Request};
+use crate::wire::rs232::Rs232Error;
+
+/// What became of the Halt an action sent to a module it had set in motion, when the action could not go
+/// on (a failing line, a timeout, a cancellation).
+/// What became of the Halt an action sent to a module it had set in motion, when the action could not go
+/// on (a failing line, a timeout, a cancellation).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum StopOutcome {
+    /// Nothing had been set in motion yet: nothing to stop.
+    NotStarted,
+    /// The module acknowledged the Halt: it stopped at once (and stays halted until a reset).
+    Confirmed,
+    /// No Halt was acknowledged (it was tried three times, then broadcast): the axis may still be moving.
+    Unconfirmed {
+        /// Why: the last Halt's error.
+        reason: String,
+        /// The session had switched the module's watchdog on: its refresh has been stopped, so a module
+        /// that the Halt did not reach halts itself within 50 ms of the last refresh that reached it.
+        watchdog_armed: bool,
+    },
+}
+
+impl StopOutcome {
+    /// True unless a Halt was needed and not confirmed.
+    pub fn is_confirmed(&self) -> bool {
+        !matches!(self, StopOutcome::Unconfirmed { .. })
+    }
+}
+
+impl fmt::Display for StopOutcome {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            StopOutcome::NotStarted => f.write_str("nothing had been set in motion"),
+            StopOutcome::Confirmed => f.write_str("the module acknowledged the halt: it has stopped"),
+            StopOutcome::Unconfirmed { reason, watchdog_armed } => {
+                write!(f, "the halt was not confirmed ({reason}): the axis may still be moving")?;
+                if *watchdog_armed {
+                    f.write_str(
+                        "; its watchdog is online and no longer refreshed, so if the halt did not reach it the \
+                         module halts itself within 50 ms of the last refresh that did",
+                    )
+                } else {
+                    f.write_str("; no watchdog is armed on it: only a halt or the emergency stop stops it now")
+                }
+            }
+        }
+    }
+}
+
+/// What went wrong in a session. Device errors ([`Error::is_device`]) are the module's answer; transport
+/// errors ([`Error::is_transport`]) are the line's; usage errors ([`Error::is_usage`]) are the caller's.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The port or the line failed.
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    /// No acknowledge in time.
+    #[error("module {address} did not answer {request} within {} ms", waited.as_millis())]
+    Timeout {
+        /// The module.
+        address: u8,
+        /// The request, described.
+        request: String,
+        /// How long the session waited (the last attempt).
+        waited: Duration,
+    },
+    /// Only a corrupt answer came (bad BCC, broken frame, unknown content).
+    #[error("module {address}: corrupt answer to {request}: {detail}")]
+    Corrupt {
+        /// The module.
+        address: u8,
+        /// The request, described.
+        request: String,
+        /// What was wrong.
+        detail: String,
+    },
+    /// The module reports error flags; they are named.
+    #[error("module {address} reports an error: {}", fault_names(*state))]
+    Device {
+        /// The module.
+        address: u8,
+        /// Its state word (match on the flags with [`CubeState::contains`]).
+        state: CubeState,
+    },
+    /// The module is halted (STATE_HALTED) without an error flag: a Halt, or a watchdog that expired.
+    #[error("module {address} is halted (STATE_HALTED); send a reset")]
+    Halted {
+        /// The module.
+        address: u8,
+        /// Its state word.
+        state: CubeState,
+    },
+    /// The module acknowledged with a status other than 0x64.
+    #[error("module {address} refused {request} (status 0x{status:02X})")]
+    Refused {
+        /// The module.
+        address: u8,
+        /// The request, described.
+        request: String,
+        /// The status byte.
+        status: u8,
+    },
+    /// Homing or a motion did not end in time; the motion was halted ([`Error::WaitTimeout::stop`] says
+    /// whether that was confirmed).
+    #[error("module {address}: {what} did not happen within {} ms (state: {state}); {stop}", waited.as_millis())]
+    WaitTimeout {
+        /// The module.
+        address: u8,
+        /// What was waited for.
+        what: &'static str,
+        /// How long.
+        waited: Duration,
+        /// The last state read.
+        state: CubeState,
+        /// What became of the Halt.
+        stop: StopOutcome,
+    },
+    /// The action was cancelled (Ctrl-C, a signal, [`Client::set_cancel_token`](crate::Client::set_cancel_token),
+    /// a dropped future); what it had set in motion was halted ([`Error::Cancelled::stop`] says whether that
+    /// was confirmed).
+    #[error("module {address}: cancelled; {stop}")]
+    Cancelled {
+        /// The module.
+        address: u8,
+        /// What became of the Halt.
+        stop: StopOutcome,
+    },
+    /// The line failed, or the module stopped answering, while a motion this session started may have been
+    /// running: the session tried to halt it, and [`Error::LostDuringMotion::stop`] says whether the module
+    /// confirmed that.
+    #[error("while module {address} may have been moving: {cause}; {stop}")]
+    LostDuringMotion {
+        /// The module.
+        address: u8,
+        /// What failed.
+        cause: Box<Error>,
+        /// What became of the Halt.
+        stop: StopOutcome,
+    },
+    /// A value outside one of the module's limits: refused before anything was sent that moves (the module
+    /// would have limited it silently).
+    #[error("module {address}: {what} {} is outside the module's limit {limit} = {}", number(*value), number(*limit_value))]
+    BeyondLimit {
+        /// The module.
+        address: u8,
+        /// What the value is ("target position", "--vel", "TargetVel").
+        what: String,
+        /// The value asked for.
+        value: f64,
+        /// The limit parameter (MinPos, MaxPos, MaxVel, MaxAcc, MaxCur ...).
+        limit: Param,
+        /// Its value in the module.
+        limit_value: f64,
+    },
+    /// A parameter read back after it was written differs from what was written: the module limited it, or
+    /// the write was corrupted on the way (the modules ignore the checksum).
+    #[error("module {address}: {param} was written as {wrote} but reads back as {read} (the module limited it, or the write was corrupted on the way)")]
+    Mismatch {
+        /// The module.
+        address: u8,
+        /// The parameter written.
+        param: Param,
+        /// What was written.
+        wrote: String,
+        /// What the module holds.
+        read: String,
+    },
+    /// After the motion command, the module's target (TargetPosInc) is not the target sent: the command
+    /// was corrupted on the way; the motion was halted.
+    #[error("module {address}: the motion command was sent with target {sent} ticks but the module took {taken} ticks (a corrupted command); {stop}")]
+    TargetMismatch {
+        /// The module.
+        address: u8,
+        /// The target sent, in encoder ticks.
+        sent: i32,
+        /// The target the module holds.
+        taken: i32,
+        /// What became of the Halt.
+        stop: StopOutcome,
+    },
+    /// The motion ended, but not where it was asked to: the final position read from the module is further
+    /// from the target than the in-position tolerance.
+    #[error("module {address}: target {target} not reached: the module stands at {reached}, {difference:.6} away (tolerance {tolerance}; state: {state})")]
+    NotReached {
+        /// The module.
+        address: u8,
+        /// The target.
+        target: f32,
+        /// The final actual position read from the module.
+        reached: f32,
+        /// `reached - target`.
+        difference: f32,
+        /// The tolerance allowed.
+        tolerance: f32,
+        /// The state word at the end.
+        state: CubeState,
+    },
+    /// A value given to an action that makes no sense (not a finite number, not above 0): nothing was sent.
+    #[error("{what} must be {must}, not {value}")]
+    InvalidArgument {
+        /// The argument.
+        what: &'static str,
+        /// What it must be.
+        must: &'static str,
+        /// What it was.
+        value: String,
+    },
+    /// A request the manual does not allow (access, type): nothing was sent.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// An address outside 1..31.
+    #[error("module address {0} is outside 1..31")]
+    InvalidAddress(u8),
+    /// Something this client does not do.
+    #[error("{0}")]
+    Unsupported(String),
+    /// The session failed with the watchdog of these modules online: it was left online (its refresh
+    /// stopped), so they halt within 50 ms with STATE_COMM_ERROR; `reset_and_release_watchdog` (the `reset`
+    /// command) clears them afterwards.
+    #[error("the watchdog of module {} is left online: {detail}; the module halts within 50 ms of the last refresh (STATE_COMM_ERROR; `reset` clears it)", addresses.iter().map(u8::to_string).collect::<Vec<_>>().join(", "))]
+    WatchdogLeftOnline {
+        /// The modules.
+        addresses: Vec<u8>,
+        /// Why.
+        detail: String,
+    },
+    /// A watchdog toggle (the life sign, chapter 13) was not confirmed: whether the module's watchdog is
+    /// online is not known. No second life sign is sent blindly (it could switch the watchdog the wrong way).
+    #[error("module {address}: watchdog not confirmed {}: {detail}", if *on { "online" } else { "offline" })]
+    WatchdogUnconfirmed {
+        /// The module.
+        address: u8,
+        /// True when switching on, false when switching off.
+        on: bool,
+        /// What was seen.
+        detail: String,
+    },
+    /// A quantity in a unit that does not fit the module: a position in rad for a linear module, in m for a
+    /// rotary one. Nothing was sent.
+    #[error("module {address} is {} (its unit is {}): {what} {value} does not fit it", kind.name(), kind.unit())]
+    UnitMismatch {
+        /// The module.
+        address: u8,
+        /// What the module is.
+        kind: ModuleKind,
+        /// What the quantity is ("the target position", "the velocity").
+        what: &'static str,
+        /// The quantity, with its unit.
+        value: String,
+    },
+    /// An error with what was being done when it happened (and, after it, a hint).
+    #[error("{context}: {source}{hint}")]
+    Context {
+        /// What was being done.
+        context: String,
+        /// What went wrong.
+        source: Box<Error>,
+        /// What to do about it ("" for nothing).
+        hint: &'static str,
+    },
+    /// An error, and one that followed while cleaning up after it (both are told; the first decides the
+    /// class).
+    #[error("{error}; afterwards: {also}")]
+    Also {
+        /// The error.
+        error: Box<Error>,
+        /// What went wrong while cleaning up after it.
+        also: Box<Error>,
+    },
+    /// Modules this session set in motion could not be confirmed stopped when it ended: no Halt by address
+    /// was acknowledged, a Halt was broadcast and the watchdog refresh stopped.
+    #[error("module {} set in motion by this session could not be confirmed stopped ({detail}): the axis may still be moving{}", list(addresses), if *watchdog_armed { "; its watchdog is online and no longer refreshed, so the module halts itself within 50 ms of the last refresh that reached it" } else { "" })]
+    StopUnconfirmed {
+        /// The modules.
+        addresses: Vec<u8>,
+        /// Why.
+        detail: String,
+        /// A watchdog this session switched on is left online (no longer refreshed).
+        watchdog_armed: bool,
+    },
+    /// The session's close sequence (stop what was started, switch the watchdogs off) did not end within
+    /// its bound: what was started may not have been confirmed stopped; the watchdog refresh has stopped.
+    #[error("the session did not confirm within {} ms that what it started is stopped: the axis may still be moving (a watchdog it armed is no longer refreshed and halts its module within 50 ms)", bound.as_millis())]
+    CloseTimedOut {
+        /// The bound waited.
+        bound: Duration,
+    },
+    /// The session is closed (or closing): nothing more is sent.
+    #[error("the session is closed")]
+    SessionClosed,
+    /// A request that cannot be framed (nothing was sent).
+    #[error("cannot frame the request: {0}")]
+    Encode(#[from] Rs232Error),
+    /// An operation that sets nothing in motion was cancelled before its end.
+    #[error("{what} cancelled (nothing had been set in motion)")]
+    Aborted {
+        /// What was cancelled.
+        what: &'static str,
+    },
+}
+
+/// A number for messages: a value that came from a float parameter is shown as that float (0.05, not
+/// 0.05000000074505806).
+fn number(x: f64) -> String {
+    let single = x as f32;
+    if f64::from(single) == x {
+        single.to_string()
+    } else {
+        x.to_string()
+    }
+}
+
+fn fault_names(state: CubeState) -> String {
+    let names: Vec<String> = state.faults().map(|f| f.label()).collect();
+    if names.is_empty() {
+        state.to_string()
+    } else {
+        names.join(" | ")
+    }
+}
+
+impl Classify for Error {
+    fn class(&self) -> ErrorClass {
+        match self {
+            Error::Link(e) => e.class(),
+            Error::Timeout { .. } | Error::CloseTimedOut { .. } => ErrorClass::Transport(TransportKind::Timeout),
+            Error::Corrupt { .. } => ErrorClass::Transport(TransportKind::Corrupt),
+            // A motion that may still run after the line failed: a transport error of the cause's kind.
+            Error::LostDuringMotion { cause, .. } => match cause.class() {
+                ErrorClass::Transport(kind) => ErrorClass::Transport(kind),
+                _ => ErrorClass::Transport(TransportKind::Io),
+            },
+            Error::StopUnconfirmed { .. } => ErrorClass::Transport(TransportKind::Timeout),
+            Error::Refused { .. } => ErrorClass::Refused,
+            Error::Device { .. }
+            | Error::Halted { .. }
+            | Error::WaitTimeout { .. }
+            | Error::WatchdogUnconfirmed { .. }
+            | Error::WatchdogLeftOnline { .. }
+            | Error::Mismatch { .. }
+            | Error::TargetMismatch { .. }
+            | Error::NotReached { .. } => ErrorClass::Device,
+            Error::Cancelled { .. } | Error::Aborted { .. } => ErrorClass::Cancelled,
+            Error::Model(_)
+            | Error::InvalidAddress(_)
+            | Error::Unsupported(_)
+            | Error::BeyondLimit { .. }
+            | Error::InvalidArgument { .. }
+            | Error::UnitMismatch { .. }
+            | Error::Encode(_)
+            | Error::SessionClosed => ErrorClass::Usage,
+            Error::Context { source, .. } => source.class(),
+            Error::Also { error, .. } => error.class(),
+        }
+    }
+}
+
+impl SessionError for Error {
+    fn close_unconfirmed(bound: Duration) -> Self {
+        Error::CloseTimedOut { bound }
+    }
+
+    fn session_closed() -> Self {
+        Error::SessionClosed
+    }
+}
+
+impl From<InvalidAddress> for Error {
+    fn from(e: InvalidAddress) -> Self {
+        Error::InvalidAddress(e.0)
+    }
+}
+
+impl Error {
+    /// The line failed: port, timeout, corrupt answer, a motion lost with its line ([`ErrorClass::Transport`]).
+    pub fn is_transport(&self) -> bool {
+        self.class().is_transport()
+    }
+
+    /// The module refused or reported an error, or an action did not complete as asked
+    /// ([`ErrorClass::Device`], [`ErrorClass::Refused`]).
+    pub fn is_device(&self) -> bool {
+        matches!(self.class(), ErrorClass::Device | ErrorClass::Refused)
+    }
+
+    /// The request was wrong before anything was sent ([`ErrorClass::Usage`]).
+    pub fn is_usage(&self) -> bool {
+        self.class() == ErrorClass::Usage
+    }
+
+    /// What became of the stop of a motion this error interrupted, if it interrupted one.
+    pub fn stop(&self) -> Option<&StopOutcome> {
+        match self {
+            Error::WaitTimeout { stop, .. }
+            | Error::Cancelled { stop, .. }
+            | Error::LostDuringMotion { stop, .. }
+            | Error::TargetMismatch { stop, .. } => Some(stop),
+            Error::Context { source, .. } => source.stop(),
+            Error::Also { error, .. } => error.stop(),
+            _ => None,
+        }
+    }
+
+    /// A read that failed this way may be asked again.
+    pub(crate) fn retryable(&self) -> bool {
+        matches!(self, Error::Timeout { .. } | Error::Corrupt { .. })
+    }
+}
+
+fn list(addresses: &[u8]) -> String {
+    addresses.iter().map(u8::to_string).collect::<Vec<_>>().join(", ")
+}
+
+/// An answer that decoded but is not what `request` asks for (a value of another type, another reply).
+pub(crate) fn unexpected(address: u8, request: &Request, what: impl fmt::Display) -> Error {
+    Error::Corrupt { address, request: request.to_string(), detail: format!("unexpected answer {what}") }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_error_has_the_class_its_exit_code_needs() {
+        let timeout = || Error::Timeout { address: 1, request: "x".into(), waited: Duration::from_millis(1) };
+        assert_eq!(timeout().class(), ErrorClass::Transport(TransportKind::Timeout));
+        assert_eq!(Error::Encode(Rs232Error::BadAddress(40)).class().exit_code(), 2, "a framing error is usage");
+        assert_eq!(Error::InvalidAddress(0).class(), ErrorClass::Usage);
+        assert_eq!(Error::Cancelled { address: 1, stop: StopOutcome::Confirmed }.class(), ErrorClass::Cancelled);
+        let lost = Error::LostDuringMotion { address: 1, cause: Box::new(timeout()), stop: StopOutcome::Confirmed };
+        assert_eq!(lost.class(), ErrorClass::Transport(TransportKind::Timeout));
+        let link = LinkError::Disconnected { port: "p".into(), reason: "r".into() };
+        assert_eq!(Error::Link(link).class(), ErrorClass::Transport(TransportKind::Disconnected));
+        let ctx = Error::Context {
+            context: "arming".into(),
+            source: Box::new(Error::Halted { address: 1, state: CubeState(4) }),
+            hint: "",
+        };
+        assert_eq!(ctx.class(), ErrorClass::Device);
+        assert_eq!(Error::SessionClosed.class(), ErrorClass::Usage);
+        assert_eq!(Error::close_unconfirmed(Duration::from_secs(5)).class().exit_code(), 3);
+        let unit = Error::UnitMismatch {
+            address: 3,
+            kind: ModuleKind::Linear,
+            what: "the target position",
+            value: "0.5 rad".into(),
+        };
+        assert_eq!(unit.class(), ErrorClass::Usage);
+        assert_eq!(unit.to_string(), "module 3 is linear (its unit is m): the target position 0.5 rad does not fit it");
+    }
+}

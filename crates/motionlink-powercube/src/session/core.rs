@@ -1,0 +1,528 @@
+//! The state a session shares with its operations, and the exchange engine: requests out, acknowledges
+//! matched in, answer timeouts, stale answers dropped, the watchdog refresh on its deadlines. Sans-IO: it
+//! is handed bytes or frames and the time, and hands out what to send.
+
+use std::collections::{BTreeMap, BTreeSet, HashMap, VecDeque};
+use std::time::Duration;
+
+use motionlink_link::can::CanFrame;
+use motionlink_link::session::{Action as LinkAction, OpId};
+use motionlink_link::{LinkError, Timestamp};
+
+use super::BusConfig;
+use crate::error::Error;
+use crate::model::{Action, Broadcast, BroadcastForm, ConfigWord, ModuleKind, Reply, Request};
+use crate::wire::can::{self as can_wire, Role};
+use crate::wire::rs232::{self, Rs232Decoder, TelKind};
+use crate::wire::Payload;
+
+/// A job's handle: the result of an exchange or a broadcast is kept under it until its operation takes it.
+pub(crate) type Ticket = u64;
+
+/// What a finished job gives its operation.
+#[derive(Debug)]
+pub(crate) enum JobResult {
+    /// One result per request of an exchange, in the order of the batch.
+    Exchange(Vec<Result<Reply, Error>>),
+    /// A broadcast went out, or the line refused it.
+    Broadcast(Result<(), Error>),
+}
+
+enum Job {
+    Exchange { ticket: Ticket, op: OpId, batch: Vec<(u8, Request)>, timeout: Duration },
+    Broadcast { ticket: Ticket, op: OpId, broadcast: Broadcast },
+}
+
+impl Job {
+    fn op(&self) -> OpId {
+        match self {
+            Job::Exchange { op, .. } | Job::Broadcast { op, .. } => *op,
+        }
+    }
+}
+
+/// The exchange under way: every request is out (or going out), acknowledges are matched as they come.
+struct InFlight {
+    ticket: Ticket,
+    op: OpId,
+    batch: Vec<(u8, Request)>,
+    start: Timestamp,
+    deadline: Timestamp,
+    results: Vec<Option<Reply>>,
+    corrupt: Vec<Option<String>>,
+    open: usize,
+}
+
+/// What the last action handed to the driver was, so that a link error it reports is laid at the right
+/// door.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Sent {
+    Nothing,
+    Refresh,
+    Exchange,
+    Broadcast(Ticket),
+}
+
+/// What came in: an acknowledge from a module, or something broken.
+enum Incoming {
+    Frame { address: u8, payload: Payload },
+    Corrupt(String),
+}
+
+/// The watchdog duty of a session (chapter 13): which modules it switched on, and the refresh schedule.
+#[derive(Debug, Default)]
+pub(crate) struct WatchdogDuty {
+    /// The refresh is broadcast every period while this is true.
+    pub serving: bool,
+    /// When the next refresh is due (absolute: one period after the last one was due).
+    pub next_due: Timestamp,
+    /// Modules whose watchdog this session switched on.
+    pub online: BTreeSet<u8>,
+    /// Modules in which this session set CONFIGID_MOD_WATCHDOG_ENABLE, with their Config word before.
+    pub config_before: BTreeMap<u8, ConfigWord>,
+    /// Modules that got a life sign this session could not confirm: their watchdog may be online or not.
+    pub uncertain: BTreeSet<u8>,
+    /// The last failure of a refresh.
+    pub last_error: Option<String>,
+}
+
+/// Everything a session and its operations share.
+pub(crate) struct Core {
+    pub now: Timestamp,
+    pub config: BusConfig,
+    pub can: bool,
+    pub port: String,
+    rs232: Rs232Decoder,
+    queue: VecDeque<Job>,
+    sending: VecDeque<LinkAction>,
+    in_flight: Option<InFlight>,
+    /// A timeout left answers possibly on their way: drop what is pending before the next exchange.
+    stale: bool,
+    done: HashMap<Ticket, JobResult>,
+    next_ticket: Ticket,
+    sent: Sent,
+    /// A broadcast handed out and not yet known to have failed: it succeeded unless the driver reports a
+    /// link error at once.
+    broadcast_out: Option<(Ticket, OpId)>,
+    pub duty: WatchdogDuty,
+    /// Modules this session may have set in motion and has not seen stop.
+    pub started: BTreeSet<u8>,
+    /// Modules known to exist: every address that has answered this session.
+    pub known: BTreeSet<u8>,
+    /// Module kinds read from their Config words.
+    pub kinds: BTreeMap<u8, ModuleKind>,
+    /// The session lost its line or could not stop what it started.
+    pub failed: bool,
+    /// Operations that are running (results of jobs of any other are dropped).
+    pub alive: BTreeSet<OpId>,
+    /// Operations asked to end early.
+    pub cancelled: BTreeSet<OpId>,
+    /// Operations to poll: what they wait for is there.
+    pub wake: BTreeSet<OpId>,
+    /// Operations asleep until a time.
+    pub sleepers: BTreeMap<OpId, Timestamp>,
+    /// Progress reports, oldest first.
+    pub progress: VecDeque<(OpId, super::Progress)>,
+}
+
+impl Core {
+    pub fn new(config: BusConfig, can: bool, port: String, now: Timestamp) -> Core {
+        Core {
+            now,
+            config,
+            can,
+            port,
+            rs232: Rs232Decoder::new(),
+            queue: VecDeque::new(),
+            sending: VecDeque::new(),
+            in_flight: None,
+            stale: false,
+            done: HashMap::new(),
+            next_ticket: 0,
+            sent: Sent::Nothing,
+            broadcast_out: None,
+            duty: WatchdogDuty::default(),
+            started: BTreeSet::new(),
+            known: BTreeSet::new(),
+            kinds: BTreeMap::new(),
+            failed: false,
+            alive: BTreeSet::new(),
+            cancelled: BTreeSet::new(),
+            wake: BTreeSet::new(),
+            sleepers: BTreeMap::new(),
+            progress: VecDeque::new(),
+        }
+    }
+
+    fn ticket(&mut self) -> Ticket {
+        self.next_ticket += 1;
+        self.next_ticket
+    }
+
+    /// Queues an exchange for `op`: every request sent (on CAN at once), the acknowledges collected in any
+    /// order until all came or `timeout` passed since the first went out.
+    pub fn enqueue_exchange(&mut self, op: OpId, batch: Vec<(u8, Request)>, timeout: Duration) -> Ticket {
+        let ticket = self.ticket();
+        self.queue.push_back(Job::Exchange { ticket, op, batch, timeout });
+        ticket
+    }
+
+    /// Queues a broadcast for `op` (never acknowledged).
+    pub fn enqueue_broadcast(&mut self, op: OpId, broadcast: Broadcast) -> Ticket {
+        let ticket = self.ticket();
+        self.queue.push_back(Job::Broadcast { ticket, op, broadcast });
+        ticket
+    }
+
+    /// The result of job `ticket`, once it is there.
+    pub fn take_result(&mut self, ticket: Ticket) -> Option<JobResult> {
+        self.done.remove(&ticket)
+    }
+
+    fn finish(&mut self, ticket: Ticket, op: OpId, result: JobResult) {
+        if self.alive.contains(&op) {
+            self.done.insert(ticket, result);
+            self.wake.insert(op);
+        }
+    }
+
+    /// Forgets what operation `op` was waiting for: its queued jobs are not sent, the result of one on the
+    /// line is dropped when it comes.
+    pub fn forget(&mut self, op: OpId) {
+        self.alive.remove(&op);
+        self.cancelled.remove(&op);
+        self.sleepers.remove(&op);
+        self.wake.remove(&op);
+        self.queue.retain(|j| j.op() != op);
+    }
+
+    /// A broadcast handed out earlier did not fail: its operation learns so.
+    fn settle_broadcast(&mut self) {
+        if let Some((ticket, op)) = self.broadcast_out.take() {
+            self.finish(ticket, op, JobResult::Broadcast(Ok(())));
+        }
+    }
+
+    /// The frame of `payload` to `address` (0: every module, on RS232) on this session's carrier.
+    fn frame(&self, address: u8, payload: &Payload) -> Result<LinkAction, Error> {
+        if self.can {
+            Ok(LinkAction::SendFrame(can_wire::to_frame(Role::for_command(address, payload), payload)))
+        } else {
+            let mut buf = [0u8; rs232::MAX_FRAME];
+            let n = rs232::encode(TelKind::Send, address, payload, &mut buf)?;
+            Ok(LinkAction::Send(buf[..n].to_vec()))
+        }
+    }
+
+    /// A broadcast on this carrier: on CAN the broadcast identifier with the manual's payload; on RS232
+    /// module address 0 with the command followed by 0x00, as Schunk's libm5api sends it.
+    fn broadcast_action(&self, broadcast: &Broadcast) -> Result<LinkAction, Error> {
+        if self.can {
+            Ok(LinkAction::SendFrame(can_wire::to_frame(Role::Broadcast, &broadcast.encode())))
+        } else {
+            self.frame(0, &broadcast.encode_as(BroadcastForm::Padded))
+        }
+    }
+
+    /// The next thing to hand to the driver at `now`.
+    pub fn poll_transmit(&mut self, now: Timestamp) -> Option<LinkAction> {
+        self.now = now;
+        self.settle_broadcast();
+        // The watchdog refresh first: it is the one thing with a hard deadline (the modules wait 50 ms).
+        if self.duty.serving && now >= self.duty.next_due {
+            // Absolute deadlines: the next refresh is due one period after this one was due, so late sends
+            // do not make the schedule drift; one more than a period late is followed by the next a period
+            // after it went out.
+            let period = self.config.watchdog_period;
+            let next = self.duty.next_due + period;
+            self.duty.next_due = if next > now { next } else { now + period };
+            match self.broadcast_action(&Broadcast::WatchdogRefresh) {
+                Ok(a) => {
+                    self.sent = Sent::Refresh;
+                    return Some(a);
+                }
+                Err(e) => tracing::error!("cannot frame the watchdog refresh: {e}"),
+            }
+        }
+        if let Some(a) = self.sending.pop_front() {
+            self.sent = Sent::Exchange;
+            return Some(a);
+        }
+        if self.in_flight.is_some() {
+            return None;
+        }
+        let job = self.queue.pop_front()?;
+        match job {
+            Job::Broadcast { ticket, op, broadcast } => match self.broadcast_action(&broadcast) {
+                Ok(a) => {
+                    self.sent = Sent::Broadcast(ticket);
+                    self.broadcast_out = Some((ticket, op));
+                    Some(a)
+                }
+                Err(e) => {
+                    self.finish(ticket, op, JobResult::Broadcast(Err(e)));
+                    self.poll_transmit(now)
+                }
+            },
+            Job::Exchange { ticket, op, batch, timeout } => {
+                let frames: Result<Vec<LinkAction>, Error> =
+                    batch.iter().map(|(a, r)| self.frame(*a, &r.encode())).collect();
+                let frames = match frames {
+                    Ok(f) => f,
+                    Err(e) => {
+                        let results = batch.iter().map(|_| Err(clone_encode(&e))).collect();
+                        self.finish(ticket, op, JobResult::Exchange(results));
+                        return self.poll_transmit(now);
+                    }
+                };
+                if self.stale {
+                    self.stale = false;
+                    self.rs232.reset();
+                    self.sending.push_back(LinkAction::DiscardInput);
+                }
+                self.sending.extend(frames);
+                let n = batch.len();
+                self.in_flight = Some(InFlight {
+                    ticket,
+                    op,
+                    batch,
+                    start: now,
+                    deadline: now + timeout,
+                    results: vec![None; n],
+                    corrupt: vec![None; n],
+                    open: n,
+                });
+                self.sent = Sent::Exchange;
+                self.sending.pop_front()
+            }
+        }
+    }
+
+    /// When the engine next needs the time: an answer's deadline, the next refresh.
+    pub fn poll_timeout(&self) -> Option<Timestamp> {
+        let answer = self.in_flight.as_ref().map(|f| f.deadline);
+        let refresh = self.duty.serving.then_some(self.duty.next_due);
+        let sleep = self.sleepers.values().min().copied();
+        [answer, refresh, sleep].into_iter().flatten().min()
+    }
+
+    /// Time has reached `now`: an exchange whose answers are late ends; sleepers wake.
+    pub fn handle_timeout(&mut self, now: Timestamp) {
+        self.now = now;
+        self.settle_broadcast();
+        if self.in_flight.as_ref().is_some_and(|f| now >= f.deadline) {
+            self.complete();
+        }
+        let due: Vec<OpId> = self.sleepers.iter().filter(|(_, t)| **t <= now).map(|(op, _)| *op).collect();
+        for op in due {
+            self.sleepers.remove(&op);
+            self.wake.insert(op);
+        }
+    }
+
+    /// True while an answer is due.
+    pub fn wants_input(&self) -> bool {
+        self.in_flight.is_some()
+    }
+
+    /// True when nothing is queued, going out or awaited.
+    pub fn is_quiet(&self) -> bool {
+        self.queue.is_empty() && self.sending.is_empty() && self.in_flight.is_none() && self.broadcast_out.is_none()
+    }
+
+    /// Bytes of the serial line arrived at `now`.
+    pub fn handle_bytes(&mut self, bytes: &[u8], now: Timestamp) {
+        self.now = now;
+        self.settle_broadcast();
+        let mut incoming = Vec::new();
+        for result in self.rs232.feed(bytes) {
+            match result {
+                Ok(f) if f.kind == TelKind::Send => {} // our own frame echoed by a converter
+                Ok(f) if !f.bcc_ok() => incoming.push(Incoming::Corrupt(format!(
+                    "frame from module {} with a wrong BCC (0x{:02X}, expected 0x{:02X})",
+                    f.address, f.bcc_received, f.bcc_computed
+                ))),
+                // The manual's own acknowledge examples carry TELID length 6 for 3 data bytes: that one slip
+                // is accepted; any other length that differs from the data is corruption the BCC let through.
+                Ok(f) if !(f.length_ok() || (f.declared_len == 6 && f.payload.len() == 3)) => {
+                    incoming.push(Incoming::Corrupt(format!(
+                        "frame from module {} with TELID length {} for {} data bytes",
+                        f.address,
+                        f.declared_len,
+                        f.payload.len()
+                    )))
+                }
+                Ok(f) => incoming.push(Incoming::Frame { address: f.address, payload: f.payload }),
+                Err(e) => incoming.push(Incoming::Corrupt(e.to_string())),
+            }
+        }
+        for i in incoming {
+            self.incoming(i);
+        }
+    }
+
+    /// A CAN frame arrived at `now`.
+    pub fn handle_frame(&mut self, frame: &CanFrame, now: Timestamp) {
+        self.now = now;
+        self.settle_broadcast();
+        match can_wire::from_frame(frame) {
+            Ok((Role::Ack(address), payload)) => self.incoming(Incoming::Frame { address, payload }),
+            Ok(_) => {} // commands from another master, broadcasts
+            Err(e) => tracing::debug!("{}: {e}", self.port),
+        }
+    }
+
+    fn incoming(&mut self, incoming: Incoming) {
+        let Some(f) = self.in_flight.as_mut() else {
+            // Nothing is awaited (the driver reads only while an answer is due, so this is rare): a motion
+            // acknowledge still counts as a module set in motion.
+            if let Incoming::Frame { address, payload } = incoming {
+                if let Ok(r) = Reply::decode(&payload) {
+                    if moves(&r) {
+                        tracing::warn!("module {address} acknowledged {r}, which it was not sent: it may be moving");
+                        self.started.insert(address);
+                    }
+                }
+            }
+            return;
+        };
+        match incoming {
+            Incoming::Frame { address, payload } => {
+                let reply = Reply::decode(&payload);
+                let slot = f.batch.iter().enumerate().position(|(i, (a, req))| {
+                    *a == address && f.results[i].is_none() && reply.as_ref().is_ok_and(|r| req.is_answered_by(r))
+                });
+                match (slot, reply) {
+                    (Some(i), Ok(r)) => {
+                        f.results[i] = Some(r);
+                        f.open -= 1;
+                        self.known.insert(address);
+                    }
+                    (_, Err(e)) => {
+                        tracing::debug!("module {address}: undecodable answer {payload:?}: {e}");
+                        for (i, (a, _)) in f.batch.iter().enumerate() {
+                            if *a == address && f.results[i].is_none() {
+                                f.corrupt[i] = Some(format!("{e} in {payload:?}"));
+                            }
+                        }
+                    }
+                    (None, Ok(r)) => {
+                        // A module acknowledged a motion command it was not sent in this exchange: a command
+                        // whose address or content was corrupted on the way (the modules ignore the BCC). It
+                        // may be moving: the session halts it when it stops what it started.
+                        let expected_motion = f.batch.iter().any(|(a, req)| *a == address && req.is_answered_by(&r));
+                        if moves(&r) && !expected_motion {
+                            tracing::warn!(
+                                "module {address} acknowledged {r}, which it was not sent: it may be moving"
+                            );
+                            self.started.insert(address);
+                        }
+                        // On a line that carries one request at a time, a frame from the module asked that
+                        // answers something else is a corrupted answer (its echoed command or parameter is
+                        // wrong), not silence.
+                        if let [(a, req)] = f.batch.as_slice() {
+                            if *a == address && f.results[0].is_none() {
+                                f.corrupt[0] = Some(format!("answer {r} does not echo {req}"));
+                            }
+                        }
+                        tracing::debug!("module {address}: unexpected answer {r} (ignored)");
+                    }
+                }
+            }
+            Incoming::Corrupt(detail) => {
+                tracing::debug!("{}: {detail}", self.port);
+                for (i, c) in f.corrupt.iter_mut().enumerate() {
+                    if f.results[i].is_none() {
+                        *c = Some(detail.clone());
+                    }
+                }
+            }
+        }
+        if self.in_flight.as_ref().is_some_and(|f| f.open == 0) {
+            self.complete();
+        }
+    }
+
+    /// Ends the exchange under way: every request answered, or the time is up.
+    fn complete(&mut self) {
+        let Some(f) = self.in_flight.take() else { return };
+        self.sending.clear();
+        let waited = self.now.saturating_since(f.start);
+        if f.open > 0 {
+            self.stale = true;
+        }
+        let results = f
+            .results
+            .into_iter()
+            .zip(f.corrupt)
+            .zip(&f.batch)
+            .map(|((r, c), (address, request))| match (r, c) {
+                (Some(r), _) => Ok(r),
+                (None, Some(detail)) => Err(Error::Corrupt { address: *address, request: request.to_string(), detail }),
+                (None, None) => Err(Error::Timeout { address: *address, request: request.to_string(), waited }),
+            })
+            .collect();
+        self.finish(f.ticket, f.op, JobResult::Exchange(results));
+    }
+
+    /// The link failed: the job it was doing fails with it, and the session is failed (it may no longer
+    /// be able to stop what it started).
+    pub fn handle_link_error(&mut self, error: LinkError, now: Timestamp) {
+        self.now = now;
+        self.failed = true;
+        let sent = std::mem::replace(&mut self.sent, Sent::Nothing);
+        match sent {
+            Sent::Refresh => {
+                tracing::warn!("watchdog refresh failed: {error}");
+                self.duty.last_error = Some(error.to_string());
+                return;
+            }
+            Sent::Broadcast(ticket) => {
+                if let Some((t, op)) = self.broadcast_out.take() {
+                    if t == ticket {
+                        self.finish(t, op, JobResult::Broadcast(Err(Error::Link(error))));
+                        return;
+                    }
+                    self.broadcast_out = Some((t, op));
+                }
+            }
+            Sent::Exchange | Sent::Nothing => {}
+        }
+        self.settle_broadcast();
+        let Some(f) = self.in_flight.take() else {
+            tracing::warn!("{}: {error}", self.port);
+            return;
+        };
+        self.sending.clear();
+        let text = error.to_string();
+        let disconnect = error.is_disconnect();
+        let port = self.port.clone();
+        let mut first = Some(error);
+        let results = f
+            .batch
+            .iter()
+            .map(|_| {
+                Err(Error::Link(first.take().unwrap_or_else(|| {
+                    if disconnect {
+                        LinkError::Disconnected { port: port.clone(), reason: text.clone() }
+                    } else {
+                        LinkError::Io { port: port.clone(), source: std::io::Error::other(text.clone()) }
+                    }
+                })))
+            })
+            .collect();
+        self.finish(f.ticket, f.op, JobResult::Exchange(results));
+    }
+}
+
+/// True for an acknowledge of something that sets a module in motion.
+fn moves(r: &Reply) -> bool {
+    matches!(r, Reply::Motion { .. } | Reply::IStep | Reply::Action(Action::Home))
+}
+
+fn clone_encode(e: &Error) -> Error {
+    match e {
+        Error::Encode(x) => Error::Encode(*x),
+        other => Error::Unsupported(other.to_string()),
+    }
+}

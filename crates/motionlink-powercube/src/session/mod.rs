@@ -1,0 +1,503 @@
+//! The PowerCube protocol as a sans-IO [`Session`](motionlink_link::session::Session) for a bus of modules
+//! on RS232 or CAN: request/acknowledge matching (module, command and parameter echoed), answer timeouts,
+//! retries of reads only, the watchdog refresh broadcast on its own 20 ms grid, and every multi-step
+//! operation ([`Op`]: a checked move, homing, a scan, arming and disarming watchdogs, the stop of what was
+//! started) as a state machine inside the session. It is told what arrived and what time it is, and says
+//! what to send and when to wake it; it has no thread, no clock and no I/O.
+//!
+//! The clients ([`Client`](crate::Client), [`AsyncClient`](crate::client)) run it over a link through
+//! [`Driver`](motionlink_link::driver::Driver). Tests run it against the emulator directly:
+//!
+//! ```
+//! use motionlink_link::session::{Action, Event, Input, Session as _};
+//! use motionlink_link::emulator::Emulator as _;
+//! use motionlink_link::Timestamp;
+//! use motionlink_powercube::model::{Address, Param, Value};
+//! use motionlink_powercube::session::{BusConfig, Op, Output};
+//! use motionlink_powercube::{Emulator, Session};
+//!
+//! let mut device = Emulator::new(&Default::default());
+//! let mut session = Session::rs232(BusConfig::rs232(), "in the test", Timestamp::ZERO);
+//! let now = Timestamp::ZERO;
+//! let id = session.start(Op::Get(Address::new(1).unwrap(), Param::DefCubeSerial), now);
+//! while let Some(Action::Send(bytes)) = session.poll_transmit(now) {
+//!     let mut answer = Vec::new();
+//!     device.receive(now, &bytes, &mut answer);
+//!     session.handle_input(Input::Bytes(&answer), now);
+//! }
+//! match session.poll_event() {
+//!     Some(Event::Done(done, Ok(Output::Value(v)))) => assert_eq!((done, v), (id, Value::U32(1001))),
+//!     other => panic!("{other:?}"),
+//! }
+//! ```
+
+mod core;
+mod ctx;
+mod ops;
+#[cfg(test)]
+mod tests;
+mod types;
+
+use std::collections::{BTreeMap, VecDeque};
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::task::{Context, Poll, Waker};
+use std::time::Duration;
+
+use motionlink_link::clock::lock;
+use motionlink_link::session::{Action as LinkAction, Event, Input, OpId, OpIds};
+use motionlink_link::{LinkError, Timestamp};
+
+pub use types::{BusConfig, Guard, ModuleInfo, MoveReport, MoveSpec, Progress, Readback, ScanEntry, Until};
+
+use self::core::Core;
+use self::ctx::Ctx;
+use crate::error::{Error, StopOutcome};
+use crate::model::{
+    Acceleration, AckKind, Action, Address, Broadcast, ConfigWord, CubeState, Dio, ExtAck, Millis, ModuleKind, Motion,
+    Param, Position, Reply, Request, ShortState, Ticks, Value, Velocity,
+};
+
+/// An operation a [`Session`] runs. Addresses are checked once ([`Address`]); where a list may hold bad
+/// ones (`u8`), each bad one gets its own [`Error::InvalidAddress`] and the others go on.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Op {
+    /// One request as it is, checked ([`Request::validate`]) and retried if it is a read. Its floats go on
+    /// the wire as numbers in the module's own unit: no unit check (the typed operations have it). A motion
+    /// whose operation is cancelled before its acknowledge came is halted. [`Output::Reply`].
+    Request(Address, Request),
+    /// Several requests; on CAN all at once, the acknowledges matched in any order. [`Output::Replies`].
+    RequestMany(Vec<(u8, Request)>),
+    /// One parameter of several modules (on CAN in one round). [`Output::Values`].
+    ReadMany(Vec<u8>, Param),
+    /// ActPos of several modules (on CAN in one round). [`Output::Positions`].
+    Positions(Vec<u8>),
+    /// A broadcast (never acknowledged; on RS232 libm5api's form to address 0). Home and StartMotion count as
+    /// setting in motion every module the session knows. [`Output::Done`].
+    Broadcast(Broadcast),
+    /// Asks 1..31 for their version; then type, serial and state of each that answers. [`Output::Scan`].
+    Scan,
+    /// Reads a parameter. [`Output::Value`].
+    Get(Address, Param),
+    /// Writes a parameter (no read-back). [`Output::Done`].
+    Set(Address, Param, Value),
+    /// Writes a parameter with the limit check and the read-back. [`Output::Readback`].
+    SetChecked(Address, Param, Value),
+    /// ActPos. [`Output::Position`].
+    Position(Address),
+    /// ActIPos. [`Output::Ticks`].
+    PositionTicks(Address),
+    /// CubeState. [`Output::State`].
+    State(Address),
+    /// ActFPosStateDio. [`Output::PositionStateDio`].
+    PositionStateDio(Address),
+    /// The Config word. [`Output::ConfigWord`].
+    ConfigWord(Address),
+    /// Rotary or linear (read once). [`Output::Kind`].
+    Kind(Address),
+    /// Type, version, serial number and state. [`Output::Info`].
+    Info(Address),
+    /// A one-byte command (Reset, Home, RecalcPIDParam, ResetTime, ...). [`Output::Done`].
+    Action(Address, Action),
+    /// Halt. [`Output::Done`].
+    Halt(Address),
+    /// A motion command, its units checked against the module's kind. [`Output::ExtAck`].
+    Motion(Address, Motion, AckKind),
+    /// SetIStep. [`Output::Done`].
+    IStep(Address, Ticks, Millis),
+    /// TargetVel and TargetAcc if given, then FRAMP (no checks beyond the units). [`Output::Done`].
+    MoveRamp {
+        /// The module.
+        address: Address,
+        /// The target.
+        pos: Position,
+        /// TargetVel to write first.
+        vel: Option<Velocity>,
+        /// TargetAcc to write first.
+        acc: Option<Acceleration>,
+    },
+    /// Waits for homing or a motion to end, polled every [`BusConfig::poll_interval`], with progress;
+    /// halts on a timeout, a cancellation or a failing line. [`Output::State`].
+    Wait(Address, Until, Duration),
+    /// Home and wait, with what a failure needs (a Home that is not acknowledged may have started: halted).
+    /// [`Output::Homed`].
+    HomeAndWait(Address, Duration),
+    /// A ramp move with every check this protocol allows: numbers and units, the module ready, the target
+    /// against MinPos/MaxPos, velocity and acceleration against MaxVel/MaxAcc (refused, never clamped),
+    /// TargetVel/TargetAcc written and read back, the motion command's target read back from TargetPosInc
+    /// (a difference halts), the wait for STATE_RAMP_END, and the final position read twice within the
+    /// tolerance. Any failure after the motion command halts the module and says whether that was
+    /// confirmed. [`Output::Moved`].
+    MoveTo(Address, MoveSpec),
+    /// [`Op::HomeAndWait`] under a [`Guard`]. [`Output::Homed`].
+    HomeGuarded(Address, Duration, Guard),
+    /// [`Op::MoveTo`] under a [`Guard`]: what `motionlink powercube move` does. [`Output::Moved`].
+    MoveGuarded(Address, MoveSpec, Guard),
+    /// Halts a module after an action that may have set it in motion cannot go on: up to three Halts, then
+    /// a broadcast Halt and the watchdog refresh stopped. [`Output::Stop`].
+    StopMotion(Address),
+    /// Halts every module this session set in motion that still moves or cannot be asked. [`Output::Done`].
+    HaltStarted,
+    /// Switches the watchdog on in these modules: CONFIGID_MOD_WATCHDOG_ENABLE set where clear (read back,
+    /// the word before remembered), the refresh served from now on, a life sign to each (never repeated:
+    /// an unconfirmed one is [`Error::WatchdogUnconfirmed`]). A module showing STATE_COMM_ERROR is refused
+    /// before anything changes. [`Output::Done`].
+    EnableWatchdog(Vec<u8>),
+    /// Undoes [`Op::EnableWatchdog`]: a second life sign, the refresh stopped, unconfirmed watchdogs
+    /// observed (an online one expires), the flag cleared again where this session set it. A failed session
+    /// leaves them online ([`Error::WatchdogLeftOnline`]). [`Output::Done`].
+    DisableWatchdog,
+    /// Reset; if STATE_COMM_ERROR comes back (a host died with the watchdog online), a life sign switches it
+    /// offline and a second Reset clears it. [`Output::Released`].
+    ResetAndReleaseWatchdog(Address),
+}
+
+impl Op {
+    /// The name of an operation that sets nothing in motion and may be dropped at once when cancelled.
+    fn abortable(&self) -> Option<&'static str> {
+        Some(match self {
+            Op::Request(_, r) if r.is_idempotent() => "a read",
+            Op::RequestMany(rs) if rs.iter().all(|(_, r)| r.is_idempotent()) => "reads",
+            Op::ReadMany(..) | Op::Get(..) => "a read",
+            Op::Positions(_) | Op::Position(_) | Op::PositionTicks(_) | Op::PositionStateDio(_) => "a position read",
+            Op::State(_) | Op::ConfigWord(_) | Op::Kind(_) | Op::Info(_) => "a read",
+            Op::Scan => "the scan",
+            _ => return None,
+        })
+    }
+}
+
+/// What an operation ends with; each [`Op`] names its variant.
+#[derive(Debug)]
+pub enum Output {
+    /// Done, nothing to give.
+    Done,
+    /// An acknowledge.
+    Reply(Reply),
+    /// One acknowledge or error per request.
+    Replies(Vec<Result<Reply, Error>>),
+    /// One value or error per module.
+    Values(Vec<Result<Value, Error>>),
+    /// One position or error per module.
+    Positions(Vec<Result<Position, Error>>),
+    /// The modules found.
+    Scan(Vec<ScanEntry>),
+    /// A parameter's value.
+    Value(Value),
+    /// How a write was verified.
+    Readback(Readback),
+    /// A position (rad or m where the session knows the module's kind).
+    Position(Position),
+    /// A position in encoder ticks.
+    Ticks(Ticks),
+    /// A state word.
+    State(CubeState),
+    /// Position, short state and DIO.
+    PositionStateDio(Position, ShortState, Dio),
+    /// A Config word.
+    ConfigWord(ConfigWord),
+    /// Rotary or linear.
+    Kind(ModuleKind),
+    /// Type, version, serial, state.
+    Info(ModuleInfo),
+    /// The extended acknowledge of a motion command, if one was asked for.
+    ExtAck(Option<ExtAck>),
+    /// Where homing ended, and the state.
+    Homed(Position, CubeState),
+    /// What a checked move did.
+    Moved(MoveReport),
+    /// What became of a stop.
+    Stop(StopOutcome),
+    /// Whether a reset had to switch an expired watchdog offline.
+    Released(bool),
+}
+
+type OpFuture = Pin<Box<dyn Future<Output = Result<Output, Error>> + Send>>;
+
+struct Running {
+    future: OpFuture,
+    abortable: Option<&'static str>,
+}
+
+enum Closing {
+    Open,
+    /// Every operation was asked to end; the close sequence starts when they have.
+    Waiting,
+    Running(Pin<Box<dyn Future<Output = Result<(), Error>> + Send>>),
+    Closed,
+}
+
+/// The id of the close sequence (operations get ids from 1).
+const CLOSE: OpId = OpId(0);
+
+/// A session with the modules on one RS232 line or one CAN bus; see the [module documentation](self).
+pub struct Session {
+    core: Arc<Mutex<Core>>,
+    ids: OpIds,
+    ops: BTreeMap<OpId, Running>,
+    events: VecDeque<Event<Session>>,
+    closing: Closing,
+}
+
+impl std::fmt::Debug for Session {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Session").field("port", &self.core().port).field("ops", &self.ops.len()).finish()
+    }
+}
+
+impl Session {
+    /// A session on an RS232 line (a serial port, TCP, a pty), `port` naming it in messages.
+    pub fn rs232(config: BusConfig, port: impl Into<String>, now: Timestamp) -> Session {
+        Session::new(config, false, port.into(), now)
+    }
+
+    /// A session on a CAN bus.
+    pub fn can(config: BusConfig, port: impl Into<String>, now: Timestamp) -> Session {
+        Session::new(config, true, port.into(), now)
+    }
+
+    fn new(config: BusConfig, can: bool, port: String, now: Timestamp) -> Session {
+        Session {
+            core: Arc::new(Mutex::new(Core::new(config, can, port, now))),
+            ids: OpIds::default(),
+            ops: BTreeMap::new(),
+            events: VecDeque::new(),
+            closing: Closing::Open,
+        }
+    }
+
+    fn core(&self) -> MutexGuard<'_, Core> {
+        lock(&self.core)
+    }
+
+    /// The session's settings.
+    pub fn config(&self) -> BusConfig {
+        self.core().config.clone()
+    }
+
+    /// True on a CAN bus.
+    pub fn is_can(&self) -> bool {
+        self.core().can
+    }
+
+    /// Modules this session set in motion and has not seen stop.
+    pub fn started(&self) -> Vec<u8> {
+        self.core().started.iter().copied().collect()
+    }
+
+    /// Modules known to exist: every address that answered this session.
+    pub fn known(&self) -> Vec<u8> {
+        self.core().known.iter().copied().collect()
+    }
+
+    /// The kind of module `address`, if the session has read it.
+    pub fn kind_of(&self, address: Address) -> Option<ModuleKind> {
+        self.core().kinds.get(&address.get()).copied()
+    }
+
+    /// True once the session has failed: its line broke, a watchdog refresh could not be sent, or a module
+    /// it set in motion could not be confirmed stopped. A failed session leaves the watchdog online.
+    pub fn failed(&self) -> bool {
+        self.core().failed
+    }
+
+    /// True when this session can arm the watchdog: on CAN, and on RS232 unless
+    /// [`BusConfig::watchdog_on_rs232`] is false.
+    pub fn watchdog_reliable(&self) -> bool {
+        let core = self.core();
+        core.can || core.config.watchdog_on_rs232
+    }
+
+    /// True while the session refreshes the watchdog.
+    pub fn watchdog_served(&self) -> bool {
+        self.core().duty.serving
+    }
+
+    /// True if this session switched the watchdog of `address` on (or may have) and still refreshes it.
+    pub fn watchdog_armed(&self, address: u8) -> bool {
+        let core = self.core();
+        core.duty.serving && (core.duty.online.contains(&address) || core.duty.uncertain.contains(&address))
+    }
+
+    /// When the next watchdog refresh is due, while the session serves it.
+    pub fn watchdog_next_due(&self) -> Option<Timestamp> {
+        let core = self.core();
+        core.duty.serving.then_some(core.duty.next_due)
+    }
+
+    /// The last failure of a watchdog refresh, if any.
+    pub fn watchdog_error(&self) -> Option<String> {
+        self.core().duty.last_error.clone()
+    }
+
+    /// Stops refreshing the watchdog on purpose and marks the session failed: every module whose watchdog
+    /// this session switched on halts itself within 50 ms of the last refresh that reached it. Returns true
+    /// if any module's watchdog was (or may have been) online.
+    pub fn abandon_watchdog(&mut self) -> bool {
+        ops::abandon_watchdog(&mut self.core())
+    }
+
+    /// What a host that dies leaves behind: no refresh, nothing to stop, nothing to switch off.
+    #[cfg(test)]
+    pub(crate) fn die(&mut self) {
+        let mut core = self.core();
+        core.duty.serving = false;
+        core.duty.online.clear();
+        core.duty.config_before.clear();
+        core.started.clear();
+    }
+
+    /// Polls every operation whose awaited result is there, until none is; starts the close sequence when
+    /// it is due.
+    fn run_ops(&mut self) {
+        let mut cx = Context::from_waker(Waker::noop());
+        loop {
+            if matches!(self.closing, Closing::Waiting) && self.ops.is_empty() {
+                let ctx = Ctx::new(Arc::clone(&self.core), CLOSE);
+                self.core().alive.insert(CLOSE);
+                self.core().wake.insert(CLOSE);
+                self.closing = Closing::Running(Box::pin(async move { ctx.close_sequence().await }));
+            }
+            let ready = std::mem::take(&mut self.core().wake);
+            if ready.is_empty() {
+                return;
+            }
+            for id in ready {
+                if id == CLOSE {
+                    if let Closing::Running(f) = &mut self.closing {
+                        if let Poll::Ready(r) = f.as_mut().poll(&mut cx) {
+                            self.core().forget(CLOSE);
+                            self.closing = Closing::Closed;
+                            self.events.push_back(Event::Closed(r));
+                        }
+                    }
+                    continue;
+                }
+                let Some(running) = self.ops.get_mut(&id) else { continue };
+                let poll = running.future.as_mut().poll(&mut cx);
+                let progress: Vec<_> = self.core().progress.drain(..).collect();
+                for (op, p) in progress {
+                    if self.ops.contains_key(&op) {
+                        self.events.push_back(Event::Progress(op, p));
+                    }
+                }
+                if let Poll::Ready(r) = poll {
+                    self.ops.remove(&id);
+                    self.core().forget(id);
+                    self.events.push_back(Event::Done(id, r));
+                }
+            }
+        }
+    }
+}
+
+impl motionlink_link::session::Session for Session {
+    type Op = Op;
+    type Output = Output;
+    type Progress = Progress;
+    type Error = Error;
+
+    fn start(&mut self, op: Op, now: Timestamp) -> OpId {
+        let id = self.ids.next_id();
+        self.core().now = now;
+        if !matches!(self.closing, Closing::Open) {
+            self.events.push_back(Event::Done(id, Err(Error::SessionClosed)));
+            return id;
+        }
+        let abortable = op.abortable();
+        let ctx = Ctx::new(Arc::clone(&self.core), id);
+        {
+            let mut core = self.core();
+            core.alive.insert(id);
+            core.wake.insert(id);
+        }
+        self.ops.insert(id, Running { future: Box::pin(ops::run(ctx, op)), abortable });
+        self.run_ops();
+        id
+    }
+
+    fn cancel(&mut self, id: OpId, now: Timestamp) {
+        self.core().now = now;
+        let Some(running) = self.ops.get(&id) else { return };
+        match running.abortable {
+            Some(what) => {
+                self.ops.remove(&id);
+                self.core().forget(id);
+                self.events.push_back(Event::Done(id, Err(Error::Aborted { what })));
+            }
+            None => {
+                let mut core = self.core();
+                core.cancelled.insert(id);
+                core.wake.insert(id);
+            }
+        }
+        self.run_ops();
+    }
+
+    fn close(&mut self, now: Timestamp) {
+        self.core().now = now;
+        if !matches!(self.closing, Closing::Open) {
+            return;
+        }
+        self.closing = Closing::Waiting;
+        let ids: Vec<OpId> = self.ops.keys().copied().collect();
+        for id in ids {
+            self.cancel(id, now);
+        }
+        self.run_ops();
+    }
+
+    fn handle_input(&mut self, input: Input<'_>, now: Timestamp) {
+        match input {
+            Input::Bytes(b) => self.core().handle_bytes(b, now),
+            Input::Frame(f) => self.core().handle_frame(f, now),
+        }
+        self.run_ops();
+    }
+
+    fn handle_link_error(&mut self, error: LinkError, now: Timestamp) {
+        self.core().handle_link_error(error, now);
+        self.run_ops();
+    }
+
+    fn handle_reopened(&mut self, _result: Result<(), LinkError>, now: Timestamp) {
+        // This session never asks for its port to be reopened.
+        self.core().now = now;
+    }
+
+    fn poll_transmit(&mut self, now: Timestamp) -> Option<LinkAction> {
+        loop {
+            self.run_ops();
+            let action = self.core().poll_transmit(now);
+            if action.is_some() {
+                return action;
+            }
+            // Sending may have ended a job (a broadcast that went out): its operation goes on first.
+            if self.core().wake.is_empty() {
+                return None;
+            }
+        }
+    }
+
+    fn poll_timeout(&self) -> Option<Timestamp> {
+        self.core().poll_timeout()
+    }
+
+    fn handle_timeout(&mut self, now: Timestamp) {
+        self.core().handle_timeout(now);
+        self.run_ops();
+    }
+
+    fn poll_event(&mut self) -> Option<Event<Self>> {
+        self.events.pop_front()
+    }
+
+    fn wants_input(&self) -> bool {
+        self.core().wants_input()
+    }
+
+    fn is_idle(&self) -> bool {
+        self.ops.is_empty() && matches!(self.closing, Closing::Open | Closing::Closed) && self.core().is_quiet()
+    }
+}

@@ -1,0 +1,192 @@
+//! The operations of a session, each a state machine written as an `async fn` over a [`Ctx`]: the
+//! compiler turns each into an enum of its steps, which the session resumes whenever what a step waits for
+//! (an exchange's answers, a broadcast sent, a time) is there. No executor, no thread, no I/O.
+
+mod basic;
+mod motion;
+mod run;
+mod watchdog;
+
+pub(crate) use run::run;
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use crate::error::Error;
+use crate::model::{Param, Request};
+use crate::session::core::Core;
+use crate::session::ctx::Ctx;
+use crate::session::{Guard, ScanEntry};
+use crate::wire::MAX_ADDRESS;
+
+/// Stops refreshing the watchdog and marks the session failed: every module whose watchdog the session
+/// switched on halts itself within 50 ms of the last refresh that reached it. True if any watchdog was (or
+/// may have been) online.
+pub(crate) fn abandon_watchdog(core: &mut Core) -> bool {
+    core.failed = true;
+    let was_serving = core.duty.serving;
+    core.duty.serving = false;
+    if was_serving {
+        tracing::warn!("watchdog refresh stopped: the modules it protects halt within 50 ms");
+    }
+    was_serving && !(core.duty.online.is_empty() && core.duty.uncertain.is_empty())
+}
+
+impl Ctx {
+    /// Asks addresses 1..31 for their version (see [`Op::Scan`](crate::session::Op)).
+    pub async fn scan(&self) -> Result<Vec<ScanEntry>, Error> {
+        let probe = Request::Get(Param::DefCubeVersion);
+        let (timeout, retries, can) = {
+            let core = self.core();
+            (core.config.scan_timeout, core.config.read_retries, core.can)
+        };
+        let mut todo: Vec<u8> = (1..=MAX_ADDRESS).collect();
+        let mut answered = BTreeSet::new();
+        let mut broken: BTreeMap<u8, Error> = BTreeMap::new();
+        for _ in 0..=retries {
+            if todo.is_empty() {
+                break;
+            }
+            let batch: Vec<(u8, Request)> = todo.iter().map(|a| (*a, probe)).collect();
+            let answers = if can {
+                self.exchange(batch.clone(), timeout).await
+            } else {
+                let mut answers = Vec::with_capacity(batch.len());
+                for r in &batch {
+                    answers.extend(self.exchange(vec![*r], timeout).await);
+                }
+                answers
+            };
+            todo.clear();
+            for ((a, _), r) in batch.iter().zip(answers) {
+                match r {
+                    Ok(_) => {
+                        broken.remove(a);
+                        answered.insert(*a);
+                    }
+                    Err(e @ Error::Corrupt { .. }) => {
+                        tracing::debug!("scan: {e}; asking again");
+                        todo.push(*a);
+                        broken.insert(*a, e);
+                    }
+                    // Nobody there. After a corrupt answer, silence means the garbage was not this module's
+                    // (on RS232 a frame with a wrong BCC names no trustworthy address): absent, with a warning.
+                    Err(Error::Timeout { .. }) => {
+                        if let Some(e) = broken.remove(a) {
+                            tracing::warn!("scan: address {a}: {e}, then silence when asked again: taken as absent");
+                        }
+                    }
+                    Err(e) => return Err(e),
+                }
+            }
+        }
+        let mut entries = Vec::with_capacity(answered.len() + broken.len());
+        for a in answered {
+            let info = self.info(a).await;
+            entries.push(ScanEntry { address: crate::model::Address::new(a)?, info });
+        }
+        for (a, e) in broken {
+            entries.push(ScanEntry { address: crate::model::Address::new(a)?, info: Err(e) });
+        }
+        entries.sort_by_key(|e| e.address);
+        Ok(entries)
+    }
+
+    /// Runs a motion of module `a` under `guard` (see [`Guard`]): the watchdog armed before it where the
+    /// guard asks for it and the link allows it, whatever still moves halted after it, the watchdog switched
+    /// off again (with the Config word as it was) whether the motion succeeded, failed or was cancelled.
+    pub async fn guarded<T>(
+        &self,
+        a: u8,
+        guard: Guard,
+        motion: impl std::future::Future<Output = Result<T, Error>>,
+    ) -> Result<T, Error> {
+        let arm = guard == Guard::Watchdog && self.watchdog_reliable();
+        if guard == Guard::Watchdog && !arm {
+            tracing::warn!("module {a}: the watchdog is not armed: this session's settings refuse it on RS232");
+        }
+        if !arm {
+            let result = motion.await;
+            let stopped = self.halt_started().await;
+            return both(result, stopped);
+        }
+        if let Err(e) = self.enable_watchdog(&[a]).await {
+            // Undo what was done before the failure (a Config word changed, a life sign sent).
+            if let Err(undo) = self.disable_watchdog().await {
+                tracing::warn!("switching the watchdog off again failed: {undo}");
+            }
+            let hint = match &e {
+                Error::Device { state, .. } if state.contains(crate::model::StateFlag::CommError) => {
+                    " (its watchdog expired: a host stopped refreshing it; `reset` clears it)"
+                }
+                _ => "",
+            };
+            return Err(Error::Context {
+                context: format!("cannot arm the watchdog of module {a}"),
+                source: Box::new(e),
+                hint,
+            });
+        }
+        tracing::info!("watchdog armed in module {a}");
+        let result = motion.await;
+        // Whatever is still moving is stopped before the watchdog goes offline.
+        let stopped = self.halt_started().await;
+        let result = both(result, stopped);
+        match (result, self.disable_watchdog().await) {
+            (result, Ok(())) => result,
+            (Ok(_), Err(e)) => Err(Error::Context {
+                context: format!("cannot switch the watchdog of module {a} off again"),
+                source: Box::new(e),
+                hint: "",
+            }),
+            (Err(e), Err(undo)) => Err(Error::Also { error: Box::new(e), also: Box::new(undo) }),
+        }
+    }
+
+    /// The close sequence: what [`Session::close`](motionlink_link::session::Session::close) runs once every
+    /// operation has ended. Halts what the session set in motion and still moves; then, unless the session
+    /// failed, switches off the watchdogs it switched on and restores their Config words; then stops the
+    /// refresh. After a failure the watchdogs stay online and the modules halt within 50 ms.
+    pub async fn close_sequence(&self) -> Result<(), Error> {
+        let stopped = self.halt_started().await;
+        let (armed, failed) = {
+            let core = self.core();
+            let d = &core.duty;
+            (d.serving || !d.online.is_empty() || !d.config_before.is_empty() || !d.uncertain.is_empty(), core.failed)
+        };
+        let mut result = stopped;
+        if armed {
+            if result.is_ok() && !failed {
+                if let Err(e) = self.disable_watchdog().await {
+                    tracing::warn!("switching the watchdog off on close failed (those modules halt within 50 ms): {e}");
+                    result = Err(e);
+                }
+            } else {
+                tracing::warn!("the session failed: the watchdog stays online and the modules halt within 50 ms");
+                let left: Vec<u8> = {
+                    let core = self.core();
+                    core.duty.online.iter().chain(core.duty.uncertain.iter()).copied().collect()
+                };
+                if result.is_ok() && !left.is_empty() {
+                    result = Err(Error::WatchdogLeftOnline {
+                        addresses: left,
+                        detail: "the session failed (its line broke, or a stop it sent was not confirmed)".into(),
+                    });
+                }
+            }
+        }
+        self.core().duty.serving = false;
+        result
+    }
+}
+
+/// The first error of a motion and of the stop after it.
+fn both<T>(result: Result<T, Error>, stopped: Result<(), Error>) -> Result<T, Error> {
+    match (result, stopped) {
+        (Ok(v), Ok(())) => Ok(v),
+        (Ok(_), Err(e)) => Err(e),
+        (Err(e), Ok(())) => Err(e),
+        // The motion's error says already that its stop was not confirmed: the same said twice is noise.
+        (Err(e), Err(_)) if e.stop().is_some_and(|s| !s.is_confirmed()) => Err(e),
+        (Err(e), Err(also)) => Err(Error::Also { error: Box::new(e), also: Box::new(also) }),
+    }
+}

@@ -1,0 +1,435 @@
+//! Motions and what makes them trustworthy: writes that are read back, targets checked against the
+//! module's limits, the target of the motion command read back, waits that poll at a set rate, the final
+//! position checked, and a stop that says whether it was confirmed whenever a motion cannot go on.
+
+use std::time::Duration;
+
+use crate::error::{unexpected, Error, StopOutcome};
+use crate::model::{AckKind, Broadcast, CubeState, ExtAck, Motion, Param, Position, Reply, Request, StateFlag, Value};
+use crate::session::ctx::Ctx;
+use crate::session::{MoveReport, MoveSpec, Progress, Readback, Until};
+
+/// A value for messages: the number alone, floats with six decimals.
+fn raw(v: &Value) -> String {
+    match *v {
+        Value::F32(x) => format!("{x:.6}"),
+        Value::U32(x) if x > 0xFFFF => format!("{x:#010x}"),
+        other => other.as_f64().map_or_else(|| format!("{other:?}"), |n| format!("{n}")),
+    }
+}
+
+impl Ctx {
+    /// Stops module `a` after an action that may have set it in motion cannot go on, and says whether the
+    /// module confirmed it: up to three Halts by address (a Halt may be repeated safely; not after the line
+    /// itself failed), then, if none was acknowledged, a Halt broadcast to every module and the watchdog
+    /// refresh stopped, so that an armed module halts itself within 50 ms.
+    pub async fn stop_motion(&self, a: u8) -> StopOutcome {
+        let attempts = 1 + self.core().config.read_retries;
+        let mut last = None;
+        for _ in 0..attempts {
+            match self.halt(a).await {
+                Ok(()) => return StopOutcome::Confirmed,
+                Err(e) => {
+                    let line_failed = matches!(e, Error::Link(_));
+                    last = Some(e);
+                    if line_failed {
+                        break;
+                    }
+                }
+            }
+        }
+        let reason = last.map_or_else(|| "no halt could be sent".to_string(), |e| e.to_string());
+        tracing::warn!(
+            "module {a}: halt not confirmed ({reason}); broadcasting a halt and stopping the watchdog refresh"
+        );
+        let watchdog_armed = self.watchdog_armed(a);
+        if let Err(e) = self.broadcast(Broadcast::Halt).await {
+            tracing::warn!("the halt broadcast could not be sent either: {e}");
+        }
+        self.abandon_watchdog();
+        StopOutcome::Unconfirmed { reason, watchdog_armed }
+    }
+
+    /// An error of a request sent while module `a` may be moving: the motion is stopped, and the error says
+    /// whether that was confirmed.
+    pub async fn lost(&self, a: u8, cause: Error) -> Error {
+        let stop = self.stop_motion(a).await;
+        Error::LostDuringMotion { address: a, cause: Box::new(cause), stop }
+    }
+
+    /// Refuses a module that would ignore a motion command: one with an error flag ([`Error::Device`]) or
+    /// halted ([`Error::Halted`]; a reset clears it).
+    async fn ready_for_motion(&self, a: u8) -> Result<(), Error> {
+        let state = self.state(a).await?;
+        if state.has_fault() {
+            return Err(Error::Device { address: a, state });
+        }
+        if state.contains(StateFlag::Halted) {
+            return Err(Error::Halted { address: a, state });
+        }
+        Ok(())
+    }
+
+    /// Reads a float parameter that must be a finite number.
+    async fn get_finite(&self, a: u8, param: Param) -> Result<f32, Error> {
+        let v = self.get_f32(a, param).await?;
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(unexpected(a, &Request::Get(param), format!("{v} (not a finite number)")))
+        }
+    }
+
+    /// The encoder ticks per unit (IncRatio), which must be a number above 0.
+    async fn inc_ratio(&self, a: u8) -> Result<f64, Error> {
+        let r = self.get_finite(a, Param::IncRatio).await?;
+        if r > 0.0 {
+            Ok(f64::from(r))
+        } else {
+            Err(unexpected(a, &Request::Get(Param::IncRatio), format!("{r} (not above 0)")))
+        }
+    }
+
+    /// Refuses `value` (named `what`) if it lies beyond the limit `param` of the module (`upper`: a maximum).
+    async fn within_limit(&self, a: u8, what: &str, value: f64, param: Param, upper: bool) -> Result<(), Error> {
+        let limit = f64::from(self.get_finite(a, param).await?);
+        let beyond = if upper { value > limit } else { value < limit };
+        if beyond {
+            return Err(Error::BeyondLimit { address: a, what: what.into(), value, limit: param, limit_value: limit });
+        }
+        Ok(())
+    }
+
+    /// Reads the integer parameter `param` (in encoder ticks) and compares it with `value` units times
+    /// `ratio`, allowing one tick for rounding; a difference is [`Error::Mismatch`] naming `written`.
+    async fn check_ticks(&self, a: u8, written: Param, param: Param, value: f64, ratio: f64) -> Result<Value, Error> {
+        let read = self.get(a, param).await?;
+        let ticks = read.as_f64().ok_or_else(|| unexpected(a, &Request::Get(param), format!("{read:?}")))?;
+        let expected = (value * ratio).round();
+        if (ticks - expected).abs() > 1.0 {
+            return Err(Error::Mismatch {
+                address: a,
+                param: written,
+                wrote: format!("{value:.6} ({expected} ticks)"),
+                read: format!("{:.6} ({ticks} ticks in {param})", ticks / ratio),
+            });
+        }
+        Ok(read)
+    }
+
+    /// Writes `param` and checks that the module took it (see [`Op::SetChecked`](crate::session::Op)).
+    pub async fn set_checked(&self, a: u8, param: Param, value: Value) -> Result<Readback, Error> {
+        Request::set(param, value)?;
+        let number = value.as_f64();
+        let name = param.name();
+        match (param, number) {
+            (Param::TargetPos, Some(v)) => {
+                self.within_limit(a, name, v, Param::MinPos, false).await?;
+                self.within_limit(a, name, v, Param::MaxPos, true).await?;
+            }
+            (Param::TargetPosInc, Some(v)) => {
+                self.within_limit(a, name, v, Param::ActIMinPos, false).await?;
+                self.within_limit(a, name, v, Param::ActIMaxPos, true).await?;
+            }
+            (Param::TargetVel, Some(v)) => self.within_limit(a, name, v.abs(), Param::MaxVel, true).await?,
+            (Param::TargetVelInc, Some(v)) => self.within_limit(a, name, v, Param::ActIMaxVel, true).await?,
+            (Param::TargetAcc, Some(v)) => self.within_limit(a, name, v.abs(), Param::MaxAcc, true).await?,
+            (Param::TargetAccInc, Some(v)) => self.within_limit(a, name, v, Param::ActIMaxAcc, true).await?,
+            (Param::Cur, Some(v)) => self.within_limit(a, name, v.abs(), Param::MaxCur, true).await?,
+            _ => {}
+        }
+        self.set(a, param, value).await?;
+        let twin = match param {
+            Param::TargetPos => Some(Param::TargetPosInc),
+            Param::TargetVel => Some(Param::TargetVelInc),
+            Param::TargetAcc => Some(Param::TargetAccInc),
+            _ => None,
+        };
+        if let (Some(twin), Some(v)) = (twin, number) {
+            let ratio = self.inc_ratio(a).await?;
+            return self.check_ticks(a, param, twin, v, ratio).await.map(Readback::Same);
+        }
+        if param == Param::Cur {
+            return Ok(Readback::NotReadable("reading Cur gives the measured current, not the value written"));
+        }
+        if !param.access().readable() {
+            return Ok(Readback::NotReadable("the manual has no way to read it"));
+        }
+        let read = self.get(a, param).await?;
+        let same = match (param, value.as_u32(), read.as_u32()) {
+            // Only the outputs of the DIO word are written; the inputs and switches are the outside world's.
+            (Param::DioSetup, Some(w), Some(r)) => w & 0xF0 == r & 0xF0,
+            _ => read == value,
+        };
+        if same {
+            Ok(Readback::Same(read))
+        } else {
+            Err(Error::Mismatch { address: a, param, wrote: raw(&value), read: raw(&read) })
+        }
+    }
+
+    /// A motion command in any mode, its units checked against the module's kind; the extended
+    /// acknowledge if `ack` asks for one. Cancelled while its acknowledge is awaited, the module is halted.
+    pub async fn motion(&self, a: u8, motion: Motion, ack: AckKind) -> Result<Option<ExtAck>, Error> {
+        let request = Request::motion(motion, ack)?;
+        let units = match motion {
+            Motion::FRamp { pos } | Motion::FRampLoop { pos } | Motion::FStep { pos, .. } => {
+                vec![("the target position", pos.unit(), pos.to_string())]
+            }
+            Motion::FCosLoop { pos, .. } => vec![("the loop's far end", pos.unit(), pos.to_string())],
+            Motion::FVel { vel } => vec![("the velocity", vel.unit(), vel.to_string())],
+            _ => Vec::new(),
+        };
+        self.check_units(a, &units).await?;
+        let reply = self.request(a, request).await;
+        self.halt_if_cancelled(a, &request).await?;
+        match reply? {
+            Reply::Motion { ext, .. } => Ok(ext.map(|e| e.resolved(self.known_kind(a)))),
+            other => Err(unexpected(a, &request, other)),
+        }
+    }
+
+    /// A raw request to `a`; a motion command whose operation was cancelled while its acknowledge was
+    /// awaited is halted.
+    pub async fn raw_request(&self, a: u8, request: Request) -> Result<Reply, Error> {
+        let reply = self.request(a, request).await;
+        self.halt_if_cancelled(a, &request).await?;
+        reply
+    }
+
+    /// If the operation was cancelled and `request` may have set `a` in motion: the module is halted and
+    /// that is the operation's end.
+    async fn halt_if_cancelled(&self, a: u8, request: &Request) -> Result<(), Error> {
+        if request.starts_motion() && self.cancelled() {
+            return Err(Error::Cancelled { address: a, stop: self.stop_motion(a).await });
+        }
+        Ok(())
+    }
+
+    /// Waits for `until` (polled every [`BusConfig::poll_interval`](crate::session::BusConfig) on a fixed
+    /// schedule), halting on a timeout, a cancellation or a failing line.
+    pub async fn wait(&self, a: u8, until: Until, timeout: Duration) -> Result<CubeState, Error> {
+        let start = self.now();
+        let deadline = start + timeout;
+        let period = self.core().config.poll_interval.max(Duration::from_micros(100));
+        let mut due = start;
+        loop {
+            let polled = match self.state(a).await {
+                Ok(s) => self.get_f32(a, Param::ActPos).await.map(|p| (s, p)),
+                Err(e) => Err(e),
+            };
+            let (state, position) = match polled {
+                Ok(x) => x,
+                // The line is failing, or the module stopped answering, while a motion may be running.
+                Err(e) => return Err(self.lost(a, e).await),
+            };
+            let now = self.now();
+            let address = crate::model::Address::new(a)?;
+            let position = Position::native(position).resolved(self.known_kind(a));
+            self.progress(Progress { address, position, state, elapsed: now.saturating_since(start) });
+            if state.has_fault() {
+                self.core().started.remove(&a);
+                return Err(Error::Device { address: a, state });
+            }
+            if state.contains(StateFlag::Halted) {
+                self.core().started.remove(&a);
+                return Err(Error::Halted { address: a, state });
+            }
+            if until.reached(state) {
+                self.core().started.remove(&a);
+                return Ok(state);
+            }
+            if self.cancelled() {
+                return Err(Error::Cancelled { address: a, stop: self.stop_motion(a).await });
+            }
+            if now >= deadline {
+                let stop = self.stop_motion(a).await;
+                return Err(Error::WaitTimeout { address: a, what: until.what(), waited: timeout, state, stop });
+            }
+            // Polls on a fixed schedule from the first one: never faster than the period, whatever the line;
+            // a poll that took longer than a period skips the slots it missed.
+            due += period;
+            if due <= now {
+                let missed = (now - due).as_nanos() / period.as_nanos() + 1;
+                due += period * u32::try_from(missed).unwrap_or(u32::MAX);
+            }
+            self.sleep_until_cancelled(due.min(deadline)).await;
+            if self.cancelled() {
+                return Err(Error::Cancelled { address: a, stop: self.stop_motion(a).await });
+            }
+        }
+    }
+
+    /// Homes the module and waits for the end of homing (see [`Op::HomeAndWait`](crate::session::Op)).
+    pub async fn home_and_wait(&self, a: u8, timeout: Duration) -> Result<(Position, CubeState), Error> {
+        if timeout.is_zero() {
+            return Err(Error::InvalidArgument { what: "the timeout", must: "above 0", value: "0".into() });
+        }
+        self.ready_for_motion(a).await?;
+        if self.cancelled() {
+            return Err(Error::Cancelled { address: a, stop: StopOutcome::NotStarted });
+        }
+        if let Err(e) = self.action(a, crate::model::Action::Home).await {
+            return Err(self.lost(a, e).await);
+        }
+        tracing::info!("module {a}: homing");
+        let state = self.wait(a, Until::Home, timeout).await?;
+        Ok((self.position(a).await?, state))
+    }
+
+    /// A ramp move with every check this protocol allows (see [`Op::MoveTo`](crate::session::Op)).
+    pub async fn move_to(&self, a: u8, spec: &MoveSpec) -> Result<MoveReport, Error> {
+        spec.validate()?;
+        let tolerance = spec.tolerance();
+        let mut units = vec![
+            ("the target position", spec.target.unit(), spec.target.to_string()),
+            ("the tolerance", tolerance.unit(), tolerance.to_string()),
+        ];
+        if let Some(v) = spec.vel {
+            units.push(("the velocity", v.unit(), v.to_string()));
+        }
+        if let Some(acc) = spec.acc {
+            units.push(("the acceleration", acc.unit(), acc.to_string()));
+        }
+        self.check_units(a, &units).await?;
+        self.ready_for_motion(a).await?;
+        let target = f64::from(spec.target.value());
+        self.within_limit(a, "the target position", target, Param::MinPos, false).await?;
+        self.within_limit(a, "the target position", target, Param::MaxPos, true).await?;
+        if let Some(v) = spec.vel {
+            self.within_limit(a, "the velocity", f64::from(v.value()), Param::MaxVel, true).await?;
+        }
+        if let Some(acc) = spec.acc {
+            self.within_limit(a, "the acceleration", f64::from(acc.value()), Param::MaxAcc, true).await?;
+        }
+        let ratio = self.inc_ratio(a).await?;
+        let start = self.position(a).await?;
+        let motion = Request::motion(Motion::FRamp { pos: spec.target }, AckKind::Simple)?;
+        for (param, twin, given) in [
+            (Param::TargetVel, Param::TargetVelInc, spec.vel.map(|v| v.value())),
+            (Param::TargetAcc, Param::TargetAccInc, spec.acc.map(|acc| acc.value())),
+        ] {
+            match given {
+                Some(v) => {
+                    self.set(a, param, Value::F32(v)).await?;
+                    self.check_ticks(a, param, twin, f64::from(v), ratio).await?;
+                }
+                None => {
+                    let ticks = self.get(a, twin).await?;
+                    if ticks.as_f64() == Some(0.0) {
+                        return Err(Error::InvalidArgument {
+                            what: if param == Param::TargetVel { "the velocity" } else { "the acceleration" },
+                            must: "given: the module's own value is 0, and a ramp with it would not move",
+                            value: "none".into(),
+                        });
+                    }
+                }
+            }
+        }
+        if self.cancelled() {
+            return Err(Error::Cancelled { address: a, stop: StopOutcome::NotStarted });
+        }
+        if let Err(e) = self.request(a, motion).await {
+            // It may have arrived and started the ramp.
+            return Err(self.lost(a, e).await);
+        }
+        tracing::info!("module {a}: moving from {:.4} to {}", start.value(), spec.target.value());
+        let sent = (target * ratio).round() as i32;
+        match self.get_as(a, Param::TargetPosInc, Value::as_i32).await {
+            Ok(taken) if (i64::from(taken) - i64::from(sent)).abs() <= 1 => {}
+            Ok(taken) => {
+                let stop = self.stop_motion(a).await;
+                return Err(Error::TargetMismatch { address: a, sent, taken, stop });
+            }
+            Err(e) => return Err(self.lost(a, e).await),
+        }
+        let state = self.wait(a, Until::Ramp, spec.timeout).await?;
+        let mut reached = start;
+        for _ in 0..2 {
+            reached = self.position(a).await?;
+            let difference = reached.value() - spec.target.value();
+            // A NaN reading is not within any tolerance.
+            let within = difference.abs() <= tolerance.value();
+            if !within {
+                return Err(Error::NotReached {
+                    address: a,
+                    target: spec.target.value(),
+                    reached: reached.value(),
+                    difference,
+                    tolerance: tolerance.value(),
+                    state,
+                });
+            }
+        }
+        Ok(MoveReport { start, reached, state })
+    }
+
+    /// Halts every module this session set in motion that is still moving or cannot be asked (see
+    /// [`Op::HaltStarted`](crate::session::Op)). An error if a Halt had to be broadcast (the session failed).
+    pub async fn halt_started(&self) -> Result<(), Error> {
+        let (started, known): (Vec<u8>, _) = {
+            let core = self.core();
+            (core.started.iter().copied().collect(), core.known.clone())
+        };
+        if started.is_empty() {
+            return Ok(());
+        }
+        let states =
+            self.request_many(&started.iter().map(|a| (*a, Request::Get(Param::CubeState))).collect::<Vec<_>>()).await;
+        let mut unconfirmed = Vec::new();
+        let mut detail = String::new();
+        for (a, s) in started.iter().zip(states) {
+            let moving = match s {
+                Ok(Reply::Get(_, Value::U32(s))) => CubeState(s).contains(StateFlag::Motion),
+                Ok(_) => true,
+                // Never answered this session and silent now: nobody is there.
+                Err(Error::Timeout { .. }) if !known.contains(a) => {
+                    tracing::debug!("module {a} never answered this session: taken as absent");
+                    false
+                }
+                // A module that answered before and not now cannot be halted by address: broadcast below.
+                Err(e @ Error::Timeout { .. }) => {
+                    unconfirmed.push(*a);
+                    detail = e.to_string();
+                    false
+                }
+                Err(_) => true,
+            };
+            if moving {
+                tracing::warn!("halting module {a}, set in motion by this session");
+                if let Err(e) = self.action(*a, crate::model::Action::Halt).await {
+                    unconfirmed.push(*a);
+                    detail = e.to_string();
+                } else {
+                    self.core().started.remove(a);
+                }
+            }
+        }
+        let result = if unconfirmed.is_empty() {
+            Ok(())
+        } else {
+            let port = self.core().port.clone();
+            tracing::warn!("{port}: a module this session started cannot be asked; halting every module");
+            let watchdog_armed = unconfirmed.iter().any(|a| self.watchdog_armed(*a));
+            self.core().failed = true;
+            if let Err(e) = self.broadcast(Broadcast::Halt).await {
+                tracing::warn!("the halt broadcast could not be sent either: {e}");
+            }
+            Err(Error::StopUnconfirmed { addresses: unconfirmed, detail, watchdog_armed })
+        };
+        self.core().started.clear();
+        result
+    }
+}
+
+impl ExtAck {
+    /// The acknowledge with its float position in the unit of `kind`, if known.
+    #[must_use]
+    pub fn resolved(self, kind: Option<crate::model::ModuleKind>) -> ExtAck {
+        let position = match self.position {
+            crate::model::AckPosition::Unit(p) => crate::model::AckPosition::Unit(p.resolved(kind)),
+            other => other,
+        };
+        ExtAck { position, ..self }
+    }
+}

@@ -1,0 +1,107 @@
+//! Runs each [`Op`] on its state machine.
+
+use crate::error::Error;
+use crate::model::{AckKind, Motion, Param, Position, Request, Ticks, Value};
+use crate::session::ctx::Ctx;
+use crate::session::{Op, Output};
+
+/// Runs `op` to its end.
+pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
+    Ok(match op {
+        Op::Request(a, r) => Output::Reply(ctx.raw_request(a.get(), r).await?),
+        Op::RequestMany(rs) => {
+            let replies = ctx.request_many(&rs).await;
+            if ctx.cancelled() {
+                for (a, r) in rs.iter().filter(|(_, r)| r.starts_motion()) {
+                    let stop = ctx.stop_motion(*a).await;
+                    tracing::warn!("module {a}: {r} cancelled: {stop}");
+                }
+            }
+            Output::Replies(replies)
+        }
+        Op::ReadMany(addresses, p) => Output::Values(ctx.read_many(&addresses, p).await),
+        Op::Positions(addresses) => Output::Positions(ctx.positions(&addresses).await),
+        Op::Broadcast(b) => {
+            ctx.broadcast(b).await?;
+            Output::Done
+        }
+        Op::Scan => Output::Scan(ctx.scan().await?),
+        Op::Get(a, p) => Output::Value(ctx.get(a.get(), p).await?),
+        Op::Set(a, p, v) => {
+            ctx.set(a.get(), p, v).await?;
+            Output::Done
+        }
+        Op::SetChecked(a, p, v) => Output::Readback(ctx.set_checked(a.get(), p, v).await?),
+        Op::Position(a) => Output::Position(ctx.position(a.get()).await?),
+        Op::PositionTicks(a) => Output::Ticks(Ticks(ctx.get_as(a.get(), Param::ActIPos, Value::as_i32).await?)),
+        Op::State(a) => Output::State(ctx.state(a.get()).await?),
+        Op::PositionStateDio(a) => {
+            let kind = ctx.known_kind(a.get());
+            let (pos, state, dio) = ctx
+                .get_as(a.get(), Param::ActFPosStateDio, |v| match *v {
+                    Value::PosStateDio { pos, state, dio } => Some((pos, state, dio)),
+                    _ => None,
+                })
+                .await?;
+            Output::PositionStateDio(Position::native(pos).resolved(kind), state, dio)
+        }
+        Op::ConfigWord(a) => Output::ConfigWord(ctx.config_word(a.get()).await?),
+        Op::Kind(a) => Output::Kind(ctx.kind(a.get()).await?),
+        Op::Info(a) => Output::Info(ctx.info(a.get()).await?),
+        Op::Action(a, action) => {
+            ctx.raw_request(a.get(), Request::Action(action)).await?;
+            Output::Done
+        }
+        Op::Halt(a) => {
+            ctx.halt(a.get()).await?;
+            Output::Done
+        }
+        Op::Motion(a, m, ack) => Output::ExtAck(ctx.motion(a.get(), m, ack).await?),
+        Op::IStep(a, pos, time) => {
+            ctx.raw_request(a.get(), Request::IStep { pos, time }).await?;
+            Output::Done
+        }
+        Op::MoveRamp { address, pos, vel, acc } => {
+            let a = address.get();
+            let motion = Request::motion(Motion::FRamp { pos }, AckKind::Simple)?;
+            let vel_req = vel.map(|v| Request::set(Param::TargetVel, Value::F32(v.value()))).transpose()?;
+            let acc_req = acc.map(|x| Request::set(Param::TargetAcc, Value::F32(x.value()))).transpose()?;
+            let mut units = vec![("the target position", pos.unit(), pos.to_string())];
+            units.extend(vel.map(|v| ("the velocity", v.unit(), v.to_string())));
+            units.extend(acc.map(|x| ("the acceleration", x.unit(), x.to_string())));
+            ctx.check_units(a, &units).await?;
+            for r in [vel_req, acc_req].into_iter().flatten() {
+                ctx.request(a, r).await?;
+            }
+            ctx.raw_request(a, motion).await?;
+            Output::Done
+        }
+        Op::Wait(a, until, timeout) => Output::State(ctx.wait(a.get(), until, timeout).await?),
+        Op::HomeAndWait(a, timeout) => {
+            let (p, s) = ctx.home_and_wait(a.get(), timeout).await?;
+            Output::Homed(p, s)
+        }
+        Op::MoveTo(a, spec) => Output::Moved(ctx.move_to(a.get(), &spec).await?),
+        Op::HomeGuarded(a, timeout, guard) => {
+            let (p, s) = ctx.guarded(a.get(), guard, ctx.home_and_wait(a.get(), timeout)).await?;
+            Output::Homed(p, s)
+        }
+        Op::MoveGuarded(a, spec, guard) => {
+            Output::Moved(ctx.guarded(a.get(), guard, ctx.move_to(a.get(), &spec)).await?)
+        }
+        Op::StopMotion(a) => Output::Stop(ctx.stop_motion(a.get()).await),
+        Op::HaltStarted => {
+            ctx.halt_started().await?;
+            Output::Done
+        }
+        Op::EnableWatchdog(addresses) => {
+            ctx.enable_watchdog(&addresses).await?;
+            Output::Done
+        }
+        Op::DisableWatchdog => {
+            ctx.disable_watchdog().await?;
+            Output::Done
+        }
+        Op::ResetAndReleaseWatchdog(a) => Output::Released(ctx.reset_and_release_watchdog(a.get()).await?),
+    })
+}

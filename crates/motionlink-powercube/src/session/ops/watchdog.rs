@@ -1,0 +1,265 @@
+//! The module watchdog (chapter 13): switching it on with a life sign in the modules a session moves,
+//! serving it (the refresh is the engine's: see [`Core::poll_transmit`](crate::session)), switching it off
+//! again and restoring the Config word, finding out the state of a watchdog whose toggle was not
+//! confirmed, and releasing one a dead host left expired.
+
+use crate::error::Error;
+use crate::model::{Action, ConfigFlag, ConfigWord, Param, Request, StateFlag, Value, WATCHDOG_TIMEOUT};
+use crate::session::ctx::Ctx;
+
+impl Ctx {
+    /// True when this session can arm the watchdog: on CAN, and on RS232 unless
+    /// [`BusConfig::watchdog_on_rs232`](crate::session::BusConfig::watchdog_on_rs232) is false.
+    pub fn watchdog_reliable(&self) -> bool {
+        let core = self.core();
+        core.can || core.config.watchdog_on_rs232
+    }
+
+    /// True if this session switched the watchdog of `address` on (or may have) and still refreshes it.
+    pub fn watchdog_armed(&self, address: u8) -> bool {
+        let core = self.core();
+        let duty = &core.duty;
+        duty.serving && (duty.online.contains(&address) || duty.uncertain.contains(&address))
+    }
+
+    /// Stops refreshing and marks the session failed; true if any watchdog was (or may have been) online.
+    pub fn abandon_watchdog(&self) -> bool {
+        super::abandon_watchdog(&mut self.core())
+    }
+
+    /// Switches the watchdog on in `addresses` (see [`Op::EnableWatchdog`](crate::session::Op)).
+    pub async fn enable_watchdog(&self, addresses: &[u8]) -> Result<(), Error> {
+        let (can, on_rs232, failed) = {
+            let core = self.core();
+            (core.can, core.config.watchdog_on_rs232, core.failed)
+        };
+        if !can && !on_rs232 {
+            return Err(Error::Unsupported(
+                "the watchdog on RS232 is switched off in this session's settings (BusConfig::watchdog_on_rs232)"
+                    .into(),
+            ));
+        }
+        if failed {
+            return Err(Error::Unsupported(
+                "this session has failed (its line broke or a stop was not confirmed): it cannot serve a watchdog"
+                    .into(),
+            ));
+        }
+        let mut words = Vec::with_capacity(addresses.len());
+        for &a in addresses {
+            if !crate::wire::is_module_address(a) {
+                return Err(Error::InvalidAddress(a));
+            }
+            let state = self.state(a).await?;
+            if state.contains(StateFlag::CommError) && !self.core().duty.online.contains(&a) {
+                return Err(Error::Device { address: a, state });
+            }
+            words.push((a, self.config_word(a).await?));
+        }
+        for (a, config) in words {
+            if !config.contains(ConfigFlag::WatchdogEnable) {
+                // Remembered before the write: a write that fails may still have arrived.
+                self.core().duty.config_before.entry(a).or_insert(config);
+                // Read back: a Config word corrupted on the way (the modules ignore the BCC) is not used.
+                self.set_checked(a, Param::Config, Value::U32(config.with(ConfigFlag::WatchdogEnable).0)).await?;
+            }
+        }
+        {
+            let mut core = self.core();
+            let now = core.now;
+            if !core.duty.serving {
+                core.duty.serving = true;
+                core.duty.next_due = now;
+            }
+        }
+        let mut first_error = None;
+        for &a in addresses {
+            {
+                let core = self.core();
+                if core.duty.online.contains(&a) {
+                    continue;
+                }
+                if core.duty.uncertain.contains(&a) {
+                    first_error.get_or_insert(Error::WatchdogUnconfirmed {
+                        address: a,
+                        on: true,
+                        detail: "an earlier life sign was not acknowledged; not toggled again (disable_watchdog \
+                                 finds out its state)"
+                            .into(),
+                    });
+                    continue;
+                }
+            }
+            // The acknowledge of the life sign is the only confirmation the manual offers that the toggle
+            // arrived (no state flag shows an online watchdog). Silence leaves the watchdog in an unknown
+            // state: it is served (refreshed) as if online, reported, and never toggled again blindly.
+            match self.request(a, Request::Action(Action::LifeSign)).await {
+                Ok(_) => {
+                    tracing::debug!("module {a}: watchdog online");
+                    self.core().duty.online.insert(a);
+                }
+                Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. })) => {
+                    tracing::warn!("module {a}: life sign not acknowledged ({e}); its watchdog state is unknown");
+                    self.core().duty.uncertain.insert(a);
+                    first_error.get_or_insert(Error::WatchdogUnconfirmed {
+                        address: a,
+                        on: true,
+                        detail: format!("the life sign was not acknowledged ({e}); not sent again"),
+                    });
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        first_error.map_or(Ok(()), Err)
+    }
+
+    /// Undoes [`Ctx::enable_watchdog`] (see [`Op::DisableWatchdog`](crate::session::Op)).
+    pub async fn disable_watchdog(&self) -> Result<(), Error> {
+        if self.core().failed {
+            // A failed session may have left something moving that it could not stop: the watchdog is what
+            // stops it now. It is not switched off.
+            let left: Vec<u8> = {
+                let mut core = self.core();
+                let left = core.duty.online.iter().chain(core.duty.uncertain.iter()).copied().collect();
+                super::abandon_watchdog(&mut core);
+                left
+            };
+            if left.is_empty() {
+                return Ok(());
+            }
+            return Err(Error::WatchdogLeftOnline {
+                addresses: left,
+                detail: "the session failed (its line broke, or a stop it sent was not confirmed)".into(),
+            });
+        }
+        let mut first_error = None;
+        let online: Vec<u8> = self.core().duty.online.iter().copied().collect();
+        for a in online {
+            match self.request(a, Request::Action(Action::LifeSign)).await {
+                Ok(_) => {
+                    tracing::debug!("module {a}: watchdog offline");
+                    self.core().duty.online.remove(&a);
+                }
+                Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. })) => {
+                    // It may or may not have arrived: a second life sign could switch the watchdog on again.
+                    tracing::warn!("module {a}: life sign not acknowledged ({e}); its watchdog state is unknown");
+                    let mut core = self.core();
+                    core.duty.online.remove(&a);
+                    core.duty.uncertain.insert(a);
+                }
+                Err(e) => {
+                    tracing::warn!("module {a}: cannot switch the watchdog off: {e}");
+                    first_error.get_or_insert(e);
+                }
+            }
+        }
+        self.core().duty.serving = false;
+        if let Err(e) = self.observe_uncertain_watchdogs().await {
+            first_error.get_or_insert(e);
+        }
+        let restore: Vec<(u8, ConfigWord)> = {
+            let core = self.core();
+            let duty = &core.duty;
+            duty.config_before
+                .iter()
+                .filter(|(a, _)| !duty.online.contains(a) && !duty.uncertain.contains(a))
+                .map(|(a, w)| (*a, *w))
+                .collect()
+        };
+        for (a, before) in restore {
+            match self.restore_watchdog_flag(a, before).await {
+                Ok(()) => {
+                    self.core().duty.config_before.remove(&a);
+                }
+                Err(e) => {
+                    tracing::warn!("module {a}: cannot restore the Config word {:#010x}: {e}", before.0);
+                    first_error.get_or_insert(e);
+                }
+            }
+        }
+        first_error.map_or(Ok(()), Err)
+    }
+
+    /// With the refresh stopped, finds out whether the modules whose life sign was not confirmed have their
+    /// watchdog online, the only way the manual offers to observe it: an online watchdog that is not
+    /// refreshed expires (STATE_COMM_ERROR, STATE_HALTED) within [`WATCHDOG_TIMEOUT`]. Waits twice that on
+    /// the session's time, then reads each one's state.
+    async fn observe_uncertain_watchdogs(&self) -> Result<(), Error> {
+        let uncertain: Vec<u8> = self.core().duty.uncertain.iter().copied().collect();
+        if uncertain.is_empty() {
+            return Ok(());
+        }
+        let until = self.now() + WATCHDOG_TIMEOUT * 2;
+        self.sleep_until(until).await;
+        let mut first_error = None;
+        for a in uncertain {
+            match self.state(a).await {
+                Ok(state) if !state.contains(StateFlag::CommError) => {
+                    tracing::debug!("module {a}: watchdog seen offline");
+                    self.core().duty.uncertain.remove(&a);
+                }
+                Ok(state) => {
+                    first_error.get_or_insert(Error::WatchdogUnconfirmed {
+                        address: a,
+                        on: false,
+                        detail: format!(
+                            "its watchdog was still online and has expired ({state}); the module is halted, \
+                             reset_and_release_watchdog clears it"
+                        ),
+                    });
+                }
+                Err(e) => {
+                    first_error.get_or_insert(Error::WatchdogUnconfirmed {
+                        address: a,
+                        on: false,
+                        detail: format!("its state cannot be read to check: {e}"),
+                    });
+                }
+            }
+        }
+        first_error.map_or(Ok(()), Err)
+    }
+
+    /// Gives CONFIGID_MOD_WATCHDOG_ENABLE of module `a` back the value it had in `before`, every other bit
+    /// as it is now.
+    async fn restore_watchdog_flag(&self, a: u8, before: ConfigWord) -> Result<(), Error> {
+        let now = self.config_word(a).await?;
+        let mut word = now;
+        word.set(ConfigFlag::WatchdogEnable, before.contains(ConfigFlag::WatchdogEnable));
+        if word != before {
+            tracing::debug!(
+                "module {a}: Config word {:#010x} was {:#010x} before; only the watchdog flag is restored",
+                word.0,
+                before.0
+            );
+        }
+        if word != now {
+            self.set_checked(a, Param::Config, Value::U32(word.0)).await?;
+        }
+        Ok(())
+    }
+
+    /// Reset, and the manual's first way to restart after a watchdog expiry (see
+    /// [`Op::ResetAndReleaseWatchdog`](crate::session::Op)). True if it switched the watchdog offline.
+    pub async fn reset_and_release_watchdog(&self, a: u8) -> Result<bool, Error> {
+        let served = self.core().duty.online.contains(&a);
+        let before = if served { crate::model::CubeState::EMPTY } else { self.state(a).await? };
+        self.action(a, Action::Reset).await?;
+        if !before.contains(StateFlag::CommError) {
+            return Ok(false);
+        }
+        let until = self.now() + WATCHDOG_TIMEOUT * 2;
+        self.sleep_until(until).await;
+        if !self.state(a).await?.contains(StateFlag::CommError) {
+            return Ok(false);
+        }
+        tracing::info!("module {a}: its watchdog expires again after a reset; switching it offline");
+        match self.request(a, Request::Action(Action::LifeSign)).await {
+            Ok(_) | Err(Error::Timeout { .. }) => {}
+            Err(e) => return Err(e),
+        }
+        self.core().duty.uncertain.remove(&a);
+        self.action(a, Action::Reset).await?;
+        Ok(true)
+    }
+}

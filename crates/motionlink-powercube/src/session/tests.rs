@@ -1,0 +1,486 @@
+//! The session with no link and no thread: wired straight to the emulator, on a time this test moves.
+//! What it sends goes to the emulator at once and the emulator's answers come back at once (an instant
+//! line); when nothing is left to send, time jumps to the session's next deadline.
+
+use std::time::Duration;
+
+use motionlink_link::can::CanEmulator;
+use motionlink_link::session::{Action as LinkAction, Event, Input, OpId, Session as _};
+use motionlink_link::Timestamp;
+
+use super::*;
+use crate::model::{ConfigFlag, StateFlag};
+use crate::sim::{ModuleConfig, SimConfig};
+use crate::wire::can::{from_frame, Role};
+use crate::Emulator;
+
+/// What went over the line, for assertions.
+#[derive(Debug, Clone, PartialEq)]
+enum Wire {
+    Rs232(Timestamp, Vec<u8>),
+    Frame(Timestamp, u32, Vec<u8>),
+}
+
+struct Bench {
+    session: Session,
+    device: Emulator,
+    now: Timestamp,
+    sent: Vec<Wire>,
+    events: Vec<Event<Session>>,
+    /// Drops every answer of the device while true.
+    deaf: bool,
+}
+
+impl Bench {
+    fn rs232(addresses: &[u8]) -> Bench {
+        let device = Emulator::new(&SimConfig::with_addresses(addresses).unwrap());
+        let session = Session::rs232(BusConfig::rs232(), "test line", Timestamp::ZERO);
+        Bench { session, device, now: Timestamp::ZERO, sent: Vec::new(), events: Vec::new(), deaf: false }
+    }
+
+    fn can(addresses: &[u8]) -> Bench {
+        let device = Emulator::new_can(&SimConfig::with_addresses(addresses).unwrap());
+        let session = Session::can(BusConfig::can(), "test bus", Timestamp::ZERO);
+        Bench { session, device, now: Timestamp::ZERO, sent: Vec::new(), events: Vec::new(), deaf: false }
+    }
+
+    fn with_modules(modules: Vec<ModuleConfig>, can: bool) -> Bench {
+        let config = SimConfig { modules, ..SimConfig::default() };
+        let mut b = if can { Bench::can(&[1]) } else { Bench::rs232(&[1]) };
+        b.device = if can { Emulator::new_can(&config) } else { Emulator::new(&config) };
+        b
+    }
+
+    /// Hands over everything the session has to send, and the device's answers, at the present time.
+    fn pump(&mut self) {
+        while let Some(action) = self.session.poll_transmit(self.now) {
+            match action {
+                LinkAction::Send(bytes) => {
+                    self.sent.push(Wire::Rs232(self.now, bytes.clone()));
+                    let mut answer = Vec::new();
+                    motionlink_link::emulator::Emulator::receive(&mut self.device, self.now, &bytes, &mut answer);
+                    if !answer.is_empty() && !self.deaf {
+                        self.session.handle_input(Input::Bytes(&answer), self.now);
+                    }
+                }
+                LinkAction::SendFrame(frame) => {
+                    self.sent.push(Wire::Frame(self.now, frame.id(), frame.data().to_vec()));
+                    let mut answers = Vec::new();
+                    CanEmulator::receive(&mut self.device, self.now, &frame, &mut answers);
+                    for a in answers.iter().filter(|_| !self.deaf) {
+                        self.session.handle_input(Input::Frame(a), self.now);
+                    }
+                }
+                LinkAction::DiscardInput | LinkAction::Reopen => {}
+            }
+        }
+        self.events.extend(std::iter::from_fn(|| self.session.poll_event()));
+    }
+
+    /// Moves time to the session's next deadline (at most `limit`), and lets it act.
+    fn step(&mut self, limit: Timestamp) -> bool {
+        self.pump();
+        let Some(t) = self.session.poll_timeout() else { return false };
+        if t > limit {
+            return false;
+        }
+        self.now = self.now.max(t);
+        self.device.update(self.now);
+        self.session.handle_timeout(self.now);
+        self.pump();
+        true
+    }
+
+    fn done(&mut self, id: OpId) -> Option<Result<Output, Error>> {
+        let i = self.events.iter().position(|e| matches!(e, Event::Done(d, _) if *d == id))?;
+        match self.events.remove(i) {
+            Event::Done(_, r) => Some(r),
+            _ => None,
+        }
+    }
+
+    /// Runs `op` to its end (an hour of session time at most).
+    fn run(&mut self, op: Op) -> Result<Output, Error> {
+        let id = self.session.start(op, self.now);
+        let limit = self.now + Duration::from_secs(3600);
+        loop {
+            self.pump();
+            if let Some(r) = self.done(id) {
+                return r;
+            }
+            assert!(self.step(limit), "{id} did not end");
+        }
+    }
+
+    /// Closes the session and runs its close sequence to its end.
+    fn close(&mut self) -> Result<(), String> {
+        self.session.close(self.now);
+        let limit = self.now + Duration::from_secs(5);
+        loop {
+            self.pump();
+            if let Some(i) = self.events.iter().position(|e| matches!(e, Event::Closed(_))) {
+                let Event::Closed(r) = self.events.remove(i) else { unreachable!() };
+                return r.map_err(|e| e.to_string());
+            }
+            assert!(self.step(limit), "the close sequence ends: {:?}", self.events);
+        }
+    }
+
+    /// Lets `d` of session time pass.
+    fn idle(&mut self, d: Duration) {
+        let until = self.now + d;
+        while self.step(until) {}
+        self.now = until;
+        self.device.update(until);
+        self.session.handle_timeout(until);
+        self.pump();
+    }
+
+    fn module(&mut self, a: u8) -> (CubeState, f32, bool, ConfigWord) {
+        self.device.update(self.now);
+        let m = self.device.module(a).unwrap();
+        (m.state(), m.position().value(), m.watchdog_online(), m.config_word())
+    }
+
+    fn refreshes(&self) -> Vec<Timestamp> {
+        self.sent
+            .iter()
+            .filter_map(|w| match w {
+                Wire::Frame(t, 0x100, d) if d == &[0x07] => Some(*t),
+                Wire::Rs232(t, b) if b == &[0x02, 0x04, 0x10, 0x82, 0x07, 0x00, 0x0D, 0x03] => Some(*t),
+                _ => None,
+            })
+            .collect()
+    }
+}
+
+fn addr(a: u8) -> Address {
+    Address::new(a).unwrap()
+}
+
+fn ms(n: u64) -> Duration {
+    Duration::from_millis(n)
+}
+
+#[test]
+fn reads_are_retried_and_nothing_else_is() {
+    let mut b = Bench::rs232(&[1]);
+    let t0 = b.now;
+    let err = b.run(Op::Position(addr(9))).unwrap_err();
+    assert!(matches!(err, Error::Timeout { address: 9, .. }), "{err}");
+    assert_eq!(b.sent.len(), 3, "three tries of the read");
+    assert_eq!(b.now - t0, ms(600), "each waited its full 200 ms");
+    b.sent.clear();
+    b.deaf = true;
+    let err = b.run(Op::Set(addr(1), Param::TargetVel, Value::F32(0.2))).unwrap_err();
+    assert!(matches!(err, Error::Timeout { address: 1, .. }), "{err}");
+    assert_eq!(b.sent.len(), 1, "a write is never repeated");
+    // The late answer of the write would be stale: the next exchange drops what is pending first.
+    b.deaf = false;
+    assert!(matches!(b.run(Op::State(addr(1))), Ok(Output::State(_))));
+}
+
+#[test]
+fn on_can_acknowledges_are_matched_to_their_module_in_one_round() {
+    let mut b = Bench::can(&[1, 2, 3]);
+    let t0 = b.now;
+    let Ok(Output::Values(v)) = b.run(Op::ReadMany(vec![3, 1, 2, 9], Param::DefCubeSerial)) else { panic!() };
+    assert_eq!(v[0].as_ref().unwrap(), &Value::U32(1003));
+    assert_eq!(v[1].as_ref().unwrap(), &Value::U32(1001));
+    assert_eq!(v[2].as_ref().unwrap(), &Value::U32(1002));
+    assert!(matches!(v[3], Err(Error::Timeout { address: 9, .. })));
+    // Three rounds (the first, and two retries of address 9 alone), each one reply timeout.
+    assert_eq!(b.now - t0, ms(150));
+    let gets = b.sent.iter().filter(|w| matches!(w, Wire::Frame(_, id, _) if (0xC1..=0xDF).contains(id))).count();
+    assert_eq!(gets, 4 + 2);
+}
+
+#[test]
+fn the_watchdog_refresh_is_a_session_duty_on_its_20_ms_grid() {
+    let mut b = Bench::can(&[1]);
+    b.run(Op::EnableWatchdog(vec![1])).unwrap();
+    assert!(b.module(1).2, "online");
+    let armed = b.now;
+    b.idle(Duration::from_secs(2));
+    let refreshes: Vec<Timestamp> = b.refreshes().into_iter().filter(|t| *t >= armed).collect();
+    assert!(refreshes.len() >= 99, "{} refreshes in 2 s", refreshes.len());
+    let first = refreshes[0];
+    for (i, t) in refreshes.iter().enumerate() {
+        assert_eq!(*t - first, ms(20 * i as u64), "refresh {i} on its deadline");
+    }
+    assert!(!b.module(1).0.has_fault(), "served for 2 s");
+    assert_eq!(b.session.watchdog_next_due(), Some(*refreshes.last().unwrap() + ms(20)));
+    b.run(Op::DisableWatchdog).unwrap();
+    assert!(!b.module(1).2 && !b.session.watchdog_served());
+    let n = b.refreshes().len();
+    b.idle(Duration::from_secs(1));
+    assert_eq!(b.refreshes().len(), n, "no refresh once switched off");
+    assert!(!b.module(1).0.has_fault());
+}
+
+#[test]
+fn on_rs232_the_refresh_is_libm5api_broadcast_to_address_0() {
+    let mut b = Bench::rs232(&[1]);
+    b.run(Op::EnableWatchdog(vec![1])).unwrap();
+    b.idle(Duration::from_secs(1));
+    assert!(b.refreshes().len() >= 49);
+    assert!(!b.module(1).0.has_fault());
+    assert_eq!(b.device.stats().not_understood, 0);
+}
+
+#[test]
+fn a_checked_move_polls_at_its_rate_reports_progress_and_ends_within_the_tolerance() {
+    let mut b = Bench::rs232(&[1]);
+    let spec = MoveSpec {
+        vel: Some(Velocity::rad_per_s(0.5)),
+        acc: Some(Acceleration::rad_per_s2(2.0)),
+        ..MoveSpec::to(Position::rad(1.0))
+    };
+    let Ok(Output::Moved(report)) = b.run(Op::MoveTo(addr(1), spec)) else { panic!() };
+    assert!((report.reached.value() - 1.0).abs() <= 0.001, "{report:?}");
+    assert_eq!(report.reached.unit(), crate::model::AxisUnit::Radian, "the kind was read for the units");
+    assert_eq!(report.start, Position::rad(0.05));
+    let progress: Vec<Progress> = b
+        .events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Progress(_, p) => Some(*p),
+            _ => None,
+        })
+        .collect();
+    assert!(progress.len() > 200, "{}", progress.len());
+    for w in progress.windows(2) {
+        assert_eq!(w[1].elapsed - w[0].elapsed, ms(10), "one poll per 10 ms");
+        assert!(w[1].position.value() >= w[0].position.value() - 1e-6);
+    }
+    assert!(b.session.started().is_empty());
+}
+
+#[test]
+fn a_position_in_rad_for_a_linear_module_is_refused_before_anything_moves() {
+    let mut linear = ModuleConfig::at(4);
+    linear.kind = ModuleKind::Linear;
+    linear.min_pos = 0.0;
+    linear.max_pos = 0.2;
+    let mut b = Bench::with_modules(vec![linear], false);
+    let err = b.run(Op::MoveTo(addr(4), MoveSpec::to(Position::rad(0.1)))).unwrap_err();
+    assert!(matches!(err, Error::UnitMismatch { address: 4, kind: ModuleKind::Linear, .. }), "{err}");
+    assert!(err.is_usage() && err.to_string().contains("0.1 rad"), "{err}");
+    let err = b.run(Op::Motion(addr(4), Motion::FVel { vel: Velocity::rad_per_s(0.1) }, AckKind::Simple)).unwrap_err();
+    assert!(matches!(err, Error::UnitMismatch { .. }), "{err}");
+    assert_eq!(b.device.take_events(), Vec::<String>::new(), "nothing moved, nothing was written");
+    // In metres it moves; a bare number in the module's own unit too.
+    let Ok(Output::Moved(r)) = b.run(Op::MoveTo(addr(4), MoveSpec::to(Position::m(0.1)))) else { panic!() };
+    assert_eq!(r.reached.unit(), crate::model::AxisUnit::Metre);
+    assert!(matches!(b.run(Op::MoveTo(addr(4), MoveSpec::to(Position::native(0.15)))), Ok(Output::Moved(_))));
+    // Mixed units in one move are refused by the move itself.
+    let mixed = MoveSpec { vel: Some(Velocity::rad_per_s(0.1)), ..MoveSpec::to(Position::m(0.1)) };
+    assert!(matches!(b.run(Op::MoveTo(addr(4), mixed)), Err(Error::InvalidArgument { .. })));
+}
+
+#[test]
+fn a_cancelled_move_is_halted_and_says_the_module_confirmed_it() {
+    let mut b = Bench::can(&[1]);
+    let spec = MoveSpec { vel: Some(Velocity::native(0.2)), ..MoveSpec::to(Position::native(2.0)) };
+    let id = b.session.start(Op::MoveTo(addr(1), spec), b.now);
+    b.idle(ms(500));
+    assert!(b.module(1).0.contains(StateFlag::Motion));
+    b.session.cancel(id, b.now);
+    b.pump();
+    let r = b.done(id).expect("ends at once: the halt is acknowledged within the same instant here");
+    let err = r.unwrap_err();
+    assert!(matches!(err, Error::Cancelled { address: 1, stop: StopOutcome::Confirmed }), "{err}");
+    let (state, p, _, _) = b.module(1);
+    assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
+    assert!(p > 0.05 && p < 0.2, "{p}");
+}
+
+#[test]
+fn a_cancelled_read_ends_at_once_and_sets_nothing_in_motion() {
+    let mut b = Bench::rs232(&[1]);
+    b.deaf = true;
+    let id = b.session.start(Op::Scan, b.now);
+    b.pump();
+    b.session.cancel(id, b.now);
+    b.pump();
+    assert!(matches!(b.done(id), Some(Err(Error::Aborted { what: "the scan" }))));
+    assert!(b.session.is_idle() || b.session.wants_input(), "only the answer of the request on the line is awaited");
+}
+
+#[test]
+fn close_halts_what_the_session_started_and_switches_the_watchdog_off() {
+    let mut b = Bench::can(&[1, 2]);
+    let before = b.module(1).3;
+    b.run(Op::EnableWatchdog(vec![1, 2])).unwrap();
+    b.run(Op::Motion(addr(1), Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple)).unwrap();
+    b.idle(ms(300));
+    assert_eq!(b.close(), Ok(()));
+    let (state, _, online, config) = b.module(1);
+    assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "halted by address: {state}");
+    assert!(!online && config == before, "watchdog off, Config word as it was");
+    assert!(!b.module(2).0.contains(StateFlag::Halted), "module 2 did not move: left alone");
+    // Nothing new once closed.
+    let id = b.session.start(Op::State(addr(1)), b.now);
+    b.pump();
+    assert!(matches!(b.done(id), Some(Err(Error::SessionClosed))));
+    b.idle(Duration::from_secs(1));
+    assert!(!b.module(2).0.has_fault(), "offline: nothing expires");
+}
+
+#[test]
+fn a_close_that_cannot_confirm_the_stop_says_so_and_leaves_the_watchdog_to_stop_the_module() {
+    let mut b = Bench::can(&[1]);
+    b.run(Op::EnableWatchdog(vec![1])).unwrap();
+    b.run(Op::Motion(addr(1), Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple)).unwrap();
+    b.idle(ms(100));
+    b.deaf = true; // the modules' answers are lost from now on
+    let sent_before = b.sent.len();
+    let err = b.close().unwrap_err();
+    assert!(err.contains("could not be confirmed stopped") && err.contains("halts itself within 50 ms"), "{err}");
+    // It asked for the state three times; silence from a module that answered before: a Halt broadcast
+    // (which reaches the module: the bus carries it, only the answers are lost).
+    let broadcast = b.sent[sent_before..].iter().any(|w| matches!(w, Wire::Frame(_, 0x100, d) if d == &[0x02]));
+    assert!(broadcast, "{:?}", &b.sent[sent_before..]);
+    assert!(b.session.failed() && !b.session.watchdog_served());
+    b.idle(ms(100));
+    let (state, _, online, _) = b.module(1);
+    assert!(!state.contains(StateFlag::Motion) && online, "{state}");
+}
+
+#[test]
+fn a_guarded_move_arms_the_watchdog_for_its_motion_only() {
+    let mut b = Bench::rs232(&[1]);
+    let before = b.module(1).3;
+    let spec = MoveSpec { vel: Some(Velocity::native(1.0)), ..MoveSpec::to(Position::native(0.3)) };
+    let Ok(Output::Moved(_)) = b.run(Op::MoveGuarded(addr(1), spec, Guard::Watchdog)) else { panic!() };
+    let events = b.device.take_events();
+    let on = events.iter().position(|e| e == "module 1 watchdog online").expect("armed");
+    let started = events.iter().position(|e| e.starts_with("module 1 motion started")).unwrap();
+    let off = events.iter().position(|e| e == "module 1 watchdog offline").expect("disarmed");
+    assert!(on < started && started < off, "{events:?}");
+    assert_eq!(b.module(1).3, before, "Config word as it was");
+    assert!(!b.module(1).3.contains(ConfigFlag::WatchdogEnable));
+    // Not arming is the caller's choice.
+    let Ok(Output::Moved(_)) = b.run(Op::MoveGuarded(addr(1), MoveSpec::to(Position::native(0.1)), Guard::HaltOnly))
+    else {
+        panic!()
+    };
+    assert!(!b.device.take_events().iter().any(|e| e.contains("watchdog")));
+}
+
+#[test]
+fn arming_a_module_whose_watchdog_expired_is_refused_with_a_hint() {
+    let mut b = Bench::can(&[1]);
+    b.run(Op::EnableWatchdog(vec![1])).unwrap();
+    b.session.die();
+    b.idle(ms(100));
+    assert!(b.module(1).0.contains(StateFlag::CommError));
+    let mut b2 = Bench::can(&[1]);
+    b2.device = b.device.clone();
+    let err = b2.run(Op::MoveGuarded(addr(1), MoveSpec::to(Position::native(0.3)), Guard::Watchdog)).unwrap_err();
+    assert!(err.is_device() && err.to_string().contains("`reset` clears it"), "{err}");
+    assert!(matches!(b2.run(Op::ResetAndReleaseWatchdog(addr(1))), Ok(Output::Released(true))));
+    assert!(!b2.module(1).2 && !b2.module(1).0.has_fault());
+}
+
+#[test]
+fn a_bus_that_answers_in_reverse_order_is_still_matched() {
+    // The session takes acknowledges in any order: feed the answers of a batch back to front.
+    let mut b = Bench::can(&[1, 2, 3]);
+    let id = b.session.start(Op::ReadMany(vec![1, 2, 3], Param::DefAddress), b.now);
+    let mut answers = Vec::new();
+    while let Some(LinkAction::SendFrame(f)) = b.session.poll_transmit(b.now) {
+        CanEmulator::receive(&mut b.device, b.now, &f, &mut answers);
+    }
+    assert_eq!(answers.len(), 3);
+    for a in answers.iter().rev() {
+        assert!(matches!(from_frame(a), Ok((Role::Ack(_), _))));
+        b.session.handle_input(Input::Frame(a), b.now);
+    }
+    b.pump();
+    let Some(Ok(Output::Values(v))) = b.done(id) else { panic!() };
+    let got: Vec<Value> = v.into_iter().map(Result::unwrap).collect();
+    assert_eq!(got, vec![Value::U8(1), Value::U8(2), Value::U8(3)]);
+}
+
+#[test]
+fn a_scan_asks_each_address_on_rs232_and_all_at_once_on_can() {
+    let mut b = Bench::rs232(&[2, 17]);
+    let t0 = b.now;
+    let Ok(Output::Scan(found)) = b.run(Op::Scan) else { panic!() };
+    let infos: Vec<(u8, u32)> = found.iter().map(|e| (e.address.get(), e.info.as_ref().unwrap().serial)).collect();
+    assert_eq!(infos, vec![(2, 1002), (17, 1017)]);
+    // 29 silent addresses, 60 ms each, one after the other (silence is absence: not asked again).
+    assert_eq!(b.now - t0, ms(29 * 60));
+    assert_eq!(b.session.known(), vec![2, 17]);
+    assert_eq!(b.session.kind_of(addr(17)), Some(ModuleKind::Rotary), "the scan taught the kinds");
+
+    let mut b = Bench::can(&[2, 17]);
+    let t0 = b.now;
+    let Ok(Output::Scan(found)) = b.run(Op::Scan) else { panic!() };
+    assert_eq!(found.len(), 2);
+    assert_eq!(b.now - t0, ms(50), "31 questions out at once, one timeout for the silent ones");
+}
+
+#[test]
+fn homing_is_waited_for_with_progress_at_the_poll_rate() {
+    let mut b = Bench::rs232(&[1]);
+    let Ok(Output::Homed(p, s)) = b.run(Op::HomeAndWait(addr(1), Duration::from_secs(10))) else { panic!() };
+    assert!(s.contains(StateFlag::HomeOk) && !s.contains(StateFlag::Motion), "{s}");
+    assert!(p.value().abs() < 1e-6, "homed at the switch: {p}");
+    let polls = b.events.iter().filter(|e| matches!(e, Event::Progress(..))).count();
+    assert!(polls >= 5, "{polls}");
+    assert!(b.session.started().is_empty(), "seen to end");
+}
+
+#[test]
+fn an_answer_that_echoes_another_parameter_is_corrupt_and_a_read_is_asked_again() {
+    let mut b = Bench::rs232(&[1]);
+    let id = b.session.start(Op::Get(addr(1), Param::ActPos), b.now);
+    let Some(LinkAction::Send(_)) = b.session.poll_transmit(b.now) else { panic!() };
+    // The module answers with PrevActPos (0x3d) instead of ActPos (0x3c): a corrupted echo.
+    let wrong = crate::model::Reply::Get(Param::PrevActPos, Value::F32(0.0)).encode();
+    let mut frame = [0u8; crate::wire::rs232::MAX_FRAME];
+    let n = crate::wire::rs232::encode(crate::wire::rs232::TelKind::Recv, 1, &wrong, &mut frame).unwrap();
+    b.session.handle_input(Input::Bytes(&frame[..n]), b.now);
+    b.sent.clear();
+    // At the answer's deadline the read is asked again (a read may be), and the emulator answers it.
+    let Ok(Output::Value(v)) = ({
+        let limit = b.now + Duration::from_secs(1);
+        loop {
+            b.pump();
+            if let Some(r) = b.done(id) {
+                break r;
+            }
+            assert!(b.step(limit));
+        }
+    }) else {
+        panic!()
+    };
+    assert_eq!(v, Value::F32(0.05));
+    assert_eq!(b.sent.len(), 1, "asked once more");
+}
+
+#[test]
+fn a_motion_command_cancelled_before_its_acknowledge_is_halted() {
+    let mut b = Bench::can(&[1]);
+    b.deaf = true; // the command arrives; its acknowledge is lost
+    let motion = Motion::FVel { vel: Velocity::native(0.2) };
+    let id = b.session.start(Op::Motion(addr(1), motion, AckKind::Simple), b.now);
+    b.pump();
+    assert!(b.module(1).0.contains(StateFlag::Motion), "the module took it");
+    b.session.cancel(id, b.now);
+    b.deaf = false;
+    let limit = b.now + Duration::from_secs(1);
+    let r = loop {
+        b.pump();
+        if let Some(r) = b.done(id) {
+            break r;
+        }
+        assert!(b.step(limit));
+    };
+    let err = r.unwrap_err();
+    assert!(matches!(err, Error::Cancelled { address: 1, stop: StopOutcome::Confirmed }), "{err}");
+    let (state, ..) = b.module(1);
+    assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
+}

@@ -1,0 +1,241 @@
+//! What a session is configured with and what its operations take and give.
+
+use std::time::Duration;
+
+use crate::error::Error;
+use crate::model::{
+    Acceleration, Address, AxisUnit, CubeState, CubeVersion, ModuleKind, Position, StateFlag, Value, Velocity,
+};
+
+/// Timing and retry settings of a session; the defaults depend on the carrier.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BusConfig {
+    /// How long to wait for an acknowledge.
+    pub reply_timeout: Duration,
+    /// How often a read is repeated after a timeout or a corrupt answer (writes and motions never are).
+    pub read_retries: u32,
+    /// How long a scan waits for each address (RS232) or for all answers (CAN).
+    pub scan_timeout: Duration,
+    /// How often the watchdog refresh is broadcast while the watchdog is served (the modules wait 50 ms).
+    pub watchdog_period: Duration,
+    /// How often the state is polled while waiting for homing or a motion to end (10 ms by default): the
+    /// polls are scheduled at this period from the first one (absolute deadlines), never faster, however
+    /// quickly the line answers, so that a wait leaves the bus to the other modules and hosts on it.
+    pub poll_interval: Duration,
+    /// Let the session arm watchdogs on RS232 (default true). The manual lists the broadcasts for CAN only;
+    /// on RS232 the refresh goes to module address 0 as the command followed by 0x00, the form Schunk's own
+    /// library (libm5api, serveWatchdogAll) sends over RS232. Set false to refuse arming on RS232 for a
+    /// chain known not to take it.
+    pub watchdog_on_rs232: bool,
+    /// The longest a client's `close()` (and its drop) waits for the close sequence (halt what still
+    /// moves, switch the watchdogs off) before it gives up and says the stop was not confirmed
+    /// ([`Error::CloseTimedOut`]); it returns at most one read slice of the driver (20 ms) later. 5 s by
+    /// default. When it gives up, the watchdog refresh stops with the session: a module whose watchdog it
+    /// armed halts itself within 50 ms.
+    pub close_bound: Duration,
+}
+
+impl BusConfig {
+    /// RS232: a full frame takes up to 25 ms each way at 9600 baud; acknowledges within 200 ms.
+    pub fn rs232() -> Self {
+        BusConfig {
+            reply_timeout: Duration::from_millis(200),
+            read_retries: 2,
+            scan_timeout: Duration::from_millis(60),
+            watchdog_period: Duration::from_millis(20),
+            poll_interval: Duration::from_millis(10),
+            watchdog_on_rs232: true,
+            close_bound: Duration::from_secs(5),
+        }
+    }
+
+    /// CAN: acknowledges within 50 ms.
+    pub fn can() -> Self {
+        BusConfig {
+            reply_timeout: Duration::from_millis(50),
+            read_retries: 2,
+            scan_timeout: Duration::from_millis(50),
+            watchdog_period: Duration::from_millis(20),
+            poll_interval: Duration::from_millis(10),
+            watchdog_on_rs232: true,
+            close_bound: Duration::from_secs(5),
+        }
+    }
+}
+
+/// How a guarded motion ([`Op::MoveGuarded`](super::Op::MoveGuarded), [`Op::HomeGuarded`](super::Op)) is
+/// protected beyond the stop on cancellation and failure that every motion has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Guard {
+    /// Arm the module's watchdog for the motion (where the link allows it: CAN, and RS232 unless
+    /// [`BusConfig::watchdog_on_rs232`] is false), so that a host that dies stops it within 50 ms; switch it
+    /// off again after. What `motionlink powercube move` and `home` do by default.
+    #[default]
+    Watchdog,
+    /// Leave the watchdog and the Config word alone: a host that dies leaves the module moving. What
+    /// `--no-watchdog` and an in-process emulator (which dies with the host) choose.
+    HaltOnly,
+}
+
+/// A checked ramp move ([`Op::MoveTo`](super::Op::MoveTo)): where to, how fast, how close counts as
+/// arrived, how long to wait.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MoveSpec {
+    /// The target position: rad for a rotary module, m for a linear one, or the module's own unit.
+    pub target: Position,
+    /// Velocity to write to TargetVel first (above 0); `None` leaves the module's TargetVel as it is.
+    pub vel: Option<Velocity>,
+    /// Acceleration to write to TargetAcc first (above 0); `None` leaves the module's TargetAcc as it is.
+    pub acc: Option<Acceleration>,
+    /// The in-position tolerance: the move succeeds only if the final actual position is at most this far
+    /// from the target (above 0). The manual offers no in-position window parameter, so this is the
+    /// caller's; `None` is [`MoveSpec::DEFAULT_TOLERANCE`].
+    pub tolerance: Option<Position>,
+    /// How long to wait for the end of the ramp before halting it.
+    pub timeout: Duration,
+}
+
+impl MoveSpec {
+    /// The default in-position tolerance: 0.001 rad (0.057°) on a rotary module, 1 mm on a linear one.
+    pub const DEFAULT_TOLERANCE: Position = Position::native(0.001);
+
+    /// A move to `target` with the module's own TargetVel and TargetAcc, the default tolerance, and 60 s to
+    /// get there.
+    pub fn to(target: Position) -> MoveSpec {
+        MoveSpec { target, vel: None, acc: None, tolerance: None, timeout: Duration::from_secs(60) }
+    }
+
+    /// The tolerance in force.
+    pub fn tolerance(&self) -> Position {
+        self.tolerance.unwrap_or(Self::DEFAULT_TOLERANCE)
+    }
+
+    /// Checks that every number makes sense (finite; velocity, acceleration, tolerance and timeout above
+    /// 0) and that the units agree with each other (rad and m are not mixed).
+    pub fn validate(&self) -> Result<(), Error> {
+        let bad = |what, must, value: String| Err(Error::InvalidArgument { what, must, value });
+        if !self.target.value().is_finite() {
+            return bad("the target position", "a finite number", self.target.value().to_string());
+        }
+        for (what, v) in
+            [("the velocity", self.vel.map(|v| v.value())), ("the acceleration", self.acc.map(|a| a.value()))]
+        {
+            if let Some(v) = v {
+                if !(v.is_finite() && v > 0.0) {
+                    return bad(what, "a number above 0", v.to_string());
+                }
+            }
+        }
+        let tolerance = self.tolerance().value();
+        if !(tolerance.is_finite() && tolerance > 0.0) {
+            return bad("the tolerance", "a number above 0", tolerance.to_string());
+        }
+        if self.timeout.is_zero() {
+            return bad("the timeout", "above 0", format!("{:?}", self.timeout));
+        }
+        let units = [
+            Some(self.target.unit()),
+            self.vel.map(|v| v.unit()),
+            self.acc.map(|a| a.unit()),
+            Some(self.tolerance().unit()),
+        ];
+        let said: Vec<AxisUnit> = units.into_iter().flatten().filter(|u| *u != AxisUnit::ModuleUnit).collect();
+        if said.windows(2).any(|w| w[0] != w[1]) {
+            return bad("the move's quantities", "all in rad or all in m", format!("{self:?}"));
+        }
+        Ok(())
+    }
+}
+
+/// What a checked move ([`Op::MoveTo`](super::Op::MoveTo)) did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MoveReport {
+    /// Where the module stood before.
+    pub start: Position,
+    /// The final actual position, read from the module after the ramp ended (twice, both within the
+    /// tolerance of the target).
+    pub reached: Position,
+    /// The state word at the end.
+    pub state: CubeState,
+}
+
+/// How a parameter written with [`Op::SetChecked`](super::Op::SetChecked) was verified.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Readback {
+    /// Read back (the parameter itself, or for the write-only TargetPos / TargetVel / TargetAcc their
+    /// encoder-tick twin) and found as written; the value read.
+    Same(Value),
+    /// The parameter cannot be read back meaningfully; why.
+    NotReadable(&'static str),
+}
+
+/// What a wait waits for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Until {
+    /// The end of homing: STATE_HOME_OK, not moving.
+    Home,
+    /// The module at rest: no STATE_MOTION.
+    Motion,
+    /// The end of a ramp: STATE_RAMP_END, not moving.
+    Ramp,
+}
+
+impl Until {
+    /// What is waited for, in words.
+    pub fn what(self) -> &'static str {
+        match self {
+            Until::Home => "the end of homing",
+            Until::Motion => "the end of the motion",
+            Until::Ramp => "the end of the ramp",
+        }
+    }
+
+    /// True when `s` shows it.
+    pub fn reached(self, s: CubeState) -> bool {
+        !s.contains(StateFlag::Motion)
+            && match self {
+                Until::Home => s.contains(StateFlag::HomeOk),
+                Until::Motion => true,
+                Until::Ramp => s.contains(StateFlag::RampEnd),
+            }
+    }
+}
+
+/// One poll while waiting for homing or a motion: position and state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Progress {
+    /// The module.
+    pub address: Address,
+    /// Its position (rad or m where the session knows the module's kind).
+    pub position: Position,
+    /// Its state.
+    pub state: CubeState,
+    /// Time waited so far.
+    pub elapsed: Duration,
+}
+
+/// What a scan finds at one address.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModuleInfo {
+    /// The address.
+    pub address: Address,
+    /// Rotary or linear (from the Config word).
+    pub kind: ModuleKind,
+    /// Firmware version.
+    pub version: CubeVersion,
+    /// Serial number.
+    pub serial: u32,
+    /// The state word.
+    pub state: CubeState,
+}
+
+/// One module a scan found: its address, and its type, version, serial number and state, or the error that
+/// kept the session from reading them (the module answered the scan, so it is there; the rest of the scan
+/// goes on without it).
+#[derive(Debug)]
+pub struct ScanEntry {
+    /// The address that answered.
+    pub address: Address,
+    /// What was read, or why it could not be (also a scan answer that stayed corrupt on every retry).
+    pub info: Result<ModuleInfo, Error>,
+}

@@ -1,0 +1,118 @@
+//! The PowerCube part of `motionlink demo`: the manual's chapter 8 (CAN) and 9 (RS232) examples against the
+//! emulator, each telegram explained by the library's describer.
+
+use std::io::{IsTerminal, Write};
+
+use motionlink_link::can::{CanBus, CanBusConfig};
+use motionlink_link::clock::{Clock, ManualClock};
+use motionlink_link::describe::{Captured, Describe, Direction};
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::transcript::{FrameTranscript, TapCanLink, TapLink, Transcript, Way};
+use motionlink_powercube::client::{BusConfig, Client, Module};
+use motionlink_powercube::describe::Describer;
+use motionlink_powercube::model::{AckKind, Motion, Param, Position, Value};
+use motionlink_powercube::sim::SimConfig;
+use motionlink_powercube::{Emulator, Error};
+
+use crate::common::{self, CliError};
+
+/// One example of the demo: a name and what the client does.
+type Step = (&'static str, fn(&Module<'_>) -> Result<(), Error>);
+
+fn way(w: Way) -> (&'static str, Direction) {
+    match w {
+        Way::Sent => ("->", Direction::ToDevice),
+        Way::Received => ("<-", Direction::FromDevice),
+    }
+}
+
+fn ramp(m: &Module<'_>, ack: AckKind) -> Result<(), Error> {
+    m.motion(Motion::FRamp { pos: Position::native(0.75) }, ack).map(|_| ())
+}
+
+/// The manual's chapter 8 (CAN) and 9 (RS232) examples against the emulator (module 17).
+pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
+    let color = std::io::stdout().is_terminal();
+    let title = |s: &str| if color { format!("\x1b[1m{s}\x1b[0m") } else { s.to_string() };
+    let failed = |e: Error| common::classified(&e);
+    writeln!(
+        out,
+        "{}",
+        title("== Schunk / Amtec PowerCube: the manual's chapter 8, CAN examples (module 17, emulated at 1 Mbit/s) ==")
+    )?;
+    {
+        let clock = ManualClock::new_auto();
+        let _me = clock.reserve_participant().enter();
+        let sim = Emulator::new_can(&SimConfig::with_addresses(&[17]).map_err(CliError::usage)?);
+        let can = CanBus::with_emulator(sim, clock.shared(), CanBusConfig::paced(1_000_000));
+        let transcript = FrameTranscript::new();
+        let link = TapCanLink::new(can.connect(), clock.shared(), transcript.clone());
+        let bus = Client::can(Box::new(link), clock.shared(), BusConfig::can()).map_err(failed)?;
+        let m = bus.module(17).map_err(failed)?;
+        let steps: [Step; 9] = [
+            ("Home", |m| m.home()),
+            ("Reset", |m| m.reset()),
+            ("Set ramp motion acceleration", |m| m.set(Param::TargetAcc, Value::F32(0.5))),
+            ("Set ramp motion velocity", |m| m.set(Param::TargetVel, Value::F32(0.08))),
+            ("Ramp motion command", |m| ramp(m, AckKind::Simple)),
+            ("Retrieve module state", |m| m.state().map(|_| ())),
+            ("Retrieve module position", |m| m.position().map(|_| ())),
+            ("Ramp motion command with extended acknowledge", |m| ramp(m, AckKind::Extended)),
+            ("Halt", |m| m.halt()),
+        ];
+        let mut describer = Describer::new();
+        let mut notes = Vec::new();
+        for (name, step) in steps {
+            step(&m).map_err(failed)?;
+            writeln!(out, "  {name}")?;
+            for r in transcript.take() {
+                let (arrow, direction) = way(r.way);
+                describer.describe(Captured::Frame(&r.frame), direction, Some(r.at), &mut notes);
+                for a in notes.drain(..) {
+                    writeln!(out, "    {arrow} {:<24} {}", r.frame.to_string(), a.meaning)?;
+                }
+            }
+        }
+        bus.close().map_err(failed)?;
+    }
+    writeln!(out)?;
+    writeln!(
+        out,
+        "{}",
+        title(
+            "== Schunk / Amtec PowerCube: the manual's chapter 9, RS232 examples (module 17, emulated at 9600 baud) =="
+        )
+    )?;
+    {
+        let clock = ManualClock::new_auto();
+        let _me = clock.reserve_participant().enter();
+        let sim = Emulator::new(&SimConfig::with_addresses(&[17]).map_err(CliError::usage)?);
+        let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(9_600));
+        let transcript = Transcript::new();
+        let link = TapLink::new(host.connect().0, clock.shared(), transcript.clone());
+        let bus = Client::rs232(Box::new(link), clock.shared(), BusConfig::rs232()).map_err(failed)?;
+        let m = bus.module(17).map_err(failed)?;
+        let steps: [Step; 6] = [
+            ("Home", |m| m.home()),
+            ("Reset", |m| m.reset()),
+            ("Set ramp motion acceleration 0.5", |m| m.set(Param::TargetAcc, Value::F32(0.5))),
+            ("Set ramp motion velocity 0.08", |m| m.set(Param::TargetVel, Value::F32(0.08))),
+            ("Ramp motion command to 0.75", |m| ramp(m, AckKind::Simple)),
+            ("Halt (0x02 escaped as 10 82)", |m| m.halt()),
+        ];
+        let mut describer = Describer::new();
+        let mut notes = Vec::new();
+        for (name, step) in steps {
+            step(&m).map_err(failed)?;
+            writeln!(out, "  {name}")?;
+            for r in transcript.take() {
+                let (arrow, direction) = way(r.way);
+                describer.describe(Captured::Bytes(&r.bytes), direction, Some(r.at), &mut notes);
+                let meaning: Vec<String> = notes.drain(..).map(|a| a.meaning).collect();
+                writeln!(out, "    {arrow} {:<33} {}", common::hex(&r.bytes), meaning.join("; "))?;
+            }
+        }
+        bus.close().map_err(failed)?;
+    }
+    Ok(())
+}
