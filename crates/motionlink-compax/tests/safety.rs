@@ -359,6 +359,9 @@ fn a_cancel_between_polls_stops_the_axis_within_milliseconds() {
     let (r, bus) = rig_with(&[1], 0, 115_200, |c| c.poll_interval = Duration::from_millis(500));
     let token = CancelToken::new();
     bus.set_cancel(token.clone());
+    // This thread takes part in the clock before the canceller starts: otherwise the clock could reach the
+    // cancel before the move has begun.
+    let _me = r.clock.reserve_participant().enter();
     // Another participant cancels 1.234 s into the move (between two polls 500 ms apart).
     let ticket = r.clock.reserve_participant();
     let clock = r.clock.clone();
@@ -368,7 +371,6 @@ fn a_cancel_between_polls_stops_the_axis_within_milliseconds() {
         token.cancel();
         clock.now()
     });
-    let _me = r.clock.reserve_participant().enter();
     let e = bus.move_to(a(1), &to(1000.0), &mut |_| {}).unwrap_err();
     let ended = r.clock.now();
     let cancelled_at = canceller.join().unwrap();

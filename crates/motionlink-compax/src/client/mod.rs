@@ -23,10 +23,12 @@
 #[cfg(feature = "tokio")]
 mod asynch;
 mod blocking;
+mod drive;
 
 #[cfg(feature = "tokio")]
 pub use asynch::AsyncClient;
-pub use blocking::{Client, Drive};
+pub use blocking::Client;
+pub use drive::Drive;
 
 pub use crate::error::{Error, Result, StopOutcome, StopReport};
 pub use crate::session::{
