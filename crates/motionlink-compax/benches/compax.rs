@@ -1,7 +1,10 @@
-//! Benchmarks: request build + reply parse (target: 20 million per second, no allocation), and polling S1
+//! Benchmarks: request build + reply parse (target: 20 million per second, no allocation); polling S1
 //! of 31 drives over the in-memory link paced at 115200 and at 9600 baud, quiet (target: 95 % of the
 //! wire-limited rate) and loaded: the benchmark starts two CPU-bound threads beside the session (target:
-//! 97 %).
+//! 97 %); and the host overhead of one S1 read above its wire time at 115200 baud, through the blocking
+//! client and through the async one (tokio), side by side.
+//!
+//! `COMPAX_BENCH_QUICK=1` shortens the extra measurements (the ratio and overhead runs) for a smoke run.
 //!
 //! Besides criterion's report, each benchmark prints its target and whether it was met (on stderr). The codec
 //! rate is the fastest of many short trials: on a shared virtual machine the host takes the processor away
@@ -12,10 +15,11 @@ use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use motionlink_compax::client::{Bus, BusConfig};
+use motionlink_compax::client::BusConfig;
 use motionlink_compax::model::{Command, CommandStyle, CommandText, StatusId, StatusValue};
-use motionlink_compax::sim::{CompaxBus, SimConfig};
+use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Body, Flags, Frame, Mode, ReplyDecoder, ReplyEventRef, Request};
+use motionlink_compax::{AsyncClient, Client, Emulator};
 use motionlink_link::link::{char_time, Parity};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::RealClock;
@@ -130,9 +134,9 @@ impl Drop for Load {
 fn poll_31_with(c: &mut Criterion, baud: u32, loaded: bool) {
     let addrs: Vec<u8> = (1..=31).collect();
     let clock = RealClock::shared();
-    let sim = CompaxBus::new(SimConfig::bus(&addrs, 0, baud)).unwrap();
+    let sim = Emulator::new(SimConfig::bus(&addrs, 0, baud)).unwrap();
     let host = EmulatorHost::new(sim, clock.clone(), PipeConfig::paced(baud));
-    let mut bus = Bus::new(Box::new(host.connect().0), clock, BusConfig::new(Mode::default(), baud));
+    let bus = Client::new(Box::new(host.connect().0), clock, BusConfig::new(Mode::default(), baud)).unwrap();
     let drives: Vec<Address> = addrs.iter().map(|&a| Address::drive(a).unwrap()).collect();
     // Wire time of one sweep: each request ("NS1\r" or "NNS1\r") and reply ("S001: 0.000\r\n>", 14 bytes).
     let bytes: u32 = drives.iter().map(|a| if a.get() >= 10 { 5 } else { 4 } + 14).sum();
@@ -153,7 +157,11 @@ fn poll_31_with(c: &mut Criterion, baud: u32, loaded: bool) {
     g.finish();
     // The ratio to the wire-limited rate over a longer run (about 2 s at 115200 baud, 5 s at 9600).
     let t0 = Instant::now();
-    let rounds = if baud < 38_400 { 8 } else { 40 };
+    let rounds = match (quick(), baud < 38_400) {
+        (true, _) => 2,
+        (false, true) => 8,
+        (false, false) => 40,
+    };
     for _ in 0..rounds {
         sweep();
     }
@@ -190,5 +198,93 @@ fn poll_31_9600_loaded(c: &mut Criterion) {
     poll_31_with(c, 9600, true);
 }
 
-criterion_group!(benches, build_and_parse, poll_31, poll_31_loaded, poll_31_9600, poll_31_9600_loaded);
+/// True when `COMPAX_BENCH_QUICK` asks for short extra measurements.
+fn quick() -> bool {
+    std::env::var_os("COMPAX_BENCH_QUICK").is_some()
+}
+
+/// Median and 90th percentile of `overheads`.
+fn median_p90(mut overheads: Vec<Duration>) -> (Duration, Duration) {
+    overheads.sort();
+    (overheads[overheads.len() / 2], overheads[overheads.len() * 9 / 10])
+}
+
+/// The host overhead of single S1 reads (the time of the call minus the wire time of request and reply)
+/// at 115200 baud over the paced in-memory link, through the blocking client and the async one, quiet and
+/// loaded. The async client's operations run on the driver's thread and wake the task: one thread hand-off
+/// more each way than the blocking client, which drives the port from the calling thread.
+fn host_overhead(c: &mut Criterion) {
+    const BAUD: u32 = 115_200;
+    let clock = RealClock::shared();
+    let sim = Emulator::new(SimConfig::bus(&[17], 0, BAUD)).unwrap();
+    let host = EmulatorHost::new(sim, clock.clone(), PipeConfig::paced(BAUD));
+    let cfg = BusConfig::new(Mode::default(), BAUD);
+    let blocking = Client::new(Box::new(host.connect().0), clock.clone(), cfg.clone()).unwrap();
+    let drive = Address::drive(17).unwrap();
+    // "17S1\r" and "S001: 0.000\r\n>".
+    let wire = char_time(BAUD, Parity::None) * (5 + 14);
+    let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
+    let n = if quick() { 200 } else { 2000 };
+    let mut g = c.benchmark_group("host overhead");
+    g.sample_size(20).measurement_time(Duration::from_secs(3));
+    for loaded in [false, true] {
+        let _load = loaded.then(|| Load::start(2));
+        let what = if loaded { ", two busy threads beside it" } else { "" };
+        g.bench_function(format!("blocking client, S1 at 115200 baud{what}"), |b| {
+            b.iter_custom(|iters| {
+                let mut overhead = Duration::ZERO;
+                for _ in 0..iters {
+                    let t = Instant::now();
+                    black_box(blocking.read_position(drive).unwrap());
+                    overhead += t.elapsed().saturating_sub(wire);
+                }
+                overhead
+            })
+        });
+        let single: Vec<Duration> = (0..n)
+            .map(|_| {
+                let t = Instant::now();
+                black_box(blocking.read_position(drive).unwrap());
+                t.elapsed().saturating_sub(wire)
+            })
+            .collect();
+        let (b_median, b_p90) = median_p90(single);
+        // A second connection to the same emulated bus, driven by the async client (the blocking client
+        // stays idle meanwhile).
+        let async_client = runtime
+            .block_on(async { AsyncClient::new(Box::new(host.connect().0), clock.clone(), cfg.clone()).unwrap() });
+        g.bench_function(format!("async client (tokio), S1 at 115200 baud{what}"), |b| {
+            b.iter_custom(|iters| {
+                runtime.block_on(async {
+                    let mut overhead = Duration::ZERO;
+                    for _ in 0..iters {
+                        let t = Instant::now();
+                        black_box(async_client.read_position(drive).await.unwrap());
+                        overhead += t.elapsed().saturating_sub(wire);
+                    }
+                    overhead
+                })
+            })
+        });
+        let single: Vec<Duration> = runtime.block_on(async {
+            let mut v = Vec::with_capacity(n);
+            for _ in 0..n {
+                let t = Instant::now();
+                black_box(async_client.read_position(drive).await.unwrap());
+                v.push(t.elapsed().saturating_sub(wire));
+            }
+            v
+        });
+        let (a_median, a_p90) = median_p90(single);
+        runtime.block_on(async_client.close()).unwrap();
+        eprintln!(
+            "host overhead above the wire time ({wire:?}) of one S1 read at 115200 baud, {n} single reads{what}: \
+             blocking client median {b_median:?}, 90th percentile {b_p90:?}; async client (tokio) median \
+             {a_median:?}, 90th percentile {a_p90:?}"
+        );
+    }
+    g.finish();
+}
+
+criterion_group!(benches, build_and_parse, poll_31, poll_31_loaded, poll_31_9600, poll_31_9600_loaded, host_overhead);
 criterion_main!(benches);

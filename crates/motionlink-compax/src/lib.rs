@@ -7,28 +7,37 @@
 //!   16-bit number formats, incremental decoders that resynchronise after garbage. No allocation on the hot
 //!   path.
 //! - [`model`]: the vocabulary: [`model::Command`] (POSA, POSR, SPEED, ACCEL, ACCEL-, OUTPUT, POSA HOME and
-//!   the short forms), status values S1..S40 ([`model::StatusId`], S16 / S17 bit words, the S18 history),
-//!   parameters ([`model::ParamId`], P194 / P195 / P196), error codes ([`model::ErrorCode`]), each from one
-//!   table.
-//! - [`client`]: [`client::Bus`], a blocking session over any byte link: request / reply matching,
-//!   retries of what may be retried, moves with progress, the synchronous start of several drives, and a
-//!   stop of whatever it set in motion when it is dropped or cancelled (unless handed over with
-//!   [`client::Bus::release`]); [`client::Drive`], a handle on one drive of the bus.
-//! - [`sim`]: [`sim::CompaxBus`], a sans-IO emulator of the bus with a motion model.
+//!   the short forms), status values S1..S40 ([`model::StatusId`], the shared-table rows [`model::STATUS`],
+//!   the S16 / S17 words through the shared `flag_set!`, the S18 history), parameters ([`model::ParamId`],
+//!   [`model::PARAMS`]), error codes ([`model::ErrorCode`]), and quantities with their unit
+//!   ([`model::Position`] in the drive's unit, [`model::SpeedPercent`], [`model::RampMs`]).
+//! - [`session`]: the protocol as a sans-IO [`Session`]: request / reply matching, retries of what may be
+//!   retried, every multi-step operation ([`session::Op`]: checked moves, waits, the scan, the synchronous
+//!   start, parameter writes read back, the watch) as a state machine, and the stop of whatever it set in
+//!   motion when an operation is cancelled or fails and when it is closed; tested with a manual clock and no
+//!   link.
+//! - [`client`]: [`Client`] (blocking, `&self`, shareable between threads) and, with the `tokio` feature,
+//!   `AsyncClient`: the same typed operations over [`motionlink_link::driver`] running the session;
+//!   [`client::Drive`], a handle on one drive. Closing stops what was started, bounded in time.
+//! - [`sim`]: [`Emulator`], a sans-IO emulator of the bus with a motion model.
+//! - [`describe`]: [`Describe`](motionlink_link::describe::Describe) for captures, the demo and
+//!   `motionlink decode compax`.
+//! - [`Error`]: one error type, classified ([`Classify`](motionlink_link::error::Classify)).
 //!
 //! ```
-//! use motionlink_compax::client::{Bus, BusConfig, MoveOptions};
+//! use motionlink_compax::client::{BusConfig, MoveOptions};
 //! use motionlink_compax::model::{Position, SpeedPercent};
-//! use motionlink_compax::sim::{CompaxBus, SimConfig};
+//! use motionlink_compax::sim::SimConfig;
 //! use motionlink_compax::wire::{Address, Mode};
+//! use motionlink_compax::{Client, Emulator};
 //! use motionlink_link::{clock::{Clock, ManualClock}, pipe::{EmulatorHost, PipeConfig}};
 //!
 //! let clock = ManualClock::new_auto();
 //! let _me = clock.reserve_participant().enter();
-//! let sim = CompaxBus::new(SimConfig::bus(&[1, 5], 8, 9600)).unwrap(); // P196 = 8: with BCC
+//! let sim = Emulator::new(SimConfig::bus(&[1, 5], 8, 9600)).unwrap(); // P196 = 8: with BCC
 //! let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(9600));
-//! let mut bus = Bus::new(Box::new(host.connect().0), clock.shared(),
-//!                        BusConfig::new(Mode::from_p196(8).unwrap(), 9600));
+//! let bus = Client::new(Box::new(host.connect().0), clock.shared(),
+//!                       BusConfig::new(Mode::from_p196(8).unwrap(), 9600)).unwrap();
 //! let one = Address::drive(1).unwrap();
 //! bus.set_speed(one, SpeedPercent::new(50.0).unwrap(), false).unwrap();
 //! bus.move_relative(one, Position::new(10.0).unwrap(), MoveOptions { binary: true, message: false }).unwrap();
@@ -47,7 +56,7 @@
 //! - **P196** accepts 0..=127: the table prints 31 as the maximum, but its valences include 32 and 64.
 //!   164 / 165 (the COMTAC fieldbus protocol) are refused. Valence 4 (even) without 2 (parity on) means no
 //!   parity. P194..P196 are "valid from power-on": a written value is stored and read back at once, and takes
-//!   effect when the drive is switched off and on ([`sim::CompaxBus::power_cycle`]).
+//!   effect when the drive is switched off and on ([`Emulator::power_cycle`]).
 //! - **Reply texts**: a status value is answered `S001: 360.000` (the user guide's S18 example has the form
 //!   `S018: 99 55 10 ...`; positions with three decimals, the drives' 0.001 resolution), S16 / S17 as eight
 //!   bits, bit 1 first (`S017: 1000 0000`, as the user guide writes it), a parameter `P194=5` (the form of a
@@ -72,19 +81,19 @@
 //! - **Stop**: `OUTPUT O0=0` ("switch off drive", user guide). The command set has no stop that works while a
 //!   positioning runs: every move command is refused with E92 then. The client sends it addressed to each
 //!   drive it started (a broadcast would also stop drives that other programs run) and only if the drive
-//!   still moves: [`client::Bus::stop_started`] (used on drop, on a cancelled or failed wait) reads S17 first
+//!   still moves: the session's stop (used on drop, on a cancelled or failed wait) reads S17 first
 //!   and sends the stop when "command active" is set, and also when S17 cannot be read (a line failure: the
 //!   stop is sent anyway, so an axis is never left running because its state was unreadable), then reads
 //!   S17 again to confirm the axis is at rest (sending the stop once more if not): the
-//!   [`client::StopReport`] says per drive whether the drive confirmed it, and if not, that the axis may
-//!   still be moving. [`client::Bus::stop`] switches the drive off unconditionally. `OUTPUT O0=1` switches
+//!   [`error::StopReport`] says per drive whether the drive confirmed it, and if not, that the axis may
+//!   still be moving. [`Client::stop`] switches the drive off unconditionally. `OUTPUT O0=1` switches
 //!   the drive on again; the emulator powers up switched on, and refuses moves while switched off.
 //! - **No host watchdog**: the manual has none, so a host that dies leaves a positioning running. P196's
 //!   timeout supervision (valence 16) is an inter-character timeout inside one telegram (E73), not a
 //!   watchdog.
-//! - **Checked moves** ([`client::Bus::move_to`]): the manuals give no position window for this protocol,
-//!   so the in-position tolerance is [`client::BusConfig::in_position_tolerance`] (0.01 by default); they
-//!   name no travel limits, so the caller gives them ([`client::TravelLimits`]). A target cannot be read
+//! - **Checked moves** ([`Client::move_to`]): the manuals give no position window for this protocol,
+//!   so the in-position tolerance is [`ClientConfig::in_position_tolerance`] (0.01 by default); they
+//!   name no travel limits, so the caller gives them ([`session::TravelLimits`]). A target cannot be read
 //!   back before the start (the move telegram starts it, and a buffered move cannot be read before `!`): S2
 //!   is read right after the move, and a mismatch switches the axis off. The drive counts as started from
 //!   the first setting of the move on (in binary without BCC one flipped bit turns SPEED into POSR).
@@ -93,14 +102,15 @@
 //! - **Lost replies**: reads, settings, POSA and buffered commands are sent again after a timeout or a corrupt
 //!   reply. A POSR is not: the client read the target S2 before sending it and reads it again; unchanged, the
 //!   move did not arrive and is sent again; moved by the distance, it arrived; otherwise the caller gets
-//!   [`client::Error::MoveUncertain`]. E70, E72 and E73 are always answered by sending the telegram again;
+//!   [`Error::MoveUncertain`]. E70, E72 and E73 are always answered by sending the telegram again;
 //!   E71 (buffer overflow) is reported, since the manual asks for fewer characters, not the same again.
 //! - **Timeouts**: the manual gives none. A reply may take the wire time of request and a 48-character reply
-//!   plus 200 ms ([`client::BusConfig`]); after a broadcast the client keeps the line quiet for 20 ms.
-//! - **Threads**: COMPAX has no watchdog or keepalive, so the client is blocking and owns no thread.
+//!   plus 200 ms ([`ClientConfig`]); after a broadcast the client keeps the line quiet for 20 ms.
+//! - **Threads**: COMPAX has no watchdog or keepalive. The blocking client drives the line from the calling
+//!   thread; the shared driver's one thread runs only the async client's operations and the close on drop.
 //! - **Broadcast (32)**: nobody answers it, so the client refuses it for reads, echoes, single-drive moves
-//!   and waits ([`client::Error::Broadcast`]) instead of waiting for a reply that cannot come. A move sent to
-//!   every drive ([`client::Bus::broadcast`], or `32...` through [`client::Bus::raw`]) counts as started for
+//!   and waits ([`Error::Broadcast`]) instead of waiting for a reply that cannot come. A move sent to
+//!   every drive ([`Client::broadcast`], or `32...` through [`Client::raw`]) counts as started for
 //!   each drive that has answered the client: the others it does not know of, and cannot stop.
 //! - **Addresses of more than two digits** address no drive: the request decoder keeps two digits and counts
 //!   the rest, and such a telegram parses as [`wire::request::RequestError::AddressTooLong`]. It ends at its
@@ -125,8 +135,8 @@
 //! - **`OUTPUT Ayy`**: the binary table (4.4.1) writes outputs as `Ayy` while its code byte is `4F` (`O`) and
 //!   the user guide writes `O9=1`: both spellings are read, `O` is written.
 //! - **Synchronous start**: the manual has no command that empties a drive's buffer. If
-//!   [`client::Bus::sync_start`] fails to store one move, it sends no `!` and returns
-//!   [`client::Error::SyncIncomplete`] naming the drives that still hold a buffered move (the next `!` to
+//!   [`Client::sync_start`] fails to store one move, it sends no `!` and returns
+//!   [`Error::SyncIncomplete`] naming the drives that still hold a buffered move (the next `!` to
 //!   them, or any `32!`, starts it); a `!` the client sends later counts them as started.
 //! - **Emulator parameters and status values**: the manual defines P194..P196 and no error code for an
 //!   invalid parameter or status number (it lists E70..E74 only), so the emulator answers a read or write
@@ -137,6 +147,16 @@
 #![warn(missing_docs)]
 
 pub mod client;
+pub mod describe;
+pub mod error;
 pub mod model;
+pub mod session;
 pub mod sim;
 pub mod wire;
+
+#[cfg(feature = "tokio")]
+pub use client::AsyncClient;
+pub use client::Client;
+pub use error::Error;
+pub use session::Session;
+pub use sim::Emulator;

@@ -1,57 +1,27 @@
-//! The client against the bus emulator, in-process, with the auto-advancing manual clock.
+//! The client against the bus emulator, in-process, with the auto-advancing manual clock: reads, writes,
+//! resends, moves, the position message.
 
 use std::time::Duration;
 
-use motionlink_compax::client::{Bus, BusConfig, Error, MoveOptions, StopOutcome};
+use motionlink_compax::client::{BusConfig, Client, Error, MoveOptions};
 use motionlink_compax::model::{
-    Command, ErrorCode, OutputState, ParamId, Position, RampMs, S16Bits, S17Bits, SpeedPercent, StatusId, StatusValue,
+    Command, ErrorCode, OutputState, ParamId, RampMs, S16Flag, S17Flag, SpeedPercent, StatusId, StatusValue,
 };
-use motionlink_compax::sim::{CompaxBus, SimConfig, REFUSED};
-use motionlink_compax::wire::{Address, Mode};
+use motionlink_compax::sim::{Emulator, SimConfig};
+use motionlink_compax::wire::Mode;
 use motionlink_link::cancel::CancelToken;
-use motionlink_link::clock::{Clock, ManualClock, Timestamp};
-use motionlink_link::pipe::{Direction, EmulatorHost, FaultControl, PipeConfig};
+use motionlink_link::clock::{Clock, ManualClock};
+use motionlink_link::pipe::{Direction, EmulatorHost, PipeConfig};
 use motionlink_link::transcript::{TapLink, Transcript, Way};
 
-struct Rig {
-    clock: ManualClock,
-    host: EmulatorHost<CompaxBus>,
-    faults: FaultControl,
-    transcript: Transcript,
-}
+mod support;
 
-fn rig(addrs: &[u8], p196: u32, baud: u32) -> (Rig, Bus) {
-    let clock = ManualClock::new_auto();
-    // The parameters the tests write besides P194..P196 (the emulator refuses the others).
-    let mut cfg = SimConfig::bus(addrs, p196, baud);
-    for n in [3, 10, 12, 20] {
-        cfg = cfg.with_param(ParamId::new(n).unwrap(), 0.0);
-    }
-    let sim = CompaxBus::new(cfg).unwrap();
-    let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(baud));
-    let (link, faults) = host.connect();
-    let transcript = Transcript::new();
-    let link = TapLink::new(link, clock.shared(), transcript.clone());
-    let bus = Bus::new(Box::new(link), clock.shared(), BusConfig::new(Mode::from_p196(p196).unwrap(), baud));
-    (Rig { clock, host, faults, transcript }, bus)
-}
-
-fn a(n: u8) -> Address {
-    Address::drive(n).unwrap()
-}
-
-fn pos(v: f64) -> Position {
-    Position::new(v).unwrap()
-}
-
-fn sent(t: &Transcript) -> Vec<Vec<u8>> {
-    t.records().into_iter().filter(|r| r.way == Way::Sent).map(|r| r.bytes).collect()
-}
+use support::*;
 
 #[test]
 fn every_p196_combination_reads_writes_and_moves() {
     for p196 in 0..=Mode::MAX_P196 {
-        let (r, mut bus) = rig(&[1, 5], p196, 38_400);
+        let (r, bus) = rig(&[1, 5], p196, 38_400);
         let _me = r.clock.reserve_participant().enter();
         assert_eq!(bus.read_position(a(5)).unwrap(), pos(0.0), "P196={p196}");
         bus.write_param(a(5), ParamId::new(3).unwrap(), -1055.88).unwrap();
@@ -69,14 +39,14 @@ fn every_p196_combination_reads_writes_and_moves() {
 
 #[test]
 fn status_values_follow_the_motion_model() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
+    let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     bus.set_speed(a(1), SpeedPercent::new(50.0).unwrap(), false).unwrap();
     bus.set_accel(a(1), RampMs::new(500).unwrap(), false).unwrap();
     let t0 = r.clock.now();
     bus.move_absolute(a(1), pos(100.0), MoveOptions::default()).unwrap();
     let s17 = bus.read_s17(a(1)).unwrap();
-    assert!(s17.bit(S17Bits::COMMAND_ACTIVE) && s17.bit(S17Bits::RUN));
+    assert!(s17.contains(S17Flag::CommandActive) && s17.contains(S17Flag::Run));
     assert_eq!(bus.read_target(a(1)).unwrap(), pos(100.0));
     let mut seen = Vec::new();
     bus.wait_reached(&[a(1)], None, &mut |_, p| seen.push(p.units())).unwrap();
@@ -86,13 +56,13 @@ fn status_values_follow_the_motion_model() {
     assert!(seen.windows(2).all(|w| w[0] <= w[1]), "positions rise monotonically: {seen:?}");
     assert!(seen.len() > 10, "{seen:?}");
     let s16 = bus.read_s16(a(1)).unwrap();
-    assert!(s16.bit(S16Bits::POSITION_REACHED) && s16.bit(S16Bits::READY_FOR_START));
+    assert!(s16.contains(S16Flag::PositionReached) && s16.contains(S16Flag::ReadyForStart));
     assert_eq!(bus.read_status(a(1), StatusId::MOTION_CYCLES).unwrap(), StatusValue::Number(1.0));
 }
 
 #[test]
 fn e92_for_a_move_while_moving() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
+    let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     bus.move_absolute(a(1), pos(50.0), MoveOptions::default()).unwrap();
     let e = bus.move_absolute(a(1), pos(10.0), MoveOptions::default()).unwrap_err();
@@ -104,7 +74,7 @@ fn e92_for_a_move_while_moving() {
 
 #[test]
 fn a_corrupted_request_is_sent_again_after_e72() {
-    let (r, mut bus) = rig(&[1], 8, 9600);
+    let (r, bus) = rig(&[1], 8, 9600);
     let _me = r.clock.reserve_participant().enter();
     // Flip a bit of the command letter (the second byte): the drive's BCC check fails.
     let at = r.faults.bytes_sent(Direction::HostToDevice);
@@ -119,7 +89,7 @@ fn a_corrupted_request_is_sent_again_after_e72() {
 
 #[test]
 fn a_gap_inside_a_telegram_gives_e73_and_a_resend() {
-    let (r, mut bus) = rig(&[2], 16, 9600);
+    let (r, bus) = rig(&[2], 16, 9600);
     let _me = r.clock.reserve_participant().enter();
     let at = r.faults.bytes_sent(Direction::HostToDevice);
     // Five character times at 9600 baud are 5.2 ms: hold the third byte back 10 ms.
@@ -133,7 +103,7 @@ fn a_gap_inside_a_telegram_gives_e73_and_a_resend() {
 
 #[test]
 fn a_parity_error_gives_e70_and_a_resend() {
-    let (r, mut bus) = rig(&[4], 2 + 4, 9600);
+    let (r, bus) = rig(&[4], 2 + 4, 9600);
     let _me = r.clock.reserve_participant().enter();
     r.host.with_device(|d| d.inject_parity_error());
     assert_eq!(bus.read_position(a(4)).unwrap(), pos(0.0));
@@ -143,7 +113,7 @@ fn a_parity_error_gives_e70_and_a_resend() {
 
 #[test]
 fn overflow_is_refused_before_sending_and_e71_is_a_device_error() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
+    let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     let long = format!("P1={}", "1".repeat(40));
     assert!(matches!(bus.raw(a(1), &long), Err(Error::Wire(_))));
@@ -167,7 +137,7 @@ fn overflow_is_refused_before_sending_and_e71_is_a_device_error() {
 
 #[test]
 fn timeouts_of_idempotent_reads_are_retried_then_reported() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
+    let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     // The first reply is lost: the read is sent again.
     r.faults.drop_next(Direction::DeviceToHost, 14);
@@ -181,7 +151,7 @@ fn timeouts_of_idempotent_reads_are_retried_then_reported() {
 
 #[test]
 fn a_relative_move_whose_reply_is_lost_is_not_sent_again() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
+    let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     r.clock.sleep(Duration::from_millis(1));
     // The reply to S2 (read before the move) passes; the reply to POSR ("\r\n>") is lost.
@@ -198,7 +168,7 @@ fn a_relative_move_whose_reply_is_lost_is_not_sent_again() {
 
 #[test]
 fn a_relative_move_that_never_arrived_is_sent_again_after_checking() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
+    let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     r.clock.sleep(Duration::from_millis(1));
     // The S2 read passes ("1S2\r", 4 bytes); the POSR telegram itself is lost on the way to the drive.
@@ -215,7 +185,7 @@ fn a_relative_move_that_never_arrived_is_sent_again_after_checking() {
 
 #[test]
 fn synchronous_start_of_two_drives_by_one_broadcast() {
-    let (r, mut bus) = rig(&[1, 5], 0, 19_200);
+    let (r, bus) = rig(&[1, 5], 0, 19_200);
     let _me = r.clock.reserve_participant().enter();
     bus.sync_start(&[(a(1), Command::PosA(pos(20.0))), (a(5), Command::PosR(pos(-20.0)))], false).unwrap();
     let frames = sent(&r.transcript);
@@ -232,7 +202,7 @@ fn synchronous_start_of_two_drives_by_one_broadcast() {
 
 #[test]
 fn position_message_with_address_prefix_ends_the_wait_without_polling() {
-    let (r, mut bus) = rig(&[3, 12], 64 + 8, 9600);
+    let (r, bus) = rig(&[3, 12], 64 + 8, 9600);
     let _me = r.clock.reserve_participant().enter();
     bus.sync_start(&[(a(3), Command::PosA(pos(5.0))), (a(12), Command::PosA(pos(8.0)))], true).unwrap();
     bus.wait_reached(&[a(3), a(12)], None, &mut |_, _| panic!("no polling needed")).unwrap();
@@ -244,7 +214,7 @@ fn position_message_with_address_prefix_ends_the_wait_without_polling() {
 
 #[test]
 fn binary_moves_end_to_end_in_process() {
-    let (r, mut bus) = rig(&[7], 8, 9600);
+    let (r, bus) = rig(&[7], 8, 9600);
     let _me = r.clock.reserve_participant().enter();
     let bin = MoveOptions { binary: true, message: false };
     bus.set_speed(a(7), SpeedPercent::new(25.0).unwrap(), true).unwrap();
@@ -265,296 +235,12 @@ fn binary_moves_end_to_end_in_process() {
     ));
 }
 
-/// Sends `telegram` over a second connection to the emulator (another program on the bus) and reads the
-/// drive's answer.
-fn someone_else_sends(r: &Rig, telegram: &[u8]) -> Vec<u8> {
-    use motionlink_link::link::Link;
-    let (mut other, _) = r.host.connect();
-    other.send(telegram).unwrap();
-    let mut got = Vec::new();
-    let mut buf = [0u8; 32];
-    while !got.ends_with(b">") {
-        let n = other.recv(&mut buf, Duration::from_secs(1)).unwrap();
-        assert!(n > 0, "no answer to {telegram:?}");
-        got.extend_from_slice(&buf[..n]);
-    }
-    got
-}
-
-#[test]
-fn dropping_the_client_stops_the_axis_it_moved() {
-    let (r, mut bus) = rig(&[1, 2], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
-    // Drive 2 is moved by someone else: not ours to stop.
-    assert_eq!(someone_else_sends(&r, b"2POSA 1000\r"), b"\r\n>");
-    assert!(r.host.with_device(|d| d.drive(2).unwrap().is_moving()));
-    drop(bus);
-    assert!(!r.host.with_device(|d| d.drive(1).unwrap().is_moving()));
-    assert_eq!(r.host.with_device(|d| d.drive(1).unwrap().o0()), 0);
-    let sent_cmds = sent(&r.transcript);
-    // The stop, then S17 to confirm it.
-    assert_eq!(sent_cmds[sent_cmds.len() - 2], b"1OUTPUT O0=0\r");
-    assert_eq!(sent_cmds.last().unwrap(), b"1S17\r");
-    assert!(!sent_cmds.iter().any(|f| f.starts_with(b"2")), "nothing sent to drive 2: {sent_cmds:?}");
-    let (moving, o0) = r.host.with_device(|d| (d.drive(2).unwrap().is_moving(), d.drive(2).unwrap().o0()));
-    assert!(moving && o0 == 1, "drive 2 still runs its own move");
-}
-
-#[test]
-fn a_released_move_keeps_running_when_the_client_is_dropped() {
-    let (r, mut bus) = rig(&[1, 2], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    bus.move_absolute(a(1), pos(100.0), MoveOptions::default()).unwrap();
-    bus.move_absolute(a(2), pos(100.0), MoveOptions::default()).unwrap();
-    bus.release(&[a(1)]);
-    assert_eq!(bus.started(), [a(2)]);
-    drop(bus);
-    let (m1, o1, m2) = r
-        .host
-        .with_device(|d| (d.drive(1).unwrap().is_moving(), d.drive(1).unwrap().o0(), d.drive(2).unwrap().is_moving()));
-    assert!(m1 && o1 == 1, "the released axis was left alone");
-    assert!(!m2, "the other was stopped");
-    assert!(!sent(&r.transcript).iter().any(|f| f.starts_with(b"1OUTPUT")));
-    r.clock.sleep(Duration::from_secs(2));
-    assert_eq!(r.host.with_device(|d| d.drive(1).unwrap().position()), 100.0);
-}
-
-#[test]
-fn moves_sent_raw_or_by_broadcast_are_stopped_on_drop() {
-    // A raw POSA.
-    let (r, mut bus) = rig(&[1, 5], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    assert_eq!(bus.raw(a(1), "POSA 1000").unwrap().as_deref(), Some(""));
-    assert!(bus.started().contains(&a(1)), "{:?}", bus.started());
-    drop(bus);
-    assert!(!r.host.with_device(|d| d.drive(1).unwrap().is_moving()));
-    // The stop, then S17 to confirm it.
-    assert_eq!(sent(&r.transcript).iter().rev().take(2).collect::<Vec<_>>(), [b"1S17\r".as_slice(), b"1OUTPUT O0=0\r"]);
-    drop(_me);
-
-    // A buffered move run by "!", with no reply ("/").
-    let (r, mut bus) = rig(&[1, 5], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    bus.raw(a(5), "PR 500,").unwrap();
-    assert!(bus.started().is_empty(), "stored, not run");
-    assert_eq!(bus.raw(a(5), "!/").unwrap(), None);
-    assert_eq!(bus.started(), [a(5)]);
-    r.clock.sleep(Duration::from_millis(100));
-    assert!(r.host.with_device(|d| d.drive(5).unwrap().is_moving()));
-    drop(bus);
-    assert!(!r.host.with_device(|d| d.drive(5).unwrap().is_moving()));
-    drop(_me);
-
-    // A broadcast move: every drive that has answered this client counts as started.
-    let (r, mut bus) = rig(&[1, 5, 7], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    bus.read_position(a(1)).unwrap();
-    bus.read_position(a(5)).unwrap();
-    assert_eq!(bus.known(), [a(1), a(5)]);
-    bus.broadcast(&Command::PosR(pos(800.0))).unwrap();
-    assert_eq!(bus.started(), [a(1), a(5)]);
-    r.clock.sleep(Duration::from_millis(100));
-    drop(bus);
-    let moving: Vec<bool> = r.host.with_device(|d| [1, 5, 7].map(|n| d.drive(n).unwrap().is_moving()).to_vec());
-    assert_eq!(moving, [false, false, true], "drive 7 never answered this client: it cannot know it");
-    drop(_me);
-
-    // The same through raw to address 32.
-    let (r, mut bus) = rig(&[1, 5], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    bus.read_position(a(5)).unwrap();
-    assert_eq!(bus.raw(Address::BROADCAST, "POSA 900").unwrap(), None);
-    assert_eq!(bus.started(), [a(5)]);
-    drop(bus);
-    assert!(!r.host.with_device(|d| d.drive(5).unwrap().is_moving()));
-}
-
-#[test]
-fn a_refused_move_does_not_forget_the_move_that_runs() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
-    let e = bus.move_absolute(a(1), pos(5.0), MoveOptions::default()).unwrap_err();
-    assert_eq!(e.device_code(), Some(ErrorCode::COMMAND_ACTIVE));
-    assert_eq!(bus.raw(a(1), "POSR 1").unwrap_err().device_code(), Some(ErrorCode::COMMAND_ACTIVE));
-    assert_eq!(bus.started(), [a(1)], "still moving from the first move");
-    drop(bus);
-    assert!(!r.host.with_device(|d| d.drive(1).unwrap().is_moving()));
-}
-
-#[test]
-fn the_broadcast_address_is_refused_where_an_answer_is_needed_and_outputs_reach_every_drive() {
-    let (r, mut bus) = rig(&[1, 5], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    let all = Address::BROADCAST;
-    for e in [
-        bus.read_status(all, StatusId::ACTUAL_POSITION).unwrap_err(),
-        bus.read_param(all, ParamId::DEVICE_ADDRESS).unwrap_err(),
-        bus.echo(all, "S1").unwrap_err(),
-        bus.command(all, &Command::ReadStatus(StatusId::STATUS_BITS_1)).unwrap_err(),
-        bus.move_absolute(all, pos(10.0), MoveOptions::default()).unwrap_err(),
-        bus.wait_reached(&[a(1), all], None, &mut |_, _| {}).unwrap_err(),
-    ] {
-        assert!(matches!(e, Error::Broadcast(_)), "{e}");
-        assert!(e.to_string().contains("none answers"), "{e}");
-    }
-    assert!(sent(&r.transcript).is_empty(), "nothing was sent: {:?}", sent(&r.transcript));
-    // Outputs and settings go to every drive; O0=0 switches every one off and ends every started move.
-    bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
-    bus.move_absolute(a(5), pos(1000.0), MoveOptions::default()).unwrap();
-    bus.set_output(all, 3, OutputState::ON, false).unwrap();
-    bus.set_output(all, 0, OutputState::OFF, false).unwrap();
-    assert!(bus.started().is_empty());
-    r.clock.sleep(Duration::from_millis(50));
-    let (o3, moving) = r.host.with_device(|d| {
-        ([1, 5].map(|n| d.drive(n).unwrap().output(3)), [1, 5].map(|n| d.drive(n).unwrap().is_moving()))
-    });
-    assert_eq!(o3, [Some(1), Some(1)]);
-    assert_eq!(moving, [false, false]);
-}
-
-#[test]
-fn a_drive_handle_is_one_drive() {
-    let (r, mut bus) = rig(&[4], 8, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    assert!(matches!(bus.drive(Address::BROADCAST), Err(Error::Broadcast(_))));
-    let mut four = bus.drive(a(4)).unwrap();
-    assert_eq!(four.address(), a(4));
-    four.set_speed(SpeedPercent::new(50.0).unwrap(), true).unwrap();
-    four.write_param(ParamId::new(20).unwrap(), 2.5).unwrap();
-    assert_eq!(four.read_param(ParamId::new(20).unwrap()).unwrap(), 2.5);
-    four.move_relative(pos(5.0), MoveOptions::default()).unwrap();
-    let mut seen = Vec::new();
-    four.wait_reached(None, &mut |p| seen.push(p.units())).unwrap();
-    assert!(!seen.is_empty());
-    assert_eq!(four.read_position().unwrap(), pos(5.0));
-    assert!(four.read_s16().unwrap().bit(S16Bits::POSITION_REACHED));
-    assert_eq!(four.raw("S2").unwrap().as_deref(), Some("S002: 5.000"));
-    four.move_absolute(pos(500.0), MoveOptions::default()).unwrap();
-    four.stop().unwrap();
-    assert!(four.bus().started().is_empty());
-    assert_eq!(r.host.with_device(|d| d.drive(4).unwrap().o0()), 0);
-}
-
-#[test]
-fn an_e71_is_reported_not_sent_again_unchanged() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    // The CR of the first telegram is damaged: the drive waits on, the client times out and sends the (20
-    // character) telegram again; to the drive both are one command of 42 characters: E71.
-    let p12 = ParamId::new(12).unwrap();
-    let at = r.faults.bytes_sent(Direction::HostToDevice);
-    r.faults.inject(Direction::HostToDevice, at + 21, motionlink_link::pipe::Fault::Corrupt { xor: 0x55 });
-    let e = bus.write_param(a(1), p12, -8_388_607.999_999).unwrap_err();
-    assert_eq!(e.device_code(), Some(ErrorCode::BUFFER_OVERFLOW), "{e}");
-    let frames = sent(&r.transcript);
-    assert_eq!(frames.len(), 2, "sent, timed out, sent again, E71, and not a third time: {frames:?}");
-    assert_eq!(frames[0], b"1P012=-8388607.999999\r");
-    assert_eq!(frames[0], frames[1]);
-    assert!(r.transcript.bytes(Way::Received).starts_with(b"E71\r\n>"));
-    // E70 / E72 / E73 still are (see the tests above); and the next telegram is fine.
-    bus.write_param(a(1), p12, 1.0).unwrap();
-}
-
-#[test]
-fn a_lost_position_message_does_not_hang_the_wait() {
-    for (p196, fault) in [(0, "dropped"), (8, "bad BCC"), (0, "garbled")] {
-        let (r, mut bus) = rig(&[1], p196, 9600);
-        let _me = r.clock.reserve_participant().enter();
-        // 20 units at 100 units/s: 200 ms.
-        bus.move_absolute(a(1), pos(20.0), MoveOptions { binary: false, message: true }).unwrap();
-        // The next bytes the drive sends are its "$ CR LF > [BCC]".
-        let at = r.faults.bytes_sent(Direction::DeviceToHost);
-        match fault {
-            "dropped" => r.faults.drop_next(Direction::DeviceToHost, 4),
-            "bad BCC" => {
-                r.faults.inject(Direction::DeviceToHost, at + 4, motionlink_link::pipe::Fault::Corrupt { xor: 1 })
-            }
-            _ => r.faults.inject(Direction::DeviceToHost, at, motionlink_link::pipe::Fault::Corrupt { xor: 0x40 }),
-        }
-        let t0 = r.clock.now();
-        bus.wait_reached(&[a(1)], Some(Duration::from_secs(60)), &mut |_, _| {}).unwrap();
-        let took = (r.clock.now() - t0).as_secs_f64();
-        assert!(took < 1.5, "P196={p196} {fault}: found by the state check after about a second, took {took} s");
-        let received = String::from_utf8_lossy(&r.transcript.bytes(Way::Received)).into_owned();
-        assert_eq!(received.contains("$\r"), fault == "bad BCC", "{fault}: {received:?}");
-        assert_eq!(bus.read_position(a(1)).unwrap(), pos(20.0));
-        assert!(bus.started().is_empty());
-    }
-}
-
-#[test]
-fn a_wait_for_a_message_ends_when_someone_else_stops_the_axis() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    bus.move_absolute(a(1), pos(1000.0), MoveOptions { binary: false, message: true }).unwrap();
-    r.clock.sleep(Duration::from_millis(300));
-    // Switched off by another program: the positioning ends where it is, and no "$" will come.
-    assert_eq!(someone_else_sends(&r, b"1OUTPUT O0=0\r"), b"\r\n>");
-    let t0 = r.clock.now();
-    bus.wait_reached(&[a(1)], Some(Duration::from_secs(60)), &mut |_, _| {}).unwrap();
-    assert!((r.clock.now() - t0) < Duration::from_millis(1500));
-    let p = bus.read_position(a(1)).unwrap().units();
-    assert!(p > 20.0 && p < 1000.0, "{p}");
-}
-
-#[test]
-fn a_wait_without_a_timeout_ends_after_the_default_one() {
-    let clock = ManualClock::new_auto();
-    let _me = clock.reserve_participant().enter();
-    let host = EmulatorHost::new(
-        CompaxBus::new(SimConfig::bus(&[1], 0, 9600)).unwrap(),
-        clock.shared(),
-        PipeConfig::paced(9600),
-    );
-    let mut cfg = BusConfig::new(Mode::default(), 9600);
-    assert_eq!(cfg.wait_timeout, Duration::from_secs(600));
-    cfg.wait_timeout = Duration::from_secs(3);
-    let mut bus = Bus::new(Box::new(host.connect().0), clock.shared(), cfg);
-    // 1000 units at 100 units/s: 10 s.
-    bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
-    let t0 = clock.now();
-    let e = bus.wait_reached(&[a(1)], None, &mut |_, _| {}).unwrap_err();
-    assert!(matches!(e.root(), Error::MoveTimeout { address: 1, .. }), "{e}");
-    let took = clock.now() - t0;
-    assert!(took >= Duration::from_secs(3) && took < Duration::from_secs(4), "{took:?}");
-    assert!(!host.with_device(|d| d.drive(1).unwrap().is_moving()), "stopped");
-}
-
-/// Counts telegrams sent and cancels a token when the `n`th goes out (Ctrl-C in the middle of a long action).
-struct CancelAfter<L> {
-    inner: L,
-    token: CancelToken,
-    sends: usize,
-    n: usize,
-}
-
-impl<L: motionlink_link::link::Link> motionlink_link::link::Link for CancelAfter<L> {
-    fn send(&mut self, bytes: &[u8]) -> Result<(), motionlink_link::link::LinkError> {
-        self.sends += 1;
-        if self.sends == self.n {
-            self.token.cancel();
-        }
-        self.inner.send(bytes)
-    }
-    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, motionlink_link::link::LinkError> {
-        self.inner.recv(buf, timeout)
-    }
-    fn discard_input(&mut self) -> Result<(), motionlink_link::link::LinkError> {
-        self.inner.discard_input()
-    }
-    fn describe(&self) -> String {
-        self.inner.describe()
-    }
-}
-
 #[test]
 fn a_cancelled_scan_ends_between_drives_and_a_cancelled_token_keeps_moves_unsent() {
     let clock = ManualClock::new_auto();
     let _me = clock.reserve_participant().enter();
     let host = EmulatorHost::new(
-        CompaxBus::new(SimConfig::bus(&[1, 31], 0, 9600)).unwrap(),
+        Emulator::new(SimConfig::bus(&[1, 31], 0, 9600)).unwrap(),
         clock.shared(),
         PipeConfig::paced(9600),
     );
@@ -562,7 +248,7 @@ fn a_cancelled_scan_ends_between_drives_and_a_cancelled_token_keeps_moves_unsent
     let transcript = Transcript::new();
     let link = TapLink::new(host.connect().0, clock.shared(), transcript.clone());
     let link = CancelAfter { inner: link, token: token.clone(), sends: 0, n: 3 };
-    let mut bus = Bus::new(Box::new(link), clock.shared(), BusConfig::new(Mode::default(), 9600));
+    let bus = Client::new(Box::new(link), clock.shared(), BusConfig::new(Mode::default(), 9600)).unwrap();
     bus.set_cancel(token.clone());
     // Cancelled while the third address is asked: that answer is awaited, the fourth is not asked.
     assert!(matches!(bus.scan(1..=31), Err(Error::Cancelled)));
@@ -581,343 +267,4 @@ fn a_cancelled_scan_ends_between_drives_and_a_cancelled_token_keeps_moves_unsent
     bus.move_absolute(a(1), pos(1.0), MoveOptions::default()).unwrap();
     bus.wait_reached(&[a(1)], None, &mut |_, _| {}).unwrap();
     assert!(!host.with_device(|d| d.drive(1).unwrap().is_moving()));
-}
-
-/// What a scripted drive answers to each telegram.
-type Script = Box<dyn FnMut(&[u8]) -> Vec<u8> + Send>;
-
-/// A link whose drive is a script: each telegram sent gets the bytes `answer` returns (a drive that answers
-/// in ways the emulator does not, such as a bare parameter value).
-struct Scripted {
-    clock: motionlink_link::clock::SharedClock,
-    answer: Script,
-    pending: std::collections::VecDeque<u8>,
-}
-
-impl motionlink_link::link::Link for Scripted {
-    fn send(&mut self, bytes: &[u8]) -> Result<(), motionlink_link::link::LinkError> {
-        let reply = (self.answer)(bytes);
-        self.pending.extend(reply);
-        Ok(())
-    }
-    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, motionlink_link::link::LinkError> {
-        if self.pending.is_empty() {
-            self.clock.sleep(timeout);
-            return Ok(0);
-        }
-        let n = buf.len().min(self.pending.len());
-        for (slot, b) in buf.iter_mut().zip(self.pending.drain(..n)) {
-            *slot = b;
-        }
-        Ok(n)
-    }
-    fn discard_input(&mut self) -> Result<(), motionlink_link::link::LinkError> {
-        self.pending.clear();
-        Ok(())
-    }
-    fn describe(&self) -> String {
-        "scripted drive".into()
-    }
-}
-
-#[test]
-fn comparator_numbers_are_expected_only_until_the_positioning_ends() {
-    let clock = ManualClock::new_auto();
-    let _me = clock.reserve_participant().enter();
-    let mut polls = 0;
-    let answer = move |t: &[u8]| -> Vec<u8> {
-        match t {
-            b"1POSR 5 OUTPUT O9=1\r" | b"1POSA 10\r" => b"\r\n>".to_vec(),
-            b"1S17\r" => {
-                polls += 1;
-                match polls {
-                    // The comparator switches during the first poll: its number comes first.
-                    1 => b"1\r\n>S017: 0010 0010\r\n>".to_vec(),
-                    2 => b"S017: 0010 0010\r\n>".to_vec(),
-                    _ => b"S017: 0000 0010\r\n>".to_vec(),
-                }
-            }
-            b"1S1\r" => b"S001: 10.000\r\n>".to_vec(),
-            // A drive that answers a parameter with the bare value.
-            b"1P194\r" => b"1\r\n>".to_vec(),
-            other => panic!("unexpected telegram {other:?}"),
-        }
-    };
-    let link = Scripted { clock: clock.shared(), answer: Box::new(answer), pending: Default::default() };
-    let mut bus = Bus::new(Box::new(link), clock.shared(), BusConfig::new(Mode::default(), 9600));
-    let comparator = Command::PosROutput { distance: pos(5.0), output: 9, state: OutputState::ON };
-    assert_eq!(bus.command(a(1), &comparator).unwrap(), "");
-    bus.move_absolute(a(1), pos(10.0), MoveOptions::default()).unwrap();
-    let mut positions = Vec::new();
-    bus.wait_reached(&[a(1)], None, &mut |_, p| positions.push(p.units())).unwrap();
-    assert_eq!(positions, [10.0; 3], "three polls; the comparator's number was taken for what it is, not as a reply");
-    // The positioning has ended, and with it the comparator: a bare number is a reply again.
-    assert_eq!(bus.read_param(a(1), ParamId::DEVICE_ADDRESS).unwrap(), 1.0);
-}
-
-#[test]
-fn a_finished_move_is_not_stopped_on_drop() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    bus.move_absolute(a(1), pos(1.0), MoveOptions::default()).unwrap();
-    r.clock.sleep(Duration::from_secs(1));
-    drop(bus);
-    assert_eq!(r.host.with_device(|d| d.drive(1).unwrap().o0()), 1, "still switched on");
-    assert!(!sent(&r.transcript).iter().any(|f| f.starts_with(b"1OUTPUT")));
-}
-
-#[test]
-fn cancelling_a_wait_stops_the_axes() {
-    let (r, mut bus) = rig(&[1, 5], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    let token = CancelToken::new();
-    bus.set_cancel(token.clone());
-    bus.sync_start(&[(a(1), Command::PosA(pos(500.0))), (a(5), Command::PosA(pos(500.0)))], false).unwrap();
-    let mut polls = 0;
-    let e = bus
-        .wait_reached(&[a(1), a(5)], None, &mut |_, _| {
-            polls += 1;
-            if polls == 4 {
-                token.cancel();
-            }
-        })
-        .unwrap_err();
-    assert!(matches!(e.root(), Error::Cancelled), "{e}");
-    let stop = e.stop_report().expect("the wait stopped the axes");
-    assert_eq!(stop.switched_off(), [a(1), a(5)], "{e}");
-    assert!(stop.all_confirmed());
-    let (m1, m5) = r.host.with_device(|d| (d.drive(1).unwrap().is_moving(), d.drive(5).unwrap().is_moving()));
-    assert!(!m1 && !m5);
-    assert!(bus.started().is_empty());
-    let p = bus.read_position(a(1)).unwrap().units();
-    assert!(p > 0.0 && p < 500.0, "{p}");
-    // Switched on again, the drive moves again.
-    token.reset();
-    bus.set_output(a(1), 0, OutputState::ON, false).unwrap();
-    bus.move_absolute(a(1), pos(0.0), MoveOptions::default()).unwrap();
-    bus.wait_reached(&[a(1)], None, &mut |_, _| {}).unwrap();
-}
-
-#[test]
-fn a_wait_that_takes_too_long_stops_the_axis() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
-    let e = bus.wait_reached(&[a(1)], Some(Duration::from_secs(2)), &mut |_, _| {}).unwrap_err();
-    assert!(matches!(e.root(), Error::MoveTimeout { address: 1, .. }), "{e}");
-    assert_eq!(e.stop_report().unwrap().switched_off(), [a(1)], "{e}");
-    assert!(!r.host.with_device(|d| d.drive(1).unwrap().is_moving()));
-}
-
-#[test]
-fn a_broken_link_during_a_wait_is_a_transport_error() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
-    r.faults.disconnect();
-    let e = bus.wait_reached(&[a(1)], None, &mut |_, _| {}).unwrap_err();
-    assert!(matches!(e.root(), Error::Link(_)), "{e}");
-    assert!(e.is_transport());
-    // The stop cannot go out on a broken link: the error says so, in words.
-    let stop = e.stop_report().expect("a stop was tried");
-    assert_eq!(stop.unconfirmed(), [a(1)]);
-    assert!(e.to_string().contains("the axis may still be moving"), "{e}");
-    assert!(r.host.with_device(|d| d.drive(1).unwrap().is_moving()), "and indeed it moves on");
-    bus.release(&[a(1)]);
-}
-
-#[test]
-fn scan_finds_the_drives_and_skips_the_deaf_one() {
-    let clock = ManualClock::new_auto();
-    let _me = clock.reserve_participant().enter();
-    let mut cfg = SimConfig::bus(&[2, 9, 31], 0, 19_200);
-    cfg.drives[1].baud_rate = Some(9600); // drive 9 listens at another baud rate: it hears only noise
-    let host = EmulatorHost::new(CompaxBus::new(cfg).unwrap(), clock.shared(), PipeConfig::paced(19_200));
-    let mut bus = Bus::new(Box::new(host.connect().0), clock.shared(), BusConfig::new(Mode::default(), 19_200));
-    let found: Vec<u8> = bus.scan(1..=31).unwrap().into_iter().map(|(a, _)| a.get()).collect();
-    assert_eq!(found, [2, 31]);
-}
-
-#[test]
-fn parameters_of_the_interface_take_effect_at_power_on() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    bus.write_param(a(1), ParamId::DEVICE_ADDRESS, 6.0).unwrap();
-    assert!(bus.write_param(a(1), ParamId::BAUD_RATE, 1234.0).is_err(), "refused by the client's range check");
-    assert_eq!(bus.read_param(a(1), ParamId::DEVICE_ADDRESS).unwrap(), 6.0);
-    assert_eq!(bus.read_position(a(1)).unwrap(), pos(0.0), "still at address 1");
-    r.host.with_device(|d| d.power_cycle(Timestamp::from_millis(1)));
-    assert!(matches!(bus.read_position(a(1)), Err(Error::Timeout { .. })));
-    assert_eq!(bus.read_position(a(6)).unwrap(), pos(0.0));
-}
-
-#[test]
-fn refused_commands_are_device_errors_and_raw_is_sent_once() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    let e = bus.raw(a(1), "FOO").unwrap_err();
-    assert_eq!(e.device_code(), Some(REFUSED));
-    assert_eq!(bus.raw(a(1), "S2").unwrap().as_deref(), Some("S002: 0.000"));
-    assert_eq!(bus.raw(a(1), "SPEED 10/").unwrap(), None);
-    r.clock.sleep(Duration::from_millis(20)); // the telegram is still on the wire
-    assert_eq!(r.host.with_device(|d| d.drive(1).unwrap().move_settings().0), 10.0);
-    // A raw command whose reply is lost is reported, not repeated.
-    r.faults.drop_next(Direction::DeviceToHost, 3);
-    assert!(matches!(bus.raw(a(1), "POSR 1"), Err(Error::Timeout { attempts: 1, .. })));
-    assert_eq!(sent(&r.transcript).iter().filter(|f| f.starts_with(b"1POSR")).count(), 1);
-    // The drive may have taken it: the client counts it as moving until it has seen otherwise.
-    assert_eq!(bus.started(), [a(1)]);
-    r.clock.sleep(Duration::from_secs(1));
-    drop(bus); // (while this thread still drives the clock)
-    assert_eq!(r.host.with_device(|d| d.drive(1).unwrap().position()), 1.0);
-    let frames = sent(&r.transcript);
-    assert_eq!(frames.last().unwrap(), b"1S17\r", "checked on drop; it had stopped, so no OUTPUT O0=0");
-}
-
-#[test]
-fn xoff_from_the_host_holds_the_drives_reply() {
-    let (r, _bus) = rig(&[1], 1, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    use motionlink_link::link::Link;
-    let (mut l, _) = r.host.connect();
-    l.send(b"\x131S1\r").unwrap();
-    let mut buf = [0u8; 32];
-    assert_eq!(l.recv(&mut buf, Duration::from_millis(100)).unwrap(), 0, "held while XOFF");
-    l.send(b"\x11").unwrap();
-    let mut got = Vec::new();
-    while !got.ends_with(b">") {
-        let n = l.recv(&mut buf, Duration::from_millis(100)).unwrap();
-        assert!(n > 0);
-        got.extend_from_slice(&buf[..n]);
-    }
-    assert_eq!(got, b"S001: 0.000\r\n>");
-}
-
-#[test]
-fn bare_values_answering_a_read_are_replies_while_a_comparator_is_armed() {
-    let clock = ManualClock::new_auto();
-    let _me = clock.reserve_participant().enter();
-    let answer = move |t: &[u8]| -> Vec<u8> {
-        match t {
-            b"1POSR 5 OUTPUT O9=1\r" | b"1POSA 10\r" => b"\r\n>".to_vec(),
-            // A drive that answers reads with the bare value.
-            b"1S6\r" => b"35\r\n>".to_vec(),
-            b"1P194\r" => b"5\r\n>".to_vec(),
-            // The comparator switches while a setting is sent: its number comes before the acknowledgement,
-            // and a setting is never answered with a number.
-            b"1SPEED 50\r" => b"1\r\n>\r\n>".to_vec(),
-            // S17 cannot be "2": the comparator's number, then the reply.
-            b"1S17\r" => b"2\r\n>S017: 0010 0010\r\n>".to_vec(),
-            other => panic!("unexpected telegram {other:?}"),
-        }
-    };
-    let link = Scripted { clock: clock.shared(), answer: Box::new(answer), pending: Default::default() };
-    let mut bus = Bus::new(Box::new(link), clock.shared(), BusConfig::new(Mode::default(), 9600));
-    let comparator = Command::PosROutput { distance: pos(5.0), output: 9, state: OutputState::ON };
-    assert_eq!(bus.command(a(1), &comparator).unwrap(), "");
-    bus.move_absolute(a(1), pos(10.0), MoveOptions::default()).unwrap();
-    // The comparator is armed and the positioning runs: the bare values are still the reads' replies.
-    assert_eq!(bus.read_status(a(1), StatusId::TEMPERATURE).unwrap(), StatusValue::Number(35.0));
-    assert_eq!(bus.read_param(a(1), ParamId::DEVICE_ADDRESS).unwrap(), 5.0);
-    bus.set_speed(a(1), SpeedPercent::new(50.0).unwrap(), false).unwrap();
-    assert!(bus.read_s17(a(1)).unwrap().bit(S17Bits::COMMAND_ACTIVE));
-    bus.release(&[a(1)]);
-}
-
-#[test]
-fn a_failed_synchronous_store_names_the_drives_left_with_a_buffered_move() {
-    let clock = ManualClock::new_auto();
-    let _me = clock.reserve_participant().enter();
-    let sent_frames = std::sync::Arc::new(std::sync::Mutex::new(Vec::<Vec<u8>>::new()));
-    let log = sent_frames.clone();
-    let answer = move |t: &[u8]| -> Vec<u8> {
-        log.lock().unwrap().push(t.to_vec());
-        match t {
-            b"1POSA 100,\r" | b"1OUTPUT O0=0\r" => b"\r\n>".to_vec(),
-            // Drive 5 refuses to store its move.
-            b"5POSA 100,\r" => b"E90\r\n>".to_vec(),
-            b"32!\r" => Vec::new(),
-            // Drive 1 runs the move the later `32!` started.
-            b"1S17\r" => b"S017: 0010 0010\r\n>".to_vec(),
-            // Drive 5 has nothing buffered: it does not move.
-            b"5S17\r" => b"S017: 0000 0010\r\n>".to_vec(),
-            other => panic!("unexpected telegram {other:?}"),
-        }
-    };
-    let link = Scripted { clock: clock.shared(), answer: Box::new(answer), pending: Default::default() };
-    let mut bus = Bus::new(Box::new(link), clock.shared(), BusConfig::new(Mode::default(), 9600));
-    let e = bus.sync_start(&[(a(1), Command::PosA(pos(100.0))), (a(5), Command::PosA(pos(100.0)))], false).unwrap_err();
-    match &e {
-        Error::SyncIncomplete { failed, source, buffered } => {
-            assert_eq!(*failed, 5);
-            assert_eq!(source.device_code(), Some(ErrorCode(90)));
-            assert_eq!(buffered, &[1]);
-        }
-        other => panic!("{other}"),
-    }
-    assert!(e.to_string().contains("drives [1] still hold a buffered move"), "{e}");
-    assert!(!sent_frames.lock().unwrap().iter().any(|f| f == b"32!\r"), "no '!' after a failed store");
-    assert!(bus.started().is_empty(), "nothing runs yet");
-    // The `!` this client sends later starts drive 1's buffered move: dropping the client stops it.
-    assert_eq!(bus.raw(Address::BROADCAST, "!").unwrap(), None);
-    assert!(bus.started().contains(&a(1)), "{:?}", bus.started());
-    drop(bus);
-    let frames = sent_frames.lock().unwrap();
-    assert!(frames.iter().any(|f| f == b"1OUTPUT O0=0\r"), "drive 1 stopped on drop");
-    assert!(!frames.iter().any(|f| f == b"5OUTPUT O0=0\r"), "drive 5 does not move");
-}
-
-#[test]
-fn stop_started_switches_off_only_the_axes_that_still_move() {
-    let (r, mut bus) = rig(&[1, 5], 0, 9600);
-    let _me = r.clock.reserve_participant().enter();
-    bus.move_absolute(a(1), pos(1.0), MoveOptions::default()).unwrap();
-    bus.move_absolute(a(5), pos(1000.0), MoveOptions::default()).unwrap();
-    r.clock.sleep(Duration::from_secs(1));
-    let report = bus.stop_started();
-    assert_eq!(report.drives, [(a(1), StopOutcome::AtRest), (a(5), StopOutcome::SwitchedOff)]);
-    assert!(report.all_confirmed());
-    assert_eq!(report.switched_off(), [a(5)]);
-    let text = report.to_string();
-    assert!(text.contains("drive 1 was already at rest"), "{text}");
-    assert!(text.contains("drive 5 was stopped by switching it off") && text.contains("OUTPUT O0=1"), "{text}");
-    let frames = sent(&r.transcript);
-    assert!(frames.iter().any(|f| f == b"1S17\r") && frames.iter().any(|f| f == b"5S17\r"), "S17 read first");
-    assert_eq!(frames.last().unwrap(), b"5S17\r", "the stop confirmed by S17 afterwards: {frames:?}");
-    assert!(!frames.iter().any(|f| f.starts_with(b"1OUTPUT")), "drive 1 is at rest: not switched off");
-    assert!(frames.iter().any(|f| f == b"5OUTPUT O0=0\r"), "drive 5 still moves: switched off");
-    assert_eq!(r.host.with_device(|d| (d.drive(1).unwrap().o0(), d.drive(5).unwrap().o0())), (1, 0));
-    assert!(bus.started().is_empty());
-}
-
-#[test]
-fn stop_started_sends_the_stop_when_s17_cannot_be_read() {
-    let clock = ManualClock::new_auto();
-    let _me = clock.reserve_participant().enter();
-    let sent_frames = std::sync::Arc::new(std::sync::Mutex::new(Vec::<Vec<u8>>::new()));
-    let log = sent_frames.clone();
-    let answer = move |t: &[u8]| -> Vec<u8> {
-        log.lock().unwrap().push(t.to_vec());
-        match t {
-            b"1POSA 10\r" | b"1OUTPUT O0=0\r" => b"\r\n>".to_vec(),
-            // The status read is lost.
-            b"1S17\r" => Vec::new(),
-            other => panic!("unexpected telegram {other:?}"),
-        }
-    };
-    let link = Scripted { clock: clock.shared(), answer: Box::new(answer), pending: Default::default() };
-    let mut bus = Bus::new(Box::new(link), clock.shared(), BusConfig::new(Mode::default(), 9600));
-    bus.move_absolute(a(1), pos(10.0), MoveOptions::default()).unwrap();
-    let report = bus.stop_started();
-    let frames = sent_frames.lock().unwrap().clone();
-    let stop_at = frames.iter().position(|f| f == b"1OUTPUT O0=0\r").expect("stopped anyway");
-    assert_eq!(frames[..stop_at].iter().filter(|f| *f == b"1S17\r").count(), 1, "one attempt first: {frames:?}");
-    // The acknowledged stop cannot be confirmed (S17 still unreadable): the report says so in words, and the
-    // client keeps the drive on its list (dropping it tries again).
-    assert!(!report.all_confirmed());
-    assert_eq!(report.unconfirmed(), [a(1)]);
-    let text = report.to_string();
-    assert!(text.contains("NOT confirmed") && text.contains("may still be moving"), "{text}");
-    assert_eq!(bus.started(), [a(1)]);
-    bus.release(&[a(1)]);
 }

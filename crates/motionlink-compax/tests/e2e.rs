@@ -4,9 +4,9 @@
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use motionlink_compax::client::{Bus, BusConfig, MoveOptions};
+use motionlink_compax::client::{BusConfig, Client, MoveOptions};
 use motionlink_compax::model::{Command, OutputState, ParamId, Position, SpeedPercent, StatusId, StatusValue};
-use motionlink_compax::sim::{CompaxBus, SimConfig};
+use motionlink_compax::sim::{Emulator, SimConfig};
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_link::emulator::{serve_tcp, Server};
 use motionlink_link::link::SerialSettings;
@@ -21,16 +21,16 @@ fn pos(v: f64) -> Position {
     Position::new(v).unwrap()
 }
 
-fn session(server: &Server, p196: u32, port: PortUrl) -> Bus {
+fn session(server: &Server, p196: u32, port: PortUrl) -> Client {
     let mode = Mode::from_p196(p196).unwrap();
     let mut settings = SerialSettings::new(115_200);
     settings.parity = mode.parity;
     let link = port.open_byte_link(settings).unwrap();
     let _ = server;
-    Bus::new(link, RealClock::shared(), BusConfig::new(mode, 115_200))
+    Client::new(link, RealClock::shared(), BusConfig::new(mode, 115_200)).unwrap()
 }
 
-fn exercise(bus: &mut Bus) {
+fn exercise(bus: &Client) {
     // ASCII reads and writes.
     assert_eq!(bus.read_position(a(5)).unwrap(), pos(0.0));
     bus.write_param(a(5), ParamId::new(12).unwrap(), 42.5).unwrap();
@@ -55,12 +55,12 @@ fn exercise(bus: &mut Bus) {
 fn over_tcp_ascii_and_binary() {
     for p196 in [0, 8 + 64, 2 + 4 + 8 + 16 + 32] {
         let sim =
-            CompaxBus::new(SimConfig::bus(&[1, 5], p196, 115_200).with_param(ParamId::new(12).unwrap(), 0.0)).unwrap();
+            Emulator::new(SimConfig::bus(&[1, 5], p196, 115_200).with_param(ParamId::new(12).unwrap(), 0.0)).unwrap();
         let device = Arc::new(Mutex::new(sim));
         let server = serve_tcp("127.0.0.1:0", Arc::clone(&device), RealClock::shared()).unwrap();
         let url: PortUrl = server.address().parse().unwrap();
-        let mut bus = session(&server, p196, url);
-        exercise(&mut bus);
+        let bus = session(&server, p196, url);
+        exercise(&bus);
         drop(bus);
         let d = device.lock().unwrap();
         assert_eq!(d.drive(1).unwrap().output(3), Some(1), "P196={p196}");
@@ -71,19 +71,19 @@ fn over_tcp_ascii_and_binary() {
 #[cfg(unix)]
 #[test]
 fn over_a_pty_ascii_and_binary() {
-    let sim = CompaxBus::new(SimConfig::bus(&[1, 5], 8, 115_200).with_param(ParamId::new(12).unwrap(), 0.0)).unwrap();
+    let sim = Emulator::new(SimConfig::bus(&[1, 5], 8, 115_200).with_param(ParamId::new(12).unwrap(), 0.0)).unwrap();
     let server = motionlink_link::emulator::serve_pty(Arc::new(Mutex::new(sim)), RealClock::shared()).unwrap();
     let url = PortUrl::Serial(server.address().to_string());
-    let mut bus = session(&server, 8, url);
-    exercise(&mut bus);
+    let bus = session(&server, 8, url);
+    exercise(&bus);
 }
 
 #[test]
 fn dropping_a_tcp_session_stops_the_axis() {
-    let sim = CompaxBus::new(SimConfig::bus(&[1], 0, 115_200)).unwrap();
+    let sim = Emulator::new(SimConfig::bus(&[1], 0, 115_200)).unwrap();
     let device = Arc::new(Mutex::new(sim));
     let server = serve_tcp("127.0.0.1:0", Arc::clone(&device), RealClock::shared()).unwrap();
-    let mut bus = session(&server, 0, server.address().parse().unwrap());
+    let bus = session(&server, 0, server.address().parse().unwrap());
     bus.move_absolute(a(1), pos(10_000.0), MoveOptions::default()).unwrap();
     drop(bus);
     let d = device.lock().unwrap();

@@ -2,11 +2,11 @@
 //! and each recovers; the reply decoder finds the same in slices of any size as byte by byte.
 
 use motionlink_compax::model::{StatusId, StatusValue};
-use motionlink_compax::sim::{CompaxBus, SimConfig};
+use motionlink_compax::sim::{Emulator, SimConfig};
 use motionlink_compax::wire::reply::encode_reply;
 use motionlink_compax::wire::{bcc, Mode, ReplyDecoder, ReplyEvent, RequestDecoder, CR, LF, PROMPT, XOFF, XON};
 use motionlink_link::clock::Timestamp;
-use motionlink_link::emulator::Emulator;
+use motionlink_link::emulator::Emulator as _;
 use proptest::prelude::*;
 
 /// A piece of what drives send: garbage, a reply as a drive sends it (its text may hold flow control, be
@@ -112,7 +112,7 @@ proptest! {
         chunks in proptest::collection::vec((proptest::collection::vec(any::<u8>(), 0..40), 0u64..20), 0..12),
     ) {
         let mode = Mode::from_p196(p196).unwrap();
-        let mut bus = CompaxBus::new(SimConfig::bus(&[1, 12], p196, 9600)).unwrap();
+        let mut bus = Emulator::new(SimConfig::bus(&[1, 12], p196, 9600)).unwrap();
         let mut out = Vec::new();
         let mut t = 0u64;
         for (bytes, gap) in chunks {
@@ -286,7 +286,7 @@ proptest! {
         gaps in proptest::collection::vec(0u64..12, 12),
     ) {
         let mode = Mode::from_p196(p196).unwrap();
-        let mut bus = CompaxBus::new(SimConfig::bus(&[1, 3, 12, 31], p196, 9600)).unwrap();
+        let mut bus = Emulator::new(SimConfig::bus(&[1, 3, 12, 31], p196, 9600)).unwrap();
         let mut out = Vec::new();
         let mut t = 0u64;
         for (bytes, gap) in pieces.iter().zip(gaps.iter().cycle()) {

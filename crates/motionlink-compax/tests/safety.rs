@@ -5,10 +5,10 @@
 use std::time::Duration;
 
 use motionlink_compax::client::{
-    Bus, BusConfig, Error, MoveOptions, MoveRequest, MoveTarget, StopOutcome, TravelLimits,
+    BusConfig, Client, Error, MoveOptions, MoveRequest, MoveTarget, StopOutcome, TravelLimits,
 };
 use motionlink_compax::model::{OutputState, ParamId, Position, SpeedPercent};
-use motionlink_compax::sim::{CompaxBus, SimConfig, REFUSED};
+use motionlink_compax::sim::{Emulator, SimConfig, REFUSED};
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::clock::{Clock, ManualClock};
@@ -17,25 +17,25 @@ use motionlink_link::transcript::{TapLink, Transcript, Way};
 
 struct Rig {
     clock: ManualClock,
-    host: EmulatorHost<CompaxBus>,
+    host: EmulatorHost<Emulator>,
     faults: FaultControl,
     transcript: Transcript,
 }
 
-fn rig_with(addrs: &[u8], p196: u32, baud: u32, cfg: impl FnOnce(&mut BusConfig)) -> (Rig, Bus) {
+fn rig_with(addrs: &[u8], p196: u32, baud: u32, cfg: impl FnOnce(&mut BusConfig)) -> (Rig, Client) {
     let clock = ManualClock::new_auto();
-    let sim = CompaxBus::new(SimConfig::bus(addrs, p196, baud)).unwrap();
+    let sim = Emulator::new(SimConfig::bus(addrs, p196, baud)).unwrap();
     let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(baud));
     let (link, faults) = host.connect();
     let transcript = Transcript::new();
     let link = TapLink::new(link, clock.shared(), transcript.clone());
     let mut bus_cfg = BusConfig::new(Mode::from_p196(p196).unwrap(), baud);
     cfg(&mut bus_cfg);
-    let bus = Bus::new(Box::new(link), clock.shared(), bus_cfg);
+    let bus = Client::new(Box::new(link), clock.shared(), bus_cfg).unwrap();
     (Rig { clock, host, faults, transcript }, bus)
 }
 
-fn rig(addrs: &[u8], p196: u32, baud: u32) -> (Rig, Bus) {
+fn rig(addrs: &[u8], p196: u32, baud: u32) -> (Rig, Client) {
     rig_with(addrs, p196, baud, |_| {})
 }
 
@@ -85,7 +85,7 @@ fn someone_else_sends(r: &Rig, telegram: &[u8]) -> Vec<u8> {
 
 #[test]
 fn a_checked_move_reads_its_target_back_and_checks_where_the_axis_came_to_rest() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
+    let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     let mut req = to(12.5);
     req.speed = Some(SpeedPercent::new(50.0).unwrap());
@@ -108,7 +108,7 @@ fn a_checked_move_reads_its_target_back_and_checks_where_the_axis_came_to_rest()
 
 #[test]
 fn a_move_that_ends_away_from_its_target_fails_naming_target_reached_and_difference() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
+    let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     let started = bus.start_checked_move(a(1), &to(100.0)).unwrap();
     r.clock.sleep(Duration::from_millis(250));
@@ -128,7 +128,7 @@ fn a_move_that_ends_away_from_its_target_fails_naming_target_reached_and_differe
 
 #[test]
 fn the_in_position_tolerance_is_a_setting() {
-    let (r, mut bus) = rig_with(&[1], 0, 9600, |c| c.in_position_tolerance = 50.0);
+    let (r, bus) = rig_with(&[1], 0, 9600, |c| c.in_position_tolerance = pos(50.0));
     let _me = r.clock.reserve_participant().enter();
     let started = bus.start_checked_move(a(1), &to(100.0)).unwrap();
     r.clock.sleep(Duration::from_millis(600));
@@ -140,7 +140,7 @@ fn the_in_position_tolerance_is_a_setting() {
 
 #[test]
 fn a_target_outside_the_travel_limits_is_refused_before_anything_moves() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
+    let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     let limits = TravelLimits::new(Some(pos(-5.0)), Some(pos(40.0))).unwrap();
     let mut req = to(50.0);
@@ -170,7 +170,7 @@ fn a_target_outside_the_travel_limits_is_refused_before_anything_moves() {
 
 #[test]
 fn a_switched_off_drive_is_named_as_such_not_with_a_bare_e90() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
+    let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     bus.set_output(a(1), 0, OutputState::OFF, false).unwrap();
     let e = bus.move_to(a(1), &to(10.0), &mut |_| {}).unwrap_err();
@@ -191,7 +191,7 @@ fn a_switched_off_drive_is_named_as_such_not_with_a_bare_e90() {
 
 #[test]
 fn a_corrupted_target_is_caught_by_reading_s2_back_and_the_axis_is_switched_off() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
+    let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     // "1S16\r" "1S17\r" "1S1\r", then "1POSA 15\r": flip the '5' (byte 7 of the move) into '4'.
     let at = r.faults.bytes_sent(Direction::HostToDevice);
@@ -223,7 +223,7 @@ enum Outcome {
 /// `xor` at `offset` in `dir` (mode `p196`, ASCII or binary); returns what the caller saw, after checking
 /// the drives: never at rest elsewhere with success, never left moving, drive 2 never moved.
 fn one_fault(p196: u32, kind: MoveKind, target: f64, fault: Option<(Direction, u64, u8)>) -> Outcome {
-    let (r, mut bus) = rig(&[1, 2], p196, 9600);
+    let (r, bus) = rig(&[1, 2], p196, 9600);
     let _me = r.clock.reserve_participant().enter();
     if let Some((dir, offset, xor)) = fault {
         r.faults.inject(dir, offset, Fault::Corrupt { xor });
@@ -276,7 +276,7 @@ enum MoveKind {
 
 /// Bytes of a clean checked move, each way.
 fn clean_move_bytes(p196: u32, kind: MoveKind, target: f64) -> (u64, u64) {
-    let (r, mut bus) = rig(&[1, 2], p196, 9600);
+    let (r, bus) = rig(&[1, 2], p196, 9600);
     let _me = r.clock.reserve_participant().enter();
     let mut req = match kind {
         MoveKind::Relative => MoveRequest::new(MoveTarget::Relative(pos(target))),
@@ -321,7 +321,7 @@ fn no_single_bit_flip_in_any_telegram_of_a_move_ends_in_success_with_the_axis_el
 
 #[test]
 fn a_corrupted_parameter_write_is_caught_by_the_read_back() {
-    let (r, mut bus) = rig(&[1], 0, 9600);
+    let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     // "1P003=-1055.88\r": the last '8' (byte 13) becomes '9': a valid write of another value.
     let at = r.faults.bytes_sent(Direction::HostToDevice);
@@ -341,7 +341,7 @@ fn a_corrupted_parameter_write_is_caught_by_the_read_back() {
 #[test]
 fn a_wait_polls_at_the_set_rate_not_as_fast_as_the_line_answers() {
     for (baud, poll_ms) in [(115_200, 50), (115_200, 200), (9600, 50)] {
-        let (r, mut bus) = rig_with(&[1], 0, baud, |c| c.poll_interval = Duration::from_millis(poll_ms));
+        let (r, bus) = rig_with(&[1], 0, baud, |c| c.poll_interval = Duration::from_millis(poll_ms));
         let _me = r.clock.reserve_participant().enter();
         // 1000 units at 100 units/s: 10 s.
         bus.move_to(a(1), &to(1000.0), &mut |_| {}).unwrap();
@@ -356,9 +356,12 @@ fn a_wait_polls_at_the_set_rate_not_as_fast_as_the_line_answers() {
 
 #[test]
 fn a_cancel_between_polls_stops_the_axis_within_milliseconds() {
-    let (r, mut bus) = rig_with(&[1], 0, 115_200, |c| c.poll_interval = Duration::from_millis(500));
+    let (r, bus) = rig_with(&[1], 0, 115_200, |c| c.poll_interval = Duration::from_millis(500));
     let token = CancelToken::new();
     bus.set_cancel(token.clone());
+    // This thread takes part in the clock before the canceller starts: otherwise the clock could reach the
+    // cancel before the move has begun.
+    let _me = r.clock.reserve_participant().enter();
     // Another participant cancels 1.234 s into the move (between two polls 500 ms apart).
     let ticket = r.clock.reserve_participant();
     let clock = r.clock.clone();
@@ -368,7 +371,6 @@ fn a_cancel_between_polls_stops_the_axis_within_milliseconds() {
         token.cancel();
         clock.now()
     });
-    let _me = r.clock.reserve_participant().enter();
     let e = bus.move_to(a(1), &to(1000.0), &mut |_| {}).unwrap_err();
     let ended = r.clock.now();
     let cancelled_at = canceller.join().unwrap();
@@ -384,7 +386,7 @@ fn a_cancel_between_polls_stops_the_axis_within_milliseconds() {
 #[test]
 fn a_dead_line_during_a_move_is_reported_with_an_unconfirmed_stop() {
     // Nothing gets through any more, either way.
-    let (r, mut bus) = rig(&[1], 0, 9600);
+    let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     let started = bus.start_checked_move(a(1), &to(1000.0)).unwrap();
     r.faults.drop_next(Direction::HostToDevice, u64::MAX);
@@ -402,7 +404,7 @@ fn a_dead_line_during_a_move_is_reported_with_an_unconfirmed_stop() {
 
     // Only the replies are lost: the stop reaches the drive, but it cannot confirm it, and the error says
     // just that.
-    let (r, mut bus) = rig(&[1], 0, 9600);
+    let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     let started = bus.start_checked_move(a(1), &to(1000.0)).unwrap();
     r.faults.drop_next(Direction::DeviceToHost, u64::MAX);

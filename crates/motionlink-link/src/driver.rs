@@ -134,6 +134,8 @@ struct Core<S: Session> {
     close_started: bool,
     close_waiter: Option<Signal>,
     stop_thread: bool,
+    /// The background thread sleeps until this (`Some(None)`: until woken); `None` while it is awake.
+    background_sleeps: Option<Option<Timestamp>>,
 }
 
 impl<S: Session> Core<S> {
@@ -281,12 +283,17 @@ impl<S: Session> Shared<S> {
                     for w in core.port_waiters.drain(..) {
                         w.raise();
                     }
-                    // The background thread looks at the session again only if it has something to do
-                    // (a deadline, an operation under way): waking it after every operation would cost a
-                    // thread switch on the fast path for nothing.
-                    let needed = !core.session.is_idle() || core.session.poll_timeout().is_some();
+                    // The background thread is woken only if the session now has something for it (work
+                    // under way, or a deadline earlier than the one it sleeps until): waking it for nothing
+                    // costs a thread switch per operation.
+                    let next = core.session.poll_timeout();
+                    let earlier = match core.background_sleeps {
+                        Some(until) => next.is_some_and(|t| until.is_none_or(|u| t < u)),
+                        None => false,
+                    };
+                    let background_needed = !core.session.is_idle() || earlier;
                     drop(core);
-                    if needed {
+                    if background_needed {
                         self.background.raise();
                     }
                     return;
@@ -352,6 +359,7 @@ impl<S: Session> Shared<S> {
         loop {
             let deadline = {
                 let mut core = self.core();
+                core.background_sleeps = None;
                 if core.stop_thread {
                     return;
                 }
@@ -366,7 +374,9 @@ impl<S: Session> Shared<S> {
                     });
                     continue;
                 }
-                core.session.poll_timeout()
+                let deadline = core.session.poll_timeout();
+                core.background_sleeps = Some(deadline);
+                deadline
             };
             me.wait_until(deadline);
         }
@@ -417,6 +427,7 @@ impl<S: Session> Driver<S> {
                 close_started: false,
                 close_waiter: None,
                 stop_thread: false,
+                background_sleeps: None,
             }),
         });
         let ticket = clock.reserve_participant();

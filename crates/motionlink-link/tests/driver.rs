@@ -164,6 +164,10 @@ struct ToySession {
     moving: bool,
     closing: bool,
     sent: Vec<String>,
+    /// The name of the thread that asked for each telegram to be sent.
+    sent_by: Vec<Option<String>>,
+    /// How often the driver's background thread looked at the session.
+    background_looks: std::sync::atomic::AtomicU32,
     retries: HashMap<String, u32>,
 }
 
@@ -184,6 +188,8 @@ impl ToySession {
             moving: false,
             closing: false,
             sent: Vec::new(),
+            sent_by: Vec::new(),
+            background_looks: std::sync::atomic::AtomicU32::new(0),
             retries: HashMap::new(),
         }
     }
@@ -305,6 +311,7 @@ impl Session for ToySession {
         }
         let (who, text) = self.queue.pop_front()?;
         self.sent.push(text.clone());
+        self.sent_by.push(std::thread::current().name().map(str::to_string));
         let bytes = format!("{text}\n").into_bytes();
         let tries = self.retries.remove(&text).unwrap_or(0);
         self.in_flight = Some((who, text, now, tries));
@@ -312,6 +319,9 @@ impl Session for ToySession {
     }
 
     fn poll_timeout(&self) -> Option<Timestamp> {
+        if std::thread::current().name() == Some("motionlink-driver") {
+            self.background_looks.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        }
         let polls = self.ops.values().filter_map(|(p, _)| match p {
             Phase::Moving { next_poll } => *next_poll,
             _ => None,
@@ -404,6 +414,31 @@ fn a_blocking_move_reports_progress_and_ends_at_the_target() {
     assert_eq!(end, 20);
     assert!(seen.len() >= 5 && seen.windows(2).all(|w| w[0] <= w[1]), "{seen:?}");
     assert_eq!(host.with_device(|d| (d.position, d.watchdog_stops)), (20, 0));
+    driver.close().unwrap();
+}
+
+#[test]
+fn a_blocking_caller_drives_the_port_itself_and_leaves_the_background_thread_asleep() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let (driver, _host) = setup(clock.shared());
+    // The background thread sends the first keepalive (at 0) and sleeps until the next (at 30 ms); the 20
+    // GETs below take about 18 ms of line time in between.
+    clock.sleep(Duration::from_millis(2));
+    let me = std::thread::current().name().map(str::to_string);
+    let looks_before = driver.with_session(|s| s.background_looks.load(std::sync::atomic::Ordering::Relaxed));
+    for _ in 0..20 {
+        driver.run(Op::Get).unwrap();
+    }
+    let looks = driver.with_session(|s| s.background_looks.load(std::sync::atomic::Ordering::Relaxed));
+    // Nothing was due for the background thread meanwhile: it was not woken at each call.
+    assert!(looks - looks_before < 5, "the background thread looked {} times", looks - looks_before);
+    let (sent, by) = driver.with_session(|s| (s.sent.clone(), s.sent_by.clone()));
+    let gets: Vec<_> = sent.iter().zip(&by).filter(|(t, _)| *t == "GET").map(|(_, b)| b.clone()).collect();
+    assert_eq!(gets.len(), 20);
+    // Every GET was sent by the caller's thread: no hand-off to the background thread (a thread switch per
+    // operation, which a loaded machine makes slow).
+    assert!(gets.iter().all(|b| *b == me), "{gets:?}");
     driver.close().unwrap();
 }
 

@@ -1,0 +1,262 @@
+//! [`AsyncClient`]: the async driver of a COMPAX session, on tokio (feature `tokio`).
+
+use std::ops::RangeInclusive;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use motionlink_link::clock::{lock, SharedClock};
+use motionlink_link::driver::{AsyncDriver, Driver, OpFuture, Port};
+use motionlink_link::link::Link;
+use motionlink_link::LinkError;
+
+use super::{driver_config, output};
+use crate::error::{Error, Result, StopReport};
+use crate::model::{Command, OutputState, ParamId, Position, S16Bits, S17Bits, SpeedPercent, StatusId, StatusValue};
+use crate::session::{BusConfig, MoveOptions, MoveReport, MoveRequest, Op, Output, Session, StartedMove};
+use crate::wire::Address;
+
+/// An async client of one bus of COMPAX drives: the operations of [`Client`](super::Client) as futures,
+/// with the same safety. Dropping a future before it is done cancels its operation: a move not yet sent
+/// is not sent, and a wait or checked move that set an axis in motion stops it (`OUTPUT O0=0`, confirmed
+/// by S17). Operations of several tasks take turns on the line.
+///
+/// The session runs on the driver's thread; opening and closing (which block on I/O) run on tokio's
+/// blocking pool. Dropping the client closes the session there (stopping what it set in motion, bounded
+/// by [`BusConfig::close_bound`]).
+pub struct AsyncClient {
+    driver: AsyncDriver<Session>,
+    config: BusConfig,
+    close_report: ReportSlot,
+}
+
+impl std::fmt::Debug for AsyncClient {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AsyncClient").field("port", &self.driver.driver().port_name()).finish()
+    }
+}
+
+/// Where the close sequence's report is put.
+type ReportSlot = Arc<Mutex<Option<StopReport>>>;
+
+fn driver_for(link: Box<dyn Link>, clock: SharedClock, cfg: &BusConfig) -> Result<(Driver<Session>, ReportSlot)> {
+    let session = Session::new(cfg.clone(), clock.now());
+    let report = session.close_report();
+    let port = Port::Bytes(link);
+    let name = port.describe();
+    let driver = Driver::new(session, port, None, clock, driver_config(cfg))
+        .map_err(|source| Error::Link(LinkError::Io { port: name, source }))?;
+    Ok((driver, report))
+}
+
+impl AsyncClient {
+    /// A client on `link` (already open), timed by `clock`.
+    pub fn new(link: Box<dyn Link>, clock: SharedClock, cfg: BusConfig) -> Result<Self> {
+        let (driver, close_report) = driver_for(link, clock, &cfg)?;
+        Ok(AsyncClient { driver: AsyncDriver::from_driver(driver), config: cfg, close_report })
+    }
+
+    /// Opens the link with `open` on tokio's blocking pool (opening a serial port or a TCP connection
+    /// blocks), then starts the session on it.
+    pub async fn open(
+        open: impl FnOnce() -> std::result::Result<Box<dyn Link>, LinkError> + Send + 'static,
+        clock: SharedClock,
+        cfg: BusConfig,
+    ) -> Result<Self> {
+        let report = Arc::new(Mutex::new(None));
+        let slot = Arc::clone(&report);
+        let for_open = cfg.clone();
+        let driver = AsyncDriver::open(move || -> Result<Driver<Session>> {
+            let (driver, r) = driver_for(open()?, clock, &for_open)?;
+            *lock(&slot) = Some(r);
+            Ok(driver)
+        })
+        .await?;
+        let close_report = lock(&report).take().unwrap_or_default();
+        Ok(AsyncClient { driver, config: cfg, close_report })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &BusConfig {
+        &self.config
+    }
+
+    /// Starts `op`: the returned future ends with its output; dropping it cancels the operation (which
+    /// stops what it started). Its progress can be taken from it meanwhile
+    /// ([`OpFuture::take_progress`]).
+    pub fn start(&self, op: Op) -> OpFuture<Session> {
+        self.driver.start(op)
+    }
+
+    /// The drives this client set in motion and has not yet seen stop.
+    pub fn started(&self) -> Vec<Address> {
+        self.driver.driver().with_session(|s| s.started())
+    }
+
+    /// The drives that have answered this client.
+    pub fn known(&self) -> Vec<Address> {
+        self.driver.driver().with_session(|s| s.known())
+    }
+
+    /// Hands the motion of `drives` over: the client forgets it set them in motion and does not stop them.
+    pub fn release(&self, drives: &[Address]) {
+        self.driver.driver().with_session(|s| s.release(drives));
+    }
+
+    async fn done(&self, op: Op, what: &str) -> Result<()> {
+        output(self.driver.run(op).await?, what, |o| if o == Output::Done { Ok(()) } else { Err(o) })
+    }
+
+    /// A status value; see [`Client::read_status`](super::Client::read_status).
+    pub async fn read_status(&self, address: Address, id: StatusId) -> Result<StatusValue> {
+        output(self.driver.run(Op::ReadStatus(address, id)).await?, "a status read", |o| match o {
+            Output::Status(v) => Ok(v),
+            o => Err(o),
+        })
+    }
+
+    /// The actual position S1.
+    pub async fn read_position(&self, address: Address) -> Result<Position> {
+        match self.read_status(address, StatusId::ACTUAL_POSITION).await? {
+            StatusValue::Position(p) => Ok(p),
+            v => Err(Error::Unexpected { address: address.get(), command: "S1".into(), reply: v.to_string() }),
+        }
+    }
+
+    /// The target position S2.
+    pub async fn read_target(&self, address: Address) -> Result<Position> {
+        match self.read_status(address, StatusId::TARGET_POSITION).await? {
+            StatusValue::Position(p) => Ok(p),
+            v => Err(Error::Unexpected { address: address.get(), command: "S2".into(), reply: v.to_string() }),
+        }
+    }
+
+    /// The status bits S16.
+    pub async fn read_s16(&self, address: Address) -> Result<S16Bits> {
+        match self.read_status(address, StatusId::STATUS_BITS_1).await? {
+            StatusValue::S16(b) => Ok(b),
+            v => Err(Error::Unexpected { address: address.get(), command: "S16".into(), reply: v.to_string() }),
+        }
+    }
+
+    /// The status bits S17.
+    pub async fn read_s17(&self, address: Address) -> Result<S17Bits> {
+        match self.read_status(address, StatusId::STATUS_BITS_2).await? {
+            StatusValue::S17(b) => Ok(b),
+            v => Err(Error::Unexpected { address: address.get(), command: "S17".into(), reply: v.to_string() }),
+        }
+    }
+
+    /// A parameter.
+    pub async fn read_param(&self, address: Address, id: ParamId) -> Result<f64> {
+        output(self.driver.run(Op::ReadParam(address, id)).await?, "a parameter read", |o| match o {
+            Output::Number(v) => Ok(v),
+            o => Err(o),
+        })
+    }
+
+    /// A parameter written and read back; see [`Client::write_param`](super::Client::write_param).
+    pub async fn write_param(&self, address: Address, id: ParamId, value: f64) -> Result<()> {
+        self.done(Op::WriteParam(address, id, value), "a parameter write").await
+    }
+
+    /// S1 of every address in `range`.
+    pub async fn scan(&self, range: RangeInclusive<u8>) -> Result<Vec<(Address, Position)>> {
+        output(self.driver.run(Op::Scan(range)).await?, "a scan", |o| match o {
+            Output::Found(v) => Ok(v),
+            o => Err(o),
+        })
+    }
+
+    /// A command other than a move; the reply text.
+    pub async fn command(&self, address: Address, cmd: &Command) -> Result<String> {
+        output(self.driver.run(Op::Command(address, *cmd)).await?, "a command", |o| match o {
+            Output::Text(t) => Ok(t),
+            o => Err(o),
+        })
+    }
+
+    /// Text sent as it is; see [`Client::raw`](super::Client::raw).
+    pub async fn raw(&self, address: Address, text: &str) -> Result<Option<String>> {
+        output(self.driver.run(Op::Raw(address, text.to_string())).await?, "a raw command", |o| match o {
+            Output::Reply(r) => Ok(r),
+            o => Err(o),
+        })
+    }
+
+    /// SPEED for the next positionings.
+    pub async fn set_speed(&self, address: Address, speed: SpeedPercent, binary: bool) -> Result<()> {
+        self.done(Op::Setting(address, Command::Speed(speed), binary), "a setting").await
+    }
+
+    /// OUTPUT O`output`=`state` (output 0 is the drive itself: 0 switches it off, 1 on).
+    pub async fn set_output(&self, address: Address, output: u16, state: OutputState, binary: bool) -> Result<()> {
+        self.done(Op::Setting(address, Command::Output { output, state }, binary), "a setting").await
+    }
+
+    /// POSA; returns once the drive has taken it.
+    pub async fn move_absolute(&self, address: Address, target: Position, opts: MoveOptions) -> Result<()> {
+        self.done(Op::Move(address, Command::PosA(target), opts), "a move").await
+    }
+
+    /// POSR; returns once the drive has taken it (never sent again blind).
+    pub async fn move_relative(&self, address: Address, distance: Position, opts: MoveOptions) -> Result<()> {
+        self.done(Op::Move(address, Command::PosR(distance), opts), "a move").await
+    }
+
+    /// Several drives started at one instant; see [`Client::sync_start`](super::Client::sync_start).
+    pub async fn sync_start(&self, moves: &[(Address, Command)], message: bool) -> Result<()> {
+        self.done(Op::SyncStart(moves.to_vec(), message), "a synchronous start").await
+    }
+
+    /// Waits until the drives' positionings have ended; dropped, or failing, it stops those this client
+    /// started.
+    pub async fn wait_reached(&self, drives: &[Address], timeout: Option<Duration>) -> Result<()> {
+        self.done(Op::Wait(drives.to_vec(), timeout), "a wait").await
+    }
+
+    /// A checked move; see [`Client::move_to`](super::Client::move_to). Dropping the future stops the axis.
+    pub async fn move_to(&self, address: Address, request: &MoveRequest) -> Result<MoveReport> {
+        output(self.driver.run(Op::MoveTo(address, *request)).await?, "a checked move", |o| match o {
+            Output::Moved(r) => Ok(r),
+            o => Err(o),
+        })
+    }
+
+    /// The first half of a checked move, up to the target read back.
+    pub async fn start_checked_move(&self, address: Address, request: &MoveRequest) -> Result<StartedMove> {
+        output(self.driver.run(Op::StartMove(address, *request, false)).await?, "a checked move", |o| match o {
+            Output::Started(s) => Ok(s),
+            o => Err(o),
+        })
+    }
+
+    /// The second half of a checked move: the wait and the position at rest.
+    pub async fn finish_checked_move(&self, started: &StartedMove, timeout: Option<Duration>) -> Result<MoveReport> {
+        output(self.driver.run(Op::FinishMove(*started, timeout)).await?, "a checked move", |o| match o {
+            Output::Moved(r) => Ok(r),
+            o => Err(o),
+        })
+    }
+
+    /// `OUTPUT O0=0` to one drive, acknowledged.
+    pub async fn stop(&self, address: Address) -> Result<()> {
+        self.done(Op::Stop(address), "a stop").await
+    }
+
+    /// Stops every drive this client set in motion that still moves, confirmed by S17.
+    pub async fn stop_started(&self) -> StopReport {
+        match self.driver.run(Op::StopStarted).await {
+            Ok(Output::Stopped(r)) => r,
+            Ok(_) | Err(_) => StopReport::default(),
+        }
+    }
+
+    /// Stops what this client set in motion that still moves, ends the session and returns the report;
+    /// see [`Client::close`](super::Client::close). Runs on tokio's blocking pool.
+    pub async fn close(self) -> Result<StopReport> {
+        let AsyncClient { driver, close_report, .. } = self;
+        driver.close().await?;
+        let report = lock(&close_report).take().unwrap_or_default();
+        Ok(report)
+    }
+}

@@ -1,0 +1,426 @@
+//! The one error of the COMPAX crate, classified ([`Classify`]) for every front end, and the report of a
+//! stop ([`StopReport`]) that errors carry when they ended an action while axes may have been moving.
+
+use std::fmt;
+use std::time::Duration;
+
+use motionlink_link::error::{Classify, ErrorClass, TransportKind};
+use motionlink_link::session::SessionError;
+use motionlink_link::LinkError;
+
+use crate::model::{ErrorCode, ModelError, ParamId};
+use crate::wire::reply::ReplyError;
+use crate::wire::{Address, WireError};
+
+/// An error of a COMPAX session. Positions and distances are in the drive's position unit.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The drive answered with an error message.
+    #[error("drive {address}: {command:?} refused with {code}")]
+    Device {
+        /// The drive.
+        address: u8,
+        /// The command sent.
+        command: String,
+        /// The error.
+        code: ErrorCode,
+    },
+    /// No reply in time, after every retry.
+    #[error("drive {address}: no reply to {command:?} ({attempts} attempts)")]
+    Timeout {
+        /// The drive.
+        address: u8,
+        /// The command sent.
+        command: String,
+        /// Telegrams sent.
+        attempts: u32,
+    },
+    /// Replies arrived corrupt (BCC, framing), after every retry.
+    #[error("drive {address}: corrupt reply to {command:?}: {detail}")]
+    Corrupt {
+        /// The drive.
+        address: u8,
+        /// The command sent.
+        command: String,
+        /// The last corruption seen.
+        detail: ReplyError,
+    },
+    /// A reply the client cannot read.
+    #[error("drive {address}: unexpected reply {reply:?} to {command:?}")]
+    Unexpected {
+        /// The drive.
+        address: u8,
+        /// The command sent.
+        command: String,
+        /// The reply text.
+        reply: String,
+    },
+    /// The port failed.
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    /// An argument out of range.
+    #[error(transparent)]
+    Invalid(#[from] ModelError),
+    /// A telegram that cannot be built.
+    #[error(transparent)]
+    Wire(#[from] WireError),
+    /// A move's reply was lost and the drive's state does not tell whether it took the move.
+    #[error("drive {address}: the reply to {command:?} was lost and the drive's target ({target}) does not tell whether it was executed")]
+    MoveUncertain {
+        /// The drive.
+        address: u8,
+        /// The command sent.
+        command: String,
+        /// The target position S2 read afterwards.
+        target: f64,
+    },
+    /// A wait for a position did not end in time; the axes were stopped.
+    #[error("drive {address} did not reach its position within {after:?}; stopped")]
+    MoveTimeout {
+        /// The drive.
+        address: u8,
+        /// The time waited.
+        after: Duration,
+    },
+    /// The operation was cancelled (a cancelled token, a dropped future, the session closing): no move is
+    /// sent once it is. A cancelled wait or move returns it inside [`Error::Aborted`], which says how the
+    /// axes were stopped.
+    #[error("cancelled: no further motion is sent")]
+    Cancelled,
+    /// An action failed, or was cancelled, while axes this client set in motion may have been moving: the
+    /// client tried to stop them, and `stop` says for each drive whether the drive confirmed it (and, if
+    /// not, that the axis may still be moving).
+    #[error("{cause}; {stop}")]
+    Aborted {
+        /// What went wrong.
+        cause: Box<Error>,
+        /// What the client did to stop the axes, drive by drive.
+        stop: StopReport,
+    },
+    /// A move ended with the axis at rest away from its target.
+    #[error(
+        "drive {address} did not reach its target: target {target}, reached {reached}, difference {difference:.3} \
+         (in-position tolerance {tolerance})"
+    )]
+    NotReached {
+        /// The drive.
+        address: u8,
+        /// The target asked for.
+        target: f64,
+        /// The actual position S1 read at rest.
+        reached: f64,
+        /// `reached - target`.
+        difference: f64,
+        /// [`BusConfig::in_position_tolerance`](crate::session::BusConfig::in_position_tolerance).
+        tolerance: f64,
+    },
+    /// The target a drive reports (S2, read twice after the move was sent) is not the one sent: a telegram
+    /// was corrupted on the way (without a BCC a flipped bit in a digit is still a valid command). Returned
+    /// inside [`Error::Aborted`]: the session stops the axis at once.
+    #[error(
+        "drive {address} took target {taken} instead of {requested} (its S2 after the move; a corrupted telegram?)"
+    )]
+    TargetMismatch {
+        /// The drive.
+        address: u8,
+        /// The target sent.
+        requested: f64,
+        /// The target S2 read back.
+        taken: f64,
+    },
+    /// A target outside the travel limits the caller gave
+    /// ([`TravelLimits`](crate::session::TravelLimits)); nothing was sent to move.
+    #[error("drive {address}: target {target} is outside the travel limits: it is {side} {limit}")]
+    OutsideLimits {
+        /// The drive.
+        address: u8,
+        /// The target.
+        target: f64,
+        /// "below the minimum" or "above the maximum".
+        side: &'static str,
+        /// The limit crossed.
+        limit: f64,
+    },
+    /// The drive is switched off (`OUTPUT O0=0`, S16 bits 7 and 8): it takes no move until it is switched on
+    /// again with `OUTPUT O0=1`. `refused` is the code it answered a move with, if one was sent.
+    #[error("drive {address} is switched off (O0={o0}, S16){}: it moves only once it is switched on again with OUTPUT O0=1", refused.map(|c| format!(" and refused the move with {c}")).unwrap_or_default())]
+    SwitchedOff {
+        /// The drive.
+        address: u8,
+        /// The O0 state S16 shows (0, or 2).
+        o0: u8,
+        /// The drive's answer to the move, when the move was sent.
+        refused: Option<ErrorCode>,
+    },
+    /// A parameter written reads back another value.
+    #[error(
+        "drive {address}: {param} reads back {read} after {wrote} was written: the drive did not store the value \
+         (without a BCC a corrupted telegram may even have written another parameter; P196 valence 8 adds one)"
+    )]
+    ReadBack {
+        /// The drive.
+        address: u8,
+        /// The parameter.
+        param: ParamId,
+        /// The value written.
+        wrote: f64,
+        /// The value read back.
+        read: f64,
+    },
+    /// A synchronous start could not store every move, and sent no `!`. The drives in `buffered`
+    /// acknowledged storing theirs (and the failed drive may have stored its own if its reply was lost): the
+    /// manual has no command that empties a drive's buffer, so the next `!` to such a drive, or any `32!` on
+    /// the bus, starts that move. The session counts them as started once it sends such a `!` itself.
+    #[error("drive {failed}: storing the synchronous move failed ({source}); no '!' was sent, but drives {buffered:?} still hold a buffered move that the next '!' to them or '32!' starts (the manual has no command to empty a buffer)")]
+    SyncIncomplete {
+        /// The drive whose move could not be stored.
+        failed: u8,
+        /// Why.
+        source: Box<Error>,
+        /// Drives that hold a buffered move from this call (ascending), the failed one included when its
+        /// reply was lost.
+        buffered: Vec<u8>,
+    },
+    /// Address 32 where one drive's answer or one drive is needed: every drive executes a broadcast and none
+    /// answers it.
+    #[error("address 32 is the broadcast: every drive executes it and none answers; {0}")]
+    Broadcast(&'static str),
+    /// The session is closed (or closing): it takes no new operation.
+    #[error("the COMPAX session is closed: it takes no new operation")]
+    Closed,
+    /// Closing the session: the stop of what it had set in motion was not confirmed for every drive.
+    #[error("closing the session: {stop}")]
+    CloseUnconfirmed {
+        /// Drive by drive, how the stop ended.
+        stop: StopReport,
+    },
+    /// Closing the session did not end within its bound: the stop of what it had set in motion may not
+    /// have reached the drives, whose axes may still be moving.
+    #[error(
+        "closing the session: the stop of the axes it moved did not end within {bound:?}; they may still be moving"
+    )]
+    CloseTimedOut {
+        /// The bound ([`BusConfig::close_bound`](crate::session::BusConfig::close_bound)).
+        bound: Duration,
+    },
+}
+
+impl Error {
+    /// True for errors of the line (timeout, corrupt reply, port), as opposed to the drive's answers (for
+    /// [`Error::Aborted`]: of its cause).
+    pub fn is_transport(&self) -> bool {
+        self.class().is_transport()
+    }
+
+    /// The drive's error code, if the drive refused (for [`Error::Aborted`]: in its cause).
+    pub fn device_code(&self) -> Option<ErrorCode> {
+        match self.root() {
+            Error::Device { code, .. } => Some(*code),
+            Error::SwitchedOff { refused, .. } => *refused,
+            _ => None,
+        }
+    }
+
+    /// What went wrong in the first place: the cause of an [`Error::Aborted`], or the error itself.
+    pub fn root(&self) -> &Error {
+        match self {
+            Error::Aborted { cause, .. } => cause.root(),
+            other => other,
+        }
+    }
+
+    /// What the session did to stop the axes, when the error ended an action that may have left them
+    /// moving ([`Error::Aborted`], [`Error::CloseUnconfirmed`]).
+    pub fn stop_report(&self) -> Option<&StopReport> {
+        match self {
+            Error::Aborted { stop, .. } | Error::CloseUnconfirmed { stop } => Some(stop),
+            _ => None,
+        }
+    }
+
+    /// The drives this error left (or found) switched off: they take no move until `OUTPUT O0=1`.
+    pub fn switched_off_drives(&self) -> Vec<u8> {
+        match self {
+            Error::SwitchedOff { address, .. } => vec![*address],
+            _ => self.stop_report().map(|r| r.switched_off().iter().map(|a| a.get()).collect()).unwrap_or_default(),
+        }
+    }
+}
+
+impl Classify for Error {
+    fn class(&self) -> ErrorClass {
+        match self {
+            Error::Device { .. } => ErrorClass::Refused,
+            Error::MoveTimeout { .. }
+            | Error::NotReached { .. }
+            | Error::TargetMismatch { .. }
+            | Error::SwitchedOff { .. }
+            | Error::ReadBack { .. }
+            | Error::CloseUnconfirmed { .. } => ErrorClass::Device,
+            Error::Timeout { .. } | Error::MoveUncertain { .. } | Error::CloseTimedOut { .. } => {
+                ErrorClass::Transport(TransportKind::Timeout)
+            }
+            Error::Corrupt { .. } | Error::Unexpected { .. } => ErrorClass::Transport(TransportKind::Corrupt),
+            Error::Link(e) => e.class(),
+            Error::Invalid(_) | Error::Wire(_) | Error::Broadcast(_) | Error::OutsideLimits { .. } | Error::Closed => {
+                ErrorClass::Usage
+            }
+            Error::Cancelled => ErrorClass::Cancelled,
+            Error::Aborted { cause, .. } => cause.class(),
+            Error::SyncIncomplete { source, .. } => source.class(),
+        }
+    }
+}
+
+impl SessionError for Error {
+    fn close_unconfirmed(bound: Duration) -> Self {
+        Error::CloseTimedOut { bound }
+    }
+
+    fn session_closed() -> Self {
+        Error::Closed
+    }
+}
+
+/// A result of a COMPAX operation.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// A copy of a link error (the one of the port is handed to the operation whose telegram failed; others
+/// waiting on the line get a copy with the same kind).
+pub(crate) fn copy_link_error(e: &LinkError) -> LinkError {
+    match e {
+        LinkError::Open { port, reason } => LinkError::Open { port: port.clone(), reason: reason.clone() },
+        LinkError::Disconnected { port, reason } => {
+            LinkError::Disconnected { port: port.clone(), reason: reason.clone() }
+        }
+        LinkError::Io { port, source } => {
+            LinkError::Io { port: port.clone(), source: std::io::Error::new(source.kind(), source.to_string()) }
+        }
+        LinkError::InvalidPort { port, reason } => {
+            LinkError::InvalidPort { port: port.clone(), reason: reason.clone() }
+        }
+    }
+}
+
+/// How stopping one drive ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum StopOutcome {
+    /// The drive reported no command active (S17): its positioning had ended; it was not switched off.
+    AtRest,
+    /// `OUTPUT O0=0` was acknowledged and the drive then reported no command active (S17): the axis is at
+    /// rest and the drive is switched off; it takes no move until `OUTPUT O0=1` switches it on.
+    SwitchedOff,
+    /// The drive did not confirm the stop (no acknowledgement of `OUTPUT O0=0`, or S17 unreadable or still
+    /// "command active" after it): the axis may still be moving.
+    NotConfirmed {
+        /// What happened.
+        reason: String,
+    },
+}
+
+/// What a stop of the axes a session set in motion did, drive by drive.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct StopReport {
+    /// Each drive the session had set in motion, and how stopping it ended.
+    pub drives: Vec<(Address, StopOutcome)>,
+}
+
+impl StopReport {
+    /// True when there was nothing to stop.
+    pub fn is_empty(&self) -> bool {
+        self.drives.is_empty()
+    }
+
+    /// True when every drive confirmed it is at rest (found at rest, or switched off and then at rest).
+    pub fn all_confirmed(&self) -> bool {
+        self.drives.iter().all(|(_, o)| !matches!(o, StopOutcome::NotConfirmed { .. }))
+    }
+
+    /// The drives switched off (they need `OUTPUT O0=1` before the next move).
+    pub fn switched_off(&self) -> Vec<Address> {
+        self.drives.iter().filter(|(_, o)| *o == StopOutcome::SwitchedOff).map(|(a, _)| *a).collect()
+    }
+
+    /// The drives whose stop was not confirmed (they may still be moving).
+    pub fn unconfirmed(&self) -> Vec<Address> {
+        self.drives.iter().filter(|(_, o)| matches!(o, StopOutcome::NotConfirmed { .. })).map(|(a, _)| *a).collect()
+    }
+}
+
+impl fmt::Display for StopReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.drives.is_empty() {
+            return f.write_str("no axis of this client was moving");
+        }
+        for (i, (a, o)) in self.drives.iter().enumerate() {
+            if i > 0 {
+                f.write_str("; ")?;
+            }
+            match o {
+                StopOutcome::AtRest => write!(f, "drive {a} was already at rest (left switched on)")?,
+                StopOutcome::SwitchedOff => write!(
+                    f,
+                    "drive {a} was stopped by switching it off (OUTPUT O0=0, confirmed by the drive): the drive is \
+                     now switched off and takes no move until OUTPUT O0=1 switches it on"
+                )?,
+                StopOutcome::NotConfirmed { reason } => write!(
+                    f,
+                    "drive {a}: the stop was NOT confirmed by the drive ({reason}): the axis may still be moving"
+                )?,
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_error_has_the_class_a_front_end_maps() {
+        let stop = StopReport { drives: vec![(Address::drive(3).unwrap(), StopOutcome::SwitchedOff)] };
+        let cases: Vec<(Error, ErrorClass)> = vec![
+            (Error::Device { address: 1, command: "S1".into(), code: ErrorCode(92) }, ErrorClass::Refused),
+            (
+                Error::NotReached { address: 1, target: 1.0, reached: 0.5, difference: -0.5, tolerance: 0.01 },
+                ErrorClass::Device,
+            ),
+            (
+                Error::Timeout { address: 1, command: "S1".into(), attempts: 4 },
+                ErrorClass::Transport(TransportKind::Timeout),
+            ),
+            (
+                Error::Unexpected { address: 1, command: "S1".into(), reply: "x".into() },
+                ErrorClass::Transport(TransportKind::Corrupt),
+            ),
+            (
+                Error::Link(LinkError::Disconnected { port: "p".into(), reason: "r".into() }),
+                ErrorClass::Transport(TransportKind::Disconnected),
+            ),
+            (Error::Broadcast("x"), ErrorClass::Usage),
+            (Error::Cancelled, ErrorClass::Cancelled),
+            (Error::Aborted { cause: Box::new(Error::Cancelled), stop: stop.clone() }, ErrorClass::Cancelled),
+            (
+                Error::Aborted {
+                    cause: Box::new(Error::TargetMismatch { address: 3, requested: 15.0, taken: 14.0 }),
+                    stop,
+                },
+                ErrorClass::Device,
+            ),
+            (Error::close_unconfirmed(Duration::from_secs(5)), ErrorClass::Transport(TransportKind::Timeout)),
+            (Error::session_closed(), ErrorClass::Usage),
+        ];
+        for (e, class) in cases {
+            assert_eq!(e.class(), class, "{e}");
+        }
+    }
+
+    #[test]
+    fn a_copied_link_error_keeps_its_kind() {
+        let e = LinkError::Io { port: "p".into(), source: std::io::Error::from(std::io::ErrorKind::TimedOut) };
+        let c = copy_link_error(&e);
+        assert_eq!(c.class(), e.class());
+        assert_eq!(c.to_string(), e.to_string());
+    }
+}

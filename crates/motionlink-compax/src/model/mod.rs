@@ -1,0 +1,73 @@
+//! The COMPAX vocabulary as types: commands, status values S1..S40, the status bit words S16 / S17, the
+//! error history S18, parameters Pnnn, and error codes Exx.
+//!
+//! Each table is written once and everything else (the session, the emulator, the command line, the capture
+//! decoder) reads it: status values and parameters are rows of the shared
+//! [`Table`](motionlink_link::table::Table) ([`STATUS`], [`PARAMS`]), the bit words S16 / S17 are shared
+//! [`flag_set!`](motionlink_link::flag_set) words ([`S16Bits`], [`S17Bits`]).
+//!
+//! - [`units`]: [`Position`] (the drive's position unit), [`SpeedPercent`], [`RampMs`], [`OutputState`].
+//! - [`status`]: [`StatusId`] and its table; [`value`]: [`StatusValue`] as read; [`bits`]: S16 / S17.
+//! - [`param`]: [`ParamId`] and its table; [`error_code`]: [`ErrorCode`]; [`command`]: [`Command`].
+//!
+//! ```
+//! use motionlink_compax::model::{Command, CommandStyle, Position};
+//! let c = Command::PosA(Position::new(360.0).unwrap());
+//! assert_eq!(c.to_ascii(CommandStyle::Long).unwrap().as_str(), "POSA 360");
+//! assert_eq!(c.to_ascii(CommandStyle::Short).unwrap().as_str(), "PA 360");
+//! assert_eq!(Command::parse(b"PR 200 OT O9=1").unwrap().to_ascii(CommandStyle::Long).unwrap().as_str(),
+//!            "POSR 200 OUTPUT O9=1");
+//! ```
+
+pub mod bits;
+pub mod command;
+pub mod error_code;
+pub mod param;
+pub mod status;
+#[cfg(test)]
+mod tests;
+pub mod units;
+pub mod value;
+
+pub use bits::{bit_mask, BitPattern, S16Bits, S16Flag, S17Bits, S17Flag};
+pub use command::{Command, CommandStyle, CommandText};
+pub use error_code::ErrorCode;
+pub use param::{parse_param_reply, write_param_reply, ParamDetail, ParamId, ValidFrom, BAUD_RATES, PARAMS};
+pub use status::{StatusDetail, StatusId, StatusKind, STATUS};
+pub use units::{OutputState, Position, RampMs, SpeedPercent};
+pub use value::{HistoryEntry, StatusValue};
+
+use crate::wire::WireError;
+
+/// A value or text the model cannot accept.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ModelError {
+    /// A value outside its range.
+    #[error("{what} {value} is out of range ({range})")]
+    Range {
+        /// What the value is.
+        what: &'static str,
+        /// The value as given.
+        value: String,
+        /// The allowed range.
+        range: &'static str,
+    },
+    /// Text that is not a command or a value of the expected form.
+    #[error("cannot read {what} from {text:?}")]
+    Syntax {
+        /// What was expected.
+        what: &'static str,
+        /// The text.
+        text: String,
+    },
+    /// The command has no binary form.
+    #[error("{0} has no binary form")]
+    NoBinary(&'static str),
+    /// A wire format limit.
+    #[error(transparent)]
+    Wire(#[from] WireError),
+}
+
+pub(crate) fn syntax(what: &'static str, text: &[u8]) -> ModelError {
+    ModelError::Syntax { what, text: String::from_utf8_lossy(text).into_owned() }
+}

@@ -1,0 +1,579 @@
+//! The engine of a session: the one line (a queue of telegrams, one in flight at a time, its reply matched,
+//! timed out, sent again when that is safe) and the session's record of the drives (which it set in
+//! motion, which answered it, which owe a `$` message, which have comparators armed). Operations reach it
+//! through their [`Ctx`](super::ctx::Ctx); nothing here does I/O or reads a clock.
+
+use std::collections::{HashMap, HashSet, VecDeque};
+use std::time::Duration;
+
+use motionlink_link::session::OpId;
+use motionlink_link::{LinkError, Timestamp};
+
+use super::types::{BusConfig, Progress};
+use crate::error::{copy_link_error, Error};
+use crate::model::{parse_param_reply, Command, ErrorCode, OutputState, ParamId, StatusId, StatusValue};
+use crate::wire::reply::ReplyError;
+use crate::wire::{Address, Body, EscapedBytes, Flags, Reply, ReplyDecoder, ReplyEvent, ReplyKind, Request, BROADCAST};
+
+/// Bits 1..=31: every drive address.
+pub(crate) const ALL_DRIVES: u32 = !1;
+
+/// The bit of drive `a` in the session's sets of drives; for the broadcast address 32, every drive's.
+pub(crate) fn bit(a: Address) -> u32 {
+    if a.is_broadcast() {
+        ALL_DRIVES
+    } else {
+        1 << a.get()
+    }
+}
+
+/// The drives in a set, ascending.
+pub(crate) fn drives_in(set: u32) -> Vec<Address> {
+    (1..BROADCAST).filter(|a| set & (1 << a) != 0).filter_map(|a| Address::drive(a).ok()).collect()
+}
+
+/// When a telegram may be sent again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Retry {
+    /// After E70 / E72 / E73, a timeout or a corrupt reply.
+    Idempotent,
+    /// After E70 / E72 / E73 only; a lost reply is returned to the caller (who checks the drive's state).
+    DiscardedOnly,
+}
+
+/// What the reply to a request can be, as far as a bare number (`35`, which is also what a comparator sends)
+/// is concerned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum ReplyShape {
+    /// The value of a status read: a bare number is its reply if it reads as that status value.
+    Status(StatusId),
+    /// The value of a parameter read: a bare number is its reply if it reads as a value.
+    Param(ParamId),
+    /// An acknowledgement or `Exx` only (moves, settings, outputs, binary telegrams): never a bare number.
+    AckOnly,
+    /// Anything (an echo, `!`, text the model cannot read): a bare number may be its reply.
+    Any,
+}
+
+impl ReplyShape {
+    pub(crate) fn of(req: &Request<'_>) -> ReplyShape {
+        if req.flags.echo {
+            return ReplyShape::Any;
+        }
+        match req.body {
+            Body::Execute => ReplyShape::Any,
+            Body::Binary(_) => ReplyShape::AckOnly,
+            Body::Command(t) => match Command::parse(t) {
+                Ok(Command::ReadStatus(id)) => ReplyShape::Status(id),
+                Ok(Command::ReadParam(id)) => ReplyShape::Param(id),
+                Ok(_) => ReplyShape::AckOnly,
+                Err(_) => ReplyShape::Any,
+            },
+        }
+    }
+
+    /// True if `text` (not an error message) can answer the request at all: an acknowledgement is empty,
+    /// a read's reply reads as its value.
+    fn accepts(self, text: &[u8]) -> bool {
+        match self {
+            ReplyShape::AckOnly => text.is_empty(),
+            other => other.fits(text),
+        }
+    }
+
+    /// True if a bare number `text` can be the reply.
+    fn fits(self, text: &[u8]) -> bool {
+        match self {
+            ReplyShape::Status(id) => StatusValue::parse(id, text).is_ok(),
+            ReplyShape::Param(id) => parse_param_reply(id, text).is_ok(),
+            ReplyShape::AckOnly => false,
+            ReplyShape::Any => true,
+        }
+    }
+}
+
+/// What a command does to the session's record of the axes it moves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Effect {
+    /// Nothing the session tracks.
+    None,
+    /// It may start a positioning (a move, or `!`, which runs whatever the buffer holds).
+    Starts,
+    /// `OUTPUT O0=0` / `=2`: the drive is switched off, its positioning ends.
+    SwitchesOff,
+    /// `POSR x OUTPUT Oy=z`: a comparator, whose number the drive will send unasked.
+    Comparator,
+}
+
+impl Effect {
+    pub(crate) fn of_command(c: &Command) -> Effect {
+        match c {
+            c if c.is_move() => Effect::Starts,
+            Command::Output { output: 0, state } if *state != OutputState::ON => Effect::SwitchesOff,
+            Command::PosROutput { .. } => Effect::Comparator,
+            _ => Effect::None,
+        }
+    }
+
+    /// Of a telegram as a raw command sends it. A stored (`,`) or echoed (`?`) command is not executed;
+    /// `!` may start anything. Text the model cannot read is not tracked.
+    pub(crate) fn of_request(body: &Body<'_>, flags: Flags) -> Effect {
+        if flags.echo || flags.buffer {
+            return Effect::None;
+        }
+        match body {
+            Body::Execute => Effect::Starts,
+            Body::Command(t) => Command::parse(t).map_or(Effect::None, |c| Effect::of_command(&c)),
+            Body::Binary(b) => Command::from_binary(b).map_or(Effect::None, |c| Effect::of_command(&c)),
+        }
+    }
+}
+
+/// A telegram to send, and how its reply is matched and retried.
+#[derive(Debug)]
+pub(crate) struct Job {
+    pub id: u64,
+    pub op: OpId,
+    pub frame: Vec<u8>,
+    pub address: Address,
+    /// The command as messages name it.
+    pub command: String,
+    pub expects_reply: bool,
+    /// What can answer it (any other reply is late or garbled).
+    pub accept: ReplyShape,
+    pub retry: Retry,
+    /// How often it may be sent again.
+    pub retries: u32,
+    /// Sent before the other operations' telegrams (the stop sequence).
+    pub urgent: bool,
+    attempts: u32,
+    last_corrupt: Option<ReplyError>,
+    unfit: Option<String>,
+}
+
+impl Job {
+    /// A job for `req`, owned by `op`.
+    pub(crate) fn new(op: OpId, req: &Request<'_>, cfg: &BusConfig, retry: Retry) -> Result<Job, Error> {
+        let frame = req.encode(&cfg.mode)?;
+        Ok(Job {
+            id: 0,
+            op,
+            frame: frame.as_bytes().to_vec(),
+            address: req.address,
+            command: command_text(&req.body, req.flags),
+            expects_reply: req.expects_reply(),
+            accept: ReplyShape::of(req),
+            retry,
+            retries: cfg.retries,
+            urgent: false,
+            attempts: 0,
+            last_corrupt: None,
+            unfit: None,
+        })
+    }
+}
+
+/// The command of a telegram as messages name it.
+pub(crate) fn command_text(body: &Body<'_>, flags: Flags) -> String {
+    match body {
+        Body::Command(t) => format!("{}{flags}", EscapedBytes(t)),
+        Body::Execute => format!("!{flags}"),
+        Body::Binary(b) => format!("{b} (binary)"),
+    }
+}
+
+/// The outcome of a job: the reply (`None` when none is due), or why there is none.
+pub(crate) type JobResult = Result<Option<Reply>, Error>;
+
+/// The telegram on the line.
+#[derive(Debug)]
+struct InFlight {
+    job: Job,
+    /// When its reply is late (or, for a telegram without reply, when it has left).
+    deadline: Timestamp,
+}
+
+/// The session's state, shared by its operations.
+#[derive(Debug)]
+pub(crate) struct Core {
+    pub cfg: BusConfig,
+    /// The time of the latest call into the session.
+    pub now: Timestamp,
+    /// Drives this session set in motion and has not yet seen stop (bit n: address n).
+    pub started: u32,
+    /// Drives that have answered this session (a broadcast move counts as started for each of them).
+    pub known: u32,
+    /// Drives whose move asked for `$` and whose message has not come.
+    pub awaiting_message: u32,
+    /// Drives whose `$` has come.
+    pub message_seen: u32,
+    /// `$` messages without address that could not be attributed.
+    pub unattributed_messages: u32,
+    /// Drives with comparators armed (their bare-number messages are expected).
+    pub comparators: u32,
+    /// Drives that may hold a move in their buffer, stored by this session and not yet executed.
+    pub buffered: u32,
+    decoder: ReplyDecoder,
+    queue: VecDeque<Job>,
+    in_flight: Option<InFlight>,
+    /// A job whose reply came corrupt: the rest of the broken reply passes before it is decided on.
+    settling: Option<InFlight>,
+    results: HashMap<u64, JobResult>,
+    next_job: u64,
+    /// XOFF received (since when).
+    paused: Option<Timestamp>,
+    /// Earliest time of the next send (after a telegram without reply, after a broadcast).
+    quiet_until: Timestamp,
+    /// Operations cancelled.
+    pub cancelled: HashSet<OpId>,
+    /// Operations waiting for a time: when.
+    pub sleepers: HashMap<OpId, Timestamp>,
+    /// Operations that listen while they wait: a line failure ends their wait.
+    pub listeners: HashSet<OpId>,
+    /// A line failure for each listening operation.
+    pub line_failures: HashMap<OpId, LinkError>,
+    /// Progress reports not yet handed out.
+    pub progress: VecDeque<(OpId, Progress)>,
+}
+
+impl Core {
+    pub(crate) fn new(cfg: BusConfig, now: Timestamp) -> Self {
+        Core {
+            decoder: ReplyDecoder::new(&cfg.mode),
+            cfg,
+            now,
+            started: 0,
+            known: 0,
+            awaiting_message: 0,
+            message_seen: 0,
+            unattributed_messages: 0,
+            comparators: 0,
+            buffered: 0,
+            queue: VecDeque::new(),
+            in_flight: None,
+            settling: None,
+            results: HashMap::new(),
+            next_job: 0,
+            paused: None,
+            quiet_until: Timestamp::ZERO,
+            cancelled: HashSet::new(),
+            sleepers: HashMap::new(),
+            listeners: HashSet::new(),
+            line_failures: HashMap::new(),
+            progress: VecDeque::new(),
+        }
+    }
+
+    // --------------------------------------------------------------------------------------------------
+    // The record of the drives
+
+    /// Records what sending a command with `effect` to `address` does, before it is sent (a move counts as
+    /// started before it is sent: if the session fails then, the stop still reaches it). Returns the state
+    /// to restore if the drive refuses the command (or it is never sent).
+    pub(crate) fn before_send(&mut self, address: Address, effect: Effect) -> u32 {
+        let saved = self.started;
+        if effect == Effect::Starts {
+            let drives = if address.is_broadcast() { self.known } else { bit(address) };
+            if address.is_broadcast() && drives == 0 {
+                tracing::warn!("a broadcast that may start motion before any drive answered: none can be stopped");
+            }
+            self.started |= drives;
+        }
+        saved
+    }
+
+    /// Records what a command with `effect` did once the drive took it.
+    pub(crate) fn after_send(&mut self, address: Address, effect: Effect) {
+        match effect {
+            Effect::SwitchesOff => self.finish(address),
+            Effect::Comparator => self.comparators |= bit(address),
+            Effect::Starts | Effect::None => {}
+        }
+    }
+
+    /// Before a `!` to `address` (32: every drive) is sent: the buffered moves it executes count as started.
+    pub(crate) fn execute_buffers(&mut self, address: Address) {
+        let executed = self.buffered & bit(address);
+        self.started |= executed;
+        self.buffered &= !executed;
+    }
+
+    /// Forgets `a` as moving: its positioning ended (or the broadcast address: every drive's). Its
+    /// comparators belonged to that positioning, so bare numbers are replies again.
+    pub(crate) fn finish(&mut self, a: Address) {
+        self.started &= !bit(a);
+        self.awaiting_message &= !bit(a);
+        self.message_seen &= !bit(a);
+        self.comparators &= !bit(a);
+        if self.awaiting_message == 0 {
+            self.unattributed_messages = 0;
+        }
+    }
+
+    /// Hands the motion of `drives` over: the session forgets it set them in motion.
+    pub(crate) fn release(&mut self, drives: &[Address]) {
+        for &a in drives {
+            self.started &= !bit(a);
+            self.awaiting_message &= !bit(a);
+            self.message_seen &= !bit(a);
+        }
+        if self.awaiting_message == 0 {
+            self.unattributed_messages = 0;
+        }
+    }
+
+    // --------------------------------------------------------------------------------------------------
+    // The line
+
+    /// Queues `job`; returns its ticket.
+    pub(crate) fn submit(&mut self, mut job: Job) -> u64 {
+        self.next_job += 1;
+        job.id = self.next_job;
+        let id = job.id;
+        if job.urgent {
+            let at = self.queue.iter().position(|j| !j.urgent).unwrap_or(self.queue.len());
+            self.queue.insert(at, job);
+        } else {
+            self.queue.push_back(job);
+        }
+        id
+    }
+
+    /// The outcome of job `ticket`, once there is one.
+    pub(crate) fn take_result(&mut self, ticket: u64) -> Option<JobResult> {
+        self.results.remove(&ticket)
+    }
+
+    /// Drops the telegrams of `op` not yet sent: each ends as cancelled.
+    pub(crate) fn drop_queued(&mut self, op: OpId) {
+        let (dropped, kept): (Vec<Job>, Vec<Job>) = self.queue.drain(..).partition(|j| j.op == op && !j.urgent);
+        self.queue = kept.into();
+        for j in dropped {
+            tracing::debug!("drive {}: {:?} not sent: its operation was cancelled", j.address, j.command);
+            self.results.insert(j.id, Err(Error::Cancelled));
+        }
+    }
+
+    /// True while a telegram is on the line or being settled.
+    pub(crate) fn busy(&self) -> bool {
+        self.in_flight.is_some() || self.settling.is_some()
+    }
+
+    /// True when nothing is queued or on the line.
+    pub(crate) fn line_idle(&self) -> bool {
+        !self.busy() && self.queue.is_empty()
+    }
+
+    /// True while something may arrive that the session must read.
+    pub(crate) fn wants_input(&self) -> bool {
+        self.in_flight.as_ref().is_some_and(|f| f.job.expects_reply)
+            || self.settling.is_some()
+            || (!self.listeners.is_empty() && (self.awaiting_message | self.comparators) != 0)
+    }
+
+    /// When the line next needs the session.
+    pub(crate) fn line_timeout(&self) -> Option<Timestamp> {
+        if let Some(f) = self.in_flight.as_ref().or(self.settling.as_ref()) {
+            return Some(f.deadline);
+        }
+        if self.queue.is_empty() {
+            return None;
+        }
+        let mut t = None;
+        if self.quiet_until > self.now {
+            t = Some(self.quiet_until);
+        }
+        if let Some(since) = self.paused {
+            let give_up = since + self.cfg.reply_timeout;
+            if give_up > self.now {
+                t = Some(t.map_or(give_up, |q: Timestamp| q.max(give_up)));
+            }
+        }
+        t
+    }
+
+    /// The next telegram to send at `now`, if one may go.
+    pub(crate) fn transmit(&mut self, now: Timestamp) -> Option<Vec<u8>> {
+        self.now = now;
+        if self.busy() || self.queue.is_empty() || now < self.quiet_until {
+            return None;
+        }
+        if let Some(since) = self.paused {
+            if now < since + self.cfg.reply_timeout {
+                return None;
+            }
+            tracing::debug!("XOFF for {:?}: sending anyway", now - since);
+        }
+        let mut job = self.queue.pop_front()?;
+        job.attempts += 1;
+        self.decoder.reset();
+        self.decoder.expect_from(Some(job.address.get()));
+        tracing::trace!("send {:?}", EscapedBytes(&job.frame));
+        let frame = job.frame.clone();
+        let deadline = if job.expects_reply {
+            now + self.cfg.char_time() * (frame.len() as u32 + 48) + self.cfg.reply_timeout
+        } else {
+            let on_wire = self.cfg.char_time() * frame.len() as u32;
+            let gap = if job.address.is_broadcast() { self.cfg.broadcast_gap } else { Duration::ZERO };
+            self.quiet_until = now + on_wire + gap;
+            now + on_wire
+        };
+        self.in_flight = Some(InFlight { job, deadline });
+        Some(frame)
+    }
+
+    /// Bytes arrived at `now`.
+    pub(crate) fn receive(&mut self, mut bytes: &[u8], now: Timestamp) {
+        self.now = now;
+        while !bytes.is_empty() {
+            let (used, event) = self.decoder.decode(bytes);
+            let event = event.map(ReplyEvent::from);
+            bytes = &bytes[used.max(1).min(bytes.len())..];
+            let Some(ev) = event else { continue };
+            match ev {
+                ReplyEvent::Flow(xoff) => {
+                    self.paused = if xoff { Some(self.paused.unwrap_or(now)) } else { None };
+                }
+                ReplyEvent::Reply(r) if self.handle_unsolicited(&r) => {}
+                ReplyEvent::Reply(r) => self.reply(r),
+                ReplyEvent::Error(e) => self.corrupt(e, now),
+            }
+        }
+    }
+
+    /// A reply that is not an unsolicited message.
+    fn reply(&mut self, r: Reply) {
+        let Some(f) = self.in_flight.as_mut().filter(|f| f.job.expects_reply) else {
+            tracing::debug!("unexpected while listening: {r:?}");
+            return;
+        };
+        let want = f.job.address;
+        if r.address().is_some_and(|a| a != want.get()) {
+            tracing::warn!("ignoring a reply from drive {:?} while waiting for {want}: {r:?}", r.address());
+            return;
+        }
+        // A reply that cannot answer this request (text to a move or setting, an acknowledgement or
+        // another value to a read) is a late reply to an earlier one, or garbled: it is not taken.
+        if !matches!(r.kind(), ReplyKind::Error(_)) && !f.job.accept.accepts(r.text()) {
+            tracing::info!("drive {want}: {:?} cannot answer this request: ignored", r.text_str());
+            f.job.unfit = Some(r.text_str().to_string());
+            return;
+        }
+        let Some(InFlight { job, .. }) = self.in_flight.take() else { return };
+        if !job.address.is_broadcast() {
+            self.known |= bit(job.address);
+        }
+        let retry_left = job.attempts <= job.retries;
+        match r.kind() {
+            ReplyKind::Error(code) if ErrorCode(code).is_retransmit() && retry_left => {
+                tracing::info!("drive {} answered E{code}: sending again", job.address);
+                self.queue.push_front(job);
+            }
+            ReplyKind::Error(code) => {
+                let e = Error::Device { address: job.address.get(), command: job.command, code: ErrorCode(code) };
+                self.results.insert(job.id, Err(e));
+            }
+            _ => {
+                self.results.insert(job.id, Ok(Some(r)));
+            }
+        }
+    }
+
+    /// A corrupt reply: the rest of it passes (four character times) before the telegram is decided on.
+    fn corrupt(&mut self, e: ReplyError, now: Timestamp) {
+        let Some(InFlight { mut job, .. }) = self.in_flight.take_if(|f| f.job.expects_reply) else {
+            tracing::debug!("corrupt bytes while listening: {e}");
+            return;
+        };
+        tracing::info!("drive {}: corrupt reply ({e})", job.address);
+        job.last_corrupt = Some(e);
+        self.settling = Some(InFlight { job, deadline: now + self.cfg.char_time() * 4 });
+    }
+
+    /// Time has reached `now`: a reply is late, a settling ends, a telegram without reply has left.
+    pub(crate) fn tick(&mut self, now: Timestamp) {
+        self.now = now;
+        if let Some(s) = self.settling.take_if(|s| now >= s.deadline) {
+            let job = s.job;
+            let retry_left = job.attempts <= job.retries;
+            match job.last_corrupt {
+                Some(detail) if job.retry != Retry::Idempotent || !retry_left => {
+                    let e = Error::Corrupt { address: job.address.get(), command: job.command, detail };
+                    self.results.insert(job.id, Err(e));
+                }
+                _ => self.queue.push_front(job),
+            }
+        }
+        let Some(f) = self.in_flight.take_if(|f| now >= f.deadline) else { return };
+        let job = f.job;
+        if !job.expects_reply {
+            self.results.insert(job.id, Ok(None));
+            return;
+        }
+        tracing::info!("drive {}: no reply (attempt {})", job.address, job.attempts);
+        let retry_left = job.attempts <= job.retries;
+        if job.retry == Retry::Idempotent && retry_left {
+            self.queue.push_front(job);
+            return;
+        }
+        let (address, command) = (job.address.get(), job.command);
+        let e = match (job.unfit, job.last_corrupt) {
+            (Some(reply), _) => Error::Unexpected { address, command, reply },
+            (None, Some(detail)) if job.retry == Retry::Idempotent => Error::Corrupt { address, command, detail },
+            _ => Error::Timeout { address, command, attempts: job.attempts },
+        };
+        self.results.insert(job.id, Err(e));
+    }
+
+    /// The line failed: the telegram on it fails with `error`, and every listening operation learns of it.
+    pub(crate) fn line_failed(&mut self, error: LinkError, now: Timestamp) {
+        self.now = now;
+        for op in self.listeners.iter() {
+            self.line_failures.insert(*op, copy_link_error(&error));
+        }
+        match self.in_flight.take().or_else(|| self.settling.take()) {
+            Some(f) => {
+                self.results.insert(f.job.id, Err(Error::Link(error)));
+            }
+            None => tracing::debug!("line failure while nothing was on it: {error}"),
+        }
+    }
+
+    fn handle_unsolicited(&mut self, r: &Reply) -> bool {
+        match r.kind() {
+            ReplyKind::PositionReached => {
+                match r.address() {
+                    Some(a) => self.message_seen |= 1 << a.min(31),
+                    None if self.awaiting_message.count_ones() == 1 => self.message_seen |= self.awaiting_message,
+                    None => self.unattributed_messages += 1,
+                }
+                tracing::debug!("position reached message from {:?}", r.address());
+                true
+            }
+            ReplyKind::Comparator(n) if self.expects_comparator(r.address()) && !self.may_be_the_reply(r) => {
+                tracing::info!("comparator {n} switched (drive {:?})", r.address());
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// True when a bare number from `from` (the reply's address prefix, if any) is a comparator message: a
+    /// comparator is armed on that drive (on any, when replies carry no address).
+    fn expects_comparator(&self, from: Option<u8>) -> bool {
+        match from {
+            Some(a) => a < BROADCAST && self.comparators & (1 << a) != 0,
+            None => self.comparators != 0,
+        }
+    }
+
+    /// True when `r` can be the reply to the request awaiting one (from its drive, when replies carry an
+    /// address, and of the form that request is answered with). A reply to an outstanding request is that
+    /// request's reply first: a bare number is a comparator message only when it cannot be.
+    fn may_be_the_reply(&self, r: &Reply) -> bool {
+        match self.in_flight.as_ref().filter(|f| f.job.expects_reply) {
+            None => false,
+            Some(f) => r.address().is_none_or(|from| from == f.job.address.get()) && f.job.accept.fits(r.text()),
+        }
+    }
+}

@@ -1,0 +1,328 @@
+//! The operations of a session, each a state machine written as an `async fn` over a [`Ctx`]: the compiler
+//! turns each into an enum of its steps, which the session resumes whenever what a step waits for (a
+//! reply, a time, a cancellation) is there. No executor, no thread, no I/O.
+//!
+//! This file: reads, writes, settings, raw commands, the scan and the watch. [`moves`]: moves, the
+//! synchronous start, broadcasts. [`wait`]: waits, checked moves, stops.
+
+mod moves;
+mod wait;
+
+use std::ops::RangeInclusive;
+use std::time::Duration;
+
+use super::core::{Effect, Retry};
+use super::ctx::Ctx;
+use super::types::{s16_of, s17_of, Progress, WatchSample};
+use crate::error::{Error, Result};
+use crate::model::{
+    parse_param_reply, Command, ModelError, ParamId, Position, S16Bits, S17Bits, StatusId, StatusValue,
+};
+use crate::wire::{Address, Body, Flags, Reply, Request};
+
+impl Ctx {
+    /// Sends `cmd` to `address` as a command of its own (no flags).
+    pub(crate) async fn send_command(&self, address: Address, cmd: &Command, flags: Flags) -> Result<Option<Reply>> {
+        let style = self.core().cfg.style;
+        let text = cmd.to_ascii(style)?;
+        let retry = if cmd.is_idempotent() || flags.buffer { Retry::Idempotent } else { Retry::DiscardedOnly };
+        self.exchange(&Request { address, body: Body::Command(text.as_bytes()), flags }, retry).await
+    }
+
+    /// Sends a command whose answer is wanted, sent again at most `retries` times; refuses the broadcast
+    /// address (nobody answers it).
+    async fn ask(&self, address: Address, cmd: &Command, what: &'static str, retries: u32) -> Result<Reply> {
+        if address.is_broadcast() {
+            return Err(Error::Broadcast(what));
+        }
+        let style = self.core().cfg.style;
+        let text = cmd.to_ascii(style)?;
+        let req = Request { address, body: Body::Command(text.as_bytes()), flags: Flags::NONE };
+        self.exchange_retries(&req, Retry::Idempotent, retries).await?.ok_or(Error::Broadcast(what))
+    }
+
+    fn unexpected(address: Address, command: &Command, r: &[u8]) -> Error {
+        Error::Unexpected {
+            address: address.get(),
+            command: command.to_string(),
+            reply: String::from_utf8_lossy(r).into_owned(),
+        }
+    }
+
+    /// Reads status value `id`, asking again when the reply does not read as that value (without a BCC a
+    /// flipped bit can garble a reply beyond recognition), up to the session's retries: a read changes
+    /// nothing.
+    pub(crate) async fn read_status(&self, address: Address, id: StatusId) -> Result<StatusValue> {
+        let retries = self.core().cfg.retries;
+        self.read_status_retries(address, id, retries).await
+    }
+
+    /// [`Ctx::read_status`] with `retries` instead of the session's.
+    pub(crate) async fn read_status_retries(
+        &self,
+        address: Address,
+        id: StatusId,
+        retries: u32,
+    ) -> Result<StatusValue> {
+        let cmd = Command::ReadStatus(id);
+        let mut attempts = 0;
+        loop {
+            attempts += 1;
+            let r = self.ask(address, &cmd, "a status value cannot be read from it", retries).await?;
+            match StatusValue::parse(id, r.text()) {
+                Ok(v) => return Ok(v),
+                Err(_) if attempts <= retries => {
+                    tracing::info!("drive {address}: {id} answered {:?}, not a value: reading again", r.text_str());
+                }
+                Err(_) => return Err(Self::unexpected(address, &cmd, r.text())),
+            }
+        }
+    }
+
+    /// Several status values, a cancel ending it between two.
+    pub(crate) async fn read_statuses(
+        &self,
+        address: Address,
+        ids: &[StatusId],
+    ) -> Result<Vec<(StatusId, StatusValue)>> {
+        let mut values = Vec::with_capacity(ids.len());
+        for &id in ids {
+            self.check_cancel()?;
+            values.push((id, self.read_status(address, id).await?));
+        }
+        Ok(values)
+    }
+
+    async fn read_position_value(&self, address: Address, id: StatusId, retries: u32) -> Result<Position> {
+        match self.read_status_retries(address, id, retries).await? {
+            StatusValue::Position(p) => Ok(p),
+            other => {
+                Err(Error::Unexpected { address: address.get(), command: id.to_string(), reply: other.to_string() })
+            }
+        }
+    }
+
+    /// S1.
+    pub(crate) async fn read_position(&self, address: Address) -> Result<Position> {
+        let retries = self.core().cfg.retries;
+        self.read_position_value(address, StatusId::ACTUAL_POSITION, retries).await
+    }
+
+    /// S2.
+    pub(crate) async fn read_target(&self, address: Address) -> Result<Position> {
+        let retries = self.core().cfg.retries;
+        self.read_position_value(address, StatusId::TARGET_POSITION, retries).await
+    }
+
+    /// S16.
+    pub(crate) async fn read_s16(&self, address: Address) -> Result<S16Bits> {
+        let v = self.read_status(address, StatusId::STATUS_BITS_1).await?;
+        s16_of(&v).ok_or_else(|| Error::Unexpected {
+            address: address.get(),
+            command: "S16".into(),
+            reply: v.to_string(),
+        })
+    }
+
+    /// S17.
+    pub(crate) async fn read_s17(&self, address: Address) -> Result<S17Bits> {
+        let retries = self.core().cfg.retries;
+        self.read_s17_retries(address, retries).await
+    }
+
+    /// S17 with `retries` retries.
+    pub(crate) async fn read_s17_retries(&self, address: Address, retries: u32) -> Result<S17Bits> {
+        let v = self.read_status_retries(address, StatusId::STATUS_BITS_2, retries).await?;
+        s17_of(&v).ok_or_else(|| Error::Unexpected {
+            address: address.get(),
+            command: "S17".into(),
+            reply: v.to_string(),
+        })
+    }
+
+    /// Reads parameter `id`, asking again when the reply does not read as a value.
+    pub(crate) async fn read_param(&self, address: Address, id: ParamId) -> Result<f64> {
+        let retries = self.core().cfg.retries;
+        let cmd = Command::ReadParam(id);
+        let mut attempts = 0;
+        loop {
+            attempts += 1;
+            let r = self.ask(address, &cmd, "a parameter cannot be read from it", retries).await?;
+            match parse_param_reply(id, r.text()) {
+                Ok(v) => return Ok(v),
+                Err(_) if attempts <= retries => {
+                    tracing::info!("drive {address}: {id} answered {:?}, not a value: reading again", r.text_str());
+                }
+                Err(_) => return Err(Self::unexpected(address, &cmd, r.text())),
+            }
+        }
+    }
+
+    /// Writes parameter `id` (checked against its known range first) and reads it back. To address 32 the
+    /// value is written and cannot be read back.
+    pub(crate) async fn write_param(&self, address: Address, id: ParamId, value: f64) -> Result<()> {
+        id.check(value)?;
+        self.expect_ack(address, &Command::WriteParam(id, value)).await?;
+        if address.is_broadcast() {
+            return Ok(());
+        }
+        let read = self.read_param(address, id).await?;
+        // The reply is decimal text: what was written reads back as the same number, at any magnitude.
+        if (read - value).abs() > 1e-9 * value.abs().max(1.0) {
+            return Err(Error::ReadBack { address: address.get(), param: id, wrote: value, read });
+        }
+        Ok(())
+    }
+
+    pub(crate) async fn expect_ack(&self, address: Address, cmd: &Command) -> Result<()> {
+        match self.send_command(address, cmd, Flags::NONE).await? {
+            Some(r) if !r.text().is_empty() => Err(Self::unexpected(address, cmd, r.text())),
+            _ => Ok(()),
+        }
+    }
+
+    /// A command other than a move; the reply text.
+    pub(crate) async fn command(&self, address: Address, cmd: &Command) -> Result<String> {
+        if cmd.is_move() {
+            return Err(ModelError::Syntax {
+                what: "a command (use the move methods for moves)",
+                text: cmd.to_string(),
+            }
+            .into());
+        }
+        if address.is_broadcast() && matches!(cmd, Command::ReadStatus(_) | Command::ReadParam(_)) {
+            return Err(Error::Broadcast("nothing can be read from it"));
+        }
+        let effect = Effect::of_command(cmd);
+        let r = self.send_command(address, cmd, Flags::NONE).await?;
+        self.core().after_send(address, effect);
+        Ok(r.map(|r| r.text_str().to_string()).unwrap_or_default())
+    }
+
+    /// A setting (SPEED, ACCEL, ACCEL-, OUTPUT), ASCII or binary.
+    pub(crate) async fn setting(&self, address: Address, cmd: &Command, binary: bool) -> Result<()> {
+        if binary {
+            let b = cmd.to_binary()?;
+            self.exchange(&Request { address, body: Body::Binary(b), flags: Flags::NONE }, Retry::Idempotent).await?;
+        } else {
+            self.expect_ack(address, cmd).await?;
+        }
+        self.core().after_send(address, Effect::of_command(cmd));
+        Ok(())
+    }
+
+    /// Sends `text` as it is; flag characters at its end are sent as flags. Sent again only after E70, E72
+    /// or E73. A move or `!` counts as started (for address 32: every drive that has answered); `OUTPUT
+    /// O0=0` counts as a stop.
+    pub(crate) async fn raw(&self, address: Address, text: &str) -> Result<Option<String>> {
+        let (body, flags) = Flags::split(text.trim().as_bytes());
+        let body = if body == b"!" { Body::Execute } else { Body::Command(body) };
+        let effect = Effect::of_request(&body, flags);
+        if effect == Effect::Starts {
+            self.check_cancel()?;
+        }
+        let saved = self.core().before_send(address, effect);
+        let executes = matches!(body, Body::Execute) && !flags.echo && !flags.buffer;
+        if executes {
+            self.core().execute_buffers(address);
+        }
+        let stores_move = flags.buffer
+            && !flags.echo
+            && matches!(body, Body::Command(t) if Command::parse(t).is_ok_and(|c| c.is_move()));
+        match self.exchange(&Request { address, body, flags }, Retry::DiscardedOnly).await {
+            Ok(r) => {
+                let mut core = self.core();
+                if stores_move {
+                    // A broadcast store reaches every drive; the session can stop only those it knows.
+                    core.buffered |= if address.is_broadcast() { core.known } else { super::core::bit(address) };
+                }
+                core.after_send(address, effect);
+                Ok(r.map(|r| r.text_str().to_string()))
+            }
+            Err(e @ (Error::Device { .. } | Error::Cancelled | Error::Wire(_))) => {
+                // Refused, or never sent: it started nothing (an axis that was moving before still is).
+                self.core().started = saved;
+                if effect == Effect::Starts && matches!(e, Error::Device { .. }) {
+                    return Err(self.explain_refused_move(address, e).await);
+                }
+                Err(e)
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    /// A move `address` refused: if the drive is switched off (S16), that is the reason to give
+    /// ([`Error::SwitchedOff`]) rather than the bare code. E92 (the axis still moves) needs no reading.
+    pub(crate) async fn explain_refused_move(&self, address: Address, e: Error) -> Error {
+        let Error::Device { code, .. } = e else { return e };
+        if code == crate::model::ErrorCode::COMMAND_ACTIVE || address.is_broadcast() {
+            return e;
+        }
+        match self.read_s16(address).await {
+            Ok(s16) if s16.o0_state() != 1 => {
+                Error::SwitchedOff { address: address.get(), o0: s16.o0_state(), refused: Some(code) }
+            }
+            _ => e,
+        }
+    }
+
+    /// Sends `text` with `?`: the drive sends it back.
+    pub(crate) async fn echo(&self, address: Address, text: &str) -> Result<String> {
+        if address.is_broadcast() {
+            return Err(Error::Broadcast("no echo comes back"));
+        }
+        let req = Request { address, body: Body::Command(text.as_bytes()), flags: Flags { echo: true, ..Flags::NONE } };
+        let r = self.exchange(&req, Retry::Idempotent).await?;
+        Ok(r.map(|r| r.text_str().to_string()).unwrap_or_default())
+    }
+
+    /// S1 of every address in `range`, once each (no retries); a cancel ends it before the next address.
+    pub(crate) async fn scan(&self, range: RangeInclusive<u8>) -> Result<Vec<(Address, Position)>> {
+        let mut found = Vec::new();
+        let mut result = Ok(());
+        for a in range.filter_map(|a| Address::drive(a).ok()) {
+            if let Err(e) = self.check_cancel() {
+                result = Err(e);
+                break;
+            }
+            match self.read_position_value(a, StatusId::ACTUAL_POSITION, 0).await {
+                Ok(p) => found.push((a, p)),
+                Err(Error::Timeout { .. } | Error::Corrupt { .. }) => {}
+                Err(e @ (Error::Link(_) | Error::Cancelled)) => {
+                    result = Err(e);
+                    break;
+                }
+                Err(e) => tracing::warn!("drive {a}: {e}"),
+            }
+        }
+        result.map(|()| found)
+    }
+
+    /// S1 and S17 of `drive` every `interval`, reported as progress, until cancelled.
+    pub(crate) async fn watch(&self, drive: Address, interval: Duration) -> Result<()> {
+        if drive.is_broadcast() {
+            return Err(Error::Broadcast("a watch reads one drive's state"));
+        }
+        let mut next = self.now();
+        loop {
+            if self.is_cancelled() {
+                return Ok(());
+            }
+            let position = self.read_position(drive).await?;
+            let s17 = self.read_s17(drive).await?;
+            self.progress(Progress::Watch(WatchSample { drive, position, s17 }));
+            next = (next + interval).max(self.now());
+            match self.listen_until(next).await {
+                Ok(()) => {}
+                Err(Error::Cancelled) => return Ok(()),
+                Err(e) => return Err(e),
+            }
+        }
+    }
+
+    /// Listens for `d` (a cancel ends it with [`Error::Cancelled`]).
+    pub(crate) async fn pause(&self, d: Duration) -> Result<()> {
+        let until = self.now() + d;
+        self.listen_until(until).await
+    }
+}

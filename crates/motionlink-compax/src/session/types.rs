@@ -1,0 +1,363 @@
+//! What a session is configured with, what it can be asked to do ([`Op`]), and what it answers
+//! ([`Output`], [`Progress`]).
+
+use std::ops::RangeInclusive;
+use std::time::Duration;
+
+use motionlink_link::link::char_time;
+
+use crate::error::{Error, Result, StopReport};
+use crate::model::{Command, CommandStyle, ModelError, ParamId, Position, S16Bits, S17Bits, StatusId, StatusValue};
+use crate::wire::{Address, Mode};
+
+/// The default of [`BusConfig::in_position_tolerance`], in the drive's position unit.
+pub const DEFAULT_IN_POSITION_TOLERANCE: f64 = 0.01;
+
+/// How a session talks to the bus.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BusConfig {
+    /// P196 of the drives (they must all have the same).
+    pub mode: Mode,
+    /// P195 of the drives, bit/s (it sets the wire time the timeouts allow for).
+    pub baud_rate: u32,
+    /// Time a drive may take to start answering, on top of the wire time of request and reply. The manual
+    /// gives none; 200 ms by default.
+    pub reply_timeout: Duration,
+    /// How often a telegram is sent again after E70, E72, E73, a timeout or a corrupt reply (idempotent
+    /// commands).
+    pub retries: u32,
+    /// Silence after a broadcast before the next telegram (nobody answers a broadcast); 20 ms by default.
+    pub broadcast_gap: Duration,
+    /// Interval of status polls while waiting for a position (S17, and S1 for progress): a poll starts
+    /// every `poll_interval`, counted from the start of the previous one (when a poll takes longer than
+    /// that, as at 9600 baud with a short interval, the next one starts at once, never several to catch
+    /// up). 50 ms by default: at 9600 baud the two reads of one poll take about 40 ms of line time.
+    pub poll_interval: Duration,
+    /// While a wait listens for `$` messages, how often it still reads each drive's state (a `$` may be lost
+    /// to a line error, or the axis stopped by someone else, and then none comes); 1 s by default.
+    pub message_check_interval: Duration,
+    /// How long a wait for a position lasts when it is given no timeout; 600 s by default.
+    pub wait_timeout: Duration,
+    /// Long or short command names.
+    pub style: CommandStyle,
+    /// How far from its target an axis may come to rest for a move to count as done (a checked move), and
+    /// how far the target a drive reports (S2) may be from the one sent. The manuals give no position
+    /// window for the ASCII protocol; 0.01 by default (the user guide gives positions two decimals in mm).
+    pub in_position_tolerance: Position,
+    /// The longest closing the session (an explicit close, or dropping the client) waits for the stop of
+    /// what it set in motion; 5 s by default. On a dead line one drive's stop takes about 1.3 s at 9600
+    /// baud (an S17 read without retries, then `OUTPUT O0=0` with its retries).
+    pub close_bound: Duration,
+    /// The longest the driver reads the line in one go while an operation listens: a cancellation is seen
+    /// within this time. 5 ms by default.
+    pub read_slice: Duration,
+}
+
+impl BusConfig {
+    /// Defaults for drives with mode `mode` at `baud_rate`.
+    pub fn new(mode: Mode, baud_rate: u32) -> Self {
+        BusConfig {
+            mode,
+            baud_rate,
+            reply_timeout: Duration::from_millis(200),
+            retries: 3,
+            broadcast_gap: Duration::from_millis(20),
+            poll_interval: Duration::from_millis(50),
+            message_check_interval: Duration::from_secs(1),
+            wait_timeout: Duration::from_secs(600),
+            style: CommandStyle::Long,
+            in_position_tolerance: Position::from_units_unchecked(DEFAULT_IN_POSITION_TOLERANCE),
+            close_bound: Duration::from_secs(5),
+            read_slice: Duration::from_millis(5),
+        }
+    }
+
+    /// The time of one character on the line.
+    pub fn char_time(&self) -> Duration {
+        char_time(self.baud_rate, self.mode.parity)
+    }
+}
+
+/// How a move is sent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct MoveOptions {
+    /// Send the binary form (no ASCII conversion in the drive).
+    pub binary: bool,
+    /// Append `$`: the drive sends the position-reached message (ASCII only).
+    pub message: bool,
+}
+
+/// Where a move goes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MoveTarget {
+    /// To this position (POSA).
+    Absolute(Position),
+    /// By this distance from the drive's current target S2 (POSR).
+    Relative(Position),
+}
+
+/// Travel limits the caller knows for an axis (the drive's own limits are not in the RS485 manual, and
+/// the session does not read them): a target outside them is refused before anything moves.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TravelLimits {
+    /// The lowest target allowed.
+    pub min: Option<Position>,
+    /// The highest target allowed.
+    pub max: Option<Position>,
+}
+
+impl TravelLimits {
+    /// Limits; refused when `min` is above `max`.
+    pub fn new(min: Option<Position>, max: Option<Position>) -> Result<Self, ModelError> {
+        if let (Some(lo), Some(hi)) = (min, max) {
+            if lo.units() > hi.units() {
+                return Err(ModelError::Range {
+                    what: "travel limits",
+                    value: format!("minimum {lo} above maximum {hi}"),
+                    range: "minimum at most the maximum",
+                });
+            }
+        }
+        Ok(TravelLimits { min, max })
+    }
+
+    /// `target` for `address` inside the limits, or [`Error::OutsideLimits`].
+    pub fn check(&self, address: Address, target: Position) -> Result<()> {
+        let t = target.units();
+        let outside = |side, limit: Position| Error::OutsideLimits {
+            address: address.get(),
+            target: t,
+            side,
+            limit: limit.units(),
+        };
+        match (self.min, self.max) {
+            (Some(lo), _) if t < lo.units() => Err(outside("below the minimum", lo)),
+            (_, Some(hi)) if t > hi.units() => Err(outside("above the maximum", hi)),
+            _ => Ok(()),
+        }
+    }
+}
+
+/// A checked move: checked, sent, read back, waited for, verified.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MoveRequest {
+    /// Where to.
+    pub target: MoveTarget,
+    /// SPEED for this move (the drive's current setting if `None`).
+    pub speed: Option<crate::model::SpeedPercent>,
+    /// ACCEL for this move (the drive's current setting if `None`).
+    pub accel: Option<crate::model::RampMs>,
+    /// Send the binary forms.
+    pub binary: bool,
+    /// Targets outside these are refused before anything is sent.
+    pub limits: TravelLimits,
+    /// How long the wait may take ([`BusConfig::wait_timeout`] if `None`); then the axis is stopped.
+    pub timeout: Option<Duration>,
+}
+
+impl MoveRequest {
+    /// A move to `target` with the drive's current settings, no limits and the default timeout.
+    pub fn new(target: MoveTarget) -> Self {
+        MoveRequest { target, speed: None, accel: None, binary: false, limits: TravelLimits::default(), timeout: None }
+    }
+}
+
+/// A move the drive has taken, with its target confirmed by S2.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StartedMove {
+    /// The drive.
+    pub address: Address,
+    /// S1 before the move.
+    pub start: Position,
+    /// The absolute target (for a relative move: S2 before it plus the distance, as the drive computes it).
+    pub target: Position,
+}
+
+/// A move that ended at its target.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MoveReport {
+    /// The drive.
+    pub address: Address,
+    /// S1 before the move.
+    pub start: Position,
+    /// The target.
+    pub target: Position,
+    /// S1 at rest afterwards (within [`BusConfig::in_position_tolerance`] of the target).
+    pub reached: Position,
+}
+
+impl MoveReport {
+    /// `reached - target`, in the drive's position unit.
+    pub fn difference(&self) -> f64 {
+        self.reached.units() - self.target.units()
+    }
+}
+
+/// What to do with a motion that a raw command started ([`Op::RawMotion`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AfterRaw {
+    /// Hand it over: the session forgets it, it runs on (nothing stops it).
+    HandOver,
+    /// Wait until it has ended (at most this long; then it is stopped).
+    Wait(Duration),
+}
+
+/// What a raw command did ([`Op::RawMotion`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RawOutcome {
+    /// The reply text (empty for an acknowledgement), `None` when none was due.
+    pub reply: Option<String>,
+    /// The drives the command set in motion.
+    pub started: Vec<Address>,
+    /// True if the session waited for them to end.
+    pub waited: bool,
+}
+
+/// One reading of [`Op::Watch`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WatchSample {
+    /// The drive.
+    pub drive: Address,
+    /// S1.
+    pub position: Position,
+    /// S17.
+    pub s17: S17Bits,
+}
+
+impl WatchSample {
+    /// True while a command is active (the axis moves).
+    pub fn moving(&self) -> bool {
+        self.s17.contains(crate::model::S17Flag::CommandActive)
+    }
+}
+
+/// What an operation reports on its way.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Progress {
+    /// A position polled while waiting for a move.
+    Position {
+        /// The drive.
+        drive: Address,
+        /// Its actual position S1.
+        position: Position,
+    },
+    /// One reading of a watch.
+    Watch(WatchSample),
+}
+
+/// An operation of a COMPAX session. Each ends with one [`Output`] (named below) or an [`Error`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum Op {
+    /// A status value ([`Output::Status`]); read again when the reply does not read as the value.
+    ReadStatus(Address, StatusId),
+    /// Several status values of one drive, in order ([`Output::Statuses`]); a cancel ends it between two.
+    ReadStatuses(Address, Vec<StatusId>),
+    /// A parameter ([`Output::Number`]).
+    ReadParam(Address, ParamId),
+    /// A parameter written (its range checked first) and read back ([`Output::Done`]); [`Error::ReadBack`]
+    /// when it reads back otherwise.
+    WriteParam(Address, ParamId, f64),
+    /// A command other than a move ([`Output::Text`]: the reply text, empty for an acknowledgement).
+    Command(Address, Command),
+    /// A setting (SPEED, ACCEL, ACCEL-, OUTPUT), ASCII or binary ([`Output::Done`]).
+    Setting(Address, Command, bool),
+    /// Text sent as it is, flags at its end as flags ([`Output::Reply`]); sent again only after E70, E72,
+    /// E73. A move or `!` counts as started.
+    Raw(Address, String),
+    /// Text sent as it is, and what it set in motion handed over or waited for ([`Output::Raw`]). Cancelled
+    /// while it is sent, what it started is stopped instead.
+    RawMotion(Address, String, AfterRaw),
+    /// `text?`: the drive sends it back ([`Output::Text`]).
+    Echo(Address, String),
+    /// POSA, POSR or POSA HOME to one drive ([`Output::Done`] once the drive has taken it). A POSR whose
+    /// reply is lost is never sent again blind: S2 tells whether it arrived.
+    Move(Address, Command, MoveOptions),
+    /// Moves stored in each drive's buffer, then one `32!` ([`Output::Done`]).
+    SyncStart(Vec<(Address, Command)>, bool),
+    /// A command to every drive, no reply ([`Output::Done`]).
+    Broadcast(Command),
+    /// Waits until the drives' positionings have ended ([`Output::Done`]), reporting
+    /// [`Progress::Position`]; stops them when it fails or is cancelled.
+    Wait(Vec<Address>, Option<Duration>),
+    /// A checked move: limits, S16 / S17, the move, S2 read back, the wait, the position at rest
+    /// ([`Output::Moved`]).
+    MoveTo(Address, MoveRequest),
+    /// The first half of [`Op::MoveTo`], up to the target read back ([`Output::Started`]); with `true`,
+    /// the move is then handed over (the session forgets it and does not stop it).
+    StartMove(Address, MoveRequest, bool),
+    /// The second half of [`Op::MoveTo`] ([`Output::Moved`]).
+    FinishMove(StartedMove, Option<Duration>),
+    /// S1 of every address in the range ([`Output::Found`]); a cancel ends it between two addresses.
+    Scan(RangeInclusive<u8>),
+    /// `OUTPUT O0=0` to one drive (or to every drive with 32), acknowledged ([`Output::Done`]).
+    Stop(Address),
+    /// Stops every drive the session set in motion that still moves, confirmed by S17
+    /// ([`Output::Stopped`]).
+    StopStarted,
+    /// S1 and S17 of a drive every interval, reported as [`Progress::Watch`], until cancelled
+    /// ([`Output::Done`]).
+    Watch(Address, Duration),
+    /// Listens for this long (`$` and comparator messages are handled) ([`Output::Done`]); a cancel ends it.
+    Pause(Duration),
+}
+
+/// What an operation ended with.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Output {
+    /// Nothing but success.
+    Done,
+    /// A status value.
+    Status(StatusValue),
+    /// Status values, in the order asked.
+    Statuses(Vec<(StatusId, StatusValue)>),
+    /// A number (a parameter value).
+    Number(f64),
+    /// A reply text.
+    Text(String),
+    /// A reply text, or `None` when none was due.
+    Reply(Option<String>),
+    /// What a raw command did.
+    Raw(RawOutcome),
+    /// A move taken, its target confirmed.
+    Started(StartedMove),
+    /// A checked move that ended at its target.
+    Moved(MoveReport),
+    /// The drives that answered a scan, with their positions.
+    Found(Vec<(Address, Position)>),
+    /// What a stop did.
+    Stopped(StopReport),
+}
+
+impl Output {
+    /// The variant's name, for the message of a mismatch.
+    pub(crate) fn name(&self) -> &'static str {
+        match self {
+            Output::Done => "Done",
+            Output::Status(_) => "Status",
+            Output::Statuses(_) => "Statuses",
+            Output::Number(_) => "Number",
+            Output::Text(_) => "Text",
+            Output::Reply(_) => "Reply",
+            Output::Raw(_) => "Raw",
+            Output::Started(_) => "Started",
+            Output::Moved(_) => "Moved",
+            Output::Found(_) => "Found",
+            Output::Stopped(_) => "Stopped",
+        }
+    }
+}
+
+/// The S16 and S17 words of a status value, for the operations that need them.
+pub(crate) fn s16_of(v: &StatusValue) -> Option<S16Bits> {
+    match v {
+        StatusValue::S16(b) => Some(*b),
+        _ => None,
+    }
+}
+
+pub(crate) fn s17_of(v: &StatusValue) -> Option<S17Bits> {
+    match v {
+        StatusValue::S17(b) => Some(*b),
+        _ => None,
+    }
+}

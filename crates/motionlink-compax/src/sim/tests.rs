@@ -1,0 +1,239 @@
+//! Tests of the emulator.
+
+use super::*;
+use crate::model::ParamId;
+use motionlink_link::emulator::Emulator as _;
+
+fn bus(addrs: &[u8], p196: u32) -> Emulator {
+    Emulator::new(SimConfig::bus(addrs, p196, 9600)).unwrap()
+}
+
+fn ask(bus: &mut Emulator, now: u64, bytes: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    bus.receive(Timestamp::from_millis(now), bytes, &mut out);
+    out
+}
+
+#[test]
+fn the_manuals_example_with_and_without_bcc() {
+    let mut b = bus(&[1, 5], 0);
+    assert_eq!(ask(&mut b, 0, b"1S1\r"), b"S001: 0.000\r\n>");
+    assert_eq!(ask(&mut b, 0, b"5S1\r"), b"S001: 0.000\r\n>");
+    let mut b = bus(&[1, 5], 8);
+    let mut want = b"S001: 0.000\r\n>".to_vec();
+    want.push(crate::wire::bcc(b"S001: 0.000"));
+    assert_eq!(ask(&mut b, 0, b"1S1\rS"), want);
+    let mut e72 = b"E72\r\n>".to_vec();
+    e72.push(crate::wire::bcc(b"E72"));
+    assert_eq!(ask(&mut b, 0, b"1S1\rX"), e72);
+}
+
+#[test]
+fn broadcast_buffer_execute_and_motion() {
+    let mut b = bus(&[1, 5], 0);
+    assert_eq!(ask(&mut b, 0, b"1POSA 10,\r"), b"\r\n>");
+    assert_eq!(ask(&mut b, 0, b"5POSR -5,\r"), b"\r\n>");
+    assert!(!b.drive(1).unwrap().is_moving());
+    assert_eq!(ask(&mut b, 1, b"32!\r"), b"");
+    assert!(b.drive(1).unwrap().is_moving() && b.drive(5).unwrap().is_moving());
+    // 100 units/s, instant ramps: 10 units take 100 ms.
+    assert_eq!(ask(&mut b, 50, b"1POSA 20\r"), b"E92\r\n>");
+    let mut out = Vec::new();
+    b.advance(Timestamp::from_millis(200), &mut out);
+    assert_eq!(b.drive(1).unwrap().position(), 10.0);
+    assert_eq!(b.drive(5).unwrap().position(), -5.0);
+    assert_eq!(ask(&mut b, 201, b"32!\r"), b"", "the buffer is consumed by '!'");
+    assert_eq!(ask(&mut b, 202, b"1!\r"), b"E90\r\n>");
+}
+
+#[test]
+fn a_configuration_file_sets_each_drive() {
+    let cfg = SimConfig::from_toml(
+        r#"
+        baud_rate = 19200
+        p196 = 8
+        max_speed_units_per_s = 50.0
+
+        [[drive]]
+        address = 1
+
+        [[drive]]
+        address = 5
+        position = -12.5
+        p196 = 72
+
+        [[drive]]
+        address = 9
+        baud_rate = 9600
+        "#,
+    )
+    .unwrap();
+    assert_eq!((cfg.baud_rate, cfg.p196, cfg.max_speed_units_per_s), (19_200, 8, 50.0));
+    let mut b = Emulator::new(cfg).unwrap();
+    let one = b.drive(1).unwrap();
+    assert_eq!((one.mode().to_p196(), one.baud_rate(), one.position()), (8, 19_200, 0.0));
+    let five = b.drive(5).unwrap();
+    assert_eq!((five.mode().to_p196(), five.position(), five.target()), (72, -12.5, -12.5));
+    assert_eq!(five.param(ParamId::OPERATING_MODE), Some(72.0));
+    assert_eq!(b.drive(9).unwrap().baud_rate(), 9600);
+    // Each answers in its own mode: drive 5 with its address in front; drive 9 hears only noise.
+    let with_bcc = |text: &[u8]| {
+        let mut t = text.to_vec();
+        t.push(crate::wire::bcc(&text[..text.len() - 1]));
+        t
+    };
+    let mut want = b"5S001: -12.500\r\n>".to_vec();
+    want.push(crate::wire::bcc(b"5S001: -12.500"));
+    assert_eq!(ask(&mut b, 0, &with_bcc(b"5S1\r")), want);
+    assert!(ask(&mut b, 1, &with_bcc(b"9S1\r")).is_empty());
+    // SPEED 100 is 50 units/s: 10 units take 200 ms.
+    assert_eq!(ask(&mut b, 2, &with_bcc(b"1POSA 10\r"))[..3], *b"\r\n>");
+    let mut out = Vec::new();
+    b.advance(Timestamp::from_millis(102), &mut out);
+    assert!((b.drive(1).unwrap().position() - 5.0).abs() < 0.1, "{}", b.drive(1).unwrap().position());
+    b.advance(Timestamp::from_millis(210), &mut out);
+    assert_eq!(b.drive(1).unwrap().position(), 10.0);
+    // Every key has a default.
+    assert_eq!(SimConfig::from_toml("").unwrap(), SimConfig::default());
+}
+
+#[test]
+fn a_bad_configuration_file_says_what_is_wrong() {
+    for (text, says) in [
+        ("[[drive]]\naddress = 32\n", "address 32"),
+        ("[[drive]]\naddress = 3\n[[drive]]\naddress = 3\n", "two drives have address 3"),
+        ("p196 = 164\n", "COMTAC"),
+        ("[[drive]]\naddress = 1\np196 = 200\n", "P196 = 200"),
+        ("baud_rate = 1234\n", "1234"),
+        ("[[drive]]\naddress = 1\nbaud_rate = 777\n", "777"),
+        ("[[drive]]\naddress = 1\nposition = 1e9\n", "position"),
+        ("max_speed_units_per_s = 0.0\n", "max_speed_units_per_s"),
+        ("[[drive]]\naddress = 1\nspeed = 5\n", "unknown field `speed`"),
+        ("drive = []\n", "0 drives"),
+        ("baud_rate = \"fast\"\n", "baud_rate"),
+    ] {
+        let e = SimConfig::from_toml(text).unwrap_err();
+        assert!(e.to_string().contains(says), "{text:?}: {e}");
+    }
+}
+
+#[test]
+fn unmodelled_parameters_and_status_values_are_refused_not_zero() {
+    let mut b = bus(&[1], 0);
+    // The manual defines P194..P196 only: others are refused, read or written.
+    assert_eq!(ask(&mut b, 0, b"1P12\r"), b"E90\r\n>");
+    assert_eq!(ask(&mut b, 1, b"1P12=3\r"), b"E90\r\n>");
+    assert_eq!(ask(&mut b, 2, b"1P12\r"), b"E90\r\n>", "the refused write stored nothing");
+    assert_eq!(b.drive(1).unwrap().param(ParamId::new(12).unwrap()), None);
+    assert_eq!(ask(&mut b, 3, b"1P194\r"), b"P194=1\r\n>");
+    // Status values the emulator does not model.
+    for s in ["S4", "S11", "S20", "S30", "S40"] {
+        assert_eq!(ask(&mut b, 4, format!("1{s}\r").as_bytes()), b"E90\r\n>", "{s}");
+    }
+    // A parameter the configuration lists is modelled.
+    let cfg = SimConfig::bus(&[1], 0, 9600).with_param(ParamId::new(12).unwrap(), 1.5);
+    let mut b = Emulator::new(cfg).unwrap();
+    assert_eq!(ask(&mut b, 0, b"1P12\r"), b"P012=1.5\r\n>");
+    assert_eq!(ask(&mut b, 1, b"1P12=-3\r"), b"\r\n>");
+    assert_eq!(b.drive(1).unwrap().param(ParamId::new(12).unwrap()), Some(-3.0));
+    let bad = SimConfig::bus(&[1], 0, 9600).with_param(ParamId::DEVICE_ADDRESS, 1.0);
+    assert!(Emulator::new(bad).is_err(), "P194 comes from the drive's address");
+    assert!(SimConfig::from_toml("params = { Q1 = 0.0 }").is_err());
+}
+
+#[test]
+fn the_error_history_s18_records_errors() {
+    let mut b = bus(&[1], 8);
+    let with_bcc = |text: &[u8]| {
+        let mut t = text.to_vec();
+        t.push(crate::wire::bcc(&text[..text.len() - 1]));
+        t
+    };
+    let s18 = |b: &mut Emulator, now: u64| {
+        let r = ask(b, now, &with_bcc(b"1S18\r"));
+        String::from_utf8_lossy(&r[..r.len() - 4]).into_owned()
+    };
+    assert_eq!(s18(&mut b, 0), "S018: 99 99 99 99 99 99 99 99");
+    // E72: a wrong BCC; acknowledged (99) by the next error-free transmission, the S18 read itself.
+    assert_eq!(&ask(&mut b, 1, b"1S1\rX")[..3], b"E72");
+    assert_eq!(s18(&mut b, 2), "S018: 99 72 99 99 99 99 99 99");
+    // E92: a move while moving; E90: an empty buffer.
+    assert_eq!(&ask(&mut b, 3, &with_bcc(b"1POSA 50\r"))[..3], b"\r\n>");
+    assert_eq!(&ask(&mut b, 10, &with_bcc(b"1POSA 20\r"))[..3], b"E92");
+    assert_eq!(&ask(&mut b, 11, &with_bcc(b"1!\r"))[..3], b"E90");
+    assert_eq!(s18(&mut b, 12), "S018: 90 92 99 72 99 99 99 99");
+    assert_eq!(b.drive(1).unwrap().history()[..2], [90, 92]);
+}
+
+#[test]
+fn events_tell_what_each_drive_did() {
+    let mut b = bus(&[1, 5], 0);
+    assert!(b.take_events().is_empty(), "nothing happened yet");
+    assert_eq!(ask(&mut b, 0, b"1POSA 10\r"), b"\r\n>");
+    assert_eq!(b.take_events(), ["drive 1 motion started to 10.000 from 0.000"]);
+    assert!(b.take_events().is_empty(), "taken once");
+    // 100 units/s: at rest after 100 ms, with its position.
+    let mut out = Vec::new();
+    b.advance(Timestamp::from_millis(150), &mut out);
+    assert_eq!(b.take_events(), ["drive 1 at rest 10.000"]);
+    // A move while moving is refused: the error is an event.
+    assert_eq!(ask(&mut b, 200, b"5POSA 100\r"), b"\r\n>");
+    assert_eq!(ask(&mut b, 210, b"5POSA 50\r"), b"E92\r\n>");
+    let ev = b.take_events();
+    assert_eq!(ev[0], "drive 5 motion started to 100.000 from 0.000");
+    assert!(ev[1].starts_with("drive 5 error E92"), "{ev:?}");
+    // Switched off while moving: switched off, then at rest where it was.
+    assert_eq!(ask(&mut b, 300, b"5OUTPUT O0=0\r"), b"\r\n>");
+    assert_eq!(b.take_events(), ["drive 5 switched off (O0=0)", "drive 5 at rest 10.000"]);
+    // Switched off, it refuses moves; switching off again is no event.
+    assert_eq!(ask(&mut b, 310, b"5POSA 1\r"), b"E90\r\n>");
+    assert_eq!(ask(&mut b, 311, b"5OUTPUT O0=0\r"), b"\r\n>");
+    let ev = b.take_events();
+    assert_eq!(ev.len(), 1, "{ev:?}");
+    assert!(ev[0].starts_with("drive 5 error E90"), "{ev:?}");
+    assert_eq!(ask(&mut b, 320, b"5OUTPUT O0=1\r"), b"\r\n>");
+    assert_eq!(b.take_events(), ["drive 5 switched on (O0=1)"]);
+    // A broadcast move: every drive tells.
+    assert_eq!(ask(&mut b, 400, b"32POSR 1\r"), b"");
+    assert_eq!(
+        b.take_events(),
+        ["drive 1 motion started to 11.000 from 10.000", "drive 5 motion started to 11.000 from 10.000"]
+    );
+    b.power_cycle(Timestamp::from_millis(401));
+    let ev = b.take_events();
+    assert_eq!(
+        ev,
+        [
+            "drive 1 at rest 10.100",
+            "drive 1 powered on (switched on, O0=1)",
+            "drive 5 at rest 10.100",
+            "drive 5 powered on (switched on, O0=1)"
+        ]
+    );
+    assert_eq!(ask(&mut b, 500, b"1POSA HOME\r"), b"\r\n>");
+    assert_eq!(b.take_events(), ["drive 1 homing started from 10.100"]);
+}
+
+#[test]
+fn the_user_guides_example_parameter_p003_is_modelled() {
+    let mut b = bus(&[1], 0);
+    assert_eq!(ask(&mut b, 0, b"1P003\r"), b"P003=0\r\n>");
+    assert_eq!(ask(&mut b, 1, b"1P003=-1055.88\r"), b"\r\n>");
+    assert_eq!(ask(&mut b, 2, b"1P3\r"), b"P003=-1055.88\r\n>");
+    assert_eq!(b.drive(1).unwrap().param(ParamId::new(3).unwrap()), Some(-1055.88));
+    // Its neighbours are not modelled.
+    assert_eq!(ask(&mut b, 3, b"1P2\r"), b"E90\r\n>");
+    assert_eq!(ask(&mut b, 4, b"1P4=1\r"), b"E90\r\n>");
+}
+
+#[test]
+fn position_message_echo_and_no_reply() {
+    let mut b = bus(&[3], 64);
+    assert_eq!(ask(&mut b, 0, b"3POSA 1$\r"), b"3\r\n>");
+    let mut out = Vec::new();
+    b.advance(Timestamp::from_millis(100), &mut out);
+    assert_eq!(out, b"3$\r\n>");
+    assert_eq!(ask(&mut b, 100, b"3S1?\r"), b"33S1?\r\n>");
+    assert_eq!(ask(&mut b, 100, b"3SPEED 50/\r"), b"");
+    assert_eq!(b.drive(3).unwrap().move_settings().0, 50.0);
+}

@@ -1,0 +1,131 @@
+//! What the client tests share: an emulated bus on the manual clock with its transcript, scripted
+//! drives, and a link that cancels a token.
+
+#![allow(dead_code)]
+
+use std::time::Duration;
+
+use motionlink_compax::client::{BusConfig, Client};
+use motionlink_compax::model::{ParamId, Position};
+use motionlink_compax::sim::{Emulator, SimConfig};
+use motionlink_compax::wire::{Address, Mode};
+use motionlink_link::cancel::CancelToken;
+use motionlink_link::clock::ManualClock;
+use motionlink_link::pipe::{EmulatorHost, FaultControl, PipeConfig};
+use motionlink_link::transcript::{TapLink, Transcript, Way};
+
+pub struct Rig {
+    pub clock: ManualClock,
+    pub host: EmulatorHost<Emulator>,
+    pub faults: FaultControl,
+    pub transcript: Transcript,
+}
+
+pub fn rig(addrs: &[u8], p196: u32, baud: u32) -> (Rig, Client) {
+    let clock = ManualClock::new_auto();
+    // The parameters the tests write besides P194..P196 (the emulator refuses the others).
+    let mut cfg = SimConfig::bus(addrs, p196, baud);
+    for n in [3, 10, 12, 20] {
+        cfg = cfg.with_param(ParamId::new(n).unwrap(), 0.0);
+    }
+    let sim = Emulator::new(cfg).unwrap();
+    let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(baud));
+    let (link, faults) = host.connect();
+    let transcript = Transcript::new();
+    let link = TapLink::new(link, clock.shared(), transcript.clone());
+    let bus =
+        Client::new(Box::new(link), clock.shared(), BusConfig::new(Mode::from_p196(p196).unwrap(), baud)).unwrap();
+    (Rig { clock, host, faults, transcript }, bus)
+}
+
+pub fn a(n: u8) -> Address {
+    Address::drive(n).unwrap()
+}
+
+pub fn pos(v: f64) -> Position {
+    Position::new(v).unwrap()
+}
+
+pub fn sent(t: &Transcript) -> Vec<Vec<u8>> {
+    t.records().into_iter().filter(|r| r.way == Way::Sent).map(|r| r.bytes).collect()
+}
+
+/// Sends `telegram` over a second connection to the emulator (another program on the bus) and reads the
+/// drive's answer.
+pub fn someone_else_sends(r: &Rig, telegram: &[u8]) -> Vec<u8> {
+    use motionlink_link::link::Link;
+    let (mut other, _) = r.host.connect();
+    other.send(telegram).unwrap();
+    let mut got = Vec::new();
+    let mut buf = [0u8; 32];
+    while !got.ends_with(b">") {
+        let n = other.recv(&mut buf, Duration::from_secs(1)).unwrap();
+        assert!(n > 0, "no answer to {telegram:?}");
+        got.extend_from_slice(&buf[..n]);
+    }
+    got
+}
+
+/// Counts telegrams sent and cancels a token when the `n`th goes out (Ctrl-C in the middle of a long action).
+pub struct CancelAfter<L> {
+    pub inner: L,
+    pub token: CancelToken,
+    pub sends: usize,
+    pub n: usize,
+}
+
+impl<L: motionlink_link::link::Link> motionlink_link::link::Link for CancelAfter<L> {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), motionlink_link::link::LinkError> {
+        self.sends += 1;
+        if self.sends == self.n {
+            self.token.cancel();
+        }
+        self.inner.send(bytes)
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, motionlink_link::link::LinkError> {
+        self.inner.recv(buf, timeout)
+    }
+    fn discard_input(&mut self) -> Result<(), motionlink_link::link::LinkError> {
+        self.inner.discard_input()
+    }
+    fn describe(&self) -> String {
+        self.inner.describe()
+    }
+}
+
+/// What a scripted drive answers to each telegram.
+pub type Script = Box<dyn FnMut(&[u8]) -> Vec<u8> + Send>;
+
+/// A link whose drive is a script: each telegram sent gets the bytes `answer` returns (a drive that answers
+/// in ways the emulator does not, such as a bare parameter value).
+pub struct Scripted {
+    pub clock: motionlink_link::clock::SharedClock,
+    pub answer: Script,
+    pub pending: std::collections::VecDeque<u8>,
+}
+
+impl motionlink_link::link::Link for Scripted {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), motionlink_link::link::LinkError> {
+        let reply = (self.answer)(bytes);
+        self.pending.extend(reply);
+        Ok(())
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, motionlink_link::link::LinkError> {
+        if self.pending.is_empty() {
+            self.clock.sleep(timeout);
+            return Ok(0);
+        }
+        let n = buf.len().min(self.pending.len());
+        for (slot, b) in buf.iter_mut().zip(self.pending.drain(..n)) {
+            *slot = b;
+        }
+        Ok(n)
+    }
+    fn discard_input(&mut self) -> Result<(), motionlink_link::link::LinkError> {
+        self.pending.clear();
+        Ok(())
+    }
+    fn describe(&self) -> String {
+        "scripted drive".into()
+    }
+}

@@ -1,0 +1,161 @@
+//! `motionlink sim compax`, `motionlink decode compax` and the COMPAX part of the demo.
+
+use std::io::Write;
+use std::time::Duration;
+
+use motionlink_compax::client::{BusConfig, MoveOptions};
+use motionlink_compax::describe::CompaxDescriber;
+use motionlink_compax::model::{ParamId, Position, RampMs, S16Flag, S17Flag, SpeedPercent};
+use motionlink_compax::sim::SimConfig;
+use motionlink_compax::wire::{Address, Mode};
+use motionlink_compax::{Client, Emulator, Error};
+use motionlink_link::clock::{Clock, ManualClock};
+use motionlink_link::describe::{Annotation, Captured, Describe, Direction as Way};
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::transcript::{TapLink, Transcript, Way as TapWay};
+
+use super::{parse_mode, DecodeArgs, Direction, SimArgs};
+use crate::common::{self, CliError};
+
+/// Runs `motionlink sim compax`.
+pub fn sim(args: SimArgs) -> Result<(), CliError> {
+    let mut cfg = match &args.config {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| CliError::usage(format!("cannot read {}: {e}", path.display())))?;
+            SimConfig::from_toml(&text).map_err(CliError::usage)?
+        }
+        None => SimConfig::default(),
+    };
+    if let Some(drives) = &args.drives {
+        let base = SimConfig::bus(drives, cfg.p196, cfg.baud_rate);
+        cfg.drives = base.drives;
+    }
+    if let Some(m) = args.mode {
+        parse_mode(m)?;
+        cfg.p196 = m;
+        cfg.drives.iter_mut().for_each(|d| d.p196 = None);
+    }
+    if let Some(b) = args.baud {
+        cfg.baud_rate = b;
+        cfg.drives.iter_mut().for_each(|d| d.baud_rate = None);
+    }
+    for p in &args.params {
+        let (name, value) =
+            p.split_once('=').ok_or_else(|| CliError::usage(format!("--param {p}: expected PNNN=VALUE")))?;
+        let id = ParamId::parse(name).map_err(|e| CliError::usage(format!("--param {p}: {e}")))?;
+        let value: f64 =
+            value.trim().parse().map_err(|_| CliError::usage(format!("--param {p}: {value:?} is not a number")))?;
+        cfg = cfg.with_param(id, value);
+    }
+    let bus = Emulator::new(cfg).map_err(CliError::usage)?;
+    common::serve(&args.serve, bus)
+}
+
+/// One annotation as `decode` and the demo print it: the bytes in hex, then what they mean.
+fn line(a: &Annotation) -> String {
+    format!("{:<40} {}", common::hex(&a.bytes), a.meaning)
+}
+
+/// Runs `motionlink decode compax`.
+pub fn decode(args: DecodeArgs) -> Result<(), CliError> {
+    let bytes = common::read_capture(&args.capture)?;
+    let mode = parse_mode(args.mode)?;
+    let way = match args.direction {
+        Direction::Auto => Way::Unknown,
+        Direction::Host => Way::ToDevice,
+        Direction::Drive => Way::FromDevice,
+    };
+    let mut describer = CompaxDescriber::new(mode);
+    let mut found = Vec::new();
+    describer.describe(Captured::Bytes(&bytes), way, None, &mut found);
+    describer.finish(&mut found);
+    let mut out = std::io::stdout().lock();
+    for a in &found {
+        writeln!(out, "{}", line(a))?;
+    }
+    Ok(())
+}
+
+fn fail(e: Error) -> CliError {
+    common::classified(&e)
+}
+
+/// The COMPAX part of `motionlink demo`: the manual's chapter 4.5 example and a move.
+pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
+    writeln!(out, "== Parker COMPAX: the manual's chapter 4.5, S1 of drives 1 and 5 (P194 = 1 and 5, P195 = 9600) ==")?;
+    for (p196, title) in
+        [(8, "4.5.1 BASIC program with BCC (P196 = 8)"), (0, "4.5.2 BASIC program without BCC (P196 = 0)")]
+    {
+        writeln!(out, "-- {title}")?;
+        let clock = ManualClock::new_auto();
+        let _me = clock.reserve_participant().enter();
+        let (bus, transcript) = demo_bus(&clock, p196)?;
+        let mut describer = CompaxDescriber::new(parse_mode(p196)?);
+        for a in [1u8, 5] {
+            let addr = Address::drive(a).map_err(CliError::usage)?;
+            let p = bus.read_position(addr).map_err(fail)?;
+            print_transcript(out, &transcript, &mut describer)?;
+            writeln!(out, "   drive {a}: S1 = {p}  (at {})", clock.now())?;
+        }
+        bus.close().map_err(fail)?;
+    }
+    writeln!(out, "-- a move: drive 5, SPEED 50, ACCEL 200, POSA 25 with the position-reached message")?;
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let (bus, transcript) = demo_bus(&clock, 0)?;
+    let mut describer = CompaxDescriber::new(Mode::default());
+    let five = Address::drive(5).map_err(CliError::usage)?;
+    let usage = |e: motionlink_compax::model::ModelError| CliError::usage(e);
+    bus.set_speed(five, SpeedPercent::new(50.0).map_err(usage)?, false).map_err(fail)?;
+    bus.set_accel(five, RampMs::new(200).map_err(usage)?, false).map_err(fail)?;
+    let target = Position::new(25.0).map_err(usage)?;
+    bus.move_absolute(five, target, MoveOptions { binary: false, message: true }).map_err(fail)?;
+    print_transcript(out, &transcript, &mut describer)?;
+    let t0 = clock.now();
+    bus.wait_reached(&[five], Some(Duration::from_secs(10)), &mut |_, _| {}).map_err(fail)?;
+    print_transcript(out, &transcript, &mut describer)?;
+    let p = bus.read_position(five).map_err(fail)?;
+    let s16 = bus.read_s16(five).map_err(fail)?;
+    print_transcript(out, &transcript, &mut describer)?;
+    writeln!(
+        out,
+        "   drive 5 reached {p} after {:.3} s of device time; S16 = {} (position reached: {})",
+        (clock.now() - t0).as_secs_f64(),
+        s16.pattern(),
+        s16.contains(S16Flag::PositionReached)
+    )?;
+    let s17 = bus.read_s17(five).map_err(fail)?;
+    writeln!(out, "   S17 = {} (command active: {})", s17.pattern(), s17.contains(S17Flag::CommandActive))?;
+    bus.close().map_err(fail)?;
+    Ok(())
+}
+
+fn demo_bus(clock: &ManualClock, p196: u32) -> Result<(Client, Transcript), CliError> {
+    let sim = Emulator::new(SimConfig::bus(&[1, 5], p196, 9600)).map_err(CliError::usage)?;
+    let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(9600));
+    let transcript = Transcript::new();
+    let link = TapLink::new(host.connect().0, clock.shared(), transcript.clone());
+    let bus = Client::new(Box::new(link), clock.shared(), BusConfig::new(parse_mode(p196)?, 9600)).map_err(fail)?;
+    Ok((bus, transcript))
+}
+
+/// Prints what went over the line since the last call, each telegram explained by the library.
+fn print_transcript(
+    out: &mut dyn Write,
+    transcript: &Transcript,
+    describer: &mut CompaxDescriber,
+) -> Result<(), CliError> {
+    for r in transcript.take() {
+        let way = match r.way {
+            TapWay::Sent => Way::ToDevice,
+            TapWay::Received => Way::FromDevice,
+        };
+        let mut found = Vec::new();
+        describer.describe(Captured::Bytes(&r.bytes), way, None, &mut found);
+        for a in &found {
+            writeln!(out, "   {} {}", a.direction.arrow(), line(a))?;
+        }
+    }
+    Ok(())
+}

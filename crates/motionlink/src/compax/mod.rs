@@ -1,0 +1,584 @@
+//! `motionlink compax`, `motionlink sim compax`, `motionlink decode compax` and the COMPAX part of the demo.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use motionlink_compax::client::{
+    AfterRaw, BusConfig, MoveRequest, MoveTarget, TravelLimits, DEFAULT_IN_POSITION_TOLERANCE,
+};
+use motionlink_compax::model::{
+    CommandStyle, ModelError, OutputState, ParamId, Position, RampMs, SpeedPercent, StatusId, StatusValue, ValidFrom,
+    BAUD_RATES,
+};
+use motionlink_compax::sim::SimConfig;
+use motionlink_compax::wire::{Address, Mode};
+use motionlink_compax::{Client, Emulator, Error};
+use motionlink_link::clock::SharedClock;
+use motionlink_link::error::{Classify, ErrorClass};
+use motionlink_link::link::{Link, SerialSettings};
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::url::PortUrl;
+use motionlink_link::RealClock;
+use serde_json::json;
+
+use crate::common::{self, CaptureArgs, CliError, Row, ServeArgs};
+
+mod extra;
+
+pub use extra::{decode, demo, sim};
+
+/// `motionlink compax` arguments.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The port: a device path (/dev/ttyUSB0, COM3), tcp://HOST:PORT, or sim.
+    #[arg(long)]
+    pub port: String,
+    /// The drive's address (P194), 1..=31.
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    pub drive: u8,
+    /// The drives' operating mode P196 (0..=127): BCC, parity, reply end, address prefix...
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    pub mode: u32,
+    /// The drives' baud rate P195 (150, 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200).
+    #[arg(long, default_value_t = 9600, allow_negative_numbers = true)]
+    pub baud: u32,
+    /// Time a drive may take to start answering, in ms (1..=60000, on top of the wire time).
+    #[arg(long, default_value_t = 200, allow_negative_numbers = true)]
+    pub timeout_ms: u64,
+    /// Send the short command names (PA, PR, SD, AL, OT) instead of the long ones.
+    #[arg(long)]
+    pub short: bool,
+    /// Print JSON instead of a table.
+    #[arg(long, global = true)]
+    pub json: bool,
+    /// What to do.
+    #[command(subcommand)]
+    pub action: Action,
+}
+
+/// `motionlink compax` actions.
+#[derive(clap::Subcommand, Debug)]
+pub enum Action {
+    /// Find the drives on the bus (reads S1 of addresses 1..=31).
+    Scan,
+    /// Read status values (default: S1 S2 S3 S16 S17 S18).
+    Status {
+        /// Status values such as S1 S16.
+        values: Vec<String>,
+    },
+    /// Read a parameter, such as P194.
+    Get {
+        /// The parameter.
+        param: String,
+    },
+    /// Write a parameter, such as P196 8, and read it back (P194..P196 take effect at the drive's next
+    /// power-on).
+    Set {
+        /// The parameter.
+        param: String,
+        /// The value.
+        #[arg(allow_negative_numbers = true)]
+        value: f64,
+    },
+    /// Move the axis, wait until it is at rest, and check it is at its target (a signal stops it). Every
+    /// argument is checked before anything is sent.
+    Move {
+        /// Move to this absolute position (drive's unit).
+        #[arg(long, allow_negative_numbers = true, conflicts_with = "rel", required_unless_present = "rel")]
+        abs: Option<f64>,
+        /// Move by this distance from the drive's target S2 (drive's unit).
+        #[arg(long, allow_negative_numbers = true)]
+        rel: Option<f64>,
+        /// SPEED in percent of the drive's maximum speed (more than 0, at most 100).
+        #[arg(long, allow_negative_numbers = true)]
+        speed: Option<f64>,
+        /// ACCEL: ramp time in ms (0..=32767).
+        #[arg(long, allow_negative_numbers = true)]
+        accel: Option<u32>,
+        /// Send the binary commands.
+        #[arg(long)]
+        binary: bool,
+        /// Give up (and stop the axis) after this many seconds (more than 0).
+        #[arg(long, default_value_t = 600.0, allow_negative_numbers = true)]
+        timeout_s: f64,
+        /// Success only if the axis comes to rest this close to its target (drive's unit, more than 0).
+        #[arg(long, default_value_t = DEFAULT_IN_POSITION_TOLERANCE, allow_negative_numbers = true)]
+        tolerance: f64,
+        /// Refuse targets below this position (checked before anything moves).
+        #[arg(long, allow_negative_numbers = true)]
+        min_pos: Option<f64>,
+        /// Refuse targets above this position (checked before anything moves).
+        #[arg(long, allow_negative_numbers = true)]
+        max_pos: Option<f64>,
+        /// Interval of the status polls while waiting, in ms (1..=10000).
+        #[arg(long, default_value_t = 50, allow_negative_numbers = true)]
+        poll_ms: u64,
+        /// Return once the drive has taken the move (its target read back), without waiting: the move is
+        /// handed over and keeps running after the command exits (nothing stops it).
+        #[arg(long, conflicts_with = "timeout_s")]
+        no_wait: bool,
+    },
+    /// Read S1 and S17 over and over and print them, one line each, until interrupted.
+    Watch {
+        /// Interval between two lines, in ms (1..=60000).
+        #[arg(long, default_value_t = 200, allow_negative_numbers = true)]
+        interval_ms: u64,
+    },
+    /// Switch an output: OUTPUT ON=S (output 0 is the drive itself: 0 switches it off, 1 on).
+    Output {
+        /// Output number.
+        number: u16,
+        /// 0 or 1 (O0: 0, 1 or 2).
+        state: u8,
+    },
+    /// Send a command as it is, such as "S1", "POSA 10$", "!" (flag characters $ , / ? at the end are sent as
+    /// flags); prints the reply. A move it starts keeps running after the command exits, unless --wait.
+    Raw {
+        /// The command.
+        command: String,
+        /// Wait until a move the command started has ended (a signal stops it; its position is not
+        /// checked: use move for that).
+        #[arg(long)]
+        wait: bool,
+        /// With --wait: give up (and stop the axis) after this many seconds (more than 0).
+        #[arg(long, default_value_t = 600.0, allow_negative_numbers = true, requires = "wait")]
+        timeout_s: f64,
+        /// With --wait: interval of the status polls, in ms (1..=10000).
+        #[arg(long, default_value_t = 50, requires = "wait", allow_negative_numbers = true)]
+        poll_ms: u64,
+    },
+}
+
+/// `motionlink sim compax` arguments.
+#[derive(clap::Args, Debug)]
+pub struct SimArgs {
+    #[command(flatten)]
+    pub serve: ServeArgs,
+    /// Addresses of the emulated drives, such as 1,5 (default 1).
+    #[arg(long, value_delimiter = ',')]
+    pub drives: Option<Vec<u8>>,
+    /// P196 of every drive (default 0).
+    #[arg(long)]
+    pub mode: Option<u32>,
+    /// The line's and the drives' baud rate (default 9600).
+    #[arg(long)]
+    pub baud: Option<u32>,
+    /// A TOML file describing the bus (see the motionlink-compax README); the options above override it.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// A parameter besides P194..P196 that every drive models, with its value at power-on, such as P12=0
+    /// (repeatable). The drives refuse (E90) every other parameter.
+    #[arg(long = "param", value_name = "PNNN=VALUE")]
+    pub params: Vec<String>,
+}
+
+/// `motionlink decode compax` arguments.
+#[derive(clap::Args, Debug)]
+pub struct DecodeArgs {
+    #[command(flatten)]
+    pub capture: CaptureArgs,
+    /// P196 of the capture (BCC, reply end, address prefix).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    pub mode: u32,
+    /// Which way the bytes went: auto (guess each telegram), host (requests only), drive (replies only).
+    #[arg(long, value_enum, default_value_t = Direction::Auto)]
+    pub direction: Direction,
+}
+
+/// Direction of a capture.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Direction {
+    /// Guess each telegram.
+    Auto,
+    /// Host to drive.
+    Host,
+    /// Drive to host.
+    Drive,
+}
+
+/// How to switch drive `a` on again, as a command line on the same port and bus settings.
+fn switch_on_hint(args: &Args, a: u8) -> String {
+    let mut cmd = format!("motionlink compax --port {}", args.port);
+    if args.mode != 0 {
+        cmd.push_str(&format!(" --mode {}", args.mode));
+    }
+    if args.baud != 9600 {
+        cmd.push_str(&format!(" --baud {}", args.baud));
+    }
+    format!("drive {a} is switched off; to switch it on again: {cmd} --drive {a} output 0 1")
+}
+
+/// An error of the library with the message the command line shows: classed as the library classes it.
+struct Explained<'a> {
+    error: &'a Error,
+    message: String,
+}
+
+impl Classify for Explained<'_> {
+    fn class(&self) -> ErrorClass {
+        self.error.class()
+    }
+}
+
+impl std::fmt::Display for Explained<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+/// The error as the user reads it: for a signal, which one and what was stopped; for a drive the error
+/// left (or found) switched off, the command that switches it on. The exit code is the error's class
+/// ([`common::classified`]).
+fn error_for(args: &Args, e: Error) -> CliError {
+    let cause = common::stop_cause();
+    let mut message = match (e.root(), e.stop_report(), cause) {
+        (Error::Cancelled, Some(stop), Some(cause)) => format!("{} received: {stop}", cause.name()),
+        (Error::Cancelled, None, cause) => {
+            let cause = cause.map_or("interrupted".to_string(), |c| format!("{} received", c.name()));
+            format!("{cause}: the action ended before it was done; nothing was moved")
+        }
+        _ => e.to_string(),
+    };
+    for a in e.switched_off_drives() {
+        message.push('\n');
+        message.push_str(&switch_on_hint(args, a));
+    }
+    common::classified(&Explained { error: &e, message })
+}
+
+fn model_error(e: ModelError) -> CliError {
+    CliError::usage(e)
+}
+
+/// A duration in ms given as `name`, within `min..=max`.
+fn checked_ms(name: &str, ms: u64, min: u64, max: u64) -> Result<Duration, CliError> {
+    if (min..=max).contains(&ms) {
+        Ok(Duration::from_millis(ms))
+    } else {
+        Err(CliError::usage(format!("{name} {ms}: give {min} to {max} ms")))
+    }
+}
+
+/// A duration in seconds given as `name`: more than 0, finite.
+fn checked_s(name: &str, s: f64) -> Result<Duration, CliError> {
+    Duration::try_from_secs_f64(s)
+        .ok()
+        .filter(|t| !t.is_zero())
+        .ok_or_else(|| CliError::usage(format!("{name} {s}: give a number of seconds above 0")))
+}
+
+/// The arguments of `move`, checked before anything is sent.
+struct MovePlan {
+    request: MoveRequest,
+    tolerance: Position,
+    poll: Duration,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn plan_move(
+    abs: Option<f64>,
+    rel: Option<f64>,
+    speed: Option<f64>,
+    accel: Option<u32>,
+    binary: bool,
+    timeout_s: f64,
+    tolerance: f64,
+    (min_pos, max_pos): (Option<f64>, Option<f64>),
+    poll_ms: u64,
+) -> Result<MovePlan, CliError> {
+    let target = match (abs, rel) {
+        (Some(a), None) => MoveTarget::Absolute(Position::new(a).map_err(|e| CliError::usage(format!("--abs: {e}")))?),
+        (None, Some(r)) => MoveTarget::Relative(Position::new(r).map_err(|e| CliError::usage(format!("--rel: {e}")))?),
+        _ => return Err(CliError::usage("give one of --abs and --rel")),
+    };
+    let speed = speed.map(SpeedPercent::new).transpose().map_err(|e| CliError::usage(format!("--speed: {e}")))?;
+    let accel = accel.map(RampMs::new).transpose().map_err(|e| CliError::usage(format!("--accel: {e}")))?;
+    let timeout = checked_s("--timeout-s", timeout_s)?;
+    if !(tolerance.is_finite() && tolerance > 0.0 && tolerance <= 1e6) {
+        return Err(CliError::usage(format!("--tolerance {tolerance}: give a distance above 0 (at most 1000000)")));
+    }
+    let tolerance = Position::new(tolerance).map_err(|e| CliError::usage(format!("--tolerance: {e}")))?;
+    let limit = |name: &str, v: Option<f64>| {
+        v.map(Position::new).transpose().map_err(|e| CliError::usage(format!("{name}: {e}")))
+    };
+    let limits = TravelLimits::new(limit("--min-pos", min_pos)?, limit("--max-pos", max_pos)?)
+        .map_err(|e| CliError::usage(format!("--min-pos / --max-pos: {e}")))?;
+    let poll = checked_ms("--poll-ms", poll_ms, 1, 10_000)?;
+    let request = MoveRequest { target, speed, accel, binary, limits, timeout: Some(timeout) };
+    Ok(MovePlan { request, tolerance, poll })
+}
+
+fn parse_mode(p196: u32) -> Result<Mode, CliError> {
+    Mode::from_p196(p196).map_err(|e| CliError::usage(format!("--mode: {e}")))
+}
+
+/// Checks the bus arguments (before anything is opened or sent) and opens the port.
+fn open(args: &Args, configure: impl FnOnce(&mut BusConfig)) -> Result<Client, CliError> {
+    let mode = parse_mode(args.mode)?;
+    Address::drive(args.drive).map_err(|e| CliError::usage(format!("--drive {}: {e}", args.drive)))?;
+    if !BAUD_RATES.contains(&args.baud) {
+        return Err(CliError::usage(format!("--baud {}: not a rate P195 accepts ({BAUD_RATES:?})", args.baud)));
+    }
+    let reply_timeout = checked_ms("--timeout-ms", args.timeout_ms, 1, 60_000)?;
+    let url: PortUrl = args.port.parse()?;
+    let clock: SharedClock = RealClock::shared();
+    // Installed before the port opens: a signal from here on stops what the command starts.
+    let token = common::interrupt_token();
+    let link: Box<dyn Link> = match url {
+        PortUrl::Sim => {
+            let cfg = SimConfig::bus(&[args.drive], args.mode, args.baud);
+            let bus = Emulator::new(cfg).map_err(CliError::usage)?;
+            let host = EmulatorHost::new(bus, clock.clone(), PipeConfig::paced(args.baud));
+            Box::new(host.connect().0)
+        }
+        other => {
+            let mut settings = SerialSettings::new(args.baud);
+            settings.parity = mode.parity;
+            other.open_byte_link(settings)?
+        }
+    };
+    let mut cfg = BusConfig::new(mode, args.baud);
+    cfg.reply_timeout = reply_timeout;
+    cfg.style = if args.short { CommandStyle::Short } else { CommandStyle::Long };
+    configure(&mut cfg);
+    let bus = Client::new(link, clock, cfg).map_err(|e| common::classified(&e))?;
+    bus.set_cancel(token);
+    Ok(bus)
+}
+
+fn status_rows(id: StatusId, v: &StatusValue) -> (Row, serde_json::Value) {
+    let info = id.info();
+    let name = info.map_or("(meaning not documented)", |i| i.title);
+    let unit = info.map_or("", |i| i.unit);
+    let (shown, js) = match v {
+        StatusValue::S16(b) => {
+            let names = b.meanings();
+            let bits = b.pattern().to_string();
+            (format!("{bits}  [{}]", names.join(", ")), json!({"bits": bits, "value": b.0, "set": names}))
+        }
+        StatusValue::S17(b) => {
+            let names = b.meanings();
+            let bits = b.pattern().to_string();
+            (format!("{bits}  [{}]", names.join(", ")), json!({"bits": bits, "value": b.0, "set": names}))
+        }
+        StatusValue::Position(p) => (format!("{v} {unit}").trim_end().to_string(), json!(p.units())),
+        StatusValue::Number(n) => (format!("{v} {unit}").trim_end().to_string(), json!(n)),
+        other => (other.to_string(), json!(other.to_string())),
+    };
+    ((format!("{id} {name}"), shown), json!({"status": id.to_string(), "name": name, "unit": unit, "value": js}))
+}
+
+/// Runs `motionlink compax`.
+pub fn run(args: Args) -> Result<(), CliError> {
+    let mut out = std::io::stdout().lock();
+    // Every argument of an action is checked before the port is opened: nothing is sent for an action that
+    // cannot be made.
+    let move_plan = match &args.action {
+        Action::Move { abs, rel, speed, accel, binary, timeout_s, tolerance, min_pos, max_pos, poll_ms, .. } => Some(
+            plan_move(*abs, *rel, *speed, *accel, *binary, *timeout_s, *tolerance, (*min_pos, *max_pos), *poll_ms)?,
+        ),
+        _ => None,
+    };
+    let mut poll = move_plan.as_ref().map(|p| p.poll);
+    let mut raw_wait = None;
+    let mut watch_interval = None;
+    let mut status_ids = Vec::new();
+    match &args.action {
+        Action::Raw { wait: true, timeout_s, poll_ms, .. } => {
+            raw_wait = Some(checked_s("--timeout-s", *timeout_s)?);
+            poll = Some(checked_ms("--poll-ms", *poll_ms, 1, 10_000)?);
+        }
+        Action::Watch { interval_ms } => watch_interval = Some(checked_ms("--interval-ms", *interval_ms, 1, 60_000)?),
+        Action::Output { number, state } => {
+            OutputState::new(*number, *state).map_err(model_error)?;
+        }
+        Action::Get { param } => {
+            ParamId::parse(param).map_err(model_error)?;
+        }
+        Action::Set { param, value } => {
+            ParamId::parse(param).and_then(|id| id.check(*value)).map_err(model_error)?;
+        }
+        Action::Status { values } if values.is_empty() => {
+            status_ids = [1, 2, 3, 16, 17, 18].iter().filter_map(|&n| StatusId::new(n).ok()).collect();
+        }
+        Action::Status { values } => {
+            status_ids = values.iter().map(|v| StatusId::parse(v)).collect::<Result<_, _>>().map_err(model_error)?;
+        }
+        _ => {}
+    }
+    let tolerance = move_plan.as_ref().map(|p| p.tolerance);
+    let bus = open(&args, |cfg| {
+        if let Some(p) = poll {
+            cfg.poll_interval = p;
+        }
+        if let Some(t) = tolerance {
+            cfg.in_position_tolerance = t;
+        }
+    })?;
+    let drive = Address::drive(args.drive).map_err(CliError::usage)?;
+    let fail = |e: Error| error_for(&args, e);
+    match &args.action {
+        Action::Scan => {
+            // A signal ends the scan between two addresses.
+            let found = bus.scan(1..=31).map_err(fail)?;
+            if args.json {
+                let list: Vec<_> =
+                    found.iter().map(|(a, p)| json!({"address": a.get(), "position": p.units()})).collect();
+                common::print_json(&mut out, &json!({"drives": list}))?;
+            } else if found.is_empty() {
+                writeln!(out, "no drive answered on {}", args.port)?;
+            } else {
+                let rows: Vec<Row> = found.iter().map(|(a, p)| (format!("drive {a}"), format!("S1 = {p}"))).collect();
+                common::print_table(&mut out, &rows)?;
+            }
+            if found.is_empty() {
+                return Err(CliError::transport("no drive answered"));
+            }
+        }
+        Action::Status { .. } => {
+            // A signal ends the reads between two values.
+            let values = bus.read_statuses(drive, &status_ids).map_err(fail)?;
+            let (rows, js): (Vec<Row>, Vec<serde_json::Value>) =
+                values.iter().map(|(id, v)| status_rows(*id, v)).unzip();
+            if args.json {
+                common::print_json(&mut out, &json!({"drive": drive.get(), "status": js}))?;
+            } else {
+                common::print_table(&mut out, &rows)?;
+            }
+        }
+        Action::Get { param } => {
+            let id = ParamId::parse(param).map_err(model_error)?;
+            let v = bus.read_param(drive, id).map_err(fail)?;
+            let desc = id.description().unwrap_or("");
+            if args.json {
+                common::print_json(&mut out, &json!({"drive": drive.get(), "param": id.to_string(), "value": v}))?;
+            } else {
+                common::print_table(&mut out, &[(format!("{id} {desc}").trim_end().to_string(), format!("{v}"))])?;
+            }
+        }
+        Action::Set { param, value } => {
+            let id = ParamId::parse(param).map_err(model_error)?;
+            // Written and read back: a value that reads back otherwise is an error (exit code 1).
+            bus.write_param(drive, id, *value).map_err(fail)?;
+            let note = match id.info() {
+                Some(i) if i.kind.valid_from == ValidFrom::PowerOn => " (takes effect at the drive's next power-on)",
+                _ => "",
+            };
+            if args.json {
+                common::print_json(
+                    &mut out,
+                    &json!({"drive": drive.get(), "param": id.to_string(), "value": value, "read_back": true}),
+                )?;
+            } else {
+                writeln!(out, "{id} = {value}, read back{note}")?;
+            }
+        }
+        Action::Move { no_wait: true, .. } => {
+            let plan = move_plan.ok_or_else(|| CliError::usage("move: no plan"))?;
+            // Handed over once its target is read back: the move runs on after this command exits (a signal
+            // before that stops it instead).
+            let started = bus.start_and_release(drive, &plan.request).map_err(fail)?;
+            let now = bus.read_position(drive).map_err(fail)?;
+            if args.json {
+                common::print_json(
+                    &mut out,
+                    &json!({"drive": drive.get(), "target": started.target.units(), "position": now.units(),
+                            "waited": false}),
+                )?;
+            } else {
+                writeln!(out, "drive {drive}: target {}, position {now} (moving on)", started.target)?;
+            }
+        }
+        Action::Move { .. } => {
+            let plan = move_plan.ok_or_else(|| CliError::usage("move: no plan"))?;
+            let bar = common::progress_bar(0, format!("drive {drive}"));
+            let mut started_at: Option<f64> = None;
+            let report = bus.move_to(drive, &plan.request, &mut |p| {
+                let s = *started_at.get_or_insert_with(|| {
+                    let distance = match plan.request.target {
+                        MoveTarget::Absolute(t) => t.units() - p.units(),
+                        MoveTarget::Relative(d) => d.units(),
+                    };
+                    bar.set_length((distance.abs() * 1000.0).round() as u64);
+                    p.units()
+                });
+                bar.set_position(((p.units() - s).abs() * 1000.0).round() as u64);
+            });
+            bar.finish_and_clear();
+            let report = report.map_err(fail)?;
+            if args.json {
+                common::print_json(
+                    &mut out,
+                    &json!({"drive": drive.get(), "target": report.target.units(), "position": report.reached.units(),
+                            "difference": report.difference(), "tolerance": plan.tolerance.units(), "waited": true}),
+                )?;
+            } else {
+                writeln!(out, "drive {drive}: target {}, position {}", report.target, report.reached)?;
+            }
+        }
+        Action::Watch { .. } => {
+            let interval = watch_interval.unwrap_or(Duration::from_millis(200));
+            let mut written = Ok(());
+            let token = common::interrupt_token();
+            bus.watch(drive, interval, &mut |s| {
+                let line = if args.json {
+                    json!({"drive": drive.get(), "position": s.position.units(), "s17": s.s17.pattern().to_string(),
+                           "moving": s.moving()})
+                    .to_string()
+                } else {
+                    format!("drive {drive}  S1 = {}  {}", s.position, if s.moving() { "moving" } else { "at rest" })
+                };
+                if written.is_ok() {
+                    written = writeln!(out, "{line}").and_then(|()| out.flush());
+                    if written.is_err() {
+                        // Nobody reads any more: the watch ends.
+                        token.cancel();
+                    }
+                }
+            })
+            .map_err(fail)?;
+            written?;
+            // Interrupted: a signal ends the command with 128 + n (main), a closed stdout quietly.
+            if common::stop_cause() == Some(common::StopCause::OutputClosed) {
+                return Err(CliError::OutputClosed);
+            }
+        }
+        Action::Output { number, state } => {
+            let st = OutputState::new(*number, *state).map_err(model_error)?;
+            bus.set_output(drive, *number, st, false).map_err(fail)?;
+            if args.json {
+                common::print_json(&mut out, &json!({"drive": drive.get(), "output": number, "state": state}))?;
+            } else {
+                writeln!(out, "drive {drive}: OUTPUT O{number}={state}")?;
+            }
+        }
+        Action::Raw { command, .. } => {
+            // A move it starts is waited for (--wait) or handed over: it runs on after the command exits.
+            let after = raw_wait.map_or(AfterRaw::HandOver, AfterRaw::Wait);
+            let outcome = bus.raw_motion(drive, command, after).map_err(fail)?;
+            if args.json {
+                common::print_json(
+                    &mut out,
+                    &json!({"drive": drive.get(), "command": command, "reply": outcome.reply,
+                            "waited": outcome.waited}),
+                )?;
+            } else {
+                match outcome.reply {
+                    Some(r) if r.is_empty() => writeln!(out, "(acknowledged)")?,
+                    Some(r) => writeln!(out, "{r}")?,
+                    None => writeln!(out, "(no reply due)")?,
+                }
+            }
+        }
+    }
+    // What this command set in motion and did not hand over is stopped here, and the result said.
+    let report = bus.close().map_err(fail)?;
+    if !report.is_empty() {
+        common::say(format!("motionlink: {report}"));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests;
