@@ -110,8 +110,8 @@ use motionlink_link::url::PortUrl;
 use motionlink_link::{SharedClock, Signal, Timestamp};
 
 use crate::model::{
-    item, status1, timing, Actuator, CyclicObject, DataEntry, DataIndex, ErrorCode, FlagSet, Flags, Function, Item,
-    MotionDirection, MotionFunction, SafetyId, StopMode, UNUSED,
+    item, status1, timing, Actuator, CyclicObject, DataEntry, DataEntryExt, DataIndex, ErrorCode, FlagSet, Flags,
+    Function, Item, MotionDirection, MotionFunction, SafetyId, StopMode, UNUSED,
 };
 use crate::value::{decode_item, SpeedMode, Value};
 use crate::wire::{request_to_vec, Command, ReplyDecoder, ReplyShape, Request, Status, WireError, MAX_REQUEST_LEN};
@@ -947,7 +947,7 @@ impl ScuClient {
         let Some(Item::Entry(e)) = item(index) else {
             return Err(ScuError::InvalidArgument(format!("{index} is not a single data-list entry")));
         };
-        if !e.index.is_remote() {
+        if !e.index().is_remote() {
             return Err(ScuError::InvalidArgument(format!(
                 "{} ({index}) is read-only: only remote data (0x3xxx) can be written",
                 e.name
@@ -1170,7 +1170,7 @@ impl ScuClient {
         }
         let mut bytes = Vec::new();
         for (e, v) in entries.iter().zip(write) {
-            if !e.index.is_remote() {
+            if !e.index().is_remote() {
                 return Err(ScuError::InvalidArgument(format!("{}: cyclic write data must be remote data", e.name)));
             }
             if !v.fits(e.kind) {

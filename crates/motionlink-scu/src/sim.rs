@@ -59,8 +59,8 @@ use motionlink_link::emulator::Emulator;
 use motionlink_link::Timestamp;
 
 use crate::model::{
-    error_bits, item, status1, status2, Actuator, CyclicObject, DataEntry, DataIndex, ErrorCode, Function, Item,
-    MotionDirection, SafetyId, StopMode, UserPositionData, UserPositions, UNUSED,
+    error_bits, item, status1, status2, Actuator, CyclicObject, DataEntry, DataEntryExt, DataIndex, ErrorCode,
+    Function, Item, MotionDirection, SafetyId, StopMode, UserPositionData, UserPositions, UNUSED,
 };
 use crate::value::{SpeedMode, Value};
 use crate::wire::{encode_reply, Command, Incoming, Reply, Request, RequestDecoder, Status, MAX_REPLY_LEN};
@@ -907,7 +907,7 @@ impl ScuEmulator {
         self.error_history[0] = code.0;
         for b in 1..=32u8 {
             if code.has(b) {
-                let cause = crate::model::error_bit(b).map_or("undefined", |e| e.cause);
+                let cause = crate::model::error_bit(b).map_or("undefined", |e| e.cause());
                 self.push_event(format!("error bit {b} set ({cause})"));
             }
         }
@@ -1059,7 +1059,7 @@ impl ScuEmulator {
     /// The value bytes of data-list entry `e`.
     fn read_entry(&self, e: &DataEntry, out: &mut Vec<u8>) {
         let v = self.entry_value(e).unwrap_or_else(|| {
-            tracing::error!("SCU emulator: {} ({}) has no modelled value; answering zeros", e.name, e.index);
+            tracing::error!("SCU emulator: {} ({}) has no modelled value; answering zeros", e.name, e.index());
             Value::Counter(0)
         });
         // Entries of raw-number kinds are encoded through their own kind's size.
@@ -1075,7 +1075,7 @@ impl ScuEmulator {
     /// The emulated unit's value of entry `e`; `None` for an entry the emulator does not model (a test
     /// checks that there is none).
     fn entry_value(&self, e: &DataEntry) -> Option<Value> {
-        let i = e.index.0;
+        let i = e.index().0;
         let actuator = |base: u16| self.actuators.get(usize::from(i - base).wrapping_sub(1));
         Some(match i {
             0x0001 => Value::Text(self.config.firmware_info.clone()),
@@ -1138,7 +1138,7 @@ impl ScuEmulator {
     fn write_entry(&mut self, e: &DataEntry, bytes: &[u8]) -> Result<(), Status> {
         let v = Value::decode(e.kind, bytes).map_err(|_| Status::ParameterCountError)?;
         v.check_range(self.config.speed_mode).map_err(|_| Status::ParameterDataError)?;
-        let i = e.index.0;
+        let i = e.index().0;
         match (i, v) {
             (0x3001..=0x3005, Value::CyclicObject(o)) => self.cyclic_objects[usize::from(i - 0x3001)] = o,
             (0x3011..=0x301A, Value::RemoteSpeed(s)) => {
@@ -1635,7 +1635,7 @@ mod tests {
     fn every_entry_of_the_data_list_has_a_modelled_value() {
         let unit = ScuEmulator::new(SimConfig::scp11(6)).unwrap();
         for e in DATA_LIST {
-            assert!(unit.entry_value(e).is_some(), "{} ({}) is not modelled", e.name, e.index);
+            assert!(unit.entry_value(e).is_some(), "{} ({}) is not modelled", e.name, e.index());
         }
     }
 }

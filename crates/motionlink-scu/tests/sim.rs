@@ -4,7 +4,7 @@ use std::time::Duration;
 
 use motionlink_link::emulator::Emulator;
 use motionlink_link::Timestamp;
-use motionlink_scu::model::{status1, Actuator, CyclicObject, DataIndex, ErrorCode, DATA_LIST, GROUPS};
+use motionlink_scu::model::{status1, Actuator, CyclicObject, DataEntryExt, DataIndex, ErrorCode, DATA_LIST, GROUPS};
 use motionlink_scu::sim::{RemoteMode, ScuEmulator, SimConfig};
 use motionlink_scu::wire::*;
 use proptest::prelude::*;
@@ -456,7 +456,7 @@ fn every_index_of_the_data_list_answers_with_its_size() {
     let mut b = Bench::new(SimConfig::scp11(6));
     b.open(1);
     for e in DATA_LIST {
-        assert_eq!(b.get(e.index.0).len(), e.size(), "{}", e.name);
+        assert_eq!(b.get(e.index().0).len(), e.size(), "{}", e.name);
     }
     for g in GROUPS {
         assert_eq!(b.get(g.index.0).len(), g.size(), "{}", g.name);
@@ -644,7 +644,7 @@ enum Step {
 }
 
 fn known_index() -> impl Strategy<Value = u16> {
-    let indices: Vec<u16> = DATA_LIST.iter().map(|e| e.index.0).chain(GROUPS.iter().map(|g| g.index.0)).collect();
+    let indices: Vec<u16> = DATA_LIST.iter().map(|e| e.index().0).chain(GROUPS.iter().map(|g| g.index.0)).collect();
     prop_oneof![proptest::sample::select(indices), any::<u16>()]
 }
 

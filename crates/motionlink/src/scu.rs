@@ -17,8 +17,8 @@ use motionlink_scu::client::{
 };
 use motionlink_scu::describe::{describe_incoming, describe_reply, describe_request};
 use motionlink_scu::model::{
-    lookup, status1, Actuator, DataEntry, DataIndex, ErrorCode, FlagSet, Flags, Function, Item, MotionDirection,
-    MotionFunction, SafetyId, StopMode,
+    lookup, status1, Actuator, DataEntry, DataEntryExt, DataIndex, ErrorCode, FlagSet, Flags, Function, Item,
+    MotionDirection, MotionFunction, SafetyId, StopMode,
 };
 use motionlink_scu::sim::{ScuEmulator, SimConfig};
 use motionlink_scu::value::{SpeedMode, Value};
@@ -380,7 +380,7 @@ fn parse_direction(text: &str) -> Result<MotionDirection, CliError> {
 }
 
 fn value_rows(values: &[(&'static DataEntry, Value)]) -> Vec<Row> {
-    values.iter().map(|(e, v)| (format!("{} ({})", e.name, e.index), v.to_string())).collect()
+    values.iter().map(|(e, v)| (format!("{} ({})", e.name, e.index()), v.to_string())).collect()
 }
 
 fn values_json(values: &[(&'static DataEntry, Value)]) -> serde_json::Value {
@@ -503,14 +503,17 @@ fn act(client: &ScuClient, args: &Args, out: &mut dyn Write, interrupt: &CancelT
             };
             let v = Value::parse(e.kind, value).map_err(|err| CliError::usage(format!("{}: {err}", e.name)))?;
             // set() reads the value back and fails if the unit holds another.
-            client.set(e.index, &v).map_err(scu_error)?;
+            client.set(e.index(), &v).map_err(scu_error)?;
             if args.json {
                 common::print_json(
                     out,
-                    &json!({"index": e.index.to_string(), "name": e.name, "value": v.to_json(), "read_back": true}),
+                    &json!({"index": e.index().to_string(), "name": e.name, "value": v.to_json(), "read_back": true}),
                 )
             } else {
-                common::print_table(out, &[(format!("{} ({})", e.name, e.index), format!("{v} (written, read back)"))])
+                common::print_table(
+                    out,
+                    &[(format!("{} ({})", e.name, e.index()), format!("{v} (written, read back)"))],
+                )
             }
         }
         Action::Move { actuator, position, speed, function } => {
@@ -613,7 +616,7 @@ fn errors(client: &ScuClient, json: bool, out: &mut dyn Write) -> Result<(), Cli
         };
         rows.push((label, format!("0x{:08X}", code.0)));
         for b in code.bits() {
-            rows.push((format!("  bit {}", b.number), format!("{}; reaction: {}", b.cause, b.reaction)));
+            rows.push((format!("  bit {}", b.number()), format!("{}; reaction: {}", b.cause(), b.reaction())));
         }
         if code.unknown_bits() != 0 {
             rows.push(("  undefined bits".into(), format!("0x{:08X}", code.unknown_bits())));
