@@ -3,7 +3,7 @@
 //! - `codec/rg_position_exchange` and `codec/rc_12_word_cyclic_exchange`: both telegrams of an exchange encoded
 //!   and decoded (request built by the host and parsed by the unit, reply built by the unit and parsed by the
 //!   host), no heap allocation. Throughput is in telegrams; the target is 20 million per second each.
-//! - `transaction/rg_position_38400_baud_overhead`: a real `ScuClient::get_raw` through the in-process emulator
+//! - `transaction/rg_position_38400_baud_overhead`: a real `Client::get_raw` through the in-process emulator
 //!   over a link paced at 38400 baud. The time reported is the host's overhead: the measured time minus the
 //!   wire time of the 17 bytes (6 out, 11 back) at 10 bits per byte. Target: median under 50 µs.
 //!   Criterion's estimate is a mean over samples of many transactions, and about one transaction in 45 waits
@@ -25,10 +25,10 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use motionlink_link::link::{char_time, Connector, Link, LinkError, Parity};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::RealClock;
-use motionlink_scu::client::{ClientConfig, ScuClient};
 use motionlink_scu::model::DataIndex;
-use motionlink_scu::sim::{ScuEmulator, SimConfig};
 use motionlink_scu::wire::*;
+use motionlink_scu::{Client, ClientConfig};
+use motionlink_scu::{Emulator, SimConfig};
 
 /// Encodes and decodes `request` and `reply` once; returns something that depends on every step.
 fn exchange(
@@ -139,19 +139,16 @@ impl Drop for Load {
     }
 }
 
-fn client_on_emulator() -> ScuClient {
+fn client_on_emulator() -> Client {
     let clock = RealClock::shared();
-    let host = EmulatorHost::new(
-        ScuEmulator::new(SimConfig::default()).unwrap(),
-        Arc::clone(&clock),
-        PipeConfig::paced(38_400),
-    );
+    let host =
+        EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), Arc::clone(&clock), PipeConfig::paced(38_400));
     let connector: Connector = Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>));
-    ScuClient::open(connector, clock, ClientConfig::default()).unwrap()
+    Client::open(connector, clock, ClientConfig::default()).unwrap()
 }
 
 /// Median and 90th percentile of `n` single RG transactions' host overhead above the wire time.
-fn single_transactions(client: &ScuClient, wire: Duration, n: usize) -> (Duration, Duration) {
+fn single_transactions(client: &Client, wire: Duration, n: usize) -> (Duration, Duration) {
     let mut single: Vec<Duration> = (0..n)
         .map(|_| {
             let t = Instant::now();
@@ -221,18 +218,15 @@ impl Link for KeepaliveTimes {
 /// How late each keepalive went out after its deadline on the grid, sorted.
 fn keepalive_lateness(duration: Duration) -> Vec<Duration> {
     let clock = RealClock::shared();
-    let host = EmulatorHost::new(
-        ScuEmulator::new(SimConfig::default()).unwrap(),
-        Arc::clone(&clock),
-        PipeConfig::paced(38_400),
-    );
+    let host =
+        EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), Arc::clone(&clock), PipeConfig::paced(38_400));
     let sent = Arc::new(Mutex::new(Vec::new()));
     let record = Arc::clone(&sent);
     let connector: Connector = Box::new(move || {
         Ok(Box::new(KeepaliveTimes { inner: Box::new(host.connect().0), sent: Arc::clone(&record) }) as Box<dyn Link>)
     });
     let period = ClientConfig::default().keepalive_period;
-    let client = ScuClient::open(connector, clock, ClientConfig::default()).unwrap();
+    let client = Client::open(connector, clock, ClientConfig::default()).unwrap();
     std::thread::sleep(duration);
     drop(client);
     let times = sent.lock().unwrap().clone();

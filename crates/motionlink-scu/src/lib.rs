@@ -13,19 +13,19 @@
 //!
 //! ```
 //! use motionlink_link::{pipe::{EmulatorHost, PipeConfig}, link::Link, ManualClock, Clock};
-//! use motionlink_scu::{client::{ClientConfig, ScuClient}, model::Actuator, sim::{ScuEmulator, SimConfig}};
+//! use motionlink_scu::{model::{Actuator, Speed}, Client, ClientConfig, Emulator, SimConfig};
 //!
 //! // A virtual clock: ten seconds of device time take a few milliseconds.
 //! let clock = ManualClock::new_auto();
 //! let _me = clock.reserve_participant().enter();
-//! let unit = EmulatorHost::new(ScuEmulator::new(SimConfig::default())?, clock.shared(), PipeConfig::paced(38_400));
-//! let client = ScuClient::open(
+//! let unit = EmulatorHost::new(Emulator::new(SimConfig::default())?, clock.shared(), PipeConfig::paced(38_400));
+//! let client = Client::open(
 //!     Box::new(move || Ok(Box::new(unit.connect().0) as Box<dyn Link>)),
 //!     clock.shared(),
 //!     ClientConfig::default(),
 //! )?;
 //! let a1 = Actuator::new(1).unwrap();
-//! let report = client.move_to(a1, 400, 80, &Default::default())?;
+//! let report = client.move_to(a1, 400, Speed::percent(80).unwrap(), &Default::default())?;
 //! assert_eq!(report.position_counts, 400); // read after the unit reported the end of the motion
 //! assert!(report.actuators.iter().all(|a| a.difference_counts().abs() <= 5 || !a.moved));
 //! client.close()?; // RS for anything still started, then RA
@@ -112,8 +112,17 @@
 #![warn(missing_docs)]
 
 pub mod client;
+pub mod config;
 pub mod describe;
+pub mod error;
 pub mod model;
+pub mod session;
 pub mod sim;
 pub mod value;
 pub mod wire;
+
+pub use client::{Client, MoveOptions, SetpointStream};
+pub use config::{ClientConfig, FunctionMap, MovePolling, StrokeLimits};
+pub use error::Error;
+pub use session::{Op, Output, Progress, Session};
+pub use sim::{ScuEmulator as Emulator, SimConfig};

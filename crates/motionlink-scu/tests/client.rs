@@ -6,16 +6,19 @@ use std::time::{Duration, Instant};
 
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::clock::{Clock, ManualClock, ParticipantGuard};
+use motionlink_link::error::{Classify, ErrorClass, TransportKind};
 use motionlink_link::link::{Connector, Link, LinkError};
 use motionlink_link::pipe::{Direction, EmulatorHost, Fault, FaultControl, PipeConfig};
-use motionlink_scu::client::{ClientConfig, ErrorClass, FunctionMap, MoveOptions, ScuClient, ScuError, StrokeLimits};
+use motionlink_scu::model::Speed;
 use motionlink_scu::model::{
     status1, Actuator, CyclicObject, DataIndex, ErrorCode, Function, MotionDirection, MotionFunction, SafetyId,
     StopMode,
 };
-use motionlink_scu::sim::{RemoteMode, ScuEmulator, SimConfig};
+use motionlink_scu::sim::{RemoteMode, SimConfig};
 use motionlink_scu::value::Value;
 use motionlink_scu::wire::{Command, Status};
+use motionlink_scu::Emulator;
+use motionlink_scu::{Client, ClientConfig, Error, FunctionMap, MoveOptions, MovePolling, StrokeLimits};
 
 /// Called with every request the client sends (its bytes) and the fault control, just before it is sent: a
 /// test arranges faults for that request's reply (its first byte is the next one the unit sends).
@@ -46,7 +49,7 @@ impl Link for Hooked {
 
 struct Rig {
     clock: ManualClock,
-    host: EmulatorHost<ScuEmulator>,
+    host: EmulatorHost<Emulator>,
     faults: Arc<Mutex<Option<FaultControl>>>,
     hook: Arc<Mutex<Option<Hook>>>,
     connects: Arc<Mutex<u32>>,
@@ -59,7 +62,7 @@ impl Rig {
     fn new(config: SimConfig) -> Rig {
         let clock = ManualClock::new_auto();
         let me = clock.reserve_participant().enter();
-        let host = EmulatorHost::new(ScuEmulator::new(config).unwrap(), clock.shared(), PipeConfig::paced(38_400));
+        let host = EmulatorHost::new(Emulator::new(config).unwrap(), clock.shared(), PipeConfig::paced(38_400));
         Rig {
             clock,
             host,
@@ -95,8 +98,8 @@ impl Rig {
         })
     }
 
-    fn client(&self, config: ClientConfig) -> ScuClient {
-        ScuClient::open(self.connector(), self.clock.shared(), config).unwrap()
+    fn client(&self, config: ClientConfig) -> Client {
+        Client::open(self.connector(), self.clock.shared(), config).unwrap()
     }
 
     /// From now on, `hook` sees every request before it is sent.
@@ -108,7 +111,7 @@ impl Rig {
         self.faults.lock().unwrap().clone().unwrap()
     }
 
-    fn unit<R>(&self, f: impl FnOnce(&mut ScuEmulator) -> R) -> R {
+    fn unit<R>(&self, f: impl FnOnce(&mut Emulator) -> R) -> R {
         self.host.with_device(f)
     }
 
@@ -123,6 +126,10 @@ fn a(n: u8) -> Actuator {
 
 fn f(n: u8) -> MotionFunction {
     MotionFunction::new(n).unwrap()
+}
+
+fn pct(n: u16) -> Speed {
+    Speed::percent(n).unwrap()
 }
 
 #[test]
@@ -144,7 +151,7 @@ fn a_unit_that_ignores_the_first_ro_after_a_long_silence_is_opened_by_the_second
         faults.drop_next(Direction::HostToDevice, 5); // the first RO, all five bytes
         Ok(Box::new(link) as Box<dyn Link>)
     });
-    let client = ScuClient::open(connector, rig.clock.shared(), ClientConfig::default()).unwrap();
+    let client = Client::open(connector, rig.clock.shared(), ClientConfig::default()).unwrap();
     assert_eq!(client.stats().retries, 1);
     assert!(matches!(rig.unit(|u| u.mode()), RemoteMode::Active(_)));
     client.close().unwrap();
@@ -177,13 +184,13 @@ fn a_session_is_kept_alive_for_ten_minutes_of_device_time_without_busy_waiting()
 #[test]
 fn keepalive_period_above_450_ms_is_refused() {
     let rig = Rig::new(SimConfig::default());
-    let err = ScuClient::open(
+    let err = Client::open(
         rig.connector(),
         rig.clock.shared(),
         ClientConfig { keepalive_period: Duration::from_millis(451), ..Default::default() },
     )
     .unwrap_err();
-    assert!(matches!(err, ScuError::InvalidArgument(_)), "{err}");
+    assert!(matches!(err, Error::InvalidArgument(_)), "{err}");
     assert_eq!(*rig.connects.lock().unwrap(), 0, "nothing was opened");
     // 450 ms is allowed and keeps the unit alive.
     let client = rig.client(ClientConfig { keepalive_period: Duration::from_millis(450), ..Default::default() });
@@ -194,7 +201,7 @@ fn keepalive_period_above_450_ms_is_refused() {
 
 /// Starts a long move, then the host falls silent (every byte to the unit lost, as when the program is killed):
 /// the unit's own watchdog must stop the drive 500 ms after the last RC it received.
-fn watchdog_expires_after_500_ms(safety: SafetyId) -> (Rig, ScuClient) {
+fn watchdog_expires_after_500_ms(safety: SafetyId) -> (Rig, Client) {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig { safety_id: safety, ..Default::default() });
     client.set(DataIndex(0x3021), &Value::RemotePosition(800)).unwrap();
@@ -259,8 +266,8 @@ fn typed_reads_of_entries_and_groups() {
         Value::Text(t) => assert!(t.starts_with("SCU"), "{t}"),
         other => panic!("{other:?}"),
     }
-    assert!(matches!(client.get_value(DataIndex(0x0010)), Err(ScuError::InvalidArgument(_))), "a group");
-    assert!(matches!(client.get(DataIndex(0x0017)), Err(ScuError::InvalidArgument(_))), "not in the list");
+    assert!(matches!(client.get_value(DataIndex(0x0010)), Err(Error::InvalidArgument(_))), "a group");
+    assert!(matches!(client.get(DataIndex(0x0017)), Err(Error::InvalidArgument(_))), "not in the list");
 }
 
 #[test]
@@ -288,8 +295,8 @@ fn the_unit_refusing_is_a_device_error() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig::default());
     let err = client.start_motion(f(6), MotionDirection::Out).unwrap_err();
-    assert!(matches!(err, ScuError::Refused { command: Command::Execute, status: Status::PermissionError }), "{err}");
-    assert_eq!(err.class(), ErrorClass::Device);
+    assert!(matches!(err, Error::Refused { command: Command::Execute, status: Status::PermissionError }), "{err}");
+    assert_eq!(err.class(), ErrorClass::Refused);
 }
 
 #[test]
@@ -297,9 +304,9 @@ fn move_to_moves_and_ends_with_rs() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig::default());
     let seen = Mutex::new(Vec::new());
-    let progress = |p: &motionlink_scu::client::MoveProgress| seen.lock().unwrap().push(p.position_counts);
+    let progress = |p: &motionlink_scu::session::MoveProgress| seen.lock().unwrap().push(p.position_counts);
     let report =
-        client.move_to(a(1), 400, 80, &MoveOptions { progress: Some(&progress), ..Default::default() }).unwrap();
+        client.move_to(a(1), 400, pct(80), &MoveOptions { progress: Some(&progress), ..Default::default() }).unwrap();
     assert_eq!(report.position_counts, 400);
     assert_eq!(report.function, f(1));
     // 400 counts at 88 counts/s: about 4.5 s.
@@ -317,7 +324,8 @@ fn move_to_with_the_tlt_function_map() {
     let rig = Rig::new(SimConfig::tlt());
     let client = rig.client(ClientConfig { function_map: FunctionMap::tlt(), ..Default::default() });
     // F3 drives column 2 alone.
-    let report = client.move_to(a(2), 120, 100, &MoveOptions { function: Some(f(3)), ..Default::default() }).unwrap();
+    let report =
+        client.move_to(a(2), 120, pct(100), &MoveOptions { function: Some(f(3)), ..Default::default() }).unwrap();
     assert_eq!(report.actuators.len(), 1);
     assert_eq!(
         rig.unit(|u| (u.position(a(1)), u.position(a(2)))),
@@ -326,13 +334,14 @@ fn move_to_with_the_tlt_function_map() {
     );
     // F1 drives both columns of a TLT: move_to gives both the target. (Before, only A1's remote position was
     // written, and A2 ran to whatever its remote position held.)
-    let report = client.move_to(a(1), 200, 100, &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), 200, pct(100), &MoveOptions::default()).unwrap();
     assert_eq!(rig.unit(|u| (u.position(a(1)), u.position(a(2)))), (Some(200), Some(200)));
     assert_eq!(report.function, f(1));
     let each: Vec<_> = report.actuators.iter().map(|o| (o.actuator, o.position_counts, o.moved)).collect();
     assert_eq!(each, [(a(1), 200, true), (a(2), 200, true)]);
     // A function that does not drive the actuator is refused before anything is sent.
-    let err = client.move_to(a(1), 300, 100, &MoveOptions { function: Some(f(3)), ..Default::default() }).unwrap_err();
+    let err =
+        client.move_to(a(1), 300, pct(100), &MoveOptions { function: Some(f(3)), ..Default::default() }).unwrap_err();
     assert_eq!(err.class(), ErrorClass::Usage, "{err}");
 }
 
@@ -341,7 +350,7 @@ fn cancel_stops_the_actuator_at_once() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig::default());
     let cancel = CancelToken::new();
-    let progress = |p: &motionlink_scu::client::MoveProgress| {
+    let progress = |p: &motionlink_scu::session::MoveProgress| {
         if p.position_counts > 100 {
             cancel.cancel();
         }
@@ -350,11 +359,11 @@ fn cancel_stops_the_actuator_at_once() {
         .move_to(
             a(1),
             800,
-            100,
+            pct(100),
             &MoveOptions { cancel: Some(&cancel), progress: Some(&progress), ..Default::default() },
         )
         .unwrap_err();
-    let ScuError::Cancelled { position_counts, .. } = err else { panic!("{err}") };
+    let Error::Cancelled { position_counts, .. } = err else { panic!("{err}") };
     assert!((100..130).contains(&position_counts));
     assert!(!rig.unit(|u| u.is_moving(a(1))), "stopped");
     assert!(client.started_functions().is_empty());
@@ -366,8 +375,9 @@ fn cancel_stops_the_actuator_at_once() {
 fn a_stalled_actuator_is_stopped_and_reported() {
     let rig = Rig::new(SimConfig::tlt());
     let client = rig.client(ClientConfig::default());
-    let err = client.move_to(a(1), 300, 20, &MoveOptions { function: Some(f(2)), ..Default::default() }).unwrap_err();
-    assert!(matches!(err, ScuError::Stalled { position_counts: 0, .. }), "{err}");
+    let err =
+        client.move_to(a(1), 300, pct(20), &MoveOptions { function: Some(f(2)), ..Default::default() }).unwrap_err();
+    assert!(matches!(err, Error::Stalled { position_counts: 0, .. }), "{err}");
     assert_eq!(err.class(), ErrorClass::Device);
     assert!(!rig.unit(|u| u.any_moving()));
     assert!(rig.unit(|u| u.executed_functions().is_empty()), "RS was sent after the stall");
@@ -378,8 +388,8 @@ fn a_target_outside_the_stroke_is_refused_before_anything_moves() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig::default());
     let remote_before = client.get_value(DataIndex(0x3022)).unwrap();
-    let err = client.move_to(a(2), 2000, 100, &MoveOptions::default()).unwrap_err();
-    let ScuError::OutsideStroke { actuator, target_counts: 2000, min_counts: 0, max_counts: 865, .. } = err else {
+    let err = client.move_to(a(2), 2000, pct(100), &MoveOptions::default()).unwrap_err();
+    let Error::OutsideStroke { actuator, target_counts: 2000, min_counts: 0, max_counts: 865, .. } = err else {
         panic!("{err}")
     };
     assert_eq!(actuator, a(2));
@@ -388,13 +398,13 @@ fn a_target_outside_the_stroke_is_refused_before_anything_moves() {
     assert_eq!(client.get_value(DataIndex(0x3022)).unwrap(), remote_before, "nothing was written");
     assert!(rig.unit(|u| u.executed_functions().is_empty() && !u.any_moving()));
     // Below the In end as well; and a configured stroke replaces the unit's.
-    assert!(matches!(client.move_to(a(1), -1, 100, &MoveOptions::default()), Err(ScuError::OutsideStroke { .. })));
+    assert!(matches!(client.move_to(a(1), -1, pct(100), &MoveOptions::default()), Err(Error::OutsideStroke { .. })));
     drop(client);
     let mut limits = [None; 6];
     limits[0] = Some(StrokeLimits { min_counts: 0, max_counts: 300 });
     let client = rig.client(ClientConfig { stroke_limits: limits, ..Default::default() });
-    let err = client.move_to(a(1), 400, 100, &MoveOptions::default()).unwrap_err();
-    assert!(matches!(err, ScuError::OutsideStroke { max_counts: 300, limits_from: "as configured", .. }), "{err}");
+    let err = client.move_to(a(1), 400, pct(100), &MoveOptions::default()).unwrap_err();
+    assert!(matches!(err, Error::OutsideStroke { max_counts: 300, limits_from: "as configured", .. }), "{err}");
 }
 
 #[test]
@@ -405,9 +415,9 @@ fn a_move_that_ends_short_of_its_target_names_target_position_and_difference() {
     limits[1] = Some(StrokeLimits { min_counts: 0, max_counts: 2000 });
     let config = ClientConfig { stroke_limits: limits, function_map: FunctionMap::scp11(), ..Default::default() };
     let client = rig.client(config);
-    let err = client.move_to(a(2), 900, 100, &MoveOptions::default()).unwrap_err();
+    let err = client.move_to(a(2), 900, pct(100), &MoveOptions::default()).unwrap_err();
     assert!(
-        matches!(err, ScuError::MotionEnded { position_counts: 865, target_counts: 900, tolerance_counts: 5, .. }),
+        matches!(err, Error::MotionEnded { position_counts: 865, target_counts: 900, tolerance_counts: 5, .. }),
         "{err}"
     );
     let text = err.to_string();
@@ -420,14 +430,15 @@ fn a_move_that_ends_short_of_its_target_names_target_position_and_difference() {
 fn a_drive_fault_during_a_move_is_reported() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig::default());
-    let progress = |p: &motionlink_scu::client::MoveProgress| {
+    let progress = |p: &motionlink_scu::session::MoveProgress| {
         if p.position_counts > 50 {
             rig.unit(|u| u.inject_error(ErrorCode::from_bit(15)));
         }
     };
-    let err =
-        client.move_to(a(1), 600, 100, &MoveOptions { progress: Some(&progress), ..Default::default() }).unwrap_err();
-    let ScuError::MotionEnded { error_code, .. } = err else { panic!("{err}") };
+    let err = client
+        .move_to(a(1), 600, pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() })
+        .unwrap_err();
+    let Error::MotionEnded { error_code, .. } = err else { panic!("{err}") };
     assert!(error_code.has(15), "{error_code}");
 }
 
@@ -516,13 +527,13 @@ fn after_a_watchdog_lockout_the_session_reports_it_and_opens_remote_mode_only_wh
     // The read is refused with PE; an RC is accepted (the unit takes RC while locked), the read again is not:
     // the unit ended remote mode, and the session says so instead of sending RO.
     let err = client.position(a(1)).unwrap_err();
-    assert!(matches!(err, ScuError::RemoteEnded(_)), "{err}");
+    assert!(matches!(err, Error::RemoteEnded(_)), "{err}");
     assert!(err.to_string().contains("Safety_ID 0"), "{err}");
-    assert_eq!(err.class(), ErrorClass::Transport);
+    assert_eq!(err.class(), ErrorClass::Transport(TransportKind::Disconnected));
     assert_eq!(client.stats().reopens, 0, "no RO by itself");
     assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Locked);
     assert!(!client.is_open());
-    assert!(matches!(client.start_motion(f(1), MotionDirection::In), Err(ScuError::RemoteEnded(_))));
+    assert!(matches!(client.start_motion(f(1), MotionDirection::In), Err(Error::RemoteEnded(_))));
     rig.sleep(2_000);
     assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Locked, "the keepalive does not open it either");
     // The caller decides to go on: RO, RC, and the RS of the motion that was under way.
@@ -540,7 +551,7 @@ fn after_a_watchdog_lockout_the_session_reports_it_and_opens_remote_mode_only_wh
 fn a_session_the_unit_ended_still_gets_the_rs_of_its_motion_when_it_ends() {
     let (rig, client) = watchdog_expires_after_500_ms(SafetyId::StopAllAndLock);
     rig.faults().heal();
-    assert!(matches!(client.position(a(1)), Err(ScuError::RemoteEnded(_))));
+    assert!(matches!(client.position(a(1)), Err(Error::RemoteEnded(_))));
     assert_eq!(rig.unit(|u| u.executed_functions()), vec![1]);
     // close() opens remote mode only to send the RS every RE needs, then leaves it.
     client.close().unwrap();
@@ -584,19 +595,19 @@ fn reads_give_up_after_a_second_of_silence_and_later_requests_get_one_short_try(
     // Sent at 0, 150 and 450 ms; in remote mode no reply is awaited longer than 1000 ms (twice the unit's
     // watchdog: a unit that has not answered by then has left remote mode anyway). Before, reads waited the
     // manual's 2000 ms, and every later request again: a dead link took many seconds to be given up.
-    assert!(matches!(err, ScuError::Timeout { command: Command::Get, attempts: 3, .. }), "{err}");
+    assert!(matches!(err, Error::Timeout { command: Command::Get, attempts: 3, .. }), "{err}");
     let waited = rig.clock.now() - started;
     assert!(waited >= Duration::from_millis(1000) && waited < Duration::from_millis(1100), "{waited:?}");
-    assert_eq!(err.class(), ErrorClass::Transport);
+    assert_eq!(err.class(), ErrorClass::Transport(TransportKind::Timeout));
     // The line is silent: the next request is sent once and given 300 ms.
     let started = rig.clock.now();
     let err = client.stop_motion(f(1), StopMode::Fast).unwrap_err();
-    assert!(matches!(err, ScuError::Timeout { command: Command::Stop, attempts: 1, .. }), "{err}");
+    assert!(matches!(err, Error::Timeout { command: Command::Stop, attempts: 1, .. }), "{err}");
     let waited = rig.clock.now() - started;
     assert!(waited < Duration::from_millis(350), "{waited:?}");
     // The unit answers again: the line is trusted again.
     rig.faults().heal();
-    assert!(matches!(client.position(a(1)), Ok(0) | Err(ScuError::RemoteEnded(_))));
+    assert!(matches!(client.position(a(1)), Ok(0) | Err(Error::RemoteEnded(_))));
 }
 
 #[test]
@@ -610,7 +621,7 @@ fn port_loss_is_reported_and_reconnect_restores_the_session() {
     rig.sleep(300);
     assert!(!client.is_open());
     let err = client.position(a(1)).unwrap_err();
-    assert!(matches!(err, ScuError::SessionLost(_)), "{err}");
+    assert!(matches!(err, Error::SessionLost(_)), "{err}");
     rig.sleep(1000);
     assert!(!rig.unit(|u| u.any_moving()), "the unit's watchdog stopped the drive");
     client.reconnect().unwrap();
@@ -629,7 +640,7 @@ fn a_failed_reconnect_leaves_the_session_lost_and_idle() {
     *rig.unplugged.lock().unwrap() = true;
     assert!(client.reconnect().is_err());
     assert!(!client.is_open(), "no port: the session is lost");
-    assert!(matches!(client.position(a(1)), Err(ScuError::SessionLost(_))));
+    assert!(matches!(client.position(a(1)), Err(Error::SessionLost(_))));
     // Without auto_reconnect nothing tries again by itself, and the keepalive thread sleeps (on a spinning
     // thread the manual clock could not advance ten seconds).
     rig.sleep(10_000);
@@ -657,7 +668,7 @@ fn a_corrupt_reply_to_the_re_of_a_move_is_repeated_and_the_move_ends_with_rs() {
             );
         }
     });
-    let report = client.move_to(a(1), 200, 100, &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), 200, pct(100), &MoveOptions::default()).unwrap();
     assert!(*done.lock().unwrap());
     assert_eq!(report.position_counts, 200);
     assert_eq!(client.stats().retries, 1);
@@ -845,7 +856,7 @@ fn round_trips_of_300_ms_still_keep_the_unit_alive() {
             queue: Default::default(),
         }) as Box<dyn Link>)
     });
-    let client = ScuClient::open(connector, rig.clock.shared(), ClientConfig::default()).unwrap();
+    let client = Client::open(connector, rig.clock.shared(), ClientConfig::default()).unwrap();
     let keepalives_before = client.stats().keepalives;
     rig.sleep(10_000);
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0, "the unit never lost its RC");
@@ -913,12 +924,12 @@ fn a_corrupted_length_byte_in_a_reply_is_rejected_at_once_and_the_read_repeated(
 }
 
 /// One move of A1 from 0 to 60 counts with one bit flipped at byte `offset` of direction `dir`.
-fn move_with_one_flipped_bit(dir: Direction, offset: u64, bit: u8) -> (Result<i32, ScuError>, i32) {
+fn move_with_one_flipped_bit(dir: Direction, offset: u64, bit: u8) -> (Result<i32, Error>, i32) {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
     let faults = rig.faults();
     faults.inject(dir, faults.bytes_sent(dir) + offset, Fault::Corrupt { xor: 1 << bit });
-    let result = client.move_to(a(1), 60, 100, &MoveOptions::default()).map(|r| r.position_counts);
+    let result = client.move_to(a(1), 60, pct(100), &MoveOptions::default()).map(|r| r.position_counts);
     drop(client);
     (result, rig.unit(|u| u.position(a(1)).unwrap()))
 }
@@ -952,7 +963,7 @@ fn a_dead_link_during_a_move_is_given_up_quickly_and_the_error_says_the_axis_may
     let cut = Arc::clone(&cut_at);
     let clock = rig.clock.shared();
     let faults = Arc::clone(&rig.faults);
-    let progress = move |p: &motionlink_scu::client::MoveProgress| {
+    let progress = move |p: &motionlink_scu::session::MoveProgress| {
         let mut cut = cut.lock().unwrap();
         if p.position_counts > 100 && cut.is_none() {
             // The cable is cut: nothing gets through either way any more.
@@ -962,8 +973,9 @@ fn a_dead_link_during_a_move_is_given_up_quickly_and_the_error_says_the_axis_may
             *cut = Some(clock.now());
         }
     };
-    let err =
-        client.move_to(a(1), 800, 100, &MoveOptions { progress: Some(&progress), ..Default::default() }).unwrap_err();
+    let err = client
+        .move_to(a(1), 800, pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() })
+        .unwrap_err();
     let cut_at = cut_at.lock().unwrap().unwrap();
     let given_up = rig.clock.now() - cut_at;
     // At most 1000 ms for the request that finds the line dead (the keepalive's RC, or the poll), 300 ms for one
@@ -972,7 +984,7 @@ fn a_dead_link_during_a_move_is_given_up_quickly_and_the_error_says_the_axis_may
     assert!(err.stop_unconfirmed(), "{err}");
     let text = err.to_string();
     assert!(text.contains("may still be moving") && text.contains("watchdog"), "{text}");
-    assert_eq!(err.class(), ErrorClass::Transport);
+    assert_eq!(err.class(), ErrorClass::Transport(TransportKind::Timeout));
     client.close().unwrap_err();
     let closed = rig.clock.now() - cut_at;
     // Then 300 ms each for the RS and the RA of the end of the session.
@@ -987,15 +999,16 @@ fn a_broken_port_during_a_move_is_reported_with_an_unconfirmed_stop() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
     let faults = Arc::clone(&rig.faults);
-    let progress = move |p: &motionlink_scu::client::MoveProgress| {
+    let progress = move |p: &motionlink_scu::session::MoveProgress| {
         if p.position_counts > 100 {
             faults.lock().unwrap().clone().unwrap().disconnect();
         }
     };
-    let err =
-        client.move_to(a(1), 800, 100, &MoveOptions { progress: Some(&progress), ..Default::default() }).unwrap_err();
-    let ScuError::StopUnconfirmed { cause, .. } = &err else { panic!("{err}") };
-    assert!(matches!(**cause, ScuError::SessionLost(_)), "{cause}");
+    let err = client
+        .move_to(a(1), 800, pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() })
+        .unwrap_err();
+    let Error::StopUnconfirmed { cause, .. } = &err else { panic!("{err}") };
+    assert!(matches!(**cause, Error::SessionLost(_)), "{cause}");
     assert!(err.to_string().contains("may still be moving"));
     rig.sleep(600);
     assert!(!rig.unit(|u| u.any_moving()), "the unit's watchdog stopped it");
@@ -1006,7 +1019,7 @@ fn a_function_that_drives_two_actuators_moves_each_to_its_own_target_with_one_re
     let rig = Rig::new(SimConfig::liftkit());
     let client = rig.client(ClientConfig { function_map: FunctionMap::liftkit(), ..Default::default() });
     let f8 = f(8);
-    let report = client.move_function(f8, &[(a(1), 300), (a(2), 320)], 100, &MoveOptions::default()).unwrap();
+    let report = client.move_function(f8, &[(a(1), 300), (a(2), 320)], pct(100), &MoveOptions::default()).unwrap();
     let each: Vec<_> =
         report.actuators.iter().map(|o| (o.actuator, o.position_counts, o.difference_counts())).collect();
     assert_eq!(each, [(a(1), 300, 0), (a(2), 320, 0)]);
@@ -1017,13 +1030,13 @@ fn a_function_that_drives_two_actuators_moves_each_to_its_own_target_with_one_re
     for (function, targets) in
         [(f8, vec![(a(1), 10)]), (f(1), vec![(a(1), 10), (a(2), 10)]), (f8, vec![(a(1), 1), (a(1), 2)])]
     {
-        let err = client.move_function(function, &targets, 100, &MoveOptions::default()).unwrap_err();
+        let err = client.move_function(function, &targets, pct(100), &MoveOptions::default()).unwrap_err();
         assert_eq!(err.class(), ErrorClass::Usage, "{err}");
     }
     assert_eq!(rig.unit(|u| u.stats().telegrams - u.stats().cyclic), before);
     // One of them cannot go there: the move is refused before either moves.
-    let err = client.move_function(f8, &[(a(1), 100), (a(2), 900)], 100, &MoveOptions::default()).unwrap_err();
-    assert!(matches!(err, ScuError::OutsideStroke { target_counts: 900, .. }), "{err}");
+    let err = client.move_function(f8, &[(a(1), 100), (a(2), 900)], pct(100), &MoveOptions::default()).unwrap_err();
+    assert!(matches!(err, Error::OutsideStroke { target_counts: 900, .. }), "{err}");
     assert_eq!(rig.unit(|u| (u.position(a(1)), u.position(a(2)))), (Some(300), Some(320)));
 }
 
@@ -1032,14 +1045,14 @@ fn without_a_function_map_move_to_gives_every_connected_actuator_the_target_and_
     // A TLT, of which the client is not told: F1 drives both columns, and both end at 400.
     let rig = Rig::new(SimConfig::tlt());
     let client = rig.client(ClientConfig::default());
-    let report = client.move_to(a(1), 400, 100, &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), 400, pct(100), &MoveOptions::default()).unwrap();
     assert_eq!(rig.unit(|u| (u.position(a(1)), u.position(a(2)))), (Some(400), Some(400)));
     let each: Vec<_> = report.actuators.iter().map(|o| (o.actuator, o.position_counts, o.moved)).collect();
     assert_eq!(each, [(a(1), 400, true), (a(2), 400, true)]);
     // An SCP11 unit: F1 drives A1 alone; A2 gets the remote position but does not move, and is reported so.
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig::default());
-    let report = client.move_to(a(1), 400, 100, &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), 400, pct(100), &MoveOptions::default()).unwrap();
     let each: Vec<_> = report.actuators.iter().map(|o| (o.actuator, o.position_counts, o.moved)).collect();
     assert_eq!(each, [(a(1), 400, true), (a(2), 0, false)]);
     assert_eq!(client.get_value(DataIndex(0x3022)).unwrap(), Value::RemotePosition(400));
@@ -1047,10 +1060,13 @@ fn without_a_function_map_move_to_gives_every_connected_actuator_the_target_and_
 
 #[test]
 fn a_move_polls_at_its_interval_and_not_as_fast_as_the_line_answers() {
+    // Polling with reads (the choice when the keepalive cannot carry the poll object).
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
+    let reads = MovePolling::Reads;
+    let client =
+        rig.client(ClientConfig { function_map: FunctionMap::scp11(), move_polling: reads, ..Default::default() });
     let before = rig.unit(|u| u.stats().telegrams - u.stats().cyclic);
-    let report = client.move_to(a(1), 400, 100, &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), 400, pct(100), &MoveOptions::default()).unwrap();
     let requests = rig.unit(|u| u.stats().telegrams - u.stats().cyclic) - before;
     // Two reads per 50 ms poll, plus a dozen for setting up and ending the move.
     let polls = report.duration.as_millis() as u64 / 50;
@@ -1060,18 +1076,49 @@ fn a_move_polls_at_its_interval_and_not_as_fast_as_the_line_answers() {
     let client = rig.client(ClientConfig {
         function_map: FunctionMap::scp11(),
         poll_interval: Duration::from_millis(200),
+        move_polling: reads,
         ..Default::default()
     });
     let before = rig.unit(|u| u.stats().telegrams - u.stats().cyclic);
-    let report = client.move_to(a(1), 0, 100, &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), 0, pct(100), &MoveOptions::default()).unwrap();
     let requests = rig.unit(|u| u.stats().telegrams - u.stats().cyclic) - before;
     assert!(requests <= 2 * (report.duration.as_millis() as u64 / 200) + 16, "{requests}");
 }
 
 #[test]
-fn a_move_reads_its_result_after_the_unit_reports_the_end_of_the_motion() {
+fn a_move_polls_through_the_keepalive_at_its_interval_and_sends_nothing_else_while_the_motion_runs() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
+    // Every request the session sends, with whether the unit's actuator moved when it went out.
+    let sent = Arc::new(Mutex::new(Vec::new()));
+    let sink = Arc::clone(&sent);
+    let host = rig.host.clone();
+    rig.on_request(move |bytes, _| {
+        sink.lock().unwrap().push((bytes[..2].to_vec(), host.with_device(|u| u.is_moving(a(1)))));
+    });
+    let cyclic_before = rig.unit(|u| u.stats().cyclic);
+    let report = client.move_to(a(1), 400, pct(100), &MoveOptions::default()).unwrap();
+    assert_eq!(report.position_counts, 400);
+    let sent = sent.lock().unwrap().clone();
+    let during: Vec<&Vec<u8>> = sent.iter().filter(|(_, moving)| *moving).map(|(c, _)| c).collect();
+    assert!(!during.is_empty());
+    assert!(during.iter().all(|c| c.as_slice() == b"RC"), "only RC while the motion runs: {during:?}");
+    // One RC per 50 ms poll: each feeds the watchdog and reads the state.
+    let polls = report.duration.as_millis() as u64 / 50;
+    let rcs = rig.unit(|u| u.stats().cyclic) - cyclic_before;
+    assert!(rcs <= polls + 8 && rcs + 8 >= polls, "{rcs} RCs for {polls} polls");
+    assert!(client.stats().motion_polls + 4 >= polls, "{:?}", client.stats());
+    assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0);
+}
+
+#[test]
+fn a_move_reads_its_result_after_the_unit_reports_the_end_of_the_motion() {
+    // Polling with reads: status first, then the position. (Polling through the keepalive, the status and
+    // the positions come in one reply, read at one instant: see the test below.)
+    let rig = Rig::new(SimConfig::default());
+    let reads = MovePolling::Reads;
+    let client =
+        rig.client(ClientConfig { function_map: FunctionMap::scp11(), move_polling: reads, ..Default::default() });
     // Every position read is recorded with whether the unit reported motion just before.
     let reads = Arc::new(Mutex::new(Vec::new()));
     let sink = Arc::clone(&reads);
@@ -1081,17 +1128,38 @@ fn a_move_reads_its_result_after_the_unit_reports_the_end_of_the_motion() {
             sink.lock().unwrap().push(host.with_device(|u| u.is_moving(a(1))));
         }
     });
-    let report = client.move_to(a(1), 300, 100, &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), 300, pct(100), &MoveOptions::default()).unwrap();
     let reads = reads.lock().unwrap();
     assert_eq!(reads.last(), Some(&false), "the last position read came after the motion ended");
     assert_eq!(report.position_counts, 300);
 }
 
 #[test]
+fn a_move_polled_through_the_keepalive_judges_the_reply_that_reports_the_end_of_the_motion() {
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
+    // Every RC that carries the poll object (CyclicObj 5: object index 4), with whether the unit moved.
+    let polls = Arc::new(Mutex::new(Vec::new()));
+    let sink = Arc::clone(&polls);
+    let host = rig.host.clone();
+    rig.on_request(move |bytes, _| {
+        if bytes.starts_with(&[0x52, 0x43, 0x01, 0x00, 0x04]) {
+            sink.lock().unwrap().push(host.with_device(|u| u.is_moving(a(1))));
+        }
+    });
+    let report = client.move_to(a(1), 300, pct(100), &MoveOptions::default()).unwrap();
+    let polls = polls.lock().unwrap();
+    assert!(polls.iter().filter(|m| **m).count() > 20, "{polls:?}");
+    assert_eq!(polls.last(), Some(&false), "the last poll came after the motion ended");
+    assert_eq!(report.position_counts, 300);
+    assert_eq!(rig.unit(|u| u.position(a(1))), Some(300));
+}
+
+#[test]
 fn streamed_setpoints_retarget_a_running_motion_and_change_its_speed() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
-    let mut stream = client.stream(f(1), &[a(1)], 100).unwrap();
+    let mut stream = client.stream(f(1), &[a(1)], pct(100)).unwrap();
     stream.set_targets(&[600]).unwrap();
     rig.sleep(1_000);
     let p = stream.positions().unwrap()[0].1;
@@ -1101,7 +1169,7 @@ fn streamed_setpoints_retarget_a_running_motion_and_change_its_speed() {
         stream.set_targets(&[200 + 5 * k]).unwrap();
         rig.sleep(50);
     }
-    stream.set_speed(50).unwrap();
+    stream.set_speed(pct(50)).unwrap();
     rig.sleep(5_000);
     let [(_, at, moving)] = stream.positions().unwrap()[..] else { panic!() };
     assert_eq!((at, moving), (295, false), "at the last setpoint");
@@ -1111,14 +1179,14 @@ fn streamed_setpoints_retarget_a_running_motion_and_change_its_speed() {
     assert_eq!(rest, [(a(1), 295)]);
     assert!(client.started_functions().is_empty());
     // Dropping a running stream stops it.
-    let mut stream = client.stream(f(1), &[a(1)], 100).unwrap();
+    let mut stream = client.stream(f(1), &[a(1)], pct(100)).unwrap();
     stream.set_targets(&[800]).unwrap();
     rig.sleep(500);
     drop(stream);
     assert!(!rig.unit(|u| u.is_moving(a(1))));
     assert!(client.started_functions().is_empty());
-    assert!(matches!(client.stream(f(1), &[a(2)], 100), Err(ScuError::InvalidArgument(_))), "F1 drives A1");
-    assert!(matches!(client.stream(f(1), &[a(1)], 0), Err(ScuError::InvalidArgument(_))), "speed 0");
+    assert!(matches!(client.stream(f(1), &[a(2)], pct(100)), Err(Error::InvalidArgument(_))), "F1 drives A1");
+    assert!(matches!(client.stream(f(1), &[a(1)], pct(0)), Err(Error::InvalidArgument(_))), "speed 0");
 }
 
 #[test]
@@ -1150,7 +1218,7 @@ fn safety_id_1_through_the_api_a_watchdog_lapse_during_a_move_is_reported_and_th
         let faults = Arc::clone(&rig.faults);
         let clock = rig.clock.shared();
         let cut = Mutex::new(None);
-        let progress = |p: &motionlink_scu::client::MoveProgress| {
+        let progress = |p: &motionlink_scu::session::MoveProgress| {
             let f = faults.lock().unwrap().clone().unwrap();
             let mut cut = cut.lock().unwrap();
             match *cut {
@@ -1164,23 +1232,23 @@ fn safety_id_1_through_the_api_a_watchdog_lapse_during_a_move_is_reported_and_th
             }
         };
         let err = client
-            .move_to(a(1), 800, 100, &MoveOptions { progress: Some(&progress), ..Default::default() })
+            .move_to(a(1), 800, pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() })
             .unwrap_err();
         assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 1, "{safety:?}");
         assert!(!rig.unit(|u| u.is_moving(a(1))));
         assert!(
-            matches!(err, ScuError::RemoteEnded(_) | ScuError::MotionEnded { .. } | ScuError::StopUnconfirmed { .. }),
+            matches!(err, Error::RemoteEnded(_) | Error::MotionEnded { .. } | Error::StopUnconfirmed { .. }),
             "{err}"
         );
         rig.faults().heal();
         // The first request after that finds the lapse: the unit refuses it until an RC re-arms the watchdog,
         // and the session says that the motion it had started was stopped (once).
         let err = client.position(a(1)).unwrap_err();
-        assert!(matches!(&err, ScuError::RemoteEnded(t) if t.contains("watchdog")), "{err}");
+        assert!(matches!(&err, Error::RemoteEnded(t) if t.contains("watchdog")), "{err}");
         assert!(client.is_open(), "Safety_ID 1 and 2 need no RO");
         assert!(client.started_functions().is_empty(), "the stopped function got its RS");
         // After the RC the session goes on.
-        let report = client.move_to(a(1), 100, 100, &MoveOptions::default()).unwrap();
+        let report = client.move_to(a(1), 100, pct(100), &MoveOptions::default()).unwrap();
         assert_eq!(report.position_counts, 100, "{safety:?}");
         assert_eq!(client.stats().reopens, 0);
     }
@@ -1205,7 +1273,7 @@ fn while_idle_a_lapse_with_safety_id_1_is_re_armed_and_a_lock_with_safety_id_0_i
     rig.faults().heal();
     assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Locked);
     // Safety_ID 0: even idle, the session reports it and does not send RO by itself.
-    assert!(matches!(client.position(a(1)), Err(ScuError::RemoteEnded(_))));
+    assert!(matches!(client.position(a(1)), Err(Error::RemoteEnded(_))));
     assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Locked);
     client.reopen().unwrap();
     assert_eq!(client.position(a(1)).unwrap(), 0);
@@ -1214,7 +1282,7 @@ fn while_idle_a_lapse_with_safety_id_1_is_re_armed_and_a_lock_with_safety_id_0_i
 /// A unit that keeps its own idea of a written speed: it stores at most 50 % for F1 (its RT telegrams are
 /// rewritten on the way in, with a good CRC).
 struct ClampingUnit {
-    unit: ScuEmulator,
+    unit: Emulator,
     held: Vec<u8>,
 }
 
@@ -1259,20 +1327,20 @@ fn set_reads_the_value_back_and_a_mismatch_is_an_error() {
     let clock = ManualClock::new_auto();
     let _me = clock.reserve_participant().enter();
     let host = EmulatorHost::new(
-        ClampingUnit { unit: ScuEmulator::new(SimConfig::default()).unwrap(), held: Vec::new() },
+        ClampingUnit { unit: Emulator::new(SimConfig::default()).unwrap(), held: Vec::new() },
         clock.shared(),
         PipeConfig::paced(38_400),
     );
     let connector: Connector = Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>));
-    let client = ScuClient::open(connector, clock.shared(), ClientConfig::default()).unwrap();
+    let client = Client::open(connector, clock.shared(), ClientConfig::default()).unwrap();
     client.set(DataIndex(0x3011), &Value::RemoteSpeed(40)).unwrap();
     let err = client.set(DataIndex(0x3011), &Value::RemoteSpeed(80)).unwrap_err();
-    let ScuError::ReadBack { name, written, read, .. } = &err else { panic!("{err}") };
+    let Error::ReadBack { name, written, read, .. } = &err else { panic!("{err}") };
     assert_eq!((*name, written.as_str(), read.as_str()), ("remote_speed_f1", "80", "50"));
     assert_eq!(err.class(), ErrorClass::Device);
     // A move whose speed does not read back is refused before RE.
-    let err = client.move_to(a(1), 100, 80, &MoveOptions::default()).unwrap_err();
-    assert!(matches!(err, ScuError::ReadBack { .. }), "{err}");
+    let err = client.move_to(a(1), 100, pct(80), &MoveOptions::default()).unwrap_err();
+    assert!(matches!(err, Error::ReadBack { .. }), "{err}");
     assert!(client.started_functions().is_empty(), "no RE was sent");
 }
 

@@ -12,19 +12,19 @@ use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::transcript::{TapLink, Transcript, Way};
 use motionlink_link::url::PortUrl;
 use motionlink_link::{ManualClock, RealClock, SharedClock, Timestamp};
-use motionlink_scu::client::{
-    ClientConfig, ErrorClass, FunctionMap, MoveOptions, MoveProgress, MoveReport, ScuClient, ScuError, StrokeLimits,
-};
 use motionlink_scu::describe::{describe_incoming, describe_reply, describe_request};
+use motionlink_scu::model::Speed;
 use motionlink_scu::model::{
     lookup, status1, Actuator, DataEntry, DataEntryExt, DataIndex, ErrorCode, FlagSet, Flags, Function, Item,
     MotionDirection, MotionFunction, SafetyId, StopMode,
 };
-use motionlink_scu::sim::{ScuEmulator, SimConfig};
+use motionlink_scu::session::{MoveProgress, MoveReport};
 use motionlink_scu::value::{SpeedMode, Value};
 use motionlink_scu::wire::{
     capture_step, request_to_vec, CaptureDirection, CaptureItem, Incoming, Request, Telegram, WireError,
 };
+use motionlink_scu::{Client as ScuClient, ClientConfig, Error as ScuError, FunctionMap, MoveOptions, StrokeLimits};
+use motionlink_scu::{Emulator as ScuEmulator, SimConfig};
 use serde_json::json;
 
 use crate::common::{self, CaptureArgs, CliError, Row, ServeArgs};
@@ -213,12 +213,7 @@ fn parse_baud(s: &str) -> Result<u32, String> {
 }
 
 fn scu_error(e: ScuError) -> CliError {
-    match e.class() {
-        ErrorClass::Device => CliError::Device(e.to_string()),
-        ErrorClass::Transport => CliError::Transport(e.to_string()),
-        ErrorClass::Usage => CliError::Usage(e.to_string()),
-        ErrorClass::Cancelled => CliError::Interrupted(e.to_string()),
-    }
+    common::classified(&e)
 }
 
 fn load_sim_config(path: Option<&PathBuf>, preset: Option<&str>) -> Result<SimConfig, CliError> {
@@ -287,6 +282,13 @@ fn parse_speed(text: &str, mode: SpeedMode) -> Result<u16, CliError> {
         ))),
         Err(_) => Err(CliError::usage(format!("--speed {text:?}: give a whole number, {range}"))),
     }
+}
+
+/// A speed checked by [`parse_speed`], in the unit the session takes.
+fn typed_speed(client: &ScuClient, raw: u16) -> Result<Speed, CliError> {
+    let mode = client.config().speed_mode;
+    Speed::of_mode(mode, raw)
+        .ok_or_else(|| CliError::usage(format!("--speed {raw}: more than {} {}", mode.max(), mode.unit())))
 }
 
 /// `--rate` of `follow`: 1..100 updates per second.
@@ -524,7 +526,7 @@ fn act(client: &ScuClient, args: &Args, out: &mut dyn Write, interrupt: &CancelT
             let bar = common::progress_bar(u64::from(start.abs_diff(*position)), format!("{a} -> {position}"));
             let progress = |p: &MoveProgress| bar.set_position(u64::from(p.position_counts.abs_diff(p.start_counts)));
             let options = MoveOptions { cancel: Some(interrupt), progress: Some(&progress), function: Some(function) };
-            let result = client.move_to(a, *position, speed, &options);
+            let result = client.move_to(a, *position, typed_speed(client, speed)?, &options);
             bar.finish_and_clear();
             let report = result.map_err(scu_error)?;
             print_move_report(out, &report, args.json)
@@ -872,7 +874,7 @@ fn follow(
         None => client.connected_actuators().map_err(scu_error)?,
     };
     let mode = client.config().speed_mode;
-    let mut stream = client.stream(function, &actuators, speed).map_err(scu_error)?;
+    let mut stream = client.stream(function, &actuators, typed_speed(client, speed)?).map_err(scu_error)?;
     let (tx, rx) = std::sync::mpsc::channel();
     std::thread::Builder::new()
         .name("follow-stdin".into())
@@ -907,7 +909,7 @@ fn follow(
                 Ok(FollowLine::Skip) => {}
                 Ok(FollowLine::Targets(t)) => pending = Some(t),
                 Ok(FollowLine::Speed(s)) => {
-                    if let Err(e) = stream.set_speed(s) {
+                    if let Err(e) = stream.set_speed(typed_speed(client, s)?) {
                         break Some(Err(e));
                     }
                 }
