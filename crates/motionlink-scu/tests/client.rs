@@ -799,7 +799,7 @@ fn the_keepalive_keeps_its_grid_of_deadlines_while_the_caller_keeps_the_line_bus
 struct Latency {
     inner: Box<dyn Link>,
     clock: motionlink_link::SharedClock,
-    latency: Duration,
+    latency: Arc<Mutex<Duration>>,
     queue: std::collections::VecDeque<(motionlink_link::Timestamp, u8)>,
 }
 
@@ -822,14 +822,15 @@ impl Link for Latency {
         loop {
             let now = self.clock.now();
             let mut n = 0;
-            while n < buf.len() && self.queue.front().is_some_and(|(t, _)| *t + self.latency <= now) {
+            let latency = *self.latency.lock().unwrap();
+            while n < buf.len() && self.queue.front().is_some_and(|(t, _)| *t + latency <= now) {
                 buf[n] = self.queue.pop_front().unwrap().1;
                 n += 1;
             }
             if n > 0 || now >= deadline {
                 return Ok(n);
             }
-            let until = self.queue.front().map_or(deadline, |(t, _)| (*t + self.latency).min(deadline));
+            let until = self.queue.front().map_or(deadline, |(t, _)| (*t + latency).min(deadline));
             self.pull(until.saturating_since(now))?;
         }
     }
@@ -852,7 +853,7 @@ fn round_trips_of_300_ms_still_keep_the_unit_alive() {
         Ok(Box::new(Latency {
             inner: Box::new(link),
             clock: Arc::clone(&clock),
-            latency: Duration::from_millis(300),
+            latency: Arc::new(Mutex::new(Duration::from_millis(300))),
             queue: Default::default(),
         }) as Box<dyn Link>)
     });
@@ -868,6 +869,44 @@ fn round_trips_of_300_ms_still_keep_the_unit_alive() {
     // (Any other request holds the half-duplex line for a round trip in which no RC can go out: with 300 ms
     // round trips the RC before it and the one after it reach the unit 600 ms apart, beyond its watchdog.
     // The README says so; the keepalive alone is what this test is about.)
+    client.close().unwrap();
+}
+
+#[test]
+fn round_trips_of_300_ms_during_a_move_still_keep_the_unit_alive() {
+    let rig = Rig::new(SimConfig::default());
+    let host = rig.host.clone();
+    let clock = rig.clock.shared();
+    let latency = Arc::new(Mutex::new(Duration::ZERO));
+    let link_latency = Arc::clone(&latency);
+    let connector: Connector = Box::new(move || {
+        let (link, _) = host.connect();
+        Ok(Box::new(Latency {
+            inner: Box::new(link),
+            clock: Arc::clone(&clock),
+            latency: Arc::clone(&link_latency),
+            queue: Default::default(),
+        }) as Box<dyn Link>)
+    });
+    let client = Client::open(
+        connector,
+        rig.clock.shared(),
+        ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() },
+    )
+    .unwrap();
+    // Once the actuator moves, every reply takes 300 ms more; when it stops, the line is quick again.
+    let slow_polls = Mutex::new(0);
+    let progress = |p: &motionlink_scu::session::MoveProgress| {
+        let moving = p.status & status1::MOTION != 0;
+        *latency.lock().unwrap() = if moving { Duration::from_millis(300) } else { Duration::ZERO };
+        *slow_polls.lock().unwrap() += u32::from(moving);
+    };
+    let report =
+        client.move_to(a(1), 500, pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() }).unwrap();
+    assert_eq!(report.position_counts, 500);
+    assert!(*slow_polls.lock().unwrap() > 5);
+    assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0, "the unit never lost its RC");
+    assert!(client.started_functions().is_empty());
     client.close().unwrap();
 }
 
