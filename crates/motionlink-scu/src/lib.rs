@@ -121,6 +121,8 @@ pub mod sim;
 pub mod value;
 pub mod wire;
 
+#[cfg(feature = "tokio")]
+pub use client::{AsyncClient, AsyncSetpointStream};
 pub use client::{Client, MoveOptions, SetpointStream};
 pub use config::{ClientConfig, FunctionMap, MovePolling, StrokeLimits};
 pub use error::Error;

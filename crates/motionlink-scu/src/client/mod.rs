@@ -33,8 +33,12 @@ use crate::session::{MoveSpec, MoveTargets, RunAction, RunSpec};
 use crate::value::{decode_item, Value};
 use crate::wire::{Command, Request};
 
+#[cfg(feature = "tokio")]
+mod asynchronous;
 mod blocking;
 
+#[cfg(feature = "tokio")]
+pub use asynchronous::{AsyncClient, AsyncSetpointStream};
 pub use blocking::{Client, SetpointStream};
 
 /// Options of a move.

@@ -60,7 +60,8 @@ impl Operation for Single {
     }
 
     fn interruptible(&self) -> bool {
-        !self.stopping
+        // A stop goes out even if its caller gives up on it.
+        !self.stopping && self.command != Command::Stop
     }
 }
 
