@@ -127,4 +127,4 @@ pub use client::{Client, MoveOptions, SetpointStream};
 pub use config::{ClientConfig, FunctionMap, MovePolling, StrokeLimits};
 pub use error::Error;
 pub use session::{Op, Output, Progress, Session};
-pub use sim::{ScuEmulator as Emulator, SimConfig};
+pub use sim::{Emulator, SimConfig};

@@ -2,16 +2,16 @@
 
 use std::time::Duration;
 
-use motionlink_link::emulator::Emulator;
+use motionlink_link::emulator::Emulator as _;
 use motionlink_link::Timestamp;
 use motionlink_scu::model::{status1, Actuator, CyclicObject, DataEntryExt, DataIndex, ErrorCode, DATA_LIST, GROUPS};
-use motionlink_scu::sim::{RemoteMode, ScuEmulator, SimConfig};
+use motionlink_scu::sim::{Emulator, RemoteMode, SimConfig};
 use motionlink_scu::wire::*;
 use proptest::prelude::*;
 
 /// A unit on a bench: send requests at chosen times, read its replies.
 struct Bench {
-    unit: ScuEmulator,
+    unit: Emulator,
     now: Timestamp,
 }
 
@@ -24,7 +24,7 @@ struct Answer {
 
 impl Bench {
     fn new(config: SimConfig) -> Self {
-        Bench { unit: ScuEmulator::new(config).unwrap(), now: Timestamp::ZERO }
+        Bench { unit: Emulator::new(config).unwrap(), now: Timestamp::ZERO }
     }
 
     fn at(&mut self, ms: u64) -> &mut Self {
@@ -697,7 +697,7 @@ proptest! {
     /// Arbitrary bytes never panic the emulator; after a pause the unit answers a good telegram again.
     #[test]
     fn arbitrary_bytes_never_panic_and_the_unit_recovers(chunks in proptest::collection::vec(proptest::collection::vec(any::<u8>(), 0..80), 0..20)) {
-        let mut unit = ScuEmulator::new(SimConfig::default()).unwrap();
+        let mut unit = Emulator::new(SimConfig::default()).unwrap();
         let mut out = Vec::new();
         let mut t = 0;
         for c in &chunks {

@@ -24,7 +24,7 @@ use motionlink_scu::wire::{
     capture_step, request_to_vec, CaptureDirection, CaptureItem, Incoming, Request, Telegram, WireError,
 };
 use motionlink_scu::{Client as ScuClient, ClientConfig, Error as ScuError, FunctionMap, MoveOptions, StrokeLimits};
-use motionlink_scu::{Emulator as ScuEmulator, SimConfig};
+use motionlink_scu::{Emulator, SimConfig};
 use serde_json::json;
 
 use crate::common::{self, CaptureArgs, CliError, Row, ServeArgs};
@@ -323,7 +323,7 @@ fn connect(args: &Args, config: ClientConfig) -> Result<ScuClient, CliError> {
                 // The emulated unit is parameterised the way the command was told the unit is.
                 sim_config.speed_mode = args.speed_mode.into();
             }
-            let sim = ScuEmulator::new(sim_config).map_err(|e| CliError::usage(e.to_string()))?;
+            let sim = Emulator::new(sim_config).map_err(|e| CliError::usage(e.to_string()))?;
             let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(args.baud));
             Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>))
         }
@@ -959,7 +959,7 @@ fn follow(
 /// `motionlink sim scu`
 pub fn sim(args: SimArgs) -> Result<(), CliError> {
     let config = load_sim_config(args.config.as_ref(), args.preset.as_deref())?;
-    let device = ScuEmulator::new(config).map_err(|e| CliError::usage(e.to_string()))?;
+    let device = Emulator::new(config).map_err(|e| CliError::usage(e.to_string()))?;
     common::serve(&args.serve, device)
 }
 
@@ -1135,7 +1135,7 @@ pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
     let _me = clock.reserve_participant().enter();
     let shared: SharedClock = clock.shared();
     let host = EmulatorHost::new(
-        ScuEmulator::new(SimConfig::default()).map_err(|e| CliError::usage(e.to_string()))?,
+        Emulator::new(SimConfig::default()).map_err(|e| CliError::usage(e.to_string()))?,
         Arc::clone(&shared),
         PipeConfig::paced(38_400),
     );
