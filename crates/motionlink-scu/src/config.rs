@@ -172,6 +172,22 @@ impl Default for MovePolling {
     }
 }
 
+impl StrokeLimits {
+    /// Parses `ACTUATOR=MIN:MAX` in counts (`1=0:865`, `A2=-3:860`): an actuator's travel range.
+    pub fn parse_for_actuator(spec: &str) -> Result<(Actuator, StrokeLimits), String> {
+        let bad = || format!("{spec:?}: give ACTUATOR=MIN:MAX in counts, such as 1=0:865");
+        let (a, range) = spec.split_once('=').ok_or_else(bad)?;
+        let a = a.trim().trim_start_matches(['A', 'a']).parse::<u8>().ok().and_then(Actuator::new).ok_or_else(bad)?;
+        let (lo, hi) = range.split_once(':').ok_or_else(bad)?;
+        let lo: i32 = lo.trim().parse().map_err(|_| bad())?;
+        let hi: i32 = hi.trim().parse().map_err(|_| bad())?;
+        if lo > hi {
+            return Err(format!("{spec:?}: {lo} is above {hi}"));
+        }
+        Ok((a, StrokeLimits { min_counts: lo, max_counts: hi }))
+    }
+}
+
 /// Settings of a session. The defaults follow the manual.
 #[derive(Debug, Clone)]
 pub struct ClientConfig {

@@ -207,6 +207,18 @@ pub enum Error {
         /// Why it is not confirmed.
         detail: String,
     },
+    /// The end of a session could not confirm the stop of the functions it had started.
+    #[error(
+        "stopping {functions} was NOT confirmed by the unit ({cause}): the actuators may still be moving. The unit \
+         stops remote motions by itself 500 ms after the last RC it receives (its watchdog); this program sends none \
+         once it has ended"
+    )]
+    EndUnconfirmed {
+        /// The functions still started ("F1, F2").
+        functions: String,
+        /// Why the end of the session failed.
+        cause: Box<Error>,
+    },
     /// The end of the session (the RS of every started function, then RA) was not confirmed within the bound.
     #[error(
         "the end of the session (RS of every function it started, then RA) was not confirmed within {0:?}: the \
@@ -219,7 +231,7 @@ pub enum Error {
 impl Error {
     /// True if this error says that a stop the session tried was not confirmed: the actuators may be moving.
     pub fn stop_unconfirmed(&self) -> bool {
-        matches!(self, Error::StopUnconfirmed { .. } | Error::CloseUnconfirmed(_))
+        matches!(self, Error::StopUnconfirmed { .. } | Error::EndUnconfirmed { .. } | Error::CloseUnconfirmed(_))
     }
 
     /// An error of the caller's input.
@@ -252,6 +264,10 @@ impl Classify for Error {
             | Error::Interrupted(_)
             | Error::CancelledBeforeSending(_) => ErrorClass::Cancelled,
             Error::StopUnconfirmed { cause, .. } => cause.class(),
+            Error::EndUnconfirmed { cause, .. } => match cause.class() {
+                c @ ErrorClass::Transport(_) => c,
+                _ => ErrorClass::Transport(TransportKind::Timeout),
+            },
         }
     }
 }

@@ -121,9 +121,9 @@ pub mod sim;
 pub mod value;
 pub mod wire;
 
+pub use client::{ending, Client, Ending, MoveOptions, SetpointStream};
 #[cfg(feature = "tokio")]
 pub use client::{AsyncClient, AsyncSetpointStream};
-pub use client::{Client, MoveOptions, SetpointStream};
 pub use config::{ClientConfig, FunctionMap, MovePolling, StrokeLimits};
 pub use error::Error;
 pub use session::{Op, Output, Progress, Session};

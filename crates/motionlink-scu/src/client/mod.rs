@@ -203,3 +203,36 @@ pub(crate) fn stream_positions(
         })
         .collect()
 }
+
+/// What the end of a session says about the functions that were still started when it began (as
+/// [`Client::started_functions`] gave them just before [`Client::close`]).
+#[derive(Debug)]
+pub enum Ending {
+    /// Nothing was left started, and the session ended cleanly.
+    Clean,
+    /// The end of the session stopped what was left started, and the unit acknowledged the RS: a note to add
+    /// to what the caller reports ("F1 stopped (the unit acknowledged RS)").
+    Stopped(String),
+    /// The end of the session failed; nothing was left started.
+    Failed(Error),
+    /// The stop of what was left started is not confirmed: the actuators may still move
+    /// ([`Error::EndUnconfirmed`]).
+    Unconfirmed(Error),
+}
+
+/// Says what `closed` (the result of [`Client::close`]) means for the functions `started` (wire ids).
+pub fn ending(started: &[u8], closed: Result<(), Error>) -> Ending {
+    let functions = || {
+        started
+            .iter()
+            .map(|id| Function::from_id(*id).map_or(format!("function id {id}"), |f| format!("F{}", f.number())))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match (closed, started.is_empty()) {
+        (Ok(()), true) => Ending::Clean,
+        (Ok(()), false) => Ending::Stopped(format!("{} stopped (the unit acknowledged RS)", functions())),
+        (Err(e), true) => Ending::Failed(e),
+        (Err(e), false) => Ending::Unconfirmed(Error::EndUnconfirmed { functions: functions(), cause: Box::new(e) }),
+    }
+}

@@ -225,6 +225,24 @@ impl MotionDirection {
         Self::ALL.get(usize::from(code)).copied()
     }
 
+    /// Parses `in`, `out`, `mem1`..`mem4`, `int-in`, `int-out`, `remote`, `none` (or `undefined`), or a
+    /// code 0..9.
+    pub fn parse(text: &str) -> Option<MotionDirection> {
+        Some(match text.trim().to_ascii_lowercase().as_str() {
+            "none" | "undefined" => MotionDirection::Undefined,
+            "in" => MotionDirection::In,
+            "out" => MotionDirection::Out,
+            "mem1" => MotionDirection::Memory1,
+            "mem2" => MotionDirection::Memory2,
+            "mem3" => MotionDirection::Memory3,
+            "mem4" => MotionDirection::Memory4,
+            "int-in" => MotionDirection::IntermediateIn,
+            "int-out" => MotionDirection::IntermediateOut,
+            "remote" => MotionDirection::RemotePosition,
+            other => return other.parse::<u8>().ok().and_then(MotionDirection::from_code),
+        })
+    }
+
     /// What it does.
     pub const fn description(self) -> &'static str {
         match self {
