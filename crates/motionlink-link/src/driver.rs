@@ -444,8 +444,10 @@ impl<S: Session> Driver<S> {
         r
     }
 
-    /// Starts `op`, returns its id and the waiter's registration.
-    fn submit(&self, op: S::Op, waiter: Waiter) -> Result<OpId, S::Error> {
+    /// Starts `op`, returns its id and the waiter's registration. A blocking caller (`drives_itself`) takes the
+    /// port itself when it is free: then nobody is woken (waking the background thread would have it race the
+    /// caller for the port, and hand the exchange over to another thread).
+    fn submit(&self, op: S::Op, waiter: Waiter, drives_itself: bool) -> Result<OpId, S::Error> {
         let mut core = self.shared.core();
         if core.close_started {
             return Err(S::Error::session_closed());
@@ -454,7 +456,9 @@ impl<S: Session> Driver<S> {
         let id = core.session.start(op, now);
         core.ops.insert(id, Slot { result: None, progress: None, waiter, abandoned: false });
         core.dispatch();
-        core.wake_driver(&self.shared.background);
+        if !(drives_itself && core.port.is_some()) {
+            core.wake_driver(&self.shared.background);
+        }
         Ok(id)
     }
 
@@ -476,7 +480,7 @@ impl<S: Session> Driver<S> {
         if let Some(t) = cancel {
             t.watch(&me);
         }
-        let result = self.submit(op, Waiter::Signal(me.clone())).and_then(|id| {
+        let result = self.submit(op, Waiter::Signal(me.clone()), true).and_then(|id| {
             let mut caller = Caller { id, progress, cancel, cancel_sent: false };
             loop {
                 let (port, progress) = {
@@ -523,7 +527,7 @@ impl<S: Session> Driver<S> {
     /// with its result. Dropping the future before it is done cancels the operation (which stops any
     /// motion it started).
     pub fn start(&self, op: S::Op) -> OpFuture<S> {
-        match self.submit(op, Waiter::Waker(None)) {
+        match self.submit(op, Waiter::Waker(None), false) {
             Ok(id) => OpFuture { shared: Some(Arc::clone(&self.shared)), id, early: None },
             Err(e) => OpFuture { shared: None, id: OpId(0), early: Some(e) },
         }

@@ -11,6 +11,9 @@
 //!   single transactions and prints their median and 90th percentile, which is what the target is about.
 //! - `transaction/rg_position_38400_baud_overhead_loaded`: the same while two threads started by the bench keep
 //!   both cores of a small machine busy (a loaded host).
+//! - `transaction/rg_position_38400_baud_overhead_async`: the same exchange through `AsyncClient::get_raw` on a
+//!   tokio runtime (the driver's thread does the I/O and wakes the task); the bench prints the median and
+//!   90th percentile of 2000 single transactions of both drivers side by side.
 //! - keepalive jitter, quiet and loaded: an idle session on the real clock; every keepalive RC's sending time is
 //!   recorded and compared with its deadline on the 200 ms grid. Printed: median, 99th percentile and maximum
 //!   lateness. Target: 99th percentile under 5 ms under load. `SCU_BENCH_QUICK=1` measures 4 s instead of 20 s
@@ -27,7 +30,7 @@ use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::RealClock;
 use motionlink_scu::model::DataIndex;
 use motionlink_scu::wire::*;
-use motionlink_scu::{Client, ClientConfig};
+use motionlink_scu::{AsyncClient, Client, ClientConfig};
 use motionlink_scu::{Emulator, SimConfig};
 
 /// Encodes and decodes `request` and `reply` once; returns something that depends on every step.
@@ -160,6 +163,35 @@ fn single_transactions(client: &Client, wire: Duration, n: usize) -> (Duration, 
     (single[single.len() / 2], single[single.len() * 9 / 10])
 }
 
+/// An async client on the emulator, opened on `runtime`.
+fn async_client_on_emulator(runtime: &tokio::runtime::Runtime) -> AsyncClient {
+    let clock = RealClock::shared();
+    let host =
+        EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), Arc::clone(&clock), PipeConfig::paced(38_400));
+    let connector: Connector = Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>));
+    runtime.block_on(AsyncClient::open(connector, clock, ClientConfig::default())).unwrap()
+}
+
+/// As [`single_transactions`], through the async client on `runtime`.
+fn single_async_transactions(
+    runtime: &tokio::runtime::Runtime,
+    client: &AsyncClient,
+    wire: Duration,
+    n: usize,
+) -> (Duration, Duration) {
+    let mut single: Vec<Duration> = runtime.block_on(async {
+        let mut v = Vec::with_capacity(n);
+        for _ in 0..n {
+            let t = Instant::now();
+            black_box(client.get_raw(DataIndex(0x0011)).await.unwrap());
+            v.push(t.elapsed().saturating_sub(wire));
+        }
+        v
+    });
+    single.sort();
+    (single[single.len() / 2], single[single.len() * 9 / 10])
+}
+
 fn transaction(c: &mut Criterion) {
     let client = client_on_emulator();
     let wire = char_time(38_400, Parity::None) * (6 + 11);
@@ -188,6 +220,34 @@ fn transaction(c: &mut Criterion) {
             if median < Duration::from_micros(50) { "met" } else { "NOT met" }
         );
     }
+    drop(client);
+    // The async driver: the same exchange, awaited on a tokio runtime.
+    let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
+    let client = async_client_on_emulator(&runtime);
+    g.bench_function("rg_position_38400_baud_overhead_async", |b| {
+        b.iter_custom(|iters| {
+            runtime.block_on(async {
+                let mut overhead = Duration::ZERO;
+                for _ in 0..iters {
+                    let t = Instant::now();
+                    black_box(client.get_raw(DataIndex(0x0011)).await.unwrap());
+                    overhead += t.elapsed().saturating_sub(wire);
+                }
+                overhead
+            })
+        })
+    });
+    let blocking = client_on_emulator();
+    let (b_median, b_p90) = single_transactions(&blocking, wire, 2000);
+    drop(blocking);
+    let (a_median, a_p90) = single_async_transactions(&runtime, &client, wire, 2000);
+    eprintln!(
+        "host overhead above wire time, 2000 single RG transactions, side by side: blocking Client median \
+         {b_median:?} (90th percentile {b_p90:?}); AsyncClient on tokio median {a_median:?} (90th percentile \
+         {a_p90:?}) (target: median under 50 µs: {})",
+        if a_median < Duration::from_micros(50) && b_median < Duration::from_micros(50) { "met" } else { "NOT met" }
+    );
+    runtime.block_on(client.close()).unwrap();
     g.finish();
 }
 
