@@ -301,6 +301,34 @@ fn dropping_the_client_stops_what_it_started_and_leaves_remote_mode() {
 }
 
 #[test]
+fn the_end_of_a_session_on_a_dead_link_is_bounded_by_the_close_bound() {
+    let rig = Rig::new(SimConfig::default());
+    let bound = Duration::from_millis(500);
+    let client = rig.client(ClientConfig { close_bound: bound, ..Default::default() });
+    client.start_motion(f(1), MotionDirection::Out).unwrap();
+    // The unit answers nothing any more: the RS of F1 alone would be tried for a whole second.
+    rig.faults().drop_next(Direction::DeviceToHost, u64::MAX / 2);
+    let started = rig.clock.now();
+    let err = client.close().unwrap_err();
+    let took = rig.clock.now() - started;
+    assert!(matches!(err, Error::CloseUnconfirmed(b) if b == bound), "{err}");
+    assert!(err.to_string().contains("may still be moving"), "{err}");
+    assert!(took >= bound && took < bound + Duration::from_millis(50), "close took {took:?}");
+    // Dropping a client is bounded the same way.
+    rig.faults().heal();
+    let client = rig.client(ClientConfig { close_bound: bound, ..Default::default() });
+    client.start_motion(f(1), MotionDirection::Out).unwrap();
+    rig.faults().drop_next(Direction::DeviceToHost, u64::MAX / 2);
+    let started = rig.clock.now();
+    drop(client);
+    let took = rig.clock.now() - started;
+    assert!(took >= bound && took < bound + Duration::from_millis(50), "drop took {took:?}");
+    // What stops the drive then is the unit's own watchdog.
+    rig.sleep(600);
+    assert!(!rig.unit(|u| u.any_moving()));
+}
+
+#[test]
 fn keepalives_carry_a_cyclic_object() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig::default());
