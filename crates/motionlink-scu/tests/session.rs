@@ -10,7 +10,7 @@ use motionlink_link::session::{Action, Event, Input, OpId, Session as _};
 use motionlink_link::Timestamp;
 use motionlink_scu::config::FLUSH_LEN;
 use motionlink_scu::model::{Actuator, DataIndex, MotionDirection, MotionFunction, SafetyId, Speed};
-use motionlink_scu::session::{MoveSpec, MoveTargets, Op, Output, PreparedRequest, Progress};
+use motionlink_scu::session::{MoveSpec, MoveTargets, Op, Output, PreparedRequest, Progress, RunAction, RunSpec};
 use motionlink_scu::sim::RemoteMode;
 use motionlink_scu::wire::Request;
 use motionlink_scu::{ClientConfig, Emulator, Error, FunctionMap, Session, SimConfig};
@@ -433,4 +433,31 @@ fn a_write_is_read_back_and_a_value_the_unit_refuses_is_a_refusal() {
     assert_eq!(last, ["RG", "RT"]);
     let set = b.start(Op::Set { index: DataIndex(0x3011), data: vec![101, 0], verify: true });
     assert!(matches!(b.wait_done(set), Err(Error::Refused { .. })), "101 % is refused by the unit (PDE)");
+}
+
+#[test]
+fn a_run_is_watched_through_the_keepalive_until_its_motion_ends_and_then_stopped() {
+    let mut b = Bench::opened(ClientConfig::default(), SimConfig::default());
+    let id = b.start(Op::Run(RunSpec { action: RunAction::Motion(f(1), MotionDirection::Out), limit: None }));
+    let Output::Run(report) = b.wait_done(id).unwrap() else { panic!() };
+    assert_eq!(report.rest, [(a(1), 865), (a(2), 0)], "F1 ran to the Out end");
+    let started = b.unit_saw("F1 started").unwrap();
+    let rest = b.unit_saw("A1 at rest").unwrap();
+    let during = b.sent_between(started, rest);
+    assert!(during.len() > 100 && during.iter().all(|c| c == "RC"), "{during:?}");
+    assert!(b.unit.executed_functions().is_empty(), "RS after the run");
+    assert_eq!(b.unit.stats().watchdog_expiries, 0);
+}
+
+#[test]
+fn a_cancelled_run_stops_its_function_and_says_where_the_actuators_came_to_rest() {
+    let mut b = Bench::opened(ClientConfig::default(), SimConfig::default());
+    let id = b.start(Op::Run(RunSpec { action: RunAction::Motion(f(2), MotionDirection::Out), limit: None }));
+    b.run_until(Duration::from_secs(5), |b| b.unit.position(a(2)).unwrap_or(0) > 50);
+    b.session.cancel(id, b.now);
+    let result = b.wait_done(id);
+    let Err(Error::RunCancelled { rest, .. }) = result else { panic!("{result:?}") };
+    assert!(!b.unit.is_moving(a(2)));
+    assert_eq!(rest[1], (a(2), b.unit.position(a(2)).unwrap()));
+    assert!(b.session.started_functions().is_empty());
 }

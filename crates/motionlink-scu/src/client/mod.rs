@@ -1,5 +1,5 @@
 //! The session over a real link: [`Client`] for blocking callers and, with the `tokio` feature,
-//! [`AsyncClient`] for async ones: the same operations and the same safety (both run the same
+//! `AsyncClient` for async ones: the same operations and the same safety (both run the same
 //! [`Session`](crate::Session) under the shared driver).
 //!
 //! ```no_run

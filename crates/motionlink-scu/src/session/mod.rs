@@ -1,6 +1,6 @@
 //! The SCU protocol as a sans-IO [`Session`](motionlink_link::session::Session): bytes in with the time,
 //! bytes out, the next deadline, and events; no thread, no clock of its own, no I/O. A
-//! [`Driver`](motionlink_link::driver::Driver) runs it over a link ([`crate::Client`], [`crate::AsyncClient`]);
+//! [`Driver`](motionlink_link::driver::Driver) runs it over a link ([`crate::Client`], `AsyncClient`);
 //! tests wire it directly to the emulator.
 //!
 //! ```

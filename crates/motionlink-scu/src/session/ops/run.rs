@@ -5,15 +5,19 @@ use std::time::Duration;
 
 use motionlink_link::Timestamp;
 
+use super::basic::Write;
 use super::stop::StopMachine;
 use super::{get, statuses, Cx, Next, Operation, Output, Progress, Resume, RunAction, RunSpec, Step};
 use crate::error::Error;
-use crate::model::{status1, Actuator, DataIndex, Function, StopMode, UNUSED};
+use crate::model::{status1, Actuator, CyclicObject, DataIndex, Function, StopMode, UNUSED};
 use crate::session::report::{RunProgress, RunReport};
 use crate::session::request::{PreparedRequest, Req};
+use crate::session::POLL_READ;
 use crate::wire::{Command, Request};
 
 enum Phase {
+    /// The session's poll object is defined (a motion function is watched through the keepalive).
+    DefinePoll(Write),
     Execute,
     /// Waiting for the next look (a poll through the keepalive RC, or a pause before a read).
     Watch,
@@ -83,6 +87,18 @@ impl Run {
         self.watch(cx)
     }
 
+    fn execute(&mut self, function: Function) -> Next {
+        self.phase = Phase::Execute;
+        let params = match self.spec.action {
+            RunAction::Motion(_, direction) => [direction.code(), UNUSED],
+            RunAction::Switch(_) => [UNUSED, UNUSED],
+        };
+        match PreparedRequest::new(&Request::Execute { function: function.id(), params }) {
+            Ok(r) => Next::Send(Req::op(r)),
+            Err(e) => Next::Done(Err(e)),
+        }
+    }
+
     fn stop(&mut self, cx: &mut Cx<'_>) -> Next {
         let watch = if self.is_motion() { Actuator::all().collect() } else { Vec::new() };
         let mut machine = StopMachine::new(self.function(), StopMode::Fast, watch);
@@ -100,19 +116,40 @@ impl Operation for Run {
         let function = self.function();
         match (std::mem::replace(&mut self.phase, Phase::Watch), resume) {
             (_, Resume::Start) => {
-                self.phase = Phase::Execute;
-                let params = match self.spec.action {
-                    RunAction::Motion(_, direction) => [direction.code(), UNUSED],
-                    RunAction::Switch(Function::Motion(m)) => {
-                        return Next::Done(Err(Error::invalid(format!(
-                            "{m} is a motion function: run it with a direction"
-                        ))))
+                if let RunAction::Switch(Function::Motion(m)) = self.spec.action {
+                    return Next::Done(Err(Error::invalid(format!(
+                        "{m} is a motion function: run it with a direction"
+                    ))));
+                }
+                if let (true, Some(slot), false) = (self.is_motion(), cx.core.poll_slot(), cx.core.poll.configured) {
+                    let object = CyclicObject::new(&[], &POLL_READ).expect("two read indices fit");
+                    let mut write = Write::new(DataIndex(0x3000 + u16::from(slot)), object.to_bytes().to_vec(), true);
+                    if let Step::Wait(next) = write.step(Resume::Start) {
+                        self.phase = Phase::DefinePoll(write);
+                        return next;
                     }
-                    RunAction::Switch(_) => [UNUSED, UNUSED],
-                };
-                match PreparedRequest::new(&Request::Execute { function: function.id(), params }) {
-                    Ok(r) => Next::Send(Req::op(r)),
-                    Err(e) => Next::Done(Err(e)),
+                }
+                self.execute(function)
+            }
+            (Phase::DefinePoll(mut write), resume) => {
+                if cx.cancelled {
+                    return Next::Done(Err(Error::CancelledBeforeSending(Command::Execute)));
+                }
+                match write.step(resume) {
+                    Step::Wait(next) => {
+                        self.phase = Phase::DefinePoll(write);
+                        next
+                    }
+                    Step::Done(Ok(())) => {
+                        cx.core.poll.configured = true;
+                        self.execute(function)
+                    }
+                    Step::Done(Err(Error::Refused { status, .. })) => {
+                        tracing::warn!("the unit refused the poll object ({status}); runs are watched with reads");
+                        cx.core.poll.refused = true;
+                        self.execute(function)
+                    }
+                    Step::Done(Err(e)) => Next::Done(Err(e)),
                 }
             }
             (Phase::Execute, Resume::Reply(Err(e @ Error::CancelledBeforeSending(_)))) => Next::Done(Err(e)),
