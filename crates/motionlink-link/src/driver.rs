@@ -134,6 +134,8 @@ struct Core<S: Session> {
     close_started: bool,
     close_waiter: Option<Signal>,
     stop_thread: bool,
+    /// While the background thread sleeps: until when (`None` inside: until woken).
+    background_sleeps_until: Option<Option<Timestamp>>,
 }
 
 impl<S: Session> Core<S> {
@@ -281,8 +283,20 @@ impl<S: Session> Shared<S> {
                     for w in core.port_waiters.drain(..) {
                         w.raise();
                     }
+                    // The background thread takes over work left (another caller's operation) and deadlines
+                    // earlier than the one it sleeps until; otherwise it sleeps on, and does not race the next
+                    // blocking caller for the port.
+                    let wake_background = match core.background_sleeps_until {
+                        None => true,
+                        Some(until) => {
+                            !core.session.is_idle()
+                                || core.session.poll_timeout().is_some_and(|t| until.is_none_or(|u| t < u))
+                        }
+                    };
                     drop(core);
-                    self.background.raise();
+                    if wake_background {
+                        self.background.raise();
+                    }
                     return;
                 }
                 if acted {
@@ -346,6 +360,7 @@ impl<S: Session> Shared<S> {
         loop {
             let deadline = {
                 let mut core = self.core();
+                core.background_sleeps_until = None;
                 if core.stop_thread {
                     return;
                 }
@@ -360,7 +375,9 @@ impl<S: Session> Shared<S> {
                     });
                     continue;
                 }
-                core.session.poll_timeout()
+                let deadline = core.session.poll_timeout();
+                core.background_sleeps_until = Some(deadline);
+                deadline
             };
             me.wait_until(deadline);
         }
@@ -411,6 +428,7 @@ impl<S: Session> Driver<S> {
                 close_started: false,
                 close_waiter: None,
                 stop_thread: false,
+                background_sleeps_until: None,
             }),
         });
         let ticket = clock.reserve_participant();
