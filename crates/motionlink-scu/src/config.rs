@@ -33,8 +33,9 @@ pub const RC_DEADLINE: Duration = Duration::from_millis(timing::WATCHDOG.as_mill
 /// The cyclic object a session defines for polling moves by default (CyclicObj 5, 0x3005).
 pub const DEFAULT_POLL_SLOT: u8 = 5;
 
-/// The default poll interval of moves: one status and one position read (about 31 bytes, 8 ms at 38400 baud)
-/// every 50 ms uses about a sixth of the half-duplex line and leaves the rest to the keepalive and the caller.
+/// The default poll interval of moves: one RC carrying the poll object (44 bytes both ways, about 11 ms at
+/// 38400 baud) every 50 ms uses about a fifth of the half-duplex line and leaves the rest to the caller; the
+/// same RC is the keepalive.
 pub const DEFAULT_POLL_INTERVAL: Duration = Duration::from_millis(50);
 
 /// Which actuators each motion function F1..F10 drives: the unit's parameterisation, which the data list

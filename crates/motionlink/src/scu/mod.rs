@@ -57,7 +57,8 @@ pub struct Args {
     #[arg(long, default_value_t = 5, value_name = "COUNTS", allow_hyphen_values = true,
           value_parser = clap::value_parser!(u32).range(0..=10_000))]
     pub tolerance: u32,
-    /// How often a move polls the actuators, in ms (each poll is two reads, 8 ms of the 38400-baud line).
+    /// How often a move (or a run) looks at the actuators, in ms: each look is one RC keepalive that also reads
+    /// the status and position of every actuator (about 11 ms of the 38400-baud line).
     #[arg(long, default_value_t = 50, value_name = "MS", allow_hyphen_values = true,
           value_parser = clap::value_parser!(u64).range(5..=10_000))]
     pub poll_interval: u64,
