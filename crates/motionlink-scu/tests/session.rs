@@ -461,3 +461,19 @@ fn a_cancelled_run_stops_its_function_and_says_where_the_actuators_came_to_rest(
     assert_eq!(rest[1], (a(2), b.unit.position(a(2)).unwrap()));
     assert!(b.session.started_functions().is_empty());
 }
+
+#[test]
+fn a_unit_slow_to_answer_ro_does_not_hold_back_the_requests_after_it() {
+    let mut b = Bench::new(ClientConfig::default(), SimConfig::default());
+    // A unit asleep after a long silence answers the first RO after 1.5 s.
+    b.hold_next_reply = Some(Duration::from_millis(1500));
+    let open = b.start(Op::Open);
+    b.wait_done(open).unwrap();
+    assert!(b.session.round_trip() >= Duration::from_millis(1000), "{:?}", b.session.round_trip());
+    // The next read goes out at once: what the watchdog's schedule counts is the round trip of ordinary
+    // exchanges, not that of the RO.
+    let asked = b.now;
+    let read = b.start(Op::Request(PreparedRequest::new(&Request::Get { index: 0x0011 }).unwrap()));
+    b.wait_done(read).unwrap();
+    assert!(b.now - asked < Duration::from_millis(20), "{:?}", b.now - asked);
+}

@@ -57,7 +57,8 @@ impl Core {
         if !self.keepalive_running() || self.line.silent {
             return true;
         }
-        self.last_rc_sent.is_none_or(|t| now + self.line.round_trip <= t + RC_DEADLINE)
+        let expected = self.line.recent_round_trip.unwrap_or(self.line.round_trip);
+        self.last_rc_sent.is_none_or(|t| now + expected <= t + RC_DEADLINE)
     }
 
     pub(super) fn advance_keepalive(&mut self, now: Timestamp) {
@@ -139,7 +140,11 @@ impl Core {
 
     /// The port was opened again: a fresh line.
     pub fn reset_line(&mut self) {
-        self.line = Line { round_trip: self.line.round_trip, ..Line::default() };
+        self.line = Line {
+            round_trip: self.line.round_trip,
+            recent_round_trip: self.line.recent_round_trip,
+            ..Line::default()
+        };
         self.link_up = true;
     }
 }

@@ -274,7 +274,7 @@ impl Session {
             let q = self.core.queue.remove(i).expect("index from the queue");
             let e = Error::NoRoom {
                 command: q.req.request.command,
-                round_trip: self.core.line.round_trip,
+                round_trip: self.core.line.recent_round_trip.unwrap_or(self.core.line.round_trip),
                 waited: now - q.at,
             };
             if let Some(slot) = self.ops.get_mut(&q.owner) {

@@ -21,8 +21,11 @@ pub(crate) struct Line {
     /// No byte came from the unit during a whole request: keepalives pause, and each request gets one
     /// sending and [`SILENT_TRY`], until the unit is heard again.
     pub silent: bool,
-    /// The longest round trip measured lately (decaying).
+    /// The longest round trip measured lately (decaying): for the silence window.
     pub round_trip: Duration,
+    /// The round trip of the latest exchanges that went out once (smoothed, RO left out): what a request is
+    /// expected to take, for room on the line.
+    pub recent_round_trip: Option<Duration>,
     /// RO was acknowledged: the unit is (as far as the session knows) in remote mode.
     pub remote: bool,
     /// Replies that may still arrive for a request that was sent more than once.
@@ -253,6 +256,9 @@ impl Exchange {
         // bound: the reply may answer a later sending).
         let sample = now - self.first_sent;
         line.round_trip = if sample > line.round_trip { sample } else { (line.round_trip * 7 + sample) / 8 };
+        if self.attempts == 1 && self.request.command != Command::Open {
+            line.recent_round_trip = Some(line.recent_round_trip.map_or(sample, |r| (r + sample) / 2));
+        }
         if matches!(reply.status, Status::ChecksumError | Status::ParameterCountError)
             && self.repairs < config.retries
             && now < self.deadline
