@@ -215,15 +215,17 @@ impl Session {
     pub(super) fn schedule(&mut self) {
         let now = self.core.now;
         self.fail_roomless(now);
+        self.fail_watchers_without_keepalive();
         let core = &mut self.core;
         if core.in_flight.is_some() || core.reopen_waiter.is_some() || !core.link_up {
             return;
         }
         let running = core.keepalive_running();
         let mut rc_due = running && now >= core.keepalive_due;
-        if rc_due && core.line.silent {
+        if rc_due && core.line.silent && core.subscribers.is_empty() {
             // The unit has not been heard for a whole request: its watchdog is left to expire (it stops the
-            // drives); the next request tries the line.
+            // drives); the next request tries the line. (A motion watched through the RC still gets its RC:
+            // one short try, whose failure ends the watch.)
             core.advance_keepalive(now);
             rc_due = false;
         }
@@ -258,6 +260,26 @@ impl Session {
             self.core.started.insert(f);
         }
         self.core.start_exchange(Owner::Op(q.owner), Some(txn), q.req.request);
+    }
+
+    /// Operations waiting for the next poll of a motion get an error when no RC will come any more (the
+    /// session is no longer open: the unit ended remote mode).
+    fn fail_watchers_without_keepalive(&mut self) {
+        if self.core.subscribers.is_empty() || self.core.keepalive_running() || !self.core.link_up {
+            return;
+        }
+        let e = match &self.core.state {
+            State::Ended(why) => Error::RemoteEnded(why.clone()),
+            State::Lost(why) => Error::SessionLost(why.clone()),
+            _ => Error::Closed,
+        };
+        let waiting: Vec<OpId> = std::mem::take(&mut self.core.subscribers).into_iter().collect();
+        for id in waiting {
+            if let Some(slot) = self.ops.get_mut(&id) {
+                slot.waiting = Waiting::Nothing;
+            }
+            self.advance(id, Resume::Snapshot(Err(e.clone())));
+        }
     }
 
     /// Requests that waited too long for room: fail, or go anyway.
