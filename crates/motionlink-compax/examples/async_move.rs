@@ -4,7 +4,7 @@
 //! (`OUTPUT O0=0`, confirmed by S17). The example shows the drive stopped and switched off.
 //!
 //! ```text
-//! cargo run -p motionlink-compax --example async_move --features tokio
+//! cargo run -p motionlink-compax --example compax_async_move --features tokio
 //! ```
 //!
 //! `tests/async_example.rs` runs the same code in `cargo test`.

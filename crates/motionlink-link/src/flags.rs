@@ -85,14 +85,15 @@ pub trait FlagWord: Copy + fmt::Display {
 }
 
 /// Generates a flag enum and a word type from one table: `Variant = ("NAME", mask, Class, "meaning")`,
-/// where Class is a [`FlagClass`] variant. The word type implements [`FlagWord`], `Display` (the names
+/// where Class is a [`FlagClass`] variant; a table whose manual also says what a clear bit means adds it as
+/// a fifth element, `("NAME", mask, Class, "meaning when set", "meaning when clear")`. The word type implements [`FlagWord`], `Display` (the names
 /// joined by ` | `, unknown bits in hex, `-` for none) and `Debug`; the flag enum implements [`Flag`].
 #[macro_export]
 macro_rules! flag_set {
     (
         $(#[$smeta:meta])* $set:ident($raw:ty);
         $(#[$fmeta:meta])* $flag:ident {
-            $( $var:ident = ($name:literal, $mask:expr, $class:ident, $doc:literal) ),* $(,)?
+            $( $var:ident = ($name:literal, $mask:expr, $class:ident, $doc:literal $(, $clear:literal)?) ),* $(,)?
         }
     ) => {
         $(#[$fmeta])*
@@ -123,6 +124,16 @@ macro_rules! flag_set {
             /// The manual's explanation.
             pub fn meaning(self) -> &'static str {
                 match self { $($flag::$var => $doc),* }
+            }
+
+            /// What the manual says the flag's bit means when it is clear, where its table says it.
+            pub fn clear_meaning(self) -> ::std::option::Option<&'static str> {
+                match self {
+                    $($flag::$var => {
+                        let clear: &[&'static str] = &[$($clear)?];
+                        clear.first().copied()
+                    }),*
+                }
             }
 
             /// The name to show for the flag's bit: its name, followed in parentheses by the other names
@@ -274,6 +285,7 @@ mod tests {
             A = ("A", 0x0001, Error, "a"),
             B = ("B", 0x0002, Information, "b"),
             BTwice = ("B_AGAIN", 0x0002, Obsolete, "b under another name"),
+            C = ("C", 0x0004, Information, "c on", "c off"),
         }
     }
 
@@ -286,5 +298,11 @@ mod tests {
         assert!(!Word(0x0002).has_error());
         assert_eq!(Word(0).to_string(), "-");
         assert_eq!(Bit::from_name("b_again"), Some(Bit::BTwice));
+    }
+
+    #[test]
+    fn a_table_may_say_what_a_clear_bit_means() {
+        assert_eq!((Bit::C.meaning(), Bit::C.clear_meaning()), ("c on", Some("c off")));
+        assert_eq!(Bit::A.clear_meaning(), None);
     }
 }

@@ -163,6 +163,8 @@ struct ToySession {
     next_ping: Timestamp,
     moving: bool,
     closing: bool,
+    /// Whether the session keeps the device alive with PING (on by default).
+    pings: bool,
     sent: Vec<String>,
     /// The name of the thread that asked for each telegram to be sent.
     sent_by: Vec<Option<String>>,
@@ -187,6 +189,7 @@ impl ToySession {
             next_ping: now,
             moving: false,
             closing: false,
+            pings: true,
             sent: Vec::new(),
             sent_by: Vec::new(),
             background_looks: std::sync::atomic::AtomicU32::new(0),
@@ -327,7 +330,7 @@ impl Session for ToySession {
             _ => None,
         });
         let answer = self.in_flight.as_ref().map(|(_, _, at, _)| *at + ANSWER);
-        let ping = (!self.closing).then_some(self.next_ping);
+        let ping = (!self.closing && self.pings).then_some(self.next_ping);
         polls.chain(answer).chain(ping).min()
     }
 
@@ -347,7 +350,7 @@ impl Session for ToySession {
                 }
             }
         }
-        if !self.closing && now >= self.next_ping {
+        if !self.closing && self.pings && now >= self.next_ping {
             // Deadline-based: the next ping is due one period after the last due time, not after sending.
             while self.next_ping <= now {
                 self.next_ping += PING;
@@ -401,6 +404,47 @@ fn the_background_thread_keeps_the_device_alive_on_its_own_deadlines() {
         let late = at.since_origin().saturating_sub(due);
         assert!(late < Duration::from_millis(2), "ping {i} at {at} is {late:?} late");
     }
+    driver.close().unwrap();
+}
+
+/// A link that records which thread sent each request.
+struct Senders {
+    inner: Box<dyn motionlink_link::Link>,
+    threads: Arc<Mutex<Vec<std::thread::ThreadId>>>,
+}
+
+impl motionlink_link::Link for Senders {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        self.threads.lock().unwrap().push(std::thread::current().id());
+        self.inner.send(bytes)
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
+        self.inner.recv(buf, timeout)
+    }
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        self.inner.discard_input()
+    }
+    fn describe(&self) -> String {
+        self.inner.describe()
+    }
+}
+
+#[test]
+fn a_blocking_caller_sends_its_request_itself_without_a_hand_off_to_the_background_thread() {
+    let clock = RealClock::shared();
+    let host = EmulatorHost::new(Toy::default(), Arc::clone(&clock), PipeConfig::paced(115_200));
+    let threads = Arc::new(Mutex::new(Vec::new()));
+    let link = Senders { inner: Box::new(host.connect().0), threads: Arc::clone(&threads) };
+    let mut session = ToySession::new(clock.now());
+    session.pings = false;
+    let driver = Driver::new(session, Port::Bytes(Box::new(link)), None, clock, DriverConfig::default()).unwrap();
+    for _ in 0..500 {
+        driver.run(Op::Get).unwrap();
+    }
+    let me = std::thread::current().id();
+    let threads = threads.lock().unwrap().clone();
+    assert_eq!(threads.len(), 500);
+    assert!(threads.iter().all(|t| *t == me), "every GET went out from the caller's own thread");
     driver.close().unwrap();
 }
 

@@ -2,7 +2,7 @@
 //! (two modules on a CAN bus paced at 1 Mbit/s, real time), then the move cancelled by dropping its
 //! future: the session halts the module, and the example shows it halted.
 //!
-//! `cargo run -p motionlink-powercube --example async_move --features tokio`
+//! `cargo run -p motionlink-powercube --example powercube_async_move --features tokio`
 
 use std::time::Duration;
 

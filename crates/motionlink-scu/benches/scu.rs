@@ -3,7 +3,7 @@
 //! - `codec/rg_position_exchange` and `codec/rc_12_word_cyclic_exchange`: both telegrams of an exchange encoded
 //!   and decoded (request built by the host and parsed by the unit, reply built by the unit and parsed by the
 //!   host), no heap allocation. Throughput is in telegrams; the target is 20 million per second each.
-//! - `transaction/rg_position_38400_baud_overhead`: a real `ScuClient::get_raw` through the in-process emulator
+//! - `transaction/rg_position_38400_baud_overhead`: a real `Client::get_raw` through the in-process emulator
 //!   over a link paced at 38400 baud. The time reported is the host's overhead: the measured time minus the
 //!   wire time of the 17 bytes (6 out, 11 back) at 10 bits per byte. Target: median under 50 µs.
 //!   Criterion's estimate is a mean over samples of many transactions, and about one transaction in 45 waits
@@ -11,6 +11,9 @@
 //!   single transactions and prints their median and 90th percentile, which is what the target is about.
 //! - `transaction/rg_position_38400_baud_overhead_loaded`: the same while two threads started by the bench keep
 //!   both cores of a small machine busy (a loaded host).
+//! - `transaction/rg_position_38400_baud_overhead_async`: the same exchange through `AsyncClient::get_raw` on a
+//!   tokio runtime (the driver's thread does the I/O and wakes the task); the bench prints the median and
+//!   90th percentile of 2000 single transactions of both drivers side by side.
 //! - keepalive jitter, quiet and loaded: an idle session on the real clock; every keepalive RC's sending time is
 //!   recorded and compared with its deadline on the 200 ms grid. Printed: median, 99th percentile and maximum
 //!   lateness. Target: 99th percentile under 5 ms under load. `SCU_BENCH_QUICK=1` measures 4 s instead of 20 s
@@ -25,10 +28,10 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use motionlink_link::link::{char_time, Connector, Link, LinkError, Parity};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::RealClock;
-use motionlink_scu::client::{ClientConfig, ScuClient};
 use motionlink_scu::model::DataIndex;
-use motionlink_scu::sim::{ScuEmulator, SimConfig};
 use motionlink_scu::wire::*;
+use motionlink_scu::{AsyncClient, Client, ClientConfig};
+use motionlink_scu::{Emulator, SimConfig};
 
 /// Encodes and decodes `request` and `reply` once; returns something that depends on every step.
 fn exchange(
@@ -139,19 +142,16 @@ impl Drop for Load {
     }
 }
 
-fn client_on_emulator() -> ScuClient {
+fn client_on_emulator() -> Client {
     let clock = RealClock::shared();
-    let host = EmulatorHost::new(
-        ScuEmulator::new(SimConfig::default()).unwrap(),
-        Arc::clone(&clock),
-        PipeConfig::paced(38_400),
-    );
+    let host =
+        EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), Arc::clone(&clock), PipeConfig::paced(38_400));
     let connector: Connector = Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>));
-    ScuClient::open(connector, clock, ClientConfig::default()).unwrap()
+    Client::open(connector, clock, ClientConfig::default()).unwrap()
 }
 
 /// Median and 90th percentile of `n` single RG transactions' host overhead above the wire time.
-fn single_transactions(client: &ScuClient, wire: Duration, n: usize) -> (Duration, Duration) {
+fn single_transactions(client: &Client, wire: Duration, n: usize) -> (Duration, Duration) {
     let mut single: Vec<Duration> = (0..n)
         .map(|_| {
             let t = Instant::now();
@@ -159,6 +159,35 @@ fn single_transactions(client: &ScuClient, wire: Duration, n: usize) -> (Duratio
             t.elapsed().saturating_sub(wire)
         })
         .collect();
+    single.sort();
+    (single[single.len() / 2], single[single.len() * 9 / 10])
+}
+
+/// An async client on the emulator, opened on `runtime`.
+fn async_client_on_emulator(runtime: &tokio::runtime::Runtime) -> AsyncClient {
+    let clock = RealClock::shared();
+    let host =
+        EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), Arc::clone(&clock), PipeConfig::paced(38_400));
+    let connector: Connector = Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>));
+    runtime.block_on(AsyncClient::open(connector, clock, ClientConfig::default())).unwrap()
+}
+
+/// As [`single_transactions`], through the async client on `runtime`.
+fn single_async_transactions(
+    runtime: &tokio::runtime::Runtime,
+    client: &AsyncClient,
+    wire: Duration,
+    n: usize,
+) -> (Duration, Duration) {
+    let mut single: Vec<Duration> = runtime.block_on(async {
+        let mut v = Vec::with_capacity(n);
+        for _ in 0..n {
+            let t = Instant::now();
+            black_box(client.get_raw(DataIndex(0x0011)).await.unwrap());
+            v.push(t.elapsed().saturating_sub(wire));
+        }
+        v
+    });
     single.sort();
     (single[single.len() / 2], single[single.len() * 9 / 10])
 }
@@ -191,6 +220,35 @@ fn transaction(c: &mut Criterion) {
             if median < Duration::from_micros(50) { "met" } else { "NOT met" }
         );
     }
+    drop(client);
+    // The async driver: the same exchange, awaited on a tokio runtime.
+    let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
+    let client = async_client_on_emulator(&runtime);
+    g.bench_function("rg_position_38400_baud_overhead_async", |b| {
+        b.iter_custom(|iters| {
+            runtime.block_on(async {
+                let mut overhead = Duration::ZERO;
+                for _ in 0..iters {
+                    let t = Instant::now();
+                    black_box(client.get_raw(DataIndex(0x0011)).await.unwrap());
+                    overhead += t.elapsed().saturating_sub(wire);
+                }
+                overhead
+            })
+        })
+    });
+    let blocking = client_on_emulator();
+    let (b_median, b_p90) = single_transactions(&blocking, wire, 2000);
+    drop(blocking);
+    let (a_median, a_p90) = single_async_transactions(&runtime, &client, wire, 2000);
+    eprintln!(
+        "host overhead above wire time, 2000 single RG transactions, side by side: blocking Client median \
+         {b_median:?} (90th percentile {b_p90:?}; target: median under 50 µs: {}); AsyncClient on tokio median \
+         {a_median:?} (90th percentile {a_p90:?}; two thread hand-offs: to the driver's thread and back to the \
+         task)",
+        if b_median < Duration::from_micros(50) { "met" } else { "NOT met" }
+    );
+    runtime.block_on(client.close()).unwrap();
     g.finish();
 }
 
@@ -221,18 +279,15 @@ impl Link for KeepaliveTimes {
 /// How late each keepalive went out after its deadline on the grid, sorted.
 fn keepalive_lateness(duration: Duration) -> Vec<Duration> {
     let clock = RealClock::shared();
-    let host = EmulatorHost::new(
-        ScuEmulator::new(SimConfig::default()).unwrap(),
-        Arc::clone(&clock),
-        PipeConfig::paced(38_400),
-    );
+    let host =
+        EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), Arc::clone(&clock), PipeConfig::paced(38_400));
     let sent = Arc::new(Mutex::new(Vec::new()));
     let record = Arc::clone(&sent);
     let connector: Connector = Box::new(move || {
         Ok(Box::new(KeepaliveTimes { inner: Box::new(host.connect().0), sent: Arc::clone(&record) }) as Box<dyn Link>)
     });
     let period = ClientConfig::default().keepalive_period;
-    let client = ScuClient::open(connector, clock, ClientConfig::default()).unwrap();
+    let client = Client::open(connector, clock, ClientConfig::default()).unwrap();
     std::thread::sleep(duration);
     drop(client);
     let times = sent.lock().unwrap().clone();

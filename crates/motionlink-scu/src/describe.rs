@@ -1,18 +1,36 @@
-//! Telegrams described for people: what the command line's `decode` and `demo` print, and what a program
-//! can put in its logs.
+//! Telegrams described for people: the family's [`Describe`] (what `motionlink decode scu`, the demo's
+//! transcript and any capture annotation use), and the one-line descriptions it is made of.
 //!
 //! ```
-//! use motionlink_scu::describe::describe_request;
+//! use motionlink_link::describe::{Captured, Describe, Direction};
+//! use motionlink_scu::describe::{describe_request, Describer};
 //! use motionlink_scu::wire::Request;
 //! assert_eq!(
 //!     describe_request(&Request::Get { index: 0x0011 }),
 //!     "RG remote data get: actual_position_a1 (0x0011)"
 //! );
+//! // A capture of both directions, in pieces: the reply is explained with the request before it.
+//! let mut d = Describer::new();
+//! let mut out = Vec::new();
+//! d.describe(Captured::Bytes(&[0x52, 0x47, 0x11]), Direction::Unknown, None, &mut out);
+//! d.describe(Captured::Bytes(&[0x00, 0x2C, 0x30, 0x52, 0x47, 0x06, 0x04, 0x00]), Direction::Unknown, None, &mut out);
+//! d.describe(Captured::Bytes(&[0x90, 0x01, 0x00, 0x00, 0xA3, 0xAD]), Direction::Unknown, None, &mut out);
+//! d.finish(&mut out);
+//! assert_eq!(out.len(), 2);
+//! assert_eq!(out[0].direction, Direction::ToDevice);
+//! assert_eq!(out[1].meaning, "RG ACK: actual_position_a1 = 400 counts");
 //! ```
+
+use motionlink_link::describe::{Annotation, Captured, Describe, Direction};
+use motionlink_link::transcript::{Record, Way};
+use motionlink_link::Timestamp;
 
 use crate::model::{item, DataIndex, Function, MotionDirection, SafetyId, StopMode, UNUSED};
 use crate::value::decode_item;
-use crate::wire::{Command, Incoming, Reply, Request, Status};
+use crate::wire::{
+    capture_step, request_to_vec, CaptureDirection, CaptureItem, Command, Incoming, Reply, Request, Status, Telegram,
+    WireError,
+};
 
 fn index_name(index: u16) -> String {
     match item(DataIndex(index)) {
@@ -107,4 +125,201 @@ pub fn describe_reply(r: &Reply<'_>, request: Option<&Request<'_>>) -> String {
         None => s.push_str(&format!(": {} data byte(s) [{}]", data.len(), hex(data))),
     }
     s
+}
+
+/// One line about a telegram (or bytes that are none) found in a capture; `last_request` (the bytes of the
+/// request before it) lets a reply's data be decoded.
+pub fn describe_item(item: &CaptureItem<'_>, raw_len: usize, last_request: Option<&[u8]>) -> String {
+    match item {
+        CaptureItem::Telegram(Telegram::Request(i)) => describe_incoming(i),
+        CaptureItem::Telegram(Telegram::Reply(r)) => {
+            let context = last_request.and_then(|b| match capture_step(b, CaptureDirection::FromHost).1 {
+                CaptureItem::Telegram(Telegram::Request(Incoming::Request(req))) => Some(req),
+                _ => None,
+            });
+            describe_reply(r, context.as_ref())
+        }
+        CaptureItem::Telegram(Telegram::UnknownCommandReply { code, status }) => format!(
+            "{}{} {}: {} (the reply to an unknown command)",
+            char::from(code[0]),
+            char::from(code[1]),
+            status.abbreviation(),
+            status.description()
+        ),
+        CaptureItem::Error(WireError::Garbage { count }) => format!("{count} byte(s) that start no telegram"),
+        CaptureItem::Error(e) => e.to_string(),
+        CaptureItem::Truncated => format!("the capture ends inside a telegram ({raw_len} byte(s))"),
+    }
+}
+
+/// The SCU's decoder of captured traffic: requests and replies in any chunks, one direction or both mixed
+/// (a mixed capture is split by what the bytes are; see [`capture_step`]), each reply explained with the
+/// request before it.
+#[derive(Debug, Default)]
+pub struct Describer {
+    /// Bytes not yet whole telegrams, per direction (to the unit, from it, not known).
+    pending: [Vec<u8>; 3],
+    /// When the first pending byte of each direction came.
+    pending_at: [Option<Timestamp>; 3],
+    last_request: Option<Vec<u8>>,
+}
+
+fn slot(direction: Direction) -> (usize, CaptureDirection) {
+    match direction {
+        Direction::ToDevice => (0, CaptureDirection::FromHost),
+        Direction::FromDevice => (1, CaptureDirection::FromUnit),
+        Direction::Unknown => (2, CaptureDirection::Unknown),
+    }
+}
+
+impl Describer {
+    /// A decoder with nothing pending.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Describes what is whole in buffer `i`; with `all`, also what is left (the capture ended).
+    fn drain(&mut self, i: usize, dir: CaptureDirection, all: bool, out: &mut Vec<Annotation>) {
+        let mut at = 0;
+        let at_time = self.pending_at[i];
+        while at < self.pending[i].len() {
+            let bytes = &self.pending[i][at..];
+            let (n, found) = capture_step(bytes, dir);
+            if matches!(found, CaptureItem::Truncated) && !all {
+                break;
+            }
+            let n = n.max(1).min(bytes.len());
+            let raw = bytes[..n].to_vec();
+            let meaning = describe_item(&found, raw.len(), self.last_request.as_deref());
+            let (direction, bad) = match &found {
+                CaptureItem::Telegram(Telegram::Request(_)) => {
+                    self.last_request = Some(raw.clone());
+                    (Direction::ToDevice, false)
+                }
+                CaptureItem::Telegram(_) => (Direction::FromDevice, false),
+                CaptureItem::Error(_) | CaptureItem::Truncated => (
+                    match dir {
+                        CaptureDirection::FromHost => Direction::ToDevice,
+                        CaptureDirection::FromUnit => Direction::FromDevice,
+                        CaptureDirection::Unknown => Direction::Unknown,
+                    },
+                    true,
+                ),
+            };
+            out.push(Annotation { at: at_time, direction, can_id: None, bytes: raw, meaning, bad });
+            at += n;
+        }
+        self.pending[i].drain(..at);
+        if self.pending[i].is_empty() {
+            self.pending_at[i] = None;
+        }
+    }
+}
+
+impl Describe for Describer {
+    fn describe(
+        &mut self,
+        captured: Captured<'_>,
+        direction: Direction,
+        at: Option<Timestamp>,
+        out: &mut Vec<Annotation>,
+    ) {
+        let bytes = match captured {
+            Captured::Bytes(b) => b,
+            Captured::Frame(f) => {
+                out.push(Annotation {
+                    at,
+                    direction,
+                    can_id: None,
+                    bytes: Vec::new(),
+                    meaning: format!("a CAN frame ({f:?}): the SCU speaks RS232, not CAN"),
+                    bad: true,
+                });
+                return;
+            }
+        };
+        let (i, dir) = slot(direction);
+        if self.pending[i].is_empty() {
+            self.pending_at[i] = at;
+        }
+        self.pending[i].extend_from_slice(bytes);
+        self.drain(i, dir, false, out);
+    }
+
+    fn finish(&mut self, out: &mut Vec<Annotation>) {
+        for direction in [Direction::ToDevice, Direction::FromDevice, Direction::Unknown] {
+            let (i, dir) = slot(direction);
+            self.drain(i, dir, true, out);
+        }
+    }
+}
+
+/// One line of a session's transcript as the demo shows it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TranscriptLine {
+    /// A telegram, explained.
+    Telegram(Annotation),
+    /// Exchanges left out, said in words ("… 12 RC keepalive(s), each answered ACK").
+    Folded(String),
+}
+
+/// A session's recorded traffic, explained: every exchange once; keepalives after the first folded into a
+/// count; an exchange repeated without change (a status poll) collapsed into one line.
+pub fn fold_transcript(records: &[Record]) -> Vec<TranscriptLine> {
+    let keepalive = request_to_vec(&Request::Cyclic { object: UNUSED, write: &[] }).unwrap_or_default();
+    let mut d = Describer::new();
+    let mut lines: Vec<Annotation> = Vec::new();
+    for r in records {
+        let direction = if r.way == Way::Sent { Direction::ToDevice } else { Direction::FromDevice };
+        d.describe(Captured::Bytes(&r.bytes), direction, Some(r.at), &mut lines);
+    }
+    d.finish(&mut lines);
+    let mut out = Vec::new();
+    let mut keepalives_shown = false;
+    let mut keepalives_folded = 0;
+    let mut previous: Option<(Vec<u8>, Vec<u8>)> = None;
+    let mut repeats = 0;
+    let mut last_repeat_at = Timestamp::ZERO;
+    let mut i = 0;
+    while i < lines.len() {
+        let exchange = lines.get(i..i + 2).filter(|p| {
+            p[0].direction == Direction::ToDevice && p[1].direction == Direction::FromDevice && !p[0].bad && !p[1].bad
+        });
+        let Some(pair) = exchange else {
+            out.push(TranscriptLine::Telegram(lines[i].clone()));
+            i += 1;
+            continue;
+        };
+        if pair[0].bytes == keepalive {
+            if keepalives_shown {
+                keepalives_folded += 1;
+                i += 2;
+                continue;
+            }
+            keepalives_shown = true;
+        }
+        let key = (pair[0].bytes.clone(), pair[1].bytes.clone());
+        if previous.as_ref() == Some(&key) {
+            repeats += 1;
+            last_repeat_at = pair[1].at.unwrap_or_default();
+            i += 2;
+            continue;
+        }
+        if repeats > 0 {
+            out.push(TranscriptLine::Folded(format!(
+                "… the same exchange {repeats} more time(s), until {:.3} s",
+                last_repeat_at.since_origin().as_secs_f64()
+            )));
+            repeats = 0;
+        }
+        if keepalives_folded > 0 {
+            out.push(TranscriptLine::Folded(format!("… {keepalives_folded} RC keepalive(s), each answered ACK")));
+            keepalives_folded = 0;
+        }
+        out.push(TranscriptLine::Telegram(pair[0].clone()));
+        out.push(TranscriptLine::Telegram(pair[1].clone()));
+        previous = Some(key);
+        i += 2;
+    }
+    out
 }

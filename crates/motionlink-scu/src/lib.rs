@@ -1,31 +1,44 @@
-//! Ewellix / Schaeffler SCU control unit over RS232: the codec, the data list, a client that keeps the unit's
-//! watchdog fed and stops what it started, and an emulator of the unit.
+//! Ewellix / Schaeffler SCU control unit over RS232: the codec, the data list, the protocol as a sans-IO
+//! session that keeps the unit's watchdog fed and stops what it started, blocking and async clients that run
+//! it, and an emulator of the unit.
 //!
 //! Layers, each importing only from those above it in this list:
 //!
 //! - [`wire`]: telegrams to and from bytes, CRC-16/XMODEM, incremental decoders that resynchronise. No I/O,
 //!   no clock, no allocation.
-//! - [`model`] and [`value`]: the data list as one table ([`model::DATA_LIST`]), functions, Safety_ID, the
-//!   named bit sets and the 32-bit error code; typed values with their units and ranges. [`describe`] turns
-//!   telegrams into text for people.
-//! - [`client`]: a session over a [`Link`](motionlink_link::Link) with the RC keepalive on its own thread.
-//! - [`sim`]: the unit as a sans-IO state machine with a physical model of its actuators.
+//! - [`model`] and [`value`]: the data list as one shared [`Table`](motionlink_link::table::Table)
+//!   ([`model::TABLE`]), functions, Safety_ID, the named bit sets and the 32-bit error code as shared flag
+//!   words, units as types ([`model::Speed`]: percent and counts/s are different types); typed values with their
+//!   ranges. [`describe`]: the family's [`Describe`](motionlink_link::describe::Describe).
+//! - [`error`]: [`Error`], with the unit's codes as values and its class for every front end.
+//! - [`session`]: the protocol as a sans-IO [`Session`] (bytes in with the time; bytes out, the next deadline,
+//!   events): request matching, repetitions, the RC keepalive, every multi-step operation as a state machine.
+//!   Tested with no link at all.
+//! - [`client`]: [`Client`] (blocking) and, with the `tokio` feature, `AsyncClient` run the session over a
+//!   [`Link`](motionlink_link::Link) on the shared driver: the same operations and the same safety.
+//! - [`sim`]: the unit ([`Emulator`]) as a sans-IO state machine with a physical model of its actuators.
+//!
+//! **Closing.** [`Client::close`] (and `AsyncClient::close`) ends the session: RS for every function it
+//! started (motions fast), then RA, and returns the outcome. Dropping a client does the same, waiting at most
+//! [`ClientConfig::close_bound`] (5 s by default; a dead link takes about 0.6 s: one short try of RS and of
+//! RA); after that the stop is reported unconfirmed and the unit's own watchdog (500 ms) is what stops the
+//! drives. A dropped async future cancels its operation, which stops any motion it started.
 //!
 //! ```
 //! use motionlink_link::{pipe::{EmulatorHost, PipeConfig}, link::Link, ManualClock, Clock};
-//! use motionlink_scu::{client::{ClientConfig, ScuClient}, model::Actuator, sim::{ScuEmulator, SimConfig}};
+//! use motionlink_scu::{model::{Actuator, Speed}, Client, ClientConfig, Emulator, SimConfig};
 //!
 //! // A virtual clock: ten seconds of device time take a few milliseconds.
 //! let clock = ManualClock::new_auto();
 //! let _me = clock.reserve_participant().enter();
-//! let unit = EmulatorHost::new(ScuEmulator::new(SimConfig::default())?, clock.shared(), PipeConfig::paced(38_400));
-//! let client = ScuClient::open(
+//! let unit = EmulatorHost::new(Emulator::new(SimConfig::default())?, clock.shared(), PipeConfig::paced(38_400));
+//! let client = Client::open(
 //!     Box::new(move || Ok(Box::new(unit.connect().0) as Box<dyn Link>)),
 //!     clock.shared(),
 //!     ClientConfig::default(),
 //! )?;
 //! let a1 = Actuator::new(1).unwrap();
-//! let report = client.move_to(a1, 400, 80, &Default::default())?;
+//! let report = client.move_to(a1, 400, Speed::percent(80).unwrap(), &Default::default())?;
 //! assert_eq!(report.position_counts, 400); // read after the unit reported the end of the motion
 //! assert!(report.actuators.iter().all(|a| a.difference_counts().abs() <= 5 || !a.moved));
 //! client.close()?; // RS for anything still started, then RA
@@ -38,11 +51,11 @@
 //! (the field notes' decisions are followed too: one-byte RO, bit n is mask `1 << (n - 1)`, the bytes of the
 //! RT example are the truth):
 //!
-//! - **Reply timeout and retries.** The manual allows a unit 2000 ms to reply, and the client gives RO that
+//! - **Reply timeout and retries.** The manual allows a unit 2000 ms to reply, and the session gives RO that
 //!   long. But the unit's watchdog expires 500 ms after the last RC, and no RC can go out while a reply is
 //!   awaited, so in remote mode a reply is awaited at most 1000 ms: a unit silent that long has stopped its
 //!   drives and left remote mode anyway. A request is sent again when not one byte of its reply came within
-//!   [`client::ClientConfig::retry_after`] (150 ms, or twice the measured round trip), then after 300, 600 ms
+//!   [`ClientConfig::retry_after`] (150 ms, or twice the measured round trip), then after 300, 600 ms
 //!   of silence; the reply to any sending is accepted, the others are read and dropped. Before the first
 //!   repetition the client sends 256 zero bytes, which complete a telegram whose corrupted length byte left
 //!   the unit waiting (it answers CSE) and are otherwise skipped as garbage. After a whole request without a
@@ -53,12 +66,12 @@
 //! - **PE from a unit that left remote mode** (a watchdog expiry, a reset, someone else's RA): the client
 //!   sends an RC and tries once more. Still PE: the unit ended remote mode (with Safety_ID 0 it takes RC but
 //!   no remote motion until RO); the caller gets `RemoteEnded`, and the client never sends RO by itself:
-//!   [`client::ScuClient::reopen`] is the caller's decision. Only the end of a session opens remote mode to
+//!   [`Client::reopen`] is the caller's decision. Only the end of a session opens remote mode to
 //!   send the RS every RE needs, then RA. Accepted after the RC (Safety_ID 1 or 2, whose next RC re-arms the
 //!   watchdog): the session goes on; a caller with functions started gets `RemoteEnded` once (their motion
 //!   was stopped by the unit), and they get their RS.
 //! - **Which actuators a function drives** is the unit's parameterisation, which the data list does not show.
-//!   The caller gives it ([`client::FunctionMap`]; presets for SCP11, TLT and LIFTKIT); where it is not given,
+//!   The caller gives it ([`FunctionMap`]; presets for SCP11, TLT and LIFTKIT); where it is not given,
 //!   a move writes the target into every connected actuator's remote position and reports the actuators that
 //!   moved, rather than guessing.
 //! - **The stroke** of an actuator, for refusing targets before anything moves, is read from the virtual
@@ -103,6 +116,18 @@
 //!   F22: "LED2" (Ewellix); the Schaeffler edition repeats F21's "LED1", and 0x0120 has an LED 2.
 //! - **Typos of the Ewellix edition** (0x0095 twice for Cumulated_Stroke A6, 0x00E6 for Speed A1) follow the
 //!   Schaeffler edition: 0x0096 and 0x00F1.
+//! - **Watching a motion through the keepalive.** A running motion is watched through the RC: the session
+//!   defines CyclicObj 5 (0x3005; [`MovePolling`] chooses another or reads) to read status 1 and the position
+//!   of every actuator (0x0170, 0x0010), writes and reads back the definition before its first move, and while
+//!   a motion runs every RC carries it, one every poll interval: each exchange of the move both feeds the
+//!   watchdog and reads the state, so a link whose round trips take 300 ms still keeps the unit alive during a
+//!   move. A unit that refuses the definition is polled with reads; so is a session whose keepalive carries the
+//!   caller's own cyclic object.
+//! - **Room on the line.** The next RC must go out at most 400 ms after the last (the watchdog's 500 ms, less
+//!   100 ms for jitter and an estimate that is short). A request other than RC goes out only if its reply is
+//!   expected back before then, by the longest round trip measured lately; one that finds no room within
+//!   1000 ms fails ([`Error::NoRoom`]) rather than let the watchdog expire. Stops (RS), RA and RO never wait;
+//!   the RS that ends a move that reached its target waits for room at most 1000 ms and then goes anyway.
 //! - **Captures.** An RO ACK is byte for byte an RO request with Safety_ID 6; in a capture that mixes both
 //!   directions the reply reading wins.
 //! - **CRC.** CRC-16/XMODEM comes from the `crc` crate (its slice-by-16 tables); the codec walks them eight and
@@ -112,8 +137,19 @@
 #![warn(missing_docs)]
 
 pub mod client;
+pub mod config;
 pub mod describe;
+pub mod error;
 pub mod model;
+pub mod session;
 pub mod sim;
 pub mod value;
 pub mod wire;
+
+pub use client::{ending, Client, Ending, MoveOptions, SetpointStream};
+#[cfg(feature = "tokio")]
+pub use client::{AsyncClient, AsyncSetpointStream};
+pub use config::{ClientConfig, FunctionMap, MovePolling, StrokeLimits};
+pub use error::Error;
+pub use session::{Op, Output, Progress, Session};
+pub use sim::{Emulator, SimConfig};

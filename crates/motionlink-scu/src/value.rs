@@ -14,38 +14,11 @@
 
 use std::fmt;
 
+pub use crate::model::SpeedMode;
 use crate::model::{
-    item, ActuatorErrorCount, CyclicObject, DataEntry, DataIndex, ErrorCode, Flags, Item, Kind, UserPositionData,
+    item, ActuatorErrorCount, CyclicObject, DataEntry, DataEntryExt, DataIndex, ErrorCode, Flags, Item, Kind,
+    UserPositionData,
 };
-
-/// How the unit's parameterisation gives remote speeds (0x3011..0x301A).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum SpeedMode {
-    /// "Speed select relative": percent, 0..100 (standard units).
-    #[default]
-    Percent,
-    /// "Speed select absolute": encoder counts per second, 0..1000.
-    CountsPerSecond,
-}
-
-impl SpeedMode {
-    /// The largest remote speed.
-    pub const fn max(self) -> u16 {
-        match self {
-            SpeedMode::Percent => 100,
-            SpeedMode::CountsPerSecond => 1000,
-        }
-    }
-
-    /// The unit as text.
-    pub const fn unit(self) -> &'static str {
-        match self {
-            SpeedMode::Percent => "%",
-            SpeedMode::CountsPerSecond => "counts/s",
-        }
-    }
-}
 
 /// The value of one data-list entry.
 #[derive(Debug, Clone, PartialEq)]
@@ -404,7 +377,7 @@ impl Value {
             Value::Flags(f) => json!({ "bits": f.bits, "set": f.set_names().collect::<Vec<_>>() }),
             Value::ErrorCode(c) => json!({
                 "code": c.0,
-                "bits": c.bits().map(|b| json!({"bit": b.number, "name": b.name, "cause": b.cause})).collect::<Vec<_>>(),
+                "bits": c.bits().map(|b| json!({"bit": b.number(), "name": b.name(), "cause": b.cause()})).collect::<Vec<_>>(),
             }),
             Value::ConversionFactor(v) => json!(v),
             Value::UserPositions(p) => json!(p),

@@ -53,11 +53,6 @@ impl CliError {
     pub fn transport(msg: impl std::fmt::Display) -> Self {
         CliError::Transport(msg.to_string())
     }
-
-    /// A device error.
-    pub fn device(msg: impl std::fmt::Display) -> Self {
-        CliError::Device(msg.to_string())
-    }
 }
 
 impl From<LinkError> for CliError {

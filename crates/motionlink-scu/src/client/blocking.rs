@@ -1,0 +1,449 @@
+//! [`Client`]: the session run by the blocking [`Driver`] (a caller's request runs on the caller's own thread;
+//! one background thread sends the keepalive when nobody else uses the line).
+
+use motionlink_link::cancel::CancelToken;
+use motionlink_link::driver::{Driver, DriverConfig, Port, PortOpener};
+use motionlink_link::link::{Connector, SerialSettings};
+use motionlink_link::url::PortUrl;
+use motionlink_link::{SharedClock, Timestamp};
+
+use super::{expect_output, link_error, move_spec, run_spec, MoveOptions};
+use crate::config::ClientConfig;
+use crate::error::Error;
+use crate::model::{
+    Actuator, CyclicObject, DataEntry, DataIndex, ErrorCode, Flags, Function, MotionDirection, MotionFunction,
+    PositionCounts, Speed, StopMode,
+};
+use crate::session::ops::basic::{cyclic_index, decode_cyclic_read, encode_for};
+use crate::session::{
+    ClientStats, MoveReport, Op, Output, PreparedRequest, Progress, RunAction, RunProgress, RunReport, Session,
+};
+use crate::value::Value;
+use crate::wire::{Command, Request};
+
+/// A session with an SCU control unit, for blocking callers. See the [crate documentation](crate).
+///
+/// `Client` is `Sync`: share it between threads (`&Client`, `Arc<Client>`); their requests interleave on the
+/// line as the session schedules them. Dropping it ends the session as [`Client::close`] does (waiting at
+/// most [`ClientConfig::close_bound`], 5 s by default).
+pub struct Client {
+    driver: Driver<Session>,
+    config: ClientConfig,
+}
+
+impl std::fmt::Debug for Client {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Client").field("port", &self.driver.port_name()).finish()
+    }
+}
+
+impl Client {
+    /// Opens a session on a serial port or TCP gateway (`--port` syntax; not `sim`).
+    pub fn open_port(
+        port: &PortUrl,
+        settings: SerialSettings,
+        clock: SharedClock,
+        config: ClientConfig,
+    ) -> Result<Self, Error> {
+        let port = port.clone();
+        let connector: Connector = Box::new(move || port.open_byte_link(settings));
+        Self::open(connector, clock, config)
+    }
+
+    /// Opens a session: checks the configuration, connects, sends RO with the configured Safety_ID and a
+    /// first RC, and starts the keepalive. `connector` is called again to reconnect.
+    ///
+    /// Requests run on the calling thread; with an auto-advancing
+    /// [`ManualClock`](motionlink_link::ManualClock) the calling thread must be one of its participants.
+    pub fn open(connector: Connector, clock: SharedClock, config: ClientConfig) -> Result<Self, Error> {
+        let driver = Self::driver(connector, clock, config.clone())?;
+        driver.run(Op::Open)?;
+        Ok(Client { driver, config })
+    }
+
+    /// Validates `config`, connects, and makes the driver (nothing is sent yet).
+    pub(crate) fn driver(
+        mut connector: Connector,
+        clock: SharedClock,
+        config: ClientConfig,
+    ) -> Result<Driver<Session>, Error> {
+        config.validate()?;
+        let link = connector()?;
+        let session = Session::new(config.clone(), clock.now())?;
+        let opener: PortOpener = Box::new(move || connector().map(Port::Bytes));
+        let driver_config = DriverConfig { close_bound: config.close_bound, ..DriverConfig::default() };
+        Driver::new(session, Port::Bytes(link), Some(opener), clock, driver_config).map_err(link_error)
+    }
+
+    /// The driver underneath (for [`Driver::with_session`], and to run any [`Op`]).
+    pub fn driver_ref(&self) -> &Driver<Session> {
+        &self.driver
+    }
+
+    /// Runs `op` to its end.
+    pub fn run_op(&self, op: Op) -> Result<Output, Error> {
+        self.driver.run(op)
+    }
+
+    /// The port, as the link describes it.
+    pub fn port(&self) -> &str {
+        self.driver.port_name()
+    }
+
+    /// The session's settings.
+    pub fn config(&self) -> &ClientConfig {
+        &self.config
+    }
+
+    /// The session's clock.
+    pub fn clock(&self) -> &SharedClock {
+        self.driver.clock()
+    }
+
+    /// Counters of the session.
+    pub fn stats(&self) -> ClientStats {
+        self.driver.with_session(|s| s.stats())
+    }
+
+    /// Functions started with RE and not yet stopped (wire ids).
+    pub fn started_functions(&self) -> Vec<u8> {
+        self.driver.with_session(|s| s.started_functions())
+    }
+
+    /// True while the session is open (not lost, not ended by the unit, not closed).
+    pub fn is_open(&self) -> bool {
+        self.driver.with_session(|s| s.is_open())
+    }
+
+    /// Why the session is not open, if it is not: lost, ended by the unit, or closed.
+    pub fn not_open_reason(&self) -> Option<String> {
+        self.driver.with_session(|s| s.not_open_reason())
+    }
+
+    /// Sends any request and returns the data of its ACK (for what the typed methods do not cover).
+    pub fn request(&self, request: &Request<'_>) -> Result<Option<Vec<u8>>, Error> {
+        expect_output!(self.driver.run(Op::Request(PreparedRequest::new(request)?)), Output::Data(d) => d)
+    }
+
+    // ----- data list
+
+    /// Reads the raw bytes of a data index (entry or group).
+    pub fn get_raw(&self, index: DataIndex) -> Result<Vec<u8>, Error> {
+        super::data(self.request(&Request::Get { index: index.0 })?)
+    }
+
+    /// Reads an entry or a group, each member decoded.
+    pub fn get(&self, index: DataIndex) -> Result<Vec<(&'static DataEntry, Value)>, Error> {
+        let it = super::item_of(index)?;
+        super::decode(it, &self.get_raw(index)?)
+    }
+
+    /// Reads one entry.
+    pub fn get_value(&self, index: DataIndex) -> Result<Value, Error> {
+        super::entry_of(index)?;
+        Ok(self.get(index)?.remove(0).1)
+    }
+
+    /// Writes a remote data entry (0x3xxx) after checking the value's kind and range, then reads it back: a
+    /// value that reads back different is [`Error::ReadBack`].
+    pub fn set(&self, index: DataIndex, value: &Value) -> Result<(), Error> {
+        let (_, data) = encode_for(index, value, self.config.speed_mode)?;
+        self.set_raw(index, &data)
+    }
+
+    /// Writes raw bytes to a data index (no checks but the unit's), then reads the index back where the data
+    /// list has it (every remote entry and group is readable): a mismatch is [`Error::ReadBack`].
+    pub fn set_raw(&self, index: DataIndex, data: &[u8]) -> Result<(), Error> {
+        self.driver.run(Op::Set { index, data: data.to_vec(), verify: true }).map(|_| ())
+    }
+
+    /// Actuator `a`'s position in counts.
+    pub fn position(&self, a: Actuator) -> Result<i32, Error> {
+        super::position(self.get_value(a.position_index())?)
+    }
+
+    /// Every actuator's position (0x0010), in counts, A1 first.
+    pub fn positions(&self) -> Result<[i32; 6], Error> {
+        crate::session::ops::positions(&self.get_raw(DataIndex(0x0010))?)
+    }
+
+    /// Actuator `a`'s status 1.
+    pub fn status1(&self, a: Actuator) -> Result<Flags, Error> {
+        super::status1(&self.get_raw(a.status1_index())?)
+    }
+
+    /// Every actuator's status 1 (0x0170), A1 first.
+    pub fn statuses(&self) -> Result<[u8; 6], Error> {
+        crate::session::ops::statuses(&self.get_raw(DataIndex(0x0170))?)
+    }
+
+    /// The actuators whose status 1 says "drive available".
+    pub fn connected_actuators(&self) -> Result<Vec<Actuator>, Error> {
+        Ok(super::connected(&self.statuses()?))
+    }
+
+    /// Actuator `a`'s travel range for targets: [`ClientConfig::stroke_limits`] if set, else the virtual limits
+    /// of its UserPositionData (0x2001..0x2006) as the unit reports them; `None` if the unit has none (both 0).
+    pub fn stroke_limits(&self, a: Actuator) -> Result<Option<(crate::config::StrokeLimits, &'static str)>, Error> {
+        expect_output!(self.driver.run(Op::StrokeLimits(a)), Output::Stroke(s) => s)
+    }
+
+    /// Error_Code 1 (most recent) to 5 (oldest).
+    pub fn error_history(&self) -> Result<[ErrorCode; 5], Error> {
+        super::error_history(&self.get_raw(DataIndex(0x00D0))?)
+    }
+
+    // ----- functions
+
+    /// RE on a motion function: its drives move as `direction` says, at the function's remote speed. The
+    /// function stays started until [`Client::stop_motion`] or the end of the session.
+    pub fn start_motion(&self, function: MotionFunction, direction: MotionDirection) -> Result<(), Error> {
+        self.request(&Request::Execute { function: function.id(), params: [direction.code(), crate::model::UNUSED] })
+            .map(|_| ())
+    }
+
+    /// RS on a motion function (sent before anything else that waits).
+    pub fn stop_motion(&self, function: MotionFunction, mode: StopMode) -> Result<(), Error> {
+        self.request(&Request::Stop { function: function.id(), param: mode.code() }).map(|_| ())
+    }
+
+    /// Switches a non-motion function (buzzer, outputs, emergency stop, LEDs) on (RE) or off (RS).
+    pub fn switch(&self, function: Function, on: bool) -> Result<(), Error> {
+        self.request(&super::switch_request(function, on)?).map(|_| ())
+    }
+
+    /// Runs a function until it ends (a motion function whose actuators all stopped), `limit` passes, or
+    /// `cancel` is cancelled; then stops it (fast) and confirms the stop with the status. `progress` sees every
+    /// look at the actuators (the first right after the RE was acknowledged). A cancelled run ends with
+    /// [`Error::RunCancelled`] naming where the actuators came to rest.
+    pub fn run(
+        &self,
+        action: RunAction,
+        limit: Option<std::time::Duration>,
+        progress: &dyn Fn(&RunProgress),
+        cancel: Option<&CancelToken>,
+    ) -> Result<RunReport, Error> {
+        let mut each = |p: &Progress| {
+            if let Progress::Run(r) = p {
+                progress(r);
+            }
+        };
+        expect_output!(self.driver.run_with(Op::Run(run_spec(action, limit)?), &mut each, cancel), Output::Run(r) => r)
+    }
+
+    // ----- cyclic objects
+
+    /// Defines CyclicObj `slot` (1..5) on the unit (and reads the definition back).
+    pub fn configure_cyclic(&self, slot: u8, object: &CyclicObject) -> Result<(), Error> {
+        self.set(cyclic_index(slot)?, &Value::CyclicObject(*object))?;
+        self.driver.with_session(|s| s.cyclic_slot_written(slot));
+        Ok(())
+    }
+
+    /// From now on every keepalive RC carries CyclicObj `slot` with `write` (one value per entry its definition
+    /// writes, a group counting each of its members; the definition is read from the unit). The latest read
+    /// data is available from [`Client::last_cyclic_read`]. Keepalive writes are not read back. Meanwhile
+    /// moves poll with reads.
+    pub fn use_cyclic(&self, slot: u8, write: &[Value]) -> Result<(), Error> {
+        self.driver.run(Op::UseCyclic { slot, write: write.to_vec() }).map(|_| ())
+    }
+
+    /// Keepalive RCs carry no cyclic object again.
+    pub fn stop_cyclic(&self) {
+        self.driver.with_session(|s| s.stop_cyclic());
+    }
+
+    /// One RC with CyclicObj `slot` now: writes `write`, returns the read data decoded (groups member by
+    /// member).
+    pub fn exchange_cyclic(&self, slot: u8, write: &[Value]) -> Result<Vec<(&'static DataEntry, Value)>, Error> {
+        let (object, data) = expect_output!(
+            self.driver.run(Op::ExchangeCyclic { slot, write: write.to_vec() }),
+            Output::Cyclic { object, data } => (object, data)
+        )?;
+        decode_cyclic_read(&object, &data)
+    }
+
+    /// The read data of the latest keepalive RC that carried a cyclic object, with its time.
+    pub fn last_cyclic_read(&self) -> Option<(Timestamp, Vec<(&'static DataEntry, Value)>)> {
+        let (t, object, data) = self.driver.with_session(|s| s.last_cyclic_read())?;
+        decode_cyclic_read(&object, &data).ok().map(|v| (t, v))
+    }
+
+    // ----- moves
+
+    /// Moves `actuator` to `target` at `speed` with the function of the same number (F1 for A1;
+    /// [`MoveOptions::function`] names another). Every actuator that function drives gets the same target: the
+    /// ones [`ClientConfig::function_map`] names, or, where the map does not know the function, every
+    /// connected actuator (its remote position is written; an actuator the function does not drive stays where
+    /// it is and is reported as not moved). See [`Client::move_function`] for how the move runs and ends.
+    pub fn move_to(
+        &self,
+        actuator: Actuator,
+        target: impl Into<PositionCounts>,
+        speed: impl Into<Speed>,
+        options: &MoveOptions<'_>,
+    ) -> Result<MoveReport, Error> {
+        let spec = move_spec(&self.config, actuator, target.into(), speed.into(), options.function)?;
+        self.run_move(spec, options)
+    }
+
+    /// Moves the actuators `function` drives, each to its own target, with one RE: checks every target against
+    /// its actuator's stroke (nothing moves if one is outside), writes and reads back each remote position
+    /// and the function's remote speed, starts the function with direction 9, watches the actuators every
+    /// [`ClientConfig::poll_interval`] (through the keepalive RC, see [`crate::config::MovePolling`]), and when
+    /// the unit reports that none of them moves any more judges where they ended. It succeeds if each is within
+    /// [`ClientConfig::position_tolerance_counts`] of its target, and ends the function with RS. A cancel, a
+    /// stall, a timeout or any error stops the function at once (fast RS); if the unit does not confirm that
+    /// stop, the error is [`Error::StopUnconfirmed`].
+    ///
+    /// If [`ClientConfig::function_map`] knows `function`, `targets` must name exactly the actuators it
+    /// drives.
+    pub fn move_function(
+        &self,
+        function: MotionFunction,
+        targets: &[(Actuator, i32)],
+        speed: impl Into<Speed>,
+        options: &MoveOptions<'_>,
+    ) -> Result<MoveReport, Error> {
+        let primary = targets.first().map_or(Actuator::new(1).expect("A1"), |(a, _)| *a);
+        let spec = crate::session::MoveSpec {
+            function,
+            primary,
+            targets: crate::session::MoveTargets::Given(targets.to_vec()),
+            speed: speed.into(),
+        };
+        self.run_move(spec, options)
+    }
+
+    fn run_move(&self, spec: crate::session::MoveSpec, options: &MoveOptions<'_>) -> Result<MoveReport, Error> {
+        let mut each = |p: &Progress| {
+            if let (Progress::Move(m), Some(f)) = (p, options.progress) {
+                f(m);
+            }
+        };
+        expect_output!(self.driver.run_with(Op::Move(spec), &mut each, options.cancel), Output::Move(r) => r)
+    }
+
+    /// Prepares streamed setpoints (as a ros2_control hardware interface sends them, 10..100 times a second)
+    /// for `function` driving `actuators` at `speed`: checks the actuators (connected; exactly the ones the
+    /// function map says the function drives, if it knows it), reads their strokes, and writes the speed
+    /// (read back). Nothing moves until the first [`SetpointStream::set_targets`].
+    pub fn stream(
+        &self,
+        function: MotionFunction,
+        actuators: &[Actuator],
+        speed: impl Into<Speed>,
+    ) -> Result<SetpointStream<'_>, Error> {
+        let op = Op::StreamOpen { function, actuators: actuators.to_vec(), speed: speed.into() };
+        let limits = expect_output!(self.driver.run(op), Output::Strokes(s) => s)?;
+        Ok(SetpointStream { client: self, function, actuators: actuators.to_vec(), limits, started: false })
+    }
+
+    // ----- session
+
+    /// Opens the port again (after a loss): RO, RC, and RS for every function that was started.
+    pub fn reconnect(&self) -> Result<(), Error> {
+        self.driver.run(Op::Reconnect).map(|_| ())
+    }
+
+    /// Opens remote mode again after the unit ended it ([`Error::RemoteEnded`]): RO, RC, and RS for every
+    /// function this session started. This is the caller's decision to go on; the session never takes it by
+    /// itself.
+    pub fn reopen(&self) -> Result<(), Error> {
+        self.driver.run(Op::Reopen).map(|_| ())
+    }
+
+    /// Ends the session: RS for every started function (motions fast), then RA; waits at most
+    /// [`ClientConfig::close_bound`]. The session is closed even if that fails; the error says what could not
+    /// be sent or confirmed.
+    pub fn close(self) -> Result<(), Error> {
+        self.driver.close()
+    }
+}
+
+/// Streamed setpoints of one function, made by [`Client::stream`]. Each update writes the remote positions
+/// and starts the function towards them again (RE with direction 9: the unit takes the remote positions when
+/// RE comes); a new speed applies to the running motion along the ramp. Dropping the stream stops the
+/// function (fast RS) if it was started.
+pub struct SetpointStream<'c> {
+    client: &'c Client,
+    function: MotionFunction,
+    actuators: Vec<Actuator>,
+    limits: Vec<crate::session::ops::basic::Stroke>,
+    started: bool,
+}
+
+impl std::fmt::Debug for SetpointStream<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SetpointStream").field("function", &self.function).field("actuators", &self.actuators).finish()
+    }
+}
+
+impl SetpointStream<'_> {
+    /// The function it drives.
+    pub fn function(&self) -> MotionFunction {
+        self.function
+    }
+
+    /// The actuators, in the order targets are given.
+    pub fn actuators(&self) -> &[Actuator] {
+        &self.actuators
+    }
+
+    /// New targets, one per actuator in the order of [`SetpointStream::actuators`]: each is checked against its
+    /// stroke (an error moves nothing new), written, and the function is started towards them. The remote
+    /// positions are not read back (that would halve the rate); the CRC of every telegram and the unit's ACK
+    /// are the check, and [`SetpointStream::positions`] shows where the actuators are.
+    pub fn set_targets(&mut self, targets: &[i32]) -> Result<(), Error> {
+        let targets = super::stream_targets(self.function, &self.actuators, &self.limits, targets)?;
+        self.started = true;
+        self.client.driver.run(Op::StreamTargets { function: self.function, targets }).map(|_| ())
+    }
+
+    /// A new speed for the running motion (and the next ones); the unit follows it along its ramp.
+    pub fn set_speed(&mut self, speed: impl Into<Speed>) -> Result<(), Error> {
+        let raw = speed.into().for_motion(self.client.config.speed_mode).map_err(Error::InvalidArgument)?;
+        let index = self.function.remote_speed_index();
+        self.client.driver.run(Op::Set { index, data: raw.to_le_bytes().to_vec(), verify: false }).map(|_| ())
+    }
+
+    /// Where each actuator is, in counts, and whether it moves.
+    pub fn positions(&self) -> Result<Vec<(Actuator, i32, bool)>, Error> {
+        let status = self.client.statuses()?;
+        let positions = self.client.positions()?;
+        Ok(super::stream_positions(&self.actuators, &status, &positions))
+    }
+
+    /// Ends the stream: RS (`mode`), then the status until no actuator moves; returns where each came to rest.
+    /// A stop the unit did not confirm is [`Error::StopUnconfirmed`].
+    pub fn stop(mut self, mode: StopMode) -> Result<Vec<(Actuator, i32)>, Error> {
+        self.started = false;
+        let op = Op::Stop { function: self.function, mode, watch: self.actuators.clone(), after: None };
+        expect_output!(self.client.driver.run(op), Output::Rest(r) => r)
+    }
+
+    /// Stops the function after `cause` ended the stream: fast RS and the status; the error to report.
+    pub fn abort(mut self, cause: Error) -> Error {
+        self.started = false;
+        let op = Op::Stop {
+            function: self.function,
+            mode: StopMode::Fast,
+            watch: self.actuators.clone(),
+            after: Some(Box::new(cause)),
+        };
+        match self.client.driver.run(op) {
+            Err(e) => e,
+            Ok(other) => Error::UnexpectedReply { command: Command::Stop, detail: format!("{other:?}") },
+        }
+    }
+}
+
+impl Drop for SetpointStream<'_> {
+    fn drop(&mut self) {
+        if self.started {
+            if let Err(e) = self.client.stop_motion(self.function, StopMode::Fast) {
+                tracing::error!("could not stop {} when its stream was dropped: {e}", self.function);
+            }
+        }
+    }
+}

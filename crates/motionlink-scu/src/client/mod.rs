@@ -1,0 +1,238 @@
+//! The session over a real link: [`Client`] for blocking callers and, with the `tokio` feature,
+//! `AsyncClient` for async ones: the same operations and the same safety (both run the same
+//! [`Session`](crate::Session) under the shared driver).
+//!
+//! ```no_run
+//! use motionlink_scu::{Client, ClientConfig, FunctionMap};
+//! use motionlink_scu::model::{Actuator, Speed};
+//! use motionlink_link::{url::PortUrl, RealClock, SerialSettings};
+//!
+//! let port: PortUrl = "/dev/ttyUSB0".parse()?;
+//! // The unit's parameterisation decides which actuators each function drives; tell the session.
+//! let config = ClientConfig { function_map: FunctionMap::scp11(), ..ClientConfig::default() };
+//! let client = Client::open_port(&port, SerialSettings::new(38_400), RealClock::shared(), config)?;
+//! let a1 = Actuator::new(1).unwrap();
+//! let report = client.move_to(a1, 400, Speed::percent(80).unwrap(), &Default::default())?;
+//! println!("actuator 1 at {} counts", report.position_counts);
+//! // Dropping the client stops anything it started (RS) and leaves remote mode (RA).
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+use motionlink_link::cancel::CancelToken;
+use motionlink_link::error::TransportKind;
+
+use crate::config::ClientConfig;
+use crate::error::Error;
+use crate::model::{
+    item, status1, Actuator, DataEntry, DataIndex, ErrorCode, FlagSet, Flags, Function, Item, MotionFunction,
+    PositionCounts, Speed, UNUSED,
+};
+use crate::session::ops::basic::{check_stroke, Stroke};
+use crate::session::report::MoveProgress;
+use crate::session::{MoveSpec, MoveTargets, RunAction, RunSpec};
+use crate::value::{decode_item, Value};
+use crate::wire::{Command, Request};
+
+#[cfg(feature = "tokio")]
+mod asynchronous;
+mod blocking;
+
+#[cfg(feature = "tokio")]
+pub use asynchronous::{AsyncClient, AsyncSetpointStream};
+pub use blocking::{Client, SetpointStream};
+
+/// Options of a move.
+#[derive(Default)]
+pub struct MoveOptions<'a> {
+    /// Cancels the move (the actuators are stopped).
+    pub cancel: Option<&'a CancelToken>,
+    /// Called after every look at the actuators.
+    pub progress: Option<&'a dyn Fn(&MoveProgress)>,
+    /// For [`Client::move_to`]: use this function instead of the one with the actuator's number.
+    pub function: Option<MotionFunction>,
+}
+
+/// Takes the expected variant out of an operation's output.
+macro_rules! expect_output {
+    ($result:expr, $pat:pat => $value:expr) => {
+        match $result {
+            Ok($pat) => Ok($value),
+            Ok(other) => Err($crate::error::Error::UnexpectedReply {
+                command: $crate::wire::Command::Get,
+                detail: format!("the session answered {other:?}"),
+            }),
+            Err(e) => Err(e),
+        }
+    };
+}
+pub(crate) use expect_output;
+
+pub(crate) fn link_error(e: std::io::Error) -> Error {
+    Error::Link { message: format!("cannot start the session's thread: {e}"), kind: TransportKind::Io }
+}
+
+/// The move of [`Client::move_to`]: the function, and which actuators get the target.
+pub(crate) fn move_spec(
+    config: &ClientConfig,
+    actuator: Actuator,
+    target: PositionCounts,
+    speed: Speed,
+    function: Option<MotionFunction>,
+) -> Result<MoveSpec, Error> {
+    let function = match function {
+        Some(f) => f,
+        None => MotionFunction::new(actuator.number())
+            .ok_or_else(|| Error::invalid(format!("{actuator} has no function of its number")))?,
+    };
+    let target = target.get();
+    let targets = match config.function_map.drives(function) {
+        Some(drives) => {
+            if !drives.contains(&actuator) {
+                return Err(Error::invalid(format!(
+                    "{function} does not drive {actuator}: the function map says it drives {}; name the function \
+                     that does",
+                    crate::session::ops::list_actuators(&drives)
+                )));
+            }
+            MoveTargets::Given(drives.iter().map(|a| (*a, target)).collect())
+        }
+        None => MoveTargets::EveryConnected(target),
+    };
+    Ok(MoveSpec { function, primary: actuator, targets, speed })
+}
+
+/// A run's specification, checked.
+pub(crate) fn run_spec(action: RunAction, limit: Option<std::time::Duration>) -> Result<RunSpec, Error> {
+    if let RunAction::Switch(Function::Motion(m)) = action {
+        return Err(Error::invalid(format!("{m} is a motion function: run it with a direction")));
+    }
+    Ok(RunSpec { action, limit })
+}
+
+/// The RE or RS that switches a non-motion function.
+pub(crate) fn switch_request(function: Function, on: bool) -> Result<Request<'static>, Error> {
+    if let Function::Motion(m) = function {
+        return Err(Error::invalid(format!("{m} is a motion function: use start_motion/stop_motion")));
+    }
+    let id = function.id();
+    Ok(if on {
+        Request::Execute { function: id, params: [UNUSED, UNUSED] }
+    } else {
+        Request::Stop { function: id, param: UNUSED }
+    })
+}
+
+pub(crate) fn data(reply: Option<Vec<u8>>) -> Result<Vec<u8>, Error> {
+    reply.ok_or(Error::UnexpectedReply { command: Command::Get, detail: "ACK without data".into() })
+}
+
+pub(crate) fn item_of(index: DataIndex) -> Result<Item, Error> {
+    item(index).ok_or_else(|| Error::invalid(format!("{index} is not in the data list")))
+}
+
+pub(crate) fn entry_of(index: DataIndex) -> Result<&'static DataEntry, Error> {
+    match item(index) {
+        Some(Item::Entry(e)) => Ok(e),
+        Some(Item::Group(g)) => Err(Error::invalid(format!("{index} is the group {}; use get() for groups", g.name))),
+        None => Err(Error::invalid(format!("{index} is not in the data list"))),
+    }
+}
+
+pub(crate) fn decode(it: Item, data: &[u8]) -> Result<Vec<(&'static DataEntry, Value)>, Error> {
+    decode_item(it, data)
+        .map_err(|e| Error::UnexpectedReply { command: Command::Get, detail: format!("{}: {e}", it.name()) })
+}
+
+pub(crate) fn position(value: Value) -> Result<i32, Error> {
+    match value {
+        Value::PositionCounts(p) => Ok(p),
+        other => Err(Error::UnexpectedReply { command: Command::Get, detail: format!("position {other:?}") }),
+    }
+}
+
+pub(crate) fn status1(data: &[u8]) -> Result<Flags, Error> {
+    let [bits] = data[..] else {
+        return Err(Error::UnexpectedReply { command: Command::Get, detail: "status is one byte".into() });
+    };
+    Ok(Flags { set: FlagSet::ActuatorStatus1, bits: u32::from(bits) })
+}
+
+pub(crate) fn connected(status: &[u8; 6]) -> Vec<Actuator> {
+    Actuator::all().filter(|a| status[usize::from(a.number() - 1)] & status1::AVAILABLE != 0).collect()
+}
+
+pub(crate) fn error_history(data: &[u8]) -> Result<[ErrorCode; 5], Error> {
+    if data.len() != 20 {
+        return Err(Error::UnexpectedReply { command: Command::Get, detail: "error codes are 5 x 4 bytes".into() });
+    }
+    Ok(std::array::from_fn(|i| {
+        ErrorCode(u32::from_le_bytes([data[4 * i], data[4 * i + 1], data[4 * i + 2], data[4 * i + 3]]))
+    }))
+}
+
+/// The targets of a stream update, checked: one per actuator, each within its stroke.
+pub(crate) fn stream_targets(
+    function: MotionFunction,
+    actuators: &[Actuator],
+    limits: &[Stroke],
+    targets: &[i32],
+) -> Result<Vec<(Actuator, i32)>, Error> {
+    if targets.len() != actuators.len() {
+        return Err(Error::invalid(format!(
+            "{} target(s) given; {function} drives {}: one each",
+            targets.len(),
+            crate::session::ops::list_actuators(actuators)
+        )));
+    }
+    for ((a, stroke), &t) in actuators.iter().zip(limits).zip(targets) {
+        check_stroke(*a, t, stroke)?;
+    }
+    Ok(actuators.iter().copied().zip(targets.iter().copied()).collect())
+}
+
+pub(crate) fn stream_positions(
+    actuators: &[Actuator],
+    status: &[u8; 6],
+    positions: &[i32; 6],
+) -> Vec<(Actuator, i32, bool)> {
+    actuators
+        .iter()
+        .map(|a| {
+            let i = usize::from(a.number() - 1);
+            (*a, positions[i], status[i] & status1::MOTION != 0)
+        })
+        .collect()
+}
+
+/// What the end of a session says about the functions that were still started when it began (as
+/// [`Client::started_functions`] gave them just before [`Client::close`]).
+#[derive(Debug)]
+pub enum Ending {
+    /// Nothing was left started, and the session ended cleanly.
+    Clean,
+    /// The end of the session stopped what was left started, and the unit acknowledged the RS: a note to add
+    /// to what the caller reports ("F1 stopped (the unit acknowledged RS)").
+    Stopped(String),
+    /// The end of the session failed; nothing was left started.
+    Failed(Error),
+    /// The stop of what was left started is not confirmed: the actuators may still move
+    /// ([`Error::EndUnconfirmed`]).
+    Unconfirmed(Error),
+}
+
+/// Says what `closed` (the result of [`Client::close`]) means for the functions `started` (wire ids).
+pub fn ending(started: &[u8], closed: Result<(), Error>) -> Ending {
+    let functions = || {
+        started
+            .iter()
+            .map(|id| Function::from_id(*id).map_or(format!("function id {id}"), |f| format!("F{}", f.number())))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match (closed, started.is_empty()) {
+        (Ok(()), true) => Ending::Clean,
+        (Ok(()), false) => Ending::Stopped(format!("{} stopped (the unit acknowledged RS)", functions())),
+        (Err(e), true) => Ending::Failed(e),
+        (Err(e), false) => Ending::Unconfirmed(Error::EndUnconfirmed { functions: functions(), cause: Box::new(e) }),
+    }
+}

@@ -1,0 +1,319 @@
+//! What went wrong in a session: [`Error`], with the unit's own status codes and error bits as values, and
+//! its class in the one classification of every family ([`Classify`]).
+//!
+//! ```
+//! use motionlink_link::error::{Classify, ErrorClass, TransportKind};
+//! use motionlink_link::LinkError;
+//! use motionlink_scu::Error;
+//! let lost: Error = LinkError::Disconnected { port: "tcp://gw:4001".into(), reason: "reset".into() }.into();
+//! assert_eq!(lost.class(), ErrorClass::Transport(TransportKind::Disconnected));
+//! ```
+
+use std::time::Duration;
+
+use motionlink_link::error::{Classify, ErrorClass, TransportKind};
+use motionlink_link::session::SessionError;
+use motionlink_link::LinkError;
+
+use crate::model::{Actuator, DataIndex, ErrorCode, Function};
+use crate::wire::{Command, Status, WireError};
+
+/// What went wrong in a session.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum Error {
+    /// The unit refused a request (an error status instead of ACK).
+    #[error("{command} ({}) refused by the unit: {status}", command.description())]
+    Refused {
+        /// The request's command.
+        command: Command,
+        /// The unit's status.
+        status: Status,
+    },
+    /// No reply in time.
+    #[error("no reply to {command} within {timeout:?} ({attempts} attempt(s))")]
+    Timeout {
+        /// The request's command.
+        command: Command,
+        /// How long the reply was awaited.
+        timeout: Duration,
+        /// Attempts made.
+        attempts: u32,
+    },
+    /// Replies arrived corrupt.
+    #[error("corrupt reply to {command}: {error} ({attempts} attempt(s))")]
+    Corrupt {
+        /// The request's command.
+        command: Command,
+        /// What was wrong.
+        error: WireError,
+        /// Attempts made.
+        attempts: u32,
+    },
+    /// The port failed; `kind` says how.
+    #[error("{message}")]
+    Link {
+        /// What the port reported.
+        message: String,
+        /// How it failed.
+        kind: TransportKind,
+    },
+    /// The session is lost (port gone) and not reconnected.
+    #[error("session lost: {0}")]
+    SessionLost(String),
+    /// The unit ended remote mode (or its watchdog expired); the session does not open it again by itself.
+    #[error("{0}")]
+    RemoteEnded(String),
+    /// The session was closed.
+    #[error("the session is closed")]
+    Closed,
+    /// A reply that does not fit its request.
+    #[error("unexpected reply to {command}: {detail}")]
+    UnexpectedReply {
+        /// The request's command.
+        command: Command,
+        /// What was wrong.
+        detail: String,
+    },
+    /// A request was not sent: with the round trips the link has, its reply would come back after the next RC
+    /// must go out, and the unit's watchdog would expire (which stops every motion, and with Safety_ID 0 ends
+    /// remote mode).
+    #[error(
+        "{command} was not sent: with round trips of {round_trip:?} on this link its reply would come back after \
+         the next RC must be sent, and the unit's watchdog (500 ms without RC) would expire; waited {waited:?} \
+         for room between the RC keepalives"
+    )]
+    NoRoom {
+        /// The request's command.
+        command: Command,
+        /// The round trip measured lately.
+        round_trip: Duration,
+        /// How long it waited.
+        waited: Duration,
+    },
+    /// A value written to the unit reads back different.
+    #[error("{name} ({index}): wrote {written}, the unit reads back {read}")]
+    ReadBack {
+        /// The entry.
+        name: &'static str,
+        /// Its index.
+        index: DataIndex,
+        /// What was written.
+        written: String,
+        /// What the unit returned.
+        read: String,
+    },
+    /// The caller asked for something impossible (bad index, value out of range, read-only entry).
+    #[error("{0}")]
+    InvalidArgument(String),
+    /// A move's target lies outside the actuator's travel range; nothing was moved.
+    #[error(
+        "target {target_counts} counts for {actuator} refused: it lies outside {actuator}'s stroke \
+         {min_counts}..{max_counts} counts ({limits_from}); nothing was moved"
+    )]
+    OutsideStroke {
+        /// The actuator.
+        actuator: Actuator,
+        /// The target asked for.
+        target_counts: i32,
+        /// The lower limit.
+        min_counts: i32,
+        /// The upper limit.
+        max_counts: i32,
+        /// Where the limits come from.
+        limits_from: &'static str,
+    },
+    /// The actuator is not connected (its status says "drive unavailable").
+    #[error("{0} is not connected to the unit (actuator status 1: drive unavailable)")]
+    NotConnected(Actuator),
+    /// A move ended away from its target; the function was stopped.
+    #[error(
+        "{actuator} ended at {position_counts} counts, {} counts from its target {target_counts} (more than the \
+         tolerance of {tolerance_counts}); last error: {error_code}",
+        i64::from(*position_counts) - i64::from(*target_counts)
+    )]
+    MotionEnded {
+        /// The actuator.
+        actuator: Actuator,
+        /// Where it stopped.
+        position_counts: i32,
+        /// Where it was going.
+        target_counts: i32,
+        /// The tolerance of the move.
+        tolerance_counts: u32,
+        /// Error_Code 1 when it stopped.
+        error_code: ErrorCode,
+    },
+    /// A move's actuator stopped advancing though the unit reports motion; it was stopped.
+    #[error("{actuator} stalled at {position_counts} counts (no progress for {after:?} while moving); stopped")]
+    Stalled {
+        /// The actuator.
+        actuator: Actuator,
+        /// Where it stalled.
+        position_counts: i32,
+        /// How long without progress.
+        after: Duration,
+    },
+    /// A move took longer than [`crate::ClientConfig::move_timeout`]; it was stopped.
+    #[error("{actuator} did not reach its target within {after:?}; stopped at {position_counts} counts")]
+    MoveTimeout {
+        /// The actuator.
+        actuator: Actuator,
+        /// Where it stopped.
+        position_counts: i32,
+        /// The timeout.
+        after: Duration,
+    },
+    /// The caller cancelled a move (Ctrl-C, a dropped future); the unit confirmed the stop.
+    #[error("cancelled; {actuator} stopped at {position_counts} counts")]
+    Cancelled {
+        /// The actuator.
+        actuator: Actuator,
+        /// Where it came to rest.
+        position_counts: i32,
+    },
+    /// The caller cancelled a function's run; the unit confirmed the stop.
+    #[error("cancelled; {function} stopped (the unit confirmed it)")]
+    RunCancelled {
+        /// The function.
+        function: Function,
+        /// Where each connected actuator came to rest, in counts.
+        rest: Vec<(Actuator, i32)>,
+    },
+    /// After a stop the unit acknowledged, these actuators still report motion (another function or the hand
+    /// switch may drive them).
+    #[error(
+        "{} still report(s) motion after the unit acknowledged the RS: another function or the hand switch may be \
+         driving them",
+        crate::session::ops::list_actuators(.0)
+    )]
+    StillMoving(Vec<Actuator>),
+    /// The caller cancelled an operation; what it had started was stopped.
+    #[error("{0}")]
+    Interrupted(String),
+    /// The caller cancelled an operation before it sent anything that starts a motion.
+    #[error("cancelled before {0} was sent; nothing was started")]
+    CancelledBeforeSending(Command),
+    /// An action failed, and the stop that followed was not confirmed by the unit.
+    #[error(
+        "{cause}; then the stop ({stop}) was NOT confirmed by the unit ({detail}): the actuators may still be \
+         moving. The unit stops remote motions by itself 500 ms after the last RC it receives (its watchdog); \
+         this program sends none once it has ended"
+    )]
+    StopUnconfirmed {
+        /// What went wrong first.
+        cause: Box<Error>,
+        /// The stop that was tried ("RS of F1").
+        stop: String,
+        /// Why it is not confirmed.
+        detail: String,
+    },
+    /// The end of a session could not confirm the stop of the functions it had started.
+    #[error(
+        "stopping {functions} was NOT confirmed by the unit ({cause}): the actuators may still be moving. The unit \
+         stops remote motions by itself 500 ms after the last RC it receives (its watchdog); this program sends none \
+         once it has ended"
+    )]
+    EndUnconfirmed {
+        /// The functions still started ("F1, F2").
+        functions: String,
+        /// Why the end of the session failed.
+        cause: Box<Error>,
+    },
+    /// The end of the session (the RS of every started function, then RA) was not confirmed within the bound.
+    #[error(
+        "the end of the session (RS of every function it started, then RA) was not confirmed within {0:?}: the \
+         actuators may still be moving. The unit stops remote motions by itself 500 ms after the last RC it \
+         receives (its watchdog)"
+    )]
+    CloseUnconfirmed(Duration),
+}
+
+impl Error {
+    /// True if this error says that a stop the session tried was not confirmed: the actuators may be moving.
+    pub fn stop_unconfirmed(&self) -> bool {
+        matches!(self, Error::StopUnconfirmed { .. } | Error::EndUnconfirmed { .. } | Error::CloseUnconfirmed(_))
+    }
+
+    /// An error of the caller's input.
+    pub(crate) fn invalid(what: impl Into<String>) -> Self {
+        Error::InvalidArgument(what.into())
+    }
+}
+
+impl Classify for Error {
+    fn class(&self) -> ErrorClass {
+        match self {
+            Error::Refused { .. } => ErrorClass::Refused,
+            Error::MotionEnded { .. }
+            | Error::Stalled { .. }
+            | Error::MoveTimeout { .. }
+            | Error::ReadBack { .. }
+            | Error::NotConnected(_)
+            | Error::StillMoving(_) => ErrorClass::Device,
+            Error::Timeout { .. } | Error::NoRoom { .. } | Error::CloseUnconfirmed(_) => {
+                ErrorClass::Transport(TransportKind::Timeout)
+            }
+            Error::Corrupt { .. } | Error::UnexpectedReply { .. } => ErrorClass::Transport(TransportKind::Corrupt),
+            Error::Link { kind, .. } => ErrorClass::Transport(*kind),
+            Error::SessionLost(_) | Error::RemoteEnded(_) | Error::Closed => {
+                ErrorClass::Transport(TransportKind::Disconnected)
+            }
+            Error::InvalidArgument(_) | Error::OutsideStroke { .. } => ErrorClass::Usage,
+            Error::Cancelled { .. }
+            | Error::RunCancelled { .. }
+            | Error::Interrupted(_)
+            | Error::CancelledBeforeSending(_) => ErrorClass::Cancelled,
+            Error::StopUnconfirmed { cause, .. } => cause.class(),
+            Error::EndUnconfirmed { cause, .. } => match cause.class() {
+                c @ ErrorClass::Transport(_) => c,
+                _ => ErrorClass::Transport(TransportKind::Timeout),
+            },
+        }
+    }
+}
+
+impl From<LinkError> for Error {
+    fn from(e: LinkError) -> Self {
+        match e.class() {
+            ErrorClass::Usage => Error::InvalidArgument(e.to_string()),
+            ErrorClass::Transport(kind) => Error::Link { message: e.to_string(), kind },
+            _ => Error::Link { message: e.to_string(), kind: TransportKind::Io },
+        }
+    }
+}
+
+impl SessionError for Error {
+    fn close_unconfirmed(bound: Duration) -> Self {
+        Error::CloseUnconfirmed(bound)
+    }
+
+    fn session_closed() -> Self {
+        Error::Closed
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_error_keeps_its_class() {
+        let lost = Error::from(LinkError::Disconnected { port: "p".into(), reason: "r".into() });
+        assert_eq!(lost.class(), ErrorClass::Transport(TransportKind::Disconnected));
+        let invalid = Error::from(LinkError::InvalidPort { port: "p".into(), reason: "r".into() });
+        assert_eq!(invalid.class(), ErrorClass::Usage);
+        let refused = Error::Refused { command: Command::Execute, status: Status::PermissionError };
+        assert_eq!(refused.class().exit_code(), 1);
+        let unconfirmed = Error::StopUnconfirmed {
+            cause: Box::new(Error::SessionLost("x".into())),
+            stop: "RS".into(),
+            detail: "y".into(),
+        };
+        assert_eq!(unconfirmed.class(), ErrorClass::Transport(TransportKind::Disconnected));
+        assert!(unconfirmed.stop_unconfirmed());
+        assert_eq!(
+            Error::close_unconfirmed(Duration::from_secs(5)).class(),
+            ErrorClass::Transport(TransportKind::Timeout)
+        );
+    }
+}

@@ -1,0 +1,412 @@
+//! Single requests, verified writes, strokes and cyclic objects.
+
+use super::{get, Cx, Next, Operation, Output, Resume, Step};
+use crate::config::StrokeLimits;
+use crate::error::Error;
+use crate::model::{item, Actuator, CyclicObject, DataEntry, DataIndex, Item, MotionFunction, SpeedMode, StopMode};
+use crate::session::request::{OwnedReply, PreparedRequest, Req, Schedule};
+use crate::session::CyclicUse;
+use crate::value::{decode_item, Value};
+use crate::wire::{Command, Request};
+
+/// One request of the caller's. A stop goes out before anything else; an RE whose caller gave up before its
+/// reply came is followed by RS.
+pub(crate) struct Single {
+    request: Option<PreparedRequest>,
+    command: Command,
+    starts: Option<u8>,
+    stopping: bool,
+}
+
+impl Single {
+    pub fn new(request: PreparedRequest) -> Self {
+        Single { command: request.command, starts: request.starts, request: Some(request), stopping: false }
+    }
+}
+
+impl Operation for Single {
+    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
+        match resume {
+            Resume::Start => {
+                let request = self.request.take().expect("started once");
+                let schedule = if self.command == Command::Stop { Schedule::Now } else { Schedule::Room };
+                Next::Send(Req::op(request).when(schedule))
+            }
+            Resume::Reply(result) if self.stopping => {
+                let f = self.starts.unwrap_or_default();
+                let name = crate::model::Function::from_id(f).map_or(format!("function id {f}"), |f| f.to_string());
+                Next::Done(match result.and_then(|r| r.ack(Command::Stop)) {
+                    Ok(_) => Err(Error::Interrupted(format!("cancelled; {name} stopped (the unit acknowledged RS)"))),
+                    Err(e) => Err(Error::StopUnconfirmed {
+                        cause: Box::new(Error::Interrupted(format!("cancelled while the RE of {name} was under way"))),
+                        stop: format!("fast RS of {name}"),
+                        detail: e.to_string(),
+                    }),
+                })
+            }
+            Resume::Reply(result) => {
+                let sent = !matches!(result, Err(Error::CancelledBeforeSending(_)));
+                if let (true, true, Some(f)) = (cx.cancelled, sent, self.starts) {
+                    // The caller gave up while its RE was under way: it may have started a motion.
+                    self.stopping = true;
+                    return Next::Send(Req::op(PreparedRequest::stop(f, StopMode::Fast)).when(Schedule::Now));
+                }
+                Next::Done(result.and_then(|r| r.ack(self.command)).map(|r| Output::Data(r.data)))
+            }
+            Resume::Wake | Resume::Snapshot(_) | Resume::Reopened(_) => {
+                Next::Done(Err(Error::CancelledBeforeSending(self.command)))
+            }
+        }
+    }
+
+    fn interruptible(&self) -> bool {
+        // A stop goes out even if its caller gives up on it.
+        !self.stopping && self.command != Command::Stop
+    }
+}
+
+/// RT, and the RG that reads the value back.
+pub(crate) struct Write {
+    index: DataIndex,
+    data: Vec<u8>,
+    verify: bool,
+    reading: bool,
+}
+
+impl Write {
+    /// Writes `data` to `index`; with `verify`, reads it back where the data list has the index.
+    pub fn new(index: DataIndex, data: Vec<u8>, verify: bool) -> Self {
+        Write { index, data, verify, reading: false }
+    }
+
+    pub fn step(&mut self, resume: Resume) -> Step<Result<(), Error>> {
+        match resume {
+            Resume::Start => Step::Wait(Next::Send(Req::op(
+                match PreparedRequest::new(&Request::Transfer { index: self.index.0, data: &self.data }) {
+                    Ok(r) => r,
+                    Err(e) => return Step::Done(Err(e)),
+                },
+            ))),
+            Resume::Reply(result) if !self.reading => {
+                if let Err(e) = result.and_then(|r| r.ack(Command::Transfer)) {
+                    return Step::Done(Err(e));
+                }
+                if self.verify && item(self.index).is_some() {
+                    self.reading = true;
+                    Step::Wait(get(self.index))
+                } else {
+                    Step::Done(Ok(()))
+                }
+            }
+            Resume::Reply(result) => Step::Done(result.and_then(|r| r.data(Command::Get)).and_then(|read| {
+                if read == self.data {
+                    return Ok(());
+                }
+                let Some(it) = item(self.index) else { return Ok(()) };
+                let show = |bytes: &[u8]| match decode_item(it, bytes) {
+                    Ok(v) => v.iter().map(|(_, v)| v.to_string()).collect::<Vec<_>>().join(", "),
+                    Err(_) => format!("{bytes:02X?}"),
+                };
+                Err(Error::ReadBack {
+                    name: it.name(),
+                    index: self.index,
+                    written: show(&self.data),
+                    read: show(&read),
+                })
+            })),
+            Resume::Wake | Resume::Snapshot(_) | Resume::Reopened(_) => {
+                Step::Done(Err(Error::CancelledBeforeSending(Command::Transfer)))
+            }
+        }
+    }
+}
+
+/// Checks that `value` may be written to `index` (a remote entry, the value's kind, its range) and encodes it.
+pub(crate) fn encode_for(
+    index: DataIndex,
+    value: &Value,
+    mode: SpeedMode,
+) -> Result<(&'static DataEntry, Vec<u8>), Error> {
+    let Some(Item::Entry(e)) = item(index) else {
+        return Err(Error::invalid(format!("{index} is not a single data-list entry")));
+    };
+    if !index.is_remote() {
+        return Err(Error::invalid(format!(
+            "{} ({index}) is read-only: only remote data (0x3xxx) can be written",
+            e.name
+        )));
+    }
+    if !value.fits(e.kind) {
+        return Err(Error::invalid(format!(
+            "{} is a {} entry; a {} value does not fit",
+            e.name,
+            e.kind.data_type(),
+            value.kind_name()
+        )));
+    }
+    value.check_range(mode).map_err(|err| Error::invalid(format!("{}: {err}", e.name)))?;
+    let mut data = Vec::new();
+    value.encode(e.kind, &mut data);
+    Ok((e, data))
+}
+
+/// A write of the caller's ([`super::Op::Set`]).
+pub(crate) struct SetOp(Write);
+
+impl SetOp {
+    pub fn new(index: DataIndex, data: Vec<u8>, verify: bool) -> Self {
+        SetOp(Write::new(index, data, verify))
+    }
+}
+
+impl Operation for SetOp {
+    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
+        if cx.cancelled && matches!(resume, Resume::Wake) {
+            return Next::Done(Err(Error::CancelledBeforeSending(Command::Transfer)));
+        }
+        match self.0.step(resume) {
+            Step::Wait(next) => next,
+            Step::Done(r) => Next::Done(r.map(|()| Output::Done)),
+        }
+    }
+}
+
+/// Where an actuator's stroke comes from, and what it is.
+pub(crate) type Stroke = Option<(StrokeLimits, &'static str)>;
+
+/// Actuator `a`'s travel range for targets: configured, or the virtual limits of its UserPositionData.
+pub(crate) struct StrokeRead(pub Actuator);
+
+impl StrokeRead {
+    pub fn step(&mut self, cx: &Cx<'_>, resume: Resume) -> Step<Result<Stroke, Error>> {
+        let a = self.0;
+        match resume {
+            Resume::Start => match cx.config().stroke_limits[usize::from(a.number() - 1)] {
+                Some(s) => Step::Done(Ok(Some((s, "as configured")))),
+                None => Step::Wait(get(DataIndex(0x2000 + u16::from(a.number())))),
+            },
+            Resume::Reply(result) => Step::Done(result.and_then(|r| r.data(Command::Get)).and_then(|data| {
+                let it = item(DataIndex(0x2000 + u16::from(a.number()))).expect("UserPositionData is in the data list");
+                let values = decode_item(it, &data).map_err(|e| Error::UnexpectedReply {
+                    command: Command::Get,
+                    detail: format!("UserPositionData of {a}: {e}"),
+                })?;
+                match values.first().map(|(_, v)| v) {
+                    Some(Value::UserPositions(u)) => {
+                        let (lo, hi) = (u.virtual_limit_in_counts, u.virtual_limit_out_counts);
+                        if (lo, hi) == (0, 0) {
+                            Ok(None)
+                        } else if lo > hi {
+                            Err(Error::UnexpectedReply {
+                                command: Command::Get,
+                                detail: format!("{a}'s virtual limits {lo}..{hi} are reversed"),
+                            })
+                        } else {
+                            Ok(Some((
+                                StrokeLimits { min_counts: lo, max_counts: hi },
+                                "the virtual limits of its UserPositionData",
+                            )))
+                        }
+                    }
+                    other => Err(Error::UnexpectedReply {
+                        command: Command::Get,
+                        detail: format!("UserPositionData of {a}: {other:?}"),
+                    }),
+                }
+            })),
+            Resume::Wake | Resume::Snapshot(_) | Resume::Reopened(_) => {
+                Step::Done(Err(Error::CancelledBeforeSending(Command::Get)))
+            }
+        }
+    }
+}
+
+/// Refuses `target` for `a` if it lies outside `stroke`.
+pub(crate) fn check_stroke(a: Actuator, target: i32, stroke: &Stroke) -> Result<(), Error> {
+    if let Some((s, limits_from)) = stroke {
+        if !(s.min_counts..=s.max_counts).contains(&target) {
+            return Err(Error::OutsideStroke {
+                actuator: a,
+                target_counts: target,
+                min_counts: s.min_counts,
+                max_counts: s.max_counts,
+                limits_from,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The caller's stroke query ([`super::Op::StrokeLimits`]).
+pub(crate) struct StrokeOp(StrokeRead);
+
+impl StrokeOp {
+    pub fn new(a: Actuator) -> Self {
+        StrokeOp(StrokeRead(a))
+    }
+}
+
+impl Operation for StrokeOp {
+    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
+        match self.0.step(cx, resume) {
+            Step::Wait(next) => next,
+            Step::Done(r) => Next::Done(r.map(Output::Stroke)),
+        }
+    }
+}
+
+/// The data index of CyclicObj `slot`, 1..5.
+pub(crate) fn cyclic_index(slot: u8) -> Result<DataIndex, Error> {
+    if (1..=5).contains(&slot) {
+        Ok(DataIndex(0x3000 + u16::from(slot)))
+    } else {
+        Err(Error::invalid(format!("cyclic object {slot}: there are CyclicObj 1..5")))
+    }
+}
+
+/// The entries a cyclic object writes, groups expanded into their members, in order.
+fn cyclic_write_entries(object: &CyclicObject) -> Result<Vec<&'static DataEntry>, Error> {
+    let mut entries = Vec::new();
+    for idx in object.write_indices() {
+        match item(idx) {
+            Some(Item::Entry(e)) => entries.push(e),
+            Some(Item::Group(g)) => entries.extend(g.members()),
+            None => return Err(Error::invalid(format!("cyclic write index {idx} is not in the data list"))),
+        }
+    }
+    Ok(entries)
+}
+
+/// The write data of `object` from one value per entry it writes (a group counting each of its members).
+pub(crate) fn encode_cyclic_write(object: &CyclicObject, write: &[Value], mode: SpeedMode) -> Result<Vec<u8>, Error> {
+    let entries = cyclic_write_entries(object)?;
+    if entries.len() != write.len() {
+        return Err(Error::invalid(format!(
+            "the cyclic object writes {} value(s) (a group counts each of its entries); {} given",
+            entries.len(),
+            write.len()
+        )));
+    }
+    let mut bytes = Vec::new();
+    for (e, v) in entries.iter().zip(write) {
+        if !crate::model::DataEntryExt::index(*e).is_remote() {
+            return Err(Error::invalid(format!("{}: cyclic write data must be remote data", e.name)));
+        }
+        if !v.fits(e.kind) {
+            return Err(Error::invalid(format!("{}: a {} value does not fit", e.name, v.kind_name())));
+        }
+        v.check_range(mode).map_err(|err| Error::invalid(format!("{}: {err}", e.name)))?;
+        v.encode(e.kind, &mut bytes);
+    }
+    Ok(bytes)
+}
+
+/// The read data of an RC with `object`, decoded (groups member by member).
+pub fn decode_cyclic_read(object: &CyclicObject, data: &[u8]) -> Result<Vec<(&'static DataEntry, Value)>, Error> {
+    let mut out = Vec::new();
+    let mut at = 0;
+    for idx in object.read_indices() {
+        let it = item(idx).ok_or_else(|| Error::invalid(format!("{idx} is not in the data list")))?;
+        let end = at + it.size();
+        let chunk = data.get(at..end).ok_or_else(|| Error::UnexpectedReply {
+            command: Command::Cyclic,
+            detail: format!("{} bytes of read data, the object needs more", data.len()),
+        })?;
+        out.extend(
+            decode_item(it, chunk)
+                .map_err(|e| Error::UnexpectedReply { command: Command::Cyclic, detail: e.to_string() })?,
+        );
+        at = end;
+    }
+    Ok(out)
+}
+
+/// Uses CyclicObj `slot` for the keepalive, or exchanges it once: reads its definition first.
+pub(crate) struct CyclicOp {
+    slot: u8,
+    write: Vec<Value>,
+    keep: bool,
+    object: Option<CyclicObject>,
+}
+
+impl CyclicOp {
+    pub fn new(slot: u8, write: Vec<Value>, keep: bool) -> Self {
+        CyclicOp { slot, write, keep, object: None }
+    }
+}
+
+fn definition(reply: Result<OwnedReply, Error>) -> Result<CyclicObject, Error> {
+    let data = reply.and_then(|r| r.data(Command::Get))?;
+    CyclicObject::from_bytes(&data)
+        .ok_or(Error::UnexpectedReply { command: Command::Get, detail: "not a cyclic object".into() })
+}
+
+impl Operation for CyclicOp {
+    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
+        match (resume, self.object) {
+            (Resume::Start, _) => match cyclic_index(self.slot) {
+                Ok(index) => get(index),
+                Err(e) => Next::Done(Err(e)),
+            },
+            (Resume::Reply(result), None) => {
+                let object = match definition(result) {
+                    Ok(o) => o,
+                    Err(e) => return Next::Done(Err(e)),
+                };
+                let bytes = match encode_cyclic_write(&object, &self.write, cx.config().speed_mode) {
+                    Ok(b) => b,
+                    Err(e) => return Next::Done(Err(e)),
+                };
+                if self.keep {
+                    // Keepalive writes are not read back.
+                    cx.core.cyclic = Some(CyclicUse { slot: self.slot, object, write: bytes });
+                    cx.core.last_cyclic_read = None;
+                    return Next::Done(Ok(Output::Done));
+                }
+                if cx.cancelled {
+                    return Next::Done(Err(Error::CancelledBeforeSending(Command::Cyclic)));
+                }
+                self.object = Some(object);
+                let read_len = object.read_size().and_then(|n| u16::try_from(n).ok());
+                match PreparedRequest::with_reply_len(
+                    &Request::Cyclic { object: self.slot - 1, write: &bytes },
+                    read_len,
+                ) {
+                    Ok(r) => Next::Send(Req::op(r)),
+                    Err(e) => Next::Done(Err(e)),
+                }
+            }
+            (Resume::Reply(result), Some(object)) => Next::Done(
+                result
+                    .and_then(|r| r.ack(Command::Cyclic))
+                    .map(|r| Output::Cyclic { object, data: r.data.unwrap_or_default() }),
+            ),
+            _ => Next::Done(Err(Error::CancelledBeforeSending(Command::Get))),
+        }
+    }
+}
+
+/// The function-map check of a move or a stream: no actuator twice, and exactly the ones the map says the
+/// function drives, if it knows the function.
+pub(crate) fn check_against_map(cx: &Cx<'_>, function: MotionFunction, actuators: &[Actuator]) -> Result<(), Error> {
+    for (i, a) in actuators.iter().enumerate() {
+        if actuators[..i].contains(a) {
+            return Err(Error::invalid(format!("{a} is named twice")));
+        }
+    }
+    if let Some(drives) = cx.config().function_map.drives(function) {
+        if let Some(a) = actuators.iter().find(|a| !drives.contains(a)) {
+            return Err(Error::invalid(format!(
+                "{function} does not drive {a}: the function map says it drives {}",
+                super::list_actuators(&drives)
+            )));
+        }
+        if let Some(d) = drives.iter().find(|d| !actuators.contains(d)) {
+            return Err(Error::invalid(format!(
+                "{function} also drives {d} (the function map says it drives {}): give {d} a target too",
+                super::list_actuators(&drives)
+            )));
+        }
+    }
+    Ok(())
+}

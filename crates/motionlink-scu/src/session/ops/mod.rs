@@ -1,0 +1,295 @@
+//! The operations of a session, each a state machine: it says what it wants next (a request, a pause, the
+//! next poll of a motion, the port reopened) and is resumed with what came of it.
+
+use std::time::Duration;
+
+use motionlink_link::session::OpId;
+use motionlink_link::Timestamp;
+
+use super::report::{MoveProgress, MoveReport, RunProgress, RunReport, Snapshot};
+use super::request::{OwnedReply, PreparedRequest, Req};
+use super::Core;
+use crate::config::{ClientConfig, StrokeLimits};
+use crate::error::Error;
+use crate::model::{Actuator, CyclicObject, DataIndex, Function, MotionDirection, MotionFunction, Speed, StopMode};
+use crate::value::Value;
+
+pub(crate) mod basic;
+mod motion;
+mod remote;
+mod run;
+mod stop;
+mod stream;
+
+pub(crate) use remote::{Close, Reopen};
+
+/// An operation a caller starts: what the [`crate::Client`] methods run. See each method for what it does.
+#[derive(Debug)]
+pub enum Op {
+    /// RO with the configured Safety_ID, then a first RC (the start of a session).
+    Open,
+    /// RO and RC after the unit ended remote mode, and RS for every function the session started: the
+    /// caller's decision ([`crate::Client::reopen`]).
+    Reopen,
+    /// Opens the port again, then as [`Op::Reopen`] ([`crate::Client::reconnect`]).
+    Reconnect,
+    /// One request; its ACK's data. An RE that the caller gives up on before its reply is followed by RS.
+    Request(PreparedRequest),
+    /// RT of `data` to `index`, then (if `verify`) RG of it: a value that reads back different is
+    /// [`Error::ReadBack`].
+    Set {
+        /// The data index.
+        index: DataIndex,
+        /// The bytes to write.
+        data: Vec<u8>,
+        /// Read the index back.
+        verify: bool,
+    },
+    /// Actuator `0`'s travel range for targets ([`crate::Client::stroke_limits`]).
+    StrokeLimits(Actuator),
+    /// A verified move of the actuators of one function ([`crate::Client::move_function`]).
+    Move(MoveSpec),
+    /// From now on the keepalive RC carries CyclicObj `slot` with these values ([`crate::Client::use_cyclic`]).
+    UseCyclic {
+        /// CyclicObj 1..5.
+        slot: u8,
+        /// One value per entry the object writes.
+        write: Vec<Value>,
+    },
+    /// One RC with CyclicObj `slot` ([`crate::Client::exchange_cyclic`]).
+    ExchangeCyclic {
+        /// CyclicObj 1..5.
+        slot: u8,
+        /// One value per entry the object writes.
+        write: Vec<Value>,
+    },
+    /// Checks and prepares streamed setpoints ([`crate::Client::stream`]).
+    StreamOpen {
+        /// The function.
+        function: MotionFunction,
+        /// The actuators it drives.
+        actuators: Vec<Actuator>,
+        /// The speed.
+        speed: Speed,
+    },
+    /// Writes new remote positions (not read back) and starts the function towards them.
+    StreamTargets {
+        /// The function.
+        function: MotionFunction,
+        /// Each actuator's new target, in counts.
+        targets: Vec<(Actuator, i32)>,
+    },
+    /// RS of a function, then the status of `watch` until none moves ([`crate::SetpointStream::stop`]); with
+    /// `after`, the stop that follows that failure (fast; the error to report comes back).
+    Stop {
+        /// The function.
+        function: MotionFunction,
+        /// How.
+        mode: StopMode,
+        /// The actuators to watch come to rest.
+        watch: Vec<Actuator>,
+        /// What went wrong, if the stop follows a failure.
+        after: Option<Box<Error>>,
+    },
+    /// Runs a function until it ends, a time limit, or a cancel, then stops it ([`crate::Client::run`]).
+    Run(RunSpec),
+}
+
+/// Which actuators a move drives to which target.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum MoveTargets {
+    /// Exactly these (the function map knows the function, or the caller named them).
+    Given(Vec<(Actuator, i32)>),
+    /// The function's drives are not known: every connected actuator gets this target, and the ones that
+    /// moved are reported.
+    EveryConnected(i32),
+}
+
+/// A verified move.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MoveSpec {
+    /// The function that drives the move.
+    pub function: MotionFunction,
+    /// The actuator the move is about (reported first, checked first).
+    pub primary: Actuator,
+    /// Where each actuator goes.
+    pub targets: MoveTargets,
+    /// How fast.
+    pub speed: Speed,
+}
+
+/// What a run starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RunAction {
+    /// RE of a motion function in a direction; the run ends when the unit reports that nothing moves any more
+    /// (or at the time limit).
+    Motion(MotionFunction, MotionDirection),
+    /// RE of a switching function (buzzer, outputs, LEDs, emergency stop); RS ends it.
+    Switch(Function),
+}
+
+/// A function's run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RunSpec {
+    /// What to start.
+    pub action: RunAction,
+    /// Stop after this long (a switching function without a limit runs until cancelled).
+    pub limit: Option<Duration>,
+}
+
+/// What an operation ends with.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Output {
+    /// Nothing to report.
+    Done,
+    /// The data of the reply, if it had any.
+    Data(Option<Vec<u8>>),
+    /// A stroke: limits and where they come from, or none.
+    Stroke(Option<(StrokeLimits, &'static str)>),
+    /// Each actuator's stroke, in the order given.
+    Strokes(Vec<Option<(StrokeLimits, &'static str)>>),
+    /// How a move ended.
+    Move(MoveReport),
+    /// The read data of an RC with a cyclic object, and the object.
+    Cyclic {
+        /// The object's definition, read from the unit.
+        object: CyclicObject,
+        /// Its read data.
+        data: Vec<u8>,
+    },
+    /// Where each actuator came to rest, in counts.
+    Rest(Vec<(Actuator, i32)>),
+    /// How a run ended.
+    Run(RunReport),
+}
+
+/// What an operation reports on its way.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Progress {
+    /// A move polled its actuators.
+    Move(MoveProgress),
+    /// A run looked at its actuators.
+    Run(RunProgress),
+}
+
+/// What an operation is resumed with.
+#[derive(Debug)]
+pub(crate) enum Resume {
+    /// It was just started.
+    Start,
+    /// The reply to its request (or why there is none; [`Error::CancelledBeforeSending`] if the caller
+    /// cancelled it before it went out).
+    Reply(Result<OwnedReply, Error>),
+    /// Its pause is over, or the caller cancelled it meanwhile.
+    Wake,
+    /// The next poll of the running motion.
+    Snapshot(Result<Snapshot, Error>),
+    /// The port was opened again, or could not be.
+    Reopened(Result<(), Error>),
+}
+
+/// What an operation wants next.
+#[derive(Debug)]
+pub(crate) enum Next {
+    /// Send this request.
+    Send(Req),
+    /// Wait until then.
+    Sleep(Timestamp),
+    /// Wait for the next poll of the running motion (the keepalive RC carries the poll object meanwhile).
+    Snapshot,
+    /// Open the port again.
+    Reopen,
+    /// The end.
+    Done(Result<Output, Error>),
+}
+
+/// A step of a part of an operation: what it wants next, or its end.
+pub(crate) enum Step<T> {
+    Wait(Next),
+    Done(T),
+}
+
+/// An operation as a state machine.
+pub(crate) trait Operation: Send {
+    /// Goes on after `resume`; says what it wants next.
+    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next;
+
+    /// True while a cancel may interrupt what the operation waits for (a request not yet sent is dropped, a
+    /// pause ends at once); false while it stops what it started, which a cancel must not cut short.
+    fn interruptible(&self) -> bool {
+        true
+    }
+}
+
+/// What an operation sees of its session.
+pub(crate) struct Cx<'a> {
+    pub core: &'a mut Core,
+    pub id: OpId,
+    /// The caller asked the operation to end early.
+    pub cancelled: bool,
+}
+
+impl Cx<'_> {
+    pub fn now(&self) -> Timestamp {
+        self.core.now
+    }
+
+    pub fn config(&self) -> &ClientConfig {
+        &self.core.config
+    }
+
+    pub fn progress(&mut self, p: Progress) {
+        self.core.push_progress(self.id, p);
+    }
+}
+
+/// Makes the state machine of `op`.
+pub(crate) fn operation(op: Op, core: &Core) -> Box<dyn Operation> {
+    match op {
+        Op::Open => Box::new(remote::Open::new()),
+        Op::Reopen => Box::new(remote::Reopen::new(false)),
+        Op::Reconnect => Box::new(remote::Reopen::new(true)),
+        Op::Request(r) => Box::new(basic::Single::new(r)),
+        Op::Set { index, data, verify } => Box::new(basic::SetOp::new(index, data, verify)),
+        Op::StrokeLimits(a) => Box::new(basic::StrokeOp::new(a)),
+        Op::Move(spec) => Box::new(motion::Move::new(spec, core.now)),
+        Op::UseCyclic { slot, write } => Box::new(basic::CyclicOp::new(slot, write, true)),
+        Op::ExchangeCyclic { slot, write } => Box::new(basic::CyclicOp::new(slot, write, false)),
+        Op::StreamOpen { function, actuators, speed } => Box::new(stream::StreamOpen::new(function, actuators, speed)),
+        Op::StreamTargets { function, targets } => Box::new(stream::StreamTargets::new(function, targets)),
+        Op::Stop { function, mode, watch, after } => Box::new(stop::StopOp::new(function, mode, watch, after)),
+        Op::Run(spec) => Box::new(run::Run::new(spec, core.now)),
+    }
+}
+
+/// "A1, A2".
+pub(crate) fn list_actuators(actuators: &[Actuator]) -> String {
+    if actuators.is_empty() {
+        return "no actuator".into();
+    }
+    actuators.iter().map(Actuator::to_string).collect::<Vec<_>>().join(", ")
+}
+
+/// RG of `index` as an operation's request.
+pub(crate) fn get(index: DataIndex) -> Next {
+    Next::Send(Req::op(PreparedRequest::get(index)))
+}
+
+/// The six status-1 bytes of an RG of 0x0170.
+pub(crate) fn statuses(data: &[u8]) -> Result<[u8; 6], Error> {
+    <[u8; 6]>::try_from(data).map_err(|_| Error::UnexpectedReply {
+        command: crate::wire::Command::Get,
+        detail: "status 1 is 6 x 1 byte".into(),
+    })
+}
+
+/// The six positions of an RG of 0x0010.
+pub(crate) fn positions(data: &[u8]) -> Result<[i32; 6], Error> {
+    if data.len() != 24 {
+        return Err(Error::UnexpectedReply {
+            command: crate::wire::Command::Get,
+            detail: "positions are 6 x 4 bytes".into(),
+        });
+    }
+    Ok(std::array::from_fn(|i| i32::from_le_bytes([data[4 * i], data[4 * i + 1], data[4 * i + 2], data[4 * i + 3]])))
+}

@@ -1,0 +1,246 @@
+//! A function's run: RE, then watching until the motion ends, a time limit, or a cancel; then the stop,
+//! confirmed by the status.
+
+use std::time::Duration;
+
+use motionlink_link::Timestamp;
+
+use super::basic::Write;
+use super::stop::StopMachine;
+use super::{get, statuses, Cx, Next, Operation, Output, Progress, Resume, RunAction, RunSpec, Step};
+use crate::error::Error;
+use crate::model::{status1, Actuator, CyclicObject, DataIndex, Function, StopMode, UNUSED};
+use crate::session::report::{RunProgress, RunReport};
+use crate::session::request::{PreparedRequest, Req};
+use crate::session::POLL_READ;
+use crate::wire::{Command, Request};
+
+enum Phase {
+    /// The session's poll object is defined (a motion function is watched through the keepalive).
+    DefinePoll(Write),
+    Execute,
+    /// Waiting for the next look (a poll through the keepalive RC, or a pause before a read).
+    Watch,
+    Status,
+    Stopping(StopMachine),
+}
+
+/// A run; see [`super::Op::Run`] and [`crate::Client::run`].
+pub(crate) struct Run {
+    spec: RunSpec,
+    phase: Phase,
+    started_at: Timestamp,
+    seen_motion: bool,
+    by_snapshot: bool,
+}
+
+/// A pause without end: a switching function without a time limit runs until it is cancelled.
+const FOREVER: Duration = Duration::from_secs(100 * 365 * 86_400);
+
+impl Run {
+    pub fn new(spec: RunSpec, now: Timestamp) -> Self {
+        Run { spec, phase: Phase::Execute, started_at: now, seen_motion: false, by_snapshot: false }
+    }
+
+    fn function(&self) -> Function {
+        match self.spec.action {
+            RunAction::Motion(m, _) => Function::Motion(m),
+            RunAction::Switch(f) => f,
+        }
+    }
+
+    fn is_motion(&self) -> bool {
+        matches!(self.spec.action, RunAction::Motion(..))
+    }
+
+    fn watch(&mut self, cx: &mut Cx<'_>) -> Next {
+        self.phase = Phase::Watch;
+        let now = cx.now();
+        let limit_at = self.spec.limit.map(|l| self.started_at + l);
+        if !self.is_motion() {
+            return Next::Sleep(limit_at.unwrap_or(now + FOREVER));
+        }
+        if self.by_snapshot {
+            return Next::Snapshot;
+        }
+        let next = now + cx.config().poll_interval;
+        Next::Sleep(limit_at.map_or(next, |l| l.min(next)))
+    }
+
+    /// One look at the actuators: progress, and whether the run is over.
+    fn look(&mut self, cx: &mut Cx<'_>, status: [u8; 6], positions: [i32; 6]) -> Next {
+        let now = cx.now();
+        let elapsed = now - self.started_at;
+        let function = self.function();
+        cx.progress(Progress::Run(RunProgress { function, elapsed, statuses: status, positions }));
+        if cx.cancelled || self.spec.limit.is_some_and(|l| elapsed >= l) {
+            return self.stop(cx);
+        }
+        if self.spec.limit.is_none() {
+            // A motion function ends when none of the actuators moves any more.
+            let moving = status.iter().any(|s| s & status1::MOTION != 0);
+            self.seen_motion |= moving;
+            if !moving && (self.seen_motion || elapsed >= cx.config().start_grace) {
+                return self.stop(cx);
+            }
+        }
+        self.watch(cx)
+    }
+
+    fn execute(&mut self, function: Function) -> Next {
+        self.phase = Phase::Execute;
+        let params = match self.spec.action {
+            RunAction::Motion(_, direction) => [direction.code(), UNUSED],
+            RunAction::Switch(_) => [UNUSED, UNUSED],
+        };
+        match PreparedRequest::new(&Request::Execute { function: function.id(), params }) {
+            Ok(r) => Next::Send(Req::op(r)),
+            Err(e) => Next::Done(Err(e)),
+        }
+    }
+
+    fn stop(&mut self, cx: &mut Cx<'_>) -> Next {
+        let watch = if self.is_motion() { Actuator::all().collect() } else { Vec::new() };
+        let mut machine = StopMachine::new(self.function(), StopMode::Fast, watch);
+        let step = machine.step(cx, Resume::Start);
+        self.phase = Phase::Stopping(machine);
+        match step {
+            Step::Wait(next) => next,
+            Step::Done(_) => unreachable!("a stop sends RS first"),
+        }
+    }
+}
+
+impl Operation for Run {
+    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
+        let function = self.function();
+        match (std::mem::replace(&mut self.phase, Phase::Watch), resume) {
+            (_, Resume::Start) => {
+                if let RunAction::Switch(Function::Motion(m)) = self.spec.action {
+                    return Next::Done(Err(Error::invalid(format!(
+                        "{m} is a motion function: run it with a direction"
+                    ))));
+                }
+                if let (true, Some(slot), false) = (self.is_motion(), cx.core.poll_slot(), cx.core.poll.configured) {
+                    let object = CyclicObject::new(&[], &POLL_READ).expect("two read indices fit");
+                    let mut write = Write::new(DataIndex(0x3000 + u16::from(slot)), object.to_bytes().to_vec(), true);
+                    if let Step::Wait(next) = write.step(Resume::Start) {
+                        self.phase = Phase::DefinePoll(write);
+                        return next;
+                    }
+                }
+                self.execute(function)
+            }
+            (Phase::DefinePoll(mut write), resume) => {
+                if cx.cancelled {
+                    return Next::Done(Err(Error::CancelledBeforeSending(Command::Execute)));
+                }
+                match write.step(resume) {
+                    Step::Wait(next) => {
+                        self.phase = Phase::DefinePoll(write);
+                        next
+                    }
+                    Step::Done(Ok(())) => {
+                        cx.core.poll.configured = true;
+                        self.execute(function)
+                    }
+                    Step::Done(Err(Error::Refused { status, .. })) => {
+                        tracing::warn!("the unit refused the poll object ({status}); runs are watched with reads");
+                        cx.core.poll.refused = true;
+                        self.execute(function)
+                    }
+                    Step::Done(Err(e)) => Next::Done(Err(e)),
+                }
+            }
+            (Phase::Execute, Resume::Reply(Err(e @ Error::CancelledBeforeSending(_)))) => Next::Done(Err(e)),
+            (Phase::Execute, Resume::Reply(r)) => match r.and_then(|r| r.ack(Command::Execute)) {
+                // The unit refused: nothing started.
+                Err(e @ Error::Refused { .. }) => Next::Done(Err(e)),
+                // Without a clean answer the RE may have started the function: it is stopped.
+                Err(e) => {
+                    tracing::warn!("{function}: {e}; stopping it");
+                    self.stop(cx)
+                }
+                Ok(_) => {
+                    self.by_snapshot = cx.core.poll_slot().is_some() && cx.core.poll.configured;
+                    let now = cx.now();
+                    cx.progress(Progress::Run(RunProgress {
+                        function,
+                        elapsed: now - self.started_at,
+                        statuses: [0; 6],
+                        positions: [0; 6],
+                    }));
+                    if cx.cancelled {
+                        return self.stop(cx);
+                    }
+                    self.watch(cx)
+                }
+            },
+            (Phase::Watch, Resume::Wake) => {
+                if cx.cancelled || !self.is_motion() {
+                    return self.stop(cx);
+                }
+                if self.spec.limit.is_some_and(|l| cx.now() - self.started_at >= l) {
+                    return self.stop(cx);
+                }
+                self.phase = Phase::Status;
+                get(DataIndex(0x0170))
+            }
+            (Phase::Watch, Resume::Snapshot(Ok(s))) => self.look(cx, s.statuses, s.positions),
+            (Phase::Status, Resume::Reply(r)) => {
+                if cx.cancelled {
+                    return self.stop(cx);
+                }
+                match r.and_then(|r| r.data(Command::Get)).and_then(|d| statuses(&d)) {
+                    Ok(s) => self.look(cx, s, [0; 6]),
+                    Err(e) => {
+                        tracing::warn!("{function}: the status could not be read ({e}); stopping it");
+                        self.stop(cx)
+                    }
+                }
+            }
+            (Phase::Watch, Resume::Snapshot(Err(e))) => {
+                tracing::warn!("{function}: {e}; stopping it");
+                self.stop(cx)
+            }
+            (Phase::Stopping(mut machine), resume) => match machine.step(cx, resume) {
+                Step::Wait(next) => {
+                    self.phase = Phase::Stopping(machine);
+                    next
+                }
+                Step::Done(stopped) => {
+                    let stop = machine.describe();
+                    Next::Done(match stopped {
+                        Ok((status, positions)) => {
+                            let rest: Vec<(Actuator, i32)> = Actuator::all()
+                                .filter(|a| status[usize::from(a.number() - 1)] & status1::AVAILABLE != 0)
+                                .map(|a| (a, positions[usize::from(a.number() - 1)]))
+                                .collect();
+                            if cx.cancelled {
+                                Err(Error::RunCancelled { function, rest })
+                            } else {
+                                let duration = cx.now() - self.started_at;
+                                Ok(Output::Run(RunReport { function, duration, rest }))
+                            }
+                        }
+                        Err((detail, _)) if cx.cancelled => Err(Error::StopUnconfirmed {
+                            cause: Box::new(Error::Interrupted(format!("cancelled while {function} ran"))),
+                            stop,
+                            detail,
+                        }),
+                        Err((_, e)) => Err(e),
+                    })
+                }
+            },
+            (phase, other) => {
+                self.phase = phase;
+                tracing::warn!("{function}: {other:?} unexpected; stopping it");
+                self.stop(cx)
+            }
+        }
+    }
+
+    fn interruptible(&self) -> bool {
+        !matches!(self.phase, Phase::Stopping(_))
+    }
+}

@@ -1,0 +1,140 @@
+//! What operations report: progress on the way, and how moves and runs ended.
+
+use std::time::Duration;
+
+use motionlink_link::Timestamp;
+
+use crate::model::{status1, Actuator, Function, MotionFunction};
+
+/// Where a move is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MoveProgress {
+    /// The actuator the move is about (the one named to `move_to`, the first target of `move_function`).
+    pub actuator: Actuator,
+    /// Where it is, in counts.
+    pub position_counts: i32,
+    /// Where it started, in counts.
+    pub start_counts: i32,
+    /// Where it is going, in counts.
+    pub target_counts: i32,
+    /// Actuator status 1.
+    pub status: u8,
+}
+
+/// How one actuator of a move ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ActuatorOutcome {
+    /// The actuator.
+    pub actuator: Actuator,
+    /// Its target, in counts.
+    pub target_counts: i32,
+    /// Where it started, in counts.
+    pub start_counts: i32,
+    /// Where it ended (read after the unit reported the end of the motion), in counts.
+    pub position_counts: i32,
+    /// Whether it moved (its motion bit was seen, or its position changed by more than the tolerance). An
+    /// actuator of a function whose drives are unknown that did not move is not driven by it.
+    pub moved: bool,
+}
+
+impl ActuatorOutcome {
+    /// Position minus target, in counts.
+    pub fn difference_counts(&self) -> i64 {
+        i64::from(self.position_counts) - i64::from(self.target_counts)
+    }
+}
+
+/// How a move ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MoveReport {
+    /// The actuator the move is about (the one named to `move_to`, the first target of `move_function`).
+    pub actuator: Actuator,
+    /// The function that drove it.
+    pub function: MotionFunction,
+    /// Where that actuator ended, in counts.
+    pub position_counts: i32,
+    /// How long it took on the session's clock.
+    pub duration: Duration,
+    /// Every actuator whose remote position the move wrote, in actuator order.
+    pub actuators: Vec<ActuatorOutcome>,
+}
+
+/// Where a function's run is: the state of every actuator at the last look.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RunProgress {
+    /// The function.
+    pub function: Function,
+    /// How long it has run.
+    pub elapsed: Duration,
+    /// Actuator status 1 of A1..A6 (zero where not read: a switching function).
+    pub statuses: [u8; 6],
+    /// Positions of A1..A6 in counts (zero where not read).
+    pub positions: [i32; 6],
+}
+
+/// How a function's run ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RunReport {
+    /// The function.
+    pub function: Function,
+    /// How long it ran.
+    pub duration: Duration,
+    /// Where each connected actuator came to rest, in counts, read after the stop.
+    pub rest: Vec<(Actuator, i32)>,
+}
+
+/// The status and position of every actuator at one instant: the read data of the cyclic object that polls
+/// a motion, or a status read followed by a position read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Snapshot {
+    /// When the data arrived.
+    pub at: Timestamp,
+    /// Actuator status 1 of A1..A6.
+    pub statuses: [u8; 6],
+    /// Positions of A1..A6, in counts.
+    pub positions: [i32; 6],
+}
+
+impl Snapshot {
+    /// Actuator `a`'s status 1.
+    pub fn status(&self, a: Actuator) -> u8 {
+        self.statuses[usize::from(a.number() - 1)]
+    }
+
+    /// Actuator `a`'s position in counts.
+    pub fn position(&self, a: Actuator) -> i32 {
+        self.positions[usize::from(a.number() - 1)]
+    }
+
+    /// True if actuator `a` reports motion.
+    pub fn moving(&self, a: Actuator) -> bool {
+        self.status(a) & status1::MOTION != 0
+    }
+
+    /// Every connected actuator ("drive available") with its position.
+    pub fn connected_positions(&self) -> Vec<(Actuator, i32)> {
+        Actuator::all().filter(|a| self.status(*a) & status1::AVAILABLE != 0).map(|a| (a, self.position(a))).collect()
+    }
+}
+
+/// Counters of a session.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ClientStats {
+    /// RC keepalives acknowledged (the ones that polled a motion too).
+    pub keepalives: u64,
+    /// Requests sent again after silence, a corrupt reply, a CSE or a PCE.
+    pub retries: u64,
+    /// Times zero bytes were sent to complete a telegram the unit may have been waiting for.
+    pub flushes: u64,
+    /// Successful reconnections.
+    pub reconnects: u64,
+    /// Transactions completed (any outcome from the unit).
+    pub transactions: u64,
+    /// Times remote mode was opened again: by [`crate::Client::reopen`], or to send the RS of the end of a
+    /// session.
+    pub reopens: u64,
+    /// Times the unit's watchdog was found expired and re-armed by an RC (Safety_ID 1 and 2).
+    pub watchdog_lapses: u64,
+    /// RC keepalives whose cyclic object read the state of a running motion.
+    pub motion_polls: u64,
+}

@@ -1,0 +1,177 @@
+//! One request of an operation, with what a PE answer leads to: see the crate documentation, "A session the
+//! unit ended". A unit answers PE to RG, RT, RE and RS when it is not in remote mode; the session then sends
+//! an RC (with Safety_ID 1 and 2 the unit's next RC re-arms its watchdog) and tries once more. Still PE: the
+//! unit ended remote mode, and the session says so ([`Error::RemoteEnded`]) without sending RO. Accepted
+//! after the RC: the watchdog had lapsed; the functions the session had started (which the unit stopped) get
+//! their RS, and the caller learns once that its motion was stopped.
+
+use super::request::{OwnedReply, PreparedRequest, Req};
+use super::Core;
+use crate::error::Error;
+use crate::model::{Actuator, StopMode};
+use crate::wire::{Command, Status};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    Main,
+    /// The request was answered PE: an RC.
+    PeRc,
+    /// The RC was accepted: the request again, or a read that only remote mode allows.
+    PeProbe,
+    /// The probe was answered: the RE or RC itself again.
+    PeRetry,
+    /// The watchdog had lapsed: RS for what the session had started.
+    LapseStops,
+}
+
+/// A request of an operation and its follow-ups.
+#[derive(Debug)]
+pub(crate) struct Txn {
+    req: Req,
+    phase: Phase,
+    stops: Vec<u8>,
+    abandoned: bool,
+}
+
+/// What follows an exchange of a transaction.
+pub(crate) enum TxnStep {
+    /// This request goes out next, at once.
+    Again(PreparedRequest),
+    /// The transaction's outcome.
+    Finished(Result<OwnedReply, Error>),
+}
+
+impl Txn {
+    pub fn new(req: Req) -> Txn {
+        Txn { req, phase: Phase::Main, stops: Vec::new(), abandoned: false }
+    }
+
+    /// The port is gone: the transaction ends with the error that comes.
+    pub fn abandon(mut self) -> Txn {
+        self.abandoned = true;
+        self
+    }
+
+    fn command(&self) -> Command {
+        self.req.request.command
+    }
+
+    /// The exchange of the present phase ended with `result`.
+    pub fn next(&mut self, core: &mut Core, result: Result<OwnedReply, Error>) -> TxnStep {
+        if self.abandoned {
+            return TxnStep::Finished(result);
+        }
+        let command = self.command();
+        match self.phase {
+            Phase::Main => match result {
+                Ok(reply)
+                    if reply.status == Status::PermissionError
+                        && self.req.checked
+                        && !matches!(command, Command::Open | Command::Abort) =>
+                {
+                    // An RC is accepted in every state of remote mode (and re-arms the watchdog with Safety_ID 1
+                    // and 2); a unit that refuses it has left remote mode altogether.
+                    self.phase = Phase::PeRc;
+                    TxnStep::Again(PreparedRequest::keepalive())
+                }
+                other => self.finish(core, other),
+            },
+            Phase::PeRc => match result {
+                Ok(rc) if rc.status == Status::PermissionError => {
+                    let e = core.ended(format!(
+                        "the unit has left remote mode: it refused {command} and even RC with PE (it was reset, or \
+                         another host sent RA); the session does not open remote mode again by itself"
+                    ));
+                    TxnStep::Finished(Err(e))
+                }
+                Ok(_) => {
+                    self.phase = Phase::PeProbe;
+                    let probe = match command {
+                        Command::Get | Command::Transfer | Command::Stop => self.req.request.clone(),
+                        _ => PreparedRequest::get(
+                            Actuator::new(1).map_or(crate::model::DataIndex(0x0171), |a| a.status1_index()),
+                        ),
+                    };
+                    TxnStep::Again(probe)
+                }
+                Err(e) => TxnStep::Finished(Err(e)),
+            },
+            Phase::PeProbe => match result {
+                Ok(again) if again.status == Status::PermissionError => {
+                    let e = core.ended(format!(
+                        "the unit ended remote mode: it takes RC but refuses {command} with PE, as after a \
+                         communication time-out with Safety_ID 0 (the unit then stops every motion and accepts \
+                         remote motion only after a new RO); the session does not open remote mode again by itself"
+                    ));
+                    TxnStep::Finished(Err(e))
+                }
+                Ok(again) => match command {
+                    // The unit answers again after the RC: its watchdog had expired (Safety_ID 1 or 2) and the
+                    // RC re-armed it; or, for an RE, remote mode is fine and the unit refuses that function for
+                    // its own reasons.
+                    Command::Execute | Command::Cyclic => {
+                        self.phase = Phase::PeRetry;
+                        TxnStep::Again(self.req.request.clone())
+                    }
+                    _ => self.lapse(core, again),
+                },
+                Err(e) => TxnStep::Finished(Err(e)),
+            },
+            Phase::PeRetry => match result {
+                Ok(r) if command == Command::Execute && r.status == Status::PermissionError => self.finish(core, Ok(r)),
+                Ok(r) => self.lapse(core, r),
+                Err(e) => TxnStep::Finished(Err(e)),
+            },
+            Phase::LapseStops => {
+                let f = self.stops.remove(0);
+                match result {
+                    Ok(r) if r.status == Status::Ack => {
+                        core.started.remove(&f);
+                    }
+                    Ok(r) => tracing::warn!("RS of function id {f} after the watchdog lapse: {}", r.status),
+                    Err(e) => tracing::warn!("RS of function id {f} after the watchdog lapse: {e}"),
+                }
+                match self.stops.first() {
+                    Some(&next) => TxnStep::Again(PreparedRequest::stop(next, StopMode::Fast)),
+                    None => TxnStep::Finished(Err(Error::RemoteEnded(format!(
+                        "the unit's communication watchdog had expired (it refused {command} with PE until an RC \
+                         re-armed it, as with Safety_ID {}): it stopped {}, including what this session had \
+                         started",
+                        core.config.safety_id.code(),
+                        core.lapse_stops()
+                    )))),
+                }
+            }
+        }
+    }
+
+    /// The watchdog had lapsed and an RC re-armed it.
+    fn lapse(&mut self, core: &mut Core, reply: OwnedReply) -> TxnStep {
+        core.stats.watchdog_lapses += 1;
+        let starts = self.req.request.starts;
+        self.stops = core.started.iter().copied().filter(|f| Some(*f) != starts).collect();
+        match self.stops.first() {
+            Some(&f) => {
+                // The unit stopped them; each still gets the RS the manual asks for after every RE.
+                self.phase = Phase::LapseStops;
+                TxnStep::Again(PreparedRequest::stop(f, StopMode::Fast))
+            }
+            None => {
+                tracing::warn!("the unit's watchdog had expired while the session was idle; an RC re-armed it");
+                self.finish(core, Ok(reply))
+            }
+        }
+    }
+
+    fn finish(&mut self, core: &mut Core, result: Result<OwnedReply, Error>) -> TxnStep {
+        if let Ok(reply) = &result {
+            if reply.status == Status::Ack {
+                if let Some(f) = self.req.request.stops {
+                    core.started.remove(&f);
+                }
+            }
+            core.stats.transactions += 1;
+        }
+        TxnStep::Finished(result)
+    }
+}

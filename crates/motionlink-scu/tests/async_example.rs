@@ -1,0 +1,18 @@
+//! The async example runs to its end in CI: the same code, as a test.
+
+#![cfg(feature = "tokio")]
+
+#[path = "../examples/async_move.rs"]
+#[allow(dead_code)]
+mod example;
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn positions_are_read_while_a_move_runs_and_a_dropped_move_stops_the_actuator() {
+    let seen = example::run().await.unwrap();
+    assert!(seen.reads.windows(2).any(|w| w[1] > w[0]), "A1 moved while it was read: {:?}", seen.reads);
+    assert!(seen.reads.iter().all(|p| *p < 800), "{:?}", seen.reads);
+    assert_eq!(seen.rest.0, seen.rest.1, "at rest: {:?}", seen.rest);
+    assert!(seen.rest.0 < 800, "stopped on the way");
+    assert!(!seen.unit_moving);
+    assert!(seen.started.is_empty(), "the cancelled move got its RS: {:?}", seen.started);
+}

@@ -1,0 +1,232 @@
+//! What the client tests share: the emulator behind an in-memory link on a manual clock that jumps ahead
+//! whenever every participant waits (minutes of device time run in milliseconds, deterministically), a link
+//! that lets a test arrange faults for each request, a slow gateway, and the watchdog scenario.
+
+#![allow(dead_code, unused_imports)]
+
+pub use std::sync::{Arc, Mutex};
+pub use std::time::{Duration, Instant};
+
+pub use motionlink_link::cancel::CancelToken;
+pub use motionlink_link::clock::{Clock, ManualClock, ParticipantGuard};
+pub use motionlink_link::error::{Classify, ErrorClass, TransportKind};
+pub use motionlink_link::link::{Connector, Link, LinkError};
+pub use motionlink_link::pipe::{Direction, EmulatorHost, Fault, FaultControl, PipeConfig};
+pub use motionlink_scu::model::Speed;
+pub use motionlink_scu::model::{
+    status1, Actuator, CyclicObject, DataIndex, ErrorCode, Function, MotionDirection, MotionFunction, SafetyId,
+    StopMode,
+};
+pub use motionlink_scu::sim::{RemoteMode, SimConfig};
+pub use motionlink_scu::value::Value;
+pub use motionlink_scu::wire::{Command, Status};
+pub use motionlink_scu::Emulator;
+pub use motionlink_scu::{Client, ClientConfig, Error, FunctionMap, MoveOptions, MovePolling, StrokeLimits};
+
+/// Called with every request the client sends (its bytes) and the fault control, just before it is sent: a
+/// test arranges faults for that request's reply (its first byte is the next one the unit sends).
+pub type Hook = Arc<dyn Fn(&[u8], &FaultControl) + Send + Sync>;
+
+/// A link that runs a [`Hook`] on each request it sends.
+pub struct Hooked {
+    inner: Box<dyn Link>,
+    pub faults: FaultControl,
+    pub hook: Hook,
+}
+
+impl Link for Hooked {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        (self.hook)(bytes, &self.faults);
+        self.inner.send(bytes)
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
+        self.inner.recv(buf, timeout)
+    }
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        self.inner.discard_input()
+    }
+    fn describe(&self) -> String {
+        self.inner.describe()
+    }
+}
+
+pub struct Rig {
+    pub clock: ManualClock,
+    pub host: EmulatorHost<Emulator>,
+    pub faults: Arc<Mutex<Option<FaultControl>>>,
+    pub hook: Arc<Mutex<Option<Hook>>>,
+    pub connects: Arc<Mutex<u32>>,
+    /// While set, opening the port fails (the adapter is unplugged).
+    pub unplugged: Arc<Mutex<bool>>,
+    pub _me: ParticipantGuard,
+}
+
+impl Rig {
+    pub fn new(config: SimConfig) -> Rig {
+        let clock = ManualClock::new_auto();
+        let me = clock.reserve_participant().enter();
+        let host = EmulatorHost::new(Emulator::new(config).unwrap(), clock.shared(), PipeConfig::paced(38_400));
+        Rig {
+            clock,
+            host,
+            faults: Arc::default(),
+            hook: Arc::default(),
+            connects: Arc::default(),
+            unplugged: Arc::default(),
+            _me: me,
+        }
+    }
+
+    pub fn connector(&self) -> Connector {
+        let host = self.host.clone();
+        let faults = Arc::clone(&self.faults);
+        let connects = Arc::clone(&self.connects);
+        let unplugged = Arc::clone(&self.unplugged);
+        let hook = Arc::clone(&self.hook);
+        Box::new(move || {
+            if *unplugged.lock().unwrap() {
+                return Err(LinkError::Disconnected { port: "sim".into(), reason: "unplugged".into() });
+            }
+            let (link, f) = host.connect();
+            *faults.lock().unwrap() = Some(f.clone());
+            *connects.lock().unwrap() += 1;
+            let hook = Arc::clone(&hook);
+            let hook: Hook = Arc::new(move |bytes: &[u8], faults: &FaultControl| {
+                let h = hook.lock().unwrap().clone();
+                if let Some(h) = h {
+                    h(bytes, faults);
+                }
+            });
+            Ok(Box::new(Hooked { inner: Box::new(link), faults: f, hook }) as Box<dyn Link>)
+        })
+    }
+
+    pub fn client(&self, config: ClientConfig) -> Client {
+        Client::open(self.connector(), self.clock.shared(), config).unwrap()
+    }
+
+    /// From now on, `hook` sees every request before it is sent.
+    pub fn on_request(&self, hook: impl Fn(&[u8], &FaultControl) + Send + Sync + 'static) {
+        *self.hook.lock().unwrap() = Some(Arc::new(hook));
+    }
+
+    pub fn faults(&self) -> FaultControl {
+        self.faults.lock().unwrap().clone().unwrap()
+    }
+
+    pub fn unit<R>(&self, f: impl FnOnce(&mut Emulator) -> R) -> R {
+        self.host.with_device(f)
+    }
+
+    pub fn sleep(&self, ms: u64) {
+        self.clock.sleep(Duration::from_millis(ms));
+    }
+}
+
+pub fn a(n: u8) -> Actuator {
+    Actuator::new(n).unwrap()
+}
+
+pub fn f(n: u8) -> MotionFunction {
+    MotionFunction::new(n).unwrap()
+}
+
+pub fn pct(n: u16) -> Speed {
+    Speed::percent(n).unwrap()
+}
+
+/// Starts a long move, then the host falls silent (every byte to the unit lost, as when the program is killed):
+/// the unit's own watchdog must stop the drive 500 ms after the last RC it received.
+pub fn watchdog_expires_after_500_ms(safety: SafetyId) -> (Rig, Client) {
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(ClientConfig { safety_id: safety, ..Default::default() });
+    client.set(DataIndex(0x3021), &Value::RemotePosition(800)).unwrap();
+    client.start_motion(f(1), MotionDirection::RemotePosition).unwrap();
+    rig.sleep(1000);
+    assert!(rig.unit(|u| u.is_moving(a(1))));
+    let cyclic_before = rig.unit(|u| u.stats().cyclic);
+    rig.faults().drop_next(Direction::HostToDevice, u64::MAX / 2);
+    // Find when the unit last saw an RC: the keepalive is at most 200 ms old.
+    let cut = rig.clock.now();
+    rig.sleep(250);
+    assert_eq!(rig.unit(|u| u.stats().cyclic), cyclic_before, "nothing reaches the unit any more");
+    // The unit stops at last RC + 500 ms, which lies in (cut - 200 ms, cut] + 500 ms.
+    let mut t = cut + Duration::from_millis(250);
+    while rig.unit(|u| u.is_moving(a(1))) {
+        rig.clock.sleep_until(t + Duration::from_millis(1));
+        t = rig.clock.now();
+        assert!(t < cut + Duration::from_millis(501), "still moving {:?} after the cut", t - cut);
+    }
+    assert!(t > cut + Duration::from_millis(300), "stopped too early: {:?} after the cut", t - cut);
+    assert_eq!(rig.unit(|u| u.last_error()), ErrorCode::from_bit(22));
+    // What the emulator reports (`motionlink sim scu --events` prints the same lines).
+    let events = rig.unit(motionlink_link::emulator::Emulator::take_events);
+    let expiry = format!("remote mode ended by watchdog (Safety_ID {})", safety.code());
+    let at = events.iter().position(|e| e.starts_with(&expiry)).unwrap_or_else(|| panic!("{events:?}"));
+    assert!(events[at + 1].starts_with("A1 at rest"), "{events:?}");
+    (rig, client)
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Keepalive timing, corrupted lengths, bit flips, dead links
+
+/// Records the clock time of every keepalive RC (`52 43 01 00 FF ..`) the client sends.
+pub fn record_keepalives(rig: &Rig) -> Arc<Mutex<Vec<Duration>>> {
+    let times = Arc::new(Mutex::new(Vec::new()));
+    let sink = Arc::clone(&times);
+    let clock = rig.clock.shared();
+    rig.on_request(move |bytes, _| {
+        if bytes.starts_with(&[0x52, 0x43, 0x01, 0x00, 0xFF]) {
+            sink.lock().unwrap().push(clock.now().since_origin());
+        }
+    });
+    times
+}
+
+/// A link whose received bytes reach the client `latency` after they arrived: a slow gateway.
+pub struct Latency {
+    pub inner: Box<dyn Link>,
+    pub clock: motionlink_link::SharedClock,
+    pub latency: Arc<Mutex<Duration>>,
+    pub queue: std::collections::VecDeque<(motionlink_link::Timestamp, u8)>,
+}
+
+impl Latency {
+    fn pull(&mut self, timeout: Duration) -> Result<(), LinkError> {
+        let mut tmp = [0u8; 256];
+        let n = self.inner.recv(&mut tmp, timeout)?;
+        let now = self.clock.now();
+        self.queue.extend(tmp[..n].iter().map(|b| (now, *b)));
+        Ok(())
+    }
+}
+
+impl Link for Latency {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        self.inner.send(bytes)
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
+        let deadline = self.clock.now() + timeout;
+        loop {
+            let now = self.clock.now();
+            let mut n = 0;
+            let latency = *self.latency.lock().unwrap();
+            while n < buf.len() && self.queue.front().is_some_and(|(t, _)| *t + latency <= now) {
+                buf[n] = self.queue.pop_front().unwrap().1;
+                n += 1;
+            }
+            if n > 0 || now >= deadline {
+                return Ok(n);
+            }
+            let until = self.queue.front().map_or(deadline, |(t, _)| (*t + latency).min(deadline));
+            self.pull(until.saturating_since(now))?;
+        }
+    }
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        self.queue.clear();
+        self.inner.discard_input()
+    }
+    fn describe(&self) -> String {
+        self.inner.describe()
+    }
+}

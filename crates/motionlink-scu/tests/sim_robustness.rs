@@ -1,0 +1,132 @@
+//! The emulator's configuration file, and its robustness against arbitrary sessions and bytes.
+
+mod bench;
+
+use bench::*;
+
+#[test]
+fn config_from_toml() {
+    let c = SimConfig::from_toml(
+        r#"
+        actuators = 3
+        speed_mode = "counts_per_second"
+        default_speed = 200
+        [functions]
+        F1 = [1, 3]
+        [[actuator]]
+        stroke_max_counts = 1000
+        "#,
+    )
+    .unwrap();
+    assert_eq!(c.actuators.len(), 3);
+    assert_eq!(c.actuators[0].stroke_max_counts, 1000);
+    assert_eq!(c.functions[0], vec![a(1), a(3)]);
+    assert_eq!(c.functions[1], vec![a(2)], "the rest stays SCP11");
+    let mut b = Bench::new(c);
+    b.open(1);
+    assert_eq!(b.set(0x3011, &1000u16.to_le_bytes()), Status::Ack, "counts/s allow up to 1000");
+    assert_eq!(SimConfig::from_toml("preset = \"tlt\"").unwrap(), SimConfig::tlt());
+    for bad in [
+        "actuators = 7",
+        "preset = \"nope\"",
+        "[functions]\nF11 = [1]",
+        "[functions]\nF1 = [5]",
+        "colour = 1",
+        "[[actuator]]\nstroke_min_counts = 900",
+    ] {
+        let err = SimConfig::from_toml(bad).unwrap_err();
+        assert!(!err.0.is_empty(), "{bad}");
+    }
+}
+
+/// One step of a random session: a well-formed request (with arbitrary, often wrong, parameters) after a pause.
+#[derive(Debug, Clone)]
+enum Step {
+    Open(u8),
+    Cyclic(u8, Vec<u8>),
+    Get(u16),
+    Transfer(u16, Vec<u8>),
+    Execute(u8, [u8; 2]),
+    Stop(u8, u8),
+    Abort,
+}
+
+fn known_index() -> impl Strategy<Value = u16> {
+    let indices: Vec<u16> = DATA_LIST.iter().map(|e| e.index().0).chain(GROUPS.iter().map(|g| g.index.0)).collect();
+    prop_oneof![proptest::sample::select(indices), any::<u16>()]
+}
+
+fn step() -> impl Strategy<Value = Step> {
+    let bytes = || proptest::collection::vec(any::<u8>(), 0..40);
+    prop_oneof![
+        (0..4u8).prop_map(Step::Open),
+        (prop_oneof![Just(0xFFu8), 0..6u8], bytes()).prop_map(|(o, w)| Step::Cyclic(o, w)),
+        known_index().prop_map(Step::Get),
+        (known_index(), bytes()).prop_map(|(i, d)| Step::Transfer(i, d)),
+        // Motion functions, directions 0..9 and a remote position above all: the unit moves.
+        (0..23u8, prop_oneof![0..10u8, any::<u8>()], any::<u8>()).prop_map(|(f, d, p)| Step::Execute(f, [d, p])),
+        (0..23u8, any::<u8>()).prop_map(|(f, p)| Step::Stop(f, p)),
+        Just(Step::Abort),
+    ]
+}
+
+proptest! {
+    /// Well-formed requests with arbitrary parameters, at arbitrary times: the unit never panics, answers
+    /// every request with exactly one well-formed reply of the same command, keeps its actuators inside
+    /// their strokes, and opens again at the end.
+    #[test]
+    fn random_sessions_of_valid_telegrams(steps in proptest::collection::vec((0..700u64, step()), 1..60)) {
+        let mut b = Bench::new(SimConfig::default());
+        let mut t = 0;
+        for (pause, s) in &steps {
+            t += pause;
+            b.at(t);
+            let request = match s {
+                Step::Open(id) => Request::Open { safety_id: *id },
+                Step::Cyclic(o, w) => Request::Cyclic { object: *o, write: w },
+                Step::Get(i) => Request::Get { index: *i },
+                Step::Transfer(i, d) => Request::Transfer { index: *i, data: d },
+                Step::Execute(f, p) => Request::Execute { function: *f, params: *p },
+                Step::Stop(f, p) => Request::Stop { function: *f, param: *p },
+                Step::Abort => Request::Abort,
+            };
+            let answers = b.raw(&request_to_vec(&request).unwrap());
+            prop_assert_eq!(answers.len(), 1, "{:?} got {:?}", s, answers);
+            prop_assert_eq!(answers[0].command, request.command());
+            for n in 1..=2 {
+                let p = b.unit.position(a(n)).unwrap();
+                prop_assert!((0..=865).contains(&p), "A{} at {}", n, p);
+            }
+        }
+        b.wait(2000);
+        b.open(1);
+    }
+
+    /// Arbitrary bytes never panic the emulator; after a pause the unit answers a good telegram again.
+    #[test]
+    fn arbitrary_bytes_never_panic_and_the_unit_recovers(chunks in proptest::collection::vec(proptest::collection::vec(any::<u8>(), 0..80), 0..20)) {
+        let mut unit = Emulator::new(SimConfig::default()).unwrap();
+        let mut out = Vec::new();
+        let mut t = 0;
+        for c in &chunks {
+            t += 3;
+            unit.receive(Timestamp::from_millis(t), c, &mut out);
+        }
+        // Every reply the unit made is a well-formed telegram.
+        let mut dec = ReplyDecoder::new();
+        let mut input = &out[..];
+        loop {
+            let (n, ev) = dec.decode(input);
+            input = &input[n..];
+            match ev {
+                Some(ev) => prop_assert!(ev.is_ok(), "{:?}", ev),
+                None if input.is_empty() => break,
+                None => {}
+            }
+        }
+        out.clear();
+        let later = Timestamp::from_millis(t) + Duration::from_millis(1500);
+        unit.receive(later, &request_to_vec(&Request::Open { safety_id: 1 }).unwrap(), &mut out);
+        prop_assert_eq!(&out[..3], b"RO\x06");
+    }
+}

@@ -1,0 +1,508 @@
+//! `motionlink scu`, `motionlink sim scu`, `motionlink decode scu` and the SCU part of `motionlink demo`.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+
+use motionlink_link::cancel::CancelToken;
+use motionlink_link::link::{Connector, Link, SerialSettings};
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::url::PortUrl;
+use motionlink_link::RealClock;
+use motionlink_scu::model::{
+    lookup, Actuator, Function, Item, MotionDirection, MotionFunction, SafetyId, Speed, SpeedMode, StopMode,
+};
+use motionlink_scu::session::RunAction;
+use motionlink_scu::{Client, ClientConfig, Emulator, Ending, FunctionMap, SimConfig, StrokeLimits};
+
+use crate::common::{self, CaptureArgs, CliError, ServeArgs};
+
+mod actions;
+mod demo;
+mod follow;
+
+pub use demo::{decode, demo, sim};
+
+/// `motionlink scu` arguments.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The port: a serial device (/dev/ttyUSB0, COM3), tcp://HOST:PORT (a serial gateway or `motionlink sim scu`),
+    /// or sim (an emulator in this process).
+    #[arg(long, value_name = "PORT")]
+    pub port: String,
+    /// Baud rate of a serial port: 38400 on standard units, 9600 or 19200 on customised ones.
+    #[arg(long, default_value_t = 38_400, value_parser = parse_baud)]
+    pub baud: u32,
+    /// Safety_ID sent with RO: 0 a timeout stops all motion and locks remote motion until RO, 1 stops all
+    /// motion, 2 stops remote motion only.
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=2))]
+    pub safety: u8,
+    /// How long to wait for the reply to RO, in ms (the manual allows the unit 2000 ms). In remote mode replies
+    /// are awaited at most 1000 ms (twice the unit's watchdog), or this if it is shorter.
+    #[arg(long, default_value_t = 2000, value_name = "MS", allow_hyphen_values = true,
+          value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    pub reply_timeout: u64,
+    /// Which actuators each motion function drives (the unit's parameterisation, which the data list does not
+    /// show): a preset, scp11 (Fn drives An), tlt (F1 both columns, F2 A1, F3 A2) or liftkit (F1 A1, F2 A2, F8
+    /// both), or one function, F1=1,2. Repeat to combine (--functions scp11 --functions F7=1,2). Without it,
+    /// move gives every connected actuator the target and reports the ones that moved.
+    #[arg(long = "functions", value_name = "MAP")]
+    pub functions: Vec<String>,
+    /// The travel range of an actuator for move targets, ACTUATOR=MIN:MAX in counts (such as 1=0:865), instead of
+    /// the virtual limits the unit reports in its UserPositionData. Repeat for several actuators.
+    #[arg(long = "stroke", value_name = "A=MIN:MAX")]
+    pub stroke: Vec<String>,
+    /// How close to its target a move must end to succeed, in counts.
+    #[arg(long, default_value_t = 5, value_name = "COUNTS", allow_hyphen_values = true,
+          value_parser = clap::value_parser!(u32).range(0..=10_000))]
+    pub tolerance: u32,
+    /// How often a move (or a run) looks at the actuators, in ms: each look is one RC keepalive that also reads
+    /// the status and position of every actuator (about 11 ms of the 38400-baud line).
+    #[arg(long, default_value_t = 50, value_name = "MS", allow_hyphen_values = true,
+          value_parser = clap::value_parser!(u64).range(5..=10_000))]
+    pub poll_interval: u64,
+    /// How the unit takes remote speeds: percent (standard units, "speed select relative") or
+    /// counts-per-second (units parameterised for "speed select absolute", 0..1000 counts/s).
+    #[arg(long, value_enum, default_value_t = SpeedModeArg::Percent, value_name = "MODE")]
+    pub speed_mode: SpeedModeArg,
+    /// Emulator configuration (TOML) when the port is sim.
+    #[arg(long, value_name = "FILE")]
+    pub sim_config: Option<PathBuf>,
+    /// Print JSON instead of a table.
+    #[arg(long, global = true)]
+    pub json: bool,
+    #[command(subcommand)]
+    pub action: Action,
+}
+
+/// `--speed-mode`: how the unit's parameterisation gives remote speeds.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpeedModeArg {
+    /// Percent of the full speed, 0..100.
+    Percent,
+    /// Encoder counts per second, 0..1000.
+    CountsPerSecond,
+}
+
+impl From<SpeedModeArg> for SpeedMode {
+    fn from(m: SpeedModeArg) -> SpeedMode {
+        match m {
+            SpeedModeArg::Percent => SpeedMode::Percent,
+            SpeedModeArg::CountsPerSecond => SpeedMode::CountsPerSecond,
+        }
+    }
+}
+
+/// What to do.
+#[derive(clap::Subcommand, Debug)]
+pub enum Action {
+    /// Firmware and configuration, actuators, positions, state, last error.
+    Info,
+    /// Read a data-list entry or group, by name (actual_position_a1, actual_positions) or index (0x0011).
+    Get {
+        /// Name or index.
+        item: String,
+    },
+    /// Write a remote data entry (0x3xxx), such as remote_speed_f1 80 or remote_position_a1 400.
+    Set {
+        /// Name or index.
+        item: String,
+        /// The value, in the entry's unit (percent, counts...).
+        value: String,
+    },
+    /// Move an actuator to a position (counts) and wait until it is there; every actuator the function drives
+    /// goes there too. Exits 0 only if each ended within --tolerance of the target. Ctrl-C stops it.
+    Move {
+        /// Actuator 1..6.
+        actuator: u8,
+        /// Target position in encoder counts.
+        #[arg(allow_negative_numbers = true)]
+        position: i32,
+        /// Speed in percent, 1..100 (or counts/s, 1..1000, on units set to absolute speed).
+        #[arg(long, default_value = "100", value_name = "SPEED", allow_hyphen_values = true)]
+        speed: String,
+        /// Motion function (1..10) that drives the actuator; default: the one with its number (F1 for A1).
+        #[arg(long)]
+        function: Option<u8>,
+    },
+    /// Follow targets read from stdin while the motion runs (streamed setpoints): each line gives the target
+    /// in counts, one number for every actuator the function drives or one per actuator ("400" or "400 410"
+    /// or "a1=400 a2=410"), or a new speed ("speed 60"); "#" starts a comment. EOF, Ctrl-C or a bad line stops
+    /// the motion.
+    Follow {
+        /// Actuator 1..6 (its function, and every actuator that function drives, follow the targets).
+        actuator: u8,
+        /// Motion function (1..10); default: the one with the actuator's number.
+        #[arg(long)]
+        function: Option<u8>,
+        /// Speed in percent, 1..100 (or counts/s, 1..1000, on units set to absolute speed).
+        #[arg(long, default_value = "100", value_name = "SPEED", allow_hyphen_values = true)]
+        speed: String,
+        /// At most this many setpoint updates per second (1..100); lines that come faster are merged: the
+        /// newest target wins.
+        #[arg(long, default_value = "20", value_name = "HZ", allow_hyphen_values = true)]
+        rate: String,
+    },
+    /// Run a function until it ends or Ctrl-C: a motion function (F1..F10) with a direction (in, out, mem1..mem4,
+    /// int-in, int-out, remote, or 0..9), or F11 buzzer, F17/F18 outputs, F20 emergency stop, F21/F22 LEDs with "on".
+    Run {
+        /// F1..F22 (or 1..22).
+        function: String,
+        /// Direction of a motion function, or "on".
+        direction: String,
+        /// Stop after this many seconds (default: when the motion ends, or Ctrl-C).
+        #[arg(long, value_name = "S", allow_hyphen_values = true)]
+        seconds: Option<String>,
+    },
+    /// Stop a function (RS): motions fast, or along the ramp with --soft.
+    Stop {
+        /// F1..F22 (or 1..22).
+        function: String,
+        /// Soft stop (along the stop ramp) instead of a fast stop.
+        #[arg(long)]
+        soft: bool,
+    },
+    /// Live positions and state until Ctrl-C.
+    Watch {
+        /// Time between samples, in ms (10 .. 3600000).
+        #[arg(long, default_value_t = 250, value_name = "MS", allow_hyphen_values = true,
+              value_parser = clap::value_parser!(u64).range(10..=3_600_000))]
+        interval: u64,
+        /// Stop after this many samples (at least 1).
+        #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u64).range(1..))]
+        count: Option<u64>,
+    },
+    /// The error history (Error_Code 1..5) with each bit's cause.
+    Errors,
+}
+
+/// `motionlink sim scu` arguments.
+#[derive(clap::Args, Debug)]
+pub struct SimArgs {
+    #[command(flatten)]
+    pub serve: ServeArgs,
+    /// Parameterisation (TOML): actuators, function mapping, stroke, speed. See the README.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Start from a preset: scp11 (default; actuator n on Fn), tlt (F1 drives both columns, F2 and F3 one each)
+    /// or liftkit (F1 actuator 1, F2 actuator 2, F8 both, as the public LIFTKIT/TLT drivers assume).
+    #[arg(long, value_parser = ["scp11", "tlt", "liftkit"])]
+    pub preset: Option<String>,
+}
+
+/// `motionlink decode scu` arguments.
+#[derive(clap::Args, Debug)]
+pub struct DecodeArgs {
+    #[command(flatten)]
+    pub capture: CaptureArgs,
+    /// Print one JSON object per telegram.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_baud(s: &str) -> Result<u32, String> {
+    match s.parse::<u32>() {
+        Ok(b @ (9_600 | 19_200 | 38_400)) => Ok(b),
+        _ => Err(format!("{s:?}: an SCU runs at 9600, 19200 or 38400 baud")),
+    }
+}
+
+fn load_sim_config(path: Option<&PathBuf>, preset: Option<&str>) -> Result<SimConfig, CliError> {
+    let mut config = preset.and_then(SimConfig::preset).unwrap_or_default();
+    if let Some(path) = path {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| CliError::usage(format!("cannot read {}: {e}", path.display())))?;
+        let text = match preset {
+            Some(p) if !text.contains("preset") => format!("preset = \"{p}\"\n{text}"),
+            _ => text,
+        };
+        config = SimConfig::from_toml(&text).map_err(|e| CliError::usage(format!("{}: {e}", path.display())))?;
+    }
+    Ok(config)
+}
+
+/// The session's settings from the command line, checked before anything is sent.
+fn client_config(args: &Args) -> Result<ClientConfig, CliError> {
+    let safety_id = SafetyId::from_code(args.safety)
+        .ok_or_else(|| CliError::usage(format!("--safety {}: the Safety_ID is 0, 1 or 2", args.safety)))?;
+    let mut function_map = FunctionMap::unknown();
+    for spec in &args.functions {
+        function_map = function_map.apply(spec).map_err(|e| CliError::usage(format!("--functions {e}")))?;
+    }
+    let mut stroke_limits = [None; 6];
+    for spec in &args.stroke {
+        let (a, limits) = parse_stroke(spec)?;
+        stroke_limits[usize::from(a.number() - 1)] = Some(limits);
+    }
+    let config = ClientConfig {
+        safety_id,
+        reply_timeout: Duration::from_millis(args.reply_timeout),
+        speed_mode: args.speed_mode.into(),
+        function_map,
+        stroke_limits,
+        position_tolerance_counts: args.tolerance,
+        poll_interval: Duration::from_millis(args.poll_interval),
+        ..ClientConfig::default()
+    };
+    config.validate().map_err(|e| CliError::usage(e.to_string()))?;
+    Ok(config)
+}
+
+/// `--stroke 1=0:865`.
+fn parse_stroke(spec: &str) -> Result<(Actuator, StrokeLimits), CliError> {
+    StrokeLimits::parse_for_actuator(spec).map_err(|e| CliError::usage(format!("--stroke {e}")))
+}
+
+/// `--speed` of a motion: a whole number from 1 to the speed mode's maximum (0 would never move).
+fn parse_speed(text: &str, mode: SpeedMode) -> Result<Speed, CliError> {
+    Speed::parse(text, mode).map_err(|e| CliError::usage(format!("--speed {e}")))
+}
+
+/// `--rate` of `follow`: 1..100 updates per second.
+fn parse_rate(text: &str) -> Result<u32, CliError> {
+    match text.trim().parse::<i64>() {
+        Ok(v) if (1..=100).contains(&v) => Ok(v as u32),
+        _ => Err(CliError::usage(format!("--rate {text:?}: give 1..100 updates per second"))),
+    }
+}
+
+/// `--seconds` of `run`: a finite, non-negative number of seconds (at most a day).
+fn parse_seconds(text: &str) -> Result<Duration, CliError> {
+    match text.trim().parse::<f64>() {
+        Ok(s) if s.is_finite() && (0.0..=86_400.0).contains(&s) => Ok(Duration::from_secs_f64(s)),
+        _ => Err(CliError::usage(format!("--seconds {text:?}: give a number of seconds, 0 .. 86400"))),
+    }
+}
+
+/// The motion function of `move` and `follow`: `--function`, or the one with the actuator's number.
+fn motion_function(actuator: Actuator, function: Option<u8>) -> Result<MotionFunction, CliError> {
+    let n = function.unwrap_or(actuator.number());
+    MotionFunction::new(n).ok_or_else(|| CliError::usage(format!("--function {n}: the motion functions are F1..F10")))
+}
+
+fn connect(args: &Args, config: ClientConfig) -> Result<Client, CliError> {
+    let port: PortUrl = args.port.parse()?;
+    let clock = RealClock::shared();
+    let connector: Connector = match &port {
+        PortUrl::Sim => {
+            let mut sim_config = load_sim_config(args.sim_config.as_ref(), None)?;
+            if args.sim_config.is_none() {
+                // The emulated unit is parameterised the way the command was told the unit is.
+                sim_config.speed_mode = args.speed_mode.into();
+            }
+            let sim = Emulator::new(sim_config).map_err(|e| CliError::usage(e.to_string()))?;
+            let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(args.baud));
+            Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>))
+        }
+        p if p.is_can() => return Err(CliError::usage(format!("{p}: the SCU speaks RS232, not CAN"))),
+        p => {
+            if args.sim_config.is_some() {
+                return Err(CliError::usage("--sim-config is only for --port sim"));
+            }
+            let p = p.clone();
+            let settings = SerialSettings::new(args.baud);
+            Box::new(move || p.open_byte_link(settings))
+        }
+    };
+    Client::open(connector, clock, config).map_err(|e| common::classified(&e))
+}
+
+fn parse_item(text: &str) -> Result<Item, CliError> {
+    lookup(text).ok_or_else(|| {
+        CliError::usage(format!(
+            "{text:?} is not a data-list entry: give a name such as actual_position_a1 or an index such as 0x0011"
+        ))
+    })
+}
+
+fn parse_actuator(n: u8) -> Result<Actuator, CliError> {
+    Actuator::new(n).ok_or_else(|| CliError::usage(format!("actuator {n}: actuators are 1..6")))
+}
+
+fn parse_function(text: &str) -> Result<Function, CliError> {
+    Function::parse(text).ok_or_else(|| {
+        CliError::usage(format!(
+            "{text:?} is not a function: F1..F10 motion, F11 buzzer, F17/F18 outputs, F20 emergency stop, F21/F22 LEDs"
+        ))
+    })
+}
+
+fn parse_direction(text: &str) -> Result<MotionDirection, CliError> {
+    MotionDirection::parse(text).ok_or_else(|| {
+        CliError::usage(format!(
+            "{text:?} is not a direction: in, out, mem1..mem4, int-in, int-out, remote, none, or 0..9"
+        ))
+    })
+}
+
+/// `motionlink scu ...`
+pub fn run(args: Args) -> Result<(), CliError> {
+    // Check everything that can be checked before the port is opened: nothing is sent for bad input.
+    let config = client_config(&args)?;
+    let mode: SpeedMode = args.speed_mode.into();
+    match &args.action {
+        Action::Get { item } | Action::Set { item, .. } => {
+            parse_item(item)?;
+        }
+        Action::Move { actuator, function, speed, .. } => {
+            motion_function(parse_actuator(*actuator)?, *function)?;
+            parse_speed(speed, mode)?;
+        }
+        Action::Follow { actuator, function, speed, rate } => {
+            motion_function(parse_actuator(*actuator)?, *function)?;
+            parse_speed(speed, mode)?;
+            parse_rate(rate)?;
+        }
+        Action::Run { function, direction, seconds } => {
+            if let Function::Motion(_) = parse_function(function)? {
+                parse_direction(direction)?;
+            } else if !direction.eq_ignore_ascii_case("on") {
+                return Err(CliError::usage(format!("{function} is switched with \"on\", not {direction:?}")));
+            }
+            if let Some(s) = seconds {
+                parse_seconds(s)?;
+            }
+        }
+        Action::Stop { function, .. } => {
+            parse_function(function)?;
+        }
+        _ => {}
+    }
+    let interrupt = common::interrupt_token();
+    let client = connect(&args, config)?;
+    let mut out = std::io::stdout().lock();
+    let result = act(&client, &args, &mut out, &interrupt);
+    // Stop what was started and leave remote mode, whatever happened.
+    let started = client.started_functions();
+    let closed = client.close();
+    finish(result, closed, &started)
+}
+
+/// Appends `note` to the message of `e`, keeping its exit code.
+fn with_note(e: CliError, note: &str) -> CliError {
+    match e {
+        CliError::Device(m) => CliError::Device(format!("{m}; {note}")),
+        CliError::Usage(m) => CliError::Usage(format!("{m}; {note}")),
+        CliError::Transport(m) => CliError::Transport(format!("{m}; {note}")),
+        CliError::Interrupted(m) => CliError::Interrupted(format!("{m}; {note}")),
+        CliError::OutputClosed => CliError::Interrupted(format!("stdout closed; {note}")),
+    }
+}
+
+/// The command's result after the session was closed ([`motionlink_scu::ending`] says what the close means):
+/// a stop the unit did not confirm is said in words (keeping the exit code of what went wrong first).
+fn finish(
+    result: Result<(), CliError>,
+    closed: Result<(), motionlink_scu::Error>,
+    started: &[u8],
+) -> Result<(), CliError> {
+    match motionlink_scu::ending(started, closed) {
+        Ending::Clean => result,
+        Ending::Stopped(note) => result.map_err(|e| match e {
+            CliError::OutputClosed => CliError::OutputClosed,
+            e => with_note(e, &note),
+        }),
+        Ending::Failed(e) => result.and(Err(common::classified(&e))),
+        Ending::Unconfirmed(e) => Err(match result {
+            Ok(()) => common::classified(&e),
+            Err(cli) => with_note(cli, &format!("then {e}")),
+        }),
+    }
+}
+
+fn act(client: &Client, args: &Args, out: &mut dyn Write, interrupt: &CancelToken) -> Result<(), CliError> {
+    // A Ctrl-C while the session was being opened: nothing was started; the session is closed (RA).
+    if interrupt.is_cancelled() {
+        return Err(CliError::Interrupted("interrupted before the action started".into()));
+    }
+    let mode = client.config().speed_mode;
+    match &args.action {
+        Action::Info => actions::info(client, args.json, out),
+        Action::Get { item } => actions::get(client, parse_item(item)?, args.json, out),
+        Action::Set { item, value } => actions::set(client, parse_item(item)?, value, args.json, out),
+        Action::Move { actuator, position, speed, function } => {
+            let a = parse_actuator(*actuator)?;
+            let function = motion_function(a, *function)?;
+            actions::move_to(client, a, *position, parse_speed(speed, mode)?, function, args.json, interrupt, out)
+        }
+        Action::Follow { actuator, function, speed, rate } => {
+            let a = parse_actuator(*actuator)?;
+            let function = motion_function(a, *function)?;
+            let speed = parse_speed(speed, mode)?;
+            follow::follow(client, a, function, speed, parse_rate(rate)?, args.json, interrupt, out)
+        }
+        Action::Run { function, direction, seconds } => {
+            let limit = seconds.as_deref().map(parse_seconds).transpose()?;
+            let action = match parse_function(function)? {
+                Function::Motion(m) => RunAction::Motion(m, parse_direction(direction)?),
+                f => RunAction::Switch(f),
+            };
+            actions::run(client, action, limit, interrupt, out)
+        }
+        Action::Stop { function, soft } => {
+            let stopped = match parse_function(function)? {
+                Function::Motion(m) => client.stop_motion(m, if *soft { StopMode::Soft } else { StopMode::Fast }),
+                f => client.switch(f, false),
+            };
+            stopped.map_err(|e| common::classified(&e))?;
+            writeln!(out, "stopped")?;
+            Ok(())
+        }
+        Action::Watch { interval, count } => actions::watch(client, args.json, *interval, *count, interrupt, out),
+        Action::Errors => actions::errors(client, args.json, out),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::follow::{parse_follow_line, FollowLine};
+    use super::*;
+
+    fn a(n: u8) -> Actuator {
+        Actuator::new(n).unwrap()
+    }
+
+    #[test]
+    fn follow_lines_give_one_target_for_all_one_each_or_named_ones() {
+        let two = [a(1), a(2)];
+        let p = |l: &str| parse_follow_line(l, &two, SpeedMode::Percent);
+        assert_eq!(p("400"), Ok(FollowLine::Targets(vec![400, 400])));
+        assert_eq!(p(" 400  410 "), Ok(FollowLine::Targets(vec![400, 410])));
+        assert_eq!(p("a2=410 A1=-3"), Ok(FollowLine::Targets(vec![-3, 410])));
+        assert_eq!(p("speed 60"), Ok(FollowLine::Speed(Speed::percent(60).unwrap())));
+        assert_eq!(p("speed=60 # slower"), Ok(FollowLine::Speed(Speed::percent(60).unwrap())));
+        assert_eq!(p("   # only a comment"), Ok(FollowLine::Skip));
+        assert_eq!(p(""), Ok(FollowLine::Skip));
+        for bad in ["400 410 420", "a1=400", "a3=1 a1=2 a2=3", "four hundred", "speed 0", "speed 101", "a1=x a2=1"] {
+            assert!(p(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn speeds_are_whole_numbers_from_1_to_the_mode_maximum() {
+        assert_eq!(parse_speed("1", SpeedMode::Percent).unwrap().raw(), 1);
+        assert_eq!(parse_speed("100", SpeedMode::Percent).unwrap().raw(), 100);
+        assert_eq!(parse_speed("1000", SpeedMode::CountsPerSecond).unwrap().raw(), 1000);
+        for bad in ["0", "-1", "101", "NaN", "inf", "50.5", "", "1e2"] {
+            let e = parse_speed(bad, SpeedMode::Percent).unwrap_err();
+            assert!(matches!(&e, CliError::Usage(m) if m.contains("--speed")), "{bad}: {e}");
+        }
+        assert!(parse_seconds("NaN").is_err() && parse_seconds("-1").is_err() && parse_seconds("0.5").is_ok());
+        assert!(parse_rate("0").is_err() && parse_rate("101").is_err() && parse_rate("100").is_ok());
+        assert!(parse_stroke("1=0:865").is_ok() && parse_stroke("1=9:1").is_err() && parse_stroke("7=0:1").is_err());
+    }
+
+    #[test]
+    fn a_failed_stop_at_the_end_keeps_the_exit_code_and_says_the_actuators_may_move() {
+        let lost = motionlink_scu::Error::SessionLost("port gone".into());
+        let e = finish(Err(CliError::Interrupted("interrupted".into())), Err(lost.clone()), &[0]).unwrap_err();
+        assert!(matches!(&e, CliError::Interrupted(m) if m.contains("may still be moving") && m.contains("F1")), "{e}");
+        let e = finish(Ok(()), Err(lost.clone()), &[1]).unwrap_err();
+        assert!(matches!(&e, CliError::Transport(m) if m.contains("F2")), "{e}");
+        let e = finish(Err(CliError::Device("stalled".into())), Ok(()), &[0]).unwrap_err();
+        assert!(matches!(&e, CliError::Device(m) if m.contains("acknowledged RS")), "{e}");
+        assert!(finish(Ok(()), Ok(()), &[]).is_ok());
+        assert!(matches!(finish(Ok(()), Err(lost), &[]), Err(CliError::Transport(_))));
+    }
+}
