@@ -3,7 +3,7 @@
 
 use motionlink_compax::model::{Command, CommandStyle, CommandText, Position, StatusId, StatusValue};
 use motionlink_compax::wire::{Address, Body, Flags, Frame, Mode, ReplyDecoder, ReplyEvent, ReplyEventRef, Request};
-use motionlink_link::alloc_count::CountingAllocator;
+use motionlink_testkit::alloc_count::CountingAllocator;
 
 #[global_allocator]
 static ALLOCATOR: CountingAllocator = CountingAllocator::new();

@@ -1,6 +1,5 @@
 //! Bytes and frames in motion, shared by every motionlink device family.
 //!
-//! - [`alloc_count`]: a counting global allocator, for tests that prove a codec does not allocate.
 //! - [`can`]: CAN frames and links (SocketCAN, SLCAN, in-memory bus).
 //! - [`capture`]: taps on links, capture files that `decode` reads back, live traces.
 //! - [`cancel`]: a cancellation flag for long actions (Ctrl-C).
@@ -20,7 +19,6 @@
 
 #![warn(missing_docs)]
 
-pub mod alloc_count;
 pub mod can;
 pub mod cancel;
 pub mod capture;

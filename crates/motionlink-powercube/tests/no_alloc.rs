@@ -1,8 +1,8 @@
 //! RS232 encode and decode (with escaping) allocate nothing: counted by a global allocator.
 
-use motionlink_link::alloc_count::CountingAllocator;
 use motionlink_powercube::wire::rs232::{self, Rs232Decoder, TelKind};
 use motionlink_powercube::wire::Payload;
+use motionlink_testkit::alloc_count::CountingAllocator;
 
 #[global_allocator]
 static ALLOCATOR: CountingAllocator = CountingAllocator::new();

@@ -1,7 +1,7 @@
 //! The codec builds and parses telegrams without touching the heap. A counting global allocator proves it.
 
-use motionlink_link::alloc_count::CountingAllocator;
 use motionlink_scu::wire::*;
+use motionlink_testkit::alloc_count::CountingAllocator;
 
 #[global_allocator]
 static ALLOCATOR: CountingAllocator = CountingAllocator::new();

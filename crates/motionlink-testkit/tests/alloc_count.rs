@@ -1,6 +1,6 @@
 //! The counting allocator counts: a test that relies on it to prove "no allocation" cannot pass vacuously.
 
-use motionlink_link::alloc_count::CountingAllocator;
+use motionlink_testkit::alloc_count::CountingAllocator;
 
 #[global_allocator]
 static ALLOCATOR: CountingAllocator = CountingAllocator::new();

@@ -1,7 +1,7 @@
 //! A global allocator that counts allocations, for tests that prove a codec allocates nothing per telegram.
 //!
 //! ```no_run
-//! use motionlink_link::alloc_count::CountingAllocator;
+//! use motionlink_testkit::alloc_count::CountingAllocator;
 //!
 //! #[global_allocator]
 //! static ALLOCATOR: CountingAllocator = CountingAllocator::new();
