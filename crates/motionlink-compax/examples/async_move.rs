@@ -9,6 +9,8 @@
 //!
 //! `tests/async_example.rs` runs the same code in `cargo test`.
 
+use std::future::Future as _;
+use std::task::Poll;
 use std::time::Duration;
 
 use motionlink_compax::client::{BusConfig, MoveRequest, MoveTarget};
@@ -55,10 +57,22 @@ pub async fn run() -> Result<Summary, Box<dyn std::error::Error>> {
         }
         Ok::<_, motionlink_compax::Error>(seen)
     };
-    let during = tokio::select! {
-        moved = client.move_to(one, &request) => return Err(format!("the move ended by itself: {moved:?}").into()),
-        seen = readings => seen?,
+    // Race the move against the readings (what `tokio::select!` does, written out with std's poll_fn).
+    let mut moving = Box::pin(client.move_to(one, &request));
+    let mut readings = Box::pin(readings);
+    let raced = std::future::poll_fn(|cx| {
+        if let Poll::Ready(moved) = moving.as_mut().poll(cx) {
+            return Poll::Ready(Err(moved));
+        }
+        readings.as_mut().poll(cx).map(Ok)
+    })
+    .await;
+    let during = match raced {
+        Ok(seen) => seen?,
+        Err(moved) => return Err(format!("the move ended by itself: {moved:?}").into()),
     };
+    drop(moving);
+    drop(readings);
     // The move's future was dropped when the readings ended: its operation is cancelled, and the session
     // stops the axis it started. Wait (bounded) until it has confirmed that.
     for _ in 0..200 {
@@ -86,7 +100,8 @@ pub async fn run() -> Result<Summary, Box<dyn std::error::Error>> {
     Ok(Summary { during, stopped_at, later, o0: s16.o0_state(), moving: s17.contains(S17Flag::CommandActive) })
 }
 
-#[tokio::main]
-async fn main() -> Result<(), Box<dyn std::error::Error>> {
-    run().await.map(|_| ())
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    // A tokio runtime made by hand (what `#[tokio::main]` would write).
+    let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
+    runtime.block_on(async { run().await.map(|_| ()) })
 }

@@ -250,32 +250,35 @@ fn operations_after_close_fail_and_a_dead_device_bounds_the_close() {
 }
 
 #[cfg(feature = "tokio")]
-#[tokio::test]
-async fn on_tokio_positions_are_read_while_a_move_runs_and_a_dropped_task_stops_it() {
-    use motionlink_link::driver::AsyncDriver;
-    let clock = RealClock::shared();
-    let (driver, host) = setup(Arc::clone(&clock));
-    let driver = Arc::new(AsyncDriver::from_driver(driver));
-    let mover = {
-        let d = Arc::clone(&driver);
-        tokio::spawn(async move { d.run(Op::Move(1000)).await })
-    };
-    let mut reads = Vec::new();
-    for _ in 0..5 {
-        reads.push(driver.run(Op::Get).await.unwrap());
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    }
-    assert!(reads.windows(2).any(|w| w[1] > w[0]), "positions change during the move: {reads:?}");
-    mover.abort(); // the task's future is dropped: its move is cancelled and stopped
-    let _ = mover.await;
-    let mut stopped = false;
-    for _ in 0..100 {
-        if host.with_device(|d| d.moving_since.is_none()) {
-            stopped = true;
-            break;
+#[test]
+fn on_tokio_positions_are_read_while_a_move_runs_and_a_dropped_task_stops_it() {
+    let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
+    runtime.block_on(async {
+        use motionlink_link::driver::AsyncDriver;
+        let clock = RealClock::shared();
+        let (driver, host) = setup(Arc::clone(&clock));
+        let driver = Arc::new(AsyncDriver::from_driver(driver));
+        let mover = {
+            let d = Arc::clone(&driver);
+            tokio::spawn(async move { d.run(Op::Move(1000)).await })
+        };
+        let mut reads = Vec::new();
+        for _ in 0..5 {
+            reads.push(driver.run(Op::Get).await.unwrap());
+            tokio::time::sleep(Duration::from_millis(20)).await;
         }
-        tokio::time::sleep(Duration::from_millis(5)).await;
-    }
-    assert!(stopped, "aborting the task stopped the motion");
-    Arc::try_unwrap(driver).unwrap().close().await.unwrap();
+        assert!(reads.windows(2).any(|w| w[1] > w[0]), "positions change during the move: {reads:?}");
+        mover.abort(); // the task's future is dropped: its move is cancelled and stopped
+        let _ = mover.await;
+        let mut stopped = false;
+        for _ in 0..100 {
+            if host.with_device(|d| d.moving_since.is_none()) {
+                stopped = true;
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+        assert!(stopped, "aborting the task stopped the motion");
+        Arc::try_unwrap(driver).unwrap().close().await.unwrap();
+    })
 }

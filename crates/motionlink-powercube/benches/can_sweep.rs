@@ -10,7 +10,7 @@
 //! is printed beside it. The in-memory bus times every frame with its stuffed length too, so the ratio
 //! compares like with like.
 //!
-//! `cargo bench -p motionlink-powercube --bench can_sweep -- --warm-up-time 1 --measurement-time 3` is
+//! `cargo bench -p motionlink-powercube --features bench --bench can_sweep -- --warm-up-time 1 --measurement-time 3` is
 //! a quick run.
 
 use std::hint::black_box;

@@ -3,7 +3,7 @@
 //! real stuff bits counted). The blocking client drives the link on the caller's thread; the async client
 //! hands each operation to the driver's thread and is woken by it: the difference is what that costs.
 //!
-//! `cargo bench -p motionlink-powercube --bench host_overhead -- --warm-up-time 1 --measurement-time 3` is
+//! `cargo bench -p motionlink-powercube --features bench --bench host_overhead -- --warm-up-time 1 --measurement-time 3` is
 //! a quick run.
 
 use std::hint::black_box;

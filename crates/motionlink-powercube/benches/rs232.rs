@@ -2,7 +2,7 @@
 //! allocation (the allocation-free property is asserted by tests/no_alloc.rs); measured quiet and with two
 //! CPU-bound threads running beside it.
 //!
-//! `cargo bench -p motionlink-powercube --bench rs232 -- --warm-up-time 1 --measurement-time 3` is a quick
+//! `cargo bench -p motionlink-powercube --features bench --bench rs232 -- --warm-up-time 1 --measurement-time 3` is a quick
 //! run.
 
 use std::hint::black_box;

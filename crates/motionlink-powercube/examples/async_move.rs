@@ -44,23 +44,21 @@ pub async fn run() -> Result<Seen, Error> {
     // end of the scope).
     let mut moving = Box::pin(joint.move_to(&spec));
     let mut during = Vec::new();
-    let mut every = tokio::time::interval(Duration::from_millis(50));
-    // The move runs in the session whether or not its future is polled; meanwhile, positions.
+    // The move runs in the session whether or not its future is polled; meanwhile, every 50 ms, positions.
     loop {
-        tokio::select! {
-            done = moving.as_mut() => {
-                println!("the move ended before it was cancelled: {done:?}");
-                return Err(Error::Unsupported("the move ended too soon".into()));
-            }
-            _ = every.tick() => {
-                let both = client.positions(&[1, 2]).await;
-                let p = both[0].as_ref().map_err(|e| Error::Unsupported(e.to_string()))?;
-                println!("module 1 at {p}, module 2 at {}", both[1].as_ref().map_or_else(ToString::to_string, ToString::to_string));
-                during.push(*p);
-                if p.value() > 0.4 {
-                    break;
-                }
-            }
+        if let Ok(done) = tokio::time::timeout(Duration::from_millis(50), moving.as_mut()).await {
+            println!("the move ended before it was cancelled: {done:?}");
+            return Err(Error::Unsupported("the move ended too soon".into()));
+        }
+        let both = client.positions(&[1, 2]).await;
+        let p = both[0].as_ref().map_err(|e| Error::Unsupported(e.to_string()))?;
+        println!(
+            "module 1 at {p}, module 2 at {}",
+            both[1].as_ref().map_or_else(ToString::to_string, ToString::to_string)
+        );
+        during.push(*p);
+        if p.value() > 0.4 {
+            break;
         }
     }
     // Cancelling is dropping: the session halts what the move started.
@@ -87,9 +85,12 @@ pub async fn run() -> Result<Seen, Error> {
     Ok(Seen { during, after, stopped_at: (first, second), events })
 }
 
-#[tokio::main(flavor = "current_thread")]
-async fn main() -> Result<(), Error> {
-    let seen = run().await?;
-    println!("{} positions read while moving; the emulator says: {:?}", seen.during.len(), seen.events);
-    Ok(())
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    // A tokio runtime made by hand (what `#[tokio::main]` would write).
+    let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
+    runtime.block_on(async {
+        let seen = run().await?;
+        println!("{} positions read while moving; the emulator says: {:?}", seen.during.len(), seen.events);
+        Ok(())
+    })
 }

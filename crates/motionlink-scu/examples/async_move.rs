@@ -84,12 +84,15 @@ pub async fn run() -> Result<Seen, Box<dyn std::error::Error + Send + Sync>> {
     Ok(seen)
 }
 
-#[tokio::main]
-async fn main() -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-    let seen = run().await?;
-    println!("positions of A1 read while it moved: {:?} counts", seen.reads);
-    println!("the move was cancelled by dropping its future; A1 came to rest at {} counts", seen.rest.0);
-    println!("300 ms later A1 is at {} counts; the unit moves it: {}", seen.rest.1, seen.unit_moving);
-    println!("functions still started: {:?} (every RE got its RS)", seen.started);
-    Ok(())
+fn main() -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+    // A tokio runtime made by hand (what `#[tokio::main]` would write).
+    let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
+    runtime.block_on(async {
+        let seen = run().await?;
+        println!("positions of A1 read while it moved: {:?} counts", seen.reads);
+        println!("the move was cancelled by dropping its future; A1 came to rest at {} counts", seen.rest.0);
+        println!("300 ms later A1 is at {} counts; the unit moves it: {}", seen.rest.1, seen.unit_moving);
+        println!("functions still started: {:?} (every RE got its RS)", seen.started);
+        Ok(())
+    })
 }

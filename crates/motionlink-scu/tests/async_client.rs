@@ -35,36 +35,42 @@ async fn eventually(mut done: impl FnMut() -> bool) -> bool {
     false
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn writes_are_read_back_and_a_move_reaches_its_target() {
-    let (unit, client) = setup();
-    let client = client.await;
-    client.set(DataIndex(0x3012), &Value::RemoteSpeed(55)).await.unwrap();
-    assert_eq!(client.get_value(DataIndex(0x3012)).await.unwrap(), Value::RemoteSpeed(55));
-    let a1 = Actuator::new(1).unwrap();
-    let report = client.move_to(a1, 60, Speed::percent(100).unwrap(), None).await.unwrap();
-    assert_eq!(report.position_counts, 60);
-    assert_eq!(unit.with_device(|u| u.position(a1)), Some(60));
-    client.close().await.unwrap();
-    assert_eq!(unit.with_device(|u| u.mode()), RemoteMode::Off);
+#[test]
+fn writes_are_read_back_and_a_move_reaches_its_target() {
+    let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+    runtime.block_on(async {
+        let (unit, client) = setup();
+        let client = client.await;
+        client.set(DataIndex(0x3012), &Value::RemoteSpeed(55)).await.unwrap();
+        assert_eq!(client.get_value(DataIndex(0x3012)).await.unwrap(), Value::RemoteSpeed(55));
+        let a1 = Actuator::new(1).unwrap();
+        let report = client.move_to(a1, 60, Speed::percent(100).unwrap(), None).await.unwrap();
+        assert_eq!(report.position_counts, 60);
+        assert_eq!(unit.with_device(|u| u.position(a1)), Some(60));
+        client.close().await.unwrap();
+        assert_eq!(unit.with_device(|u| u.mode()), RemoteMode::Off);
+    })
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_dropped_stream_stops_its_function_and_a_dropped_client_ends_the_session() {
-    let (unit, client) = setup();
-    let client = client.await;
-    let a1 = Actuator::new(1).unwrap();
-    let f1 = MotionFunction::new(1).unwrap();
-    let mut stream = client.stream(f1, &[a1], Speed::percent(100).unwrap()).await.unwrap();
-    stream.set_targets(&[800]).await.unwrap();
-    assert!(eventually(|| unit.with_device(|u| u.is_moving(a1))).await);
-    drop(stream);
-    assert!(eventually(|| !unit.with_device(|u| u.is_moving(a1))).await, "the dropped stream stopped F1");
-    assert!(eventually(|| client.started_functions().is_empty()).await);
-    // A function left started when the client is dropped gets its RS, and the session its RA.
-    client.start_motion(f1, motionlink_scu::model::MotionDirection::Out).await.unwrap();
-    assert!(eventually(|| unit.with_device(|u| u.is_moving(a1))).await);
-    drop(client);
-    assert!(eventually(|| unit.with_device(|u| !u.any_moving() && u.mode() == RemoteMode::Off)).await);
-    assert!(unit.with_device(|u| u.executed_functions().is_empty()));
+#[test]
+fn a_dropped_stream_stops_its_function_and_a_dropped_client_ends_the_session() {
+    let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+    runtime.block_on(async {
+        let (unit, client) = setup();
+        let client = client.await;
+        let a1 = Actuator::new(1).unwrap();
+        let f1 = MotionFunction::new(1).unwrap();
+        let mut stream = client.stream(f1, &[a1], Speed::percent(100).unwrap()).await.unwrap();
+        stream.set_targets(&[800]).await.unwrap();
+        assert!(eventually(|| unit.with_device(|u| u.is_moving(a1))).await);
+        drop(stream);
+        assert!(eventually(|| !unit.with_device(|u| u.is_moving(a1))).await, "the dropped stream stopped F1");
+        assert!(eventually(|| client.started_functions().is_empty()).await);
+        // A function left started when the client is dropped gets its RS, and the session its RA.
+        client.start_motion(f1, motionlink_scu::model::MotionDirection::Out).await.unwrap();
+        assert!(eventually(|| unit.with_device(|u| u.is_moving(a1))).await);
+        drop(client);
+        assert!(eventually(|| unit.with_device(|u| !u.any_moving() && u.mode() == RemoteMode::Off)).await);
+        assert!(unit.with_device(|u| u.executed_functions().is_empty()));
+    })
 }
