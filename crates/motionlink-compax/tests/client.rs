@@ -14,7 +14,7 @@ use motionlink_link::clock::{Clock, ManualClock};
 use motionlink_link::pipe::{Direction, EmulatorHost, PipeConfig};
 use motionlink_link::transcript::{TapLink, Transcript, Way};
 
-mod support;
+use crate::support;
 
 use support::*;
 

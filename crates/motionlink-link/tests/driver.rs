@@ -16,7 +16,7 @@ use motionlink_link::driver::{Driver, DriverConfig, Port};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::LinkError;
 
-mod toy;
+use crate::toy;
 use toy::{Op, Toy, ToyError, ToySession};
 
 // ----------------------------------------------------------------------------------------------------------

@@ -1,7 +1,7 @@
 //! The client against the emulator, in-process: opening, the keepalive, reads and writes, moves, cancel,
 //! the end of the session, cyclic objects.
 
-mod rig;
+use crate::rig;
 
 use rig::*;
 

@@ -1,7 +1,7 @@
 //! The client against the emulator with faults on the line: corrupt and lost bytes, a slow unit, a silent
 //! line, a lost port and reconnection, keepalive timing, round trips of 300 ms, one flipped bit, dead links.
 
-mod rig;
+use crate::rig;
 
 use rig::*;
 

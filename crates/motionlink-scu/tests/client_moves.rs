@@ -1,7 +1,7 @@
 //! Moves of functions that drive several actuators, polling, streamed setpoints, watchdog lapses with
 //! Safety_ID 1 and 2, read-back of writes, function maps.
 
-mod rig;
+use crate::rig;
 
 use rig::*;
 

@@ -1,7 +1,7 @@
 //! The emulator, driven through its sans-IO interface with explicit timestamps: remote mode, motion, the
 //! watchdog, checks of every command, the data list, functions.
 
-mod bench;
+use crate::bench;
 
 use bench::*;
 

@@ -1,6 +1,6 @@
 //! The emulator's events, error bits, presets, and the bytes the public drivers send.
 
-mod bench;
+use crate::bench;
 
 use bench::*;
 

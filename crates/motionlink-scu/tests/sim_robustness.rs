@@ -1,6 +1,6 @@
 //! The emulator's configuration file, and its robustness against arbitrary sessions and bytes.
 
-mod bench;
+use crate::bench;
 
 use bench::*;
 

@@ -1,0 +1,13 @@
+//! The integration tests of motionlink-compax, built as one test binary (one link instead of one per file:
+//! see the README's "Tests and benchmarks"). Tests that measure the whole process (allocations, CPU time)
+//! stay binaries of their own.
+
+mod support;
+
+mod async_example;
+mod client;
+mod client_stops;
+mod e2e;
+mod robustness;
+mod safety;
+mod shared;
