@@ -12,6 +12,7 @@
 
 mod common;
 mod compax;
+mod console;
 #[allow(dead_code)] // taken up by each family's --port/--device when its command is rebuilt (issue 8)
 mod devices;
 mod ports;
@@ -51,6 +52,9 @@ enum Command {
     Powercube(powercube::Args),
     /// Parker COMPAX servo drives (RS485 / RS232).
     Compax(compax::Args),
+    /// Serve a commissioning page for a device in the browser, on 127.0.0.1 (prints its address with a
+    /// token).
+    Console(console::Args),
     /// Serve an emulated device over TCP or a pseudo-terminal until killed.
     Sim {
         #[command(subcommand)]
@@ -118,6 +122,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Scu(args) => scu::run(args),
         Command::Powercube(args) => powercube::run(args),
         Command::Compax(args) => compax::run(args),
+        Command::Console(args) => console::run(args),
         Command::Sim { family } => match family {
             SimFamily::Scu(args) => scu::sim(args),
             SimFamily::Powercube(args) => powercube::sim(args),
