@@ -108,7 +108,8 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
                 let bus = Emulator::new(SimConfig::bus(&sim_drives, p196, baud)).map_err(|e| {
                     motionlink_link::LinkError::InvalidPort { port: "sim".into(), reason: e.to_string() }
                 })?;
-                let host = EmulatorHost::new(bus, link_clock, PipeConfig::paced(baud));
+                // In this process, the emulated line has no wire time: the page samples it at its full rate.
+                let host = EmulatorHost::new(bus, link_clock, PipeConfig::instant());
                 Box::new(host.connect().0)
             }
             other => {

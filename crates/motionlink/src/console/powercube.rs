@@ -59,6 +59,10 @@ struct PowerCube {
     guard: Guard,
     /// The kind of each module found (rotary or linear), by address.
     kinds: std::sync::Mutex<[Option<ModuleKind>; 32]>,
+    /// Which of velocity and current the next sample reads.
+    turn: std::sync::atomic::AtomicU64,
+    /// The last velocity and current read of each module.
+    last_vel_current: std::sync::Mutex<std::collections::HashMap<u8, (Option<f64>, Option<f64>)>>,
     /// The last emulator, kept alive with the session for `--port sim`.
     _host: Option<EmulatorHost<Emulator>>,
 }
@@ -150,6 +154,8 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
         modules: args.modules.clone(),
         guard,
         kinds: std::sync::Mutex::new([None; 32]),
+        turn: std::sync::atomic::AtomicU64::new(0),
+        last_vel_current: std::sync::Mutex::new(std::collections::HashMap::new()),
         _host: host,
     };
     Ok((Arc::new(device), traffic))
@@ -267,22 +273,34 @@ impl Device for PowerCube {
         Box::pin(async move {
             let mut out = Vec::new();
             for u in units {
+                // Position and state every time; velocity and current take turns (each at half the rate),
+                // so that a 9600-baud line still gives positions at 20 Hz.
+                let turn = self.turn.fetch_add(1, std::sync::atomic::Ordering::Relaxed) % 2 == 0;
                 let look = async {
                     let m = self.client.module(u.id)?;
                     let position = m.position().await?;
                     let state = m.state().await?;
-                    let velocity = m.get(Param::ActVel).await?;
-                    let current = m.get(Param::ActFMotorCurrent).await?;
-                    Ok::<_, Error>((position, state, velocity, current))
+                    let other = m.get(if turn { Param::ActVel } else { Param::ActFMotorCurrent }).await?;
+                    Ok::<_, Error>((position, state, other))
                 };
                 out.push(match look.await {
-                    Ok((position, state, velocity, current)) => {
+                    Ok((position, state, other)) => {
                         let (flags, faults, unknown_bits) = state_names(state);
+                        let (velocity, current) = {
+                            let mut last = motionlink_link::clock::lock(&self.last_vel_current);
+                            let slot = last.entry(u.id).or_insert((None, None));
+                            if turn {
+                                slot.0 = f32_of(other);
+                            } else {
+                                slot.1 = f32_of(other);
+                            }
+                            *slot
+                        };
                         Ok(Sample {
                             id: u.id,
                             position: f64::from(position.value()),
-                            speed: f32_of(velocity),
-                            current_amps: f32_of(current),
+                            speed: velocity,
+                            current_amps: current,
                             flags,
                             faults,
                             unknown_bits,

@@ -211,15 +211,19 @@ async fn page(hub: Arc<Hub>, mut socket: WebSocket) {
                 Err(broadcast::error::RecvError::Lagged(_)) => {}
                 Err(broadcast::error::RecvError::Closed) => break 'page,
             },
-            _ = tick.tick() => {
-                if samples.has_changed().unwrap_or(false) {
-                    let frame = samples.borrow_and_update().clone();
-                    if let Some(text) = frame {
-                        if socket.send(Message::Text(text.as_str().into())).await.is_err() {
-                            break 'page;
-                        }
+            changed = samples.changed() => {
+                if changed.is_err() {
+                    break 'page;
+                }
+                // Each sample goes out as soon as it is taken.
+                let frame = samples.borrow_and_update().clone();
+                if let Some(text) = frame {
+                    if socket.send(Message::Text(text.as_str().into())).await.is_err() {
+                        break 'page;
                     }
                 }
+            }
+            _ = tick.tick() => {
                 let lines = hub.traffic.since(last_seq, LOG_BATCH);
                 if let Some(last) = lines.last() {
                     last_seq = last.seq;
