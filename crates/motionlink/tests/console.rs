@@ -395,3 +395,119 @@ fn the_error_history_and_the_traffic_log_are_decoded() {
         assert!(parsed.is_some(), "{l:?}");
     }
 }
+
+/// One family's rules against its emulator over TCP: Stop halts a move, a jog stops by its dead-man
+/// deadline, a lost WebSocket stops a move; `rearm` (if any) makes the unit take the next motion after a stop.
+struct FamilyCase {
+    family: &'static str,
+    key: &'static str,
+    target_key: &'static str,
+    targets: [f64; 2],
+    started: fn(&str) -> bool,
+    stopped: fn(&str) -> bool,
+    rearm: Option<&'static str>,
+}
+
+fn family_rules(case: &FamilyCase) {
+    let sim = Sim::start(case.family, &["--tcp", "127.0.0.1:0"]);
+    let c = console(&[case.family, "--port", &sim.address]);
+    let mut ws = ws(&c);
+    let found = units(&mut ws);
+    let unit = found[0][case.key].as_u64().expect("a unit number");
+    let family = case.family;
+    let rearm = |ws: &mut Ws| {
+        if let Some(action) = case.rearm {
+            send(ws, json!({"type": "action", case.key: unit, "name": action}));
+            let v = recv_until(ws, Duration::from_secs(10), |v| v["type"] == "action" || v["type"] == "failed")
+                .expect("the action's answer");
+            assert_eq!(v["ok"], true, "{family}: {v}");
+        }
+    };
+
+    // Stop halts a move.
+    let begun = unix_now();
+    send(&mut ws, json!({"type": "move", case.key: unit, case.target_key: case.targets[0]}));
+    sim.wait_event_after(begun, Duration::from_secs(10), case.started).unwrap_or_else(|| {
+        panic!("{family}: the move did not start: {:?}", sim.events().iter().map(|e| &e.text).collect::<Vec<_>>())
+    });
+    let pressed = unix_now();
+    send(&mut ws, json!({"type": "stop", case.key: unit}));
+    let stopped = sim.wait_event_after(pressed, Duration::from_secs(5), case.stopped).expect("Stop halts the move");
+    assert!(stopped.at - pressed < 0.3, "{family}: stopped {:.3} s after Stop", stopped.at - pressed);
+    recv_until(&mut ws, Duration::from_secs(5), |v| v["type"] == "motion" && v["state"] == "stopped")
+        .expect("the page is told");
+    rearm(&mut ws);
+
+    // A jog runs while renewed, then stops by its deadline.
+    let begun = unix_now();
+    send(&mut ws, json!({"type": "jog", case.key: unit, "direction": "positive"}));
+    let started = sim.wait_event_after(begun, Duration::from_secs(10), case.started).expect("the jog starts");
+    let mut last_renewal = unix_now();
+    while unix_now() - started.at < 0.6 {
+        send(&mut ws, json!({"type": "jog_hold"}));
+        last_renewal = unix_now();
+        recv_until(&mut ws, Duration::from_millis(50), |_| false);
+    }
+    let early: Vec<_> = sim.events().into_iter().filter(|e| e.at > started.at && (case.stopped)(&e.text)).collect();
+    assert!(
+        early.is_empty(),
+        "{family}: the jog stopped while renewed: {:?}",
+        early.iter().map(|e| &e.text).collect::<Vec<_>>()
+    );
+    let stopped =
+        sim.wait_event_after(last_renewal, Duration::from_secs(5), case.stopped).expect("the deadline stops it");
+    let after = stopped.at - last_renewal;
+    assert!((0.195..0.45).contains(&after), "{family}: stopped {after:.3} s after the last renewal");
+    recv_until(&mut ws, Duration::from_secs(5), |v| v["type"] == "motion" && v["state"] == "stopped")
+        .expect("the page is told");
+    rearm(&mut ws);
+
+    // A lost WebSocket stops the move of its page.
+    let begun = unix_now();
+    send(&mut ws, json!({"type": "move", case.key: unit, case.target_key: case.targets[1]}));
+    sim.wait_event_after(begun, Duration::from_secs(10), case.started).expect("the second move starts");
+    let gone = unix_now();
+    ws.get_ref().shutdown(std::net::Shutdown::Both).unwrap();
+    drop(ws);
+    let stopped = sim.wait_event_after(gone, Duration::from_secs(5), case.stopped).expect("a lost page stops it");
+    assert!(stopped.at - gone < 0.3, "{family}: stopped {:.3} s after the page went", stopped.at - gone);
+}
+
+#[test]
+fn scu_stop_jog_dead_man_and_lost_page() {
+    family_rules(&FamilyCase {
+        family: "scu",
+        key: "actuator",
+        target_key: "target_counts",
+        targets: [800.0, 0.0],
+        started: |t| t.starts_with("F1 started"),
+        stopped: |t| t == "F1 stopped (RS fast)",
+        rearm: None,
+    });
+}
+
+#[test]
+fn powercube_stop_jog_dead_man_and_lost_page() {
+    family_rules(&FamilyCase {
+        family: "powercube",
+        key: "module",
+        target_key: "target_rad",
+        targets: [3.0, -3.0],
+        started: |t| t.starts_with("module 1 motion started"),
+        stopped: |t| t == "module 1 halted",
+        rearm: Some("reset"),
+    });
+}
+
+#[test]
+fn compax_stop_jog_dead_man_and_lost_page() {
+    family_rules(&FamilyCase {
+        family: "compax",
+        key: "drive",
+        target_key: "target_units",
+        targets: [700.0, -700.0],
+        started: |t| t.starts_with("drive 1 motion started"),
+        stopped: |t| t == "drive 1 switched off (O0=0)",
+        rearm: Some("switch_on"),
+    });
+}
