@@ -52,6 +52,9 @@ pub struct Args {
     pub serve: ServeArgs,
 }
 
+/// The last velocity and current read of a module (None: not read yet, or not a number).
+type VelocityCurrent = (Option<f64>, Option<f64>);
+
 struct PowerCube {
     client: AsyncClient,
     port: String,
@@ -62,7 +65,7 @@ struct PowerCube {
     /// Which of velocity and current the next sample reads.
     turn: std::sync::atomic::AtomicU64,
     /// The last velocity and current read of each module.
-    last_vel_current: std::sync::Mutex<std::collections::HashMap<u8, (Option<f64>, Option<f64>)>>,
+    last_vel_current: std::sync::Mutex<std::collections::HashMap<u8, VelocityCurrent>>,
     /// The last emulator, kept alive with the session for `--port sim`.
     _host: Option<EmulatorHost<Emulator>>,
 }

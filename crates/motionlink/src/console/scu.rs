@@ -80,7 +80,7 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
         SpeedModeArg::Percent => SpeedMode::Percent,
         SpeedModeArg::CountsPerSecond => SpeedMode::CountsPerSecond,
     };
-    let config = ClientConfig { safety_id, function_map: functions.clone(), speed_mode, ..ClientConfig::default() };
+    let config = ClientConfig { safety_id, function_map: functions, speed_mode, ..ClientConfig::default() };
     config.validate().map_err(|e| CliError::usage(e.to_string()))?;
     let url: PortUrl = args.port.parse()?;
     let traffic = Arc::new(Traffic::new(
@@ -93,8 +93,7 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
     let tap_clock = Arc::clone(clock);
     let mut inner: Connector = match &url {
         PortUrl::Sim => {
-            let mut sim_config = SimConfig::default();
-            sim_config.speed_mode = speed_mode;
+            let sim_config = SimConfig { speed_mode, ..SimConfig::default() };
             let sim = Emulator::new(sim_config).map_err(|e| CliError::usage(e.to_string()))?;
             let host = EmulatorHost::new(sim, Arc::clone(clock), PipeConfig::paced(args.baud));
             Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>))
