@@ -164,17 +164,17 @@ mod tests {
         let traffic = Traffic::new(Box::new(motionlink_scu::describe::Describer::new()), "scu sim", "can0", &shared);
         // RG 0x0011 (the manual's example) and its ACK, the request in two chunks.
         traffic.record(shared.now(), Direction::ToDevice, Tapped::Bytes(&[0x52, 0x47]));
-        traffic.record(shared.now(), Direction::ToDevice, Tapped::Bytes(&[0x11, 0x00, 0xA3, 0x0E]));
+        traffic.record(shared.now(), Direction::ToDevice, Tapped::Bytes(&[0x11, 0x00, 0x2C, 0x30]));
         let file = traffic.capture_file();
         let mut lines = file.lines();
         assert_eq!(lines.next(), Some("# motionlink capture: scu sim"));
         let parsed: Vec<_> = lines.map(|l| parse_line(l).unwrap().unwrap()).collect();
         assert_eq!(parsed.len(), 2);
         assert_eq!(parsed[1].direction, Direction::ToDevice);
-        assert_eq!(parsed[1].data, CapturedLine::Bytes(vec![0x11, 0x00, 0xA3, 0x0E]));
+        assert_eq!(parsed[1].data, CapturedLine::Bytes(vec![0x11, 0x00, 0x2C, 0x30]));
         let log = traffic.since(0, 10);
         assert_eq!(log.len(), 1, "one telegram from two chunks: {log:?}");
-        assert_eq!(log[0].bytes, vec![0x52, 0x47, 0x11, 0x00, 0xA3, 0x0E]);
+        assert_eq!(log[0].bytes, vec![0x52, 0x47, 0x11, 0x00, 0x2C, 0x30]);
         assert!(!log[0].bad && log[0].meaning.contains("0x0011"), "{}", log[0].meaning);
         assert_eq!(traffic.last_seq(), 1);
         assert!(traffic.since(1, 10).is_empty());
