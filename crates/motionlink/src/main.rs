@@ -5,6 +5,7 @@
 //! motionlink sim <family> --tcp ADDR | --pty     serve an emulated device
 //! motionlink decode <family>                     annotate a capture
 //! motionlink demo                                the manuals' examples against built-in emulators
+//! motionlink console <family> --port PORT        a commissioning page in the browser, on 127.0.0.1
 //! ```
 //!
 //! Exit codes: 0 success, 1 device refused or device error (or a move that did not reach its target),
