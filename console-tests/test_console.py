@@ -2,7 +2,9 @@
 
 import time
 
-from conftest import ROOT
+import pytest
+
+from conftest import ROOT, Console
 
 
 def _wait(browser, condition, timeout=10.0, message=""):
@@ -129,3 +131,20 @@ def test_a_second_page_is_read_only_and_says_so(browser, compax_sim, compax_cons
     assert not browser.find_element(By.ID, "move").is_enabled()
     assert not browser.find_element(By.ID, "jog-positive").is_enabled()
     assert browser.find_element(By.ID, "stop").is_enabled(), "Stop works on every page"
+
+
+
+@pytest.mark.parametrize("family,label,unit", [("scu", "A1", "counts"), ("powercube", "module 1", "rad"),
+                                               ("compax", "drive 1", "units")])
+def test_each_family_shows_its_units_live(browser, family, label, unit):
+    from selenium.webdriver.common.by import By
+    console = Console(family, "--port", "sim")
+    try:
+        _open(browser, console)
+        row = browser.find_element(By.ID, "unit-1")
+        assert label in row.text, row.text
+        assert browser.find_element(By.CSS_SELECTOR, "#unit-1 .position").text.endswith(unit)
+        _wait(browser, lambda b: int(b.find_element(By.ID, "rate").text.split()[0]) >= 20, 10,
+              "samples at 20 Hz or more")
+    finally:
+        console.stop()
