@@ -37,7 +37,8 @@ function connect() {
   ws = new WebSocket(`${scheme}//${location.host}/ws?token=${encodeURIComponent(token)}`);
   ws.onopen = () => { $("link-state").textContent = "connected"; };
   ws.onclose = () => {
-    $("link-state").textContent = "disconnected from the console (any motion it ran from this page was stopped)";
+    $("link-state").textContent =
+      "disconnected: the console stops any motion this page started when it loses the page (reload to reconnect)";
     stopJogTimer();
     document.body.dataset.connected = "false";
   };
