@@ -317,7 +317,7 @@ fn a_released_jog_stops() {
     let off = sim
         .wait_event_after(released, Duration::from_secs(5), |t| t == "drive 1 switched off (O0=0)")
         .expect("releasing stops the jog");
-    assert!(off.at - released < 0.15, "stopped {:.3} s after the release", off.at - released);
+    assert!(off.at - released < 0.3, "stopped {:.3} s after the release", off.at - released);
 }
 
 #[test]
