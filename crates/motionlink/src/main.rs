@@ -5,6 +5,7 @@
 //! motionlink sim <family> --tcp ADDR | --pty     serve an emulated device
 //! motionlink decode <family>                     annotate a capture
 //! motionlink demo                                the manuals' examples against built-in emulators
+//! motionlink console <family> --port PORT        a commissioning page in the browser, on 127.0.0.1
 //! ```
 //!
 //! Exit codes: 0 success, 1 device refused or device error (or a move that did not reach its target),
@@ -12,6 +13,7 @@
 
 mod common;
 mod compax;
+mod console;
 #[allow(dead_code)] // taken up by each family's --port/--device when its command is rebuilt (issue 8)
 mod devices;
 mod ports;
@@ -51,6 +53,9 @@ enum Command {
     Powercube(powercube::Args),
     /// Parker COMPAX servo drives (RS485 / RS232).
     Compax(compax::Args),
+    /// Serve a commissioning page for a device in the browser, on 127.0.0.1 (prints its address with a
+    /// token).
+    Console(console::Args),
     /// Serve an emulated device over TCP or a pseudo-terminal until killed.
     Sim {
         #[command(subcommand)]
@@ -118,6 +123,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Scu(args) => scu::run(args),
         Command::Powercube(args) => powercube::run(args),
         Command::Compax(args) => compax::run(args),
+        Command::Console(args) => console::run(args),
         Command::Sim { family } => match family {
             SimFamily::Scu(args) => scu::sim(args),
             SimFamily::Powercube(args) => powercube::sim(args),

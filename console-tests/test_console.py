@@ -1,0 +1,150 @@
+"""`motionlink console` in a real browser (headless Chromium) against an emulated COMPAX drive."""
+
+import time
+
+import pytest
+
+from conftest import ROOT, Console
+
+
+def _wait(browser, condition, timeout=10.0, message=""):
+    from selenium.webdriver.support.ui import WebDriverWait
+    return WebDriverWait(browser, timeout, poll_frequency=0.02).until(condition, message)
+
+
+def _open(browser, console):
+    from selenium.webdriver.common.by import By
+    browser.get(console.url)
+    _wait(browser, lambda b: b.find_elements(By.CSS_SELECTOR, "#unit-1 .position"), 30, "the drive is found")
+    _wait(browser, lambda b: b.find_element(By.CSS_SELECTOR, "#unit-1 .position").text not in ("", "—"),
+          10, "its position is shown")
+    _wait(browser, lambda b: b.find_element(By.ID, "role").text.startswith("this page controls"), 10, "it controls")
+
+
+def _position(browser):
+    from selenium.webdriver.common.by import By
+    text = browser.find_element(By.CSS_SELECTOR, "#unit-1 .position").text
+    return float(text.split()[0])
+
+
+def _start_move(browser, sim, target):
+    from selenium.webdriver.common.by import By
+    browser.find_element(By.ID, "target").send_keys(str(target))
+    browser.find_element(By.ID, "move-speed").send_keys("50")
+    browser.find_element(By.ID, "move").click()
+    started = sim.wait_event(lambda t: t.startswith(f"drive 1 motion started to {target:.3f}"))
+    assert started, f"the move did not start: {sim.events()}"
+    return started
+
+
+def test_positions_change_during_a_move(browser, compax_sim, compax_console):
+    _open(browser, compax_console)
+    _start_move(browser, compax_sim, 600)
+    first = _position(browser)
+    _wait(browser, lambda b: _position(b) > first + 1.0, 5, "the shown position follows the move")
+    # The plot and the log have had time to fill while the axis moves: the screenshot for the README.
+    from selenium.webdriver.common.by import By
+    _wait(browser, lambda b: len(b.find_elements(By.CSS_SELECTOR, "#traffic div")) > 60, 10, "the traffic log")
+    _wait(browser, lambda b: _position(b) > first + 60.0, 10, "a stretch of the move to plot")
+    (ROOT / "docs").mkdir(exist_ok=True)
+    assert browser.save_screenshot(str(ROOT / "docs" / "console.png"))
+
+
+def test_stop_halts_the_emulated_axis(browser, compax_sim, compax_console):
+    from selenium.webdriver.common.by import By
+    _open(browser, compax_console)
+    _start_move(browser, compax_sim, 700)
+    pressed = time.time()
+    browser.find_element(By.ID, "stop").click()
+    off = compax_sim.wait_event(lambda t: t == "drive 1 switched off (O0=0)", 5, after=pressed)
+    assert off, f"Stop did not stop the drive: {compax_sim.events()}"
+    rest = compax_sim.wait_event(lambda t: t.startswith("drive 1 at rest"), 5, after=pressed)
+    assert rest, compax_sim.events()
+    assert off[0] - pressed < 0.5, f"stopped {off[0] - pressed:.3f} s after the click"
+    _wait(browser, lambda b: "Stop pressed" in b.find_element(By.ID, "motion").text, 5, "the page says it stopped")
+    # The axis stays where it stopped.
+    _wait(browser, lambda b: b.find_element(By.CSS_SELECTOR, "#unit-1 .moving").text == "at rest", 5)
+
+
+def test_escape_stops_too(browser, compax_sim, compax_console):
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.keys import Keys
+    _open(browser, compax_console)
+    _start_move(browser, compax_sim, 650)
+    pressed = time.time()
+    ActionChains(browser).send_keys(Keys.ESCAPE).perform()
+    off = compax_sim.wait_event(lambda t: t == "drive 1 switched off (O0=0)", 5, after=pressed)
+    assert off, f"Escape did not stop the drive: {compax_sim.events()}"
+
+
+def test_closing_the_tab_during_a_jog_halts_it_within_300_ms(browser, compax_sim, compax_console):
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+    _open(browser, compax_console)
+    console_tab = browser.current_window_handle
+    browser.switch_to.new_window("tab")
+    other_tab = browser.current_window_handle
+    browser.switch_to.window(console_tab)
+    jog = browser.find_element(By.ID, "jog-positive")
+    ActionChains(browser).click_and_hold(jog).perform()
+    started = compax_sim.wait_event(lambda t: t.startswith("drive 1 motion started"))
+    assert started, f"the jog did not start: {compax_sim.events()}"
+    # Held: the page renews the jog; it still runs well after the 200 ms dead-man time.
+    _wait(browser, lambda b: time.time() - started[0] > 0.6, 5)
+    assert not any("switched off" in e for e in compax_sim.events()), compax_sim.events()
+    closed = time.time()
+    browser.close()
+    browser.switch_to.window(other_tab)
+    off = compax_sim.wait_event(lambda t: t == "drive 1 switched off (O0=0)", 5, after=closed)
+    assert off, f"closing the tab did not stop the jog: {compax_sim.events()}"
+    assert off[0] - closed < 0.3, f"stopped {off[0] - closed:.3f} s after the tab was closed"
+
+
+def test_a_parameter_write_shows_its_read_back(browser, compax_sim, compax_console):
+    from selenium.webdriver.common.by import By
+    _open(browser, compax_console)
+    browser.find_element(By.ID, "param-name").send_keys("P3")
+    browser.find_element(By.ID, "param-value").send_keys("4.25")
+    browser.find_element(By.ID, "param-write").click()
+    _wait(browser, lambda b: "read back" in b.find_element(By.ID, "param-result").text, 10, "the read-back is shown")
+    result = browser.find_element(By.ID, "param-result")
+    assert result.get_attribute("data-read-back") == "4.25", result.text
+    assert "written 4.25" in result.text and "read back 4.25" in result.text, result.text
+
+
+def test_a_wrong_token_is_refused(browser, compax_sim, compax_console):
+    from selenium.webdriver.common.by import By
+    browser.get(f"{compax_console.base}/?token=0123456789abcdef0123456789abcdef")
+    body = browser.find_element(By.TAG_NAME, "body").text
+    assert "wrong or missing token" in body, body
+    assert not browser.find_elements(By.ID, "stop"), "no page without the token"
+    browser.get(f"{compax_console.base}/")
+    assert "wrong or missing token" in browser.find_element(By.TAG_NAME, "body").text
+
+
+def test_a_second_page_is_read_only_and_says_so(browser, compax_sim, compax_console):
+    from selenium.webdriver.common.by import By
+    _open(browser, compax_console)
+    browser.switch_to.new_window("tab")
+    browser.get(compax_console.url)
+    _wait(browser, lambda b: "read-only" in b.find_element(By.ID, "role").text, 10, "the second page is told")
+    assert not browser.find_element(By.ID, "move").is_enabled()
+    assert not browser.find_element(By.ID, "jog-positive").is_enabled()
+    assert browser.find_element(By.ID, "stop").is_enabled(), "Stop works on every page"
+
+
+
+@pytest.mark.parametrize("family,label,unit", [("scu", "A1", "counts"), ("powercube", "module 1", "rad"),
+                                               ("compax", "drive 1", "units")])
+def test_each_family_shows_its_units_live(browser, family, label, unit):
+    from selenium.webdriver.common.by import By
+    console = Console(family, "--port", "sim")
+    try:
+        _open(browser, console)
+        row = browser.find_element(By.ID, "unit-1")
+        assert label in row.text, row.text
+        assert browser.find_element(By.CSS_SELECTOR, "#unit-1 .position").text.endswith(unit)
+        _wait(browser, lambda b: int(b.find_element(By.ID, "rate").text.split()[0]) >= 20, 10,
+              "samples at 20 Hz or more")
+    finally:
+        console.stop()

@@ -1,0 +1,451 @@
+//! The console over a bus of COMPAX drives: found by a scan (S1 of 1..31), moved by checked moves (dropped:
+//! the drive is stopped with `OUTPUT O0=0`, confirmed by S17), jogged as a checked move towards the end of
+//! the jog range that is stopped when the jog ends, switched on again, and their parameters.
+//!
+//! The drives report no speed and no current over RS485: the speed shown is the change of S1 between two
+//! samples (units/s), and no current is shown.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use motionlink_compax::client::{BusConfig, MoveRequest, MoveTarget, StopOutcome, TravelLimits};
+use motionlink_compax::model::{
+    HistoryEntry, OutputState, ParamId, Position, S17Flag, SpeedPercent, StatusId, StatusValue, ValidFrom, BAUD_RATES,
+    PARAMS,
+};
+use motionlink_compax::sim::SimConfig;
+use motionlink_compax::wire::{Address, Mode};
+use motionlink_compax::{AsyncClient, Emulator, Error};
+use motionlink_link::capture::TapLink;
+use motionlink_link::clock::{lock, SharedClock, Timestamp};
+use motionlink_link::flags::{FlagClass, FlagWord};
+use motionlink_link::link::{Link, SerialSettings};
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::url::PortUrl;
+use serde_json::{json, Value};
+
+use super::device::{
+    finite, Action, BoxFuture, Device, Failure, JogDirection, Motion, Param, ParamValue, Sample, Unit,
+};
+use super::traffic::Traffic;
+use super::ServeArgs;
+use crate::common::CliError;
+
+/// `motionlink console compax` arguments.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The port: a serial device (/dev/ttyUSB0, COM3), tcp://HOST:PORT (a serial gateway or `motionlink sim
+    /// compax`), or sim (an emulated drive in this process).
+    #[arg(long, value_name = "PORT")]
+    pub port: String,
+    /// Only these drive addresses (such as 1,5) instead of a scan of 1..31; with `--port sim`, the drives
+    /// the emulated bus has (default: 1).
+    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u8).range(1..=31))]
+    pub drives: Vec<u8>,
+    /// The drives' operating mode P196 (0..=127): BCC, parity, reply end, address prefix.
+    #[arg(long, default_value_t = 0)]
+    pub mode: u32,
+    /// The drives' baud rate P195.
+    #[arg(long, default_value_t = 9600)]
+    pub baud: u32,
+    /// Time a drive may take to start answering, in ms (1..=60000).
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    pub timeout_ms: u64,
+    /// Refuse move targets below this position (drive's unit); a jog in the negative direction ends here.
+    #[arg(long, allow_negative_numbers = true)]
+    pub min_pos: Option<f64>,
+    /// Refuse move targets above this position (drive's unit); a jog in the positive direction ends here.
+    #[arg(long, allow_negative_numbers = true)]
+    pub max_pos: Option<f64>,
+    /// Without --min-pos / --max-pos, how far one jog may go at most from where it starts (drive's unit).
+    #[arg(long, default_value_t = 1000.0)]
+    pub jog_range: f64,
+    #[command(flatten)]
+    pub serve: ServeArgs,
+}
+
+struct Compax {
+    client: AsyncClient,
+    port: String,
+    drives: Vec<u8>,
+    limits: TravelLimits,
+    jog_range: f64,
+    /// The last position of each drive and when it was read, for the speed shown.
+    last: Mutex<HashMap<u8, (Timestamp, f64)>>,
+    clock: SharedClock,
+}
+
+/// Opens the session `args` ask for, its link tapped into the traffic log.
+pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, Arc<Traffic>), CliError> {
+    let mode = Mode::from_p196(args.mode).map_err(|e| CliError::usage(format!("--mode: {e}")))?;
+    if !BAUD_RATES.contains(&args.baud) {
+        return Err(CliError::usage(format!("--baud {}: not a rate P195 accepts ({BAUD_RATES:?})", args.baud)));
+    }
+    let limits = TravelLimits::new(
+        args.min_pos.map(position).transpose().map_err(|e| CliError::usage(format!("--min-pos: {}", e.message)))?,
+        args.max_pos.map(position).transpose().map_err(|e| CliError::usage(format!("--max-pos: {}", e.message)))?,
+    )
+    .map_err(|e| CliError::usage(e.to_string()))?;
+    if !(args.jog_range.is_finite() && args.jog_range > 0.0) {
+        return Err(CliError::usage(format!("--jog-range {}: give a distance above 0", args.jog_range)));
+    }
+    let url: PortUrl = args.port.parse()?;
+    let traffic = Arc::new(Traffic::new(
+        Box::new(motionlink_compax::describe::CompaxDescriber::new(mode)),
+        &format!("compax {}", args.port),
+        "can0",
+        clock,
+    ));
+    let tap = Arc::clone(&traffic);
+    let tap_clock = Arc::clone(clock);
+    let link_clock = Arc::clone(clock);
+    let sim_drives = if args.drives.is_empty() { vec![1] } else { args.drives.clone() };
+    let (p196, baud) = (args.mode, args.baud);
+    let open = move || -> Result<Box<dyn Link>, motionlink_link::LinkError> {
+        let link: Box<dyn Link> = match url {
+            PortUrl::Sim => {
+                let bus = Emulator::new(SimConfig::bus(&sim_drives, p196, baud)).map_err(|e| {
+                    motionlink_link::LinkError::InvalidPort { port: "sim".into(), reason: e.to_string() }
+                })?;
+                // In this process, the emulated line has no wire time: the page samples it at its full rate.
+                let host = EmulatorHost::new(bus, link_clock, PipeConfig::instant());
+                Box::new(host.connect().0)
+            }
+            other => {
+                let mut settings = SerialSettings::new(baud);
+                settings.parity = mode.parity;
+                other.open_byte_link(settings)?
+            }
+        };
+        Ok(Box::new(TapLink::new(link, tap_clock, tap)) as Box<dyn Link>)
+    };
+    let mut cfg = BusConfig::new(mode, args.baud);
+    cfg.reply_timeout = Duration::from_millis(args.timeout_ms);
+    let client = AsyncClient::open(open, Arc::clone(clock), cfg).await.map_err(|e| crate::common::classified(&e))?;
+    let device = Compax {
+        client,
+        port: args.port.clone(),
+        drives: args.drives.clone(),
+        limits,
+        jog_range: args.jog_range,
+        last: Mutex::new(HashMap::new()),
+        clock: Arc::clone(clock),
+    };
+    Ok((Arc::new(device), traffic))
+}
+
+fn failure(e: Error) -> Failure {
+    Failure::of(&e)
+}
+
+fn position(v: f64) -> Result<Position, Failure> {
+    Position::new(finite("position", v)?).map_err(|e| Failure::usage(e.to_string()))
+}
+
+fn address(n: u8) -> Result<Address, Failure> {
+    Address::drive(n).map_err(|e| Failure::usage(format!("drive {n}: {e}")))
+}
+
+fn speed(v: Option<f64>) -> Result<Option<SpeedPercent>, Failure> {
+    v.map(|s| SpeedPercent::new(finite("speed", s)?).map_err(|e| Failure::usage(format!("speed_percent: {e}"))))
+        .transpose()
+}
+
+fn stop_text(report: &motionlink_compax::client::StopReport) -> Result<String, Failure> {
+    if !report.all_confirmed() {
+        return Err(Failure { kind: "device", message: report.to_string() });
+    }
+    Ok(if report.is_empty() { String::new() } else { report.to_string() })
+}
+
+impl Compax {
+    fn unit(&self, n: u8, detail: String) -> Unit {
+        Unit {
+            id: n,
+            label: format!("drive {n}"),
+            detail,
+            position_key: "position_units",
+            target_key: "target_units",
+            position_unit: "units",
+            speed_key: "speed_units_per_s",
+            speed_unit: "units/s",
+            command_speed: ("speed_percent", "%"),
+            has_current: false,
+        }
+    }
+
+    /// A checked move of drive `n` to `target`: limits checked before anything is sent, the target read
+    /// back, the position at rest checked; dropped, the drive is stopped.
+    fn checked_move(
+        self: Arc<Self>,
+        n: u8,
+        target: Position,
+        speed: Option<SpeedPercent>,
+        timeout: Duration,
+    ) -> Motion {
+        Box::pin(async move {
+            let a = address(n)?;
+            let request = MoveRequest {
+                speed,
+                limits: self.limits,
+                timeout: Some(timeout),
+                ..MoveRequest::new(MoveTarget::Absolute(target))
+            };
+            let r = self.client.move_to(a, &request).await.map_err(failure)?;
+            Ok(format!(
+                "drive {n} at {:.3} (target {:.3}, difference {:+.3}) units",
+                r.reached.units(),
+                r.target.units(),
+                r.difference()
+            ))
+        })
+    }
+}
+
+impl Device for Compax {
+    fn family(&self) -> &'static str {
+        "compax"
+    }
+
+    fn unit_key(&self) -> &'static str {
+        "drive"
+    }
+
+    fn port(&self) -> String {
+        self.port.clone()
+    }
+
+    fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, Failure>> {
+        Box::pin(async move {
+            let mut units = Vec::new();
+            if self.drives.is_empty() {
+                for (a, p) in self.client.scan(1..=31).await.map_err(failure)? {
+                    units.push(self.unit(a.get(), format!("answered the scan at {:.3} units", p.units())));
+                }
+            } else {
+                for &n in &self.drives {
+                    match self.client.read_position(address(n)?).await {
+                        Ok(p) => units.push(self.unit(n, format!("at {:.3} units", p.units()))),
+                        Err(e) if Failure::of(&e).kind == "timeout" => continue,
+                        Err(e) => return Err(failure(e)),
+                    }
+                }
+            }
+            Ok(units)
+        })
+    }
+
+    fn sample<'a>(&'a self, units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, Failure>>> {
+        Box::pin(async move {
+            let mut out = Vec::new();
+            for u in units {
+                let look = async {
+                    let a = Address::drive(u.id).map_err(|e| Failure::usage(e.to_string()))?;
+                    let p = self.client.read_position(a).await.map_err(failure)?;
+                    let at = self.clock.now();
+                    let s16 = self.client.read_s16(a).await.map_err(failure)?;
+                    let s17 = self.client.read_s17(a).await.map_err(failure)?;
+                    Ok::<_, Failure>((p.units(), at, s16, s17))
+                };
+                out.push(look.await.map(|(p, at, s16, s17)| {
+                    let before = lock(&self.last).insert(u.id, (at, p));
+                    let speed = before.and_then(|(t0, p0)| {
+                        let dt = at.saturating_since(t0).as_secs_f64();
+                        (dt > 0.0).then(|| (p - p0) / dt)
+                    });
+                    let mut flags = s16.names();
+                    flags.extend(s17.names());
+                    // S16 bit 1 is "no fault": its absence is the fault.
+                    let mut faults: Vec<&'static str> = Vec::new();
+                    if !s16.contains(motionlink_compax::model::S16Flag::NoFault) {
+                        faults.push("FAULT (S16 NO_FAULT clear)");
+                    }
+                    faults.extend(
+                        s17.set_flags().into_iter().filter(|f| f.class() == FlagClass::Error).map(|f| f.name()),
+                    );
+                    Sample {
+                        id: u.id,
+                        position: p,
+                        speed,
+                        current_amps: None,
+                        flags,
+                        faults,
+                        unknown_bits: (s16.unknown() << 8) | s17.unknown(),
+                        moving: s17.contains(S17Flag::CommandActive),
+                    }
+                }));
+            }
+            out
+        })
+    }
+
+    fn move_to(self: Arc<Self>, unit: u8, target: f64, speed_percent: Option<f64>) -> Result<Motion, Failure> {
+        address(unit)?;
+        let target = position(target)?;
+        let speed = speed(speed_percent)?;
+        self.limits.check(address(unit)?, target).map_err(failure)?;
+        Ok(self.checked_move(unit, target, speed, Duration::from_secs(600)))
+    }
+
+    fn jog(self: Arc<Self>, unit: u8, direction: JogDirection, speed_percent: Option<f64>) -> Result<Motion, Failure> {
+        let a = address(unit)?;
+        let speed = speed(speed_percent)?;
+        Ok(Box::pin(async move {
+            // A checked move to the end of the jog range; it runs until the jog ends (the future dropped: the
+            // drive is switched off, confirmed by S17) or the end is reached.
+            let here = self.client.read_position(a).await.map_err(failure)?.units();
+            let end = match direction {
+                JogDirection::Positive => self.limits.max.map_or(here + self.jog_range, |m| m.units()),
+                JogDirection::Negative => self.limits.min.map_or(here - self.jog_range, |m| m.units()),
+            };
+            let target = position(end)?;
+            Arc::clone(&self).checked_move(unit, target, speed, Duration::from_secs(3600)).await
+        }))
+    }
+
+    fn stop(self: Arc<Self>, unit: u8) -> Motion {
+        Box::pin(async move {
+            let a = address(unit)?;
+            self.client.stop(a).await.map_err(failure)?;
+            let s17 = self.client.read_s17(a).await.map_err(failure)?;
+            if s17.contains(S17Flag::CommandActive) {
+                return Err(Failure {
+                    kind: "device",
+                    message: format!("drive {unit} took OUTPUT O0=0 but S17 still says command active"),
+                });
+            }
+            Ok(format!("drive {unit} switched off (OUTPUT O0=0 acknowledged, S17: no command active); Switch on before the next move"))
+        })
+    }
+
+    fn stop_started(self: Arc<Self>) -> Motion {
+        Box::pin(async move {
+            let report = self.client.stop_started().await;
+            stop_text(&report)
+        })
+    }
+
+    fn actions(&self) -> Vec<Action> {
+        vec![Action { name: "switch_on", label: "Switch on (OUTPUT O0=1)", moves: false }]
+    }
+
+    fn action(self: Arc<Self>, unit: u8, name: &str) -> Result<Motion, Failure> {
+        let a = address(unit)?;
+        match name {
+            "switch_on" => Ok(Box::pin(async move {
+                self.client.set_output(a, 0, OutputState::ON, false).await.map_err(failure)?;
+                let s16 = self.client.read_s16(a).await.map_err(failure)?;
+                if s16.o0_state() != 1 {
+                    return Err(Failure {
+                        kind: "device",
+                        message: format!("drive {unit} acknowledged OUTPUT O0=1 but S16 shows O0={}", s16.o0_state()),
+                    });
+                }
+                Ok(format!("drive {unit} switched on (S16 confirms O0=1)"))
+            })),
+            other => Err(Failure::usage(format!("no action {other:?}"))),
+        }
+    }
+
+    fn params(&self) -> Vec<Param> {
+        PARAMS
+            .iter()
+            .map(|e| Param { name: e.name, id: e.id, unit: e.unit, access: e.access.short(), title: e.title })
+            .collect()
+    }
+
+    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<ParamValue, Failure>> {
+        Box::pin(async move {
+            let id = ParamId::parse(name.trim()).map_err(|e| Failure::usage(e.to_string()))?;
+            let v = self.client.read_param(address(unit)?, id).await.map_err(failure)?;
+            let info = id.info();
+            Ok(ParamValue {
+                name: info.map_or(format!("P{}", id.get()), |i| i.name.to_string()),
+                id: u32::from(id.get()),
+                value: v.to_string(),
+                unit: info.map_or("", |i| i.unit).to_string(),
+                read_back: None,
+                note: String::new(),
+            })
+        })
+    }
+
+    fn write_param(
+        self: Arc<Self>,
+        unit: u8,
+        name: String,
+        value: String,
+    ) -> BoxFuture<'static, Result<ParamValue, Failure>> {
+        Box::pin(async move {
+            let id = ParamId::parse(name.trim()).map_err(|e| Failure::usage(e.to_string()))?;
+            let v: f64 = value
+                .trim()
+                .parse()
+                .map_err(|_| Failure::usage(format!("P{} value {value:?}: give a number", id.get())))?;
+            id.check(v).map_err(|e| Failure::usage(e.to_string()))?;
+            let a = address(unit)?;
+            // The session writes and reads back (a difference is an error); read once more for the page.
+            self.client.write_param(a, id, v).await.map_err(failure)?;
+            let back = self.client.read_param(a, id).await.map_err(failure)?;
+            let info = id.info();
+            let note = match info.map(|i| i.kind.valid_from) {
+                Some(ValidFrom::PowerOn) => "stored; takes effect when the drive is switched off and on".to_string(),
+                _ => String::new(),
+            };
+            Ok(ParamValue {
+                name: info.map_or(format!("P{}", id.get()), |i| i.name.to_string()),
+                id: u32::from(id.get()),
+                value: v.to_string(),
+                unit: info.map_or("", |i| i.unit).to_string(),
+                read_back: Some(back.to_string()),
+                note,
+            })
+        })
+    }
+
+    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Value, Failure>> {
+        Box::pin(async move {
+            let a = address(unit)?;
+            let v = self.client.read_status(a, StatusId::ERROR_HISTORY).await.map_err(failure)?;
+            let StatusValue::History(h) = v else {
+                return Err(Failure { kind: "corrupt", message: format!("S18 read as {v}, not a history") });
+            };
+            let entries: Vec<Value> = h
+                .iter()
+                .enumerate()
+                .map(|(i, e)| {
+                    let text = match e {
+                        HistoryEntry::Error(c) => c.to_string(),
+                        HistoryEntry::Acknowledged => "99 (the error before was acknowledged)".to_string(),
+                        HistoryEntry::PowerOn => "98 (power-on acknowledgement)".to_string(),
+                    };
+                    json!({"label": if i == 0 { "newest".to_string() } else { format!("{}", i + 1) },
+                           "code": e.number(), "text": text, "bits": [], "unknown_bits": 0})
+                })
+                .collect();
+            Ok(json!({"title": "S18: the last eight errors of the drive, newest first", "entries": entries}))
+        })
+    }
+
+    fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
+        Box::pin(async move {
+            match Arc::try_unwrap(self) {
+                Ok(me) => {
+                    let report = me.client.close().await.map_err(failure)?;
+                    let unconfirmed: Vec<_> =
+                        report.drives.iter().filter(|(_, o)| matches!(o, StopOutcome::NotConfirmed { .. })).collect();
+                    if unconfirmed.is_empty() {
+                        stop_text(&report)
+                    } else {
+                        Err(Failure { kind: "device", message: report.to_string() })
+                    }
+                }
+                Err(shared) => {
+                    drop(shared);
+                    Ok("the session ends with its last request".into())
+                }
+            }
+        })
+    }
+}

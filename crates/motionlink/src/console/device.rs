@@ -1,0 +1,269 @@
+//! What the console asks of a device family: one [`Device`] per family, a thin adapter over that family's
+//! `AsyncClient`. Every motion is a future that the console's [`Hub`](super::hub::Hub) owns: dropping it
+//! stops the motion (the family library does that, as for every other user of its `AsyncClient`).
+
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::Arc;
+
+use motionlink_link::error::{Classify, ErrorClass, TransportKind};
+use serde_json::{json, Value};
+
+/// A boxed future that can move between threads.
+pub type BoxFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
+
+/// A motion (or any action) under way: it ends with what the device did, in words; dropping it before it
+/// ends stops what it set in motion.
+pub type Motion = BoxFuture<'static, Result<String, Failure>>;
+
+/// Why a request to the device failed: the error class's name (as the CLI's JSON and Python name it) and
+/// the library's message.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Failure {
+    /// "refused", "device", "timeout", "disconnected", "corrupt", "io", "usage" or "cancelled".
+    pub kind: &'static str,
+    /// What went wrong, as the library says it.
+    pub message: String,
+}
+
+impl Failure {
+    /// The failure of a classified library error.
+    pub fn of<E: Classify + std::fmt::Display + ?Sized>(e: &E) -> Failure {
+        Failure { kind: class_name(e.class()), message: e.to_string() }
+    }
+
+    /// A request that cannot be made as it is (bad input from the page).
+    pub fn usage(message: impl std::fmt::Display) -> Failure {
+        Failure { kind: "usage", message: message.to_string() }
+    }
+
+    /// As JSON: `{"kind", "message"}`.
+    pub fn to_json(&self) -> Value {
+        json!({"kind": self.kind, "message": self.message})
+    }
+}
+
+impl std::fmt::Display for Failure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} ({})", self.message, self.kind)
+    }
+}
+
+/// The name of an error class, as naming.md spells it.
+pub fn class_name(class: ErrorClass) -> &'static str {
+    match class {
+        ErrorClass::Refused => "refused",
+        ErrorClass::Device => "device",
+        ErrorClass::Transport(TransportKind::Timeout) => "timeout",
+        ErrorClass::Transport(TransportKind::Disconnected) => "disconnected",
+        ErrorClass::Transport(TransportKind::Corrupt) => "corrupt",
+        ErrorClass::Transport(TransportKind::Io) => "io",
+        ErrorClass::Usage => "usage",
+        ErrorClass::Cancelled => "cancelled",
+    }
+}
+
+/// One addressable unit found on the link: an SCU actuator, a PowerCube module, a COMPAX drive.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Unit {
+    /// Its number: actuator 1..6, module or drive address 1..31.
+    pub id: u8,
+    /// How the page names it ("A1", "module 3", "drive 1").
+    pub label: String,
+    /// What else is known of it (type, version, the function that drives it).
+    pub detail: String,
+    /// The JSON name of its position (`position_counts`, `position_rad`, `position_m`, `position_units`,
+    /// `position` when the unit is not known).
+    pub position_key: &'static str,
+    /// The JSON name of a move's target (`target_counts`, ...).
+    pub target_key: &'static str,
+    /// The unit of positions as the page shows it ("counts", "rad", "m", "units").
+    pub position_unit: &'static str,
+    /// The JSON name of the speed in a sample (`speed_percent`, `velocity_rad_per_s`, ...).
+    pub speed_key: &'static str,
+    /// The unit of that speed ("%", "rad/s", ...).
+    pub speed_unit: &'static str,
+    /// The JSON name of the speed a move or jog is asked to go at, and its unit.
+    pub command_speed: (&'static str, &'static str),
+    /// True when samples carry `current_amps`.
+    pub has_current: bool,
+}
+
+impl Unit {
+    /// As JSON, with the family's key for its number (`actuator`, `module`, `drive`).
+    pub fn to_json(&self, unit_key: &str) -> Value {
+        let mut j = json!({
+            "label": self.label,
+            "detail": self.detail,
+            "position_key": self.position_key,
+            "target_key": self.target_key,
+            "position_unit": self.position_unit,
+            "speed_key": self.speed_key,
+            "speed_unit": self.speed_unit,
+            "command_speed_key": self.command_speed.0,
+            "command_speed_unit": self.command_speed.1,
+            "current_key": if self.has_current { Value::from("current_amps") } else { Value::Null },
+        });
+        j[unit_key] = json!(self.id);
+        j
+    }
+}
+
+/// One look at a unit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sample {
+    /// Which unit.
+    pub id: u8,
+    /// Its position, in the unit's position unit.
+    pub position: f64,
+    /// Its speed, in the unit's speed unit, where known.
+    pub speed: Option<f64>,
+    /// Its motor current in A, where the device reports it.
+    pub current_amps: Option<f64>,
+    /// The names of the state flags that are set, as the library names them.
+    pub flags: Vec<&'static str>,
+    /// The flags among them that report a fault.
+    pub faults: Vec<&'static str>,
+    /// Set bits that have no name.
+    pub unknown_bits: u64,
+    /// True while it moves.
+    pub moving: bool,
+}
+
+impl Sample {
+    /// As JSON, with the unit's own key names.
+    pub fn to_json(&self, unit: &Unit, unit_key: &str) -> Value {
+        let mut j = json!({
+            "flags": self.flags,
+            "faults": self.faults,
+            "moving": self.moving,
+        });
+        j[unit_key] = json!(self.id);
+        j[unit.position_key] = json!(self.position);
+        if let Some(s) = self.speed {
+            j[unit.speed_key] = json!(s);
+        }
+        if let Some(c) = self.current_amps {
+            j["current_amps"] = json!(c);
+        }
+        if self.unknown_bits != 0 {
+            j["unknown_bits"] = json!(self.unknown_bits);
+        }
+        j
+    }
+}
+
+/// One row of the family's parameter table or data list.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Param {
+    /// Its name (as the CLI takes it).
+    pub name: &'static str,
+    /// Its number on the wire.
+    pub id: u32,
+    /// Its unit ("" when none).
+    pub unit: &'static str,
+    /// "r", "w" or "rw".
+    pub access: &'static str,
+    /// The manual's name or description.
+    pub title: &'static str,
+}
+
+/// A value read from the device (or written and read back).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamValue {
+    /// The entry's name.
+    pub name: String,
+    /// Its number.
+    pub id: u32,
+    /// The value as read, in words and numbers.
+    pub value: String,
+    /// Its unit ("" when none).
+    pub unit: String,
+    /// For a write: what the device gave back when the value was read again (None when it cannot be
+    /// read back, with the reason in `note`).
+    pub read_back: Option<String>,
+    /// What the page should know besides (takes effect at the next power-on; cannot be read back).
+    pub note: String,
+}
+
+impl ParamValue {
+    /// As JSON.
+    pub fn to_json(&self) -> Value {
+        json!({"name": self.name, "id": self.id, "value": self.value, "unit": self.unit,
+               "read_back": self.read_back, "note": self.note})
+    }
+}
+
+/// An action of the family besides move, jog and stop (PowerCube home and reset, COMPAX switch on).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Action {
+    /// Its name in requests.
+    pub name: &'static str,
+    /// Its button's label.
+    pub label: &'static str,
+    /// True if it sets the axis in motion: it is then owned like a move (Stop and a lost page stop it).
+    pub moves: bool,
+}
+
+/// A direction of a jog.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JogDirection {
+    /// Towards larger positions (SCU: out).
+    Positive,
+    /// Towards smaller positions (SCU: in).
+    Negative,
+}
+
+/// A device family as the console drives it. Every motion (`move_to`, `jog`, an action that moves) is a
+/// future: it ends when the motion has ended, and dropping it before stops the motion (the family's
+/// library sends the stop and checks it).
+pub trait Device: Send + Sync + 'static {
+    /// "scu", "powercube" or "compax".
+    fn family(&self) -> &'static str;
+    /// The JSON name of a unit's number: "actuator", "module" or "drive".
+    fn unit_key(&self) -> &'static str;
+    /// The port, as the user gave it.
+    fn port(&self) -> String;
+    /// Finds the units on the link (SCU: the connected actuators; PowerCube, COMPAX: a scan).
+    fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, Failure>>;
+    /// One look at each of `units`.
+    fn sample<'a>(&'a self, units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, Failure>>>;
+    /// Moves `unit` to `target` (its position unit) at `speed` (its command speed unit; None: the device's
+    /// setting). Checked before the future is made: a bad request is an error at once.
+    fn move_to(self: Arc<Self>, unit: u8, target: f64, speed: Option<f64>) -> Result<Motion, Failure>;
+    /// Moves `unit` in `direction` until the future is dropped (or the axis reaches its end of travel).
+    fn jog(self: Arc<Self>, unit: u8, direction: JogDirection, speed: Option<f64>) -> Result<Motion, Failure>;
+    /// The Stop button: stops `unit` (whoever started its motion) and says what the device confirmed.
+    fn stop(self: Arc<Self>, unit: u8) -> Motion;
+    /// Stops everything this console's session set in motion (the end of the console).
+    fn stop_started(self: Arc<Self>) -> Motion;
+    /// The family's other actions.
+    fn actions(&self) -> Vec<Action>;
+    /// Runs action `name` on `unit`.
+    fn action(self: Arc<Self>, unit: u8, name: &str) -> Result<Motion, Failure>;
+    /// The parameter table or data list.
+    fn params(&self) -> Vec<Param>;
+    /// Reads entry `name` (a name or a number) of `unit`.
+    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<ParamValue, Failure>>;
+    /// Writes entry `name` of `unit` and reads it back.
+    fn write_param(
+        self: Arc<Self>,
+        unit: u8,
+        name: String,
+        value: String,
+    ) -> BoxFuture<'static, Result<ParamValue, Failure>>;
+    /// The error history of `unit`, decoded: `{"title", "entries": [{"code", "text", "bits": [...]}]}`.
+    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Value, Failure>>;
+    /// Ends the session (the library stops what it started and says whether that was confirmed). Called
+    /// once, with the last reference.
+    fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>>;
+}
+
+/// A finite number from the page, or an error naming `what`.
+pub fn finite(what: &str, v: f64) -> Result<f64, Failure> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(Failure::usage(format!("{what}: {v} is not a number")))
+    }
+}

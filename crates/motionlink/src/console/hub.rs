@@ -1,0 +1,657 @@
+//! The console's rules, kept on the server whatever a page does: one page at a time controls (the others
+//! are read-only); at most one motion runs, owned by the page that started it; a jog runs only while its page
+//! renews it (a dead-man deadline of [`DEAD_MAN`]); a page that goes away (closed tab, lost WebSocket)
+//! stops the motion it owns, and so does the end of the console.
+//!
+//! A motion is a future of the family's `AsyncClient` ([`Device`]): the hub stops it by dropping it, which
+//! makes the library stop the axis; then it asks the device for the stop ([`Device::stop`]) and reports
+//! what the device confirmed.
+
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use motionlink_link::clock::lock;
+use serde_json::{json, Value};
+use tokio::sync::{broadcast, oneshot, watch};
+use tokio::task::JoinHandle;
+use tokio::time::Instant;
+
+use super::device::{Device, Failure, Motion as DeviceMotion, Unit};
+use super::traffic::Traffic;
+
+/// How long a jog runs without a renewal from its page.
+pub const DEAD_MAN: Duration = Duration::from_millis(200);
+/// How often the device is sampled for the pages (25 Hz, when the line is fast enough).
+pub const SAMPLE_PERIOD: Duration = Duration::from_millis(40);
+/// How long the hub waits before it scans again after a scan found nothing or failed.
+const RESCAN_AFTER: Duration = Duration::from_secs(2);
+
+/// What the hub found on the link.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Units {
+    /// The scan is under way.
+    Scanning,
+    /// These units answered.
+    Found(Vec<Unit>),
+    /// The scan failed (it is tried again).
+    Failed(Failure),
+}
+
+/// Why a motion was stopped before it ended by itself.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StopReason {
+    /// The Stop button (or Escape) of a page.
+    StopButton,
+    /// The jog button was let go.
+    Released,
+    /// The page did not renew its jog within [`DEAD_MAN`].
+    DeadMan,
+    /// The page that owned the motion went away (closed tab, lost WebSocket).
+    PageGone,
+    /// The console is ending (a signal).
+    ConsoleEnding,
+}
+
+impl StopReason {
+    fn text(self) -> &'static str {
+        match self {
+            StopReason::StopButton => "Stop pressed",
+            StopReason::Released => "jog released",
+            StopReason::DeadMan => "the page stopped renewing its jog (dead-man deadline passed)",
+            StopReason::PageGone => "the page that started it went away",
+            StopReason::ConsoleEnding => "the console is ending",
+        }
+    }
+}
+
+/// Something every page is told.
+#[derive(Debug, Clone)]
+pub enum Notice {
+    /// A message as it is (JSON text).
+    Json(Arc<String>),
+    /// Who controls changed: each page tells its own role.
+    RoleChanged,
+    /// The units found changed.
+    UnitsChanged,
+}
+
+struct Motion {
+    id: u64,
+    owner: u64,
+    unit: u8,
+    what: String,
+    /// The dead-man deadline of a jog.
+    deadline: Option<Instant>,
+    cancel: Option<oneshot::Sender<StopReason>>,
+    task: Option<JoinHandle<()>>,
+}
+
+struct State {
+    controller: Option<u64>,
+    next_page: u64,
+    motion: Option<Motion>,
+    next_motion: u64,
+}
+
+/// The console's shared state: the device, who controls, the motion under way, the latest sample.
+pub struct Hub {
+    device: Arc<dyn Device>,
+    /// The link's traffic.
+    pub traffic: Arc<Traffic>,
+    units: watch::Sender<Units>,
+    samples: watch::Sender<Option<Arc<String>>>,
+    notices: broadcast::Sender<Notice>,
+    shutdown: watch::Sender<bool>,
+    state: Mutex<State>,
+    started: Instant,
+    poller: Mutex<Option<JoinHandle<()>>>,
+}
+
+/// A page's role.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// It may move the axes and write.
+    Control,
+    /// It sees, reads, and may press Stop.
+    ReadOnly,
+}
+
+impl Role {
+    /// "control" or "read_only".
+    pub fn name(self) -> &'static str {
+        match self {
+            Role::Control => "control",
+            Role::ReadOnly => "read_only",
+        }
+    }
+}
+
+impl Hub {
+    /// A hub over `device`, logging `traffic`. Call [`Hub::start`] to scan and sample.
+    pub fn new(device: Arc<dyn Device>, traffic: Arc<Traffic>) -> Arc<Hub> {
+        Arc::new(Hub {
+            device,
+            traffic,
+            units: watch::channel(Units::Scanning).0,
+            samples: watch::channel(None).0,
+            notices: broadcast::channel(256).0,
+            shutdown: watch::channel(false).0,
+            state: Mutex::new(State { controller: None, next_page: 1, motion: None, next_motion: 1 }),
+            started: Instant::now(),
+            poller: Mutex::new(None),
+        })
+    }
+
+    /// The device.
+    pub fn device(&self) -> &Arc<dyn Device> {
+        &self.device
+    }
+
+    /// Seconds since the hub was made.
+    pub fn t_s(&self) -> f64 {
+        self.started.elapsed().as_secs_f64()
+    }
+
+    /// Starts the scan and then the sampling, on the current tokio runtime.
+    pub fn start(self: &Arc<Self>) {
+        let hub = Arc::clone(self);
+        *lock(&self.poller) = Some(tokio::spawn(async move { hub.poll().await }));
+    }
+
+    /// The units found so far.
+    pub fn units(&self) -> watch::Receiver<Units> {
+        self.units.subscribe()
+    }
+
+    /// The latest sample frame (JSON text).
+    pub fn samples(&self) -> watch::Receiver<Option<Arc<String>>> {
+        self.samples.subscribe()
+    }
+
+    /// Notices for every page.
+    pub fn notices(&self) -> broadcast::Receiver<Notice> {
+        self.notices.subscribe()
+    }
+
+    /// Becomes true when the console ends.
+    pub fn shutdown_signal(&self) -> watch::Receiver<bool> {
+        self.shutdown.subscribe()
+    }
+
+    fn notify(&self, value: Value) {
+        let _ = self.notices.send(Notice::Json(Arc::new(value.to_string())));
+    }
+
+    async fn poll(self: Arc<Self>) {
+        let units = loop {
+            self.units.send_replace(Units::Scanning);
+            let _ = self.notices.send(Notice::UnitsChanged);
+            match self.device.discover().await {
+                Ok(found) if !found.is_empty() => break found,
+                Ok(_) => {
+                    let what = format!("no {} answered on {}", self.device.unit_key(), self.device.port());
+                    self.units.send_replace(Units::Failed(Failure { kind: "timeout", message: what }));
+                }
+                Err(e) => {
+                    self.units.send_replace(Units::Failed(e));
+                }
+            }
+            let _ = self.notices.send(Notice::UnitsChanged);
+            tokio::time::sleep(RESCAN_AFTER).await;
+        };
+        self.units.send_replace(Units::Found(units.clone()));
+        let _ = self.notices.send(Notice::UnitsChanged);
+        let key = self.device.unit_key();
+        let mut due = Instant::now();
+        loop {
+            let t_s = self.t_s();
+            let results = self.device.sample(&units).await;
+            let list: Vec<Value> = units
+                .iter()
+                .zip(results)
+                .map(|(u, r)| match r {
+                    Ok(s) => s.to_json(u, key),
+                    Err(e) => {
+                        let mut j = json!({"error": e.to_json()});
+                        j[key] = json!(u.id);
+                        j
+                    }
+                })
+                .collect();
+            let frame = json!({"type": "sample", "t_s": t_s, "units": list});
+            self.samples.send_replace(Some(Arc::new(frame.to_string())));
+            // The next look on a fixed schedule; a slow line is not made up for with a burst.
+            due += SAMPLE_PERIOD;
+            let now = Instant::now();
+            if due < now {
+                due = now;
+            }
+            tokio::time::sleep_until(due).await;
+        }
+    }
+
+    /// A page opened: its id and role (it controls if nobody does).
+    pub fn page_opened(&self) -> (u64, Role) {
+        let mut st = lock(&self.state);
+        let id = st.next_page;
+        st.next_page += 1;
+        let role = if st.controller.is_none() {
+            st.controller = Some(id);
+            Role::Control
+        } else {
+            Role::ReadOnly
+        };
+        drop(st);
+        let _ = self.notices.send(Notice::RoleChanged);
+        (id, role)
+    }
+
+    /// The role of page `page`, and whether control is free.
+    pub fn role_of(&self, page: u64) -> (Role, bool) {
+        let st = lock(&self.state);
+        let role = if st.controller == Some(page) { Role::Control } else { Role::ReadOnly };
+        (role, st.controller.is_none())
+    }
+
+    /// Page `page` asks for control: granted only if nobody has it.
+    pub fn take_control(&self, page: u64) -> bool {
+        let mut st = lock(&self.state);
+        let granted = match st.controller {
+            None => {
+                st.controller = Some(page);
+                true
+            }
+            Some(c) => c == page,
+        };
+        drop(st);
+        if granted {
+            let _ = self.notices.send(Notice::RoleChanged);
+        }
+        granted
+    }
+
+    /// Page `page` went away (closed, reloaded, its WebSocket lost): the motion it owns is stopped and
+    /// control is free again if it had it.
+    pub fn page_closed(&self, page: u64) {
+        let mut st = lock(&self.state);
+        if st.controller == Some(page) {
+            st.controller = None;
+        }
+        let owned = st.motion.as_mut().filter(|m| m.owner == page).and_then(|m| m.cancel.take());
+        drop(st);
+        if let Some(cancel) = owned {
+            let _ = cancel.send(StopReason::PageGone);
+        }
+        let _ = self.notices.send(Notice::RoleChanged);
+    }
+
+    /// Checks that `page` controls.
+    pub fn check_control(&self, page: u64) -> Result<(), Failure> {
+        if lock(&self.state).controller == Some(page) {
+            Ok(())
+        } else {
+            Err(Failure::usage("this page is read-only: another page controls the console"))
+        }
+    }
+
+    /// Starts `motion` on `unit` for page `page`, which must control and must not have a motion under
+    /// way. A jog (`jog: true`) runs only while [`Hub::renew_jog`] renews it within [`DEAD_MAN`].
+    pub fn start_motion(
+        self: &Arc<Self>,
+        page: u64,
+        unit: u8,
+        what: &str,
+        jog: bool,
+        motion: DeviceMotion,
+    ) -> Result<(), Failure> {
+        let mut st = lock(&self.state);
+        if st.controller != Some(page) {
+            return Err(Failure::usage("this page is read-only: another page controls the console"));
+        }
+        if let Some(m) = &st.motion {
+            return Err(Failure::usage(format!("{} of {} is under way: stop it first", m.what, m.unit)));
+        }
+        let id = st.next_motion;
+        st.next_motion += 1;
+        let (cancel, cancelled) = oneshot::channel();
+        let deadline = jog.then(|| Instant::now() + DEAD_MAN);
+        st.motion =
+            Some(Motion { id, owner: page, unit, what: what.to_string(), deadline, cancel: Some(cancel), task: None });
+        let hub = Arc::clone(self);
+        let what = what.to_string();
+        let task = tokio::spawn(async move { hub.run_motion(id, unit, what, motion, cancelled).await });
+        if let Some(m) = st.motion.as_mut().filter(|m| m.id == id) {
+            m.task = Some(task);
+        }
+        Ok(())
+    }
+
+    /// The dead-man deadline of motion `id`, if it is a jog still under way.
+    fn deadline_of(&self, id: u64) -> Option<Instant> {
+        lock(&self.state).motion.as_ref().filter(|m| m.id == id).and_then(|m| m.deadline)
+    }
+
+    async fn run_motion(
+        self: Arc<Self>,
+        id: u64,
+        unit: u8,
+        what: String,
+        mut motion: DeviceMotion,
+        mut cancelled: oneshot::Receiver<StopReason>,
+    ) {
+        let key = self.device.unit_key();
+        let mut started = json!({"type": "motion", "state": "running", "what": what});
+        started[key] = json!(unit);
+        self.notify(started);
+        enum End {
+            Done(Result<String, Failure>),
+            Stopped(StopReason),
+        }
+        let end = loop {
+            let deadline = self.deadline_of(id);
+            let dead_man = async {
+                match deadline {
+                    Some(d) => tokio::time::sleep_until(d).await,
+                    None => std::future::pending().await,
+                }
+            };
+            tokio::select! {
+                r = &mut motion => break End::Done(r),
+                reason = &mut cancelled => break End::Stopped(reason.unwrap_or(StopReason::ConsoleEnding)),
+                () = dead_man => {
+                    // Renewed meanwhile: wait for the new deadline.
+                    if self.deadline_of(id).is_none_or(|d| d <= Instant::now()) {
+                        break End::Stopped(StopReason::DeadMan);
+                    }
+                }
+            }
+        };
+        // Dropping the motion's future is what stops it: the library sends the stop at once.
+        drop(motion);
+        let mut ended = match end {
+            End::Done(Ok(msg)) => json!({"type": "motion", "state": "ended", "what": what, "ok": true, "message": msg}),
+            End::Done(Err(e)) => {
+                json!({"type": "motion", "state": "ended", "what": what, "ok": false, "error": e.to_json(),
+                       "message": e.message})
+            }
+            End::Stopped(reason) => {
+                // The stop the library sent when the future was dropped, asked again and confirmed.
+                let confirmed = Arc::clone(&self.device).stop(unit).await;
+                let (ok, msg) = match &confirmed {
+                    Ok(m) => (true, format!("{what} stopped: {}; {m}", reason.text())),
+                    Err(e) => {
+                        (false, format!("{what} stopped ({}), but the stop is not confirmed: {e}", reason.text()))
+                    }
+                };
+                json!({"type": "motion", "state": "stopped", "what": what, "ok": ok, "reason": reason.text(),
+                       "message": msg})
+            }
+        };
+        ended[key] = json!(unit);
+        let mut st = lock(&self.state);
+        if st.motion.as_ref().is_some_and(|m| m.id == id) {
+            st.motion = None;
+        }
+        drop(st);
+        self.notify(ended);
+    }
+
+    /// Renews the jog of page `page`; false if it has none (it ended or was stopped).
+    pub fn renew_jog(&self, page: u64) -> bool {
+        let mut st = lock(&self.state);
+        match st.motion.as_mut() {
+            Some(m) if m.owner == page && m.deadline.is_some() && m.cancel.is_some() => {
+                m.deadline = Some(Instant::now() + DEAD_MAN);
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// The jog of page `page` is let go.
+    pub fn release_jog(&self, page: u64) {
+        let mut st = lock(&self.state);
+        let cancel =
+            st.motion.as_mut().filter(|m| m.owner == page && m.deadline.is_some()).and_then(|m| m.cancel.take());
+        drop(st);
+        if let Some(c) = cancel {
+            let _ = c.send(StopReason::Released);
+        }
+    }
+
+    /// The Stop button of any page (a read-only page may stop too: a stop never sets anything in motion).
+    /// Stops the console's motion, and `unit` if the motion was not its own (or none ran).
+    pub async fn stop(self: &Arc<Self>, unit: Option<u8>) -> Option<Result<String, Failure>> {
+        let running = lock(&self.state).motion.as_mut().map(|m| (m.unit, m.cancel.take()));
+        let motion_unit = match running {
+            Some((u, Some(cancel))) => {
+                let _ = cancel.send(StopReason::StopButton);
+                Some(u)
+            }
+            Some((u, None)) => Some(u),
+            None => None,
+        };
+        match unit {
+            // The motion's task stops its unit and reports it.
+            Some(u) if Some(u) != motion_unit => Some(Arc::clone(&self.device).stop(u).await),
+            None if motion_unit.is_none() => Some(Arc::clone(&self.device).stop_started().await),
+            _ => None,
+        }
+    }
+
+    /// Ends the console: pages are told to go, the motion under way is stopped (and its stop awaited),
+    /// sampling ends, and whatever the session still has in motion is stopped. Returns what was stopped.
+    pub async fn shutdown(self: &Arc<Self>) -> Result<String, Failure> {
+        self.shutdown.send_replace(true);
+        let motion = lock(&self.state).motion.as_mut().map(|m| (m.cancel.take(), m.task.take()));
+        if let Some((cancel, task)) = motion {
+            if let Some(c) = cancel {
+                let _ = c.send(StopReason::ConsoleEnding);
+            }
+            if let Some(t) = task {
+                let _ = t.await;
+            }
+        }
+        let poller = lock(&self.poller).take();
+        if let Some(p) = poller {
+            p.abort();
+            let _ = p.await;
+        }
+        Arc::clone(&self.device).stop_started().await
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::console::device::Motion as DeviceMotion;
+    use crate::console::device::{Action, BoxFuture, JogDirection, Param, ParamValue, Sample};
+    use crate::console::traffic::Traffic;
+    use motionlink_link::clock::ManualClock;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use tokio::sync::mpsc;
+
+    /// A device whose motions run until dropped; each drop and each stop is reported.
+    struct Fake {
+        dropped: mpsc::UnboundedSender<std::time::Instant>,
+        running: mpsc::UnboundedSender<()>,
+        stops: AtomicUsize,
+        stop_started: AtomicUsize,
+    }
+
+    struct OnDrop(mpsc::UnboundedSender<std::time::Instant>);
+
+    impl Drop for OnDrop {
+        fn drop(&mut self) {
+            let _ = self.0.send(std::time::Instant::now());
+        }
+    }
+
+    impl Fake {
+        fn forever(&self) -> DeviceMotion {
+            let tx = self.dropped.clone();
+            let running = self.running.clone();
+            Box::pin(async move {
+                let _ = running.send(());
+                // Made when the motion runs: a motion refused before it started reports no drop.
+                let _guard = OnDrop(tx);
+                std::future::pending::<()>().await;
+                Ok(String::new())
+            })
+        }
+    }
+
+    impl Device for Fake {
+        fn family(&self) -> &'static str {
+            "compax"
+        }
+        fn unit_key(&self) -> &'static str {
+            "drive"
+        }
+        fn port(&self) -> String {
+            "fake".into()
+        }
+        fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, Failure>> {
+            Box::pin(async { Ok(Vec::new()) })
+        }
+        fn sample<'a>(&'a self, _units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, Failure>>> {
+            Box::pin(async { Vec::new() })
+        }
+        fn move_to(self: Arc<Self>, _unit: u8, _target: f64, _speed: Option<f64>) -> Result<DeviceMotion, Failure> {
+            Ok(self.forever())
+        }
+        fn jog(
+            self: Arc<Self>,
+            _unit: u8,
+            _direction: JogDirection,
+            _speed: Option<f64>,
+        ) -> Result<DeviceMotion, Failure> {
+            Ok(self.forever())
+        }
+        fn stop(self: Arc<Self>, _unit: u8) -> DeviceMotion {
+            self.stops.fetch_add(1, Ordering::SeqCst);
+            Box::pin(async { Ok("stopped".to_string()) })
+        }
+        fn stop_started(self: Arc<Self>) -> DeviceMotion {
+            self.stop_started.fetch_add(1, Ordering::SeqCst);
+            Box::pin(async { Ok(String::new()) })
+        }
+        fn actions(&self) -> Vec<Action> {
+            Vec::new()
+        }
+        fn action(self: Arc<Self>, _unit: u8, name: &str) -> Result<DeviceMotion, Failure> {
+            Err(Failure::usage(name))
+        }
+        fn params(&self) -> Vec<Param> {
+            Vec::new()
+        }
+        fn read_param(self: Arc<Self>, _unit: u8, _name: String) -> BoxFuture<'static, Result<ParamValue, Failure>> {
+            Box::pin(async { Err(Failure::usage("none")) })
+        }
+        fn write_param(
+            self: Arc<Self>,
+            _unit: u8,
+            _name: String,
+            _value: String,
+        ) -> BoxFuture<'static, Result<ParamValue, Failure>> {
+            Box::pin(async { Err(Failure::usage("none")) })
+        }
+        fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<Value, Failure>> {
+            Box::pin(async { Err(Failure::usage("none")) })
+        }
+        fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
+            Box::pin(async { Ok(String::new()) })
+        }
+    }
+
+    type Dropped = mpsc::UnboundedReceiver<std::time::Instant>;
+    type Running = mpsc::UnboundedReceiver<()>;
+
+    fn hub() -> (Arc<Hub>, Arc<Fake>, Dropped, Running) {
+        let (tx, rx) = mpsc::unbounded_channel();
+        let (running, running_rx) = mpsc::unbounded_channel();
+        let fake =
+            Arc::new(Fake { dropped: tx, running, stops: AtomicUsize::new(0), stop_started: AtomicUsize::new(0) });
+        let clock = ManualClock::new().shared();
+        let traffic = Arc::new(Traffic::new(
+            Box::new(motionlink_compax::describe::CompaxDescriber::new(
+                motionlink_compax::wire::Mode::from_p196(0).unwrap(),
+            )),
+            "fake",
+            "can0",
+            &clock,
+        ));
+        (Hub::new(Arc::clone(&fake) as Arc<dyn Device>, traffic), fake, rx, running_rx)
+    }
+
+    fn motion(fake: &Arc<Fake>) -> DeviceMotion {
+        fake.forever()
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_jog_without_renewals_is_stopped_after_the_dead_man_time() {
+        let (hub, fake, mut dropped, _running) = hub();
+        let (page, role) = hub.page_opened();
+        assert_eq!(role, Role::Control);
+        let started = std::time::Instant::now();
+        hub.start_motion(page, 1, "jog", true, motion(&fake)).unwrap();
+        // Renewed for 400 ms: still running.
+        let mut last = started;
+        while started.elapsed() < Duration::from_millis(400) {
+            assert!(hub.renew_jog(page));
+            last = std::time::Instant::now();
+            tokio::time::sleep(Duration::from_millis(50)).await;
+            assert!(dropped.try_recv().is_err(), "dropped while renewed");
+        }
+        let at = dropped.recv().await.unwrap();
+        let after = at.duration_since(last);
+        assert!(after >= DEAD_MAN && after < DEAD_MAN + Duration::from_millis(150), "{after:?}");
+        // The stop is asked again and confirmed.
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        assert_eq!(fake.stops.load(Ordering::SeqCst), 1);
+        assert!(!hub.renew_jog(page), "no jog left to renew");
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn only_the_controlling_page_moves_and_its_going_stops_its_motion() {
+        let (hub, fake, mut dropped, mut running) = hub();
+        let (first, _) = hub.page_opened();
+        let (second, role) = hub.page_opened();
+        assert_eq!(role, Role::ReadOnly);
+        let e = hub.start_motion(second, 1, "move", false, motion(&fake)).unwrap_err();
+        assert!(e.message.contains("read-only"), "{e}");
+        assert!(!hub.take_control(second));
+        hub.start_motion(first, 1, "move", false, motion(&fake)).unwrap();
+        running.recv().await.unwrap();
+        // One motion at a time.
+        assert!(hub.start_motion(first, 2, "move", false, motion(&fake)).is_err());
+        // The read-only page going changes nothing; the owner going stops its motion.
+        hub.page_closed(second);
+        assert!(tokio::time::timeout(Duration::from_millis(300), dropped.recv()).await.is_err());
+        hub.page_closed(first);
+        tokio::time::timeout(Duration::from_secs(1), dropped.recv()).await.expect("stopped").unwrap();
+        let (third, role) = hub.page_opened();
+        assert_eq!(role, Role::Control, "control is free again");
+        assert_eq!(hub.role_of(third).0, Role::Control);
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn stop_from_a_read_only_page_and_shutdown_stop_the_motion() {
+        let (hub, fake, mut dropped, mut running) = hub();
+        let (first, _) = hub.page_opened();
+        let (second, _) = hub.page_opened();
+        hub.start_motion(first, 1, "move", false, motion(&fake)).unwrap();
+        running.recv().await.unwrap();
+        assert_eq!(hub.stop(Some(1)).await, None, "the motion's own task reports the stop");
+        tokio::time::timeout(Duration::from_secs(1), dropped.recv()).await.expect("Stop stops it").unwrap();
+        let _ = second;
+        // The ended motion's task clears its slot after the confirmed stop.
+        while hub.start_motion(first, 1, "move", false, motion(&fake)).is_err() {
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+        running.recv().await.unwrap();
+        hub.shutdown().await.unwrap();
+        tokio::time::timeout(Duration::from_secs(1), dropped.recv()).await.expect("shutdown stops it").unwrap();
+        assert_eq!(fake.stop_started.load(Ordering::SeqCst), 1);
+    }
+}

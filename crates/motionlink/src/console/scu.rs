@@ -1,0 +1,420 @@
+//! The console over an SCU control unit: its connected actuators, moves through the remote position, jogs as
+//! a run of the actuator's motion function in or out (RS when the future is dropped), the data list.
+
+use std::sync::Arc;
+
+use motionlink_link::capture::TapLink;
+use motionlink_link::link::{Connector, Link, SerialSettings};
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::url::PortUrl;
+use motionlink_link::SharedClock;
+use motionlink_scu::model::{
+    lookup, status1, Actuator, DataIndex, Item, MotionDirection, MotionFunction, SafetyId, Speed, SpeedMode, StopMode,
+    TABLE,
+};
+use motionlink_scu::session::RunAction;
+use motionlink_scu::value::Value as ScuValue;
+use motionlink_scu::{AsyncClient, ClientConfig, Emulator, FunctionMap, SimConfig};
+use serde_json::{json, Value};
+
+use super::device::{
+    finite, Action, BoxFuture, Device, Failure, JogDirection, Motion, Param, ParamValue, Sample, Unit,
+};
+use super::traffic::Traffic;
+use super::ServeArgs;
+use crate::common::CliError;
+
+/// `motionlink console scu` arguments.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The port: a serial device (/dev/ttyUSB0, COM3), tcp://HOST:PORT (a serial gateway or `motionlink sim
+    /// scu`), or sim (an emulator in this process).
+    #[arg(long, value_name = "PORT")]
+    pub port: String,
+    /// Baud rate of a serial port: 38400 on standard units, 9600 or 19200 on customised ones.
+    #[arg(long, default_value_t = 38_400, value_parser = clap::value_parser!(u32).range(9_600..=38_400))]
+    pub baud: u32,
+    /// Safety_ID sent with RO: 0 a timeout stops all motion and locks remote motion until RO, 1 stops all
+    /// motion, 2 stops remote motion only.
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=2))]
+    pub safety: u8,
+    /// Which actuators each motion function drives: a preset (scp11, tlt, liftkit) or F1=1,2; repeatable.
+    /// The console moves and jogs actuator n with the function that drives it alone (default: Fn).
+    #[arg(long = "functions", value_name = "MAP")]
+    pub functions: Vec<String>,
+    /// How the unit takes remote speeds: percent or counts-per-second.
+    #[arg(long, value_enum, default_value_t = SpeedModeArg::Percent, value_name = "MODE")]
+    pub speed_mode: SpeedModeArg,
+    #[command(flatten)]
+    pub serve: ServeArgs,
+}
+
+/// `--speed-mode`: how the unit's parameterisation gives remote speeds.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpeedModeArg {
+    /// Percent of the full speed, 1..100.
+    Percent,
+    /// Encoder counts per second, 1..1000.
+    CountsPerSecond,
+}
+
+struct Scu {
+    client: AsyncClient,
+    port: String,
+    functions: FunctionMap,
+    speed_mode: SpeedMode,
+}
+
+/// Opens the session `args` ask for, its link tapped into the traffic log.
+pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, Arc<Traffic>), CliError> {
+    let safety_id = SafetyId::from_code(args.safety)
+        .ok_or_else(|| CliError::usage(format!("--safety {}: the Safety_ID is 0, 1 or 2", args.safety)))?;
+    if ![9_600, 19_200, 38_400].contains(&args.baud) {
+        return Err(CliError::usage(format!("--baud {}: an SCU runs at 9600, 19200 or 38400 baud", args.baud)));
+    }
+    let mut functions = FunctionMap::unknown();
+    for spec in &args.functions {
+        functions = functions.apply(spec).map_err(|e| CliError::usage(format!("--functions {e}")))?;
+    }
+    let speed_mode = match args.speed_mode {
+        SpeedModeArg::Percent => SpeedMode::Percent,
+        SpeedModeArg::CountsPerSecond => SpeedMode::CountsPerSecond,
+    };
+    let config = ClientConfig { safety_id, function_map: functions, speed_mode, ..ClientConfig::default() };
+    config.validate().map_err(|e| CliError::usage(e.to_string()))?;
+    let url: PortUrl = args.port.parse()?;
+    let traffic = Arc::new(Traffic::new(
+        Box::new(motionlink_scu::describe::Describer::new()),
+        &format!("scu {}", args.port),
+        "can0",
+        clock,
+    ));
+    let tap = Arc::clone(&traffic);
+    let tap_clock = Arc::clone(clock);
+    let mut inner: Connector = match &url {
+        PortUrl::Sim => {
+            let sim_config = SimConfig { speed_mode, ..SimConfig::default() };
+            let sim = Emulator::new(sim_config).map_err(|e| CliError::usage(e.to_string()))?;
+            let host = EmulatorHost::new(sim, Arc::clone(clock), PipeConfig::paced(args.baud));
+            Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>))
+        }
+        p if p.is_can() => return Err(CliError::usage(format!("{p}: the SCU speaks RS232, not CAN"))),
+        p => {
+            let p = p.clone();
+            let settings = SerialSettings::new(args.baud);
+            Box::new(move || p.open_byte_link(settings))
+        }
+    };
+    let connector: Connector = Box::new(move || {
+        let link = inner()?;
+        Ok(Box::new(TapLink::new(link, Arc::clone(&tap_clock), Arc::clone(&tap))) as Box<dyn Link>)
+    });
+    let client =
+        AsyncClient::open(connector, Arc::clone(clock), config).await.map_err(|e| crate::common::classified(&e))?;
+    let device = Scu { client, port: args.port.clone(), functions, speed_mode };
+    Ok((Arc::new(device), traffic))
+}
+
+fn failure(e: motionlink_scu::Error) -> Failure {
+    Failure::of(&e)
+}
+
+fn actuator(n: u8) -> Result<Actuator, Failure> {
+    Actuator::new(n).ok_or_else(|| Failure::usage(format!("actuator {n}: actuators are 1..6")))
+}
+
+fn le_u16s(data: &[u8]) -> Vec<u16> {
+    data.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect()
+}
+
+impl Scu {
+    /// The motion function that moves actuator `a` alone: the one the map says drives only it, else Fn.
+    fn function_of(&self, a: Actuator) -> Result<MotionFunction, Failure> {
+        for n in 1..=10 {
+            let Some(f) = MotionFunction::new(n) else { continue };
+            if self.functions.drives(f).is_some_and(|d| d == [a]) {
+                return Ok(f);
+            }
+        }
+        MotionFunction::new(a.number()).ok_or_else(|| Failure::usage(format!("{a} has no motion function")))
+    }
+
+    fn speed(&self, speed: Option<f64>) -> Result<Option<Speed>, Failure> {
+        let Some(s) = speed else { return Ok(None) };
+        let s = finite("speed", s)?;
+        if s.fract() != 0.0 || s < 1.0 || s > f64::from(self.speed_mode.max()) {
+            return Err(Failure::usage(format!(
+                "speed {s}: a whole number from 1 to {} {}",
+                self.speed_mode.max(),
+                self.speed_mode.unit()
+            )));
+        }
+        Speed::of_mode(self.speed_mode, s as u16).map(Some).ok_or_else(|| Failure::usage(format!("speed {s}")))
+    }
+
+    fn speed_key(&self) -> (&'static str, &'static str) {
+        match self.speed_mode {
+            SpeedMode::Percent => ("speed_percent", "%"),
+            SpeedMode::CountsPerSecond => ("speed_counts_per_s", "counts/s"),
+        }
+    }
+}
+
+fn lookup_entry(name: &str) -> Result<Item, Failure> {
+    lookup(name).ok_or_else(|| {
+        Failure::usage(format!("{name:?} is not in the data list: give a name such as remote_speed_f1 or an index"))
+    })
+}
+
+fn shown(entries: &[(&'static motionlink_scu::model::DataEntry, ScuValue)]) -> String {
+    if let [(_, v)] = entries {
+        return v.to_string();
+    }
+    entries.iter().map(|(e, v)| format!("{}={v}", e.name)).collect::<Vec<_>>().join(", ")
+}
+
+impl Device for Scu {
+    fn family(&self) -> &'static str {
+        "scu"
+    }
+
+    fn unit_key(&self) -> &'static str {
+        "actuator"
+    }
+
+    fn port(&self) -> String {
+        self.port.clone()
+    }
+
+    fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, Failure>> {
+        Box::pin(async move {
+            let found = self.client.connected_actuators().await.map_err(failure)?;
+            let mut units = Vec::new();
+            for a in found {
+                let f = self.function_of(a)?;
+                units.push(Unit {
+                    id: a.number(),
+                    label: format!("A{}", a.number()),
+                    detail: format!("moved and jogged with {f}"),
+                    position_key: "position_counts",
+                    target_key: "target_counts",
+                    position_unit: "counts",
+                    speed_key: "speed_percent",
+                    speed_unit: "%",
+                    command_speed: self.speed_key(),
+                    has_current: true,
+                });
+            }
+            Ok(units)
+        })
+    }
+
+    fn sample<'a>(&'a self, units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, Failure>>> {
+        Box::pin(async move {
+            // Four reads of groups cover every actuator at once.
+            let read = async {
+                let positions = self.client.positions().await?;
+                let status = self.client.statuses().await?;
+                let speeds = le_u16s(&self.client.get_raw(DataIndex(0x00F0)).await?);
+                let currents = le_u16s(&self.client.get_raw(DataIndex(0x00A0)).await?);
+                Ok::<_, motionlink_scu::Error>((positions, status, speeds, currents))
+            };
+            match read.await {
+                Err(e) => units.iter().map(|_| Err(failure(e.clone()))).collect(),
+                Ok((positions, status, speeds, currents)) => units
+                    .iter()
+                    .map(|u| {
+                        let i = usize::from(u.id.saturating_sub(1)).min(5);
+                        let flags = motionlink_scu::model::ActuatorStatus1(status[i]);
+                        use motionlink_link::flags::FlagWord;
+                        Ok(Sample {
+                            id: u.id,
+                            position: f64::from(positions[i]),
+                            speed: speeds.get(i).map(|s| f64::from(*s)),
+                            current_amps: currents.get(i).map(|c| f64::from(*c) / 10.0),
+                            flags: flags.names(),
+                            faults: flags
+                                .set_flags()
+                                .into_iter()
+                                .filter(|f| f.class() == motionlink_link::flags::FlagClass::Error)
+                                .map(|f| f.name())
+                                .collect(),
+                            unknown_bits: flags.unknown(),
+                            moving: status[i] & status1::MOTION != 0,
+                        })
+                    })
+                    .collect(),
+            }
+        })
+    }
+
+    fn move_to(self: Arc<Self>, unit: u8, target: f64, speed: Option<f64>) -> Result<Motion, Failure> {
+        let a = actuator(unit)?;
+        let target = finite("target", target)?;
+        if target.fract() != 0.0 || target < f64::from(i32::MIN) || target > f64::from(i32::MAX) {
+            return Err(Failure::usage(format!("target {target}: a whole number of counts")));
+        }
+        let speed = self.speed(speed)?.unwrap_or(Speed::of_mode(self.speed_mode, self.speed_mode.max()).expect("max"));
+        let function = self.function_of(a)?;
+        let op = self.client.move_to_op(a, target as i32, speed, Some(function)).map_err(failure)?;
+        Ok(Box::pin(async move {
+            let out = self.client.start(op).await.map_err(failure)?;
+            match out {
+                motionlink_scu::Output::Move(r) => Ok(format!(
+                    "{a} at {} counts (target {target}) after {:.2} s",
+                    r.position_counts,
+                    r.duration.as_secs_f64()
+                )),
+                other => Ok(format!("{other:?}")),
+            }
+        }))
+    }
+
+    fn jog(self: Arc<Self>, unit: u8, direction: JogDirection, speed: Option<f64>) -> Result<Motion, Failure> {
+        let a = actuator(unit)?;
+        let speed = self.speed(speed)?;
+        let function = self.function_of(a)?;
+        let dir = match direction {
+            JogDirection::Positive => MotionDirection::Out,
+            JogDirection::Negative => MotionDirection::In,
+        };
+        Ok(Box::pin(async move {
+            if let Some(s) = speed {
+                let raw = s.for_motion(self.speed_mode).map_err(Failure::usage)?;
+                self.client.set(function.remote_speed_index(), &ScuValue::RemoteSpeed(raw)).await.map_err(failure)?;
+            }
+            // Runs until the unit reports the end of travel; dropped, the session sends RS (fast) and checks it.
+            let r = self.client.run(RunAction::Motion(function, dir), None).await.map_err(failure)?;
+            let rest = r.rest.iter().map(|(a, p)| format!("{a} at {p} counts")).collect::<Vec<_>>().join(", ");
+            Ok(format!("{function} ran {:.2} s to its end of travel: {rest}", r.duration.as_secs_f64()))
+        }))
+    }
+
+    fn stop(self: Arc<Self>, unit: u8) -> Motion {
+        Box::pin(async move {
+            let a = actuator(unit)?;
+            let f = self.function_of(a)?;
+            self.client.stop_motion(f, StopMode::Fast).await.map_err(failure)?;
+            Ok(format!("{f} stopped (RS fast, acknowledged by the unit)"))
+        })
+    }
+
+    fn stop_started(self: Arc<Self>) -> Motion {
+        Box::pin(async move {
+            let started = self.client.started_functions();
+            let mut done = Vec::new();
+            for id in started {
+                let Some(f) = MotionFunction::new(id + 1) else { continue };
+                self.client.stop_motion(f, StopMode::Fast).await.map_err(failure)?;
+                done.push(f.to_string());
+            }
+            Ok(if done.is_empty() { String::new() } else { format!("{} stopped (RS acknowledged)", done.join(", ")) })
+        })
+    }
+
+    fn actions(&self) -> Vec<Action> {
+        Vec::new()
+    }
+
+    fn action(self: Arc<Self>, _unit: u8, name: &str) -> Result<Motion, Failure> {
+        Err(Failure::usage(format!("the SCU console has no action {name:?}")))
+    }
+
+    fn params(&self) -> Vec<Param> {
+        TABLE
+            .iter()
+            .map(|e| Param { name: e.name, id: e.id, unit: e.unit, access: e.access.short(), title: e.title })
+            .collect()
+    }
+
+    fn read_param(self: Arc<Self>, _unit: u8, name: String) -> BoxFuture<'static, Result<ParamValue, Failure>> {
+        Box::pin(async move {
+            let it = lookup_entry(&name)?;
+            let values = self.client.get(it.index()).await.map_err(failure)?;
+            let unit = match it {
+                Item::Entry(e) => e.unit,
+                Item::Group(_) => "",
+            };
+            Ok(ParamValue {
+                name: it.name().to_string(),
+                id: u32::from(it.index().0),
+                value: shown(&values),
+                unit: unit.to_string(),
+                read_back: None,
+                note: String::new(),
+            })
+        })
+    }
+
+    fn write_param(
+        self: Arc<Self>,
+        _unit: u8,
+        name: String,
+        value: String,
+    ) -> BoxFuture<'static, Result<ParamValue, Failure>> {
+        Box::pin(async move {
+            let Item::Entry(e) = lookup_entry(&name)? else {
+                return Err(Failure::usage(format!("{name} is a group: write its entries one by one")));
+            };
+            if !e.access.writable() {
+                return Err(Failure::usage(format!(
+                    "{} is read-only (the SCU writes only remote entries 0x3xxx)",
+                    e.name
+                )));
+            }
+            let v = ScuValue::parse(e.kind, &value).map_err(|err| Failure::usage(format!("{}: {err}", e.name)))?;
+            let index = DataIndex(e.id as u16);
+            // The session writes with RT and reads the entry back (a difference is an error).
+            self.client.set(index, &v).await.map_err(failure)?;
+            let back = self.client.get_value(index).await.map_err(failure)?;
+            Ok(ParamValue {
+                name: e.name.to_string(),
+                id: e.id,
+                value: v.to_string(),
+                unit: e.unit.to_string(),
+                read_back: Some(back.to_string()),
+                note: String::new(),
+            })
+        })
+    }
+
+    fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<Value, Failure>> {
+        Box::pin(async move {
+            let history = self.client.error_history().await.map_err(failure)?;
+            let entries: Vec<Value> = history
+                .iter()
+                .enumerate()
+                .map(|(i, c)| {
+                    let bits: Vec<Value> = c
+                        .bits()
+                        .map(|b| json!({"bit": b.number(), "name": b.name(), "cause": b.cause(), "reaction": b.reaction()}))
+                        .collect();
+                    json!({"label": if i == 0 { "Error_Code 1 (most recent)".to_string() } else { format!("Error_Code {}", i + 1) },
+                           "code": c.0, "text": format!("0x{:08X}", c.0), "bits": bits,
+                           "unknown_bits": c.unknown_bits()})
+                })
+                .collect();
+            Ok(json!({"title": "Error_Code 1..5 of the unit (0x00D1..0x00D5), newest first", "entries": entries}))
+        })
+    }
+
+    fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
+        Box::pin(async move {
+            let me = match Arc::try_unwrap(self) {
+                Ok(me) => me,
+                Err(shared) => {
+                    // A request still holds the session: it ends (RS, RA) when that ends.
+                    drop(shared);
+                    return Ok("the session ends with its last request".into());
+                }
+            };
+            let started = me.client.started_functions();
+            let closed = me.client.close().await;
+            match motionlink_scu::ending(&started, closed) {
+                motionlink_scu::Ending::Clean => Ok(String::new()),
+                motionlink_scu::Ending::Stopped(note) => Ok(note),
+                motionlink_scu::Ending::Failed(e) | motionlink_scu::Ending::Unconfirmed(e) => Err(failure(e)),
+            }
+        })
+    }
+}

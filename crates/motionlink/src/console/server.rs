@@ -1,0 +1,433 @@
+//! The HTTP side of the console: the page and its assets (embedded in the binary), the capture download,
+//! and the WebSocket of each page. Every request needs the token; the WebSocket also needs an `Origin` of
+//! this very server.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use axum::body::{Body, Bytes};
+use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
+use axum::extract::{FromRequestParts, Request, State};
+use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
+use axum::response::Response;
+use serde_json::{json, Value};
+use tokio::sync::{broadcast, mpsc};
+use tokio::time::Instant;
+
+use super::device::{Failure, JogDirection};
+use super::hub::{Hub, Notice, Role, Units};
+use super::token;
+
+const INDEX_HTML: &str = include_str!("assets/index.html");
+const APP_JS: &str = include_str!("assets/app.js");
+const APP_CSS: &str = include_str!("assets/app.css");
+
+/// How long a page may stay silent (no message, no answer to a ping) before it counts as gone.
+const PAGE_SILENCE: Duration = Duration::from_millis(1500);
+/// How often a page is pinged.
+const PING_EVERY: Duration = Duration::from_millis(500);
+/// At most this many log lines go to a page per sample.
+const LOG_BATCH: usize = 300;
+
+/// What the HTTP handlers share.
+pub struct App {
+    /// The console's state.
+    pub hub: Arc<Hub>,
+    /// The token every request must carry.
+    pub token: String,
+    /// The `Host` values a request may name (None: any, when listening on every interface).
+    pub hosts: Option<Vec<String>>,
+}
+
+fn plain(status: StatusCode, text: &str) -> Response {
+    let mut r = Response::new(Body::from(text.to_string()));
+    *r.status_mut() = status;
+    r.headers_mut().insert(header::CONTENT_TYPE, HeaderValue::from_static("text/plain; charset=utf-8"));
+    r
+}
+
+fn asset(content_type: &'static str, body: impl Into<Body>) -> Response {
+    let mut r = Response::new(body.into());
+    let h = r.headers_mut();
+    h.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    h.insert(header::REFERRER_POLICY, HeaderValue::from_static("no-referrer"));
+    h.insert(header::X_CONTENT_TYPE_OPTIONS, HeaderValue::from_static("nosniff"));
+    h.insert(
+        header::CONTENT_SECURITY_POLICY,
+        HeaderValue::from_static(
+            "default-src 'self'; img-src 'self' data:; connect-src 'self'; frame-ancestors 'none'; base-uri 'none'",
+        ),
+    );
+    r
+}
+
+fn header_str(headers: &HeaderMap, name: header::HeaderName) -> Option<&str> {
+    headers.get(name).and_then(|v| v.to_str().ok())
+}
+
+/// Checks the `Host` of a request against the addresses the console serves.
+fn host_allowed(app: &App, headers: &HeaderMap) -> bool {
+    match (&app.hosts, header_str(headers, header::HOST)) {
+        (None, Some(_)) => true,
+        (Some(list), Some(h)) => list.iter().any(|a| a.eq_ignore_ascii_case(h)),
+        (_, None) => false,
+    }
+}
+
+/// Every request: the token first, then the route.
+pub async fn handle(State(app): State<Arc<App>>, req: Request) -> Response {
+    let given = token::query_value(req.uri().query(), "token").unwrap_or("");
+    if !token::same(given, &app.token) {
+        return plain(
+            StatusCode::FORBIDDEN,
+            "motionlink console: wrong or missing token. Open the address the console printed \
+             (console on http://...?token=...).\n",
+        );
+    }
+    if !host_allowed(&app, req.headers()) {
+        return plain(StatusCode::FORBIDDEN, "motionlink console: this Host is not the console's address.\n");
+    }
+    match req.uri().path() {
+        "/" | "/index.html" => asset("text/html; charset=utf-8", INDEX_HTML.replace("{{TOKEN}}", &app.token)),
+        "/app.js" => asset("text/javascript; charset=utf-8", APP_JS),
+        "/app.css" => asset("text/css; charset=utf-8", APP_CSS),
+        "/capture" => {
+            let family = app.hub.device().family();
+            let mut r = asset("text/plain; charset=utf-8", app.hub.traffic.capture_file());
+            let name = format!("attachment; filename=\"motionlink-{family}-capture.log\"");
+            if let Ok(v) = HeaderValue::from_str(&name) {
+                r.headers_mut().insert(header::CONTENT_DISPOSITION, v);
+            }
+            r
+        }
+        "/ws" => {
+            // A WebSocket is not bound by the same-origin policy: only a page of this server may open one.
+            let origin = header_str(req.headers(), header::ORIGIN);
+            let host = header_str(req.headers(), header::HOST).unwrap_or("");
+            if origin.is_none_or(|o| !o.eq_ignore_ascii_case(&format!("http://{host}"))) {
+                return plain(
+                    StatusCode::FORBIDDEN,
+                    "motionlink console: the WebSocket's Origin is not this console.\n",
+                );
+            }
+            let (mut parts, _body) = req.into_parts();
+            match WebSocketUpgrade::from_request_parts(&mut parts, &()).await {
+                Ok(ws) => {
+                    let hub = Arc::clone(&app.hub);
+                    ws.on_upgrade(move |socket| page(hub, socket))
+                }
+                Err(rejection) => axum::response::IntoResponse::into_response(rejection),
+            }
+        }
+        _ => plain(StatusCode::NOT_FOUND, "motionlink console: no such page.\n"),
+    }
+}
+
+/// The units as the page gets them: `null` while scanning, with the failure if the scan failed.
+fn units_json(hub: &Hub, units: &Units) -> Value {
+    let key = hub.device().unit_key();
+    match units {
+        Units::Scanning => json!({"type": "units", "scanning": true, "units": []}),
+        Units::Found(list) => {
+            json!({"type": "units", "scanning": false, "units": list.iter().map(|u| u.to_json(key)).collect::<Vec<_>>()})
+        }
+        Units::Failed(e) => json!({"type": "units", "scanning": true, "units": [], "error": e.to_json()}),
+    }
+}
+
+fn role_json(hub: &Hub, page: u64) -> Value {
+    let (role, free) = hub.role_of(page);
+    let message = match role {
+        Role::Control => "this page controls the console".to_string(),
+        Role::ReadOnly if free => "read-only: no page controls the console now; take control to move".to_string(),
+        Role::ReadOnly => "read-only: another page controls the console (Stop still works here)".to_string(),
+    };
+    json!({"type": "role", "role": role.name(), "control_free": free, "message": message})
+}
+
+fn welcome(hub: &Hub, page: u64) -> Value {
+    let d = hub.device();
+    let params: Vec<Value> = d
+        .params()
+        .iter()
+        .map(|p| json!({"name": p.name, "id": p.id, "unit": p.unit, "access": p.access, "title": p.title}))
+        .collect();
+    let actions: Vec<Value> =
+        d.actions().iter().map(|a| json!({"name": a.name, "label": a.label, "moves": a.moves})).collect();
+    json!({
+        "type": "welcome",
+        "family": d.family(),
+        "port": d.port(),
+        "unit_key": d.unit_key(),
+        "params": params,
+        "actions": actions,
+        "dead_man_ms": super::hub::DEAD_MAN.as_millis() as u64,
+        "sample_period_ms": super::hub::SAMPLE_PERIOD.as_millis() as u64,
+        "role": role_json(hub, page),
+    })
+}
+
+/// One page's WebSocket: what it sends is done (its role allowing); samples, the traffic log and notices
+/// go to it until it goes away, which stops the motion it owns.
+async fn page(hub: Arc<Hub>, mut socket: WebSocket) {
+    let (id, _) = hub.page_opened();
+    let (replies, mut replies_rx) = mpsc::channel::<Value>(64);
+    let mut notices = hub.notices();
+    let mut samples = hub.samples();
+    let mut shutdown = hub.shutdown_signal();
+    let mut last_seq = hub.traffic.last_seq().saturating_sub(200);
+    let mut tick = tokio::time::interval(super::hub::SAMPLE_PERIOD);
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut last_heard = Instant::now();
+    let mut last_ping = Instant::now();
+    let mut outgoing: Vec<Value> = vec![welcome(&hub, id), units_json(&hub, &hub.units().borrow().clone())];
+    'page: loop {
+        for v in outgoing.drain(..) {
+            if socket.send(Message::Text(v.to_string().into())).await.is_err() {
+                break 'page;
+            }
+        }
+        tokio::select! {
+            msg = socket.recv() => match msg {
+                Some(Ok(Message::Text(text))) => {
+                    last_heard = Instant::now();
+                    if let Some(v) = request(&hub, id, text.as_str(), &replies) {
+                        outgoing.push(v);
+                    }
+                }
+                Some(Ok(Message::Close(_))) | None | Some(Err(_)) => break 'page,
+                Some(Ok(_)) => last_heard = Instant::now(),
+            },
+            Some(v) = replies_rx.recv() => outgoing.push(v),
+            notice = notices.recv() => match notice {
+                Ok(Notice::Json(text)) => {
+                    if socket.send(Message::Text(text.as_str().into())).await.is_err() {
+                        break 'page;
+                    }
+                }
+                Ok(Notice::RoleChanged) => outgoing.push(role_json(&hub, id)),
+                Ok(Notice::UnitsChanged) => outgoing.push(units_json(&hub, &hub.units().borrow().clone())),
+                Err(broadcast::error::RecvError::Lagged(_)) => {}
+                Err(broadcast::error::RecvError::Closed) => break 'page,
+            },
+            changed = samples.changed() => {
+                if changed.is_err() {
+                    break 'page;
+                }
+                // Each sample goes out as soon as it is taken.
+                let frame = samples.borrow_and_update().clone();
+                if let Some(text) = frame {
+                    if socket.send(Message::Text(text.as_str().into())).await.is_err() {
+                        break 'page;
+                    }
+                }
+            }
+            _ = tick.tick() => {
+                let lines = hub.traffic.since(last_seq, LOG_BATCH);
+                if let Some(last) = lines.last() {
+                    last_seq = last.seq;
+                    outgoing.push(json!({"type": "traffic", "lines": lines.iter().map(|l| l.to_json()).collect::<Vec<_>>()}));
+                }
+                let now = Instant::now();
+                if now.duration_since(last_heard) > PAGE_SILENCE {
+                    // Neither a message nor an answer to the pings: the page is gone.
+                    break 'page;
+                }
+                if now.duration_since(last_ping) >= PING_EVERY {
+                    last_ping = now;
+                    if socket.send(Message::Ping(Bytes::from_static(b"ml"))).await.is_err() {
+                        break 'page;
+                    }
+                }
+            }
+            _ = shutdown.changed() => {
+                let _ = socket.send(Message::Text(json!({"type": "bye", "message": "the console is ending"}).to_string().into())).await;
+                break 'page;
+            }
+        }
+    }
+    hub.page_closed(id);
+}
+
+/// A number field of a request.
+fn number(req: &Value, key: &str) -> Result<Option<f64>, Failure> {
+    match req.get(key) {
+        None | Some(Value::Null) => Ok(None),
+        Some(v) => v.as_f64().map(Some).ok_or_else(|| Failure::usage(format!("{key}: {v} is not a number"))),
+    }
+}
+
+/// The unit a request names with the family's key (`actuator`, `module`, `drive`).
+fn unit_of(hub: &Hub, req: &Value) -> Result<u8, Failure> {
+    let key = hub.device().unit_key();
+    req.get(key)
+        .and_then(Value::as_u64)
+        .and_then(|n| u8::try_from(n).ok())
+        .ok_or_else(|| Failure::usage(format!("the request names no {key}")))
+}
+
+fn refused(request: &str, e: &Failure) -> Value {
+    json!({"type": "refused", "request": request, "error": e.to_json(), "message": e.message})
+}
+
+/// Handles one message of page `page`: an answer to send at once, or none (an answer comes later through
+/// `replies`).
+fn request(hub: &Arc<Hub>, page: u64, text: &str, replies: &mpsc::Sender<Value>) -> Option<Value> {
+    let req: Value = match serde_json::from_str(text) {
+        Ok(v) => v,
+        Err(e) => return Some(refused("?", &Failure::usage(format!("not JSON: {e}")))),
+    };
+    let kind = req.get("type").and_then(Value::as_str).unwrap_or("").to_string();
+    let result = handle_request(hub, page, &kind, &req, replies);
+    match result {
+        Ok(answer) => answer,
+        Err(e) => Some(refused(&kind, &e)),
+    }
+}
+
+fn spawn_reply(
+    replies: &mpsc::Sender<Value>,
+    request: &str,
+    work: impl std::future::Future<Output = Result<Value, Failure>> + Send + 'static,
+) {
+    let replies = replies.clone();
+    let request = request.to_string();
+    tokio::spawn(async move {
+        let answer = match work.await {
+            Ok(v) => v,
+            Err(e) => json!({"type": "failed", "request": request, "error": e.to_json(), "message": e.message}),
+        };
+        let _ = replies.send(answer).await;
+    });
+}
+
+fn handle_request(
+    hub: &Arc<Hub>,
+    page: u64,
+    kind: &str,
+    req: &Value,
+    replies: &mpsc::Sender<Value>,
+) -> Result<Option<Value>, Failure> {
+    match kind {
+        "jog_hold" => {
+            // Renewals are frequent and need no answer; a jog that ended is said by its notice.
+            hub.renew_jog(page);
+            Ok(None)
+        }
+        "jog_release" => {
+            hub.release_jog(page);
+            Ok(None)
+        }
+        "stop" => {
+            let unit = unit_of(hub, req).ok();
+            let hub2 = Arc::clone(hub);
+            spawn_reply(replies, kind, async move {
+                match hub2.stop(unit).await {
+                    Some(Ok(msg)) => Ok(json!({"type": "stopped", "ok": true, "message": msg})),
+                    Some(Err(e)) => Err(e),
+                    None => Ok(json!({"type": "stopped", "ok": true, "message": "stopping the motion under way"})),
+                }
+            });
+            Ok(None)
+        }
+        "take_control" => {
+            if hub.take_control(page) {
+                Ok(None)
+            } else {
+                Err(Failure::usage("another page controls the console"))
+            }
+        }
+        "move" => {
+            let unit = unit_of(hub, req)?;
+            let units = hub.units().borrow().clone();
+            let Units::Found(list) = units else { return Err(Failure::usage("the units are not found yet")) };
+            let u = list.iter().find(|u| u.id == unit).ok_or_else(|| Failure::usage(format!("no unit {unit}")))?;
+            let target =
+                number(req, u.target_key)?.ok_or_else(|| Failure::usage(format!("a move needs {}", u.target_key)))?;
+            let speed = number(req, u.command_speed.0)?;
+            hub.check_control(page)?;
+            let device = Arc::clone(hub.device());
+            let motion = device.move_to(unit, target, speed)?;
+            hub.start_motion(page, unit, "move", false, motion)?;
+            Ok(None)
+        }
+        "jog" => {
+            let unit = unit_of(hub, req)?;
+            let direction = match req.get("direction").and_then(Value::as_str) {
+                Some("positive") => JogDirection::Positive,
+                Some("negative") => JogDirection::Negative,
+                other => return Err(Failure::usage(format!("direction {other:?}: positive or negative"))),
+            };
+            let speed = number(req, "speed")?;
+            hub.check_control(page)?;
+            let device = Arc::clone(hub.device());
+            let motion = device.jog(unit, direction, speed)?;
+            hub.start_motion(page, unit, "jog", true, motion)?;
+            Ok(None)
+        }
+        "action" => {
+            let unit = unit_of(hub, req)?;
+            let name = req.get("name").and_then(Value::as_str).unwrap_or("").to_string();
+            let action = hub
+                .device()
+                .actions()
+                .into_iter()
+                .find(|a| a.name == name)
+                .ok_or_else(|| Failure::usage(format!("no action {name:?}")))?;
+            hub.check_control(page)?;
+            let device = Arc::clone(hub.device());
+            let work = device.action(unit, &name)?;
+            if action.moves {
+                hub.start_motion(page, unit, action.label, false, work)?;
+            } else {
+                let label = action.label;
+                spawn_reply(replies, kind, async move {
+                    work.await
+                        .map(|m| json!({"type": "action", "name": name, "label": label, "ok": true, "message": m}))
+                });
+            }
+            Ok(None)
+        }
+        "read_param" | "write_param" => {
+            let unit = unit_of(hub, req)?;
+            let name = req.get("name").and_then(Value::as_str).unwrap_or("").trim().to_string();
+            if name.is_empty() {
+                return Err(Failure::usage("give the name or number of the entry"));
+            }
+            let device = Arc::clone(hub.device());
+            if kind == "write_param" {
+                hub.check_control(page)?;
+                let value = match req.get("value") {
+                    Some(Value::String(s)) => s.clone(),
+                    Some(Value::Number(n)) => n.to_string(),
+                    _ => return Err(Failure::usage("give the value to write")),
+                };
+                spawn_reply(replies, kind, async move {
+                    let v = device.write_param(unit, name, value).await?;
+                    Ok(json!({"type": "param", "written": true, "param": v.to_json()}))
+                });
+            } else {
+                spawn_reply(replies, kind, async move {
+                    let v = device.read_param(unit, name).await?;
+                    Ok(json!({"type": "param", "written": false, "param": v.to_json()}))
+                });
+            }
+            Ok(None)
+        }
+        "errors" => {
+            let unit = unit_of(hub, req)?;
+            let device = Arc::clone(hub.device());
+            let key = device.unit_key();
+            let work = device.errors(unit);
+            spawn_reply(replies, kind, async move {
+                let mut v = work.await?;
+                v["type"] = json!("errors");
+                v[key] = json!(unit);
+                Ok(v)
+            });
+            Ok(None)
+        }
+        other => Err(Failure::usage(format!("unknown request {other:?}"))),
+    }
+}

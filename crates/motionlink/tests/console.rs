@@ -1,0 +1,514 @@
+//! `motionlink console` end to end: the built binary, its HTTP routes and its WebSocket, against the emulators
+//! (`--port sim` in the console's process, or `motionlink sim <family> --tcp` when the test waits for the
+//! device's events). Tests wait on lines and events, never after a fixed sleep.
+
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::time::{Duration, Instant};
+
+use serde_json::{json, Value};
+use tungstenite::handshake::client::generate_key;
+use tungstenite::http::Request;
+use tungstenite::{Message, WebSocket};
+
+mod common;
+
+use common::{unix_now, Running, Sim};
+
+/// A running console and the address it printed.
+struct Console {
+    running: Running,
+    /// `127.0.0.1:PORT`.
+    host: String,
+    token: String,
+}
+
+/// Starts `motionlink console <args>` and reads its one line.
+fn console(args: &[&str]) -> Console {
+    let mut all = vec!["console"];
+    all.extend_from_slice(args);
+    let running = Running::start(&all);
+    let line = running
+        .stdout
+        .wait_for(Duration::from_secs(30), |_| true)
+        .unwrap_or_else(|| panic!("no line from the console; stderr: {}", running.stderr.text()));
+    let rest = line.strip_prefix("console on http://").unwrap_or_else(|| panic!("unexpected line {line:?}"));
+    let (host, token) = rest.split_once("/?token=").unwrap_or_else(|| panic!("no token in {line:?}"));
+    assert_eq!(token.len(), 32, "{line:?}");
+    assert!(token.chars().all(|c| c.is_ascii_hexdigit()), "{line:?}");
+    Console { host: host.to_string(), token: token.to_string(), running }
+}
+
+/// A plain HTTP/1.1 GET: the status code and the body.
+fn get(host: &str, path: &str) -> (u16, String) {
+    let mut s = TcpStream::connect(host).expect("connect to the console");
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    write!(s, "GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n").unwrap();
+    let mut out = Vec::new();
+    s.read_to_end(&mut out).expect("read the answer");
+    let text = String::from_utf8_lossy(&out).into_owned();
+    let status = text.split(' ').nth(1).and_then(|c| c.parse().ok()).unwrap_or_else(|| panic!("no status in {text:?}"));
+    let body = text.split_once("\r\n\r\n").map(|(_, b)| b.to_string()).unwrap_or_default();
+    (status, body)
+}
+
+type Ws = WebSocket<TcpStream>;
+
+/// Opens the console's WebSocket with `token` and `origin`; the HTTP status when it is refused.
+fn ws_with(host: &str, token: &str, origin: Option<&str>) -> Result<Ws, u16> {
+    let stream = TcpStream::connect(host).expect("connect to the console");
+    let mut req = Request::builder()
+        .uri(format!("ws://{host}/ws?token={token}"))
+        .header("Host", host)
+        .header("Connection", "Upgrade")
+        .header("Upgrade", "websocket")
+        .header("Sec-WebSocket-Version", "13")
+        .header("Sec-WebSocket-Key", generate_key());
+    if let Some(o) = origin {
+        req = req.header("Origin", o);
+    }
+    match tungstenite::client(req.body(()).unwrap(), stream) {
+        Ok((ws, _)) => {
+            ws.get_ref().set_read_timeout(Some(Duration::from_millis(50))).unwrap();
+            Ok(ws)
+        }
+        Err(tungstenite::HandshakeError::Failure(tungstenite::Error::Http(r))) => Err(r.status().as_u16()),
+        Err(e) => panic!("WebSocket handshake: {e}"),
+    }
+}
+
+fn ws(c: &Console) -> Ws {
+    let origin = format!("http://{}", c.host);
+    ws_with(&c.host, &c.token, Some(&origin)).expect("the WebSocket opens")
+}
+
+fn send(ws: &mut Ws, v: Value) {
+    ws.send(Message::text(v.to_string())).expect("send on the WebSocket");
+}
+
+/// Reads messages until one satisfies `pred` (None at the timeout); `seen` gets every message read.
+fn recv_until(ws: &mut Ws, timeout: Duration, mut pred: impl FnMut(&Value) -> bool) -> Option<Value> {
+    let deadline = Instant::now() + timeout;
+    while Instant::now() < deadline {
+        match ws.read() {
+            Ok(Message::Text(t)) => {
+                let v: Value = serde_json::from_str(t.as_str()).expect("JSON from the console");
+                if pred(&v) {
+                    return Some(v);
+                }
+            }
+            Ok(_) => {}
+            Err(tungstenite::Error::Io(e))
+                if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
+            Err(e) => panic!("WebSocket read: {e}"),
+        }
+    }
+    None
+}
+
+fn of_type(t: &'static str) -> impl Fn(&Value) -> bool {
+    move |v| v["type"] == t
+}
+
+/// Waits for the units found and returns them.
+fn units(ws: &mut Ws) -> Vec<Value> {
+    let v = recv_until(ws, Duration::from_secs(30), |v| v["type"] == "units" && v["scanning"] == false)
+        .expect("the units are found");
+    v["units"].as_array().cloned().unwrap_or_default()
+}
+
+#[test]
+fn prints_one_line_and_every_request_needs_the_token() {
+    let c = console(&["compax", "--port", "sim"]);
+    let (status, body) = get(&c.host, &format!("/?token={}", c.token));
+    assert_eq!(status, 200);
+    assert!(body.contains("/app.js?token=") && body.contains(&c.token), "{body}");
+    for path in ["/", "/app.js", "/app.css", "/capture", "/ws"] {
+        let (status, body) = get(&c.host, path);
+        assert_eq!(status, 403, "{path} without a token: {body}");
+        assert!(body.contains("wrong or missing token"), "{body}");
+        let (status, _) = get(&c.host, &format!("{path}?token=0123456789abcdef0123456789abcdef"));
+        assert_eq!(status, 403, "{path} with a wrong token");
+    }
+    let (status, js) = get(&c.host, &format!("/app.js?token={}", c.token));
+    assert_eq!(status, 200);
+    assert!(js.contains("jog_hold"), "the page's script is served");
+    let (status, capture) = get(&c.host, &format!("/capture?token={}", c.token));
+    assert_eq!(status, 200);
+    assert!(capture.starts_with("# motionlink capture: compax sim\n"), "{capture}");
+    let at = c.running.signal(libc::SIGTERM);
+    let ended = c.running.wait(Duration::from_secs(10));
+    assert!(unix_now() >= at);
+    assert_eq!(ended.stdout.lines().count(), 1, "exactly one line on stdout: {:?}", ended.stdout);
+    assert!(ended.stdout.starts_with("console on http://127.0.0.1:"), "{:?}", ended.stdout);
+    assert_eq!(ended.code(), 128 + libc::SIGTERM, "{}", ended.stderr);
+}
+
+#[test]
+fn a_non_loopback_address_needs_listen_any_and_warns() {
+    let refused = Running::start(&["console", "compax", "--port", "sim", "--listen", "0.0.0.0:0"]);
+    let ended = refused.wait(Duration::from_secs(10));
+    assert_eq!(ended.code(), 2, "{}", ended.stderr);
+    assert!(ended.stderr.contains("--listen-any"), "{}", ended.stderr);
+    assert!(ended.stdout.is_empty(), "{}", ended.stdout);
+
+    let c = console(&["compax", "--port", "sim", "--listen", "0.0.0.0:0", "--listen-any"]);
+    assert!(c.host.starts_with("0.0.0.0:"), "{}", c.host);
+    assert!(c.running.stderr.text().contains("warning: serving on 0.0.0.0"), "{}", c.running.stderr.text());
+
+    let c = console(&["compax", "--port", "sim", "--listen", "127.0.0.1:0"]);
+    assert!(c.host.starts_with("127.0.0.1:"));
+    assert!(!c.running.stderr.text().contains("warning"), "{}", c.running.stderr.text());
+}
+
+#[test]
+fn the_websocket_needs_the_token_and_an_origin_of_the_console() {
+    let c = console(&["compax", "--port", "sim"]);
+    let origin = format!("http://{}", c.host);
+    assert_eq!(ws_with(&c.host, "0123456789abcdef0123456789abcdef", Some(&origin)).err(), Some(403));
+    assert_eq!(ws_with(&c.host, "", Some(&origin)).err(), Some(403));
+    assert_eq!(ws_with(&c.host, &c.token, None).err(), Some(403), "no Origin");
+    assert_eq!(ws_with(&c.host, &c.token, Some("http://evil.example")).err(), Some(403), "another site");
+    assert_eq!(ws_with(&c.host, &c.token, Some("null")).err(), Some(403));
+    let mut ws = ws_with(&c.host, &c.token, Some(&origin)).expect("the console's own page");
+    let welcome = recv_until(&mut ws, Duration::from_secs(10), of_type("welcome")).expect("welcome");
+    assert_eq!(welcome["family"], "compax");
+    assert_eq!(welcome["unit_key"], "drive");
+    assert_eq!(welcome["dead_man_ms"], 200);
+    assert_eq!(welcome["role"]["role"], "control");
+}
+
+#[test]
+fn one_page_controls_and_the_others_are_read_only_and_told_so() {
+    let c = console(&["compax", "--port", "sim"]);
+    let mut first = ws(&c);
+    let w = recv_until(&mut first, Duration::from_secs(10), of_type("welcome")).unwrap();
+    assert_eq!(w["role"]["role"], "control");
+    let found = units(&mut first);
+    assert_eq!(found.len(), 1, "{found:?}");
+    let mut second = ws(&c);
+    let w = recv_until(&mut second, Duration::from_secs(10), of_type("welcome")).unwrap();
+    assert_eq!(w["role"]["role"], "read_only");
+    assert!(w["role"]["message"].as_str().unwrap().contains("another page controls"), "{w}");
+    units(&mut second);
+    send(&mut second, json!({"type": "move", "drive": 1, "target_units": 5.0}));
+    let r = recv_until(&mut second, Duration::from_secs(10), of_type("refused")).expect("the move is refused");
+    assert!(r["message"].as_str().unwrap().contains("read-only"), "{r}");
+    send(&mut second, json!({"type": "write_param", "drive": 1, "name": "P3", "value": "1"}));
+    let r = recv_until(&mut second, Duration::from_secs(10), of_type("refused")).expect("the write is refused");
+    assert_eq!(r["request"], "write_param");
+    send(&mut second, json!({"type": "take_control"}));
+    recv_until(&mut second, Duration::from_secs(10), of_type("refused")).expect("control is taken");
+    // The first page goes: control is free, and the second may take it.
+    first.close(None).unwrap();
+    drop(first);
+    recv_until(&mut second, Duration::from_secs(10), |v| v["type"] == "role" && v["control_free"] == true)
+        .expect("the read-only page is told control is free");
+    send(&mut second, json!({"type": "take_control"}));
+    recv_until(&mut second, Duration::from_secs(10), |v| v["type"] == "role" && v["role"] == "control")
+        .expect("it controls now");
+}
+
+#[test]
+fn samples_come_at_20_hz_or_more_for_every_family() {
+    for (family, key, position) in [
+        ("scu", "actuator", "position_counts"),
+        ("powercube", "module", "position_rad"),
+        ("compax", "drive", "position_units"),
+    ] {
+        let c = console(&[family, "--port", "sim"]);
+        let mut ws = ws(&c);
+        let found = units(&mut ws);
+        assert!(!found.is_empty(), "{family}: {found:?}");
+        assert!(found[0][key].is_u64(), "{family}: {found:?}");
+        recv_until(&mut ws, Duration::from_secs(10), of_type("sample")).expect("a first sample");
+        let start = Instant::now();
+        let mut frames = 0;
+        let mut last = Value::Null;
+        while start.elapsed() < Duration::from_secs(2) {
+            if let Some(v) = recv_until(&mut ws, Duration::from_millis(100), of_type("sample")) {
+                frames += 1;
+                last = v;
+            }
+        }
+        let rate = f64::from(frames) / start.elapsed().as_secs_f64();
+        eprintln!("{family}: {rate:.1} samples/s");
+        assert!(rate >= 19.0, "{family}: {rate:.1} samples/s");
+        let u = &last["units"][0];
+        assert!(u[position].is_number(), "{family}: {last}");
+        assert!(u["flags"].is_array(), "{family}: {last}");
+    }
+}
+
+fn compax_on_sim() -> (Sim, Console) {
+    let sim = Sim::start("compax", &["--tcp", "127.0.0.1:0", "--drives", "1"]);
+    let c = console(&["compax", "--port", &sim.address, "--drives", "1"]);
+    (sim, c)
+}
+
+#[test]
+fn a_move_runs_and_its_position_is_sampled_then_stop_halts_it() {
+    let (sim, c) = compax_on_sim();
+    let mut ws = ws(&c);
+    units(&mut ws);
+    send(&mut ws, json!({"type": "move", "drive": 1, "target_units": 500.0, "speed_percent": 50.0}));
+    sim.wait_event(Duration::from_secs(10), |t| t.starts_with("drive 1 motion started to 500.000")).expect("it moves");
+    let first = recv_until(&mut ws, Duration::from_secs(5), |v| {
+        v["type"] == "sample" && v["units"][0]["position_units"].as_f64().is_some_and(|p| p > 0.0)
+    })
+    .expect("a sample of the axis on its way");
+    let p0 = first["units"][0]["position_units"].as_f64().unwrap();
+    recv_until(&mut ws, Duration::from_secs(5), |v| {
+        v["type"] == "sample" && v["units"][0]["position_units"].as_f64().is_some_and(|p| p > p0)
+    })
+    .expect("the position changes during the move");
+    let pressed = unix_now();
+    send(&mut ws, json!({"type": "stop", "drive": 1}));
+    let off = sim
+        .wait_event_after(pressed, Duration::from_secs(5), |t| t == "drive 1 switched off (O0=0)")
+        .expect("Stop switches the drive off");
+    assert!(off.at - pressed < 0.3, "stopped {:.3} s after Stop", off.at - pressed);
+    sim.wait_event_after(pressed, Duration::from_secs(5), |t| t.starts_with("drive 1 at rest")).expect("at rest");
+    let m = recv_until(&mut ws, Duration::from_secs(5), |v| v["type"] == "motion" && v["state"] == "stopped")
+        .expect("the page is told");
+    assert_eq!(m["ok"], true, "{m}");
+    assert!(m["message"].as_str().unwrap().contains("Stop pressed"), "{m}");
+}
+
+#[test]
+fn a_jog_runs_while_renewed_and_stops_within_the_dead_man_time() {
+    let (sim, c) = compax_on_sim();
+    let mut ws = ws(&c);
+    units(&mut ws);
+    send(&mut ws, json!({"type": "jog", "drive": 1, "direction": "positive", "speed": 20.0}));
+    let started = sim.wait_event(Duration::from_secs(10), |t| t.starts_with("drive 1 motion started")).expect("jogs");
+    // Renewed every 50 ms for 0.8 s: it keeps running.
+    let mut last_renewal = unix_now();
+    while unix_now() - started.at < 0.8 {
+        send(&mut ws, json!({"type": "jog_hold"}));
+        last_renewal = unix_now();
+        recv_until(&mut ws, Duration::from_millis(50), |_| false);
+    }
+    assert!(
+        !sim.events().iter().any(|e| e.text.contains("switched off") || e.text.contains("at rest")),
+        "the jog stopped while renewed: {:?}",
+        sim.events().iter().map(|e| &e.text).collect::<Vec<_>>()
+    );
+    // No more renewals: the server stops it after 200 ms.
+    let off = sim
+        .wait_event_after(last_renewal, Duration::from_secs(5), |t| t == "drive 1 switched off (O0=0)")
+        .expect("the dead-man deadline stops the jog");
+    let after = off.at - last_renewal;
+    assert!((0.195..0.45).contains(&after), "stopped {after:.3} s after the last renewal");
+    let m = recv_until(&mut ws, Duration::from_secs(5), |v| v["type"] == "motion" && v["state"] == "stopped")
+        .expect("the page is told");
+    assert!(m["reason"].as_str().unwrap().contains("dead-man"), "{m}");
+}
+
+#[test]
+fn a_released_jog_stops() {
+    let (sim, c) = compax_on_sim();
+    let mut ws = ws(&c);
+    units(&mut ws);
+    send(&mut ws, json!({"type": "jog", "drive": 1, "direction": "negative"}));
+    sim.wait_event(Duration::from_secs(10), |t| t.starts_with("drive 1 motion started")).expect("jogs");
+    let released = unix_now();
+    send(&mut ws, json!({"type": "jog_release"}));
+    let off = sim
+        .wait_event_after(released, Duration::from_secs(5), |t| t == "drive 1 switched off (O0=0)")
+        .expect("releasing stops the jog");
+    assert!(off.at - released < 0.3, "stopped {:.3} s after the release", off.at - released);
+}
+
+#[test]
+fn a_lost_websocket_stops_the_motion_its_page_started() {
+    let (sim, c) = compax_on_sim();
+    let mut ws = ws(&c);
+    units(&mut ws);
+    send(&mut ws, json!({"type": "move", "drive": 1, "target_units": 800.0}));
+    sim.wait_event(Duration::from_secs(10), |t| t.starts_with("drive 1 motion started")).expect("it moves");
+    // The TCP connection goes without a close frame, as when a browser's tab or machine goes.
+    let gone = unix_now();
+    ws.get_ref().shutdown(std::net::Shutdown::Both).unwrap();
+    drop(ws);
+    let off = sim
+        .wait_event_after(gone, Duration::from_secs(5), |t| t == "drive 1 switched off (O0=0)")
+        .expect("the page's motion is stopped");
+    assert!(off.at - gone < 0.3, "stopped {:.3} s after the connection went", off.at - gone);
+}
+
+#[test]
+fn a_stopped_console_stops_the_motion_it_started() {
+    let (sim, c) = compax_on_sim();
+    let mut ws = ws(&c);
+    units(&mut ws);
+    send(&mut ws, json!({"type": "move", "drive": 1, "target_units": 900.0}));
+    sim.wait_event(Duration::from_secs(10), |t| t.starts_with("drive 1 motion started")).expect("it moves");
+    let at = c.running.signal(libc::SIGTERM);
+    let off = sim
+        .wait_event_after(at, Duration::from_secs(5), |t| t == "drive 1 switched off (O0=0)")
+        .expect("the end of the console stops the axis");
+    assert!(off.at - at < 0.3, "stopped {:.3} s after SIGTERM", off.at - at);
+    let ended = c.running.wait(Duration::from_secs(10));
+    assert_eq!(ended.code(), 128 + libc::SIGTERM, "{}", ended.stderr);
+}
+
+#[test]
+fn a_parameter_write_shows_its_read_back() {
+    let c = console(&["compax", "--port", "sim"]);
+    let mut ws = ws(&c);
+    units(&mut ws);
+    send(&mut ws, json!({"type": "write_param", "drive": 1, "name": "P3", "value": "2.5"}));
+    let v = recv_until(&mut ws, Duration::from_secs(10), |v| v["type"] == "param" || v["type"] == "failed")
+        .expect("an answer");
+    assert_eq!(v["type"], "param", "{v}");
+    assert_eq!(v["written"], true);
+    assert_eq!(v["param"]["read_back"], "2.5", "{v}");
+    send(&mut ws, json!({"type": "read_param", "drive": 1, "name": "3"}));
+    let v = recv_until(&mut ws, Duration::from_secs(10), of_type("param")).expect("the read");
+    assert_eq!(v["param"]["value"], "2.5", "{v}");
+    // A bad value is refused with its reason, and nothing is written.
+    send(&mut ws, json!({"type": "write_param", "drive": 1, "name": "P3", "value": "abc"}));
+    let v = recv_until(&mut ws, Duration::from_secs(10), of_type("failed")).expect("refused");
+    assert_eq!(v["error"]["kind"], "usage", "{v}");
+}
+
+#[test]
+fn the_error_history_and_the_traffic_log_are_decoded() {
+    let c = console(&["compax", "--port", "sim"]);
+    let mut ws = ws(&c);
+    units(&mut ws);
+    send(&mut ws, json!({"type": "errors", "drive": 1}));
+    let v = recv_until(&mut ws, Duration::from_secs(10), of_type("errors")).expect("the history");
+    assert_eq!(v["entries"].as_array().map(Vec::len), Some(8), "{v}");
+    assert!(v["title"].as_str().unwrap().contains("S18"), "{v}");
+    let t = recv_until(&mut ws, Duration::from_secs(10), of_type("traffic")).expect("the log");
+    let line = &t["lines"][0];
+    assert!(line["hex"].is_string() && !line["meaning"].as_str().unwrap().is_empty(), "{t}");
+    let (status, capture) = get(&c.host, &format!("/capture?token={}", c.token));
+    assert_eq!(status, 200);
+    // Every line after the header is a capture line `motionlink decode` reads back.
+    // Every line after the header is a capture line (the format `motionlink_link::capture` reads back).
+    let lines: Vec<&str> = capture.lines().skip(1).collect();
+    assert!(lines.len() > 2, "{capture}");
+    for l in lines {
+        let parsed = motionlink_link::capture::parse_line(l).unwrap_or_else(|e| panic!("{l:?}: {e}"));
+        assert!(parsed.is_some(), "{l:?}");
+    }
+}
+
+/// One family's rules against its emulator over TCP: Stop halts a move, a jog stops by its dead-man
+/// deadline, a lost WebSocket stops a move; `rearm` (if any) makes the unit take the next motion after a stop.
+struct FamilyCase {
+    family: &'static str,
+    key: &'static str,
+    target_key: &'static str,
+    targets: [f64; 2],
+    started: fn(&str) -> bool,
+    stopped: fn(&str) -> bool,
+    rearm: Option<&'static str>,
+}
+
+fn family_rules(case: &FamilyCase) {
+    let sim = Sim::start(case.family, &["--tcp", "127.0.0.1:0"]);
+    let c = console(&[case.family, "--port", &sim.address]);
+    let mut ws = ws(&c);
+    let found = units(&mut ws);
+    let unit = found[0][case.key].as_u64().expect("a unit number");
+    let family = case.family;
+    let rearm = |ws: &mut Ws| {
+        if let Some(action) = case.rearm {
+            send(ws, json!({"type": "action", case.key: unit, "name": action}));
+            let v = recv_until(ws, Duration::from_secs(10), |v| v["type"] == "action" || v["type"] == "failed")
+                .expect("the action's answer");
+            assert_eq!(v["ok"], true, "{family}: {v}");
+        }
+    };
+
+    // Stop halts a move.
+    let begun = unix_now();
+    send(&mut ws, json!({"type": "move", case.key: unit, case.target_key: case.targets[0]}));
+    sim.wait_event_after(begun, Duration::from_secs(10), case.started).unwrap_or_else(|| {
+        panic!("{family}: the move did not start: {:?}", sim.events().iter().map(|e| &e.text).collect::<Vec<_>>())
+    });
+    let pressed = unix_now();
+    send(&mut ws, json!({"type": "stop", case.key: unit}));
+    let stopped = sim.wait_event_after(pressed, Duration::from_secs(5), case.stopped).expect("Stop halts the move");
+    assert!(stopped.at - pressed < 0.3, "{family}: stopped {:.3} s after Stop", stopped.at - pressed);
+    recv_until(&mut ws, Duration::from_secs(5), |v| v["type"] == "motion" && v["state"] == "stopped")
+        .expect("the page is told");
+    rearm(&mut ws);
+
+    // A jog runs while renewed, then stops by its deadline.
+    let begun = unix_now();
+    send(&mut ws, json!({"type": "jog", case.key: unit, "direction": "positive"}));
+    let started = sim.wait_event_after(begun, Duration::from_secs(10), case.started).expect("the jog starts");
+    let mut last_renewal = unix_now();
+    while unix_now() - started.at < 0.6 {
+        send(&mut ws, json!({"type": "jog_hold"}));
+        last_renewal = unix_now();
+        recv_until(&mut ws, Duration::from_millis(50), |_| false);
+    }
+    let early: Vec<_> = sim.events().into_iter().filter(|e| e.at > started.at && (case.stopped)(&e.text)).collect();
+    assert!(
+        early.is_empty(),
+        "{family}: the jog stopped while renewed: {:?}",
+        early.iter().map(|e| &e.text).collect::<Vec<_>>()
+    );
+    let stopped =
+        sim.wait_event_after(last_renewal, Duration::from_secs(5), case.stopped).expect("the deadline stops it");
+    let after = stopped.at - last_renewal;
+    assert!((0.195..0.45).contains(&after), "{family}: stopped {after:.3} s after the last renewal");
+    recv_until(&mut ws, Duration::from_secs(5), |v| v["type"] == "motion" && v["state"] == "stopped")
+        .expect("the page is told");
+    rearm(&mut ws);
+
+    // A lost WebSocket stops the move of its page.
+    let begun = unix_now();
+    send(&mut ws, json!({"type": "move", case.key: unit, case.target_key: case.targets[1]}));
+    sim.wait_event_after(begun, Duration::from_secs(10), case.started).expect("the second move starts");
+    let gone = unix_now();
+    ws.get_ref().shutdown(std::net::Shutdown::Both).unwrap();
+    drop(ws);
+    let stopped = sim.wait_event_after(gone, Duration::from_secs(5), case.stopped).expect("a lost page stops it");
+    assert!(stopped.at - gone < 0.3, "{family}: stopped {:.3} s after the page went", stopped.at - gone);
+}
+
+#[test]
+fn scu_stop_jog_dead_man_and_lost_page() {
+    family_rules(&FamilyCase {
+        family: "scu",
+        key: "actuator",
+        target_key: "target_counts",
+        targets: [800.0, 0.0],
+        started: |t| t.starts_with("F1 started"),
+        stopped: |t| t == "F1 stopped (RS fast)",
+        rearm: None,
+    });
+}
+
+#[test]
+fn powercube_stop_jog_dead_man_and_lost_page() {
+    family_rules(&FamilyCase {
+        family: "powercube",
+        key: "module",
+        target_key: "target_rad",
+        targets: [3.0, -3.0],
+        started: |t| t.starts_with("module 1 motion started"),
+        stopped: |t| t == "module 1 halted",
+        rearm: Some("reset"),
+    });
+}
+
+#[test]
+fn compax_stop_jog_dead_man_and_lost_page() {
+    family_rules(&FamilyCase {
+        family: "compax",
+        key: "drive",
+        target_key: "target_units",
+        targets: [700.0, -700.0],
+        started: |t| t.starts_with("drive 1 motion started"),
+        stopped: |t| t == "drive 1 switched off (O0=0)",
+        rearm: Some("switch_on"),
+    });
+}
