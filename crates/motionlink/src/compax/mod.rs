@@ -22,7 +22,8 @@ use motionlink_link::url::PortUrl;
 use motionlink_link::RealClock;
 use serde_json::json;
 
-use crate::common::{self, CaptureArgs, CliError, Row, ServeArgs};
+use crate::common::{self, CliError, Row, ServeArgs};
+use crate::decode::CaptureArgs;
 
 mod extra;
 
