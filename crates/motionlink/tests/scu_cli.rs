@@ -67,7 +67,7 @@ fn move_reaches_its_target_and_the_unit_keeps_the_position() {
     let started = Instant::now();
     let out = scu(&sim.address, &["move", "2", "70", "--speed", "100", "--json"]);
     let v = json(&out);
-    assert_eq!(v["position"], 70);
+    assert_eq!(v["reached_counts"], 70);
     assert_eq!(v["actuator"], 2);
     // 70 counts at 110 counts/s with a 300 ms ramp: under a second and a half.
     assert!(started.elapsed() < Duration::from_secs(5));
@@ -142,11 +142,11 @@ fn a_pty_serves_like_a_serial_port() {
         assert!(v["value"].as_str().unwrap().starts_with("SCU"));
     }
     let v = json(&scu(&sim.address, &["move", "1", "30", "--json"]));
-    assert_eq!(v["position"], 30);
+    assert_eq!(v["reached_counts"], 30);
     let info = json(&scu(&sim.address, &["info", "--json"]));
     assert_eq!(info["actuators"].as_array().unwrap().len(), 2);
     let sample = json(&scu(&sim.address, &["watch", "--count", "1", "--json"]));
-    assert_eq!(sample["actuators"][0]["position"], 30);
+    assert_eq!(sample["actuators"][0]["position_counts"], 30);
 }
 
 #[test]
@@ -227,7 +227,7 @@ fn a_counts_per_second_unit_takes_speeds_up_to_1000() {
     let out = scu("sim", &["set", "remote_speed_f1", "500"]);
     assert_eq!(out.status.code(), Some(2), "500 % is refused before sending: {out:?}");
     let out = scu("sim", &["--speed-mode", "counts-per-second", "move", "1", "40", "--speed", "400", "--json"]);
-    assert_eq!(json(&out)["position"], 40);
+    assert_eq!(json(&out)["reached_counts"], 40);
     let out = scu("sim", &["move", "1", "40", "--function", "12"]);
     assert_eq!(out.status.code(), Some(2), "F12 is no motion function: {out:?}");
 }
@@ -405,12 +405,12 @@ fn move_on_a_tlt_moves_both_columns_of_f1_and_reports_each() {
     let sim = Sim::start("scu", &["--tcp", "127.0.0.1:0", "--preset", "tlt"]);
     // Not told the mapping: every connected actuator gets the target; both columns of F1 move.
     let v = json(&scu(&sim.address, &["move", "1", "400", "--json"]));
-    assert_eq!(v["position"], 400);
+    assert_eq!(v["reached_counts"], 400);
     let each: Vec<(i64, i64, bool)> = v["actuators"]
         .as_array()
         .unwrap()
         .iter()
-        .map(|o| (o["actuator"].as_i64().unwrap(), o["position"].as_i64().unwrap(), o["moved"].as_bool().unwrap()))
+        .map(|o| (o["actuator"].as_i64().unwrap(), o["reached_counts"].as_i64().unwrap(), o["moved"].as_bool().unwrap()))
         .collect();
     assert_eq!(each, [(1, 400, true), (2, 400, true)]);
     for a in ["actual_position_a1", "actual_position_a2"] {
