@@ -87,11 +87,6 @@ impl CliError {
     pub fn transport(msg: impl std::fmt::Display) -> Self {
         CliError::Transport(TransportKind::Io, msg.to_string())
     }
-
-    /// A transport error: nothing (or nothing complete) answered in time.
-    pub fn timeout(msg: impl std::fmt::Display) -> Self {
-        CliError::Transport(TransportKind::Timeout, msg.to_string())
-    }
 }
 
 impl From<LinkError> for CliError {

@@ -10,18 +10,18 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use motionlink_link::can::{SlcanAdapter, SlcanBitrate, SlcanLink};
+use motionlink_link::describe::Describe;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::serial::SerialLink;
 use motionlink_link::url::PortUrl;
 use motionlink_link::{RealClock, SerialSettings, SharedClock};
 use motionlink_powercube::client::{BusConfig, Client, Guard, Module, ModuleInfo, MoveSpec, Progress, Readback};
-use motionlink_link::describe::Describe;
 use motionlink_powercube::describe::Describer;
 use motionlink_powercube::model::{
     Acceleration, Action as PcAction, CubeState, ModuleKind, Param, Position, Request, Value, Velocity, PARAMS,
 };
-use motionlink_powercube::wire::Payload;
 use motionlink_powercube::sim::SimConfig;
+use motionlink_powercube::wire::Payload;
 use motionlink_powercube::{Emulator, Error};
 use serde_json::json;
 

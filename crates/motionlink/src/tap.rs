@@ -178,11 +178,14 @@ pub fn print_exchange(
     sent: Option<&Annotation>,
     reply: Option<&Annotation>,
 ) -> Result<(Option<serde_json::Value>, Option<serde_json::Value>), CliError> {
+    // Times of the session's clock are no Unix times: left out (`-v` and `--capture` give them).
+    let untimed = |a: Option<&Annotation>| a.map(|a| Annotation { at: None, ..a.clone() });
+    let (sent, reply) = (untimed(sent), untimed(reply));
     if json {
-        let j = |a: Option<&Annotation>| a.map(|a| crate::decode::annotation_json(a, None));
-        return Ok((j(sent), j(reply)));
+        let j = |a: &Option<Annotation>| a.as_ref().map(|a| crate::decode::annotation_json(a, None));
+        return Ok((j(&sent), j(&reply)));
     }
-    for (which, a) in [("request", sent), ("reply", reply)] {
+    for (which, a) in [("request", &sent), ("reply", &reply)] {
         match a {
             Some(a) => writeln!(out, "{}", crate::decode::annotation_text(a, None))?,
             None => writeln!(out, "{which}: none")?,

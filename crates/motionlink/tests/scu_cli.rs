@@ -410,7 +410,9 @@ fn move_on_a_tlt_moves_both_columns_of_f1_and_reports_each() {
         .as_array()
         .unwrap()
         .iter()
-        .map(|o| (o["actuator"].as_i64().unwrap(), o["reached_counts"].as_i64().unwrap(), o["moved"].as_bool().unwrap()))
+        .map(|o| {
+            (o["actuator"].as_i64().unwrap(), o["reached_counts"].as_i64().unwrap(), o["moved"].as_bool().unwrap())
+        })
         .collect();
     assert_eq!(each, [(1, 400, true), (2, 400, true)]);
     for a in ["actual_position_a1", "actual_position_a2"] {
