@@ -26,7 +26,7 @@ pub enum CliError {
     #[error("{1}")]
     Transport(TransportKind, String),
     /// A signal or a closed stdout ended the action; what it had started was stopped first (exit code
-    /// 128 + the signal's number: 130 for SIGINT, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT, 141 a closed pipe).
+    /// 128 + the signal's number: 130 for SIGINT, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT; 0 for a closed stdout).
     #[error("{0}")]
     Interrupted(String),
     /// stdout was closed by its reader (`motionlink ... watch | head`): the command ends quietly with exit
@@ -139,13 +139,13 @@ pub enum StopCause {
 }
 
 impl StopCause {
-    /// 128 + the signal's number; a closed stdout counts as SIGPIPE (13), as a shell reports it.
+    /// 128 + the signal's number; 0 for a closed stdout (`motionlink ... watch | head` ends quietly, as
+    /// `seq 1000000 | head` does, once what the command started was stopped).
     pub fn exit_code(self) -> u8 {
-        let n = match self {
-            StopCause::Signal(n) => n,
-            StopCause::OutputClosed => 13,
-        };
-        u8::try_from(128 + n).unwrap_or(u8::MAX)
+        match self {
+            StopCause::Signal(n) => u8::try_from(128 + n).unwrap_or(u8::MAX),
+            StopCause::OutputClosed => 0,
+        }
     }
 
     /// The cause as a user reads it: "SIGTERM", "stdout closed".

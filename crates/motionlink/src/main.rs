@@ -215,6 +215,8 @@ fn main() -> ExitCode {
         }
         (Ok(()), _) => ExitCode::SUCCESS,
         (Err(common::CliError::OutputClosed), _) => ExitCode::SUCCESS,
+        // The reader of stdout went away and what the command started was stopped (confirmed): quietly 0.
+        (Err(common::CliError::Interrupted(_)), Some(common::StopCause::OutputClosed)) => ExitCode::SUCCESS,
         (Err(e), _) if json => {
             // One JSON object, the error's class name as its kind (the one place that maps errors to JSON).
             term::write_stderr(&format!("{}\n", e.to_json()));
