@@ -560,8 +560,17 @@ fn info(m: &Module<'_>, out: &mut dyn Write, json: bool) -> Result<(), CliError>
         .map_err(failed)?;
     if json {
         let mut j = info_json(&info);
+        // snake_case names with the module's unit (naming.md): min_position_rad, max_velocity_m_per_s ...
+        let unit = info.kind.unit();
         for (p, v) in &limits {
-            j[p.name()] = value_json(v);
+            let key = match p {
+                Param::MinPos => format!("min_position_{unit}"),
+                Param::MaxPos => format!("max_position_{unit}"),
+                Param::MaxVel => format!("max_velocity_{unit}_per_s"),
+                Param::MaxAcc => format!("max_acceleration_{unit}_per_s2"),
+                _ => format!("position_{unit}"),
+            };
+            j[key] = value_json(v);
         }
         common::print_json(out, &j)
     } else {

@@ -149,14 +149,13 @@ pub fn progress_bar(length: u64, message: impl Into<String>) -> ProgressBar {
     bar
 }
 
-/// The live wire trace of `-v`: every telegram, with direction, time, hex and meaning, on stderr.
-#[allow(dead_code)] // taken up by each family's command as it moves to the shared Describe (issue 7)
+/// The live wire trace of `-v`: every telegram, with direction, time (UTC time of day), hex and meaning, on
+/// stderr.
 pub struct WireTrace {
     describer: Mutex<Box<dyn Describe + Send>>,
     time: UnixTime,
 }
 
-#[allow(dead_code)]
 impl WireTrace {
     /// A trace that explains telegrams with `describer`; times from `clock`.
     pub fn new(describer: Box<dyn Describe + Send>, clock: &SharedClock) -> Self {
@@ -169,9 +168,13 @@ impl WireTrace {
             let local = at.as_secs() % 86_400;
             let stamp =
                 format!("{:02}:{:02}:{:02}.{:06}", local / 3600, (local / 60) % 60, local % 60, at.subsec_micros());
-            let id = a.can_id.map(|id| format!("{id:03X}# ")).unwrap_or_default();
+            // A CAN frame as candump writes it (0C9#0A3C), serial bytes as spaced hex.
+            let data = match a.can_id {
+                Some(id) => format!("{id:03X}#{}", hex(&a.bytes).replace(' ', "")),
+                None => hex(&a.bytes),
+            };
             let mark = if a.bad { "!!" } else { a.direction.arrow() };
-            write_stderr(&format!("{stamp} {mark} {id}{:<30} {}\n", hex(&a.bytes), a.meaning));
+            write_stderr(&format!("{stamp} {mark} {data:<30} {}\n", a.meaning));
         }
     }
 }

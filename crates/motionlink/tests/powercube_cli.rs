@@ -132,6 +132,18 @@ fn over_slcan_on_a_pty() {
     assert!(ok(&port, &["--module", "9", "home"]).starts_with("homed"));
     assert!(ok(&port, &["--module", "9", "move", "0.08", "--vel", "1", "--acc", "2"]).contains("0.0800"));
     assert!(ok(&port, &["--module", "9", "get", "ActPos"]).contains("0.080000"));
+    // On CAN, `--capture` writes candump log lines, and `-v` traces each frame; decode reads the file back.
+    let file = common::temp_path("slcan.capture");
+    let out = run(&port, &["-v", "--module", "9", "get", "ActPos", "--capture", file.to_str().unwrap()]);
+    let trace = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(trace.lines().any(|l| l.contains("0C9#0A3C") && l.contains("GetExtended ActPos")), "{trace}");
+    let captured = std::fs::read_to_string(&file).unwrap();
+    let _ = std::fs::remove_file(&file);
+    let get = captured.lines().nth(1).unwrap();
+    assert!(get.starts_with('(') && get.ends_with(") can0 0C9#0A3C"), "{captured}");
+    let text = String::from_utf8_lossy(&decode(&captured).stdout).into_owned();
+    assert!(text.lines().any(|l| l.starts_with(get) && l.contains("-> get to module 9: GetExtended ActPos")), "{text}");
+    assert!(text.lines().any(|l| l.contains("<- ack from module 9: ActPos = 0.08")), "{text}");
 }
 
 /// Starts `motionlink powercube --port PORT --module MODULE ARGS...` in the background and returns it once

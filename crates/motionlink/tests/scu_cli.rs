@@ -651,6 +651,15 @@ fn every_action_speaks_json_and_send_names_get_watch_csv() {
     let sent = lines(&scu(p, &["send", "RT", "remote_speed_f1", "55", "--json"]));
     assert_eq!((&sent[0]["command"], &sent[0]["ok"]), (&"RT".into(), &true.into()), "{sent:?}");
     assert_eq!(json(&scu(p, &["get", "remote_speed_f1", "--json"]))["value"], 55);
+    // A function an RE of `send` starts is stopped (RS) when the command ends.
+    let t0 = unix_now();
+    let re = stdout(&scu(p, &["send", "RE", "F1", "out"]));
+    assert!(re.starts_with("-> 52 45 00 02 FF") && re.contains("RE ACK"), "{re}");
+    assert!(
+        sim.wait_event_after(t0, Duration::from_secs(5), |e| e == "F1 stopped (RS fast)").is_some(),
+        "{:?}",
+        sim.events()
+    );
     for refused in [&["send", "RO", "0"][..], &["send", "52 47 11 00 2C 31"], &["send", "RG", "nope"]] {
         assert_eq!(scu(p, refused).status.code(), Some(2), "{refused:?}");
     }
