@@ -623,6 +623,9 @@ fn every_action_speaks_json_and_send_names_get_watch_csv() {
     let run = lines(&scu(p, &["run", "F11", "on", "--seconds", "0.2", "--json"]));
     assert_eq!((run.len(), &run[0]["running"], &run[1]["stopped"]), (2, &true.into(), &true.into()), "{run:?}");
     assert_eq!(run[1]["function"], 11);
+    let follow = lines(&common::run_with(&["scu", "--port", p, "follow", "1", "--json"], &[], "120\n"));
+    assert_eq!((&follow[0]["following"], &follow[1]["targets"][0]["target_counts"]), (&true.into(), &120.into()));
+    assert_eq!(follow.last().unwrap()["stopped"], true, "{follow:?}");
     let stop = lines(&scu(p, &["stop", "F1", "--soft", "--json"]));
     assert_eq!((&stop[0]["function"], &stop[0]["mode"]), (&1.into(), &"soft".into()));
     let out =

@@ -114,7 +114,12 @@ pub(super) fn follow(
             let _ = tx.send(Input::End);
         })
         .map_err(|e| CliError::transport(format!("cannot read stdin: {e}")))?;
-    writeln!(out, "following {function} ({}): targets from stdin", names(&actuators))?;
+    if report.json {
+        let list: Vec<u8> = actuators.iter().map(|a| a.number()).collect();
+        report.print(out, json!({"function": function.number(), "following": true, "actuators": list}))?;
+    } else {
+        writeln!(out, "following {function} ({}): targets from stdin", names(&actuators))?;
+    }
     out.flush()?;
     let clock = Arc::clone(client.clock());
     let gap = Duration::from_secs(1) / rate_hz;
