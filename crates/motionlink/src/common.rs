@@ -122,7 +122,7 @@ pub fn classified<E: Classify + std::fmt::Display + ?Sized>(e: &E) -> CliError {
 /// that cannot be shown must not keep the motion from being stopped (`eprintln!` would panic). A progress
 /// bar on screen is hidden while the line is written.
 pub fn say(line: impl std::fmt::Display) {
-    crate::term::write_stderr(&format!("{line}\n"));
+    crate::term::note(&line.to_string());
 }
 
 /// SIGINT's number, the cause assumed when a cancellation has no recorded cause.

@@ -198,7 +198,7 @@ fn parse() -> Cli {
 
 fn main() -> ExitCode {
     let cli = parse();
-    term::init(cli.verbose, cli.quiet, cli.color);
+    term::init(cli.verbose, cli.quiet, cli.color, cli.json);
     let json = cli.json;
     let result = run(cli);
     match (result, common::stop_cause()) {

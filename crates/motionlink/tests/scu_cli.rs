@@ -687,6 +687,14 @@ fn wire_trace_quiet_and_capture_read_back_by_decode() {
     assert!(stamp.len() == 15 && stamp.as_bytes()[2] == b':' && stamp.as_bytes()[8] == b'.', "{line}");
     assert!(line.contains("RG") && line.contains("actual_position_a1"), "{line}");
     assert!(trace.lines().any(|l| l.contains("<- 52 4F 06") && l.contains("RO ACK")), "{trace}");
+    // With --json, stderr is JSON lines too: the trace one telegram per line (an error would come last).
+    let out = common::run_with(&["-v", "scu", "--port", p, "--json", "get", "actual_position_a1"], &[], "");
+    let err: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stderr)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect();
+    assert!(err.iter().any(|v| v["trace"]["bytes"] == "52 47 11 00 2C 30" && v["trace"]["time_s"].is_f64()), "{err:?}");
+    assert!(err.iter().all(|v| v["trace"]["direction"].is_string()), "{err:?}");
     let out = common::run_with(&["-q", "scu", "--port", p, "get", "actual_position_a1"], &[], "");
     assert!(out.status.success() && out.stderr.is_empty() && !out.stdout.is_empty(), "{out:?}");
     let out = common::run_with(&["-q", "scu", "--port", p, "get", "nope"], &[], "");
