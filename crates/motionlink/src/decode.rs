@@ -20,7 +20,10 @@ pub struct CaptureArgs {
     /// "0F1#01"). Read from stdin if none are given; `#` and `//` start comment lines.
     #[arg(value_name = "LINE")]
     pub lines: Vec<String>,
-    /// stdin holds the raw bytes of a capture, not text.
+    /// Read the capture from FILE (a `--capture` file, a candump log, hex) instead of the arguments or stdin.
+    #[arg(long, short = 'i', value_name = "FILE", conflicts_with = "lines")]
+    pub input: Option<std::path::PathBuf>,
+    /// The capture (stdin or --input) holds raw bytes, not text.
     #[arg(long)]
     pub raw: bool,
 }
@@ -94,13 +97,20 @@ pub fn run(args: &CaptureArgs, json: bool, describer: &mut dyn Describe, default
         args.lines.join("\n")
     } else {
         let mut input = Vec::new();
-        std::io::stdin().read_to_end(&mut input)?;
+        match &args.input {
+            Some(path) => {
+                input = std::fs::read(path).map_err(|e| CliError::usage(format!("--input {}: {e}", path.display())))?
+            }
+            None => {
+                std::io::stdin().read_to_end(&mut input)?;
+            }
+        }
         if args.raw {
             describer.describe(Captured::Bytes(&input), default, None, &mut found);
             describer.finish(&mut found);
             return print(&mut out, json, &mut found, None);
         }
-        String::from_utf8(input).map_err(|_| CliError::usage("stdin is not text (use --raw for raw bytes)"))?
+        String::from_utf8(input).map_err(|_| CliError::usage("the capture is not text (use --raw for raw bytes)"))?
     };
     let mut unreadable = 0;
     for (i, line) in text.lines().enumerate() {

@@ -594,6 +594,10 @@ fn trace_capture_and_where_the_port_comes_from() {
     let _ = std::fs::remove_file(&file);
     assert!(captured.lines().nth(1).unwrap().contains(") -> 31 50 31 39 34 0D"), "{captured}");
     let text = stdout(&common::run_with(&["decode", "compax"], &[], &captured));
+    std::fs::write(&file, &captured).unwrap();
+    let from_file = stdout(&common::run_with(&["decode", "compax", "--input", file.to_str().unwrap()], &[], ""));
+    let _ = std::fs::remove_file(&file);
+    assert_eq!(from_file, text);
     assert!(text.lines().any(|l| l.starts_with('(') && l.contains(" -> ") && l.contains("P194")), "{text}");
     assert!(text.lines().any(|l| l.starts_with('(') && l.contains(" <- ") && l.contains("P194=1")), "{text}");
 
