@@ -225,7 +225,13 @@ pub enum Direction {
 
 /// How to switch drive `a` on again, as a command line on the same port and bus settings.
 fn switch_on_hint(args: &Args, a: u8) -> String {
-    let mut cmd = format!("motionlink compax --port {}", args.resolved_port);
+    // The port as resolved (from --port, --device or MOTIONLINK_PORT), else as given.
+    let port = match (args.resolved_port.as_str(), args.port.as_deref()) {
+        ("", Some(p)) => p,
+        ("", None) => "PORT",
+        (resolved, _) => resolved,
+    };
+    let mut cmd = format!("motionlink compax --port {port}");
     if args.mode != 0 {
         cmd.push_str(&format!(" --mode {}", args.mode));
     }
