@@ -670,7 +670,8 @@ fn options_anywhere_json_send_get_and_watch_csv() {
         String::from_utf8_lossy(&o.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect()
     };
     assert!(run(&["powercube", "home", "--port", p]).status.success());
-    let m = lines(&run(&["powercube", "move", "-0.1", "--vel", "1", "--acc", "2", "--json", "--port", p]));
+    let m =
+        lines(&run(&["powercube", "move", "-0.1", "--vel", "1", "--acc", "2", "--json", "--port", p, "--no-watchdog"]));
     assert_eq!(
         (&m[0]["family"], &m[0]["module"], &m[0]["target_rad"]),
         (&"powercube".into(), &1.into(), &(-0.1f32 as f64).into())
