@@ -56,45 +56,58 @@ impl Describer {
         }
     }
 
-    /// A payload that went as a broadcast.
-    fn broadcast(payload: &Payload) -> String {
+    /// A payload that went as a broadcast; true when it is none the manual or libm5api knows.
+    fn broadcast(payload: &Payload) -> (String, bool) {
         match Broadcast::decode_form(payload) {
-            Ok((b, BroadcastForm::Manual)) => format!("broadcast: {b}"),
-            Ok((b, BroadcastForm::Padded)) => format!("broadcast: {b} (command + 0x00, as libm5api sends it)"),
-            Err(e) => format!("broadcast: not understood ({e})"),
+            Ok((b, BroadcastForm::Manual)) => (format!("broadcast: {b}"), false),
+            Ok((b, BroadcastForm::Padded)) => (format!("broadcast: {b} (command + 0x00, as libm5api sends it)"), false),
+            Err(e) => (format!("broadcast: not understood ({e})"), true),
         }
     }
 
-    /// An acknowledge from `address`, with the unit of its kind where known.
-    fn reply(&mut self, address: u8, payload: &Payload) -> String {
+    /// An acknowledge from `address`, with the unit of its kind where known; true when it is not one.
+    fn reply(&mut self, address: u8, payload: &Payload) -> (String, bool) {
         match Reply::decode(payload) {
             Ok(r) => {
                 self.learn(address, &r);
-                match r {
+                let text = match r {
                     Reply::Get(p, v) => format!("{p} = {}", v.show_in(p, self.kind(address))),
                     other => other.to_string(),
-                }
+                };
+                (text, false)
             }
-            Err(e) => format!("acknowledge not understood: {e}"),
+            Err(e) => (format!("acknowledge not understood: {e}"), true),
         }
     }
 
-    fn request(payload: &Payload) -> String {
+    /// A command; true when it is not one.
+    fn request(payload: &Payload) -> (String, bool) {
         match Request::decode(payload) {
-            Ok(r) => r.to_string(),
-            Err(e) => format!("command not understood: {e}"),
+            Ok(r) => (r.to_string(), false),
+            Err(e) => (format!("command not understood: {e}"), true),
         }
     }
 
     /// One CAN frame: its role, module and meaning; the direction its identifier gives.
+    /// The flag is true when the frame is not a valid PowerCube message.
     pub fn describe_frame(&mut self, frame: &CanFrame) -> (String, Direction, bool) {
         match can_wire::from_frame(frame) {
             Ok((Role::Ack(a), p)) => {
-                (format!("ack from module {a}: {}", self.reply(a, &p)), Direction::FromDevice, false)
+                let (text, bad) = self.reply(a, &p);
+                (format!("ack from module {a}: {text}"), Direction::FromDevice, bad)
             }
-            Ok((Role::Get(a), p)) => (format!("get to module {a}: {}", Self::request(&p)), Direction::ToDevice, false),
-            Ok((Role::Put(a), p)) => (format!("put to module {a}: {}", Self::request(&p)), Direction::ToDevice, false),
-            Ok((Role::Broadcast, p)) => (Self::broadcast(&p), Direction::ToDevice, false),
+            Ok((Role::Get(a), p)) => {
+                let (text, bad) = Self::request(&p);
+                (format!("get to module {a}: {text}"), Direction::ToDevice, bad)
+            }
+            Ok((Role::Put(a), p)) => {
+                let (text, bad) = Self::request(&p);
+                (format!("put to module {a}: {text}"), Direction::ToDevice, bad)
+            }
+            Ok((Role::Broadcast, p)) => {
+                let (text, bad) = Self::broadcast(&p);
+                (text, Direction::ToDevice, bad)
+            }
             Err(e) => (format!("not PowerCube: {e}"), Direction::Unknown, true),
         }
     }
@@ -102,12 +115,24 @@ impl Describer {
     /// One RS232 frame: to or from which module, its meaning, and what is wrong with it (BCC, TELID
     /// length).
     pub fn describe_rs232(&mut self, frame: &Rs232Frame) -> String {
-        let mut text = match frame.kind {
+        self.explain_rs232(frame).0
+    }
+
+    /// [`describe_rs232`](Self::describe_rs232), and true when the payload is no valid message.
+    fn explain_rs232(&mut self, frame: &Rs232Frame) -> (String, bool) {
+        let (mut text, bad) = match frame.kind {
             TelKind::Send if frame.address == 0 => {
-                format!("to every module (address 0): {}", Self::broadcast(&frame.payload))
+                let (text, bad) = Self::broadcast(&frame.payload);
+                (format!("to every module (address 0): {text}"), bad)
             }
-            TelKind::Send => format!("to module {}: {}", frame.address, Self::request(&frame.payload)),
-            TelKind::Recv => format!("from module {}: {}", frame.address, self.reply(frame.address, &frame.payload)),
+            TelKind::Send => {
+                let (text, bad) = Self::request(&frame.payload);
+                (format!("to module {}: {text}", frame.address), bad)
+            }
+            TelKind::Recv => {
+                let (text, bad) = self.reply(frame.address, &frame.payload);
+                (format!("from module {}: {text}", frame.address), bad)
+            }
         };
         if !frame.bcc_ok() {
             text.push_str(&format!(" [BCC 0x{:02X} wrong, expected 0x{:02X}]", frame.bcc_received, frame.bcc_computed));
@@ -115,7 +140,7 @@ impl Describer {
         if !frame.length_ok() {
             text.push_str(&format!(" [TELID length {} for {} bytes]", frame.declared_len, frame.payload.len()));
         }
-        text
+        (text, bad)
     }
 
     fn bytes(&mut self, bytes: &[u8], direction: Direction, at: Option<Timestamp>, out: &mut Vec<Annotation>) {
@@ -132,14 +157,14 @@ impl Describer {
                         TelKind::Send => Direction::ToDevice,
                         TelKind::Recv => Direction::FromDevice,
                     };
-                    let meaning = self.describe_rs232(&f);
+                    let (meaning, not_understood) = self.explain_rs232(&f);
                     out.push(Annotation {
                         at,
                         direction: if direction == Direction::Unknown { from_bytes } else { direction },
                         can_id: None,
                         bytes: std::mem::take(&mut self.frame),
                         meaning,
-                        bad: !f.bcc_ok() || !f.length_ok(),
+                        bad: not_understood || !f.bcc_ok() || !f.length_ok(),
                     });
                 }
                 Some(Err(e)) => {

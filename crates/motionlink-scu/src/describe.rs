@@ -182,6 +182,9 @@ impl Describer {
     fn drain(&mut self, i: usize, dir: CaptureDirection, all: bool, out: &mut Vec<Annotation>) {
         let mut at = 0;
         let at_time = self.pending_at[i];
+        // The last bad annotation of this call that garbage right after it joins (a telegram with a wrong CRC
+        // and the rest of its bytes, or a run of garbage): one line, not one per byte. `true` for garbage.
+        let mut run: Option<(usize, bool)> = None;
         while at < self.pending[i].len() {
             let bytes = &self.pending[i][at..];
             let (n, found) = capture_step(bytes, dir);
@@ -206,7 +209,21 @@ impl Describer {
                     true,
                 ),
             };
-            out.push(Annotation { at: at_time, direction, can_id: None, bytes: raw, meaning, bad });
+            let garbage = matches!(found, CaptureItem::Error(WireError::Garbage { .. }));
+            match run {
+                Some((k, was_garbage)) if garbage && k < out.len() => {
+                    out[k].bytes.extend_from_slice(&raw);
+                    if was_garbage {
+                        out[k].meaning = format!("{} byte(s) that start no telegram", out[k].bytes.len());
+                    }
+                }
+                _ => {
+                    let joins =
+                        matches!(found, CaptureItem::Error(WireError::Garbage { .. } | WireError::Checksum { .. }));
+                    run = joins.then_some((out.len(), garbage));
+                    out.push(Annotation { at: at_time, direction, can_id: None, bytes: raw, meaning, bad });
+                }
+            }
             at += n;
         }
         self.pending[i].drain(..at);

@@ -1,29 +1,32 @@
 //! What every family's commands share: errors with exit codes, output as a table or JSON, Ctrl-C, progress
 //! bars, emulator servers, and reading captures.
 
-use std::io::{Read, Write};
+use std::io::Write;
 use std::sync::{Arc, Mutex, OnceLock};
 
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::emulator::{serve_tcp_with, Emulator, ServeOptions};
-use motionlink_link::error::{Classify, ErrorClass};
+use motionlink_link::error::{Classify, ErrorClass, TransportKind};
 use motionlink_link::{LinkError, RealClock};
 
-/// An error of the command line, classed by what went wrong.
+/// An error of the command line, classed by what went wrong (the classes of
+/// [`motionlink_link::error::ErrorClass`]).
 #[derive(Debug, thiserror::Error)]
 pub enum CliError {
-    /// The device refused a command or reported an error, or a move did not end where it was asked to
-    /// (exit code 1).
+    /// The device answered and refused the request (exit code 1).
+    #[error("{0}")]
+    Refused(String),
+    /// The device reported an error, or a move did not end where it was asked to (exit code 1).
     #[error("{0}")]
     Device(String),
     /// The command line itself is wrong (exit code 2).
     #[error("{0}")]
     Usage(String),
-    /// The port, the line or the timing failed (exit code 3).
-    #[error("{0}")]
-    Transport(String),
+    /// The port, the line or the timing failed; the kind says how (exit code 3).
+    #[error("{1}")]
+    Transport(TransportKind, String),
     /// A signal or a closed stdout ended the action; what it had started was stopped first (exit code
-    /// 128 + the signal's number: 130 for SIGINT, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT, 141 a closed pipe).
+    /// 128 + the signal's number: 130 for SIGINT, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT; 0 for a closed stdout).
     #[error("{0}")]
     Interrupted(String),
     /// stdout was closed by its reader (`motionlink ... watch | head`): the command ends quietly with exit
@@ -36,11 +39,42 @@ impl CliError {
     /// The process exit code for this error.
     pub fn exit_code(&self) -> u8 {
         match self {
-            CliError::Device(_) => 1,
+            CliError::Refused(_) | CliError::Device(_) => 1,
             CliError::Usage(_) => 2,
-            CliError::Transport(_) => 3,
+            CliError::Transport(..) => 3,
             CliError::Interrupted(_) => stop_cause().unwrap_or(StopCause::Signal(SIGINT)).exit_code(),
             CliError::OutputClosed => 0,
+        }
+    }
+
+    /// The class's name, as `--json` reports it: `refused`, `device`, `timeout`, `disconnected`, `corrupt`,
+    /// `io`, `usage` or `cancelled` ([`ErrorClass::name`]).
+    pub fn kind(&self) -> &'static str {
+        let class = match self {
+            CliError::Refused(_) => ErrorClass::Refused,
+            CliError::Device(_) => ErrorClass::Device,
+            CliError::Usage(_) => ErrorClass::Usage,
+            CliError::Transport(kind, _) => ErrorClass::Transport(*kind),
+            CliError::Interrupted(_) | CliError::OutputClosed => ErrorClass::Cancelled,
+        };
+        class.name()
+    }
+
+    /// The error as `--json` prints it on stderr: `{"kind": ..., "message": ..., "exit_code": ...}`.
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({"kind": self.kind(), "message": self.to_string(), "exit_code": self.exit_code()})
+    }
+
+    /// The same error with `f` applied to its message (a closed stdout becomes an interruption whose
+    /// message says so).
+    pub fn map_message(self, f: impl FnOnce(String) -> String) -> CliError {
+        match self {
+            CliError::Refused(m) => CliError::Refused(f(m)),
+            CliError::Device(m) => CliError::Device(f(m)),
+            CliError::Usage(m) => CliError::Usage(f(m)),
+            CliError::Transport(k, m) => CliError::Transport(k, f(m)),
+            CliError::Interrupted(m) => CliError::Interrupted(f(m)),
+            CliError::OutputClosed => CliError::Interrupted(f("stdout closed".into())),
         }
     }
 
@@ -49,9 +83,9 @@ impl CliError {
         CliError::Usage(msg.to_string())
     }
 
-    /// A transport error.
+    /// A transport error of the I/O kind (a port that cannot be opened, a file that cannot be written).
     pub fn transport(msg: impl std::fmt::Display) -> Self {
-        CliError::Transport(msg.to_string())
+        CliError::Transport(TransportKind::Io, msg.to_string())
     }
 }
 
@@ -67,18 +101,19 @@ impl From<std::io::Error> for CliError {
             record_stop_cause(StopCause::OutputClosed);
             return CliError::OutputClosed;
         }
-        CliError::Transport(e.to_string())
+        CliError::transport(e)
     }
 }
 
 /// The command line's error for any classified library error: the one place where error classes become
-/// exit codes.
+/// command-line errors (and so exit codes and `--json` kinds).
 pub fn classified<E: Classify + std::fmt::Display + ?Sized>(e: &E) -> CliError {
     let msg = e.to_string();
     match e.class() {
-        ErrorClass::Refused | ErrorClass::Device => CliError::Device(msg),
+        ErrorClass::Refused => CliError::Refused(msg),
+        ErrorClass::Device => CliError::Device(msg),
         ErrorClass::Usage => CliError::Usage(msg),
-        ErrorClass::Transport(_) => CliError::Transport(msg),
+        ErrorClass::Transport(kind) => CliError::Transport(kind, msg),
         ErrorClass::Cancelled => CliError::Interrupted(msg),
     }
 }
@@ -87,7 +122,7 @@ pub fn classified<E: Classify + std::fmt::Display + ?Sized>(e: &E) -> CliError {
 /// that cannot be shown must not keep the motion from being stopped (`eprintln!` would panic). A progress
 /// bar on screen is hidden while the line is written.
 pub fn say(line: impl std::fmt::Display) {
-    crate::term::write_stderr(&format!("{line}\n"));
+    crate::term::note(&line.to_string());
 }
 
 /// SIGINT's number, the cause assumed when a cancellation has no recorded cause.
@@ -104,13 +139,13 @@ pub enum StopCause {
 }
 
 impl StopCause {
-    /// 128 + the signal's number; a closed stdout counts as SIGPIPE (13), as a shell reports it.
+    /// 128 + the signal's number; 0 for a closed stdout (`motionlink ... watch | head` ends quietly, as
+    /// `seq 1000000 | head` does, once what the command started was stopped).
     pub fn exit_code(self) -> u8 {
-        let n = match self {
-            StopCause::Signal(n) => n,
-            StopCause::OutputClosed => 13,
-        };
-        u8::try_from(128 + n).unwrap_or(u8::MAX)
+        match self {
+            StopCause::Signal(n) => u8::try_from(128 + n).unwrap_or(u8::MAX),
+            StopCause::OutputClosed => 0,
+        }
     }
 
     /// The cause as a user reads it: "SIGTERM", "stdout closed".
@@ -272,6 +307,27 @@ pub fn print_json(out: &mut dyn Write, value: &serde_json::Value) -> Result<(), 
     Ok(())
 }
 
+/// A JSON object of a family command: `family` and `port` (the identity every such object carries, see the
+/// README's "JSON output"), then `fields`.
+pub fn identified(family: &str, port: &str, fields: serde_json::Value) -> serde_json::Value {
+    let mut map = serde_json::Map::new();
+    map.insert("family".into(), serde_json::Value::from(family));
+    map.insert("port".into(), serde_json::Value::from(port));
+    if let serde_json::Value::Object(f) = fields {
+        map.extend(f);
+    }
+    serde_json::Value::Object(map)
+}
+
+/// One line of CSV: fields separated by commas, quoted when they hold a comma, a quote or a line break.
+pub fn csv_line(fields: &[String]) -> String {
+    let quoted: Vec<String> = fields
+        .iter()
+        .map(|f| if f.contains([',', '"', '\n', '\r']) { format!("\"{}\"", f.replace('"', "\"\"")) } else { f.clone() })
+        .collect();
+    quoted.join(",")
+}
+
 pub use crate::term::progress_bar;
 
 /// Where `motionlink sim` serves, and what it reports.
@@ -283,6 +339,9 @@ pub struct ServeArgs {
     /// stderr, one line each: `event <unix time in s> <what>`.
     #[arg(long)]
     pub events: bool,
+    /// `--json`: the listening line as a JSON object (set by `main`).
+    #[arg(skip)]
+    pub json: bool,
 }
 
 /// `--tcp ADDR` or `--pty`.
@@ -335,7 +394,10 @@ pub fn serve<E: Emulator + 'static>(args: &ServeArgs, device: E) -> Result<(), C
             return Err(CliError::usage("--pty needs a Unix system"));
         }
     };
-    let line = if args.target.tcp.is_some() {
+    let line = if args.json {
+        let kind = if args.target.tcp.is_some() { "tcp" } else { "pty" };
+        serde_json::json!({"listening": server.address(), "kind": kind}).to_string()
+    } else if args.target.tcp.is_some() {
         format!("listening on {}", server.address())
     } else {
         format!("listening on pty {}", server.address())
@@ -346,32 +408,6 @@ pub fn serve<E: Emulator + 'static>(args: &ServeArgs, device: E) -> Result<(), C
     drop(stdout);
     server.wait();
     Ok(())
-}
-
-/// Input of `motionlink decode`.
-#[derive(clap::Args, Debug, Clone)]
-pub struct CaptureArgs {
-    /// Bytes as hex (such as "52 47 11 00 a3 0e" or "524711"); read from stdin if none are given.
-    #[arg(value_name = "HEX")]
-    pub hex: Vec<String>,
-    /// stdin holds the raw bytes of a capture, not hex text.
-    #[arg(long)]
-    pub raw: bool,
-}
-
-/// Reads the bytes of a capture: hex from the arguments, or hex or raw bytes from stdin.
-pub fn read_capture(args: &CaptureArgs) -> Result<Vec<u8>, CliError> {
-    if !args.hex.is_empty() {
-        return parse_hex(&args.hex.join(" "));
-    }
-    let mut input = Vec::new();
-    std::io::stdin().read_to_end(&mut input)?;
-    if args.raw {
-        return Ok(input);
-    }
-    let text =
-        String::from_utf8(input).map_err(|_| CliError::usage("stdin is not hex text (use --raw for raw bytes)"))?;
-    parse_hex(&text)
 }
 
 /// Parses hex text: pairs of digits, optionally separated by whitespace, ',', ':' or '-', each optionally
@@ -427,6 +463,21 @@ mod tests {
     fn hex_rejects_odd_digits_and_non_hex() {
         assert!(matches!(parse_hex("524"), Err(CliError::Usage(_))));
         assert!(matches!(parse_hex("zz"), Err(CliError::Usage(_))));
+    }
+
+    #[test]
+    fn csv_quotes_only_what_needs_it() {
+        let line = csv_line(&["1.5".into(), "a,b".into(), "say \"hi\"".into(), String::new()]);
+        assert_eq!(line, "1.5,\"a,b\",\"say \"\"hi\"\"\",");
+    }
+
+    #[test]
+    fn errors_carry_their_class_into_json() {
+        let e = classified(&LinkError::Disconnected { port: "p".into(), reason: "reset".into() });
+        assert_eq!((e.kind(), e.exit_code()), ("disconnected", 3));
+        let j = CliError::usage("bad --speed").to_json();
+        assert_eq!(j, serde_json::json!({"kind": "usage", "message": "bad --speed", "exit_code": 2}));
+        assert_eq!(CliError::Refused("PE".into()).kind(), "refused");
     }
 
     #[test]

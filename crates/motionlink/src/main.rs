@@ -1,7 +1,8 @@
 //! `motionlink`: operate, script, emulate and decode industrial motion devices.
 //!
 //! ```text
-//! motionlink <family> --port PORT <action> ...   operate a device (scu, powercube, compax)
+//! motionlink <family> <action> ... [--port PORT]  operate a device (scu, powercube, compax); options
+//!                                                 go before or after the action
 //! motionlink sim <family> --tcp ADDR | --pty     serve an emulated device
 //! motionlink decode <family>                     annotate a capture
 //! motionlink demo                                the manuals' examples against built-in emulators
@@ -10,15 +11,17 @@
 //!
 //! Exit codes: 0 success, 1 device refused or device error (or a move that did not reach its target),
 //! 2 usage error, 3 transport error, 128 + n when ended by signal n (after stopping what was started).
+//! With `--json`, an error is one JSON object on stderr: `{"kind": ..., "message": ..., "exit_code": ...}`.
 
 mod common;
 mod compax;
 mod console;
-#[allow(dead_code)] // taken up by each family's --port/--device when its command is rebuilt (issue 8)
+mod decode;
 mod devices;
 mod ports;
 mod powercube;
 mod scu;
+mod tap;
 mod term;
 
 use std::process::ExitCode;
@@ -41,6 +44,10 @@ struct Cli {
     /// Colours on stderr: auto (a terminal, unless NO_COLOR is set), always or never.
     #[arg(long, value_enum, default_value_t = term::ColorChoice::Auto, global = true, value_name = "WHEN")]
     color: term::ColorChoice,
+    /// JSON on stdout instead of tables and text (one object per line), and an error as one JSON object on
+    /// stderr: {"kind", "message", "exit_code"}.
+    #[arg(long, global = true)]
+    json: bool,
     #[command(subcommand)]
     command: Command,
 }
@@ -61,7 +68,8 @@ enum Command {
         #[command(subcommand)]
         family: SimFamily,
     },
-    /// Read a capture (hex or raw bytes on stdin or as arguments) and print each telegram annotated.
+    /// Read a capture (a --capture file, a candump log, hex, or raw bytes; as arguments or on stdin) and print
+    /// each telegram with its meaning.
     Decode {
         #[command(subcommand)]
         family: DecodeFamily,
@@ -69,11 +77,7 @@ enum Command {
     /// Run the manuals' examples against the built-in emulators and print each telegram with its meaning.
     Demo(DemoArgs),
     /// List the serial ports and CAN interfaces of this machine.
-    ListPorts {
-        /// Print JSON instead of a table.
-        #[arg(long)]
-        json: bool,
-    },
+    ListPorts,
     /// Print a shell completion script (bash, zsh, fish, elvish, powershell) on stdout.
     Completions {
         /// The shell.
@@ -119,22 +123,44 @@ enum DemoPart {
 }
 
 fn run(cli: Cli) -> Result<(), CliError> {
+    let json = cli.json;
     match cli.command {
-        Command::Scu(args) => scu::run(args),
-        Command::Powercube(args) => powercube::run(args),
-        Command::Compax(args) => compax::run(args),
-        Command::Console(args) => console::run(args),
+        Command::Scu(mut args) => {
+            args.json = json;
+            scu::run(args)
+        }
+        Command::Powercube(mut args) => {
+            args.json = json;
+            powercube::run(args)
+        }
+        Command::Compax(mut args) => {
+            args.json = json;
+            compax::run(args)
+        }
+        Command::Console(mut args) => {
+            args.json = json;
+            console::run(args)
+        }
         Command::Sim { family } => match family {
-            SimFamily::Scu(args) => scu::sim(args),
-            SimFamily::Powercube(args) => powercube::sim(args),
-            SimFamily::Compax(args) => compax::sim(args),
+            SimFamily::Scu(mut args) => {
+                args.serve.json = json;
+                scu::sim(args)
+            }
+            SimFamily::Powercube(mut args) => {
+                args.serve.json = json;
+                powercube::sim(args)
+            }
+            SimFamily::Compax(mut args) => {
+                args.serve.json = json;
+                compax::sim(args)
+            }
         },
         Command::Decode { family } => match family {
-            DecodeFamily::Scu(args) => scu::decode(args),
-            DecodeFamily::Powercube(args) => powercube::decode(args),
-            DecodeFamily::Compax(args) => compax::decode(args),
+            DecodeFamily::Scu(args) => scu::decode(args, json),
+            DecodeFamily::Powercube(args) => powercube::decode(args, json),
+            DecodeFamily::Compax(args) => compax::decode(args, json),
         },
-        Command::ListPorts { json } => ports::list(json),
+        Command::ListPorts => ports::list(json),
         Command::Completions { shell } => {
             // Into a buffer first: clap_complete panics on a failed write (a closed pipe).
             let mut script = Vec::new();
@@ -165,19 +191,46 @@ fn run(cli: Cli) -> Result<(), CliError> {
     }
 }
 
+/// Parses the command line; with `--json` anywhere in it, a usage error is the JSON error object.
+fn parse() -> Cli {
+    match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) if e.use_stderr() && std::env::args_os().any(|a| a == "--json") => {
+            let message = e.render().to_string();
+            let message = message.trim().trim_start_matches("error: ");
+            term::write_stderr(&format!("{}\n", CliError::usage(message).to_json()));
+            std::process::exit(i32::from(CliError::usage("").exit_code()));
+        }
+        Err(e) => e.exit(),
+    }
+}
+
 fn main() -> ExitCode {
-    let cli = Cli::parse();
-    term::init(cli.verbose, cli.quiet, cli.color);
+    let cli = parse();
+    term::init(cli.verbose, cli.quiet, cli.color, cli.json);
+    let json = cli.json;
     let result = run(cli);
     match (result, common::stop_cause()) {
         (Ok(()), Some(common::StopCause::Signal(n))) => {
             // The action ended (a read, or a stop it completed) but a signal asked the command to end.
             let cause = common::StopCause::Signal(n);
-            common::say(format!("motionlink: ended by {}", cause.name()));
+            let e = CliError::Interrupted(format!("ended by {}", cause.name()));
+            if json {
+                term::write_stderr(&format!("{}\n", e.to_json()));
+            } else {
+                common::say(format!("motionlink: {e}"));
+            }
             ExitCode::from(cause.exit_code())
         }
         (Ok(()), _) => ExitCode::SUCCESS,
         (Err(common::CliError::OutputClosed), _) => ExitCode::SUCCESS,
+        // The reader of stdout went away and what the command started was stopped (confirmed): quietly 0.
+        (Err(common::CliError::Interrupted(_)), Some(common::StopCause::OutputClosed)) => ExitCode::SUCCESS,
+        (Err(e), _) if json => {
+            // One JSON object, the error's class name as its kind (the one place that maps errors to JSON).
+            term::write_stderr(&format!("{}\n", e.to_json()));
+            ExitCode::from(e.exit_code())
+        }
         (Err(e), _) => {
             term::write_stderr(&term::error_line(&format!("motionlink: {e}")));
             ExitCode::from(e.exit_code())

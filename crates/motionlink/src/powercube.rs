@@ -10,13 +10,18 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use motionlink_link::can::{SlcanAdapter, SlcanBitrate, SlcanLink};
+use motionlink_link::describe::Describe;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::serial::SerialLink;
 use motionlink_link::url::PortUrl;
 use motionlink_link::{RealClock, SerialSettings, SharedClock};
 use motionlink_powercube::client::{BusConfig, Client, Guard, Module, ModuleInfo, MoveSpec, Progress, Readback};
-use motionlink_powercube::model::{Acceleration, CubeState, Param, Position, Value, Velocity, PARAMS};
+use motionlink_powercube::describe::Describer;
+use motionlink_powercube::model::{
+    Acceleration, Action as PcAction, CubeState, ModuleKind, Param, Position, Request, Value, Velocity, PARAMS,
+};
 use motionlink_powercube::sim::SimConfig;
+use motionlink_powercube::wire::Payload;
 use motionlink_powercube::{Emulator, Error};
 use serde_json::json;
 
@@ -24,31 +29,36 @@ pub use decode::{decode, DecodeArgs};
 pub use demo::demo;
 
 use crate::common::{self, CliError, ServeArgs};
+use crate::tap::{LinkArgs, Tap};
 
-/// `motionlink powercube` arguments.
+/// `motionlink powercube` arguments. Every option may come before or after the action.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The port: a serial device or tcp://HOST:PORT (RS232), socketcan://IF or slcan://PATH (CAN), or sim.
-    #[arg(long)]
-    pub port: String,
+    /// Default: --device, else MOTIONLINK_PORT.
+    #[arg(long, global = true)]
+    pub port: Option<String>,
+    #[command(flatten)]
+    pub link: LinkArgs,
     /// The module's address, 1..31.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=31))]
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=31), global = true)]
     pub module: u8,
     /// RS232 baud rate.
-    #[arg(long, default_value_t = 9600, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 9600, value_parser = clap::value_parser!(u32).range(1..), global = true)]
     pub baud: u32,
     /// CAN bit rate of an SLCAN adapter (10000 .. 1000000).
-    #[arg(long, default_value_t = 1_000_000)]
+    #[arg(long, default_value_t = 1_000_000, global = true)]
     pub bitrate: u32,
     /// Acknowledge timeout in ms, 1 to 60000 (default: 200 on RS232, 50 on CAN).
-    #[arg(long, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    #[arg(long, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000), global = true)]
     pub timeout_ms: Option<u64>,
     /// How often `home` and `move` read the module's state while they wait, in ms (1 to 10000): polls are
     /// never sent faster than this, however quickly the line answers.
-    #[arg(long, value_name = "MS", default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    #[arg(long, value_name = "MS", default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=10_000),
+          global = true)]
     pub poll_ms: u64,
-    /// Print JSON instead of a table.
-    #[arg(long, global = true)]
+    /// `--json` (the global option, set by `main`).
+    #[arg(skip)]
     pub json: bool,
     /// Do not arm the module watchdog for `home` and `move` (the Config word is left alone; a host that dies
     /// then leaves the module moving). Signals, a closed stdout and errors still halt it.
@@ -68,17 +78,27 @@ pub enum Action {
     Info,
     /// The module's state word, flag by flag.
     State,
-    /// Read a parameter (by name, such as ActPos, or id, such as 60 or 0x3c).
+    /// Read parameters (by name, such as ActPos, or id, such as 60 or 0x3c); several at once.
     Get {
-        /// The parameter.
-        param: String,
+        /// The parameters.
+        #[arg(required = true, value_name = "PARAM")]
+        params: Vec<String>,
     },
     /// Write a parameter.
     Set {
         /// The parameter.
         param: String,
         /// The value, in the parameter's type and unit.
+        #[arg(allow_negative_numbers = true)]
         value: String,
+    },
+    /// Send one command and print it and the module's acknowledge, each explained: typed (get PARAM, set PARAM
+    /// VALUE, reset, home, halt, recalc-pid, reset-time, save-parameters) or its payload in hex ("0A 3C":
+    /// GetExtended ActPos). Motion commands are refused: use move.
+    Send {
+        /// The command's words, or its payload in hex.
+        #[arg(required = true, value_name = "WORD", allow_negative_numbers = true)]
+        words: Vec<String>,
     },
     /// Home the module and wait for the end of homing (watchdog armed; a signal halts it).
     Home {
@@ -120,6 +140,9 @@ pub enum Action {
         /// Stop after this many samples (at least 1).
         #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
         count: Option<u64>,
+        /// Print CSV (a header line, then one line per sample) instead of text.
+        #[arg(long)]
+        csv: bool,
     },
     /// List the parameter table.
     Params,
@@ -155,9 +178,14 @@ fn context(e: Error, context: String) -> CliError {
 }
 
 /// Opens the session `args` ask for; the in-process emulator's host with it for `--port sim`.
-fn open(args: &Args) -> Result<(Client, Option<EmulatorHost<Emulator>>), CliError> {
-    let url: PortUrl = args.port.parse()?;
-    let clock = RealClock::shared();
+fn open(
+    args: &Args,
+    port: &str,
+    tap: &Tap,
+    clock: &SharedClock,
+) -> Result<(Client, Option<EmulatorHost<Emulator>>), CliError> {
+    let url: PortUrl = port.parse()?;
+    let clock = Arc::clone(clock);
     let settings = |mut c: BusConfig| {
         if let Some(t) = args.timeout_ms {
             c.reply_timeout = Duration::from_millis(t);
@@ -168,13 +196,13 @@ fn open(args: &Args) -> Result<(Client, Option<EmulatorHost<Emulator>>), CliErro
     let client = match &url {
         PortUrl::Serial(_) | PortUrl::Tcp { .. } => {
             let link = url.open_byte_link(SerialSettings { dtr_rts_on: false, ..SerialSettings::new(args.baud) })?;
-            Client::rs232(link, clock, settings(BusConfig::rs232()))
+            Client::rs232(tap.link(link, &clock), clock, settings(BusConfig::rs232()))
         }
         PortUrl::Sim => {
             let host =
                 EmulatorHost::new(Emulator::new(&SimConfig::default()), Arc::clone(&clock), PipeConfig::instant());
-            let client =
-                Client::rs232(Box::new(host.connect().0), clock, settings(BusConfig::rs232())).map_err(failed)?;
+            let link = tap.link(Box::new(host.connect().0), &clock);
+            let client = Client::rs232(link, clock, settings(BusConfig::rs232())).map_err(failed)?;
             return Ok((client, Some(host)));
         }
         PortUrl::Slcan(path) => {
@@ -183,21 +211,31 @@ fn open(args: &Args) -> Result<(Client, Option<EmulatorHost<Emulator>>), CliErro
             // An SLCAN adapter needs no modem lines (opening the port raises them anyway).
             let serial = SerialLink::open(path, SerialSettings { dtr_rts_on: false, ..SerialSettings::new(115_200) })?;
             let link = SlcanLink::open(serial, Arc::clone(&clock), rate)?;
-            Client::can(Box::new(link), clock, settings(BusConfig::can()))
+            Client::can(tap.can_link(Box::new(link), &clock), clock, settings(BusConfig::can()))
         }
-        PortUrl::SocketCan(ifname) => open_socketcan(ifname, clock, settings(BusConfig::can()))?,
+        PortUrl::SocketCan(ifname) => open_socketcan(ifname, tap, clock, settings(BusConfig::can()))?,
     };
     Ok((client.map_err(failed)?, None))
 }
 
 #[cfg(target_os = "linux")]
-fn open_socketcan(ifname: &str, clock: SharedClock, config: BusConfig) -> Result<Result<Client, Error>, CliError> {
+fn open_socketcan(
+    ifname: &str,
+    tap: &Tap,
+    clock: SharedClock,
+    config: BusConfig,
+) -> Result<Result<Client, Error>, CliError> {
     let link = motionlink_link::can::socketcan::SocketCanLink::open(ifname)?;
-    Ok(Client::can(Box::new(link), clock, config))
+    Ok(Client::can(tap.can_link(Box::new(link), &clock), clock, config))
 }
 
 #[cfg(not(target_os = "linux"))]
-fn open_socketcan(_ifname: &str, _clock: SharedClock, _config: BusConfig) -> Result<Result<Client, Error>, CliError> {
+fn open_socketcan(
+    _ifname: &str,
+    _tap: &Tap,
+    _clock: SharedClock,
+    _config: BusConfig,
+) -> Result<Result<Client, Error>, CliError> {
     Err(CliError::usage("socketcan:// ports need Linux"))
 }
 
@@ -218,6 +256,12 @@ fn value_json(v: &Value) -> serde_json::Value {
     }
 }
 
+/// The JSON name of a position-like quantity of a module of `kind`: `position_rad` or `position_m` for
+/// `stem` "position" (naming.md: the unit in the name).
+fn unit_key(stem: &str, kind: ModuleKind) -> String {
+    format!("{stem}_{}", kind.unit())
+}
+
 fn state_json(s: CubeState) -> serde_json::Value {
     json!({
         "word": s.0,
@@ -228,7 +272,7 @@ fn state_json(s: CubeState) -> serde_json::Value {
 
 fn info_json(m: &ModuleInfo) -> serde_json::Value {
     json!({
-        "address": m.address.get(),
+        "module": m.address.get(),
         "kind": m.kind.name(),
         "version": m.version.to_string(),
         "serial": m.serial,
@@ -274,15 +318,33 @@ pub fn run(args: Args) -> Result<(), CliError> {
         return print_params(&mut out, args.json);
     }
     check_args(&args.action)?;
-    let (client, host) = open(&args)?;
+    if let Action::Watch { csv: true, .. } = args.action {
+        if args.json {
+            return Err(CliError::usage("--csv and --json: give one of them"));
+        }
+    }
+    let request = match &args.action {
+        Action::Send { words } => Some(parse_send(words)?),
+        _ => None,
+    };
+    let port = args.link.resolve_port("powercube", args.port.as_deref())?;
+    let clock = RealClock::shared();
+    let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
+    let can_interface = port.parse::<PortUrl>().map(|u| crate::tap::can_interface(&u)).unwrap_or_default();
+    let tap = Tap::new("powercube", &port, &clock, &args.link, &can_interface, &describer, request.is_some())?;
+    let (client, host) = open(&args, &port, &tap, &clock)?;
     client.set_cancel_token(common::interrupt_token());
     // The watchdog protects a motion against a host that dies; an emulator in this process dies with it.
     let guard = if args.no_watchdog || host.is_some() { Guard::HaltOnly } else { Guard::Watchdog };
-    let result = act(&args, &client, guard, &mut out);
+    let result = match &request {
+        Some(r) => send(&args, &client, r, &tap, &port, &mut out),
+        None => act(&args, &client, guard, &port, &mut out),
+    };
     // Closing stops what is still moving and switches off what was armed, and says whether it could;
     // the in-process emulator goes only after that.
     let closed = client.close().map_err(failed);
     drop(host);
+    tap.flush();
     match (result, closed) {
         (Err(e), Err(also)) => {
             common::say(format!("motionlink: {also}"));
@@ -293,16 +355,24 @@ pub fn run(args: Args) -> Result<(), CliError> {
 }
 
 /// Does what `args` ask of the module, on `client`.
-fn act(args: &Args, client: &Client, guard: Guard, out: &mut dyn Write) -> Result<(), CliError> {
+fn act(args: &Args, client: &Client, guard: Guard, port: &str, out: &mut dyn Write) -> Result<(), CliError> {
     let mut out = out;
     let m = client.module(args.module).map_err(failed)?;
+    // Every JSON object names the family, the port and the module first.
+    let identified = |fields: serde_json::Value| {
+        let mut v = common::identified("powercube", port, json!({"module": args.module}));
+        if let (Some(map), serde_json::Value::Object(f)) = (v.as_object_mut(), fields) {
+            map.extend(f);
+        }
+        v
+    };
     match &args.action {
         Action::Scan => scan(client, &mut out, args.json)?,
         Action::Info => info(&m, &mut out, args.json)?,
         Action::State => {
             let s = m.state().map_err(failed)?;
             if args.json {
-                common::print_json(&mut out, &state_json(s))?;
+                common::print_json(&mut out, &identified(state_json(s)))?;
             } else {
                 writeln!(out, "CubeState {:#010x}", s.0)?;
                 let rows: Vec<_> =
@@ -313,20 +383,28 @@ fn act(args: &Args, client: &Client, guard: Guard, out: &mut dyn Write) -> Resul
                 }
             }
         }
-        Action::Get { param } => {
-            let p = parse_param(param)?;
-            let v = m.get(p).map_err(failed)?;
-            // The unit depends on the module type (rad or m): no guessing when it cannot be read.
-            let kind = m.kind().map_err(|e| {
-                context(e, format!("{} read, but the module type (and so its unit) cannot be read", p.name()))
-            })?;
-            if args.json {
-                common::print_json(
-                    &mut out,
-                    &json!({"param": p.name(), "id": p.id(), "value": value_json(&v), "unit": p.unit().symbol(kind)}),
-                )?;
-            } else {
-                common::print_table(&mut out, &[(p.name().to_string(), v.show(p, kind))])?;
+        Action::Get { params } => {
+            let params = params.iter().map(|p| parse_param(p)).collect::<Result<Vec<_>, _>>()?;
+            let mut rows = Vec::new();
+            for p in params {
+                let v = m.get(p).map_err(failed)?;
+                // The unit depends on the module type (rad or m): no guessing when it cannot be read.
+                let kind = m.kind().map_err(|e| {
+                    context(e, format!("{} read, but the module type (and so its unit) cannot be read", p.name()))
+                })?;
+                if args.json {
+                    let access = PARAMS.iter().find(|e| e.id == u32::from(p.id())).map_or("", |e| e.access.short());
+                    common::print_json(
+                        &mut out,
+                        &identified(json!({"name": p.name(), "id": p.id(), "value": value_json(&v),
+                                           "unit": p.unit().symbol(kind), "access": access})),
+                    )?;
+                } else {
+                    rows.push((p.name().to_string(), v.show(p, kind)));
+                }
+            }
+            if !args.json {
+                common::print_table(&mut out, &rows)?;
             }
         }
         Action::Set { param, value } => {
@@ -340,8 +418,8 @@ fn act(args: &Args, client: &Client, guard: Guard, out: &mut dyn Write) -> Resul
             if args.json {
                 common::print_json(
                     &mut out,
-                    &json!({"param": p.name(), "value": value_json(&v), "ok": true,
-                            "read_back": read_back.as_ref().map(value_json), "not_verifiable": not_verifiable}),
+                    &identified(json!({"name": p.name(), "id": p.id(), "value": value_json(&v), "ok": true,
+                            "read_back": read_back.as_ref().map(value_json), "not_verifiable": not_verifiable})),
                 )?;
             } else {
                 let kind = m.kind().map_err(|e| {
@@ -357,13 +435,23 @@ fn act(args: &Args, client: &Client, guard: Guard, out: &mut dyn Write) -> Resul
             let r = m.home_guarded(timeout, guard, &mut |p: &Progress| bar.set_message(progress_text(p)));
             bar.finish_and_clear();
             let (position, s) = r.map_err(failed)?;
-            report_done(&mut out, args.json, "homed", position, s)?;
+            if args.json {
+                let kind = m.kind().map_err(failed)?;
+                let fields = json!({"action": "homed", unit_key("reached", kind): position.value(),
+                                    "state": state_json(s)});
+                common::print_json(&mut out, &identified(fields))?;
+            } else {
+                report_done(&mut out, "homed", position, s)?;
+            }
         }
         Action::Reset => {
             // After a host died with the watchdog online, a plain Reset would be undone 50 ms later.
             let released = m.reset_and_release_watchdog().map_err(failed)?;
             if args.json {
-                common::print_json(&mut out, &json!({"ok": true, "action": "reset", "watchdog_released": released}))?;
+                common::print_json(
+                    &mut out,
+                    &identified(json!({"ok": true, "action": "reset", "watchdog_released": released})),
+                )?;
             } else if released {
                 writeln!(out, "reset (the watchdog had expired with no host serving it: switched it offline)")?;
             } else {
@@ -373,7 +461,7 @@ fn act(args: &Args, client: &Client, guard: Guard, out: &mut dyn Write) -> Resul
         Action::Halt => {
             m.halt().map_err(failed)?;
             if args.json {
-                common::print_json(&mut out, &json!({"ok": true, "action": "halted"}))?;
+                common::print_json(&mut out, &identified(json!({"ok": true, "action": "halted"})))?;
             } else {
                 writeln!(out, "halted")?;
             }
@@ -398,10 +486,27 @@ fn act(args: &Args, client: &Client, guard: Guard, out: &mut dyn Write) -> Resul
             });
             bar.finish_and_clear();
             let report = r.map_err(failed)?;
-            report_done(&mut out, args.json, "reached", report.reached, report.state)?;
+            if args.json {
+                let kind = m.kind().map_err(failed)?;
+                let reached = report.reached.value();
+                let fields = json!({"action": "reached", unit_key("target", kind): position,
+                                    unit_key("reached", kind): reached,
+                                    unit_key("difference", kind): reached - position,
+                                    "state": state_json(report.state)});
+                common::print_json(&mut out, &identified(fields))?;
+            } else {
+                report_done(&mut out, "reached", report.reached, report.state)?;
+            }
         }
-        Action::Watch { interval_ms, count } => watch(client, &m, &mut out, args.json, *interval_ms, *count)?,
-        Action::Params => {}
+        Action::Watch { interval_ms, count, csv } => {
+            let format = match (*csv, args.json) {
+                (true, _) => WatchFormat::Csv,
+                (false, true) => WatchFormat::Json,
+                (false, false) => WatchFormat::Text,
+            };
+            watch(client, &m, &mut out, format, &identified, *interval_ms, *count)?
+        }
+        Action::Params | Action::Send { .. } => {}
     }
     Ok(())
 }
@@ -455,8 +560,17 @@ fn info(m: &Module<'_>, out: &mut dyn Write, json: bool) -> Result<(), CliError>
         .map_err(failed)?;
     if json {
         let mut j = info_json(&info);
+        // snake_case names with the module's unit (naming.md): min_position_rad, max_velocity_m_per_s ...
+        let unit = info.kind.unit();
         for (p, v) in &limits {
-            j[p.name()] = value_json(v);
+            let key = match p {
+                Param::MinPos => format!("min_position_{unit}"),
+                Param::MaxPos => format!("max_position_{unit}"),
+                Param::MaxVel => format!("max_velocity_{unit}_per_s"),
+                Param::MaxAcc => format!("max_acceleration_{unit}_per_s2"),
+                _ => format!("position_{unit}"),
+            };
+            j[key] = value_json(v);
         }
         common::print_json(out, &j)
     } else {
@@ -472,11 +586,20 @@ fn info(m: &Module<'_>, out: &mut dyn Write, json: bool) -> Result<(), CliError>
     }
 }
 
+/// How `watch` prints.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum WatchFormat {
+    Text,
+    Json,
+    Csv,
+}
+
 fn watch(
     client: &Client,
     m: &Module<'_>,
     out: &mut dyn Write,
-    json: bool,
+    format: WatchFormat,
+    identified: &dyn Fn(serde_json::Value) -> serde_json::Value,
     interval_ms: u64,
     count: Option<u64>,
 ) -> Result<(), CliError> {
@@ -485,18 +608,27 @@ fn watch(
     let clock = Arc::clone(client.clock());
     let interval = Duration::from_millis(interval_ms);
     let mut due = clock.now();
+    let started = due;
     let mut n = 0u64;
+    if format == WatchFormat::Csv {
+        writeln!(out, "t_s,module,{},flags", unit_key("position", kind))?;
+    }
     while !token.is_cancelled() && count.is_none_or(|c| n < c) {
         let s = m.state().map_err(failed)?;
         let p = m.position().map_err(failed)?;
         let t = clock.now();
-        if json {
-            common::print_json(
+        let t_s = (t - started).as_secs_f64();
+        match format {
+            WatchFormat::Json => common::print_json(
                 out,
-                &json!({"t_ms": t.as_millis() as u64, "position": p.value(), "state": state_json(s)}),
-            )?;
-        } else {
-            writeln!(out, "{:>9.3} s  {}  {}", t.since_origin().as_secs_f64(), p.show(kind), s)?;
+                &identified(json!({"t_s": t_s, unit_key("position", kind): p.value(), "state": state_json(s)})),
+            )?,
+            WatchFormat::Csv => {
+                let flags: Vec<String> = s.iter().map(|f| f.label()).collect();
+                let fields = [format!("{t_s:.3}"), m.address().to_string(), p.value().to_string(), flags.join(" ")];
+                writeln!(out, "{}", common::csv_line(&fields))?;
+            }
+            WatchFormat::Text => writeln!(out, "{:>9.3} s  {}  {}", t_s, p.show(kind), s)?,
         }
         out.flush()?;
         n += 1;
@@ -516,13 +648,88 @@ fn progress_text(p: &Progress) -> String {
     format!("module {}: {:.4}  {}", p.address, p.position.value(), p.state)
 }
 
-fn report_done(out: &mut dyn Write, json: bool, what: &str, pos: Position, s: CubeState) -> Result<(), CliError> {
-    if json {
-        common::print_json(out, &json!({"ok": true, "action": what, "position": pos.value(), "state": state_json(s)}))
-    } else {
-        writeln!(out, "{what}: position {:.4}, state {s}", pos.value())?;
-        Ok(())
+fn report_done(out: &mut dyn Write, what: &str, pos: Position, s: CubeState) -> Result<(), CliError> {
+    writeln!(out, "{what}: position {:.4}, state {s}", pos.value())?;
+    Ok(())
+}
+
+/// Parses `send`'s words: a typed command or a payload in hex. Motion commands are refused (`move` watches
+/// and stops what it starts; a bare motion command would be left running).
+fn parse_send(words: &[String]) -> Result<Request, CliError> {
+    let first = words[0].to_ascii_lowercase().replace(['-', '_'], "");
+    let rest = &words[1..];
+    let none = |r: Request| {
+        if rest.is_empty() {
+            Ok(r)
+        } else {
+            Err(CliError::usage(format!("send {}: takes no arguments", words[0])))
+        }
+    };
+    let request = match first.as_str() {
+        "get" => match rest {
+            [p] => Request::get(parse_param(p)?).map_err(|e| CliError::usage(e.to_string()))?,
+            _ => return Err(CliError::usage("send get: give one parameter, such as send get ActPos")),
+        },
+        "set" => match rest {
+            [p, v] => {
+                let p = parse_param(p)?;
+                let v = Value::parse(p, v).map_err(CliError::usage)?;
+                Request::set(p, v).map_err(|e| CliError::usage(e.to_string()))?
+            }
+            _ => return Err(CliError::usage("send set: give a parameter and a value, such as send set TargetVel 0.5")),
+        },
+        "reset" => none(Request::Action(PcAction::Reset))?,
+        "home" => return Err(CliError::usage("send home starts a motion: use `motionlink powercube home`")),
+        "halt" => none(Request::Action(PcAction::Halt))?,
+        "recalcpid" | "recalcpidparam" => none(Request::Action(PcAction::RecalcPid))?,
+        "resettime" => none(Request::Action(PcAction::ResetTime))?,
+        "saveparameters" => none(Request::Action(PcAction::SaveParameters))?,
+        _ => {
+            let bytes = common::parse_hex(&words.join(" ")).map_err(|_| {
+                CliError::usage(format!(
+                    "{:?} is neither a typed command (get, set, reset, halt, recalc-pid, reset-time, \
+                     save-parameters) nor a payload in hex",
+                    words.join(" ")
+                ))
+            })?;
+            let payload = Payload::new(&bytes).map_err(|e| CliError::usage(format!("{} bytes: {e:?}", e.0)))?;
+            Request::decode(&payload).map_err(|e| CliError::usage(format!("not a command: {e}")))?
+        }
+    };
+    if request.starts_motion() {
+        return Err(CliError::usage(
+            "send does not start motions (nothing would watch or stop them): use move or home",
+        ));
     }
+    request.validate().map_err(|e| CliError::usage(e.to_string()))?;
+    Ok(request)
+}
+
+/// `send`: one command to the module, and its acknowledge, each explained.
+fn send(
+    args: &Args,
+    client: &Client,
+    request: &Request,
+    tap: &Tap,
+    port: &str,
+    out: &mut dyn Write,
+) -> Result<(), CliError> {
+    let telegrams = tap.telegrams().ok_or_else(|| CliError::usage("send: no tap on the link"))?;
+    telegrams.clear();
+    let result = client.request(args.module, request);
+    let seen = telegrams.take();
+    let (sent, reply) = crate::tap::exchange(&seen, None);
+    let (sent_json, reply_json) = crate::tap::print_exchange(out, args.json, sent.as_ref(), reply.as_ref())?;
+    if args.json {
+        let v = common::identified(
+            "powercube",
+            port,
+            json!({"module": args.module, "command": format!("{request:?}"), "request": sent_json,
+                   "reply": reply_json, "ok": result.is_ok()}),
+        );
+        common::print_json(out, &v)?;
+    }
+    result.map(|_| ()).map_err(failed)
 }
 
 fn print_params(out: &mut dyn Write, as_json: bool) -> Result<(), CliError> {

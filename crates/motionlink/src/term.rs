@@ -35,13 +35,16 @@ pub struct Output {
     pub quiet: bool,
     /// `-v` count: 1 the wire trace, 2 debug logs, 3 trace logs.
     pub verbose: u8,
+    /// `--json`: what goes on stderr is JSON too, one object per line (logs `{"log": ...}`, the wire trace
+    /// one decoded telegram per line), so that stderr can be read line by line as JSON.
+    pub json: bool,
 }
 
 static OUTPUT: OnceLock<Output> = OnceLock::new();
 
 /// The output settings (defaults before [`init`]).
 pub fn output() -> Output {
-    *OUTPUT.get().unwrap_or(&Output { color: false, quiet: false, verbose: 0 })
+    *OUTPUT.get().unwrap_or(&Output { color: false, quiet: false, verbose: 0, json: false })
 }
 
 /// Decides colours: `--color always` and `never` win; `auto` colours a terminal unless NO_COLOR is set and
@@ -56,12 +59,14 @@ pub fn use_color(choice: ColorChoice, no_color: Option<&str>, terminal: bool) ->
 
 /// Sets up the output and the logging: errors only with `-q`, warnings by default, more with each `-v`,
 /// (-v: information and the wire trace), or as `RUST_LOG` says.
-pub fn init(verbose: u8, quiet: bool, color: ColorChoice) {
+/// With `json`, stderr carries JSON lines only.
+pub fn init(verbose: u8, quiet: bool, color: ColorChoice, json: bool) {
     let no_color = std::env::var("NO_COLOR").ok();
     let out = Output {
-        color: use_color(color, no_color.as_deref(), std::io::stderr().is_terminal()),
+        color: !json && use_color(color, no_color.as_deref(), std::io::stderr().is_terminal()),
         quiet,
         verbose: if quiet { 0 } else { verbose },
+        json,
     };
     let _ = OUTPUT.set(out);
     let default = match (quiet, verbose) {
@@ -122,8 +127,18 @@ impl Write for LineWriter {
 impl Drop for LineWriter {
     fn drop(&mut self) {
         if !self.0.is_empty() {
-            write_stderr(&String::from_utf8_lossy(&self.0));
+            note(String::from_utf8_lossy(&self.0).trim_end());
         }
+    }
+}
+
+/// A line of information on stderr (a log event, a note of the command): as it is, or with `--json` as
+/// `{"log": "<text>"}`.
+pub fn note(text: &str) {
+    if output().json {
+        write_stderr(&format!("{}\n", serde_json::json!({ "log": text })));
+    } else {
+        write_stderr(&format!("{text}\n"));
     }
 }
 
@@ -156,14 +171,13 @@ pub fn progress_bar(length: u64, message: impl Into<String>) -> ProgressBar {
     bar
 }
 
-/// The live wire trace of `-v`: every telegram, with direction, time, hex and meaning, on stderr.
-#[allow(dead_code)] // taken up by each family's command as it moves to the shared Describe (issue 7)
+/// The live wire trace of `-v`: every telegram, with direction, time (UTC time of day), hex and meaning, on
+/// stderr.
 pub struct WireTrace {
     describer: Mutex<Box<dyn Describe + Send>>,
     time: UnixTime,
 }
 
-#[allow(dead_code)]
 impl WireTrace {
     /// A trace that explains telegrams with `describer`; times from `clock`.
     pub fn new(describer: Box<dyn Describe + Send>, clock: &SharedClock) -> Self {
@@ -176,9 +190,20 @@ impl WireTrace {
             let local = at.as_secs() % 86_400;
             let stamp =
                 format!("{:02}:{:02}:{:02}.{:06}", local / 3600, (local / 60) % 60, local % 60, at.subsec_micros());
-            let id = a.can_id.map(|id| format!("{id:03X}# ")).unwrap_or_default();
+            // A CAN frame as candump writes it (0C9#0A3C), serial bytes as spaced hex.
+            let data = match a.can_id {
+                Some(id) => format!("{id:03X}#{}", hex(&a.bytes).replace(' ', "")),
+                None => hex(&a.bytes),
+            };
             let mark = if a.bad { "!!" } else { a.direction.arrow() };
-            write_stderr(&format!("{stamp} {mark} {id}{:<30} {}\n", hex(&a.bytes), a.meaning));
+            if output().json {
+                let mut v = crate::decode::annotation_json(a, None);
+                v["time_s"] = serde_json::json!(at.as_secs_f64());
+                v["can_id"] = serde_json::json!(a.can_id);
+                write_stderr(&format!("{}\n", serde_json::json!({ "trace": v })));
+                continue;
+            }
+            write_stderr(&format!("{stamp} {mark} {data:<30} {}\n", a.meaning));
         }
     }
 }

@@ -512,3 +512,12 @@ fn compax_stop_jog_dead_man_and_lost_page() {
         rearm: Some("switch_on"),
     });
 }
+
+#[test]
+fn with_json_the_one_line_is_a_json_object() {
+    let running = common::Running::start(&["--json", "console", "scu", "--port", "sim"]);
+    let line = running.stdout.wait_for(Duration::from_secs(20), |l| !l.is_empty()).expect("a line on stdout");
+    let value: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{line}: {e}"));
+    let url = value["console"].as_str().unwrap_or_default();
+    assert!(url.starts_with("http://127.0.0.1:") && url.contains("/?token="), "{line}");
+}

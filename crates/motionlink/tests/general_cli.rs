@@ -2,10 +2,11 @@
 //! quiet and colour options.
 
 use std::process::Command;
+use std::time::Duration;
 
 mod common;
 
-use common::BIN;
+use common::{Sim, BIN};
 
 fn run(args: &[&str]) -> std::process::Output {
     Command::new(BIN).args(args).env_remove("NO_COLOR").output().unwrap()
@@ -70,4 +71,143 @@ fn errors_are_red_only_when_asked_and_quiet_keeps_them() {
     assert_eq!(q.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&q.stderr).contains("no_such_entry"), "-q still prints the error");
     assert_eq!(run(&["-q", "-v", "list-ports"]).status.code(), Some(2), "-q and -v contradict each other");
+}
+
+/// Splits a README command line as a shell would for these simple lines: words, "double quoted" words, a
+/// trailing `# comment` dropped.
+fn shell_words(line: &str) -> Vec<String> {
+    let (mut words, mut word, mut quoted, mut in_word) = (Vec::new(), String::new(), false, false);
+    for c in line.chars() {
+        match c {
+            '"' => {
+                quoted = !quoted;
+                in_word = true;
+            }
+            '#' if !quoted && !in_word => break,
+            c if c.is_whitespace() && !quoted => {
+                if in_word {
+                    words.push(std::mem::take(&mut word));
+                    in_word = false;
+                }
+            }
+            c => {
+                word.push(c);
+                in_word = true;
+            }
+        }
+    }
+    if in_word {
+        words.push(word);
+    }
+    words
+}
+
+/// Every command of the README's ```sh and ```console blocks that starts with `motionlink` runs against
+/// `motionlink sim` and succeeds (`--port` other than `sim` becomes the emulator of the family; a `sim`
+/// server must print its listening line); in a ```console block, the lines after `$ motionlink ...` are its
+/// exact output. So the documentation cannot rot.
+#[test]
+fn every_readme_command_runs_against_the_emulators() {
+    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../README.md")).unwrap();
+    // The commands, each with the output a console block shows for it.
+    let mut commands: Vec<(String, Vec<String>)> = Vec::new();
+    let mut block: Option<bool> = None; // Some(console?)
+    for line in readme.lines() {
+        let t = line.trim();
+        match (&block, t) {
+            (None, "```sh") => block = Some(false),
+            (None, "```console") => block = Some(true),
+            (None, _) => {}
+            (Some(_), "```") => block = None,
+            (Some(console), t) => {
+                let command = if *console { t.strip_prefix("$ ") } else { Some(t) };
+                match command {
+                    Some(c) if c.starts_with("motionlink ") => commands.push((c.to_string(), Vec::new())),
+                    Some(_) => {}
+                    None if *console && !t.is_empty() => {
+                        if let Some(last) = commands.last_mut() {
+                            last.1.push(t.to_string());
+                        }
+                    }
+                    None => {}
+                }
+            }
+        }
+    }
+    assert!(commands.len() > 40, "{} commands found", commands.len());
+    let scu = Sim::start("scu", &["--tcp", "127.0.0.1:0"]);
+    let tlt = Sim::start("scu", &["--tcp", "127.0.0.1:0", "--preset", "tlt"]);
+    let powercube = Sim::start("powercube", &["--tcp", "127.0.0.1:0", "--modules", "1,17"]);
+    let compax = Sim::start("compax", &["--tcp", "127.0.0.1:0", "--drives", "1,5"]);
+    let dir = std::env::temp_dir().join(format!("motionlink-readme-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("targets.txt"), "400\n410\n").unwrap();
+    std::fs::write(dir.join("unit.toml"), "preset = \"scp11\"\nactuators = 2\n").unwrap();
+    for (line, expected) in &commands {
+        let mut words = shell_words(line);
+        let mut stdin = String::new();
+        if let Some(i) = words.iter().position(|w| w == "<") {
+            stdin = std::fs::read_to_string(dir.join(&words[i + 1])).unwrap_or_else(|e| panic!("{line}: {e}"));
+            words.truncate(i);
+        }
+        if let Some(i) = words.iter().position(|w| w == "--port") {
+            // `motionlink console <family> ...` names its family one word later.
+            let family = if words[1] == "console" { words[2].as_str() } else { words[1].as_str() };
+            let sim = match family {
+                "scu" if line.contains("--functions tlt") => &tlt,
+                "scu" => &scu,
+                "powercube" => &powercube,
+                "compax" => &compax,
+                other => panic!("{line}: --port for {other}"),
+            };
+            if words[i + 1] != "sim" {
+                words[i + 1] = sim.address.clone();
+            }
+        }
+        // Files the examples name (unit.toml) are the fixtures in `dir`.
+        for w in words.iter_mut().skip(2) {
+            if !w.starts_with('-') && dir.join(&*w).is_file() {
+                *w = dir.join(&*w).to_string_lossy().into_owned();
+            }
+        }
+        let args: Vec<&str> = words[1..].iter().map(String::as_str).collect();
+        if args[0] == "sim" {
+            let running = common::Running::start(&args);
+            let listening = running.stdout.wait_for(Duration::from_secs(10), |l| l.starts_with("listening on "));
+            assert!(listening.is_some(), "{line}: no listening line; {}", running.stderr.text());
+            continue;
+        }
+        if args[0] == "console" {
+            // A server: it runs until stopped; what the README promises is its one line.
+            let running = common::Running::start(&args);
+            let line_out = running.stdout.wait_for(Duration::from_secs(20), |l| l.starts_with("console on http://"));
+            assert!(line_out.is_some(), "{line}: no `console on` line; {}", running.stderr.text());
+            continue;
+        }
+        let mut child = Command::new(BIN)
+            .args(&args)
+            .current_dir(&dir)
+            .env_remove("MOTIONLINK_PORT")
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        std::io::Write::write_all(&mut child.stdin.take().unwrap(), stdin.as_bytes()).unwrap();
+        let out = child.wait_with_output().unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "README: {line}\n{:?}\n{text}{}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr)
+        );
+        if !expected.is_empty() {
+            let norm = |s: &str| s.split_whitespace().collect::<Vec<_>>().join(" ");
+            let got: Vec<String> = text.lines().map(norm).collect();
+            let want: Vec<String> = expected.iter().map(|l| norm(l)).collect();
+            assert_eq!(got, want, "README: {line}");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -470,7 +470,8 @@ pub enum WireError {
         count: usize,
     },
     /// A telegram's CRC does not match.
-    #[error("{command:?} telegram with a wrong CRC (received 0x{received:04X}, computed 0x{computed:04X})")]
+    #[error("{} telegram with a wrong CRC (received 0x{received:04X}, computed 0x{computed:04X})",
+            command.map_or("a", |c| c.mnemonic()))]
     Checksum {
         /// The command letters of the telegram, if they were a known command.
         command: Option<Command>,

@@ -57,24 +57,15 @@ fn line(a: &Annotation) -> String {
     format!("{:<40} {}", common::hex(&a.bytes), a.meaning)
 }
 
-/// Runs `motionlink decode compax`.
-pub fn decode(args: DecodeArgs) -> Result<(), CliError> {
-    let bytes = common::read_capture(&args.capture)?;
+/// Runs `motionlink decode compax`: lines without a direction mark went the way `--direction` says.
+pub fn decode(args: DecodeArgs, json: bool) -> Result<(), CliError> {
     let mode = parse_mode(args.mode)?;
     let way = match args.direction {
         Direction::Auto => Way::Unknown,
         Direction::Host => Way::ToDevice,
         Direction::Drive => Way::FromDevice,
     };
-    let mut describer = CompaxDescriber::new(mode);
-    let mut found = Vec::new();
-    describer.describe(Captured::Bytes(&bytes), way, None, &mut found);
-    describer.finish(&mut found);
-    let mut out = std::io::stdout().lock();
-    for a in &found {
-        writeln!(out, "{}", line(a))?;
-    }
-    Ok(())
+    crate::decode::run(&args.capture, json, &mut CompaxDescriber::new(mode), way)
 }
 
 fn fail(e: Error) -> CliError {

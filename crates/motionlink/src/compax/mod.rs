@@ -22,36 +22,46 @@ use motionlink_link::url::PortUrl;
 use motionlink_link::RealClock;
 use serde_json::json;
 
-use crate::common::{self, CaptureArgs, CliError, Row, ServeArgs};
+use crate::common::{self, CliError, Row, ServeArgs};
+use crate::decode::CaptureArgs;
+use crate::tap::{LinkArgs, Tap};
+use motionlink_compax::describe::CompaxDescriber;
+use motionlink_link::describe::Describe;
 
 mod extra;
 
 pub use extra::{decode, demo, sim};
 
-/// `motionlink compax` arguments.
+/// `motionlink compax` arguments. Every option may come before or after the action.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The port: a device path (/dev/ttyUSB0, COM3), tcp://HOST:PORT, or sim.
-    #[arg(long)]
-    pub port: String,
+    /// The port: a device path (/dev/ttyUSB0, COM3), tcp://HOST:PORT, or sim. Default: --device, else
+    /// MOTIONLINK_PORT.
+    #[arg(long, global = true)]
+    pub port: Option<String>,
+    #[command(flatten)]
+    pub link: LinkArgs,
     /// The drive's address (P194), 1..=31.
-    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true, global = true)]
     pub drive: u8,
     /// The drives' operating mode P196 (0..=127): BCC, parity, reply end, address prefix...
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true, global = true)]
     pub mode: u32,
     /// The drives' baud rate P195 (150, 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200).
-    #[arg(long, default_value_t = 9600, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 9600, allow_negative_numbers = true, global = true)]
     pub baud: u32,
     /// Time a drive may take to start answering, in ms (1..=60000, on top of the wire time).
-    #[arg(long, default_value_t = 200, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 200, allow_negative_numbers = true, global = true)]
     pub timeout_ms: u64,
     /// Send the short command names (PA, PR, SD, AL, OT) instead of the long ones.
-    #[arg(long)]
-    pub short: bool,
-    /// Print JSON instead of a table.
     #[arg(long, global = true)]
+    pub short: bool,
+    /// `--json` (the global option, set by `main`).
+    #[arg(skip)]
     pub json: bool,
+    /// The port resolved from --port, --device or MOTIONLINK_PORT (set by `run`).
+    #[arg(skip)]
+    pub resolved_port: String,
     /// What to do.
     #[command(subcommand)]
     pub action: Action,
@@ -67,10 +77,11 @@ pub enum Action {
         /// Status values such as S1 S16.
         values: Vec<String>,
     },
-    /// Read a parameter, such as P194.
+    /// Read parameters, such as P194; several at once.
     Get {
-        /// The parameter.
-        param: String,
+        /// The parameters.
+        #[arg(required = true, value_name = "PARAM")]
+        params: Vec<String>,
     },
     /// Write a parameter, such as P196 8, and read it back (P194..P196 take effect at the drive's next
     /// power-on).
@@ -119,11 +130,26 @@ pub enum Action {
         #[arg(long, conflicts_with = "timeout_s")]
         no_wait: bool,
     },
-    /// Read S1 and S17 over and over and print them, one line each, until interrupted.
+    /// Read S1 and S17 over and over and print them, one line each, until interrupted (or --count lines).
     Watch {
         /// Interval between two lines, in ms (1..=60000).
         #[arg(long, default_value_t = 200, allow_negative_numbers = true)]
         interval_ms: u64,
+        /// Stop after this many samples (at least 1).
+        #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+        count: Option<u64>,
+        /// Print CSV (a header line, then one line per sample) instead of text.
+        #[arg(long)]
+        csv: bool,
+    },
+    /// Send one command and print it and the drive's reply as they went on the line, each explained: the
+    /// command as text ("S1", "P12", "P12=0"), or its characters in hex ("53 31"); the address prefix, CR
+    /// and BCC that --mode asks for are added. A move it starts is waited for until it ends (a signal stops
+    /// it).
+    Send {
+        /// The command's words (joined by spaces), or its characters in hex.
+        #[arg(required = true, value_name = "WORD", allow_negative_numbers = true)]
+        words: Vec<String>,
     },
     /// Switch an output: OUTPUT ON=S (output 0 is the drive itself: 0 switches it off, 1 on).
     Output {
@@ -199,7 +225,13 @@ pub enum Direction {
 
 /// How to switch drive `a` on again, as a command line on the same port and bus settings.
 fn switch_on_hint(args: &Args, a: u8) -> String {
-    let mut cmd = format!("motionlink compax --port {}", args.port);
+    // The port as resolved (from --port, --device or MOTIONLINK_PORT), else as given.
+    let port = match (args.resolved_port.as_str(), args.port.as_deref()) {
+        ("", Some(p)) => p,
+        ("", None) => "PORT",
+        (resolved, _) => resolved,
+    };
+    let mut cmd = format!("motionlink compax --port {port}");
     if args.mode != 0 {
         cmd.push_str(&format!(" --mode {}", args.mode));
     }
@@ -313,15 +345,16 @@ fn parse_mode(p196: u32) -> Result<Mode, CliError> {
     Mode::from_p196(p196).map_err(|e| CliError::usage(format!("--mode: {e}")))
 }
 
-/// Checks the bus arguments (before anything is opened or sent) and opens the port.
-fn open(args: &Args, configure: impl FnOnce(&mut BusConfig)) -> Result<Client, CliError> {
+/// Checks the bus arguments (before anything is opened or sent) and opens the port, its link watched by
+/// `tap`.
+fn open(args: &Args, tap: &Tap, configure: impl FnOnce(&mut BusConfig)) -> Result<Client, CliError> {
     let mode = parse_mode(args.mode)?;
     Address::drive(args.drive).map_err(|e| CliError::usage(format!("--drive {}: {e}", args.drive)))?;
     if !BAUD_RATES.contains(&args.baud) {
         return Err(CliError::usage(format!("--baud {}: not a rate P195 accepts ({BAUD_RATES:?})", args.baud)));
     }
     let reply_timeout = checked_ms("--timeout-ms", args.timeout_ms, 1, 60_000)?;
-    let url: PortUrl = args.port.parse()?;
+    let url: PortUrl = args.resolved_port.parse()?;
     let clock: SharedClock = RealClock::shared();
     // Installed before the port opens: a signal from here on stops what the command starts.
     let token = common::interrupt_token();
@@ -330,12 +363,12 @@ fn open(args: &Args, configure: impl FnOnce(&mut BusConfig)) -> Result<Client, C
             let cfg = SimConfig::bus(&[args.drive], args.mode, args.baud);
             let bus = Emulator::new(cfg).map_err(CliError::usage)?;
             let host = EmulatorHost::new(bus, clock.clone(), PipeConfig::paced(args.baud));
-            Box::new(host.connect().0)
+            tap.link(Box::new(host.connect().0), &clock)
         }
         other => {
             let mut settings = SerialSettings::new(args.baud);
             settings.parity = mode.parity;
-            other.open_byte_link(settings)?
+            tap.link(other.open_byte_link(settings)?, &clock)
         }
     };
     let mut cfg = BusConfig::new(mode, args.baud);
@@ -369,8 +402,58 @@ fn status_rows(id: StatusId, v: &StatusValue) -> (Row, serde_json::Value) {
     ((format!("{id} {name}"), shown), json!({"status": id.to_string(), "name": name, "unit": unit, "value": js}))
 }
 
+/// A parameter as JSON: name, id, value, unit and access (naming.md).
+fn param_json(id: ParamId, value: serde_json::Value) -> serde_json::Value {
+    let info = id.info();
+    json!({"name": id.to_string(), "id": id.get(), "value": value, "unit": info.map_or("", |i| i.unit),
+           "access": info.map_or("rw", |i| i.access.short())})
+}
+
+/// The text of `send`'s command: words joined by spaces, or characters given in hex (printable ASCII).
+fn send_text(words: &[String]) -> Result<String, CliError> {
+    let joined = words.join(" ");
+    let looks_hex = words.iter().all(|w| w.len() == 2 && w.chars().all(|c| c.is_ascii_hexdigit()));
+    if !looks_hex {
+        return Ok(joined);
+    }
+    let bytes = common::parse_hex(&joined)?;
+    let text: String = bytes.iter().map(|&b| char::from(b)).collect();
+    let text = text.trim_end_matches(['\r', '\n']).to_string();
+    if text.is_empty() || !text.chars().all(|c| c.is_ascii_graphic() || c == ' ') {
+        return Err(CliError::usage(format!("{joined:?}: the characters of a command in hex (printable ASCII)")));
+    }
+    Ok(text)
+}
+
 /// Runs `motionlink compax`.
-pub fn run(args: Args) -> Result<(), CliError> {
+pub fn run(mut args: Args) -> Result<(), CliError> {
+    args.resolved_port = args.link.resolve_port("compax", args.port.as_deref())?;
+    let clock: SharedClock = RealClock::shared();
+    let mode = parse_mode(args.mode)?;
+    let describer = move || Box::new(CompaxDescriber::new(mode)) as Box<dyn Describe + Send>;
+    let sending = matches!(args.action, Action::Send { .. });
+    if let Action::Watch { csv: true, .. } = args.action {
+        if args.json {
+            return Err(CliError::usage("--csv and --json: give one of them"));
+        }
+    }
+    let tap = Tap::new("compax", &args.resolved_port, &clock, &args.link, "can0", &describer, sending)?;
+    let result = act(&args, &tap, &clock);
+    tap.flush();
+    result
+}
+
+/// One JSON object of `motionlink compax`: family, port and drive first.
+fn identified(args: &Args, fields: serde_json::Value) -> serde_json::Value {
+    let mut v = common::identified("compax", &args.resolved_port, json!({"drive": args.drive}));
+    if let (Some(map), serde_json::Value::Object(f)) = (v.as_object_mut(), fields) {
+        map.extend(f);
+    }
+    v
+}
+
+fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
+    let _ = clock;
     let mut out = std::io::stdout().lock();
     // Every argument of an action is checked before the port is opened: nothing is sent for an action that
     // cannot be made.
@@ -389,12 +472,16 @@ pub fn run(args: Args) -> Result<(), CliError> {
             raw_wait = Some(checked_s("--timeout-s", *timeout_s)?);
             poll = Some(checked_ms("--poll-ms", *poll_ms, 1, 10_000)?);
         }
-        Action::Watch { interval_ms } => watch_interval = Some(checked_ms("--interval-ms", *interval_ms, 1, 60_000)?),
+        Action::Watch { interval_ms, .. } => {
+            watch_interval = Some(checked_ms("--interval-ms", *interval_ms, 1, 60_000)?)
+        }
         Action::Output { number, state } => {
             OutputState::new(*number, *state).map_err(model_error)?;
         }
-        Action::Get { param } => {
-            ParamId::parse(param).map_err(model_error)?;
+        Action::Get { params } => {
+            for param in params {
+                ParamId::parse(param).map_err(model_error)?;
+            }
         }
         Action::Set { param, value } => {
             ParamId::parse(param).and_then(|id| id.check(*value)).map_err(model_error)?;
@@ -408,7 +495,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         _ => {}
     }
     let tolerance = move_plan.as_ref().map(|p| p.tolerance);
-    let bus = open(&args, |cfg| {
+    let bus = open(args, tap, |cfg| {
         if let Some(p) = poll {
             cfg.poll_interval = p;
         }
@@ -417,17 +504,20 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
     })?;
     let drive = Address::drive(args.drive).map_err(CliError::usage)?;
-    let fail = |e: Error| error_for(&args, e);
+    let fail = |e: Error| error_for(args, e);
     match &args.action {
         Action::Scan => {
             // A signal ends the scan between two addresses.
             let found = bus.scan(1..=31).map_err(fail)?;
             if args.json {
                 let list: Vec<_> =
-                    found.iter().map(|(a, p)| json!({"address": a.get(), "position": p.units()})).collect();
-                common::print_json(&mut out, &json!({"drives": list}))?;
+                    found.iter().map(|(a, p)| json!({"drive": a.get(), "position_units": p.units()})).collect();
+                common::print_json(
+                    &mut out,
+                    &common::identified("compax", &args.resolved_port, json!({"drives": list})),
+                )?;
             } else if found.is_empty() {
-                writeln!(out, "no drive answered on {}", args.port)?;
+                writeln!(out, "no drive answered on {}", args.resolved_port)?;
             } else {
                 let rows: Vec<Row> = found.iter().map(|(a, p)| (format!("drive {a}"), format!("S1 = {p}"))).collect();
                 common::print_table(&mut out, &rows)?;
@@ -442,19 +532,25 @@ pub fn run(args: Args) -> Result<(), CliError> {
             let (rows, js): (Vec<Row>, Vec<serde_json::Value>) =
                 values.iter().map(|(id, v)| status_rows(*id, v)).unzip();
             if args.json {
-                common::print_json(&mut out, &json!({"drive": drive.get(), "status": js}))?;
+                common::print_json(&mut out, &identified(args, json!({"status": js})))?;
             } else {
                 common::print_table(&mut out, &rows)?;
             }
         }
-        Action::Get { param } => {
-            let id = ParamId::parse(param).map_err(model_error)?;
-            let v = bus.read_param(drive, id).map_err(fail)?;
-            let desc = id.description().unwrap_or("");
-            if args.json {
-                common::print_json(&mut out, &json!({"drive": drive.get(), "param": id.to_string(), "value": v}))?;
-            } else {
-                common::print_table(&mut out, &[(format!("{id} {desc}").trim_end().to_string(), format!("{v}"))])?;
+        Action::Get { params } => {
+            let mut rows = Vec::new();
+            for param in params {
+                let id = ParamId::parse(param).map_err(model_error)?;
+                let v = bus.read_param(drive, id).map_err(fail)?;
+                let desc = id.description().unwrap_or("");
+                if args.json {
+                    common::print_json(&mut out, &identified(args, param_json(id, json!(v))))?;
+                } else {
+                    rows.push((format!("{id} {desc}").trim_end().to_string(), format!("{v}")));
+                }
+            }
+            if !args.json {
+                common::print_table(&mut out, &rows)?;
             }
         }
         Action::Set { param, value } => {
@@ -466,10 +562,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 _ => "",
             };
             if args.json {
-                common::print_json(
-                    &mut out,
-                    &json!({"drive": drive.get(), "param": id.to_string(), "value": value, "read_back": true}),
-                )?;
+                let mut v = param_json(id, json!(value));
+                v["read_back"] = json!(true);
+                common::print_json(&mut out, &identified(args, v))?;
             } else {
                 writeln!(out, "{id} = {value}, read back{note}")?;
             }
@@ -483,8 +578,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
             if args.json {
                 common::print_json(
                     &mut out,
-                    &json!({"drive": drive.get(), "target": started.target.units(), "position": now.units(),
-                            "waited": false}),
+                    &identified(
+                        args,
+                        json!({"target_units": started.target.units(), "position_units": now.units(),
+                               "waited": false}),
+                    ),
                 )?;
             } else {
                 writeln!(out, "drive {drive}: target {}, position {now} (moving on)", started.target)?;
@@ -510,34 +608,65 @@ pub fn run(args: Args) -> Result<(), CliError> {
             if args.json {
                 common::print_json(
                     &mut out,
-                    &json!({"drive": drive.get(), "target": report.target.units(), "position": report.reached.units(),
-                            "difference": report.difference(), "tolerance": plan.tolerance.units(), "waited": true}),
+                    &identified(
+                        args,
+                        json!({"target_units": report.target.units(), "reached_units": report.reached.units(),
+                               "difference_units": report.difference(), "tolerance_units": plan.tolerance.units(),
+                               "waited": true}),
+                    ),
                 )?;
             } else {
                 writeln!(out, "drive {drive}: target {}, position {}", report.target, report.reached)?;
             }
         }
-        Action::Watch { .. } => {
+        Action::Watch { count, csv, .. } => {
             let interval = watch_interval.unwrap_or(Duration::from_millis(200));
-            let mut written = Ok(());
             let token = common::interrupt_token();
-            bus.watch(drive, interval, &mut |s| {
-                let line = if args.json {
-                    json!({"drive": drive.get(), "position": s.position.units(), "s17": s.s17.pattern().to_string(),
-                           "moving": s.moving()})
+            let started = clock.now();
+            let mut written = if *csv {
+                writeln!(out, "t_s,drive,position_units,moving,s17").and_then(|()| out.flush())
+            } else {
+                Ok(())
+            };
+            let mut n = 0u64;
+            let watched = bus.watch(drive, interval, &mut |s| {
+                if count.is_some_and(|c| n >= c) {
+                    return;
+                }
+                let t_s = (clock.now() - started).as_secs_f64();
+                let line = if *csv {
+                    let fields = [
+                        format!("{t_s:.3}"),
+                        drive.get().to_string(),
+                        s.position.units().to_string(),
+                        s.moving().to_string(),
+                        s.s17.pattern().to_string(),
+                    ];
+                    common::csv_line(&fields)
+                } else if args.json {
+                    identified(
+                        args,
+                        json!({"t_s": t_s, "position_units": s.position.units(),
+                               "s17": s.s17.pattern().to_string(), "moving": s.moving()}),
+                    )
                     .to_string()
                 } else {
                     format!("drive {drive}  S1 = {}  {}", s.position, if s.moving() { "moving" } else { "at rest" })
                 };
                 if written.is_ok() {
                     written = writeln!(out, "{line}").and_then(|()| out.flush());
-                    if written.is_err() {
-                        // Nobody reads any more: the watch ends.
+                    n += 1;
+                    if written.is_err() || count.is_some_and(|c| n >= c) {
+                        // Nobody reads any more, or enough samples: the watch ends.
                         token.cancel();
                     }
                 }
-            })
-            .map_err(fail)?;
+            });
+            let counted = count.is_some_and(|c| n >= c) && common::stop_cause().is_none();
+            match watched {
+                Err(e) if !counted => return Err(fail(e)),
+                _ => {}
+            }
             written?;
             // Interrupted: a signal ends the command with 128 + n (main), a closed stdout quietly.
             if common::stop_cause() == Some(common::StopCause::OutputClosed) {
@@ -548,7 +677,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             let st = OutputState::new(*number, *state).map_err(model_error)?;
             bus.set_output(drive, *number, st, false).map_err(fail)?;
             if args.json {
-                common::print_json(&mut out, &json!({"drive": drive.get(), "output": number, "state": state}))?;
+                common::print_json(&mut out, &identified(args, json!({"output": number, "state": state})))?;
             } else {
                 writeln!(out, "drive {drive}: OUTPUT O{number}={state}")?;
             }
@@ -560,8 +689,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             if args.json {
                 common::print_json(
                     &mut out,
-                    &json!({"drive": drive.get(), "command": command, "reply": outcome.reply,
-                            "waited": outcome.waited}),
+                    &identified(args, json!({"command": command, "reply": outcome.reply, "waited": outcome.waited})),
                 )?;
             } else {
                 match outcome.reply {
@@ -570,6 +698,31 @@ pub fn run(args: Args) -> Result<(), CliError> {
                     None => writeln!(out, "(no reply due)")?,
                 }
             }
+        }
+        Action::Send { words } => {
+            let command = send_text(words)?;
+            let telegrams = tap.telegrams().ok_or_else(|| CliError::usage("send: no tap on the link"))?;
+            telegrams.clear();
+            // A move it starts is waited for (a signal stops it), as `raw --wait` does.
+            let result = bus.raw_motion(drive, &command, AfterRaw::Wait(Duration::from_secs(600)));
+            let seen = telegrams.take();
+            let (sent, reply) = crate::tap::exchange(&seen, None);
+            let first = seen.iter().find(|a| a.direction == motionlink_link::describe::Direction::ToDevice);
+            let sent = first.cloned().or(sent);
+            let (sent_json, reply_json) =
+                crate::tap::print_exchange(&mut out, args.json, sent.as_ref(), reply.as_ref())?;
+            if args.json {
+                let reply_text = result.as_ref().ok().and_then(|o| o.reply.clone());
+                common::print_json(
+                    &mut out,
+                    &identified(
+                        args,
+                        json!({"command": command, "request": sent_json, "reply": reply_json,
+                               "reply_text": reply_text, "ok": result.is_ok()}),
+                    ),
+                )?;
+            }
+            result.map_err(fail)?;
         }
     }
     // What this command set in motion and did not hand over is stopped here, and the result said.

@@ -31,6 +31,9 @@ pub struct Args {
     /// The family of the device.
     #[command(subcommand)]
     pub family: Family,
+    /// `--json` (global, set by `main`): the one line as a JSON object, `{"console": URL}`.
+    #[arg(skip)]
+    pub json: bool,
 }
 
 /// Which family the console drives.
@@ -114,7 +117,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             Family::Powercube(a) => powercube::open(a, &clock).await?,
             Family::Compax(a) => compax::open(a, &clock).await?,
         };
-        serve_until_interrupted(device, traffic, addr, &interrupt, &clock).await
+        serve_until_interrupted(device, traffic, addr, &interrupt, &clock, args.json).await
     });
     // What is left on the blocking pool (a close that outlived the console) gets a bounded wait.
     runtime.shutdown_timeout(std::time::Duration::from_secs(6));
@@ -148,6 +151,7 @@ async fn serve_until_interrupted(
     addr: SocketAddr,
     interrupt: &motionlink_link::cancel::CancelToken,
     clock: &motionlink_link::SharedClock,
+    json: bool,
 ) -> Result<(), CliError> {
     let hub = hub::Hub::new(Arc::clone(&device), traffic);
     drop(device);
@@ -160,7 +164,12 @@ async fn serve_until_interrupted(
     let router = axum::Router::new().fallback(server::handle).with_state(app);
     hub.start();
     let mut stdout = std::io::stdout().lock();
-    writeln!(stdout, "console on http://{local}/?token={token}")?;
+    let url = format!("http://{local}/?token={token}");
+    if json {
+        writeln!(stdout, "{}", serde_json::json!({ "console": url }))?;
+    } else {
+        writeln!(stdout, "console on {url}")?;
+    }
     stdout.flush()?;
     drop(stdout);
     let ended = interrupted(interrupt, clock);
@@ -188,7 +197,7 @@ async fn serve_until_interrupted(
         Ok(msg) if !msg.is_empty() => common::say(format!("motionlink console: {msg}")),
         Ok(_) => {}
         Err(e) => {
-            return Err(CliError::Transport(format!("closing the session: {e}")));
+            return Err(CliError::transport(format!("closing the session: {e}")));
         }
     }
     Ok(())

@@ -14,7 +14,35 @@ use motionlink_scu::value::Value;
 use motionlink_scu::{Client, MoveOptions};
 use serde_json::json;
 
+use super::Report;
 use crate::common::{self, CliError, Row};
+
+/// How `watch` prints its samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Format {
+    /// One line of text per sample.
+    Text,
+    /// One JSON object per sample.
+    Json,
+    /// A CSV header, then one line per actuator and sample.
+    Csv,
+}
+
+impl Format {
+    /// JSON when `json`, else text.
+    pub fn from_json(json: bool) -> Self {
+        if json {
+            Format::Json
+        } else {
+            Format::Text
+        }
+    }
+}
+
+/// The flags of an actuator's status 1 byte, by the manual's names.
+fn status_flags(s: u8) -> Vec<&'static str> {
+    Flags { set: FlagSet::ActuatorStatus1, bits: u32::from(s) }.set_names().collect()
+}
 
 /// A library error as the command line reports it.
 fn cl(e: motionlink_scu::Error) -> CliError {
@@ -33,34 +61,44 @@ fn values_json(values: &[(&'static DataEntry, Value)]) -> serde_json::Value {
     serde_json::Value::Object(map)
 }
 
-/// `get`: an entry or a group.
-pub(super) fn get(client: &Client, it: Item, json: bool, out: &mut dyn Write) -> Result<(), CliError> {
-    let values = client.get(it.index()).map_err(cl)?;
-    if json {
-        let (value, unit) = match it {
-            Item::Entry(e) => (values[0].1.to_json(), e.kind.unit()),
-            Item::Group(_) => (values_json(&values), ""),
-        };
-        common::print_json(
-            out,
-            &json!({"index": it.index().to_string(), "name": it.name(), "value": value, "unit": unit}),
-        )
-    } else {
-        common::print_table(out, &value_rows(&values))
+/// `get`: entries or groups, one after the other (one JSON object each).
+pub(super) fn get(client: &Client, items: &[Item], report: &Report<'_>, out: &mut dyn Write) -> Result<(), CliError> {
+    for it in items {
+        let values = client.get(it.index()).map_err(cl)?;
+        if report.json {
+            let (value, unit, access) = match it {
+                Item::Entry(e) => (values[0].1.to_json(), e.unit, e.access.short()),
+                Item::Group(_) => (values_json(&values), "", "r"),
+            };
+            report.print(
+                out,
+                json!({"name": it.name(), "id": it.index().0, "value": value, "unit": unit, "access": access}),
+            )?;
+        } else {
+            common::print_table(out, &value_rows(&values))?;
+        }
     }
+    Ok(())
 }
 
 /// `set`: written and read back by the library.
-pub(super) fn set(client: &Client, it: Item, value: &str, json: bool, out: &mut dyn Write) -> Result<(), CliError> {
+pub(super) fn set(
+    client: &Client,
+    it: Item,
+    value: &str,
+    report: &Report<'_>,
+    out: &mut dyn Write,
+) -> Result<(), CliError> {
     let Item::Entry(e) = it else {
         return Err(CliError::usage(format!("{} is a group; set its entries one by one", it.name())));
     };
     let v = Value::parse(e.kind, value).map_err(|err| CliError::usage(format!("{}: {err}", e.name)))?;
     client.set(e.index(), &v).map_err(cl)?;
-    if json {
-        common::print_json(
+    if report.json {
+        report.print(
             out,
-            &json!({"index": e.index().to_string(), "name": e.name, "value": v.to_json(), "read_back": true}),
+            json!({"name": e.name, "id": e.id, "value": v.to_json(), "unit": e.unit, "access": e.access.short(),
+                   "read_back": true}),
         )
     } else {
         common::print_table(out, &[(format!("{} ({})", e.name, e.index()), format!("{v} (written, read back)"))])
@@ -75,7 +113,7 @@ pub(super) fn move_to(
     position: i32,
     speed: Speed,
     function: MotionFunction,
-    json: bool,
+    report: &Report<'_>,
     interrupt: &CancelToken,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
@@ -85,7 +123,7 @@ pub(super) fn move_to(
     let options = MoveOptions { cancel: Some(interrupt), progress: Some(&progress), function: Some(function) };
     let result = client.move_to(a, position, speed, &options);
     bar.finish_and_clear();
-    print_move_report(out, &result.map_err(cl)?, json)
+    print_move_report(out, &result.map_err(cl)?, report)
 }
 
 pub(super) fn connected_actuators(client: &Client) -> Result<Vec<(Actuator, u8)>, CliError> {
@@ -97,7 +135,7 @@ fn status_text(s: u8) -> String {
     Value::Flags(Flags { set: FlagSet::ActuatorStatus1, bits: u32::from(s) }).to_string()
 }
 
-pub(super) fn info(client: &Client, json: bool, out: &mut dyn Write) -> Result<(), CliError> {
+pub(super) fn info(client: &Client, report: &Report<'_>, out: &mut dyn Write) -> Result<(), CliError> {
     let get = |i: u16| client.get_value(DataIndex(i)).map_err(cl);
     let firmware = get(0x0001)?;
     let configuration = get(0x0002)?;
@@ -106,18 +144,18 @@ pub(super) fn info(client: &Client, json: bool, out: &mut dyn Write) -> Result<(
     let actuators = connected_actuators(client)?;
     let positions = client.get(DataIndex(0x0010)).map_err(cl)?;
     let position = |a: Actuator| positions[usize::from(a.number() - 1)].1.clone();
-    if json {
+    if report.json {
         let acts: Vec<_> = actuators
             .iter()
             .map(|(a, s)| {
-                json!({"actuator": a.number(), "position": position(*a).to_json(), "status": s,
+                json!({"actuator": a.number(), "position_counts": position(*a).to_json(), "flags": status_flags(*s),
                        "moving": s & status1::MOTION != 0})
             })
             .collect();
-        common::print_json(
+        report.print(
             out,
-            &json!({"port": client.port(), "firmware": firmware.to_json(), "configuration": configuration.to_json(),
-                    "battery_mains": mains.to_json(), "last_error": last_error.to_json(), "actuators": acts}),
+            json!({"firmware": firmware.to_json(), "configuration": configuration.to_json(),
+                   "battery_mains": mains.to_json(), "last_error": last_error.to_json(), "actuators": acts}),
         )
     } else {
         let mut rows: Vec<Row> = vec![
@@ -134,11 +172,11 @@ pub(super) fn info(client: &Client, json: bool, out: &mut dyn Write) -> Result<(
     }
 }
 
-pub(super) fn errors(client: &Client, json: bool, out: &mut dyn Write) -> Result<(), CliError> {
+pub(super) fn errors(client: &Client, report: &Report<'_>, out: &mut dyn Write) -> Result<(), CliError> {
     let history = client.error_history().map_err(cl)?;
-    if json {
+    if report.json {
         let list: Vec<_> = history.iter().map(|c| Value::ErrorCode(*c).to_json()).collect();
-        return common::print_json(out, &json!({"errors": list}));
+        return report.print(out, json!({"errors": list}));
     }
     let mut rows = Vec::new();
     for (i, code) in history.iter().enumerate() {
@@ -170,7 +208,8 @@ fn pause(client: &Client, duration: Duration, interrupt: &CancelToken) {
 
 pub(super) fn watch(
     client: &Client,
-    json: bool,
+    report: &Report<'_>,
+    format: Format,
     interval_ms: u64,
     count: Option<u64>,
     interrupt: &CancelToken,
@@ -180,6 +219,9 @@ pub(super) fn watch(
     let actuators = connected_actuators(client)?;
     let mut n = 0u64;
     let started = clock.now();
+    if format == Format::Csv {
+        writeln!(out, "t_s,actuator,position_counts,moving,current_amps,last_error_code")?;
+    }
     while !interrupt.is_cancelled() && count.is_none_or(|c| n < c) {
         let positions = client.get(DataIndex(0x0010)).map_err(cl)?;
         let status = client.get_raw(DataIndex(0x0170)).map_err(cl)?;
@@ -196,27 +238,47 @@ pub(super) fn watch(
             let current = &currents.get(i).ok_or_else(|| short("current (0x00A0)"))?.1;
             rows.push((a, position, status, current));
         }
-        if json {
-            let acts: Vec<_> = rows
-                .iter()
-                .map(|(a, position, status, current)| {
-                    json!({"actuator": a.number(), "position": position.to_json(), "status": status,
-                           "moving": status & status1::MOTION != 0, "current_deci_amps": current.to_json()})
-                })
-                .collect();
-            common::print_json(out, &json!({"t": t, "actuators": acts, "last_error": last_error.to_json()}))?;
-        } else {
-            let mut line = format!("{t:7.2} s");
-            for (a, position, status, current) in &rows {
-                let moving = if status & status1::MOTION != 0 { "moving" } else { "stopped" };
-                line.push_str(&format!("  {a}: {position} {moving} {current}"));
+        let code = match &last_error {
+            Value::ErrorCode(c) => c.0,
+            _ => 0,
+        };
+        let amps = |current: &Value| current.as_f64().unwrap_or(f64::NAN) / 10.0;
+        match format {
+            Format::Json => {
+                let acts: Vec<_> = rows
+                    .iter()
+                    .map(|(a, position, status, current)| {
+                        json!({"actuator": a.number(), "position_counts": position.to_json(),
+                               "moving": status & status1::MOTION != 0, "flags": status_flags(*status),
+                               "current_amps": amps(current)})
+                    })
+                    .collect();
+                report.print(out, json!({"t_s": t, "actuators": acts, "last_error": last_error.to_json()}))?;
             }
-            if let Value::ErrorCode(c) = last_error {
-                if c != ErrorCode::NONE {
-                    line.push_str(&format!("  last error 0x{:08X}", c.0));
+            Format::Csv => {
+                for (a, position, status, current) in &rows {
+                    let fields = [
+                        format!("{t:.3}"),
+                        a.number().to_string(),
+                        position.to_json().to_string(),
+                        (status & status1::MOTION != 0).to_string(),
+                        format!("{:.1}", amps(current)),
+                        code.to_string(),
+                    ];
+                    writeln!(out, "{}", common::csv_line(&fields))?;
                 }
             }
-            writeln!(out, "{line}")?;
+            Format::Text => {
+                let mut line = format!("{t:7.2} s");
+                for (a, position, status, current) in &rows {
+                    let moving = if status & status1::MOTION != 0 { "moving" } else { "stopped" };
+                    line.push_str(&format!("  {a}: {position} {moving} {current}"));
+                }
+                if code != ErrorCode::NONE.0 {
+                    line.push_str(&format!("  last error 0x{code:08X}"));
+                }
+                writeln!(out, "{line}")?;
+            }
         }
         out.flush()?;
         n += 1;
@@ -232,6 +294,7 @@ pub(super) fn run(
     client: &Client,
     action: RunAction,
     limit: Option<Duration>,
+    report: &Report<'_>,
     interrupt: &CancelToken,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
@@ -243,7 +306,13 @@ pub(super) fn run(
     let said = std::cell::Cell::new(false);
     let progress = |_: &RunProgress| {
         if !said.replace(true) {
-            let _ = writeln!(std::io::stdout(), "{function} running; Ctrl-C stops it");
+            let line = if report.json {
+                common::identified("scu", report.port, json!({"function": function.number(), "running": true}))
+                    .to_string()
+            } else {
+                format!("{function} running; Ctrl-C stops it")
+            };
+            let _ = writeln!(std::io::stdout(), "{line}");
             let _ = std::io::stdout().flush();
         }
     };
@@ -252,9 +321,17 @@ pub(super) fn run(
         Err(motionlink_scu::Error::RunCancelled { rest, .. }) => (rest, true),
         Err(e) => return Err(cl(e)),
     };
-    writeln!(out, "{function} stopped")?;
-    let rows: Vec<Row> = rest.iter().map(|(a, p)| (a.to_string(), format!("{p} counts"))).collect();
-    common::print_table(out, &rows)?;
+    if report.json {
+        let acts: Vec<_> = rest.iter().map(|(a, p)| json!({"actuator": a.number(), "reached_counts": p})).collect();
+        report.print(
+            out,
+            json!({"function": function.number(), "stopped": true, "interrupted": interrupted, "actuators": acts}),
+        )?;
+    } else {
+        writeln!(out, "{function} stopped")?;
+        let rows: Vec<Row> = rest.iter().map(|(a, p)| (a.to_string(), format!("{p} counts"))).collect();
+        common::print_table(out, &rows)?;
+    }
     if interrupted {
         return Err(CliError::Interrupted(format!("interrupted; {function} stopped (the unit confirmed it)")));
     }
@@ -262,22 +339,23 @@ pub(super) fn run(
 }
 
 /// Prints how a move ended: each actuator whose remote position it wrote, with its target and difference.
-pub(super) fn print_move_report(out: &mut dyn Write, report: &MoveReport, json: bool) -> Result<(), CliError> {
-    if json {
+pub(super) fn print_move_report(out: &mut dyn Write, report: &MoveReport, how: &Report<'_>) -> Result<(), CliError> {
+    if how.json {
         let actuators: Vec<_> = report
             .actuators
             .iter()
             .map(|o| {
-                json!({"actuator": o.actuator.number(), "target": o.target_counts, "position": o.position_counts,
-                       "difference": o.difference_counts(), "moved": o.moved})
+                json!({"actuator": o.actuator.number(), "target_counts": o.target_counts,
+                       "reached_counts": o.position_counts, "difference_counts": o.difference_counts(),
+                       "moved": o.moved})
             })
             .collect();
         let target = report.actuators.iter().find(|o| o.actuator == report.actuator).map(|o| o.target_counts);
-        return common::print_json(
+        return how.print(
             out,
-            &json!({"actuator": report.actuator.number(), "function": report.function.number(),
-                    "position": report.position_counts, "target": target,
-                    "seconds": report.duration.as_secs_f64(), "actuators": actuators}),
+            json!({"actuator": report.actuator.number(), "function": report.function.number(),
+                   "reached_counts": report.position_counts, "target_counts": target,
+                   "time_s": report.duration.as_secs_f64(), "actuators": actuators}),
         );
     }
     let mut rows: Vec<Row> = vec![("function".into(), report.function.to_string())];

@@ -5,7 +5,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use motionlink_link::clock::Clock;
-use motionlink_link::describe::{Captured, Describe, Direction};
+use motionlink_link::describe::Direction;
 use motionlink_link::link::{Connector, Link};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::transcript::{TapLink, Transcript};
@@ -15,7 +15,6 @@ use motionlink_scu::model::{status1, Actuator, DataIndex, MotionDirection, Motio
 use motionlink_scu::value::Value;
 use motionlink_scu::wire::{request_to_vec, Request};
 use motionlink_scu::{Client, ClientConfig, Emulator, SimConfig};
-use serde_json::json;
 
 use super::{load_sim_config, DecodeArgs, SimArgs};
 use crate::common::{self, CliError};
@@ -27,28 +26,10 @@ pub fn sim(args: SimArgs) -> Result<(), CliError> {
     common::serve(&args.serve, device)
 }
 
-/// `motionlink decode scu`: the library's describer over the whole capture (both directions mixed).
-pub fn decode(args: DecodeArgs) -> Result<(), CliError> {
-    let bytes = common::read_capture(&args.capture)?;
-    let mut describer = Describer::new();
-    let mut found = Vec::new();
-    describer.describe(Captured::Bytes(&bytes), Direction::Unknown, None, &mut found);
-    describer.finish(&mut found);
-    let mut out = std::io::stdout().lock();
-    let mut offset = 0;
-    for a in found {
-        let direction = if a.bad { "!!" } else { a.direction.arrow() };
-        if args.json {
-            common::print_json(
-                &mut out,
-                &json!({"offset": offset, "direction": direction, "bytes": common::hex(&a.bytes), "meaning": a.meaning}),
-            )?;
-        } else {
-            writeln!(out, "{direction} {:<38} {}", common::hex(&a.bytes), a.meaning)?;
-        }
-        offset += a.bytes.len();
-    }
-    Ok(())
+/// `motionlink decode scu`: the library's describer over the capture; lines without a direction mark are
+/// told apart by their bytes.
+pub fn decode(args: DecodeArgs, json: bool) -> Result<(), CliError> {
+    crate::decode::run(&args.capture, json, &mut Describer::new(), Direction::Unknown)
 }
 
 // ---------------------------------------------------------------------------------------------------------

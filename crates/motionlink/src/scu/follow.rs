@@ -10,7 +10,7 @@ use motionlink_scu::model::{Actuator, MotionFunction, Speed, SpeedMode, StopMode
 use motionlink_scu::Client;
 use serde_json::json;
 
-use super::parse_speed;
+use super::{parse_speed, Report};
 use crate::common::{self, CliError};
 
 /// One line of `follow`'s input.
@@ -79,7 +79,7 @@ pub(super) fn follow(
     function: MotionFunction,
     speed: Speed,
     rate_hz: u32,
-    json: bool,
+    report: &Report<'_>,
     interrupt: &CancelToken,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
@@ -114,7 +114,12 @@ pub(super) fn follow(
             let _ = tx.send(Input::End);
         })
         .map_err(|e| CliError::transport(format!("cannot read stdin: {e}")))?;
-    writeln!(out, "following {function} ({}): targets from stdin", names(&actuators))?;
+    if report.json {
+        let list: Vec<u8> = actuators.iter().map(|a| a.number()).collect();
+        report.print(out, json!({"function": function.number(), "following": true, "actuators": list}))?;
+    } else {
+        writeln!(out, "following {function} ({}): targets from stdin", names(&actuators))?;
+    }
     out.flush()?;
     let clock = Arc::clone(client.clock());
     let gap = Duration::from_secs(1) / rate_hz;
@@ -149,10 +154,13 @@ pub(super) fn follow(
             last_update = Some(now);
             updates += 1;
             let text: Vec<String> = actuators.iter().zip(&targets).map(|(a, t)| format!("{a}={t}")).collect();
-            if json {
-                let map: serde_json::Map<String, serde_json::Value> =
-                    actuators.iter().zip(&targets).map(|(a, t)| (a.to_string(), json!(t))).collect();
-                common::print_json(out, &json!({"targets": map}))?;
+            if report.json {
+                let list: Vec<_> = actuators
+                    .iter()
+                    .zip(&targets)
+                    .map(|(a, t)| json!({"actuator": a.number(), "target_counts": t}))
+                    .collect();
+                report.print(out, json!({"targets": list}))?;
             } else {
                 writeln!(out, "target {}", text.join(" "))?;
             }
@@ -167,10 +175,9 @@ pub(super) fn follow(
     };
     let rest = stream.stop(mode).map_err(|e| common::classified(&e))?;
     let text: Vec<String> = rest.iter().map(|(a, p)| format!("{a}={p}")).collect();
-    if json {
-        let map: serde_json::Map<String, serde_json::Value> =
-            rest.iter().map(|(a, p)| (a.to_string(), json!(p))).collect();
-        common::print_json(out, &json!({"stopped": map, "updates": updates}))?;
+    if report.json {
+        let list: Vec<_> = rest.iter().map(|(a, p)| json!({"actuator": a.number(), "reached_counts": p})).collect();
+        report.print(out, json!({"stopped": true, "actuators": list, "updates": updates}))?;
     } else {
         writeln!(out, "stopped after {updates} update(s): {}", text.join(" "))?;
     }

@@ -6,71 +6,79 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
-use motionlink_link::link::{Connector, Link, SerialSettings};
+use motionlink_link::describe::Describe;
+use motionlink_link::link::{Connector, SerialSettings};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
-use motionlink_link::RealClock;
+use motionlink_link::{RealClock, SharedClock};
+use motionlink_scu::describe::Describer;
 use motionlink_scu::model::{
     lookup, Actuator, Function, Item, MotionDirection, MotionFunction, SafetyId, Speed, SpeedMode, StopMode,
 };
 use motionlink_scu::session::RunAction;
 use motionlink_scu::{Client, ClientConfig, Emulator, Ending, FunctionMap, SimConfig, StrokeLimits};
+use serde_json::json;
 
-use crate::common::{self, CaptureArgs, CliError, ServeArgs};
+use crate::common::{self, CliError, ServeArgs};
+use crate::decode::CaptureArgs;
+use crate::tap::{LinkArgs, Tap};
 
 mod actions;
 mod demo;
 mod follow;
+mod send;
 
 pub use demo::{decode, demo, sim};
 
-/// `motionlink scu` arguments.
+/// `motionlink scu` arguments. Every option may come before or after the action.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The port: a serial device (/dev/ttyUSB0, COM3), tcp://HOST:PORT (a serial gateway or `motionlink sim scu`),
-    /// or sim (an emulator in this process).
-    #[arg(long, value_name = "PORT")]
-    pub port: String,
+    /// or sim (an emulator in this process). Default: --device, else MOTIONLINK_PORT.
+    #[arg(long, value_name = "PORT", global = true)]
+    pub port: Option<String>,
+    #[command(flatten)]
+    pub link: LinkArgs,
     /// Baud rate of a serial port: 38400 on standard units, 9600 or 19200 on customised ones.
-    #[arg(long, default_value_t = 38_400, value_parser = parse_baud)]
+    #[arg(long, default_value_t = 38_400, value_parser = parse_baud, global = true)]
     pub baud: u32,
     /// Safety_ID sent with RO: 0 a timeout stops all motion and locks remote motion until RO, 1 stops all
     /// motion, 2 stops remote motion only.
-    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=2))]
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=2), global = true)]
     pub safety: u8,
     /// How long to wait for the reply to RO, in ms (the manual allows the unit 2000 ms). In remote mode replies
     /// are awaited at most 1000 ms (twice the unit's watchdog), or this if it is shorter.
-    #[arg(long, default_value_t = 2000, value_name = "MS", allow_hyphen_values = true,
+    #[arg(long, default_value_t = 2000, value_name = "MS", allow_hyphen_values = true, global = true,
           value_parser = clap::value_parser!(u64).range(1..=60_000))]
     pub reply_timeout: u64,
     /// Which actuators each motion function drives (the unit's parameterisation, which the data list does not
     /// show): a preset, scp11 (Fn drives An), tlt (F1 both columns, F2 A1, F3 A2) or liftkit (F1 A1, F2 A2, F8
     /// both), or one function, F1=1,2. Repeat to combine (--functions scp11 --functions F7=1,2). Without it,
     /// move gives every connected actuator the target and reports the ones that moved.
-    #[arg(long = "functions", value_name = "MAP")]
+    #[arg(long = "functions", value_name = "MAP", global = true)]
     pub functions: Vec<String>,
     /// The travel range of an actuator for move targets, ACTUATOR=MIN:MAX in counts (such as 1=0:865), instead of
     /// the virtual limits the unit reports in its UserPositionData. Repeat for several actuators.
-    #[arg(long = "stroke", value_name = "A=MIN:MAX")]
+    #[arg(long = "stroke", value_name = "A=MIN:MAX", global = true)]
     pub stroke: Vec<String>,
     /// How close to its target a move must end to succeed, in counts.
-    #[arg(long, default_value_t = 5, value_name = "COUNTS", allow_hyphen_values = true,
+    #[arg(long, default_value_t = 5, value_name = "COUNTS", allow_hyphen_values = true, global = true,
           value_parser = clap::value_parser!(u32).range(0..=10_000))]
     pub tolerance: u32,
     /// How often a move (or a run) looks at the actuators, in ms: each look is one RC keepalive that also reads
     /// the status and position of every actuator (about 11 ms of the 38400-baud line).
-    #[arg(long, default_value_t = 50, value_name = "MS", allow_hyphen_values = true,
+    #[arg(long, default_value_t = 50, value_name = "MS", allow_hyphen_values = true, global = true,
           value_parser = clap::value_parser!(u64).range(5..=10_000))]
     pub poll_interval: u64,
     /// How the unit takes remote speeds: percent (standard units, "speed select relative") or
     /// counts-per-second (units parameterised for "speed select absolute", 0..1000 counts/s).
-    #[arg(long, value_enum, default_value_t = SpeedModeArg::Percent, value_name = "MODE")]
+    #[arg(long, value_enum, default_value_t = SpeedModeArg::Percent, value_name = "MODE", global = true)]
     pub speed_mode: SpeedModeArg,
     /// Emulator configuration (TOML) when the port is sim.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", global = true)]
     pub sim_config: Option<PathBuf>,
-    /// Print JSON instead of a table.
-    #[arg(long, global = true)]
+    /// `--json` (the global option, set by `main`).
+    #[arg(skip)]
     pub json: bool,
     #[command(subcommand)]
     pub action: Action,
@@ -99,18 +107,31 @@ impl From<SpeedModeArg> for SpeedMode {
 pub enum Action {
     /// Firmware and configuration, actuators, positions, state, last error.
     Info,
-    /// Read a data-list entry or group, by name (actual_position_a1, actual_positions) or index (0x0011).
+    /// Read data-list entries or groups, by name (actual_position_a1, actual_positions) or index (0x0011);
+    /// several at once, one after the other.
     Get {
-        /// Name or index.
-        item: String,
+        /// Names or indices.
+        #[arg(required = true, value_name = "ITEM")]
+        items: Vec<String>,
     },
     /// Write a remote data entry (0x3xxx), such as remote_speed_f1 80 or remote_position_a1 400.
     Set {
         /// Name or index.
         item: String,
         /// The value, in the entry's unit (percent, counts...).
+        #[arg(allow_negative_numbers = true)]
         value: String,
     },
+    /// Send one telegram and print it and the reply, each explained: typed (RG ITEM, RT ITEM VALUE,
+    /// RE FUNCTION [DIRECTION|P0 [P1]], RS FUNCTION [fast|soft]) or as hex ("52 47 11 00 2C 30"). RO, RA and
+    /// RC belong to the session and are refused; a function an RE starts is stopped (RS) when the command ends.
+    Send {
+        /// The request's words, or its bytes in hex.
+        #[arg(required = true, value_name = "WORD", allow_negative_numbers = true)]
+        words: Vec<String>,
+    },
+    /// List the names of the data list (entries and groups) with index, unit and access (no port needed).
+    Names,
     /// Move an actuator to a position (counts) and wait until it is there; every actuator the function drives
     /// goes there too. Exits 0 only if each ended within --tolerance of the target. Ctrl-C stops it.
     Move {
@@ -172,6 +193,9 @@ pub enum Action {
         /// Stop after this many samples (at least 1).
         #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u64).range(1..))]
         count: Option<u64>,
+        /// Print CSV (a header line, then one line per actuator and sample) instead of a table.
+        #[arg(long)]
+        csv: bool,
     },
     /// The error history (Error_Code 1..5) with each bit's cause.
     Errors,
@@ -196,9 +220,6 @@ pub struct SimArgs {
 pub struct DecodeArgs {
     #[command(flatten)]
     pub capture: CaptureArgs,
-    /// Print one JSON object per telegram.
-    #[arg(long)]
-    pub json: bool,
 }
 
 fn parse_baud(s: &str) -> Result<u32, String> {
@@ -281,9 +302,10 @@ fn motion_function(actuator: Actuator, function: Option<u8>) -> Result<MotionFun
     MotionFunction::new(n).ok_or_else(|| CliError::usage(format!("--function {n}: the motion functions are F1..F10")))
 }
 
-fn connect(args: &Args, config: ClientConfig) -> Result<Client, CliError> {
-    let port: PortUrl = args.port.parse()?;
-    let clock = RealClock::shared();
+/// Opens the session on `port`, its link watched by `tap`.
+fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: ClientConfig) -> Result<Client, CliError> {
+    let port: PortUrl = port.parse()?;
+    let clock = Arc::clone(clock);
     let connector: Connector = match &port {
         PortUrl::Sim => {
             let mut sim_config = load_sim_config(args.sim_config.as_ref(), None)?;
@@ -293,7 +315,8 @@ fn connect(args: &Args, config: ClientConfig) -> Result<Client, CliError> {
             }
             let sim = Emulator::new(sim_config).map_err(|e| CliError::usage(e.to_string()))?;
             let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(args.baud));
-            Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>))
+            let (tap, clock) = (tap.clone(), Arc::clone(&clock));
+            Box::new(move || Ok(tap.link(Box::new(host.connect().0), &clock)))
         }
         p if p.is_can() => return Err(CliError::usage(format!("{p}: the SCU speaks RS232, not CAN"))),
         p => {
@@ -302,7 +325,8 @@ fn connect(args: &Args, config: ClientConfig) -> Result<Client, CliError> {
             }
             let p = p.clone();
             let settings = SerialSettings::new(args.baud);
-            Box::new(move || p.open_byte_link(settings))
+            let (tap, clock) = (tap.clone(), Arc::clone(&clock));
+            Box::new(move || Ok(tap.link(p.open_byte_link(settings)?, &clock)))
         }
     };
     Client::open(connector, clock, config).map_err(|e| common::classified(&e))
@@ -336,15 +360,40 @@ fn parse_direction(text: &str) -> Result<MotionDirection, CliError> {
     })
 }
 
+/// What every action prints with: JSON or text, and the port the JSON objects name.
+pub(super) struct Report<'a> {
+    /// `--json`.
+    pub json: bool,
+    /// The port, as given.
+    pub port: &'a str,
+}
+
+impl Report<'_> {
+    /// Prints one JSON object with the identity (`family`, `port`) first.
+    pub fn print(&self, out: &mut dyn Write, fields: serde_json::Value) -> Result<(), CliError> {
+        common::print_json(out, &common::identified("scu", self.port, fields))
+    }
+}
+
 /// `motionlink scu ...`
 pub fn run(args: Args) -> Result<(), CliError> {
+    if let Action::Names = args.action {
+        return send::names(args.json, &mut std::io::stdout().lock());
+    }
     // Check everything that can be checked before the port is opened: nothing is sent for bad input.
     let config = client_config(&args)?;
     let mode: SpeedMode = args.speed_mode.into();
+    let mut request = None;
     match &args.action {
-        Action::Get { item } | Action::Set { item, .. } => {
+        Action::Get { items } => {
+            for item in items {
+                parse_item(item)?;
+            }
+        }
+        Action::Set { item, .. } => {
             parse_item(item)?;
         }
+        Action::Send { words } => request = Some(send::parse(words)?),
         Action::Move { actuator, function, speed, .. } => {
             motion_function(parse_actuator(*actuator)?, *function)?;
             parse_speed(speed, mode)?;
@@ -367,27 +416,33 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Action::Stop { function, .. } => {
             parse_function(function)?;
         }
+        Action::Watch { csv: true, .. } if args.json => {
+            return Err(CliError::usage("--csv and --json: give one of them"));
+        }
         _ => {}
     }
+    let port = args.link.resolve_port("scu", args.port.as_deref())?;
     let interrupt = common::interrupt_token();
-    let client = connect(&args, config)?;
+    let clock = RealClock::shared();
+    let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
+    let tap = Tap::new("scu", &port, &clock, &args.link, "can0", &describer, request.is_some())?;
+    let client = connect(&args, &port, &tap, &clock, config)?;
     let mut out = std::io::stdout().lock();
-    let result = act(&client, &args, &mut out, &interrupt);
+    let report = Report { json: args.json, port: &port };
+    let result = match &request {
+        Some(r) => send::send(&client, r, &tap, &report, &mut out),
+        None => act(&client, &args, &report, &mut out, &interrupt),
+    };
     // Stop what was started and leave remote mode, whatever happened.
     let started = client.started_functions();
     let closed = client.close();
+    tap.flush();
     finish(result, closed, &started)
 }
 
 /// Appends `note` to the message of `e`, keeping its exit code.
 fn with_note(e: CliError, note: &str) -> CliError {
-    match e {
-        CliError::Device(m) => CliError::Device(format!("{m}; {note}")),
-        CliError::Usage(m) => CliError::Usage(format!("{m}; {note}")),
-        CliError::Transport(m) => CliError::Transport(format!("{m}; {note}")),
-        CliError::Interrupted(m) => CliError::Interrupted(format!("{m}; {note}")),
-        CliError::OutputClosed => CliError::Interrupted(format!("stdout closed; {note}")),
-    }
+    e.map_message(|m| format!("{m}; {note}"))
 }
 
 /// The command's result after the session was closed ([`motionlink_scu::ending`] says what the close means):
@@ -411,26 +466,35 @@ fn finish(
     }
 }
 
-fn act(client: &Client, args: &Args, out: &mut dyn Write, interrupt: &CancelToken) -> Result<(), CliError> {
+fn act(
+    client: &Client,
+    args: &Args,
+    report: &Report<'_>,
+    out: &mut dyn Write,
+    interrupt: &CancelToken,
+) -> Result<(), CliError> {
     // A Ctrl-C while the session was being opened: nothing was started; the session is closed (RA).
     if interrupt.is_cancelled() {
         return Err(CliError::Interrupted("interrupted before the action started".into()));
     }
     let mode = client.config().speed_mode;
     match &args.action {
-        Action::Info => actions::info(client, args.json, out),
-        Action::Get { item } => actions::get(client, parse_item(item)?, args.json, out),
-        Action::Set { item, value } => actions::set(client, parse_item(item)?, value, args.json, out),
+        Action::Info => actions::info(client, report, out),
+        Action::Get { items } => {
+            let items = items.iter().map(|i| parse_item(i)).collect::<Result<Vec<_>, _>>()?;
+            actions::get(client, &items, report, out)
+        }
+        Action::Set { item, value } => actions::set(client, parse_item(item)?, value, report, out),
         Action::Move { actuator, position, speed, function } => {
             let a = parse_actuator(*actuator)?;
             let function = motion_function(a, *function)?;
-            actions::move_to(client, a, *position, parse_speed(speed, mode)?, function, args.json, interrupt, out)
+            actions::move_to(client, a, *position, parse_speed(speed, mode)?, function, report, interrupt, out)
         }
         Action::Follow { actuator, function, speed, rate } => {
             let a = parse_actuator(*actuator)?;
             let function = motion_function(a, *function)?;
             let speed = parse_speed(speed, mode)?;
-            follow::follow(client, a, function, speed, parse_rate(rate)?, args.json, interrupt, out)
+            follow::follow(client, a, function, speed, parse_rate(rate)?, report, interrupt, out)
         }
         Action::Run { function, direction, seconds } => {
             let limit = seconds.as_deref().map(parse_seconds).transpose()?;
@@ -438,19 +502,29 @@ fn act(client: &Client, args: &Args, out: &mut dyn Write, interrupt: &CancelToke
                 Function::Motion(m) => RunAction::Motion(m, parse_direction(direction)?),
                 f => RunAction::Switch(f),
             };
-            actions::run(client, action, limit, interrupt, out)
+            actions::run(client, action, limit, report, interrupt, out)
         }
         Action::Stop { function, soft } => {
-            let stopped = match parse_function(function)? {
-                Function::Motion(m) => client.stop_motion(m, if *soft { StopMode::Soft } else { StopMode::Fast }),
-                f => client.switch(f, false),
+            let f = parse_function(function)?;
+            let (stopped, how) = match f {
+                Function::Motion(m) if *soft => (client.stop_motion(m, StopMode::Soft), "soft"),
+                Function::Motion(m) => (client.stop_motion(m, StopMode::Fast), "fast"),
+                f => (client.switch(f, false), "off"),
             };
             stopped.map_err(|e| common::classified(&e))?;
-            writeln!(out, "stopped")?;
-            Ok(())
+            if report.json {
+                report.print(out, json!({"function": f.number(), "stopped": true, "mode": how}))
+            } else {
+                writeln!(out, "stopped")?;
+                Ok(())
+            }
         }
-        Action::Watch { interval, count } => actions::watch(client, args.json, *interval, *count, interrupt, out),
-        Action::Errors => actions::errors(client, args.json, out),
+        Action::Watch { interval, count, csv } => {
+            let format = if *csv { actions::Format::Csv } else { actions::Format::from_json(report.json) };
+            actions::watch(client, report, format, *interval, *count, interrupt, out)
+        }
+        Action::Errors => actions::errors(client, report, out),
+        Action::Send { .. } | Action::Names => Ok(()),
     }
 }
 
@@ -499,10 +573,10 @@ mod tests {
         let e = finish(Err(CliError::Interrupted("interrupted".into())), Err(lost.clone()), &[0]).unwrap_err();
         assert!(matches!(&e, CliError::Interrupted(m) if m.contains("may still be moving") && m.contains("F1")), "{e}");
         let e = finish(Ok(()), Err(lost.clone()), &[1]).unwrap_err();
-        assert!(matches!(&e, CliError::Transport(m) if m.contains("F2")), "{e}");
+        assert!(matches!(&e, CliError::Transport(_, m) if m.contains("F2")), "{e}");
         let e = finish(Err(CliError::Device("stalled".into())), Ok(()), &[0]).unwrap_err();
         assert!(matches!(&e, CliError::Device(m) if m.contains("acknowledged RS")), "{e}");
         assert!(finish(Ok(()), Ok(()), &[]).is_ok());
-        assert!(matches!(finish(Ok(()), Err(lost), &[]), Err(CliError::Transport(_))));
+        assert!(matches!(finish(Ok(()), Err(lost), &[]), Err(CliError::Transport(..))));
     }
 }

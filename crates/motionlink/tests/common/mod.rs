@@ -299,3 +299,41 @@ impl Drop for Running {
         let _ = self.child.wait();
     }
 }
+
+/// Runs `motionlink <args>` to its end with `env` set (and MOTIONLINK_PORT / MOTIONLINK_CONFIG removed unless
+/// `env` sets them), `stdin` written to its stdin.
+pub fn run_with(args: &[&str], env: &[(&str, &str)], stdin: &str) -> std::process::Output {
+    use std::io::Write;
+    let mut cmd = Command::new(BIN);
+    cmd.args(args).env_remove("MOTIONLINK_PORT").env_remove("MOTIONLINK_CONFIG");
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    let mut child =
+        cmd.stdin(Stdio::piped()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("start motionlink");
+    let mut input = child.stdin.take().expect("piped stdin");
+    input.write_all(stdin.as_bytes()).expect("write stdin");
+    drop(input);
+    child.wait_with_output().expect("wait for motionlink")
+}
+
+/// The one JSON object a `--json` command printed on stderr for its error.
+pub fn json_error(out: &std::process::Output) -> serde_json::Value {
+    let text = String::from_utf8_lossy(&out.stderr);
+    let line = text.lines().last().unwrap_or_else(|| panic!("no error on stderr: {out:?}"));
+    serde_json::from_str(line).unwrap_or_else(|e| panic!("stderr is not one JSON object ({e}): {text}"))
+}
+
+/// `motionlink <args>` (a `watch` printing a line at a time) with its stdout read as `... | head -1` does:
+/// one line, then the pipe closed. Returns that line and how the command ended.
+pub fn head_1(args: &[&str]) -> (String, Ended) {
+    let (running, stdout) = Running::start_with_stdout(args);
+    let mut line = String::new();
+    BufReader::new(stdout).read_line(&mut line).expect("read the first line"); // dropped: the pipe closes
+    (line, running.wait(Duration::from_secs(10)))
+}
+
+/// A temporary file path unique to this test process and `name`.
+pub fn temp_path(name: &str) -> std::path::PathBuf {
+    std::env::temp_dir().join(format!("motionlink-test-{}-{name}", std::process::id()))
+}

@@ -1,0 +1,195 @@
+//! What a family command's port comes from and what watches it: `--device` (with `--port` and
+//! `MOTIONLINK_PORT`, resolved by [`crate::devices`]), `-v`'s live wire trace ([`crate::term::WireTrace`]) and
+//! `--capture`'s file ([`CaptureWriter`]), both fed by a tap on the link ([`TapLink`], [`TapCanLink`]).
+
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+
+use motionlink_link::can::CanLink;
+use motionlink_link::capture::{CaptureWriter, Fanout, TapCanLink, TapLink, TapSink, Tapped};
+use motionlink_link::clock::lock;
+use motionlink_link::describe::{Annotation, Captured, Describe, Direction};
+use motionlink_link::link::Link;
+use motionlink_link::{SharedClock, Timestamp};
+
+use crate::common::CliError;
+
+/// The options every family command shares besides `--port`: where the port comes from and where its
+/// traffic goes.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct LinkArgs {
+    /// A device named in the configuration file (devices.toml in the platform's configuration directory, or
+    /// the file MOTIONLINK_CONFIG names), instead of --port. Without either, MOTIONLINK_PORT is the port.
+    #[arg(long, value_name = "NAME", global = true)]
+    pub device: Option<String>,
+    /// Write every telegram of the session to FILE, time-stamped: the capture format of the README for
+    /// serial lines, candump log lines for CAN. `motionlink decode` reads it back.
+    #[arg(long, value_name = "FILE", global = true)]
+    pub capture: Option<PathBuf>,
+}
+
+impl LinkArgs {
+    /// The port of a `family` command: `--port`, else `--device`, else `MOTIONLINK_PORT`.
+    pub fn resolve_port(&self, family: &str, port: Option<&str>) -> Result<String, CliError> {
+        crate::devices::resolve(family, port, self.device.as_deref())
+    }
+}
+
+/// A describer of a family's traffic, made anew for each watcher (each keeps its own state).
+pub type MakeDescriber<'a> = &'a dyn Fn() -> Box<dyn Describe + Send>;
+
+/// The telegrams of a session, explained as they pass (for `send`, which prints the request and its reply).
+pub struct Telegrams {
+    state: Mutex<(Box<dyn Describe + Send>, Vec<Annotation>)>,
+}
+
+impl Telegrams {
+    fn new(describer: Box<dyn Describe + Send>) -> Self {
+        Telegrams { state: Mutex::new((describer, Vec::new())) }
+    }
+
+    /// Forgets what was seen so far.
+    pub fn clear(&self) {
+        lock(&self.state).1.clear();
+    }
+
+    /// Every telegram seen since the last `clear` or `take`.
+    pub fn take(&self) -> Vec<Annotation> {
+        std::mem::take(&mut lock(&self.state).1)
+    }
+}
+
+impl TapSink for Telegrams {
+    fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>) {
+        let mut state = lock(&self.state);
+        let (describer, found) = &mut *state;
+        let captured = match data {
+            Tapped::Bytes(b) => Captured::Bytes(b),
+            Tapped::Frame(f) => Captured::Frame(f),
+        };
+        describer.describe(captured, direction, Some(at), found);
+    }
+}
+
+/// What watches a family command's link: the live trace (`-v`), the capture file (`--capture`) and, for
+/// `send`, the telegrams kept to be printed. Without any of them the link is used as it is.
+#[derive(Clone, Default)]
+pub struct Tap {
+    sink: Option<Arc<dyn TapSink>>,
+    telegrams: Option<Arc<Telegrams>>,
+    capture: Option<Arc<CaptureWriter>>,
+}
+
+impl Tap {
+    /// The tap of a `family` command on `port`: a wire trace when `-v` was given, a capture file when
+    /// `args.capture` names one (CAN frames are written with `can_interface` as their interface), the
+    /// telegrams kept when `keep` is true. Times come from `clock`.
+    pub fn new(
+        family: &str,
+        port: &str,
+        clock: &SharedClock,
+        args: &LinkArgs,
+        can_interface: &str,
+        make: MakeDescriber<'_>,
+        keep: bool,
+    ) -> Result<Tap, CliError> {
+        let mut sinks: Vec<Arc<dyn TapSink>> = Vec::new();
+        if crate::term::output().verbose >= 1 {
+            sinks.push(Arc::new(crate::term::WireTrace::new(make(), clock)));
+        }
+        let mut capture = None;
+        if let Some(path) = &args.capture {
+            let file = std::fs::File::create(path)
+                .map_err(|e| CliError::usage(format!("--capture {}: {e}", path.display())))?;
+            let writer = CaptureWriter::new(Box::new(file), clock, &format!("{family} on {port}"), can_interface)
+                .map_err(|e| CliError::usage(format!("--capture {}: {e}", path.display())))?;
+            let writer = Arc::new(writer);
+            capture = Some(Arc::clone(&writer));
+            sinks.push(writer);
+        }
+        let telegrams = keep.then(|| Arc::new(Telegrams::new(make())));
+        if let Some(t) = &telegrams {
+            sinks.push(Arc::clone(t) as Arc<dyn TapSink>);
+        }
+        let sink: Option<Arc<dyn TapSink>> = match sinks.len() {
+            0 => None,
+            1 => sinks.pop(),
+            _ => Some(Arc::new(Fanout(sinks))),
+        };
+        Ok(Tap { sink, telegrams, capture })
+    }
+
+    /// `link`, tapped if anything watches it.
+    pub fn link(&self, link: Box<dyn Link>, clock: &SharedClock) -> Box<dyn Link> {
+        match &self.sink {
+            Some(sink) => Box::new(TapLink::new(link, Arc::clone(clock), Arc::clone(sink))),
+            None => link,
+        }
+    }
+
+    /// `link`, tapped if anything watches it.
+    pub fn can_link(&self, link: Box<dyn CanLink>, clock: &SharedClock) -> Box<dyn CanLink> {
+        match &self.sink {
+            Some(sink) => Box::new(TapCanLink::new(link, Arc::clone(clock), Arc::clone(sink))),
+            None => link,
+        }
+    }
+
+    /// The telegrams kept for `send`.
+    pub fn telegrams(&self) -> Option<&Telegrams> {
+        self.telegrams.as_deref()
+    }
+
+    /// Flushes the capture file, if any.
+    pub fn flush(&self) {
+        if let Some(c) = &self.capture {
+            if let Err(e) = c.flush() {
+                tracing::warn!("cannot write the capture: {e}");
+            }
+        }
+    }
+}
+
+/// The interface name of a CAN port in a capture: the SocketCAN interface, else `can0`.
+pub fn can_interface(port: &motionlink_link::url::PortUrl) -> String {
+    match port {
+        motionlink_link::url::PortUrl::SocketCan(name) => name.clone(),
+        _ => "can0".into(),
+    }
+}
+
+/// The request and its reply among the telegrams `send` saw: the last telegram to the device (the last one
+/// whose bytes are `request`, if given), and the first telegram from the device after it.
+pub fn exchange(telegrams: &[Annotation], request: Option<&[u8]>) -> (Option<Annotation>, Option<Annotation>) {
+    let sent = telegrams
+        .iter()
+        .rposition(|a| a.direction == Direction::ToDevice && request.is_none_or(|r| a.bytes == r))
+        .or_else(|| telegrams.iter().rposition(|a| a.direction == Direction::ToDevice));
+    let Some(i) = sent else { return (None, None) };
+    let reply = telegrams[i + 1..].iter().find(|a| a.direction == Direction::FromDevice).cloned();
+    (Some(telegrams[i].clone()), reply)
+}
+
+/// Prints the request and the reply `send` saw, as text lines (`-> ...`, `<- ...`, or `request: none`); with
+/// `json`, prints nothing and returns them as JSON for the command's one object.
+pub fn print_exchange(
+    out: &mut dyn std::io::Write,
+    json: bool,
+    sent: Option<&Annotation>,
+    reply: Option<&Annotation>,
+) -> Result<(Option<serde_json::Value>, Option<serde_json::Value>), CliError> {
+    // Times of the session's clock are no Unix times: left out (`-v` and `--capture` give them).
+    let untimed = |a: Option<&Annotation>| a.map(|a| Annotation { at: None, ..a.clone() });
+    let (sent, reply) = (untimed(sent), untimed(reply));
+    if json {
+        let j = |a: &Option<Annotation>| a.as_ref().map(|a| crate::decode::annotation_json(a, None));
+        return Ok((j(&sent), j(&reply)));
+    }
+    for (which, a) in [("request", &sent), ("reply", &reply)] {
+        match a {
+            Some(a) => writeln!(out, "{}", crate::decode::annotation_text(a, None))?,
+            None => writeln!(out, "{which}: none")?,
+        }
+    }
+    Ok((None, None))
+}
