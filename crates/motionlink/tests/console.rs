@@ -11,7 +11,7 @@ use tungstenite::handshake::client::generate_key;
 use tungstenite::http::Request;
 use tungstenite::{Message, WebSocket};
 
-mod common;
+use crate::common;
 
 use common::{unix_now, Running, Sim};
 

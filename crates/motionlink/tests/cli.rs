@@ -1,0 +1,10 @@
+//! The command line end to end: the built binary against the emulators, one test binary for all of it
+//! (one link instead of one per file).
+
+mod common;
+
+mod compax_cli;
+mod console;
+mod general_cli;
+mod powercube_cli;
+mod scu_cli;
