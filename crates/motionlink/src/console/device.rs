@@ -6,7 +6,7 @@ use std::future::Future;
 use std::pin::Pin;
 use std::sync::Arc;
 
-use motionlink_link::error::{Classify, ErrorClass, TransportKind};
+use motionlink_link::error::Classify;
 use serde_json::{json, Value};
 
 /// A boxed future that can move between threads.
@@ -29,7 +29,7 @@ pub struct Failure {
 impl Failure {
     /// The failure of a classified library error.
     pub fn of<E: Classify + std::fmt::Display + ?Sized>(e: &E) -> Failure {
-        Failure { kind: class_name(e.class()), message: e.to_string() }
+        Failure { kind: e.class().name(), message: e.to_string() }
     }
 
     /// A request that cannot be made as it is (bad input from the page).
@@ -49,19 +49,6 @@ impl std::fmt::Display for Failure {
     }
 }
 
-/// The name of an error class, as naming.md spells it.
-pub fn class_name(class: ErrorClass) -> &'static str {
-    match class {
-        ErrorClass::Refused => "refused",
-        ErrorClass::Device => "device",
-        ErrorClass::Transport(TransportKind::Timeout) => "timeout",
-        ErrorClass::Transport(TransportKind::Disconnected) => "disconnected",
-        ErrorClass::Transport(TransportKind::Corrupt) => "corrupt",
-        ErrorClass::Transport(TransportKind::Io) => "io",
-        ErrorClass::Usage => "usage",
-        ErrorClass::Cancelled => "cancelled",
-    }
-}
 
 /// One addressable unit found on the link: an SCU actuator, a PowerCube module, a COMPAX drive.
 #[derive(Debug, Clone, PartialEq)]
