@@ -1,0 +1,110 @@
+//! How the bindings wait: without the GIL, and for long operations with an eye on Python's signal
+//! handlers (Ctrl-C), and the small tokio runtime the async clients open and close their sessions on.
+
+use std::future::Future;
+use std::sync::mpsc::{self, RecvTimeoutError};
+use std::sync::OnceLock;
+use std::time::Duration;
+
+use motionlink_link::cancel::CancelToken;
+use pyo3::exceptions::PyRuntimeError;
+use pyo3::prelude::*;
+
+/// How often a long operation's waiting thread looks at Python's signal handlers: Ctrl-C is seen within
+/// this, the motion is stopped, and `KeyboardInterrupt` raised (well within 100 ms in all).
+pub const SIGNAL_CHECK: Duration = Duration::from_millis(20);
+
+/// Runs `op` on a worker thread while the calling thread, without the GIL, waits for it and runs Python's
+/// signal handlers every [`SIGNAL_CHECK`]. When a handler raises (`KeyboardInterrupt` for Ctrl-C,
+/// `SystemExit` from a SIGTERM handler that calls `sys.exit`), `token` is cancelled, which makes the
+/// family's session stop the motion `op` started; once `op` has returned (with its stop confirmed or
+/// not), the handler's exception is raised with `op`'s own outcome as its `__cause__`.
+///
+/// `describe` turns `op`'s result into that cause (`None` when it ended well after all).
+pub fn interruptible<T: Send>(
+    py: Python<'_>,
+    token: Option<&CancelToken>,
+    op: impl FnOnce() -> T + Send,
+    describe: impl FnOnce(Python<'_>, &T) -> Option<PyErr>,
+) -> PyResult<T> {
+    std::thread::scope(|scope| {
+        let (tx, rx) = mpsc::channel();
+        let worker = std::thread::Builder::new()
+            .name("motionlink-call".into())
+            .spawn_scoped(scope, move || {
+                let _ = tx.send(op());
+            })
+            .map_err(|e| PyRuntimeError::new_err(format!("cannot start the operation's thread: {e}")))?;
+        let mut rx = rx;
+        loop {
+            // The receiver is not Sync: it goes into the GIL-free wait and comes back out.
+            let (got, back) = py.detach(move || (rx.recv_timeout(SIGNAL_CHECK), rx));
+            rx = back;
+            match got {
+                Ok(value) => return Ok(value),
+                Err(RecvTimeoutError::Timeout) => {
+                    if let Err(interrupt) = py.check_signals() {
+                        if let Some(t) = token {
+                            t.cancel();
+                        }
+                        let outcome = py.detach(move || rx.recv());
+                        if let Some(t) = token {
+                            t.reset();
+                        }
+                        if let Ok(value) = &outcome {
+                            if let Some(cause) = describe(py, value) {
+                                interrupt.set_cause(py, Some(cause));
+                            }
+                        }
+                        return Err(interrupt);
+                    }
+                }
+                Err(RecvTimeoutError::Disconnected) => {
+                    let why = match worker.join() {
+                        Err(p) => p.downcast_ref::<String>().cloned().unwrap_or_else(|| "a panic".into()),
+                        Ok(()) => "no result".into(),
+                    };
+                    return Err(PyRuntimeError::new_err(format!("the operation's thread ended with {why}")));
+                }
+            }
+        }
+    })
+}
+
+/// The runtime the async clients' opening and closing run on (tokio's blocking pool). The operations
+/// themselves are polled by asyncio directly: the family futures need no runtime.
+pub fn runtime() -> &'static tokio::runtime::Handle {
+    static RT: OnceLock<tokio::runtime::Handle> = OnceLock::new();
+    RT.get_or_init(|| {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .thread_name("motionlink-tokio")
+            .build()
+            .expect("a current-thread tokio runtime builds without I/O drivers");
+        let handle = rt.handle().clone();
+        std::thread::Builder::new()
+            .name("motionlink-runtime".into())
+            .spawn(move || rt.block_on(std::future::pending::<()>()))
+            .expect("the runtime's thread starts");
+        handle
+    })
+}
+
+/// Runs `fut` on [`runtime`] and returns its outcome as a future any executor (asyncio) can poll. Dropping
+/// the returned future does not cancel `fut` (an open or a close runs to its end; a client opened for a
+/// caller who went away is closed when it is dropped).
+pub fn on_runtime<T: Send + 'static>(
+    fut: impl Future<Output = T> + Send + 'static,
+) -> impl Future<Output = PyResult<T>> + Send + 'static {
+    let handle = runtime().spawn(fut);
+    async move { handle.await.map_err(|e| PyRuntimeError::new_err(format!("the runtime's task failed: {e}"))) }
+}
+
+/// Runs `fut` on [`runtime`] and waits for it here, without the GIL (for closing an async client from
+/// synchronous code: `atexit`, a dropped object).
+pub fn block_on_runtime<T: Send + 'static>(py: Python<'_>, fut: impl Future<Output = T> + Send + 'static) -> PyResult<T> {
+    let (tx, rx) = mpsc::channel();
+    runtime().spawn(async move {
+        let _ = tx.send(fut.await);
+    });
+    py.detach(move || rx.recv()).map_err(|_| PyRuntimeError::new_err("the runtime's task ended without a result"))
+}
