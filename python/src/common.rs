@@ -133,3 +133,32 @@ impl<C> Slot<C> {
         }
     }
 }
+
+/// A JSON value of a family's table (`Value::to_json`) as the Python object `json.loads` would make.
+pub fn json_py<'py>(py: Python<'py>, v: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
+    use pyo3::types::PyList;
+    Ok(match v {
+        serde_json::Value::Null => py.None().into_bound(py),
+        serde_json::Value::Bool(b) => pyo3::types::PyBool::new(py, *b).to_owned().into_any(),
+        serde_json::Value::Number(n) => match (n.as_i64(), n.as_u64()) {
+            (Some(i), _) => i.into_pyobject(py)?.into_any(),
+            (None, Some(u)) => u.into_pyobject(py)?.into_any(),
+            _ => n.as_f64().unwrap_or(f64::NAN).into_pyobject(py)?.into_any(),
+        },
+        serde_json::Value::String(s) => s.into_pyobject(py)?.into_any(),
+        serde_json::Value::Array(a) => {
+            let list = PyList::empty(py);
+            for x in a {
+                list.append(json_py(py, x)?)?;
+            }
+            list.into_any()
+        }
+        serde_json::Value::Object(o) => {
+            let d = PyDict::new(py);
+            for (k, x) in o {
+                d.set_item(k, json_py(py, x)?)?;
+            }
+            d.into_any()
+        }
+    })
+}

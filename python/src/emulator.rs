@@ -7,7 +7,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use motionlink_link::can::{CanBus, CanBusConfig, SlcanAdapter};
 use motionlink_link::clock::lock;
-use motionlink_link::emulator::{serve_tcp_with, Emulator as EmulatorTrait, Server, ServeOptions};
+use motionlink_link::emulator::{serve_tcp_with, Emulator as EmulatorTrait, ServeOptions, Server};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::{RealClock, SharedClock};
 use pyo3::prelude::*;
@@ -66,6 +66,7 @@ pub struct NativeEmulator {
 
 /// The settings of an emulator, as `motionlink.Emulator` passes them.
 #[derive(FromPyObject, Default)]
+#[pyo3(from_item_all)]
 pub struct EmulatorSettings {
     preset: Option<String>,
     config: Option<String>,
@@ -86,12 +87,13 @@ fn usage(msg: impl Into<String>) -> Failure {
 
 fn scu_device(s: &EmulatorSettings) -> Result<motionlink_scu::Emulator, Failure> {
     use motionlink_scu::SimConfig;
-    let preset = match &s.preset {
-        Some(p) => Some(SimConfig::preset(p).ok_or_else(|| {
-            usage(format!("SCU preset {p:?} is not known: give \"scp11\", \"tlt\" or \"liftkit\""))
-        })?),
-        None => None,
-    };
+    let preset =
+        match &s.preset {
+            Some(p) => Some(SimConfig::preset(p).ok_or_else(|| {
+                usage(format!("SCU preset {p:?} is not known: give \"scp11\", \"tlt\" or \"liftkit\""))
+            })?),
+            None => None,
+        };
     let config = match (&s.config, &s.preset) {
         (Some(text), Some(p)) if !text.contains("preset") => SimConfig::from_toml(&format!("preset = \"{p}\"\n{text}")),
         (Some(text), _) => SimConfig::from_toml(text),
@@ -185,15 +187,17 @@ fn serve<E: EmulatorTrait + 'static>(
     events: &Arc<Mutex<Vec<(f64, String)>>>,
 ) -> Result<Server, Failure> {
     let sink = Arc::clone(events);
-    let options = ServeOptions {
-        on_event: Some(Arc::new(move |text: &str| lock(&sink).push((unix_now(), text.to_string())))),
-    };
+    let options =
+        ServeOptions { on_event: Some(Arc::new(move |text: &str| lock(&sink).push((unix_now(), text.to_string())))) };
     let device = Arc::new(Mutex::new(device));
     match how {
-        "tcp" => serve_tcp_with(bind, device, clock(), options)
-            .map_err(|e| Failure::new(motionlink_link::error::ErrorClass::Transport(
-                motionlink_link::error::TransportKind::Io,
-            ), "", format!("cannot listen on {bind}: {e}"))),
+        "tcp" => serve_tcp_with(bind, device, clock(), options).map_err(|e| {
+            Failure::new(
+                motionlink_link::error::ErrorClass::Transport(motionlink_link::error::TransportKind::Io),
+                "",
+                format!("cannot listen on {bind}: {e}"),
+            )
+        }),
         #[cfg(unix)]
         "pty" => motionlink_link::emulator::serve_pty_with(device, clock(), options).map_err(|e| {
             Failure::new(
@@ -202,7 +206,9 @@ fn serve<E: EmulatorTrait + 'static>(
                 format!("cannot create a pseudo-terminal: {e}"),
             )
         }),
-        other => Err(usage(format!("serve={other:?}: give \"tcp\" or \"pty\" (or None for an emulator in this process)"))),
+        other => {
+            Err(usage(format!("serve={other:?}: give \"tcp\" or \"pty\" (or None for an emulator in this process)")))
+        }
     }
 }
 
@@ -269,7 +275,9 @@ impl NativeEmulator {
         }
         match lock(&self.running).as_ref() {
             Some(Running::InProcess(h)) => Ok(h.clone()),
-            Some(Running::Served(_)) => Err(usage(format!("this emulator is served on {}: connect to that port", self.port))),
+            Some(Running::Served(_)) => {
+                Err(usage(format!("this emulator is served on {}: connect to that port", self.port)))
+            }
             None => Err(usage("this emulator is closed")),
         }
     }

@@ -7,6 +7,7 @@ mod common;
 mod emulator;
 mod errors;
 mod powercube;
+mod scu;
 mod wait;
 
 use pyo3::prelude::*;
@@ -17,5 +18,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<emulator::NativeEmulator>()?;
     m.add_class::<powercube::PowerCubeClient>()?;
     m.add_class::<powercube::AsyncPowerCubeClient>()?;
+    m.add_class::<scu::ScuClient>()?;
     Ok(())
 }

@@ -25,6 +25,7 @@ const FAMILY: &str = "powercube";
 
 /// How a PowerCube client is opened, as `motionlink.PowerCube` passes it.
 #[derive(FromPyObject)]
+#[pyo3(from_item_all)]
 pub struct Settings {
     module: u8,
     baud: u32,
@@ -259,7 +260,14 @@ impl PowerCubeClient {
         let guard = if settings.watchdog && !in_process { Guard::Watchdog } else { Guard::HaltOnly };
         let port = client.describe().to_string();
         let close_bound = client.config().close_bound;
-        Ok(PowerCubeClient { slot: Slot::new(client, FAMILY), token, guard, module: settings.module, port, close_bound })
+        Ok(PowerCubeClient {
+            slot: Slot::new(client, FAMILY),
+            token,
+            guard,
+            module: settings.module,
+            port,
+            close_bound,
+        })
     }
 
     /// The port, as the link describes it.
@@ -343,7 +351,14 @@ impl PowerCubeClient {
     fn position(&self, py: Python<'_>, module: Option<u8>) -> PyResult<(f64, &'static str)> {
         let c = self.client(py)?;
         let a = self.address(module);
-        let p = py.detach(|| c.module(a)?.position()).or_raise(py)?;
+        let p = py
+            .detach(|| -> Result<_, Error> {
+                let m = c.module(a)?;
+                // The kind names the unit (rad or m); the session keeps it after the first read.
+                m.kind()?;
+                m.position()
+            })
+            .or_raise(py)?;
         Ok((f32_py(p.value()), suffix(p.unit()).1))
     }
 
@@ -402,7 +417,11 @@ impl PowerCubeClient {
         let r = interruptible(
             py,
             Some(&self.token),
-            || c.module(a)?.home_guarded(timeout, guard, &mut |_| {}),
+            || {
+                let m = c.module(a)?;
+                m.kind()?;
+                m.home_guarded(timeout, guard, &mut |_| {})
+            },
             cancel_cause,
         )?;
         let (p, s) = r.or_raise(py)?;
@@ -431,7 +450,11 @@ impl PowerCubeClient {
         let r = interruptible(
             py,
             Some(&self.token),
-            || c.module(a)?.move_to_guarded(&spec, guard, &mut |_| {}),
+            || {
+                let m = c.module(a)?;
+                m.kind()?;
+                m.move_to_guarded(&spec, guard, &mut |_| {})
+            },
             cancel_cause,
         )?;
         let report = r.or_raise(py)?;
@@ -444,12 +467,8 @@ impl PowerCubeClient {
         let c = self.client(py)?;
         let a = self.address(module);
         let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
-        let r = interruptible(
-            py,
-            Some(&self.token),
-            || c.module(a)?.wait_motion_end(timeout, &mut |_| {}),
-            cancel_cause,
-        )?;
+        let r =
+            interruptible(py, Some(&self.token), || c.module(a)?.wait_motion_end(timeout, &mut |_| {}), cancel_cause)?;
         Ok(state_record(py, a, r.or_raise(py)?)?.done())
     }
 
@@ -579,7 +598,14 @@ impl AsyncPowerCubeClient {
     async fn position(&self, module: Option<u8>) -> PyResult<(f64, &'static str)> {
         let c = self.client()?;
         let a = module.unwrap_or(self.module);
-        let p = raise(async { c.module(a)?.position().await }.await)?;
+        let p = raise(
+            async {
+                let m = c.module(a)?;
+                m.kind().await?;
+                m.position().await
+            }
+            .await,
+        )?;
         Ok((f32_py(p.value()), suffix(p.unit()).1))
     }
 
@@ -599,7 +625,14 @@ impl AsyncPowerCubeClient {
         let a = module.unwrap_or(self.module);
         let timeout = seconds("timeout_s", timeout_s).map_err(|f| Python::attach(|py| to_pyerr(py, f)))?;
         let guard = self.guard;
-        let (p, s) = raise(async { c.module(a)?.home_guarded(timeout, guard).await }.await)?;
+        let (p, s) = raise(
+            async {
+                let m = c.module(a)?;
+                m.kind().await?;
+                m.home_guarded(timeout, guard).await
+            }
+            .await,
+        )?;
         dict(|py| {
             let r = state_record(py, a, s)?;
             put_position(&r, "position", p)?;
@@ -623,7 +656,14 @@ impl AsyncPowerCubeClient {
         let spec = move_spec(target, velocity, acceleration, tolerance, timeout_s)
             .map_err(|f| Python::attach(|py| to_pyerr(py, f)))?;
         let guard = self.guard;
-        let report = raise(async { c.module(a)?.move_to_guarded(&spec, guard).await }.await)?;
+        let report = raise(
+            async {
+                let m = c.module(a)?;
+                m.kind().await?;
+                m.move_to_guarded(&spec, guard).await
+            }
+            .await,
+        )?;
         dict(|py| move_record(py, a, spec.target, &report))
     }
 
@@ -634,7 +674,8 @@ impl AsyncPowerCubeClient {
         let a = module.unwrap_or(self.module);
         let timeout = seconds("timeout_s", timeout_s).map_err(|f| Python::attach(|py| to_pyerr(py, f)))?;
         let address = raise(motionlink_powercube::model::Address::new(a).map_err(Error::from))?;
-        let op = motionlink_powercube::session::Op::Wait(address, motionlink_powercube::session::Until::Motion, timeout);
+        let op =
+            motionlink_powercube::session::Op::Wait(address, motionlink_powercube::session::Until::Motion, timeout);
         let out = raise(c.run(op).await)?;
         match out {
             motionlink_powercube::session::Output::State(s) => dict(|py| state_record(py, a, s)),

@@ -101,7 +101,10 @@ pub fn on_runtime<T: Send + 'static>(
 
 /// Runs `fut` on [`runtime`] and waits for it here, without the GIL (for closing an async client from
 /// synchronous code: `atexit`, a dropped object).
-pub fn block_on_runtime<T: Send + 'static>(py: Python<'_>, fut: impl Future<Output = T> + Send + 'static) -> PyResult<T> {
+pub fn block_on_runtime<T: Send + 'static>(
+    py: Python<'_>,
+    fut: impl Future<Output = T> + Send + 'static,
+) -> PyResult<T> {
     let (tx, rx) = mpsc::channel();
     runtime().spawn(async move {
         let _ = tx.send(fut.await);
