@@ -9,6 +9,7 @@ Results are typed records whose field names carry their units; failures are :cla
 
 from __future__ import annotations
 
+from .compax import Compax
 from .emulator import Emulator, Event
 from .errors import (
     Cancelled,
@@ -28,6 +29,7 @@ __all__ = [
     "Emulator",
     "Event",
     "Scu",
+    "Compax",
     "PowerCube",
     "AsyncPowerCube",
     "MotionlinkError",

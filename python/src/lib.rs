@@ -4,6 +4,7 @@
 //! types and the clients their context managers.
 
 mod common;
+mod compax;
 mod emulator;
 mod errors;
 mod powercube;
@@ -19,5 +20,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<powercube::PowerCubeClient>()?;
     m.add_class::<powercube::AsyncPowerCubeClient>()?;
     m.add_class::<scu::ScuClient>()?;
+    m.add_class::<compax::CompaxClient>()?;
+    m.add("COMPAX_DEFAULT_TOLERANCE_UNITS", compax::default_tolerance())?;
     Ok(())
 }
