@@ -3,6 +3,7 @@ that closes clients still open when the interpreter exits."""
 
 from __future__ import annotations
 
+import asyncio
 import atexit
 import time
 import weakref
@@ -99,6 +100,36 @@ def samples(read: Callable[[float], _T], interval_ms: int, count: Optional[int])
             time.sleep(delay)
 
 
+async def run_native(start: Callable[[Callable[[bool, Any], None]], Any]) -> Any:
+    """Awaits a native operation: ``start(done)`` starts it on the library's runtime thread and returns
+    its task; ``done(ok, value)`` is called there with the outcome. Cancelling the awaiting asyncio task
+    cancels the operation (its future is dropped, which stops what it set in motion) and waits, on a
+    worker thread, until that is done before ``CancelledError`` propagates."""
+    loop = asyncio.get_running_loop()
+    fut: "asyncio.Future[Any]" = loop.create_future()
+
+    def settle(ok: bool, value: Any) -> None:
+        if fut.done():
+            return
+        if ok:
+            fut.set_result(value)
+        else:
+            fut.set_exception(value)
+
+    def done(ok: bool, value: Any) -> None:
+        try:
+            loop.call_soon_threadsafe(settle, ok, value)
+        except RuntimeError:  # the loop is closed: nobody waits any more
+            pass
+
+    task = start(done)
+    try:
+        return await fut
+    except asyncio.CancelledError:
+        await loop.run_in_executor(None, task.cancel)
+        raise
+
+
 class AsyncClientBase:
     """An async session with a device: ``async with`` opens it and closes it (stopping what it started);
     cancelling a task that awaits a long operation (a move, homing, a wait) stops that motion."""
@@ -134,7 +165,7 @@ class AsyncClientBase:
         native = self._native
         if native is not None:
             _open.discard(self)
-            await native.close()
+            await run_native(native.close)
 
     def _close_at_exit(self) -> None:
         if self._native is not None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import Any, Dict, Iterator, List, Optional, Union
 
 from . import _native
-from ._base import AsyncClientBase, ClientBase, samples
+from ._base import AsyncClientBase, ClientBase, run_native, samples
 from .records import (
     ModuleInfo,
     ModulePosition,
@@ -199,7 +199,7 @@ class AsyncPowerCube(AsyncClientBase):
         self._native = None
 
     async def _open(self) -> Any:
-        return await _native.AsyncPowerCubeClient.open(self._port, self._settings)
+        return await run_native(lambda done: _native.AsyncPowerCubeClient.open(self._port, self._settings, done))
 
     async def open(self) -> "AsyncPowerCube":
         """Opens the session (what ``async with`` does)."""
@@ -210,15 +210,15 @@ class AsyncPowerCube(AsyncClientBase):
 
     async def position(self, module: Optional[int] = None) -> ModulePosition:
         """The actual position."""
-        return _position(self._m(module), await self._client().position(module))
+        return _position(self._m(module), await run_native(lambda done: self._client().position(module, done)))
 
     async def state(self, module: Optional[int] = None) -> ModuleState:
         """The state word."""
-        return ModuleState(await self._client().state(module))
+        return ModuleState(await run_native(lambda done: self._client().state(module, done)))
 
     async def home(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> PowerCubeHome:
         """Homes and waits; cancelling the task halts the module."""
-        return PowerCubeHome(await self._client().home(module, timeout_s))
+        return PowerCubeHome(await run_native(lambda done: self._client().home(module, timeout_s, done)))
 
     async def move_to(
         self,
@@ -232,15 +232,19 @@ class AsyncPowerCube(AsyncClientBase):
     ) -> PowerCubeMove:
         """A checked ramp move, waited for; cancelling the task halts the module."""
         return PowerCubeMove(
-            await self._client().move_to(target, module, velocity, acceleration, tolerance, timeout_s)
+            await run_native(
+                lambda done: self._client().move_to(
+                    target, module, velocity, acceleration, tolerance, timeout_s, done
+                )
+            )
         )
 
     move = move_to
 
     async def wait(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> ModuleState:
         """Waits until the module stands still; cancelling the task halts it."""
-        return ModuleState(await self._client().wait(module, timeout_s))
+        return ModuleState(await run_native(lambda done: self._client().wait(module, timeout_s, done)))
 
     async def stop(self, module: Optional[int] = None) -> None:
         """Halts the module."""
-        await self._client().stop(module)
+        await run_native(lambda done: self._client().stop(module, done))

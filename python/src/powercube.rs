@@ -19,7 +19,7 @@ use pyo3::types::PyDict;
 use crate::common::{f32_py, target, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::{block_on_runtime, interruptible, on_runtime};
+use crate::wait::{block_on_runtime, interruptible, spawn_task, NativeTask};
 
 const FAMILY: &str = "powercube";
 
@@ -173,7 +173,7 @@ fn param_record<'py>(py: Python<'py>, module: u8, p: Param, kind: ModuleKind) ->
 fn move_record<'py>(py: Python<'py>, module: u8, target: Position, m: &MoveReport) -> PyResult<Record<'py>> {
     let r = state_record(py, module, m.state)?;
     let unit = m.reached.unit();
-    put_position(&r, "start", m.start)?;
+    put_position(&r, "start", Position::new(m.start.value(), unit))?;
     put_position(&r, "target", Position::new(target.value(), unit))?;
     put_position(&r, "reached", m.reached)?;
     put_position(&r, "difference", Position::new(m.reached.value() - target.value(), unit))?;
@@ -537,54 +537,63 @@ fn raise<T>(r: Result<T, Error>) -> PyResult<T> {
     r.map_err(|e| Python::attach(|py| to_pyerr(py, e.failure())))
 }
 
-fn dict<F>(f: F) -> PyResult<Py<PyDict>>
+fn dict<F>(f: F) -> PyResult<Py<PyAny>>
 where
     F: for<'py> FnOnce(Python<'py>) -> PyResult<Record<'py>>,
 {
-    Python::attach(|py| Ok(f(py)?.done().unbind()))
+    Python::attach(|py| Ok(f(py)?.done().into_any().unbind()))
 }
 
 #[pymethods]
 impl AsyncPowerCubeClient {
-    /// Opens a session (a coroutine: the port is opened on a worker thread).
+    /// Opens a session on the runtime (the port is opened on its blocking pool); `done(ok, client)`.
     #[staticmethod]
-    async fn open(port: Py<PyAny>, settings: Py<PyAny>) -> PyResult<AsyncPowerCubeClient> {
-        let (t, s) = Python::attach(|py| -> PyResult<_> {
-            let t = target(port.bind(py), FAMILY).map_err(|f| to_pyerr(py, f))?;
-            let s: Settings = settings.bind(py).extract()?;
-            Ok((t, s))
-        })?;
-        let module = s.module;
-        let watchdog = s.watchdog;
-        // The blocking open runs on tokio's blocking pool; what it learns comes back through `found`.
-        let found: Arc<std::sync::Mutex<Option<Result<(bool, String), Failure>>>> = Default::default();
-        let slot = Arc::clone(&found);
-        let opened = on_runtime(AsyncClient::open(move || {
-            let r = open(t, &s);
-            let (client, err) = match r {
-                Ok((c, in_process)) => {
-                    *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(Ok((in_process, c.describe().to_string())));
-                    (Some(c), None)
-                }
-                Err(f) => {
-                    let message = f.message.clone();
-                    *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(Err(f));
-                    (None, Some(message))
+    fn open(
+        py: Python<'_>,
+        port: &Bound<'_, PyAny>,
+        settings: &Bound<'_, PyAny>,
+        done: Py<PyAny>,
+    ) -> PyResult<NativeTask> {
+        let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
+        let s: Settings = settings.extract()?;
+        Ok(spawn_task(done, async move {
+            let module = s.module;
+            let watchdog = s.watchdog;
+            // The blocking open runs on tokio's blocking pool; what it learns comes back through `found`.
+            let found: Arc<std::sync::Mutex<Option<Result<(bool, String), Failure>>>> = Default::default();
+            let slot = Arc::clone(&found);
+            let opened = AsyncClient::open(move || {
+                let (client, err) = match open(t, &s) {
+                    Ok((c, in_process)) => {
+                        *slot.lock().unwrap_or_else(|e| e.into_inner()) =
+                            Some(Ok((in_process, c.describe().to_string())));
+                        (Some(c), None)
+                    }
+                    Err(f) => {
+                        let message = f.message.clone();
+                        *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(Err(f));
+                        (None, Some(message))
+                    }
+                };
+                client.ok_or_else(|| Error::Unsupported(err.unwrap_or_default()))
+            })
+            .await;
+            let learned = found.lock().unwrap_or_else(|e| e.into_inner()).take();
+            let (in_process, port) = match learned {
+                Some(Ok(x)) => x,
+                Some(Err(f)) => return Err(Python::attach(|py| to_pyerr(py, f))),
+                None => {
+                    return Err(raise::<()>(opened.map(|_| ())).err().unwrap_or_else(|| {
+                        pyo3::exceptions::PyRuntimeError::new_err("the open ended without a result")
+                    }))
                 }
             };
-            client.ok_or_else(|| Error::Unsupported(err.unwrap_or_default()))
+            let client = raise(opened)?;
+            // An emulator in this process dies with it: no watchdog (as for the blocking client).
+            let guard = if watchdog && !in_process { Guard::Watchdog } else { Guard::HaltOnly };
+            let native = AsyncPowerCubeClient { slot: Slot::new(client, FAMILY), guard, module, port };
+            Python::attach(|py| Ok(Py::new(py, native)?.into_any()))
         }))
-        .await?;
-        let learned = found.lock().unwrap_or_else(|e| e.into_inner()).take();
-        let (in_process, port) = match learned {
-            Some(Ok(x)) => x,
-            Some(Err(f)) => return Err(Python::attach(|py| to_pyerr(py, f))),
-            None => return raise(opened.map(|_| unreachable!("an opened client told what it learned"))),
-        };
-        let client = raise(opened)?;
-        // An emulator in this process dies with it: no watchdog (as for the blocking client).
-        let guard = if watchdog && !in_process { Guard::Watchdog } else { Guard::HaltOnly };
-        Ok(AsyncPowerCubeClient { slot: Slot::new(client, FAMILY), guard, module, port })
     }
 
     /// The port, as the link describes it.
@@ -593,114 +602,132 @@ impl AsyncPowerCubeClient {
         self.port.clone()
     }
 
-    /// The actual position: (value, unit).
-    #[pyo3(signature = (module=None))]
-    async fn position(&self, module: Option<u8>) -> PyResult<(f64, &'static str)> {
+    /// The actual position: `done(ok, (value, unit))`.
+    #[pyo3(signature = (module, done))]
+    fn position(&self, module: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
         let a = module.unwrap_or(self.module);
-        let p = raise(
-            async {
-                let m = c.module(a)?;
-                m.kind().await?;
-                m.position().await
-            }
-            .await,
-        )?;
-        Ok((f32_py(p.value()), suffix(p.unit()).1))
+        Ok(spawn_task(done, async move {
+            let p = raise(
+                async {
+                    let m = c.module(a)?;
+                    m.kind().await?;
+                    m.position().await
+                }
+                .await,
+            )?;
+            Python::attach(|py| Ok((f32_py(p.value()), suffix(p.unit()).1).into_pyobject(py)?.into_any().unbind()))
+        }))
     }
 
-    /// The state word.
-    #[pyo3(signature = (module=None))]
-    async fn state(&self, module: Option<u8>) -> PyResult<Py<PyDict>> {
+    /// The state word: `done(ok, dict)`.
+    #[pyo3(signature = (module, done))]
+    fn state(&self, module: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
         let a = module.unwrap_or(self.module);
-        let s = raise(async { c.module(a)?.state().await }.await)?;
-        dict(|py| state_record(py, a, s))
+        Ok(spawn_task(done, async move {
+            let s = raise(async { c.module(a)?.state().await }.await)?;
+            dict(|py| state_record(py, a, s))
+        }))
     }
 
     /// Homes and waits; cancelling the task halts the module.
-    #[pyo3(signature = (module=None, timeout_s=60.0))]
-    async fn home(&self, module: Option<u8>, timeout_s: f64) -> PyResult<Py<PyDict>> {
+    #[pyo3(signature = (module, timeout_s, done))]
+    fn home(&self, py: Python<'_>, module: Option<u8>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
         let a = module.unwrap_or(self.module);
-        let timeout = seconds("timeout_s", timeout_s).map_err(|f| Python::attach(|py| to_pyerr(py, f)))?;
+        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
         let guard = self.guard;
-        let (p, s) = raise(
-            async {
-                let m = c.module(a)?;
-                m.kind().await?;
-                m.home_guarded(timeout, guard).await
-            }
-            .await,
-        )?;
-        dict(|py| {
-            let r = state_record(py, a, s)?;
-            put_position(&r, "position", p)?;
-            Ok(r)
-        })
+        Ok(spawn_task(done, async move {
+            let (p, s) = raise(
+                async {
+                    let m = c.module(a)?;
+                    m.kind().await?;
+                    m.home_guarded(timeout, guard).await
+                }
+                .await,
+            )?;
+            dict(|py| {
+                let r = state_record(py, a, s)?;
+                put_position(&r, "position", p)?;
+                Ok(r)
+            })
+        }))
     }
 
     /// A checked move, waited for; cancelling the task halts the module.
-    #[pyo3(signature = (target, module=None, velocity=None, acceleration=None, tolerance=None, timeout_s=60.0))]
-    async fn move_to(
+    #[pyo3(signature = (target, module, velocity, acceleration, tolerance, timeout_s, done))]
+    #[allow(clippy::too_many_arguments)]
+    fn move_to(
         &self,
+        py: Python<'_>,
         target: f64,
         module: Option<u8>,
         velocity: Option<f64>,
         acceleration: Option<f64>,
         tolerance: Option<f64>,
         timeout_s: f64,
-    ) -> PyResult<Py<PyDict>> {
+        done: Py<PyAny>,
+    ) -> PyResult<NativeTask> {
         let c = self.client()?;
         let a = module.unwrap_or(self.module);
-        let spec = move_spec(target, velocity, acceleration, tolerance, timeout_s)
-            .map_err(|f| Python::attach(|py| to_pyerr(py, f)))?;
+        let spec = move_spec(target, velocity, acceleration, tolerance, timeout_s).map_err(|f| to_pyerr(py, f))?;
         let guard = self.guard;
-        let report = raise(
-            async {
-                let m = c.module(a)?;
-                m.kind().await?;
-                m.move_to_guarded(&spec, guard).await
-            }
-            .await,
-        )?;
-        dict(|py| move_record(py, a, spec.target, &report))
+        Ok(spawn_task(done, async move {
+            let report = raise(
+                async {
+                    let m = c.module(a)?;
+                    m.kind().await?;
+                    m.move_to_guarded(&spec, guard).await
+                }
+                .await,
+            )?;
+            dict(|py| move_record(py, a, spec.target, &report))
+        }))
     }
 
     /// Waits until the module stands still (no STATE_MOTION); cancelling the task halts it.
-    #[pyo3(signature = (module=None, timeout_s=60.0))]
-    async fn wait(&self, module: Option<u8>, timeout_s: f64) -> PyResult<Py<PyDict>> {
+    #[pyo3(signature = (module, timeout_s, done))]
+    fn wait(&self, py: Python<'_>, module: Option<u8>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
         let a = module.unwrap_or(self.module);
-        let timeout = seconds("timeout_s", timeout_s).map_err(|f| Python::attach(|py| to_pyerr(py, f)))?;
-        let address = raise(motionlink_powercube::model::Address::new(a).map_err(Error::from))?;
-        let op =
-            motionlink_powercube::session::Op::Wait(address, motionlink_powercube::session::Until::Motion, timeout);
-        let out = raise(c.run(op).await)?;
-        match out {
-            motionlink_powercube::session::Output::State(s) => dict(|py| state_record(py, a, s)),
-            other => raise(Err(Error::Unsupported(format!("the session answered {other:?}")))),
-        }
+        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            let address = raise(motionlink_powercube::model::Address::new(a).map_err(Error::from))?;
+            let op =
+                motionlink_powercube::session::Op::Wait(address, motionlink_powercube::session::Until::Motion, timeout);
+            match raise(c.run(op).await)? {
+                motionlink_powercube::session::Output::State(s) => dict(|py| state_record(py, a, s)),
+                other => raise(Err(Error::Unsupported(format!("the session answered {other:?}")))),
+            }
+        }))
     }
 
     /// Halts the module.
-    #[pyo3(signature = (module=None))]
-    async fn stop(&self, module: Option<u8>) -> PyResult<()> {
+    #[pyo3(signature = (module, done))]
+    fn stop(&self, module: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
         let a = module.unwrap_or(self.module);
-        raise(async { c.module(a)?.halt().await }.await)
+        Ok(spawn_task(done, async move {
+            raise(async { c.module(a)?.halt().await }.await)?;
+            Ok(Python::attach(|py| py.None()))
+        }))
     }
 
-    /// Ends the session (halts what it set in motion); a coroutine.
-    async fn close(&self) -> PyResult<()> {
-        let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
-        match taken {
-            Ok(client) => raise(on_runtime(client.close()).await?),
-            Err(shared) => raise(shared.halt_started().await),
-        }
+    /// Ends the session (halts what it set in motion): `done(ok, None)`.
+    fn close(&self, done: Py<PyAny>) -> NativeTask {
+        let taken = self.slot.take(&CancelToken::new(), Duration::ZERO);
+        spawn_task(done, async move {
+            match taken {
+                None => {}
+                Some(Ok(client)) => raise(client.close().await)?,
+                Some(Err(shared)) => raise(shared.halt_started().await)?,
+            }
+            Ok(Python::attach(|py| py.None()))
+        })
     }
 
-    /// Ends the session from synchronous code (atexit, a dropped object), waiting without the GIL.
+    /// Ends the session from synchronous code (atexit), waiting without the GIL.
     fn close_blocking(&self, py: Python<'_>) -> PyResult<()> {
         let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
         let r = match taken {

@@ -71,8 +71,7 @@ pub fn interruptible<T: Send>(
     })
 }
 
-/// The runtime the async clients' opening and closing run on (tokio's blocking pool). The operations
-/// themselves are polled by asyncio directly: the family futures need no runtime.
+/// The runtime the async clients' operations run on (one thread; opening uses its blocking pool).
 pub fn runtime() -> &'static tokio::runtime::Handle {
     static RT: OnceLock<tokio::runtime::Handle> = OnceLock::new();
     RT.get_or_init(|| {
@@ -89,16 +88,6 @@ pub fn runtime() -> &'static tokio::runtime::Handle {
     })
 }
 
-/// Runs `fut` on [`runtime`] and returns its outcome as a future any executor (asyncio) can poll. Dropping
-/// the returned future does not cancel `fut` (an open or a close runs to its end; a client opened for a
-/// caller who went away is closed when it is dropped).
-pub fn on_runtime<T: Send + 'static>(
-    fut: impl Future<Output = T> + Send + 'static,
-) -> impl Future<Output = PyResult<T>> + Send + 'static {
-    let handle = runtime().spawn(fut);
-    async move { handle.await.map_err(|e| PyRuntimeError::new_err(format!("the runtime's task failed: {e}"))) }
-}
-
 /// Runs `fut` on [`runtime`] and waits for it here, without the GIL (for closing an async client from
 /// synchronous code: `atexit`, a dropped object).
 pub fn block_on_runtime<T: Send + 'static>(
@@ -110,4 +99,58 @@ pub fn block_on_runtime<T: Send + 'static>(
         let _ = tx.send(fut.await);
     });
     py.detach(move || rx.recv()).map_err(|_| PyRuntimeError::new_err("the runtime's task ended without a result"))
+}
+
+/// An async operation running on [`runtime`], as Python sees it: its outcome is handed to a callback
+/// (`done(ok, value)`, which the Python side turns into the result of an asyncio future), and
+/// [`NativeTask::cancel`] drops the operation's future, which stops what it set in motion.
+#[pyclass(frozen, module = "motionlink._native")]
+pub struct NativeTask {
+    handle: std::sync::Mutex<Option<tokio::task::JoinHandle<()>>>,
+}
+
+/// Runs `fut` on [`runtime`] and calls `done(True, value)` or `done(False, exception)` with its outcome.
+/// The family's futures are polled there, not by asyncio: their wake-ups never wait for the GIL.
+pub fn spawn_task<F>(done: Py<PyAny>, fut: F) -> NativeTask
+where
+    F: Future<Output = PyResult<Py<PyAny>>> + Send + 'static,
+{
+    let handle = runtime().spawn(async move {
+        let out = fut.await;
+        Python::attach(|py| {
+            let (ok, value) = match out {
+                Ok(v) => (true, v),
+                Err(e) => (false, e.into_value(py).into_any()),
+            };
+            if let Err(e) = done.call1(py, (ok, value)) {
+                e.write_unraisable(py, None);
+            }
+        });
+    });
+    NativeTask { handle: std::sync::Mutex::new(Some(handle)) }
+}
+
+#[pymethods]
+impl NativeTask {
+    /// Cancels the operation: its future is dropped (a motion it started is stopped, as the family's
+    /// async client does for a dropped future), and this returns once that has happened (without the GIL;
+    /// call it from a worker thread, not from the event loop). The `done` callback is not called.
+    fn cancel(&self, py: Python<'_>) {
+        let handle = motionlink_link::clock::lock(&self.handle).take();
+        if let Some(h) = handle {
+            h.abort();
+            let (tx, rx) = mpsc::channel();
+            runtime().spawn(async move {
+                let _ = h.await;
+                let _ = tx.send(());
+            });
+            let _ = py.detach(move || rx.recv());
+        }
+    }
+
+    /// True once the operation has ended (or was cancelled).
+    #[getter]
+    fn done(&self) -> bool {
+        motionlink_link::clock::lock(&self.handle).as_ref().is_none_or(|h| h.is_finished())
+    }
 }
