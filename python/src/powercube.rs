@@ -19,7 +19,8 @@ use pyo3::types::PyDict;
 use crate::common::{f32_py, target, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::{block_on_runtime, interruptible, spawn_task, NativeTask};
+use crate::wait::{block_on_runtime, deliver, interruptible, spawn_task, NativeTask, Outcome};
+use motionlink_link::error::{ErrorClass, TransportKind};
 
 const FAMILY: &str = "powercube";
 
@@ -170,12 +171,27 @@ fn param_record<'py>(py: Python<'py>, module: u8, p: Param, kind: ModuleKind) ->
     Ok(r)
 }
 
-fn move_record<'py>(py: Python<'py>, module: u8, target: Position, m: &MoveReport) -> PyResult<Record<'py>> {
+/// `p` in the unit of a module of `kind` (a position the session reported in the module's own unit is
+/// the same number: rad on a rotary module, m on a linear one).
+fn in_unit(p: Position, kind: ModuleKind) -> Position {
+    if p.unit() == AxisUnit::ModuleUnit {
+        Position::new(p.value(), kind.axis_unit())
+    } else {
+        p
+    }
+}
+
+fn move_record<'py>(
+    py: Python<'py>,
+    module: u8,
+    target: Position,
+    (kind, m): &(ModuleKind, MoveReport),
+) -> PyResult<Record<'py>> {
     let r = state_record(py, module, m.state)?;
-    let unit = m.reached.unit();
+    let unit = kind.axis_unit();
     put_position(&r, "start", Position::new(m.start.value(), unit))?;
     put_position(&r, "target", Position::new(target.value(), unit))?;
-    put_position(&r, "reached", m.reached)?;
+    put_position(&r, "reached", Position::new(m.reached.value(), unit))?;
     put_position(&r, "difference", Position::new(m.reached.value() - target.value(), unit))?;
     Ok(r)
 }
@@ -355,8 +371,8 @@ impl PowerCubeClient {
             .detach(|| -> Result<_, Error> {
                 let m = c.module(a)?;
                 // The kind names the unit (rad or m); the session keeps it after the first read.
-                m.kind()?;
-                m.position()
+                let kind = m.kind()?;
+                Ok(in_unit(m.position()?, kind))
             })
             .or_raise(py)?;
         Ok((f32_py(p.value()), suffix(p.unit()).1))
@@ -419,8 +435,8 @@ impl PowerCubeClient {
             Some(&self.token),
             || {
                 let m = c.module(a)?;
-                m.kind()?;
-                m.home_guarded(timeout, guard, &mut |_| {})
+                let kind = m.kind()?;
+                m.home_guarded(timeout, guard, &mut |_| {}).map(|(p, s)| (in_unit(p, kind), s))
             },
             cancel_cause,
         )?;
@@ -452,8 +468,8 @@ impl PowerCubeClient {
             Some(&self.token),
             || {
                 let m = c.module(a)?;
-                m.kind()?;
-                m.move_to_guarded(&spec, guard, &mut |_| {})
+                let kind = m.kind()?;
+                m.move_to_guarded(&spec, guard, &mut |_| {}).map(|r| (kind, r))
             },
             cancel_cause,
         )?;
@@ -533,15 +549,15 @@ impl AsyncPowerCubeClient {
     }
 }
 
-fn raise<T>(r: Result<T, Error>) -> PyResult<T> {
-    r.map_err(|e| Python::attach(|py| to_pyerr(py, e.failure())))
+fn raise<T>(r: Result<T, Error>) -> Result<T, Failure> {
+    r.map_err(|e| e.failure())
 }
 
-fn dict<F>(f: F) -> PyResult<Py<PyAny>>
+fn dict<F>(f: F) -> Outcome
 where
-    F: for<'py> FnOnce(Python<'py>) -> PyResult<Record<'py>>,
+    F: for<'py> FnOnce(Python<'py>) -> PyResult<Record<'py>> + Send + 'static,
 {
-    Python::attach(|py| Ok(f(py)?.done().into_any().unbind()))
+    deliver(move |py| Ok(f(py)?.done().into_any().unbind()))
 }
 
 #[pymethods]
@@ -581,10 +597,14 @@ impl AsyncPowerCubeClient {
             let learned = found.lock().unwrap_or_else(|e| e.into_inner()).take();
             let (in_process, port) = match learned {
                 Some(Ok(x)) => x,
-                Some(Err(f)) => return Err(Python::attach(|py| to_pyerr(py, f))),
+                Some(Err(f)) => return Err(f),
                 None => {
                     return Err(raise::<()>(opened.map(|_| ())).err().unwrap_or_else(|| {
-                        pyo3::exceptions::PyRuntimeError::new_err("the open ended without a result")
+                        Failure::new(
+                            ErrorClass::Transport(TransportKind::Io),
+                            FAMILY,
+                            "the open ended without a result",
+                        )
                     }))
                 }
             };
@@ -592,7 +612,7 @@ impl AsyncPowerCubeClient {
             // An emulator in this process dies with it: no watchdog (as for the blocking client).
             let guard = if watchdog && !in_process { Guard::Watchdog } else { Guard::HaltOnly };
             let native = AsyncPowerCubeClient { slot: Slot::new(client, FAMILY), guard, module, port };
-            Python::attach(|py| Ok(Py::new(py, native)?.into_any()))
+            deliver(move |py| Ok(Py::new(py, native)?.into_any()))
         }))
     }
 
@@ -611,12 +631,12 @@ impl AsyncPowerCubeClient {
             let p = raise(
                 async {
                     let m = c.module(a)?;
-                    m.kind().await?;
-                    m.position().await
+                    let kind = m.kind().await?;
+                    Ok(in_unit(m.position().await?, kind))
                 }
                 .await,
             )?;
-            Python::attach(|py| Ok((f32_py(p.value()), suffix(p.unit()).1).into_pyobject(py)?.into_any().unbind()))
+            deliver(move |py| Ok((f32_py(p.value()), suffix(p.unit()).1).into_pyobject(py)?.into_any().unbind()))
         }))
     }
 
@@ -627,7 +647,7 @@ impl AsyncPowerCubeClient {
         let a = module.unwrap_or(self.module);
         Ok(spawn_task(done, async move {
             let s = raise(async { c.module(a)?.state().await }.await)?;
-            dict(|py| state_record(py, a, s))
+            dict(move |py| state_record(py, a, s))
         }))
     }
 
@@ -642,12 +662,12 @@ impl AsyncPowerCubeClient {
             let (p, s) = raise(
                 async {
                     let m = c.module(a)?;
-                    m.kind().await?;
-                    m.home_guarded(timeout, guard).await
+                    let kind = m.kind().await?;
+                    m.home_guarded(timeout, guard).await.map(|(p, s)| (in_unit(p, kind), s))
                 }
                 .await,
             )?;
-            dict(|py| {
+            dict(move |py| {
                 let r = state_record(py, a, s)?;
                 put_position(&r, "position", p)?;
                 Ok(r)
@@ -677,12 +697,12 @@ impl AsyncPowerCubeClient {
             let report = raise(
                 async {
                     let m = c.module(a)?;
-                    m.kind().await?;
-                    m.move_to_guarded(&spec, guard).await
+                    let kind = m.kind().await?;
+                    m.move_to_guarded(&spec, guard).await.map(|r| (kind, r))
                 }
                 .await,
             )?;
-            dict(|py| move_record(py, a, spec.target, &report))
+            dict(move |py| move_record(py, a, spec.target, &report))
         }))
     }
 
@@ -697,7 +717,7 @@ impl AsyncPowerCubeClient {
             let op =
                 motionlink_powercube::session::Op::Wait(address, motionlink_powercube::session::Until::Motion, timeout);
             match raise(c.run(op).await)? {
-                motionlink_powercube::session::Output::State(s) => dict(|py| state_record(py, a, s)),
+                motionlink_powercube::session::Output::State(s) => dict(move |py| state_record(py, a, s)),
                 other => raise(Err(Error::Unsupported(format!("the session answered {other:?}")))),
             }
         }))
@@ -710,7 +730,7 @@ impl AsyncPowerCubeClient {
         let a = module.unwrap_or(self.module);
         Ok(spawn_task(done, async move {
             raise(async { c.module(a)?.halt().await }.await)?;
-            Ok(Python::attach(|py| py.None()))
+            deliver(|py| Ok(py.None()))
         }))
     }
 
@@ -723,7 +743,7 @@ impl AsyncPowerCubeClient {
                 Some(Ok(client)) => raise(client.close().await)?,
                 Some(Err(shared)) => raise(shared.halt_started().await)?,
             }
-            Ok(Python::attach(|py| py.None()))
+            deliver(|py| Ok(py.None()))
         })
     }
 

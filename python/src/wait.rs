@@ -109,23 +109,57 @@ pub struct NativeTask {
     handle: std::sync::Mutex<Option<tokio::task::JoinHandle<()>>>,
 }
 
-/// Runs `fut` on [`runtime`] and calls `done(True, value)` or `done(False, exception)` with its outcome.
-/// The family's futures are polled there, not by asyncio: their wake-ups never wait for the GIL.
+/// What an async operation hands to Python: built, with the GIL, on the delivery thread.
+pub type Deliver = Box<dyn for<'py> FnOnce(Python<'py>) -> PyResult<Py<PyAny>> + Send>;
+
+/// The outcome of an async operation: a value to build in Python, or a failure.
+pub type Outcome = Result<Deliver, crate::errors::Failure>;
+
+/// The thread that turns outcomes into Python objects and calls their `done` callbacks: the runtime's
+/// thread never waits for the GIL (a session's timers, such as a watchdog's refresh, run there).
+fn delivery() -> &'static std::sync::Mutex<mpsc::Sender<(Py<PyAny>, Outcome)>> {
+    static TX: OnceLock<std::sync::Mutex<mpsc::Sender<(Py<PyAny>, Outcome)>>> = OnceLock::new();
+    TX.get_or_init(|| {
+        let (tx, rx) = mpsc::channel::<(Py<PyAny>, Outcome)>();
+        std::thread::Builder::new()
+            .name("motionlink-deliver".into())
+            .spawn(move || {
+                for (done, outcome) in rx {
+                    Python::attach(|py| {
+                        let built = match outcome {
+                            Ok(make) => make(py),
+                            Err(f) => Err(crate::errors::to_pyerr(py, f)),
+                        };
+                        let (ok, value) = match built {
+                            Ok(v) => (true, v),
+                            Err(e) => (false, e.into_value(py).into_any()),
+                        };
+                        if let Err(e) = done.call1(py, (ok, value)) {
+                            e.write_unraisable(py, None);
+                        }
+                    });
+                }
+            })
+            .expect("the delivery thread starts");
+        std::sync::Mutex::new(tx)
+    })
+}
+
+/// A [`Deliver`] from a closure.
+pub fn deliver(f: impl for<'py> FnOnce(Python<'py>) -> PyResult<Py<PyAny>> + Send + 'static) -> Outcome {
+    Ok(Box::new(f))
+}
+
+/// Runs `fut` on [`runtime`] and calls `done(True, value)` or `done(False, exception)` with its outcome
+/// (from the delivery thread). The family's futures are polled there, not by asyncio: their wake-ups
+/// never wait for the GIL.
 pub fn spawn_task<F>(done: Py<PyAny>, fut: F) -> NativeTask
 where
-    F: Future<Output = PyResult<Py<PyAny>>> + Send + 'static,
+    F: Future<Output = Outcome> + Send + 'static,
 {
     let handle = runtime().spawn(async move {
         let out = fut.await;
-        Python::attach(|py| {
-            let (ok, value) = match out {
-                Ok(v) => (true, v),
-                Err(e) => (false, e.into_value(py).into_any()),
-            };
-            if let Err(e) = done.call1(py, (ok, value)) {
-                e.write_unraisable(py, None);
-            }
-        });
+        let _ = motionlink_link::clock::lock(delivery()).send((done, out));
     });
     NativeTask { handle: std::sync::Mutex::new(Some(handle)) }
 }
