@@ -84,11 +84,14 @@ def test_leaving_the_block_stops_the_motion(family: str, leave_by: object) -> No
 
 
 @pytest.mark.parametrize("family", ["powercube", "scu", "compax"])
-def test_ctrl_c_stops_the_motion_within_100_ms_and_raises_keyboard_interrupt(family: str) -> None:
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_stops_the_motion_within_100_ms_and_raises_keyboard_interrupt(family: str, signum: int) -> None:
+    """SIGINT raises KeyboardInterrupt; SIGTERM with the README's handler raises SystemExit(143). Both stop
+    the motion first."""
     started, stopped = EVENTS[family]
     with motionlink.Emulator(family, serve="tcp") as emu:
         child = subprocess.Popen(
-            [sys.executable, CHILD, family, emu.port, "wait"],
+            [sys.executable, CHILD, family, emu.port, "wait" if signum == signal.SIGINT else "term"],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
@@ -97,16 +100,19 @@ def test_ctrl_c_stops_the_motion_within_100_ms_and_raises_keyboard_interrupt(fam
             assert child.stdout is not None and child.stdout.readline() == "moving\n"
             emu.wait_event(started, 10)
             signal_at = time.time()
-            os.kill(child.pid, signal.SIGINT)
+            os.kill(child.pid, signum)
             stop = emu.wait_event(stopped, 2)
             _, err = child.communicate(timeout=10)
         finally:
             if child.poll() is None:
                 child.kill()
-        print(f"{family}: stopped {1000 * (stop.at - signal_at):.1f} ms after SIGINT ({stop.text})")
+        print(f"{family}: stopped {1000 * (stop.at - signal_at):.1f} ms after signal {signum} ({stop.text})")
         assert stop.at - signal_at < 0.100, f"stopped {stop.at - signal_at:.3f} s after SIGINT: {stop.text}"
-        assert child.returncode != 0
-        assert "KeyboardInterrupt" in err, err
+        if signum == signal.SIGINT:
+            assert child.returncode != 0
+            assert "KeyboardInterrupt" in err, err
+        else:
+            assert child.returncode == 143, err
 
 
 @pytest.mark.parametrize("family", ["powercube", "scu", "compax"])
