@@ -549,6 +549,9 @@ impl AsyncPowerCubeClient {
     }
 }
 
+/// What an async open learns on the blocking pool: in process or not, and the port's description.
+type Learned = Result<(bool, String), Failure>;
+
 fn raise<T>(r: Result<T, Error>) -> Result<T, Failure> {
     r.map_err(|e| e.failure())
 }
@@ -576,7 +579,7 @@ impl AsyncPowerCubeClient {
             let module = s.module;
             let watchdog = s.watchdog;
             // The blocking open runs on tokio's blocking pool; what it learns comes back through `found`.
-            let found: Arc<std::sync::Mutex<Option<Result<(bool, String), Failure>>>> = Default::default();
+            let found: Arc<std::sync::Mutex<Option<Learned>>> = Default::default();
             let slot = Arc::clone(&found);
             let opened = AsyncClient::open(move || {
                 let (client, err) = match open(t, &s) {

@@ -93,8 +93,7 @@ fn open(port: Target, s: &Settings) -> Result<Client, Failure> {
         Target::InProcess(InProcess::Scu(host)) => Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>)),
         Target::InProcess(_) => return Err(usage("that emulator is not an SCU emulator")),
         Target::Url(PortUrl::Sim) => {
-            let mut sim = motionlink_scu::SimConfig::default();
-            sim.speed_mode = config.speed_mode;
+            let sim = motionlink_scu::SimConfig { speed_mode: config.speed_mode, ..Default::default() };
             let device = motionlink_scu::Emulator::new(sim).map_err(|e| usage(e.to_string()))?;
             let host =
                 motionlink_link::pipe::EmulatorHost::new(device, clock(), motionlink_link::pipe::PipeConfig::instant());

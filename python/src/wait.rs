@@ -115,12 +115,15 @@ pub type Deliver = Box<dyn for<'py> FnOnce(Python<'py>) -> PyResult<Py<PyAny>> +
 /// The outcome of an async operation: a value to build in Python, or a failure.
 pub type Outcome = Result<Deliver, crate::errors::Failure>;
 
+/// An outcome and the callback that gets it.
+type Delivery = (Py<PyAny>, Outcome);
+
 /// The thread that turns outcomes into Python objects and calls their `done` callbacks: the runtime's
 /// thread never waits for the GIL (a session's timers, such as a watchdog's refresh, run there).
-fn delivery() -> &'static std::sync::Mutex<mpsc::Sender<(Py<PyAny>, Outcome)>> {
-    static TX: OnceLock<std::sync::Mutex<mpsc::Sender<(Py<PyAny>, Outcome)>>> = OnceLock::new();
+fn delivery() -> &'static std::sync::Mutex<mpsc::Sender<Delivery>> {
+    static TX: OnceLock<std::sync::Mutex<mpsc::Sender<Delivery>>> = OnceLock::new();
     TX.get_or_init(|| {
-        let (tx, rx) = mpsc::channel::<(Py<PyAny>, Outcome)>();
+        let (tx, rx) = mpsc::channel::<Delivery>();
         std::thread::Builder::new()
             .name("motionlink-deliver".into())
             .spawn(move || {
