@@ -9,7 +9,7 @@ Results are typed records whose field names carry their units; failures are :cla
 
 from __future__ import annotations
 
-from .compax import Compax
+from .compax import AsyncCompax, Compax
 from .emulator import Emulator, Event
 from .errors import (
     Cancelled,
@@ -23,13 +23,15 @@ from .errors import (
     UsageError,
 )
 from .powercube import AsyncPowerCube, PowerCube
-from .scu import Scu
+from .scu import AsyncScu, Scu
 
 __all__ = [
     "Emulator",
     "Event",
     "Scu",
+    "AsyncScu",
     "Compax",
+    "AsyncCompax",
     "PowerCube",
     "AsyncPowerCube",
     "MotionlinkError",

@@ -6,13 +6,13 @@ percent of the drive's maximum (``speed_percent``), ramps in ms (``ramp_ms``).
 
 from __future__ import annotations
 
-from typing import Any, Iterator, List, Optional, Sequence, Union
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Union
 
 from . import _native
-from ._base import ClientBase, samples
+from ._base import AsyncClientBase, ClientBase, run_native, samples
 from .records import CompaxHome, CompaxMove, CompaxSample, DriveFound, Parameter, StatusValue
 
-__all__ = ["Compax"]
+__all__ = ["Compax", "AsyncCompax"]
 
 #: The in-position tolerance of a checked move unless told otherwise, in the drive's unit.
 DEFAULT_TOLERANCE_UNITS: float = float(_native.COMPAX_DEFAULT_TOLERANCE_UNITS)
@@ -48,14 +48,7 @@ class Compax(ClientBase):
         poll_ms: int = 50,
         tolerance_units: float = DEFAULT_TOLERANCE_UNITS,
     ) -> None:
-        settings = {
-            "drive": drive,
-            "mode": mode,
-            "baud": baud,
-            "timeout_ms": timeout_ms,
-            "poll_ms": poll_ms,
-            "tolerance_units": float(tolerance_units),
-        }
+        settings = _settings(drive, mode, baud, timeout_ms, poll_ms, tolerance_units)
         self._native = _native.CompaxClient(getattr(port, "_native", port), settings)
         self.drive = drive
         super().__init__()
@@ -139,5 +132,93 @@ class Compax(ClientBase):
         return samples(read, interval_ms, count)
 
 
+def _settings(
+    drive: int, mode: int, baud: int, timeout_ms: int, poll_ms: int, tolerance_units: float
+) -> Dict[str, Any]:
+    return {
+        "drive": drive,
+        "mode": mode,
+        "baud": baud,
+        "timeout_ms": timeout_ms,
+        "poll_ms": poll_ms,
+        "tolerance_units": float(tolerance_units),
+    }
+
+
 def _param(name: Union[str, int]) -> str:
     return f"P{name}" if isinstance(name, int) and not isinstance(name, bool) else str(name)
+
+
+class AsyncCompax(AsyncClientBase):
+    """The asyncio twin of :class:`Compax` (same arguments)::
+
+        async with AsyncCompax("tcp://127.0.0.1:5000") as drive:
+            await drive.move_to(100.0)
+
+    Cancelling a task that awaits ``move_to``, ``home`` or ``wait`` stops the drive (OUTPUT O0=0,
+    confirmed by S17); leaving the block stops what the session set in motion.
+    """
+
+    family = "compax"
+
+    def __init__(
+        self,
+        port: Union[str, Any] = "sim",
+        drive: int = 1,
+        *,
+        mode: int = 0,
+        baud: int = 9600,
+        timeout_ms: int = 200,
+        poll_ms: int = 50,
+        tolerance_units: float = DEFAULT_TOLERANCE_UNITS,
+    ) -> None:
+        self._port = getattr(port, "_native", port)
+        self._settings = _settings(drive, mode, baud, timeout_ms, poll_ms, tolerance_units)
+        self.drive = drive
+        self._native = None
+
+    async def _open(self) -> Any:
+        return await run_native(lambda done: _native.AsyncCompaxClient.open(self._port, self._settings, done))
+
+    async def open(self) -> "AsyncCompax":
+        """Opens the session (what ``async with`` does)."""
+        return await self.__aenter__()
+
+    async def position(self, drive: Optional[int] = None) -> float:
+        """The actual position S1."""
+        return float(await run_native(lambda done: self._client().position(drive, done)))
+
+    async def move_to(
+        self,
+        target: Optional[float] = None,
+        drive: Optional[int] = None,
+        *,
+        distance: Optional[float] = None,
+        speed_percent: Optional[float] = None,
+        ramp_ms: Optional[int] = None,
+        min_units: Optional[float] = None,
+        max_units: Optional[float] = None,
+        timeout_s: float = 600.0,
+    ) -> CompaxMove:
+        """A checked move, as :meth:`Compax.move_to`; cancelling the task stops the drive."""
+        return CompaxMove(
+            await run_native(
+                lambda done: self._client().move_to(
+                    target, distance, drive, speed_percent, ramp_ms, min_units, max_units, timeout_s, done
+                )
+            )
+        )
+
+    move = move_to
+
+    async def home(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> CompaxHome:
+        """POSA HOME, waited for; cancelling the task stops the drive."""
+        return CompaxHome(await run_native(lambda done: self._client().home(drive, timeout_s, done)))
+
+    async def wait(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> float:
+        """Waits until the positioning ended; S1 then. Cancelling the task stops the drive."""
+        return float(await run_native(lambda done: self._client().wait(drive, timeout_s, done)))
+
+    async def stop(self, drive: Optional[int] = None) -> None:
+        """Stops the drive (OUTPUT O0=0)."""
+        await run_native(lambda done: self._client().stop(drive, done))

@@ -6,13 +6,35 @@ Positions are encoder counts (``position_counts``); speeds are percent of full s
 
 from __future__ import annotations
 
-from typing import Any, Iterator, List, Optional, Sequence, Union
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Union
 
 from . import _native
-from ._base import ClientBase, samples
+from ._base import AsyncClientBase, ClientBase, run_native, samples
 from .records import ErrorCode, Parameter, ScuInfo, ScuMove, ScuRun, ScuSample
 
-__all__ = ["Scu"]
+__all__ = ["Scu", "AsyncScu"]
+
+
+def _settings(
+    baud: int,
+    safety: int,
+    reply_timeout_ms: int,
+    functions: Sequence[str],
+    strokes: Sequence[str],
+    tolerance_counts: int,
+    poll_ms: int,
+    speed_mode: str,
+) -> Dict[str, Any]:
+    return {
+        "baud": baud,
+        "safety": safety,
+        "reply_timeout_ms": reply_timeout_ms,
+        "functions": [str(f) for f in functions],
+        "strokes": [str(s) for s in strokes],
+        "tolerance_counts": tolerance_counts,
+        "poll_ms": poll_ms,
+        "speed_mode": speed_mode,
+    }
 
 
 def _function(f: Union[int, str]) -> str:
@@ -55,16 +77,9 @@ class Scu(ClientBase):
         poll_ms: int = 50,
         speed_mode: str = "percent",
     ) -> None:
-        settings = {
-            "baud": baud,
-            "safety": safety,
-            "reply_timeout_ms": reply_timeout_ms,
-            "functions": [str(f) for f in functions],
-            "strokes": [str(s) for s in strokes],
-            "tolerance_counts": tolerance_counts,
-            "poll_ms": poll_ms,
-            "speed_mode": speed_mode,
-        }
+        settings = _settings(
+            baud, safety, reply_timeout_ms, functions, strokes, tolerance_counts, poll_ms, speed_mode
+        )
         self._native = _native.ScuClient(getattr(port, "_native", port), settings)
         super().__init__()
 
@@ -122,3 +137,66 @@ class Scu(ClientBase):
             return ScuSample(fields)
 
         return samples(read, interval_ms, count)
+
+
+class AsyncScu(AsyncClientBase):
+    """The asyncio twin of :class:`Scu` (same arguments)::
+
+        async with AsyncScu("tcp://127.0.0.1:5000") as scu:
+            await scu.move_to(1, 400)
+
+    Cancelling a task that awaits ``move_to`` or ``run`` stops the function (fast RS, confirmed); leaving
+    the block sends RS for what the session started, then RA.
+    """
+
+    family = "scu"
+
+    def __init__(
+        self,
+        port: Union[str, Any] = "sim",
+        *,
+        baud: int = 38_400,
+        safety: int = 0,
+        reply_timeout_ms: int = 2000,
+        functions: Sequence[str] = (),
+        strokes: Sequence[str] = (),
+        tolerance_counts: int = 5,
+        poll_ms: int = 50,
+        speed_mode: str = "percent",
+    ) -> None:
+        self._port = getattr(port, "_native", port)
+        self._settings = _settings(
+            baud, safety, reply_timeout_ms, functions, strokes, tolerance_counts, poll_ms, speed_mode
+        )
+        self._native = None
+
+    async def _open(self) -> Any:
+        return await run_native(lambda done: _native.AsyncScuClient.open(self._port, self._settings, done))
+
+    async def open(self) -> "AsyncScu":
+        """Opens the session (what ``async with`` does)."""
+        return await self.__aenter__()
+
+    async def position(self, actuator: int) -> int:
+        """The position of ``actuator``, in counts."""
+        return int(await run_native(lambda done: self._client().position(actuator, done)))
+
+    async def move_to(
+        self, actuator: int, target_counts: int, *, speed: int = 100, function: Optional[int] = None
+    ) -> ScuMove:
+        """A verified move, as :meth:`Scu.move_to`; cancelling the task stops the function."""
+        return ScuMove(
+            await run_native(lambda done: self._client().move_to(actuator, target_counts, speed, function, done))
+        )
+
+    move = move_to
+
+    async def run(self, function: Union[int, str], direction: str, *, seconds: Optional[float] = None) -> ScuRun:
+        """Runs a function until it ends or ``seconds`` passed, then stops it; cancelling stops it."""
+        return ScuRun(
+            await run_native(lambda done: self._client().run(_function(function), direction, seconds, done))
+        )
+
+    async def stop(self, function: Union[int, str] = 1, *, soft: bool = False) -> None:
+        """Stops a function (RS)."""
+        await run_native(lambda done: self._client().stop(_function(function), soft, done))

@@ -4,12 +4,15 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use motionlink_compax::client::{BusConfig, MoveRequest, MoveTarget, TravelLimits, DEFAULT_IN_POSITION_TOLERANCE};
-use motionlink_compax::model::{
-    OutputState, ParamId, Position, RampMs, S17Flag, SpeedPercent, StatusId, StatusValue, BAUD_RATES,
+use motionlink_compax::client::{
+    BusConfig, MoveOptions, MoveReport, MoveRequest, MoveTarget, TravelLimits, DEFAULT_IN_POSITION_TOLERANCE,
 };
+use motionlink_compax::model::{
+    Command, OutputState, ParamId, Position, RampMs, S17Flag, SpeedPercent, StatusId, StatusValue, BAUD_RATES,
+};
+use motionlink_compax::session::{Op, Output};
 use motionlink_compax::wire::{Address, Mode};
-use motionlink_compax::{Client, Error};
+use motionlink_compax::{AsyncClient, Client, Error};
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::link::{Link, SerialSettings};
 use motionlink_link::url::PortUrl;
@@ -19,7 +22,7 @@ use pyo3::types::PyDict;
 use crate::common::{target, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::interruptible;
+use crate::wait::{block_on_runtime, deliver, interruptible, spawn_task, NativeTask};
 
 const FAMILY: &str = "compax";
 
@@ -39,7 +42,8 @@ pub struct Settings {
     tolerance_units: f64,
 }
 
-fn open(port: Target, s: &Settings) -> Result<Client, Failure> {
+/// The link `port` names and the session's settings, checked.
+fn link(port: Target, s: &Settings) -> Result<(Box<dyn Link>, BusConfig), Failure> {
     let mode = Mode::from_p196(s.mode).map_err(|e| usage(format!("mode (P196) {}: {e}", s.mode)))?;
     Address::drive(s.drive).map_err(|e| usage(format!("drive {}: {e}", s.drive)))?;
     if !BAUD_RATES.contains(&s.baud) {
@@ -75,6 +79,11 @@ fn open(port: Target, s: &Settings) -> Result<Client, Failure> {
     cfg.reply_timeout = Duration::from_millis(s.timeout_ms);
     cfg.poll_interval = Duration::from_millis(s.poll_ms);
     cfg.in_position_tolerance = Position::new(s.tolerance_units).map_err(|e| usage(format!("tolerance_units: {e}")))?;
+    Ok((link, cfg))
+}
+
+fn open(port: Target, s: &Settings) -> Result<Client, Failure> {
+    let (link, cfg) = link(port, s)?;
     Client::new(link, clock(), cfg).map_err(|e| e.failure())
 }
 
@@ -112,6 +121,36 @@ fn status_record<'py>(py: Python<'py>, drive: u8, id: StatusId, v: &StatusValue)
         other => r.set("value", other.to_string())?,
     };
     Ok(r)
+}
+
+fn move_request(
+    target: Option<f64>,
+    distance: Option<f64>,
+    speed_percent: Option<f64>,
+    ramp_ms: Option<u32>,
+    (min_units, max_units): (Option<f64>, Option<f64>),
+    timeout_s: f64,
+) -> Result<MoveRequest, Failure> {
+    let target = match (target, distance) {
+        (Some(t), None) => MoveTarget::Absolute(Position::new(t).map_err(|e| usage(format!("target: {e}")))?),
+        (None, Some(d)) => MoveTarget::Relative(Position::new(d).map_err(|e| usage(format!("distance: {e}")))?),
+        _ => return Err(usage("give one of target= (absolute) and distance= (relative)")),
+    };
+    let speed = speed_percent.map(SpeedPercent::new).transpose().map_err(|e| usage(format!("speed_percent: {e}")))?;
+    let accel = ramp_ms.map(RampMs::new).transpose().map_err(|e| usage(format!("ramp_ms: {e}")))?;
+    let limit =
+        |name: &str, v: Option<f64>| v.map(Position::new).transpose().map_err(|e| usage(format!("{name}: {e}")));
+    let limits = TravelLimits::new(limit("min_units", min_units)?, limit("max_units", max_units)?)
+        .map_err(|e| usage(format!("min_units / max_units: {e}")))?;
+    Ok(MoveRequest { target, speed, accel, binary: false, limits, timeout: Some(seconds("timeout_s", timeout_s)?) })
+}
+
+fn move_record<'py>(py: Python<'py>, report: &MoveReport, tolerance: Position) -> PyResult<Record<'py>> {
+    let rec = Record::new(py);
+    rec.set("family", FAMILY)?.set("drive", report.address.get())?.set("start_units", report.start.units())?;
+    rec.set("target_units", report.target.units())?.set("reached_units", report.reached.units())?;
+    rec.set("difference_units", report.difference())?.set("tolerance_units", tolerance.units())?;
+    Ok(rec)
 }
 
 /// A session with COMPAX drives on one bus (the native half of `motionlink.Compax`).
@@ -250,38 +289,11 @@ impl CompaxClient {
     ) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
-        let request = (|| -> Result<MoveRequest, Failure> {
-            let target = match (target, distance) {
-                (Some(t), None) => MoveTarget::Absolute(Position::new(t).map_err(|e| usage(format!("target: {e}")))?),
-                (None, Some(d)) => MoveTarget::Relative(Position::new(d).map_err(|e| usage(format!("distance: {e}")))?),
-                _ => return Err(usage("give one of target= (absolute) and distance= (relative)")),
-            };
-            let speed =
-                speed_percent.map(SpeedPercent::new).transpose().map_err(|e| usage(format!("speed_percent: {e}")))?;
-            let accel = ramp_ms.map(RampMs::new).transpose().map_err(|e| usage(format!("ramp_ms: {e}")))?;
-            let limit = |name: &str, v: Option<f64>| {
-                v.map(Position::new).transpose().map_err(|e| usage(format!("{name}: {e}")))
-            };
-            let limits = TravelLimits::new(limit("min_units", min_units)?, limit("max_units", max_units)?)
-                .map_err(|e| usage(format!("min_units / max_units: {e}")))?;
-            Ok(MoveRequest {
-                target,
-                speed,
-                accel,
-                binary: false,
-                limits,
-                timeout: Some(seconds("timeout_s", timeout_s)?),
-            })
-        })()
-        .map_err(|f| to_pyerr(py, f))?;
+        let request = move_request(target, distance, speed_percent, ramp_ms, (min_units, max_units), timeout_s)
+            .map_err(|f| to_pyerr(py, f))?;
         let r = interruptible(py, Some(&self.token), || c.move_to(a, &request, &mut |_| {}), cancel_cause)?;
         let report = r.or_raise(py)?;
-        let rec = Record::new(py);
-        rec.set("family", FAMILY)?.set("drive", a.get())?.set("start_units", report.start.units())?;
-        rec.set("target_units", report.target.units())?.set("reached_units", report.reached.units())?;
-        rec.set("difference_units", report.difference())?;
-        rec.set("tolerance_units", c.config().in_position_tolerance.units())?;
-        Ok(rec.done())
+        Ok(move_record(py, &report, c.config().in_position_tolerance)?.done())
     }
 
     /// POSA HOME, waited for; Ctrl-C stops the drive.
@@ -379,4 +391,185 @@ impl CompaxClient {
 /// The in-position tolerance the library uses unless told otherwise.
 pub fn default_tolerance() -> f64 {
     DEFAULT_IN_POSITION_TOLERANCE
+}
+
+/// An async session with COMPAX drives (the native half of `motionlink.AsyncCompax`): cancelling a move's,
+/// a homing's or a wait's task drops its future, which stops the drive (OUTPUT O0=0, confirmed by S17).
+#[pyclass(frozen, module = "motionlink._native")]
+pub struct AsyncCompaxClient {
+    slot: Slot<AsyncClient>,
+    drive: u8,
+    port: String,
+}
+
+impl AsyncCompaxClient {
+    fn client(&self, py: Python<'_>) -> PyResult<Arc<AsyncClient>> {
+        self.slot.get().map_err(|f| to_pyerr(py, f))
+    }
+
+    fn drive(&self, py: Python<'_>, drive: Option<u8>) -> PyResult<Address> {
+        address(drive.unwrap_or(self.drive)).map_err(|f| to_pyerr(py, f))
+    }
+}
+
+fn fail<T>(r: Result<T, Error>) -> Result<T, Failure> {
+    r.map_err(|e| e.failure())
+}
+
+fn units(p: Position) -> crate::wait::Outcome {
+    deliver(move |py| Ok(p.units().into_pyobject(py)?.into_any().unbind()))
+}
+
+#[pymethods]
+impl AsyncCompaxClient {
+    /// Opens a session on the runtime (the port on its blocking pool): `done(ok, client)`.
+    #[staticmethod]
+    fn open(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
+        let port = match &t {
+            Target::InProcess(_) => "in-process emulator".to_string(),
+            Target::Url(u) => u.to_string(),
+        };
+        Ok(spawn_task(done, async move {
+            let drive = settings.drive;
+            let opened = tokio::task::spawn_blocking(move || link(t, &settings)).await;
+            let (link, cfg) = opened.map_err(|e| {
+                Failure::new(
+                    motionlink_link::error::ErrorClass::Transport(motionlink_link::error::TransportKind::Io),
+                    FAMILY,
+                    format!("the opening task failed: {e}"),
+                )
+            })??;
+            let client = fail(AsyncClient::new(link, clock(), cfg))?;
+            let native = AsyncCompaxClient { slot: Slot::new(client, FAMILY), drive, port };
+            deliver(move |py| Ok(Py::new(py, native)?.into_any()))
+        }))
+    }
+
+    /// The port.
+    #[getter]
+    fn port(&self) -> String {
+        self.port.clone()
+    }
+
+    /// The actual position S1: `done(ok, float)`.
+    #[pyo3(signature = (drive, done))]
+    fn position(&self, py: Python<'_>, drive: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client(py)?;
+        let a = self.drive(py, drive)?;
+        Ok(spawn_task(done, async move { units(fail(c.read_position(a).await)?) }))
+    }
+
+    /// A checked move, waited for; cancelling the task stops the drive.
+    #[pyo3(signature = (target, distance, drive, speed_percent, ramp_ms, min_units, max_units, timeout_s, done))]
+    #[allow(clippy::too_many_arguments)]
+    fn move_to(
+        &self,
+        py: Python<'_>,
+        target: Option<f64>,
+        distance: Option<f64>,
+        drive: Option<u8>,
+        speed_percent: Option<f64>,
+        ramp_ms: Option<u32>,
+        min_units: Option<f64>,
+        max_units: Option<f64>,
+        timeout_s: f64,
+        done: Py<PyAny>,
+    ) -> PyResult<NativeTask> {
+        let c = self.client(py)?;
+        let a = self.drive(py, drive)?;
+        let request = move_request(target, distance, speed_percent, ramp_ms, (min_units, max_units), timeout_s)
+            .map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            let report = fail(c.move_to(a, &request).await)?;
+            let tolerance = c.config().in_position_tolerance;
+            deliver(move |py| Ok(move_record(py, &report, tolerance)?.done().into_any().unbind()))
+        }))
+    }
+
+    /// POSA HOME, waited for; cancelling the task stops the drive.
+    #[pyo3(signature = (drive, timeout_s, done))]
+    fn home(&self, py: Python<'_>, drive: Option<u8>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client(py)?;
+        let a = self.drive(py, drive)?;
+        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            match fail(c.start(Op::Move(a, Command::PosAHome, MoveOptions::default())).await)? {
+                Output::Done => {}
+                other => {
+                    return Err(Failure::new(
+                        motionlink_link::error::ErrorClass::Transport(motionlink_link::error::TransportKind::Corrupt),
+                        FAMILY,
+                        format!("the session answered {other:?} to POSA HOME"),
+                    ))
+                }
+            }
+            fail(c.wait_reached(&[a], Some(timeout)).await)?;
+            let p = fail(c.read_position(a).await)?;
+            deliver(move |py| {
+                let r = Record::new(py);
+                r.set("family", FAMILY)?.set("drive", a.get())?.set("position_units", p.units())?;
+                Ok(r.done().into_any().unbind())
+            })
+        }))
+    }
+
+    /// Waits until the drive's positioning ended; its position then. Cancelling the task stops the drive.
+    #[pyo3(signature = (drive, timeout_s, done))]
+    fn wait(&self, py: Python<'_>, drive: Option<u8>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client(py)?;
+        let a = self.drive(py, drive)?;
+        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            fail(c.wait_reached(&[a], Some(timeout)).await)?;
+            units(fail(c.read_position(a).await)?)
+        }))
+    }
+
+    /// Stops the drive (OUTPUT O0=0).
+    #[pyo3(signature = (drive, done))]
+    fn stop(&self, py: Python<'_>, drive: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client(py)?;
+        let a = self.drive(py, drive)?;
+        Ok(spawn_task(done, async move {
+            fail(c.stop(a).await)?;
+            deliver(|py| Ok(py.None()))
+        }))
+    }
+
+    /// Ends the session (stops what it set in motion that still moves): `done(ok, None)`.
+    fn close(&self, done: Py<PyAny>) -> NativeTask {
+        let taken = self.slot.take(&CancelToken::new(), Duration::ZERO);
+        spawn_task(done, async move {
+            match taken {
+                None => {}
+                Some(Ok(client)) => {
+                    fail(client.close().await)?;
+                }
+                Some(Err(shared)) => {
+                    let report = shared.stop_started().await;
+                    if !report.all_confirmed() {
+                        return Err(Failure::new(
+                            motionlink_link::error::ErrorClass::Device,
+                            FAMILY,
+                            format!("closing: {report}"),
+                        ));
+                    }
+                }
+            }
+            deliver(|py| Ok(py.None()))
+        })
+    }
+
+    /// Ends the session from synchronous code (atexit), waiting without the GIL.
+    fn close_blocking(&self, py: Python<'_>) -> PyResult<()> {
+        let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
+        match taken {
+            Ok(client) => block_on_runtime(py, client.close())?.or_raise(py).map(|_| ()),
+            Err(shared) => {
+                block_on_runtime(py, async move { shared.stop_started().await })?;
+                Ok(())
+            }
+        }
+    }
 }

@@ -20,7 +20,10 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<powercube::PowerCubeClient>()?;
     m.add_class::<powercube::AsyncPowerCubeClient>()?;
     m.add_class::<scu::ScuClient>()?;
+    m.add_class::<scu::AsyncScuClient>()?;
+    m.add_class::<wait::NativeTask>()?;
     m.add_class::<compax::CompaxClient>()?;
+    m.add_class::<compax::AsyncCompaxClient>()?;
     m.add("COMPAX_DEFAULT_TOLERANCE_UNITS", compax::default_tolerance())?;
     Ok(())
 }

@@ -12,16 +12,16 @@ use motionlink_scu::model::{
     lookup, status1, Actuator, DataEntryExt, DataIndex, Function, Item, MotionDirection, MotionFunction, SafetyId,
     Speed, SpeedMode, StopMode,
 };
-use motionlink_scu::session::RunAction;
+use motionlink_scu::session::{MoveReport, RunAction, RunReport};
 use motionlink_scu::value::Value;
-use motionlink_scu::{Client, ClientConfig, Error, FunctionMap, MoveOptions, StrokeLimits};
+use motionlink_scu::{AsyncClient, Client, ClientConfig, Error, FunctionMap, MoveOptions, StrokeLimits};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::common::{json_py, target, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::interruptible;
+use crate::wait::{block_on_runtime, deliver, interruptible, spawn_task, NativeTask};
 
 const FAMILY: &str = "scu";
 
@@ -87,7 +87,8 @@ fn client_config(s: &Settings) -> Result<ClientConfig, Failure> {
     Ok(config)
 }
 
-fn open(port: Target, s: &Settings) -> Result<Client, Failure> {
+/// How to reach the unit `port` names, and the session's settings.
+fn connector(port: Target, s: &Settings) -> Result<(Connector, ClientConfig), Failure> {
     let config = client_config(s)?;
     let connector: Connector = match port {
         Target::InProcess(InProcess::Scu(host)) => Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>)),
@@ -105,6 +106,11 @@ fn open(port: Target, s: &Settings) -> Result<Client, Failure> {
             Box::new(move || p.open_byte_link(settings))
         }
     };
+    Ok((connector, config))
+}
+
+fn open(port: Target, s: &Settings) -> Result<Client, Failure> {
+    let (connector, config) = connector(port, s)?;
     Client::open(connector, clock(), config).map_err(|e| e.failure())
 }
 
@@ -156,6 +162,74 @@ fn value_unit(v: &Value, unit: &'static str) -> &'static str {
 
 fn error_code<'py>(py: Python<'py>, v: &Value) -> PyResult<Bound<'py, PyAny>> {
     json_py(py, &v.to_json())
+}
+
+fn move_record<'py>(py: Python<'py>, target_counts: i32, report: &MoveReport) -> PyResult<Record<'py>> {
+    let rec = Record::new(py);
+    rec.set("family", FAMILY)?.set("function", report.function.number())?;
+    rec.set("actuator", report.actuator.number())?.set("target_counts", target_counts)?;
+    rec.set("position_counts", report.position_counts)?.set("time_s", report.duration.as_secs_f64())?;
+    let mut acts = Vec::new();
+    for o in &report.actuators {
+        let d = Record::new(py);
+        d.set("actuator", o.actuator.number())?.set("target_counts", o.target_counts)?;
+        d.set("start_counts", o.start_counts)?.set("position_counts", o.position_counts)?;
+        d.set("difference_counts", o.difference_counts())?.set("moved", o.moved)?;
+        acts.push(d.done());
+    }
+    rec.set("actuators", acts)?;
+    Ok(rec)
+}
+
+fn run_record<'py>(py: Python<'py>, function: Function, report: &RunReport) -> PyResult<Record<'py>> {
+    let rec = Record::new(py);
+    rec.set("family", FAMILY)?.set("function", function.number())?;
+    rec.set("time_s", report.duration.as_secs_f64())?;
+    let mut rest = Vec::new();
+    for (a, p) in &report.rest {
+        let d = Record::new(py);
+        d.set("actuator", a.number())?.set("position_counts", *p)?;
+        rest.push(d.done());
+    }
+    rec.set("rest", rest)?;
+    Ok(rec)
+}
+
+/// A move's checked arguments: the actuator, the function named (if any), the speed.
+type MoveArgs = (Actuator, Option<MotionFunction>, Speed);
+
+fn move_args(actuator: u8, function: Option<u8>, speed: u32, mode: SpeedMode) -> Result<MoveArgs, Failure> {
+    let a = self::actuator(actuator)?;
+    let f = function
+        .map(|n| MotionFunction::new(n).ok_or_else(|| usage(format!("function {n}: the motion functions are F1..F10"))))
+        .transpose()?;
+    let speed = Speed::parse(&speed.to_string(), mode).map_err(|e| usage(format!("speed {e}")))?;
+    Ok((a, f, speed))
+}
+
+/// A run's checked arguments: the function, what to do, the time limit.
+type RunArgs = (Function, RunAction, Option<Duration>);
+
+fn run_args(function: &str, direction: &str, seconds: Option<f64>) -> Result<RunArgs, Failure> {
+    let f = parse_function(function)?;
+    let action = match f {
+        Function::Motion(m) => RunAction::Motion(
+            m,
+            MotionDirection::parse(direction).ok_or_else(|| {
+                usage(format!(
+                    "{direction:?} is not a direction: in, out, mem1..mem4, int-in, int-out, remote, none, or 0..9"
+                ))
+            })?,
+        ),
+        f if direction.eq_ignore_ascii_case("on") => RunAction::Switch(f),
+        f => return Err(usage(format!("{f} is switched with \"on\", not {direction:?}"))),
+    };
+    let limit = match seconds {
+        None => None,
+        Some(s) if s.is_finite() && (0.0..=86_400.0).contains(&s) => Some(Duration::from_secs_f64(s)),
+        Some(s) => return Err(usage(format!("seconds {s}: give 0 .. 86400"))),
+    };
+    Ok((f, action, limit))
 }
 
 /// A session with an SCU control unit (the native half of `motionlink.Scu`).
@@ -311,15 +385,7 @@ impl ScuClient {
         function: Option<u8>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
-        let a = self::actuator(actuator).map_err(|f| to_pyerr(py, f))?;
-        let f = function
-            .map(|n| {
-                MotionFunction::new(n).ok_or_else(|| usage(format!("function {n}: the motion functions are F1..F10")))
-            })
-            .transpose()
-            .map_err(|f| to_pyerr(py, f))?;
-        let speed =
-            Speed::parse(&speed.to_string(), self.speed_mode).map_err(|e| to_pyerr(py, usage(format!("speed {e}"))))?;
+        let (a, f, speed) = move_args(actuator, function, speed, self.speed_mode).map_err(|f| to_pyerr(py, f))?;
         let token = &self.token;
         let r = interruptible(
             py,
@@ -328,20 +394,7 @@ impl ScuClient {
             cancel_cause,
         )?;
         let report = r.or_raise(py)?;
-        let rec = Record::new(py);
-        rec.set("family", FAMILY)?.set("function", report.function.number())?;
-        rec.set("actuator", report.actuator.number())?.set("target_counts", target_counts)?;
-        rec.set("position_counts", report.position_counts)?.set("time_s", report.duration.as_secs_f64())?;
-        let mut acts = Vec::new();
-        for o in &report.actuators {
-            let d = Record::new(py);
-            d.set("actuator", o.actuator.number())?.set("target_counts", o.target_counts)?;
-            d.set("start_counts", o.start_counts)?.set("position_counts", o.position_counts)?;
-            d.set("difference_counts", o.difference_counts())?.set("moved", o.moved)?;
-            acts.push(d.done());
-        }
-        rec.set("actuators", acts)?;
-        Ok(rec.done())
+        Ok(move_record(py, target_counts, &report)?.done())
     }
 
     /// Runs a function until it ends (or `seconds`, or Ctrl-C), then stops it; where the actuators rest.
@@ -354,42 +407,11 @@ impl ScuClient {
         seconds: Option<f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
-        let f = parse_function(function).map_err(|f| to_pyerr(py, f))?;
-        let action = match f {
-            Function::Motion(m) => RunAction::Motion(
-                m,
-                MotionDirection::parse(direction).ok_or_else(|| {
-                    to_pyerr(
-                        py,
-                        usage(format!(
-                            "{direction:?} is not a direction: in, out, mem1..mem4, int-in, int-out, remote, none, or 0..9"
-                        )),
-                    )
-                })?,
-            ),
-            f if direction.eq_ignore_ascii_case("on") => RunAction::Switch(f),
-            f => return Err(to_pyerr(py, usage(format!("{f} is switched with \"on\", not {direction:?}")))),
-        };
-        let limit = match seconds {
-            None => None,
-            Some(s) if s.is_finite() && (0.0..=86_400.0).contains(&s) => Some(Duration::from_secs_f64(s)),
-            Some(s) => return Err(to_pyerr(py, usage(format!("seconds {s}: give 0 .. 86400")))),
-        };
+        let (f, action, limit) = run_args(function, direction, seconds).map_err(|f| to_pyerr(py, f))?;
         let token = &self.token;
         let r = interruptible(py, Some(token), || c.run(action, limit, &|_| {}, Some(token)), cancel_cause)?;
         let report = r.or_raise(py)?;
-        let rec = Record::new(py);
-        rec.set("family", FAMILY)?
-            .set("function", function.trim_start_matches(['F', 'f']).parse::<u8>().unwrap_or(0))?;
-        rec.set("time_s", report.duration.as_secs_f64())?;
-        let mut rest = Vec::new();
-        for (a, p) in &report.rest {
-            let d = Record::new(py);
-            d.set("actuator", a.number())?.set("position_counts", *p)?;
-            rest.push(d.done());
-        }
-        rec.set("rest", rest)?;
-        Ok(rec.done())
+        Ok(run_record(py, f, &report)?.done())
     }
 
     /// Stops a function (RS): a motion fast, or along its ramp with `soft`.
@@ -447,6 +469,136 @@ impl ScuClient {
             // A call of another thread still runs: it was cancelled (its motion stops) and the session ends
             // (RS, RA) when it returns and drops the client.
             Some(Err(shared)) => {
+                drop(shared);
+                Ok(())
+            }
+        }
+    }
+}
+
+/// An async session with an SCU (the native half of `motionlink.AsyncScu`): the operations run on the
+/// library's runtime; cancelling a move's or a run's task drops its future, which stops the function
+/// (fast RS, confirmed).
+#[pyclass(frozen, module = "motionlink._native")]
+pub struct AsyncScuClient {
+    slot: Slot<AsyncClient>,
+    port: String,
+    speed_mode: SpeedMode,
+}
+
+impl AsyncScuClient {
+    fn client(&self, py: Python<'_>) -> PyResult<Arc<AsyncClient>> {
+        self.slot.get().map_err(|f| to_pyerr(py, f))
+    }
+}
+
+fn fail<T>(r: Result<T, Error>) -> Result<T, Failure> {
+    r.map_err(|e| e.failure())
+}
+
+#[pymethods]
+impl AsyncScuClient {
+    /// Opens a session on the runtime: `done(ok, client)`.
+    #[staticmethod]
+    fn open(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
+        let (connector, config) = connector(t, &settings).map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            let client = fail(AsyncClient::open(connector, clock(), config).await)?;
+            let port = client.port().to_string();
+            let speed_mode = client.config().speed_mode;
+            let native = AsyncScuClient { slot: Slot::new(client, FAMILY), port, speed_mode };
+            deliver(move |py| Ok(Py::new(py, native)?.into_any()))
+        }))
+    }
+
+    /// The port.
+    #[getter]
+    fn port(&self) -> String {
+        self.port.clone()
+    }
+
+    /// The position of an actuator in counts: `done(ok, int)`.
+    fn position(&self, py: Python<'_>, actuator: u8, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client(py)?;
+        let a = self::actuator(actuator).map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            let p = fail(c.position(a).await)?;
+            deliver(move |py| Ok(p.into_pyobject(py)?.into_any().unbind()))
+        }))
+    }
+
+    /// A verified move; cancelling the task stops the function.
+    #[pyo3(signature = (actuator, target_counts, speed, function, done))]
+    fn move_to(
+        &self,
+        py: Python<'_>,
+        actuator: u8,
+        target_counts: i32,
+        speed: u32,
+        function: Option<u8>,
+        done: Py<PyAny>,
+    ) -> PyResult<NativeTask> {
+        let c = self.client(py)?;
+        let (a, f, speed) = move_args(actuator, function, speed, self.speed_mode).map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            let report = fail(c.move_to(a, target_counts, speed, f).await)?;
+            deliver(move |py| Ok(move_record(py, target_counts, &report)?.done().into_any().unbind()))
+        }))
+    }
+
+    /// Runs a function until it ends (or `seconds`), then stops it; cancelling the task stops it.
+    #[pyo3(signature = (function, direction, seconds, done))]
+    fn run(
+        &self,
+        py: Python<'_>,
+        function: &str,
+        direction: &str,
+        seconds: Option<f64>,
+        done: Py<PyAny>,
+    ) -> PyResult<NativeTask> {
+        let c = self.client(py)?;
+        let (f, action, limit) = run_args(function, direction, seconds).map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            let report = fail(c.run(action, limit).await)?;
+            deliver(move |py| Ok(run_record(py, f, &report)?.done().into_any().unbind()))
+        }))
+    }
+
+    /// Stops a function (RS).
+    #[pyo3(signature = (function, soft, done))]
+    fn stop(&self, py: Python<'_>, function: &str, soft: bool, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client(py)?;
+        let f = parse_function(function).map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            fail(match f {
+                Function::Motion(m) => c.stop_motion(m, if soft { StopMode::Soft } else { StopMode::Fast }).await,
+                f => c.switch(f, false).await,
+            })?;
+            deliver(|py| Ok(py.None()))
+        }))
+    }
+
+    /// Ends the session (RS for what it started, then RA): `done(ok, None)`.
+    fn close(&self, done: Py<PyAny>) -> NativeTask {
+        let taken = self.slot.take(&CancelToken::new(), Duration::ZERO);
+        spawn_task(done, async move {
+            match taken {
+                None => {}
+                Some(Ok(client)) => fail(client.close().await)?,
+                // A call still under way holds the session: it ends (RS, RA) when that call ends.
+                Some(Err(shared)) => drop(shared),
+            }
+            deliver(|py| Ok(py.None()))
+        })
+    }
+
+    /// Ends the session from synchronous code (atexit), waiting without the GIL.
+    fn close_blocking(&self, py: Python<'_>) -> PyResult<()> {
+        let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
+        match taken {
+            Ok(client) => block_on_runtime(py, client.close())?.or_raise(py),
+            Err(shared) => {
                 drop(shared);
                 Ok(())
             }
