@@ -66,6 +66,8 @@ def test_leaving_the_block_stops_the_motion(family: str, leave_by: object) -> No
             with client:
                 mover = run_in_thread(op)
                 emu.wait_event(started, 10)
+                # The session knows what it set in motion (the function F1, module 1, drive 1).
+                assert client.started() == [1]
                 if leave_by is not None:
                     raise leave_by("leaving")  # type: ignore[operator]
 
@@ -111,6 +113,8 @@ def test_ctrl_c_stops_the_motion_within_100_ms_and_raises_keyboard_interrupt(fam
         if signum == signal.SIGINT:
             assert child.returncode != 0
             assert "KeyboardInterrupt" in err, err
+            # The interrupt's cause is the library's account of the stop.
+            assert "motionlink.errors.Cancelled" in err and "direct cause" in err, err
         else:
             assert child.returncode == 143, err
 
