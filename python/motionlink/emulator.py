@@ -4,7 +4,7 @@ port (or a pseudo-terminal), with the events the emulated device reports."""
 from __future__ import annotations
 
 import time
-from typing import Any, Callable, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 from . import _native
 
@@ -60,7 +60,7 @@ class Emulator:
         drives: Optional[Sequence[int]] = None,
         mode: Optional[int] = None,
         baud: Optional[int] = None,
-        params: Optional[dict] = None,
+        params: Optional[Dict[str, float]] = None,
         strict: bool = False,
         can: bool = False,
     ) -> None:

@@ -94,7 +94,7 @@ class Record:
         return {k: plain(v) for k, v in self._fields.items()}
 
     def __eq__(self, other: object) -> bool:
-        return type(other) is type(self) and other._fields == self._fields  # type: ignore[attr-defined]
+        return type(other) is type(self) and other._fields == self._fields
 
     def __hash__(self) -> int:
         return hash((type(self).__name__, repr(self._fields)))
