@@ -79,6 +79,17 @@ def test_can_bus_in_process() -> None:
         assert c.move_to(0.2).reached_rad == pytest.approx(0.2, abs=1e-3)
 
 
+def test_can_bus_behind_a_served_slcan_adapter() -> None:
+    """A CAN URL: the served CAN emulator sits behind an emulated SLCAN adapter on a TCP port."""
+    with motionlink.Emulator("powercube", can=True, serve="tcp", modules=[1, 4]) as emu:
+        assert emu.port.startswith("slcan://tcp://127.0.0.1:")
+        with motionlink.PowerCube(emu.port) as c:
+            assert [m.module for m in c.scan()] == [1, 4]
+            assert c.move_to(0.2).reached_rad == pytest.approx(0.2, abs=1e-3)
+        texts = [e.text for e in emu.take_events()]
+        assert "module 1 watchdog online" in texts and "module 1 at rest 0.2000 rad" in texts, texts
+
+
 def test_sim_url_and_served_tcp_port() -> None:
     with motionlink.PowerCube("sim") as c:
         assert c.info().kind == "rotary"
