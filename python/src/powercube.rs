@@ -777,3 +777,13 @@ impl Drop for AsyncPowerCubeClient {
         }
     }
 }
+
+impl Drop for PowerCubeClient {
+    fn drop(&mut self) {
+        // Not closed by its owner (garbage-collected): the session ends here, stopping what it started as
+        // the family's client does when dropped, without holding the GIL while it waits for the device.
+        if let Some(taken) = self.slot.take(&self.token, self.close_bound) {
+            Python::attach(|py| py.detach(move || drop(taken)));
+        }
+    }
+}

@@ -4,6 +4,7 @@ motion the client started. Every wait is on an emulator event or a line the chil
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import subprocess
@@ -129,3 +130,13 @@ def test_the_end_of_the_program_stops_the_motion_of_an_open_client(family: str) 
         assert done.returncode == 0, done.stderr
         emu.wait_event(started, 5)
         emu.wait_event(stopped, 2)
+
+
+def test_a_garbage_collected_client_ends_its_session(scu_emulator: motionlink.Emulator) -> None:
+    """A client nobody closed ends its session when it is collected (SCU: RA, which the unit reports)."""
+    client = motionlink.Scu(scu_emulator)
+    client.position(1)
+    scu_emulator.take_events()
+    del client
+    gc.collect()
+    scu_emulator.wait_event(lambda t: t == "remote mode closed by RA", 2)
