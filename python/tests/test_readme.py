@@ -29,3 +29,19 @@ def test_the_readme_example_runs() -> None:
     assert out[0] == "rotary"
     assert out[1] == "0.500 rad"
     assert len(out) == 5 and all(line.endswith("['STATE_HOME_OK', 'STATE_RAMP_END']") for line in out[2:]), out
+
+
+def test_the_readme_fixture_pattern_passes_under_pytest(tmp_path: Path) -> None:
+    text = README.read_text(encoding="utf-8")
+    found = re.search(r"<!-- python-fixture -->\n```python\n(.*?)```", text, re.S)
+    assert found, "README.md has no <!-- python-fixture --> block"
+    (tmp_path / "test_fixture_pattern.py").write_text(found.group(1), encoding="utf-8")
+    done = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=tmp_path,
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "1 passed" in done.stdout
