@@ -329,7 +329,8 @@ class ScuInfo(Record):
         port: The port.
         firmware: The firmware info text.
         configuration: The configuration info text.
-        battery_mains: The battery/mains flags (``{"bits", "set"}``).
+        battery_mains: The battery/mains word: ``{"code": int, "flags": [names], "unknown_bits": int}``
+            (``unknown_bits`` only when nonzero).
         last_error: Error_Code 1 with its named bits.
         actuators: The connected actuators.
     """

@@ -147,6 +147,18 @@ fn value_py<'py>(py: Python<'py>, v: &Value) -> PyResult<Bound<'py, PyAny>> {
         Value::CurrentDeciAmps(_) | Value::BatteryDeciVolts(_) | Value::AnalogueCentiVolts(_) => {
             Ok(v.as_f64().unwrap_or(f64::NAN).into_pyobject(py)?.into_any())
         }
+        // A bit set as naming.md spells flags: the raw word, the names of the bits set, and the bits no
+        // name covers (only when nonzero).
+        Value::Flags(f) => {
+            let known = f.set.bits().into_iter().fold(0u32, |m, b| m | (1 << b.bit));
+            let d = PyDict::new(py);
+            d.set_item("code", f.bits)?;
+            d.set_item("flags", f.set_names().collect::<Vec<_>>())?;
+            if f.bits & !known != 0 {
+                d.set_item("unknown_bits", f.bits & !known)?;
+            }
+            Ok(d.into_any())
+        }
         _ => json_py(py, &v.to_json()),
     }
 }

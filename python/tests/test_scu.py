@@ -15,6 +15,7 @@ def test_info_lists_the_connected_actuators(scu: motionlink.Scu) -> None:
     assert all(a.position_counts == 0 and a.moving is False and "available" in a.flags for a in info.actuators)
     assert isinstance(info.last_error, ErrorCode) and info.last_error.code == 0
     assert info.firmware and info.configuration
+    assert info.battery_mains == {"code": 1, "flags": ["mains_connected"]}
 
 
 def test_get_entries_and_groups_and_set_reads_back(scu: motionlink.Scu) -> None:
