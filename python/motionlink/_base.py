@@ -1,0 +1,175 @@
+"""What every client shares: the context manager that stops what the client started, and the safety net
+that closes clients still open when the interpreter exits."""
+
+from __future__ import annotations
+
+import asyncio
+import atexit
+import time
+import weakref
+from typing import Any, Callable, Iterator, Optional, TypeVar
+
+from .errors import UsageError
+
+__all__ = ["ClientBase", "AsyncClientBase"]
+
+_open: "weakref.WeakSet[Any]" = weakref.WeakSet()
+
+
+@atexit.register
+def _close_all_at_exit() -> None:
+    """A program that ends (normally, or by an exception nobody caught) without closing a client still
+    stops what the client started: each client still open is closed here."""
+    for client in list(_open):
+        try:
+            client._close_at_exit()
+        except Exception:  # noqa: BLE001 - nothing can be reported at this point but by the close itself
+            pass
+
+
+class ClientBase:
+    """A session with a device. Use it as a context manager: leaving the ``with`` block, normally or by an
+    exception (``KeyboardInterrupt`` included), closes it, which stops any motion it started and reports
+    (raises) if the device did not confirm that. ``close()`` does the same."""
+
+    family: str = ""
+    _native: Any
+
+    def __init__(self) -> None:
+        _open.add(self)
+
+    @property
+    def port(self) -> str:
+        """The port, as the link describes it."""
+        return str(self._native.port)
+
+    @property
+    def is_open(self) -> bool:
+        """True until the client is closed."""
+        return bool(self._native.is_open)
+
+    def close(self) -> None:
+        """Ends the session: stops what it set in motion and still moves, then leaves the device as the
+        family's library leaves it (see the README's Safety sections). Raises if the stop could not be
+        confirmed. Closing twice does nothing."""
+        _open.discard(self)
+        self._native.close()
+
+    def _close_at_exit(self) -> None:
+        self.close()
+
+    def __enter__(self: "_C") -> "_C":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        state = "open" if self.is_open else "closed"
+        return f"<{type(self).__name__} {self.port!r} {state}>"
+
+
+_C = TypeVar("_C", bound=ClientBase)
+
+
+def check_interval(interval_ms: int, count: Optional[int]) -> None:
+    if isinstance(interval_ms, bool) or not isinstance(interval_ms, int) or not 1 <= interval_ms <= 3_600_000:
+        raise UsageError(f"interval_ms {interval_ms!r}: give a whole number of ms, 1 to 3600000")
+    if count is not None and (isinstance(count, bool) or not isinstance(count, int) or count < 1):
+        raise UsageError(f"count {count!r}: give a whole number of samples, at least 1 (or None)")
+
+
+_T = TypeVar("_T")
+
+
+def samples(read: Callable[[float], _T], interval_ms: int, count: Optional[int]) -> Iterator[_T]:
+    """Calls ``read(t_s)`` every ``interval_ms`` on a fixed schedule (absolute deadlines), ``count`` times
+    or until the caller stops iterating; ``time.sleep`` between samples, so Ctrl-C ends it at once."""
+    check_interval(interval_ms, count)
+    start = time.monotonic()
+    due = start
+    n = 0
+    while count is None or n < count:
+        yield read(time.monotonic() - start)
+        n += 1
+        if count is not None and n >= count:
+            return
+        due += interval_ms / 1000.0
+        delay = due - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+
+
+async def run_native(start: Callable[[Callable[[bool, Any], None]], Any]) -> Any:
+    """Awaits a native operation: ``start(done)`` starts it on the library's runtime thread and returns
+    its task; ``done(ok, value)`` is called there with the outcome. Cancelling the awaiting asyncio task
+    cancels the operation (its future is dropped, which stops what it set in motion) and waits, on a
+    worker thread, until that is done before ``CancelledError`` propagates."""
+    loop = asyncio.get_running_loop()
+    fut: "asyncio.Future[Any]" = loop.create_future()
+
+    def settle(ok: bool, value: Any) -> None:
+        if fut.done():
+            return
+        if ok:
+            fut.set_result(value)
+        else:
+            fut.set_exception(value)
+
+    def done(ok: bool, value: Any) -> None:
+        try:
+            loop.call_soon_threadsafe(settle, ok, value)
+        except RuntimeError:  # the loop is closed: nobody waits any more
+            pass
+
+    task = start(done)
+    try:
+        return await fut
+    except asyncio.CancelledError:
+        await loop.run_in_executor(None, task.cancel)
+        raise
+
+
+class AsyncClientBase:
+    """An async session with a device: ``async with`` opens it and closes it (stopping what it started);
+    cancelling a task that awaits a long operation (a move, homing, a wait) stops that motion."""
+
+    family: str = ""
+    _native: Any = None
+
+    def _client(self) -> Any:
+        if self._native is None:
+            raise UsageError(f"{type(self).__name__} is not open: use `async with` or `await open()`")
+        return self._native
+
+    @property
+    def port(self) -> str:
+        """The port, as the link describes it."""
+        return str(self._client().port)
+
+    async def _open(self) -> Any:
+        raise NotImplementedError
+
+    async def __aenter__(self: "_A") -> "_A":
+        if self._native is None:
+            self._native = await self._open()
+            _open.add(self)
+        return self
+
+    async def __aexit__(self, *exc: Any) -> None:
+        await self.aclose()
+
+    async def aclose(self) -> None:
+        """Ends the session: stops what it set in motion and still moves. Raises if the stop could not be
+        confirmed. Closing twice does nothing."""
+        native = self._native
+        if native is not None:
+            _open.discard(self)
+            await run_native(native.close)
+
+    def _close_at_exit(self) -> None:
+        if self._native is not None:
+            self._native.close_blocking()
+
+
+_A = TypeVar("_A", bound=AsyncClientBase)

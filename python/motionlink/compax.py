@@ -1,0 +1,224 @@
+"""Parker COMPAX drives (RS485 / RS232, ASCII): :class:`Compax`.
+
+Positions are in the drive's configured user unit (``position_units``, ``target_units`` ...); speeds in
+percent of the drive's maximum (``speed_percent``), ramps in ms (``ramp_ms``).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Union
+
+from . import _native
+from ._base import AsyncClientBase, ClientBase, run_native, samples
+from .records import CompaxHome, CompaxMove, CompaxSample, DriveFound, Parameter, StatusValue
+
+__all__ = ["Compax", "AsyncCompax"]
+
+#: The in-position tolerance of a checked move unless told otherwise, in the drive's unit.
+DEFAULT_TOLERANCE_UNITS: float = float(_native.COMPAX_DEFAULT_TOLERANCE_UNITS)
+
+
+class Compax(ClientBase):
+    """A session with COMPAX drives on one RS485 bus (or one drive on RS232).
+
+    Args:
+        port: ``"sim"``, ``"tcp://HOST:PORT"``, a serial device, or a :class:`motionlink.Emulator`.
+        drive: The drive the operations address unless they name another (1..31).
+        mode: The drives' operating mode P196 (sum of valences; 0: no checksum, no echo).
+        baud: The bus's baud rate (P195).
+        timeout_ms: How long to wait for a reply.
+        poll_ms: How often a move or wait reads S17.
+        tolerance_units: How close to its target a checked move must end.
+
+    Leaving a ``with`` block, ``close()`` or the end of the program stops every drive this session set in
+    motion that still moves (OUTPUT O0=0, confirmed by S17). Ctrl-C during ``move_to``, ``home`` or
+    ``wait`` stops the drive, then raises ``KeyboardInterrupt``.
+    """
+
+    family = "compax"
+
+    def __init__(
+        self,
+        port: Union[str, Any] = "sim",
+        drive: int = 1,
+        *,
+        mode: int = 0,
+        baud: int = 9600,
+        timeout_ms: int = 200,
+        poll_ms: int = 50,
+        tolerance_units: float = DEFAULT_TOLERANCE_UNITS,
+    ) -> None:
+        settings = _settings(drive, mode, baud, timeout_ms, poll_ms, tolerance_units)
+        self._native = _native.CompaxClient(getattr(port, "_native", port), settings)
+        self.drive = drive
+        super().__init__()
+
+    def scan(self) -> List[DriveFound]:
+        """Every drive that answers (addresses 1..31), with its position S1."""
+        return [DriveFound(d) for d in self._native.scan()]
+
+    def info(self, drive: Optional[int] = None) -> List[StatusValue]:
+        """The drive's main status values: S1 position, S2 target, S3 following error, S16/S17 status
+        bits, S18 error history."""
+        return self.status(["S1", "S2", "S3", "S16", "S17", "S18"], drive)
+
+    def status(self, names: Sequence[Union[str, int]], drive: Optional[int] = None) -> List[StatusValue]:
+        """Status values by name (``"S1"``) or number."""
+        return [StatusValue(d) for d in self._native.status([str(n) for n in names], drive)]
+
+    def position(self, drive: Optional[int] = None) -> float:
+        """The actual position S1, in the drive's unit."""
+        return float(self._native.position(drive))
+
+    def get(self, name: Union[str, int], drive: Optional[int] = None) -> Parameter:
+        """Reads a parameter (``"P194"``, ``194``, ``"device_address"``)."""
+        return Parameter(self._native.get(_param(name), drive))
+
+    def set(self, name: Union[str, int], value: float, drive: Optional[int] = None) -> Parameter:
+        """Writes a parameter and reads it back."""
+        return Parameter(self._native.set(_param(name), float(value), drive))
+
+    def move_to(
+        self,
+        target: Optional[float] = None,
+        drive: Optional[int] = None,
+        *,
+        distance: Optional[float] = None,
+        speed_percent: Optional[float] = None,
+        ramp_ms: Optional[int] = None,
+        min_units: Optional[float] = None,
+        max_units: Optional[float] = None,
+        timeout_s: float = 600.0,
+    ) -> CompaxMove:
+        """A checked move to ``target`` (POSA) or by ``distance`` (POSR, never repeated blind), waited for;
+        returns only if the drive came to rest within the tolerance (else :class:`DeviceError`). A target
+        outside ``min_units``/``max_units`` is refused before anything is sent. Ctrl-C stops the drive."""
+        return CompaxMove(
+            self._native.move_to(target, distance, drive, speed_percent, ramp_ms, min_units, max_units, timeout_s)
+        )
+
+    move = move_to
+
+    def home(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> CompaxHome:
+        """POSA HOME (find machine zero), waited for. Ctrl-C stops the drive."""
+        return CompaxHome(self._native.home(drive, timeout_s))
+
+    def wait(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> float:
+        """Waits until the drive's positioning ended (S17); its position S1 then."""
+        return float(self._native.wait(drive, timeout_s))
+
+    def stop(self, drive: Optional[int] = None) -> None:
+        """Stops the drive: OUTPUT O0=0 switches it off (``output(0, 1)`` switches it on again)."""
+        self._native.stop(drive)
+
+    def output(self, number: int, state: int, drive: Optional[int] = None) -> None:
+        """Sets output ``number`` to ``state`` (OUTPUT Ox=y)."""
+        self._native.output(number, state, drive)
+
+    def started(self) -> List[int]:
+        """The drives this session set in motion and has not seen stop."""
+        return list(self._native.started())
+
+    def watch(
+        self, drive: Optional[int] = None, *, interval_ms: int = 200, count: Optional[int] = None
+    ) -> Iterator[CompaxSample]:
+        """Samples of S1 and S17 every ``interval_ms``, ``count`` times or until the loop ends."""
+
+        def read(t_s: float) -> CompaxSample:
+            fields = dict(self._native.sample(drive))
+            fields["t_s"] = t_s
+            return CompaxSample(fields)
+
+        return samples(read, interval_ms, count)
+
+
+def _settings(
+    drive: int, mode: int, baud: int, timeout_ms: int, poll_ms: int, tolerance_units: float
+) -> Dict[str, Any]:
+    return {
+        "drive": drive,
+        "mode": mode,
+        "baud": baud,
+        "timeout_ms": timeout_ms,
+        "poll_ms": poll_ms,
+        "tolerance_units": float(tolerance_units),
+    }
+
+
+def _param(name: Union[str, int]) -> str:
+    return f"P{name}" if isinstance(name, int) and not isinstance(name, bool) else str(name)
+
+
+class AsyncCompax(AsyncClientBase):
+    """The asyncio twin of :class:`Compax` (same arguments)::
+
+        async with AsyncCompax("tcp://127.0.0.1:5000") as drive:
+            await drive.move_to(100.0)
+
+    Cancelling a task that awaits ``move_to``, ``home`` or ``wait`` stops the drive (OUTPUT O0=0,
+    confirmed by S17); leaving the block stops what the session set in motion.
+    """
+
+    family = "compax"
+
+    def __init__(
+        self,
+        port: Union[str, Any] = "sim",
+        drive: int = 1,
+        *,
+        mode: int = 0,
+        baud: int = 9600,
+        timeout_ms: int = 200,
+        poll_ms: int = 50,
+        tolerance_units: float = DEFAULT_TOLERANCE_UNITS,
+    ) -> None:
+        self._port = getattr(port, "_native", port)
+        self._settings = _settings(drive, mode, baud, timeout_ms, poll_ms, tolerance_units)
+        self.drive = drive
+        self._native = None
+
+    async def _open(self) -> Any:
+        return await run_native(lambda done: _native.AsyncCompaxClient.open(self._port, self._settings, done))
+
+    async def open(self) -> "AsyncCompax":
+        """Opens the session (what ``async with`` does)."""
+        return await self.__aenter__()
+
+    async def position(self, drive: Optional[int] = None) -> float:
+        """The actual position S1."""
+        return float(await run_native(lambda done: self._client().position(drive, done)))
+
+    async def move_to(
+        self,
+        target: Optional[float] = None,
+        drive: Optional[int] = None,
+        *,
+        distance: Optional[float] = None,
+        speed_percent: Optional[float] = None,
+        ramp_ms: Optional[int] = None,
+        min_units: Optional[float] = None,
+        max_units: Optional[float] = None,
+        timeout_s: float = 600.0,
+    ) -> CompaxMove:
+        """A checked move, as :meth:`Compax.move_to`; cancelling the task stops the drive."""
+        return CompaxMove(
+            await run_native(
+                lambda done: self._client().move_to(
+                    target, distance, drive, speed_percent, ramp_ms, min_units, max_units, timeout_s, done
+                )
+            )
+        )
+
+    move = move_to
+
+    async def home(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> CompaxHome:
+        """POSA HOME, waited for; cancelling the task stops the drive."""
+        return CompaxHome(await run_native(lambda done: self._client().home(drive, timeout_s, done)))
+
+    async def wait(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> float:
+        """Waits until the positioning ended; S1 then. Cancelling the task stops the drive."""
+        return float(await run_native(lambda done: self._client().wait(drive, timeout_s, done)))
+
+    async def stop(self, drive: Optional[int] = None) -> None:
+        """Stops the drive (OUTPUT O0=0)."""
+        await run_native(lambda done: self._client().stop(drive, done))

@@ -1,0 +1,250 @@
+"""Schunk/Amtec PowerCube modules: :class:`PowerCube` (blocking) and :class:`AsyncPowerCube` (asyncio).
+
+Positions are in the module's own unit: radians on a rotary module, metres on a linear one; every result
+names which (``position_rad`` / ``position_m``, and ``unit``).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Dict, Iterator, List, Optional, Union
+
+from . import _native
+from ._base import AsyncClientBase, ClientBase, run_native, samples
+from .records import (
+    ModuleInfo,
+    ModulePosition,
+    ModuleState,
+    Parameter,
+    PowerCubeHome,
+    PowerCubeMove,
+    PowerCubeSample,
+)
+
+__all__ = ["PowerCube", "AsyncPowerCube"]
+
+Port = Union[str, Any]
+
+
+def _settings(
+    module: int, baud: int, bitrate: int, timeout_ms: Optional[int], poll_ms: int, watchdog: bool
+) -> Dict[str, Any]:
+    return {
+        "module": module,
+        "baud": baud,
+        "bitrate": bitrate,
+        "timeout_ms": timeout_ms,
+        "poll_ms": poll_ms,
+        "watchdog": watchdog,
+    }
+
+
+def _position(module: int, value_unit: Any) -> ModulePosition:
+    value, unit = value_unit
+    suffix = {"rad": "position_rad", "m": "position_m"}.get(unit, "position")
+    return ModulePosition({"family": "powercube", "module": module, "unit": unit, suffix: value})
+
+
+class PowerCube(ClientBase):
+    """A session with PowerCube modules on one bus (RS232 or CAN).
+
+    Args:
+        port: ``"sim"`` (an emulated module in this process), ``"tcp://HOST:PORT"`` (a serial gateway or
+            ``motionlink sim powercube --tcp``), a serial device (``"/dev/ttyUSB0"``, ``"COM3"``),
+            ``"socketcan://can0"``, ``"slcan:///dev/ttyACM0"``, or a :class:`motionlink.Emulator`.
+        module: The module the operations address unless they name another (1..31).
+        baud: Baud rate of an RS232 line.
+        bitrate: CAN bit rate of an SLCAN adapter.
+        timeout_ms: How long to wait for a reply (default: the library's, per bus).
+        poll_ms: How often ``home``, ``move_to`` and ``wait`` read the module's state (1..10000).
+        watchdog: Arm the module's watchdog while it moves (not for an emulator in this process, which
+            dies with the program anyway), so that a host that dies (SIGKILL) halts the module.
+
+    Leaving a ``with`` block, ``close()``, or the end of the program halts every module this session set in
+    motion. Ctrl-C during ``home``, ``move_to`` or ``wait`` halts the module, then raises
+    ``KeyboardInterrupt``.
+    """
+
+    family = "powercube"
+
+    def __init__(
+        self,
+        port: Port = "sim",
+        module: int = 1,
+        *,
+        baud: int = 9600,
+        bitrate: int = 1_000_000,
+        timeout_ms: Optional[int] = None,
+        poll_ms: int = 10,
+        watchdog: bool = True,
+    ) -> None:
+        native_port = getattr(port, "_native", port)
+        self._native = _native.PowerCubeClient(
+            native_port, _settings(module, baud, bitrate, timeout_ms, poll_ms, watchdog)
+        )
+        self.module = module
+        super().__init__()
+
+    def _m(self, module: Optional[int]) -> int:
+        return self.module if module is None else module
+
+    def scan(self) -> List[ModuleInfo]:
+        """Every module on the bus (an ``error`` field on a module that answered but could not be read)."""
+        return [ModuleInfo(d) for d in self._native.scan()]
+
+    def info(self, module: Optional[int] = None) -> ModuleInfo:
+        """Kind, firmware version, serial number, state, limits and position of a module."""
+        return ModuleInfo(self._native.info(module))
+
+    def state(self, module: Optional[int] = None) -> ModuleState:
+        """The module's state word (CubeState), flag by flag."""
+        return ModuleState(self._native.state(module))
+
+    def position(self, module: Optional[int] = None) -> ModulePosition:
+        """The actual position (``position_rad`` or ``position_m``)."""
+        return _position(self._m(module), self._native.position(module))
+
+    def get(self, name: str, module: Optional[int] = None) -> Parameter:
+        """Reads a parameter by name (``"ActPos"``) or id (``"60"``, ``"0x3c"``)."""
+        return Parameter(self._native.get(str(name), module))
+
+    def set(self, name: str, value: float, module: Optional[int] = None) -> Parameter:
+        """Writes a parameter (a target beyond its limit is refused) and reads it back: ``read_back`` is the
+        value read (``None`` with ``not_verifiable`` for a parameter that cannot be read)."""
+        return Parameter(self._native.set(str(name), value, module))
+
+    def home(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> PowerCubeHome:
+        """Homes the module and waits for the end of homing. Ctrl-C halts it."""
+        return PowerCubeHome(self._native.home(module, timeout_s))
+
+    def move_to(
+        self,
+        target: float,
+        module: Optional[int] = None,
+        *,
+        velocity: Optional[float] = None,
+        acceleration: Optional[float] = None,
+        tolerance: Optional[float] = None,
+        timeout_s: float = 60.0,
+    ) -> PowerCubeMove:
+        """A ramp move to ``target`` (rad or m, the module's unit), waited for and checked: it returns only
+        if the module came to rest within ``tolerance`` of the target (else :class:`DeviceError`).
+        ``velocity`` (unit/s) and ``acceleration`` (unit/s²) default to the module's. Ctrl-C halts it."""
+        return PowerCubeMove(
+            self._native.move_to(target, module, velocity, acceleration, tolerance, timeout_s)
+        )
+
+    move = move_to
+
+    def wait(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> ModuleState:
+        """Waits until the module stands still; its state then. Ctrl-C halts it."""
+        return ModuleState(self._native.wait(module, timeout_s))
+
+    def stop(self, module: Optional[int] = None) -> None:
+        """Halts the module at once (it stays halted until :meth:`reset`)."""
+        self._native.stop(module)
+
+    def reset(self, module: Optional[int] = None) -> bool:
+        """Resets the module's error state; True if it also switched off a watchdog that a dead host had
+        left expired."""
+        return bool(self._native.reset(module))
+
+    def started(self) -> List[int]:
+        """The modules this session set in motion and has not seen stop."""
+        return list(self._native.started())
+
+    def watch(
+        self, module: Optional[int] = None, *, interval_ms: int = 200, count: Optional[int] = None
+    ) -> Iterator[PowerCubeSample]:
+        """Samples of state and position every ``interval_ms`` (fixed schedule), ``count`` times or until
+        the loop ends."""
+        m = self._m(module)
+
+        def read(t_s: float) -> PowerCubeSample:
+            fields = dict(self._native.state(m))
+            value, unit = self._native.position(m)
+            fields["t_s"] = t_s
+            fields["unit"] = unit
+            fields[{"rad": "position_rad", "m": "position_m"}.get(unit, "position")] = value
+            return PowerCubeSample(fields)
+
+        return samples(read, interval_ms, count)
+
+
+class AsyncPowerCube(AsyncClientBase):
+    """The asyncio twin of :class:`PowerCube` (same arguments)::
+
+        async with AsyncPowerCube("tcp://127.0.0.1:5000") as cube:
+            await cube.move_to(0.5)
+
+    Cancelling a task that awaits ``move_to``, ``home`` or ``wait`` halts the module; leaving the block
+    halts what the session set in motion.
+    """
+
+    family = "powercube"
+
+    def __init__(
+        self,
+        port: Port = "sim",
+        module: int = 1,
+        *,
+        baud: int = 9600,
+        bitrate: int = 1_000_000,
+        timeout_ms: Optional[int] = None,
+        poll_ms: int = 10,
+        watchdog: bool = True,
+    ) -> None:
+        self._port = getattr(port, "_native", port)
+        self._settings = _settings(module, baud, bitrate, timeout_ms, poll_ms, watchdog)
+        self.module = module
+        self._native = None
+
+    async def _open(self) -> Any:
+        return await run_native(lambda done: _native.AsyncPowerCubeClient.open(self._port, self._settings, done))
+
+    async def open(self) -> "AsyncPowerCube":
+        """Opens the session (what ``async with`` does)."""
+        return await self.__aenter__()
+
+    def _m(self, module: Optional[int]) -> int:
+        return self.module if module is None else module
+
+    async def position(self, module: Optional[int] = None) -> ModulePosition:
+        """The actual position."""
+        return _position(self._m(module), await run_native(lambda done: self._client().position(module, done)))
+
+    async def state(self, module: Optional[int] = None) -> ModuleState:
+        """The state word."""
+        return ModuleState(await run_native(lambda done: self._client().state(module, done)))
+
+    async def home(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> PowerCubeHome:
+        """Homes and waits; cancelling the task halts the module."""
+        return PowerCubeHome(await run_native(lambda done: self._client().home(module, timeout_s, done)))
+
+    async def move_to(
+        self,
+        target: float,
+        module: Optional[int] = None,
+        *,
+        velocity: Optional[float] = None,
+        acceleration: Optional[float] = None,
+        tolerance: Optional[float] = None,
+        timeout_s: float = 60.0,
+    ) -> PowerCubeMove:
+        """A checked ramp move, waited for; cancelling the task halts the module."""
+        return PowerCubeMove(
+            await run_native(
+                lambda done: self._client().move_to(
+                    target, module, velocity, acceleration, tolerance, timeout_s, done
+                )
+            )
+        )
+
+    move = move_to
+
+    async def wait(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> ModuleState:
+        """Waits until the module stands still; cancelling the task halts it."""
+        return ModuleState(await run_native(lambda done: self._client().wait(module, timeout_s, done)))
+
+    async def stop(self, module: Optional[int] = None) -> None:
+        """Halts the module."""
+        await run_native(lambda done: self._client().stop(module, done))

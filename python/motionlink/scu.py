@@ -1,0 +1,202 @@
+"""Ewellix/Schaeffler SCU control units (lifting columns): :class:`Scu`.
+
+Positions are encoder counts (``position_counts``); speeds are percent of full speed (``speed_mode=
+"percent"``, standard units) or counts per second on units set to absolute speed.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Union
+
+from . import _native
+from ._base import AsyncClientBase, ClientBase, run_native, samples
+from .records import ErrorCode, Parameter, ScuInfo, ScuMove, ScuRun, ScuSample
+
+__all__ = ["Scu", "AsyncScu"]
+
+
+def _settings(
+    baud: int,
+    safety: int,
+    reply_timeout_ms: int,
+    functions: Sequence[str],
+    strokes: Sequence[str],
+    tolerance_counts: int,
+    poll_ms: int,
+    speed_mode: str,
+) -> Dict[str, Any]:
+    return {
+        "baud": baud,
+        "safety": safety,
+        "reply_timeout_ms": reply_timeout_ms,
+        "functions": [str(f) for f in functions],
+        "strokes": [str(s) for s in strokes],
+        "tolerance_counts": tolerance_counts,
+        "poll_ms": poll_ms,
+        "speed_mode": speed_mode,
+    }
+
+
+def _function(f: Union[int, str]) -> str:
+    return f"F{f}" if isinstance(f, int) and not isinstance(f, bool) else str(f)
+
+
+class Scu(ClientBase):
+    """A session with an SCU control unit in remote mode (RO with ``safety``; the library keeps it alive).
+
+    Args:
+        port: ``"sim"``, ``"tcp://HOST:PORT"``, a serial device, or a :class:`motionlink.Emulator`.
+        baud: 38400 on standard units (9600 or 19200 on customised ones).
+        safety: The Safety_ID sent with RO: 0 a timeout stops all motion and locks remote motion until RO,
+            1 stops all motion, 2 stops remote motion only.
+        reply_timeout_ms: How long to wait for the reply to RO (the unit is allowed 2000 ms).
+        functions: Which actuators each motion function drives (the unit's parameterisation): presets
+            ``"scp11"``, ``"tlt"``, ``"liftkit"``, or ``"F1=1,2"``; several combine.
+        strokes: Travel ranges for move targets, ``"1=0:865"`` (actuator=min:max in counts).
+        tolerance_counts: How close to its target a move must end to succeed.
+        poll_ms: How often a move looks at the actuators (5..10000).
+        speed_mode: ``"percent"`` or ``"counts_per_s"``.
+
+    Leaving a ``with`` block, ``close()`` or the end of the program sends RS for every function this
+    session started, then RA. Ctrl-C during ``move_to`` or ``run`` stops the function (fast RS), then
+    raises ``KeyboardInterrupt``.
+    """
+
+    family = "scu"
+
+    def __init__(
+        self,
+        port: Union[str, Any] = "sim",
+        *,
+        baud: int = 38_400,
+        safety: int = 0,
+        reply_timeout_ms: int = 2000,
+        functions: Sequence[str] = (),
+        strokes: Sequence[str] = (),
+        tolerance_counts: int = 5,
+        poll_ms: int = 50,
+        speed_mode: str = "percent",
+    ) -> None:
+        settings = _settings(
+            baud, safety, reply_timeout_ms, functions, strokes, tolerance_counts, poll_ms, speed_mode
+        )
+        self._native = _native.ScuClient(getattr(port, "_native", port), settings)
+        super().__init__()
+
+    def info(self) -> ScuInfo:
+        """Firmware and configuration texts, battery/mains, the last error and the connected actuators."""
+        return ScuInfo(self._native.info())
+
+    def position(self, actuator: int) -> int:
+        """The position of ``actuator`` (1..6), in encoder counts."""
+        return int(self._native.position(actuator))
+
+    def get(self, name: str) -> Parameter:
+        """Reads a data-list entry or group by name (``"actual_position_a1"``, ``"actual_positions"``) or
+        index (``"0x0011"``). Currents come in A, voltages in V (``unit`` says)."""
+        return Parameter(self._native.get(str(name)))
+
+    def set(self, name: str, value: Union[int, float, str]) -> Parameter:
+        """Writes a remote data entry (``"remote_speed_f1"``, ``"remote_position_a1"``) and reads it back."""
+        return Parameter(self._native.set(str(name), value))
+
+    def move_to(
+        self, actuator: int, target_counts: int, *, speed: int = 100, function: Optional[int] = None
+    ) -> ScuMove:
+        """Moves ``actuator`` to ``target_counts`` with its function (F1 for A1, or ``function``) at
+        ``speed`` and waits; returns only if every actuator the function drives ended within
+        ``tolerance_counts`` (else :class:`DeviceError`). Ctrl-C stops it (RS)."""
+        return ScuMove(self._native.move_to(actuator, target_counts, speed, function))
+
+    move = move_to
+
+    def run(self, function: Union[int, str], direction: str, *, seconds: Optional[float] = None) -> ScuRun:
+        """Runs a function until it ends, ``seconds`` passed, or Ctrl-C, then stops it: a motion function
+        with a direction (``"in"``, ``"out"``, ``"mem1"`` ...), or F11, F17/F18, F20, F21/F22 with
+        ``"on"``."""
+        return ScuRun(self._native.run(_function(function), direction, seconds))
+
+    def stop(self, function: Union[int, str] = 1, *, soft: bool = False) -> None:
+        """Stops a function (RS): a motion fast, or along its stop ramp with ``soft``."""
+        self._native.stop(_function(function), soft)
+
+    def errors(self) -> List[ErrorCode]:
+        """The error history: Error_Code 1 (the most recent) to 5, each with its named bits."""
+        return [ErrorCode(e) for e in self._native.errors()]
+
+    def started(self) -> List[int]:
+        """The motion functions this session started and has not stopped."""
+        return list(self._native.started())
+
+    def watch(self, *, interval_ms: int = 250, count: Optional[int] = None) -> Iterator[ScuSample]:
+        """Samples of every connected actuator (position, moving, flags, current) every ``interval_ms``."""
+
+        def read(t_s: float) -> ScuSample:
+            fields = dict(self._native.sample())
+            fields["t_s"] = t_s
+            return ScuSample(fields)
+
+        return samples(read, interval_ms, count)
+
+
+class AsyncScu(AsyncClientBase):
+    """The asyncio twin of :class:`Scu` (same arguments)::
+
+        async with AsyncScu("tcp://127.0.0.1:5000") as scu:
+            await scu.move_to(1, 400)
+
+    Cancelling a task that awaits ``move_to`` or ``run`` stops the function (fast RS, confirmed); leaving
+    the block sends RS for what the session started, then RA.
+    """
+
+    family = "scu"
+
+    def __init__(
+        self,
+        port: Union[str, Any] = "sim",
+        *,
+        baud: int = 38_400,
+        safety: int = 0,
+        reply_timeout_ms: int = 2000,
+        functions: Sequence[str] = (),
+        strokes: Sequence[str] = (),
+        tolerance_counts: int = 5,
+        poll_ms: int = 50,
+        speed_mode: str = "percent",
+    ) -> None:
+        self._port = getattr(port, "_native", port)
+        self._settings = _settings(
+            baud, safety, reply_timeout_ms, functions, strokes, tolerance_counts, poll_ms, speed_mode
+        )
+        self._native = None
+
+    async def _open(self) -> Any:
+        return await run_native(lambda done: _native.AsyncScuClient.open(self._port, self._settings, done))
+
+    async def open(self) -> "AsyncScu":
+        """Opens the session (what ``async with`` does)."""
+        return await self.__aenter__()
+
+    async def position(self, actuator: int) -> int:
+        """The position of ``actuator``, in counts."""
+        return int(await run_native(lambda done: self._client().position(actuator, done)))
+
+    async def move_to(
+        self, actuator: int, target_counts: int, *, speed: int = 100, function: Optional[int] = None
+    ) -> ScuMove:
+        """A verified move, as :meth:`Scu.move_to`; cancelling the task stops the function."""
+        return ScuMove(
+            await run_native(lambda done: self._client().move_to(actuator, target_counts, speed, function, done))
+        )
+
+    move = move_to
+
+    async def run(self, function: Union[int, str], direction: str, *, seconds: Optional[float] = None) -> ScuRun:
+        """Runs a function until it ends or ``seconds`` passed, then stops it; cancelling stops it."""
+        return ScuRun(
+            await run_native(lambda done: self._client().run(_function(function), direction, seconds, done))
+        )
+
+    async def stop(self, function: Union[int, str] = 1, *, soft: bool = False) -> None:
+        """Stops a function (RS)."""
+        await run_native(lambda done: self._client().stop(_function(function), soft, done))

@@ -1,0 +1,164 @@
+//! What the three families' bindings share: where a client connects, records (dicts with the field names
+//! of the command line's JSON), and the slot a client lives in until it is closed.
+
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use motionlink_link::cancel::CancelToken;
+use motionlink_link::clock::lock;
+use motionlink_link::flags::FlagWord;
+use motionlink_link::url::PortUrl;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::emulator::{InProcess, NativeEmulator};
+use crate::errors::Failure;
+
+/// Where a client connects: a port URL, or an emulator in this process.
+pub enum Target {
+    /// A port URL (`sim` included).
+    Url(PortUrl),
+    /// An emulator in this process.
+    InProcess(InProcess),
+}
+
+/// `port` as `motionlink` passes it: a port URL (str) or a native emulator.
+pub fn target(port: &Bound<'_, PyAny>, family: &'static str) -> Result<Target, Failure> {
+    if let Ok(emulator) = port.cast::<NativeEmulator>() {
+        let emulator = emulator.get();
+        return match emulator.served_port() {
+            Some(url) => url.parse().map(Target::Url).map_err(|e| Failure::of(family, &e)),
+            None => emulator.in_process(family).map(Target::InProcess),
+        };
+    }
+    let text: String = port.extract().map_err(|_| {
+        Failure::usage(family, "port must be a port URL (str), such as \"sim\", \"tcp://HOST:PORT\" or \"/dev/ttyUSB0\", or a motionlink.Emulator")
+    })?;
+    text.parse().map(Target::Url).map_err(|e| Failure::of(family, &e))
+}
+
+/// A float of the wire (f32) as Python sees it: the shortest decimal that reads back as the same f32
+/// (0.05, not 0.05000000074505806).
+pub fn f32_py(x: f32) -> f64 {
+    if x.is_finite() {
+        x.to_string().parse().unwrap_or(f64::from(x))
+    } else {
+        f64::from(x)
+    }
+}
+
+/// A record under construction: a dict with the names of naming.md.
+pub struct Record<'py>(pub Bound<'py, PyDict>);
+
+impl<'py> Record<'py> {
+    /// An empty record.
+    pub fn new(py: Python<'py>) -> Self {
+        Record(PyDict::new(py))
+    }
+
+    /// Sets `key` (conversion errors are Python errors).
+    pub fn set<V: IntoPyObject<'py>>(&self, key: &str, value: V) -> PyResult<&Self> {
+        self.0.set_item(key, value)?;
+        Ok(self)
+    }
+
+    /// `flags` (names as the manual spells them) and `unknown_bits` (only when nonzero) of `word`.
+    pub fn flags<W: FlagWord>(&self, word: W) -> PyResult<&Self> {
+        self.set("flags", word.names())?;
+        if word.unknown() != 0 {
+            self.set("unknown_bits", word.unknown())?;
+        }
+        Ok(self)
+    }
+
+    /// The dict.
+    pub fn done(self) -> Bound<'py, PyDict> {
+        self.0
+    }
+}
+
+/// A client of any family, shared by the calls under way, until it is closed. A call takes a clone of the
+/// `Arc` (so a close waits for nothing but the calls' own ends); closing takes the client out, so that no
+/// new call starts, and cancels what still runs before it ends the session.
+pub struct Slot<C> {
+    client: Mutex<Option<Arc<C>>>,
+    family: &'static str,
+}
+
+impl<C> Slot<C> {
+    /// A slot holding `client`.
+    pub fn new(client: C, family: &'static str) -> Self {
+        Slot { client: Mutex::new(Some(Arc::new(client))), family }
+    }
+
+    /// The client, or a usage error once it is closed.
+    pub fn get(&self) -> Result<Arc<C>, Failure> {
+        lock(&self.client).clone().ok_or_else(|| Failure::usage(self.family, "the client is closed"))
+    }
+
+    /// True until [`Slot::take`].
+    pub fn is_open(&self) -> bool {
+        lock(&self.client).is_some()
+    }
+
+    /// Takes the client out for closing. Calls of other threads still under way are cancelled through
+    /// `token` (their motions stop) and waited for, at most `bound`; `None` when it was closed already.
+    /// If they have not ended by then, the client is returned anyway inside its `Arc`: the caller then
+    /// stops what it started through it, and the session ends when the last call drops it.
+    pub fn take(&self, token: &CancelToken, bound: Duration) -> Option<Result<C, Arc<C>>> {
+        let arc = lock(&self.client).take()?;
+        let deadline = Instant::now() + bound;
+        let mut cancelled = false;
+        let mut arc = arc;
+        loop {
+            match Arc::try_unwrap(arc) {
+                Ok(c) => {
+                    if cancelled {
+                        token.reset();
+                    }
+                    return Some(Ok(c));
+                }
+                Err(shared) => {
+                    if !cancelled {
+                        token.cancel();
+                        cancelled = true;
+                    }
+                    if Instant::now() >= deadline {
+                        return Some(Err(shared));
+                    }
+                    std::thread::sleep(Duration::from_millis(2));
+                    arc = shared;
+                }
+            }
+        }
+    }
+}
+
+/// A JSON value of a family's table (`Value::to_json`) as the Python object `json.loads` would make.
+pub fn json_py<'py>(py: Python<'py>, v: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
+    use pyo3::types::PyList;
+    Ok(match v {
+        serde_json::Value::Null => py.None().into_bound(py),
+        serde_json::Value::Bool(b) => pyo3::types::PyBool::new(py, *b).to_owned().into_any(),
+        serde_json::Value::Number(n) => match (n.as_i64(), n.as_u64()) {
+            (Some(i), _) => i.into_pyobject(py)?.into_any(),
+            (None, Some(u)) => u.into_pyobject(py)?.into_any(),
+            _ => n.as_f64().unwrap_or(f64::NAN).into_pyobject(py)?.into_any(),
+        },
+        serde_json::Value::String(s) => s.into_pyobject(py)?.into_any(),
+        serde_json::Value::Array(a) => {
+            let list = PyList::empty(py);
+            for x in a {
+                list.append(json_py(py, x)?)?;
+            }
+            list.into_any()
+        }
+        serde_json::Value::Object(o) => {
+            let d = PyDict::new(py);
+            for (k, x) in o {
+                d.set_item(k, json_py(py, x)?)?;
+            }
+            d.into_any()
+        }
+    })
+}

@@ -1,0 +1,342 @@
+//! Emulators from Python: any family's emulator in this process (the clients connect to it directly), or
+//! served on a TCP port or a pseudo-terminal (any client connects to its port URL), with the events the
+//! emulated device reports.
+
+use std::sync::{Arc, Mutex, OnceLock};
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use motionlink_link::can::{CanBus, CanBusConfig, SlcanAdapter};
+use motionlink_link::clock::lock;
+use motionlink_link::emulator::{serve_tcp_with, Emulator as EmulatorTrait, ServeOptions, Server};
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::{RealClock, SharedClock};
+use pyo3::prelude::*;
+
+use crate::errors::{to_pyerr, Failure};
+
+/// The one real clock of every session and emulator the bindings make.
+pub fn clock() -> SharedClock {
+    static CLOCK: OnceLock<SharedClock> = OnceLock::new();
+    Arc::clone(CLOCK.get_or_init(RealClock::shared))
+}
+
+fn unix_now() -> f64 {
+    SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs_f64()).unwrap_or_default()
+}
+
+/// An emulator in this process, as a client reaches it.
+#[derive(Clone)]
+pub enum InProcess {
+    /// An SCU control unit on an RS232 line.
+    Scu(EmulatorHost<motionlink_scu::Emulator>),
+    /// PowerCube modules on an RS232 line.
+    PowerCube(EmulatorHost<motionlink_powercube::Emulator>),
+    /// PowerCube modules on a CAN bus.
+    PowerCubeCan(CanBus<motionlink_powercube::Emulator>),
+    /// COMPAX drives on an RS485 bus.
+    Compax(EmulatorHost<motionlink_compax::Emulator>),
+}
+
+impl InProcess {
+    fn take_events(&self) -> Vec<String> {
+        match self {
+            InProcess::Scu(h) => h.with_device(|d| d.take_events()),
+            InProcess::PowerCube(h) => h.with_device(|d| d.take_events()),
+            InProcess::PowerCubeCan(b) => b.with_device(|d| d.take_events()).unwrap_or_default(),
+            InProcess::Compax(h) => h.with_device(|d| d.take_events()),
+        }
+    }
+}
+
+enum Running {
+    InProcess(InProcess),
+    // Held so that the server runs (it stops when dropped).
+    Served(#[allow(dead_code)] Server),
+}
+
+/// A running emulator (the native half of `motionlink.Emulator`).
+#[pyclass(frozen, module = "motionlink._native")]
+pub struct NativeEmulator {
+    family: &'static str,
+    port: String,
+    running: Mutex<Option<Running>>,
+    /// Events of a served device, as its server reported them (time, text).
+    served_events: Arc<Mutex<Vec<(f64, String)>>>,
+}
+
+/// The settings of an emulator, as `motionlink.Emulator` passes them.
+#[derive(FromPyObject, Default)]
+#[pyo3(from_item_all)]
+pub struct EmulatorSettings {
+    preset: Option<String>,
+    config: Option<String>,
+    modules: Option<Vec<u8>>,
+    drives: Option<Vec<u8>>,
+    mode: Option<u32>,
+    baud: Option<u32>,
+    params: Option<Vec<(String, f64)>>,
+    strict: bool,
+    can: bool,
+    serve: Option<String>,
+    bind: Option<String>,
+}
+
+fn usage(msg: impl Into<String>) -> Failure {
+    Failure::usage("", msg)
+}
+
+fn scu_device(s: &EmulatorSettings) -> Result<motionlink_scu::Emulator, Failure> {
+    use motionlink_scu::SimConfig;
+    let preset =
+        match &s.preset {
+            Some(p) => Some(SimConfig::preset(p).ok_or_else(|| {
+                usage(format!("SCU preset {p:?} is not known: give \"scp11\", \"tlt\" or \"liftkit\""))
+            })?),
+            None => None,
+        };
+    let config = match (&s.config, &s.preset) {
+        (Some(text), Some(p)) if !text.contains("preset") => SimConfig::from_toml(&format!("preset = \"{p}\"\n{text}")),
+        (Some(text), _) => SimConfig::from_toml(text),
+        (None, _) => Ok(preset.unwrap_or_default()),
+    }
+    .map_err(|e| usage(e.to_string()))?;
+    motionlink_scu::Emulator::new(config).map_err(|e| usage(e.to_string()))
+}
+
+fn powercube_config(s: &EmulatorSettings) -> Result<motionlink_powercube::sim::SimConfig, Failure> {
+    use motionlink_powercube::sim::SimConfig;
+    match (&s.config, &s.modules) {
+        (Some(_), Some(_)) => Err(usage("give the modules either in the TOML configuration or as modules=, not both")),
+        (Some(text), None) => SimConfig::from_toml(text).map_err(|e| usage(e.to_string())),
+        (None, Some(m)) => SimConfig::with_addresses(m).map_err(|e| usage(e.to_string())),
+        (None, None) => Ok(SimConfig::default()),
+    }
+}
+
+fn compax_device(s: &EmulatorSettings) -> Result<motionlink_compax::Emulator, Failure> {
+    use motionlink_compax::model::ParamId;
+    use motionlink_compax::sim::SimConfig;
+    let mut cfg = match &s.config {
+        Some(text) => SimConfig::from_toml(text).map_err(|e| usage(e.to_string()))?,
+        None => SimConfig::default(),
+    };
+    if let Some(drives) = &s.drives {
+        cfg.drives = SimConfig::bus(drives, cfg.p196, cfg.baud_rate).drives;
+    }
+    if let Some(m) = s.mode {
+        motionlink_compax::wire::Mode::from_p196(m).map_err(|e| usage(format!("mode (P196) {m}: {e}")))?;
+        cfg.p196 = m;
+        cfg.drives.iter_mut().for_each(|d| d.p196 = None);
+    }
+    if let Some(b) = s.baud {
+        cfg.baud_rate = b;
+        cfg.drives.iter_mut().for_each(|d| d.baud_rate = None);
+    }
+    for (name, value) in s.params.iter().flatten() {
+        let id = ParamId::parse(name).map_err(|e| usage(format!("params {name}: {e}")))?;
+        cfg = cfg.with_param(id, *value);
+    }
+    motionlink_compax::Emulator::new(cfg).map_err(|e| usage(e.to_string()))
+}
+
+fn check_family_options(family: &str, s: &EmulatorSettings) -> Result<(), Failure> {
+    let given = |name: &'static str, yes: bool| if yes { Some(name) } else { None };
+    let foreign: Vec<&str> = match family {
+        "scu" => [
+            given("modules", s.modules.is_some()),
+            given("drives", s.drives.is_some()),
+            given("mode", s.mode.is_some()),
+            given("baud", s.baud.is_some()),
+            given("params", s.params.is_some()),
+            given("strict", s.strict),
+            given("can", s.can),
+        ]
+        .into_iter()
+        .flatten()
+        .collect(),
+        "powercube" => [
+            given("preset", s.preset.is_some()),
+            given("drives", s.drives.is_some()),
+            given("mode", s.mode.is_some()),
+            given("baud", s.baud.is_some()),
+            given("params", s.params.is_some()),
+        ]
+        .into_iter()
+        .flatten()
+        .collect(),
+        _ => [
+            given("preset", s.preset.is_some()),
+            given("modules", s.modules.is_some()),
+            given("strict", s.strict),
+            given("can", s.can),
+        ]
+        .into_iter()
+        .flatten()
+        .collect(),
+    };
+    match foreign.first() {
+        Some(name) => Err(usage(format!("{name}= is not a setting of the {family} emulator"))),
+        None => Ok(()),
+    }
+}
+
+fn serve<E: EmulatorTrait + 'static>(
+    device: E,
+    how: &str,
+    bind: &str,
+    events: &Arc<Mutex<Vec<(f64, String)>>>,
+) -> Result<Server, Failure> {
+    let sink = Arc::clone(events);
+    let options =
+        ServeOptions { on_event: Some(Arc::new(move |text: &str| lock(&sink).push((unix_now(), text.to_string())))) };
+    let device = Arc::new(Mutex::new(device));
+    match how {
+        "tcp" => serve_tcp_with(bind, device, clock(), options).map_err(|e| {
+            Failure::new(
+                motionlink_link::error::ErrorClass::Transport(motionlink_link::error::TransportKind::Io),
+                "",
+                format!("cannot listen on {bind}: {e}"),
+            )
+        }),
+        #[cfg(unix)]
+        "pty" => motionlink_link::emulator::serve_pty_with(device, clock(), options).map_err(|e| {
+            Failure::new(
+                motionlink_link::error::ErrorClass::Transport(motionlink_link::error::TransportKind::Io),
+                "",
+                format!("cannot create a pseudo-terminal: {e}"),
+            )
+        }),
+        other => {
+            Err(usage(format!("serve={other:?}: give \"tcp\" or \"pty\" (or None for an emulator in this process)")))
+        }
+    }
+}
+
+impl NativeEmulator {
+    fn start(family: &str, s: &EmulatorSettings) -> Result<NativeEmulator, Failure> {
+        let family: &'static str = match family {
+            "scu" => "scu",
+            "powercube" => "powercube",
+            "compax" => "compax",
+            other => return Err(usage(format!("family {other:?}: give \"scu\", \"powercube\" or \"compax\""))),
+        };
+        check_family_options(family, s)?;
+        let events = Arc::new(Mutex::new(Vec::new()));
+        let bind = s.bind.as_deref().unwrap_or("127.0.0.1:0");
+        let (running, port) = match s.serve.as_deref() {
+            None => {
+                let pipe = PipeConfig::instant();
+                let running = match family {
+                    "scu" => InProcess::Scu(EmulatorHost::new(scu_device(s)?, clock(), pipe)),
+                    "powercube" if s.can => {
+                        let cfg = powercube_config(s)?;
+                        let device = motionlink_powercube::Emulator::new_can(&cfg);
+                        InProcess::PowerCubeCan(CanBus::with_emulator(device, clock(), CanBusConfig::instant()))
+                    }
+                    "powercube" => {
+                        let mut device = motionlink_powercube::Emulator::new(&powercube_config(s)?);
+                        device.set_strict_bcc(s.strict);
+                        InProcess::PowerCube(EmulatorHost::new(device, clock(), pipe))
+                    }
+                    _ => InProcess::Compax(EmulatorHost::new(compax_device(s)?, clock(), pipe)),
+                };
+                (Running::InProcess(running), String::new())
+            }
+            Some(how) => {
+                let server = match family {
+                    "scu" => serve(scu_device(s)?, how, bind, &events)?,
+                    "powercube" if s.can => {
+                        if s.strict {
+                            return Err(usage("strict= is about RS232 BCCs; it has no meaning with can=True"));
+                        }
+                        let cfg = powercube_config(s)?;
+                        serve(SlcanAdapter::new(motionlink_powercube::Emulator::new_can(&cfg)), how, bind, &events)?
+                    }
+                    "powercube" => {
+                        let mut device = motionlink_powercube::Emulator::new(&powercube_config(s)?);
+                        device.set_strict_bcc(s.strict);
+                        serve(device, how, bind, &events)?
+                    }
+                    _ => serve(compax_device(s)?, how, bind, &events)?,
+                };
+                let address = server.address().to_string();
+                // A served CAN bus sits behind an emulated SLCAN adapter: its URL says so.
+                let port = if s.can { format!("slcan://{address}") } else { address };
+                (Running::Served(server), port)
+            }
+        };
+        Ok(NativeEmulator { family, port, running: Mutex::new(Some(running)), served_events: events })
+    }
+
+    /// The emulator in this process, for a client of `family` (an error naming why not, otherwise).
+    pub fn in_process(&self, family: &str) -> Result<InProcess, Failure> {
+        if family != self.family {
+            return Err(usage(format!("this emulator is a {} emulator, not a {family} one", self.family)));
+        }
+        match lock(&self.running).as_ref() {
+            Some(Running::InProcess(h)) => Ok(h.clone()),
+            Some(Running::Served(_)) => {
+                Err(usage(format!("this emulator is served on {}: connect to that port", self.port)))
+            }
+            None => Err(usage("this emulator is closed")),
+        }
+    }
+
+    /// The port URL of a served emulator (None for one in this process).
+    pub fn served_port(&self) -> Option<String> {
+        match lock(&self.running).as_ref() {
+            Some(Running::Served(_)) => Some(self.port.clone()),
+            _ => None,
+        }
+    }
+}
+
+#[pymethods]
+impl NativeEmulator {
+    #[new]
+    #[pyo3(signature = (family, settings))]
+    fn py_new(py: Python<'_>, family: &str, settings: EmulatorSettings) -> PyResult<Self> {
+        NativeEmulator::start(family, &settings).map_err(|f| to_pyerr(py, f))
+    }
+
+    /// The family: "scu", "powercube" or "compax".
+    #[getter]
+    fn family(&self) -> &'static str {
+        self.family
+    }
+
+    /// The port URL clients connect to (served emulators), or "" for one in this process.
+    #[getter]
+    fn port(&self) -> String {
+        self.port.clone()
+    }
+
+    /// True while the emulator runs.
+    #[getter]
+    fn running(&self) -> bool {
+        lock(&self.running).is_some()
+    }
+
+    /// The events since the last call, oldest first: (Unix time in s, text).
+    fn take_events(&self, py: Python<'_>) -> Vec<(f64, String)> {
+        py.detach(|| {
+            let in_process = match lock(&self.running).as_ref() {
+                Some(Running::InProcess(h)) => Some(h.clone()),
+                _ => None,
+            };
+            match in_process {
+                Some(h) => {
+                    let t = unix_now();
+                    h.take_events().into_iter().map(|e| (t, e)).collect()
+                }
+                None => std::mem::take(&mut *lock(&self.served_events)),
+            }
+        })
+    }
+
+    /// Stops the emulator (a served one stops listening and closes its connection).
+    fn close(&self, py: Python<'_>) {
+        let running = lock(&self.running).take();
+        py.detach(move || drop(running));
+    }
+}

@@ -1,0 +1,789 @@
+//! PowerCube modules from Python: the native half of `motionlink.PowerCube` (blocking) and
+//! `motionlink.AsyncPowerCube` (asyncio). Every operation is one call of the family's `Client` /
+//! `AsyncClient`; what stops a module and when its watchdog is armed are the library's.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use motionlink_link::can::{SlcanBitrate, SlcanLink};
+use motionlink_link::cancel::CancelToken;
+use motionlink_link::serial::SerialLink;
+use motionlink_link::url::PortUrl;
+use motionlink_link::SerialSettings;
+use motionlink_powercube::client::{BusConfig, Client, Guard, ModuleInfo, MoveReport, MoveSpec, Readback};
+use motionlink_powercube::model::{Acceleration, AxisUnit, CubeState, ModuleKind, Param, Position, Value, Velocity};
+use motionlink_powercube::{AsyncClient, Error};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::common::{f32_py, target, Record, Slot, Target};
+use crate::emulator::{clock, InProcess};
+use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
+use crate::wait::{block_on_runtime, deliver, interruptible, spawn_task, NativeTask, Outcome};
+use motionlink_link::error::{ErrorClass, TransportKind};
+
+const FAMILY: &str = "powercube";
+
+/// How a PowerCube client is opened, as `motionlink.PowerCube` passes it.
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+pub struct Settings {
+    module: u8,
+    baud: u32,
+    bitrate: u32,
+    timeout_ms: Option<u64>,
+    poll_ms: u64,
+    watchdog: bool,
+}
+
+fn usage(msg: impl Into<String>) -> Failure {
+    Failure::usage(FAMILY, msg)
+}
+
+/// The session's settings from `s`, checked.
+fn bus_config(s: &Settings, can: bool) -> Result<BusConfig, Failure> {
+    let mut c = if can { BusConfig::can() } else { BusConfig::rs232() };
+    if let Some(t) = s.timeout_ms {
+        if !(1..=60_000).contains(&t) {
+            return Err(usage(format!("timeout_ms {t}: give 1 to 60000")));
+        }
+        c.reply_timeout = Duration::from_millis(t);
+    }
+    if !(1..=10_000).contains(&s.poll_ms) {
+        return Err(usage(format!("poll_ms {}: give 1 to 10000", s.poll_ms)));
+    }
+    c.poll_interval = Duration::from_millis(s.poll_ms);
+    Ok(c)
+}
+
+/// Opens the blocking client `s` and `port` ask for; true if the modules are emulated in this process
+/// (they die with it: no watchdog is armed for them, as `motionlink powercube --port sim` does).
+fn open(port: Target, s: &Settings) -> Result<(Client, bool), Failure> {
+    if !(1..=31).contains(&s.module) {
+        return Err(usage(format!("module {}: addresses are 1..31", s.module)));
+    }
+    let fail = |e: Error| e.failure();
+    let rs232 = |link| Client::rs232(link, clock(), bus_config(s, false)?).map_err(fail);
+    let can = |link| Client::can(link, clock(), bus_config(s, true)?).map_err(fail);
+    match port {
+        Target::InProcess(InProcess::PowerCube(host)) => Ok((rs232(Box::new(host.connect().0))?, true)),
+        Target::InProcess(InProcess::PowerCubeCan(bus)) => Ok((can(Box::new(bus.connect()))?, true)),
+        Target::InProcess(_) => Err(usage("that emulator is not a PowerCube emulator")),
+        Target::Url(url) => match &url {
+            PortUrl::Sim => {
+                let device = motionlink_powercube::Emulator::new(&Default::default());
+                let host = motionlink_link::pipe::EmulatorHost::new(
+                    device,
+                    clock(),
+                    motionlink_link::pipe::PipeConfig::instant(),
+                );
+                Ok((rs232(Box::new(host.connect().0))?, true))
+            }
+            PortUrl::Serial(_) | PortUrl::Tcp { .. } => {
+                let settings = SerialSettings { dtr_rts_on: false, ..SerialSettings::new(s.baud) };
+                let link = url.open_byte_link(settings).map_err(|e| e.failure())?;
+                Ok((rs232(link)?, false))
+            }
+            PortUrl::Slcan(path) => {
+                let rate = SlcanBitrate::from_bps(s.bitrate)
+                    .ok_or_else(|| usage(format!("{} bit/s is not an SLCAN bit rate", s.bitrate)))?;
+                let settings = SerialSettings { dtr_rts_on: false, ..SerialSettings::new(115_200) };
+                // An SLCAN adapter on a serial device, or behind a TCP port (such as a served emulator's
+                // `slcan://tcp://HOST:PORT`).
+                let line: Box<dyn motionlink_link::link::Link> = if path.starts_with("tcp://") {
+                    let inner: PortUrl = path.parse().map_err(|e| Failure::of(FAMILY, &e))?;
+                    inner.open_byte_link(settings).map_err(|e| e.failure())?
+                } else {
+                    Box::new(SerialLink::open(path, settings).map_err(|e| e.failure())?)
+                };
+                let link = SlcanLink::open(line, clock(), rate).map_err(|e| e.failure())?;
+                Ok((can(Box::new(link))?, false))
+            }
+            PortUrl::SocketCan(ifname) => open_socketcan(ifname).and_then(|link| Ok((can(link)?, false))),
+        },
+    }
+}
+
+#[cfg(target_os = "linux")]
+fn open_socketcan(ifname: &str) -> Result<Box<dyn motionlink_link::can::CanLink>, Failure> {
+    let link = motionlink_link::can::socketcan::SocketCanLink::open(ifname).map_err(|e| e.failure())?;
+    Ok(Box::new(link))
+}
+
+#[cfg(not(target_os = "linux"))]
+fn open_socketcan(_ifname: &str) -> Result<Box<dyn motionlink_link::can::CanLink>, Failure> {
+    Err(usage("socketcan:// ports need Linux"))
+}
+
+/// The name suffix of a position in `unit`: "_rad", "_m", or "" with `"unit": "module"`.
+fn suffix(unit: AxisUnit) -> (&'static str, &'static str) {
+    match unit {
+        AxisUnit::Radian => ("_rad", "rad"),
+        AxisUnit::Metre => ("_m", "m"),
+        AxisUnit::ModuleUnit => ("", "module"),
+    }
+}
+
+/// Sets `unit` and `{base}_rad` / `{base}_m` (or `{base}` for a module of unknown kind) on `r`.
+fn put_position(r: &Record<'_>, base: &str, p: Position) -> PyResult<()> {
+    let (s, unit) = suffix(p.unit());
+    r.set("unit", unit)?;
+    r.set(&format!("{base}{s}"), f32_py(p.value()))?;
+    Ok(())
+}
+
+fn state_record<'py>(py: Python<'py>, module: u8, s: CubeState) -> PyResult<Record<'py>> {
+    let r = Record::new(py);
+    r.set("family", FAMILY)?.set("module", module)?.set("code", s.0)?;
+    r.flags(s)?;
+    r.set("faults", s.faults().map(|f| f.name()).collect::<Vec<_>>())?;
+    Ok(r)
+}
+
+fn info_record<'py>(py: Python<'py>, i: &ModuleInfo) -> PyResult<Record<'py>> {
+    let r = state_record(py, i.address.get(), i.state)?;
+    r.set("kind", i.kind.name())?.set("unit", i.kind.unit())?;
+    r.set("version", i.version.to_string())?.set("serial", i.serial)?;
+    Ok(r)
+}
+
+fn value_py<'py>(py: Python<'py>, v: &Value) -> PyResult<Bound<'py, PyAny>> {
+    Ok(match *v {
+        Value::F32(x) => f32_py(x).into_pyobject(py)?.into_any(),
+        Value::U32(x) => x.into_pyobject(py)?.into_any(),
+        Value::I32(x) => x.into_pyobject(py)?.into_any(),
+        Value::U16(x) => x.into_pyobject(py)?.into_any(),
+        Value::I16(x) => x.into_pyobject(py)?.into_any(),
+        Value::U8(x) => x.into_pyobject(py)?.into_any(),
+        Value::PosStateDio { pos, state, dio } => {
+            let d = PyDict::new(py);
+            d.set_item("position", f32_py(pos))?;
+            d.set_item("short_state", state.0)?;
+            d.set_item("dio", dio.0)?;
+            d.into_any()
+        }
+        Value::PosTime { pos, time_ms } => {
+            let d = PyDict::new(py);
+            d.set_item("position", f32_py(pos))?;
+            d.set_item("time_ms", time_ms)?;
+            d.into_any()
+        }
+    })
+}
+
+fn param_record<'py>(py: Python<'py>, module: u8, p: Param, kind: ModuleKind) -> PyResult<Record<'py>> {
+    let r = Record::new(py);
+    r.set("family", FAMILY)?.set("module", module)?.set("name", p.name())?.set("id", p.id())?;
+    r.set("unit", p.unit().symbol(kind))?.set("access", p.access().short())?;
+    Ok(r)
+}
+
+/// `p` in the unit of a module of `kind` (a position the session reported in the module's own unit is
+/// the same number: rad on a rotary module, m on a linear one).
+fn in_unit(p: Position, kind: ModuleKind) -> Position {
+    if p.unit() == AxisUnit::ModuleUnit {
+        Position::new(p.value(), kind.axis_unit())
+    } else {
+        p
+    }
+}
+
+fn move_record<'py>(
+    py: Python<'py>,
+    module: u8,
+    target: Position,
+    (kind, m): &(ModuleKind, MoveReport),
+) -> PyResult<Record<'py>> {
+    let r = state_record(py, module, m.state)?;
+    let unit = kind.axis_unit();
+    put_position(&r, "start", Position::new(m.start.value(), unit))?;
+    put_position(&r, "target", Position::new(target.value(), unit))?;
+    put_position(&r, "reached", Position::new(m.reached.value(), unit))?;
+    put_position(&r, "difference", Position::new(m.reached.value() - target.value(), unit))?;
+    Ok(r)
+}
+
+fn parse_param(name: &str) -> Result<Param, Failure> {
+    name.parse::<Param>().map_err(|e| usage(e.to_string()))
+}
+
+fn seconds(name: &str, s: f64) -> Result<Duration, Failure> {
+    if !(s.is_finite() && s > 0.0) {
+        return Err(usage(format!("{name} must be a number of seconds above 0, not {s}")));
+    }
+    Duration::try_from_secs_f64(s).map_err(|_| usage(format!("{name} {s} is not a duration in seconds")))
+}
+
+/// The checked move `move` asks for; numbers in the module's own unit (rad or m).
+fn move_spec(
+    target: f64,
+    velocity: Option<f64>,
+    acceleration: Option<f64>,
+    tolerance: Option<f64>,
+    timeout_s: f64,
+) -> Result<MoveSpec, Failure> {
+    let spec = MoveSpec {
+        target: Position::native(target as f32),
+        vel: velocity.map(|v| Velocity::native(v as f32)),
+        acc: acceleration.map(|a| Acceleration::native(a as f32)),
+        tolerance: tolerance.map(|t| Position::native(t as f32)),
+        timeout: seconds("timeout_s", timeout_s)?,
+    };
+    spec.validate().map_err(|e| e.failure())?;
+    Ok(spec)
+}
+
+/// The value `value` (a Python number) for parameter `p`, parsed as the command line parses it.
+fn parse_value(p: Param, value: &Bound<'_, PyAny>) -> Result<Value, Failure> {
+    let text = if value.is_instance_of::<pyo3::types::PyBool>() {
+        return Err(usage(format!("{}: give a number, not a bool", p.name())));
+    } else if let Ok(i) = value.extract::<i64>() {
+        i.to_string()
+    } else if let Ok(f) = value.extract::<f64>() {
+        f.to_string()
+    } else {
+        return Err(usage(format!("{}: give a number", p.name())));
+    };
+    Value::parse(p, &text).map_err(|e| usage(e.to_string()))
+}
+
+/// A session with PowerCube modules (the native half of `motionlink.PowerCube`).
+#[pyclass(frozen, module = "motionlink._native")]
+pub struct PowerCubeClient {
+    slot: Slot<Client>,
+    token: CancelToken,
+    guard: Guard,
+    module: u8,
+    port: String,
+    close_bound: Duration,
+}
+
+impl PowerCubeClient {
+    fn client(&self, py: Python<'_>) -> PyResult<Arc<Client>> {
+        self.slot.get().map_err(|f| to_pyerr(py, f))
+    }
+
+    fn address(&self, module: Option<u8>) -> u8 {
+        module.unwrap_or(self.module)
+    }
+}
+
+fn cancel_cause<T>(py: Python<'_>, r: &Result<T, Error>) -> Option<PyErr> {
+    r.as_ref().err().map(|e| to_pyerr(py, e.failure()))
+}
+
+#[pymethods]
+impl PowerCubeClient {
+    #[new]
+    fn py_new(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings) -> PyResult<Self> {
+        let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
+        let (client, in_process) = py.detach(|| open(t, &settings)).map_err(|f| to_pyerr(py, f))?;
+        let token = CancelToken::new();
+        client.set_cancel_token(token.clone());
+        let guard = if settings.watchdog && !in_process { Guard::Watchdog } else { Guard::HaltOnly };
+        let port = client.describe().to_string();
+        let close_bound = client.config().close_bound;
+        Ok(PowerCubeClient {
+            slot: Slot::new(client, FAMILY),
+            token,
+            guard,
+            module: settings.module,
+            port,
+            close_bound,
+        })
+    }
+
+    /// The port, as the link describes it.
+    #[getter]
+    fn port(&self) -> String {
+        self.port.clone()
+    }
+
+    /// True until closed.
+    #[getter]
+    fn is_open(&self) -> bool {
+        self.slot.is_open()
+    }
+
+    /// Modules this session set in motion and has not seen stop.
+    fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
+        Ok(self.client(py)?.started())
+    }
+
+    /// Every module on the bus: a list of records (`error` set for a module that answered but could not be
+    /// read).
+    fn scan<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        let c = self.client(py)?;
+        let found = py.detach(|| c.scan()).or_raise(py)?;
+        found
+            .iter()
+            .map(|e| match &e.info {
+                Ok(i) => Ok(info_record(py, i)?.done()),
+                Err(err) => {
+                    let r = Record::new(py);
+                    r.set("family", FAMILY)?.set("module", e.address.get())?.set("error", err.to_string())?;
+                    Ok(r.done())
+                }
+            })
+            .collect()
+    }
+
+    /// Type, version, serial number, state and limits of a module.
+    #[pyo3(signature = (module=None))]
+    fn info<'py>(&self, py: Python<'py>, module: Option<u8>) -> PyResult<Bound<'py, PyDict>> {
+        let c = self.client(py)?;
+        let a = self.address(module);
+        let (info, limits) = py
+            .detach(|| -> Result<_, Error> {
+                let m = c.module(a)?;
+                let info = m.info()?;
+                let limits: Vec<(Param, Value)> =
+                    [Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::ActPos]
+                        .into_iter()
+                        .map(|p| m.get(p).map(|v| (p, v)))
+                        .collect::<Result<_, _>>()?;
+                Ok((info, limits))
+            })
+            .or_raise(py)?;
+        let r = info_record(py, &info)?;
+        let (s, _) = suffix(info.kind.axis_unit());
+        for (p, v) in limits {
+            let name = match p {
+                Param::MinPos => format!("min_position{s}"),
+                Param::MaxPos => format!("max_position{s}"),
+                Param::MaxVel => format!("max_velocity{s}_per_s"),
+                Param::MaxAcc => format!("max_acceleration{s}_per_s2"),
+                _ => format!("position{s}"),
+            };
+            r.set(&name, value_py(py, &v)?)?;
+        }
+        Ok(r.done())
+    }
+
+    /// The state word, flag by flag.
+    #[pyo3(signature = (module=None))]
+    fn state<'py>(&self, py: Python<'py>, module: Option<u8>) -> PyResult<Bound<'py, PyDict>> {
+        let c = self.client(py)?;
+        let a = self.address(module);
+        let s = py.detach(|| c.module(a)?.state()).or_raise(py)?;
+        Ok(state_record(py, a, s)?.done())
+    }
+
+    /// The actual position: (value, unit) with unit "rad", "m", or "module" while the kind is not known.
+    #[pyo3(signature = (module=None))]
+    fn position(&self, py: Python<'_>, module: Option<u8>) -> PyResult<(f64, &'static str)> {
+        let c = self.client(py)?;
+        let a = self.address(module);
+        let p = py
+            .detach(|| -> Result<_, Error> {
+                let m = c.module(a)?;
+                // The kind names the unit (rad or m); the session keeps it after the first read.
+                let kind = m.kind()?;
+                Ok(in_unit(m.position()?, kind))
+            })
+            .or_raise(py)?;
+        Ok((f32_py(p.value()), suffix(p.unit()).1))
+    }
+
+    /// Reads a parameter by name (ActPos) or id (60, 0x3c).
+    #[pyo3(signature = (name, module=None))]
+    fn get<'py>(&self, py: Python<'py>, name: &str, module: Option<u8>) -> PyResult<Bound<'py, PyDict>> {
+        let c = self.client(py)?;
+        let a = self.address(module);
+        let p = parse_param(name).map_err(|f| to_pyerr(py, f))?;
+        let (v, kind) = py
+            .detach(|| -> Result<_, Error> {
+                let m = c.module(a)?;
+                Ok((m.get(p)?, m.kind()?))
+            })
+            .or_raise(py)?;
+        let r = param_record(py, a, p, kind)?;
+        r.set("value", value_py(py, &v)?)?;
+        Ok(r.done())
+    }
+
+    /// Writes a parameter, refusing a target beyond its limit, and reads it back.
+    #[pyo3(signature = (name, value, module=None))]
+    fn set<'py>(
+        &self,
+        py: Python<'py>,
+        name: &str,
+        value: &Bound<'py, PyAny>,
+        module: Option<u8>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let c = self.client(py)?;
+        let a = self.address(module);
+        let p = parse_param(name).map_err(|f| to_pyerr(py, f))?;
+        let v = parse_value(p, value).map_err(|f| to_pyerr(py, f))?;
+        let (read, kind) = py
+            .detach(|| -> Result<_, Error> {
+                let m = c.module(a)?;
+                Ok((m.set_checked(p, v)?, m.kind()?))
+            })
+            .or_raise(py)?;
+        let r = param_record(py, a, p, kind)?;
+        r.set("value", value_py(py, &v)?)?;
+        match read {
+            Readback::Same(back) => r.set("read_back", value_py(py, &back)?)?,
+            Readback::NotReadable(why) => r.set("read_back", py.None())?.set("not_verifiable", why)?,
+        };
+        Ok(r.done())
+    }
+
+    /// Homes the module and waits for the end of homing (Ctrl-C halts it).
+    #[pyo3(signature = (module=None, timeout_s=60.0))]
+    fn home<'py>(&self, py: Python<'py>, module: Option<u8>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
+        let c = self.client(py)?;
+        let a = self.address(module);
+        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let guard = self.guard;
+        let r = interruptible(
+            py,
+            Some(&self.token),
+            || {
+                let m = c.module(a)?;
+                let kind = m.kind()?;
+                m.home_guarded(timeout, guard, &mut |_| {}).map(|(p, s)| (in_unit(p, kind), s))
+            },
+            cancel_cause,
+        )?;
+        let (p, s) = r.or_raise(py)?;
+        let rec = state_record(py, a, s)?;
+        put_position(&rec, "position", p)?;
+        Ok(rec.done())
+    }
+
+    /// A checked ramp move to `target` (the module's unit: rad or m), waited for (Ctrl-C halts it).
+    #[pyo3(signature = (target, module=None, velocity=None, acceleration=None, tolerance=None, timeout_s=60.0))]
+    #[allow(clippy::too_many_arguments)]
+    fn move_to<'py>(
+        &self,
+        py: Python<'py>,
+        target: f64,
+        module: Option<u8>,
+        velocity: Option<f64>,
+        acceleration: Option<f64>,
+        tolerance: Option<f64>,
+        timeout_s: f64,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let c = self.client(py)?;
+        let a = self.address(module);
+        let spec = move_spec(target, velocity, acceleration, tolerance, timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let guard = self.guard;
+        let r = interruptible(
+            py,
+            Some(&self.token),
+            || {
+                let m = c.module(a)?;
+                let kind = m.kind()?;
+                m.move_to_guarded(&spec, guard, &mut |_| {}).map(|r| (kind, r))
+            },
+            cancel_cause,
+        )?;
+        let report = r.or_raise(py)?;
+        Ok(move_record(py, a, spec.target, &report)?.done())
+    }
+
+    /// Waits until the module stands still (no STATE_MOTION; Ctrl-C halts it); the state at the end.
+    #[pyo3(signature = (module=None, timeout_s=60.0))]
+    fn wait<'py>(&self, py: Python<'py>, module: Option<u8>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
+        let c = self.client(py)?;
+        let a = self.address(module);
+        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let r =
+            interruptible(py, Some(&self.token), || c.module(a)?.wait_motion_end(timeout, &mut |_| {}), cancel_cause)?;
+        Ok(state_record(py, a, r.or_raise(py)?)?.done())
+    }
+
+    /// Halts the module at once (it stays halted until a reset).
+    #[pyo3(signature = (module=None))]
+    fn stop(&self, py: Python<'_>, module: Option<u8>) -> PyResult<()> {
+        let c = self.client(py)?;
+        let a = self.address(module);
+        py.detach(|| c.module(a)?.halt()).or_raise(py)
+    }
+
+    /// Resets the module's error state; true if it switched off a watchdog a dead host left expired.
+    #[pyo3(signature = (module=None))]
+    fn reset(&self, py: Python<'_>, module: Option<u8>) -> PyResult<bool> {
+        let c = self.client(py)?;
+        let a = self.address(module);
+        py.detach(|| c.module(a)?.reset_and_release_watchdog()).or_raise(py)
+    }
+
+    /// Ends the session: halts what it set in motion, switches its watchdogs off, and says whether that
+    /// was confirmed (an exception if not). Closing twice does nothing.
+    fn close(&self, py: Python<'_>) -> PyResult<()> {
+        let bound = self.close_bound;
+        let taken = py.detach(|| self.slot.take(&self.token, bound));
+        match taken {
+            None => Ok(()),
+            Some(Ok(client)) => py.detach(|| client.close()).or_raise(py),
+            Some(Err(shared)) => py.detach(|| shared.halt_started()).or_raise(py),
+        }
+    }
+
+    /// Loops `n` position reads in Rust (no Python in between): the benchmark's reference.
+    #[pyo3(signature = (n, module=None))]
+    fn _bench_native_reads(&self, py: Python<'_>, n: u32, module: Option<u8>) -> PyResult<f64> {
+        let c = self.client(py)?;
+        let a = self.address(module);
+        py.detach(|| -> Result<f64, Error> {
+            let m = c.module(a)?;
+            let start = std::time::Instant::now();
+            for _ in 0..n {
+                std::hint::black_box(m.position()?);
+            }
+            Ok(start.elapsed().as_secs_f64())
+        })
+        .or_raise(py)
+    }
+}
+
+/// An async session with PowerCube modules (the native half of `motionlink.AsyncPowerCube`): the long
+/// operations are coroutines; cancelling one (its task) halts the module.
+#[pyclass(frozen, module = "motionlink._native")]
+pub struct AsyncPowerCubeClient {
+    slot: Slot<AsyncClient>,
+    guard: Guard,
+    module: u8,
+    port: String,
+}
+
+impl AsyncPowerCubeClient {
+    fn client(&self) -> Result<Arc<AsyncClient>, PyErr> {
+        Python::attach(|py| self.slot.get().map_err(|f| to_pyerr(py, f)))
+    }
+}
+
+/// What an async open learns on the blocking pool: in process or not, and the port's description.
+type Learned = Result<(bool, String), Failure>;
+
+fn raise<T>(r: Result<T, Error>) -> Result<T, Failure> {
+    r.map_err(|e| e.failure())
+}
+
+fn dict<F>(f: F) -> Outcome
+where
+    F: for<'py> FnOnce(Python<'py>) -> PyResult<Record<'py>> + Send + 'static,
+{
+    deliver(move |py| Ok(f(py)?.done().into_any().unbind()))
+}
+
+#[pymethods]
+impl AsyncPowerCubeClient {
+    /// Opens a session on the runtime (the port is opened on its blocking pool); `done(ok, client)`.
+    #[staticmethod]
+    fn open(
+        py: Python<'_>,
+        port: &Bound<'_, PyAny>,
+        settings: &Bound<'_, PyAny>,
+        done: Py<PyAny>,
+    ) -> PyResult<NativeTask> {
+        let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
+        let s: Settings = settings.extract()?;
+        Ok(spawn_task(done, async move {
+            let module = s.module;
+            let watchdog = s.watchdog;
+            // The blocking open runs on tokio's blocking pool; what it learns comes back through `found`.
+            let found: Arc<std::sync::Mutex<Option<Learned>>> = Default::default();
+            let slot = Arc::clone(&found);
+            let opened = AsyncClient::open(move || {
+                let (client, err) = match open(t, &s) {
+                    Ok((c, in_process)) => {
+                        *slot.lock().unwrap_or_else(|e| e.into_inner()) =
+                            Some(Ok((in_process, c.describe().to_string())));
+                        (Some(c), None)
+                    }
+                    Err(f) => {
+                        let message = f.message.clone();
+                        *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(Err(f));
+                        (None, Some(message))
+                    }
+                };
+                client.ok_or_else(|| Error::Unsupported(err.unwrap_or_default()))
+            })
+            .await;
+            let learned = found.lock().unwrap_or_else(|e| e.into_inner()).take();
+            let (in_process, port) = match learned {
+                Some(Ok(x)) => x,
+                Some(Err(f)) => return Err(f),
+                None => {
+                    return Err(raise::<()>(opened.map(|_| ())).err().unwrap_or_else(|| {
+                        Failure::new(
+                            ErrorClass::Transport(TransportKind::Io),
+                            FAMILY,
+                            "the open ended without a result",
+                        )
+                    }))
+                }
+            };
+            let client = raise(opened)?;
+            // An emulator in this process dies with it: no watchdog (as for the blocking client).
+            let guard = if watchdog && !in_process { Guard::Watchdog } else { Guard::HaltOnly };
+            let native = AsyncPowerCubeClient { slot: Slot::new(client, FAMILY), guard, module, port };
+            deliver(move |py| Ok(Py::new(py, native)?.into_any()))
+        }))
+    }
+
+    /// The port, as the link describes it.
+    #[getter]
+    fn port(&self) -> String {
+        self.port.clone()
+    }
+
+    /// The actual position: `done(ok, (value, unit))`.
+    #[pyo3(signature = (module, done))]
+    fn position(&self, module: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client()?;
+        let a = module.unwrap_or(self.module);
+        Ok(spawn_task(done, async move {
+            let p = raise(
+                async {
+                    let m = c.module(a)?;
+                    let kind = m.kind().await?;
+                    Ok(in_unit(m.position().await?, kind))
+                }
+                .await,
+            )?;
+            deliver(move |py| Ok((f32_py(p.value()), suffix(p.unit()).1).into_pyobject(py)?.into_any().unbind()))
+        }))
+    }
+
+    /// The state word: `done(ok, dict)`.
+    #[pyo3(signature = (module, done))]
+    fn state(&self, module: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client()?;
+        let a = module.unwrap_or(self.module);
+        Ok(spawn_task(done, async move {
+            let s = raise(async { c.module(a)?.state().await }.await)?;
+            dict(move |py| state_record(py, a, s))
+        }))
+    }
+
+    /// Homes and waits; cancelling the task halts the module.
+    #[pyo3(signature = (module, timeout_s, done))]
+    fn home(&self, py: Python<'_>, module: Option<u8>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client()?;
+        let a = module.unwrap_or(self.module);
+        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let guard = self.guard;
+        Ok(spawn_task(done, async move {
+            let (p, s) = raise(
+                async {
+                    let m = c.module(a)?;
+                    let kind = m.kind().await?;
+                    m.home_guarded(timeout, guard).await.map(|(p, s)| (in_unit(p, kind), s))
+                }
+                .await,
+            )?;
+            dict(move |py| {
+                let r = state_record(py, a, s)?;
+                put_position(&r, "position", p)?;
+                Ok(r)
+            })
+        }))
+    }
+
+    /// A checked move, waited for; cancelling the task halts the module.
+    #[pyo3(signature = (target, module, velocity, acceleration, tolerance, timeout_s, done))]
+    #[allow(clippy::too_many_arguments)]
+    fn move_to(
+        &self,
+        py: Python<'_>,
+        target: f64,
+        module: Option<u8>,
+        velocity: Option<f64>,
+        acceleration: Option<f64>,
+        tolerance: Option<f64>,
+        timeout_s: f64,
+        done: Py<PyAny>,
+    ) -> PyResult<NativeTask> {
+        let c = self.client()?;
+        let a = module.unwrap_or(self.module);
+        let spec = move_spec(target, velocity, acceleration, tolerance, timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let guard = self.guard;
+        Ok(spawn_task(done, async move {
+            let report = raise(
+                async {
+                    let m = c.module(a)?;
+                    let kind = m.kind().await?;
+                    m.move_to_guarded(&spec, guard).await.map(|r| (kind, r))
+                }
+                .await,
+            )?;
+            dict(move |py| move_record(py, a, spec.target, &report))
+        }))
+    }
+
+    /// Waits until the module stands still (no STATE_MOTION); cancelling the task halts it.
+    #[pyo3(signature = (module, timeout_s, done))]
+    fn wait(&self, py: Python<'_>, module: Option<u8>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client()?;
+        let a = module.unwrap_or(self.module);
+        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            let address = raise(motionlink_powercube::model::Address::new(a).map_err(Error::from))?;
+            let op =
+                motionlink_powercube::session::Op::Wait(address, motionlink_powercube::session::Until::Motion, timeout);
+            match raise(c.run(op).await)? {
+                motionlink_powercube::session::Output::State(s) => dict(move |py| state_record(py, a, s)),
+                other => raise(Err(Error::Unsupported(format!("the session answered {other:?}")))),
+            }
+        }))
+    }
+
+    /// Halts the module.
+    #[pyo3(signature = (module, done))]
+    fn stop(&self, module: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client()?;
+        let a = module.unwrap_or(self.module);
+        Ok(spawn_task(done, async move {
+            raise(async { c.module(a)?.halt().await }.await)?;
+            deliver(|py| Ok(py.None()))
+        }))
+    }
+
+    /// Ends the session (halts what it set in motion): `done(ok, None)`.
+    fn close(&self, done: Py<PyAny>) -> NativeTask {
+        let taken = self.slot.take(&CancelToken::new(), Duration::ZERO);
+        spawn_task(done, async move {
+            match taken {
+                None => {}
+                Some(Ok(client)) => raise(client.close().await)?,
+                Some(Err(shared)) => raise(shared.halt_started().await)?,
+            }
+            deliver(|py| Ok(py.None()))
+        })
+    }
+
+    /// Ends the session from synchronous code (atexit), waiting without the GIL.
+    fn close_blocking(&self, py: Python<'_>) -> PyResult<()> {
+        let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
+        let r = match taken {
+            Ok(client) => block_on_runtime(py, client.close())?,
+            Err(shared) => block_on_runtime(py, async move { shared.halt_started().await })?,
+        };
+        r.or_raise(py)
+    }
+}
+
+impl Drop for AsyncPowerCubeClient {
+    fn drop(&mut self) {
+        // Not closed by its owner: the session ends on the runtime's blocking pool (stopping what it
+        // started), not on the thread that happens to drop the object (which may hold the GIL).
+        if let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) {
+            crate::wait::runtime().spawn(async move { drop(taken) });
+        }
+    }
+}
+
+impl Drop for PowerCubeClient {
+    fn drop(&mut self) {
+        // Not closed by its owner (garbage-collected): the session ends here, stopping what it started as
+        // the family's client does when dropped, without holding the GIL while it waits for the device.
+        if let Some(taken) = self.slot.take(&self.token, self.close_bound) {
+            Python::attach(|py| py.detach(move || drop(taken)));
+        }
+    }
+}

@@ -1,0 +1,89 @@
+"""The asyncio clients of the SCU and COMPAX (the PowerCube's are in test_powercube.py): a move awaited
+while positions are read, cancellation stops the motion, `async with` closes."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+import pytest
+
+import motionlink
+
+
+async def in_thread(fn):  # type: ignore[no-untyped-def]
+    return await asyncio.get_running_loop().run_in_executor(None, fn)
+
+
+def test_async_scu_moves_while_positions_are_read_and_cancel_stops() -> None:
+    with motionlink.Emulator("scu", serve="tcp") as emu:
+
+        async def main() -> None:
+            async with motionlink.AsyncScu(emu.port) as scu:
+                move = asyncio.create_task(scu.move_to(1, 200))
+                seen = []
+                while not move.done():
+                    seen.append(await scu.position(1))
+                    await asyncio.sleep(0.1)
+                report = await move
+                assert abs(report.position_counts - 200) <= 5
+                assert any(0 < p < 200 for p in seen), seen
+                run = await scu.run(2, "out", seconds=0.2)
+                assert run.rest[1].position_counts > 0
+                emu.take_events()
+                slow = asyncio.create_task(scu.move_to(1, 800, speed=5))
+                await in_thread(lambda: emu.wait_event(lambda t: t.startswith("F1 started direction 9")))
+                cancelled_at = time.time()
+                slow.cancel()
+                with pytest.raises(asyncio.CancelledError):
+                    await slow
+                stop = emu.wait_event(lambda t: t.startswith("F1 stopped (RS"), 1.0)
+                assert stop.at - cancelled_at < 0.1
+                await scu.stop(1)
+
+        asyncio.run(main())
+        texts = [e.text for e in emu.take_events()]
+        assert any("remote mode closed by RA" in t for t in texts), texts
+
+
+def test_async_compax_moves_homes_waits_and_cancel_stops() -> None:
+    with motionlink.Emulator("compax", serve="tcp") as emu:
+
+        async def main() -> None:
+            async with motionlink.AsyncCompax(emu.port) as drive:
+                move = asyncio.create_task(drive.move_to(20.0))
+                seen = []
+                while not move.done():
+                    seen.append(await drive.position())
+                    await asyncio.sleep(0.03)
+                report = await move
+                assert report.reached_units == pytest.approx(20.0, abs=0.01)
+                assert any(0 < p < 20 for p in seen), seen
+                assert (await drive.home()).position_units == pytest.approx(0.0, abs=0.01)
+                assert await drive.wait() == pytest.approx(0.0, abs=0.01)
+                emu.take_events()
+                slow = asyncio.create_task(drive.move_to(100000.0, speed_percent=1))
+                await in_thread(lambda: emu.wait_event(lambda t: "motion started" in t))
+                cancelled_at = time.time()
+                slow.cancel()
+                with pytest.raises(asyncio.CancelledError):
+                    await slow
+                stop = emu.wait_event(lambda t: "switched off" in t, 1.0)
+                assert stop.at - cancelled_at < 0.1
+                with pytest.raises(motionlink.DeviceError, match="switched off"):
+                    await drive.move_to(1.0)
+                await drive.stop()
+
+        asyncio.run(main())
+
+
+def test_an_async_client_must_be_opened() -> None:
+    client = motionlink.AsyncCompax("sim")
+    with pytest.raises(motionlink.UsageError, match="not open"):
+        asyncio.run(client.position())
+
+    async def opened() -> float:
+        async with motionlink.AsyncCompax("sim") as c:
+            return await c.position()
+
+    assert asyncio.run(opened()) == 0.0

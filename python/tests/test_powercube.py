@@ -1,0 +1,155 @@
+"""Every operation of motionlink.PowerCube (and the async twin) against the emulator."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+
+import pytest
+
+import motionlink
+from motionlink.records import ModuleInfo, ModulePosition, ModuleState, Parameter, PowerCubeHome, PowerCubeMove
+
+
+def test_info_names_the_kind_and_its_units(cube: motionlink.PowerCube) -> None:
+    info = cube.info()
+    assert isinstance(info, ModuleInfo)
+    assert (info.family, info.module, info.kind, info.unit) == ("powercube", 1, "rotary", "rad")
+    assert info.max_position_rad > info.min_position_rad
+    assert info.max_velocity_rad_per_s > 0 and info.max_acceleration_rad_per_s2 > 0
+    assert "position_rad" in info and "position_m" not in info
+    with pytest.raises(AttributeError, match="position_m"):
+        info.position_m  # noqa: B018 - a rotary module has no metres
+    assert info.to_dict()["kind"] == "rotary"
+
+
+def test_position_get_and_set_read_back(cube: motionlink.PowerCube) -> None:
+    p = cube.position()
+    assert isinstance(p, ModulePosition) and p.unit == "rad"
+    got = cube.get("ActPos")
+    assert isinstance(got, Parameter) and got.name == "ActPos" and got.id == 60 and got.unit == "rad"
+    assert got.value == pytest.approx(p.position_rad)
+    assert cube.get("0x3c").name == "ActPos"
+    written = cube.set("MaxVel", 0.5)
+    assert written.value == 0.5 and written.read_back == 0.5 and written.access == "rw"
+    assert cube.get("MaxVel").value == pytest.approx(0.5)
+
+
+def test_home_move_wait_and_watch(cube: motionlink.PowerCube, powercube_emulator: motionlink.Emulator) -> None:
+    home = cube.home()
+    assert isinstance(home, PowerCubeHome) and "STATE_HOME_OK" in home.flags
+    assert home.position_rad == pytest.approx(0.0, abs=1e-3)
+    moved = cube.move_to(0.3, velocity=1.0)
+    assert isinstance(moved, PowerCubeMove)
+    assert (moved.unit, moved.target_rad) == ("rad", 0.3)
+    assert moved.reached_rad == pytest.approx(0.3, abs=1e-3)
+    assert moved.difference_rad == pytest.approx(moved.reached_rad - 0.3, abs=1e-6)
+    assert moved.start_rad == pytest.approx(0.0, abs=1e-3)
+    texts = [e.text for e in powercube_emulator.take_events()]
+    assert any("motion started" in t for t in texts) and any("at rest 0.3" in t for t in texts), texts
+    state = cube.wait()
+    assert isinstance(state, ModuleState) and "STATE_MOTION" not in state.flags
+    samples = list(cube.watch(interval_ms=5, count=3))
+    assert [round(s.position_rad, 3) for s in samples] == [0.3, 0.3, 0.3]
+    assert samples[0].t_s <= samples[1].t_s <= samples[2].t_s
+
+
+def test_stop_halts_and_reset_clears(cube: motionlink.PowerCube, powercube_emulator: motionlink.Emulator) -> None:
+    cube.home()
+    cube.stop()
+    assert "STATE_HALTED" in cube.state().flags
+    with pytest.raises(motionlink.DeviceError) as e:
+        cube.move_to(0.1)
+    assert e.value.code is not None and any(b["name"] == "STATE_HALTED" for b in e.value.bits)
+    assert cube.reset() is False
+    assert "STATE_HALTED" not in cube.state().flags
+    assert cube.move_to(0.1).reached_rad == pytest.approx(0.1, abs=1e-3)
+
+
+def test_scan_finds_every_module() -> None:
+    with motionlink.Emulator("powercube", modules=[3, 5]) as emu, motionlink.PowerCube(emu, module=3) as c:
+        found = c.scan()
+        assert [m.module for m in found] == [3, 5]
+        assert all(m.kind == "rotary" for m in found)
+        assert c.position(5).module == 5
+
+
+def test_can_bus_in_process() -> None:
+    with motionlink.Emulator("powercube", can=True) as emu, motionlink.PowerCube(emu) as c:
+        assert c.move_to(0.2).reached_rad == pytest.approx(0.2, abs=1e-3)
+
+
+def test_can_bus_behind_a_served_slcan_adapter() -> None:
+    """A CAN URL: the served CAN emulator sits behind an emulated SLCAN adapter on a TCP port."""
+    with motionlink.Emulator("powercube", can=True, serve="tcp", modules=[1, 4]) as emu:
+        assert emu.port.startswith("slcan://tcp://127.0.0.1:")
+        with motionlink.PowerCube(emu.port) as c:
+            assert [m.module for m in c.scan()] == [1, 4]
+            assert c.move_to(0.2).reached_rad == pytest.approx(0.2, abs=1e-3)
+        texts = [e.text for e in emu.take_events()]
+        assert "module 1 watchdog online" in texts and "module 1 at rest 0.2000 rad" in texts, texts
+
+
+def test_sim_url_and_served_tcp_port() -> None:
+    with motionlink.PowerCube("sim") as c:
+        assert c.info().kind == "rotary"
+    with motionlink.Emulator("powercube", serve="tcp") as emu:
+        assert emu.port.startswith("tcp://127.0.0.1:")
+        with motionlink.PowerCube(emu.port) as c:
+            assert c.move_to(0.2).reached_rad == pytest.approx(0.2, abs=1e-3)
+        # Over a link the watchdog is armed for the motion and switched off after it.
+        texts = [e.text for e in emu.take_events()]
+        assert "module 1 watchdog online" in texts and "module 1 watchdog offline" in texts
+
+
+def test_async_move_while_positions_are_watched(served_powercube_port: str) -> None:
+    async def main() -> None:
+        async with motionlink.AsyncPowerCube(served_powercube_port) as c:
+            move = asyncio.create_task(c.move_to(0.6, velocity=1.0))
+            seen = []
+            while not move.done():
+                seen.append((await c.position()).position_rad)
+                await asyncio.sleep(0.02)
+            report = await move
+            assert report.reached_rad == pytest.approx(0.6, abs=1e-3)
+            assert len(seen) >= 3 and any(0.05 < p < 0.6 for p in seen), seen
+            assert "STATE_MOTION" not in (await c.wait()).flags
+            home = await c.home()
+            assert home.position_rad == pytest.approx(0.0, abs=1e-3)
+            assert "STATE_HOME_OK" in (await c.state()).flags
+
+    asyncio.run(main())
+
+
+def test_async_cancel_halts_the_module() -> None:
+    with motionlink.Emulator("powercube", serve="tcp") as emu:
+
+        async def main() -> None:
+            async with motionlink.AsyncPowerCube(emu.port) as c:
+                move = asyncio.create_task(c.move_to(3.0, velocity=0.2))
+                await asyncio.get_running_loop().run_in_executor(
+                    None, lambda: emu.wait_event(lambda t: "motion started" in t)
+                )
+                move.cancel()
+                with pytest.raises(asyncio.CancelledError):
+                    await move
+                # The future was dropped before CancelledError reached us: the halt was sent.
+                halted = emu.wait_event(lambda t: "halted" in t, 1.0)
+                assert halted.text == "module 1 halted"
+                assert "STATE_HALTED" in (await c.state()).flags
+                await c.stop()
+
+        asyncio.run(main())
+
+
+@pytest.fixture
+def served_powercube_port():
+    with motionlink.Emulator("powercube", serve="tcp") as emu:
+        yield emu.port
+
+
+def test_results_compare_and_are_read_only(cube: motionlink.PowerCube) -> None:
+    a, b = cube.position(), cube.position()
+    assert a == b and math.isfinite(a.value)
+    with pytest.raises(AttributeError):
+        a.unit = "m"  # type: ignore[misc]

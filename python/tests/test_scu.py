@@ -1,0 +1,72 @@
+"""Every operation of motionlink.Scu against the emulator."""
+
+from __future__ import annotations
+
+import pytest
+
+import motionlink
+from motionlink.records import ErrorCode, Parameter, ScuInfo, ScuMove, ScuRun, ScuSample
+
+
+def test_info_lists_the_connected_actuators(scu: motionlink.Scu) -> None:
+    info = scu.info()
+    assert isinstance(info, ScuInfo) and info.family == "scu"
+    assert [a.actuator for a in info.actuators] == [1, 2]
+    assert all(a.position_counts == 0 and a.moving is False and "available" in a.flags for a in info.actuators)
+    assert isinstance(info.last_error, ErrorCode) and info.last_error.code == 0
+    assert info.firmware and info.configuration
+    assert info.battery_mains == {"code": 1, "flags": ["mains_connected"]}
+
+
+def test_get_entries_and_groups_and_set_reads_back(scu: motionlink.Scu) -> None:
+    entry = scu.get("actual_position_a1")
+    assert isinstance(entry, Parameter)
+    assert (entry.name, entry.id, entry.value, entry.unit, entry.access) == ("actual_position_a1", 0x11, 0, "counts", "r")
+    assert scu.get("0x0011") == entry
+    group = scu.get("actual_positions")
+    assert group.value["actual_position_a2"] == 0
+    written = scu.set("remote_speed_f1", 80)
+    assert (written.value, written.read_back) == (80, 80)
+    assert scu.get("remote_speed_f1").value == 80
+
+
+def test_move_is_verified_and_watch_samples_it(scu: motionlink.Scu, scu_emulator: motionlink.Emulator) -> None:
+    moved = scu.move_to(1, 300, speed=100)
+    assert isinstance(moved, ScuMove)
+    assert (moved.function, moved.actuator, moved.target_counts) == (1, 1, 300)
+    assert abs(moved.position_counts - 300) <= 5 and moved.time_s > 0
+    assert [(a.actuator, a.moved) for a in moved.actuators] == [(1, True)]
+    assert abs(scu.position(1) - 300) <= 5
+    texts = [e.text for e in scu_emulator.take_events()]
+    assert any(t.startswith("F1 started direction 9") for t in texts), texts
+    samples = list(scu.watch(interval_ms=10, count=2))
+    assert all(isinstance(s, ScuSample) for s in samples)
+    assert [a.actuator for a in samples[0].actuators] == [1, 2]
+    assert samples[0].actuators[0].current_amps == 0.0 and samples[0].actuators[0].moving is False
+    assert scu.started() == []
+
+
+def test_run_and_stop(scu: motionlink.Scu, scu_emulator: motionlink.Emulator) -> None:
+    run = scu.run(2, "out", seconds=0.2)
+    assert isinstance(run, ScuRun) and run.function == 2
+    assert [r.actuator for r in run.rest] == [1, 2] and run.rest[1].position_counts > 0
+    scu.stop(2, soft=True)
+    texts = [e.text for e in scu_emulator.take_events()]
+    assert any("stopped (RS" in t for t in texts), texts
+
+
+def test_error_history(scu: motionlink.Scu) -> None:
+    history = scu.errors()
+    assert len(history) == 5 and all(isinstance(e, ErrorCode) and e.code == 0 for e in history)
+
+
+def test_a_target_outside_the_stroke_moves_nothing(scu: motionlink.Scu, scu_emulator: motionlink.Emulator) -> None:
+    scu_emulator.take_events()
+    with pytest.raises(motionlink.UsageError, match="stroke"):
+        scu.move_to(1, 100_000)
+    assert not any("started" in e.text for e in scu_emulator.take_events())
+
+
+def test_sim_url() -> None:
+    with motionlink.Scu("sim") as s:
+        assert len(s.info().actuators) == 2
