@@ -211,12 +211,15 @@ fn one_page_controls_and_the_others_are_read_only_and_told_so() {
 
 #[test]
 fn samples_come_at_20_hz_or_more_for_every_family() {
-    for (family, key, position) in [
-        ("scu", "actuator", "position_counts"),
-        ("powercube", "module", "position_rad"),
-        ("compax", "drive", "position_units"),
+    // The units named (no scan of all 31 addresses: `one_page_controls...` finds them by a scan).
+    for (family, key, position, units_named) in [
+        ("scu", "actuator", "position_counts", &[][..]),
+        ("powercube", "module", "position_rad", &["--modules", "1"][..]),
+        ("compax", "drive", "position_units", &["--drives", "1"][..]),
     ] {
-        let c = console(&[family, "--port", "sim"]);
+        let mut args = vec![family, "--port", "sim"];
+        args.extend_from_slice(units_named);
+        let c = console(&args);
         let mut ws = ws(&c);
         let found = units(&mut ws);
         assert!(!found.is_empty(), "{family}: {found:?}");
@@ -355,7 +358,7 @@ fn a_stopped_console_stops_the_motion_it_started() {
 
 #[test]
 fn a_parameter_write_shows_its_read_back() {
-    let c = console(&["compax", "--port", "sim"]);
+    let c = console(&["compax", "--port", "sim", "--drives", "1"]);
     let mut ws = ws(&c);
     units(&mut ws);
     send(&mut ws, json!({"type": "write_param", "drive": 1, "name": "P3", "value": "2.5"}));
@@ -375,7 +378,7 @@ fn a_parameter_write_shows_its_read_back() {
 
 #[test]
 fn the_error_history_and_the_traffic_log_are_decoded() {
-    let c = console(&["compax", "--port", "sim"]);
+    let c = console(&["compax", "--port", "sim", "--drives", "1"]);
     let mut ws = ws(&c);
     units(&mut ws);
     send(&mut ws, json!({"type": "errors", "drive": 1}));
@@ -387,14 +390,27 @@ fn the_error_history_and_the_traffic_log_are_decoded() {
     assert!(line["hex"].is_string() && !line["meaning"].as_str().unwrap().is_empty(), "{t}");
     let (status, capture) = get(&c.host, &format!("/capture?token={}", c.token));
     assert_eq!(status, 200);
-    // Every line after the header is a capture line `motionlink decode` reads back.
-    // Every line after the header is a capture line (the format `motionlink_link::capture` reads back).
+    // Every line after the header is a capture line (the format `motionlink_link::capture` reads back)...
     let lines: Vec<&str> = capture.lines().skip(1).collect();
     assert!(lines.len() > 2, "{capture}");
     for l in lines {
         let parsed = motionlink_link::capture::parse_line(l).unwrap_or_else(|e| panic!("{l:?}: {e}"));
         assert!(parsed.is_some(), "{l:?}");
     }
+    // ... and `motionlink decode` explains every telegram of it.
+    let file = std::env::temp_dir().join(format!("motionlink-console-{}.cap", std::process::id()));
+    std::fs::write(&file, &capture).unwrap();
+    let decoded = std::process::Command::new(common::BIN)
+        .args(["--json", "decode", "compax", "--input"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_file(&file);
+    assert!(decoded.status.success(), "{}", String::from_utf8_lossy(&decoded.stderr));
+    let objects: Vec<Value> =
+        String::from_utf8_lossy(&decoded.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert!(objects.len() > 2, "{objects:?}");
+    assert!(objects.iter().all(|o| o["bad"] == false && o["direction"] != "??"), "{objects:?}");
 }
 
 /// One family's rules against its emulator over TCP: Stop halts a move, a jog stops by its dead-man
@@ -407,11 +423,15 @@ struct FamilyCase {
     started: fn(&str) -> bool,
     stopped: fn(&str) -> bool,
     rearm: Option<&'static str>,
+    /// The console's options naming the units (no scan of all 31 addresses).
+    units_named: &'static [&'static str],
 }
 
 fn family_rules(case: &FamilyCase) {
     let sim = Sim::start(case.family, &["--tcp", "127.0.0.1:0"]);
-    let c = console(&[case.family, "--port", &sim.address]);
+    let mut args = vec![case.family, "--port", &sim.address];
+    args.extend_from_slice(case.units_named);
+    let c = console(&args);
     let mut ws = ws(&c);
     let found = units(&mut ws);
     let unit = found[0][case.key].as_u64().expect("a unit number");
@@ -484,6 +504,7 @@ fn scu_stop_jog_dead_man_and_lost_page() {
         started: |t| t.starts_with("F1 started"),
         stopped: |t| t == "F1 stopped (RS fast)",
         rearm: None,
+        units_named: &[],
     });
 }
 
@@ -497,6 +518,7 @@ fn powercube_stop_jog_dead_man_and_lost_page() {
         started: |t| t.starts_with("module 1 motion started"),
         stopped: |t| t == "module 1 halted",
         rearm: Some("reset"),
+        units_named: &["--modules", "1"],
     });
 }
 
@@ -510,6 +532,7 @@ fn compax_stop_jog_dead_man_and_lost_page() {
         started: |t| t.starts_with("drive 1 motion started"),
         stopped: |t| t == "drive 1 switched off (O0=0)",
         rearm: Some("switch_on"),
+        units_named: &["--drives", "1"],
     });
 }
 

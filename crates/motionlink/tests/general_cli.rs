@@ -143,71 +143,120 @@ fn every_readme_command_runs_against_the_emulators() {
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("targets.txt"), "400\n410\n").unwrap();
     std::fs::write(dir.join("unit.toml"), "preset = \"scp11\"\nactuators = 2\n").unwrap();
-    for (line, expected) in &commands {
-        let mut words = shell_words(line);
-        let mut stdin = String::new();
-        if let Some(i) = words.iter().position(|w| w == "<") {
-            stdin = std::fs::read_to_string(dir.join(&words[i + 1])).unwrap_or_else(|e| panic!("{line}: {e}"));
-            words.truncate(i);
-        }
-        if let Some(i) = words.iter().position(|w| w == "--port") {
-            // `motionlink console <family> ...` names its family one word later.
-            let family = if words[1] == "console" { words[2].as_str() } else { words[1].as_str() };
-            let sim = match family {
-                "scu" if line.contains("--functions tlt") => &tlt,
-                "scu" => &scu,
-                "powercube" => &powercube,
-                "compax" => &compax,
-                other => panic!("{line}: --port for {other}"),
-            };
-            if words[i + 1] != "sim" {
-                words[i + 1] = sim.address.clone();
-            }
-        }
-        // Files the examples name (unit.toml) are the fixtures in `dir`.
-        for w in words.iter_mut().skip(2) {
-            if !w.starts_with('-') && dir.join(&*w).is_file() {
-                *w = dir.join(&*w).to_string_lossy().into_owned();
-            }
-        }
-        let args: Vec<&str> = words[1..].iter().map(String::as_str).collect();
-        if args[0] == "sim" {
-            let running = common::Running::start(&args);
-            let listening = running.stdout.wait_for(Duration::from_secs(10), |l| l.starts_with("listening on "));
-            assert!(listening.is_some(), "{line}: no listening line; {}", running.stderr.text());
-            continue;
-        }
-        if args[0] == "console" {
-            // A server: it runs until stopped; what the README promises is its one line.
-            let running = common::Running::start(&args);
-            let line_out = running.stdout.wait_for(Duration::from_secs(20), |l| l.starts_with("console on http://"));
-            assert!(line_out.is_some(), "{line}: no `console on` line; {}", running.stderr.text());
-            continue;
-        }
-        let mut child = Command::new(BIN)
-            .args(&args)
-            .current_dir(&dir)
-            .env_remove("MOTIONLINK_PORT")
-            .stdin(std::process::Stdio::piped())
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
-        std::io::Write::write_all(&mut child.stdin.take().unwrap(), stdin.as_bytes()).unwrap();
-        let out = child.wait_with_output().unwrap();
-        let text = String::from_utf8_lossy(&out.stdout);
-        assert!(
-            out.status.success(),
-            "README: {line}\n{:?}\n{text}{}",
-            out.status,
-            String::from_utf8_lossy(&out.stderr)
-        );
-        if !expected.is_empty() {
-            let norm = |s: &str| s.split_whitespace().collect::<Vec<_>>().join(" ");
-            let got: Vec<String> = text.lines().map(norm).collect();
-            let want: Vec<String> = expected.iter().map(|l| norm(l)).collect();
-            assert_eq!(got, want, "README: {line}");
+    // The commands of one emulator (and the decode of what they captured) run in the README's order; the
+    // groups run side by side, so the test takes as long as its longest group, not the sum of all.
+    let mut groups: Vec<(String, Vec<&(String, Vec<String>)>)> = Vec::new();
+    for command in &commands {
+        let key = readme_group(&command.0);
+        match groups.iter_mut().find(|(k, _)| *k == key) {
+            Some((_, list)) => list.push(command),
+            None => groups.push((key, vec![command])),
         }
     }
+    let failures: Vec<String> = std::thread::scope(|scope| {
+        let running: Vec<_> = groups
+            .iter()
+            .map(|(_, list)| {
+                let (scu, tlt, powercube, compax, dir) = (&scu, &tlt, &powercube, &compax, &dir);
+                scope.spawn(move || {
+                    list.iter()
+                        .filter_map(|(line, expected)| {
+                            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                                run_readme_command(line, expected, [scu, tlt, powercube, compax], dir)
+                            }))
+                            .err()
+                            .map(|e| {
+                                e.downcast_ref::<String>()
+                                    .cloned()
+                                    .unwrap_or_else(|| format!("README: {line}: panicked"))
+                            })
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        running.into_iter().flat_map(|h| h.join().unwrap()).collect()
+    });
+    assert!(failures.is_empty(), "{}", failures.join("\n\n"));
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Which README commands must run one after the other: those of one emulator (a `--port` command's family,
+/// the TLT preset apart), and a `decode` with its family's commands (it reads what they captured).
+fn readme_group(line: &str) -> String {
+    let words = shell_words(line);
+    let family = if matches!(words[1].as_str(), "console" | "decode" | "sim") { 2 } else { 1 };
+    let family = words.get(family).cloned().unwrap_or_default();
+    if words[1] == "sim" || words.iter().any(|w| w == "sim") {
+        format!("{family} in its own process")
+    } else if line.contains("--functions tlt") {
+        "scu tlt".into()
+    } else {
+        family
+    }
+}
+
+/// Runs one README command against the emulators (`[scu, tlt, powercube, compax]`) with the fixtures in
+/// `dir`, and checks its exit status and, where the README shows it, its output.
+fn run_readme_command(line: &str, expected: &[String], sims: [&Sim; 4], dir: &std::path::Path) {
+    let [scu, tlt, powercube, compax] = sims;
+    let mut words = shell_words(line);
+    let mut stdin = String::new();
+    if let Some(i) = words.iter().position(|w| w == "<") {
+        stdin = std::fs::read_to_string(dir.join(&words[i + 1])).unwrap_or_else(|e| panic!("{line}: {e}"));
+        words.truncate(i);
+    }
+    if let Some(i) = words.iter().position(|w| w == "--port") {
+        // `motionlink console <family> ...` names its family one word later.
+        let family = if words[1] == "console" { words[2].as_str() } else { words[1].as_str() };
+        let sim = match family {
+            "scu" if line.contains("--functions tlt") => tlt,
+            "scu" => scu,
+            "powercube" => powercube,
+            "compax" => compax,
+            other => panic!("{line}: --port for {other}"),
+        };
+        if words[i + 1] != "sim" {
+            words[i + 1] = sim.address.clone();
+        }
+    }
+    // Files the examples name (unit.toml) are the fixtures in `dir`.
+    for w in words.iter_mut().skip(2) {
+        if !w.starts_with('-') && dir.join(&*w).is_file() {
+            *w = dir.join(&*w).to_string_lossy().into_owned();
+        }
+    }
+    let args: Vec<&str> = words[1..].iter().map(String::as_str).collect();
+    if args[0] == "sim" {
+        let running = common::Running::start(&args);
+        let listening = running.stdout.wait_for(Duration::from_secs(10), |l| l.starts_with("listening on "));
+        assert!(listening.is_some(), "{line}: no listening line; {}", running.stderr.text());
+        return;
+    }
+    if args[0] == "console" {
+        // A server: it runs until stopped; what the README promises is its one line.
+        let running = common::Running::start(&args);
+        let line_out = running.stdout.wait_for(Duration::from_secs(20), |l| l.starts_with("console on http://"));
+        assert!(line_out.is_some(), "{line}: no `console on` line; {}", running.stderr.text());
+        return;
+    }
+    let mut child = Command::new(BIN)
+        .args(&args)
+        .current_dir(&dir)
+        .env_remove("MOTIONLINK_PORT")
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::io::Write::write_all(&mut child.stdin.take().unwrap(), stdin.as_bytes()).unwrap();
+    let out = child.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "README: {line}\n{:?}\n{text}{}", out.status, String::from_utf8_lossy(&out.stderr));
+    if !expected.is_empty() {
+        let norm = |s: &str| s.split_whitespace().collect::<Vec<_>>().join(" ");
+        let got: Vec<String> = text.lines().map(norm).collect();
+        let want: Vec<String> = expected.iter().map(|l| norm(l)).collect();
+        assert_eq!(got, want, "README: {line}");
+    }
 }

@@ -49,7 +49,6 @@ impl std::fmt::Display for Failure {
     }
 }
 
-
 /// One addressable unit found on the link: an SCU actuator, a PowerCube module, a COMPAX drive.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Unit {

@@ -383,40 +383,45 @@ fn one_flipped_bit_anywhere_never_gives_a_false_success() {
         (Direction::HostToDevice, (0..poll_h + 40).chain(end_h.saturating_sub(40)..end_h)),
         (Direction::DeviceToHost, (0..poll_d + 40).chain(end_d.saturating_sub(50)..end_d)),
     ];
-    let (mut runs, mut failed) = (0, 0);
-    for (dir, offsets) in ranges {
-        for offset in offsets {
-            for bit in 0..8 {
-                let run = flip_run(Some((dir, offset, 1 << bit)));
-                runs += 1;
-                let what = format!("{dir:?} byte {offset} bit {bit}");
-                assert!(!run.after.0.contains(StateFlag::Motion), "{what}: module 1 left moving: {:?}", run.result);
-                assert!(!run.other.0.contains(StateFlag::Motion), "{what}: module 3 left moving");
-                // A corrupted command is caught before the axis goes anywhere else: module 1 ends between
-                // where it stood (0.05) and where it was sent (0.3), give or take 20 mrad.
-                assert!(
-                    (0.03..=0.32).contains(&run.after.1),
-                    "{what}: module 1 went to {}: {:?}",
-                    run.after.1,
-                    run.result
-                );
-                match &run.result {
-                    Ok(report) => {
-                        assert!((report.reached.value() - 0.3).abs() <= 0.001, "{what}: {report:?}");
-                        assert!(
-                            (run.after.1 - 0.3).abs() <= 0.001,
-                            "{what}: success, but module 1 is at {}",
-                            run.after.1
-                        );
-                        assert_eq!(run.other.1, 0.05, "{what}: success, but module 3 moved");
-                    }
-                    // A motion command whose address was corrupted reaches module 3, which moves until the
-                    // session sees its unexpected acknowledge and halts it: the move fails.
-                    Err(_) => failed += 1,
-                }
-            }
-        }
-    }
+    let cases: Vec<(Direction, u64, u8)> = ranges
+        .into_iter()
+        .flat_map(|(dir, offsets)| offsets.flat_map(move |offset| (0..8).map(move |bit| (dir, offset, 1u8 << bit))))
+        .collect();
+    // Each run is a session of its own on its own manual clock: the cases are shared out among the cores.
+    let threads = std::thread::available_parallelism().map_or(2, std::num::NonZeroUsize::get);
+    let failed: usize = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..threads)
+            .map(|k| {
+                let cases = &cases;
+                scope.spawn(move || cases.iter().skip(k).step_by(threads).filter(|c| !flip_case_succeeded(**c)).count())
+            })
+            .collect();
+        workers.into_iter().map(|w| w.join().expect("a flip case failed (its message is above)")).sum()
+    });
+    let runs = cases.len();
     // Most flips are caught and the move fails (or is retried and succeeds); none succeeds wrongly.
     assert!(runs > 2_000 && failed > 0, "{runs} runs, {failed} failed");
+}
+
+/// One run of [`one_flipped_bit_anywhere_never_gives_a_false_success`] with `mask` XORed into the byte at
+/// `offset` of the `dir` stream; panics on a false success; whether the move succeeded.
+fn flip_case_succeeded((dir, offset, mask): (Direction, u64, u8)) -> bool {
+    let run = flip_run(Some((dir, offset, mask)));
+    let what = format!("{dir:?} byte {offset} mask {mask:#04x}");
+    assert!(!run.after.0.contains(StateFlag::Motion), "{what}: module 1 left moving: {:?}", run.result);
+    assert!(!run.other.0.contains(StateFlag::Motion), "{what}: module 3 left moving");
+    // A corrupted command is caught before the axis goes anywhere else: module 1 ends between where it stood
+    // (0.05) and where it was sent (0.3), give or take 20 mrad.
+    assert!((0.03..=0.32).contains(&run.after.1), "{what}: module 1 went to {}: {:?}", run.after.1, run.result);
+    match &run.result {
+        Ok(report) => {
+            assert!((report.reached.value() - 0.3).abs() <= 0.001, "{what}: {report:?}");
+            assert!((run.after.1 - 0.3).abs() <= 0.001, "{what}: success, but module 1 is at {}", run.after.1);
+            assert_eq!(run.other.1, 0.05, "{what}: success, but module 3 moved");
+            true
+        }
+        // A motion command whose address was corrupted reaches module 3, which moves until the session sees
+        // its unexpected acknowledge and halts it: the move fails.
+        Err(_) => false,
+    }
 }
