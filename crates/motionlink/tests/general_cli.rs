@@ -145,7 +145,7 @@ fn every_readme_command_runs_against_the_emulators() {
     std::fs::write(dir.join("unit.toml"), "preset = \"scp11\"\nactuators = 2\n").unwrap();
     // The commands of one emulator (and the decode of what they captured) run in the README's order; the
     // groups run side by side, so the test takes as long as its longest group, not the sum of all.
-    let mut groups: Vec<(String, Vec<&(String, Vec<String>)>)> = Vec::new();
+    let mut groups: Vec<(String, Vec<&ReadmeCommand>)> = Vec::new();
     for command in &commands {
         let key = readme_group(&command.0);
         match groups.iter_mut().find(|(k, _)| *k == key) {
@@ -180,6 +180,9 @@ fn every_readme_command_runs_against_the_emulators() {
     assert!(failures.is_empty(), "{}", failures.join("\n\n"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A README command line and the output its ```console block shows (if any).
+type ReadmeCommand = (String, Vec<String>);
 
 /// Which README commands must run one after the other: those of one emulator (a `--port` command's family,
 /// the TLT preset apart), and a `decode` with its family's commands (it reads what they captured).
@@ -242,7 +245,7 @@ fn run_readme_command(line: &str, expected: &[String], sims: [&Sim; 4], dir: &st
     }
     let mut child = Command::new(BIN)
         .args(&args)
-        .current_dir(&dir)
+        .current_dir(dir)
         .env_remove("MOTIONLINK_PORT")
         .stdin(std::process::Stdio::piped())
         .stdout(std::process::Stdio::piped())
