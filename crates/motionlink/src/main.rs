@@ -17,6 +17,7 @@ mod common;
 mod compax;
 mod console;
 mod decode;
+mod demo;
 mod devices;
 mod ports;
 mod powercube;
@@ -175,15 +176,17 @@ fn run(cli: Cli) -> Result<(), CliError> {
             Ok(())
         }
         Command::Demo(args) => {
-            let mut out = std::io::stdout().lock();
+            let mut stdout = std::io::stdout().lock();
             let parts = [
-                (DemoPart::Scu, scu::demo as fn(&mut dyn std::io::Write) -> Result<(), CliError>),
-                (DemoPart::Powercube, powercube::demo),
-                (DemoPart::Compax, compax::demo),
+                (DemoPart::Scu, "scu", scu::demo as fn(&mut demo::DemoOut<'_>) -> Result<(), CliError>),
+                (DemoPart::Powercube, "powercube", powercube::demo),
+                (DemoPart::Compax, "compax", compax::demo),
             ];
-            for (part, demo) in parts {
+            for (part, family, run) in parts {
                 if args.only.is_none_or(|only| only == part) {
-                    demo(&mut out)?;
+                    let mut out = demo::DemoOut::new(&mut stdout, json, family);
+                    run(&mut out)?;
+                    std::io::Write::flush(&mut out)?;
                 }
             }
             Ok(())

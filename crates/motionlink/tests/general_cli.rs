@@ -263,3 +263,27 @@ fn run_readme_command(line: &str, expected: &[String], sims: [&Sim; 4], dir: &st
         assert_eq!(got, want, "README: {line}");
     }
 }
+
+#[test]
+fn demo_with_json_prints_each_telegram_as_an_object() {
+    let out = Command::new(BIN).args(["demo", "--json"]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let objects: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("not JSON: {l}: {e}")))
+        .collect();
+    let telegrams = |family: &str| -> Vec<&serde_json::Value> {
+        objects.iter().filter(|o| o["family"] == family && o["bytes"].is_string()).collect()
+    };
+    // The SCU manual's RO 00 example, byte for byte; the routine's telegrams carry device time.
+    let scu = telegrams("scu");
+    assert!(scu.iter().any(|o| o["bytes"] == "52 4F 00 5C 2D" && o["step"] == "RO 00" && o["direction"] == "->"));
+    assert!(scu.iter().any(|o| o["time_s"].is_f64() && o["direction"] == "<-"), "replies with their time");
+    // PowerCube: CAN frames and RS232 bytes, each under the manual's step name.
+    let powercube = telegrams("powercube");
+    assert!(powercube.iter().any(|o| o["step"] == "Home" && o["meaning"].as_str().is_some_and(|m| !m.is_empty())));
+    assert!(!telegrams("compax").is_empty());
+    // Nothing else than telegrams and notes; no colour codes.
+    assert!(objects.iter().all(|o| o["bytes"].is_string() || o["note"].is_string()), "{objects:?}");
+    assert!(!String::from_utf8_lossy(&out.stdout).contains('\x1b'));
+}

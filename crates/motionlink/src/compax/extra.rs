@@ -16,6 +16,7 @@ use motionlink_link::transcript::{TapLink, Transcript, Way as TapWay};
 
 use super::{parse_mode, DecodeArgs, Direction, SimArgs};
 use crate::common::{self, CliError};
+use crate::demo::{DemoOut, DemoTelegram};
 
 /// Runs `motionlink sim compax`.
 pub fn sim(args: SimArgs) -> Result<(), CliError> {
@@ -73,7 +74,7 @@ fn fail(e: Error) -> CliError {
 }
 
 /// The COMPAX part of `motionlink demo`: the manual's chapter 4.5 example and a move.
-pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
+pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
     writeln!(out, "== Parker COMPAX: the manual's chapter 4.5, S1 of drives 1 and 5 (P194 = 1 and 5, P195 = 9600) ==")?;
     for (p196, title) in
         [(8, "4.5.1 BASIC program with BCC (P196 = 8)"), (0, "4.5.2 BASIC program without BCC (P196 = 0)")]
@@ -133,7 +134,7 @@ fn demo_bus(clock: &ManualClock, p196: u32) -> Result<(Client, Transcript), CliE
 
 /// Prints what went over the line since the last call, each telegram explained by the library.
 fn print_transcript(
-    out: &mut dyn Write,
+    out: &mut DemoOut<'_>,
     transcript: &Transcript,
     describer: &mut CompaxDescriber,
 ) -> Result<(), CliError> {
@@ -145,7 +146,11 @@ fn print_transcript(
         let mut found = Vec::new();
         describer.describe(Captured::Bytes(&r.bytes), way, None, &mut found);
         for a in &found {
-            writeln!(out, "   {} {}", a.direction.arrow(), line(a))?;
+            let direction = if a.bad { "!!" } else { a.direction.arrow() };
+            let text = format!("   {} {}", a.direction.arrow(), line(a));
+            let time_s = Some(r.at.since_origin().as_secs_f64());
+            let bytes = common::hex(&a.bytes);
+            out.telegram(&text, &DemoTelegram { time_s, direction, bytes: &bytes, meaning: &a.meaning })?;
         }
     }
     Ok(())

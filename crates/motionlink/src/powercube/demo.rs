@@ -15,6 +15,7 @@ use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{Emulator, Error};
 
 use crate::common::{self, CliError};
+use crate::demo::{DemoOut, DemoTelegram};
 
 /// One example of the demo: a name and what the client does.
 type Step = (&'static str, fn(&Module<'_>) -> Result<(), Error>);
@@ -31,8 +32,8 @@ fn ramp(m: &Module<'_>, ack: AckKind) -> Result<(), Error> {
 }
 
 /// The manual's chapter 8 (CAN) and 9 (RS232) examples against the emulator (module 17).
-pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
-    let color = std::io::stdout().is_terminal();
+pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
+    let color = std::io::stdout().is_terminal() && !out.is_json();
     let title = |s: &str| if color { format!("\x1b[1m{s}\x1b[0m") } else { s.to_string() };
     let failed = |e: Error| common::classified(&e);
     writeln!(
@@ -64,12 +65,16 @@ pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
         let mut notes = Vec::new();
         for (name, step) in steps {
             step(&m).map_err(failed)?;
-            writeln!(out, "  {name}")?;
+            out.step(name)?;
             for r in transcript.take() {
                 let (arrow, direction) = way(r.way);
                 describer.describe(Captured::Frame(&r.frame), direction, Some(r.at), &mut notes);
+                let frame = r.frame.to_string();
                 for a in notes.drain(..) {
-                    writeln!(out, "    {arrow} {:<24} {}", r.frame.to_string(), a.meaning)?;
+                    let text = format!("    {arrow} {frame:<24} {}", a.meaning);
+                    let time_s = Some(r.at.since_origin().as_secs_f64());
+                    let t = DemoTelegram { time_s, direction: arrow, bytes: &frame, meaning: &a.meaning };
+                    out.telegram(&text, &t)?;
                 }
             }
         }
@@ -104,12 +109,15 @@ pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
         let mut notes = Vec::new();
         for (name, step) in steps {
             step(&m).map_err(failed)?;
-            writeln!(out, "  {name}")?;
+            out.step(name)?;
             for r in transcript.take() {
                 let (arrow, direction) = way(r.way);
                 describer.describe(Captured::Bytes(&r.bytes), direction, Some(r.at), &mut notes);
-                let meaning: Vec<String> = notes.drain(..).map(|a| a.meaning).collect();
-                writeln!(out, "    {arrow} {:<33} {}", common::hex(&r.bytes), meaning.join("; "))?;
+                let meaning = notes.drain(..).map(|a| a.meaning).collect::<Vec<String>>().join("; ");
+                let bytes = common::hex(&r.bytes);
+                let text = format!("    {arrow} {bytes:<33} {meaning}");
+                let time_s = Some(r.at.since_origin().as_secs_f64());
+                out.telegram(&text, &DemoTelegram { time_s, direction: arrow, bytes: &bytes, meaning: &meaning })?;
             }
         }
         bus.close().map_err(failed)?;

@@ -18,6 +18,7 @@ use motionlink_scu::{Client, ClientConfig, Emulator, SimConfig};
 
 use super::{load_sim_config, DecodeArgs, SimArgs};
 use crate::common::{self, CliError};
+use crate::demo::{DemoOut, DemoTelegram};
 
 /// `motionlink sim scu`
 pub fn sim(args: SimArgs) -> Result<(), CliError> {
@@ -36,13 +37,15 @@ pub fn decode(args: DecodeArgs, json: bool) -> Result<(), CliError> {
 // Demo
 
 /// Prints a session transcript as the library folds it.
-fn print_transcript(out: &mut dyn Write, transcript: &Transcript) -> Result<(), CliError> {
+fn print_transcript(out: &mut DemoOut<'_>, transcript: &Transcript) -> Result<(), CliError> {
     for line in fold_transcript(&transcript.take()) {
         match line {
             TranscriptLine::Telegram(a) => {
                 let t = a.at.unwrap_or_default().since_origin().as_secs_f64();
                 let direction = if a.bad { "!!" } else { a.direction.arrow() };
-                writeln!(out, "  {t:>8.3}  {direction} {:<38} {}", common::hex(&a.bytes), a.meaning)?;
+                let bytes = common::hex(&a.bytes);
+                let text = format!("  {t:>8.3}  {direction} {bytes:<38} {}", a.meaning);
+                out.telegram(&text, &DemoTelegram { time_s: Some(t), direction, bytes: &bytes, meaning: &a.meaning })?;
             }
             TranscriptLine::Folded(text) => writeln!(out, "  {:>8}     {text}", "")?,
         }
@@ -51,7 +54,7 @@ fn print_transcript(out: &mut dyn Write, transcript: &Transcript) -> Result<(), 
 }
 
 /// The SCU part of `motionlink demo`: the manual's chapter 5 routine against the emulator.
-pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
+pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
     writeln!(out, "== Ewellix / Schaeffler SCU: the manual's chapter 5 routine (SCP11, actuator 1) ==")?;
     writeln!(out, "The manual's example telegrams, as motionlink-scu encodes them (CRC-16/XMODEM, low byte first):")?;
     let examples: [(&str, Request<'_>); 7] = [
@@ -64,9 +67,13 @@ pub fn demo(out: &mut dyn Write) -> Result<(), CliError> {
         ("RA", Request::Abort),
     ];
     for (manual, r) in examples {
-        let bytes = request_to_vec(&r).map_err(|e| CliError::usage(e.to_string()))?;
-        writeln!(out, "  {manual:<22} {:<38} {}", common::hex(&bytes), describe_request(&r))?;
+        let bytes = common::hex(&request_to_vec(&r).map_err(|e| CliError::usage(e.to_string()))?);
+        let meaning = describe_request(&r);
+        out.set_step(Some(manual));
+        let text = format!("  {manual:<22} {bytes:<38} {meaning}");
+        out.telegram(&text, &DemoTelegram { time_s: None, direction: "->", bytes: &bytes, meaning: &meaning })?;
     }
+    out.set_step(None);
     writeln!(out, "  (The manual captions its RT example \"100h\"; its bytes 01 00 are little-endian 1. The bytes are the truth.)")?;
     writeln!(out)?;
     writeln!(
