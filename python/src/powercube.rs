@@ -5,9 +5,8 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use motionlink_link::can::{SlcanBitrate, SlcanLink};
+use motionlink_link::can::SlcanBitrate;
 use motionlink_link::cancel::CancelToken;
-use motionlink_link::serial::SerialLink;
 use motionlink_link::url::PortUrl;
 use motionlink_link::SerialSettings;
 use motionlink_powercube::client::{BusConfig, Client, Guard, ModuleInfo, MoveReport, MoveSpec, Readback};
@@ -87,16 +86,9 @@ fn open(port: Target, s: &Settings) -> Result<(Client, bool), Failure> {
             PortUrl::Slcan(path) => {
                 let rate = SlcanBitrate::from_bps(s.bitrate)
                     .ok_or_else(|| usage(format!("{} bit/s is not an SLCAN bit rate", s.bitrate)))?;
-                let settings = SerialSettings { dtr_rts_on: false, ..SerialSettings::new(115_200) };
                 // An SLCAN adapter on a serial device, or behind a TCP port (such as a served emulator's
                 // `slcan://tcp://HOST:PORT`).
-                let line: Box<dyn motionlink_link::link::Link> = if path.starts_with("tcp://") {
-                    let inner: PortUrl = path.parse().map_err(|e| Failure::of(FAMILY, &e))?;
-                    inner.open_byte_link(settings).map_err(|e| e.failure())?
-                } else {
-                    Box::new(SerialLink::open(path, settings).map_err(|e| e.failure())?)
-                };
-                let link = SlcanLink::open(line, clock(), rate).map_err(|e| e.failure())?;
+                let link = motionlink_link::url::open_slcan(path, clock(), rate).map_err(|e| e.failure())?;
                 Ok((can(Box::new(link))?, false))
             }
             PortUrl::SocketCan(ifname) => open_socketcan(ifname).and_then(|link| Ok((can(link)?, false))),

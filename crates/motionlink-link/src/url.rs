@@ -4,6 +4,8 @@
 use std::fmt;
 use std::str::FromStr;
 
+use crate::can::{SlcanBitrate, SlcanLink};
+use crate::clock::SharedClock;
 use crate::link::{Link, LinkError, SerialSettings};
 use crate::serial::SerialLink;
 use crate::tcp::TcpLink;
@@ -32,7 +34,8 @@ pub enum PortUrl {
     Sim,
     /// A SocketCAN network interface (Linux): `socketcan://can0`.
     SocketCan(String),
-    /// A serial CAN adapter speaking SLCAN: `slcan:///dev/ttyACM0` (the path of its serial port).
+    /// A serial CAN adapter speaking SLCAN: `slcan:///dev/ttyACM0` (the path of its serial port), or
+    /// `slcan://tcp://HOST:PORT` (an adapter behind a TCP port); opened by [`open_slcan`].
     Slcan(String),
 }
 
@@ -53,6 +56,37 @@ impl PortUrl {
             }),
         }
     }
+}
+
+/// Opens the SLCAN adapter of a `slcan://PATH` port as a CAN link at `bitrate`. `PATH` is the adapter's serial
+/// device (`slcan:///dev/ttyACM0`; no modem lines are raised, an adapter needs none), or `tcp://HOST:PORT` for an
+/// adapter behind a TCP port (a serial gateway, or `motionlink sim powercube --slcan --tcp ...`, whose port is
+/// `slcan://tcp://127.0.0.1:PORT`).
+///
+/// ```no_run
+/// use motionlink_link::can::SlcanBitrate;
+/// use motionlink_link::url::open_slcan;
+/// let bus = open_slcan("/dev/ttyACM0", motionlink_link::RealClock::shared(), SlcanBitrate::from_bps(1_000_000).unwrap())?;
+/// # Ok::<(), motionlink_link::LinkError>(())
+/// ```
+pub fn open_slcan(
+    path: &str,
+    clock: SharedClock,
+    bitrate: SlcanBitrate,
+) -> Result<SlcanLink<Box<dyn Link>>, LinkError> {
+    let line: Box<dyn Link> = match path.parse::<PortUrl>()? {
+        PortUrl::Tcp { host, port } => Box::new(TcpLink::connect(&host, port)?),
+        PortUrl::Serial(device) => {
+            Box::new(SerialLink::open(&device, SerialSettings { dtr_rts_on: false, ..SerialSettings::new(115_200) })?)
+        }
+        other => {
+            return Err(LinkError::InvalidPort {
+                port: format!("slcan://{other}"),
+                reason: "an SLCAN adapter is on a serial device or behind tcp://HOST:PORT".into(),
+            })
+        }
+    };
+    SlcanLink::open(line, clock, bitrate)
 }
 
 impl FromStr for PortUrl {

@@ -9,10 +9,9 @@ use std::io::Write;
 use std::sync::Arc;
 use std::time::Duration;
 
-use motionlink_link::can::{SlcanAdapter, SlcanBitrate, SlcanLink};
+use motionlink_link::can::{SlcanAdapter, SlcanBitrate};
 use motionlink_link::describe::Describe;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
-use motionlink_link::serial::SerialLink;
 use motionlink_link::url::PortUrl;
 use motionlink_link::{RealClock, SerialSettings, SharedClock};
 use motionlink_powercube::client::{BusConfig, Client, Guard, Module, ModuleInfo, MoveSpec, Progress, Readback};
@@ -208,9 +207,7 @@ fn open(
         PortUrl::Slcan(path) => {
             let rate = SlcanBitrate::from_bps(args.bitrate)
                 .ok_or_else(|| CliError::usage(format!("{} bit/s is not an SLCAN bit rate", args.bitrate)))?;
-            // An SLCAN adapter needs no modem lines (opening the port raises them anyway).
-            let serial = SerialLink::open(path, SerialSettings { dtr_rts_on: false, ..SerialSettings::new(115_200) })?;
-            let link = SlcanLink::open(serial, Arc::clone(&clock), rate)?;
+            let link = motionlink_link::url::open_slcan(path, Arc::clone(&clock), rate)?;
             Client::can(tap.can_link(Box::new(link), &clock), clock, settings(BusConfig::can()))
         }
         PortUrl::SocketCan(ifname) => open_socketcan(ifname, tap, clock, settings(BusConfig::can()))?,

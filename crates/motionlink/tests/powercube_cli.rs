@@ -766,3 +766,21 @@ fn watch_into_a_closed_pipe_ends_quietly_with_0() {
     assert_eq!(ended.code(), 0, "{ended:?}");
     assert!(ended.stderr.is_empty(), "{ended:?}");
 }
+
+#[test]
+fn an_slcan_adapter_behind_a_tcp_port_is_reached_by_slcan_tcp() {
+    // The emulated modules on CAN behind an emulated SLCAN adapter, served on TCP: `slcan://tcp://HOST:PORT`.
+    let sim = Sim::start("powercube", &["--slcan", "--tcp", "127.0.0.1:0", "--modules", "1,17"]);
+    let port = format!("slcan://{}", sim.address);
+    let found = ok(&port, &["scan"]);
+    assert!(
+        found.lines().filter(|l| l.trim_start().starts_with("1 ") || l.trim_start().starts_with("17 ")).count() == 2,
+        "modules 1 and 17 found over CAN: {found}"
+    );
+    let moved = ok(&port, &["--module", "17", "move", "0.2"]);
+    assert!(moved.contains("reached: position 0.2000"), "{moved}");
+    // A port behind slcan:// that is neither a device nor tcp:// is refused, saying why.
+    let out = run("slcan://socketcan://can0", &["scan"]);
+    assert_eq!(code(&out), 2, "a usage error: {out:?}");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("SLCAN adapter is on a serial device"), "{out:?}");
+}

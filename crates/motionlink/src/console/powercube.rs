@@ -4,11 +4,10 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use motionlink_link::can::{CanLink, SlcanBitrate, SlcanLink};
+use motionlink_link::can::{CanLink, SlcanBitrate};
 use motionlink_link::capture::{TapCanLink, TapLink};
 use motionlink_link::link::Link;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
-use motionlink_link::serial::SerialLink;
 use motionlink_link::url::PortUrl;
 use motionlink_link::{SerialSettings, SharedClock};
 use motionlink_powercube::client::{BusConfig, Client, Guard, MoveSpec, Readback};
@@ -124,12 +123,7 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
                 .ok_or_else(|| CliError::usage(format!("{} bit/s is not an SLCAN bit rate", args.bitrate)))?;
             let path = path.clone();
             let c2 = Arc::clone(clock);
-            let link =
-                tokio::task::spawn_blocking(move || -> Result<SlcanLink<SerialLink>, motionlink_link::LinkError> {
-                    let serial =
-                        SerialLink::open(&path, SerialSettings { dtr_rts_on: false, ..SerialSettings::new(115_200) })?;
-                    SlcanLink::open(serial, c2, rate)
-                })
+            let link = tokio::task::spawn_blocking(move || motionlink_link::url::open_slcan(&path, c2, rate))
                 .await
                 .map_err(|e| CliError::transport(format!("the opening task failed: {e}")))??;
             Client::can(can_link(Box::new(link)), c, settings(BusConfig::can()))
