@@ -4,7 +4,7 @@
 use std::io::{IsTerminal, Write};
 
 use motionlink_link::can::{CanBus, CanBusConfig};
-use motionlink_link::clock::{Clock, ManualClock};
+use motionlink_link::clock::{Clock, ManualClock, Timestamp};
 use motionlink_link::describe::{Captured, Describe, Direction};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::transcript::{FrameTranscript, TapCanLink, TapLink, Transcript, Way};
@@ -25,6 +25,21 @@ fn way(w: Way) -> (&'static str, Direction) {
         Way::Sent => ("->", Direction::ToDevice),
         Way::Received => ("<-", Direction::FromDevice),
     }
+}
+
+/// One telegram of the demo: `shown` (a CAN frame or RS232 bytes in hex) in a column `width` wide, then its
+/// meaning.
+fn show(
+    out: &mut DemoOut<'_>,
+    arrow: &str,
+    at: Timestamp,
+    shown: &str,
+    width: usize,
+    meaning: &str,
+) -> Result<(), CliError> {
+    let text = format!("    {arrow} {shown:<width$} {meaning}");
+    let time_s = Some(at.since_origin().as_secs_f64());
+    out.telegram(&text, &DemoTelegram { time_s, direction: arrow, bytes: shown, meaning })
 }
 
 fn ramp(m: &Module<'_>, ack: AckKind) -> Result<(), Error> {
@@ -71,10 +86,7 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
                 describer.describe(Captured::Frame(&r.frame), direction, Some(r.at), &mut notes);
                 let frame = r.frame.to_string();
                 for a in notes.drain(..) {
-                    let text = format!("    {arrow} {frame:<24} {}", a.meaning);
-                    let time_s = Some(r.at.since_origin().as_secs_f64());
-                    let t = DemoTelegram { time_s, direction: arrow, bytes: &frame, meaning: &a.meaning };
-                    out.telegram(&text, &t)?;
+                    show(out, arrow, r.at, &frame, 24, &a.meaning)?;
                 }
             }
         }
@@ -114,10 +126,7 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
                 let (arrow, direction) = way(r.way);
                 describer.describe(Captured::Bytes(&r.bytes), direction, Some(r.at), &mut notes);
                 let meaning = notes.drain(..).map(|a| a.meaning).collect::<Vec<String>>().join("; ");
-                let bytes = common::hex(&r.bytes);
-                let text = format!("    {arrow} {bytes:<33} {meaning}");
-                let time_s = Some(r.at.since_origin().as_secs_f64());
-                out.telegram(&text, &DemoTelegram { time_s, direction: arrow, bytes: &bytes, meaning: &meaning })?;
+                show(out, arrow, r.at, &common::hex(&r.bytes), 33, &meaning)?;
             }
         }
         bus.close().map_err(failed)?;
