@@ -200,15 +200,20 @@ impl Ended {
 }
 
 impl Running {
-    /// Starts `motionlink <args>`.
-    pub fn start(args: &[&str]) -> Running {
-        let mut child = Command::new(BIN)
+    /// `motionlink <args>` spawned with `stdin` and piped stdout and stderr.
+    fn spawn(args: &[&str], stdin: Stdio) -> std::process::Child {
+        Command::new(BIN)
             .args(args)
-            .stdin(Stdio::null())
+            .stdin(stdin)
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
-            .expect("start motionlink");
+            .expect("start motionlink")
+    }
+
+    /// Starts `motionlink <args>`.
+    pub fn start(args: &[&str]) -> Running {
+        let mut child = Self::spawn(args, Stdio::null());
         let stdout = Lines::follow(child.stdout.take().expect("piped stdout"));
         let stderr = Lines::follow(child.stderr.take().expect("piped stderr"));
         Running { child, stdout, stderr }
@@ -216,13 +221,7 @@ impl Running {
 
     /// Starts `motionlink <args>` with a pipe to its stdin, which the caller writes and closes.
     pub fn start_with_stdin(args: &[&str]) -> (Running, std::process::ChildStdin) {
-        let mut child = Command::new(BIN)
-            .args(args)
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("start motionlink");
+        let mut child = Self::spawn(args, Stdio::piped());
         let stdin = child.stdin.take().expect("piped stdin");
         let stdout = Lines::follow(child.stdout.take().expect("piped stdout"));
         let stderr = Lines::follow(child.stderr.take().expect("piped stderr"));
@@ -232,13 +231,7 @@ impl Running {
     /// Starts `motionlink <args>` with its stdout a pipe that the caller holds and may close (its reader going
     /// away); stderr is followed.
     pub fn start_with_stdout(args: &[&str]) -> (Running, std::process::ChildStdout) {
-        let mut child = Command::new(BIN)
-            .args(args)
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("start motionlink");
+        let mut child = Self::spawn(args, Stdio::null());
         let stdout = child.stdout.take().expect("piped stdout");
         let stderr = Lines::follow(child.stderr.take().expect("piped stderr"));
         // Nothing follows stdout here: its lines are the caller's.
