@@ -29,8 +29,12 @@ use motionlink_compax::describe::CompaxDescriber;
 use motionlink_link::describe::Describe;
 
 mod extra;
+mod open;
+mod show;
 
 pub use extra::{decode, demo, sim};
+use open::{open, parse_mode, plan_move};
+use show::{param_json, send_text, status_rows};
 
 /// `motionlink compax` arguments. Every option may come before or after the action.
 #[derive(clap::Args, Debug)]
@@ -300,131 +304,6 @@ fn checked_s(name: &str, s: f64) -> Result<Duration, CliError> {
         .ok_or_else(|| CliError::usage(format!("{name} {s}: give a number of seconds above 0")))
 }
 
-/// The arguments of `move`, checked before anything is sent.
-struct MovePlan {
-    request: MoveRequest,
-    tolerance: Position,
-    poll: Duration,
-}
-
-#[allow(clippy::too_many_arguments)]
-fn plan_move(
-    abs: Option<f64>,
-    rel: Option<f64>,
-    speed: Option<f64>,
-    accel: Option<u32>,
-    binary: bool,
-    timeout_s: f64,
-    tolerance: f64,
-    (min_pos, max_pos): (Option<f64>, Option<f64>),
-    poll_ms: u64,
-) -> Result<MovePlan, CliError> {
-    let target = match (abs, rel) {
-        (Some(a), None) => MoveTarget::Absolute(Position::new(a).map_err(|e| CliError::usage(format!("--abs: {e}")))?),
-        (None, Some(r)) => MoveTarget::Relative(Position::new(r).map_err(|e| CliError::usage(format!("--rel: {e}")))?),
-        _ => return Err(CliError::usage("give one of --abs and --rel")),
-    };
-    let speed = speed.map(SpeedPercent::new).transpose().map_err(|e| CliError::usage(format!("--speed: {e}")))?;
-    let accel = accel.map(RampMs::new).transpose().map_err(|e| CliError::usage(format!("--accel: {e}")))?;
-    let timeout = checked_s("--timeout-s", timeout_s)?;
-    if !(tolerance.is_finite() && tolerance > 0.0 && tolerance <= 1e6) {
-        return Err(CliError::usage(format!("--tolerance {tolerance}: give a distance above 0 (at most 1000000)")));
-    }
-    let tolerance = Position::new(tolerance).map_err(|e| CliError::usage(format!("--tolerance: {e}")))?;
-    let limit = |name: &str, v: Option<f64>| {
-        v.map(Position::new).transpose().map_err(|e| CliError::usage(format!("{name}: {e}")))
-    };
-    let limits = TravelLimits::new(limit("--min-pos", min_pos)?, limit("--max-pos", max_pos)?)
-        .map_err(|e| CliError::usage(format!("--min-pos / --max-pos: {e}")))?;
-    let poll = checked_ms("--poll-ms", poll_ms, 1, 10_000)?;
-    let request = MoveRequest { target, speed, accel, binary, limits, timeout: Some(timeout) };
-    Ok(MovePlan { request, tolerance, poll })
-}
-
-fn parse_mode(p196: u32) -> Result<Mode, CliError> {
-    Mode::from_p196(p196).map_err(|e| CliError::usage(format!("--mode: {e}")))
-}
-
-/// Checks the bus arguments (before anything is opened or sent) and opens the port, its link watched by
-/// `tap`.
-fn open(args: &Args, tap: &Tap, configure: impl FnOnce(&mut BusConfig)) -> Result<Client, CliError> {
-    let mode = parse_mode(args.mode)?;
-    Address::drive(args.drive).map_err(|e| CliError::usage(format!("--drive {}: {e}", args.drive)))?;
-    if !BAUD_RATES.contains(&args.baud) {
-        return Err(CliError::usage(format!("--baud {}: not a rate P195 accepts ({BAUD_RATES:?})", args.baud)));
-    }
-    let reply_timeout = checked_ms("--timeout-ms", args.timeout_ms, 1, 60_000)?;
-    let url: PortUrl = args.resolved_port.parse()?;
-    let clock: SharedClock = RealClock::shared();
-    // Installed before the port opens: a signal from here on stops what the command starts.
-    let token = common::interrupt_token();
-    let link: Box<dyn Link> = match url {
-        PortUrl::Sim => {
-            let cfg = SimConfig::bus(&[args.drive], args.mode, args.baud);
-            let bus = Emulator::new(cfg).map_err(CliError::usage)?;
-            let host = EmulatorHost::new(bus, clock.clone(), PipeConfig::paced(args.baud));
-            tap.link(Box::new(host.connect().0), &clock)
-        }
-        other => {
-            let mut settings = SerialSettings::new(args.baud);
-            settings.parity = mode.parity;
-            tap.link(other.open_byte_link(settings)?, &clock)
-        }
-    };
-    let mut cfg = BusConfig::new(mode, args.baud);
-    cfg.reply_timeout = reply_timeout;
-    cfg.style = if args.short { CommandStyle::Short } else { CommandStyle::Long };
-    configure(&mut cfg);
-    let bus = Client::new(link, clock, cfg).map_err(|e| common::classified(&e))?;
-    bus.set_cancel(token);
-    Ok(bus)
-}
-
-fn status_rows(id: StatusId, v: &StatusValue) -> (Row, serde_json::Value) {
-    let info = id.info();
-    let name = info.map_or("(meaning not documented)", |i| i.title);
-    let unit = info.map_or("", |i| i.unit);
-    let (shown, js) = match v {
-        StatusValue::S16(b) => {
-            let names = b.meanings();
-            let bits = b.pattern().to_string();
-            (format!("{bits}  [{}]", names.join(", ")), json!({"bits": bits, "value": b.0, "set": names}))
-        }
-        StatusValue::S17(b) => {
-            let names = b.meanings();
-            let bits = b.pattern().to_string();
-            (format!("{bits}  [{}]", names.join(", ")), json!({"bits": bits, "value": b.0, "set": names}))
-        }
-        StatusValue::Position(p) => (format!("{v} {unit}").trim_end().to_string(), json!(p.units())),
-        StatusValue::Number(n) => (format!("{v} {unit}").trim_end().to_string(), json!(n)),
-        other => (other.to_string(), json!(other.to_string())),
-    };
-    ((format!("{id} {name}"), shown), json!({"status": id.to_string(), "name": name, "unit": unit, "value": js}))
-}
-
-/// A parameter as JSON: name, id, value, unit and access (naming.md).
-fn param_json(id: ParamId, value: serde_json::Value) -> serde_json::Value {
-    let info = id.info();
-    json!({"name": id.to_string(), "id": id.get(), "value": value, "unit": info.map_or("", |i| i.unit),
-           "access": info.map_or("rw", |i| i.access.short())})
-}
-
-/// The text of `send`'s command: words joined by spaces, or characters given in hex (printable ASCII).
-fn send_text(words: &[String]) -> Result<String, CliError> {
-    let joined = words.join(" ");
-    let looks_hex = words.iter().all(|w| w.len() == 2 && w.chars().all(|c| c.is_ascii_hexdigit()));
-    if !looks_hex {
-        return Ok(joined);
-    }
-    let bytes = common::parse_hex(&joined)?;
-    let text: String = bytes.iter().map(|&b| char::from(b)).collect();
-    let text = text.trim_end_matches(['\r', '\n']).to_string();
-    if text.is_empty() || !text.chars().all(|c| c.is_ascii_graphic() || c == ' ') {
-        return Err(CliError::usage(format!("{joined:?}: the characters of a command in hex (printable ASCII)")));
-    }
-    Ok(text)
-}
-
 /// Runs `motionlink compax`.
 pub fn run(mut args: Args) -> Result<(), CliError> {
     args.resolved_port = args.link.resolve_port("compax", args.port.as_deref())?;
@@ -621,57 +500,7 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
         }
         Action::Watch { count, csv, .. } => {
             let interval = watch_interval.unwrap_or(Duration::from_millis(200));
-            let token = common::interrupt_token();
-            let started = clock.now();
-            let mut written = if *csv {
-                writeln!(out, "t_s,drive,position_units,moving,s17").and_then(|()| out.flush())
-            } else {
-                Ok(())
-            };
-            let mut n = 0u64;
-            let watched = bus.watch(drive, interval, &mut |s| {
-                if count.is_some_and(|c| n >= c) {
-                    return;
-                }
-                let t_s = (clock.now() - started).as_secs_f64();
-                let line = if *csv {
-                    let fields = [
-                        format!("{t_s:.3}"),
-                        drive.get().to_string(),
-                        s.position.units().to_string(),
-                        s.moving().to_string(),
-                        s.s17.pattern().to_string(),
-                    ];
-                    common::csv_line(&fields)
-                } else if args.json {
-                    identified(
-                        args,
-                        json!({"t_s": t_s, "position_units": s.position.units(),
-                               "s17": s.s17.pattern().to_string(), "moving": s.moving()}),
-                    )
-                    .to_string()
-                } else {
-                    format!("drive {drive}  S1 = {}  {}", s.position, if s.moving() { "moving" } else { "at rest" })
-                };
-                if written.is_ok() {
-                    written = writeln!(out, "{line}").and_then(|()| out.flush());
-                    n += 1;
-                    if written.is_err() || count.is_some_and(|c| n >= c) {
-                        // Nobody reads any more, or enough samples: the watch ends.
-                        token.cancel();
-                    }
-                }
-            });
-            let counted = count.is_some_and(|c| n >= c) && common::stop_cause().is_none();
-            match watched {
-                Err(e) if !counted => return Err(fail(e)),
-                _ => {}
-            }
-            written?;
-            // Interrupted: a signal ends the command with 128 + n (main), a closed stdout quietly.
-            if common::stop_cause() == Some(common::StopCause::OutputClosed) {
-                return Err(CliError::OutputClosed);
-            }
+            show::watch(args, &bus, drive, clock, interval, count, *csv, &mut out)?;
         }
         Action::Output { number, state } => {
             let st = OutputState::new(*number, *state).map_err(model_error)?;

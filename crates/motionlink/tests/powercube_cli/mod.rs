@@ -1,6 +1,11 @@
 //! `motionlink powercube`, `motionlink sim powercube`, `motionlink decode powercube` and the demo, end to end
 //! through the built binary: over TCP, over a pty, and over SLCAN on a pty.
 
+mod conventions;
+mod decoding;
+
+use decoding::decode;
+
 use std::io::Write;
 use std::process::{Command, Output, Stdio};
 use std::time::Duration;
@@ -424,82 +429,6 @@ fn the_in_process_sim_port() {
     assert!(out.contains("rotary") && out.contains("1001"), "{out}");
 }
 
-fn decode(input: &str) -> Output {
-    let mut child = Command::new(BIN)
-        .args(["decode", "powercube"])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child.stdin.take().unwrap().write_all(input.as_bytes()).unwrap();
-    child.wait_with_output().unwrap()
-}
-
-#[test]
-fn a_hex_capture_with_comment_lines_is_not_taken_for_candump() {
-    let out = decode("# Home to module 17, and its acknowledge\n02 06 21 01 28 03\n# ack:\n02 0a 21 01 2c 03\n");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("to module 17: Home"), "{text}");
-    assert!(text.contains("from module 17: Home acknowledged"), "{text}");
-    // And a candump log may have comment lines too.
-    let out = decode("# candump -l can0\n(1700000000.000000) can0 0F1#01\n// ack\n(1700000000.000100) can0 0B1#01\n");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        text.contains("put to module 17: Home") && text.contains("ack from module 17: Home acknowledged"),
-        "{text}"
-    );
-    // One frame given as an argument.
-    let out = Command::new(BIN).args(["decode", "powercube", "0D1#0A3C"]).output().unwrap();
-    assert!(String::from_utf8_lossy(&out.stdout).contains("get to module 17: GetExtended ActPos"), "{out:?}");
-}
-
-#[test]
-fn decode_rs232_and_candump() {
-    let out = decode("02 06 21 10 82 29 03\n02 0a 26 08 50 64 ec 03 ff 02 06 21 01 00 03\n");
-    assert!(out.status.success());
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("to module 17: Halt"), "{text}");
-    assert!(text.contains("from module 17: TargetAcc set [TELID length 6 for 3 bytes]"), "{text}");
-    assert!(text.contains("error: 1 byte(s) outside a frame skipped"), "{text}");
-    assert!(text.contains("Home [BCC 0x00 wrong, expected 0x28]"), "{text}");
-
-    let out = decode("(1700000000.000000) can0 0F1#01\n(1700000000.000100) can0 0B1#01\n  can0  0D1   [2]  0A 3C\n(1.0) can0 100#07\n");
-    assert!(out.status.success());
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("put to module 17: Home"), "{text}");
-    assert!(text.contains("ack from module 17: Home acknowledged"), "{text}");
-    assert!(text.contains("get to module 17: GetExtended ActPos"), "{text}");
-    assert!(text.contains("broadcast: Watchdog refresh"), "{text}");
-
-    let out = decode("(1.0) can0 0F1#0\n");
-    assert_eq!(code(&out), 2);
-    let out = Command::new(BIN).args(["decode", "powercube", "02", "06", "21", "01", "28", "03"]).output().unwrap();
-    assert!(String::from_utf8_lossy(&out.stdout).contains("to module 17: Home"));
-}
-
-#[test]
-fn demo_shows_the_manuals_examples() {
-    let out = Command::new(BIN).args(["demo", "powercube"]).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let text = String::from_utf8_lossy(&out.stdout);
-    for needle in [
-        "0F1#01",
-        "0B1#01",
-        "0F1#08500000003F",
-        "0B1#085064",
-        "0D1#0A27",
-        "0F1#0B0E0000403F",
-        "02 06 21 01 28 03",
-        "02 0A 21 01 2C 03",
-        "02 06 21 10 82 29 03",
-    ] {
-        assert!(text.contains(needle), "{needle} missing in\n{text}");
-    }
-}
-
 /// `get PARAM --json` of module 1, as a number.
 fn number(port: &str, param: &str) -> f64 {
     let j: serde_json::Value = serde_json::from_str(&ok(port, &["--json", "get", param])).unwrap();
@@ -654,133 +583,4 @@ fn libm5api_broadcasts_over_tcp_reach_every_module() {
     replay(&[0x02, 0x04, 0x10, 0x82, 0x00, 0x00, 0x06, 0x03], "reset"); // resetAll
     replay(&[0x02, 0x04, 0x10, 0x82, 0x0E, 0x00, 0x14, 0x03], "position saved"); // savePosAll
     assert!(sim.events().iter().all(|e| e.at < t0 || !e.text.contains("ignored")), "{:?}", sim.events());
-}
-
-// ----- the command-line conventions (issue 12), through the binary
-
-/// Options before or after the action, negative numbers, JSON with the unit in the names, several parameters
-/// in one `get`, `send` typed or as hex, `watch --count --csv`, JSON errors.
-#[test]
-fn options_anywhere_json_send_get_and_watch_csv() {
-    let sim = Sim::tcp("powercube");
-    let p = sim.address.as_str();
-    let run = |args: &[&str]| common::run_with(args, &[], "");
-    let lines = |o: &Output| -> Vec<serde_json::Value> {
-        assert!(o.status.success(), "{o:?}");
-        String::from_utf8_lossy(&o.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect()
-    };
-    assert!(run(&["powercube", "home", "--port", p]).status.success());
-    let m =
-        lines(&run(&["powercube", "move", "-0.1", "--vel", "1", "--acc", "2", "--json", "--port", p, "--no-watchdog"]));
-    assert_eq!(
-        (&m[0]["family"], &m[0]["module"], &m[0]["target_rad"]),
-        (&"powercube".into(), &1.into(), &(-0.1f32 as f64).into())
-    );
-    assert!((m[0]["reached_rad"].as_f64().unwrap() + 0.1).abs() < 0.001, "{m:?}");
-    let got = lines(&run(&["powercube", "get", "ActPos", "0x1d", "--port", p, "--json"]));
-    assert_eq!((&got[0]["name"], &got[0]["unit"], &got[0]["access"]), (&"ActPos".into(), &"rad".into(), &"r".into()));
-    assert_eq!(got[1]["id"], 0x1d);
-    let set = lines(&run(&["powercube", "set", "TargetVel", "0.5", "--json", "--port", p]));
-    assert_eq!(set[0]["name"], "TargetVel");
-
-    let typed = String::from_utf8_lossy(&run(&["powercube", "send", "get", "ActPos", "--port", p]).stdout).into_owned();
-    let hex = String::from_utf8_lossy(&run(&["powercube", "send", "0A", "3C", "--port", p]).stdout).into_owned();
-    assert_eq!(typed, hex);
-    assert!(typed.starts_with("-> 02 04 22 0A 3C 6C 03") && typed.contains("GetExtended ActPos"), "{typed}");
-    assert!(
-        typed.lines().nth(1).unwrap().starts_with("<- 02 08 26 0A 3C") && typed.contains("ActPos = -0.1"),
-        "{typed}"
-    );
-    for refused in [&["send", "home"][..], &["send", "0B", "01"], &["send", "get", "Nope"]] {
-        let o = run(&[&["powercube", "--port", p][..], refused].concat());
-        assert_eq!(code(&o), 2, "{refused:?}: {o:?}");
-    }
-
-    let csv = String::from_utf8_lossy(
-        &run(&["powercube", "watch", "--count", "2", "--csv", "--interval-ms", "10", "--port", p]).stdout,
-    )
-    .into_owned();
-    let rows: Vec<&str> = csv.lines().collect();
-    assert_eq!(rows[0], "t_s,module,position_rad,flags");
-    assert_eq!(rows.len(), 3, "{csv}");
-    assert!(rows[2].contains(",1,-0.1") && rows[2].contains("STATE_HOME_OK"), "{csv}");
-
-    let o = run(&["powercube", "--port", p, "--json", "--module", "5", "--timeout-ms", "50", "get", "ActPos"]);
-    let e = common::json_error(&o);
-    assert_eq!((e["kind"].as_str(), e["exit_code"].as_i64(), code(&o)), (Some("timeout"), Some(3), 3), "{e}");
-}
-
-/// `-v` traces each telegram live; `--capture` writes a file `decode powercube` reads back; a candump log's
-/// time stamps are kept; `--device` and MOTIONLINK_PORT give the port.
-#[test]
-fn trace_capture_candump_and_where_the_port_comes_from() {
-    let sim = Sim::tcp("powercube");
-    let p = sim.address.as_str();
-    let o = common::run_with(&["-v", "powercube", "get", "ActPos", "--port", p], &[], "");
-    let trace = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(
-        trace.lines().any(|l| l.contains("-> 02 04 22 0A 3C 6C 03") && l.contains("GetExtended ActPos")),
-        "{trace}"
-    );
-    let o = common::run_with(&["-q", "powercube", "get", "ActPos", "--port", p], &[], "");
-    assert!(o.status.success() && o.stderr.is_empty(), "{o:?}");
-
-    let file = common::temp_path("powercube.capture");
-    assert!(run(p, &["get", "ActPos", "--capture", file.to_str().unwrap()]).status.success());
-    let captured = std::fs::read_to_string(&file).unwrap();
-    let _ = std::fs::remove_file(&file);
-    let first = captured.lines().nth(1).unwrap().to_string();
-    assert!(first.ends_with(" -> 02 04 22 0A 3C 6C 03"), "{captured}");
-    let text = String::from_utf8_lossy(&decode(&captured).stdout).into_owned();
-    assert!(text.lines().any(|l| l.starts_with(&first) && l.contains("GetExtended ActPos")), "{text}");
-
-    // candump: time stamps and interface kept; a frame that breaks the protocol is labelled in words.
-    let text =
-        String::from_utf8_lossy(&decode("(1700000000.000000) can0 0F1#01\n(1700000000.000100) can0 0B1#FF\n").stdout)
-            .into_owned();
-    let lines: Vec<&str> = text.lines().collect();
-    assert!(lines[0].starts_with("(1700000000.000000) can0 0F1#01") && lines[0].contains("Home"), "{text}");
-    assert!(lines[1].starts_with("(1700000000.000100) can0 0B1#FF") && lines[1].contains("!!"), "{text}");
-    assert!(!text.contains("Some(") && !text.contains("None"), "{text}");
-
-    let config = common::temp_path("powercube-devices.toml");
-    std::fs::write(&config, format!("[device.arm]\nfamily = \"powercube\"\nport = \"{p}\"\n")).unwrap();
-    let o = common::run_with(
-        &["powercube", "get", "ActPos", "--device", "arm"],
-        &[("MOTIONLINK_CONFIG", config.to_str().unwrap())],
-        "",
-    );
-    assert!(String::from_utf8_lossy(&o.stdout).contains("ActPos"), "{o:?}");
-    let _ = std::fs::remove_file(&config);
-    let o = common::run_with(&["powercube", "get", "ActPos"], &[("MOTIONLINK_PORT", p)], "");
-    assert!(String::from_utf8_lossy(&o.stdout).contains("ActPos"), "{o:?}");
-}
-
-/// `motionlink powercube watch | head -1` ends quietly with exit 0.
-#[cfg(unix)]
-#[test]
-fn watch_into_a_closed_pipe_ends_quietly_with_0() {
-    let sim = Sim::tcp("powercube");
-    let (line, ended) = common::head_1(&["powercube", "--port", &sim.address, "watch", "--interval-ms", "10"]);
-    assert!(line.contains("0.0500"), "{line}");
-    assert_eq!(ended.code(), 0, "{ended:?}");
-    assert!(ended.stderr.is_empty(), "{ended:?}");
-}
-
-#[test]
-fn an_slcan_adapter_behind_a_tcp_port_is_reached_by_slcan_tcp() {
-    // The emulated modules on CAN behind an emulated SLCAN adapter, served on TCP: `slcan://tcp://HOST:PORT`.
-    let sim = Sim::start("powercube", &["--slcan", "--tcp", "127.0.0.1:0", "--modules", "1,17"]);
-    let port = format!("slcan://{}", sim.address);
-    let found = ok(&port, &["scan"]);
-    assert!(
-        found.lines().filter(|l| l.trim_start().starts_with("1 ") || l.trim_start().starts_with("17 ")).count() == 2,
-        "modules 1 and 17 found over CAN: {found}"
-    );
-    let moved = ok(&port, &["--module", "17", "move", "0.2"]);
-    assert!(moved.contains("reached: position 0.2000"), "{moved}");
-    // A port behind slcan:// that is neither a device nor tcp:// is refused, saying why.
-    let out = run("slcan://socketcan://can0", &["scan"]);
-    assert_eq!(code(&out), 2, "a usage error: {out:?}");
-    assert!(String::from_utf8_lossy(&out.stderr).contains("SLCAN adapter is on a serial device"), "{out:?}");
 }

@@ -1,0 +1,145 @@
+//! What `motionlink powercube` prints: `scan`, `info`, `watch` and the end of a motion.
+
+use super::*;
+
+pub(super) fn scan(client: &Client, out: &mut dyn Write, json: bool) -> Result<(), CliError> {
+    let found = client.scan().map_err(failed)?;
+    if json {
+        let entries: Vec<_> = found
+            .iter()
+            .map(|e| match &e.info {
+                Ok(info) => info_json(info),
+                Err(err) => json!({"address": e.address.get(), "error": err.to_string()}),
+            })
+            .collect();
+        common::print_json(out, &json!(entries))?;
+    } else if found.is_empty() {
+        writeln!(out, "no module answered on {}", client.describe())?;
+    } else {
+        writeln!(out, "{:<7}  {:<6}  {:<7}  {:<8}  state", "address", "type", "version", "serial")?;
+        for e in &found {
+            match &e.info {
+                Ok(i) => writeln!(
+                    out,
+                    "{:<7}  {:<6}  {:<7}  {:<8}  {}",
+                    i.address.get(),
+                    i.kind.name(),
+                    i.version.to_string(),
+                    i.serial,
+                    i.state
+                )?,
+                Err(err) => writeln!(out, "{:<7}  answered the scan, then: {err}", e.address.get())?,
+            }
+        }
+    }
+    if found.is_empty() {
+        return Err(CliError::transport(format!("no module answered on {}", client.describe())));
+    }
+    // Every module is listed; the exit code still says that one could not be read.
+    match found.into_iter().find_map(|e| e.info.err()) {
+        Some(e) => Err(failed(e)),
+        None => Ok(()),
+    }
+}
+
+pub(super) fn info(m: &Module<'_>, out: &mut dyn Write, json: bool) -> Result<(), CliError> {
+    let info = m.info().map_err(failed)?;
+    let limits: Vec<(Param, Value)> = [Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::ActPos]
+        .into_iter()
+        .map(|p| m.get(p).map(|v| (p, v)))
+        .collect::<Result<_, _>>()
+        .map_err(failed)?;
+    if json {
+        let mut j = info_json(&info);
+        // snake_case names with the module's unit (naming.md): min_position_rad, max_velocity_m_per_s ...
+        let unit = info.kind.unit();
+        for (p, v) in &limits {
+            let key = match p {
+                Param::MinPos => format!("min_position_{unit}"),
+                Param::MaxPos => format!("max_position_{unit}"),
+                Param::MaxVel => format!("max_velocity_{unit}_per_s"),
+                Param::MaxAcc => format!("max_acceleration_{unit}_per_s2"),
+                _ => format!("position_{unit}"),
+            };
+            j[key] = value_json(v);
+        }
+        common::print_json(out, &j)
+    } else {
+        let mut rows = vec![
+            ("address".to_string(), info.address.to_string()),
+            ("type".to_string(), info.kind.name().to_string()),
+            ("version".to_string(), info.version.to_string()),
+            ("serial".to_string(), info.serial.to_string()),
+            ("state".to_string(), info.state.to_string()),
+        ];
+        rows.extend(limits.iter().map(|(p, v)| (p.name().to_string(), v.show(*p, info.kind))));
+        common::print_table(out, &rows)
+    }
+}
+
+/// How `watch` prints.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum WatchFormat {
+    Text,
+    Json,
+    Csv,
+}
+
+pub(super) fn watch(
+    client: &Client,
+    m: &Module<'_>,
+    out: &mut dyn Write,
+    format: WatchFormat,
+    identified: &dyn Fn(serde_json::Value) -> serde_json::Value,
+    interval_ms: u64,
+    count: Option<u64>,
+) -> Result<(), CliError> {
+    let token = common::interrupt_token();
+    let kind = m.kind().map_err(failed)?;
+    let clock = Arc::clone(client.clock());
+    let interval = Duration::from_millis(interval_ms);
+    let mut due = clock.now();
+    let started = due;
+    let mut n = 0u64;
+    if format == WatchFormat::Csv {
+        writeln!(out, "t_s,module,{},flags", unit_key("position", kind))?;
+    }
+    while !token.is_cancelled() && count.is_none_or(|c| n < c) {
+        let s = m.state().map_err(failed)?;
+        let p = m.position().map_err(failed)?;
+        let t = clock.now();
+        let t_s = (t - started).as_secs_f64();
+        match format {
+            WatchFormat::Json => common::print_json(
+                out,
+                &identified(json!({"t_s": t_s, unit_key("position", kind): p.value(), "state": state_json(s)})),
+            )?,
+            WatchFormat::Csv => {
+                let flags: Vec<String> = s.iter().map(|f| f.label()).collect();
+                let fields = [format!("{t_s:.3}"), m.address().to_string(), p.value().to_string(), flags.join(" ")];
+                writeln!(out, "{}", common::csv_line(&fields))?;
+            }
+            WatchFormat::Text => writeln!(out, "{:>9.3} s  {}  {}", t_s, p.show(kind), s)?,
+        }
+        out.flush()?;
+        n += 1;
+        if count.is_some_and(|c| n >= c) {
+            break;
+        }
+        // The next sample on a fixed schedule; a signal ends the wait within 20 ms.
+        due += interval;
+        while !token.is_cancelled() && clock.now() < due {
+            clock.sleep_until(due.min(clock.now() + Duration::from_millis(20)));
+        }
+    }
+    Ok(())
+}
+
+pub(super) fn progress_text(p: &Progress) -> String {
+    format!("module {}: {:.4}  {}", p.address, p.position.value(), p.state)
+}
+
+pub(super) fn report_done(out: &mut dyn Write, what: &str, pos: Position, s: CubeState) -> Result<(), CliError> {
+    writeln!(out, "{what}: position {:.4}, state {s}", pos.value())?;
+    Ok(())
+}

@@ -1,0 +1,182 @@
+//! The command-line conventions (issue 12) for the SCU, through the binary.
+
+use super::*;
+
+// ----- the command-line conventions (issue 12), through the binary
+
+/// Options before or after the action, negative numbers without `--`, JSON errors on stderr.
+#[test]
+pub(super) fn options_go_anywhere_and_errors_come_as_json() {
+    let sim = sim_tcp();
+    let p = sim.address.as_str();
+    let run = |args: &[&str]| common::run_with(args, &[], "");
+    let after = json(&run(&["scu", "get", "actual_position_a1", "--json", "--port", p, "--baud", "38400"]));
+    let before = json(&run(&["--json", "scu", "--port", p, "get", "actual_position_a1"]));
+    assert_eq!(after, before);
+    assert_eq!(
+        (&after["family"], &after["port"], &after["name"], &after["id"], &after["unit"], &after["access"]),
+        (&"scu".into(), &p.into(), &"actual_position_a1".into(), &0x11.into(), &"counts".into(), &"r".into())
+    );
+    // -3 is a number, not an option: refused by the stroke check (exit 2, naming it), not by the parser.
+    let out = run(&["scu", "move", "1", "-3", "--port", p, "--json"]);
+    let e = common::json_error(&out);
+    assert_eq!((e["kind"].as_str(), e["exit_code"].as_i64(), out.status.code()), (Some("usage"), Some(2), Some(2)));
+    assert!(e["message"].as_str().unwrap().contains("target -3 counts"), "{e}");
+    // A parse error with --json anywhere is the same object.
+    let e = common::json_error(&run(&["scu", "get", "--port", p, "--json"]));
+    assert_eq!((e["kind"].as_str(), e["exit_code"].as_i64()), (Some("usage"), Some(2)), "{e}");
+    // A transport error: kind and exit code of its class.
+    let e = common::json_error(&run(&["scu", "--port", "tcp://127.0.0.1:1", "info", "--json"]));
+    assert_eq!(e["exit_code"], 3, "{e}");
+    assert!(["io", "disconnected", "timeout"].contains(&e["kind"].as_str().unwrap()), "{e}");
+}
+
+/// `--json` on run, stop and decode; several names in one `get`; `names`; `send`; `watch --count --csv`.
+#[test]
+pub(super) fn every_action_speaks_json_and_send_names_get_watch_csv() {
+    let sim = sim_tcp();
+    let p = sim.address.as_str();
+    let lines = |o: &Output| -> Vec<serde_json::Value> {
+        assert!(o.status.success(), "{o:?}");
+        stdout(o).lines().map(|l| serde_json::from_str(l).expect("a JSON line")).collect()
+    };
+    let run = lines(&scu(p, &["run", "F11", "on", "--seconds", "0.2", "--json"]));
+    assert_eq!((run.len(), &run[0]["running"], &run[1]["stopped"]), (2, &true.into(), &true.into()), "{run:?}");
+    assert_eq!(run[1]["function"], 11);
+    let follow = lines(&common::run_with(&["scu", "--port", p, "follow", "1", "--json"], &[], "120\n"));
+    assert_eq!((&follow[0]["following"], &follow[1]["targets"][0]["target_counts"]), (&true.into(), &120.into()));
+    assert_eq!(follow.last().unwrap()["stopped"], true, "{follow:?}");
+    let stop = lines(&scu(p, &["stop", "F1", "--soft", "--json"]));
+    assert_eq!((&stop[0]["function"], &stop[0]["mode"]), (&1.into(), &"soft".into()));
+    let out =
+        common::run_with(&["decode", "scu", "--json"], &[], "52 47 11 00 2C 30\n52 47 06 04 00 90 01 00 00 A3 AD\n");
+    let decoded = lines(&out);
+    assert_eq!((&decoded[0]["direction"], &decoded[1]["direction"]), (&"->".into(), &"<-".into()));
+    assert!(decoded[1]["meaning"].as_str().unwrap().contains("400 counts"), "{decoded:?}");
+
+    let got = lines(&scu(p, &["get", "actual_position_a1", "remote_speed_f1", "0x0012", "--json"]));
+    let names: Vec<&str> = got.iter().map(|v| v["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["actual_position_a1", "remote_speed_f1", "actual_position_a2"]);
+    assert_eq!(got[1]["access"], "rw");
+    let text = stdout(&scu(p, &["get", "actual_position_a1", "actual_position_a2"]));
+    assert_eq!(text.lines().count(), 2, "{text}");
+
+    let names = stdout(&common::run_with(&["scu", "names"], &[], ""));
+    assert!(names.lines().any(|l| l.starts_with("actual_position_a1") && l.contains("0x0011")), "{names}");
+    assert!(names.lines().any(|l| l.starts_with("remote_positions")), "{names}");
+
+    // send: typed, and the same telegram as hex; each line the telegram and its meaning.
+    let typed = stdout(&scu(p, &["send", "RG", "actual_position_a1"]));
+    let hex = stdout(&scu(p, &["send", "52 47 11 00 2C 30"]));
+    assert_eq!(typed, hex);
+    assert!(typed.starts_with("-> 52 47 11 00 2C 30"), "{typed}");
+    assert!(typed.lines().nth(1).unwrap().starts_with("<- 52 47 06 04 00") && typed.contains("= 0 counts"), "{typed}");
+    let sent = lines(&scu(p, &["send", "RT", "remote_speed_f1", "55", "--json"]));
+    assert_eq!((&sent[0]["command"], &sent[0]["ok"]), (&"RT".into(), &true.into()), "{sent:?}");
+    assert_eq!(json(&scu(p, &["get", "remote_speed_f1", "--json"]))["value"], 55);
+    // A function an RE of `send` starts is stopped (RS) when the command ends.
+    let t0 = unix_now();
+    let re = stdout(&scu(p, &["send", "RE", "F1", "out"]));
+    assert!(re.starts_with("-> 52 45 00 02 FF") && re.contains("RE ACK"), "{re}");
+    assert!(
+        sim.wait_event_after(t0, Duration::from_secs(5), |e| e == "F1 stopped (RS fast)").is_some(),
+        "{:?}",
+        sim.events()
+    );
+    for refused in [&["send", "RO", "0"][..], &["send", "52 47 11 00 2C 31"], &["send", "RG", "nope"]] {
+        assert_eq!(scu(p, refused).status.code(), Some(2), "{refused:?}");
+    }
+
+    let csv = stdout(&scu(p, &["watch", "--count", "2", "--csv", "--interval", "10"]));
+    let rows: Vec<&str> = csv.lines().collect();
+    assert_eq!(rows[0], "t_s,actuator,position_counts,moving,current_amps,last_error_code");
+    assert_eq!(rows.len(), 1 + 2 * 2, "two samples of two actuators: {csv}");
+    assert!(rows[1].split(',').nth(1) == Some("1") && rows[2].split(',').nth(1) == Some("2"), "{csv}");
+}
+
+/// `-v` prints each telegram live with time, direction, hex and meaning; `-q` only errors; `--capture` writes
+/// a file that `decode` reads back with its time stamps and direction marks; bad frames are labelled plainly.
+#[test]
+pub(super) fn wire_trace_quiet_and_capture_read_back_by_decode() {
+    let sim = sim_tcp();
+    let p = sim.address.as_str();
+    let out = common::run_with(&["scu", "get", "actual_position_a1", "-v", "--port", p], &[], "");
+    let trace = String::from_utf8_lossy(&out.stderr).into_owned();
+    let line = trace.lines().find(|l| l.contains("-> 52 47 11 00 2C 30")).unwrap_or_else(|| panic!("{trace}"));
+    let stamp = line.split_whitespace().next().unwrap();
+    assert!(stamp.len() == 15 && stamp.as_bytes()[2] == b':' && stamp.as_bytes()[8] == b'.', "{line}");
+    assert!(line.contains("RG") && line.contains("actual_position_a1"), "{line}");
+    assert!(trace.lines().any(|l| l.contains("<- 52 4F 06") && l.contains("RO ACK")), "{trace}");
+    // With --json, stderr is JSON lines too: the trace one telegram per line (an error would come last).
+    let out = common::run_with(&["-v", "scu", "--port", p, "--json", "get", "actual_position_a1"], &[], "");
+    let err: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stderr)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect();
+    assert!(err.iter().any(|v| v["trace"]["bytes"] == "52 47 11 00 2C 30" && v["trace"]["time_s"].is_f64()), "{err:?}");
+    assert!(err.iter().all(|v| v["trace"]["direction"].is_string()), "{err:?}");
+    let out = common::run_with(&["-q", "scu", "--port", p, "get", "actual_position_a1"], &[], "");
+    assert!(out.status.success() && out.stderr.is_empty() && !out.stdout.is_empty(), "{out:?}");
+    let out = common::run_with(&["-q", "scu", "--port", p, "get", "nope"], &[], "");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("nope"), "an error still shows with -q: {out:?}");
+
+    let file = common::temp_path("scu.capture");
+    let path = file.to_str().unwrap();
+    let out = scu(p, &["--capture", path, "get", "actual_position_a1"]);
+    assert!(out.status.success(), "{out:?}");
+    let captured = std::fs::read_to_string(&file).unwrap();
+    let _ = std::fs::remove_file(&file);
+    assert!(captured.starts_with(&format!("# motionlink capture: scu on {p}\n")), "{captured}");
+    let now = common::unix_now();
+    let first = captured.lines().nth(1).unwrap();
+    let t: f64 = first[1..first.find(')').unwrap()].parse().unwrap();
+    assert!((now - t).abs() < 60.0 && first.contains(") -> 52 4F 00"), "{first}");
+    // Read back: every line keeps its stamp and mark and gains its meaning; a corrupted reply is labelled.
+    let input = format!("{captured}(1732470000.000001) <- 52 47 06 04 00 90 01 00 00 A3 AE\n");
+    let out = common::run_with(&["decode", "scu"], &[], &input);
+    let text = stdout(&out);
+    assert!(text.lines().any(|l| l.starts_with(first) && l.contains("RO")), "{text}");
+    assert!(text.lines().any(|l| l.contains(") -> 52 47 11 00 2C 30") && l.contains("actual_position_a1")), "{text}");
+    let bad = text.lines().last().unwrap();
+    assert!(bad.starts_with("(1732470000.000001) !! 52 47 06") && !bad.contains("Some("), "{bad}");
+}
+
+/// The port from `--device` (the configuration file) or MOTIONLINK_PORT; `--port` wins over both.
+#[test]
+pub(super) fn the_port_comes_from_device_or_environment() {
+    let sim = sim_tcp();
+    let config = common::temp_path("scu-devices.toml");
+    std::fs::write(&config, format!("[device.lift]\nfamily = \"scu\"\nport = \"{}\"\n", sim.address)).unwrap();
+    let cfg = config.to_str().unwrap();
+    let get = ["scu", "get", "firmware_info"];
+    let by_device = common::run_with(&[&get[..], &["--device", "lift"]].concat(), &[("MOTIONLINK_CONFIG", cfg)], "");
+    assert!(stdout(&by_device).contains("SCU"), "{by_device:?}");
+    let by_env = common::run_with(&get, &[("MOTIONLINK_PORT", &sim.address)], "");
+    assert!(stdout(&by_env).contains("SCU"), "{by_env:?}");
+    let port_wins =
+        common::run_with(&[&get[..], &["--port", &sim.address]].concat(), &[("MOTIONLINK_PORT", "nowhere")], "");
+    assert!(port_wins.status.success(), "{port_wins:?}");
+    let unknown = common::run_with(&[&get[..], &["--device", "arm"]].concat(), &[("MOTIONLINK_CONFIG", cfg)], "");
+    assert_eq!(unknown.status.code(), Some(2), "{unknown:?}");
+    assert!(String::from_utf8_lossy(&unknown.stderr).contains("arm"), "{unknown:?}");
+    let none = common::run_with(&get, &[], "");
+    assert_eq!(none.status.code(), Some(2), "{none:?}");
+    let _ = std::fs::remove_file(&config);
+}
+
+/// `motionlink scu watch | head -1`: the watch ends quietly with exit 0 when its reader goes away, and the
+/// session is closed (RA) first.
+#[test]
+pub(super) fn watch_into_a_closed_pipe_ends_quietly_with_0() {
+    let sim = sim_tcp();
+    let t0 = unix_now();
+    let (line, ended) = common::head_1(&["scu", "--port", &sim.address, "watch", "--interval", "10"]);
+    assert!(line.contains("A1:"), "{line}");
+    assert_eq!(ended.code(), 0, "{ended:?}");
+    assert!(ended.stderr.is_empty(), "{ended:?}");
+    assert!(
+        sim.wait_event_after(t0, Duration::from_secs(5), |e| e == "remote mode closed by RA").is_some(),
+        "{:?}",
+        sim.events()
+    );
+}

@@ -1,0 +1,251 @@
+//! The asyncio half of `motionlink.AsyncPowerCube`.
+
+use super::*;
+
+/// An async session with PowerCube modules (the native half of `motionlink.AsyncPowerCube`): the long
+/// operations are coroutines; cancelling one (its task) halts the module.
+#[pyclass(frozen, module = "motionlink._native")]
+pub struct AsyncPowerCubeClient {
+    slot: Slot<AsyncClient>,
+    guard: Guard,
+    module: u8,
+    port: String,
+}
+
+impl AsyncPowerCubeClient {
+    fn client(&self) -> Result<Arc<AsyncClient>, PyErr> {
+        Python::attach(|py| self.slot.get().map_err(|f| to_pyerr(py, f)))
+    }
+}
+
+/// What an async open learns on the blocking pool: in process or not, and the port's description.
+pub(super) type Learned = Result<(bool, String), Failure>;
+
+pub(super) fn raise<T>(r: Result<T, Error>) -> Result<T, Failure> {
+    r.map_err(|e| e.failure())
+}
+
+pub(super) fn dict<F>(f: F) -> Outcome
+where
+    F: for<'py> FnOnce(Python<'py>) -> PyResult<Record<'py>> + Send + 'static,
+{
+    deliver(move |py| Ok(f(py)?.done().into_any().unbind()))
+}
+
+#[pymethods]
+impl AsyncPowerCubeClient {
+    /// Opens a session on the runtime (the port is opened on its blocking pool); `done(ok, client)`.
+    #[staticmethod]
+    fn open(
+        py: Python<'_>,
+        port: &Bound<'_, PyAny>,
+        settings: &Bound<'_, PyAny>,
+        done: Py<PyAny>,
+    ) -> PyResult<NativeTask> {
+        let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
+        let s: Settings = settings.extract()?;
+        Ok(spawn_task(done, async move {
+            let module = s.module;
+            let watchdog = s.watchdog;
+            // The blocking open runs on tokio's blocking pool; what it learns comes back through `found`.
+            let found: Arc<std::sync::Mutex<Option<Learned>>> = Default::default();
+            let slot = Arc::clone(&found);
+            let opened = AsyncClient::open(move || {
+                let (client, err) = match open(t, &s) {
+                    Ok((c, in_process)) => {
+                        *slot.lock().unwrap_or_else(|e| e.into_inner()) =
+                            Some(Ok((in_process, c.describe().to_string())));
+                        (Some(c), None)
+                    }
+                    Err(f) => {
+                        let message = f.message.clone();
+                        *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(Err(f));
+                        (None, Some(message))
+                    }
+                };
+                client.ok_or_else(|| Error::Unsupported(err.unwrap_or_default()))
+            })
+            .await;
+            let learned = found.lock().unwrap_or_else(|e| e.into_inner()).take();
+            let (in_process, port) = match learned {
+                Some(Ok(x)) => x,
+                Some(Err(f)) => return Err(f),
+                None => {
+                    return Err(raise::<()>(opened.map(|_| ())).err().unwrap_or_else(|| {
+                        Failure::new(
+                            ErrorClass::Transport(TransportKind::Io),
+                            FAMILY,
+                            "the open ended without a result",
+                        )
+                    }))
+                }
+            };
+            let client = raise(opened)?;
+            // An emulator in this process dies with it: no watchdog (as for the blocking client).
+            let guard = if watchdog && !in_process { Guard::Watchdog } else { Guard::HaltOnly };
+            let native = AsyncPowerCubeClient { slot: Slot::new(client, FAMILY), guard, module, port };
+            deliver(move |py| Ok(Py::new(py, native)?.into_any()))
+        }))
+    }
+
+    /// The port, as the link describes it.
+    #[getter]
+    fn port(&self) -> String {
+        self.port.clone()
+    }
+
+    /// The actual position: `done(ok, (value, unit))`.
+    #[pyo3(signature = (module, done))]
+    fn position(&self, module: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client()?;
+        let a = module.unwrap_or(self.module);
+        Ok(spawn_task(done, async move {
+            let p = raise(
+                async {
+                    let m = c.module(a)?;
+                    let kind = m.kind().await?;
+                    Ok(in_unit(m.position().await?, kind))
+                }
+                .await,
+            )?;
+            deliver(move |py| Ok((f32_py(p.value()), suffix(p.unit()).1).into_pyobject(py)?.into_any().unbind()))
+        }))
+    }
+
+    /// The state word: `done(ok, dict)`.
+    #[pyo3(signature = (module, done))]
+    fn state(&self, module: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client()?;
+        let a = module.unwrap_or(self.module);
+        Ok(spawn_task(done, async move {
+            let s = raise(async { c.module(a)?.state().await }.await)?;
+            dict(move |py| state_record(py, a, s))
+        }))
+    }
+
+    /// Homes and waits; cancelling the task halts the module.
+    #[pyo3(signature = (module, timeout_s, done))]
+    fn home(&self, py: Python<'_>, module: Option<u8>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client()?;
+        let a = module.unwrap_or(self.module);
+        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let guard = self.guard;
+        Ok(spawn_task(done, async move {
+            let (p, s) = raise(
+                async {
+                    let m = c.module(a)?;
+                    let kind = m.kind().await?;
+                    m.home_guarded(timeout, guard).await.map(|(p, s)| (in_unit(p, kind), s))
+                }
+                .await,
+            )?;
+            dict(move |py| {
+                let r = state_record(py, a, s)?;
+                put_position(&r, "position", p)?;
+                Ok(r)
+            })
+        }))
+    }
+
+    /// A checked move, waited for; cancelling the task halts the module.
+    #[pyo3(signature = (target, module, velocity, acceleration, tolerance, timeout_s, done))]
+    #[allow(clippy::too_many_arguments)]
+    fn move_to(
+        &self,
+        py: Python<'_>,
+        target: f64,
+        module: Option<u8>,
+        velocity: Option<f64>,
+        acceleration: Option<f64>,
+        tolerance: Option<f64>,
+        timeout_s: f64,
+        done: Py<PyAny>,
+    ) -> PyResult<NativeTask> {
+        let c = self.client()?;
+        let a = module.unwrap_or(self.module);
+        let spec = move_spec(target, velocity, acceleration, tolerance, timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let guard = self.guard;
+        Ok(spawn_task(done, async move {
+            let report = raise(
+                async {
+                    let m = c.module(a)?;
+                    let kind = m.kind().await?;
+                    m.move_to_guarded(&spec, guard).await.map(|r| (kind, r))
+                }
+                .await,
+            )?;
+            dict(move |py| move_record(py, a, spec.target, &report))
+        }))
+    }
+
+    /// Waits until the module stands still (no STATE_MOTION); cancelling the task halts it.
+    #[pyo3(signature = (module, timeout_s, done))]
+    fn wait(&self, py: Python<'_>, module: Option<u8>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client()?;
+        let a = module.unwrap_or(self.module);
+        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            let address = raise(motionlink_powercube::model::Address::new(a).map_err(Error::from))?;
+            let op =
+                motionlink_powercube::session::Op::Wait(address, motionlink_powercube::session::Until::Motion, timeout);
+            match raise(c.run(op).await)? {
+                motionlink_powercube::session::Output::State(s) => dict(move |py| state_record(py, a, s)),
+                other => raise(Err(Error::Unsupported(format!("the session answered {other:?}")))),
+            }
+        }))
+    }
+
+    /// Halts the module.
+    #[pyo3(signature = (module, done))]
+    fn stop(&self, module: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client()?;
+        let a = module.unwrap_or(self.module);
+        Ok(spawn_task(done, async move {
+            raise(async { c.module(a)?.halt().await }.await)?;
+            deliver(|py| Ok(py.None()))
+        }))
+    }
+
+    /// Ends the session (halts what it set in motion): `done(ok, None)`.
+    fn close(&self, done: Py<PyAny>) -> NativeTask {
+        let taken = self.slot.take(&CancelToken::new(), Duration::ZERO);
+        spawn_task(done, async move {
+            match taken {
+                None => {}
+                Some(Ok(client)) => raise(client.close().await)?,
+                Some(Err(shared)) => raise(shared.halt_started().await)?,
+            }
+            deliver(|py| Ok(py.None()))
+        })
+    }
+
+    /// Ends the session from synchronous code (atexit), waiting without the GIL.
+    fn close_blocking(&self, py: Python<'_>) -> PyResult<()> {
+        let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
+        let r = match taken {
+            Ok(client) => block_on_runtime(py, client.close())?,
+            Err(shared) => block_on_runtime(py, async move { shared.halt_started().await })?,
+        };
+        r.or_raise(py)
+    }
+}
+
+impl Drop for AsyncPowerCubeClient {
+    fn drop(&mut self) {
+        // Not closed by its owner: the session ends on the runtime's blocking pool (stopping what it
+        // started), not on the thread that happens to drop the object (which may hold the GIL).
+        if let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) {
+            crate::wait::runtime().spawn(async move { drop(taken) });
+        }
+    }
+}
+
+impl Drop for PowerCubeClient {
+    fn drop(&mut self) {
+        // Not closed by its owner (garbage-collected): the session ends here, stopping what it started as
+        // the family's client does when dropped, without holding the GIL while it waits for the device.
+        if let Some(taken) = self.slot.take(&self.token, self.close_bound) {
+            Python::attach(|py| py.detach(move || drop(taken)));
+        }
+    }
+}

@@ -1,0 +1,133 @@
+//! The asyncio half of `motionlink.AsyncScu`.
+
+use super::*;
+
+/// An async session with an SCU (the native half of `motionlink.AsyncScu`): the operations run on the
+/// library's runtime; cancelling a move's or a run's task drops its future, which stops the function
+/// (fast RS, confirmed).
+#[pyclass(frozen, module = "motionlink._native")]
+pub struct AsyncScuClient {
+    slot: Slot<AsyncClient>,
+    port: String,
+    speed_mode: SpeedMode,
+}
+
+impl AsyncScuClient {
+    fn client(&self, py: Python<'_>) -> PyResult<Arc<AsyncClient>> {
+        self.slot.get().map_err(|f| to_pyerr(py, f))
+    }
+}
+
+pub(super) fn fail<T>(r: Result<T, Error>) -> Result<T, Failure> {
+    r.map_err(|e| e.failure())
+}
+
+#[pymethods]
+impl AsyncScuClient {
+    /// Opens a session on the runtime: `done(ok, client)`.
+    #[staticmethod]
+    fn open(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
+        let (connector, config) = connector(t, &settings).map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            let client = fail(AsyncClient::open(connector, clock(), config).await)?;
+            let port = client.port().to_string();
+            let speed_mode = client.config().speed_mode;
+            let native = AsyncScuClient { slot: Slot::new(client, FAMILY), port, speed_mode };
+            deliver(move |py| Ok(Py::new(py, native)?.into_any()))
+        }))
+    }
+
+    /// The port.
+    #[getter]
+    fn port(&self) -> String {
+        self.port.clone()
+    }
+
+    /// The position of an actuator in counts: `done(ok, int)`.
+    fn position(&self, py: Python<'_>, actuator: u8, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client(py)?;
+        let a = self::actuator(actuator).map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            let p = fail(c.position(a).await)?;
+            deliver(move |py| Ok(p.into_pyobject(py)?.into_any().unbind()))
+        }))
+    }
+
+    /// A verified move; cancelling the task stops the function.
+    #[pyo3(signature = (actuator, target_counts, speed, function, done))]
+    fn move_to(
+        &self,
+        py: Python<'_>,
+        actuator: u8,
+        target_counts: i32,
+        speed: u32,
+        function: Option<u8>,
+        done: Py<PyAny>,
+    ) -> PyResult<NativeTask> {
+        let c = self.client(py)?;
+        let (a, f, speed) = move_args(actuator, function, speed, self.speed_mode).map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            let report = fail(c.move_to(a, target_counts, speed, f).await)?;
+            deliver(move |py| Ok(move_record(py, target_counts, &report)?.done().into_any().unbind()))
+        }))
+    }
+
+    /// Runs a function until it ends (or `seconds`), then stops it; cancelling the task stops it.
+    #[pyo3(signature = (function, direction, seconds, done))]
+    fn run(
+        &self,
+        py: Python<'_>,
+        function: &str,
+        direction: &str,
+        seconds: Option<f64>,
+        done: Py<PyAny>,
+    ) -> PyResult<NativeTask> {
+        let c = self.client(py)?;
+        let (f, action, limit) = run_args(function, direction, seconds).map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            let report = fail(c.run(action, limit).await)?;
+            deliver(move |py| Ok(run_record(py, f, &report)?.done().into_any().unbind()))
+        }))
+    }
+
+    /// Stops a function (RS).
+    #[pyo3(signature = (function, soft, done))]
+    fn stop(&self, py: Python<'_>, function: &str, soft: bool, done: Py<PyAny>) -> PyResult<NativeTask> {
+        let c = self.client(py)?;
+        let f = parse_function(function).map_err(|f| to_pyerr(py, f))?;
+        Ok(spawn_task(done, async move {
+            fail(match f {
+                Function::Motion(m) => c.stop_motion(m, if soft { StopMode::Soft } else { StopMode::Fast }).await,
+                f => c.switch(f, false).await,
+            })?;
+            deliver(|py| Ok(py.None()))
+        }))
+    }
+
+    /// Ends the session (RS for what it started, then RA): `done(ok, None)`.
+    fn close(&self, done: Py<PyAny>) -> NativeTask {
+        let taken = self.slot.take(&CancelToken::new(), Duration::ZERO);
+        spawn_task(done, async move {
+            match taken {
+                None => {}
+                Some(Ok(client)) => fail(client.close().await)?,
+                // A call still under way holds the session: it ends (RS, RA) when that call ends.
+                Some(Err(shared)) => drop(shared),
+            }
+            deliver(|py| Ok(py.None()))
+        })
+    }
+
+    /// Ends the session from synchronous code (atexit), waiting without the GIL.
+    fn close_blocking(&self, py: Python<'_>) -> PyResult<()> {
+        let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
+        match taken {
+            Ok(client) => block_on_runtime(py, client.close())?.or_raise(py),
+            Err(shared) => {
+                drop(shared);
+                Ok(())
+            }
+        }
+    }
+}
