@@ -113,11 +113,66 @@ fn a_drive_blocked_by_a_configured_obstacle_stops_there_with_its_drive_error() {
     b.keep_alive(2_000);
     assert_eq!(b.status1(1) & status1::MOTION, 0);
     assert_eq!(last_error(&mut b), ErrorCode::from_bit(15));
+    // Towards the obstacle again, from where it rests against it: blocked again, and the error comes again.
+    b.go(1, 600);
+    assert_eq!(last_error(&mut b), ErrorCode::NONE, "reset on the next motion");
+    b.keep_alive(1_000);
+    assert_eq!(b.position(1), 300, "resting against the obstacle, it still cannot pass it");
+    b.keep_alive(1_500);
+    assert_eq!(b.status1(1) & status1::MOTION, 0);
+    assert_eq!(last_error(&mut b), ErrorCode::from_bit(15));
     // Away from the obstacle it moves again, and the bit is gone.
     b.go(1, 100);
     assert_eq!(last_error(&mut b), ErrorCode::NONE);
     b.keep_alive(3_000);
     assert_eq!(b.position(1), 100);
+    // And back up to it from below: blocked at the obstacle once more.
+    b.go(1, 600);
+    b.keep_alive(3_000);
+    assert_eq!(b.position(1), 300);
+}
+
+#[test]
+fn a_stall_is_not_forgiven_by_repeating_re() {
+    // A streaming client (or a ROS loop) repeats RE every 100 ms to a TLT column that is too slow to move:
+    // the drive error still comes within 10 s.
+    let mut b = Bench::new(SimConfig::tlt());
+    b.open(1);
+    b.set(0x3012, &20u16.to_le_bytes()); // F2 (column 1 alone) at 20 %: below the 30 % a TLT needs
+    b.set(0x3021, &400i32.to_le_bytes());
+    b.unit.take_events();
+    let mut raised_after_ms = None;
+    for n in 1..=100u32 {
+        b.status(Request::Execute { function: 1, params: [9, 0xFF] });
+        b.keep_alive(100);
+        if b.unit.take_events().iter().any(|e| e == "error bit 15 set (error with drive 1)") {
+            raised_after_ms = Some(n * 100);
+            break;
+        }
+    }
+    let after = raised_after_ms.expect("the drive error within 10 s of repeated RE");
+    assert!(after <= 10_000, "{after} ms");
+    assert_eq!(b.status1(1) & status1::MOTION, 0, "the drive time-out stopped it");
+    assert_eq!(last_error(&mut b), ErrorCode::from_bit(15));
+}
+
+#[test]
+fn a_drive_blocked_by_an_obstacle_gets_its_error_even_under_repeated_re() {
+    let config = SimConfig::from_toml("[[actuator]]\nobstacle_counts = 300\nstall_error_after_ms = 2000\n").unwrap();
+    let mut b = Bench::new(config);
+    b.open(1);
+    b.unit.take_events();
+    let mut raised = false;
+    for _ in 0..60 {
+        b.go(1, 600);
+        b.keep_alive(100);
+        if b.unit.take_events().iter().any(|e| e == "error bit 15 set (error with drive 1)") {
+            raised = true;
+            break;
+        }
+    }
+    assert!(raised, "blocked and pushing, the drive error comes although RE is repeated");
+    assert_eq!(b.position(1), 300);
 }
 
 #[test]

@@ -33,8 +33,13 @@ pub(super) struct ActuatorState {
     pub(super) stalled: bool,
     /// Pushing against the configured obstacle.
     pub(super) blocked: bool,
-    /// How long it has been stalled or blocked with its motion on, s.
+    /// How long it has been stalled or blocked with its motion on, s. A new RE or a new speed does not
+    /// reset it: only moving does (or the end of the motion), so a client that repeats RE to a stalled drive
+    /// still gets the drive error.
     pub(super) stalled_for: f64,
+    /// Which side of the configured obstacle the drive is on: -1 below, +1 above, 0 not known (it started on
+    /// it). Kept while the drive rests against the obstacle, so the next motion towards it is blocked again.
+    pub(super) obstacle_side: f64,
     pub(super) cumulated_stroke: f64,
     pub(super) relay_in_cycles: u32,
     pub(super) relay_out_cycles: u32,
@@ -46,7 +51,6 @@ impl ActuatorState {
     pub(super) fn new(cfg: ActuatorConfig) -> Self {
         ActuatorState {
             position: f64::from(cfg.start_position_counts),
-            cfg,
             velocity: 0.0,
             target: None,
             commanded_speed: 0.0,
@@ -57,11 +61,13 @@ impl ActuatorState {
             stalled: false,
             blocked: false,
             stalled_for: 0.0,
+            obstacle_side: cfg.obstacle_counts.map_or(0.0, |o| f64::from(cfg.start_position_counts - o).signum()),
             cumulated_stroke: 0.0,
             relay_in_cycles: 0,
             relay_out_cycles: 0,
             max_current: 0,
             error_count: 0,
+            cfg,
         }
     }
 
@@ -123,7 +129,6 @@ impl ActuatorState {
         self.origin = origin;
         self.function = function;
         self.blocked = false;
-        self.stalled_for = 0.0;
         self.set_speed(speed_counts_per_s, percent);
         true
     }
@@ -132,11 +137,7 @@ impl ActuatorState {
     pub(super) fn set_speed(&mut self, speed_counts_per_s: f64, percent: u16) {
         self.commanded_speed = speed_counts_per_s;
         self.commanded_percent = percent;
-        let stalls = self.cfg.stall_below_percent > 0 && percent < self.cfg.stall_below_percent;
-        if !stalls {
-            self.stalled_for = if self.blocked { self.stalled_for } else { 0.0 };
-        }
-        self.stalled = stalls;
+        self.stalled = self.cfg.stall_below_percent > 0 && percent < self.cfg.stall_below_percent;
     }
 
     pub(super) fn fast_stop(&mut self) {
@@ -193,6 +194,7 @@ impl ActuatorState {
             if self.stalled || self.blocked {
                 self.velocity = 0.0;
             } else {
+                let before = self.position;
                 let remaining = target - self.position;
                 let dir = remaining.signum();
                 // Slow down in time to stop at the target along the ramp; follow a lower commanded speed
@@ -217,16 +219,20 @@ impl ActuatorState {
                     self.integrate(dir * travel);
                     self.velocity = dir * new_speed;
                 }
-                // An obstacle in the way stops the drive there, still pushing.
+                // An obstacle in the way stops the drive there, still pushing; a drive resting against it is
+                // blocked again by the next motion towards it.
                 if let Some(o) = self.cfg.obstacle_counts.map(f64::from) {
-                    let before = self.position - dir * travel;
-                    let crossed = (before < o && self.position >= o && dir > 0.0)
-                        || (before > o && self.position <= o && dir < 0.0);
-                    if crossed && (target - o).abs() >= 0.5 {
+                    let side = if (before - o).abs() < 1e-9 { self.obstacle_side } else { (before - o).signum() };
+                    let towards = dir * side < 0.0;
+                    if towards && (self.position - o) * side <= 0.0 && (target - o).abs() >= 0.5 {
                         self.position = o;
                         self.velocity = 0.0;
                         self.blocked = true;
                         self.target = Some(target);
+                    } else if (self.position - o).abs() >= 1e-9 {
+                        self.obstacle_side = (self.position - o).signum();
+                    } else {
+                        self.obstacle_side = side;
                     }
                 }
             }
@@ -245,6 +251,7 @@ impl ActuatorState {
             let limit = self.cfg.stall_error_after_ms as f64 / 1000.0;
             return self.cfg.stall_error_after_ms > 0 && self.stalled_for >= limit - 1e-9;
         }
+        self.stalled_for = 0.0;
         false
     }
 
