@@ -126,7 +126,8 @@ pub(super) fn follow(
     let mut last_update: Option<motionlink_link::Timestamp> = None;
     let mut pending: Option<Vec<i32>> = None;
     let mut updates = 0u64;
-    let failure: Option<Result<CliError, motionlink_scu::Error>> = loop {
+    let mut last_targets: Option<Vec<i32>> = None;
+    let mut failure: Option<Result<CliError, motionlink_scu::Error>> = loop {
         if interrupt.is_cancelled() {
             break Some(Ok(CliError::Interrupted(format!("interrupted; {function} stopped"))));
         }
@@ -148,25 +149,30 @@ pub(super) fn follow(
         let now = clock.now();
         if pending.is_some() && last_update.is_none_or(|t| now - t >= gap) {
             let targets = pending.take().unwrap_or_default();
-            if let Err(e) = stream.set_targets(&targets) {
+            if let Err(e) = apply(&mut stream, &targets, report, out)? {
                 break Some(Err(e));
             }
             last_update = Some(now);
             updates += 1;
-            let text: Vec<String> = actuators.iter().zip(&targets).map(|(a, t)| format!("{a}={t}")).collect();
-            if report.json {
-                let list: Vec<_> = actuators
-                    .iter()
-                    .zip(&targets)
-                    .map(|(a, t)| json!({"actuator": a.number(), "target_counts": t}))
-                    .collect();
-                report.print(out, json!({"targets": list}))?;
-            } else {
-                writeln!(out, "target {}", text.join(" "))?;
-            }
-            out.flush()?;
+            last_targets = Some(targets);
         }
     };
+    // End of input: the newest target still waiting is applied (the newest wins, even the last one), and the
+    // stream follows it to the end of its motion before it ends; a signal meanwhile stops it at once.
+    if failure.is_none() {
+        if let Some(targets) = pending.take() {
+            if let Err(e) = apply(&mut stream, &targets, report, out)? {
+                failure = Some(Err(e));
+            } else {
+                updates += 1;
+                last_targets = Some(targets);
+            }
+        }
+    }
+    if failure.is_none() && last_targets.is_some() {
+        failure = settle(&stream, &clock, client.config().poll_interval, interrupt)
+            .map(|e| e.map(|()| CliError::Interrupted(format!("interrupted; {function} stopped"))));
+    }
     // The stream ends: on EOF along the ramp, on anything else at once; where each actuator came to rest.
     let (mode, error) = match failure {
         None => (StopMode::Soft, None),
@@ -181,5 +187,74 @@ pub(super) fn follow(
     } else {
         writeln!(out, "stopped after {updates} update(s): {}", text.join(" "))?;
     }
-    error.map_or(Ok(()), Err)
+    if let Some(e) = error {
+        return Err(e);
+    }
+    // As `move`: success means each actuator ended within the tolerance of the last target it was given.
+    let tolerance = i64::from(client.config().position_tolerance_counts);
+    if let Some(targets) = &last_targets {
+        let missed: Vec<String> = rest
+            .iter()
+            .zip(targets)
+            .filter(|((_, p), t)| (i64::from(*p) - i64::from(**t)).abs() > tolerance)
+            .map(|((a, p), t)| format!("{a}: target {t}, reached {p}, difference {}", i64::from(*p) - i64::from(*t)))
+            .collect();
+        if !missed.is_empty() {
+            return Err(CliError::Device(format!(
+                "the last target was not reached within {tolerance} counts: {}",
+                missed.join("; ")
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Writes one update of targets and prints it. The outer error is the output's, the inner the device's.
+fn apply(
+    stream: &mut motionlink_scu::client::SetpointStream<'_>,
+    targets: &[i32],
+    report: &Report<'_>,
+    out: &mut dyn Write,
+) -> Result<Result<(), motionlink_scu::Error>, CliError> {
+    if let Err(e) = stream.set_targets(targets) {
+        return Ok(Err(e));
+    }
+    let actuators = stream.actuators();
+    if report.json {
+        let list: Vec<_> = actuators
+            .iter()
+            .zip(targets)
+            .map(|(a, t)| json!({"actuator": a.number(), "target_counts": t}))
+            .collect();
+        report.print(out, json!({"targets": list}))?;
+    } else {
+        let text: Vec<String> = actuators.iter().zip(targets).map(|(a, t)| format!("{a}={t}")).collect();
+        writeln!(out, "target {}", text.join(" "))?;
+    }
+    out.flush()?;
+    Ok(Ok(()))
+}
+
+/// Waits until no actuator of the stream moves, looking every `poll`: `None` when they are at rest,
+/// `Some(Ok(()))` when a signal came first, `Some(Err(..))` when the device could not be read.
+fn settle(
+    stream: &motionlink_scu::client::SetpointStream<'_>,
+    clock: &Arc<dyn motionlink_link::Clock>,
+    poll: Duration,
+    interrupt: &CancelToken,
+) -> Option<Result<(), motionlink_scu::Error>> {
+    loop {
+        match stream.positions() {
+            Ok(p) if p.iter().all(|(_, _, moving)| !moving) => return None,
+            Ok(_) => {}
+            Err(e) => return Some(Err(e)),
+        }
+        let next = clock.now() + poll;
+        while clock.now() < next {
+            if interrupt.is_cancelled() {
+                return Some(Ok(()));
+            }
+            std::thread::sleep(Duration::from_millis(5).min(poll));
+        }
+    }
 }

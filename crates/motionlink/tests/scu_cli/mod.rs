@@ -555,6 +555,28 @@ fn follow_streams_targets_from_stdin_and_stops_on_eof() {
 }
 
 #[test]
+fn follow_from_a_file_goes_to_the_newest_target_and_merges_lines_faster_than_its_rate() {
+    // The README's `follow 1 < targets.txt`: the whole input arrives at once and ends at once. Lines that
+    // come faster than --rate are merged (the newest wins, the last one included), and end of input lets the
+    // motion reach that last target before the stream ends.
+    let sim = Sim::start("scu", &["--tcp", "127.0.0.1:0", "--preset", "tlt"]);
+    let (running, mut stdin) = Running::start_with_stdin(&[
+        "scu", "--port", &sim.address, "--functions", "tlt", "follow", "1", "--rate", "2",
+    ]);
+    writeln!(stdin, "100\n200\n300\n400\n500").unwrap();
+    drop(stdin);
+    let ended = running.wait(Duration::from_secs(20));
+    assert_eq!(ended.code(), 0, "{ended:?}");
+    let updates: Vec<&str> = ended.stdout.lines().filter(|l| l.starts_with("target ")).collect();
+    assert!(updates.len() < 5, "lines faster than the rate are merged: {updates:?}");
+    assert_eq!(updates.last(), Some(&"target A1=500 A2=500"), "the newest wins: {}", ended.stdout);
+    assert!(ended.stdout.contains("stopped after"), "{}", ended.stdout);
+    for a in ["actual_position_a1", "actual_position_a2"] {
+        assert_eq!(json(&scu(&sim.address, &["get", a, "--json"]))["value"], 500, "{a}");
+    }
+}
+
+#[test]
 fn follow_stops_on_a_bad_line_and_on_a_signal() {
     let sim = sim_tcp();
     let (running, mut stdin) =
