@@ -221,11 +221,8 @@ fn apply(
     }
     let actuators = stream.actuators();
     if report.json {
-        let list: Vec<_> = actuators
-            .iter()
-            .zip(targets)
-            .map(|(a, t)| json!({"actuator": a.number(), "target_counts": t}))
-            .collect();
+        let list: Vec<_> =
+            actuators.iter().zip(targets).map(|(a, t)| json!({"actuator": a.number(), "target_counts": t})).collect();
         report.print(out, json!({"targets": list}))?;
     } else {
         let text: Vec<String> = actuators.iter().zip(targets).map(|(a, t)| format!("{a}={t}")).collect();

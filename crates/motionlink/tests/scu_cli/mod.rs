@@ -560,9 +560,8 @@ fn follow_from_a_file_goes_to_the_newest_target_and_merges_lines_faster_than_its
     // come faster than --rate are merged (the newest wins, the last one included), and end of input lets the
     // motion reach that last target before the stream ends.
     let sim = Sim::start("scu", &["--tcp", "127.0.0.1:0", "--preset", "tlt"]);
-    let (running, mut stdin) = Running::start_with_stdin(&[
-        "scu", "--port", &sim.address, "--functions", "tlt", "follow", "1", "--rate", "2",
-    ]);
+    let (running, mut stdin) =
+        Running::start_with_stdin(&["scu", "--port", &sim.address, "--functions", "tlt", "follow", "1", "--rate", "2"]);
     writeln!(stdin, "100\n200\n300\n400\n500").unwrap();
     drop(stdin);
     let ended = running.wait(Duration::from_secs(20));
