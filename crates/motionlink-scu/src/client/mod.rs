@@ -23,9 +23,10 @@ use motionlink_link::error::TransportKind;
 
 use crate::config::ClientConfig;
 use crate::error::Error;
+use crate::model::ActuatorStatus1;
 use crate::model::{
-    item, status1, Actuator, DataEntry, DataIndex, ErrorCode, FlagSet, Flags, Function, Item, MotionFunction,
-    PositionCounts, Speed, UNUSED,
+    item, Actuator, DataEntry, DataIndex, ErrorCode, FlagSet, Flags, Function, Item, MotionFunction, PositionCounts,
+    Speed, UNUSED,
 };
 use crate::session::ops::basic::{check_stroke, Stroke};
 use crate::session::report::MoveProgress;
@@ -158,7 +159,7 @@ pub(crate) fn status1(data: &[u8]) -> Result<Flags, Error> {
 }
 
 pub(crate) fn connected(status: &[u8; 6]) -> Vec<Actuator> {
-    Actuator::all().filter(|a| status[usize::from(a.number() - 1)] & status1::AVAILABLE != 0).collect()
+    Actuator::all().filter(|a| ActuatorStatus1(status[usize::from(a.number() - 1)]).available()).collect()
 }
 
 pub(crate) fn error_history(data: &[u8]) -> Result<[ErrorCode; 5], Error> {
@@ -199,7 +200,7 @@ pub(crate) fn stream_positions(
         .iter()
         .map(|a| {
             let i = usize::from(a.number() - 1);
-            (*a, positions[i], status[i] & status1::MOTION != 0)
+            (*a, positions[i], ActuatorStatus1(status[i]).moving())
         })
         .collect()
 }

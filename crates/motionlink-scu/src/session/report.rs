@@ -4,7 +4,7 @@ use std::time::Duration;
 
 use motionlink_link::Timestamp;
 
-use crate::model::{status1, Actuator, Function, MotionFunction};
+use crate::model::{Actuator, ActuatorStatus1, Function, MotionFunction};
 
 /// Where a move is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -108,12 +108,15 @@ impl Snapshot {
 
     /// True if actuator `a` reports motion.
     pub fn moving(&self, a: Actuator) -> bool {
-        self.status(a) & status1::MOTION != 0
+        ActuatorStatus1(self.status(a)).moving()
     }
 
     /// Every connected actuator ("drive available") with its position.
     pub fn connected_positions(&self) -> Vec<(Actuator, i32)> {
-        Actuator::all().filter(|a| self.status(*a) & status1::AVAILABLE != 0).map(|a| (a, self.position(a))).collect()
+        Actuator::all()
+            .filter(|a| ActuatorStatus1(self.status(*a)).available())
+            .map(|a| (a, self.position(a)))
+            .collect()
     }
 }
 

@@ -8,9 +8,8 @@ use super::basic::{check_against_map, check_stroke, StrokeRead, Write};
 use super::stop::{after_stop, StopMachine};
 use super::{get, positions, statuses, Cx, MoveSpec, MoveTargets, Next, Operation, Output, Progress, Resume, Step};
 use crate::error::Error;
-use crate::model::{
-    status1, Actuator, CyclicObject, DataIndex, ErrorCode, Function, MotionDirection, StopMode, UNUSED,
-};
+use crate::model::ActuatorStatus1;
+use crate::model::{Actuator, CyclicObject, DataIndex, ErrorCode, Function, MotionDirection, StopMode, UNUSED};
 use crate::session::report::{ActuatorOutcome, MoveProgress, MoveReport, Snapshot};
 use crate::session::request::{PreparedRequest, Req, Schedule};
 use crate::session::POLL_READ;
@@ -117,7 +116,7 @@ impl Move {
     /// connected, and each target lies within its stroke.
     fn checked_status(&mut self, data: Vec<u8>) -> Result<(), Error> {
         self.status = statuses(&data)?;
-        let available = |a: Actuator| self.status[idx(a)] & status1::AVAILABLE != 0;
+        let available = |a: Actuator| ActuatorStatus1(self.status[idx(a)]).available();
         if let MoveTargets::EveryConnected(t) = self.spec.targets {
             if !available(self.spec.primary) {
                 return Err(Error::NotConnected(self.spec.primary));
@@ -268,7 +267,7 @@ impl Move {
         let tolerance = i64::from(tolerance_counts);
         let mut moving = false;
         for &(a, _) in &self.targets {
-            if status[idx(a)] & status1::MOTION != 0 {
+            if ActuatorStatus1(status[idx(a)]).moving() {
                 self.seen_motion[idx(a)] = true;
                 moving = true;
             }
@@ -316,7 +315,7 @@ impl Move {
             if positions[i] != self.last_position[i] {
                 self.last_position[i] = positions[i];
                 self.last_progress_at[i] = now;
-            } else if status[i] & status1::MOTION != 0 && now - self.last_progress_at[i] >= stall_timeout {
+            } else if ActuatorStatus1(status[i]).moving() && now - self.last_progress_at[i] >= stall_timeout {
                 tracing::warn!("{a} stalled at {}", positions[i]);
                 let after = now - self.last_progress_at[i];
                 return self.stop(cx, Error::Stalled { actuator: a, position_counts: positions[i], after });

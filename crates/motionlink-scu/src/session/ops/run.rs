@@ -9,7 +9,7 @@ use super::basic::Write;
 use super::stop::StopMachine;
 use super::{get, statuses, Cx, Next, Operation, Output, Progress, Resume, RunAction, RunSpec, Step};
 use crate::error::Error;
-use crate::model::{status1, Actuator, CyclicObject, DataIndex, Function, StopMode, UNUSED};
+use crate::model::{Actuator, ActuatorStatus1, CyclicObject, DataIndex, Function, StopMode, UNUSED};
 use crate::session::report::{RunProgress, RunReport};
 use crate::session::request::{PreparedRequest, Req};
 use crate::session::POLL_READ;
@@ -78,7 +78,7 @@ impl Run {
         }
         if self.spec.limit.is_none() {
             // A motion function ends when none of the actuators moves any more.
-            let moving = status.iter().any(|s| s & status1::MOTION != 0);
+            let moving = status.iter().any(|s| ActuatorStatus1(*s).moving());
             self.seen_motion |= moving;
             if !moving && (self.seen_motion || elapsed >= cx.config().start_grace) {
                 return self.stop(cx);
@@ -213,7 +213,7 @@ impl Operation for Run {
                     Next::Done(match stopped {
                         Ok((status, positions)) => {
                             let rest: Vec<(Actuator, i32)> = Actuator::all()
-                                .filter(|a| status[usize::from(a.number() - 1)] & status1::AVAILABLE != 0)
+                                .filter(|a| ActuatorStatus1(status[usize::from(a.number() - 1)]).available())
                                 .map(|a| (a, positions[usize::from(a.number() - 1)]))
                                 .collect();
                             if cx.cancelled {

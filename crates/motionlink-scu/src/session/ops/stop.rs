@@ -6,7 +6,7 @@ use motionlink_link::Timestamp;
 
 use super::{get, positions, statuses, Cx, Next, Operation, Output, Resume, Step};
 use crate::error::Error;
-use crate::model::{status1, Actuator, DataIndex, Function, MotionFunction, StopMode};
+use crate::model::{Actuator, ActuatorStatus1, DataIndex, Function, MotionFunction, StopMode};
 use crate::session::request::{PreparedRequest, Req, Schedule};
 use crate::wire::Command;
 
@@ -135,8 +135,12 @@ impl StopMachine {
         now: Timestamp,
     ) -> Step<Result<Rest, Unconfirmed>> {
         self.last_status = *status;
-        let moving: Vec<Actuator> =
-            self.watch.iter().copied().filter(|a| status[usize::from(a.number() - 1)] & status1::MOTION != 0).collect();
+        let moving: Vec<Actuator> = self
+            .watch
+            .iter()
+            .copied()
+            .filter(|a| ActuatorStatus1(status[usize::from(a.number() - 1)]).moving())
+            .collect();
         if moving.is_empty() {
             return match positions {
                 Some(p) => Step::Done(Ok((*status, p))),

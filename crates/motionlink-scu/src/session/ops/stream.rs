@@ -5,7 +5,9 @@ use super::basic::{check_against_map, Stroke, StrokeRead, Write};
 use super::stop::StopMachine;
 use super::{get, statuses, Cx, Next, Operation, Output, Resume, Step};
 use crate::error::Error;
-use crate::model::{status1, Actuator, DataIndex, Function, MotionDirection, MotionFunction, Speed, StopMode, UNUSED};
+use crate::model::{
+    Actuator, ActuatorStatus1, DataIndex, Function, MotionDirection, MotionFunction, Speed, StopMode, UNUSED,
+};
 use crate::session::request::{PreparedRequest, Req};
 use crate::value::Value;
 use crate::wire::{Command, Request};
@@ -85,7 +87,7 @@ impl Operation for StreamOpen {
                     Err(e) => return Next::Done(Err(e)),
                 };
                 if let Some(a) =
-                    self.actuators.iter().find(|a| status[usize::from(a.number() - 1)] & status1::AVAILABLE == 0)
+                    self.actuators.iter().find(|a| !ActuatorStatus1(status[usize::from(a.number() - 1)]).available())
                 {
                     return Next::Done(Err(Error::NotConnected(*a)));
                 }
