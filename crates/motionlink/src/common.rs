@@ -36,28 +36,32 @@ pub enum CliError {
 }
 
 impl CliError {
-    /// The process exit code for this error.
+    /// The process exit code for this error: the class's ([`ErrorClass::exit_code`]: 1 refused or device, 2
+    /// usage, 3 transport), except that an interruption exits with 128 + the signal's number and a closed
+    /// stdout with 0.
     pub fn exit_code(&self) -> u8 {
         match self {
-            CliError::Refused(_) | CliError::Device(_) => 1,
-            CliError::Usage(_) => 2,
-            CliError::Transport(..) => 3,
             CliError::Interrupted(_) => stop_cause().unwrap_or(StopCause::Signal(SIGINT)).exit_code(),
             CliError::OutputClosed => 0,
+            _ => self.class().exit_code(),
+        }
+    }
+
+    /// The error's class.
+    pub fn class(&self) -> ErrorClass {
+        match self {
+            CliError::Refused(_) => ErrorClass::Refused,
+            CliError::Device(_) => ErrorClass::Device,
+            CliError::Usage(_) => ErrorClass::Usage,
+            CliError::Transport(kind, _) => ErrorClass::Transport(*kind),
+            CliError::Interrupted(_) | CliError::OutputClosed => ErrorClass::Cancelled,
         }
     }
 
     /// The class's name, as `--json` reports it: `refused`, `device`, `timeout`, `disconnected`, `corrupt`,
     /// `io`, `usage` or `cancelled` ([`ErrorClass::name`]).
     pub fn kind(&self) -> &'static str {
-        let class = match self {
-            CliError::Refused(_) => ErrorClass::Refused,
-            CliError::Device(_) => ErrorClass::Device,
-            CliError::Usage(_) => ErrorClass::Usage,
-            CliError::Transport(kind, _) => ErrorClass::Transport(*kind),
-            CliError::Interrupted(_) | CliError::OutputClosed => ErrorClass::Cancelled,
-        };
-        class.name()
+        self.class().name()
     }
 
     /// The error as `--json` prints it on stderr: `{"kind": ..., "message": ..., "exit_code": ...}`.
