@@ -390,6 +390,24 @@ fn a_dead_link_during_a_move_ends_the_command_within_3_s_saying_the_axis_may_sti
 }
 
 #[test]
+fn a_dead_link_during_watch_is_reported_as_a_silent_unit() {
+    let sim = sim_tcp();
+    let running = Running::start(&["scu", "--port", &sim.address, "watch", "--interval", "100"]);
+    running.stdout.wait_for(Duration::from_secs(5), |l| l.contains("A1")).expect("a first sample");
+    // SAFETY: kill(2) on our own child.
+    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGSTOP) }, 0);
+    let ended = running.wait(Duration::from_secs(10));
+    // SAFETY: as above.
+    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGCONT) }, 0);
+    assert_eq!(ended.code(), 3, "{ended:?}");
+    // Either the request on the line timed out, or one queued behind an unanswered keepalive was not sent:
+    // both say that the unit does not answer.
+    let said = &ended.stderr;
+    assert!(said.contains("no reply to") || said.contains("has not answered"), "{said}");
+    assert!(!ended.stderr.contains("round trips of"), "not a round-trip problem: {}", ended.stderr);
+}
+
+#[test]
 fn a_dead_link_before_the_session_opens_ends_the_command_within_3_s() {
     let sim = sim_tcp();
     // SAFETY: kill(2) on our own child.
