@@ -3,6 +3,7 @@
 
 mod common;
 
+mod bitflip_cli;
 mod compax_cli;
 mod console;
 mod general_cli;
