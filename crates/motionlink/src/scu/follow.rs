@@ -190,12 +190,18 @@ pub(super) fn follow(
     if let Some(e) = error {
         return Err(e);
     }
-    // As `move`: success means each actuator ended within the tolerance of the last target it was given.
+    // As `move`: success means each actuator the function drives ended within the tolerance of the last target
+    // it was given (without --functions only the actuator asked for is known to be driven by it).
     let tolerance = i64::from(client.config().position_tolerance_counts);
+    let driven = |a: &Actuator| match client.config().function_map.drives(function) {
+        Some(drives) => drives.contains(a),
+        None => *a == actuator,
+    };
     if let Some(targets) = &last_targets {
         let missed: Vec<String> = rest
             .iter()
             .zip(targets)
+            .filter(|((a, _), _)| driven(a))
             .filter(|((_, p), t)| (i64::from(*p) - i64::from(**t)).abs() > tolerance)
             .map(|((a, p), t)| format!("{a}: target {t}, reached {p}, difference {}", i64::from(*p) - i64::from(*t)))
             .collect();

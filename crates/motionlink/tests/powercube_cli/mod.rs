@@ -251,6 +251,43 @@ fn sigterm_during_homing_halts_it() {
 
 #[cfg(unix)]
 #[test]
+fn sigint_sighup_and_sigquit_during_homing_halt_it_too() {
+    let dir = std::env::temp_dir().join(format!("motionlink-pc-home-signals-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let far = dir.join("far.toml");
+    std::fs::write(&far, "[[module]]\naddress = 1\nstart_position = 2.5\n").unwrap();
+    for sig in [libc::SIGINT, libc::SIGHUP, libc::SIGQUIT] {
+        let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0", "--config", far.to_str().unwrap()]);
+        let running = start_moving(&sim, &sim.address, "1", &["home"]);
+        interrupt_and_check(&sim, running, "1", sig);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[cfg(unix)]
+#[test]
+fn a_closed_stdout_during_homing_halts_it() {
+    let dir = std::env::temp_dir().join(format!("motionlink-pc-home-pipe-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let far = dir.join("far.toml");
+    std::fs::write(&far, "[[module]]\naddress = 1\nstart_position = 2.5\n").unwrap();
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0", "--config", far.to_str().unwrap()]);
+    let t0 = unix_now();
+    let (running, stdout) = Running::start_with_stdout(&["powercube", "--port", &sim.address, "home"]);
+    sim.wait_event_after(t0, Duration::from_secs(10), |e| e.starts_with("module 1 motion started")).expect("homing");
+    let closed = unix_now();
+    drop(stdout);
+    let rest = sim.wait_event_after(closed, Duration::from_secs(5), |e| e.starts_with("module 1 at rest"));
+    let rest = rest.unwrap_or_else(|| panic!("not at rest: {:?}", sim.events()));
+    let ended = running.wait(Duration::from_secs(10));
+    assert_eq!(ended.code(), 0, "{ended:?}");
+    assert!(rest.at - closed < 0.100, "at rest {:.0} ms after stdout closed", (rest.at - closed) * 1e3);
+    assert!(ended.stderr.is_empty(), "{ended:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[cfg(unix)]
+#[test]
 fn a_closed_stdout_during_a_move_stops_it() {
     let sim = Sim::tcp("powercube");
     let t0 = unix_now();

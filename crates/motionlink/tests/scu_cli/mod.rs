@@ -304,18 +304,44 @@ fn sigquit_stops_a_move_within_100_ms_and_exits_131() {
     a_signal_stops_a_move(libc::SIGQUIT);
 }
 
-#[test]
-fn sigterm_stops_run_within_100_ms_and_exits_143() {
+fn a_signal_stops_run(signal: i32) {
     let sim = sim_tcp();
     let running = Running::start(&["scu", "--port", &sim.address, "run", "F2", "out"]);
     wait_started(&sim, "F2");
     running.stdout.wait_for(Duration::from_secs(5), |l| l.contains("running")).expect("run says it runs");
-    let sent = running.signal(libc::SIGTERM);
+    let sent = running.signal(signal);
     let (rest, _) = wait_at_rest(&sim, "A2", sent);
     let ended = running.wait(Duration::from_secs(10));
-    assert_eq!(ended.code(), 143, "{ended:?}");
-    assert!(rest.at - sent < 0.100, "at rest {:.0} ms after the signal", (rest.at - sent) * 1e3);
+    assert_eq!(ended.code(), 128 + signal, "{ended:?}");
+    assert!(rest.at - sent < 0.100, "signal {signal}: at rest {:.0} ms after it", (rest.at - sent) * 1e3);
     assert!(ended.stdout.contains("stopped"), "{ended:?}");
+}
+
+#[test]
+fn sigterm_stops_run_within_100_ms_and_exits_143() {
+    a_signal_stops_run(libc::SIGTERM);
+}
+
+#[test]
+fn sigint_sighup_and_sigquit_stop_run_within_100_ms_too() {
+    for signal in [libc::SIGINT, libc::SIGHUP, libc::SIGQUIT] {
+        a_signal_stops_run(signal);
+    }
+}
+
+#[test]
+fn a_closed_stdout_stops_run() {
+    let sim = sim_tcp();
+    let (running, stdout) = Running::start_with_stdout(&["scu", "--port", &sim.address, "run", "F2", "out"]);
+    wait_started(&sim, "F2");
+    let closed = unix_now();
+    drop(stdout);
+    let (rest, _) = wait_at_rest(&sim, "A2", closed);
+    let ended = running.wait(Duration::from_secs(10));
+    assert_eq!(ended.code(), 0, "{ended:?}");
+    assert!(rest.at - closed < 0.100, "at rest {:.0} ms after stdout closed", (rest.at - closed) * 1e3);
+    assert!(ended.stderr.is_empty(), "{ended:?}");
+    assert!(sim.events().iter().any(|e| e.text.starts_with("F2 stopped")), "{:?}", sim.events());
 }
 
 #[test]
