@@ -330,3 +330,17 @@ pub fn head_1(args: &[&str]) -> (String, Ended) {
 pub fn temp_path(name: &str) -> std::path::PathBuf {
     std::env::temp_dir().join(format!("motionlink-test-{}-{name}", std::process::id()))
 }
+
+/// CPU time (user + system) a command used, in seconds, measured by the kernel when it ended.
+#[cfg(target_os = "linux")]
+pub fn cpu_seconds_of(child: std::process::Child) -> (i32, f64) {
+    let pid = child.id() as i32;
+    let mut status = 0;
+    // SAFETY: an all-zero rusage is valid; wait4 on our own child fills it in.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    let rc = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
+    assert_eq!(rc, pid);
+    std::mem::forget(child); // reaped here, not by Child's drop
+    let secs = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 / 1e6;
+    (libc::WEXITSTATUS(status), secs(usage.ru_utime) + secs(usage.ru_stime))
+}

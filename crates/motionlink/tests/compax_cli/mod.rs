@@ -454,20 +454,6 @@ fn bad_arguments_are_refused_naming_them_before_anything_is_sent() {
     assert!(!bit(&s17, COMMAND_ACTIVE) && bit(&s16, SWITCHED_ON), "S16 {s16} S17 {s17}");
 }
 
-/// CPU time (user + system) a command used, in seconds, measured by the kernel when it ended.
-#[cfg(target_os = "linux")]
-fn cpu_seconds_of(child: std::process::Child) -> (i32, f64) {
-    let pid = child.id() as i32;
-    let mut status = 0;
-    // SAFETY: an all-zero rusage is valid; wait4 on our own child fills it in.
-    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-    let rc = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
-    assert_eq!(rc, pid);
-    std::mem::forget(child); // reaped here, not by Child's drop
-    let secs = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 / 1e6;
-    (libc::WEXITSTATUS(status), secs(usage.ru_utime) + secs(usage.ru_stime))
-}
-
 #[cfg(target_os = "linux")]
 #[test]
 fn a_long_move_costs_the_command_little_cpu() {
@@ -480,7 +466,7 @@ fn a_long_move_costs_the_command_little_cpu() {
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    let (code, cpu) = cpu_seconds_of(child);
+    let (code, cpu) = common::cpu_seconds_of(child);
     let wall = t0.elapsed().as_secs_f64();
     assert_eq!(code, 0);
     assert!(wall >= 3.0, "{wall}");
