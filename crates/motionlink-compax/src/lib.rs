@@ -110,7 +110,9 @@
 //!   plus 200 ms ([`BusConfig::reply_timeout`](session::BusConfig::reply_timeout)); after a broadcast the
 //!   client keeps the line quiet for 20 ms.
 //! - **Threads**: COMPAX has no watchdog or keepalive. The blocking client drives the line from the calling
-//!   thread; the shared driver's one thread runs only the async client's operations and the close on drop.
+//!   thread; the shared driver's one thread (every client starts one) drives it for the async client's
+//!   operations, and otherwise only while the session has work and no caller drives the line (as during a
+//!   close); between calls it sleeps.
 //! - **Broadcast (32)**: nobody answers it, so the client refuses it for reads, echoes, single-drive moves
 //!   and waits ([`Error::Broadcast`]) instead of waiting for a reply that cannot come. A move sent to
 //!   every drive ([`Client::broadcast`], or `32...` through [`Client::raw`]) counts as started for
