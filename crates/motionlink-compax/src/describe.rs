@@ -1,5 +1,5 @@
 //! Captured COMPAX traffic explained, telegram by telegram: the family's
-//! [`Describe`](motionlink_link::describe::Describe), which `motionlink decode compax`, the demo's
+//! [`Describe`], which `motionlink decode compax`, the demo's
 //! transcript and any capture writer call.
 //!
 //! Requests (ASCII and binary, with their flags and BCC) and replies (acknowledgements, `Exx` with its

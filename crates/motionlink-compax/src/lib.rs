@@ -17,8 +17,9 @@
 //!   motion when an operation is cancelled or fails and when it is closed; tested with a manual clock and no
 //!   link.
 //! - [`client`]: [`Client`] (blocking, `&self`, shareable between threads) and, with the `tokio` feature,
-//!   `AsyncClient`: the same typed operations over [`motionlink_link::driver`] running the session;
-//!   [`client::Drive`], a handle on one drive. Closing stops what was started, bounded in time.
+//!   `AsyncClient`: the same typed operations over [`motionlink_link::driver`] running the session (for
+//!   async callers a drive handle `AsyncDrive` and a watch stream `AsyncWatch`); [`client::Drive`], a handle
+//!   on one drive. Closing stops what was started, bounded in time.
 //! - [`sim`]: [`Emulator`], a sans-IO emulator of the bus with a motion model.
 //! - [`describe`]: [`Describe`](motionlink_link::describe::Describe) for captures, the demo and
 //!   `motionlink decode compax`.
@@ -92,7 +93,8 @@
 //!   timeout supervision (valence 16) is an inter-character timeout inside one telegram (E73), not a
 //!   watchdog.
 //! - **Checked moves** ([`Client::move_to`]): the manuals give no position window for this protocol,
-//!   so the in-position tolerance is [`ClientConfig::in_position_tolerance`] (0.01 by default); they
+//!   so the in-position tolerance is
+//!   [`BusConfig::in_position_tolerance`](session::BusConfig::in_position_tolerance) (0.01 by default); they
 //!   name no travel limits, so the caller gives them ([`session::TravelLimits`]). A target cannot be read
 //!   back before the start (the move telegram starts it, and a buffered move cannot be read before `!`): S2
 //!   is read right after the move, and a mismatch switches the axis off. The drive counts as started from
@@ -105,9 +107,12 @@
 //!   [`Error::MoveUncertain`]. E70, E72 and E73 are always answered by sending the telegram again;
 //!   E71 (buffer overflow) is reported, since the manual asks for fewer characters, not the same again.
 //! - **Timeouts**: the manual gives none. A reply may take the wire time of request and a 48-character reply
-//!   plus 200 ms ([`ClientConfig`]); after a broadcast the client keeps the line quiet for 20 ms.
+//!   plus 200 ms ([`BusConfig::reply_timeout`](session::BusConfig::reply_timeout)); after a broadcast the
+//!   client keeps the line quiet for 20 ms.
 //! - **Threads**: COMPAX has no watchdog or keepalive. The blocking client drives the line from the calling
-//!   thread; the shared driver's one thread runs only the async client's operations and the close on drop.
+//!   thread; the shared driver's one thread (every client starts one) drives it for the async client's
+//!   operations, and otherwise only while the session has work and no caller drives the line (as during a
+//!   close); between calls it sleeps.
 //! - **Broadcast (32)**: nobody answers it, so the client refuses it for reads, echoes, single-drive moves
 //!   and waits ([`Error::Broadcast`]) instead of waiting for a reply that cannot come. A move sent to
 //!   every drive ([`Client::broadcast`], or `32...` through [`Client::raw`]) counts as started for

@@ -4,6 +4,7 @@
 
 mod support;
 
+mod async_client;
 mod async_example;
 mod client;
 mod client_stops;

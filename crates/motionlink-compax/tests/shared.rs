@@ -90,3 +90,35 @@ fn a_dead_line_bounds_the_close_and_says_the_axis_may_still_move() {
     assert!(e.to_string().contains("may still be moving"), "{e}");
     assert!(host.with_device(|d| d.drive(1).unwrap().is_moving()), "COMPAX has no watchdog: it moves on");
 }
+
+/// Dropping the client instead of closing it: the same bound ([`BusConfig::close_bound`]).
+#[test]
+fn dropping_the_client_on_a_silent_line_returns_within_the_close_bound() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let (host, faults, client) = rig(&clock, |c| c.close_bound = Duration::from_millis(800));
+    client.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
+    faults.drop_next(Direction::HostToDevice, u64::MAX / 2);
+    faults.drop_next(Direction::DeviceToHost, u64::MAX / 2);
+    let t0 = clock.now();
+    drop(client);
+    let took = clock.now() - t0;
+    assert!(took >= Duration::from_millis(800), "it tried to stop the axis until the bound: {took:?}");
+    assert!(took <= Duration::from_millis(850), "bounded: {took:?}");
+    assert!(host.with_device(|d| d.drive(1).unwrap().is_moving()), "COMPAX has no watchdog: it moves on");
+}
+
+/// The peer gone (the link disconnected) while an axis moves: dropping the client returns within the bound.
+#[test]
+fn dropping_the_client_after_the_peer_is_gone_returns_within_the_close_bound() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let (host, faults, client) = rig(&clock, |c| c.close_bound = Duration::from_millis(800));
+    client.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
+    faults.disconnect();
+    let t0 = clock.now();
+    drop(client);
+    let took = clock.now() - t0;
+    assert!(took <= Duration::from_millis(850), "bounded: {took:?}");
+    assert!(host.with_device(|d| d.drive(1).unwrap().is_moving()), "nothing reached the drive: it moves on");
+}

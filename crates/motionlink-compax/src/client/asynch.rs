@@ -9,16 +9,27 @@ use motionlink_link::driver::{AsyncDriver, Driver, OpFuture, Port};
 use motionlink_link::link::Link;
 use motionlink_link::LinkError;
 
+use super::async_drive::{AsyncDrive, AsyncWatch};
 use super::{driver_config, output};
 use crate::error::{Error, Result, StopReport};
-use crate::model::{Command, OutputState, ParamId, Position, S16Bits, S17Bits, SpeedPercent, StatusId, StatusValue};
-use crate::session::{BusConfig, MoveOptions, MoveReport, MoveRequest, Op, Output, Session, StartedMove};
+use crate::model::{
+    Command, OutputState, ParamId, Position, RampMs, S16Bits, S17Bits, SpeedPercent, StatusId, StatusValue,
+};
+use crate::session::{
+    AfterRaw, BusConfig, MoveOptions, MoveReport, MoveRequest, Op, Output, RawOutcome, Session, StartedMove,
+};
 use crate::wire::Address;
 
 /// An async client of one bus of COMPAX drives: the operations of [`Client`](super::Client) as futures,
-/// with the same safety. Dropping a future before it is done cancels its operation: a move not yet sent
-/// is not sent, and a wait or checked move that set an axis in motion stops it (`OUTPUT O0=0`, confirmed
-/// by S17). Operations of several tasks take turns on the line.
+/// with the same safety. Each method runs the same [`Op`] of the session as its blocking namesake.
+/// Dropping a future before it is done cancels its operation: a move not yet sent is not sent, and a
+/// wait, checked move or [`AsyncClient::raw_motion`] that set an axis in motion stops it (`OUTPUT O0=0`,
+/// confirmed by S17). Operations of several tasks take turns on the line.
+///
+/// What the blocking client does with a cancel token ([`Client::set_cancel`](super::Client::set_cancel))
+/// the async one does by dropping the future; [`AsyncClient::watch`] is a stream of samples
+/// ([`AsyncWatch::next`]) instead of a callback; progress reports of a wait or checked move are taken from
+/// the future [`AsyncClient::start`] returns ([`OpFuture::take_progress`]).
 ///
 /// The session runs on the driver's thread; opening and closing (which block on I/O) run on tokio's
 /// blocking pool. Dropping the client closes the session there (stopping what it set in motion, bounded
@@ -87,6 +98,26 @@ impl AsyncClient {
         self.driver.start(op)
     }
 
+    /// Runs `op` to its end; dropping the future cancels it, as [`AsyncClient::start`].
+    pub async fn run(&self, op: Op) -> Result<Output> {
+        self.driver.run(op).await
+    }
+
+    /// The driver underneath (to look at the session).
+    pub fn driver(&self) -> &AsyncDriver<Session> {
+        &self.driver
+    }
+
+    /// The clock the session runs on.
+    pub fn clock(&self) -> &SharedClock {
+        self.driver.driver().clock()
+    }
+
+    /// A handle on drive `address` (1..=31); the broadcast address 32 is refused ([`Error::Broadcast`]).
+    pub fn drive(&self, address: Address) -> Result<AsyncDrive<'_>> {
+        AsyncDrive::new(self, address)
+    }
+
     /// The drives this client set in motion and has not yet seen stop.
     pub fn started(&self) -> Vec<Address> {
         self.driver.driver().with_session(|s| s.started())
@@ -110,6 +141,15 @@ impl AsyncClient {
     pub async fn read_status(&self, address: Address, id: StatusId) -> Result<StatusValue> {
         output(self.driver.run(Op::ReadStatus(address, id)).await?, "a status read", |o| match o {
             Output::Status(v) => Ok(v),
+            o => Err(o),
+        })
+    }
+
+    /// Several status values of one drive, in order; see
+    /// [`Client::read_statuses`](super::Client::read_statuses).
+    pub async fn read_statuses(&self, address: Address, ids: &[StatusId]) -> Result<Vec<(StatusId, StatusValue)>> {
+        output(self.driver.run(Op::ReadStatuses(address, ids.to_vec())).await?, "status reads", |o| match o {
+            Output::Statuses(v) => Ok(v),
             o => Err(o),
         })
     }
@@ -183,9 +223,38 @@ impl AsyncClient {
         })
     }
 
+    /// Text sent as [`AsyncClient::raw`] sends it, then what it set in motion handed over or waited for;
+    /// see [`Client::raw_motion`](super::Client::raw_motion). Dropping the future stops what it started
+    /// (unless it was handed over already).
+    pub async fn raw_motion(&self, address: Address, text: &str, after: AfterRaw) -> Result<RawOutcome> {
+        let op = Op::RawMotion(address, text.to_string(), after);
+        output(self.driver.run(op).await?, "a raw command", |o| match o {
+            Output::Raw(r) => Ok(r),
+            o => Err(o),
+        })
+    }
+
+    /// `text?`: the drive sends it back; see [`Client::echo`](super::Client::echo).
+    pub async fn echo(&self, address: Address, text: &str) -> Result<String> {
+        output(self.driver.run(Op::Echo(address, text.to_string())).await?, "an echo", |o| match o {
+            Output::Text(t) => Ok(t),
+            o => Err(o),
+        })
+    }
+
     /// SPEED for the next positionings.
     pub async fn set_speed(&self, address: Address, speed: SpeedPercent, binary: bool) -> Result<()> {
         self.done(Op::Setting(address, Command::Speed(speed), binary), "a setting").await
+    }
+
+    /// ACCEL (acceleration and braking time) for the next positionings.
+    pub async fn set_accel(&self, address: Address, ramp: RampMs, binary: bool) -> Result<()> {
+        self.done(Op::Setting(address, Command::Accel(ramp), binary), "a setting").await
+    }
+
+    /// ACCEL- (braking time alone) for the next positionings.
+    pub async fn set_brake(&self, address: Address, ramp: RampMs, binary: bool) -> Result<()> {
+        self.done(Op::Setting(address, Command::AccelBrake(ramp), binary), "a setting").await
     }
 
     /// OUTPUT O`output`=`state` (output 0 is the drive itself: 0 switches it off, 1 on).
@@ -201,6 +270,16 @@ impl AsyncClient {
     /// POSR; returns once the drive has taken it (never sent again blind).
     pub async fn move_relative(&self, address: Address, distance: Position, opts: MoveOptions) -> Result<()> {
         self.done(Op::Move(address, Command::PosR(distance), opts), "a move").await
+    }
+
+    /// POSA HOME: finds machine zero; returns once the drive has taken it.
+    pub async fn home(&self, address: Address, opts: MoveOptions) -> Result<()> {
+        self.done(Op::Move(address, Command::PosAHome, opts), "a move").await
+    }
+
+    /// `cmd` to every drive at once, no reply; see [`Client::broadcast`](super::Client::broadcast).
+    pub async fn broadcast(&self, cmd: &Command) -> Result<()> {
+        self.done(Op::Broadcast(*cmd), "a broadcast").await
     }
 
     /// Several drives started at one instant; see [`Client::sync_start`](super::Client::sync_start).
@@ -230,12 +309,33 @@ impl AsyncClient {
         })
     }
 
+    /// [`AsyncClient::start_checked_move`], then the move is handed over (the client forgets it and does
+    /// not stop it); see [`Client::start_and_release`](super::Client::start_and_release). Dropped before
+    /// the target was read back, the future stops the move instead.
+    pub async fn start_and_release(&self, address: Address, request: &MoveRequest) -> Result<StartedMove> {
+        output(self.driver.run(Op::StartMove(address, *request, true)).await?, "a checked move", |o| match o {
+            Output::Started(s) => Ok(s),
+            o => Err(o),
+        })
+    }
+
     /// The second half of a checked move: the wait and the position at rest.
     pub async fn finish_checked_move(&self, started: &StartedMove, timeout: Option<Duration>) -> Result<MoveReport> {
         output(self.driver.run(Op::FinishMove(*started, timeout)).await?, "a checked move", |o| match o {
             Output::Moved(r) => Ok(r),
             o => Err(o),
         })
+    }
+
+    /// Waits `d`, handling what arrives meanwhile (`$` and comparator messages).
+    pub async fn pause(&self, d: Duration) -> Result<()> {
+        self.done(Op::Pause(d), "a pause").await
+    }
+
+    /// S1 and S17 of `drive` every `interval`, as a stream: [`AsyncWatch::next`] waits for the next
+    /// sample. The broadcast address 32 is refused ([`Error::Broadcast`]).
+    pub fn watch(&self, drive: Address, interval: Duration) -> Result<AsyncWatch<'_>> {
+        AsyncWatch::new(self, drive, interval)
     }
 
     /// `OUTPUT O0=0` to one drive, acknowledged.

@@ -7,7 +7,7 @@ use crate::error::Result;
 use crate::model::{
     Command, OutputState, ParamId, Position, RampMs, S16Bits, S17Bits, SpeedPercent, StatusId, StatusValue,
 };
-use crate::session::{MoveOptions, MoveReport, MoveRequest};
+use crate::session::{MoveOptions, MoveReport, MoveRequest, StartedMove, WatchSample};
 use crate::wire::Address;
 
 /// A handle on one drive (address 1..=31) of a [`Client`]: the client's single-drive operations without the
@@ -32,6 +32,11 @@ impl Drive<'_> {
     /// [`Client::read_status`].
     pub fn read_status(&self, id: StatusId) -> Result<StatusValue> {
         self.client.read_status(self.address, id)
+    }
+
+    /// [`Client::read_statuses`].
+    pub fn read_statuses(&self, ids: &[StatusId]) -> Result<Vec<(StatusId, StatusValue)>> {
+        self.client.read_statuses(self.address, ids)
     }
 
     /// [`Client::read_position`]: S1.
@@ -104,9 +109,24 @@ impl Drive<'_> {
         self.client.move_to(self.address, request, progress)
     }
 
+    /// [`Client::start_checked_move`].
+    pub fn start_checked_move(&self, request: &MoveRequest) -> Result<StartedMove> {
+        self.client.start_checked_move(self.address, request)
+    }
+
+    /// [`Client::start_and_release`].
+    pub fn start_and_release(&self, request: &MoveRequest) -> Result<StartedMove> {
+        self.client.start_and_release(self.address, request)
+    }
+
     /// [`Client::wait_reached`] for this drive.
     pub fn wait_reached(&self, timeout: Option<Duration>, progress: &mut dyn FnMut(Position)) -> Result<()> {
         self.client.wait_reached(&[self.address], timeout, &mut |_, p| progress(p))
+    }
+
+    /// [`Client::watch`] of this drive.
+    pub fn watch(&self, interval: Duration, sample: &mut dyn FnMut(&WatchSample)) -> Result<()> {
+        self.client.watch(self.address, interval, sample)
     }
 
     /// [`Client::stop`]: `OUTPUT O0=0`.

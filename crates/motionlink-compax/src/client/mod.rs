@@ -8,8 +8,8 @@
 //! or cancelled wait or checked move (a cancel token of the blocking client, a dropped future of the async
 //! one) stops the drives it concerns that still move with `OUTPUT O0=0` ("switch off drive", the one
 //! documented command that ends a running positioning), reading S17 first and again to confirm. The error
-//! says per drive whether the drive confirmed the stop ([`Error::Aborted`](crate::Error::Aborted),
-//! [`StopReport`](crate::error::StopReport)); if not, that the axis may still be moving.
+//! says per drive whether the drive confirmed the stop ([`Error::Aborted`],
+//! [`StopReport`]); if not, that the axis may still be moving.
 //!
 //! Closing ([`Client::close`], or dropping the client) stops every axis the session set in motion that
 //! still moves and returns the report; it waits for that at most
@@ -21,10 +21,14 @@
 //! leaves a running positioning running to its target; nothing on the link stops it.
 
 #[cfg(feature = "tokio")]
+mod async_drive;
+#[cfg(feature = "tokio")]
 mod asynch;
 mod blocking;
 mod drive;
 
+#[cfg(feature = "tokio")]
+pub use async_drive::{AsyncDrive, AsyncWatch};
 #[cfg(feature = "tokio")]
 pub use asynch::AsyncClient;
 pub use blocking::Client;

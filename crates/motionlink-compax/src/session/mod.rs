@@ -10,7 +10,7 @@
 //!
 //! Every multi-step operation ([`Op`]: a checked move with its limits, S16 / S17 checks, S2 read back, the
 //! wait at its poll rate and the in-position check; the scan; the synchronous start; a parameter write
-//! read back; the watch) is a state machine inside the session ([`ops`]). Safety lives here too:
+//! read back; the watch) is a state machine inside the session (the private module `ops`). Safety lives here too:
 //!
 //! - [`Session::cancel`](motionlink_link::session::Session::cancel): the operation's telegrams not yet sent
 //!   are dropped (a move not yet sent is never sent); a wait or checked move that had set an axis in

@@ -48,7 +48,7 @@ pub struct SimConfig {
     pub drives: Vec<DriveConfig>,
     /// Parameters besides P194..P196 that every drive models, with their values at power-on (`P12 = 0.0`).
     /// The manual defines only P194..P196: a drive answers a read or write of any other parameter with
-    /// [`REFUSED`] (E90) unless it is listed here.
+    /// [`REFUSED`](super::REFUSED) (E90) unless it is listed here.
     #[serde(default)]
     pub params: BTreeMap<String, f64>,
 }
