@@ -60,6 +60,8 @@ struct Slow {
     velocity: Option<f64>,
     current: Option<f64>,
     state: Option<CubeState>,
+    /// The last sample read the state word out of turn (its short state disagreed).
+    forced: bool,
 }
 
 /// What the second request of a sample reads, in turn (the first reads position, short state and DIO
@@ -317,8 +319,9 @@ impl Device for PowerCube {
             for u in units {
                 // Two requests a sample: ActFPosStateDio (position, short state) every time, and in turn the
                 // velocity, the full state word or the current. The state word is read at once when the short
-                // state disagrees with the last one read (a fault, a halt, a motion begun or ended). About 38
-                // bytes a sample on RS232: 9600 baud carries about 25 a second.
+                // state disagrees with the last one read (a fault, a halt, a motion begun or ended), but not two
+                // samples running: a module whose short state never agrees still gets its velocity and current
+                // read. About 38 bytes a sample on RS232: 9600 baud carries about 25 a second.
                 let turn = TURNS[(self.turn.fetch_add(1, std::sync::atomic::Ordering::Relaxed) % 3) as usize];
                 let look = async {
                     let m = self.client.module(u.id)?;
@@ -326,8 +329,8 @@ impl Device for PowerCube {
                         Output::PositionStateDio(p, s, _) => (p, s),
                         other => unexpected_output(u.id, other)?,
                     };
-                    let known = motionlink_link::clock::lock(&self.slow).get(&u.id).and_then(|s| s.state);
-                    let stale = known.is_none_or(|k| !agrees(k, short));
+                    let last = motionlink_link::clock::lock(&self.slow).get(&u.id).copied().unwrap_or_default();
+                    let stale = last.state.is_none_or(|k| !agrees(k, short)) && !last.forced;
                     let param = if stale { Param::CubeState } else { turn };
                     let other = m.get(param).await?;
                     Ok::<_, Error>((position, short, param, other))
@@ -337,10 +340,12 @@ impl Device for PowerCube {
                         let slow = {
                             let mut all = motionlink_link::clock::lock(&self.slow);
                             let slot = all.entry(u.id).or_default();
+                            slot.forced = param == Param::CubeState && param != turn;
                             match (param, other) {
                                 (Param::CubeState, CubeValue::U32(w)) => slot.state = Some(CubeState(w)),
                                 (Param::ActVel, v) => slot.velocity = f32_of(v),
-                                (_, v) => slot.current = f32_of(v),
+                                (Param::ActFMotorCurrent, v) => slot.current = f32_of(v),
+                                _ => {}
                             }
                             *slot
                         };

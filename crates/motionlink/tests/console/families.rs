@@ -144,6 +144,13 @@ fn the_powercube_error_history_decodes_a_state_fault() {
     sim.wait_event(Duration::from_secs(10), |t| t == "module 1 error: STATE_TOW_ERROR").expect("the tow error");
     recv_until(&mut ws, Duration::from_secs(10), |v| v["type"] == "motion" && v["state"] != "running")
         .expect("the move ends");
+    // The samples show the fault (the state word is read as soon as the short state changes).
+    recv_until(&mut ws, Duration::from_secs(5), |v| {
+        v["type"] == "sample"
+            && v["units"][0]["faults"].as_array().is_some_and(|f| f.iter().any(|n| n == "STATE_TOW_ERROR"))
+            && v["units"][0]["moving"] == false
+    })
+    .expect("a sample shows STATE_TOW_ERROR");
     let v = errors(&mut ws, "module");
     let _ = std::fs::remove_file(&config);
     let now = &v["entries"][0];
