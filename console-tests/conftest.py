@@ -3,8 +3,11 @@ console on the emulators.
 
 The binary is $MOTIONLINK_BIN, else target/debug/motionlink (built by `cargo test` / `cargo build`). The browser
 is $MOTIONLINK_CHROMIUM (default /usr/bin/chromium) and the driver $MOTIONLINK_CHROMEDRIVER (default
-/usr/bin/chromedriver). When either is missing, each test reports itself skipped by name; with
-MOTIONLINK_REQUIRE_BROWSER=1 (as in .ci/run) a missing browser fails the test instead.
+/usr/bin/chromedriver); an empty value names no program. When either is missing, each test reports itself
+skipped by name; with MOTIONLINK_REQUIRE_BROWSER=1 (as in .ci/run) a missing browser fails the test instead.
+
+The screenshot of the page during a move goes to $MOTIONLINK_SCREENSHOT, else target/console.png: the run leaves
+the tracked docs/console.png alone (copy a new screenshot there by hand when the page changed visibly).
 
 Tests wait on the emulator's events (`motionlink sim ... --events`) and on the page's state, never after a
 fixed sleep.
@@ -26,6 +29,7 @@ BIN = Path(os.environ.get("MOTIONLINK_BIN", ROOT / "target" / "debug" / "motionl
 CHROMIUM = os.environ.get("MOTIONLINK_CHROMIUM", "/usr/bin/chromium")
 CHROMEDRIVER = os.environ.get("MOTIONLINK_CHROMEDRIVER", "/usr/bin/chromedriver")
 REQUIRE_BROWSER = os.environ.get("MOTIONLINK_REQUIRE_BROWSER") == "1"
+SCREENSHOT = Path(os.environ.get("MOTIONLINK_SCREENSHOT") or ROOT / "target" / "console.png")
 
 
 class Lines:
@@ -117,9 +121,14 @@ class Console:
 
 def _missing_browser():
     """Why no browser can run here, or None."""
-    for what, path in (("browser", CHROMIUM), ("driver", CHROMEDRIVER)):
-        if not (Path(path).exists() or shutil.which(path)):
-            return f"no {what} at {path}"
+    for what, path, var in (("browser", CHROMIUM, "MOTIONLINK_CHROMIUM"),
+                            ("driver", CHROMEDRIVER, "MOTIONLINK_CHROMEDRIVER")):
+        if not path.strip():
+            return f"missing {what}: ${var} is empty"
+        # A program file, or a name on PATH (Path("").exists() and a directory would pass a plain exists()).
+        found = Path(path).is_file() or shutil.which(path) is not None
+        if not found:
+            return f"missing {what}: nothing at {path!r}"
     try:
         import selenium  # noqa: F401
     except ImportError:
@@ -140,11 +149,11 @@ def browser(request):
     from selenium.webdriver.chrome.service import Service
 
     options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
+    options.binary_location = shutil.which(CHROMIUM) or CHROMIUM
     for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--disable-gpu",
                 "--window-size=1400,1200", "--no-proxy-server"):
         options.add_argument(arg)
-    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+    driver = webdriver.Chrome(service=Service(shutil.which(CHROMEDRIVER) or CHROMEDRIVER), options=options)
     yield driver
     driver.quit()
 

@@ -4,7 +4,7 @@ import time
 
 import pytest
 
-from conftest import ROOT, Console
+from conftest import SCREENSHOT, Console
 
 
 def _wait(browser, condition, timeout=10.0, message=""):
@@ -46,8 +46,8 @@ def test_positions_change_during_a_move(browser, compax_sim, compax_console):
     from selenium.webdriver.common.by import By
     _wait(browser, lambda b: len(b.find_elements(By.CSS_SELECTOR, "#traffic div")) > 60, 10, "the traffic log")
     _wait(browser, lambda b: _position(b) > first + 60.0, 10, "a stretch of the move to plot")
-    (ROOT / "docs").mkdir(exist_ok=True)
-    assert browser.save_screenshot(str(ROOT / "docs" / "console.png"))
+    SCREENSHOT.parent.mkdir(parents=True, exist_ok=True)
+    assert browser.save_screenshot(str(SCREENSHOT)), SCREENSHOT
 
 
 def test_stop_halts_the_emulated_axis(browser, compax_sim, compax_console):
@@ -82,8 +82,11 @@ def test_closing_the_tab_during_a_jog_halts_it_within_300_ms(browser, compax_sim
     from selenium.webdriver.common.by import By
     _open(browser, compax_console)
     console_tab = browser.current_window_handle
+    # A second page, read-only, that is told why the jog stopped.
     browser.switch_to.new_window("tab")
     other_tab = browser.current_window_handle
+    browser.get(compax_console.url)
+    _wait(browser, lambda b: "read-only" in b.find_element(By.ID, "role").text, 10, "the second page is read-only")
     browser.switch_to.window(console_tab)
     jog = browser.find_element(By.ID, "jog-positive")
     ActionChains(browser).click_and_hold(jog).perform()
@@ -98,6 +101,9 @@ def test_closing_the_tab_during_a_jog_halts_it_within_300_ms(browser, compax_sim
     off = compax_sim.wait_event(lambda t: t == "drive 1 switched off (O0=0)", 5, after=closed)
     assert off, f"closing the tab did not stop the jog: {compax_sim.events()}"
     assert off[0] - closed < 0.3, f"stopped {off[0] - closed:.3f} s after the tab was closed"
+    # Stopped because the page went, not by the dead-man deadline (which alone would stop it too).
+    _wait(browser, lambda b: "the page that started it went away" in b.find_element(By.ID, "motion").text, 5,
+          "the other page is told the reason")
 
 
 def test_a_parameter_write_shows_its_read_back(browser, compax_sim, compax_console):
@@ -110,6 +116,44 @@ def test_a_parameter_write_shows_its_read_back(browser, compax_sim, compax_conso
     result = browser.find_element(By.ID, "param-result")
     assert result.get_attribute("data-read-back") == "4.25", result.text
     assert "written 4.25" in result.text and "read back 4.25" in result.text, result.text
+
+
+def _write(browser, name, value):
+    from selenium.webdriver.common.by import By
+    for field, text in (("param-name", name), ("param-value", value)):
+        browser.find_element(By.ID, field).clear()
+        browser.find_element(By.ID, field).send_keys(text)
+    browser.find_element(By.ID, "param-write").click()
+    _wait(browser, lambda b: b.find_element(By.ID, "param-result").text.startswith(f"{name} ("), 10,
+          f"the write of {name} is answered")
+    return browser.find_element(By.ID, "param-result")
+
+
+def test_a_powercube_write_shows_the_read_back_with_its_own_name_and_unit(browser):
+    console = Console("powercube", "--port", "sim", "--modules", "1")
+    try:
+        _open(browser, console)
+        result = _write(browser, "MaxVel", "0.8")
+        assert "written 0.800000 rad/s, read back 0.800000 rad/s" in result.text, result.text
+        # TargetVel cannot be read: the read-back is its twin in encoder ticks, named and in ticks/s.
+        result = _write(browser, "TargetVel", "0.5")
+        assert "written 0.500000 rad/s, read back (as TargetVelInc) " in result.text, result.text
+        assert result.get_attribute("data-read-back-name") == "TargetVelInc"
+        assert result.get_attribute("data-read-back").endswith("ticks/s"), result.text
+        assert "rad/s rad/s" not in result.text and "ticks/s rad/s" not in result.text, result.text
+    finally:
+        console.stop()
+
+
+def test_the_error_table_puts_codes_and_meanings_in_their_columns(browser, compax_sim, compax_console):
+    from selenium.webdriver.common.by import By
+    _open(browser, compax_console)
+    browser.find_element(By.ID, "errors-read").click()
+    _wait(browser, lambda b: len(b.find_elements(By.CSS_SELECTOR, "#errors tbody tr")) == 8, 10, "S18's entries")
+    cells = [c.text for c in browser.find_elements(By.CSS_SELECTOR, "#errors tbody tr:first-child td")]
+    assert cells[0] == "newest", cells
+    assert cells[1] == "99", f"the code in the Code column: {cells}"
+    assert cells[2] == "the error before was acknowledged", f"the meaning in the Meaning column: {cells}"
 
 
 def test_a_wrong_token_is_refused(browser, compax_sim, compax_console):

@@ -15,6 +15,8 @@ use crate::common;
 
 use common::{unix_now, Running, Sim};
 
+mod families;
+
 /// A running console and the address it printed.
 struct Console {
     running: Running,
@@ -236,7 +238,7 @@ fn samples_come_at_20_hz_or_more_for_every_family() {
         }
         let rate = f64::from(frames) / start.elapsed().as_secs_f64();
         eprintln!("{family}: {rate:.1} samples/s");
-        assert!(rate >= 19.0, "{family}: {rate:.1} samples/s");
+        assert!(rate >= 20.0, "{family}: {rate:.1} samples/s");
         let u = &last["units"][0];
         assert!(u[position].is_number(), "{family}: {last}");
         assert!(u["flags"].is_array(), "{family}: {last}");
@@ -410,7 +412,11 @@ fn the_error_history_and_the_traffic_log_are_decoded() {
     let objects: Vec<Value> =
         String::from_utf8_lossy(&decoded.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
     assert!(objects.len() > 2, "{objects:?}");
-    assert!(objects.iter().all(|o| o["bad"] == false && o["direction"] != "??"), "{objects:?}");
+    // The emulated line is paced: the download may end inside a reply, whose start is then all the capture
+    // has of it. Every telegram before it is whole.
+    let (last, whole) = objects.split_last().unwrap();
+    assert!(whole.iter().all(|o| o["bad"] == false && o["direction"] != "??"), "{objects:?}");
+    assert!(last["bad"] == false || last["direction"] == "<-", "{last}");
 }
 
 /// One family's rules against its emulator over TCP: Stop halts a move, a jog stops by its dead-man

@@ -11,8 +11,8 @@ use std::time::Duration;
 
 use motionlink_compax::client::{BusConfig, MoveRequest, MoveTarget, StopOutcome, TravelLimits};
 use motionlink_compax::model::{
-    HistoryEntry, OutputState, ParamId, Position, S17Flag, SpeedPercent, StatusId, StatusValue, ValidFrom, BAUD_RATES,
-    PARAMS,
+    HistoryEntry, OutputState, ParamId, Position, S16Bits, S17Bits, S17Flag, SpeedPercent, StatusId, StatusValue,
+    ValidFrom, BAUD_RATES, PARAMS,
 };
 use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Mode};
@@ -23,10 +23,11 @@ use motionlink_link::flags::{FlagClass, FlagWord};
 use motionlink_link::link::{Link, SerialSettings};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
-use serde_json::{json, Value};
+use serde_json::Value;
 
 use super::device::{
-    finite, Action, BoxFuture, Device, Failure, JogDirection, Motion, Param, ParamValue, Sample, Unit,
+    error_history, finite, with_unit, Action, BoxFuture, Device, ErrorEntry, Failure, JogDirection, Motion, Param,
+    ParamValue, ReadBack, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -46,7 +47,7 @@ pub struct Args {
     /// The drives' operating mode P196 (0..=127): BCC, parity, reply end, address prefix.
     #[arg(long, default_value_t = 0)]
     pub mode: u32,
-    /// The drives' baud rate P195.
+    /// The drives' baud rate P195 (with `--port sim`: the emulated line runs at this rate).
     #[arg(long, default_value_t = 9600)]
     pub baud: u32,
     /// Time a drive may take to start answering, in ms (1..=60000).
@@ -65,6 +66,12 @@ pub struct Args {
     pub serve: ServeArgs,
 }
 
+/// S16 and S17 (state flags) are read every this many samples (and at once when S1 says the axis started or
+/// stopped moving); S1 (the position) every sample. A sample of one drive then costs about 30 bytes on the
+/// line on average (S1: 18, S16 and S17: 23 each) instead of 64: 9600 baud (960 bytes/s) carries about 32
+/// of them a second, above the page's 20 Hz (all three every time: 15 a second).
+const FLAGS_EVERY: u64 = 4;
+
 struct Compax {
     client: AsyncClient,
     port: String,
@@ -73,6 +80,10 @@ struct Compax {
     jog_range: f64,
     /// The last position of each drive and when it was read, for the speed shown.
     last: Mutex<HashMap<u8, (Timestamp, f64)>>,
+    /// The last S16 and S17 of each drive.
+    flags: Mutex<HashMap<u8, (S16Bits, S17Bits)>>,
+    /// The number of samples taken, for reading S16 and S17 every [`FLAGS_EVERY`]-th time.
+    turn: std::sync::atomic::AtomicU64,
     clock: SharedClock,
 }
 
@@ -108,8 +119,8 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
                 let bus = Emulator::new(SimConfig::bus(&sim_drives, p196, baud)).map_err(|e| {
                     motionlink_link::LinkError::InvalidPort { port: "sim".into(), reason: e.to_string() }
                 })?;
-                // In this process, the emulated line has no wire time: the page samples it at its full rate.
-                let host = EmulatorHost::new(bus, link_clock, PipeConfig::instant());
+                // Paced to --baud: every byte takes the time it would on the line.
+                let host = EmulatorHost::new(bus, link_clock, PipeConfig::paced(baud));
                 Box::new(host.connect().0)
             }
             other => {
@@ -130,6 +141,8 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
         limits,
         jog_range: args.jog_range,
         last: Mutex::new(HashMap::new()),
+        flags: Mutex::new(HashMap::new()),
+        turn: std::sync::atomic::AtomicU64::new(0),
         clock: Arc::clone(clock),
     };
     Ok((Arc::new(device), traffic))
@@ -238,18 +251,34 @@ impl Device for Compax {
 
     fn sample<'a>(&'a self, units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, Failure>>> {
         Box::pin(async move {
+            let turn = self.turn.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             let mut out = Vec::new();
             for u in units {
                 let look = async {
                     let a = Address::drive(u.id).map_err(|e| Failure::usage(e.to_string()))?;
-                    let p = self.client.read_position(a).await.map_err(failure)?;
+                    let p = self.client.read_position(a).await.map_err(failure)?.units();
                     let at = self.clock.now();
-                    let s16 = self.client.read_s16(a).await.map_err(failure)?;
-                    let s17 = self.client.read_s17(a).await.map_err(failure)?;
-                    Ok::<_, Failure>((p.units(), at, s16, s17))
-                };
-                out.push(look.await.map(|(p, at, s16, s17)| {
                     let before = lock(&self.last).insert(u.id, (at, p));
+                    let known = lock(&self.flags).get(&u.id).copied();
+                    // S1 every time; S16 and S17 every FLAGS_EVERY-th sample, and at once when the position
+                    // says the axis started or stopped moving and the flags do not say so yet.
+                    let moved = before.is_some_and(|(_, p0)| p0 != p);
+                    let (s16, s17) = match known {
+                        Some((s16, s17))
+                            if turn % FLAGS_EVERY != 0 && moved == s17.contains(S17Flag::CommandActive) =>
+                        {
+                            (s16, s17)
+                        }
+                        _ => {
+                            let s16 = self.client.read_s16(a).await.map_err(failure)?;
+                            let s17 = self.client.read_s17(a).await.map_err(failure)?;
+                            lock(&self.flags).insert(u.id, (s16, s17));
+                            (s16, s17)
+                        }
+                    };
+                    Ok::<_, Failure>((p, at, before, s16, s17))
+                };
+                out.push(look.await.map(|(p, at, before, s16, s17)| {
                     let speed = before.and_then(|(t0, p0)| {
                         let dt = at.saturating_since(t0).as_secs_f64();
                         (dt > 0.0).then(|| (p - p0) / dt)
@@ -360,11 +389,12 @@ impl Device for Compax {
             let id = ParamId::parse(name.trim()).map_err(|e| Failure::usage(e.to_string()))?;
             let v = self.client.read_param(address(unit)?, id).await.map_err(failure)?;
             let info = id.info();
+            let unit = info.map_or("", |i| i.unit);
             Ok(ParamValue {
                 name: info.map_or(format!("P{}", id.get()), |i| i.name.to_string()),
                 id: u32::from(id.get()),
-                value: v.to_string(),
-                unit: info.map_or("", |i| i.unit).to_string(),
+                value: with_unit(v, unit),
+                unit: unit.to_string(),
                 read_back: None,
                 note: String::new(),
             })
@@ -393,12 +423,14 @@ impl Device for Compax {
                 Some(ValidFrom::PowerOn) => "stored; takes effect when the drive is switched off and on".to_string(),
                 _ => String::new(),
             };
+            let name = info.map_or(format!("P{}", id.get()), |i| i.name.to_string());
+            let unit = info.map_or("", |i| i.unit);
             Ok(ParamValue {
-                name: info.map_or(format!("P{}", id.get()), |i| i.name.to_string()),
+                name: name.clone(),
                 id: u32::from(id.get()),
-                value: v.to_string(),
-                unit: info.map_or("", |i| i.unit).to_string(),
-                read_back: Some(back.to_string()),
+                value: with_unit(v, unit),
+                unit: unit.to_string(),
+                read_back: Some(ReadBack { name, value: with_unit(back, unit) }),
                 note,
             })
         })
@@ -411,20 +443,31 @@ impl Device for Compax {
             let StatusValue::History(h) = v else {
                 return Err(Failure { kind: "corrupt", message: format!("S18 read as {v}, not a history") });
             };
-            let entries: Vec<Value> = h
+            let entries: Vec<ErrorEntry> = h
                 .iter()
                 .enumerate()
                 .map(|(i, e)| {
-                    let text = match e {
-                        HistoryEntry::Error(c) => c.to_string(),
-                        HistoryEntry::Acknowledged => "99 (the error before was acknowledged)".to_string(),
-                        HistoryEntry::PowerOn => "98 (power-on acknowledgement)".to_string(),
+                    let meaning = match e {
+                        HistoryEntry::Error(c) => {
+                            c.meaning().unwrap_or("an error whose meaning is not documented in our sources").to_string()
+                        }
+                        HistoryEntry::Acknowledged => "the error before was acknowledged".to_string(),
+                        HistoryEntry::PowerOn => "power-on acknowledgement".to_string(),
                     };
-                    json!({"label": if i == 0 { "newest".to_string() } else { format!("{}", i + 1) },
-                           "code": e.number(), "text": text, "bits": [], "unknown_bits": 0})
+                    ErrorEntry {
+                        label: if i == 0 { "newest".to_string() } else { format!("{}", i + 1) },
+                        code: u64::from(e.number()),
+                        code_text: match e {
+                            HistoryEntry::Error(c) => format!("E{:02}", c.0),
+                            other => other.number().to_string(),
+                        },
+                        meaning,
+                        bits: Vec::new(),
+                        unknown_bits: 0,
+                    }
                 })
                 .collect();
-            Ok(json!({"title": "S18: the last eight errors of the drive, newest first", "entries": entries}))
+            Ok(error_history("S18: the last eight errors of the drive, newest first", &entries))
         })
     }
 

@@ -161,23 +161,78 @@ pub struct ParamValue {
     pub name: String,
     /// Its number.
     pub id: u32,
-    /// The value as read, in words and numbers.
+    /// The value as read (or written), in words and numbers, with the unit it is shown in: the page shows
+    /// it as it is (it adds no unit).
     pub value: String,
-    /// Its unit ("" when none).
+    /// The entry's unit in the table ("" when none; the value may be shown in a scaled unit, such as A
+    /// for an entry in 0.1 A).
     pub unit: String,
-    /// For a write: what the device gave back when the value was read again (None when it cannot be
-    /// read back, with the reason in `note`).
-    pub read_back: Option<String>,
+    /// For a write: what the device gave back when it was read again (None when it cannot be read back,
+    /// with the reason in `note`).
+    pub read_back: Option<ReadBack>,
     /// What the page should know besides (takes effect at the next power-on; cannot be read back).
     pub note: String,
 }
 
+/// What a write was checked against: the entry read again, which is the entry written or, where that one
+/// cannot be read (PowerCube TargetPos, TargetVel, TargetAcc), the entry the device keeps the same setting
+/// in (TargetPosInc, ... in encoder ticks).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReadBack {
+    /// The name of the entry read.
+    pub name: String,
+    /// The value read, with the unit it is shown in.
+    pub value: String,
+}
+
 impl ParamValue {
-    /// As JSON.
+    /// As JSON: `read_back` is the value read back (or null) and `read_back_name` the entry it was read
+    /// from.
     pub fn to_json(&self) -> Value {
+        let rb = self.read_back.as_ref();
         json!({"name": self.name, "id": self.id, "value": self.value, "unit": self.unit,
-               "read_back": self.read_back, "note": self.note})
+               "read_back": rb.map(|r| &r.value), "read_back_name": rb.map(|r| &r.name), "note": self.note})
     }
+}
+
+/// `number` followed by `unit` (no unit: the number alone).
+pub fn with_unit(number: impl std::fmt::Display, unit: &str) -> String {
+    if unit.is_empty() {
+        number.to_string()
+    } else {
+        format!("{number} {unit}")
+    }
+}
+
+/// One entry of an error history as the page shows it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ErrorEntry {
+    /// Which entry ("newest", "Error_Code 2", "CubeState now").
+    pub label: String,
+    /// The code as a number (0: no error).
+    pub code: u64,
+    /// The code as the device's documents write it ("0x00001000", "E92").
+    pub code_text: String,
+    /// What it means, in words ("" when the code says no error).
+    pub meaning: String,
+    /// For a bit field: each set bit (`{"bit", "name", "cause"}`).
+    pub bits: Vec<Value>,
+    /// Set bits that have no name.
+    pub unknown_bits: u64,
+}
+
+impl ErrorEntry {
+    /// As JSON: `{"label", "code", "text", "meaning", "bits", "unknown_bits"}` (`text` is the code as
+    /// written).
+    pub fn to_json(&self) -> Value {
+        json!({"label": self.label, "code": self.code, "text": self.code_text, "meaning": self.meaning,
+               "bits": self.bits, "unknown_bits": self.unknown_bits})
+    }
+}
+
+/// An error history as the page gets it: `{"title", "entries": [...]}`.
+pub fn error_history(title: &str, entries: &[ErrorEntry]) -> Value {
+    json!({"title": title, "entries": entries.iter().map(ErrorEntry::to_json).collect::<Vec<_>>()})
 }
 
 /// An action of the family besides move, jog and stop (PowerCube home and reset, COMPAX switch on).

@@ -12,14 +12,16 @@ use motionlink_link::url::PortUrl;
 use motionlink_link::{SerialSettings, SharedClock};
 use motionlink_powercube::client::{BusConfig, Client, Guard, MoveSpec, Readback};
 use motionlink_powercube::model::{
-    CubeState, ModuleKind, Param, Position, StateFlag, Value as CubeValue, Velocity, PARAMS,
+    CubeState, ModuleKind, Param, Position, ShortFlag, ShortState, Value as CubeValue, Velocity, PARAMS,
 };
+use motionlink_powercube::session::{Op, Output};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{AsyncClient, Emulator, Error};
 use serde_json::{json, Value};
 
 use super::device::{
-    finite, Action, BoxFuture, Device, Failure, JogDirection, Motion, Param as Row, ParamValue, Sample, Unit,
+    error_history, finite, Action, BoxFuture, Device, ErrorEntry, Failure, JogDirection, Motion, Param as Row,
+    ParamValue, ReadBack, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -34,7 +36,7 @@ pub struct Args {
     /// Only these module addresses (such as 1,17) instead of a scan of 1..31.
     #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u8).range(1..=31))]
     pub modules: Vec<u8>,
-    /// RS232 baud rate.
+    /// RS232 baud rate (with `--port sim`: the emulated line runs at this rate).
     #[arg(long, default_value_t = 9600, value_parser = clap::value_parser!(u32).range(1..))]
     pub baud: u32,
     /// CAN bit rate of an SLCAN adapter (10000 .. 1000000).
@@ -51,8 +53,20 @@ pub struct Args {
     pub serve: ServeArgs,
 }
 
-/// The last velocity and current read of a module (None: not read yet, or not a number).
-type VelocityCurrent = (Option<f64>, Option<f64>);
+/// What a sample shows of a module besides its position and short state, read in turns: the last velocity
+/// and current (None: not read yet, or not a number) and the last full state word.
+#[derive(Debug, Clone, Copy, Default)]
+struct Slow {
+    velocity: Option<f64>,
+    current: Option<f64>,
+    state: Option<CubeState>,
+    /// The last sample read the state word out of turn (its short state disagreed).
+    forced: bool,
+}
+
+/// What the second request of a sample reads, in turn (the first reads position, short state and DIO
+/// in one: ActFPosStateDio).
+const TURNS: [Param; 3] = [Param::ActVel, Param::CubeState, Param::ActFMotorCurrent];
 
 struct PowerCube {
     client: AsyncClient,
@@ -61,10 +75,10 @@ struct PowerCube {
     guard: Guard,
     /// The kind of each module found (rotary or linear), by address.
     kinds: std::sync::Mutex<[Option<ModuleKind>; 32]>,
-    /// Which of velocity and current the next sample reads.
+    /// Which of [`TURNS`] the next sample reads.
     turn: std::sync::atomic::AtomicU64,
-    /// The last velocity and current read of each module.
-    last_vel_current: std::sync::Mutex<std::collections::HashMap<u8, VelocityCurrent>>,
+    /// The last velocity, current and state word read of each module.
+    slow: std::sync::Mutex<std::collections::HashMap<u8, Slow>>,
     /// The last emulator, kept alive with the session for `--port sim`.
     _host: Option<EmulatorHost<Emulator>>,
 }
@@ -113,7 +127,11 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
             Client::rs232(byte_link(link), c, settings(BusConfig::rs232()))
         }
         PortUrl::Sim => {
-            let h = EmulatorHost::new(Emulator::new(&SimConfig::default()), Arc::clone(clock), PipeConfig::instant());
+            let h = EmulatorHost::new(
+                Emulator::new(&SimConfig::default()),
+                Arc::clone(clock),
+                PipeConfig::paced(args.baud),
+            );
             let link: Box<dyn Link> = Box::new(h.connect().0);
             host = Some(h);
             Client::rs232(byte_link(link), c, settings(BusConfig::rs232()))
@@ -152,7 +170,7 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
         guard,
         kinds: std::sync::Mutex::new([None; 32]),
         turn: std::sync::atomic::AtomicU64::new(0),
-        last_vel_current: std::sync::Mutex::new(std::collections::HashMap::new()),
+        slow: std::sync::Mutex::new(std::collections::HashMap::new()),
         _host: host,
     };
     Ok((Arc::new(device), traffic))
@@ -182,6 +200,35 @@ fn f32_of(v: CubeValue) -> Option<f64> {
 fn state_names(s: CubeState) -> (Vec<&'static str>, Vec<&'static str>, u64) {
     use motionlink_link::flags::FlagWord;
     (s.names(), s.faults().map(|f| f.name()).collect(), s.unknown())
+}
+
+/// True when the short state `short` says what the state word `state` would: the state word read last is
+/// still good for the flags shown.
+fn agrees(state: CubeState, short: ShortState) -> bool {
+    state.short_state() == short
+}
+
+fn unexpected_output<T>(address: u8, other: Output) -> Result<T, Error> {
+    Err(Error::Corrupt {
+        address,
+        request: "Get ActFPosStateDio".into(),
+        detail: format!("unexpected answer {other:?}"),
+    })
+}
+
+/// The parameter a write of `p` is read back from: the encoder-tick twin of the write-only targets, else `p`
+/// (as the library's checked write does).
+fn read_back_param(p: Param) -> Param {
+    match p {
+        Param::TargetPos => Param::TargetPosInc,
+        Param::TargetVel => Param::TargetVelInc,
+        Param::TargetAcc => Param::TargetAccInc,
+        p => p,
+    }
+}
+
+fn unit_of(p: Param, kind: Option<ModuleKind>) -> String {
+    kind.map_or(p.unit().generic_symbol(), |k| p.unit().symbol(k)).to_string()
 }
 
 impl PowerCube {
@@ -270,38 +317,51 @@ impl Device for PowerCube {
         Box::pin(async move {
             let mut out = Vec::new();
             for u in units {
-                // Position and state every time; velocity and current take turns (each at half the rate),
-                // so that a 9600-baud line still gives positions at 20 Hz.
-                let turn = self.turn.fetch_add(1, std::sync::atomic::Ordering::Relaxed) % 2 == 0;
+                // Two requests a sample: ActFPosStateDio (position, short state) every time, and in turn the
+                // velocity, the full state word or the current. The state word is read at once when the short
+                // state disagrees with the last one read (a fault, a halt, a motion begun or ended), but not two
+                // samples running: a module whose short state never agrees still gets its velocity and current
+                // read. About 38 bytes a sample on RS232: 9600 baud carries about 25 a second.
+                let turn = TURNS[(self.turn.fetch_add(1, std::sync::atomic::Ordering::Relaxed) % 3) as usize];
                 let look = async {
                     let m = self.client.module(u.id)?;
-                    let position = m.position().await?;
-                    let state = m.state().await?;
-                    let other = m.get(if turn { Param::ActVel } else { Param::ActFMotorCurrent }).await?;
-                    Ok::<_, Error>((position, state, other))
+                    let (position, short) = match self.client.run(Op::PositionStateDio(m.address())).await? {
+                        Output::PositionStateDio(p, s, _) => (p, s),
+                        other => unexpected_output(u.id, other)?,
+                    };
+                    let last = motionlink_link::clock::lock(&self.slow).get(&u.id).copied().unwrap_or_default();
+                    let stale = last.state.is_none_or(|k| !agrees(k, short)) && !last.forced;
+                    let param = if stale { Param::CubeState } else { turn };
+                    let other = m.get(param).await?;
+                    Ok::<_, Error>((position, short, param, other))
                 };
                 out.push(match look.await {
-                    Ok((position, state, other)) => {
-                        let (flags, faults, unknown_bits) = state_names(state);
-                        let (velocity, current) = {
-                            let mut last = motionlink_link::clock::lock(&self.last_vel_current);
-                            let slot = last.entry(u.id).or_insert((None, None));
-                            if turn {
-                                slot.0 = f32_of(other);
-                            } else {
-                                slot.1 = f32_of(other);
+                    Ok((position, short, param, other)) => {
+                        let slow = {
+                            let mut all = motionlink_link::clock::lock(&self.slow);
+                            let slot = all.entry(u.id).or_default();
+                            slot.forced = param == Param::CubeState && param != turn;
+                            match (param, other) {
+                                (Param::CubeState, CubeValue::U32(w)) => slot.state = Some(CubeState(w)),
+                                (Param::ActVel, v) => slot.velocity = f32_of(v),
+                                (Param::ActFMotorCurrent, v) => slot.current = f32_of(v),
+                                _ => {}
                             }
                             *slot
+                        };
+                        let (flags, faults, unknown_bits) = match slow.state {
+                            Some(s) => state_names(s),
+                            None => (Vec::new(), Vec::new(), 0),
                         };
                         Ok(Sample {
                             id: u.id,
                             position: f64::from(position.value()),
-                            speed: velocity,
-                            current_amps: current,
+                            speed: slow.velocity,
+                            current_amps: slow.current,
                             flags,
                             faults,
                             unknown_bits,
-                            moving: state.contains(StateFlag::Motion),
+                            moving: short.contains(ShortFlag::Motion),
                         })
                     }
                     Err(e) => Err(failure(e)),
@@ -400,8 +460,9 @@ impl Device for PowerCube {
             Ok(ParamValue {
                 name: p.name().to_string(),
                 id: u32::from(p.id()),
+                // With its unit (a flag word decoded).
                 value: v.show_in(p, kind),
-                unit: kind.map_or(String::new(), |k| p.unit().symbol(k).to_string()),
+                unit: unit_of(p, kind),
                 read_back: None,
                 note: String::new(),
             })
@@ -419,14 +480,24 @@ impl Device for PowerCube {
             let v = CubeValue::parse(p, &value).map_err(Failure::usage)?;
             let kind = self.kind(unit);
             let (read_back, note) = match self.module(unit)?.set_checked(p, v).await.map_err(failure)? {
-                Readback::Same(r) => (Some(r.show_in(p, kind)), String::new()),
+                Readback::Same(r) => {
+                    // TargetPos, TargetVel and TargetAcc cannot be read: what came back is their twin in
+                    // encoder ticks, shown as what it is.
+                    let from = read_back_param(p);
+                    let note = if from == p {
+                        String::new()
+                    } else {
+                        format!("{} cannot be read: checked against {}, in encoder ticks", p.name(), from.name())
+                    };
+                    (Some(ReadBack { name: from.name().to_string(), value: r.show_in(from, kind) }), note)
+                }
                 Readback::NotReadable(why) => (None, format!("not read back: {why}")),
             };
             Ok(ParamValue {
                 name: p.name().to_string(),
                 id: u32::from(p.id()),
                 value: v.show_in(p, kind),
-                unit: kind.map_or(String::new(), |k| p.unit().symbol(k).to_string()),
+                unit: unit_of(p, kind),
                 read_back,
                 note,
             })
@@ -436,14 +507,26 @@ impl Device for PowerCube {
     fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Value, Failure>> {
         Box::pin(async move {
             let s = self.module(unit)?.state().await.map_err(failure)?;
+            let mut words = Vec::new();
             let bits: Vec<Value> = s
                 .faults()
-                .map(|f| json!({"bit": f.mask().trailing_zeros(), "name": f.name(), "cause": f.meaning()}))
+                .map(|f| {
+                    words.push(format!("{}: {}", f.name(), f.meaning()));
+                    json!({"bit": f.mask().trailing_zeros(), "name": f.name(), "cause": f.meaning()})
+                })
                 .collect();
-            let entries = vec![json!({"label": "CubeState now", "code": s.0, "text": format!("0x{:08X}", s.0),
-                                      "bits": bits, "unknown_bits": 0})];
-            Ok(json!({"title": "PowerCube modules keep no error history: the fault flags of the state word now",
-                      "entries": entries}))
+            let entry = ErrorEntry {
+                label: "CubeState now".into(),
+                code: u64::from(s.0),
+                code_text: format!("0x{:08X}", s.0),
+                meaning: if words.is_empty() { "no fault flag set".into() } else { words.join("; ") },
+                bits,
+                unknown_bits: 0,
+            };
+            Ok(error_history(
+                "PowerCube modules keep no error history: the fault flags of the state word now",
+                &[entry],
+            ))
         })
     }
 

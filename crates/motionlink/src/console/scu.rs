@@ -18,7 +18,8 @@ use motionlink_scu::{AsyncClient, ClientConfig, Emulator, FunctionMap, SimConfig
 use serde_json::{json, Value};
 
 use super::device::{
-    finite, Action, BoxFuture, Device, Failure, JogDirection, Motion, Param, ParamValue, Sample, Unit,
+    error_history, finite, Action, BoxFuture, Device, ErrorEntry, Failure, JogDirection, Motion, Param, ParamValue,
+    ReadBack, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -31,7 +32,8 @@ pub struct Args {
     /// scu`), or sim (an emulator in this process).
     #[arg(long, value_name = "PORT")]
     pub port: String,
-    /// Baud rate of a serial port: 38400 on standard units, 9600 or 19200 on customised ones.
+    /// Baud rate of a serial port: 38400 on standard units, 9600 or 19200 on customised ones (with `--port
+    /// sim`: the emulated line runs at this rate).
     #[arg(long, default_value_t = 38_400, value_parser = clap::value_parser!(u32).range(9_600..=38_400))]
     pub baud: u32,
     /// Safety_ID sent with RO: 0 a timeout stops all motion and locks remote motion until RO, 1 stops all
@@ -166,11 +168,19 @@ fn lookup_entry(name: &str) -> Result<Item, Failure> {
     })
 }
 
-fn shown(entries: &[(&'static motionlink_scu::model::DataEntry, ScuValue)]) -> String {
-    if let [(_, v)] = entries {
-        return v.to_string();
+/// A value as the page shows it, with its unit (a remote speed in the unit's speed mode).
+fn show(v: &ScuValue, mode: SpeedMode) -> String {
+    match v {
+        ScuValue::RemoteSpeed(s) => format!("{s} {}", mode.unit()),
+        v => v.to_string(),
     }
-    entries.iter().map(|(e, v)| format!("{}={v}", e.name)).collect::<Vec<_>>().join(", ")
+}
+
+fn shown(entries: &[(&'static motionlink_scu::model::DataEntry, ScuValue)], mode: SpeedMode) -> String {
+    if let [(_, v)] = entries {
+        return show(v, mode);
+    }
+    entries.iter().map(|(e, v)| format!("{}={}", e.name, show(v, mode))).collect::<Vec<_>>().join(", ")
 }
 
 impl Device for Scu {
@@ -338,7 +348,7 @@ impl Device for Scu {
             Ok(ParamValue {
                 name: it.name().to_string(),
                 id: u32::from(it.index().0),
-                value: shown(&values),
+                value: shown(&values, self.speed_mode),
                 unit: unit.to_string(),
                 read_back: None,
                 note: String::new(),
@@ -370,9 +380,9 @@ impl Device for Scu {
             Ok(ParamValue {
                 name: e.name.to_string(),
                 id: e.id,
-                value: v.to_string(),
+                value: show(&v, self.speed_mode),
                 unit: e.unit.to_string(),
-                read_back: Some(back.to_string()),
+                read_back: Some(ReadBack { name: e.name.to_string(), value: show(&back, self.speed_mode) }),
                 note: String::new(),
             })
         })
@@ -381,20 +391,36 @@ impl Device for Scu {
     fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<Value, Failure>> {
         Box::pin(async move {
             let history = self.client.error_history().await.map_err(failure)?;
-            let entries: Vec<Value> = history
+            let entries: Vec<ErrorEntry> = history
                 .iter()
                 .enumerate()
                 .map(|(i, c)| {
+                    let mut words = Vec::new();
                     let bits: Vec<Value> = c
                         .bits()
-                        .map(|b| json!({"bit": b.number(), "name": b.name(), "cause": b.cause(), "reaction": b.reaction()}))
+                        .map(|b| {
+                            words.push(format!("bit {} {}: {} ({})", b.number(), b.name(), b.cause(), b.reaction()));
+                            json!({"bit": b.number(), "name": b.name(), "cause": b.cause(), "reaction": b.reaction()})
+                        })
                         .collect();
-                    json!({"label": if i == 0 { "Error_Code 1 (most recent)".to_string() } else { format!("Error_Code {}", i + 1) },
-                           "code": c.0, "text": format!("0x{:08X}", c.0), "bits": bits,
-                           "unknown_bits": c.unknown_bits()})
+                    if c.unknown_bits() != 0 {
+                        words.push(format!("bits 0x{:08X} not in the manual", c.unknown_bits()));
+                    }
+                    ErrorEntry {
+                        label: if i == 0 {
+                            "Error_Code 1 (most recent)".to_string()
+                        } else {
+                            format!("Error_Code {}", i + 1)
+                        },
+                        code: u64::from(c.0),
+                        code_text: format!("0x{:08X}", c.0),
+                        meaning: if c.0 == 0 { "no error".to_string() } else { words.join("; ") },
+                        bits,
+                        unknown_bits: u64::from(c.unknown_bits()),
+                    }
                 })
                 .collect();
-            Ok(json!({"title": "Error_Code 1..5 of the unit (0x00D1..0x00D5), newest first", "entries": entries}))
+            Ok(error_history("Error_Code 1..5 of the unit (0x00D1..0x00D5), newest first", &entries))
         })
     }
 

@@ -201,23 +201,27 @@ const handlers = {
     }
     status(`${msg.request} failed (${msg.error.kind}): ${msg.message}`, true);
   },
+  // Values come with the unit they are shown in: nothing is added here.
   param(msg) {
     const p = msg.param;
-    const unit = p.unit ? ` ${p.unit}` : "";
     let text;
     if (msg.written) {
-      text = p.read_back === null
-        ? `${p.name} (${p.id}) written ${p.value}${unit}; not read back: ${p.note}`
-        : `${p.name} (${p.id}) written ${p.value}${unit}, read back ${p.read_back}${unit}`;
-      if (p.read_back !== null && p.note) text += ` (${p.note})`;
+      if (p.read_back === null) {
+        text = `${p.name} (${p.id}) written ${p.value}; not read back: ${p.note}`;
+      } else {
+        const from = p.read_back_name && p.read_back_name !== p.name ? ` (as ${p.read_back_name})` : "";
+        text = `${p.name} (${p.id}) written ${p.value}, read back${from} ${p.read_back}`;
+        if (p.note) text += ` (${p.note})`;
+      }
     } else {
-      text = `${p.name} (${p.id}) = ${p.value}${unit}`;
+      text = `${p.name} (${p.id}) = ${p.value}`;
     }
     const out = $("param-result");
     out.textContent = text;
     out.dataset.readBack = p.read_back === null ? "" : p.read_back;
+    out.dataset.readBackName = p.read_back_name || "";
     const row = document.querySelector(`#params tr[data-name="${CSS.escape(p.name)}"] .value`);
-    if (row) row.textContent = (p.read_back !== null ? p.read_back : p.value) + unit;
+    if (row) row.textContent = p.value;
   },
   errors(msg) {
     $("errors-caption").textContent = msg.title;
@@ -227,9 +231,7 @@ const handlers = {
       const tr = tbody.insertRow();
       tr.insertCell().textContent = e.label;
       tr.insertCell().textContent = e.text;
-      const bits = (e.bits || []).map((b) => `bit ${b.bit} ${b.name}${b.cause ? ": " + b.cause : ""}`);
-      if (e.unknown_bits) bits.push(`unknown bits 0x${e.unknown_bits.toString(16)}`);
-      tr.insertCell().textContent = bits.length ? bits.join("; ") : (e.code ? "" : "none");
+      tr.insertCell().textContent = e.meaning;
     }
   },
   bye(msg) { $("link-state").textContent = msg.message; },
