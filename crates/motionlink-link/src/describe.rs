@@ -1,6 +1,7 @@
 //! The one decoder signature of every family: captured traffic in, annotated telegrams out. `motionlink
-//! decode`, the live wire trace (`-v`), the capture writer and the web console's traffic log all call a
-//! family's [`Describe`] the same way.
+//! decode` (on the files the capture writer wrote, and on candump logs), the live wire trace (`-v`), `send`'s
+//! printout and the web console's traffic log all call a family's [`Describe`] the same way; on live
+//! traffic through one tap, [`DescribingTap`].
 //!
 //! A describer keeps state between calls: a telegram may arrive in pieces, and a reply is explained with
 //! the request before it.
@@ -87,4 +88,77 @@ pub trait Describe {
 
     /// The capture ended: reports what is left incomplete.
     fn finish(&mut self, out: &mut Vec<Annotation>);
+}
+
+impl<'a> From<crate::capture::Tapped<'a>> for Captured<'a> {
+    fn from(tapped: crate::capture::Tapped<'a>) -> Self {
+        match tapped {
+            crate::capture::Tapped::Bytes(b) => Captured::Bytes(b),
+            crate::capture::Tapped::Frame(f) => Captured::Frame(f),
+        }
+    }
+}
+
+/// A tap that explains the traffic as it passes: a family's [`Describe`] reads every chunk or frame, and each
+/// telegram it completes is handed, annotated, to `on_telegrams` (with the time of the chunk that completed
+/// it). The live wire trace (`-v`), `send`'s printout and the web console's traffic log are all one of these
+/// with their own `on_telegrams`.
+///
+/// ```
+/// use std::sync::{Arc, Mutex};
+/// use motionlink_link::capture::{TapSink, Tapped};
+/// use motionlink_link::describe::{Annotation, Captured, Describe, DescribingTap, Direction};
+/// use motionlink_link::Timestamp;
+///
+/// /// A toy family: every byte is a telegram.
+/// struct Bytes;
+/// impl Describe for Bytes {
+///     fn describe(&mut self, c: Captured<'_>, d: Direction, at: Option<Timestamp>, out: &mut Vec<Annotation>) {
+///         if let Captured::Bytes(b) = c {
+///             for x in b {
+///                 let meaning = format!("byte {x}");
+///                 out.push(Annotation { at, direction: d, can_id: None, bytes: vec![*x], meaning, bad: false });
+///             }
+///         }
+///     }
+///     fn finish(&mut self, _: &mut Vec<Annotation>) {}
+/// }
+///
+/// let seen = Arc::new(Mutex::new(Vec::new()));
+/// let keep = Arc::clone(&seen);
+/// let tap = DescribingTap::new(Box::new(Bytes), move |_, found: &mut Vec<Annotation>| {
+///     keep.lock().unwrap().append(found)
+/// });
+/// tap.record(Timestamp::ZERO, Direction::ToDevice, Tapped::Bytes(&[1, 2]));
+/// assert_eq!(seen.lock().unwrap().iter().map(|a| a.meaning.as_str()).collect::<Vec<_>>(), ["byte 1", "byte 2"]);
+/// ```
+pub struct DescribingTap<F> {
+    describer: std::sync::Mutex<(Box<dyn Describe + Send>, Vec<Annotation>)>,
+    on_telegrams: F,
+}
+
+impl<F> DescribingTap<F>
+where
+    F: Fn(Timestamp, &mut Vec<Annotation>) + Send + Sync,
+{
+    /// A tap explaining with `describer`; `on_telegrams` receives the telegrams completed by each chunk (it
+    /// may take them out of the vector; what it leaves is dropped).
+    pub fn new(describer: Box<dyn Describe + Send>, on_telegrams: F) -> Self {
+        DescribingTap { describer: std::sync::Mutex::new((describer, Vec::new())), on_telegrams }
+    }
+}
+
+impl<F> crate::capture::TapSink for DescribingTap<F>
+where
+    F: Fn(Timestamp, &mut Vec<Annotation>) + Send + Sync,
+{
+    fn record(&self, at: Timestamp, direction: Direction, data: crate::capture::Tapped<'_>) {
+        let mut state = crate::clock::lock(&self.describer);
+        let (describer, found) = &mut *state;
+        describer.describe(data.into(), direction, Some(at), found);
+        if !found.is_empty() {
+            (self.on_telegrams)(at, found);
+            found.clear();
+        }
+    }
 }
