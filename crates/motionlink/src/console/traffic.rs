@@ -3,11 +3,11 @@
 //! and every telegram decoded by the family's [`Describe`] for the page's live log.
 
 use std::collections::VecDeque;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use motionlink_link::capture::{format_line, hex, TapSink, Tapped, UnixTime};
 use motionlink_link::clock::{lock, SharedClock, Timestamp};
-use motionlink_link::describe::{Annotation, Captured, Describe, Direction};
+use motionlink_link::describe::{Annotation, Describe, DescribingTap, Direction};
 use serde_json::{json, Value};
 
 /// How many capture lines the download keeps (the oldest go first).
@@ -43,19 +43,20 @@ impl LogLine {
 }
 
 struct Inner {
-    describer: Box<dyn Describe + Send>,
     capture: VecDeque<String>,
     capture_dropped: u64,
     log: VecDeque<LogLine>,
     next_seq: u64,
-    scratch: Vec<Annotation>,
 }
+
+/// What the decoding tap does with each telegram: appends it to the live log.
+type ToLog = Box<dyn Fn(Timestamp, &mut Vec<Annotation>) + Send + Sync>;
 
 /// The traffic of one link, captured and decoded.
 pub struct Traffic {
-    inner: Mutex<Inner>,
+    inner: Arc<Mutex<Inner>>,
+    decoded: DescribingTap<ToLog>,
     time: UnixTime,
-    started: Timestamp,
     header: String,
     can_interface: String,
 }
@@ -64,17 +65,39 @@ impl Traffic {
     /// A log of the link named `what` (family and port, for the capture's header), decoded by `describer`;
     /// `can_interface` names the interface in CAN lines; `clock` is the clock the tap stamps with.
     pub fn new(describer: Box<dyn Describe + Send>, what: &str, can_interface: &str, clock: &SharedClock) -> Self {
+        let inner = Arc::new(Mutex::new(Inner {
+            capture: VecDeque::new(),
+            capture_dropped: 0,
+            log: VecDeque::new(),
+            next_seq: 1,
+        }));
+        let started = clock.now();
+        let log = Arc::clone(&inner);
+        let to_log: ToLog = Box::new(move |at: Timestamp, found: &mut Vec<Annotation>| {
+            let t_s = at.saturating_since(started).as_secs_f64();
+            let mut inner = lock(&log);
+            for a in found.drain(..) {
+                let seq = inner.next_seq;
+                inner.next_seq += 1;
+                let t = a.at.map_or(t_s, |t| t.saturating_since(started).as_secs_f64());
+                inner.log.push_back(LogLine {
+                    seq,
+                    t_s: t,
+                    direction: a.direction,
+                    bytes: a.bytes,
+                    can_id: a.can_id,
+                    meaning: a.meaning,
+                    bad: a.bad,
+                });
+                if inner.log.len() > LOG_LINES {
+                    inner.log.pop_front();
+                }
+            }
+        });
         Traffic {
-            inner: Mutex::new(Inner {
-                describer,
-                capture: VecDeque::new(),
-                capture_dropped: 0,
-                log: VecDeque::new(),
-                next_seq: 1,
-                scratch: Vec::new(),
-            }),
+            inner,
+            decoded: DescribingTap::new(describer, to_log),
             time: UnixTime::of(clock),
-            started: clock.now(),
             header: format!("# motionlink capture: {what}"),
             can_interface: can_interface.to_string(),
         }
@@ -116,38 +139,15 @@ impl Traffic {
 impl TapSink for Traffic {
     fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>) {
         let line = format_line(self.time.at(at), direction, data, &self.can_interface);
-        let t_s = at.saturating_since(self.started).as_secs_f64();
-        let mut guard = lock(&self.inner);
-        let inner = &mut *guard;
-        inner.capture.push_back(line);
-        if inner.capture.len() > CAPTURE_LINES {
-            inner.capture.pop_front();
-            inner.capture_dropped += 1;
-        }
-        let captured = match data {
-            Tapped::Bytes(b) => Captured::Bytes(b),
-            Tapped::Frame(f) => Captured::Frame(f),
-        };
-        let mut found = std::mem::take(&mut inner.scratch);
-        inner.describer.describe(captured, direction, Some(at), &mut found);
-        for a in found.drain(..) {
-            let seq = inner.next_seq;
-            inner.next_seq += 1;
-            let t = a.at.map_or(t_s, |t| t.saturating_since(self.started).as_secs_f64());
-            inner.log.push_back(LogLine {
-                seq,
-                t_s: t,
-                direction: a.direction,
-                bytes: a.bytes,
-                can_id: a.can_id,
-                meaning: a.meaning,
-                bad: a.bad,
-            });
-            if inner.log.len() > LOG_LINES {
-                inner.log.pop_front();
+        {
+            let mut inner = lock(&self.inner);
+            inner.capture.push_back(line);
+            if inner.capture.len() > CAPTURE_LINES {
+                inner.capture.pop_front();
+                inner.capture_dropped += 1;
             }
         }
-        inner.scratch = found;
+        self.decoded.record(at, direction, data);
     }
 }
 
