@@ -16,7 +16,9 @@ use motionlink_link::describe::Describe;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::{RealClock, SerialSettings, SharedClock};
-use motionlink_powercube::client::{BusConfig, Client, Guard, Module, ModuleInfo, MoveSpec, Progress, Readback};
+use motionlink_powercube::client::{
+    BusConfig, Client, Guard, Module, ModuleInfo, ModulesAt, MoveSpec, Progress, Readback,
+};
 use motionlink_powercube::describe::Describer;
 use motionlink_powercube::model::{
     Acceleration, Action as PcAction, CubeState, ModuleKind, Param, Position, Request, Value, Velocity, PARAMS,
@@ -335,8 +337,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let tap = Tap::new("powercube", &port, &clock, &args.link, &can_interface, &describer, request.is_some())?;
     let (client, host) = open(&args, &port, &tap, &clock)?;
     client.set_cancel_token(common::interrupt_token());
-    // The watchdog protects a motion against a host that dies; an emulator in this process dies with it.
-    let guard = if args.no_watchdog || host.is_some() { Guard::HaltOnly } else { Guard::Watchdog };
+    let guard = Guard::for_motions(ModulesAt::emulated_in_process(host.is_some()), args.no_watchdog);
     let result = match &request {
         Some(r) => send(&args, &client, r, &tap, &port, &mut out),
         None => act(&args, &client, guard, &port, &mut out),

@@ -81,8 +81,7 @@ impl AsyncPowerCubeClient {
                 }
             };
             let client = raise(opened)?;
-            // An emulator in this process dies with it: no watchdog (as for the blocking client).
-            let guard = if watchdog && !in_process { Guard::Watchdog } else { Guard::HaltOnly };
+            let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !watchdog);
             let native = AsyncPowerCubeClient { slot: Slot::new(client, FAMILY), guard, module, port };
             deliver(move |py| Ok(Py::new(py, native)?.into_any()))
         }))

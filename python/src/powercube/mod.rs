@@ -12,7 +12,7 @@ use motionlink_link::can::SlcanBitrate;
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::url::PortUrl;
 use motionlink_link::SerialSettings;
-use motionlink_powercube::client::{BusConfig, Client, Guard, ModuleInfo, MoveReport, MoveSpec, Readback};
+use motionlink_powercube::client::{BusConfig, Client, Guard, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Readback};
 use motionlink_powercube::model::{Acceleration, AxisUnit, CubeState, ModuleKind, Param, Position, Value, Velocity};
 use motionlink_powercube::{AsyncClient, Error};
 use pyo3::prelude::*;
@@ -275,7 +275,7 @@ impl PowerCubeClient {
         let (client, in_process) = py.detach(|| open(t, &settings)).map_err(|f| to_pyerr(py, f))?;
         let token = CancelToken::new();
         client.set_cancel_token(token.clone());
-        let guard = if settings.watchdog && !in_process { Guard::Watchdog } else { Guard::HaltOnly };
+        let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !settings.watchdog);
         let port = client.describe().to_string();
         let close_bound = client.config().close_bound;
         Ok(PowerCubeClient {

@@ -39,4 +39,6 @@ pub use blocking::{Client, Module};
 
 pub use crate::error::{Error, StopOutcome};
 pub use crate::model::WATCHDOG_TIMEOUT;
-pub use crate::session::{BusConfig, Guard, ModuleInfo, MoveReport, MoveSpec, Progress, Readback, ScanEntry};
+pub use crate::session::{
+    BusConfig, Guard, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback, ScanEntry,
+};

@@ -49,7 +49,7 @@ use motionlink_link::clock::lock;
 use motionlink_link::session::{Action as LinkAction, Event, Input, OpId, OpIds};
 use motionlink_link::{LinkError, Timestamp};
 
-pub use types::{BusConfig, Guard, ModuleInfo, MoveReport, MoveSpec, Progress, Readback, ScanEntry, Until};
+pub use types::{BusConfig, Guard, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback, ScanEntry, Until};
 
 use self::core::Core;
 use self::ctx::Ctx;

@@ -10,7 +10,7 @@ use motionlink_link::link::Link;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::{SerialSettings, SharedClock};
-use motionlink_powercube::client::{BusConfig, Client, Guard, MoveSpec, Readback};
+use motionlink_powercube::client::{BusConfig, Client, Guard, ModulesAt, MoveSpec, Readback};
 use motionlink_powercube::model::{
     CubeState, ModuleKind, Param, Position, StateFlag, Value as CubeValue, Velocity, PARAMS,
 };
@@ -143,8 +143,7 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
     };
     let client = client.map_err(|e| crate::common::classified(&e))?;
     let client = AsyncClient::open(move || Ok(client)).await.map_err(|e| crate::common::classified(&e))?;
-    // The watchdog protects a motion against a console that dies; an emulator in this process dies with it.
-    let guard = if args.no_watchdog || host.is_some() { Guard::HaltOnly } else { Guard::Watchdog };
+    let guard = Guard::for_motions(ModulesAt::emulated_in_process(host.is_some()), args.no_watchdog);
     let device = PowerCube {
         client,
         port: args.port.clone(),

@@ -85,3 +85,36 @@ fn a_guarded_move_through_the_client_is_what_the_command_line_runs() {
     assert!(err.to_string().contains("cannot arm the watchdog of module 1") && err.is_device(), "{err}");
     assert!(err.to_string().contains("`reset` clears it"), "{err}");
 }
+
+#[test]
+fn the_front_ends_guard_rule_arms_only_modules_outside_this_process_that_the_user_did_not_exempt() {
+    use crate::client::ModulesAt;
+    use motionlink_link::url::PortUrl;
+    let at = |url: &str| ModulesAt::of_url(&url.parse::<PortUrl>().unwrap());
+    assert_eq!(at("sim"), ModulesAt::ThisProcess);
+    for url in ["/dev/ttyS0", "tcp://127.0.0.1:5000", "socketcan://can0", "slcan:///dev/ttyACM0", "slcan://tcp://h:1"] {
+        assert_eq!(at(url), ModulesAt::Elsewhere, "{url}");
+    }
+    assert_eq!(ModulesAt::emulated_in_process(true), ModulesAt::ThisProcess);
+    assert_eq!(ModulesAt::emulated_in_process(false), ModulesAt::Elsewhere);
+    // What each choice does to a module during a guarded move: armed for it, or left alone.
+    for (modules, no_watchdog, armed) in [
+        (ModulesAt::Elsewhere, false, true),
+        (ModulesAt::Elsewhere, true, false),
+        (ModulesAt::ThisProcess, false, false),
+        (ModulesAt::ThisProcess, true, false),
+    ] {
+        let guard = Guard::for_motions(modules, no_watchdog);
+        let (clock, host, bus, _) = rs232_instant(&[1]);
+        let _me = clock.reserve_participant().enter();
+        let before = host.with_device(|d| d.module(1).unwrap().config_word());
+        let report = bus.module(1).unwrap().move_to_guarded(&spec(0.3), guard, &mut |_| {}).unwrap();
+        assert!((report.reached.value() - 0.3).abs() <= 0.001);
+        let events = host.with_device(|d| d.take_events());
+        let online = events.iter().any(|e| e == "module 1 watchdog online");
+        assert_eq!(online, armed, "{modules:?}, no_watchdog {no_watchdog}: {guard:?}, {events:?}");
+        let after = host.with_device(|d| d.module(1).unwrap().config_word());
+        assert_eq!(after, before, "the Config word as it was found");
+        assert!(!host.with_device(|d| d.module(1).unwrap().watchdog_online()));
+    }
+}
