@@ -8,8 +8,8 @@ use motionlink_link::can::{CanBus, CanBusConfig};
 use motionlink_link::RealClock;
 use motionlink_powercube::client::{AsyncClient, BusConfig, StopOutcome};
 use motionlink_powercube::model::{
-    Acceleration, AxisUnit, ConfigFlag, ModuleKind, Param, Position, Ramp, Reply, Request, ShortFlag, StateFlag, Value,
-    Velocity,
+    Acceleration, Address, AxisUnit, ConfigFlag, ModuleKind, Param, Position, Ramp, Reply, Request, ShortFlag,
+    StateFlag, Value, Velocity,
 };
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{Emulator, Error};
@@ -26,8 +26,8 @@ fn run(test: impl std::future::Future<Output = ()>) {
     tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap().block_on(test)
 }
 
-fn a(n: u8) -> u8 {
-    n
+fn a(n: u8) -> Address {
+    Address::new(n).unwrap()
 }
 
 fn emulator_events(bus: &CanBus<Emulator>, prefix: &str) -> Vec<String> {
@@ -38,7 +38,7 @@ fn emulator_events(bus: &CanBus<Emulator>, prefix: &str) -> Vec<String> {
 fn async_home_starts_without_waiting_and_wait_home_sees_it_end() {
     run(async {
         let (_bus, client) = setup();
-        let m = client.module(a(1)).unwrap();
+        let m = client.module(a(1));
         assert!(!m.state().await.unwrap().contains(StateFlag::HomeOk));
         m.home().await.unwrap();
         // `home` returned on the acknowledge: the module is still on its way to the home switch.
@@ -56,7 +56,7 @@ fn async_home_starts_without_waiting_and_wait_home_sees_it_end() {
 fn async_move_ramp_runs_to_its_target_and_wait_motion_end_waits_for_it() {
     run(async {
         let (_bus, client) = setup();
-        let m = client.module(a(1)).unwrap();
+        let m = client.module(a(1));
         m.home().await.unwrap();
         m.wait_home(Duration::from_secs(5)).await.unwrap();
         assert_eq!(m.kind().await.unwrap(), ModuleKind::Rotary);
@@ -85,7 +85,7 @@ fn async_move_ramp_runs_to_its_target_and_wait_motion_end_waits_for_it() {
 fn async_stop_motion_halts_a_running_ramp_and_says_the_module_confirmed_it() {
     run(async {
         let (bus, client) = setup();
-        let m = client.module(a(1)).unwrap();
+        let m = client.module(a(1));
         m.home().await.unwrap();
         m.wait_home(Duration::from_secs(5)).await.unwrap();
         let ramp = Ramp { vel: Velocity::rad_per_s(0.2), acc: Acceleration::rad_per_s2(2.0) };

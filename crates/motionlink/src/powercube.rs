@@ -21,7 +21,7 @@ use motionlink_powercube::client::{
 };
 use motionlink_powercube::describe::Describer;
 use motionlink_powercube::model::{
-    Acceleration, Action as PcAction, CubeState, ModuleKind, Param, Position, Request, Value, Velocity, PARAMS,
+    Acceleration, Action as PcAction, Address, CubeState, ModuleKind, Param, Position, Request, Value, Velocity, PARAMS,
 };
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::wire::Payload;
@@ -46,8 +46,8 @@ pub struct Args {
     #[command(flatten)]
     pub link: LinkArgs,
     /// The module's address, 1..31.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=31), global = true)]
-    pub module: u8,
+    #[arg(long, default_value = "1", value_parser = clap::value_parser!(Address), global = true)]
+    pub module: Address,
     /// RS232 baud rate.
     #[arg(long, default_value_t = 9600, value_parser = clap::value_parser!(u32).range(1..), global = true)]
     pub baud: u32,
@@ -359,10 +359,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
 /// Does what `args` ask of the module, on `client`.
 fn act(args: &Args, client: &Client, guard: Guard, port: &str, out: &mut dyn Write) -> Result<(), CliError> {
     let mut out = out;
-    let m = client.module(args.module).map_err(failed)?;
+    let m = client.module(args.module);
     // Every JSON object names the family, the port and the module first.
     let identified = |fields: serde_json::Value| {
-        let mut v = common::identified("powercube", port, json!({"module": args.module}));
+        let mut v = common::identified("powercube", port, json!({"module": args.module.get()}));
         if let (Some(map), serde_json::Value::Object(f)) = (v.as_object_mut(), fields) {
             map.extend(f);
         }

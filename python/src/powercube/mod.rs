@@ -13,7 +13,9 @@ use motionlink_link::cancel::CancelToken;
 use motionlink_link::url::PortUrl;
 use motionlink_link::SerialSettings;
 use motionlink_powercube::client::{BusConfig, Client, Guard, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Readback};
-use motionlink_powercube::model::{Acceleration, AxisUnit, CubeState, ModuleKind, Param, Position, Value, Velocity};
+use motionlink_powercube::model::{
+    Acceleration, Address, AxisUnit, CubeState, ModuleKind, Param, Position, Value, Velocity,
+};
 use motionlink_powercube::{AsyncClient, Error};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -302,7 +304,7 @@ impl PowerCubeClient {
 
     /// Modules this session set in motion and has not seen stop.
     fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
-        Ok(self.client(py)?.started())
+        Ok(self.client(py)?.started().into_iter().map(|a| a.get()).collect())
     }
 
     /// Every module on the bus: a list of records (`error` set for a module that answered but could not be
@@ -330,7 +332,7 @@ impl PowerCubeClient {
         let a = self.address(module);
         let (info, limits) = py
             .detach(|| -> Result<_, Error> {
-                let m = c.module(a)?;
+                let m = c.module(Address::new(a)?);
                 let info = m.info()?;
                 let limits: Vec<(Param, Value)> =
                     [Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::ActPos]
@@ -360,7 +362,7 @@ impl PowerCubeClient {
     fn state<'py>(&self, py: Python<'py>, module: Option<u8>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.address(module);
-        let s = py.detach(|| c.module(a)?.state()).or_raise(py)?;
+        let s = py.detach(|| c.module(Address::new(a)?).state()).or_raise(py)?;
         Ok(state_record(py, a, s)?.done())
     }
 
@@ -371,7 +373,7 @@ impl PowerCubeClient {
         let a = self.address(module);
         let p = py
             .detach(|| -> Result<_, Error> {
-                let m = c.module(a)?;
+                let m = c.module(Address::new(a)?);
                 // The kind names the unit (rad or m); the session keeps it after the first read.
                 let kind = m.kind()?;
                 Ok(in_unit(m.position()?, kind))
@@ -388,7 +390,7 @@ impl PowerCubeClient {
         let p = parse_param(name).map_err(|f| to_pyerr(py, f))?;
         let (v, kind) = py
             .detach(|| -> Result<_, Error> {
-                let m = c.module(a)?;
+                let m = c.module(Address::new(a)?);
                 Ok((m.get(p)?, m.kind()?))
             })
             .or_raise(py)?;
@@ -412,7 +414,7 @@ impl PowerCubeClient {
         let v = parse_value(p, value).map_err(|f| to_pyerr(py, f))?;
         let (read, kind) = py
             .detach(|| -> Result<_, Error> {
-                let m = c.module(a)?;
+                let m = c.module(Address::new(a)?);
                 Ok((m.set_checked(p, v)?, m.kind()?))
             })
             .or_raise(py)?;
@@ -436,7 +438,7 @@ impl PowerCubeClient {
             py,
             Some(&self.token),
             || {
-                let m = c.module(a)?;
+                let m = c.module(Address::new(a)?);
                 let kind = m.kind()?;
                 m.home_guarded(timeout, guard, &mut |_| {}).map(|(p, s)| (in_unit(p, kind), s))
             },
@@ -469,7 +471,7 @@ impl PowerCubeClient {
             py,
             Some(&self.token),
             || {
-                let m = c.module(a)?;
+                let m = c.module(Address::new(a)?);
                 let kind = m.kind()?;
                 m.move_to_guarded(&spec, guard, &mut |_| {}).map(|r| (kind, r))
             },
@@ -485,8 +487,12 @@ impl PowerCubeClient {
         let c = self.client(py)?;
         let a = self.address(module);
         let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
-        let r =
-            interruptible(py, Some(&self.token), || c.module(a)?.wait_motion_end(timeout, &mut |_| {}), cancel_cause)?;
+        let r = interruptible(
+            py,
+            Some(&self.token),
+            || c.module(Address::new(a)?).wait_motion_end(timeout, &mut |_| {}),
+            cancel_cause,
+        )?;
         Ok(state_record(py, a, r.or_raise(py)?)?.done())
     }
 
@@ -495,7 +501,7 @@ impl PowerCubeClient {
     fn stop(&self, py: Python<'_>, module: Option<u8>) -> PyResult<()> {
         let c = self.client(py)?;
         let a = self.address(module);
-        py.detach(|| c.module(a)?.halt()).or_raise(py)
+        py.detach(|| c.module(Address::new(a)?).halt()).or_raise(py)
     }
 
     /// Resets the module's error state; true if it switched off a watchdog a dead host left expired.
@@ -503,7 +509,7 @@ impl PowerCubeClient {
     fn reset(&self, py: Python<'_>, module: Option<u8>) -> PyResult<bool> {
         let c = self.client(py)?;
         let a = self.address(module);
-        py.detach(|| c.module(a)?.reset_and_release_watchdog()).or_raise(py)
+        py.detach(|| c.module(Address::new(a)?).reset_and_release_watchdog()).or_raise(py)
     }
 
     /// Ends the session: halts what it set in motion, switches its watchdogs off, and says whether that
@@ -524,7 +530,7 @@ impl PowerCubeClient {
         let c = self.client(py)?;
         let a = self.address(module);
         py.detach(|| -> Result<f64, Error> {
-            let m = c.module(a)?;
+            let m = c.module(Address::new(a)?);
             let start = std::time::Instant::now();
             for _ in 0..n {
                 std::hint::black_box(m.position()?);
@@ -534,4 +540,3 @@ impl PowerCubeClient {
         .or_raise(py)
     }
 }
-

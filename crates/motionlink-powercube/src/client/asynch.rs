@@ -101,7 +101,7 @@ impl AsyncClient {
     }
 
     /// True if this session switched the watchdog of `address` on (or may have) and still refreshes it.
-    pub fn watchdog_armed(&self, address: u8) -> bool {
+    pub fn watchdog_armed(&self, address: Address) -> bool {
         self.session(|s| s.watchdog_armed(address))
     }
 
@@ -121,12 +121,12 @@ impl AsyncClient {
     }
 
     /// Modules known to exist: every address that answered this session.
-    pub fn known(&self) -> Vec<u8> {
+    pub fn known(&self) -> Vec<Address> {
         self.session(|s| s.known())
     }
 
     /// Modules this session set in motion and has not seen stop.
-    pub fn started(&self) -> Vec<u8> {
+    pub fn started(&self) -> Vec<Address> {
         self.session(|s| s.started())
     }
 
@@ -140,34 +140,33 @@ impl AsyncClient {
         call.result(output)
     }
 
-    /// A handle on the module at `address` (1..31). Nothing is sent.
-    pub fn module(&self, address: u8) -> Result<AsyncModule<'_>, Error> {
-        Ok(AsyncModule { client: self, address: Address::new(address)? })
+    /// A handle on the module at `address` (checked once: [`Address::new`]). Nothing is sent.
+    pub fn module(&self, address: Address) -> AsyncModule<'_> {
+        AsyncModule { client: self, address }
     }
 
     /// One request, checked, reads retried (see [`Client::request`](super::Client::request)).
-    pub async fn request(&self, address: u8, request: Request) -> Result<Reply, Error> {
-        let a = Address::new(address)?;
+    pub async fn request(&self, address: Address, request: Request) -> Result<Reply, Error> {
         request.validate()?;
-        self.call(calls::request(a, request)).await
+        self.call(calls::request(address, request)).await
     }
 
     /// Several requests to several modules (see [`Client::request_many`](super::Client::request_many)): on
     /// CAN all at once, each checked, reads retried; dropping the future halts the modules a motion request
     /// among them may have started.
-    pub async fn request_many(&self, requests: &[(u8, Request)]) -> Vec<Result<Reply, Error>> {
+    pub async fn request_many(&self, requests: &[(Address, Request)]) -> Vec<Result<Reply, Error>> {
         let n = requests.len();
         self.call(calls::request_many(requests.to_vec())).await.unwrap_or_else(|e| fail_all(n, &e))
     }
 
     /// Reads `param` of every module in `addresses` (on CAN in one round).
-    pub async fn read_many(&self, addresses: &[u8], param: Param) -> Vec<Result<Value, Error>> {
+    pub async fn read_many(&self, addresses: &[Address], param: Param) -> Vec<Result<Value, Error>> {
         let n = addresses.len();
         self.call(calls::read_many(addresses.to_vec(), param)).await.unwrap_or_else(|e| fail_all(n, &e))
     }
 
     /// The positions of `addresses` (ActPos), on CAN in one round.
-    pub async fn positions(&self, addresses: &[u8]) -> Vec<Result<Position, Error>> {
+    pub async fn positions(&self, addresses: &[Address]) -> Vec<Result<Position, Error>> {
         let n = addresses.len();
         self.call(calls::positions(addresses.to_vec())).await.unwrap_or_else(|e| fail_all(n, &e))
     }
@@ -183,7 +182,7 @@ impl AsyncClient {
     }
 
     /// Switches the watchdog on in `addresses`; refreshed from then on.
-    pub async fn enable_watchdog(&self, addresses: &[u8]) -> Result<(), Error> {
+    pub async fn enable_watchdog(&self, addresses: &[Address]) -> Result<(), Error> {
         self.call(calls::done(Op::EnableWatchdog(addresses.to_vec()))).await
     }
 
@@ -304,7 +303,7 @@ impl AsyncModule<'_> {
             Ok(outcome) => outcome,
             Err(e) => StopOutcome::Unconfirmed {
                 reason: e.to_string(),
-                watchdog_armed: self.client.watchdog_armed(self.address.get()),
+                watchdog_armed: self.client.watchdog_armed(self.address),
             },
         }
     }
