@@ -63,9 +63,8 @@ fn bus_config(s: &Settings, can: bool) -> Result<BusConfig, Failure> {
 /// Opens the blocking client `s` and `port` ask for; true if the modules are emulated in this process
 /// (they die with it: no watchdog is armed for them, as `motionlink powercube --port sim` does).
 fn open(port: Target, s: &Settings) -> Result<(Client, bool), Failure> {
-    if !(1..=31).contains(&s.module) {
-        return Err(usage(format!("module {}: addresses are 1..31", s.module)));
-    }
+    // The library's address type checks it (a usage error naming the number), before anything is opened.
+    Address::new(s.module).map_err(|e| Error::from(e).failure())?;
     let fail = |e: Error| e.failure();
     let rs232 = |link| Client::rs232(link, clock(), bus_config(s, false)?).map_err(fail);
     let can = |link| Client::can(link, clock(), bus_config(s, true)?).map_err(fail);
