@@ -22,7 +22,7 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use motionlink_link::can::{CanBus, CanBusConfig, CanEmulator, CanFrame};
 use motionlink_link::{RealClock, Timestamp};
 use motionlink_powercube::client::{BusConfig, Client};
-use motionlink_powercube::model::{Param, Request};
+use motionlink_powercube::model::{Address, Param, Request};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::wire::can::{to_frame, Role};
 use motionlink_powercube::Emulator;
@@ -54,16 +54,16 @@ fn bits_per_sweep() -> (u32, u32, u32) {
     (sum(CanFrame::bit_length), sum(CanFrame::bit_length_stuffed), sum(CanFrame::bit_length_worst_case))
 }
 
-fn setup() -> (Client, Vec<u8>) {
+fn setup() -> (Client, Vec<Address>) {
     let addresses: Vec<u8> = (1..=MODULES).collect();
     let clock = RealClock::shared();
     let sim = Emulator::new_can(&SimConfig::with_addresses(&addresses).expect("31 addresses"));
     let can = CanBus::with_emulator(sim, clock.clone(), CanBusConfig::paced(BITRATE));
     let bus = Client::can(Box::new(can.connect()), clock, BusConfig::can()).expect("the session starts");
-    (bus, addresses)
+    (bus, addresses.iter().map(|&a| Address::new(a).expect("1..31")).collect())
 }
 
-fn sweep(bus: &Client, addresses: &[u8]) {
+fn sweep(bus: &Client, addresses: &[Address]) {
     for p in bus.positions(addresses) {
         black_box(p.expect("every module answers"));
     }
@@ -102,7 +102,7 @@ impl Drop for Load {
     }
 }
 
-fn measured_rate(bus: &Client, addresses: &[u8]) -> f64 {
+fn measured_rate(bus: &Client, addresses: &[Address]) -> f64 {
     let sweeps = 300;
     let start = Instant::now();
     for _ in 0..sweeps {

@@ -13,7 +13,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use motionlink_link::can::{CanBus, CanBusConfig, CanEmulator, CanFrame};
 use motionlink_link::{RealClock, Timestamp};
 use motionlink_powercube::client::{AsyncClient, BusConfig, Client};
-use motionlink_powercube::model::{Param, Request};
+use motionlink_powercube::model::{Address, Param, Request};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::wire::can::{to_frame, Role};
 use motionlink_powercube::Emulator;
@@ -47,13 +47,14 @@ fn bench(c: &mut Criterion) {
     let blocking_bus = bus();
     let blocking = Client::can(Box::new(blocking_bus.connect()), RealClock::shared(), BusConfig::can())
         .expect("the session starts");
-    let module = blocking.module(1).expect("address 1");
+    let one = Address::new(1).expect("address 1");
+    let module = blocking.module(one);
 
     let runtime = tokio::runtime::Builder::new_current_thread().enable_time().build().expect("a tokio runtime");
     let async_bus = bus();
     let asynchronous = AsyncClient::can(Box::new(async_bus.connect()), RealClock::shared(), BusConfig::can())
         .expect("the session starts");
-    let async_module = asynchronous.module(1).expect("address 1");
+    let async_module = asynchronous.module(one);
 
     let mut group = c.benchmark_group("host overhead");
     group.sample_size(50).measurement_time(Duration::from_secs(4));

@@ -9,7 +9,7 @@ use std::time::Duration;
 use motionlink_link::can::{CanBus, CanBusConfig};
 use motionlink_link::RealClock;
 use motionlink_powercube::client::{AsyncClient, BusConfig, MoveSpec};
-use motionlink_powercube::model::{Acceleration, CubeState, Position, StateFlag, Velocity};
+use motionlink_powercube::model::{Acceleration, Address, CubeState, Position, StateFlag, Velocity};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{Emulator, Error};
 
@@ -33,7 +33,8 @@ pub async fn run() -> Result<Seen, Error> {
     let sim = Emulator::new_can(&config);
     let bus = CanBus::with_emulator(sim, clock.clone(), CanBusConfig::paced(1_000_000));
     let client = AsyncClient::can(Box::new(bus.connect()), clock, BusConfig::can())?;
-    let joint = client.module(1)?;
+    let (one, two) = (Address::new(1)?, Address::new(2)?);
+    let joint = client.module(one);
     println!("module 1 is {}", joint.kind().await?.name()); // from now on its positions read in rad
     let spec = MoveSpec {
         vel: Some(Velocity::rad_per_s(0.5)),
@@ -50,7 +51,7 @@ pub async fn run() -> Result<Seen, Error> {
             println!("the move ended before it was cancelled: {done:?}");
             return Err(Error::Unsupported("the move ended too soon".into()));
         }
-        let both = client.positions(&[1, 2]).await;
+        let both = client.positions(&[one, two]).await;
         let p = both[0].as_ref().map_err(|e| Error::Unsupported(e.to_string()))?;
         println!(
             "module 1 at {p}, module 2 at {}",

@@ -9,7 +9,7 @@ use motionlink_link::error::{Classify, ErrorClass, TransportKind};
 use motionlink_link::session::SessionError;
 use motionlink_link::LinkError;
 
-use crate::model::{CubeState, InvalidAddress, ModelError, ModuleKind, Param, Request};
+use crate::model::{CubeState, InvalidAddress, ModelError, ModuleKind, Param, Position, Request};
 use crate::wire::rs232::Rs232Error;
 
 /// What became of the Halt an action sent to a module it had set in motion, when the action could not go
@@ -192,18 +192,18 @@ pub enum Error {
     },
     /// The motion ended, but not where it was asked to: the final position read from the module is further
     /// from the target than the in-position tolerance.
-    #[error("module {address}: target {target} not reached: the module stands at {reached}, {difference:.6} away (tolerance {tolerance}; state: {state})")]
+    #[error("module {address}: target {} not reached: the module stands at {reached}, {:.6} away (tolerance {tolerance}; state: {state})", .target.value(), .difference.value())]
     NotReached {
         /// The module.
         address: u8,
-        /// The target.
-        target: f32,
-        /// The final actual position read from the module.
-        reached: f32,
-        /// `reached - target`.
-        difference: f32,
-        /// The tolerance allowed.
-        tolerance: f32,
+        /// The target, in the unit of `reached`.
+        target: Position,
+        /// The final actual position read from the module (in rad or m: a move reads the module's kind).
+        reached: Position,
+        /// `reached - target`, in the unit of `reached`.
+        difference: Position,
+        /// The tolerance allowed, in the unit of `reached`.
+        tolerance: Position,
         /// The state word at the end.
         state: CubeState,
     },

@@ -32,6 +32,7 @@
 //! use motionlink_link::can::{CanBus, CanBusConfig};
 //! use motionlink_link::clock::{Clock, ManualClock};
 //! use motionlink_powercube::client::BusConfig;
+//! use motionlink_powercube::model::Address;
 //! use motionlink_powercube::sim::SimConfig;
 //! use motionlink_powercube::{Client, Emulator};
 //!
@@ -42,8 +43,9 @@
 //! let bus = Client::can(Box::new(can.connect()), clock.shared(), BusConfig::can()).unwrap();
 //! let found = bus.scan().unwrap();
 //! assert_eq!(found.len(), 3);
-//! bus.enable_watchdog(&[1, 2, 3]).unwrap(); // refreshed by the session from now on
-//! let positions = bus.positions(&[1, 2, 3]); // three requests out, three acknowledges in, any order
+//! let modules: Vec<Address> = found.iter().map(|e| e.address).collect(); // 1, 2, 3
+//! bus.enable_watchdog(&modules).unwrap(); // refreshed by the session from now on
+//! let positions = bus.positions(&modules); // three requests out, three acknowledges in, any order
 //! assert!(positions.iter().all(|p| p.is_ok()));
 //! bus.close().unwrap(); // watchdogs off again, Config words as they were
 //! ```

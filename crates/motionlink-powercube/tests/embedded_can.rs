@@ -10,7 +10,7 @@ use motionlink_link::can::embedded::{from_embedded, EmbeddedCanLink};
 use motionlink_link::can::CanEmulator;
 use motionlink_link::{RealClock, SharedClock};
 use motionlink_powercube::client::{BusConfig, Client, MoveSpec};
-use motionlink_powercube::model::{Position, StateFlag, Velocity};
+use motionlink_powercube::model::{Address, Position, StateFlag, Velocity};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::Emulator;
 
@@ -84,9 +84,10 @@ fn a_session_runs_over_any_embedded_can_driver() {
     let client = Client::can(Box::new(link), clock, BusConfig::can()).unwrap();
     let found: Vec<u8> = client.scan().unwrap().iter().map(|e| e.address.get()).collect();
     assert_eq!(found, vec![3, 7]);
-    client.enable_watchdog(&[7]).unwrap();
+    let seven = Address::new(7).unwrap();
+    client.enable_watchdog(&[seven]).unwrap();
     let spec = MoveSpec { vel: Some(Velocity::rad_per_s(1.0)), ..MoveSpec::to(Position::rad(0.15)) };
-    let report = client.module(7).unwrap().move_to(&spec, &mut |_| {}).unwrap();
+    let report = client.module(seven).move_to(&spec, &mut |_| {}).unwrap();
     assert!((report.reached.value() - 0.15).abs() <= 0.001 && report.state.contains(StateFlag::RampEnd));
     client.close().unwrap();
 }

@@ -3,6 +3,8 @@
 //! stay binaries of their own.
 
 #[cfg(feature = "tokio")]
+mod async_client;
+#[cfg(feature = "tokio")]
 mod async_example;
 mod embedded_can;
 mod fuzz;

@@ -16,10 +16,12 @@ use motionlink_link::describe::Describe;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::{RealClock, SerialSettings, SharedClock};
-use motionlink_powercube::client::{BusConfig, Client, Guard, Module, ModuleInfo, MoveSpec, Progress, Readback};
+use motionlink_powercube::client::{
+    BusConfig, Client, Guard, Module, ModuleInfo, ModulesAt, MoveSpec, Progress, Readback,
+};
 use motionlink_powercube::describe::Describer;
 use motionlink_powercube::model::{
-    Acceleration, Action as PcAction, CubeState, ModuleKind, Param, Position, Request, Value, Velocity, PARAMS,
+    Acceleration, Action as PcAction, Address, CubeState, ModuleKind, Param, Position, Request, Value, Velocity, PARAMS,
 };
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::wire::Payload;
@@ -44,8 +46,8 @@ pub struct Args {
     #[command(flatten)]
     pub link: LinkArgs,
     /// The module's address, 1..31.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=31), global = true)]
-    pub module: u8,
+    #[arg(long, default_value = "1", value_parser = clap::value_parser!(Address), global = true)]
+    pub module: Address,
     /// RS232 baud rate.
     #[arg(long, default_value_t = 9600, value_parser = clap::value_parser!(u32).range(1..), global = true)]
     pub baud: u32,
@@ -335,8 +337,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let tap = Tap::new("powercube", &port, &clock, &args.link, &can_interface, &describer, request.is_some())?;
     let (client, host) = open(&args, &port, &tap, &clock)?;
     client.set_cancel_token(common::interrupt_token());
-    // The watchdog protects a motion against a host that dies; an emulator in this process dies with it.
-    let guard = if args.no_watchdog || host.is_some() { Guard::HaltOnly } else { Guard::Watchdog };
+    let guard = Guard::for_motions(ModulesAt::emulated_in_process(host.is_some()), args.no_watchdog);
     let result = match &request {
         Some(r) => send(&args, &client, r, &tap, &port, &mut out),
         None => act(&args, &client, guard, &port, &mut out),
@@ -358,10 +359,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
 /// Does what `args` ask of the module, on `client`.
 fn act(args: &Args, client: &Client, guard: Guard, port: &str, out: &mut dyn Write) -> Result<(), CliError> {
     let mut out = out;
-    let m = client.module(args.module).map_err(failed)?;
+    let m = client.module(args.module);
     // Every JSON object names the family, the port and the module first.
     let identified = |fields: serde_json::Value| {
-        let mut v = common::identified("powercube", port, json!({"module": args.module}));
+        let mut v = common::identified("powercube", port, json!({"module": args.module.get()}));
         if let (Some(map), serde_json::Value::Object(f)) = (v.as_object_mut(), fields) {
             map.extend(f);
         }

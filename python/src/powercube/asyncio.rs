@@ -81,8 +81,7 @@ impl AsyncPowerCubeClient {
                 }
             };
             let client = raise(opened)?;
-            // An emulator in this process dies with it: no watchdog (as for the blocking client).
-            let guard = if watchdog && !in_process { Guard::Watchdog } else { Guard::HaltOnly };
+            let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !watchdog);
             let native = AsyncPowerCubeClient { slot: Slot::new(client, FAMILY), guard, module, port };
             deliver(move |py| Ok(Py::new(py, native)?.into_any()))
         }))
@@ -102,7 +101,7 @@ impl AsyncPowerCubeClient {
         Ok(spawn_task(done, async move {
             let p = raise(
                 async {
-                    let m = c.module(a)?;
+                    let m = c.module(Address::new(a)?);
                     let kind = m.kind().await?;
                     Ok(in_unit(m.position().await?, kind))
                 }
@@ -118,7 +117,7 @@ impl AsyncPowerCubeClient {
         let c = self.client()?;
         let a = module.unwrap_or(self.module);
         Ok(spawn_task(done, async move {
-            let s = raise(async { c.module(a)?.state().await }.await)?;
+            let s = raise(async { c.module(Address::new(a)?).state().await }.await)?;
             dict(move |py| state_record(py, a, s))
         }))
     }
@@ -133,7 +132,7 @@ impl AsyncPowerCubeClient {
         Ok(spawn_task(done, async move {
             let (p, s) = raise(
                 async {
-                    let m = c.module(a)?;
+                    let m = c.module(Address::new(a)?);
                     let kind = m.kind().await?;
                     m.home_guarded(timeout, guard).await.map(|(p, s)| (in_unit(p, kind), s))
                 }
@@ -168,7 +167,7 @@ impl AsyncPowerCubeClient {
         Ok(spawn_task(done, async move {
             let report = raise(
                 async {
-                    let m = c.module(a)?;
+                    let m = c.module(Address::new(a)?);
                     let kind = m.kind().await?;
                     m.move_to_guarded(&spec, guard).await.map(|r| (kind, r))
                 }
@@ -185,13 +184,8 @@ impl AsyncPowerCubeClient {
         let a = module.unwrap_or(self.module);
         let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
         Ok(spawn_task(done, async move {
-            let address = raise(motionlink_powercube::model::Address::new(a).map_err(Error::from))?;
-            let op =
-                motionlink_powercube::session::Op::Wait(address, motionlink_powercube::session::Until::Motion, timeout);
-            match raise(c.run(op).await)? {
-                motionlink_powercube::session::Output::State(s) => dict(move |py| state_record(py, a, s)),
-                other => raise(Err(Error::Unsupported(format!("the session answered {other:?}")))),
-            }
+            let s = raise(async { c.module(Address::new(a)?).wait_motion_end(timeout).await }.await)?;
+            dict(move |py| state_record(py, a, s))
         }))
     }
 
@@ -201,7 +195,7 @@ impl AsyncPowerCubeClient {
         let c = self.client()?;
         let a = module.unwrap_or(self.module);
         Ok(spawn_task(done, async move {
-            raise(async { c.module(a)?.halt().await }.await)?;
+            raise(async { c.module(Address::new(a)?).halt().await }.await)?;
             deliver(|py| Ok(py.None()))
         }))
     }

@@ -12,8 +12,10 @@ use motionlink_link::can::SlcanBitrate;
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::url::PortUrl;
 use motionlink_link::SerialSettings;
-use motionlink_powercube::client::{BusConfig, Client, Guard, ModuleInfo, MoveReport, MoveSpec, Readback};
-use motionlink_powercube::model::{Acceleration, AxisUnit, CubeState, ModuleKind, Param, Position, Value, Velocity};
+use motionlink_powercube::client::{BusConfig, Client, Guard, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Readback};
+use motionlink_powercube::model::{
+    Acceleration, Address, AxisUnit, CubeState, ModuleKind, Param, Position, Value, Velocity,
+};
 use motionlink_powercube::{AsyncClient, Error};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -61,9 +63,8 @@ fn bus_config(s: &Settings, can: bool) -> Result<BusConfig, Failure> {
 /// Opens the blocking client `s` and `port` ask for; true if the modules are emulated in this process
 /// (they die with it: no watchdog is armed for them, as `motionlink powercube --port sim` does).
 fn open(port: Target, s: &Settings) -> Result<(Client, bool), Failure> {
-    if !(1..=31).contains(&s.module) {
-        return Err(usage(format!("module {}: addresses are 1..31", s.module)));
-    }
+    // The library's address type checks it (a usage error naming the number), before anything is opened.
+    Address::new(s.module).map_err(|e| Error::from(e).failure())?;
     let fail = |e: Error| e.failure();
     let rs232 = |link| Client::rs232(link, clock(), bus_config(s, false)?).map_err(fail);
     let can = |link| Client::can(link, clock(), bus_config(s, true)?).map_err(fail);
@@ -275,7 +276,7 @@ impl PowerCubeClient {
         let (client, in_process) = py.detach(|| open(t, &settings)).map_err(|f| to_pyerr(py, f))?;
         let token = CancelToken::new();
         client.set_cancel_token(token.clone());
-        let guard = if settings.watchdog && !in_process { Guard::Watchdog } else { Guard::HaltOnly };
+        let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !settings.watchdog);
         let port = client.describe().to_string();
         let close_bound = client.config().close_bound;
         Ok(PowerCubeClient {
@@ -302,7 +303,7 @@ impl PowerCubeClient {
 
     /// Modules this session set in motion and has not seen stop.
     fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
-        Ok(self.client(py)?.started())
+        Ok(self.client(py)?.started().into_iter().map(|a| a.get()).collect())
     }
 
     /// Every module on the bus: a list of records (`error` set for a module that answered but could not be
@@ -330,7 +331,7 @@ impl PowerCubeClient {
         let a = self.address(module);
         let (info, limits) = py
             .detach(|| -> Result<_, Error> {
-                let m = c.module(a)?;
+                let m = c.module(Address::new(a)?);
                 let info = m.info()?;
                 let limits: Vec<(Param, Value)> =
                     [Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::ActPos]
@@ -360,7 +361,7 @@ impl PowerCubeClient {
     fn state<'py>(&self, py: Python<'py>, module: Option<u8>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.address(module);
-        let s = py.detach(|| c.module(a)?.state()).or_raise(py)?;
+        let s = py.detach(|| c.module(Address::new(a)?).state()).or_raise(py)?;
         Ok(state_record(py, a, s)?.done())
     }
 
@@ -371,7 +372,7 @@ impl PowerCubeClient {
         let a = self.address(module);
         let p = py
             .detach(|| -> Result<_, Error> {
-                let m = c.module(a)?;
+                let m = c.module(Address::new(a)?);
                 // The kind names the unit (rad or m); the session keeps it after the first read.
                 let kind = m.kind()?;
                 Ok(in_unit(m.position()?, kind))
@@ -388,7 +389,7 @@ impl PowerCubeClient {
         let p = parse_param(name).map_err(|f| to_pyerr(py, f))?;
         let (v, kind) = py
             .detach(|| -> Result<_, Error> {
-                let m = c.module(a)?;
+                let m = c.module(Address::new(a)?);
                 Ok((m.get(p)?, m.kind()?))
             })
             .or_raise(py)?;
@@ -412,7 +413,7 @@ impl PowerCubeClient {
         let v = parse_value(p, value).map_err(|f| to_pyerr(py, f))?;
         let (read, kind) = py
             .detach(|| -> Result<_, Error> {
-                let m = c.module(a)?;
+                let m = c.module(Address::new(a)?);
                 Ok((m.set_checked(p, v)?, m.kind()?))
             })
             .or_raise(py)?;
@@ -436,7 +437,7 @@ impl PowerCubeClient {
             py,
             Some(&self.token),
             || {
-                let m = c.module(a)?;
+                let m = c.module(Address::new(a)?);
                 let kind = m.kind()?;
                 m.home_guarded(timeout, guard, &mut |_| {}).map(|(p, s)| (in_unit(p, kind), s))
             },
@@ -469,7 +470,7 @@ impl PowerCubeClient {
             py,
             Some(&self.token),
             || {
-                let m = c.module(a)?;
+                let m = c.module(Address::new(a)?);
                 let kind = m.kind()?;
                 m.move_to_guarded(&spec, guard, &mut |_| {}).map(|r| (kind, r))
             },
@@ -485,8 +486,12 @@ impl PowerCubeClient {
         let c = self.client(py)?;
         let a = self.address(module);
         let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
-        let r =
-            interruptible(py, Some(&self.token), || c.module(a)?.wait_motion_end(timeout, &mut |_| {}), cancel_cause)?;
+        let r = interruptible(
+            py,
+            Some(&self.token),
+            || c.module(Address::new(a)?).wait_motion_end(timeout, &mut |_| {}),
+            cancel_cause,
+        )?;
         Ok(state_record(py, a, r.or_raise(py)?)?.done())
     }
 
@@ -495,7 +500,7 @@ impl PowerCubeClient {
     fn stop(&self, py: Python<'_>, module: Option<u8>) -> PyResult<()> {
         let c = self.client(py)?;
         let a = self.address(module);
-        py.detach(|| c.module(a)?.halt()).or_raise(py)
+        py.detach(|| c.module(Address::new(a)?).halt()).or_raise(py)
     }
 
     /// Resets the module's error state; true if it switched off a watchdog a dead host left expired.
@@ -503,7 +508,7 @@ impl PowerCubeClient {
     fn reset(&self, py: Python<'_>, module: Option<u8>) -> PyResult<bool> {
         let c = self.client(py)?;
         let a = self.address(module);
-        py.detach(|| c.module(a)?.reset_and_release_watchdog()).or_raise(py)
+        py.detach(|| c.module(Address::new(a)?).reset_and_release_watchdog()).or_raise(py)
     }
 
     /// Ends the session: halts what it set in motion, switches its watchdogs off, and says whether that
@@ -524,7 +529,7 @@ impl PowerCubeClient {
         let c = self.client(py)?;
         let a = self.address(module);
         py.detach(|| -> Result<f64, Error> {
-            let m = c.module(a)?;
+            let m = c.module(Address::new(a)?);
             let start = std::time::Instant::now();
             for _ in 0..n {
                 std::hint::black_box(m.position()?);
@@ -534,4 +539,3 @@ impl PowerCubeClient {
         .or_raise(py)
     }
 }
-

@@ -10,11 +10,14 @@ use motionlink_link::{Link, SharedClock};
 
 use super::blocking::{driver, fail_all};
 use super::calls::{self, Call};
-use crate::error::Error;
+use crate::error::{Error, StopOutcome};
 use crate::model::{
-    AckKind, Action, Address, Broadcast, CubeState, ExtAck, ModuleKind, Motion, Param, Position, Reply, Request, Value,
+    Acceleration, AckKind, Action, Address, Broadcast, ConfigWord, CubeState, Dio, ExtAck, Millis, ModuleKind, Motion,
+    Param, Position, Ramp, Reply, Request, ShortState, Ticks, Value, Velocity,
 };
-use crate::session::{BusConfig, Guard, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry, Session};
+use crate::session::{
+    BusConfig, Guard, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry, Session, Until,
+};
 
 /// A session with the modules on one line or one CAN bus, for async callers (tokio). Share it by
 /// reference or in an `Arc`: concurrent operations interleave on the line as the session schedules them.
@@ -23,6 +26,8 @@ use crate::session::{BusConfig, Guard, ModuleInfo, MoveReport, MoveSpec, Op, Out
 /// switched on, bounded by [`BusConfig::close_bound`]; dropping it does the same on tokio's blocking pool.
 pub struct AsyncClient {
     driver: AsyncDriver<Session>,
+    config: BusConfig,
+    can: bool,
 }
 
 impl std::fmt::Debug for AsyncClient {
@@ -35,13 +40,15 @@ impl AsyncClient {
     /// A session over an RS232 byte link.
     pub fn rs232(link: Box<dyn Link>, clock: SharedClock, config: BusConfig) -> Result<AsyncClient, Error> {
         let session = Session::rs232(config.clone(), link.describe(), clock.now());
-        Ok(AsyncClient { driver: AsyncDriver::from_driver(driver(session, Port::Bytes(link), clock, &config)?) })
+        let driver = AsyncDriver::from_driver(driver(session, Port::Bytes(link), clock, &config)?);
+        Ok(AsyncClient { driver, config, can: false })
     }
 
     /// A session over a CAN link (any [`CanLink`], embedded-can drivers included).
     pub fn can(link: Box<dyn CanLink>, clock: SharedClock, config: BusConfig) -> Result<AsyncClient, Error> {
         let session = Session::can(config.clone(), link.describe(), clock.now());
-        Ok(AsyncClient { driver: AsyncDriver::from_driver(driver(session, Port::Can(link), clock, &config)?) })
+        let driver = AsyncDriver::from_driver(driver(session, Port::Can(link), clock, &config)?);
+        Ok(AsyncClient { driver, config, can: true })
     }
 
     /// Opens a port with `open` (blocking work: it runs on tokio's blocking pool) and makes the client.
@@ -52,12 +59,75 @@ impl AsyncClient {
             Ok(r) => r?,
             Err(e) => return Err(Error::Unsupported(format!("the opening task failed: {e}"))),
         };
-        Ok(AsyncClient { driver: AsyncDriver::from_driver(client.into_driver()) })
+        let (config, can) = (client.config().clone(), client.is_can());
+        Ok(AsyncClient { driver: AsyncDriver::from_driver(client.into_driver()), config, can })
     }
 
     /// Runs `f` on the session (its statistics, its watchdog duty).
     pub fn session<R>(&self, f: impl FnOnce(&mut Session) -> R) -> R {
         self.driver.driver().with_session(f)
+    }
+
+    /// The port, for messages.
+    pub fn describe(&self) -> &str {
+        self.driver.driver().port_name()
+    }
+
+    /// True on a CAN bus.
+    pub fn is_can(&self) -> bool {
+        self.can
+    }
+
+    /// The session's settings.
+    pub fn config(&self) -> &BusConfig {
+        &self.config
+    }
+
+    /// The session's clock.
+    pub fn clock(&self) -> &SharedClock {
+        self.driver.driver().clock()
+    }
+
+    /// True when this session can arm the watchdog (see
+    /// [`Client::watchdog_reliable`](super::Client::watchdog_reliable)).
+    pub fn watchdog_reliable(&self) -> bool {
+        self.session(|s| s.watchdog_reliable())
+    }
+
+    /// Stops refreshing the watchdog on purpose and marks the session failed (see
+    /// [`Session::abandon_watchdog`]).
+    pub fn abandon_watchdog(&self) -> bool {
+        self.session(Session::abandon_watchdog)
+    }
+
+    /// True if this session switched the watchdog of `address` on (or may have) and still refreshes it.
+    pub fn watchdog_armed(&self, address: Address) -> bool {
+        self.session(|s| s.watchdog_armed(address))
+    }
+
+    /// True while the session refreshes the watchdog.
+    pub fn watchdog_served(&self) -> bool {
+        self.session(|s| s.watchdog_served())
+    }
+
+    /// The last failure of the refresh, if any.
+    pub fn watchdog_error(&self) -> Option<String> {
+        self.session(|s| s.watchdog_error())
+    }
+
+    /// True once the session has failed (see [`Session::failed`]).
+    pub fn failed(&self) -> bool {
+        self.session(|s| s.failed())
+    }
+
+    /// Modules known to exist: every address that answered this session.
+    pub fn known(&self) -> Vec<Address> {
+        self.session(|s| s.known())
+    }
+
+    /// Modules this session set in motion and has not seen stop.
+    pub fn started(&self) -> Vec<Address> {
+        self.session(|s| s.started())
     }
 
     /// Runs `op` to its end; dropping the future cancels it (halting a motion it started).
@@ -70,26 +140,33 @@ impl AsyncClient {
         call.result(output)
     }
 
-    /// A handle on the module at `address` (1..31). Nothing is sent.
-    pub fn module(&self, address: u8) -> Result<AsyncModule<'_>, Error> {
-        Ok(AsyncModule { client: self, address: Address::new(address)? })
+    /// A handle on the module at `address` (checked once: [`Address::new`]). Nothing is sent.
+    pub fn module(&self, address: Address) -> AsyncModule<'_> {
+        AsyncModule { client: self, address }
     }
 
     /// One request, checked, reads retried (see [`Client::request`](super::Client::request)).
-    pub async fn request(&self, address: u8, request: Request) -> Result<Reply, Error> {
-        let a = Address::new(address)?;
+    pub async fn request(&self, address: Address, request: Request) -> Result<Reply, Error> {
         request.validate()?;
-        self.call(calls::request(a, request)).await
+        self.call(calls::request(address, request)).await
+    }
+
+    /// Several requests to several modules (see [`Client::request_many`](super::Client::request_many)): on
+    /// CAN all at once, each checked, reads retried; dropping the future halts the modules a motion request
+    /// among them may have started.
+    pub async fn request_many(&self, requests: &[(Address, Request)]) -> Vec<Result<Reply, Error>> {
+        let n = requests.len();
+        self.call(calls::request_many(requests.to_vec())).await.unwrap_or_else(|e| fail_all(n, &e))
     }
 
     /// Reads `param` of every module in `addresses` (on CAN in one round).
-    pub async fn read_many(&self, addresses: &[u8], param: Param) -> Vec<Result<Value, Error>> {
+    pub async fn read_many(&self, addresses: &[Address], param: Param) -> Vec<Result<Value, Error>> {
         let n = addresses.len();
         self.call(calls::read_many(addresses.to_vec(), param)).await.unwrap_or_else(|e| fail_all(n, &e))
     }
 
     /// The positions of `addresses` (ActPos), on CAN in one round.
-    pub async fn positions(&self, addresses: &[u8]) -> Vec<Result<Position, Error>> {
+    pub async fn positions(&self, addresses: &[Address]) -> Vec<Result<Position, Error>> {
         let n = addresses.len();
         self.call(calls::positions(addresses.to_vec())).await.unwrap_or_else(|e| fail_all(n, &e))
     }
@@ -105,7 +182,7 @@ impl AsyncClient {
     }
 
     /// Switches the watchdog on in `addresses`; refreshed from then on.
-    pub async fn enable_watchdog(&self, addresses: &[u8]) -> Result<(), Error> {
+    pub async fn enable_watchdog(&self, addresses: &[Address]) -> Result<(), Error> {
         self.call(calls::done(Op::EnableWatchdog(addresses.to_vec()))).await
     }
 
@@ -159,6 +236,21 @@ impl AsyncModule<'_> {
         self.client.call(calls::position(self.address)).await
     }
 
+    /// The actual position in encoder ticks (ActIPos).
+    pub async fn position_ticks(&self) -> Result<Ticks, Error> {
+        self.client.call(calls::position_ticks(self.address)).await
+    }
+
+    /// Position, short state and DIO in one read (ActFPosStateDio).
+    pub async fn position_state_dio(&self) -> Result<(Position, ShortState, Dio), Error> {
+        self.client.call(calls::position_state_dio(self.address)).await
+    }
+
+    /// The Config word.
+    pub async fn config_word(&self) -> Result<ConfigWord, Error> {
+        self.client.call(calls::config_word(self.address)).await
+    }
+
     /// The state word.
     pub async fn state(&self) -> Result<CubeState, Error> {
         self.client.call(calls::state(self.address)).await
@@ -179,6 +271,21 @@ impl AsyncModule<'_> {
         self.client.call(calls::action(self.address, Action::Reset)).await
     }
 
+    /// Starts homing (wait for it with [`AsyncModule::wait_home`]).
+    pub async fn home(&self) -> Result<(), Error> {
+        self.client.call(calls::action(self.address, Action::Home)).await
+    }
+
+    /// RecalcPIDParam.
+    pub async fn recalc_pid(&self) -> Result<(), Error> {
+        self.client.call(calls::action(self.address, Action::RecalcPid)).await
+    }
+
+    /// ResetTime: restarts the module's millisecond clock.
+    pub async fn reset_time(&self) -> Result<(), Error> {
+        self.client.call(calls::action(self.address, Action::ResetTime)).await
+    }
+
     /// Reset, releasing a watchdog a dead host left expired.
     pub async fn reset_and_release_watchdog(&self) -> Result<bool, Error> {
         self.client.call(calls::reset_and_release_watchdog(self.address)).await
@@ -187,6 +294,62 @@ impl AsyncModule<'_> {
     /// Halt.
     pub async fn halt(&self) -> Result<(), Error> {
         self.client.call(calls::done(Op::Halt(self.address))).await
+    }
+
+    /// Stops the module after an action that may have set it in motion cannot go on (see
+    /// [`Op::StopMotion`]), and says whether the module confirmed it.
+    pub async fn stop_motion(&self) -> StopOutcome {
+        match self.client.call(calls::stop_motion(self.address)).await {
+            Ok(outcome) => outcome,
+            Err(e) => StopOutcome::Unconfirmed {
+                reason: e.to_string(),
+                watchdog_armed: self.client.watchdog_armed(self.address),
+            },
+        }
+    }
+
+    /// A step in encoder ticks (SetIStep).
+    pub async fn istep(&self, pos: Ticks, time: Millis) -> Result<(), Error> {
+        self.client.call(calls::istep(self.address, pos, time)).await
+    }
+
+    /// A ramp move to `pos`, first setting TargetVel and TargetAcc if `ramp` is given (no limit checks, no
+    /// read-back, no wait: [`AsyncModule::move_to`] has them). The motion goes on when the future is dropped
+    /// after its acknowledge: wait for it with [`AsyncModule::wait_ramp_end`].
+    pub async fn move_ramp(&self, pos: Position, ramp: Option<Ramp>) -> Result<(), Error> {
+        self.move_ramp_with(pos, ramp.map(|r| r.vel), ramp.map(|r| r.acc)).await
+    }
+
+    /// A ramp move to `pos`, first setting TargetVel if `vel` is given and TargetAcc if `acc` is given.
+    pub async fn move_ramp_with(
+        &self,
+        pos: Position,
+        vel: Option<Velocity>,
+        acc: Option<Acceleration>,
+    ) -> Result<(), Error> {
+        self.client.call(calls::move_ramp(self.address, pos, vel, acc)).await
+    }
+
+    async fn wait(&self, until: Until, timeout: Duration) -> Result<CubeState, Error> {
+        self.client.call(calls::wait(self.address, until, timeout)).await
+    }
+
+    /// Waits until homing has ended (STATE_HOME_OK, not moving); halts on a timeout or when the future is
+    /// dropped.
+    pub async fn wait_home(&self, timeout: Duration) -> Result<CubeState, Error> {
+        self.wait(Until::Home, timeout).await
+    }
+
+    /// Waits until the module stands still (no STATE_MOTION); halts on a timeout or when the future is
+    /// dropped.
+    pub async fn wait_motion_end(&self, timeout: Duration) -> Result<CubeState, Error> {
+        self.wait(Until::Motion, timeout).await
+    }
+
+    /// Waits until a ramp has ended (STATE_RAMP_END, not moving); halts on a timeout or when the future is
+    /// dropped.
+    pub async fn wait_ramp_end(&self, timeout: Duration) -> Result<CubeState, Error> {
+        self.wait(Until::Ramp, timeout).await
     }
 
     /// A motion command, its units checked; dropping the future before its acknowledge halts the module.

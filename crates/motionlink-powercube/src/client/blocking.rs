@@ -130,42 +130,36 @@ impl Client {
         call.result(output)
     }
 
-    /// A handle on the module at `address` (1..31). Nothing is sent.
-    pub fn module(&self, address: u8) -> Result<Module<'_>, Error> {
-        Ok(Module { client: self, address: Address::new(address)? })
-    }
-
-    /// A handle on the module at `address`.
-    pub fn module_at(&self, address: Address) -> Module<'_> {
+    /// A handle on the module at `address` (checked once: [`Address::new`]). Nothing is sent.
+    pub fn module(&self, address: Address) -> Module<'_> {
         Module { client: self, address }
     }
 
     /// One request, checked before it is sent ([`Request::validate`]; nothing is sent if it breaks the
     /// manual's rules), its acknowledge checked; reads are retried. Floats go on the wire as numbers in the
     /// module's own unit: no unit check.
-    pub fn request(&self, address: u8, request: &Request) -> Result<Reply, Error> {
-        let a = Address::new(address)?;
+    pub fn request(&self, address: Address, request: &Request) -> Result<Reply, Error> {
         request.validate()?;
-        self.call(calls::request(a, *request))
+        self.call(calls::request(address, *request))
     }
 
     /// Several requests to several modules; on CAN all are sent at once and the acknowledges collected in
     /// any order, on RS232 one after the other. Each is checked (one that breaks the rules gets its error and
     /// is not sent; the others are). Reads that fail are retried.
-    pub fn request_many(&self, requests: &[(u8, Request)]) -> Vec<Result<Reply, Error>> {
+    pub fn request_many(&self, requests: &[(Address, Request)]) -> Vec<Result<Reply, Error>> {
         let n = requests.len();
         self.call(calls::request_many(requests.to_vec())).unwrap_or_else(|e| fail_all(n, &e))
     }
 
     /// Reads `param` of every module in `addresses` (on CAN in one round).
-    pub fn read_many(&self, addresses: &[u8], param: Param) -> Vec<Result<Value, Error>> {
+    pub fn read_many(&self, addresses: &[Address], param: Param) -> Vec<Result<Value, Error>> {
         let n = addresses.len();
         self.call(calls::read_many(addresses.to_vec(), param)).unwrap_or_else(|e| fail_all(n, &e))
     }
 
     /// The positions of `addresses` (ActPos), on CAN in one round: in rad or m for a module whose kind the
     /// session has read ([`Module::kind`], a scan, arming its watchdog), in the module's own unit otherwise.
-    pub fn positions(&self, addresses: &[u8]) -> Vec<Result<Position, Error>> {
+    pub fn positions(&self, addresses: &[Address]) -> Vec<Result<Position, Error>> {
         let n = addresses.len();
         self.call(calls::positions(addresses.to_vec())).unwrap_or_else(|e| fail_all(n, &e))
     }
@@ -183,7 +177,7 @@ impl Client {
     }
 
     /// Switches the watchdog on in `addresses` (see [`Op::EnableWatchdog`]); refreshed from then on.
-    pub fn enable_watchdog(&self, addresses: &[u8]) -> Result<(), Error> {
+    pub fn enable_watchdog(&self, addresses: &[Address]) -> Result<(), Error> {
         self.call(calls::done(Op::EnableWatchdog(addresses.to_vec())))
     }
 
@@ -205,7 +199,7 @@ impl Client {
     }
 
     /// True if this session switched the watchdog of `address` on (or may have) and still refreshes it.
-    pub fn watchdog_armed(&self, address: u8) -> bool {
+    pub fn watchdog_armed(&self, address: Address) -> bool {
         self.session(|s| s.watchdog_armed(address))
     }
 
@@ -225,12 +219,12 @@ impl Client {
     }
 
     /// Modules known to exist: every address that answered this session.
-    pub fn known(&self) -> Vec<u8> {
+    pub fn known(&self) -> Vec<Address> {
         self.session(|s| s.known())
     }
 
     /// Modules this session set in motion and has not seen stop.
-    pub fn started(&self) -> Vec<u8> {
+    pub fn started(&self) -> Vec<Address> {
         self.session(|s| s.started())
     }
 
@@ -368,7 +362,7 @@ impl Module<'_> {
     pub fn stop_motion(&self) -> StopOutcome {
         self.client.call(calls::stop_motion(self.address)).unwrap_or_else(|e| StopOutcome::Unconfirmed {
             reason: e.to_string(),
-            watchdog_armed: self.client.watchdog_armed(self.address.get()),
+            watchdog_armed: self.client.watchdog_armed(self.address),
         })
     }
 

@@ -45,15 +45,15 @@ pub(crate) fn request(a: Address, r: Request) -> Call<Reply> {
     call!(Op::Request(a, r), Output::Reply(r) => r)
 }
 
-pub(crate) fn request_many(rs: Vec<(u8, Request)>) -> Call<Vec<Result<Reply, Error>>> {
+pub(crate) fn request_many(rs: Vec<(Address, Request)>) -> Call<Vec<Result<Reply, Error>>> {
     call!(Op::RequestMany(rs), Output::Replies(r) => r)
 }
 
-pub(crate) fn read_many(addresses: Vec<u8>, p: Param) -> Call<Vec<Result<Value, Error>>> {
+pub(crate) fn read_many(addresses: Vec<Address>, p: Param) -> Call<Vec<Result<Value, Error>>> {
     call!(Op::ReadMany(addresses, p), Output::Values(v) => v)
 }
 
-pub(crate) fn positions(addresses: Vec<u8>) -> Call<Vec<Result<Position, Error>>> {
+pub(crate) fn positions(addresses: Vec<Address>) -> Call<Vec<Result<Position, Error>>> {
     call!(Op::Positions(addresses), Output::Positions(v) => v)
 }
 

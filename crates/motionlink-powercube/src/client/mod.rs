@@ -9,7 +9,7 @@
 //! use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 //! use motionlink_link::clock::{Clock, ManualClock};
 //! use motionlink_powercube::client::{BusConfig, Client, MoveSpec};
-//! use motionlink_powercube::model::{Position, StateFlag, Velocity};
+//! use motionlink_powercube::model::{Address, Position, StateFlag, Velocity};
 //! use motionlink_powercube::Emulator;
 //! use std::time::Duration;
 //!
@@ -17,7 +17,7 @@
 //! let _me = clock.reserve_participant().enter();
 //! let host = EmulatorHost::new(Emulator::new(&Default::default()), clock.shared(), PipeConfig::paced(9_600));
 //! let client = Client::rs232(Box::new(host.connect().0), clock.shared(), BusConfig::rs232()).unwrap();
-//! let joint = client.module(1).unwrap();
+//! let joint = client.module(Address::new(1).unwrap());
 //! joint.home_and_wait(Duration::from_secs(10), &mut |_| {}).unwrap();
 //! let spec = MoveSpec { vel: Some(Velocity::rad_per_s(0.5)), ..MoveSpec::to(Position::rad(0.5)) };
 //! let report = joint.move_to(&spec, &mut |_| {}).unwrap();   // limits, read-backs, the final position
@@ -39,4 +39,6 @@ pub use blocking::{Client, Module};
 
 pub use crate::error::{Error, StopOutcome};
 pub use crate::model::WATCHDOG_TIMEOUT;
-pub use crate::session::{BusConfig, Guard, ModuleInfo, MoveReport, MoveSpec, Progress, Readback, ScanEntry};
+pub use crate::session::{
+    BusConfig, Guard, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback, ScanEntry,
+};

@@ -25,7 +25,7 @@ pub use params::{Access, DataType, Param, ParamClass, ParamKind, Unit, UnknownPa
 pub use reply::{AckPosition, ExtAck, Reply};
 pub use request::{Action, ModelError, Request};
 pub use units::{
-    Acceleration, Address, Amperes, AxisUnit, CubeVersion, CurrentDigits, InvalidAddress, Millis, ModuleKind, Position,
-    Ticks, TicksPerSec, Velocity,
+    Acceleration, Address, Amperes, AxisUnit, CubeVersion, CurrentDigits, InvalidAddress, Millis, ModuleKind,
+    ParseAddressError, Position, Ticks, TicksPerSec, Velocity,
 };
 pub use value::{Value, ValueError};

@@ -271,6 +271,20 @@ impl fmt::Display for Address {
     }
 }
 
+/// Text that is not a module address (what a front end's `--module` or `module=` was given).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("module address {0:?}: give a number 1..31")]
+pub struct ParseAddressError(pub String);
+
+impl std::str::FromStr for Address {
+    type Err = ParseAddressError;
+
+    /// A decimal number 1..31 (surrounding blanks allowed): what the front ends parse `--module` with.
+    fn from_str(s: &str) -> Result<Address, ParseAddressError> {
+        s.trim().parse::<u8>().ok().and_then(|n| Address::new(n).ok()).ok_or_else(|| ParseAddressError(s.to_string()))
+    }
+}
+
 /// A module's firmware version (DefCubeVersion, 0x1D): four hex digits printed as the manual does, major,
 /// minor and a two-digit build: 0x351D is "3.5.1D".
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -322,5 +336,15 @@ mod tests {
         let a = Address::new(31).unwrap();
         assert!(a == 31 && u8::from(a) == 31 && a.to_string() == "31");
         assert_eq!(InvalidAddress(40).to_string(), "module address 40 is outside 1..31");
+    }
+
+    #[test]
+    fn addresses_parse_from_text_and_a_bad_one_is_named() {
+        assert_eq!(" 17 ".parse::<Address>(), Ok(Address::new(17).unwrap()));
+        for bad in ["0", "32", "-1", "300", "x", ""] {
+            let err = bad.parse::<Address>().unwrap_err();
+            assert_eq!(err, ParseAddressError(bad.to_string()));
+            assert_eq!(err.to_string(), format!("module address {bad:?}: give a number 1..31"));
+        }
     }
 }

@@ -49,7 +49,7 @@ use motionlink_link::clock::lock;
 use motionlink_link::session::{Action as LinkAction, Event, Input, OpId, OpIds};
 use motionlink_link::{LinkError, Timestamp};
 
-pub use types::{BusConfig, Guard, ModuleInfo, MoveReport, MoveSpec, Progress, Readback, ScanEntry, Until};
+pub use types::{BusConfig, Guard, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback, ScanEntry, Until};
 
 use self::core::Core;
 use self::ctx::Ctx;
@@ -68,11 +68,11 @@ pub enum Op {
     /// whose operation is cancelled before its acknowledge came is halted. [`Output::Reply`].
     Request(Address, Request),
     /// Several requests; on CAN all at once, the acknowledges matched in any order. [`Output::Replies`].
-    RequestMany(Vec<(u8, Request)>),
+    RequestMany(Vec<(Address, Request)>),
     /// One parameter of several modules (on CAN in one round). [`Output::Values`].
-    ReadMany(Vec<u8>, Param),
+    ReadMany(Vec<Address>, Param),
     /// ActPos of several modules (on CAN in one round). [`Output::Positions`].
-    Positions(Vec<u8>),
+    Positions(Vec<Address>),
     /// A broadcast (never acknowledged; on RS232 libm5api's form to address 0). Home and StartMotion count as
     /// setting in motion every module the session knows. [`Output::Done`].
     Broadcast(Broadcast),
@@ -143,7 +143,7 @@ pub enum Op {
     /// the word before remembered), the refresh served from now on, a life sign to each (never repeated:
     /// an unconfirmed one is [`Error::WatchdogUnconfirmed`]). A module showing STATE_COMM_ERROR is refused
     /// before anything changes. [`Output::Done`].
-    EnableWatchdog(Vec<u8>),
+    EnableWatchdog(Vec<Address>),
     /// Undoes [`Op::EnableWatchdog`]: a second life sign, the refresh stopped, unconfirmed watchdogs
     /// observed (an online one expires), the flag cleared again where this session set it. A failed session
     /// leaves them online ([`Error::WatchdogLeftOnline`]). [`Output::Done`].
@@ -282,13 +282,13 @@ impl Session {
     }
 
     /// Modules this session set in motion and has not seen stop.
-    pub fn started(&self) -> Vec<u8> {
-        self.core().started.iter().copied().collect()
+    pub fn started(&self) -> Vec<Address> {
+        addresses(&self.core().started)
     }
 
     /// Modules known to exist: every address that answered this session.
-    pub fn known(&self) -> Vec<u8> {
-        self.core().known.iter().copied().collect()
+    pub fn known(&self) -> Vec<Address> {
+        addresses(&self.core().known)
     }
 
     /// The kind of module `address`, if the session has read it.
@@ -315,9 +315,10 @@ impl Session {
     }
 
     /// True if this session switched the watchdog of `address` on (or may have) and still refreshes it.
-    pub fn watchdog_armed(&self, address: u8) -> bool {
+    pub fn watchdog_armed(&self, address: Address) -> bool {
         let core = self.core();
-        core.duty.serving && (core.duty.online.contains(&address) || core.duty.uncertain.contains(&address))
+        let a = address.get();
+        core.duty.serving && (core.duty.online.contains(&a) || core.duty.uncertain.contains(&a))
     }
 
     /// When the next watchdog refresh is due, while the session serves it.
@@ -500,4 +501,10 @@ impl motionlink_link::session::Session for Session {
     fn is_idle(&self) -> bool {
         self.ops.is_empty() && matches!(self.closing, Closing::Open | Closing::Closed) && self.core().is_quiet()
     }
+}
+
+/// The module addresses in `set` (every one the session stores came from a checked address or an answer
+/// from a module address; anything else is left out rather than invented).
+fn addresses(set: &std::collections::BTreeSet<u8>) -> Vec<Address> {
+    set.iter().filter_map(|&a| Address::new(a).ok()).collect()
 }

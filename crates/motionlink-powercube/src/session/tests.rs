@@ -158,6 +158,10 @@ fn addr(a: u8) -> Address {
     Address::new(a).unwrap()
 }
 
+fn addrs(ns: &[u8]) -> Vec<Address> {
+    ns.iter().map(|&n| addr(n)).collect()
+}
+
 fn ms(n: u64) -> Duration {
     Duration::from_millis(n)
 }
@@ -184,7 +188,7 @@ fn reads_are_retried_and_nothing_else_is() {
 fn on_can_acknowledges_are_matched_to_their_module_in_one_round() {
     let mut b = Bench::can(&[1, 2, 3]);
     let t0 = b.now;
-    let Ok(Output::Values(v)) = b.run(Op::ReadMany(vec![3, 1, 2, 9], Param::DefCubeSerial)) else { panic!() };
+    let Ok(Output::Values(v)) = b.run(Op::ReadMany(addrs(&[3, 1, 2, 9]), Param::DefCubeSerial)) else { panic!() };
     assert_eq!(v[0].as_ref().unwrap(), &Value::U32(1003));
     assert_eq!(v[1].as_ref().unwrap(), &Value::U32(1001));
     assert_eq!(v[2].as_ref().unwrap(), &Value::U32(1002));
@@ -198,7 +202,7 @@ fn on_can_acknowledges_are_matched_to_their_module_in_one_round() {
 #[test]
 fn the_watchdog_refresh_is_a_session_duty_on_its_20_ms_grid() {
     let mut b = Bench::can(&[1]);
-    b.run(Op::EnableWatchdog(vec![1])).unwrap();
+    b.run(Op::EnableWatchdog(addrs(&[1]))).unwrap();
     assert!(b.module(1).2, "online");
     let armed = b.now;
     b.idle(Duration::from_secs(2));
@@ -221,7 +225,7 @@ fn the_watchdog_refresh_is_a_session_duty_on_its_20_ms_grid() {
 #[test]
 fn on_rs232_the_refresh_is_libm5api_broadcast_to_address_0() {
     let mut b = Bench::rs232(&[1]);
-    b.run(Op::EnableWatchdog(vec![1])).unwrap();
+    b.run(Op::EnableWatchdog(addrs(&[1]))).unwrap();
     b.idle(Duration::from_secs(1));
     assert!(b.refreshes().len() >= 49);
     assert!(!b.module(1).0.has_fault());
@@ -311,7 +315,7 @@ fn a_cancelled_read_ends_at_once_and_sets_nothing_in_motion() {
 fn close_halts_what_the_session_started_and_switches_the_watchdog_off() {
     let mut b = Bench::can(&[1, 2]);
     let before = b.module(1).3;
-    b.run(Op::EnableWatchdog(vec![1, 2])).unwrap();
+    b.run(Op::EnableWatchdog(addrs(&[1, 2]))).unwrap();
     b.run(Op::Motion(addr(1), Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple)).unwrap();
     b.idle(ms(300));
     assert_eq!(b.close(), Ok(()));
@@ -330,7 +334,7 @@ fn close_halts_what_the_session_started_and_switches_the_watchdog_off() {
 #[test]
 fn a_close_that_cannot_confirm_the_stop_says_so_and_leaves_the_watchdog_to_stop_the_module() {
     let mut b = Bench::can(&[1]);
-    b.run(Op::EnableWatchdog(vec![1])).unwrap();
+    b.run(Op::EnableWatchdog(addrs(&[1]))).unwrap();
     b.run(Op::Motion(addr(1), Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple)).unwrap();
     b.idle(ms(100));
     b.deaf = true; // the modules' answers are lost from now on
@@ -371,7 +375,7 @@ fn a_guarded_move_arms_the_watchdog_for_its_motion_only() {
 #[test]
 fn arming_a_module_whose_watchdog_expired_is_refused_with_a_hint() {
     let mut b = Bench::can(&[1]);
-    b.run(Op::EnableWatchdog(vec![1])).unwrap();
+    b.run(Op::EnableWatchdog(addrs(&[1]))).unwrap();
     b.session.die();
     b.idle(ms(100));
     assert!(b.module(1).0.contains(StateFlag::CommError));
@@ -387,7 +391,7 @@ fn arming_a_module_whose_watchdog_expired_is_refused_with_a_hint() {
 fn a_bus_that_answers_in_reverse_order_is_still_matched() {
     // The session takes acknowledges in any order: feed the answers of a batch back to front.
     let mut b = Bench::can(&[1, 2, 3]);
-    let id = b.session.start(Op::ReadMany(vec![1, 2, 3], Param::DefAddress), b.now);
+    let id = b.session.start(Op::ReadMany(addrs(&[1, 2, 3]), Param::DefAddress), b.now);
     let mut answers = Vec::new();
     while let Some(LinkAction::SendFrame(f)) = b.session.poll_transmit(b.now) {
         CanEmulator::receive(&mut b.device, b.now, &f, &mut answers);

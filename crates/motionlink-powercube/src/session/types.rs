@@ -77,6 +77,52 @@ pub enum Guard {
     HaltOnly,
 }
 
+impl Guard {
+    /// The guard for the motions of a session whose modules are `modules`, when the user asked for
+    /// `--no-watchdog` (or `watchdog=False`) if `no_watchdog`: the one rule every front end (the command line,
+    /// the web console, the Python package) applies.
+    ///
+    /// The watchdog protects a motion against a host that dies; modules emulated in this process die with
+    /// it, so they are not armed ([`Guard::HaltOnly`]), and neither are modules the user said to leave
+    /// alone. Everything else is armed ([`Guard::Watchdog`]) where the link allows it (the session decides
+    /// that: CAN, and RS232 unless [`BusConfig::watchdog_on_rs232`] is false).
+    pub fn for_motions(modules: ModulesAt, no_watchdog: bool) -> Guard {
+        match (modules, no_watchdog) {
+            (ModulesAt::Elsewhere, false) => Guard::Watchdog,
+            (ModulesAt::Elsewhere, true) | (ModulesAt::ThisProcess, _) => Guard::HaltOnly,
+        }
+    }
+}
+
+/// Where the modules of a session are, as far as the watchdog is concerned (see [`Guard::for_motions`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModulesAt {
+    /// Real modules, or an emulator served by another process (`motionlink sim`): they go on when this
+    /// process dies, and their watchdog is what stops them then.
+    Elsewhere,
+    /// An emulator running in this process (`--port sim`, an in-process emulator object): it dies with the
+    /// process, so no watchdog is needed to stop it.
+    ThisProcess,
+}
+
+impl ModulesAt {
+    /// [`ModulesAt::ThisProcess`] if the modules are emulated in this process (the front end started the
+    /// emulator itself), [`ModulesAt::Elsewhere`] otherwise.
+    pub fn emulated_in_process(in_process: bool) -> ModulesAt {
+        if in_process {
+            ModulesAt::ThisProcess
+        } else {
+            ModulesAt::Elsewhere
+        }
+    }
+
+    /// Where the modules behind `url` are: `sim` is an emulator this process starts; every other port
+    /// (a serial device, TCP, which may lead to a served emulator, SocketCAN, SLCAN) leads out of it.
+    pub fn of_url(url: &motionlink_link::url::PortUrl) -> ModulesAt {
+        ModulesAt::emulated_in_process(matches!(url, motionlink_link::url::PortUrl::Sim))
+    }
+}
+
 /// A checked ramp move ([`Op::MoveTo`](super::Op::MoveTo)): where to, how fast, how close counts as
 /// arrived, how long to wait.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -10,9 +10,10 @@ use motionlink_link::link::Link;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::{SerialSettings, SharedClock};
-use motionlink_powercube::client::{BusConfig, Client, Guard, MoveSpec, Readback};
+use motionlink_powercube::client::{BusConfig, Client, Guard, ModulesAt, MoveSpec, Readback};
 use motionlink_powercube::model::{
-    CubeState, ModuleKind, Param, Position, ShortFlag, ShortState, Value as CubeValue, Velocity, PARAMS,
+    Address, AxisUnit, CubeState, ModuleKind, Param, Position, ShortFlag, ShortState, Value as CubeValue, Velocity,
+    PARAMS,
 };
 use motionlink_powercube::session::{Op, Output};
 use motionlink_powercube::sim::SimConfig;
@@ -161,8 +162,7 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
     };
     let client = client.map_err(|e| crate::common::classified(&e))?;
     let client = AsyncClient::open(move || Ok(client)).await.map_err(|e| crate::common::classified(&e))?;
-    // The watchdog protects a motion against a console that dies; an emulator in this process dies with it.
-    let guard = if args.no_watchdog || host.is_some() { Guard::HaltOnly } else { Guard::Watchdog };
+    let guard = Guard::for_motions(ModulesAt::emulated_in_process(host.is_some()), args.no_watchdog);
     let device = PowerCube {
         client,
         port: args.port.clone(),
@@ -253,13 +253,22 @@ impl PowerCube {
     }
 
     fn module(&self, address: u8) -> Result<motionlink_powercube::client::AsyncModule<'_>, Failure> {
-        self.client.module(address).map_err(failure)
+        Ok(self.client.module(Address::new(address).map_err(|e| failure(e.into()))?))
     }
 
-    fn speed(speed: Option<f64>) -> Result<Option<Velocity>, Failure> {
+    /// The unit the page shows module `address`'s numbers in (that of the kind found), read from the module
+    /// if it was not found: the positions and velocities sent are built in it, so the library checks it.
+    async fn unit_of(&self, m: &motionlink_powercube::client::AsyncModule<'_>) -> Result<AxisUnit, Failure> {
+        match self.kind(m.address().get()) {
+            Some(kind) => Ok(kind.axis_unit()),
+            None => Ok(m.kind().await.map_err(failure)?.axis_unit()),
+        }
+    }
+
+    fn speed(speed: Option<f64>) -> Result<Option<f32>, Failure> {
         match speed {
             None => Ok(None),
-            Some(v) if finite("velocity", v)? > 0.0 => Ok(Some(Velocity::native(v as f32))),
+            Some(v) if finite("velocity", v)? > 0.0 => Ok(Some(v as f32)),
             Some(v) => Err(Failure::usage(format!("velocity {v}: give a number above 0"))),
         }
     }
@@ -324,7 +333,7 @@ impl Device for PowerCube {
                 // read. About 38 bytes a sample on RS232: 9600 baud carries about 25 a second.
                 let turn = TURNS[(self.turn.fetch_add(1, std::sync::atomic::Ordering::Relaxed) % 3) as usize];
                 let look = async {
-                    let m = self.client.module(u.id)?;
+                    let m = self.client.module(Address::new(u.id)?);
                     let (position, short) = match self.client.run(Op::PositionStateDio(m.address())).await? {
                         Output::PositionStateDio(p, s, _) => (p, s),
                         other => unexpected_output(u.id, other)?,
@@ -375,9 +384,11 @@ impl Device for PowerCube {
         let target = finite("target", target)?;
         let vel = Self::speed(speed)?;
         self.module(unit)?;
-        let spec = MoveSpec { vel, ..MoveSpec::to(Position::native(target as f32)) };
         Ok(Box::pin(async move {
             let m = self.module(unit)?;
+            let axis = self.unit_of(&m).await?;
+            let vel = vel.map(|v| Velocity::new(v, axis));
+            let spec = MoveSpec { vel, ..MoveSpec::to(Position::new(target as f32, axis)) };
             // Limits, read-backs and the final position checked; dropped, the module is halted.
             let r = m.move_to_guarded(&spec, self.guard).await.map_err(failure)?;
             Ok(format!("module {unit} at {:.4} (target {target}), state {}", r.reached.value(), r.state))
@@ -389,6 +400,8 @@ impl Device for PowerCube {
         self.module(unit)?;
         Ok(Box::pin(async move {
             let m = self.module(unit)?;
+            let axis = self.unit_of(&m).await?;
+            let vel = vel.map(|v| Velocity::new(v, axis));
             // A checked ramp to the soft limit in the jog's direction; it runs until the jog ends (the future
             // dropped: the module is halted) or the limit is reached.
             let limit = match direction {
@@ -397,8 +410,11 @@ impl Device for PowerCube {
             };
             let target = f32_of(m.get(limit).await.map_err(failure)?)
                 .ok_or_else(|| Failure::usage(format!("{} is not a number", limit.name())))?;
-            let spec =
-                MoveSpec { vel, timeout: Duration::from_secs(3600), ..MoveSpec::to(Position::native(target as f32)) };
+            let spec = MoveSpec {
+                vel,
+                timeout: Duration::from_secs(3600),
+                ..MoveSpec::to(Position::new(target as f32, axis))
+            };
             let r = m.move_to_guarded(&spec, self.guard).await.map_err(failure)?;
             Ok(format!("module {unit} reached its {} at {:.4}", limit.name(), r.reached.value()))
         }))

@@ -10,7 +10,7 @@ use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::transcript::{FrameTranscript, TapCanLink, TapLink, Transcript, Way};
 use motionlink_powercube::client::{BusConfig, Client, Module};
 use motionlink_powercube::describe::Describer;
-use motionlink_powercube::model::{AckKind, Motion, Param, Position, Value};
+use motionlink_powercube::model::{AckKind, Address, Motion, Param, Position, Value};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{Emulator, Error};
 
@@ -64,7 +64,7 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
         let transcript = FrameTranscript::new();
         let link = TapCanLink::new(can.connect(), clock.shared(), transcript.clone());
         let bus = Client::can(Box::new(link), clock.shared(), BusConfig::can()).map_err(failed)?;
-        let m = bus.module(17).map_err(failed)?;
+        let m = bus.module(Address::new(17).map_err(|e| failed(e.into()))?);
         let steps: [Step; 9] = [
             ("Home", |m| m.home()),
             ("Reset", |m| m.reset()),
@@ -108,7 +108,7 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
         let transcript = Transcript::new();
         let link = TapLink::new(host.connect().0, clock.shared(), transcript.clone());
         let bus = Client::rs232(Box::new(link), clock.shared(), BusConfig::rs232()).map_err(failed)?;
-        let m = bus.module(17).map_err(failed)?;
+        let m = bus.module(Address::new(17).map_err(|e| failed(e.into()))?);
         let steps: [Step; 6] = [
             ("Home", |m| m.home()),
             ("Reset", |m| m.reset()),

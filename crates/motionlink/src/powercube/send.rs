@@ -73,7 +73,7 @@ pub(super) fn send(
         let v = common::identified(
             "powercube",
             port,
-            json!({"module": args.module, "command": format!("{request:?}"), "request": sent_json,
+            json!({"module": args.module.get(), "command": format!("{request:?}"), "request": sent_json,
                    "reply": reply_json, "ok": result.is_ok()}),
         );
         common::print_json(out, &v)?;

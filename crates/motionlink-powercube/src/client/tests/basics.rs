@@ -33,7 +33,7 @@ fn scan_finds_every_module_on_rs232_and_can() {
 fn every_parameter_reads_and_every_writable_one_writes() {
     let (clock, host, bus, faults) = rs232(&[1]);
     let _me = clock.reserve_participant().enter();
-    let m = bus.module(1).unwrap();
+    let m = bus.module(addr(1));
     for p in Param::ALL {
         if p.access().readable() {
             let v = m.get(*p).unwrap_or_else(|e| panic!("{p}: {e}"));
@@ -67,7 +67,7 @@ fn every_parameter_reads_and_every_writable_one_writes() {
 fn home_and_move_with_progress() {
     let (clock, host, bus, _) = rs232(&[1]);
     let _me = clock.reserve_participant().enter();
-    let m = bus.module(1).unwrap();
+    let m = bus.module(addr(1));
     m.home().unwrap();
     let mut polls = 0;
     let s = m.wait_home(secs(10), &mut |_| polls += 1).unwrap();
@@ -92,7 +92,7 @@ fn home_and_move_with_progress() {
 fn device_errors_name_their_flags() {
     let (clock, _host, bus, _) = rs232(&[1]);
     let _me = clock.reserve_participant().enter();
-    let m = bus.module(1).unwrap();
+    let m = bus.module(addr(1));
     m.home().unwrap();
     m.wait_home(secs(10), &mut |_| {}).unwrap();
     m.set(Param::MaxPos, Value::F32(0.2)).unwrap();
@@ -120,7 +120,7 @@ fn timeouts_retry_reads_only() {
     // Nobody at 9: the read is tried 3 times, each waiting the reply timeout.
     let t0 = clock.now();
     let sent0 = faults.bytes_sent(Direction::HostToDevice);
-    let err = bus.module(9).unwrap().position().unwrap_err();
+    let err = bus.module(addr(9)).position().unwrap_err();
     assert!(matches!(err, Error::Timeout { address: 9, .. }) && err.is_transport(), "{err}");
     assert!(err.to_string().contains("did not answer GetExtended ActPos"), "{err}");
     let frame = 8; // STX TELID(2) 0a 3c BCC ETX + escaping: 7 or 8
@@ -129,23 +129,23 @@ fn timeouts_retry_reads_only() {
     assert!(clock.now() - t0 >= Duration::from_millis(600));
     // A lost acknowledge of a read: the second try answers.
     faults.drop_next(Direction::DeviceToHost, 3);
-    assert!(bus.module(1).unwrap().position().is_ok());
+    assert!(bus.module(addr(1)).position().is_ok());
     // A lost acknowledge of a write is not repeated: the caller learns it.
     let sent0 = faults.bytes_sent(Direction::HostToDevice);
     faults.drop_next(Direction::DeviceToHost, 3);
-    let err = bus.module(1).unwrap().set(Param::TargetVel, Value::F32(0.2)).unwrap_err();
+    let err = bus.module(addr(1)).set(Param::TargetVel, Value::F32(0.2)).unwrap_err();
     assert!(matches!(err, Error::Timeout { .. }), "{err}");
     let sent = faults.bytes_sent(Direction::HostToDevice) - sent0;
     assert!(sent <= 11, "one frame only: {sent}");
     // Late replies of the timed-out request do not confuse the next one.
-    assert!(bus.module(1).unwrap().state().is_ok());
+    assert!(bus.module(addr(1)).state().is_ok());
 }
 
 #[test]
 fn a_corrupt_answer_is_an_error_and_reads_recover() {
     let (clock, _host, bus, faults) = rs232(&[1]);
     let _me = clock.reserve_participant().enter();
-    let m = bus.module(1).unwrap();
+    let m = bus.module(addr(1));
     // Flip a data bit of the acknowledge of a write: BCC mismatch, reported as corrupt.
     faults.inject(
         Direction::DeviceToHost,
@@ -167,8 +167,8 @@ fn a_corrupt_answer_is_an_error_and_reads_recover() {
 fn dropping_the_session_halts_what_it_started() {
     let (clock, host, bus, _) = rs232(&[1, 2]);
     let _me = clock.reserve_participant().enter();
-    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.3) }, AckKind::Simple).unwrap();
-    bus.module(2).unwrap().motion(Motion::FRamp { pos: Position::native(0.06) }, AckKind::Simple).unwrap();
+    bus.module(addr(1)).motion(Motion::FVel { vel: Velocity::native(0.3) }, AckKind::Simple).unwrap();
+    bus.module(addr(2)).motion(Motion::FRamp { pos: Position::native(0.06) }, AckKind::Simple).unwrap();
     clock.sleep(secs(1));
     drop(bus);
     host.with_device(|d| {
@@ -185,7 +185,7 @@ fn cancelling_a_wait_halts_the_motion() {
     let _me = clock.reserve_participant().enter();
     let token = CancelToken::new();
     bus.set_cancel_token(token.clone());
-    let m = bus.module(1).unwrap();
+    let m = bus.module(addr(1));
     m.motion(Motion::FCur { cur: Amperes(1.0) }, AckKind::Simple).unwrap();
     let err = m
         .wait_motion_end(secs(60), &mut |p| {
@@ -208,11 +208,12 @@ fn cancelling_a_wait_halts_the_motion() {
 
 #[test]
 fn on_can_many_modules_are_polled_in_one_round() {
-    let addresses: Vec<u8> = (1..=6).collect();
-    let (clock, _canbus, bus) = can(&addresses);
+    let numbers: Vec<u8> = (1..=6).collect();
+    let addresses = addrs(&numbers);
+    let (clock, _canbus, bus) = can(&numbers);
     let _me = clock.reserve_participant().enter();
     let t0 = clock.now();
-    bus.module(3).unwrap().position().unwrap();
+    bus.module(addr(3)).position().unwrap();
     let one = clock.now() - t0;
     let t0 = clock.now();
     let all = bus.positions(&addresses);
@@ -228,10 +229,10 @@ fn on_can_many_modules_are_polled_in_one_round() {
     };
     assert_eq!(one, wire_time(3));
     assert!((Duration::from_micros(158)..Duration::from_micros(190)).contains(&one), "{one:?}");
-    assert_eq!(six, addresses.iter().map(|a| wire_time(*a)).sum::<Duration>());
+    assert_eq!(six, numbers.iter().map(|a| wire_time(*a)).sum::<Duration>());
     // One missing module does not hold the others up beyond one timeout (and reads are retried).
     let t0 = clock.now();
-    let r = bus.positions(&[1, 9, 2]);
+    let r = bus.positions(&addrs(&[1, 9, 2]));
     assert!(r[0].is_ok() && r[2].is_ok() && matches!(r[1], Err(Error::Timeout { address: 9, .. })));
     assert!(clock.now() - t0 < Duration::from_millis(200));
 }
@@ -240,7 +241,7 @@ fn on_can_many_modules_are_polled_in_one_round() {
 fn extended_acknowledges_and_steps() {
     let (clock, _canbus, bus) = can(&[4]);
     let _me = clock.reserve_participant().enter();
-    let m = bus.module(4).unwrap();
+    let m = bus.module(addr(4));
     let ext = m.motion(Motion::IRamp { pos: Ticks(1000) }, AckKind::Extended).unwrap().unwrap();
     assert!(matches!(ext.position, crate::model::AckPosition::Ticks(_)));
     assert!(ext.state.contains(crate::model::ShortFlag::NotOk), "not homed");
@@ -259,9 +260,10 @@ fn a_broken_line_is_a_transport_error() {
     let (clock, _host, bus, faults) = rs232(&[1]);
     let _me = clock.reserve_participant().enter();
     faults.disconnect();
-    let err = bus.module(1).unwrap().state().unwrap_err();
+    let err = bus.module(addr(1)).state().unwrap_err();
     assert!(matches!(err, Error::Link(ref l) if l.is_disconnect()) && err.is_transport(), "{err}");
-    assert!(matches!(bus.module(0), Err(Error::InvalidAddress(0))));
+    // An address outside 1..31 cannot be made, so no handle on it: the number is refused where it is typed.
+    assert!(matches!(Address::new(0).map_err(Error::from), Err(Error::InvalidAddress(0))));
 }
 
 #[test]
@@ -278,32 +280,32 @@ fn every_request_is_checked_before_it_is_sent() {
     ];
     let sent = faults.bytes_sent(Direction::HostToDevice);
     for r in &bad {
-        let err = bus.request(1, r).unwrap_err();
+        let err = bus.request(addr(1), r).unwrap_err();
         assert!(matches!(err, Error::Model(_)) && err.is_usage(), "{r}: {err}");
     }
     assert_eq!(faults.bytes_sent(Direction::HostToDevice), sent, "nothing was sent");
     assert!(bus.started().is_empty(), "a refused motion starts nothing");
     // Several at once: the bad ones get their error, the good ones go out and are answered.
+    // (An address outside 1..31 cannot be among them: `Address` refuses it where it is made.)
+    assert!(matches!(Address::new(0).map_err(Error::from), Err(Error::InvalidAddress(0))));
     let mixed = [
-        (1, Request::Get(Param::ActPos)),
-        (1, bad[0]),
-        (1, bad[4]),
-        (0, Request::Get(Param::ActPos)),
-        (1, Request::Get(Param::CubeState)),
+        (addr(1), Request::Get(Param::ActPos)),
+        (addr(1), bad[0]),
+        (addr(1), bad[4]),
+        (addr(1), Request::Get(Param::CubeState)),
     ];
     let r = bus.request_many(&mixed);
     assert!(matches!(r[0], Ok(Reply::Get(Param::ActPos, _))), "{:?}", r[0]);
     assert!(matches!(r[1], Err(Error::Model(ModelError::NotWritable(Param::ActPos)))), "{:?}", r[1]);
     assert!(matches!(r[2], Err(Error::Model(ModelError::NoExtendedAck(_)))), "{:?}", r[2]);
-    assert!(matches!(r[3], Err(Error::InvalidAddress(0))), "{:?}", r[3]);
-    assert!(matches!(r[4], Ok(Reply::Get(Param::CubeState, _))), "{:?}", r[4]);
+    assert!(matches!(r[3], Ok(Reply::Get(Param::CubeState, _))), "{:?}", r[3]);
     clock.sleep(secs(1));
     let s = host.with_device(|d| d.module(1).unwrap().state());
     assert!(!s.contains(StateFlag::Motion), "no loop was started under another MotionID: {s}");
     // On CAN, a Config word that would switch the acknowledges off is refused the same way.
     let (clock, _canbus, bus) = can(&[1]);
     let _me = clock.reserve_participant().enter();
-    let err = bus.request(1, &Request::Set(Param::Config, Value::U32(0x0400_0000))).unwrap_err();
+    let err = bus.request(addr(1), &Request::Set(Param::Config, Value::U32(0x0400_0000))).unwrap_err();
     assert!(matches!(err, Error::Unsupported(_)), "{err}");
 }
 
@@ -363,7 +365,7 @@ fn on_can_acknowledges_are_matched_in_whatever_order_they_arrive() {
 
     // Each module's own serial number comes back to it, however the answers are ordered.
     let t0 = clock.now();
-    let serials = bus.read_many(&addresses, Param::DefCubeSerial);
+    let serials = bus.read_many(&addrs(&addresses), Param::DefCubeSerial);
     assert!(clock.now() - t0 < bus.config().reply_timeout, "one round, nothing timed out or retried");
     for (a, s) in addresses.iter().zip(serials) {
         assert_eq!(s.unwrap(), Value::U32(1000 + u32::from(*a)), "module {a}");
@@ -372,14 +374,14 @@ fn on_can_acknowledges_are_matched_in_whatever_order_they_arrive() {
 
     // Several requests to one module, and writes and motions among reads: each matched to its own.
     let requests = [
-        (1, Request::Get(Param::ActPos)),
-        (1, Request::Get(Param::CubeState)),
-        (1, Request::Get(Param::DefCubeSerial)),
-        (2, Request::Get(Param::DefAddress)),
-        (3, Request::Set(Param::TargetVel, Value::F32(0.5))),
-        (4, Request::Motion(Motion::FRamp { pos: Position::native(0.1) }, AckKind::Extended)),
-        (5, Request::Action(Action::Reset)),
-        (6, Request::Get(Param::DefAddress)),
+        (addr(1), Request::Get(Param::ActPos)),
+        (addr(1), Request::Get(Param::CubeState)),
+        (addr(1), Request::Get(Param::DefCubeSerial)),
+        (addr(2), Request::Get(Param::DefAddress)),
+        (addr(3), Request::Set(Param::TargetVel, Value::F32(0.5))),
+        (addr(4), Request::Motion(Motion::FRamp { pos: Position::native(0.1) }, AckKind::Extended)),
+        (addr(5), Request::Action(Action::Reset)),
+        (addr(6), Request::Get(Param::DefAddress)),
     ];
     let before = reordered.load(Ordering::SeqCst);
     let t0 = clock.now();
@@ -397,9 +399,9 @@ fn on_can_acknowledges_are_matched_in_whatever_order_they_arrive() {
 
     // Polling in a loop: every round complete.
     for _ in 0..20 {
-        assert!(bus.positions(&addresses).iter().all(Result::is_ok));
+        assert!(bus.positions(&addrs(&addresses)).iter().all(Result::is_ok));
         assert!(bus
-            .read_many(&addresses, Param::DefAddress)
+            .read_many(&addrs(&addresses), Param::DefAddress)
             .iter()
             .zip(&addresses)
             .all(|(v, a)| *v.as_ref().unwrap() == Value::U8(*a)));
@@ -458,7 +460,7 @@ fn an_slcan_adapter_that_refuses_a_frame_is_a_link_error_not_a_timeout() {
     let _me = clock.reserve_participant().enter();
     let link = SlcanLink::open(host.connect().0, clock.shared(), SlcanBitrate::M1).unwrap();
     let bus = Client::can(Box::new(link), clock.shared(), BusConfig::can()).unwrap();
-    let m = bus.module(3).unwrap();
+    let m = bus.module(addr(3));
     assert!(m.state().is_ok());
     // The adapter's transmit queue is full: it rings the bell instead of sending the write.
     host.with_device(|a| a.refuse_next(1));

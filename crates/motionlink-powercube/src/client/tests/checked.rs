@@ -12,7 +12,7 @@ use motionlink_link::Link;
 fn a_checked_move_refuses_targets_beyond_the_limits_before_anything_moves() {
     let (clock, host, bus, _) = rs232_instant(&[1]);
     let _me = clock.reserve_participant().enter();
-    let m = bus.module(1).unwrap();
+    let m = bus.module(addr(1));
     m.set(Param::TargetVel, Value::F32(0.5)).unwrap();
     host.with_device(|d| d.take_events());
     for (s, limit) in [
@@ -63,7 +63,7 @@ fn a_checked_move_refuses_targets_beyond_the_limits_before_anything_moves() {
 fn a_checked_move_ends_within_the_tolerance_or_says_where_it_ended() {
     let (clock, host, bus, _) = rs232_instant(&[1]);
     let _me = clock.reserve_participant().enter();
-    let m = bus.module(1).unwrap();
+    let m = bus.module(addr(1));
     let report = m.move_to(&spec(0.5), &mut |_| {}).unwrap();
     assert!((report.reached.value() - 0.5).abs() < 1e-6 && report.state.contains(StateFlag::RampEnd), "{report:?}");
     assert_eq!(report.start, Position::native(0.05));
@@ -75,12 +75,12 @@ fn a_checked_move_ends_within_the_tolerance_or_says_where_it_ended() {
         let sim = Emulator::new(&SimConfig { modules: vec![cfg], ..SimConfig::default() });
         *d = sim;
     });
-    let m = bus.module(2).unwrap();
+    let m = bus.module(addr(2));
     let err = m.move_to(&spec(0.5), &mut |_| {}).unwrap_err();
     match &err {
         Error::NotReached { target, reached, difference, .. } => {
-            assert_eq!(*target, 0.5);
-            assert!((reached - 0.505).abs() < 1e-6 && (difference - 0.005).abs() < 1e-6, "{err}");
+            assert_eq!(target.value(), 0.5);
+            assert!((reached.value() - 0.505).abs() < 1e-6 && (difference.value() - 0.005).abs() < 1e-6, "{err}");
         }
         other => panic!("{other}"),
     }
@@ -96,7 +96,7 @@ fn a_checked_move_ends_within_the_tolerance_or_says_where_it_ended() {
 fn a_checked_move_reads_back_its_ramp_and_target_and_halts_a_corrupted_command() {
     let (clock, host, bus, faults) = rs232_instant(&[1]);
     let _me = clock.reserve_participant().enter();
-    let m = bus.module(1).unwrap();
+    let m = bus.module(addr(1));
     // A write of TargetVel whose value is corrupted on the way (the module ignores the BCC): the read-back
     // of TargetVelInc shows it, before anything moves.
     let set_vel = Request::set(Param::TargetVel, Value::F32(1.0)).unwrap();
@@ -146,7 +146,7 @@ fn a_checked_move_reads_back_its_ramp_and_target_and_halts_a_corrupted_command()
 fn set_checked_reads_back_and_names_a_mismatch() {
     let (clock, host, bus, _) = rs232_instant(&[1]);
     let _me = clock.reserve_participant().enter();
-    let m = bus.module(1).unwrap();
+    let m = bus.module(addr(1));
     // Read back as written.
     assert_eq!(m.set_checked(Param::MaxVel, Value::F32(0.5)).unwrap(), Readback::Same(Value::F32(0.5)));
     assert!(matches!(m.set_checked(Param::TargetVel, Value::F32(0.25)).unwrap(), Readback::Same(Value::U32(_))));
@@ -173,7 +173,7 @@ fn a_line_that_fails_during_a_move_is_stopped_and_the_error_says_so() {
     // Answers lost for a while: the poll's read times out three times, the halt gets through.
     let (clock, host, bus, faults) = rs232_instant(&[1]);
     let _me = clock.reserve_participant().enter();
-    let m = bus.module(1).unwrap();
+    let m = bus.module(addr(1));
     let mut dropped = false;
     let err = m
         .move_to(&MoveSpec { vel: Some(Velocity::native(0.2)), ..spec(1.0) }, &mut |p| {
@@ -200,8 +200,8 @@ fn a_line_that_fails_during_a_move_is_stopped_and_the_error_says_so() {
     // says the axis may still be moving, and that the watchdog (no longer refreshed) halts it; it does.
     let (clock, host, bus, faults) = rs232_instant(&[1]);
     let _me = clock.reserve_participant().enter();
-    bus.enable_watchdog(&[1]).unwrap();
-    let m = bus.module(1).unwrap();
+    bus.enable_watchdog(&addrs(&[1])).unwrap();
+    let m = bus.module(addr(1));
     let mut broke_at = None;
     let err = m
         .move_to(&MoveSpec { vel: Some(Velocity::native(0.2)), ..spec(1.0) }, &mut |p| {
@@ -231,7 +231,7 @@ fn a_line_that_fails_during_a_move_is_stopped_and_the_error_says_so() {
     // The same without a watchdog: the error says nothing else stops it.
     let (clock, _host, bus, faults) = rs232_instant(&[1]);
     let _me = clock.reserve_participant().enter();
-    let m = bus.module(1).unwrap();
+    let m = bus.module(addr(1));
     let mut broke = false;
     let err = m
         .move_to(&MoveSpec { vel: Some(Velocity::native(0.2)), ..spec(1.0) }, &mut |p| {
@@ -254,7 +254,7 @@ fn waiting_polls_at_the_set_rate_not_as_fast_as_the_line_answers() {
     // An instant line answers in no time: the wait still polls once per poll_interval (10 ms).
     let (clock, host, bus, faults) = rs232_instant(&[1]);
     let _me = clock.reserve_participant().enter();
-    let m = bus.module(1).unwrap();
+    let m = bus.module(addr(1));
     let mut polls = Vec::new();
     let t0 = clock.now();
     let sent0 = host.with_device(|d| d.stats().handled);
@@ -285,8 +285,7 @@ fn waiting_polls_at_the_set_rate_not_as_fast_as_the_line_answers() {
     };
     let _me = clock.reserve_participant().enter();
     let mut polls = 0;
-    bus.module(1)
-        .unwrap()
+    bus.module(addr(1))
         .move_to(&MoveSpec { vel: Some(Velocity::native(0.5)), ..spec(1.0) }, &mut |_| polls += 1)
         .unwrap();
     assert!((43..=45).contains(&polls), "{polls}");
@@ -323,7 +322,7 @@ fn an_answer_that_echoes_another_command_or_has_a_wrong_length_is_corrupt() {
             }
         }
     });
-    let m = bus.module(1).unwrap();
+    let m = bus.module(addr(1));
     let err = m.position().unwrap_err();
     assert!(matches!(err, Error::Corrupt { .. }) && err.to_string().contains("does not echo"), "{err}");
     let err = m.position().unwrap_err();
@@ -354,8 +353,8 @@ fn flip_run(fault: Option<(Direction, u64, u8)>) -> FlipRun {
     }
     let sent = || (faults.bytes_sent(Direction::HostToDevice), faults.bytes_sent(Direction::DeviceToHost));
     let mut first_poll = None;
-    let result = bus.enable_watchdog(&[1]).and_then(|()| {
-        bus.module(1).unwrap().move_to(&spec(0.3), &mut |_| {
+    let result = bus.enable_watchdog(&addrs(&[1])).and_then(|()| {
+        bus.module(addr(1)).move_to(&spec(0.3), &mut |_| {
             first_poll.get_or_insert_with(sent);
         })
     });

@@ -10,8 +10,8 @@ fn close_stops_what_was_started_and_says_it_was_confirmed() {
     let (clock, canbus, bus) = can(&[1, 2]);
     let _me = clock.reserve_participant().enter();
     let before = device_view(&canbus, &clock, 1).3;
-    bus.enable_watchdog(&[1, 2]).unwrap();
-    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
+    bus.enable_watchdog(&addrs(&[1, 2])).unwrap();
+    bus.module(addr(1)).motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
     clock.sleep(Duration::from_millis(300));
     assert_eq!(bus.close().map_err(|e| e.to_string()), Ok(()));
     let (state, _, online, config) = device_view(&canbus, &clock, 1);
@@ -25,8 +25,8 @@ fn close_stops_what_was_started_and_says_it_was_confirmed() {
 fn close_on_a_dead_line_says_the_stop_was_not_confirmed_and_the_watchdog_stops_the_module() {
     let (clock, canbus, bus) = can(&[1]);
     let _me = clock.reserve_participant().enter();
-    bus.enable_watchdog(&[1]).unwrap();
-    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
+    bus.enable_watchdog(&addrs(&[1])).unwrap();
+    bus.module(addr(1)).motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
     canbus.drop_next_from_device(u64::MAX);
     let t0 = clock.now();
     let err = bus.close().unwrap_err();
@@ -44,8 +44,8 @@ fn close_and_drop_are_bounded_in_time_and_a_missed_bound_is_reported() {
     let config = BusConfig { close_bound: Duration::from_millis(300), ..BusConfig::rs232() };
     let (clock, host, bus, faults) = rs232_with(&[1], config.clone());
     let _me = clock.reserve_participant().enter();
-    bus.enable_watchdog(&[1]).unwrap();
-    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
+    bus.enable_watchdog(&addrs(&[1])).unwrap();
+    bus.module(addr(1)).motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
     faults.drop_next(Direction::DeviceToHost, u64::MAX);
     let t0 = clock.now();
     let err = bus.close().unwrap_err();
@@ -62,7 +62,7 @@ fn close_and_drop_are_bounded_in_time_and_a_missed_bound_is_reported() {
     // Dropping is bounded the same way.
     let (clock, _host, bus, faults) = rs232_with(&[1], config);
     let _me = clock.reserve_participant().enter();
-    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
+    bus.module(addr(1)).motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
     faults.drop_next(Direction::DeviceToHost, u64::MAX);
     let t0 = clock.now();
     drop(bus);
@@ -73,7 +73,7 @@ fn close_and_drop_are_bounded_in_time_and_a_missed_bound_is_reported() {
 fn a_guarded_move_through_the_client_is_what_the_command_line_runs() {
     let (clock, host, bus, _) = rs232_instant(&[1]);
     let _me = clock.reserve_participant().enter();
-    let m = bus.module(1).unwrap();
+    let m = bus.module(addr(1));
     let report = m.move_to_guarded(&spec(0.4), Guard::Watchdog, &mut |_| {}).unwrap();
     assert!((report.reached.value() - 0.4).abs() <= 0.001);
     let events = host.with_device(|d| d.take_events());
@@ -84,4 +84,37 @@ fn a_guarded_move_through_the_client_is_what_the_command_line_runs() {
     let err = m.move_to_guarded(&spec(0.1), Guard::Watchdog, &mut |_| {}).unwrap_err();
     assert!(err.to_string().contains("cannot arm the watchdog of module 1") && err.is_device(), "{err}");
     assert!(err.to_string().contains("`reset` clears it"), "{err}");
+}
+
+#[test]
+fn the_front_ends_guard_rule_arms_only_modules_outside_this_process_that_the_user_did_not_exempt() {
+    use crate::client::ModulesAt;
+    use motionlink_link::url::PortUrl;
+    let at = |url: &str| ModulesAt::of_url(&url.parse::<PortUrl>().unwrap());
+    assert_eq!(at("sim"), ModulesAt::ThisProcess);
+    for url in ["/dev/ttyS0", "tcp://127.0.0.1:5000", "socketcan://can0", "slcan:///dev/ttyACM0", "slcan://tcp://h:1"] {
+        assert_eq!(at(url), ModulesAt::Elsewhere, "{url}");
+    }
+    assert_eq!(ModulesAt::emulated_in_process(true), ModulesAt::ThisProcess);
+    assert_eq!(ModulesAt::emulated_in_process(false), ModulesAt::Elsewhere);
+    // What each choice does to a module during a guarded move: armed for it, or left alone.
+    for (modules, no_watchdog, armed) in [
+        (ModulesAt::Elsewhere, false, true),
+        (ModulesAt::Elsewhere, true, false),
+        (ModulesAt::ThisProcess, false, false),
+        (ModulesAt::ThisProcess, true, false),
+    ] {
+        let guard = Guard::for_motions(modules, no_watchdog);
+        let (clock, host, bus, _) = rs232_instant(&[1]);
+        let _me = clock.reserve_participant().enter();
+        let before = host.with_device(|d| d.module(1).unwrap().config_word());
+        let report = bus.module(addr(1)).move_to_guarded(&spec(0.3), guard, &mut |_| {}).unwrap();
+        assert!((report.reached.value() - 0.3).abs() <= 0.001);
+        let events = host.with_device(|d| d.take_events());
+        let online = events.iter().any(|e| e == "module 1 watchdog online");
+        assert_eq!(online, armed, "{modules:?}, no_watchdog {no_watchdog}: {guard:?}, {events:?}");
+        let after = host.with_device(|d| d.module(1).unwrap().config_word());
+        assert_eq!(after, before, "the Config word as it was found");
+        assert!(!host.with_device(|d| d.module(1).unwrap().watchdog_online()));
+    }
 }

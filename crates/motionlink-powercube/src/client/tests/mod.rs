@@ -17,7 +17,7 @@ use motionlink_link::pipe::{Direction, EmulatorHost, FaultControl, PipeConfig};
 use motionlink_link::LinkError;
 
 use crate::client::{BusConfig, Client, ModuleInfo, MoveSpec};
-use crate::model::{ConfigWord, CubeState, Position, Reply, Request, Velocity};
+use crate::model::{Address, ConfigWord, CubeState, Position, Reply, Request, Velocity};
 use crate::sim::SimConfig;
 use crate::Emulator;
 
@@ -49,6 +49,16 @@ fn can(addresses: &[u8]) -> (ManualClock, CanBus<Emulator>, Client) {
     let canbus = CanBus::with_emulator(sim, clock.shared(), CanBusConfig::paced(1_000_000));
     let bus = Client::can(Box::new(canbus.connect()), clock.shared(), BusConfig::can()).unwrap();
     (clock, canbus, bus)
+}
+
+/// The module address `n` (a valid one: the tests name 1..31).
+fn addr(n: u8) -> Address {
+    Address::new(n).unwrap()
+}
+
+/// The module addresses `ns`.
+fn addrs(ns: &[u8]) -> Vec<Address> {
+    ns.iter().map(|&n| addr(n)).collect()
 }
 
 fn secs(s: u64) -> Duration {

@@ -9,15 +9,15 @@ use crate::model::*;
 fn the_watchdog_is_served_in_the_background_and_trips_when_the_session_dies() {
     let (clock, host, bus) = can_host();
     let _me = clock.reserve_participant().enter();
-    bus.enable_watchdog(&[1, 2]).unwrap();
+    bus.enable_watchdog(&addrs(&[1, 2])).unwrap();
     assert!(host.with_device(|d| d.module(1).unwrap().watchdog_online()).unwrap());
-    let m = bus.module(1).unwrap();
+    let m = bus.module(addr(1));
     m.home().unwrap();
     m.wait_home(secs(10), &mut |_| {}).unwrap();
     // Ten seconds of device time with the test thread mostly asleep: the background thread refreshes.
     clock.sleep(secs(10));
     for a in [1, 2] {
-        let s = bus.module(a).unwrap().state().unwrap();
+        let s = bus.module(addr(a)).state().unwrap();
         assert!(!s.contains(StateFlag::CommError), "{s}");
     }
     assert!(bus.watchdog_served());
@@ -32,12 +32,12 @@ fn disabling_the_watchdog_switches_it_off_in_the_modules() {
     // RS232 with the opt-in: the emulator takes address 0 as every module.
     let (clock, host, bus, _) = rs232_with(&[1], BusConfig { watchdog_on_rs232: true, ..BusConfig::rs232() });
     let _me = clock.reserve_participant().enter();
-    bus.enable_watchdog(&[1]).unwrap();
+    bus.enable_watchdog(&addrs(&[1])).unwrap();
     clock.sleep(secs(2));
     bus.disable_watchdog().unwrap();
     assert!(!host.with_device(|d| d.module(1).unwrap().watchdog_online()));
     clock.sleep(secs(2));
-    assert!(!bus.module(1).unwrap().state().unwrap().contains(StateFlag::CommError));
+    assert!(!bus.module(addr(1)).state().unwrap().contains(StateFlag::CommError));
 }
 
 #[test]
@@ -47,21 +47,21 @@ fn six_joints_in_a_control_loop_with_the_watchdog() {
     let _me = clock.reserve_participant().enter();
     bus.broadcast(Broadcast::Home).unwrap();
     for a in &addresses {
-        bus.module(*a).unwrap().wait_home(secs(10), &mut |_| {}).unwrap();
+        bus.module(addr(*a)).wait_home(secs(10), &mut |_| {}).unwrap();
     }
-    bus.enable_watchdog(&addresses).unwrap();
+    bus.enable_watchdog(&addrs(&addresses)).unwrap();
     // 100 cycles of 10 ms: read all positions, command a step towards 0.2 rad.
     let period = Duration::from_millis(10);
     let mut next = clock.now();
     for cycle in 1..=100u32 {
-        let positions = bus.positions(&addresses);
+        let positions = bus.positions(&addrs(&addresses));
         assert!(positions.iter().all(Result::is_ok));
         let target = 0.2 * cycle as f32 / 100.0;
-        let reqs: Vec<(u8, Request)> = addresses
+        let reqs: Vec<(Address, Request)> = addresses
             .iter()
             .map(|a| {
                 (
-                    *a,
+                    addr(*a),
                     Request::Motion(Motion::FStep { pos: Position::native(target), time: Millis(10) }, AckKind::Simple),
                 )
             })
@@ -71,11 +71,11 @@ fn six_joints_in_a_control_loop_with_the_watchdog() {
         clock.sleep_until(next);
     }
     clock.sleep(Duration::from_millis(50));
-    for p in bus.positions(&addresses) {
+    for p in bus.positions(&addrs(&addresses)) {
         assert!((p.unwrap().value() - 0.2).abs() < 1e-4);
     }
     for a in &addresses {
-        assert!(!bus.module(*a).unwrap().state().unwrap().has_fault());
+        assert!(!bus.module(addr(*a)).state().unwrap().has_fault());
     }
     assert!(canbus.frames_carried() > 2_400);
     // The session ends normally: the watchdogs go offline, nothing halts.
@@ -92,14 +92,14 @@ fn arming_the_watchdog_for_a_motion_leaves_the_modules_as_it_found_them() {
     let (clock, canbus, bus) = can(&[1, 2]);
     let _me = clock.reserve_participant().enter();
     assert!(bus.watchdog_reliable());
-    let (m1, m2) = (bus.module(1).unwrap(), bus.module(2).unwrap());
+    let (m1, m2) = (bus.module(addr(1)), bus.module(addr(2)));
     let before1 = m1.config_word().unwrap();
     assert!(!before1.contains(ConfigFlag::WatchdogEnable));
     // Module 2's user keeps the flag set: it must stay set.
     let before2 = m2.config_word().unwrap().with(ConfigFlag::WatchdogEnable);
     m2.set(Param::Config, Value::U32(before2.0)).unwrap();
 
-    bus.enable_watchdog(&[1, 2]).unwrap();
+    bus.enable_watchdog(&addrs(&[1, 2])).unwrap();
     assert!(m1.config_word().unwrap().contains(ConfigFlag::WatchdogEnable));
     assert!(device_view(&canbus, &clock, 1).2 && device_view(&canbus, &clock, 2).2, "online");
     m1.home().unwrap();
@@ -130,8 +130,8 @@ fn arming_the_watchdog_for_a_motion_leaves_the_modules_as_it_found_them() {
 fn a_host_that_dies_while_moving_is_stopped_by_the_watchdog_within_50_ms() {
     let (clock, canbus, bus) = can(&[1]);
     let _me = clock.reserve_participant().enter();
-    bus.enable_watchdog(&[1]).unwrap();
-    let m = bus.module(1).unwrap();
+    bus.enable_watchdog(&addrs(&[1])).unwrap();
+    let m = bus.module(addr(1));
     m.move_ramp(Position::native(2.0), Some(Ramp { vel: Velocity::native(0.2), acc: Acceleration::native(1.0) }))
         .unwrap();
     clock.sleep(secs(1));
@@ -153,8 +153,8 @@ fn a_host_that_dies_while_moving_is_stopped_by_the_watchdog_within_50_ms() {
     // The next session: arming is refused (a life sign would switch the expired watchdog off) and changes
     // nothing; a reset that releases the watchdog brings the module back for good.
     let bus = Client::can(Box::new(canbus.connect()), clock.shared(), BusConfig::can()).unwrap();
-    let m = bus.module(1).unwrap();
-    let err = bus.enable_watchdog(&[1]).unwrap_err();
+    let m = bus.module(addr(1));
+    let err = bus.enable_watchdog(&addrs(&[1])).unwrap_err();
     assert!(matches!(err, Error::Device { address: 1, state } if state.contains(StateFlag::CommError)), "{err}");
     assert!(device_view(&canbus, &clock, 1).2, "still online");
     assert!(m.reset_and_release_watchdog().unwrap());
@@ -164,7 +164,7 @@ fn a_host_that_dies_while_moving_is_stopped_by_the_watchdog_within_50_ms() {
     // A reset of a module whose watchdog did not expire is a plain reset.
     assert!(!m.reset_and_release_watchdog().unwrap());
     // And the watchdog arms again (the Config flag the dead session left is kept).
-    bus.enable_watchdog(&[1]).unwrap();
+    bus.enable_watchdog(&addrs(&[1])).unwrap();
     bus.disable_watchdog().unwrap();
     assert!(m.config_word().unwrap().contains(ConfigFlag::WatchdogEnable));
     use crate::model::Acceleration;
@@ -174,13 +174,13 @@ fn a_host_that_dies_while_moving_is_stopped_by_the_watchdog_within_50_ms() {
 fn a_watchdog_another_host_serves_is_not_released() {
     let (clock, canbus, host_a) = can(&[1]);
     let _me = clock.reserve_participant().enter();
-    host_a.enable_watchdog(&[1]).unwrap();
+    host_a.enable_watchdog(&addrs(&[1])).unwrap();
     // Three refreshes in a row are lost: the module halts, though host A is alive and keeps refreshing.
     canbus.drop_next_to_device(3);
     clock.sleep(Duration::from_millis(200));
     assert!(device_view(&canbus, &clock, 1).0.contains(StateFlag::CommError));
     let host_b = Client::can(Box::new(canbus.connect()), clock.shared(), BusConfig::can()).unwrap();
-    assert!(!host_b.module(1).unwrap().reset_and_release_watchdog().unwrap(), "host A serves it");
+    assert!(!host_b.module(addr(1)).reset_and_release_watchdog().unwrap(), "host A serves it");
     clock.sleep(secs(1));
     let (state, _, online, _) = device_view(&canbus, &clock, 1);
     assert!(online, "host B did not toggle host A's watchdog");
@@ -196,7 +196,7 @@ fn rs232_arms_the_watchdog_with_libm5api_broadcasts_unless_told_not_to() {
     let (clock, host, bus, _) = rs232(&[1]);
     let _me = clock.reserve_participant().enter();
     assert!(bus.watchdog_reliable());
-    bus.enable_watchdog(&[1]).unwrap();
+    bus.enable_watchdog(&addrs(&[1])).unwrap();
     assert!(host.with_device(|d| d.module(1).unwrap().watchdog_online()));
     clock.sleep(secs(2));
     assert!(!host.with_device(|d| d.module(1).unwrap().state().has_fault()), "served for 2 s");
@@ -209,7 +209,7 @@ fn rs232_arms_the_watchdog_with_libm5api_broadcasts_unless_told_not_to() {
     let _me = clock.reserve_participant().enter();
     assert!(!bus.watchdog_reliable());
     let sent = faults.bytes_sent(Direction::HostToDevice);
-    let err = bus.enable_watchdog(&[1]).unwrap_err();
+    let err = bus.enable_watchdog(&addrs(&[1])).unwrap_err();
     assert!(matches!(err, Error::Unsupported(_)) && err.is_usage(), "{err}");
     assert!(err.to_string().contains("watchdog_on_rs232"), "the setting is named: {err}");
     assert_eq!(faults.bytes_sent(Direction::HostToDevice), sent, "nothing was sent");
@@ -230,7 +230,7 @@ fn a_broadcast_home_sets_only_known_modules_moving_and_the_drop_is_quick() {
     bus.broadcast(Broadcast::Home).unwrap();
     assert_eq!(bus.started(), vec![1, 2], "the modules that exist, not 1..31");
     // Module 1 is seen to end homing; module 2 ends it unwatched and sits idle.
-    bus.module(1).unwrap().wait_home(secs(10), &mut |_| {}).unwrap();
+    bus.module(addr(1)).wait_home(secs(10), &mut |_| {}).unwrap();
     clock.sleep(secs(2));
     assert_eq!(bus.started(), vec![2]);
     let t0 = clock.now();
@@ -249,11 +249,11 @@ fn a_broadcast_home_sets_only_known_modules_moving_and_the_drop_is_quick() {
 fn a_drop_halts_a_known_module_still_homing_but_not_for_an_address_that_never_answered() {
     let (clock, host, bus, _) = rs232(&[1, 2]);
     let _me = clock.reserve_participant().enter();
-    bus.module(1).unwrap().state().unwrap();
+    bus.module(addr(1)).state().unwrap();
     bus.broadcast(Broadcast::Home).unwrap();
     // Module 2 exists but the session does not know it; it homes too (no harm) and is idle at the drop.
     // A motion command to an address where nobody is: no acknowledge.
-    let err = bus.module(9).unwrap().motion(Motion::FVel { vel: Velocity::native(0.1) }, AckKind::Simple).unwrap_err();
+    let err = bus.module(addr(9)).motion(Motion::FVel { vel: Velocity::native(0.1) }, AckKind::Simple).unwrap_err();
     assert!(matches!(err, Error::Timeout { address: 9, .. }), "{err}");
     assert_eq!(bus.started(), vec![1, 9]);
     drop(bus);
@@ -270,10 +270,10 @@ fn on_rs232_a_broadcast_halt_does_not_forget_what_was_started() {
     let _me = clock.reserve_participant().enter();
     // Real RS232 modules may ignore address 0, where the client sends broadcasts.
     host.with_device(|d| d.set_rs232_broadcasts(false));
-    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.3) }, AckKind::Simple).unwrap();
+    bus.module(addr(1)).motion(Motion::FVel { vel: Velocity::native(0.3) }, AckKind::Simple).unwrap();
     bus.broadcast(Broadcast::Halt).unwrap();
     clock.sleep(Duration::from_millis(500));
-    assert!(bus.module(1).unwrap().state().unwrap().contains(StateFlag::Motion), "the broadcast was ignored");
+    assert!(bus.module(addr(1)).state().unwrap().contains(StateFlag::Motion), "the broadcast was ignored");
     assert_eq!(bus.started(), vec![1], "so the session still counts module 1 as moving");
     drop(bus);
     let s = host.with_device(|d| d.module(1).unwrap().state());
@@ -282,7 +282,7 @@ fn on_rs232_a_broadcast_halt_does_not_forget_what_was_started() {
     // On CAN a broadcast is the manual's and reaches every module: it ends the list.
     let (clock, canbus, bus) = can(&[1]);
     let _me = clock.reserve_participant().enter();
-    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.3) }, AckKind::Simple).unwrap();
+    bus.module(addr(1)).motion(Motion::FVel { vel: Velocity::native(0.3) }, AckKind::Simple).unwrap();
     bus.broadcast(Broadcast::Halt).unwrap();
     assert!(bus.started().is_empty());
     clock.sleep(Duration::from_millis(1)); // the frame's time on the bus
@@ -294,8 +294,8 @@ fn a_normal_drop_switches_the_watchdog_off_and_a_new_session_can_arm_it_again() 
     let (clock, canbus, bus) = can(&[1, 2]);
     let _me = clock.reserve_participant().enter();
     let before = device_view(&canbus, &clock, 1).3;
-    bus.enable_watchdog(&[1, 2]).unwrap();
-    let m = bus.module(1).unwrap();
+    bus.enable_watchdog(&addrs(&[1, 2])).unwrap();
+    let m = bus.module(addr(1));
     m.home().unwrap();
     m.wait_home(secs(10), &mut |_| {}).unwrap();
     m.motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
@@ -314,8 +314,8 @@ fn a_normal_drop_switches_the_watchdog_off_and_a_new_session_can_arm_it_again() 
     assert!(!device_view(&canbus, &clock, 2).0.contains(StateFlag::Halted));
     // A new session arms them again (a watchdog left online and expired would be refused).
     let bus = Client::can(Box::new(canbus.connect()), clock.shared(), BusConfig::can()).unwrap();
-    bus.module(1).unwrap().reset().unwrap();
-    bus.enable_watchdog(&[1, 2]).unwrap();
+    bus.module(addr(1)).reset().unwrap();
+    bus.enable_watchdog(&addrs(&[1, 2])).unwrap();
     assert!(device_view(&canbus, &clock, 1).2 && device_view(&canbus, &clock, 2).2);
     drop(bus);
     clock.sleep(secs(1));
@@ -326,8 +326,8 @@ fn a_normal_drop_switches_the_watchdog_off_and_a_new_session_can_arm_it_again() 
 fn a_session_that_failed_leaves_the_watchdog_armed_on_drop() {
     let (clock, canbus, bus) = can(&[1, 2]);
     let _me = clock.reserve_participant().enter();
-    bus.enable_watchdog(&[1, 2]).unwrap();
-    bus.module(1).unwrap().motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
+    bus.enable_watchdog(&addrs(&[1, 2])).unwrap();
+    bus.module(addr(1)).motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
     // The modules' answers are lost from now on: the drop cannot see module 1 stop.
     canbus.drop_next_from_device(u64::MAX);
     drop(bus);
@@ -394,8 +394,8 @@ fn can_losing(addresses: &[u8], outgoing: bool) -> (ManualClock, CanBus<Emulator
 fn a_lost_life_sign_is_reported_and_never_toggled_again_blindly() {
     let (clock, canbus, bus) = can_losing(&[1, 2], true);
     let _me = clock.reserve_participant().enter();
-    let before = bus.module(1).unwrap().config_word().unwrap();
-    let err = bus.enable_watchdog(&[1, 2]).unwrap_err();
+    let before = bus.module(addr(1)).config_word().unwrap();
+    let err = bus.enable_watchdog(&addrs(&[1, 2])).unwrap_err();
     assert!(matches!(err, Error::WatchdogUnconfirmed { address: 1, on: true, .. }), "{err}");
     assert!(err.to_string().contains("module 1"), "{err}");
     // Module 1 never got the toggle; module 2 did.
@@ -411,7 +411,7 @@ fn a_lost_life_sign_is_reported_and_never_toggled_again_blindly() {
         assert!(!online, "module {a}");
         assert!(!state.has_fault(), "module {a}: {state}");
     }
-    assert_eq!(bus.module(1).unwrap().config_word().unwrap(), before, "Config word restored");
+    assert_eq!(bus.module(addr(1)).config_word().unwrap(), before, "Config word restored");
     clock.sleep(secs(1));
     assert!(!device_view(&canbus, &clock, 1).2, "still offline");
 }
@@ -420,7 +420,7 @@ fn a_lost_life_sign_is_reported_and_never_toggled_again_blindly() {
 fn a_lost_acknowledge_of_the_life_sign_is_found_out_when_switching_off() {
     let (clock, canbus, bus) = can_losing(&[1], false);
     let _me = clock.reserve_participant().enter();
-    let err = bus.enable_watchdog(&[1]).unwrap_err();
+    let err = bus.enable_watchdog(&addrs(&[1])).unwrap_err();
     assert!(matches!(err, Error::WatchdogUnconfirmed { address: 1, on: true, .. }), "{err}");
     // The toggle did arrive: the watchdog is online and the session refreshes it.
     assert!(device_view(&canbus, &clock, 1).2);
@@ -433,7 +433,7 @@ fn a_lost_acknowledge_of_the_life_sign_is_found_out_when_switching_off() {
     assert!(online && state.contains(StateFlag::CommError) && state.contains(StateFlag::Halted), "{state}");
     assert!(config.contains(ConfigFlag::WatchdogEnable), "Config word left as is");
     // The manual's way back.
-    assert!(bus.module(1).unwrap().reset_and_release_watchdog().unwrap());
+    assert!(bus.module(addr(1)).reset_and_release_watchdog().unwrap());
     assert!(!device_view(&canbus, &clock, 1).2);
     drop(bus);
     assert!(!device_view(&canbus, &clock, 1).3.contains(ConfigFlag::WatchdogEnable), "restored on drop");
@@ -443,7 +443,7 @@ fn a_lost_acknowledge_of_the_life_sign_is_found_out_when_switching_off() {
 fn the_watchdog_refresh_keeps_absolute_deadlines() {
     let (clock, canbus, bus) = can(&[1]);
     let _me = clock.reserve_participant().enter();
-    bus.enable_watchdog(&[1]).unwrap();
+    bus.enable_watchdog(&addrs(&[1])).unwrap();
     let due0 = bus.session(|s| s.watchdog_next_due()).unwrap();
     clock.sleep(Duration::from_millis(1_000));
     let due = bus.session(|s| s.watchdog_next_due()).unwrap();

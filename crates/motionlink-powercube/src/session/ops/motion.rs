@@ -351,12 +351,13 @@ impl Ctx {
             // A NaN reading is not within any tolerance.
             let within = difference.abs() <= tolerance.value();
             if !within {
+                let unit = reached.unit();
                 return Err(Error::NotReached {
                     address: a,
-                    target: spec.target.value(),
-                    reached: reached.value(),
-                    difference,
-                    tolerance: tolerance.value(),
+                    target: Position::new(spec.target.value(), unit),
+                    reached,
+                    difference: Position::new(difference, unit),
+                    tolerance: Position::new(tolerance.value(), unit),
                     state,
                 });
             }

@@ -1,7 +1,7 @@
 //! Runs each [`Op`] on its state machine.
 
 use crate::error::Error;
-use crate::model::{AckKind, Motion, Param, Position, Request, Ticks, Value};
+use crate::model::{AckKind, Address, Motion, Param, Position, Request, Ticks, Value};
 use crate::session::ctx::Ctx;
 use crate::session::{Op, Output};
 
@@ -10,6 +10,7 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
     Ok(match op {
         Op::Request(a, r) => Output::Reply(ctx.raw_request(a.get(), r).await?),
         Op::RequestMany(rs) => {
+            let rs: Vec<(u8, Request)> = rs.into_iter().map(|(a, r)| (a.get(), r)).collect();
             let replies = ctx.request_many(&rs).await;
             if ctx.cancelled() {
                 for (a, r) in rs.iter().filter(|(_, r)| r.starts_motion()) {
@@ -19,8 +20,8 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
             }
             Output::Replies(replies)
         }
-        Op::ReadMany(addresses, p) => Output::Values(ctx.read_many(&addresses, p).await),
-        Op::Positions(addresses) => Output::Positions(ctx.positions(&addresses).await),
+        Op::ReadMany(addresses, p) => Output::Values(ctx.read_many(&numbers(&addresses), p).await),
+        Op::Positions(addresses) => Output::Positions(ctx.positions(&numbers(&addresses)).await),
         Op::Broadcast(b) => {
             ctx.broadcast(b).await?;
             Output::Done
@@ -95,7 +96,7 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
             Output::Done
         }
         Op::EnableWatchdog(addresses) => {
-            ctx.enable_watchdog(&addresses).await?;
+            ctx.enable_watchdog(&numbers(&addresses)).await?;
             Output::Done
         }
         Op::DisableWatchdog => {
@@ -104,4 +105,9 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
         }
         Op::ResetAndReleaseWatchdog(a) => Output::Released(ctx.reset_and_release_watchdog(a.get()).await?),
     })
+}
+
+/// The numbers of `addresses`, as the session's steps take them.
+fn numbers(addresses: &[Address]) -> Vec<u8> {
+    addresses.iter().map(|a| a.get()).collect()
 }

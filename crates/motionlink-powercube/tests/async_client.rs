@@ -1,0 +1,124 @@
+//! The async client on tokio against the in-process emulator (two rotary modules on the in-memory CAN bus
+//! at 1 Mbit/s, real time): the operations the blocking client has beyond the checked move, with the same
+//! results. Waits are on the module's state, never fixed sleeps.
+
+use std::time::Duration;
+
+use motionlink_link::can::{CanBus, CanBusConfig};
+use motionlink_link::RealClock;
+use motionlink_powercube::client::{AsyncClient, BusConfig, StopOutcome};
+use motionlink_powercube::model::{
+    Acceleration, Address, AxisUnit, ConfigFlag, ModuleKind, Param, Position, Ramp, Reply, Request, ShortFlag,
+    StateFlag, Value, Velocity,
+};
+use motionlink_powercube::sim::SimConfig;
+use motionlink_powercube::{Emulator, Error};
+
+fn setup() -> (CanBus<Emulator>, AsyncClient) {
+    let clock = RealClock::shared();
+    let sim = Emulator::new_can(&SimConfig::with_addresses(&[1, 2]).unwrap());
+    let bus = CanBus::with_emulator(sim, clock.clone(), CanBusConfig::paced(1_000_000));
+    let client = AsyncClient::can(Box::new(bus.connect()), clock, BusConfig::can()).unwrap();
+    (bus, client)
+}
+
+fn run(test: impl std::future::Future<Output = ()>) {
+    tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap().block_on(test)
+}
+
+fn a(n: u8) -> Address {
+    Address::new(n).unwrap()
+}
+
+fn emulator_events(bus: &CanBus<Emulator>, prefix: &str) -> Vec<String> {
+    bus.with_device(|d| d.take_events()).unwrap_or_default().into_iter().filter(|e| e.starts_with(prefix)).collect()
+}
+
+#[test]
+fn async_home_starts_without_waiting_and_wait_home_sees_it_end() {
+    run(async {
+        let (_bus, client) = setup();
+        let m = client.module(a(1));
+        assert!(!m.state().await.unwrap().contains(StateFlag::HomeOk));
+        m.home().await.unwrap();
+        // `home` returned on the acknowledge: the module is still on its way to the home switch.
+        let during = m.state().await.unwrap();
+        assert!(during.contains(StateFlag::Motion) && !during.contains(StateFlag::HomeOk), "{during}");
+        assert_eq!(client.started(), vec![a(1)], "a Home counts as setting the module in motion");
+        let end = m.wait_home(Duration::from_secs(5)).await.unwrap();
+        assert!(end.contains(StateFlag::HomeOk) && !end.contains(StateFlag::Motion), "{end}");
+        assert!(client.started().is_empty(), "the wait saw it stop");
+        client.close().await.unwrap();
+    })
+}
+
+#[test]
+fn async_move_ramp_runs_to_its_target_and_wait_motion_end_waits_for_it() {
+    run(async {
+        let (_bus, client) = setup();
+        let m = client.module(a(1));
+        m.home().await.unwrap();
+        m.wait_home(Duration::from_secs(5)).await.unwrap();
+        assert_eq!(m.kind().await.unwrap(), ModuleKind::Rotary);
+        let ramp = Ramp { vel: Velocity::rad_per_s(1.0), acc: Acceleration::rad_per_s2(2.0) };
+        m.move_ramp(Position::rad(0.3), Some(ramp)).await.unwrap();
+        assert!(m.state().await.unwrap().contains(StateFlag::Motion), "the ramp runs after its acknowledge");
+        let end = m.wait_motion_end(Duration::from_secs(5)).await.unwrap();
+        assert!(!end.contains(StateFlag::Motion) && end.contains(StateFlag::RampEnd), "{end}");
+        let at = m.position().await.unwrap();
+        assert_eq!(at.unit(), AxisUnit::Radian);
+        assert!((at.value() - 0.3).abs() < 1e-3, "{at}");
+        // The other reads of the blocking module, on the same position.
+        let (fpos, short, _dio) = m.position_state_dio().await.unwrap();
+        assert!((fpos.value() - 0.3).abs() < 1e-3 && short.contains(ShortFlag::RampEnd), "{fpos} {short:?}");
+        let ticks = m.position_ticks().await.unwrap();
+        let ratio = 4096.0 * 100.0 / std::f64::consts::TAU; // the emulator's default encoder ticks per rad
+        assert!((f64::from(ticks.0) - 0.3 * ratio).abs() < 0.01 * ratio, "{ticks:?}");
+        assert!(!m.config_word().await.unwrap().contains(ConfigFlag::Linear));
+        // A ramp in m to a rotary module is refused before anything is sent.
+        assert!(matches!(m.move_ramp(Position::m(0.1), None).await, Err(Error::UnitMismatch { .. })));
+        client.close().await.unwrap();
+    })
+}
+
+#[test]
+fn async_stop_motion_halts_a_running_ramp_and_says_the_module_confirmed_it() {
+    run(async {
+        let (bus, client) = setup();
+        let m = client.module(a(1));
+        m.home().await.unwrap();
+        m.wait_home(Duration::from_secs(5)).await.unwrap();
+        let ramp = Ramp { vel: Velocity::rad_per_s(0.2), acc: Acceleration::rad_per_s2(2.0) };
+        m.move_ramp(Position::rad(2.0), Some(ramp)).await.unwrap();
+        assert!(m.state().await.unwrap().contains(StateFlag::Motion));
+        assert_eq!(m.stop_motion().await, StopOutcome::Confirmed);
+        let after = m.state().await.unwrap();
+        assert!(after.contains(StateFlag::Halted) && !after.contains(StateFlag::Motion), "{after}");
+        assert!(m.position().await.unwrap().value() < 1.0, "stopped on its way");
+        assert!(client.started().is_empty());
+        assert!(emulator_events(&bus, "module 1").iter().any(|e| e == "module 1 halted"));
+        // Halted stays halted until a reset; the reset clears it.
+        m.reset().await.unwrap();
+        assert!(!m.state().await.unwrap().contains(StateFlag::Halted));
+        client.close().await.unwrap();
+    })
+}
+
+#[test]
+fn async_request_many_answers_each_request_and_refuses_a_bad_one_alone() {
+    run(async {
+        let (_bus, client) = setup();
+        let serial = Request::get(Param::DefCubeSerial).unwrap();
+        let write_read_only = Request::Set(Param::DefCubeSerial, Value::U32(7));
+        let replies =
+            client.request_many(&[(a(1), serial), (a(2), serial), (a(1), write_read_only), (a(2), serial)]).await;
+        assert_eq!(replies.len(), 4);
+        assert_eq!(replies[0].as_ref().unwrap(), &Reply::Get(Param::DefCubeSerial, Value::U32(1001)));
+        assert_eq!(replies[1].as_ref().unwrap(), &Reply::Get(Param::DefCubeSerial, Value::U32(1002)));
+        assert!(matches!(replies[2], Err(Error::Model(_))), "{:?}", replies[2]);
+        assert_eq!(replies[3].as_ref().unwrap(), &Reply::Get(Param::DefCubeSerial, Value::U32(1002)));
+        assert_eq!(client.known(), vec![a(1), a(2)]);
+        assert!(client.started().is_empty(), "reads set nothing in motion");
+        client.close().await.unwrap();
+    })
+}
