@@ -170,6 +170,24 @@ pub fn exchange(telegrams: &[Annotation], request: Option<&[u8]>) -> (Option<Ann
     (Some(telegrams[i].clone()), reply)
 }
 
+/// The telegram `send` sent and the reply to it, among the telegrams a command that may wait saw: the first
+/// telegram to the device whose bytes contain `request` (else the first one to the device) and the first
+/// telegram from the device after it. The third part is every telegram after that reply (the status polls
+/// of a wait, with their replies).
+pub fn first_exchange(
+    telegrams: &[Annotation],
+    request: &[u8],
+) -> (Option<Annotation>, Option<Annotation>, Vec<Annotation>) {
+    let contains = |a: &Annotation| !request.is_empty() && a.bytes.windows(request.len()).any(|w| w == request);
+    let to_device = |a: &Annotation| a.direction == Direction::ToDevice;
+    let sent =
+        telegrams.iter().position(|a| to_device(a) && contains(a)).or_else(|| telegrams.iter().position(to_device));
+    let Some(i) = sent else { return (None, None, Vec::new()) };
+    let reply = telegrams[i + 1..].iter().position(|a| a.direction == Direction::FromDevice).map(|j| i + 1 + j);
+    let rest_from = reply.map_or(i + 1, |j| j + 1);
+    (Some(telegrams[i].clone()), reply.map(|j| telegrams[j].clone()), telegrams[rest_from..].to_vec())
+}
+
 /// Prints the request and the reply `send` saw, as text lines (`-> ...`, `<- ...`, or `request: none`); with
 /// `json`, prints nothing and returns them as JSON for the command's one object.
 pub fn print_exchange(

@@ -8,3 +8,4 @@ mod console;
 mod general_cli;
 mod powercube_cli;
 mod scu_cli;
+mod shared_cli;

@@ -39,12 +39,65 @@ fn the_manual_page_comes_from_the_same_definitions() {
     }
 }
 
+/// `man --dir` writes the page of every command the pages name: the families' pages have `--port` and
+/// their actions, every page its EXIT STATUS, the top page ENVIRONMENT and FILES.
+#[test]
+fn the_manual_pages_cover_the_whole_tree() {
+    let dir = common::temp_path("man");
+    let out = run(&["man", "--dir", dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{out:?}");
+    let page =
+        |name: &str| std::fs::read_to_string(dir.join(format!("{name}.1"))).unwrap_or_else(|e| panic!("{name}.1: {e}"));
+    let top = page("motionlink");
+    for family in ["scu", "powercube", "compax"] {
+        assert!(top.contains(&format!("motionlink\\-{family}(1)")), "the top page names {family}'s page");
+        let p = page(&format!("motionlink-{family}"));
+        assert!(p.contains("\\-\\-port"), "{family}: --port");
+        for action in ["get", "set", "send", "watch", "move"] {
+            assert!(p.contains(&format!("motionlink\\-{family}\\-{action}(1)")), "{family} {action}");
+            page(&format!("motionlink-{family}-{action}"));
+        }
+        assert!(p.contains("MOTIONLINK_PORT"), "{family}: ENVIRONMENT");
+    }
+    assert!(page("motionlink-scu-move").contains("\\-\\-speed"));
+    for section in ["ENVIRONMENT", "FILES", "EXIT STATUS", "MOTIONLINK_CONFIG", "NO_COLOR", "devices.toml", "128+n"] {
+        assert!(top.contains(section), "the top page lacks {section}");
+    }
+    for code in ["0", "1", "2", "3"] {
+        assert!(top.contains(&format!(".TP\n\\fB{code}\\fR")), "exit code {code}: {top}");
+    }
+    assert!(page("motionlink-decode-scu").contains("EXIT STATUS"));
+    let _ = std::fs::remove_dir_all(&dir);
+    // On stdout: the top page with the same sections.
+    let out = run(&["man"]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("EXIT STATUS"), "{out:?}");
+}
+
+/// `--color` reaches clap's own messages too (a usage error clap finds), read before clap parses.
+#[test]
+fn clap_messages_follow_the_color_option() {
+    let bad = ["scu", "--no-such-option"];
+    let colored = |args: &[&str], env: &[(&str, &str)]| {
+        let o = common::run_with(args, env, "");
+        assert_eq!(o.status.code(), Some(2), "{o:?}");
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(err.contains("no-such-option"), "{err}");
+        err.contains('\x1b')
+    };
+    assert!(colored(&[&["--color", "always"][..], &bad].concat(), &[]), "--color always: ANSI even into a pipe");
+    assert!(colored(&[&bad[..], &["--color=always"]].concat(), &[]), "after the action, as --color=always");
+    assert!(!colored(&[&["--color", "never"][..], &bad].concat(), &[]), "--color never: none");
+    assert!(!colored(&bad, &[]), "auto into a pipe: none");
+    assert!(!colored(&[&["--color", "auto"][..], &bad].concat(), &[("NO_COLOR", "1")]), "NO_COLOR");
+}
+
 #[test]
 fn list_ports_prints_json_that_parses() {
     let out = run(&["list-ports", "--json"]);
     assert!(out.status.success(), "{out:?}");
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    for p in v.as_array().unwrap() {
+    // One object per port (JSON Lines).
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        let p: serde_json::Value = serde_json::from_str(line).unwrap();
         assert!(p["port"].is_string() && ["serial", "can"].contains(&p["kind"].as_str().unwrap()), "{p}");
     }
 }

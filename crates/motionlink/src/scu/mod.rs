@@ -122,11 +122,12 @@ pub enum Action {
         #[arg(allow_negative_numbers = true)]
         value: String,
     },
-    /// Send one telegram and print it and the reply, each explained: typed (RG ITEM, RT ITEM VALUE,
-    /// RE FUNCTION [DIRECTION|P0 [P1]], RS FUNCTION [fast|soft]) or as hex ("52 47 11 00 2C 30"). RO, RA and
-    /// RC belong to the session and are refused; a function an RE starts is stopped (RS) when the command ends.
+    /// Send one telegram and print it and the reply, each explained. Takes a typed request (RG ITEM, RT ITEM
+    /// VALUE, RE FUNCTION [DIRECTION|P0 [P1]], RS FUNCTION [fast|soft]) or the whole telegram in hex (command,
+    /// data and CRC: "52 47 11 00 2C 30"; the CRC is checked). RO, RA and RC belong to the session and are
+    /// refused; a function an RE starts is stopped (RS) when the command ends.
     Send {
-        /// The request's words, or its bytes in hex.
+        /// The request's words, or the whole telegram in hex.
         #[arg(required = true, value_name = "WORD", allow_negative_numbers = true)]
         words: Vec<String>,
     },

@@ -128,9 +128,13 @@ impl Sim {
         let stderr = Lines::follow(child.stderr.take().expect("piped stderr"));
         let mut line = String::new();
         BufReader::new(child.stdout.take().expect("piped stdout")).read_line(&mut line).expect("read its first line");
-        let address = line
-            .trim()
-            .strip_prefix("listening on pty ")
+        // `listening on ADDRESS`, or with --json `{"listening": ADDRESS, ...}`.
+        let from_json = serde_json::from_str::<serde_json::Value>(&line)
+            .ok()
+            .and_then(|v| v["listening"].as_str().map(str::to_string));
+        let address = from_json
+            .as_deref()
+            .or_else(|| line.trim().strip_prefix("listening on pty "))
             .or_else(|| line.trim().strip_prefix("listening on "))
             .unwrap_or_else(|| panic!("unexpected first line {line:?}; stderr: {}", stderr.text()))
             .to_string();

@@ -49,8 +49,12 @@ fn get_prints_a_table_or_json_with_a_value_field() {
     assert_eq!(v["name"], "actual_position_a1");
     let v = json(&scu(&sim.address, &["--json", "get", "remote_speed_f1"]));
     assert_eq!(v["value"], 100);
+    assert_eq!(v["unit"], "%", "the unit in force (--speed-mode percent), not both: {v}");
+    let v = json(&scu(&sim.address, &["--json", "--speed-mode", "counts-per-second", "get", "remote_speed_f1"]));
+    assert_eq!(v["unit"], "counts/s", "{v}");
     let group = json(&scu(&sim.address, &["get", "actuator_status1", "--json"]));
-    assert_eq!(group["value"]["actuator_status1_a1"]["set"][0], "available");
+    assert_eq!(group["value"]["actuator_status1_a1"]["flags"][0], "available");
+    assert!(group["value"]["actuator_status1_a1"]["word"].is_number(), "a flag word has its word: {group}");
     let table = stdout(&scu(&sim.address, &["get", "error_codes"]));
     assert_eq!(table.lines().count(), 5, "{table}");
 }
@@ -132,7 +136,7 @@ fn run_switches_a_function_for_a_while_and_stops_it() {
     let out = scu(&sim.address, &["run", "F11", "on", "--seconds", "0.2"]);
     assert!(out.status.success(), "{out:?}");
     let buzzer = json(&scu(&sim.address, &["get", "buzzer", "--json"]));
-    assert_eq!(buzzer["value"]["bits"], 0, "the buzzer is off again after run");
+    assert_eq!(buzzer["value"]["word"], 0, "the buzzer is off again after run");
 }
 
 #[test]
@@ -521,7 +525,7 @@ fn set_reads_the_value_back() {
     assert!(out.status.success(), "{out:?}");
     assert!(stdout(&out).contains("321 counts (written, read back)"), "{}", stdout(&out));
     let v = json(&scu(&sim.address, &["set", "remote_speed_f1", "33", "--json"]));
-    assert_eq!(v["read_back"], true);
+    assert_eq!((&v["value"], &v["read_back"], &v["verified"]), (&33.into(), &33.into(), &true.into()), "{v}");
 }
 
 #[test]
