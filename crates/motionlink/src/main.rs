@@ -219,9 +219,39 @@ fn clap_color(args: &[std::ffi::OsString]) -> clap::ColorChoice {
     }
 }
 
+/// `word` as clap takes a negative number, if it is one that clap would take for an option: clap knows `-3`,
+/// `-0.5` and `-1e5`, not `-.5` or `-1e-1`; those are given as the shortest decimal of the same `f64`
+/// (`-0.5`, `-0.1`). Anything else (options, `-inf`, words) is left alone.
+fn negative_number(word: &std::ffi::OsStr) -> Option<std::ffi::OsString> {
+    let text = word.to_str()?;
+    let rest = text.strip_prefix('-')?;
+    let clap_takes_it = rest.starts_with(|c: char| c.is_ascii_digit())
+        && rest.bytes().all(|b| b.is_ascii_digit() || b == b'.' || b == b'e' || b == b'E');
+    if clap_takes_it || !rest.bytes().any(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    let value: f64 = text.parse().ok().filter(|v: &f64| v.is_finite())?;
+    Some(format!("{value}").into())
+}
+
+/// The command line with negative numbers in the form clap takes ([`negative_number`]); nothing after `--`
+/// is changed.
+fn with_negative_numbers(args: Vec<std::ffi::OsString>) -> Vec<std::ffi::OsString> {
+    let mut escaped = false;
+    args.into_iter()
+        .map(|a| {
+            escaped |= a == "--";
+            match negative_number(&a) {
+                Some(n) if !escaped => n,
+                _ => a,
+            }
+        })
+        .collect()
+}
+
 /// Parses the command line; with `--json` anywhere in it, a usage error is the JSON error object.
 fn parse() -> Cli {
-    let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    let args = with_negative_numbers(std::env::args_os().collect());
     let command = Cli::command().color(clap_color(&args));
     let parsed = command.try_get_matches_from(&args).and_then(|m| <Cli as clap::FromArgMatches>::from_arg_matches(&m));
     match parsed {

@@ -218,3 +218,58 @@ fn powercube_send_takes_a_whole_rs232_telegram() {
     assert!(help.contains("whole RS232 telegram") && help.contains("home or move"), "{help}");
     assert!(!help.contains("reset, home"), "home is not listed as typed: {help}");
 }
+
+/// The options shared by the families have the same unit-named spelling everywhere (`--interval-ms`,
+/// `--poll-ms`, `--timeout-ms`); the SCU's old spellings still work but are not shown.
+#[test]
+fn option_names_are_the_same_in_every_family() {
+    let help = |args: &[&str]| String::from_utf8_lossy(&run_with(args, &[], "").stdout).into_owned();
+    for family in ["scu", "powercube", "compax"] {
+        let top = help(&[family, "--help"]);
+        assert!(top.contains("--timeout-ms"), "{family}: {top}");
+        assert!(help(&[family, "watch", "--help"]).contains("--interval-ms"), "{family} watch");
+        let poll = if family == "compax" { help(&[family, "move", "--help"]) } else { top.clone() };
+        assert!(poll.contains("--poll-ms"), "{family}: --poll-ms");
+        for old in ["--reply-timeout", "--poll-interval"] {
+            assert!(!top.contains(old), "{family}: the old name {old} is hidden: {top}");
+        }
+    }
+    let scu = Sim::tcp("scu");
+    let old = run_with(
+        &[
+            "scu",
+            "--port",
+            &scu.address,
+            "--reply-timeout",
+            "500",
+            "--poll-interval",
+            "20",
+            "watch",
+            "--interval",
+            "10",
+            "--count",
+            "1",
+        ],
+        &[],
+        "",
+    );
+    assert!(old.status.success(), "the old spellings: {old:?}");
+}
+
+/// Negative numbers in every form a number takes are values, not options: `-1e-1`, `-.3`.
+#[test]
+fn negative_numbers_in_every_form_are_values() {
+    let pc = Sim::tcp("powercube");
+    for (arg, expected) in [("-1e-1", -0.1), ("-.3", -0.3)] {
+        let m = &objects(&["--json", "powercube", "--port", &pc.address, "move", arg])[0];
+        assert!((m["target_rad"].as_f64().unwrap() - expected).abs() < 1e-6, "{arg}: {m}");
+    }
+    let cx = Sim::tcp("compax");
+    let m = &objects(&["compax", "--port", &cx.address, "move", "--abs", "-.5", "--json"])[0];
+    assert_eq!(m["reached_units"], -0.5, "{m}");
+    let o = run_with(&["compax", "--port", &cx.address, "set", "P003", "-1.5e-1"], &[], "");
+    assert!(o.status.success(), "{o:?}");
+    // An option that only looks like one stays an option: refused, named.
+    let o = run_with(&["compax", "--port", &cx.address, "move", "-abs"], &[], "");
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
+}

@@ -87,7 +87,7 @@ pub(super) fn every_action_speaks_json_and_send_names_get_watch_csv() {
         assert_eq!(scu(p, refused).status.code(), Some(2), "{refused:?}");
     }
 
-    let csv = stdout(&scu(p, &["watch", "--count", "2", "--csv", "--interval", "10"]));
+    let csv = stdout(&scu(p, &["watch", "--count", "2", "--csv", "--interval-ms", "10"]));
     let rows: Vec<&str> = csv.lines().collect();
     assert_eq!(rows[0], "t_s,actuator,position_counts,moving,current_amps,last_error_code");
     assert_eq!(rows.len(), 1 + 2 * 2, "two samples of two actuators: {csv}");
@@ -170,7 +170,7 @@ pub(super) fn the_port_comes_from_device_or_environment() {
 pub(super) fn watch_into_a_closed_pipe_ends_quietly_with_0() {
     let sim = sim_tcp();
     let t0 = unix_now();
-    let (line, ended) = common::head_1(&["scu", "--port", &sim.address, "watch", "--interval", "10"]);
+    let (line, ended) = common::head_1(&["scu", "--port", &sim.address, "watch", "--interval-ms", "10"]);
     assert!(line.contains("A1:"), "{line}");
     assert_eq!(ended.code(), 0, "{ended:?}");
     assert!(ended.stderr.is_empty(), "{ended:?}");

@@ -118,7 +118,7 @@ fn errors_lists_five_codes() {
 #[test]
 fn watch_prints_samples() {
     let sim = sim_tcp();
-    let out = scu(&sim.address, &["watch", "--count", "3", "--interval", "50"]);
+    let out = scu(&sim.address, &["watch", "--count", "3", "--interval-ms", "50"]);
     assert!(out.status.success(), "{out:?}");
     let text = stdout(&out);
     assert_eq!(text.lines().count(), 3, "{text}");
@@ -490,9 +490,9 @@ fn bad_input_is_refused_with_exit_2_before_anything_is_sent() {
         &["move", "7", "100"],
         &["move", "1", "100", "--function", "11"],
         &["--tolerance", "-1", "move", "1", "100"],
-        &["--poll-interval", "0", "move", "1", "100"],
-        &["--poll-interval", "NaN", "move", "1", "100"],
-        &["--reply-timeout", "0", "info"],
+        &["--poll-ms", "0", "move", "1", "100"],
+        &["--poll-ms", "NaN", "move", "1", "100"],
+        &["--timeout-ms", "0", "info"],
         &["--safety", "3", "info"],
         &["--functions", "F11=1", "info"],
         &["--functions", "F1=7", "info"],
@@ -500,7 +500,7 @@ fn bad_input_is_refused_with_exit_2_before_anything_is_sent() {
         &["--stroke", "9=0:100", "info"],
         &["run", "F1", "out", "--seconds", "NaN"],
         &["run", "F1", "out", "--seconds", "-1"],
-        &["watch", "--interval", "0"],
+        &["watch", "--interval-ms", "0"],
         &["watch", "--count", "0"],
         &["follow", "1", "--rate", "0"],
         &["follow", "1", "--rate", "101"],
