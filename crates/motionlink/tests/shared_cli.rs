@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use crate::common;
 
-use common::{run_with, Sim};
+use common::{assert_no_debug_text, run_with, Sim};
 
 /// The JSON objects (one per line) a command printed on stdout; it must have succeeded.
 fn objects(args: &[&str]) -> Vec<serde_json::Value> {
@@ -50,21 +50,6 @@ fn flag_words_are_word_and_flags(what: &str, v: &serde_json::Value) -> usize {
     }
     assert!(nested(v, &|m| m.contains_key("set")).is_empty(), "{what}: `set` is no JSON name: {v}");
     words.len()
-}
-
-/// Asserts that `text` has no programming-language debug text: `Some(`, `None`, `\u{` escapes, or a
-/// CamelCase name glued to a parenthesis (`Get(ActPos)`, `CanFrame(123#0102)`).
-pub fn assert_no_debug_text(what: &str, text: &str) {
-    assert!(!text.contains("Some(") && !text.contains("None"), "{what}: {text}");
-    assert!(!text.contains("\\u{"), "{what}: a Rust escape: {text}");
-    for word in text.split(|c: char| !(c.is_ascii_alphanumeric() || c == '(')) {
-        if let Some((name, _)) = word.split_once('(') {
-            let camel = name.starts_with(|c: char| c.is_ascii_uppercase())
-                && name.chars().any(|c| c.is_ascii_lowercase())
-                && name.chars().all(|c| c.is_ascii_alphanumeric());
-            assert!(!camel, "{what}: debug form {word:?} in {text}");
-        }
-    }
 }
 
 /// Move results of every family name target, reached and difference with the same unit suffix; flag words

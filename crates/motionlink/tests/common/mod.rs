@@ -334,3 +334,18 @@ pub fn head_1(args: &[&str]) -> (String, Ended) {
 pub fn temp_path(name: &str) -> std::path::PathBuf {
     std::env::temp_dir().join(format!("motionlink-test-{}-{name}", std::process::id()))
 }
+
+/// Asserts that `text` has no programming-language debug text: `Some(`, `None`, `\u{` escapes, or a
+/// CamelCase name glued to a parenthesis (`Get(ActPos)`, `CanFrame(123#0102)`).
+pub fn assert_no_debug_text(what: &str, text: &str) {
+    assert!(!text.contains("Some(") && !text.contains("None"), "{what}: {text}");
+    assert!(!text.contains("\\u{"), "{what}: a Rust escape: {text}");
+    for word in text.split(|c: char| !(c.is_ascii_alphanumeric() || c == '(')) {
+        if let Some((name, _)) = word.split_once('(') {
+            let camel = name.starts_with(|c: char| c.is_ascii_uppercase())
+                && name.chars().any(|c| c.is_ascii_lowercase())
+                && name.chars().all(|c| c.is_ascii_alphanumeric());
+            assert!(!camel, "{what}: debug form {word:?} in {text}");
+        }
+    }
+}
