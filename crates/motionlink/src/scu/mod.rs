@@ -379,7 +379,7 @@ impl Report<'_> {
 /// `motionlink scu ...`
 pub fn run(args: Args) -> Result<(), CliError> {
     if let Action::Names = args.action {
-        return send::names(args.json, &mut std::io::stdout().lock());
+        return send::names(args.json, args.speed_mode.into(), &mut std::io::stdout().lock());
     }
     // Check everything that can be checked before the port is opened: nothing is sent for bad input.
     let config = client_config(&args)?;

@@ -91,7 +91,7 @@ pub(super) fn candump_x_direction_marks_are_kept() {
         String::from_utf8_lossy(&o.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
     let directions: Vec<&str> = got.iter().map(|v| v["direction"].as_str().unwrap()).collect();
     assert_eq!(directions, ["->", "<-", "->", "<-"], "{got:?}");
-    assert_eq!((&got[2]["frame"], &got[2]["time_s"]), (&"0F1#01".into(), &1_700_000_000.0002.into()), "{got:?}");
+    assert_eq!((&got[2]["frame"], &got[2]["time_s"]), (&"0F1#01".into(), &1_700_000_000.000_2.into()), "{got:?}");
     assert_eq!(got[3]["meaning"], "ack from module 17: Home acknowledged", "{got:?}");
     let text = String::from_utf8_lossy(&decode(input).stdout).into_owned();
     assert!(

@@ -52,6 +52,12 @@ fn get_prints_a_table_or_json_with_a_value_field() {
     assert_eq!(v["unit"], "%", "the unit in force (--speed-mode percent), not both: {v}");
     let v = json(&scu(&sim.address, &["--json", "--speed-mode", "counts-per-second", "get", "remote_speed_f1"]));
     assert_eq!(v["unit"], "counts/s", "{v}");
+    // Currents in amperes, as the library gives them, in `get` and in the names list alike.
+    let v = json(&scu(&sim.address, &["--json", "get", "current_a1"]));
+    assert_eq!((&v["unit"], &v["value"]), (&"A".into(), &0.0.into()), "{v}");
+    let names = stdout(&scu("", &["--json", "names"]));
+    let current = names.lines().find(|l| l.contains("\"current_a1\"")).unwrap();
+    assert!(current.contains("\"unit\":\"A\""), "{current}");
     let group = json(&scu(&sim.address, &["get", "actuator_status1", "--json"]));
     assert_eq!(group["value"]["actuator_status1_a1"]["flags"][0], "available");
     assert!(group["value"]["actuator_status1_a1"]["word"].is_number(), "a flag word has its word: {group}");
