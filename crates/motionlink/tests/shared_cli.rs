@@ -158,6 +158,10 @@ fn compax_send_prints_the_reply_to_the_telegram_sent() {
     assert_eq!((&sent["command"], &sent["reply_text"], &sent["ok"]), (&"POSA 0".into(), &"".into(), &true.into()));
     assert!(sent["request"]["meaning"].as_str().unwrap().contains("POSA"), "{sent}");
     assert!(sent["polls"].as_u64().unwrap() >= 1, "the wait polled S1: {sent}");
+    // A command that asks for no reply (`/`) has none: the poll's reply is not shown as its reply.
+    let o = run_with(&["compax", "--port", &cx.address, "send", "POSA", "2/"], &[], "");
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert_eq!(text.lines().nth(1), Some("reply: none"), "{text}");
 }
 
 /// `sim --events --json` prints its events as JSON objects on stderr.
