@@ -254,7 +254,8 @@ fn value_json(v: &Value) -> serde_json::Value {
         Value::U16(x) => json!(x),
         Value::I16(x) => json!(x),
         Value::U8(x) => json!(x),
-        Value::PosStateDio { pos, state, dio } => json!({"position": pos, "short_state": state.0, "dio": dio.0}),
+        Value::PosStateDio { pos, state, dio } => json!({"position": pos, "short_state": common::flag_word_json(state),
+                                                         "dio": common::flag_word_json(dio)}),
         Value::PosTime { pos, time_ms } => json!({"position": pos, "time_ms": time_ms}),
     }
 }

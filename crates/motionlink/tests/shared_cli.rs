@@ -81,6 +81,7 @@ fn the_three_families_share_their_json_names() {
         ("scu get", vec!["scu", "--port", &scu.address, "get", "actuator_status1", "battery_mains"]),
         ("powercube state", vec!["powercube", "--port", &pc.address, "state"]),
         ("powercube info", vec!["powercube", "--port", &pc.address, "info"]),
+        ("powercube get", vec!["powercube", "--port", &pc.address, "get", "ActFPosStateDio"]),
         ("powercube watch", vec!["powercube", "--port", &pc.address, "watch", "--count", "1"]),
         ("compax status", vec!["compax", "--port", &cx.address, "status"]),
         ("compax watch", vec!["compax", "--port", &cx.address, "watch", "--count", "1"]),
