@@ -127,6 +127,22 @@ fn send_and_decode_print_no_debug_text() {
     .into_owned();
     assert_no_debug_text("powercube send", &text);
     assert_no_debug_text("powercube send --json", &sent.to_string());
+    let scu = Sim::tcp("scu");
+    let cx = Sim::tcp("compax");
+    for args in [
+        vec!["scu", "--port", &scu.address, "send", "RG", "actual_position_a1"],
+        vec!["scu", "--port", &scu.address, "send", "52", "47", "11", "00", "2C", "30"],
+        vec!["compax", "--port", &cx.address, "send", "S1"],
+        vec!["compax", "--port", &cx.address, "send", "Q"],
+        vec!["powercube", "--port", &pc.address, "send", "set", "TargetVel", "0.5"],
+    ] {
+        for json in [false, true] {
+            let args: Vec<&str> = if json { [&["--json"][..], &args].concat() } else { args.clone() };
+            let o = run_with(&args, &[], "");
+            let text = format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+            assert_no_debug_text(&format!("{args:?}"), &text);
+        }
+    }
 
     for (family, input, expected) in [
         ("scu", "(1700000000.000000) can0 123#0102\n", "a CAN frame (123#0102)"),
