@@ -222,7 +222,7 @@ fn describe_request(p: &ParsedRequest<'_>) -> (String, bool) {
         },
         Body::Command(t) => match Command::parse(t) {
             Ok(c) => (describe_command(&c), true),
-            Err(_) => (format!("{:?} (not a known command)", String::from_utf8_lossy(t)), false),
+            Err(_) => (format!("{} (not a known command)", plain(t)), false),
         },
     };
     let mut flags = Vec::new();
@@ -304,12 +304,33 @@ fn describe_reply_text(t: &str) -> String {
             }
         }
     }
-    format!("{t:?}")
+    plain(t.as_bytes())
+}
+
+/// Characters as the user reads them: in double quotes, each byte that is not printable ASCII as its two
+/// hex digits in angle brackets (`"Q<01>X"`); never a programming language's escapes.
+fn plain(bytes: &[u8]) -> String {
+    let mut text = String::from("\"");
+    for &b in bytes {
+        if b == b' ' || b.is_ascii_graphic() {
+            text.push(char::from(b));
+        } else {
+            text.push_str(&format!("<{b:02X}>"));
+        }
+    }
+    text.push('"');
+    text
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn unprintable_characters_are_shown_in_hex_not_as_escapes() {
+        assert_eq!(plain(b"Q\x01X"), "\"Q<01>X\"");
+        assert_eq!(plain(b"P12 = 3"), "\"P12 = 3\"");
+    }
 
     /// Every annotation of `bytes` read in one piece, as `motionlink decode` prints it.
     fn lines(bytes: &[u8], mode: &Mode, direction: Direction) -> Vec<String> {

@@ -6,7 +6,8 @@
 //!
 //! - serial lines: `(<Unix time in s, 6 decimals>) <direction> <hex bytes>`, where the direction is `->`
 //!   (host to device) or `<-` (device to host): `(1732470000.123456) -> 52 47 11 00 2C 30`;
-//! - CAN: the `candump -l` log form, `(1732470000.123456) can0 0F1#01`.
+//! - CAN: the `candump -l` log form, `(1732470000.123456) can0 0F1#01`; read back with candump `-x`'s direction
+//!   marks too (`... can0 0F1#01 T`, the screen form `can0 TX - - 0F1 [1] 01`).
 //!
 //! Lines starting with `#` are comments (the writer starts with one naming the family and the port).
 //!
@@ -241,7 +242,8 @@ pub enum CapturedLine {
 pub struct ParsedLine {
     /// The Unix time the line gives, if any.
     pub unix: Option<Duration>,
-    /// The direction the line gives (`Unknown` for plain hex and candump lines).
+    /// The direction the line gives: the capture file's `->` / `<-`, candump `-x`'s `T` / `TX` (to the device)
+    /// and `R` / `RX` (from it); `Unknown` for plain hex and candump lines without a mark.
     pub direction: Direction,
     /// Its bytes or frame.
     pub data: CapturedLine,
@@ -266,15 +268,47 @@ pub fn parse_line(line: &str) -> Result<Option<ParsedLine>, String> {
             return Ok(Some(ParsedLine { unix, direction, data: CapturedLine::Bytes(parse_hex(hex_text)?) }));
         }
     }
-    if looks_like_candump(rest) {
-        let c: CandumpLine = t.parse().map_err(|e| format!("{e}"))?;
+    let (rest, direction) = candump_direction(rest);
+    if looks_like_candump(&rest) {
+        // The candump parser reads the line with its time stamp, without the direction mark.
+        let stamp = match t.split_once(')') {
+            Some((time, _)) if t.starts_with('(') => format!("{time}) "),
+            _ => String::new(),
+        };
+        let c: CandumpLine = format!("{stamp}{rest}").parse().map_err(|e| format!("{e}"))?;
         return Ok(Some(ParsedLine {
             unix: c.timestamp,
-            direction: Direction::Unknown,
+            direction,
             data: CapturedLine::Frame { frame: c.frame, interface: c.interface },
         }));
     }
-    Ok(Some(ParsedLine { unix, direction: Direction::Unknown, data: CapturedLine::Bytes(parse_hex(rest)?) }))
+    Ok(Some(ParsedLine { unix, direction: Direction::Unknown, data: CapturedLine::Bytes(parse_hex(&rest)?) }))
+}
+
+/// The direction mark of a candump line made with `-x` (a line without its time stamp), and the line without
+/// it: the log form `can0 0F1#01 T` (`T` sent by this host: to the device; `R` received: from it) and the
+/// screen form `can0 TX - - 0F1 [1] 01` (`TX` / `RX`, then the BRS and ESI flags of CAN FD). Other lines
+/// are returned as they are, direction `Unknown`.
+fn candump_direction(rest: &str) -> (String, Direction) {
+    let words: Vec<&str> = rest.split_whitespace().collect();
+    let of = |mark: &str| match mark {
+        "T" | "TX" => Some(Direction::ToDevice),
+        "R" | "RX" => Some(Direction::FromDevice),
+        _ => None,
+    };
+    match words.as_slice() {
+        [iface, frame, mark] if frame.contains('#') => match of(mark) {
+            Some(d) => (format!("{iface} {frame}"), d),
+            None => (rest.to_string(), Direction::Unknown),
+        },
+        [iface, mark, brs, esi, id, len, data @ ..]
+            if len.starts_with('[') && [brs, esi].iter().all(|f| f.len() == 1) && of(mark).is_some() =>
+        {
+            let d = of(mark).unwrap_or(Direction::Unknown);
+            (format!("{iface} {id} {len} {}", data.join(" ")).trim_end().to_string(), d)
+        }
+        _ => (rest.to_string(), Direction::Unknown),
+    }
 }
 
 /// True if `rest` (a line without its time stamp) has the shape of a candump line: `can0 0F1#01`,
@@ -359,5 +393,27 @@ mod tests {
         assert!(parse_line("-> 5").unwrap_err().contains("not hex"));
         let screen = parse_line("  can0  0F1   [1]  01").unwrap().unwrap();
         assert!(matches!(screen.data, CapturedLine::Frame { .. }));
+    }
+
+    #[test]
+    fn candump_x_direction_marks_are_kept() {
+        let frame = |id: u32, data: &[u8]| CapturedLine::Frame {
+            frame: CanFrame::new(id, data).unwrap(),
+            interface: Some("can0".into()),
+        };
+        let unix = Some(Duration::new(1_700_000_000, 500_000_000));
+        let sent = parse_line("(1700000000.500000) can0 0F1#01 T").unwrap().unwrap();
+        assert_eq!(sent, ParsedLine { unix, direction: Direction::ToDevice, data: frame(0x0F1, &[1]) });
+        let received = parse_line("(1700000000.500000) can0 0B1#0A3C R").unwrap().unwrap();
+        assert_eq!(received, ParsedLine { unix, direction: Direction::FromDevice, data: frame(0x0B1, &[0x0A, 0x3C]) });
+        let screen = parse_line("(1700000000.500000)  can0  TX - -  0F1   [1]  01").unwrap().unwrap();
+        assert_eq!(screen, ParsedLine { unix, direction: Direction::ToDevice, data: frame(0x0F1, &[1]) });
+        let screen = parse_line("  can0  RX - -  0B1   [2]  0A 3C").unwrap().unwrap();
+        assert_eq!(
+            screen,
+            ParsedLine { unix: None, direction: Direction::FromDevice, data: frame(0x0B1, &[0x0A, 0x3C]) }
+        );
+        // Without -x: no direction.
+        assert_eq!(parse_line("can0 0F1#01").unwrap().unwrap().direction, Direction::Unknown);
     }
 }

@@ -80,9 +80,11 @@ impl Describer {
         }
     }
 
-    /// A command; true when it is not one.
-    fn request(payload: &Payload) -> (String, bool) {
+    /// A command to `address`, a value it sets in the unit of the module's kind where known; true when it
+    /// is not one.
+    fn request(&self, address: u8, payload: &Payload) -> (String, bool) {
         match Request::decode(payload) {
+            Ok(Request::Set(p, v)) => (format!("SetExtended {p} = {}", v.show_in(p, self.kind(address))), false),
             Ok(r) => (r.to_string(), false),
             Err(e) => (format!("command not understood: {e}"), true),
         }
@@ -97,11 +99,11 @@ impl Describer {
                 (format!("ack from module {a}: {text}"), Direction::FromDevice, bad)
             }
             Ok((Role::Get(a), p)) => {
-                let (text, bad) = Self::request(&p);
+                let (text, bad) = self.request(a, &p);
                 (format!("get to module {a}: {text}"), Direction::ToDevice, bad)
             }
             Ok((Role::Put(a), p)) => {
-                let (text, bad) = Self::request(&p);
+                let (text, bad) = self.request(a, &p);
                 (format!("put to module {a}: {text}"), Direction::ToDevice, bad)
             }
             Ok((Role::Broadcast, p)) => {
@@ -126,7 +128,7 @@ impl Describer {
                 (format!("to every module (address 0): {text}"), bad)
             }
             TelKind::Send => {
-                let (text, bad) = Self::request(&frame.payload);
+                let (text, bad) = self.request(frame.address, &frame.payload);
                 (format!("to module {}: {text}", frame.address), bad)
             }
             TelKind::Recv => {
@@ -272,6 +274,12 @@ mod tests {
             (text.as_str(), direction, bad),
             ("ack from module 4: ActPos = 0.100000 m", Direction::FromDevice, false)
         );
+        // A value a command sets is shown in the module's unit too, once known.
+        let set = Request::Set(Param::TargetPos, Value::F32(0.2)).encode();
+        let put = can_wire::to_frame(Role::for_command(4, &set), &set);
+        assert_eq!(d.describe_frame(&put).0, "put to module 4: SetExtended TargetPos = 0.200000 m");
+        let put = can_wire::to_frame(Role::for_command(5, &set), &set);
+        assert_eq!(d.describe_frame(&put).0, "put to module 5: SetExtended TargetPos = 0.200000 rad|m");
         let mut out = Vec::new();
         let frame = CanFrame::new(0x0C4, &[0x0a, 0x3c]).unwrap();
         d.describe(Captured::Frame(&frame), Direction::Unknown, None, &mut out);

@@ -249,7 +249,7 @@ impl Describe for Describer {
                     direction,
                     can_id: None,
                     bytes: Vec::new(),
-                    meaning: format!("a CAN frame ({f:?}): the SCU speaks RS232, not CAN"),
+                    meaning: format!("a CAN frame ({f}): the SCU speaks RS232, not CAN"),
                     bad: true,
                 });
                 return;

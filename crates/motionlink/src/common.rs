@@ -122,11 +122,19 @@ pub fn classified<E: Classify + std::fmt::Display + ?Sized>(e: &E) -> CliError {
     }
 }
 
-/// Writes one line on stderr and ignores a failure: after SIGHUP the terminal may be gone, and a message
+/// Writes one note on stderr and ignores a failure: after SIGHUP the terminal may be gone, and a message
 /// that cannot be shown must not keep the motion from being stopped (`eprintln!` would panic). A progress
-/// bar on screen is hidden while the line is written.
+/// bar on screen is hidden while the line is written. Notes are left out with `-q` and once stdout was
+/// closed (the command then ends quietly); errors go through [`say_error`].
 pub fn say(line: impl std::fmt::Display) {
     crate::term::note(&line.to_string());
+}
+
+/// Writes one error line on stderr (in red when colours are on; with `--json` as `{"log": ...}`), also with
+/// `-q`: for errors besides the one the command ends with, and what must be known though no stop was
+/// confirmed.
+pub fn say_error(line: impl std::fmt::Display) {
+    crate::term::error_note(&line.to_string());
 }
 
 /// SIGINT's number, the cause assumed when a cancellation has no recorded cause.
@@ -213,7 +221,7 @@ fn on_signal(token: &CancelToken, presses: &mut u32, n: i32) {
         1 => say(format!("motionlink: {name} received, stopping what this command started")),
         2 => say(format!("motionlink: {name}: still stopping the motion; once more exits without waiting")),
         _ => {
-            say(format!("motionlink: {name} again, exiting before the stop was confirmed"));
+            say_error(format!("motionlink: {name} again, exiting before the stop was confirmed"));
             std::process::exit(i32::from(StopCause::Signal(n).exit_code()));
         }
     }
@@ -323,6 +331,16 @@ pub fn identified(family: &str, port: &str, fields: serde_json::Value) -> serde_
     serde_json::Value::Object(map)
 }
 
+/// A flag word as every command's JSON gives it (naming.md): `word` (the raw word), `flags` (the manual's
+/// names of the bits set) and `unknown_bits` (the bits no name covers), only when nonzero.
+pub fn flag_word_json<W: motionlink_link::flags::FlagWord>(w: W) -> serde_json::Value {
+    let mut v = serde_json::json!({"word": w.raw(), "flags": w.names()});
+    if w.unknown() != 0 {
+        v["unknown_bits"] = serde_json::json!(w.unknown());
+    }
+    v
+}
+
 /// One line of CSV: fields separated by commas, quoted when they hold a comma, a quote or a line break.
 pub fn csv_line(fields: &[String]) -> String {
     let quoted: Vec<String> = fields
@@ -340,7 +358,8 @@ pub struct ServeArgs {
     #[command(flatten)]
     pub target: ServeTarget,
     /// Print what the emulated device does (a motion started, an axis at rest, a watchdog expired) on
-    /// stderr, one line each: `event <unix time in s> <what>`.
+    /// stderr, one line each: `event <unix time in s> <what>` (with --json `{"event": WHAT, "time_s": UNIX
+    /// TIME}`).
     #[arg(long)]
     pub events: bool,
     /// `--json`: the listening line as a JSON object (set by `main`).
@@ -366,10 +385,15 @@ pub fn serve<E: Emulator + 'static>(args: &ServeArgs, device: E) -> Result<(), C
     let clock = RealClock::shared();
     let mut options = ServeOptions::default();
     if args.events {
-        options.on_event = Some(Arc::new(|event: &str| {
+        let json = args.json;
+        options.on_event = Some(Arc::new(move |event: &str| {
             let t = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
             let mut err = std::io::stderr().lock();
-            let _ = writeln!(err, "event {:.6} {event}", t.as_secs_f64());
+            let _ = if json {
+                writeln!(err, "{}", serde_json::json!({"event": event, "time_s": t.as_secs_f64()}))
+            } else {
+                writeln!(err, "event {:.6} {event}", t.as_secs_f64())
+            };
             let _ = err.flush();
         }));
     }

@@ -19,6 +19,7 @@ mod console;
 mod decode;
 mod demo;
 mod devices;
+mod manpage;
 mod ports;
 mod powercube;
 mod scu;
@@ -85,8 +86,13 @@ enum Command {
         #[arg(value_enum)]
         shell: clap_complete::Shell,
     },
-    /// Print the manual page (roff) on stdout: `motionlink man | man -l -`.
-    Man,
+    /// Print the manual page (roff) on stdout: `motionlink man | man -l -`; with --dir, write the page of
+    /// every command (motionlink.1, motionlink-scu.1, motionlink-scu-move.1, ...) into a directory.
+    Man {
+        /// Write one page per command into DIR (created if missing) instead of the top page on stdout.
+        #[arg(long, value_name = "DIR")]
+        dir: Option<std::path::PathBuf>,
+    },
 }
 
 #[derive(Subcommand, Debug)]
@@ -169,12 +175,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
             std::io::Write::write_all(&mut std::io::stdout(), &script)?;
             Ok(())
         }
-        Command::Man => {
-            let mut page = Vec::new();
-            clap_mangen::Man::new(Cli::command()).render(&mut page)?;
-            std::io::Write::write_all(&mut std::io::stdout(), &page)?;
-            Ok(())
-        }
+        Command::Man { dir } => manpage::run(Cli::command(), dir.as_deref()),
         Command::Demo(args) => {
             let mut stdout = std::io::stdout().lock();
             let parts = [
@@ -194,9 +195,66 @@ fn run(cli: Cli) -> Result<(), CliError> {
     }
 }
 
+/// clap's colours for its own messages (usage errors, help), from `--color WHEN` / `--color=WHEN` in `args`
+/// (the last one wins; nothing after `--` counts) and NO_COLOR, read before clap parses: `always` and `never`
+/// win, `auto` colours a terminal unless NO_COLOR is set and not empty.
+fn clap_color(args: &[std::ffi::OsString]) -> clap::ColorChoice {
+    let mut choice = None;
+    let mut words = args.iter().skip(1).map(|a| a.to_string_lossy());
+    while let Some(word) = words.next() {
+        if word == "--" {
+            break;
+        }
+        if word == "--color" {
+            choice = words.next().map(|w| w.into_owned());
+        } else if let Some(w) = word.strip_prefix("--color=") {
+            choice = Some(w.to_string());
+        }
+    }
+    match choice.as_deref() {
+        Some("always") => clap::ColorChoice::Always,
+        Some("never") => clap::ColorChoice::Never,
+        _ if std::env::var("NO_COLOR").is_ok_and(|v| !v.is_empty()) => clap::ColorChoice::Never,
+        _ => clap::ColorChoice::Auto,
+    }
+}
+
+/// `word` as clap takes a negative number, if it is one that clap would take for an option: clap knows `-3`,
+/// `-0.5` and `-1e5`, not `-.5` or `-1e-1`; those are given as the shortest decimal of the same `f64`
+/// (`-0.5`, `-0.1`). Anything else (options, `-inf`, words) is left alone.
+fn negative_number(word: &std::ffi::OsStr) -> Option<std::ffi::OsString> {
+    let text = word.to_str()?;
+    let rest = text.strip_prefix('-')?;
+    let clap_takes_it = rest.starts_with(|c: char| c.is_ascii_digit())
+        && rest.bytes().all(|b| b.is_ascii_digit() || b == b'.' || b == b'e' || b == b'E');
+    if clap_takes_it || !rest.bytes().any(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    let value: f64 = text.parse().ok().filter(|v: &f64| v.is_finite())?;
+    Some(format!("{value}").into())
+}
+
+/// The command line with negative numbers in the form clap takes ([`negative_number`]); nothing after `--`
+/// is changed.
+fn with_negative_numbers(args: Vec<std::ffi::OsString>) -> Vec<std::ffi::OsString> {
+    let mut escaped = false;
+    args.into_iter()
+        .map(|a| {
+            escaped |= a == "--";
+            match negative_number(&a) {
+                Some(n) if !escaped => n,
+                _ => a,
+            }
+        })
+        .collect()
+}
+
 /// Parses the command line; with `--json` anywhere in it, a usage error is the JSON error object.
 fn parse() -> Cli {
-    match Cli::try_parse() {
+    let args = with_negative_numbers(std::env::args_os().collect());
+    let command = Cli::command().color(clap_color(&args));
+    let parsed = command.try_get_matches_from(&args).and_then(|m| <Cli as clap::FromArgMatches>::from_arg_matches(&m));
+    match parsed {
         Ok(cli) => cli,
         Err(e) if e.use_stderr() && std::env::args_os().any(|a| a == "--json") => {
             let message = e.render().to_string();
@@ -221,7 +279,7 @@ fn main() -> ExitCode {
             if json {
                 term::write_stderr(&format!("{}\n", e.to_json()));
             } else {
-                common::say(format!("motionlink: {e}"));
+                term::write_stderr(&term::error_line(&format!("motionlink: {e}")));
             }
             ExitCode::from(cause.exit_code())
         }

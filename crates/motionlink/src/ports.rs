@@ -61,8 +61,11 @@ pub fn list(json: bool) -> Result<(), CliError> {
     all.extend(can_interfaces());
     let mut out = std::io::stdout().lock();
     if json {
-        let list: Vec<_> = all.iter().map(|f| json!({"port": f.port, "kind": f.kind, "about": f.about})).collect();
-        return common::print_json(&mut out, &serde_json::Value::Array(list));
+        // A listing: one object per port (JSON Lines); none found prints nothing.
+        for f in &all {
+            common::print_json(&mut out, &json!({"port": f.port, "kind": f.kind, "about": f.about}))?;
+        }
+        return Ok(());
     }
     if all.is_empty() {
         writeln!(

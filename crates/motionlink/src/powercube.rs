@@ -97,11 +97,13 @@ pub enum Action {
         #[arg(allow_negative_numbers = true)]
         value: String,
     },
-    /// Send one command and print it and the module's acknowledge, each explained: typed (get PARAM, set PARAM
-    /// VALUE, reset, home, halt, recalc-pid, reset-time, save-parameters) or its payload in hex ("0A 3C":
-    /// GetExtended ActPos). Motion commands are refused: use move.
+    /// Send one command and print it and the module's acknowledge, each explained. Takes a typed command
+    /// (get PARAM, set PARAM VALUE, reset, halt, recalc-pid, reset-time, save-parameters), its payload in
+    /// hex ("0A 3C": GetExtended ActPos), or a whole RS232 telegram in hex ("02 04 22 0A 3C 6C 03": STX,
+    /// TELID, data, BCC, ETX; the BCC is checked and the address must be --module's). Motion commands
+    /// (home, the SetMotion family) are refused: use home or move, which watch and stop them.
     Send {
-        /// The command's words, or its payload in hex.
+        /// The command's words, its payload in hex, or a whole RS232 telegram in hex.
         #[arg(required = true, value_name = "WORD", allow_negative_numbers = true)]
         words: Vec<String>,
     },
@@ -254,8 +256,24 @@ fn value_json(v: &Value) -> serde_json::Value {
         Value::U16(x) => json!(x),
         Value::I16(x) => json!(x),
         Value::U8(x) => json!(x),
-        Value::PosStateDio { pos, state, dio } => json!({"position": pos, "short_state": state.0, "dio": dio.0}),
+        Value::PosStateDio { pos, state, dio } => json!({"position": pos, "short_state": common::flag_word_json(state),
+                                                         "dio": common::flag_word_json(dio)}),
         Value::PosTime { pos, time_ms } => json!({"position": pos, "time_ms": time_ms}),
+    }
+}
+
+/// What `set` read back, in the parameter's unit: the write-only TargetPos, TargetVel and TargetAcc are read
+/// back by the library through their encoder-tick twins, converted here with the module's IncRatio.
+fn read_back_json(m: &Module<'_>, p: Param, read: &Value) -> Result<serde_json::Value, CliError> {
+    if !matches!(p, Param::TargetPos | Param::TargetVel | Param::TargetAcc) {
+        return Ok(value_json(read));
+    }
+    let ratio = m.get(Param::IncRatio).map_err(failed)?;
+    match (read.as_f64(), ratio.as_f64()) {
+        (Some(ticks), Some(ratio)) if ratio > 0.0 => Ok(json!(ticks / ratio)),
+        _ => Err(CliError::transport(format!(
+            "{p} was read back in encoder ticks, but the module's IncRatio is no number above 0"
+        ))),
     }
 }
 
@@ -265,22 +283,33 @@ fn unit_key(stem: &str, kind: ModuleKind) -> String {
     format!("{stem}_{}", kind.unit())
 }
 
+/// CubeState as a flag word (`word`, `flags`, `unknown_bits` when nonzero) with its `faults`.
 fn state_json(s: CubeState) -> serde_json::Value {
-    json!({
+    let mut v = json!({
         "word": s.0,
         "flags": s.iter().map(|f| f.label()).collect::<Vec<_>>(),
-        "faults": s.faults().map(|f| f.label()).collect::<Vec<_>>(),
-    })
+    });
+    let unknown = motionlink_link::flags::FlagWord::unknown(s);
+    if unknown != 0 {
+        v["unknown_bits"] = json!(unknown);
+    }
+    v["faults"] = json!(s.faults().map(|f| f.label()).collect::<Vec<_>>());
+    v
 }
 
-fn info_json(m: &ModuleInfo) -> serde_json::Value {
-    json!({
-        "module": m.address.get(),
-        "kind": m.kind.name(),
-        "version": m.version.to_string(),
-        "serial": m.serial,
-        "state": state_json(m.state),
-    })
+/// A module's identity as JSON, `family` and `port` first.
+fn info_json(port: &str, m: &ModuleInfo) -> serde_json::Value {
+    common::identified(
+        "powercube",
+        port,
+        json!({
+            "module": m.address.get(),
+            "kind": m.kind.name(),
+            "version": m.version.to_string(),
+            "serial": m.serial,
+            "state": state_json(m.state),
+        }),
+    )
 }
 
 /// A duration in seconds that must be a number above 0, for `--timeout`.
@@ -327,7 +356,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
     }
     let request = match &args.action {
-        Action::Send { words } => Some(parse_send(words)?),
+        Action::Send { words } => Some(parse_send(words, args.module.get())?),
         _ => None,
     };
     let port = args.link.resolve_port("powercube", args.port.as_deref())?;
@@ -349,7 +378,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     tap.flush();
     match (result, closed) {
         (Err(e), Err(also)) => {
-            common::say(format!("motionlink: {also}"));
+            common::say_error(format!("motionlink: {also}"));
             Err(e)
         }
         (result, closed) => result.and(closed),
@@ -369,8 +398,8 @@ fn act(args: &Args, client: &Client, guard: Guard, port: &str, out: &mut dyn Wri
         v
     };
     match &args.action {
-        Action::Scan => scan(client, &mut out, args.json)?,
-        Action::Info => info(&m, &mut out, args.json)?,
+        Action::Scan => scan(client, port, &mut out, args.json)?,
+        Action::Info => info(&m, port, &mut out, args.json)?,
         Action::State => {
             let s = m.state().map_err(failed)?;
             if args.json {
@@ -418,10 +447,15 @@ fn act(args: &Args, client: &Client, guard: Guard, port: &str, out: &mut dyn Wri
                 Readback::NotReadable(why) => (None, Some(why)),
             };
             if args.json {
+                let read_back = match read_back {
+                    Some(r) => Some(read_back_json(&m, p, &r)?),
+                    None => None,
+                };
                 common::print_json(
                     &mut out,
                     &identified(json!({"name": p.name(), "id": p.id(), "value": value_json(&v), "ok": true,
-                            "read_back": read_back.as_ref().map(value_json), "not_verifiable": not_verifiable})),
+                            "read_back": read_back, "verified": read_back.is_some(),
+                            "not_verifiable": not_verifiable})),
                 )?;
             } else {
                 let kind = m.kind().map_err(|e| {

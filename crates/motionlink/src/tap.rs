@@ -170,6 +170,28 @@ pub fn exchange(telegrams: &[Annotation], request: Option<&[u8]>) -> (Option<Ann
     (Some(telegrams[i].clone()), reply)
 }
 
+/// The telegram `send` sent and the reply to it, among the telegrams a command that may wait saw: the first
+/// telegram to the device whose bytes contain `request` (else the first one to the device) and the first
+/// telegram from the device after it, before the next one to the device. The third part is every telegram after that reply (the status polls
+/// of a wait, with their replies).
+pub fn first_exchange(
+    telegrams: &[Annotation],
+    request: &[u8],
+) -> (Option<Annotation>, Option<Annotation>, Vec<Annotation>) {
+    let contains = |a: &Annotation| !request.is_empty() && a.bytes.windows(request.len()).any(|w| w == request);
+    let to_device = |a: &Annotation| a.direction == Direction::ToDevice;
+    let sent =
+        telegrams.iter().position(|a| to_device(a) && contains(a)).or_else(|| telegrams.iter().position(to_device));
+    let Some(i) = sent else { return (None, None, Vec::new()) };
+    // The reply comes before the next telegram to the device (a command that asks for none has none: the
+    // reply to a later poll is not its reply).
+    let next_sent = telegrams[i + 1..].iter().position(to_device).map_or(telegrams.len(), |j| i + 1 + j);
+    let reply =
+        telegrams[i + 1..next_sent].iter().position(|a| a.direction == Direction::FromDevice).map(|j| i + 1 + j);
+    let rest_from = reply.map_or(i + 1, |j| j + 1);
+    (Some(telegrams[i].clone()), reply.map(|j| telegrams[j].clone()), telegrams[rest_from..].to_vec())
+}
+
 /// Prints the request and the reply `send` saw, as text lines (`-> ...`, `<- ...`, or `request: none`); with
 /// `json`, prints nothing and returns them as JSON for the command's one object.
 pub fn print_exchange(
@@ -192,4 +214,35 @@ pub fn print_exchange(
         }
     }
     Ok((None, None))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn telegram(direction: Direction, text: &str) -> Annotation {
+        Annotation {
+            at: None,
+            direction,
+            can_id: None,
+            bytes: text.as_bytes().to_vec(),
+            meaning: text.into(),
+            bad: false,
+        }
+    }
+
+    #[test]
+    fn the_reply_is_the_one_to_the_telegram_sent_not_a_later_polls() {
+        let (to, from) = (Direction::ToDevice, Direction::FromDevice);
+        let seen = [telegram(to, "1POSA 1\r"), telegram(from, "\r\n>"), telegram(to, "1S1\r"), telegram(from, "S1 1")];
+        let (sent, reply, rest) = first_exchange(&seen, b"POSA 1");
+        assert_eq!(
+            (sent.unwrap().meaning, reply.unwrap().meaning, rest.len()),
+            ("1POSA 1\r".into(), "\r\n>".into(), 2)
+        );
+        // A command that asks for no reply has none: the poll's reply is not taken for it.
+        let seen = [telegram(to, "1POSA 1/\r"), telegram(to, "1S1\r"), telegram(from, "S1 1")];
+        let (sent, reply, rest) = first_exchange(&seen, b"POSA 1/");
+        assert!(sent.is_some() && reply.is_none() && rest.len() == 2, "{reply:?} {rest:?}");
+    }
 }

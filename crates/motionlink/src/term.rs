@@ -82,9 +82,7 @@ pub fn init(verbose: u8, quiet: bool, color: ColorChoice, json: bool) {
         .and_then(|spec| spec.parse::<Targets>().ok())
         .unwrap_or_else(|| Targets::new().with_default(default));
     let _ = tracing_subscriber::registry()
-        .with(
-            tracing_subscriber::fmt::layer().with_writer(LineWriter::default).with_ansi(out.color).with_filter(filter),
-        )
+        .with(tracing_subscriber::fmt::layer().with_writer(LogWriter).with_ansi(out.color).with_filter(filter))
         .try_init();
 }
 
@@ -110,13 +108,17 @@ pub fn write_stderr(text: &str) {
     }
 }
 
-/// Collects one log event and writes it in one piece when dropped.
+/// Collects one log event and writes it in one piece when dropped: an ERROR event as an error line, any other
+/// as a note (left out once stdout was closed).
 #[derive(Default)]
-struct LineWriter(Vec<u8>);
+struct LineWriter {
+    text: Vec<u8>,
+    error: bool,
+}
 
 impl Write for LineWriter {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        self.0.extend_from_slice(buf);
+        self.text.extend_from_slice(buf);
         Ok(buf.len())
     }
     fn flush(&mut self) -> std::io::Result<()> {
@@ -126,19 +128,54 @@ impl Write for LineWriter {
 
 impl Drop for LineWriter {
     fn drop(&mut self) {
-        if !self.0.is_empty() {
-            note(String::from_utf8_lossy(&self.0).trim_end());
+        if self.text.is_empty() {
+            return;
+        }
+        let text = String::from_utf8_lossy(&self.text);
+        if self.error {
+            error_note(text.trim_end());
+        } else {
+            note(text.trim_end());
         }
     }
 }
 
+/// Makes a [`LineWriter`] per log event, knowing the event's level.
+struct LogWriter;
+
+impl<'a> tracing_subscriber::fmt::MakeWriter<'a> for LogWriter {
+    type Writer = LineWriter;
+
+    fn make_writer(&'a self) -> LineWriter {
+        LineWriter::default()
+    }
+
+    fn make_writer_for(&'a self, meta: &tracing::Metadata<'_>) -> LineWriter {
+        LineWriter { text: Vec::new(), error: *meta.level() == tracing::Level::ERROR }
+    }
+}
+
 /// A line of information on stderr (a log event, a note of the command): as it is, or with `--json` as
-/// `{"log": "<text>"}`.
+/// `{"log": "<text>"}`. Left out with `-q` (only errors) and once stdout was closed: the command then ends
+/// quietly, after stopping what it started.
 pub fn note(text: &str) {
+    if output().quiet || crate::common::stop_cause() == Some(crate::common::StopCause::OutputClosed) {
+        return;
+    }
     if output().json {
         write_stderr(&format!("{}\n", serde_json::json!({ "log": text })));
     } else {
         write_stderr(&format!("{text}\n"));
+    }
+}
+
+/// An error besides the one the command ends with, on stderr even with `-q`: red when colours are on, with
+/// `--json` as `{"log": "<text>"}`.
+pub fn error_note(text: &str) {
+    if output().json {
+        write_stderr(&format!("{}\n", serde_json::json!({ "log": text })));
+    } else {
+        write_stderr(&error_line(text));
     }
 }
 

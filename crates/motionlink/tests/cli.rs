@@ -10,4 +10,5 @@ mod cpu_cli;
 mod general_cli;
 mod powercube_cli;
 mod scu_cli;
+mod shared_cli;
 mod sim_server;

@@ -39,12 +39,65 @@ fn the_manual_page_comes_from_the_same_definitions() {
     }
 }
 
+/// `man --dir` writes the page of every command the pages name: the families' pages have `--port` and
+/// their actions, every page its EXIT STATUS, the top page ENVIRONMENT and FILES.
+#[test]
+fn the_manual_pages_cover_the_whole_tree() {
+    let dir = common::temp_path("man");
+    let out = run(&["man", "--dir", dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{out:?}");
+    let page =
+        |name: &str| std::fs::read_to_string(dir.join(format!("{name}.1"))).unwrap_or_else(|e| panic!("{name}.1: {e}"));
+    let top = page("motionlink");
+    for family in ["scu", "powercube", "compax"] {
+        assert!(top.contains(&format!("motionlink\\-{family}(1)")), "the top page names {family}'s page");
+        let p = page(&format!("motionlink-{family}"));
+        assert!(p.contains("\\-\\-port"), "{family}: --port");
+        for action in ["get", "set", "send", "watch", "move"] {
+            assert!(p.contains(&format!("motionlink\\-{family}\\-{action}(1)")), "{family} {action}");
+            page(&format!("motionlink-{family}-{action}"));
+        }
+        assert!(p.contains("MOTIONLINK_PORT"), "{family}: ENVIRONMENT");
+    }
+    assert!(page("motionlink-scu-move").contains("\\-\\-speed"));
+    for section in ["ENVIRONMENT", "FILES", "EXIT STATUS", "MOTIONLINK_CONFIG", "NO_COLOR", "devices.toml", "128+n"] {
+        assert!(top.contains(section), "the top page lacks {section}");
+    }
+    for code in ["0", "1", "2", "3"] {
+        assert!(top.contains(&format!(".TP\n\\fB{code}\\fR")), "exit code {code}: {top}");
+    }
+    assert!(page("motionlink-decode-scu").contains("EXIT STATUS"));
+    let _ = std::fs::remove_dir_all(&dir);
+    // On stdout: the top page with the same sections.
+    let out = run(&["man"]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("EXIT STATUS"), "{out:?}");
+}
+
+/// `--color` reaches clap's own messages too (a usage error clap finds), read before clap parses.
+#[test]
+fn clap_messages_follow_the_color_option() {
+    let bad = ["scu", "--no-such-option"];
+    let colored = |args: &[&str], env: &[(&str, &str)]| {
+        let o = common::run_with(args, env, "");
+        assert_eq!(o.status.code(), Some(2), "{o:?}");
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(err.contains("no-such-option"), "{err}");
+        err.contains('\x1b')
+    };
+    assert!(colored(&[&["--color", "always"][..], &bad].concat(), &[]), "--color always: ANSI even into a pipe");
+    assert!(colored(&[&bad[..], &["--color=always"]].concat(), &[]), "after the action, as --color=always");
+    assert!(!colored(&[&["--color", "never"][..], &bad].concat(), &[]), "--color never: none");
+    assert!(!colored(&bad, &[]), "auto into a pipe: none");
+    assert!(!colored(&[&["--color", "auto"][..], &bad].concat(), &[("NO_COLOR", "1")]), "NO_COLOR");
+}
+
 #[test]
 fn list_ports_prints_json_that_parses() {
     let out = run(&["list-ports", "--json"]);
     assert!(out.status.success(), "{out:?}");
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    for p in v.as_array().unwrap() {
+    // One object per port (JSON Lines).
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        let p: serde_json::Value = serde_json::from_str(line).unwrap();
         assert!(p["port"].is_string() && ["serial", "can"].contains(&p["kind"].as_str().unwrap()), "{p}");
     }
 }
@@ -142,7 +195,11 @@ fn every_readme_command_runs_against_the_emulators() {
     let dir = std::env::temp_dir().join(format!("motionlink-readme-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("targets.txt"), "400\n410\n").unwrap();
-    std::fs::write(dir.join("unit.toml"), "preset = \"scp11\"\nactuators = 2\n").unwrap();
+    // The README's TOML blocks are the fixtures: the SCU emulator's configuration is the `unit.toml` its
+    // `sim scu --config unit.toml` reads (the real parser: a key it does not know fails the command).
+    let tomls = readme_blocks(&readme, "```toml");
+    let unit = tomls.iter().find(|b| b.contains("[[actuator]]")).expect("the README's SCU emulator TOML");
+    std::fs::write(dir.join("unit.toml"), unit).unwrap();
     // The commands of one emulator (and the decode of what they captured) run in the README's order; the
     // groups run side by side, so the test takes as long as its longest group, not the sum of all.
     let mut groups: Vec<(String, Vec<&ReadmeCommand>)> = Vec::new();
@@ -179,6 +236,57 @@ fn every_readme_command_runs_against_the_emulators() {
     });
     assert!(failures.is_empty(), "{}", failures.join("\n\n"));
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The text of every block of `readme` that opens with the line `fence` (such as "```toml").
+fn readme_blocks(readme: &str, fence: &str) -> Vec<String> {
+    let mut blocks = Vec::new();
+    let mut current: Option<String> = None;
+    for line in readme.lines() {
+        match (&mut current, line.trim()) {
+            (None, t) if t == fence => current = Some(String::new()),
+            (Some(_), "```") => blocks.extend(current.take()),
+            (Some(text), _) => {
+                text.push_str(line);
+                text.push('\n');
+            }
+            (None, _) => {}
+        }
+    }
+    blocks
+}
+
+/// The README's devices.toml, read by the real parser: each device it names, its port pointed at the
+/// emulator of its family, answers through `--device`.
+#[test]
+fn the_readme_devices_toml_names_devices_that_answer() {
+    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../README.md")).unwrap();
+    let tomls = readme_blocks(&readme, "```toml");
+    assert_eq!(tomls.len(), 2, "the README's TOML blocks: devices.toml and the SCU emulator's: {tomls:?}");
+    let devices = tomls.iter().find(|b| b.contains("[device.")).expect("the README's devices.toml");
+    let scu = Sim::tcp("scu");
+    let powercube = Sim::tcp("powercube");
+    let mut text = devices.clone();
+    for (family, sim) in [("scu", &scu), ("powercube", &powercube)] {
+        // The port line after `family = "<family>"` becomes the emulator's address.
+        let at = text.find(&format!("family = \"{family}\"")).unwrap_or_else(|| panic!("no {family} device"));
+        let port_at = at + text[at..].find("port = \"").unwrap() + "port = \"".len();
+        let end = port_at + text[port_at..].find('"').unwrap();
+        text.replace_range(port_at..end, &sim.address);
+    }
+    let config = common::temp_path("readme-devices.toml");
+    std::fs::write(&config, &text).unwrap();
+    let cfg = config.to_str().unwrap();
+    for args in
+        [&["scu", "--device", "lift", "get", "firmware_info"][..], &["powercube", "--device", "arm", "get", "ActPos"]]
+    {
+        let o = common::run_with(args, &[("MOTIONLINK_CONFIG", cfg)], "");
+        assert!(o.status.success(), "{args:?} with the README's devices.toml: {o:?}\n{text}");
+    }
+    // The family check the comment promises: lift is an SCU, refused for powercube.
+    let o = common::run_with(&["powercube", "--device", "lift", "get", "ActPos"], &[("MOTIONLINK_CONFIG", cfg)], "");
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
+    let _ = std::fs::remove_file(&config);
 }
 
 /// A README command line and the output its ```console block shows (if any).

@@ -146,10 +146,10 @@ pub enum Action {
         #[arg(long)]
         csv: bool,
     },
-    /// Send one command and print it and the drive's reply as they went on the line, each explained: the
-    /// command as text ("S1", "P12", "P12=0"), or its characters in hex ("53 31"); the address prefix, CR
-    /// and BCC that --mode asks for are added. A move it starts is waited for until it ends (a signal stops
-    /// it).
+    /// Send one command and print it and the drive's reply as they went on the line, each explained. Takes
+    /// the command as text ("S1", "P12", "P12=0") or its characters in hex ("53 31"), without the address
+    /// prefix, CR and BCC: those are added as --drive and --mode ask. A move it starts is waited for until
+    /// it ends (a signal stops it); the status polls of that wait are counted apart from the reply.
     Send {
         /// The command's words (joined by spaces), or its characters in hex.
         #[arg(required = true, value_name = "WORD", allow_negative_numbers = true)]
@@ -276,9 +276,12 @@ fn error_for(args: &Args, e: Error) -> CliError {
         }
         _ => e.to_string(),
     };
-    for a in e.switched_off_drives() {
-        message.push('\n');
-        message.push_str(&switch_on_hint(args, a));
+    // How to switch a drive on again is a note: left out with -q.
+    if !crate::term::output().quiet {
+        for a in e.switched_off_drives() {
+            message.push('\n');
+            message.push_str(&switch_on_hint(args, a));
+        }
     }
     common::classified(&Explained { error: &e, message })
 }
@@ -389,12 +392,17 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
             // A signal ends the scan between two addresses.
             let found = bus.scan(1..=31).map_err(fail)?;
             if args.json {
-                let list: Vec<_> =
-                    found.iter().map(|(a, p)| json!({"drive": a.get(), "position_units": p.units()})).collect();
-                common::print_json(
-                    &mut out,
-                    &common::identified("compax", &args.resolved_port, json!({"drives": list})),
-                )?;
+                // A listing: one object per drive found (JSON Lines).
+                for (a, p) in &found {
+                    common::print_json(
+                        &mut out,
+                        &common::identified(
+                            "compax",
+                            &args.resolved_port,
+                            json!({"drive": a.get(), "position_units": p.units()}),
+                        ),
+                    )?;
+                }
             } else if found.is_empty() {
                 writeln!(out, "no drive answered on {}", args.resolved_port)?;
             } else {
@@ -436,13 +444,17 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
             let id = ParamId::parse(param).map_err(model_error)?;
             // Written and read back: a value that reads back otherwise is an error (exit code 1).
             bus.write_param(drive, id, *value).map_err(fail)?;
+            // The library compared what it read back; the value the drive gives now is `read_back` (one drive is
+            // addressed, 1..=31: it answers).
+            let read_back = bus.read_param(drive, id).map_err(fail)?;
             let note = match id.info() {
                 Some(i) if i.kind.valid_from == ValidFrom::PowerOn => " (takes effect at the drive's next power-on)",
                 _ => "",
             };
             if args.json {
                 let mut v = param_json(id, json!(value));
-                v["read_back"] = json!(true);
+                v["read_back"] = json!(read_back);
+                v["verified"] = json!(true);
                 common::print_json(&mut out, &identified(args, v))?;
             } else {
                 writeln!(out, "{id} = {value}, read back{note}")?;
@@ -535,9 +547,10 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
             // A move it starts is waited for (a signal stops it), as `raw --wait` does.
             let result = bus.raw_motion(drive, &command, AfterRaw::Wait(Duration::from_secs(600)));
             let seen = telegrams.take();
-            let (sent, reply) = crate::tap::exchange(&seen, None);
-            let first = seen.iter().find(|a| a.direction == motionlink_link::describe::Direction::ToDevice);
-            let sent = first.cloned().or(sent);
+            // The command's reply is the first telegram from the drive after it; the status polls of a wait
+            // come after that reply and are told apart.
+            let (sent, reply, after) = crate::tap::first_exchange(&seen, command.as_bytes());
+            let polls = after.iter().filter(|a| a.direction == motionlink_link::describe::Direction::ToDevice).count();
             let (sent_json, reply_json) =
                 crate::tap::print_exchange(&mut out, args.json, sent.as_ref(), reply.as_ref())?;
             if args.json {
@@ -547,9 +560,11 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
                     &identified(
                         args,
                         json!({"command": command, "request": sent_json, "reply": reply_json,
-                               "reply_text": reply_text, "ok": result.is_ok()}),
+                               "reply_text": reply_text, "polls": polls, "ok": result.is_ok()}),
                     ),
                 )?;
+            } else if polls > 0 {
+                writeln!(out, "then {polls} status polls until the move ended (-v shows them)")?;
             }
             result.map_err(fail)?;
         }

@@ -8,20 +8,26 @@ pub(super) fn status_rows(id: StatusId, v: &StatusValue) -> (Row, serde_json::Va
     let unit = info.map_or("", |i| i.unit);
     let (shown, js) = match v {
         StatusValue::S16(b) => {
-            let names = b.meanings();
             let bits = b.pattern().to_string();
-            (format!("{bits}  [{}]", names.join(", ")), json!({"bits": bits, "value": b.0, "set": names}))
+            (format!("{bits}  [{}]", b.meanings().join(", ")), bits_json(*b, bits))
         }
         StatusValue::S17(b) => {
-            let names = b.meanings();
             let bits = b.pattern().to_string();
-            (format!("{bits}  [{}]", names.join(", ")), json!({"bits": bits, "value": b.0, "set": names}))
+            (format!("{bits}  [{}]", b.meanings().join(", ")), bits_json(*b, bits))
         }
         StatusValue::Position(p) => (format!("{v} {unit}").trim_end().to_string(), json!(p.units())),
         StatusValue::Number(n) => (format!("{v} {unit}").trim_end().to_string(), json!(n)),
         other => (other.to_string(), json!(other.to_string())),
     };
     ((format!("{id} {name}"), shown), json!({"status": id.to_string(), "name": name, "unit": unit, "value": js}))
+}
+
+/// S16 or S17 as JSON: the flag word (`word`, `flags`, `unknown_bits`) and `pattern`, the drive's own bit
+/// string ("1101 1010").
+pub(super) fn bits_json<W: motionlink_link::flags::FlagWord>(word: W, pattern: String) -> serde_json::Value {
+    let mut v = common::flag_word_json(word);
+    v["pattern"] = json!(pattern);
+    v
 }
 
 /// A parameter as JSON: name, id, value, unit and access (naming.md).
@@ -82,7 +88,7 @@ pub(super) fn watch(
             identified(
                 args,
                 json!({"t_s": t_s, "position_units": s.position.units(),
-                       "s17": s.s17.pattern().to_string(), "moving": s.moving()}),
+                       "s17": bits_json(s.s17, s.s17.pattern().to_string()), "moving": s.moving()}),
             )
             .to_string()
         } else {

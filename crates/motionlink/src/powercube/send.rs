@@ -2,9 +2,48 @@
 
 use super::*;
 
-/// Parses `send`'s words: a typed command or a payload in hex. Motion commands are refused (`move` watches
-/// and stops what it starts; a bare motion command would be left running).
-pub(super) fn parse_send(words: &[String]) -> Result<Request, CliError> {
+/// A whole RS232 telegram in hex (STX, TELID, data, BCC, ETX, escapes included), checked: exactly one
+/// frame, a command (not an answer) to module `module`, its BCC and length right. Returns its payload.
+fn telegram_payload(bytes: &[u8], module: u8) -> Result<Payload, CliError> {
+    use motionlink_powercube::wire::rs232::{Rs232Decoder, TelKind};
+    let hex = common::hex(bytes);
+    let mut decoder = Rs232Decoder::new();
+    let frames: Vec<_> = decoder.feed(bytes).collect();
+    let frame = match frames.as_slice() {
+        [Ok(f)] => *f,
+        [Err(e)] => return Err(CliError::usage(format!("{hex}: not an RS232 telegram ({e})"))),
+        [] => return Err(CliError::usage(format!("{hex}: an incomplete RS232 telegram (no ETX 03 at its end)"))),
+        _ => return Err(CliError::usage(format!("{hex}: give one telegram, not {}", frames.len()))),
+    };
+    if !frame.bcc_ok() {
+        return Err(CliError::usage(format!(
+            "{hex}: wrong BCC 0x{:02X}, the telegram's bytes give 0x{:02X}",
+            frame.bcc_received, frame.bcc_computed
+        )));
+    }
+    if !frame.length_ok() {
+        return Err(CliError::usage(format!(
+            "{hex}: the TELID says {} data bytes, the telegram has {}",
+            frame.declared_len,
+            frame.payload.len()
+        )));
+    }
+    match (frame.kind, frame.address) {
+        (TelKind::Recv, _) => {
+            Err(CliError::usage(format!("{hex}: an answer of a module (TELID 0x03..), not a command")))
+        }
+        (_, 0) => Err(CliError::usage(format!("{hex}: a broadcast (address 0); send takes a command to one module"))),
+        (_, a) if a != module => {
+            Err(CliError::usage(format!("{hex}: the telegram is for module {a}, not {module}: give --module {a}")))
+        }
+        _ => Ok(frame.payload),
+    }
+}
+
+/// Parses `send`'s words for `module`: a typed command, a payload in hex, or a whole RS232 telegram in hex
+/// (`02 ... 03`, BCC checked). Motion commands are refused (`move` watches and stops what it starts; a bare
+/// motion command would be left running).
+pub(super) fn parse_send(words: &[String], module: u8) -> Result<Request, CliError> {
     let first = words[0].to_ascii_lowercase().replace(['-', '_'], "");
     let rest = &words[1..];
     let none = |r: Request| {
@@ -28,7 +67,11 @@ pub(super) fn parse_send(words: &[String]) -> Result<Request, CliError> {
             _ => return Err(CliError::usage("send set: give a parameter and a value, such as send set TargetVel 0.5")),
         },
         "reset" => none(Request::Action(PcAction::Reset))?,
-        "home" => return Err(CliError::usage("send home starts a motion: use `motionlink powercube home`")),
+        "home" => {
+            return Err(CliError::usage(
+                "send home starts a motion: use `motionlink powercube home`, which watches and stops it",
+            ))
+        }
         "halt" => none(Request::Action(PcAction::Halt))?,
         "recalcpid" | "recalcpidparam" => none(Request::Action(PcAction::RecalcPid))?,
         "resettime" => none(Request::Action(PcAction::ResetTime))?,
@@ -37,11 +80,15 @@ pub(super) fn parse_send(words: &[String]) -> Result<Request, CliError> {
             let bytes = common::parse_hex(&words.join(" ")).map_err(|_| {
                 CliError::usage(format!(
                     "{:?} is neither a typed command (get, set, reset, halt, recalc-pid, reset-time, \
-                     save-parameters) nor a payload in hex",
+                     save-parameters) nor hex (a payload, or a whole RS232 telegram 02 ... 03)",
                     words.join(" ")
                 ))
             })?;
-            let payload = Payload::new(&bytes).map_err(|e| CliError::usage(format!("{} bytes: {e:?}", e.0)))?;
+            let payload = if bytes.first() == Some(&0x02) && bytes.last() == Some(&0x03) && bytes.len() >= 5 {
+                telegram_payload(&bytes, module)?
+            } else {
+                Payload::new(&bytes).map_err(|e| CliError::usage(e.to_string()))?
+            };
             Request::decode(&payload).map_err(|e| CliError::usage(format!("not a command: {e}")))?
         }
     };
@@ -64,6 +111,9 @@ pub(super) fn send(
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let telegrams = tap.telegrams().ok_or_else(|| CliError::usage("send: no tap on the link"))?;
+    // The module's kind first (its Config word), so that values show in rad or m, not "rad|m"; a module that
+    // cannot tell still gets the command.
+    let kind = client.module(args.module).kind().ok();
     telegrams.clear();
     let result = client.request(args.module, request);
     let seen = telegrams.take();
@@ -73,7 +123,7 @@ pub(super) fn send(
         let v = common::identified(
             "powercube",
             port,
-            json!({"module": args.module.get(), "command": format!("{request:?}"), "request": sent_json,
+            json!({"module": args.module.get(), "command": command_text(request, kind), "request": sent_json,
                    "reply": reply_json, "ok": result.is_ok()}),
         );
         common::print_json(out, &v)?;
@@ -81,16 +131,26 @@ pub(super) fn send(
     result.map(|_| ()).map_err(failed)
 }
 
+/// A command as text, a value it sets in the unit of the module's `kind` where known.
+fn command_text(request: &Request, kind: Option<ModuleKind>) -> String {
+    match request {
+        Request::Set(p, v) => format!("SetExtended {p} = {}", v.show_in(*p, kind)),
+        other => other.to_string(),
+    }
+}
+
 pub(super) fn print_params(out: &mut dyn Write, as_json: bool) -> Result<(), CliError> {
     if as_json {
-        let list: Vec<_> = PARAMS
-            .iter()
-            .map(|e| {
-                json!({"id": e.id, "name": e.name, "type": e.kind.data_type.name(), "unit": e.unit,
-                       "access": e.access.short(), "class": e.kind.class.name(), "description": e.title})
-            })
-            .collect();
-        return common::print_json(out, &json!(list));
+        // A listing: one object per parameter (JSON Lines), as `scu names`.
+        for e in PARAMS.iter() {
+            common::print_json(
+                out,
+                &json!({"family": "powercube", "id": e.id, "name": e.name, "type": e.kind.data_type.name(),
+                        "unit": e.unit, "access": e.access.short(), "class": e.kind.class.name(),
+                        "description": e.title}),
+            )?;
+        }
+        return Ok(());
     }
     writeln!(
         out,

@@ -2,17 +2,19 @@
 
 use super::*;
 
-pub(super) fn scan(client: &Client, out: &mut dyn Write, json: bool) -> Result<(), CliError> {
+pub(super) fn scan(client: &Client, port: &str, out: &mut dyn Write, json: bool) -> Result<(), CliError> {
     let found = client.scan().map_err(failed)?;
     if json {
-        let entries: Vec<_> = found
-            .iter()
-            .map(|e| match &e.info {
-                Ok(info) => info_json(info),
-                Err(err) => json!({"address": e.address.get(), "error": err.to_string()}),
-            })
-            .collect();
-        common::print_json(out, &json!(entries))?;
+        // A listing: one object per module (JSON Lines).
+        for e in &found {
+            let v = match &e.info {
+                Ok(info) => info_json(port, info),
+                Err(err) => {
+                    common::identified("powercube", port, json!({"module": e.address.get(), "error": err.to_string()}))
+                }
+            };
+            common::print_json(out, &v)?;
+        }
     } else if found.is_empty() {
         writeln!(out, "no module answered on {}", client.describe())?;
     } else {
@@ -42,7 +44,7 @@ pub(super) fn scan(client: &Client, out: &mut dyn Write, json: bool) -> Result<(
     }
 }
 
-pub(super) fn info(m: &Module<'_>, out: &mut dyn Write, json: bool) -> Result<(), CliError> {
+pub(super) fn info(m: &Module<'_>, port: &str, out: &mut dyn Write, json: bool) -> Result<(), CliError> {
     let info = m.info().map_err(failed)?;
     let limits: Vec<(Param, Value)> = [Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::ActPos]
         .into_iter()
@@ -50,7 +52,7 @@ pub(super) fn info(m: &Module<'_>, out: &mut dyn Write, json: bool) -> Result<()
         .collect::<Result<_, _>>()
         .map_err(failed)?;
     if json {
-        let mut j = info_json(&info);
+        let mut j = info_json(port, &info);
         // snake_case names with the module's unit (naming.md): min_position_rad, max_velocity_m_per_s ...
         let unit = info.kind.unit();
         for (p, v) in &limits {

@@ -6,8 +6,8 @@ use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
 use motionlink_scu::model::{
-    status1, Actuator, DataEntry, DataEntryExt, DataIndex, ErrorCode, FlagSet, Flags, Function, Item, MotionFunction,
-    Speed,
+    status1, Actuator, DataEntry, DataEntryExt, DataIndex, ErrorCode, FlagSet, Flags, Function, Item, Kind,
+    MotionFunction, Speed, SpeedMode,
 };
 use motionlink_scu::session::{MoveProgress, MoveReport, RunAction, RunProgress};
 use motionlink_scu::value::Value;
@@ -39,9 +39,61 @@ impl Format {
     }
 }
 
-/// The flags of an actuator's status 1 byte, by the manual's names.
-fn status_flags(s: u8) -> Vec<&'static str> {
-    Flags { set: FlagSet::ActuatorStatus1, bits: u32::from(s) }.set_names().collect()
+/// A flag word as JSON (naming.md): `word`, `flags` (the manual's names), `unknown_bits` only when nonzero.
+fn flag_word_json(f: &Flags) -> serde_json::Value {
+    let known = f.set.bits().into_iter().fold(0u32, |m, b| m | (1 << b.bit));
+    let mut v = json!({"word": f.bits, "flags": f.set_names().collect::<Vec<_>>()});
+    if f.bits & !known != 0 {
+        v["unknown_bits"] = json!(f.bits & !known);
+    }
+    v
+}
+
+/// A value as the JSON of every command prints it: the library's typed value (deci-amps as amperes,
+/// centi- and deci-volts as volts), a flag word as [`flag_word_json`], an error code as `{code, bits}`.
+pub(super) fn value_json(v: &Value) -> serde_json::Value {
+    match v {
+        Value::CurrentDeciAmps(_) | Value::BatteryDeciVolts(_) | Value::AnalogueCentiVolts(_) => {
+            json!(v.as_f64())
+        }
+        Value::Flags(f) => flag_word_json(f),
+        _ => v.to_json(),
+    }
+}
+
+/// The unit of `e`'s value as [`value_json`] gives it: amperes and volts for the converted ones, and for a
+/// remote speed the one in force (`--speed-mode`).
+pub(super) fn unit_json(e: &DataEntry, speed_mode: SpeedMode) -> &'static str {
+    match e.kind {
+        Kind::CurrentDeciAmps => "A",
+        Kind::BatteryDeciVolts | Kind::AnalogueCentiVolts => "V",
+        Kind::RemoteSpeed => speed_mode.unit(),
+        _ => e.unit,
+    }
+}
+
+/// An actuator's status 1 byte as the fields of its JSON object: `word`, `flags`, `unknown_bits` (when
+/// nonzero) and `moving`.
+fn status_fields(s: u8) -> serde_json::Value {
+    let mut v = flag_word_json(&Flags { set: FlagSet::ActuatorStatus1, bits: u32::from(s) });
+    v["moving"] = json!(s & status1::MOTION != 0);
+    v
+}
+
+/// A current in amperes: the library's value (deci-amps converted once, there); NaN for no current.
+fn current_amps(current: &Value) -> f64 {
+    match current {
+        Value::CurrentDeciAmps(_) => current.as_f64().unwrap_or(f64::NAN),
+        _ => f64::NAN,
+    }
+}
+
+/// `fields` with `extra`'s fields added.
+fn with(mut fields: serde_json::Value, extra: serde_json::Value) -> serde_json::Value {
+    if let (Some(map), serde_json::Value::Object(e)) = (fields.as_object_mut(), extra) {
+        map.extend(e);
+    }
+    fields
 }
 
 /// A library error as the command line reports it.
@@ -56,7 +108,7 @@ fn value_rows(values: &[(&'static DataEntry, Value)]) -> Vec<Row> {
 fn values_json(values: &[(&'static DataEntry, Value)]) -> serde_json::Value {
     let mut map = serde_json::Map::new();
     for (e, v) in values {
-        map.insert(e.name.to_string(), v.to_json());
+        map.insert(e.name.to_string(), value_json(v));
     }
     serde_json::Value::Object(map)
 }
@@ -67,7 +119,9 @@ pub(super) fn get(client: &Client, items: &[Item], report: &Report<'_>, out: &mu
         let values = client.get(it.index()).map_err(cl)?;
         if report.json {
             let (value, unit, access) = match it {
-                Item::Entry(e) => (values[0].1.to_json(), e.unit, e.access.short()),
+                Item::Entry(e) => {
+                    (value_json(&values[0].1), unit_json(e, client.config().speed_mode), e.access.short())
+                }
                 Item::Group(_) => (values_json(&values), "", "r"),
             };
             report.print(
@@ -95,10 +149,13 @@ pub(super) fn set(
     let v = Value::parse(e.kind, value).map_err(|err| CliError::usage(format!("{}: {err}", e.name)))?;
     client.set(e.index(), &v).map_err(cl)?;
     if report.json {
+        // The library compared what it read back with what it wrote; the value the device gives now is
+        // `read_back` (every remote entry is readable).
+        let read_back = client.get_value(e.index()).map_err(cl)?;
         report.print(
             out,
-            json!({"name": e.name, "id": e.id, "value": v.to_json(), "unit": e.unit, "access": e.access.short(),
-                   "read_back": true}),
+            json!({"name": e.name, "id": e.id, "value": value_json(&v), "unit": unit_json(e, client.config().speed_mode),
+                   "access": e.access.short(), "read_back": value_json(&read_back), "verified": true}),
         )
     } else {
         common::print_table(out, &[(format!("{} ({})", e.name, e.index()), format!("{v} (written, read back)"))])
@@ -148,14 +205,13 @@ pub(super) fn info(client: &Client, report: &Report<'_>, out: &mut dyn Write) ->
         let acts: Vec<_> = actuators
             .iter()
             .map(|(a, s)| {
-                json!({"actuator": a.number(), "position_counts": position(*a).to_json(), "flags": status_flags(*s),
-                       "moving": s & status1::MOTION != 0})
+                with(json!({"actuator": a.number(), "position_counts": position(*a).to_json()}), status_fields(*s))
             })
             .collect();
         report.print(
             out,
             json!({"firmware": firmware.to_json(), "configuration": configuration.to_json(),
-                   "battery_mains": mains.to_json(), "last_error": last_error.to_json(), "actuators": acts}),
+                   "battery_mains": value_json(&mains), "last_error": last_error.to_json(), "actuators": acts}),
         )
     } else {
         let mut rows: Vec<Row> = vec![
@@ -242,15 +298,17 @@ pub(super) fn watch(
             Value::ErrorCode(c) => c.0,
             _ => 0,
         };
-        let amps = |current: &Value| current.as_f64().unwrap_or(f64::NAN) / 10.0;
+        let amps = current_amps;
         match format {
             Format::Json => {
                 let acts: Vec<_> = rows
                     .iter()
                     .map(|(a, position, status, current)| {
-                        json!({"actuator": a.number(), "position_counts": position.to_json(),
-                               "moving": status & status1::MOTION != 0, "flags": status_flags(*status),
-                               "current_amps": amps(current)})
+                        with(
+                            json!({"actuator": a.number(), "position_counts": position.to_json(),
+                                   "current_amps": amps(current)}),
+                            status_fields(*status),
+                        )
                     })
                     .collect();
                 report.print(out, json!({"t_s": t, "actuators": acts, "last_error": last_error.to_json()}))?;
@@ -355,6 +413,7 @@ pub(super) fn print_move_report(out: &mut dyn Write, report: &MoveReport, how: &
             out,
             json!({"actuator": report.actuator.number(), "function": report.function.number(),
                    "reached_counts": report.position_counts, "target_counts": target,
+                   "difference_counts": target.map(|t| i64::from(report.position_counts) - i64::from(t)),
                    "time_s": report.duration.as_secs_f64(), "actuators": actuators}),
         );
     }
@@ -369,4 +428,20 @@ pub(super) fn print_move_report(out: &mut dyn Write, report: &MoveReport, how: &
     }
     rows.push(("time".into(), format!("{:.1} s", report.duration.as_secs_f64())));
     common::print_table(out, &rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn currents_are_amperes_converted_once_and_flag_words_have_word_and_flags() {
+        // 30 deci-amps on the wire are 3 A (the library converts); not 0.3 A.
+        assert_eq!(current_amps(&Value::CurrentDeciAmps(30)), 3.0);
+        assert_eq!(value_json(&Value::CurrentDeciAmps(30)), json!(3.0));
+        let f = Flags { set: FlagSet::ActuatorStatus1, bits: 0x01 };
+        let v = value_json(&Value::Flags(f));
+        assert_eq!(v["word"], 1);
+        assert!(v["flags"].is_array() && v.get("set").is_none() && v.get("unknown_bits").is_none(), "{v}");
+    }
 }

@@ -49,8 +49,8 @@ pub struct Args {
     /// How long to wait for the reply to RO, in ms (the manual allows the unit 2000 ms). In remote mode replies
     /// are awaited at most 1000 ms (twice the unit's watchdog), or this if it is shorter.
     #[arg(long, default_value_t = 2000, value_name = "MS", allow_hyphen_values = true, global = true,
-          value_parser = clap::value_parser!(u64).range(1..=60_000))]
-    pub reply_timeout: u64,
+          alias = "reply-timeout", value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    pub timeout_ms: u64,
     /// Which actuators each motion function drives (the unit's parameterisation, which the data list does not
     /// show): a preset, scp11 (Fn drives An), tlt (F1 both columns, F2 A1, F3 A2) or liftkit (F1 A1, F2 A2, F8
     /// both), or one function, F1=1,2. Repeat to combine (--functions scp11 --functions F7=1,2). Without it,
@@ -68,8 +68,8 @@ pub struct Args {
     /// How often a move (or a run) looks at the actuators, in ms: each look is one RC keepalive that also reads
     /// the status and position of every actuator (about 11 ms of the 38400-baud line).
     #[arg(long, default_value_t = 50, value_name = "MS", allow_hyphen_values = true, global = true,
-          value_parser = clap::value_parser!(u64).range(5..=10_000))]
-    pub poll_interval: u64,
+          alias = "poll-interval", value_parser = clap::value_parser!(u64).range(5..=10_000))]
+    pub poll_ms: u64,
     /// How the unit takes remote speeds: percent (standard units, "speed select relative") or
     /// counts-per-second (units parameterised for "speed select absolute", 0..1000 counts/s).
     #[arg(long, value_enum, default_value_t = SpeedModeArg::Percent, value_name = "MODE", global = true)]
@@ -122,11 +122,12 @@ pub enum Action {
         #[arg(allow_negative_numbers = true)]
         value: String,
     },
-    /// Send one telegram and print it and the reply, each explained: typed (RG ITEM, RT ITEM VALUE,
-    /// RE FUNCTION [DIRECTION|P0 [P1]], RS FUNCTION [fast|soft]) or as hex ("52 47 11 00 2C 30"). RO, RA and
-    /// RC belong to the session and are refused; a function an RE starts is stopped (RS) when the command ends.
+    /// Send one telegram and print it and the reply, each explained. Takes a typed request (RG ITEM, RT ITEM
+    /// VALUE, RE FUNCTION [DIRECTION|P0 [P1]], RS FUNCTION [fast|soft]) or the whole telegram in hex (command,
+    /// data and CRC: "52 47 11 00 2C 30"; the CRC is checked). RO, RA and RC belong to the session and are
+    /// refused; a function an RE starts is stopped (RS) when the command ends.
     Send {
-        /// The request's words, or its bytes in hex.
+        /// The request's words, or the whole telegram in hex.
         #[arg(required = true, value_name = "WORD", allow_negative_numbers = true)]
         words: Vec<String>,
     },
@@ -187,9 +188,9 @@ pub enum Action {
     /// Live positions and state until Ctrl-C.
     Watch {
         /// Time between samples, in ms (10 .. 3600000).
-        #[arg(long, default_value_t = 250, value_name = "MS", allow_hyphen_values = true,
+        #[arg(long, default_value_t = 250, value_name = "MS", allow_hyphen_values = true, alias = "interval",
               value_parser = clap::value_parser!(u64).range(10..=3_600_000))]
-        interval: u64,
+        interval_ms: u64,
         /// Stop after this many samples (at least 1).
         #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u64).range(1..))]
         count: Option<u64>,
@@ -258,12 +259,12 @@ fn client_config(args: &Args) -> Result<ClientConfig, CliError> {
     }
     let config = ClientConfig {
         safety_id,
-        reply_timeout: Duration::from_millis(args.reply_timeout),
+        reply_timeout: Duration::from_millis(args.timeout_ms),
         speed_mode: args.speed_mode.into(),
         function_map,
         stroke_limits,
         position_tolerance_counts: args.tolerance,
-        poll_interval: Duration::from_millis(args.poll_interval),
+        poll_interval: Duration::from_millis(args.poll_ms),
         ..ClientConfig::default()
     };
     config.validate().map_err(|e| CliError::usage(e.to_string()))?;
@@ -378,7 +379,7 @@ impl Report<'_> {
 /// `motionlink scu ...`
 pub fn run(args: Args) -> Result<(), CliError> {
     if let Action::Names = args.action {
-        return send::names(args.json, &mut std::io::stdout().lock());
+        return send::names(args.json, args.speed_mode.into(), &mut std::io::stdout().lock());
     }
     // Check everything that can be checked before the port is opened: nothing is sent for bad input.
     let config = client_config(&args)?;
@@ -519,9 +520,9 @@ fn act(
                 Ok(())
             }
         }
-        Action::Watch { interval, count, csv } => {
+        Action::Watch { interval_ms, count, csv } => {
             let format = if *csv { actions::Format::Csv } else { actions::Format::from_json(report.json) };
-            actions::watch(client, report, format, *interval, *count, interrupt, out)
+            actions::watch(client, report, format, *interval_ms, *count, interrupt, out)
         }
         Action::Errors => actions::errors(client, report, out),
         Action::Send { .. } | Action::Names => Ok(()),

@@ -3,7 +3,9 @@
 
 use std::io::Write;
 
-use motionlink_scu::model::{lookup, DataEntryExt, Function, Item, MotionDirection, StopMode, DATA_LIST, GROUPS};
+use motionlink_scu::model::{
+    lookup, DataEntryExt, Function, Item, MotionDirection, SpeedMode, StopMode, DATA_LIST, GROUPS,
+};
 use motionlink_scu::value::Value;
 use motionlink_scu::wire::{Incoming, Request, RequestDecoder};
 use serde_json::json;
@@ -192,12 +194,15 @@ pub(super) fn send(
 }
 
 /// `names`: the data list's entries and groups.
-pub(super) fn names(json: bool, out: &mut dyn Write) -> Result<(), CliError> {
+/// Units as `get` gives its values: amperes and volts for the converted entries, a remote speed in the unit
+/// of `speed_mode`.
+pub(super) fn names(json: bool, speed_mode: SpeedMode, out: &mut dyn Write) -> Result<(), CliError> {
     if json {
         for e in DATA_LIST {
+            let unit = super::actions::unit_json(e, speed_mode);
             common::print_json(
                 out,
-                &json!({"family": "scu", "name": e.name, "id": e.id, "unit": e.unit, "access": e.access.short(),
+                &json!({"family": "scu", "name": e.name, "id": e.id, "unit": unit, "access": e.access.short(),
                         "title": e.title, "size": e.size()}),
             )?;
         }
@@ -213,7 +218,8 @@ pub(super) fn names(json: bool, out: &mut dyn Write) -> Result<(), CliError> {
     let mut rows: Vec<Row> = DATA_LIST
         .iter()
         .map(|e| {
-            let unit = if e.unit.is_empty() { String::new() } else { format!(" [{}]", e.unit) };
+            let unit = super::actions::unit_json(e, speed_mode);
+            let unit = if unit.is_empty() { String::new() } else { format!(" [{unit}]") };
             (e.name.to_string(), format!("{} {}{unit} {}", e.index(), e.access.short(), e.title))
         })
         .collect();

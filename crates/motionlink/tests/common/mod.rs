@@ -128,9 +128,13 @@ impl Sim {
         let stderr = Lines::follow(child.stderr.take().expect("piped stderr"));
         let mut line = String::new();
         BufReader::new(child.stdout.take().expect("piped stdout")).read_line(&mut line).expect("read its first line");
-        let address = line
-            .trim()
-            .strip_prefix("listening on pty ")
+        // `listening on ADDRESS`, or with --json `{"listening": ADDRESS, ...}`.
+        let from_json = serde_json::from_str::<serde_json::Value>(&line)
+            .ok()
+            .and_then(|v| v["listening"].as_str().map(str::to_string));
+        let address = from_json
+            .as_deref()
+            .or_else(|| line.trim().strip_prefix("listening on pty "))
             .or_else(|| line.trim().strip_prefix("listening on "))
             .unwrap_or_else(|| panic!("unexpected first line {line:?}; stderr: {}", stderr.text()))
             .to_string();
@@ -343,4 +347,19 @@ pub fn cpu_seconds_of(child: std::process::Child) -> (i32, f64) {
     std::mem::forget(child); // reaped here, not by Child's drop
     let secs = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 / 1e6;
     (libc::WEXITSTATUS(status), secs(usage.ru_utime) + secs(usage.ru_stime))
+}
+
+/// Asserts that `text` has no programming-language debug text: `Some(`, `None`, `\u{` escapes, or a
+/// CamelCase name glued to a parenthesis (`Get(ActPos)`, `CanFrame(123#0102)`).
+pub fn assert_no_debug_text(what: &str, text: &str) {
+    assert!(!text.contains("Some(") && !text.contains("None"), "{what}: {text}");
+    assert!(!text.contains("\\u{"), "{what}: a Rust escape: {text}");
+    for word in text.split(|c: char| !(c.is_ascii_alphanumeric() || c == '(')) {
+        if let Some((name, _)) = word.split_once('(') {
+            let camel = name.starts_with(|c: char| c.is_ascii_uppercase())
+                && name.chars().any(|c| c.is_ascii_lowercase())
+                && name.chars().all(|c| c.is_ascii_alphanumeric());
+            assert!(!camel, "{what}: debug form {word:?} in {text}");
+        }
+    }
 }

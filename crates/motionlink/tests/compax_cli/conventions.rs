@@ -77,6 +77,7 @@ pub(super) fn trace_capture_and_where_the_port_comes_from() {
     assert_eq!(from_file, text);
     assert!(text.lines().any(|l| l.starts_with('(') && l.contains(" -> ") && l.contains("P194")), "{text}");
     assert!(text.lines().any(|l| l.starts_with('(') && l.contains(" <- ") && l.contains("P194=1")), "{text}");
+    common::assert_no_debug_text("decode compax", &text);
 
     let config = common::temp_path("compax-devices.toml");
     std::fs::write(&config, format!("[device.axis]\nfamily = \"compax\"\nport = \"{p}\"\n")).unwrap();

@@ -37,13 +37,22 @@ fn over_tcp_every_action() {
         v.extend_from_slice(extra);
         compax(p, &v)
     };
-    let scan = json(&with(&["--timeout-ms", "30", "--json", "scan"]));
-    let found: Vec<u64> = scan["drives"].as_array().unwrap().iter().map(|d| d["drive"].as_u64().unwrap()).collect();
+    let scan = stdout(&with(&["--timeout-ms", "30", "--json", "scan"]));
+    // One object per drive found (JSON Lines).
+    let found: Vec<u64> = scan
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["drive"].as_u64().unwrap())
+        .collect();
     assert_eq!(found, [1, 5]);
 
     let st = json(&with(&["--drive", "5", "--json", "status", "S1", "S17"]));
     assert_eq!(st["status"][0]["value"], 0.0);
-    assert_eq!(st["status"][1]["value"]["bits"], "0000 0010");
+    let s17 = &st["status"][1]["value"];
+    assert_eq!(
+        (&s17["pattern"], &s17["word"], &s17["flags"][0]),
+        (&"0000 0010".into(), &2.into(), &"RUN".into()),
+        "{st}"
+    );
 
     let o = with(&["--drive", "5", "set", "P12", "-3.5"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -120,7 +129,7 @@ fn port_sim_in_process() {
 /// `status S1 S16 S17` of `drive` as JSON values: (position, S16 bits, S17 bits) with bit 1 first.
 fn state(port: &str, drive: &str) -> (f64, String, String) {
     let st = json(&compax(port, &["--drive", drive, "--json", "status", "S1", "S16", "S17"]));
-    let bits = |i: usize| st["status"][i]["value"]["bits"].as_str().unwrap().replace(' ', "");
+    let bits = |i: usize| st["status"][i]["value"]["pattern"].as_str().unwrap().replace(' ', "");
     (st["status"][0]["value"].as_f64().unwrap(), bits(1), bits(2))
 }
 
@@ -275,8 +284,27 @@ fn a_closed_stdout_stops_a_move() {
     let (rest, _) = wait_at_rest(&sim, 1, at);
     assert!(rest.at - at < 0.100, "{:.1} ms", (rest.at - at) * 1e3);
     let out = child.wait_with_output().unwrap();
-    // The session's warnings say what it stopped; the exit code is 0, as for any closed pipe.
+    // Stopped, then quietly 0, as for any closed pipe: no warnings, no notes.
     assert_eq!(out.status.code(), Some(0), "a closed pipe ends with 0: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(out.stderr.is_empty(), "a closed pipe ends quietly: {}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// With `-q` a signal during a move prints only the error: not the note that the signal was received, not
+/// the hint how to switch the drive on again.
+#[cfg(unix)]
+#[test]
+fn quiet_prints_only_the_error_of_a_stopped_move() {
+    let sim = start_sim(&["--tcp", "127.0.0.1:0"]);
+    let run = Running::start(&["-q", "compax", "--port", &sim.address, "move", "--abs", "1000", "--speed", "10"]);
+    wait_started(&sim, 1);
+    run.signal(libc::SIGINT);
+    let ended = run.wait(TEN_S);
+    assert_eq!(ended.code(), 130, "{}", ended.stderr);
+    let err = &ended.stderr;
+    assert!(err.contains("SIGINT received") && err.contains("switched off"), "the error itself: {err}");
+    assert!(!err.contains("stopping what this command started"), "a note: {err}");
+    assert!(!err.contains("output 0 1"), "the switch-on hint is a note: {err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
 }
 
 #[cfg(unix)]

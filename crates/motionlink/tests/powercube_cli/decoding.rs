@@ -77,3 +77,25 @@ pub(super) fn demo_shows_the_manuals_examples() {
         assert!(text.contains(needle), "{needle} missing in\n{text}");
     }
 }
+
+/// candump `-x` marks the direction of each frame (`T` sent by this host, `R` received), in the log form
+/// (`candump -l -x`) and the screen form (`TX - -`): `decode` keeps it, even where the identifier does not
+/// tell it (a frame that is no PowerCube message).
+#[test]
+pub(super) fn candump_x_direction_marks_are_kept() {
+    let input = "(1700000000.000000) can0 123#0102 T\n(1700000000.000100) can0 123#0102 R\n\
+                 (1700000000.000200)  can0  TX - -  0F1   [1]  01\n  can0  RX - -  0B1   [1]  01\n";
+    let o = common::run_with(&["--json", "decode", "powercube"], &[], input);
+    assert!(o.status.success(), "{o:?}");
+    let got: Vec<serde_json::Value> =
+        String::from_utf8_lossy(&o.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let directions: Vec<&str> = got.iter().map(|v| v["direction"].as_str().unwrap()).collect();
+    assert_eq!(directions, ["->", "<-", "->", "<-"], "{got:?}");
+    assert_eq!((&got[2]["frame"], &got[2]["time_s"]), (&"0F1#01".into(), &1_700_000_000.000_2.into()), "{got:?}");
+    assert_eq!(got[3]["meaning"], "ack from module 17: Home acknowledged", "{got:?}");
+    let text = String::from_utf8_lossy(&decode(input).stdout).into_owned();
+    assert!(
+        text.lines().nth(2).unwrap().starts_with("(1700000000.000200) can0 0F1#01") && text.contains("-> put"),
+        "{text}"
+    );
+}

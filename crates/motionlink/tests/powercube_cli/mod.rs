@@ -42,9 +42,14 @@ fn over_tcp_every_action() {
     let port = sim.address.as_str();
     let scan = ok(port, &["scan"]);
     assert!(scan.lines().any(|l| l.starts_with("17 ") && l.contains("rotary") && l.contains("4.6.34")), "{scan}");
-    let json: serde_json::Value = serde_json::from_str(&ok(port, &["scan", "--json"])).unwrap();
-    assert_eq!(json.as_array().unwrap().len(), 2);
-    assert_eq!(json[1]["serial"], 1017);
+    // One object per module (JSON Lines), each naming family and port.
+    let json: Vec<serde_json::Value> =
+        ok(port, &["scan", "--json"]).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(json.len(), 2);
+    assert_eq!(
+        (&json[1]["serial"], &json[1]["family"], &json[1]["port"]),
+        (&1017.into(), &"powercube".into(), &port.into())
+    );
 
     let info = ok(port, &["--module", "17", "info"]);
     assert!(info.contains("serial") && info.contains("1017") && info.contains("MaxVel"), "{info}");
@@ -576,7 +581,7 @@ fn set_reads_back_what_it_wrote() {
     assert!(err.contains("MaxVel was written as 10.000000 but reads back as 1.000000"), "{err}");
     assert!(ok(port, &["set", "MaxVel", "0.5"]).contains("MaxVel set to 0.500000 rad/s (read back)"));
     let j: serde_json::Value = serde_json::from_str(&ok(port, &["--json", "set", "TargetVel", "0.25"])).unwrap();
-    assert!(j["read_back"].is_number() && j["not_verifiable"].is_null(), "{j}");
+    assert!(j["read_back"].is_number() && j["not_verifiable"].is_null() && j["verified"] == true, "{j}");
     assert!(ok(port, &["set", "Cur", "1"]).contains("not verified: reading Cur gives the measured current"));
 }
 

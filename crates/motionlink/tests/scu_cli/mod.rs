@@ -49,8 +49,18 @@ fn get_prints_a_table_or_json_with_a_value_field() {
     assert_eq!(v["name"], "actual_position_a1");
     let v = json(&scu(&sim.address, &["--json", "get", "remote_speed_f1"]));
     assert_eq!(v["value"], 100);
+    assert_eq!(v["unit"], "%", "the unit in force (--speed-mode percent), not both: {v}");
+    let v = json(&scu(&sim.address, &["--json", "--speed-mode", "counts-per-second", "get", "remote_speed_f1"]));
+    assert_eq!(v["unit"], "counts/s", "{v}");
+    // Currents in amperes, as the library gives them, in `get` and in the names list alike.
+    let v = json(&scu(&sim.address, &["--json", "get", "current_a1"]));
+    assert_eq!((&v["unit"], &v["value"]), (&"A".into(), &0.0.into()), "{v}");
+    let names = stdout(&scu("", &["--json", "names"]));
+    let current = names.lines().find(|l| l.contains("\"current_a1\"")).unwrap();
+    assert!(current.contains("\"unit\":\"A\""), "{current}");
     let group = json(&scu(&sim.address, &["get", "actuator_status1", "--json"]));
-    assert_eq!(group["value"]["actuator_status1_a1"]["set"][0], "available");
+    assert_eq!(group["value"]["actuator_status1_a1"]["flags"][0], "available");
+    assert!(group["value"]["actuator_status1_a1"]["word"].is_number(), "a flag word has its word: {group}");
     let table = stdout(&scu(&sim.address, &["get", "error_codes"]));
     assert_eq!(table.lines().count(), 5, "{table}");
 }
@@ -114,7 +124,7 @@ fn errors_lists_five_codes() {
 #[test]
 fn watch_prints_samples() {
     let sim = sim_tcp();
-    let out = scu(&sim.address, &["watch", "--count", "3", "--interval", "50"]);
+    let out = scu(&sim.address, &["watch", "--count", "3", "--interval-ms", "50"]);
     assert!(out.status.success(), "{out:?}");
     let text = stdout(&out);
     assert_eq!(text.lines().count(), 3, "{text}");
@@ -132,7 +142,7 @@ fn run_switches_a_function_for_a_while_and_stops_it() {
     let out = scu(&sim.address, &["run", "F11", "on", "--seconds", "0.2"]);
     assert!(out.status.success(), "{out:?}");
     let buzzer = json(&scu(&sim.address, &["get", "buzzer", "--json"]));
-    assert_eq!(buzzer["value"]["bits"], 0, "the buzzer is off again after run");
+    assert_eq!(buzzer["value"]["word"], 0, "the buzzer is off again after run");
 }
 
 #[test]
@@ -530,9 +540,9 @@ fn bad_input_is_refused_with_exit_2_before_anything_is_sent() {
         &["move", "7", "100"],
         &["move", "1", "100", "--function", "11"],
         &["--tolerance", "-1", "move", "1", "100"],
-        &["--poll-interval", "0", "move", "1", "100"],
-        &["--poll-interval", "NaN", "move", "1", "100"],
-        &["--reply-timeout", "0", "info"],
+        &["--poll-ms", "0", "move", "1", "100"],
+        &["--poll-ms", "NaN", "move", "1", "100"],
+        &["--timeout-ms", "0", "info"],
         &["--safety", "3", "info"],
         &["--functions", "F11=1", "info"],
         &["--functions", "F1=7", "info"],
@@ -540,7 +550,7 @@ fn bad_input_is_refused_with_exit_2_before_anything_is_sent() {
         &["--stroke", "9=0:100", "info"],
         &["run", "F1", "out", "--seconds", "NaN"],
         &["run", "F1", "out", "--seconds", "-1"],
-        &["watch", "--interval", "0"],
+        &["watch", "--interval-ms", "0"],
         &["watch", "--count", "0"],
         &["follow", "1", "--rate", "0"],
         &["follow", "1", "--rate", "101"],
@@ -565,7 +575,7 @@ fn set_reads_the_value_back() {
     assert!(out.status.success(), "{out:?}");
     assert!(stdout(&out).contains("321 counts (written, read back)"), "{}", stdout(&out));
     let v = json(&scu(&sim.address, &["set", "remote_speed_f1", "33", "--json"]));
-    assert_eq!(v["read_back"], true);
+    assert_eq!((&v["value"], &v["read_back"], &v["verified"]), (&33.into(), &33.into(), &true.into()), "{v}");
 }
 
 #[test]
