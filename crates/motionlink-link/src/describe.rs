@@ -99,6 +99,9 @@ impl<'a> From<crate::capture::Tapped<'a>> for Captured<'a> {
     }
 }
 
+/// What a boxed [`DescribingTap`] does with the telegrams it explains.
+pub type OnTelegrams = Box<dyn Fn(Timestamp, &mut Vec<Annotation>) + Send + Sync>;
+
 /// A tap that explains the traffic as it passes: a family's [`Describe`] reads every chunk or frame, and each
 /// telegram it completes is handed, annotated, to `on_telegrams` (with the time of the chunk that completed
 /// it). The live wire trace (`-v`), `send`'s printout and the web console's traffic log are all one of these
@@ -132,7 +135,7 @@ impl<'a> From<crate::capture::Tapped<'a>> for Captured<'a> {
 /// tap.record(Timestamp::ZERO, Direction::ToDevice, Tapped::Bytes(&[1, 2]));
 /// assert_eq!(seen.lock().unwrap().iter().map(|a| a.meaning.as_str()).collect::<Vec<_>>(), ["byte 1", "byte 2"]);
 /// ```
-pub struct DescribingTap<F> {
+pub struct DescribingTap<F = OnTelegrams> {
     describer: std::sync::Mutex<(Box<dyn Describe + Send>, Vec<Annotation>)>,
     on_telegrams: F,
 }

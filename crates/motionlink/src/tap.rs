@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 use motionlink_link::can::CanLink;
 use motionlink_link::capture::{CaptureWriter, Fanout, TapCanLink, TapLink, TapSink, Tapped};
 use motionlink_link::clock::lock;
-use motionlink_link::describe::{Annotation, Captured, Describe, Direction};
+use motionlink_link::describe::{Annotation, Describe, DescribingTap, Direction, OnTelegrams};
 use motionlink_link::link::Link;
 use motionlink_link::{SharedClock, Timestamp};
 
@@ -38,36 +38,38 @@ impl LinkArgs {
 /// A describer of a family's traffic, made anew for each watcher (each keeps its own state).
 pub type MakeDescriber<'a> = &'a dyn Fn() -> Box<dyn Describe + Send>;
 
-/// The telegrams of a session, explained as they pass (for `send`, which prints the request and its reply).
+/// The telegrams of a session, explained as they pass (for `send`, which prints the request and its reply):
+/// the library's [`DescribingTap`] keeping what it explains.
 pub struct Telegrams {
-    state: Mutex<(Box<dyn Describe + Send>, Vec<Annotation>)>,
+    seen: Arc<Mutex<Vec<Annotation>>>,
+    tap: DescribingTap,
 }
 
 impl Telegrams {
     fn new(describer: Box<dyn Describe + Send>) -> Self {
-        Telegrams { state: Mutex::new((describer, Vec::new())) }
+        let seen = Arc::new(Mutex::new(Vec::new()));
+        let keep = Arc::clone(&seen);
+        let tap = DescribingTap::new(
+            describer,
+            Box::new(move |_: Timestamp, found: &mut Vec<Annotation>| lock(&keep).append(found)) as OnTelegrams,
+        );
+        Telegrams { seen, tap }
     }
 
     /// Forgets what was seen so far.
     pub fn clear(&self) {
-        lock(&self.state).1.clear();
+        lock(&self.seen).clear();
     }
 
     /// Every telegram seen since the last `clear` or `take`.
     pub fn take(&self) -> Vec<Annotation> {
-        std::mem::take(&mut lock(&self.state).1)
+        std::mem::take(&mut *lock(&self.seen))
     }
 }
 
 impl TapSink for Telegrams {
     fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>) {
-        let mut state = lock(&self.state);
-        let (describer, found) = &mut *state;
-        let captured = match data {
-            Tapped::Bytes(b) => Captured::Bytes(b),
-            Tapped::Frame(f) => Captured::Frame(f),
-        };
-        describer.describe(captured, direction, Some(at), found);
+        self.tap.record(at, direction, data);
     }
 }
 
@@ -95,7 +97,7 @@ impl Tap {
     ) -> Result<Tap, CliError> {
         let mut sinks: Vec<Arc<dyn TapSink>> = Vec::new();
         if crate::term::output().verbose >= 1 {
-            sinks.push(Arc::new(crate::term::WireTrace::new(make(), clock)));
+            sinks.push(Arc::new(crate::term::wire_trace(make(), clock)));
         }
         let mut capture = None;
         if let Some(path) = &args.capture {

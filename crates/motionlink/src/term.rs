@@ -6,9 +6,9 @@ use std::sync::{Mutex, OnceLock};
 use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle, WeakProgressBar};
-use motionlink_link::capture::{hex, TapSink, Tapped, UnixTime};
+use motionlink_link::capture::{hex, UnixTime};
 use motionlink_link::clock::{lock, SharedClock, Timestamp};
-use motionlink_link::describe::{Annotation, Captured, Describe, Direction};
+use motionlink_link::describe::{Annotation, Describe, DescribingTap};
 use tracing_subscriber::filter::{LevelFilter, Targets};
 use tracing_subscriber::layer::SubscriberExt as _;
 use tracing_subscriber::util::SubscriberInitExt as _;
@@ -209,51 +209,37 @@ pub fn progress_bar(length: u64, message: impl Into<String>) -> ProgressBar {
 }
 
 /// The live wire trace of `-v`: every telegram, with direction, time (UTC time of day), hex and meaning, on
-/// stderr.
-pub struct WireTrace {
-    describer: Mutex<Box<dyn Describe + Send>>,
-    time: UnixTime,
+/// stderr: the library's [`DescribingTap`] with a printer.
+pub type WireTrace = DescribingTap;
+
+/// A wire trace that explains telegrams with `describer`; times from `clock`.
+pub fn wire_trace(describer: Box<dyn Describe + Send>, clock: &SharedClock) -> WireTrace {
+    let time = UnixTime::of(clock);
+    DescribingTap::new(
+        describer,
+        Box::new(move |fallback_at: Timestamp, found: &mut Vec<Annotation>| print_trace(&time, found, fallback_at)),
+    )
 }
 
-impl WireTrace {
-    /// A trace that explains telegrams with `describer`; times from `clock`.
-    pub fn new(describer: Box<dyn Describe + Send>, clock: &SharedClock) -> Self {
-        WireTrace { describer: Mutex::new(describer), time: UnixTime::of(clock) }
-    }
-
-    fn print(&self, annotations: &[Annotation], fallback_at: Timestamp) {
-        for a in annotations {
-            let at = self.time.at(a.at.unwrap_or(fallback_at));
-            let local = at.as_secs() % 86_400;
-            let stamp =
-                format!("{:02}:{:02}:{:02}.{:06}", local / 3600, (local / 60) % 60, local % 60, at.subsec_micros());
-            // A CAN frame as candump writes it (0C9#0A3C), serial bytes as spaced hex.
-            let data = match a.can_id {
-                Some(id) => format!("{id:03X}#{}", hex(&a.bytes).replace(' ', "")),
-                None => hex(&a.bytes),
-            };
-            let mark = if a.bad { "!!" } else { a.direction.arrow() };
-            if output().json {
-                let mut v = crate::decode::annotation_json(a, None);
-                v["time_s"] = serde_json::json!(at.as_secs_f64());
-                v["can_id"] = serde_json::json!(a.can_id);
-                write_stderr(&format!("{}\n", serde_json::json!({ "trace": v })));
-                continue;
-            }
-            write_stderr(&format!("{stamp} {mark} {data:<30} {}\n", a.meaning));
-        }
-    }
-}
-
-impl TapSink for WireTrace {
-    fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>) {
-        let mut out = Vec::new();
-        let captured = match data {
-            Tapped::Bytes(b) => Captured::Bytes(b),
-            Tapped::Frame(f) => Captured::Frame(f),
+fn print_trace(time: &UnixTime, annotations: &[Annotation], fallback_at: Timestamp) {
+    for a in annotations {
+        let at = time.at(a.at.unwrap_or(fallback_at));
+        let local = at.as_secs() % 86_400;
+        let stamp = format!("{:02}:{:02}:{:02}.{:06}", local / 3600, (local / 60) % 60, local % 60, at.subsec_micros());
+        // A CAN frame as candump writes it (0C9#0A3C), serial bytes as spaced hex.
+        let data = match a.can_id {
+            Some(id) => format!("{id:03X}#{}", hex(&a.bytes).replace(' ', "")),
+            None => hex(&a.bytes),
         };
-        lock(&self.describer).describe(captured, direction, Some(at), &mut out);
-        self.print(&out, at);
+        let mark = if a.bad { "!!" } else { a.direction.arrow() };
+        if output().json {
+            let mut v = crate::decode::annotation_json(a, None);
+            v["time_s"] = serde_json::json!(at.as_secs_f64());
+            v["can_id"] = serde_json::json!(a.can_id);
+            write_stderr(&format!("{}\n", serde_json::json!({ "trace": v })));
+            continue;
+        }
+        write_stderr(&format!("{stamp} {mark} {data:<30} {}\n", a.meaning));
     }
 }
 

@@ -7,7 +7,7 @@ use std::sync::{Arc, Mutex};
 
 use motionlink_link::capture::{format_line, hex, TapSink, Tapped, UnixTime};
 use motionlink_link::clock::{lock, SharedClock, Timestamp};
-use motionlink_link::describe::{Annotation, Describe, DescribingTap, Direction};
+use motionlink_link::describe::{Annotation, Describe, DescribingTap, Direction, OnTelegrams};
 use serde_json::{json, Value};
 
 /// How many capture lines the download keeps (the oldest go first).
@@ -49,13 +49,10 @@ struct Inner {
     next_seq: u64,
 }
 
-/// What the decoding tap does with each telegram: appends it to the live log.
-type ToLog = Box<dyn Fn(Timestamp, &mut Vec<Annotation>) + Send + Sync>;
-
 /// The traffic of one link, captured and decoded.
 pub struct Traffic {
     inner: Arc<Mutex<Inner>>,
-    decoded: DescribingTap<ToLog>,
+    decoded: DescribingTap,
     time: UnixTime,
     header: String,
     can_interface: String,
@@ -73,7 +70,7 @@ impl Traffic {
         }));
         let started = clock.now();
         let log = Arc::clone(&inner);
-        let to_log: ToLog = Box::new(move |at: Timestamp, found: &mut Vec<Annotation>| {
+        let to_log: OnTelegrams = Box::new(move |at: Timestamp, found: &mut Vec<Annotation>| {
             let t_s = at.saturating_since(started).as_secs_f64();
             let mut inner = lock(&log);
             for a in found.drain(..) {
