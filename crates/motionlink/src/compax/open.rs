@@ -27,6 +27,12 @@ pub(super) fn plan_move(
         _ => return Err(CliError::usage("give one of --abs and --rel")),
     };
     let speed = speed.map(SpeedPercent::new).transpose().map_err(|e| CliError::usage(format!("--speed: {e}")))?;
+    if accel == Some(0) {
+        // A ramp of no time asks for an infinite acceleration: the drive would clamp it to whatever it can.
+        return Err(CliError::usage(
+            "--accel 0: give the ramp time in ms, 1..=32767 (0 would ask for an infinite acceleration)",
+        ));
+    }
     let accel = accel.map(RampMs::new).transpose().map_err(|e| CliError::usage(format!("--accel: {e}")))?;
     let timeout = checked_s("--timeout-s", timeout_s)?;
     if !(tolerance.is_finite() && tolerance > 0.0 && tolerance <= 1e6) {

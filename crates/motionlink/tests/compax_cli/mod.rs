@@ -442,6 +442,7 @@ fn bad_arguments_are_refused_naming_them_before_anything_is_sent() {
         (&["move", "--abs", "10", "--speed", "50", "--accel", "40000"], "--accel"),
         (&["move", "--abs", "10", "--accel", "-1"], "--accel"),
         (&["move", "--abs", "10", "--accel", "NaN"], "--accel"),
+        (&["move", "--abs", "10", "--accel", "0"], "--accel"),
         (&["move", "--abs", "10", "--tolerance", "0"], "--tolerance"),
         (&["move", "--abs", "10", "--tolerance", "-0.1"], "--tolerance"),
         (&["move", "--abs", "10", "--tolerance", "NaN"], "--tolerance"),
