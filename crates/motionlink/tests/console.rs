@@ -138,9 +138,8 @@ fn prints_one_line_and_every_request_needs_the_token() {
     let (status, capture) = get(&c.host, &format!("/capture?token={}", c.token));
     assert_eq!(status, 200);
     assert!(capture.starts_with("# motionlink capture: compax sim\n"), "{capture}");
-    let at = c.running.signal(libc::SIGTERM);
+    c.running.signal(libc::SIGTERM);
     let ended = c.running.wait(Duration::from_secs(10));
-    assert!(unix_now() >= at);
     assert_eq!(ended.stdout.lines().count(), 1, "exactly one line on stdout: {:?}", ended.stdout);
     assert!(ended.stdout.starts_with("console on http://127.0.0.1:"), "{:?}", ended.stdout);
     assert_eq!(ended.code(), 128 + libc::SIGTERM, "{}", ended.stderr);
