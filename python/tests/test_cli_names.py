@@ -2,8 +2,8 @@
 family's info, get, set, move, status or scan, and watch, ``to_dict()`` has exactly the keys, nested the
 same way, that ``motionlink <family> --port sim --json ...`` prints (``family`` and ``port`` aside).
 
-The binary is ``$MOTIONLINK_BIN`` or ``<repository>/target/debug/motionlink`` (``cargo build -p
-motionlink``). Without it these tests are skipped, or fail when ``MOTIONLINK_REQUIRE_CLI=1``.
+The binary is ``$MOTIONLINK_BIN``, else ``debug/motionlink`` in ``$CARGO_TARGET_DIR`` or
+``<repository>/target`` (``cargo build -p motionlink``). Without it these tests are skipped, or fail when ``MOTIONLINK_REQUIRE_CLI=1``.
 """
 
 from __future__ import annotations
@@ -19,7 +19,8 @@ import pytest
 import motionlink
 
 REPO = Path(__file__).resolve().parents[2]
-BIN = Path(os.environ.get("MOTIONLINK_BIN", REPO / "target" / "debug" / "motionlink"))
+TARGET = Path(os.environ.get("CARGO_TARGET_DIR", REPO / "target"))
+BIN = Path(os.environ.get("MOTIONLINK_BIN", (TARGET if TARGET.is_absolute() else REPO / TARGET) / "debug" / "motionlink"))
 IDENTITY = {"family", "port"}
 
 

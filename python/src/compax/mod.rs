@@ -310,7 +310,7 @@ impl CompaxClient {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
         let id = ParamId::parse(name).map_err(|e| to_pyerr(py, usage(format!("{name:?}: {e}"))))?;
-        let v = py.detach(|| c.read_param(a, id)).or_raise(py)?;
+        let v = interruptible_read(py, None, move || c.read_param(a, id))?.or_raise(py)?;
         let r = param_record(py, a.get(), id)?;
         r.set("value", v)?;
         Ok(r.done())

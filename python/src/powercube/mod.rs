@@ -283,7 +283,7 @@ impl PowerCubeClient {
     fn state<'py>(&self, py: Python<'py>, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.address(py, module)?;
-        let s = py.detach(|| c.module(a)?.state()).or_raise(py)?;
+        let s = interruptible_read(py, None, move || c.module(a)?.state())?.or_raise(py)?;
         Ok(state_record(py, a, s)?.done())
     }
 
@@ -292,14 +292,13 @@ impl PowerCubeClient {
     fn sample<'py>(&self, py: Python<'py>, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.address(py, module)?;
-        let (p, s) = py
-            .detach(|| -> Result<_, Error> {
-                let m = c.module(a)?;
-                let kind = m.kind()?;
-                let s = m.state()?;
-                Ok((in_unit(m.position()?, kind), s))
-            })
-            .or_raise(py)?;
+        let (p, s) = interruptible_read(py, None, move || -> Result<_, Error> {
+            let m = c.module(a)?;
+            let kind = m.kind()?;
+            let s = m.state()?;
+            Ok((in_unit(m.position()?, kind), s))
+        })?
+        .or_raise(py)?;
         Ok(sample_record(py, a, p, s)?.done())
     }
 
@@ -325,12 +324,11 @@ impl PowerCubeClient {
         let c = self.client(py)?;
         let a = self.address(py, module)?;
         let p = parse_param(name).map_err(|f| to_pyerr(py, f))?;
-        let (v, kind) = py
-            .detach(|| -> Result<_, Error> {
-                let m = c.module(a)?;
-                Ok((m.get(p)?, m.kind()?))
-            })
-            .or_raise(py)?;
+        let (v, kind) = interruptible_read(py, None, move || -> Result<_, Error> {
+            let m = c.module(a)?;
+            Ok((m.get(p)?, m.kind()?))
+        })?
+        .or_raise(py)?;
         let r = param_record(py, a, p, kind)?;
         r.set("value", value_py(py, &v)?)?;
         Ok(r.done())

@@ -367,7 +367,8 @@ impl ScuClient {
     fn get<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let it = parse_item(name).map_err(|f| to_pyerr(py, f))?;
-        let values = py.detach(|| c.get(it.index())).or_raise(py)?;
+        let index = it.index();
+        let values = interruptible_read(py, None, move || c.get(index))?.or_raise(py)?;
         let r = Record::new(py);
         r.set("family", FAMILY)?.set("name", it.name())?.set("id", it.index().0)?;
         match it {
@@ -480,18 +481,12 @@ impl ScuClient {
     /// One sample of `watch`: the connected actuators (position, moving, flags, current) and Error_Code 1.
     fn sample<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
-        let (positions, statuses, currents, history) = py
-            .detach(|| -> Result<_, Failure> {
-                let fail = |e: Error| e.failure();
-                let currents = c.get(named("currents")?).map_err(fail)?;
-                Ok((
-                    c.positions().map_err(fail)?,
-                    c.statuses().map_err(fail)?,
-                    currents,
-                    c.error_history().map_err(fail)?,
-                ))
-            })
-            .or_raise(py)?;
+        let (positions, statuses, currents, history) = interruptible_read(py, None, move || -> Result<_, Failure> {
+            let fail = |e: Error| e.failure();
+            let currents = c.get(named("currents")?).map_err(fail)?;
+            Ok((c.positions().map_err(fail)?, c.statuses().map_err(fail)?, currents, c.error_history().map_err(fail)?))
+        })?
+        .or_raise(py)?;
         let r = Record::new(py);
         r.set("family", FAMILY)?;
         let mut acts = Vec::new();
@@ -516,7 +511,7 @@ impl ScuClient {
     /// The error history: Error_Code 1 (the last) .. 5, each with its named bits.
     fn errors<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
         let c = self.client(py)?;
-        let history = py.detach(|| c.error_history()).or_raise(py)?;
+        let history = interruptible_read(py, None, move || c.error_history())?.or_raise(py)?;
         history.iter().map(|code| error_code(py, *code)).collect()
     }
 
