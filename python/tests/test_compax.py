@@ -59,6 +59,17 @@ def test_move_home_wait_watch_stop(compax: motionlink.Compax, compax_emulator: m
     assert compax.move_to(1.0, speed_percent=50).reached_units == pytest.approx(1.0, abs=0.01)
 
 
+def test_a_watch_ends_with_its_client(compax_emulator: motionlink.Emulator) -> None:
+    """The library's watch runs on its own thread: closing the client ends it, and the iterator says so."""
+    client = motionlink.Compax(compax_emulator)
+    samples = client.watch(interval_ms=5)
+    first = next(samples)
+    assert first.drive == 1 and first.s17.word == first.s17.to_dict()["word"]
+    client.close()
+    with pytest.raises(motionlink.UsageError, match="the watch has ended"):
+        next(samples)
+
+
 def test_travel_limits_refuse_before_sending(compax: motionlink.Compax, compax_emulator: motionlink.Emulator) -> None:
     compax_emulator.take_events()
     with pytest.raises(motionlink.UsageError, match="max") as e:

@@ -72,8 +72,9 @@ impl CompaxWatch {
     /// `moving` (the library's `WatchSample::moving`). Waits without the GIL; Ctrl-C ends the watch and
     /// raises. A watch that ended raises what ended it.
     fn next<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let Some(mut rx) = lock(&self.rx).take() else {
-            return Err(to_pyerr(py, usage("the watch has ended")));
+        let taken = if self.token.is_cancelled() { None } else { lock(&self.rx).take() };
+        let Some(mut rx) = taken else {
+            return Err(to_pyerr(py, usage("the watch has ended (closed, or its client was)")));
         };
         loop {
             let (got, back) = py.detach(move || (rx.recv_timeout(SIGNAL_CHECK), rx));
