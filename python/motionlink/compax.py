@@ -9,8 +9,8 @@ from __future__ import annotations
 from typing import Any, Dict, Iterator, List, Optional, Sequence, Union
 
 from . import _native
-from ._base import AsyncClientBase, ClientBase, run_native, samples
-from .records import CompaxHome, CompaxMove, CompaxSample, DriveFound, Parameter, StatusValue
+from ._base import AsyncClientBase, ClientBase, check_interval, run_native
+from .records import CompaxHome, CompaxMove, CompaxSample, DriveFound, DrivePosition, Parameter, StatusValue
 
 __all__ = ["Compax", "AsyncCompax"]
 
@@ -54,7 +54,8 @@ class Compax(ClientBase):
         super().__init__()
 
     def scan(self) -> List[DriveFound]:
-        """Every drive that answers (addresses 1..31), with its position S1."""
+        """Every drive that answers (addresses 1..31), with its position S1. Ctrl-C raises
+        ``KeyboardInterrupt`` at once; the library's scan ends before the next address."""
         return [DriveFound(d) for d in self._native.scan()]
 
     def info(self, drive: Optional[int] = None) -> List[StatusValue]:
@@ -66,16 +67,22 @@ class Compax(ClientBase):
         """Status values by name (``"S1"``) or number."""
         return [StatusValue(d) for d in self._native.status([str(n) for n in names], drive)]
 
-    def position(self, drive: Optional[int] = None) -> float:
-        """The actual position S1, in the drive's unit."""
-        return float(self._native.position(drive))
+    def position(self, drive: Optional[int] = None) -> DrivePosition:
+        """The actual position S1: ``position_units``, in the drive's unit."""
+        return DrivePosition(
+            {"family": "compax", "drive": self._d(drive), "position_units": self._native.position(drive)}
+        )
+
+    def _d(self, drive: Optional[int]) -> int:
+        return self.drive if drive is None else drive
 
     def get(self, name: Union[str, int], drive: Optional[int] = None) -> Parameter:
         """Reads a parameter (``"P194"``, ``194``, ``"device_address"``)."""
         return Parameter(self._native.get(_param(name), drive))
 
     def set(self, name: Union[str, int], value: float, drive: Optional[int] = None) -> Parameter:
-        """Writes a parameter and reads it back."""
+        """Writes a parameter; the library reads it back and compares (a difference is a
+        :class:`DeviceError`). ``read_back`` is the value then read from the drive, ``verified`` True."""
         return Parameter(self._native.set(_param(name), float(value), drive))
 
     def move_to(
@@ -103,9 +110,10 @@ class Compax(ClientBase):
         """POSA HOME (find machine zero), waited for. Ctrl-C stops the drive."""
         return CompaxHome(self._native.home(drive, timeout_s))
 
-    def wait(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> float:
-        """Waits until the drive's positioning ended (S17); its position S1 then."""
-        return float(self._native.wait(drive, timeout_s))
+    def wait(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> DrivePosition:
+        """Waits until the drive's positioning ended (S17); its position S1 then. Ctrl-C stops the
+        drive."""
+        return DrivePosition(self._native.wait(drive, timeout_s))
 
     def stop(self, drive: Optional[int] = None) -> None:
         """Stops the drive: OUTPUT O0=0 switches it off (``output(0, 1)`` switches it on again)."""
@@ -122,14 +130,22 @@ class Compax(ClientBase):
     def watch(
         self, drive: Optional[int] = None, *, interval_ms: int = 200, count: Optional[int] = None
     ) -> Iterator[CompaxSample]:
-        """Samples of S1 and S17 every ``interval_ms``, ``count`` times or until the loop ends."""
+        """The library's watch: S1 and S17 every ``interval_ms`` on the drive's schedule, ``count`` times
+        or until the loop ends (leaving it, or closing the client, ends the watch). Ctrl-C ends it and
+        raises ``KeyboardInterrupt``."""
+        check_interval(interval_ms, count)
+        native = self._native.watch_start(drive, interval_ms)
 
-        def read(t_s: float) -> CompaxSample:
-            fields = dict(self._native.sample(drive))
-            fields["t_s"] = t_s
-            return CompaxSample(fields)
+        def run() -> Iterator[CompaxSample]:
+            try:
+                n = 0
+                while count is None or n < count:
+                    yield CompaxSample(native.next())
+                    n += 1
+            finally:
+                native.close()
 
-        return samples(read, interval_ms, count)
+        return run()
 
 
 def _settings(
@@ -184,9 +200,11 @@ class AsyncCompax(AsyncClientBase):
         """Opens the session (what ``async with`` does)."""
         return await self.__aenter__()
 
-    async def position(self, drive: Optional[int] = None) -> float:
-        """The actual position S1."""
-        return float(await run_native(lambda done: self._client().position(drive, done)))
+    async def position(self, drive: Optional[int] = None) -> DrivePosition:
+        """The actual position S1: ``position_units``."""
+        units = await run_native(lambda done: self._client().position(drive, done))
+        d = self.drive if drive is None else drive
+        return DrivePosition({"family": "compax", "drive": d, "position_units": units})
 
     async def move_to(
         self,
@@ -215,9 +233,9 @@ class AsyncCompax(AsyncClientBase):
         """POSA HOME, waited for; cancelling the task stops the drive."""
         return CompaxHome(await run_native(lambda done: self._client().home(drive, timeout_s, done)))
 
-    async def wait(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> float:
+    async def wait(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> DrivePosition:
         """Waits until the positioning ended; S1 then. Cancelling the task stops the drive."""
-        return float(await run_native(lambda done: self._client().wait(drive, timeout_s, done)))
+        return DrivePosition(await run_native(lambda done: self._client().wait(drive, timeout_s, done)))
 
     async def stop(self, drive: Optional[int] = None) -> None:
         """Stops the drive (OUTPUT O0=0)."""

@@ -88,7 +88,9 @@ class PowerCube(ClientBase):
         return self.module if module is None else module
 
     def scan(self) -> List[ModuleInfo]:
-        """Every module on the bus (an ``error`` field on a module that answered but could not be read)."""
+        """Every module on the bus (an ``error`` field on a module that answered but could not be read).
+        Ctrl-C raises ``KeyboardInterrupt`` at once (the scan sets nothing in motion; it ends on its own
+        thread, and the session's next call waits for it on the line)."""
         return [ModuleInfo(d) for d in self._native.scan()]
 
     def info(self, module: Optional[int] = None) -> ModuleInfo:
@@ -113,7 +115,8 @@ class PowerCube(ClientBase):
         return Parameter(self._native.set(str(name), value, module))
 
     def home(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> PowerCubeHome:
-        """Homes the module and waits for the end of homing. Ctrl-C halts it."""
+        """Homes the module and waits for the end of homing (``reached_rad`` / ``reached_m``). Ctrl-C
+        halts it."""
         return PowerCubeHome(self._native.home(module, timeout_s))
 
     def move_to(
@@ -160,11 +163,8 @@ class PowerCube(ClientBase):
         m = self._m(module)
 
         def read(t_s: float) -> PowerCubeSample:
-            fields = dict(self._native.state(m))
-            value, unit = self._native.position(m)
+            fields = dict(self._native.sample(m))
             fields["t_s"] = t_s
-            fields["unit"] = unit
-            fields[{"rad": "position_rad", "m": "position_m"}.get(unit, "position")] = value
             return PowerCubeSample(fields)
 
         return samples(read, interval_ms, count)

@@ -7,18 +7,25 @@ A PowerCube module's positions are named after its kind: ``position_rad`` on a r
 record for ``position_m`` raises ``AttributeError`` naming the fields it has. A module whose kind the
 session has not read yet reports ``position`` with ``unit == "module"``.
 
-Every record has :meth:`Record.to_dict` (the JSON object) and compares equal to a record of the same type
-with the same fields.
+Every record has :meth:`Record.to_dict`: the command line's JSON object for the same operation, with
+exactly its keys, nested the same way (``family`` and ``port`` aside: the command line adds them, a
+record has ``family``). Some records carry a few more attributes than that object (a move's
+``start_counts`` / ``start_rad`` / ``start_units``, a PowerCube module's ``unit``, a COMPAX status value's
+``drive`` and ``id``): they are attributes only, never in ``to_dict()``. Records compare equal to a record
+of the same type with the same fields.
 """
 
 from __future__ import annotations
 
-from typing import Any, ClassVar, Dict, List, Mapping
+from typing import Any, List
+
+from ._record import ErrorBit, ErrorCode, FlagWord, Parameter, Record
 
 __all__ = [
     "Record",
     "ErrorBit",
     "ErrorCode",
+    "FlagWord",
     "Parameter",
     "ModuleInfo",
     "ModuleState",
@@ -27,6 +34,7 @@ __all__ = [
     "PowerCubeHome",
     "PowerCubeSample",
     "ActuatorState",
+    "ActuatorPosition",
     "ScuInfo",
     "ActuatorOutcome",
     "ScuMove",
@@ -35,6 +43,7 @@ __all__ = [
     "ActuatorSample",
     "ScuSample",
     "DriveFound",
+    "DrivePosition",
     "StatusValue",
     "CompaxStarted",
     "CompaxMove",
@@ -43,134 +52,16 @@ __all__ = [
 ]
 
 
-class Record:
-    """A read-only result with named fields (see the module documentation)."""
-
-    __slots__ = ("_fields",)
-    #: Fields whose values are records (or lists of records) of these types.
-    _nested: ClassVar[Mapping[str, type]] = {}
-
-    def __init__(self, fields: Mapping[str, Any]) -> None:
-        own: Dict[str, Any] = dict(fields)
-        for name, kind in self._nested.items():
-            value = own.get(name)
-            if isinstance(value, list):
-                own[name] = [v if isinstance(v, Record) else kind(v) for v in value]
-            elif isinstance(value, Mapping):
-                own[name] = kind(value)
-        object.__setattr__(self, "_fields", own)
-
-    def __getattr__(self, name: str) -> Any:
-        fields = object.__getattribute__(self, "_fields")
-        try:
-            return fields[name]
-        except KeyError:
-            have = ", ".join(fields)
-            raise AttributeError(f"{type(self).__name__} has no field {name!r}; it has: {have}") from None
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        raise AttributeError(f"{type(self).__name__} is read-only")
-
-    def __dir__(self) -> List[str]:
-        return sorted(set(super().__dir__()) | set(self._fields))
-
-    def __contains__(self, name: str) -> bool:
-        return name in self._fields
-
-    def get(self, name: str, default: Any = None) -> Any:
-        """The field ``name``, or ``default`` when the record has no such field."""
-        return self._fields.get(name, default)
-
-    def to_dict(self) -> Dict[str, Any]:
-        """The record as the command line's JSON object (nested records as dicts)."""
-
-        def plain(v: Any) -> Any:
-            if isinstance(v, Record):
-                return v.to_dict()
-            if isinstance(v, list):
-                return [plain(x) for x in v]
-            return v
-
-        return {k: plain(v) for k, v in self._fields.items()}
-
-    def __eq__(self, other: object) -> bool:
-        return type(other) is type(self) and other._fields == self._fields
-
-    def __hash__(self) -> int:
-        return hash((type(self).__name__, repr(self._fields)))
-
-    def __repr__(self) -> str:
-        inner = ", ".join(f"{k}={v!r}" for k, v in self._fields.items())
-        return f"{type(self).__name__}({inner})"
-
-
-class ErrorBit(Record):
-    """One named bit of an error code or state word.
-
-    Attributes:
-        bit: The bit's number as the manual counts it.
-        name: The manual's name.
-        cause: What it means.
-    """
-
-    __slots__ = ()
-    bit: int
-    name: str
-    cause: str
-
-
-class ErrorCode(Record):
-    """An error code with its named bits (SCU Error_Code).
-
-    Attributes:
-        code: The raw code.
-        bits: The bits set, named.
-    """
-
-    __slots__ = ()
-    _nested = {"bits": ErrorBit}
-    code: int
-    bits: List[ErrorBit]
-
-
-class Parameter(Record):
-    """A parameter, data-list entry or status value read or written.
-
-    Attributes:
-        family: ``"scu"``, ``"powercube"`` or ``"compax"``.
-        name: Its name (``ActPos``, ``actual_position_a1``, ``P194``).
-        id: Its number on the wire (ParamID, data index, parameter number).
-        value: The value (a number, a text, or for groups and compound values a dict).
-        unit: Its unit (``""`` when none).
-        access: ``"r"``, ``"w"`` or ``"rw"``.
-        read_back: After a write: the value read back (``None`` if it cannot be read back; then
-            ``not_verifiable`` says why). Only on the result of ``set``.
-        module: PowerCube: the module (1..31).
-        drive: COMPAX: the drive (1..31).
-    """
-
-    __slots__ = ()
-    family: str
-    name: str
-    id: int
-    value: Any
-    unit: str
-    access: str
-    read_back: Any
-    module: int
-    drive: int
-
-
 # ----------------------------------------------------------------------------------------------- PowerCube
 
 
 class ModuleState(Record):
-    """A PowerCube module's state word (CubeState).
+    """A PowerCube module's state word (CubeState), as ``state`` and ``wait`` give it.
 
     Attributes:
         family: ``"powercube"``.
         module: The address, 1..31.
-        code: The raw state word.
+        word: The raw state word.
         flags: Every flag set, as the manual spells it (``"STATE_HALTED"``).
         faults: The flags set that are errors.
         unknown_bits: Bits set that no flag names (only when nonzero).
@@ -179,18 +70,29 @@ class ModuleState(Record):
     __slots__ = ()
     family: str
     module: int
-    code: int
+    word: int
     flags: List[str]
     faults: List[str]
     unknown_bits: int
 
 
-class ModuleInfo(ModuleState):
-    """What a scan or ``info`` found about a module: its state, and:
+class _WithState(Record):
+    """A PowerCube result with the module's state word nested as ``state`` (a :class:`FlagWord` with
+    ``faults``)."""
+
+    __slots__ = ()
+    _nested = {"state": FlagWord}
+    family: str
+    module: int
+    state: FlagWord
+
+
+class ModuleInfo(_WithState):
+    """What a scan or ``info`` found about a module: its state (``state``), and:
 
     Attributes:
         kind: ``"rotary"`` or ``"linear"``.
-        unit: ``"rad"`` or ``"m"``.
+        unit: ``"rad"`` or ``"m"`` (an attribute; not in ``to_dict()``).
         version: The firmware version.
         serial: The serial number.
         error: ``scan`` only: why a module that answered the scan could not be read (the other fields are
@@ -244,20 +146,22 @@ class ModulePosition(Record):
         return float(self.get("position_rad", self.get("position_m", self.get("position"))))
 
 
-class PowerCubeMove(ModuleState):
-    """A checked move that ended at its target: the module's state at the end, and where it went, in its
-    unit (``unit``: ``"rad"``: ``start_rad``, ``target_rad``, ``reached_rad``, ``difference_rad``; ``"m"``:
-    the same with ``_m``).
+class PowerCubeMove(_WithState):
+    """A checked move that ended at its target: the module's state at the end (``state``), and where it
+    went, in its unit (``"rad"``: ``target_rad``, ``reached_rad``, ``difference_rad``; ``"m"``: the same
+    with ``_m``).
 
     Attributes:
-        unit: ``"rad"`` or ``"m"``.
-        start_rad: Where the module stood before.
+        action: ``"reached"``.
+        unit: ``"rad"`` or ``"m"`` (an attribute; not in ``to_dict()``).
+        start_rad: Where the module stood before (an attribute; not in ``to_dict()``).
         target_rad: The target.
         reached_rad: The final actual position, read twice from the module, both within the tolerance.
         difference_rad: ``reached - target``.
     """
 
     __slots__ = ()
+    action: str
     unit: str
     start_rad: float
     target_rad: float
@@ -269,27 +173,30 @@ class PowerCubeMove(ModuleState):
     difference_m: float
 
 
-class PowerCubeHome(ModuleState):
-    """The end of homing: the state and the position (``position_rad`` or ``position_m``).
+class PowerCubeHome(_WithState):
+    """The end of homing: the state (``state``) and where the module stands (``reached_rad`` or
+    ``reached_m``).
 
     Attributes:
-        unit: ``"rad"`` or ``"m"``.
-        position_rad: The position after homing (rotary).
-        position_m: The position after homing (linear).
+        action: ``"homed"``.
+        unit: ``"rad"`` or ``"m"`` (an attribute; not in ``to_dict()``).
+        reached_rad: The position after homing (rotary).
+        reached_m: The position after homing (linear).
     """
 
     __slots__ = ()
+    action: str
     unit: str
-    position_rad: float
-    position_m: float
+    reached_rad: float
+    reached_m: float
 
 
-class PowerCubeSample(ModuleState):
-    """One sample of ``watch``: the state and the position.
+class PowerCubeSample(_WithState):
+    """One sample of ``watch``: the state (``state``) and the position.
 
     Attributes:
         t_s: Seconds since the start of the watch.
-        unit: ``"rad"`` or ``"m"``.
+        unit: ``"rad"`` or ``"m"`` (an attribute; not in ``to_dict()``).
         position_rad: The position (rotary).
         position_m: The position (linear).
     """
@@ -321,6 +228,24 @@ class ActuatorState(Record):
     moving: bool
 
 
+class ActuatorPosition(Record):
+    """An SCU actuator's position (``Scu.position``).
+
+    Attributes:
+        family: ``"scu"``.
+        actuator: 1..6.
+        position_counts: Its position in encoder counts.
+    """
+
+    __slots__ = ()
+    family: str
+    actuator: int
+    position_counts: int
+
+    def __int__(self) -> int:
+        return int(self.position_counts)
+
+
 class ScuInfo(Record):
     """What ``info`` reads from an SCU.
 
@@ -329,19 +254,18 @@ class ScuInfo(Record):
         port: The port.
         firmware: The firmware info text.
         configuration: The configuration info text.
-        battery_mains: The battery/mains word: ``{"code": int, "flags": [names], "unknown_bits": int}``
-            (``unknown_bits`` only when nonzero).
+        battery_mains: The battery/mains word (a :class:`FlagWord`).
         last_error: Error_Code 1 with its named bits.
         actuators: The connected actuators.
     """
 
     __slots__ = ()
-    _nested = {"actuators": ActuatorState, "last_error": ErrorCode}
+    _nested = {"actuators": ActuatorState, "last_error": ErrorCode, "battery_mains": FlagWord}
     family: str
     port: str
     firmware: str
     configuration: str
-    battery_mains: Any
+    battery_mains: FlagWord
     last_error: ErrorCode
     actuators: List[ActuatorState]
 
@@ -352,16 +276,18 @@ class ActuatorOutcome(Record):
     Attributes:
         actuator: 1..6.
         target_counts: Its target.
-        position_counts: Where it ended.
-        difference_counts: ``position - target``.
+        reached_counts: Where it ended.
+        difference_counts: ``reached - target``.
         moved: False for an actuator whose remote position was written but which its function does not
             drive.
+        start_counts: Where it stood before (an attribute; not in ``to_dict()``).
     """
 
     __slots__ = ()
     actuator: int
     target_counts: int
-    position_counts: int
+    reached_counts: int
+    start_counts: int
     difference_counts: int
     moved: bool
 
@@ -374,7 +300,7 @@ class ScuMove(Record):
         function: The motion function (1..10).
         actuator: The actuator asked for.
         target_counts: Its target.
-        position_counts: Where it ended.
+        reached_counts: Where it ended.
         time_s: How long the move took.
         actuators: Every actuator whose remote position the move wrote.
     """
@@ -385,7 +311,7 @@ class ScuMove(Record):
     function: int
     actuator: int
     target_counts: int
-    position_counts: int
+    reached_counts: int
     time_s: float
     actuators: List[ActuatorOutcome]
 
@@ -395,28 +321,34 @@ class ActuatorRest(Record):
 
     Attributes:
         actuator: 1..6.
-        position_counts: Its position.
+        reached_counts: Its position.
     """
 
     __slots__ = ()
     actuator: int
-    position_counts: int
+    reached_counts: int
 
 
 class ScuRun(Record):
-    """A function run until it ended (or its time limit), then stopped.
+    """A function run until it ended (or its time limit), then stopped (the unit confirmed the stop).
 
     Attributes:
         family: ``"scu"``.
         function: The function's number (1..22).
-        rest: Where the actuators came to rest.
+        stopped: True.
+        interrupted: False (Ctrl-C raises ``KeyboardInterrupt`` instead of returning).
+        actuators: Where the actuators came to rest.
+        time_s: How long it ran (an attribute; not in ``to_dict()``).
     """
 
     __slots__ = ()
-    _nested = {"rest": ActuatorRest}
+    _nested = {"actuators": ActuatorRest}
     family: str
     function: int
-    rest: List[ActuatorRest]
+    stopped: bool
+    interrupted: bool
+    actuators: List[ActuatorRest]
+    time_s: float
 
 
 class ActuatorSample(Record):
@@ -474,29 +406,46 @@ class DriveFound(Record):
     position_units: float
 
 
-class StatusValue(Record):
-    """A COMPAX status value (S1 .. S40).
+class DrivePosition(Record):
+    """Where a COMPAX drive stands: S1, in the drive's unit (``position``, ``wait``, ``home``).
 
     Attributes:
         family: ``"compax"``.
         drive: The drive.
-        name: ``"S1"`` ...
-        id: Its number (1 for S1).
-        title: What it is, where the manuals say.
-        unit: Its unit (``""`` when none).
-        value: A number, or for the status bit words S16 and S17 the raw word.
-        flags: S16 and S17: the meanings of the bits set.
+        position_units: S1.
     """
 
     __slots__ = ()
     family: str
     drive: int
+    position_units: float
+
+    def __float__(self) -> float:
+        return float(self.position_units)
+
+
+class StatusValue(Record):
+    """A COMPAX status value (S1 .. S40), as an entry of the command line's ``status``.
+
+    Attributes:
+        family: ``"compax"``.
+        status: ``"S1"`` ...
+        name: What it is, where the manuals say (the title).
+        unit: Its unit (``""`` when none).
+        value: A number; for the status bit words S16 and S17 a :class:`FlagWord` with ``pattern``.
+        drive: The drive (an attribute; not in ``to_dict()``).
+        id: Its number, 1 for S1 (an attribute; not in ``to_dict()``).
+    """
+
+    __slots__ = ()
+    _nested = {"value": FlagWord}
+    family: str
+    status: str
     name: str
-    id: int
-    title: str
     unit: str
     value: Any
-    flags: List[str]
+    drive: int
+    id: int
 
 
 class CompaxStarted(Record):
@@ -527,11 +476,14 @@ class CompaxMove(Record):
         reached_units: S1 at rest.
         difference_units: ``reached - target``.
         tolerance_units: The in-position tolerance the move was checked against.
+        waited: True (the move was waited for).
+        start_units: S1 before the move (an attribute; not in ``to_dict()``).
     """
 
     __slots__ = ()
     family: str
     drive: int
+    waited: bool
     start_units: float
     target_units: float
     reached_units: float
@@ -539,38 +491,30 @@ class CompaxMove(Record):
     tolerance_units: float
 
 
-class CompaxHome(Record):
-    """The end of homing (POSA HOME).
-
-    Attributes:
-        family: ``"compax"``.
-        drive: The drive.
-        position_units: S1 at rest.
-    """
+class CompaxHome(DrivePosition):
+    """The end of homing (POSA HOME): S1 at rest (``position_units``)."""
 
     __slots__ = ()
-    family: str
-    drive: int
-    position_units: float
 
 
 class CompaxSample(Record):
-    """One sample of a COMPAX ``watch``: S1 and S17.
+    """One sample of a COMPAX ``watch`` (the library's watch): S1 and S17.
 
     Attributes:
         family: ``"compax"``.
         t_s: Seconds since the start of the watch.
         drive: The drive.
         position_units: S1.
-        moving: True while a command is active (S17).
-        flags: The meanings of the S17 bits set.
+        s17: S17 as a :class:`FlagWord` with ``pattern``.
+        moving: True while a command is active (S17 COMMAND_ACTIVE).
     """
 
     __slots__ = ()
+    _nested = {"s17": FlagWord}
     family: str
     t_s: float
     drive: int
     position_units: float
+    s17: FlagWord
     moving: bool
-    flags: List[str]
 

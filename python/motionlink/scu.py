@@ -10,7 +10,7 @@ from typing import Any, Dict, Iterator, List, Optional, Sequence, Union
 
 from . import _native
 from ._base import AsyncClientBase, ClientBase, run_native, samples
-from .records import ErrorCode, Parameter, ScuInfo, ScuMove, ScuRun, ScuSample
+from .records import ActuatorPosition, ErrorCode, Parameter, ScuInfo, ScuMove, ScuRun, ScuSample
 
 __all__ = ["Scu", "AsyncScu"]
 
@@ -59,7 +59,8 @@ class Scu(ClientBase):
 
     Leaving a ``with`` block, ``close()`` or the end of the program sends RS for every function this
     session started, then RA. Ctrl-C during ``move_to`` or ``run`` stops the function (fast RS), then
-    raises ``KeyboardInterrupt``.
+    raises ``KeyboardInterrupt``; during ``info`` it raises at once (nothing is in motion; the reads in
+    flight end on their own thread).
     """
 
     family = "scu"
@@ -87,9 +88,11 @@ class Scu(ClientBase):
         """Firmware and configuration texts, battery/mains, the last error and the connected actuators."""
         return ScuInfo(self._native.info())
 
-    def position(self, actuator: int) -> int:
-        """The position of ``actuator`` (1..6), in encoder counts."""
-        return int(self._native.position(actuator))
+    def position(self, actuator: int) -> ActuatorPosition:
+        """The position of ``actuator`` (1..6): ``position_counts``, in encoder counts."""
+        return ActuatorPosition(
+            {"family": "scu", "actuator": actuator, "position_counts": self._native.position(actuator)}
+        )
 
     def get(self, name: str) -> Parameter:
         """Reads a data-list entry or group by name (``"actual_position_a1"``, ``"actual_positions"``) or
@@ -97,7 +100,9 @@ class Scu(ClientBase):
         return Parameter(self._native.get(str(name)))
 
     def set(self, name: str, value: Union[int, float, str]) -> Parameter:
-        """Writes a remote data entry (``"remote_speed_f1"``, ``"remote_position_a1"``) and reads it back."""
+        """Writes a remote data entry (``"remote_speed_f1"``, ``"remote_position_a1"``); the library reads it
+        back and compares (a difference is a :class:`DeviceError`). ``read_back`` is the value then read
+        from the unit, ``verified`` True."""
         return Parameter(self._native.set(str(name), value))
 
     def move_to(
@@ -177,9 +182,10 @@ class AsyncScu(AsyncClientBase):
         """Opens the session (what ``async with`` does)."""
         return await self.__aenter__()
 
-    async def position(self, actuator: int) -> int:
-        """The position of ``actuator``, in counts."""
-        return int(await run_native(lambda done: self._client().position(actuator, done)))
+    async def position(self, actuator: int) -> ActuatorPosition:
+        """The position of ``actuator``: ``position_counts``."""
+        counts = await run_native(lambda done: self._client().position(actuator, done))
+        return ActuatorPosition({"family": "scu", "actuator": actuator, "position_counts": counts})
 
     async def move_to(
         self, actuator: int, target_counts: int, *, speed: int = 100, function: Optional[int] = None

@@ -9,7 +9,7 @@ use motionlink_link::clock::lock;
 use motionlink_link::flags::FlagWord;
 use motionlink_link::url::PortUrl;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyBool, PyDict, PyInt};
 
 use crate::emulator::{InProcess, NativeEmulator};
 use crate::errors::Failure;
@@ -37,6 +37,59 @@ pub fn target(port: &Bound<'_, PyAny>, family: &'static str) -> Result<Target, F
     text.parse().map(Target::Url).map_err(|e| Failure::of(family, &e))
 }
 
+/// An integer argument as Python passes it: any `int` (however wide), or something else, kept for the
+/// usage error that names the argument and its range (instead of an `OverflowError` or a `TypeError`).
+pub struct Int(Result<i64, String>);
+
+impl<'a, 'py> FromPyObject<'a, 'py> for Int {
+    type Error = PyErr;
+
+    fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        let shown = || obj.repr().map(|r| r.to_string()).unwrap_or_else(|_| "the value".into());
+        if obj.is_instance_of::<PyBool>() {
+            return Ok(Int(Err(format!("{} (a bool)", shown()))));
+        }
+        if obj.is_instance_of::<PyInt>() {
+            return Ok(Int(obj.extract::<i64>().map_err(|_| shown())));
+        }
+        let type_name = obj.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "object".into());
+        Ok(Int(Err(format!("{} (a {type_name}, not an int)", shown()))))
+    }
+}
+
+impl Int {
+    /// The integer as a `T` if it lies in `range`, else a usage error of `family` naming `name` and the
+    /// range.
+    pub fn within<T: TryFrom<i64>>(
+        &self,
+        family: &'static str,
+        name: &str,
+        range: std::ops::RangeInclusive<i64>,
+    ) -> Result<T, Failure> {
+        let out = || {
+            let shown = match &self.0 {
+                Ok(v) => v.to_string(),
+                Err(s) => s.clone(),
+            };
+            Failure::usage(family, format!("{name} {shown}: give a whole number {}..={}", range.start(), range.end()))
+        };
+        match self.0 {
+            Ok(v) if range.contains(&v) => T::try_from(v).map_err(|_| out()),
+            _ => Err(out()),
+        }
+    }
+}
+
+/// An optional integer argument checked as [`Int::within`] does.
+pub fn opt_within<T: TryFrom<i64>>(
+    v: Option<&Int>,
+    family: &'static str,
+    name: &str,
+    range: std::ops::RangeInclusive<i64>,
+) -> Result<Option<T>, Failure> {
+    v.map(|i| i.within(family, name, range)).transpose()
+}
+
 /// A float of the wire (f32) as Python sees it: the shortest decimal that reads back as the same f32
 /// (0.05, not 0.05000000074505806).
 pub fn f32_py(x: f32) -> f64 {
@@ -62,13 +115,20 @@ impl<'py> Record<'py> {
         Ok(self)
     }
 
-    /// `flags` (names as the manual spells them) and `unknown_bits` (only when nonzero) of `word`.
-    pub fn flags<W: FlagWord>(&self, word: W) -> PyResult<&Self> {
-        self.set("flags", word.names())?;
+    /// `word` (the raw word), `flags` (names as the manual spells them) and `unknown_bits` (only when
+    /// nonzero): a flag word as naming.md spells it.
+    pub fn flag_word<W: FlagWord>(&self, word: W) -> PyResult<&Self> {
+        self.set("word", word.raw())?.set("flags", word.names())?;
         if word.unknown() != 0 {
             self.set("unknown_bits", word.unknown())?;
         }
         Ok(self)
+    }
+
+    /// Names fields of this record that Python gives as attributes but leaves out of `to_dict()` (which
+    /// has exactly the command line's `--json` keys): `motionlink.records.Record` takes the list out.
+    pub fn extras(&self, names: &[&str]) -> PyResult<&Self> {
+        self.set("_extras", names.to_vec())
     }
 
     /// The dict.

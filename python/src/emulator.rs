@@ -12,7 +12,13 @@ use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::{RealClock, SharedClock};
 use pyo3::prelude::*;
 
+use crate::common::{opt_within, Int};
 use crate::errors::{to_pyerr, Failure};
+
+/// Addresses 1..31 (`name`: "modules" or "drives") as the settings give them.
+fn addresses(family: &'static str, name: &str, list: &Option<Vec<Int>>) -> Result<Option<Vec<u8>>, Failure> {
+    list.as_ref().map(|l| l.iter().map(|a| a.within(family, &format!("{name}: address"), 1..=31)).collect()).transpose()
+}
 
 /// The one real clock of every session and emulator the bindings make.
 pub fn clock() -> SharedClock {
@@ -70,10 +76,10 @@ pub struct NativeEmulator {
 pub struct EmulatorSettings {
     preset: Option<String>,
     config: Option<String>,
-    modules: Option<Vec<u8>>,
-    drives: Option<Vec<u8>>,
-    mode: Option<u32>,
-    baud: Option<u32>,
+    modules: Option<Vec<Int>>,
+    drives: Option<Vec<Int>>,
+    mode: Option<Int>,
+    baud: Option<Int>,
     params: Option<Vec<(String, f64)>>,
     strict: bool,
     can: bool,
@@ -108,7 +114,10 @@ fn powercube_config(s: &EmulatorSettings) -> Result<motionlink_powercube::sim::S
     match (&s.config, &s.modules) {
         (Some(_), Some(_)) => Err(usage("give the modules either in the TOML configuration or as modules=, not both")),
         (Some(text), None) => SimConfig::from_toml(text).map_err(|e| usage(e.to_string())),
-        (None, Some(m)) => SimConfig::with_addresses(m).map_err(|e| usage(e.to_string())),
+        (None, Some(_)) => {
+            let m = addresses("powercube", "modules", &s.modules)?.unwrap_or_default();
+            SimConfig::with_addresses(&m).map_err(|e| usage(e.to_string()))
+        }
         (None, None) => Ok(SimConfig::default()),
     }
 }
@@ -120,15 +129,15 @@ fn compax_device(s: &EmulatorSettings) -> Result<motionlink_compax::Emulator, Fa
         Some(text) => SimConfig::from_toml(text).map_err(|e| usage(e.to_string()))?,
         None => SimConfig::default(),
     };
-    if let Some(drives) = &s.drives {
-        cfg.drives = SimConfig::bus(drives, cfg.p196, cfg.baud_rate).drives;
+    if let Some(drives) = addresses("compax", "drives", &s.drives)? {
+        cfg.drives = SimConfig::bus(&drives, cfg.p196, cfg.baud_rate).drives;
     }
-    if let Some(m) = s.mode {
+    if let Some(m) = opt_within::<u32>(s.mode.as_ref(), "compax", "mode (P196)", 0..=i64::from(u32::MAX))? {
         motionlink_compax::wire::Mode::from_p196(m).map_err(|e| usage(format!("mode (P196) {m}: {e}")))?;
         cfg.p196 = m;
         cfg.drives.iter_mut().for_each(|d| d.p196 = None);
     }
-    if let Some(b) = s.baud {
+    if let Some(b) = opt_within::<u32>(s.baud.as_ref(), "compax", "baud", 1..=4_000_000)? {
         cfg.baud_rate = b;
         cfg.drives.iter_mut().for_each(|d| d.baud_rate = None);
     }

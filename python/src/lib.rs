@@ -24,6 +24,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<wait::NativeTask>()?;
     m.add_class::<compax::CompaxClient>()?;
     m.add_class::<compax::AsyncCompaxClient>()?;
+    m.add_class::<compax::CompaxWatch>()?;
     m.add("COMPAX_DEFAULT_TOLERANCE_UNITS", compax::default_tolerance())?;
     Ok(())
 }

@@ -71,6 +71,63 @@ pub fn interruptible<T: Send>(
     })
 }
 
+/// Runs `op`, which only reads (it sets nothing in motion), on a thread of its own while the calling
+/// thread, without the GIL, waits for it and runs Python's signal handlers every [`SIGNAL_CHECK`]. When a
+/// handler raises (Ctrl-C), `token` (if given) is cancelled, so that a library operation that checks it
+/// (the COMPAX scan, before each address) ends at its next step, and the handler's exception is raised
+/// at once: a read in flight is not waited for (it ends on its thread within its reply timeout, its
+/// result dropped; it then resets `token`). Later calls on the same session queue behind it on the line.
+pub fn interruptible_read<T: Send + 'static>(
+    py: Python<'_>,
+    token: Option<CancelToken>,
+    op: impl FnOnce() -> T + Send + 'static,
+) -> PyResult<T> {
+    use std::sync::{Arc, Mutex};
+    // What became of the call: 0 running, 1 ended, 2 abandoned (the worker then resets the token). One
+    // lock decides, so a token is never left cancelled by a worker that ended just as Ctrl-C came.
+    let state = Arc::new(Mutex::new(0u8));
+    let (tx, rx) = mpsc::channel();
+    let (shared, worker_token) = (Arc::clone(&state), token.clone());
+    std::thread::Builder::new()
+        .name("motionlink-read".into())
+        .spawn(move || {
+            let out = op();
+            let mut s = motionlink_link::clock::lock(&shared);
+            if *s == 2 {
+                if let Some(t) = worker_token {
+                    t.reset();
+                }
+            }
+            *s = 1;
+            drop(s);
+            let _ = tx.send(out);
+        })
+        .map_err(|e| PyRuntimeError::new_err(format!("cannot start the operation's thread: {e}")))?;
+    let mut rx = rx;
+    loop {
+        let (got, back) = py.detach(move || (rx.recv_timeout(SIGNAL_CHECK), rx));
+        rx = back;
+        match got {
+            Ok(value) => return Ok(value),
+            Err(RecvTimeoutError::Timeout) => {
+                if let Err(interrupt) = py.check_signals() {
+                    let mut s = motionlink_link::clock::lock(&state);
+                    if *s == 0 {
+                        *s = 2;
+                        if let Some(t) = &token {
+                            t.cancel();
+                        }
+                    }
+                    return Err(interrupt);
+                }
+            }
+            Err(RecvTimeoutError::Disconnected) => {
+                return Err(PyRuntimeError::new_err("the operation's thread ended without a result"));
+            }
+        }
+    }
+}
+
 /// The runtime the async clients' operations run on (one thread; opening uses its blocking pool).
 pub fn runtime() -> &'static tokio::runtime::Handle {
     static RT: OnceLock<tokio::runtime::Handle> = OnceLock::new();
@@ -107,7 +164,18 @@ pub fn block_on_runtime<T: Send + 'static>(
 #[pyclass(frozen, module = "motionlink._native")]
 pub struct NativeTask {
     handle: std::sync::Mutex<Option<tokio::task::JoinHandle<()>>>,
+    /// For a task with a stop of its own ([`spawn_task_stopping`]): how `cancel` tells it.
+    stop: Option<StopFlag>,
 }
+
+/// Set by [`NativeTask::cancel`] for a task of [`spawn_task_stopping`]; the waker wakes it to see that.
+#[derive(Default)]
+struct StopState {
+    requested: bool,
+    waker: Option<std::task::Waker>,
+}
+
+type StopFlag = std::sync::Arc<std::sync::Mutex<StopState>>;
 
 /// What an async operation hands to Python: built, with the GIL, on the delivery thread.
 pub type Deliver = Box<dyn for<'py> FnOnce(Python<'py>) -> PyResult<Py<PyAny>> + Send>;
@@ -164,7 +232,50 @@ where
         let out = fut.await;
         let _ = motionlink_link::clock::lock(delivery()).send((done, out));
     });
-    NativeTask { handle: std::sync::Mutex::new(Some(handle)) }
+    NativeTask { handle: std::sync::Mutex::new(Some(handle)), stop: None }
+}
+
+/// Says on stderr that the stop after a cancelled operation failed (nobody awaits the task any more to get
+/// it as an exception).
+pub fn say_stop_failed(message: &str) {
+    eprintln!("motionlink: {message}");
+}
+
+/// As [`spawn_task`], for an operation whose own future, when dropped, does not stop the motion it waits
+/// for (a wait for another call's motion): cancelling the task drops `fut`, then runs `stop` (a halt) to
+/// its end, and only then does [`NativeTask::cancel`] return.
+pub fn spawn_task_stopping<F, S>(done: Py<PyAny>, fut: F, stop: S) -> NativeTask
+where
+    F: Future<Output = Outcome> + Send + 'static,
+    S: Future<Output = ()> + Send + 'static,
+{
+    use motionlink_link::clock::lock;
+    let flag: StopFlag = Default::default();
+    let seen = std::sync::Arc::clone(&flag);
+    let handle = runtime().spawn(async move {
+        let mut fut = Box::pin(fut);
+        let out = std::future::poll_fn(|cx| {
+            {
+                let mut st = lock(&seen);
+                if st.requested {
+                    return std::task::Poll::Ready(None);
+                }
+                st.waker = Some(cx.waker().clone());
+            }
+            fut.as_mut().poll(cx).map(Some)
+        })
+        .await;
+        match out {
+            Some(out) => {
+                let _ = lock(delivery()).send((done, out));
+            }
+            None => {
+                drop(fut);
+                stop.await;
+            }
+        }
+    });
+    NativeTask { handle: std::sync::Mutex::new(Some(handle)), stop: Some(flag) }
 }
 
 #[pymethods]
@@ -175,7 +286,20 @@ impl NativeTask {
     fn cancel(&self, py: Python<'_>) {
         let handle = motionlink_link::clock::lock(&self.handle).take();
         if let Some(h) = handle {
-            h.abort();
+            match &self.stop {
+                // The task drops its operation and runs its stop; this waits for both.
+                Some(flag) => {
+                    let waker = {
+                        let mut st = motionlink_link::clock::lock(flag);
+                        st.requested = true;
+                        st.waker.take()
+                    };
+                    if let Some(w) = waker {
+                        w.wake();
+                    }
+                }
+                None => h.abort(),
+            }
             let (tx, rx) = mpsc::channel();
             runtime().spawn(async move {
                 let _ = h.await;

@@ -26,10 +26,10 @@ def test_async_scu_moves_while_positions_are_read_and_cancel_stops() -> None:
                     seen.append(await scu.position(1))
                     await asyncio.sleep(0.1)
                 report = await move
-                assert abs(report.position_counts - 200) <= 5
-                assert any(0 < p < 200 for p in seen), seen
+                assert abs(report.reached_counts - 200) <= 5
+                assert any(0 < p.position_counts < 200 for p in seen), seen
                 run = await scu.run(2, "out", seconds=0.2)
-                assert run.rest[1].position_counts > 0
+                assert run.actuators[1].reached_counts > 0
                 emu.take_events()
                 slow = asyncio.create_task(scu.move_to(1, 800, speed=5))
                 await in_thread(lambda: emu.wait_event(lambda t: t.startswith("F1 started direction 9")))
@@ -58,9 +58,9 @@ def test_async_compax_moves_homes_waits_and_cancel_stops() -> None:
                     await asyncio.sleep(0.03)
                 report = await move
                 assert report.reached_units == pytest.approx(20.0, abs=0.01)
-                assert any(0 < p < 20 for p in seen), seen
+                assert any(0 < p.position_units < 20 for p in seen), seen
                 assert (await drive.home()).position_units == pytest.approx(0.0, abs=0.01)
-                assert await drive.wait() == pytest.approx(0.0, abs=0.01)
+                assert (await drive.wait()).position_units == pytest.approx(0.0, abs=0.01)
                 emu.take_events()
                 slow = asyncio.create_task(drive.move_to(100000.0, speed_percent=1))
                 await in_thread(lambda: emu.wait_event(lambda t: "motion started" in t))
@@ -84,6 +84,6 @@ def test_an_async_client_must_be_opened() -> None:
 
     async def opened() -> float:
         async with motionlink.AsyncCompax("sim") as c:
-            return await c.position()
+            return (await c.position()).position_units
 
     assert asyncio.run(opened()) == 0.0

@@ -16,10 +16,13 @@ def test_scan_finds_both_drives(compax: motionlink.Compax) -> None:
 
 def test_info_and_status(compax: motionlink.Compax) -> None:
     info = compax.info()
-    assert [s.name for s in info] == ["S1", "S2", "S3", "S16", "S17", "S18"]
+    assert [s.status for s in info] == ["S1", "S2", "S3", "S16", "S17", "S18"]
     s17 = compax.status(["S17"])[0]
-    assert isinstance(s17, StatusValue) and "RUN" in s17.flags
-    assert compax.status([1], drive=2)[0].value == 0.0
+    assert isinstance(s17, StatusValue) and (s17.status, s17.name) == ("S17", "status bits S17")
+    assert s17.value.to_dict() == {"word": 2, "flags": ["RUN"], "pattern": "0000 0010"}
+    s1 = compax.status([1], drive=2)[0]
+    assert (s1.status, s1.value, s1.drive, s1.id) == ("S1", 0.0, 2, 1)
+    assert s1.to_dict() == {"family": "compax", "status": "S1", "name": "actual position", "unit": "unit", "value": 0.0}
 
 
 def test_get_and_set_read_back(compax: motionlink.Compax) -> None:
@@ -27,8 +30,9 @@ def test_get_and_set_read_back(compax: motionlink.Compax) -> None:
     assert isinstance(got, Parameter) and (got.name, got.id, got.value, got.drive) == ("P194", 194, 2.0, 2)
     assert compax.get(194, drive=2) == got
     written = compax.set("P3", 5)
-    assert (written.value, written.read_back) == (5.0, 5.0)
-    assert compax.get("P3").value == 5.0
+    # `read_back` is the value read from the drive after the write (the library compared it).
+    assert written.verified is True and isinstance(written.read_back, float)
+    assert written.read_back == compax.get("P3").value == 5.0
 
 
 def test_move_home_wait_watch_stop(compax: motionlink.Compax, compax_emulator: motionlink.Emulator) -> None:
@@ -38,12 +42,14 @@ def test_move_home_wait_watch_stop(compax: motionlink.Compax, compax_emulator: m
     assert abs(moved.difference_units) <= moved.tolerance_units and moved.reached_units == pytest.approx(10.0, abs=0.01)
     rel = compax.move_to(distance=-2.5)
     assert rel.target_units == pytest.approx(7.5) and rel.reached_units == pytest.approx(7.5, abs=0.01)
-    assert compax.wait() == pytest.approx(7.5, abs=0.01)
-    assert compax.position() == pytest.approx(7.5, abs=0.01)
+    assert compax.wait().position_units == pytest.approx(7.5, abs=0.01)
+    assert compax.position().position_units == pytest.approx(7.5, abs=0.01)
+    assert moved.start_units == 0.0 and "start_units" not in moved.to_dict() and moved.waited is True
     home = compax.home()
     assert isinstance(home, CompaxHome) and home.position_units == pytest.approx(0.0, abs=0.01)
     sample = next(compax.watch(interval_ms=10, count=1))
     assert isinstance(sample, CompaxSample) and sample.moving is False and sample.t_s >= 0
+    assert sample.s17.pattern == "0000 0010" and "COMMAND_ACTIVE" not in sample.s17.flags
     compax.stop()
     texts = [e.text for e in compax_emulator.take_events()]
     assert "drive 1 switched off (O0=0)" in texts, texts
@@ -53,10 +59,22 @@ def test_move_home_wait_watch_stop(compax: motionlink.Compax, compax_emulator: m
     assert compax.move_to(1.0, speed_percent=50).reached_units == pytest.approx(1.0, abs=0.01)
 
 
+def test_a_watch_ends_with_its_client(compax_emulator: motionlink.Emulator) -> None:
+    """The library's watch runs on its own thread: closing the client ends it, and the iterator says so."""
+    client = motionlink.Compax(compax_emulator)
+    samples = client.watch(interval_ms=5)
+    first = next(samples)
+    assert first.drive == 1 and first.s17.word == first.s17.to_dict()["word"]
+    client.close()
+    with pytest.raises(motionlink.UsageError, match="the watch has ended"):
+        next(samples)
+
+
 def test_travel_limits_refuse_before_sending(compax: motionlink.Compax, compax_emulator: motionlink.Emulator) -> None:
     compax_emulator.take_events()
-    with pytest.raises(motionlink.MotionlinkError):
+    with pytest.raises(motionlink.UsageError, match="max") as e:
         compax.move_to(50.0, max_units=20.0)
+    assert (e.value.kind, e.value.family) == ("usage", "compax")
     assert not any("motion started" in e.text for e in compax_emulator.take_events())
 
 

@@ -31,26 +31,29 @@ def test_position_get_and_set_read_back(cube: motionlink.PowerCube) -> None:
     assert got.value == pytest.approx(p.position_rad)
     assert cube.get("0x3c").name == "ActPos"
     written = cube.set("MaxVel", 0.5)
-    assert written.value == 0.5 and written.read_back == 0.5 and written.access == "rw"
-    assert cube.get("MaxVel").value == pytest.approx(0.5)
+    assert written.value == 0.5 and written.verified is True and written.access == "rw"
+    assert written.read_back == cube.get("MaxVel").value == pytest.approx(0.5)
+    assert "not_verifiable" not in written
 
 
 def test_home_move_wait_and_watch(cube: motionlink.PowerCube, powercube_emulator: motionlink.Emulator) -> None:
     home = cube.home()
-    assert isinstance(home, PowerCubeHome) and "STATE_HOME_OK" in home.flags
-    assert home.position_rad == pytest.approx(0.0, abs=1e-3)
+    assert isinstance(home, PowerCubeHome) and "STATE_HOME_OK" in home.state.flags
+    assert home.action == "homed" and home.reached_rad == pytest.approx(0.0, abs=1e-3)
     moved = cube.move_to(0.3, velocity=1.0)
     assert isinstance(moved, PowerCubeMove)
     assert (moved.unit, moved.target_rad) == ("rad", 0.3)
     assert moved.reached_rad == pytest.approx(0.3, abs=1e-3)
     assert moved.difference_rad == pytest.approx(moved.reached_rad - 0.3, abs=1e-6)
-    assert moved.start_rad == pytest.approx(0.0, abs=1e-3)
+    assert moved.start_rad == pytest.approx(0.0, abs=1e-3) and "start_rad" not in moved.to_dict()
+    assert moved.action == "reached" and "STATE_RAMP_END" in moved.state.flags
     texts = [e.text for e in powercube_emulator.take_events()]
     assert any("motion started" in t for t in texts) and any("at rest 0.3" in t for t in texts), texts
     state = cube.wait()
     assert isinstance(state, ModuleState) and "STATE_MOTION" not in state.flags
     samples = list(cube.watch(interval_ms=5, count=3))
     assert [round(s.position_rad, 3) for s in samples] == [0.3, 0.3, 0.3]
+    assert "STATE_MOTION" not in samples[0].state.flags
     assert samples[0].t_s <= samples[1].t_s <= samples[2].t_s
 
 
@@ -115,7 +118,7 @@ def test_async_move_while_positions_are_watched(served_powercube_port: str) -> N
             assert len(seen) >= 3 and any(0.05 < p < 0.6 for p in seen), seen
             assert "STATE_MOTION" not in (await c.wait()).flags
             home = await c.home()
-            assert home.position_rad == pytest.approx(0.0, abs=1e-3)
+            assert home.reached_rad == pytest.approx(0.0, abs=1e-3)
             assert "STATE_HOME_OK" in (await c.state()).flags
 
     asyncio.run(main())

@@ -15,7 +15,8 @@ def test_info_lists_the_connected_actuators(scu: motionlink.Scu) -> None:
     assert all(a.position_counts == 0 and a.moving is False and "available" in a.flags for a in info.actuators)
     assert isinstance(info.last_error, ErrorCode) and info.last_error.code == 0
     assert info.firmware and info.configuration
-    assert info.battery_mains == {"code": 1, "flags": ["mains_connected"]}
+    assert info.battery_mains.to_dict() == {"word": 1, "flags": ["mains_connected"]}
+    assert info.battery_mains.word == 1
 
 
 def test_get_entries_and_groups_and_set_reads_back(scu: motionlink.Scu) -> None:
@@ -26,17 +27,25 @@ def test_get_entries_and_groups_and_set_reads_back(scu: motionlink.Scu) -> None:
     group = scu.get("actual_positions")
     assert group.value["actual_position_a2"] == 0
     written = scu.set("remote_speed_f1", 80)
-    assert (written.value, written.read_back) == (80, 80)
-    assert scu.get("remote_speed_f1").value == 80
+    # `read_back` is what the unit holds after the write (read from it), and the library compared it.
+    assert written.verified is True and written.read_back == 80
+    assert scu.get("remote_speed_f1").value == written.read_back
+    again = scu.set("remote_speed_f1", 55)
+    assert (again.value, again.read_back, again.verified) == (55, 55, True)
+    assert set(again.to_dict()) == {"family", "name", "id", "value", "unit", "access", "read_back", "verified"}
+    flags = scu.get("battery_mains")
+    assert flags.value == {"word": 1, "flags": ["mains_connected"]}
 
 
 def test_move_is_verified_and_watch_samples_it(scu: motionlink.Scu, scu_emulator: motionlink.Emulator) -> None:
     moved = scu.move_to(1, 300, speed=100)
     assert isinstance(moved, ScuMove)
     assert (moved.function, moved.actuator, moved.target_counts) == (1, 1, 300)
-    assert abs(moved.position_counts - 300) <= 5 and moved.time_s > 0
+    assert abs(moved.reached_counts - 300) <= 5 and moved.time_s > 0
     assert [(a.actuator, a.moved) for a in moved.actuators] == [(1, True)]
-    assert abs(scu.position(1) - 300) <= 5
+    assert moved.actuators[0].start_counts == 0 and "start_counts" not in moved.to_dict()["actuators"][0]
+    where = scu.position(1)
+    assert (where.actuator, where.family) == (1, "scu") and abs(where.position_counts - 300) <= 5
     texts = [e.text for e in scu_emulator.take_events()]
     assert any(t.startswith("F1 started direction 9") for t in texts), texts
     samples = list(scu.watch(interval_ms=10, count=2))
@@ -49,7 +58,8 @@ def test_move_is_verified_and_watch_samples_it(scu: motionlink.Scu, scu_emulator
 def test_run_and_stop(scu: motionlink.Scu, scu_emulator: motionlink.Emulator) -> None:
     run = scu.run(2, "out", seconds=0.2)
     assert isinstance(run, ScuRun) and run.function == 2
-    assert [r.actuator for r in run.rest] == [1, 2] and run.rest[1].position_counts > 0
+    assert (run.stopped, run.interrupted) == (True, False)
+    assert [r.actuator for r in run.actuators] == [1, 2] and run.actuators[1].reached_counts > 0
     scu.stop(2, soft=True)
     texts = [e.text for e in scu_emulator.take_events()]
     assert any("stopped (RS" in t for t in texts), texts

@@ -45,7 +45,7 @@ impl AsyncPowerCubeClient {
         let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
         let s: Settings = settings.extract()?;
         Ok(spawn_task(done, async move {
-            let module = s.module;
+            let module = module_address(&s.module)?;
             let watchdog = s.watchdog;
             // The blocking open runs on tokio's blocking pool; what it learns comes back through `found`.
             let found: Arc<std::sync::Mutex<Option<Learned>>> = Default::default();
@@ -95,9 +95,12 @@ impl AsyncPowerCubeClient {
 
     /// The actual position: `done(ok, (value, unit))`.
     #[pyo3(signature = (module, done))]
-    fn position(&self, module: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
+    fn position(&self, py: Python<'_>, module: Option<Int>, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = module.unwrap_or(self.module);
+        let a = match module {
+            None => self.module,
+            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
+        };
         Ok(spawn_task(done, async move {
             let p = raise(
                 async {
@@ -113,9 +116,12 @@ impl AsyncPowerCubeClient {
 
     /// The state word: `done(ok, dict)`.
     #[pyo3(signature = (module, done))]
-    fn state(&self, module: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
+    fn state(&self, py: Python<'_>, module: Option<Int>, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = module.unwrap_or(self.module);
+        let a = match module {
+            None => self.module,
+            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
+        };
         Ok(spawn_task(done, async move {
             let s = raise(async { c.module(Address::new(a)?).state().await }.await)?;
             dict(move |py| state_record(py, a, s))
@@ -124,9 +130,12 @@ impl AsyncPowerCubeClient {
 
     /// Homes and waits; cancelling the task halts the module.
     #[pyo3(signature = (module, timeout_s, done))]
-    fn home(&self, py: Python<'_>, module: Option<u8>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
+    fn home(&self, py: Python<'_>, module: Option<Int>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = module.unwrap_or(self.module);
+        let a = match module {
+            None => self.module,
+            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
+        };
         let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
         let guard = self.guard;
         Ok(spawn_task(done, async move {
@@ -138,11 +147,7 @@ impl AsyncPowerCubeClient {
                 }
                 .await,
             )?;
-            dict(move |py| {
-                let r = state_record(py, a, s)?;
-                put_position(&r, "position", p)?;
-                Ok(r)
-            })
+            dict(move |py| home_record(py, a, p, s))
         }))
     }
 
@@ -153,7 +158,7 @@ impl AsyncPowerCubeClient {
         &self,
         py: Python<'_>,
         target: f64,
-        module: Option<u8>,
+        module: Option<Int>,
         velocity: Option<f64>,
         acceleration: Option<f64>,
         tolerance: Option<f64>,
@@ -161,7 +166,10 @@ impl AsyncPowerCubeClient {
         done: Py<PyAny>,
     ) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = module.unwrap_or(self.module);
+        let a = match module {
+            None => self.module,
+            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
+        };
         let spec = move_spec(target, velocity, acceleration, tolerance, timeout_s).map_err(|f| to_pyerr(py, f))?;
         let guard = self.guard;
         Ok(spawn_task(done, async move {
@@ -177,23 +185,40 @@ impl AsyncPowerCubeClient {
         }))
     }
 
-    /// Waits until the module stands still (no STATE_MOTION); cancelling the task halts it.
+    /// Waits until the module stands still (no STATE_MOTION); cancelling the task halts it (the wait's
+    /// future stops nothing when dropped: the motion may be another call's, so the module is halted here).
     #[pyo3(signature = (module, timeout_s, done))]
-    fn wait(&self, py: Python<'_>, module: Option<u8>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
+    fn wait(&self, py: Python<'_>, module: Option<Int>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = module.unwrap_or(self.module);
+        let a = match module {
+            None => self.module,
+            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
+        };
         let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
-        Ok(spawn_task(done, async move {
-            let s = raise(async { c.module(Address::new(a)?).wait_motion_end(timeout).await }.await)?;
-            dict(move |py| state_record(py, a, s))
-        }))
+        let halting = Arc::clone(&c);
+        let halt = async move {
+            if let Err(e) = async { halting.module(Address::new(a)?).halt().await }.await {
+                crate::wait::say_stop_failed(&format!("module {a}: the halt after a cancelled wait failed: {e}"));
+            }
+        };
+        Ok(spawn_task_stopping(
+            done,
+            async move {
+                let s = raise(async { c.module(Address::new(a)?).wait_motion_end(timeout).await }.await)?;
+                dict(move |py| state_record(py, a, s))
+            },
+            halt,
+        ))
     }
 
     /// Halts the module.
     #[pyo3(signature = (module, done))]
-    fn stop(&self, module: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
+    fn stop(&self, py: Python<'_>, module: Option<Int>, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = module.unwrap_or(self.module);
+        let a = match module {
+            None => self.module,
+            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
+        };
         Ok(spawn_task(done, async move {
             raise(async { c.module(Address::new(a)?).halt().await }.await)?;
             deliver(|py| Ok(py.None()))

@@ -3,7 +3,9 @@
 //! `AsyncClient`; what stops a module and when its watchdog is armed are the library's.
 
 mod asyncio;
+mod records;
 pub use asyncio::AsyncPowerCubeClient;
+use records::*;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -20,10 +22,12 @@ use motionlink_powercube::{AsyncClient, Error};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::common::{f32_py, target, Record, Slot, Target};
+use crate::common::{f32_py, opt_within, target, Int, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::{block_on_runtime, deliver, interruptible, spawn_task, NativeTask, Outcome};
+use crate::wait::{
+    block_on_runtime, deliver, interruptible, interruptible_read, spawn_task, spawn_task_stopping, NativeTask, Outcome,
+};
 use motionlink_link::error::{ErrorClass, TransportKind};
 
 const FAMILY: &str = "powercube";
@@ -32,12 +36,19 @@ const FAMILY: &str = "powercube";
 #[derive(FromPyObject)]
 #[pyo3(from_item_all)]
 pub struct Settings {
-    module: u8,
-    baud: u32,
-    bitrate: u32,
-    timeout_ms: Option<u64>,
-    poll_ms: u64,
+    module: Int,
+    baud: Int,
+    bitrate: Int,
+    timeout_ms: Option<Int>,
+    poll_ms: Int,
     watchdog: bool,
+}
+
+/// A module address as an argument gives it, checked by the library's address type (a usage error naming it).
+fn module_address(module: &Int) -> Result<u8, Failure> {
+    let n: u8 = module.within(FAMILY, "module", 0..=255)?;
+    Address::new(n).map_err(|e| Error::from(e).failure())?;
+    Ok(n)
 }
 
 fn usage(msg: impl Into<String>) -> Failure {
@@ -47,24 +58,19 @@ fn usage(msg: impl Into<String>) -> Failure {
 /// The session's settings from `s`, checked.
 fn bus_config(s: &Settings, can: bool) -> Result<BusConfig, Failure> {
     let mut c = if can { BusConfig::can() } else { BusConfig::rs232() };
-    if let Some(t) = s.timeout_ms {
-        if !(1..=60_000).contains(&t) {
-            return Err(usage(format!("timeout_ms {t}: give 1 to 60000")));
-        }
+    if let Some(t) = opt_within::<u64>(s.timeout_ms.as_ref(), FAMILY, "timeout_ms", 1..=60_000)? {
         c.reply_timeout = Duration::from_millis(t);
     }
-    if !(1..=10_000).contains(&s.poll_ms) {
-        return Err(usage(format!("poll_ms {}: give 1 to 10000", s.poll_ms)));
-    }
-    c.poll_interval = Duration::from_millis(s.poll_ms);
+    c.poll_interval = Duration::from_millis(s.poll_ms.within(FAMILY, "poll_ms", 1..=10_000)?);
     Ok(c)
 }
 
 /// Opens the blocking client `s` and `port` ask for; true if the modules are emulated in this process
 /// (they die with it: no watchdog is armed for them, as `motionlink powercube --port sim` does).
 fn open(port: Target, s: &Settings) -> Result<(Client, bool), Failure> {
-    // The library's address type checks it (a usage error naming the number), before anything is opened.
-    Address::new(s.module).map_err(|e| Error::from(e).failure())?;
+    module_address(&s.module)?;
+    let baud: u32 = s.baud.within(FAMILY, "baud", 1..=4_000_000)?;
+    let bitrate: u32 = s.bitrate.within(FAMILY, "bitrate", 1..=1_000_000)?;
     let fail = |e: Error| e.failure();
     let rs232 = |link| Client::rs232(link, clock(), bus_config(s, false)?).map_err(fail);
     let can = |link| Client::can(link, clock(), bus_config(s, true)?).map_err(fail);
@@ -83,13 +89,13 @@ fn open(port: Target, s: &Settings) -> Result<(Client, bool), Failure> {
                 Ok((rs232(Box::new(host.connect().0))?, true))
             }
             PortUrl::Serial(_) | PortUrl::Tcp { .. } => {
-                let settings = SerialSettings { dtr_rts_on: false, ..SerialSettings::new(s.baud) };
+                let settings = SerialSettings { dtr_rts_on: false, ..SerialSettings::new(baud) };
                 let link = url.open_byte_link(settings).map_err(|e| e.failure())?;
                 Ok((rs232(link)?, false))
             }
             PortUrl::Slcan(path) => {
-                let rate = SlcanBitrate::from_bps(s.bitrate)
-                    .ok_or_else(|| usage(format!("{} bit/s is not an SLCAN bit rate", s.bitrate)))?;
+                let rate = SlcanBitrate::from_bps(bitrate)
+                    .ok_or_else(|| usage(format!("{bitrate} bit/s is not an SLCAN bit rate")))?;
                 // An SLCAN adapter on a serial device, or behind a TCP port (such as a served emulator's
                 // `slcan://tcp://HOST:PORT`).
                 let link = motionlink_link::url::open_slcan(path, clock(), rate).map_err(|e| e.failure())?;
@@ -109,94 +115,6 @@ fn open_socketcan(ifname: &str) -> Result<Box<dyn motionlink_link::can::CanLink>
 #[cfg(not(target_os = "linux"))]
 fn open_socketcan(_ifname: &str) -> Result<Box<dyn motionlink_link::can::CanLink>, Failure> {
     Err(usage("socketcan:// ports need Linux"))
-}
-
-/// The name suffix of a position in `unit`: "_rad", "_m", or "" with `"unit": "module"`.
-fn suffix(unit: AxisUnit) -> (&'static str, &'static str) {
-    match unit {
-        AxisUnit::Radian => ("_rad", "rad"),
-        AxisUnit::Metre => ("_m", "m"),
-        AxisUnit::ModuleUnit => ("", "module"),
-    }
-}
-
-/// Sets `unit` and `{base}_rad` / `{base}_m` (or `{base}` for a module of unknown kind) on `r`.
-fn put_position(r: &Record<'_>, base: &str, p: Position) -> PyResult<()> {
-    let (s, unit) = suffix(p.unit());
-    r.set("unit", unit)?;
-    r.set(&format!("{base}{s}"), f32_py(p.value()))?;
-    Ok(())
-}
-
-fn state_record<'py>(py: Python<'py>, module: u8, s: CubeState) -> PyResult<Record<'py>> {
-    let r = Record::new(py);
-    r.set("family", FAMILY)?.set("module", module)?.set("code", s.0)?;
-    r.flags(s)?;
-    r.set("faults", s.faults().map(|f| f.name()).collect::<Vec<_>>())?;
-    Ok(r)
-}
-
-fn info_record<'py>(py: Python<'py>, i: &ModuleInfo) -> PyResult<Record<'py>> {
-    let r = state_record(py, i.address.get(), i.state)?;
-    r.set("kind", i.kind.name())?.set("unit", i.kind.unit())?;
-    r.set("version", i.version.to_string())?.set("serial", i.serial)?;
-    Ok(r)
-}
-
-fn value_py<'py>(py: Python<'py>, v: &Value) -> PyResult<Bound<'py, PyAny>> {
-    Ok(match *v {
-        Value::F32(x) => f32_py(x).into_pyobject(py)?.into_any(),
-        Value::U32(x) => x.into_pyobject(py)?.into_any(),
-        Value::I32(x) => x.into_pyobject(py)?.into_any(),
-        Value::U16(x) => x.into_pyobject(py)?.into_any(),
-        Value::I16(x) => x.into_pyobject(py)?.into_any(),
-        Value::U8(x) => x.into_pyobject(py)?.into_any(),
-        Value::PosStateDio { pos, state, dio } => {
-            let d = PyDict::new(py);
-            d.set_item("position", f32_py(pos))?;
-            d.set_item("short_state", state.0)?;
-            d.set_item("dio", dio.0)?;
-            d.into_any()
-        }
-        Value::PosTime { pos, time_ms } => {
-            let d = PyDict::new(py);
-            d.set_item("position", f32_py(pos))?;
-            d.set_item("time_ms", time_ms)?;
-            d.into_any()
-        }
-    })
-}
-
-fn param_record<'py>(py: Python<'py>, module: u8, p: Param, kind: ModuleKind) -> PyResult<Record<'py>> {
-    let r = Record::new(py);
-    r.set("family", FAMILY)?.set("module", module)?.set("name", p.name())?.set("id", p.id())?;
-    r.set("unit", p.unit().symbol(kind))?.set("access", p.access().short())?;
-    Ok(r)
-}
-
-/// `p` in the unit of a module of `kind` (a position the session reported in the module's own unit is
-/// the same number: rad on a rotary module, m on a linear one).
-fn in_unit(p: Position, kind: ModuleKind) -> Position {
-    if p.unit() == AxisUnit::ModuleUnit {
-        Position::new(p.value(), kind.axis_unit())
-    } else {
-        p
-    }
-}
-
-fn move_record<'py>(
-    py: Python<'py>,
-    module: u8,
-    target: Position,
-    (kind, m): &(ModuleKind, MoveReport),
-) -> PyResult<Record<'py>> {
-    let r = state_record(py, module, m.state)?;
-    let unit = kind.axis_unit();
-    put_position(&r, "start", Position::new(m.start.value(), unit))?;
-    put_position(&r, "target", Position::new(target.value(), unit))?;
-    put_position(&r, "reached", Position::new(m.reached.value(), unit))?;
-    put_position(&r, "difference", Position::new(m.reached.value() - target.value(), unit))?;
-    Ok(r)
 }
 
 fn parse_param(name: &str) -> Result<Param, Failure> {
@@ -259,8 +177,11 @@ impl PowerCubeClient {
         self.slot.get().map_err(|f| to_pyerr(py, f))
     }
 
-    fn address(&self, module: Option<u8>) -> u8 {
-        module.unwrap_or(self.module)
+    fn address(&self, py: Python<'_>, module: Option<Int>) -> PyResult<u8> {
+        match module {
+            None => Ok(self.module),
+            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f)),
+        }
     }
 }
 
@@ -283,7 +204,7 @@ impl PowerCubeClient {
             slot: Slot::new(client, FAMILY),
             token,
             guard,
-            module: settings.module,
+            module: module_address(&settings.module).map_err(|f| to_pyerr(py, f))?,
             port,
             close_bound,
         })
@@ -310,11 +231,17 @@ impl PowerCubeClient {
     /// read).
     fn scan<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let c = self.client(py)?;
-        let found = py.detach(|| c.scan()).or_raise(py)?;
+        // The library's scan takes no cancel token: Ctrl-C raises at once and the scan, which sets nothing
+        // in motion, ends on its own thread.
+        let found = interruptible_read(py, None, move || c.scan())?.or_raise(py)?;
         found
             .iter()
             .map(|e| match &e.info {
-                Ok(i) => Ok(info_record(py, i)?.done()),
+                Ok(i) => {
+                    let r = info_record(py, i)?;
+                    // The CLI's scan lists each module's identity and state, not its unit.
+                    Ok(r.done())
+                }
                 Err(err) => {
                     let r = Record::new(py);
                     r.set("family", FAMILY)?.set("module", e.address.get())?.set("error", err.to_string())?;
@@ -326,21 +253,20 @@ impl PowerCubeClient {
 
     /// Type, version, serial number, state and limits of a module.
     #[pyo3(signature = (module=None))]
-    fn info<'py>(&self, py: Python<'py>, module: Option<u8>) -> PyResult<Bound<'py, PyDict>> {
+    fn info<'py>(&self, py: Python<'py>, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
-        let a = self.address(module);
-        let (info, limits) = py
-            .detach(|| -> Result<_, Error> {
-                let m = c.module(Address::new(a)?);
-                let info = m.info()?;
-                let limits: Vec<(Param, Value)> =
-                    [Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::ActPos]
-                        .into_iter()
-                        .map(|p| m.get(p).map(|v| (p, v)))
-                        .collect::<Result<_, _>>()?;
-                Ok((info, limits))
-            })
-            .or_raise(py)?;
+        let a = self.address(py, module)?;
+        let (info, limits) = interruptible_read(py, None, move || -> Result<_, Error> {
+            let m = c.module(Address::new(a)?);
+            let info = m.info()?;
+            let limits: Vec<(Param, Value)> =
+                [Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::ActPos]
+                    .into_iter()
+                    .map(|p| m.get(p).map(|v| (p, v)))
+                    .collect::<Result<_, _>>()?;
+            Ok((info, limits))
+        })?
+        .or_raise(py)?;
         let r = info_record(py, &info)?;
         let (s, _) = suffix(info.kind.axis_unit());
         for (p, v) in limits {
@@ -358,18 +284,33 @@ impl PowerCubeClient {
 
     /// The state word, flag by flag.
     #[pyo3(signature = (module=None))]
-    fn state<'py>(&self, py: Python<'py>, module: Option<u8>) -> PyResult<Bound<'py, PyDict>> {
+    fn state<'py>(&self, py: Python<'py>, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
-        let a = self.address(module);
-        let s = py.detach(|| c.module(Address::new(a)?).state()).or_raise(py)?;
+        let a = self.address(py, module)?;
+        let s = interruptible_read(py, None, move || c.module(Address::new(a)?).state())?.or_raise(py)?;
         Ok(state_record(py, a, s)?.done())
+    }
+
+    /// One sample of `watch`: the position and the state word.
+    #[pyo3(signature = (module=None))]
+    fn sample<'py>(&self, py: Python<'py>, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
+        let c = self.client(py)?;
+        let a = self.address(py, module)?;
+        let (p, s) = interruptible_read(py, None, move || -> Result<_, Error> {
+            let m = c.module(Address::new(a)?);
+            let kind = m.kind()?;
+            let s = m.state()?;
+            Ok((in_unit(m.position()?, kind), s))
+        })?
+        .or_raise(py)?;
+        Ok(sample_record(py, a, p, s)?.done())
     }
 
     /// The actual position: (value, unit) with unit "rad", "m", or "module" while the kind is not known.
     #[pyo3(signature = (module=None))]
-    fn position(&self, py: Python<'_>, module: Option<u8>) -> PyResult<(f64, &'static str)> {
+    fn position(&self, py: Python<'_>, module: Option<Int>) -> PyResult<(f64, &'static str)> {
         let c = self.client(py)?;
-        let a = self.address(module);
+        let a = self.address(py, module)?;
         let p = py
             .detach(|| -> Result<_, Error> {
                 let m = c.module(Address::new(a)?);
@@ -383,16 +324,15 @@ impl PowerCubeClient {
 
     /// Reads a parameter by name (ActPos) or id (60, 0x3c).
     #[pyo3(signature = (name, module=None))]
-    fn get<'py>(&self, py: Python<'py>, name: &str, module: Option<u8>) -> PyResult<Bound<'py, PyDict>> {
+    fn get<'py>(&self, py: Python<'py>, name: &str, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
-        let a = self.address(module);
+        let a = self.address(py, module)?;
         let p = parse_param(name).map_err(|f| to_pyerr(py, f))?;
-        let (v, kind) = py
-            .detach(|| -> Result<_, Error> {
-                let m = c.module(Address::new(a)?);
-                Ok((m.get(p)?, m.kind()?))
-            })
-            .or_raise(py)?;
+        let (v, kind) = interruptible_read(py, None, move || -> Result<_, Error> {
+            let m = c.module(Address::new(a)?);
+            Ok((m.get(p)?, m.kind()?))
+        })?
+        .or_raise(py)?;
         let r = param_record(py, a, p, kind)?;
         r.set("value", value_py(py, &v)?)?;
         Ok(r.done())
@@ -405,10 +345,10 @@ impl PowerCubeClient {
         py: Python<'py>,
         name: &str,
         value: &Bound<'py, PyAny>,
-        module: Option<u8>,
+        module: Option<Int>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
-        let a = self.address(module);
+        let a = self.address(py, module)?;
         let p = parse_param(name).map_err(|f| to_pyerr(py, f))?;
         let v = parse_value(p, value).map_err(|f| to_pyerr(py, f))?;
         let (read, kind) = py
@@ -417,20 +357,25 @@ impl PowerCubeClient {
                 Ok((m.set_checked(p, v)?, m.kind()?))
             })
             .or_raise(py)?;
+        // As the CLI's `powercube set --json`: what was written, `ok`, what the module read back and
+        // whether that was verified (unit and access are attributes, as `get` has them).
         let r = param_record(py, a, p, kind)?;
-        r.set("value", value_py(py, &v)?)?;
+        r.set("value", value_py(py, &v)?)?.set("ok", true)?;
         match read {
-            Readback::Same(back) => r.set("read_back", value_py(py, &back)?)?,
-            Readback::NotReadable(why) => r.set("read_back", py.None())?.set("not_verifiable", why)?,
+            Readback::Same(back) => r.set("read_back", value_py(py, &back)?)?.set("verified", true)?,
+            Readback::NotReadable(why) => {
+                r.set("read_back", py.None())?.set("verified", false)?.set("not_verifiable", why)?
+            }
         };
+        r.extras(&["unit", "access"])?;
         Ok(r.done())
     }
 
     /// Homes the module and waits for the end of homing (Ctrl-C halts it).
     #[pyo3(signature = (module=None, timeout_s=60.0))]
-    fn home<'py>(&self, py: Python<'py>, module: Option<u8>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
+    fn home<'py>(&self, py: Python<'py>, module: Option<Int>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
-        let a = self.address(module);
+        let a = self.address(py, module)?;
         let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
         let guard = self.guard;
         let r = interruptible(
@@ -444,9 +389,7 @@ impl PowerCubeClient {
             cancel_cause,
         )?;
         let (p, s) = r.or_raise(py)?;
-        let rec = state_record(py, a, s)?;
-        put_position(&rec, "position", p)?;
-        Ok(rec.done())
+        Ok(home_record(py, a, p, s)?.done())
     }
 
     /// A checked ramp move to `target` (the module's unit: rad or m), waited for (Ctrl-C halts it).
@@ -456,14 +399,14 @@ impl PowerCubeClient {
         &self,
         py: Python<'py>,
         target: f64,
-        module: Option<u8>,
+        module: Option<Int>,
         velocity: Option<f64>,
         acceleration: Option<f64>,
         tolerance: Option<f64>,
         timeout_s: f64,
     ) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
-        let a = self.address(module);
+        let a = self.address(py, module)?;
         let spec = move_spec(target, velocity, acceleration, tolerance, timeout_s).map_err(|f| to_pyerr(py, f))?;
         let guard = self.guard;
         let r = interruptible(
@@ -482,9 +425,9 @@ impl PowerCubeClient {
 
     /// Waits until the module stands still (no STATE_MOTION; Ctrl-C halts it); the state at the end.
     #[pyo3(signature = (module=None, timeout_s=60.0))]
-    fn wait<'py>(&self, py: Python<'py>, module: Option<u8>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
+    fn wait<'py>(&self, py: Python<'py>, module: Option<Int>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
-        let a = self.address(module);
+        let a = self.address(py, module)?;
         let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
         let r = interruptible(
             py,
@@ -497,17 +440,17 @@ impl PowerCubeClient {
 
     /// Halts the module at once (it stays halted until a reset).
     #[pyo3(signature = (module=None))]
-    fn stop(&self, py: Python<'_>, module: Option<u8>) -> PyResult<()> {
+    fn stop(&self, py: Python<'_>, module: Option<Int>) -> PyResult<()> {
         let c = self.client(py)?;
-        let a = self.address(module);
+        let a = self.address(py, module)?;
         py.detach(|| c.module(Address::new(a)?).halt()).or_raise(py)
     }
 
     /// Resets the module's error state; true if it switched off a watchdog a dead host left expired.
     #[pyo3(signature = (module=None))]
-    fn reset(&self, py: Python<'_>, module: Option<u8>) -> PyResult<bool> {
+    fn reset(&self, py: Python<'_>, module: Option<Int>) -> PyResult<bool> {
         let c = self.client(py)?;
-        let a = self.address(module);
+        let a = self.address(py, module)?;
         py.detach(|| c.module(Address::new(a)?).reset_and_release_watchdog()).or_raise(py)
     }
 
@@ -525,9 +468,9 @@ impl PowerCubeClient {
 
     /// Loops `n` position reads in Rust (no Python in between): the benchmark's reference.
     #[pyo3(signature = (n, module=None))]
-    fn _bench_native_reads(&self, py: Python<'_>, n: u32, module: Option<u8>) -> PyResult<f64> {
+    fn _bench_native_reads(&self, py: Python<'_>, n: u32, module: Option<Int>) -> PyResult<f64> {
         let c = self.client(py)?;
-        let a = self.address(module);
+        let a = self.address(py, module)?;
         py.detach(|| -> Result<f64, Error> {
             let m = c.module(Address::new(a)?);
             let start = std::time::Instant::now();

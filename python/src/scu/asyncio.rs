@@ -45,9 +45,9 @@ impl AsyncScuClient {
     }
 
     /// The position of an actuator in counts: `done(ok, int)`.
-    fn position(&self, py: Python<'_>, actuator: u8, done: Py<PyAny>) -> PyResult<NativeTask> {
+    fn position(&self, py: Python<'_>, actuator: Int, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client(py)?;
-        let a = self::actuator(actuator).map_err(|f| to_pyerr(py, f))?;
+        let a = self::actuator(&actuator).map_err(|f| to_pyerr(py, f))?;
         Ok(spawn_task(done, async move {
             let p = fail(c.position(a).await)?;
             deliver(move |py| Ok(p.into_pyobject(py)?.into_any().unbind()))
@@ -59,14 +59,16 @@ impl AsyncScuClient {
     fn move_to(
         &self,
         py: Python<'_>,
-        actuator: u8,
-        target_counts: i32,
-        speed: u32,
-        function: Option<u8>,
+        actuator: Int,
+        target_counts: Int,
+        speed: Int,
+        function: Option<Int>,
         done: Py<PyAny>,
     ) -> PyResult<NativeTask> {
         let c = self.client(py)?;
-        let (a, f, speed) = move_args(actuator, function, speed, self.speed_mode).map_err(|f| to_pyerr(py, f))?;
+        let (a, f, speed) =
+            move_args(&actuator, function.as_ref(), &speed, self.speed_mode).map_err(|f| to_pyerr(py, f))?;
+        let target_counts = self::target_counts(&target_counts).map_err(|f| to_pyerr(py, f))?;
         Ok(spawn_task(done, async move {
             let report = fail(c.move_to(a, target_counts, speed, f).await)?;
             deliver(move |py| Ok(move_record(py, target_counts, &report)?.done().into_any().unbind()))

@@ -9,11 +9,12 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
+use motionlink_link::flags::FlagWord;
 use motionlink_link::link::{Connector, Link, SerialSettings};
 use motionlink_link::url::PortUrl;
 use motionlink_scu::model::{
-    lookup, status1, Actuator, DataEntryExt, DataIndex, Function, Item, MotionDirection, MotionFunction, SafetyId,
-    Speed, SpeedMode, StopMode,
+    lookup, Actuator, ActuatorStatus1, DataEntryExt, DataIndex, ErrorCode, Function, Item, MotionDirection,
+    MotionFunction, SafetyId, Speed, SpeedMode, StopMode,
 };
 use motionlink_scu::session::{MoveReport, RunAction, RunReport};
 use motionlink_scu::value::Value;
@@ -21,10 +22,10 @@ use motionlink_scu::{AsyncClient, Client, ClientConfig, Error, FunctionMap, Move
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::common::{json_py, target, Record, Slot, Target};
+use crate::common::{json_py, opt_within, target, Int, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::{block_on_runtime, deliver, interruptible, spawn_task, NativeTask};
+use crate::wait::{block_on_runtime, deliver, interruptible, interruptible_read, spawn_task, NativeTask};
 
 const FAMILY: &str = "scu";
 
@@ -36,32 +37,29 @@ fn usage(msg: impl Into<String>) -> Failure {
 #[derive(FromPyObject)]
 #[pyo3(from_item_all)]
 pub struct Settings {
-    baud: u32,
-    safety: u8,
-    reply_timeout_ms: u64,
+    baud: Int,
+    safety: Int,
+    reply_timeout_ms: Int,
     functions: Vec<String>,
     strokes: Vec<String>,
-    tolerance_counts: u32,
-    poll_ms: u64,
+    tolerance_counts: Int,
+    poll_ms: Int,
     speed_mode: String,
 }
 
 fn client_config(s: &Settings) -> Result<ClientConfig, Failure> {
-    let safety_id = match s.safety {
+    let safety_id = match s.safety.within::<u8>(FAMILY, "safety (the Safety_ID)", 0..=2)? {
         0 => SafetyId::StopAllAndLock,
         1 => SafetyId::StopAll,
-        2 => SafetyId::StopRemoteOnly,
-        n => return Err(usage(format!("safety {n}: the Safety_ID is 0, 1 or 2"))),
+        _ => SafetyId::StopRemoteOnly,
     };
-    if ![9_600, 19_200, 38_400].contains(&s.baud) {
-        return Err(usage(format!("baud {}: an SCU runs at 9600, 19200 or 38400 baud", s.baud)));
+    let baud: u32 = s.baud.within(FAMILY, "baud", 1..=4_000_000)?;
+    if ![9_600, 19_200, 38_400].contains(&baud) {
+        return Err(usage(format!("baud {baud}: an SCU runs at 9600, 19200 or 38400 baud")));
     }
-    if !(1..=60_000).contains(&s.reply_timeout_ms) {
-        return Err(usage(format!("reply_timeout_ms {}: give 1 to 60000", s.reply_timeout_ms)));
-    }
-    if !(5..=10_000).contains(&s.poll_ms) {
-        return Err(usage(format!("poll_ms {}: give 5 to 10000", s.poll_ms)));
-    }
+    let reply_timeout_ms: u64 = s.reply_timeout_ms.within(FAMILY, "reply_timeout_ms", 1..=60_000)?;
+    let poll_ms: u64 = s.poll_ms.within(FAMILY, "poll_ms", 5..=10_000)?;
+    let tolerance_counts: u32 = s.tolerance_counts.within(FAMILY, "tolerance_counts", 0..=1_000_000)?;
     let speed_mode = match s.speed_mode.as_str() {
         "percent" => SpeedMode::Percent,
         "counts_per_s" => SpeedMode::CountsPerSecond,
@@ -78,12 +76,12 @@ fn client_config(s: &Settings) -> Result<ClientConfig, Failure> {
     }
     let config = ClientConfig {
         safety_id,
-        reply_timeout: Duration::from_millis(s.reply_timeout_ms),
+        reply_timeout: Duration::from_millis(reply_timeout_ms),
         speed_mode,
         function_map,
         stroke_limits,
-        position_tolerance_counts: s.tolerance_counts,
-        poll_interval: Duration::from_millis(s.poll_ms),
+        position_tolerance_counts: tolerance_counts,
+        poll_interval: Duration::from_millis(poll_ms),
         ..ClientConfig::default()
     };
     config.validate().map_err(|e| usage(e.to_string()))?;
@@ -105,7 +103,7 @@ fn connector(port: Target, s: &Settings) -> Result<(Connector, ClientConfig), Fa
         }
         Target::Url(p) if p.is_can() => return Err(usage(format!("{p}: the SCU speaks RS232, not CAN"))),
         Target::Url(p) => {
-            let settings = SerialSettings::new(s.baud);
+            let settings = SerialSettings::new(s.baud.within(FAMILY, "baud", 1..=4_000_000)?);
             Box::new(move || p.open_byte_link(settings))
         }
     };
@@ -117,8 +115,20 @@ fn open(port: Target, s: &Settings) -> Result<Client, Failure> {
     Client::open(connector, clock(), config).map_err(|e| e.failure())
 }
 
-fn actuator(n: u8) -> Result<Actuator, Failure> {
+fn actuator(n: &Int) -> Result<Actuator, Failure> {
+    let n = n.within(FAMILY, "actuator", 1..=6)?;
     Actuator::new(n).ok_or_else(|| usage(format!("actuator {n}: actuators are 1..6")))
+}
+
+/// The index of the data-list entry or group the library's table names `name`.
+fn named(name: &str) -> Result<DataIndex, Failure> {
+    lookup(name).map(|it| it.index()).ok_or_else(|| {
+        Failure::new(
+            motionlink_link::error::ErrorClass::Usage,
+            FAMILY,
+            format!("the library's data list has no entry {name:?}"),
+        )
+    })
 }
 
 fn parse_item(text: &str) -> Result<Item, Failure> {
@@ -137,12 +147,6 @@ fn parse_function(text: &str) -> Result<Function, Failure> {
     })
 }
 
-fn status_flags(s: u8) -> Vec<&'static str> {
-    let flags =
-        motionlink_scu::model::Flags { set: motionlink_scu::model::FlagSet::ActuatorStatus1, bits: u32::from(s) };
-    flags.set_names().collect()
-}
-
 /// A value in Python: numbers in the entry's unit as `unit` names it (deci-amps become amps, centi-volts
 /// volts), bit sets and error codes as dicts.
 fn value_py<'py>(py: Python<'py>, v: &Value) -> PyResult<Bound<'py, PyAny>> {
@@ -150,12 +154,12 @@ fn value_py<'py>(py: Python<'py>, v: &Value) -> PyResult<Bound<'py, PyAny>> {
         Value::CurrentDeciAmps(_) | Value::BatteryDeciVolts(_) | Value::AnalogueCentiVolts(_) => {
             Ok(v.as_f64().unwrap_or(f64::NAN).into_pyobject(py)?.into_any())
         }
-        // A bit set as naming.md spells flags: the raw word, the names of the bits set, and the bits no
+        // A flag word as naming.md spells it: the raw word, the names of the bits set, and the bits no
         // name covers (only when nonzero).
         Value::Flags(f) => {
             let known = f.set.bits().into_iter().fold(0u32, |m, b| m | (1 << b.bit));
             let d = PyDict::new(py);
-            d.set_item("code", f.bits)?;
+            d.set_item("word", f.bits)?;
             d.set_item("flags", f.set_names().collect::<Vec<_>>())?;
             if f.bits & !known != 0 {
                 d.set_item("unknown_bits", f.bits & !known)?;
@@ -175,51 +179,66 @@ fn value_unit(v: &Value, unit: &'static str) -> &'static str {
     }
 }
 
-fn error_code<'py>(py: Python<'py>, v: &Value) -> PyResult<Bound<'py, PyAny>> {
-    json_py(py, &v.to_json())
+fn error_code<'py>(py: Python<'py>, code: ErrorCode) -> PyResult<Bound<'py, PyAny>> {
+    json_py(py, &Value::ErrorCode(code).to_json())
 }
 
-fn move_record<'py>(py: Python<'py>, target_counts: i32, report: &MoveReport) -> PyResult<Record<'py>> {
+/// An actuator's status 1 as `info` and `watch` report it: the flags set and whether it moves.
+fn status_fields(r: &Record<'_>, s: ActuatorStatus1) -> PyResult<()> {
+    r.set("flags", s.names())?.set("moving", s.moving())?;
+    Ok(())
+}
+
+/// A move as the CLI's `scu move --json` reports it (`start_counts` of each actuator is an extra attribute).
+pub(crate) fn move_record<'py>(py: Python<'py>, target_counts: i32, report: &MoveReport) -> PyResult<Record<'py>> {
     let rec = Record::new(py);
     rec.set("family", FAMILY)?.set("function", report.function.number())?;
     rec.set("actuator", report.actuator.number())?.set("target_counts", target_counts)?;
-    rec.set("position_counts", report.position_counts)?.set("time_s", report.duration.as_secs_f64())?;
+    rec.set("reached_counts", report.position_counts)?.set("time_s", report.duration.as_secs_f64())?;
     let mut acts = Vec::new();
     for o in &report.actuators {
         let d = Record::new(py);
         d.set("actuator", o.actuator.number())?.set("target_counts", o.target_counts)?;
-        d.set("start_counts", o.start_counts)?.set("position_counts", o.position_counts)?;
+        d.set("start_counts", o.start_counts)?.set("reached_counts", o.position_counts)?;
         d.set("difference_counts", o.difference_counts())?.set("moved", o.moved)?;
+        d.extras(&["start_counts"])?;
         acts.push(d.done());
     }
     rec.set("actuators", acts)?;
     Ok(rec)
 }
 
-fn run_record<'py>(py: Python<'py>, function: Function, report: &RunReport) -> PyResult<Record<'py>> {
+/// A run as the CLI's `scu run --json` reports it: stopped, and where the actuators came to rest.
+pub(crate) fn run_record<'py>(py: Python<'py>, function: Function, report: &RunReport) -> PyResult<Record<'py>> {
     let rec = Record::new(py);
     rec.set("family", FAMILY)?.set("function", function.number())?;
-    rec.set("time_s", report.duration.as_secs_f64())?;
+    rec.set("stopped", true)?.set("interrupted", false)?.set("time_s", report.duration.as_secs_f64())?;
     let mut rest = Vec::new();
     for (a, p) in &report.rest {
         let d = Record::new(py);
-        d.set("actuator", a.number())?.set("position_counts", *p)?;
+        d.set("actuator", a.number())?.set("reached_counts", *p)?;
         rest.push(d.done());
     }
-    rec.set("rest", rest)?;
+    rec.set("actuators", rest)?.extras(&["time_s"])?;
     Ok(rec)
 }
 
 /// A move's checked arguments: the actuator, the function named (if any), the speed.
 type MoveArgs = (Actuator, Option<MotionFunction>, Speed);
 
-fn move_args(actuator: u8, function: Option<u8>, speed: u32, mode: SpeedMode) -> Result<MoveArgs, Failure> {
+fn move_args(actuator: &Int, function: Option<&Int>, speed: &Int, mode: SpeedMode) -> Result<MoveArgs, Failure> {
     let a = self::actuator(actuator)?;
-    let f = function
+    let f = opt_within::<u8>(function, FAMILY, "function (a motion function)", 1..=10)?
         .map(|n| MotionFunction::new(n).ok_or_else(|| usage(format!("function {n}: the motion functions are F1..F10"))))
         .transpose()?;
+    let speed: u16 = speed.within(FAMILY, &format!("speed ({})", mode.unit()), 1..=i64::from(mode.max()))?;
     let speed = Speed::parse(&speed.to_string(), mode).map_err(|e| usage(format!("speed {e}")))?;
     Ok((a, f, speed))
+}
+
+/// A move's target in counts, checked.
+fn target_counts(t: &Int) -> Result<i32, Failure> {
+    t.within(FAMILY, "target_counts", i64::from(i32::MIN)..=i64::from(i32::MAX))
 }
 
 /// A run's checked arguments: the function, what to do, the time limit.
@@ -296,37 +315,51 @@ impl ScuClient {
         Ok(self.client(py)?.started_functions().into_iter().map(|f| f + 1).collect())
     }
 
-    /// Firmware, configuration, battery/mains, last error and the connected actuators.
+    /// Firmware, configuration, battery/mains, last error and the connected actuators (Ctrl-C raises at
+    /// once: nothing is in motion).
     fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
-        let (firmware, configuration, mains, last_error, statuses, positions) = py
-            .detach(|| -> Result<_, Error> {
-                let get = |i: u16| c.get_value(DataIndex(i));
-                Ok((get(0x0001)?, get(0x0002)?, get(0x0100)?, get(0x00D1)?, c.statuses()?, c.positions()?))
-            })
+        let (info, mains, history, statuses, positions) =
+            interruptible_read(py, None, move || -> Result<_, Failure> {
+                let fail = |e: Error| e.failure();
+                let info = c.get(named("info")?).map_err(fail)?;
+                let mains = c.get_value(named("battery_mains")?).map_err(fail)?;
+                Ok((
+                    info,
+                    mains,
+                    c.error_history().map_err(fail)?,
+                    c.statuses().map_err(fail)?,
+                    c.positions().map_err(fail)?,
+                ))
+            })?
             .or_raise(py)?;
         let r = Record::new(py);
         r.set("family", FAMILY)?.set("port", &self.port)?;
-        r.set("firmware", value_py(py, &firmware)?)?.set("configuration", value_py(py, &configuration)?)?;
-        r.set("battery_mains", value_py(py, &mains)?)?.set("last_error", error_code(py, &last_error)?)?;
+        for (e, v) in &info {
+            let key = e.name.strip_suffix("_info").unwrap_or(e.name);
+            r.set(key, value_py(py, v)?)?;
+        }
+        r.set("battery_mains", value_py(py, &mains)?)?.set("last_error", error_code(py, history[0])?)?;
         let mut acts = Vec::new();
-        for (i, s) in statuses.iter().enumerate() {
-            if s & status1::AVAILABLE == 0 {
+        for a in Actuator::all() {
+            let i = usize::from(a.number() - 1);
+            let s = ActuatorStatus1(statuses[i]);
+            if !s.available() {
                 continue;
             }
-            let a = Record::new(py);
-            a.set("actuator", i + 1)?.set("position_counts", positions[i])?;
-            a.set("flags", status_flags(*s))?.set("moving", s & status1::MOTION != 0)?;
-            acts.push(a.done());
+            let d = Record::new(py);
+            d.set("actuator", a.number())?.set("position_counts", positions[i])?;
+            status_fields(&d, s)?;
+            acts.push(d.done());
         }
         r.set("actuators", acts)?;
         Ok(r.done())
     }
 
     /// The position of an actuator in counts.
-    fn position(&self, py: Python<'_>, actuator: u8) -> PyResult<i32> {
+    fn position(&self, py: Python<'_>, actuator: Int) -> PyResult<i32> {
         let c = self.client(py)?;
-        let a = self::actuator(actuator).map_err(|f| to_pyerr(py, f))?;
+        let a = self::actuator(&actuator).map_err(|f| to_pyerr(py, f))?;
         py.detach(|| c.position(a)).or_raise(py)
     }
 
@@ -334,7 +367,8 @@ impl ScuClient {
     fn get<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let it = parse_item(name).map_err(|f| to_pyerr(py, f))?;
-        let values = py.detach(|| c.get(it.index())).or_raise(py)?;
+        let index = it.index();
+        let values = interruptible_read(py, None, move || c.get(index))?.or_raise(py)?;
         let r = Record::new(py);
         r.set("family", FAMILY)?.set("name", it.name())?.set("id", it.index().0)?;
         match it {
@@ -380,12 +414,13 @@ impl ScuClient {
         }
         let text: String = value.str()?.extract()?;
         let v = Value::parse(e.kind, &text).map_err(|err| to_pyerr(py, usage(format!("{}: {err}", e.name))))?;
-        py.detach(|| c.set(e.index(), &v)).or_raise(py)?;
+        // The library writes and compares what it reads back (a difference is an error); the value read back
+        // is then read once more, so that `read_back` is what the unit holds, not an echo of `value`.
+        let back = py.detach(|| c.set(e.index(), &v).and_then(|()| c.get_value(e.index()))).or_raise(py)?;
         let r = Record::new(py);
         r.set("family", FAMILY)?.set("name", e.name)?.set("id", e.index().0)?;
         r.set("value", value_py(py, &v)?)?.set("unit", value_unit(&v, e.unit))?.set("access", e.access.short())?;
-        // `set` succeeds only when the value read back equals the one written.
-        r.set("read_back", value_py(py, &v)?)?;
+        r.set("read_back", value_py(py, &back)?)?.set("verified", true)?;
         Ok(r.done())
     }
 
@@ -394,13 +429,15 @@ impl ScuClient {
     fn move_to<'py>(
         &self,
         py: Python<'py>,
-        actuator: u8,
-        target_counts: i32,
-        speed: u32,
-        function: Option<u8>,
+        actuator: Int,
+        target_counts: Int,
+        speed: Int,
+        function: Option<Int>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
-        let (a, f, speed) = move_args(actuator, function, speed, self.speed_mode).map_err(|f| to_pyerr(py, f))?;
+        let (a, f, speed) =
+            move_args(&actuator, function.as_ref(), &speed, self.speed_mode).map_err(|f| to_pyerr(py, f))?;
+        let target_counts = self::target_counts(&target_counts).map_err(|f| to_pyerr(py, f))?;
         let token = &self.token;
         let r = interruptible(
             py,
@@ -444,34 +481,38 @@ impl ScuClient {
     /// One sample of `watch`: the connected actuators (position, moving, flags, current) and Error_Code 1.
     fn sample<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
-        let (positions, statuses, currents, last_error) = py
-            .detach(|| -> Result<_, Error> {
-                Ok((c.positions()?, c.statuses()?, c.get(DataIndex(0x00A0))?, c.get_value(DataIndex(0x00D1))?))
-            })
-            .or_raise(py)?;
+        let (positions, statuses, currents, history) = interruptible_read(py, None, move || -> Result<_, Failure> {
+            let fail = |e: Error| e.failure();
+            let currents = c.get(named("currents")?).map_err(fail)?;
+            Ok((c.positions().map_err(fail)?, c.statuses().map_err(fail)?, currents, c.error_history().map_err(fail)?))
+        })?
+        .or_raise(py)?;
         let r = Record::new(py);
         r.set("family", FAMILY)?;
         let mut acts = Vec::new();
-        for (i, s) in statuses.iter().enumerate() {
-            if s & status1::AVAILABLE == 0 {
+        for a in Actuator::all() {
+            let i = usize::from(a.number() - 1);
+            let s = ActuatorStatus1(statuses[i]);
+            if !s.available() {
                 continue;
             }
-            let a = Record::new(py);
-            a.set("actuator", i + 1)?.set("position_counts", positions[i])?;
-            a.set("moving", s & status1::MOTION != 0)?.set("flags", status_flags(*s))?;
-            let amps = currents.get(i).and_then(|(_, v)| v.as_f64());
-            a.set("current_amps", amps)?;
-            acts.push(a.done());
+            let d = Record::new(py);
+            d.set("actuator", a.number())?.set("position_counts", positions[i])?;
+            status_fields(&d, s)?;
+            // The library's value in amperes (its data list holds deci-amps; `as_f64` converts them once).
+            let amps = currents.iter().find(|(e, _)| e.index() == a.current_index()).and_then(|(_, v)| v.as_f64());
+            d.set("current_amps", amps)?;
+            acts.push(d.done());
         }
-        r.set("actuators", acts)?.set("last_error", error_code(py, &last_error)?)?;
+        r.set("actuators", acts)?.set("last_error", error_code(py, history[0])?)?;
         Ok(r.done())
     }
 
     /// The error history: Error_Code 1 (the last) .. 5, each with its named bits.
     fn errors<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
         let c = self.client(py)?;
-        let history = py.detach(|| c.error_history()).or_raise(py)?;
-        history.iter().map(|code| error_code(py, &Value::ErrorCode(*code))).collect()
+        let history = interruptible_read(py, None, move || c.error_history())?.or_raise(py)?;
+        history.iter().map(|code| error_code(py, *code)).collect()
     }
 
     /// Ends the session: RS for every function it started, then RA; an exception if that was not confirmed.
@@ -490,7 +531,6 @@ impl ScuClient {
         }
     }
 }
-
 
 impl Drop for ScuClient {
     fn drop(&mut self) {

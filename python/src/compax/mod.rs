@@ -1,6 +1,11 @@
 //! Parker COMPAX drives from Python: the native half of `motionlink.Compax`. Every operation is one call
 //! of `motionlink_compax::Client`; what stops a drive and how a move is checked are the library's.
 
+mod asyncio;
+mod watch;
+pub use asyncio::AsyncCompaxClient;
+pub use watch::CompaxWatch;
+
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -8,7 +13,7 @@ use motionlink_compax::client::{
     BusConfig, MoveOptions, MoveReport, MoveRequest, MoveTarget, TravelLimits, DEFAULT_IN_POSITION_TOLERANCE,
 };
 use motionlink_compax::model::{
-    Command, OutputState, ParamId, Position, RampMs, S17Flag, SpeedPercent, StatusId, StatusValue, BAUD_RATES,
+    Command, OutputState, ParamId, Position, RampMs, S16Bits, S17Bits, SpeedPercent, StatusId, StatusValue, BAUD_RATES,
 };
 use motionlink_compax::session::{Op, Output};
 use motionlink_compax::wire::{Address, Mode};
@@ -19,10 +24,10 @@ use motionlink_link::url::PortUrl;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::common::{target, Record, Slot, Target};
+use crate::common::{opt_within, target, Int, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::{block_on_runtime, deliver, interruptible, spawn_task, NativeTask};
+use crate::wait::{block_on_runtime, deliver, interruptible, interruptible_read, spawn_task, NativeTask};
 
 const FAMILY: &str = "compax";
 
@@ -34,27 +39,25 @@ fn usage(msg: impl Into<String>) -> Failure {
 #[derive(FromPyObject)]
 #[pyo3(from_item_all)]
 pub struct Settings {
-    drive: u8,
-    mode: u32,
-    baud: u32,
-    timeout_ms: u64,
-    poll_ms: u64,
+    drive: Int,
+    mode: Int,
+    baud: Int,
+    timeout_ms: Int,
+    poll_ms: Int,
     tolerance_units: f64,
 }
 
 /// The link `port` names and the session's settings, checked.
 fn link(port: Target, s: &Settings) -> Result<(Box<dyn Link>, BusConfig), Failure> {
-    let mode = Mode::from_p196(s.mode).map_err(|e| usage(format!("mode (P196) {}: {e}", s.mode)))?;
-    Address::drive(s.drive).map_err(|e| usage(format!("drive {}: {e}", s.drive)))?;
-    if !BAUD_RATES.contains(&s.baud) {
-        return Err(usage(format!("baud {}: not a rate P195 accepts ({BAUD_RATES:?})", s.baud)));
+    let p196: u32 = s.mode.within(FAMILY, "mode (P196)", 0..=i64::from(u32::MAX))?;
+    let mode = Mode::from_p196(p196).map_err(|e| usage(format!("mode (P196) {p196}: {e}")))?;
+    let drive = drive_number(&s.drive)?;
+    let baud: u32 = s.baud.within(FAMILY, "baud", 1..=4_000_000)?;
+    if !BAUD_RATES.contains(&baud) {
+        return Err(usage(format!("baud {baud}: not a rate P195 accepts ({BAUD_RATES:?})")));
     }
-    if !(1..=60_000).contains(&s.timeout_ms) {
-        return Err(usage(format!("timeout_ms {}: give 1 to 60000", s.timeout_ms)));
-    }
-    if !(1..=10_000).contains(&s.poll_ms) {
-        return Err(usage(format!("poll_ms {}: give 1 to 10000", s.poll_ms)));
-    }
+    let timeout_ms: u64 = s.timeout_ms.within(FAMILY, "timeout_ms", 1..=60_000)?;
+    let poll_ms: u64 = s.poll_ms.within(FAMILY, "poll_ms", 1..=10_000)?;
     if !(s.tolerance_units.is_finite() && s.tolerance_units > 0.0 && s.tolerance_units <= 1e6) {
         return Err(usage(format!("tolerance_units {}: give a distance above 0 (at most 1000000)", s.tolerance_units)));
     }
@@ -62,7 +65,7 @@ fn link(port: Target, s: &Settings) -> Result<(Box<dyn Link>, BusConfig), Failur
         Target::InProcess(InProcess::Compax(host)) => Box::new(host.connect().0),
         Target::InProcess(_) => return Err(usage("that emulator is not a COMPAX emulator")),
         Target::Url(PortUrl::Sim) => {
-            let cfg = motionlink_compax::sim::SimConfig::bus(&[s.drive], s.mode, s.baud);
+            let cfg = motionlink_compax::sim::SimConfig::bus(&[drive], p196, baud);
             let bus = motionlink_compax::Emulator::new(cfg).map_err(|e| usage(e.to_string()))?;
             let host =
                 motionlink_link::pipe::EmulatorHost::new(bus, clock(), motionlink_link::pipe::PipeConfig::instant());
@@ -70,14 +73,14 @@ fn link(port: Target, s: &Settings) -> Result<(Box<dyn Link>, BusConfig), Failur
         }
         Target::Url(p) if p.is_can() => return Err(usage(format!("{p}: COMPAX drives speak RS485/RS232, not CAN"))),
         Target::Url(p) => {
-            let mut settings = SerialSettings::new(s.baud);
+            let mut settings = SerialSettings::new(baud);
             settings.parity = mode.parity;
             p.open_byte_link(settings).map_err(|e| e.failure())?
         }
     };
-    let mut cfg = BusConfig::new(mode, s.baud);
-    cfg.reply_timeout = Duration::from_millis(s.timeout_ms);
-    cfg.poll_interval = Duration::from_millis(s.poll_ms);
+    let mut cfg = BusConfig::new(mode, baud);
+    cfg.reply_timeout = Duration::from_millis(timeout_ms);
+    cfg.poll_interval = Duration::from_millis(poll_ms);
     cfg.in_position_tolerance = Position::new(s.tolerance_units).map_err(|e| usage(format!("tolerance_units: {e}")))?;
     Ok((link, cfg))
 }
@@ -85,6 +88,11 @@ fn link(port: Target, s: &Settings) -> Result<(Box<dyn Link>, BusConfig), Failur
 fn open(port: Target, s: &Settings) -> Result<Client, Failure> {
     let (link, cfg) = link(port, s)?;
     Client::new(link, clock(), cfg).map_err(|e| e.failure())
+}
+
+/// A drive address (1..31) as an argument gives it.
+fn drive_number(n: &Int) -> Result<u8, Failure> {
+    n.within(FAMILY, "drive", 1..=31)
 }
 
 fn address(n: u8) -> Result<Address, Failure> {
@@ -98,28 +106,45 @@ fn seconds(name: &str, s: f64) -> Result<Duration, Failure> {
         .ok_or_else(|| usage(format!("{name} {s}: give a number of seconds above 0")))
 }
 
+/// A parameter as the CLI's `compax get --json` prints it (`title` is an extra attribute).
 fn param_record<'py>(py: Python<'py>, drive: u8, id: ParamId) -> PyResult<Record<'py>> {
     let r = Record::new(py);
     r.set("family", FAMILY)?.set("drive", drive)?.set("name", id.to_string())?.set("id", id.get())?;
-    r.set("unit", id.info().map_or("", |i| i.unit))?.set("access", "rw")?;
-    if let Some(d) = id.description() {
-        r.set("title", d)?;
-    }
+    r.set("unit", id.info().map_or("", |i| i.unit))?.set("access", id.info().map_or("rw", |i| i.access.short()))?;
+    r.set("title", id.description().unwrap_or(""))?.extras(&["title"])?;
     Ok(r)
 }
 
+/// S16 / S17 as a flag word: `word`, `flags`, `unknown_bits` (when nonzero) and the drive's own bit
+/// string `pattern` ("1101 0010").
+pub(crate) fn s16_py<'py>(py: Python<'py>, b: S16Bits) -> PyResult<Bound<'py, PyDict>> {
+    let r = Record::new(py);
+    r.flag_word(b)?.set("pattern", b.pattern().to_string())?;
+    Ok(r.done())
+}
+
+/// S17 as [`s16_py`] gives S16.
+pub(crate) fn s17_py<'py>(py: Python<'py>, b: S17Bits) -> PyResult<Bound<'py, PyDict>> {
+    let r = Record::new(py);
+    r.flag_word(b)?.set("pattern", b.pattern().to_string())?;
+    Ok(r.done())
+}
+
+/// A status value as an entry of the CLI's `compax status --json`: `status` ("S1"), `name` (the title),
+/// `unit`, `value` (`drive` and `id` are extra attributes).
 fn status_record<'py>(py: Python<'py>, drive: u8, id: StatusId, v: &StatusValue) -> PyResult<Record<'py>> {
     let info = id.info();
     let r = Record::new(py);
-    r.set("family", FAMILY)?.set("drive", drive)?.set("name", id.to_string())?.set("id", id.get())?;
-    r.set("title", info.map_or("", |i| i.title))?.set("unit", info.map_or("", |i| i.unit))?;
+    r.set("family", FAMILY)?.set("drive", drive)?.set("status", id.to_string())?.set("id", id.get())?;
+    r.set("name", info.map_or("(meaning not documented)", |i| i.title))?.set("unit", info.map_or("", |i| i.unit))?;
     match v {
-        StatusValue::S16(b) => r.set("value", b.0)?.set("flags", b.meanings())?,
-        StatusValue::S17(b) => r.set("value", b.0)?.set("flags", b.meanings())?,
+        StatusValue::S16(b) => r.set("value", s16_py(py, *b)?)?,
+        StatusValue::S17(b) => r.set("value", s17_py(py, *b)?)?,
         StatusValue::Position(p) => r.set("value", p.units())?,
         StatusValue::Number(n) => r.set("value", *n)?,
         other => r.set("value", other.to_string())?,
     };
+    r.extras(&["drive", "id"])?;
     Ok(r)
 }
 
@@ -127,10 +152,11 @@ fn move_request(
     target: Option<f64>,
     distance: Option<f64>,
     speed_percent: Option<f64>,
-    ramp_ms: Option<u32>,
+    ramp_ms: Option<&Int>,
     (min_units, max_units): (Option<f64>, Option<f64>),
     timeout_s: f64,
 ) -> Result<MoveRequest, Failure> {
+    let ramp_ms: Option<u32> = opt_within(ramp_ms, FAMILY, "ramp_ms", 0..=i64::from(u32::MAX))?;
     let target = match (target, distance) {
         (Some(t), None) => MoveTarget::Absolute(Position::new(t).map_err(|e| usage(format!("target: {e}")))?),
         (None, Some(d)) => MoveTarget::Relative(Position::new(d).map_err(|e| usage(format!("distance: {e}")))?),
@@ -145,11 +171,20 @@ fn move_request(
     Ok(MoveRequest { target, speed, accel, binary: false, limits, timeout: Some(seconds("timeout_s", timeout_s)?) })
 }
 
+/// A move as the CLI's `compax move --json` prints it (`start_units` is an extra attribute).
 fn move_record<'py>(py: Python<'py>, report: &MoveReport, tolerance: Position) -> PyResult<Record<'py>> {
     let rec = Record::new(py);
     rec.set("family", FAMILY)?.set("drive", report.address.get())?.set("start_units", report.start.units())?;
     rec.set("target_units", report.target.units())?.set("reached_units", report.reached.units())?;
     rec.set("difference_units", report.difference())?.set("tolerance_units", tolerance.units())?;
+    rec.set("waited", true)?.extras(&["start_units"])?;
+    Ok(rec)
+}
+
+/// Where a drive stands (S1): the result of `position`, `wait` and `home`.
+fn position_record<'py>(py: Python<'py>, drive: Address, p: Position) -> PyResult<Record<'py>> {
+    let rec = Record::new(py);
+    rec.set("family", FAMILY)?.set("drive", drive.get())?.set("position_units", p.units())?;
     Ok(rec)
 }
 
@@ -158,6 +193,8 @@ fn move_record<'py>(py: Python<'py>, report: &MoveReport, tolerance: Position) -
 pub struct CompaxClient {
     slot: Slot<Client>,
     token: CancelToken,
+    /// The tokens of the watches still running (closing the client ends them).
+    watches: std::sync::Mutex<Vec<CancelToken>>,
     drive: u8,
     port: String,
     close_bound: Duration,
@@ -168,8 +205,19 @@ impl CompaxClient {
         self.slot.get().map_err(|f| to_pyerr(py, f))
     }
 
-    fn drive(&self, py: Python<'_>, drive: Option<u8>) -> PyResult<Address> {
-        address(drive.unwrap_or(self.drive)).map_err(|f| to_pyerr(py, f))
+    fn drive(&self, py: Python<'_>, drive: Option<Int>) -> PyResult<Address> {
+        let n = match drive {
+            None => self.drive,
+            Some(d) => drive_number(&d).map_err(|f| to_pyerr(py, f))?,
+        };
+        address(n).map_err(|f| to_pyerr(py, f))
+    }
+
+    /// Ends the watches still running.
+    fn end_watches(&self) {
+        for t in motionlink_link::clock::lock(&self.watches).drain(..) {
+            t.cancel();
+        }
     }
 }
 
@@ -190,7 +238,9 @@ impl CompaxClient {
         let token = CancelToken::new();
         client.set_cancel(token.clone());
         let close_bound = client.config().close_bound;
-        Ok(CompaxClient { slot: Slot::new(client, FAMILY), token, drive: settings.drive, port, close_bound })
+        let drive = drive_number(&settings.drive).map_err(|f| to_pyerr(py, f))?;
+        let watches = Default::default();
+        Ok(CompaxClient { slot: Slot::new(client, FAMILY), token, watches, drive, port, close_bound })
     }
 
     /// The port.
@@ -213,7 +263,9 @@ impl CompaxClient {
     /// Every drive that answers (addresses 1..31) with its position S1.
     fn scan<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let c = self.client(py)?;
-        let found = py.detach(|| c.scan(1..=31)).or_raise(py)?;
+        // The library checks the cancel token before each address; Ctrl-C cancels it and raises at once
+        // (the address being asked ends within its reply timeout on the scan's thread).
+        let found = interruptible_read(py, Some(self.token.clone()), move || c.scan(1..=31))?.or_raise(py)?;
         found
             .iter()
             .map(|(a, p)| {
@@ -226,7 +278,12 @@ impl CompaxClient {
 
     /// Status values (S1 .. S40) by name ("S1") or number.
     #[pyo3(signature = (names, drive=None))]
-    fn status<'py>(&self, py: Python<'py>, names: Vec<String>, drive: Option<u8>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    fn status<'py>(
+        &self,
+        py: Python<'py>,
+        names: Vec<String>,
+        drive: Option<Int>,
+    ) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
         let ids: Vec<StatusId> = names
@@ -234,13 +291,14 @@ impl CompaxClient {
             .map(|n| StatusId::parse(n).map_err(|e| usage(format!("status {n:?}: {e}"))))
             .collect::<Result<_, _>>()
             .map_err(|f| to_pyerr(py, f))?;
-        let values = py.detach(|| c.read_statuses(a, &ids)).or_raise(py)?;
+        let values =
+            interruptible_read(py, Some(self.token.clone()), move || c.read_statuses(a, &ids))?.or_raise(py)?;
         values.iter().map(|(id, v)| Ok(status_record(py, a.get(), *id, v)?.done())).collect()
     }
 
     /// The actual position S1, in the drive's unit.
     #[pyo3(signature = (drive=None))]
-    fn position(&self, py: Python<'_>, drive: Option<u8>) -> PyResult<f64> {
+    fn position(&self, py: Python<'_>, drive: Option<Int>) -> PyResult<f64> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
         py.detach(|| c.read_position(a)).or_raise(py).map(|p| p.units())
@@ -248,11 +306,11 @@ impl CompaxClient {
 
     /// Reads a parameter (P194, device_address).
     #[pyo3(signature = (name, drive=None))]
-    fn get<'py>(&self, py: Python<'py>, name: &str, drive: Option<u8>) -> PyResult<Bound<'py, PyDict>> {
+    fn get<'py>(&self, py: Python<'py>, name: &str, drive: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
         let id = ParamId::parse(name).map_err(|e| to_pyerr(py, usage(format!("{name:?}: {e}"))))?;
-        let v = py.detach(|| c.read_param(a, id)).or_raise(py)?;
+        let v = interruptible_read(py, None, move || c.read_param(a, id))?.or_raise(py)?;
         let r = param_record(py, a.get(), id)?;
         r.set("value", v)?;
         Ok(r.done())
@@ -260,15 +318,17 @@ impl CompaxClient {
 
     /// Writes a parameter and reads it back (a different value is a DeviceError).
     #[pyo3(signature = (name, value, drive=None))]
-    fn set<'py>(&self, py: Python<'py>, name: &str, value: f64, drive: Option<u8>) -> PyResult<Bound<'py, PyDict>> {
+    fn set<'py>(&self, py: Python<'py>, name: &str, value: f64, drive: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
         let id = ParamId::parse(name)
             .and_then(|id| id.check(value).map(|()| id))
             .map_err(|e| to_pyerr(py, usage(format!("{name}: {e}"))))?;
-        py.detach(|| c.write_param(a, id, value)).or_raise(py)?;
+        // The library writes and compares what it reads back (a difference is an error); the value is then
+        // read once more, so that `read_back` is what the drive holds, not an echo of `value`.
+        let back = py.detach(|| c.write_param(a, id, value).and_then(|()| c.read_param(a, id))).or_raise(py)?;
         let r = param_record(py, a.get(), id)?;
-        r.set("value", value)?.set("read_back", value)?;
+        r.set("value", value)?.set("read_back", back)?.set("verified", true)?;
         Ok(r.done())
     }
 
@@ -280,17 +340,18 @@ impl CompaxClient {
         py: Python<'py>,
         target: Option<f64>,
         distance: Option<f64>,
-        drive: Option<u8>,
+        drive: Option<Int>,
         speed_percent: Option<f64>,
-        ramp_ms: Option<u32>,
+        ramp_ms: Option<Int>,
         min_units: Option<f64>,
         max_units: Option<f64>,
         timeout_s: f64,
     ) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
-        let request = move_request(target, distance, speed_percent, ramp_ms, (min_units, max_units), timeout_s)
-            .map_err(|f| to_pyerr(py, f))?;
+        let request =
+            move_request(target, distance, speed_percent, ramp_ms.as_ref(), (min_units, max_units), timeout_s)
+                .map_err(|f| to_pyerr(py, f))?;
         let r = interruptible(py, Some(&self.token), || c.move_to(a, &request, &mut |_| {}), cancel_cause)?;
         let report = r.or_raise(py)?;
         Ok(move_record(py, &report, c.config().in_position_tolerance)?.done())
@@ -298,7 +359,7 @@ impl CompaxClient {
 
     /// POSA HOME, waited for; Ctrl-C stops the drive.
     #[pyo3(signature = (drive=None, timeout_s=600.0))]
-    fn home<'py>(&self, py: Python<'py>, drive: Option<u8>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
+    fn home<'py>(&self, py: Python<'py>, drive: Option<Int>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
         let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
@@ -313,14 +374,12 @@ impl CompaxClient {
             cancel_cause,
         )?;
         let p = r.or_raise(py)?;
-        let rec = Record::new(py);
-        rec.set("family", FAMILY)?.set("drive", a.get())?.set("position_units", p.units())?;
-        Ok(rec.done())
+        Ok(position_record(py, a, p)?.done())
     }
 
     /// Waits until the drive reports its positioning ended (S17); Ctrl-C stops the drive.
     #[pyo3(signature = (drive=None, timeout_s=600.0))]
-    fn wait(&self, py: Python<'_>, drive: Option<u8>, timeout_s: f64) -> PyResult<f64> {
+    fn wait<'py>(&self, py: Python<'py>, drive: Option<Int>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
         let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
@@ -333,12 +392,13 @@ impl CompaxClient {
             },
             cancel_cause,
         )?;
-        r.or_raise(py).map(|p| p.units())
+        let p = r.or_raise(py)?;
+        Ok(position_record(py, a, p)?.done())
     }
 
     /// Stops the drive: OUTPUT O0=0 (switches it off; switch it on with `output(0, 1)`).
     #[pyo3(signature = (drive=None))]
-    fn stop(&self, py: Python<'_>, drive: Option<u8>) -> PyResult<()> {
+    fn stop(&self, py: Python<'_>, drive: Option<Int>) -> PyResult<()> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
         py.detach(|| c.stop(a)).or_raise(py)
@@ -346,29 +406,34 @@ impl CompaxClient {
 
     /// Sets output `number` to `state` (OUTPUT Ox=y).
     #[pyo3(signature = (number, state, drive=None))]
-    fn output(&self, py: Python<'_>, number: u16, state: u8, drive: Option<u8>) -> PyResult<()> {
+    fn output(&self, py: Python<'_>, number: Int, state: Int, drive: Option<Int>) -> PyResult<()> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
+        let number: u16 =
+            number.within(FAMILY, "number (the output)", 0..=i64::from(u16::MAX)).map_err(|f| to_pyerr(py, f))?;
+        let state: u8 =
+            state.within(FAMILY, "state (of the output)", 0..=i64::from(u8::MAX)).map_err(|f| to_pyerr(py, f))?;
         let st = OutputState::new(number, state).map_err(|e| to_pyerr(py, usage(e.to_string())))?;
         py.detach(|| c.set_output(a, number, st, false)).or_raise(py)
     }
 
-    /// One sample of `watch`: S1 and S17.
-    #[pyo3(signature = (drive=None))]
-    fn sample<'py>(&self, py: Python<'py>, drive: Option<u8>) -> PyResult<Bound<'py, PyDict>> {
+    /// Starts the library's watch of the drive (S1 and S17 every `interval_ms`, on a thread of its own):
+    /// the samples come from [`CompaxWatch::next`].
+    #[pyo3(signature = (drive, interval_ms))]
+    fn watch_start(&self, py: Python<'_>, drive: Option<Int>, interval_ms: Int) -> PyResult<CompaxWatch> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
-        let (p, s17) = py.detach(|| -> Result<_, Error> { Ok((c.read_position(a)?, c.read_s17(a)?)) }).or_raise(py)?;
-        let r = Record::new(py);
-        r.set("family", FAMILY)?.set("drive", a.get())?.set("position_units", p.units())?;
-        r.set("moving", s17.contains(S17Flag::CommandActive))?.set("flags", s17.meanings())?;
-        Ok(r.done())
+        let ms: u64 = interval_ms.within(FAMILY, "interval_ms", 1..=3_600_000).map_err(|f| to_pyerr(py, f))?;
+        let w = CompaxWatch::start(c, a, Duration::from_millis(ms));
+        motionlink_link::clock::lock(&self.watches).push(w.token());
+        Ok(w)
     }
 
     /// Ends the session: stops what it set in motion that still moves (confirmed by S17); an exception if
     /// a drive did not confirm.
     fn close(&self, py: Python<'_>) -> PyResult<()> {
         let bound = self.close_bound;
+        self.end_watches();
         let taken = py.detach(|| self.slot.take(&self.token, bound));
         match taken {
             None => Ok(()),
@@ -393,191 +458,11 @@ pub fn default_tolerance() -> f64 {
     DEFAULT_IN_POSITION_TOLERANCE
 }
 
-/// An async session with COMPAX drives (the native half of `motionlink.AsyncCompax`): cancelling a move's,
-/// a homing's or a wait's task drops its future, which stops the drive (OUTPUT O0=0, confirmed by S17).
-#[pyclass(frozen, module = "motionlink._native")]
-pub struct AsyncCompaxClient {
-    slot: Slot<AsyncClient>,
-    drive: u8,
-    port: String,
-}
-
-impl AsyncCompaxClient {
-    fn client(&self, py: Python<'_>) -> PyResult<Arc<AsyncClient>> {
-        self.slot.get().map_err(|f| to_pyerr(py, f))
-    }
-
-    fn drive(&self, py: Python<'_>, drive: Option<u8>) -> PyResult<Address> {
-        address(drive.unwrap_or(self.drive)).map_err(|f| to_pyerr(py, f))
-    }
-}
-
-fn fail<T>(r: Result<T, Error>) -> Result<T, Failure> {
-    r.map_err(|e| e.failure())
-}
-
-fn units(p: Position) -> crate::wait::Outcome {
-    deliver(move |py| Ok(p.units().into_pyobject(py)?.into_any().unbind()))
-}
-
-#[pymethods]
-impl AsyncCompaxClient {
-    /// Opens a session on the runtime (the port on its blocking pool): `done(ok, client)`.
-    #[staticmethod]
-    fn open(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings, done: Py<PyAny>) -> PyResult<NativeTask> {
-        let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
-        let port = match &t {
-            Target::InProcess(_) => "in-process emulator".to_string(),
-            Target::Url(u) => u.to_string(),
-        };
-        Ok(spawn_task(done, async move {
-            let drive = settings.drive;
-            let opened = tokio::task::spawn_blocking(move || link(t, &settings)).await;
-            let (link, cfg) = opened.map_err(|e| {
-                Failure::new(
-                    motionlink_link::error::ErrorClass::Transport(motionlink_link::error::TransportKind::Io),
-                    FAMILY,
-                    format!("the opening task failed: {e}"),
-                )
-            })??;
-            let client = fail(AsyncClient::new(link, clock(), cfg))?;
-            let native = AsyncCompaxClient { slot: Slot::new(client, FAMILY), drive, port };
-            deliver(move |py| Ok(Py::new(py, native)?.into_any()))
-        }))
-    }
-
-    /// The port.
-    #[getter]
-    fn port(&self) -> String {
-        self.port.clone()
-    }
-
-    /// The actual position S1: `done(ok, float)`.
-    #[pyo3(signature = (drive, done))]
-    fn position(&self, py: Python<'_>, drive: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
-        let c = self.client(py)?;
-        let a = self.drive(py, drive)?;
-        Ok(spawn_task(done, async move { units(fail(c.read_position(a).await)?) }))
-    }
-
-    /// A checked move, waited for; cancelling the task stops the drive.
-    #[pyo3(signature = (target, distance, drive, speed_percent, ramp_ms, min_units, max_units, timeout_s, done))]
-    #[allow(clippy::too_many_arguments)]
-    fn move_to(
-        &self,
-        py: Python<'_>,
-        target: Option<f64>,
-        distance: Option<f64>,
-        drive: Option<u8>,
-        speed_percent: Option<f64>,
-        ramp_ms: Option<u32>,
-        min_units: Option<f64>,
-        max_units: Option<f64>,
-        timeout_s: f64,
-        done: Py<PyAny>,
-    ) -> PyResult<NativeTask> {
-        let c = self.client(py)?;
-        let a = self.drive(py, drive)?;
-        let request = move_request(target, distance, speed_percent, ramp_ms, (min_units, max_units), timeout_s)
-            .map_err(|f| to_pyerr(py, f))?;
-        Ok(spawn_task(done, async move {
-            let report = fail(c.move_to(a, &request).await)?;
-            let tolerance = c.config().in_position_tolerance;
-            deliver(move |py| Ok(move_record(py, &report, tolerance)?.done().into_any().unbind()))
-        }))
-    }
-
-    /// POSA HOME, waited for; cancelling the task stops the drive.
-    #[pyo3(signature = (drive, timeout_s, done))]
-    fn home(&self, py: Python<'_>, drive: Option<u8>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
-        let c = self.client(py)?;
-        let a = self.drive(py, drive)?;
-        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
-        Ok(spawn_task(done, async move {
-            match fail(c.start(Op::Move(a, Command::PosAHome, MoveOptions::default())).await)? {
-                Output::Done => {}
-                other => {
-                    return Err(Failure::new(
-                        motionlink_link::error::ErrorClass::Transport(motionlink_link::error::TransportKind::Corrupt),
-                        FAMILY,
-                        format!("the session answered {other:?} to POSA HOME"),
-                    ))
-                }
-            }
-            fail(c.wait_reached(&[a], Some(timeout)).await)?;
-            let p = fail(c.read_position(a).await)?;
-            deliver(move |py| {
-                let r = Record::new(py);
-                r.set("family", FAMILY)?.set("drive", a.get())?.set("position_units", p.units())?;
-                Ok(r.done().into_any().unbind())
-            })
-        }))
-    }
-
-    /// Waits until the drive's positioning ended; its position then. Cancelling the task stops the drive.
-    #[pyo3(signature = (drive, timeout_s, done))]
-    fn wait(&self, py: Python<'_>, drive: Option<u8>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
-        let c = self.client(py)?;
-        let a = self.drive(py, drive)?;
-        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
-        Ok(spawn_task(done, async move {
-            fail(c.wait_reached(&[a], Some(timeout)).await)?;
-            units(fail(c.read_position(a).await)?)
-        }))
-    }
-
-    /// Stops the drive (OUTPUT O0=0).
-    #[pyo3(signature = (drive, done))]
-    fn stop(&self, py: Python<'_>, drive: Option<u8>, done: Py<PyAny>) -> PyResult<NativeTask> {
-        let c = self.client(py)?;
-        let a = self.drive(py, drive)?;
-        Ok(spawn_task(done, async move {
-            fail(c.stop(a).await)?;
-            deliver(|py| Ok(py.None()))
-        }))
-    }
-
-    /// Ends the session (stops what it set in motion that still moves): `done(ok, None)`.
-    fn close(&self, done: Py<PyAny>) -> NativeTask {
-        let taken = self.slot.take(&CancelToken::new(), Duration::ZERO);
-        spawn_task(done, async move {
-            match taken {
-                None => {}
-                Some(Ok(client)) => {
-                    fail(client.close().await)?;
-                }
-                Some(Err(shared)) => {
-                    let report = shared.stop_started().await;
-                    if !report.all_confirmed() {
-                        return Err(Failure::new(
-                            motionlink_link::error::ErrorClass::Device,
-                            FAMILY,
-                            format!("closing: {report}"),
-                        ));
-                    }
-                }
-            }
-            deliver(|py| Ok(py.None()))
-        })
-    }
-
-    /// Ends the session from synchronous code (atexit), waiting without the GIL.
-    fn close_blocking(&self, py: Python<'_>) -> PyResult<()> {
-        let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
-        match taken {
-            Ok(client) => block_on_runtime(py, client.close())?.or_raise(py).map(|_| ()),
-            Err(shared) => {
-                block_on_runtime(py, async move { shared.stop_started().await })?;
-                Ok(())
-            }
-        }
-    }
-}
-
 impl Drop for CompaxClient {
     fn drop(&mut self) {
         // Not closed by its owner (garbage-collected): the session ends here, stopping what it started as
         // the family's client does when dropped, without holding the GIL while it waits for the device.
+        self.end_watches();
         if let Some(taken) = self.slot.take(&self.token, self.close_bound) {
             Python::attach(|py| py.detach(move || drop(taken)));
         }

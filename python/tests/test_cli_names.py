@@ -1,0 +1,135 @@
+"""Python's results carry the command line's JSON names (naming.md, "Decisions of 2026-11-25"): for each
+family's info, get, set, move, status or scan, and watch, ``to_dict()`` has exactly the keys, nested the
+same way, that ``motionlink <family> --port sim --json ...`` prints (``family`` and ``port`` aside).
+
+The binary is ``$MOTIONLINK_BIN``, else ``debug/motionlink`` in ``$CARGO_TARGET_DIR`` or
+``<repository>/target`` (``cargo build -p motionlink``). Without it these tests are skipped, or fail when ``MOTIONLINK_REQUIRE_CLI=1``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+from pathlib import Path
+from typing import Any, Callable, List
+
+import pytest
+
+import motionlink
+
+REPO = Path(__file__).resolve().parents[2]
+TARGET = Path(os.environ.get("CARGO_TARGET_DIR", REPO / "target"))
+BIN = Path(os.environ.get("MOTIONLINK_BIN", (TARGET if TARGET.is_absolute() else REPO / TARGET) / "debug" / "motionlink"))
+IDENTITY = {"family", "port"}
+
+
+@pytest.fixture(scope="module")
+def cli() -> Callable[..., List[Any]]:
+    if not BIN.is_file():
+        message = f"the motionlink binary is not at {BIN} (build it: cargo build -p motionlink, or set MOTIONLINK_BIN)"
+        if os.environ.get("MOTIONLINK_REQUIRE_CLI") == "1":
+            pytest.fail(message)
+        pytest.skip(message)
+
+    def run(*args: str) -> List[Any]:
+        done = subprocess.run([str(BIN), *args], capture_output=True, text=True, timeout=60)
+        assert done.returncode == 0, f"motionlink {' '.join(args)}: {done.stderr}"
+        return [json.loads(line) for line in done.stdout.splitlines() if line.strip()]
+
+    return run
+
+
+def shape(value: Any) -> Any:
+    """The keys of a JSON value, recursively (a list of objects by its first element), without family /
+    port."""
+    if isinstance(value, dict):
+        return {k: shape(v) for k, v in value.items() if k not in IDENTITY}
+    if isinstance(value, list) and value and isinstance(value[0], dict):
+        return [shape(value[0])]
+    return None
+
+
+class Names:
+    """Collects every operation whose names differ, so that one run shows them all."""
+
+    def __init__(self) -> None:
+        self.differ: List[str] = []
+
+    def __call__(self, what: str, python: Any, cli: Any) -> None:
+        ours, theirs = shape(python), shape(cli)
+        if ours != theirs:
+            self.differ.append(f"{what}:\n  python {ours}\n  cli    {theirs}")
+
+    def check(self) -> None:
+        assert not self.differ, "\n".join(self.differ)
+
+
+# ------------------------------------------------------------------------------------------------ SCU
+
+
+def test_scu_names(cli: Callable[..., List[Any]]) -> None:
+    same_names = Names()
+    with motionlink.Scu("sim") as scu:
+        same_names("info", scu.info().to_dict(), cli("scu", "--port", "sim", "--json", "info")[0])
+        same_names(
+            "get",
+            scu.get("actual_position_a1").to_dict(),
+            cli("scu", "--port", "sim", "--json", "get", "actual_position_a1")[0],
+        )
+        # A flag word's value: {word, flags}.
+        same_names("get battery_mains", scu.get("battery_mains").to_dict(), cli("scu", "--port", "sim", "--json", "get", "battery_mains")[0])
+        same_names(
+            "set",
+            scu.set("remote_speed_f1", 80).to_dict(),
+            cli("scu", "--port", "sim", "--json", "set", "remote_speed_f1", "80")[0],
+        )
+        same_names("move_to", scu.move_to(1, 300).to_dict(), cli("scu", "--port", "sim", "--json", "move", "1", "300")[0])
+        ran = cli("scu", "--port", "sim", "--json", "run", "2", "out", "--seconds", "0.2")
+        same_names("run", scu.run(2, "out", seconds=0.2).to_dict(), ran[-1])
+        sample = next(scu.watch(interval_ms=10, count=1))
+        same_names("watch", sample.to_dict(), cli("scu", "--port", "sim", "--json", "watch", "--count", "1")[0])
+    same_names.check()
+
+
+# ------------------------------------------------------------------------------------------ PowerCube
+
+
+def test_powercube_names(cli: Callable[..., List[Any]]) -> None:
+    pc = ("powercube", "--port", "sim", "--json")
+    same_names = Names()
+    with motionlink.PowerCube("sim") as cube:
+        same_names("scan", [m.to_dict() for m in cube.scan()], cli(*pc, "scan")[0])
+        same_names("info", cube.info().to_dict(), cli(*pc, "info")[0])
+        same_names("state", cube.state().to_dict(), cli(*pc, "state")[0])
+        same_names("get", cube.get("ActPos").to_dict(), cli(*pc, "get", "ActPos")[0])
+        same_names("set", cube.set("MaxVel", 0.5).to_dict(), cli(*pc, "set", "MaxVel", "0.5")[0])
+        same_names("home", cube.home().to_dict(), cli(*pc, "home")[0])
+        same_names("move_to", cube.move_to(0.3).to_dict(), cli(*pc, "move", "0.3")[0])
+        sample = next(cube.watch(interval_ms=10, count=1))
+        same_names("watch", sample.to_dict(), cli(*pc, "watch", "--count", "1")[0])
+    same_names.check()
+
+
+# --------------------------------------------------------------------------------------------- COMPAX
+
+
+def test_compax_names(cli: Callable[..., List[Any]]) -> None:
+    cx = ("compax", "--port", "sim", "--json")
+    same_names = Names()
+    with motionlink.Compax("sim") as drive:
+        scanned = cli(*cx, "scan")[0]
+        assert set(scanned) - IDENTITY == {"drives"}
+        same_names("scan", [d.to_dict() for d in drive.scan()], scanned["drives"])
+        status = cli(*cx, "status")[0]
+        assert set(status) - IDENTITY == {"drive", "status"}
+        # Entry by entry: S1 (a number), S16 and S17 (flag words with their pattern).
+        for ours, theirs in zip(drive.info(), status["status"]):
+            assert ours.status == theirs["status"]
+            same_names(f"status {ours.status}", ours.to_dict(), theirs)
+        same_names("get", drive.get("P194").to_dict(), cli(*cx, "get", "P194")[0])
+        same_names("set", drive.set("P3", 5).to_dict(), cli(*cx, "set", "P3", "5")[0])
+        same_names("move_to", drive.move_to(10.0).to_dict(), cli(*cx, "move", "--abs", "10")[0])
+        sample = next(drive.watch(interval_ms=10, count=1))
+        same_names("watch", sample.to_dict(), cli(*cx, "watch", "--count", "1")[0])
+    same_names.check()
