@@ -99,7 +99,8 @@ def test_powercube_names(cli: Callable[..., List[Any]]) -> None:
     pc = ("powercube", "--port", "sim", "--json")
     same_names = Names()
     with motionlink.PowerCube("sim") as cube:
-        same_names("scan", [m.to_dict() for m in cube.scan()], cli(*pc, "scan")[0])
+        # Listings are JSON Lines: one object per module.
+        same_names("scan", [m.to_dict() for m in cube.scan()], cli(*pc, "scan"))
         same_names("info", cube.info().to_dict(), cli(*pc, "info")[0])
         same_names("state", cube.state().to_dict(), cli(*pc, "state")[0])
         same_names("get", cube.get("ActPos").to_dict(), cli(*pc, "get", "ActPos")[0])
@@ -118,9 +119,9 @@ def test_compax_names(cli: Callable[..., List[Any]]) -> None:
     cx = ("compax", "--port", "sim", "--json")
     same_names = Names()
     with motionlink.Compax("sim") as drive:
-        scanned = cli(*cx, "scan")[0]
-        assert set(scanned) - IDENTITY == {"drives"}
-        same_names("scan", [d.to_dict() for d in drive.scan()], scanned["drives"])
+        # Listings are JSON Lines: one object per drive.
+        scanned = cli(*cx, "scan")
+        same_names("scan", [d.to_dict() for d in drive.scan()], scanned)
         status = cli(*cx, "status")[0]
         assert set(status) - IDENTITY == {"drive", "status"}
         # Entry by entry: S1 (a number), S16 and S17 (flag words with their pattern).

@@ -46,7 +46,7 @@ pub struct Settings {
 
 /// A module address as an argument gives it, checked by the library's address type (a usage error naming it).
 fn module_address(module: &Int) -> Result<u8, Failure> {
-    let n: u8 = module.within(FAMILY, "module", 0..=255)?;
+    let n: u8 = module.within(FAMILY, "module", 1..=31)?;
     Address::new(n).map_err(|e| Error::from(e).failure())?;
     Ok(n)
 }

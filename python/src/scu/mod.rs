@@ -185,7 +185,7 @@ fn error_code<'py>(py: Python<'py>, code: ErrorCode) -> PyResult<Bound<'py, PyAn
 
 /// An actuator's status 1 as `info` and `watch` report it: the flags set and whether it moves.
 fn status_fields(r: &Record<'_>, s: ActuatorStatus1) -> PyResult<()> {
-    r.set("flags", s.names())?.set("moving", s.moving())?;
+    r.set("word", s.bits())?.set("flags", s.names())?.set("moving", s.moving())?;
     Ok(())
 }
 
@@ -195,6 +195,7 @@ pub(crate) fn move_record<'py>(py: Python<'py>, target_counts: i32, report: &Mov
     rec.set("family", FAMILY)?.set("function", report.function.number())?;
     rec.set("actuator", report.actuator.number())?.set("target_counts", target_counts)?;
     rec.set("reached_counts", report.position_counts)?.set("time_s", report.duration.as_secs_f64())?;
+    rec.set("difference_counts", i64::from(report.position_counts) - i64::from(target_counts))?;
     let mut acts = Vec::new();
     for o in &report.actuators {
         let d = Record::new(py);
