@@ -255,8 +255,12 @@ impl Ctx {
         if let Some(ramp) = request.accel {
             self.setting(address, &Command::Accel(ramp), request.binary).await?;
         }
-        let opts = MoveOptions { binary: request.binary, message: false };
-        self.start_move(address, cmd, opts, before).await
+        if request.binary {
+            // A binary telegram takes no flags (manual 4.4): no store, no echo. Its target is read back after.
+            let opts = MoveOptions { binary: true, message: false };
+            return self.start_move(address, cmd, opts, before).await;
+        }
+        self.start_echoed_move(address, cmd, before).await
     }
 
     /// Reads S2 after a move was sent; [`Error::TargetMismatch`] when it is off the target twice.
