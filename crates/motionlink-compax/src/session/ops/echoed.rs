@@ -5,9 +5,10 @@
 //! makes the drive "send the received data back in full", `!` executes "a command previously stored in
 //! the buffer". So the host sees what the drive received (address, command, value) before anything moves.
 //!
-//! Sent again: the manual speaks of one buffer holding "a command", and the crate reads it as one command
-//! that the next `,` replaces (the emulator does so); storing the same command again therefore leaves one
-//! copy in the buffer, and one `!` runs it once. That is why a store whose echo is lost is sent again even
+//! Sent again: the manual speaks of "the COMPAX buffer" and of `!` executing "a command previously
+//! stored", without saying how many it holds or whether a store replaces one; the crate reads it as one
+//! command that the next `,` replaces (the emulator does so). Storing the same command again therefore
+//! leaves one copy in the buffer (were it a queue, a second copy would wait there), and one `!` runs one. That is why a store whose echo is lost is sent again even
 //! for a relative move (POSR): what is repeated is the store, never the execution. An echo that comes back
 //! otherwise than sent, or corrupt, is not repaired by a resend: the move is refused, no `!` goes out. The
 //! `!` itself is not repeated blind: after a lost reply to it, S2 and S17 tell whether the move started.
