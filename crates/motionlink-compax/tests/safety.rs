@@ -246,6 +246,16 @@ fn one_fault(p196: u32, kind: MoveKind, target: f64, fault: Option<(Direction, u
     req.timeout = Some(Duration::from_secs(5));
     let result = bus.move_to(a(1), &req, &mut |_| {});
     let what = format!("P196={p196} {kind:?} fault {fault:?}");
+    // An ASCII move is checked by its echo before it starts: no positioning ever starts towards another
+    // target (a binary move, which takes no echo, may, and is then stopped by the S2 check).
+    let started: Vec<String> = {
+        use motionlink_link::emulator::Emulator as _;
+        r.host.with_device(|d| d.take_events()).into_iter().filter(|e| e.contains("motion started")).collect()
+    };
+    if kind != MoveKind::Binary {
+        let right = format!("drive 1 motion started to {target:.3} from 0.000");
+        assert!(started.iter().all(|e| *e == right) && started.len() <= 1, "{what}: {started:?}");
+    }
     // Whatever happened, nothing this client started may still move, and no stop stays unconfirmed.
     let report = bus.stop_started();
     assert!(report.all_confirmed(), "{what}: {report}");
