@@ -181,6 +181,26 @@ pub enum Error {
         /// reply was lost.
         buffered: Vec<u8>,
     },
+    /// A checked move stored in the drive's buffer with its echo (`,?`) was not executed: its echo did not
+    /// come back as the telegram sent (or not at all), so no `!` was sent, or the `!` was refused or did
+    /// not start it. The drives in `buffered` may still hold the command (as they received it) in their
+    /// buffer: the manual has no command that empties a buffer, so the next `!` to such a drive, or any
+    /// `32!` on the bus, executes it.
+    #[error("drive {address}: the move {command:?} was stored in the buffer, not executed: {why} ({source}); drives {buffered:?} may still hold the command as they received it in their buffer, and the next '!' to them or any '32!' on the bus executes it (the manual has no command to empty a buffer)")]
+    NotExecuted {
+        /// The drive the move was for.
+        address: u8,
+        /// The move as sent, without the address and flags (`POSA 12.5`).
+        command: String,
+        /// What happened (`its echo was not the telegram sent, so no '!' was sent`).
+        why: &'static str,
+        /// The error behind it: the echo that came back ([`Error::Unexpected`]), a lost or corrupt reply,
+        /// the drive's refusal of `!`.
+        source: Box<Error>,
+        /// Drives (ascending) that may hold the command in their buffer: the drive addressed, and a drive
+        /// whose address the echo shows.
+        buffered: Vec<u8>,
+    },
     /// Address 32 where one drive's answer or one drive is needed: every drive executes a broadcast and none
     /// answers it.
     #[error("address 32 is the broadcast: every drive executes it and none answers; {0}")]
@@ -267,7 +287,7 @@ impl Classify for Error {
             }
             Error::Cancelled => ErrorClass::Cancelled,
             Error::Aborted { cause, .. } => cause.class(),
-            Error::SyncIncomplete { source, .. } => source.class(),
+            Error::SyncIncomplete { source, .. } | Error::NotExecuted { source, .. } => source.class(),
         }
     }
 }

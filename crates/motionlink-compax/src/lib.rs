@@ -73,7 +73,8 @@
 //!   `32!` cannot move an axis twice; `!` with an empty buffer is refused.
 //! - **`?`** (echo) sends the telegram back (address, command and flags, without CR) and does not execute
 //!   it. The echo ends as P196 says, like every reply (the manual writes `CR LF >`, which would break a bus in
-//!   CR-only mode).
+//!   CR-only mode). With `,` (`POSA 10,?`) the command is stored as with `,` alone and echoed: the manual
+//!   lists the two among the optional characters of one telegram and excludes neither.
 //! - **Binary replies** are the ASCII ones (`CR LF >` or `Exx`); binary commands take no flags. The binary
 //!   table's last row prints five bytes for the speed; the length byte 0x8F says six, as everywhere else.
 //!   "POSA 256,0 → 88 41 00 00 00 01 00" misses a byte (`88 41 00 00 00 00 01 00`); the number table's
@@ -95,14 +96,26 @@
 //! - **Checked moves** ([`Client::move_to`]): the manuals give no position window for this protocol,
 //!   so the in-position tolerance is
 //!   [`BusConfig::in_position_tolerance`](session::BusConfig::in_position_tolerance) (0.01 by default); they
-//!   name no travel limits, so the caller gives them ([`session::TravelLimits`]). A target cannot be read
-//!   back before the start (the move telegram starts it, and a buffered move cannot be read before `!`): S2
-//!   is read right after the move, and a mismatch switches the axis off. The drive counts as started from
-//!   the first setting of the move on (in binary without BCC one flipped bit turns SPEED into POSR).
+//!   name no travel limits, so the caller gives them ([`session::TravelLimits`]). The move is checked
+//!   before it starts: it is stored in the drive's buffer with its echo (`POSA 12.5,?`), the echo is
+//!   compared byte for byte with the telegram sent (address prefix, address, command, value, flags), and
+//!   only when they are the same is `!` sent. An echo that differs or comes corrupt (a flipped digit, a
+//!   flipped address digit that reached another drive) sends no `!` and is [`Error::NotExecuted`], which
+//!   names what came back and the drives that may now hold the command in their buffer (the manual has no
+//!   command that empties one: the next `!` to such a drive, or any `32!`, executes it). A store whose echo
+//!   is lost is stored again, even a POSR: the buffer holds one command (see `!` above; the RS485 manual
+//!   does not say how many, nor that a store replaces one), which the new store replaces, and a repeat
+//!   stores, it never executes; `!` is never repeated blind: after a lost reply to it,
+//!   S2 and S17 tell whether the move started, and `!` goes again only when S2 is unchanged and no command
+//!   is active. After the start S2 is read back as a second check, and a mismatch switches the axis off.
+//!   A binary move takes no `,` or `?` (manual 4.4): it is checked by S2 after the start only. The drive
+//!   counts as started from the first setting of the move on (in binary without BCC one flipped bit turns
+//!   SPEED into POSR).
 //! - **Replies that cannot answer the request** (text to a move, an acknowledgement or another value to a
 //!   read) are taken for late or garbled ones and not used; a read whose reply does not parse is sent again.
 //! - **Lost replies**: reads, settings, POSA and buffered commands are sent again after a timeout or a corrupt
-//!   reply. A POSR is not: the client read the target S2 before sending it and reads it again; unchanged, the
+//!   reply (a checked move's store with its echo only after a timeout: a corrupt echo refuses the move). A
+//!   POSR sent on its own is not: the client read the target S2 before sending it and reads it again; unchanged, the
 //!   move did not arrive and is sent again; moved by the distance, it arrived; otherwise the caller gets
 //!   [`Error::MoveUncertain`]. E70, E72 and E73 are always answered by sending the telegram again;
 //!   E71 (buffer overflow) is reported, since the manual asks for fewer characters, not the same again.

@@ -9,6 +9,7 @@ mod async_example;
 mod client;
 mod client_stops;
 mod e2e;
+mod echo_check;
 mod robustness;
 mod safety;
 mod shared;

@@ -95,8 +95,13 @@ fn a_checked_move_reads_its_target_back_and_checks_where_the_axis_came_to_rest()
     assert_eq!(report.difference(), 0.0);
     assert!(!seen.is_empty());
     let frames = sent(&r.transcript);
-    // Switched on? At rest? Where from? Then the setting, the move, and its target read back at once.
-    assert_eq!(frames[..6], ["1S16\r", "1S17\r", "1S1\r", "1SPEED 50\r", "1POSA 12.5\r", "1S2\r"], "{frames:?}");
+    // Switched on? At rest? Where from? Then the setting, the move stored with its echo (`,?`), executed
+    // (`!`) once the echo is the telegram sent, and its target read back at once.
+    assert_eq!(
+        frames[..7],
+        ["1S16\r", "1S17\r", "1S1\r", "1SPEED 50\r", "1POSA 12.5,?\r", "1!\r", "1S2\r"],
+        "{frames:?}"
+    );
     // Polls, and the position at rest at the end.
     assert_eq!(frames.last().unwrap(), "1S1\r");
     assert!(bus.started().is_empty());
@@ -193,10 +198,14 @@ fn a_switched_off_drive_is_named_as_such_not_with_a_bare_e90() {
 fn a_corrupted_target_is_caught_by_reading_s2_back_and_the_axis_is_switched_off() {
     let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
-    // "1S16\r" "1S17\r" "1S1\r", then "1POSA 15\r": flip the '5' (byte 7 of the move) into '4'.
+    // In binary (which takes no `,?`: the ASCII move is checked by its echo before it starts, see
+    // echo_check.rs) the target is checked after the start: "1S16\r" "1S17\r" "1S1\r", then the binary
+    // POSA 15 ('1' 88 41 00 00 00 0F 00 00): flip 0F (byte 6 of the move) into 0E, 14.
     let at = r.faults.bytes_sent(Direction::HostToDevice);
-    r.faults.inject(Direction::HostToDevice, at + 5 + 5 + 4 + 7, Fault::Corrupt { xor: 0x01 });
-    let e = bus.move_to(a(1), &to(15.0), &mut |_| {}).unwrap_err();
+    r.faults.inject(Direction::HostToDevice, at + 5 + 5 + 4 + 6, Fault::Corrupt { xor: 0x01 });
+    let mut req = to(15.0);
+    req.binary = true;
+    let e = bus.move_to(a(1), &req, &mut |_| {}).unwrap_err();
     assert!(
         matches!(e.root(), Error::TargetMismatch { address: 1, requested, taken } if *requested == 15.0 && *taken == 14.0),
         "{e}"
@@ -237,6 +246,16 @@ fn one_fault(p196: u32, kind: MoveKind, target: f64, fault: Option<(Direction, u
     req.timeout = Some(Duration::from_secs(5));
     let result = bus.move_to(a(1), &req, &mut |_| {});
     let what = format!("P196={p196} {kind:?} fault {fault:?}");
+    // An ASCII move is checked by its echo before it starts: no positioning ever starts towards another
+    // target (a binary move, which takes no echo, may, and is then stopped by the S2 check).
+    let started: Vec<String> = {
+        use motionlink_link::emulator::Emulator as _;
+        r.host.with_device(|d| d.take_events()).into_iter().filter(|e| e.contains("motion started")).collect()
+    };
+    if kind != MoveKind::Binary {
+        let right = format!("drive 1 motion started to {target:.3} from 0.000");
+        assert!(started.iter().all(|e| *e == right) && started.len() <= 1, "{what}: {started:?}");
+    }
     // Whatever happened, nothing this client started may still move, and no stop stays unconfirmed.
     let report = bus.stop_started();
     assert!(report.all_confirmed(), "{what}: {report}");

@@ -481,10 +481,13 @@ impl Client {
     /// Starts a move and confirms the drive took the right target: an absolute target outside
     /// `request.limits` is refused ([`Error::OutsideLimits`]) before anything is sent; a drive switched off
     /// (S16) is refused ([`Error::SwitchedOff`]) before anything moves; S1 (the start), and for a relative
-    /// move S2, then the limits for the target that makes; SPEED and ACCEL if given, then the move; S2 read
-    /// back right after (a move telegram starts the positioning, so the target cannot be read before): a
-    /// target off by more than the tolerance twice switches the axis off ([`Error::TargetMismatch`] inside
-    /// [`Error::Aborted`]). Once the move may have been sent, any error or a cancel stops the axis.
+    /// move S2, then the limits for the target that makes; SPEED and ACCEL if given, then the move, checked
+    /// before it starts: stored in the drive's buffer with its echo (`POSA 12.5,?`) and executed (`!`) only
+    /// when the echo is the telegram sent byte for byte (otherwise [`Error::NotExecuted`], naming the echo
+    /// and the drives that may hold the command in their buffer; a binary move, which takes no flags, is
+    /// sent as it is); S2 read back right after the start: a target off by more than the tolerance twice
+    /// switches the axis off ([`Error::TargetMismatch`] inside [`Error::Aborted`]). Once the move may have
+    /// been sent, any error or a cancel stops the axis if it moves.
     pub fn start_checked_move(&self, address: Address, request: &MoveRequest) -> Result<StartedMove> {
         self.start_checked(address, request, false)
     }

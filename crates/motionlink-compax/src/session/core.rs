@@ -146,6 +146,9 @@ pub(crate) struct Job {
     pub retries: u32,
     /// Sent before the other operations' telegrams (the stop sequence).
     pub urgent: bool,
+    /// A reply from another drive is this telegram's reply too (the echo of a buffered move `,?`: another
+    /// drive answering means a flipped address digit reached it, which the caller must learn of).
+    pub take_foreign: bool,
     attempts: u32,
     last_corrupt: Option<ReplyError>,
     unfit: Option<String>,
@@ -166,6 +169,7 @@ impl Job {
             retry,
             retries: cfg.retries,
             urgent: false,
+            take_foreign: req.flags.echo && req.flags.buffer,
             attempts: 0,
             last_corrupt: None,
             unfit: None,
@@ -448,7 +452,8 @@ impl Core {
             return;
         };
         let want = f.job.address;
-        if r.address().is_some_and(|a| a != want.get()) {
+        let foreign_taken = f.job.take_foreign && !matches!(r.kind(), ReplyKind::Error(_));
+        if r.address().is_some_and(|a| a != want.get()) && !foreign_taken {
             tracing::warn!("ignoring a reply from drive {:?} while waiting for {want}: {r:?}", r.address());
             return;
         }

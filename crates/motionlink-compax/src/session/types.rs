@@ -138,7 +138,8 @@ impl TravelLimits {
     }
 }
 
-/// A checked move: checked, sent, read back, waited for, verified.
+/// A checked move: checked, stored with its echo and executed once the echo matches, read back, waited
+/// for, verified.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MoveRequest {
     /// Where to.
@@ -147,7 +148,7 @@ pub struct MoveRequest {
     pub speed: Option<crate::model::SpeedPercent>,
     /// ACCEL for this move (the drive's current setting if `None`).
     pub accel: Option<crate::model::RampMs>,
-    /// Send the binary forms.
+    /// Send the binary forms (which take no `,?`: the move is then checked by S2 after the start only).
     pub binary: bool,
     /// Targets outside these are refused before anything is sent.
     pub limits: TravelLimits,
@@ -279,7 +280,8 @@ pub enum Op {
     /// Waits until the drives' positionings have ended ([`Output::Done`]), reporting
     /// [`Progress::Position`]; stops them when it fails or is cancelled.
     Wait(Vec<Address>, Option<Duration>),
-    /// A checked move: limits, S16 / S17, the move, S2 read back, the wait, the position at rest
+    /// A checked move: limits, S16 / S17, the move stored with its echo and executed once the echo is the
+    /// telegram sent, S2 read back, the wait, the position at rest
     /// ([`Output::Moved`]).
     MoveTo(Address, MoveRequest),
     /// The first half of [`Op::MoveTo`], up to the target read back ([`Output::Started`]); with `true`,

@@ -215,6 +215,11 @@ impl Drive {
         self.telegrams
     }
 
+    /// The command held in the buffer (stored with `,`, executed by `!`), if any: `POSA 12.5`.
+    pub fn buffered(&self) -> Option<&str> {
+        self.buffer.as_ref().map(|Stored::Text(t, _)| std::str::from_utf8(t.as_bytes()).unwrap_or(""))
+    }
+
     /// The speed and ramp settings for the next positioning: (percent, accel ms, brake ms).
     pub fn move_settings(&self) -> (f64, u16, u16) {
         (self.next.speed_percent, self.next.accel_ms, self.next.brake_ms)

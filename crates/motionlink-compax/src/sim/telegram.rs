@@ -125,6 +125,13 @@ impl Drive {
         }
         let answer = answer && !p.flags.no_reply;
         if p.flags.echo {
+            if p.flags.buffer {
+                // `,?`: stored as with `,` alone (a command the drive cannot read is not), and echoed, so the
+                // host sees what the buffer holds before it sends `!`.
+                if let Body::Command(text) = p.body {
+                    self.store(text, p.flags.position_message);
+                }
+            }
             if answer {
                 let echo = f.bytes().to_vec();
                 self.reply(out, &echo);
@@ -157,9 +164,7 @@ impl Drive {
                     return Err(REFUSED);
                 }
                 if p.flags.buffer {
-                    let mut t = TextBuf::new();
-                    let _ = t.write_str(std::str::from_utf8(text).unwrap_or(""));
-                    self.buffer = Some(Stored::Text(t, p.flags.position_message));
+                    self.store(text, p.flags.position_message);
                     return Ok(TextBuf::new());
                 }
                 self.run(now, c, p.flags.position_message)
@@ -169,6 +174,18 @@ impl Drive {
                 self.run(now, c, false)
             }
         }
+    }
+
+    /// Stores command `text` in the buffer (`,`), replacing what it held: the buffer holds one command. A
+    /// command the drive cannot read, or a `$` on one that is not a move, is not stored.
+    pub(super) fn store(&mut self, text: &[u8], position_message: bool) {
+        let Ok(c) = Command::parse(text) else { return };
+        if position_message && !c.is_move() {
+            return;
+        }
+        let mut t = TextBuf::new();
+        let _ = t.write_str(std::str::from_utf8(text).unwrap_or(""));
+        self.buffer = Some(Stored::Text(t, position_message));
     }
 
     pub(super) fn run(&mut self, now: Timestamp, c: Command, position_message: bool) -> Result<TextBuf<48>, ErrorCode> {

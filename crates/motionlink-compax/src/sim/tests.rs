@@ -237,3 +237,29 @@ fn position_message_echo_and_no_reply() {
     assert_eq!(ask(&mut b, 100, b"3SPEED 50/\r"), b"");
     assert_eq!(b.drive(3).unwrap().move_settings().0, 50.0);
 }
+
+#[test]
+fn a_command_stored_with_its_echo_is_sent_back_and_waits_for_execute() {
+    let mut b = bus(&[1, 3], 0);
+    // `,?`: stored as with `,` alone, and the telegram sent back in full; nothing moves yet.
+    assert_eq!(ask(&mut b, 0, b"1POSA 10,?\r"), b"1POSA 10,?\r\n>");
+    assert_eq!(b.drive(1).unwrap().buffered(), Some("POSA 10"));
+    assert!(!b.drive(1).unwrap().is_moving());
+    // The buffer holds one command: the next store replaces it (a store sent again leaves one copy).
+    assert_eq!(ask(&mut b, 1, b"1POSR 5,?\r"), b"1POSR 5,?\r\n>");
+    assert_eq!(ask(&mut b, 2, b"1POSR 5,?\r"), b"1POSR 5,?\r\n>");
+    assert_eq!(b.drive(1).unwrap().buffered(), Some("POSR 5"));
+    // `?` alone echoes and neither executes nor stores; a command the drive cannot read is echoed, not stored.
+    assert_eq!(ask(&mut b, 3, b"1POSA 20?\r"), b"1POSA 20?\r\n>");
+    assert_eq!(ask(&mut b, 4, b"1POSX 20,?\r"), b"1POSX 20,?\r\n>");
+    assert_eq!(b.drive(1).unwrap().buffered(), Some("POSR 5"));
+    // Another drive's store is its own.
+    assert_eq!(ask(&mut b, 5, b"3POSA 7,?\r"), b"3POSA 7,?\r\n>");
+    assert_eq!(b.drive(3).unwrap().buffered(), Some("POSA 7"));
+    // `!` runs the one stored command once and empties the buffer.
+    assert_eq!(ask(&mut b, 6, b"1!\r"), b"\r\n>");
+    assert!(b.drive(1).unwrap().is_moving());
+    assert_eq!(b.drive(1).unwrap().target(), 5.0);
+    assert_eq!(b.drive(1).unwrap().buffered(), None);
+    assert!(!b.drive(3).unwrap().is_moving());
+}

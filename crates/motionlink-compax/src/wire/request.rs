@@ -28,7 +28,7 @@ pub struct Flags {
     pub buffer: bool,
     /// `/`: the drive sends no reply.
     pub no_reply: bool,
-    /// `?`: the drive sends the telegram back (and does not execute it).
+    /// `?`: the drive sends the telegram back (and does not execute it; with `,` it stores it).
     pub echo: bool,
 }
 

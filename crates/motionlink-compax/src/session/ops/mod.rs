@@ -3,8 +3,10 @@
 //! reply, a time, a cancellation) is there. No executor, no thread, no I/O.
 //!
 //! This file: reads, writes, settings, raw commands, the scan and the watch. [`moves`]: moves, the
-//! synchronous start, broadcasts. [`wait`]: waits, checked moves, stops.
+//! synchronous start, broadcasts. [`echoed`]: a move stored with its echo, compared, then executed.
+//! [`wait`]: waits, checked moves, stops.
 
+mod echoed;
 mod moves;
 mod wait;
 
@@ -226,9 +228,8 @@ impl Ctx {
         if executes {
             self.core().execute_buffers(address);
         }
-        let stores_move = flags.buffer
-            && !flags.echo
-            && matches!(body, Body::Command(t) if Command::parse(t).is_ok_and(|c| c.is_move()));
+        let stores_move =
+            flags.buffer && matches!(body, Body::Command(t) if Command::parse(t).is_ok_and(|c| c.is_move()));
         match self.exchange(&Request { address, body, flags }, Retry::DiscardedOnly).await {
             Ok(r) => {
                 let mut core = self.core();

@@ -190,9 +190,11 @@ impl Ctx {
     /// Starts a move and confirms the drive took the right target, in this order: an absolute target
     /// outside the limits is refused before anything is sent; S16 (a drive switched off is refused), S17 (a
     /// drive still moving is refused), S1 (the start), for a relative move S2 (the drive adds the distance
-    /// to it) and the limits for the target that makes; SPEED and ACCEL if given, the move; S2 read back
+    /// to it) and the limits for the target that makes; SPEED and ACCEL if given; the move stored with its
+    /// echo, compared with the telegram sent, and executed with `!` only when they match
+    /// ([`Ctx::start_echoed_move`]; a binary move, which takes no flags, is sent as it is); S2 read back
     /// (twice if it differs: a mismatch stops the axis, [`Error::TargetMismatch`]). Once the move may have
-    /// been sent, any error, and a cancel, stops the axis ([`Error::Aborted`]).
+    /// been sent, any error, and a cancel, stops the axis if it moves ([`Error::Aborted`]).
     pub(crate) async fn start_checked_move(&self, address: Address, request: &MoveRequest) -> Result<StartedMove> {
         if address.is_broadcast() {
             return Err(Error::Broadcast("a checked move reads one drive's state"));
@@ -255,8 +257,12 @@ impl Ctx {
         if let Some(ramp) = request.accel {
             self.setting(address, &Command::Accel(ramp), request.binary).await?;
         }
-        let opts = MoveOptions { binary: request.binary, message: false };
-        self.start_move(address, cmd, opts, before).await
+        if request.binary {
+            // A binary telegram takes no flags (manual 4.4): no store, no echo. Its target is read back after.
+            let opts = MoveOptions { binary: true, message: false };
+            return self.start_move(address, cmd, opts, before).await;
+        }
+        self.start_echoed_move(address, cmd, before).await
     }
 
     /// Reads S2 after a move was sent; [`Error::TargetMismatch`] when it is off the target twice.
