@@ -4,7 +4,7 @@
 //!
 //! ```no_run
 //! use motionlink_scu::{Client, ClientConfig, FunctionMap};
-//! use motionlink_scu::model::{Actuator, Speed};
+//! use motionlink_scu::model::{Actuator, PositionCounts, Speed};
 //! use motionlink_link::{url::PortUrl, RealClock, SerialSettings};
 //!
 //! let port: PortUrl = "/dev/ttyUSB0".parse()?;
@@ -12,8 +12,8 @@
 //! let config = ClientConfig { function_map: FunctionMap::scp11(), ..ClientConfig::default() };
 //! let client = Client::open_port(&port, SerialSettings::new(38_400), RealClock::shared(), config)?;
 //! let a1 = Actuator::new(1).unwrap();
-//! let report = client.move_to(a1, 400, Speed::percent(80).unwrap(), &Default::default())?;
-//! println!("actuator 1 at {} counts", report.position_counts);
+//! let report = client.move_to(a1, PositionCounts(400), Speed::percent(80).unwrap(), &Default::default())?;
+//! println!("actuator 1 at {}", report.position_counts); // "400 counts"
 //! // Dropping the client stops anything it started (RS) and leaves remote mode (RA).
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
@@ -25,8 +25,7 @@ use crate::config::ClientConfig;
 use crate::error::Error;
 use crate::model::ActuatorStatus1;
 use crate::model::{
-    item, Actuator, DataEntry, DataIndex, ErrorCode, FlagSet, Flags, Function, Item, MotionFunction, PositionCounts,
-    Speed, UNUSED,
+    item, Actuator, DataEntry, DataIndex, ErrorCode, Function, Item, MotionFunction, PositionCounts, Speed, UNUSED,
 };
 use crate::session::ops::basic::{check_stroke, Stroke};
 use crate::session::report::MoveProgress;
@@ -85,7 +84,6 @@ pub(crate) fn move_spec(
         None => MotionFunction::new(actuator.number())
             .ok_or_else(|| Error::invalid(format!("{actuator} has no function of its number")))?,
     };
-    let target = target.get();
     let targets = match config.function_map.drives(function) {
         Some(drives) => {
             if !drives.contains(&actuator) {
@@ -144,22 +142,22 @@ pub(crate) fn decode(it: Item, data: &[u8]) -> Result<Vec<(&'static DataEntry, V
         .map_err(|e| Error::UnexpectedReply { command: Command::Get, detail: format!("{}: {e}", it.name()) })
 }
 
-pub(crate) fn position(value: Value) -> Result<i32, Error> {
+pub(crate) fn position(value: Value) -> Result<PositionCounts, Error> {
     match value {
-        Value::PositionCounts(p) => Ok(p),
+        Value::PositionCounts(p) => Ok(PositionCounts(p)),
         other => Err(Error::UnexpectedReply { command: Command::Get, detail: format!("position {other:?}") }),
     }
 }
 
-pub(crate) fn status1(data: &[u8]) -> Result<Flags, Error> {
+pub(crate) fn status1(data: &[u8]) -> Result<ActuatorStatus1, Error> {
     let [bits] = data[..] else {
         return Err(Error::UnexpectedReply { command: Command::Get, detail: "status is one byte".into() });
     };
-    Ok(Flags { set: FlagSet::ActuatorStatus1, bits: u32::from(bits) })
+    Ok(ActuatorStatus1(bits))
 }
 
-pub(crate) fn connected(status: &[u8; 6]) -> Vec<Actuator> {
-    Actuator::all().filter(|a| ActuatorStatus1(status[usize::from(a.number() - 1)]).available()).collect()
+pub(crate) fn connected(status: &[ActuatorStatus1; 6]) -> Vec<Actuator> {
+    Actuator::all().filter(|a| status[usize::from(a.number() - 1)].available()).collect()
 }
 
 pub(crate) fn error_history(data: &[u8]) -> Result<[ErrorCode; 5], Error> {
@@ -176,8 +174,8 @@ pub(crate) fn stream_targets(
     function: MotionFunction,
     actuators: &[Actuator],
     limits: &[Stroke],
-    targets: &[i32],
-) -> Result<Vec<(Actuator, i32)>, Error> {
+    targets: &[PositionCounts],
+) -> Result<Vec<(Actuator, PositionCounts)>, Error> {
     if targets.len() != actuators.len() {
         return Err(Error::invalid(format!(
             "{} target(s) given; {function} drives {}: one each",
@@ -193,14 +191,14 @@ pub(crate) fn stream_targets(
 
 pub(crate) fn stream_positions(
     actuators: &[Actuator],
-    status: &[u8; 6],
-    positions: &[i32; 6],
-) -> Vec<(Actuator, i32, bool)> {
+    status: &[ActuatorStatus1; 6],
+    positions: &[PositionCounts; 6],
+) -> Vec<(Actuator, PositionCounts, bool)> {
     actuators
         .iter()
         .map(|a| {
             let i = usize::from(a.number() - 1);
-            (*a, positions[i], ActuatorStatus1(status[i]).moving())
+            (*a, positions[i], status[i].moving())
         })
         .collect()
 }
