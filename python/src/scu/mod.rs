@@ -12,8 +12,8 @@ use motionlink_link::cancel::CancelToken;
 use motionlink_link::link::{Connector, Link, SerialSettings};
 use motionlink_link::url::PortUrl;
 use motionlink_scu::model::{
-    lookup, status1, Actuator, DataEntryExt, DataIndex, Function, Item, MotionDirection, MotionFunction, SafetyId,
-    Speed, SpeedMode, StopMode,
+    lookup, Actuator, ActuatorStatus1, DataEntryExt, DataIndex, Function, Item, MotionDirection, MotionFunction,
+    PositionCounts, SafetyId, Speed, SpeedMode, StopMode,
 };
 use motionlink_scu::session::{MoveReport, RunAction, RunReport};
 use motionlink_scu::value::Value;
@@ -137,9 +137,11 @@ fn parse_function(text: &str) -> Result<Function, Failure> {
     })
 }
 
-fn status_flags(s: u8) -> Vec<&'static str> {
-    let flags =
-        motionlink_scu::model::Flags { set: motionlink_scu::model::FlagSet::ActuatorStatus1, bits: u32::from(s) };
+fn status_flags(s: ActuatorStatus1) -> Vec<&'static str> {
+    let flags = motionlink_scu::model::Flags {
+        set: motionlink_scu::model::FlagSet::ActuatorStatus1,
+        bits: u32::from(s.bits()),
+    };
     flags.set_names().collect()
 }
 
@@ -183,12 +185,12 @@ fn move_record<'py>(py: Python<'py>, target_counts: i32, report: &MoveReport) ->
     let rec = Record::new(py);
     rec.set("family", FAMILY)?.set("function", report.function.number())?;
     rec.set("actuator", report.actuator.number())?.set("target_counts", target_counts)?;
-    rec.set("position_counts", report.position_counts)?.set("time_s", report.duration.as_secs_f64())?;
+    rec.set("position_counts", report.position_counts.get())?.set("time_s", report.duration.as_secs_f64())?;
     let mut acts = Vec::new();
     for o in &report.actuators {
         let d = Record::new(py);
-        d.set("actuator", o.actuator.number())?.set("target_counts", o.target_counts)?;
-        d.set("start_counts", o.start_counts)?.set("position_counts", o.position_counts)?;
+        d.set("actuator", o.actuator.number())?.set("target_counts", o.target_counts.get())?;
+        d.set("start_counts", o.start_counts.get())?.set("position_counts", o.position_counts.get())?;
         d.set("difference_counts", o.difference_counts())?.set("moved", o.moved)?;
         acts.push(d.done());
     }
@@ -203,7 +205,7 @@ fn run_record<'py>(py: Python<'py>, function: Function, report: &RunReport) -> P
     let mut rest = Vec::new();
     for (a, p) in &report.rest {
         let d = Record::new(py);
-        d.set("actuator", a.number())?.set("position_counts", *p)?;
+        d.set("actuator", a.number())?.set("position_counts", p.get())?;
         rest.push(d.done());
     }
     rec.set("rest", rest)?;
@@ -311,12 +313,12 @@ impl ScuClient {
         r.set("battery_mains", value_py(py, &mains)?)?.set("last_error", error_code(py, &last_error)?)?;
         let mut acts = Vec::new();
         for (i, s) in statuses.iter().enumerate() {
-            if s & status1::AVAILABLE == 0 {
+            if !s.available() {
                 continue;
             }
             let a = Record::new(py);
-            a.set("actuator", i + 1)?.set("position_counts", positions[i])?;
-            a.set("flags", status_flags(*s))?.set("moving", s & status1::MOTION != 0)?;
+            a.set("actuator", i + 1)?.set("position_counts", positions[i].get())?;
+            a.set("flags", status_flags(*s))?.set("moving", s.moving())?;
             acts.push(a.done());
         }
         r.set("actuators", acts)?;
@@ -327,7 +329,7 @@ impl ScuClient {
     fn position(&self, py: Python<'_>, actuator: u8) -> PyResult<i32> {
         let c = self.client(py)?;
         let a = self::actuator(actuator).map_err(|f| to_pyerr(py, f))?;
-        py.detach(|| c.position(a)).or_raise(py)
+        py.detach(|| c.position(a).map(PositionCounts::get)).or_raise(py)
     }
 
     /// Reads a data-list entry or group by name or index.
@@ -405,7 +407,14 @@ impl ScuClient {
         let r = interruptible(
             py,
             Some(token),
-            || c.move_to(a, target_counts, speed, &MoveOptions { cancel: Some(token), progress: None, function: f }),
+            || {
+                c.move_to(
+                    a,
+                    PositionCounts(target_counts),
+                    speed,
+                    &MoveOptions { cancel: Some(token), progress: None, function: f },
+                )
+            },
             cancel_cause,
         )?;
         let report = r.or_raise(py)?;
@@ -453,12 +462,12 @@ impl ScuClient {
         r.set("family", FAMILY)?;
         let mut acts = Vec::new();
         for (i, s) in statuses.iter().enumerate() {
-            if s & status1::AVAILABLE == 0 {
+            if !s.available() {
                 continue;
             }
             let a = Record::new(py);
-            a.set("actuator", i + 1)?.set("position_counts", positions[i])?;
-            a.set("moving", s & status1::MOTION != 0)?.set("flags", status_flags(*s))?;
+            a.set("actuator", i + 1)?.set("position_counts", positions[i].get())?;
+            a.set("moving", s.moving())?.set("flags", status_flags(*s))?;
             let amps = currents.get(i).and_then(|(_, v)| v.as_f64());
             a.set("current_amps", amps)?;
             acts.push(a.done());
@@ -490,7 +499,6 @@ impl ScuClient {
         }
     }
 }
-
 
 impl Drop for ScuClient {
     fn drop(&mut self) {
