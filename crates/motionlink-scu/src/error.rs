@@ -107,18 +107,19 @@ pub enum Error {
     InvalidArgument(String),
     /// A move's target lies outside the actuator's travel range; nothing was moved.
     #[error(
-        "target {target_counts} counts for {actuator} refused: it lies outside {actuator}'s stroke \
-         {min_counts}..{max_counts} counts ({limits_from}); nothing was moved"
+        "target {target_counts} for {actuator} refused: it lies outside {actuator}'s stroke {}..{max_counts} \
+         ({limits_from}); nothing was moved",
+        min_counts.get()
     )]
     OutsideStroke {
         /// The actuator.
         actuator: Actuator,
         /// The target asked for.
-        target_counts: i32,
+        target_counts: PositionCounts,
         /// The lower limit.
-        min_counts: i32,
+        min_counts: PositionCounts,
         /// The upper limit.
-        max_counts: i32,
+        max_counts: PositionCounts,
         /// Where the limits come from.
         limits_from: &'static str,
     },

@@ -233,7 +233,14 @@ fn a_target_outside_the_stroke_is_refused_before_anything_moves() {
     let client = rig.client(ClientConfig::default());
     let remote_before = client.get_value(DataIndex(0x3022)).unwrap();
     let err = client.move_to(a(2), PositionCounts(2000), pct(100), &MoveOptions::default()).unwrap_err();
-    let Error::OutsideStroke { actuator, target_counts: 2000, min_counts: 0, max_counts: 865, .. } = err else {
+    let Error::OutsideStroke {
+        actuator,
+        target_counts: PositionCounts(2000),
+        min_counts: PositionCounts(0),
+        max_counts: PositionCounts(865),
+        ..
+    } = err
+    else {
         panic!("{err}")
     };
     assert_eq!(actuator, a(2));
@@ -248,10 +255,13 @@ fn a_target_outside_the_stroke_is_refused_before_anything_moves() {
     ));
     drop(client);
     let mut limits = [None; 6];
-    limits[0] = Some(StrokeLimits { min_counts: 0, max_counts: 300 });
+    limits[0] = Some(StrokeLimits { min_counts: PositionCounts(0), max_counts: PositionCounts(300) });
     let client = rig.client(ClientConfig { stroke_limits: limits, ..Default::default() });
     let err = client.move_to(a(1), PositionCounts(400), pct(100), &MoveOptions::default()).unwrap_err();
-    assert!(matches!(err, Error::OutsideStroke { max_counts: 300, limits_from: "as configured", .. }), "{err}");
+    assert!(
+        matches!(err, Error::OutsideStroke { max_counts: PositionCounts(300), limits_from: "as configured", .. }),
+        "{err}"
+    );
 }
 
 #[test]
@@ -259,7 +269,7 @@ fn a_move_that_ends_short_of_its_target_names_target_position_and_difference() {
     let rig = Rig::new(SimConfig::default());
     // A stroke configured wider than the unit's: the unit stops at its Out end, 865.
     let mut limits = [None; 6];
-    limits[1] = Some(StrokeLimits { min_counts: 0, max_counts: 2000 });
+    limits[1] = Some(StrokeLimits { min_counts: PositionCounts(0), max_counts: PositionCounts(2000) });
     let config = ClientConfig { stroke_limits: limits, function_map: FunctionMap::scp11(), ..Default::default() };
     let client = rig.client(config);
     let err = client.move_to(a(2), PositionCounts(900), pct(100), &MoveOptions::default()).unwrap_err();

@@ -205,7 +205,7 @@ impl StrokeRead {
                             })
                         } else {
                             Ok(Some((
-                                StrokeLimits { min_counts: lo, max_counts: hi },
+                                StrokeLimits { min_counts: PositionCounts(lo), max_counts: PositionCounts(hi) },
                                 "the virtual limits of its UserPositionData",
                             )))
                         }
@@ -225,7 +225,6 @@ impl StrokeRead {
 
 /// Refuses `target` for `a` if it lies outside `stroke`.
 pub(crate) fn check_stroke(a: Actuator, target: PositionCounts, stroke: &Stroke) -> Result<(), Error> {
-    let target = target.get();
     if let Some((s, limits_from)) = stroke {
         if !(s.min_counts..=s.max_counts).contains(&target) {
             return Err(Error::OutsideStroke {
