@@ -8,8 +8,8 @@
 //!   no clock, no allocation.
 //! - [`model`] and [`value`]: the data list as one shared [`Table`](motionlink_link::table::Table)
 //!   ([`model::TABLE`]), functions, Safety_ID, the named bit sets and the 32-bit error code as shared flag
-//!   words, units as types ([`model::Speed`]: percent and counts/s are different types); typed values with their
-//!   ranges. [`describe`]: the family's [`Describe`](motionlink_link::describe::Describe).
+//!   words, units as types ([`model::Speed`]: percent and counts/s are different types; [`model::PositionCounts`]
+//!   for every position of the clients, their reports and errors); typed values with their ranges. [`describe`]: the family's [`Describe`](motionlink_link::describe::Describe).
 //! - [`error`]: [`Error`], with the unit's codes as values and its class for every front end.
 //! - [`session`]: the protocol as a sans-IO [`Session`] (bytes in with the time; bytes out, the next deadline,
 //!   events): request matching, repetitions, the RC keepalive, every multi-step operation as a state machine.

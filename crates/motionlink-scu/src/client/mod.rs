@@ -17,6 +17,50 @@
 //! // Dropping the client stops anything it started (RS) and leaves remote mode (RA).
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
+//!
+//! The typed API, as the README's "From Rust" shows it (the same code; positions are
+//! [`PositionCounts`](crate::model::PositionCounts), speeds [`Speed`](crate::model::Speed), actuator status 1
+//! the flag word [`ActuatorStatus1`](crate::model::ActuatorStatus1)):
+//!
+//! ```no_run
+//! use motionlink_link::{url::PortUrl, RealClock, SerialSettings};
+//! use motionlink_scu::model::{Actuator, DataIndex, MotionFunction, PositionCounts, SafetyId, Speed, StopMode};
+//! use motionlink_scu::{Client, ClientConfig, FunctionMap, MoveOptions};
+//!
+//! let port: PortUrl = "/dev/ttyUSB0".parse()?;
+//! let config = ClientConfig { function_map: FunctionMap::liftkit(), safety_id: SafetyId::StopAll, ..Default::default() };
+//! let client = Client::open_port(&port, SerialSettings::new(38_400), RealClock::shared(), config)?;
+//! let (a1, a2) = (Actuator::new(1).unwrap(), Actuator::new(2).unwrap());
+//! let pct = |p| Speed::percent(p).unwrap();                     // percent and counts/s are different types
+//! let at = PositionCounts;                                      // a position is counts, said so: at(400)
+//! println!("{:?}", client.get(DataIndex(0x0010))?);             // every actuator's position, typed
+//! let report = client.move_to(a1, at(400), pct(80), &MoveOptions::default())?;   // F1: actuator 1, verified
+//! assert_eq!(report.position_counts, at(400));
+//! let f8 = MotionFunction::new(8).unwrap();                     // both columns, each to its own target, one RE
+//! let report = client.move_function(f8, &[(a1, at(300)), (a2, at(310))], pct(80), &MoveOptions::default())?;
+//! for a in &report.actuators { println!("{} at {} ({:+})", a.actuator, a.position_counts, a.difference_counts()); }
+//! let [p1, p2, ..] = client.positions()?;                       // [PositionCounts; 6]
+//! let moving = client.statuses()?.iter().any(|s| s.moving());   // [ActuatorStatus1; 6], flag words
+//! println!("{p1} {p2} moving: {moving}; A1: {}", client.status1(a1)?); // "available | in_position"
+//! let mut stream = client.stream(f8, &[a1, a2], pct(60))?;      // streamed setpoints, 10..100 Hz
+//! stream.set_targets(&[at(350), at(350)])?;
+//! stream.set_speed(pct(40))?;
+//! for (a, p) in stream.stop(StopMode::Soft)? { println!("{a} rests at {p}"); }
+//! for code in client.error_history()? { println!("{code}"); }  // named bits
+//! client.close()?;                                              // RS for anything it started, then RA: confirmed?
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! A bare number is not a position: this does not compile (`PositionCounts(400)` does, above).
+//!
+//! ```compile_fail
+//! # fn f(client: &motionlink_scu::Client) -> Result<(), motionlink_scu::Error> {
+//! # use motionlink_scu::model::{Actuator, Speed};
+//! let a1 = Actuator::new(1).unwrap();
+//! client.move_to(a1, 400, Speed::percent(80).unwrap(), &Default::default())?;
+//! # Ok(())
+//! # }
+//! ```
 
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::error::TransportKind;
