@@ -138,11 +138,7 @@ fn parse_function(text: &str) -> Result<Function, Failure> {
 }
 
 fn status_flags(s: ActuatorStatus1) -> Vec<&'static str> {
-    let flags = motionlink_scu::model::Flags {
-        set: motionlink_scu::model::FlagSet::ActuatorStatus1,
-        bits: u32::from(s.bits()),
-    };
-    flags.set_names().collect()
+    motionlink_scu::model::Flags::from(s).set_names().collect()
 }
 
 /// A value in Python: numbers in the entry's unit as `unit` names it (deci-amps become amps, centi-volts

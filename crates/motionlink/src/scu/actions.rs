@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
 use motionlink_scu::model::{
-    Actuator, ActuatorStatus1, DataEntry, DataEntryExt, DataIndex, ErrorCode, FlagSet, Flags, Function, Item, Kind,
+    Actuator, ActuatorStatus1, DataEntry, DataEntryExt, DataIndex, ErrorCode, Flags, Function, Item, Kind,
     MotionFunction, PositionCounts, Speed, SpeedMode,
 };
 use motionlink_scu::session::{MoveProgress, MoveReport, RunAction, RunProgress};
@@ -75,7 +75,7 @@ pub(super) fn unit_json(e: &DataEntry, speed_mode: SpeedMode) -> &'static str {
 /// An actuator's status 1 as the fields of its JSON object: `word`, `flags`, `unknown_bits` (when
 /// nonzero) and `moving`.
 fn status_fields(s: ActuatorStatus1) -> serde_json::Value {
-    let mut v = flag_word_json(&Flags { set: FlagSet::ActuatorStatus1, bits: u32::from(s.bits()) });
+    let mut v = flag_word_json(&Flags::from(s));
     v["moving"] = json!(s.moving());
     v
 }
@@ -189,7 +189,7 @@ pub(super) fn connected_actuators(client: &Client) -> Result<Vec<(Actuator, Actu
 }
 
 fn status_text(s: ActuatorStatus1) -> String {
-    Value::Flags(Flags { set: FlagSet::ActuatorStatus1, bits: u32::from(s.bits()) }).to_string()
+    Value::Flags(Flags::from(s)).to_string()
 }
 
 pub(super) fn info(client: &Client, report: &Report<'_>, out: &mut dyn Write) -> Result<(), CliError> {
@@ -433,6 +433,7 @@ pub(super) fn print_move_report(out: &mut dyn Write, report: &MoveReport, how: &
 #[cfg(test)]
 mod tests {
     use super::*;
+    use motionlink_scu::model::FlagSet;
 
     #[test]
     fn currents_are_amperes_converted_once_and_flag_words_have_word_and_flags() {
