@@ -14,16 +14,16 @@ use std::time::Duration;
 use motionlink_link::link::Link;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::RealClock;
-use motionlink_scu::model::{Actuator, Speed};
+use motionlink_scu::model::{Actuator, PositionCounts, Speed};
 use motionlink_scu::{AsyncClient, ClientConfig, Emulator, FunctionMap, SimConfig};
 
 /// What the example saw.
 #[derive(Debug)]
 pub struct Seen {
-    /// Positions of A1 read while the move ran, in counts.
-    pub reads: Vec<i32>,
-    /// Where A1 came to rest after the move was cancelled, in counts (read twice, 300 ms apart).
-    pub rest: (i32, i32),
+    /// Positions of A1 read while the move ran.
+    pub reads: Vec<PositionCounts>,
+    /// Where A1 came to rest after the move was cancelled (read twice, 300 ms apart).
+    pub rest: (PositionCounts, PositionCounts),
     /// Whether the emulated unit still moved A1 after that.
     pub unit_moving: bool,
     /// Functions the session still counts as started (RE without RS).
@@ -44,7 +44,7 @@ pub async fn run() -> Result<Seen, Box<dyn std::error::Error + Send + Sync>> {
     // The move runs in a task of its own (800 counts at 110 counts/s: about 7 s).
     let mover = {
         let client = Arc::clone(&client);
-        tokio::spawn(async move { client.move_to(a1, 800, full, None).await })
+        tokio::spawn(async move { client.move_to(a1, PositionCounts(800), full, None).await })
     };
     // Meanwhile this task reads where A1 is.
     let mut reads = Vec::new();
@@ -58,8 +58,7 @@ pub async fn run() -> Result<Seen, Box<dyn std::error::Error + Send + Sync>> {
     // The stop (fast RS) goes out before anything else; the first status read after it sees A1 at rest.
     let mut moving = true;
     for _ in 0..20 {
-        let status = client.status1(a1).await?;
-        moving = status.is_set("motion");
+        moving = client.status1(a1).await?.moving();
         if !moving {
             break;
         }
@@ -89,9 +88,10 @@ fn main() -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
     runtime.block_on(async {
         let seen = run().await?;
-        println!("positions of A1 read while it moved: {:?} counts", seen.reads);
-        println!("the move was cancelled by dropping its future; A1 came to rest at {} counts", seen.rest.0);
-        println!("300 ms later A1 is at {} counts; the unit moves it: {}", seen.rest.1, seen.unit_moving);
+        let reads: Vec<i32> = seen.reads.iter().map(|p| p.get()).collect();
+        println!("positions of A1 read while it moved: {reads:?} counts");
+        println!("the move was cancelled by dropping its future; A1 came to rest at {}", seen.rest.0);
+        println!("300 ms later A1 is at {}; the unit moves it: {}", seen.rest.1, seen.unit_moving);
         println!("functions still started: {:?} (every RE got its RS)", seen.started);
         Ok(())
     })

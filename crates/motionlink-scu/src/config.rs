@@ -4,7 +4,7 @@
 use std::time::Duration;
 
 use crate::error::Error;
-use crate::model::{timing, Actuator, MotionFunction, SafetyId, SpeedMode};
+use crate::model::{timing, Actuator, MotionFunction, PositionCounts, SafetyId, SpeedMode};
 use crate::wire::MAX_REQUEST_LEN;
 
 /// The longest keepalive period accepted: the unit's watchdog is 500 ms, and a period must leave room for a
@@ -140,13 +140,13 @@ impl Default for FunctionMap {
     }
 }
 
-/// The travel range of an actuator, in counts, both ends included.
+/// The travel range of an actuator, both ends included.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StrokeLimits {
     /// The lowest position a target may have.
-    pub min_counts: i32,
+    pub min_counts: PositionCounts,
     /// The highest position a target may have.
-    pub max_counts: i32,
+    pub max_counts: PositionCounts,
 }
 
 /// How a move (and a motion function's run) watches the actuators.
@@ -185,7 +185,7 @@ impl StrokeLimits {
         if lo > hi {
             return Err(format!("{spec:?}: {lo} is above {hi}"));
         }
-        Ok((a, StrokeLimits { min_counts: lo, max_counts: hi }))
+        Ok((a, StrokeLimits { min_counts: PositionCounts(lo), max_counts: PositionCounts(hi) }))
     }
 }
 

@@ -15,7 +15,7 @@ use motionlink_link::error::{Classify, ErrorClass, TransportKind};
 use motionlink_link::session::SessionError;
 use motionlink_link::LinkError;
 
-use crate::model::{Actuator, DataIndex, ErrorCode, Function};
+use crate::model::{Actuator, DataIndex, ErrorCode, Function, PositionCounts};
 use crate::wire::{Command, Status, WireError};
 
 /// What went wrong in a session.
@@ -107,18 +107,19 @@ pub enum Error {
     InvalidArgument(String),
     /// A move's target lies outside the actuator's travel range; nothing was moved.
     #[error(
-        "target {target_counts} counts for {actuator} refused: it lies outside {actuator}'s stroke \
-         {min_counts}..{max_counts} counts ({limits_from}); nothing was moved"
+        "target {target_counts} for {actuator} refused: it lies outside {actuator}'s stroke {}..{max_counts} \
+         ({limits_from}); nothing was moved",
+        min_counts.get()
     )]
     OutsideStroke {
         /// The actuator.
         actuator: Actuator,
         /// The target asked for.
-        target_counts: i32,
+        target_counts: PositionCounts,
         /// The lower limit.
-        min_counts: i32,
+        min_counts: PositionCounts,
         /// The upper limit.
-        max_counts: i32,
+        max_counts: PositionCounts,
         /// Where the limits come from.
         limits_from: &'static str,
     },
@@ -127,57 +128,58 @@ pub enum Error {
     NotConnected(Actuator),
     /// A move ended away from its target; the function was stopped.
     #[error(
-        "{actuator} ended at {position_counts} counts, {} counts from its target {target_counts} (more than the \
-         tolerance of {tolerance_counts}); last error: {error_code}",
-        i64::from(*position_counts) - i64::from(*target_counts)
+        "{actuator} ended at {position_counts}, {} counts from its target {} (more than the tolerance of \
+         {tolerance_counts}); last error: {error_code}",
+        position_counts.counts_from(*target_counts),
+        target_counts.get()
     )]
     MotionEnded {
         /// The actuator.
         actuator: Actuator,
         /// Where it stopped.
-        position_counts: i32,
+        position_counts: PositionCounts,
         /// Where it was going.
-        target_counts: i32,
+        target_counts: PositionCounts,
         /// The tolerance of the move.
         tolerance_counts: u32,
         /// Error_Code 1 when it stopped.
         error_code: ErrorCode,
     },
     /// A move's actuator stopped advancing though the unit reports motion; it was stopped.
-    #[error("{actuator} stalled at {position_counts} counts (no progress for {after:?} while moving); stopped")]
+    #[error("{actuator} stalled at {position_counts} (no progress for {after:?} while moving); stopped")]
     Stalled {
         /// The actuator.
         actuator: Actuator,
         /// Where it stalled.
-        position_counts: i32,
+        position_counts: PositionCounts,
         /// How long without progress.
         after: Duration,
     },
     /// A move took longer than [`crate::ClientConfig::move_timeout`]; it was stopped.
-    #[error("{actuator} did not reach its target within {after:?}; stopped at {position_counts} counts")]
+    #[error("{actuator} did not reach its target within {after:?}; stopped at {position_counts}")]
     MoveTimeout {
         /// The actuator.
         actuator: Actuator,
         /// Where it stopped.
-        position_counts: i32,
+        position_counts: PositionCounts,
         /// The timeout.
         after: Duration,
     },
     /// The caller cancelled a move (Ctrl-C, a dropped future); the unit confirmed the stop.
-    #[error("cancelled; {actuator} stopped at {position_counts} counts")]
+    #[error("cancelled; {actuator} stopped at {position_counts}")]
     Cancelled {
         /// The actuator.
         actuator: Actuator,
         /// Where it came to rest.
-        position_counts: i32,
+        position_counts: PositionCounts,
     },
     /// The caller cancelled a function's run; the unit confirmed the stop.
     #[error("cancelled; {function} stopped (the unit confirmed it)")]
     RunCancelled {
         /// The function.
         function: Function,
-        /// Where each connected actuator came to rest, in counts.
-        rest: Vec<(Actuator, i32)>,
+        /// Where each connected actuator came to rest.
+        rest: Vec<(Actuator, PositionCounts)>,
     },
     /// After a stop the unit acknowledged, these actuators still report motion (another function or the hand
     /// switch may drive them).

@@ -8,8 +8,8 @@
 //!   no clock, no allocation.
 //! - [`model`] and [`value`]: the data list as one shared [`Table`](motionlink_link::table::Table)
 //!   ([`model::TABLE`]), functions, Safety_ID, the named bit sets and the 32-bit error code as shared flag
-//!   words, units as types ([`model::Speed`]: percent and counts/s are different types); typed values with their
-//!   ranges. [`describe`]: the family's [`Describe`](motionlink_link::describe::Describe).
+//!   words, units as types ([`model::Speed`]: percent and counts/s are different types; [`model::PositionCounts`]
+//!   for every position of the clients, their reports and errors); typed values with their ranges. [`describe`]: the family's [`Describe`](motionlink_link::describe::Describe).
 //! - [`error`]: [`Error`], with the unit's codes as values and its class for every front end.
 //! - [`session`]: the protocol as a sans-IO [`Session`] (bytes in with the time; bytes out, the next deadline,
 //!   events): request matching, repetitions, the RC keepalive, every multi-step operation as a state machine.
@@ -26,7 +26,7 @@
 //!
 //! ```
 //! use motionlink_link::{pipe::{EmulatorHost, PipeConfig}, link::Link, ManualClock, Clock};
-//! use motionlink_scu::{model::{Actuator, Speed}, Client, ClientConfig, Emulator, SimConfig};
+//! use motionlink_scu::{model::{Actuator, PositionCounts, Speed}, Client, ClientConfig, Emulator, SimConfig};
 //!
 //! // A virtual clock: ten seconds of device time take a few milliseconds.
 //! let clock = ManualClock::new_auto();
@@ -38,9 +38,12 @@
 //!     ClientConfig::default(),
 //! )?;
 //! let a1 = Actuator::new(1).unwrap();
-//! let report = client.move_to(a1, 400, Speed::percent(80).unwrap(), &Default::default())?;
-//! assert_eq!(report.position_counts, 400); // read after the unit reported the end of the motion
+//! // Positions are `PositionCounts`, speeds `Speed` (percent or counts/s): a bare number is neither.
+//! let report = client.move_to(a1, PositionCounts(400), Speed::percent(80).unwrap(), &Default::default())?;
+//! assert_eq!(report.position_counts, PositionCounts(400)); // read after the unit reported the end of the motion
 //! assert!(report.actuators.iter().all(|a| a.difference_counts().abs() <= 5 || !a.moved));
+//! assert_eq!(client.position(a1)?.get(), 400);
+//! assert!(client.status1(a1)?.available() && !client.statuses()?[0].moving()); // flag words, by name
 //! client.close()?; // RS for anything still started, then RA
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```

@@ -9,7 +9,7 @@ use std::time::Duration;
 use motionlink_link::link::Link;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::RealClock;
-use motionlink_scu::model::{Actuator, DataIndex, MotionFunction, Speed};
+use motionlink_scu::model::{Actuator, DataIndex, MotionFunction, PositionCounts, Speed};
 use motionlink_scu::sim::RemoteMode;
 use motionlink_scu::value::Value;
 use motionlink_scu::{AsyncClient, ClientConfig, Emulator, FunctionMap, SimConfig};
@@ -44,8 +44,8 @@ fn writes_are_read_back_and_a_move_reaches_its_target() {
         client.set(DataIndex(0x3012), &Value::RemoteSpeed(55)).await.unwrap();
         assert_eq!(client.get_value(DataIndex(0x3012)).await.unwrap(), Value::RemoteSpeed(55));
         let a1 = Actuator::new(1).unwrap();
-        let report = client.move_to(a1, 60, Speed::percent(100).unwrap(), None).await.unwrap();
-        assert_eq!(report.position_counts, 60);
+        let report = client.move_to(a1, PositionCounts(60), Speed::percent(100).unwrap(), None).await.unwrap();
+        assert_eq!(report.position_counts, PositionCounts(60));
         assert_eq!(unit.with_device(|u| u.position(a1)), Some(60));
         client.close().await.unwrap();
         assert_eq!(unit.with_device(|u| u.mode()), RemoteMode::Off);
@@ -61,7 +61,7 @@ fn a_dropped_stream_stops_its_function_and_a_dropped_client_ends_the_session() {
         let a1 = Actuator::new(1).unwrap();
         let f1 = MotionFunction::new(1).unwrap();
         let mut stream = client.stream(f1, &[a1], Speed::percent(100).unwrap()).await.unwrap();
-        stream.set_targets(&[800]).await.unwrap();
+        stream.set_targets(&[PositionCounts(800)]).await.unwrap();
         assert!(eventually(|| unit.with_device(|u| u.is_moving(a1))).await);
         drop(stream);
         assert!(eventually(|| !unit.with_device(|u| u.is_moving(a1))).await, "the dropped stream stopped F1");

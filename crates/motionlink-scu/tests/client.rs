@@ -96,9 +96,9 @@ fn watchdog_expiry_with_safety_id_2() {
 fn typed_reads_of_entries_and_groups() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig::default());
-    assert_eq!(client.position(a(1)).unwrap(), 0);
+    assert_eq!(client.position(a(1)).unwrap(), PositionCounts(0));
     let status = client.status1(a(1)).unwrap();
-    assert!(status.is_set("available") && status.is_set("in_position") && !status.is_set("motion"));
+    assert!(status.available() && status.contains(Status1Flag::InPosition) && !status.moving());
     let group = client.get(DataIndex(0x0010)).unwrap();
     assert_eq!(group.len(), 6);
     assert_eq!(group[0].0.name, "actual_position_a1");
@@ -145,9 +145,10 @@ fn move_to_moves_and_ends_with_rs() {
     let client = rig.client(ClientConfig::default());
     let seen = Mutex::new(Vec::new());
     let progress = |p: &motionlink_scu::session::MoveProgress| seen.lock().unwrap().push(p.position_counts);
-    let report =
-        client.move_to(a(1), 400, pct(80), &MoveOptions { progress: Some(&progress), ..Default::default() }).unwrap();
-    assert_eq!(report.position_counts, 400);
+    let report = client
+        .move_to(a(1), PositionCounts(400), pct(80), &MoveOptions { progress: Some(&progress), ..Default::default() })
+        .unwrap();
+    assert_eq!(report.position_counts, PositionCounts(400));
     assert_eq!(report.function, f(1));
     // 400 counts at 88 counts/s: about 4.5 s.
     assert!((4_400..=5_300).contains(&report.duration.as_millis()), "{:?}", report.duration);
@@ -164,8 +165,9 @@ fn move_to_with_the_tlt_function_map() {
     let rig = Rig::new(SimConfig::tlt());
     let client = rig.client(ClientConfig { function_map: FunctionMap::tlt(), ..Default::default() });
     // F3 drives column 2 alone.
-    let report =
-        client.move_to(a(2), 120, pct(100), &MoveOptions { function: Some(f(3)), ..Default::default() }).unwrap();
+    let report = client
+        .move_to(a(2), PositionCounts(120), pct(100), &MoveOptions { function: Some(f(3)), ..Default::default() })
+        .unwrap();
     assert_eq!(report.actuators.len(), 1);
     assert_eq!(
         rig.unit(|u| (u.position(a(1)), u.position(a(2)))),
@@ -174,14 +176,15 @@ fn move_to_with_the_tlt_function_map() {
     );
     // F1 drives both columns of a TLT: move_to gives both the target. (Before, only A1's remote position was
     // written, and A2 ran to whatever its remote position held.)
-    let report = client.move_to(a(1), 200, pct(100), &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), PositionCounts(200), pct(100), &MoveOptions::default()).unwrap();
     assert_eq!(rig.unit(|u| (u.position(a(1)), u.position(a(2)))), (Some(200), Some(200)));
     assert_eq!(report.function, f(1));
     let each: Vec<_> = report.actuators.iter().map(|o| (o.actuator, o.position_counts, o.moved)).collect();
-    assert_eq!(each, [(a(1), 200, true), (a(2), 200, true)]);
+    assert_eq!(each, [(a(1), PositionCounts(200), true), (a(2), PositionCounts(200), true)]);
     // A function that does not drive the actuator is refused before anything is sent.
-    let err =
-        client.move_to(a(1), 300, pct(100), &MoveOptions { function: Some(f(3)), ..Default::default() }).unwrap_err();
+    let err = client
+        .move_to(a(1), PositionCounts(300), pct(100), &MoveOptions { function: Some(f(3)), ..Default::default() })
+        .unwrap_err();
     assert_eq!(err.class(), ErrorClass::Usage, "{err}");
 }
 
@@ -191,20 +194,20 @@ fn cancel_stops_the_actuator_at_once() {
     let client = rig.client(ClientConfig::default());
     let cancel = CancelToken::new();
     let progress = |p: &motionlink_scu::session::MoveProgress| {
-        if p.position_counts > 100 {
+        if p.position_counts > PositionCounts(100) {
             cancel.cancel();
         }
     };
     let err = client
         .move_to(
             a(1),
-            800,
+            PositionCounts(800),
             pct(100),
             &MoveOptions { cancel: Some(&cancel), progress: Some(&progress), ..Default::default() },
         )
         .unwrap_err();
     let Error::Cancelled { position_counts, .. } = err else { panic!("{err}") };
-    assert!((100..130).contains(&position_counts));
+    assert!((PositionCounts(100)..PositionCounts(130)).contains(&position_counts));
     assert!(!rig.unit(|u| u.is_moving(a(1))), "stopped");
     assert!(client.started_functions().is_empty());
     rig.sleep(1000);
@@ -215,9 +218,10 @@ fn cancel_stops_the_actuator_at_once() {
 fn a_stalled_actuator_is_stopped_and_reported() {
     let rig = Rig::new(SimConfig::tlt());
     let client = rig.client(ClientConfig::default());
-    let err =
-        client.move_to(a(1), 300, pct(20), &MoveOptions { function: Some(f(2)), ..Default::default() }).unwrap_err();
-    assert!(matches!(err, Error::Stalled { position_counts: 0, .. }), "{err}");
+    let err = client
+        .move_to(a(1), PositionCounts(300), pct(20), &MoveOptions { function: Some(f(2)), ..Default::default() })
+        .unwrap_err();
+    assert!(matches!(err, Error::Stalled { position_counts: PositionCounts(0), .. }), "{err}");
     assert_eq!(err.class(), ErrorClass::Device);
     assert!(!rig.unit(|u| u.any_moving()));
     assert!(rig.unit(|u| u.executed_functions().is_empty()), "RS was sent after the stall");
@@ -228,8 +232,15 @@ fn a_target_outside_the_stroke_is_refused_before_anything_moves() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig::default());
     let remote_before = client.get_value(DataIndex(0x3022)).unwrap();
-    let err = client.move_to(a(2), 2000, pct(100), &MoveOptions::default()).unwrap_err();
-    let Error::OutsideStroke { actuator, target_counts: 2000, min_counts: 0, max_counts: 865, .. } = err else {
+    let err = client.move_to(a(2), PositionCounts(2000), pct(100), &MoveOptions::default()).unwrap_err();
+    let Error::OutsideStroke {
+        actuator,
+        target_counts: PositionCounts(2000),
+        min_counts: PositionCounts(0),
+        max_counts: PositionCounts(865),
+        ..
+    } = err
+    else {
         panic!("{err}")
     };
     assert_eq!(actuator, a(2));
@@ -238,13 +249,19 @@ fn a_target_outside_the_stroke_is_refused_before_anything_moves() {
     assert_eq!(client.get_value(DataIndex(0x3022)).unwrap(), remote_before, "nothing was written");
     assert!(rig.unit(|u| u.executed_functions().is_empty() && !u.any_moving()));
     // Below the In end as well; and a configured stroke replaces the unit's.
-    assert!(matches!(client.move_to(a(1), -1, pct(100), &MoveOptions::default()), Err(Error::OutsideStroke { .. })));
+    assert!(matches!(
+        client.move_to(a(1), PositionCounts(-1), pct(100), &MoveOptions::default()),
+        Err(Error::OutsideStroke { .. })
+    ));
     drop(client);
     let mut limits = [None; 6];
-    limits[0] = Some(StrokeLimits { min_counts: 0, max_counts: 300 });
+    limits[0] = Some(StrokeLimits { min_counts: PositionCounts(0), max_counts: PositionCounts(300) });
     let client = rig.client(ClientConfig { stroke_limits: limits, ..Default::default() });
-    let err = client.move_to(a(1), 400, pct(100), &MoveOptions::default()).unwrap_err();
-    assert!(matches!(err, Error::OutsideStroke { max_counts: 300, limits_from: "as configured", .. }), "{err}");
+    let err = client.move_to(a(1), PositionCounts(400), pct(100), &MoveOptions::default()).unwrap_err();
+    assert!(
+        matches!(err, Error::OutsideStroke { max_counts: PositionCounts(300), limits_from: "as configured", .. }),
+        "{err}"
+    );
 }
 
 #[test]
@@ -252,12 +269,20 @@ fn a_move_that_ends_short_of_its_target_names_target_position_and_difference() {
     let rig = Rig::new(SimConfig::default());
     // A stroke configured wider than the unit's: the unit stops at its Out end, 865.
     let mut limits = [None; 6];
-    limits[1] = Some(StrokeLimits { min_counts: 0, max_counts: 2000 });
+    limits[1] = Some(StrokeLimits { min_counts: PositionCounts(0), max_counts: PositionCounts(2000) });
     let config = ClientConfig { stroke_limits: limits, function_map: FunctionMap::scp11(), ..Default::default() };
     let client = rig.client(config);
-    let err = client.move_to(a(2), 900, pct(100), &MoveOptions::default()).unwrap_err();
+    let err = client.move_to(a(2), PositionCounts(900), pct(100), &MoveOptions::default()).unwrap_err();
     assert!(
-        matches!(err, Error::MotionEnded { position_counts: 865, target_counts: 900, tolerance_counts: 5, .. }),
+        matches!(
+            err,
+            Error::MotionEnded {
+                position_counts: PositionCounts(865),
+                target_counts: PositionCounts(900),
+                tolerance_counts: 5,
+                ..
+            }
+        ),
         "{err}"
     );
     let text = err.to_string();
@@ -271,12 +296,12 @@ fn a_drive_fault_during_a_move_is_reported() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig::default());
     let progress = |p: &motionlink_scu::session::MoveProgress| {
-        if p.position_counts > 50 {
+        if p.position_counts > PositionCounts(50) {
             rig.unit(|u| u.inject_error(ErrorCode::from_bit(15)));
         }
     };
     let err = client
-        .move_to(a(1), 600, pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() })
+        .move_to(a(1), PositionCounts(600), pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() })
         .unwrap_err();
     let Error::MotionEnded { error_code, .. } = err else { panic!("{err}") };
     assert!(error_code.has(15), "{error_code}");
@@ -347,7 +372,7 @@ fn keepalives_carry_a_cyclic_object() {
     let Value::PositionCounts(p) = read[0].1 else { panic!() };
     assert!(p > 80, "the keepalive reports the moving position: {p}");
     let Value::Flags(s) = &read[1].1 else { panic!() };
-    assert!(s.bits as u8 & status1::MOTION != 0);
+    assert!(s.is_set("motion"));
     let now = client.exchange_cyclic(1, &[Value::RemoteSpeed(30)]).unwrap();
     assert_eq!(now.len(), 2);
     assert!(client.exchange_cyclic(1, &[]).is_err(), "one write value is needed");

@@ -11,7 +11,7 @@ fn a_corrupt_reply_to_a_read_is_retried() {
     let client = rig.client(ClientConfig::default());
     rig.sleep(50); // between keepalives
     rig.faults().corrupt_next(Direction::DeviceToHost, 0x40);
-    assert_eq!(client.position(a(1)).unwrap(), 0);
+    assert_eq!(client.position(a(1)).unwrap(), PositionCounts(0));
     assert_eq!(client.stats().retries, 1);
     // Corrupting a middle byte makes a CRC error instead of a lost start: also retried at once.
     let faults = rig.faults();
@@ -20,7 +20,7 @@ fn a_corrupt_reply_to_a_read_is_retried() {
         faults.bytes_sent(Direction::DeviceToHost) + 6,
         Fault::Corrupt { xor: 0x01 },
     );
-    assert_eq!(client.position(a(1)).unwrap(), 0);
+    assert_eq!(client.position(a(1)).unwrap(), PositionCounts(0));
     assert_eq!(client.stats().retries, 2);
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0, "the retries kept inside the watchdog");
 }
@@ -86,7 +86,7 @@ fn after_a_watchdog_lockout_the_session_reports_it_and_opens_remote_mode_only_wh
     assert_eq!(client.stats().reopens, 1);
     assert!(matches!(rig.unit(|u| u.mode()), RemoteMode::Active(SafetyId::StopAllAndLock)));
     assert!(rig.unit(|u| u.executed_functions().is_empty()), "F1 got its RS");
-    assert_eq!(client.position(a(1)).unwrap(), rig.unit(|u| u.position(a(1)).unwrap()));
+    assert_eq!(client.position(a(1)).unwrap(), PositionCounts(rig.unit(|u| u.position(a(1)).unwrap())));
     client.start_motion(f(1), MotionDirection::In).unwrap();
     drop(client);
     assert!(rig.unit(|u| u.executed_functions().is_empty()), "every RE got its RS");
@@ -120,12 +120,12 @@ fn a_slow_unit_is_given_the_full_reply_timeout_and_its_late_replies_are_dropped(
     // first sending is the answer.
     rig.faults().delay_next(Direction::DeviceToHost, Duration::from_millis(300));
     let started = rig.clock.now();
-    assert_eq!(client.position(a(1)).unwrap(), 0);
+    assert_eq!(client.position(a(1)).unwrap(), PositionCounts(0));
     assert!(rig.clock.now() - started >= Duration::from_millis(300));
     assert_eq!(client.stats().retries, 1);
     assert_eq!(rig.unit(|u| u.stats().telegrams), telegrams + 2, "two sendings of the RG");
     // The reply to the second sending (position 0 as well) must not answer the next read.
-    assert_eq!(client.position(a(2)).unwrap(), a2);
+    assert_eq!(client.position(a(2)).unwrap(), PositionCounts(a2));
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0);
 }
 
@@ -152,7 +152,7 @@ fn reads_give_up_after_a_second_of_silence_and_later_requests_get_one_short_try(
     assert!(waited < Duration::from_millis(350), "{waited:?}");
     // The unit answers again: the line is trusted again.
     rig.faults().heal();
-    assert!(matches!(client.position(a(1)), Ok(0) | Err(Error::RemoteEnded(_))));
+    assert!(matches!(client.position(a(1)), Ok(PositionCounts(0)) | Err(Error::RemoteEnded(_))));
 }
 
 #[test]
@@ -174,7 +174,7 @@ fn port_loss_is_reported_and_reconnect_restores_the_session() {
     assert_eq!(*rig.connects.lock().unwrap(), 2);
     assert!(client.started_functions().is_empty(), "the RE of before got its RS after the reconnect");
     assert!(rig.unit(|u| u.executed_functions().is_empty()));
-    assert!(client.position(a(1)).unwrap() > 0);
+    assert!(client.position(a(1)).unwrap() > PositionCounts(0));
     assert_eq!(client.stats().reconnects, 1);
 }
 
@@ -192,7 +192,7 @@ fn a_failed_reconnect_leaves_the_session_lost_and_idle() {
     assert_eq!(*rig.connects.lock().unwrap(), 1);
     *rig.unplugged.lock().unwrap() = false;
     client.reconnect().unwrap();
-    assert_eq!(client.position(a(1)).unwrap(), 0);
+    assert_eq!(client.position(a(1)).unwrap(), PositionCounts(0));
 }
 
 #[test]
@@ -213,9 +213,9 @@ fn a_corrupt_reply_to_the_re_of_a_move_is_repeated_and_the_move_ends_with_rs() {
             );
         }
     });
-    let report = client.move_to(a(1), 200, pct(100), &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), PositionCounts(200), pct(100), &MoveOptions::default()).unwrap();
     assert!(*done.lock().unwrap());
-    assert_eq!(report.position_counts, 200);
+    assert_eq!(report.position_counts, PositionCounts(200));
     assert_eq!(client.stats().retries, 1);
     assert!(client.started_functions().is_empty(), "RS at the end");
     assert!(rig.unit(|u| u.executed_functions().is_empty()));
@@ -247,7 +247,7 @@ fn auto_reconnect() {
     rig.sleep(3_000);
     assert!(client.is_open(), "reconnected by itself");
     assert!(*rig.connects.lock().unwrap() >= 2);
-    assert_eq!(client.position(a(1)).unwrap(), 0);
+    assert_eq!(client.position(a(1)).unwrap(), PositionCounts(0));
     rig.sleep(10_000);
     assert!(client.is_open());
 }
@@ -328,13 +328,14 @@ fn round_trips_of_300_ms_during_a_move_still_keep_the_unit_alive() {
     // Once the actuator moves, every reply takes 300 ms more; when it stops, the line is quick again.
     let slow_polls = Mutex::new(0);
     let progress = |p: &motionlink_scu::session::MoveProgress| {
-        let moving = p.status & status1::MOTION != 0;
+        let moving = p.status.moving();
         *latency.lock().unwrap() = if moving { Duration::from_millis(300) } else { Duration::ZERO };
         *slow_polls.lock().unwrap() += u32::from(moving);
     };
-    let report =
-        client.move_to(a(1), 500, pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() }).unwrap();
-    assert_eq!(report.position_counts, 500);
+    let report = client
+        .move_to(a(1), PositionCounts(500), pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() })
+        .unwrap();
+    assert_eq!(report.position_counts, PositionCounts(500));
     assert!(*slow_polls.lock().unwrap() > 5);
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0, "the unit never lost its RC");
     assert!(client.started_functions().is_empty());
@@ -399,7 +400,8 @@ fn move_with_one_flipped_bit(dir: Direction, offset: u64, bit: u8) -> (Result<i3
     let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
     let faults = rig.faults();
     faults.inject(dir, faults.bytes_sent(dir) + offset, Fault::Corrupt { xor: 1 << bit });
-    let result = client.move_to(a(1), 60, pct(100), &MoveOptions::default()).map(|r| r.position_counts);
+    let result =
+        client.move_to(a(1), PositionCounts(60), pct(100), &MoveOptions::default()).map(|r| r.position_counts.get());
     drop(client);
     (result, rig.unit(|u| u.position(a(1)).unwrap()))
 }
@@ -435,7 +437,7 @@ fn a_dead_link_during_a_move_is_given_up_quickly_and_the_error_says_the_axis_may
     let faults = Arc::clone(&rig.faults);
     let progress = move |p: &motionlink_scu::session::MoveProgress| {
         let mut cut = cut.lock().unwrap();
-        if p.position_counts > 100 && cut.is_none() {
+        if p.position_counts > PositionCounts(100) && cut.is_none() {
             // The cable is cut: nothing gets through either way any more.
             let f = faults.lock().unwrap().clone().unwrap();
             f.drop_next(Direction::HostToDevice, u64::MAX / 2);
@@ -444,7 +446,7 @@ fn a_dead_link_during_a_move_is_given_up_quickly_and_the_error_says_the_axis_may
         }
     };
     let err = client
-        .move_to(a(1), 800, pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() })
+        .move_to(a(1), PositionCounts(800), pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() })
         .unwrap_err();
     let cut_at = cut_at.lock().unwrap().unwrap();
     let given_up = rig.clock.now() - cut_at;
@@ -470,12 +472,12 @@ fn a_broken_port_during_a_move_is_reported_with_an_unconfirmed_stop() {
     let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
     let faults = Arc::clone(&rig.faults);
     let progress = move |p: &motionlink_scu::session::MoveProgress| {
-        if p.position_counts > 100 {
+        if p.position_counts > PositionCounts(100) {
             faults.lock().unwrap().clone().unwrap().disconnect();
         }
     };
     let err = client
-        .move_to(a(1), 800, pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() })
+        .move_to(a(1), PositionCounts(800), pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() })
         .unwrap_err();
     let Error::StopUnconfirmed { cause, .. } = &err else { panic!("{err}") };
     assert!(matches!(**cause, Error::SessionLost(_)), "{cause}");

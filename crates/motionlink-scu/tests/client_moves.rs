@@ -10,24 +10,40 @@ fn a_function_that_drives_two_actuators_moves_each_to_its_own_target_with_one_re
     let rig = Rig::new(SimConfig::liftkit());
     let client = rig.client(ClientConfig { function_map: FunctionMap::liftkit(), ..Default::default() });
     let f8 = f(8);
-    let report = client.move_function(f8, &[(a(1), 300), (a(2), 320)], pct(100), &MoveOptions::default()).unwrap();
+    let report = client
+        .move_function(
+            f8,
+            &[(a(1), PositionCounts(300)), (a(2), PositionCounts(320))],
+            pct(100),
+            &MoveOptions::default(),
+        )
+        .unwrap();
     let each: Vec<_> =
         report.actuators.iter().map(|o| (o.actuator, o.position_counts, o.difference_counts())).collect();
-    assert_eq!(each, [(a(1), 300, 0), (a(2), 320, 0)]);
+    assert_eq!(each, [(a(1), PositionCounts(300), 0), (a(2), PositionCounts(320), 0)]);
     assert_eq!(rig.unit(|u| (u.position(a(1)), u.position(a(2)))), (Some(300), Some(320)));
     assert!(rig.unit(|u| u.executed_functions().is_empty()), "RS of F8 at the end");
     // The map is checked before anything is sent: F8 drives both, F1 only A1.
     let before = rig.unit(|u| u.stats().telegrams - u.stats().cyclic);
-    for (function, targets) in
-        [(f8, vec![(a(1), 10)]), (f(1), vec![(a(1), 10), (a(2), 10)]), (f8, vec![(a(1), 1), (a(1), 2)])]
-    {
+    for (function, targets) in [
+        (f8, vec![(a(1), PositionCounts(10))]),
+        (f(1), vec![(a(1), PositionCounts(10)), (a(2), PositionCounts(10))]),
+        (f8, vec![(a(1), PositionCounts(1)), (a(1), PositionCounts(2))]),
+    ] {
         let err = client.move_function(function, &targets, pct(100), &MoveOptions::default()).unwrap_err();
         assert_eq!(err.class(), ErrorClass::Usage, "{err}");
     }
     assert_eq!(rig.unit(|u| u.stats().telegrams - u.stats().cyclic), before);
     // One of them cannot go there: the move is refused before either moves.
-    let err = client.move_function(f8, &[(a(1), 100), (a(2), 900)], pct(100), &MoveOptions::default()).unwrap_err();
-    assert!(matches!(err, Error::OutsideStroke { target_counts: 900, .. }), "{err}");
+    let err = client
+        .move_function(
+            f8,
+            &[(a(1), PositionCounts(100)), (a(2), PositionCounts(900))],
+            pct(100),
+            &MoveOptions::default(),
+        )
+        .unwrap_err();
+    assert!(matches!(err, Error::OutsideStroke { target_counts: PositionCounts(900), .. }), "{err}");
     assert_eq!(rig.unit(|u| (u.position(a(1)), u.position(a(2)))), (Some(300), Some(320)));
 }
 
@@ -36,16 +52,16 @@ fn without_a_function_map_move_to_gives_every_connected_actuator_the_target_and_
     // A TLT, of which the client is not told: F1 drives both columns, and both end at 400.
     let rig = Rig::new(SimConfig::tlt());
     let client = rig.client(ClientConfig::default());
-    let report = client.move_to(a(1), 400, pct(100), &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), PositionCounts(400), pct(100), &MoveOptions::default()).unwrap();
     assert_eq!(rig.unit(|u| (u.position(a(1)), u.position(a(2)))), (Some(400), Some(400)));
     let each: Vec<_> = report.actuators.iter().map(|o| (o.actuator, o.position_counts, o.moved)).collect();
-    assert_eq!(each, [(a(1), 400, true), (a(2), 400, true)]);
+    assert_eq!(each, [(a(1), PositionCounts(400), true), (a(2), PositionCounts(400), true)]);
     // An SCP11 unit: F1 drives A1 alone; A2 gets the remote position but does not move, and is reported so.
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig::default());
-    let report = client.move_to(a(1), 400, pct(100), &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), PositionCounts(400), pct(100), &MoveOptions::default()).unwrap();
     let each: Vec<_> = report.actuators.iter().map(|o| (o.actuator, o.position_counts, o.moved)).collect();
-    assert_eq!(each, [(a(1), 400, true), (a(2), 0, false)]);
+    assert_eq!(each, [(a(1), PositionCounts(400), true), (a(2), PositionCounts(0), false)]);
     assert_eq!(client.get_value(DataIndex(0x3022)).unwrap(), Value::RemotePosition(400));
 }
 
@@ -57,7 +73,7 @@ fn a_move_polls_at_its_interval_and_not_as_fast_as_the_line_answers() {
     let client =
         rig.client(ClientConfig { function_map: FunctionMap::scp11(), move_polling: reads, ..Default::default() });
     let before = rig.unit(|u| u.stats().telegrams - u.stats().cyclic);
-    let report = client.move_to(a(1), 400, pct(100), &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), PositionCounts(400), pct(100), &MoveOptions::default()).unwrap();
     let requests = rig.unit(|u| u.stats().telegrams - u.stats().cyclic) - before;
     // Two reads per 50 ms poll, plus a dozen for setting up and ending the move.
     let polls = report.duration.as_millis() as u64 / 50;
@@ -71,7 +87,7 @@ fn a_move_polls_at_its_interval_and_not_as_fast_as_the_line_answers() {
         ..Default::default()
     });
     let before = rig.unit(|u| u.stats().telegrams - u.stats().cyclic);
-    let report = client.move_to(a(1), 0, pct(100), &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), PositionCounts(0), pct(100), &MoveOptions::default()).unwrap();
     let requests = rig.unit(|u| u.stats().telegrams - u.stats().cyclic) - before;
     assert!(requests <= 2 * (report.duration.as_millis() as u64 / 200) + 16, "{requests}");
 }
@@ -88,8 +104,8 @@ fn a_move_polls_through_the_keepalive_at_its_interval_and_sends_nothing_else_whi
         sink.lock().unwrap().push((bytes[..2].to_vec(), host.with_device(|u| u.is_moving(a(1)))));
     });
     let cyclic_before = rig.unit(|u| u.stats().cyclic);
-    let report = client.move_to(a(1), 400, pct(100), &MoveOptions::default()).unwrap();
-    assert_eq!(report.position_counts, 400);
+    let report = client.move_to(a(1), PositionCounts(400), pct(100), &MoveOptions::default()).unwrap();
+    assert_eq!(report.position_counts, PositionCounts(400));
     let sent = sent.lock().unwrap().clone();
     let during: Vec<&Vec<u8>> = sent.iter().filter(|(_, moving)| *moving).map(|(c, _)| c).collect();
     assert!(!during.is_empty());
@@ -119,10 +135,10 @@ fn a_move_reads_its_result_after_the_unit_reports_the_end_of_the_motion() {
             sink.lock().unwrap().push(host.with_device(|u| u.is_moving(a(1))));
         }
     });
-    let report = client.move_to(a(1), 300, pct(100), &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), PositionCounts(300), pct(100), &MoveOptions::default()).unwrap();
     let reads = reads.lock().unwrap();
     assert_eq!(reads.last(), Some(&false), "the last position read came after the motion ended");
-    assert_eq!(report.position_counts, 300);
+    assert_eq!(report.position_counts, PositionCounts(300));
 }
 
 #[test]
@@ -138,11 +154,11 @@ fn a_move_polled_through_the_keepalive_judges_the_reply_that_reports_the_end_of_
             sink.lock().unwrap().push(host.with_device(|u| u.is_moving(a(1))));
         }
     });
-    let report = client.move_to(a(1), 300, pct(100), &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), PositionCounts(300), pct(100), &MoveOptions::default()).unwrap();
     let polls = polls.lock().unwrap();
     assert!(polls.iter().filter(|m| **m).count() > 20, "{polls:?}");
     assert_eq!(polls.last(), Some(&false), "the last poll came after the motion ended");
-    assert_eq!(report.position_counts, 300);
+    assert_eq!(report.position_counts, PositionCounts(300));
     assert_eq!(rig.unit(|u| u.position(a(1))), Some(300));
 }
 
@@ -151,27 +167,27 @@ fn streamed_setpoints_retarget_a_running_motion_and_change_its_speed() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
     let mut stream = client.stream(f(1), &[a(1)], pct(100)).unwrap();
-    stream.set_targets(&[600]).unwrap();
+    stream.set_targets(&[PositionCounts(600)]).unwrap();
     rig.sleep(1_000);
     let p = stream.positions().unwrap()[0].1;
-    assert!(p > 60 && p < 600, "{p}");
+    assert!(p > PositionCounts(60) && p < PositionCounts(600), "{p}");
     // 20 Hz updates towards a moving target.
     for k in 0..20 {
-        stream.set_targets(&[200 + 5 * k]).unwrap();
+        stream.set_targets(&[PositionCounts(200 + 5 * k)]).unwrap();
         rig.sleep(50);
     }
     stream.set_speed(pct(50)).unwrap();
     rig.sleep(5_000);
     let [(_, at, moving)] = stream.positions().unwrap()[..] else { panic!() };
-    assert_eq!((at, moving), (295, false), "at the last setpoint");
-    assert!(stream.set_targets(&[900]).is_err(), "beyond the stroke");
-    assert!(stream.set_targets(&[1, 2]).is_err(), "one target per actuator");
+    assert_eq!((at, moving), (PositionCounts(295), false), "at the last setpoint");
+    assert!(stream.set_targets(&[PositionCounts(900)]).is_err(), "beyond the stroke");
+    assert!(stream.set_targets(&[PositionCounts(1), PositionCounts(2)]).is_err(), "one target per actuator");
     let rest = stream.stop(StopMode::Soft).unwrap();
-    assert_eq!(rest, [(a(1), 295)]);
+    assert_eq!(rest, [(a(1), PositionCounts(295))]);
     assert!(client.started_functions().is_empty());
     // Dropping a running stream stops it.
     let mut stream = client.stream(f(1), &[a(1)], pct(100)).unwrap();
-    stream.set_targets(&[800]).unwrap();
+    stream.set_targets(&[PositionCounts(800)]).unwrap();
     rig.sleep(500);
     drop(stream);
     assert!(!rig.unit(|u| u.is_moving(a(1))));
@@ -213,7 +229,7 @@ fn safety_id_1_through_the_api_a_watchdog_lapse_during_a_move_is_reported_and_th
             let f = faults.lock().unwrap().clone().unwrap();
             let mut cut = cut.lock().unwrap();
             match *cut {
-                None if p.position_counts > 50 => {
+                None if p.position_counts > PositionCounts(50) => {
                     // 700 ms in which nothing reaches the unit (all 8 polls' bytes and keepalives are lost).
                     f.drop_next(Direction::HostToDevice, u64::MAX / 2);
                     *cut = Some(clock.now());
@@ -223,7 +239,12 @@ fn safety_id_1_through_the_api_a_watchdog_lapse_during_a_move_is_reported_and_th
             }
         };
         let err = client
-            .move_to(a(1), 800, pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() })
+            .move_to(
+                a(1),
+                PositionCounts(800),
+                pct(100),
+                &MoveOptions { progress: Some(&progress), ..Default::default() },
+            )
             .unwrap_err();
         assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 1, "{safety:?}");
         assert!(!rig.unit(|u| u.is_moving(a(1))));
@@ -239,8 +260,8 @@ fn safety_id_1_through_the_api_a_watchdog_lapse_during_a_move_is_reported_and_th
         assert!(client.is_open(), "Safety_ID 1 and 2 need no RO");
         assert!(client.started_functions().is_empty(), "the stopped function got its RS");
         // After the RC the session goes on.
-        let report = client.move_to(a(1), 100, pct(100), &MoveOptions::default()).unwrap();
-        assert_eq!(report.position_counts, 100, "{safety:?}");
+        let report = client.move_to(a(1), PositionCounts(100), pct(100), &MoveOptions::default()).unwrap();
+        assert_eq!(report.position_counts, PositionCounts(100), "{safety:?}");
         assert_eq!(client.stats().reopens, 0);
     }
 }
@@ -254,7 +275,7 @@ fn while_idle_a_lapse_with_safety_id_1_is_re_armed_and_a_lock_with_safety_id_0_i
     rig.faults().heal();
     assert_eq!(rig.unit(|u| u.mode()), RemoteMode::TimedOut(SafetyId::StopAll));
     // Idle: the read goes through after the RC re-armed the watchdog; the lapse is counted.
-    assert_eq!(client.position(a(1)).unwrap(), 0);
+    assert_eq!(client.position(a(1)).unwrap(), PositionCounts(0));
     assert_eq!(client.stats().watchdog_lapses, 1);
     assert!(client.is_open());
     drop(client);
@@ -267,7 +288,7 @@ fn while_idle_a_lapse_with_safety_id_1_is_re_armed_and_a_lock_with_safety_id_0_i
     assert!(matches!(client.position(a(1)), Err(Error::RemoteEnded(_))));
     assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Locked);
     client.reopen().unwrap();
-    assert_eq!(client.position(a(1)).unwrap(), 0);
+    assert_eq!(client.position(a(1)).unwrap(), PositionCounts(0));
 }
 
 /// A unit that keeps its own idea of a written speed: it stores at most 50 % for F1 (its RT telegrams are
@@ -330,7 +351,7 @@ fn set_reads_the_value_back_and_a_mismatch_is_an_error() {
     assert_eq!((*name, written.as_str(), read.as_str()), ("remote_speed_f1", "80", "50"));
     assert_eq!(err.class(), ErrorClass::Device);
     // A move whose speed does not read back is refused before RE.
-    let err = client.move_to(a(1), 100, pct(80), &MoveOptions::default()).unwrap_err();
+    let err = client.move_to(a(1), PositionCounts(100), pct(80), &MoveOptions::default()).unwrap_err();
     assert!(matches!(err, Error::ReadBack { .. }), "{err}");
     assert!(client.started_functions().is_empty(), "no RE was sent");
 }

@@ -9,7 +9,7 @@ use motionlink_link::emulator::Emulator as _;
 use motionlink_link::session::{Action, Event, Input, OpId, Session as _};
 use motionlink_link::Timestamp;
 use motionlink_scu::config::FLUSH_LEN;
-use motionlink_scu::model::{Actuator, DataIndex, MotionDirection, MotionFunction, SafetyId, Speed};
+use motionlink_scu::model::{Actuator, DataIndex, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed};
 use motionlink_scu::session::{MoveSpec, MoveTargets, Op, Output, PreparedRequest, Progress, RunAction, RunSpec};
 use motionlink_scu::sim::RemoteMode;
 use motionlink_scu::wire::Request;
@@ -200,7 +200,7 @@ fn move_a1(target: i32) -> Op {
     Op::Move(MoveSpec {
         function: f(1),
         primary: a(1),
-        targets: MoveTargets::Given(vec![(a(1), target)]),
+        targets: MoveTargets::Given(vec![(a(1), PositionCounts(target))]),
         speed: Speed::percent(100).unwrap(),
     })
 }
@@ -235,7 +235,7 @@ fn a_move_is_watched_through_the_keepalive_and_every_exchange_while_it_runs_is_a
     let mut b = Bench::opened(scp11(), SimConfig::default());
     let id = b.start(move_a1(300));
     let Output::Move(report) = b.wait_done(id).unwrap() else { panic!() };
-    assert_eq!(report.position_counts, 300);
+    assert_eq!(report.position_counts, PositionCounts(300));
     assert_eq!(b.unit.position(a(1)), Some(300));
     let started = b.unit_saw("F1 started").unwrap();
     let rest = b.unit_saw("A1 at rest").unwrap();
@@ -246,7 +246,7 @@ fn a_move_is_watched_through_the_keepalive_and_every_exchange_while_it_runs_is_a
     assert_eq!(before.iter().filter(|c| *c == "RE").count(), 1);
     assert!(b.sent.iter().any(|(_, x)| x.starts_with(&[0x52, 0x54, 0x1A, 0x00, 0x05, 0x30])), "RT of 0x3005");
     // Progress came with every poll, rising.
-    let seen: Vec<i32> = b
+    let seen: Vec<PositionCounts> = b
         .progress
         .iter()
         .filter_map(|(i, p)| match p {
@@ -274,7 +274,7 @@ fn a_move_keeps_the_unit_alive_with_round_trips_of_300_ms() {
     assert!(b.session.round_trip() >= Duration::from_millis(300), "{:?}", b.session.round_trip());
     b.one_way = Duration::ZERO;
     let Output::Move(report) = b.wait_done(id).unwrap() else { panic!() };
-    assert_eq!(report.position_counts, 400);
+    assert_eq!(report.position_counts, PositionCounts(400));
     // The unit's watchdog never expired: while the round trips were slow, only RCs went out, one after the
     // other, each both feeding the watchdog and reading the state.
     assert_eq!(b.unit.stats().watchdog_expiries, 0);
@@ -300,7 +300,7 @@ fn a_request_that_would_let_the_watchdog_expire_waits_for_room_and_is_refused_wi
     assert!(!b.sent_between(asked, b.now).iter().any(|c| c == "RG"), "the read was never sent");
     b.one_way = Duration::ZERO;
     let Output::Move(report) = b.wait_done(moving).unwrap() else { panic!() };
-    assert_eq!(report.position_counts, 800);
+    assert_eq!(report.position_counts, PositionCounts(800));
     assert_eq!(b.unit.stats().watchdog_expiries, 0);
     // On a healthy line the same read goes through.
     let read = b.start(Op::Request(PreparedRequest::new(&Request::Get { index: 0x0011 }).unwrap()));
@@ -320,7 +320,7 @@ fn a_cancelled_move_sends_rs_at_once_and_reports_where_the_actuator_came_to_rest
     assert!(rs.0 - cancelled_at < Duration::from_millis(15), "RS {:?} after the cancel", rs.0 - cancelled_at);
     assert_eq!(&rs.1[..4], &[0x52, 0x53, 0x00, 0x00], "a fast stop of F1");
     assert!(!b.unit.is_moving(a(1)));
-    assert_eq!(Some(position_counts), b.unit.position(a(1)), "the position after the stop");
+    assert_eq!(Some(position_counts), b.unit.position(a(1)).map(PositionCounts), "the position after the stop");
     assert!(b.session.started_functions().is_empty());
 }
 
@@ -440,7 +440,7 @@ fn a_run_is_watched_through_the_keepalive_until_its_motion_ends_and_then_stopped
     let mut b = Bench::opened(ClientConfig::default(), SimConfig::default());
     let id = b.start(Op::Run(RunSpec { action: RunAction::Motion(f(1), MotionDirection::Out), limit: None }));
     let Output::Run(report) = b.wait_done(id).unwrap() else { panic!() };
-    assert_eq!(report.rest, [(a(1), 865), (a(2), 0)], "F1 ran to the Out end");
+    assert_eq!(report.rest, [(a(1), PositionCounts(865)), (a(2), PositionCounts(0))], "F1 ran to the Out end");
     let started = b.unit_saw("F1 started").unwrap();
     let rest = b.unit_saw("A1 at rest").unwrap();
     let during = b.sent_between(started, rest);
@@ -458,7 +458,7 @@ fn a_cancelled_run_stops_its_function_and_says_where_the_actuators_came_to_rest(
     let result = b.wait_done(id);
     let Err(Error::RunCancelled { rest, .. }) = result else { panic!("{result:?}") };
     assert!(!b.unit.is_moving(a(2)));
-    assert_eq!(rest[1], (a(2), b.unit.position(a(2)).unwrap()));
+    assert_eq!(rest[1], (a(2), PositionCounts(b.unit.position(a(2)).unwrap())));
     assert!(b.session.started_functions().is_empty());
 }
 

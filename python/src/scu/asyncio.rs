@@ -50,7 +50,7 @@ impl AsyncScuClient {
         let a = self::actuator(&actuator).map_err(|f| to_pyerr(py, f))?;
         Ok(spawn_task(done, async move {
             let p = fail(c.position(a).await)?;
-            deliver(move |py| Ok(p.into_pyobject(py)?.into_any().unbind()))
+            deliver(move |py| Ok(p.get().into_pyobject(py)?.into_any().unbind()))
         }))
     }
 
@@ -70,7 +70,7 @@ impl AsyncScuClient {
             move_args(&actuator, function.as_ref(), &speed, self.speed_mode).map_err(|f| to_pyerr(py, f))?;
         let target_counts = self::target_counts(&target_counts).map_err(|f| to_pyerr(py, f))?;
         Ok(spawn_task(done, async move {
-            let report = fail(c.move_to(a, target_counts, speed, f).await)?;
+            let report = fail(c.move_to(a, PositionCounts(target_counts), speed, f).await)?;
             deliver(move |py| Ok(move_record(py, target_counts, &report)?.done().into_any().unbind()))
         }))
     }

@@ -14,7 +14,7 @@ use motionlink_link::link::{Connector, Link, SerialSettings};
 use motionlink_link::url::PortUrl;
 use motionlink_scu::model::{
     lookup, Actuator, ActuatorStatus1, DataEntryExt, DataIndex, ErrorCode, Function, Item, MotionDirection,
-    MotionFunction, SafetyId, Speed, SpeedMode, StopMode,
+    MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode, StopMode,
 };
 use motionlink_scu::session::{MoveReport, RunAction, RunReport};
 use motionlink_scu::value::Value;
@@ -194,13 +194,13 @@ pub(crate) fn move_record<'py>(py: Python<'py>, target_counts: i32, report: &Mov
     let rec = Record::new(py);
     rec.set("family", FAMILY)?.set("function", report.function.number())?;
     rec.set("actuator", report.actuator.number())?.set("target_counts", target_counts)?;
-    rec.set("reached_counts", report.position_counts)?.set("time_s", report.duration.as_secs_f64())?;
-    rec.set("difference_counts", i64::from(report.position_counts) - i64::from(target_counts))?;
+    rec.set("reached_counts", report.position_counts.get())?.set("time_s", report.duration.as_secs_f64())?;
+    rec.set("difference_counts", i64::from(report.position_counts.get()) - i64::from(target_counts))?;
     let mut acts = Vec::new();
     for o in &report.actuators {
         let d = Record::new(py);
-        d.set("actuator", o.actuator.number())?.set("target_counts", o.target_counts)?;
-        d.set("start_counts", o.start_counts)?.set("reached_counts", o.position_counts)?;
+        d.set("actuator", o.actuator.number())?.set("target_counts", o.target_counts.get())?;
+        d.set("start_counts", o.start_counts.get())?.set("reached_counts", o.position_counts.get())?;
         d.set("difference_counts", o.difference_counts())?.set("moved", o.moved)?;
         d.extras(&["start_counts"])?;
         acts.push(d.done());
@@ -217,7 +217,7 @@ pub(crate) fn run_record<'py>(py: Python<'py>, function: Function, report: &RunR
     let mut rest = Vec::new();
     for (a, p) in &report.rest {
         let d = Record::new(py);
-        d.set("actuator", a.number())?.set("reached_counts", *p)?;
+        d.set("actuator", a.number())?.set("reached_counts", p.get())?;
         rest.push(d.done());
     }
     rec.set("actuators", rest)?.extras(&["time_s"])?;
@@ -344,12 +344,12 @@ impl ScuClient {
         let mut acts = Vec::new();
         for a in Actuator::all() {
             let i = usize::from(a.number() - 1);
-            let s = ActuatorStatus1(statuses[i]);
+            let s = statuses[i];
             if !s.available() {
                 continue;
             }
             let d = Record::new(py);
-            d.set("actuator", a.number())?.set("position_counts", positions[i])?;
+            d.set("actuator", a.number())?.set("position_counts", positions[i].get())?;
             status_fields(&d, s)?;
             acts.push(d.done());
         }
@@ -361,7 +361,7 @@ impl ScuClient {
     fn position(&self, py: Python<'_>, actuator: Int) -> PyResult<i32> {
         let c = self.client(py)?;
         let a = self::actuator(&actuator).map_err(|f| to_pyerr(py, f))?;
-        py.detach(|| c.position(a)).or_raise(py)
+        py.detach(|| c.position(a).map(PositionCounts::get)).or_raise(py)
     }
 
     /// Reads a data-list entry or group by name or index.
@@ -443,7 +443,14 @@ impl ScuClient {
         let r = interruptible(
             py,
             Some(token),
-            || c.move_to(a, target_counts, speed, &MoveOptions { cancel: Some(token), progress: None, function: f }),
+            || {
+                c.move_to(
+                    a,
+                    PositionCounts(target_counts),
+                    speed,
+                    &MoveOptions { cancel: Some(token), progress: None, function: f },
+                )
+            },
             cancel_cause,
         )?;
         let report = r.or_raise(py)?;
@@ -493,12 +500,12 @@ impl ScuClient {
         let mut acts = Vec::new();
         for a in Actuator::all() {
             let i = usize::from(a.number() - 1);
-            let s = ActuatorStatus1(statuses[i]);
+            let s = statuses[i];
             if !s.available() {
                 continue;
             }
             let d = Record::new(py);
-            d.set("actuator", a.number())?.set("position_counts", positions[i])?;
+            d.set("actuator", a.number())?.set("position_counts", positions[i].get())?;
             status_fields(&d, s)?;
             // The library's value in amperes (its data list holds deci-amps; `as_f64` converts them once).
             let amps = currents.iter().find(|(e, _)| e.index() == a.current_index()).and_then(|(_, v)| v.as_f64());

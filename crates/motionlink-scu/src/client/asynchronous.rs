@@ -13,8 +13,8 @@ use super::{expect_output, move_spec, run_spec, Client};
 use crate::config::{ClientConfig, StrokeLimits};
 use crate::error::Error;
 use crate::model::{
-    Actuator, CyclicObject, DataEntry, DataIndex, ErrorCode, Flags, Function, MotionDirection, MotionFunction,
-    PositionCounts, Speed, StopMode, UNUSED,
+    Actuator, ActuatorStatus1, CyclicObject, DataEntry, DataIndex, ErrorCode, Function, MotionDirection,
+    MotionFunction, PositionCounts, Speed, StopMode, UNUSED,
 };
 use crate::session::ops::basic::{cyclic_index, decode_cyclic_read, encode_for, Stroke};
 use crate::session::{
@@ -128,23 +128,23 @@ impl AsyncClient {
         self.driver.run(Op::Set { index, data, verify: true }).await.map(|_| ())
     }
 
-    /// Actuator `a`'s position in counts.
-    pub async fn position(&self, a: Actuator) -> Result<i32, Error> {
+    /// Actuator `a`'s position.
+    pub async fn position(&self, a: Actuator) -> Result<PositionCounts, Error> {
         super::position(self.get_value(a.position_index()).await?)
     }
 
-    /// Every actuator's position (0x0010), in counts, A1 first.
-    pub async fn positions(&self) -> Result<[i32; 6], Error> {
+    /// Every actuator's position (0x0010), A1 first.
+    pub async fn positions(&self) -> Result<[PositionCounts; 6], Error> {
         crate::session::ops::positions(&self.get_raw(DataIndex(0x0010)).await?)
     }
 
     /// Actuator `a`'s status 1.
-    pub async fn status1(&self, a: Actuator) -> Result<Flags, Error> {
+    pub async fn status1(&self, a: Actuator) -> Result<ActuatorStatus1, Error> {
         super::status1(&self.get_raw(a.status1_index()).await?)
     }
 
     /// Every actuator's status 1 (0x0170), A1 first.
-    pub async fn statuses(&self) -> Result<[u8; 6], Error> {
+    pub async fn statuses(&self) -> Result<[ActuatorStatus1; 6], Error> {
         crate::session::ops::statuses(&self.get_raw(DataIndex(0x0170)).await?)
     }
 
@@ -223,11 +223,11 @@ impl AsyncClient {
     pub fn move_to_op(
         &self,
         actuator: Actuator,
-        target: impl Into<PositionCounts>,
+        target: PositionCounts,
         speed: impl Into<Speed>,
         function: Option<MotionFunction>,
     ) -> Result<Op, Error> {
-        Ok(Op::Move(move_spec(&self.config, actuator, target.into(), speed.into(), function)?))
+        Ok(Op::Move(move_spec(&self.config, actuator, target, speed.into(), function)?))
     }
 
     /// Moves `actuator` to `target` as [`Client::move_to`] (`function`: instead of the one with the
@@ -235,7 +235,7 @@ impl AsyncClient {
     pub async fn move_to(
         &self,
         actuator: Actuator,
-        target: impl Into<PositionCounts>,
+        target: PositionCounts,
         speed: impl Into<Speed>,
         function: Option<MotionFunction>,
     ) -> Result<MoveReport, Error> {
@@ -248,7 +248,7 @@ impl AsyncClient {
     pub async fn move_function(
         &self,
         function: MotionFunction,
-        targets: &[(Actuator, i32)],
+        targets: &[(Actuator, PositionCounts)],
         speed: impl Into<Speed>,
     ) -> Result<MoveReport, Error> {
         let primary = targets.first().map_or(Actuator::new(1).expect("A1"), |(a, _)| *a);
@@ -304,7 +304,7 @@ impl std::fmt::Debug for AsyncSetpointStream<'_> {
 
 impl AsyncSetpointStream<'_> {
     /// New targets, one per actuator, as [`super::SetpointStream::set_targets`].
-    pub async fn set_targets(&mut self, targets: &[i32]) -> Result<(), Error> {
+    pub async fn set_targets(&mut self, targets: &[PositionCounts]) -> Result<(), Error> {
         let targets = super::stream_targets(self.function, &self.actuators, &self.limits, targets)?;
         self.started = true;
         self.client.driver.run(Op::StreamTargets { function: self.function, targets }).await.map(|_| ())
@@ -317,15 +317,15 @@ impl AsyncSetpointStream<'_> {
         self.client.driver.run(Op::Set { index, data: raw.to_le_bytes().to_vec(), verify: false }).await.map(|_| ())
     }
 
-    /// Where each actuator is, in counts, and whether it moves.
-    pub async fn positions(&self) -> Result<Vec<(Actuator, i32, bool)>, Error> {
+    /// Where each actuator is, and whether it moves.
+    pub async fn positions(&self) -> Result<Vec<(Actuator, PositionCounts, bool)>, Error> {
         let status = self.client.statuses().await?;
         let positions = self.client.positions().await?;
         Ok(super::stream_positions(&self.actuators, &status, &positions))
     }
 
     /// Ends the stream: RS (`mode`), then the status until no actuator moves; where each came to rest.
-    pub async fn stop(mut self, mode: StopMode) -> Result<Vec<(Actuator, i32)>, Error> {
+    pub async fn stop(mut self, mode: StopMode) -> Result<Vec<(Actuator, PositionCounts)>, Error> {
         self.started = false;
         let op = Op::Stop { function: self.function, mode, watch: self.actuators.clone(), after: None };
         expect_output!(self.client.driver.run(op).await, Output::Rest(r) => r)

@@ -11,8 +11,8 @@ use super::{expect_output, link_error, move_spec, run_spec, MoveOptions};
 use crate::config::ClientConfig;
 use crate::error::Error;
 use crate::model::{
-    Actuator, CyclicObject, DataEntry, DataIndex, ErrorCode, Flags, Function, MotionDirection, MotionFunction,
-    PositionCounts, Speed, StopMode,
+    Actuator, ActuatorStatus1, CyclicObject, DataEntry, DataIndex, ErrorCode, Function, MotionDirection,
+    MotionFunction, PositionCounts, Speed, StopMode,
 };
 use crate::session::ops::basic::{cyclic_index, decode_cyclic_read, encode_for};
 use crate::session::{
@@ -157,23 +157,23 @@ impl Client {
         self.driver.run(Op::Set { index, data: data.to_vec(), verify: true }).map(|_| ())
     }
 
-    /// Actuator `a`'s position in counts.
-    pub fn position(&self, a: Actuator) -> Result<i32, Error> {
+    /// Actuator `a`'s position.
+    pub fn position(&self, a: Actuator) -> Result<PositionCounts, Error> {
         super::position(self.get_value(a.position_index())?)
     }
 
-    /// Every actuator's position (0x0010), in counts, A1 first.
-    pub fn positions(&self) -> Result<[i32; 6], Error> {
+    /// Every actuator's position (0x0010), A1 first.
+    pub fn positions(&self) -> Result<[PositionCounts; 6], Error> {
         crate::session::ops::positions(&self.get_raw(DataIndex(0x0010))?)
     }
 
     /// Actuator `a`'s status 1.
-    pub fn status1(&self, a: Actuator) -> Result<Flags, Error> {
+    pub fn status1(&self, a: Actuator) -> Result<ActuatorStatus1, Error> {
         super::status1(&self.get_raw(a.status1_index())?)
     }
 
     /// Every actuator's status 1 (0x0170), A1 first.
-    pub fn statuses(&self) -> Result<[u8; 6], Error> {
+    pub fn statuses(&self) -> Result<[ActuatorStatus1; 6], Error> {
         crate::session::ops::statuses(&self.get_raw(DataIndex(0x0170))?)
     }
 
@@ -279,11 +279,11 @@ impl Client {
     pub fn move_to(
         &self,
         actuator: Actuator,
-        target: impl Into<PositionCounts>,
+        target: PositionCounts,
         speed: impl Into<Speed>,
         options: &MoveOptions<'_>,
     ) -> Result<MoveReport, Error> {
-        let spec = move_spec(&self.config, actuator, target.into(), speed.into(), options.function)?;
+        let spec = move_spec(&self.config, actuator, target, speed.into(), options.function)?;
         self.run_move(spec, options)
     }
 
@@ -301,7 +301,7 @@ impl Client {
     pub fn move_function(
         &self,
         function: MotionFunction,
-        targets: &[(Actuator, i32)],
+        targets: &[(Actuator, PositionCounts)],
         speed: impl Into<Speed>,
         options: &MoveOptions<'_>,
     ) -> Result<MoveReport, Error> {
@@ -394,7 +394,7 @@ impl SetpointStream<'_> {
     /// stroke (an error moves nothing new), written, and the function is started towards them. The remote
     /// positions are not read back (that would halve the rate); the CRC of every telegram and the unit's ACK
     /// are the check, and [`SetpointStream::positions`] shows where the actuators are.
-    pub fn set_targets(&mut self, targets: &[i32]) -> Result<(), Error> {
+    pub fn set_targets(&mut self, targets: &[PositionCounts]) -> Result<(), Error> {
         let targets = super::stream_targets(self.function, &self.actuators, &self.limits, targets)?;
         self.started = true;
         self.client.driver.run(Op::StreamTargets { function: self.function, targets }).map(|_| ())
@@ -407,8 +407,8 @@ impl SetpointStream<'_> {
         self.client.driver.run(Op::Set { index, data: raw.to_le_bytes().to_vec(), verify: false }).map(|_| ())
     }
 
-    /// Where each actuator is, in counts, and whether it moves.
-    pub fn positions(&self) -> Result<Vec<(Actuator, i32, bool)>, Error> {
+    /// Where each actuator is, and whether it moves.
+    pub fn positions(&self) -> Result<Vec<(Actuator, PositionCounts, bool)>, Error> {
         let status = self.client.statuses()?;
         let positions = self.client.positions()?;
         Ok(super::stream_positions(&self.actuators, &status, &positions))
@@ -416,7 +416,7 @@ impl SetpointStream<'_> {
 
     /// Ends the stream: RS (`mode`), then the status until no actuator moves; returns where each came to rest.
     /// A stop the unit did not confirm is [`Error::StopUnconfirmed`].
-    pub fn stop(mut self, mode: StopMode) -> Result<Vec<(Actuator, i32)>, Error> {
+    pub fn stop(mut self, mode: StopMode) -> Result<Vec<(Actuator, PositionCounts)>, Error> {
         self.started = false;
         let op = Op::Stop { function: self.function, mode, watch: self.actuators.clone(), after: None };
         expect_output!(self.client.driver.run(op), Output::Rest(r) => r)

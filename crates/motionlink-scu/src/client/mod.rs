@@ -4,7 +4,7 @@
 //!
 //! ```no_run
 //! use motionlink_scu::{Client, ClientConfig, FunctionMap};
-//! use motionlink_scu::model::{Actuator, Speed};
+//! use motionlink_scu::model::{Actuator, PositionCounts, Speed};
 //! use motionlink_link::{url::PortUrl, RealClock, SerialSettings};
 //!
 //! let port: PortUrl = "/dev/ttyUSB0".parse()?;
@@ -12,10 +12,54 @@
 //! let config = ClientConfig { function_map: FunctionMap::scp11(), ..ClientConfig::default() };
 //! let client = Client::open_port(&port, SerialSettings::new(38_400), RealClock::shared(), config)?;
 //! let a1 = Actuator::new(1).unwrap();
-//! let report = client.move_to(a1, 400, Speed::percent(80).unwrap(), &Default::default())?;
-//! println!("actuator 1 at {} counts", report.position_counts);
+//! let report = client.move_to(a1, PositionCounts(400), Speed::percent(80).unwrap(), &Default::default())?;
+//! println!("actuator 1 at {}", report.position_counts); // "400 counts"
 //! // Dropping the client stops anything it started (RS) and leaves remote mode (RA).
 //! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! The typed API, as the README's "From Rust" shows it (the same code; positions are
+//! [`PositionCounts`](crate::model::PositionCounts), speeds [`Speed`](crate::model::Speed), actuator status 1
+//! the flag word [`ActuatorStatus1`](crate::model::ActuatorStatus1)):
+//!
+//! ```no_run
+//! use motionlink_link::{url::PortUrl, RealClock, SerialSettings};
+//! use motionlink_scu::model::{Actuator, DataIndex, MotionFunction, PositionCounts, SafetyId, Speed, StopMode};
+//! use motionlink_scu::{Client, ClientConfig, FunctionMap, MoveOptions};
+//!
+//! let port: PortUrl = "/dev/ttyUSB0".parse()?;
+//! let config = ClientConfig { function_map: FunctionMap::liftkit(), safety_id: SafetyId::StopAll, ..Default::default() };
+//! let client = Client::open_port(&port, SerialSettings::new(38_400), RealClock::shared(), config)?;
+//! let (a1, a2) = (Actuator::new(1).unwrap(), Actuator::new(2).unwrap());
+//! let pct = |p| Speed::percent(p).unwrap();                     // percent and counts/s are different types
+//! let at = PositionCounts;                                      // a position is counts, said so: at(400)
+//! println!("{:?}", client.get(DataIndex(0x0010))?);             // every actuator's position, typed
+//! let report = client.move_to(a1, at(400), pct(80), &MoveOptions::default())?;   // F1: actuator 1, verified
+//! assert_eq!(report.position_counts, at(400));
+//! let f8 = MotionFunction::new(8).unwrap();                     // both columns, each to its own target, one RE
+//! let report = client.move_function(f8, &[(a1, at(300)), (a2, at(310))], pct(80), &MoveOptions::default())?;
+//! for a in &report.actuators { println!("{} at {} ({:+})", a.actuator, a.position_counts, a.difference_counts()); }
+//! let [p1, p2, ..] = client.positions()?;                       // [PositionCounts; 6]
+//! let moving = client.statuses()?.iter().any(|s| s.moving());   // [ActuatorStatus1; 6], flag words
+//! println!("{p1} {p2} moving: {moving}; A1: {}", client.status1(a1)?); // "available | in_position"
+//! let mut stream = client.stream(f8, &[a1, a2], pct(60))?;      // streamed setpoints, 10..100 Hz
+//! stream.set_targets(&[at(350), at(350)])?;
+//! stream.set_speed(pct(40))?;
+//! for (a, p) in stream.stop(StopMode::Soft)? { println!("{a} rests at {p}"); }
+//! for code in client.error_history()? { println!("{code}"); }  // named bits
+//! client.close()?;                                              // RS for anything it started, then RA: confirmed?
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! A bare number is not a position: this does not compile (`PositionCounts(400)` does, above).
+//!
+//! ```compile_fail
+//! # fn f(client: &motionlink_scu::Client) -> Result<(), motionlink_scu::Error> {
+//! # use motionlink_scu::model::{Actuator, Speed};
+//! let a1 = Actuator::new(1).unwrap();
+//! client.move_to(a1, 400, Speed::percent(80).unwrap(), &Default::default())?;
+//! # Ok(())
+//! # }
 //! ```
 
 use motionlink_link::cancel::CancelToken;
@@ -25,8 +69,7 @@ use crate::config::ClientConfig;
 use crate::error::Error;
 use crate::model::ActuatorStatus1;
 use crate::model::{
-    item, Actuator, DataEntry, DataIndex, ErrorCode, FlagSet, Flags, Function, Item, MotionFunction, PositionCounts,
-    Speed, UNUSED,
+    item, Actuator, DataEntry, DataIndex, ErrorCode, Function, Item, MotionFunction, PositionCounts, Speed, UNUSED,
 };
 use crate::session::ops::basic::{check_stroke, Stroke};
 use crate::session::report::MoveProgress;
@@ -85,7 +128,6 @@ pub(crate) fn move_spec(
         None => MotionFunction::new(actuator.number())
             .ok_or_else(|| Error::invalid(format!("{actuator} has no function of its number")))?,
     };
-    let target = target.get();
     let targets = match config.function_map.drives(function) {
         Some(drives) => {
             if !drives.contains(&actuator) {
@@ -144,22 +186,22 @@ pub(crate) fn decode(it: Item, data: &[u8]) -> Result<Vec<(&'static DataEntry, V
         .map_err(|e| Error::UnexpectedReply { command: Command::Get, detail: format!("{}: {e}", it.name()) })
 }
 
-pub(crate) fn position(value: Value) -> Result<i32, Error> {
+pub(crate) fn position(value: Value) -> Result<PositionCounts, Error> {
     match value {
-        Value::PositionCounts(p) => Ok(p),
+        Value::PositionCounts(p) => Ok(PositionCounts(p)),
         other => Err(Error::UnexpectedReply { command: Command::Get, detail: format!("position {other:?}") }),
     }
 }
 
-pub(crate) fn status1(data: &[u8]) -> Result<Flags, Error> {
+pub(crate) fn status1(data: &[u8]) -> Result<ActuatorStatus1, Error> {
     let [bits] = data[..] else {
         return Err(Error::UnexpectedReply { command: Command::Get, detail: "status is one byte".into() });
     };
-    Ok(Flags { set: FlagSet::ActuatorStatus1, bits: u32::from(bits) })
+    Ok(ActuatorStatus1(bits))
 }
 
-pub(crate) fn connected(status: &[u8; 6]) -> Vec<Actuator> {
-    Actuator::all().filter(|a| ActuatorStatus1(status[usize::from(a.number() - 1)]).available()).collect()
+pub(crate) fn connected(status: &[ActuatorStatus1; 6]) -> Vec<Actuator> {
+    Actuator::all().filter(|a| status[usize::from(a.number() - 1)].available()).collect()
 }
 
 pub(crate) fn error_history(data: &[u8]) -> Result<[ErrorCode; 5], Error> {
@@ -176,8 +218,8 @@ pub(crate) fn stream_targets(
     function: MotionFunction,
     actuators: &[Actuator],
     limits: &[Stroke],
-    targets: &[i32],
-) -> Result<Vec<(Actuator, i32)>, Error> {
+    targets: &[PositionCounts],
+) -> Result<Vec<(Actuator, PositionCounts)>, Error> {
     if targets.len() != actuators.len() {
         return Err(Error::invalid(format!(
             "{} target(s) given; {function} drives {}: one each",
@@ -193,14 +235,14 @@ pub(crate) fn stream_targets(
 
 pub(crate) fn stream_positions(
     actuators: &[Actuator],
-    status: &[u8; 6],
-    positions: &[i32; 6],
-) -> Vec<(Actuator, i32, bool)> {
+    status: &[ActuatorStatus1; 6],
+    positions: &[PositionCounts; 6],
+) -> Vec<(Actuator, PositionCounts, bool)> {
     actuators
         .iter()
         .map(|a| {
             let i = usize::from(a.number() - 1);
-            (*a, positions[i], ActuatorStatus1(status[i]).moving())
+            (*a, positions[i], status[i].moving())
         })
         .collect()
 }

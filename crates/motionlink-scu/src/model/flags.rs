@@ -208,6 +208,20 @@ impl ActuatorStatus1 {
     }
 }
 
+impl From<ActuatorStatus1> for Flags {
+    /// The word as the data list's value of an actuator's status 1 (0x0171..0x0176).
+    fn from(s: ActuatorStatus1) -> Flags {
+        Flags { set: FlagSet::ActuatorStatus1, bits: u32::from(s.bits()) }
+    }
+}
+
+impl From<ActuatorStatus2> for Flags {
+    /// The word as the data list's value of an actuator's status 2 (0x00E1..0x00E6).
+    fn from(s: ActuatorStatus2) -> Flags {
+        Flags { set: FlagSet::ActuatorStatus2, bits: u32::from(s.bits()) }
+    }
+}
+
 /// One named bit of a [`FlagSet`], as the data list shows it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FlagBit {

@@ -198,19 +198,32 @@ impl fmt::Display for Speed {
 }
 
 /// A position in encoder counts (the only unit of position the SCU has; positions are INT32).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
+///
+/// Built explicitly, `PositionCounts(400)` or [`PositionCounts::new`]: a bare number is not a position, so
+/// it does not compile where one is meant. It serialises as the bare number of counts.
+///
+/// ```compile_fail
+/// use motionlink_scu::model::PositionCounts;
+/// let p: PositionCounts = 400.into(); // no `From<i32>`: say what the number is
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default, serde::Serialize)]
+#[serde(transparent)]
 pub struct PositionCounts(pub i32);
 
 impl PositionCounts {
+    /// `counts` encoder counts.
+    pub const fn new(counts: i32) -> Self {
+        PositionCounts(counts)
+    }
+
     /// The number of counts.
     pub const fn get(self) -> i32 {
         self.0
     }
-}
 
-impl From<i32> for PositionCounts {
-    fn from(counts: i32) -> Self {
-        PositionCounts(counts)
+    /// `self` minus `other`, in counts (as `i64`: the difference of two INT32 positions always fits).
+    pub const fn counts_from(self, other: PositionCounts) -> i64 {
+        self.0 as i64 - other.0 as i64
     }
 }
 

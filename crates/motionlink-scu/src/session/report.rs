@@ -4,21 +4,21 @@ use std::time::Duration;
 
 use motionlink_link::Timestamp;
 
-use crate::model::{Actuator, ActuatorStatus1, Function, MotionFunction};
+use crate::model::{Actuator, ActuatorStatus1, Function, MotionFunction, PositionCounts};
 
 /// Where a move is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MoveProgress {
     /// The actuator the move is about (the one named to `move_to`, the first target of `move_function`).
     pub actuator: Actuator,
-    /// Where it is, in counts.
-    pub position_counts: i32,
-    /// Where it started, in counts.
-    pub start_counts: i32,
-    /// Where it is going, in counts.
-    pub target_counts: i32,
+    /// Where it is.
+    pub position_counts: PositionCounts,
+    /// Where it started.
+    pub start_counts: PositionCounts,
+    /// Where it is going.
+    pub target_counts: PositionCounts,
     /// Actuator status 1.
-    pub status: u8,
+    pub status: ActuatorStatus1,
 }
 
 /// How one actuator of a move ended.
@@ -26,12 +26,12 @@ pub struct MoveProgress {
 pub struct ActuatorOutcome {
     /// The actuator.
     pub actuator: Actuator,
-    /// Its target, in counts.
-    pub target_counts: i32,
-    /// Where it started, in counts.
-    pub start_counts: i32,
-    /// Where it ended (read after the unit reported the end of the motion), in counts.
-    pub position_counts: i32,
+    /// Its target.
+    pub target_counts: PositionCounts,
+    /// Where it started.
+    pub start_counts: PositionCounts,
+    /// Where it ended (read after the unit reported the end of the motion).
+    pub position_counts: PositionCounts,
     /// Whether it moved (its motion bit was seen, or its position changed by more than the tolerance). An
     /// actuator of a function whose drives are unknown that did not move is not driven by it.
     pub moved: bool,
@@ -40,7 +40,7 @@ pub struct ActuatorOutcome {
 impl ActuatorOutcome {
     /// Position minus target, in counts.
     pub fn difference_counts(&self) -> i64 {
-        i64::from(self.position_counts) - i64::from(self.target_counts)
+        self.position_counts.counts_from(self.target_counts)
     }
 }
 
@@ -51,8 +51,8 @@ pub struct MoveReport {
     pub actuator: Actuator,
     /// The function that drove it.
     pub function: MotionFunction,
-    /// Where that actuator ended, in counts.
-    pub position_counts: i32,
+    /// Where that actuator ended.
+    pub position_counts: PositionCounts,
     /// How long it took on the session's clock.
     pub duration: Duration,
     /// Every actuator whose remote position the move wrote, in actuator order.
@@ -66,10 +66,10 @@ pub struct RunProgress {
     pub function: Function,
     /// How long it has run.
     pub elapsed: Duration,
-    /// Actuator status 1 of A1..A6 (zero where not read: a switching function).
-    pub statuses: [u8; 6],
-    /// Positions of A1..A6 in counts (zero where not read).
-    pub positions: [i32; 6],
+    /// Actuator status 1 of A1..A6 (empty where not read: a switching function).
+    pub statuses: [ActuatorStatus1; 6],
+    /// Positions of A1..A6 (zero where not read).
+    pub positions: [PositionCounts; 6],
 }
 
 /// How a function's run ended.
@@ -79,8 +79,8 @@ pub struct RunReport {
     pub function: Function,
     /// How long it ran.
     pub duration: Duration,
-    /// Where each connected actuator came to rest, in counts, read after the stop.
-    pub rest: Vec<(Actuator, i32)>,
+    /// Where each connected actuator came to rest, read after the stop.
+    pub rest: Vec<(Actuator, PositionCounts)>,
 }
 
 /// The status and position of every actuator at one instant: the read data of the cyclic object that polls
@@ -90,33 +90,30 @@ pub struct Snapshot {
     /// When the data arrived.
     pub at: Timestamp,
     /// Actuator status 1 of A1..A6.
-    pub statuses: [u8; 6],
-    /// Positions of A1..A6, in counts.
-    pub positions: [i32; 6],
+    pub statuses: [ActuatorStatus1; 6],
+    /// Positions of A1..A6.
+    pub positions: [PositionCounts; 6],
 }
 
 impl Snapshot {
     /// Actuator `a`'s status 1.
-    pub fn status(&self, a: Actuator) -> u8 {
+    pub fn status(&self, a: Actuator) -> ActuatorStatus1 {
         self.statuses[usize::from(a.number() - 1)]
     }
 
-    /// Actuator `a`'s position in counts.
-    pub fn position(&self, a: Actuator) -> i32 {
+    /// Actuator `a`'s position.
+    pub fn position(&self, a: Actuator) -> PositionCounts {
         self.positions[usize::from(a.number() - 1)]
     }
 
     /// True if actuator `a` reports motion.
     pub fn moving(&self, a: Actuator) -> bool {
-        ActuatorStatus1(self.status(a)).moving()
+        self.status(a).moving()
     }
 
     /// Every connected actuator ("drive available") with its position.
-    pub fn connected_positions(&self) -> Vec<(Actuator, i32)> {
-        Actuator::all()
-            .filter(|a| ActuatorStatus1(self.status(*a)).available())
-            .map(|a| (a, self.position(a)))
-            .collect()
+    pub fn connected_positions(&self) -> Vec<(Actuator, PositionCounts)> {
+        Actuator::all().filter(|a| self.status(*a).available()).map(|a| (a, self.position(a))).collect()
     }
 }
 

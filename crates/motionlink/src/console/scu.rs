@@ -9,8 +9,8 @@ use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::SharedClock;
 use motionlink_scu::model::{
-    lookup, status1, Actuator, DataIndex, Item, MotionDirection, MotionFunction, SafetyId, Speed, SpeedMode, StopMode,
-    TABLE,
+    lookup, Actuator, DataIndex, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode,
+    StopMode, TABLE,
 };
 use motionlink_scu::session::RunAction;
 use motionlink_scu::value::Value as ScuValue;
@@ -235,11 +235,11 @@ impl Device for Scu {
                     .iter()
                     .map(|u| {
                         let i = usize::from(u.id.saturating_sub(1)).min(5);
-                        let flags = motionlink_scu::model::ActuatorStatus1(status[i]);
+                        let flags = status[i];
                         use motionlink_link::flags::FlagWord;
                         Ok(Sample {
                             id: u.id,
-                            position: f64::from(positions[i]),
+                            position: f64::from(positions[i].get()),
                             speed: speeds.get(i).map(|s| f64::from(*s)),
                             current_amps: currents.get(i).map(|c| f64::from(*c) / 10.0),
                             flags: flags.names(),
@@ -250,7 +250,7 @@ impl Device for Scu {
                                 .map(|f| f.name())
                                 .collect(),
                             unknown_bits: flags.unknown(),
-                            moving: status[i] & status1::MOTION != 0,
+                            moving: flags.moving(),
                         })
                     })
                     .collect(),
@@ -266,12 +266,12 @@ impl Device for Scu {
         }
         let speed = self.speed(speed)?.unwrap_or(Speed::of_mode(self.speed_mode, self.speed_mode.max()).expect("max"));
         let function = self.function_of(a)?;
-        let op = self.client.move_to_op(a, target as i32, speed, Some(function)).map_err(failure)?;
+        let op = self.client.move_to_op(a, PositionCounts(target as i32), speed, Some(function)).map_err(failure)?;
         Ok(Box::pin(async move {
             let out = self.client.start(op).await.map_err(failure)?;
             match out {
                 motionlink_scu::Output::Move(r) => Ok(format!(
-                    "{a} at {} counts (target {target}) after {:.2} s",
+                    "{a} at {} (target {target}) after {:.2} s",
                     r.position_counts,
                     r.duration.as_secs_f64()
                 )),
@@ -295,7 +295,7 @@ impl Device for Scu {
             }
             // Runs until the unit reports the end of travel; dropped, the session sends RS (fast) and checks it.
             let r = self.client.run(RunAction::Motion(function, dir), None).await.map_err(failure)?;
-            let rest = r.rest.iter().map(|(a, p)| format!("{a} at {p} counts")).collect::<Vec<_>>().join(", ");
+            let rest = r.rest.iter().map(|(a, p)| format!("{a} at {p}")).collect::<Vec<_>>().join(", ");
             Ok(format!("{function} ran {:.2} s to its end of travel: {rest}", r.duration.as_secs_f64()))
         }))
     }

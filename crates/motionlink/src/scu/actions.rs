@@ -6,8 +6,8 @@ use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
 use motionlink_scu::model::{
-    status1, Actuator, DataEntry, DataEntryExt, DataIndex, ErrorCode, FlagSet, Flags, Function, Item, Kind,
-    MotionFunction, Speed, SpeedMode,
+    Actuator, ActuatorStatus1, DataEntry, DataEntryExt, DataIndex, ErrorCode, Flags, Function, Item, Kind,
+    MotionFunction, PositionCounts, Speed, SpeedMode,
 };
 use motionlink_scu::session::{MoveProgress, MoveReport, RunAction, RunProgress};
 use motionlink_scu::value::Value;
@@ -72,11 +72,11 @@ pub(super) fn unit_json(e: &DataEntry, speed_mode: SpeedMode) -> &'static str {
     }
 }
 
-/// An actuator's status 1 byte as the fields of its JSON object: `word`, `flags`, `unknown_bits` (when
+/// An actuator's status 1 as the fields of its JSON object: `word`, `flags`, `unknown_bits` (when
 /// nonzero) and `moving`.
-fn status_fields(s: u8) -> serde_json::Value {
-    let mut v = flag_word_json(&Flags { set: FlagSet::ActuatorStatus1, bits: u32::from(s) });
-    v["moving"] = json!(s & status1::MOTION != 0);
+fn status_fields(s: ActuatorStatus1) -> serde_json::Value {
+    let mut v = flag_word_json(&Flags::from(s));
+    v["moving"] = json!(s.moving());
     v
 }
 
@@ -167,7 +167,7 @@ pub(super) fn set(
 pub(super) fn move_to(
     client: &Client,
     a: Actuator,
-    position: i32,
+    position: PositionCounts,
     speed: Speed,
     function: MotionFunction,
     report: &Report<'_>,
@@ -175,21 +175,21 @@ pub(super) fn move_to(
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let start = client.position(a).map_err(cl)?;
-    let bar = common::progress_bar(u64::from(start.abs_diff(position)), format!("{a} -> {position}"));
-    let progress = |p: &MoveProgress| bar.set_position(u64::from(p.position_counts.abs_diff(p.start_counts)));
+    let bar = common::progress_bar(start.counts_from(position).unsigned_abs(), format!("{a} -> {}", position.get()));
+    let progress = |p: &MoveProgress| bar.set_position(p.position_counts.counts_from(p.start_counts).unsigned_abs());
     let options = MoveOptions { cancel: Some(interrupt), progress: Some(&progress), function: Some(function) };
     let result = client.move_to(a, position, speed, &options);
     bar.finish_and_clear();
     print_move_report(out, &result.map_err(cl)?, report)
 }
 
-pub(super) fn connected_actuators(client: &Client) -> Result<Vec<(Actuator, u8)>, CliError> {
-    let raw = client.get_raw(DataIndex(0x0170)).map_err(cl)?;
-    Ok(Actuator::all().zip(raw).filter(|(_, s)| s & status1::AVAILABLE != 0).collect())
+pub(super) fn connected_actuators(client: &Client) -> Result<Vec<(Actuator, ActuatorStatus1)>, CliError> {
+    let statuses = client.statuses().map_err(cl)?;
+    Ok(Actuator::all().zip(statuses).filter(|(_, s)| s.available()).collect())
 }
 
-fn status_text(s: u8) -> String {
-    Value::Flags(Flags { set: FlagSet::ActuatorStatus1, bits: u32::from(s) }).to_string()
+fn status_text(s: ActuatorStatus1) -> String {
+    Value::Flags(Flags::from(s)).to_string()
 }
 
 pub(super) fn info(client: &Client, report: &Report<'_>, out: &mut dyn Write) -> Result<(), CliError> {
@@ -280,7 +280,7 @@ pub(super) fn watch(
     }
     while !interrupt.is_cancelled() && count.is_none_or(|c| n < c) {
         let positions = client.get(DataIndex(0x0010)).map_err(cl)?;
-        let status = client.get_raw(DataIndex(0x0170)).map_err(cl)?;
+        let status = client.statuses().map_err(cl)?;
         let currents = client.get(DataIndex(0x00A0)).map_err(cl)?;
         let last_error = client.get_value(DataIndex(0x00D1)).map_err(cl)?;
         let t = (clock.now() - started).as_secs_f64();
@@ -319,7 +319,7 @@ pub(super) fn watch(
                         format!("{t:.3}"),
                         a.number().to_string(),
                         position.to_json().to_string(),
-                        (status & status1::MOTION != 0).to_string(),
+                        status.moving().to_string(),
                         format!("{:.1}", amps(current)),
                         code.to_string(),
                     ];
@@ -329,7 +329,7 @@ pub(super) fn watch(
             Format::Text => {
                 let mut line = format!("{t:7.2} s");
                 for (a, position, status, current) in &rows {
-                    let moving = if status & status1::MOTION != 0 { "moving" } else { "stopped" };
+                    let moving = if status.moving() { "moving" } else { "stopped" };
                     line.push_str(&format!("  {a}: {position} {moving} {current}"));
                 }
                 if code != ErrorCode::NONE.0 {
@@ -387,7 +387,7 @@ pub(super) fn run(
         )?;
     } else {
         writeln!(out, "{function} stopped")?;
-        let rows: Vec<Row> = rest.iter().map(|(a, p)| (a.to_string(), format!("{p} counts"))).collect();
+        let rows: Vec<Row> = rest.iter().map(|(a, p)| (a.to_string(), p.to_string())).collect();
         common::print_table(out, &rows)?;
     }
     if interrupted {
@@ -413,16 +413,16 @@ pub(super) fn print_move_report(out: &mut dyn Write, report: &MoveReport, how: &
             out,
             json!({"actuator": report.actuator.number(), "function": report.function.number(),
                    "reached_counts": report.position_counts, "target_counts": target,
-                   "difference_counts": target.map(|t| i64::from(report.position_counts) - i64::from(t)),
+                   "difference_counts": target.map(|t| report.position_counts.counts_from(t)),
                    "time_s": report.duration.as_secs_f64(), "actuators": actuators}),
         );
     }
     let mut rows: Vec<Row> = vec![("function".into(), report.function.to_string())];
     for o in &report.actuators {
         let text = if o.moved || o.actuator == report.actuator {
-            format!("{} counts (target {}, difference {})", o.position_counts, o.target_counts, o.difference_counts())
+            format!("{} (target {}, difference {})", o.position_counts, o.target_counts.get(), o.difference_counts())
         } else {
-            format!("{} counts (did not move: not driven by {})", o.position_counts, report.function)
+            format!("{} (did not move: not driven by {})", o.position_counts, report.function)
         };
         rows.push((o.actuator.to_string(), text));
     }
@@ -433,6 +433,7 @@ pub(super) fn print_move_report(out: &mut dyn Write, report: &MoveReport, how: &
 #[cfg(test)]
 mod tests {
     use super::*;
+    use motionlink_scu::model::FlagSet;
 
     #[test]
     fn currents_are_amperes_converted_once_and_flag_words_have_word_and_flags() {

@@ -11,7 +11,7 @@ use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::transcript::{TapLink, Transcript};
 use motionlink_link::{ManualClock, SharedClock};
 use motionlink_scu::describe::{describe_request, fold_transcript, Describer, TranscriptLine};
-use motionlink_scu::model::{status1, Actuator, DataIndex, MotionDirection, MotionFunction, StopMode};
+use motionlink_scu::model::{Actuator, DataIndex, MotionDirection, MotionFunction, PositionCounts, StopMode};
 use motionlink_scu::value::Value;
 use motionlink_scu::wire::{request_to_vec, Request};
 use motionlink_scu::{Client, ClientConfig, Emulator, SimConfig};
@@ -101,17 +101,17 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
         Client::open(connector, Arc::clone(&shared), ClientConfig::default()).map_err(|e| common::classified(&e))?;
     let a1 = Actuator::new(1).ok_or_else(|| CliError::usage("actuator 1"))?;
     let f1 = MotionFunction::new(1).ok_or_else(|| CliError::usage("F1"))?;
-    let target = 400;
-    let steps = || -> Result<(i32, Duration), motionlink_scu::Error> {
+    let target = PositionCounts(400);
+    let steps = || -> Result<(PositionCounts, Duration), motionlink_scu::Error> {
         client.set(DataIndex(0x3011), &Value::RemoteSpeed(80))?;
-        client.set(a1.remote_position_index(), &Value::RemotePosition(target))?;
+        client.set(a1.remote_position_index(), &Value::RemotePosition(target.get()))?;
         let started = shared.now();
         client.start_motion(f1, MotionDirection::RemotePosition)?;
         let pause = shared.signal();
         loop {
             let until = shared.now() + Duration::from_millis(250);
             while pause.wait_until(Some(until)) == motionlink_link::clock::Wake::Raised {}
-            if client.status1(a1)?.bits as u8 & status1::MOTION == 0 {
+            if !client.status1(a1)?.moving() {
                 break;
             }
         }
@@ -129,7 +129,8 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
     writeln!(out)?;
     writeln!(
         out,
-        "Result: actuator 1 reached {position} counts (target {target}) in {:.1} s at 80 %; {keepalives} RC keepalives kept the 500 ms watchdog fed; RS and RA closed the session.",
+        "Result: actuator 1 reached {position} (target {}) in {:.1} s at 80 %; {keepalives} RC keepalives kept the 500 ms watchdog fed; RS and RA closed the session.",
+        target.get(),
         took.as_secs_f64()
     )?;
     let idle_error = host.with_device(|u| u.last_error());

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
-use motionlink_scu::model::{Actuator, MotionFunction, Speed, SpeedMode, StopMode};
+use motionlink_scu::model::{Actuator, MotionFunction, PositionCounts, Speed, SpeedMode, StopMode};
 use motionlink_scu::Client;
 use serde_json::json;
 
@@ -19,7 +19,7 @@ pub(super) enum FollowLine {
     /// Nothing (blank or a comment).
     Skip,
     /// New targets, one per actuator of the stream.
-    Targets(Vec<i32>),
+    Targets(Vec<PositionCounts>),
     /// A new speed.
     Speed(Speed),
 }
@@ -36,7 +36,8 @@ pub(super) fn parse_follow_line(line: &str, actuators: &[Actuator], mode: SpeedM
         let value = rest.trim().trim_start_matches('=').trim();
         return parse_speed(value, mode).map(FollowLine::Speed).map_err(|e| e.to_string());
     }
-    let count = |w: &str| w.parse::<i32>().map_err(|_| format!("{w:?} is not a position in counts"));
+    let count =
+        |w: &str| w.parse::<i32>().map(PositionCounts).map_err(|_| format!("{w:?} is not a position in counts"));
     if words.iter().all(|w| !w.contains('=')) {
         let values = words.iter().map(|w| count(w)).collect::<Result<Vec<_>, _>>()?;
         return match values.len() {
@@ -124,9 +125,9 @@ pub(super) fn follow(
     let clock = Arc::clone(client.clock());
     let gap = Duration::from_secs(1) / rate_hz;
     let mut last_update: Option<motionlink_link::Timestamp> = None;
-    let mut pending: Option<Vec<i32>> = None;
+    let mut pending: Option<Vec<PositionCounts>> = None;
     let mut updates = 0u64;
-    let mut last_targets: Option<Vec<i32>> = None;
+    let mut last_targets: Option<Vec<PositionCounts>> = None;
     let mut failure: Option<Result<CliError, motionlink_scu::Error>> = loop {
         if interrupt.is_cancelled() {
             break Some(Ok(CliError::Interrupted(format!("interrupted; {function} stopped"))));
@@ -180,7 +181,7 @@ pub(super) fn follow(
         Some(Err(scu)) => return Err(common::classified(&stream.abort(scu))),
     };
     let rest = stream.stop(mode).map_err(|e| common::classified(&e))?;
-    let text: Vec<String> = rest.iter().map(|(a, p)| format!("{a}={p}")).collect();
+    let text: Vec<String> = rest.iter().map(|(a, p)| format!("{a}={}", p.get())).collect();
     if report.json {
         let list: Vec<_> = rest.iter().map(|(a, p)| json!({"actuator": a.number(), "reached_counts": p})).collect();
         report.print(out, json!({"stopped": true, "actuators": list, "updates": updates}))?;
@@ -202,8 +203,10 @@ pub(super) fn follow(
             .iter()
             .zip(targets)
             .filter(|((a, _), _)| driven(a))
-            .filter(|((_, p), t)| (i64::from(*p) - i64::from(**t)).abs() > tolerance)
-            .map(|((a, p), t)| format!("{a}: target {t}, reached {p}, difference {}", i64::from(*p) - i64::from(*t)))
+            .filter(|((_, p), t)| p.counts_from(**t).abs() > tolerance)
+            .map(|((a, p), t)| {
+                format!("{a}: target {}, reached {}, difference {}", t.get(), p.get(), p.counts_from(*t))
+            })
             .collect();
         if !missed.is_empty() {
             return Err(CliError::Device(format!(
@@ -218,7 +221,7 @@ pub(super) fn follow(
 /// Writes one update of targets and prints it. The outer error is the output's, the inner the device's.
 fn apply(
     stream: &mut motionlink_scu::client::SetpointStream<'_>,
-    targets: &[i32],
+    targets: &[PositionCounts],
     report: &Report<'_>,
     out: &mut dyn Write,
 ) -> Result<Result<(), motionlink_scu::Error>, CliError> {
@@ -231,7 +234,7 @@ fn apply(
             actuators.iter().zip(targets).map(|(a, t)| json!({"actuator": a.number(), "target_counts": t})).collect();
         report.print(out, json!({"targets": list}))?;
     } else {
-        let text: Vec<String> = actuators.iter().zip(targets).map(|(a, t)| format!("{a}={t}")).collect();
+        let text: Vec<String> = actuators.iter().zip(targets).map(|(a, t)| format!("{a}={}", t.get())).collect();
         writeln!(out, "target {}", text.join(" "))?;
     }
     out.flush()?;

@@ -13,7 +13,8 @@ use motionlink_link::url::PortUrl;
 use motionlink_link::{RealClock, SharedClock};
 use motionlink_scu::describe::Describer;
 use motionlink_scu::model::{
-    lookup, Actuator, Function, Item, MotionDirection, MotionFunction, SafetyId, Speed, SpeedMode, StopMode,
+    lookup, Actuator, Function, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode,
+    StopMode,
 };
 use motionlink_scu::session::RunAction;
 use motionlink_scu::{Client, ClientConfig, Emulator, Ending, FunctionMap, SimConfig, StrokeLimits};
@@ -489,7 +490,16 @@ fn act(
         Action::Move { actuator, position, speed, function } => {
             let a = parse_actuator(*actuator)?;
             let function = motion_function(a, *function)?;
-            actions::move_to(client, a, *position, parse_speed(speed, mode)?, function, report, interrupt, out)
+            actions::move_to(
+                client,
+                a,
+                PositionCounts(*position),
+                parse_speed(speed, mode)?,
+                function,
+                report,
+                interrupt,
+                out,
+            )
         }
         Action::Follow { actuator, function, speed, rate } => {
             let a = parse_actuator(*actuator)?;
@@ -542,9 +552,9 @@ mod tests {
     fn follow_lines_give_one_target_for_all_one_each_or_named_ones() {
         let two = [a(1), a(2)];
         let p = |l: &str| parse_follow_line(l, &two, SpeedMode::Percent);
-        assert_eq!(p("400"), Ok(FollowLine::Targets(vec![400, 400])));
-        assert_eq!(p(" 400  410 "), Ok(FollowLine::Targets(vec![400, 410])));
-        assert_eq!(p("a2=410 A1=-3"), Ok(FollowLine::Targets(vec![-3, 410])));
+        assert_eq!(p("400"), Ok(FollowLine::Targets(vec![PositionCounts(400), PositionCounts(400)])));
+        assert_eq!(p(" 400  410 "), Ok(FollowLine::Targets(vec![PositionCounts(400), PositionCounts(410)])));
+        assert_eq!(p("a2=410 A1=-3"), Ok(FollowLine::Targets(vec![PositionCounts(-3), PositionCounts(410)])));
         assert_eq!(p("speed 60"), Ok(FollowLine::Speed(Speed::percent(60).unwrap())));
         assert_eq!(p("speed=60 # slower"), Ok(FollowLine::Speed(Speed::percent(60).unwrap())));
         assert_eq!(p("   # only a comment"), Ok(FollowLine::Skip));

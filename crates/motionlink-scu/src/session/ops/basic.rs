@@ -3,7 +3,9 @@
 use super::{get, Cx, Next, Operation, Output, Resume, Step};
 use crate::config::StrokeLimits;
 use crate::error::Error;
-use crate::model::{item, Actuator, CyclicObject, DataEntry, DataIndex, Item, MotionFunction, SpeedMode, StopMode};
+use crate::model::{
+    item, Actuator, CyclicObject, DataEntry, DataIndex, Item, MotionFunction, PositionCounts, SpeedMode, StopMode,
+};
 use crate::session::request::{OwnedReply, PreparedRequest, Req, Schedule};
 use crate::session::CyclicUse;
 use crate::value::{decode_item, Value};
@@ -203,7 +205,7 @@ impl StrokeRead {
                             })
                         } else {
                             Ok(Some((
-                                StrokeLimits { min_counts: lo, max_counts: hi },
+                                StrokeLimits { min_counts: PositionCounts(lo), max_counts: PositionCounts(hi) },
                                 "the virtual limits of its UserPositionData",
                             )))
                         }
@@ -222,7 +224,7 @@ impl StrokeRead {
 }
 
 /// Refuses `target` for `a` if it lies outside `stroke`.
-pub(crate) fn check_stroke(a: Actuator, target: i32, stroke: &Stroke) -> Result<(), Error> {
+pub(crate) fn check_stroke(a: Actuator, target: PositionCounts, stroke: &Stroke) -> Result<(), Error> {
     if let Some((s, limits_from)) = stroke {
         if !(s.min_counts..=s.max_counts).contains(&target) {
             return Err(Error::OutsideStroke {

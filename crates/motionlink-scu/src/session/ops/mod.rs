@@ -11,7 +11,10 @@ use super::request::{OwnedReply, PreparedRequest, Req};
 use super::Core;
 use crate::config::{ClientConfig, StrokeLimits};
 use crate::error::Error;
-use crate::model::{Actuator, CyclicObject, DataIndex, Function, MotionDirection, MotionFunction, Speed, StopMode};
+use crate::model::{
+    Actuator, ActuatorStatus1, CyclicObject, DataIndex, Function, MotionDirection, MotionFunction, PositionCounts,
+    Speed, StopMode,
+};
 use crate::value::Value;
 
 pub(crate) mod basic;
@@ -76,8 +79,8 @@ pub enum Op {
     StreamTargets {
         /// The function.
         function: MotionFunction,
-        /// Each actuator's new target, in counts.
-        targets: Vec<(Actuator, i32)>,
+        /// Each actuator's new target.
+        targets: Vec<(Actuator, PositionCounts)>,
     },
     /// RS of a function, then the status of `watch` until none moves ([`crate::SetpointStream::stop`]); with
     /// `after`, the stop that follows that failure (fast; the error to report comes back).
@@ -99,10 +102,10 @@ pub enum Op {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum MoveTargets {
     /// Exactly these (the function map knows the function, or the caller named them).
-    Given(Vec<(Actuator, i32)>),
+    Given(Vec<(Actuator, PositionCounts)>),
     /// The function's drives are not known: every connected actuator gets this target, and the ones that
     /// moved are reported.
-    EveryConnected(i32),
+    EveryConnected(PositionCounts),
 }
 
 /// A verified move.
@@ -157,8 +160,8 @@ pub enum Output {
         /// Its read data.
         data: Vec<u8>,
     },
-    /// Where each actuator came to rest, in counts.
-    Rest(Vec<(Actuator, i32)>),
+    /// Where each actuator came to rest.
+    Rest(Vec<(Actuator, PositionCounts)>),
     /// How a run ended.
     Run(RunReport),
 }
@@ -276,20 +279,22 @@ pub(crate) fn get(index: DataIndex) -> Next {
 }
 
 /// The six status-1 bytes of an RG of 0x0170.
-pub(crate) fn statuses(data: &[u8]) -> Result<[u8; 6], Error> {
-    <[u8; 6]>::try_from(data).map_err(|_| Error::UnexpectedReply {
+pub(crate) fn statuses(data: &[u8]) -> Result<[ActuatorStatus1; 6], Error> {
+    <[u8; 6]>::try_from(data).map(|raw| raw.map(ActuatorStatus1)).map_err(|_| Error::UnexpectedReply {
         command: crate::wire::Command::Get,
         detail: "status 1 is 6 x 1 byte".into(),
     })
 }
 
 /// The six positions of an RG of 0x0010.
-pub(crate) fn positions(data: &[u8]) -> Result<[i32; 6], Error> {
+pub(crate) fn positions(data: &[u8]) -> Result<[PositionCounts; 6], Error> {
     if data.len() != 24 {
         return Err(Error::UnexpectedReply {
             command: crate::wire::Command::Get,
             detail: "positions are 6 x 4 bytes".into(),
         });
     }
-    Ok(std::array::from_fn(|i| i32::from_le_bytes([data[4 * i], data[4 * i + 1], data[4 * i + 2], data[4 * i + 3]])))
+    Ok(std::array::from_fn(|i| {
+        PositionCounts(i32::from_le_bytes([data[4 * i], data[4 * i + 1], data[4 * i + 2], data[4 * i + 3]]))
+    }))
 }

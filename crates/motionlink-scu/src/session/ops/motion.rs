@@ -9,7 +9,9 @@ use super::stop::{after_stop, StopMachine};
 use super::{get, positions, statuses, Cx, MoveSpec, MoveTargets, Next, Operation, Output, Progress, Resume, Step};
 use crate::error::Error;
 use crate::model::ActuatorStatus1;
-use crate::model::{Actuator, CyclicObject, DataIndex, ErrorCode, Function, MotionDirection, StopMode, UNUSED};
+use crate::model::{
+    Actuator, CyclicObject, DataIndex, ErrorCode, Function, MotionDirection, PositionCounts, StopMode, UNUSED,
+};
 use crate::session::report::{ActuatorOutcome, MoveProgress, MoveReport, Snapshot};
 use crate::session::request::{PreparedRequest, Req, Schedule};
 use crate::session::POLL_READ;
@@ -33,7 +35,7 @@ enum Phase {
     Poll,
     /// Reading the status (reads polling); then the positions.
     PollStatus,
-    PollPositions([u8; 6]),
+    PollPositions([ActuatorStatus1; 6]),
     /// Reading Error_Code 1 for the report of a move that ended away from its target.
     ErrorCode(Error),
     /// The RS that ends a move that reached its target.
@@ -49,13 +51,13 @@ pub(crate) struct Move {
     started_at: Timestamp,
     speed: u16,
     drives_unknown: bool,
-    targets: Vec<(Actuator, i32)>,
+    targets: Vec<(Actuator, PositionCounts)>,
     /// The targets, the primary actuator first (its problem is the one reported).
-    order: Vec<(Actuator, i32)>,
-    status: [u8; 6],
-    start: [i32; 6],
+    order: Vec<(Actuator, PositionCounts)>,
+    status: [ActuatorStatus1; 6],
+    start: [PositionCounts; 6],
     seen_motion: [bool; 6],
-    last_position: [i32; 6],
+    last_position: [PositionCounts; 6],
     last_progress_at: [Timestamp; 6],
     next_poll: Timestamp,
     by_snapshot: bool,
@@ -76,10 +78,10 @@ impl Move {
             drives_unknown: false,
             targets: Vec::new(),
             order: Vec::new(),
-            status: [0; 6],
-            start: [0; 6],
+            status: [ActuatorStatus1::EMPTY; 6],
+            start: [PositionCounts(0); 6],
             seen_motion: [false; 6],
-            last_position: [0; 6],
+            last_position: [PositionCounts(0); 6],
             last_progress_at: [now; 6],
             next_poll: now,
             by_snapshot: false,
@@ -87,8 +89,8 @@ impl Move {
         }
     }
 
-    fn primary_target(&self) -> i32 {
-        self.targets.iter().find(|(a, _)| *a == self.spec.primary).map_or(0, |(_, t)| *t)
+    fn primary_target(&self) -> PositionCounts {
+        self.targets.iter().find(|(a, _)| *a == self.spec.primary).map_or(PositionCounts(0), |(_, t)| *t)
     }
 
     /// Checks what can be checked before anything is sent.
@@ -116,7 +118,7 @@ impl Move {
     /// connected, and each target lies within its stroke.
     fn checked_status(&mut self, data: Vec<u8>) -> Result<(), Error> {
         self.status = statuses(&data)?;
-        let available = |a: Actuator| ActuatorStatus1(self.status[idx(a)]).available();
+        let available = |a: Actuator| self.status[idx(a)].available();
         if let MoveTargets::EveryConnected(t) = self.spec.targets {
             if !available(self.spec.primary) {
                 return Err(Error::NotConnected(self.spec.primary));
@@ -179,7 +181,7 @@ impl Move {
     fn next_target(&mut self, i: usize) -> Next {
         let write = if i < self.targets.len() {
             let (a, t) = self.targets[i];
-            Write::new(a.remote_position_index(), Value::RemotePosition(t).to_bytes(), true)
+            Write::new(a.remote_position_index(), Value::RemotePosition(t.get()).to_bytes(), true)
         } else {
             Write::new(self.spec.function.remote_speed_index(), self.speed.to_le_bytes().to_vec(), true)
         };
@@ -247,7 +249,7 @@ impl Move {
     }
 
     /// One look at the actuators: progress, the end of the motion and its judgement, a stall, the time limit.
-    fn judge(&mut self, cx: &mut Cx<'_>, status: [u8; 6], positions: [i32; 6]) -> Next {
+    fn judge(&mut self, cx: &mut Cx<'_>, status: [ActuatorStatus1; 6], positions: [PositionCounts; 6]) -> Next {
         let (tolerance_counts, start_grace, stall_timeout, move_timeout) = {
             let c = cx.config();
             (c.position_tolerance_counts, c.start_grace, c.stall_timeout, c.move_timeout)
@@ -267,7 +269,7 @@ impl Move {
         let tolerance = i64::from(tolerance_counts);
         let mut moving = false;
         for &(a, _) in &self.targets {
-            if ActuatorStatus1(status[idx(a)]).moving() {
+            if status[idx(a)].moving() {
                 self.seen_motion[idx(a)] = true;
                 moving = true;
             }
@@ -282,7 +284,7 @@ impl Move {
                     start_counts: self.start[idx(a)],
                     position_counts: positions[idx(a)],
                     moved: self.seen_motion[idx(a)]
-                        || (i64::from(positions[idx(a)]) - i64::from(self.start[idx(a)])).abs() > tolerance,
+                        || positions[idx(a)].counts_from(self.start[idx(a)]).abs() > tolerance,
                 })
                 .collect();
             // Where the drives are unknown, an actuator that did not move is not driven by the function.
@@ -315,7 +317,7 @@ impl Move {
             if positions[i] != self.last_position[i] {
                 self.last_position[i] = positions[i];
                 self.last_progress_at[i] = now;
-            } else if ActuatorStatus1(status[i]).moving() && now - self.last_progress_at[i] >= stall_timeout {
+            } else if status[i].moving() && now - self.last_progress_at[i] >= stall_timeout {
                 tracing::warn!("{a} stalled at {}", positions[i]);
                 let after = now - self.last_progress_at[i];
                 return self.stop(cx, Error::Stalled { actuator: a, position_counts: positions[i], after });
@@ -456,8 +458,8 @@ impl Operation for Move {
                 let status = r.and_then(|r| r.data(Command::Get)).and_then(|d| match self.single() {
                     Some(a) => match d[..] {
                         [bits] => {
-                            let mut s = [0u8; 6];
-                            s[idx(a)] = bits;
+                            let mut s = [ActuatorStatus1::EMPTY; 6];
+                            s[idx(a)] = ActuatorStatus1(bits);
                             Ok(s)
                         }
                         _ => Err(Error::UnexpectedReply { command: Command::Get, detail: "status is one byte".into() }),
@@ -480,7 +482,7 @@ impl Operation for Move {
                     Some(a) => match d[..] {
                         [b0, b1, b2, b3] => {
                             let mut p = self.start;
-                            p[idx(a)] = i32::from_le_bytes([b0, b1, b2, b3]);
+                            p[idx(a)] = PositionCounts(i32::from_le_bytes([b0, b1, b2, b3]));
                             Ok(p)
                         }
                         _ => Err(Error::UnexpectedReply {

@@ -9,7 +9,7 @@ use super::basic::Write;
 use super::stop::StopMachine;
 use super::{get, statuses, Cx, Next, Operation, Output, Progress, Resume, RunAction, RunSpec, Step};
 use crate::error::Error;
-use crate::model::{Actuator, ActuatorStatus1, CyclicObject, DataIndex, Function, StopMode, UNUSED};
+use crate::model::{Actuator, ActuatorStatus1, CyclicObject, DataIndex, Function, PositionCounts, StopMode, UNUSED};
 use crate::session::report::{RunProgress, RunReport};
 use crate::session::request::{PreparedRequest, Req};
 use crate::session::POLL_READ;
@@ -68,7 +68,7 @@ impl Run {
     }
 
     /// One look at the actuators: progress, and whether the run is over.
-    fn look(&mut self, cx: &mut Cx<'_>, status: [u8; 6], positions: [i32; 6]) -> Next {
+    fn look(&mut self, cx: &mut Cx<'_>, status: [ActuatorStatus1; 6], positions: [PositionCounts; 6]) -> Next {
         let now = cx.now();
         let elapsed = now - self.started_at;
         let function = self.function();
@@ -78,7 +78,7 @@ impl Run {
         }
         if self.spec.limit.is_none() {
             // A motion function ends when none of the actuators moves any more.
-            let moving = status.iter().any(|s| ActuatorStatus1(*s).moving());
+            let moving = status.iter().any(|s| s.moving());
             self.seen_motion |= moving;
             if !moving && (self.seen_motion || elapsed >= cx.config().start_grace) {
                 return self.stop(cx);
@@ -167,8 +167,8 @@ impl Operation for Run {
                     cx.progress(Progress::Run(RunProgress {
                         function,
                         elapsed: now - self.started_at,
-                        statuses: [0; 6],
-                        positions: [0; 6],
+                        statuses: [ActuatorStatus1::EMPTY; 6],
+                        positions: [PositionCounts(0); 6],
                     }));
                     if cx.cancelled {
                         return self.stop(cx);
@@ -192,7 +192,7 @@ impl Operation for Run {
                     return self.stop(cx);
                 }
                 match r.and_then(|r| r.data(Command::Get)).and_then(|d| statuses(&d)) {
-                    Ok(s) => self.look(cx, s, [0; 6]),
+                    Ok(s) => self.look(cx, s, [PositionCounts(0); 6]),
                     Err(e) => {
                         tracing::warn!("{function}: the status could not be read ({e}); stopping it");
                         self.stop(cx)
@@ -212,8 +212,8 @@ impl Operation for Run {
                     let stop = machine.describe();
                     Next::Done(match stopped {
                         Ok((status, positions)) => {
-                            let rest: Vec<(Actuator, i32)> = Actuator::all()
-                                .filter(|a| ActuatorStatus1(status[usize::from(a.number() - 1)]).available())
+                            let rest: Vec<(Actuator, PositionCounts)> = Actuator::all()
+                                .filter(|a| status[usize::from(a.number() - 1)].available())
                                 .map(|a| (a, positions[usize::from(a.number() - 1)]))
                                 .collect();
                             if cx.cancelled {

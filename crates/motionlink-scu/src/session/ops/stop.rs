@@ -6,7 +6,7 @@ use motionlink_link::Timestamp;
 
 use super::{get, positions, statuses, Cx, Next, Operation, Output, Resume, Step};
 use crate::error::Error;
-use crate::model::{Actuator, ActuatorStatus1, DataIndex, Function, MotionFunction, StopMode};
+use crate::model::{Actuator, ActuatorStatus1, DataIndex, Function, MotionFunction, PositionCounts, StopMode};
 use crate::session::request::{PreparedRequest, Req, Schedule};
 use crate::wire::Command;
 
@@ -30,11 +30,11 @@ pub(crate) struct StopMachine {
     give_up: Timestamp,
     by_snapshot: bool,
     poll_interval: Duration,
-    last_status: [u8; 6],
+    last_status: [ActuatorStatus1; 6],
 }
 
 /// Where a stop left the actuators: status 1 and position of A1..A6.
-pub(crate) type Rest = ([u8; 6], [i32; 6]);
+pub(crate) type Rest = ([ActuatorStatus1; 6], [PositionCounts; 6]);
 
 /// Why a stop is not confirmed: words for the message, and the error underneath.
 pub(crate) type Unconfirmed = (String, Error);
@@ -49,7 +49,7 @@ impl StopMachine {
             give_up: Timestamp::ZERO,
             by_snapshot: false,
             poll_interval: Duration::from_millis(50),
-            last_status: [0; 6],
+            last_status: [ActuatorStatus1::EMPTY; 6],
         }
     }
 
@@ -130,17 +130,13 @@ impl StopMachine {
 
     fn judge(
         &mut self,
-        status: &[u8; 6],
-        positions: Option<[i32; 6]>,
+        status: &[ActuatorStatus1; 6],
+        positions: Option<[PositionCounts; 6]>,
         now: Timestamp,
     ) -> Step<Result<Rest, Unconfirmed>> {
         self.last_status = *status;
-        let moving: Vec<Actuator> = self
-            .watch
-            .iter()
-            .copied()
-            .filter(|a| ActuatorStatus1(status[usize::from(a.number() - 1)]).moving())
-            .collect();
+        let moving: Vec<Actuator> =
+            self.watch.iter().copied().filter(|a| status[usize::from(a.number() - 1)].moving()).collect();
         if moving.is_empty() {
             return match positions {
                 Some(p) => Step::Done(Ok((*status, p))),
@@ -165,7 +161,7 @@ impl StopMachine {
 /// The error to report after `cause` ended an action and the stop that followed ended with `stopped`:
 /// `cause` (a cancel with the position where its actuator came to rest) when the stop was confirmed,
 /// [`Error::StopUnconfirmed`] otherwise.
-pub(crate) fn after_stop(cause: Error, stopped: Result<[i32; 6], Unconfirmed>, stop: String) -> Error {
+pub(crate) fn after_stop(cause: Error, stopped: Result<[PositionCounts; 6], Unconfirmed>, stop: String) -> Error {
     match stopped {
         Ok(p) => match cause {
             Error::Cancelled { actuator, .. } => {

@@ -6,7 +6,7 @@ use super::stop::StopMachine;
 use super::{get, statuses, Cx, Next, Operation, Output, Resume, Step};
 use crate::error::Error;
 use crate::model::{
-    Actuator, ActuatorStatus1, DataIndex, Function, MotionDirection, MotionFunction, Speed, StopMode, UNUSED,
+    Actuator, DataIndex, Function, MotionDirection, MotionFunction, PositionCounts, Speed, StopMode, UNUSED,
 };
 use crate::session::request::{PreparedRequest, Req};
 use crate::value::Value;
@@ -86,9 +86,7 @@ impl Operation for StreamOpen {
                     Ok(s) => s,
                     Err(e) => return Next::Done(Err(e)),
                 };
-                if let Some(a) =
-                    self.actuators.iter().find(|a| !ActuatorStatus1(status[usize::from(a.number() - 1)]).available())
-                {
+                if let Some(a) = self.actuators.iter().find(|a| !status[usize::from(a.number() - 1)].available()) {
                     return Next::Done(Err(Error::NotConnected(*a)));
                 }
                 self.next_stroke(cx)
@@ -123,21 +121,21 @@ impl Operation for StreamOpen {
 /// halve the rate; the CRC of every telegram and the unit's ACK are the check), then RE with direction 9.
 pub(crate) struct StreamTargets {
     function: MotionFunction,
-    targets: Vec<(Actuator, i32)>,
+    targets: Vec<(Actuator, PositionCounts)>,
     next: usize,
     executing: bool,
     stopping: Option<StopMachine>,
 }
 
 impl StreamTargets {
-    pub fn new(function: MotionFunction, targets: Vec<(Actuator, i32)>) -> Self {
+    pub fn new(function: MotionFunction, targets: Vec<(Actuator, PositionCounts)>) -> Self {
         StreamTargets { function, targets, next: 0, executing: false, stopping: None }
     }
 
     fn send_next(&mut self) -> Next {
         let request = if self.next < self.targets.len() {
             let (a, t) = self.targets[self.next];
-            let data = Value::RemotePosition(t).to_bytes();
+            let data = Value::RemotePosition(t.get()).to_bytes();
             PreparedRequest::new(&Request::Transfer { index: a.remote_position_index().0, data: &data })
         } else {
             self.executing = true;
