@@ -85,7 +85,9 @@ fn a_session_runs_over_any_embedded_can_driver() {
     let found: Vec<u8> = client.scan().unwrap().iter().map(|e| e.address.get()).collect();
     assert_eq!(found, vec![3, 7]);
     let seven = Address::new(7).unwrap();
-    client.enable_watchdog(&[seven]).unwrap();
+    // No watchdog here: this test is about the embedded-can adapter, on the real clock; a watchdog armed on
+    // it would make the test fail on a host too loaded to refresh it every 50 ms (the refresh and its
+    // expiry are tested on the manual clock in the crate's session and client tests).
     let spec = MoveSpec { vel: Some(Velocity::rad_per_s(1.0)), ..MoveSpec::to(Position::rad(0.15)) };
     let report = client.module(seven).move_to(&spec, &mut |_| {}).unwrap();
     assert!((report.reached.value() - 0.15).abs() <= 0.001 && report.state.contains(StateFlag::RampEnd));
