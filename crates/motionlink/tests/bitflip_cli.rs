@@ -116,6 +116,7 @@ fn run(case: &Case, flip: Option<Flip>) -> (i32, f64, u64, u64, String) {
 }
 
 fn sweep(case: Case) {
+    let _alone = crate::alone();
     let (code, position, to_device, to_host, said) = run(&case, None);
     assert_eq!(code, 0, "the clean run succeeds: {said}");
     assert!((position - case.target).abs() <= case.tolerance, "the clean run reaches {}: {position}", case.target);
@@ -131,7 +132,7 @@ fn sweep(case: Case) {
     let case = Arc::new(case);
     let refused = Arc::new(AtomicU64::new(0));
     let workers: Vec<_> = flips
-        .chunks(flips.len().div_ceil(4))
+        .chunks(flips.len().div_ceil(2))
         .map(|chunk| {
             let (case, chunk, refused) = (Arc::clone(&case), chunk.to_vec(), Arc::clone(&refused));
             thread::spawn(move || {

@@ -3,10 +3,8 @@
 
 mod common;
 
-mod bitflip_cli;
 mod compax_cli;
 mod console;
-mod cpu_cli;
 mod general_cli;
 mod powercube_cli;
 mod scu_cli;

@@ -1,6 +1,6 @@
 //! What a long move costs the host: the command waits for the motion at a set poll rate, not as fast as the
 //! line answers, so its CPU stays small (the goal is under 2 % of a core; the bound here leaves room for a
-//! loaded test machine). COMPAX's test is in compax_cli.
+//! loaded test machine).
 
 use std::process::{Command, Stdio};
 use std::time::Instant;
@@ -8,6 +8,7 @@ use std::time::Instant;
 use crate::common::{cpu_seconds_of, Sim, BIN};
 
 fn cpu_share_of_a_move(family: &str, port: &str, args: &[&str], at_least_s: f64) -> f64 {
+    let _alone = crate::alone();
     let t0 = Instant::now();
     let child = Command::new(BIN)
         .args([family, "--port", port])
@@ -40,5 +41,14 @@ fn a_long_powercube_move_costs_the_command_little_cpu() {
     let sim = Sim::tcp("powercube");
     // 1.5 rad along the emulated module's ramp: about 3 s, polled at --poll-ms, the watchdog refreshed every 20 ms.
     let share = cpu_share_of_a_move("powercube", &sim.address, &["move", "1.5"], 2.0);
+    assert!(share < 0.05, "{:.2} % of a core", share * 100.0);
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn a_long_compax_move_costs_the_command_little_cpu() {
+    let sim = Sim::tcp("compax");
+    // 300 units at 100 units/s: 3 s of waiting, polled every 50 ms.
+    let share = cpu_share_of_a_move("compax", &sim.address, &["move", "--abs", "300"], 3.0);
     assert!(share < 0.05, "{:.2} % of a core", share * 100.0);
 }
