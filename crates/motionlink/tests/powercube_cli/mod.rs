@@ -528,6 +528,13 @@ fn numbers_that_make_no_sense_are_usage_errors_and_nothing_is_sent() {
         (&["--module", "32", "move", "0.1"], "--module"),
         (&["--module=-1", "state"], "--module"),
         (&["--baud", "0", "state"], "--baud"),
+        (&["--baud", "7", "state"], "--baud"),
+        (&["--bitrate", "0", "state"], "--bitrate"),
+        (&["--bitrate", "12345", "move", "0.1"], "--bitrate"),
+        (&["move", "0.1", "--tolerance", "100"], "--tolerance"),
+        (&["move", "0.1", "--tolerance", "0.2"], "--tolerance"),
+        (&["move", "0.1", "--timeout-s", "0"], "--timeout-s"),
+        (&["home", "--timeout-s=-1"], "--timeout-s"),
         (&["watch", "--interval-ms", "0"], "--interval-ms"),
         (&["watch", "--count", "0"], "--count"),
         // Beyond the module's own limits: refused before anything is written or moved, naming the limit.
@@ -625,4 +632,17 @@ fn libm5api_broadcasts_over_tcp_reach_every_module() {
     replay(&[0x02, 0x04, 0x10, 0x82, 0x00, 0x00, 0x06, 0x03], "reset"); // resetAll
     replay(&[0x02, 0x04, 0x10, 0x82, 0x0E, 0x00, 0x14, 0x03], "position saved"); // savePosAll
     assert!(sim.events().iter().all(|e| e.at < t0 || !e.text.contains("ignored")), "{:?}", sim.events());
+}
+
+#[test]
+fn timeout_s_names_its_unit_and_the_old_spelling_still_works() {
+    let sim = Sim::tcp("powercube");
+    let port = sim.address.as_str();
+    assert!(ok(port, &["move", "0.06", "--vel", "1", "--acc", "2", "--timeout-s", "5"]).contains("reached"));
+    assert!(ok(port, &["move", "0.07", "--timeout", "5"]).contains("reached"), "the old spelling is an alias");
+    assert!(ok(port, &["home", "--timeout-s", "5"]).contains("homed"));
+    let help = Command::new(BIN).args(["powercube", "move", "--help"]).output().unwrap();
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(help.contains("--timeout-s <S>") && !help.contains("--timeout <"), "{help}");
+    assert!(help.contains("at most 0.1"), "{help}");
 }
