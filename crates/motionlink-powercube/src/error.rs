@@ -292,10 +292,15 @@ pub enum Error {
     },
     /// The session's close sequence (stop what was started, switch the watchdogs off) did not end within
     /// its bound: what was started may not have been confirmed stopped; the watchdog refresh has stopped.
-    #[error("the session did not confirm within {} ms that what it started is stopped: the axis may still be moving (a watchdog it armed is no longer refreshed and halts its module within 50 ms)", bound.as_millis())]
+    #[error("the session did not confirm within {} ms that what it started is stopped: the axis may still be moving{}", bound.as_millis(), watchdogs_left(.armed.as_deref()))]
     CloseTimedOut {
         /// The bound waited.
         bound: Duration,
+        /// The modules whose watchdog the session had switched on (or may have) when it gave up: their
+        /// refresh has stopped, so they halt themselves within 50 ms. Empty: no watchdog was armed, nothing
+        /// but a halt or the emergency stop stops a module still moving. `None`: not known where the error
+        /// was made (the driver's drop); [`Client::close`](crate::Client::close) always says.
+        armed: Option<Vec<u8>>,
     },
     /// The session is closed (or closing): nothing more is sent.
     #[error("the session is closed")]
@@ -369,7 +374,7 @@ impl Classify for Error {
 
 impl SessionError for Error {
     fn close_unconfirmed(bound: Duration) -> Self {
-        Error::CloseTimedOut { bound }
+        Error::CloseTimedOut { bound, armed: None }
     }
 
     fn session_closed() -> Self {
@@ -416,6 +421,24 @@ impl Error {
     /// A read that failed this way may be asked again.
     pub(crate) fn retryable(&self) -> bool {
         matches!(self, Error::Timeout { .. } | Error::Corrupt { .. })
+    }
+}
+
+/// What [`Error::CloseTimedOut`] says about the watchdogs: only what the session knew.
+fn watchdogs_left(armed: Option<&[u8]>) -> String {
+    match armed {
+        None => "; if this session armed a module's watchdog, its refresh has stopped and that module halts \
+                 itself within 50 ms"
+            .into(),
+        Some([]) => "; no watchdog was armed by this session: only a halt or the emergency stop stops it now".into(),
+        Some([a]) => format!(
+            "; the watchdog of module {a} is armed and no longer refreshed: the module halts itself within 50 ms"
+        ),
+        Some(many) => format!(
+            "; the watchdogs of modules {} are armed and no longer refreshed: those modules halt themselves \
+             within 50 ms",
+            list(many)
+        ),
     }
 }
 
