@@ -59,6 +59,43 @@ impl fmt::Display for StopOutcome {
     }
 }
 
+/// How a session's watchdog refresh went out (see [`Error::WatchdogExpired`]), measured on the session's
+/// own clock when it handed each refresh to the line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RefreshTiming {
+    /// The longest time between two consecutive refreshes while the watchdog was armed (the time since
+    /// the last one included).
+    pub longest_gap: Duration,
+    /// The most the modules wait for the next refresh ([`WATCHDOG_TIMEOUT`](crate::model::WATCHDOG_TIMEOUT)).
+    pub allowed: Duration,
+}
+
+impl RefreshTiming {
+    /// True when a refresh went out later than the modules wait: the host did not run the session in time.
+    pub fn was_late(&self) -> bool {
+        self.longest_gap > self.allowed
+    }
+}
+
+impl fmt::Display for RefreshTiming {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (gap, allowed) = (self.longest_gap.as_millis(), self.allowed.as_millis());
+        if self.was_late() {
+            write!(
+                f,
+                "the watchdog refresh came {gap} ms late (at most {allowed} ms allowed): this host did not run the \
+                 program in time; the module halted itself"
+            )
+        } else {
+            write!(
+                f,
+                "the watchdog refreshes went out in time (at most {gap} ms apart, {allowed} ms allowed), so the \
+                 line or the module lost them; the module halted itself"
+            )
+        }
+    }
+}
+
 /// What went wrong in a session. Device errors ([`Error::is_device`]) are the module's answer; transport
 /// errors ([`Error::is_transport`]) are the line's; usage errors ([`Error::is_usage`]) are the caller's.
 #[derive(Debug, thiserror::Error)]
@@ -93,6 +130,18 @@ pub enum Error {
         address: u8,
         /// Its state word (match on the flags with [`CubeState::contains`]).
         state: CubeState,
+    },
+    /// The module's watchdog expired while this session refreshed it (STATE_COMM_ERROR): it halted itself.
+    /// [`Error::WatchdogExpired::timing`] says whether the refresh went out late (a host too loaded to run
+    /// the program in time) or in time (lost on the line or in the module). `reset` clears it.
+    #[error("module {address} reports an error: {}; {timing}", fault_names(*state))]
+    WatchdogExpired {
+        /// The module.
+        address: u8,
+        /// Its state word.
+        state: CubeState,
+        /// How the refresh went out.
+        timing: RefreshTiming,
     },
     /// The module is halted (STATE_HALTED) without an error flag: a Halt, or a watchdog that expired.
     #[error("module {address} is halted (STATE_HALTED); send a reset")]
@@ -350,6 +399,7 @@ impl Classify for Error {
             Error::StopUnconfirmed { .. } => ErrorClass::Transport(TransportKind::Timeout),
             Error::Refused { .. } => ErrorClass::Refused,
             Error::Device { .. }
+            | Error::WatchdogExpired { .. }
             | Error::Halted { .. }
             | Error::WaitTimeout { .. }
             | Error::WatchdogUnconfirmed { .. }

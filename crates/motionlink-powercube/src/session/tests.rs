@@ -29,19 +29,37 @@ struct Bench {
     events: Vec<Event<Session>>,
     /// Drops every answer of the device while true.
     deaf: bool,
+    /// Loses every watchdog refresh on the way to the device while true (a line that drops them).
+    lose_refreshes: bool,
 }
 
 impl Bench {
     fn rs232(addresses: &[u8]) -> Bench {
         let device = Emulator::new(&SimConfig::with_addresses(addresses).unwrap());
         let session = Session::rs232(BusConfig::rs232(), "test line", Timestamp::ZERO);
-        Bench { session, device, now: Timestamp::ZERO, sent: Vec::new(), events: Vec::new(), deaf: false }
+        Bench {
+            session,
+            device,
+            now: Timestamp::ZERO,
+            sent: Vec::new(),
+            events: Vec::new(),
+            deaf: false,
+            lose_refreshes: false,
+        }
     }
 
     fn can(addresses: &[u8]) -> Bench {
         let device = Emulator::new_can(&SimConfig::with_addresses(addresses).unwrap());
         let session = Session::can(BusConfig::can(), "test bus", Timestamp::ZERO);
-        Bench { session, device, now: Timestamp::ZERO, sent: Vec::new(), events: Vec::new(), deaf: false }
+        Bench {
+            session,
+            device,
+            now: Timestamp::ZERO,
+            sent: Vec::new(),
+            events: Vec::new(),
+            deaf: false,
+            lose_refreshes: false,
+        }
     }
 
     fn with_modules(modules: Vec<ModuleConfig>, can: bool) -> Bench {
@@ -55,6 +73,14 @@ impl Bench {
     fn pump(&mut self) {
         while let Some(action) = self.session.poll_transmit(self.now) {
             match action {
+                LinkAction::Send(bytes) if self.lose_refreshes && bytes == REFRESH_RS232 => {
+                    self.sent.push(Wire::Rs232(self.now, bytes.clone()));
+                }
+                LinkAction::SendFrame(frame)
+                    if self.lose_refreshes && (frame.id(), frame.data()) == (0x100, &[7][..]) =>
+                {
+                    self.sent.push(Wire::Frame(self.now, frame.id(), frame.data().to_vec()));
+                }
                 LinkAction::Send(bytes) => {
                     self.sent.push(Wire::Rs232(self.now, bytes.clone()));
                     let mut answer = Vec::new();
@@ -147,12 +173,15 @@ impl Bench {
             .iter()
             .filter_map(|w| match w {
                 Wire::Frame(t, 0x100, d) if d == &[0x07] => Some(*t),
-                Wire::Rs232(t, b) if b == &[0x02, 0x04, 0x10, 0x82, 0x07, 0x00, 0x0D, 0x03] => Some(*t),
+                Wire::Rs232(t, b) if b == REFRESH_RS232 => Some(*t),
                 _ => None,
             })
             .collect()
     }
 }
+
+/// The watchdog refresh on RS232: the broadcast to address 0 in libm5api's form.
+const REFRESH_RS232: &[u8] = &[0x02, 0x04, 0x10, 0x82, 0x07, 0x00, 0x0D, 0x03];
 
 fn addr(a: u8) -> Address {
     Address::new(a).unwrap()
@@ -487,4 +516,69 @@ fn a_motion_command_cancelled_before_its_acknowledge_is_halted() {
     assert!(matches!(err, Error::Cancelled { address: 1, stop: StopOutcome::Confirmed }), "{err}");
     let (state, ..) = b.module(1);
     assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
+}
+
+/// Starts a guarded move of module 1 to 1.0 rad and lets it run until the module moves.
+fn a_guarded_move_under_way(b: &mut Bench) -> OpId {
+    let spec = MoveSpec {
+        vel: Some(Velocity::native(0.5)),
+        acc: Some(Acceleration::native(1.0)),
+        ..MoveSpec::to(Position::native(1.0))
+    };
+    let id = b.session.start(Op::MoveGuarded(addr(1), spec, Guard::Watchdog), b.now);
+    while !b.events.iter().any(|e| matches!(e, Event::Progress(..))) {
+        assert!(b.step(b.now + Duration::from_secs(1)), "the move starts");
+    }
+    assert!(b.module(1).0.contains(StateFlag::Motion) && b.module(1).2, "moving, watchdog online");
+    id
+}
+
+fn finish(b: &mut Bench, id: OpId) -> Result<Output, Error> {
+    loop {
+        b.pump();
+        if let Some(r) = b.done(id) {
+            return r;
+        }
+        assert!(b.step(b.now + Duration::from_secs(3600)), "{id} did not end");
+    }
+}
+
+#[test]
+fn a_watchdog_that_expires_because_the_host_stalled_says_the_refresh_came_late() {
+    for can in [false, true] {
+        let mut b = if can { Bench::can(&[1]) } else { Bench::rs232(&[1]) };
+        let id = a_guarded_move_under_way(&mut b);
+        // The host is not scheduled for 120 ms: no refresh, nothing sent; the module's watchdog expires.
+        b.now = b.now + ms(120);
+        b.device.update(b.now);
+        assert!(b.module(1).0.contains(StateFlag::CommError), "expired while the host stalled");
+        let err = finish(&mut b, id).unwrap_err();
+        let Error::WatchdogExpired { address: 1, state, timing } = &err else { panic!("{err:?}") };
+        assert!(state.contains(StateFlag::CommError) && timing.was_late(), "{err:?}");
+        assert!(timing.longest_gap >= ms(120) && timing.longest_gap < ms(150), "{timing:?}");
+        let text = err.to_string();
+        assert!(text.contains("STATE_COMM_ERROR"), "{text}");
+        assert!(
+            text.contains(
+                "ms late (at most 50 ms allowed): this host did not run the program in time; the module halted itself"
+            ),
+            "{text}"
+        );
+        assert!(err.is_device(), "{err}");
+    }
+}
+
+#[test]
+fn a_watchdog_that_expires_because_the_line_lost_the_refreshes_says_they_went_out_in_time() {
+    for can in [false, true] {
+        let mut b = if can { Bench::can(&[1]) } else { Bench::rs232(&[1]) };
+        let id = a_guarded_move_under_way(&mut b);
+        b.lose_refreshes = true;
+        let err = finish(&mut b, id).unwrap_err();
+        let Error::WatchdogExpired { address: 1, timing, .. } = &err else { panic!("{err:?}") };
+        assert!(!timing.was_late() && timing.longest_gap <= ms(20), "{timing:?}");
+        let text = err.to_string();
+        assert!(text.contains("went out in time") && text.contains("the line or the module lost them"), "{text}");
+        assert!(!text.contains("late"), "{text}");
+    }
 }

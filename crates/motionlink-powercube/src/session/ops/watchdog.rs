@@ -68,8 +68,7 @@ impl Ctx {
             let mut core = self.core();
             let now = core.now;
             if !core.duty.serving {
-                core.duty.serving = true;
-                core.duty.next_due = now;
+                core.duty.start_serving(now);
             }
         }
         let mut first_error = None;
