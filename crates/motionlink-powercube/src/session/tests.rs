@@ -582,3 +582,74 @@ fn a_watchdog_that_expires_because_the_line_lost_the_refreshes_says_they_went_ou
         assert!(!text.contains("late"), "{text}");
     }
 }
+
+/// The GetExtended requests of parameter `p` that went out on a CAN bench.
+fn gets(b: &Bench, p: Param) -> usize {
+    b.sent
+        .iter()
+        .filter(|w| matches!(w, Wire::Frame(_, id, d) if (0xC1..=0xDF).contains(id) && d[..] == [0x0A, p.id()]))
+        .count()
+}
+
+#[test]
+fn a_wait_polls_with_one_exchange_and_reads_the_full_state_only_when_it_may_say_more() {
+    let mut b = Bench::can(&[1]);
+    let spec = MoveSpec {
+        vel: Some(Velocity::native(0.5)),
+        acc: Some(Acceleration::native(2.0)),
+        ..MoveSpec::to(Position::native(1.0))
+    };
+    let Ok(Output::Moved(report)) = b.run(Op::MoveTo(addr(1), spec)) else { panic!() };
+    assert!((report.reached.value() - 1.0).abs() <= 0.001, "{report:?}");
+    let polls = b.events.iter().filter(|e| matches!(e, Event::Progress(..))).count();
+    assert!(polls > 200, "{polls}");
+    assert_eq!(gets(&b, Param::ActFPosStateDio), polls, "one combined read per poll");
+    // The full state: before the move, on the first poll, where the short state changed (the end), and
+    // every 100 ms in between (every tenth poll); ActPos only for the start and the two final readings.
+    let states = gets(&b, Param::CubeState);
+    assert!(states <= polls / 10 + 6, "{states} CubeState reads for {polls} polls");
+    assert_eq!(gets(&b, Param::ActPos), 3);
+}
+
+#[test]
+fn a_fault_in_the_middle_of_a_ramp_is_seen_at_the_next_poll() {
+    let mut b = Bench::can(&[1]);
+    let spec = MoveSpec {
+        vel: Some(Velocity::native(0.5)),
+        acc: Some(Acceleration::native(2.0)),
+        ..MoveSpec::to(Position::native(1.0))
+    };
+    let id = b.session.start(Op::MoveTo(addr(1), spec), b.now);
+    while b.events.iter().filter(|e| matches!(e, Event::Progress(..))).count() < 50 {
+        assert!(b.step(b.now + Duration::from_secs(1)), "the move runs");
+    }
+    let at = b.now;
+    b.device.module_mut(1).unwrap().inject_fault(CubeState::EMPTY.with(StateFlag::TowError));
+    let err = finish(&mut b, id).unwrap_err();
+    assert!(matches!(&err, Error::Device { address: 1, state } if state.contains(StateFlag::TowError)), "{err:?}");
+    assert!(b.now - at <= ms(10), "seen by the next poll: {:?}", b.now - at);
+}
+
+#[test]
+fn a_flag_the_short_state_does_not_carry_is_seen_within_100_ms() {
+    // STATE_CURLIMIT, a warning that neither stops the module nor shows in the short state: the progress
+    // reports it within 100 ms of its rise all the same.
+    let mut b = Bench::can(&[1]);
+    let spec = MoveSpec {
+        vel: Some(Velocity::native(0.5)),
+        acc: Some(Acceleration::native(2.0)),
+        ..MoveSpec::to(Position::native(1.0))
+    };
+    let id = b.session.start(Op::MoveTo(addr(1), spec), b.now);
+    while b.events.iter().filter(|e| matches!(e, Event::Progress(..))).count() < 50 {
+        assert!(b.step(b.now + Duration::from_secs(1)), "the move runs");
+    }
+    let at = b.now;
+    b.device.module_mut(1).unwrap().set_flag_for_test(StateFlag::CurLimit);
+    b.events.clear();
+    while !b.events.iter().any(|e| matches!(e, Event::Progress(_, p) if p.state.contains(StateFlag::CurLimit))) {
+        assert!(b.step(b.now + Duration::from_secs(1)), "the move runs");
+    }
+    assert!(b.now - at <= ms(110), "{:?}", b.now - at);
+    assert!(finish(&mut b, id).is_ok());
+}

@@ -258,7 +258,11 @@ pub struct Progress {
     pub address: Address,
     /// Its position (rad or m where the session knows the module's kind).
     pub position: Position,
-    /// Its state.
+    /// Its state: the last state word read. In the middle of a motion a wait reads it in full at least
+    /// every 100 ms and whenever the short state that comes with every position (ActFPosStateDio)
+    /// changes; between those reads the flags the short state carries (motion, ramp end, switches, not
+    /// ok) are as read now, the others (such as the ramp phase STATE_RAMP_ACC / STEADY / DEC) are those
+    /// of the last full read, at most 100 ms old.
     pub state: CubeState,
     /// Time waited so far.
     pub elapsed: Duration,

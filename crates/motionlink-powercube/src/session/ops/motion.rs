@@ -5,7 +5,9 @@
 use std::time::Duration;
 
 use crate::error::{unexpected, Error, StopOutcome};
-use crate::model::{AckKind, Broadcast, CubeState, ExtAck, Motion, Param, Position, Reply, Request, StateFlag, Value};
+use crate::model::{
+    AckKind, Broadcast, CubeState, ExtAck, Motion, Param, Position, Reply, Request, ShortState, StateFlag, Value,
+};
 use crate::session::ctx::Ctx;
 use crate::session::{MoveReport, MoveSpec, Progress, Readback, Until};
 
@@ -213,11 +215,9 @@ impl Ctx {
         let deadline = start + timeout;
         let period = self.core().config.poll_interval.max(Duration::from_micros(100));
         let mut due = start;
+        let mut poll = Poll::default();
         loop {
-            let polled = match self.state(a).await {
-                Ok(s) => self.get_f32(a, Param::ActPos).await.map(|p| (s, p)),
-                Err(e) => Err(e),
-            };
+            let polled = self.poll_state(a, &mut poll).await;
             let (state, position) = match polled {
                 Ok(x) => x,
                 // The line is failing, or the module stopped answering, while a motion may be running.
@@ -258,6 +258,51 @@ impl Ctx {
                 return Err(Error::Cancelled { address: a, stop: self.stop_motion(a).await });
             }
         }
+    }
+
+    /// One poll of a wait: the state word and the position of module `a`. One exchange where it can be:
+    /// ActFPosStateDio gives the position and the short state in one answer, and the full CubeState is
+    /// read only when the short state may say more than the last full read did. It is skipped only in the
+    /// middle of a motion: the last full read showed the module moving (STATE_MOTION, no STATE_RAMP_END,
+    /// no error flag, not halted), the short state is the same as then (still SHORT_MOTION, no
+    /// SHORT_RAMP_END; an error or a halt stops the module, which clears SHORT_MOTION, and on a homed
+    /// module raises SHORT_NOT_OK), and that full read is less than [`FULL_STATE_EVERY`] old, so that even
+    /// a flag the short state does not carry is seen within that time. Wherever a wait may end (the motion
+    /// over, the ramp ended) the state is read in full. A module that refuses ActFPosStateDio is polled
+    /// with CubeState and ActPos from then on.
+    async fn poll_state(&self, a: u8, poll: &mut Poll) -> Result<(CubeState, f32), Error> {
+        if !poll.separate {
+            let read = self
+                .get_as(a, Param::ActFPosStateDio, |v| match *v {
+                    Value::PosStateDio { pos, state, .. } => Some((pos, state)),
+                    _ => None,
+                })
+                .await;
+            match read {
+                Ok((position, short)) => {
+                    let now = self.now();
+                    if let Some((at, last_short, full)) = poll.last {
+                        let moving = full.contains(StateFlag::Motion)
+                            && !full.contains(StateFlag::RampEnd)
+                            && !full.contains(StateFlag::Halted)
+                            && !full.has_fault();
+                        if moving && last_short == short && now.saturating_since(at) < FULL_STATE_EVERY {
+                            return Ok((full, position));
+                        }
+                    }
+                    let full = self.state(a).await?;
+                    poll.last = Some((now, short, full));
+                    return Ok((full, position));
+                }
+                Err(Error::Refused { .. }) => {
+                    tracing::debug!("module {a} refuses ActFPosStateDio: polling CubeState and ActPos");
+                    poll.separate = true;
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        let state = self.state(a).await?;
+        Ok((state, self.get_f32(a, Param::ActPos).await?))
     }
 
     /// Homes the module and waits for the end of homing (see [`Op::HomeAndWait`](crate::session::Op)).
@@ -421,6 +466,19 @@ impl Ctx {
         self.core().started.clear();
         result
     }
+}
+
+/// In the middle of a motion, a wait reads the full state word at least this often (see
+/// [`Ctx::poll_state`]); the polls between read only ActFPosStateDio.
+const FULL_STATE_EVERY: Duration = Duration::from_millis(100);
+
+/// What the polls of one wait remember.
+#[derive(Default)]
+struct Poll {
+    /// When the last poll that read CubeState was, its short state and the full state word.
+    last: Option<(motionlink_link::Timestamp, ShortState, CubeState)>,
+    /// The module refused ActFPosStateDio: CubeState and ActPos are read instead.
+    separate: bool,
 }
 
 impl ExtAck {
