@@ -266,16 +266,15 @@ fn value_json(v: &Value) -> serde_json::Value {
 }
 
 /// What `set` read back, in the parameter's unit: the write-only TargetPos, TargetVel and TargetAcc are read
-/// back by the library through their encoder-tick twins, converted here with the module's IncRatio.
+/// back by the library through their encoder-tick twins ([`Param::read_back_as`]), converted with the
+/// module's IncRatio by the library's [`Param::from_read_back_ticks`].
 fn read_back_json(m: &Module<'_>, p: Param, read: &Value) -> Result<serde_json::Value, CliError> {
-    if !matches!(p, Param::TargetPos | Param::TargetVel | Param::TargetAcc) {
-        return Ok(value_json(read));
-    }
+    let Some(twin) = p.read_back_as() else { return Ok(value_json(read)) };
     let ratio = m.get(Param::IncRatio).map_err(failed)?;
-    match (read.as_f64(), ratio.as_f64()) {
-        (Some(ticks), Some(ratio)) if ratio > 0.0 => Ok(json!(ticks / ratio)),
-        _ => Err(CliError::transport(format!(
-            "{p} was read back in encoder ticks, but the module's IncRatio is no number above 0"
+    match ratio.as_f64().and_then(|ratio| p.from_read_back_ticks(read, ratio)) {
+        Some(value) => Ok(json!(value)),
+        None => Err(CliError::transport(format!(
+            "{p} was read back from {twin} in encoder ticks, but the module's IncRatio is no number above 0"
         ))),
     }
 }

@@ -213,7 +213,9 @@ pub struct MoveReport {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Readback {
     /// Read back (the parameter itself, or for the write-only TargetPos / TargetVel / TargetAcc their
-    /// encoder-tick twin) and found as written; the value read.
+    /// encoder-tick twin, [`Param::read_back_as`](crate::model::Param::read_back_as)) and found as written;
+    /// the value read, as read (ticks for a twin: [`Param::from_read_back_ticks`](crate::model::Param::from_read_back_ticks)
+    /// converts it into the written parameter's unit).
     Same(Value),
     /// The parameter cannot be read back meaningfully; why.
     NotReadable(&'static str),

@@ -216,17 +216,6 @@ fn unexpected_output<T>(address: u8, other: Output) -> Result<T, Error> {
     })
 }
 
-/// The parameter a write of `p` is read back from: the encoder-tick twin of the write-only targets, else `p`
-/// (as the library's checked write does).
-fn read_back_param(p: Param) -> Param {
-    match p {
-        Param::TargetPos => Param::TargetPosInc,
-        Param::TargetVel => Param::TargetVelInc,
-        Param::TargetAcc => Param::TargetAccInc,
-        p => p,
-    }
-}
-
 fn unit_of(p: Param, kind: Option<ModuleKind>) -> String {
     kind.map_or(p.unit().generic_symbol(), |k| p.unit().symbol(k)).to_string()
 }
@@ -499,7 +488,7 @@ impl Device for PowerCube {
                 Readback::Same(r) => {
                     // TargetPos, TargetVel and TargetAcc cannot be read: what came back is their twin in
                     // encoder ticks, shown as what it is.
-                    let from = read_back_param(p);
+                    let from = p.read_back_as().unwrap_or(p);
                     let note = if from == p {
                         String::new()
                     } else {

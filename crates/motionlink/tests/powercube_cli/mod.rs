@@ -589,6 +589,10 @@ fn set_reads_back_what_it_wrote() {
     assert!(ok(port, &["set", "MaxVel", "0.5"]).contains("MaxVel set to 0.500000 rad/s (read back)"));
     let j: serde_json::Value = serde_json::from_str(&ok(port, &["--json", "set", "TargetVel", "0.25"])).unwrap();
     assert!(j["read_back"].is_number() && j["not_verifiable"].is_null() && j["verified"] == true, "{j}");
+    // Read back through TargetVelInc (ticks) and shown in the unit written (rad/s), by the library's mapping.
+    assert!((j["read_back"].as_f64().unwrap() - 0.25).abs() < 1e-4, "{j}");
+    let j: serde_json::Value = serde_json::from_str(&ok(port, &["--json", "set", "TargetPos", "-0.5"])).unwrap();
+    assert!((j["read_back"].as_f64().unwrap() + 0.5).abs() < 1e-4, "{j}");
     assert!(ok(port, &["set", "Cur", "1"]).contains("not verified: reading Cur gives the measured current"));
 }
 

@@ -141,13 +141,7 @@ impl Ctx {
             _ => {}
         }
         self.set(a, param, value).await?;
-        let twin = match param {
-            Param::TargetPos => Some(Param::TargetPosInc),
-            Param::TargetVel => Some(Param::TargetVelInc),
-            Param::TargetAcc => Some(Param::TargetAccInc),
-            _ => None,
-        };
-        if let (Some(twin), Some(v)) = (twin, number) {
+        if let (Some(twin), Some(v)) = (param.read_back_as(), number) {
             let ratio = self.inc_ratio(a).await?;
             return self.check_ticks(a, param, twin, v, ratio).await.map(Readback::Same);
         }
@@ -350,10 +344,10 @@ impl Ctx {
         let ratio = self.inc_ratio(a).await?;
         let start = self.position(a).await?;
         let motion = Request::motion(Motion::FRamp { pos: spec.target }, AckKind::Simple)?;
-        for (param, twin, given) in [
-            (Param::TargetVel, Param::TargetVelInc, spec.vel.map(|v| v.value())),
-            (Param::TargetAcc, Param::TargetAccInc, spec.acc.map(|acc| acc.value())),
-        ] {
+        for (param, given) in
+            [(Param::TargetVel, spec.vel.map(|v| v.value())), (Param::TargetAcc, spec.acc.map(|acc| acc.value()))]
+        {
+            let twin = param.read_back_as().unwrap_or(param);
             match given {
                 Some(v) => {
                     self.set(a, param, Value::F32(v)).await?;
