@@ -9,7 +9,7 @@ use motionlink_link::error::{Classify, ErrorClass, TransportKind};
 use motionlink_link::session::SessionError;
 use motionlink_link::LinkError;
 
-use crate::model::{CubeState, InvalidAddress, ModelError, ModuleKind, Param, Position, Request};
+use crate::model::{Address, CubeState, InvalidAddress, ModelError, ModuleKind, Param, Position, Request};
 use crate::wire::rs232::Rs232Error;
 
 /// What became of the Halt an action sent to a module it had set in motion, when the action could not go
@@ -107,7 +107,7 @@ pub enum Error {
     #[error("module {address} did not answer {request} within {} ms", waited.as_millis())]
     Timeout {
         /// The module.
-        address: u8,
+        address: Address,
         /// The request, described.
         request: String,
         /// How long the session waited (the last attempt).
@@ -117,7 +117,7 @@ pub enum Error {
     #[error("module {address}: corrupt answer to {request}: {detail}")]
     Corrupt {
         /// The module.
-        address: u8,
+        address: Address,
         /// The request, described.
         request: String,
         /// What was wrong.
@@ -127,7 +127,7 @@ pub enum Error {
     #[error("module {address} reports an error: {}", fault_names(*state))]
     Device {
         /// The module.
-        address: u8,
+        address: Address,
         /// Its state word (match on the flags with [`CubeState::contains`]).
         state: CubeState,
     },
@@ -137,7 +137,7 @@ pub enum Error {
     #[error("module {address} reports an error: {}; {timing}", fault_names(*state))]
     WatchdogExpired {
         /// The module.
-        address: u8,
+        address: Address,
         /// Its state word.
         state: CubeState,
         /// How the refresh went out.
@@ -147,7 +147,7 @@ pub enum Error {
     #[error("module {address} is halted (STATE_HALTED); send a reset")]
     Halted {
         /// The module.
-        address: u8,
+        address: Address,
         /// Its state word.
         state: CubeState,
     },
@@ -155,7 +155,7 @@ pub enum Error {
     #[error("module {address} refused {request} (status 0x{status:02X})")]
     Refused {
         /// The module.
-        address: u8,
+        address: Address,
         /// The request, described.
         request: String,
         /// The status byte.
@@ -166,7 +166,7 @@ pub enum Error {
     #[error("module {address}: {what} did not happen within {} ms (state: {state}); {stop}", waited.as_millis())]
     WaitTimeout {
         /// The module.
-        address: u8,
+        address: Address,
         /// What was waited for.
         what: &'static str,
         /// How long.
@@ -182,7 +182,7 @@ pub enum Error {
     #[error("module {address}: cancelled; {stop}")]
     Cancelled {
         /// The module.
-        address: u8,
+        address: Address,
         /// What became of the Halt.
         stop: StopOutcome,
     },
@@ -192,7 +192,7 @@ pub enum Error {
     #[error("while module {address} may have been moving: {cause}; {stop}")]
     LostDuringMotion {
         /// The module.
-        address: u8,
+        address: Address,
         /// What failed.
         cause: Box<Error>,
         /// What became of the Halt.
@@ -203,7 +203,7 @@ pub enum Error {
     #[error("module {address}: {what} {} is outside the module's limit {limit} = {}", number(*value), number(*limit_value))]
     BeyondLimit {
         /// The module.
-        address: u8,
+        address: Address,
         /// What the value is ("target position", "--vel", "TargetVel").
         what: String,
         /// The value asked for.
@@ -218,7 +218,7 @@ pub enum Error {
     #[error("module {address}: {param} was written as {wrote} but reads back as {read} (the module limited it, or the write was corrupted on the way)")]
     Mismatch {
         /// The module.
-        address: u8,
+        address: Address,
         /// The parameter written.
         param: Param,
         /// What was written.
@@ -231,7 +231,7 @@ pub enum Error {
     #[error("module {address}: the motion command was sent with target {sent} ticks but the module took {taken} ticks (a corrupted command); {stop}")]
     TargetMismatch {
         /// The module.
-        address: u8,
+        address: Address,
         /// The target sent, in encoder ticks.
         sent: i32,
         /// The target the module holds.
@@ -244,7 +244,7 @@ pub enum Error {
     #[error("module {address}: target {} not reached: the module stands at {reached}, {:.6} away (tolerance {tolerance}; state: {state})", .target.value(), .difference.value())]
     NotReached {
         /// The module.
-        address: u8,
+        address: Address,
         /// The target, in the unit of `reached`.
         target: Position,
         /// The final actual position read from the module (in rad or m: a move reads the module's kind).
@@ -278,10 +278,10 @@ pub enum Error {
     /// The session failed with the watchdog of these modules online: it was left online (its refresh
     /// stopped), so they halt within 50 ms with STATE_COMM_ERROR; `reset_and_release_watchdog` (the `reset`
     /// command) clears them afterwards.
-    #[error("the watchdog of module {} is left online: {detail}; the module halts within 50 ms of the last refresh (STATE_COMM_ERROR; `reset` clears it)", addresses.iter().map(u8::to_string).collect::<Vec<_>>().join(", "))]
+    #[error("the watchdog of module {} is left online: {detail}; the module halts within 50 ms of the last refresh (STATE_COMM_ERROR; `reset` clears it)", addresses.iter().map(Address::to_string).collect::<Vec<_>>().join(", "))]
     WatchdogLeftOnline {
         /// The modules.
-        addresses: Vec<u8>,
+        addresses: Vec<Address>,
         /// Why.
         detail: String,
     },
@@ -290,7 +290,7 @@ pub enum Error {
     #[error("module {address}: watchdog not confirmed {}: {detail}", if *on { "online" } else { "offline" })]
     WatchdogUnconfirmed {
         /// The module.
-        address: u8,
+        address: Address,
         /// True when switching on, false when switching off.
         on: bool,
         /// What was seen.
@@ -301,7 +301,7 @@ pub enum Error {
     #[error("module {address} is {} (its unit is {}): {what} {value} does not fit it", kind.name(), kind.unit())]
     UnitMismatch {
         /// The module.
-        address: u8,
+        address: Address,
         /// What the module is.
         kind: ModuleKind,
         /// What the quantity is ("the target position", "the velocity").
@@ -333,7 +333,7 @@ pub enum Error {
     #[error("module {} set in motion by this session could not be confirmed stopped ({detail}): the axis may still be moving{}", list(addresses), if *watchdog_armed { "; its watchdog is online and no longer refreshed, so the module halts itself within 50 ms of the last refresh that reached it" } else { "" })]
     StopUnconfirmed {
         /// The modules.
-        addresses: Vec<u8>,
+        addresses: Vec<Address>,
         /// Why.
         detail: String,
         /// A watchdog this session switched on is left online (no longer refreshed).
@@ -349,7 +349,7 @@ pub enum Error {
         /// refresh has stopped, so they halt themselves within 50 ms. Empty: no watchdog was armed, nothing
         /// but a halt or the emergency stop stops a module still moving. `None`: not known where the error
         /// was made (the driver's drop); [`Client::close`](crate::Client::close) always says.
-        armed: Option<Vec<u8>>,
+        armed: Option<Vec<Address>>,
     },
     /// The session is closed (or closing): nothing more is sent.
     #[error("the session is closed")]
@@ -475,7 +475,7 @@ impl Error {
 }
 
 /// What [`Error::CloseTimedOut`] says about the watchdogs: only what the session knew.
-fn watchdogs_left(armed: Option<&[u8]>) -> String {
+fn watchdogs_left(armed: Option<&[Address]>) -> String {
     match armed {
         None => "; if this session armed a module's watchdog, its refresh has stopped and that module halts \
                  itself within 50 ms"
@@ -492,13 +492,17 @@ fn watchdogs_left(armed: Option<&[u8]>) -> String {
     }
 }
 
-fn list(addresses: &[u8]) -> String {
-    addresses.iter().map(u8::to_string).collect::<Vec<_>>().join(", ")
+fn list(addresses: &[Address]) -> String {
+    addresses.iter().map(Address::to_string).collect::<Vec<_>>().join(", ")
 }
 
 /// An answer that decoded but is not what `request` asks for (a value of another type, another reply).
 pub(crate) fn unexpected(address: u8, request: &Request, what: impl fmt::Display) -> Error {
-    Error::Corrupt { address, request: request.to_string(), detail: format!("unexpected answer {what}") }
+    Error::Corrupt {
+        address: Address::checked(address),
+        request: request.to_string(),
+        detail: format!("unexpected answer {what}"),
+    }
 }
 
 #[cfg(test)]
@@ -507,25 +511,33 @@ mod tests {
 
     #[test]
     fn every_error_has_the_class_its_exit_code_needs() {
-        let timeout = || Error::Timeout { address: 1, request: "x".into(), waited: Duration::from_millis(1) };
+        let timeout =
+            || Error::Timeout { address: Address::checked(1), request: "x".into(), waited: Duration::from_millis(1) };
         assert_eq!(timeout().class(), ErrorClass::Transport(TransportKind::Timeout));
         assert_eq!(Error::Encode(Rs232Error::BadAddress(40)).class().exit_code(), 2, "a framing error is usage");
         assert_eq!(Error::InvalidAddress(0).class(), ErrorClass::Usage);
-        assert_eq!(Error::Cancelled { address: 1, stop: StopOutcome::Confirmed }.class(), ErrorClass::Cancelled);
-        let lost = Error::LostDuringMotion { address: 1, cause: Box::new(timeout()), stop: StopOutcome::Confirmed };
+        assert_eq!(
+            Error::Cancelled { address: Address::checked(1), stop: StopOutcome::Confirmed }.class(),
+            ErrorClass::Cancelled
+        );
+        let lost = Error::LostDuringMotion {
+            address: Address::checked(1),
+            cause: Box::new(timeout()),
+            stop: StopOutcome::Confirmed,
+        };
         assert_eq!(lost.class(), ErrorClass::Transport(TransportKind::Timeout));
         let link = LinkError::Disconnected { port: "p".into(), reason: "r".into() };
         assert_eq!(Error::Link(link).class(), ErrorClass::Transport(TransportKind::Disconnected));
         let ctx = Error::Context {
             context: "arming".into(),
-            source: Box::new(Error::Halted { address: 1, state: CubeState(4) }),
+            source: Box::new(Error::Halted { address: Address::checked(1), state: CubeState(4) }),
             hint: "",
         };
         assert_eq!(ctx.class(), ErrorClass::Device);
         assert_eq!(Error::SessionClosed.class(), ErrorClass::Usage);
         assert_eq!(Error::close_unconfirmed(Duration::from_secs(5)).class().exit_code(), 3);
         let unit = Error::UnitMismatch {
-            address: 3,
+            address: Address::checked(3),
             kind: ModuleKind::Linear,
             what: "the target position",
             value: "0.5 rad".into(),

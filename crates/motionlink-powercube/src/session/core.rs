@@ -493,8 +493,16 @@ impl Core {
             .zip(&f.batch)
             .map(|((r, c), (address, request))| match (r, c) {
                 (Some(r), _) => Ok(r),
-                (None, Some(detail)) => Err(Error::Corrupt { address: *address, request: request.to_string(), detail }),
-                (None, None) => Err(Error::Timeout { address: *address, request: request.to_string(), waited }),
+                (None, Some(detail)) => Err(Error::Corrupt {
+                    address: crate::model::Address::checked(*address),
+                    request: request.to_string(),
+                    detail,
+                }),
+                (None, None) => Err(Error::Timeout {
+                    address: crate::model::Address::checked(*address),
+                    request: request.to_string(),
+                    waited,
+                }),
             })
             .collect();
         self.finish(f.ticket, f.op, JobResult::Exchange(results));

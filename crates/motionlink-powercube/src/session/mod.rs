@@ -523,10 +523,10 @@ impl std::fmt::Debug for WatchdogView {
 impl WatchdogView {
     /// The modules whose watchdog the session switched on (or may have: a life sign not confirmed) and has
     /// not switched off again, in address order.
-    pub fn armed(&self) -> Vec<u8> {
+    pub fn armed(&self) -> Vec<Address> {
         let core = lock(&self.0);
         let d = &core.duty;
-        d.online.union(&d.uncertain).copied().collect()
+        addresses(&d.online.union(&d.uncertain).copied().collect())
     }
 
     /// `e` with what this view knows: a [`Error::CloseTimedOut`] that could not say which watchdogs were

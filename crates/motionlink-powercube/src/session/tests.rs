@@ -4,6 +4,11 @@
 
 use std::time::Duration;
 
+/// Addresses as patterns match them.
+const A1: Address = Address::checked(1);
+const A4: Address = Address::checked(4);
+const A9: Address = Address::checked(9);
+
 use motionlink_link::can::CanEmulator;
 use motionlink_link::session::{Action as LinkAction, Event, Input, OpId, Session as _};
 use motionlink_link::Timestamp;
@@ -202,13 +207,13 @@ fn reads_are_retried_and_nothing_else_is() {
     let mut b = Bench::rs232(&[1]);
     let t0 = b.now;
     let err = b.run(Op::Position(addr(9))).unwrap_err();
-    assert!(matches!(err, Error::Timeout { address: 9, .. }), "{err}");
+    assert!(matches!(err, Error::Timeout { address: A9, .. }), "{err}");
     assert_eq!(b.sent.len(), 3, "three tries of the read");
     assert_eq!(b.now - t0, ms(600), "each waited its full 200 ms");
     b.sent.clear();
     b.deaf = true;
     let err = b.run(Op::Set(addr(1), Param::TargetVel, Value::F32(0.2))).unwrap_err();
-    assert!(matches!(err, Error::Timeout { address: 1, .. }), "{err}");
+    assert!(matches!(err, Error::Timeout { address: A1, .. }), "{err}");
     assert_eq!(b.sent.len(), 1, "a write is never repeated");
     // The late answer of the write would be stale: the next exchange drops what is pending first.
     b.deaf = false;
@@ -223,7 +228,7 @@ fn on_can_acknowledges_are_matched_to_their_module_in_one_round() {
     assert_eq!(v[0].as_ref().unwrap(), &Value::U32(1003));
     assert_eq!(v[1].as_ref().unwrap(), &Value::U32(1001));
     assert_eq!(v[2].as_ref().unwrap(), &Value::U32(1002));
-    assert!(matches!(v[3], Err(Error::Timeout { address: 9, .. })));
+    assert!(matches!(v[3], Err(Error::Timeout { address: A9, .. })));
     // Three rounds (the first, and two retries of address 9 alone), each one reply timeout.
     assert_eq!(b.now - t0, ms(150));
     let gets = b.sent.iter().filter(|w| matches!(w, Wire::Frame(_, id, _) if (0xC1..=0xDF).contains(id))).count();
@@ -299,7 +304,7 @@ fn a_position_in_rad_for_a_linear_module_is_refused_before_anything_moves() {
     linear.max_pos = 0.2;
     let mut b = Bench::with_modules(vec![linear], false);
     let err = b.run(Op::MoveTo(addr(4), MoveSpec::to(Position::rad(0.1)))).unwrap_err();
-    assert!(matches!(err, Error::UnitMismatch { address: 4, kind: ModuleKind::Linear, .. }), "{err}");
+    assert!(matches!(err, Error::UnitMismatch { address: A4, kind: ModuleKind::Linear, .. }), "{err}");
     assert!(err.is_usage() && err.to_string().contains("0.1 rad"), "{err}");
     let err = b.run(Op::Motion(addr(4), Motion::FVel { vel: Velocity::rad_per_s(0.1) }, AckKind::Simple)).unwrap_err();
     assert!(matches!(err, Error::UnitMismatch { .. }), "{err}");
@@ -324,7 +329,7 @@ fn a_cancelled_move_is_halted_and_says_the_module_confirmed_it() {
     b.pump();
     let r = b.done(id).expect("ends at once: the halt is acknowledged within the same instant here");
     let err = r.unwrap_err();
-    assert!(matches!(err, Error::Cancelled { address: 1, stop: StopOutcome::Confirmed }), "{err}");
+    assert!(matches!(err, Error::Cancelled { address: A1, stop: StopOutcome::Confirmed }), "{err}");
     let (state, p, _, _) = b.module(1);
     assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
     assert!(p > 0.05 && p < 0.2, "{p}");
@@ -515,7 +520,7 @@ fn a_motion_command_cancelled_before_its_acknowledge_is_halted() {
         assert!(b.step(limit));
     };
     let err = r.unwrap_err();
-    assert!(matches!(err, Error::Cancelled { address: 1, stop: StopOutcome::Confirmed }), "{err}");
+    assert!(matches!(err, Error::Cancelled { address: A1, stop: StopOutcome::Confirmed }), "{err}");
     let (state, ..) = b.module(1);
     assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
 }

@@ -208,7 +208,7 @@ fn agrees(state: CubeState, short: ShortState) -> bool {
     state.short_state() == short
 }
 
-fn unexpected_output<T>(address: u8, other: Output) -> Result<T, Error> {
+fn unexpected_output<T>(address: Address, other: Output) -> Result<T, Error> {
     Err(Error::Corrupt {
         address,
         request: "Get ActFPosStateDio".into(),
@@ -325,7 +325,7 @@ impl Device for PowerCube {
                     let m = self.client.module(Address::new(u.id)?);
                     let (position, short) = match self.client.run(Op::PositionStateDio(m.address())).await? {
                         Output::PositionStateDio(p, s, _) => (p, s),
-                        other => unexpected_output(u.id, other)?,
+                        other => unexpected_output(m.address(), other)?,
                     };
                     let last = motionlink_link::clock::lock(&self.slow).get(&u.id).copied().unwrap_or_default();
                     let stale = last.state.is_none_or(|k| !agrees(k, short)) && !last.forced;

@@ -52,9 +52,9 @@ fn a_checked_move_refuses_targets_beyond_the_limits_before_anything_moves() {
     // A halted module would ignore the motion command: refused, named, before anything is written.
     m.halt().unwrap();
     let err = m.move_to(&spec(0.5), &mut |_| {}).unwrap_err();
-    assert!(matches!(err, Error::Halted { address: 1, .. }), "{err}");
+    assert!(matches!(err, Error::Halted { address: A1, .. }), "{err}");
     let err = m.home_and_wait(secs(10), &mut |_| {}).unwrap_err();
-    assert!(matches!(err, Error::Halted { address: 1, .. }), "{err}");
+    assert!(matches!(err, Error::Halted { address: A1, .. }), "{err}");
     let events = host.with_device(|d| d.take_events());
     assert_eq!(events, ["module 1 halted"], "no write, no motion command after the halt");
 }

@@ -168,7 +168,7 @@ impl Ctx {
                 };
                 if result.is_ok() && !left.is_empty() {
                     result = Err(Error::WatchdogLeftOnline {
-                        addresses: left,
+                        addresses: checked(left),
                         detail: "the session failed (its line broke, or a stop it sent was not confirmed)".into(),
                     });
                 }
@@ -201,6 +201,11 @@ impl Ctx {
             None => e,
         }
     }
+}
+
+/// Module numbers the session keeps (each from a checked address or a module's answer) as addresses.
+pub(crate) fn checked(numbers: Vec<u8>) -> Vec<crate::model::Address> {
+    numbers.into_iter().map(crate::model::Address::checked).collect()
 }
 
 /// The first error of a motion and of the stop after it.

@@ -9,6 +9,7 @@ use crate::model::{
     AckKind, Broadcast, CubeState, ExtAck, Motion, Param, Position, Reply, Request, ShortState, StateFlag, Value,
 };
 use crate::session::ctx::Ctx;
+use crate::session::ops::checked;
 use crate::session::{MoveReport, MoveSpec, Progress, Readback, Until};
 
 /// A value for messages: the number alone, floats with six decimals.
@@ -56,7 +57,7 @@ impl Ctx {
     /// whether that was confirmed.
     pub async fn lost(&self, a: u8, cause: Error) -> Error {
         let stop = self.stop_motion(a).await;
-        Error::LostDuringMotion { address: a, cause: Box::new(cause), stop }
+        Error::LostDuringMotion { address: crate::model::Address::checked(a), cause: Box::new(cause), stop }
     }
 
     /// Refuses a module that would ignore a motion command: one with an error flag ([`Error::Device`]) or
@@ -64,10 +65,10 @@ impl Ctx {
     async fn ready_for_motion(&self, a: u8) -> Result<(), Error> {
         let state = self.state(a).await?;
         if state.has_fault() {
-            return Err(Error::Device { address: a, state });
+            return Err(Error::Device { address: crate::model::Address::checked(a), state });
         }
         if state.contains(StateFlag::Halted) {
-            return Err(Error::Halted { address: a, state });
+            return Err(Error::Halted { address: crate::model::Address::checked(a), state });
         }
         Ok(())
     }
@@ -97,7 +98,13 @@ impl Ctx {
         let limit = f64::from(self.get_finite(a, param).await?);
         let beyond = if upper { value > limit } else { value < limit };
         if beyond {
-            return Err(Error::BeyondLimit { address: a, what: what.into(), value, limit: param, limit_value: limit });
+            return Err(Error::BeyondLimit {
+                address: crate::model::Address::checked(a),
+                what: what.into(),
+                value,
+                limit: param,
+                limit_value: limit,
+            });
         }
         Ok(())
     }
@@ -110,7 +117,7 @@ impl Ctx {
         let expected = (value * ratio).round();
         if (ticks - expected).abs() > 1.0 {
             return Err(Error::Mismatch {
-                address: a,
+                address: crate::model::Address::checked(a),
                 param: written,
                 wrote: format!("{value:.6} ({expected} ticks)"),
                 read: format!("{:.6} ({ticks} ticks in {param})", ticks / ratio),
@@ -160,7 +167,12 @@ impl Ctx {
         if same {
             Ok(Readback::Same(read))
         } else {
-            Err(Error::Mismatch { address: a, param, wrote: raw(&value), read: raw(&read) })
+            Err(Error::Mismatch {
+                address: crate::model::Address::checked(a),
+                param,
+                wrote: raw(&value),
+                read: raw(&read),
+            })
         }
     }
 
@@ -197,7 +209,10 @@ impl Ctx {
     /// that is the operation's end.
     async fn halt_if_cancelled(&self, a: u8, request: &Request) -> Result<(), Error> {
         if request.starts_motion() && self.cancelled() {
-            return Err(Error::Cancelled { address: a, stop: self.stop_motion(a).await });
+            return Err(Error::Cancelled {
+                address: crate::model::Address::checked(a),
+                stop: self.stop_motion(a).await,
+            });
         }
         Ok(())
     }
@@ -223,22 +238,31 @@ impl Ctx {
             self.progress(Progress { address, position, state, elapsed: now.saturating_since(start) });
             if state.has_fault() {
                 self.core().started.remove(&a);
-                return Err(Error::Device { address: a, state });
+                return Err(Error::Device { address: crate::model::Address::checked(a), state });
             }
             if state.contains(StateFlag::Halted) {
                 self.core().started.remove(&a);
-                return Err(Error::Halted { address: a, state });
+                return Err(Error::Halted { address: crate::model::Address::checked(a), state });
             }
             if until.reached(state) {
                 self.core().started.remove(&a);
                 return Ok(state);
             }
             if self.cancelled() {
-                return Err(Error::Cancelled { address: a, stop: self.stop_motion(a).await });
+                return Err(Error::Cancelled {
+                    address: crate::model::Address::checked(a),
+                    stop: self.stop_motion(a).await,
+                });
             }
             if now >= deadline {
                 let stop = self.stop_motion(a).await;
-                return Err(Error::WaitTimeout { address: a, what: until.what(), waited: timeout, state, stop });
+                return Err(Error::WaitTimeout {
+                    address: crate::model::Address::checked(a),
+                    what: until.what(),
+                    waited: timeout,
+                    state,
+                    stop,
+                });
             }
             // Polls on a fixed schedule from the first one: never faster than the period, whatever the line;
             // a poll that took longer than a period skips the slots it missed.
@@ -249,7 +273,10 @@ impl Ctx {
             }
             self.sleep_until_cancelled(due.min(deadline)).await;
             if self.cancelled() {
-                return Err(Error::Cancelled { address: a, stop: self.stop_motion(a).await });
+                return Err(Error::Cancelled {
+                    address: crate::model::Address::checked(a),
+                    stop: self.stop_motion(a).await,
+                });
             }
         }
     }
@@ -306,7 +333,7 @@ impl Ctx {
         }
         self.ready_for_motion(a).await?;
         if self.cancelled() {
-            return Err(Error::Cancelled { address: a, stop: StopOutcome::NotStarted });
+            return Err(Error::Cancelled { address: crate::model::Address::checked(a), stop: StopOutcome::NotStarted });
         }
         if let Err(e) = self.action(a, crate::model::Action::Home).await {
             return Err(self.lost(a, e).await);
@@ -366,7 +393,7 @@ impl Ctx {
             }
         }
         if self.cancelled() {
-            return Err(Error::Cancelled { address: a, stop: StopOutcome::NotStarted });
+            return Err(Error::Cancelled { address: crate::model::Address::checked(a), stop: StopOutcome::NotStarted });
         }
         if let Err(e) = self.request(a, motion).await {
             // It may have arrived and started the ramp.
@@ -378,7 +405,7 @@ impl Ctx {
             Ok(taken) if (i64::from(taken) - i64::from(sent)).abs() <= 1 => {}
             Ok(taken) => {
                 let stop = self.stop_motion(a).await;
-                return Err(Error::TargetMismatch { address: a, sent, taken, stop });
+                return Err(Error::TargetMismatch { address: crate::model::Address::checked(a), sent, taken, stop });
             }
             Err(e) => return Err(self.lost(a, e).await),
         }
@@ -392,7 +419,7 @@ impl Ctx {
             if !within {
                 let unit = reached.unit();
                 return Err(Error::NotReached {
-                    address: a,
+                    address: crate::model::Address::checked(a),
                     target: Position::new(spec.target.value(), unit),
                     reached,
                     difference: Position::new(difference, unit),
@@ -455,7 +482,7 @@ impl Ctx {
             if let Err(e) = self.broadcast(Broadcast::Halt).await {
                 tracing::warn!("the halt broadcast could not be sent either: {e}");
             }
-            Err(Error::StopUnconfirmed { addresses: unconfirmed, detail, watchdog_armed })
+            Err(Error::StopUnconfirmed { addresses: checked(unconfirmed), detail, watchdog_armed })
         };
         self.core().started.clear();
         result

@@ -37,7 +37,7 @@ fn a_watchdog_that_expires_because_the_host_stalled_says_the_refresh_came_late()
         b.device.update(b.now);
         assert!(b.module(1).0.contains(StateFlag::CommError), "expired while the host stalled");
         let err = finish(&mut b, id).unwrap_err();
-        let Error::WatchdogExpired { address: 1, state, timing } = &err else { panic!("{err:?}") };
+        let Error::WatchdogExpired { address: A1, state, timing } = &err else { panic!("{err:?}") };
         assert!(state.contains(StateFlag::CommError) && timing.was_late(), "{err:?}");
         assert!(timing.longest_gap >= ms(120) && timing.longest_gap < ms(150), "{timing:?}");
         let text = err.to_string();
@@ -59,7 +59,7 @@ fn a_watchdog_that_expires_because_the_line_lost_the_refreshes_says_they_went_ou
         let id = a_guarded_move_under_way(&mut b);
         b.lose_refreshes = true;
         let err = finish(&mut b, id).unwrap_err();
-        let Error::WatchdogExpired { address: 1, timing, .. } = &err else { panic!("{err:?}") };
+        let Error::WatchdogExpired { address: A1, timing, .. } = &err else { panic!("{err:?}") };
         assert!(!timing.was_late() && timing.longest_gap <= ms(20), "{timing:?}");
         let text = err.to_string();
         assert!(text.contains("went out in time") && text.contains("the line or the module lost them"), "{text}");
@@ -110,7 +110,7 @@ fn a_fault_in_the_middle_of_a_ramp_is_seen_at_the_next_poll() {
     let at = b.now;
     b.device.module_mut(1).unwrap().inject_fault(CubeState::EMPTY.with(StateFlag::TowError));
     let err = finish(&mut b, id).unwrap_err();
-    assert!(matches!(&err, Error::Device { address: 1, state } if state.contains(StateFlag::TowError)), "{err:?}");
+    assert!(matches!(&err, Error::Device { address: A1, state } if state.contains(StateFlag::TowError)), "{err:?}");
     assert!(b.now - at <= ms(10), "seen by the next poll: {:?}", b.now - at);
 }
 
