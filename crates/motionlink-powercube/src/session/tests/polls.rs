@@ -33,7 +33,7 @@ fn a_watchdog_that_expires_because_the_host_stalled_says_the_refresh_came_late()
         let mut b = if can { Bench::can(&[1]) } else { Bench::rs232(&[1]) };
         let id = a_guarded_move_under_way(&mut b);
         // The host is not scheduled for 120 ms: no refresh, nothing sent; the module's watchdog expires.
-        b.now = b.now + ms(120);
+        b.now += ms(120);
         b.device.update(b.now);
         assert!(b.module(1).0.contains(StateFlag::CommError), "expired while the host stalled");
         let err = finish(&mut b, id).unwrap_err();
