@@ -9,7 +9,7 @@ use motionlink_link::error::{Classify, ErrorClass, TransportKind};
 use motionlink_link::session::SessionError;
 use motionlink_link::LinkError;
 
-use crate::model::{CubeState, InvalidAddress, ModelError, ModuleKind, Param, Position, Request};
+use crate::model::{Address, CubeState, InvalidAddress, ModelError, ModuleKind, Param, Position, Request};
 use crate::wire::rs232::Rs232Error;
 
 /// What became of the Halt an action sent to a module it had set in motion, when the action could not go
@@ -59,6 +59,43 @@ impl fmt::Display for StopOutcome {
     }
 }
 
+/// How a session's watchdog refresh went out (see [`Error::WatchdogExpired`]), measured on the session's
+/// own clock when it handed each refresh to the line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RefreshTiming {
+    /// The longest time between two consecutive refreshes while the watchdog was armed (the time since
+    /// the last one included).
+    pub longest_gap: Duration,
+    /// The most the modules wait for the next refresh ([`WATCHDOG_TIMEOUT`](crate::model::WATCHDOG_TIMEOUT)).
+    pub allowed: Duration,
+}
+
+impl RefreshTiming {
+    /// True when a refresh went out later than the modules wait: the host did not run the session in time.
+    pub fn was_late(&self) -> bool {
+        self.longest_gap > self.allowed
+    }
+}
+
+impl fmt::Display for RefreshTiming {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (gap, allowed) = (self.longest_gap.as_millis(), self.allowed.as_millis());
+        if self.was_late() {
+            write!(
+                f,
+                "the watchdog refresh came {gap} ms late (at most {allowed} ms allowed): this host did not run the \
+                 program in time; the module halted itself"
+            )
+        } else {
+            write!(
+                f,
+                "the watchdog refreshes went out in time (at most {gap} ms apart, {allowed} ms allowed), so the \
+                 line or the module lost them; the module halted itself"
+            )
+        }
+    }
+}
+
 /// What went wrong in a session. Device errors ([`Error::is_device`]) are the module's answer; transport
 /// errors ([`Error::is_transport`]) are the line's; usage errors ([`Error::is_usage`]) are the caller's.
 #[derive(Debug, thiserror::Error)]
@@ -70,7 +107,7 @@ pub enum Error {
     #[error("module {address} did not answer {request} within {} ms", waited.as_millis())]
     Timeout {
         /// The module.
-        address: u8,
+        address: Address,
         /// The request, described.
         request: String,
         /// How long the session waited (the last attempt).
@@ -80,7 +117,7 @@ pub enum Error {
     #[error("module {address}: corrupt answer to {request}: {detail}")]
     Corrupt {
         /// The module.
-        address: u8,
+        address: Address,
         /// The request, described.
         request: String,
         /// What was wrong.
@@ -90,15 +127,27 @@ pub enum Error {
     #[error("module {address} reports an error: {}", fault_names(*state))]
     Device {
         /// The module.
-        address: u8,
+        address: Address,
         /// Its state word (match on the flags with [`CubeState::contains`]).
         state: CubeState,
+    },
+    /// The module's watchdog expired while this session refreshed it (STATE_COMM_ERROR): it halted itself.
+    /// [`Error::WatchdogExpired::timing`] says whether the refresh went out late (a host too loaded to run
+    /// the program in time) or in time (lost on the line or in the module). `reset` clears it.
+    #[error("module {address} reports an error: {}; {timing}", fault_names(*state))]
+    WatchdogExpired {
+        /// The module.
+        address: Address,
+        /// Its state word.
+        state: CubeState,
+        /// How the refresh went out.
+        timing: RefreshTiming,
     },
     /// The module is halted (STATE_HALTED) without an error flag: a Halt, or a watchdog that expired.
     #[error("module {address} is halted (STATE_HALTED); send a reset")]
     Halted {
         /// The module.
-        address: u8,
+        address: Address,
         /// Its state word.
         state: CubeState,
     },
@@ -106,7 +155,7 @@ pub enum Error {
     #[error("module {address} refused {request} (status 0x{status:02X})")]
     Refused {
         /// The module.
-        address: u8,
+        address: Address,
         /// The request, described.
         request: String,
         /// The status byte.
@@ -117,7 +166,7 @@ pub enum Error {
     #[error("module {address}: {what} did not happen within {} ms (state: {state}); {stop}", waited.as_millis())]
     WaitTimeout {
         /// The module.
-        address: u8,
+        address: Address,
         /// What was waited for.
         what: &'static str,
         /// How long.
@@ -133,7 +182,7 @@ pub enum Error {
     #[error("module {address}: cancelled; {stop}")]
     Cancelled {
         /// The module.
-        address: u8,
+        address: Address,
         /// What became of the Halt.
         stop: StopOutcome,
     },
@@ -143,7 +192,7 @@ pub enum Error {
     #[error("while module {address} may have been moving: {cause}; {stop}")]
     LostDuringMotion {
         /// The module.
-        address: u8,
+        address: Address,
         /// What failed.
         cause: Box<Error>,
         /// What became of the Halt.
@@ -154,7 +203,7 @@ pub enum Error {
     #[error("module {address}: {what} {} is outside the module's limit {limit} = {}", number(*value), number(*limit_value))]
     BeyondLimit {
         /// The module.
-        address: u8,
+        address: Address,
         /// What the value is ("target position", "--vel", "TargetVel").
         what: String,
         /// The value asked for.
@@ -169,7 +218,7 @@ pub enum Error {
     #[error("module {address}: {param} was written as {wrote} but reads back as {read} (the module limited it, or the write was corrupted on the way)")]
     Mismatch {
         /// The module.
-        address: u8,
+        address: Address,
         /// The parameter written.
         param: Param,
         /// What was written.
@@ -182,7 +231,7 @@ pub enum Error {
     #[error("module {address}: the motion command was sent with target {sent} ticks but the module took {taken} ticks (a corrupted command); {stop}")]
     TargetMismatch {
         /// The module.
-        address: u8,
+        address: Address,
         /// The target sent, in encoder ticks.
         sent: i32,
         /// The target the module holds.
@@ -195,7 +244,7 @@ pub enum Error {
     #[error("module {address}: target {} not reached: the module stands at {reached}, {:.6} away (tolerance {tolerance}; state: {state})", .target.value(), .difference.value())]
     NotReached {
         /// The module.
-        address: u8,
+        address: Address,
         /// The target, in the unit of `reached`.
         target: Position,
         /// The final actual position read from the module (in rad or m: a move reads the module's kind).
@@ -229,10 +278,10 @@ pub enum Error {
     /// The session failed with the watchdog of these modules online: it was left online (its refresh
     /// stopped), so they halt within 50 ms with STATE_COMM_ERROR; `reset_and_release_watchdog` (the `reset`
     /// command) clears them afterwards.
-    #[error("the watchdog of module {} is left online: {detail}; the module halts within 50 ms of the last refresh (STATE_COMM_ERROR; `reset` clears it)", addresses.iter().map(u8::to_string).collect::<Vec<_>>().join(", "))]
+    #[error("the watchdog of module {} is left online: {detail}; the module halts within 50 ms of the last refresh (STATE_COMM_ERROR; `reset` clears it)", addresses.iter().map(Address::to_string).collect::<Vec<_>>().join(", "))]
     WatchdogLeftOnline {
         /// The modules.
-        addresses: Vec<u8>,
+        addresses: Vec<Address>,
         /// Why.
         detail: String,
     },
@@ -241,7 +290,7 @@ pub enum Error {
     #[error("module {address}: watchdog not confirmed {}: {detail}", if *on { "online" } else { "offline" })]
     WatchdogUnconfirmed {
         /// The module.
-        address: u8,
+        address: Address,
         /// True when switching on, false when switching off.
         on: bool,
         /// What was seen.
@@ -252,7 +301,7 @@ pub enum Error {
     #[error("module {address} is {} (its unit is {}): {what} {value} does not fit it", kind.name(), kind.unit())]
     UnitMismatch {
         /// The module.
-        address: u8,
+        address: Address,
         /// What the module is.
         kind: ModuleKind,
         /// What the quantity is ("the target position", "the velocity").
@@ -284,7 +333,7 @@ pub enum Error {
     #[error("module {} set in motion by this session could not be confirmed stopped ({detail}): the axis may still be moving{}", list(addresses), if *watchdog_armed { "; its watchdog is online and no longer refreshed, so the module halts itself within 50 ms of the last refresh that reached it" } else { "" })]
     StopUnconfirmed {
         /// The modules.
-        addresses: Vec<u8>,
+        addresses: Vec<Address>,
         /// Why.
         detail: String,
         /// A watchdog this session switched on is left online (no longer refreshed).
@@ -292,10 +341,15 @@ pub enum Error {
     },
     /// The session's close sequence (stop what was started, switch the watchdogs off) did not end within
     /// its bound: what was started may not have been confirmed stopped; the watchdog refresh has stopped.
-    #[error("the session did not confirm within {} ms that what it started is stopped: the axis may still be moving (a watchdog it armed is no longer refreshed and halts its module within 50 ms)", bound.as_millis())]
+    #[error("the session did not confirm within {} ms that what it started is stopped: the axis may still be moving{}", bound.as_millis(), watchdogs_left(.armed.as_deref()))]
     CloseTimedOut {
         /// The bound waited.
         bound: Duration,
+        /// The modules whose watchdog the session had switched on (or may have) when it gave up: their
+        /// refresh has stopped, so they halt themselves within 50 ms. Empty: no watchdog was armed, nothing
+        /// but a halt or the emergency stop stops a module still moving. `None`: not known where the error
+        /// was made (the driver's drop); [`Client::close`](crate::Client::close) always says.
+        armed: Option<Vec<Address>>,
     },
     /// The session is closed (or closing): nothing more is sent.
     #[error("the session is closed")]
@@ -345,6 +399,7 @@ impl Classify for Error {
             Error::StopUnconfirmed { .. } => ErrorClass::Transport(TransportKind::Timeout),
             Error::Refused { .. } => ErrorClass::Refused,
             Error::Device { .. }
+            | Error::WatchdogExpired { .. }
             | Error::Halted { .. }
             | Error::WaitTimeout { .. }
             | Error::WatchdogUnconfirmed { .. }
@@ -369,7 +424,7 @@ impl Classify for Error {
 
 impl SessionError for Error {
     fn close_unconfirmed(bound: Duration) -> Self {
-        Error::CloseTimedOut { bound }
+        Error::CloseTimedOut { bound, armed: None }
     }
 
     fn session_closed() -> Self {
@@ -419,13 +474,35 @@ impl Error {
     }
 }
 
-fn list(addresses: &[u8]) -> String {
-    addresses.iter().map(u8::to_string).collect::<Vec<_>>().join(", ")
+/// What [`Error::CloseTimedOut`] says about the watchdogs: only what the session knew.
+fn watchdogs_left(armed: Option<&[Address]>) -> String {
+    match armed {
+        None => "; if this session armed a module's watchdog, its refresh has stopped and that module halts \
+                 itself within 50 ms"
+            .into(),
+        Some([]) => "; no watchdog was armed by this session: only a halt or the emergency stop stops it now".into(),
+        Some([a]) => format!(
+            "; the watchdog of module {a} is armed and no longer refreshed: the module halts itself within 50 ms"
+        ),
+        Some(many) => format!(
+            "; the watchdogs of modules {} are armed and no longer refreshed: those modules halt themselves \
+             within 50 ms",
+            list(many)
+        ),
+    }
+}
+
+fn list(addresses: &[Address]) -> String {
+    addresses.iter().map(Address::to_string).collect::<Vec<_>>().join(", ")
 }
 
 /// An answer that decoded but is not what `request` asks for (a value of another type, another reply).
 pub(crate) fn unexpected(address: u8, request: &Request, what: impl fmt::Display) -> Error {
-    Error::Corrupt { address, request: request.to_string(), detail: format!("unexpected answer {what}") }
+    Error::Corrupt {
+        address: Address::checked(address),
+        request: request.to_string(),
+        detail: format!("unexpected answer {what}"),
+    }
 }
 
 #[cfg(test)]
@@ -434,25 +511,33 @@ mod tests {
 
     #[test]
     fn every_error_has_the_class_its_exit_code_needs() {
-        let timeout = || Error::Timeout { address: 1, request: "x".into(), waited: Duration::from_millis(1) };
+        let timeout =
+            || Error::Timeout { address: Address::checked(1), request: "x".into(), waited: Duration::from_millis(1) };
         assert_eq!(timeout().class(), ErrorClass::Transport(TransportKind::Timeout));
         assert_eq!(Error::Encode(Rs232Error::BadAddress(40)).class().exit_code(), 2, "a framing error is usage");
         assert_eq!(Error::InvalidAddress(0).class(), ErrorClass::Usage);
-        assert_eq!(Error::Cancelled { address: 1, stop: StopOutcome::Confirmed }.class(), ErrorClass::Cancelled);
-        let lost = Error::LostDuringMotion { address: 1, cause: Box::new(timeout()), stop: StopOutcome::Confirmed };
+        assert_eq!(
+            Error::Cancelled { address: Address::checked(1), stop: StopOutcome::Confirmed }.class(),
+            ErrorClass::Cancelled
+        );
+        let lost = Error::LostDuringMotion {
+            address: Address::checked(1),
+            cause: Box::new(timeout()),
+            stop: StopOutcome::Confirmed,
+        };
         assert_eq!(lost.class(), ErrorClass::Transport(TransportKind::Timeout));
         let link = LinkError::Disconnected { port: "p".into(), reason: "r".into() };
         assert_eq!(Error::Link(link).class(), ErrorClass::Transport(TransportKind::Disconnected));
         let ctx = Error::Context {
             context: "arming".into(),
-            source: Box::new(Error::Halted { address: 1, state: CubeState(4) }),
+            source: Box::new(Error::Halted { address: Address::checked(1), state: CubeState(4) }),
             hint: "",
         };
         assert_eq!(ctx.class(), ErrorClass::Device);
         assert_eq!(Error::SessionClosed.class(), ErrorClass::Usage);
         assert_eq!(Error::close_unconfirmed(Duration::from_secs(5)).class().exit_code(), 3);
         let unit = Error::UnitMismatch {
-            address: 3,
+            address: Address::checked(3),
             kind: ModuleKind::Linear,
             what: "the target position",
             value: "0.5 rad".into(),

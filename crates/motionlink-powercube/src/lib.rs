@@ -87,7 +87,9 @@
 //!   observes it (an online watchdog expires: STATE_COMM_ERROR after 2 × 50 ms) instead of toggling it.
 //! - **Watchdog expiry** raises STATE_COMM_ERROR, STATE_HALTED and STATE_ERROR (the manual: "enter an error
 //!   state"; Profibus shows STATE_ERRORM4). A Reset re-arms it: without refreshes it expires again 50 ms
-//!   later.
+//!   later. A guarded motion whose module reports it ends with [`Error::WatchdogExpired`], which says from
+//!   the session's own record of its refreshes whether one went out more than 50 ms after the one before
+//!   (the host was not scheduled in time) or all went out in time (the line or the module lost them).
 //! - **CAN-only Config flags.** CONFIGID_MOD_SYNC_MOTION and CONFIGID_MOD_DISABLE_ACK are "valid only for
 //!   CAN-Bus": the emulator stores them on RS232 but ignores them there.
 //! - **Change baud rate.** The emulator decodes the broadcast and records the rate (`Emulator::can_baud`,

@@ -2,6 +2,7 @@
 //! of `motionlink demo`: argument parsing, output and exit codes. What stops a module, when its watchdog is
 //! armed and how a move is checked are the library's ([`Guard`], [`Module::move_to_guarded`]).
 
+mod args;
 mod decode;
 mod demo;
 mod send;
@@ -28,6 +29,7 @@ use motionlink_powercube::wire::Payload;
 use motionlink_powercube::{Emulator, Error};
 use serde_json::json;
 
+use args::{check_args, parse_baud, parse_bitrate, positive_secs};
 pub use decode::{decode, DecodeArgs};
 pub use demo::demo;
 use send::{parse_send, print_params, send};
@@ -48,11 +50,12 @@ pub struct Args {
     /// The module's address, 1..31.
     #[arg(long, default_value = "1", value_parser = clap::value_parser!(Address), global = true)]
     pub module: Address,
-    /// RS232 baud rate.
-    #[arg(long, default_value_t = 9600, value_parser = clap::value_parser!(u32).range(1..), global = true)]
+    /// RS232 baud rate: one of 1200, 2400, 4800, 9600 (the modules' default), 19200, 38400, 57600, 115200.
+    #[arg(long, default_value_t = 9600, value_parser = parse_baud, global = true)]
     pub baud: u32,
-    /// CAN bit rate of an SLCAN adapter (10000 .. 1000000).
-    #[arg(long, default_value_t = 1_000_000, global = true)]
+    /// CAN bit rate of an SLCAN adapter: one of the rates SLCAN offers, 10000, 20000, 50000, 100000,
+    /// 125000, 250000, 500000, 800000, 1000000.
+    #[arg(long, default_value_t = 1_000_000, value_parser = parse_bitrate, global = true)]
     pub bitrate: u32,
     /// Acknowledge timeout in ms, 1 to 60000 (default: 200 on RS232, 50 on CAN).
     #[arg(long, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000), global = true)]
@@ -110,8 +113,8 @@ pub enum Action {
     /// Home the module and wait for the end of homing (watchdog armed; a signal halts it).
     Home {
         /// Give up (and halt) after this many seconds (above 0).
-        #[arg(long, default_value_t = 60.0)]
-        timeout: f64,
+        #[arg(long = "timeout-s", alias = "timeout", value_name = "S", default_value_t = 60.0)]
+        timeout_s: f64,
     },
     /// Reset the module's error state (and switch off a watchdog that a dead host left expired).
     Reset,
@@ -132,10 +135,10 @@ pub enum Action {
         #[arg(long)]
         acc: Option<f32>,
         /// Give up (and halt) after this many seconds (above 0).
-        #[arg(long, default_value_t = 60.0)]
-        timeout: f64,
-        /// In-position tolerance (rad or m, above 0): the move succeeds only if the final actual position is
-        /// at most this far from the target. The manual has no in-position window parameter.
+        #[arg(long = "timeout-s", alias = "timeout", value_name = "S", default_value_t = 60.0)]
+        timeout_s: f64,
+        /// In-position tolerance (rad or m, above 0, at most 0.1): the move succeeds only if the final actual
+        /// position is at most this far from the target. The manual has no in-position window parameter.
         #[arg(long, default_value_t = MoveSpec::DEFAULT_TOLERANCE.value())]
         tolerance: f32,
     },
@@ -263,16 +266,15 @@ fn value_json(v: &Value) -> serde_json::Value {
 }
 
 /// What `set` read back, in the parameter's unit: the write-only TargetPos, TargetVel and TargetAcc are read
-/// back by the library through their encoder-tick twins, converted here with the module's IncRatio.
+/// back by the library through their encoder-tick twins ([`Param::read_back_as`]), converted with the
+/// module's IncRatio by the library's [`Param::from_read_back_ticks`].
 fn read_back_json(m: &Module<'_>, p: Param, read: &Value) -> Result<serde_json::Value, CliError> {
-    if !matches!(p, Param::TargetPos | Param::TargetVel | Param::TargetAcc) {
-        return Ok(value_json(read));
-    }
+    let Some(twin) = p.read_back_as() else { return Ok(value_json(read)) };
     let ratio = m.get(Param::IncRatio).map_err(failed)?;
-    match (read.as_f64(), ratio.as_f64()) {
-        (Some(ticks), Some(ratio)) if ratio > 0.0 => Ok(json!(ticks / ratio)),
-        _ => Err(CliError::transport(format!(
-            "{p} was read back in encoder ticks, but the module's IncRatio is no number above 0"
+    match ratio.as_f64().and_then(|ratio| p.from_read_back_ticks(read, ratio)) {
+        Some(value) => Ok(json!(value)),
+        None => Err(CliError::transport(format!(
+            "{p} was read back from {twin} in encoder ticks, but the module's IncRatio is no number above 0"
         ))),
     }
 }
@@ -310,37 +312,6 @@ fn info_json(port: &str, m: &ModuleInfo) -> serde_json::Value {
             "state": state_json(m.state),
         }),
     )
-}
-
-/// A duration in seconds that must be a number above 0, for `--timeout`.
-fn positive_secs(name: &str, s: f64) -> Result<Duration, CliError> {
-    if !(s.is_finite() && s > 0.0) {
-        return Err(CliError::usage(format!("{name} must be a number of seconds above 0, not {s}")));
-    }
-    Duration::try_from_secs_f64(s).map_err(|_| CliError::usage(format!("{name} {s} is not a duration in seconds")))
-}
-
-/// Checks what can be checked before the port is opened: numbers that must be finite and positive. (The
-/// limits of the module itself, such as MaxPos or MaxVel, are checked by the library against the module
-/// before anything is written or moved.)
-fn check_args(action: &Action) -> Result<(), CliError> {
-    match action {
-        Action::Move { position, vel, acc, timeout, tolerance } => {
-            if !position.is_finite() {
-                return Err(CliError::usage(format!("the position must be a number, not {position}")));
-            }
-            for (name, value) in [("--vel", vel), ("--acc", acc), ("--tolerance", &Some(*tolerance))] {
-                if let Some(v) = value {
-                    if !(v.is_finite() && *v > 0.0) {
-                        return Err(CliError::usage(format!("{name} must be a number above 0, not {v}")));
-                    }
-                }
-            }
-            positive_secs("--timeout", *timeout).map(|_| ())
-        }
-        Action::Home { timeout } => positive_secs("--timeout", *timeout).map(|_| ()),
-        _ => Ok(()),
-    }
 }
 
 /// `motionlink powercube ...`
@@ -465,8 +436,8 @@ fn act(args: &Args, client: &Client, guard: Guard, port: &str, out: &mut dyn Wri
                 writeln!(out, "{} set to {} ({how})", p.name(), v.show(p, kind))?;
             }
         }
-        Action::Home { timeout } => {
-            let timeout = positive_secs("--timeout", *timeout)?;
+        Action::Home { timeout_s } => {
+            let timeout = positive_secs("--timeout-s", *timeout_s)?;
             let bar = common::progress_bar(0, format!("homing module {}", args.module));
             let r = m.home_guarded(timeout, guard, &mut |p: &Progress| bar.set_message(progress_text(p)));
             bar.finish_and_clear();
@@ -502,7 +473,7 @@ fn act(args: &Args, client: &Client, guard: Guard, port: &str, out: &mut dyn Wri
                 writeln!(out, "halted")?;
             }
         }
-        Action::Move { position, vel, acc, timeout, tolerance } => {
+        Action::Move { position, vel, acc, timeout_s, tolerance } => {
             // Numbers on the command line are in the module's own unit (rad or m).
             let spec = MoveSpec {
                 target: Position::native(*position),
@@ -510,7 +481,7 @@ fn act(args: &Args, client: &Client, guard: Guard, port: &str, out: &mut dyn Wri
                 vel: vel.map(Velocity::native),
                 acc: acc.map(Acceleration::native),
                 tolerance: Some(Position::native(*tolerance)),
-                timeout: positive_secs("--timeout", *timeout)?,
+                timeout: positive_secs("--timeout-s", *timeout_s)?,
             };
             let bar = common::progress_bar(0, format!("module {}", args.module));
             let mut start = None;

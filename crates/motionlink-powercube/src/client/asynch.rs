@@ -198,7 +198,8 @@ impl AsyncClient {
 
     /// Ends the session (see [`Client::close`](super::Client::close)).
     pub async fn close(self) -> Result<(), Error> {
-        self.driver.close().await
+        let view = self.driver.driver().with_session(|s| s.watchdog_view());
+        self.driver.close().await.map_err(|e| view.explain(e))
     }
 }
 

@@ -242,7 +242,8 @@ impl Client {
     /// Ends the session: halts what it set in motion and still moves, switches off the watchdogs it switched
     /// on (unless it failed), and says whether that was confirmed, within [`BusConfig::close_bound`].
     pub fn close(self) -> Result<(), Error> {
-        self.driver.close()
+        let view = self.driver.with_session(|s| s.watchdog_view());
+        self.driver.close().map_err(|e| view.explain(e))
     }
 }
 

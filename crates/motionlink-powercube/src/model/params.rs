@@ -272,6 +272,31 @@ impl Param {
     pub fn description(self) -> &'static str {
         self.entry().title
     }
+
+    /// The parameter a write of this one is read back from when that is another one: the write-only
+    /// TargetPos, TargetVel and TargetAcc are kept by the module in encoder ticks, in TargetPosInc,
+    /// TargetVelInc and TargetAccInc. `None`: the parameter is read back as itself (where it can be read).
+    /// What [`Op::SetChecked`](crate::session::Op::SetChecked) reads, and what front ends name.
+    pub fn read_back_as(self) -> Option<Param> {
+        match self {
+            Param::TargetPos => Some(Param::TargetPosInc),
+            Param::TargetVel => Some(Param::TargetVelInc),
+            Param::TargetAcc => Some(Param::TargetAccInc),
+            _ => None,
+        }
+    }
+
+    /// A value read back from this parameter's tick twin ([`Param::read_back_as`]) in this parameter's
+    /// own unit (rad, rad/s, rad/s² or m, m/s, m/s² by the module's kind), given the module's IncRatio
+    /// (encoder ticks per unit, above 0). `None` for a parameter that has no tick twin, a value that is no
+    /// number, or a ratio that is not a number above 0.
+    pub fn from_read_back_ticks(self, ticks: &super::Value, inc_ratio: f64) -> Option<f64> {
+        self.read_back_as()?;
+        if !(inc_ratio.is_finite() && inc_ratio > 0.0) {
+            return None;
+        }
+        ticks.as_f64().map(|t| t / inc_ratio)
+    }
 }
 
 param_table! {

@@ -235,6 +235,13 @@ impl Address {
         }
     }
 
+    /// A number the session keeps for a module it addressed: it came from a checked [`Address`] or from an
+    /// answer that only a module address can send (every request is checked before it goes out), so it is
+    /// kept as it is.
+    pub(crate) const fn checked(n: u8) -> Address {
+        Address(n)
+    }
+
     /// The number.
     pub const fn get(self) -> u8 {
         self.0

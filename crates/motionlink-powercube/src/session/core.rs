@@ -84,6 +84,40 @@ pub(crate) struct WatchdogDuty {
     pub uncertain: BTreeSet<u8>,
     /// The last failure of a refresh.
     pub last_error: Option<String>,
+    /// When the last refresh was handed to the driver, on the session's time (none yet since the refresh
+    /// started being served).
+    pub last_refresh: Option<Timestamp>,
+    /// The longest time between two consecutive refreshes since the refresh started being served.
+    pub longest_gap: Duration,
+}
+
+impl WatchdogDuty {
+    /// Starts serving the refresh at `now` (the timing of an earlier spell forgotten).
+    pub fn start_serving(&mut self, now: Timestamp) {
+        self.serving = true;
+        self.next_due = now;
+        self.last_refresh = None;
+        self.longest_gap = Duration::ZERO;
+    }
+
+    /// The refresh goes out at `now`.
+    fn refreshed(&mut self, now: Timestamp) {
+        if let Some(last) = self.last_refresh {
+            self.longest_gap = self.longest_gap.max(now.saturating_since(last));
+        }
+        self.last_refresh = Some(now);
+    }
+
+    /// How the refresh went out up to `now`, if it has gone out at all: the longest gap between two
+    /// refreshes, the time since the last one counted as a gap while the refresh is served.
+    pub fn timing(&self, now: Timestamp) -> Option<crate::error::RefreshTiming> {
+        let last = self.last_refresh?;
+        let open = if self.serving { now.saturating_since(last) } else { Duration::ZERO };
+        Some(crate::error::RefreshTiming {
+            longest_gap: self.longest_gap.max(open),
+            allowed: crate::model::WATCHDOG_TIMEOUT,
+        })
+    }
 }
 
 /// Everything a session and its operations share.
@@ -238,6 +272,7 @@ impl Core {
             self.duty.next_due = if next > now { next } else { now + period };
             match self.broadcast_action(&Broadcast::WatchdogRefresh) {
                 Ok(a) => {
+                    self.duty.refreshed(now);
                     self.sent = Sent::Refresh;
                     return Some(a);
                 }
@@ -458,8 +493,16 @@ impl Core {
             .zip(&f.batch)
             .map(|((r, c), (address, request))| match (r, c) {
                 (Some(r), _) => Ok(r),
-                (None, Some(detail)) => Err(Error::Corrupt { address: *address, request: request.to_string(), detail }),
-                (None, None) => Err(Error::Timeout { address: *address, request: request.to_string(), waited }),
+                (None, Some(detail)) => Err(Error::Corrupt {
+                    address: crate::model::Address::checked(*address),
+                    request: request.to_string(),
+                    detail,
+                }),
+                (None, None) => Err(Error::Timeout {
+                    address: crate::model::Address::checked(*address),
+                    request: request.to_string(),
+                    waited,
+                }),
             })
             .collect();
         self.finish(f.ticket, f.op, JobResult::Exchange(results));

@@ -321,6 +321,12 @@ impl Session {
         core.duty.serving && (core.duty.online.contains(&a) || core.duty.uncertain.contains(&a))
     }
 
+    /// A view of this session's watchdog duty that outlives the session (a driver that closes drops it):
+    /// [`WatchdogView::armed`] says afterwards which modules' watchdogs were left armed.
+    pub fn watchdog_view(&self) -> WatchdogView {
+        WatchdogView(Arc::clone(&self.core))
+    }
+
     /// When the next watchdog refresh is due, while the session serves it.
     pub fn watchdog_next_due(&self) -> Option<Timestamp> {
         let core = self.core();
@@ -500,6 +506,36 @@ impl motionlink_link::session::Session for Session {
 
     fn is_idle(&self) -> bool {
         self.ops.is_empty() && matches!(self.closing, Closing::Open | Closing::Closed) && self.core().is_quiet()
+    }
+}
+
+/// A handle on a session's watchdog duty ([`Session::watchdog_view`]), still readable once the session is
+/// gone.
+#[derive(Clone)]
+pub struct WatchdogView(Arc<Mutex<Core>>);
+
+impl std::fmt::Debug for WatchdogView {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_tuple("WatchdogView").field(&self.armed()).finish()
+    }
+}
+
+impl WatchdogView {
+    /// The modules whose watchdog the session switched on (or may have: a life sign not confirmed) and has
+    /// not switched off again, in address order.
+    pub fn armed(&self) -> Vec<Address> {
+        let core = lock(&self.0);
+        let d = &core.duty;
+        addresses(&d.online.union(&d.uncertain).copied().collect())
+    }
+
+    /// `e` with what this view knows: a [`Error::CloseTimedOut`] that could not say which watchdogs were
+    /// armed gets the list.
+    pub fn explain(&self, e: Error) -> Error {
+        match e {
+            Error::CloseTimedOut { bound, armed: None } => Error::CloseTimedOut { bound, armed: Some(self.armed()) },
+            other => other,
+        }
     }
 }
 

@@ -4,6 +4,11 @@
 
 use std::time::Duration;
 
+/// Addresses as patterns match them.
+const A1: Address = Address::checked(1);
+const A4: Address = Address::checked(4);
+const A9: Address = Address::checked(9);
+
 use motionlink_link::can::CanEmulator;
 use motionlink_link::session::{Action as LinkAction, Event, Input, OpId, Session as _};
 use motionlink_link::Timestamp;
@@ -13,6 +18,8 @@ use crate::model::{ConfigFlag, StateFlag};
 use crate::sim::{ModuleConfig, SimConfig};
 use crate::wire::can::{from_frame, Role};
 use crate::Emulator;
+
+mod polls;
 
 /// What went over the line, for assertions.
 #[derive(Debug, Clone, PartialEq)]
@@ -29,19 +36,37 @@ struct Bench {
     events: Vec<Event<Session>>,
     /// Drops every answer of the device while true.
     deaf: bool,
+    /// Loses every watchdog refresh on the way to the device while true (a line that drops them).
+    lose_refreshes: bool,
 }
 
 impl Bench {
     fn rs232(addresses: &[u8]) -> Bench {
         let device = Emulator::new(&SimConfig::with_addresses(addresses).unwrap());
         let session = Session::rs232(BusConfig::rs232(), "test line", Timestamp::ZERO);
-        Bench { session, device, now: Timestamp::ZERO, sent: Vec::new(), events: Vec::new(), deaf: false }
+        Bench {
+            session,
+            device,
+            now: Timestamp::ZERO,
+            sent: Vec::new(),
+            events: Vec::new(),
+            deaf: false,
+            lose_refreshes: false,
+        }
     }
 
     fn can(addresses: &[u8]) -> Bench {
         let device = Emulator::new_can(&SimConfig::with_addresses(addresses).unwrap());
         let session = Session::can(BusConfig::can(), "test bus", Timestamp::ZERO);
-        Bench { session, device, now: Timestamp::ZERO, sent: Vec::new(), events: Vec::new(), deaf: false }
+        Bench {
+            session,
+            device,
+            now: Timestamp::ZERO,
+            sent: Vec::new(),
+            events: Vec::new(),
+            deaf: false,
+            lose_refreshes: false,
+        }
     }
 
     fn with_modules(modules: Vec<ModuleConfig>, can: bool) -> Bench {
@@ -55,6 +80,14 @@ impl Bench {
     fn pump(&mut self) {
         while let Some(action) = self.session.poll_transmit(self.now) {
             match action {
+                LinkAction::Send(bytes) if self.lose_refreshes && bytes == REFRESH_RS232 => {
+                    self.sent.push(Wire::Rs232(self.now, bytes.clone()));
+                }
+                LinkAction::SendFrame(frame)
+                    if self.lose_refreshes && (frame.id(), frame.data()) == (0x100, &[7][..]) =>
+                {
+                    self.sent.push(Wire::Frame(self.now, frame.id(), frame.data().to_vec()));
+                }
                 LinkAction::Send(bytes) => {
                     self.sent.push(Wire::Rs232(self.now, bytes.clone()));
                     let mut answer = Vec::new();
@@ -147,12 +180,15 @@ impl Bench {
             .iter()
             .filter_map(|w| match w {
                 Wire::Frame(t, 0x100, d) if d == &[0x07] => Some(*t),
-                Wire::Rs232(t, b) if b == &[0x02, 0x04, 0x10, 0x82, 0x07, 0x00, 0x0D, 0x03] => Some(*t),
+                Wire::Rs232(t, b) if b == REFRESH_RS232 => Some(*t),
                 _ => None,
             })
             .collect()
     }
 }
+
+/// The watchdog refresh on RS232: the broadcast to address 0 in libm5api's form.
+const REFRESH_RS232: &[u8] = &[0x02, 0x04, 0x10, 0x82, 0x07, 0x00, 0x0D, 0x03];
 
 fn addr(a: u8) -> Address {
     Address::new(a).unwrap()
@@ -171,13 +207,13 @@ fn reads_are_retried_and_nothing_else_is() {
     let mut b = Bench::rs232(&[1]);
     let t0 = b.now;
     let err = b.run(Op::Position(addr(9))).unwrap_err();
-    assert!(matches!(err, Error::Timeout { address: 9, .. }), "{err}");
+    assert!(matches!(err, Error::Timeout { address: A9, .. }), "{err}");
     assert_eq!(b.sent.len(), 3, "three tries of the read");
     assert_eq!(b.now - t0, ms(600), "each waited its full 200 ms");
     b.sent.clear();
     b.deaf = true;
     let err = b.run(Op::Set(addr(1), Param::TargetVel, Value::F32(0.2))).unwrap_err();
-    assert!(matches!(err, Error::Timeout { address: 1, .. }), "{err}");
+    assert!(matches!(err, Error::Timeout { address: A1, .. }), "{err}");
     assert_eq!(b.sent.len(), 1, "a write is never repeated");
     // The late answer of the write would be stale: the next exchange drops what is pending first.
     b.deaf = false;
@@ -192,7 +228,7 @@ fn on_can_acknowledges_are_matched_to_their_module_in_one_round() {
     assert_eq!(v[0].as_ref().unwrap(), &Value::U32(1003));
     assert_eq!(v[1].as_ref().unwrap(), &Value::U32(1001));
     assert_eq!(v[2].as_ref().unwrap(), &Value::U32(1002));
-    assert!(matches!(v[3], Err(Error::Timeout { address: 9, .. })));
+    assert!(matches!(v[3], Err(Error::Timeout { address: A9, .. })));
     // Three rounds (the first, and two retries of address 9 alone), each one reply timeout.
     assert_eq!(b.now - t0, ms(150));
     let gets = b.sent.iter().filter(|w| matches!(w, Wire::Frame(_, id, _) if (0xC1..=0xDF).contains(id))).count();
@@ -268,7 +304,7 @@ fn a_position_in_rad_for_a_linear_module_is_refused_before_anything_moves() {
     linear.max_pos = 0.2;
     let mut b = Bench::with_modules(vec![linear], false);
     let err = b.run(Op::MoveTo(addr(4), MoveSpec::to(Position::rad(0.1)))).unwrap_err();
-    assert!(matches!(err, Error::UnitMismatch { address: 4, kind: ModuleKind::Linear, .. }), "{err}");
+    assert!(matches!(err, Error::UnitMismatch { address: A4, kind: ModuleKind::Linear, .. }), "{err}");
     assert!(err.is_usage() && err.to_string().contains("0.1 rad"), "{err}");
     let err = b.run(Op::Motion(addr(4), Motion::FVel { vel: Velocity::rad_per_s(0.1) }, AckKind::Simple)).unwrap_err();
     assert!(matches!(err, Error::UnitMismatch { .. }), "{err}");
@@ -293,7 +329,7 @@ fn a_cancelled_move_is_halted_and_says_the_module_confirmed_it() {
     b.pump();
     let r = b.done(id).expect("ends at once: the halt is acknowledged within the same instant here");
     let err = r.unwrap_err();
-    assert!(matches!(err, Error::Cancelled { address: 1, stop: StopOutcome::Confirmed }), "{err}");
+    assert!(matches!(err, Error::Cancelled { address: A1, stop: StopOutcome::Confirmed }), "{err}");
     let (state, p, _, _) = b.module(1);
     assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
     assert!(p > 0.05 && p < 0.2, "{p}");
@@ -484,7 +520,7 @@ fn a_motion_command_cancelled_before_its_acknowledge_is_halted() {
         assert!(b.step(limit));
     };
     let err = r.unwrap_err();
-    assert!(matches!(err, Error::Cancelled { address: 1, stop: StopOutcome::Confirmed }), "{err}");
+    assert!(matches!(err, Error::Cancelled { address: A1, stop: StopOutcome::Confirmed }), "{err}");
     let (state, ..) = b.module(1);
     assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
 }

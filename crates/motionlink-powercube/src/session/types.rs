@@ -135,7 +135,7 @@ pub struct MoveSpec {
     pub acc: Option<Acceleration>,
     /// The in-position tolerance: the move succeeds only if the final actual position is at most this far
     /// from the target (above 0). The manual offers no in-position window parameter, so this is the
-    /// caller's; `None` is [`MoveSpec::DEFAULT_TOLERANCE`].
+    /// caller's; `None` is [`MoveSpec::DEFAULT_TOLERANCE`]; at most [`MoveSpec::MAX_TOLERANCE`].
     pub tolerance: Option<Position>,
     /// How long to wait for the end of the ramp before halting it.
     pub timeout: Duration,
@@ -144,6 +144,10 @@ pub struct MoveSpec {
 impl MoveSpec {
     /// The default in-position tolerance: 0.001 rad (0.057°) on a rotary module, 1 mm on a linear one.
     pub const DEFAULT_TOLERANCE: Position = Position::native(0.001);
+
+    /// The largest in-position tolerance a move takes: 0.1 rad (5.7°) or 0.1 m. A wider window would count
+    /// almost any end of the ramp as arrived, which is no check at all.
+    pub const MAX_TOLERANCE: Position = Position::native(0.1);
 
     /// A move to `target` with the module's own TargetVel and TargetAcc, the default tolerance, and 60 s to
     /// get there.
@@ -157,7 +161,7 @@ impl MoveSpec {
     }
 
     /// Checks that every number makes sense (finite; velocity, acceleration, tolerance and timeout above
-    /// 0) and that the units agree with each other (rad and m are not mixed).
+    /// 0; the tolerance at most [`MoveSpec::MAX_TOLERANCE`]) and that the units agree with each other (rad and m are not mixed).
     pub fn validate(&self) -> Result<(), Error> {
         let bad = |what, must, value: String| Err(Error::InvalidArgument { what, must, value });
         if !self.target.value().is_finite() {
@@ -173,8 +177,8 @@ impl MoveSpec {
             }
         }
         let tolerance = self.tolerance().value();
-        if !(tolerance.is_finite() && tolerance > 0.0) {
-            return bad("the tolerance", "a number above 0", tolerance.to_string());
+        if !(tolerance.is_finite() && tolerance > 0.0 && tolerance <= Self::MAX_TOLERANCE.value()) {
+            return bad("the tolerance", "a number above 0 and at most 0.1 (rad or m)", tolerance.to_string());
         }
         if self.timeout.is_zero() {
             return bad("the timeout", "above 0", format!("{:?}", self.timeout));
@@ -209,7 +213,9 @@ pub struct MoveReport {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Readback {
     /// Read back (the parameter itself, or for the write-only TargetPos / TargetVel / TargetAcc their
-    /// encoder-tick twin) and found as written; the value read.
+    /// encoder-tick twin, [`Param::read_back_as`](crate::model::Param::read_back_as)) and found as written;
+    /// the value read, as read (ticks for a twin: [`Param::from_read_back_ticks`](crate::model::Param::from_read_back_ticks)
+    /// converts it into the written parameter's unit).
     Same(Value),
     /// The parameter cannot be read back meaningfully; why.
     NotReadable(&'static str),
@@ -254,7 +260,11 @@ pub struct Progress {
     pub address: Address,
     /// Its position (rad or m where the session knows the module's kind).
     pub position: Position,
-    /// Its state.
+    /// Its state: the last state word read. In the middle of a motion a wait reads it in full at least
+    /// every 100 ms and whenever the short state that comes with every position (ActFPosStateDio)
+    /// changes; between those reads the flags the short state carries (motion, ramp end, switches, not
+    /// ok) are as read now, the others (such as the ramp phase STATE_RAMP_ACC / STEADY / DEC) are those
+    /// of the last full read, at most 100 ms old.
     pub state: CubeState,
     /// Time waited so far.
     pub elapsed: Duration,

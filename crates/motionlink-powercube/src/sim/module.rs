@@ -246,6 +246,12 @@ impl SimModule {
         self.cfg.inputs = inputs & 0x0F;
     }
 
+    /// Raises a flag without anything else (a warning such as STATE_CURLIMIT), for tests.
+    #[cfg(test)]
+    pub(crate) fn set_flag_for_test(&mut self, flag: crate::model::StateFlag) {
+        self.flags = self.flags.with(flag);
+    }
+
     /// Raises error flags as a fault of the module would (a test hook): STATE_ERROR and STATE_HALTED come
     /// with them and the motion stops.
     pub fn inject_fault(&mut self, flags: CubeState) {

@@ -208,23 +208,12 @@ fn agrees(state: CubeState, short: ShortState) -> bool {
     state.short_state() == short
 }
 
-fn unexpected_output<T>(address: u8, other: Output) -> Result<T, Error> {
+fn unexpected_output<T>(address: Address, other: Output) -> Result<T, Error> {
     Err(Error::Corrupt {
         address,
         request: "Get ActFPosStateDio".into(),
         detail: format!("unexpected answer {other:?}"),
     })
-}
-
-/// The parameter a write of `p` is read back from: the encoder-tick twin of the write-only targets, else `p`
-/// (as the library's checked write does).
-fn read_back_param(p: Param) -> Param {
-    match p {
-        Param::TargetPos => Param::TargetPosInc,
-        Param::TargetVel => Param::TargetVelInc,
-        Param::TargetAcc => Param::TargetAccInc,
-        p => p,
-    }
 }
 
 fn unit_of(p: Param, kind: Option<ModuleKind>) -> String {
@@ -336,7 +325,7 @@ impl Device for PowerCube {
                     let m = self.client.module(Address::new(u.id)?);
                     let (position, short) = match self.client.run(Op::PositionStateDio(m.address())).await? {
                         Output::PositionStateDio(p, s, _) => (p, s),
-                        other => unexpected_output(u.id, other)?,
+                        other => unexpected_output(m.address(), other)?,
                     };
                     let last = motionlink_link::clock::lock(&self.slow).get(&u.id).copied().unwrap_or_default();
                     let stale = last.state.is_none_or(|k| !agrees(k, short)) && !last.forced;
@@ -499,7 +488,7 @@ impl Device for PowerCube {
                 Readback::Same(r) => {
                     // TargetPos, TargetVel and TargetAcc cannot be read: what came back is their twin in
                     // encoder ticks, shown as what it is.
-                    let from = read_back_param(p);
+                    let from = p.read_back_as().unwrap_or(p);
                     let note = if from == p {
                         String::new()
                     } else {

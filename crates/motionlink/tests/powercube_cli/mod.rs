@@ -528,6 +528,13 @@ fn numbers_that_make_no_sense_are_usage_errors_and_nothing_is_sent() {
         (&["--module", "32", "move", "0.1"], "--module"),
         (&["--module=-1", "state"], "--module"),
         (&["--baud", "0", "state"], "--baud"),
+        (&["--baud", "7", "state"], "--baud"),
+        (&["--bitrate", "0", "state"], "--bitrate"),
+        (&["--bitrate", "12345", "move", "0.1"], "--bitrate"),
+        (&["move", "0.1", "--tolerance", "100"], "--tolerance"),
+        (&["move", "0.1", "--tolerance", "0.2"], "--tolerance"),
+        (&["move", "0.1", "--timeout-s", "0"], "--timeout-s"),
+        (&["home", "--timeout-s=-1"], "--timeout-s"),
         (&["watch", "--interval-ms", "0"], "--interval-ms"),
         (&["watch", "--count", "0"], "--count"),
         // Beyond the module's own limits: refused before anything is written or moved, naming the limit.
@@ -582,6 +589,10 @@ fn set_reads_back_what_it_wrote() {
     assert!(ok(port, &["set", "MaxVel", "0.5"]).contains("MaxVel set to 0.500000 rad/s (read back)"));
     let j: serde_json::Value = serde_json::from_str(&ok(port, &["--json", "set", "TargetVel", "0.25"])).unwrap();
     assert!(j["read_back"].is_number() && j["not_verifiable"].is_null() && j["verified"] == true, "{j}");
+    // Read back through TargetVelInc (ticks) and shown in the unit written (rad/s), by the library's mapping.
+    assert!((j["read_back"].as_f64().unwrap() - 0.25).abs() < 1e-4, "{j}");
+    let j: serde_json::Value = serde_json::from_str(&ok(port, &["--json", "set", "TargetPos", "-0.5"])).unwrap();
+    assert!((j["read_back"].as_f64().unwrap() + 0.5).abs() < 1e-4, "{j}");
     assert!(ok(port, &["set", "Cur", "1"]).contains("not verified: reading Cur gives the measured current"));
 }
 
@@ -625,4 +636,17 @@ fn libm5api_broadcasts_over_tcp_reach_every_module() {
     replay(&[0x02, 0x04, 0x10, 0x82, 0x00, 0x00, 0x06, 0x03], "reset"); // resetAll
     replay(&[0x02, 0x04, 0x10, 0x82, 0x0E, 0x00, 0x14, 0x03], "position saved"); // savePosAll
     assert!(sim.events().iter().all(|e| e.at < t0 || !e.text.contains("ignored")), "{:?}", sim.events());
+}
+
+#[test]
+fn timeout_s_names_its_unit_and_the_old_spelling_still_works() {
+    let sim = Sim::tcp("powercube");
+    let port = sim.address.as_str();
+    assert!(ok(port, &["move", "0.06", "--vel", "1", "--acc", "2", "--timeout-s", "5"]).contains("reached"));
+    assert!(ok(port, &["move", "0.07", "--timeout", "5"]).contains("reached"), "the old spelling is an alias");
+    assert!(ok(port, &["home", "--timeout-s", "5"]).contains("homed"));
+    let help = Command::new(BIN).args(["powercube", "move", "--help"]).output().unwrap();
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(help.contains("--timeout-s <S>") && !help.contains("--timeout <"), "{help}");
+    assert!(help.contains("at most 0.1"), "{help}");
 }

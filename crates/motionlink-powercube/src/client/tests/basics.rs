@@ -99,7 +99,7 @@ fn device_errors_name_their_flags() {
     m.motion(Motion::FVel { vel: Velocity::native(0.5) }, AckKind::Simple).unwrap();
     let err = m.wait_motion_end(secs(10), &mut |_| {}).unwrap_err();
     match &err {
-        Error::Device { address: 1, state } => assert!(state.contains(StateFlag::BeyondSoft)),
+        Error::Device { address: A1, state } => assert!(state.contains(StateFlag::BeyondSoft)),
         other => panic!("{other}"),
     }
     assert!(err.is_device() && !err.is_transport());
@@ -121,7 +121,7 @@ fn timeouts_retry_reads_only() {
     let t0 = clock.now();
     let sent0 = faults.bytes_sent(Direction::HostToDevice);
     let err = bus.module(addr(9)).position().unwrap_err();
-    assert!(matches!(err, Error::Timeout { address: 9, .. }) && err.is_transport(), "{err}");
+    assert!(matches!(err, Error::Timeout { address: A9, .. }) && err.is_transport(), "{err}");
     assert!(err.to_string().contains("did not answer GetExtended ActPos"), "{err}");
     let frame = 8; // STX TELID(2) 0a 3c BCC ETX + escaping: 7 or 8
     let sent = faults.bytes_sent(Direction::HostToDevice) - sent0;
@@ -194,7 +194,7 @@ fn cancelling_a_wait_halts_the_motion() {
             }
         })
         .unwrap_err();
-    assert!(matches!(err, Error::Cancelled { address: 1, stop: StopOutcome::Confirmed }), "{err}");
+    assert!(matches!(err, Error::Cancelled { address: A1, stop: StopOutcome::Confirmed }), "{err}");
     assert!(err.to_string().contains("the module acknowledged the halt"), "{err}");
     assert!(host.with_device(|d| d.module(1).unwrap().state().contains(StateFlag::Halted)));
     // A wait that times out halts too.
@@ -233,7 +233,7 @@ fn on_can_many_modules_are_polled_in_one_round() {
     // One missing module does not hold the others up beyond one timeout (and reads are retried).
     let t0 = clock.now();
     let r = bus.positions(&addrs(&[1, 9, 2]));
-    assert!(r[0].is_ok() && r[2].is_ok() && matches!(r[1], Err(Error::Timeout { address: 9, .. })));
+    assert!(r[0].is_ok() && r[2].is_ok() && matches!(r[1], Err(Error::Timeout { address: A9, .. })));
     assert!(clock.now() - t0 < Duration::from_millis(200));
 }
 
@@ -448,7 +448,7 @@ fn a_module_that_cannot_be_read_is_reported_and_the_scan_goes_on() {
     assert_eq!(entries.iter().map(|e| e.address.get()).collect::<Vec<_>>(), vec![1, 17]);
     assert_eq!(entries[0].info.as_ref().unwrap().serial, 1001);
     let err = entries[1].info.as_ref().unwrap_err();
-    assert!(matches!(err, Error::Timeout { address: 17, .. }), "{err}");
+    assert!(matches!(err, Error::Timeout { address: A17, .. }), "{err}");
 }
 
 #[test]

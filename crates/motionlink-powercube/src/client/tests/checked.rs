@@ -52,9 +52,9 @@ fn a_checked_move_refuses_targets_beyond_the_limits_before_anything_moves() {
     // A halted module would ignore the motion command: refused, named, before anything is written.
     m.halt().unwrap();
     let err = m.move_to(&spec(0.5), &mut |_| {}).unwrap_err();
-    assert!(matches!(err, Error::Halted { address: 1, .. }), "{err}");
+    assert!(matches!(err, Error::Halted { address: A1, .. }), "{err}");
     let err = m.home_and_wait(secs(10), &mut |_| {}).unwrap_err();
-    assert!(matches!(err, Error::Halted { address: 1, .. }), "{err}");
+    assert!(matches!(err, Error::Halted { address: A1, .. }), "{err}");
     let events = host.with_device(|d| d.take_events());
     assert_eq!(events, ["module 1 halted"], "no write, no motion command after the halt");
 }
@@ -423,4 +423,32 @@ fn flip_case_succeeded((dir, offset, mask): (Direction, u64, u8)) -> bool {
         // its unexpected acknowledge and halts it: the move fails.
         Err(_) => false,
     }
+}
+
+#[test]
+fn a_target_read_back_through_its_tick_twin_converts_into_its_own_unit() {
+    let (clock, _host, bus, _) = rs232_instant(&[1]);
+    let _me = clock.reserve_participant().enter();
+    let m = bus.module(addr(1));
+    let ratio = m.get(Param::IncRatio).unwrap().as_f64().unwrap();
+    for (p, twin, v) in [
+        (Param::TargetPos, Param::TargetPosInc, -1.0f32),
+        (Param::TargetVel, Param::TargetVelInc, 0.25),
+        (Param::TargetAcc, Param::TargetAccInc, 0.5),
+    ] {
+        assert_eq!(p.read_back_as(), Some(twin));
+        let Readback::Same(read) = m.set_checked(p, Value::F32(v)).unwrap() else { panic!("{p} read back") };
+        // What came back is the twin's value, in ticks, as the module holds it ...
+        assert_eq!(read, m.get(twin).unwrap(), "{p}");
+        // ... and in the written parameter's unit it is what was written (within a tick).
+        let back = p.from_read_back_ticks(&read, ratio).unwrap();
+        assert!((back - f64::from(v)).abs() <= 1.0 / ratio, "{p}: {back} for {v}");
+    }
+    // Parameters read back as themselves have no twin, and nothing to convert.
+    assert_eq!(Param::MaxVel.read_back_as(), None);
+    assert_eq!(Param::MaxVel.from_read_back_ticks(&Value::F32(0.5), ratio), None);
+    // A ratio that is no number above 0 converts nothing.
+    assert_eq!(Param::TargetPos.from_read_back_ticks(&Value::I32(100), 0.0), None);
+    assert_eq!(Param::TargetPos.from_read_back_ticks(&Value::I32(100), f64::NAN), None);
+    assert_eq!(Param::TargetPos.from_read_back_ticks(&Value::I32(-300), 100.0), Some(-3.0));
 }

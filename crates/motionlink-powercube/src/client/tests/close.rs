@@ -51,6 +51,8 @@ fn close_and_drop_are_bounded_in_time_and_a_missed_bound_is_reported() {
     let err = bus.close().unwrap_err();
     assert!(matches!(err, Error::CloseTimedOut { .. }) && err.is_transport(), "{err}");
     assert!(err.to_string().contains("the axis may still be moving"), "{err}");
+    assert!(matches!(&err, Error::CloseTimedOut { armed: Some(a), .. } if a == &[1]), "{err:?}");
+    assert!(err.to_string().contains("the watchdog of module 1 is armed and no longer refreshed"), "{err}");
     // The bound, and at most one read slice of the driver (20 ms) that was under way when it passed.
     let most = Duration::from_millis(300 + 20 + 1);
     assert!(clock.now() - t0 <= most, "{:?}", clock.now() - t0);
@@ -117,4 +119,23 @@ fn the_front_ends_guard_rule_arms_only_modules_outside_this_process_that_the_use
         assert_eq!(after, before, "the Config word as it was found");
         assert!(!host.with_device(|d| d.module(1).unwrap().watchdog_online()));
     }
+}
+
+#[test]
+fn a_close_that_times_out_without_a_watchdog_does_not_claim_one() {
+    // The same missed bound, with no watchdog armed (`--no-watchdog`): the error must not promise a halt.
+    let config = BusConfig { close_bound: Duration::from_millis(300), ..BusConfig::rs232() };
+    let (clock, host, bus, faults) = rs232_with(&[1], config);
+    let _me = clock.reserve_participant().enter();
+    bus.module(addr(1)).motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
+    faults.drop_next(Direction::DeviceToHost, u64::MAX);
+    let err = bus.close().unwrap_err();
+    assert!(matches!(&err, Error::CloseTimedOut { armed: Some(a), .. } if a.is_empty()), "{err:?}");
+    let text = err.to_string();
+    assert!(text.contains("the axis may still be moving") && text.contains("no watchdog was armed"), "{text}");
+    assert!(!text.contains("halts itself") && !text.contains("within 50 ms"), "{text}");
+    // And it is true: nothing halts the module.
+    clock.sleep(Duration::from_millis(200));
+    let s = host.with_device(|d| d.module(1).unwrap().state());
+    assert!(s.contains(StateFlag::Motion) && !s.contains(StateFlag::CommError), "{s}");
 }

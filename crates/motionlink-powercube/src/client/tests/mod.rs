@@ -11,6 +11,11 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
 
+/// Addresses as patterns match them.
+const A1: Address = Address::checked(1);
+const A9: Address = Address::checked(9);
+const A17: Address = Address::checked(17);
+
 use motionlink_link::can::{CanBus, CanBusConfig, CanLink};
 use motionlink_link::clock::{Clock, ManualClock};
 use motionlink_link::pipe::{Direction, EmulatorHost, FaultControl, PipeConfig};

@@ -155,7 +155,7 @@ fn a_host_that_dies_while_moving_is_stopped_by_the_watchdog_within_50_ms() {
     let bus = Client::can(Box::new(canbus.connect()), clock.shared(), BusConfig::can()).unwrap();
     let m = bus.module(addr(1));
     let err = bus.enable_watchdog(&addrs(&[1])).unwrap_err();
-    assert!(matches!(err, Error::Device { address: 1, state } if state.contains(StateFlag::CommError)), "{err}");
+    assert!(matches!(err, Error::Device { address: A1, state } if state.contains(StateFlag::CommError)), "{err}");
     assert!(device_view(&canbus, &clock, 1).2, "still online");
     assert!(m.reset_and_release_watchdog().unwrap());
     clock.sleep(secs(1));
@@ -254,7 +254,7 @@ fn a_drop_halts_a_known_module_still_homing_but_not_for_an_address_that_never_an
     // Module 2 exists but the session does not know it; it homes too (no harm) and is idle at the drop.
     // A motion command to an address where nobody is: no acknowledge.
     let err = bus.module(addr(9)).motion(Motion::FVel { vel: Velocity::native(0.1) }, AckKind::Simple).unwrap_err();
-    assert!(matches!(err, Error::Timeout { address: 9, .. }), "{err}");
+    assert!(matches!(err, Error::Timeout { address: A9, .. }), "{err}");
     assert_eq!(bus.started(), vec![1, 9]);
     drop(bus);
     let s = host.with_device(|d| d.module(1).unwrap().state());
@@ -396,7 +396,7 @@ fn a_lost_life_sign_is_reported_and_never_toggled_again_blindly() {
     let _me = clock.reserve_participant().enter();
     let before = bus.module(addr(1)).config_word().unwrap();
     let err = bus.enable_watchdog(&addrs(&[1, 2])).unwrap_err();
-    assert!(matches!(err, Error::WatchdogUnconfirmed { address: 1, on: true, .. }), "{err}");
+    assert!(matches!(err, Error::WatchdogUnconfirmed { address: A1, on: true, .. }), "{err}");
     assert!(err.to_string().contains("module 1"), "{err}");
     // Module 1 never got the toggle; module 2 did.
     assert!(!device_view(&canbus, &clock, 1).2);
@@ -421,14 +421,14 @@ fn a_lost_acknowledge_of_the_life_sign_is_found_out_when_switching_off() {
     let (clock, canbus, bus) = can_losing(&[1], false);
     let _me = clock.reserve_participant().enter();
     let err = bus.enable_watchdog(&addrs(&[1])).unwrap_err();
-    assert!(matches!(err, Error::WatchdogUnconfirmed { address: 1, on: true, .. }), "{err}");
+    assert!(matches!(err, Error::WatchdogUnconfirmed { address: A1, on: true, .. }), "{err}");
     // The toggle did arrive: the watchdog is online and the session refreshes it.
     assert!(device_view(&canbus, &clock, 1).2);
     clock.sleep(secs(1));
     assert!(!device_view(&canbus, &clock, 1).0.has_fault());
     // No blind second life sign: with the refresh stopped it expires, which names the module.
     let err = bus.disable_watchdog().unwrap_err();
-    assert!(matches!(err, Error::WatchdogUnconfirmed { address: 1, on: false, .. }), "{err}");
+    assert!(matches!(err, Error::WatchdogUnconfirmed { address: A1, on: false, .. }), "{err}");
     let (state, _, online, config) = device_view(&canbus, &clock, 1);
     assert!(online && state.contains(StateFlag::CommError) && state.contains(StateFlag::Halted), "{state}");
     assert!(config.contains(ConfigFlag::WatchdogEnable), "Config word left as is");

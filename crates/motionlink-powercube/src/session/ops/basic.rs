@@ -13,9 +13,11 @@ use crate::wire::{is_module_address, ACK_OK};
 /// A refusal in an acknowledge's status byte is an error.
 fn check_reply(address: u8, request: &Request, reply: Reply) -> Result<Reply, Error> {
     match reply {
-        Reply::Set(_, status) | Reply::Motion { status: Some(status), .. } if status != ACK_OK => {
-            Err(Error::Refused { address, request: request.to_string(), status })
-        }
+        Reply::Set(_, status) | Reply::Motion { status: Some(status), .. } if status != ACK_OK => Err(Error::Refused {
+            address: crate::model::Address::checked(address),
+            request: request.to_string(),
+            status,
+        }),
         r => Ok(r),
     }
 }
@@ -253,7 +255,12 @@ impl Ctx {
         }
         let kind = self.kind(address).await?;
         match quantities.iter().find(|(_, u, _)| !u.fits(kind)) {
-            Some((what, _, value)) => Err(Error::UnitMismatch { address, kind, what, value: value.clone() }),
+            Some((what, _, value)) => Err(Error::UnitMismatch {
+                address: crate::model::Address::checked(address),
+                kind,
+                what,
+                value: value.clone(),
+            }),
             None => Ok(()),
         }
     }

@@ -127,7 +127,7 @@ impl Ctx {
             });
         }
         tracing::info!("watchdog armed in module {a}");
-        let result = motion.await;
+        let result = motion.await.map_err(|e| self.explain_expiry(e));
         // Whatever is still moving is stopped before the watchdog goes offline.
         let stopped = self.halt_started().await;
         let result = both(result, stopped);
@@ -168,7 +168,7 @@ impl Ctx {
                 };
                 if result.is_ok() && !left.is_empty() {
                     result = Err(Error::WatchdogLeftOnline {
-                        addresses: left,
+                        addresses: checked(left),
                         detail: "the session failed (its line broke, or a stop it sent was not confirmed)".into(),
                     });
                 }
@@ -177,6 +177,35 @@ impl Ctx {
         self.core().duty.serving = false;
         result
     }
+}
+
+impl Ctx {
+    /// A module that reports STATE_COMM_ERROR while this session refreshes its watchdog halted itself:
+    /// the error says whether the refresh went out late (this host was not scheduled in time) or in time
+    /// (the line or the module lost it), from the session's own record of when it sent each refresh.
+    fn explain_expiry(&self, e: Error) -> Error {
+        let (address, state) = match &e {
+            Error::Device { address, state } | Error::Halted { address, state }
+                if state.contains(crate::model::StateFlag::CommError) =>
+            {
+                (*address, *state)
+            }
+            _ => return e,
+        };
+        let timing = {
+            let core = self.core();
+            core.duty.timing(core.now)
+        };
+        match timing {
+            Some(timing) => Error::WatchdogExpired { address, state, timing },
+            None => e,
+        }
+    }
+}
+
+/// Module numbers the session keeps (each from a checked address or a module's answer) as addresses.
+pub(crate) fn checked(numbers: Vec<u8>) -> Vec<crate::model::Address> {
+    numbers.into_iter().map(crate::model::Address::checked).collect()
 }
 
 /// The first error of a motion and of the stop after it.

@@ -5,8 +5,11 @@
 use std::time::Duration;
 
 use crate::error::{unexpected, Error, StopOutcome};
-use crate::model::{AckKind, Broadcast, CubeState, ExtAck, Motion, Param, Position, Reply, Request, StateFlag, Value};
+use crate::model::{
+    AckKind, Broadcast, CubeState, ExtAck, Motion, Param, Position, Reply, Request, ShortState, StateFlag, Value,
+};
 use crate::session::ctx::Ctx;
+use crate::session::ops::checked;
 use crate::session::{MoveReport, MoveSpec, Progress, Readback, Until};
 
 /// A value for messages: the number alone, floats with six decimals.
@@ -54,7 +57,7 @@ impl Ctx {
     /// whether that was confirmed.
     pub async fn lost(&self, a: u8, cause: Error) -> Error {
         let stop = self.stop_motion(a).await;
-        Error::LostDuringMotion { address: a, cause: Box::new(cause), stop }
+        Error::LostDuringMotion { address: crate::model::Address::checked(a), cause: Box::new(cause), stop }
     }
 
     /// Refuses a module that would ignore a motion command: one with an error flag ([`Error::Device`]) or
@@ -62,10 +65,10 @@ impl Ctx {
     async fn ready_for_motion(&self, a: u8) -> Result<(), Error> {
         let state = self.state(a).await?;
         if state.has_fault() {
-            return Err(Error::Device { address: a, state });
+            return Err(Error::Device { address: crate::model::Address::checked(a), state });
         }
         if state.contains(StateFlag::Halted) {
-            return Err(Error::Halted { address: a, state });
+            return Err(Error::Halted { address: crate::model::Address::checked(a), state });
         }
         Ok(())
     }
@@ -95,7 +98,13 @@ impl Ctx {
         let limit = f64::from(self.get_finite(a, param).await?);
         let beyond = if upper { value > limit } else { value < limit };
         if beyond {
-            return Err(Error::BeyondLimit { address: a, what: what.into(), value, limit: param, limit_value: limit });
+            return Err(Error::BeyondLimit {
+                address: crate::model::Address::checked(a),
+                what: what.into(),
+                value,
+                limit: param,
+                limit_value: limit,
+            });
         }
         Ok(())
     }
@@ -108,7 +117,7 @@ impl Ctx {
         let expected = (value * ratio).round();
         if (ticks - expected).abs() > 1.0 {
             return Err(Error::Mismatch {
-                address: a,
+                address: crate::model::Address::checked(a),
                 param: written,
                 wrote: format!("{value:.6} ({expected} ticks)"),
                 read: format!("{:.6} ({ticks} ticks in {param})", ticks / ratio),
@@ -139,13 +148,7 @@ impl Ctx {
             _ => {}
         }
         self.set(a, param, value).await?;
-        let twin = match param {
-            Param::TargetPos => Some(Param::TargetPosInc),
-            Param::TargetVel => Some(Param::TargetVelInc),
-            Param::TargetAcc => Some(Param::TargetAccInc),
-            _ => None,
-        };
-        if let (Some(twin), Some(v)) = (twin, number) {
+        if let (Some(twin), Some(v)) = (param.read_back_as(), number) {
             let ratio = self.inc_ratio(a).await?;
             return self.check_ticks(a, param, twin, v, ratio).await.map(Readback::Same);
         }
@@ -164,7 +167,12 @@ impl Ctx {
         if same {
             Ok(Readback::Same(read))
         } else {
-            Err(Error::Mismatch { address: a, param, wrote: raw(&value), read: raw(&read) })
+            Err(Error::Mismatch {
+                address: crate::model::Address::checked(a),
+                param,
+                wrote: raw(&value),
+                read: raw(&read),
+            })
         }
     }
 
@@ -201,7 +209,10 @@ impl Ctx {
     /// that is the operation's end.
     async fn halt_if_cancelled(&self, a: u8, request: &Request) -> Result<(), Error> {
         if request.starts_motion() && self.cancelled() {
-            return Err(Error::Cancelled { address: a, stop: self.stop_motion(a).await });
+            return Err(Error::Cancelled {
+                address: crate::model::Address::checked(a),
+                stop: self.stop_motion(a).await,
+            });
         }
         Ok(())
     }
@@ -213,11 +224,9 @@ impl Ctx {
         let deadline = start + timeout;
         let period = self.core().config.poll_interval.max(Duration::from_micros(100));
         let mut due = start;
+        let mut poll = Poll::default();
         loop {
-            let polled = match self.state(a).await {
-                Ok(s) => self.get_f32(a, Param::ActPos).await.map(|p| (s, p)),
-                Err(e) => Err(e),
-            };
+            let polled = self.poll_state(a, &mut poll).await;
             let (state, position) = match polled {
                 Ok(x) => x,
                 // The line is failing, or the module stopped answering, while a motion may be running.
@@ -229,22 +238,31 @@ impl Ctx {
             self.progress(Progress { address, position, state, elapsed: now.saturating_since(start) });
             if state.has_fault() {
                 self.core().started.remove(&a);
-                return Err(Error::Device { address: a, state });
+                return Err(Error::Device { address: crate::model::Address::checked(a), state });
             }
             if state.contains(StateFlag::Halted) {
                 self.core().started.remove(&a);
-                return Err(Error::Halted { address: a, state });
+                return Err(Error::Halted { address: crate::model::Address::checked(a), state });
             }
             if until.reached(state) {
                 self.core().started.remove(&a);
                 return Ok(state);
             }
             if self.cancelled() {
-                return Err(Error::Cancelled { address: a, stop: self.stop_motion(a).await });
+                return Err(Error::Cancelled {
+                    address: crate::model::Address::checked(a),
+                    stop: self.stop_motion(a).await,
+                });
             }
             if now >= deadline {
                 let stop = self.stop_motion(a).await;
-                return Err(Error::WaitTimeout { address: a, what: until.what(), waited: timeout, state, stop });
+                return Err(Error::WaitTimeout {
+                    address: crate::model::Address::checked(a),
+                    what: until.what(),
+                    waited: timeout,
+                    state,
+                    stop,
+                });
             }
             // Polls on a fixed schedule from the first one: never faster than the period, whatever the line;
             // a poll that took longer than a period skips the slots it missed.
@@ -255,9 +273,57 @@ impl Ctx {
             }
             self.sleep_until_cancelled(due.min(deadline)).await;
             if self.cancelled() {
-                return Err(Error::Cancelled { address: a, stop: self.stop_motion(a).await });
+                return Err(Error::Cancelled {
+                    address: crate::model::Address::checked(a),
+                    stop: self.stop_motion(a).await,
+                });
             }
         }
+    }
+
+    /// One poll of a wait: the state word and the position of module `a`. One exchange where it can be:
+    /// ActFPosStateDio gives the position and the short state in one answer, and the full CubeState is
+    /// read only when the short state may say more than the last full read did. It is skipped only in the
+    /// middle of a motion: the last full read showed the module moving (STATE_MOTION, no STATE_RAMP_END,
+    /// no error flag, not halted), the short state is the same as then (still SHORT_MOTION, no
+    /// SHORT_RAMP_END; an error or a halt stops the module, which clears SHORT_MOTION, and on a homed
+    /// module raises SHORT_NOT_OK), and that full read is less than [`FULL_STATE_EVERY`] old, so that even
+    /// a flag the short state does not carry is seen within that time. Wherever a wait may end (the motion
+    /// over, the ramp ended) the state is read in full. A module that refuses ActFPosStateDio is polled
+    /// with CubeState and ActPos from then on.
+    async fn poll_state(&self, a: u8, poll: &mut Poll) -> Result<(CubeState, f32), Error> {
+        if !poll.separate {
+            let read = self
+                .get_as(a, Param::ActFPosStateDio, |v| match *v {
+                    Value::PosStateDio { pos, state, .. } => Some((pos, state)),
+                    _ => None,
+                })
+                .await;
+            match read {
+                Ok((position, short)) => {
+                    let now = self.now();
+                    if let Some((at, last_short, full)) = poll.last {
+                        let moving = full.contains(StateFlag::Motion)
+                            && !full.contains(StateFlag::RampEnd)
+                            && !full.contains(StateFlag::Halted)
+                            && !full.has_fault();
+                        if moving && last_short == short && now.saturating_since(at) < FULL_STATE_EVERY {
+                            return Ok((full, position));
+                        }
+                    }
+                    let full = self.state(a).await?;
+                    poll.last = Some((now, short, full));
+                    return Ok((full, position));
+                }
+                Err(Error::Refused { .. }) => {
+                    tracing::debug!("module {a} refuses ActFPosStateDio: polling CubeState and ActPos");
+                    poll.separate = true;
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        let state = self.state(a).await?;
+        Ok((state, self.get_f32(a, Param::ActPos).await?))
     }
 
     /// Homes the module and waits for the end of homing (see [`Op::HomeAndWait`](crate::session::Op)).
@@ -267,7 +333,7 @@ impl Ctx {
         }
         self.ready_for_motion(a).await?;
         if self.cancelled() {
-            return Err(Error::Cancelled { address: a, stop: StopOutcome::NotStarted });
+            return Err(Error::Cancelled { address: crate::model::Address::checked(a), stop: StopOutcome::NotStarted });
         }
         if let Err(e) = self.action(a, crate::model::Action::Home).await {
             return Err(self.lost(a, e).await);
@@ -305,10 +371,10 @@ impl Ctx {
         let ratio = self.inc_ratio(a).await?;
         let start = self.position(a).await?;
         let motion = Request::motion(Motion::FRamp { pos: spec.target }, AckKind::Simple)?;
-        for (param, twin, given) in [
-            (Param::TargetVel, Param::TargetVelInc, spec.vel.map(|v| v.value())),
-            (Param::TargetAcc, Param::TargetAccInc, spec.acc.map(|acc| acc.value())),
-        ] {
+        for (param, given) in
+            [(Param::TargetVel, spec.vel.map(|v| v.value())), (Param::TargetAcc, spec.acc.map(|acc| acc.value()))]
+        {
+            let twin = param.read_back_as().unwrap_or(param);
             match given {
                 Some(v) => {
                     self.set(a, param, Value::F32(v)).await?;
@@ -327,7 +393,7 @@ impl Ctx {
             }
         }
         if self.cancelled() {
-            return Err(Error::Cancelled { address: a, stop: StopOutcome::NotStarted });
+            return Err(Error::Cancelled { address: crate::model::Address::checked(a), stop: StopOutcome::NotStarted });
         }
         if let Err(e) = self.request(a, motion).await {
             // It may have arrived and started the ramp.
@@ -339,7 +405,7 @@ impl Ctx {
             Ok(taken) if (i64::from(taken) - i64::from(sent)).abs() <= 1 => {}
             Ok(taken) => {
                 let stop = self.stop_motion(a).await;
-                return Err(Error::TargetMismatch { address: a, sent, taken, stop });
+                return Err(Error::TargetMismatch { address: crate::model::Address::checked(a), sent, taken, stop });
             }
             Err(e) => return Err(self.lost(a, e).await),
         }
@@ -353,7 +419,7 @@ impl Ctx {
             if !within {
                 let unit = reached.unit();
                 return Err(Error::NotReached {
-                    address: a,
+                    address: crate::model::Address::checked(a),
                     target: Position::new(spec.target.value(), unit),
                     reached,
                     difference: Position::new(difference, unit),
@@ -416,11 +482,24 @@ impl Ctx {
             if let Err(e) = self.broadcast(Broadcast::Halt).await {
                 tracing::warn!("the halt broadcast could not be sent either: {e}");
             }
-            Err(Error::StopUnconfirmed { addresses: unconfirmed, detail, watchdog_armed })
+            Err(Error::StopUnconfirmed { addresses: checked(unconfirmed), detail, watchdog_armed })
         };
         self.core().started.clear();
         result
     }
+}
+
+/// In the middle of a motion, a wait reads the full state word at least this often (see
+/// [`Ctx::poll_state`]); the polls between read only ActFPosStateDio.
+const FULL_STATE_EVERY: Duration = Duration::from_millis(100);
+
+/// What the polls of one wait remember.
+#[derive(Default)]
+struct Poll {
+    /// When the last poll that read CubeState was, its short state and the full state word.
+    last: Option<(motionlink_link::Timestamp, ShortState, CubeState)>,
+    /// The module refused ActFPosStateDio: CubeState and ActPos are read instead.
+    separate: bool,
 }
 
 impl ExtAck {

@@ -52,7 +52,7 @@ impl Ctx {
             }
             let state = self.state(a).await?;
             if state.contains(StateFlag::CommError) && !self.core().duty.online.contains(&a) {
-                return Err(Error::Device { address: a, state });
+                return Err(Error::Device { address: crate::model::Address::checked(a), state });
             }
             words.push((a, self.config_word(a).await?));
         }
@@ -68,8 +68,7 @@ impl Ctx {
             let mut core = self.core();
             let now = core.now;
             if !core.duty.serving {
-                core.duty.serving = true;
-                core.duty.next_due = now;
+                core.duty.start_serving(now);
             }
         }
         let mut first_error = None;
@@ -81,7 +80,7 @@ impl Ctx {
                 }
                 if core.duty.uncertain.contains(&a) {
                     first_error.get_or_insert(Error::WatchdogUnconfirmed {
-                        address: a,
+                        address: crate::model::Address::checked(a),
                         on: true,
                         detail: "an earlier life sign was not acknowledged; not toggled again (disable_watchdog \
                                  finds out its state)"
@@ -102,7 +101,7 @@ impl Ctx {
                     tracing::warn!("module {a}: life sign not acknowledged ({e}); its watchdog state is unknown");
                     self.core().duty.uncertain.insert(a);
                     first_error.get_or_insert(Error::WatchdogUnconfirmed {
-                        address: a,
+                        address: crate::model::Address::checked(a),
                         on: true,
                         detail: format!("the life sign was not acknowledged ({e}); not sent again"),
                     });
@@ -128,7 +127,7 @@ impl Ctx {
                 return Ok(());
             }
             return Err(Error::WatchdogLeftOnline {
-                addresses: left,
+                addresses: crate::session::ops::checked(left),
                 detail: "the session failed (its line broke, or a stop it sent was not confirmed)".into(),
             });
         }
@@ -200,7 +199,7 @@ impl Ctx {
                 }
                 Ok(state) => {
                     first_error.get_or_insert(Error::WatchdogUnconfirmed {
-                        address: a,
+                        address: crate::model::Address::checked(a),
                         on: false,
                         detail: format!(
                             "its watchdog was still online and has expired ({state}); the module is halted, \
@@ -210,7 +209,7 @@ impl Ctx {
                 }
                 Err(e) => {
                     first_error.get_or_insert(Error::WatchdogUnconfirmed {
-                        address: a,
+                        address: crate::model::Address::checked(a),
                         on: false,
                         detail: format!("its state cannot be read to check: {e}"),
                     });
