@@ -101,6 +101,21 @@ fn a_blocking_move_reports_progress_and_ends_at_the_target() {
 }
 
 #[test]
+fn the_background_thread_does_not_spin_while_a_caller_holds_the_port_past_a_deadline() {
+    // On the real clock: a deadline due while a blocking caller drives the port (here the keepalive pings,
+    // due every 30 ms during a move of about 200 ms) is the caller's to meet; the background thread waits
+    // for the port to come back instead of waking again and again at the deadline already past.
+    let clock = motionlink_link::RealClock::shared();
+    let (driver, _host) = setup(clock);
+    let looks_before = driver.with_session(|s| s.background_looks.load(std::sync::atomic::Ordering::Relaxed));
+    assert_eq!(driver.run_with(Op::Move(20), &mut |_| {}, None).unwrap(), 20);
+    let looks = driver.with_session(|s| s.background_looks.load(std::sync::atomic::Ordering::Relaxed));
+    // A few looks per ping at most; a spinning thread looks hundreds of thousands of times.
+    assert!(looks - looks_before < 200, "the background thread looked {} times", looks - looks_before);
+    driver.close().unwrap();
+}
+
+#[test]
 fn a_blocking_caller_drives_the_port_itself_and_leaves_the_background_thread_asleep() {
     let clock = ManualClock::new_auto();
     let _me = clock.reserve_participant().enter();

@@ -320,7 +320,15 @@ impl<S: Session> Shared<S> {
                 }
                 let deadline = core.session.poll_timeout();
                 core.background_sleeps = Some(deadline);
-                deadline
+                if due && core.port.is_none() {
+                    // A caller drives the port and meets the session's deadlines meanwhile: wait until it
+                    // hands the port back (it raises the port's waiters), not at a deadline already due,
+                    // which would make this loop spin for as long as the caller holds the port.
+                    core.port_waiters.push(me.clone());
+                    None
+                } else {
+                    deadline
+                }
             };
             me.wait_until(deadline);
         }
