@@ -173,7 +173,8 @@ impl IntoFailure for motionlink_powercube::Error {
             E::Device { state, .. }
             | E::Halted { state, .. }
             | E::WaitTimeout { state, .. }
-            | E::NotReached { state, .. } => f.with_word(*state),
+            | E::NotReached { state, .. }
+            | E::WatchdogExpired { state, .. } => f.with_word(*state),
             E::Context { source, .. } | E::LostDuringMotion { cause: source, .. } => {
                 let inner = source.failure();
                 Failure { code: inner.code, bits: inner.bits, ..f }

@@ -422,12 +422,13 @@ fn act(args: &Args, client: &Client, guard: Guard, port: &str, out: &mut dyn Wri
                     Some(r) => Some(read_back_json(&m, p, &r)?),
                     None => None,
                 };
-                common::print_json(
-                    &mut out,
-                    &identified(json!({"name": p.name(), "id": p.id(), "value": value_json(&v), "ok": true,
-                            "read_back": read_back, "verified": read_back.is_some(),
-                            "not_verifiable": not_verifiable})),
-                )?;
+                let mut result = json!({"name": p.name(), "id": p.id(), "value": value_json(&v), "ok": true,
+                        "read_back": read_back, "verified": read_back.is_some()});
+                // Said only where the value could not be read back (naming.md).
+                if let Some(why) = &not_verifiable {
+                    result["not_verifiable"] = json!(why);
+                }
+                common::print_json(&mut out, &identified(result))?;
             } else {
                 let kind = m.kind().map_err(|e| {
                     context(e, format!("{} was set, but the module type (and so its unit) cannot be read", p.name()))

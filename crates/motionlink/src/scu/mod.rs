@@ -64,7 +64,7 @@ pub struct Args {
     pub stroke: Vec<String>,
     /// How close to its target a move must end to succeed, in counts.
     #[arg(long, default_value_t = 5, value_name = "COUNTS", allow_hyphen_values = true, global = true,
-          value_parser = clap::value_parser!(u32).range(0..=10_000))]
+          value_parser = clap::value_parser!(u32).range(0..=100))]
     pub tolerance: u32,
     /// How often a move (or a run) looks at the actuators, in ms: each look is one RC keepalive that also reads
     /// the status and position of every actuator (about 11 ms of the 38400-baud line).

@@ -540,6 +540,7 @@ fn bad_input_is_refused_with_exit_2_before_anything_is_sent() {
         &["move", "7", "100"],
         &["move", "1", "100", "--function", "11"],
         &["--tolerance", "-1", "move", "1", "100"],
+        &["--tolerance", "10000", "move", "1", "100"],
         &["--poll-ms", "0", "move", "1", "100"],
         &["--poll-ms", "NaN", "move", "1", "100"],
         &["--timeout-ms", "0", "info"],
