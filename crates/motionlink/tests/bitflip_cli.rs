@@ -121,7 +121,7 @@ fn sweep(case: Case) {
     assert_eq!(code, 0, "the clean run succeeds: {said}");
     assert!((position - case.target).abs() <= case.tolerance, "the clean run reaches {}: {position}", case.target);
     // Bits spread over the whole session each way, a different bit of the byte each time.
-    const PER_DIRECTION: u64 = 12;
+    const PER_DIRECTION: u64 = 8;
     let mut flips = Vec::new();
     for (to_device, bytes) in [(true, to_device), (false, to_host)] {
         let bits = bytes * 8;
@@ -132,7 +132,7 @@ fn sweep(case: Case) {
     let case = Arc::new(case);
     let refused = Arc::new(AtomicU64::new(0));
     let workers: Vec<_> = flips
-        .chunks(flips.len().div_ceil(2))
+        .chunks(flips.len().div_ceil(3))
         .map(|chunk| {
             let (case, chunk, refused) = (Arc::clone(&case), chunk.to_vec(), Arc::clone(&refused));
             thread::spawn(move || {

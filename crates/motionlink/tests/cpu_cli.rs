@@ -8,7 +8,7 @@ use std::time::Instant;
 use crate::common::{cpu_seconds_of, Sim, BIN};
 
 fn cpu_share_of_a_move(family: &str, port: &str, args: &[&str], at_least_s: f64) -> f64 {
-    let _alone = crate::alone();
+    let _light = crate::light();
     let t0 = Instant::now();
     let child = Command::new(BIN)
         .args([family, "--port", port])
@@ -30,8 +30,8 @@ fn cpu_share_of_a_move(family: &str, port: &str, args: &[&str], at_least_s: f64)
 #[test]
 fn a_long_scu_move_costs_the_command_little_cpu() {
     let sim = Sim::tcp("scu");
-    // 300 counts at full speed: about 3 s, watched through the keepalive RC every 50 ms.
-    let share = cpu_share_of_a_move("scu", &sim.address, &["move", "1", "300", "--speed", "100"], 2.5);
+    // 200 counts at full speed: about 2 s, watched through the keepalive RC every 50 ms.
+    let share = cpu_share_of_a_move("scu", &sim.address, &["move", "1", "200", "--speed", "100"], 1.8);
     assert!(share < 0.05, "{:.2} % of a core", share * 100.0);
 }
 
@@ -39,8 +39,9 @@ fn a_long_scu_move_costs_the_command_little_cpu() {
 #[test]
 fn a_long_powercube_move_costs_the_command_little_cpu() {
     let sim = Sim::tcp("powercube");
-    // 1.5 rad along the emulated module's ramp: about 3 s, polled at --poll-ms, the watchdog refreshed every 20 ms.
-    let share = cpu_share_of_a_move("powercube", &sim.address, &["move", "1.5"], 2.0);
+    // 1.0 rad along the emulated module's ramp: about 2.4 s, polled at --poll-ms, the watchdog refreshed every
+    // 20 ms.
+    let share = cpu_share_of_a_move("powercube", &sim.address, &["move", "1.0"], 1.8);
     assert!(share < 0.05, "{:.2} % of a core", share * 100.0);
 }
 
@@ -48,7 +49,7 @@ fn a_long_powercube_move_costs_the_command_little_cpu() {
 #[test]
 fn a_long_compax_move_costs_the_command_little_cpu() {
     let sim = Sim::tcp("compax");
-    // 300 units at 100 units/s: 3 s of waiting, polled every 50 ms.
-    let share = cpu_share_of_a_move("compax", &sim.address, &["move", "--abs", "300"], 3.0);
+    // 200 units at 100 units/s: 2 s of waiting, polled every 50 ms.
+    let share = cpu_share_of_a_move("compax", &sim.address, &["move", "--abs", "200"], 1.8);
     assert!(share < 0.05, "{:.2} % of a core", share * 100.0);
 }
