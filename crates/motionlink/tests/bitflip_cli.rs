@@ -104,13 +104,26 @@ fn compax_position(port: &str) -> f64 {
 }
 
 /// Runs the move through a proxy flipping `flip`; returns the exit code and the position read afterwards.
+/// A command that failed must not have left the axis moving: its position is read twice, 200 ms apart, after
+/// any deceleration has ended, and must not change.
 fn run(case: &Case, flip: Option<Flip>) -> (i32, f64, u64, u64, String) {
     let sim = Sim::start(case.family, case.sim_args);
     let proxy = Proxy::start(&sim.address, flip);
     let out = Command::new(BIN).arg(case.family).args(["--port", &proxy.address]).args(case.command).output().unwrap();
     let code = out.status.code().unwrap_or(-1);
     // The emulator serves one client at a time: the proxy's connection has closed with the command.
-    let position = (case.position)(&sim.address);
+    let mut position = (case.position)(&sim.address);
+    if code != 0 {
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        let settled = (case.position)(&sim.address);
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        position = (case.position)(&sim.address);
+        assert!(
+            (position - settled).abs() <= case.tolerance / 10.0,
+            "{} with {flip:?}: exit {code}, but the axis still moves ({settled} -> {position})",
+            case.family
+        );
+    }
     let said = String::from_utf8_lossy(&out.stderr).into_owned();
     (code, position, proxy.to_device.load(Ordering::SeqCst), proxy.to_host.load(Ordering::SeqCst), said)
 }

@@ -44,9 +44,9 @@ pub struct Settings {
     watchdog: bool,
 }
 
-/// A module address as an argument gives it, checked by the library's address type (a usage error naming it).
+/// A module address as an argument gives it, in the library's range (a usage error naming it).
 fn module_address(module: &Int) -> Result<u8, Failure> {
-    let n: u8 = module.within(FAMILY, "module", 1..=31)?;
+    let n: u8 = module.within(FAMILY, "module", 1..=i64::from(motionlink_powercube::wire::MAX_ADDRESS))?;
     Address::new(n).map_err(|e| Error::from(e).failure())?;
     Ok(n)
 }
