@@ -48,6 +48,45 @@ fn real_signal_wakes_a_blocked_thread() {
 }
 
 #[test]
+fn real_signal_raises_are_never_lost_between_two_threads() {
+    // A raise skips the operating system when nobody sleeps: a ping-pong of 20,000 hand-offs, each a raise
+    // racing the other thread's way into its sleep, hangs if one is lost (the join below then times out).
+    let clock = RealClock::new();
+    let (ping, pong) = (clock.signal(), clock.signal());
+    let (p2, q2) = (ping.clone(), pong.clone());
+    let (done_tx, done_rx) = std::sync::mpsc::channel();
+    thread::spawn(move || {
+        for _ in 0..10_000 {
+            assert_eq!(p2.wait_until(None), Wake::Raised);
+            q2.raise();
+        }
+        done_tx.send(()).unwrap();
+    });
+    for _ in 0..10_000 {
+        ping.raise();
+        assert_eq!(pong.wait_until(Some(clock.now() + Duration::from_secs(10))), Wake::Raised, "a raise was lost");
+    }
+    done_rx.recv_timeout(Duration::from_secs(10)).expect("the other thread saw every raise");
+}
+
+#[test]
+fn a_long_real_wait_ends_at_its_deadline_and_not_before() {
+    // Long enough for the two-stage sleep (REAL_APPROACH), and raised in its second stage.
+    let clock = RealClock::new();
+    let s = clock.signal();
+    for ms in [1, 3, 20] {
+        let deadline = clock.now() + Duration::from_millis(ms);
+        assert_eq!(s.wait_until(Some(deadline)), Wake::Deadline);
+        assert!(clock.now() >= deadline, "a {ms} ms wait ended before its deadline");
+    }
+    let s2 = s.clone();
+    let t = thread::spawn(move || s2.wait_until(Some(RealClock::new().now() + Duration::from_secs(10))));
+    thread::sleep(Duration::from_millis(5));
+    s.raise();
+    assert_eq!(t.join().unwrap(), Wake::Raised);
+}
+
+#[test]
 fn manual_advance_wakes_expired_waiters_only() {
     let clock = ManualClock::new();
     let s = clock.signal();
