@@ -88,6 +88,36 @@ fn a_blocking_caller_sends_its_request_itself_without_a_hand_off_to_the_backgrou
 }
 
 #[test]
+fn a_session_without_deadlines_gets_a_background_thread_only_when_a_duty_needs_one() {
+    // Without pings the toy session has no deadline of its own: blocking GETs are driven by the caller and
+    // no thread is started; the first async operation (driven by the background thread) starts it. On the
+    // real clock: the future below is awaited outside the clock.
+    let clock = RealClock::shared();
+    let host = EmulatorHost::new(Toy::default(), Arc::clone(&clock), PipeConfig::paced(115_200));
+    let mut session = ToySession::new(clock.now());
+    session.pings = false;
+    let port = Port::Bytes(Box::new(host.connect().0));
+    let driver = Driver::new(session, port, None, Arc::clone(&clock), DriverConfig::default()).unwrap();
+    assert!(!driver.has_background_thread());
+    for _ in 0..20 {
+        driver.run(Op::Get).unwrap();
+    }
+    driver.with_session(|_| ());
+    assert!(!driver.has_background_thread(), "nothing needed a thread for blocking GETs");
+    assert_eq!(driver.with_session(|s| s.background_looks.load(std::sync::atomic::Ordering::Relaxed)), 0);
+    assert_eq!(block_on(driver.start(Op::Get)).unwrap(), 0);
+    assert!(driver.has_background_thread(), "an async operation needs the thread");
+    let (sent, by) = driver.with_session(|s| (s.sent.clone(), s.sent_by.clone()));
+    assert_eq!(sent.last().map(String::as_str), Some("GET"));
+    assert_eq!(by.last().cloned().flatten().as_deref(), Some("motionlink-driver"));
+    driver.close().unwrap();
+    // With pings (a deadline from the start) the thread runs from the start.
+    let (driver, _host) = setup(clock);
+    assert!(driver.has_background_thread());
+    driver.close().unwrap();
+}
+
+#[test]
 fn a_blocking_move_reports_progress_and_ends_at_the_target() {
     let clock = ManualClock::new_auto();
     let _me = clock.reserve_participant().enter();

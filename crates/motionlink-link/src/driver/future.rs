@@ -40,7 +40,7 @@ impl<S: Session> OpFuture<S> {
             let now = shared.clock.now();
             core.session.cancel(self.id, now);
             core.dispatch();
-            core.wake_driver(&shared.background);
+            core.wake_driver(shared);
         }
     }
 }
@@ -91,7 +91,7 @@ impl<S: Session> Drop for OpFuture<S> {
         let now = shared.clock.now();
         core.session.cancel(self.id, now);
         core.dispatch();
-        core.wake_driver(&shared.background);
+        core.wake_driver(&shared);
     }
 }
 

@@ -1,10 +1,12 @@
 //! Drivers that run a [`Session`] over a link: [`Driver`] for blocking callers (any number of threads)
 //! and [`OpFuture`] for async ones, on the same session and the same background duty.
 //!
-//! A driver owns the session, the port, and one background thread. Whoever needs the link drives it:
-//! a blocking caller whose operation is under way drives the port itself while it is free (no thread
+//! A driver owns the session, the port, and at most one background thread. Whoever needs the link drives
+//! it: a blocking caller whose operation is under way drives the port itself while it is free (no thread
 //! hand-off on the fast path), and the background thread drives it when nobody else does: for a
-//! keepalive or watchdog deadline of the session, or for operations of async callers. Every wait is a wait
+//! keepalive or watchdog deadline of the session, or for operations of async callers. The thread is
+//! started when the first such duty comes: a session without deadlines (a protocol with no keepalive)
+//! used only by blocking callers never has one. Every wait is a wait
 //! on the [`Clock`](crate::clock::Clock), so a session runs on a manual clock in tests exactly as on the
 //! real one.
 //!
@@ -126,12 +128,22 @@ impl<S: Session> Core<S> {
         }
     }
 
-    fn wake_driver(&self, background: &Signal) {
+    /// Wakes whoever drives the port, or else the background thread (started if it was not yet).
+    fn wake_driver(&self, shared: &Shared<S>) {
         match &self.driver_wake {
             Some(s) => s.raise(),
-            None => background.raise(),
+            None => shared.wake_background(),
         }
     }
+}
+
+/// The background thread's state.
+enum Background {
+    /// Not needed yet.
+    NotStarted,
+    Running(thread::JoinHandle<()>),
+    /// Joined, or never to be started (the driver is closed).
+    Done,
 }
 
 struct Shared<S: Session> {
@@ -144,6 +156,9 @@ struct Shared<S: Session> {
     /// clock sees the joining thread as waiting.
     exited: Signal,
     exited_flag: std::sync::atomic::AtomicBool,
+    thread: Mutex<Background>,
+    /// This driver, for the background thread started from `&self`.
+    this: std::sync::Weak<Shared<S>>,
 }
 
 /// What a blocking caller that drives the port does on the way: its progress and its cancellation.
@@ -157,6 +172,34 @@ struct Caller<'a, P> {
 impl<S: Session> Shared<S> {
     fn core(&self) -> MutexGuard<'_, Core<S>> {
         lock(&self.core)
+    }
+
+    /// Starts the background thread (a participant of the clock) unless it runs or the driver is closed.
+    fn start_background(&self) -> std::io::Result<()> {
+        let mut slot = lock(&self.thread);
+        if !matches!(*slot, Background::NotStarted) {
+            return Ok(());
+        }
+        let Some(me) = self.this.upgrade() else { return Ok(()) };
+        let ticket = self.clock.reserve_participant();
+        let handle = thread::Builder::new().name("motionlink-driver".into()).spawn(move || {
+            let _participant = ticket.enter();
+            me.background_loop();
+            me.exited_flag.store(true, std::sync::atomic::Ordering::SeqCst);
+            me.exited.raise();
+        })?;
+        *slot = Background::Running(handle);
+        Ok(())
+    }
+
+    /// Wakes the background thread, starting it first if it was not needed before.
+    fn wake_background(&self) {
+        if let Err(e) = self.start_background() {
+            // Nothing else can drive a deadline or an async caller's operation: the session says so when
+            // its answer timeouts pass (a blocking caller still drives the port itself).
+            tracing::error!("cannot start the driver's background thread: {e}");
+        }
+        self.background.raise();
     }
 
     /// Drives the port until `until` holds (checked whenever nothing is left to send) or `hard_deadline`
@@ -238,7 +281,7 @@ impl<S: Session> Shared<S> {
                     let background_needed = !core.session.is_idle() || earlier;
                     drop(core);
                     if background_needed {
-                        self.background.raise();
+                        self.wake_background();
                     }
                     return;
                 }
@@ -341,7 +384,8 @@ impl<S: Session> Shared<S> {
 /// the line as the session schedules them.
 pub struct Driver<S: Session> {
     shared: Arc<Shared<S>>,
-    thread: Option<thread::JoinHandle<()>>,
+    /// False once closed.
+    open: bool,
     describe: String,
 }
 
@@ -353,7 +397,8 @@ impl<S: Session> std::fmt::Debug for Driver<S> {
 
 impl<S: Session> Driver<S> {
     /// Starts driving `session` over `port`; `opener` reopens the port when the session asks for it
-    /// ([`Action::Reopen`]). Spawns the background thread (a participant of `clock`).
+    /// ([`Action::Reopen`]). The background thread (a participant of `clock`) is spawned now if the session
+    /// has a deadline or work under way, else when it first gets one or an async caller starts an operation.
     pub fn new(
         session: S,
         port: Port,
@@ -362,10 +407,13 @@ impl<S: Session> Driver<S> {
         config: DriverConfig,
     ) -> std::io::Result<Self> {
         let describe = port.describe();
-        let shared = Arc::new(Shared {
+        let needs_background = session.poll_timeout().is_some() || !session.is_idle();
+        let shared = Arc::new_cyclic(|this| Shared {
             background: clock.signal(),
             exited: clock.signal(),
             exited_flag: std::sync::atomic::AtomicBool::new(false),
+            thread: Mutex::new(Background::NotStarted),
+            this: this.clone(),
             clock: Arc::clone(&clock),
             config,
             core: Mutex::new(Core {
@@ -379,18 +427,20 @@ impl<S: Session> Driver<S> {
                 close_started: false,
                 close_waiter: None,
                 stop_thread: false,
-                background_sleeps: None,
+                // Until the thread runs, it counts as asleep with no deadline: a deadline the session gets
+                // starts it.
+                background_sleeps: Some(None),
             }),
         });
-        let ticket = clock.reserve_participant();
-        let for_thread = Arc::clone(&shared);
-        let thread = thread::Builder::new().name("motionlink-driver".into()).spawn(move || {
-            let _participant = ticket.enter();
-            for_thread.background_loop();
-            for_thread.exited_flag.store(true, std::sync::atomic::Ordering::SeqCst);
-            for_thread.exited.raise();
-        })?;
-        Ok(Driver { shared, thread: Some(thread), describe })
+        if needs_background {
+            shared.start_background()?;
+        }
+        Ok(Driver { shared, open: true, describe })
+    }
+
+    /// True while the driver's background thread runs (it is started only when a duty needs it).
+    pub fn has_background_thread(&self) -> bool {
+        matches!(*lock(&self.shared.thread), Background::Running(_))
     }
 
     /// The port as the user named it.
@@ -409,7 +459,11 @@ impl<S: Session> Driver<S> {
         let mut core = self.shared.core();
         let r = f(&mut core.session);
         core.dispatch();
-        core.wake_driver(&self.shared.background);
+        // Only a deadline the session got (or work under way) needs a thread that is not running yet.
+        let needed = core.session.poll_timeout().is_some() || !core.session.is_idle();
+        if core.driver_wake.is_some() || needed || self.has_background_thread() {
+            core.wake_driver(&self.shared);
+        }
         r
     }
 
@@ -429,7 +483,7 @@ impl<S: Session> Driver<S> {
         match &core.driver_wake {
             Some(s) => s.raise(),
             None if caller_drives => {}
-            None => self.shared.background.raise(),
+            None => self.shared.wake_background(),
         }
         Ok(id)
     }
@@ -468,7 +522,7 @@ impl<S: Session> Driver<S> {
                         let now = shared.clock.now();
                         core.session.cancel(id, now);
                         core.dispatch();
-                        core.wake_driver(&shared.background);
+                        core.wake_driver(shared);
                     }
                     let port = core.port.take();
                     if port.is_none() {
@@ -525,7 +579,9 @@ impl<S: Session> Driver<S> {
                 core.session.close(now);
                 core.dispatch();
             }
-            core.wake_driver(&shared.background);
+            if core.driver_wake.is_some() {
+                core.wake_driver(shared);
+            }
         }
         let result = loop {
             let port = {
@@ -555,8 +611,10 @@ impl<S: Session> Driver<S> {
             // A result kept for later is no use once the session is closed.
             core.closed = Some(Ok(()));
         }
+        self.open = false;
         shared.background.raise();
-        if let Some(t) = self.thread.take() {
+        let thread = std::mem::replace(&mut *lock(&shared.thread), Background::Done);
+        if let Background::Running(t) = thread {
             while !shared.exited_flag.load(std::sync::atomic::Ordering::SeqCst) {
                 shared.exited.wait_until(None);
             }
@@ -568,7 +626,7 @@ impl<S: Session> Driver<S> {
 
 impl<S: Session> Drop for Driver<S> {
     fn drop(&mut self) {
-        if self.thread.is_some() {
+        if self.open {
             if let Err(e) = self.close_inner() {
                 tracing::warn!("{}: closing the session on drop: {e}", self.describe);
             }
