@@ -74,7 +74,7 @@ pub fn interruptible<T: Send>(
 /// Runs `op`, which only reads (it sets nothing in motion), on a thread of its own while the calling
 /// thread, without the GIL, waits for it and runs Python's signal handlers every [`SIGNAL_CHECK`]. When a
 /// handler raises (Ctrl-C), `token` (if given) is cancelled, so that a library operation that checks it
-/// (the COMPAX scan, before each address) ends at its next step, and the handler's exception is raised
+/// (the COMPAX scan before each address, the PowerCube scan at once) ends at its next step, and the handler's exception is raised
 /// at once: a read in flight is not waited for (it ends on its thread within its reply timeout, its
 /// result dropped; it then resets `token`). Later calls on the same session queue behind it on the line.
 pub fn interruptible_read<T: Send + 'static>(

@@ -70,6 +70,11 @@ try:
         except KeyboardInterrupt:
             # When the call raised it (leaving the block then closes the client, which takes its time).
             print(f"interrupted {time.time():.6f}", flush=True)
+            if op == "scan":
+                # The scan ended on its thread as well: the next call does not queue behind what was left of it.
+                started = time.time()
+                client.state() if family == "powercube" else client.position()
+                print(f"next call {time.time() - started:.6f}", flush=True)
             raise
 except KeyboardInterrupt:
     sys.exit(130)

@@ -231,9 +231,9 @@ impl PowerCubeClient {
     /// read).
     fn scan<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let c = self.client(py)?;
-        // The library's scan takes no cancel token: Ctrl-C raises at once and the scan, which sets nothing
-        // in motion, ends on its own thread.
-        let found = interruptible_read(py, None, move || c.scan())?.or_raise(py)?;
+        // Ctrl-C raises at once and cancels the session's token: the scan, which watches it, ends on its
+        // thread at once (the address being asked is not waited for).
+        let found = interruptible_read(py, Some(self.token.clone()), move || c.scan())?.or_raise(py)?;
         found
             .iter()
             .map(|e| match &e.info {

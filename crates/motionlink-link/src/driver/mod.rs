@@ -17,7 +17,6 @@
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::task::Waker;
-use std::thread;
 use std::time::Duration;
 
 use crate::cancel::CancelToken;
@@ -25,6 +24,7 @@ use crate::clock::{lock, SharedClock, Signal, Timestamp};
 use crate::link::LinkError;
 use crate::session::{Action, Event, Input, OpId, Session, SessionError};
 
+mod background;
 mod future;
 mod port;
 
@@ -137,14 +137,7 @@ impl<S: Session> Core<S> {
     }
 }
 
-/// The background thread's state.
-enum Background {
-    /// Not needed yet.
-    NotStarted,
-    Running(thread::JoinHandle<()>),
-    /// Joined, or never to be started (the driver is closed).
-    Done,
-}
+use background::Background;
 
 struct Shared<S: Session> {
     clock: SharedClock,
@@ -172,34 +165,6 @@ struct Caller<'a, P> {
 impl<S: Session> Shared<S> {
     fn core(&self) -> MutexGuard<'_, Core<S>> {
         lock(&self.core)
-    }
-
-    /// Starts the background thread (a participant of the clock) unless it runs or the driver is closed.
-    fn start_background(&self) -> std::io::Result<()> {
-        let mut slot = lock(&self.thread);
-        if !matches!(*slot, Background::NotStarted) {
-            return Ok(());
-        }
-        let Some(me) = self.this.upgrade() else { return Ok(()) };
-        let ticket = self.clock.reserve_participant();
-        let handle = thread::Builder::new().name("motionlink-driver".into()).spawn(move || {
-            let _participant = ticket.enter();
-            me.background_loop();
-            me.exited_flag.store(true, std::sync::atomic::Ordering::SeqCst);
-            me.exited.raise();
-        })?;
-        *slot = Background::Running(handle);
-        Ok(())
-    }
-
-    /// Wakes the background thread, starting it first if it was not needed before.
-    fn wake_background(&self) {
-        if let Err(e) = self.start_background() {
-            // Nothing else can drive a deadline or an async caller's operation: the session says so when
-            // its answer timeouts pass (a blocking caller still drives the port itself).
-            tracing::error!("cannot start the driver's background thread: {e}");
-        }
-        self.background.raise();
     }
 
     /// Drives the port until `until` holds (checked whenever nothing is left to send) or `hard_deadline`
@@ -338,42 +303,6 @@ impl<S: Session> Shared<S> {
                 Ok(())
             }
             Err(e) => Err((e, true)),
-        }
-    }
-
-    fn background_loop(&self) {
-        let me = self.background.clone();
-        loop {
-            let deadline = {
-                let mut core = self.core();
-                core.background_sleeps = None;
-                if core.stop_thread {
-                    return;
-                }
-                let now = self.clock.now();
-                let due = core.session.poll_timeout().is_some_and(|t| t <= now);
-                if core.port.is_some() && (due || !core.session.is_idle()) {
-                    let port = core.port.take().expect("checked");
-                    drop(core);
-                    self.drive(port, &me, None, None, &|core, now| {
-                        core.stop_thread
-                            || (core.session.is_idle() && core.session.poll_timeout().is_none_or(|t| t > now))
-                    });
-                    continue;
-                }
-                let deadline = core.session.poll_timeout();
-                core.background_sleeps = Some(deadline);
-                if due && core.port.is_none() {
-                    // A caller drives the port and meets the session's deadlines meanwhile: wait until it
-                    // hands the port back (it raises the port's waiters), not at a deadline already due,
-                    // which would make this loop spin for as long as the caller holds the port.
-                    core.port_waiters.push(me.clone());
-                    None
-                } else {
-                    deadline
-                }
-            };
-            me.wait_until(deadline);
         }
     }
 }
@@ -553,6 +482,12 @@ impl<S: Session> Driver<S> {
     /// with its result. Dropping the future before it is done cancels the operation (which stops any
     /// motion it started).
     pub fn start(&self, op: S::Op) -> OpFuture<S> {
+        // Only the background thread drives an async caller's operation.
+        if let Err(e) = self.shared.start_background() {
+            let port = self.describe.clone();
+            let source = std::io::Error::other(format!("cannot start the driver's background thread: {e}"));
+            return OpFuture { shared: None, id: OpId(0), early: Some(S::Error::from(LinkError::Io { port, source })) };
+        }
         match self.submit(op, Waiter::Waker(None), false) {
             Ok(id) => OpFuture { shared: Some(Arc::clone(&self.shared)), id, early: None },
             Err(e) => OpFuture { shared: None, id: OpId(0), early: Some(e) },

@@ -97,7 +97,8 @@ impl Client {
     }
 
     /// Every motion and wait of this client watches `token`: when it is cancelled (a signal), the motion is
-    /// halted and the call returns [`Error::Cancelled`] saying whether the module confirmed the halt.
+    /// halted and the call returns [`Error::Cancelled`] saying whether the module confirmed the halt. A
+    /// [`Client::scan`] watches it too.
     pub fn set_cancel_token(&self, token: CancelToken) {
         *lock(&self.cancel) = Some(token);
     }
@@ -111,8 +112,10 @@ impl Client {
     /// its motion halted) when the token of [`Client::set_cancel_token`] is.
     pub fn run_with(&self, op: Op, progress: &mut dyn FnMut(&Progress)) -> Result<Output, Error> {
         // Reads set nothing in motion: a cancellation does not cut them short (a program that was asked to
-        // stop still reads what it needs to report).
-        let token = if op_is_read(&op) { None } else { lock(&self.cancel).clone() };
+        // stop still reads what it needs to report). Except the scan: up to 31 reply timeouts on a quiet
+        // RS232 line, which a program that was asked to stop has no use for.
+        let watches = !op_is_read(&op) || matches!(op, Op::Scan);
+        let token = if watches { lock(&self.cancel).clone() } else { None };
         self.driver.run_with(op, progress, token.as_ref())
     }
 
@@ -171,7 +174,8 @@ impl Client {
 
     /// Asks addresses 1..31 for their version; returns every address that answers, with its type, serial
     /// number and state, or the error that kept them from being read. Silence is absence; a corrupt answer
-    /// is asked again. Only a failed line fails the whole scan.
+    /// is asked again. Only a failed line fails the whole scan. Ends with [`Error::Aborted`] as soon as the
+    /// token of [`Client::set_cancel_token`] is cancelled (the only read that watches it).
     pub fn scan(&self) -> Result<Vec<ScanEntry>, Error> {
         self.call(calls::scan())
     }

@@ -409,6 +409,38 @@ fn on_can_acknowledges_are_matched_in_whatever_order_they_arrive() {
 }
 
 #[test]
+fn a_cancelled_token_ends_a_scan_at_once() {
+    // Only module 1 answers: every other address of 2..31 costs a reply timeout. A signal 150 ms into the
+    // scan ends it then, not after all of them.
+    let (clock, _host, bus, _faults) = rs232(&[1]);
+    let _me = clock.reserve_participant().enter();
+    let token = CancelToken::new();
+    bus.set_cancel_token(token.clone());
+    let whole = {
+        let started = clock.now();
+        assert_eq!(bus.scan().unwrap().len(), 1);
+        clock.now() - started
+    };
+    assert!(whole > Duration::from_millis(600), "a whole scan takes {whole:?}");
+    let ticket = clock.reserve_participant();
+    let (c2, t2) = (clock.clone(), token.clone());
+    let canceller = std::thread::spawn(move || {
+        let _p = ticket.enter();
+        c2.sleep(Duration::from_millis(150));
+        t2.cancel();
+    });
+    let started = clock.now();
+    let err = bus.scan().unwrap_err();
+    let took = clock.now() - started;
+    canceller.join().unwrap();
+    assert!(matches!(err, Error::Aborted { what: "the scan" }), "{err}");
+    assert!(took < Duration::from_millis(200), "ended {took:?} after its start");
+    // The session goes on: with the token reset, reads and scans work again.
+    token.reset();
+    assert_eq!(bus.scan().unwrap().len(), 1);
+}
+
+#[test]
 fn a_scan_asks_again_after_a_corrupt_answer() {
     let (clock, _host, bus, faults) = rs232(&[1, 17]);
     let _me = clock.reserve_participant().enter();
