@@ -14,6 +14,10 @@
 //! - `transaction/rg_position_38400_baud_overhead_async`: the same exchange through `AsyncClient::get_raw` on a
 //!   tokio runtime (the driver's thread does the I/O and wakes the task); the bench prints the median and
 //!   90th percentile of 2000 single transactions of both drivers side by side.
+//! - `transaction/rg_position_instant_link_cpu`: the same `get_raw` over a link without wire time, one after
+//!   the other: the CPU of one exchange on a hot core (client, session, driver and the emulator's answer).
+//!   After a sleep of a few milliseconds the same work takes several times longer (caches and an idle
+//!   virtual CPU coming back), which is most of the overhead measured at 38400 baud.
 //! - keepalive jitter, quiet and loaded: an idle session on the real clock; every keepalive RC's sending time is
 //!   recorded and compared with its deadline on the 200 ms grid. Printed: median, 99th percentile and maximum
 //!   lateness. Target: 99th percentile under 5 ms under load. `SCU_BENCH_QUICK=1` measures 4 s instead of 20 s
@@ -143,9 +147,12 @@ impl Drop for Load {
 }
 
 fn client_on_emulator() -> Client {
+    client_on(PipeConfig::paced(38_400))
+}
+
+fn client_on(pipe: PipeConfig) -> Client {
     let clock = RealClock::shared();
-    let host =
-        EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), Arc::clone(&clock), PipeConfig::paced(38_400));
+    let host = EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), Arc::clone(&clock), pipe);
     let connector: Connector = Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>));
     Client::open(connector, clock, ClientConfig::default()).unwrap()
 }
@@ -193,6 +200,13 @@ fn single_async_transactions(
 }
 
 fn transaction(c: &mut Criterion) {
+    // The host's work alone, hot: the same exchange over a link with no wire time (client, session, driver and
+    // the emulator answering, all on this thread), one after the other.
+    let hot = client_on(PipeConfig::instant());
+    c.benchmark_group("transaction").bench_function("rg_position_instant_link_cpu", |b| {
+        b.iter(|| black_box(hot.get_raw(DataIndex(0x0011)).unwrap()))
+    });
+    drop(hot);
     let client = client_on_emulator();
     let wire = char_time(38_400, Parity::None) * (6 + 11);
     eprintln!("wire time of an RG position exchange at 38400 baud: 17 bytes x 10 bits = {wire:?}");
