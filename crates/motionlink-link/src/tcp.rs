@@ -9,6 +9,10 @@ use crate::link::{Link, LinkError};
 /// How long [`TcpLink::connect`] waits for a connection.
 pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 
+/// How long a send may wait for room in the connection (a peer that stopped reading): then it fails with a
+/// timeout instead of blocking its caller, and the session's close, for ever.
+pub const WRITE_TIMEOUT: Duration = Duration::from_secs(1);
+
 /// A TCP connection carrying a device's byte stream.
 #[derive(Debug)]
 pub struct TcpLink {
@@ -27,6 +31,7 @@ impl TcpLink {
             match TcpStream::connect_timeout(&addr, CONNECT_TIMEOUT) {
                 Ok(stream) => {
                     stream.set_nodelay(true).map_err(|e| open_err(e.to_string()))?;
+                    stream.set_write_timeout(Some(WRITE_TIMEOUT)).map_err(|e| open_err(e.to_string()))?;
                     return Ok(TcpLink { stream, name });
                 }
                 Err(e) => last = Some(e),

@@ -294,6 +294,67 @@ fn operations_after_close_fail_and_a_dead_device_bounds_the_close() {
     assert!(clock.now() - started <= Duration::from_millis(500));
 }
 
+/// A link whose sends block (as a TCP send into a peer that stopped reading) once `stuck` is set, until
+/// `release` is.
+struct Stuck {
+    inner: Box<dyn motionlink_link::Link>,
+    stuck: Arc<std::sync::atomic::AtomicBool>,
+    release: Arc<(Mutex<bool>, std::sync::Condvar)>,
+}
+
+impl motionlink_link::Link for Stuck {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        if self.stuck.load(std::sync::atomic::Ordering::SeqCst) {
+            let (released, cv) = &*self.release;
+            let mut r = released.lock().unwrap();
+            while !*r {
+                r = cv.wait(r).unwrap();
+            }
+        }
+        self.inner.send(bytes)
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
+        self.inner.recv(buf, timeout)
+    }
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        self.inner.discard_input()
+    }
+    fn describe(&self) -> String {
+        self.inner.describe()
+    }
+}
+
+#[test]
+fn a_close_returns_within_its_bound_and_grace_while_the_background_thread_is_stuck_in_a_send() {
+    let clock = RealClock::shared();
+    let host = EmulatorHost::new(Toy::default(), Arc::clone(&clock), PipeConfig::paced(115_200));
+    let stuck = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let release = Arc::new((Mutex::new(false), std::sync::Condvar::new()));
+    let link = Stuck { inner: Box::new(host.connect().0), stuck: Arc::clone(&stuck), release: Arc::clone(&release) };
+    let config = DriverConfig { close_bound: Duration::from_millis(200), ..DriverConfig::default() };
+    let driver = Driver::new(ToySession::new(clock.now()), Port::Bytes(Box::new(link)), None, clock, config).unwrap();
+    stuck.store(true, std::sync::atomic::Ordering::SeqCst);
+    // An async operation: the background thread sends it, and stays in that send.
+    let future = driver.start(Op::Get);
+    std::thread::sleep(Duration::from_millis(50));
+    let (tx, rx) = std::sync::mpsc::channel();
+    let closer = std::thread::spawn(move || {
+        let started = std::time::Instant::now();
+        let r = driver.close();
+        tx.send((r.is_err(), started.elapsed())).unwrap();
+    });
+    let outcome = rx.recv_timeout(Duration::from_secs(5));
+    // Let the stuck send return, so that the thread ends before the test does.
+    *release.0.lock().unwrap() = true;
+    release.1.notify_all();
+    let (failed, took) = outcome.expect("the close returned within 5 s");
+    closer.join().unwrap();
+    drop(future);
+    assert!(failed, "a close whose stop could not be sent is not confirmed");
+    let bound = Duration::from_millis(200) + motionlink_link::driver::BACKGROUND_EXIT_GRACE;
+    assert!(took <= bound + Duration::from_millis(200), "the close took {took:?} (bound {bound:?})");
+}
+
 #[cfg(feature = "tokio")]
 #[test]
 fn on_tokio_positions_are_read_while_a_move_runs_and_a_dropped_task_stops_it() {

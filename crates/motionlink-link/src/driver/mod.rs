@@ -34,11 +34,17 @@ pub use future::OpFuture;
 use port::Received;
 pub use port::{Port, PortOpener};
 
+/// How long a close waits, after its bound, for the background thread to end before it leaves the thread
+/// to end by itself (see [`DriverConfig::close_bound`]).
+pub const BACKGROUND_EXIT_GRACE: Duration = Duration::from_secs(1);
+
 /// How a driver waits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct DriverConfig {
     /// The longest [`Driver::close`] (and `Drop`) waits for the session's close sequence before it gives
-    /// up and reports that the stop was not confirmed. Default 5 s.
+    /// up and reports that the stop was not confirmed. Default 5 s. The background thread then gets at most
+    /// [`BACKGROUND_EXIT_GRACE`] more to end; one stuck in a link call longer than that (a reopen's connect) is
+    /// left to end by itself, so that a close never blocks longer than `close_bound` plus that grace.
     pub close_bound: Duration,
     /// The longest single read of the link while the session waits for input, so that an operation
     /// started meanwhile by another caller is sent without waiting for the whole answer timeout. Default
@@ -495,7 +501,8 @@ impl<S: Session> Driver<S> {
     }
 
     /// Runs the session's close sequence (stop everything it started) and waits for its outcome at most
-    /// [`DriverConfig::close_bound`]; then stops the background thread. Operations started afterwards fail.
+    /// [`DriverConfig::close_bound`]; then stops the background thread (waiting for it at most
+    /// [`BACKGROUND_EXIT_GRACE`]). Operations started afterwards fail.
     pub fn close(mut self) -> Result<(), S::Error> {
         self.close_inner()
     }
@@ -550,10 +557,21 @@ impl<S: Session> Driver<S> {
         shared.background.raise();
         let thread = std::mem::replace(&mut *lock(&shared.thread), Background::Done);
         if let Background::Running(t) = thread {
-            while !shared.exited_flag.load(std::sync::atomic::Ordering::SeqCst) {
-                shared.exited.wait_until(None);
+            let join_by = shared.clock.now() + BACKGROUND_EXIT_GRACE;
+            let exited = || shared.exited_flag.load(std::sync::atomic::Ordering::SeqCst);
+            while !exited() && shared.clock.now() < join_by {
+                shared.exited.wait_until(Some(join_by));
             }
-            let _ = t.join();
+            if exited() {
+                let _ = t.join();
+            } else {
+                // Stuck in a call of its link (it ends when the call returns: stop_thread is set).
+                tracing::warn!(
+                    "{}: the driver's background thread did not end within {BACKGROUND_EXIT_GRACE:?} of the close; \
+                     left to end by itself",
+                    self.describe
+                );
+            }
         }
         result
     }
