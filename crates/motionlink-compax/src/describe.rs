@@ -7,10 +7,10 @@
 //! when the capture does not say which way they went. Bytes that are neither are reported as garbage.
 //!
 //! ```
-//! use motionlink_compax::describe::CompaxDescriber;
+//! use motionlink_compax::describe::Describer;
 //! use motionlink_compax::wire::Mode;
 //! use motionlink_link::describe::{Captured, Describe, Direction};
-//! let mut d = CompaxDescriber::new(Mode::from_p196(8).unwrap());
+//! let mut d = Describer::new(Mode::from_p196(8).unwrap());
 //! let mut out = Vec::new();
 //! d.describe(Captured::Bytes(b"1S1\rS"), Direction::Unknown, None, &mut out);
 //! d.finish(&mut out);
@@ -43,7 +43,7 @@ struct Found {
 
 /// The COMPAX decoder of captured traffic in mode P196 `mode`.
 #[derive(Debug, Clone)]
-pub struct CompaxDescriber {
+pub struct Describer {
     mode: Mode,
     /// Bytes not yet explained, per direction (to device, from device, unknown).
     pending: [Vec<u8>; 3],
@@ -58,10 +58,10 @@ fn slot(d: Direction) -> usize {
     }
 }
 
-impl CompaxDescriber {
+impl Describer {
     /// A decoder for a bus in mode `mode` (P196: BCC, reply end, address prefix).
     pub fn new(mode: Mode) -> Self {
-        CompaxDescriber { mode, pending: Default::default(), at: [None; 3] }
+        Describer { mode, pending: Default::default(), at: [None; 3] }
     }
 
     /// Explains the bytes of `direction` held so far; with `last`, all of them (garbage included),
@@ -133,7 +133,7 @@ impl CompaxDescriber {
     }
 }
 
-impl Describe for CompaxDescriber {
+impl Describe for Describer {
     fn describe(
         &mut self,
         captured: Captured<'_>,
@@ -334,7 +334,7 @@ mod tests {
 
     /// Every annotation of `bytes` read in one piece, as `motionlink decode` prints it.
     fn lines(bytes: &[u8], mode: &Mode, direction: Direction) -> Vec<String> {
-        let mut d = CompaxDescriber::new(*mode);
+        let mut d = Describer::new(*mode);
         let mut out = Vec::new();
         d.describe(Captured::Bytes(bytes), direction, None, &mut out);
         d.finish(&mut out);
@@ -384,7 +384,7 @@ mod tests {
     #[test]
     fn a_telegram_in_pieces_is_one_annotation_with_its_direction() {
         let mode = Mode::default();
-        let mut d = CompaxDescriber::new(mode);
+        let mut d = Describer::new(mode);
         let mut out = Vec::new();
         for piece in [&b"S001: 1"[..], b"2.500\r", b"\n>"] {
             d.describe(Captured::Bytes(piece), Direction::FromDevice, None, &mut out);

@@ -35,7 +35,8 @@
 //! # Duties
 //!
 //! - **Requests** go out one at a time (the line is half-duplex); each is matched with its reply by command
-//!   and expected length, and repeated as the crate documentation ("Replies, retries and a dead link") says.
+//!   and expected length, and repeated as the crate documentation says ("Decisions": "Reply timeout and
+//!   retries" and "RE is repeated").
 //! - **The keepalive**: an RC on a grid of deadlines one [`crate::ClientConfig::keepalive_period`] apart
 //!   (it cannot drift), or one [`crate::ClientConfig::poll_interval`] apart while a motion is polled through
 //!   it: then each RC carries the session's poll object and reads the status and position of every actuator,

@@ -4,7 +4,7 @@ use std::io::Write;
 use std::time::Duration;
 
 use motionlink_compax::client::{BusConfig, MoveOptions};
-use motionlink_compax::describe::CompaxDescriber;
+use motionlink_compax::describe::Describer;
 use motionlink_compax::model::{ParamId, Position, RampMs, S16Flag, S17Flag, SpeedPercent};
 use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Mode};
@@ -66,7 +66,7 @@ pub fn decode(args: DecodeArgs, json: bool) -> Result<(), CliError> {
         Direction::Host => Way::ToDevice,
         Direction::Drive => Way::FromDevice,
     };
-    crate::decode::run(&args.capture, json, &mut CompaxDescriber::new(mode), way)
+    crate::decode::run(&args.capture, json, &mut Describer::new(mode), way)
 }
 
 fn fail(e: Error) -> CliError {
@@ -83,7 +83,7 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
         let clock = ManualClock::new_auto();
         let _me = clock.reserve_participant().enter();
         let (bus, transcript) = demo_bus(&clock, p196)?;
-        let mut describer = CompaxDescriber::new(parse_mode(p196)?);
+        let mut describer = Describer::new(parse_mode(p196)?);
         for a in [1u8, 5] {
             let addr = Address::drive(a).map_err(CliError::usage)?;
             let p = bus.read_position(addr).map_err(fail)?;
@@ -96,7 +96,7 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
     let clock = ManualClock::new_auto();
     let _me = clock.reserve_participant().enter();
     let (bus, transcript) = demo_bus(&clock, 0)?;
-    let mut describer = CompaxDescriber::new(Mode::default());
+    let mut describer = Describer::new(Mode::default());
     let five = Address::drive(5).map_err(CliError::usage)?;
     let usage = |e: motionlink_compax::model::ModelError| CliError::usage(e);
     bus.set_speed(five, SpeedPercent::new(50.0).map_err(usage)?, false).map_err(fail)?;
@@ -133,11 +133,7 @@ fn demo_bus(clock: &ManualClock, p196: u32) -> Result<(Client, Transcript), CliE
 }
 
 /// Prints what went over the line since the last call, each telegram explained by the library.
-fn print_transcript(
-    out: &mut DemoOut<'_>,
-    transcript: &Transcript,
-    describer: &mut CompaxDescriber,
-) -> Result<(), CliError> {
+fn print_transcript(out: &mut DemoOut<'_>, transcript: &Transcript, describer: &mut Describer) -> Result<(), CliError> {
     for r in transcript.take() {
         let way = match r.way {
             TapWay::Sent => Way::ToDevice,

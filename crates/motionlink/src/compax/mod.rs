@@ -25,7 +25,7 @@ use serde_json::json;
 use crate::common::{self, CliError, Row, ServeArgs};
 use crate::decode::CaptureArgs;
 use crate::tap::{LinkArgs, Tap};
-use motionlink_compax::describe::CompaxDescriber;
+use motionlink_compax::describe::Describer;
 use motionlink_link::describe::Describe;
 
 mod extra;
@@ -312,7 +312,7 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     args.resolved_port = args.link.resolve_port("compax", args.port.as_deref())?;
     let clock: SharedClock = RealClock::shared();
     let mode = parse_mode(args.mode)?;
-    let describer = move || Box::new(CompaxDescriber::new(mode)) as Box<dyn Describe + Send>;
+    let describer = move || Box::new(Describer::new(mode)) as Box<dyn Describe + Send>;
     let sending = matches!(args.action, Action::Send { .. });
     if let Action::Watch { csv: true, .. } = args.action {
         if args.json {

@@ -103,7 +103,7 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
     }
     let url: PortUrl = args.port.parse()?;
     let traffic = Arc::new(Traffic::new(
-        Box::new(motionlink_compax::describe::CompaxDescriber::new(mode)),
+        Box::new(motionlink_compax::describe::Describer::new(mode)),
         &format!("compax {}", args.port),
         "can0",
         clock,

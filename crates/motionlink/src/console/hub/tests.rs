@@ -105,9 +105,7 @@ fn hub() -> (Arc<Hub>, Arc<Fake>, Dropped, Running) {
     let fake = Arc::new(Fake { dropped: tx, running, stops: AtomicUsize::new(0), stop_started: AtomicUsize::new(0) });
     let clock = ManualClock::new().shared();
     let traffic = Arc::new(Traffic::new(
-        Box::new(motionlink_compax::describe::CompaxDescriber::new(
-            motionlink_compax::wire::Mode::from_p196(0).unwrap(),
-        )),
+        Box::new(motionlink_compax::describe::Describer::new(motionlink_compax::wire::Mode::from_p196(0).unwrap())),
         "fake",
         "can0",
         &clock,
