@@ -43,6 +43,10 @@ fn writes_are_read_back_and_a_move_reaches_its_target() {
         let client = client.await;
         client.set(DataIndex(0x3012), &Value::RemoteSpeed(55)).await.unwrap();
         assert_eq!(client.get_value(DataIndex(0x3012)).await.unwrap(), Value::RemoteSpeed(55));
+        // Raw bytes, read back as well (little-endian remote speed 40 %).
+        client.set_raw(DataIndex(0x3012), &[40, 0]).await.unwrap();
+        assert_eq!(client.get_value(DataIndex(0x3012)).await.unwrap(), Value::RemoteSpeed(40));
+        assert!(client.is_open() && client.not_open_reason().is_none());
         let a1 = Actuator::new(1).unwrap();
         let report = client.move_to(a1, PositionCounts(60), Speed::percent(100).unwrap(), None).await.unwrap();
         assert_eq!(report.position_counts, PositionCounts(60));

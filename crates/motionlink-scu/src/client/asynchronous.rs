@@ -99,6 +99,11 @@ impl AsyncClient {
         self.driver.driver().with_session(|s| s.is_open())
     }
 
+    /// Why the session is not open, if it is not: lost, ended by the unit, or closed.
+    pub fn not_open_reason(&self) -> Option<String> {
+        self.driver.driver().with_session(|s| s.not_open_reason())
+    }
+
     /// Sends any request and returns the data of its ACK.
     pub async fn request(&self, request: &Request<'_>) -> Result<Option<Vec<u8>>, Error> {
         let op = Op::Request(PreparedRequest::new(request)?);
@@ -126,6 +131,11 @@ impl AsyncClient {
     pub async fn set(&self, index: DataIndex, value: &Value) -> Result<(), Error> {
         let (_, data) = encode_for(index, value, self.config.speed_mode)?;
         self.driver.run(Op::Set { index, data, verify: true }).await.map(|_| ())
+    }
+
+    /// Writes raw bytes to a data index and reads them back, as [`Client::set_raw`].
+    pub async fn set_raw(&self, index: DataIndex, data: &[u8]) -> Result<(), Error> {
+        self.driver.run(Op::Set { index, data: data.to_vec(), verify: true }).await.map(|_| ())
     }
 
     /// Actuator `a`'s position.
