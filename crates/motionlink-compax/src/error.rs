@@ -19,7 +19,7 @@ pub enum Error {
     #[error("drive {address}: {command:?} refused with {code}")]
     Device {
         /// The drive.
-        address: u8,
+        address: Address,
         /// The command sent.
         command: String,
         /// The error.
@@ -29,7 +29,7 @@ pub enum Error {
     #[error("drive {address}: no reply to {command:?} ({attempts} attempts)")]
     Timeout {
         /// The drive.
-        address: u8,
+        address: Address,
         /// The command sent.
         command: String,
         /// Telegrams sent.
@@ -39,7 +39,7 @@ pub enum Error {
     #[error("drive {address}: corrupt reply to {command:?}: {detail}")]
     Corrupt {
         /// The drive.
-        address: u8,
+        address: Address,
         /// The command sent.
         command: String,
         /// The last corruption seen.
@@ -49,11 +49,20 @@ pub enum Error {
     #[error("drive {address}: unexpected reply {reply:?} to {command:?}")]
     Unexpected {
         /// The drive.
-        address: u8,
+        address: Address,
         /// The command sent.
         command: String,
         /// The reply text.
         reply: String,
+    },
+    /// An operation of the session ended with an output of another kind than its call expects (a defect of
+    /// this library, never of the drive).
+    #[error("{what}: the session answered with {got} (a defect of this library)")]
+    WrongOutput {
+        /// The call.
+        what: String,
+        /// The output's kind.
+        got: &'static str,
     },
     /// The port failed.
     #[error(transparent)]
@@ -68,7 +77,7 @@ pub enum Error {
     #[error("drive {address}: the reply to {command:?} was lost and the drive's target ({target}) does not tell whether it was executed")]
     MoveUncertain {
         /// The drive.
-        address: u8,
+        address: Address,
         /// The command sent.
         command: String,
         /// The target position S2 read afterwards.
@@ -78,7 +87,7 @@ pub enum Error {
     #[error("drive {address} did not reach its position within {after:?}; stopped")]
     MoveTimeout {
         /// The drive.
-        address: u8,
+        address: Address,
         /// The time waited.
         after: Duration,
     },
@@ -104,7 +113,7 @@ pub enum Error {
     )]
     NotReached {
         /// The drive.
-        address: u8,
+        address: Address,
         /// The target asked for.
         target: f64,
         /// The actual position S1 read at rest.
@@ -122,7 +131,7 @@ pub enum Error {
     )]
     TargetMismatch {
         /// The drive.
-        address: u8,
+        address: Address,
         /// The target sent.
         requested: f64,
         /// The target S2 read back.
@@ -133,7 +142,7 @@ pub enum Error {
     #[error("drive {address}: target {target} is outside the travel limits: it is {side} {limit}")]
     OutsideLimits {
         /// The drive.
-        address: u8,
+        address: Address,
         /// The target.
         target: f64,
         /// "below the minimum" or "above the maximum".
@@ -146,7 +155,7 @@ pub enum Error {
     #[error("drive {address} is switched off (O0={o0}, S16){}: it moves only once it is switched on again with OUTPUT O0=1", refused.map(|c| format!(" and refused the move with {c}")).unwrap_or_default())]
     SwitchedOff {
         /// The drive.
-        address: u8,
+        address: Address,
         /// The O0 state S16 shows (0, or 2).
         o0: u8,
         /// The drive's answer to the move, when the move was sent.
@@ -159,7 +168,7 @@ pub enum Error {
     )]
     ReadBack {
         /// The drive.
-        address: u8,
+        address: Address,
         /// The parameter.
         param: ParamId,
         /// The value written.
@@ -189,7 +198,7 @@ pub enum Error {
     #[error("drive {address}: the move {command:?} was stored in the buffer, not executed: {why} ({source}); drives {buffered:?} may still hold the command as they received it in their buffer, and the next '!' to them or any '32!' on the bus executes it (the manual has no command to empty a buffer)")]
     NotExecuted {
         /// The drive the move was for.
-        address: u8,
+        address: Address,
         /// The move as sent, without the address and flags (`POSA 12.5`).
         command: String,
         /// What happened (`its echo was not the telegram sent, so no '!' was sent`).
@@ -261,7 +270,7 @@ impl Error {
     /// The drives this error left (or found) switched off: they take no move until `OUTPUT O0=1`.
     pub fn switched_off_drives(&self) -> Vec<u8> {
         match self {
-            Error::SwitchedOff { address, .. } => vec![*address],
+            Error::SwitchedOff { address, .. } => vec![address.get()],
             _ => self.stop_report().map(|r| r.switched_off().iter().map(|a| a.get()).collect()).unwrap_or_default(),
         }
     }
@@ -280,7 +289,9 @@ impl Classify for Error {
             Error::Timeout { .. } | Error::MoveUncertain { .. } | Error::CloseTimedOut { .. } => {
                 ErrorClass::Transport(TransportKind::Timeout)
             }
-            Error::Corrupt { .. } | Error::Unexpected { .. } => ErrorClass::Transport(TransportKind::Corrupt),
+            Error::Corrupt { .. } | Error::Unexpected { .. } | Error::WrongOutput { .. } => {
+                ErrorClass::Transport(TransportKind::Corrupt)
+            }
             Error::Link(e) => e.class(),
             Error::Invalid(_) | Error::Wire(_) | Error::Broadcast(_) | Error::OutsideLimits { .. } | Error::Closed => {
                 ErrorClass::Usage
@@ -401,17 +412,26 @@ mod tests {
     fn every_error_has_the_class_a_front_end_maps() {
         let stop = StopReport { drives: vec![(Address::drive(3).unwrap(), StopOutcome::SwitchedOff)] };
         let cases: Vec<(Error, ErrorClass)> = vec![
-            (Error::Device { address: 1, command: "S1".into(), code: ErrorCode(92) }, ErrorClass::Refused),
             (
-                Error::NotReached { address: 1, target: 1.0, reached: 0.5, difference: -0.5, tolerance: 0.01 },
+                Error::Device { address: Address::drive_const(1), command: "S1".into(), code: ErrorCode(92) },
+                ErrorClass::Refused,
+            ),
+            (
+                Error::NotReached {
+                    address: Address::drive_const(1),
+                    target: 1.0,
+                    reached: 0.5,
+                    difference: -0.5,
+                    tolerance: 0.01,
+                },
                 ErrorClass::Device,
             ),
             (
-                Error::Timeout { address: 1, command: "S1".into(), attempts: 4 },
+                Error::Timeout { address: Address::drive_const(1), command: "S1".into(), attempts: 4 },
                 ErrorClass::Transport(TransportKind::Timeout),
             ),
             (
-                Error::Unexpected { address: 1, command: "S1".into(), reply: "x".into() },
+                Error::Unexpected { address: Address::drive(1).unwrap(), command: "S1".into(), reply: "x".into() },
                 ErrorClass::Transport(TransportKind::Corrupt),
             ),
             (
@@ -423,7 +443,11 @@ mod tests {
             (Error::Aborted { cause: Box::new(Error::Cancelled), stop: stop.clone() }, ErrorClass::Cancelled),
             (
                 Error::Aborted {
-                    cause: Box::new(Error::TargetMismatch { address: 3, requested: 15.0, taken: 14.0 }),
+                    cause: Box::new(Error::TargetMismatch {
+                        address: Address::drive_const(3),
+                        requested: 15.0,
+                        taken: 14.0,
+                    }),
                     stop,
                 },
                 ErrorClass::Device,

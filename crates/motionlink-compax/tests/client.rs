@@ -18,6 +18,8 @@ use crate::support;
 
 use support::*;
 
+const D9: motionlink_compax::wire::Address = motionlink_compax::wire::Address::drive_const(9);
+
 #[test]
 fn every_p196_combination_reads_writes_and_moves() {
     for p196 in 0..=Mode::MAX_P196 {
@@ -145,7 +147,7 @@ fn timeouts_of_idempotent_reads_are_retried_then_reported() {
     assert_eq!(sent(&r.transcript).len(), 2);
     // Nobody at address 9: four attempts, then a transport error.
     let e = bus.read_position(a(9)).unwrap_err();
-    assert!(matches!(e, Error::Timeout { address: 9, attempts: 4, .. }), "{e}");
+    assert!(matches!(e, Error::Timeout { address: D9, attempts: 4, .. }), "{e}");
     assert!(e.is_transport());
 }
 

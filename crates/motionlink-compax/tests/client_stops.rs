@@ -18,6 +18,8 @@ use crate::support;
 
 use support::*;
 
+const D1: motionlink_compax::wire::Address = motionlink_compax::wire::Address::drive_const(1);
+
 #[test]
 fn dropping_the_client_stops_the_axis_it_moved() {
     let (r, bus) = rig(&[1, 2], 0, 9600);
@@ -253,7 +255,7 @@ fn a_wait_without_a_timeout_ends_after_the_default_one() {
     bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
     let t0 = clock.now();
     let e = bus.wait_reached(&[a(1)], None, &mut |_, _| {}).unwrap_err();
-    assert!(matches!(e.root(), Error::MoveTimeout { address: 1, .. }), "{e}");
+    assert!(matches!(e.root(), Error::MoveTimeout { address: D1, .. }), "{e}");
     let took = clock.now() - t0;
     assert!(took >= Duration::from_secs(3) && took < Duration::from_secs(4), "{took:?}");
     assert!(!host.with_device(|d| d.drive(1).unwrap().is_moving()), "stopped");
@@ -343,7 +345,7 @@ fn a_wait_that_takes_too_long_stops_the_axis() {
     let _me = r.clock.reserve_participant().enter();
     bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
     let e = bus.wait_reached(&[a(1)], Some(Duration::from_secs(2)), &mut |_, _| {}).unwrap_err();
-    assert!(matches!(e.root(), Error::MoveTimeout { address: 1, .. }), "{e}");
+    assert!(matches!(e.root(), Error::MoveTimeout { address: D1, .. }), "{e}");
     assert_eq!(e.stop_report().unwrap().switched_off(), [a(1)], "{e}");
     assert!(!r.host.with_device(|d| d.drive(1).unwrap().is_moving()));
 }

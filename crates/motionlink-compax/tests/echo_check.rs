@@ -15,6 +15,8 @@ use motionlink_link::emulator::Emulator as _;
 use motionlink_link::pipe::{Direction, EmulatorHost, Fault, FaultControl, PipeConfig};
 use motionlink_link::transcript::{TapLink, Transcript, Way};
 
+const D1: motionlink_compax::wire::Address = motionlink_compax::wire::Address::drive_const(1);
+
 struct Rig {
     clock: ManualClock,
     host: EmulatorHost<Emulator>,
@@ -226,7 +228,7 @@ fn a_flipped_address_digit_makes_another_drive_echo_and_nothing_moves() {
         let _me = r.clock.reserve_participant().enter();
         r.faults.inject(Direction::HostToDevice, before_store(p196, false), Fault::Corrupt { xor: 0x02 });
         let e = bus.move_to(a(1), &MoveRequest::new(MoveTarget::Absolute(pos(12.5))), &mut |_| {}).unwrap_err();
-        let Error::NotExecuted { address: 1, command, buffered, source, .. } = e.root() else { panic!("{e}") };
+        let Error::NotExecuted { address: D1, command, buffered, source, .. } = e.root() else { panic!("{e}") };
         assert_eq!((command.as_str(), buffered.as_slice()), ("POSA 12.5", &[1u8, 3][..]), "P196={p196}");
         let Error::Unexpected { reply, .. } = source.as_ref() else { panic!("{source}") };
         let want = if p196 & 64 != 0 { "3:3POSA 12.5,?" } else { "3POSA 12.5,?" };

@@ -15,6 +15,8 @@ use motionlink_link::clock::{Clock, ManualClock};
 use motionlink_link::pipe::{Direction, EmulatorHost, Fault, FaultControl, PipeConfig};
 use motionlink_link::transcript::{TapLink, Transcript, Way};
 
+const D1: motionlink_compax::wire::Address = motionlink_compax::wire::Address::drive_const(1);
+
 struct Rig {
     clock: ManualClock,
     host: EmulatorHost<Emulator>,
@@ -120,7 +122,7 @@ fn a_move_that_ends_away_from_its_target_fails_naming_target_reached_and_differe
     // Another program on the bus switches the drive off: the positioning ends where the axis is.
     someone_else_sends(&r, b"1OUTPUT O0=0\r");
     let e = bus.finish_checked_move(&started, None, &mut |_| {}).unwrap_err();
-    let Error::NotReached { address: 1, target, reached, difference, tolerance } = e else { panic!("{e}") };
+    let Error::NotReached { address: D1, target, reached, difference, tolerance } = e else { panic!("{e}") };
     assert_eq!(target, 100.0);
     assert!(reached > 10.0 && reached < 100.0, "{reached}");
     assert_eq!(difference, reached - 100.0);
@@ -152,7 +154,7 @@ fn a_target_outside_the_travel_limits_is_refused_before_anything_moves() {
     req.limits = limits;
     let e = bus.move_to(a(1), &req, &mut |_| {}).unwrap_err();
     assert!(
-        matches!(e, Error::OutsideLimits { address: 1, side: "above the maximum", limit, .. } if limit == 40.0),
+        matches!(e, Error::OutsideLimits { address: D1, side: "above the maximum", limit, .. } if limit == 40.0),
         "{e}"
     );
     assert!(e.to_string().contains("above the maximum 40"), "{e}");
@@ -179,12 +181,12 @@ fn a_switched_off_drive_is_named_as_such_not_with_a_bare_e90() {
     let _me = r.clock.reserve_participant().enter();
     bus.set_output(a(1), 0, OutputState::OFF, false).unwrap();
     let e = bus.move_to(a(1), &to(10.0), &mut |_| {}).unwrap_err();
-    assert!(matches!(e, Error::SwitchedOff { address: 1, o0: 0, refused: None }), "{e}");
+    assert!(matches!(e, Error::SwitchedOff { address: D1, o0: 0, refused: None }), "{e}");
     assert!(e.to_string().contains("switched off") && e.to_string().contains("OUTPUT O0=1"), "{e}");
     assert!(!sent(&r.transcript).iter().any(|f| f.contains("POSA")), "checked before the move is sent");
     // Sent anyway (raw, or the plain move methods), the drive's E90 is explained.
     let e = bus.raw(a(1), "POSA 10").unwrap_err();
-    assert!(matches!(e, Error::SwitchedOff { address: 1, o0: 0, refused: Some(REFUSED) }), "{e}");
+    assert!(matches!(e, Error::SwitchedOff { address: D1, o0: 0, refused: Some(REFUSED) }), "{e}");
     assert!(e.to_string().contains("refused the move with E90"), "{e}");
     let e = bus.move_absolute(a(1), pos(10.0), MoveOptions::default()).unwrap_err();
     assert!(matches!(e, Error::SwitchedOff { .. }), "{e}");
@@ -207,7 +209,7 @@ fn a_corrupted_target_is_caught_by_reading_s2_back_and_the_axis_is_switched_off(
     req.binary = true;
     let e = bus.move_to(a(1), &req, &mut |_| {}).unwrap_err();
     assert!(
-        matches!(e.root(), Error::TargetMismatch { address: 1, requested, taken } if *requested == 15.0 && *taken == 14.0),
+        matches!(e.root(), Error::TargetMismatch { address: D1, requested, taken } if *requested == 15.0 && *taken == 14.0),
         "{e}"
     );
     let stop = e.stop_report().unwrap();
@@ -348,7 +350,7 @@ fn a_corrupted_parameter_write_is_caught_by_the_read_back() {
     let p3 = ParamId::new(3).unwrap();
     let e = bus.write_param(a(1), p3, -1055.88).unwrap_err();
     assert!(
-        matches!(e, Error::ReadBack { address: 1, wrote, read, .. } if wrote == -1055.88 && read == -1055.89),
+        matches!(e, Error::ReadBack { address: D1, wrote, read, .. } if wrote == -1055.88 && read == -1055.89),
         "{e}"
     );
     assert!(e.to_string().contains("P003 reads back -1055.89 after -1055.88 was written"), "{e}");

@@ -217,7 +217,7 @@ impl<'a> AsyncWatch<'a> {
                 Ok(WatchSample { drive: self.drive, position: *position, s17: *s17 })
             }
             other => Err(Error::Unexpected {
-                address: self.drive.get(),
+                address: self.drive,
                 command: "S1, S17".into(),
                 reply: other.iter().map(|(_, v)| v.to_string()).collect::<Vec<_>>().join(", "),
             }),

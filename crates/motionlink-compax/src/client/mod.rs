@@ -52,9 +52,5 @@ fn driver_config(cfg: &BusConfig) -> DriverConfig {
 /// An output of the kind the operation ends with, or an error naming the mismatch (which the session's
 /// operations never produce).
 fn output<T>(out: Output, what: &str, take: impl FnOnce(Output) -> std::result::Result<T, Output>) -> Result<T> {
-    take(out).map_err(|other| Error::Unexpected {
-        address: 0,
-        command: what.to_string(),
-        reply: format!("the session answered with {}", other.name()),
-    })
+    take(out).map_err(|other| Error::WrongOutput { what: what.to_string(), got: other.name() })
 }

@@ -475,7 +475,7 @@ impl Core {
                 self.queue.push_front(job);
             }
             ReplyKind::Error(code) => {
-                let e = Error::Device { address: job.address.get(), command: job.command, code: ErrorCode(code) };
+                let e = Error::Device { address: job.address, command: job.command, code: ErrorCode(code) };
                 self.results.insert(job.id, Err(e));
             }
             _ => {
@@ -503,7 +503,7 @@ impl Core {
             let retry_left = job.attempts <= job.retries;
             match job.last_corrupt {
                 Some(detail) if job.retry != Retry::Idempotent || !retry_left => {
-                    let e = Error::Corrupt { address: job.address.get(), command: job.command, detail };
+                    let e = Error::Corrupt { address: job.address, command: job.command, detail };
                     self.results.insert(job.id, Err(e));
                 }
                 _ => self.queue.push_front(job),
@@ -521,7 +521,7 @@ impl Core {
             self.queue.push_front(job);
             return;
         }
-        let (address, command) = (job.address.get(), job.command);
+        let (address, command) = (job.address, job.command);
         let e = match (job.unfit, job.last_corrupt) {
             (Some(reply), _) => Error::Unexpected { address, command, reply },
             (None, Some(detail)) if job.retry == Retry::Idempotent => Error::Corrupt { address, command, detail },

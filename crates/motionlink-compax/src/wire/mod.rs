@@ -129,6 +129,14 @@ impl Address {
         }
     }
 
+    /// The address of drive `n` (1..=31) as a constant, for tables and patterns
+    /// (`const D5: Address = Address::drive_const(5);`): out of range, it fails to compile where it is
+    /// evaluated as a constant, and panics elsewhere. [`Address::drive`] is the checked form for input.
+    pub const fn drive_const(n: u8) -> Address {
+        assert!(n >= 1 && n < BROADCAST, "a drive address is 1..=31");
+        Address(n)
+    }
+
     /// The number.
     #[inline]
     pub const fn get(self) -> u8 {

@@ -53,7 +53,7 @@ impl Ctx {
             let holders = f.holders | bit(address);
             self.core().buffered |= holders;
             Error::NotExecuted {
-                address: address.get(),
+                address,
                 command: text.to_string(),
                 why: f.why,
                 source: Box::new(f.source),
@@ -95,7 +95,7 @@ impl Ctx {
                 Some(a) => format!("{a}:{}", echo.text_str()),
                 None => echo.text_str().to_string(),
             };
-            let source = Error::Unexpected { address: address.get(), command: format!("{text}{flags}"), reply: shown };
+            let source = Error::Unexpected { address, command: format!("{text}{flags}"), reply: shown };
             return Err(fail(Failure {
                 why: "its echo was not the telegram sent, so no '!' was sent",
                 source,
@@ -114,7 +114,7 @@ impl Ctx {
             let lost = match self.exchange(&exec, Retry::DiscardedOnly).await {
                 Ok(Some(r)) if r.text().is_empty() => return Ok(()),
                 Ok(r) => Error::Unexpected {
-                    address: address.get(),
+                    address,
                     command: "!".into(),
                     reply: r.map(|r| r.text_str().to_string()).unwrap_or_default(),
                 },
@@ -133,7 +133,7 @@ impl Ctx {
             let moving = self.read_s17(address).await?.contains(S17Flag::CommandActive);
             let unchanged = before.is_none_or(|b| close(target, b));
             if moving || !unchanged {
-                return Err(Error::MoveUncertain { address: address.get(), command: format!("! ({text})"), target });
+                return Err(Error::MoveUncertain { address, command: format!("! ({text})"), target });
             }
             if attempts > retries {
                 return Err(fail(Failure {

@@ -44,11 +44,7 @@ impl Ctx {
     }
 
     fn unexpected(address: Address, command: &Command, r: &[u8]) -> Error {
-        Error::Unexpected {
-            address: address.get(),
-            command: command.to_string(),
-            reply: String::from_utf8_lossy(r).into_owned(),
-        }
+        Error::Unexpected { address, command: command.to_string(), reply: String::from_utf8_lossy(r).into_owned() }
     }
 
     /// Reads status value `id`, asking again when the reply does not read as that value (without a BCC a
@@ -98,9 +94,7 @@ impl Ctx {
     async fn read_position_value(&self, address: Address, id: StatusId, retries: u32) -> Result<Position> {
         match self.read_status_retries(address, id, retries).await? {
             StatusValue::Position(p) => Ok(p),
-            other => {
-                Err(Error::Unexpected { address: address.get(), command: id.to_string(), reply: other.to_string() })
-            }
+            other => Err(Error::Unexpected { address, command: id.to_string(), reply: other.to_string() }),
         }
     }
 
@@ -119,11 +113,7 @@ impl Ctx {
     /// S16.
     pub(crate) async fn read_s16(&self, address: Address) -> Result<S16Bits> {
         let v = self.read_status(address, StatusId::STATUS_BITS_1).await?;
-        s16_of(&v).ok_or_else(|| Error::Unexpected {
-            address: address.get(),
-            command: "S16".into(),
-            reply: v.to_string(),
-        })
+        s16_of(&v).ok_or_else(|| Error::Unexpected { address, command: "S16".into(), reply: v.to_string() })
     }
 
     /// S17.
@@ -135,11 +125,7 @@ impl Ctx {
     /// S17 with `retries` retries.
     pub(crate) async fn read_s17_retries(&self, address: Address, retries: u32) -> Result<S17Bits> {
         let v = self.read_status_retries(address, StatusId::STATUS_BITS_2, retries).await?;
-        s17_of(&v).ok_or_else(|| Error::Unexpected {
-            address: address.get(),
-            command: "S17".into(),
-            reply: v.to_string(),
-        })
+        s17_of(&v).ok_or_else(|| Error::Unexpected { address, command: "S17".into(), reply: v.to_string() })
     }
 
     /// Reads parameter `id`, asking again when the reply does not read as a value.
@@ -171,7 +157,7 @@ impl Ctx {
         let read = self.read_param(address, id).await?;
         // The reply is decimal text: what was written reads back as the same number, at any magnitude.
         if (read - value).abs() > 1e-9 * value.abs().max(1.0) {
-            return Err(Error::ReadBack { address: address.get(), param: id, wrote: value, read });
+            return Err(Error::ReadBack { address, param: id, wrote: value, read });
         }
         Ok(())
     }
@@ -260,9 +246,7 @@ impl Ctx {
             return e;
         }
         match self.read_s16(address).await {
-            Ok(s16) if s16.o0_state() != 1 => {
-                Error::SwitchedOff { address: address.get(), o0: s16.o0_state(), refused: Some(code) }
-            }
+            Ok(s16) if s16.o0_state() != 1 => Error::SwitchedOff { address, o0: s16.o0_state(), refused: Some(code) },
             _ => e,
         }
     }

@@ -103,7 +103,7 @@ impl Ctx {
                         restore();
                         return Err(e);
                     }
-                    return Err(Error::MoveUncertain { address: address.get(), command: cmd.to_string(), target });
+                    return Err(Error::MoveUncertain { address, command: cmd.to_string(), target });
                 }
                 Err(e @ Error::Cancelled) => {
                     // Cancelled before it went out: never sent.

@@ -86,7 +86,7 @@ impl Ctx {
             }
             let now = self.now();
             if now >= give_up_at {
-                return Err(Error::MoveTimeout { address: pending[0].get(), after: now - started_at });
+                return Err(Error::MoveTimeout { address: pending[0], after: now - started_at });
             }
             // The next poll is due one interval after the start of this one (at once if this one took
             // longer), never later than the end of the wait.
@@ -205,15 +205,11 @@ impl Ctx {
         }
         let s16 = self.read_s16(address).await?;
         if s16.o0_state() != 1 {
-            return Err(Error::SwitchedOff { address: address.get(), o0: s16.o0_state(), refused: None });
+            return Err(Error::SwitchedOff { address, o0: s16.o0_state(), refused: None });
         }
         if self.read_s17(address).await?.contains(S17Flag::CommandActive) {
             // Someone else's positioning (or one this session handed over): not this call's to stop.
-            return Err(Error::Device {
-                address: address.get(),
-                command: "S17".into(),
-                code: ErrorCode::COMMAND_ACTIVE,
-            });
+            return Err(Error::Device { address, command: "S17".into(), code: ErrorCode::COMMAND_ACTIVE });
         }
         let start = self.read_position(address).await?;
         let (cmd, target, before) = match request.target {
@@ -276,7 +272,7 @@ impl Ctx {
             }
             tracing::warn!("drive {address}: S2 reads {taken}, not the target {target} (read {})", attempt + 1);
         }
-        Err(Error::TargetMismatch { address: address.get(), requested: target.units(), taken })
+        Err(Error::TargetMismatch { address, requested: target.units(), taken })
     }
 
     /// Waits for a started move and checks where the axis came to rest: S1 must lie within the in-position
@@ -314,7 +310,7 @@ impl Ctx {
                 return Ok(report(again));
             }
             return Err(Error::NotReached {
-                address: a.get(),
+                address: a,
                 target: target.units(),
                 reached: again.units(),
                 difference: again.units() - target.units(),
