@@ -145,6 +145,18 @@ pub enum Error {
         /// Error_Code 1 when it stopped.
         error_code: ErrorCode,
     },
+    /// A follow ([`crate::client::Follower`]) ended with actuators away from the last target each was given
+    /// (beyond the tolerance); the function was stopped.
+    #[error(
+        "the last target was not reached within {tolerance_counts} counts: {}",
+        misses.iter().map(TargetMiss::to_string).collect::<Vec<_>>().join("; ")
+    )]
+    TargetMissed {
+        /// The tolerance of the follow.
+        tolerance_counts: u32,
+        /// Each actuator that missed, in the stream's order.
+        misses: Vec<TargetMiss>,
+    },
     /// A move's actuator stopped advancing though the unit reports motion; it was stopped.
     #[error("{actuator} stalled at {position_counts} (no progress for {after:?} while moving); stopped")]
     Stalled {
@@ -230,6 +242,37 @@ pub enum Error {
     CloseUnconfirmed(Duration),
 }
 
+/// An actuator that ended a follow away from the last target it was given.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TargetMiss {
+    /// The actuator.
+    pub actuator: Actuator,
+    /// The last target it was given.
+    pub target_counts: PositionCounts,
+    /// Where it came to rest.
+    pub reached_counts: PositionCounts,
+}
+
+impl TargetMiss {
+    /// Where it came to rest minus its target.
+    pub fn difference_counts(&self) -> i64 {
+        self.reached_counts.counts_from(self.target_counts)
+    }
+}
+
+impl std::fmt::Display for TargetMiss {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: target {}, reached {}, difference {}",
+            self.actuator,
+            self.target_counts.get(),
+            self.reached_counts.get(),
+            self.difference_counts()
+        )
+    }
+}
+
 impl Error {
     /// True if this error says that a stop the session tried was not confirmed: the actuators may be moving.
     pub fn stop_unconfirmed(&self) -> bool {
@@ -247,6 +290,7 @@ impl Classify for Error {
         match self {
             Error::Refused { .. } => ErrorClass::Refused,
             Error::MotionEnded { .. }
+            | Error::TargetMissed { .. }
             | Error::Stalled { .. }
             | Error::MoveTimeout { .. }
             | Error::ReadBack { .. }

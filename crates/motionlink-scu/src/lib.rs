@@ -149,7 +149,7 @@ pub mod sim;
 pub mod value;
 pub mod wire;
 
-pub use client::{ending, Client, Ending, MoveOptions, SetpointStream};
+pub use client::{ending, Client, Ending, FollowReport, Follower, MoveOptions, SetpointStream};
 #[cfg(feature = "tokio")]
 pub use client::{AsyncClient, AsyncSetpointStream};
 pub use config::{ClientConfig, FunctionMap, MovePolling, StrokeLimits};

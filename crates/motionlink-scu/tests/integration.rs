@@ -9,6 +9,7 @@ mod async_client;
 mod async_example;
 mod client;
 mod client_faults;
+mod client_follow;
 mod client_moves;
 mod session;
 mod sim;

@@ -379,7 +379,7 @@ impl std::fmt::Debug for SetpointStream<'_> {
     }
 }
 
-impl SetpointStream<'_> {
+impl<'c> SetpointStream<'c> {
     /// The function it drives.
     pub fn function(&self) -> MotionFunction {
         self.function
@@ -388,6 +388,11 @@ impl SetpointStream<'_> {
     /// The actuators, in the order targets are given.
     pub fn actuators(&self) -> &[Actuator] {
         &self.actuators
+    }
+
+    /// The client it streams through.
+    pub(crate) fn client(&self) -> &'c Client {
+        self.client
     }
 
     /// New targets, one per actuator in the order of [`SetpointStream::actuators`]: each is checked against its

@@ -80,10 +80,12 @@ use crate::wire::{Command, Request};
 #[cfg(feature = "tokio")]
 mod asynchronous;
 mod blocking;
+mod follow;
 
 #[cfg(feature = "tokio")]
 pub use asynchronous::{AsyncClient, AsyncSetpointStream};
 pub use blocking::{Client, SetpointStream};
+pub use follow::{FollowFailure, FollowReport, Follower};
 
 /// Options of a move.
 #[derive(Default)]

@@ -1,13 +1,14 @@
-//! `motionlink scu follow`: targets read from stdin become streamed setpoints (the library checks each one
-//! and stops the function when the stream ends).
+//! `motionlink scu follow`: targets read from stdin become streamed setpoints. The library's
+//! [`Follower`] keeps the policy (the rate and the newest target, the end along the ramp or at once, the check
+//! against the tolerance); this reads and parses the lines, prints, and maps errors to exit codes.
 
 use std::io::Write;
-use std::sync::Arc;
 use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
-use motionlink_scu::model::{Actuator, MotionFunction, PositionCounts, Speed, SpeedMode, StopMode};
-use motionlink_scu::Client;
+use motionlink_scu::client::FollowFailure;
+use motionlink_scu::model::{Actuator, MotionFunction, PositionCounts, Speed, SpeedMode};
+use motionlink_scu::{Client, FollowReport, Follower};
 use serde_json::json;
 
 use super::{parse_speed, Report};
@@ -96,7 +97,9 @@ pub(super) fn follow(
         None => client.connected_actuators().map_err(|e| common::classified(&e))?,
     };
     let mode = client.config().speed_mode;
-    let mut stream = client.stream(function, &actuators, speed).map_err(|e| common::classified(&e))?;
+    // The library keeps the rate, the newest target, the end along the ramp or at once, and the check.
+    let stream = client.stream(function, &actuators, speed).map_err(|e| common::classified(&e))?;
+    let mut follower = Follower::new(stream, actuator, rate_hz).map_err(|e| common::classified(&e))?;
     let (tx, rx) = std::sync::mpsc::channel();
     std::thread::Builder::new()
         .name("follow-stdin".into())
@@ -122,22 +125,16 @@ pub(super) fn follow(
         writeln!(out, "following {function} ({}): targets from stdin", names(&actuators))?;
     }
     out.flush()?;
-    let clock = Arc::clone(client.clock());
-    let gap = Duration::from_secs(1) / rate_hz;
-    let mut last_update: Option<motionlink_link::Timestamp> = None;
-    let mut pending: Option<Vec<PositionCounts>> = None;
-    let mut updates = 0u64;
-    let mut last_targets: Option<Vec<PositionCounts>> = None;
-    let mut failure: Option<Result<CliError, motionlink_scu::Error>> = loop {
+    let failure: Option<Result<CliError, motionlink_scu::Error>> = loop {
         if interrupt.is_cancelled() {
             break Some(Ok(CliError::Interrupted(format!("interrupted; {function} stopped"))));
         }
         match rx.recv_timeout(Duration::from_millis(10)) {
             Ok(Input::Line(line)) => match parse_follow_line(&line, &actuators, mode) {
                 Ok(FollowLine::Skip) => {}
-                Ok(FollowLine::Targets(t)) => pending = Some(t),
+                Ok(FollowLine::Targets(t)) => follower.offer(t),
                 Ok(FollowLine::Speed(s)) => {
-                    if let Err(e) = stream.set_speed(s) {
+                    if let Err(e) = follower.set_speed(s) {
                         break Some(Err(e));
                     }
                 }
@@ -147,40 +144,32 @@ pub(super) fn follow(
             Ok(Input::Failed(e)) => break Some(Ok(CliError::transport(format!("reading stdin: {e}")))),
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
         }
-        let now = clock.now();
-        if pending.is_some() && last_update.is_none_or(|t| now - t >= gap) {
-            let targets = pending.take().unwrap_or_default();
-            if let Err(e) = apply(&mut stream, &targets, report, out)? {
-                break Some(Err(e));
-            }
-            last_update = Some(now);
-            updates += 1;
-            last_targets = Some(targets);
+        match follower.apply_due() {
+            Ok(Some(targets)) => print_targets(&actuators, targets, report, out)?,
+            Ok(None) => {}
+            Err(e) => break Some(Err(e)),
         }
     };
-    // End of input: the newest target still waiting is applied (the newest wins, even the last one), and the
-    // stream follows it to the end of its motion before it ends; a signal meanwhile stops it at once.
-    if failure.is_none() {
-        if let Some(targets) = pending.take() {
-            if let Err(e) = apply(&mut stream, &targets, report, out)? {
-                failure = Some(Err(e));
-            } else {
-                updates += 1;
-                last_targets = Some(targets);
+    let (stopped, error) = match failure {
+        // End of input: the newest target still waiting is applied (and printed), the motion reaches it, the
+        // function ends along the ramp, and each actuator it drives is checked against its last target.
+        None => {
+            match follower.flush() {
+                Ok(Some(targets)) => print_targets(&actuators, targets, report, out)?,
+                Ok(None) => {}
+                Err(e) => return Err(common::classified(&follower.abort(e))),
+            }
+            match follower.finish(interrupt) {
+                Ok(stopped) => (stopped, None),
+                Err(FollowFailure { error, stopped: Some(stopped) }) => (stopped, Some(common::classified(&error))),
+                Err(FollowFailure { error, stopped: None }) => return Err(common::classified(&error)),
             }
         }
-    }
-    if failure.is_none() && last_targets.is_some() {
-        failure = settle(&stream, &clock, client.config().poll_interval, interrupt)
-            .map(|e| e.map(|()| CliError::Interrupted(format!("interrupted; {function} stopped"))));
-    }
-    // The stream ends: on EOF along the ramp, on anything else at once; where each actuator came to rest.
-    let (mode, error) = match failure {
-        None => (StopMode::Soft, None),
-        Some(Ok(cli)) => (StopMode::Fast, Some(cli)),
-        Some(Err(scu)) => return Err(common::classified(&stream.abort(scu))),
+        // A signal, a bad line, stdin failing: the motion stops at once.
+        Some(Ok(cli)) => (follower.stop_fast().map_err(|e| common::classified(&e))?, Some(cli)),
+        Some(Err(scu)) => return Err(common::classified(&follower.abort(scu))),
     };
-    let rest = stream.stop(mode).map_err(|e| common::classified(&e))?;
+    let FollowReport { rest, updates } = stopped;
     let text: Vec<String> = rest.iter().map(|(a, p)| format!("{a}={}", p.get())).collect();
     if report.json {
         let list: Vec<_> = rest.iter().map(|(a, p)| json!({"actuator": a.number(), "reached_counts": p})).collect();
@@ -188,47 +177,16 @@ pub(super) fn follow(
     } else {
         writeln!(out, "stopped after {updates} update(s): {}", text.join(" "))?;
     }
-    if let Some(e) = error {
-        return Err(e);
-    }
-    // As `move`: success means each actuator the function drives ended within the tolerance of the last target
-    // it was given (without --functions only the actuator asked for is known to be driven by it).
-    let tolerance = i64::from(client.config().position_tolerance_counts);
-    let driven = |a: &Actuator| match client.config().function_map.drives(function) {
-        Some(drives) => drives.contains(a),
-        None => *a == actuator,
-    };
-    if let Some(targets) = &last_targets {
-        let missed: Vec<String> = rest
-            .iter()
-            .zip(targets)
-            .filter(|((a, _), _)| driven(a))
-            .filter(|((_, p), t)| p.counts_from(**t).abs() > tolerance)
-            .map(|((a, p), t)| {
-                format!("{a}: target {}, reached {}, difference {}", t.get(), p.get(), p.counts_from(*t))
-            })
-            .collect();
-        if !missed.is_empty() {
-            return Err(CliError::Device(format!(
-                "the last target was not reached within {tolerance} counts: {}",
-                missed.join("; ")
-            )));
-        }
-    }
-    Ok(())
+    error.map_or(Ok(()), Err)
 }
 
-/// Writes one update of targets and prints it. The outer error is the output's, the inner the device's.
-fn apply(
-    stream: &mut motionlink_scu::client::SetpointStream<'_>,
+/// Prints one update of targets.
+fn print_targets(
+    actuators: &[Actuator],
     targets: &[PositionCounts],
     report: &Report<'_>,
     out: &mut dyn Write,
-) -> Result<Result<(), motionlink_scu::Error>, CliError> {
-    if let Err(e) = stream.set_targets(targets) {
-        return Ok(Err(e));
-    }
-    let actuators = stream.actuators();
+) -> Result<(), CliError> {
     if report.json {
         let list: Vec<_> =
             actuators.iter().zip(targets).map(|(a, t)| json!({"actuator": a.number(), "target_counts": t})).collect();
@@ -238,29 +196,5 @@ fn apply(
         writeln!(out, "target {}", text.join(" "))?;
     }
     out.flush()?;
-    Ok(Ok(()))
-}
-
-/// Waits until no actuator of the stream moves, looking every `poll`: `None` when they are at rest,
-/// `Some(Ok(()))` when a signal came first, `Some(Err(..))` when the device could not be read.
-fn settle(
-    stream: &motionlink_scu::client::SetpointStream<'_>,
-    clock: &Arc<dyn motionlink_link::Clock>,
-    poll: Duration,
-    interrupt: &CancelToken,
-) -> Option<Result<(), motionlink_scu::Error>> {
-    loop {
-        match stream.positions() {
-            Ok(p) if p.iter().all(|(_, _, moving)| !moving) => return None,
-            Ok(_) => {}
-            Err(e) => return Some(Err(e)),
-        }
-        let next = clock.now() + poll;
-        while clock.now() < next {
-            if interrupt.is_cancelled() {
-                return Some(Ok(()));
-            }
-            std::thread::sleep(Duration::from_millis(5).min(poll));
-        }
-    }
+    Ok(())
 }
