@@ -8,7 +8,7 @@ use motionlink_link::error::{Classify, ErrorClass, TransportKind};
 use motionlink_link::session::SessionError;
 use motionlink_link::LinkError;
 
-use crate::model::{ErrorCode, ModelError, ParamId};
+use crate::model::{ErrorCode, ModelError, ParamId, Position};
 use crate::wire::reply::ReplyError;
 use crate::wire::{Address, WireError};
 
@@ -81,7 +81,7 @@ pub enum Error {
         /// The command sent.
         command: String,
         /// The target position S2 read afterwards.
-        target: f64,
+        target: Position,
     },
     /// A wait for a position did not end in time; the axes were stopped.
     #[error("drive {address} did not reach its position within {after:?}; stopped")]
@@ -108,20 +108,21 @@ pub enum Error {
     },
     /// A move ended with the axis at rest away from its target.
     #[error(
-        "drive {address} did not reach its target: target {target}, reached {reached}, difference {difference:.3} \
-         (in-position tolerance {tolerance})"
+        "drive {address} did not reach its target: target {target}, reached {reached}, difference {:.3} \
+         (in-position tolerance {tolerance})",
+        .difference.units()
     )]
     NotReached {
         /// The drive.
         address: Address,
         /// The target asked for.
-        target: f64,
+        target: Position,
         /// The actual position S1 read at rest.
-        reached: f64,
+        reached: Position,
         /// `reached - target`.
-        difference: f64,
+        difference: Position,
         /// [`BusConfig::in_position_tolerance`](crate::session::BusConfig::in_position_tolerance).
-        tolerance: f64,
+        tolerance: Position,
     },
     /// The target a drive reports (S2, read twice after the move was sent) is not the one sent: a telegram
     /// was corrupted on the way (without a BCC a flipped bit in a digit is still a valid command). Returned
@@ -133,9 +134,9 @@ pub enum Error {
         /// The drive.
         address: Address,
         /// The target sent.
-        requested: f64,
+        requested: Position,
         /// The target S2 read back.
-        taken: f64,
+        taken: Position,
     },
     /// A target outside the travel limits the caller gave
     /// ([`TravelLimits`](crate::session::TravelLimits)); nothing was sent to move.
@@ -144,11 +145,11 @@ pub enum Error {
         /// The drive.
         address: Address,
         /// The target.
-        target: f64,
+        target: Position,
         /// "below the minimum" or "above the maximum".
         side: &'static str,
         /// The limit crossed.
-        limit: f64,
+        limit: Position,
     },
     /// The drive is switched off (`OUTPUT O0=0`, S16 bits 7 and 8): it takes no move until it is switched on
     /// again with `OUTPUT O0=1`. `refused` is the code it answered a move with, if one was sent.
@@ -419,10 +420,10 @@ mod tests {
             (
                 Error::NotReached {
                     address: Address::drive_const(1),
-                    target: 1.0,
-                    reached: 0.5,
-                    difference: -0.5,
-                    tolerance: 0.01,
+                    target: Position::new(1.0).unwrap(),
+                    reached: Position::new(0.5).unwrap(),
+                    difference: Position::new(-0.5).unwrap(),
+                    tolerance: Position::new(0.01).unwrap(),
                 },
                 ErrorClass::Device,
             ),
@@ -445,8 +446,8 @@ mod tests {
                 Error::Aborted {
                     cause: Box::new(Error::TargetMismatch {
                         address: Address::drive_const(3),
-                        requested: 15.0,
-                        taken: 14.0,
+                        requested: Position::new(15.0).unwrap(),
+                        taken: Position::new(14.0).unwrap(),
                     }),
                     stop,
                 },

@@ -123,6 +123,8 @@ fn a_move_that_ends_away_from_its_target_fails_naming_target_reached_and_differe
     someone_else_sends(&r, b"1OUTPUT O0=0\r");
     let e = bus.finish_checked_move(&started, None, &mut |_| {}).unwrap_err();
     let Error::NotReached { address: D1, target, reached, difference, tolerance } = e else { panic!("{e}") };
+    let (target, reached, difference, tolerance) =
+        (target.units(), reached.units(), difference.units(), tolerance.units());
     assert_eq!(target, 100.0);
     assert!(reached > 10.0 && reached < 100.0, "{reached}");
     assert_eq!(difference, reached - 100.0);
@@ -154,7 +156,7 @@ fn a_target_outside_the_travel_limits_is_refused_before_anything_moves() {
     req.limits = limits;
     let e = bus.move_to(a(1), &req, &mut |_| {}).unwrap_err();
     assert!(
-        matches!(e, Error::OutsideLimits { address: D1, side: "above the maximum", limit, .. } if limit == 40.0),
+        matches!(e, Error::OutsideLimits { address: D1, side: "above the maximum", limit, .. } if limit.units() == 40.0),
         "{e}"
     );
     assert!(e.to_string().contains("above the maximum 40"), "{e}");
@@ -209,7 +211,7 @@ fn a_corrupted_target_is_caught_by_reading_s2_back_and_the_axis_is_switched_off(
     req.binary = true;
     let e = bus.move_to(a(1), &req, &mut |_| {}).unwrap_err();
     assert!(
-        matches!(e.root(), Error::TargetMismatch { address: D1, requested, taken } if *requested == 15.0 && *taken == 14.0),
+        matches!(e.root(), Error::TargetMismatch { address: D1, requested, taken } if requested.units() == 15.0 && taken.units() == 14.0),
         "{e}"
     );
     let stop = e.stop_report().unwrap();

@@ -124,7 +124,7 @@ impl TravelLimits {
     /// `target` for `address` inside the limits, or [`Error::OutsideLimits`].
     pub fn check(&self, address: Address, target: Position) -> Result<()> {
         let t = target.units();
-        let outside = |side, limit: Position| Error::OutsideLimits { address, target: t, side, limit: limit.units() };
+        let outside = |side, limit: Position| Error::OutsideLimits { address, target, side, limit };
         match (self.min, self.max) {
             (Some(lo), _) if t < lo.units() => Err(outside("below the minimum", lo)),
             (_, Some(hi)) if t > hi.units() => Err(outside("above the maximum", hi)),

@@ -5,6 +5,11 @@ use clap::Parser;
 
 const D3: motionlink_compax::wire::Address = motionlink_compax::wire::Address::drive_const(3);
 
+/// A position in the drive's unit.
+fn p(units: f64) -> motionlink_compax::model::Position {
+    motionlink_compax::model::Position::new(units).unwrap()
+}
+
 #[derive(clap::Parser, Debug)]
 struct TestCli {
     #[command(flatten)]
@@ -19,15 +24,17 @@ fn args(line: &[&str]) -> Args {
 fn errors_map_to_exit_codes_and_say_how_to_switch_a_drive_on() {
     let a = args(&["--port", "tcp://gw:4001", "--mode", "8", "--drive", "3", "status"]);
     let not_reached =
-        Error::NotReached { address: D3, target: 100.0, reached: 37.5, difference: -62.5, tolerance: 0.01 };
+        Error::NotReached { address: D3, target: p(100.0), reached: p(37.5), difference: p(-62.5), tolerance: p(0.01) };
     let e = error_for(&a, not_reached);
     assert_eq!(e.exit_code(), 1);
     assert!(e.to_string().contains("target 100, reached 37.5, difference -62.500"), "{e}");
     let stop = motionlink_compax::error::StopReport {
         drives: vec![(Address::drive(3).unwrap(), motionlink_compax::error::StopOutcome::SwitchedOff)],
     };
-    let mismatch =
-        Error::Aborted { cause: Box::new(Error::TargetMismatch { address: D3, requested: 15.0, taken: 14.0 }), stop };
+    let mismatch = Error::Aborted {
+        cause: Box::new(Error::TargetMismatch { address: D3, requested: p(15.0), taken: p(14.0) }),
+        stop,
+    };
     let e = error_for(&a, mismatch);
     assert_eq!(e.exit_code(), 1);
     let text = e.to_string();
@@ -45,7 +52,7 @@ fn errors_map_to_exit_codes_and_say_how_to_switch_a_drive_on() {
     let e = error_for(&a, lost);
     assert_eq!(e.exit_code(), 3);
     assert!(e.to_string().contains("may still be moving") && !e.to_string().contains("output 0 1"), "{e}");
-    let limits = Error::OutsideLimits { address: D3, target: 50.0, side: "above the maximum", limit: 40.0 };
+    let limits = Error::OutsideLimits { address: D3, target: p(50.0), side: "above the maximum", limit: p(40.0) };
     assert_eq!(error_for(&a, limits).exit_code(), 2);
     let off = Error::SwitchedOff { address: D3, o0: 0, refused: None };
     let e = error_for(&a, off);

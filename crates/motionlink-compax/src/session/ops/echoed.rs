@@ -16,7 +16,7 @@
 use super::super::core::{bit, Retry};
 use super::super::ctx::Ctx;
 use crate::error::{Error, Result};
-use crate::model::{Command, S17Flag};
+use crate::model::{Command, Position, S17Flag};
 use crate::wire::{Address, Body, Flags, Reply, Request, BROADCAST};
 
 /// What an error of the store or of `!` leaves behind.
@@ -133,7 +133,12 @@ impl Ctx {
             let moving = self.read_s17(address).await?.contains(S17Flag::CommandActive);
             let unchanged = before.is_none_or(|b| close(target, b));
             if moving || !unchanged {
-                return Err(Error::MoveUncertain { address, command: format!("! ({text})"), target });
+                return Err(Error::MoveUncertain {
+                    address,
+                    command: format!("! ({text})"),
+                    // Read as a Position (S2): in range.
+                    target: Position::from_units_unchecked(target),
+                });
             }
             if attempts > retries {
                 return Err(fail(Failure {

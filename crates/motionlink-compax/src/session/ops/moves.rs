@@ -5,7 +5,7 @@ use super::super::core::{bit, drives_in, Effect, Retry};
 use super::super::ctx::Ctx;
 use super::super::types::{AfterRaw, MoveOptions, RawOutcome};
 use crate::error::{Error, Result};
-use crate::model::{Command, ModelError, S17Flag};
+use crate::model::{Command, ModelError, Position, S17Flag};
 use crate::wire::{Address, Body, Flags, Request, WireError};
 
 impl Ctx {
@@ -103,7 +103,11 @@ impl Ctx {
                         restore();
                         return Err(e);
                     }
-                    return Err(Error::MoveUncertain { address, command: cmd.to_string(), target });
+                    return Err(Error::MoveUncertain {
+                        address,
+                        command: cmd.to_string(),
+                        target: Position::from_units_unchecked(target),
+                    });
                 }
                 Err(e @ Error::Cancelled) => {
                     // Cancelled before it went out: never sent.

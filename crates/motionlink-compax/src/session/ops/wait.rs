@@ -264,15 +264,15 @@ impl Ctx {
     /// Reads S2 after a move was sent; [`Error::TargetMismatch`] when it is off the target twice.
     async fn confirm_target(&self, address: Address, target: Position) -> Result<()> {
         let tolerance = self.core().cfg.in_position_tolerance.units().abs();
-        let mut taken = target.units();
+        let mut taken = target;
         for attempt in 0..2 {
-            taken = self.read_target(address).await?.units();
-            if (taken - target.units()).abs() <= tolerance {
+            taken = self.read_target(address).await?;
+            if (taken.units() - target.units()).abs() <= tolerance {
                 return Ok(());
             }
             tracing::warn!("drive {address}: S2 reads {taken}, not the target {target} (read {})", attempt + 1);
         }
-        Err(Error::TargetMismatch { address, requested: target.units(), taken })
+        Err(Error::TargetMismatch { address, requested: target, taken })
     }
 
     /// Waits for a started move and checks where the axis came to rest: S1 must lie within the in-position
@@ -311,10 +311,11 @@ impl Ctx {
             }
             return Err(Error::NotReached {
                 address: a,
-                target: target.units(),
-                reached: again.units(),
-                difference: again.units() - target.units(),
-                tolerance,
+                target,
+                reached: again,
+                // Distances in the drive's unit, from positions in range.
+                difference: Position::from_units_unchecked(again.units() - target.units()),
+                tolerance: Position::from_units_unchecked(tolerance),
             });
         }
     }
