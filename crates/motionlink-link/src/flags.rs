@@ -112,7 +112,7 @@ macro_rules! flag_set {
             }
 
             /// The flag's bit(s).
-            pub fn mask(self) -> $raw {
+            pub const fn mask(self) -> $raw {
                 match self { $($flag::$var => $mask),* }
             }
 

@@ -45,9 +45,9 @@ fn chapter5_routine_moves_actuator_1_and_reports_its_position() {
     assert_eq!(b.set(0x3021, &400i32.to_le_bytes()), Status::Ack);
     assert_eq!(b.status(Request::Execute { function: 0, params: [9, 0xFF] }), Status::Ack);
     b.wait(100);
-    assert_ne!(b.status1(1) & status1::MOTION, 0, "status bit 4 is set while the motion is active");
+    assert_ne!(b.status1(1) & Status1Flag::Motion.mask(), 0, "status bit 4 is set while the motion is active");
     let mut t = 0;
-    while b.status1(1) & status1::MOTION != 0 {
+    while b.status1(1) & Status1Flag::Motion.mask() != 0 {
         b.keep_alive(100);
         t += 100;
         assert!(t < 10_000, "the move never ended");
@@ -103,9 +103,9 @@ fn motion_directions_go_to_the_stroke_ends_and_stored_positions() {
     b.keep_alive(9_000);
     assert_eq!(b.position(1), 865);
     let s = b.status1(1);
-    assert_ne!(s & status1::OUT_POSITION, 0);
-    assert_ne!(s & status1::LIMIT_IN_OUT, 0);
-    assert_eq!(s & (status1::IN_POSITION | status1::MOTION), 0);
+    assert_ne!(s & Status1Flag::OutPosition.mask(), 0);
+    assert_ne!(s & Status1Flag::LimitInOut.mask(), 0);
+    assert_eq!(s & (Status1Flag::InPosition.mask() | Status1Flag::Motion.mask()), 0);
     b.status(Request::Stop { function: 0, param: 1 });
     b.status(Request::Execute { function: 0, params: [4, 0xFF] }); // Mem2
     b.keep_alive(9_000);
@@ -113,7 +113,7 @@ fn motion_directions_go_to_the_stroke_ends_and_stored_positions() {
     b.status(Request::Execute { function: 0, params: [1, 0xFF] }); // In
     b.keep_alive(9_000);
     assert_eq!(b.position(1), 0);
-    assert_ne!(b.status1(1) & status1::IN_POSITION, 0);
+    assert_ne!(b.status1(1) & Status1Flag::InPosition.mask(), 0);
     assert_eq!(u32::from_le_bytes(b.get(0x0071).try_into().unwrap()), 1, "relay out cycles: Out");
     assert_eq!(u32::from_le_bytes(b.get(0x0061).try_into().unwrap()), 2, "relay in cycles: Mem2 (865 -> 300), In");
 }
@@ -297,7 +297,7 @@ fn rc_exchanges_the_data_of_a_cyclic_object() {
     let data = answer.data.unwrap();
     assert_eq!(data.len(), 4 + 1 + 24, "position, status, all six positions");
     assert_eq!(&data[..4], &0i32.to_le_bytes());
-    assert_eq!(data[4] & status1::AVAILABLE, status1::AVAILABLE);
+    assert_eq!(data[4] & Status1Flag::Available.mask(), Status1Flag::Available.mask());
     assert_eq!(b.get(0x3021), 250i32.to_le_bytes(), "the write data landed");
     assert_eq!(b.get(0x3011), 80u16.to_le_bytes());
     // Wrong write length, unknown object, data without object.
@@ -469,7 +469,7 @@ fn tlt_preset_drives_two_columns_on_f1_stalls_below_30_percent_and_reads_below_z
     b.status(Request::Execute { function: 0, params: [1, 0xFF] });
     b.keep_alive(3_000);
     assert_eq!(b.position(1), 300, "stalled at 20 %");
-    assert_ne!(b.status1(1) & status1::MOTION, 0, "the motion bit stays set while stalled");
+    assert_ne!(b.status1(1) & Status1Flag::Motion.mask(), 0, "the motion bit stays set while stalled");
     b.status(Request::Stop { function: 0, param: 0 });
     b.set(0x3011, &100u16.to_le_bytes());
     b.status(Request::Execute { function: 0, params: [1, 0xFF] });

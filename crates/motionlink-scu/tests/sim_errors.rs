@@ -79,10 +79,10 @@ fn a_stalled_tlt_column_stops_with_its_drive_error_within_10_s_and_the_next_moti
     b.set(0x3021, &400i32.to_le_bytes());
     b.status(Request::Execute { function: 1, params: [9, 0xFF] });
     b.keep_alive(4_000);
-    assert_ne!(b.status1(1) & status1::MOTION, 0, "stalled, the motion is still on");
+    assert_ne!(b.status1(1) & Status1Flag::Motion.mask(), 0, "stalled, the motion is still on");
     b.unit.take_events();
     b.keep_alive(6_000);
-    assert_eq!(b.status1(1) & status1::MOTION, 0, "the drive time-out stopped it");
+    assert_eq!(b.status1(1) & Status1Flag::Motion.mask(), 0, "the drive time-out stopped it");
     assert_eq!(last_error(&mut b), ErrorCode::from_bit(15));
     assert_eq!(u32::from_le_bytes(b.get(0x0081).try_into().unwrap()), 1, "actuator error counter");
     let events = b.unit.take_events();
@@ -107,11 +107,11 @@ fn a_drive_blocked_by_a_configured_obstacle_stops_there_with_its_drive_error() {
     b.go(1, 600);
     b.keep_alive(4_000);
     assert_eq!(b.position(1), 300, "it cannot pass the obstacle");
-    assert_ne!(b.status1(1) & status1::MOTION, 0, "pushing");
+    assert_ne!(b.status1(1) & Status1Flag::Motion.mask(), 0, "pushing");
     let current = u16::from_le_bytes(b.get(0x00A1).try_into().unwrap());
     assert_eq!(current, 60, "twice its full-speed current while blocked");
     b.keep_alive(2_000);
-    assert_eq!(b.status1(1) & status1::MOTION, 0);
+    assert_eq!(b.status1(1) & Status1Flag::Motion.mask(), 0);
     assert_eq!(last_error(&mut b), ErrorCode::from_bit(15));
     // Towards the obstacle again, from where it rests against it: blocked again, and the error comes again.
     b.go(1, 600);
@@ -119,7 +119,7 @@ fn a_drive_blocked_by_a_configured_obstacle_stops_there_with_its_drive_error() {
     b.keep_alive(1_000);
     assert_eq!(b.position(1), 300, "resting against the obstacle, it still cannot pass it");
     b.keep_alive(1_500);
-    assert_eq!(b.status1(1) & status1::MOTION, 0);
+    assert_eq!(b.status1(1) & Status1Flag::Motion.mask(), 0);
     assert_eq!(last_error(&mut b), ErrorCode::from_bit(15));
     // Away from the obstacle it moves again, and the bit is gone.
     b.go(1, 100);
@@ -152,7 +152,7 @@ fn a_stall_is_not_forgiven_by_repeating_re() {
     }
     let after = raised_after_ms.expect("the drive error within 10 s of repeated RE");
     assert!(after <= 10_000, "{after} ms");
-    assert_eq!(b.status1(1) & status1::MOTION, 0, "the drive time-out stopped it");
+    assert_eq!(b.status1(1) & Status1Flag::Motion.mask(), 0, "the drive time-out stopped it");
     assert_eq!(last_error(&mut b), ErrorCode::from_bit(15));
 }
 
@@ -319,7 +319,7 @@ fn the_bytes_the_public_ros_drivers_send_are_understood() {
     assert_eq!((status, data), (Status::Ack, 500i32.to_le_bytes().to_vec()));
     let (status, data) = reply(exchange(&mut b, "52 47 71 01 27 2B"));
     assert_eq!(status, Status::Ack);
-    assert_eq!(data[0] & status1::MOTION, 0, "at rest");
+    assert_eq!(data[0] & Status1Flag::Motion.mask(), 0, "at rest");
     // Drive 2 has an error; the drivers expect the next motion to clear it. RS everything, then RE F8
     // (function index 7) direction 2: both columns out.
     b.unit.inject_error(ErrorCode::from_bit(16));

@@ -6,36 +6,6 @@ use std::fmt;
 use motionlink_link::flag_set;
 use motionlink_link::flags::Flag;
 
-/// Bits of actuator status 1 used by the client and the emulator.
-pub mod status1 {
-    /// Bit 0: drive available.
-    pub const AVAILABLE: u8 = 1 << 0;
-    /// Bit 1: signal limit_in_out active.
-    pub const LIMIT_IN_OUT: u8 = 1 << 1;
-    /// Bit 2: signal switch 1 active.
-    pub const SWITCH1: u8 = 1 << 2;
-    /// Bit 3: signal switch 2 active.
-    pub const SWITCH2: u8 = 1 << 3;
-    /// Bit 4: motion active.
-    pub const MOTION: u8 = 1 << 4;
-    /// Bit 5: in position reached.
-    pub const IN_POSITION: u8 = 1 << 5;
-    /// Bit 6: out position reached.
-    pub const OUT_POSITION: u8 = 1 << 6;
-    /// Bit 7: stroke done.
-    pub const STROKE_DONE: u8 = 1 << 7;
-}
-
-/// Bits of actuator status 2.
-pub mod status2 {
-    /// Bit 0: initialised.
-    pub const INITIALIZED: u8 = 1 << 0;
-    /// Bit 1: released for retraction.
-    pub const RELEASE_RETRACTION: u8 = 1 << 1;
-    /// Bit 2: released for extension.
-    pub const RELEASE_EXTENSION: u8 = 1 << 2;
-}
-
 flag_set! {
     /// 0x0020: logic and input level of binary inputs 1..4.
     BinaryInputs(u8);
@@ -169,17 +139,17 @@ flag_set! {
     ActuatorStatus1(u8);
     /// One bit of [`ActuatorStatus1`].
     Status1Flag {
-        Available = ("available", status1::AVAILABLE, Information, "drive available", "drive unavailable"),
-        LimitInOut = ("limit_in_out", status1::LIMIT_IN_OUT, Information, "signal limit_in_out active",
+        Available = ("available", 1 << 0, Information, "drive available", "drive unavailable"),
+        LimitInOut = ("limit_in_out", 1 << 1, Information, "signal limit_in_out active",
             "signal limit_in_out inactive"),
-        Switch1 = ("switch1", status1::SWITCH1, Information, "signal switch 1 active", "signal switch 1 inactive"),
-        Switch2 = ("switch2", status1::SWITCH2, Information, "signal switch 2 active", "signal switch 2 inactive"),
-        Motion = ("motion", status1::MOTION, Information, "motion active", "motion inactive"),
-        InPosition = ("in_position", status1::IN_POSITION, Information, "in position reached",
+        Switch1 = ("switch1", 1 << 2, Information, "signal switch 1 active", "signal switch 1 inactive"),
+        Switch2 = ("switch2", 1 << 3, Information, "signal switch 2 active", "signal switch 2 inactive"),
+        Motion = ("motion", 1 << 4, Information, "motion active", "motion inactive"),
+        InPosition = ("in_position", 1 << 5, Information, "in position reached",
             "in position not reached"),
-        OutPosition = ("out_position", status1::OUT_POSITION, Information, "out position reached",
+        OutPosition = ("out_position", 1 << 6, Information, "out position reached",
             "out position not reached"),
-        StrokeDone = ("stroke_done", status1::STROKE_DONE, Information, "stroke done", "stroke not done"),
+        StrokeDone = ("stroke_done", 1 << 7, Information, "stroke done", "stroke not done"),
     }
 }
 
@@ -188,10 +158,10 @@ flag_set! {
     ActuatorStatus2(u8);
     /// One bit of [`ActuatorStatus2`].
     Status2Flag {
-        Initialized = ("initialized", status2::INITIALIZED, Information, "initialized", "not initialized"),
-        ReleaseRetraction = ("release_retraction", status2::RELEASE_RETRACTION, Information,
+        Initialized = ("initialized", 1 << 0, Information, "initialized", "not initialized"),
+        ReleaseRetraction = ("release_retraction", 1 << 1, Information,
             "released for retraction", "no release for retraction"),
-        ReleaseExtension = ("release_extension", status2::RELEASE_EXTENSION, Information,
+        ReleaseExtension = ("release_extension", 1 << 2, Information,
             "released for extension", "no release for extension"),
     }
 }

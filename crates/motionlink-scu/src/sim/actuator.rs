@@ -264,18 +264,18 @@ impl ActuatorState {
         let p = self.position.round() as i32;
         let at_in = p <= self.cfg.stroke_min_counts;
         let at_out = p >= self.cfg.stroke_max_counts;
-        let mut s = status1::AVAILABLE | status1::STROKE_DONE;
+        let mut s = Status1Flag::Available.mask() | Status1Flag::StrokeDone.mask();
         if at_in || at_out {
-            s |= status1::LIMIT_IN_OUT;
+            s |= Status1Flag::LimitInOut.mask();
         }
         if at_in {
-            s |= status1::SWITCH1 | status1::IN_POSITION;
+            s |= Status1Flag::Switch1.mask() | Status1Flag::InPosition.mask();
         }
         if at_out {
-            s |= status1::SWITCH2 | status1::OUT_POSITION;
+            s |= Status1Flag::Switch2.mask() | Status1Flag::OutPosition.mask();
         }
         if self.moving() {
-            s |= status1::MOTION;
+            s |= Status1Flag::Motion.mask();
         }
         s
     }

@@ -1,7 +1,7 @@
 //! The data list as the emulated unit holds it: reading entries and groups, writing remote data, replies.
 
 use super::*;
-use crate::model::{status2, DataEntry, DataEntryExt, Item};
+use crate::model::{DataEntry, DataEntryExt, Item, Status2Flag};
 use crate::value::Value;
 use crate::wire::{encode_reply, Reply};
 
@@ -66,9 +66,11 @@ impl Emulator {
             0x00D1..=0x00D5 => Value::ErrorCode(ErrorCode(self.error_history[usize::from(i - 0x00D1)])),
             0x00E1..=0x00E6 => Value::Number(actuator(0x00E0).map_or(0, |_| {
                 if self.emergency_stop {
-                    status2::INITIALIZED
+                    Status2Flag::Initialized.mask()
                 } else {
-                    status2::INITIALIZED | status2::RELEASE_RETRACTION | status2::RELEASE_EXTENSION
+                    Status2Flag::Initialized.mask()
+                        | Status2Flag::ReleaseRetraction.mask()
+                        | Status2Flag::ReleaseExtension.mask()
                 }
             })),
             0x00F1..=0x00F6 => Value::SpeedPercent(actuator(0x00F0).map_or(0, ActuatorState::speed_percent)),

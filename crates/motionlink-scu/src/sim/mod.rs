@@ -58,7 +58,7 @@ use std::time::Duration;
 use motionlink_link::emulator::Emulator as EmulatorTrait;
 use motionlink_link::Timestamp;
 
-use crate::model::{error_bits, item, status1, Actuator, CyclicObject, DataIndex, ErrorCode, SafetyId, UNUSED};
+use crate::model::{error_bits, item, Actuator, CyclicObject, DataIndex, ErrorCode, SafetyId, Status1Flag, UNUSED};
 use crate::value::SpeedMode;
 use crate::wire::{Command, Incoming, Request, RequestDecoder, Status, MAX_REPLY_LEN};
 

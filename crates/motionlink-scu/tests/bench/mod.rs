@@ -8,7 +8,7 @@ pub use std::time::Duration;
 pub use motionlink_link::emulator::Emulator as _;
 pub use motionlink_link::Timestamp;
 pub use motionlink_scu::model::{
-    status1, Actuator, CyclicObject, DataEntryExt, DataIndex, ErrorCode, DATA_LIST, GROUPS,
+    Actuator, CyclicObject, DataEntryExt, DataIndex, ErrorCode, Status1Flag, DATA_LIST, GROUPS,
 };
 pub use motionlink_scu::sim::{Emulator, RemoteMode, SimConfig};
 pub use motionlink_scu::wire::*;

@@ -14,7 +14,7 @@ pub use motionlink_link::link::{Connector, Link, LinkError};
 pub use motionlink_link::pipe::{Direction, EmulatorHost, Fault, FaultControl, PipeConfig};
 pub use motionlink_scu::model::Speed;
 pub use motionlink_scu::model::{
-    status1, Actuator, ActuatorStatus1, CyclicObject, DataIndex, ErrorCode, Function, MotionDirection, MotionFunction,
+    Actuator, ActuatorStatus1, CyclicObject, DataIndex, ErrorCode, Function, MotionDirection, MotionFunction,
     PositionCounts, SafetyId, Status1Flag, StopMode,
 };
 pub use motionlink_scu::sim::{RemoteMode, SimConfig};
