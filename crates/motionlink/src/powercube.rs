@@ -2,6 +2,7 @@
 //! of `motionlink demo`: argument parsing, output and exit codes. What stops a module, when its watchdog is
 //! armed and how a move is checked are the library's ([`Guard`], [`Module::move_to_guarded`]).
 
+mod actions;
 mod args;
 mod decode;
 mod demo;
@@ -356,155 +357,31 @@ pub fn run(args: Args) -> Result<(), CliError> {
     }
 }
 
+/// One JSON object of `motionlink powercube`: family, port and module first.
+fn identified(args: &Args, port: &str, fields: serde_json::Value) -> serde_json::Value {
+    let mut v = common::identified("powercube", port, json!({"module": args.module.get()}));
+    if let (Some(map), serde_json::Value::Object(f)) = (v.as_object_mut(), fields) {
+        map.extend(f);
+    }
+    v
+}
+
 /// Does what `args` ask of the module, on `client`.
 fn act(args: &Args, client: &Client, guard: Guard, port: &str, out: &mut dyn Write) -> Result<(), CliError> {
     let mut out = out;
     let m = client.module(args.module);
-    // Every JSON object names the family, the port and the module first.
-    let identified = |fields: serde_json::Value| {
-        let mut v = common::identified("powercube", port, json!({"module": args.module.get()}));
-        if let (Some(map), serde_json::Value::Object(f)) = (v.as_object_mut(), fields) {
-            map.extend(f);
-        }
-        v
-    };
     match &args.action {
         Action::Scan => scan(client, port, &mut out, args.json)?,
         Action::Info => info(&m, port, &mut out, args.json)?,
-        Action::State => {
-            let s = m.state().map_err(failed)?;
-            if args.json {
-                common::print_json(&mut out, &identified(state_json(s)))?;
-            } else {
-                writeln!(out, "CubeState {:#010x}", s.0)?;
-                let rows: Vec<_> =
-                    s.iter().map(|f| (f.label(), format!("{:<11}  {}", f.class().name(), f.meaning()))).collect();
-                common::print_table(&mut out, &rows)?;
-                if s.is_empty() {
-                    writeln!(out, "(no flag set)")?;
-                }
-            }
-        }
-        Action::Get { params } => {
-            let params = params.iter().map(|p| parse_param(p)).collect::<Result<Vec<_>, _>>()?;
-            let mut rows = Vec::new();
-            for p in params {
-                let v = m.get(p).map_err(failed)?;
-                // The unit depends on the module type (rad or m): no guessing when it cannot be read.
-                let kind = m.kind().map_err(|e| {
-                    context(e, format!("{} read, but the module type (and so its unit) cannot be read", p.name()))
-                })?;
-                if args.json {
-                    let access = PARAMS.iter().find(|e| e.id == u32::from(p.id())).map_or("", |e| e.access.short());
-                    common::print_json(
-                        &mut out,
-                        &identified(json!({"name": p.name(), "id": p.id(), "value": value_json(&v),
-                                           "unit": p.unit().symbol(kind), "access": access})),
-                    )?;
-                } else {
-                    rows.push((p.name().to_string(), v.show(p, kind)));
-                }
-            }
-            if !args.json {
-                common::print_table(&mut out, &rows)?;
-            }
-        }
-        Action::Set { param, value } => {
-            let p = parse_param(param)?;
-            let v = Value::parse(p, value).map_err(CliError::usage)?;
-            // Targets beyond their limits are refused; what was written is read back.
-            let (read_back, not_verifiable) = match m.set_checked(p, v).map_err(failed)? {
-                Readback::Same(r) => (Some(r), None),
-                Readback::NotReadable(why) => (None, Some(why)),
-            };
-            if args.json {
-                let read_back = match read_back {
-                    Some(r) => Some(read_back_json(&m, p, &r)?),
-                    None => None,
-                };
-                let mut result = json!({"name": p.name(), "id": p.id(), "value": value_json(&v), "ok": true,
-                        "read_back": read_back, "verified": read_back.is_some()});
-                // Said only where the value could not be read back (naming.md).
-                if let Some(why) = &not_verifiable {
-                    result["not_verifiable"] = json!(why);
-                }
-                common::print_json(&mut out, &identified(result))?;
-            } else {
-                let kind = m.kind().map_err(|e| {
-                    context(e, format!("{} was set, but the module type (and so its unit) cannot be read", p.name()))
-                })?;
-                let how = not_verifiable.map_or_else(|| "read back".to_string(), |why| format!("not verified: {why}"));
-                writeln!(out, "{} set to {} ({how})", p.name(), v.show(p, kind))?;
-            }
-        }
-        Action::Home { timeout_s } => {
-            let timeout = positive_secs("--timeout-s", *timeout_s)?;
-            let bar = common::progress_bar(0, format!("homing module {}", args.module));
-            let r = m.home_guarded(timeout, guard, &mut |p: &Progress| bar.set_message(progress_text(p)));
-            bar.finish_and_clear();
-            let (position, s) = r.map_err(failed)?;
-            if args.json {
-                let kind = m.kind().map_err(failed)?;
-                let fields = json!({"action": "homed", unit_key("reached", kind): position.value(),
-                                    "state": state_json(s)});
-                common::print_json(&mut out, &identified(fields))?;
-            } else {
-                report_done(&mut out, "homed", position, s)?;
-            }
-        }
-        Action::Reset => {
-            // After a host died with the watchdog online, a plain Reset would be undone 50 ms later.
-            let released = m.reset_and_release_watchdog().map_err(failed)?;
-            if args.json {
-                common::print_json(
-                    &mut out,
-                    &identified(json!({"ok": true, "action": "reset", "watchdog_released": released})),
-                )?;
-            } else if released {
-                writeln!(out, "reset (the watchdog had expired with no host serving it: switched it offline)")?;
-            } else {
-                writeln!(out, "reset")?;
-            }
-        }
-        Action::Halt => {
-            m.halt().map_err(failed)?;
-            if args.json {
-                common::print_json(&mut out, &identified(json!({"ok": true, "action": "halted"})))?;
-            } else {
-                writeln!(out, "halted")?;
-            }
-        }
+        Action::State => actions::state(args, &m, port, out)?,
+        Action::Get { params } => actions::get(args, &m, port, params, out)?,
+        Action::Set { param, value } => actions::set(args, &m, port, param, value, out)?,
+        Action::Home { timeout_s } => actions::home(args, &m, guard, port, *timeout_s, out)?,
+        Action::Reset => actions::reset(args, &m, port, out)?,
+        Action::Halt => actions::halt(args, &m, port, out)?,
         Action::Move { position, vel, acc, timeout_s, tolerance } => {
-            // Numbers on the command line are in the module's own unit (rad or m).
-            let spec = MoveSpec {
-                target: Position::native(*position),
-                // Only what was given is written; TargetVel / TargetAcc otherwise stay as the module has them.
-                vel: vel.map(Velocity::native),
-                acc: acc.map(Acceleration::native),
-                tolerance: Some(Position::native(*tolerance)),
-                timeout: positive_secs("--timeout-s", *timeout_s)?,
-            };
-            let bar = common::progress_bar(0, format!("module {}", args.module));
-            let mut start = None;
-            let r = m.move_to_guarded(&spec, guard, &mut |p: &Progress| {
-                let from = *start.get_or_insert(p.position.value());
-                bar.set_length(((position - from).abs() * 1000.0).round() as u64);
-                bar.set_position(((p.position.value() - from).abs() * 1000.0).round() as u64);
-                bar.set_message(progress_text(p));
-            });
-            bar.finish_and_clear();
-            let report = r.map_err(failed)?;
-            if args.json {
-                let kind = m.kind().map_err(failed)?;
-                let reached = report.reached.value();
-                let fields = json!({"action": "reached", unit_key("target", kind): position,
-                                    unit_key("reached", kind): reached,
-                                    unit_key("difference", kind): reached - position,
-                                    "state": state_json(report.state)});
-                common::print_json(&mut out, &identified(fields))?;
-            } else {
-                report_done(&mut out, "reached", report.reached, report.state)?;
-            }
+            let spec = actions::move_spec(*position, *vel, *acc, *timeout_s, *tolerance)?;
+            actions::move_to(args, &m, guard, port, &spec, out)?
         }
         Action::Watch { interval_ms, count, csv } => {
             let format = match (*csv, args.json) {
@@ -512,7 +389,9 @@ fn act(args: &Args, client: &Client, guard: Guard, port: &str, out: &mut dyn Wri
                 (false, true) => WatchFormat::Json,
                 (false, false) => WatchFormat::Text,
             };
-            watch(client, &m, &mut out, format, &identified, *interval_ms, *count)?
+            // Every JSON object names the family, the port and the module first.
+            let module_json = |fields| identified(args, port, fields);
+            watch(client, &m, &mut out, format, &module_json, *interval_ms, *count)?
         }
         Action::Params | Action::Send { .. } => {}
     }

@@ -28,6 +28,7 @@ use crate::tap::{LinkArgs, Tap};
 use motionlink_compax::describe::Describer;
 use motionlink_link::describe::Describe;
 
+mod actions;
 mod extra;
 mod open;
 mod show;
@@ -334,49 +335,16 @@ fn identified(args: &Args, fields: serde_json::Value) -> serde_json::Value {
     v
 }
 
+/// Does what `args` ask: checks the action's arguments, opens the port, calls the action's function and
+/// closes the bus.
 fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
     let _ = clock;
     let mut out = std::io::stdout().lock();
     // Every argument of an action is checked before the port is opened: nothing is sent for an action that
     // cannot be made.
-    let move_plan = match &args.action {
-        Action::Move { abs, rel, speed, accel, binary, timeout_s, tolerance, min_pos, max_pos, poll_ms, .. } => Some(
-            plan_move(*abs, *rel, *speed, *accel, *binary, *timeout_s, *tolerance, (*min_pos, *max_pos), *poll_ms)?,
-        ),
-        _ => None,
-    };
-    let mut poll = move_plan.as_ref().map(|p| p.poll);
-    let mut raw_wait = None;
-    let mut watch_interval = None;
-    let mut status_ids = Vec::new();
-    match &args.action {
-        Action::Raw { wait: true, timeout_s, poll_ms, .. } => {
-            raw_wait = Some(checked_s("--timeout-s", *timeout_s)?);
-            poll = Some(checked_ms("--poll-ms", *poll_ms, 1, 10_000)?);
-        }
-        Action::Watch { interval_ms, .. } => {
-            watch_interval = Some(checked_ms("--interval-ms", *interval_ms, 1, 60_000)?)
-        }
-        Action::Output { number, state } => {
-            OutputState::new(*number, *state).map_err(model_error)?;
-        }
-        Action::Get { params } => {
-            for param in params {
-                ParamId::parse(param).map_err(model_error)?;
-            }
-        }
-        Action::Set { param, value } => {
-            ParamId::parse(param).and_then(|id| id.check(*value)).map_err(model_error)?;
-        }
-        Action::Status { values } if values.is_empty() => {
-            status_ids = [1, 2, 3, 16, 17, 18].iter().filter_map(|&n| StatusId::new(n).ok()).collect();
-        }
-        Action::Status { values } => {
-            status_ids = values.iter().map(|v| StatusId::parse(v)).collect::<Result<_, _>>().map_err(model_error)?;
-        }
-        _ => {}
-    }
-    let tolerance = move_plan.as_ref().map(|p| p.tolerance);
+    let checked = actions::check(args)?;
+    let poll = checked.poll;
+    let tolerance = checked.move_plan.as_ref().map(|p| p.tolerance);
     let bus = open(args, tap, |cfg| {
         if let Some(p) = poll {
             cfg.poll_interval = p;
@@ -386,191 +354,24 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
         }
     })?;
     let drive = Address::drive(args.drive).map_err(CliError::usage)?;
-    let fail = |e: Error| error_for(args, e);
+    let plan = checked.move_plan.as_ref();
     match &args.action {
-        Action::Scan => {
-            // A signal ends the scan between two addresses.
-            let found = bus.scan(1..=31).map_err(fail)?;
-            if args.json {
-                // A listing: one object per drive found (JSON Lines).
-                for (a, p) in &found {
-                    common::print_json(
-                        &mut out,
-                        &common::identified(
-                            "compax",
-                            &args.resolved_port,
-                            json!({"drive": a.get(), "position_units": p.units()}),
-                        ),
-                    )?;
-                }
-            } else if found.is_empty() {
-                writeln!(out, "no drive answered on {}", args.resolved_port)?;
-            } else {
-                let rows: Vec<Row> = found.iter().map(|(a, p)| (format!("drive {a}"), format!("S1 = {p}"))).collect();
-                common::print_table(&mut out, &rows)?;
-            }
-            if found.is_empty() {
-                return Err(CliError::transport("no drive answered"));
-            }
-        }
-        Action::Status { .. } => {
-            // A signal ends the reads between two values.
-            let values = bus.read_statuses(drive, &status_ids).map_err(fail)?;
-            let (rows, js): (Vec<Row>, Vec<serde_json::Value>) =
-                values.iter().map(|(id, v)| status_rows(*id, v)).unzip();
-            if args.json {
-                common::print_json(&mut out, &identified(args, json!({"status": js})))?;
-            } else {
-                common::print_table(&mut out, &rows)?;
-            }
-        }
-        Action::Get { params } => {
-            let mut rows = Vec::new();
-            for param in params {
-                let id = ParamId::parse(param).map_err(model_error)?;
-                let v = bus.read_param(drive, id).map_err(fail)?;
-                let desc = id.description().unwrap_or("");
-                if args.json {
-                    common::print_json(&mut out, &identified(args, param_json(id, json!(v))))?;
-                } else {
-                    rows.push((format!("{id} {desc}").trim_end().to_string(), format!("{v}")));
-                }
-            }
-            if !args.json {
-                common::print_table(&mut out, &rows)?;
-            }
-        }
-        Action::Set { param, value } => {
-            let id = ParamId::parse(param).map_err(model_error)?;
-            // Written and read back: a value that reads back otherwise is an error (exit code 1).
-            bus.write_param(drive, id, *value).map_err(fail)?;
-            // The library compared what it read back; the value the drive gives now is `read_back` (one drive is
-            // addressed, 1..=31: it answers).
-            let read_back = bus.read_param(drive, id).map_err(fail)?;
-            let note = match id.info() {
-                Some(i) if i.kind.valid_from == ValidFrom::PowerOn => " (takes effect at the drive's next power-on)",
-                _ => "",
-            };
-            if args.json {
-                let mut v = param_json(id, json!(value));
-                v["read_back"] = json!(read_back);
-                v["verified"] = json!(true);
-                common::print_json(&mut out, &identified(args, v))?;
-            } else {
-                writeln!(out, "{id} = {value}, read back{note}")?;
-            }
-        }
-        Action::Move { no_wait: true, .. } => {
-            let plan = move_plan.ok_or_else(|| CliError::usage("move: no plan"))?;
-            // Handed over once its target is read back: the move runs on after this command exits (a signal
-            // before that stops it instead).
-            let started = bus.start_and_release(drive, &plan.request).map_err(fail)?;
-            let now = bus.read_position(drive).map_err(fail)?;
-            if args.json {
-                common::print_json(
-                    &mut out,
-                    &identified(
-                        args,
-                        json!({"target_units": started.target.units(), "position_units": now.units(),
-                               "waited": false}),
-                    ),
-                )?;
-            } else {
-                writeln!(out, "drive {drive}: target {}, position {now} (moving on)", started.target)?;
-            }
-        }
-        Action::Move { .. } => {
-            let plan = move_plan.ok_or_else(|| CliError::usage("move: no plan"))?;
-            let bar = common::progress_bar(0, format!("drive {drive}"));
-            let mut started_at: Option<f64> = None;
-            let report = bus.move_to(drive, &plan.request, &mut |p| {
-                let s = *started_at.get_or_insert_with(|| {
-                    let distance = match plan.request.target {
-                        MoveTarget::Absolute(t) => t.units() - p.units(),
-                        MoveTarget::Relative(d) => d.units(),
-                    };
-                    bar.set_length((distance.abs() * 1000.0).round() as u64);
-                    p.units()
-                });
-                bar.set_position(((p.units() - s).abs() * 1000.0).round() as u64);
-            });
-            bar.finish_and_clear();
-            let report = report.map_err(fail)?;
-            if args.json {
-                common::print_json(
-                    &mut out,
-                    &identified(
-                        args,
-                        json!({"target_units": report.target.units(), "reached_units": report.reached.units(),
-                               "difference_units": report.difference(), "tolerance_units": plan.tolerance.units(),
-                               "waited": true}),
-                    ),
-                )?;
-            } else {
-                writeln!(out, "drive {drive}: target {}, position {}", report.target, report.reached)?;
-            }
-        }
+        Action::Scan => actions::scan(args, &bus, &mut out)?,
+        Action::Status { .. } => actions::status(args, &bus, drive, &checked.status_ids, &mut out)?,
+        Action::Get { params } => actions::get(args, &bus, drive, params, &mut out)?,
+        Action::Set { param, value } => actions::set(args, &bus, drive, param, *value, &mut out)?,
+        Action::Move { no_wait: true, .. } => actions::move_no_wait(args, &bus, drive, plan, &mut out)?,
+        Action::Move { .. } => actions::move_and_wait(args, &bus, drive, plan, &mut out)?,
         Action::Watch { count, csv, .. } => {
-            let interval = watch_interval.unwrap_or(Duration::from_millis(200));
+            let interval = checked.watch_interval.unwrap_or(Duration::from_millis(200));
             show::watch(args, &bus, drive, clock, interval, count, *csv, &mut out)?;
         }
-        Action::Output { number, state } => {
-            let st = OutputState::new(*number, *state).map_err(model_error)?;
-            bus.set_output(drive, *number, st, false).map_err(fail)?;
-            if args.json {
-                common::print_json(&mut out, &identified(args, json!({"output": number, "state": state})))?;
-            } else {
-                writeln!(out, "drive {drive}: OUTPUT O{number}={state}")?;
-            }
-        }
-        Action::Raw { command, .. } => {
-            // A move it starts is waited for (--wait) or handed over: it runs on after the command exits.
-            let after = raw_wait.map_or(AfterRaw::HandOver, AfterRaw::Wait);
-            let outcome = bus.raw_motion(drive, command, after).map_err(fail)?;
-            if args.json {
-                common::print_json(
-                    &mut out,
-                    &identified(args, json!({"command": command, "reply": outcome.reply, "waited": outcome.waited})),
-                )?;
-            } else {
-                match outcome.reply {
-                    Some(r) if r.is_empty() => writeln!(out, "(acknowledged)")?,
-                    Some(r) => writeln!(out, "{r}")?,
-                    None => writeln!(out, "(no reply due)")?,
-                }
-            }
-        }
-        Action::Send { words } => {
-            let command = send_text(words)?;
-            let telegrams = tap.telegrams().ok_or_else(|| CliError::usage("send: no tap on the link"))?;
-            telegrams.clear();
-            // A move it starts is waited for (a signal stops it), as `raw --wait` does.
-            let result = bus.raw_motion(drive, &command, AfterRaw::Wait(Duration::from_secs(600)));
-            let seen = telegrams.take();
-            // The command's reply is the first telegram from the drive after it; the status polls of a wait
-            // come after that reply and are told apart.
-            let (sent, reply, after) = crate::tap::first_exchange(&seen, command.as_bytes());
-            let polls = after.iter().filter(|a| a.direction == motionlink_link::describe::Direction::ToDevice).count();
-            let (sent_json, reply_json) =
-                crate::tap::print_exchange(&mut out, args.json, sent.as_ref(), reply.as_ref())?;
-            if args.json {
-                let reply_text = result.as_ref().ok().and_then(|o| o.reply.clone());
-                common::print_json(
-                    &mut out,
-                    &identified(
-                        args,
-                        json!({"command": command, "request": sent_json, "reply": reply_json,
-                               "reply_text": reply_text, "polls": polls, "ok": result.is_ok()}),
-                    ),
-                )?;
-            } else if polls > 0 {
-                writeln!(out, "then {polls} status polls until the move ended (-v shows them)")?;
-            }
-            result.map_err(fail)?;
-        }
+        Action::Output { number, state } => actions::output(args, &bus, drive, *number, *state, &mut out)?,
+        Action::Raw { command, .. } => actions::raw(args, &bus, drive, command, checked.raw_wait, &mut out)?,
+        Action::Send { words } => actions::send(args, tap, &bus, drive, words, &mut out)?,
     }
     // What this command set in motion and did not hand over is stopped here, and the result said.
-    let report = bus.close().map_err(fail)?;
+    let report = bus.close().map_err(|e| error_for(args, e))?;
     if !report.is_empty() {
         common::say(format!("motionlink: {report}"));
     }
