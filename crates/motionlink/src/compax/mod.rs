@@ -338,7 +338,6 @@ fn identified(args: &Args, fields: serde_json::Value) -> serde_json::Value {
 /// Does what `args` ask: checks the action's arguments, opens the port, calls the action's function and
 /// closes the bus.
 fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
-    let _ = clock;
     let mut out = std::io::stdout().lock();
     // Every argument of an action is checked before the port is opened: nothing is sent for an action that
     // cannot be made.
