@@ -46,15 +46,15 @@ fn the_background_thread_keeps_the_device_alive_on_its_own_deadlines() {
     driver.close().unwrap();
 }
 
-/// A link that records which thread sent each request.
-struct Senders {
+/// A link that calls `before_send` before each send (to record the sending thread, or to block).
+struct BeforeSend<F: FnMut() + Send> {
     inner: Box<dyn motionlink_link::Link>,
-    threads: Arc<Mutex<Vec<std::thread::ThreadId>>>,
+    before_send: F,
 }
 
-impl motionlink_link::Link for Senders {
+impl<F: FnMut() + Send> motionlink_link::Link for BeforeSend<F> {
     fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
-        self.threads.lock().unwrap().push(std::thread::current().id());
+        (self.before_send)();
         self.inner.send(bytes)
     }
     fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
@@ -73,7 +73,11 @@ fn a_blocking_caller_sends_its_request_itself_without_a_hand_off_to_the_backgrou
     let clock = RealClock::shared();
     let host = EmulatorHost::new(Toy::default(), Arc::clone(&clock), PipeConfig::paced(115_200));
     let threads = Arc::new(Mutex::new(Vec::new()));
-    let link = Senders { inner: Box::new(host.connect().0), threads: Arc::clone(&threads) };
+    let record = Arc::clone(&threads);
+    let link = BeforeSend {
+        inner: Box::new(host.connect().0),
+        before_send: move || record.lock().unwrap().push(std::thread::current().id()),
+    };
     let mut session = ToySession::new(clock.now());
     session.pings = false;
     let driver = Driver::new(session, Port::Bytes(Box::new(link)), None, clock, DriverConfig::default()).unwrap();
@@ -294,43 +298,24 @@ fn operations_after_close_fail_and_a_dead_device_bounds_the_close() {
     assert!(clock.now() - started <= Duration::from_millis(500));
 }
 
-/// A link whose sends block (as a TCP send into a peer that stopped reading) once `stuck` is set, until
-/// `release` is.
-struct Stuck {
-    inner: Box<dyn motionlink_link::Link>,
-    stuck: Arc<std::sync::atomic::AtomicBool>,
-    release: Arc<(Mutex<bool>, std::sync::Condvar)>,
-}
-
-impl motionlink_link::Link for Stuck {
-    fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
-        if self.stuck.load(std::sync::atomic::Ordering::SeqCst) {
-            let (released, cv) = &*self.release;
-            let mut r = released.lock().unwrap();
-            while !*r {
-                r = cv.wait(r).unwrap();
-            }
-        }
-        self.inner.send(bytes)
-    }
-    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
-        self.inner.recv(buf, timeout)
-    }
-    fn discard_input(&mut self) -> Result<(), LinkError> {
-        self.inner.discard_input()
-    }
-    fn describe(&self) -> String {
-        self.inner.describe()
-    }
-}
-
 #[test]
 fn a_close_returns_within_its_bound_and_grace_while_the_background_thread_is_stuck_in_a_send() {
     let clock = RealClock::shared();
     let host = EmulatorHost::new(Toy::default(), Arc::clone(&clock), PipeConfig::paced(115_200));
     let stuck = Arc::new(std::sync::atomic::AtomicBool::new(false));
     let release = Arc::new((Mutex::new(false), std::sync::Condvar::new()));
-    let link = Stuck { inner: Box::new(host.connect().0), stuck: Arc::clone(&stuck), release: Arc::clone(&release) };
+    // Once `stuck` is set, a send blocks (as a TCP send into a peer that stopped reading) until `release` is.
+    let (stuck_now, released) = (Arc::clone(&stuck), Arc::clone(&release));
+    let block = move || {
+        if stuck_now.load(std::sync::atomic::Ordering::SeqCst) {
+            let (done, cv) = &*released;
+            let mut r = done.lock().unwrap();
+            while !*r {
+                r = cv.wait(r).unwrap();
+            }
+        }
+    };
+    let link = BeforeSend { inner: Box::new(host.connect().0), before_send: block };
     let config = DriverConfig { close_bound: Duration::from_millis(200), ..DriverConfig::default() };
     let driver = Driver::new(ToySession::new(clock.now()), Port::Bytes(Box::new(link)), None, clock, config).unwrap();
     stuck.store(true, std::sync::atomic::Ordering::SeqCst);
