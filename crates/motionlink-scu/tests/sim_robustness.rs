@@ -112,10 +112,20 @@ proptest! {
             t += 3;
             unit.receive(Timestamp::from_millis(t), c, &mut out);
         }
-        // Every reply the unit made is a well-formed telegram.
+        // Every reply the unit made is a well-formed telegram: a reply of a known command, or the ICE answer
+        // (`R?` with the unknown letters, 0x83, CRC) to an intact telegram of an unknown command.
         let mut dec = ReplyDecoder::new();
         let mut input = &out[..];
         loop {
+            let unknown_command = input.len() >= 5
+                && input[0] == b'R'
+                && Command::from_code(input[0], input[1]).is_none()
+                && input[2] == 0x83
+                && crc16(&input[..3]) == u16::from_le_bytes([input[3], input[4]]);
+            if unknown_command {
+                input = &input[5..];
+                continue;
+            }
             let (n, ev) = dec.decode(input);
             input = &input[n..];
             match ev {
@@ -129,4 +139,16 @@ proptest! {
         unit.receive(later, &request_to_vec(&Request::Open { safety_id: 1 }).unwrap(), &mut out);
         prop_assert_eq!(&out[..3], b"RO\x06");
     }
+}
+
+/// An intact telegram of an unknown command (`RQ` whose CRC happens to match) is answered ICE with the
+/// unknown letters, as the manual's table 2 says ("Unknown command code").
+#[test]
+fn an_unknown_command_is_answered_ice_with_its_letters() {
+    let mut unit = Emulator::new(SimConfig::default()).unwrap();
+    let mut out = Vec::new();
+    unit.receive(Timestamp::from_millis(3), &[0x52, 0x51, 0x09, 0x22], &mut out);
+    assert_eq!(out.len(), 5, "{out:02X?}");
+    assert_eq!(&out[..3], b"RQ\x83");
+    assert_eq!(crc16(&out[..3]).to_le_bytes(), [out[3], out[4]]);
 }
