@@ -7,9 +7,10 @@ import asyncio
 import atexit
 import time
 import weakref
-from typing import Any, Callable, Iterator, Optional, TypeVar
+from typing import Any, Callable, Dict, Iterator, Optional, TypeVar
 
-from .errors import UsageError
+from . import _native
+from .errors import Cancelled, UsageError
 
 __all__ = ["ClientBase", "AsyncClientBase"]
 
@@ -19,12 +20,17 @@ _open: "weakref.WeakSet[Any]" = weakref.WeakSet()
 @atexit.register
 def _close_all_at_exit() -> None:
     """A program that ends (normally, or by an exception nobody caught) without closing a client still
-    stops what the client started: each client still open is closed here."""
-    for client in list(_open):
-        try:
-            client._close_at_exit()
-        except Exception:  # noqa: BLE001 - nothing can be reported at this point but by the close itself
-            pass
+    stops what the client started: each client still open is closed here. Then the library's delivery
+    thread stops calling into Python (it is no Python thread, and must not be inside a callback when the
+    interpreter finalises)."""
+    try:
+        for client in list(_open):
+            try:
+                client._close_at_exit()
+            except Exception:  # noqa: BLE001 - nothing can be reported at this point but by the close itself
+                pass
+    finally:
+        _native.stop_deliveries()
 
 
 class ClientBase:
@@ -100,11 +106,16 @@ def samples(read: Callable[[float], _T], interval_ms: int, count: Optional[int])
             time.sleep(delay)
 
 
-async def run_native(start: Callable[[Callable[[bool, Any], None]], Any]) -> Any:
+Calls = Dict[Any, "asyncio.Future[Any]"]
+"""The native operations of one async client under way: each one's task and the future its caller awaits."""
+
+
+async def run_native(start: Callable[[Callable[[bool, Any], None]], Any], calls: Optional[Calls] = None) -> Any:
     """Awaits a native operation: ``start(done)`` starts it on the library's runtime thread and returns
     its task; ``done(ok, value)`` is called there with the outcome. Cancelling the awaiting asyncio task
     cancels the operation (its future is dropped, which stops what it set in motion) and waits, on a
-    worker thread, until that is done before ``CancelledError`` propagates."""
+    worker thread, until that is done before ``CancelledError`` propagates. While it runs, the operation
+    is in ``calls`` (its client's), so that closing the client can cancel it."""
     loop = asyncio.get_running_loop()
     fut: "asyncio.Future[Any]" = loop.create_future()
 
@@ -123,24 +134,39 @@ async def run_native(start: Callable[[Callable[[bool, Any], None]], Any]) -> Any
             pass
 
     task = start(done)
+    if calls is not None:
+        calls[task] = fut
     try:
         return await fut
     except asyncio.CancelledError:
         await loop.run_in_executor(None, task.cancel)
         raise
+    finally:
+        if calls is not None:
+            calls.pop(task, None)
 
 
 class AsyncClientBase:
     """An async session with a device: ``async with`` opens it and closes it (stopping what it started);
-    cancelling a task that awaits a long operation (a move, homing, a wait) stops that motion."""
+    cancelling a task that awaits a long operation (a move, homing, a wait) stops that motion. Closing
+    the client cancels the operations still under way on it first (their motions stop; whoever awaits
+    them gets :class:`Cancelled`), then ends the session."""
 
     family: str = ""
     _native: Any = None
+
+    def __init__(self) -> None:
+        self._native = None
+        self._calls: Calls = {}
 
     def _client(self) -> Any:
         if self._native is None:
             raise UsageError(f"{type(self).__name__} is not open: use `async with` or `await open()`")
         return self._native
+
+    async def _run(self, start: Callable[[Callable[[bool, Any], None]], Any]) -> Any:
+        """Awaits an operation of this session (see :func:`run_native`)."""
+        return await run_native(start, self._calls)
 
     @property
     def port(self) -> str:
@@ -160,15 +186,30 @@ class AsyncClientBase:
         await self.aclose()
 
     async def aclose(self) -> None:
-        """Ends the session: stops what it set in motion and still moves. Raises if the stop could not be
-        confirmed. Closing twice does nothing."""
+        """Ends the session: cancels the operations still under way on it (which stops their motions),
+        then stops what it set in motion and still moves. Raises if the stop could not be confirmed.
+        Closing twice does nothing."""
         native = self._native
         if native is not None:
             _open.discard(self)
+            loop = asyncio.get_running_loop()
+            for task, fut in list(self._calls.items()):
+                await loop.run_in_executor(None, task.cancel)
+                if not fut.done():
+                    fut.set_exception(self._closed_under_it())
             await run_native(native.close)
+
+    def _closed_under_it(self) -> Cancelled:
+        return Cancelled(
+            f"{self.family}: the client was closed while this operation was under way: the operation was "
+            "cancelled, which stops what it set in motion, and the session closed",
+            family=self.family,
+        )
 
     def _close_at_exit(self) -> None:
         if self._native is not None:
+            for task in list(self._calls):
+                task.cancel()
             self._native.close_blocking()
 
 

@@ -7,6 +7,9 @@ _Port = Union[str, "NativeEmulator"]
 
 COMPAX_DEFAULT_TOLERANCE_UNITS: float
 
+def stop_deliveries() -> None:
+    """Stops the calls into Python from the library's delivery thread, for good (the exit handler)."""
+
 @final
 class NativeTask:
     """An async operation on the library's runtime thread."""

@@ -172,7 +172,9 @@ class AsyncCompax(AsyncClientBase):
             await drive.move_to(100.0)
 
     Cancelling a task that awaits ``move_to``, ``home`` or ``wait`` stops the drive (OUTPUT O0=0,
-    confirmed by S17); leaving the block stops what the session set in motion.
+    confirmed by S17); leaving the block (or ``aclose()``, or the end of the program) first cancels the
+    operations still under way (their awaiters get :class:`motionlink.Cancelled`), then stops what the
+    session set in motion.
     """
 
     family = "compax"
@@ -191,7 +193,7 @@ class AsyncCompax(AsyncClientBase):
         self._port = getattr(port, "_native", port)
         self._settings = _settings(drive, mode, baud, timeout_ms, poll_ms, tolerance_units)
         self.drive = drive
-        self._native = None
+        super().__init__()
 
     async def _open(self) -> Any:
         return await run_native(lambda done: _native.AsyncCompaxClient.open(self._port, self._settings, done))
@@ -202,7 +204,7 @@ class AsyncCompax(AsyncClientBase):
 
     async def position(self, drive: Optional[int] = None) -> DrivePosition:
         """The actual position S1: ``position_units``."""
-        units = await run_native(lambda done: self._client().position(drive, done))
+        units = await self._run(lambda done: self._client().position(drive, done))
         d = self.drive if drive is None else drive
         return DrivePosition({"family": "compax", "drive": d, "position_units": units})
 
@@ -220,7 +222,7 @@ class AsyncCompax(AsyncClientBase):
     ) -> CompaxMove:
         """A checked move, as :meth:`Compax.move_to`; cancelling the task stops the drive."""
         return CompaxMove(
-            await run_native(
+            await self._run(
                 lambda done: self._client().move_to(
                     target, distance, drive, speed_percent, ramp_ms, min_units, max_units, timeout_s, done
                 )
@@ -231,12 +233,12 @@ class AsyncCompax(AsyncClientBase):
 
     async def home(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> CompaxHome:
         """POSA HOME, waited for; cancelling the task stops the drive."""
-        return CompaxHome(await run_native(lambda done: self._client().home(drive, timeout_s, done)))
+        return CompaxHome(await self._run(lambda done: self._client().home(drive, timeout_s, done)))
 
     async def wait(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> DrivePosition:
         """Waits until the positioning ended; S1 then. Cancelling the task stops the drive."""
-        return DrivePosition(await run_native(lambda done: self._client().wait(drive, timeout_s, done)))
+        return DrivePosition(await self._run(lambda done: self._client().wait(drive, timeout_s, done)))
 
     async def stop(self, drive: Optional[int] = None) -> None:
         """Stops the drive (OUTPUT O0=0)."""
-        await run_native(lambda done: self._client().stop(drive, done))
+        await self._run(lambda done: self._client().stop(drive, done))

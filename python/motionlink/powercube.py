@@ -177,7 +177,8 @@ class AsyncPowerCube(AsyncClientBase):
             await cube.move_to(0.5)
 
     Cancelling a task that awaits ``move_to``, ``home`` or ``wait`` halts the module; leaving the block
-    halts what the session set in motion.
+    (or ``aclose()``, or the end of the program) first cancels the operations still under way (their
+    awaiters get :class:`motionlink.Cancelled`), then halts what the session set in motion.
     """
 
     family = "powercube"
@@ -196,7 +197,7 @@ class AsyncPowerCube(AsyncClientBase):
         self._port = getattr(port, "_native", port)
         self._settings = _settings(module, baud, bitrate, timeout_ms, poll_ms, watchdog)
         self.module = module
-        self._native = None
+        super().__init__()
 
     async def _open(self) -> Any:
         return await run_native(lambda done: _native.AsyncPowerCubeClient.open(self._port, self._settings, done))
@@ -210,15 +211,15 @@ class AsyncPowerCube(AsyncClientBase):
 
     async def position(self, module: Optional[int] = None) -> ModulePosition:
         """The actual position."""
-        return _position(self._m(module), await run_native(lambda done: self._client().position(module, done)))
+        return _position(self._m(module), await self._run(lambda done: self._client().position(module, done)))
 
     async def state(self, module: Optional[int] = None) -> ModuleState:
         """The state word."""
-        return ModuleState(await run_native(lambda done: self._client().state(module, done)))
+        return ModuleState(await self._run(lambda done: self._client().state(module, done)))
 
     async def home(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> PowerCubeHome:
         """Homes and waits; cancelling the task halts the module."""
-        return PowerCubeHome(await run_native(lambda done: self._client().home(module, timeout_s, done)))
+        return PowerCubeHome(await self._run(lambda done: self._client().home(module, timeout_s, done)))
 
     async def move_to(
         self,
@@ -232,7 +233,7 @@ class AsyncPowerCube(AsyncClientBase):
     ) -> PowerCubeMove:
         """A checked ramp move, waited for; cancelling the task halts the module."""
         return PowerCubeMove(
-            await run_native(
+            await self._run(
                 lambda done: self._client().move_to(
                     target, module, velocity, acceleration, tolerance, timeout_s, done
                 )
@@ -243,8 +244,8 @@ class AsyncPowerCube(AsyncClientBase):
 
     async def wait(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> ModuleState:
         """Waits until the module stands still; cancelling the task halts it."""
-        return ModuleState(await run_native(lambda done: self._client().wait(module, timeout_s, done)))
+        return ModuleState(await self._run(lambda done: self._client().wait(module, timeout_s, done)))
 
     async def stop(self, module: Optional[int] = None) -> None:
         """Halts the module."""
-        await run_native(lambda done: self._client().stop(module, done))
+        await self._run(lambda done: self._client().stop(module, done))

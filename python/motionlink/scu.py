@@ -151,7 +151,8 @@ class AsyncScu(AsyncClientBase):
             await scu.move_to(1, 400)
 
     Cancelling a task that awaits ``move_to`` or ``run`` stops the function (fast RS, confirmed); leaving
-    the block sends RS for what the session started, then RA.
+    the block (or ``aclose()``, or the end of the program) first cancels the operations still under way
+    (their awaiters get :class:`motionlink.Cancelled`), then sends RS for what the session started, then RA.
     """
 
     family = "scu"
@@ -173,7 +174,7 @@ class AsyncScu(AsyncClientBase):
         self._settings = _settings(
             baud, safety, reply_timeout_ms, functions, strokes, tolerance_counts, poll_ms, speed_mode
         )
-        self._native = None
+        super().__init__()
 
     async def _open(self) -> Any:
         return await run_native(lambda done: _native.AsyncScuClient.open(self._port, self._settings, done))
@@ -184,7 +185,7 @@ class AsyncScu(AsyncClientBase):
 
     async def position(self, actuator: int) -> ActuatorPosition:
         """The position of ``actuator``: ``position_counts``."""
-        counts = await run_native(lambda done: self._client().position(actuator, done))
+        counts = await self._run(lambda done: self._client().position(actuator, done))
         return ActuatorPosition({"family": "scu", "actuator": actuator, "position_counts": counts})
 
     async def move_to(
@@ -192,7 +193,7 @@ class AsyncScu(AsyncClientBase):
     ) -> ScuMove:
         """A verified move, as :meth:`Scu.move_to`; cancelling the task stops the function."""
         return ScuMove(
-            await run_native(lambda done: self._client().move_to(actuator, target_counts, speed, function, done))
+            await self._run(lambda done: self._client().move_to(actuator, target_counts, speed, function, done))
         )
 
     move = move_to
@@ -200,9 +201,9 @@ class AsyncScu(AsyncClientBase):
     async def run(self, function: Union[int, str], direction: str, *, seconds: Optional[float] = None) -> ScuRun:
         """Runs a function until it ends or ``seconds`` passed, then stops it; cancelling stops it."""
         return ScuRun(
-            await run_native(lambda done: self._client().run(_function(function), direction, seconds, done))
+            await self._run(lambda done: self._client().run(_function(function), direction, seconds, done))
         )
 
     async def stop(self, function: Union[int, str] = 1, *, soft: bool = False) -> None:
         """Stops a function (RS)."""
-        await run_native(lambda done: self._client().stop(_function(function), soft, done))
+        await self._run(lambda done: self._client().stop(_function(function), soft, done))

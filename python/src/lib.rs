@@ -22,6 +22,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<scu::ScuClient>()?;
     m.add_class::<scu::AsyncScuClient>()?;
     m.add_class::<wait::NativeTask>()?;
+    m.add_function(wrap_pyfunction!(wait::stop_deliveries, m)?)?;
     m.add_class::<compax::CompaxClient>()?;
     m.add_class::<compax::AsyncCompaxClient>()?;
     m.add_class::<compax::CompaxWatch>()?;

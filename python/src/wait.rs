@@ -186,8 +186,20 @@ pub type Outcome = Result<Deliver, crate::errors::Failure>;
 /// An outcome and the callback that gets it.
 type Delivery = (Py<PyAny>, Outcome);
 
+/// Whether the delivery thread may still call into Python: true until [`stop_deliveries`]. The delivery
+/// thread holds this lock for as long as it runs a callback, so that closing the gate waits for the
+/// callback in flight.
+static DELIVERING: std::sync::Mutex<bool> = std::sync::Mutex::new(true);
+
 /// The thread that turns outcomes into Python objects and calls their `done` callbacks: the runtime's
 /// thread never waits for the GIL (a session's timers, such as a watchdog's refresh, run there).
+///
+/// It is no Python thread: once the interpreter finalises, a thread that is not Python's own and asks for
+/// the GIL back (a callback gives it up whenever it does I/O or runs long enough, and `loop.
+/// call_soon_threadsafe` writes to a socket) is ended by CPython with `pthread_exit`, whose unwinding runs
+/// pyo3's guard and aborts the process ("Fatal Python error: PyGILState_Release"). So the package's exit
+/// handler calls [`stop_deliveries`] before the interpreter finalises, and this thread never touches Python
+/// after that; an outcome that arrives later is dropped (nobody waits for it any more).
 fn delivery() -> &'static std::sync::Mutex<mpsc::Sender<Delivery>> {
     static TX: OnceLock<std::sync::Mutex<mpsc::Sender<Delivery>>> = OnceLock::new();
     TX.get_or_init(|| {
@@ -196,7 +208,13 @@ fn delivery() -> &'static std::sync::Mutex<mpsc::Sender<Delivery>> {
             .name("motionlink-deliver".into())
             .spawn(move || {
                 for (done, outcome) in rx {
-                    Python::attach(|py| {
+                    let open = motionlink_link::clock::lock(&DELIVERING);
+                    if !*open {
+                        // `done` is dropped without the GIL: pyo3 defers its reference count to a pool.
+                        continue;
+                    }
+                    // `try_attach`: never attach to an interpreter that is finalising already.
+                    Python::try_attach(|py| {
                         let built = match outcome {
                             Ok(make) => make(py),
                             Err(f) => Err(crate::errors::to_pyerr(py, f)),
@@ -209,11 +227,20 @@ fn delivery() -> &'static std::sync::Mutex<mpsc::Sender<Delivery>> {
                             e.write_unraisable(py, None);
                         }
                     });
+                    drop(open);
                 }
             })
             .expect("the delivery thread starts");
         std::sync::Mutex::new(tx)
     })
+}
+
+/// Ends the calls into Python from the delivery thread, for good: waits (without the GIL) for a callback
+/// in flight to return, then makes the thread drop every later outcome. The package's exit handler calls
+/// it (`motionlink._base`), after it has closed the clients still open, before the interpreter finalises.
+#[pyfunction]
+pub fn stop_deliveries(py: Python<'_>) {
+    py.detach(|| *motionlink_link::clock::lock(&DELIVERING) = false);
 }
 
 /// A [`Deliver`] from a closure.

@@ -7,6 +7,7 @@ import asyncio
 import time
 
 import pytest
+from _events import EVENTS
 
 import motionlink
 
@@ -87,3 +88,35 @@ def test_an_async_client_must_be_opened() -> None:
             return (await c.position()).position_units
 
     assert asyncio.run(opened()) == 0.0
+
+
+@pytest.mark.parametrize("family", ["scu", "powercube", "compax"])
+def test_closing_an_async_client_cancels_its_calls_under_way(family: str) -> None:
+    """Leaving `async with` while a move's task is still under way stops the move and ends the session
+    (not only once that task is cancelled by someone else, or never); the move's awaiter gets Cancelled."""
+    started, stopped, closed = EVENTS[family]
+    with motionlink.Emulator(family, serve="tcp") as emu:
+
+        async def main() -> None:
+            if family == "scu":
+                async with motionlink.AsyncScu(emu.port) as scu:
+                    move = asyncio.create_task(scu.move_to(1, 800, speed=5))
+                    await in_thread(lambda: emu.wait_event(started, 10))
+            elif family == "powercube":
+                async with motionlink.AsyncPowerCube(emu.port) as cube:
+                    move = asyncio.create_task(cube.move_to(3.0, velocity=0.1))
+                    await in_thread(lambda: emu.wait_event(started, 10))
+            else:
+                async with motionlink.AsyncCompax(emu.port) as drive:
+                    move = asyncio.create_task(drive.move_to(100000.0, speed_percent=1))
+                    await in_thread(lambda: emu.wait_event(started, 10))
+            left_at = time.time()
+            # Stopped, and the session ended, by the time the block was left.
+            assert emu.wait_event(stopped, 0).at <= left_at
+            if closed is not None:
+                assert emu.wait_event(closed, 0).at <= left_at
+            with pytest.raises(motionlink.Cancelled, match="closed while this operation was under way") as e:
+                await move
+            assert e.value.family == family
+
+        asyncio.run(main())

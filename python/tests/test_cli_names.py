@@ -2,14 +2,13 @@
 family's info, get, set, move, status or scan, and watch, ``to_dict()`` has exactly the keys, nested the
 same way, that ``motionlink <family> --port sim --json ...`` prints (``family`` and ``port`` aside).
 
-The binary is ``$MOTIONLINK_BIN``, else ``debug/motionlink`` in ``$CARGO_TARGET_DIR`` or
-``<repository>/target`` (``cargo build -p motionlink``). Without it these tests are skipped, or fail when ``MOTIONLINK_REQUIRE_CLI=1``.
+The binary is the ``motionlink_bin`` fixture's (conftest.py): without it these tests are skipped, or fail
+when ``MOTIONLINK_REQUIRE_CLI=1``.
 """
 
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 from pathlib import Path
 from typing import Any, Callable, List
@@ -18,22 +17,13 @@ import pytest
 
 import motionlink
 
-REPO = Path(__file__).resolve().parents[2]
-TARGET = Path(os.environ.get("CARGO_TARGET_DIR", REPO / "target"))
-BIN = Path(os.environ.get("MOTIONLINK_BIN", (TARGET if TARGET.is_absolute() else REPO / TARGET) / "debug" / "motionlink"))
 IDENTITY = {"family", "port"}
 
 
 @pytest.fixture(scope="module")
-def cli() -> Callable[..., List[Any]]:
-    if not BIN.is_file():
-        message = f"the motionlink binary is not at {BIN} (build it: cargo build -p motionlink, or set MOTIONLINK_BIN)"
-        if os.environ.get("MOTIONLINK_REQUIRE_CLI") == "1":
-            pytest.fail(message)
-        pytest.skip(message)
-
+def cli(motionlink_bin: Path) -> Callable[..., List[Any]]:
     def run(*args: str) -> List[Any]:
-        done = subprocess.run([str(BIN), *args], capture_output=True, text=True, timeout=60)
+        done = subprocess.run([str(motionlink_bin), *args], capture_output=True, text=True, timeout=60)
         assert done.returncode == 0, f"motionlink {' '.join(args)}: {done.stderr}"
         return [json.loads(line) for line in done.stdout.splitlines() if line.strip()]
 

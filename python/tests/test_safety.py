@@ -12,21 +12,14 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Callable, Dict, Tuple
+from typing import Callable, Tuple
 
 import pytest
+from _events import EVENTS
 
 import motionlink
 
 CHILD = str(Path(__file__).with_name("_long_move.py"))
-
-# family -> (event that says the move started, event that says it was stopped)
-EVENTS: Dict[str, Tuple[Callable[[str], bool], Callable[[str], bool]]] = {
-    "powercube": (lambda t: "motion started" in t, lambda t: t == "module 1 halted"),
-    "scu": (lambda t: t.startswith("F1 started direction 9"), lambda t: t.startswith("F1 stopped (RS")),
-    "compax": (lambda t: "motion started" in t, lambda t: "switched off" in t or "at rest" in t),
-}
-
 
 def open_client(family: str, port: object) -> Tuple[motionlink.PowerCube, Callable[[], object]]:
     if family == "powercube":
@@ -57,7 +50,7 @@ def run_in_thread(op: Callable[[], object]) -> threading.Thread:
 @pytest.mark.parametrize("family", ["powercube", "scu", "compax"])
 @pytest.mark.parametrize("leave_by", [RuntimeError, KeyboardInterrupt, None])
 def test_leaving_the_block_stops_the_motion(family: str, leave_by: object) -> None:
-    started, stopped = EVENTS[family]
+    started, stopped, _ = EVENTS[family]
     with motionlink.Emulator(family) as emu:
         client, op = open_client(family, emu)
         mover = None
@@ -91,7 +84,7 @@ def test_leaving_the_block_stops_the_motion(family: str, leave_by: object) -> No
 def test_ctrl_c_stops_the_motion_within_100_ms_and_raises_keyboard_interrupt(family: str, signum: int) -> None:
     """SIGINT raises KeyboardInterrupt; SIGTERM with the README's handler raises SystemExit(143). Both stop
     the motion first."""
-    started, stopped = EVENTS[family]
+    started, stopped, _ = EVENTS[family]
     with motionlink.Emulator(family, serve="tcp") as emu:
         child = subprocess.Popen(
             [sys.executable, CHILD, family, emu.port, "wait" if signum == signal.SIGINT else "term"],
@@ -122,7 +115,7 @@ def test_ctrl_c_stops_the_motion_within_100_ms_and_raises_keyboard_interrupt(fam
 
 @pytest.mark.parametrize("family", ["powercube", "scu", "compax"])
 def test_the_end_of_the_program_stops_the_motion_of_an_open_client(family: str) -> None:
-    started, stopped = EVENTS[family]
+    started, stopped, _ = EVENTS[family]
     with motionlink.Emulator(family, serve="tcp") as emu:
         done = subprocess.run(
             [sys.executable, CHILD, family, emu.port, "thread-exit"], capture_output=True, text=True, timeout=30
