@@ -1,9 +1,11 @@
 """motionlink: Ewellix/Schaeffler SCU lifting-column control units, Schunk/Amtec PowerCube modules and
 Parker COMPAX drives from Python, safely.
 
-Clients (:class:`Scu`, :class:`PowerCube`, :class:`Compax`, and their asyncio twins) open a port URL
-(``"sim"``, ``"tcp://HOST:PORT"``, ``"/dev/ttyUSB0"``, ``"socketcan://can0"``, ``"slcan:///dev/ttyACM0"``)
-or an :class:`Emulator`. A client is a context manager: leaving the block stops any motion it started.
+Clients (:class:`Scu`, :class:`PowerCube`, :class:`Compax`, and their asyncio twins) open the port they
+are given, a port URL (``"/dev/ttyUSB0"``, ``"tcp://HOST:PORT"``, ``"socketcan://can0"``,
+``"slcan:///dev/ttyACM0"``, ``"sim"`` for an emulator in this process) or an :class:`Emulator`; given none,
+the port the environment variable ``MOTIONLINK_PORT`` names, as the command line does. There is no
+default port: without either, a client raises :class:`UsageError`. A client is a context manager: leaving the block stops any motion it started.
 Results are typed records whose field names carry their units; failures are :class:`MotionlinkError`\\ s.
 """
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import atexit
+import os
 import time
 import weakref
 from typing import Any, Callable, Dict, Iterator, Optional, TypeVar
@@ -12,9 +13,27 @@ from typing import Any, Callable, Dict, Iterator, Optional, TypeVar
 from . import _native
 from .errors import Cancelled, UsageError
 
-__all__ = ["ClientBase", "AsyncClientBase"]
+__all__ = ["ClientBase", "AsyncClientBase", "resolve_port"]
 
 _open: "weakref.WeakSet[Any]" = weakref.WeakSet()
+
+PORT_ENV = "MOTIONLINK_PORT"
+"""The environment variable that gives the port when a client is given none (as for the command line)."""
+
+
+def resolve_port(port: Any, family: str) -> Any:
+    """The port a client of ``family`` opens: ``port`` (a port URL, or a :class:`motionlink.Emulator`)
+    when given, else the environment variable ``MOTIONLINK_PORT``; neither is a :class:`UsageError`. Never
+    an emulator by default: ``"sim"`` is opened only when asked for."""
+    if port is None:
+        port = os.environ.get(PORT_ENV, "").strip()
+        if not port:
+            raise UsageError(
+                'no port: give port=PORT (such as "/dev/ttyUSB0", "tcp://HOST:PORT" or "sim"), '
+                f"or set {PORT_ENV}",
+                family=family,
+            )
+    return getattr(port, "_native", port)
 
 
 @atexit.register

@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import Any, Dict, Iterator, List, Optional, Sequence, Union
 
 from . import _native
-from ._base import AsyncClientBase, ClientBase, check_interval, run_native
+from ._base import AsyncClientBase, ClientBase, check_interval, resolve_port, run_native
 from .records import CompaxHome, CompaxMove, CompaxSample, DriveFound, DrivePosition, Parameter, StatusValue
 
 __all__ = ["Compax", "AsyncCompax"]
@@ -22,7 +22,9 @@ class Compax(ClientBase):
     """A session with COMPAX drives on one RS485 bus (or one drive on RS232).
 
     Args:
-        port: ``"sim"``, ``"tcp://HOST:PORT"``, a serial device, or a :class:`motionlink.Emulator`.
+        port: A serial device (``"/dev/ttyUSB0"``, ``"COM3"``), ``"tcp://HOST:PORT"``, ``"sim"`` (an emulated
+            bus in this process), or a :class:`motionlink.Emulator`. Not given: the environment variable
+            ``MOTIONLINK_PORT``; neither is a :class:`UsageError`.
         drive: The drive the operations address unless they name another (1..31).
         mode: The drives' operating mode P196 (sum of valences; 0: no checksum, no echo).
         baud: The bus's baud rate (P195).
@@ -39,7 +41,7 @@ class Compax(ClientBase):
 
     def __init__(
         self,
-        port: Union[str, Any] = "sim",
+        port: Optional[Union[str, Any]] = None,
         drive: int = 1,
         *,
         mode: int = 0,
@@ -49,7 +51,7 @@ class Compax(ClientBase):
         tolerance_units: float = DEFAULT_TOLERANCE_UNITS,
     ) -> None:
         settings = _settings(drive, mode, baud, timeout_ms, poll_ms, tolerance_units)
-        self._native = _native.CompaxClient(getattr(port, "_native", port), settings)
+        self._native = _native.CompaxClient(resolve_port(port, self.family), settings)
         self.drive = drive
         super().__init__()
 
@@ -181,7 +183,7 @@ class AsyncCompax(AsyncClientBase):
 
     def __init__(
         self,
-        port: Union[str, Any] = "sim",
+        port: Optional[Union[str, Any]] = None,
         drive: int = 1,
         *,
         mode: int = 0,
@@ -190,7 +192,7 @@ class AsyncCompax(AsyncClientBase):
         poll_ms: int = 50,
         tolerance_units: float = DEFAULT_TOLERANCE_UNITS,
     ) -> None:
-        self._port = getattr(port, "_native", port)
+        self._port = resolve_port(port, self.family)
         self._settings = _settings(drive, mode, baud, timeout_ms, poll_ms, tolerance_units)
         self.drive = drive
         super().__init__()

@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import Any, Dict, Iterator, List, Optional, Union
 
 from . import _native
-from ._base import AsyncClientBase, ClientBase, run_native, samples
+from ._base import AsyncClientBase, ClientBase, resolve_port, run_native, samples
 from .records import (
     ModuleInfo,
     ModulePosition,
@@ -50,7 +50,8 @@ class PowerCube(ClientBase):
     Args:
         port: ``"sim"`` (an emulated module in this process), ``"tcp://HOST:PORT"`` (a serial gateway or
             ``motionlink sim powercube --tcp``), a serial device (``"/dev/ttyUSB0"``, ``"COM3"``),
-            ``"socketcan://can0"``, ``"slcan:///dev/ttyACM0"``, or a :class:`motionlink.Emulator`.
+            ``"socketcan://can0"``, ``"slcan:///dev/ttyACM0"``, or a :class:`motionlink.Emulator`. Not given:
+            the environment variable ``MOTIONLINK_PORT``; neither is a :class:`UsageError`.
         module: The module the operations address unless they name another (1..31).
         baud: Baud rate of an RS232 line.
         bitrate: CAN bit rate of an SLCAN adapter.
@@ -68,7 +69,7 @@ class PowerCube(ClientBase):
 
     def __init__(
         self,
-        port: Port = "sim",
+        port: Optional[Port] = None,
         module: int = 1,
         *,
         baud: int = 9600,
@@ -77,7 +78,7 @@ class PowerCube(ClientBase):
         poll_ms: int = 10,
         watchdog: bool = True,
     ) -> None:
-        native_port = getattr(port, "_native", port)
+        native_port = resolve_port(port, self.family)
         self._native = _native.PowerCubeClient(
             native_port, _settings(module, baud, bitrate, timeout_ms, poll_ms, watchdog)
         )
@@ -185,7 +186,7 @@ class AsyncPowerCube(AsyncClientBase):
 
     def __init__(
         self,
-        port: Port = "sim",
+        port: Optional[Port] = None,
         module: int = 1,
         *,
         baud: int = 9600,
@@ -194,7 +195,7 @@ class AsyncPowerCube(AsyncClientBase):
         poll_ms: int = 10,
         watchdog: bool = True,
     ) -> None:
-        self._port = getattr(port, "_native", port)
+        self._port = resolve_port(port, self.family)
         self._settings = _settings(module, baud, bitrate, timeout_ms, poll_ms, watchdog)
         self.module = module
         super().__init__()

@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import Any, Dict, Iterator, List, Optional, Sequence, Union
 
 from . import _native
-from ._base import AsyncClientBase, ClientBase, run_native, samples
+from ._base import AsyncClientBase, ClientBase, resolve_port, run_native, samples
 from .records import ActuatorPosition, ErrorCode, Parameter, ScuInfo, ScuMove, ScuRun, ScuSample
 
 __all__ = ["Scu", "AsyncScu"]
@@ -45,7 +45,9 @@ class Scu(ClientBase):
     """A session with an SCU control unit in remote mode (RO with ``safety``; the library keeps it alive).
 
     Args:
-        port: ``"sim"``, ``"tcp://HOST:PORT"``, a serial device, or a :class:`motionlink.Emulator`.
+        port: A serial device (``"/dev/ttyUSB0"``, ``"COM3"``), ``"tcp://HOST:PORT"``, ``"sim"`` (an emulated
+            unit in this process, with the ``functions`` map), or a :class:`motionlink.Emulator`. Not given:
+            the environment variable ``MOTIONLINK_PORT``; neither is a :class:`UsageError`.
         baud: 38400 on standard units (9600 or 19200 on customised ones).
         safety: The Safety_ID sent with RO: 0 a timeout stops all motion and locks remote motion until RO,
             1 stops all motion, 2 stops remote motion only.
@@ -67,7 +69,7 @@ class Scu(ClientBase):
 
     def __init__(
         self,
-        port: Union[str, Any] = "sim",
+        port: Optional[Union[str, Any]] = None,
         *,
         baud: int = 38_400,
         safety: int = 0,
@@ -81,7 +83,7 @@ class Scu(ClientBase):
         settings = _settings(
             baud, safety, reply_timeout_ms, functions, strokes, tolerance_counts, poll_ms, speed_mode
         )
-        self._native = _native.ScuClient(getattr(port, "_native", port), settings)
+        self._native = _native.ScuClient(resolve_port(port, self.family), settings)
         super().__init__()
 
     def info(self) -> ScuInfo:
@@ -159,7 +161,7 @@ class AsyncScu(AsyncClientBase):
 
     def __init__(
         self,
-        port: Union[str, Any] = "sim",
+        port: Optional[Union[str, Any]] = None,
         *,
         baud: int = 38_400,
         safety: int = 0,
@@ -170,7 +172,7 @@ class AsyncScu(AsyncClientBase):
         poll_ms: int = 50,
         speed_mode: str = "percent",
     ) -> None:
-        self._port = getattr(port, "_native", port)
+        self._port = resolve_port(port, self.family)
         self._settings = _settings(
             baud, safety, reply_timeout_ms, functions, strokes, tolerance_counts, poll_ms, speed_mode
         )
