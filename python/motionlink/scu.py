@@ -15,12 +15,21 @@ from .records import ActuatorPosition, ErrorCode, Parameter, ScuInfo, ScuMove, S
 __all__ = ["Scu", "AsyncScu"]
 
 
+Specs = Union[str, Sequence[str]]
+"""One specification (a str), or several (a list), as the command line's repeated option takes them."""
+
+
+def _specs(specs: Specs) -> List[str]:
+    """A str is one specification (``"tlt"``, ``"F1=1,2"``), never a sequence of letters."""
+    return [specs] if isinstance(specs, str) else [str(s) for s in specs]
+
+
 def _settings(
     baud: int,
     safety: int,
     reply_timeout_ms: int,
-    functions: Sequence[str],
-    strokes: Sequence[str],
+    functions: Specs,
+    strokes: Specs,
     tolerance_counts: int,
     poll_ms: int,
     speed_mode: str,
@@ -29,8 +38,8 @@ def _settings(
         "baud": baud,
         "safety": safety,
         "reply_timeout_ms": reply_timeout_ms,
-        "functions": [str(f) for f in functions],
-        "strokes": [str(s) for s in strokes],
+        "functions": _specs(functions),
+        "strokes": _specs(strokes),
         "tolerance_counts": tolerance_counts,
         "poll_ms": poll_ms,
         "speed_mode": speed_mode,
@@ -52,9 +61,13 @@ class Scu(ClientBase):
         safety: The Safety_ID sent with RO: 0 a timeout stops all motion and locks remote motion until RO,
             1 stops all motion, 2 stops remote motion only.
         reply_timeout_ms: How long to wait for the reply to RO (the unit is allowed 2000 ms).
-        functions: Which actuators each motion function drives (the unit's parameterisation): presets
-            ``"scp11"``, ``"tlt"``, ``"liftkit"``, or ``"F1=1,2"``; several combine.
-        strokes: Travel ranges for move targets, ``"1=0:865"`` (actuator=min:max in counts).
+        functions: Which actuators each motion function drives (the unit's parameterisation), as the
+            command line's ``--functions``: one specification (a str), a preset ``"scp11"``, ``"tlt"`` or
+            ``"liftkit"``, or one function ``"F1=1,2"``; or a list of them, applied in order (a preset
+            replaces the whole map): ``["tlt", "F4=1"]``. With ``port="sim"`` the emulated unit is
+            parameterised the same way.
+        strokes: Travel ranges for move targets, ``"1=0:865"`` (actuator=min:max in counts); a list for
+            several actuators.
         tolerance_counts: How close to its target a move must end to succeed.
         poll_ms: How often a move looks at the actuators (5..10000).
         speed_mode: ``"percent"`` or ``"counts_per_s"``.
@@ -74,8 +87,8 @@ class Scu(ClientBase):
         baud: int = 38_400,
         safety: int = 0,
         reply_timeout_ms: int = 2000,
-        functions: Sequence[str] = (),
-        strokes: Sequence[str] = (),
+        functions: Specs = (),
+        strokes: Specs = (),
         tolerance_counts: int = 5,
         poll_ms: int = 50,
         speed_mode: str = "percent",
@@ -166,8 +179,8 @@ class AsyncScu(AsyncClientBase):
         baud: int = 38_400,
         safety: int = 0,
         reply_timeout_ms: int = 2000,
-        functions: Sequence[str] = (),
-        strokes: Sequence[str] = (),
+        functions: Specs = (),
+        strokes: Specs = (),
         tolerance_counts: int = 5,
         poll_ms: int = 50,
         speed_mode: str = "percent",

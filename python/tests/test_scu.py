@@ -1,6 +1,8 @@
-"""Every operation of motionlink.Scu against the emulator."""
+"""Every operation of motionlink.Scu against the emulator, and its function map."""
 
 from __future__ import annotations
+
+from typing import Any
 
 import pytest
 
@@ -80,3 +82,50 @@ def test_a_target_outside_the_stroke_moves_nothing(scu: motionlink.Scu, scu_emul
 def test_sim_url() -> None:
     with motionlink.Scu("sim") as s:
         assert len(s.info().actuators) == 2
+
+
+# ----------------------------------------------------------------------------------------- function map
+# As the command line's --functions takes it: a str is one specification, a list several; "sim" emulates
+# the unit the map describes.
+
+
+def test_a_str_is_one_function_map_specification() -> None:
+    """``functions="tlt"``: the TLT preset (F1 drives both columns), against an emulated TLT."""
+    with motionlink.Emulator("scu", preset="tlt") as emu, motionlink.Scu(emu, functions="tlt") as scu:
+        moved = scu.move_to(1, 100)
+        assert [(a.actuator, abs(a.reached_counts - 100) <= 5) for a in moved.actuators] == [(1, True), (2, True)]
+
+
+def test_sim_emulates_the_unit_the_function_map_describes() -> None:
+    """``"sim"`` with a TLT map is a TLT (F1 moves both columns); with SCP11 (the default) F1 moves A1 alone;
+    a function given one by one on top of a preset is emulated too."""
+    with motionlink.Scu("sim", functions="tlt") as scu:
+        assert scu.info().configuration == "TLT motionlink emulator"
+        moved = scu.move_to(1, 400)
+        assert [a.actuator for a in moved.actuators] == [1, 2]
+        assert [abs(p.position_counts - 400) <= 5 for p in (scu.position(1), scu.position(2))] == [True, True]
+    with motionlink.Scu("sim", functions="scp11") as scu:
+        assert [a.actuator for a in scu.move_to(1, 100).actuators] == [1]
+        assert scu.position(2).position_counts == 0
+    with motionlink.Scu("sim", functions=["scp11", "F7=1,2"]) as scu:
+        moved = scu.move_to(1, 100, function=7)
+        assert [(a.actuator, abs(a.reached_counts - 100) <= 5) for a in moved.actuators] == [(1, True), (2, True)]
+
+
+@pytest.mark.parametrize("functions", ["tlx", ["scp11", "nonsense"], "unknownx"])
+def test_a_bad_function_map_names_the_presets(functions: Any) -> None:
+    with pytest.raises(motionlink.UsageError, match=r"give a preset \(scp11, tlt, liftkit\) or a function") as e:
+        motionlink.Scu("sim", functions=functions)
+    assert "unknown" not in str(e.value).replace("unknownx", "")
+
+
+def test_a_bad_function_specification_names_what_is_wrong() -> None:
+    with pytest.raises(motionlink.UsageError, match=r'"F11=1": "F11" is not a motion function F1..F10'):
+        motionlink.Scu("sim", functions="F11=1")
+
+
+def test_a_str_is_one_stroke_specification() -> None:
+    with motionlink.Scu("sim", strokes="1=0:50") as scu:
+        with pytest.raises(motionlink.UsageError, match=r"outside A1.s stroke 0\.\.50 counts"):
+            scu.move_to(1, 60)
+        assert abs(scu.move_to(1, 40).reached_counts - 40) <= 5

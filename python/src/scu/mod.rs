@@ -18,7 +18,7 @@ use motionlink_scu::model::{
 };
 use motionlink_scu::session::{MoveReport, RunAction, RunReport};
 use motionlink_scu::value::Value;
-use motionlink_scu::{AsyncClient, Client, ClientConfig, Error, FunctionMap, MoveOptions, StrokeLimits};
+use motionlink_scu::{AsyncClient, Client, ClientConfig, Error, FunctionMap, MoveOptions, SimConfig, StrokeLimits};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -65,10 +65,7 @@ fn client_config(s: &Settings) -> Result<ClientConfig, Failure> {
         "counts_per_s" => SpeedMode::CountsPerSecond,
         other => return Err(usage(format!("speed_mode {other:?}: give \"percent\" or \"counts_per_s\""))),
     };
-    let mut function_map = FunctionMap::unknown();
-    for spec in &s.functions {
-        function_map = function_map.apply(spec).map_err(|e| usage(format!("functions: {e}")))?;
-    }
+    let function_map = function_map(&s.functions)?;
     let mut stroke_limits = [None; 6];
     for spec in &s.strokes {
         let (a, limits) = StrokeLimits::parse_for_actuator(spec).map_err(|e| usage(format!("strokes: {e}")))?;
@@ -88,6 +85,53 @@ fn client_config(s: &Settings) -> Result<ClientConfig, Failure> {
     Ok(config)
 }
 
+/// The function map the specifications give, applied in order as the command line's repeated
+/// `--functions`: a preset replaces the whole map, `F1=1,2` sets one function.
+fn function_map(specs: &[String]) -> Result<FunctionMap, Failure> {
+    specs.iter().try_fold(FunctionMap::unknown(), |map, spec| {
+        map.apply(spec).map_err(|e| {
+            if spec.contains('=') {
+                usage(format!("functions: {e}"))
+            } else {
+                // Not a function's specification: a preset name, then, and the presets are the emulator's.
+                usage(format!(
+                    "functions: {spec:?}: give a preset ({}) or a function and its actuators (\"F1=1,2\")",
+                    SimConfig::PRESETS.join(", ")
+                ))
+            }
+        })
+    })
+}
+
+/// The unit that `port="sim"` emulates in this process, parameterised as the session was told the unit
+/// is: its speed mode, and its function map (the last preset the specifications name, then the functions
+/// they set one by one; with none, the emulator's default, SCP11).
+fn sim_config(specs: &[String], speed_mode: SpeedMode) -> Result<SimConfig, Failure> {
+    let mut sim = SimConfig::default();
+    for spec in specs {
+        let spec = spec.trim();
+        if let Some(preset) = SimConfig::preset(&spec.to_ascii_lowercase()) {
+            sim = preset;
+            continue;
+        }
+        // A function's specification: what it sets, read by the library's own rule.
+        let set = function_map(&[spec.to_string()])?;
+        for n in 1..=10 {
+            let Some(f) = MotionFunction::new(n) else { continue };
+            if let Some(drives) = set.drives(f) {
+                let needed = drives.iter().map(|a| usize::from(a.number())).max().unwrap_or(0);
+                if needed > sim.actuators.len() {
+                    sim.actuators.resize(needed, Default::default());
+                }
+                sim.functions[usize::from(f.id())] = drives;
+            }
+        }
+    }
+    sim.speed_mode = speed_mode;
+    sim.validate().map_err(|e| usage(e.to_string()))?;
+    Ok(sim)
+}
+
 /// How to reach the unit `port` names, and the session's settings.
 fn connector(port: Target, s: &Settings) -> Result<(Connector, ClientConfig), Failure> {
     let config = client_config(s)?;
@@ -95,7 +139,7 @@ fn connector(port: Target, s: &Settings) -> Result<(Connector, ClientConfig), Fa
         Target::InProcess(InProcess::Scu(host)) => Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>)),
         Target::InProcess(_) => return Err(usage("that emulator is not an SCU emulator")),
         Target::Url(PortUrl::Sim) => {
-            let sim = motionlink_scu::SimConfig { speed_mode: config.speed_mode, ..Default::default() };
+            let sim = sim_config(&s.functions, config.speed_mode)?;
             let device = motionlink_scu::Emulator::new(sim).map_err(|e| usage(e.to_string()))?;
             let host =
                 motionlink_link::pipe::EmulatorHost::new(device, clock(), motionlink_link::pipe::PipeConfig::instant());
