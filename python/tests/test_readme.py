@@ -22,8 +22,13 @@ def test_the_example_is_ten_lines() -> None:
     assert len(lines) <= 10, lines
 
 
-def test_the_readme_example_runs() -> None:
-    done = subprocess.run([sys.executable, "-c", example()], capture_output=True, text=True, timeout=60)
+def test_the_readme_example_runs(tmp_path: Path) -> None:
+    # Run from an empty folder: `python -c` puts the working directory first on sys.path, and run from
+    # python/ that would import the source folder motionlink/ (without its built extension) instead of
+    # the installed package.
+    done = subprocess.run(
+        [sys.executable, "-c", example()], capture_output=True, text=True, timeout=60, cwd=tmp_path
+    )
     assert done.returncode == 0, done.stderr
     out = done.stdout.splitlines()
     assert out[0] == "rotary"
