@@ -5,8 +5,9 @@ Clients (:class:`Scu`, :class:`PowerCube`, :class:`Compax`, and their asyncio tw
 are given, a port URL (``"/dev/ttyUSB0"``, ``"tcp://HOST:PORT"``, ``"socketcan://can0"``,
 ``"slcan:///dev/ttyACM0"``, ``"sim"`` for an emulator in this process) or an :class:`Emulator`; given none,
 the port the environment variable ``MOTIONLINK_PORT`` names, as the command line does. There is no
-default port: without either, a client raises :class:`UsageError`. A client is a context manager: leaving the block stops any motion it started.
-Results are typed records whose field names carry their units; failures are :class:`MotionlinkError`\\ s.
+default port: without either, a client raises :class:`UsageError`. A client is a context manager: leaving
+the block stops any motion it started. Results are typed records whose field names carry their units;
+failures are :class:`MotionlinkError`\\ s.
 """
 
 from __future__ import annotations
