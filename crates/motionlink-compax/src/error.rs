@@ -334,8 +334,10 @@ pub(crate) fn copy_link_error(e: &LinkError) -> LinkError {
     }
 }
 
-/// How stopping one drive ended.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// How stopping one drive ended. In JSON: `{"outcome": "at_rest" | "switched_off" | "not_confirmed"}`, the
+/// last with its `reason`.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+#[serde(tag = "outcome", rename_all = "snake_case")]
 pub enum StopOutcome {
     /// The drive reported no command active (S17): its positioning had ended; it was not switched off.
     AtRest,
@@ -376,6 +378,26 @@ impl StopReport {
     /// The drives whose stop was not confirmed (they may still be moving).
     pub fn unconfirmed(&self) -> Vec<Address> {
         self.drives.iter().filter(|(_, o)| matches!(o, StopOutcome::NotConfirmed { .. })).map(|(a, _)| *a).collect()
+    }
+}
+
+/// In JSON: `{"drives": [{"drive": 1, "outcome": ..., "reason": ...}, ...], "confirmed": bool}` (confirmed:
+/// every drive confirmed it is at rest).
+impl serde::Serialize for StopReport {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+        #[derive(serde::Serialize)]
+        struct Drive<'a> {
+            drive: u8,
+            #[serde(flatten)]
+            outcome: &'a StopOutcome,
+        }
+        #[derive(serde::Serialize)]
+        struct Report<'a> {
+            drives: Vec<Drive<'a>>,
+            confirmed: bool,
+        }
+        let drives = self.drives.iter().map(|(a, outcome)| Drive { drive: a.get(), outcome }).collect();
+        Report { drives, confirmed: self.all_confirmed() }.serialize(serializer)
     }
 }
 
