@@ -411,7 +411,7 @@ impl fmt::Display for StopReport {
                 f.write_str("; ")?;
             }
             match o {
-                StopOutcome::AtRest => write!(f, "drive {a} was already at rest (left switched on)")?,
+                StopOutcome::AtRest => write!(f, "drive {a} was already at rest (not switched off by this stop)")?,
                 StopOutcome::SwitchedOff => write!(
                     f,
                     "drive {a} was stopped by switching it off (OUTPUT O0=0, confirmed by the drive): the drive is \

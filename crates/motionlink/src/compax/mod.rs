@@ -34,7 +34,7 @@ mod open;
 mod show;
 
 pub use extra::{decode, demo, sim};
-use open::{open, parse_mode, plan_move};
+use open::{check_bus, open, parse_mode, plan_move};
 use show::{param_json, send_text, status_rows};
 
 /// `motionlink compax` arguments. Every option may come before or after the action.
@@ -156,6 +156,15 @@ pub enum Action {
         #[arg(required = true, value_name = "WORD", allow_negative_numbers = true)]
         words: Vec<String>,
     },
+    /// Stop what moves: reads the drive's S17; if a command is active (the axis moves), sends OUTPUT O0=0 and
+    /// reads S17 again until no command is active; then reads the position S1. OUTPUT O0=0 switches the
+    /// drive off: the COMPAX command set has no stop that leaves the drive on (every move command is
+    /// refused with E92 while one runs), so the drive then takes no move until `output 0 1` switches it on
+    /// again (the command is printed). A drive at rest is left switched on. Exit 0 only if the drive
+    /// confirmed it is at rest. If another motionlink holds the port (a move in another terminal), that
+    /// process is sent SIGINT, stops its move as on Ctrl-C and exits 130; this command then opens the port
+    /// and stops and reads back as above.
+    Stop,
     /// Switch an output: OUTPUT ON=S (output 0 is the drive itself: 0 switches it off, 1 on).
     Output {
         /// Output number.
@@ -342,6 +351,13 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
     // Every argument of an action is checked before the port is opened: nothing is sent for an action that
     // cannot be made.
     let checked = actions::check(args)?;
+    check_bus(args)?;
+    // Signals are handled before the port is claimed: a `stop` from another terminal may send one at once.
+    common::interrupt_token();
+    let stopped = match args.action {
+        Action::Stop => crate::portlock::claim_for_stop("compax", &args.resolved_port)?,
+        _ => crate::portlock::claim("compax", &args.resolved_port).map(|()| None)?,
+    };
     let poll = checked.poll;
     let tolerance = checked.move_plan.as_ref().map(|p| p.tolerance);
     let bus = open(args, tap, |cfg| {
@@ -365,6 +381,7 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
             let interval = checked.watch_interval.unwrap_or(Duration::from_millis(200));
             show::watch(args, &bus, drive, clock, interval, count, *csv, &mut out)?;
         }
+        Action::Stop => actions::stop(args, &bus, drive, stopped.as_ref(), &mut out)?,
         Action::Output { number, state } => actions::output(args, &bus, drive, *number, *state, &mut out)?,
         Action::Raw { command, .. } => actions::raw(args, &bus, drive, command, checked.raw_wait, &mut out)?,
         Action::Send { words } => actions::send(args, tap, &bus, drive, words, &mut out)?,
