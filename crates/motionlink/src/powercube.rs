@@ -43,7 +43,8 @@ use crate::tap::{LinkArgs, Tap};
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The port: a serial device or tcp://HOST:PORT (RS232), socketcan://IF or slcan://PATH (CAN), or sim.
-    /// Default: --device, else MOTIONLINK_PORT.
+    /// Default: --device, else MOTIONLINK_PORT. While a command uses a serial, tcp:// or slcan:// port, another motionlink on it exits 3 naming that
+    /// command (pid, action), and `stop` stops its motion (see `stop --help`).
     #[arg(long, global = true)]
     pub port: Option<String>,
     #[command(flatten)]
@@ -119,12 +120,19 @@ pub enum Action {
     },
     /// Reset the module's error state (and switch off a watchdog that a dead host left expired).
     Reset,
-    /// Stop what moves: Halt to the module (it stops at once and stays halted until `reset`), acknowledged,
-    /// then its state is read until STATE_MOTION is clear (at most 500 ms) and its position is printed;
-    /// exit 0 only if the module confirmed that. If another motionlink holds the port (a move in another
-    /// terminal), that process is sent SIGINT, halts its module as on Ctrl-C and exits 130; this command
-    /// then opens the port, halts and reads back as above. Alias: halt.
-    #[command(alias = "halt")]
+    /// Stop what moves: Halt, confirmed by the state read back (halted until a reset); a motionlink holding
+    /// the port (a move in another terminal) is stopped first.
+    ///
+    /// Halt goes to the module (it stops at once and stays halted until `reset`); once acknowledged, its
+    /// state is read until STATE_MOTION is clear (at most 500 ms) and its position is printed. Exit 0 only if
+    /// the module confirmed that; otherwise the message says what it did not confirm.
+    ///
+    /// If another motionlink holds the port (its lock file in $XDG_RUNTIME_DIR/motionlink, else
+    /// motionlink-UID in the temporary directory, names its pid and command), that process is sent SIGINT:
+    /// it halts its module as on Ctrl-C and exits 130, and says what it stopped. This command waits for the
+    /// port (at most 15 s), prints who it stopped and what that process said, then halts and reads back as
+    /// above.
+    #[command(visible_alias = "halt")]
     Stop,
     /// Ramp to a position (rad or m) and wait for the end of the ramp (watchdog armed; a signal halts it).
     /// Succeeds only if the final position read from the module lies within --tolerance of the target.

@@ -41,7 +41,8 @@ use show::{param_json, send_text, status_rows};
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The port: a device path (/dev/ttyUSB0, COM3), tcp://HOST:PORT, or sim. Default: --device, else
-    /// MOTIONLINK_PORT.
+    /// MOTIONLINK_PORT. While a command uses a serial, tcp:// or slcan:// port, another motionlink on it exits 3 naming that
+    /// command (pid, action), and `stop` stops its motion (see `stop --help`).
     #[arg(long, global = true)]
     pub port: Option<String>,
     #[command(flatten)]
@@ -156,14 +157,22 @@ pub enum Action {
         #[arg(required = true, value_name = "WORD", allow_negative_numbers = true)]
         words: Vec<String>,
     },
-    /// Stop what moves: reads the drive's S17; if a command is active (the axis moves), sends OUTPUT O0=0 and
-    /// reads S17 again until no command is active; then reads the position S1. OUTPUT O0=0 switches the
-    /// drive off: the COMPAX command set has no stop that leaves the drive on (every move command is
+    /// Stop what moves: a drive still moving is switched off (OUTPUT O0=0, the only stop COMPAX has),
+    /// confirmed by S17 read back; a motionlink holding the port (a move in another terminal) is stopped
+    /// first.
+    ///
+    /// S17 is read; if a command is active (the axis moves), OUTPUT O0=0 goes out and S17 is read again until
+    /// no command is active; then S1 (the position) and S16 (switched on or off) are read. OUTPUT O0=0
+    /// switches the drive off: the command set has no stop that leaves the drive on (every move command is
     /// refused with E92 while one runs), so the drive then takes no move until `output 0 1` switches it on
-    /// again (the command is printed). A drive at rest is left switched on. Exit 0 only if the drive
-    /// confirmed it is at rest. If another motionlink holds the port (a move in another terminal), that
-    /// process is sent SIGINT, stops its move as on Ctrl-C and exits 130; this command then opens the port
-    /// and stops and reads back as above.
+    /// again (the command is printed). A drive at rest is not switched off. Exit 0 only if the drive
+    /// confirmed it is at rest; otherwise the message says the axis may still be moving.
+    ///
+    /// If another motionlink holds the port (its lock file in $XDG_RUNTIME_DIR/motionlink, else
+    /// motionlink-UID in the temporary directory, names its pid and command), that process is sent SIGINT:
+    /// it stops the move it started as on Ctrl-C and exits 130, and says what it stopped. This command waits
+    /// for the port (at most 15 s), prints who it stopped and what that process said, then reads back (and
+    /// stops what still moves) as above.
     Stop,
     /// Switch an output: OUTPUT ON=S (output 0 is the drive itself: 0 switches it off, 1 on).
     Output {

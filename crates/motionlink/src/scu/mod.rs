@@ -34,7 +34,8 @@ pub use demo::{decode, demo, sim};
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The port: a serial device (/dev/ttyUSB0, COM3), tcp://HOST:PORT (a serial gateway or `motionlink sim scu`),
-    /// or sim (an emulator in this process). Default: --device, else MOTIONLINK_PORT.
+    /// or sim (an emulator in this process). Default: --device, else MOTIONLINK_PORT. While a command uses a serial, tcp:// or slcan:// port, another motionlink on it exits 3 naming that
+    /// command (pid, action), and `stop` stops its motion (see `stop --help`).
     #[arg(long, value_name = "PORT", global = true)]
     pub port: Option<String>,
     #[command(flatten)]
@@ -177,14 +178,20 @@ pub enum Action {
         #[arg(long, value_name = "S", allow_hyphen_values = true)]
         seconds: Option<String>,
     },
-    /// Stop what moves: RS to every motion function F1..F10 (or to FUNCTION alone), fast or along the stop
-    /// ramp with --soft, then the status of every actuator is read until none moves (at most 500 ms after a
-    /// fast stop, 3 s after a soft one) and where each connected actuator rests is printed; exit 0 only if
-    /// the unit confirmed that. Outputs, LEDs, buzzer and the emergency-stop function (F11..F22) are left as
-    /// they are unless named (then RS switches that one off). If another motionlink holds the port (a move
-    /// in another terminal), that process is sent SIGINT, stops its motion as on Ctrl-C and exits 130; this
-    /// command then opens the port and stops and reads back as above. The unit stops remote motions by
-    /// itself 500 ms after the last RC it receives.
+    /// Stop what moves: RS to every motion function (or to FUNCTION), confirmed by the status read back; a
+    /// motionlink holding the port (a move in another terminal) is stopped first.
+    ///
+    /// RS goes to every motion function F1..F10 (or to FUNCTION alone), fast, or along the stop ramp with
+    /// --soft; then the status of every actuator is read until none moves (at most 500 ms after a fast stop,
+    /// 3 s after a soft one) and where each connected actuator rests is printed. Exit 0 only if the unit
+    /// confirmed that; otherwise the message says what it did not confirm. Outputs, LEDs, buzzer and the
+    /// emergency-stop function (F11..F22) are left as they are unless named (RS then switches that one off).
+    ///
+    /// If another motionlink holds the port (its lock file in $XDG_RUNTIME_DIR/motionlink, else
+    /// motionlink-UID in the temporary directory, names its pid and command), that process is sent SIGINT:
+    /// it stops its motion as on Ctrl-C and exits 130, and says what it stopped. This command waits for the
+    /// port (at most 15 s), prints who it stopped and what that process said, then opens the port and stops
+    /// and reads back as above. The unit itself stops remote motions 500 ms after the last RC it receives.
     Stop {
         /// F1..F22 (or 1..22); default: every motion function, F1..F10.
         function: Option<String>,
