@@ -334,8 +334,10 @@ pub(crate) fn copy_link_error(e: &LinkError) -> LinkError {
     }
 }
 
-/// How stopping one drive ended.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// How stopping one drive ended. In JSON: `{"outcome": "at_rest" | "switched_off" | "not_confirmed"}`, the
+/// last with its `reason`.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+#[serde(tag = "outcome", rename_all = "snake_case")]
 pub enum StopOutcome {
     /// The drive reported no command active (S17): its positioning had ended; it was not switched off.
     AtRest,
@@ -379,6 +381,26 @@ impl StopReport {
     }
 }
 
+/// In JSON: `{"drives": [{"drive": 1, "outcome": ..., "reason": ...}, ...], "confirmed": bool}` (confirmed:
+/// every drive confirmed it is at rest).
+impl serde::Serialize for StopReport {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+        #[derive(serde::Serialize)]
+        struct Drive<'a> {
+            drive: u8,
+            #[serde(flatten)]
+            outcome: &'a StopOutcome,
+        }
+        #[derive(serde::Serialize)]
+        struct Report<'a> {
+            drives: Vec<Drive<'a>>,
+            confirmed: bool,
+        }
+        let drives = self.drives.iter().map(|(a, outcome)| Drive { drive: a.get(), outcome }).collect();
+        Report { drives, confirmed: self.all_confirmed() }.serialize(serializer)
+    }
+}
+
 impl fmt::Display for StopReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         if self.drives.is_empty() {
@@ -389,7 +411,7 @@ impl fmt::Display for StopReport {
                 f.write_str("; ")?;
             }
             match o {
-                StopOutcome::AtRest => write!(f, "drive {a} was already at rest (left switched on)")?,
+                StopOutcome::AtRest => write!(f, "drive {a} was already at rest (not switched off by this stop)")?,
                 StopOutcome::SwitchedOff => write!(
                     f,
                     "drive {a} was stopped by switching it off (OUTPUT O0=0, confirmed by the drive): the drive is \

@@ -151,6 +151,21 @@ pub enum Error {
         /// Its state word.
         state: CubeState,
     },
+    /// The module acknowledged a Halt, but its state still showed STATE_MOTION when the session stopped
+    /// looking ([`HALT_SETTLE`](crate::session::HALT_SETTLE) later): the axis may still be moving.
+    #[error(
+        "module {address} acknowledged the Halt, but still reports STATE_MOTION {} ms later (state: {state}): \
+         the axis may still be moving",
+        waited.as_millis()
+    )]
+    StillMoving {
+        /// The module.
+        address: Address,
+        /// The last state read.
+        state: CubeState,
+        /// How long the session looked.
+        waited: Duration,
+    },
     /// The module acknowledged with a status other than 0x64.
     #[error("module {address} refused {request} (status 0x{status:02X})")]
     Refused {
@@ -401,6 +416,7 @@ impl Classify for Error {
             Error::Device { .. }
             | Error::WatchdogExpired { .. }
             | Error::Halted { .. }
+            | Error::StillMoving { .. }
             | Error::WaitTimeout { .. }
             | Error::WatchdogUnconfirmed { .. }
             | Error::WatchdogLeftOnline { .. }

@@ -401,3 +401,31 @@ fn switching_functions() {
     assert!(client.started_functions().is_empty());
     assert!(client.switch(Function::Motion(f(1)), true).is_err());
 }
+
+#[test]
+fn stop_functions_stops_every_motion_function_and_reads_where_the_actuators_rest() {
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(ClientConfig::default());
+    client.start_motion(f(1), MotionDirection::Out).unwrap();
+    client.start_motion(f(2), MotionDirection::Out).unwrap();
+    rig.sleep(500);
+    assert!(rig.unit(|u| u.any_moving()));
+    let all: Vec<MotionFunction> = MotionFunction::all().collect();
+    let report = client.stop_functions(&all, StopMode::Fast).unwrap();
+    assert!(!rig.unit(|u| u.any_moving()), "nothing moves once the stop is confirmed");
+    assert_eq!(report.functions, all);
+    assert!(report.refused.is_empty(), "{report:?}");
+    let a1 = report.at_rest.iter().find(|r| r.actuator == a(1)).expect("A1 is connected");
+    assert_eq!(Some(a1.position_counts.0), rig.unit(|u| u.position(a(1))));
+    assert!(a1.position_counts.0 > 0, "A1 had moved: {a1:?}");
+    assert!(client.started_functions().is_empty(), "every RS was acknowledged");
+    // The report as JSON: functions and actuators by number, the mode by name.
+    let json = serde_json::to_value(&report).unwrap();
+    assert_eq!(json["functions"][0], 1);
+    assert_eq!(json["mode"], "fast");
+    assert_eq!(json["at_rest"][0]["actuator"], 1);
+    // At rest already: the same stop, confirmed at once.
+    let again = client.stop_functions(&[f(1)], StopMode::Soft).unwrap();
+    assert_eq!(again.at_rest.iter().find(|r| r.actuator == a(1)).unwrap().position_counts, a1.position_counts);
+    client.close().unwrap();
+}

@@ -218,7 +218,13 @@ fn on_signal(token: &CancelToken, presses: &mut u32, n: i32) {
     *presses += 1;
     let name = signal_name(n);
     match *presses {
-        1 => say(format!("motionlink: {name} received, stopping what this command started")),
+        1 => match crate::portlock::stop_request() {
+            Some(r) => say(format!(
+                "motionlink: {name} from `motionlink {}` (pid {}), stopping what this command started",
+                r.command, r.pid
+            )),
+            None => say(format!("motionlink: {name} received, stopping what this command started")),
+        },
         2 => say(format!("motionlink: {name}: still stopping the motion; once more exits without waiting")),
         _ => {
             say_error(format!("motionlink: {name} again, exiting before the stop was confirmed"));

@@ -20,6 +20,7 @@ mod decode;
 mod demo;
 mod devices;
 mod manpage;
+mod portlock;
 mod ports;
 mod powercube;
 mod scu;
@@ -271,30 +272,27 @@ fn main() -> ExitCode {
     term::init(cli.verbose, cli.quiet, cli.color, cli.json);
     let json = cli.json;
     let result = run(cli);
-    match (result, common::stop_cause()) {
+    let (code, error) = match (result, common::stop_cause()) {
         (Ok(()), Some(common::StopCause::Signal(n))) => {
             // The action ended (a read, or a stop it completed) but a signal asked the command to end.
             let cause = common::StopCause::Signal(n);
-            let e = CliError::Interrupted(format!("ended by {}", cause.name()));
-            if json {
-                term::write_stderr(&format!("{}\n", e.to_json()));
-            } else {
-                term::write_stderr(&term::error_line(&format!("motionlink: {e}")));
-            }
-            ExitCode::from(cause.exit_code())
+            (cause.exit_code(), Some(CliError::Interrupted(format!("ended by {}", cause.name()))))
         }
-        (Ok(()), _) => ExitCode::SUCCESS,
-        (Err(common::CliError::OutputClosed), _) => ExitCode::SUCCESS,
+        (Ok(()), _) => (0, None),
+        (Err(common::CliError::OutputClosed), _) => (0, None),
         // The reader of stdout went away and what the command started was stopped (confirmed): quietly 0.
-        (Err(common::CliError::Interrupted(_)), Some(common::StopCause::OutputClosed)) => ExitCode::SUCCESS,
-        (Err(e), _) if json => {
+        (Err(common::CliError::Interrupted(_)), Some(common::StopCause::OutputClosed)) => (0, None),
+        (Err(e), _) => (e.exit_code(), Some(e)),
+    };
+    // The port was closed; a `stop` from another terminal waiting for it learns how this command ended.
+    portlock::release(code, &error.as_ref().map(ToString::to_string).unwrap_or_default());
+    if let Some(e) = error {
+        if json {
             // One JSON object, the error's class name as its kind (the one place that maps errors to JSON).
             term::write_stderr(&format!("{}\n", e.to_json()));
-            ExitCode::from(e.exit_code())
-        }
-        (Err(e), _) => {
+        } else {
             term::write_stderr(&term::error_line(&format!("motionlink: {e}")));
-            ExitCode::from(e.exit_code())
         }
     }
+    ExitCode::from(code)
 }

@@ -43,7 +43,8 @@ use crate::tap::{LinkArgs, Tap};
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The port: a serial device or tcp://HOST:PORT (RS232), socketcan://IF or slcan://PATH (CAN), or sim.
-    /// Default: --device, else MOTIONLINK_PORT.
+    /// Default: --device, else MOTIONLINK_PORT. While a command uses a serial, tcp:// or slcan:// port, another motionlink on it exits 3 naming that
+    /// command (pid, action), and `stop` stops its motion (see `stop --help`).
     #[arg(long, global = true)]
     pub port: Option<String>,
     #[command(flatten)]
@@ -119,8 +120,20 @@ pub enum Action {
     },
     /// Reset the module's error state (and switch off a watchdog that a dead host left expired).
     Reset,
-    /// Stop the module at once (it stays halted until a reset).
-    Halt,
+    /// Stop what moves: Halt, confirmed by the state read back (halted until a reset); a motionlink holding
+    /// the port (a move in another terminal) is stopped first.
+    ///
+    /// Halt goes to the module (it stops at once and stays halted until `reset`); once acknowledged, its
+    /// state is read until STATE_MOTION is clear (at most 500 ms) and its position is printed. Exit 0 only if
+    /// the module confirmed that; otherwise the message says what it did not confirm.
+    ///
+    /// If another motionlink holds the port (its lock file in $XDG_RUNTIME_DIR/motionlink, else
+    /// motionlink-UID in the temporary directory, names its pid and command), that process is sent SIGINT:
+    /// it halts its module as on Ctrl-C and exits 130, and says what it stopped. This command waits for the
+    /// port (at most 15 s), prints who it stopped and what that process said, then halts and reads back as
+    /// above.
+    #[command(visible_alias = "halt")]
+    Stop,
     /// Ramp to a position (rad or m) and wait for the end of the ramp (watchdog armed; a signal halts it).
     /// Succeeds only if the final position read from the module lies within --tolerance of the target.
     Move {
@@ -332,16 +345,22 @@ pub fn run(args: Args) -> Result<(), CliError> {
         _ => None,
     };
     let port = args.link.resolve_port("powercube", args.port.as_deref())?;
+    // Signals are handled before the port is claimed: a `stop` from another terminal may send one at once.
+    let interrupt = common::interrupt_token();
+    let stopped = match args.action {
+        Action::Stop => crate::portlock::claim_for_stop("powercube", &port)?,
+        _ => crate::portlock::claim("powercube", &port).map(|()| None)?,
+    };
     let clock = RealClock::shared();
     let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
     let can_interface = port.parse::<PortUrl>().map(|u| crate::tap::can_interface(&u)).unwrap_or_default();
     let tap = Tap::new("powercube", &port, &clock, &args.link, &can_interface, &describer, request.is_some())?;
     let (client, host) = open(&args, &port, &tap, &clock)?;
-    client.set_cancel_token(common::interrupt_token());
+    client.set_cancel_token(interrupt);
     let guard = Guard::for_motions(ModulesAt::emulated_in_process(host.is_some()), args.no_watchdog);
     let result = match &request {
         Some(r) => send(&args, &client, r, &tap, &port, &mut out),
-        None => act(&args, &client, guard, &port, &mut out),
+        None => act(&args, &client, guard, &port, stopped.as_ref(), &mut out),
     };
     // Closing stops what is still moving and switches off what was armed, and says whether it could;
     // the in-process emulator goes only after that.
@@ -367,7 +386,14 @@ fn identified(args: &Args, port: &str, fields: serde_json::Value) -> serde_json:
 }
 
 /// Does what `args` ask of the module, on `client`.
-fn act(args: &Args, client: &Client, guard: Guard, port: &str, out: &mut dyn Write) -> Result<(), CliError> {
+fn act(
+    args: &Args,
+    client: &Client,
+    guard: Guard,
+    port: &str,
+    stopped: Option<&crate::portlock::Stopped>,
+    out: &mut dyn Write,
+) -> Result<(), CliError> {
     let mut out = out;
     let m = client.module(args.module);
     match &args.action {
@@ -378,7 +404,7 @@ fn act(args: &Args, client: &Client, guard: Guard, port: &str, out: &mut dyn Wri
         Action::Set { param, value } => actions::set(args, &m, port, param, value, out)?,
         Action::Home { timeout_s } => actions::home(args, &m, guard, port, *timeout_s, out)?,
         Action::Reset => actions::reset(args, &m, port, out)?,
-        Action::Halt => actions::halt(args, &m, port, out)?,
+        Action::Stop => actions::stop(args, &m, port, stopped, out)?,
         Action::Move { position, vel, acc, timeout_s, tolerance } => {
             let spec = actions::move_spec(*position, *vel, *acc, *timeout_s, *tolerance)?;
             actions::move_to(args, &m, guard, port, &spec, out)?

@@ -10,3 +10,5 @@ mod powercube_cli;
 mod scu_cli;
 mod shared_cli;
 mod sim_server;
+#[cfg(unix)]
+mod stop_cli;

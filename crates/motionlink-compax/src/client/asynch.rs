@@ -343,6 +343,15 @@ impl AsyncClient {
         self.done(Op::Stop(address), "a stop").await
     }
 
+    /// Stops each of `drives` that still moves, whoever set it in motion, as
+    /// [`Client::stop_if_moving`](super::Client::stop_if_moving).
+    pub async fn stop_if_moving(&self, drives: &[Address]) -> Result<StopReport> {
+        output(self.driver.run(Op::StopIfMoving(drives.to_vec())).await?, "a stop", |o| match o {
+            Output::Stopped(r) => Ok(r),
+            o => Err(o),
+        })
+    }
+
     /// Stops every drive this client set in motion that still moves, confirmed by S17.
     pub async fn stop_started(&self) -> StopReport {
         match self.driver.run(Op::StopStarted).await {

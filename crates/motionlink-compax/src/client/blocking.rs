@@ -441,6 +441,18 @@ impl Client {
         }
     }
 
+    /// Stops each of `drives` that still moves, whoever set it in motion (another program, a move handed
+    /// over), and reports per drive how that ended: S17 first (one attempt); a drive at rest is left
+    /// switched on ([`StopOutcome::AtRest`](crate::error::StopOutcome)); one that moves, or whose S17
+    /// cannot be read, gets `OUTPUT O0=0` (the only stop of the command set: it switches the drive off),
+    /// confirmed by S17 afterwards. What `motionlink compax stop` does.
+    pub fn stop_if_moving(&self, drives: &[Address]) -> Result<StopReport> {
+        output(self.run(Op::StopIfMoving(drives.to_vec()))?, "a stop", |o| match o {
+            Output::Stopped(r) => Ok(r),
+            o => Err(o),
+        })
+    }
+
     /// Stops what this client set in motion that still moves (as [`Client::stop_started`]), ends the
     /// session and returns the report: `Err` if a drive did not confirm its stop
     /// ([`Error::CloseUnconfirmed`]), or if the stop did not end within [`BusConfig::close_bound`].

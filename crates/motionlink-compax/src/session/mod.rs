@@ -177,6 +177,12 @@ impl Session {
                     Output::Done
                 }
                 Op::StopStarted => Output::Stopped(ctx.stop_started().await),
+                Op::StopIfMoving(drives) => {
+                    if drives.iter().any(|a| a.is_broadcast()) {
+                        return Err(Error::Broadcast("a stop reads each drive's S17"));
+                    }
+                    Output::Stopped(ctx.stop_if_moving(&drives).await)
+                }
                 Op::Watch(a, interval) => {
                     ctx.watch(a, interval).await?;
                     Output::Done

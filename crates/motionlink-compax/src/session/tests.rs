@@ -391,3 +391,25 @@ fn a_synchronous_start_stores_then_executes_with_one_broadcast() {
     b.run(Op::Wait(vec![a(1), a(5)], None)).unwrap();
     assert_eq!((b.drive(1).position(), b.drive(5).position()), (20.0, -20.0));
 }
+
+#[test]
+fn a_stop_of_drives_the_session_did_not_start_switches_off_only_the_moving_one_and_confirms_it() {
+    let mut b = Bench::new(&[1, 5], 0, 9600);
+    b.run(Op::Move(a(1), Command::PosA(pos(1000.0)), MoveOptions::default())).unwrap();
+    // Handed over, as `move --no-wait` leaves it: no longer this session's to stop.
+    b.session.release(&[a(1)]);
+    b.run_for(Duration::from_millis(200));
+    assert!(b.drive(1).is_moving());
+    let Output::Stopped(report) = b.run(Op::StopIfMoving(vec![a(1), a(5)])).unwrap() else { panic!() };
+    assert_eq!(report.drives, [(a(1), StopOutcome::SwitchedOff), (a(5), StopOutcome::AtRest)]);
+    assert!(!b.drive(1).is_moving() && b.drive(1).o0() == 0, "drive 1 stopped by switching it off");
+    assert_eq!(b.drive(5).o0(), 1, "drive 5 was at rest: left switched on");
+    assert!(b.sent.iter().any(|f| f.starts_with("1OUTPUT O0=0")) && !b.sent.iter().any(|f| f.starts_with("5OUTPUT")));
+    let json = serde_json::to_value(&report).unwrap();
+    assert_eq!(
+        json,
+        serde_json::json!({"drives": [{"drive": 1, "outcome": "switched_off"}, {"drive": 5, "outcome": "at_rest"}],
+                           "confirmed": true})
+    );
+    assert!(matches!(b.run(Op::StopIfMoving(vec![Address::BROADCAST])), Err(Error::Broadcast(_))));
+}

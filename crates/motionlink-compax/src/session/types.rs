@@ -291,6 +291,10 @@ pub enum Op {
     /// Stops every drive the session set in motion that still moves, confirmed by S17
     /// ([`Output::Stopped`]).
     StopStarted,
+    /// Stops each of these drives that still moves, whoever set it in motion: S17 first; a drive at rest is
+    /// left switched on; one that moves (or whose S17 cannot be read) gets `OUTPUT O0=0`, confirmed by S17
+    /// ([`Output::Stopped`]). The broadcast address is refused ([`Error::Broadcast`]).
+    StopIfMoving(Vec<Address>),
     /// S1 and S17 of a drive every interval, reported as [`Progress::Watch`], until cancelled
     /// ([`Output::Done`]).
     Watch(Address, Duration),

@@ -16,7 +16,7 @@ use crate::model::{
     Param, Position, Ramp, Reply, Request, ShortState, Ticks, Value, Velocity,
 };
 use crate::session::{
-    BusConfig, Guard, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry, Session, Until,
+    BusConfig, Guard, HaltReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry, Session, Until,
 };
 
 /// A session with the modules on one line or one CAN bus, for async callers (tokio). Share it by
@@ -295,6 +295,12 @@ impl AsyncModule<'_> {
     /// Halt.
     pub async fn halt(&self) -> Result<(), Error> {
         self.client.call(calls::done(Op::Halt(self.address))).await
+    }
+
+    /// Halt, confirmed by the state and followed by the position, as
+    /// [`Module::halt_confirmed`](crate::client::Module::halt_confirmed).
+    pub async fn halt_confirmed(&self) -> Result<HaltReport, Error> {
+        self.client.call(calls::halt_confirmed(self.address)).await
     }
 
     /// Stops the module after an action that may have set it in motion cannot go on (see

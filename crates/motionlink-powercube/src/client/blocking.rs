@@ -16,7 +16,8 @@ use crate::model::{
     Param, Position, Ramp, Reply, Request, ShortState, Ticks, Value, Velocity,
 };
 use crate::session::{
-    BusConfig, Guard, ModuleInfo, MoveReport, MoveSpec, Op, Output, Progress, Readback, ScanEntry, Session, Until,
+    BusConfig, Guard, HaltReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Progress, Readback, ScanEntry, Session,
+    Until,
 };
 
 /// A session with the modules on one line (RS232) or one CAN bus, for blocking callers (any number of
@@ -360,6 +361,13 @@ impl Module<'_> {
     /// Halt: stops at once; the module stays halted until a reset.
     pub fn halt(&self) -> Result<(), Error> {
         self.client.call(calls::done(Op::Halt(self.address)))
+    }
+
+    /// Halt, confirmed: the Halt acknowledged, then the state read until STATE_MOTION is clear (at most
+    /// [`HALT_SETTLE`](crate::session::HALT_SETTLE); still moving then is [`Error::StillMoving`]), then the
+    /// position. The module stays halted until a reset. What `motionlink powercube stop` does.
+    pub fn halt_confirmed(&self) -> Result<HaltReport, Error> {
+        self.client.call(calls::halt_confirmed(self.address))
     }
 
     /// Stops the module after an action that may have set it in motion cannot go on (see

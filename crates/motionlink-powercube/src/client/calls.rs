@@ -9,7 +9,7 @@ use crate::model::{
     Acceleration, AckKind, Action, Address, ConfigWord, CubeState, Dio, ExtAck, Millis, ModuleKind, Motion, Param,
     Position, Reply, Request, ShortState, Ticks, Value, Velocity,
 };
-use crate::session::{Guard, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry, Until};
+use crate::session::{Guard, HaltReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry, Until};
 
 /// An operation and the typed result it ends with.
 pub(crate) struct Call<T> {
@@ -131,6 +131,10 @@ pub(crate) fn move_to(a: Address, spec: MoveSpec, guard: Option<Guard>) -> Call<
         None => Op::MoveTo(a, spec),
     };
     call!(op, Output::Moved(r) => r)
+}
+
+pub(crate) fn halt_confirmed(a: Address) -> Call<HaltReport> {
+    call!(Op::HaltConfirmed(a), Output::Halted(r) => r)
 }
 
 pub(crate) fn stop_motion(a: Address) -> Call<crate::error::StopOutcome> {

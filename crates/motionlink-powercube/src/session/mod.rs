@@ -49,7 +49,10 @@ use motionlink_link::clock::lock;
 use motionlink_link::session::{Action as LinkAction, Event, Input, OpId, OpIds};
 use motionlink_link::{LinkError, Timestamp};
 
-pub use types::{BusConfig, Guard, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback, ScanEntry, Until};
+pub use types::{
+    BusConfig, Guard, HaltReport, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback, ScanEntry, Until,
+    HALT_SETTLE,
+};
 
 use self::core::Core;
 use self::ctx::Ctx;
@@ -102,6 +105,10 @@ pub enum Op {
     Action(Address, Action),
     /// Halt. [`Output::Done`].
     Halt(Address),
+    /// Halt, then the state until STATE_MOTION is clear (polled every [`BusConfig::poll_interval`], at most
+    /// [`HALT_SETTLE`]), then the position: what `motionlink powercube stop` does. Still moving then:
+    /// [`Error::StillMoving`](crate::Error::StillMoving). [`Output::Halted`].
+    HaltConfirmed(Address),
     /// A motion command, its units checked against the module's kind. [`Output::ExtAck`].
     Motion(Address, Motion, AckKind),
     /// SetIStep. [`Output::Done`].
@@ -209,6 +216,8 @@ pub enum Output {
     Moved(MoveReport),
     /// What became of a stop.
     Stop(StopOutcome),
+    /// What a confirmed halt found.
+    Halted(HaltReport),
     /// Whether a reset had to switch an expired watchdog offline.
     Released(bool),
 }

@@ -197,6 +197,20 @@ impl MoveSpec {
     }
 }
 
+/// How long [`Op::HaltConfirmed`](super::Op::HaltConfirmed) reads the state after the Halt for STATE_MOTION
+/// to clear. The manual's Halt stops "at once"; this leaves a module room for a short braking.
+pub const HALT_SETTLE: Duration = Duration::from_millis(500);
+
+/// What a confirmed halt ([`Op::HaltConfirmed`](super::Op::HaltConfirmed)) found: the module acknowledged
+/// the Halt, and then its state showed no STATE_MOTION.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HaltReport {
+    /// The state word read after the Halt (STATE_HALTED set, STATE_MOTION clear).
+    pub state: CubeState,
+    /// The actual position then (ActPos; rad or m once the session knows the module's kind).
+    pub position: Position,
+}
+
 /// What a checked move ([`Op::MoveTo`](super::Op::MoveTo)) did.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MoveReport {

@@ -19,6 +19,7 @@ use crate::model::{
 use crate::session::ops::basic::{cyclic_index, decode_cyclic_read, encode_for, Stroke};
 use crate::session::{
     ClientStats, MoveReport, MoveSpec, MoveTargets, Op, Output, PreparedRequest, RunAction, RunReport, Session,
+    StopReport,
 };
 use crate::value::Value;
 use crate::wire::{Command, Request};
@@ -184,6 +185,13 @@ impl AsyncClient {
     /// RS on a motion function (it goes out even if the future is dropped).
     pub async fn stop_motion(&self, function: MotionFunction, mode: StopMode) -> Result<(), Error> {
         self.request(&Request::Stop { function: function.id(), param: mode.code() }).await.map(|_| ())
+    }
+
+    /// Stops motion functions and confirms it, as [`Client::stop_functions`] (the stop goes on to its end
+    /// even if the future is dropped).
+    pub async fn stop_functions(&self, functions: &[MotionFunction], mode: StopMode) -> Result<StopReport, Error> {
+        let op = Op::StopMotions { functions: functions.to_vec(), mode };
+        expect_output!(self.driver.run(op).await, Output::Stopped(r) => r)
     }
 
     /// Switches a non-motion function on (RE) or off (RS).

@@ -17,6 +17,7 @@ use crate::model::{
 use crate::session::ops::basic::{cyclic_index, decode_cyclic_read, encode_for};
 use crate::session::{
     ClientStats, MoveReport, Op, Output, PreparedRequest, Progress, RunAction, RunProgress, RunReport, Session,
+    StopReport,
 };
 use crate::value::Value;
 use crate::wire::{Command, Request};
@@ -205,6 +206,17 @@ impl Client {
     /// RS on a motion function (sent before anything else that waits).
     pub fn stop_motion(&self, function: MotionFunction, mode: StopMode) -> Result<(), Error> {
         self.request(&Request::Stop { function: function.id(), param: mode.code() }).map(|_| ())
+    }
+
+    /// Stops motion functions and confirms it: RS (`mode`) to each of `functions` in turn (an RS the unit
+    /// refuses is noted in the report and the others are sent all the same), then the status of every
+    /// actuator until none moves (at most 500 ms after a fast stop, 3 s after a soft one), then where each
+    /// connected actuator is. An actuator still moving then, or a status that cannot be read, is
+    /// [`Error::StopUnconfirmed`]. The RS go out whether or not this session started the functions: what
+    /// `motionlink scu stop` sends (with [`MotionFunction::all`] when no function is named).
+    pub fn stop_functions(&self, functions: &[MotionFunction], mode: StopMode) -> Result<StopReport, Error> {
+        let op = Op::StopMotions { functions: functions.to_vec(), mode };
+        expect_output!(self.driver.run(op), Output::Stopped(r) => r)
     }
 
     /// Switches a non-motion function (buzzer, outputs, emergency stop, LEDs) on (RE) or off (RS).

@@ -4,8 +4,9 @@ use std::fmt;
 
 use super::{per_actuator, DataIndex};
 
-/// One of the up to six actuators (drives) of a control unit, numbered 1..6.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+/// One of the up to six actuators (drives) of a control unit, numbered 1..6 (in JSON: its number).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[serde(transparent)]
 pub struct Actuator(u8);
 
 impl Actuator {
@@ -60,8 +61,10 @@ impl fmt::Display for Actuator {
     }
 }
 
-/// One of the motion functions F1..F10, whose drives the unit's parameterisation decides.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+/// One of the motion functions F1..F10, whose drives the unit's parameterisation decides (in JSON: its
+/// number, 1..10).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[serde(transparent)]
 pub struct MotionFunction(u8);
 
 impl MotionFunction {
@@ -77,6 +80,11 @@ impl MotionFunction {
     /// Its number, 1..10.
     pub const fn number(self) -> u8 {
         self.0
+    }
+
+    /// All ten, F1..F10.
+    pub fn all() -> impl Iterator<Item = MotionFunction> {
+        (1..=10).map(MotionFunction)
     }
 
     /// Its fnc_ID on the wire (F1 is 0).
@@ -260,8 +268,9 @@ impl MotionDirection {
     }
 }
 
-/// How RS stops a motion function (table 6, para_ID motion_stop).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+/// How RS stops a motion function (table 6, para_ID motion_stop); in JSON `fast` or `soft`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
 pub enum StopMode {
     /// 0: fast stop, the stop ramp is not used.
     Fast,

@@ -72,7 +72,10 @@ mod txn;
 use line::{Exchange, Line, LineCounts};
 use ops::{Cx, Operation, Resume};
 pub use ops::{MoveSpec, MoveTargets, Op, Output, Progress, RunAction, RunSpec};
-pub use report::{ActuatorOutcome, ClientStats, MoveProgress, MoveReport, RunProgress, RunReport, Snapshot};
+pub use report::{
+    ActuatorOutcome, ActuatorRest, ClientStats, MoveProgress, MoveReport, RefusedStop, RunProgress, RunReport,
+    Snapshot, StopReport,
+};
 pub(crate) use request::{OwnedReply, Req, Schedule};
 
 pub use request::PreparedRequest;

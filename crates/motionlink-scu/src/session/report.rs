@@ -4,7 +4,7 @@ use std::time::Duration;
 
 use motionlink_link::Timestamp;
 
-use crate::model::{Actuator, ActuatorStatus1, Function, MotionFunction, PositionCounts};
+use crate::model::{Actuator, ActuatorStatus1, Function, MotionFunction, PositionCounts, StopMode};
 
 /// Where a move is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -81,6 +81,40 @@ pub struct RunReport {
     pub duration: Duration,
     /// Where each connected actuator came to rest, read after the stop.
     pub rest: Vec<(Actuator, PositionCounts)>,
+}
+
+/// How a stop of motion functions ended ([`crate::Client::stop_functions`]): the unit acknowledged the RS
+/// of each function (or refused it: [`StopReport::refused`]), and the status read afterwards showed no
+/// actuator moving.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct StopReport {
+    /// The functions sent RS, in that order.
+    pub functions: Vec<MotionFunction>,
+    /// How: fast (without the stop ramp) or soft (along it).
+    pub mode: StopMode,
+    /// The RS the unit refused, with its answer (the other functions were stopped all the same; the status
+    /// read afterwards confirms that nothing moves).
+    pub refused: Vec<RefusedStop>,
+    /// Every connected actuator ("drive available") and where it came to rest, read after the stop.
+    pub at_rest: Vec<ActuatorRest>,
+}
+
+/// An RS the unit refused.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct RefusedStop {
+    /// The function.
+    pub function: MotionFunction,
+    /// The unit's answer.
+    pub reason: String,
+}
+
+/// Where an actuator is at rest.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct ActuatorRest {
+    /// The actuator (1..6).
+    pub actuator: Actuator,
+    /// Its position, in encoder counts.
+    pub position_counts: PositionCounts,
 }
 
 /// The status and position of every actuator at one instant: the read data of the cyclic object that polls

@@ -255,6 +255,59 @@ pub(super) fn output(
     Ok(())
 }
 
+/// `stop`: stops the drive if it moves (S17; `OUTPUT O0=0`, the only stop there is, switches it off; S17
+/// again), reads where it stands, and prints that; first what the motionlink that held the port said when
+/// it was stopped, if one was.
+pub(super) fn stop(
+    args: &Args,
+    bus: &Client,
+    drive: Address,
+    stopped: Option<&crate::portlock::Stopped>,
+    out: &mut dyn Write,
+) -> Result<(), CliError> {
+    if let (Some(h), false) = (stopped, args.json) {
+        writeln!(out, "{}", h.describe())?;
+    }
+    let report = bus.stop_if_moving(&[drive]).map_err(|e| error_for(args, e))?;
+    if !report.all_confirmed() {
+        let mut message = report.to_string();
+        for a in report.switched_off() {
+            message.push('\n');
+            message.push_str(&switch_on_hint(args, a.get()));
+        }
+        return Err(CliError::Device(message));
+    }
+    // The stop is confirmed by S17; then where the axis stands (S1) and whether the drive is switched on
+    // (S16: this stop, or an earlier one, may have switched it off). What cannot be read is said.
+    let position = bus.read_position(drive);
+    let o0 = bus.read_s16(drive).map(|s| s.o0_state());
+    if args.json {
+        let mut fields = json!({"action": "stop", "holder": stopped,
+                                "position_units": position.as_ref().ok().map(|p| p.units()),
+                                "o0": o0.as_ref().ok()});
+        if let (Some(map), Ok(serde_json::Value::Object(r))) = (fields.as_object_mut(), serde_json::to_value(&report)) {
+            map.extend(r);
+        }
+        for (key, e) in [("position_not_read", position.as_ref().err()), ("o0_not_read", o0.as_ref().err())] {
+            if let Some(e) = e {
+                fields[key] = json!(e.to_string());
+            }
+        }
+        common::print_json(out, &identified(args, fields))?;
+        return Ok(());
+    }
+    match &position {
+        Ok(p) => writeln!(out, "{report}; at rest at {p} (S17 and S1 read back)")?,
+        Err(e) => writeln!(out, "{report}; at rest (S17 read back), but the position could not be read: {e}")?,
+    }
+    match o0 {
+        Ok(1) => {}
+        Ok(_) => writeln!(out, "{}", switch_on_hint(args, drive.get()))?,
+        Err(e) => writeln!(out, "whether drive {drive} is switched on could not be read (S16): {e}")?,
+    }
+    Ok(())
+}
+
 /// `raw`: sends `command` as it is and prints the reply; `wait` is how long to wait for a move it starts.
 pub(super) fn raw(
     args: &Args,

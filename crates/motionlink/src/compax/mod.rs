@@ -34,14 +34,15 @@ mod open;
 mod show;
 
 pub use extra::{decode, demo, sim};
-use open::{open, parse_mode, plan_move};
+use open::{check_bus, open, parse_mode, plan_move};
 use show::{param_json, send_text, status_rows};
 
 /// `motionlink compax` arguments. Every option may come before or after the action.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The port: a device path (/dev/ttyUSB0, COM3), tcp://HOST:PORT, or sim. Default: --device, else
-    /// MOTIONLINK_PORT.
+    /// MOTIONLINK_PORT. While a command uses a serial, tcp:// or slcan:// port, another motionlink on it exits 3 naming that
+    /// command (pid, action), and `stop` stops its motion (see `stop --help`).
     #[arg(long, global = true)]
     pub port: Option<String>,
     #[command(flatten)]
@@ -156,6 +157,23 @@ pub enum Action {
         #[arg(required = true, value_name = "WORD", allow_negative_numbers = true)]
         words: Vec<String>,
     },
+    /// Stop what moves: a drive still moving is switched off (OUTPUT O0=0, the only stop COMPAX has),
+    /// confirmed by S17 read back; a motionlink holding the port (a move in another terminal) is stopped
+    /// first.
+    ///
+    /// S17 is read; if a command is active (the axis moves), OUTPUT O0=0 goes out and S17 is read again until
+    /// no command is active; then S1 (the position) and S16 (switched on or off) are read. OUTPUT O0=0
+    /// switches the drive off: the command set has no stop that leaves the drive on (every move command is
+    /// refused with E92 while one runs), so the drive then takes no move until `output 0 1` switches it on
+    /// again (the command is printed). A drive at rest is not switched off. Exit 0 only if the drive
+    /// confirmed it is at rest; otherwise the message says the axis may still be moving.
+    ///
+    /// If another motionlink holds the port (its lock file in $XDG_RUNTIME_DIR/motionlink, else
+    /// motionlink-UID in the temporary directory, names its pid and command), that process is sent SIGINT:
+    /// it stops the move it started as on Ctrl-C and exits 130, and says what it stopped. This command waits
+    /// for the port (at most 15 s), prints who it stopped and what that process said, then reads back (and
+    /// stops what still moves) as above.
+    Stop,
     /// Switch an output: OUTPUT ON=S (output 0 is the drive itself: 0 switches it off, 1 on).
     Output {
         /// Output number.
@@ -342,6 +360,13 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
     // Every argument of an action is checked before the port is opened: nothing is sent for an action that
     // cannot be made.
     let checked = actions::check(args)?;
+    check_bus(args)?;
+    // Signals are handled before the port is claimed: a `stop` from another terminal may send one at once.
+    common::interrupt_token();
+    let stopped = match args.action {
+        Action::Stop => crate::portlock::claim_for_stop("compax", &args.resolved_port)?,
+        _ => crate::portlock::claim("compax", &args.resolved_port).map(|()| None)?,
+    };
     let poll = checked.poll;
     let tolerance = checked.move_plan.as_ref().map(|p| p.tolerance);
     let bus = open(args, tap, |cfg| {
@@ -365,6 +390,7 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
             let interval = checked.watch_interval.unwrap_or(Duration::from_millis(200));
             show::watch(args, &bus, drive, clock, interval, count, *csv, &mut out)?;
         }
+        Action::Stop => actions::stop(args, &bus, drive, stopped.as_ref(), &mut out)?,
         Action::Output { number, state } => actions::output(args, &bus, drive, *number, *state, &mut out)?,
         Action::Raw { command, .. } => actions::raw(args, &bus, drive, command, checked.raw_wait, &mut out)?,
         Action::Send { words } => actions::send(args, tap, &bus, drive, words, &mut out)?,

@@ -53,15 +53,21 @@ pub(super) fn parse_mode(p196: u32) -> Result<Mode, CliError> {
     Mode::from_p196(p196).map_err(|e| CliError::usage(format!("--mode: {e}")))
 }
 
-/// Checks the bus arguments (before anything is opened or sent) and opens the port, its link watched by
-/// `tap`.
-pub(super) fn open(args: &Args, tap: &Tap, configure: impl FnOnce(&mut BusConfig)) -> Result<Client, CliError> {
+/// Checks the bus arguments: P196, the drive's address, the baud rate and the reply timeout.
+pub(super) fn check_bus(args: &Args) -> Result<(Mode, Duration), CliError> {
     let mode = parse_mode(args.mode)?;
     Address::drive(args.drive).map_err(|e| CliError::usage(format!("--drive {}: {e}", args.drive)))?;
     if !BAUD_RATES.contains(&args.baud) {
         return Err(CliError::usage(format!("--baud {}: not a rate P195 accepts ({BAUD_RATES:?})", args.baud)));
     }
     let reply_timeout = checked_ms("--timeout-ms", args.timeout_ms, 1, 60_000)?;
+    Ok((mode, reply_timeout))
+}
+
+/// Checks the bus arguments (before anything is opened or sent) and opens the port, its link watched by
+/// `tap`.
+pub(super) fn open(args: &Args, tap: &Tap, configure: impl FnOnce(&mut BusConfig)) -> Result<Client, CliError> {
+    let (mode, reply_timeout) = check_bus(args)?;
     let url: PortUrl = args.resolved_port.parse()?;
     let clock: SharedClock = RealClock::shared();
     // Installed before the port opens: a signal from here on stops what the command starts.

@@ -105,6 +105,13 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let addr = listen_address(serve)?;
     // Installed before the port opens: a signal from here on ends the console, stopping what it started.
     let interrupt = common::interrupt_token();
+    // Found by another motionlink as the holder of the port: its `stop` ends the console (SIGINT).
+    let (family, port) = match &args.family {
+        Family::Scu(a) => ("scu", &a.port),
+        Family::Powercube(a) => ("powercube", &a.port),
+        Family::Compax(a) => ("compax", &a.port),
+    };
+    crate::portlock::claim(&format!("console {family}"), port)?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()

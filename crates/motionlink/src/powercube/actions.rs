@@ -137,13 +137,33 @@ pub(super) fn reset(args: &Args, m: &Module<'_>, port: &str, out: &mut dyn Write
     Ok(())
 }
 
-/// `halt`: stops the module.
-pub(super) fn halt(args: &Args, m: &Module<'_>, port: &str, out: &mut dyn Write) -> Result<(), CliError> {
-    m.halt().map_err(failed)?;
+/// `stop` (alias `halt`): halts the module, confirmed by its state, and prints where it stands; first what
+/// the motionlink that held the port said when it was stopped, if one was.
+pub(super) fn stop(
+    args: &Args,
+    m: &Module<'_>,
+    port: &str,
+    stopped: Option<&crate::portlock::Stopped>,
+    out: &mut dyn Write,
+) -> Result<(), CliError> {
+    if let (Some(h), false) = (stopped, args.json) {
+        writeln!(out, "{}", h.describe())?;
+    }
+    let halted = m.halt_confirmed().map_err(failed)?;
+    let kind = m.kind().map_err(|e| {
+        context(e, "halted, but the module type (and so the unit of its position) cannot be read".into())
+    })?;
     if args.json {
-        common::print_json(out, &identified(args, port, json!({"ok": true, "action": "halted"})))?;
+        let fields = json!({"ok": true, "action": "halted", unit_key("position", kind): halted.position.value(),
+                            "state": state_json(halted.state), "holder": stopped});
+        common::print_json(out, &identified(args, port, fields))?;
     } else {
-        writeln!(out, "halted")?;
+        writeln!(
+            out,
+            "module {} halted: at rest (state read back) at {}; it takes no motion until reset",
+            args.module,
+            halted.position.show(kind)
+        )?;
     }
     Ok(())
 }

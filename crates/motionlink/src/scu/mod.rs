@@ -14,11 +14,9 @@ use motionlink_link::{RealClock, SharedClock};
 use motionlink_scu::describe::Describer;
 use motionlink_scu::model::{
     lookup, Actuator, Function, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode,
-    StopMode,
 };
 use motionlink_scu::session::RunAction;
 use motionlink_scu::{Client, ClientConfig, Emulator, Ending, FunctionMap, SimConfig, StrokeLimits};
-use serde_json::json;
 
 use crate::common::{self, CliError, ServeArgs};
 use crate::decode::CaptureArgs;
@@ -28,6 +26,7 @@ mod actions;
 mod demo;
 mod follow;
 mod send;
+mod stop;
 
 pub use demo::{decode, demo, sim};
 
@@ -35,7 +34,8 @@ pub use demo::{decode, demo, sim};
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The port: a serial device (/dev/ttyUSB0, COM3), tcp://HOST:PORT (a serial gateway or `motionlink sim scu`),
-    /// or sim (an emulator in this process). Default: --device, else MOTIONLINK_PORT.
+    /// or sim (an emulator in this process). Default: --device, else MOTIONLINK_PORT. While a command uses a serial, tcp:// or slcan:// port, another motionlink on it exits 3 naming that
+    /// command (pid, action), and `stop` stops its motion (see `stop --help`).
     #[arg(long, value_name = "PORT", global = true)]
     pub port: Option<String>,
     #[command(flatten)]
@@ -178,10 +178,23 @@ pub enum Action {
         #[arg(long, value_name = "S", allow_hyphen_values = true)]
         seconds: Option<String>,
     },
-    /// Stop a function (RS): motions fast, or along the ramp with --soft.
+    /// Stop what moves: RS to every motion function (or to FUNCTION), confirmed by the status read back; a
+    /// motionlink holding the port (a move in another terminal) is stopped first.
+    ///
+    /// RS goes to every motion function F1..F10 (or to FUNCTION alone), fast, or along the stop ramp with
+    /// --soft; then the status of every actuator is read until none moves (at most 500 ms after a fast stop,
+    /// 3 s after a soft one) and where each connected actuator rests is printed. Exit 0 only if the unit
+    /// confirmed that; otherwise the message says what it did not confirm. Outputs, LEDs, buzzer and the
+    /// emergency-stop function (F11..F22) are left as they are unless named (RS then switches that one off).
+    ///
+    /// If another motionlink holds the port (its lock file in $XDG_RUNTIME_DIR/motionlink, else
+    /// motionlink-UID in the temporary directory, names its pid and command), that process is sent SIGINT:
+    /// it stops its motion as on Ctrl-C and exits 130, and says what it stopped. This command waits for the
+    /// port (at most 15 s), prints who it stopped and what that process said, then opens the port and stops
+    /// and reads back as above. The unit itself stops remote motions 500 ms after the last RC it receives.
     Stop {
-        /// F1..F22 (or 1..22).
-        function: String,
+        /// F1..F22 (or 1..22); default: every motion function, F1..F10.
+        function: Option<String>,
         /// Soft stop (along the stop ramp) instead of a fast stop.
         #[arg(long)]
         soft: bool,
@@ -368,6 +381,8 @@ pub(super) struct Report<'a> {
     pub json: bool,
     /// The port, as given.
     pub port: &'a str,
+    /// `stop`: the motionlink that held the port and was stopped first, if any.
+    pub stopped: Option<crate::portlock::Stopped>,
 }
 
 impl Report<'_> {
@@ -415,7 +430,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 parse_seconds(s)?;
             }
         }
-        Action::Stop { function, .. } => {
+        Action::Stop { function: Some(function), .. } => {
             parse_function(function)?;
         }
         Action::Watch { csv: true, .. } if args.json => {
@@ -425,12 +440,17 @@ pub fn run(args: Args) -> Result<(), CliError> {
     }
     let port = args.link.resolve_port("scu", args.port.as_deref())?;
     let interrupt = common::interrupt_token();
+    // Found by another motionlink as the holder of the port; `stop` takes it from a holder first.
+    let stopped = match args.action {
+        Action::Stop { .. } => crate::portlock::claim_for_stop("scu", &port)?,
+        _ => crate::portlock::claim("scu", &port).map(|()| None)?,
+    };
     let clock = RealClock::shared();
     let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
     let tap = Tap::new("scu", &port, &clock, &args.link, "can0", &describer, request.is_some())?;
     let client = connect(&args, &port, &tap, &clock, config)?;
     let mut out = std::io::stdout().lock();
-    let report = Report { json: args.json, port: &port };
+    let report = Report { json: args.json, port: &port, stopped };
     let result = match &request {
         Some(r) => send::send(&client, r, &tap, &report, &mut out),
         None => act(&client, &args, &report, &mut out, &interrupt),
@@ -516,19 +536,8 @@ fn act(
             actions::run(client, action, limit, report, interrupt, out)
         }
         Action::Stop { function, soft } => {
-            let f = parse_function(function)?;
-            let (stopped, how) = match f {
-                Function::Motion(m) if *soft => (client.stop_motion(m, StopMode::Soft), "soft"),
-                Function::Motion(m) => (client.stop_motion(m, StopMode::Fast), "fast"),
-                f => (client.switch(f, false), "off"),
-            };
-            stopped.map_err(|e| common::classified(&e))?;
-            if report.json {
-                report.print(out, json!({"function": f.number(), "stopped": true, "mode": how}))
-            } else {
-                writeln!(out, "stopped")?;
-                Ok(())
-            }
+            let function = function.as_deref().map(parse_function).transpose()?;
+            stop::stop(client, function, *soft, report, out)
         }
         Action::Watch { interval_ms, count, csv } => {
             let format = if *csv { actions::Format::Csv } else { actions::Format::from_json(report.json) };

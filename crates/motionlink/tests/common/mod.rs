@@ -206,8 +206,14 @@ impl Ended {
 impl Running {
     /// `motionlink <args>` spawned with `stdin` and piped stdout and stderr.
     fn spawn(args: &[&str], stdin: Stdio) -> std::process::Child {
+        Self::spawn_env(args, stdin, &[])
+    }
+
+    /// `motionlink <args>` spawned with `env` set, `stdin` and piped stdout and stderr.
+    fn spawn_env(args: &[&str], stdin: Stdio, env: &[(&str, &str)]) -> std::process::Child {
         Command::new(BIN)
             .args(args)
+            .envs(env.iter().copied())
             .stdin(stdin)
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -217,7 +223,12 @@ impl Running {
 
     /// Starts `motionlink <args>`.
     pub fn start(args: &[&str]) -> Running {
-        let mut child = Self::spawn(args, Stdio::null());
+        Self::start_env(args, &[])
+    }
+
+    /// Starts `motionlink <args>` with `env` set.
+    pub fn start_env(args: &[&str], env: &[(&str, &str)]) -> Running {
+        let mut child = Self::spawn_env(args, Stdio::null(), env);
         let stdout = Lines::follow(child.stdout.take().expect("piped stdout"));
         let stderr = Lines::follow(child.stderr.take().expect("piped stderr"));
         Running { child, stdout, stderr }

@@ -123,12 +123,17 @@ impl Ctx {
     /// flipped bit can turn `O0=0` into `O0=1`): if S17 still shows the positioning, the stop is sent once
     /// more. A drive that does not confirm stays on the session's list, so closing tries once more.
     pub(crate) async fn stop_drives(&self, drives: &[Address]) -> StopReport {
+        let started: Vec<Address> = drives.iter().copied().filter(|a| self.core().started & bit(*a) != 0).collect();
+        self.stop_if_moving(&started).await
+    }
+
+    /// Stops each of `drives` that still moves, whoever set it in motion, as [`Ctx::stop_drives`] does for
+    /// this session's own: S17 first (one attempt); a drive at rest is left switched on; one that moves, or
+    /// whose S17 cannot be read, gets `OUTPUT O0=0`, confirmed by S17 afterwards.
+    pub(crate) async fn stop_if_moving(&self, drives: &[Address]) -> StopReport {
         let urgent = self.urgent();
         let mut report = StopReport::default();
         for &a in drives {
-            if self.core().started & bit(a) == 0 {
-                continue;
-            }
             match urgent.read_s17_retries(a, 0).await {
                 Ok(s) if !s.contains(S17Flag::CommandActive) => {
                     tracing::debug!("drive {a}: at rest, not switched off");

@@ -139,3 +139,22 @@ fn a_close_that_times_out_without_a_watchdog_does_not_claim_one() {
     let s = host.with_device(|d| d.module(1).unwrap().state());
     assert!(s.contains(StateFlag::Motion) && !s.contains(StateFlag::CommError), "{s}");
 }
+
+#[test]
+fn a_confirmed_halt_reads_the_state_and_the_position_after_the_halt() {
+    let (clock, host, bus, _) = rs232(&[1]);
+    let _me = clock.reserve_participant().enter();
+    let m = bus.module(addr(1));
+    m.motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
+    clock.sleep(Duration::from_millis(500));
+    assert!(m.state().unwrap().contains(StateFlag::Motion));
+    let report = m.halt_confirmed().unwrap();
+    assert!(report.state.contains(StateFlag::Halted) && !report.state.contains(StateFlag::Motion), "{report:?}");
+    let there = host.with_device(|d| d.module(1).unwrap().state());
+    assert!(!there.contains(StateFlag::Motion), "{there}");
+    assert!(report.position.value() > 0.05, "it had moved: {report:?}");
+    assert!((m.position().unwrap().value() - report.position.value()).abs() < 1e-6, "it stays where it stopped");
+    // At rest already: the same, confirmed at once.
+    let again = m.halt_confirmed().unwrap();
+    assert!((again.position.value() - report.position.value()).abs() < 1e-6);
+}

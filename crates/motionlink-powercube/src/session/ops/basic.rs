@@ -1,13 +1,15 @@
 //! Requests with their checks and retries, reads of typed values, broadcasts: the steps every longer
 //! operation is made of.
 
+use std::time::Duration;
+
 use crate::error::{unexpected, Error};
 use crate::model::{
     Action, AxisUnit, Broadcast, ConfigFlag, ConfigWord, CubeState, CubeVersion, ModuleKind, Param, Position, Reply,
-    Request, Value,
+    Request, StateFlag, Value,
 };
 use crate::session::ctx::Ctx;
-use crate::session::ModuleInfo;
+use crate::session::{HaltReport, ModuleInfo, HALT_SETTLE};
 use crate::wire::{is_module_address, ACK_OK};
 
 /// A refusal in an acknowledge's status byte is an error.
@@ -290,5 +292,24 @@ impl Ctx {
         self.action(address, Action::Halt).await?;
         self.core().started.remove(&address);
         Ok(())
+    }
+
+    /// Halt, then the state until STATE_MOTION is clear (at most [`HALT_SETTLE`]), then the position.
+    pub async fn halt_confirmed(&self, address: u8) -> Result<HaltReport, Error> {
+        self.halt(address).await?;
+        let start = self.now();
+        let period = self.core().config.poll_interval.max(Duration::from_micros(100));
+        loop {
+            let state = self.state(address).await?;
+            if !state.contains(StateFlag::Motion) {
+                let position = self.position(address).await?;
+                return Ok(HaltReport { state, position });
+            }
+            let waited = self.now().saturating_since(start);
+            if waited >= HALT_SETTLE {
+                return Err(Error::StillMoving { address: crate::model::Address::checked(address), state, waited });
+            }
+            self.sleep_until(self.now() + period).await;
+        }
     }
 }

@@ -57,6 +57,7 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
             ctx.halt(a.get()).await?;
             Output::Done
         }
+        Op::HaltConfirmed(a) => Output::Halted(ctx.halt_confirmed(a.get()).await?),
         Op::Motion(a, m, ack) => Output::ExtAck(ctx.motion(a.get(), m, ack).await?),
         Op::IStep(a, pos, time) => {
             ctx.raw_request(a.get(), Request::IStep { pos, time }).await?;

@@ -6,7 +6,7 @@ use std::time::Duration;
 use motionlink_link::session::OpId;
 use motionlink_link::Timestamp;
 
-use super::report::{MoveProgress, MoveReport, RunProgress, RunReport, Snapshot};
+use super::report::{MoveProgress, MoveReport, RunProgress, RunReport, Snapshot, StopReport};
 use super::request::{OwnedReply, PreparedRequest, Req};
 use super::Core;
 use crate::config::{ClientConfig, StrokeLimits};
@@ -96,6 +96,15 @@ pub enum Op {
     },
     /// Runs a function until it ends, a time limit, or a cancel, then stops it ([`crate::Client::run`]).
     Run(RunSpec),
+    /// RS of each of these motion functions (a refused one is noted, the others are stopped all the same),
+    /// then the status of every actuator until none moves, then where they are ([`Output::Stopped`];
+    /// [`crate::Client::stop_functions`]).
+    StopMotions {
+        /// The functions, stopped in this order.
+        functions: Vec<MotionFunction>,
+        /// How.
+        mode: StopMode,
+    },
 }
 
 /// Which actuators a move drives to which target.
@@ -164,6 +173,8 @@ pub enum Output {
     Rest(Vec<(Actuator, PositionCounts)>),
     /// How a run ended.
     Run(RunReport),
+    /// How a stop of motion functions ended.
+    Stopped(StopReport),
 }
 
 /// What an operation reports on its way.
@@ -262,6 +273,7 @@ pub(crate) fn operation(op: Op, core: &Core) -> Box<dyn Operation> {
         Op::StreamTargets { function, targets } => Box::new(stream::StreamTargets::new(function, targets)),
         Op::Stop { function, mode, watch, after } => Box::new(stop::StopOp::new(function, mode, watch, after)),
         Op::Run(spec) => Box::new(run::Run::new(spec, core.now)),
+        Op::StopMotions { functions, mode } => Box::new(stop::StopMotionsOp::new(functions, mode)),
     }
 }
 

@@ -2,11 +2,13 @@
 
 use std::time::Duration;
 
+use motionlink_link::error::{Classify, ErrorClass};
 use motionlink_link::Timestamp;
 
 use super::{get, positions, statuses, Cx, Next, Operation, Output, Resume, Step};
 use crate::error::Error;
 use crate::model::{Actuator, ActuatorStatus1, DataIndex, Function, MotionFunction, PositionCounts, StopMode};
+use crate::session::report::{ActuatorRest, RefusedStop, StopReport};
 use crate::session::request::{PreparedRequest, Req, Schedule};
 use crate::wire::Command;
 
@@ -19,11 +21,17 @@ enum Phase {
     Pause,
 }
 
-/// RS of a function, then its actuators' status until none moves (at most 500 ms after a fast stop, 3 s after
-/// a soft one, which follows the unit's stop ramp), then where they came to rest. The RS goes out before
-/// anything else; the status is read through the keepalive RC when the session polls motions that way.
+/// RS of a function (or of several, one after the other), then its actuators' status until none moves (at
+/// most 500 ms after a fast stop, 3 s after a soft one, which follows the unit's stop ramp), then where they
+/// came to rest. The RS goes out before anything else; the status is read through the keepalive RC when the
+/// session polls motions that way. Of several functions, one whose RS the unit refuses is noted and the next
+/// one is stopped all the same: the status read afterwards is what confirms the stop.
 pub(crate) struct StopMachine {
-    function: Function,
+    functions: Vec<Function>,
+    /// How many RS have been answered.
+    answered: usize,
+    /// The RS the unit refused (only when stopping several functions), with the unit's answer.
+    refused: Vec<(Function, String)>,
     mode: StopMode,
     watch: Vec<Actuator>,
     phase: Phase,
@@ -41,8 +49,15 @@ pub(crate) type Unconfirmed = (String, Error);
 
 impl StopMachine {
     pub fn new(function: Function, mode: StopMode, watch: Vec<Actuator>) -> Self {
+        Self::several(vec![function], mode, watch)
+    }
+
+    /// RS of each of `functions` in turn (none: only the status is read), then the status of `watch`.
+    pub fn several(functions: Vec<Function>, mode: StopMode, watch: Vec<Actuator>) -> Self {
         StopMachine {
-            function,
+            functions,
+            answered: 0,
+            refused: Vec::new(),
             mode,
             watch,
             phase: Phase::Rs,
@@ -53,16 +68,45 @@ impl StopMachine {
         }
     }
 
-    /// "fast RS of F1".
+    /// "fast RS of F1", "soft RS of F1, F2".
     pub fn describe(&self) -> String {
-        let f = match self.function {
-            Function::Motion(m) => m.to_string(),
-            other => other.to_string(),
-        };
-        match (self.function, self.mode) {
-            (Function::Motion(_), StopMode::Fast) => format!("fast RS of {f}"),
-            _ => format!("RS of {f}"),
+        let names: Vec<String> = self
+            .functions
+            .iter()
+            .map(|f| match f {
+                Function::Motion(m) => m.to_string(),
+                other => other.to_string(),
+            })
+            .collect();
+        let motion = self.functions.iter().all(|f| matches!(f, Function::Motion(_)));
+        match (motion, self.mode) {
+            (true, StopMode::Fast) => format!("fast RS of {}", names.join(", ")),
+            (true, StopMode::Soft) if self.functions.len() > 1 => format!("soft RS of {}", names.join(", ")),
+            _ => format!("RS of {}", names.join(", ")),
         }
+    }
+
+    /// The RS the unit refused, with its answer (only when stopping several functions; one function's
+    /// refused RS ends the stop as not confirmed).
+    pub fn refused(&self) -> &[(Function, String)] {
+        &self.refused
+    }
+
+    /// The RS of the next function not yet stopped.
+    fn next_rs(&self) -> Next {
+        let f = self.functions[self.answered];
+        Next::Send(Req::op(PreparedRequest::stop(f.id(), self.mode)).when(Schedule::Now))
+    }
+
+    /// The status, once every RS was answered (or the next RS).
+    fn after_rs(&mut self, cx: &mut Cx<'_>, now: Timestamp) -> Next {
+        if self.answered < self.functions.len() {
+            return self.next_rs();
+        }
+        self.give_up = now + self.patience();
+        self.poll_interval = cx.config().poll_interval;
+        self.by_snapshot = cx.core.poll_slot().is_some() && cx.core.poll.configured;
+        self.look()
     }
 
     fn patience(&self) -> Duration {
@@ -88,19 +132,22 @@ impl StopMachine {
         match (self.phase, resume) {
             (_, Resume::Start) => {
                 self.phase = Phase::Rs;
-                Step::Wait(Next::Send(
-                    Req::op(PreparedRequest::stop(self.function.id(), self.mode)).when(Schedule::Now),
-                ))
+                Step::Wait(self.after_rs(cx, now))
             }
             (Phase::Rs, Resume::Reply(result)) => {
+                let function = self.functions[self.answered];
+                self.answered += 1;
                 if let Err(e) = result.and_then(|r| r.ack(Command::Stop)) {
-                    tracing::error!("could not stop {}: {e}", self.function);
-                    return Step::Done(Err((e.to_string(), e)));
+                    let refused = matches!(e.class(), ErrorClass::Refused | ErrorClass::Device);
+                    if !(refused && self.functions.len() > 1) {
+                        tracing::error!("could not stop {function}: {e}");
+                        return Step::Done(Err((e.to_string(), e)));
+                    }
+                    // The unit answered: the line works; the other functions are stopped all the same.
+                    tracing::warn!("the unit refused the RS of {function}: {e}");
+                    self.refused.push((function, e.to_string()));
                 }
-                self.give_up = now + self.patience();
-                self.poll_interval = cx.config().poll_interval;
-                self.by_snapshot = cx.core.poll_slot().is_some() && cx.core.poll.configured;
-                Step::Wait(self.look())
+                Step::Wait(self.after_rs(cx, now))
             }
             (Phase::Status, Resume::Reply(result)) => {
                 let status = match result.and_then(|r| r.data(Command::Get)).and_then(|d| statuses(&d)) {
@@ -200,6 +247,58 @@ impl Operation for StopOp {
                 }
                 Err((detail, e)) => Err(Error::StopUnconfirmed { cause: Box::new(e), stop, detail }),
             },
+        })
+    }
+
+    fn interruptible(&self) -> bool {
+        false
+    }
+}
+
+/// A stop of several motion functions, confirmed by the status of every actuator ([`super::Op::StopMotions`]).
+pub(crate) struct StopMotionsOp {
+    machine: StopMachine,
+    functions: Vec<MotionFunction>,
+    mode: StopMode,
+}
+
+impl StopMotionsOp {
+    pub fn new(functions: Vec<MotionFunction>, mode: StopMode) -> Self {
+        let machine = StopMachine::several(
+            functions.iter().map(|f| Function::Motion(*f)).collect(),
+            mode,
+            Actuator::all().collect(),
+        );
+        StopMotionsOp { machine, functions, mode }
+    }
+}
+
+impl Operation for StopMotionsOp {
+    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
+        let stopped = match self.machine.step(cx, resume) {
+            Step::Wait(next) => return next,
+            Step::Done(r) => r,
+        };
+        Next::Done(match stopped {
+            Ok((status, positions)) => {
+                let refused = self
+                    .machine
+                    .refused()
+                    .iter()
+                    .filter_map(|(f, reason)| match f {
+                        Function::Motion(m) => Some(RefusedStop { function: *m, reason: reason.clone() }),
+                        _ => None,
+                    })
+                    .collect();
+                let at_rest = Actuator::all()
+                    .filter(|a| status[usize::from(a.number() - 1)].available())
+                    .map(|a| ActuatorRest { actuator: a, position_counts: positions[usize::from(a.number() - 1)] })
+                    .collect();
+                Ok(Output::Stopped(StopReport { functions: self.functions.clone(), mode: self.mode, refused, at_rest }))
+            }
+            Err((detail, e)) => {
+                Err(Error::StopUnconfirmed { cause: Box::new(e), stop: self.machine.describe(), detail })
+            }
         })
     }
 
