@@ -1,5 +1,5 @@
 //! The integration tests of motionlink-link, built as one test binary (one link instead of one per file:
-//! see the README's "Tests and benchmarks"). Tests that measure the whole process (allocations, CPU time)
+//! see docs/testing.md). Tests that measure the whole process (allocations, CPU time)
 //! stay binaries of their own.
 
 mod toy;
