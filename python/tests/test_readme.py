@@ -140,8 +140,11 @@ def test_ports_are_pointed_at_emulators() -> None:
 
 
 @pytest.mark.parametrize("block", SCRIPTS, ids=lambda b: b.place)
-def test_every_python_block_runs(block: Block) -> None:
+def test_every_python_block_runs(block: Block, tmp_path: Path) -> None:
+    # From an empty folder, as the example above: never the source folder's package.
     with contextlib.ExitStack() as emulators:
         code = pointed_at_emulators(block.code, emulators)
-        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+        done = subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=tmp_path
+        )
     assert done.returncode == 0, f"{block.place}\n{code}\n{done.stdout}{done.stderr}"
