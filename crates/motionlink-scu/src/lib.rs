@@ -155,4 +155,4 @@ pub use client::{AsyncClient, AsyncSetpointStream};
 pub use config::{ClientConfig, FunctionMap, MovePolling, StrokeLimits};
 pub use error::Error;
 pub use session::{Op, Output, Progress, Session};
-pub use sim::{Emulator, SimConfig};
+pub use sim::{Emulator, SimConfig, Variant, Variants};
