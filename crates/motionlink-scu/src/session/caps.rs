@@ -4,8 +4,6 @@
 //! says what it could not verify). The crate documentation lists them ("What the client relies on beyond the
 //! manual").
 
-use std::collections::BTreeSet;
-
 use super::Core;
 use crate::model::DataIndex;
 
@@ -25,17 +23,17 @@ pub struct Capabilities {
     pub remote_read_back: Option<bool>,
 }
 
-/// The session's memory of what the unit answered: the capabilities and the grouping indices it refused.
+/// The session's memory of what the unit answered.
 #[derive(Debug, Default)]
 pub(crate) struct Probed {
     pub caps: Capabilities,
-    refused_groups: BTreeSet<DataIndex>,
 }
 
 impl Core {
-    /// True if the unit refused RG of grouping index `index` in this session.
-    pub fn group_refused(&self, index: DataIndex) -> bool {
-        self.probed.refused_groups.contains(&index)
+    /// True if the unit refused a grouping index in this session: every group is then read entry by entry
+    /// (a firmware that does not know one grouping index is taken not to know the others).
+    pub fn group_refused(&self, _index: DataIndex) -> bool {
+        self.probed.caps.grouping_indices == Some(false)
     }
 
     /// The unit answered RG of a grouping index.
@@ -45,13 +43,12 @@ impl Core {
 
     /// The unit refused RG of grouping index `index` with PDE: from now on its entries are read one by one.
     pub fn refuse_group(&mut self, index: DataIndex) {
-        if self.probed.refused_groups.is_empty() {
+        if self.probed.caps.grouping_indices != Some(false) {
             tracing::warn!(
-                "the unit refused the grouping index {index} (PDE): this session reads the entries of a group one \
-                 by one instead (the manual's plain form)"
+                "the unit refused the grouping index {index} (PDE): this session reads the entries of every group \
+                 one by one instead (the manual's plain form)"
             );
         }
-        self.probed.refused_groups.insert(index);
         self.probed.caps.grouping_indices = Some(false);
     }
 

@@ -105,37 +105,36 @@ impl Write {
                 self.reading = true;
                 Step::Wait(get(self.index))
             }
-            Resume::Reply(Err(Error::Refused { status: Status::ParameterDataError, .. }))
-                if cx.core.probed.caps.remote_read_back.is_none() =>
-            {
-                cx.core.remote_read_back(false);
-                Step::Done(Ok(Some(self.not_read_back())))
-            }
-            Resume::Reply(result) => Step::Done(result.and_then(|r| r.data(Command::Get)).and_then(|read| {
-                cx.core.remote_read_back(true);
-                if read == self.data {
-                    return Ok(None);
+            Resume::Reply(result) => Step::Done(match result.and_then(|r| r.data(Command::Get)) {
+                // The first read of remote data is the probe: refused, the session remembers it.
+                Err(Error::Refused { status: Status::ParameterDataError, .. })
+                    if cx.core.probed.caps.remote_read_back.is_none() =>
+                {
+                    cx.core.remote_read_back(false);
+                    Ok(Some(self.not_read_back()))
                 }
-                let Some(it) = item(self.index) else { return Ok(None) };
-                let show = |bytes: &[u8]| match decode_item(it, bytes) {
-                    Ok(v) => v.iter().map(|(_, v)| v.to_string()).collect::<Vec<_>>().join(", "),
-                    Err(_) => format!("{bytes:02X?}"),
-                };
-                Err(Error::ReadBack {
-                    name: it.name(),
-                    index: self.index,
-                    written: show(&self.data),
-                    read: show(&read),
-                })
-            })),
+                other => other.and_then(|read| self.compare(cx, read)),
+            }),
             Resume::Wake | Resume::Snapshot(_) | Resume::Reopened(_) => {
                 Step::Done(Err(Error::CancelledBeforeSending(Command::Transfer)))
             }
         }
     }
-}
 
-impl Write {
+    /// The value read back, against the one written.
+    fn compare(&self, cx: &mut Cx<'_>, read: Vec<u8>) -> Result<Option<String>, Error> {
+        cx.core.remote_read_back(true);
+        if read == self.data {
+            return Ok(None);
+        }
+        let Some(it) = item(self.index) else { return Ok(None) };
+        let show = |bytes: &[u8]| match decode_item(it, bytes) {
+            Ok(v) => v.iter().map(|(_, v)| v.to_string()).collect::<Vec<_>>().join(", "),
+            Err(_) => format!("{bytes:02X?}"),
+        };
+        Err(Error::ReadBack { name: it.name(), index: self.index, written: show(&self.data), read: show(&read) })
+    }
+
     fn not_read_back(&self) -> String {
         let name = item(self.index).map_or("the value", |it| it.name());
         format!(
@@ -227,45 +226,51 @@ impl StrokeRead {
                 None if cx.core.probed.caps.user_position_data == Some(false) => Step::Done(Ok(Err(Self::unknown(a)))),
                 None => Step::Wait(get(DataIndex(0x2000 + u16::from(a.number())))),
             },
-            Resume::Reply(Err(Error::Refused { status: Status::ParameterDataError, .. }))
-                if cx.core.probed.caps.user_position_data.is_none() =>
-            {
-                cx.core.user_positions_answered(false);
-                Step::Done(Ok(Err(Self::unknown(a))))
-            }
-            Resume::Reply(result) => Step::Done(result.and_then(|r| r.data(Command::Get)).and_then(|data| {
-                cx.core.user_positions_answered(true);
-                let it = item(DataIndex(0x2000 + u16::from(a.number()))).expect("UserPositionData is in the data list");
-                let values = decode_item(it, &data).map_err(|e| Error::UnexpectedReply {
-                    command: Command::Get,
-                    detail: format!("UserPositionData of {a}: {e}"),
-                })?;
-                match values.first().map(|(_, v)| v) {
-                    Some(Value::UserPositions(u)) => {
-                        let (lo, hi) = (u.virtual_limit_in_counts, u.virtual_limit_out_counts);
-                        if (lo, hi) == (0, 0) {
-                            Ok(Ok(None))
-                        } else if lo > hi {
-                            Err(Error::UnexpectedReply {
-                                command: Command::Get,
-                                detail: format!("{a}'s virtual limits {lo}..{hi} are reversed"),
-                            })
-                        } else {
-                            Ok(Ok(Some((
-                                StrokeLimits { min_counts: PositionCounts(lo), max_counts: PositionCounts(hi) },
-                                "the virtual limits of its UserPositionData",
-                            ))))
-                        }
-                    }
-                    other => Err(Error::UnexpectedReply {
-                        command: Command::Get,
-                        detail: format!("UserPositionData of {a}: {other:?}"),
-                    }),
+            Resume::Reply(result) => Step::Done(match result.and_then(|r| r.data(Command::Get)) {
+                // The first read of UserPositionData is the probe: refused, the session remembers it.
+                Err(Error::Refused { status: Status::ParameterDataError, .. })
+                    if cx.core.probed.caps.user_position_data.is_none() =>
+                {
+                    cx.core.user_positions_answered(false);
+                    Ok(Err(Self::unknown(a)))
                 }
-            })),
+                other => other.and_then(|data| Self::limits(cx, a, data)),
+            }),
             Resume::Wake | Resume::Snapshot(_) | Resume::Reopened(_) => {
                 Step::Done(Err(Error::CancelledBeforeSending(Command::Get)))
             }
+        }
+    }
+
+    /// The virtual limits in actuator `a`'s UserPositionData.
+    fn limits(cx: &mut Cx<'_>, a: Actuator, data: Vec<u8>) -> Result<StrokeFound, Error> {
+        cx.core.user_positions_answered(true);
+        let it = item(DataIndex(0x2000 + u16::from(a.number()))).expect("UserPositionData is in the data list");
+        let values = decode_item(it, &data).map_err(|e| Error::UnexpectedReply {
+            command: Command::Get,
+            detail: format!("UserPositionData of {a}: {e}"),
+        })?;
+        match values.first().map(|(_, v)| v) {
+            Some(Value::UserPositions(u)) => {
+                let (lo, hi) = (u.virtual_limit_in_counts, u.virtual_limit_out_counts);
+                if (lo, hi) == (0, 0) {
+                    Ok(Ok(None))
+                } else if lo > hi {
+                    Err(Error::UnexpectedReply {
+                        command: Command::Get,
+                        detail: format!("{a}'s virtual limits {lo}..{hi} are reversed"),
+                    })
+                } else {
+                    Ok(Ok(Some((
+                        StrokeLimits { min_counts: PositionCounts(lo), max_counts: PositionCounts(hi) },
+                        "the virtual limits of its UserPositionData",
+                    ))))
+                }
+            }
+            other => Err(Error::UnexpectedReply {
+                command: Command::Get,
+                detail: format!("UserPositionData of {a}: {other:?}"),
+            }),
         }
     }
 }

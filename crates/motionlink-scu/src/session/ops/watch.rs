@@ -136,7 +136,15 @@ impl Watch {
             self.next_due += self.spec.interval.max(Duration::from_millis(1));
         }
         self.phase = Phase::Pause;
-        Next::Sleep(self.next_due)
+        // Through the keepalive, the sample is asked for a round trip early: the RC that carries it then
+        // comes back about when it is due (on a slow link the RC under way is waited for first).
+        let lead = if cx.core.poll.configured {
+            cx.core.line.recent_round_trip.unwrap_or(cx.core.line.round_trip)
+        } else {
+            Duration::ZERO
+        };
+        let ask_at = Timestamp::from_duration(self.next_due.since_origin().saturating_sub(lead));
+        Next::Sleep(ask_at.max(now))
     }
 }
 
