@@ -46,7 +46,7 @@ impl Core {
         if self.probed.caps.grouping_indices != Some(false) {
             tracing::warn!(
                 "the unit refused the grouping index {index} (PDE): this session reads the entries of every group \
-                 one by one instead (the manual's plain form)"
+                 one by one instead (the manual's plain form), and watches motions with such reads"
             );
         }
         self.probed.caps.grouping_indices = Some(false);

@@ -22,7 +22,7 @@ use crate::demo::{DemoOut, DemoTelegram};
 
 /// `motionlink sim scu`
 pub fn sim(args: SimArgs) -> Result<(), CliError> {
-    let config = load_sim_config(args.config.as_ref(), args.preset.as_deref())?;
+    let config = load_sim_config(args.config.as_ref(), args.preset.as_deref(), &args.variants)?;
     let device = Emulator::new(config).map_err(|e| CliError::usage(e.to_string()))?;
     common::serve(&args.serve, device)
 }

@@ -17,7 +17,7 @@ use motionlink_scu::model::{
     StopMode,
 };
 use motionlink_scu::session::RunAction;
-use motionlink_scu::{Client, ClientConfig, Emulator, Ending, FunctionMap, SimConfig, StrokeLimits};
+use motionlink_scu::{Client, ClientConfig, Emulator, Ending, FunctionMap, SimConfig, StrokeLimits, Variants};
 use serde_json::json;
 
 use crate::common::{self, CliError, ServeArgs};
@@ -78,6 +78,10 @@ pub struct Args {
     /// Emulator configuration (TOML) when the port is sim.
     #[arg(long, value_name = "FILE", global = true)]
     pub sim_config: Option<PathBuf>,
+    /// A firmware variant of the emulator when the port is sim (as `motionlink sim scu --variant`); repeat
+    /// or comma-separate for several.
+    #[arg(long = "sim-variant", value_name = "NAME", global = true)]
+    pub sim_variants: Vec<String>,
     /// `--json` (the global option, set by `main`).
     #[arg(skip)]
     pub json: bool,
@@ -215,6 +219,12 @@ pub struct SimArgs {
     /// or liftkit (F1 actuator 1, F2 actuator 2, F8 both, as the public LIFTKIT/TLT drivers assume).
     #[arg(long, value_parser = ["scp11", "tlt", "liftkit"])]
     pub preset: Option<String>,
+    /// A firmware variant: the unit does what the manual leaves open the other plausible way. no-groups,
+    /// no-user-positions, no-cyclic-objects, no-remote-readback, rc-empty-data, sleepy, sticky-errors,
+    /// in-end-undershoot, re-needs-rs (see the README). Repeat or comma-separate for several; added to the
+    /// configuration's `variants`.
+    #[arg(long = "variant", value_name = "NAME")]
+    pub variants: Vec<String>,
 }
 
 /// `motionlink decode scu` arguments.
@@ -231,7 +241,7 @@ fn parse_baud(s: &str) -> Result<u32, String> {
     }
 }
 
-fn load_sim_config(path: Option<&PathBuf>, preset: Option<&str>) -> Result<SimConfig, CliError> {
+fn load_sim_config(path: Option<&PathBuf>, preset: Option<&str>, variants: &[String]) -> Result<SimConfig, CliError> {
     let mut config = preset.and_then(SimConfig::preset).unwrap_or_default();
     if let Some(path) = path {
         let text = std::fs::read_to_string(path)
@@ -242,6 +252,8 @@ fn load_sim_config(path: Option<&PathBuf>, preset: Option<&str>) -> Result<SimCo
         };
         config = SimConfig::from_toml(&text).map_err(|e| CliError::usage(format!("{}: {e}", path.display())))?;
     }
+    let variants = Variants::parse_all(variants).map_err(|e| CliError::usage(e.to_string()))?;
+    config.variants.extend(&variants);
     Ok(config)
 }
 
@@ -310,7 +322,7 @@ fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: Clie
     let clock = Arc::clone(clock);
     let connector: Connector = match &port {
         PortUrl::Sim => {
-            let mut sim_config = load_sim_config(args.sim_config.as_ref(), None)?;
+            let mut sim_config = load_sim_config(args.sim_config.as_ref(), None, &args.sim_variants)?;
             if args.sim_config.is_none() {
                 // The emulated unit is parameterised the way the command was told the unit is.
                 sim_config.speed_mode = args.speed_mode.into();
@@ -322,8 +334,8 @@ fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: Clie
         }
         p if p.is_can() => return Err(CliError::usage(format!("{p}: the SCU speaks RS232, not CAN"))),
         p => {
-            if args.sim_config.is_some() {
-                return Err(CliError::usage("--sim-config is only for --port sim"));
+            if args.sim_config.is_some() || !args.sim_variants.is_empty() {
+                return Err(CliError::usage("--sim-config and --sim-variant are only for --port sim"));
             }
             let p = p.clone();
             let settings = SerialSettings::new(args.baud);
@@ -384,6 +396,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     }
     // Check everything that can be checked before the port is opened: nothing is sent for bad input.
     let config = client_config(&args)?;
+    Variants::parse_all(&args.sim_variants).map_err(|e| CliError::usage(format!("--sim-variant: {e}")))?;
     let mode: SpeedMode = args.speed_mode.into();
     let mut request = None;
     match &args.action {

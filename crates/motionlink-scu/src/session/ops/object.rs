@@ -34,10 +34,9 @@ impl DefineObject {
         if cx.core.poll.configured {
             return None;
         }
-        if let Some(g) = POLL_READ.iter().find(|i| cx.core.group_refused(**i)) {
-            cx.core
-                .poll
-                .refuse(&format!("the unit refuses the grouping index {g}, which the session's cyclic object reads"));
+        if POLL_READ.iter().any(|i| cx.core.group_refused(*i)) {
+            // The object reads grouping indices, which the unit refuses (said once, with what follows).
+            cx.core.poll.refused = true;
             return None;
         }
         let object = CyclicObject::new(&[], &POLL_READ).expect("four read indices fit");
