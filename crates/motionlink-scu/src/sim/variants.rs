@@ -224,5 +224,10 @@ mod tests {
         let e = "no-group".parse::<Variants>().unwrap_err();
         assert!(e.to_string().contains("\"no-group\"") && e.to_string().contains("no-cyclic-objects"), "{e}");
         assert!("".parse::<Variants>().unwrap().is_empty());
+        // In the configuration file.
+        let c = crate::sim::SimConfig::from_toml("variants = [\"sleepy\", \"no-groups\"]").unwrap();
+        assert!(c.variants.has(Variant::Sleepy) && c.variants.has(Variant::NoGroups));
+        let e = crate::sim::SimConfig::from_toml("variants = [\"sleep\"]").unwrap_err();
+        assert!(e.to_string().contains("\"sleep\"") && e.to_string().contains("re-needs-rs"), "{e}");
     }
 }
