@@ -4,7 +4,7 @@ port (or a pseudo-terminal), with the events the emulated device reports."""
 from __future__ import annotations
 
 import time
-from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 from . import _native
 
@@ -39,7 +39,9 @@ class Emulator:
     pseudo-terminal path.
 
     Settings per family (others raise :class:`UsageError`):
-        scu: ``preset`` (``"scp11"``, ``"tlt"``, ``"liftkit"``), ``config`` (TOML text).
+        scu: ``preset`` (``"scp11"``, ``"tlt"``, ``"liftkit"``), ``config`` (TOML text), ``variant`` (a
+            firmware variant's name or a list of them, such as ``"no-groups"``: the unit does what the manual
+            leaves open the other plausible way, as ``motionlink sim scu --variant``).
         powercube: ``modules`` (addresses), ``config`` (TOML text), ``strict`` (refuse bad BCCs),
             ``can`` (a CAN bus; served, it sits behind an emulated SLCAN adapter).
         compax: ``drives`` (addresses), ``mode`` (P196), ``baud``, ``params`` ({"P194": 10.0}),
@@ -63,7 +65,9 @@ class Emulator:
         params: Optional[Dict[str, float]] = None,
         strict: bool = False,
         can: bool = False,
+        variant: Optional[Union[str, Sequence[str]]] = None,
     ) -> None:
+        variants = [variant] if isinstance(variant, str) else variant
         settings = {
             "preset": preset,
             "config": config,
@@ -76,6 +80,7 @@ class Emulator:
             "can": can,
             "serve": serve,
             "bind": bind,
+            "variant": [str(v) for v in variants] if variants is not None else None,
         }
         self._native = _native.NativeEmulator(family, settings)
         self._pending: List[Event] = []

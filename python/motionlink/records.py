@@ -303,6 +303,9 @@ class ScuMove(Record):
         reached_counts: Where it ended.
         time_s: How long the move took.
         actuators: Every actuator whose remote position the move wrote.
+        verified: True if every check was made (targets against the strokes, writes read back); where the
+            actuators ended is checked in any case.
+        not_verifiable: What the unit in use could not be asked to verify, and why (empty when verified).
     """
 
     __slots__ = ()
@@ -314,6 +317,8 @@ class ScuMove(Record):
     reached_counts: int
     time_s: float
     actuators: List[ActuatorOutcome]
+    verified: bool
+    not_verifiable: List[str]
 
 
 class ActuatorRest(Record):

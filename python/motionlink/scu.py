@@ -117,7 +117,8 @@ class Scu(ClientBase):
     def set(self, name: str, value: Union[int, float, str]) -> Parameter:
         """Writes a remote data entry (``"remote_speed_f1"``, ``"remote_position_a1"``); the library reads it
         back and compares (a difference is a :class:`DeviceError`). ``read_back`` is the value then read
-        from the unit, ``verified`` True."""
+        from the unit, ``verified`` True; on a unit that does not read remote data back, ``read_back`` is
+        None, ``verified`` False and ``not_verifiable`` says why."""
         return Parameter(self._native.set(str(name), value))
 
     def move_to(

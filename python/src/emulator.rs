@@ -85,6 +85,7 @@ pub struct EmulatorSettings {
     can: bool,
     serve: Option<String>,
     bind: Option<String>,
+    variant: Option<Vec<String>>,
 }
 
 fn usage(msg: impl Into<String>) -> Failure {
@@ -106,6 +107,11 @@ fn scu_device(s: &EmulatorSettings) -> Result<motionlink_scu::Emulator, Failure>
         (None, _) => Ok(preset.unwrap_or_default()),
     }
     .map_err(|e| usage(e.to_string()))?;
+    let mut config = config;
+    if let Some(names) = &s.variant {
+        let variants = motionlink_scu::Variants::parse_all(names).map_err(|e| usage(format!("variant: {e}")))?;
+        config.variants.extend(&variants);
+    }
     motionlink_scu::Emulator::new(config).map_err(|e| usage(e.to_string()))
 }
 
@@ -164,6 +170,7 @@ fn check_family_options(family: &str, s: &EmulatorSettings) -> Result<(), Failur
         .flatten()
         .collect(),
         "powercube" => [
+            given("variant", s.variant.is_some()),
             given("preset", s.preset.is_some()),
             given("drives", s.drives.is_some()),
             given("mode", s.mode.is_some()),
@@ -174,6 +181,7 @@ fn check_family_options(family: &str, s: &EmulatorSettings) -> Result<(), Failur
         .flatten()
         .collect(),
         _ => [
+            given("variant", s.variant.is_some()),
             given("preset", s.preset.is_some()),
             given("modules", s.modules.is_some()),
             given("strict", s.strict),

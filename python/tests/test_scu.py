@@ -34,7 +34,10 @@ def test_get_entries_and_groups_and_set_reads_back(scu: motionlink.Scu) -> None:
     assert scu.get("remote_speed_f1").value == written.read_back
     again = scu.set("remote_speed_f1", 55)
     assert (again.value, again.read_back, again.verified) == (55, 55, True)
-    assert set(again.to_dict()) == {"family", "name", "id", "value", "unit", "access", "read_back", "verified"}
+    assert set(again.to_dict()) == {
+        "family", "name", "id", "value", "unit", "access", "read_back", "verified", "not_verifiable"
+    }
+    assert again.not_verifiable == []
     flags = scu.get("battery_mains")
     assert flags.value == {"word": 1, "flags": ["mains_connected"]}
 
@@ -45,6 +48,7 @@ def test_move_is_verified_and_watch_samples_it(scu: motionlink.Scu, scu_emulator
     assert (moved.function, moved.actuator, moved.target_counts) == (1, 1, 300)
     assert abs(moved.reached_counts - 300) <= 5 and moved.time_s > 0
     assert [(a.actuator, a.moved) for a in moved.actuators] == [(1, True)]
+    assert (moved.verified, moved.not_verifiable) == (True, [])
     assert moved.actuators[0].start_counts == 0 and "start_counts" not in moved.to_dict()["actuators"][0]
     where = scu.position(1)
     assert (where.actuator, where.family) == (1, "scu") and abs(where.position_counts - 300) <= 5
@@ -129,3 +133,30 @@ def test_a_str_is_one_stroke_specification() -> None:
         with pytest.raises(motionlink.UsageError, match=r"outside A1.s stroke 0\.\.50 counts"):
             scu.move_to(1, 60)
         assert abs(scu.move_to(1, 40).reached_counts - 40) <= 5
+
+
+def test_a_unit_that_refuses_what_the_manual_leaves_open_still_moves_and_says_what_it_could_not_verify() -> None:
+    with motionlink.Emulator("scu", variant=["no-user-positions", "no-remote-readback"]) as unit:
+        with motionlink.Scu(unit, functions=["scp11"]) as scu:
+            moved = scu.move_to(1, 150)
+            assert abs(moved.reached_counts - 150) <= 5 and moved.verified is False
+            assert any("UserPositionData (0x2001, PDE)" in why for why in moved.not_verifiable), moved.not_verifiable
+            assert any("not read back" in why for why in moved.not_verifiable), moved.not_verifiable
+            written = scu.set("remote_speed_f1", 40)
+            assert (written.verified, written.read_back) == (False, None)
+            assert "remote_speed_f1 (0x3011)" in written.not_verifiable[0]
+    # A unit that refuses grouping indices and cyclic objects: read entry by entry, nothing lost.
+    with motionlink.Emulator("scu", variant="no-groups,no-cyclic-objects") as unit:
+        with motionlink.Scu(unit, functions=["scp11"]) as scu:
+            moved = scu.move_to(2, 100)
+            assert (moved.verified, moved.reached_counts) == (True, 100)
+            sample = next(iter(scu.watch(count=1)))
+            assert [(a.actuator, a.position_counts) for a in sample.actuators] == [(1, 0), (2, 100)]
+            assert scu.get("actual_positions").value["actual_position_a2"] == 100
+
+
+def test_an_unknown_variant_is_a_usage_error_naming_the_known_ones() -> None:
+    with pytest.raises(motionlink.UsageError, match="no-cyclic-objects"):
+        motionlink.Emulator("scu", variant="no-cyclic-object")
+    with pytest.raises(motionlink.UsageError, match="variant="):
+        motionlink.Emulator("compax", variant="no-groups")

@@ -33,9 +33,9 @@ pub const RC_DEADLINE: Duration = Duration::from_millis(timing::WATCHDOG.as_mill
 /// The cyclic object a session defines for polling moves by default (CyclicObj 5, 0x3005).
 pub const DEFAULT_POLL_SLOT: u8 = 5;
 
-/// The default poll interval of moves: one RC carrying the poll object (44 bytes both ways, about 11 ms at
-/// 38400 baud) every 50 ms uses about a fifth of the half-duplex line and leaves the rest to the caller; the
-/// same RC is the keepalive.
+/// The default poll interval of moves: one RC carrying the session's cyclic object (60 bytes both ways, about
+/// 16 ms at 38400 baud) every 50 ms uses about a third of the half-duplex line and leaves the rest to the
+/// caller; the same RC is the keepalive.
 pub const DEFAULT_POLL_INTERVAL: Duration = Duration::from_millis(50);
 
 /// Which actuators each motion function F1..F10 drives: the unit's parameterisation, which the data list
@@ -152,10 +152,11 @@ pub struct StrokeLimits {
 /// How a move (and a motion function's run) watches the actuators.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MovePolling {
-    /// Through the RC keepalive: the session defines CyclicObj `slot` (1..5) to read the status 1 and the
-    /// position of every actuator (0x0170, 0x0010), and while a motion runs, every RC carries it, one every
-    /// [`ClientConfig::poll_interval`]: each exchange of the move both feeds the unit's watchdog and reads the
-    /// state. A unit that refuses the definition is polled with reads instead. The default (slot
+    /// Through the RC keepalive: the session defines CyclicObj `slot` (1..5) to read the status 1, the
+    /// position and the current of every actuator and Error_Code 1 (0x0170, 0x0010, 0x00A0, 0x00D1), and while
+    /// a motion or a watch runs, the RCs carry it, one every [`ClientConfig::poll_interval`] at most: each
+    /// exchange both feeds the unit's watchdog and reads the state. A unit that refuses the definition, its
+    /// read-back or an RC carrying it is polled with reads instead. The default (slot
     /// [`DEFAULT_POLL_SLOT`]); while [`crate::Client::use_cyclic`] has the keepalive carry the caller's own
     /// object, moves poll with reads.
     Cyclic {

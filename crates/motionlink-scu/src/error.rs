@@ -126,6 +126,10 @@ pub enum Error {
     /// The actuator is not connected (its status says "drive unavailable").
     #[error("{0} is not connected to the unit (actuator status 1: drive unavailable)")]
     NotConnected(Actuator),
+    /// The unit in use does not do what the operation needs beyond the manual's words (it refused it; the
+    /// message says what, and what to do instead).
+    #[error("{0}")]
+    NotSupported(String),
     /// A move ended away from its target; the function was stopped.
     #[error(
         "{actuator} ended at {position_counts}, {} counts from its target {} (more than the tolerance of \
@@ -288,7 +292,7 @@ impl Error {
 impl Classify for Error {
     fn class(&self) -> ErrorClass {
         match self {
-            Error::Refused { .. } => ErrorClass::Refused,
+            Error::Refused { .. } | Error::NotSupported(_) => ErrorClass::Refused,
             Error::MotionEnded { .. }
             | Error::TargetMissed { .. }
             | Error::Stalled { .. }

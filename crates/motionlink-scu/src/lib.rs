@@ -80,7 +80,7 @@
 //! - **The stroke** of an actuator, for refusing targets before anything moves, is read from the virtual
 //!   limits of its UserPositionData (0x2001..0x2006, "Position_Virtual_Limit_In/Out"), the only limits in the
 //!   data list; both 0 means none are set. The emulator stops every motion at the stroke ends and at the
-//!   virtual limits.
+//!   virtual limits. A unit that refuses UserPositionData: see "Beyond the manual" below.
 //! - **In-position tolerance**: 5 counts by default (1.5 mm on a TLT column of about 3225 counts per metre);
 //!   real columns read a few counts off after homing.
 //! - **Error bits reset on the next motion** (14, 15..20, 21) are cleared from Error_Code 1 when an RE of a
@@ -107,6 +107,30 @@
 //!   objects, remote speeds and remote positions), but 0x0000 returns only the firmware and configuration
 //!   texts (0x0001, 0x0002): the whole 0000 collection is two dozen groups that have their own indices.
 //!   RT may write whole 0x3xxx groups and the 0x3000 collection, all or nothing.
+//!
+//! # Beyond the manual
+//!
+//! What the client relies on that the manual does not say in so many words is probed on the unit in use the
+//! first time a check depends on it (a read, or an RC that only reads), remembered for the session
+//! ([`Client::capabilities`]), and said once in a warning when the unit does not behave so; the operation
+//! then runs in the manual's plain form and a [`session::MoveReport`] or [`session::SetReport`] says in
+//! `verified` / `not_verifiable` what it could not check. A unit that shows a real discrepancy (a value that
+//! reads back different) is still refused. Each behaviour has an emulator variant ([`sim::Variant`]):
+//!
+//! - **Grouping indices** (0x0010, 0x0170, 0x00A0, 0x00D0): refused with PDE, every group is read entry by
+//!   entry from then on (`no-groups`).
+//! - **UserPositionData** as the stroke of targets: refused, targets are checked against
+//!   [`ClientConfig::stroke_limits`] only, and a move without them says that its target was not checked
+//!   (`no-user-positions`).
+//! - **Cyclic objects** (the session's CyclicObj 5 carried by the keepalive RC): refused, motions and samples
+//!   are read with RG (`no-cyclic-objects`).
+//! - **Reading remote data back** after RT: refused, writes are checked by the unit's ACK only, and say so
+//!   (`no-remote-readback`).
+//! - The RC reply without a cyclic object, the status alone or with ctp 0: both are taken (`rc-empty-data`);
+//!   a unit that answers only the second telegram after a silence is sent it again (`sleepy`); error bits that
+//!   stay after the next motion, positions a few counts below the In end after homing, a unit that refuses a
+//!   second RE without RS: no check depends on the first two, and the third ends a stream with the unit's PE
+//!   (`sticky-errors`, `in-end-undershoot`, `re-needs-rs`).
 //! - **RA** fast-stops remote motions that are still running: a motion nobody can stop any more is worse.
 //! - **Emergency stop (F20)** shows as every function locked in Lock Status (0x0162) and the release flags of
 //!   actuator status 2 cleared; F21 and F22 are the hand switch's LED 1 and 2 (0x0120).
@@ -120,12 +144,13 @@
 //! - **Typos of the Ewellix edition** (0x0095 twice for Cumulated_Stroke A6, 0x00E6 for Speed A1) follow the
 //!   Schaeffler edition: 0x0096 and 0x00F1.
 //! - **Watching a motion through the keepalive.** A running motion is watched through the RC: the session
-//!   defines CyclicObj 5 (0x3005; [`MovePolling`] chooses another or reads) to read status 1 and the position
-//!   of every actuator (0x0170, 0x0010), writes and reads back the definition before its first move, and while
-//!   a motion runs every RC carries it, one every poll interval: each exchange of the move both feeds the
-//!   watchdog and reads the state, so a link whose round trips take 300 ms still keeps the unit alive during a
-//!   move. A unit that refuses the definition is polled with reads; so is a session whose keepalive carries the
-//!   caller's own cyclic object.
+//!   defines CyclicObj 5 (0x3005; [`MovePolling`] chooses another or reads) to read status 1, the position
+//!   and the current of every actuator and Error_Code 1 (0x0170, 0x0010, 0x00A0, 0x00D1: 46 bytes), writes
+//!   and reads back the definition and probes one RC carrying it before its first move or sample, and while a
+//!   motion or a watch ([`Client::watch`]) runs the RCs carry it: each exchange both feeds the watchdog and
+//!   reads the state, so a link whose round trips take 300 ms still keeps the unit alive during a move and
+//!   can be watched. A unit that refuses the definition, its read-back or the RC is polled with reads; so is
+//!   a session whose keepalive carries the caller's own cyclic object.
 //! - **Room on the line.** The next RC must go out at most 400 ms after the last (the watchdog's 500 ms, less
 //!   100 ms for jitter and an estimate that is short). A request other than RC goes out only if its reply is
 //!   expected back before then, by the longest round trip measured lately; one that finds no room within
@@ -155,4 +180,4 @@ pub use client::{AsyncClient, AsyncSetpointStream};
 pub use config::{ClientConfig, FunctionMap, MovePolling, StrokeLimits};
 pub use error::Error;
 pub use session::{Op, Output, Progress, Session};
-pub use sim::{Emulator, SimConfig};
+pub use sim::{Emulator, SimConfig, Variant, Variants};

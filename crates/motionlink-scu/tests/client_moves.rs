@@ -3,6 +3,7 @@
 
 use crate::rig;
 
+use motionlink_scu::Variant;
 use rig::*;
 
 #[test]
@@ -336,10 +337,22 @@ impl motionlink_link::emulator::Emulator for ClampingUnit {
 
 #[test]
 fn set_reads_the_value_back_and_a_mismatch_is_an_error() {
+    // Also on a unit that refuses what the client would rather use beyond the manual: no check is weakened.
+    let plain = SimConfig::default();
+    let mut refusing = SimConfig::default();
+    for v in [Variant::NoGroups, Variant::NoUserPositions, Variant::NoCyclicObjects] {
+        refusing.variants = std::mem::take(&mut refusing.variants).with(v);
+    }
+    for config in [plain, refusing] {
+        set_read_back_mismatch(config);
+    }
+}
+
+fn set_read_back_mismatch(config: SimConfig) {
     let clock = ManualClock::new_auto();
     let _me = clock.reserve_participant().enter();
     let host = EmulatorHost::new(
-        ClampingUnit { unit: Emulator::new(SimConfig::default()).unwrap(), held: Vec::new() },
+        ClampingUnit { unit: Emulator::new(config).unwrap(), held: Vec::new() },
         clock.shared(),
         PipeConfig::paced(38_400),
     );

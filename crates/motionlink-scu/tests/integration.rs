@@ -15,4 +15,6 @@ mod session;
 mod sim;
 mod sim_errors;
 mod sim_robustness;
+mod slow_link;
+mod variants;
 mod wire;

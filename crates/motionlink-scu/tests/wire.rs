@@ -155,6 +155,35 @@ fn rs_soft_stop_of_f1() {
 }
 
 #[test]
+fn an_rc_without_object_is_answered_with_the_status_alone_or_with_ctp_0_and_both_decode() {
+    let request = Request::Cyclic { object: 0xFF, write: &[] };
+    assert_eq!(request.reply_shape(), ReplyShape::StatusOrData);
+    let status_alone = [0x52, 0x43, 0x06, 0xF7, 0x08];
+    let mut with_ctp = vec![0x52, 0x43, 0x06, 0x00, 0x00];
+    with_ctp.extend_from_slice(&crc16(&with_ctp).to_le_bytes());
+    // The first five bytes of the ctp form never pass as the status alone: their CRC does not check.
+    assert_ne!(crc16(&with_ctp[..5]), 0);
+    for (reply, data) in [(&status_alone[..], None), (&with_ctp[..], Some(vec![]))] {
+        let mut dec = ReplyDecoder::new();
+        dec.expect_len(Command::Cyclic, ReplyShape::StatusOrData, 0);
+        // Whole, and byte by byte.
+        assert_eq!(decode_replies(&mut dec, reply), [Ok((Command::Cyclic, Status::Ack, data.clone()))]);
+        dec.expect_len(Command::Cyclic, ReplyShape::StatusOrData, 0);
+        let mut got = Vec::new();
+        for b in reply {
+            got.extend(decode_replies(&mut dec, std::slice::from_ref(b)));
+        }
+        assert_eq!(got, [Ok((Command::Cyclic, Status::Ack, data))]);
+    }
+    // An error reply is the status alone in either case.
+    let mut dec = ReplyDecoder::new();
+    dec.expect(Command::Cyclic, ReplyShape::StatusOrData);
+    let mut pe = vec![0x52, 0x43, 0x84];
+    pe.extend_from_slice(&crc16(&pe).to_le_bytes());
+    assert_eq!(decode_replies(&mut dec, &pe), [Ok((Command::Cyclic, Status::PermissionError, None))]);
+}
+
+#[test]
 fn chapter5_replies_decode() {
     let mut dec = ReplyDecoder::new();
     // RO ACK.

@@ -250,6 +250,7 @@ pub(crate) fn move_record<'py>(py: Python<'py>, target_counts: i32, report: &Mov
         acts.push(d.done());
     }
     rec.set("actuators", acts)?;
+    rec.set("verified", report.verified)?.set("not_verifiable", report.not_verifiable.clone())?;
     Ok(rec)
 }
 
@@ -461,11 +462,19 @@ impl ScuClient {
         let v = Value::parse(e.kind, &text).map_err(|err| to_pyerr(py, usage(format!("{}: {err}", e.name))))?;
         // The library writes and compares what it reads back (a difference is an error); the value read back
         // is then read once more, so that `read_back` is what the unit holds, not an echo of `value`.
-        let back = py.detach(|| c.set(e.index(), &v).and_then(|()| c.get_value(e.index()))).or_raise(py)?;
+        // A unit that does not read remote data back: `read_back` is None and `verified` False, with why.
+        let (written, back) = py
+            .detach(|| {
+                let written = c.set(e.index(), &v)?;
+                let back = if written.verified { Some(c.get_value(e.index())?) } else { None };
+                Ok::<_, Error>((written, back))
+            })
+            .or_raise(py)?;
         let r = Record::new(py);
         r.set("family", FAMILY)?.set("name", e.name)?.set("id", e.index().0)?;
         r.set("value", value_py(py, &v)?)?.set("unit", value_unit(&v, e.unit))?.set("access", e.access.short())?;
-        r.set("read_back", value_py(py, &back)?)?.set("verified", true)?;
+        let back = back.as_ref().map(|b| value_py(py, b)).transpose()?;
+        r.set("read_back", back)?.set("verified", written.verified)?.set("not_verifiable", written.not_verifiable)?;
         Ok(r.done())
     }
 
@@ -533,30 +542,24 @@ impl ScuClient {
     /// One sample of `watch`: the connected actuators (position, moving, flags, current) and Error_Code 1.
     fn sample<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
-        let (positions, statuses, currents, history) = interruptible_read(py, None, move || -> Result<_, Failure> {
-            let fail = |e: Error| e.failure();
-            let currents = c.get(named("currents")?).map_err(fail)?;
-            Ok((c.positions().map_err(fail)?, c.statuses().map_err(fail)?, currents, c.error_history().map_err(fail)?))
-        })?
-        .or_raise(py)?;
+        // The library's sample: through the keepalive RC where the unit takes the session's cyclic object.
+        let s = interruptible_read(py, None, move || c.sample())?.or_raise(py)?;
         let r = Record::new(py);
         r.set("family", FAMILY)?;
         let mut acts = Vec::new();
         for a in Actuator::all() {
             let i = usize::from(a.number() - 1);
-            let s = statuses[i];
-            if !s.available() {
+            if !s.status(a).available() {
                 continue;
             }
             let d = Record::new(py);
-            d.set("actuator", a.number())?.set("position_counts", positions[i].get())?;
-            status_fields(&d, s)?;
+            d.set("actuator", a.number())?.set("position_counts", s.position(a).get())?;
+            status_fields(&d, s.status(a))?;
             // The library's value in amperes (its data list holds deci-amps; `as_f64` converts them once).
-            let amps = currents.iter().find(|(e, _)| e.index() == a.current_index()).and_then(|(_, v)| v.as_f64());
-            d.set("current_amps", amps)?;
+            d.set("current_amps", Value::CurrentDeciAmps(s.currents_deci_amps[i]).as_f64())?;
             acts.push(d.done());
         }
-        r.set("actuators", acts)?.set("last_error", error_code(py, history[0])?)?;
+        r.set("actuators", acts)?.set("last_error", error_code(py, s.last_error)?)?;
         Ok(r.done())
     }
 

@@ -18,8 +18,8 @@ use crate::model::{
 };
 use crate::session::ops::basic::{cyclic_index, decode_cyclic_read, encode_for, Stroke};
 use crate::session::{
-    ClientStats, MoveReport, MoveSpec, MoveTargets, Op, Output, PreparedRequest, RunAction, RunReport, Session,
-    StopReport,
+    Capabilities, ClientStats, MoveReport, MoveSpec, MoveTargets, Op, Output, PreparedRequest, RunAction, RunReport,
+    Session, SetReport, Snapshot, StopReport, WatchSpec,
 };
 use crate::value::Value;
 use crate::wire::{Command, Request};
@@ -111,9 +111,9 @@ impl AsyncClient {
         expect_output!(self.driver.run(op).await, Output::Data(d) => d)
     }
 
-    /// Reads the raw bytes of a data index (entry or group).
+    /// Reads the raw bytes of a data index (entry or group), as [`Client::get_raw`].
     pub async fn get_raw(&self, index: DataIndex) -> Result<Vec<u8>, Error> {
-        super::data(self.request(&Request::Get { index: index.0 }).await?)
+        super::data(expect_output!(self.driver.run(Op::Read(index)).await, Output::Data(d) => d)?)
     }
 
     /// Reads an entry or a group, each member decoded.
@@ -129,14 +129,29 @@ impl AsyncClient {
     }
 
     /// Writes a remote data entry and reads it back, as [`Client::set`].
-    pub async fn set(&self, index: DataIndex, value: &Value) -> Result<(), Error> {
+    pub async fn set(&self, index: DataIndex, value: &Value) -> Result<SetReport, Error> {
         let (_, data) = encode_for(index, value, self.config.speed_mode)?;
-        self.driver.run(Op::Set { index, data, verify: true }).await.map(|_| ())
+        self.set_raw(index, &data).await
     }
 
     /// Writes raw bytes to a data index and reads them back, as [`Client::set_raw`].
-    pub async fn set_raw(&self, index: DataIndex, data: &[u8]) -> Result<(), Error> {
-        self.driver.run(Op::Set { index, data: data.to_vec(), verify: true }).await.map(|_| ())
+    pub async fn set_raw(&self, index: DataIndex, data: &[u8]) -> Result<SetReport, Error> {
+        expect_output!(
+            self.driver.run(Op::Set { index, data: data.to_vec(), verify: true }).await,
+            Output::Written(r) => r
+        )
+    }
+
+    /// One sample of the state, as [`Client::sample`].
+    pub async fn sample(&self) -> Result<Snapshot, Error> {
+        let op = Op::Watch(WatchSpec { interval: Duration::ZERO, count: Some(1) });
+        let last = expect_output!(self.driver.run(op).await, Output::Watched { last, .. } => last)?;
+        last.ok_or(Error::UnexpectedReply { command: Command::Get, detail: "a watch without a sample".into() })
+    }
+
+    /// What the session found the unit to do where the manual leaves it open, as [`Client::capabilities`].
+    pub fn capabilities(&self) -> Capabilities {
+        self.driver.driver().with_session(|s| s.capabilities())
     }
 
     /// Actuator `a`'s position.
@@ -206,10 +221,10 @@ impl AsyncClient {
     }
 
     /// Defines CyclicObj `slot` (1..5) on the unit (and reads the definition back).
-    pub async fn configure_cyclic(&self, slot: u8, object: &CyclicObject) -> Result<(), Error> {
-        self.set(cyclic_index(slot)?, &Value::CyclicObject(*object)).await?;
+    pub async fn configure_cyclic(&self, slot: u8, object: &CyclicObject) -> Result<SetReport, Error> {
+        let report = self.set(cyclic_index(slot)?, &Value::CyclicObject(*object)).await?;
         self.driver.driver().with_session(|s| s.cyclic_slot_written(slot));
-        Ok(())
+        Ok(report)
     }
 
     /// From now on every keepalive RC carries CyclicObj `slot` with `write`, as [`Client::use_cyclic`].

@@ -16,8 +16,8 @@ use crate::model::{
 };
 use crate::session::ops::basic::{cyclic_index, decode_cyclic_read, encode_for};
 use crate::session::{
-    ClientStats, MoveReport, Op, Output, PreparedRequest, Progress, RunAction, RunProgress, RunReport, Session,
-    StopReport,
+    Capabilities, ClientStats, MoveReport, Op, Output, PreparedRequest, Progress, RunAction, RunProgress, RunReport,
+    Session, SetReport, Snapshot, StopReport, WatchSpec,
 };
 use crate::value::Value;
 use crate::wire::{Command, Request};
@@ -106,6 +106,12 @@ impl Client {
         self.driver.with_session(|s| s.stats())
     }
 
+    /// What the session found the unit to do where the manual leaves it open (each probed the first time a
+    /// check needed it).
+    pub fn capabilities(&self) -> Capabilities {
+        self.driver.with_session(|s| s.capabilities())
+    }
+
     /// Functions started with RE and not yet stopped (wire ids).
     pub fn started_functions(&self) -> Vec<u8> {
         self.driver.with_session(|s| s.started_functions())
@@ -128,9 +134,10 @@ impl Client {
 
     // ----- data list
 
-    /// Reads the raw bytes of a data index (entry or group).
+    /// Reads the raw bytes of a data index (entry or group). A group is read by its grouping index, or,
+    /// where the unit refuses grouping indices (PDE), entry by entry (the same bytes; said once per session).
     pub fn get_raw(&self, index: DataIndex) -> Result<Vec<u8>, Error> {
-        super::data(self.request(&Request::Get { index: index.0 })?)
+        super::data(expect_output!(self.driver.run(Op::Read(index)), Output::Data(d) => d)?)
     }
 
     /// Reads an entry or a group, each member decoded.
@@ -146,16 +153,20 @@ impl Client {
     }
 
     /// Writes a remote data entry (0x3xxx) after checking the value's kind and range, then reads it back: a
-    /// value that reads back different is [`Error::ReadBack`].
-    pub fn set(&self, index: DataIndex, value: &Value) -> Result<(), Error> {
+    /// value that reads back different is [`Error::ReadBack`]. The report says whether the value was read
+    /// back (a unit that refuses to read remote data back: `verified` is false, and why).
+    pub fn set(&self, index: DataIndex, value: &Value) -> Result<SetReport, Error> {
         let (_, data) = encode_for(index, value, self.config.speed_mode)?;
         self.set_raw(index, &data)
     }
 
     /// Writes raw bytes to a data index (no checks but the unit's), then reads the index back where the data
     /// list has it (every remote entry and group is readable): a mismatch is [`Error::ReadBack`].
-    pub fn set_raw(&self, index: DataIndex, data: &[u8]) -> Result<(), Error> {
-        self.driver.run(Op::Set { index, data: data.to_vec(), verify: true }).map(|_| ())
+    pub fn set_raw(&self, index: DataIndex, data: &[u8]) -> Result<SetReport, Error> {
+        expect_output!(
+            self.driver.run(Op::Set { index, data: data.to_vec(), verify: true }),
+            Output::Written(r) => r
+        )
     }
 
     /// Actuator `a`'s position.
@@ -187,6 +198,35 @@ impl Client {
     /// of its UserPositionData (0x2001..0x2006) as the unit reports them; `None` if the unit has none (both 0).
     pub fn stroke_limits(&self, a: Actuator) -> Result<Option<(crate::config::StrokeLimits, &'static str)>, Error> {
         expect_output!(self.driver.run(Op::StrokeLimits(a)), Output::Stroke(s) => s)
+    }
+
+    /// One sample of every actuator's status 1, position and current and of Error_Code 1: through one RC
+    /// carrying the session's cyclic object where the unit takes it (defined on first use), else with reads.
+    pub fn sample(&self) -> Result<Snapshot, Error> {
+        let op = Op::Watch(WatchSpec { interval: std::time::Duration::ZERO, count: Some(1) });
+        let last = expect_output!(self.driver.run(op), Output::Watched { last, .. } => last)?;
+        last.ok_or(Error::UnexpectedReply { command: Command::Get, detail: "a watch without a sample".into() })
+    }
+
+    /// Samples as [`Client::sample`] every `interval` (the first at once) until `count` samples were taken
+    /// or `cancel` is cancelled (which ends the watch without an error); `on_sample` sees each. Where the
+    /// unit takes the session's cyclic object, each sample rides on a keepalive RC, so a link whose round
+    /// trips leave no room for other requests beside the keepalive can still be watched once the object is
+    /// defined. Returns how many samples were taken.
+    pub fn watch(
+        &self,
+        interval: std::time::Duration,
+        count: Option<u64>,
+        on_sample: &mut dyn FnMut(&Snapshot),
+        cancel: Option<&CancelToken>,
+    ) -> Result<u64, Error> {
+        let mut each = |p: &Progress| {
+            if let Progress::Watch(s) = p {
+                on_sample(s);
+            }
+        };
+        let op = Op::Watch(WatchSpec { interval, count });
+        expect_output!(self.driver.run_with(op, &mut each, cancel), Output::Watched { samples, .. } => samples)
     }
 
     /// Error_Code 1 (most recent) to 5 (oldest).
@@ -245,11 +285,12 @@ impl Client {
 
     // ----- cyclic objects
 
-    /// Defines CyclicObj `slot` (1..5) on the unit (and reads the definition back).
-    pub fn configure_cyclic(&self, slot: u8, object: &CyclicObject) -> Result<(), Error> {
-        self.set(cyclic_index(slot)?, &Value::CyclicObject(*object))?;
+    /// Defines CyclicObj `slot` (1..5) on the unit (and reads the definition back, where the unit reads
+    /// remote data: the report says).
+    pub fn configure_cyclic(&self, slot: u8, object: &CyclicObject) -> Result<SetReport, Error> {
+        let report = self.set(cyclic_index(slot)?, &Value::CyclicObject(*object))?;
         self.driver.with_session(|s| s.cyclic_slot_written(slot));
-        Ok(())
+        Ok(report)
     }
 
     /// From now on every keepalive RC carries CyclicObj `slot` with `write` (one value per entry its definition

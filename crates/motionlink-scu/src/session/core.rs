@@ -80,10 +80,7 @@ impl Core {
         self.advance_keepalive(now);
         let poll = (!self.subscribers.is_empty() && self.poll.configured).then(|| self.poll_slot()).flatten();
         let (carries, request) = match (poll, &self.cyclic) {
-            (Some(slot), _) => (
-                Carries::PollObject,
-                PreparedRequest::with_reply_len(&Request::Cyclic { object: slot - 1, write: &[] }, Some(30)),
-            ),
+            (Some(slot), _) => (Carries::PollObject, Ok(PreparedRequest::poll_object(slot))),
             (None, Some(c)) => {
                 let read_len = c.object.read_size().and_then(|n| u16::try_from(n).ok());
                 (

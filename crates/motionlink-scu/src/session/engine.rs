@@ -311,13 +311,19 @@ pub(super) fn slot_mut(ops: &mut BTreeMap<OpId, Slot>, id: OpId) -> &mut Slot {
     ops.get_mut(&id).expect("the operation's slot")
 }
 
-/// The state in the read data of the poll object.
-pub(super) fn snapshot_of(data: &[u8], at: Timestamp) -> Result<Snapshot, Error> {
-    if data.len() != 30 {
+/// The state in the read data of the session's cyclic object ([`POLL_READ`]).
+pub(crate) fn snapshot_of(data: &[u8], at: Timestamp) -> Result<Snapshot, Error> {
+    if data.len() != POLL_READ_LEN {
         return Err(Error::UnexpectedReply {
             command: Command::Cyclic,
-            detail: format!("{} bytes of read data; the poll object reads 30", data.len()),
+            detail: format!("{} bytes of read data; the session's cyclic object reads {POLL_READ_LEN}", data.len()),
         });
     }
-    Ok(Snapshot { at, statuses: ops::statuses(&data[..6])?, positions: ops::positions(&data[6..])? })
+    Ok(Snapshot {
+        at,
+        statuses: ops::statuses(&data[..6])?,
+        positions: ops::positions(&data[6..30])?,
+        currents_deci_amps: ops::currents(&data[30..42])?,
+        last_error: ops::error_code(&data[42..46])?,
+    })
 }

@@ -61,6 +61,7 @@ use crate::error::Error;
 use crate::model::{CyclicObject, DataIndex};
 use crate::wire::Command;
 
+mod caps;
 mod core;
 mod engine;
 mod line;
@@ -69,12 +70,14 @@ pub(crate) mod report;
 mod request;
 mod txn;
 
+pub use caps::Capabilities;
 use line::{Exchange, Line, LineCounts};
+pub use ops::WatchSpec;
 use ops::{Cx, Operation, Resume};
 pub use ops::{MoveSpec, MoveTargets, Op, Output, Progress, RunAction, RunSpec};
 pub use report::{
     ActuatorOutcome, ActuatorRest, ClientStats, MoveProgress, MoveReport, RefusedStop, RunProgress, RunReport,
-    Snapshot, StopReport,
+    SetReport, Snapshot, StopReport,
 };
 pub(crate) use request::{OwnedReply, Req, Schedule};
 
@@ -104,17 +107,34 @@ pub(crate) struct CyclicUse {
     pub write: Vec<u8>,
 }
 
-/// The session's own cyclic object, which polls motions.
+/// The session's own cyclic object, which watches motions and samples the state.
 #[derive(Debug, Default)]
 pub(crate) struct PollObject {
-    /// Its definition was written and read back.
+    /// Its definition was written and read back, and an RC carrying it was answered.
     pub configured: bool,
-    /// The unit refused it: motions are polled with reads.
+    /// The unit did not take it: motions are watched with reads.
     pub refused: bool,
 }
 
-/// The indices the poll object reads: status 1 of every actuator, then every position.
-pub(crate) const POLL_READ: [DataIndex; 2] = [DataIndex(0x0170), DataIndex(0x0010)];
+impl PollObject {
+    /// The unit does not take the object (`why`): motions and samples are read with RG from now on; said
+    /// once per session.
+    pub fn refuse(&mut self, why: &str) {
+        if !self.refused {
+            tracing::warn!("{why}: this session watches motions and samples with reads (RG) instead");
+        }
+        self.refused = true;
+        self.configured = false;
+    }
+}
+
+/// The indices the session's cyclic object reads: status 1 of every actuator, every position, every
+/// current, and Error_Code 1 (46 bytes).
+pub(crate) const POLL_READ: [DataIndex; 4] =
+    [DataIndex(0x0170), DataIndex(0x0010), DataIndex(0x00A0), DataIndex(0x00D1)];
+
+/// The number of bytes the session's cyclic object reads.
+pub(crate) const POLL_READ_LEN: usize = 6 + 24 + 12 + 4;
 
 /// Who is waiting for the exchange under way.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -198,6 +218,8 @@ pub(crate) struct Core {
     pub cyclic: Option<CyclicUse>,
     pub last_cyclic_read: Option<(Timestamp, Vec<u8>)>,
     pub poll: PollObject,
+    /// What the unit was found to do beyond the manual's words.
+    pub(crate) probed: caps::Probed,
     /// Operations waiting for the next poll of a motion.
     subscribers: BTreeSet<OpId>,
     events: VecDeque<Event<Session>>,
@@ -246,6 +268,7 @@ impl Session {
                 cyclic: None,
                 last_cyclic_read: None,
                 poll: PollObject::default(),
+                probed: caps::Probed::default(),
                 subscribers: BTreeSet::new(),
                 events: VecDeque::new(),
                 closing: false,
@@ -312,6 +335,11 @@ impl Session {
     /// The round trip the session measured lately (the longest, decaying).
     pub fn round_trip(&self) -> Duration {
         self.core.line.round_trip
+    }
+
+    /// What the session found the unit to do where the manual leaves it open (probed as checks needed it).
+    pub fn capabilities(&self) -> Capabilities {
+        self.core.probed.caps
     }
 }
 

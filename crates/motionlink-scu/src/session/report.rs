@@ -4,7 +4,7 @@ use std::time::Duration;
 
 use motionlink_link::Timestamp;
 
-use crate::model::{Actuator, ActuatorStatus1, Function, MotionFunction, PositionCounts, StopMode};
+use crate::model::{Actuator, ActuatorStatus1, ErrorCode, Function, MotionFunction, PositionCounts, StopMode};
 
 /// Where a move is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -57,6 +57,22 @@ pub struct MoveReport {
     pub duration: Duration,
     /// Every actuator whose remote position the move wrote, in actuator order.
     pub actuators: Vec<ActuatorOutcome>,
+    /// Every check of the move was made: the targets against the strokes, the written remote positions and
+    /// speed read back, where the actuators ended. False when the unit in use could not be asked for some
+    /// of it (see `not_verifiable`); where the actuators ended is checked in any case.
+    pub verified: bool,
+    /// What could not be verified, and why, in plain words (empty when `verified`).
+    pub not_verifiable: Vec<String>,
+}
+
+/// How a write ended: the unit acknowledged the RT and, where it reads remote data back, the value read back
+/// equals the one written (a value that reads back different is an error, not a report).
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct SetReport {
+    /// The value was read back and equals what was written.
+    pub verified: bool,
+    /// What could not be verified, and why (empty when `verified`).
+    pub not_verifiable: Vec<String>,
 }
 
 /// Where a function's run is: the state of every actuator at the last look.
@@ -117,8 +133,9 @@ pub struct ActuatorRest {
     pub position_counts: PositionCounts,
 }
 
-/// The status and position of every actuator at one instant: the read data of the cyclic object that polls
-/// a motion, or a status read followed by a position read.
+/// The status, position and current of every actuator and the last error at one instant: the read data of
+/// the session's cyclic object (which the keepalive RC carries), or reads of each of them one after the other
+/// (a unit that does not take the object, a session that polls with reads).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Snapshot {
     /// When the data arrived.
@@ -127,6 +144,10 @@ pub struct Snapshot {
     pub statuses: [ActuatorStatus1; 6],
     /// Positions of A1..A6.
     pub positions: [PositionCounts; 6],
+    /// Motor currents of A1..A6, in 0.1 A (as the data list holds them: `Value::CurrentDeciAmps` converts).
+    pub currents_deci_amps: [u16; 6],
+    /// Error_Code 1 (the most recent).
+    pub last_error: ErrorCode,
 }
 
 impl Snapshot {

@@ -58,9 +58,18 @@ impl PreparedRequest {
         &self.bytes
     }
 
-    /// RC without a cyclic object: the keepalive.
+    /// RC without a cyclic object: the keepalive. Its ACK is the status alone or carries ctp 0 (both forms
+    /// are taken: see [`crate::wire::ReplyShape::StatusOrData`]).
     pub(crate) fn keepalive() -> Self {
-        Self::new(&Request::Cyclic { object: UNUSED, write: &[] }).expect("an RC without object encodes")
+        Self::with_reply_len(&Request::Cyclic { object: UNUSED, write: &[] }, Some(0))
+            .expect("an RC without object encodes")
+    }
+
+    /// RC carrying the session's cyclic object, CyclicObj `slot` (1..5): it writes nothing and reads
+    /// [`super::POLL_READ`].
+    pub(crate) fn poll_object(slot: u8) -> Self {
+        Self::with_reply_len(&Request::Cyclic { object: slot - 1, write: &[] }, Some(super::POLL_READ_LEN as u16))
+            .expect("an RC without write data encodes")
     }
 
     /// RG of `index`.

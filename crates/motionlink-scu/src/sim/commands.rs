@@ -1,7 +1,7 @@
 //! What the emulated unit does with each command: remote mode, cyclic objects, functions.
 
 use super::*;
-use crate::model::{Function, MotionDirection, StopMode};
+use crate::model::{Function, Item, MotionDirection, StopMode};
 use crate::wire::Reply;
 
 impl Emulator {
@@ -55,6 +55,9 @@ impl Emulator {
                 self.note_rest();
             }
             Request::Cyclic { object, write } => self.handle_cyclic(object, write),
+            Request::Get { index } if self.config.variants.refuses_get(DataIndex(index)) => {
+                self.reply_status(command, Status::ParameterDataError)
+            }
             Request::Get { index } => match item(DataIndex(index)) {
                 Some(it) => {
                     let mut data = Vec::with_capacity(it.size());
@@ -65,6 +68,7 @@ impl Emulator {
             },
             Request::Transfer { index, data } => {
                 let status = match item(DataIndex(index)) {
+                    Some(Item::Group(_)) if self.config.variants.has(Variant::NoGroups) => Status::ParameterDataError,
                     Some(it) => self.write_item(it, data).err().unwrap_or(Status::Ack),
                     None => Status::ParameterDataError,
                 };
@@ -93,9 +97,16 @@ impl Emulator {
         if object == UNUSED {
             if !write.is_empty() {
                 self.reply_status(command, Status::ParameterCountError);
+            } else if self.config.variants.has(Variant::RcEmptyData) {
+                self.push_reply(&Reply::with_data(command, &[]));
             } else {
                 self.reply_status(command, Status::Ack);
             }
+            return;
+        }
+        if self.config.variants.has(Variant::NoCyclicObjects) {
+            // The RC fed the watchdog; its cyclic object is not known to this firmware.
+            self.reply_status(command, Status::ParameterDataError);
             return;
         }
         let Some(obj) = self.cyclic_objects.get(usize::from(object)).copied() else {
@@ -144,6 +155,10 @@ impl Emulator {
                 }
                 let drives = self.config.functions[usize::from(m.id())].clone();
                 if drives.is_empty() || self.emergency_stop {
+                    return Err(Status::PermissionError);
+                }
+                if self.config.variants.has(Variant::ReNeedsRs) && self.executed[usize::from(function)] {
+                    // This firmware takes a new RE of a started function only after its RS.
                     return Err(Status::PermissionError);
                 }
                 self.executed[usize::from(function)] = true;

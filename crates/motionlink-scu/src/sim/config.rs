@@ -88,6 +88,7 @@ pub struct ScheduledError {
 /// stroke_max_counts = 865
 /// counts_per_second_at_full_speed = 110.0
 /// obstacle_counts = 500     # the drive stalls here and stops with its drive error bit set
+/// variants = ["no-groups"] # firmware variants (see [`Variant`]); `--variant` adds more
 /// [[error]]                 # raise error bit 12 five seconds after power-on
 /// bit = 12
 /// at_ms = 5000
@@ -111,6 +112,8 @@ pub struct SimConfig {
     pub total_current_limit_deci_amps: u16,
     /// Errors the unit raises by itself at chosen times.
     pub scheduled_errors: Vec<ScheduledError>,
+    /// How this unit's firmware differs from the emulator's default reading of the manual.
+    pub variants: Variants,
 }
 
 impl SimConfig {
@@ -130,6 +133,7 @@ impl SimConfig {
             configuration_info: "SCP11 motionlink emulator".into(),
             total_current_limit_deci_amps: 0,
             scheduled_errors: Vec::new(),
+            variants: Variants::none(),
         }
     }
 
@@ -193,6 +197,7 @@ impl SimConfig {
             actuator: Option<Vec<toml::Table>>,
             total_current_limit_deci_amps: Option<u16>,
             error: Option<Vec<ScheduledError>>,
+            variants: Option<Variants>,
         }
         let f: File = toml::from_str(text).map_err(|e| SimConfigError(e.to_string()))?;
         let mut c = match f.preset.as_deref() {
@@ -206,6 +211,9 @@ impl SimConfig {
         }
         if let Some(errors) = f.error {
             c.scheduled_errors = errors;
+        }
+        if let Some(v) = f.variants {
+            c.variants = v;
         }
         if let Some(n) = f.actuators {
             if !(1..=6).contains(&n) {

@@ -115,7 +115,12 @@ impl Emulator {
         v.check_range(self.config.speed_mode).map_err(|_| Status::ParameterDataError)?;
         let i = e.index().0;
         match (i, v) {
-            (0x3001..=0x3005, Value::CyclicObject(o)) => self.cyclic_objects[usize::from(i - 0x3001)] = o,
+            (0x3001..=0x3005, Value::CyclicObject(o)) => {
+                if o.write_indices().chain(o.read_indices()).any(|x| self.config.variants.refuses_in_object(x)) {
+                    return Err(Status::ParameterDataError);
+                }
+                self.cyclic_objects[usize::from(i - 0x3001)] = o
+            }
             (0x3011..=0x301A, Value::RemoteSpeed(s)) => {
                 let function = (i - 0x3011) as u8;
                 self.remote_speed[usize::from(function)] = s;

@@ -49,6 +49,8 @@
 //!   When the next motion starts (an RE of a motion function with a direction other than 0, or the hand
 //!   switch), bits 14..21 ("bit reset on next motion") leave Error_Code 1; the other bits stay, and the
 //!   history keeps what happened.
+//! - Variants ([`SimConfig::variants`], [`Variant`]): a unit whose firmware does what the manual leaves open
+//!   the other plausible way (refuses grouping indices, UserPositionData or cyclic objects, ...).
 //! - Events ([`Emulator::take_events`], printed by `motionlink sim scu --events`): remote mode opened, closed
 //!   or ended by the watchdog, a function started or stopped, an actuator at rest with its position, an error
 //!   bit set or reset, a switching function on or off.
@@ -68,10 +70,12 @@ mod config;
 mod data;
 #[cfg(test)]
 mod tests;
+mod variants;
 
 pub use crate::model::timing::{INTER_BYTE_LIMIT, WATCHDOG};
 use actuator::{ActuatorState, Origin};
 pub use config::{ActuatorConfig, ScheduledError, SimConfig, SimConfigError};
+pub use variants::{UnknownVariant, Variant, Variants, SLEEP_AFTER};
 
 /// Step of the physical model.
 const STEP: Duration = Duration::from_millis(5);
@@ -143,6 +147,10 @@ pub struct Emulator {
     /// The scheduled errors, by time, and how many of them were raised.
     scheduled_errors: Vec<ScheduledError>,
     scheduled_raised: usize,
+    /// When the last byte came (for [`Variant::Sleepy`]).
+    last_rx: Option<Timestamp>,
+    /// A [`Variant::Sleepy`] unit dozed off: the next telegram only wakes it.
+    dozing: bool,
 }
 
 /// The most events an emulator keeps for [`Emulator::take_events`] (a host that never takes them loses the
@@ -155,8 +163,13 @@ pub const RESET_ON_NEXT_MOTION: u32 = ((1u32 << 21) - 1) & !((1u32 << 13) - 1);
 
 impl Emulator {
     /// A unit with `config`, powered on at time zero.
-    pub fn new(config: SimConfig) -> Result<Self, SimConfigError> {
+    pub fn new(mut config: SimConfig) -> Result<Self, SimConfigError> {
         config.validate()?;
+        if config.variants.has(Variant::InEndUndershoot) {
+            for a in &mut config.actuators {
+                a.in_end_undershoot_counts = a.in_end_undershoot_counts.max(3);
+            }
+        }
         let actuators = config.actuators.iter().cloned().map(ActuatorState::new).collect::<Vec<_>>();
         let mut remote_position = [0i32; 6];
         for (slot, a) in remote_position.iter_mut().zip(&config.actuators) {
@@ -191,6 +204,8 @@ impl Emulator {
             was_moving: [false; 6],
             scheduled_errors,
             scheduled_raised: 0,
+            last_rx: None,
+            dozing: false,
         })
     }
 
@@ -317,6 +332,9 @@ impl Emulator {
 
     /// A motion starts: the bits the manual resets "on the next motion" (14, 15..20, 21) leave Error_Code 1.
     fn reset_errors_on_motion(&mut self) {
+        if self.config.variants.has(Variant::StickyErrors) {
+            return;
+        }
         let cleared = self.error_history[0] & RESET_ON_NEXT_MOTION;
         if cleared == 0 {
             return;
@@ -447,6 +465,12 @@ impl EmulatorTrait for Emulator {
         }
         if !bytes.is_empty() {
             self.last_byte = Some(now);
+            if self.config.variants.has(Variant::Sleepy)
+                && self.last_rx.is_none_or(|t| now.saturating_since(t) >= SLEEP_AFTER)
+            {
+                self.dozing = true;
+            }
+            self.last_rx = Some(now);
         }
         let mut input = bytes;
         loop {
@@ -461,6 +485,10 @@ impl EmulatorTrait for Emulator {
                 continue;
             };
             match event {
+                Ok(_) if self.dozing => {
+                    self.dozing = false;
+                    self.push_event("woken by a telegram, which it does not answer".into());
+                }
                 Ok(incoming) => {
                     let owned = own_request(incoming, &mut frame);
                     self.handle(owned.as_incoming(&frame));

@@ -54,3 +54,64 @@ fn every_entry_of_the_data_list_has_a_modelled_value() {
         assert!(unit.entry_value(e).is_some(), "{} ({}) is not modelled", e.name, e.index());
     }
 }
+
+#[test]
+fn each_variant_refuses_or_answers_as_its_firmware_would() {
+    use crate::model::CyclicObject;
+    let open = |variants: Variants| {
+        let mut unit = Emulator::new(SimConfig { variants, ..SimConfig::default() }).unwrap();
+        send(&mut unit, 0, Request::Open { safety_id: 0 });
+        send(&mut unit, 0, Request::Cyclic { object: UNUSED, write: &[] });
+        unit
+    };
+    let status = |reply: &[u8]| Status::from_code(reply[2]).unwrap();
+    let v = |v: Variant| Variants::none().with(v);
+    // Grouping indices: refused to RG, to RT, and in a cyclic object's definition; entries answer.
+    let mut unit = open(v(Variant::NoGroups));
+    assert_eq!(status(&send(&mut unit, 1, Request::Get { index: 0x0010 })), Status::ParameterDataError);
+    assert_eq!(status(&send(&mut unit, 1, Request::Get { index: 0x0170 })), Status::ParameterDataError);
+    assert_eq!(send(&mut unit, 1, Request::Get { index: 0x0011 }).len(), 11);
+    let speeds = [50u8, 0].repeat(10);
+    assert_eq!(
+        status(&send(&mut unit, 1, Request::Transfer { index: 0x3010, data: &speeds })),
+        Status::ParameterDataError
+    );
+    let object = CyclicObject::new(&[], &[DataIndex(0x0170)]).unwrap().to_bytes();
+    assert_eq!(
+        status(&send(&mut unit, 1, Request::Transfer { index: 0x3005, data: &object })),
+        Status::ParameterDataError
+    );
+    // UserPositionData.
+    let mut unit = open(v(Variant::NoUserPositions));
+    assert_eq!(status(&send(&mut unit, 1, Request::Get { index: 0x2001 })), Status::ParameterDataError);
+    assert_eq!(status(&send(&mut unit, 1, Request::Get { index: 0x0010 })), Status::Ack);
+    // Cyclic objects: the definition is remote data like any other, the RC that carries it is refused (and
+    // still feeds the watchdog).
+    let mut unit = open(v(Variant::NoCyclicObjects));
+    let object = CyclicObject::new(&[], &[DataIndex(0x0011)]).unwrap().to_bytes();
+    assert_eq!(status(&send(&mut unit, 1, Request::Transfer { index: 0x3001, data: &object })), Status::Ack);
+    assert_eq!(status(&send(&mut unit, 400, Request::Cyclic { object: 0, write: &[] })), Status::ParameterDataError);
+    assert_eq!(status(&send(&mut unit, 800, Request::Get { index: 0x0011 })), Status::Ack, "no watchdog expiry");
+    // Remote data is not read back.
+    let mut unit = open(v(Variant::NoRemoteReadBack));
+    assert_eq!(status(&send(&mut unit, 1, Request::Transfer { index: 0x3011, data: &[40, 0] })), Status::Ack);
+    assert_eq!(status(&send(&mut unit, 1, Request::Get { index: 0x3011 })), Status::ParameterDataError);
+    // RC without an object: ACK, ctp 0.
+    let mut unit = open(v(Variant::RcEmptyData));
+    let reply = send(&mut unit, 1, Request::Cyclic { object: UNUSED, write: &[] });
+    assert_eq!(&reply[..5], b"RC\x06\x00\x00");
+    assert_eq!(reply.len(), 7);
+    // Sleepy: the first telegram after power-on and after 2 s of silence is not answered.
+    let mut unit = Emulator::new(SimConfig { variants: v(Variant::Sleepy), ..SimConfig::default() }).unwrap();
+    assert!(send(&mut unit, 0, Request::Open { safety_id: 0 }).is_empty());
+    assert!(!send(&mut unit, 150, Request::Open { safety_id: 0 }).is_empty());
+    assert!(!send(&mut unit, 1_000, Request::Abort).is_empty());
+    assert!(send(&mut unit, 3_000, Request::Open { safety_id: 0 }).is_empty());
+    // A new RE of a started function needs its RS first.
+    let mut unit = open(v(Variant::ReNeedsRs));
+    let re = Request::Execute { function: 0, params: [2, UNUSED] };
+    assert_eq!(status(&send(&mut unit, 1, re)), Status::Ack);
+    assert_eq!(status(&send(&mut unit, 2, re)), Status::PermissionError);
+    assert_eq!(status(&send(&mut unit, 3, Request::Stop { function: 0, param: 0 })), Status::Ack);
+    assert_eq!(status(&send(&mut unit, 4, re)), Status::Ack);
+}

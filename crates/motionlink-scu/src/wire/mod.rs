@@ -298,6 +298,7 @@ impl Request<'_> {
         match self {
             Request::Get { .. } => ReplyShape::WithData,
             Request::Cyclic { object, .. } if *object != 0xFF => ReplyShape::WithData,
+            Request::Cyclic { .. } => ReplyShape::StatusOrData,
             _ => ReplyShape::StatusOnly,
         }
     }
@@ -392,10 +393,14 @@ pub fn request_to_vec(request: &Request<'_>) -> Result<Vec<u8>, EncodeError> {
 /// Whether a reply carries data (`ctp` and data bytes) after an ACK.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ReplyShape {
-    /// Command letters, status, CRC: the reply of RO, RA, RT, RE, RS and of RC without a cyclic object.
+    /// Command letters, status, CRC: the reply of RO, RA, RT, RE and RS.
     StatusOnly,
     /// After an ACK: ctp and data. The reply of RG and of RC with a cyclic object.
     WithData,
+    /// Either: the reply of RC without a cyclic object, which the manual's example shows as the status
+    /// alone and its command table as ACK, ctp and (no) read data. A telegram whose first five bytes carry a
+    /// valid CRC is the status alone; otherwise bytes 3 and 4 are the ctp.
+    StatusOrData,
 }
 
 /// A reply, as the unit sends it.

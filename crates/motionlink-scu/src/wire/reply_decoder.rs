@@ -127,8 +127,13 @@ pub(super) fn scan_reply(b: &[u8], expect: Option<Expectation>) -> Scan {
     let shape = match (expect, command) {
         (Some(e), _) => e.shape,
         (None, Command::Get) => ReplyShape::WithData,
-        (None, Command::Cyclic) => {
-            // Ambiguous without the request: status-only if that CRC matches, else with data.
+        // Ambiguous without the request.
+        (None, Command::Cyclic) => ReplyShape::StatusOrData,
+        (None, _) => ReplyShape::StatusOnly,
+    };
+    let shape = match shape {
+        ReplyShape::StatusOrData => {
+            // The status alone if that CRC matches, else with ctp and data.
             if b.len() < 5 {
                 return Scan::NeedMore;
             }
@@ -137,10 +142,10 @@ pub(super) fn scan_reply(b: &[u8], expect: Option<Expectation>) -> Scan {
             }
             ReplyShape::WithData
         }
-        (None, _) => ReplyShape::StatusOnly,
+        other => other,
     };
     match shape {
-        ReplyShape::StatusOnly => {
+        ReplyShape::StatusOnly | ReplyShape::StatusOrData => {
             if b.len() < 5 {
                 Scan::NeedMore
             } else {

@@ -230,3 +230,30 @@ impl Link for Latency {
         self.inner.describe()
     }
 }
+
+impl Rig {
+    /// A unit with `config` whose firmware has `variants`.
+    pub fn with_variants(mut config: SimConfig, variants: &[motionlink_scu::Variant]) -> Rig {
+        for v in variants {
+            config.variants = std::mem::take(&mut config.variants).with(*v);
+        }
+        Rig::new(config)
+    }
+
+    /// A client whose replies reach it `latency` (which the test may change) after the unit sent them.
+    pub fn client_behind(&self, latency: &Arc<Mutex<Duration>>, config: ClientConfig) -> Result<Client, Error> {
+        let host = self.host.clone();
+        let clock = self.clock.shared();
+        let latency = Arc::clone(latency);
+        let connector: Connector = Box::new(move || {
+            let (link, _) = host.connect();
+            Ok(Box::new(Latency {
+                inner: Box::new(link),
+                clock: Arc::clone(&clock),
+                latency: Arc::clone(&latency),
+                queue: Default::default(),
+            }) as Box<dyn Link>)
+        });
+        Client::open(connector, self.clock.shared(), config)
+    }
+}

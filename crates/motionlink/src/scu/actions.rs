@@ -1,7 +1,6 @@
 //! The actions of `motionlink scu`: each calls the library and prints what it returns.
 
 use std::io::Write;
-use std::sync::Arc;
 use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
@@ -9,7 +8,7 @@ use motionlink_scu::model::{
     Actuator, ActuatorStatus1, DataEntry, DataEntryExt, DataIndex, ErrorCode, Flags, Function, Item, Kind,
     MotionFunction, PositionCounts, Speed, SpeedMode,
 };
-use motionlink_scu::session::{MoveProgress, MoveReport, RunAction, RunProgress};
+use motionlink_scu::session::{MoveProgress, MoveReport, RunAction, RunProgress, Snapshot};
 use motionlink_scu::value::Value;
 use motionlink_scu::{Client, MoveOptions};
 use serde_json::json;
@@ -147,18 +146,26 @@ pub(super) fn set(
         return Err(CliError::usage(format!("{} is a group; set its entries one by one", it.name())));
     };
     let v = Value::parse(e.kind, value).map_err(|err| CliError::usage(format!("{}: {err}", e.name)))?;
-    client.set(e.index(), &v).map_err(cl)?;
+    let written = client.set(e.index(), &v).map_err(cl)?;
     if report.json {
         // The library compared what it read back with what it wrote; the value the device gives now is
-        // `read_back` (every remote entry is readable).
-        let read_back = client.get_value(e.index()).map_err(cl)?;
+        // `read_back` (null where the unit does not read remote data back).
+        let read_back = match written.verified {
+            true => value_json(&client.get_value(e.index()).map_err(cl)?),
+            false => serde_json::Value::Null,
+        };
         report.print(
             out,
             json!({"name": e.name, "id": e.id, "value": value_json(&v), "unit": unit_json(e, client.config().speed_mode),
-                   "access": e.access.short(), "read_back": value_json(&read_back), "verified": true}),
+                   "access": e.access.short(), "read_back": read_back, "verified": written.verified,
+                   "not_verifiable": written.not_verifiable}),
         )
     } else {
-        common::print_table(out, &[(format!("{} ({})", e.name, e.index()), format!("{v} (written, read back)"))])
+        let how = match written.verified {
+            true => "written, read back".to_string(),
+            false => format!("written; not verified: {}", written.not_verifiable.join("; ")),
+        };
+        common::print_table(out, &[(format!("{} ({})", e.name, e.index()), format!("{v} ({how})"))])
     }
 }
 
@@ -252,16 +259,8 @@ pub(super) fn errors(client: &Client, report: &Report<'_>, out: &mut dyn Write) 
     common::print_table(out, &rows)
 }
 
-/// Waits `duration` on the client's clock, returning early on Ctrl-C.
-fn pause(client: &Client, duration: Duration, interrupt: &CancelToken) {
-    let clock = client.clock();
-    let signal = clock.signal();
-    let until = clock.now() + duration;
-    while clock.now() < until && !interrupt.is_cancelled() {
-        signal.wait_until(Some(until.min(clock.now() + Duration::from_millis(10))));
-    }
-}
-
+/// `watch`: the library samples (through the keepalive RC where the unit takes the session's cyclic object);
+/// this prints each sample, one row per connected actuator.
 pub(super) fn watch(
     client: &Client,
     report: &Report<'_>,
@@ -271,79 +270,84 @@ pub(super) fn watch(
     interrupt: &CancelToken,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    let clock = Arc::clone(client.clock());
-    let actuators = connected_actuators(client)?;
-    let mut n = 0u64;
-    let started = clock.now();
     if format == Format::Csv {
         writeln!(out, "t_s,actuator,position_counts,moving,current_amps,last_error_code")?;
     }
-    while !interrupt.is_cancelled() && count.is_none_or(|c| n < c) {
-        let positions = client.get(DataIndex(0x0010)).map_err(cl)?;
-        let status = client.statuses().map_err(cl)?;
-        let currents = client.get(DataIndex(0x00A0)).map_err(cl)?;
-        let last_error = client.get_value(DataIndex(0x00D1)).map_err(cl)?;
-        let t = (clock.now() - started).as_secs_f64();
-        // One row per connected actuator, from the three group reads (a short reply is an error, not a panic).
-        let mut rows = Vec::with_capacity(actuators.len());
-        for (a, _) in &actuators {
-            let i = usize::from(a.number() - 1);
-            let short = |what: &str| CliError::transport(format!("the unit's {what} reply has no entry for {a}"));
-            let position = &positions.get(i).ok_or_else(|| short("position (0x0010)"))?.1;
-            let status = *status.get(i).ok_or_else(|| short("status (0x0170)"))?;
-            let current = &currents.get(i).ok_or_else(|| short("current (0x00A0)"))?.1;
-            rows.push((a, position, status, current));
-        }
-        let code = match &last_error {
-            Value::ErrorCode(c) => c.0,
-            _ => 0,
-        };
-        let amps = current_amps;
-        match format {
-            Format::Json => {
-                let acts: Vec<_> = rows
-                    .iter()
-                    .map(|(a, position, status, current)| {
-                        with(
-                            json!({"actuator": a.number(), "position_counts": position.to_json(),
-                                   "current_amps": amps(current)}),
-                            status_fields(*status),
-                        )
-                    })
-                    .collect();
-                report.print(out, json!({"t_s": t, "actuators": acts, "last_error": last_error.to_json()}))?;
-            }
-            Format::Csv => {
-                for (a, position, status, current) in &rows {
-                    let fields = [
-                        format!("{t:.3}"),
-                        a.number().to_string(),
-                        position.to_json().to_string(),
-                        status.moving().to_string(),
-                        format!("{:.1}", amps(current)),
-                        code.to_string(),
-                    ];
-                    writeln!(out, "{}", common::csv_line(&fields))?;
-                }
-            }
-            Format::Text => {
-                let mut line = format!("{t:7.2} s");
-                for (a, position, status, current) in &rows {
-                    let moving = if status.moving() { "moving" } else { "stopped" };
-                    line.push_str(&format!("  {a}: {position} {moving} {current}"));
-                }
-                if code != ErrorCode::NONE.0 {
-                    line.push_str(&format!("  last error 0x{code:08X}"));
-                }
-                writeln!(out, "{line}")?;
+    let mut started = None;
+    let mut failed: Option<CliError> = None;
+    let mut print = |s: &Snapshot| {
+        if failed.is_none() {
+            let t = (s.at - *started.get_or_insert(s.at)).as_secs_f64();
+            if let Err(e) = print_sample(out, report, format, t, s) {
+                failed = Some(e);
+                // Nothing more can be printed: the watch ends.
+                interrupt.cancel();
             }
         }
-        out.flush()?;
-        n += 1;
-        if count.is_none_or(|c| n < c) {
-            pause(client, Duration::from_millis(interval_ms), interrupt);
+    };
+    let watched = client.watch(Duration::from_millis(interval_ms), count, &mut print, Some(interrupt));
+    match failed {
+        Some(e) => Err(e),
+        None => watched.map(|_| ()).map_err(cl),
+    }
+}
+
+/// One sample: a JSON object, CSV lines, or a line of text.
+fn print_sample(
+    out: &mut dyn Write,
+    report: &Report<'_>,
+    format: Format,
+    t: f64,
+    s: &Snapshot,
+) -> Result<(), CliError> {
+    let rows: Vec<(Actuator, PositionCounts, ActuatorStatus1, Value)> = Actuator::all()
+        .filter(|a| s.status(*a).available())
+        .map(|a| {
+            (a, s.position(a), s.status(a), Value::CurrentDeciAmps(s.currents_deci_amps[usize::from(a.number() - 1)]))
+        })
+        .collect();
+    let last_error = Value::ErrorCode(s.last_error);
+    let code = s.last_error.0;
+    match format {
+        Format::Json => {
+            let acts: Vec<_> = rows
+                .iter()
+                .map(|(a, position, status, current)| {
+                    with(
+                        json!({"actuator": a.number(), "position_counts": position.get(),
+                               "current_amps": current_amps(current)}),
+                        status_fields(*status),
+                    )
+                })
+                .collect();
+            report.print(out, json!({"t_s": t, "actuators": acts, "last_error": last_error.to_json()}))?;
+        }
+        Format::Csv => {
+            for (a, position, status, current) in &rows {
+                let fields = [
+                    format!("{t:.3}"),
+                    a.number().to_string(),
+                    position.get().to_string(),
+                    status.moving().to_string(),
+                    format!("{:.1}", current_amps(current)),
+                    code.to_string(),
+                ];
+                writeln!(out, "{}", common::csv_line(&fields))?;
+            }
+        }
+        Format::Text => {
+            let mut line = format!("{t:7.2} s");
+            for (a, position, status, current) in &rows {
+                let moving = if status.moving() { "moving" } else { "stopped" };
+                line.push_str(&format!("  {a}: {} {moving} {current}", Value::PositionCounts(position.get())));
+            }
+            if code != ErrorCode::NONE.0 {
+                line.push_str(&format!("  last error 0x{code:08X}"));
+            }
+            writeln!(out, "{line}")?;
         }
     }
+    out.flush()?;
     Ok(())
 }
 
@@ -414,7 +418,8 @@ pub(super) fn print_move_report(out: &mut dyn Write, report: &MoveReport, how: &
             json!({"actuator": report.actuator.number(), "function": report.function.number(),
                    "reached_counts": report.position_counts, "target_counts": target,
                    "difference_counts": target.map(|t| report.position_counts.counts_from(t)),
-                   "time_s": report.duration.as_secs_f64(), "actuators": actuators}),
+                   "time_s": report.duration.as_secs_f64(), "actuators": actuators,
+                   "verified": report.verified, "not_verifiable": report.not_verifiable}),
         );
     }
     let mut rows: Vec<Row> = vec![("function".into(), report.function.to_string())];
@@ -427,7 +432,16 @@ pub(super) fn print_move_report(out: &mut dyn Write, report: &MoveReport, how: &
         rows.push((o.actuator.to_string(), text));
     }
     rows.push(("time".into(), format!("{:.1} s", report.duration.as_secs_f64())));
+    rows.push(("verified".into(), verified_text(report.verified, &report.not_verifiable)));
     common::print_table(out, &rows)
+}
+
+/// "yes", or "no: " and what could not be verified.
+fn verified_text(verified: bool, not_verifiable: &[String]) -> String {
+    match verified {
+        true => "yes".into(),
+        false => format!("no: {}", not_verifiable.join("; ")),
+    }
 }
 
 #[cfg(test)]

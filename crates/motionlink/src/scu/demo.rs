@@ -14,15 +14,63 @@ use motionlink_scu::describe::{describe_request, fold_transcript, Describer, Tra
 use motionlink_scu::model::{Actuator, DataIndex, MotionDirection, MotionFunction, PositionCounts, StopMode};
 use motionlink_scu::value::Value;
 use motionlink_scu::wire::{request_to_vec, Request};
-use motionlink_scu::{Client, ClientConfig, Emulator, SimConfig};
+use motionlink_scu::{Client, ClientConfig, Emulator, SimConfig, Variants};
+use std::path::PathBuf;
 
-use super::{load_sim_config, DecodeArgs, SimArgs};
-use crate::common::{self, CliError};
+use crate::common::{self, CliError, ServeArgs};
+use crate::decode::CaptureArgs;
 use crate::demo::{DemoOut, DemoTelegram};
+
+/// `motionlink sim scu` arguments.
+#[derive(clap::Args, Debug)]
+pub struct SimArgs {
+    #[command(flatten)]
+    pub serve: ServeArgs,
+    /// Parameterisation (TOML): actuators, function mapping, stroke, speed. See the README.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Start from a preset: scp11 (default; actuator n on Fn), tlt (F1 drives both columns, F2 and F3 one each)
+    /// or liftkit (F1 actuator 1, F2 actuator 2, F8 both, as the public LIFTKIT/TLT drivers assume).
+    #[arg(long, value_parser = ["scp11", "tlt", "liftkit"])]
+    pub preset: Option<String>,
+    /// A firmware variant: the unit does what the manual leaves open the other plausible way. no-groups,
+    /// no-user-positions, no-cyclic-objects, no-remote-readback, rc-empty-data, sleepy, sticky-errors,
+    /// in-end-undershoot, re-needs-rs (see the README). Repeat or comma-separate for several; added to the
+    /// configuration's `variants`.
+    #[arg(long = "variant", value_name = "NAME")]
+    pub variants: Vec<String>,
+}
+
+/// `motionlink decode scu` arguments.
+#[derive(clap::Args, Debug)]
+pub struct DecodeArgs {
+    #[command(flatten)]
+    pub capture: CaptureArgs,
+}
+
+pub(super) fn load_sim_config(
+    path: Option<&PathBuf>,
+    preset: Option<&str>,
+    variants: &[String],
+) -> Result<SimConfig, CliError> {
+    let mut config = preset.and_then(SimConfig::preset).unwrap_or_default();
+    if let Some(path) = path {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| CliError::usage(format!("cannot read {}: {e}", path.display())))?;
+        let text = match preset {
+            Some(p) if !text.contains("preset") => format!("preset = \"{p}\"\n{text}"),
+            _ => text,
+        };
+        config = SimConfig::from_toml(&text).map_err(|e| CliError::usage(format!("{}: {e}", path.display())))?;
+    }
+    let variants = Variants::parse_all(variants).map_err(|e| CliError::usage(e.to_string()))?;
+    config.variants.extend(&variants);
+    Ok(config)
+}
 
 /// `motionlink sim scu`
 pub fn sim(args: SimArgs) -> Result<(), CliError> {
-    let config = load_sim_config(args.config.as_ref(), args.preset.as_deref())?;
+    let config = load_sim_config(args.config.as_ref(), args.preset.as_deref(), &args.variants)?;
     let device = Emulator::new(config).map_err(|e| CliError::usage(e.to_string()))?;
     common::serve(&args.serve, device)
 }

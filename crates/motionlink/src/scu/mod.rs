@@ -16,10 +16,9 @@ use motionlink_scu::model::{
     lookup, Actuator, Function, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode,
 };
 use motionlink_scu::session::RunAction;
-use motionlink_scu::{Client, ClientConfig, Emulator, Ending, FunctionMap, SimConfig, StrokeLimits};
+use motionlink_scu::{Client, ClientConfig, Emulator, Ending, FunctionMap, StrokeLimits, Variants};
 
-use crate::common::{self, CliError, ServeArgs};
-use crate::decode::CaptureArgs;
+use crate::common::{self, CliError};
 use crate::tap::{LinkArgs, Tap};
 
 mod actions;
@@ -28,7 +27,8 @@ mod follow;
 mod send;
 mod stop;
 
-pub use demo::{decode, demo, sim};
+use demo::load_sim_config;
+pub use demo::{decode, demo, sim, DecodeArgs, SimArgs};
 
 /// `motionlink scu` arguments. Every option may come before or after the action.
 #[derive(clap::Args, Debug)]
@@ -67,7 +67,8 @@ pub struct Args {
           value_parser = clap::value_parser!(u32).range(0..=100))]
     pub tolerance: u32,
     /// How often a move (or a run) looks at the actuators, in ms: each look is one RC keepalive that also reads
-    /// the status and position of every actuator (about 11 ms of the 38400-baud line).
+    /// the status, position and current of every actuator (about 16 ms of the 38400-baud line). A watch's
+    /// samples ride on such RCs too: at most one per this interval.
     #[arg(long, default_value_t = 50, value_name = "MS", allow_hyphen_values = true, global = true,
           alias = "poll-interval", value_parser = clap::value_parser!(u64).range(5..=10_000))]
     pub poll_ms: u64,
@@ -78,6 +79,10 @@ pub struct Args {
     /// Emulator configuration (TOML) when the port is sim.
     #[arg(long, value_name = "FILE", global = true)]
     pub sim_config: Option<PathBuf>,
+    /// A firmware variant of the emulator when the port is sim (as `motionlink sim scu --variant`); repeat
+    /// or comma-separate for several.
+    #[arg(long = "sim-variant", value_name = "NAME", global = true)]
+    pub sim_variants: Vec<String>,
     /// `--json` (the global option, set by `main`).
     #[arg(skip)]
     pub json: bool,
@@ -199,7 +204,9 @@ pub enum Action {
         #[arg(long)]
         soft: bool,
     },
-    /// Live positions and state until Ctrl-C.
+    /// Live positions and state until Ctrl-C. Each sample rides on an RC keepalive where the unit takes the
+    /// session's cyclic object (so a link too slow for any other request beside the keepalive can be watched
+    /// once it is defined), else it is read.
     Watch {
         /// Time between samples, in ms (10 .. 3600000).
         #[arg(long, default_value_t = 250, value_name = "MS", allow_hyphen_values = true, alias = "interval",
@@ -216,46 +223,11 @@ pub enum Action {
     Errors,
 }
 
-/// `motionlink sim scu` arguments.
-#[derive(clap::Args, Debug)]
-pub struct SimArgs {
-    #[command(flatten)]
-    pub serve: ServeArgs,
-    /// Parameterisation (TOML): actuators, function mapping, stroke, speed. See the README.
-    #[arg(long, value_name = "FILE")]
-    pub config: Option<PathBuf>,
-    /// Start from a preset: scp11 (default; actuator n on Fn), tlt (F1 drives both columns, F2 and F3 one each)
-    /// or liftkit (F1 actuator 1, F2 actuator 2, F8 both, as the public LIFTKIT/TLT drivers assume).
-    #[arg(long, value_parser = ["scp11", "tlt", "liftkit"])]
-    pub preset: Option<String>,
-}
-
-/// `motionlink decode scu` arguments.
-#[derive(clap::Args, Debug)]
-pub struct DecodeArgs {
-    #[command(flatten)]
-    pub capture: CaptureArgs,
-}
-
 fn parse_baud(s: &str) -> Result<u32, String> {
     match s.parse::<u32>() {
         Ok(b @ (9_600 | 19_200 | 38_400)) => Ok(b),
         _ => Err(format!("{s:?}: an SCU runs at 9600, 19200 or 38400 baud")),
     }
-}
-
-fn load_sim_config(path: Option<&PathBuf>, preset: Option<&str>) -> Result<SimConfig, CliError> {
-    let mut config = preset.and_then(SimConfig::preset).unwrap_or_default();
-    if let Some(path) = path {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| CliError::usage(format!("cannot read {}: {e}", path.display())))?;
-        let text = match preset {
-            Some(p) if !text.contains("preset") => format!("preset = \"{p}\"\n{text}"),
-            _ => text,
-        };
-        config = SimConfig::from_toml(&text).map_err(|e| CliError::usage(format!("{}: {e}", path.display())))?;
-    }
-    Ok(config)
 }
 
 /// The session's settings from the command line, checked before anything is sent.
@@ -323,7 +295,7 @@ fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: Clie
     let clock = Arc::clone(clock);
     let connector: Connector = match &port {
         PortUrl::Sim => {
-            let mut sim_config = load_sim_config(args.sim_config.as_ref(), None)?;
+            let mut sim_config = load_sim_config(args.sim_config.as_ref(), None, &args.sim_variants)?;
             if args.sim_config.is_none() {
                 // The emulated unit is parameterised the way the command was told the unit is.
                 sim_config.speed_mode = args.speed_mode.into();
@@ -335,8 +307,8 @@ fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: Clie
         }
         p if p.is_can() => return Err(CliError::usage(format!("{p}: the SCU speaks RS232, not CAN"))),
         p => {
-            if args.sim_config.is_some() {
-                return Err(CliError::usage("--sim-config is only for --port sim"));
+            if args.sim_config.is_some() || !args.sim_variants.is_empty() {
+                return Err(CliError::usage("--sim-config and --sim-variant are only for --port sim"));
             }
             let p = p.clone();
             let settings = SerialSettings::new(args.baud);
@@ -399,6 +371,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     }
     // Check everything that can be checked before the port is opened: nothing is sent for bad input.
     let config = client_config(&args)?;
+    Variants::parse_all(&args.sim_variants).map_err(|e| CliError::usage(format!("--sim-variant: {e}")))?;
     let mode: SpeedMode = args.speed_mode.into();
     let mut request = None;
     match &args.action {

@@ -8,8 +8,9 @@ use crate::model::{
 };
 use crate::session::request::{OwnedReply, PreparedRequest, Req, Schedule};
 use crate::session::CyclicUse;
+use crate::session::SetReport;
 use crate::value::{decode_item, Value};
-use crate::wire::{Command, Request};
+use crate::wire::{Command, Request, Status};
 
 /// One request of the caller's. A stop goes out before anything else; an RE whose caller gave up before its
 /// reply came is followed by RS.
@@ -67,7 +68,9 @@ impl Operation for Single {
     }
 }
 
-/// RT, and the RG that reads the value back.
+/// RT, and the RG that reads the value back. Its end: `None` when the value was read back equal (or no
+/// read-back was asked), `Some(why)` when the unit refuses to read remote data back (PDE; remembered for the
+/// session), so the value could not be verified.
 pub(crate) struct Write {
     index: DataIndex,
     data: Vec<u8>,
@@ -81,7 +84,7 @@ impl Write {
         Write { index, data, verify, reading: false }
     }
 
-    pub fn step(&mut self, resume: Resume) -> Step<Result<(), Error>> {
+    pub fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Step<Result<Option<String>, Error>> {
         match resume {
             Resume::Start => Step::Wait(Next::Send(Req::op(
                 match PreparedRequest::new(&Request::Transfer { index: self.index.0, data: &self.data }) {
@@ -93,33 +96,52 @@ impl Write {
                 if let Err(e) = result.and_then(|r| r.ack(Command::Transfer)) {
                     return Step::Done(Err(e));
                 }
-                if self.verify && item(self.index).is_some() {
-                    self.reading = true;
-                    Step::Wait(get(self.index))
-                } else {
-                    Step::Done(Ok(()))
+                if !self.verify || item(self.index).is_none() {
+                    return Step::Done(Ok(None));
                 }
+                if cx.core.probed.caps.remote_read_back == Some(false) {
+                    return Step::Done(Ok(Some(self.not_read_back())));
+                }
+                self.reading = true;
+                Step::Wait(get(self.index))
             }
-            Resume::Reply(result) => Step::Done(result.and_then(|r| r.data(Command::Get)).and_then(|read| {
-                if read == self.data {
-                    return Ok(());
+            Resume::Reply(result) => Step::Done(match result.and_then(|r| r.data(Command::Get)) {
+                // The first read of remote data is the probe: refused, the session remembers it.
+                Err(Error::Refused { status: Status::ParameterDataError, .. })
+                    if cx.core.probed.caps.remote_read_back.is_none() =>
+                {
+                    cx.core.remote_read_back(false);
+                    Ok(Some(self.not_read_back()))
                 }
-                let Some(it) = item(self.index) else { return Ok(()) };
-                let show = |bytes: &[u8]| match decode_item(it, bytes) {
-                    Ok(v) => v.iter().map(|(_, v)| v.to_string()).collect::<Vec<_>>().join(", "),
-                    Err(_) => format!("{bytes:02X?}"),
-                };
-                Err(Error::ReadBack {
-                    name: it.name(),
-                    index: self.index,
-                    written: show(&self.data),
-                    read: show(&read),
-                })
-            })),
+                other => other.and_then(|read| self.compare(cx, read)),
+            }),
             Resume::Wake | Resume::Snapshot(_) | Resume::Reopened(_) => {
                 Step::Done(Err(Error::CancelledBeforeSending(Command::Transfer)))
             }
         }
+    }
+
+    /// The value read back, against the one written.
+    fn compare(&self, cx: &mut Cx<'_>, read: Vec<u8>) -> Result<Option<String>, Error> {
+        cx.core.remote_read_back(true);
+        if read == self.data {
+            return Ok(None);
+        }
+        let Some(it) = item(self.index) else { return Ok(None) };
+        let show = |bytes: &[u8]| match decode_item(it, bytes) {
+            Ok(v) => v.iter().map(|(_, v)| v.to_string()).collect::<Vec<_>>().join(", "),
+            Err(_) => format!("{bytes:02X?}"),
+        };
+        Err(Error::ReadBack { name: it.name(), index: self.index, written: show(&self.data), read: show(&read) })
+    }
+
+    fn not_read_back(&self) -> String {
+        let name = item(self.index).map_or("the value", |it| it.name());
+        format!(
+            "{name} ({}) was written (the unit acknowledged RT) but not read back: the unit refuses to read remote \
+             data (RG: PDE)",
+            self.index
+        )
     }
 }
 
@@ -166,9 +188,11 @@ impl Operation for SetOp {
         if cx.cancelled && matches!(resume, Resume::Wake) {
             return Next::Done(Err(Error::CancelledBeforeSending(Command::Transfer)));
         }
-        match self.0.step(resume) {
+        match self.0.step(cx, resume) {
             Step::Wait(next) => next,
-            Step::Done(r) => Next::Done(r.map(|()| Output::Done)),
+            Step::Done(r) => Next::Done(r.map(|why| {
+                Output::Written(SetReport { verified: why.is_none(), not_verifiable: why.into_iter().collect() })
+            })),
         }
     }
 }
@@ -176,49 +200,77 @@ impl Operation for SetOp {
 /// Where an actuator's stroke comes from, and what it is.
 pub(crate) type Stroke = Option<(StrokeLimits, &'static str)>;
 
+/// What is known of an actuator's stroke: limits (`Ok(Some)`), none set on the unit (`Ok(None)`: its
+/// virtual limits are both 0), or why it is not known (`Err`: the unit refuses UserPositionData and none are
+/// configured).
+pub(crate) type StrokeFound = Result<Stroke, String>;
+
 /// Actuator `a`'s travel range for targets: configured, or the virtual limits of its UserPositionData.
 pub(crate) struct StrokeRead(pub Actuator);
 
 impl StrokeRead {
-    pub fn step(&mut self, cx: &Cx<'_>, resume: Resume) -> Step<Result<Stroke, Error>> {
+    fn unknown(a: Actuator) -> String {
+        format!(
+            "{a}'s target was not checked against a stroke: the unit refuses UserPositionData ({}, PDE) and no \
+             stroke limits are configured for {a} (--stroke {}=MIN:MAX); the unit's own limits bound the motion",
+            DataIndex(0x2000 + u16::from(a.number())),
+            a.number()
+        )
+    }
+
+    pub fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Step<Result<StrokeFound, Error>> {
         let a = self.0;
         match resume {
             Resume::Start => match cx.config().stroke_limits[usize::from(a.number() - 1)] {
-                Some(s) => Step::Done(Ok(Some((s, "as configured")))),
+                Some(s) => Step::Done(Ok(Ok(Some((s, "as configured"))))),
+                None if cx.core.probed.caps.user_position_data == Some(false) => Step::Done(Ok(Err(Self::unknown(a)))),
                 None => Step::Wait(get(DataIndex(0x2000 + u16::from(a.number())))),
             },
-            Resume::Reply(result) => Step::Done(result.and_then(|r| r.data(Command::Get)).and_then(|data| {
-                let it = item(DataIndex(0x2000 + u16::from(a.number()))).expect("UserPositionData is in the data list");
-                let values = decode_item(it, &data).map_err(|e| Error::UnexpectedReply {
-                    command: Command::Get,
-                    detail: format!("UserPositionData of {a}: {e}"),
-                })?;
-                match values.first().map(|(_, v)| v) {
-                    Some(Value::UserPositions(u)) => {
-                        let (lo, hi) = (u.virtual_limit_in_counts, u.virtual_limit_out_counts);
-                        if (lo, hi) == (0, 0) {
-                            Ok(None)
-                        } else if lo > hi {
-                            Err(Error::UnexpectedReply {
-                                command: Command::Get,
-                                detail: format!("{a}'s virtual limits {lo}..{hi} are reversed"),
-                            })
-                        } else {
-                            Ok(Some((
-                                StrokeLimits { min_counts: PositionCounts(lo), max_counts: PositionCounts(hi) },
-                                "the virtual limits of its UserPositionData",
-                            )))
-                        }
-                    }
-                    other => Err(Error::UnexpectedReply {
-                        command: Command::Get,
-                        detail: format!("UserPositionData of {a}: {other:?}"),
-                    }),
+            Resume::Reply(result) => Step::Done(match result.and_then(|r| r.data(Command::Get)) {
+                // The first read of UserPositionData is the probe: refused, the session remembers it.
+                Err(Error::Refused { status: Status::ParameterDataError, .. })
+                    if cx.core.probed.caps.user_position_data.is_none() =>
+                {
+                    cx.core.user_positions_answered(false);
+                    Ok(Err(Self::unknown(a)))
                 }
-            })),
+                other => other.and_then(|data| Self::limits(cx, a, data)),
+            }),
             Resume::Wake | Resume::Snapshot(_) | Resume::Reopened(_) => {
                 Step::Done(Err(Error::CancelledBeforeSending(Command::Get)))
             }
+        }
+    }
+
+    /// The virtual limits in actuator `a`'s UserPositionData.
+    fn limits(cx: &mut Cx<'_>, a: Actuator, data: Vec<u8>) -> Result<StrokeFound, Error> {
+        cx.core.user_positions_answered(true);
+        let it = item(DataIndex(0x2000 + u16::from(a.number()))).expect("UserPositionData is in the data list");
+        let values = decode_item(it, &data).map_err(|e| Error::UnexpectedReply {
+            command: Command::Get,
+            detail: format!("UserPositionData of {a}: {e}"),
+        })?;
+        match values.first().map(|(_, v)| v) {
+            Some(Value::UserPositions(u)) => {
+                let (lo, hi) = (u.virtual_limit_in_counts, u.virtual_limit_out_counts);
+                if (lo, hi) == (0, 0) {
+                    Ok(Ok(None))
+                } else if lo > hi {
+                    Err(Error::UnexpectedReply {
+                        command: Command::Get,
+                        detail: format!("{a}'s virtual limits {lo}..{hi} are reversed"),
+                    })
+                } else {
+                    Ok(Ok(Some((
+                        StrokeLimits { min_counts: PositionCounts(lo), max_counts: PositionCounts(hi) },
+                        "the virtual limits of its UserPositionData",
+                    ))))
+                }
+            }
+            other => Err(Error::UnexpectedReply {
+                command: Command::Get,
+                detail: format!("UserPositionData of {a}: {other:?}"),
+            }),
         }
     }
 }
@@ -252,7 +304,7 @@ impl Operation for StrokeOp {
     fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
         match self.0.step(cx, resume) {
             Step::Wait(next) => next,
-            Step::Done(r) => Next::Done(r.map(Output::Stroke)),
+            Step::Done(r) => Next::Done(r.and_then(|s| s.map_err(Error::NotSupported)).map(Output::Stroke)),
         }
     }
 }

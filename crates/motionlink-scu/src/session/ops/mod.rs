@@ -6,25 +6,30 @@ use std::time::Duration;
 use motionlink_link::session::OpId;
 use motionlink_link::Timestamp;
 
-use super::report::{MoveProgress, MoveReport, RunProgress, RunReport, Snapshot, StopReport};
+use super::report::{MoveProgress, MoveReport, RunProgress, RunReport, SetReport, Snapshot, StopReport};
 use super::request::{OwnedReply, PreparedRequest, Req};
 use super::Core;
 use crate::config::{ClientConfig, StrokeLimits};
 use crate::error::Error;
 use crate::model::{
-    Actuator, ActuatorStatus1, CyclicObject, DataIndex, Function, MotionDirection, MotionFunction, PositionCounts,
-    Speed, StopMode,
+    Actuator, ActuatorStatus1, CyclicObject, DataIndex, ErrorCode, Function, MotionDirection, MotionFunction,
+    PositionCounts, Speed, StopMode,
 };
 use crate::value::Value;
 
 pub(crate) mod basic;
 mod motion;
+mod object;
+mod read;
 mod remote;
 mod run;
 mod stop;
 mod stream;
+mod watch;
 
+pub(crate) use read::ItemRead;
 pub(crate) use remote::{Close, Reopen};
+pub use watch::WatchSpec;
 
 /// An operation a caller starts: what the [`crate::Client`] methods run. See each method for what it does.
 #[derive(Debug)]
@@ -38,8 +43,11 @@ pub enum Op {
     Reconnect,
     /// One request; its ACK's data. An RE that the caller gives up on before its reply is followed by RS.
     Request(PreparedRequest),
+    /// RG of an entry, or of a group's grouping index; where the unit refuses grouping indices, of the
+    /// group's entries one by one (the data is the same).
+    Read(DataIndex),
     /// RT of `data` to `index`, then (if `verify`) RG of it: a value that reads back different is
-    /// [`Error::ReadBack`].
+    /// [`Error::ReadBack`]; a unit that refuses to read remote data back gets a [`SetReport`] that says so.
     Set {
         /// The data index.
         index: DataIndex,
@@ -105,6 +113,9 @@ pub enum Op {
         /// How.
         mode: StopMode,
     },
+    /// Samples the state every interval, through the keepalive RC where the unit takes the session's cyclic
+    /// object ([`crate::Client::watch`]); a cancel ends it.
+    Watch(WatchSpec),
 }
 
 /// Which actuators a move drives to which target.
@@ -175,6 +186,15 @@ pub enum Output {
     Run(RunReport),
     /// How a stop of motion functions ended.
     Stopped(StopReport),
+    /// How a write ended.
+    Written(SetReport),
+    /// How many samples a watch took, and the last.
+    Watched {
+        /// Samples taken.
+        samples: u64,
+        /// The last of them.
+        last: Option<Snapshot>,
+    },
 }
 
 /// What an operation reports on its way.
@@ -184,6 +204,8 @@ pub enum Progress {
     Move(MoveProgress),
     /// A run looked at its actuators.
     Run(RunProgress),
+    /// A watch took a sample.
+    Watch(Snapshot),
 }
 
 /// What an operation is resumed with.
@@ -264,6 +286,7 @@ pub(crate) fn operation(op: Op, core: &Core) -> Box<dyn Operation> {
         Op::Reopen => Box::new(remote::Reopen::new(false)),
         Op::Reconnect => Box::new(remote::Reopen::new(true)),
         Op::Request(r) => Box::new(basic::Single::new(r)),
+        Op::Read(index) => Box::new(read::ReadOp(ItemRead::all(index))),
         Op::Set { index, data, verify } => Box::new(basic::SetOp::new(index, data, verify)),
         Op::StrokeLimits(a) => Box::new(basic::StrokeOp::new(a)),
         Op::Move(spec) => Box::new(motion::Move::new(spec, core.now)),
@@ -274,6 +297,7 @@ pub(crate) fn operation(op: Op, core: &Core) -> Box<dyn Operation> {
         Op::Stop { function, mode, watch, after } => Box::new(stop::StopOp::new(function, mode, watch, after)),
         Op::Run(spec) => Box::new(run::Run::new(spec, core.now)),
         Op::StopMotions { functions, mode } => Box::new(stop::StopMotionsOp::new(functions, mode)),
+        Op::Watch(spec) => Box::new(watch::Watch::new(spec, core.now)),
     }
 }
 
@@ -309,4 +333,23 @@ pub(crate) fn positions(data: &[u8]) -> Result<[PositionCounts; 6], Error> {
     Ok(std::array::from_fn(|i| {
         PositionCounts(i32::from_le_bytes([data[4 * i], data[4 * i + 1], data[4 * i + 2], data[4 * i + 3]]))
     }))
+}
+
+/// The six motor currents (0.1 A) of an RG of 0x00A0.
+pub(crate) fn currents(data: &[u8]) -> Result<[u16; 6], Error> {
+    if data.len() != 12 {
+        return Err(Error::UnexpectedReply {
+            command: crate::wire::Command::Get,
+            detail: "currents are 6 x 2 bytes".into(),
+        });
+    }
+    Ok(std::array::from_fn(|i| u16::from_le_bytes([data[2 * i], data[2 * i + 1]])))
+}
+
+/// An error code (4 bytes).
+pub(crate) fn error_code(data: &[u8]) -> Result<ErrorCode, Error> {
+    <[u8; 4]>::try_from(data).map(|b| ErrorCode(u32::from_le_bytes(b))).map_err(|_| Error::UnexpectedReply {
+        command: crate::wire::Command::Get,
+        detail: "an error code is 4 bytes".into(),
+    })
 }

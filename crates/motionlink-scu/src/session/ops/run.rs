@@ -5,23 +5,23 @@ use std::time::Duration;
 
 use motionlink_link::Timestamp;
 
-use super::basic::Write;
+use super::object::DefineObject;
 use super::stop::StopMachine;
-use super::{get, statuses, Cx, Next, Operation, Output, Progress, Resume, RunAction, RunSpec, Step};
+use super::{statuses, Cx, ItemRead, Next, Operation, Output, Progress, Resume, RunAction, RunSpec, Step};
 use crate::error::Error;
-use crate::model::{Actuator, ActuatorStatus1, CyclicObject, DataIndex, Function, PositionCounts, StopMode, UNUSED};
+use crate::model::{Actuator, ActuatorStatus1, DataIndex, Function, PositionCounts, StopMode, UNUSED};
 use crate::session::report::{RunProgress, RunReport};
 use crate::session::request::{PreparedRequest, Req};
-use crate::session::POLL_READ;
 use crate::wire::{Command, Request};
 
 enum Phase {
-    /// The session's poll object is defined (a motion function is watched through the keepalive).
-    DefinePoll(Write),
+    /// The session's cyclic object is defined and probed (a motion function is watched through the
+    /// keepalive).
+    Define(DefineObject),
     Execute,
     /// Waiting for the next look (a poll through the keepalive RC, or a pause before a read).
     Watch,
-    Status,
+    Status(ItemRead),
     Stopping(StopMachine),
 }
 
@@ -99,6 +99,23 @@ impl Run {
         }
     }
 
+    /// The status read of a look went on: more to read, or the look.
+    fn status_read(&mut self, cx: &mut Cx<'_>, read: ItemRead, step: Step<Result<Vec<u8>, Error>>) -> Next {
+        match step {
+            Step::Wait(next) => {
+                self.phase = Phase::Status(read);
+                next
+            }
+            Step::Done(r) => match r.and_then(|d| statuses(&d)) {
+                Ok(s) => self.look(cx, s, [PositionCounts(0); 6]),
+                Err(e) => {
+                    tracing::warn!("{}: the status could not be read ({e}); stopping it", self.function());
+                    self.stop(cx)
+                }
+            },
+        }
+    }
+
     fn stop(&mut self, cx: &mut Cx<'_>) -> Next {
         let watch = if self.is_motion() { Actuator::all().collect() } else { Vec::new() };
         let mut machine = StopMachine::new(self.function(), StopMode::Fast, watch);
@@ -121,34 +138,24 @@ impl Operation for Run {
                         "{m} is a motion function: run it with a direction"
                     ))));
                 }
-                if let (true, Some(slot), false) = (self.is_motion(), cx.core.poll_slot(), cx.core.poll.configured) {
-                    let object = CyclicObject::new(&[], &POLL_READ).expect("two read indices fit");
-                    let mut write = Write::new(DataIndex(0x3000 + u16::from(slot)), object.to_bytes().to_vec(), true);
-                    if let Step::Wait(next) = write.step(Resume::Start) {
-                        self.phase = Phase::DefinePoll(write);
+                if self.is_motion() {
+                    if let Some((define, next)) = DefineObject::start(cx) {
+                        self.phase = Phase::Define(define);
                         return next;
                     }
                 }
                 self.execute(function)
             }
-            (Phase::DefinePoll(mut write), resume) => {
+            (Phase::Define(mut define), resume) => {
                 if cx.cancelled {
                     return Next::Done(Err(Error::CancelledBeforeSending(Command::Execute)));
                 }
-                match write.step(resume) {
+                match define.step(cx, resume) {
                     Step::Wait(next) => {
-                        self.phase = Phase::DefinePoll(write);
+                        self.phase = Phase::Define(define);
                         next
                     }
-                    Step::Done(Ok(())) => {
-                        cx.core.poll.configured = true;
-                        self.execute(function)
-                    }
-                    Step::Done(Err(Error::Refused { status, .. })) => {
-                        tracing::warn!("the unit refused the poll object ({status}); runs are watched with reads");
-                        cx.core.poll.refused = true;
-                        self.execute(function)
-                    }
+                    Step::Done(Ok(())) => self.execute(function),
                     Step::Done(Err(e)) => Next::Done(Err(e)),
                 }
             }
@@ -183,21 +190,17 @@ impl Operation for Run {
                 if self.spec.limit.is_some_and(|l| cx.now() - self.started_at >= l) {
                     return self.stop(cx);
                 }
-                self.phase = Phase::Status;
-                get(DataIndex(0x0170))
+                let mut read = ItemRead::all(DataIndex(0x0170));
+                let step = read.step(cx, Resume::Start);
+                self.status_read(cx, read, step)
             }
             (Phase::Watch, Resume::Snapshot(Ok(s))) => self.look(cx, s.statuses, s.positions),
-            (Phase::Status, Resume::Reply(r)) => {
+            (Phase::Status(mut read), resume) => {
                 if cx.cancelled {
                     return self.stop(cx);
                 }
-                match r.and_then(|r| r.data(Command::Get)).and_then(|d| statuses(&d)) {
-                    Ok(s) => self.look(cx, s, [PositionCounts(0); 6]),
-                    Err(e) => {
-                        tracing::warn!("{function}: the status could not be read ({e}); stopping it");
-                        self.stop(cx)
-                    }
-                }
+                let step = read.step(cx, resume);
+                self.status_read(cx, read, step)
             }
             (Phase::Watch, Resume::Snapshot(Err(e))) => {
                 tracing::warn!("{function}: {e}; stopping it");

@@ -5,19 +5,20 @@ use std::time::Duration;
 use motionlink_link::error::{Classify, ErrorClass};
 use motionlink_link::Timestamp;
 
-use super::{get, positions, statuses, Cx, Next, Operation, Output, Resume, Step};
+use super::{positions, statuses, Cx, ItemRead, Next, Operation, Output, Resume, Step};
 use crate::error::Error;
 use crate::model::{Actuator, ActuatorStatus1, DataIndex, Function, MotionFunction, PositionCounts, StopMode};
 use crate::session::report::{ActuatorRest, RefusedStop, StopReport};
 use crate::session::request::{PreparedRequest, Req, Schedule};
 use crate::wire::Command;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Phase {
     Rs,
-    /// Waiting for the status (a read, or the next poll through the keepalive RC).
-    Status,
-    Positions,
+    /// Waiting for the next poll through the keepalive RC.
+    Snapshot,
+    /// Reading the status.
+    Status(ItemRead),
+    Positions(ItemRead),
     Pause,
 }
 
@@ -99,14 +100,15 @@ impl StopMachine {
     }
 
     /// The status, once every RS was answered (or the next RS).
-    fn after_rs(&mut self, cx: &mut Cx<'_>, now: Timestamp) -> Next {
+    fn after_rs(&mut self, cx: &mut Cx<'_>, now: Timestamp) -> Step<Result<Rest, Unconfirmed>> {
         if self.answered < self.functions.len() {
-            return self.next_rs();
+            self.phase = Phase::Rs;
+            return Step::Wait(self.next_rs());
         }
         self.give_up = now + self.patience();
         self.poll_interval = cx.config().poll_interval;
         self.by_snapshot = cx.core.poll_slot().is_some() && cx.core.poll.configured;
-        self.look()
+        self.look(cx)
     }
 
     fn patience(&self) -> Duration {
@@ -116,12 +118,39 @@ impl StopMachine {
         }
     }
 
-    fn look(&mut self) -> Next {
-        self.phase = Phase::Status;
+    fn look(&mut self, cx: &mut Cx<'_>) -> Step<Result<Rest, Unconfirmed>> {
         if self.by_snapshot {
-            Next::Snapshot
-        } else {
-            get(DataIndex(0x0170))
+            self.phase = Phase::Snapshot;
+            return Step::Wait(Next::Snapshot);
+        }
+        let read = ItemRead::actuators(DataIndex(0x0170), self.watch.clone());
+        self.read(cx, Phase::Status(read), Resume::Start)
+    }
+
+    /// A read of the status or the positions goes on with `resume`.
+    fn read(&mut self, cx: &mut Cx<'_>, phase: Phase, resume: Resume) -> Step<Result<Rest, Unconfirmed>> {
+        let now = cx.now();
+        let (mut read, positions_read) = match phase {
+            Phase::Status(r) => (r, false),
+            Phase::Positions(r) => (r, true),
+            _ => unreachable!("only reads are read"),
+        };
+        let data = match read.step(cx, resume) {
+            Step::Wait(next) => {
+                self.phase = if positions_read { Phase::Positions(read) } else { Phase::Status(read) };
+                return Step::Wait(next);
+            }
+            Step::Done(r) => r,
+        };
+        if positions_read {
+            return match data.and_then(|d| positions(&d)) {
+                Ok(p) => Step::Done(Ok((self.last_status, p))),
+                Err(e) => Step::Done(Err((format!("the positions could not be read: {e}"), e))),
+            };
+        }
+        match data.and_then(|d| statuses(&d)) {
+            Ok(s) => self.judge(cx, &s, None, now),
+            Err(e) => Step::Done(Err((format!("the status could not be read: {e}"), e))),
         }
     }
 
@@ -129,11 +158,8 @@ impl StopMachine {
     /// confirmed.
     pub fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Step<Result<Rest, Unconfirmed>> {
         let now = cx.now();
-        match (self.phase, resume) {
-            (_, Resume::Start) => {
-                self.phase = Phase::Rs;
-                Step::Wait(self.after_rs(cx, now))
-            }
+        match (std::mem::replace(&mut self.phase, Phase::Pause), resume) {
+            (_, Resume::Start) => self.after_rs(cx, now),
             (Phase::Rs, Resume::Reply(result)) => {
                 let function = self.functions[self.answered];
                 self.answered += 1;
@@ -147,26 +173,14 @@ impl StopMachine {
                     tracing::warn!("the unit refused the RS of {function}: {e}");
                     self.refused.push((function, e.to_string()));
                 }
-                Step::Wait(self.after_rs(cx, now))
+                self.after_rs(cx, now)
             }
-            (Phase::Status, Resume::Reply(result)) => {
-                let status = match result.and_then(|r| r.data(Command::Get)).and_then(|d| statuses(&d)) {
-                    Ok(s) => s,
-                    Err(e) => return Step::Done(Err((format!("the status could not be read: {e}"), e))),
-                };
-                self.judge(&status, None, now)
-            }
-            (Phase::Status, Resume::Snapshot(result)) => match result {
-                Ok(s) => self.judge(&s.statuses, Some(s.positions), now),
+            (phase @ (Phase::Status(_) | Phase::Positions(_)), resume) => self.read(cx, phase, resume),
+            (Phase::Snapshot, Resume::Snapshot(result)) => match result {
+                Ok(s) => self.judge(cx, &s.statuses, Some(s.positions), now),
                 Err(e) => Step::Done(Err((format!("the status could not be read: {e}"), e))),
             },
-            (Phase::Positions, Resume::Reply(result)) => {
-                match result.and_then(|r| r.data(Command::Get)).and_then(|d| positions(&d)) {
-                    Ok(p) => Step::Done(Ok((self.last_status, p))),
-                    Err(e) => Step::Done(Err((format!("the positions could not be read: {e}"), e))),
-                }
-            }
-            (Phase::Pause, Resume::Wake) => Step::Wait(self.look()),
+            (Phase::Pause, Resume::Wake) => self.look(cx),
             // A stop is not interruptible: nothing else comes while it waits.
             (_, other) => {
                 let e = Error::UnexpectedReply { command: Command::Stop, detail: format!("{other:?} while stopping") };
@@ -177,6 +191,7 @@ impl StopMachine {
 
     fn judge(
         &mut self,
+        cx: &mut Cx<'_>,
         status: &[ActuatorStatus1; 6],
         positions: Option<[PositionCounts; 6]>,
         now: Timestamp,
@@ -188,8 +203,8 @@ impl StopMachine {
             return match positions {
                 Some(p) => Step::Done(Ok((*status, p))),
                 None => {
-                    self.phase = Phase::Positions;
-                    Step::Wait(get(DataIndex(0x0010)))
+                    let read = ItemRead::actuators(DataIndex(0x0010), self.watch.clone());
+                    self.read(cx, Phase::Positions(read), Resume::Start)
                 }
             };
         }
@@ -198,7 +213,7 @@ impl StopMachine {
             return Step::Done(Err((e.to_string(), e)));
         }
         if self.by_snapshot {
-            return Step::Wait(self.look());
+            return self.look(cx);
         }
         self.phase = Phase::Pause;
         Step::Wait(Next::Sleep(self.give_up.min(now + self.poll_interval)))

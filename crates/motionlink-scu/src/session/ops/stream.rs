@@ -1,9 +1,9 @@
 //! Streamed setpoints: checks and the speed before the first target, then each update's remote positions and
 //! RE.
 
-use super::basic::{check_against_map, Stroke, StrokeRead, Write};
+use super::basic::{check_against_map, Stroke, StrokeFound, StrokeRead, Write};
 use super::stop::StopMachine;
-use super::{get, statuses, Cx, Next, Operation, Output, Resume, Step};
+use super::{statuses, Cx, ItemRead, Next, Operation, Output, Resume, Step};
 use crate::error::Error;
 use crate::model::{
     Actuator, DataIndex, Function, MotionDirection, MotionFunction, PositionCounts, Speed, StopMode, UNUSED,
@@ -13,7 +13,7 @@ use crate::value::Value;
 use crate::wire::{Command, Request};
 
 enum OpenPhase {
-    Status,
+    Status(ItemRead),
     Stroke(usize, StrokeRead),
     Speed(Write),
 }
@@ -30,7 +30,27 @@ pub(crate) struct StreamOpen {
 
 impl StreamOpen {
     pub fn new(function: MotionFunction, actuators: Vec<Actuator>, speed: Speed) -> Self {
-        StreamOpen { function, actuators, speed, phase: OpenPhase::Status, strokes: Vec::new() }
+        let phase = OpenPhase::Status(ItemRead::all(DataIndex(0x0170)));
+        StreamOpen { function, actuators, speed, phase, strokes: Vec::new() }
+    }
+
+    /// The status of the stream's actuators: each must be connected.
+    fn status(&mut self, cx: &mut Cx<'_>, mut read: ItemRead, resume: Resume) -> Next {
+        let data = match read.step(cx, resume) {
+            Step::Wait(next) => {
+                self.phase = OpenPhase::Status(read);
+                return next;
+            }
+            Step::Done(r) => r,
+        };
+        let status = match data.and_then(|d| statuses(&d)) {
+            Ok(s) => s,
+            Err(e) => return Next::Done(Err(e)),
+        };
+        if let Some(a) = self.actuators.iter().find(|a| !status[usize::from(a.number() - 1)].available()) {
+            return Next::Done(Err(Error::NotConnected(*a)));
+        }
+        self.next_stroke(cx)
     }
 
     fn next_stroke(&mut self, cx: &mut Cx<'_>) -> Next {
@@ -41,11 +61,11 @@ impl StreamOpen {
                 Err(e) => return Next::Done(Err(Error::InvalidArgument(e))),
             };
             let mut write = Write::new(self.function.remote_speed_index(), raw.to_le_bytes().to_vec(), true);
-            let step = write.step(Resume::Start);
+            let step = write.step(cx, Resume::Start);
             self.phase = OpenPhase::Speed(write);
             return match step {
                 Step::Wait(next) => next,
-                Step::Done(r) => Next::Done(r.map(|()| Output::Strokes(self.strokes.clone()))),
+                Step::Done(r) => Next::Done(r.map(|_| Output::Strokes(self.strokes.clone()))),
             };
         }
         let mut read = StrokeRead(self.actuators[i]);
@@ -54,11 +74,21 @@ impl StreamOpen {
                 self.phase = OpenPhase::Stroke(i, read);
                 next
             }
-            Step::Done(Ok(s)) => {
+            Step::Done(found) => self.stroke_found(cx, found),
+        }
+    }
+
+    /// A stroke was read: a stream checks each target against it, so a stroke that cannot be known ends it.
+    fn stroke_found(&mut self, cx: &mut Cx<'_>, found: Result<StrokeFound, Error>) -> Next {
+        match found {
+            Ok(Ok(s)) => {
                 self.strokes.push(s);
                 self.next_stroke(cx)
             }
-            Step::Done(Err(e)) => Next::Done(Err(e)),
+            Ok(Err(why)) => Next::Done(Err(Error::NotSupported(format!(
+                "a stream checks every target against its actuator's stroke, which is not known: {why}"
+            )))),
+            Err(e) => Next::Done(Err(e)),
         }
     }
 }
@@ -68,7 +98,8 @@ impl Operation for StreamOpen {
         if cx.cancelled && !matches!(resume, Resume::Start) {
             return Next::Done(Err(Error::CancelledBeforeSending(Command::Execute)));
         }
-        match (std::mem::replace(&mut self.phase, OpenPhase::Status), resume) {
+        let placeholder = OpenPhase::Status(ItemRead::all(DataIndex(0x0170)));
+        match (std::mem::replace(&mut self.phase, placeholder), resume) {
             (_, Resume::Start) => {
                 if let Err(e) = self.speed.for_motion(cx.config().speed_mode) {
                     return Next::Done(Err(Error::InvalidArgument(e)));
@@ -79,40 +110,23 @@ impl Operation for StreamOpen {
                 if let Err(e) = check_against_map(cx, self.function, &self.actuators) {
                     return Next::Done(Err(e));
                 }
-                get(DataIndex(0x0170))
+                self.status(cx, ItemRead::actuators(DataIndex(0x0170), self.actuators.clone()), Resume::Start)
             }
-            (OpenPhase::Status, Resume::Reply(r)) => {
-                let status = match r.and_then(|r| r.data(Command::Get)).and_then(|d| statuses(&d)) {
-                    Ok(s) => s,
-                    Err(e) => return Next::Done(Err(e)),
-                };
-                if let Some(a) = self.actuators.iter().find(|a| !status[usize::from(a.number() - 1)].available()) {
-                    return Next::Done(Err(Error::NotConnected(*a)));
-                }
-                self.next_stroke(cx)
-            }
+            (OpenPhase::Status(read), resume) => self.status(cx, read, resume),
             (OpenPhase::Stroke(i, mut read), resume) => match read.step(cx, resume) {
                 Step::Wait(next) => {
                     self.phase = OpenPhase::Stroke(i, read);
                     next
                 }
-                Step::Done(Ok(s)) => {
-                    self.strokes.push(s);
-                    self.next_stroke(cx)
-                }
-                Step::Done(Err(e)) => Next::Done(Err(e)),
+                Step::Done(found) => self.stroke_found(cx, found),
             },
-            (OpenPhase::Speed(mut write), resume) => match write.step(resume) {
+            (OpenPhase::Speed(mut write), resume) => match write.step(cx, resume) {
                 Step::Wait(next) => {
                     self.phase = OpenPhase::Speed(write);
                     next
                 }
-                Step::Done(r) => Next::Done(r.map(|()| Output::Strokes(self.strokes.clone()))),
+                Step::Done(r) => Next::Done(r.map(|_| Output::Strokes(self.strokes.clone()))),
             },
-            (_, other) => Next::Done(Err(Error::UnexpectedReply {
-                command: Command::Get,
-                detail: format!("{other:?} while preparing a stream"),
-            })),
         }
     }
 }

@@ -1,0 +1,233 @@
+//! Firmware variants of the emulated unit: for each behaviour the client relies on beyond the manual's words,
+//! the plausible other behaviour of a real unit (`motionlink sim scu --variant NAME`, `variants = [...]` in
+//! the TOML configuration). The README's "What motionlink assumes beyond the manuals" lists them with the
+//! probe that tells them apart.
+
+use std::collections::BTreeSet;
+use std::fmt;
+use std::str::FromStr;
+use std::time::Duration;
+
+use crate::model::{item, DataIndex, Item};
+
+/// One way a real unit may differ from the emulator's default reading of the manual.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Variant {
+    /// RG of a grouping index (0x0010, 0x0170, 0x00A0, 0x00D0 ... and the collections) is refused with PDE, as
+    /// is a cyclic object or an RT naming one: only individual indices answer.
+    NoGroups,
+    /// RG of UserPositionData (0x2001..0x2006, and the collection 0x2000) is refused with PDE, as is a cyclic
+    /// object naming it.
+    NoUserPositions,
+    /// RC with a cyclic object index (0..4) is refused with PDE (it still feeds the watchdog); the
+    /// definitions 0x3001..0x3005 can be written and read like any remote data.
+    NoCyclicObjects,
+    /// RG of remote data (0x3xxx) is refused with PDE: what RT writes cannot be read back.
+    NoRemoteReadBack,
+    /// RC without a cyclic object is answered with ACK, ctp 0 and no data (the command table's reply form)
+    /// instead of the status alone (the example's).
+    RcEmptyData,
+    /// The first telegram after 2 s without a byte (and after power-on) only wakes the unit: it is not
+    /// answered (why public drivers send RO twice).
+    Sleepy,
+    /// The error bits "reset on next motion" (14..21) stay in Error_Code 1 when the next motion starts.
+    StickyErrors,
+    /// Every actuator reads 3 counts below its In end after reaching it (real columns after homing).
+    InEndUndershoot,
+    /// RE of a motion function that was started and not yet ended with RS is refused with PE (a new RE needs
+    /// an RS first, as the public drivers' habit of sending RS before every RE suggests).
+    ReNeedsRs,
+}
+
+impl Variant {
+    /// Every variant, in the order `--help` lists them.
+    pub const ALL: [Variant; 9] = [
+        Variant::NoGroups,
+        Variant::NoUserPositions,
+        Variant::NoCyclicObjects,
+        Variant::NoRemoteReadBack,
+        Variant::RcEmptyData,
+        Variant::Sleepy,
+        Variant::StickyErrors,
+        Variant::InEndUndershoot,
+        Variant::ReNeedsRs,
+    ];
+
+    /// Its name, as `--variant` takes it.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Variant::NoGroups => "no-groups",
+            Variant::NoUserPositions => "no-user-positions",
+            Variant::NoCyclicObjects => "no-cyclic-objects",
+            Variant::NoRemoteReadBack => "no-remote-readback",
+            Variant::RcEmptyData => "rc-empty-data",
+            Variant::Sleepy => "sleepy",
+            Variant::StickyErrors => "sticky-errors",
+            Variant::InEndUndershoot => "in-end-undershoot",
+            Variant::ReNeedsRs => "re-needs-rs",
+        }
+    }
+
+    /// The names of every variant, comma-separated (for messages).
+    pub fn known() -> String {
+        Variant::ALL.iter().map(|v| v.name()).collect::<Vec<_>>().join(", ")
+    }
+}
+
+impl fmt::Display for Variant {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A name that is not a variant.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{name:?} is not an SCU emulator variant (known: {known})", known = Variant::known())]
+pub struct UnknownVariant {
+    /// The name given.
+    pub name: String,
+}
+
+impl FromStr for Variant {
+    type Err = UnknownVariant;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let name = s.trim();
+        Variant::ALL
+            .into_iter()
+            .find(|v| v.name().eq_ignore_ascii_case(name) || v.name().replace('-', "_").eq_ignore_ascii_case(name))
+            .ok_or_else(|| UnknownVariant { name: name.to_string() })
+    }
+}
+
+/// The variants an emulated unit has (none: the manual as the emulator reads it).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Variants(BTreeSet<Variant>);
+
+impl Variants {
+    /// No variant.
+    pub fn none() -> Self {
+        Variants::default()
+    }
+
+    /// True if `v` is one of them.
+    pub fn has(&self, v: Variant) -> bool {
+        self.0.contains(&v)
+    }
+
+    /// Adds `v`.
+    pub fn with(mut self, v: Variant) -> Self {
+        self.0.insert(v);
+        self
+    }
+
+    /// Adds every variant of `other`.
+    pub fn extend(&mut self, other: &Variants) {
+        self.0.extend(other.0.iter().copied());
+    }
+
+    /// The variants, in [`Variant::ALL`] order.
+    pub fn iter(&self) -> impl Iterator<Item = Variant> + '_ {
+        self.0.iter().copied()
+    }
+
+    /// True if there are none.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// Parses names, each possibly a comma-separated list (`--variant a,b --variant c`).
+    pub fn parse_all<S: AsRef<str>>(names: &[S]) -> Result<Self, UnknownVariant> {
+        let mut all = Variants::none();
+        for n in names {
+            all.extend(&n.as_ref().parse()?);
+        }
+        Ok(all)
+    }
+}
+
+impl FromStr for Variants {
+    type Err = UnknownVariant;
+
+    /// A comma-separated list of names ("no-groups,sleepy"); empty items are skipped.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let mut set = BTreeSet::new();
+        for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+            set.insert(part.parse::<Variant>()?);
+        }
+        Ok(Variants(set))
+    }
+}
+
+impl fmt::Display for Variants {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let names: Vec<&str> = self.0.iter().map(|v| v.name()).collect();
+        f.write_str(&names.join(","))
+    }
+}
+
+impl serde::Serialize for Variants {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(self.0.iter().map(|v| v.name()))
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Variants {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let names = Vec::<String>::deserialize(d)?;
+        Variants::parse_all(&names).map_err(serde::de::Error::custom)
+    }
+}
+
+/// How long the line must be silent before a [`Variant::Sleepy`] unit dozes off.
+pub const SLEEP_AFTER: Duration = Duration::from_secs(2);
+
+/// True if `index` is a grouping index (a group of the data list, or one of the collections).
+pub(super) fn is_group(index: DataIndex) -> bool {
+    matches!(item(index), Some(Item::Group(_)))
+}
+
+/// True if `index` reads UserPositionData (an entry 0x2001..0x2006 or the collection 0x2000).
+pub(super) fn is_user_positions(index: DataIndex) -> bool {
+    (0x2000..=0x2006).contains(&index.0)
+}
+
+impl Variants {
+    /// True if a unit of these variants refuses an RG of `index` (with PDE).
+    pub(super) fn refuses_get(&self, index: DataIndex) -> bool {
+        (self.has(Variant::NoGroups) && is_group(index))
+            || (self.has(Variant::NoUserPositions) && is_user_positions(index))
+            || (self.has(Variant::NoRemoteReadBack) && index.is_remote())
+    }
+
+    /// True if a unit of these variants refuses a cyclic object definition that names `index`.
+    pub(super) fn refuses_in_object(&self, index: DataIndex) -> bool {
+        (self.has(Variant::NoGroups) && is_group(index))
+            || (self.has(Variant::NoUserPositions) && is_user_positions(index))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_parse_one_by_one_or_comma_separated_and_unknown_ones_list_the_known_ones() {
+        for v in Variant::ALL {
+            assert_eq!(v.name().parse::<Variant>(), Ok(v));
+        }
+        let both: Variants = "no-groups, sleepy".parse().unwrap();
+        assert!(both.has(Variant::NoGroups) && both.has(Variant::Sleepy) && !both.has(Variant::StickyErrors));
+        assert_eq!(both.to_string(), "no-groups,sleepy");
+        let all = Variants::parse_all(&["no_groups", "re-needs-rs,rc-empty-data"]).unwrap();
+        assert_eq!(all.iter().count(), 3);
+        let e = "no-group".parse::<Variants>().unwrap_err();
+        assert!(e.to_string().contains("\"no-group\"") && e.to_string().contains("no-cyclic-objects"), "{e}");
+        assert!("".parse::<Variants>().unwrap().is_empty());
+        // In the configuration file.
+        let c = crate::sim::SimConfig::from_toml("variants = [\"sleepy\", \"no-groups\"]").unwrap();
+        assert!(c.variants.has(Variant::Sleepy) && c.variants.has(Variant::NoGroups));
+        let e = crate::sim::SimConfig::from_toml("variants = [\"sleep\"]").unwrap_err();
+        assert!(e.to_string().contains("\"sleep\"") && e.to_string().contains("re-needs-rs"), "{e}");
+    }
+}

@@ -1,0 +1,244 @@
+//! The core operations against every firmware variant of the emulator (what a real unit may do where the
+//! manual leaves it open): each works, in the manual's plain form where the unit refuses what the client
+//! would rather use, and says what it could not verify; or it ends with an error that names what the unit did
+//! not do. Never a hang, never a success away from the target.
+
+use crate::rig;
+
+use motionlink_scu::session::{Capabilities, RunAction, Snapshot};
+use motionlink_scu::Variant;
+use rig::*;
+
+/// What the core operations gave on one unit.
+struct Outcome {
+    caps: Capabilities,
+    set_verified: bool,
+    set_why: Vec<String>,
+    move_verified: bool,
+    move_why: Vec<String>,
+    home_rest: PositionCounts,
+    samples: Vec<Snapshot>,
+    retries: u64,
+}
+
+/// Open, get, set, move (two functions, two speeds), home (F1 In), stop, watch, close: each must succeed.
+fn core_operations(rig: &Rig, config: ClientConfig) -> Outcome {
+    let client = rig.client(config);
+    // get: a group (every position) and an entry, the same values either way.
+    let all = client.get(DataIndex(0x0010)).unwrap();
+    assert_eq!(all.len(), 6);
+    assert_eq!(all[0].1, client.get_value(DataIndex(0x0011)).unwrap());
+    assert_eq!(client.statuses().unwrap().iter().filter(|s| s.available()).count(), 2);
+    assert_eq!(client.error_history().unwrap()[0], ErrorCode::NONE);
+    // set
+    let set = client.set(DataIndex(0x3012), &Value::RemoteSpeed(50)).unwrap();
+    assert_eq!(rig.unit(|u| u.config().default_speed), 100);
+    // move with a speed, then another function at another speed
+    let report = client.move_to(a(1), PositionCounts(400), pct(80), &MoveOptions::default()).unwrap();
+    assert_eq!(report.position_counts, PositionCounts(400));
+    assert_eq!(rig.unit(|u| u.position(a(1))), Some(400), "where the unit says A1 is");
+    let second = client.move_function(f(2), &[(a(2), PositionCounts(250))], pct(100), &MoveOptions::default()).unwrap();
+    assert_eq!(second.position_counts, PositionCounts(250));
+    assert_eq!((report.verified, report.not_verifiable.len()), (second.verified, second.not_verifiable.len()));
+    assert_eq!(report.verified, report.not_verifiable.is_empty());
+    // home: F1 to its In end
+    let run = client.run(RunAction::Motion(f(1), MotionDirection::In), None, &|_| {}, None).unwrap();
+    let home_rest = run.rest.iter().find(|(x, _)| *x == a(1)).map(|(_, p)| *p).unwrap();
+    assert_eq!(rig.unit(|u| u.position(a(1))), Some(home_rest.get()));
+    // stop
+    client.stop_motion(f(1), StopMode::Fast).unwrap();
+    // watch: three samples, a quarter of a second apart
+    let mut samples = Vec::new();
+    let n = client.watch(Duration::from_millis(250), Some(3), &mut |s| samples.push(*s), None).unwrap();
+    assert_eq!(n, 3);
+    for s in &samples {
+        assert_eq!((s.position(a(1)), s.position(a(2))), (home_rest, PositionCounts(250)));
+        assert!(s.status(a(1)).available() && !s.moving(a(1)));
+    }
+    let gaps: Vec<Duration> = samples.windows(2).map(|w| w[1].at - w[0].at).collect();
+    assert!(gaps.iter().all(|g| *g >= Duration::from_millis(200) && *g <= Duration::from_millis(300)), "{gaps:?}");
+    assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0);
+    let caps = client.capabilities();
+    let retries = client.stats().retries;
+    assert!(client.started_functions().is_empty());
+    client.close().unwrap();
+    assert!(rig.unit(|u| u.executed_functions().is_empty()));
+    Outcome {
+        caps,
+        set_verified: set.verified,
+        set_why: set.not_verifiable,
+        move_verified: report.verified,
+        move_why: report.not_verifiable,
+        home_rest,
+        samples,
+        retries,
+    }
+}
+
+fn scp11() -> ClientConfig {
+    ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() }
+}
+
+fn run_on(variants: &[Variant]) -> (Rig, Outcome) {
+    let rig = Rig::with_variants(SimConfig::default(), variants);
+    let outcome = core_operations(&rig, scp11());
+    (rig, outcome)
+}
+
+#[test]
+fn a_unit_as_the_emulator_reads_the_manual_answers_every_probe_and_everything_is_verified() {
+    let (_, o) = run_on(&[]);
+    let all = Some(true);
+    assert_eq!(
+        o.caps,
+        Capabilities { grouping_indices: all, user_position_data: all, cyclic_objects: all, remote_read_back: all }
+    );
+    assert!(o.set_verified && o.set_why.is_empty() && o.move_verified && o.move_why.is_empty());
+    assert_eq!(o.home_rest, PositionCounts(0));
+    assert_eq!(o.retries, 0);
+}
+
+#[test]
+fn without_grouping_indices_every_group_is_read_entry_by_entry_and_nothing_is_lost() {
+    let (rig, o) = run_on(&[Variant::NoGroups]);
+    assert_eq!(o.caps.grouping_indices, Some(false));
+    // The session's cyclic object reads groups: the unit would refuse it, so motions are watched with reads.
+    assert_eq!(o.caps.cyclic_objects, None);
+    assert!(o.move_verified && o.set_verified, "{:?}", o.move_why);
+    // The grouping index was asked once per session, then never again.
+    let client = rig.client(scp11());
+    let groups = Arc::new(Mutex::new(0));
+    let sink = Arc::clone(&groups);
+    rig.on_request(move |bytes, _| {
+        if bytes.starts_with(&[0x52, 0x47, 0x70, 0x01]) || bytes.starts_with(&[0x52, 0x47, 0x10, 0x00]) {
+            *sink.lock().unwrap() += 1;
+        }
+    });
+    client.move_to(a(1), PositionCounts(100), pct(100), &MoveOptions::default()).unwrap();
+    client.statuses().unwrap();
+    client.positions().unwrap();
+    assert_eq!(*groups.lock().unwrap(), 1, "one probe of a grouping index, refused; entries from then on");
+    // Its warning is said once; the unit never saw a group it would refuse after that.
+    assert_eq!(client.capabilities().grouping_indices, Some(false));
+}
+
+#[test]
+fn without_user_position_data_a_move_says_its_target_was_not_checked_unless_strokes_are_configured() {
+    let (rig, o) = run_on(&[Variant::NoUserPositions]);
+    assert_eq!(o.caps.user_position_data, Some(false));
+    assert!(!o.move_verified);
+    assert_eq!(o.move_why.len(), 1, "{:?}", o.move_why);
+    assert!(o.move_why[0].contains("UserPositionData (0x2001, PDE)") && o.move_why[0].contains("--stroke 1="));
+    assert!(o.set_verified, "a write is read back as usual");
+    // The stroke query says what the unit did not do; a target outside the unit's own stroke still ends away
+    // from its target (the unit stops at its end), and that is an error, not a success.
+    let client = rig.client(scp11());
+    let e = client.stroke_limits(a(1)).unwrap_err();
+    assert!(matches!(&e, Error::NotSupported(m) if m.contains("UserPositionData")), "{e}");
+    let e = client.move_to(a(1), PositionCounts(900), pct(100), &MoveOptions::default()).unwrap_err();
+    assert!(matches!(e, Error::MotionEnded { position_counts: PositionCounts(865), .. }), "{e}");
+    // With the stroke configured, the client's limits are the check: verified, and refused before moving.
+    let stroke = StrokeLimits { min_counts: PositionCounts(0), max_counts: PositionCounts(865) };
+    let client = rig.client(ClientConfig { stroke_limits: [Some(stroke); 6], ..scp11() });
+    let report = client.move_to(a(1), PositionCounts(500), pct(100), &MoveOptions::default()).unwrap();
+    assert!(report.verified, "{:?}", report.not_verifiable);
+    let e = client.move_to(a(1), PositionCounts(900), pct(100), &MoveOptions::default()).unwrap_err();
+    assert!(matches!(e, Error::OutsideStroke { limits_from: "as configured", .. }), "{e}");
+    // A stream checks every target against the stroke: without one it says so before anything moves.
+    let client = rig.client(scp11());
+    let e = client.stream(f(1), &[a(1)], pct(50)).unwrap_err();
+    assert!(matches!(&e, Error::NotSupported(m) if m.contains("UserPositionData")), "{e}");
+}
+
+#[test]
+fn without_cyclic_objects_the_probe_rc_is_refused_once_and_motions_are_watched_with_reads() {
+    let (rig, o) = run_on(&[Variant::NoCyclicObjects]);
+    assert_eq!(o.caps.cyclic_objects, Some(false));
+    assert!(o.move_verified && o.set_verified);
+    // The refused RC was the only one that carried an object; the probe is not repeated in the session.
+    let client = rig.client(scp11());
+    let carried = Arc::new(Mutex::new(0));
+    let sink = Arc::clone(&carried);
+    rig.on_request(move |bytes, _| {
+        if bytes.starts_with(b"RC") && bytes.get(4).is_some_and(|o| *o != 0xFF) {
+            *sink.lock().unwrap() += 1;
+        }
+    });
+    for target in [300, 100] {
+        client.move_to(a(1), PositionCounts(target), pct(100), &MoveOptions::default()).unwrap();
+    }
+    client.sample().unwrap();
+    assert_eq!(*carried.lock().unwrap(), 1);
+}
+
+#[test]
+fn without_remote_read_back_writes_and_moves_say_they_were_not_read_back() {
+    let (_, o) = run_on(&[Variant::NoRemoteReadBack]);
+    assert_eq!(o.caps.remote_read_back, Some(false));
+    assert!(!o.set_verified && o.set_why[0].contains("remote_speed_f2 (0x3012)"), "{:?}", o.set_why);
+    assert!(!o.move_verified);
+    let why = o.move_why.join("; ");
+    assert!(why.contains("remote_position_a1 (0x3021)") && why.contains("remote_speed_f1 (0x3011)"), "{why}");
+    assert!(why.contains("not read back"), "{why}");
+}
+
+#[test]
+fn the_rc_reply_with_ctp_0_is_taken_as_the_status_alone_is() {
+    let (_, o) = run_on(&[Variant::RcEmptyData]);
+    assert!(o.move_verified && o.set_verified && o.retries == 0, "{:?}", o.move_why);
+}
+
+#[test]
+fn a_sleepy_unit_is_woken_by_the_first_ro_and_answers_the_second() {
+    let (_, o) = run_on(&[Variant::Sleepy]);
+    assert!(o.retries >= 1);
+    assert!(o.move_verified);
+}
+
+#[test]
+fn error_bits_that_stay_after_the_next_motion_do_not_stop_a_move() {
+    let rig = Rig::with_variants(SimConfig::default(), &[Variant::StickyErrors]);
+    rig.unit(|u| u.inject_error(ErrorCode::from_bit(15)));
+    let client = rig.client(scp11());
+    let report = client.move_to(a(1), PositionCounts(300), pct(100), &MoveOptions::default()).unwrap();
+    assert!(report.verified);
+    assert_eq!(client.error_history().unwrap()[0], ErrorCode::from_bit(15), "the unit kept bit 15");
+    assert_eq!(client.sample().unwrap().last_error, ErrorCode::from_bit(15));
+}
+
+#[test]
+fn after_homing_a_column_reads_a_few_counts_below_its_in_end_which_the_tolerance_takes() {
+    let (rig, o) = run_on(&[Variant::InEndUndershoot]);
+    assert_eq!(o.home_rest, PositionCounts(-3));
+    assert!(o.samples.iter().all(|s| s.position(a(1)) == PositionCounts(-3)));
+    let client = rig.client(scp11());
+    client.move_to(a(1), PositionCounts(200), pct(100), &MoveOptions::default()).unwrap();
+    let report = client.move_to(a(1), PositionCounts(0), pct(100), &MoveOptions::default()).unwrap();
+    assert_eq!(report.position_counts, PositionCounts(-3));
+    let strict = rig.client(ClientConfig { position_tolerance_counts: 2, ..scp11() });
+    strict.move_to(a(1), PositionCounts(200), pct(100), &MoveOptions::default()).unwrap();
+    let e = strict.move_to(a(1), PositionCounts(0), pct(100), &MoveOptions::default()).unwrap_err();
+    assert!(matches!(e, Error::MotionEnded { position_counts: PositionCounts(-3), .. }), "{e}");
+}
+
+#[test]
+fn a_unit_that_needs_rs_before_a_new_re_refuses_the_second_setpoint_of_a_stream_which_stops() {
+    let (rig, o) = run_on(&[Variant::ReNeedsRs]);
+    assert!(o.move_verified);
+    let client = rig.client(scp11());
+    let mut stream = client.stream(f(1), &[a(1)], pct(100)).unwrap();
+    stream.set_targets(&[PositionCounts(600)]).unwrap();
+    rig.sleep(300);
+    let e = stream.set_targets(&[PositionCounts(500)]).unwrap_err();
+    assert!(matches!(e, Error::Refused { command: Command::Execute, status: Status::PermissionError }), "{e}");
+    let e = stream.abort(e);
+    assert!(matches!(e, Error::Refused { .. }), "the stop was confirmed: {e}");
+    assert!(!rig.unit(|u| u.is_moving(a(1))) && client.started_functions().is_empty());
+}
+
+#[test]
+fn every_variant_together_still_runs_the_core_operations() {
+    let (_, o) = run_on(&Variant::ALL);
+    assert!(!o.move_verified && o.move_why.len() == 2, "{:?}", o.move_why);
+    assert_eq!(o.home_rest, PositionCounts(-3));
+}
