@@ -49,7 +49,9 @@ use motionlink_link::clock::lock;
 use motionlink_link::session::{Action as LinkAction, Event, Input, OpId, OpIds};
 use motionlink_link::{LinkError, Timestamp};
 
-pub use types::{BusConfig, Guard, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback, ScanEntry, Until};
+pub use types::{
+    BusConfig, Guard, ModuleFindings, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback, ScanEntry, Until,
+};
 
 use self::core::Core;
 use self::ctx::Ctx;
@@ -289,6 +291,12 @@ impl Session {
     /// Modules known to exist: every address that answered this session.
     pub fn known(&self) -> Vec<Address> {
         addresses(&self.core().known)
+    }
+
+    /// What this session has established about module `address` where the manual is silent (see
+    /// [`ModuleFindings`]).
+    pub fn findings(&self, address: Address) -> ModuleFindings {
+        self.core().findings.get(&address.get()).copied().unwrap_or_default()
     }
 
     /// The kind of module `address`, if the session has read it.
