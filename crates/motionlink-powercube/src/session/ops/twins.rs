@@ -105,11 +105,11 @@ impl Ctx {
         if !mirrors {
             let twin = param.read_back_as().unwrap_or(param);
             let what = if param == Param::TargetPos { "the target of float motion commands" } else { param.name() };
-            core.warn_once(a, param.name(), || {
+            // Said once per session and module, whichever twin shows it first.
+            core.warn_once(a, "twins", || {
                 format!(
-                    "module {a} keeps {twin} apart from {what}: the manual does not say that one mirrors the \
-                     other, so writes of {} run unverified from now on",
-                    if param == Param::TargetPos { "move targets" } else { param.name() }
+                    "module {a} keeps {twin} apart from {what} (the manual does not say that one mirrors the \
+                     other): what this session writes there is not read back, and each result says so"
                 )
             });
         }
