@@ -4,7 +4,7 @@ port (or a pseudo-terminal), with the events the emulated device reports."""
 from __future__ import annotations
 
 import time
-from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 from . import _native
 
@@ -41,7 +41,10 @@ class Emulator:
     Settings per family (others raise :class:`UsageError`):
         scu: ``preset`` (``"scp11"``, ``"tlt"``, ``"liftkit"``), ``config`` (TOML text).
         powercube: ``modules`` (addresses), ``config`` (TOML text), ``strict`` (refuse bad BCCs),
-            ``can`` (a CAN bus; served, it sits behind an emulated SLCAN adapter).
+            ``can`` (a CAN bus; served, it sits behind an emulated SLCAN adapter), ``variant`` (a firmware
+            variant's name, or a list of them: ``"no-twin-mirror"``, ``"no-broadcast-pair"``,
+            ``"ack-length-6"``, ``"ext-ack-on-put-id"``, ``"no-pos-state-dio"``,
+            ``"life-sign-unacknowledged"``; as ``motionlink sim powercube --variant``).
         compax: ``drives`` (addresses), ``mode`` (P196), ``baud``, ``params`` ({"P194": 10.0}),
             ``config`` (TOML text).
 
@@ -63,6 +66,7 @@ class Emulator:
         params: Optional[Dict[str, float]] = None,
         strict: bool = False,
         can: bool = False,
+        variant: Union[str, Sequence[str], None] = None,
     ) -> None:
         settings = {
             "preset": preset,
@@ -74,6 +78,8 @@ class Emulator:
             "params": [(str(k), float(v)) for k, v in params.items()] if params is not None else None,
             "strict": strict,
             "can": can,
+            # A name, names separated by commas, or a list of names: one list for the native side.
+            "variant": [variant] if isinstance(variant, str) else list(variant) if variant is not None else None,
             "serve": serve,
             "bind": bind,
         }

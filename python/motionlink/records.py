@@ -158,11 +158,16 @@ class PowerCubeMove(_WithState):
         target_rad: The target.
         reached_rad: The final actual position, read twice from the module, both within the tolerance.
         difference_rad: ``reached - target``.
+        verified: True when every check of what the module took could be made (the velocity and
+            acceleration written, and the motion's target, read back through their Inc twins).
+        not_verifiable: What could not be checked, and why (empty when ``verified``).
     """
 
     __slots__ = ()
     action: str
     unit: str
+    verified: bool
+    not_verifiable: List[str]
     start_rad: float
     target_rad: float
     reached_rad: float

@@ -83,6 +83,7 @@ pub struct EmulatorSettings {
     params: Option<Vec<(String, f64)>>,
     strict: bool,
     can: bool,
+    variant: Option<Vec<String>>,
     serve: Option<String>,
     bind: Option<String>,
 }
@@ -109,7 +110,24 @@ fn scu_device(s: &EmulatorSettings) -> Result<motionlink_scu::Emulator, Failure>
     motionlink_scu::Emulator::new(config).map_err(|e| usage(e.to_string()))
 }
 
+/// The names of `variant=` (each may itself separate names with commas), as one text for the family's
+/// parser.
+fn variant_names(s: &EmulatorSettings) -> Option<String> {
+    s.variant.as_ref().map(|names| names.join(","))
+}
+
 fn powercube_config(s: &EmulatorSettings) -> Result<motionlink_powercube::sim::SimConfig, Failure> {
+    use motionlink_powercube::sim::Variant;
+    let mut config = powercube_modules(s)?;
+    if let Some(names) = variant_names(s) {
+        config.variants.extend(Variant::list(&names).map_err(|e| usage(e.to_string()))?);
+        config.variants.sort();
+        config.variants.dedup();
+    }
+    Ok(config)
+}
+
+fn powercube_modules(s: &EmulatorSettings) -> Result<motionlink_powercube::sim::SimConfig, Failure> {
     use motionlink_powercube::sim::SimConfig;
     match (&s.config, &s.modules) {
         (Some(_), Some(_)) => Err(usage("give the modules either in the TOML configuration or as modules=, not both")),
@@ -152,6 +170,7 @@ fn check_family_options(family: &str, s: &EmulatorSettings) -> Result<(), Failur
     let given = |name: &'static str, yes: bool| if yes { Some(name) } else { None };
     let foreign: Vec<&str> = match family {
         "scu" => [
+            given("variant", s.variant.is_some()),
             given("modules", s.modules.is_some()),
             given("drives", s.drives.is_some()),
             given("mode", s.mode.is_some()),
