@@ -202,8 +202,8 @@ pub enum Error {
         address: Address,
         /// The move as sent, without the address and flags (`POSA 12.5`).
         command: String,
-        /// What happened (`its echo was not the telegram sent, so no '!' was sent`).
-        why: &'static str,
+        /// What happened (`its echo was not the telegram sent ... so no '!' was sent`).
+        why: String,
         /// The error behind it: the echo that came back ([`Error::Unexpected`]), a lost or corrupt reply,
         /// the drive's refusal of `!`.
         source: Box<Error>,

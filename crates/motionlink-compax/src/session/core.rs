@@ -217,6 +217,10 @@ pub(crate) struct Core {
     pub comparators: u32,
     /// Drives that may hold a move in their buffer, stored by this session and not yet executed.
     pub buffered: u32,
+    /// How each drive echoes, once found out (index: address).
+    pub echo_forms: [Option<super::types::EchoForm>; 32],
+    /// What was already warned about (drive, which): each finding is said once per session.
+    pub warned: HashSet<(u8, &'static str)>,
     decoder: ReplyDecoder,
     queue: VecDeque<Job>,
     in_flight: Option<InFlight>,
@@ -253,6 +257,8 @@ impl Core {
             unattributed_messages: 0,
             comparators: 0,
             buffered: 0,
+            echo_forms: [None; 32],
+            warned: HashSet::new(),
             queue: VecDeque::new(),
             in_flight: None,
             settling: None,
@@ -265,6 +271,13 @@ impl Core {
             listeners: HashSet::new(),
             line_failures: HashMap::new(),
             progress: VecDeque::new(),
+        }
+    }
+
+    /// Warns `message` about drive `address` once per session (`which` names the finding).
+    pub(crate) fn warn_once(&mut self, address: Address, which: &'static str, message: impl FnOnce() -> String) {
+        if self.warned.insert((address.get(), which)) {
+            tracing::warn!("{}", message());
         }
     }
 
