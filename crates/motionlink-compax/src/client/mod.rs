@@ -36,7 +36,7 @@ pub use drive::Drive;
 
 pub use crate::error::{Error, Result, StopOutcome, StopReport};
 pub use crate::session::{
-    AfterRaw, BusConfig, MoveOptions, MoveReport, MoveRequest, MoveTarget, Progress, RawOutcome, StartedMove,
+    AfterRaw, BusConfig, EchoForm, MoveOptions, MoveReport, MoveRequest, MoveTarget, Progress, RawOutcome, StartedMove,
     TravelLimits, WatchSample, DEFAULT_IN_POSITION_TOLERANCE,
 };
 

@@ -31,8 +31,8 @@ mod tests;
 mod types;
 
 pub use types::{
-    AfterRaw, BusConfig, EchoForm, MoveOptions, MoveReport, MoveRequest, MoveTarget, Op, Output, Progress,
-    RawOutcome, StartedMove, TravelLimits, WatchSample, DEFAULT_IN_POSITION_TOLERANCE,
+    AfterRaw, BusConfig, EchoForm, MoveOptions, MoveReport, MoveRequest, MoveTarget, Op, Output, Progress, RawOutcome,
+    StartedMove, TravelLimits, WatchSample, DEFAULT_IN_POSITION_TOLERANCE,
 };
 
 use std::collections::VecDeque;

@@ -208,10 +208,7 @@ fn a_checked_move_is_checked_sent_read_back_polled_and_verified() {
     assert!(report.verified && report.not_verifiable.is_empty(), "{report:?}");
     // How the drive echoes is found out first (S1 with '?', which it does not execute); the move is stored
     // with its echo (`,?`), executed (`!`) once the echo is the telegram sent, and its target read back.
-    assert_eq!(
-        b.sent[..8],
-        ["1S16\r", "1S17\r", "1S1\r", "1S1?\r", "1SPEED 50\r", "1POSA 12.5,?\r", "1!\r", "1S2\r"]
-    );
+    assert_eq!(b.sent[..8], ["1S16\r", "1S17\r", "1S1\r", "1S1?\r", "1SPEED 50\r", "1POSA 12.5,?\r", "1!\r", "1S2\r"]);
     assert_eq!(b.session.echo_form(a(1)), Some(crate::session::EchoForm::Full));
     assert_eq!(b.sent.last().unwrap(), "1S1\r");
     // 12.5 units at 50 units/s: about a quarter of a second, polled every 50 ms (S17 then S1).

@@ -207,8 +207,9 @@ pub enum EchoForm {
     WithoutFlags,
     /// `S1`: the command alone.
     Bare,
-    /// No echo: the drive refused `?`, executed the command instead, or stayed silent. Moves are then sent
-    /// as commands of their own (the manual's plain form), checked by S2 after the start only.
+    /// No echo: the drive refused `?` or stayed silent, twice, answering a plain read in between. Moves are
+    /// then sent as commands of their own (the manual's plain form), checked by S2 after the start only. (A
+    /// drive that answers the read instead of echoing it is refused: it would take `,?` for something else.)
     None,
 }
 

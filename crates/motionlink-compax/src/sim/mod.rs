@@ -43,8 +43,8 @@ mod tests;
 mod variant;
 
 pub use config::{DriveConfig, SimConfig, SimConfigError};
-pub use variant::{UnknownVariant, Variant};
 pub use drive::Drive;
+pub use variant::{UnknownVariant, Variant};
 
 use std::time::Duration;
 

@@ -143,7 +143,8 @@ impl Drive {
             }
             if answer {
                 let received = f.bytes();
-                let echo = super::variant::echo_of(&self.variants, received, received.len() - f.command_bytes().len()).to_vec();
+                let echo = super::variant::echo_of(&self.variants, received, received.len() - f.command_bytes().len())
+                    .to_vec();
                 self.reply(out, &echo);
             }
             return;

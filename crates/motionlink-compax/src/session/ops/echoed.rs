@@ -56,35 +56,53 @@ impl Ctx {
         let frame = req.encode(&mode)?;
         let sent = frame.as_bytes().split(|&b| b == b'\r').next().unwrap_or_default().to_vec();
         let (digits, flags) = parts(&sent, address, text.as_bytes());
+        // A "no echo" (a refusal of '?', silence) counts only when it comes twice, the drive having answered
+        // a plain read of S1 in between: one flipped bit can make a drive deaf for a while (a binary length
+        // byte swallows what follows) and then answer errors and late replies, while a drive that does not
+        // echo answers S1 and then refuses '?' again. Anything else that is not an echo (a read answered,
+        // other text, an RS485 line error E70..E74) is asked once more; twice, it is the error.
         let (mut none, mut garbled) = (0, 0);
         let form = loop {
-            match self.exchange(&req, Retry::Idempotent).await {
+            let garble = match self.exchange(&req, Retry::Idempotent).await {
                 Ok(Some(r)) => {
                     let from_ok = !mode.reply_address || r.address() == Some(address.get());
                     if let Some(form) = EchoForm::of(r.text(), digits, text.as_bytes(), flags).filter(|_| from_ok) {
                         break form;
                     }
-                    if StatusValue::parse(StatusId::ACTUAL_POSITION, r.text()).is_ok() {
-                        none += 1; // it read S1 instead of echoing
-                    } else {
-                        garbled += 1;
-                        if garbled == 2 {
-                            return Err(Error::Unexpected {
-                                address,
-                                command: format!("{text}?"),
-                                reply: format!("{} (an echo of other text than sent, twice)", r.text_str()),
-                            });
-                        }
-                        tracing::info!("drive {address}: echo {:?} of {:?}: asking once more", r.text_str(), sent);
-                    }
+                    // Not an echo: a read answered (a drive that ignores '?', or a late reply to a read), or
+                    // other text. Neither is taken for "no echo": such a drive would store a move sent
+                    // with ',?' without a word, or run it.
+                    let read = StatusValue::parse(StatusId::ACTUAL_POSITION, r.text()).is_ok();
+                    tracing::info!("drive {address}: {:?} in answer to {:?}", r.text_str(), sent);
+                    Some(Error::Unexpected {
+                        address,
+                        command: format!("{text}?"),
+                        reply: format!(
+                            "{} ({}, twice: not an echo in any form)",
+                            r.text_str(),
+                            if read { "the value of S1" } else { "other text than sent" }
+                        ),
+                    })
                 }
                 Ok(None) => return Err(Error::Broadcast("an echo needs one drive's answer")),
-                // Silence or a refusal of '?'.
-                Err(Error::Timeout { .. } | Error::Device { .. }) => none += 1,
+                Err(e @ Error::Device { code, .. }) if (70..=74).contains(&code.0) => Some(e),
+                Err(Error::Device { .. } | Error::Timeout { .. }) => None,
                 Err(e) => return Err(e),
-            }
-            if none == 2 {
-                break EchoForm::None;
+            };
+            match garble {
+                Some(e) => {
+                    garbled += 1;
+                    if garbled == 2 {
+                        return Err(e);
+                    }
+                }
+                None => {
+                    none += 1;
+                    if none == 2 {
+                        break EchoForm::None;
+                    }
+                    self.read_position(address).await?;
+                }
             }
         };
         let mut core = self.core();
