@@ -482,6 +482,10 @@ class CompaxMove(Record):
         difference_units: ``reached - target``.
         tolerance_units: The in-position tolerance the move was checked against.
         waited: True (the move was waited for).
+        verified: True when every check of what the drive took could be made (the echo of the stored move
+            in full, and its target read back from S2).
+        not_verifiable: What could not be checked, and why (empty when ``verified``): a drive that echoes
+            without its address or flag characters, or not at all.
         start_units: S1 before the move (an attribute; not in ``to_dict()``).
     """
 
@@ -489,6 +493,8 @@ class CompaxMove(Record):
     family: str
     drive: int
     waited: bool
+    verified: bool
+    not_verifiable: List[str]
     start_units: float
     target_units: float
     reached_units: float

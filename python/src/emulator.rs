@@ -163,6 +163,12 @@ fn compax_device(s: &EmulatorSettings) -> Result<motionlink_compax::Emulator, Fa
         let id = ParamId::parse(name).map_err(|e| usage(format!("params {name}: {e}")))?;
         cfg = cfg.with_param(id, *value);
     }
+    if let Some(names) = variant_names(s) {
+        let variants = motionlink_compax::sim::Variant::list(&names).map_err(|e| usage(e.to_string()))?;
+        cfg.variants.extend(variants);
+        cfg.variants.sort();
+        cfg.variants.dedup();
+    }
     motionlink_compax::Emulator::new(cfg).map_err(|e| usage(e.to_string()))
 }
 
