@@ -201,3 +201,16 @@ fn the_variants_are_named_in_the_configuration() {
     sim.receive(motionlink_link::Timestamp::ZERO, b"1S1\r1POSA 3,?\r", &mut out);
     assert_eq!(out, b"0.000\r\n>POSA 3\r\n>");
 }
+
+#[test]
+fn a_timeout_names_the_round_trips_measured_on_the_line() {
+    let (clock, _host, _faults, bus) = emulated(&[], 0);
+    let _me = clock.reserve_participant().enter();
+    bus.read_position(a(1)).unwrap();
+    let e = bus.read_position(a(9)).unwrap_err();
+    let text = e.to_string();
+    // "9S1\r" and "S001: 0.000\r\n>" at 9600 baud: about 20 ms on the wire.
+    assert!(text.contains("no reply to \"S1\" within") && text.contains("replies on this link have taken 1"), "{text}");
+    let Error::Timeout { round_trips: Some(r), .. } = e else { panic!("{e:?}") };
+    assert!(r.fastest <= r.slowest && r.slowest < Duration::from_millis(40), "{r:?}");
+}

@@ -110,12 +110,17 @@ impl WatchdogDuty {
 
     /// How the refresh went out up to `now`, if it has gone out at all: the longest gap between two
     /// refreshes, the time since the last one counted as a gap while the refresh is served.
-    pub fn timing(&self, now: Timestamp) -> Option<crate::error::RefreshTiming> {
+    pub fn timing(
+        &self,
+        now: Timestamp,
+        round_trips: Option<crate::error::RoundTrips>,
+    ) -> Option<crate::error::RefreshTiming> {
         let last = self.last_refresh?;
         let open = if self.serving { now.saturating_since(last) } else { Duration::ZERO };
         Some(crate::error::RefreshTiming {
             longest_gap: self.longest_gap.max(open),
             allowed: crate::model::WATCHDOG_TIMEOUT,
+            round_trips,
         })
     }
 }
@@ -151,6 +156,8 @@ pub(crate) struct Core {
     pub warned: BTreeSet<(u8, &'static str)>,
     /// The session lost its line or could not stop what it started.
     pub failed: bool,
+    /// The round trips measured on the line: each acknowledge since its request went out.
+    pub round_trips: Option<crate::error::RoundTrips>,
     /// Operations that are running (results of jobs of any other are dropped).
     pub alive: BTreeSet<OpId>,
     /// Operations asked to end early.
@@ -186,6 +193,7 @@ impl Core {
             findings: BTreeMap::new(),
             warned: BTreeSet::new(),
             failed: false,
+            round_trips: None,
             alive: BTreeSet::new(),
             cancelled: BTreeSet::new(),
             wake: BTreeSet::new(),
@@ -464,6 +472,8 @@ impl Core {
                         f.results[i] = Some(r);
                         f.open -= 1;
                         self.known.insert(address);
+                        let took = self.now.saturating_since(f.start);
+                        self.round_trips = Some(crate::error::RoundTrips::with(self.round_trips, took));
                     }
                     (_, Err(e)) => {
                         tracing::debug!("module {address}: undecodable answer {payload:?}: {e}");
@@ -534,6 +544,7 @@ impl Core {
                     address: crate::model::Address::checked(*address),
                     request: request.to_string(),
                     waited,
+                    round_trips: self.round_trips,
                 }),
             })
             .collect();

@@ -67,7 +67,9 @@ pub(super) fn open(args: &Args, tap: &Tap, configure: impl FnOnce(&mut BusConfig
     // Installed before the port opens: a signal from here on stops what the command starts.
     let token = common::interrupt_token();
     if !args.sim_variants.is_empty() && !matches!(url, PortUrl::Sim) {
-        return Err(CliError::usage("--sim-variant is for --port sim (a served emulator takes `sim compax --variant`)"));
+        return Err(CliError::usage(
+            "--sim-variant is for --port sim (a served emulator takes `sim compax --variant`)",
+        ));
     }
     let link: Box<dyn Link> = match url {
         PortUrl::Sim => {

@@ -214,3 +214,16 @@ fn a_move_whose_target_the_mirroring_module_took_otherwise_is_halted() {
     let (state, p) = sim_module(&host, 1);
     assert!(state.contains(StateFlag::Halted) && p < 0.35, "halted at once: {state} at {p}");
 }
+
+#[test]
+fn a_timeout_names_the_round_trips_measured_on_the_link() {
+    let (clock, _host, bus, _) = rs232(&[1]);
+    let _me = clock.reserve_participant().enter();
+    let err = bus.module(addr(9)).state().unwrap_err();
+    assert!(!err.to_string().contains("replies on this link"), "nothing measured yet: {err}");
+    bus.module(addr(1)).state().unwrap();
+    let err = bus.module(addr(9)).state().unwrap_err();
+    let text = err.to_string();
+    // At 9600 baud a GetExtended of CubeState and its acknowledge take about 15 ms on the wire.
+    assert!(text.contains("did not answer") && text.contains("replies on this link have taken 1"), "{text}");
+}

@@ -213,7 +213,7 @@ impl Ctx {
         };
         let timing = {
             let core = self.core();
-            core.duty.timing(core.now)
+            core.duty.timing(core.now, core.round_trips)
         };
         match timing {
             Some(timing) => Error::WatchdogExpired { address, state, timing },

@@ -57,7 +57,7 @@ impl Ctx {
         }
         let timing = {
             let core = self.core();
-            core.duty.timing(core.now)
+            core.duty.timing(core.now, core.round_trips)
         };
         if let Some(timing) = timing.filter(|t| t.was_late()) {
             return Err(Error::WatchdogExpired { address: crate::model::Address::checked(a), state, timing });
