@@ -47,7 +47,8 @@ class Emulator:
             ``"life-sign-unacknowledged"``; as ``motionlink sim powercube --variant``).
         compax: ``drives`` (addresses), ``mode`` (P196), ``baud``, ``params`` ({"P194": 10.0}),
             ``config`` (TOML text), ``variant`` (a firmware variant's name, or a list of them:
-            ``"echo-without-address"``, ``"echo-bare"``, ``"no-echo"``, ``"status-value-only"``; as
+            ``"echo-without-address"``, ``"echo-bare"``, ``"no-echo"``, ``"echo-without-store"``,
+            ``"status-value-only"``; as
             ``motionlink sim compax --variant``).
 
     Use it as a context manager (or call :meth:`close`).

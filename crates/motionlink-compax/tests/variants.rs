@@ -188,6 +188,18 @@ fn no_flipped_bit_of_the_probe_makes_a_drive_that_echoes_pass_for_one_that_does_
 }
 
 #[test]
+fn a_drive_that_echoes_without_storing_refuses_the_move_and_says_so() {
+    let (clock, host, _faults, bus) = emulated(&[Variant::EchoWithoutStore], 0);
+    let _me = clock.reserve_participant().enter();
+    let e = bus.move_to(a(1), &to(10.0), &mut |_| {}).unwrap_err();
+    let Error::NotExecuted { why, .. } = e.root() else { panic!("{e}") };
+    assert!(why.contains("refused '!'") && why.contains("may not store a command sent with ',?'"), "{why}");
+    assert_eq!(host.with_device(|d| d.drive(1).unwrap().position()), 0.0, "nothing ran");
+    use motionlink_link::error::Classify;
+    assert_eq!(e.class().exit_code(), 1, "a device refusal: {e}");
+}
+
+#[test]
 fn the_variants_are_named_in_the_configuration() {
     let c = SimConfig::from_toml("variants = [\"echo-bare\", \"no-echo\"]\n[[drive]]\naddress = 2\n").unwrap();
     assert_eq!(c.variants, [Variant::EchoBare, Variant::NoEcho]);

@@ -134,7 +134,7 @@ impl Drive {
             return;
         }
         if p.flags.echo {
-            if p.flags.buffer {
+            if p.flags.buffer && !self.variants.contains(&super::Variant::EchoWithoutStore) {
                 // `,?`: stored as with `,` alone (a command the drive cannot read is not), and echoed, so the
                 // host sees what the buffer holds before it sends `!`.
                 if let Body::Command(text) = p.body {

@@ -11,6 +11,7 @@
 //! | `echo-without-address` | The echo leaves out the address digits the telegram began with (`POSA 12.5,?`). |
 //! | `echo-bare` | The echo is the command alone: no address digits, and none of the flag characters `$`, `,`, `/`, `?` at its end (`POSA 12.5`). |
 //! | `no-echo` | `?` is not known: a telegram with it is refused (E90, as any syntax the drive cannot read) and nothing is stored. |
+//! | `echo-without-store` | `?` sends the telegram back instead of processing it, `,` included: a command sent with `,?` is echoed but not stored (so the `!` after it finds an empty buffer). |
 //! | `status-value-only` | A status value is answered with the value alone (`12.500`), not after its name (`S001: 12.500`). |
 //!
 //! Every reply keeps the framing P196 asks for (its address prefix, its end, its BCC): a variant changes
@@ -29,14 +30,21 @@ pub enum Variant {
     EchoBare,
     /// No echo: `?` is refused.
     NoEcho,
+    /// `,?` echoes without storing.
+    EchoWithoutStore,
     /// Status values without their name.
     StatusValueOnly,
 }
 
 impl Variant {
     /// Every variant, in the order of the table above.
-    pub const ALL: [Variant; 4] =
-        [Variant::EchoWithoutAddress, Variant::EchoBare, Variant::NoEcho, Variant::StatusValueOnly];
+    pub const ALL: [Variant; 5] = [
+        Variant::EchoWithoutAddress,
+        Variant::EchoBare,
+        Variant::NoEcho,
+        Variant::EchoWithoutStore,
+        Variant::StatusValueOnly,
+    ];
 
     /// The name the command line, the TOML configuration and Python take.
     pub fn name(self) -> &'static str {
@@ -44,6 +52,7 @@ impl Variant {
             Variant::EchoWithoutAddress => "echo-without-address",
             Variant::EchoBare => "echo-bare",
             Variant::NoEcho => "no-echo",
+            Variant::EchoWithoutStore => "echo-without-store",
             Variant::StatusValueOnly => "status-value-only",
         }
     }
@@ -54,6 +63,7 @@ impl Variant {
             Variant::EchoWithoutAddress => "the echo leaves out the address digits",
             Variant::EchoBare => "the echo is the command alone, without the address and the flag characters",
             Variant::NoEcho => "'?' is refused (E90) and nothing is stored",
+            Variant::EchoWithoutStore => "a command sent with ',?' is echoed but not stored",
             Variant::StatusValueOnly => "status values come without their name (12.500, not S001: 12.500)",
         }
     }

@@ -208,7 +208,7 @@ pub struct SimArgs {
     pub params: Vec<String>,
     /// Run the drives as this firmware variant, one behaviour the manual leaves open done the other way
     /// (repeat the option, or separate names with commas): echo-without-address, echo-bare, no-echo,
-    /// status-value-only (see the crate's README).
+    /// echo-without-store, status-value-only (see the crate's README).
     #[arg(long = "variant", value_name = "NAME", value_delimiter = ',')]
     pub variants: Vec<Variant>,
 }

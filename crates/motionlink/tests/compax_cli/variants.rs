@@ -64,6 +64,7 @@ fn every_variant_through_the_binary() {
         ("echo-bare", "8"),
         ("no-echo", "0"),
         ("status-value-only,echo-bare", "0"),
+        ("echo-without-store", "0"),
     ];
     let runs: Vec<Run> = std::thread::scope(|s| {
         let handles: Vec<_> = cases.iter().map(|(v, m)| s.spawn(move || core_actions(v, m))).collect();
@@ -71,6 +72,15 @@ fn every_variant_through_the_binary() {
     });
     for (r, (variant, mode)) in runs.iter().zip(cases) {
         let what = &r.what;
+        if variant == "echo-without-store" {
+            // The '!' after the echo finds nothing stored: refused, nothing ran, and the error says why.
+            for out in [&r.moved_with_speed, &r.moved_without_speed] {
+                assert_eq!(out.status.code(), Some(1), "{what}: {out:?}");
+                let err = String::from_utf8_lossy(&out.stderr);
+                assert!(err.contains("may not store a command sent with ',?'"), "{what}: {err}");
+            }
+            continue;
+        }
         let (a, why_a) = verified(&r.moved_with_speed);
         let (b, why_b) = verified(&r.moved_without_speed);
         assert_eq!((a, &why_a), (b, &why_b), "{what}");

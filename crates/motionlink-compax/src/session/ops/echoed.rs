@@ -224,7 +224,9 @@ impl Ctx {
                 },
                 Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. } | Error::Unexpected { .. })) => e,
                 Err(e @ Error::Device { .. }) => {
-                    return Err(fail(Failure { why: "the drive refused '!'".into(), source: e, holders: 0 }));
+                    let why = "the drive refused '!' right after echoing the stored move: it may not store a \
+                               command sent with ',?' (the manual does not say that it does), so nothing ran";
+                    return Err(fail(Failure { why: why.into(), source: e, holders: 0 }));
                 }
                 Err(e) => return Err(e),
             };
