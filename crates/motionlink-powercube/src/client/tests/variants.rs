@@ -29,11 +29,33 @@ struct Outcome {
     closed: Result<(), Error>,
 }
 
+/// A CAN bus of one module at 1 running `variants`, at 1 Mbit/s.
+fn can_variant(variants: &[Variant]) -> (ManualClock, CanBus<Emulator>, Client) {
+    let clock = ManualClock::new_auto();
+    let config = SimConfig { variants: variants.to_vec(), ..SimConfig::default() };
+    let canbus = CanBus::with_emulator(Emulator::new_can(&config), clock.shared(), CanBusConfig::paced(1_000_000));
+    let bus = Client::can(Box::new(canbus.connect()), clock.shared(), BusConfig::can()).unwrap();
+    (clock, canbus, bus)
+}
+
 /// Open, scan, get, watch (state and position polled), set, home, move with and without a speed, halt,
-/// reset, close: the watchdog armed as `motionlink powercube` arms it.
+/// reset, close, on RS232: the watchdog armed as `motionlink powercube` arms it.
 fn core_operations(variants: &[Variant]) -> Outcome {
     let (clock, host, bus) = rs232_variant(variants);
     let _me = clock.reserve_participant().enter();
+    let position = || host.with_device(|d| d.module(1).unwrap().position().value());
+    run_core_operations(bus, variants, &position)
+}
+
+/// The same on CAN.
+fn core_operations_can(variants: &[Variant]) -> Outcome {
+    let (clock, canbus, bus) = can_variant(variants);
+    let _me = clock.reserve_participant().enter();
+    let position = || device_view(&canbus, &clock, 1).1;
+    run_core_operations(bus, variants, &position)
+}
+
+fn run_core_operations(bus: Client, variants: &[Variant], device_position: &dyn Fn() -> f32) -> Outcome {
     let found = bus.scan().unwrap();
     assert_eq!(found.len(), 1, "{variants:?}");
     assert!(found[0].info.is_ok(), "{variants:?}: {:?}", found[0].info);
@@ -52,7 +74,7 @@ fn core_operations(variants: &[Variant]) -> Outcome {
     };
     let moved_with_speed = m.move_to_guarded(&with_speed, Guard::Watchdog, &mut |_| {});
     let moved_without_speed = m.move_to_guarded(&MoveSpec::to(Position::native(0.2)), Guard::Watchdog, &mut |_| {});
-    let position = host.with_device(|d| d.module(1).unwrap().position().value());
+    let position = device_position();
     m.halt().unwrap();
     assert!(m.state().unwrap().contains(StateFlag::Halted));
     m.reset().unwrap();
@@ -142,6 +164,31 @@ fn a_life_sign_that_is_not_acknowledged_refuses_the_guarded_motion_and_says_so()
     let _me = clock.reserve_participant().enter();
     let r = bus.module(addr(1)).move_to_guarded(&spec(0.3), Guard::HaltOnly, &mut |_| {}).unwrap();
     assert!(at(&r, 0.3) && r.verified, "{r:?}");
+}
+
+#[test]
+fn every_variant_on_can() {
+    // On CAN the broadcast refresh is the manual's (not probed) and the RS232 framing variants change nothing.
+    for v in [
+        None,
+        Some(Variant::NoBroadcastPair),
+        Some(Variant::AckLength6),
+        Some(Variant::ExtAckOnPutId),
+        Some(Variant::NoPosStateDio),
+    ] {
+        let o = core_operations_can(v.as_slice());
+        assert!(o.set.as_ref().is_ok_and(|s| s.verified), "{v:?}: {o:?}");
+        assert!(o.home.is_ok(), "{v:?}: {o:?}");
+        assert!(o.moved_with_speed.as_ref().is_ok_and(|r| at(r, 0.4) && r.verified), "{v:?}: {o:?}");
+        assert!(o.moved_without_speed.as_ref().is_ok_and(|r| at(r, 0.2) && r.verified), "{v:?}: {o:?}");
+        assert!(o.closed.is_ok(), "{v:?}: {o:?}");
+    }
+    let o = core_operations_can(&[Variant::NoTwinMirror]);
+    let r = o.moved_with_speed.unwrap();
+    assert!(at(&r, 0.4) && !r.verified && r.not_verifiable.len() == 3, "{r:?}");
+    let o = core_operations_can(&[Variant::LifeSignUnacknowledged]);
+    assert!(o.home.unwrap_err().to_string().contains("not acknowledged"));
+    assert!(o.moved_with_speed.is_err() && (o.position - 0.05).abs() <= 0.001, "nothing moved");
 }
 
 #[test]
