@@ -131,11 +131,12 @@ class Parameter(Record):
         value: The value (a number, a text, or for groups and compound values a dict).
         unit: Its unit (``""`` when none).
         access: ``"r"``, ``"w"`` or ``"rw"``.
-        read_back: After a write: the value the library read back from the device (``None`` if the
-            parameter cannot be read; then ``verified`` is False and ``not_verifiable`` says why). Only on
-            the result of ``set``.
+        read_back: After a write: the value the library read back from the device (``None`` if nothing
+            could be read back that shows the value written; then ``verified`` is False and
+            ``not_verifiable`` says why). Only on the result of ``set``.
         verified: After a write: True when the value read back was compared with the one written.
-        not_verifiable: After a write the device cannot read back: why.
+        not_verifiable: PowerCube ``set``: why the value could not be verified, in plain words (a list,
+            empty when ``verified``).
         ok: PowerCube ``set``: True (the command line's field).
         module: PowerCube: the module (1..31).
         drive: COMPAX: the drive (1..31).
@@ -151,7 +152,7 @@ class Parameter(Record):
     access: str
     read_back: Any
     verified: bool
-    not_verifiable: str
+    not_verifiable: List[str]
     ok: bool
     module: int
     drive: int

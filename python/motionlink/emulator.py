@@ -43,9 +43,15 @@ class Emulator:
             firmware variant's name or a list of them, such as ``"no-groups"``: the unit does what the manual
             leaves open the other plausible way, as ``motionlink sim scu --variant``).
         powercube: ``modules`` (addresses), ``config`` (TOML text), ``strict`` (refuse bad BCCs),
-            ``can`` (a CAN bus; served, it sits behind an emulated SLCAN adapter).
+            ``can`` (a CAN bus; served, it sits behind an emulated SLCAN adapter), ``variant`` (a firmware
+            variant's name, or a list of them: ``"no-twin-mirror"``, ``"no-broadcast-pair"``,
+            ``"ack-length-6"``, ``"ext-ack-on-put-id"``, ``"no-pos-state-dio"``,
+            ``"life-sign-unacknowledged"``; as ``motionlink sim powercube --variant``).
         compax: ``drives`` (addresses), ``mode`` (P196), ``baud``, ``params`` ({"P194": 10.0}),
-            ``config`` (TOML text).
+            ``config`` (TOML text), ``variant`` (a firmware variant's name, or a list of them:
+            ``"echo-without-address"``, ``"echo-bare"``, ``"no-echo"``, ``"echo-without-store"``,
+            ``"status-value-only"``; as
+            ``motionlink sim compax --variant``).
 
     Use it as a context manager (or call :meth:`close`).
     """

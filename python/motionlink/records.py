@@ -158,11 +158,16 @@ class PowerCubeMove(_WithState):
         target_rad: The target.
         reached_rad: The final actual position, read twice from the module, both within the tolerance.
         difference_rad: ``reached - target``.
+        verified: True when every check of what the module took could be made (the velocity and
+            acceleration written, and the motion's target, read back through their Inc twins).
+        not_verifiable: What could not be checked, and why (empty when ``verified``).
     """
 
     __slots__ = ()
     action: str
     unit: str
+    verified: bool
+    not_verifiable: List[str]
     start_rad: float
     target_rad: float
     reached_rad: float
@@ -482,6 +487,10 @@ class CompaxMove(Record):
         difference_units: ``reached - target``.
         tolerance_units: The in-position tolerance the move was checked against.
         waited: True (the move was waited for).
+        verified: True when every check of what the drive took could be made (the echo of the stored move
+            in full, and its target read back from S2).
+        not_verifiable: What could not be checked, and why (empty when ``verified``): a drive that echoes
+            without its address or flag characters, or not at all.
         start_units: S1 before the move (an attribute; not in ``to_dict()``).
     """
 
@@ -489,6 +498,8 @@ class CompaxMove(Record):
     family: str
     drive: int
     waited: bool
+    verified: bool
+    not_verifiable: List[str]
     start_units: float
     target_units: float
     reached_units: float

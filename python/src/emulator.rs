@@ -115,7 +115,24 @@ fn scu_device(s: &EmulatorSettings) -> Result<motionlink_scu::Emulator, Failure>
     motionlink_scu::Emulator::new(config).map_err(|e| usage(e.to_string()))
 }
 
+/// The names of `variant=` (each may itself separate names with commas), as one text for the family's
+/// parser.
+fn variant_names(s: &EmulatorSettings) -> Option<String> {
+    s.variant.as_ref().map(|names| names.join(","))
+}
+
 fn powercube_config(s: &EmulatorSettings) -> Result<motionlink_powercube::sim::SimConfig, Failure> {
+    use motionlink_powercube::sim::Variant;
+    let mut config = powercube_modules(s)?;
+    if let Some(names) = variant_names(s) {
+        config.variants.extend(Variant::list(&names).map_err(|e| usage(e.to_string()))?);
+        config.variants.sort();
+        config.variants.dedup();
+    }
+    Ok(config)
+}
+
+fn powercube_modules(s: &EmulatorSettings) -> Result<motionlink_powercube::sim::SimConfig, Failure> {
     use motionlink_powercube::sim::SimConfig;
     match (&s.config, &s.modules) {
         (Some(_), Some(_)) => Err(usage("give the modules either in the TOML configuration or as modules=, not both")),
@@ -151,6 +168,12 @@ fn compax_device(s: &EmulatorSettings) -> Result<motionlink_compax::Emulator, Fa
         let id = ParamId::parse(name).map_err(|e| usage(format!("params {name}: {e}")))?;
         cfg = cfg.with_param(id, *value);
     }
+    if let Some(names) = variant_names(s) {
+        let variants = motionlink_compax::sim::Variant::list(&names).map_err(|e| usage(e.to_string()))?;
+        cfg.variants.extend(variants);
+        cfg.variants.sort();
+        cfg.variants.dedup();
+    }
     motionlink_compax::Emulator::new(cfg).map_err(|e| usage(e.to_string()))
 }
 
@@ -170,7 +193,6 @@ fn check_family_options(family: &str, s: &EmulatorSettings) -> Result<(), Failur
         .flatten()
         .collect(),
         "powercube" => [
-            given("variant", s.variant.is_some()),
             given("preset", s.preset.is_some()),
             given("drives", s.drives.is_some()),
             given("mode", s.mode.is_some()),
@@ -181,7 +203,6 @@ fn check_family_options(family: &str, s: &EmulatorSettings) -> Result<(), Failur
         .flatten()
         .collect(),
         _ => [
-            given("variant", s.variant.is_some()),
             given("preset", s.preset.is_some()),
             given("modules", s.modules.is_some()),
             given("strict", s.strict),

@@ -25,6 +25,34 @@ def test_presets_modules_drives_and_params() -> None:
         assert c.get("P3").value == 7.0
 
 
+def test_firmware_variants_and_what_a_result_could_not_verify() -> None:
+    # A module that keeps TargetVelInc apart from TargetVel: the write is made, and said to be unverified.
+    with motionlink.Emulator("powercube", variant="no-twin-mirror") as emu, motionlink.PowerCube(emu) as c:
+        r = c.set("TargetVel", 0.8)
+        assert r.verified is False and r.read_back is None
+        assert "keeps TargetVelInc apart" in r.not_verifiable[0]
+        c.home()
+        m = c.move_to(0.3, velocity=0.7)
+        assert abs(m.reached_rad - 0.3) <= 0.001 and m.verified is False and len(m.not_verifiable) == 2
+        assert m.to_dict()["not_verifiable"] == m.not_verifiable
+    with motionlink.Emulator("powercube") as emu, motionlink.PowerCube(emu) as c:
+        assert c.set("TargetVel", 0.8).verified is True
+        assert c.set("TargetVel", 0.8).not_verifiable == []
+    # Names in a list, or separated by commas.
+    for variant in (["echo-bare", "status-value-only"], "echo-bare, status-value-only"):
+        with motionlink.Emulator("compax", variant=variant) as emu, motionlink.Compax(emu) as c:
+            m = c.move_to(3.0)
+            assert m.reached_units == 3.0 and m.verified is False
+            assert any("without the flag characters" in w for w in m.not_verifiable)
+    with motionlink.Emulator("compax") as emu, motionlink.Compax(emu) as c:
+        m = c.move_to(3.0)
+        assert (m.verified, m.not_verifiable) == (True, [])
+    with pytest.raises(motionlink.UsageError, match="no-twin-mirror"):
+        motionlink.Emulator("powercube", variant="nope")
+    with pytest.raises(motionlink.UsageError, match="echo-without-address"):
+        motionlink.Emulator("compax", variant=["echo-bare", "nope"])
+
+
 def test_bad_settings_are_usage_errors() -> None:
     with pytest.raises(motionlink.UsageError, match="family"):
         motionlink.Emulator("lift")

@@ -26,7 +26,7 @@ pub enum Error {
         code: ErrorCode,
     },
     /// No reply in time, after every retry.
-    #[error("drive {address}: no reply to {command:?} ({attempts} attempts)")]
+    #[error("drive {address}: no reply to {command:?} within {} ms ({attempts} attempts){}", waited.as_millis(), measured(round_trips))]
     Timeout {
         /// The drive.
         address: Address,
@@ -34,6 +34,10 @@ pub enum Error {
         command: String,
         /// Telegrams sent.
         attempts: u32,
+        /// How long the last attempt waited (the wire time of request and reply, and the reply timeout).
+        waited: Duration,
+        /// The round trips the session measured on this line before, if any.
+        round_trips: Option<RoundTrips>,
     },
     /// Replies arrived corrupt (BCC, framing), after every retry.
     #[error("drive {address}: corrupt reply to {command:?}: {detail}")]
@@ -202,8 +206,8 @@ pub enum Error {
         address: Address,
         /// The move as sent, without the address and flags (`POSA 12.5`).
         command: String,
-        /// What happened (`its echo was not the telegram sent, so no '!' was sent`).
-        why: &'static str,
+        /// What happened (`its echo was not the telegram sent ... so no '!' was sent`).
+        why: String,
         /// The error behind it: the echo that came back ([`Error::Unexpected`]), a lost or corrupt reply,
         /// the drive's refusal of `!`.
         source: Box<Error>,
@@ -312,6 +316,42 @@ impl SessionError for Error {
     fn session_closed() -> Self {
         Error::Closed
     }
+}
+
+/// The round trips a session measured on its line (a telegram handed to the line to its reply), for errors
+/// that a slow link may have caused: "replies on this link have taken 45-58 ms".
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RoundTrips {
+    /// The fastest reply.
+    pub fastest: Duration,
+    /// The slowest reply.
+    pub slowest: Duration,
+}
+
+impl RoundTrips {
+    /// `measured` with one more round trip `d`.
+    pub fn with(measured: Option<RoundTrips>, d: Duration) -> RoundTrips {
+        match measured {
+            Some(r) => RoundTrips { fastest: r.fastest.min(d), slowest: r.slowest.max(d) },
+            None => RoundTrips { fastest: d, slowest: d },
+        }
+    }
+}
+
+impl fmt::Display for RoundTrips {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (a, b) = (self.fastest.as_millis(), self.slowest.as_millis());
+        if a == b {
+            write!(f, "replies on this link have taken {a} ms")
+        } else {
+            write!(f, "replies on this link have taken {a}-{b} ms")
+        }
+    }
+}
+
+/// "; " and `r`, or nothing when the session has measured no round trip.
+fn measured(r: &Option<RoundTrips>) -> String {
+    r.map(|r| format!("; {r}")).unwrap_or_default()
 }
 
 /// A result of a COMPAX operation.
@@ -450,7 +490,13 @@ mod tests {
                 ErrorClass::Device,
             ),
             (
-                Error::Timeout { address: Address::drive_const(1), command: "S1".into(), attempts: 4 },
+                Error::Timeout {
+                    address: Address::drive_const(1),
+                    command: "S1".into(),
+                    attempts: 4,
+                    waited: Duration::from_millis(210),
+                    round_trips: None,
+                },
                 ErrorClass::Transport(TransportKind::Timeout),
             ),
             (

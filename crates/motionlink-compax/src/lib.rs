@@ -99,7 +99,12 @@
 //!   name no travel limits, so the caller gives them ([`session::TravelLimits`]). The move is checked
 //!   before it starts: it is stored in the drive's buffer with its echo (`POSA 12.5,?`), the echo is
 //!   compared byte for byte with the telegram sent (address prefix, address, command, value, flags), and
-//!   only when they are the same is `!` sent. An echo that differs or comes corrupt (a flipped digit, a
+//!   only when they are the same is `!` sent. How much of the telegram a drive echoes ("in full" is all the
+//!   manual says) is found out per drive with S1 sent with `?` and remembered ([`session::EchoForm`]); the
+//!   echo is compared in that form, the command text always exactly; a drive that echoes less, or not at
+//!   all, has its moves reported as not verified in what they could not check
+//!   ([`session::MoveReport::not_verifiable`]). The emulator's firmware variants ([`sim::Variant`]) model
+//!   those other readings. An echo that differs or comes corrupt (a flipped digit, a
 //!   flipped address digit that reached another drive) sends no `!` and is [`Error::NotExecuted`], which
 //!   names what came back and the drives that may now hold the command in their buffer (the manual has no
 //!   command that empties one: the next `!` to such a drive, or any `32!`, executes it). A store whose echo

@@ -67,10 +67,11 @@ fn state(r: &Rig, n: u8) -> (f64, bool, u8, Option<String>) {
 }
 
 /// Bytes of the telegrams before the stored move of a checked move without settings: "1S16\r" "1S17\r"
-/// "1S1\r" (each with a BCC in mode 8), and for a relative move "1S2\r".
+/// "1S1\r" (each with a BCC in mode 8), for a relative move "1S2\r", then the probe of the echo form
+/// "1S1?\r".
 fn before_store(p196: u32, relative: bool) -> u64 {
     let with_bcc = u64::from(p196 & 8 != 0);
-    5 + 5 + 4 + with_bcc * 3 + if relative { 4 + with_bcc } else { 0 }
+    5 + 5 + 4 + with_bcc * 3 + if relative { 4 + with_bcc } else { 0 } + 5 + with_bcc
 }
 
 /// Bytes the drive sends back before the echo of the stored move of a checked move without settings (S16,
@@ -85,6 +86,8 @@ fn replies_before(p196: u32, relative: bool, then: &[&str]) -> u64 {
     if relative {
         bus.read_target(a(1)).unwrap();
     }
+    // The probe of how the drive echoes.
+    bus.echo(a(1), "S1").unwrap();
     for t in then {
         bus.raw(a(1), t).unwrap();
     }
@@ -120,7 +123,7 @@ fn the_move_is_stored_with_its_echo_then_executed_in_every_reply_format() {
     let (r, bus) = rig(&[1], 0);
     let _me = r.clock.reserve_participant().enter();
     bus.move_to(a(1), &MoveRequest::new(MoveTarget::Relative(pos(-2.5))), &mut |_| {}).unwrap();
-    assert_eq!(sent(&r)[3..6], ["1S2\r", "1POSR -2.5,?\r", "1!\r"]);
+    assert_eq!(sent(&r)[3..7], ["1S2\r", "1S1?\r", "1POSR -2.5,?\r", "1!\r"]);
     assert_eq!(state(&r, 1).0, -2.5);
 }
 
@@ -248,7 +251,7 @@ fn a_flipped_address_digit_makes_another_drive_echo_and_nothing_moves() {
     r.faults.inject(Direction::HostToDevice, before_store(0, false), Fault::Corrupt { xor: 0x02 });
     bus.move_to(a(1), &MoveRequest::new(MoveTarget::Absolute(pos(12.5))), &mut |_| {}).unwrap();
     // (The transcript shows the telegram as the client sent it, before the flip.)
-    assert_eq!(sent(&r)[3..6], ["1POSA 12.5,?\r", "1POSA 12.5,?\r", "1!\r"]);
+    assert_eq!(sent(&r)[4..7], ["1POSA 12.5,?\r", "1POSA 12.5,?\r", "1!\r"]);
     assert_eq!(motions(&r), ["drive 1 motion started to 12.500 from 0.000"]);
 }
 
@@ -263,7 +266,7 @@ fn a_lost_echo_stores_the_relative_move_again_and_it_runs_once() {
     }
     let report = bus.move_to(a(1), &MoveRequest::new(MoveTarget::Relative(pos(5.0))), &mut |_| {}).unwrap();
     assert_eq!(report.reached, pos(5.0));
-    assert_eq!(sent(&r)[4..7], ["1POSR 5,?\r", "1POSR 5,?\r", "1!\r"], "stored twice, executed once");
+    assert_eq!(sent(&r)[5..8], ["1POSR 5,?\r", "1POSR 5,?\r", "1!\r"], "stored twice, executed once");
     assert_eq!(motions(&r), ["drive 1 motion started to 5.000 from 0.000"]);
     assert_eq!(state(&r, 1).0, 5.0, "moved once");
 }
@@ -279,7 +282,7 @@ fn a_lost_reply_to_execute_is_checked_through_s2_and_s17_not_sent_again_blindly(
     }
     bus.move_to(a(1), &MoveRequest::new(MoveTarget::Relative(pos(5.0))), &mut |_| {}).unwrap();
     let frames = sent(&r);
-    assert_eq!(frames[5..8], ["1!\r", "1S2\r", "1S2\r"], "S2 read after the lost reply, then the read-back");
+    assert_eq!(frames[6..9], ["1!\r", "1S2\r", "1S2\r"], "S2 read after the lost reply, then the read-back");
     assert_eq!(executes(&r), 1, "{frames:?}");
     assert_eq!(state(&r, 1).0, 5.0, "moved once");
 
@@ -287,13 +290,13 @@ fn a_lost_reply_to_execute_is_checked_through_s2_and_s17_not_sent_again_blindly(
     // start, and only then is '!' sent again.
     let (r, bus) = rig(&[1], 0);
     let _me = r.clock.reserve_participant().enter();
-    let at = r.faults.bytes_sent(Direction::HostToDevice) + 5 + 5 + 4 + 4 + "1POSR 5,?\r".len() as u64;
+    let at = r.faults.bytes_sent(Direction::HostToDevice) + 5 + 5 + 4 + 4 + 5 + "1POSR 5,?\r".len() as u64;
     for i in 0..3 {
         r.faults.inject(Direction::HostToDevice, at + i, Fault::Drop);
     }
     bus.move_to(a(1), &MoveRequest::new(MoveTarget::Relative(pos(5.0))), &mut |_| {}).unwrap();
     let frames = sent(&r);
-    assert_eq!(frames[5..9], ["1!\r", "1S2\r", "1S17\r", "1!\r"], "{frames:?}");
+    assert_eq!(frames[6..10], ["1!\r", "1S2\r", "1S17\r", "1!\r"], "{frames:?}");
     assert_eq!(motions(&r), ["drive 1 motion started to 5.000 from 0.000"]);
     assert_eq!(state(&r, 1).0, 5.0, "moved once");
 }

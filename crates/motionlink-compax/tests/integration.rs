@@ -13,3 +13,4 @@ mod echo_check;
 mod robustness;
 mod safety;
 mod shared;
+mod variants;

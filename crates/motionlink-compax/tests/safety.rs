@@ -97,13 +97,15 @@ fn a_checked_move_reads_its_target_back_and_checks_where_the_axis_came_to_rest()
     assert_eq!(report.difference(), 0.0);
     assert!(!seen.is_empty());
     let frames = sent(&r.transcript);
-    // Switched on? At rest? Where from? Then the setting, the move stored with its echo (`,?`), executed
-    // (`!`) once the echo is the telegram sent, and its target read back at once.
+    // Switched on? At rest? Where from? How does it echo (S1 with '?', not executed)? Then the setting, the
+    // move stored with its echo (`,?`), executed (`!`) once the echo is the telegram sent, and its target
+    // read back at once.
     assert_eq!(
-        frames[..7],
-        ["1S16\r", "1S17\r", "1S1\r", "1SPEED 50\r", "1POSA 12.5,?\r", "1!\r", "1S2\r"],
+        frames[..8],
+        ["1S16\r", "1S17\r", "1S1\r", "1S1?\r", "1SPEED 50\r", "1POSA 12.5,?\r", "1!\r", "1S2\r"],
         "{frames:?}"
     );
+    assert!(report.verified && report.not_verifiable.is_empty(), "{report:?}");
     // Polls, and the position at rest at the end.
     assert_eq!(frames.last().unwrap(), "1S1\r");
     assert!(bus.started().is_empty());

@@ -68,6 +68,8 @@ pub struct RefreshTiming {
     pub longest_gap: Duration,
     /// The most the modules wait for the next refresh ([`WATCHDOG_TIMEOUT`](crate::model::WATCHDOG_TIMEOUT)).
     pub allowed: Duration,
+    /// The round trips the session measured on this link, if any (a slow link is named in the message).
+    pub round_trips: Option<RoundTrips>,
 }
 
 impl RefreshTiming {
@@ -84,16 +86,54 @@ impl fmt::Display for RefreshTiming {
             write!(
                 f,
                 "the watchdog refresh came {gap} ms late (at most {allowed} ms allowed): this host did not run the \
-                 program in time; the module halted itself"
+                 program in time; the module halted itself{}",
+                measured(&self.round_trips)
             )
         } else {
             write!(
                 f,
                 "the watchdog refreshes went out in time (at most {gap} ms apart, {allowed} ms allowed), so the \
-                 line or the module lost them; the module halted itself"
+                 line or the module lost them; the module halted itself{}",
+                measured(&self.round_trips)
             )
         }
     }
+}
+
+/// The round trips a session measured on its link (a request handed to the line to its answer), for
+/// errors that a slow link may have caused: "replies on this link have taken 45-58 ms".
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RoundTrips {
+    /// The fastest answer.
+    pub fastest: Duration,
+    /// The slowest answer.
+    pub slowest: Duration,
+}
+
+impl RoundTrips {
+    /// `measured` with one more round trip `d`.
+    pub fn with(measured: Option<RoundTrips>, d: Duration) -> RoundTrips {
+        match measured {
+            Some(r) => RoundTrips { fastest: r.fastest.min(d), slowest: r.slowest.max(d) },
+            None => RoundTrips { fastest: d, slowest: d },
+        }
+    }
+}
+
+impl fmt::Display for RoundTrips {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (a, b) = (self.fastest.as_millis(), self.slowest.as_millis());
+        if a == b {
+            write!(f, "replies on this link have taken {a} ms")
+        } else {
+            write!(f, "replies on this link have taken {a}-{b} ms")
+        }
+    }
+}
+
+/// "; " and `r`, or nothing when the session has measured no round trip.
+fn measured(r: &Option<RoundTrips>) -> String {
+    r.map(|r| format!("; {r}")).unwrap_or_default()
 }
 
 /// What went wrong in a session. Device errors ([`Error::is_device`]) are the module's answer; transport
@@ -104,7 +144,7 @@ pub enum Error {
     #[error(transparent)]
     Link(#[from] LinkError),
     /// No acknowledge in time.
-    #[error("module {address} did not answer {request} within {} ms", waited.as_millis())]
+    #[error("module {address} did not answer {request} within {} ms{}", waited.as_millis(), measured(round_trips))]
     Timeout {
         /// The module.
         address: Address,
@@ -112,6 +152,8 @@ pub enum Error {
         request: String,
         /// How long the session waited (the last attempt).
         waited: Duration,
+        /// The round trips the session measured on this link before, if any.
+        round_trips: Option<RoundTrips>,
     },
     /// Only a corrupt answer came (bad BCC, broken frame, unknown content).
     #[error("module {address}: corrupt answer to {request}: {detail}")]
@@ -527,8 +569,12 @@ mod tests {
 
     #[test]
     fn every_error_has_the_class_its_exit_code_needs() {
-        let timeout =
-            || Error::Timeout { address: Address::checked(1), request: "x".into(), waited: Duration::from_millis(1) };
+        let timeout = || Error::Timeout {
+            address: Address::checked(1),
+            request: "x".into(),
+            waited: Duration::from_millis(1),
+            round_trips: None,
+        };
         assert_eq!(timeout().class(), ErrorClass::Transport(TransportKind::Timeout));
         assert_eq!(Error::Encode(Rs232Error::BadAddress(40)).class().exit_code(), 2, "a framing error is usage");
         assert_eq!(Error::InvalidAddress(0).class(), ErrorClass::Usage);
@@ -560,5 +606,18 @@ mod tests {
         };
         assert_eq!(unit.class(), ErrorClass::Usage);
         assert_eq!(unit.to_string(), "module 3 is linear (its unit is m): the target position 0.5 rad does not fit it");
+        // A slow link is named where the session measured it.
+        let ms = Duration::from_millis;
+        let slow = Error::Timeout {
+            address: Address::checked(2),
+            request: "GetExtended ActPos".into(),
+            waited: ms(60),
+            round_trips: Some(RoundTrips { fastest: ms(45), slowest: ms(58) }),
+        };
+        assert_eq!(
+            slow.to_string(),
+            "module 2 did not answer GetExtended ActPos within 60 ms; replies on this link have taken 45-58 ms"
+        );
+        assert!(!timeout().to_string().contains("replies"), "nothing measured, nothing said");
     }
 }

@@ -73,7 +73,17 @@
 //!   `decode` take both forms, on both carriers. The padded form has a second merit: a bit flipped in its
 //!   address cannot make it the life sign of one module (`07` alone to one module toggles its watchdog;
 //!   `07 00` to one module is no command). The watchdog is therefore armed on RS232 by default
-//!   ([`session::BusConfig::watchdog_on_rs232`] switches that off). A broadcast Halt on RS232 still does not
+//!   ([`session::BusConfig::watchdog_on_rs232`] switches that off). Whether a module takes that form is
+//!   found out the first time its watchdog is armed on RS232 (it must stay online past its 50 ms); one
+//!   that ignores it has its watchdog switched off again and reset, and its motions run without one, each
+//!   result saying so ([`session::ModuleFindings`]).
+//! - **Inc twins.** Whether TargetVelInc / TargetAccInc / TargetPosInc follow TargetVel / TargetAcc /
+//!   TargetPos (and a float motion's target) is found out per module and pair the first time a write
+//!   depends on it (the twin read before and after the write; see the session's `twins` steps), and
+//!   remembered: a module that keeps them apart gets the manual's plain writes, reported as not verified
+//!   ([`session::Readback`], [`session::MoveReport`]); a twin that follows but shows another value is
+//!   refused. The emulator's firmware variants ([`sim::Variant`]) model the other readings of what the
+//!   manual leaves open. A broadcast Halt on RS232 still does not
 //!   count as stopping anything: the session asks each module it started on drop and halts it by address.
 //! - **What a broadcast sets in motion.** Home and StartMotion count as starting the modules the session
 //!   knows exist ([`Session::known`]: every address that has answered it), not all 31 addresses: a drop

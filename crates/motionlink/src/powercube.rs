@@ -25,7 +25,7 @@ use motionlink_powercube::describe::Describer;
 use motionlink_powercube::model::{
     Acceleration, Action as PcAction, Address, CubeState, ModuleKind, Param, Position, Request, Value, Velocity, PARAMS,
 };
-use motionlink_powercube::sim::SimConfig;
+use motionlink_powercube::sim::{SimConfig, Variant};
 use motionlink_powercube::wire::Payload;
 use motionlink_powercube::{Emulator, Error};
 use serde_json::json;
@@ -74,6 +74,10 @@ pub struct Args {
     /// then leaves the module moving). Signals, a closed stdout and errors still halt it.
     #[arg(long, global = true)]
     pub no_watchdog: bool,
+    /// With --port sim: the emulated modules run this firmware variant (repeat the option, or separate
+    /// names with commas; `motionlink sim powercube --help` lists them).
+    #[arg(long = "sim-variant", value_name = "NAME", value_delimiter = ',', global = true)]
+    pub sim_variants: Vec<Variant>,
     /// What to do.
     #[command(subcommand)]
     pub action: Action,
@@ -189,6 +193,11 @@ pub struct SimArgs {
     /// Drop RS232 frames with a wrong BCC (the modules accept them).
     #[arg(long)]
     pub strict: bool,
+    /// Run the modules as this firmware variant, one behaviour the manual leaves open done the other way
+    /// (repeat the option, or separate names with commas): no-twin-mirror, no-broadcast-pair, ack-length-6,
+    /// ext-ack-on-put-id, no-pos-state-dio, life-sign-unacknowledged (see the crate's README).
+    #[arg(long = "variant", value_name = "NAME", value_delimiter = ',')]
+    pub variants: Vec<Variant>,
 }
 
 /// A library error as a command-line error (its class decides the exit code).
@@ -217,14 +226,19 @@ fn open(
         c.poll_interval = Duration::from_millis(args.poll_ms);
         c
     };
+    if !args.sim_variants.is_empty() && !matches!(url, PortUrl::Sim) {
+        return Err(CliError::usage(
+            "--sim-variant is for --port sim (a served emulator takes `sim powercube --variant`)",
+        ));
+    }
     let client = match &url {
         PortUrl::Serial(_) | PortUrl::Tcp { .. } => {
             let link = url.open_byte_link(SerialSettings { dtr_rts_on: false, ..SerialSettings::new(args.baud) })?;
             Client::rs232(tap.link(link, &clock), clock, settings(BusConfig::rs232()))
         }
         PortUrl::Sim => {
-            let host =
-                EmulatorHost::new(Emulator::new(&SimConfig::default()), Arc::clone(&clock), PipeConfig::instant());
+            let config = SimConfig { variants: args.sim_variants.clone(), ..SimConfig::default() };
+            let host = EmulatorHost::new(Emulator::new(&config), Arc::clone(&clock), PipeConfig::instant());
             let link = tap.link(Box::new(host.connect().0), &clock);
             let client = Client::rs232(link, clock, settings(BusConfig::rs232())).map_err(failed)?;
             return Ok((client, Some(host)));
@@ -435,6 +449,10 @@ pub fn sim(args: SimArgs) -> Result<(), CliError> {
         (None, true) => SimConfig::default(),
         (None, false) => SimConfig::with_addresses(&args.modules).map_err(CliError::usage)?,
     };
+    let mut config = config;
+    config.variants.extend(args.variants.iter().copied());
+    config.variants.sort();
+    config.variants.dedup();
     if args.slcan {
         if args.strict {
             return Err(CliError::usage("--strict is about RS232 BCCs; it has no meaning with --slcan"));

@@ -177,7 +177,8 @@ fn move_record<'py>(py: Python<'py>, report: &MoveReport, tolerance: Position) -
     rec.set("family", FAMILY)?.set("drive", report.address.get())?.set("start_units", report.start.units())?;
     rec.set("target_units", report.target.units())?.set("reached_units", report.reached.units())?;
     rec.set("difference_units", report.difference())?.set("tolerance_units", tolerance.units())?;
-    rec.set("waited", true)?.extras(&["start_units"])?;
+    rec.set("waited", true)?.set("verified", report.verified)?.set("not_verifiable", report.not_verifiable.clone())?;
+    rec.extras(&["start_units"])?;
     Ok(rec)
 }
 

@@ -361,12 +361,12 @@ impl PowerCubeClient {
         // whether that was verified (unit and access are attributes, as `get` has them).
         let r = param_record(py, a, p, kind)?;
         r.set("value", value_py(py, &v)?)?.set("ok", true)?;
+        let Readback { read, verified, not_verifiable } = read;
         match read {
-            Readback::Same(back) => r.set("read_back", value_py(py, &back)?)?.set("verified", true)?,
-            Readback::NotReadable(why) => {
-                r.set("read_back", py.None())?.set("verified", false)?.set("not_verifiable", why)?
-            }
+            Some(back) => r.set("read_back", value_py(py, &back)?)?,
+            None => r.set("read_back", py.None())?,
         };
+        r.set("verified", verified)?.set("not_verifiable", not_verifiable)?;
         r.extras(&["unit", "access"])?;
         Ok(r.done())
     }

@@ -106,6 +106,7 @@ pub(super) fn move_record<'py>(
     put_position(&r, "target", Position::new(target.value(), unit))?;
     put_position(&r, "reached", Position::new(m.reached.value(), unit))?;
     put_position(&r, "difference", Position::new(m.reached.value() - target.value(), unit))?;
+    r.set("verified", m.verified)?.set("not_verifiable", m.not_verifiable.clone())?;
     let (s, _) = suffix(unit);
     r.extras(&["unit", &format!("start{s}")])?;
     Ok(r)

@@ -321,7 +321,7 @@ impl AsyncClient {
 
     /// The second half of a checked move: the wait and the position at rest.
     pub async fn finish_checked_move(&self, started: &StartedMove, timeout: Option<Duration>) -> Result<MoveReport> {
-        output(self.driver.run(Op::FinishMove(*started, timeout)).await?, "a checked move", |o| match o {
+        output(self.driver.run(Op::FinishMove(started.clone(), timeout)).await?, "a checked move", |o| match o {
             Output::Moved(r) => Ok(r),
             o => Err(o),
         })

@@ -533,9 +533,11 @@ impl Client {
                 progress(*position);
             }
         };
-        output(self.run_cancellable(Op::FinishMove(*started, timeout), &mut report)?, "a checked move", |o| match o {
-            Output::Moved(r) => Ok(r),
-            o => Err(o),
+        output(self.run_cancellable(Op::FinishMove(started.clone(), timeout), &mut report)?, "a checked move", |o| {
+            match o {
+                Output::Moved(r) => Ok(r),
+                o => Err(o),
+            }
         })
     }
 }

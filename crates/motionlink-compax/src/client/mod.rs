@@ -34,9 +34,9 @@ pub use asynch::AsyncClient;
 pub use blocking::Client;
 pub use drive::Drive;
 
-pub use crate::error::{Error, Result, StopOutcome, StopReport};
+pub use crate::error::{Error, Result, RoundTrips, StopOutcome, StopReport};
 pub use crate::session::{
-    AfterRaw, BusConfig, MoveOptions, MoveReport, MoveRequest, MoveTarget, Progress, RawOutcome, StartedMove,
+    AfterRaw, BusConfig, EchoForm, MoveOptions, MoveReport, MoveRequest, MoveTarget, Progress, RawOutcome, StartedMove,
     TravelLimits, WatchSample, DEFAULT_IN_POSITION_TOLERANCE,
 };
 

@@ -195,6 +195,8 @@ struct InFlight {
     job: Job,
     /// When its reply is late (or, for a telegram without reply, when it has left).
     deadline: Timestamp,
+    /// When it was handed to the line.
+    sent_at: Timestamp,
 }
 
 /// The session's state, shared by its operations.
@@ -217,6 +219,12 @@ pub(crate) struct Core {
     pub comparators: u32,
     /// Drives that may hold a move in their buffer, stored by this session and not yet executed.
     pub buffered: u32,
+    /// How each drive echoes, once found out (index: address).
+    pub echo_forms: [Option<super::types::EchoForm>; 32],
+    /// What was already warned about (drive, which): each finding is said once per session.
+    pub warned: HashSet<(u8, &'static str)>,
+    /// The round trips measured on the line: each reply since its telegram went out.
+    pub round_trips: Option<crate::error::RoundTrips>,
     decoder: ReplyDecoder,
     queue: VecDeque<Job>,
     in_flight: Option<InFlight>,
@@ -253,6 +261,9 @@ impl Core {
             unattributed_messages: 0,
             comparators: 0,
             buffered: 0,
+            echo_forms: [None; 32],
+            warned: HashSet::new(),
+            round_trips: None,
             queue: VecDeque::new(),
             in_flight: None,
             settling: None,
@@ -265,6 +276,13 @@ impl Core {
             listeners: HashSet::new(),
             line_failures: HashMap::new(),
             progress: VecDeque::new(),
+        }
+    }
+
+    /// Warns `message` about drive `address` once per session (`which` names the finding).
+    pub(crate) fn warn_once(&mut self, address: Address, which: &'static str, message: impl FnOnce() -> String) {
+        if self.warned.insert((address.get(), which)) {
+            tracing::warn!("{}", message());
         }
     }
 
@@ -422,7 +440,7 @@ impl Core {
             self.quiet_until = now + on_wire + gap;
             now + on_wire
         };
-        self.in_flight = Some(InFlight { job, deadline });
+        self.in_flight = Some(InFlight { job, deadline, sent_at: now });
         Some(frame)
     }
 
@@ -464,10 +482,11 @@ impl Core {
             f.job.unfit = Some(r.text_str().to_string());
             return;
         }
-        let Some(InFlight { job, .. }) = self.in_flight.take() else { return };
+        let Some(InFlight { job, sent_at, .. }) = self.in_flight.take() else { return };
         if !job.address.is_broadcast() {
             self.known |= bit(job.address);
         }
+        self.round_trips = Some(crate::error::RoundTrips::with(self.round_trips, self.now.saturating_since(sent_at)));
         let retry_left = job.attempts <= job.retries;
         match r.kind() {
             ReplyKind::Error(code) if ErrorCode(code).is_retransmit() && retry_left => {
@@ -492,7 +511,7 @@ impl Core {
         };
         tracing::info!("drive {}: corrupt reply ({e})", job.address);
         job.last_corrupt = Some(e);
-        self.settling = Some(InFlight { job, deadline: now + self.cfg.char_time() * 4 });
+        self.settling = Some(InFlight { job, deadline: now + self.cfg.char_time() * 4, sent_at: now });
     }
 
     /// Time has reached `now`: a reply is late, a settling ends, a telegram without reply has left.
@@ -510,6 +529,7 @@ impl Core {
             }
         }
         let Some(f) = self.in_flight.take_if(|f| now >= f.deadline) else { return };
+        let waited = f.deadline.saturating_since(f.sent_at);
         let job = f.job;
         if !job.expects_reply {
             self.results.insert(job.id, Ok(None));
@@ -525,7 +545,7 @@ impl Core {
         let e = match (job.unfit, job.last_corrupt) {
             (Some(reply), _) => Error::Unexpected { address, command, reply },
             (None, Some(detail)) if job.retry == Retry::Idempotent => Error::Corrupt { address, command, detail },
-            _ => Error::Timeout { address, command, attempts: job.attempts },
+            _ => Error::Timeout { address, command, attempts: job.attempts, waited, round_trips: self.round_trips },
         };
         self.results.insert(job.id, Err(e));
     }

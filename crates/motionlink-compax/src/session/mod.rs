@@ -31,7 +31,7 @@ mod tests;
 mod types;
 
 pub use types::{
-    AfterRaw, BusConfig, MoveOptions, MoveReport, MoveRequest, MoveTarget, Op, Output, Progress, RawOutcome,
+    AfterRaw, BusConfig, EchoForm, MoveOptions, MoveReport, MoveRequest, MoveTarget, Op, Output, Progress, RawOutcome,
     StartedMove, TravelLimits, WatchSample, DEFAULT_IN_POSITION_TOLERANCE,
 };
 
@@ -109,6 +109,11 @@ impl Session {
     /// The drives this session set in motion and has not yet seen stop.
     pub fn started(&self) -> Vec<Address> {
         drives_in(self.core().started)
+    }
+
+    /// How drive `address` echoes, if this session has found out (see [`EchoForm`]).
+    pub fn echo_form(&self, address: Address) -> Option<EchoForm> {
+        self.core().echo_forms.get(usize::from(address.get())).copied().flatten()
     }
 
     /// The drives that have answered this session.

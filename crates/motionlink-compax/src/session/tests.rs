@@ -205,9 +205,11 @@ fn a_checked_move_is_checked_sent_read_back_polled_and_verified() {
     let id = b.session.start(Op::MoveTo(a(1), req), b.now);
     let Ok(Output::Moved(report)) = b.finish(id) else { panic!("{:?}", b.sent) };
     assert_eq!((report.start, report.target, report.reached), (pos(0.0), pos(12.5), pos(12.5)));
-    // The move is stored with its echo (`,?`), executed (`!`) once the echo is the telegram sent, and its
-    // target read back.
-    assert_eq!(b.sent[..7], ["1S16\r", "1S17\r", "1S1\r", "1SPEED 50\r", "1POSA 12.5,?\r", "1!\r", "1S2\r"]);
+    assert!(report.verified && report.not_verifiable.is_empty(), "{report:?}");
+    // How the drive echoes is found out first (S1 with '?', which it does not execute); the move is stored
+    // with its echo (`,?`), executed (`!`) once the echo is the telegram sent, and its target read back.
+    assert_eq!(b.sent[..8], ["1S16\r", "1S17\r", "1S1\r", "1S1?\r", "1SPEED 50\r", "1POSA 12.5,?\r", "1!\r", "1S2\r"]);
+    assert_eq!(b.session.echo_form(a(1)), Some(crate::session::EchoForm::Full));
     assert_eq!(b.sent.last().unwrap(), "1S1\r");
     // 12.5 units at 50 units/s: about a quarter of a second, polled every 50 ms (S17 then S1).
     let polls = b.sent.iter().filter(|f| *f == "1S17\r").count();

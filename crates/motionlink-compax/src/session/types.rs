@@ -159,7 +159,7 @@ impl MoveRequest {
 }
 
 /// A move the drive has taken, with its target confirmed by S2.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct StartedMove {
     /// The drive.
     pub address: Address,
@@ -167,10 +167,13 @@ pub struct StartedMove {
     pub start: Position,
     /// The absolute target (for a relative move: S2 before it plus the distance, as the drive computes it).
     pub target: Position,
+    /// What the echo of the stored move could not show on this drive (see [`EchoForm`]), in plain words;
+    /// empty when the echo checked everything it checks on a drive that echoes in full.
+    pub not_verifiable: Vec<String>,
 }
 
 /// A move that ended at its target.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct MoveReport {
     /// The drive.
     pub address: Address,
@@ -180,6 +183,83 @@ pub struct MoveReport {
     pub target: Position,
     /// S1 at rest afterwards (within [`BusConfig::in_position_tolerance`] of the target).
     pub reached: Position,
+    /// True when every check of what the drive took could be made: the echo of the stored move showed the
+    /// address, the command and the flags sent (an ASCII move), and S2 the target. (The position at rest is
+    /// always checked: a move that did not end within the tolerance is an error, never a report.)
+    pub verified: bool,
+    /// What could not be checked, and why, in plain words (empty when `verified`).
+    pub not_verifiable: Vec<String>,
+}
+
+/// How a drive echoes a telegram sent with `?`: the manual says only that it "will send the received data
+/// back in full". Found per drive by a harmless probe (S1 sent with `?`, which the drive does not execute)
+/// the first time a move is stored with its echo, and remembered for the session
+/// ([`Session::echo_form`](super::Session::echo_form)). The forms below are the telegram as received
+/// (everything before its CR) with or without the address digits and with or without the flag
+/// characters; the command text itself must always come back exactly as sent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EchoForm {
+    /// `1S1?`: address, command and flags (what the emulator sends by default).
+    Full,
+    /// `S1?`: without the address digits.
+    WithoutAddress,
+    /// `1S1`: without the flag characters.
+    WithoutFlags,
+    /// `S1`: the command alone.
+    Bare,
+    /// No echo: the drive refused `?` or stayed silent, twice, answering a plain read in between. Moves are
+    /// then sent as commands of their own (the manual's plain form), checked by S2 after the start only. (A
+    /// drive that answers the read instead of echoing it is refused: it would take `,?` for something else.)
+    None,
+}
+
+impl EchoForm {
+    /// The echo a drive of this form sends for a telegram of `digits` (the address as sent), `command` and
+    /// `flags` (the flag characters as sent); `None` for [`EchoForm::None`].
+    pub fn render(self, digits: &[u8], command: &[u8], flags: &[u8]) -> Option<Vec<u8>> {
+        let (address, flags) = match self {
+            EchoForm::Full => (digits, flags),
+            EchoForm::WithoutAddress => (&[][..], flags),
+            EchoForm::WithoutFlags => (digits, &[][..]),
+            EchoForm::Bare => (&[][..], &[][..]),
+            EchoForm::None => return None,
+        };
+        Some([address, command, flags].concat())
+    }
+
+    /// The form `echo` is in, for that telegram; `None` when it is in none (another command text).
+    pub fn of(echo: &[u8], digits: &[u8], command: &[u8], flags: &[u8]) -> Option<EchoForm> {
+        [EchoForm::Full, EchoForm::WithoutAddress, EchoForm::WithoutFlags, EchoForm::Bare]
+            .into_iter()
+            .find(|f| f.render(digits, command, flags).as_deref() == Some(echo))
+    }
+
+    /// What an echo of this form cannot show for `drive`, in plain words; `prefixed` when every reply
+    /// starts with the drive's address (P196 has 64), which names the drive that echoed.
+    pub fn unchecked(self, drive: Address, prefixed: bool) -> Vec<String> {
+        let address = !prefixed && matches!(self, EchoForm::WithoutAddress | EchoForm::Bare);
+        let flags = matches!(self, EchoForm::WithoutFlags | EchoForm::Bare);
+        let mut why = Vec::new();
+        if address {
+            why.push(format!(
+                "drive {drive} echoes without its address, and replies carry none (P196 without 64): that the \
+                 drive which stored the move is the one addressed could not be checked"
+            ));
+        }
+        if flags {
+            why.push(format!(
+                "drive {drive} echoes without the flag characters: that it stored the move (the ',' sent) \
+                 rather than only echoing it could not be checked before '!'"
+            ));
+        }
+        if self == EchoForm::None {
+            why.push(format!(
+                "drive {drive} does not echo a telegram sent with '?': the move was sent without being checked \
+                 before it started (its target was read back after, from S2)"
+            ));
+        }
+        why
+    }
 }
 
 impl MoveReport {

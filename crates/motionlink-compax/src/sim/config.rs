@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 
 use serde::Deserialize;
 
+use super::variant::Variant;
 use crate::model::{ParamId, Position, BAUD_RATES};
 use crate::wire::Mode;
 
@@ -51,6 +52,10 @@ pub struct SimConfig {
     /// [`REFUSED`](super::REFUSED) (E90) unless it is listed here.
     #[serde(default)]
     pub params: BTreeMap<String, f64>,
+    /// Firmware variants every drive runs (none by default: the behaviour this crate's client was first
+    /// written against); see [`Variant`].
+    #[serde(default)]
+    pub variants: Vec<Variant>,
 }
 
 fn default_baud() -> u32 {
@@ -72,6 +77,7 @@ impl Default for SimConfig {
             max_speed_units_per_s: 100.0,
             drives: default_drives(),
             params: BTreeMap::new(),
+            variants: Vec::new(),
         }
     }
 }
@@ -88,6 +94,7 @@ impl SimConfig {
                 .map(|&address| DriveConfig { address, baud_rate: None, p196: None, position: 0.0 })
                 .collect(),
             params: BTreeMap::new(),
+            variants: Vec::new(),
         }
     }
 
@@ -119,6 +126,7 @@ impl SimConfig {
     /// p196 = 8
     /// max_speed_units_per_s = 100.0
     /// params = { P12 = 0.0 }
+    /// variants = ["echo-bare"]
     /// [[drive]]
     /// address = 1
     /// [[drive]]

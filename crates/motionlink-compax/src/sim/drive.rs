@@ -86,6 +86,8 @@ pub struct Drive {
     /// What happened since the last [`take_events`](motionlink_link::emulator::Emulator::take_events), one
     /// line each.
     pub(super) events: Vec<String>,
+    /// The firmware variants this drive runs.
+    pub(super) variants: Vec<super::Variant>,
 }
 
 impl Drive {
@@ -137,6 +139,7 @@ impl Drive {
             max_speed: bus.max_speed_units_per_s,
             telegrams: 0,
             events: Vec::new(),
+            variants: bus.variants.clone(),
         }
     }
 

@@ -40,9 +40,11 @@ mod drive;
 mod telegram;
 #[cfg(test)]
 mod tests;
+mod variant;
 
 pub use config::{DriveConfig, SimConfig, SimConfigError};
 pub use drive::Drive;
+pub use variant::{UnknownVariant, Variant};
 
 use std::time::Duration;
 
@@ -116,6 +118,18 @@ impl Emulator {
     /// The line's baud rate.
     pub fn line_baud(&self) -> u32 {
         self.line_baud
+    }
+
+    /// The firmware variants the drives run (those of the first drive: every drive runs the same).
+    pub fn variants(&self) -> &[Variant] {
+        self.drives.first().map_or(&[], |d| d.variants.as_slice())
+    }
+
+    /// Runs every drive as the firmware `variants` say from now on (what they hold stays as it is).
+    pub fn set_variants(&mut self, variants: &[Variant]) {
+        for d in &mut self.drives {
+            d.variants = variants.to_vec();
+        }
     }
 }
 

@@ -124,8 +124,17 @@ impl Drive {
             self.history[0] = 99;
         }
         let answer = answer && !p.flags.no_reply;
+        if p.flags.echo && self.variants.contains(&super::Variant::NoEcho) {
+            // A firmware that does not know '?': a syntax it cannot read, refused; nothing is stored.
+            if answer {
+                self.error(out, REFUSED);
+            } else {
+                self.record(REFUSED);
+            }
+            return;
+        }
         if p.flags.echo {
-            if p.flags.buffer {
+            if p.flags.buffer && !self.variants.contains(&super::Variant::EchoWithoutStore) {
                 // `,?`: stored as with `,` alone (a command the drive cannot read is not), and echoed, so the
                 // host sees what the buffer holds before it sends `!`.
                 if let Body::Command(text) = p.body {
@@ -133,7 +142,9 @@ impl Drive {
                 }
             }
             if answer {
-                let echo = f.bytes().to_vec();
+                let received = f.bytes();
+                let echo = super::variant::echo_of(&self.variants, received, received.len() - f.command_bytes().len())
+                    .to_vec();
                 self.reply(out, &echo);
             }
             return;
@@ -282,6 +293,12 @@ impl Drive {
             Command::ReadStatus(id) => {
                 let mut t = TextBuf::new();
                 let _ = self.status(id, now)?.write_reply(id, &mut t);
+                if self.variants.contains(&super::Variant::StatusValueOnly) {
+                    // `S001: 12.500` without its name.
+                    let mut value = TextBuf::new();
+                    let _ = value.write_str(t.as_str().split_once(": ").map_or(t.as_str(), |(_, v)| v));
+                    return Ok(value);
+                }
                 Ok(t)
             }
             Command::ReadParam(id) => {

@@ -37,7 +37,7 @@ mod tests;
 pub use asynch::{AsyncClient, AsyncModule};
 pub use blocking::{Client, Module};
 
-pub use crate::error::{Error, RefreshTiming, StopOutcome};
+pub use crate::error::{Error, RefreshTiming, RoundTrips, StopOutcome};
 pub use crate::model::WATCHDOG_TIMEOUT;
 pub use crate::session::{
     BusConfig, Guard, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback, ScanEntry,

@@ -110,12 +110,17 @@ impl WatchdogDuty {
 
     /// How the refresh went out up to `now`, if it has gone out at all: the longest gap between two
     /// refreshes, the time since the last one counted as a gap while the refresh is served.
-    pub fn timing(&self, now: Timestamp) -> Option<crate::error::RefreshTiming> {
+    pub fn timing(
+        &self,
+        now: Timestamp,
+        round_trips: Option<crate::error::RoundTrips>,
+    ) -> Option<crate::error::RefreshTiming> {
         let last = self.last_refresh?;
         let open = if self.serving { now.saturating_since(last) } else { Duration::ZERO };
         Some(crate::error::RefreshTiming {
             longest_gap: self.longest_gap.max(open),
             allowed: crate::model::WATCHDOG_TIMEOUT,
+            round_trips,
         })
     }
 }
@@ -145,8 +150,14 @@ pub(crate) struct Core {
     pub known: BTreeSet<u8>,
     /// Module kinds read from their Config words.
     pub kinds: BTreeMap<u8, ModuleKind>,
+    /// What the session established about each module where the manual is silent.
+    pub findings: BTreeMap<u8, super::ModuleFindings>,
+    /// The findings already warned about (module, which), so that each is said once per session.
+    pub warned: BTreeSet<(u8, &'static str)>,
     /// The session lost its line or could not stop what it started.
     pub failed: bool,
+    /// The round trips measured on the line: each acknowledge since its request went out.
+    pub round_trips: Option<crate::error::RoundTrips>,
     /// Operations that are running (results of jobs of any other are dropped).
     pub alive: BTreeSet<OpId>,
     /// Operations asked to end early.
@@ -179,12 +190,22 @@ impl Core {
             started: BTreeSet::new(),
             known: BTreeSet::new(),
             kinds: BTreeMap::new(),
+            findings: BTreeMap::new(),
+            warned: BTreeSet::new(),
             failed: false,
+            round_trips: None,
             alive: BTreeSet::new(),
             cancelled: BTreeSet::new(),
             wake: BTreeSet::new(),
             sleepers: BTreeMap::new(),
             progress: VecDeque::new(),
+        }
+    }
+
+    /// Warns `message` about module `address` once per session (`which` names the finding).
+    pub fn warn_once(&mut self, address: u8, which: &'static str, message: impl FnOnce() -> String) {
+        if self.warned.insert((address, which)) {
+            tracing::warn!("{}", message());
         }
     }
 
@@ -402,9 +423,28 @@ impl Core {
         self.settle_broadcast();
         match can_wire::from_frame(frame) {
             Ok((Role::Ack(address), payload)) => self.incoming(Incoming::Frame { address, payload }),
+            // The manual's last CAN table shows the extended acknowledge of a motion command on the command
+            // identifier (0x0E0 + address): taken there too, from the module asked for one, when it is 8
+            // bytes (a command of the same mode is at most 8 too, so one identical to a request is not).
+            Ok((Role::Put(address), payload)) if self.awaits_extended_ack(address, &payload) => {
+                self.incoming(Incoming::Frame { address, payload })
+            }
             Ok(_) => {} // commands from another master, broadcasts
             Err(e) => tracing::debug!("{}: {e}", self.port),
         }
+    }
+
+    /// True when `payload` on the command identifier of `address` is the 8-byte extended acknowledge of a
+    /// motion command in flight to that module (and not that command itself).
+    fn awaits_extended_ack(&self, address: u8, payload: &Payload) -> bool {
+        let Some(f) = self.in_flight.as_ref() else { return false };
+        payload.len() == 8
+            && f.batch.iter().enumerate().any(|(i, (a, req))| {
+                *a == address
+                    && f.results[i].is_none()
+                    && matches!(req, Request::Motion(_, crate::model::AckKind::Extended))
+                    && req.encode() != *payload
+            })
     }
 
     fn incoming(&mut self, incoming: Incoming) {
@@ -432,6 +472,8 @@ impl Core {
                         f.results[i] = Some(r);
                         f.open -= 1;
                         self.known.insert(address);
+                        let took = self.now.saturating_since(f.start);
+                        self.round_trips = Some(crate::error::RoundTrips::with(self.round_trips, took));
                     }
                     (_, Err(e)) => {
                         tracing::debug!("module {address}: undecodable answer {payload:?}: {e}");
@@ -502,6 +544,7 @@ impl Core {
                     address: crate::model::Address::checked(*address),
                     request: request.to_string(),
                     waited,
+                    round_trips: self.round_trips,
                 }),
             })
             .collect();

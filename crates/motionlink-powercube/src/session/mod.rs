@@ -50,8 +50,8 @@ use motionlink_link::session::{Action as LinkAction, Event, Input, OpId, OpIds};
 use motionlink_link::{LinkError, Timestamp};
 
 pub use types::{
-    BusConfig, Guard, HaltReport, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback, ScanEntry, Until,
-    HALT_SETTLE,
+    BusConfig, Guard, HaltReport, ModuleFindings, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback,
+    ScanEntry, Until, HALT_SETTLE,
 };
 
 use self::core::Core;
@@ -298,6 +298,12 @@ impl Session {
     /// Modules known to exist: every address that answered this session.
     pub fn known(&self) -> Vec<Address> {
         addresses(&self.core().known)
+    }
+
+    /// What this session has established about module `address` where the manual is silent (see
+    /// [`ModuleFindings`]).
+    pub fn findings(&self, address: Address) -> ModuleFindings {
+        self.core().findings.get(&address.get()).copied().unwrap_or_default()
     }
 
     /// The kind of module `address`, if the session has read it.

@@ -4,7 +4,7 @@ use std::time::Duration;
 
 use crate::error::Error;
 use crate::model::{
-    Acceleration, Address, AxisUnit, CubeState, CubeVersion, ModuleKind, Position, StateFlag, Value, Velocity,
+    Acceleration, Address, AxisUnit, CubeState, CubeVersion, ModuleKind, Param, Position, StateFlag, Value, Velocity,
 };
 
 /// Timing and retry settings of a session; the defaults depend on the carrier.
@@ -212,7 +212,7 @@ pub struct HaltReport {
 }
 
 /// What a checked move ([`Op::MoveTo`](super::Op::MoveTo)) did.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct MoveReport {
     /// Where the module stood before.
     pub start: Position,
@@ -221,18 +221,82 @@ pub struct MoveReport {
     pub reached: Position,
     /// The state word at the end.
     pub state: CubeState,
+    /// True when every check of what the module took could be made: the velocity and acceleration written
+    /// read back through their Inc twins, and the motion's target through TargetPosInc. (The final position
+    /// is always checked: a move that did not end within the tolerance is an error, never a report.)
+    pub verified: bool,
+    /// What could not be checked, and why, in plain words (empty when `verified`): on a module that keeps
+    /// the Inc twins apart from the float targets, or where a twin already held the value, so that reading
+    /// it proves nothing.
+    pub not_verifiable: Vec<String>,
 }
 
 /// How a parameter written with [`Op::SetChecked`](super::Op::SetChecked) was verified.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Readback {
-    /// Read back (the parameter itself, or for the write-only TargetPos / TargetVel / TargetAcc their
-    /// encoder-tick twin, [`Param::read_back_as`](crate::model::Param::read_back_as)) and found as written;
-    /// the value read, as read (ticks for a twin: [`Param::from_read_back_ticks`](crate::model::Param::from_read_back_ticks)
-    /// converts it into the written parameter's unit).
-    Same(Value),
-    /// The parameter cannot be read back meaningfully; why.
-    NotReadable(&'static str),
+#[derive(Debug, Clone, PartialEq)]
+pub struct Readback {
+    /// The value read back and found as written: the parameter itself, or for the write-only TargetPos /
+    /// TargetVel / TargetAcc their encoder-tick twin ([`Param::read_back_as`](crate::model::Param::read_back_as)),
+    /// as read (ticks for a twin: [`Param::from_read_back_ticks`](crate::model::Param::from_read_back_ticks)
+    /// converts it into the written parameter's unit). `None` when nothing could be read back that shows
+    /// the value written.
+    pub read: Option<Value>,
+    /// True when the value was read back and found as written.
+    pub verified: bool,
+    /// Why the value could not be verified, in plain words (empty when `verified`).
+    pub not_verifiable: Vec<String>,
+}
+
+impl Readback {
+    /// Read back and found as written.
+    pub fn same(read: Value) -> Readback {
+        Readback { read: Some(read), verified: true, not_verifiable: Vec::new() }
+    }
+
+    /// Not verifiable, for the reason given.
+    pub fn unverified(why: impl Into<String>) -> Readback {
+        Readback { read: None, verified: false, not_verifiable: vec![why.into()] }
+    }
+}
+
+/// What a session has established about one module where the manual is silent: each found by a harmless
+/// probe the first time a check depends on it, and remembered for the session ([`Session::findings`](super::Session::findings)).
+/// `None`: not established (yet).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ModuleFindings {
+    /// TargetPosInc follows the target written as TargetPos or sent in a float motion command (`true`), or
+    /// the module keeps it apart (`false`).
+    pub target_pos_twin: Option<bool>,
+    /// TargetVelInc follows TargetVel.
+    pub target_vel_twin: Option<bool>,
+    /// TargetAccInc follows TargetAcc.
+    pub target_acc_twin: Option<bool>,
+    /// The module answers GetExtended of ActFPosStateDio (0x62); without it, waits poll CubeState and
+    /// ActPos.
+    pub pos_state_dio: Option<bool>,
+    /// On RS232: the module takes the broadcast watchdog refresh at address 0 in libm5api's two-byte form
+    /// (its watchdog, armed and refreshed, stayed online past the 50 ms it waits).
+    pub rs232_broadcast: Option<bool>,
+}
+
+impl ModuleFindings {
+    /// The finding about the Inc twin of `param` (TargetPos, TargetVel, TargetAcc), if it has one.
+    pub fn twin(&self, param: Param) -> Option<bool> {
+        match param {
+            Param::TargetPos => self.target_pos_twin,
+            Param::TargetVel => self.target_vel_twin,
+            Param::TargetAcc => self.target_acc_twin,
+            _ => None,
+        }
+    }
+
+    pub(crate) fn twin_mut(&mut self, param: Param) -> Option<&mut Option<bool>> {
+        match param {
+            Param::TargetPos => Some(&mut self.target_pos_twin),
+            Param::TargetVel => Some(&mut self.target_vel_twin),
+            Param::TargetAcc => Some(&mut self.target_acc_twin),
+            _ => None,
+        }
+    }
 }
 
 /// What a wait waits for.

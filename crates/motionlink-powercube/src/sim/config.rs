@@ -21,10 +21,12 @@
 //! ```
 //!
 //! `address` is required in every `[[module]]`; every other key may be left out, see [`ModuleConfig`] for
-//! the defaults.
+//! the defaults. `variants = ["no-twin-mirror"]` (top level) runs every module as that firmware variant
+//! ([`Variant`]).
 
 use serde::Deserialize;
 
+use super::variant::Variant;
 use crate::model::ModuleKind;
 use crate::wire::is_module_address;
 
@@ -171,6 +173,9 @@ pub struct SimConfig {
     /// The modules.
     #[serde(rename = "module")]
     pub modules: Vec<ModuleConfig>,
+    /// Firmware variants every module runs (none by default: the behaviour this crate's client was first
+    /// written against).
+    pub variants: Vec<Variant>,
 }
 
 impl Default for SimConfig {
@@ -179,6 +184,7 @@ impl Default for SimConfig {
         SimConfig {
             watchdog_timeout_ms: crate::model::WATCHDOG_TIMEOUT.as_millis() as u64,
             modules: vec![ModuleConfig::at(1)],
+            variants: Vec::new(),
         }
     }
 }
@@ -276,6 +282,11 @@ mod tests {
         assert_eq!(c.modules[0], ModuleConfig::at(3), "every key left out takes the default");
         let c = SimConfig::from_toml("[[module]]\naddress = 5\nserial = 77\n").unwrap();
         assert_eq!(c.modules[0].serial, 77);
+        let c = SimConfig::from_toml("variants = [\"no-twin-mirror\", \"ack-length-6\"]\n[[module]]\naddress = 5\n")
+            .unwrap();
+        assert_eq!(c.variants, [Variant::NoTwinMirror, Variant::AckLength6]);
+        let e = SimConfig::from_toml("variants = [\"nope\"]\n[[module]]\naddress = 5\n").unwrap_err().to_string();
+        assert!(e.contains("unknown PowerCube emulator variant") && e.contains("no-twin-mirror"), "{e}");
     }
 
     #[test]

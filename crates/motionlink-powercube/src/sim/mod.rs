@@ -29,6 +29,7 @@ mod module;
 mod module_commands;
 mod module_params;
 pub(crate) mod profile;
+mod variant;
 
 use motionlink_link::can::{CanEmulator, CanFrame};
 use motionlink_link::emulator::Emulator as ByteEmulator;
@@ -36,6 +37,7 @@ use motionlink_link::Timestamp;
 
 pub use config::{ModuleConfig, SimConfig, SimConfigError};
 pub use module::{SimModule, SERVO_LAG_S};
+pub use variant::{UnknownVariant, Variant};
 
 use crate::model::{Broadcast, ConfigFlag, Reply, Request};
 use crate::wire::can::{self as can_wire, Role};
@@ -70,6 +72,7 @@ pub struct Emulator {
     stats: SimStats,
     last_image: Vec<(u8, OutputImage, InputImage)>,
     can_baud: Option<crate::model::CanBaud>,
+    variants: Vec<Variant>,
 }
 
 fn secs(now: Timestamp) -> f64 {
@@ -92,7 +95,11 @@ impl Emulator {
             modules: config
                 .modules
                 .iter()
-                .map(|m| SimModule::new(m.address, m, config.watchdog_timeout_ms, can))
+                .map(|m| {
+                    let mut module = SimModule::new(m.address, m, config.watchdog_timeout_ms, can);
+                    module.firmware = variant::Firmware::of(&config.variants);
+                    module
+                })
                 .collect(),
             decoder: Rs232Decoder::new(),
             strict_bcc: false,
@@ -100,7 +107,30 @@ impl Emulator {
             stats: SimStats::default(),
             last_image: Vec::new(),
             can_baud: None,
+            variants: config.variants.clone(),
         }
+    }
+
+    /// The firmware variants the modules run.
+    pub fn variants(&self) -> &[Variant] {
+        &self.variants
+    }
+
+    /// Runs every module as the firmware `variants` say from now on (what they hold stays as it is: Inc
+    /// twins kept apart from now on start with the values they mirrored).
+    pub fn set_variants(&mut self, variants: &[Variant]) {
+        self.variants = variants.to_vec();
+        let firmware = variant::Firmware::of(variants);
+        for m in &mut self.modules {
+            if firmware.no_twin_mirror && !m.firmware.no_twin_mirror {
+                m.twins = [m.target_pos, m.target_vel, m.target_acc];
+            }
+            m.firmware = firmware;
+        }
+    }
+
+    fn has(&self, v: Variant) -> bool {
+        self.variants.contains(&v)
     }
 
     /// Check the BCC of incoming RS232 frames and drop those that are wrong. Off by default: the manual says
@@ -285,13 +315,20 @@ impl ByteEmulator for Emulator {
                 self.stats.bad_bcc += 1;
                 continue;
             }
-            if frame.address == 0 && !self.rs232_broadcasts {
+            let pair = frame.payload.len() == 2 && self.has(Variant::NoBroadcastPair);
+            if frame.address == 0 && (!self.rs232_broadcasts || pair) {
                 self.stats.nobody += 1;
                 continue;
             }
             if let Some(reply) = self.payload(now, frame.address, &frame.payload, false) {
                 let mut buf = [0u8; rs232::MAX_FRAME];
-                if let Ok(n) = rs232::encode(TelKind::Recv, frame.address, &reply, &mut buf) {
+                if reply.len() == 3 && self.has(Variant::AckLength6) {
+                    // The manual's examples: TELID length 6 for a 3-byte acknowledge, the BCC over what is sent.
+                    let id = rs232::telid(TelKind::Recv, frame.address, 6);
+                    let bcc = rs232::bcc(&[&id[..], reply.as_bytes()].concat());
+                    let n = rs232::encode_raw(id, &reply, bcc, &mut buf);
+                    out.extend_from_slice(&buf[..n]);
+                } else if let Ok(n) = rs232::encode(TelKind::Recv, frame.address, &reply, &mut buf) {
                     out.extend_from_slice(&buf[..n]);
                 }
             }
@@ -335,7 +372,12 @@ impl CanEmulator for Emulator {
             Role::Ack(_) => return, // another module's acknowledge
         };
         if let Some(reply) = self.payload(now, address, &payload, true) {
-            out.push(can_wire::to_frame(Role::Ack(address), &reply));
+            // An extended motion acknowledge (8 bytes, SetMotion) on the command identifier, as the manual's
+            // last CAN table shows it, where the variant says so.
+            let extended = reply.len() == 8 && reply.command() == Some(crate::wire::cmd::SET_MOTION);
+            let role =
+                if extended && self.has(Variant::ExtAckOnPutId) { Role::Put(address) } else { Role::Ack(address) };
+            out.push(can_wire::to_frame(role, &reply));
         }
     }
 

@@ -89,6 +89,11 @@ pub struct SimModule {
     pub(super) saved_pos: f64,
     /// Notable changes, with the module time they happened at, for [`SimModule::take_events`].
     pub(super) events: Vec<(f64, String)>,
+    /// The firmware variant this module runs ([`Variant`](super::Variant)).
+    pub(super) firmware: super::variant::Firmware,
+    /// TargetPosInc, TargetVelInc and TargetAccInc (in the module's unit) of a module that keeps them apart
+    /// from the float targets (`no-twin-mirror`); unused otherwise.
+    pub(super) twins: [f64; 3],
 }
 
 impl SimModule {
@@ -135,6 +140,8 @@ impl SimModule {
             time_base: 0.0,
             saved_pos: 0.0,
             events: Vec::new(),
+            firmware: super::variant::Firmware::default(),
+            twins: [0.0, cfg.max_vel / 2.0, cfg.max_acc / 2.0],
         }
     }
 

@@ -141,6 +141,9 @@ impl SimModule {
                             self.last_refresh = t;
                             self.event(t, if self.watchdog_online { "watchdog online" } else { "watchdog offline" });
                         }
+                        if self.firmware.life_sign_unacknowledged {
+                            return None;
+                        }
                     }
                     Action::RecalcPid | Action::SaveParameters => {}
                 }

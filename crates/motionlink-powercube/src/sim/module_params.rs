@@ -44,9 +44,9 @@ impl SimModule {
             P::HomeOffsetInc => Value::I32(ticks(self.home_offset)),
             P::DioSetup => Value::U32(self.dio_word(t).0),
             P::CubeState => Value::U32(self.state_at(t).0),
-            P::TargetPosInc => Value::I32(ticks(self.target_pos)),
-            P::TargetVelInc => Value::U32(ticks(self.target_vel).unsigned_abs()),
-            P::TargetAccInc => Value::U32(ticks(self.target_acc).unsigned_abs()),
+            P::TargetPosInc => Value::I32(ticks(self.twin(0, self.target_pos))),
+            P::TargetVelInc => Value::U32(ticks(self.twin(1, self.target_vel)).unsigned_abs()),
+            P::TargetAccInc => Value::U32(ticks(self.twin(2, self.target_acc)).unsigned_abs()),
             P::StepInc => Value::I32(ticks(self.step_target)),
             P::Config => Value::U32(self.config.0),
             P::MoveMode => Value::U8(self.move_mode),
@@ -71,6 +71,8 @@ impl SimModule {
             P::ActIMaxAcc => Value::I32(ticks(self.max_acc)),
             P::ActIVel | P::ActIIPolVel => Value::I32(ticks(v)),
             P::ActIDeltaPos => Value::I32(ticks(v * SERVO_LAG_S)),
+            // A firmware before this parameter: no acknowledge, as for any parameter a module does not know.
+            P::ActFPosStateDio if self.firmware.no_pos_state_dio => return None,
             P::ActFPosStateDio => Value::PosStateDio {
                 pos: p as f32,
                 state: self.state_at(t).short_state(),
@@ -127,6 +129,29 @@ impl SimModule {
         }
     }
 
+    /// The Inc twin `i` (0 position, 1 velocity, 2 acceleration): `float`, the float target, on a module
+    /// that keeps one value behind both; its own value on one that keeps them apart.
+    fn twin(&self, i: usize, float: f64) -> f64 {
+        if self.firmware.no_twin_mirror {
+            self.twins[i]
+        } else {
+            float
+        }
+    }
+
+    /// Writes the Inc twin `i`: its own value, or the float target `float` it mirrors.
+    fn set_twin(&mut self, i: usize, value: f64) {
+        if self.firmware.no_twin_mirror {
+            self.twins[i] = value;
+        } else {
+            match i {
+                0 => self.target_pos = value,
+                1 => self.target_vel = value,
+                _ => self.target_acc = value,
+            }
+        }
+    }
+
     fn stored(&self, param: Param, default: Value) -> Value {
         self.store.get(&param.id()).copied().unwrap_or(default)
     }
@@ -155,9 +180,9 @@ impl SimModule {
         use Param as P;
         match param {
             P::DioSetup => self.outputs = ((value.as_u32().unwrap_or(0) >> 4) & 0x0F) as u8,
-            P::TargetPosInc => self.target_pos = from_ticks,
-            P::TargetVelInc => self.target_vel = from_ticks,
-            P::TargetAccInc => self.target_acc = from_ticks,
+            P::TargetPosInc => self.set_twin(0, from_ticks),
+            P::TargetVelInc => self.set_twin(1, from_ticks),
+            P::TargetAccInc => self.set_twin(2, from_ticks),
             P::Config => self.config = ConfigWord(value.as_u32().unwrap_or(0)),
             P::MaxDeltaPos => self.max_delta_pos = fl.abs(),
             P::ActIMaxDeltaPos => self.max_delta_pos = from_ticks.abs(),

@@ -187,11 +187,15 @@ pub(super) fn move_no_wait(
             &identified(
                 args,
                 json!({"target_units": started.target.units(), "position_units": now.units(),
-                       "waited": false}),
+                       "waited": false, "verified": started.not_verifiable.is_empty(),
+                       "not_verifiable": started.not_verifiable}),
             ),
         )?;
     } else {
         writeln!(out, "drive {drive}: target {}, position {now} (moving on)", started.target)?;
+        if !started.not_verifiable.is_empty() {
+            writeln!(out, "not verified: {}", started.not_verifiable.join("; "))?;
+        }
     }
     Ok(())
 }
@@ -227,11 +231,14 @@ pub(super) fn move_and_wait(
                 args,
                 json!({"target_units": report.target.units(), "reached_units": report.reached.units(),
                        "difference_units": report.difference(), "tolerance_units": plan.tolerance.units(),
-                       "waited": true}),
+                       "waited": true, "verified": report.verified, "not_verifiable": report.not_verifiable}),
             ),
         )?;
     } else {
         writeln!(out, "drive {drive}: target {}, position {}", report.target, report.reached)?;
+        if !report.verified {
+            writeln!(out, "not verified: {}", report.not_verifiable.join("; "))?;
+        }
     }
     Ok(())
 }

@@ -49,6 +49,9 @@ pub fn sim(args: SimArgs) -> Result<(), CliError> {
             value.trim().parse().map_err(|_| CliError::usage(format!("--param {p}: {value:?} is not a number")))?;
         cfg = cfg.with_param(id, value);
     }
+    cfg.variants.extend(args.variants.iter().copied());
+    cfg.variants.sort();
+    cfg.variants.dedup();
     let bus = Emulator::new(cfg).map_err(CliError::usage)?;
     common::serve(&args.serve, bus)
 }

@@ -11,7 +11,7 @@ use motionlink_compax::model::{
     CommandStyle, ModelError, OutputState, ParamId, Position, RampMs, SpeedPercent, StatusId, StatusValue, ValidFrom,
     BAUD_RATES,
 };
-use motionlink_compax::sim::SimConfig;
+use motionlink_compax::sim::{SimConfig, Variant};
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_compax::{Client, Emulator, Error};
 use motionlink_link::clock::SharedClock;
@@ -62,6 +62,10 @@ pub struct Args {
     /// Send the short command names (PA, PR, SD, AL, OT) instead of the long ones.
     #[arg(long, global = true)]
     pub short: bool,
+    /// With --port sim: the emulated drive runs this firmware variant (repeat the option, or separate names
+    /// with commas; `motionlink sim compax --help` lists them).
+    #[arg(long = "sim-variant", value_name = "NAME", value_delimiter = ',', global = true)]
+    pub sim_variants: Vec<Variant>,
     /// `--json` (the global option, set by `main`).
     #[arg(skip)]
     pub json: bool,
@@ -220,6 +224,11 @@ pub struct SimArgs {
     /// (repeatable). The drives refuse (E90) every other parameter.
     #[arg(long = "param", value_name = "PNNN=VALUE")]
     pub params: Vec<String>,
+    /// Run the drives as this firmware variant, one behaviour the manual leaves open done the other way
+    /// (repeat the option, or separate names with commas): echo-without-address, echo-bare, no-echo,
+    /// echo-without-store, status-value-only (see the crate's README).
+    #[arg(long = "variant", value_name = "NAME", value_delimiter = ',')]
+    pub variants: Vec<Variant>,
 }
 
 /// `motionlink decode compax` arguments.

@@ -72,9 +72,15 @@ pub(super) fn open(args: &Args, tap: &Tap, configure: impl FnOnce(&mut BusConfig
     let clock: SharedClock = RealClock::shared();
     // Installed before the port opens: a signal from here on stops what the command starts.
     let token = common::interrupt_token();
+    if !args.sim_variants.is_empty() && !matches!(url, PortUrl::Sim) {
+        return Err(CliError::usage(
+            "--sim-variant is for --port sim (a served emulator takes `sim compax --variant`)",
+        ));
+    }
     let link: Box<dyn Link> = match url {
         PortUrl::Sim => {
-            let cfg = SimConfig::bus(&[args.drive], args.mode, args.baud);
+            let mut cfg = SimConfig::bus(&[args.drive], args.mode, args.baud);
+            cfg.variants = args.sim_variants.clone();
             let bus = Emulator::new(cfg).map_err(CliError::usage)?;
             let host = EmulatorHost::new(bus, clock.clone(), PipeConfig::paced(args.baud));
             tap.link(Box::new(host.connect().0), &clock)

@@ -41,7 +41,13 @@ fn errors_map_to_exit_codes_and_say_how_to_switch_a_drive_on() {
     assert!(text.contains("took target 14 instead of 15"), "{text}");
     assert!(text.contains("motionlink compax --port tcp://gw:4001 --mode 8 --drive 3 output 0 1"), "{text}");
     let lost = Error::Aborted {
-        cause: Box::new(Error::Timeout { address: D3, command: "S17".into(), attempts: 4 }),
+        cause: Box::new(Error::Timeout {
+            address: D3,
+            command: "S17".into(),
+            attempts: 4,
+            waited: std::time::Duration::from_millis(210),
+            round_trips: None,
+        }),
         stop: motionlink_compax::error::StopReport {
             drives: vec![(
                 Address::drive(3).unwrap(),

@@ -10,7 +10,7 @@ use motionlink_link::link::Link;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::{SerialSettings, SharedClock};
-use motionlink_powercube::client::{BusConfig, Client, Guard, ModulesAt, MoveSpec, Readback};
+use motionlink_powercube::client::{BusConfig, Client, Guard, ModulesAt, MoveSpec};
 use motionlink_powercube::model::{
     Address, AxisUnit, CubeState, ModuleKind, Param, Position, ShortFlag, ShortState, Value as CubeValue, Velocity,
     PARAMS,
@@ -484,8 +484,9 @@ impl Device for PowerCube {
             let p: Param = name.trim().parse().map_err(Failure::usage)?;
             let v = CubeValue::parse(p, &value).map_err(Failure::usage)?;
             let kind = self.kind(unit);
-            let (read_back, note) = match self.module(unit)?.set_checked(p, v).await.map_err(failure)? {
-                Readback::Same(r) => {
+            let readback = self.module(unit)?.set_checked(p, v).await.map_err(failure)?;
+            let (read_back, note) = match readback.read {
+                Some(r) => {
                     // TargetPos, TargetVel and TargetAcc cannot be read: what came back is their twin in
                     // encoder ticks, shown as what it is.
                     let from = p.read_back_as().unwrap_or(p);
@@ -496,7 +497,7 @@ impl Device for PowerCube {
                     };
                     (Some(ReadBack { name: from.name().to_string(), value: r.show_in(from, kind) }), note)
                 }
-                Readback::NotReadable(why) => (None, format!("not read back: {why}")),
+                None => (None, format!("not read back: {}", readback.not_verifiable.join("; "))),
             };
             Ok(ParamValue {
                 name: p.name().to_string(),

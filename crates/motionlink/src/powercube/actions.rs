@@ -68,28 +68,22 @@ pub(super) fn set(
 ) -> Result<(), CliError> {
     let p = parse_param(param)?;
     let v = Value::parse(p, value).map_err(CliError::usage)?;
-    // Targets beyond their limits are refused; what was written is read back.
-    let (read_back, not_verifiable) = match m.set_checked(p, v).map_err(failed)? {
-        Readback::Same(r) => (Some(r), None),
-        Readback::NotReadable(why) => (None, Some(why)),
-    };
+    // Targets beyond their limits are refused; what was written is read back where the module allows it.
+    let Readback { read, verified, not_verifiable } = m.set_checked(p, v).map_err(failed)?;
     if args.json {
-        let read_back = match read_back {
+        let read_back = match read {
             Some(r) => Some(read_back_json(m, p, &r)?),
             None => None,
         };
-        let mut result = json!({"name": p.name(), "id": p.id(), "value": value_json(&v), "ok": true,
-                "read_back": read_back, "verified": read_back.is_some()});
-        // Said only where the value could not be read back (naming.md).
-        if let Some(why) = &not_verifiable {
-            result["not_verifiable"] = json!(why);
-        }
+        let result = json!({"name": p.name(), "id": p.id(), "value": value_json(&v), "ok": true,
+                "read_back": read_back, "verified": verified, "not_verifiable": not_verifiable});
         common::print_json(out, &identified(args, port, result))?;
     } else {
         let kind = m.kind().map_err(|e| {
             context(e, format!("{} was set, but the module type (and so its unit) cannot be read", p.name()))
         })?;
-        let how = not_verifiable.map_or_else(|| "read back".to_string(), |why| format!("not verified: {why}"));
+        let how =
+            if verified { "read back".to_string() } else { format!("not verified: {}", not_verifiable.join("; ")) };
         writeln!(out, "{} set to {} ({how})", p.name(), v.show(p, kind))?;
     }
     Ok(())
@@ -213,10 +207,14 @@ pub(super) fn move_to(
         let fields = json!({"action": "reached", unit_key("target", kind): position,
                             unit_key("reached", kind): reached,
                             unit_key("difference", kind): reached - position,
-                            "state": state_json(report.state)});
+                            "state": state_json(report.state),
+                            "verified": report.verified, "not_verifiable": report.not_verifiable});
         common::print_json(out, &identified(args, port, fields))?;
     } else {
         report_done(out, "reached", report.reached, report.state)?;
+        if !report.verified {
+            writeln!(out, "not verified: {}", report.not_verifiable.join("; "))?;
+        }
     }
     Ok(())
 }

@@ -1,6 +1,7 @@
 //! `motionlink compax` end to end: the built binary against `motionlink sim compax` over TCP and a pty.
 
 mod conventions;
+mod variants;
 
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};

@@ -15,25 +15,123 @@
 
 use super::super::core::{bit, Retry};
 use super::super::ctx::Ctx;
+use super::super::types::EchoForm;
 use crate::error::{Error, Result};
-use crate::model::{Command, Position, S17Flag};
+use crate::model::{Command, Position, S17Flag, StatusId, StatusValue};
 use crate::wire::{Address, Body, Flags, Reply, Request, BROADCAST};
 
 /// What an error of the store or of `!` leaves behind.
 struct Failure {
-    why: &'static str,
+    why: String,
     source: Error,
     holders: u32,
 }
 
+/// The address digits, the command and the flag characters of telegram `sent` (everything before its CR)
+/// to `address` whose command text is `text`.
+fn parts<'a>(sent: &'a [u8], address: Address, text: &[u8]) -> (&'a [u8], &'a [u8]) {
+    let n = address.digits().1.min(sent.len());
+    let flags = sent.get(n + text.len()..).unwrap_or_default();
+    (&sent[..n], flags)
+}
+
 impl Ctx {
+    /// How drive `address` echoes (see [`EchoForm`]): found out the first time with S1 sent with `?` (a
+    /// drive does not execute what it echoes, and S1 is only a read), then remembered. No echo (a refusal,
+    /// the value of S1, silence) counts only when it comes twice: one flipped bit of the probe can make a
+    /// drive refuse it or read S1, and a drive that echoes must never be taken for one that does not. An echo
+    /// of another command text is sent once more; twice, it is a discrepancy no form explains: refused
+    /// ([`Error::Unexpected`]).
+    pub(crate) async fn echo_form(&self, address: Address) -> Result<EchoForm> {
+        if let Some(form) = self.core().echo_forms[usize::from(address.get())] {
+            return Ok(form);
+        }
+        let (style, mode) = {
+            let core = self.core();
+            (core.cfg.style, core.cfg.mode)
+        };
+        let cmd = Command::ReadStatus(StatusId::ACTUAL_POSITION);
+        let text = cmd.to_ascii(style)?;
+        let req = Request { address, body: Body::Command(text.as_bytes()), flags: Flags { echo: true, ..Flags::NONE } };
+        let frame = req.encode(&mode)?;
+        let sent = frame.as_bytes().split(|&b| b == b'\r').next().unwrap_or_default().to_vec();
+        let (digits, flags) = parts(&sent, address, text.as_bytes());
+        // A "no echo" (a refusal of '?', silence) counts only when it comes twice, the drive having answered
+        // a plain read of S1 in between: one flipped bit can make a drive deaf for a while (a binary length
+        // byte swallows what follows) and then answer errors and late replies, while a drive that does not
+        // echo answers S1 and then refuses '?' again. Anything else that is not an echo (a read answered,
+        // other text, an RS485 line error E70..E74) is asked once more; twice, it is the error.
+        let (mut none, mut garbled) = (0, 0);
+        let form = loop {
+            let garble = match self.exchange(&req, Retry::Idempotent).await {
+                Ok(Some(r)) => {
+                    let from_ok = !mode.reply_address || r.address() == Some(address.get());
+                    if let Some(form) = EchoForm::of(r.text(), digits, text.as_bytes(), flags).filter(|_| from_ok) {
+                        break form;
+                    }
+                    // Not an echo: a read answered (a drive that ignores '?', or a late reply to a read), or
+                    // other text. Neither is taken for "no echo": such a drive would store a move sent
+                    // with ',?' without a word, or run it.
+                    let read = StatusValue::parse(StatusId::ACTUAL_POSITION, r.text()).is_ok();
+                    tracing::info!("drive {address}: {:?} in answer to {:?}", r.text_str(), sent);
+                    Some(Error::Unexpected {
+                        address,
+                        command: format!("{text}?"),
+                        reply: format!(
+                            "{} ({}, twice: not an echo in any form)",
+                            r.text_str(),
+                            if read { "the value of S1" } else { "other text than sent" }
+                        ),
+                    })
+                }
+                Ok(None) => return Err(Error::Broadcast("an echo needs one drive's answer")),
+                Err(e @ Error::Device { code, .. }) if (70..=74).contains(&code.0) => Some(e),
+                Err(Error::Device { .. } | Error::Timeout { .. }) => None,
+                Err(e) => return Err(e),
+            };
+            match garble {
+                Some(e) => {
+                    garbled += 1;
+                    if garbled == 2 {
+                        return Err(e);
+                    }
+                }
+                None => {
+                    none += 1;
+                    if none == 2 {
+                        break EchoForm::None;
+                    }
+                    self.read_position(address).await?;
+                }
+            }
+        };
+        let mut core = self.core();
+        core.echo_forms[usize::from(address.get())] = Some(form);
+        let why = form.unchecked(address, mode.reply_address);
+        if !why.is_empty() {
+            core.warn_once(address, "echo", || {
+                format!(
+                    "drive {address} echoes {form:?} (the manual says only \"in full\"): {}; moves say so in their results",
+                    why.join("; ")
+                )
+            });
+        }
+        Ok(form)
+    }
+
     /// Stores move `cmd` in `address`'s buffer with its echo, compares the echo with the telegram sent, and
     /// executes it with `!` only when they are the same. `before` is the drive's target S2 read before (a
     /// POSR adds its distance to it). Errors: [`Error::NotExecuted`] when the echo differs, is corrupt or
     /// never comes, or when `!` is refused or did not start the move (each naming the drives that may hold
     /// the command in their buffer); [`Error::MoveUncertain`] when the reply to `!` was lost and S2 / S17
     /// do not tell whether it started.
-    pub(crate) async fn start_echoed_move(&self, address: Address, cmd: Command, before: Option<f64>) -> Result<()> {
+    pub(crate) async fn start_echoed_move(
+        &self,
+        address: Address,
+        cmd: Command,
+        before: Option<f64>,
+        form: EchoForm,
+    ) -> Result<()> {
         let (style, retries, mode) = {
             let core = self.core();
             (core.cfg.style, core.cfg.retries, core.cfg.mode)
@@ -42,8 +140,12 @@ impl Ctx {
         let flags = Flags { buffer: true, echo: true, ..Flags::NONE };
         let req = Request { address, body: Body::Command(text.as_bytes()), flags };
         let frame = req.encode(&mode)?;
-        // The echo is the telegram as received: everything before its CR.
+        // The telegram as received: everything before its CR; the echo is that in the drive's form.
         let sent = frame.as_bytes().split(|&b| b == b'\r').next().unwrap_or_default().to_vec();
+        let (digits, flag_chars) = parts(&sent, address, text.as_bytes());
+        let Some(expected_echo) = form.render(digits, text.as_bytes(), flag_chars) else {
+            return Err(Error::Broadcast("a drive that does not echo takes no stored move with its echo"));
+        };
         let expected = match cmd {
             Command::PosR(d) => before.unwrap_or(0.0) + d.units(),
             Command::PosA(p) => p.units(),
@@ -84,23 +186,25 @@ impl Ctx {
                     } else {
                         "its echo came back corrupt, so no '!' was sent"
                     };
-                    return Err(fail(Failure { why, source: e, holders: 0 }));
+                    return Err(fail(Failure { why: why.into(), source: e, holders: 0 }));
                 }
                 Err(e) => return Err(e),
             }
         };
-        if let Some(holders) = Self::echo_differs(address, &echo, &sent, mode.reply_address) {
+        if let Some(holders) = Self::echo_differs(address, &echo, &expected_echo, mode.reply_address) {
             tracing::error!("drive {address}: the echo {:?} is not the telegram sent {:?}", echo.text_str(), sent);
             let shown = match echo.address() {
                 Some(a) => format!("{a}:{}", echo.text_str()),
                 None => echo.text_str().to_string(),
             };
-            let source = Error::Unexpected { address, command: format!("{text}{flags}"), reply: shown };
-            return Err(fail(Failure {
-                why: "its echo was not the telegram sent, so no '!' was sent",
-                source,
-                holders,
-            }));
+            let source = Error::Unexpected { address, command: format!("{text}{flags}"), reply: shown.clone() };
+            let why = format!(
+                "its echo was not the telegram sent (expected {:?} from drive {address}, the form it echoes in), \
+                 so no '!' was sent; the echo {shown:?} is what the drive that answered received, and what its \
+                 buffer holds if the ',' arrived",
+                String::from_utf8_lossy(&expected_echo)
+            );
+            return Err(fail(Failure { why, source, holders }));
         }
 
         // 2. The execution: counted as started before it is sent.
@@ -120,7 +224,9 @@ impl Ctx {
                 },
                 Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. } | Error::Unexpected { .. })) => e,
                 Err(e @ Error::Device { .. }) => {
-                    return Err(fail(Failure { why: "the drive refused '!'", source: e, holders: 0 }));
+                    let why = "the drive refused '!' right after echoing the stored move: it may not store a \
+                               command sent with ',?' (the manual does not say that it does), so nothing ran";
+                    return Err(fail(Failure { why: why.into(), source: e, holders: 0 }));
                 }
                 Err(e) => return Err(e),
             };
@@ -142,7 +248,7 @@ impl Ctx {
             }
             if attempts > retries {
                 return Err(fail(Failure {
-                    why: "'!' got no reply, and S2 and S17 show the move did not start",
+                    why: "'!' got no reply, and S2 and S17 show the move did not start".into(),
                     source: lost,
                     holders: 0,
                 }));
@@ -152,12 +258,13 @@ impl Ctx {
         }
     }
 
-    /// `None` when `echo` is the telegram `sent` (as a drive answers with P196's address prefix when
-    /// `prefixed`); otherwise the drives that may hold the command: one whose address the echo shows.
-    fn echo_differs(address: Address, echo: &Reply, sent: &[u8], prefixed: bool) -> Option<u32> {
+    /// `None` when `echo` is `expected`, the telegram sent in the form the drive echoes in (as a drive
+    /// answers with P196's address prefix when `prefixed`); otherwise the drives that may hold the command:
+    /// one whose address the echo shows.
+    fn echo_differs(address: Address, echo: &Reply, expected: &[u8], prefixed: bool) -> Option<u32> {
         let from = echo.address();
         let from_ok = if prefixed { from == Some(address.get()) } else { from.is_none() };
-        if from_ok && echo.text() == sent {
+        if from_ok && echo.text() == expected {
             return None;
         }
         let digits: Vec<u8> = echo.text().iter().take_while(|c| c.is_ascii_digit()).map(|c| c - b'0').collect();

@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use super::super::core::{bit, drives_in};
 use super::super::ctx::Ctx;
-use super::super::types::{MoveOptions, MoveReport, MoveRequest, MoveTarget, Progress, StartedMove};
+use super::super::types::{EchoForm, MoveOptions, MoveReport, MoveRequest, MoveTarget, Progress, StartedMove};
 use crate::error::{Error, Result, StopOutcome, StopReport};
 use crate::model::{Command, ErrorCode, Position, S17Flag};
 use crate::wire::Address;
@@ -225,12 +225,14 @@ impl Ctx {
             }
         };
         request.limits.check(address, target)?;
+        // How this drive echoes, found out the first time with a read sent with '?' (nothing moves yet).
+        let form = if request.binary { None } else { Some(self.echo_form(address).await?) };
         self.check_cancel()?;
         // The axis is at rest and switched on. From the first telegram that can change that on, it counts as
         // this session's to stop: without a BCC one flipped bit turns a binary SPEED into a POSR (53 -> 52),
         // and a move the drive then refuses with E92 means exactly that.
         self.core().started |= bit(address);
-        let sent = self.send_checked_move(address, request, cmd, before).await;
+        let sent = self.send_checked_move(address, request, cmd, before, form).await;
         if let Err(e) = sent {
             self.core().started |= bit(address);
             return Err(self.abort(e, &[address]).await);
@@ -242,7 +244,9 @@ impl Ctx {
             // Cancelled while the move was sent: it is stopped, not handed on.
             return Err(self.abort(Error::Cancelled, &[address]).await);
         }
-        Ok(StartedMove { address, start, target })
+        let prefixed = self.core().cfg.mode.reply_address;
+        let not_verifiable = form.map(|f| f.unchecked(address, prefixed)).unwrap_or_default();
+        Ok(StartedMove { address, start, target, not_verifiable })
     }
 
     async fn send_checked_move(
@@ -251,6 +255,7 @@ impl Ctx {
         request: &MoveRequest,
         cmd: Command,
         before: Option<f64>,
+        form: Option<EchoForm>,
     ) -> Result<()> {
         if let Some(speed) = request.speed {
             self.setting(address, &Command::Speed(speed), request.binary).await?;
@@ -258,12 +263,15 @@ impl Ctx {
         if let Some(ramp) = request.accel {
             self.setting(address, &Command::Accel(ramp), request.binary).await?;
         }
-        if request.binary {
-            // A binary telegram takes no flags (manual 4.4): no store, no echo. Its target is read back after.
-            let opts = MoveOptions { binary: true, message: false };
-            return self.start_move(address, cmd, opts, before).await;
+        match form {
+            // A binary telegram takes no flags (manual 4.4): no store, no echo; nor does a drive that does
+            // not echo get its move stored. Either is sent as it is, its target read back after.
+            None | Some(EchoForm::None) => {
+                let opts = MoveOptions { binary: request.binary, message: false };
+                self.start_move(address, cmd, opts, before).await
+            }
+            Some(form) => self.start_echoed_move(address, cmd, before, form).await,
         }
-        self.start_echoed_move(address, cmd, before).await
     }
 
     /// Reads S2 after a move was sent; [`Error::TargetMismatch`] when it is off the target twice.
@@ -296,7 +304,14 @@ impl Ctx {
         };
         let target = started.target;
         let give_up_at = self.now() + timeout.unwrap_or(wait_timeout);
-        let report = |reached: Position| MoveReport { address: a, start: started.start, target, reached };
+        let report = |reached: Position| MoveReport {
+            address: a,
+            start: started.start,
+            target,
+            reached,
+            verified: started.not_verifiable.is_empty(),
+            not_verifiable: started.not_verifiable.clone(),
+        };
         let close = |p: Position| (p.units() - target.units()).abs() <= tolerance;
         loop {
             let left = give_up_at.saturating_since(self.now()).max(Duration::from_millis(1));

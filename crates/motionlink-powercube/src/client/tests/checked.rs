@@ -102,28 +102,39 @@ fn a_checked_move_reads_back_its_ramp_and_target_and_halts_a_corrupted_command()
     let set_vel = Request::set(Param::TargetVel, Value::F32(1.0)).unwrap();
     let mut frame = [0u8; crate::wire::rs232::MAX_FRAME];
     let n = crate::wire::rs232::encode(crate::wire::rs232::TelKind::Send, 1, &set_vel.encode(), &mut frame).unwrap();
-    // The reads before it (state, limits, IncRatio, ActPos) are counted frame by frame; the byte hit is
-    // the float's most significant one.
+    // The reads before it (state, the one probe of ActFPosStateDio, limits, IncRatio, ActPos, TargetVelInc
+    // before the write: the session does not know yet whether it follows TargetVel) are counted frame by
+    // frame; the byte hit is the float's most significant one.
     let before = faults.bytes_sent(Direction::HostToDevice);
     let reads =
         [Param::CubeState, Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::IncRatio, Param::ActPos];
-    let read_bytes: u64 = reads.iter().map(|p| rs232_request_len(1, &Request::Get(*p))).sum();
+    let first_reads = [Param::ActFPosStateDio, Param::TargetVelInc];
+    let read_bytes: u64 = reads.iter().chain(&first_reads).map(|p| rs232_request_len(1, &Request::Get(*p))).sum();
     let value_msb = before + read_bytes + (n as u64 - 3); // STX TELID TELID 08 4F v0 v1 v2 v3 BCC ETX
     assert_eq!(frame[n - 3], 0x3f, "1.0f32 ends in 0x3f");
     faults.inject(Direction::HostToDevice, value_msb, motionlink_link::pipe::Fault::Corrupt { xor: 0x01 });
     let err = m.move_to(&spec(0.5), &mut |_| {}).unwrap_err();
     assert!(matches!(err, Error::Mismatch { param: Param::TargetVel, .. }), "{err}");
     assert!(!sim_module(&host, 1).0.contains(StateFlag::Motion), "nothing moved");
+    // TargetVelInc changed, to another value: the module mirrors (and took a wrong one).
+    assert_eq!(bus.session(|s| s.findings(addr(1))).target_vel_twin, Some(true));
     // The motion command itself corrupted: 0.5 (00 00 00 3f) arrives as 0.5000001 or so many ticks away
     // that the module's TargetPosInc shows it; the module is halted at once.
     faults.heal();
     let start = faults.bytes_sent(Direction::HostToDevice);
     let motion = Request::motion(Motion::FRamp { pos: Position::native(2.0) }, AckKind::Simple).unwrap();
-    let all_before_motion: u64 = reads.iter().map(|p| rs232_request_len(1, &Request::Get(*p))).sum::<u64>()
+    // TargetAcc and TargetPos are written the first time with their twin read before and after (TargetPos
+    // as the target, before the motion command sets it).
+    let get = |p| rs232_request_len(1, &Request::Get(p));
+    let all_before_motion: u64 = reads.iter().map(|p| get(*p)).sum::<u64>()
         + rs232_request_len(1, &Request::set(Param::TargetVel, Value::F32(1.0)).unwrap())
-        + rs232_request_len(1, &Request::Get(Param::TargetVelInc))
+        + get(Param::TargetVelInc)
+        + get(Param::TargetAccInc)
         + rs232_request_len(1, &Request::set(Param::TargetAcc, Value::F32(2.0)).unwrap())
-        + rs232_request_len(1, &Request::Get(Param::TargetAccInc));
+        + get(Param::TargetAccInc)
+        + get(Param::TargetPosInc)
+        + rs232_request_len(1, &Request::set(Param::TargetPos, Value::F32(2.0)).unwrap())
+        + get(Param::TargetPosInc);
     // 2.0f32 = 00 00 00 40: flip a bit of its second byte (a mantissa bit: 2.0 -> 2.000122).
     let n = rs232_request_len(1, &motion);
     faults.inject(
@@ -148,11 +159,12 @@ fn set_checked_reads_back_and_names_a_mismatch() {
     let _me = clock.reserve_participant().enter();
     let m = bus.module(addr(1));
     // Read back as written.
-    assert_eq!(m.set_checked(Param::MaxVel, Value::F32(0.5)).unwrap(), Readback::Same(Value::F32(0.5)));
-    assert!(matches!(m.set_checked(Param::TargetVel, Value::F32(0.25)).unwrap(), Readback::Same(Value::U32(_))));
-    assert!(matches!(m.set_checked(Param::TargetPos, Value::F32(-1.0)).unwrap(), Readback::Same(Value::I32(_))));
-    assert!(matches!(m.set_checked(Param::DioSetup, Value::U32(0x30)).unwrap(), Readback::Same(_)));
-    assert!(matches!(m.set_checked(Param::Cur, Value::F32(1.0)).unwrap(), Readback::NotReadable(_)));
+    assert_eq!(m.set_checked(Param::MaxVel, Value::F32(0.5)).unwrap(), Readback::same(Value::F32(0.5)));
+    assert!(matches!(m.set_checked(Param::TargetVel, Value::F32(0.25)).unwrap().read, Some(Value::U32(_))));
+    assert!(matches!(m.set_checked(Param::TargetPos, Value::F32(-1.0)).unwrap().read, Some(Value::I32(_))));
+    assert!(m.set_checked(Param::DioSetup, Value::U32(0x30)).unwrap().verified);
+    let cur = m.set_checked(Param::Cur, Value::F32(1.0)).unwrap();
+    assert!(!cur.verified && cur.read.is_none() && cur.not_verifiable[0].contains("measured current"), "{cur:?}");
     // The module limits a limit to its ROM default (DefMaxVel = 1 rad/s): not silently.
     let err = m.set_checked(Param::MaxVel, Value::F32(10.0)).unwrap_err();
     assert!(matches!(err, Error::Mismatch { param: Param::MaxVel, .. }) && err.is_device(), "{err}");
@@ -437,7 +449,7 @@ fn a_target_read_back_through_its_tick_twin_converts_into_its_own_unit() {
         (Param::TargetAcc, Param::TargetAccInc, 0.5),
     ] {
         assert_eq!(p.read_back_as(), Some(twin));
-        let Readback::Same(read) = m.set_checked(p, Value::F32(v)).unwrap() else { panic!("{p} read back") };
+        let Some(read) = m.set_checked(p, Value::F32(v)).unwrap().read else { panic!("{p} read back") };
         // What came back is the twin's value, in ticks, as the module holds it ...
         assert_eq!(read, m.get(twin).unwrap(), "{p}");
         // ... and in the written parameter's unit it is what was written (within a tick).

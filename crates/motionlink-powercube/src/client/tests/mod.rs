@@ -5,6 +5,7 @@
 mod basics;
 mod checked;
 mod close;
+mod variants;
 mod watchdog;
 
 use std::sync::atomic::Ordering;

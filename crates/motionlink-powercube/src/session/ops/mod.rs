@@ -4,7 +4,9 @@
 
 mod basic;
 mod motion;
+mod probes;
 mod run;
+mod twins;
 mod watchdog;
 
 pub(crate) use run::run;
@@ -94,20 +96,27 @@ impl Ctx {
     /// Runs a motion of module `a` under `guard` (see [`Guard`]): the watchdog armed before it where the
     /// guard asks for it and the link allows it, whatever still moves halted after it, the watchdog switched
     /// off again (with the Config word as it was) whether the motion succeeded, failed or was cancelled.
+    /// With the result, what the guard could not do (a module that ignores the RS232 broadcast refresh runs
+    /// without a watchdog: see `probes`).
     pub async fn guarded<T>(
         &self,
         a: u8,
         guard: Guard,
         motion: impl std::future::Future<Output = Result<T, Error>>,
-    ) -> Result<T, Error> {
-        let arm = guard == Guard::Watchdog && self.watchdog_reliable();
-        if guard == Guard::Watchdog && !arm {
+    ) -> Result<(T, Vec<String>), Error> {
+        let ignores_broadcast = self.ignores_rs232_broadcast(a);
+        let arm = guard == Guard::Watchdog && self.watchdog_reliable() && !ignores_broadcast;
+        if guard == Guard::Watchdog && !self.watchdog_reliable() {
             tracing::warn!("module {a}: the watchdog is not armed: this session's settings refuse it on RS232");
+        }
+        let mut notes = Vec::new();
+        if guard == Guard::Watchdog && ignores_broadcast {
+            notes.push(probes::no_rs232_watchdog(a));
         }
         if !arm {
             let result = motion.await;
             let stopped = self.halt_started().await;
-            return both(result, stopped);
+            return both(result, stopped).map(|v| (v, notes));
         }
         if let Err(e) = self.enable_watchdog(&[a]).await {
             // Undo what was done before the failure (a Config word changed, a life sign sent).
@@ -127,12 +136,22 @@ impl Ctx {
             });
         }
         tracing::info!("watchdog armed in module {a}");
-        let result = motion.await.map_err(|e| self.explain_expiry(e));
+        let result = match self.probe_broadcast_refresh(a).await {
+            Ok(None) => motion.await.map_err(|e| self.explain_expiry(e)),
+            Ok(Some(note)) => {
+                // The watchdog is off again and the module reset: the motion runs without it.
+                notes.push(note);
+                let result = motion.await;
+                let stopped = self.halt_started().await;
+                return both(result, stopped).map(|v| (v, notes));
+            }
+            Err(e) => Err(e),
+        };
         // Whatever is still moving is stopped before the watchdog goes offline.
         let stopped = self.halt_started().await;
         let result = both(result, stopped);
         match (result, self.disable_watchdog().await) {
-            (result, Ok(())) => result,
+            (result, Ok(())) => result.map(|v| (v, notes)),
             (Ok(_), Err(e)) => Err(Error::Context {
                 context: format!("cannot switch the watchdog of module {a} off again"),
                 source: Box::new(e),
@@ -194,7 +213,7 @@ impl Ctx {
         };
         let timing = {
             let core = self.core();
-            core.duty.timing(core.now)
+            core.duty.timing(core.now, core.round_trips)
         };
         match timing {
             Some(timing) => Error::WatchdogExpired { address, state, timing },

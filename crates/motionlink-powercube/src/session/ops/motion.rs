@@ -10,6 +10,7 @@ use crate::model::{
 };
 use crate::session::ctx::Ctx;
 use crate::session::ops::checked;
+use crate::session::ops::twins::{self, TwinCheck};
 use crate::session::{MoveReport, MoveSpec, Progress, Readback, Until};
 
 /// A value for messages: the number alone, floats with six decimals.
@@ -70,7 +71,8 @@ impl Ctx {
         if state.contains(StateFlag::Halted) {
             return Err(Error::Halted { address: crate::model::Address::checked(a), state });
         }
-        Ok(())
+        // Before anything moves: how this module can be polled while it does.
+        self.probe_pos_state_dio(a).await
     }
 
     /// Reads a float parameter that must be a finite number.
@@ -109,23 +111,6 @@ impl Ctx {
         Ok(())
     }
 
-    /// Reads the integer parameter `param` (in encoder ticks) and compares it with `value` units times
-    /// `ratio`, allowing one tick for rounding; a difference is [`Error::Mismatch`] naming `written`.
-    async fn check_ticks(&self, a: u8, written: Param, param: Param, value: f64, ratio: f64) -> Result<Value, Error> {
-        let read = self.get(a, param).await?;
-        let ticks = read.as_f64().ok_or_else(|| unexpected(a, &Request::Get(param), format!("{read:?}")))?;
-        let expected = (value * ratio).round();
-        if (ticks - expected).abs() > 1.0 {
-            return Err(Error::Mismatch {
-                address: crate::model::Address::checked(a),
-                param: written,
-                wrote: format!("{value:.6} ({expected} ticks)"),
-                read: format!("{:.6} ({ticks} ticks in {param})", ticks / ratio),
-            });
-        }
-        Ok(read)
-    }
-
     /// Writes `param` and checks that the module took it (see [`Op::SetChecked`](crate::session::Op)).
     pub async fn set_checked(&self, a: u8, param: Param, value: Value) -> Result<Readback, Error> {
         Request::set(param, value)?;
@@ -147,16 +132,19 @@ impl Ctx {
             (Param::Cur, Some(v)) => self.within_limit(a, name, v.abs(), Param::MaxCur, true).await?,
             _ => {}
         }
-        self.set(a, param, value).await?;
-        if let (Some(twin), Some(v)) = (param.read_back_as(), number) {
+        if param.read_back_as().is_some() && number.is_some() {
             let ratio = self.inc_ratio(a).await?;
-            return self.check_ticks(a, param, twin, v, ratio).await.map(Readback::Same);
+            return Ok(match self.write_twinned(a, param, value, ratio).await? {
+                TwinCheck::Verified(read) => Readback::same(read),
+                TwinCheck::Unverified(why) => Readback::unverified(why),
+            });
         }
+        self.set(a, param, value).await?;
         if param == Param::Cur {
-            return Ok(Readback::NotReadable("reading Cur gives the measured current, not the value written"));
+            return Ok(Readback::unverified("reading Cur gives the measured current, not the value written"));
         }
         if !param.access().readable() {
-            return Ok(Readback::NotReadable("the manual has no way to read it"));
+            return Ok(Readback::unverified("the manual has no way to read it"));
         }
         let read = self.get(a, param).await?;
         let same = match (param, value.as_u32(), read.as_u32()) {
@@ -165,7 +153,7 @@ impl Ctx {
             _ => read == value,
         };
         if same {
-            Ok(Readback::Same(read))
+            Ok(Readback::same(read))
         } else {
             Err(Error::Mismatch {
                 address: crate::model::Address::checked(a),
@@ -224,7 +212,10 @@ impl Ctx {
         let deadline = start + timeout;
         let period = self.core().config.poll_interval.max(Duration::from_micros(100));
         let mut due = start;
-        let mut poll = Poll::default();
+        if let Err(e) = self.probe_pos_state_dio(a).await {
+            return Err(self.lost(a, e).await);
+        }
+        let mut poll = Poll { separate: self.lacks_pos_state_dio(a), ..Poll::default() };
         loop {
             let polled = self.poll_state(a, &mut poll).await;
             let (state, position) = match polled {
@@ -371,27 +362,39 @@ impl Ctx {
         let ratio = self.inc_ratio(a).await?;
         let start = self.position(a).await?;
         let motion = Request::motion(Motion::FRamp { pos: spec.target }, AckKind::Simple)?;
+        let mut not_verifiable = Vec::new();
         for (param, given) in
             [(Param::TargetVel, spec.vel.map(|v| v.value())), (Param::TargetAcc, spec.acc.map(|acc| acc.value()))]
         {
             let twin = param.read_back_as().unwrap_or(param);
             match given {
                 Some(v) => {
-                    self.set(a, param, Value::F32(v)).await?;
-                    self.check_ticks(a, param, twin, f64::from(v), ratio).await?;
+                    if let TwinCheck::Unverified(why) = self.write_twinned(a, param, Value::F32(v), ratio).await? {
+                        not_verifiable.push(why);
+                    }
                 }
+                // A module known to keep the twin apart shows nothing of its own value: no pre-check then.
+                None if self.twin_known(a, param) == Some(false) => {}
                 None => {
                     let ticks = self.get(a, twin).await?;
                     if ticks.as_f64() == Some(0.0) {
                         return Err(Error::InvalidArgument {
                             what: if param == Param::TargetVel { "the velocity" } else { "the acceleration" },
-                            must: "given: the module's own value is 0, and a ramp with it would not move",
+                            must:
+                                "given: the module's own value (its Inc twin) is 0, and a ramp with it would not move",
                             value: "none".into(),
                         });
                     }
                 }
             }
         }
+        // The motion's target is read back through TargetPosInc. Whether TargetPosInc follows the target is
+        // found out before anything moves, the first time: TargetPos written as the target, which the motion
+        // command sets anyway (see `twins`).
+        if self.twin_known(a, Param::TargetPos).is_none() {
+            self.write_twinned(a, Param::TargetPos, Value::F32(spec.target.value()), ratio).await?;
+        }
+        let pos_known = self.twin_known(a, Param::TargetPos);
         if self.cancelled() {
             return Err(Error::Cancelled { address: crate::model::Address::checked(a), stop: StopOutcome::NotStarted });
         }
@@ -401,13 +404,26 @@ impl Ctx {
         }
         tracing::info!("module {a}: moving from {:.4} to {}", start.value(), spec.target.value());
         let sent = (target * ratio).round() as i32;
-        match self.get_as(a, Param::TargetPosInc, Value::as_i32).await {
-            Ok(taken) if (i64::from(taken) - i64::from(sent)).abs() <= 1 => {}
-            Ok(taken) => {
+        if pos_known == Some(false) {
+            not_verifiable.push(twins::kept_apart(Param::TargetPos));
+        } else {
+            let taken = match self.get_as(a, Param::TargetPosInc, Value::as_i32).await {
+                Ok(taken) => taken,
+                Err(e) => return Err(self.lost(a, e).await),
+            };
+            // Not known (TargetPosInc held the target already): a TargetPosInc that changed to another
+            // target mirrors all the same, and that is a discrepancy too.
+            if (i64::from(taken) - i64::from(sent)).abs() <= 1 {
+                if pos_known.is_none() {
+                    not_verifiable.push(twins::undecided(Param::TargetPos));
+                }
+            } else {
+                if pos_known.is_none() {
+                    self.remember_twin(a, Param::TargetPos, true);
+                }
                 let stop = self.stop_motion(a).await;
                 return Err(Error::TargetMismatch { address: crate::model::Address::checked(a), sent, taken, stop });
             }
-            Err(e) => return Err(self.lost(a, e).await),
         }
         let state = self.wait(a, Until::Ramp, spec.timeout).await?;
         let mut reached = start;
@@ -428,7 +444,7 @@ impl Ctx {
                 });
             }
         }
-        Ok(MoveReport { start, reached, state })
+        Ok(MoveReport { start, reached, state, verified: not_verifiable.is_empty(), not_verifiable })
     }
 
     /// Halts every module this session set in motion that is still moving or cannot be asked (see

@@ -85,11 +85,15 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
         }
         Op::MoveTo(a, spec) => Output::Moved(ctx.move_to(a.get(), &spec).await?),
         Op::HomeGuarded(a, timeout, guard) => {
-            let (p, s) = ctx.guarded(a.get(), guard, ctx.home_and_wait(a.get(), timeout)).await?;
+            // What the guard could not do was said on the session's log (homing has no report to carry it).
+            let ((p, s), _) = ctx.guarded(a.get(), guard, ctx.home_and_wait(a.get(), timeout)).await?;
             Output::Homed(p, s)
         }
         Op::MoveGuarded(a, spec, guard) => {
-            Output::Moved(ctx.guarded(a.get(), guard, ctx.move_to(a.get(), &spec)).await?)
+            let (mut report, notes) = ctx.guarded(a.get(), guard, ctx.move_to(a.get(), &spec)).await?;
+            report.verified &= notes.is_empty();
+            report.not_verifiable.extend(notes);
+            Output::Moved(report)
         }
         Op::StopMotion(a) => Output::Stop(ctx.stop_motion(a.get()).await),
         Op::HaltStarted => {

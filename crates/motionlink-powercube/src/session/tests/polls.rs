@@ -87,7 +87,8 @@ fn a_wait_polls_with_one_exchange_and_reads_the_full_state_only_when_it_may_say_
     assert!((report.reached.value() - 1.0).abs() <= 0.001, "{report:?}");
     let polls = b.events.iter().filter(|e| matches!(e, Event::Progress(..))).count();
     assert!(polls > 200, "{polls}");
-    assert_eq!(gets(&b, Param::ActFPosStateDio), polls, "one combined read per poll");
+    // One combined read per poll, and the one before the move that finds out whether the module has it.
+    assert_eq!(gets(&b, Param::ActFPosStateDio), polls + 1, "one combined read per poll");
     // The full state: before the move, on the first poll, where the short state changed (the end), and
     // every 100 ms in between (every tenth poll); ActPos only for the start and the two final readings.
     let states = gets(&b, Param::CubeState);

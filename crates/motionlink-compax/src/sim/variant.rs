@@ -1,0 +1,146 @@
+//! Firmware variants of the emulated drives: each models one behaviour the manual leaves open the other
+//! plausible way, so that the client is tried against drives that do not behave as our default emulator
+//! does (`motionlink sim compax --variant NAME`, `variants = [...]` in the emulator's TOML).
+//!
+//! The manual says of the echo only that "COMPAX will send the received data back in full". The default
+//! emulator reads "in full" as everything before the CR: the address digits, the command and the flag
+//! characters (`1POSA 12.5,?`). The variants:
+//!
+//! | variant | what the drives do differently |
+//! |---|---|
+//! | `echo-without-address` | The echo leaves out the address digits the telegram began with (`POSA 12.5,?`). |
+//! | `echo-bare` | The echo is the command alone: no address digits, and none of the flag characters `$`, `,`, `/`, `?` at its end (`POSA 12.5`). |
+//! | `no-echo` | `?` is not known: a telegram with it is refused (E90, as any syntax the drive cannot read) and nothing is stored. |
+//! | `echo-without-store` | `?` sends the telegram back instead of processing it, `,` included: a command sent with `,?` is echoed but not stored (so the `!` after it finds an empty buffer). |
+//! | `status-value-only` | A status value is answered with the value alone (`12.500`), not after its name (`S001: 12.500`). |
+//!
+//! Every reply keeps the framing P196 asks for (its address prefix, its end, its BCC): a variant changes
+//! what the drive says, not how it frames it.
+
+use std::fmt;
+use std::str::FromStr;
+
+/// One firmware variant of the emulated drives (see the [module documentation](self)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Deserialize)]
+#[serde(try_from = "String")]
+pub enum Variant {
+    /// The echo without the address digits.
+    EchoWithoutAddress,
+    /// The echo without the address digits and without the flag characters.
+    EchoBare,
+    /// No echo: `?` is refused.
+    NoEcho,
+    /// `,?` echoes without storing.
+    EchoWithoutStore,
+    /// Status values without their name.
+    StatusValueOnly,
+}
+
+impl Variant {
+    /// Every variant, in the order of the table above.
+    pub const ALL: [Variant; 5] = [
+        Variant::EchoWithoutAddress,
+        Variant::EchoBare,
+        Variant::NoEcho,
+        Variant::EchoWithoutStore,
+        Variant::StatusValueOnly,
+    ];
+
+    /// The name the command line, the TOML configuration and Python take.
+    pub fn name(self) -> &'static str {
+        match self {
+            Variant::EchoWithoutAddress => "echo-without-address",
+            Variant::EchoBare => "echo-bare",
+            Variant::NoEcho => "no-echo",
+            Variant::EchoWithoutStore => "echo-without-store",
+            Variant::StatusValueOnly => "status-value-only",
+        }
+    }
+
+    /// What the drives do differently, in one sentence.
+    pub fn description(self) -> &'static str {
+        match self {
+            Variant::EchoWithoutAddress => "the echo leaves out the address digits",
+            Variant::EchoBare => "the echo is the command alone, without the address and the flag characters",
+            Variant::NoEcho => "'?' is refused (E90) and nothing is stored",
+            Variant::EchoWithoutStore => "a command sent with ',?' is echoed but not stored",
+            Variant::StatusValueOnly => "status values come without their name (12.500, not S001: 12.500)",
+        }
+    }
+
+    /// Parses names separated by commas (spaces around a name and empty entries are ignored), each once in
+    /// the result, in the order of [`Variant::ALL`].
+    pub fn list(text: &str) -> Result<Vec<Variant>, UnknownVariant> {
+        let mut v =
+            text.split(',').map(str::trim).filter(|s| !s.is_empty()).map(str::parse).collect::<Result<Vec<_>, _>>()?;
+        v.sort();
+        v.dedup();
+        Ok(v)
+    }
+
+    /// Every name, comma-separated, for messages and help texts.
+    pub fn names() -> String {
+        Variant::ALL.iter().map(|v| v.name()).collect::<Vec<_>>().join(", ")
+    }
+}
+
+impl fmt::Display for Variant {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A variant name that is not one of [`Variant::ALL`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown COMPAX emulator variant {name:?}: the variants are {}", Variant::names())]
+pub struct UnknownVariant {
+    /// The name given.
+    pub name: String,
+}
+
+impl FromStr for Variant {
+    type Err = UnknownVariant;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Variant::ALL.into_iter().find(|v| v.name() == s.trim()).ok_or_else(|| UnknownVariant { name: s.to_string() })
+    }
+}
+
+impl TryFrom<String> for Variant {
+    type Error = UnknownVariant;
+    fn try_from(s: String) -> Result<Self, Self::Error> {
+        s.parse()
+    }
+}
+
+/// The echo a drive of `variants` sends for the telegram `received` (everything before its CR) whose
+/// address took its first `address_len` bytes.
+pub(crate) fn echo_of<'a>(variants: &[Variant], received: &'a [u8], address_len: usize) -> &'a [u8] {
+    let without_address = received.get(address_len..).unwrap_or_default();
+    if variants.contains(&Variant::EchoBare) {
+        let end = without_address.iter().rposition(|c| !b"$,/?".contains(c)).map_or(0, |i| i + 1);
+        &without_address[..end]
+    } else if variants.contains(&Variant::EchoWithoutAddress) {
+        without_address
+    } else {
+        received
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_parse_unknown_ones_are_refused_with_the_list_and_the_echo_forms() {
+        for v in Variant::ALL {
+            assert_eq!(v.name().parse::<Variant>(), Ok(v));
+        }
+        assert_eq!(Variant::list("no-echo, echo-bare,no-echo").unwrap(), vec![Variant::EchoBare, Variant::NoEcho]);
+        let e = "echo".parse::<Variant>().unwrap_err().to_string();
+        assert!(e.contains("\"echo\"") && e.contains("echo-without-address") && e.contains("status-value-only"), "{e}");
+        let t = b"12POSA 12.5$,?";
+        assert_eq!(echo_of(&[], t, 2), t);
+        assert_eq!(echo_of(&[Variant::EchoWithoutAddress], t, 2), b"POSA 12.5$,?");
+        assert_eq!(echo_of(&[Variant::EchoBare], t, 2), b"POSA 12.5");
+    }
+}

@@ -1,0 +1,228 @@
+//! The core operations against every firmware variant of the emulator (`sim::Variant`), in-process on the
+//! manual clock, in the reply formats that matter to them: each works (saying what it could not verify) or
+//! ends with an error that says what the drive did not do; a move never ends in success away from its
+//! target. Then the discrepancies that are refused whatever form was found: an echo whose command text
+//! differs, an echo in another form than the one the drive was found to use, and one flipped bit anywhere
+//! in the probe, which never makes a drive that echoes pass for one that does not.
+
+use std::time::Duration;
+
+use motionlink_compax::client::{BusConfig, Client, EchoForm, Error, MoveRequest, MoveTarget};
+use motionlink_compax::model::{ParamId, SpeedPercent, StatusId};
+use motionlink_compax::sim::{Emulator, SimConfig, Variant};
+use motionlink_compax::wire::Mode;
+use motionlink_link::clock::{Clock, ManualClock};
+use motionlink_link::emulator::Emulator as _;
+use motionlink_link::pipe::{Direction, EmulatorHost, Fault, FaultControl, PipeConfig};
+
+use crate::support::{a, pos};
+
+fn emulated(variants: &[Variant], p196: u32) -> (ManualClock, EmulatorHost<Emulator>, FaultControl, Client) {
+    let clock = ManualClock::new_auto();
+    let mut cfg = SimConfig::bus(&[1, 3], p196, 9600).with_param(ParamId::new(3).unwrap(), 0.0);
+    cfg.variants = variants.to_vec();
+    let host = EmulatorHost::new(Emulator::new(cfg).unwrap(), clock.shared(), PipeConfig::paced(9600));
+    let (link, faults) = host.connect();
+    let client =
+        Client::new(Box::new(link), clock.shared(), BusConfig::new(Mode::from_p196(p196).unwrap(), 9600)).unwrap();
+    (clock, host, faults, client)
+}
+
+fn to(v: f64) -> MoveRequest {
+    MoveRequest::new(MoveTarget::Absolute(pos(v)))
+}
+
+/// What the core operations gave against one variant: the two moves' reports (or errors).
+type Moves =
+    (Result<motionlink_compax::client::MoveReport, Error>, Result<motionlink_compax::client::MoveReport, Error>);
+
+/// Scan, status, parameter write, home, a move with a speed and a relative move without one, watch, stop,
+/// close.
+fn core_operations(variants: &[Variant], p196: u32) -> Moves {
+    let (clock, host, _faults, bus) = emulated(variants, p196);
+    let _me = clock.reserve_participant().enter();
+    let what = format!("{variants:?} P196={p196}");
+    let found = bus.scan(1..=4).unwrap();
+    assert_eq!(found.iter().map(|(d, _)| d.get()).collect::<Vec<_>>(), [1, 3], "{what}");
+    bus.read_statuses(a(1), &[StatusId::ACTUAL_POSITION, StatusId::STATUS_BITS_1, StatusId::STATUS_BITS_2]).unwrap();
+    bus.write_param(a(1), ParamId::new(3).unwrap(), 12.5).unwrap();
+    bus.home(a(1), Default::default()).unwrap();
+    bus.wait_reached(&[a(1)], Some(Duration::from_secs(5)), &mut |_, _| {}).unwrap();
+    let mut with_speed = to(20.0);
+    with_speed.speed = Some(SpeedPercent::new(50.0).unwrap());
+    let first = bus.move_to(a(1), &with_speed, &mut |_| {});
+    let second = bus.move_to(a(1), &MoveRequest::new(MoveTarget::Relative(pos(-5.0))), &mut |_| {});
+    // What `watch` reads, a few times.
+    for _ in 0..3 {
+        bus.read_position(a(1)).unwrap();
+        bus.read_s17(a(1)).unwrap();
+    }
+    bus.stop(a(1)).unwrap();
+    let at = host.with_device(|d| d.drive(1).unwrap().position());
+    for (r, target) in [(&first, 20.0), (&second, 15.0)] {
+        if let Ok(report) = r {
+            assert_eq!(report.reached, pos(target), "{what}: {report:?}");
+        }
+    }
+    if second.is_ok() {
+        assert_eq!(at, 15.0, "{what}");
+    }
+    bus.close().unwrap();
+    (first, second)
+}
+
+#[test]
+fn every_variant_in_every_address_mode() {
+    for p196 in [0, 8, 64] {
+        let prefixed = p196 & 64 != 0;
+        for variants in [
+            &[][..],
+            &[Variant::EchoWithoutAddress],
+            &[Variant::EchoBare],
+            &[Variant::NoEcho],
+            &[Variant::StatusValueOnly],
+            &[Variant::EchoBare, Variant::StatusValueOnly],
+        ] {
+            let what = format!("{variants:?} P196={p196}");
+            let (first, second) = core_operations(variants, p196);
+            let (first, second) = (first.unwrap(), second.unwrap());
+            assert_eq!(first.verified, second.verified, "{what}");
+            assert_eq!(first.not_verifiable, second.not_verifiable, "{what}");
+            let why = first.not_verifiable.join("\n");
+            let echo = variants.iter().find(|v| **v != Variant::StatusValueOnly);
+            match echo {
+                None => assert!(first.verified && why.is_empty(), "{what}: {why}"),
+                // The address prefix names the drive that echoed: only the missing address is then no loss.
+                Some(Variant::EchoWithoutAddress) if prefixed => assert!(first.verified, "{what}: {why}"),
+                Some(Variant::EchoWithoutAddress) => {
+                    assert!(!first.verified && why.contains("echoes without its address"), "{what}: {why}")
+                }
+                Some(Variant::EchoBare) => {
+                    assert!(!first.verified && why.contains("without the flag characters"), "{what}: {why}");
+                    assert_eq!(why.contains("without its address"), !prefixed, "{what}: {why}");
+                }
+                Some(_) => assert!(!first.verified && why.contains("does not echo"), "{what}: {why}"),
+            }
+        }
+    }
+}
+
+#[test]
+fn the_form_found_is_remembered_and_a_move_is_sent_in_the_plain_form_to_a_drive_without_echo() {
+    let (clock, host, _faults, bus) = emulated(&[Variant::NoEcho], 0);
+    let _me = clock.reserve_participant().enter();
+    let r = bus.move_to(a(1), &to(10.0), &mut |_| {}).unwrap();
+    assert!(!r.verified && r.reached == pos(10.0), "{r:?}");
+    assert_eq!(bus.driver().with_session(|s| s.echo_form(a(1))), Some(EchoForm::None));
+    // Nothing was stored: the move went out as a command of its own.
+    assert_eq!(host.with_device(|d| d.drive(1).unwrap().buffered().map(str::to_string)), None);
+    let events = host.with_device(|d| d.take_events());
+    assert_eq!(events.iter().filter(|e| e.contains("motion started")).count(), 1, "{events:?}");
+    // Found once per session: the next move asks nothing more about the echo.
+    bus.move_to(a(1), &to(11.0), &mut |_| {}).unwrap();
+}
+
+#[test]
+fn an_echo_in_another_form_than_found_is_refused() {
+    // Found to echo in full; then the drive drops its address from the echo: a check that never weakens
+    // for a drive that gives it refuses the move, and nothing is executed.
+    let (clock, host, _faults, bus) = emulated(&[], 0);
+    let _me = clock.reserve_participant().enter();
+    assert!(bus.move_to(a(1), &to(10.0), &mut |_| {}).unwrap().verified);
+    host.with_device(|d| d.set_variants(&[Variant::EchoWithoutAddress]));
+    let e = bus.move_to(a(1), &to(12.0), &mut |_| {}).unwrap_err();
+    let Error::NotExecuted { why, buffered, .. } = e.root() else { panic!("{e}") };
+    assert!(why.contains("expected \"1POSA 12") && why.contains("the echo \"POSA 12"), "{why}");
+    assert_eq!(buffered, &[1]);
+    assert_eq!(host.with_device(|d| d.drive(1).unwrap().position()), 10.0, "not executed");
+
+    // Found to echo without its address; an echo of other command text is refused all the same.
+    let (clock, host, faults, bus) = emulated(&[Variant::EchoWithoutAddress], 0);
+    let _me = clock.reserve_participant().enter();
+    assert!(!bus.move_to(a(1), &to(10.0), &mut |_| {}).unwrap().verified);
+    // "1POSA 12.5,?\r" to drive 1 arrives as "1POSA 13.5,?": '2' (0x32) with bit 0 flipped is '3'.
+    let at = faults.bytes_sent(Direction::HostToDevice) + ["1S16\r", "1S17\r", "1S1\r"].concat().len() as u64 + 7;
+    faults.inject(Direction::HostToDevice, at, Fault::Corrupt { xor: 0x01 });
+    let e = bus.move_to(a(1), &to(12.5), &mut |_| {}).unwrap_err();
+    let Error::NotExecuted { why, .. } = e.root() else { panic!("{e}") };
+    assert!(why.contains("\"POSA 13.5,?\"") && why.contains("its buffer holds"), "{why}");
+    assert_eq!(host.with_device(|d| d.drive(1).unwrap().position()), 10.0, "not executed");
+}
+
+#[test]
+fn no_flipped_bit_of_the_probe_makes_a_drive_that_echoes_pass_for_one_that_does_not() {
+    // The probe "1S1?\r" (after "1S16\r" "1S17\r" "1S1\r") and its echo "1S1?\r\n>" (after the three
+    // replies), every bit, both ways: the move is refused, or it succeeds verified.
+    let probe_at = ["1S16\r", "1S17\r", "1S1\r"].concat().len() as u64;
+    let replies_at = {
+        let (clock, _host, faults, bus) = emulated(&[], 0);
+        let _me = clock.reserve_participant().enter();
+        bus.read_s16(a(1)).unwrap();
+        bus.read_s17(a(1)).unwrap();
+        bus.read_position(a(1)).unwrap();
+        faults.bytes_sent(Direction::DeviceToHost)
+    };
+    let mut done = 0;
+    for (dir, start, len) in [(Direction::HostToDevice, probe_at, 5), (Direction::DeviceToHost, replies_at, 7)] {
+        for offset in start..start + len {
+            for bit in 0..8 {
+                let (clock, host, faults, bus) = emulated(&[], 0);
+                let _me = clock.reserve_participant().enter();
+                faults.inject(dir, offset, Fault::Corrupt { xor: 1 << bit });
+                let mut req = to(10.0);
+                req.timeout = Some(Duration::from_secs(5));
+                let what = format!("{dir:?} byte {} bit {bit}", offset - start);
+                match bus.move_to(a(1), &req, &mut |_| {}) {
+                    Ok(r) => {
+                        assert!(r.verified, "{what}: {r:?}");
+                        assert_eq!(bus.driver().with_session(|s| s.echo_form(a(1))), Some(EchoForm::Full), "{what}");
+                        done += 1;
+                    }
+                    Err(e) => assert_eq!(host.with_device(|d| d.drive(1).unwrap().position()), 0.0, "{what}: {e}"),
+                }
+                assert!(!host.with_device(|d| d.drive(3).unwrap().is_moving()), "{what}");
+            }
+        }
+    }
+    assert!(done > 0);
+}
+
+#[test]
+fn a_drive_that_echoes_without_storing_refuses_the_move_and_says_so() {
+    let (clock, host, _faults, bus) = emulated(&[Variant::EchoWithoutStore], 0);
+    let _me = clock.reserve_participant().enter();
+    let e = bus.move_to(a(1), &to(10.0), &mut |_| {}).unwrap_err();
+    let Error::NotExecuted { why, .. } = e.root() else { panic!("{e}") };
+    assert!(why.contains("refused '!'") && why.contains("may not store a command sent with ',?'"), "{why}");
+    assert_eq!(host.with_device(|d| d.drive(1).unwrap().position()), 0.0, "nothing ran");
+    use motionlink_link::error::Classify;
+    assert_eq!(e.class().exit_code(), 1, "a device refusal: {e}");
+}
+
+#[test]
+fn the_variants_are_named_in_the_configuration() {
+    let c = SimConfig::from_toml("variants = [\"echo-bare\", \"no-echo\"]\n[[drive]]\naddress = 2\n").unwrap();
+    assert_eq!(c.variants, [Variant::EchoBare, Variant::NoEcho]);
+    let e = SimConfig::from_toml("variants = [\"echo\"]\n").unwrap_err().to_string();
+    assert!(e.contains("unknown COMPAX emulator variant") && e.contains("echo-without-address"), "{e}");
+    // The emulator answers as the variant says.
+    let mut cfg = SimConfig::bus(&[1], 0, 9600);
+    cfg.variants = vec![Variant::StatusValueOnly, Variant::EchoBare];
+    let mut sim = Emulator::new(cfg).unwrap();
+    let mut out = Vec::new();
+    sim.receive(motionlink_link::Timestamp::ZERO, b"1S1\r1POSA 3,?\r", &mut out);
+    assert_eq!(out, b"0.000\r\n>POSA 3\r\n>");
+}
+
+#[test]
+fn a_timeout_names_the_round_trips_measured_on_the_line() {
+    let (clock, _host, _faults, bus) = emulated(&[], 0);
+    let _me = clock.reserve_participant().enter();
+    bus.read_position(a(1)).unwrap();
+    let e = bus.read_position(a(9)).unwrap_err();
+    let text = e.to_string();
+    // "9S1\r" and "S001: 0.000\r\n>" at 9600 baud: about 20 ms on the wire.
+    assert!(text.contains("no reply to \"S1\" within") && text.contains("replies on this link have taken 1"), "{text}");
+    let Error::Timeout { round_trips: Some(r), .. } = e else { panic!("{e:?}") };
+    assert!(r.fastest <= r.slowest && r.slowest < Duration::from_millis(40), "{r:?}");
+}

@@ -1,0 +1,159 @@
+//! Firmware variants of the emulated modules: each models one behaviour the manual leaves open the other
+//! plausible way, so that the client is tried against modules that do not behave as our default emulator
+//! does (`motionlink sim powercube --variant NAME`, `variants = [...]` in the emulator's TOML).
+//!
+//! | variant | what the modules do differently |
+//! |---|---|
+//! | `no-twin-mirror` | TargetPosInc, TargetVelInc and TargetAccInc are values of their own: writing TargetPos / TargetVel / TargetAcc (or a float motion command's target) leaves them as they were, and writing them changes no float target. Motions use the float targets. |
+//! | `no-broadcast-pair` | On RS232, a frame to address 0 with two data bytes (libm5api's broadcast form, the command followed by 0x00) is ignored; the one-byte form is still taken. |
+//! | `ack-length-6` | On RS232, a 3-byte acknowledge carries TELID length 6, as the manual's examples print it. |
+//! | `ext-ack-on-put-id` | On CAN, the extended acknowledge of a motion command comes on the command identifier `0x0E0 + address`, as the manual's last CAN table shows, instead of `0x0A0 + address`. |
+//! | `no-pos-state-dio` | GetExtended of ActFPosStateDio (0x62, a later firmware's parameter) gets no acknowledge, as any parameter a module does not know. |
+//! | `life-sign-unacknowledged` | The individual life sign (0x07) switches the watchdog as usual but is not acknowledged. |
+
+use std::fmt;
+use std::str::FromStr;
+
+/// One firmware variant of the emulated modules (see the [module documentation](self)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Deserialize)]
+#[serde(try_from = "String")]
+pub enum Variant {
+    /// The Inc twins are kept apart from TargetPos / TargetVel / TargetAcc.
+    NoTwinMirror,
+    /// RS232 broadcasts in libm5api's two-byte form at address 0 are ignored.
+    NoBroadcastPair,
+    /// RS232 acknowledges of 3 bytes declare length 6.
+    AckLength6,
+    /// CAN extended motion acknowledges come on `0x0E0 + address`.
+    ExtAckOnPutId,
+    /// ActFPosStateDio (0x62) is not known: no acknowledge.
+    NoPosStateDio,
+    /// The individual life sign is not acknowledged.
+    LifeSignUnacknowledged,
+}
+
+impl Variant {
+    /// Every variant, in the order of the table above.
+    pub const ALL: [Variant; 6] = [
+        Variant::NoTwinMirror,
+        Variant::NoBroadcastPair,
+        Variant::AckLength6,
+        Variant::ExtAckOnPutId,
+        Variant::NoPosStateDio,
+        Variant::LifeSignUnacknowledged,
+    ];
+
+    /// The name the command line, the TOML configuration and Python take.
+    pub fn name(self) -> &'static str {
+        match self {
+            Variant::NoTwinMirror => "no-twin-mirror",
+            Variant::NoBroadcastPair => "no-broadcast-pair",
+            Variant::AckLength6 => "ack-length-6",
+            Variant::ExtAckOnPutId => "ext-ack-on-put-id",
+            Variant::NoPosStateDio => "no-pos-state-dio",
+            Variant::LifeSignUnacknowledged => "life-sign-unacknowledged",
+        }
+    }
+
+    /// What the modules do differently, in one sentence.
+    pub fn description(self) -> &'static str {
+        match self {
+            Variant::NoTwinMirror => {
+                "TargetPosInc, TargetVelInc and TargetAccInc are values of their own, apart from TargetPos, \
+                 TargetVel and TargetAcc"
+            }
+            Variant::NoBroadcastPair => {
+                "RS232 frames to address 0 with two data bytes (libm5api's broadcasts) are ignored"
+            }
+            Variant::AckLength6 => {
+                "RS232 acknowledges of 3 data bytes declare TELID length 6, as the manual prints them"
+            }
+            Variant::ExtAckOnPutId => "CAN extended motion acknowledges come on 0x0E0 + address",
+            Variant::NoPosStateDio => "ActFPosStateDio (0x62) is not known: it gets no acknowledge",
+            Variant::LifeSignUnacknowledged => "the individual life sign (0x07) is not acknowledged",
+        }
+    }
+
+    /// Parses names separated by commas (`"no-twin-mirror,ack-length-6"`; spaces around a name and empty
+    /// entries are ignored), each once in the result, in the order of [`Variant::ALL`].
+    pub fn list(text: &str) -> Result<Vec<Variant>, UnknownVariant> {
+        let mut v =
+            text.split(',').map(str::trim).filter(|s| !s.is_empty()).map(str::parse).collect::<Result<Vec<_>, _>>()?;
+        v.sort();
+        v.dedup();
+        Ok(v)
+    }
+
+    /// Every name, comma-separated, for messages and help texts.
+    pub fn names() -> String {
+        Variant::ALL.iter().map(|v| v.name()).collect::<Vec<_>>().join(", ")
+    }
+}
+
+impl fmt::Display for Variant {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A variant name that is not one of [`Variant::ALL`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown PowerCube emulator variant {name:?}: the variants are {}", Variant::names())]
+pub struct UnknownVariant {
+    /// The name given.
+    pub name: String,
+}
+
+impl FromStr for Variant {
+    type Err = UnknownVariant;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Variant::ALL.into_iter().find(|v| v.name() == s.trim()).ok_or_else(|| UnknownVariant { name: s.to_string() })
+    }
+}
+
+impl TryFrom<String> for Variant {
+    type Error = UnknownVariant;
+    fn try_from(s: String) -> Result<Self, Self::Error> {
+        s.parse()
+    }
+}
+
+/// The variants one module runs, as flags (what the emulator's code asks).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(crate) struct Firmware {
+    pub no_twin_mirror: bool,
+    pub life_sign_unacknowledged: bool,
+    pub no_pos_state_dio: bool,
+}
+
+impl Firmware {
+    pub fn of(variants: &[Variant]) -> Firmware {
+        Firmware {
+            no_twin_mirror: variants.contains(&Variant::NoTwinMirror),
+            life_sign_unacknowledged: variants.contains(&Variant::LifeSignUnacknowledged),
+            no_pos_state_dio: variants.contains(&Variant::NoPosStateDio),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_parse_and_unknown_ones_are_refused_with_the_list() {
+        for v in Variant::ALL {
+            assert_eq!(v.name().parse::<Variant>(), Ok(v));
+        }
+        assert_eq!(
+            Variant::list(" ack-length-6, no-twin-mirror,,ack-length-6").unwrap(),
+            vec![Variant::NoTwinMirror, Variant::AckLength6]
+        );
+        let e = "no-such".parse::<Variant>().unwrap_err().to_string();
+        assert!(
+            e.contains("\"no-such\"") && e.contains("no-twin-mirror") && e.contains("life-sign-unacknowledged"),
+            "{e}"
+        );
+        assert!(Variant::list("no-twin-mirror,bad").is_err());
+    }
+}

@@ -1,0 +1,118 @@
+//! The core actions through the binary against every firmware variant of `motionlink sim compax --variant
+//! X`: each works (saying what it could not verify) or ends with an error that says what the drive did not
+//! do; a move that exits 0 ended at its target. The variants run side by side, at 115200 baud.
+
+use super::*;
+
+/// What the core actions did against one variant (`""`: none) in reply mode `mode`.
+struct Run {
+    what: String,
+    moved_with_speed: Output,
+    moved_without_speed: Output,
+    stderr: String,
+}
+
+/// Scan, status, set, move with a speed and a relative move without one, watch, output O0 (stop and
+/// switch on), each a session of its own.
+fn core_actions(variant: &'static str, mode: &'static str) -> Run {
+    let mut args = vec!["--tcp", "127.0.0.1:0", "--mode", mode, "--baud", "115200", "--param", "P12=0"];
+    if !variant.is_empty() {
+        args.extend(["--variant", variant]);
+    }
+    let sim = start_sim(&args);
+    let what = format!("{variant:?} P196={mode}");
+    let mut stderr = String::new();
+    let mut go = |extra: &[&str]| {
+        let mut v = vec!["--mode", mode, "--baud", "115200", "--timeout-ms", "50"];
+        v.extend_from_slice(extra);
+        let out = compax(&sim.address, &v);
+        stderr.push_str(&String::from_utf8_lossy(&out.stderr));
+        out
+    };
+    let scan = go(&["--json", "scan"]);
+    assert!(scan.status.success() && stdout(&scan).lines().count() == 1, "{what}: {scan:?}");
+    assert!(go(&["--json", "status", "S1", "S16", "S17"]).status.success(), "{what}");
+    assert!(go(&["set", "P12", "2.5"]).status.success(), "{what}");
+    let moved_with_speed = go(&["--json", "move", "--abs", "20", "--speed", "100"]);
+    let moved_without_speed = go(&["--json", "move", "--rel", "-5"]);
+    let watch = go(&["watch", "--count", "2", "--interval-ms", "10"]);
+    assert!(watch.status.success() && stdout(&watch).lines().count() == 2, "{what}: {watch:?}");
+    assert!(go(&["output", "0", "0"]).status.success(), "{what}");
+    assert!(go(&["output", "0", "1"]).status.success(), "{what}");
+    for out in [&moved_with_speed, &moved_without_speed] {
+        if out.status.success() {
+            let j = json(out);
+            let (target, reached) = (j["target_units"].as_f64().unwrap(), j["reached_units"].as_f64().unwrap());
+            assert!((target - reached).abs() <= 0.01, "{what}: exited 0 at {reached}, not {target}");
+        }
+    }
+    Run { what, moved_with_speed, moved_without_speed, stderr }
+}
+
+fn verified(out: &Output) -> (bool, String) {
+    let j = json(out);
+    let why = j["not_verifiable"].as_array().unwrap_or_else(|| panic!("{j}")).iter();
+    (j["verified"].as_bool().unwrap(), why.map(|r| r.as_str().unwrap().to_string()).collect::<Vec<_>>().join("\n"))
+}
+
+#[test]
+fn every_variant_through_the_binary() {
+    let cases = [
+        ("", "0"),
+        ("echo-without-address", "0"),
+        ("echo-without-address", "64"),
+        ("echo-bare", "8"),
+        ("no-echo", "0"),
+        ("status-value-only,echo-bare", "0"),
+        ("echo-without-store", "0"),
+    ];
+    let runs: Vec<Run> = std::thread::scope(|s| {
+        let handles: Vec<_> = cases.iter().map(|(v, m)| s.spawn(move || core_actions(v, m))).collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    for (r, (variant, mode)) in runs.iter().zip(cases) {
+        let what = &r.what;
+        if variant == "echo-without-store" {
+            // The '!' after the echo finds nothing stored: refused, nothing ran, and the error says why.
+            for out in [&r.moved_with_speed, &r.moved_without_speed] {
+                assert_eq!(out.status.code(), Some(1), "{what}: {out:?}");
+                let err = String::from_utf8_lossy(&out.stderr);
+                assert!(err.contains("may not store a command sent with ',?'"), "{what}: {err}");
+            }
+            continue;
+        }
+        let (a, why_a) = verified(&r.moved_with_speed);
+        let (b, why_b) = verified(&r.moved_without_speed);
+        assert_eq!((a, &why_a), (b, &why_b), "{what}");
+        match (variant, mode) {
+            ("", _) | ("echo-without-address", "64") => {
+                assert!(a && why_a.is_empty(), "{what}: {why_a}");
+                assert!(r.stderr.is_empty(), "{what}: {}", r.stderr);
+            }
+            ("echo-without-address", _) => assert!(!a && why_a.contains("without its address"), "{what}: {why_a}"),
+            ("no-echo", _) => assert!(!a && why_a.contains("does not echo"), "{what}: {why_a}"),
+            _ => assert!(!a && why_a.contains("without the flag characters"), "{what}: {why_a}"),
+        }
+        if !a {
+            // Said once per session (each move is one): one warning line per move.
+            let warnings = r.stderr.lines().filter(|l| l.contains("echoes")).count();
+            assert_eq!(warnings, 2, "{what}: {}", r.stderr);
+        }
+    }
+}
+
+#[test]
+fn variants_are_named_and_checked() {
+    let out = Command::new(BIN).args(["sim", "compax", "--variant", "echo", "--tcp", "127.0.0.1:0"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("echo-without-address") && err.contains("no-echo"), "{err}");
+    // The in-process emulator takes them; a move then says what it could not check.
+    let out = compax("sim", &["--sim-variant", "echo-bare", "--baud", "115200", "move", "--abs", "3"]);
+    assert!(out.status.success(), "{out:?}");
+    let text = stdout(&out);
+    assert!(text.contains("not verified: drive 1 echoes without its address"), "{text}");
+    let sim = start_sim(&["--tcp", "127.0.0.1:0"]);
+    let out = compax(&sim.address, &["--sim-variant", "echo-bare", "status"]);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+}

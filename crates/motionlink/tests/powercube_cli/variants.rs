@@ -1,0 +1,155 @@
+//! The core actions through the binary against every firmware variant of `motionlink sim powercube
+//! --variant X`: each works (saying what it could not verify) or ends with an error that says what the
+//! module did not do; a move that exits 0 ended at its target. The variants run side by side.
+
+use super::*;
+
+/// One line of JSON from `out`'s stdout.
+fn json_of(out: &Output) -> serde_json::Value {
+    let text = String::from_utf8_lossy(&out.stdout);
+    serde_json::from_str(text.lines().last().unwrap_or("")).unwrap_or_else(|e| panic!("{e}: {out:?}"))
+}
+
+/// What the core actions did against one variant.
+struct Run {
+    variant: &'static str,
+    set: Output,
+    home: Output,
+    moved_with_speed: Output,
+    moved_without_speed: Output,
+    /// The stderr of every action, joined.
+    stderr: String,
+}
+
+/// Scan, get, set, home, move with and without a speed, watch, halt, reset (each a session of its own,
+/// closed by the command) against `motionlink sim powercube --variant <variant>` (`""`: none).
+fn core_actions(variant: &'static str) -> Run {
+    let mut args = vec!["--tcp", "127.0.0.1:0"];
+    if !variant.is_empty() {
+        args.extend(["--variant", variant]);
+    }
+    let sim = Sim::start("powercube", &args);
+    let port = sim.address.as_str();
+    let mut stderr = String::new();
+    let mut go = |args: &[&str]| {
+        let out = run(port, args);
+        stderr.push_str(&String::from_utf8_lossy(&out.stderr));
+        out
+    };
+    let scan = go(&["scan", "--json"]);
+    assert!(scan.status.success() && json_of(&scan)["serial"] == 1001, "{variant}: {scan:?}");
+    assert!(go(&["get", "ActPos", "--json"]).status.success(), "{variant}");
+    let set = go(&["set", "TargetVel", "0.8", "--json"]);
+    let home = go(&["home", "--json"]);
+    let moved_with_speed = go(&["move", "0.3", "--vel", "0.7", "--acc", "1.5", "--json"]);
+    let moved_without_speed = go(&["move", "0.2", "--json"]);
+    let watch = go(&["watch", "--count", "2", "--interval-ms", "10"]);
+    assert!(watch.status.success() && String::from_utf8_lossy(&watch.stdout).lines().count() == 2, "{variant}");
+    assert!(go(&["halt"]).status.success(), "{variant}");
+    assert!(go(&["reset"]).status.success(), "{variant}");
+    for (what, out) in [("move", &moved_with_speed), ("move", &moved_without_speed)] {
+        if out.status.success() {
+            let j = json_of(out);
+            let (target, reached) = (j["target_rad"].as_f64().unwrap(), j["reached_rad"].as_f64().unwrap());
+            assert!((target - reached).abs() <= 0.001, "{variant}: {what} exited 0 at {reached}, not {target}");
+        }
+    }
+    Run { variant, set, home, moved_with_speed, moved_without_speed, stderr }
+}
+
+fn verified(out: &Output) -> (bool, String) {
+    let j = json_of(out);
+    let reasons = j["not_verifiable"].as_array().unwrap_or_else(|| panic!("{j}")).iter();
+    (j["verified"].as_bool().unwrap(), reasons.map(|r| r.as_str().unwrap().to_string()).collect::<Vec<_>>().join("\n"))
+}
+
+#[test]
+fn every_variant_through_the_binary() {
+    let variants = [
+        "",
+        "no-twin-mirror",
+        "no-broadcast-pair",
+        "ack-length-6,ext-ack-on-put-id",
+        "no-pos-state-dio",
+        "life-sign-unacknowledged",
+    ];
+    let runs: Vec<Run> = std::thread::scope(|s| {
+        let handles: Vec<_> = variants.iter().map(|v| s.spawn(move || core_actions(v))).collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    for r in &runs {
+        let v = r.variant;
+        match v {
+            "life-sign-unacknowledged" => {
+                assert!(verified(&r.set).0, "{v}");
+                for out in [&r.home, &r.moved_with_speed, &r.moved_without_speed] {
+                    assert_eq!(code(out), 1, "{v}: {out:?}");
+                    let err = String::from_utf8_lossy(&out.stderr);
+                    assert!(err.contains("cannot arm the watchdog of module 1"), "{v}: {err}");
+                }
+                assert!(r.stderr.contains("not acknowledged"), "{v}: {}", r.stderr);
+                continue;
+            }
+            _ => {
+                for out in [&r.set, &r.home, &r.moved_with_speed, &r.moved_without_speed] {
+                    assert!(out.status.success(), "{v}: {out:?}");
+                }
+            }
+        }
+        let (set, set_why) = verified(&r.set);
+        let (with_speed, with_why) = verified(&r.moved_with_speed);
+        let (without_speed, without_why) = verified(&r.moved_without_speed);
+        match v {
+            "no-twin-mirror" => {
+                assert!(!set && set_why.contains("keeps TargetVelInc apart"), "{v}: {set_why}");
+                assert!(!with_speed && with_why.lines().count() == 3, "{v}: {with_why}");
+                assert!(!without_speed && without_why.contains("the motion's target"), "{v}: {without_why}");
+                // Said once per session: the set, the first move (the second finds TargetPos apart, in
+                // another session, and says it once too).
+                let warnings = r.stderr.lines().filter(|l| l.contains("keeps") && l.contains("apart")).count();
+                assert_eq!(warnings, 3, "{v}: {}", r.stderr);
+            }
+            "no-broadcast-pair" => {
+                assert!(set, "{v}");
+                for (ok, why) in [(with_speed, &with_why), (without_speed, &without_why)] {
+                    assert!(!ok && why.contains("ignores the watchdog refresh broadcast on RS232"), "{v}: {why}");
+                }
+                assert!(r.stderr.contains("ignores the watchdog refresh broadcast"), "{v}: {}", r.stderr);
+            }
+            _ => {
+                assert!(set && with_speed && without_speed, "{v}: {set_why} {with_why} {without_why}");
+                if v == "no-pos-state-dio" {
+                    assert!(r.stderr.contains("does not answer ActFPosStateDio"), "{v}: {}", r.stderr);
+                } else {
+                    assert!(r.stderr.is_empty(), "{v}: {}", r.stderr);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn variants_are_named_and_checked() {
+    // Unknown names are refused with the list (exit 2), on `sim` and on `--sim-variant`.
+    let out =
+        Command::new(BIN).args(["sim", "powercube", "--variant", "nope", "--tcp", "127.0.0.1:0"]).output().unwrap();
+    assert_eq!(code(&out), 2, "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("nope") && err.contains("no-twin-mirror") && err.contains("ack-length-6"), "{err}");
+    let out = run("sim", &["--sim-variant", "no-twin-mirro", "get", "ActPos"]);
+    assert_eq!(code(&out), 2, "{out:?}");
+    // The in-process emulator takes them too; a served one is told with `sim --variant`.
+    let out = run("sim", &["--sim-variant", "no-twin-mirror", "set", "TargetVel", "0.8", "--json"]);
+    assert!(out.status.success(), "{out:?}");
+    let (ok, why) = verified(&out);
+    assert!(!ok && why.contains("keeps TargetVelInc apart"), "{why}");
+    let text = run("sim", &["--sim-variant", "no-twin-mirror", "set", "TargetVel", "0.8"]);
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.starts_with("TargetVel set to 0.800000 rad/s (not verified: TargetVel could not be read back"),
+        "{text}"
+    );
+    let sim = Sim::tcp("powercube");
+    let out = run(&sim.address, &["--sim-variant", "no-twin-mirror", "get", "ActPos"]);
+    assert_eq!(code(&out), 2, "{out:?}");
+}
