@@ -16,7 +16,8 @@ use motionlink_scu::value::Value;
 use motionlink_scu::wire::{request_to_vec, Request};
 use motionlink_scu::{Client, ClientConfig, Emulator, SimConfig};
 
-use super::{load_sim_config, DecodeArgs, SimArgs};
+use super::emulated::load_sim_config;
+use super::{DecodeArgs, SimArgs};
 use crate::common::{self, CliError};
 use crate::demo::{DemoOut, DemoTelegram};
 

@@ -26,10 +26,12 @@ use crate::tap::{LinkArgs, Tap};
 
 mod actions;
 mod demo;
+mod emulated;
 mod follow;
 mod send;
 
 pub use demo::{decode, demo, sim};
+pub(crate) use emulated::{in_process_config, InProcess};
 
 /// `motionlink scu` arguments. Every option may come before or after the action.
 #[derive(clap::Args, Debug)]
@@ -75,9 +77,15 @@ pub struct Args {
     /// counts-per-second (units parameterised for "speed select absolute", 0..1000 counts/s).
     #[arg(long, value_enum, default_value_t = SpeedModeArg::Percent, value_name = "MODE", global = true)]
     pub speed_mode: SpeedModeArg,
-    /// Emulator configuration (TOML) when the port is sim.
+    /// Emulator configuration (TOML) when the port is sim: the unit as it stands (--functions is then only
+    /// what the command believes of it).
     #[arg(long, value_name = "FILE", global = true)]
     pub sim_config: Option<PathBuf>,
+    /// The preset the emulator starts from when the port is sim: scp11, tlt or liftkit (as `motionlink sim
+    /// scu --preset`). Default: the preset --functions names, else scp11; the Fn=... of --functions apply
+    /// on top.
+    #[arg(long, value_name = "NAME", global = true, value_parser = SimConfig::PRESETS)]
+    pub sim_preset: Option<String>,
     /// `--json` (the global option, set by `main`).
     #[arg(skip)]
     pub json: bool,
@@ -231,20 +239,6 @@ fn parse_baud(s: &str) -> Result<u32, String> {
     }
 }
 
-fn load_sim_config(path: Option<&PathBuf>, preset: Option<&str>) -> Result<SimConfig, CliError> {
-    let mut config = preset.and_then(SimConfig::preset).unwrap_or_default();
-    if let Some(path) = path {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| CliError::usage(format!("cannot read {}: {e}", path.display())))?;
-        let text = match preset {
-            Some(p) if !text.contains("preset") => format!("preset = \"{p}\"\n{text}"),
-            _ => text,
-        };
-        config = SimConfig::from_toml(&text).map_err(|e| CliError::usage(format!("{}: {e}", path.display())))?;
-    }
-    Ok(config)
-}
-
 /// The session's settings from the command line, checked before anything is sent.
 fn client_config(args: &Args) -> Result<ClientConfig, CliError> {
     let safety_id = SafetyId::from_code(args.safety)
@@ -310,11 +304,13 @@ fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: Clie
     let clock = Arc::clone(clock);
     let connector: Connector = match &port {
         PortUrl::Sim => {
-            let mut sim_config = load_sim_config(args.sim_config.as_ref(), None)?;
-            if args.sim_config.is_none() {
-                // The emulated unit is parameterised the way the command was told the unit is.
-                sim_config.speed_mode = args.speed_mode.into();
-            }
+            // The emulated unit is the one the command names: its functions, its speed mode.
+            let sim_config = in_process_config(&InProcess {
+                functions: &args.functions,
+                preset: args.sim_preset.as_deref(),
+                file: args.sim_config.as_ref(),
+                speed_mode: args.speed_mode.into(),
+            })?;
             let sim = Emulator::new(sim_config).map_err(|e| CliError::usage(e.to_string()))?;
             let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(args.baud));
             let (tap, clock) = (tap.clone(), Arc::clone(&clock));
@@ -322,8 +318,8 @@ fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: Clie
         }
         p if p.is_can() => return Err(CliError::usage(format!("{p}: the SCU speaks RS232, not CAN"))),
         p => {
-            if args.sim_config.is_some() {
-                return Err(CliError::usage("--sim-config is only for --port sim"));
+            if args.sim_config.is_some() || args.sim_preset.is_some() {
+                return Err(CliError::usage("--sim-config and --sim-preset are only for --port sim"));
             }
             let p = p.clone();
             let settings = SerialSettings::new(args.baud);
