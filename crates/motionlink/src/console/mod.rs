@@ -47,6 +47,16 @@ pub enum Family {
     Compax(compax::Args),
 }
 
+/// `--device NAME`: a device of the configuration file, whose port and options the console takes.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct DeviceArg {
+    /// A device named in the configuration file (devices.toml in the platform's configuration directory, or
+    /// the file MOTIONLINK_CONFIG names), instead of --port: its port, and its options where the command line
+    /// gives none. Without either, MOTIONLINK_PORT is the port.
+    #[arg(long, value_name = "NAME")]
+    pub device: Option<String>,
+}
+
 /// Where the console serves.
 #[derive(clap::Args, Debug, Clone)]
 pub struct ServeArgs {
@@ -113,15 +123,20 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let result = runtime.block_on(async move {
         let clock = RealClock::shared();
         let (device, traffic) = match &args.family {
-            Family::Scu(a) => scu::open(a, &clock).await?,
-            Family::Powercube(a) => powercube::open(a, &clock).await?,
-            Family::Compax(a) => compax::open(a, &clock).await?,
+            Family::Scu(a) => scu::open(a, &port_of("scu", &a.port, &a.device)?, &clock).await?,
+            Family::Powercube(a) => powercube::open(a, &port_of("powercube", &a.port, &a.device)?, &clock).await?,
+            Family::Compax(a) => compax::open(a, &port_of("compax", &a.port, &a.device)?, &clock).await?,
         };
         serve_until_interrupted(device, traffic, addr, &interrupt, &clock, args.json).await
     });
     // What is left on the blocking pool (a close that outlived the console) gets a bounded wait.
     runtime.shutdown_timeout(std::time::Duration::from_secs(6));
     result
+}
+
+/// The console's port: `--port`, else the one of `--device`, else MOTIONLINK_PORT.
+fn port_of(family: &str, port: &Option<String>, device: &DeviceArg) -> Result<String, CliError> {
+    crate::devices::resolve(family, port.as_deref(), device.device.as_deref())
 }
 
 /// Waits on a thread for the interrupt token, then completes.

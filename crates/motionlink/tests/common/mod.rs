@@ -217,7 +217,23 @@ impl Running {
 
     /// Starts `motionlink <args>`.
     pub fn start(args: &[&str]) -> Running {
-        let mut child = Self::spawn(args, Stdio::null());
+        Self::start_with_env(args, &[])
+    }
+
+    /// Starts `motionlink <args>` with `env` set (and MOTIONLINK_PORT / MOTIONLINK_CONFIG removed unless
+    /// `env` sets them, when `env` is not empty).
+    pub fn start_with_env(args: &[&str], env: &[(&str, &str)]) -> Running {
+        let mut cmd = Command::new(BIN);
+        if !env.is_empty() {
+            cmd.env_remove("MOTIONLINK_PORT").env_remove("MOTIONLINK_CONFIG").envs(env.iter().copied());
+        }
+        let mut child = cmd
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start motionlink");
         let stdout = Lines::follow(child.stdout.take().expect("piped stdout"));
         let stderr = Lines::follow(child.stderr.take().expect("piped stderr"));
         Running { child, stdout, stderr }
