@@ -41,6 +41,16 @@ impl LinkArgs {
 /// The port (as the user gave it) whose first connection a busy `motionlink sim` server refused, if one did.
 static REFUSED_AS_BUSY: OnceLock<String> = OnceLock::new();
 
+/// Told when [`REFUSED_AS_BUSY`] is set (for the console, which serves on while its scans fail).
+static REFUSED_NOTICE: tokio::sync::Notify = tokio::sync::Notify::const_new();
+
+/// Completes once a busy server has refused the command's first connection.
+pub async fn refused_as_busy_notice() {
+    if REFUSED_AS_BUSY.get().is_none() {
+        REFUSED_NOTICE.notified().await;
+    }
+}
+
 /// Watches the links of one port for a busy server's refusal ([`LinkError::Busy`]) on the command's first
 /// connection: nothing can have been started then, and the command's error is told as the one plain line
 /// [`refused_as_busy`] makes of it. (A refusal of a reconnection keeps the family's own message, which says
@@ -74,7 +84,9 @@ struct BusyLink {
 impl BusyLink {
     fn seen<T>(&self, result: Result<T, LinkError>) -> Result<T, LinkError> {
         if let (Err(LinkError::Busy { .. }), Some(port)) = (&result, &self.port) {
-            let _ = REFUSED_AS_BUSY.set(port.to_string());
+            if REFUSED_AS_BUSY.set(port.to_string()).is_ok() {
+                REFUSED_NOTICE.notify_one();
+            }
         }
         result
     }

@@ -196,7 +196,12 @@ async fn serve_until_interrupted(
             })
             .await
     });
-    let _ = ended.await;
+    // Until interrupted; or until a busy `motionlink sim` refuses the first connection (the scans would fail
+    // for ever): nothing was started, and the console ends with that one line (exit code 3).
+    let refused = tokio::select! {
+        _ = ended => false,
+        _ = crate::tap::refused_as_busy_notice() => true,
+    };
     // The motion under way stops first (its future dropped, the stop confirmed), then the session's.
     let stopped = hub.shutdown().await;
     match &stopped {
@@ -211,9 +216,14 @@ async fn serve_until_interrupted(
     match closed {
         Ok(msg) if !msg.is_empty() => common::say(format!("motionlink console: {msg}")),
         Ok(_) => {}
-        Err(e) => {
+        Err(e) if !refused => {
             return Err(CliError::transport(format!("closing the session: {e}")));
         }
+        Err(_) => {}
+    }
+    if refused {
+        // Made the one busy line by `main` (tap::refused_as_busy).
+        return Err(CliError::transport("the port is busy"));
     }
     Ok(())
 }

@@ -75,3 +75,30 @@ fn the_console_of_three_modules_shows_and_moves_each() {
     assert!((at(2) - 0.4).abs() < 0.01, "{s}");
     assert!((at(1) - 0.4).abs() > 0.1 && (at(3) - 0.4).abs() > 0.1, "the others stay: {s}");
 }
+
+#[test]
+fn a_console_refused_by_a_busy_emulator_ends_with_one_line_and_exit_code_3() {
+    use std::io::{Read, Write};
+    // Each family with a request its emulator answers: the first client is served.
+    let cases: [(&str, &[u8]); 3] = [
+        ("scu", &[0x52, 0x4F, 0x00, 0x5C, 0x2D]),
+        ("powercube", &[0x02, 0x04, 0x22, 0x0A, 0x1D, 0x4D, 0x03]),
+        ("compax", b"1S1\r"),
+    ];
+    for (family, hello) in cases {
+        let sim = crate::common::Sim::tcp(family);
+        let mut first = std::net::TcpStream::connect(sim.address.strip_prefix("tcp://").unwrap()).unwrap();
+        first.write_all(hello).unwrap();
+        first.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+        first.read_exact(&mut [0u8; 1]).expect("the first client is served");
+        // The console ends (a PowerCube or COMPAX console after printing its address: its scan is refused).
+        let ended =
+            crate::common::Running::start(&["console", family, "--port", &sim.address]).wait(Duration::from_secs(30));
+        assert_eq!(ended.code(), 3, "{family}: {ended:?}");
+        assert_eq!(
+            ended.stderr,
+            format!("motionlink: {} is busy: another client is connected", sim.address),
+            "{family}: one line"
+        );
+    }
+}
