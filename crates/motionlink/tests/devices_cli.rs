@@ -25,7 +25,8 @@ family = "compax"
 port = "sim"
 drive = 4
 short = true
-max_pos = 500              # the console's option
+max_pos = 500              # `move --max-pos` and the console's
+timeout_s = 30             # `move --timeout-s`, which `--no-wait` excludes
 
 [device.typo]
 family = "scu"
@@ -36,6 +37,11 @@ functoins = "tlt"
 family = "scu"
 port = "sim"
 listen = "0.0.0.0:0"
+
+[device.target]
+family = "compax"
+port = "sim"
+abs = 100
 
 [device.steep]
 family = "scu"
@@ -88,6 +94,15 @@ fn a_devices_options_apply_and_the_command_line_wins() {
     assert!(o.status.success(), "{o:?}");
     let trace = String::from_utf8_lossy(&o.stderr);
     assert!(trace.contains("\"4PA 5"), "the short POSA to drive 4: {trace}");
+    // An action's option: max_pos refuses a move beyond it before anything moves (and --max-pos wins).
+    let o = with_devices(&["compax", "--device", "axis", "move", "--abs", "600"]);
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("500"), "{o:?}");
+    let o = with_devices(&["compax", "--device", "axis", "move", "--abs", "600", "--max-pos", "700"]);
+    assert!(o.status.success(), "{o:?}");
+    // timeout_s is left out where --no-wait excludes it.
+    let o = with_devices(&["compax", "--device", "axis", "move", "--abs", "5", "--no-wait"]);
+    assert!(o.status.success(), "{o:?}");
     // --port wins over the device's port.
     let o = with_devices(&["scu", "--device", "lift", "--port", "tcp://127.0.0.1:1", "info"]);
     assert_eq!(o.status.code(), Some(3), "{o:?}");
@@ -98,10 +113,13 @@ fn a_wrong_key_or_value_is_named_with_the_file_and_the_device() {
     let e = usage_error(&with_devices(&["scu", "--device", "typo", "info"]));
     assert!(e.contains("[device.typo]: unknown key `functoins` (did you mean `functions`?)"), "{e}");
     assert!(e.contains("the scu options are: ") && e.contains("speed_mode") && e.contains("tolerance"), "{e}");
+    assert!(e.contains(" speed,") && e.contains("sim_preset"), "actions' and the console's options: {e}");
     assert!(e.contains("devices-"), "the file is named: {e}");
-    // The console's serving address is not a device's.
+    // The console's serving address is not a device's, nor a move's target.
     let e = usage_error(&with_devices(&["scu", "--device", "listen", "info"]));
     assert!(e.contains("unknown key `listen` (give it on the command line)"), "{e}");
+    let e = usage_error(&with_devices(&["compax", "--device", "target", "status"]));
+    assert!(e.contains("unknown key `abs` (give it on the command line)"), "{e}");
     // A value the option refuses: refused as the file's, with clap's reason.
     let e = usage_error(&with_devices(&["scu", "--device", "steep", "info"]));
     assert!(e.contains("[device.steep]:") && e.contains("--tolerance") && e.contains("0..=100"), "{e}");
