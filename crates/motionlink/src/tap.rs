@@ -22,7 +22,8 @@ use crate::common::CliError;
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct LinkArgs {
     /// A device named in the configuration file (devices.toml in the platform's configuration directory, or
-    /// the file MOTIONLINK_CONFIG names), instead of --port. Without either, MOTIONLINK_PORT is the port.
+    /// the file MOTIONLINK_CONFIG names), instead of --port: its port, and its options where the command line
+    /// gives none. Without either, MOTIONLINK_PORT is the port.
     #[arg(long, value_name = "NAME", global = true)]
     pub device: Option<String>,
     /// Write every telegram of the session to FILE, time-stamped: the capture format of the README for
