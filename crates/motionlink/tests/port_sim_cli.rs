@@ -106,3 +106,14 @@ fn a_second_client_is_told_the_port_is_busy_in_one_line_with_exit_code_3() {
         assert_eq!(e["message"], format!("{port} is busy: another client is connected"), "{family}");
     }
 }
+
+#[test]
+fn an_slcan_adapter_behind_a_busy_emulator_is_told_busy_too() {
+    let sim = Sim::start("powercube", &["--slcan", "--tcp", "127.0.0.1:0"]);
+    let _first = first_client(&sim, b"V\r");
+    let o = run(&["powercube", "--port", &format!("slcan://{}", sim.address), "info"]);
+    assert_eq!(o.status.code(), Some(3), "{o:?}");
+    // The TCP port behind the adapter is what is busy.
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(said, format!("motionlink: {} is busy: another client is connected\n", sim.address), "{o:?}");
+}
