@@ -192,3 +192,70 @@ def test_each_family_shows_its_units_live(browser, family, label, unit):
               "samples at 20 Hz or more")
     finally:
         console.stop()
+
+
+def _unit_name(browser):
+    from selenium.webdriver.common.by import By
+    return browser.find_element(By.ID, "control-unit").text
+
+
+@pytest.mark.parametrize("family,args,first", [("scu", (), "actuator A1"),
+                                                ("powercube", ("--modules", "1,2,3"), "module 1"),
+                                                ("compax", (), "drive 1")])
+def test_at_1280_px_no_column_is_cut_and_the_move_panel_names_its_unit(browser, family, args, first):
+    from selenium.webdriver.common.by import By
+    browser.set_window_size(1280, 800)
+    console = Console(family, "--port", "sim", *args)
+    try:
+        _open(browser, console)
+        assert browser.execute_script("return window.innerWidth") == 1280
+        _wait(browser, lambda b: len(b.find_elements(By.CSS_SELECTOR, "#params tbody button")) >= 3, 10,
+              "the parameter table")
+        # Every button of the parameter table lies wholly inside the page's width and inside its section, and
+        # no table of the page is wider than its section (nothing hidden behind a scroll bar).
+        cut = browser.execute_script("""
+            const page = document.documentElement.clientWidth;
+            const out = [];
+            for (const b of document.querySelectorAll('#params button')) {
+              const r = b.getBoundingClientRect(), s = b.closest('section').getBoundingClientRect();
+              if (r.width <= 0 || r.left < Math.max(0, s.left) || r.right > Math.min(page, s.right))
+                out.push(`${b.getAttribute('aria-label') || b.textContent}: ${r.left}..${r.right} in ${s.left}..${s.right}`);
+            }
+            for (const t of document.querySelectorAll('main table')) {
+              const s = t.closest('section');
+              if (s.scrollWidth > s.clientWidth) out.push(`#${t.id}: ${s.scrollWidth} px in ${s.clientWidth} px`);
+            }
+            return out;
+        """)
+        assert cut == [], cut
+        # The Move panel (and the parameters and the error history) name the unit they act on.
+        assert _unit_name(browser) == first
+        assert browser.find_element(By.ID, "params-unit").text == first
+        assert first in browser.find_element(By.ID, "move").text
+    finally:
+        console.stop()
+
+
+def test_each_of_three_modules_is_selected_named_and_moved_alone(browser):
+    from selenium.webdriver.common.by import By
+    console = Console("powercube", "--port", "sim", "--modules", "1,2,3")
+    try:
+        _open(browser, console)
+        rows = browser.find_elements(By.CSS_SELECTOR, "#units tbody tr")
+        assert [r.get_attribute("id") for r in rows] == ["unit-1", "unit-2", "unit-3"]
+        _wait(browser, lambda b: all(b.find_element(By.CSS_SELECTOR, f"#unit-{n} .position").text not in ("", "—")
+                                     for n in (1, 2, 3)), 10, "the three positions")
+        browser.find_element(By.ID, "pick-2").click()
+        _wait(browser, lambda b: _unit_name(b) == "module 2", 5, "the Move panel names module 2")
+        browser.find_element(By.ID, "target").send_keys("0.6")
+        browser.find_element(By.ID, "move-speed").send_keys("1")
+        browser.find_element(By.ID, "move").click()
+        _wait(browser, lambda b: "module 2" in b.find_element(By.ID, "motion").text
+              and "running" not in b.find_element(By.ID, "motion").text, 20, "the move of module 2 ends")
+
+        def position(n):
+            return float(browser.find_element(By.CSS_SELECTOR, f"#unit-{n} .position").text.split()[0])
+        _wait(browser, lambda b: abs(position(2) - 0.6) < 0.01, 5, "module 2 is at its target")
+        assert abs(position(1) - 0.6) > 0.1 and abs(position(3) - 0.6) > 0.1, "the others stay where they were"
+    finally:
+        console.stop()

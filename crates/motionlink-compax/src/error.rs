@@ -362,6 +362,7 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 pub(crate) fn copy_link_error(e: &LinkError) -> LinkError {
     match e {
         LinkError::Open { port, reason } => LinkError::Open { port: port.clone(), reason: reason.clone() },
+        LinkError::Busy { port } => LinkError::Busy { port: port.clone() },
         LinkError::Disconnected { port, reason } => {
             LinkError::Disconnected { port: port.clone(), reason: reason.clone() }
         }

@@ -76,8 +76,43 @@ impl std::fmt::Debug for ServeOptions {
     }
 }
 
-/// The line a TCP server writes to a second client before it closes that connection.
+/// The line a TCP server writes to a second client before it closes that connection. It starts with
+/// [`BUSY_PREFIX`], by which a client ([`crate::tcp::TcpLink`]) knows the refusal.
 pub const BUSY_MESSAGE: &str = "motionlink sim: busy: another client is connected; this connection is closed\n";
+
+/// The first bytes of [`BUSY_MESSAGE`]: a connection whose first bytes are these was refused by a busy
+/// server ([`crate::LinkError::Busy`]). No device of the families sends them.
+pub const BUSY_PREFIX: &str = "motionlink sim: busy:";
+
+const _: () = assert!(BUSY_MESSAGE.len() > BUSY_PREFIX.len());
+
+/// How long a refused connection is read (and what it sent dropped) after the refusal, waiting for the
+/// client to close it: a socket closed with unread input is reset, and a reset may reach the client before
+/// it has read the refusal.
+const REFUSAL_DRAIN: Duration = Duration::from_secs(2);
+
+/// Refuses `stream`: [`BUSY_MESSAGE`], the end of the server's side, then what the client sends is read and
+/// dropped (on a thread of its own, for at most [`REFUSAL_DRAIN`]) until it closes its side.
+fn refuse(mut stream: TcpStream) {
+    let _ = stream.write_all(BUSY_MESSAGE.as_bytes());
+    let _ = stream.shutdown(std::net::Shutdown::Write);
+    let drained = thread::Builder::new().name("emulator-refuse".into()).spawn(move || {
+        let deadline = std::time::Instant::now() + REFUSAL_DRAIN;
+        let mut buf = [0u8; 256];
+        while let Some(left) = deadline.checked_duration_since(std::time::Instant::now()) {
+            if stream.set_read_timeout(Some(left.max(Duration::from_millis(1)))).is_err() {
+                return;
+            }
+            match stream.read(&mut buf) {
+                Ok(0) | Err(_) => return,
+                Ok(_) => {}
+            }
+        }
+    });
+    if let Err(e) = drained {
+        tracing::warn!("cannot start the thread that ends a refused connection: {e}");
+    }
+}
 
 /// How often a serve loop looks at the device when nothing arrives and the device has no timer due: it
 /// bounds how late a motion model's end is seen, and how long a stopping server takes to notice.
@@ -288,11 +323,10 @@ pub fn serve_tcp_with<E: Emulator + 'static>(
             return;
         }
         match accepted {
-            Ok((mut stream, peer)) => {
+            Ok((stream, peer)) => {
                 if accept_busy.swap(true, Ordering::SeqCst) && !previous_client_gone(&accept_busy) {
                     tracing::info!("refused {peer}: another client is connected");
-                    let _ = stream.write_all(BUSY_MESSAGE.as_bytes());
-                    let _ = stream.shutdown(std::net::Shutdown::Both);
+                    refuse(stream);
                     continue;
                 }
                 if tx.send((stream, peer)).is_err() {

@@ -95,7 +95,9 @@ impl Classify for LinkError {
     fn class(&self) -> ErrorClass {
         match self {
             LinkError::Disconnected { .. } => ErrorClass::Transport(TransportKind::Disconnected),
-            LinkError::Open { .. } | LinkError::Io { .. } => ErrorClass::Transport(TransportKind::Io),
+            LinkError::Open { .. } | LinkError::Busy { .. } | LinkError::Io { .. } => {
+                ErrorClass::Transport(TransportKind::Io)
+            }
             LinkError::InvalidPort { .. } => ErrorClass::Usage,
         }
     }

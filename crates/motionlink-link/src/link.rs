@@ -22,6 +22,13 @@ pub enum LinkError {
         /// What happened.
         reason: String,
     },
+    /// The port is served to another client: a `motionlink sim` server (or a gateway speaking its refusal,
+    /// [`crate::emulator::BUSY_PREFIX`]) refused this connection because another client is connected.
+    #[error("{port} is busy: another client is connected")]
+    Busy {
+        /// The port as the user named it.
+        port: String,
+    },
     /// Another I/O failure on an open port.
     #[error("{port}: {source}")]
     Io {
@@ -57,9 +64,9 @@ impl LinkError {
         }
     }
 
-    /// True when the link is gone and must be reopened.
+    /// True when the link is gone and must be reopened (a busy server closed it too).
     pub fn is_disconnect(&self) -> bool {
-        matches!(self, LinkError::Disconnected { .. })
+        matches!(self, LinkError::Disconnected { .. } | LinkError::Busy { .. })
     }
 }
 

@@ -5,7 +5,8 @@ use std::time::Duration;
 
 use motionlink_link::clock::{RealClock, Timestamp};
 use motionlink_link::emulator::{serve_tcp, Emulator};
-use motionlink_link::link::{Link, SerialSettings};
+use motionlink_link::error::Classify;
+use motionlink_link::link::{Link, LinkError, SerialSettings};
 use motionlink_link::url::PortUrl;
 
 /// Answers every line with the line upper-cased.
@@ -75,12 +76,20 @@ fn a_second_tcp_client_is_refused_with_a_line_and_the_next_one_is_served() {
     first.send(b"one\n").unwrap();
     assert_eq!(read_line(&mut first), b"ONE\n");
 
-    // A second client while the first is connected: one line, then the connection is closed.
+    // A second client while the first is connected: the link knows the server's refusal (one line, then
+    // the connection is closed), even with a request sent before it came.
     let mut second = url.open_byte_link(SerialSettings::new(38_400)).unwrap();
-    assert_eq!(read_line(&mut second), motionlink_link::emulator::BUSY_MESSAGE.as_bytes());
+    second.send(b"two\n").unwrap();
     let mut buf = [0u8; 8];
-    let end = second.recv(&mut buf, Duration::from_secs(2));
-    assert!(matches!(end, Err(ref e) if e.is_disconnect()), "{end:?}");
+    let refused = second.recv(&mut buf, Duration::from_secs(2));
+    match refused {
+        Err(ref e @ LinkError::Busy { ref port }) => {
+            assert_eq!(port, server.address());
+            assert_eq!(e.to_string(), format!("{} is busy: another client is connected", server.address()));
+            assert!(e.is_disconnect() && e.class().exit_code() == 3, "{e}");
+        }
+        other => panic!("the refusal was not known: {other:?}"),
+    }
 
     // The first is still served; once it closes, a new client is.
     first.send(b"still\n").unwrap();
@@ -107,10 +116,18 @@ fn a_line_half_sent_on_a_closed_connection_is_not_completed_by_the_next() {
     let mut next = loop {
         let mut link = url.open_byte_link(SerialSettings::new(38_400)).unwrap();
         link.send(b"new\n").unwrap();
-        let line = read_line(&mut link);
-        if line != motionlink_link::emulator::BUSY_MESSAGE.as_bytes() {
-            assert_eq!(line, b"NEW\n", "the half line of the closed connection was carried over");
-            break link;
+        let mut buf = [0u8; 8];
+        match link.recv(&mut buf, Duration::from_secs(2)) {
+            Err(LinkError::Busy { .. }) => continue,
+            Ok(n) => {
+                let mut line = buf[..n].to_vec();
+                if !line.ends_with(b"\n") {
+                    line.extend(read_line(&mut link));
+                }
+                assert_eq!(line, b"NEW\n", "the half line of the closed connection was carried over");
+                break link;
+            }
+            Err(e) => panic!("{e}"),
         }
     };
     next.send(b"x\n").unwrap();

@@ -253,6 +253,15 @@ fn with_negative_numbers(args: Vec<std::ffi::OsString>) -> Vec<std::ffi::OsStrin
 /// Parses the command line; with `--json` anywhere in it, a usage error is the JSON error object.
 fn parse() -> Cli {
     let args = with_negative_numbers(std::env::args_os().collect());
+    // The options of the device `--device` names, where the command line does not give them.
+    let args = devices::with_device_options(args, &Cli::command()).unwrap_or_else(|e| {
+        if std::env::args_os().any(|a| a == "--json") {
+            term::write_stderr(&format!("{}\n", e.to_json()));
+        } else {
+            term::write_stderr(&format!("motionlink: {e}\n"));
+        }
+        std::process::exit(i32::from(e.exit_code()));
+    });
     let command = Cli::command().color(clap_color(&args));
     let parsed = command.try_get_matches_from(&args).and_then(|m| <Cli as clap::FromArgMatches>::from_arg_matches(&m));
     match parsed {
@@ -271,7 +280,8 @@ fn main() -> ExitCode {
     let cli = parse();
     term::init(cli.verbose, cli.quiet, cli.color, cli.json);
     let json = cli.json;
-    let result = run(cli);
+    // A busy `motionlink sim` that refused the first connection: one plain line, whatever the family.
+    let result = run(cli).map_err(tap::refused_as_busy);
     let (code, error) = match (result, common::stop_cause()) {
         (Ok(()), Some(common::StopCause::Signal(n))) => {
             // The action ended (a read, or a stop it completed) but a signal asked the command to end.

@@ -55,7 +55,9 @@ fn extra_sections(roff: &mut Roff, port: bool) {
                 "The named devices of --device (~/.config/motionlink/devices.toml without XDG_CONFIG_HOME; \
                      ~/Library/Application Support/motionlink/devices.toml on macOS, \
                      %APPDATA%\\motionlink\\devices.toml on Windows), or the file MOTIONLINK_CONFIG names. Each \
-                     [device.NAME] table gives family (scu, powercube or compax) and port.",
+                     [device.NAME] table gives family (scu, powercube or compax) and port, and any option of the \
+                     family's commands and console by its name without the dashes (functions = \"tlt\", module = 3, \
+                     max_pos = 500); an option on the command line wins.",
             )],
         );
     }

@@ -237,8 +237,10 @@ fn open(
             Client::rs232(tap.link(link, &clock), clock, settings(BusConfig::rs232()))
         }
         PortUrl::Sim => {
-            let config = SimConfig { variants: args.sim_variants.clone(), ..SimConfig::default() };
-            let host = EmulatorHost::new(Emulator::new(&config), Arc::clone(&clock), PipeConfig::instant());
+            // The emulated bus has the module the command names, in the firmware variants asked for.
+            let mut bus = SimConfig::with_addresses(&[args.module.get()]).map_err(CliError::usage)?;
+            bus.variants = args.sim_variants.clone();
+            let host = EmulatorHost::new(Emulator::new(&bus), Arc::clone(&clock), PipeConfig::instant());
             let link = tap.link(Box::new(host.connect().0), &clock);
             let client = Client::rs232(link, clock, settings(BusConfig::rs232())).map_err(failed)?;
             return Ok((client, Some(host)));

@@ -3,13 +3,16 @@
 //! `--capture`'s file ([`CaptureWriter`]), both fed by a tap on the link ([`TapLink`], [`TapCanLink`]).
 
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use motionlink_link::can::CanLink;
 use motionlink_link::capture::{CaptureWriter, Fanout, TapCanLink, TapLink, TapSink, Tapped};
 use motionlink_link::clock::lock;
 use motionlink_link::describe::{Annotation, Describe, DescribingTap, Direction, OnTelegrams};
+use motionlink_link::error::TransportKind;
 use motionlink_link::link::Link;
+use motionlink_link::LinkError;
 use motionlink_link::{SharedClock, Timestamp};
 
 use crate::common::CliError;
@@ -19,7 +22,8 @@ use crate::common::CliError;
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct LinkArgs {
     /// A device named in the configuration file (devices.toml in the platform's configuration directory, or
-    /// the file MOTIONLINK_CONFIG names), instead of --port. Without either, MOTIONLINK_PORT is the port.
+    /// the file MOTIONLINK_CONFIG names), instead of --port: its port, and its options where the command line
+    /// gives none. Without either, MOTIONLINK_PORT is the port.
     #[arg(long, value_name = "NAME", global = true)]
     pub device: Option<String>,
     /// Write every telegram of the session to FILE, time-stamped: the capture format of the README for
@@ -32,6 +36,89 @@ impl LinkArgs {
     /// The port of a `family` command: `--port`, else `--device`, else `MOTIONLINK_PORT`.
     pub fn resolve_port(&self, family: &str, port: Option<&str>) -> Result<String, CliError> {
         crate::devices::resolve(family, port, self.device.as_deref())
+    }
+}
+
+/// The port (as the user gave it) whose first connection a busy `motionlink sim` server refused, if one did.
+static REFUSED_AS_BUSY: OnceLock<String> = OnceLock::new();
+
+/// Told when [`REFUSED_AS_BUSY`] is set (for the console, which serves on while its scans fail).
+static REFUSED_NOTICE: tokio::sync::Notify = tokio::sync::Notify::const_new();
+
+/// Completes once a busy server has refused the command's first connection.
+pub async fn refused_as_busy_notice() {
+    if REFUSED_AS_BUSY.get().is_none() {
+        REFUSED_NOTICE.notified().await;
+    }
+}
+
+/// Watches the links of one port for a busy server's refusal ([`LinkError::Busy`]) on the command's first
+/// connection: nothing can have been started then, and the command's error is told as the one plain line
+/// [`refused_as_busy`] makes of it. (A refusal of a reconnection keeps the family's own message, which says
+/// what became of what was started.)
+#[derive(Clone)]
+pub struct BusyWatch {
+    port: Arc<str>,
+    opened: Arc<AtomicUsize>,
+}
+
+impl BusyWatch {
+    /// A watch of `port`, as the user gave it.
+    pub fn new(port: &str) -> Self {
+        BusyWatch { port: port.into(), opened: Arc::new(AtomicUsize::new(0)) }
+    }
+
+    /// `link`, watched.
+    pub fn link(&self, link: Box<dyn Link>) -> Box<dyn Link> {
+        let first = self.opened.fetch_add(1, Ordering::SeqCst) == 0;
+        Box::new(BusyLink { inner: link, port: first.then(|| Arc::clone(&self.port)) })
+    }
+}
+
+/// A link whose refusal by a busy server is recorded when it is the command's first connection.
+struct BusyLink {
+    inner: Box<dyn Link>,
+    /// The port, on the first connection only.
+    port: Option<Arc<str>>,
+}
+
+impl BusyLink {
+    fn seen<T>(&self, result: Result<T, LinkError>) -> Result<T, LinkError> {
+        if let (Err(LinkError::Busy { .. }), Some(port)) = (&result, &self.port) {
+            if REFUSED_AS_BUSY.set(port.to_string()).is_ok() {
+                REFUSED_NOTICE.notify_one();
+            }
+        }
+        result
+    }
+}
+
+impl Link for BusyLink {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        let r = self.inner.send(bytes);
+        self.seen(r)
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: std::time::Duration) -> Result<usize, LinkError> {
+        let r = self.inner.recv(buf, timeout);
+        self.seen(r)
+    }
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        let r = self.inner.discard_input();
+        self.seen(r)
+    }
+    fn describe(&self) -> String {
+        self.inner.describe()
+    }
+}
+
+/// The command's transport error `e` as the one plain line `<port> is busy: another client is connected`
+/// (exit code 3) when a busy server refused the command's first connection; any other error as it is.
+pub fn refused_as_busy(e: CliError) -> CliError {
+    match REFUSED_AS_BUSY.get() {
+        Some(port) if e.class().is_transport() => {
+            CliError::Transport(TransportKind::Io, LinkError::Busy { port: port.clone() }.to_string())
+        }
+        _ => e,
     }
 }
 
@@ -77,6 +164,7 @@ impl TapSink for Telegrams {
 /// `send`, the telegrams kept to be printed. Without any of them the link is used as it is.
 #[derive(Clone, Default)]
 pub struct Tap {
+    busy: Option<BusyWatch>,
     sink: Option<Arc<dyn TapSink>>,
     telegrams: Option<Arc<Telegrams>>,
     capture: Option<Arc<CaptureWriter>>,
@@ -118,11 +206,15 @@ impl Tap {
             1 => sinks.pop(),
             _ => Some(Arc::new(Fanout(sinks))),
         };
-        Ok(Tap { sink, telegrams, capture })
+        Ok(Tap { busy: Some(BusyWatch::new(port)), sink, telegrams, capture })
     }
 
-    /// `link`, tapped if anything watches it.
+    /// `link`, watched for a busy server's refusal ([`BusyWatch`]) and tapped if anything watches it.
     pub fn link(&self, link: Box<dyn Link>, clock: &SharedClock) -> Box<dyn Link> {
+        let link = match &self.busy {
+            Some(busy) => busy.link(link),
+            None => link,
+        };
         match &self.sink {
             Some(sink) => Box::new(TapLink::new(link, Arc::clone(clock), Arc::clone(sink))),
             None => link,

@@ -5,7 +5,9 @@ mod common;
 
 mod compax_cli;
 mod console;
+mod devices_cli;
 mod general_cli;
+mod port_sim_cli;
 mod powercube_cli;
 mod scu_cli;
 mod shared_cli;

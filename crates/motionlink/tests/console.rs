@@ -16,6 +16,7 @@ use crate::common;
 use common::{unix_now, Running, Sim};
 
 mod families;
+mod ports;
 
 /// A running console and the address it printed.
 struct Console {
@@ -27,9 +28,14 @@ struct Console {
 
 /// Starts `motionlink console <args>` and reads its one line.
 fn console(args: &[&str]) -> Console {
+    console_with_env(args, &[])
+}
+
+/// Starts `motionlink console <args>` with `env` set ([`Running::start_env`]) and reads its one line.
+fn console_with_env(args: &[&str], env: &[(&str, &str)]) -> Console {
     let mut all = vec!["console"];
     all.extend_from_slice(args);
-    let running = Running::start(&all);
+    let running = Running::start_env(&all, env);
     let line = running
         .stdout
         .wait_for(Duration::from_secs(30), |_| true)

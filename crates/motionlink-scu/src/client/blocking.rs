@@ -58,7 +58,14 @@ impl Client {
     /// [`ManualClock`](motionlink_link::ManualClock) the calling thread must be one of its participants.
     pub fn open(connector: Connector, clock: SharedClock, config: ClientConfig) -> Result<Self, Error> {
         let driver = Self::driver(connector, clock, config.clone())?;
-        driver.run(Op::Open)?;
+        if let Err(e) = driver.run(Op::Open) {
+            // Nothing was started: the session is closed here (RA, if remote mode was opened), and a close
+            // that cannot be confirmed (the port is gone) says no more than the open's error.
+            if let Err(close) = driver.close() {
+                tracing::debug!("closing the session whose opening failed: {close}");
+            }
+            return Err(e);
+        }
         Ok(Client { driver, config })
     }
 

@@ -184,7 +184,12 @@ impl Session {
 
     /// The port failed: every exchange and request fails, the unit's watchdog stops the drives.
     pub(super) fn lost(&mut self, why: String) {
-        tracing::warn!("SCU session lost: {why}");
+        if self.core.state == State::Opening && self.core.started.is_empty() {
+            // Nothing was opened or started: the open fails with this, and its caller says so.
+            tracing::debug!("SCU session lost while opening: {why}");
+        } else {
+            tracing::warn!("SCU session lost: {why}");
+        }
         let core = &mut self.core;
         core.link_up = false;
         core.line.remote = false;

@@ -37,9 +37,11 @@ use crate::common::CliError;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The port: a serial device (/dev/ttyUSB0, COM3), tcp://HOST:PORT (a serial gateway or `motionlink sim
-    /// compax`), or sim (an emulated drive in this process).
+    /// compax`), or sim (an emulated drive in this process). Default: --device, else MOTIONLINK_PORT.
     #[arg(long, value_name = "PORT")]
-    pub port: String,
+    pub port: Option<String>,
+    #[command(flatten)]
+    pub device: super::DeviceArg,
     /// Only these drive addresses (such as 1,5) instead of a scan of 1..31; with `--port sim`, the drives
     /// the emulated bus has (default: 1).
     #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u8).range(1..=31))]
@@ -88,7 +90,7 @@ struct Compax {
 }
 
 /// Opens the session `args` ask for, its link tapped into the traffic log.
-pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, Arc<Traffic>), CliError> {
+pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<dyn Device>, Arc<Traffic>), CliError> {
     let mode = Mode::from_p196(args.mode).map_err(|e| CliError::usage(format!("--mode: {e}")))?;
     if !BAUD_RATES.contains(&args.baud) {
         return Err(CliError::usage(format!("--baud {}: not a rate P195 accepts ({BAUD_RATES:?})", args.baud)));
@@ -101,10 +103,10 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
     if !(args.jog_range.is_finite() && args.jog_range > 0.0) {
         return Err(CliError::usage(format!("--jog-range {}: give a distance above 0", args.jog_range)));
     }
-    let url: PortUrl = args.port.parse()?;
+    let url: PortUrl = port.parse()?;
     let traffic = Arc::new(Traffic::new(
         Box::new(motionlink_compax::describe::Describer::new(mode)),
-        &format!("compax {}", args.port),
+        &format!("compax {port}"),
         "can0",
         clock,
     ));
@@ -113,6 +115,7 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
     let link_clock = Arc::clone(clock);
     let sim_drives = if args.drives.is_empty() { vec![1] } else { args.drives.clone() };
     let (p196, baud) = (args.mode, args.baud);
+    let busy = crate::tap::BusyWatch::new(port);
     let open = move || -> Result<Box<dyn Link>, motionlink_link::LinkError> {
         let link: Box<dyn Link> = match url {
             PortUrl::Sim => {
@@ -129,14 +132,14 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
                 other.open_byte_link(settings)?
             }
         };
-        Ok(Box::new(TapLink::new(link, tap_clock, tap)) as Box<dyn Link>)
+        Ok(Box::new(TapLink::new(busy.link(link), tap_clock, tap)) as Box<dyn Link>)
     };
     let mut cfg = BusConfig::new(mode, args.baud);
     cfg.reply_timeout = Duration::from_millis(args.timeout_ms);
     let client = AsyncClient::open(open, Arc::clone(clock), cfg).await.map_err(|e| crate::common::classified(&e))?;
     let device = Compax {
         client,
-        port: args.port.clone(),
+        port: port.to_string(),
         drives: args.drives.clone(),
         limits,
         jog_range: args.jog_range,

@@ -47,6 +47,16 @@ pub enum Family {
     Compax(compax::Args),
 }
 
+/// `--device NAME`: a device of the configuration file, whose port and options the console takes.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct DeviceArg {
+    /// A device named in the configuration file (devices.toml in the platform's configuration directory, or
+    /// the file MOTIONLINK_CONFIG names), instead of --port: its port, and its options where the command line
+    /// gives none. Without either, MOTIONLINK_PORT is the port.
+    #[arg(long, value_name = "NAME")]
+    pub device: Option<String>,
+}
+
 /// Where the console serves.
 #[derive(clap::Args, Debug, Clone)]
 pub struct ServeArgs {
@@ -107,11 +117,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let interrupt = common::interrupt_token();
     // Found by another motionlink as the holder of the port: its `stop` ends the console (SIGINT).
     let (family, port) = match &args.family {
-        Family::Scu(a) => ("scu", &a.port),
-        Family::Powercube(a) => ("powercube", &a.port),
-        Family::Compax(a) => ("compax", &a.port),
+        Family::Scu(a) => ("scu", port_of("scu", &a.port, &a.device)?),
+        Family::Powercube(a) => ("powercube", port_of("powercube", &a.port, &a.device)?),
+        Family::Compax(a) => ("compax", port_of("compax", &a.port, &a.device)?),
     };
-    crate::portlock::claim(&format!("console {family}"), port)?;
+    crate::portlock::claim(&format!("console {family}"), &port)?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -120,15 +130,20 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let result = runtime.block_on(async move {
         let clock = RealClock::shared();
         let (device, traffic) = match &args.family {
-            Family::Scu(a) => scu::open(a, &clock).await?,
-            Family::Powercube(a) => powercube::open(a, &clock).await?,
-            Family::Compax(a) => compax::open(a, &clock).await?,
+            Family::Scu(a) => scu::open(a, &port, &clock).await?,
+            Family::Powercube(a) => powercube::open(a, &port, &clock).await?,
+            Family::Compax(a) => compax::open(a, &port, &clock).await?,
         };
         serve_until_interrupted(device, traffic, addr, &interrupt, &clock, args.json).await
     });
     // What is left on the blocking pool (a close that outlived the console) gets a bounded wait.
     runtime.shutdown_timeout(std::time::Duration::from_secs(6));
     result
+}
+
+/// The console's port: `--port`, else the one of `--device`, else MOTIONLINK_PORT.
+fn port_of(family: &str, port: &Option<String>, device: &DeviceArg) -> Result<String, CliError> {
+    crate::devices::resolve(family, port.as_deref(), device.device.as_deref())
 }
 
 /// Waits on a thread for the interrupt token, then completes.
@@ -188,7 +203,12 @@ async fn serve_until_interrupted(
             })
             .await
     });
-    let _ = ended.await;
+    // Until interrupted; or until a busy `motionlink sim` refuses the first connection (the scans would fail
+    // for ever): nothing was started, and the console ends with that one line (exit code 3).
+    let refused = tokio::select! {
+        _ = ended => false,
+        _ = crate::tap::refused_as_busy_notice() => true,
+    };
     // The motion under way stops first (its future dropped, the stop confirmed), then the session's.
     let stopped = hub.shutdown().await;
     match &stopped {
@@ -203,9 +223,14 @@ async fn serve_until_interrupted(
     match closed {
         Ok(msg) if !msg.is_empty() => common::say(format!("motionlink console: {msg}")),
         Ok(_) => {}
-        Err(e) => {
+        Err(e) if !refused => {
             return Err(CliError::transport(format!("closing the session: {e}")));
         }
+        Err(_) => {}
+    }
+    if refused {
+        // Made the one busy line by `main` (tap::refused_as_busy).
+        return Err(CliError::transport("the port is busy"));
     }
     Ok(())
 }

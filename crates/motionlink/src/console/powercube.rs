@@ -32,9 +32,13 @@ use crate::common::CliError;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The port: a serial device or tcp://HOST:PORT (RS232), socketcan://IF or slcan://PATH (CAN), or sim.
+    /// Default: --device, else MOTIONLINK_PORT.
     #[arg(long, value_name = "PORT")]
-    pub port: String,
-    /// Only these module addresses (such as 1,17) instead of a scan of 1..31.
+    pub port: Option<String>,
+    #[command(flatten)]
+    pub device: super::DeviceArg,
+    /// Only these module addresses (such as 1,17) instead of a scan of 1..31; with `--port sim`, the modules
+    /// the emulated bus has (default: 1).
     #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u8).range(1..=31))]
     pub modules: Vec<u8>,
     /// RS232 baud rate (with `--port sim`: the emulated line runs at this rate).
@@ -85,11 +89,11 @@ struct PowerCube {
 }
 
 /// Opens the session `args` ask for, its link tapped into the traffic log.
-pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, Arc<Traffic>), CliError> {
-    let url: PortUrl = args.port.parse()?;
+pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<dyn Device>, Arc<Traffic>), CliError> {
+    let url: PortUrl = port.parse()?;
     let traffic = Arc::new(Traffic::new(
         Box::new(motionlink_powercube::describe::Describer::new()),
-        &format!("powercube {}", args.port),
+        &format!("powercube {port}"),
         match &url {
             PortUrl::SocketCan(i) => i.as_str(),
             _ => "can0",
@@ -107,8 +111,10 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
     };
     let clock2 = Arc::clone(clock);
     let tap = Arc::clone(&traffic);
-    let byte_link =
-        |link: Box<dyn Link>| -> Box<dyn Link> { Box::new(TapLink::new(link, Arc::clone(&clock2), Arc::clone(&tap))) };
+    let busy = crate::tap::BusyWatch::new(port);
+    let byte_link = |link: Box<dyn Link>| -> Box<dyn Link> {
+        Box::new(TapLink::new(busy.link(link), Arc::clone(&clock2), Arc::clone(&tap)))
+    };
     let clock3 = Arc::clone(clock);
     let tap2 = Arc::clone(&traffic);
     let can_link = move |link: Box<dyn CanLink>| -> Box<dyn CanLink> {
@@ -128,11 +134,9 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
             Client::rs232(byte_link(link), c, settings(BusConfig::rs232()))
         }
         PortUrl::Sim => {
-            let h = EmulatorHost::new(
-                Emulator::new(&SimConfig::default()),
-                Arc::clone(clock),
-                PipeConfig::paced(args.baud),
-            );
+            let modules = if args.modules.is_empty() { vec![1] } else { args.modules.clone() };
+            let bus = SimConfig::with_addresses(&modules).map_err(CliError::usage)?;
+            let h = EmulatorHost::new(Emulator::new(&bus), Arc::clone(clock), PipeConfig::paced(args.baud));
             let link: Box<dyn Link> = Box::new(h.connect().0);
             host = Some(h);
             Client::rs232(byte_link(link), c, settings(BusConfig::rs232()))
@@ -165,7 +169,7 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
     let guard = Guard::for_motions(ModulesAt::emulated_in_process(host.is_some()), args.no_watchdog);
     let device = PowerCube {
         client,
-        port: args.port.clone(),
+        port: port.to_string(),
         modules: args.modules.clone(),
         guard,
         kinds: std::sync::Mutex::new([None; 32]),

@@ -29,9 +29,11 @@ use crate::common::CliError;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The port: a serial device (/dev/ttyUSB0, COM3), tcp://HOST:PORT (a serial gateway or `motionlink sim
-    /// scu`), or sim (an emulator in this process).
+    /// scu`), or sim (an emulator in this process). Default: --device, else MOTIONLINK_PORT.
     #[arg(long, value_name = "PORT")]
-    pub port: String,
+    pub port: Option<String>,
+    #[command(flatten)]
+    pub device: super::DeviceArg,
     /// Baud rate of a serial port: 38400 on standard units, 9600 or 19200 on customised ones (with `--port
     /// sim`: the emulated line runs at this rate).
     #[arg(long, default_value_t = 38_400, value_parser = clap::value_parser!(u32).range(9_600..=38_400))]
@@ -47,6 +49,10 @@ pub struct Args {
     /// How the unit takes remote speeds: percent or counts-per-second.
     #[arg(long, value_enum, default_value_t = SpeedModeArg::Percent, value_name = "MODE")]
     pub speed_mode: SpeedModeArg,
+    /// The preset the emulator starts from with `--port sim`: scp11, tlt or liftkit. Default: the preset
+    /// --functions names, else scp11; the Fn=... of --functions apply on top.
+    #[arg(long, value_name = "NAME", value_parser = SimConfig::PRESETS)]
+    pub sim_preset: Option<String>,
     #[command(flatten)]
     pub serve: ServeArgs,
 }
@@ -68,7 +74,7 @@ struct Scu {
 }
 
 /// Opens the session `args` ask for, its link tapped into the traffic log.
-pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, Arc<Traffic>), CliError> {
+pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<dyn Device>, Arc<Traffic>), CliError> {
     let safety_id = SafetyId::from_code(args.safety)
         .ok_or_else(|| CliError::usage(format!("--safety {}: the Safety_ID is 0, 1 or 2", args.safety)))?;
     if ![9_600, 19_200, 38_400].contains(&args.baud) {
@@ -84,10 +90,10 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
     };
     let config = ClientConfig { safety_id, function_map: functions, speed_mode, ..ClientConfig::default() };
     config.validate().map_err(|e| CliError::usage(e.to_string()))?;
-    let url: PortUrl = args.port.parse()?;
+    let url: PortUrl = port.parse()?;
     let traffic = Arc::new(Traffic::new(
         Box::new(motionlink_scu::describe::Describer::new()),
-        &format!("scu {}", args.port),
+        &format!("scu {port}"),
         "can0",
         clock,
     ));
@@ -95,25 +101,34 @@ pub async fn open(args: &Args, clock: &SharedClock) -> Result<(Arc<dyn Device>, 
     let tap_clock = Arc::clone(clock);
     let mut inner: Connector = match &url {
         PortUrl::Sim => {
-            let sim_config = SimConfig { speed_mode, ..SimConfig::default() };
+            // The emulated unit is the one the console names: its functions, its speed mode.
+            let sim_config = crate::scu::in_process_config(&crate::scu::InProcess {
+                functions: &args.functions,
+                preset: args.sim_preset.as_deref(),
+                file: None,
+                speed_mode,
+                variants: &[],
+            })?;
             let sim = Emulator::new(sim_config).map_err(|e| CliError::usage(e.to_string()))?;
             let host = EmulatorHost::new(sim, Arc::clone(clock), PipeConfig::paced(args.baud));
             Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>))
         }
         p if p.is_can() => return Err(CliError::usage(format!("{p}: the SCU speaks RS232, not CAN"))),
+        _ if args.sim_preset.is_some() => return Err(CliError::usage("--sim-preset is only for --port sim")),
         p => {
             let p = p.clone();
             let settings = SerialSettings::new(args.baud);
             Box::new(move || p.open_byte_link(settings))
         }
     };
+    let busy = crate::tap::BusyWatch::new(port);
     let connector: Connector = Box::new(move || {
-        let link = inner()?;
+        let link = busy.link(inner()?);
         Ok(Box::new(TapLink::new(link, Arc::clone(&tap_clock), Arc::clone(&tap))) as Box<dyn Link>)
     });
     let client =
         AsyncClient::open(connector, Arc::clone(clock), config).await.map_err(|e| crate::common::classified(&e))?;
-    let device = Scu { client, port: args.port.clone(), functions, speed_mode };
+    let device = Scu { client, port: port.to_string(), functions, speed_mode };
     Ok((Arc::new(device), traffic))
 }
 

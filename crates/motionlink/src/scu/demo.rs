@@ -14,9 +14,10 @@ use motionlink_scu::describe::{describe_request, fold_transcript, Describer, Tra
 use motionlink_scu::model::{Actuator, DataIndex, MotionDirection, MotionFunction, PositionCounts, StopMode};
 use motionlink_scu::value::Value;
 use motionlink_scu::wire::{request_to_vec, Request};
-use motionlink_scu::{Client, ClientConfig, Emulator, SimConfig, Variants};
+use motionlink_scu::{Client, ClientConfig, Emulator, SimConfig};
 use std::path::PathBuf;
 
+use super::emulated::load_sim_config;
 use crate::common::{self, CliError, ServeArgs};
 use crate::decode::CaptureArgs;
 use crate::demo::{DemoOut, DemoTelegram};
@@ -26,7 +27,7 @@ use crate::demo::{DemoOut, DemoTelegram};
 pub struct SimArgs {
     #[command(flatten)]
     pub serve: ServeArgs,
-    /// Parameterisation (TOML): actuators, function mapping, stroke, speed. See the README.
+    /// Parameterisation (TOML): actuators, function mapping, stroke, speed, variants. See docs/scu.md (Emulator).
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
     /// Start from a preset: scp11 (default; actuator n on Fn), tlt (F1 drives both columns, F2 and F3 one each)
@@ -35,7 +36,7 @@ pub struct SimArgs {
     pub preset: Option<String>,
     /// A firmware variant: the unit does what the manual leaves open the other plausible way. no-groups,
     /// no-user-positions, no-cyclic-objects, no-remote-readback, rc-empty-data, sleepy, sticky-errors,
-    /// in-end-undershoot, re-needs-rs (see the README). Repeat or comma-separate for several; added to the
+    /// in-end-undershoot, re-needs-rs (see docs/assumptions.md). Repeat or comma-separate for several; added to the
     /// configuration's `variants`.
     #[arg(long = "variant", value_name = "NAME")]
     pub variants: Vec<String>,
@@ -46,26 +47,6 @@ pub struct SimArgs {
 pub struct DecodeArgs {
     #[command(flatten)]
     pub capture: CaptureArgs,
-}
-
-pub(super) fn load_sim_config(
-    path: Option<&PathBuf>,
-    preset: Option<&str>,
-    variants: &[String],
-) -> Result<SimConfig, CliError> {
-    let mut config = preset.and_then(SimConfig::preset).unwrap_or_default();
-    if let Some(path) = path {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| CliError::usage(format!("cannot read {}: {e}", path.display())))?;
-        let text = match preset {
-            Some(p) if !text.contains("preset") => format!("preset = \"{p}\"\n{text}"),
-            _ => text,
-        };
-        config = SimConfig::from_toml(&text).map_err(|e| CliError::usage(format!("{}: {e}", path.display())))?;
-    }
-    let variants = Variants::parse_all(variants).map_err(|e| CliError::usage(e.to_string()))?;
-    config.variants.extend(&variants);
-    Ok(config)
 }
 
 /// `motionlink sim scu`

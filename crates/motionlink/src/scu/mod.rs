@@ -16,19 +16,20 @@ use motionlink_scu::model::{
     lookup, Actuator, Function, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode,
 };
 use motionlink_scu::session::RunAction;
-use motionlink_scu::{Client, ClientConfig, Emulator, Ending, FunctionMap, StrokeLimits, Variants};
+use motionlink_scu::{Client, ClientConfig, Emulator, Ending, FunctionMap, SimConfig, StrokeLimits, Variants};
 
 use crate::common::{self, CliError};
 use crate::tap::{LinkArgs, Tap};
 
 mod actions;
 mod demo;
+mod emulated;
 mod follow;
 mod send;
 mod stop;
 
-use demo::load_sim_config;
 pub use demo::{decode, demo, sim, DecodeArgs, SimArgs};
+pub(crate) use emulated::{in_process_config, InProcess};
 
 /// `motionlink scu` arguments. Every option may come before or after the action.
 #[derive(clap::Args, Debug)]
@@ -76,13 +77,19 @@ pub struct Args {
     /// counts-per-second (units parameterised for "speed select absolute", 0..1000 counts/s).
     #[arg(long, value_enum, default_value_t = SpeedModeArg::Percent, value_name = "MODE", global = true)]
     pub speed_mode: SpeedModeArg,
-    /// Emulator configuration (TOML) when the port is sim.
+    /// Emulator configuration (TOML) when the port is sim: the unit as it stands (--functions is then only
+    /// what the command believes of it).
     #[arg(long, value_name = "FILE", global = true)]
     pub sim_config: Option<PathBuf>,
     /// A firmware variant of the emulator when the port is sim (as `motionlink sim scu --variant`); repeat
     /// or comma-separate for several.
     #[arg(long = "sim-variant", value_name = "NAME", global = true)]
     pub sim_variants: Vec<String>,
+    /// The preset the emulator starts from when the port is sim: scp11, tlt or liftkit (as `motionlink sim
+    /// scu --preset`). Default: the preset --functions names, else scp11; the Fn=... of --functions apply
+    /// on top.
+    #[arg(long, value_name = "NAME", global = true, value_parser = SimConfig::PRESETS)]
+    pub sim_preset: Option<String>,
     /// `--json` (the global option, set by `main`).
     #[arg(skip)]
     pub json: bool,
@@ -295,11 +302,15 @@ fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: Clie
     let clock = Arc::clone(clock);
     let connector: Connector = match &port {
         PortUrl::Sim => {
-            let mut sim_config = load_sim_config(args.sim_config.as_ref(), None, &args.sim_variants)?;
-            if args.sim_config.is_none() {
-                // The emulated unit is parameterised the way the command was told the unit is.
-                sim_config.speed_mode = args.speed_mode.into();
-            }
+            // The emulated unit is the one the command names: its functions, its speed mode, and the firmware
+            // variants asked for.
+            let sim_config = in_process_config(&InProcess {
+                functions: &args.functions,
+                preset: args.sim_preset.as_deref(),
+                file: args.sim_config.as_ref(),
+                speed_mode: args.speed_mode.into(),
+                variants: &args.sim_variants,
+            })?;
             let sim = Emulator::new(sim_config).map_err(|e| CliError::usage(e.to_string()))?;
             let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(args.baud));
             let (tap, clock) = (tap.clone(), Arc::clone(&clock));
@@ -307,8 +318,8 @@ fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: Clie
         }
         p if p.is_can() => return Err(CliError::usage(format!("{p}: the SCU speaks RS232, not CAN"))),
         p => {
-            if args.sim_config.is_some() || !args.sim_variants.is_empty() {
-                return Err(CliError::usage("--sim-config and --sim-variant are only for --port sim"));
+            if args.sim_config.is_some() || args.sim_preset.is_some() || !args.sim_variants.is_empty() {
+                return Err(CliError::usage("--sim-config, --sim-preset and --sim-variant are only for --port sim"));
             }
             let p = p.clone();
             let settings = SerialSettings::new(args.baud);

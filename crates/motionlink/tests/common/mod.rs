@@ -209,10 +209,14 @@ impl Running {
         Self::spawn_env(args, stdin, &[])
     }
 
-    /// `motionlink <args>` spawned with `env` set, `stdin` and piped stdout and stderr.
+    /// `motionlink <args>` spawned with `env` set (and MOTIONLINK_PORT / MOTIONLINK_CONFIG removed unless
+    /// `env` sets them, when `env` is not empty), `stdin` and piped stdout and stderr.
     fn spawn_env(args: &[&str], stdin: Stdio, env: &[(&str, &str)]) -> std::process::Child {
-        Command::new(BIN)
-            .args(args)
+        let mut cmd = Command::new(BIN);
+        if !env.is_empty() {
+            cmd.env_remove("MOTIONLINK_PORT").env_remove("MOTIONLINK_CONFIG");
+        }
+        cmd.args(args)
             .envs(env.iter().copied())
             .stdin(stdin)
             .stdout(Stdio::piped())

@@ -358,7 +358,10 @@ impl<L: Link> SlcanLink<L> {
         let mut link = Self::wrap(inner, clock);
         // A channel left open refuses the bit rate; a closed one may ring the bell at "C": both are fine.
         link.inner.send(b"C\r")?;
-        let _ = link.expect_ok("C");
+        if let Err(e @ LinkError::Busy { .. }) = link.expect_ok("C") {
+            // A busy `motionlink sim powercube --slcan` refused the connection: no adapter to set up.
+            return Err(e);
+        }
         link.inner.discard_input()?;
         let cmd = [b'S', b'0' + bitrate.digit(), CR];
         link.inner.send(&cmd)?;

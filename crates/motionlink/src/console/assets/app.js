@@ -243,11 +243,20 @@ function status(text, bad) {
   p.className = bad ? "failed" : "";
 }
 
+// The unit as the panels that act on it name it: "module 2", "drive 1", "actuator A1".
+function unitName(u) {
+  return u.label.startsWith(info.unit_key) ? u.label : `${info.unit_key} ${u.label}`;
+}
+
 function showUnit() {
   const u = unitOf(selected);
+  const name = u ? unitName(u) : "no unit selected";
+  for (const id of ["control-unit", "params-unit", "errors-unit"]) $(id).textContent = name;
+  $("move-form").dataset.unit = u ? String(selected) : "";
   if (!u) return;
   $("target-unit").textContent = u.position_unit;
   $("speed-unit").textContent = u.command_speed_unit;
+  $("move").textContent = `Move ${name} to target`;
 }
 
 // Stop: always there, and Escape anywhere on the page. A read-only page may stop too.
