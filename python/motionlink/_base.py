@@ -75,7 +75,7 @@ class ClientBase:
 
     def close(self) -> None:
         """Ends the session: stops what it set in motion and still moves, then leaves the device as the
-        family's library leaves it (see the README's Safety sections). Raises if the stop could not be
+        family's library leaves it (see docs/safety.md). Raises if the stop could not be
         confirmed. Closing twice does nothing."""
         _open.discard(self)
         self._native.close()

@@ -42,7 +42,7 @@ fn mark(a: &Annotation) -> &'static str {
     }
 }
 
-/// One annotation as JSON (the names of the README's "JSON output").
+/// One annotation as JSON (the names of docs/cli.md, "JSON output").
 pub fn annotation_json(a: &Annotation, frame: Option<(&str, &motionlink_link::can::CanFrame)>) -> serde_json::Value {
     let mut v = json!({
         "time_s": a.at.map(|t| t.since_origin().as_secs_f64()),

@@ -11,7 +11,7 @@ use clap_mangen::Man;
 
 use crate::common::CliError;
 
-/// What each exit code means (the README's "Exit codes").
+/// What each exit code means (docs/cli.md, "Exit codes").
 const EXIT_CODES: [(&str, &str); 5] = [
     ("0", "Success; also when stdout was closed (its reader went away) and what the command started was stopped."),
     ("1", "The device refused or reports an error, or a move did not end at its target."),

@@ -26,7 +26,7 @@ pub struct LinkArgs {
     /// gives none. Without either, MOTIONLINK_PORT is the port.
     #[arg(long, value_name = "NAME", global = true)]
     pub device: Option<String>,
-    /// Write every telegram of the session to FILE, time-stamped: the capture format of the README for
+    /// Write every telegram of the session to FILE, time-stamped: the capture format of docs/cli.md for
     /// serial lines, candump log lines for CAN. `motionlink decode` reads it back.
     #[arg(long, value_name = "FILE", global = true)]
     pub capture: Option<PathBuf>,

@@ -58,7 +58,7 @@ use crate::model::ErrorCode;
 pub const REFUSED: ErrorCode = ErrorCode(90);
 
 /// P003, the parameter of the user guide's example of a write (`P003=-1055.88`): every emulated drive
-/// models it (0 at power-on), so the example in the README works against the emulator. Its meaning is not
+/// models it (0 at power-on), so the example in docs/compax.md works against the emulator. Its meaning is not
 /// in our sources; the emulator stores it as a plain number.
 pub(crate) const USER_GUIDE_EXAMPLE_PARAM: u16 = 3;
 

@@ -18,7 +18,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
-//! The typed API, as the README's "From Rust" shows it (the same code; positions are
+//! The typed API, as the README's "From Rust" (and docs/scu.md) shows it (the same code; positions are
 //! [`PositionCounts`](crate::model::PositionCounts), speeds [`Speed`](crate::model::Speed), actuator status 1
 //! the flag word [`ActuatorStatus1`](crate::model::ActuatorStatus1)):
 //!
