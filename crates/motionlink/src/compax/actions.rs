@@ -21,9 +21,33 @@ pub(super) struct Checked {
 /// Checks every argument of the action: nothing is sent for an action that cannot be made.
 pub(super) fn check(args: &Args) -> Result<Checked, CliError> {
     let move_plan = match &args.action {
-        Action::Move { abs, rel, speed, accel, binary, timeout_s, tolerance, min_pos, max_pos, poll_ms, .. } => Some(
-            plan_move(*abs, *rel, *speed, *accel, *binary, *timeout_s, *tolerance, (*min_pos, *max_pos), *poll_ms)?,
-        ),
+        Action::Move {
+            target,
+            abs,
+            rel,
+            speed,
+            accel,
+            binary,
+            timeout_s,
+            tolerance,
+            min_pos,
+            max_pos,
+            poll_ms,
+            ..
+        } => {
+            // A plain target is an absolute one, as `move 100` is in every family.
+            Some(plan_move(
+                target.or(*abs),
+                *rel,
+                *speed,
+                *accel,
+                *binary,
+                *timeout_s,
+                *tolerance,
+                (*min_pos, *max_pos),
+                *poll_ms,
+            )?)
+        }
         _ => None,
     };
     let mut checked = Checked {
