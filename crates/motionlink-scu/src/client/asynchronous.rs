@@ -55,7 +55,13 @@ impl AsyncClient {
     pub async fn open(connector: Connector, clock: SharedClock, config: ClientConfig) -> Result<Self, Error> {
         let for_driver = config.clone();
         let driver = AsyncDriver::open(move || Client::driver(connector, clock, for_driver)).await?;
-        driver.run(Op::Open).await?;
+        if let Err(e) = driver.run(Op::Open).await {
+            // The error says what failed; the close (RA, in case the unit took the RO) is only tried.
+            if let Err(close) = driver.close().await {
+                tracing::debug!("closing after the failed open: {close}");
+            }
+            return Err(e);
+        }
         Ok(AsyncClient { driver, config })
     }
 

@@ -58,7 +58,13 @@ impl Client {
     /// [`ManualClock`](motionlink_link::ManualClock) the calling thread must be one of its participants.
     pub fn open(connector: Connector, clock: SharedClock, config: ClientConfig) -> Result<Self, Error> {
         let driver = Self::driver(connector, clock, config.clone())?;
-        driver.run(Op::Open)?;
+        if let Err(e) = driver.run(Op::Open) {
+            // The error says what failed; the close (RA, in case the unit took the RO) is only tried.
+            if let Err(close) = driver.close() {
+                tracing::debug!("closing after the failed open: {close}");
+            }
+            return Err(e);
+        }
         Ok(Client { driver, config })
     }
 

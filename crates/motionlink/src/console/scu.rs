@@ -168,10 +168,7 @@ fn lookup_entry(name: &str) -> Result<Item, Failure> {
 
 /// A value as the page shows it, with its unit (a remote speed in the unit's speed mode).
 fn show(v: &ScuValue, mode: SpeedMode) -> String {
-    match v {
-        ScuValue::RemoteSpeed(s) => format!("{s} {}", mode.unit()),
-        v => v.to_string(),
-    }
+    v.show(mode)
 }
 
 fn shown(entries: &[(&'static motionlink_scu::model::DataEntry, ScuValue)], mode: SpeedMode) -> String {
