@@ -370,6 +370,19 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let closed = client.close().map_err(failed);
     drop(host);
     tap.flush();
+    // A module that never answered is named as absent (a scan says so itself).
+    let result = match args.action {
+        Action::Scan => result,
+        _ => result.map_err(|e| {
+            tap.name_absent(e, || {
+                let mut scan = format!("motionlink powercube --port {port}");
+                if args.baud != 9600 {
+                    scan.push_str(&format!(" --baud {}", args.baud));
+                }
+                format!("no module answers at address {} on {port}; `{scan} scan` lists the modules there", args.module)
+            })
+        }),
+    };
     match (result, closed) {
         (Err(e), Err(also)) => {
             common::say_error(format!("motionlink: {also}"));

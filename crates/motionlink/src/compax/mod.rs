@@ -274,13 +274,7 @@ fn switch_on_hint(args: &Args, a: u8) -> String {
         ("", None) => "PORT",
         (resolved, _) => resolved,
     };
-    let mut cmd = format!("motionlink compax --port {port}");
-    if args.mode != 0 {
-        cmd.push_str(&format!(" --mode {}", args.mode));
-    }
-    if args.baud != 9600 {
-        cmd.push_str(&format!(" --baud {}", args.baud));
-    }
+    let cmd = format!("motionlink compax --port {port}{}", bus_options(args));
     format!("drive {a} is switched off; to switch it on again: {cmd} --drive {a} output 0 1")
 }
 
@@ -361,7 +355,29 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     let tap = Tap::new("compax", &args.resolved_port, &clock, &args.link, "can0", &describer, sending)?;
     let result = act(&args, &tap, &clock);
     tap.flush();
-    result
+    // A drive that never answered is named as absent (a scan says so itself).
+    match args.action {
+        Action::Scan => result,
+        _ => result.map_err(|e| {
+            tap.name_absent(e, || {
+                let port = &args.resolved_port;
+                let (drive, options) = (args.drive, bus_options(&args));
+                format!("drive {drive} does not answer on {port}; `motionlink compax --port {port}{options} scan` lists the drives there")
+            })
+        }),
+    }
+}
+
+/// `--mode` and `--baud` as a command line on this bus gives them (only where not the default).
+fn bus_options(args: &Args) -> String {
+    let mut options = String::new();
+    if args.mode != 0 {
+        options.push_str(&format!(" --mode {}", args.mode));
+    }
+    if args.baud != 9600 {
+        options.push_str(&format!(" --baud {}", args.baud));
+    }
+    options
 }
 
 /// One JSON object of `motionlink compax`: family, port and drive first.

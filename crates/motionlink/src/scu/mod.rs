@@ -387,7 +387,15 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let clock = RealClock::shared();
     let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
     let tap = Tap::new("scu", &port, &clock, &args.link, "can0", &describer, request.is_some())?;
-    let client = connect(&args, &port, &tap, &clock, config)?;
+    let absent = || {
+        format!(
+            "the SCU on {port} does not answer (nothing came back to RO within {} ms): check the cable, the baud \
+             rate (--baud {}; standard units run at 38400, customised ones at 9600 or 19200) and that the control \
+             unit is powered",
+            args.timeout_ms, args.baud
+        )
+    };
+    let client = connect(&args, &port, &tap, &clock, config).map_err(|e| tap.name_absent(e, absent))?;
     let mut out = std::io::stdout().lock();
     let report = Report { json: args.json, port: &port, stopped };
     let result = match &request {
@@ -398,7 +406,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let started = client.started_functions();
     let closed = client.close();
     tap.flush();
-    finish(result, closed, &started)
+    finish(result, closed, &started).map_err(|e| tap.name_absent(e, absent))
 }
 
 /// Appends `note` to the message of `e`, keeping its exit code.
