@@ -6,6 +6,7 @@ mod common;
 mod compax_cli;
 mod console;
 mod general_cli;
+mod messages_cli;
 mod powercube_cli;
 mod scu_cli;
 mod shared_cli;

@@ -18,7 +18,7 @@ use motionlink_scu::{Client, ClientConfig, Emulator, Ending, FunctionMap, SimCon
 
 use crate::common::{self, CliError, ServeArgs};
 use crate::decode::CaptureArgs;
-use crate::numbers::{at_least, whole};
+use crate::numbers::{at_least, integer, whole};
 use crate::tap::{LinkArgs, Tap};
 
 mod actions;
@@ -145,7 +145,7 @@ pub enum Action {
         #[arg(value_parser = whole::<u8>("the actuator", 1, 6, ""))]
         actuator: u8,
         /// Target position in encoder counts.
-        #[arg(value_parser = whole::<i32>("the target position", i32::MIN, i32::MAX, "counts"))]
+        #[arg(value_parser = integer::<i32>("the target position", "counts"))]
         position: i32,
         /// Speed in percent, 1..100 (or counts/s, 1..1000, on units set to absolute speed).
         #[arg(long, default_value = "100", value_name = "SPEED", allow_hyphen_values = true)]
