@@ -499,6 +499,7 @@ fn act(
 mod tests {
     use super::follow::{parse_follow_line, FollowLine};
     use super::*;
+    use motionlink_scu::model::{Actuator, Speed};
 
     fn a(n: u8) -> Actuator {
         Actuator::new(n).unwrap()
