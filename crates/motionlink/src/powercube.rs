@@ -182,7 +182,8 @@ pub struct SimArgs {
     #[command(flatten)]
     pub serve: ServeArgs,
     /// Module addresses, such as 1,17 (default: one module at 1).
-    #[arg(long, value_delimiter = ',', conflicts_with = "config")]
+    #[arg(long, value_delimiter = ',', conflicts_with = "config",
+          value_parser = whole::<u8>("a module address", 1, 31, ""))]
     pub modules: Vec<u8>,
     /// A TOML file describing the modules (see crates/motionlink-powercube/README.md).
     #[arg(long, value_name = "FILE")]

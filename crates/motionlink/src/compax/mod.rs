@@ -217,13 +217,13 @@ pub struct SimArgs {
     #[command(flatten)]
     pub serve: ServeArgs,
     /// Addresses of the emulated drives, such as 1,5 (default 1).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', value_parser = whole::<u8>("a drive's address", 1, 31, ""))]
     pub drives: Option<Vec<u8>>,
     /// P196 of every drive (default 0).
-    #[arg(long)]
+    #[arg(long, value_parser = whole::<u32>("P196", 0, 127, ""))]
     pub mode: Option<u32>,
     /// The line's and the drives' baud rate (default 9600).
-    #[arg(long)]
+    #[arg(long, value_parser = parse_baud)]
     pub baud: Option<u32>,
     /// A TOML file describing the bus (see the motionlink-compax README); the options above override it.
     #[arg(long)]

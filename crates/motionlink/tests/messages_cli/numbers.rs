@@ -120,3 +120,25 @@ fn every_numeric_option_of_the_powercube_names_itself_and_why() {
 fn every_numeric_option_of_the_compax_names_itself_and_why() {
     refuses("compax", COMPAX);
 }
+
+#[test]
+fn the_numeric_options_of_the_emulators_and_the_decoder_name_themselves_and_why() {
+    let cases: &[(&[&str], &str)] = &[
+        (&["sim", "compax", "--tcp", "127.0.0.1:0", "--mode", "V"], "--mode"),
+        (&["sim", "compax", "--tcp", "127.0.0.1:0", "--baud", "V"], "--baud"),
+        (&["sim", "compax", "--tcp", "127.0.0.1:0", "--drives", "1,V"], "--drives"),
+        (&["sim", "powercube", "--tcp", "127.0.0.1:0", "--modules", "V"], "--modules"),
+        (&["decode", "compax", "--mode", "V", "31 0D"], "--mode"),
+    ];
+    for (args, names) in cases {
+        for value in ["-5", "abc"] {
+            let args: Vec<String> = args.iter().map(|a| a.replace('V', value)).collect();
+            let args: Vec<&str> = args.iter().map(String::as_str).collect();
+            // An emulator that took the value would serve until killed: the wait ends it and fails.
+            let ended = crate::common::Running::start(&args).wait(std::time::Duration::from_secs(10));
+            assert_eq!(ended.code(), 2, "{args:?}: {}", ended.stderr);
+            assert!(ended.stderr.contains(names) && ended.stderr.contains(value), "{args:?}: {}", ended.stderr);
+            assert!(!NOT_A_REASON.iter().any(|n| ended.stderr.contains(n)), "{args:?}: say why: {}", ended.stderr);
+        }
+    }
+}
