@@ -12,6 +12,9 @@ use motionlink_link::LinkError;
 use crate::model::{Address, CubeState, InvalidAddress, ModelError, ModuleKind, Param, Position, Request};
 use crate::wire::rs232::Rs232Error;
 
+mod limit;
+use limit::beyond_limit_text;
+
 /// What became of the Halt an action sent to a module it had set in motion, when the action could not go
 /// on (a failing line, a timeout, a cancellation).
 /// What became of the Halt an action sent to a module it had set in motion, when the action could not go
@@ -257,7 +260,7 @@ pub enum Error {
     },
     /// A value outside one of the module's limits: refused before anything was sent that moves (the module
     /// would have limited it silently).
-    #[error("module {address}: {what} {} is outside the module's limit {limit} = {}", number(*value), number(*limit_value))]
+    #[error("{}", beyond_limit_text(*address, what, *value, *limit, *limit_value, unit, *other_limit))]
     BeyondLimit {
         /// The module.
         address: Address,
@@ -269,6 +272,11 @@ pub enum Error {
         limit: Param,
         /// Its value in the module.
         limit_value: f64,
+        /// The unit of the value and the limit ("rad", "m/s", "A"; "" where the module's kind was not known).
+        unit: &'static str,
+        /// The other end of a range (MaxPos when MinPos was passed, and the other way round), as read from
+        /// the module, so that the message gives the whole range.
+        other_limit: Option<(Param, f64)>,
     },
     /// A parameter read back after it was written differs from what was written: the module limited it, or
     /// the write was corrupted on the way (the modules ignore the checksum).

@@ -38,6 +38,10 @@ pub const DEFAULT_POLL_SLOT: u8 = 5;
 /// caller; the same RC is the keepalive.
 pub const DEFAULT_POLL_INTERVAL: Duration = Duration::from_millis(50);
 
+/// The silence after which a request is sent again, unless the reply timeout is shorter than twice this
+/// ([`ClientConfig::effective_retry_after`]).
+pub const DEFAULT_RETRY_AFTER: Duration = Duration::from_millis(150);
+
 /// Which actuators each motion function F1..F10 drives: the unit's parameterisation, which the data list
 /// does not show. A function may be *unknown* (the default for all): then [`crate::Client::move_to`] treats
 /// every connected actuator as possibly driven.
@@ -202,8 +206,10 @@ pub struct ClientConfig {
     pub reply_timeout: Duration,
     /// A request is sent again when not one byte of its reply has come this long after it was sent (or twice
     /// the longest round trip measured lately, if that is longer), then after twice this, four times this
-    /// ... of silence, within the reply timeout. Default 150 ms.
-    pub retry_after: Duration,
+    /// ... of silence, within the reply timeout. `None` (the default): [`DEFAULT_RETRY_AFTER`], or half the
+    /// reply timeout if that is shorter, so that a short reply timeout brings a short retry with it
+    /// ([`ClientConfig::effective_retry_after`]); a value set here must be below the reply timeout.
+    pub retry_after: Option<Duration>,
     /// How many times a request is sent again after a corrupt reply, a CSE or a PCE. Default 2.
     pub retries: u32,
     /// Which actuators each function drives. Default: unknown for every function.
@@ -244,7 +250,7 @@ impl Default for ClientConfig {
             safety_id: SafetyId::StopAllAndLock,
             keepalive_period: Duration::from_millis(200),
             reply_timeout: timing::MAX_REPLY_DELAY,
-            retry_after: Duration::from_millis(150),
+            retry_after: None,
             retries: 2,
             function_map: FunctionMap::default(),
             speed_mode: SpeedMode::Percent,
@@ -263,6 +269,12 @@ impl Default for ClientConfig {
 }
 
 impl ClientConfig {
+    /// The silence after which a request is sent again: [`ClientConfig::retry_after`] as set, or
+    /// [`DEFAULT_RETRY_AFTER`], or half the reply timeout if that is shorter.
+    pub fn effective_retry_after(&self) -> Duration {
+        self.retry_after.unwrap_or_else(|| DEFAULT_RETRY_AFTER.min(self.reply_timeout / 2))
+    }
+
     /// Checks every setting; the error names the one that is out of range.
     pub fn validate(&self) -> Result<(), Error> {
         let bad = |what: String| Err(Error::InvalidArgument(what));
@@ -275,11 +287,13 @@ impl ClientConfig {
         if self.reply_timeout.is_zero() || self.reply_timeout > Duration::from_secs(60) {
             return bad(format!("reply timeout {:?}: it must be above 0 and at most 60 s", self.reply_timeout));
         }
-        if self.retry_after.is_zero() || self.retry_after >= self.reply_timeout {
-            return bad(format!(
-                "retry_after {:?}: it must be above 0 and below the reply timeout {:?}",
-                self.retry_after, self.reply_timeout
-            ));
+        if let Some(r) = self.retry_after {
+            if r.is_zero() || r >= self.reply_timeout {
+                return bad(format!(
+                    "retry_after {r:?}: it must be above 0 and below the reply timeout {:?}",
+                    self.reply_timeout
+                ));
+            }
         }
         if self.retries > 10 {
             return bad(format!("retries {}: at most 10", self.retries));
@@ -319,5 +333,23 @@ impl ClientConfig {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_retry_follows_a_short_reply_timeout_unless_it_was_set() {
+        let mut c = ClientConfig { reply_timeout: Duration::from_millis(100), ..ClientConfig::default() };
+        assert_eq!(c.effective_retry_after(), Duration::from_millis(50), "half of a short reply timeout");
+        assert!(c.validate().is_ok(), "{:?}", c.validate());
+        assert_eq!(ClientConfig::default().effective_retry_after(), DEFAULT_RETRY_AFTER);
+        c.retry_after = Some(Duration::from_millis(150));
+        let e = c.validate().unwrap_err().to_string();
+        assert!(e.contains("retry_after 150ms") && e.contains("100ms"), "a setting made is checked: {e}");
+        c.retry_after = Some(Duration::from_millis(20));
+        assert_eq!(c.effective_retry_after(), Duration::from_millis(20));
     }
 }

@@ -162,7 +162,11 @@ pub enum Error {
         misses: Vec<TargetMiss>,
     },
     /// A move's actuator stopped advancing though the unit reports motion; it was stopped.
-    #[error("{actuator} stalled at {position_counts} (no progress for {after:?} while moving); stopped")]
+    #[error(
+        "{actuator} stalled at {position_counts} (no progress for {after:?} while the unit reported motion); stopped \
+         (RS sent). A stall is an actuator that is driven but does not move: an obstacle or an end stop, a load too \
+         heavy, or a speed too low for it (a TLT column stalls below about 30 % speed)"
+    )]
     Stalled {
         /// The actuator.
         actuator: Actuator,

@@ -58,7 +58,8 @@
 //!   long. But the unit's watchdog expires 500 ms after the last RC, and no RC can go out while a reply is
 //!   awaited, so in remote mode a reply is awaited at most 1000 ms: a unit silent that long has stopped its
 //!   drives and left remote mode anyway. A request is sent again when not one byte of its reply came within
-//!   [`ClientConfig::retry_after`] (150 ms, or twice the measured round trip), then after 300, 600 ms
+//!   [`ClientConfig::retry_after`] (150 ms, or twice the measured round trip, or half a shorter reply
+//!   timeout), then after 300, 600 ms
 //!   of silence; the reply to any sending is accepted, the others are read and dropped. Before the first
 //!   repetition the client sends 256 zero bytes, which complete a telegram whose corrupted length byte left
 //!   the unit waiting (it answers CSE) and are otherwise skipped as garbage. After a whole request without a

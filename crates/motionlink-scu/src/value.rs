@@ -10,6 +10,8 @@
 //! assert!(v.check_range(SpeedMode::Percent).is_ok());
 //! assert!(Value::RemoteSpeed(101).check_range(SpeedMode::Percent).is_err());
 //! assert_eq!(v.to_bytes(), vec![80, 0]);
+//! assert_eq!(v.show(SpeedMode::Percent), "80 %");
+//! assert_eq!(v.show(SpeedMode::CountsPerSecond), "80 counts/s");
 //! ```
 
 use std::fmt;
@@ -358,6 +360,16 @@ impl Value {
                 Value::CyclicObject(obj)
             }
         })
+    }
+
+    /// The value as a person reads it, with its unit: as [`fmt::Display`] gives it, and a remote speed in
+    /// the unit of `mode` (the unit's speed mode, which the value itself does not carry): `80 %`,
+    /// `500 counts/s`.
+    pub fn show(&self, mode: crate::model::SpeedMode) -> String {
+        match self {
+            Value::RemoteSpeed(v) => format!("{v} {}", mode.unit()),
+            v => v.to_string(),
+        }
     }
 
     /// The value as JSON: numbers in their raw unit, bit sets with their named bits.

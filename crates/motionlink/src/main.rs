@@ -20,12 +20,14 @@ mod decode;
 mod demo;
 mod devices;
 mod manpage;
+mod numbers;
 mod portlock;
 mod ports;
 mod powercube;
 mod scu;
 mod tap;
 mod term;
+mod tips;
 
 use std::process::ExitCode;
 
@@ -262,8 +264,12 @@ fn parse() -> Cli {
         }
         std::process::exit(i32::from(e.exit_code()));
     });
-    let command = Cli::command().color(clap_color(&args));
-    let parsed = command.try_get_matches_from(&args).and_then(|m| <Cli as clap::FromArgMatches>::from_arg_matches(&m));
+    let command = numbers::negative_values(Cli::command().color(clap_color(&args)));
+    let parsed = command
+        .clone()
+        .try_get_matches_from(&args)
+        .and_then(|m| <Cli as clap::FromArgMatches>::from_arg_matches(&m))
+        .map_err(|e| tips::better_tips(e, &command, &args));
     match parsed {
         Ok(cli) => cli,
         Err(e) if e.use_stderr() && std::env::args_os().any(|a| a == "--json") => {

@@ -30,13 +30,14 @@ use motionlink_powercube::wire::Payload;
 use motionlink_powercube::{Emulator, Error};
 use serde_json::json;
 
-use args::{check_args, parse_baud, parse_bitrate, positive_secs};
+use args::{parse_baud, parse_bitrate, positive_secs};
 pub use decode::{decode, DecodeArgs};
 pub use demo::demo;
 use send::{parse_send, print_params, send};
 use show::{info, progress_text, report_done, scan, watch, WatchFormat};
 
 use crate::common::{self, CliError, ServeArgs};
+use crate::numbers::{above_zero, at_least, finite, whole};
 use crate::tap::{LinkArgs, Tap};
 
 /// `motionlink powercube` arguments. Every option may come before or after the action.
@@ -60,12 +61,12 @@ pub struct Args {
     #[arg(long, default_value_t = 1_000_000, value_parser = parse_bitrate, global = true)]
     pub bitrate: u32,
     /// Acknowledge timeout in ms, 1 to 60000 (default: 200 on RS232, 50 on CAN).
-    #[arg(long, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000), global = true)]
+    #[arg(long, value_name = "MS", value_parser = whole::<u64>("the acknowledge timeout", 1, 60_000, "ms"), global = true)]
     pub timeout_ms: Option<u64>,
     /// How often `home` and `move` read the module's state while they wait, in ms (1 to 10000): polls are
     /// never sent faster than this, however quickly the line answers.
-    #[arg(long, value_name = "MS", default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=10_000),
-          global = true)]
+    #[arg(long, value_name = "MS", default_value_t = 10, global = true,
+          value_parser = whole::<u64>("the poll interval", 1, 10_000, "ms"))]
     pub poll_ms: u64,
     /// `--json` (the global option, set by `main`).
     #[arg(skip)]
@@ -119,7 +120,8 @@ pub enum Action {
     /// Home the module and wait for the end of homing (watchdog armed; a signal halts it).
     Home {
         /// Give up (and halt) after this many seconds (above 0).
-        #[arg(long = "timeout-s", alias = "timeout", value_name = "S", default_value_t = 60.0)]
+        #[arg(long = "timeout-s", alias = "timeout", value_name = "S", default_value_t = 60.0,
+              value_parser = above_zero::<f64>("the time homing may take", None, "s"))]
         timeout_s: f64,
     },
     /// Reset the module's error state (and switch off a watchdog that a dead host left expired).
@@ -142,31 +144,33 @@ pub enum Action {
     /// Succeeds only if the final position read from the module lies within --tolerance of the target.
     Move {
         /// The target position.
-        #[arg(allow_negative_numbers = true)]
+        #[arg(value_parser = finite::<f32>("the target position", "rad or m, the module's unit"))]
         position: f32,
         /// Velocity (rad/s or m/s, above 0), written to TargetVel first; if not given, the module's
         /// TargetVel is used as it is.
-        #[arg(long)]
+        #[arg(long, value_parser = above_zero::<f32>("the velocity", None, "rad/s or m/s, the module's unit"))]
         vel: Option<f32>,
         /// Acceleration (rad/s² or m/s², above 0), written to TargetAcc first; if not given, the module's
         /// TargetAcc is used as it is.
-        #[arg(long)]
+        #[arg(long, value_parser = above_zero::<f32>("the acceleration", None, "rad/s² or m/s², the module's unit"))]
         acc: Option<f32>,
         /// Give up (and halt) after this many seconds (above 0).
-        #[arg(long = "timeout-s", alias = "timeout", value_name = "S", default_value_t = 60.0)]
+        #[arg(long = "timeout-s", alias = "timeout", value_name = "S", default_value_t = 60.0,
+              value_parser = above_zero::<f64>("the time the move may take", None, "s"))]
         timeout_s: f64,
         /// In-position tolerance (rad or m, above 0, at most 0.1): the move succeeds only if the final actual
         /// position is at most this far from the target. The manual has no in-position window parameter.
-        #[arg(long, default_value_t = MoveSpec::DEFAULT_TOLERANCE.value())]
+        #[arg(long, default_value_t = MoveSpec::DEFAULT_TOLERANCE.value(),
+              value_parser = above_zero::<f32>("the in-position tolerance", Some(f64::from(MoveSpec::MAX_TOLERANCE.value())), "rad or m, the module's unit"))]
         tolerance: f32,
     },
     /// Print position and state until Ctrl-C (or --count samples).
     Watch {
         /// Milliseconds between samples (1 to 3600000).
-        #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..=3_600_000))]
+        #[arg(long, default_value_t = 200, value_parser = whole::<u64>("the sample interval", 1, 3_600_000, "ms"))]
         interval_ms: u64,
         /// Stop after this many samples (at least 1).
-        #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+        #[arg(long, value_parser = at_least::<u64>("the number of samples", 1))]
         count: Option<u64>,
         /// Print CSV (a header line, then one line per sample) instead of text.
         #[arg(long)]
@@ -182,7 +186,8 @@ pub struct SimArgs {
     #[command(flatten)]
     pub serve: ServeArgs,
     /// Module addresses, such as 1,17 (default: one module at 1).
-    #[arg(long, value_delimiter = ',', conflicts_with = "config")]
+    #[arg(long, value_delimiter = ',', conflicts_with = "config",
+          value_parser = whole::<u8>("a module address", 1, 31, ""))]
     pub modules: Vec<u8>,
     /// A TOML file describing the modules (see crates/motionlink-powercube/README.md).
     #[arg(long, value_name = "FILE")]
@@ -350,7 +355,6 @@ pub fn run(args: Args) -> Result<(), CliError> {
     if let Action::Params = args.action {
         return print_params(&mut out, args.json);
     }
-    check_args(&args.action)?;
     if let Action::Watch { csv: true, .. } = args.action {
         if args.json {
             return Err(CliError::usage("--csv and --json: give one of them"));
@@ -383,6 +387,19 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let closed = client.close().map_err(failed);
     drop(host);
     tap.flush();
+    // A module that never answered is named as absent (a scan says so itself).
+    let result = match args.action {
+        Action::Scan => result,
+        _ => result.map_err(|e| {
+            tap.name_absent(e, || {
+                let mut scan = format!("motionlink powercube --port {port}");
+                if args.baud != 9600 {
+                    scan.push_str(&format!(" --baud {}", args.baud));
+                }
+                format!("no module answers at address {} on {port}; `{scan} scan` lists the modules there", args.module)
+            })
+        }),
+    };
     match (result, closed) {
         (Err(e), Err(also)) => {
             common::say_error(format!("motionlink: {also}"));

@@ -3,7 +3,7 @@
 //! `--capture`'s file ([`CaptureWriter`]), both fed by a tap on the link ([`TapLink`], [`TapCanLink`]).
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 use motionlink_link::can::CanLink;
@@ -160,14 +160,27 @@ impl TapSink for Telegrams {
     }
 }
 
-/// What watches a family command's link: the live trace (`-v`), the capture file (`--capture`) and, for
-/// `send`, the telegrams kept to be printed. Without any of them the link is used as it is.
+/// Counts what came from the device (bytes of a serial line, CAN frames): whether anything answered at all.
+#[derive(Default)]
+struct Heard(AtomicU64);
+
+impl TapSink for Heard {
+    fn record(&self, _: Timestamp, direction: Direction, _: Tapped<'_>) {
+        if direction == Direction::FromDevice {
+            self.0.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+/// What watches a family command's link: whether anything answered, the live trace (`-v`), the capture
+/// file (`--capture`) and, for `send`, the telegrams kept to be printed.
 #[derive(Clone, Default)]
 pub struct Tap {
     busy: Option<BusyWatch>,
     sink: Option<Arc<dyn TapSink>>,
     telegrams: Option<Arc<Telegrams>>,
     capture: Option<Arc<CaptureWriter>>,
+    heard: Arc<Heard>,
 }
 
 impl Tap {
@@ -183,7 +196,8 @@ impl Tap {
         make: MakeDescriber<'_>,
         keep: bool,
     ) -> Result<Tap, CliError> {
-        let mut sinks: Vec<Arc<dyn TapSink>> = Vec::new();
+        let heard = Arc::new(Heard::default());
+        let mut sinks: Vec<Arc<dyn TapSink>> = vec![Arc::clone(&heard) as Arc<dyn TapSink>];
         if crate::term::output().verbose >= 1 {
             sinks.push(Arc::new(crate::term::wire_trace(make(), clock)));
         }
@@ -206,7 +220,24 @@ impl Tap {
             1 => sinks.pop(),
             _ => Some(Arc::new(Fanout(sinks))),
         };
-        Ok(Tap { busy: Some(BusyWatch::new(port)), sink, telegrams, capture })
+        Ok(Tap { busy: Some(BusyWatch::new(port)), sink, telegrams, capture, heard })
+    }
+
+    /// True if anything came from the device on the tapped link (a byte, a CAN frame).
+    pub fn heard_anything(&self) -> bool {
+        self.heard.0.load(Ordering::Relaxed) > 0
+    }
+
+    /// `e` as the user reads it when it is a timeout and nothing at all came from the device during the
+    /// session: `absent()` names the device as absent (and what to check), instead of the request that went
+    /// unanswered. The error's class (and so its exit code and `--json` kind) stays.
+    pub fn name_absent(&self, e: CliError, absent: impl FnOnce() -> String) -> CliError {
+        match e {
+            CliError::Transport(TransportKind::Timeout, _) if !self.heard_anything() => {
+                CliError::Transport(TransportKind::Timeout, absent())
+            }
+            e => e,
+        }
     }
 
     /// `link`, watched for a busy server's refusal ([`BusyWatch`]) and tapped if anything watches it.

@@ -60,6 +60,13 @@ pub fn use_color(choice: ColorChoice, no_color: Option<&str>, terminal: bool) ->
 /// Sets up the output and the logging: errors only with `-q`, warnings by default, more with each `-v`,
 /// (-v: information and the wire trace), or as `RUST_LOG` says.
 /// With `json`, stderr carries JSON lines only.
+///
+/// At the default verbosity (no `-v`, no `RUST_LOG`) an event is one plain line for the user, `motionlink:
+/// warning: ...` or `motionlink: error: ...`, without time or source ([`PlainEvent`]): the libraries log at
+/// WARN only what the user must know besides the error a command ends with (a fallback such as moves polled
+/// with reads, a watchdog that is not armed, a halt broadcast to every module); what only retells that
+/// error, or narrates a retry or a stop whose outcome the final message gives, is logged at INFO or DEBUG
+/// and shows with `-v`. With `-v` (or `RUST_LOG`) every event is a log line with time, level and source.
 pub fn init(verbose: u8, quiet: bool, color: ColorChoice, json: bool) {
     let no_color = std::env::var("NO_COLOR").ok();
     let out = Output {
@@ -81,9 +88,39 @@ pub fn init(verbose: u8, quiet: bool, color: ColorChoice, json: bool) {
         .ok()
         .and_then(|spec| spec.parse::<Targets>().ok())
         .unwrap_or_else(|| Targets::new().with_default(default));
-    let _ = tracing_subscriber::registry()
-        .with(tracing_subscriber::fmt::layer().with_writer(LogWriter).with_ansi(out.color).with_filter(filter))
-        .try_init();
+    let plain = out.verbose == 0 && std::env::var_os("RUST_LOG").is_none();
+    let logs = (!plain).then(|| {
+        tracing_subscriber::fmt::layer().with_writer(LogWriter).with_ansi(out.color).with_filter(filter.clone())
+    });
+    let lines = plain
+        .then(|| tracing_subscriber::fmt::layer().event_format(PlainEvent).with_writer(LogWriter).with_filter(filter));
+    let _ = tracing_subscriber::registry().with(logs).with(lines).try_init();
+}
+
+/// An event as one plain line for the user (the default verbosity): `motionlink: warning: <message>` for
+/// WARN, `motionlink: error: <message>` for ERROR, without time, level column or source.
+struct PlainEvent;
+
+impl<S, N> tracing_subscriber::fmt::FormatEvent<S, N> for PlainEvent
+where
+    S: tracing::Subscriber + for<'a> tracing_subscriber::registry::LookupSpan<'a>,
+    N: for<'a> tracing_subscriber::fmt::FormatFields<'a> + 'static,
+{
+    fn format_event(
+        &self,
+        ctx: &tracing_subscriber::fmt::FmtContext<'_, S, N>,
+        mut writer: tracing_subscriber::fmt::format::Writer<'_>,
+        event: &tracing::Event<'_>,
+    ) -> std::fmt::Result {
+        let label = match *event.metadata().level() {
+            tracing::Level::ERROR => "error",
+            tracing::Level::WARN => "warning",
+            _ => "note",
+        };
+        write!(writer, "motionlink: {label}: ")?;
+        ctx.field_format().format_fields(writer.by_ref(), event)?;
+        writeln!(writer)
+    }
 }
 
 /// The progress bars on screen: a line written on stderr first hides them, then draws them again.

@@ -7,6 +7,7 @@ mod compax_cli;
 mod console;
 mod devices_cli;
 mod general_cli;
+mod messages_cli;
 mod port_sim_cli;
 mod powercube_cli;
 mod scu_cli;

@@ -60,12 +60,35 @@ pub enum ModelError {
         /// The text.
         text: String,
     },
+    /// A name that is in no table (and no number either); `hint` says what to give instead: the nearest
+    /// names when it looks misspelt.
+    #[error("{text:?} is not {what}: {hint}")]
+    UnknownName {
+        /// What was expected ("a parameter").
+        what: &'static str,
+        /// The text.
+        text: String,
+        /// The nearest names ("did you mean device_address?"), or the forms that are taken.
+        hint: String,
+    },
     /// The command has no binary form.
     #[error("{0} has no binary form")]
     NoBinary(&'static str),
     /// A wire format limit.
     #[error(transparent)]
     Wire(#[from] WireError),
+}
+
+/// `text`, neither a number nor a name of `table`: [`ModelError::UnknownName`] with the nearest names of
+/// `table`, or `forms` when none is near.
+pub(crate) fn unknown_name<K>(
+    what: &'static str,
+    text: &str,
+    table: &motionlink_link::table::Table<K>,
+    forms: &str,
+) -> ModelError {
+    let hint = motionlink_link::table::did_you_mean(&table.suggest(text)).unwrap_or_else(|| forms.to_string());
+    ModelError::UnknownName { what, text: text.to_string(), hint }
 }
 
 pub(crate) fn syntax(what: &'static str, text: &[u8]) -> ModelError {

@@ -13,7 +13,7 @@ use std::fmt;
 use motionlink_link::table::{Access, Entry, Table};
 
 use super::value::strip_name;
-use super::{syntax, ModelError};
+use super::{syntax, unknown_name, ModelError};
 use crate::wire::number::{parse_decimal_trimmed, write_decimal, MAX_DECIMALS};
 
 /// A parameter number, P1..=P250.
@@ -112,7 +112,10 @@ impl ParamId {
             return ParamId::new(e.id as u16);
         }
         let digits = t.strip_prefix('P').or_else(|| t.strip_prefix('p')).unwrap_or(t);
-        digits.parse::<u16>().map_err(|_| syntax("a parameter (P1..P250)", text.as_bytes())).and_then(ParamId::new)
+        digits
+            .parse::<u16>()
+            .map_err(|_| unknown_name("a parameter", t, &PARAMS, "give P1..P250 or a name such as device_address"))
+            .and_then(ParamId::new)
     }
 
     /// Checks a value against the parameter's known range (unknown parameters accept any finite value).

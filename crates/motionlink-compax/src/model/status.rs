@@ -13,7 +13,7 @@ use std::fmt;
 
 use motionlink_link::table::{Access, Entry, Table};
 
-use super::{syntax, ModelError};
+use super::{unknown_name, ModelError};
 
 /// How a status value is read.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -154,7 +154,10 @@ impl StatusId {
             return StatusId::new(e.id as u8);
         }
         let digits = t.strip_prefix('S').or_else(|| t.strip_prefix('s')).unwrap_or(t);
-        digits.parse::<u8>().map_err(|_| syntax("a status value (S1..S40)", text.as_bytes())).and_then(StatusId::new)
+        digits
+            .parse::<u8>()
+            .map_err(|_| unknown_name("a status value", t, &STATUS, "give S1..S40 or a name such as actual_position"))
+            .and_then(StatusId::new)
     }
 }
 

@@ -169,6 +169,17 @@ fn errors_and_params() {
 }
 
 #[test]
+fn a_misspelt_name_is_answered_with_the_nearest_one() {
+    let e = ParamId::parse("devce_address").unwrap_err().to_string();
+    assert_eq!(e, "\"devce_address\" is not a parameter: did you mean device_address?");
+    let e = StatusId::parse("actual_postion").unwrap_err().to_string();
+    assert_eq!(e, "\"actual_postion\" is not a status value: did you mean actual_position?");
+    let e = ParamId::parse("banana").unwrap_err().to_string();
+    assert!(e.contains("give P1..P250"), "{e}");
+    assert!(StatusId::parse("S99").unwrap_err().to_string().contains("S1..=S40"));
+}
+
+#[test]
 fn status_lookup_is_the_table() {
     for n in 0..=StatusId::MAX {
         let id = StatusId(n);

@@ -472,7 +472,7 @@ impl Core {
         let want = f.job.address;
         let foreign_taken = f.job.take_foreign && !matches!(r.kind(), ReplyKind::Error(_));
         if r.address().is_some_and(|a| a != want.get()) && !foreign_taken {
-            tracing::warn!("ignoring a reply from drive {:?} while waiting for {want}: {r:?}", r.address());
+            tracing::debug!("ignoring a reply from drive {:?} while waiting for {want}: {r:?}", r.address());
             return;
         }
         // A reply that cannot answer this request (text to a move or setting, an acknowledgement or

@@ -566,7 +566,7 @@ impl<S: Session> Driver<S> {
                 let _ = t.join();
             } else {
                 // Stuck in a call of its link (it ends when the call returns: stop_thread is set).
-                tracing::warn!(
+                tracing::info!(
                     "{}: the driver's background thread did not end within {BACKGROUND_EXIT_GRACE:?} of the close; \
                      left to end by itself",
                     self.describe

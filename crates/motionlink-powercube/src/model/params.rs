@@ -422,10 +422,17 @@ impl fmt::Display for Param {
     }
 }
 
-/// A parameter name or number that is not in the table.
+/// A parameter name or number that is not in the table; its message names the nearest parameter when the
+/// name looks misspelt (`ActPoss`: did you mean ActPos?).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown parameter {0:?} (give a name such as ActPos or an id such as 60 or 0x3c)")]
+#[error("unknown parameter {0:?}: {hint}", hint = unknown_param_hint(.0))]
 pub struct UnknownParam(pub String);
+
+/// What to give instead of `text`: the nearest names of [`PARAMS`], or the forms a parameter takes.
+fn unknown_param_hint(text: &str) -> String {
+    motionlink_link::table::did_you_mean(&PARAMS.suggest(text))
+        .unwrap_or_else(|| "give a name such as ActPos or an id such as 60 or 0x3c".to_string())
+}
 
 impl FromStr for Param {
     type Err = UnknownParam;
@@ -456,6 +463,16 @@ mod tests {
         assert_eq!(Param::ALL.len(), 100, "the manual lists 100 parameters");
         assert!("nosuch".parse::<Param>().is_err());
         assert!("0x11".parse::<Param>().is_err(), "0x11 is not in the table");
+    }
+
+    #[test]
+    fn a_misspelt_name_is_answered_with_the_nearest_one() {
+        let e = "ActPoss".parse::<Param>().unwrap_err().to_string();
+        assert_eq!(e, "unknown parameter \"ActPoss\": did you mean ActPos?");
+        let e = "targetvle".parse::<Param>().unwrap_err().to_string();
+        assert!(e.ends_with("did you mean TargetVel?"), "{e}");
+        let e = "Banana".parse::<Param>().unwrap_err().to_string();
+        assert!(e.contains("give a name such as ActPos"), "nothing near: the forms a parameter takes: {e}");
     }
 
     #[test]

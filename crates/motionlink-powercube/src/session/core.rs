@@ -559,7 +559,7 @@ impl Core {
         let sent = std::mem::replace(&mut self.sent, Sent::Nothing);
         match sent {
             Sent::Refresh => {
-                tracing::warn!("watchdog refresh failed: {error}");
+                tracing::info!("watchdog refresh failed: {error}");
                 self.duty.last_error = Some(error.to_string());
                 return;
             }
@@ -576,7 +576,7 @@ impl Core {
         }
         self.settle_broadcast();
         let Some(f) = self.in_flight.take() else {
-            tracing::warn!("{}: {error}", self.port);
+            tracing::info!("{}: {error}", self.port);
             return;
         };
         self.sending.clear();

@@ -233,6 +233,10 @@ impl MotionDirection {
         Self::ALL.get(usize::from(code)).copied()
     }
 
+    /// The names [`MotionDirection::parse`] takes (besides the codes 0..9).
+    pub const NAMES: &'static [&'static str] =
+        &["in", "out", "mem1", "mem2", "mem3", "mem4", "int-in", "int-out", "remote", "none", "undefined"];
+
     /// Parses `in`, `out`, `mem1`..`mem4`, `int-in`, `int-out`, `remote`, `none` (or `undefined`), or a
     /// code 0..9.
     pub fn parse(text: &str) -> Option<MotionDirection> {

@@ -296,6 +296,29 @@ pub fn lookup(text: &str) -> Option<Item> {
     parse_index(t).and_then(item)
 }
 
+/// A name or index that is neither an entry nor a group of the data list; its message names the nearest
+/// names when it looks misspelt (`remote_sped_f1`: did you mean remote_speed_f1?).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0:?} is not in the data list: {hint}", hint = unknown_item_hint(.0))]
+pub struct UnknownItem(pub String);
+
+/// What to give instead of `text`: the nearest names, or the forms an item takes.
+fn unknown_item_hint(text: &str) -> String {
+    motionlink_link::table::did_you_mean(&suggest(text))
+        .unwrap_or_else(|| "give a name such as actual_position_a1 or an index such as 0x0011".to_string())
+}
+
+/// [`lookup`], or an error whose message names the nearest names (one message for every front end).
+pub fn find(text: &str) -> Result<Item, UnknownItem> {
+    lookup(text).ok_or_else(|| UnknownItem(text.to_string()))
+}
+
+/// The names of the entries and groups nearest to a misspelt `text` (the best one or two, for a "did you
+/// mean" hint; empty when none is near): `remote_sped_f1` finds `remote_speed_f1`.
+pub fn suggest(text: &str) -> Vec<&'static str> {
+    motionlink_link::table::nearest(text, TABLE.iter().map(|e| e.name).chain(GROUPS.iter().map(|g| g.name)))
+}
+
 /// Parses a data index written as hex with `0x` (`0x0011`), or as four hex digits (`0011`, `301A`).
 pub fn parse_index(text: &str) -> Option<DataIndex> {
     let t = text.trim();

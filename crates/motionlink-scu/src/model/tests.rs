@@ -107,3 +107,17 @@ fn structures_round_trip() {
     assert_eq!(c.to_u32(), 0x0403_0102);
     assert_eq!(ActuatorErrorCount::from_u32(c.to_u32()), c);
 }
+
+#[test]
+fn every_direction_name_parses_and_a_misspelt_name_suggests_the_nearest_entry() {
+    for name in MotionDirection::NAMES {
+        assert!(MotionDirection::parse(name).is_some(), "{name}");
+    }
+    assert_eq!(suggest("remote_sped_f1"), vec!["remote_speed_f1"]);
+    assert_eq!(suggest("actual_positons"), vec!["actual_positions"], "groups are suggested too");
+    assert!(suggest("temperature").is_empty());
+    let e = find("remote_sped_f1").unwrap_err().to_string();
+    assert_eq!(e, "\"remote_sped_f1\" is not in the data list: did you mean remote_speed_f1?");
+    assert!(find("xyz").unwrap_err().to_string().contains("such as actual_position_a1"));
+    assert!(find("0x0011").is_ok() && find("Remote_Speed_F1").is_ok());
+}

@@ -121,7 +121,7 @@ impl Core {
 
     /// The unit ended remote mode.
     pub fn ended(&mut self, why: String) -> Error {
-        tracing::warn!("{why}");
+        tracing::info!("{why}");
         self.line.remote = false;
         self.state = State::Ended(why.clone());
         Error::RemoteEnded(why)

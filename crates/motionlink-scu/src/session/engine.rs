@@ -151,7 +151,7 @@ impl Session {
                 }
             }
             Ok(reply) => {
-                tracing::warn!("keepalive RC refused: {}", reply.status);
+                tracing::info!("keepalive RC refused: {}", reply.status);
                 let e = if reply.status == Status::PermissionError {
                     let why = "the unit has left remote mode: it refused even RC with PE (it was reset, or another \
                                host sent RA); the session does not open remote mode again by itself"
@@ -167,7 +167,7 @@ impl Session {
             // A unit that did not answer (or answered garbage) is not a lost port: a caller learns of it from
             // its own request; the end of the session still sends RS and RA.
             Err(e) => {
-                tracing::warn!("keepalive failed: {e}");
+                tracing::info!("keepalive failed: {e}");
                 (carries == Carries::PollObject).then_some(Err(e))
             }
         };
@@ -188,7 +188,7 @@ impl Session {
             // Nothing was opened or started: the open fails with this, and its caller says so.
             tracing::debug!("SCU session lost while opening: {why}");
         } else {
-            tracing::warn!("SCU session lost: {why}");
+            tracing::info!("SCU session lost: {why}");
         }
         let core = &mut self.core;
         core.link_up = false;

@@ -146,7 +146,8 @@ impl Exchange {
         if single_try {
             limit = limit.min(SILENT_TRY);
         }
-        let window = if single_try { limit } else { config.retry_after.max(line.round_trip.saturating_mul(2)) };
+        let window =
+            if single_try { limit } else { config.effective_retry_after().max(line.round_trip.saturating_mul(2)) };
         if line.late.is_some_and(|l| l.command != request.command) {
             // Late replies of another command cannot be taken for this reply (the decoder skips them).
         } else {
@@ -274,7 +275,7 @@ impl Exchange {
             let late_by = now - self.first_sent;
             line.late = Some(LateReplies {
                 count: self.silent_resends,
-                until: self.last_sent + late_by + config.retry_after,
+                until: self.last_sent + late_by + config.effective_retry_after(),
                 command: self.request.command,
                 shape: self.request.shape,
             });

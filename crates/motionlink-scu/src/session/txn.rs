@@ -128,8 +128,8 @@ impl Txn {
                     Ok(r) if r.status == Status::Ack => {
                         core.started.remove(&f);
                     }
-                    Ok(r) => tracing::warn!("RS of function id {f} after the watchdog lapse: {}", r.status),
-                    Err(e) => tracing::warn!("RS of function id {f} after the watchdog lapse: {e}"),
+                    Ok(r) => tracing::info!("RS of function id {f} after the watchdog lapse: {}", r.status),
+                    Err(e) => tracing::info!("RS of function id {f} after the watchdog lapse: {e}"),
                 }
                 match self.stops.first() {
                     Some(&next) => TxnStep::Again(PreparedRequest::stop(next, StopMode::Fast)),
@@ -157,7 +157,7 @@ impl Txn {
                 TxnStep::Again(PreparedRequest::stop(f, StopMode::Fast))
             }
             None => {
-                tracing::warn!("the unit's watchdog had expired while the session was idle; an RC re-armed it");
+                tracing::info!("the unit's watchdog had expired while the session was idle; an RC re-armed it");
                 self.finish(core, Ok(reply))
             }
         }

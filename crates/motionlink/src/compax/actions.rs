@@ -4,6 +4,19 @@
 use super::open::MovePlan;
 use super::*;
 
+/// What a COMPAX position is in, in text: the drive's own unit (set in the drive; the JSON keys say
+/// `_units`).
+pub(super) const UNITS: &str = "units";
+
+/// `value` with `unit` after it (nothing when the parameter has no unit).
+fn with_unit(value: f64, unit: &str) -> String {
+    if unit.is_empty() {
+        value.to_string()
+    } else {
+        format!("{value} {unit}")
+    }
+}
+
 /// The arguments of an action, checked before the port is opened.
 pub(super) struct Checked {
     /// `move`: the move, planned.
@@ -21,9 +34,33 @@ pub(super) struct Checked {
 /// Checks every argument of the action: nothing is sent for an action that cannot be made.
 pub(super) fn check(args: &Args) -> Result<Checked, CliError> {
     let move_plan = match &args.action {
-        Action::Move { abs, rel, speed, accel, binary, timeout_s, tolerance, min_pos, max_pos, poll_ms, .. } => Some(
-            plan_move(*abs, *rel, *speed, *accel, *binary, *timeout_s, *tolerance, (*min_pos, *max_pos), *poll_ms)?,
-        ),
+        Action::Move {
+            target,
+            abs,
+            rel,
+            speed,
+            accel,
+            binary,
+            timeout_s,
+            tolerance,
+            min_pos,
+            max_pos,
+            poll_ms,
+            ..
+        } => {
+            // A plain target is an absolute one, as `move 100` is in every family.
+            Some(plan_move(
+                target.or(*abs),
+                *rel,
+                *speed,
+                *accel,
+                *binary,
+                *timeout_s,
+                *tolerance,
+                (*min_pos, *max_pos),
+                *poll_ms,
+            )?)
+        }
         _ => None,
     };
     let mut checked = Checked {
@@ -83,7 +120,7 @@ pub(super) fn scan(args: &Args, bus: &Client, out: &mut dyn Write) -> Result<(),
     } else if found.is_empty() {
         writeln!(out, "no drive answered on {}", args.resolved_port)?;
     } else {
-        let rows: Vec<Row> = found.iter().map(|(a, p)| (format!("drive {a}"), format!("S1 = {p}"))).collect();
+        let rows: Vec<Row> = found.iter().map(|(a, p)| (format!("drive {a}"), format!("S1 = {p} {UNITS}"))).collect();
         common::print_table(out, &rows)?;
     }
     if found.is_empty() {
@@ -127,7 +164,7 @@ pub(super) fn get(
         if args.json {
             common::print_json(out, &identified(args, param_json(id, json!(v))))?;
         } else {
-            rows.push((format!("{id} {desc}").trim_end().to_string(), format!("{v}")));
+            rows.push((format!("{id} {desc}").trim_end().to_string(), with_unit(v, id.info().map_or("", |i| i.unit))));
         }
     }
     if !args.json {
@@ -162,7 +199,7 @@ pub(super) fn set(
         v["verified"] = json!(true);
         common::print_json(out, &identified(args, v))?;
     } else {
-        writeln!(out, "{id} = {value}, read back{note}")?;
+        writeln!(out, "{id} = {}, read back{note}", with_unit(value, id.info().map_or("", |i| i.unit)))?;
     }
     Ok(())
 }
@@ -192,7 +229,7 @@ pub(super) fn move_no_wait(
             ),
         )?;
     } else {
-        writeln!(out, "drive {drive}: target {}, position {now} (moving on)", started.target)?;
+        writeln!(out, "drive {drive}: target {} {UNITS}, position {now} {UNITS} (moving on)", started.target)?;
         if !started.not_verifiable.is_empty() {
             writeln!(out, "not verified: {}", started.not_verifiable.join("; "))?;
         }
@@ -235,7 +272,7 @@ pub(super) fn move_and_wait(
             ),
         )?;
     } else {
-        writeln!(out, "drive {drive}: target {}, position {}", report.target, report.reached)?;
+        writeln!(out, "drive {drive}: target {} {UNITS}, position {} {UNITS}", report.target, report.reached)?;
         if !report.verified {
             writeln!(out, "not verified: {}", report.not_verifiable.join("; "))?;
         }
@@ -304,7 +341,7 @@ pub(super) fn stop(
         return Ok(());
     }
     match &position {
-        Ok(p) => writeln!(out, "{report}; at rest at {p} (S17 and S1 read back)")?,
+        Ok(p) => writeln!(out, "{report}; at rest at {p} {UNITS} (S17 and S1 read back)")?,
         Err(e) => writeln!(out, "{report}; at rest (S17 read back), but the position could not be read: {e}")?,
     }
     match o0 {

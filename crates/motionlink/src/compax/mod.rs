@@ -24,6 +24,7 @@ use serde_json::json;
 
 use crate::common::{self, CliError, Row, ServeArgs};
 use crate::decode::CaptureArgs;
+use crate::numbers::{above_zero, at_least, finite, whole};
 use crate::tap::{LinkArgs, Tap};
 use motionlink_compax::describe::Describer;
 use motionlink_link::describe::Describe;
@@ -48,16 +49,17 @@ pub struct Args {
     #[command(flatten)]
     pub link: LinkArgs,
     /// The drive's address (P194), 1..=31.
-    #[arg(long, default_value_t = 1, allow_negative_numbers = true, global = true)]
+    #[arg(long, default_value_t = 1, global = true, value_parser = whole::<u8>("the drive's address", 1, 31, ""))]
     pub drive: u8,
     /// The drives' operating mode P196 (0..=127): BCC, parity, reply end, address prefix...
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true, global = true)]
+    #[arg(long, default_value_t = 0, global = true, value_parser = whole::<u32>("P196", 0, 127, ""))]
     pub mode: u32,
     /// The drives' baud rate P195 (150, 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200).
-    #[arg(long, default_value_t = 9600, allow_negative_numbers = true, global = true)]
+    #[arg(long, default_value_t = 9600, global = true, value_parser = parse_baud)]
     pub baud: u32,
     /// Time a drive may take to start answering, in ms (1..=60000, on top of the wire time).
-    #[arg(long, default_value_t = 200, allow_negative_numbers = true, global = true)]
+    #[arg(long, default_value_t = 200, value_name = "MS", global = true,
+          value_parser = whole::<u64>("the reply timeout", 1, 60_000, "ms"))]
     pub timeout_ms: u64,
     /// Send the short command names (PA, PR, SD, AL, OT) instead of the long ones.
     #[arg(long, global = true)]
@@ -99,41 +101,47 @@ pub enum Action {
         /// The parameter.
         param: String,
         /// The value.
-        #[arg(allow_negative_numbers = true)]
+        #[arg(value_parser = finite::<f64>("the value", ""))]
         value: f64,
     },
     /// Move the axis, wait until it is at rest, and check it is at its target (a signal stops it). Every
     /// argument is checked before anything is sent.
+    #[command(group(clap::ArgGroup::new("target_of_move").args(["target", "abs", "rel"]).required(true)))]
     Move {
+        /// Move to this absolute position (drive's unit), as --abs does: `move 100` is `move --abs 100`.
+        #[arg(value_name = "POSITION", conflicts_with_all = ["abs", "rel"],
+              value_parser = finite::<f64>("the target position", "drive units"))]
+        target: Option<f64>,
         /// Move to this absolute position (drive's unit).
-        #[arg(long, allow_negative_numbers = true, conflicts_with = "rel", required_unless_present = "rel")]
+        #[arg(long, conflicts_with = "rel", value_parser = finite::<f64>("the target position", "drive units"))]
         abs: Option<f64>,
         /// Move by this distance from the drive's target S2 (drive's unit).
-        #[arg(long, allow_negative_numbers = true)]
+        #[arg(long, value_parser = finite::<f64>("the distance", "drive units"))]
         rel: Option<f64>,
         /// SPEED in percent of the drive's maximum speed (more than 0, at most 100).
-        #[arg(long, allow_negative_numbers = true)]
+        #[arg(long, value_parser = above_zero::<f64>("the speed", Some(100.0), "% of the drive's maximum speed"))]
         speed: Option<f64>,
-        /// ACCEL: ramp time in ms (0..=32767).
-        #[arg(long, allow_negative_numbers = true)]
+        /// ACCEL: ramp time in ms (1..=32767).
+        #[arg(long, value_parser = whole::<u32>("the ramp time", 1, 32_767, "ms"))]
         accel: Option<u32>,
         /// Send the binary commands.
         #[arg(long)]
         binary: bool,
         /// Give up (and stop the axis) after this many seconds (more than 0).
-        #[arg(long, default_value_t = 600.0, allow_negative_numbers = true)]
+        #[arg(long, default_value_t = 600.0, value_parser = above_zero::<f64>("the time the move may take", None, "s"))]
         timeout_s: f64,
         /// Success only if the axis comes to rest this close to its target (drive's unit, more than 0).
-        #[arg(long, default_value_t = DEFAULT_IN_POSITION_TOLERANCE, allow_negative_numbers = true)]
+        #[arg(long, default_value_t = DEFAULT_IN_POSITION_TOLERANCE,
+              value_parser = above_zero::<f64>("the in-position tolerance", Some(1e6), "drive units"))]
         tolerance: f64,
         /// Refuse targets below this position (checked before anything moves).
-        #[arg(long, allow_negative_numbers = true)]
+        #[arg(long, value_parser = finite::<f64>("the lowest target", "drive units"))]
         min_pos: Option<f64>,
         /// Refuse targets above this position (checked before anything moves).
-        #[arg(long, allow_negative_numbers = true)]
+        #[arg(long, value_parser = finite::<f64>("the highest target", "drive units"))]
         max_pos: Option<f64>,
         /// Interval of the status polls while waiting, in ms (1..=10000).
-        #[arg(long, default_value_t = 50, allow_negative_numbers = true)]
+        #[arg(long, default_value_t = 50, value_parser = whole::<u64>("the poll interval", 1, 10_000, "ms"))]
         poll_ms: u64,
         /// Return once the drive has taken the move (its target read back), without waiting: the move is
         /// handed over and keeps running after the command exits (nothing stops it).
@@ -143,10 +151,10 @@ pub enum Action {
     /// Read S1 and S17 over and over and print them, one line each, until interrupted (or --count lines).
     Watch {
         /// Interval between two lines, in ms (1..=60000).
-        #[arg(long, default_value_t = 200, allow_negative_numbers = true)]
+        #[arg(long, default_value_t = 200, value_parser = whole::<u64>("the sample interval", 1, 60_000, "ms"))]
         interval_ms: u64,
         /// Stop after this many samples (at least 1).
-        #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+        #[arg(long, value_parser = at_least::<u64>("the number of samples", 1))]
         count: Option<u64>,
         /// Print CSV (a header line, then one line per sample) instead of text.
         #[arg(long)]
@@ -181,8 +189,10 @@ pub enum Action {
     /// Switch an output: OUTPUT ON=S (output 0 is the drive itself: 0 switches it off, 1 on).
     Output {
         /// Output number.
+        #[arg(value_parser = whole::<u16>("the output number", 0, u16::MAX, ""))]
         number: u16,
         /// 0 or 1 (O0: 0, 1 or 2).
+        #[arg(value_parser = whole::<u8>("the output state", 0, 2, ""))]
         state: u8,
     },
     /// Send a command as it is, such as "S1", "POSA 10$", "!" (flag characters $ , / ? at the end are sent as
@@ -195,10 +205,12 @@ pub enum Action {
         #[arg(long)]
         wait: bool,
         /// With --wait: give up (and stop the axis) after this many seconds (more than 0).
-        #[arg(long, default_value_t = 600.0, allow_negative_numbers = true, requires = "wait")]
+        #[arg(long, default_value_t = 600.0, requires = "wait",
+              value_parser = above_zero::<f64>("the time the move may take", None, "s"))]
         timeout_s: f64,
         /// With --wait: interval of the status polls, in ms (1..=10000).
-        #[arg(long, default_value_t = 50, requires = "wait", allow_negative_numbers = true)]
+        #[arg(long, default_value_t = 50, requires = "wait",
+              value_parser = whole::<u64>("the poll interval", 1, 10_000, "ms"))]
         poll_ms: u64,
     },
 }
@@ -209,13 +221,13 @@ pub struct SimArgs {
     #[command(flatten)]
     pub serve: ServeArgs,
     /// Addresses of the emulated drives, such as 1,5 (default 1).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', value_parser = whole::<u8>("a drive's address", 1, 31, ""))]
     pub drives: Option<Vec<u8>>,
     /// P196 of every drive (default 0).
-    #[arg(long)]
+    #[arg(long, value_parser = whole::<u32>("P196", 0, 127, ""))]
     pub mode: Option<u32>,
     /// The line's and the drives' baud rate (default 9600).
-    #[arg(long)]
+    #[arg(long, value_parser = parse_baud)]
     pub baud: Option<u32>,
     /// A TOML file describing the bus (see the motionlink-compax README); the options above override it.
     #[arg(long)]
@@ -237,7 +249,7 @@ pub struct DecodeArgs {
     #[command(flatten)]
     pub capture: CaptureArgs,
     /// P196 of the capture (BCC, reply end, address prefix).
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0, value_parser = whole::<u32>("P196", 0, 127, ""))]
     pub mode: u32,
     /// Which way the bytes went: auto (guess each telegram), host (requests only), drive (replies only).
     #[arg(long, value_enum, default_value_t = Direction::Auto)]
@@ -255,6 +267,14 @@ pub enum Direction {
     Drive,
 }
 
+/// `--baud`: a rate P195 accepts.
+fn parse_baud(text: &str) -> Result<u32, String> {
+    match text.trim().parse::<u32>() {
+        Ok(b) if BAUD_RATES.contains(&b) => Ok(b),
+        _ => Err(format!("the baud rate must be one P195 accepts: {BAUD_RATES:?}")),
+    }
+}
+
 /// How to switch drive `a` on again, as a command line on the same port and bus settings.
 fn switch_on_hint(args: &Args, a: u8) -> String {
     // The port as resolved (from --port, --device or MOTIONLINK_PORT), else as given.
@@ -263,13 +283,7 @@ fn switch_on_hint(args: &Args, a: u8) -> String {
         ("", None) => "PORT",
         (resolved, _) => resolved,
     };
-    let mut cmd = format!("motionlink compax --port {port}");
-    if args.mode != 0 {
-        cmd.push_str(&format!(" --mode {}", args.mode));
-    }
-    if args.baud != 9600 {
-        cmd.push_str(&format!(" --baud {}", args.baud));
-    }
+    let cmd = format!("motionlink compax --port {port}{}", bus_options(args));
     format!("drive {a} is switched off; to switch it on again: {cmd} --drive {a} output 0 1")
 }
 
@@ -350,7 +364,29 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     let tap = Tap::new("compax", &args.resolved_port, &clock, &args.link, "can0", &describer, sending)?;
     let result = act(&args, &tap, &clock);
     tap.flush();
-    result
+    // A drive that never answered is named as absent (a scan says so itself).
+    match args.action {
+        Action::Scan => result,
+        _ => result.map_err(|e| {
+            tap.name_absent(e, || {
+                let port = &args.resolved_port;
+                let (drive, options) = (args.drive, bus_options(&args));
+                format!("drive {drive} does not answer on {port}; `motionlink compax --port {port}{options} scan` lists the drives there")
+            })
+        }),
+    }
+}
+
+/// `--mode` and `--baud` as a command line on this bus gives them (only where not the default).
+fn bus_options(args: &Args) -> String {
+    let mut options = String::new();
+    if args.mode != 0 {
+        options.push_str(&format!(" --mode {}", args.mode));
+    }
+    if args.baud != 9600 {
+        options.push_str(&format!(" --baud {}", args.baud));
+    }
+    options
 }
 
 /// One JSON object of `motionlink compax`: family, port and drive first.

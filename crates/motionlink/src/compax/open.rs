@@ -24,7 +24,7 @@ pub(super) fn plan_move(
     let target = match (abs, rel) {
         (Some(a), None) => MoveTarget::Absolute(Position::new(a).map_err(|e| CliError::usage(format!("--abs: {e}")))?),
         (None, Some(r)) => MoveTarget::Relative(Position::new(r).map_err(|e| CliError::usage(format!("--rel: {e}")))?),
-        _ => return Err(CliError::usage("give one of --abs and --rel")),
+        _ => return Err(CliError::usage("give the target: POSITION (the same as --abs POSITION) or --rel DISTANCE")),
     };
     let speed = speed.map(SpeedPercent::new).transpose().map_err(|e| CliError::usage(format!("--speed: {e}")))?;
     if accel == Some(0) {

@@ -15,7 +15,8 @@ pub(super) fn status_rows(id: StatusId, v: &StatusValue) -> (Row, serde_json::Va
             let bits = b.pattern().to_string();
             (format!("{bits}  [{}]", b.meanings().join(", ")), bits_json(*b, bits))
         }
-        StatusValue::Position(p) => (format!("{v} {unit}").trim_end().to_string(), json!(p.units())),
+        // A position is in the drive's own unit (the table says "unit"): "units" in text, as in the JSON keys.
+        StatusValue::Position(p) => (format!("{v} {}", super::actions::UNITS), json!(p.units())),
         StatusValue::Number(n) => (format!("{v} {unit}").trim_end().to_string(), json!(n)),
         other => (other.to_string(), json!(other.to_string())),
     };
@@ -92,7 +93,8 @@ pub(super) fn watch(
             )
             .to_string()
         } else {
-            format!("drive {drive}  S1 = {}  {}", s.position, if s.moving() { "moving" } else { "at rest" })
+            let rest = if s.moving() { "moving" } else { "at rest" };
+            format!("drive {drive}  S1 = {} {}  {rest}", s.position, super::actions::UNITS)
         };
         if written.is_ok() {
             written = writeln!(out, "{line}").and_then(|()| out.flush());

@@ -9,8 +9,8 @@ use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::SharedClock;
 use motionlink_scu::model::{
-    lookup, Actuator, DataIndex, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode,
-    StopMode, TABLE,
+    Actuator, DataIndex, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode, StopMode,
+    TABLE,
 };
 use motionlink_scu::session::RunAction;
 use motionlink_scu::value::Value as ScuValue;
@@ -178,17 +178,12 @@ impl Scu {
 }
 
 fn lookup_entry(name: &str) -> Result<Item, Failure> {
-    lookup(name).ok_or_else(|| {
-        Failure::usage(format!("{name:?} is not in the data list: give a name such as remote_speed_f1 or an index"))
-    })
+    motionlink_scu::model::find(name).map_err(Failure::usage)
 }
 
 /// A value as the page shows it, with its unit (a remote speed in the unit's speed mode).
 fn show(v: &ScuValue, mode: SpeedMode) -> String {
-    match v {
-        ScuValue::RemoteSpeed(s) => format!("{s} {}", mode.unit()),
-        v => v.to_string(),
-    }
+    v.show(mode)
 }
 
 fn shown(entries: &[(&'static motionlink_scu::model::DataEntry, ScuValue)], mode: SpeedMode) -> String {

@@ -103,13 +103,15 @@ pub(super) fn home(
     let r = m.home_guarded(timeout, guard, &mut |p: &Progress| bar.set_message(progress_text(p)));
     bar.finish_and_clear();
     let (position, s) = r.map_err(failed)?;
+    let kind = m.kind().map_err(|e| {
+        context(e, "homed, but the module type (and so the unit of its position) cannot be read".into())
+    })?;
     if args.json {
-        let kind = m.kind().map_err(failed)?;
         let fields = json!({"action": "homed", unit_key("reached", kind): position.value(),
                             "state": state_json(s)});
         common::print_json(out, &identified(args, port, fields))?;
     } else {
-        report_done(out, "homed", position, s)?;
+        report_done(out, "homed", position, kind, s)?;
     }
     Ok(())
 }
@@ -201,8 +203,10 @@ pub(super) fn move_to(
     });
     bar.finish_and_clear();
     let report = r.map_err(failed)?;
+    let kind = m.kind().map_err(|e| {
+        context(e, "the move ended, but the module type (and so the unit of its position) cannot be read".into())
+    })?;
     if args.json {
-        let kind = m.kind().map_err(failed)?;
         let reached = report.reached.value();
         let fields = json!({"action": "reached", unit_key("target", kind): position,
                             unit_key("reached", kind): reached,
@@ -211,7 +215,7 @@ pub(super) fn move_to(
                             "verified": report.verified, "not_verifiable": report.not_verifiable});
         common::print_json(out, &identified(args, port, fields))?;
     } else {
-        report_done(out, "reached", report.reached, report.state)?;
+        report_done(out, "reached", report.reached, kind, report.state)?;
         if !report.verified {
             writeln!(out, "not verified: {}", report.not_verifiable.join("; "))?;
         }

@@ -1,13 +1,11 @@
-//! Checks of `motionlink powercube`'s arguments that need no port: the rates a line can run at, numbers
-//! that must be finite and positive, the tolerance's bound. Each names the option it refuses (exit 2).
+//! Checks of `motionlink powercube`'s arguments that need no port: the rates a line can run at and
+//! durations in seconds. Each names the option it refuses (exit 2); the numbers of `move` and `home` are
+//! checked as clap parses them ([`crate::numbers`]).
 
 use std::time::Duration;
 
-use motionlink_link::can::SlcanBitrate;
-use motionlink_powercube::client::MoveSpec;
-
-use super::Action;
 use crate::common::CliError;
+use motionlink_link::can::SlcanBitrate;
 
 /// The RS232 baud rates `--baud` takes: the standard rates of a serial port from 1200 up (the modules run
 /// at 9600 unless DefPrimBaud says otherwise).
@@ -42,35 +40,6 @@ pub(super) fn positive_secs(name: &str, s: f64) -> Result<Duration, CliError> {
         return Err(CliError::usage(format!("{name} must be a number of seconds above 0, not {s}")));
     }
     Duration::try_from_secs_f64(s).map_err(|_| CliError::usage(format!("{name} {s} is not a duration in seconds")))
-}
-
-/// Checks what can be checked before the port is opened: numbers that must be finite and positive. (The
-/// limits of the module itself, such as MaxPos or MaxVel, are checked by the library against the module
-/// before anything is written or moved.)
-pub(super) fn check_args(action: &Action) -> Result<(), CliError> {
-    match action {
-        Action::Move { position, vel, acc, timeout_s, tolerance } => {
-            if !position.is_finite() {
-                return Err(CliError::usage(format!("the position must be a number, not {position}")));
-            }
-            for (name, value) in [("--vel", vel), ("--acc", acc), ("--tolerance", &Some(*tolerance))] {
-                if let Some(v) = value {
-                    if !(v.is_finite() && *v > 0.0) {
-                        return Err(CliError::usage(format!("{name} must be a number above 0, not {v}")));
-                    }
-                }
-            }
-            let most = MoveSpec::MAX_TOLERANCE.value();
-            if *tolerance > most {
-                return Err(CliError::usage(format!(
-                    "--tolerance must be at most {most} (rad or m): {tolerance} would count almost any end as arrived"
-                )));
-            }
-            positive_secs("--timeout-s", *timeout_s).map(|_| ())
-        }
-        Action::Home { timeout_s } => positive_secs("--timeout-s", *timeout_s).map(|_| ()),
-        _ => Ok(()),
-    }
 }
 
 #[cfg(test)]

@@ -78,11 +78,16 @@ pub(super) fn parse_send(words: &[String], module: u8) -> Result<Request, CliErr
         "saveparameters" => none(Request::Action(PcAction::SaveParameters))?,
         _ => {
             let bytes = common::parse_hex(&words.join(" ")).map_err(|_| {
-                CliError::usage(format!(
-                    "{:?} is neither a typed command (get, set, reset, halt, recalc-pid, reset-time, \
-                     save-parameters) nor hex (a payload, or a whole RS232 telegram 02 ... 03)",
-                    words.join(" ")
-                ))
+                // A misspelt command is answered with the nearest one (hlat: did you mean halt?).
+                let typed = ["get", "set", "reset", "halt", "recalc-pid", "reset-time", "save-parameters", "home"];
+                match motionlink_link::table::did_you_mean(&motionlink_link::table::nearest(&words[0], typed)) {
+                    Some(hint) => CliError::usage(format!("{:?} is not a command: {hint}", words[0])),
+                    None => CliError::usage(format!(
+                        "{:?} is neither a typed command (get, set, reset, halt, recalc-pid, reset-time, \
+                         save-parameters) nor hex (a payload, or a whole RS232 telegram 02 ... 03)",
+                        words.join(" ")
+                    )),
+                }
             })?;
             let payload = if bytes.first() == Some(&0x02) && bytes.last() == Some(&0x03) && bytes.len() >= 5 {
                 telegram_payload(&bytes, module)?

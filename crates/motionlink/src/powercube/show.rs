@@ -1,6 +1,7 @@
 //! What `motionlink powercube` prints: `scan`, `info`, `watch` and the end of a motion.
 
 use super::*;
+use motionlink_powercube::model::AxisUnit;
 
 pub(super) fn scan(client: &Client, port: &str, out: &mut dyn Write, json: bool) -> Result<(), CliError> {
     let found = client.scan().map_err(failed)?;
@@ -138,10 +139,22 @@ pub(super) fn watch(
 }
 
 pub(super) fn progress_text(p: &Progress) -> String {
-    format!("module {}: {:.4}  {}", p.address, p.position.value(), p.state)
+    // The unit once the session knows the module's kind (a bare number until then).
+    let unit = match p.position.unit() {
+        AxisUnit::ModuleUnit => String::new(),
+        u => format!(" {u}"),
+    };
+    format!("module {}: {:.4}{unit}  {}", p.address, p.position.value(), p.state)
 }
 
-pub(super) fn report_done(out: &mut dyn Write, what: &str, pos: Position, s: CubeState) -> Result<(), CliError> {
-    writeln!(out, "{what}: position {:.4}, state {s}", pos.value())?;
+/// The end of a motion: `reached: position 1.2000 rad, state ...` (in the unit of a module of `kind`).
+pub(super) fn report_done(
+    out: &mut dyn Write,
+    what: &str,
+    pos: Position,
+    kind: ModuleKind,
+    s: CubeState,
+) -> Result<(), CliError> {
+    writeln!(out, "{what}: position {}, state {s}", pos.show(kind))?;
     Ok(())
 }

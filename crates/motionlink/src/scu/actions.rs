@@ -100,8 +100,10 @@ fn cl(e: motionlink_scu::Error) -> CliError {
     common::classified(&e)
 }
 
-fn value_rows(values: &[(&'static DataEntry, Value)]) -> Vec<Row> {
-    values.iter().map(|(e, v)| (format!("{} ({})", e.name, e.index()), v.to_string())).collect()
+/// The rows of `get`: each entry's name and index, and its value with its unit (a remote speed in the unit
+/// of `mode`).
+fn value_rows(values: &[(&'static DataEntry, Value)], mode: SpeedMode) -> Vec<Row> {
+    values.iter().map(|(e, v)| (format!("{} ({})", e.name, e.index()), v.show(mode))).collect()
 }
 
 fn values_json(values: &[(&'static DataEntry, Value)]) -> serde_json::Value {
@@ -128,7 +130,7 @@ pub(super) fn get(client: &Client, items: &[Item], report: &Report<'_>, out: &mu
                 json!({"name": it.name(), "id": it.index().0, "value": value, "unit": unit, "access": access}),
             )?;
         } else {
-            common::print_table(out, &value_rows(&values))?;
+            common::print_table(out, &value_rows(&values, client.config().speed_mode))?;
         }
     }
     Ok(())
@@ -161,11 +163,12 @@ pub(super) fn set(
                    "not_verifiable": written.not_verifiable}),
         )
     } else {
+        let shown = v.show(client.config().speed_mode);
         let how = match written.verified {
             true => "written, read back".to_string(),
             false => format!("written; not verified: {}", written.not_verifiable.join("; ")),
         };
-        common::print_table(out, &[(format!("{} ({})", e.name, e.index()), format!("{v} ({how})"))])
+        common::print_table(out, &[(format!("{} ({})", e.name, e.index()), format!("{shown} ({how})"))])
     }
 }
 
@@ -425,7 +428,12 @@ pub(super) fn print_move_report(out: &mut dyn Write, report: &MoveReport, how: &
     let mut rows: Vec<Row> = vec![("function".into(), report.function.to_string())];
     for o in &report.actuators {
         let text = if o.moved || o.actuator == report.actuator {
-            format!("{} (target {}, difference {})", o.position_counts, o.target_counts.get(), o.difference_counts())
+            format!(
+                "{} (target {} counts, difference {} counts)",
+                o.position_counts,
+                o.target_counts.get(),
+                o.difference_counts()
+            )
         } else {
             format!("{} (did not move: not driven by {})", o.position_counts, report.function)
         };

@@ -175,7 +175,7 @@ pub(super) fn follow(
         let list: Vec<_> = rest.iter().map(|(a, p)| json!({"actuator": a.number(), "reached_counts": p})).collect();
         report.print(out, json!({"stopped": true, "actuators": list, "updates": updates}))?;
     } else {
-        writeln!(out, "stopped after {updates} update(s): {}", text.join(" "))?;
+        writeln!(out, "stopped after {updates} update(s): {} counts", text.join(" "))?;
     }
     error.map_or(Ok(()), Err)
 }
@@ -193,7 +193,7 @@ fn print_targets(
         report.print(out, json!({"targets": list}))?;
     } else {
         let text: Vec<String> = actuators.iter().zip(targets).map(|(a, t)| format!("{a}={}", t.get())).collect();
-        writeln!(out, "target {}", text.join(" "))?;
+        writeln!(out, "target {} counts", text.join(" "))?;
     }
     out.flush()?;
     Ok(())

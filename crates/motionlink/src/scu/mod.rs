@@ -12,24 +12,28 @@ use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::{RealClock, SharedClock};
 use motionlink_scu::describe::Describer;
-use motionlink_scu::model::{
-    lookup, Actuator, Function, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode,
-};
+use motionlink_scu::model::{Function, PositionCounts, SafetyId, SpeedMode};
 use motionlink_scu::session::RunAction;
-use motionlink_scu::{Client, ClientConfig, Emulator, Ending, FunctionMap, SimConfig, StrokeLimits, Variants};
+use motionlink_scu::{Client, ClientConfig, Emulator, Ending, FunctionMap, SimConfig, Variants};
 
 use crate::common::{self, CliError};
+use crate::numbers::{at_least, integer, whole};
 use crate::tap::{LinkArgs, Tap};
 
 mod actions;
 mod demo;
 mod emulated;
 mod follow;
+mod parse;
 mod send;
 mod stop;
 
 pub use demo::{decode, demo, sim, DecodeArgs, SimArgs};
 pub(crate) use emulated::{in_process_config, InProcess};
+use parse::{
+    motion_function, parse_actuator, parse_baud, parse_direction, parse_function, parse_item, parse_rate,
+    parse_seconds, parse_speed, parse_stroke,
+};
 
 /// `motionlink scu` arguments. Every option may come before or after the action.
 #[derive(clap::Args, Debug)]
@@ -46,12 +50,12 @@ pub struct Args {
     pub baud: u32,
     /// Safety_ID sent with RO: 0 a timeout stops all motion and locks remote motion until RO, 1 stops all
     /// motion, 2 stops remote motion only.
-    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=2), global = true)]
+    #[arg(long, default_value_t = 0, value_parser = whole::<u8>("the Safety_ID", 0, 2, ""), global = true)]
     pub safety: u8,
     /// How long to wait for the reply to RO, in ms (the manual allows the unit 2000 ms). In remote mode replies
     /// are awaited at most 1000 ms (twice the unit's watchdog), or this if it is shorter.
-    #[arg(long, default_value_t = 2000, value_name = "MS", allow_hyphen_values = true, global = true,
-          alias = "reply-timeout", value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    #[arg(long, default_value_t = 2000, value_name = "MS", global = true, alias = "reply-timeout",
+          value_parser = whole::<u64>("the reply timeout", 1, 60_000, "ms"))]
     pub timeout_ms: u64,
     /// Which actuators each motion function drives (the unit's parameterisation, which the data list does not
     /// show): a preset, scp11 (Fn drives An), tlt (F1 both columns, F2 A1, F3 A2) or liftkit (F1 A1, F2 A2, F8
@@ -64,14 +68,14 @@ pub struct Args {
     #[arg(long = "stroke", value_name = "A=MIN:MAX", global = true)]
     pub stroke: Vec<String>,
     /// How close to its target a move must end to succeed, in counts.
-    #[arg(long, default_value_t = 5, value_name = "COUNTS", allow_hyphen_values = true, global = true,
-          value_parser = clap::value_parser!(u32).range(0..=100))]
+    #[arg(long, default_value_t = 5, value_name = "COUNTS", global = true,
+          value_parser = whole::<u32>("the position tolerance", 0, 100, "counts"))]
     pub tolerance: u32,
     /// How often a move (or a run) looks at the actuators, in ms: each look is one RC keepalive that also reads
     /// the status, position and current of every actuator (about 16 ms of the 38400-baud line). A watch's
     /// samples ride on such RCs too: at most one per this interval.
-    #[arg(long, default_value_t = 50, value_name = "MS", allow_hyphen_values = true, global = true,
-          alias = "poll-interval", value_parser = clap::value_parser!(u64).range(5..=10_000))]
+    #[arg(long, default_value_t = 50, value_name = "MS", global = true, alias = "poll-interval",
+          value_parser = whole::<u64>("the poll interval", 5, 10_000, "ms"))]
     pub poll_ms: u64,
     /// How the unit takes remote speeds: percent (standard units, "speed select relative") or
     /// counts-per-second (units parameterised for "speed select absolute", 0..1000 counts/s).
@@ -150,15 +154,16 @@ pub enum Action {
     /// goes there too. Exits 0 only if each ended within --tolerance of the target. Ctrl-C stops it.
     Move {
         /// Actuator 1..6.
+        #[arg(value_parser = whole::<u8>("the actuator", 1, 6, ""))]
         actuator: u8,
         /// Target position in encoder counts.
-        #[arg(allow_negative_numbers = true)]
+        #[arg(value_parser = integer::<i32>("the target position", "counts"))]
         position: i32,
         /// Speed in percent, 1..100 (or counts/s, 1..1000, on units set to absolute speed).
         #[arg(long, default_value = "100", value_name = "SPEED", allow_hyphen_values = true)]
         speed: String,
         /// Motion function (1..10) that drives the actuator; default: the one with its number (F1 for A1).
-        #[arg(long)]
+        #[arg(long, value_parser = whole::<u8>("the motion function", 1, 10, ""))]
         function: Option<u8>,
     },
     /// Follow targets read from stdin while the motion runs (streamed setpoints): each line gives the target
@@ -167,9 +172,10 @@ pub enum Action {
     /// the motion.
     Follow {
         /// Actuator 1..6 (its function, and every actuator that function drives, follow the targets).
+        #[arg(value_parser = whole::<u8>("the actuator", 1, 6, ""))]
         actuator: u8,
         /// Motion function (1..10); default: the one with the actuator's number.
-        #[arg(long)]
+        #[arg(long, value_parser = whole::<u8>("the motion function", 1, 10, ""))]
         function: Option<u8>,
         /// Speed in percent, 1..100 (or counts/s, 1..1000, on units set to absolute speed).
         #[arg(long, default_value = "100", value_name = "SPEED", allow_hyphen_values = true)]
@@ -216,11 +222,11 @@ pub enum Action {
     /// once it is defined), else it is read.
     Watch {
         /// Time between samples, in ms (10 .. 3600000).
-        #[arg(long, default_value_t = 250, value_name = "MS", allow_hyphen_values = true, alias = "interval",
-              value_parser = clap::value_parser!(u64).range(10..=3_600_000))]
+        #[arg(long, default_value_t = 250, value_name = "MS", alias = "interval",
+              value_parser = whole::<u64>("the sample interval", 10, 3_600_000, "ms"))]
         interval_ms: u64,
         /// Stop after this many samples (at least 1).
-        #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u64).range(1..))]
+        #[arg(long, value_parser = at_least::<u64>("the number of samples", 1))]
         count: Option<u64>,
         /// Print CSV (a header line, then one line per actuator and sample) instead of a table.
         #[arg(long)]
@@ -228,13 +234,6 @@ pub enum Action {
     },
     /// The error history (Error_Code 1..5) with each bit's cause.
     Errors,
-}
-
-fn parse_baud(s: &str) -> Result<u32, String> {
-    match s.parse::<u32>() {
-        Ok(b @ (9_600 | 19_200 | 38_400)) => Ok(b),
-        _ => Err(format!("{s:?}: an SCU runs at 9600, 19200 or 38400 baud")),
-    }
 }
 
 /// The session's settings from the command line, checked before anything is sent.
@@ -262,38 +261,6 @@ fn client_config(args: &Args) -> Result<ClientConfig, CliError> {
     };
     config.validate().map_err(|e| CliError::usage(e.to_string()))?;
     Ok(config)
-}
-
-/// `--stroke 1=0:865`.
-fn parse_stroke(spec: &str) -> Result<(Actuator, StrokeLimits), CliError> {
-    StrokeLimits::parse_for_actuator(spec).map_err(|e| CliError::usage(format!("--stroke {e}")))
-}
-
-/// `--speed` of a motion: a whole number from 1 to the speed mode's maximum (0 would never move).
-fn parse_speed(text: &str, mode: SpeedMode) -> Result<Speed, CliError> {
-    Speed::parse(text, mode).map_err(|e| CliError::usage(format!("--speed {e}")))
-}
-
-/// `--rate` of `follow`: 1..100 updates per second.
-fn parse_rate(text: &str) -> Result<u32, CliError> {
-    match text.trim().parse::<i64>() {
-        Ok(v) if (1..=100).contains(&v) => Ok(v as u32),
-        _ => Err(CliError::usage(format!("--rate {text:?}: give 1..100 updates per second"))),
-    }
-}
-
-/// `--seconds` of `run`: a finite, non-negative number of seconds (at most a day).
-fn parse_seconds(text: &str) -> Result<Duration, CliError> {
-    match text.trim().parse::<f64>() {
-        Ok(s) if s.is_finite() && (0.0..=86_400.0).contains(&s) => Ok(Duration::from_secs_f64(s)),
-        _ => Err(CliError::usage(format!("--seconds {text:?}: give a number of seconds, 0 .. 86400"))),
-    }
-}
-
-/// The motion function of `move` and `follow`: `--function`, or the one with the actuator's number.
-fn motion_function(actuator: Actuator, function: Option<u8>) -> Result<MotionFunction, CliError> {
-    let n = function.unwrap_or(actuator.number());
-    MotionFunction::new(n).ok_or_else(|| CliError::usage(format!("--function {n}: the motion functions are F1..F10")))
 }
 
 /// Opens the session on `port`, its link watched by `tap`.
@@ -328,34 +295,6 @@ fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: Clie
         }
     };
     Client::open(connector, clock, config).map_err(|e| common::classified(&e))
-}
-
-fn parse_item(text: &str) -> Result<Item, CliError> {
-    lookup(text).ok_or_else(|| {
-        CliError::usage(format!(
-            "{text:?} is not a data-list entry: give a name such as actual_position_a1 or an index such as 0x0011"
-        ))
-    })
-}
-
-fn parse_actuator(n: u8) -> Result<Actuator, CliError> {
-    Actuator::new(n).ok_or_else(|| CliError::usage(format!("actuator {n}: actuators are 1..6")))
-}
-
-fn parse_function(text: &str) -> Result<Function, CliError> {
-    Function::parse(text).ok_or_else(|| {
-        CliError::usage(format!(
-            "{text:?} is not a function: F1..F10 motion, F11 buzzer, F17/F18 outputs, F20 emergency stop, F21/F22 LEDs"
-        ))
-    })
-}
-
-fn parse_direction(text: &str) -> Result<MotionDirection, CliError> {
-    MotionDirection::parse(text).ok_or_else(|| {
-        CliError::usage(format!(
-            "{text:?} is not a direction: in, out, mem1..mem4, int-in, int-out, remote, none, or 0..9"
-        ))
-    })
 }
 
 /// What every action prints with: JSON or text, and the port the JSON objects name.
@@ -432,7 +371,15 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let clock = RealClock::shared();
     let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
     let tap = Tap::new("scu", &port, &clock, &args.link, "can0", &describer, request.is_some())?;
-    let client = connect(&args, &port, &tap, &clock, config)?;
+    let absent = || {
+        format!(
+            "the SCU on {port} does not answer (nothing came back to RO within {} ms): check the cable, the baud \
+             rate (--baud {}; standard units run at 38400, customised ones at 9600 or 19200) and that the control \
+             unit is powered",
+            args.timeout_ms, args.baud
+        )
+    };
+    let client = connect(&args, &port, &tap, &clock, config).map_err(|e| tap.name_absent(e, absent))?;
     let mut out = std::io::stdout().lock();
     let report = Report { json: args.json, port: &port, stopped };
     let result = match &request {
@@ -443,7 +390,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let started = client.started_functions();
     let closed = client.close();
     tap.flush();
-    finish(result, closed, &started)
+    finish(result, closed, &started).map_err(|e| tap.name_absent(e, absent))
 }
 
 /// Appends `note` to the message of `e`, keeping its exit code.
@@ -536,6 +483,7 @@ fn act(
 mod tests {
     use super::follow::{parse_follow_line, FollowLine};
     use super::*;
+    use motionlink_scu::model::{Actuator, Speed};
 
     fn a(n: u8) -> Actuator {
         Actuator::new(n).unwrap()

@@ -3,9 +3,7 @@
 
 use std::io::Write;
 
-use motionlink_scu::model::{
-    lookup, DataEntryExt, Function, Item, MotionDirection, SpeedMode, StopMode, DATA_LIST, GROUPS,
-};
+use motionlink_scu::model::{DataEntryExt, Function, Item, MotionDirection, SpeedMode, StopMode, DATA_LIST, GROUPS};
 use motionlink_scu::value::Value;
 use motionlink_scu::wire::{Incoming, Request, RequestDecoder};
 use serde_json::json;
@@ -48,11 +46,6 @@ fn session_owned(command: &str) -> CliError {
     ))
 }
 
-fn item(text: &str) -> Result<Item, CliError> {
-    lookup(text)
-        .ok_or_else(|| CliError::usage(format!("{text:?} is not in the data list (see `motionlink scu names`)")))
-}
-
 fn param(text: &str) -> Result<u8, CliError> {
     let t = text.trim();
     let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
@@ -79,11 +72,11 @@ pub(super) fn parse(words: &[String]) -> Result<SendRequest, CliError> {
         "RO" | "RA" | "RC" => Err(session_owned(&first)),
         "RG" => {
             arity(1, 1, "one data-list name or index, such as RG actual_position_a1")?;
-            Ok(SendRequest::Get(item(&rest[0])?.index().0))
+            Ok(SendRequest::Get(super::parse_item(&rest[0])?.index().0))
         }
         "RT" => {
             arity(2, 2, "a remote data name and a value, such as RT remote_speed_f1 80")?;
-            let Item::Entry(e) = item(&rest[0])? else {
+            let Item::Entry(e) = super::parse_item(&rest[0])? else {
                 return Err(CliError::usage(format!("{}: a group; RT writes one entry", rest[0])));
             };
             if !e.access.writable() {
@@ -121,7 +114,16 @@ pub(super) fn parse(words: &[String]) -> Result<SendRequest, CliError> {
             };
             Ok(SendRequest::Stop(f.id(), p))
         }
-        _ => parse_hex(&words.join(" ")),
+        _ => parse_hex(&words.join(" ")).map_err(|e| {
+            // Not hex either: a misspelt request is answered with the nearest one (GR: did you mean RG?).
+            let typed = ["RG", "RT", "RE", "RS"];
+            match motionlink_link::table::did_you_mean(&motionlink_link::table::nearest(&first, typed)) {
+                Some(hint) if common::parse_hex(&words.join(" ")).is_err() => {
+                    CliError::usage(format!("{:?} is not a request: {hint}", words[0]))
+                }
+                _ => e,
+            }
+        }),
     }
 }
 

@@ -393,7 +393,7 @@ fn watch_prints_until_interrupted() {
     run.signal(libc::SIGINT);
     let ended = run.wait(TEN_S);
     assert_eq!(ended.code(), 130, "{}", ended.stderr);
-    assert!(ended.stdout.lines().all(|l| l == "drive 1  S1 = 0  at rest"), "{}", ended.stdout);
+    assert!(ended.stdout.lines().all(|l| l == "drive 1  S1 = 0 units  at rest"), "{}", ended.stdout);
     // Its reader gone, it ends quietly.
     let mut child = Command::new(BIN)
         .args(["compax", "--port", &sim.address, "watch", "--interval-ms", "10"])
@@ -465,7 +465,7 @@ fn bad_arguments_are_refused_naming_them_before_anything_is_sent() {
         (&["watch", "--interval-ms", "0"], "--interval-ms"),
         (&["output", "3", "5"], "output state"),
         (&["set", "P196", "1000"], "P196"),
-        (&["set", "P003", "NaN"], "parameter value"),
+        (&["set", "P003", "NaN"], "the value must be a number"),
         (&["status", "S99"], "S99"),
     ] {
         let mut v = vec!["-vvv"];

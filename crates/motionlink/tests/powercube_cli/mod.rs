@@ -71,7 +71,7 @@ fn over_tcp_every_action() {
     // No module at 5: a transport error, exit 3.
     let out = run(port, &["--module", "5", "--timeout-ms", "50", "get", "ActPos"]);
     assert_eq!(code(&out), 3, "{}", String::from_utf8_lossy(&out.stderr));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("did not answer"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no module answers at address 5"));
 
     assert!(ok(port, &["--module", "17", "home"]).starts_with("homed"));
     let config_before = ok(port, &["--module", "17", "--json", "get", "Config"]);
@@ -114,7 +114,7 @@ fn a_device_error_names_its_flags() {
     let out = run(port, &["move", "1.0", "--vel", "1", "--acc", "2"]);
     assert_eq!(code(&out), 2, "{out:?}");
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("target position 1 is outside the module's limit MaxPos = 0.05"), "{err}");
+    assert!(err.contains("target position 1 rad is outside MinPos..MaxPos = -3.14..0.05 rad"), "{err}");
     assert!(ok(port, &["get", "ActPos"]).contains("0.000000"), "nothing moved");
     // A tow error names its flags.
     ok(port, &["set", "MaxDeltaPos", "0.0001"]);

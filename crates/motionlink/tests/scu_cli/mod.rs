@@ -280,7 +280,7 @@ fn move_on_a_tlt_moves_both_columns_of_f1_and_reports_each() {
     let out = scu(&sim.address, &["--functions", "tlt", "move", "2", "200", "--function", "3"]);
     assert!(out.status.success(), "{out:?}");
     let text = stdout(&out);
-    assert!(text.contains("A2") && text.contains("200 counts (target 200, difference 0)"), "{text}");
+    assert!(text.contains("A2") && text.contains("200 counts (target 200 counts, difference 0 counts)"), "{text}");
     assert!(!text.contains("A1 "), "F3 drives A2 only: {text}");
     assert_eq!(json(&scu(&sim.address, &["get", "actual_position_a1", "--json"]))["value"], 400);
     // A function the map says does not drive the actuator is refused before anything is sent.
@@ -394,12 +394,12 @@ fn follow_streams_targets_from_stdin_and_stops_on_eof() {
         Running::start_with_stdin(&["scu", "--port", &sim.address, "--functions", "tlt", "follow", "1"]);
     running.stdout.wait_for(Duration::from_secs(5), |l| l.starts_with("following F1 (A1, A2)")).expect("ready");
     writeln!(stdin, "# both columns to 200\n200").unwrap();
-    running.stdout.wait_for(Duration::from_secs(5), |l| l == "target A1=200 A2=200").expect("applied");
+    running.stdout.wait_for(Duration::from_secs(5), |l| l == "target A1=200 A2=200 counts").expect("applied");
     let (_, p) = wait_at_rest(&sim, "A1", 0.0);
     assert_eq!(p, 200);
     // Each its own target, then a new speed, then named targets.
     writeln!(stdin, "150 160\nspeed 60\na2=120 a1=110").unwrap();
-    running.stdout.wait_for(Duration::from_secs(5), |l| l == "target A1=110 A2=120").expect("applied");
+    running.stdout.wait_for(Duration::from_secs(5), |l| l == "target A1=110 A2=120 counts").expect("applied");
     let t = unix_now();
     wait_at_rest(&sim, "A1", t);
     drop(stdin); // EOF: the stream ends, the motion is stopped
@@ -424,7 +424,7 @@ fn follow_from_a_file_goes_to_the_newest_target_and_merges_lines_faster_than_its
     assert_eq!(ended.code(), 0, "{ended:?}");
     let updates: Vec<&str> = ended.stdout.lines().filter(|l| l.starts_with("target ")).collect();
     assert!(updates.len() < 5, "lines faster than the rate are merged: {updates:?}");
-    assert_eq!(updates.last(), Some(&"target A1=500 A2=500"), "the newest wins: {}", ended.stdout);
+    assert_eq!(updates.last(), Some(&"target A1=500 A2=500 counts"), "the newest wins: {}", ended.stdout);
     assert!(ended.stdout.contains("stopped after"), "{}", ended.stdout);
     for a in ["actual_position_a1", "actual_position_a2"] {
         assert_eq!(json(&scu(&sim.address, &["get", a, "--json"]))["value"], 500, "{a}");
@@ -451,7 +451,7 @@ fn follow_stops_on_a_bad_line_and_on_a_signal() {
     running.stdout.wait_for(Duration::from_secs(5), |l| l.starts_with("following")).expect("ready");
     let t = unix_now();
     writeln!(stdin, "400").unwrap();
-    running.stdout.wait_for(Duration::from_secs(5), |l| l == "target A1=400").expect("applied");
+    running.stdout.wait_for(Duration::from_secs(5), |l| l == "target A1=400 counts").expect("applied");
     sim.wait_event_after(t, Duration::from_secs(5), |e| e.starts_with("F1 started")).expect("moving back");
     let sent = running.signal(libc::SIGTERM);
     let (rest, _) = wait_at_rest(&sim, "A1", sent);

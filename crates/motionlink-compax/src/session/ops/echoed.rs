@@ -192,7 +192,7 @@ impl Ctx {
             }
         };
         if let Some(holders) = Self::echo_differs(address, &echo, &expected_echo, mode.reply_address) {
-            tracing::error!("drive {address}: the echo {:?} is not the telegram sent {:?}", echo.text_str(), sent);
+            tracing::info!("drive {address}: the echo {:?} is not the telegram sent {:?}", echo.text_str(), sent);
             let shown = match echo.address() {
                 Some(a) => format!("{a}:{}", echo.text_str()),
                 None => echo.text_str().to_string(),

@@ -103,7 +103,7 @@ impl Ctx {
         if to_stop.is_empty() {
             return cause;
         }
-        tracing::warn!("{cause}: stopping the axes this session moved");
+        tracing::info!("{cause}: stopping the axes this session moved");
         let stop = self.stop_drives(&to_stop).await;
         Error::Aborted { cause: Box::new(cause), stop }
     }
@@ -141,12 +141,12 @@ impl Ctx {
                     report.drives.push((a, StopOutcome::AtRest));
                     continue;
                 }
-                Ok(_) => tracing::warn!("drive {a} still moves: stopping it"),
-                Err(e) => tracing::warn!("drive {a}: S17 unreadable ({e}): stopping it anyway"),
+                Ok(_) => tracing::info!("drive {a} still moves: stopping it"),
+                Err(e) => tracing::info!("drive {a}: S17 unreadable ({e}): stopping it anyway"),
             }
             let outcome = urgent.switch_off_confirmed(a).await;
             match &outcome {
-                StopOutcome::NotConfirmed { reason } => tracing::error!("drive {a}: stop not confirmed: {reason}"),
+                StopOutcome::NotConfirmed { reason } => tracing::info!("drive {a}: stop not confirmed: {reason}"),
                 _ => tracing::info!("drive {a}: switched off, at rest"),
             }
             report.drives.push((a, outcome));
@@ -172,7 +172,7 @@ impl Ctx {
                     return StopOutcome::SwitchedOff;
                 }
                 Ok(_) => {
-                    tracing::warn!("drive {a}: S17 still shows a command active after OUTPUT O0=0: sending it again")
+                    tracing::info!("drive {a}: S17 still shows a command active after OUTPUT O0=0: sending it again")
                 }
                 Err(e) => {
                     return StopOutcome::NotConfirmed {
@@ -283,7 +283,7 @@ impl Ctx {
             if (taken.units() - target.units()).abs() <= tolerance {
                 return Ok(());
             }
-            tracing::warn!("drive {address}: S2 reads {taken}, not the target {target} (read {})", attempt + 1);
+            tracing::debug!("drive {address}: S2 reads {taken}, not the target {target} (read {})", attempt + 1);
         }
         Err(Error::TargetMismatch { address, requested: target, taken })
     }

@@ -176,7 +176,7 @@ impl Ctx {
         if armed {
             if result.is_ok() && !failed {
                 if let Err(e) = self.disable_watchdog().await {
-                    tracing::warn!("switching the watchdog off on close failed (those modules halt within 50 ms): {e}");
+                    tracing::info!("switching the watchdog off on close failed (those modules halt within 50 ms): {e}");
                     result = Err(e);
                 }
             } else {

@@ -100,12 +100,27 @@ impl Ctx {
         let limit = f64::from(self.get_finite(a, param).await?);
         let beyond = if upper { value > limit } else { value < limit };
         if beyond {
+            // The message gives the unit and, for a position, the whole range.
+            let unit = self.kind(a).await.map_or("", |k| param.unit().symbol(k));
+            let other = match param {
+                Param::MinPos => Some(Param::MaxPos),
+                Param::MaxPos => Some(Param::MinPos),
+                Param::ActIMinPos => Some(Param::ActIMaxPos),
+                Param::ActIMaxPos => Some(Param::ActIMinPos),
+                _ => None,
+            };
+            let other_limit = match other {
+                Some(p) => self.get_finite(a, p).await.ok().map(|v| (p, f64::from(v))),
+                None => None,
+            };
             return Err(Error::BeyondLimit {
                 address: crate::model::Address::checked(a),
                 what: what.into(),
                 value,
                 limit: param,
                 limit_value: limit,
+                unit,
+                other_limit,
             });
         }
         Ok(())

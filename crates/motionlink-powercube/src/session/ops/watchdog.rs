@@ -98,7 +98,7 @@ impl Ctx {
                     self.core().duty.online.insert(a);
                 }
                 Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. })) => {
-                    tracing::warn!("module {a}: life sign not acknowledged ({e}); its watchdog state is unknown");
+                    tracing::info!("module {a}: life sign not acknowledged ({e}); its watchdog state is unknown");
                     self.core().duty.uncertain.insert(a);
                     first_error.get_or_insert(Error::WatchdogUnconfirmed {
                         address: crate::model::Address::checked(a),
@@ -147,7 +147,7 @@ impl Ctx {
                     core.duty.uncertain.insert(a);
                 }
                 Err(e) => {
-                    tracing::warn!("module {a}: cannot switch the watchdog off: {e}");
+                    tracing::info!("module {a}: cannot switch the watchdog off: {e}");
                     first_error.get_or_insert(e);
                 }
             }
@@ -171,7 +171,7 @@ impl Ctx {
                     self.core().duty.config_before.remove(&a);
                 }
                 Err(e) => {
-                    tracing::warn!("module {a}: cannot restore the Config word {:#010x}: {e}", before.0);
+                    tracing::info!("module {a}: cannot restore the Config word {:#010x}: {e}", before.0);
                     first_error.get_or_insert(e);
                 }
             }

@@ -79,7 +79,7 @@ impl StopAll {
             Ok(_) => Ok(()),
             Err(e @ Error::RemoteEnded(_)) => Err(e),
             Err(e) => {
-                tracing::error!("RS of function id {f} failed: {e}");
+                tracing::info!("RS of function id {f} failed: {e}");
                 self.first_error.get_or_insert(e);
                 Ok(())
             }
@@ -106,7 +106,7 @@ impl Operation for Open {
             Resume::Start => self.opening.start(cx),
             Resume::Reply(result) if self.failed.is_some() => {
                 if let Err(e) = result {
-                    tracing::warn!("RA after a failed start: {e}");
+                    tracing::debug!("RA after a failed start: {e}");
                 }
                 cx.core.line.remote = false;
                 Next::Done(Err(self.failed.take().expect("checked")))
@@ -189,7 +189,7 @@ impl Operation for Reopen {
                 if !cx.core.link_up {
                     return Next::Done(Err(Error::SessionLost("port not connected".into())));
                 }
-                tracing::warn!("opening remote mode again (RO, RC)");
+                tracing::info!("opening remote mode again (RO, RC)");
                 cx.core.line.silent = false;
                 self.phase = ReopenPhase::Remote;
                 self.opening.start(cx)
@@ -263,7 +263,7 @@ impl Close {
             self.first_error.get_or_insert(e);
         }
         if ended && !cx.core.started.is_empty() && self.phase == ClosePhase::Stops {
-            tracing::warn!("the unit ended remote mode; opening it to send the RS of what this session started");
+            tracing::info!("the unit ended remote mode; opening it to send the RS of what this session started");
             self.phase = ClosePhase::Reopening;
             cx.core.line.silent = false;
             return self.opening.start(cx);

@@ -166,7 +166,7 @@ impl StopMachine {
                 if let Err(e) = result.and_then(|r| r.ack(Command::Stop)) {
                     let refused = matches!(e.class(), ErrorClass::Refused | ErrorClass::Device);
                     if !(refused && self.functions.len() > 1) {
-                        tracing::error!("could not stop {function}: {e}");
+                        tracing::info!("could not stop {function}: {e}");
                         return Step::Done(Err((e.to_string(), e)));
                     }
                     // The unit answered: the line works; the other functions are stopped all the same.

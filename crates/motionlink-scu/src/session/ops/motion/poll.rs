@@ -106,7 +106,7 @@ impl Move {
                 self.last_position[i] = positions[i];
                 self.last_progress_at[i] = now;
             } else if status[i].moving() && now - self.last_progress_at[i] >= stall_timeout {
-                tracing::warn!("{a} stalled at {}", positions[i]);
+                tracing::debug!("{a} stalled at {}", positions[i]);
                 let after = now - self.last_progress_at[i];
                 return self.stop(cx, Error::Stalled { actuator: a, position_counts: positions[i], after });
             }

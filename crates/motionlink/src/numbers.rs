@@ -1,0 +1,171 @@
+//! Numbers on the command line: the value parsers of every numeric option and argument, whose messages say
+//! what the number is and what it must be. clap names the option and the value it refused (`invalid value
+//! '-5' for '--vel <VEL>': the velocity must be a number above 0 (rad/s or m/s)`), and the command exits 2
+//! before anything is opened. Negative numbers reach these parsers (main lets every option and argument that
+//! takes a value take one), so `--vel -5` is refused for being below 0, not taken for an unknown option.
+
+/// What a whole-number option must be: "a whole number from 1 to 60000 ms", "a whole number, at least 1".
+fn whole_range(min: i128, max: Option<i128>, unit: &str) -> String {
+    let unit = if unit.is_empty() { String::new() } else { format!(" {unit}") };
+    match max {
+        Some(max) => format!("a whole number from {min} to {max}{unit}"),
+        None => format!("a whole number{unit}, at least {min}"),
+    }
+}
+
+/// A whole number `min..=max` (in `unit`, "" for none) for an option whose number is `what` ("the reply
+/// timeout"); refused otherwise with "`what` must be a whole number from `min` to `max` `unit`".
+pub fn whole<T>(
+    what: &'static str,
+    min: T,
+    max: T,
+    unit: &'static str,
+) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static
+where
+    T: Copy + Into<i128> + TryFrom<i128> + Send + Sync + 'static,
+{
+    let (lo, hi) = (min.into(), max.into());
+    move |text: &str| {
+        let refused = || format!("{what} must be {}", whole_range(lo, Some(hi), unit));
+        let n: i128 = text.trim().parse().map_err(|_| refused())?;
+        if !(lo..=hi).contains(&n) {
+            return Err(refused());
+        }
+        T::try_from(n).map_err(|_| refused())
+    }
+}
+
+/// Any whole number the type holds (a position in counts, which may be negative), for an argument whose
+/// number is `what`, in `unit`: "the target position must be a whole number of counts".
+pub fn integer<T>(
+    what: &'static str,
+    unit: &'static str,
+) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static
+where
+    T: std::str::FromStr + Send + Sync + 'static,
+{
+    move |text: &str| text.trim().parse().map_err(|_| format!("{what} must be a whole number of {unit}"))
+}
+
+/// A whole number of at least `min` (no upper bound but the type's) for an option whose number is `what`.
+pub fn at_least<T>(what: &'static str, min: T) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static
+where
+    T: Copy + Into<i128> + TryFrom<i128> + Send + Sync + 'static,
+{
+    let lo = min.into();
+    move |text: &str| {
+        let refused = || format!("{what} must be {}", whole_range(lo, None, ""));
+        let n: i128 = text.trim().parse().map_err(|_| refused())?;
+        if n < lo {
+            return Err(refused());
+        }
+        T::try_from(n).map_err(|_| refused())
+    }
+}
+
+/// A finite number (`-1.5`, `2e3`), for a position or a value of `what`, in `unit` ("" for none).
+pub fn finite<T: Float>(
+    what: &'static str,
+    unit: &'static str,
+) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static {
+    move |text: &str| {
+        let unit = if unit.is_empty() { String::new() } else { format!(" ({unit})") };
+        T::parse_finite(text).ok_or_else(|| format!("{what} must be a number{unit}"))
+    }
+}
+
+/// A number above 0 and at most `max` (when given) for an option whose number is `what`, in `unit` ("" for
+/// none): "the velocity must be a number above 0 (rad/s or m/s)".
+pub fn above_zero<T: Float>(
+    what: &'static str,
+    max: Option<f64>,
+    unit: &'static str,
+) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static {
+    move |text: &str| {
+        let unit = if unit.is_empty() { String::new() } else { format!(" ({unit})") };
+        let refused = || match max {
+            Some(max) => format!("{what} must be a number above 0 and at most {max}{unit}"),
+            None => format!("{what} must be a number above 0{unit}"),
+        };
+        let v = T::parse_finite(text).ok_or_else(refused)?;
+        let x = v.as_f64();
+        if x > 0.0 && max.is_none_or(|m| x <= m) {
+            Ok(v)
+        } else {
+            Err(refused())
+        }
+    }
+}
+
+/// `f32` or `f64`, as [`finite`] and [`above_zero`] parse them.
+pub trait Float: Copy + Send + Sync + 'static {
+    /// The number `text` says, if it is one and finite (in this type).
+    fn parse_finite(text: &str) -> Option<Self>;
+    /// The number as an `f64`.
+    fn as_f64(self) -> f64;
+}
+
+impl Float for f64 {
+    fn parse_finite(text: &str) -> Option<f64> {
+        text.trim().parse::<f64>().ok().filter(|v| v.is_finite())
+    }
+    fn as_f64(self) -> f64 {
+        self
+    }
+}
+
+impl Float for f32 {
+    fn parse_finite(text: &str) -> Option<f32> {
+        text.trim().parse::<f32>().ok().filter(|v| v.is_finite())
+    }
+    fn as_f64(self) -> f64 {
+        f64::from(self)
+    }
+}
+
+/// Lets every option and argument of `command` (and of its subcommands) that takes a value take a negative
+/// number as its value: `--vel -5` then reaches the option's parser, which says why -5 is refused, instead
+/// of clap's "unexpected argument '-5'". Flags are left alone.
+pub fn negative_values(command: clap::Command) -> clap::Command {
+    command
+        .mut_args(|a| if a.get_action().takes_values() { a.allow_negative_numbers(true) } else { a })
+        .mut_subcommands(negative_values)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn whole_numbers_say_what_they_must_be() {
+        let ms = whole::<u64>("the reply timeout", 1, 60_000, "ms");
+        assert_eq!(ms("200"), Ok(200));
+        for bad in ["-5", "0", "60001", "abc", "1.5", ""] {
+            assert_eq!(ms(bad), Err("the reply timeout must be a whole number from 1 to 60000 ms".into()), "{bad}");
+        }
+        let count = at_least::<u64>("the number of samples", 1);
+        assert_eq!(count("3"), Ok(3));
+        assert_eq!(count("0"), Err("the number of samples must be a whole number, at least 1".into()));
+        assert!(count("-1").is_err() && count("many").is_err());
+        assert!(whole::<u8>("x", 0, 255, "")("256").is_err());
+        let counts = integer::<i32>("the target position", "counts");
+        assert_eq!(counts("-400"), Ok(-400));
+        assert_eq!(counts("4e2"), Err("the target position must be a whole number of counts".into()));
+    }
+
+    #[test]
+    fn numbers_above_zero_refuse_zero_negatives_and_what_is_no_number() {
+        let vel = above_zero::<f32>("the velocity", None, "rad/s or m/s");
+        assert_eq!(vel("0.5"), Ok(0.5));
+        for bad in ["-5", "0", "NaN", "inf", "fast"] {
+            assert_eq!(vel(bad), Err("the velocity must be a number above 0 (rad/s or m/s)".into()), "{bad}");
+        }
+        let tol = above_zero::<f64>("the tolerance", Some(0.1), "rad or m");
+        assert!(tol("0.1").is_ok() && tol("0.2").is_err());
+        assert_eq!(finite::<f64>("the target", "")("-1.5"), Ok(-1.5));
+        assert_eq!(
+            finite::<f64>("the target", "drive units")("x"),
+            Err("the target must be a number (drive units)".into())
+        );
+    }
+}

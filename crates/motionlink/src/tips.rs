@@ -1,0 +1,95 @@
+//! clap's "a similar subcommand exists" and "a similar argument exists" tips, chosen the way every name of
+//! motionlink is matched ([`motionlink_link::table::nearest`]: the edit distance, ignoring case, the best
+//! one or two within a third of the length): `powercube stpo` suggests `stop` alone (clap's own measure
+//! also offers `set`), `powercube STOP` suggests `stop`, `move --vell` suggests `--vel`.
+
+use std::ffi::OsString;
+
+use clap::error::{ContextKind, ContextValue, ErrorKind};
+use motionlink_link::table::nearest;
+
+/// `error` with its tip chosen by [`nearest`] among the subcommands (or the options) of the command the
+/// misspelt word was given to in `args`; without a tip when none is near.
+pub fn better_tips(mut error: clap::Error, command: &clap::Command, args: &[OsString]) -> clap::Error {
+    let mut command = command.clone();
+    command.build();
+    match error.kind() {
+        ErrorKind::InvalidSubcommand => {
+            let Some(ContextValue::String(word)) = error.get(ContextKind::InvalidSubcommand).cloned() else {
+                return error;
+            };
+            let level = level_of(&command, args, &word);
+            let names = level.get_subcommands().flat_map(|c| std::iter::once(c.get_name()).chain(c.get_all_aliases()));
+            let found: Vec<String> = nearest(&word, names).into_iter().map(str::to_string).collect();
+            if found.is_empty() {
+                error.remove(ContextKind::SuggestedSubcommand);
+            } else {
+                error.insert(ContextKind::SuggestedSubcommand, ContextValue::Strings(found));
+            }
+        }
+        ErrorKind::UnknownArgument => {
+            let Some(ContextValue::String(word)) = error.get(ContextKind::InvalidArg).cloned() else { return error };
+            let Some(flag) = word.strip_prefix("--") else { return error };
+            let flag = flag.split_once('=').map_or(flag, |(f, _)| f);
+            let level = level_of(&command, args, &word);
+            let longs = level
+                .get_arguments()
+                .filter(|a| !a.is_hide_set())
+                .flat_map(|a| a.get_long().into_iter().chain(a.get_all_aliases().into_iter().flatten()));
+            match nearest(flag, longs).first() {
+                Some(found) => {
+                    error.insert(ContextKind::SuggestedArg, ContextValue::String(format!("--{found}")));
+                }
+                None => {
+                    error.remove(ContextKind::SuggestedArg);
+                }
+            }
+        }
+        _ => {}
+    }
+    error
+}
+
+/// The (sub)command that `word` was given to in `args`: the deepest subcommand named before it.
+fn level_of<'a>(command: &'a clap::Command, args: &[OsString], word: &str) -> &'a clap::Command {
+    let mut level = command;
+    for arg in args.iter().skip(1) {
+        let arg = arg.to_string_lossy();
+        if arg == word || arg.strip_prefix(word).is_some_and(|rest| rest.starts_with('=')) || arg == "--" {
+            break;
+        }
+        if let Some(sub) = level.find_subcommand(arg.as_ref()) {
+            level = sub;
+        }
+    }
+    level
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    fn tip(args: &[&str]) -> (ErrorKind, Option<ContextValue>) {
+        let args: Vec<OsString> = args.iter().map(OsString::from).collect();
+        let command = crate::Cli::command();
+        let e = command.clone().try_get_matches_from(&args).unwrap_err();
+        let e = better_tips(e, &command, &args);
+        let tip = e.get(ContextKind::SuggestedSubcommand).or(e.get(ContextKind::SuggestedArg)).cloned();
+        (e.kind(), tip)
+    }
+
+    #[test]
+    fn a_misspelt_subcommand_or_option_gets_the_nearest_one_only() {
+        let stop = tip(&["motionlink", "powercube", "--port", "sim", "stpo"]);
+        assert_eq!(stop, (ErrorKind::InvalidSubcommand, Some(ContextValue::Strings(vec!["stop".into()]))));
+        let upper = tip(&["motionlink", "powercube", "STOP"]);
+        assert_eq!(upper.1, Some(ContextValue::Strings(vec!["stop".into()])));
+        let vel = tip(&["motionlink", "powercube", "move", "1", "--vell", "2"]);
+        assert_eq!(vel, (ErrorKind::UnknownArgument, Some(ContextValue::String("--vel".into()))));
+        let port = tip(&["motionlink", "scu", "--prot", "sim", "info"]);
+        assert_eq!(port.1, Some(ContextValue::String("--port".into())), "a global option of the family");
+        let none = tip(&["motionlink", "powercube", "banana"]);
+        assert_eq!(none.1, None, "nothing near: no tip");
+    }
+}
