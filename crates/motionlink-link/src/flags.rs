@@ -84,6 +84,26 @@ pub trait FlagWord: Copy + fmt::Display {
     }
 }
 
+/// A flag word as every result shows it (the `--json` of every command, Python's records, the console, the
+/// gateway): `word` (the raw word), `flags` (the manual's names of the bits set, in the table's order) and
+/// `unknown_bits` (the bits no name covers), only when nonzero. Every word of [`flag_set!`] serialises so.
+#[derive(Debug, Clone, Copy)]
+pub struct WordView<W>(pub W);
+
+impl<W: FlagWord> serde::Serialize for WordView<W> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let unknown = self.0.unknown();
+        let mut map = s.serialize_map(Some(if unknown != 0 { 3 } else { 2 }))?;
+        map.serialize_entry("word", &self.0.raw())?;
+        map.serialize_entry("flags", &self.0.names())?;
+        if unknown != 0 {
+            map.serialize_entry("unknown_bits", &unknown)?;
+        }
+        map.end()
+    }
+}
+
 /// Generates a flag enum and a word type from one table: `Variant = ("NAME", mask, Class, "meaning")`,
 /// where Class is a [`FlagClass`] variant; a table whose manual also says what a clear bit means adds it as
 /// a fifth element, `("NAME", mask, Class, "meaning when set", "meaning when clear")`. The word type implements [`FlagWord`], `Display` (the names
@@ -235,6 +255,13 @@ macro_rules! flag_set {
             }
             fn unknown(self) -> u64 {
                 u64::from(self.unknown_bits())
+            }
+        }
+
+        /// As every result shows a flag word: `{"word", "flags", "unknown_bits"}` ([`$crate::flags::WordView`]).
+        impl $crate::serde::Serialize for $set {
+            fn serialize<S: $crate::serde::Serializer>(&self, s: S) -> ::std::result::Result<S::Ok, S::Error> {
+                $crate::serde::Serialize::serialize(&$crate::flags::WordView(*self), s)
             }
         }
 

@@ -40,3 +40,8 @@ pub mod url;
 
 pub use clock::{Clock, ManualClock, RealClock, SharedClock, Signal, Timestamp};
 pub use link::{Link, LinkError, SerialSettings};
+
+/// serde, for the flag words that [`flag_set!`] generates in the family crates (they serialise as
+/// [`flags::WordView`]).
+#[doc(hidden)]
+pub use serde;

@@ -337,14 +337,40 @@ pub fn identified(family: &str, port: &str, fields: serde_json::Value) -> serde_
     serde_json::Value::Object(map)
 }
 
-/// A flag word as every command's JSON gives it (naming.md): `word` (the raw word), `flags` (the manual's
-/// names of the bits set) and `unknown_bits` (the bits no name covers), only when nonzero.
+/// A flag word as every command's JSON gives it: `word`, `flags` and `unknown_bits` (only when nonzero), as
+/// the word serialises ([`motionlink_link::flags::WordView`]).
 pub fn flag_word_json<W: motionlink_link::flags::FlagWord>(w: W) -> serde_json::Value {
-    let mut v = serde_json::json!({"word": w.raw(), "flags": w.names()});
-    if w.unknown() != 0 {
-        v["unknown_bits"] = serde_json::json!(w.unknown());
+    to_json(&motionlink_link::flags::WordView(w))
+}
+
+/// A result (a library report, which serialises with the names `--json` shows) as a JSON value.
+pub fn to_json<T: serde::Serialize + ?Sized>(result: &T) -> serde_json::Value {
+    // A report of plain fields always serialises; a failure would be a library defect, shown, not hidden.
+    serde_json::to_value(result).unwrap_or_else(|e| serde_json::Value::String(format!("(not serialisable: {e})")))
+}
+
+/// Prints a family command's result as one JSON object: `family` and `port` first, then `identity` (the
+/// unit the command names: `module`, `drive`), then the result's own fields, as it serialises.
+pub fn print_result<T: serde::Serialize + ?Sized>(
+    out: &mut dyn Write,
+    family: &str,
+    port: &str,
+    identity: &[(&str, serde_json::Value)],
+    result: &T,
+) -> Result<(), CliError> {
+    let mut map = serde_json::Map::new();
+    map.insert("family".into(), family.into());
+    map.insert("port".into(), port.into());
+    for (k, v) in identity {
+        map.insert((*k).into(), v.clone());
     }
-    v
+    match to_json(result) {
+        serde_json::Value::Object(fields) => map.extend(fields),
+        other => {
+            map.insert("result".into(), other);
+        }
+    }
+    print_json(out, &serde_json::Value::Object(map))
 }
 
 /// One line of CSV: fields separated by commas, quoted when they hold a comma, a quote or a line break.

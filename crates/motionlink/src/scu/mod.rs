@@ -308,9 +308,10 @@ pub(super) struct Report<'a> {
 }
 
 impl Report<'_> {
-    /// Prints one JSON object with the identity (`family`, `port`) first.
-    pub fn print(&self, out: &mut dyn Write, fields: serde_json::Value) -> Result<(), CliError> {
-        common::print_json(out, &common::identified("scu", self.port, fields))
+    /// Prints one JSON object with the identity (`family`, `port`) first, then `result`'s fields as it
+    /// serialises.
+    pub fn print(&self, out: &mut dyn Write, result: impl serde::Serialize) -> Result<(), CliError> {
+        common::print_result(out, "scu", self.port, &[], &result)
     }
 }
 
