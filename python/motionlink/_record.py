@@ -135,8 +135,8 @@ class Parameter(Record):
             could be read back that shows the value written; then ``verified`` is False and
             ``not_verifiable`` says why). Only on the result of ``set``.
         verified: After a write: True when the value read back was compared with the one written.
-        not_verifiable: PowerCube ``set``: why the value could not be verified, in plain words (a list,
-            empty when ``verified``).
+        not_verifiable: After a write: what could not be verified and why, in plain words (a list of str in
+            every family, empty when ``verified``).
         ok: PowerCube ``set``: True (the command line's field).
         module: PowerCube: the module (1..31).
         drive: COMPAX: the drive (1..31).

@@ -84,7 +84,8 @@ class Compax(ClientBase):
 
     def set(self, name: Union[str, int], value: float, drive: Optional[int] = None) -> Parameter:
         """Writes a parameter; the library reads it back and compares (a difference is a
-        :class:`DeviceError`). ``read_back`` is the value then read from the drive, ``verified`` True."""
+        :class:`DeviceError`). ``read_back`` is the value then read from the drive, ``verified`` True and
+        ``not_verifiable`` empty."""
         return Parameter(self._native.set(_param(name), float(value), drive))
 
     def move_to(

@@ -429,6 +429,8 @@ fn a_lost_acknowledge_of_the_life_sign_is_found_out_when_switching_off() {
     // No blind second life sign: with the refresh stopped it expires, which names the module.
     let err = bus.disable_watchdog().unwrap_err();
     assert!(matches!(err, Error::WatchdogUnconfirmed { address: A1, on: false, .. }), "{err}");
+    // The way back it names is the one every front end has (`motionlink powercube reset`, Python's reset()).
+    assert!(err.to_string().contains("the module is halted, `reset` clears it"), "{err}");
     let (state, _, online, config) = device_view(&canbus, &clock, 1);
     assert!(online && state.contains(StateFlag::CommError) && state.contains(StateFlag::Halted), "{state}");
     assert!(config.contains(ConfigFlag::WatchdogEnable), "Config word left as is");

@@ -202,8 +202,8 @@ impl Ctx {
                         address: crate::model::Address::checked(a),
                         on: false,
                         detail: format!(
-                            "its watchdog was still online and has expired ({state}); the module is halted, \
-                             reset_and_release_watchdog clears it"
+                            "its watchdog was still online and has expired ({state}); the module is halted, `reset` \
+                             clears it"
                         ),
                     });
                 }
