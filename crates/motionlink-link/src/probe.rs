@@ -353,6 +353,69 @@ pub fn latency_check(root: &Path, kind: PortKind, port: &str, set_low: bool) -> 
     (Check::new(NAME, result, detail).sending(SENDS), Some(timer))
 }
 
+/// How a probe is to be made on the link: what the family's `probe` function needs besides the client.
+#[derive(Debug, Clone)]
+pub struct ProbeSetup {
+    /// The port, as given.
+    pub port: String,
+    /// Its kind.
+    pub kind: PortKind,
+    /// The line's baud rate (serial ports).
+    pub baud: Option<u32>,
+    /// The `baud` check of [`find_baud`], when the session was opened through it (else the rate counts as
+    /// given).
+    pub baud_check: Option<Check>,
+    /// Exchanges that measure the link (round trips, errors).
+    pub exchanges: u32,
+    /// Where sysfs lies ([`sysfs_root`]).
+    pub sysfs_root: PathBuf,
+    /// Set a USB serial adapter's latency timer to 1 ms where it is higher (`--low-latency`).
+    pub low_latency: bool,
+}
+
+impl ProbeSetup {
+    /// Exchanges made to measure a link, unless told otherwise.
+    pub const DEFAULT_EXCHANGES: u32 = 20;
+
+    /// A probe of `port` at `baud` (kept for serial ports only), with the defaults: 20 exchanges, sysfs at
+    /// [`sysfs_root`], the latency timer left as it is.
+    pub fn new(port: &str, kind: PortKind, baud: u32) -> ProbeSetup {
+        ProbeSetup {
+            port: port.to_string(),
+            kind,
+            baud: (kind == PortKind::Serial).then_some(baud),
+            baud_check: None,
+            exchanges: Self::DEFAULT_EXCHANGES,
+            sysfs_root: sysfs_root(),
+            low_latency: false,
+        }
+    }
+
+    /// The checks of the link that come before the device's: the baud rate and the latency timer; and the
+    /// timer, for the [`LinkReport`].
+    pub fn link_checks(&self) -> (Vec<Check>, Option<LatencyTimer>) {
+        let baud = self.baud_check.clone().unwrap_or_else(|| {
+            let (_, check) = find_baud(self.kind, &BaudChoice::Given(self.baud.unwrap_or(0)), Ok::<_, String>);
+            check
+        });
+        let (latency, timer) = latency_check(&self.sysfs_root, self.kind, &self.port, self.low_latency);
+        (vec![baud, latency], timer)
+    }
+
+    /// The [`LinkReport`] of the measured `trips` (with `retries` sent meanwhile) and `timer`.
+    pub fn link_report(&self, trips: &RoundTrips, retries: u64, timer: Option<LatencyTimer>) -> LinkReport {
+        LinkReport {
+            kind: self.kind,
+            baud: self.baud,
+            exchanges: trips.exchanges(),
+            errors: trips.errors(),
+            retries,
+            round_trip_ms: trips.summary(),
+            latency_timer: timer,
+        }
+    }
+}
+
 /// How the baud rate of a report was chosen.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum BaudChoice {

@@ -138,6 +138,35 @@ pub enum Lookup {
     },
 }
 
+/// What a session made of the profiles when it opened: the profile it took (`<path>#<key>`, as `--json`
+/// results name it) and the one-line notices about those it did not take (another identity, a file that
+/// could not be read).
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
+pub struct ProfileUse {
+    /// The profile used, if any.
+    pub reference: Option<String>,
+    /// Notices, one line each.
+    pub notices: Vec<String>,
+}
+
+impl ProfileUse {
+    /// Takes `lookup`'s answer: its capabilities go to `seed` (in the family's type `T`), its notice (or the
+    /// reason its capabilities could not be read) to the notices.
+    pub fn take<T: serde::de::DeserializeOwned>(&mut self, lookup: Lookup, seed: impl FnOnce(T)) {
+        match lookup {
+            Lookup::None => {}
+            Lookup::Mismatch { notice } => self.notices.push(notice),
+            Lookup::Found { reference, entry } => match entry.capabilities::<T>() {
+                Ok(caps) => {
+                    seed(caps);
+                    self.reference = Some(reference);
+                }
+                Err(e) => self.notices.push(format!("{reference} not used: {e}")),
+            },
+        }
+    }
+}
+
 /// The profiles of one file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Profiles {
@@ -195,6 +224,12 @@ impl Profiles {
         let key = entry.key();
         self.entries.insert(key.clone(), entry);
         self.reference(&key)
+    }
+
+    /// True when some profile is kept for the device at `address` on `port` of `family` (whatever its
+    /// identity): only then is the identity worth reading.
+    pub fn has(&self, family: &str, port: &str, address: Option<u8>) -> bool {
+        self.entries.values().any(|e| e.family == family && e.port == port && e.address == address)
     }
 
     /// The profile of the device at `address` on `port` of `family` that says it is `identity`.

@@ -17,4 +17,5 @@ mod sim_errors;
 mod sim_robustness;
 mod slow_link;
 mod variants;
+mod probe;
 mod wire;
