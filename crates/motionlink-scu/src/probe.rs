@@ -19,7 +19,7 @@
 //!
 //! ```
 //! use motionlink_link::{pipe::{EmulatorHost, PipeConfig}, link::Link, probe::{CheckResult, PortKind, ProbeSetup}};
-//! use motionlink_link::ManualClock;
+//! use motionlink_link::{Clock, ManualClock};
 //! use motionlink_scu::{Client, ClientConfig, Emulator, SimConfig, Variant};
 //!
 //! let clock = ManualClock::new_auto();
