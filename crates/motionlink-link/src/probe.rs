@@ -425,6 +425,32 @@ pub enum BaudChoice {
     Auto(&'static [u32]),
 }
 
+impl BaudChoice {
+    /// `auto` (every rate of `rates`, in order) or one of `rates`; the error names them. `family` names the
+    /// device in the message ("an SCU").
+    pub fn parse(text: &str, rates: &'static [u32], family: &str) -> Result<BaudChoice, String> {
+        let t = text.trim();
+        if t.eq_ignore_ascii_case("auto") {
+            return Ok(BaudChoice::Auto(rates));
+        }
+        match t.parse::<u32>() {
+            Ok(b) if rates.contains(&b) => Ok(BaudChoice::Given(b)),
+            _ => {
+                let list: Vec<String> = rates.iter().map(u32::to_string).collect();
+                Err(format!("{text:?}: {family} runs at {}, or give auto to try each", list.join(", ")))
+            }
+        }
+    }
+
+    /// The first rate tried.
+    pub fn first(&self) -> u32 {
+        match self {
+            BaudChoice::Given(b) => *b,
+            BaudChoice::Auto(rates) => rates.first().copied().unwrap_or(0),
+        }
+    }
+}
+
 /// Opens a session at each rate of `choice` in turn with `open` until one answers. Returns the session and
 /// its rate (`None` when none answered) and the `baud` check saying what was tried. Over a port without a
 /// baud rate (`kind` other than serial) only the first rate is tried and the check is skipped, saying why.

@@ -48,6 +48,11 @@ use crate::Client;
 /// The baud rates an SCU may run at, in the order `--baud auto` tries them (the standard one first).
 pub const BAUD_RATES: &[u32] = &[38_400, 19_200, 9_600];
 
+/// `--baud` of a probe: `auto` (every rate of [`BAUD_RATES`]) or one of them.
+pub fn baud_choice(text: &str) -> Result<motionlink_link::probe::BaudChoice, String> {
+    motionlink_link::probe::BaudChoice::parse(text, BAUD_RATES, "an SCU")
+}
+
 /// The family's name in reports and profiles.
 pub const FAMILY: &str = "scu";
 
@@ -112,19 +117,23 @@ pub fn probe(client: &Client, setup: &ProbeSetup) -> Result<ScuProbeReport, Erro
     checks.push(first_telegram(retries_at_open));
     let statuses = client.statuses();
     let caps = client.capabilities();
-    checks.push(match (&statuses, caps.grouping_indices) {
-        (_, Some(true)) => Check::new(NAMES[0], CheckResult::Ok, "RG of 0x0170 answered: groups are read in one telegram"),
-        (_, Some(false)) => Check::new(
-            NAMES[0],
-            CheckResult::Unsupported,
-            "RG of 0x0170 refused (PDE): every group is read entry by entry (more telegrams, nothing lost), and \
+    checks.push(
+        match (&statuses, caps.grouping_indices) {
+            (_, Some(true)) => {
+                Check::new(NAMES[0], CheckResult::Ok, "RG of 0x0170 answered: groups are read in one telegram")
+            }
+            (_, Some(false)) => Check::new(
+                NAMES[0],
+                CheckResult::Unsupported,
+                "RG of 0x0170 refused (PDE): every group is read entry by entry (more telegrams, nothing lost), and \
              the session's cyclic object (which names groups) is not used",
-        ),
-        (Err(e), None) => Check::new(NAMES[0], CheckResult::Failed, format!("RG of 0x0170: {e}")),
-        (Ok(_), None) => Check::new(NAMES[0], CheckResult::Failed, "RG of 0x0170 answered without settling it"),
-    }
-    .sending("RG 0x0170")
-    .variant("no-groups"));
+            ),
+            (Err(e), None) => Check::new(NAMES[0], CheckResult::Failed, format!("RG of 0x0170: {e}")),
+            (Ok(_), None) => Check::new(NAMES[0], CheckResult::Failed, "RG of 0x0170 answered without settling it"),
+        }
+        .sending("RG 0x0170")
+        .variant("no-groups"),
+    );
     let connected: Vec<Actuator> = statuses.as_ref().map(|s| crate::client::connected(s)).unwrap_or_default();
     checks.push(user_positions(client, &connected));
     checks.extend(cyclic_and_read_back(client));
@@ -273,7 +282,9 @@ fn cyclic_and_read_back(client: &Client) -> [Check; 2] {
     .sending(SENDS_OBJECT)
     .variant("no-cyclic-objects");
     let read = match (caps.remote_read_back, read_error) {
-        (Some(true), _) => Check::new(NAMES[3], CheckResult::Ok, "remote data reads back: every RT is checked by an RG"),
+        (Some(true), _) => {
+            Check::new(NAMES[3], CheckResult::Ok, "remote data reads back: every RT is checked by an RG")
+        }
         (Some(false), _) => Check::new(
             NAMES[3],
             CheckResult::Unsupported,

@@ -43,11 +43,16 @@ fn the_default_unit_answers_every_probe_and_is_identified() {
     assert_eq!(d.connected_actuators, vec![1, 2]);
     assert!(d.identity.starts_with("SCU V2B3 motionlink-sim | "), "{}", d.identity);
     let yes = Some(true);
-    let all = Capabilities { grouping_indices: yes, user_position_data: yes, cyclic_objects: yes, remote_read_back: yes };
+    let all =
+        Capabilities { grouping_indices: yes, user_position_data: yes, cyclic_objects: yes, remote_read_back: yes };
     assert_eq!(d.capabilities, all);
     for (name, result) in results(&r) {
         let expected = match name {
-            "baud" | "latency_timer" | "rc_reply_form" | "error_bits_reset_on_motion" | "in_end_position"
+            "baud"
+            | "latency_timer"
+            | "rc_reply_form"
+            | "error_bits_reset_on_motion"
+            | "in_end_position"
             | "second_re_without_rs" => CheckResult::Skipped,
             _ => CheckResult::Ok,
         };

@@ -325,12 +325,25 @@ pub fn print_json(out: &mut dyn Write, value: &serde_json::Value) -> Result<(), 
     Ok(())
 }
 
+/// The device profile the command's session took (`<path>#<key>`), once it looked for one.
+static PROFILE: OnceLock<Option<String>> = OnceLock::new();
+
+/// Records the device profile the command's session took (`None`: none): every JSON object of the command
+/// names it from now on (`"profile"`).
+pub fn set_profile(reference: Option<String>) {
+    let _ = PROFILE.set(reference);
+}
+
 /// A JSON object of a family command: `family` and `port` (the identity every such object carries, see the
-/// README's "JSON output"), then `fields`.
+/// README's "JSON output"), the device profile used (`profile`, once the session looked for one), then
+/// `fields`.
 pub fn identified(family: &str, port: &str, fields: serde_json::Value) -> serde_json::Value {
     let mut map = serde_json::Map::new();
     map.insert("family".into(), serde_json::Value::from(family));
     map.insert("port".into(), serde_json::Value::from(port));
+    if let Some(profile) = PROFILE.get() {
+        map.insert("profile".into(), serde_json::Value::from(profile.clone()));
+    }
     if let serde_json::Value::Object(f) = fields {
         map.extend(f);
     }

@@ -4,6 +4,7 @@
 //! motionlink <family> <action> ... [--port PORT]  operate a device (scu, powercube, compax); options
 //!                                                 go before or after the action
 //! motionlink sim <family> --tcp ADDR | --pty     serve an emulated device
+//! motionlink probe <family> --port PORT          commissioning: identify, measure, probe (nothing moves)
 //! motionlink decode <family>                     annotate a capture
 //! motionlink demo                                the manuals' examples against built-in emulators
 //! motionlink console <family> --port PORT        a commissioning page in the browser, on 127.0.0.1
@@ -23,6 +24,7 @@ mod manpage;
 mod portlock;
 mod ports;
 mod powercube;
+mod probe;
 mod scu;
 mod tap;
 mod term;
@@ -63,6 +65,12 @@ enum Command {
     Powercube(powercube::Args),
     /// Parker COMPAX servo drives (RS485 / RS232).
     Compax(compax::Args),
+    /// Commissioning: find what is on the line, identify it, measure the link and run every harmless probe
+    /// of what the manuals leave open (nothing moves); --save keeps the findings as a device profile.
+    Probe {
+        #[command(subcommand)]
+        family: probe::Family,
+    },
     /// Serve a commissioning page for a device in the browser, on 127.0.0.1 (prints its address with a
     /// token).
     Console(console::Args),
@@ -145,6 +153,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
             args.json = json;
             compax::run(args)
         }
+        Command::Probe { family } => probe::run(family, json),
         Command::Console(mut args) => {
             args.json = json;
             console::run(args)

@@ -9,6 +9,7 @@ mod devices_cli;
 mod general_cli;
 mod port_sim_cli;
 mod powercube_cli;
+mod probe_cli;
 mod scu_cli;
 mod shared_cli;
 mod sim_server;

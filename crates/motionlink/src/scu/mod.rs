@@ -433,6 +433,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
     let tap = Tap::new("scu", &port, &clock, &args.link, "can0", &describer, request.is_some())?;
     let client = connect(&args, &port, &tap, &clock, config)?;
+    crate::probe::use_profile(|p| motionlink_scu::probe::use_profile(&client, p, &port))?;
     let mut out = std::io::stdout().lock();
     let report = Report { json: args.json, port: &port, stopped };
     let result = match &request {
