@@ -58,6 +58,17 @@ pub fn parse_drives(text: &str) -> Result<Vec<Address>, String> {
     Ok(found.into_iter().map(|n| Address::drive(n).expect("1..31")).collect())
 }
 
+/// The addresses a probe looks for drives at (`--drives`), as [`parse_drives`] reads them.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DriveList(pub Vec<Address>);
+
+impl std::str::FromStr for DriveList {
+    type Err = String;
+    fn from_str(text: &str) -> Result<Self, String> {
+        parse_drives(text).map(DriveList)
+    }
+}
+
 /// What a profile keeps of one drive.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -212,10 +223,7 @@ fn baud_row(stored: Option<f64>, setup: &ProbeSetup) -> Check {
         (Some(v), None) if BAUD_RATES.contains(&(v as u32)) => Check::new(
             "p195_baud",
             CheckResult::Ok,
-            format!(
-                "P195 = {v} bit/s (the line's rate is the gateway's: {})",
-                setup.kind.no_baud().unwrap_or_default()
-            ),
+            format!("P195 = {v} bit/s; no line rate to compare it with ({})", setup.kind.no_baud().unwrap_or_default()),
         ),
         (Some(v), None) => Check::new("p195_baud", CheckResult::Failed, format!("P195 holds {v}, not a rate of the manual")),
     };

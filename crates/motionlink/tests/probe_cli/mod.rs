@@ -3,6 +3,7 @@
 //! later command names and that makes the probe exchanges disappear, a profile of another device ignored with
 //! a notice, and the latency timer read from a fake sysfs.
 
+mod compax;
 mod powercube;
 mod scu;
 
