@@ -134,7 +134,7 @@ pub fn probe(client: &Client, setup: &ProbeSetup) -> Result<ScuProbeReport, Erro
         .sending("RG 0x0170")
         .variant("no-groups"),
     );
-    let connected: Vec<Actuator> = statuses.as_ref().map(|s| crate::client::connected(s)).unwrap_or_default();
+    let connected: Vec<Actuator> = statuses.as_ref().map(crate::client::connected).unwrap_or_default();
     checks.push(user_positions(client, &connected));
     checks.extend(cyclic_and_read_back(client));
     checks.extend(NOT_PROBED.iter().map(|(name, why, variant)| {

@@ -60,10 +60,28 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Ewellix / Schaeffler SCU control unit (RS232).
+    ///
+    /// What the manual leaves open (grouping indices, UserPositionData, cyclic objects, reading remote data
+    /// back) is probed on the unit in use; `motionlink sim scu --variant NAME` (`--sim-variant` with --port
+    /// sim) emulates a unit that does it the other way. A device profile written by `motionlink probe scu
+    /// --save` (profiles.toml beside devices.toml) is loaded when the unit gives the same firmware and
+    /// configuration texts: its probes are skipped, and --json results name it ("profile").
     Scu(scu::Args),
     /// Schunk / Amtec PowerCube modules (RS232, CAN).
+    ///
+    /// What the manual leaves open (the Inc twins, ActFPosStateDio, the RS232 broadcast refresh, the life
+    /// sign's acknowledge) is probed on the module in use; `motionlink sim powercube --variant NAME`
+    /// (`--sim-variant` with --port sim) emulates a module that does it the other way. A device profile written
+    /// by `motionlink probe powercube --save` (profiles.toml beside devices.toml) is loaded for --module when
+    /// it gives the same version and serial number: its probes are skipped, and --json results name it.
     Powercube(powercube::Args),
     /// Parker COMPAX servo drives (RS485 / RS232).
+    ///
+    /// What the manual leaves open (the form of the echo, status values with or without their name) is probed
+    /// on the drive in use; `motionlink sim compax --variant NAME` (`--sim-variant` with --port sim) emulates
+    /// a drive that does it the other way. A device profile written by `motionlink probe compax --save`
+    /// (profiles.toml beside devices.toml) is loaded for --drive when it gives the same S31 and S32: its echo
+    /// probe is skipped, and --json results name it ("profile").
     Compax(compax::Args),
     /// Commissioning: find what is on the line, identify it, measure the link and run every harmless probe
     /// of what the manuals leave open (nothing moves); --save keeps the findings as a device profile.
