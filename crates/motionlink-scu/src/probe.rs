@@ -316,14 +316,40 @@ pub fn save_profile(report: &mut ScuProbeReport, profiles: &mut Profiles) -> Res
     profiles.save()
 }
 
+/// The firmware and configuration texts as one identity.
+fn joined(texts: (String, String)) -> String {
+    format!("{} | {}", texts.0, texts.1)
+}
+
+/// [`use_profile`] for an [`AsyncClient`](crate::AsyncClient) (the console's).
+#[cfg(feature = "tokio")]
+pub async fn use_profile_async(
+    client: &crate::AsyncClient,
+    profiles: &Profiles,
+    port: &str,
+) -> Result<ProfileUse, Error> {
+    let mut used = ProfileUse::default();
+    if profiles.has(FAMILY, port, None) {
+        let mut texts = Vec::new();
+        for index in [0x0001, 0x0002] {
+            texts.push(match client.get_value(DataIndex(index)).await? {
+                Value::Text(t) => t,
+                other => format!("{other:?}"),
+            });
+        }
+        let lookup = profiles.lookup(FAMILY, port, None, &texts.join(" | "));
+        used.take(lookup, |caps: Capabilities| client.seed_capabilities(caps));
+    }
+    Ok(used)
+}
+
 /// Looks up the profile of the unit of `client` on `port`: where `profiles` holds one for the port, reads the
 /// unit's identity (two RG) and, when it matches, seeds the session's capabilities from it (those probes are
 /// skipped); another identity leaves it unused with a notice. Nothing is read where no profile names the port.
 pub fn use_profile(client: &Client, profiles: &Profiles, port: &str) -> Result<ProfileUse, Error> {
     let mut used = ProfileUse::default();
     if profiles.has(FAMILY, port, None) {
-        let (firmware, configuration) = identity(client)?;
-        let lookup = profiles.lookup(FAMILY, port, None, &format!("{firmware} | {configuration}"));
+        let lookup = profiles.lookup(FAMILY, port, None, &joined(identity(client)?));
         used.take(lookup, |caps: Capabilities| client.seed_capabilities(caps));
     }
     Ok(used)
