@@ -7,7 +7,8 @@ are given, a port URL (``"/dev/ttyUSB0"``, ``"tcp://HOST:PORT"``, ``"socketcan:/
 the port the environment variable ``MOTIONLINK_PORT`` names, as the command line does. There is no
 default port: without either, a client raises :class:`UsageError`. A client is a context manager: leaving
 the block stops any motion it started. Results are typed records whose field names carry their units;
-failures are :class:`MotionlinkError`\\ s.
+failures are :class:`MotionlinkError`\\ s. :func:`probe` is ``motionlink probe``: it identifies a device and
+probes what the manuals leave open, and can save a device profile that later clients load (``profile=``).
 """
 
 from __future__ import annotations
@@ -25,12 +26,16 @@ from .errors import (
     TransportError,
     UsageError,
 )
+from ._probe import ProbeCheck, ProbeReport, probe
 from .powercube import AsyncPowerCube, PowerCube
 from .scu import AsyncScu, Scu
 
 __all__ = [
     "Emulator",
     "Event",
+    "probe",
+    "ProbeReport",
+    "ProbeCheck",
     "Scu",
     "AsyncScu",
     "Compax",

@@ -73,6 +73,12 @@ class ClientBase:
         """True until the client is closed."""
         return bool(self._native.is_open)
 
+    @property
+    def profile(self) -> Optional[str]:
+        """The device profile the session took (``"<path>#<key>"``, as ``--json`` results name it), or None:
+        none is kept for this port, its identity differs (a warning said so), or ``profile=False``."""
+        return self._native.profile  # type: ignore[no-any-return]
+
     def close(self) -> None:
         """Ends the session: stops what it set in motion and still moves, then leaves the device as the
         family's library leaves it (see docs/safety.md). Raises if the stop could not be

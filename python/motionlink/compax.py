@@ -10,6 +10,7 @@ from typing import Any, Dict, Iterator, List, Optional, Sequence, Union
 
 from . import _native
 from ._base import AsyncClientBase, ClientBase, check_interval, resolve_port, run_native
+from ._probe import Profile, ProbeReport, profile_setting, save_setting, warn_profile_notices
 from .records import CompaxHome, CompaxMove, CompaxSample, DriveFound, DrivePosition, Parameter, StatusValue
 
 __all__ = ["Compax", "AsyncCompax"]
@@ -49,11 +50,30 @@ class Compax(ClientBase):
         timeout_ms: int = 200,
         poll_ms: int = 50,
         tolerance_units: float = DEFAULT_TOLERANCE_UNITS,
+        profile: Profile = True,
     ) -> None:
         settings = _settings(drive, mode, baud, timeout_ms, poll_ms, tolerance_units)
+        settings["profile"] = profile_setting(profile)
         self._native = _native.CompaxClient(resolve_port(port, self.family), settings)
         self.drive = drive
         super().__init__()
+        warn_profile_notices(self._native)
+
+    def probe(
+        self,
+        *,
+        save: Union[bool, str, Any] = False,
+        exchanges: int = 20,
+        low_latency: bool = False,
+        drives: str = "1-31",
+    ) -> ProbeReport:
+        """``motionlink probe compax``'s report of the drives at ``drives`` (``"1-31"``, ``"1,3"``; see
+        :func:`motionlink.probe`); nothing moves. ``save`` writes the profile of each drive (``True``:
+        profiles.toml beside devices.toml; a path: that file). ``profile=`` (``True`` by default) makes a
+        later client take the profile of its ``drive`` (its echo form) when the drive gives the same S31 and
+        S32; the emulator's firmware variants (``motionlink sim compax --variant``) show what each probe
+        finds."""
+        return ProbeReport(self._native.probe(exchanges, low_latency, save_setting(save), drives))
 
     def scan(self) -> List[DriveFound]:
         """Every drive that answers (addresses 1..31), with its position S1. Ctrl-C raises

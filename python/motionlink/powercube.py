@@ -10,6 +10,7 @@ from typing import Any, Dict, Iterator, List, Optional, Union
 
 from . import _native
 from ._base import AsyncClientBase, ClientBase, resolve_port, run_native, samples
+from ._probe import Profile, ProbeReport, profile_setting, save_setting, warn_profile_notices
 from .records import (
     ModuleInfo,
     ModulePosition,
@@ -77,13 +78,25 @@ class PowerCube(ClientBase):
         timeout_ms: Optional[int] = None,
         poll_ms: int = 10,
         watchdog: bool = True,
+        profile: Profile = True,
     ) -> None:
         native_port = resolve_port(port, self.family)
-        self._native = _native.PowerCubeClient(
-            native_port, _settings(module, baud, bitrate, timeout_ms, poll_ms, watchdog)
-        )
+        settings = _settings(module, baud, bitrate, timeout_ms, poll_ms, watchdog)
+        settings["profile"] = profile_setting(profile)
+        self._native = _native.PowerCubeClient(native_port, settings)
         self.module = module
         super().__init__()
+        warn_profile_notices(self._native)
+
+    def probe(
+        self, *, save: Union[bool, str, Any] = False, exchanges: int = 20, low_latency: bool = False
+    ) -> ProbeReport:
+        """``motionlink probe powercube``'s report of the bus (see :func:`motionlink.probe`); nothing moves.
+        ``save`` writes the profile of each module (``True``: profiles.toml beside devices.toml; a path:
+        that file). ``profile=`` (``True`` by default) makes a later client take the profile of its
+        ``module`` when the module gives the same version and serial number; the emulator's firmware
+        variants (``motionlink sim powercube --variant``) show what each probe finds."""
+        return ProbeReport(self._native.probe(exchanges, low_latency, save_setting(save)))
 
     def _m(self, module: Optional[int]) -> int:
         return self.module if module is None else module

@@ -10,6 +10,7 @@ from typing import Any, Dict, Iterator, List, Optional, Sequence, Union
 
 from . import _native
 from ._base import AsyncClientBase, ClientBase, resolve_port, run_native, samples
+from ._probe import Profile, ProbeReport, profile_setting, save_setting, warn_profile_notices
 from .records import ActuatorPosition, ErrorCode, Parameter, ScuInfo, ScuMove, ScuRun, ScuSample
 
 __all__ = ["Scu", "AsyncScu"]
@@ -71,6 +72,12 @@ class Scu(ClientBase):
         tolerance_counts: How close to its target a move must end to succeed.
         poll_ms: How often a move looks at the actuators (5..10000).
         speed_mode: ``"percent"`` or ``"counts_per_s"``.
+        profile: The device profile (``motionlink probe scu --save``, :func:`motionlink.probe`): ``True``
+            takes the one in profiles.toml beside devices.toml when the unit gives the same firmware and
+            configuration texts (its probes are then skipped; another unit's is left alone with a warning),
+            ``False`` none, a path that profiles file. :attr:`profile` names the one taken. The emulator's
+            firmware variants (``motionlink sim scu --variant``, :class:`motionlink.Emulator`) show what
+            each probe finds.
 
     Leaving a ``with`` block, ``close()`` or the end of the program sends RS for every function this
     session started, then RA. Ctrl-C during ``move_to`` or ``run`` stops the function (fast RS), then
@@ -92,12 +99,22 @@ class Scu(ClientBase):
         tolerance_counts: int = 5,
         poll_ms: int = 50,
         speed_mode: str = "percent",
+        profile: Profile = True,
     ) -> None:
         settings = _settings(
             baud, safety, reply_timeout_ms, functions, strokes, tolerance_counts, poll_ms, speed_mode
         )
+        settings["profile"] = profile_setting(profile)
         self._native = _native.ScuClient(resolve_port(port, self.family), settings)
         super().__init__()
+        warn_profile_notices(self._native)
+
+    def probe(
+        self, *, save: Union[bool, str, Any] = False, exchanges: int = 20, low_latency: bool = False
+    ) -> ProbeReport:
+        """``motionlink probe scu``'s report of this unit (see :func:`motionlink.probe`); nothing moves.
+        ``save`` writes its profile (``True``: profiles.toml beside devices.toml; a path: that file)."""
+        return ProbeReport(self._native.probe(exchanges, low_latency, save_setting(save)))
 
     def info(self) -> ScuInfo:
         """Firmware and configuration texts, battery/mains, the last error and the connected actuators."""

@@ -222,3 +222,56 @@ pub fn json_py<'py>(py: Python<'py>, v: &serde_json::Value) -> PyResult<Bound<'p
         }
     })
 }
+
+/// What a client made of the device profiles (profiles.toml beside devices.toml) when it opened: the
+/// profile it took (`<path>#<key>`) and the notices about those it did not take.
+pub type ProfileUse = motionlink_link::profile::ProfileUse;
+
+/// The profiles a client's `profile` setting names: `None` or `"auto"` the default file (profiles.toml
+/// beside devices.toml), `"off"` none, anything else the path of a profiles file. A file that cannot be read
+/// is a notice, not a failure: the session then probes as without it.
+pub fn profiles(setting: Option<&str>) -> Result<Option<motionlink_link::profile::Profiles>, String> {
+    use motionlink_link::profile::Profiles;
+    let loaded = match setting {
+        Some("off") => return Ok(None),
+        None | Some("auto") => Profiles::load_default(),
+        Some(path) => Profiles::load(std::path::Path::new(path)).map(Some),
+    };
+    loaded.map_err(|e| format!("device profiles not used: {e}"))
+}
+
+/// Looks up the profile of the client's device on `port` (`None`: an emulator in this process, which has no
+/// profile) with `apply`, the family's `use_profile`.
+pub fn use_profile(
+    setting: Option<&str>,
+    port: Option<&str>,
+    apply: impl FnOnce(&motionlink_link::profile::Profiles, &str) -> Result<ProfileUse, Failure>,
+) -> Result<ProfileUse, Failure> {
+    let Some(port) = port else { return Ok(ProfileUse::default()) };
+    match profiles(setting) {
+        Ok(Some(p)) => apply(&p, port),
+        Ok(None) => Ok(ProfileUse::default()),
+        Err(notice) => Ok(ProfileUse { reference: None, notices: vec![notice] }),
+    }
+}
+
+/// The setup of a probe of the client's port (`None`: an emulator in this process) at `baud`.
+pub fn probe_setup(port: Option<&str>, baud: u32, exchanges: u32, low_latency: bool) -> motionlink_link::probe::ProbeSetup {
+    use motionlink_link::probe::{PortKind, ProbeSetup};
+    let kind = port.and_then(|p| p.parse::<PortUrl>().ok()).map_or(PortKind::Sim, |u| PortKind::of(&u));
+    let mut setup = ProbeSetup::new(port.unwrap_or("in-process emulator"), kind, baud);
+    setup.exchanges = exchanges.max(1);
+    setup.low_latency = low_latency;
+    setup
+}
+
+/// The profiles file `save` names: `""` the default one (profiles.toml beside devices.toml), else a path.
+pub fn profiles_for_save(family: &'static str, save: &str) -> Result<motionlink_link::profile::Profiles, Failure> {
+    use motionlink_link::profile::{profiles_path, Profiles};
+    let path = if save.is_empty() {
+        profiles_path().ok_or_else(|| Failure::usage(family, "save: no configuration directory is known (set MOTIONLINK_CONFIG)"))?
+    } else {
+        std::path::PathBuf::from(save)
+    };
+    Profiles::load(&path).map_err(|e| Failure::usage(family, format!("save: {e}")))
+}

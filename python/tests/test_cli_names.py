@@ -1,6 +1,7 @@
 """Python's results carry the command line's JSON names (naming.md, "Decisions of 2026-11-25"): for each
 family's info, get, set, move, status or scan, and watch, ``to_dict()`` has exactly the keys, nested the
-same way, that ``motionlink <family> --port sim --json ...`` prints (``family`` and ``port`` aside).
+same way, that ``motionlink <family> --port sim --json ...`` prints (``family``, ``port`` and ``profile``
+aside).
 
 The binary is the ``motionlink_bin`` fixture's (conftest.py): without it these tests are skipped, or fail
 when ``MOTIONLINK_REQUIRE_CLI=1``.
@@ -17,7 +18,8 @@ import pytest
 
 import motionlink
 
-IDENTITY = {"family", "port"}
+# `profile`: the device profile the command's session took (Python's clients name it in `client.profile`).
+IDENTITY = {"family", "port", "profile"}
 
 
 @pytest.fixture(scope="module")

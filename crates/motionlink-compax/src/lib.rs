@@ -173,6 +173,7 @@ pub mod client;
 pub mod describe;
 pub mod error;
 pub mod model;
+pub mod probe;
 pub mod session;
 pub mod sim;
 pub mod wire;

@@ -10,6 +10,7 @@ mod client;
 mod client_stops;
 mod e2e;
 mod echo_check;
+mod probe;
 mod robustness;
 mod safety;
 mod shared;

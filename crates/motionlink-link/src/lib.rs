@@ -16,6 +16,9 @@
 //! - [`emulator`]: the [`emulator::Emulator`] trait and servers for `motionlink sim`.
 //! - [`url`]: the `--port` syntax.
 //! - [`transcript`]: a recording link wrapper.
+//! - [`probe`]: the shared pieces of a commissioning report (`motionlink probe`): checks, link measurements,
+//!   a USB serial adapter's latency timer, the baud-rate search.
+//! - [`profile`]: device profiles (`profiles.toml`), which let a later session skip the probes.
 
 #![warn(missing_docs)]
 
@@ -31,6 +34,8 @@ pub mod error;
 pub mod flags;
 pub mod link;
 pub mod pipe;
+pub mod probe;
+pub mod profile;
 pub mod serial;
 pub mod session;
 pub mod table;

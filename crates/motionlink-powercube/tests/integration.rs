@@ -9,3 +9,4 @@ mod async_example;
 mod embedded_can;
 mod fuzz;
 mod manual_examples;
+mod probe;

@@ -170,6 +170,7 @@ pub mod config;
 pub mod describe;
 pub mod error;
 pub mod model;
+pub mod probe;
 pub mod session;
 pub mod sim;
 pub mod value;

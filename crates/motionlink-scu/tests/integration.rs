@@ -11,6 +11,7 @@ mod client;
 mod client_faults;
 mod client_follow;
 mod client_moves;
+mod probe;
 mod session;
 mod sim;
 mod sim_errors;

@@ -325,16 +325,36 @@ pub fn print_json(out: &mut dyn Write, value: &serde_json::Value) -> Result<(), 
     Ok(())
 }
 
-/// A JSON object of a family command: `family` and `port` (the identity every such object carries, see the
-/// README's "JSON output"), then `fields`.
+/// The device profile the command's session took (`<path>#<key>`), once it looked for one.
+static PROFILE: OnceLock<Option<String>> = OnceLock::new();
+
+/// Records the device profile the command's session took (`None`: none): every JSON object of the command
+/// names it from now on (`"profile"`).
+pub fn set_profile(reference: Option<String>) {
+    let _ = PROFILE.set(reference);
+}
+
+/// A JSON object of a family command: `family` and `port` (the identity every such object carries, see
+/// docs/cli.md, "JSON output"), the device profile used (`profile`, once the session looked for one), then
+/// `fields`.
 pub fn identified(family: &str, port: &str, fields: serde_json::Value) -> serde_json::Value {
-    let mut map = serde_json::Map::new();
-    map.insert("family".into(), serde_json::Value::from(family));
-    map.insert("port".into(), serde_json::Value::from(port));
+    let mut map = identity_map(family, port);
     if let serde_json::Value::Object(f) = fields {
         map.extend(f);
     }
     serde_json::Value::Object(map)
+}
+
+/// `family`, `port` and, once the session looked for one, `profile`: the first keys of every JSON object of
+/// a family command.
+fn identity_map(family: &str, port: &str) -> serde_json::Map<String, serde_json::Value> {
+    let mut map = serde_json::Map::new();
+    map.insert("family".into(), family.into());
+    map.insert("port".into(), port.into());
+    if let Some(profile) = PROFILE.get() {
+        map.insert("profile".into(), serde_json::Value::from(profile.clone()));
+    }
+    map
 }
 
 /// A flag word as every command's JSON gives it: `word`, `flags` and `unknown_bits` (only when nonzero), as
@@ -349,8 +369,9 @@ pub fn to_json<T: serde::Serialize + ?Sized>(result: &T) -> serde_json::Value {
     serde_json::to_value(result).unwrap_or_else(|e| serde_json::Value::String(format!("(not serialisable: {e})")))
 }
 
-/// Prints a family command's result as one JSON object: `family` and `port` first, then `identity` (the
-/// unit the command names: `module`, `drive`), then the result's own fields, as it serialises.
+/// Prints a family command's result as one JSON object: `family`, `port` and `profile` first
+/// ([`identified`]), then `identity` (the unit the command names: `module`, `drive`), then the result's own
+/// fields, as it serialises.
 pub fn print_result<T: serde::Serialize + ?Sized>(
     out: &mut dyn Write,
     family: &str,
@@ -358,9 +379,7 @@ pub fn print_result<T: serde::Serialize + ?Sized>(
     identity: &[(&str, serde_json::Value)],
     result: &T,
 ) -> Result<(), CliError> {
-    let mut map = serde_json::Map::new();
-    map.insert("family".into(), family.into());
-    map.insert("port".into(), port.into());
+    let mut map = identity_map(family, port);
     for (k, v) in identity {
         map.insert((*k).into(), v.clone());
     }

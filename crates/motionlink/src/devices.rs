@@ -54,20 +54,10 @@ pub struct Device {
     pub options: BTreeMap<String, toml::Value>,
 }
 
-/// The configuration file's path: `MOTIONLINK_CONFIG`, else `devices.toml` in the platform's directory.
+/// The configuration file's path: `MOTIONLINK_CONFIG`, else `devices.toml` in the platform's directory (the
+/// directory `profiles.toml` lies in too: [`motionlink_link::profile`]).
 pub fn config_path() -> Option<PathBuf> {
-    if let Some(p) = std::env::var_os("MOTIONLINK_CONFIG") {
-        return Some(PathBuf::from(p));
-    }
-    let home = || std::env::var_os("HOME").map(PathBuf::from);
-    let dir = if cfg!(windows) {
-        std::env::var_os("APPDATA").map(PathBuf::from)
-    } else if cfg!(target_os = "macos") {
-        home().map(|h| h.join("Library/Application Support"))
-    } else {
-        std::env::var_os("XDG_CONFIG_HOME").map(PathBuf::from).or_else(|| home().map(|h| h.join(".config")))
-    };
-    dir.map(|d| d.join("motionlink").join("devices.toml"))
+    motionlink_link::profile::devices_path()
 }
 
 /// The devices of the configuration file `text` (named `path` in messages).

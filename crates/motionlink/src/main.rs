@@ -4,6 +4,7 @@
 //! motionlink <family> <action> ... [--port PORT]  operate a device (scu, powercube, compax); options
 //!                                                 go before or after the action
 //! motionlink sim <family> --tcp ADDR | --pty     serve an emulated device
+//! motionlink probe <family> --port PORT          commissioning: identify, measure, probe (nothing moves)
 //! motionlink decode <family>                     annotate a capture
 //! motionlink demo                                the manuals' examples against built-in emulators
 //! motionlink console <family> --port PORT        a commissioning page in the browser, on 127.0.0.1
@@ -24,6 +25,7 @@ mod numbers;
 mod portlock;
 mod ports;
 mod powercube;
+mod probe;
 mod scu;
 mod tap;
 mod term;
@@ -60,11 +62,35 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Ewellix / Schaeffler SCU control unit (RS232).
+    ///
+    /// What the manual leaves open (grouping indices, UserPositionData, cyclic objects, reading remote data
+    /// back) is probed on the unit in use; `motionlink sim scu --variant NAME` (`--sim-variant` with --port
+    /// sim) emulates a unit that does it the other way. A device profile written by `motionlink probe scu
+    /// --save` (profiles.toml beside devices.toml) is loaded when the unit gives the same firmware and
+    /// configuration texts: its probes are skipped, and --json results name it ("profile").
     Scu(scu::Args),
     /// Schunk / Amtec PowerCube modules (RS232, CAN).
+    ///
+    /// What the manual leaves open (the Inc twins, ActFPosStateDio, the RS232 broadcast refresh, the life
+    /// sign's acknowledge) is probed on the module in use; `motionlink sim powercube --variant NAME`
+    /// (`--sim-variant` with --port sim) emulates a module that does it the other way. A device profile written
+    /// by `motionlink probe powercube --save` (profiles.toml beside devices.toml) is loaded for --module when
+    /// it gives the same version and serial number: its probes are skipped, and --json results name it.
     Powercube(powercube::Args),
     /// Parker COMPAX servo drives (RS485 / RS232).
+    ///
+    /// What the manual leaves open (the form of the echo, status values with or without their name) is probed
+    /// on the drive in use; `motionlink sim compax --variant NAME` (`--sim-variant` with --port sim) emulates
+    /// a drive that does it the other way. A device profile written by `motionlink probe compax --save`
+    /// (profiles.toml beside devices.toml) is loaded for --drive when it gives the same S31 and S32: its echo
+    /// probe is skipped, and --json results name it ("profile").
     Compax(compax::Args),
+    /// Commissioning: find what is on the line, identify it, measure the link and run every harmless probe
+    /// of what the manuals leave open (nothing moves); --save keeps the findings as a device profile.
+    Probe {
+        #[command(subcommand)]
+        family: probe::Family,
+    },
     /// Serve a commissioning page for a device in the browser, on 127.0.0.1 (prints its address with a
     /// token).
     Console(console::Args),
@@ -147,6 +173,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
             args.json = json;
             compax::run(args)
         }
+        Command::Probe { family } => probe::run(family, json),
         Command::Console(mut args) => {
             args.json = json;
             console::run(args)

@@ -216,7 +216,7 @@ fn context(e: Error, context: String) -> CliError {
 }
 
 /// Opens the session `args` ask for; the in-process emulator's host with it for `--port sim`.
-fn open(
+pub(crate) fn open(
     args: &Args,
     port: &str,
     tap: &Tap,
@@ -377,6 +377,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let tap = Tap::new("powercube", &port, &clock, &args.link, &can_interface, &describer, request.is_some())?;
     let (client, host) = open(&args, &port, &tap, &clock)?;
     client.set_cancel_token(interrupt);
+    if !matches!(args.action, Action::Scan | Action::Params) {
+        let module = args.module;
+        crate::probe::use_profile(|p| motionlink_powercube::probe::use_profile(&client, p, &port, module))?;
+    }
     let guard = Guard::for_motions(ModulesAt::emulated_in_process(host.is_some()), args.no_watchdog);
     let result = match &request {
         Some(r) => send(&args, &client, r, &tap, &port, &mut out),

@@ -10,6 +10,7 @@ mod general_cli;
 mod messages_cli;
 mod port_sim_cli;
 mod powercube_cli;
+mod probe_cli;
 mod scu_cli;
 mod shared_cli;
 mod sim_server;

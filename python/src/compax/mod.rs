@@ -24,7 +24,7 @@ use motionlink_link::url::PortUrl;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::common::{opt_within, target, Int, Record, Slot, Target};
+use crate::common::{json_py, opt_within, target, Int, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
 use crate::wait::{block_on_runtime, deliver, interruptible, interruptible_read, spawn_task, NativeTask};
@@ -45,6 +45,9 @@ pub struct Settings {
     timeout_ms: Int,
     poll_ms: Int,
     tolerance_units: f64,
+    /// The device profiles: `"auto"` (default) profiles.toml beside devices.toml, `"off"`, or a path.
+    #[pyo3(default)]
+    profile: Option<String>,
 }
 
 /// The link `port` names and the session's settings, checked.
@@ -199,6 +202,10 @@ pub struct CompaxClient {
     drive: u8,
     port: String,
     close_bound: Duration,
+    /// The port as given (a URL), for profiles and probes; `None` for an emulator in this process.
+    port_url: Option<String>,
+    baud: u32,
+    profile: crate::common::ProfileUse,
 }
 
 impl CompaxClient {
@@ -235,13 +242,66 @@ impl CompaxClient {
             Target::InProcess(_) => "in-process emulator".to_string(),
             Target::Url(u) => u.to_string(),
         };
-        let client = py.detach(|| open(t, &settings)).map_err(|f| to_pyerr(py, f))?;
+        let port_url = (port != "in-process emulator" && port != "sim").then(|| port.clone());
+        let drive = drive_number(&settings.drive).map_err(|f| to_pyerr(py, f))?;
+        let baud: u32 = settings.baud.within(FAMILY, "baud", 1..=4_000_000).map_err(|f| to_pyerr(py, f))?;
+        let (client, profile) = py
+            .detach(|| {
+                let client = open(t, &settings)?;
+                let address = Address::drive(drive).map_err(|e| usage(e.to_string()))?;
+                let used = crate::common::use_profile(settings.profile.as_deref(), port_url.as_deref(), |p, port| {
+                    motionlink_compax::probe::use_profile(&client, p, port, address).map_err(|e| e.failure())
+                })?;
+                Ok::<_, Failure>((client, used))
+            })
+            .map_err(|f| to_pyerr(py, f))?;
         let token = CancelToken::new();
         client.set_cancel(token.clone());
         let close_bound = client.config().close_bound;
-        let drive = drive_number(&settings.drive).map_err(|f| to_pyerr(py, f))?;
         let watches = Default::default();
-        Ok(CompaxClient { slot: Slot::new(client, FAMILY), token, watches, drive, port, close_bound })
+        let slot = Slot::new(client, FAMILY);
+        Ok(CompaxClient { slot, token, watches, drive, port, close_bound, port_url, baud, profile })
+    }
+
+    /// The device profile the session took for its drive (`<path>#<key>`), or None.
+    #[getter]
+    fn profile(&self) -> Option<String> {
+        self.profile.reference.clone()
+    }
+
+    /// One line for each profile the session did not take (another identity, a file it could not read).
+    #[getter]
+    fn profile_notices(&self) -> Vec<String> {
+        self.profile.notices.clone()
+    }
+
+    /// `motionlink probe compax`'s report of the drives at `drives` (`"1-31"`, `"1,3"`), as a dict (nothing
+    /// moves); with `save` (`""`: the default profiles file, else a path) the profile of each drive is
+    /// written.
+    fn probe<'py>(
+        &self,
+        py: Python<'py>,
+        exchanges: u32,
+        low_latency: bool,
+        save: Option<String>,
+        drives: &str,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let client = self.client(py)?;
+        let drives = motionlink_compax::probe::parse_drives(drives).map_err(|e| to_pyerr(py, usage(e)))?;
+        let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
+        let report = py
+            .detach(|| {
+                let mut report =
+                    motionlink_compax::probe::probe(&client, &setup, &drives).map_err(|e| e.failure())?;
+                if let Some(save) = save {
+                    let mut profiles = crate::common::profiles_for_save(FAMILY, &save)?;
+                    motionlink_compax::probe::save_profile(&mut report, &mut profiles)
+                        .map_err(|e| usage(format!("save: {e}")))?;
+                }
+                serde_json::to_value(&report).map_err(|e| usage(e.to_string()))
+            })
+            .map_err(|f| to_pyerr(py, f))?;
+        json_py(py, &report)
     }
 
     /// The port.

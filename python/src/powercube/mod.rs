@@ -22,7 +22,7 @@ use motionlink_powercube::{AsyncClient, Error};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::common::{f32_py, opt_within, target, Int, Record, Slot, Target};
+use crate::common::{f32_py, json_py, opt_within, target, Int, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
 use crate::wait::{
@@ -42,6 +42,9 @@ pub struct Settings {
     timeout_ms: Option<Int>,
     poll_ms: Int,
     watchdog: bool,
+    /// The device profiles: `"auto"` (default) profiles.toml beside devices.toml, `"off"`, or a path.
+    #[pyo3(default)]
+    profile: Option<String>,
 }
 
 /// A module address as an argument gives it, in the library's range (a usage error naming it).
@@ -170,6 +173,10 @@ pub struct PowerCubeClient {
     module: u8,
     port: String,
     close_bound: Duration,
+    /// The port as given (a URL), for profiles and probes; `None` for an emulator in this process.
+    port_url: Option<String>,
+    baud: u32,
+    profile: crate::common::ProfileUse,
 }
 
 impl PowerCubeClient {
@@ -194,7 +201,22 @@ impl PowerCubeClient {
     #[new]
     fn py_new(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings) -> PyResult<Self> {
         let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
-        let (client, in_process) = py.detach(|| open(t, &settings)).map_err(|f| to_pyerr(py, f))?;
+        let port_url = match &t {
+            crate::common::Target::Url(u) if !matches!(u, motionlink_link::url::PortUrl::Sim) => Some(u.to_string()),
+            _ => None,
+        };
+        let module = module_address(&settings.module).map_err(|f| to_pyerr(py, f))?;
+        let baud: u32 = settings.baud.within(FAMILY, "baud", 1..=4_000_000).map_err(|f| to_pyerr(py, f))?;
+        let (client, in_process, profile) = py
+            .detach(|| {
+                let (client, in_process) = open(t, &settings)?;
+                let address = Address::new(module).map_err(|e| Error::from(e).failure())?;
+                let used = crate::common::use_profile(settings.profile.as_deref(), port_url.as_deref(), |p, port| {
+                    motionlink_powercube::probe::use_profile(&client, p, port, address).map_err(|e| e.failure())
+                })?;
+                Ok::<_, Failure>((client, in_process, used))
+            })
+            .map_err(|f| to_pyerr(py, f))?;
         let token = CancelToken::new();
         client.set_cancel_token(token.clone());
         let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !settings.watchdog);
@@ -204,10 +226,50 @@ impl PowerCubeClient {
             slot: Slot::new(client, FAMILY),
             token,
             guard,
-            module: module_address(&settings.module).map_err(|f| to_pyerr(py, f))?,
+            module,
             port,
             close_bound,
+            port_url,
+            baud,
+            profile,
         })
+    }
+
+    /// The device profile the session took for its module (`<path>#<key>`), or None.
+    #[getter]
+    fn profile(&self) -> Option<String> {
+        self.profile.reference.clone()
+    }
+
+    /// One line for each profile the session did not take (another identity, a file it could not read).
+    #[getter]
+    fn profile_notices(&self) -> Vec<String> {
+        self.profile.notices.clone()
+    }
+
+    /// `motionlink probe powercube`'s report of the bus, as a dict (nothing moves); with `save` (`""`: the
+    /// default profiles file, else a path) the profile of each module is written.
+    fn probe<'py>(
+        &self,
+        py: Python<'py>,
+        exchanges: u32,
+        low_latency: bool,
+        save: Option<String>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let client = self.client(py)?;
+        let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
+        let report = py
+            .detach(|| {
+                let mut report = motionlink_powercube::probe::probe(&client, &setup).map_err(|e| e.failure())?;
+                if let Some(save) = save {
+                    let mut profiles = crate::common::profiles_for_save(FAMILY, &save)?;
+                    motionlink_powercube::probe::save_profile(&mut report, &mut profiles)
+                        .map_err(|e| usage(format!("save: {e}")))?;
+                }
+                serde_json::to_value(&report).map_err(|e| usage(e.to_string()))
+            })
+            .map_err(|f| to_pyerr(py, f))?;
+        json_py(py, &report)
     }
 
     /// The port, as the link describes it.

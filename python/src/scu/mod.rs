@@ -45,6 +45,9 @@ pub struct Settings {
     tolerance_counts: Int,
     poll_ms: Int,
     speed_mode: String,
+    /// The device profiles: `"auto"` (default) profiles.toml beside devices.toml, `"off"`, or a path.
+    #[pyo3(default)]
+    profile: Option<String>,
 }
 
 fn client_config(s: &Settings) -> Result<ClientConfig, Failure> {
@@ -320,6 +323,10 @@ pub struct ScuClient {
     port: String,
     speed_mode: SpeedMode,
     close_bound: Duration,
+    /// The port as given (a URL), for profiles and probes; `None` for an emulator in this process.
+    port_url: Option<String>,
+    baud: u32,
+    profile: crate::common::ProfileUse,
 }
 
 impl ScuClient {
@@ -337,11 +344,62 @@ impl ScuClient {
     #[new]
     fn py_new(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings) -> PyResult<Self> {
         let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
-        let client = py.detach(|| open(t, &settings)).map_err(|f| to_pyerr(py, f))?;
+        let port_url = match &t {
+            crate::common::Target::Url(u) => Some(u.to_string()),
+            crate::common::Target::InProcess(_) => None,
+        };
+        let baud: u32 = settings.baud.within(FAMILY, "baud", 1..=4_000_000).map_err(|f| to_pyerr(py, f))?;
+        let (client, profile) = py
+            .detach(|| {
+                let client = open(t, &settings)?;
+                let used = crate::common::use_profile(settings.profile.as_deref(), port_url.as_deref(), |p, port| {
+                    motionlink_scu::probe::use_profile(&client, p, port).map_err(|e| e.failure())
+                })?;
+                Ok::<_, Failure>((client, used))
+            })
+            .map_err(|f| to_pyerr(py, f))?;
         let port = client.port().to_string();
         let speed_mode = client.config().speed_mode;
         let close_bound = client.config().close_bound;
-        Ok(ScuClient { slot: Slot::new(client, FAMILY), token: CancelToken::new(), port, speed_mode, close_bound })
+        let slot = Slot::new(client, FAMILY);
+        Ok(ScuClient { slot, token: CancelToken::new(), port, speed_mode, close_bound, port_url, baud, profile })
+    }
+
+    /// The device profile the session took (`<path>#<key>`), or None.
+    #[getter]
+    fn profile(&self) -> Option<String> {
+        self.profile.reference.clone()
+    }
+
+    /// One line for each profile the session did not take (another identity, a file it could not read).
+    #[getter]
+    fn profile_notices(&self) -> Vec<String> {
+        self.profile.notices.clone()
+    }
+
+    /// `motionlink probe scu`'s report of this unit, as a dict (nothing moves); with `save` (`""`: the
+    /// default profiles file, else a path) its profile is written.
+    fn probe<'py>(
+        &self,
+        py: Python<'py>,
+        exchanges: u32,
+        low_latency: bool,
+        save: Option<String>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let client = self.client(py)?;
+        let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
+        let report = py
+            .detach(|| {
+                let mut report = motionlink_scu::probe::probe(&client, &setup).map_err(|e| e.failure())?;
+                if let Some(save) = save {
+                    let mut profiles = crate::common::profiles_for_save(FAMILY, &save)?;
+                    motionlink_scu::probe::save_profile(&mut report, &mut profiles)
+                        .map_err(|e| usage(format!("save: {e}")))?;
+                }
+                serde_json::to_value(&report).map_err(|e| usage(e.to_string()))
+            })
+            .map_err(|f| to_pyerr(py, f))?;
+        json_py(py, &report)
     }
 
     /// The port, as the link describes it.

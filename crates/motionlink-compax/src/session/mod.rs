@@ -116,6 +116,14 @@ impl Session {
         self.core().echo_forms.get(usize::from(address.get())).copied().flatten()
     }
 
+    /// Takes how drive `address` echoes from `form` (a device profile's finding) where this session has not
+    /// found out yet: the probe is skipped, and no warning is given for it.
+    pub fn seed_echo_form(&mut self, address: Address, form: EchoForm) {
+        if let Some(slot) = self.core().echo_forms.get_mut(usize::from(address.get())) {
+            slot.get_or_insert(form);
+        }
+    }
+
     /// The drives that have answered this session.
     pub fn known(&self) -> Vec<Address> {
         drives_in(self.core().known)
@@ -151,6 +159,10 @@ impl Session {
                 Op::Raw(a, text) => Output::Reply(ctx.raw(a, &text).await?),
                 Op::RawMotion(a, text, after) => Output::Raw(ctx.raw_motion(a, &text, after).await?),
                 Op::Echo(a, text) => Output::Text(ctx.echo(a, &text).await?),
+                Op::ProbeEcho(a) => {
+                    ctx.echo_form(a).await?;
+                    Output::Done
+                }
                 Op::Move(a, c, opts) => {
                     ctx.start_move(a, c, opts, None).await?;
                     Output::Done

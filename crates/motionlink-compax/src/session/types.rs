@@ -196,8 +196,11 @@ pub struct MoveReport {
 /// the first time a move is stored with its echo, and remembered for the session
 /// ([`Session::echo_form`](super::Session::echo_form)). The forms below are the telegram as received
 /// (everything before its CR) with or without the address digits and with or without the flag
-/// characters; the command text itself must always come back exactly as sent.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// characters; the command text itself must always come back exactly as sent. A device profile
+/// (`motionlink probe --save`, [`crate::probe`]) keeps it as `full`, `without_address`, `without_flags`,
+/// `bare` or `none`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum EchoForm {
     /// `1S1?`: address, command and flags (what the emulator sends by default).
     Full,
@@ -324,6 +327,10 @@ pub enum Progress {
 /// An operation of a COMPAX session. Each ends with one [`Output`] (named below) or an [`Error`].
 #[derive(Debug, Clone, PartialEq)]
 pub enum Op {
+    /// How drive `address` echoes ([`EchoForm`]), found out once with S1 sent with `?` (a drive does not
+    /// execute what it echoes) and remembered ([`Session::echo_form`](super::Session::echo_form)).
+    /// [`Output::Done`].
+    ProbeEcho(Address),
     /// A status value ([`Output::Status`]); read again when the reply does not read as the value.
     ReadStatus(Address, StatusId),
     /// Several status values of one drive, in order ([`Output::Statuses`]); a cancel ends it between two.

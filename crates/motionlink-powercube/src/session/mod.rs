@@ -158,6 +158,9 @@ pub enum Op {
     /// Reset; if STATE_COMM_ERROR comes back (a host died with the watchdog online), a life sign switches it
     /// offline and a second Reset clears it. [`Output::Released`].
     ResetAndReleaseWatchdog(Address),
+    /// Whether the module answers ActFPosStateDio (0x62), found out once (a read) and remembered in its
+    /// [`ModuleFindings`]. [`Output::Done`].
+    ProbePosStateDio(Address),
 }
 
 impl Op {
@@ -170,6 +173,7 @@ impl Op {
             Op::Positions(_) | Op::Position(_) | Op::PositionTicks(_) | Op::PositionStateDio(_) => "a position read",
             Op::State(_) | Op::ConfigWord(_) | Op::Kind(_) | Op::Info(_) => "a read",
             Op::Scan => "the scan",
+            Op::ProbePosStateDio(_) => "a read",
             _ => return None,
         })
     }
@@ -304,6 +308,14 @@ impl Session {
     /// [`ModuleFindings`]).
     pub fn findings(&self, address: Address) -> ModuleFindings {
         self.core().findings.get(&address.get()).copied().unwrap_or_default()
+    }
+
+    /// Takes what `known` says of module `address` (from a device profile, or a probe) where this session has
+    /// not established it yet: those behaviours are not probed again, and no warning is given for them.
+    pub fn seed_findings(&mut self, address: Address, known: ModuleFindings) {
+        let mut core = self.core();
+        let f = core.findings.entry(address.get()).or_default();
+        *f = f.or(known);
     }
 
     /// The kind of module `address`, if the session has read it.

@@ -260,8 +260,10 @@ impl Readback {
 
 /// What a session has established about one module where the manual is silent: each found by a harmless
 /// probe the first time a check depends on it, and remembered for the session ([`Session::findings`](super::Session::findings)).
-/// `None`: not established (yet).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+/// `None`: not established (yet). A device profile (`motionlink probe --save`, [`crate::probe`]) keeps them, and
+/// [`Session::seed_findings`](super::Session::seed_findings) gives them to a later session.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct ModuleFindings {
     /// TargetPosInc follows the target written as TargetPos or sent in a float motion command (`true`), or
     /// the module keeps it apart (`false`).
@@ -279,6 +281,17 @@ pub struct ModuleFindings {
 }
 
 impl ModuleFindings {
+    /// These, with every finding `self` has not established taken from `known` (what was established stays).
+    pub fn or(self, known: ModuleFindings) -> ModuleFindings {
+        ModuleFindings {
+            target_pos_twin: self.target_pos_twin.or(known.target_pos_twin),
+            target_vel_twin: self.target_vel_twin.or(known.target_vel_twin),
+            target_acc_twin: self.target_acc_twin.or(known.target_acc_twin),
+            pos_state_dio: self.pos_state_dio.or(known.pos_state_dio),
+            rs232_broadcast: self.rs232_broadcast.or(known.rs232_broadcast),
+        }
+    }
+
     /// The finding about the Inc twin of `param` (TargetPos, TargetVel, TargetAcc), if it has one.
     pub fn twin(&self, param: Param) -> Option<bool> {
         match param {

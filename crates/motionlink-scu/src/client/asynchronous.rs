@@ -160,6 +160,12 @@ impl AsyncClient {
         self.driver.driver().with_session(|s| s.capabilities())
     }
 
+    /// Takes what `known` says of the unit where the session has not found out yet, as
+    /// [`Client::seed_capabilities`].
+    pub fn seed_capabilities(&self, known: Capabilities) {
+        self.driver.driver().with_session(|s| s.seed_capabilities(known))
+    }
+
     /// Actuator `a`'s position.
     pub async fn position(&self, a: Actuator) -> Result<PositionCounts, Error> {
         super::position(self.get_value(a.position_index()).await?)

@@ -119,6 +119,12 @@ impl Client {
         self.driver.with_session(|s| s.capabilities())
     }
 
+    /// Takes what `known` says of the unit (a device profile's capabilities) where the session has not found
+    /// out yet: those probes are skipped ([`Session::seed_capabilities`]).
+    pub fn seed_capabilities(&self, known: Capabilities) {
+        self.driver.with_session(|s| s.seed_capabilities(known))
+    }
+
     /// Functions started with RE and not yet stopped (wire ids).
     pub fn started_functions(&self) -> Vec<u8> {
         self.driver.with_session(|s| s.started_functions())

@@ -9,7 +9,11 @@ use crate::model::DataIndex;
 
 /// What the session found the unit in use to do beyond the manual's words. Each is `None` until the
 /// session needed it and probed it, `Some(true)` when the unit did it, `Some(false)` when it refused (PDE).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+///
+/// A device profile (`motionlink probe --save`, [`crate::probe`]) keeps them, and
+/// [`Session::seed_capabilities`](super::Session::seed_capabilities) gives them to a later session.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct Capabilities {
     /// RG of grouping indices (0x0010 every position, 0x0170 every status 1, ...): `Some(false)` once one
     /// was refused; its entries are then read one by one.
@@ -21,6 +25,18 @@ pub struct Capabilities {
     pub cyclic_objects: Option<bool>,
     /// RG of remote data (0x3xxx): what RT wrote is read back.
     pub remote_read_back: Option<bool>,
+}
+
+impl Capabilities {
+    /// These, with every finding `self` has not settled taken from `known` (what was settled stays).
+    pub fn or(self, known: Capabilities) -> Capabilities {
+        Capabilities {
+            grouping_indices: self.grouping_indices.or(known.grouping_indices),
+            user_position_data: self.user_position_data.or(known.user_position_data),
+            cyclic_objects: self.cyclic_objects.or(known.cyclic_objects),
+            remote_read_back: self.remote_read_back.or(known.remote_read_back),
+        }
+    }
 }
 
 /// The session's memory of what the unit answered.

@@ -341,6 +341,13 @@ impl Session {
     pub fn capabilities(&self) -> Capabilities {
         self.core.probed.caps
     }
+
+    /// Takes what `known` says of the unit (from a device profile, or a probe) where this session has not
+    /// found out yet: those behaviours are not probed again, and no warning is given for them. A finding of
+    /// the session stays.
+    pub fn seed_capabilities(&mut self, known: Capabilities) {
+        self.core.probed.caps = self.core.probed.caps.or(known);
+    }
 }
 
 impl SessionTrait for Session {

@@ -35,7 +35,8 @@ mod open;
 mod show;
 
 pub use extra::{decode, demo, sim};
-use open::{check_bus, open, parse_mode, plan_move};
+pub(crate) use open::open;
+use open::{check_bus, parse_mode, plan_move};
 use show::{param_json, send_text, status_rows};
 
 /// `motionlink compax` arguments. Every option may come before or after the action.
@@ -423,6 +424,10 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
         }
     })?;
     let drive = Address::drive(args.drive).map_err(CliError::usage)?;
+    if !matches!(args.action, Action::Scan) {
+        let port = &args.resolved_port;
+        crate::probe::use_profile(|p| motionlink_compax::probe::use_profile(&bus, p, port, drive))?;
+    }
     let plan = checked.move_plan.as_ref();
     match &args.action {
         Action::Scan => actions::scan(args, &bus, &mut out)?,

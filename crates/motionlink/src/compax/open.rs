@@ -66,7 +66,7 @@ pub(super) fn check_bus(args: &Args) -> Result<(Mode, Duration), CliError> {
 
 /// Checks the bus arguments (before anything is opened or sent) and opens the port, its link watched by
 /// `tap`.
-pub(super) fn open(args: &Args, tap: &Tap, configure: impl FnOnce(&mut BusConfig)) -> Result<Client, CliError> {
+pub(crate) fn open(args: &Args, tap: &Tap, configure: impl FnOnce(&mut BusConfig)) -> Result<Client, CliError> {
     let (mode, reply_timeout) = check_bus(args)?;
     let url: PortUrl = args.resolved_port.parse()?;
     let clock: SharedClock = RealClock::shared();

@@ -381,6 +381,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         )
     };
     let client = connect(&args, &port, &tap, &clock, config).map_err(|e| tap.name_absent(e, absent))?;
+    crate::probe::use_profile(|p| motionlink_scu::probe::use_profile(&client, p, &port))?;
     let mut out = std::io::stdout().lock();
     let report = Report { json: args.json, port: &port, stopped };
     let result = match &request {

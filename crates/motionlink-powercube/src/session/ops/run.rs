@@ -27,6 +27,10 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
             Output::Done
         }
         Op::Scan => Output::Scan(ctx.scan().await?),
+        Op::ProbePosStateDio(a) => {
+            ctx.probe_pos_state_dio(a.get()).await?;
+            Output::Done
+        }
         Op::Get(a, p) => Output::Value(ctx.get(a.get(), p).await?),
         Op::Set(a, p, v) => {
             ctx.set(a.get(), p, v).await?;

@@ -34,6 +34,11 @@ impl DefineObject {
         if cx.core.poll.configured {
             return None;
         }
+        if cx.core.probed.caps.cyclic_objects == Some(false) {
+            // Known (from a device profile) not to take the object: watched with reads, without asking again.
+            cx.core.poll.refused = true;
+            return None;
+        }
         if POLL_READ.iter().any(|i| cx.core.group_refused(*i)) {
             // The object reads grouping indices, which the unit refuses (said once, with what follows).
             cx.core.poll.refused = true;

@@ -1,0 +1,164 @@
+//! `motionlink_powercube::probe` against the emulated bus and every firmware variant: the report says
+//! `unsupported` for the behaviour a variant changes and what the default modules say otherwise; a saved
+//! profile seeds a later session (whose probe exchange disappears) only when the module's identity matches.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use motionlink_link::can::{CanBus, CanBusConfig};
+use motionlink_link::clock::{Clock, ManualClock, ParticipantGuard};
+use motionlink_link::link::Link;
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::probe::{CheckResult, PortKind, ProbeSetup};
+use motionlink_link::profile::Profiles;
+use motionlink_link::LinkError;
+use motionlink_powercube::client::{BusConfig, Client};
+use motionlink_powercube::model::Address;
+use motionlink_powercube::probe::{probe, save_profile, use_profile, PowercubeProbeReport};
+use motionlink_powercube::session::{ModuleFindings, Op};
+use motionlink_powercube::sim::{SimConfig, Variant};
+use motionlink_powercube::Emulator;
+
+/// A link that counts the telegrams sent.
+struct Counted {
+    inner: Box<dyn Link>,
+    sent: Arc<AtomicUsize>,
+}
+
+impl Link for Counted {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        self.sent.fetch_add(1, Ordering::SeqCst);
+        self.inner.send(bytes)
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
+        self.inner.recv(buf, timeout)
+    }
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        self.inner.discard_input()
+    }
+    fn describe(&self) -> String {
+        self.inner.describe()
+    }
+}
+
+/// The test thread's place among the clock's participants (held while the client is used).
+type Me = (ManualClock, ParticipantGuard);
+
+fn bus(config: &SimConfig) -> (Me, Client, Arc<AtomicUsize>) {
+    let clock = ManualClock::new_auto();
+    let me = clock.reserve_participant().enter();
+    let host = EmulatorHost::new(Emulator::new(config), clock.shared(), PipeConfig::paced(9_600));
+    let sent = Arc::new(AtomicUsize::new(0));
+    let link = Counted { inner: Box::new(host.connect().0), sent: Arc::clone(&sent) };
+    let client = Client::rs232(Box::new(link), clock.shared(), BusConfig::rs232()).unwrap();
+    ((clock, me), client, sent)
+}
+
+fn config(variants: &[Variant]) -> SimConfig {
+    let mut c = SimConfig::with_addresses(&[1, 17]).unwrap();
+    c.variants = variants.to_vec();
+    c
+}
+
+fn probed(variants: &[Variant]) -> PowercubeProbeReport {
+    let (_clock, client, _) = bus(&config(variants));
+    let report = probe(&client, &ProbeSetup::new("sim", PortKind::Sim, 9_600)).unwrap();
+    assert!(client.started().is_empty(), "nothing set in motion");
+    client.close().unwrap();
+    report
+}
+
+fn results(r: &PowercubeProbeReport) -> Vec<(&'static str, Option<u8>, CheckResult)> {
+    r.checks.iter().map(|c| (c.name, c.address, c.result)).collect()
+}
+
+#[test]
+fn the_default_modules_are_found_identified_and_answer_the_harmless_probe() {
+    let r = probed(&[]);
+    assert_eq!(r.devices.iter().map(|m| m.address).collect::<Vec<_>>(), vec![1, 17]);
+    for m in &r.devices {
+        assert!(m.identity.starts_with("version ") && m.identity.contains(&m.serial.to_string()), "{}", m.identity);
+        assert_eq!(m.findings, ModuleFindings { pos_state_dio: Some(true), ..Default::default() });
+    }
+    for (name, address, result) in results(&r) {
+        let expected = if name == "pos_state_dio" { CheckResult::Ok } else { CheckResult::Skipped };
+        assert_eq!(result, expected, "{name} of {address:?}");
+    }
+    // Two link rows, then six per module.
+    assert_eq!(r.checks.len(), 2 + 2 * 6);
+    assert_eq!((r.link.exchanges, r.link.errors), (20, 0));
+    assert!(r.link.round_trip_ms.unwrap().min > 5.0, "9600 baud: {:?}", r.link.round_trip_ms);
+    let broadcast = r.check("rs232_broadcast", Some(1)).unwrap();
+    assert!(broadcast.detail.contains("watchdog armed"), "{}", broadcast.detail);
+}
+
+#[test]
+fn each_variant_shows_as_unsupported_in_its_own_check_and_nowhere_else() {
+    let base = results(&probed(&[]));
+    for v in Variant::ALL {
+        let r = probed(&[v]);
+        let changed: Vec<_> = results(&r).into_iter().zip(&base).filter(|(x, y)| x != *y).map(|(x, _)| x).collect();
+        let expected = match v {
+            Variant::NoPosStateDio => vec![
+                ("pos_state_dio", Some(1), CheckResult::Unsupported),
+                ("pos_state_dio", Some(17), CheckResult::Unsupported),
+            ],
+            // Shown only with a write of another value or an armed watchdog, or taken in both forms.
+            _ => vec![],
+        };
+        assert_eq!(changed, expected, "{}", v.name());
+    }
+}
+
+#[test]
+fn a_saved_profile_seeds_the_module_and_its_probe_exchange_disappears() {
+    let dir = std::env::temp_dir().join(format!("motionlink-pc-profile-{}", std::process::id()));
+    let path = dir.join("profiles.toml");
+    let setup = ProbeSetup::new("/dev/ttyS9", PortKind::Sim, 9_600);
+    let (_clock, client, _) = bus(&config(&[Variant::NoPosStateDio]));
+    let mut report = probe(&client, &setup).unwrap();
+    client.close().unwrap();
+    let mut profiles = Profiles::load(&path).unwrap();
+    save_profile(&mut report, &mut profiles).unwrap();
+    assert_eq!(report.saved.len(), 2);
+
+    let a1 = Address::new(1).unwrap();
+    let (_clock, client, sent) = bus(&config(&[Variant::NoPosStateDio]));
+    let used = use_profile(&client, &profiles, "/dev/ttyS9", a1).unwrap();
+    assert_eq!(used.reference.as_deref(), Some(report.saved[0].as_str()));
+    assert_eq!(client.session(|s| s.findings(a1)).pos_state_dio, Some(false));
+    let before = sent.load(Ordering::SeqCst);
+    client.run(Op::ProbePosStateDio(a1)).unwrap();
+    assert_eq!(sent.load(Ordering::SeqCst), before, "known from the profile: nothing sent");
+    // Module 17 was not looked up: its probe is made (and sends).
+    client.run(Op::ProbePosStateDio(Address::new(17).unwrap())).unwrap();
+    assert!(sent.load(Ordering::SeqCst) > before);
+    client.close().unwrap();
+
+    // Another module at address 1 (another serial number): ignored, with a notice.
+    let mut other = config(&[]);
+    other.modules[0].serial += 1;
+    let (_clock, client, _) = bus(&other);
+    let used = use_profile(&client, &profiles, "/dev/ttyS9", a1).unwrap();
+    assert_eq!(used.reference, None);
+    assert!(used.notices[0].contains("not used") && used.notices[0].contains("(address 1)"), "{:?}", used.notices);
+    assert_eq!(client.session(|s| s.findings(a1)), ModuleFindings::default());
+    client.close().unwrap();
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn on_can_the_broadcast_is_the_manuals_and_not_probed() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let sim = Emulator::new_can(&SimConfig::with_addresses(&[3]).unwrap());
+    let canbus = CanBus::with_emulator(sim, clock.shared(), CanBusConfig::paced(1_000_000));
+    let client = Client::can(Box::new(canbus.connect()), clock.shared(), BusConfig::can()).unwrap();
+    let r = probe(&client, &ProbeSetup::new("socketcan://can0", PortKind::Can, 0)).unwrap();
+    assert_eq!(r.devices.len(), 1);
+    assert_eq!(r.check("pos_state_dio", Some(3)).unwrap().result, CheckResult::Ok);
+    assert!(r.check("rs232_broadcast", Some(3)).unwrap().detail.contains("CAN"));
+    assert!(r.check("baud", None).unwrap().detail.contains("CAN port"));
+    client.close().unwrap();
+}

@@ -1,0 +1,111 @@
+//! `motionlink probe scu`.
+
+use std::sync::Arc;
+
+use motionlink_link::describe::Describe;
+use motionlink_link::link::{Connector, SerialSettings};
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::probe::{find_baud, PortKind};
+use motionlink_link::url::PortUrl;
+use motionlink_link::{RealClock, SharedClock};
+use motionlink_scu::describe::Describer;
+use motionlink_scu::model::SpeedMode;
+use motionlink_scu::probe::{baud_choice, probe, save_profile, ScuDevice};
+use motionlink_scu::{Client, ClientConfig, Emulator, Variants};
+
+use super::{finish, profiles_for_save, setup, Options};
+use crate::common::{self, CliError};
+use crate::scu::{in_process_config, InProcess};
+use crate::tap::{LinkArgs, Tap};
+
+/// `motionlink probe scu` arguments.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The port: a serial device (/dev/ttyUSB0, COM3), tcp://HOST:PORT (a serial gateway or `motionlink sim
+    /// scu`), or sim. Default: --device, else MOTIONLINK_PORT.
+    #[arg(long, value_name = "PORT")]
+    pub port: Option<String>,
+    #[command(flatten)]
+    pub link: LinkArgs,
+    /// Baud rate of a serial port: 38400 (standard units), 19200 or 9600 (customised ones), or auto to try
+    /// each in that order (not over tcp:// or sim, where the gateway or emulator sets the rate).
+    #[arg(long, default_value = "38400", value_name = "BAUD|auto", value_parser = baud_choice)]
+    pub baud: motionlink_link::probe::BaudChoice,
+    /// With --port sim: a firmware variant of the emulated unit (as `motionlink sim scu --variant`); repeat
+    /// or comma-separate for several.
+    #[arg(long = "sim-variant", value_name = "NAME")]
+    pub sim_variants: Vec<String>,
+    #[command(flatten)]
+    pub options: Options,
+}
+
+/// The connector of the session at `baud`, its link watched by `tap`.
+fn connector(url: &PortUrl, args: &Args, baud: u32, tap: &Tap, clock: &SharedClock) -> Result<Connector, CliError> {
+    let (tap, clock) = (tap.clone(), Arc::clone(clock));
+    Ok(match url {
+        PortUrl::Sim => {
+            let config = in_process_config(&InProcess {
+                functions: &[],
+                preset: None,
+                file: None,
+                speed_mode: SpeedMode::Percent,
+                variants: &args.sim_variants,
+            })?;
+            let sim = Emulator::new(config).map_err(|e| CliError::usage(e.to_string()))?;
+            let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(baud));
+            Box::new(move || Ok(tap.link(Box::new(host.connect().0), &clock)))
+        }
+        p => {
+            let p = p.clone();
+            let settings = SerialSettings::new(baud);
+            Box::new(move || Ok(tap.link(p.open_byte_link(settings)?, &clock)))
+        }
+    })
+}
+
+/// `motionlink probe scu ...`
+pub fn run(args: Args, json: bool) -> Result<(), CliError> {
+    Variants::parse_all(&args.sim_variants).map_err(|e| CliError::usage(format!("--sim-variant: {e}")))?;
+    let port = args.link.resolve_port("scu", args.port.as_deref())?;
+    let (mut setup, url) = setup(&port, args.baud.first(), &args.options)?;
+    match setup.kind {
+        PortKind::Can => return Err(CliError::usage(format!("{port}: the SCU speaks RS232, not CAN"))),
+        PortKind::Sim => {}
+        _ if !args.sim_variants.is_empty() => return Err(CliError::usage("--sim-variant is only for --port sim")),
+        _ => {}
+    }
+    crate::portlock::claim("scu", &port)?;
+    let clock = RealClock::shared();
+    let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
+    let tap = Tap::new("scu", &port, &clock, &args.link, "can0", &describer, false)?;
+    let (opened, baud_check) = find_baud(setup.kind, &args.baud, |baud| {
+        let connector = connector(&url, &args, baud, &tap, &clock)?;
+        Client::open(connector, Arc::clone(&clock), ClientConfig::default()).map_err(|e| common::classified(&e))
+    });
+    let (client, baud) = opened.map_err(|e| {
+        tap.flush();
+        super::not_found(e, &args.baud, &baud_check)
+    })?;
+    setup.baud = (setup.kind == PortKind::Serial).then_some(baud);
+    setup.baud_check = Some(baud_check);
+    let report = probe(&client, &setup);
+    let closed = client.close();
+    tap.flush();
+    let mut report = report.map_err(|e| common::classified(&e))?;
+    closed.map_err(|e| common::classified(&e))?;
+    if args.options.save {
+        save_profile(&mut report, &mut profiles_for_save()?).map_err(|e| CliError::usage(format!("--save: {e}")))?;
+    }
+    finish(&report, json, unit_line, &mut std::io::stdout().lock())
+}
+
+fn unit_line(d: &ScuDevice) -> String {
+    let actuators: Vec<String> = d.connected_actuators.iter().map(|a| format!("A{a}")).collect();
+    format!(
+        "unit: firmware {:?}, configuration {:?} (edition: {}); connected: {}",
+        d.firmware,
+        d.configuration,
+        d.edition,
+        if actuators.is_empty() { "none".into() } else { actuators.join(" ") }
+    )
+}

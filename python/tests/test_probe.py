@@ -1,0 +1,54 @@
+"""`motionlink.probe`: the report of `motionlink probe <family> --json` as a record, and the device profile
+it saves, which a client then loads (`profile=`) and names (`client.profile`); a profile of another device
+is left alone with a warning."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import pytest
+
+import motionlink
+
+
+def test_probe_returns_the_report_with_every_check() -> None:
+    report = motionlink.probe("scu", "sim")
+    assert isinstance(report, motionlink.ProbeReport)
+    assert (report.family, report.port) == ("scu", "sim")
+    assert report.devices[0]["firmware"] == "SCU V2B3 motionlink-sim"
+    assert report.check("grouping_indices").result == "ok"
+    assert report.check("baud").result == "skipped"
+    assert report.link["exchanges"] == 20
+    assert {c.result for c in report.checks} <= {"ok", "unsupported", "failed", "skipped"}
+    with motionlink.Emulator("compax", variant="no-echo", serve="tcp") as emu:
+        report = motionlink.probe("compax", emu.port, drives="1-2")
+        assert [d["address"] for d in report.devices] == [1]
+        assert report.check("echo_form", 1).result == "unsupported"
+        assert report.check("echo_form", 1).variant == "no-echo"
+    with pytest.raises(motionlink.UsageError):
+        motionlink.probe("lathe", "sim")
+
+
+def test_a_saved_profile_is_loaded_by_a_later_client_and_another_devices_is_ignored(tmp_path: Path) -> None:
+    profiles = tmp_path / "profiles.toml"
+    with motionlink.Emulator("scu", variant="no-groups", serve="tcp") as emu:
+        report = motionlink.probe("scu", emu.port, save=profiles)
+        assert report.check("grouping_indices").result == "unsupported"
+        assert len(report.saved) == 1 and report.saved[0].startswith(f"{profiles}#scu:{emu.port}:")
+        with motionlink.Scu(emu.port, profile=profiles) as scu:
+            assert scu.profile == report.saved[0]
+            assert scu.info().actuators
+        with motionlink.Scu(emu.port, profile=False) as scu:
+            assert scu.profile is None
+    # Another unit on that port (another firmware text in the file): not used, with a warning.
+    text = profiles.read_text()
+    profiles.write_text(text.replace("SCU V2B3 motionlink-sim", "SCU V9 elsewhere"))
+    with motionlink.Emulator("scu", serve="tcp") as emu:
+        other = profiles.read_text().replace(report.port, emu.port)
+        profiles.write_text(other)
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            with motionlink.Scu(emu.port, profile=profiles) as scu:
+                assert scu.profile is None
+        assert any("not used" in str(w.message) and "SCU V9 elsewhere" in str(w.message) for w in seen), seen
