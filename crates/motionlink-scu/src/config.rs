@@ -298,8 +298,12 @@ impl ClientConfig {
         if self.retries > 10 {
             return bad(format!("retries {}: at most 10", self.retries));
         }
-        if self.position_tolerance_counts > 10_000 {
-            return bad(format!("position tolerance {} counts: at most 10000", self.position_tolerance_counts));
+        if self.position_tolerance_counts > crate::args::ToleranceCounts::MAX {
+            return bad(format!(
+                "position tolerance {} counts: {}",
+                self.position_tolerance_counts,
+                <crate::args::ToleranceCounts as crate::args::Checked>::RULE
+            ));
         }
         if !(Duration::from_millis(5)..=Duration::from_secs(10)).contains(&self.poll_interval) {
             return bad(format!("poll interval {:?}: 5 ms to 10 s", self.poll_interval));
