@@ -206,7 +206,17 @@ impl Checked for UpdateRate {
     }
 }
 
-from_whole!(Actuator, MotionFunction, SafetyId, PositionCounts, Baud, ToleranceCounts, ReplyTimeout, PollInterval, UpdateRate);
+from_whole!(
+    Actuator,
+    MotionFunction,
+    SafetyId,
+    PositionCounts,
+    Baud,
+    ToleranceCounts,
+    ReplyTimeout,
+    PollInterval,
+    UpdateRate
+);
 
 /// The longest a function's run may take before it is stopped: 0 .. 86400 s (a day), any fraction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -383,8 +393,14 @@ mod tests {
     fn words_name_themselves_and_the_nearest_real_one() {
         let e = "F30".parse::<Function>().unwrap_err().0;
         assert!(e.starts_with("\"F30\" is not a function: F1..F10 motion"), "{e}");
-        assert_eq!("int-ot".parse::<MotionDirection>().unwrap_err().0, "\"int-ot\" is not a direction: did you mean int-out?");
-        assert_eq!(RunAction::parse("F2", "out").unwrap(), RunAction::Motion(MotionFunction::new(2).unwrap(), MotionDirection::Out));
+        assert_eq!(
+            "int-ot".parse::<MotionDirection>().unwrap_err().0,
+            "\"int-ot\" is not a direction: did you mean int-out?"
+        );
+        assert_eq!(
+            RunAction::parse("F2", "out").unwrap(),
+            RunAction::Motion(MotionFunction::new(2).unwrap(), MotionDirection::Out)
+        );
         assert_eq!(RunAction::parse("11", " ON").unwrap(), RunAction::Switch(Function::Buzzer));
         assert_eq!(RunAction::parse("F11", "off").unwrap_err().0, "F11 (buzzer) is switched with \"on\", not \"off\"");
     }
@@ -394,7 +410,10 @@ mod tests {
         let item = |n: &str| crate::model::find(n).unwrap();
         let (e, v) = parse_write(item("remote_speed_f1"), "80").unwrap();
         assert_eq!((e.name, v), ("remote_speed_f1", Value::RemoteSpeed(80)));
-        assert_eq!(parse_write(item("remote_speeds"), "1").unwrap_err().0, "remote_speeds is a group; set its entries one by one");
+        assert_eq!(
+            parse_write(item("remote_speeds"), "1").unwrap_err().0,
+            "remote_speeds is a group; set its entries one by one"
+        );
         assert!(parse_write(item("actual_position_a1"), "1").unwrap_err().0.contains("read-only"));
         assert!(parse_write(item("remote_speed_f1"), "fast").unwrap_err().0.starts_with("remote_speed_f1: "));
     }

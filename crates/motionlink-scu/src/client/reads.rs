@@ -7,9 +7,9 @@ use crate::results::{ActuatorState, GetReport, InfoReport, WriteReport};
 use crate::value::Value;
 use crate::wire::Command;
 
-use super::Client;
 #[cfg(feature = "tokio")]
 use super::AsyncClient;
+use super::Client;
 
 /// `what` read from the unit was not of its entry's kind.
 fn unexpected(what: &str, v: &Value) -> Error {

@@ -7,7 +7,7 @@ use motionlink_link::Timestamp;
 use serde_json::{json, to_value};
 
 use super::*;
-use crate::model::{find, Flags, FlagSet, MotionFunction, StopMode};
+use crate::model::{find, FlagSet, Flags, MotionFunction, StopMode};
 use crate::session::{ActuatorRest, RefusedStop, StopReport};
 
 fn a(n: u8) -> Actuator {
@@ -31,10 +31,16 @@ fn values_show_converted_units_flag_words_and_error_codes() {
     assert_eq!(to_value(&unknown).unwrap(), json!({"word": 5, "flags": ["output1"], "unknown_bits": 4}));
     let code = Value::ErrorCode(ErrorCode::from_bit(15));
     let cause = "error with drive 1";
-    assert_eq!(to_value(&code).unwrap(), json!({"code": 0x4000, "bits": [{"bit": 15, "name": "drive1", "cause": cause}]}));
+    assert_eq!(
+        to_value(&code).unwrap(),
+        json!({"code": 0x4000, "bits": [{"bit": 15, "name": "drive1", "cause": cause}]})
+    );
     let object = Value::parse(crate::model::Kind::CyclicObject, "0x3011;0x0011").unwrap();
     let shown = to_value(&object).unwrap();
-    assert_eq!((&shown["write"][0], &shown["read"][0], &shown["read"][1]), (&json!("0x3011"), &json!("0x0011"), &json!("0xFFFF")));
+    assert_eq!(
+        (&shown["write"][0], &shown["read"][0], &shown["read"][1]),
+        (&json!("0x3011"), &json!("0x0011"), &json!("0xFFFF"))
+    );
 }
 
 #[test]
@@ -112,7 +118,10 @@ fn a_write_says_what_was_read_back_or_why_not() {
         ..checked
     };
     let v = to_value(&unchecked).unwrap();
-    assert_eq!((&v["read_back"], &v["verified"], &v["not_verifiable"]), (&json!(null), &json!(false), &json!(["not read back"])));
+    assert_eq!(
+        (&v["read_back"], &v["verified"], &v["not_verifiable"]),
+        (&json!(null), &json!(false), &json!(["not read back"]))
+    );
 }
 
 #[test]
@@ -204,7 +213,10 @@ fn a_sample_has_the_connected_actuators_with_their_current_in_amperes() {
         json!([{"actuator": 1, "position_counts": 400, "current_amps": 2.5, "word": 1, "flags": ["available"],
                 "moving": false}])
     );
-    assert_eq!((&v["t_s"], &v["last_error"]["code"], &v["last_error"]["bits"][0]["bit"]), (&json!(0.25), &json!(1 << 21), &json!(22)));
+    assert_eq!(
+        (&v["t_s"], &v["last_error"]["code"], &v["last_error"]["bits"][0]["bit"]),
+        (&json!(0.25), &json!(1 << 21), &json!(22))
+    );
 }
 
 #[test]

@@ -6,10 +6,11 @@ use std::io::Write;
 use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
+use motionlink_scu::args::Checked;
 use motionlink_scu::client::FollowFailure;
 use motionlink_scu::model::{Actuator, MotionFunction, PositionCounts, Speed, SpeedMode};
-use motionlink_scu::{Client, FollowReport, Follower};
-use serde_json::json;
+use motionlink_scu::results::{FollowStart, TargetsApplied};
+use motionlink_scu::{Client, Follower};
 
 use super::{parse_speed, Report};
 use crate::common::{self, CliError};
@@ -37,8 +38,7 @@ pub(super) fn parse_follow_line(line: &str, actuators: &[Actuator], mode: SpeedM
         let value = rest.trim().trim_start_matches('=').trim();
         return parse_speed(value, mode).map(FollowLine::Speed).map_err(|e| e.to_string());
     }
-    let count =
-        |w: &str| w.parse::<i32>().map(PositionCounts).map_err(|_| format!("{w:?} is not a position in counts"));
+    let count = |w: &str| PositionCounts::parse_whole(w).map_err(|e| format!("{w:?}: {e}"));
     if words.iter().all(|w| !w.contains('=')) {
         let values = words.iter().map(|w| count(w)).collect::<Result<Vec<_>, _>>()?;
         return match values.len() {
@@ -118,12 +118,9 @@ pub(super) fn follow(
             let _ = tx.send(Input::End);
         })
         .map_err(|e| CliError::transport(format!("cannot read stdin: {e}")))?;
-    if report.json {
-        let list: Vec<u8> = actuators.iter().map(|a| a.number()).collect();
-        report.print(out, json!({"function": function.number(), "following": true, "actuators": list}))?;
-    } else {
-        writeln!(out, "following {function} ({}): targets from stdin", names(&actuators))?;
-    }
+    report.show(out, &FollowStart { function, actuators: actuators.clone() }, |out, _| {
+        writeln!(out, "following {function} ({}): targets from stdin", names(&actuators)).map_err(CliError::from)
+    })?;
     out.flush()?;
     let failure: Option<Result<CliError, motionlink_scu::Error>> = loop {
         if interrupt.is_cancelled() {
@@ -169,14 +166,10 @@ pub(super) fn follow(
         Some(Ok(cli)) => (follower.stop_fast().map_err(|e| common::classified(&e))?, Some(cli)),
         Some(Err(scu)) => return Err(common::classified(&follower.abort(scu))),
     };
-    let FollowReport { rest, updates } = stopped;
-    let text: Vec<String> = rest.iter().map(|(a, p)| format!("{a}={}", p.get())).collect();
-    if report.json {
-        let list: Vec<_> = rest.iter().map(|(a, p)| json!({"actuator": a.number(), "reached_counts": p})).collect();
-        report.print(out, json!({"stopped": true, "actuators": list, "updates": updates}))?;
-    } else {
-        writeln!(out, "stopped after {updates} update(s): {} counts", text.join(" "))?;
-    }
+    report.show(out, &stopped, |out, r| {
+        let text: Vec<String> = r.rest.iter().map(|(a, p)| format!("{a}={}", p.get())).collect();
+        writeln!(out, "stopped after {} update(s): {} counts", r.updates, text.join(" ")).map_err(CliError::from)
+    })?;
     error.map_or(Ok(()), Err)
 }
 
@@ -187,14 +180,11 @@ fn print_targets(
     report: &Report<'_>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    if report.json {
-        let list: Vec<_> =
-            actuators.iter().zip(targets).map(|(a, t)| json!({"actuator": a.number(), "target_counts": t})).collect();
-        report.print(out, json!({"targets": list}))?;
-    } else {
-        let text: Vec<String> = actuators.iter().zip(targets).map(|(a, t)| format!("{a}={}", t.get())).collect();
-        writeln!(out, "target {} counts", text.join(" "))?;
-    }
+    let applied = TargetsApplied(actuators.iter().copied().zip(targets.iter().copied()).collect());
+    report.show(out, &applied, |out, t| {
+        let text: Vec<String> = t.0.iter().map(|(a, p)| format!("{a}={}", p.get())).collect();
+        writeln!(out, "target {} counts", text.join(" ")).map_err(CliError::from)
+    })?;
     out.flush()?;
     Ok(())
 }
