@@ -345,6 +345,45 @@ pub fn parse_write(item: Item, text: &str) -> Result<(&'static DataEntry, Value)
     Ok((e, value))
 }
 
+/// The unit an emulator in the front end's own process (`--port sim`, `port="sim"`) stands for: the unit the
+/// function specifications describe, as the session is told it is. It starts from `preset` (scp11, tlt,
+/// liftkit; else the default, SCP11 with two actuators); the specifications apply in order, as they do to the
+/// session's [`FunctionMap`](crate::FunctionMap): a preset replaces the unit (unless `preset` was given,
+/// which wins), `F1=1,2` makes one function drive those actuators (actuators are added to reach the highest
+/// one named). The unit takes remote speeds as `speed_mode` says.
+pub fn emulated_unit<S: AsRef<str>>(
+    preset: Option<&str>,
+    specs: &[S],
+    speed_mode: SpeedMode,
+) -> Result<crate::SimConfig, String> {
+    use crate::SimConfig;
+    let known = |name: &str| SimConfig::preset(&name.trim().to_ascii_lowercase());
+    let mut unit = match preset {
+        Some(p) => known(p).ok_or_else(|| format!("{p:?} is not a preset: {}", SimConfig::PRESETS.join(", ")))?,
+        None => SimConfig::default(),
+    };
+    for spec in specs.iter().map(|s| s.as_ref()) {
+        match known(spec) {
+            Some(named) if preset.is_none() => unit = named,
+            Some(_) => {}
+            None => {
+                let one = crate::FunctionMap::unknown().apply(spec)?;
+                for f in MotionFunction::all() {
+                    let Some(drives) = one.drives(f) else { continue };
+                    let highest = drives.iter().map(|a| usize::from(a.number())).max().unwrap_or(0);
+                    if highest > unit.actuators.len() {
+                        unit.actuators.resize(highest, Default::default());
+                    }
+                    unit.functions[usize::from(f.id())] = drives;
+                }
+            }
+        }
+    }
+    unit.speed_mode = speed_mode;
+    unit.validate().map_err(|e| e.to_string())?;
+    Ok(unit)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -416,5 +455,29 @@ mod tests {
         );
         assert!(parse_write(item("actual_position_a1"), "1").unwrap_err().0.contains("read-only"));
         assert!(parse_write(item("remote_speed_f1"), "fast").unwrap_err().0.starts_with("remote_speed_f1: "));
+    }
+
+    #[test]
+    fn the_emulated_unit_is_the_one_the_functions_name() {
+        use crate::SimConfig;
+        let unit = |specs: &[&str], preset| emulated_unit(preset, specs, SpeedMode::Percent);
+        let a = |n| Actuator::new(n).unwrap();
+        assert_eq!(unit(&[], None).unwrap(), SimConfig::default());
+        assert_eq!(unit(&["tlt"], None).unwrap(), SimConfig::tlt());
+        assert_eq!(unit(&["TLT", "liftkit"], None).unwrap(), SimConfig::liftkit());
+        assert_eq!(unit(&["tlt"], Some("liftkit")).unwrap(), SimConfig::liftkit(), "the preset asked for wins");
+        let c = unit(&["F1=1,2", "F7=3"], None).unwrap();
+        assert_eq!(c.actuators.len(), 3);
+        assert_eq!((c.functions[0].clone(), c.functions[6].clone()), (vec![a(1), a(2)], vec![a(3)]));
+        assert_eq!(c.functions[1], vec![a(2)], "the others keep the preset's");
+        let c = unit(&["tlt", "F8=1,2"], None).unwrap();
+        assert_eq!((c.functions[0].clone(), c.functions[7].clone()), (vec![a(1), a(2)], vec![a(1), a(2)]));
+        assert_eq!(unit(&["F8=1,2", "tlt"], None).unwrap(), SimConfig::tlt(), "a preset replaces the unit, as the map");
+        assert_eq!(
+            emulated_unit(None, &["tlt"], SpeedMode::CountsPerSecond).unwrap().speed_mode,
+            SpeedMode::CountsPerSecond
+        );
+        assert!(unit(&["F11=1"], None).unwrap_err().contains("F11"));
+        assert!(unit(&[], Some("lift")).unwrap_err().contains("tlt"));
     }
 }

@@ -111,7 +111,7 @@ impl FunctionMap {
         }
         let Some((f, list)) = spec.split_once('=') else {
             return Err(format!(
-                "{spec:?}: give a preset (scp11, tlt, liftkit, unknown) or a function and its actuators (F1=1,2)"
+                "{spec:?}: give a preset (scp11, tlt, liftkit) or a function and its actuators (F1=1,2)"
             ));
         };
         let function = f
@@ -382,9 +382,7 @@ mod tests {
         let map = FunctionMap::from_specs(&["tlt", "F4=1"]).unwrap();
         assert_eq!(map.drives(MotionFunction::new(1).unwrap()), Some(vec![a(1), a(2)]));
         assert_eq!(map.drives(MotionFunction::new(4).unwrap()), Some(vec![a(1)]));
-        assert!(FunctionMap::from_specs(&["lift"])
-            .unwrap_err()
-            .contains("give a preset (scp11, tlt, liftkit, unknown)"));
+        assert!(FunctionMap::from_specs(&["lift"]).unwrap_err().contains("give a preset (scp11, tlt, liftkit) or"));
         let limits = StrokeLimits::per_actuator(&["1=0:865", "A2=-3:860"]).unwrap();
         assert_eq!(limits[1].map(|l| l.min_counts), Some(PositionCounts(-3)));
         assert!(limits[2].is_none());
