@@ -116,7 +116,7 @@ class Scu(ClientBase):
             parameterised the same way.
         strokes: Travel ranges for move targets, ``"1=0:865"`` (actuator=min:max in counts); a list for
             several actuators.
-        tolerance_counts: How close to its target a move must end to succeed.
+        tolerance_counts: How close to its target a move must end to succeed, in counts (0..100).
         poll_ms: How often a move looks at the actuators (5..10000).
         speed_mode: ``"percent"`` or ``"counts_per_s"``.
 
