@@ -6,61 +6,14 @@ use std::io::Write;
 use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
-use motionlink_scu::args::Checked;
+use motionlink_scu::args::TargetLine;
 use motionlink_scu::client::FollowFailure;
-use motionlink_scu::model::{Actuator, MotionFunction, PositionCounts, Speed, SpeedMode};
+use motionlink_scu::model::{Actuator, MotionFunction, PositionCounts, Speed};
 use motionlink_scu::results::{FollowStart, TargetsApplied};
 use motionlink_scu::{Client, Follower};
 
-use super::{parse_speed, Report};
+use super::Report;
 use crate::common::{self, CliError};
-
-/// One line of `follow`'s input.
-#[derive(Debug, PartialEq)]
-pub(super) enum FollowLine {
-    /// Nothing (blank or a comment).
-    Skip,
-    /// New targets, one per actuator of the stream.
-    Targets(Vec<PositionCounts>),
-    /// A new speed.
-    Speed(Speed),
-}
-
-/// Parses a line of `follow`'s input for a stream of `actuators`: `400` (all), `400 410` (one each, in
-/// order), `a1=400 a2=410` (each named), `speed 60`; `#` starts a comment.
-pub(super) fn parse_follow_line(line: &str, actuators: &[Actuator], mode: SpeedMode) -> Result<FollowLine, String> {
-    let text = line.split('#').next().unwrap_or("").trim();
-    if text.is_empty() {
-        return Ok(FollowLine::Skip);
-    }
-    let words: Vec<&str> = text.split([' ', '\t', ',']).filter(|w| !w.is_empty()).collect();
-    if let Some(rest) = text.strip_prefix("speed") {
-        let value = rest.trim().trim_start_matches('=').trim();
-        return parse_speed(value, mode).map(FollowLine::Speed).map_err(|e| e.to_string());
-    }
-    let count = |w: &str| PositionCounts::parse_whole(w).map_err(|e| format!("{w:?}: {e}"));
-    if words.iter().all(|w| !w.contains('=')) {
-        let values = words.iter().map(|w| count(w)).collect::<Result<Vec<_>, _>>()?;
-        return match values.len() {
-            1 => Ok(FollowLine::Targets(vec![values[0]; actuators.len()])),
-            n if n == actuators.len() => Ok(FollowLine::Targets(values)),
-            n => Err(format!("{n} targets for {} actuator(s): give one for all, or one each", actuators.len())),
-        };
-    }
-    let mut targets = vec![None; actuators.len()];
-    for w in words {
-        let (name, value) = w.split_once('=').ok_or_else(|| format!("{w:?}: give ACTUATOR=COUNTS, such as a1=400"))?;
-        let a = name.trim_start_matches(['A', 'a']).parse::<u8>().ok().and_then(Actuator::new);
-        let i = a
-            .and_then(|a| actuators.iter().position(|x| *x == a))
-            .ok_or_else(|| format!("{name:?} is not one of the actuators followed ({})", names(actuators)))?;
-        targets[i] = Some(count(value)?);
-    }
-    if let Some(i) = targets.iter().position(Option::is_none) {
-        return Err(format!("no target for {} (every actuator followed needs one)", actuators[i]));
-    }
-    Ok(FollowLine::Targets(targets.into_iter().flatten().collect()))
-}
 
 fn names(actuators: &[Actuator]) -> String {
     actuators.iter().map(Actuator::to_string).collect::<Vec<_>>().join(", ")
@@ -127,10 +80,10 @@ pub(super) fn follow(
             break Some(Ok(CliError::Interrupted(format!("interrupted; {function} stopped"))));
         }
         match rx.recv_timeout(Duration::from_millis(10)) {
-            Ok(Input::Line(line)) => match parse_follow_line(&line, &actuators, mode) {
-                Ok(FollowLine::Skip) => {}
-                Ok(FollowLine::Targets(t)) => follower.offer(t),
-                Ok(FollowLine::Speed(s)) => {
+            Ok(Input::Line(line)) => match TargetLine::parse(&line, &actuators, mode) {
+                Ok(TargetLine::Skip) => {}
+                Ok(TargetLine::Targets(t)) => follower.offer(t),
+                Ok(TargetLine::Speed(s)) => {
                     if let Err(e) = follower.set_speed(s) {
                         break Some(Err(e));
                     }

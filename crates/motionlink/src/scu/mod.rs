@@ -438,29 +438,8 @@ fn act(
 
 #[cfg(test)]
 mod tests {
-    use super::follow::{parse_follow_line, FollowLine};
     use super::*;
     use motionlink_scu::model::Speed;
-
-    fn a(n: u8) -> Actuator {
-        Actuator::new(n).unwrap()
-    }
-
-    #[test]
-    fn follow_lines_give_one_target_for_all_one_each_or_named_ones() {
-        let two = [a(1), a(2)];
-        let p = |l: &str| parse_follow_line(l, &two, SpeedMode::Percent);
-        assert_eq!(p("400"), Ok(FollowLine::Targets(vec![PositionCounts(400), PositionCounts(400)])));
-        assert_eq!(p(" 400  410 "), Ok(FollowLine::Targets(vec![PositionCounts(400), PositionCounts(410)])));
-        assert_eq!(p("a2=410 A1=-3"), Ok(FollowLine::Targets(vec![PositionCounts(-3), PositionCounts(410)])));
-        assert_eq!(p("speed 60"), Ok(FollowLine::Speed(Speed::percent(60).unwrap())));
-        assert_eq!(p("speed=60 # slower"), Ok(FollowLine::Speed(Speed::percent(60).unwrap())));
-        assert_eq!(p("   # only a comment"), Ok(FollowLine::Skip));
-        assert_eq!(p(""), Ok(FollowLine::Skip));
-        for bad in ["400 410 420", "a1=400", "a3=1 a1=2 a2=3", "four hundred", "speed 0", "speed 101", "a1=x a2=1"] {
-            assert!(p(bad).is_err(), "{bad}");
-        }
-    }
 
     #[test]
     fn a_bad_speed_names_the_option_and_gives_the_library_s_rule() {

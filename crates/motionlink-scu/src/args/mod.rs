@@ -27,6 +27,9 @@ use crate::model::{
 use crate::session::RunAction;
 use crate::value::Value;
 
+mod targets;
+pub use targets::TargetLine;
+
 /// An argument that breaks its rule; the message says what it must be.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("{0}")]
