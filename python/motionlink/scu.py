@@ -6,14 +6,62 @@ Positions are encoder counts (``position_counts``); speeds are percent of full s
 
 from __future__ import annotations
 
-from typing import Any, Dict, Iterator, List, Optional, Sequence, Union
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Union, overload
 
 from . import _native
 from ._base import AsyncClientBase, ClientBase, resolve_port, run_native, samples
 from ._probe import Profile, ProbeReport, profile_setting, save_setting, warn_profile_notices
+from ._record import Record
 from .records import ActuatorPosition, ErrorCode, Parameter, ScuInfo, ScuMove, ScuRun, ScuSample
 
-__all__ = ["Scu", "AsyncScu"]
+__all__ = ["Scu", "AsyncScu", "ScuStop", "ActuatorAtRest", "RefusedStop"]
+
+
+class ActuatorAtRest(Record):
+    """Where an actuator rests after a stop (its status was read back: it does not move).
+
+    Attributes:
+        actuator: 1..6.
+        position_counts: Its position, in encoder counts.
+    """
+
+    __slots__ = ()
+    actuator: int
+    position_counts: int
+
+
+class RefusedStop(Record):
+    """An RS the unit refused (the other functions were stopped all the same).
+
+    Attributes:
+        function: The motion function (1..10).
+        reason: The unit's answer.
+    """
+
+    __slots__ = ()
+    function: int
+    reason: str
+
+
+class ScuStop(Record):
+    """How :meth:`Scu.stop` stopped every motion function, as ``motionlink scu stop --json`` reports it
+    (without what only the command knows: ``action``, ``holder``, ``stopped``).
+
+    Attributes:
+        family: ``"scu"``.
+        functions: The functions sent RS, in that order (1..10).
+        mode: ``"fast"`` or ``"soft"`` (along the stop ramp).
+        refused: The RS the unit refused, with its answer.
+        at_rest: Every connected actuator and where it rests, read after the stop.
+    """
+
+    __slots__ = ()
+    _nested = {"refused": RefusedStop, "at_rest": ActuatorAtRest}
+    family: str
+    functions: List[int]
+    mode: str
+    refused: List[RefusedStop]
+    at_rest: List[ActuatorAtRest]
 
 
 Specs = Union[str, Sequence[str]]
@@ -69,7 +117,7 @@ class Scu(ClientBase):
             parameterised the same way.
         strokes: Travel ranges for move targets, ``"1=0:865"`` (actuator=min:max in counts); a list for
             several actuators.
-        tolerance_counts: How close to its target a move must end to succeed.
+        tolerance_counts: How close to its target a move must end to succeed, in counts (0..100).
         poll_ms: How often a move looks at the actuators (5..10000).
         speed_mode: ``"percent"`` or ``"counts_per_s"``.
         profile: The device profile (``motionlink probe scu --save``, :func:`motionlink.probe`): ``True``
@@ -154,9 +202,22 @@ class Scu(ClientBase):
         ``"on"``."""
         return ScuRun(self._native.run(_function(function), direction, seconds))
 
-    def stop(self, function: Union[int, str] = 1, *, soft: bool = False) -> None:
-        """Stops a function (RS): a motion fast, or along its stop ramp with ``soft``."""
+    @overload
+    def stop(self, function: None = None, *, soft: bool = False) -> ScuStop: ...
+
+    @overload
+    def stop(self, function: Union[int, str], *, soft: bool = False) -> None: ...
+
+    def stop(self, function: Optional[Union[int, str]] = None, *, soft: bool = False) -> Optional[ScuStop]:
+        """Stops what moves. Without ``function``, as ``motionlink scu stop`` does: RS to every motion
+        function F1..F10 (fast, or along the stop ramp with ``soft``), then the status of every actuator is
+        read until none moves; returns where each connected actuator rests (:class:`ScuStop`), or raises if
+        the unit did not confirm it. With ``function``: its RS (a motion fast or soft; F11..F22 switched
+        off), acknowledged by the unit; returns None."""
+        if function is None:
+            return ScuStop(self._native.stop(None, soft))
         self._native.stop(_function(function), soft)
+        return None
 
     def errors(self) -> List[ErrorCode]:
         """The error history: Error_Code 1 (the most recent) to 5, each with its named bits."""
@@ -170,9 +231,7 @@ class Scu(ClientBase):
         """Samples of every connected actuator (position, moving, flags, current) every ``interval_ms``."""
 
         def read(t_s: float) -> ScuSample:
-            fields = dict(self._native.sample())
-            fields["t_s"] = t_s
-            return ScuSample(fields)
+            return ScuSample(self._native.sample(t_s))
 
         return samples(read, interval_ms, count)
 
@@ -237,6 +296,15 @@ class AsyncScu(AsyncClientBase):
             await self._run(lambda done: self._client().run(_function(function), direction, seconds, done))
         )
 
-    async def stop(self, function: Union[int, str] = 1, *, soft: bool = False) -> None:
-        """Stops a function (RS)."""
-        await self._run(lambda done: self._client().stop(_function(function), soft, done))
+    @overload
+    async def stop(self, function: None = None, *, soft: bool = False) -> ScuStop: ...
+
+    @overload
+    async def stop(self, function: Union[int, str], *, soft: bool = False) -> None: ...
+
+    async def stop(self, function: Optional[Union[int, str]] = None, *, soft: bool = False) -> Optional[ScuStop]:
+        """Stops what moves, as :meth:`Scu.stop`: every motion function, confirmed (the :class:`ScuStop`),
+        or the function named (None)."""
+        name = None if function is None else _function(function)
+        stopped = await self._run(lambda done: self._client().stop(name, soft, done))
+        return None if stopped is None else ScuStop(stopped)

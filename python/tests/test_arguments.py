@@ -7,7 +7,7 @@ from __future__ import annotations
 import subprocess
 import sys
 from pathlib import Path
-from typing import Callable
+from typing import Callable, List
 
 import pytest
 
@@ -23,12 +23,12 @@ SERVE = str(Path(__file__).with_name("_serve.py"))
         (lambda: motionlink.PowerCube("sim").position(-1), r"module -1: give a whole number 1\.\.=31"),
         (lambda: motionlink.PowerCube("sim", module=2**70), r"module \d+: give a whole number 1\.\.=31"),
         (lambda: motionlink.PowerCube("sim").position("1"), r"module '1' \(a str, not an int\)"),
-        (lambda: motionlink.Scu("sim").position(-1), r"actuator -1: give a whole number 1\.\.=6"),
-        (lambda: motionlink.Scu("sim").move_to(1, 300, speed=-5), r"speed \(%\) -5: give a whole number 1\.\.=100"),
-        (lambda: motionlink.Scu("sim").move_to(1, 2**40), r"target_counts \d+: give a whole number"),
-        (lambda: motionlink.Scu("sim").move_to(1, 300, function=11), r"function \(a motion function\) 11"),
-        (lambda: motionlink.Scu("sim", baud=-1), r"baud -1: give a whole number 1\.\.="),
-        (lambda: motionlink.Scu("sim", safety=True), r"safety \(the Safety_ID\) True \(a bool\)"),
+        (lambda: motionlink.Scu("sim").position(-1), r"actuator -1: the actuator must be a whole number from 1 to 6"),
+        (lambda: motionlink.Scu("sim").move_to(1, 300, speed=-5), r"speed -5: a motion needs a whole number from 1 to 100 %"),
+        (lambda: motionlink.Scu("sim").move_to(1, 2**40), r"target_counts \d+: a position must be a whole number of counts"),
+        (lambda: motionlink.Scu("sim").move_to(1, 300, function=11), r"function 11: the motion function must be a whole"),
+        (lambda: motionlink.Scu("sim", baud=-1), r"baud -1: an SCU runs at 9600, 19200 or 38400 baud"),
+        (lambda: motionlink.Scu("sim", safety=True), r"safety True \(a bool\): the Safety_ID must be a whole number from 0 to 2"),
         (lambda: motionlink.Compax("sim").output(0, 300), r"state \(of the output\) 300: give a whole number 0\.\.=255"),
         (lambda: motionlink.Compax("sim").output(-1, 1), r"number \(the output\) -1"),
         (lambda: motionlink.Compax("sim").position(32), r"drive 32: give a whole number 1\.\.=31"),
@@ -70,3 +70,51 @@ def test_an_scu_error_bit_is_a_device_error_with_its_code_and_named_bits() -> No
             assert "A1 ended at" in str(err) and scu.errors()[0].code == 0x800
     finally:
         server.communicate(input="", timeout=10)
+
+
+# ------------------------------------------------------------------------------------------------ SCU
+# One rule, one message: the library's argument types check every SCU argument, so the same bad value gets
+# the same message from the command line and from Python (each front end names the argument its own way).
+
+SCU_BAD = [
+    # (the Python call on an open client, or None to open one; the command line; what Python puts first)
+    (lambda s: motionlink.Scu("sim", baud=5), ["--baud", "5", "info"], "baud 5: "),
+    (lambda s: motionlink.Scu("sim", safety=3), ["--safety", "3", "info"], "safety 3: "),
+    (lambda s: motionlink.Scu("sim", tolerance_counts=101), ["--tolerance", "101", "info"], "tolerance_counts 101: "),
+    (lambda s: motionlink.Scu("sim", reply_timeout_ms=0), ["--timeout-ms", "0", "info"], "reply_timeout_ms 0: "),
+    (lambda s: motionlink.Scu("sim", poll_ms=4), ["--poll-ms", "4", "info"], "poll_ms 4: "),
+    (lambda s: motionlink.Scu("sim", functions="F11=1"), ["--functions", "F11=1", "info"], "functions: "),
+    (lambda s: motionlink.Scu("sim", strokes="1=9:1"), ["--stroke", "1=9:1", "info"], "strokes: "),
+    (lambda s: s.position(7), ["move", "7", "100"], "actuator 7: "),
+    (lambda s: s.move_to(1, 100, speed=0), ["move", "1", "100", "--speed", "0"], "speed 0: "),
+    (lambda s: s.move_to(1, 100, speed=101), ["move", "1", "100", "--speed", "101"], "speed 101: "),
+    (lambda s: s.move_to(1, 100, function=11), ["move", "1", "100", "--function", "11"], "function 11: "),
+    (lambda s: s.move_to(1, 2**40), ["move", "1", str(2**40)], f"target_counts {2**40}: "),
+    (lambda s: s.run("F30", "on"), ["run", "F30", "on"], ""),
+    (lambda s: s.run(1, "sidewayz"), ["run", "F1", "sidewayz"], ""),
+    (lambda s: s.run(11, "off"), ["run", "F11", "off"], ""),
+    (lambda s: s.run(1, "out", seconds=-1), ["run", "F1", "out", "--seconds", "-1"], "seconds -1: "),
+    (lambda s: s.stop("F30"), ["stop", "F30"], ""),
+    (lambda s: s.get("actual_positoin_a1"), ["get", "actual_positoin_a1"], ""),
+    (lambda s: s.set("actual_positions", 1), ["set", "actual_positions", "1"], ""),
+    (lambda s: s.set("actual_position_a1", 1), ["set", "actual_position_a1", "1"], ""),
+    (lambda s: s.set("remote_speed_f1", "fast"), ["set", "remote_speed_f1", "fast"], ""),
+]
+
+
+@pytest.mark.parametrize("call,cli,named", SCU_BAD)
+def test_an_scu_argument_gets_the_same_message_from_the_command_line_and_python(
+    motionlink_bin: Path, call: Callable[[motionlink.Scu], object], cli: List[str], named: str
+) -> None:
+    with motionlink.Scu("sim") as scu:
+        with pytest.raises(motionlink.UsageError) as e:
+            call(scu)
+    message = str(e.value)
+    assert message.startswith(named), message
+    rule = message[len(named):]
+    assert len(rule) > 10, message
+    done = subprocess.run(
+        [str(motionlink_bin), "scu", "--port", "sim", *cli], capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 2, done.stderr
+    assert rule in done.stderr, f"python: {message}\ncli:    {done.stderr}"

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Any
+import threading
+import time
+from typing import Any, List
 
 import pytest
 
@@ -69,6 +71,40 @@ def test_run_and_stop(scu: motionlink.Scu, scu_emulator: motionlink.Emulator) ->
     scu.stop(2, soft=True)
     texts = [e.text for e in scu_emulator.take_events()]
     assert any("stopped (RS" in t for t in texts), texts
+
+
+def test_stop_without_a_function_stops_every_motion_function_and_says_where_they_rest(
+    scu: motionlink.Scu, scu_emulator: motionlink.Emulator
+) -> None:
+    """``stop()`` is ``motionlink scu stop``: RS to F1..F10, the status read back until nothing moves, and
+    the library's report (the command line's JSON without what only the command knows)."""
+    from motionlink.scu import ScuStop
+
+    outcome: List[BaseException] = []
+
+    def move() -> None:
+        try:
+            scu.move_to(2, 800, speed=20)
+        except motionlink.MotionlinkError as e:
+            outcome.append(e)
+
+    mover = threading.Thread(target=move)
+    mover.start()
+    deadline = time.monotonic() + 10
+    while scu.position(2).position_counts < 20 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    stopped = scu.stop()
+    mover.join(timeout=10)
+    assert isinstance(stopped, ScuStop) and stopped.family == "scu"
+    assert (stopped.functions, stopped.mode, stopped.refused) == (list(range(1, 11)), "fast", [])
+    rest = {r.actuator: r.position_counts for r in stopped.at_rest}
+    assert set(rest) == {1, 2} and rest[1] == 0 and 20 <= rest[2] < 800, rest
+    assert scu.position(2).position_counts == rest[2], "it rests where the report says"
+    assert set(stopped.to_dict()) == {"family", "functions", "mode", "refused", "at_rest"}
+    assert len(outcome) == 1, "the move stopped by someone else does not end as a success"
+    assert any("F2 stopped" in e.text for e in scu_emulator.take_events())
+    assert scu.stop(soft=True).mode == "soft"
+    assert scu.stop(1) is None, "a function named: its RS, acknowledged"
 
 
 def test_error_history(scu: motionlink.Scu) -> None:

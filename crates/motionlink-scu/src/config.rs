@@ -111,7 +111,7 @@ impl FunctionMap {
         }
         let Some((f, list)) = spec.split_once('=') else {
             return Err(format!(
-                "{spec:?}: give a preset (scp11, tlt, liftkit, unknown) or a function and its actuators (F1=1,2)"
+                "{spec:?}: give a preset (scp11, tlt, liftkit) or a function and its actuators (F1=1,2)"
             ));
         };
         let function = f
@@ -134,6 +134,14 @@ impl FunctionMap {
             }
         }
         Ok(self.with(function, &actuators))
+    }
+}
+
+impl FunctionMap {
+    /// The map `specs` give, applied in order to an unknown map ([`FunctionMap::apply`]): what the front
+    /// ends' repeated `--functions` / `functions=[...]` say.
+    pub fn from_specs<S: AsRef<str>>(specs: &[S]) -> Result<Self, String> {
+        specs.iter().try_fold(FunctionMap::unknown(), |map, spec| map.apply(spec.as_ref()))
     }
 }
 
@@ -191,6 +199,17 @@ impl StrokeLimits {
             return Err(format!("{spec:?}: {lo} is above {hi}"));
         }
         Ok((a, StrokeLimits { min_counts: PositionCounts(lo), max_counts: PositionCounts(hi) }))
+    }
+
+    /// The travel ranges `specs` give (`1=0:865`, one per actuator; a later one for the same actuator
+    /// wins), as [`ClientConfig::stroke_limits`] takes them.
+    pub fn per_actuator<S: AsRef<str>>(specs: &[S]) -> Result<[Option<StrokeLimits>; 6], String> {
+        let mut limits = [None; 6];
+        for spec in specs {
+            let (a, l) = StrokeLimits::parse_for_actuator(spec.as_ref())?;
+            limits[usize::from(a.number() - 1)] = Some(l);
+        }
+        Ok(limits)
     }
 }
 
@@ -298,8 +317,12 @@ impl ClientConfig {
         if self.retries > 10 {
             return bad(format!("retries {}: at most 10", self.retries));
         }
-        if self.position_tolerance_counts > 10_000 {
-            return bad(format!("position tolerance {} counts: at most 10000", self.position_tolerance_counts));
+        if self.position_tolerance_counts > crate::args::ToleranceCounts::MAX {
+            return bad(format!(
+                "position tolerance {} counts: {}",
+                self.position_tolerance_counts,
+                <crate::args::ToleranceCounts as crate::args::Checked>::RULE
+            ));
         }
         if !(Duration::from_millis(5)..=Duration::from_secs(10)).contains(&self.poll_interval) {
             return bad(format!("poll interval {:?}: 5 ms to 10 s", self.poll_interval));
@@ -351,5 +374,18 @@ mod tests {
         assert!(e.contains("retry_after 150ms") && e.contains("100ms"), "a setting made is checked: {e}");
         c.retry_after = Some(Duration::from_millis(20));
         assert_eq!(c.effective_retry_after(), Duration::from_millis(20));
+    }
+
+    #[test]
+    fn specifications_apply_in_order_with_the_library_s_messages() {
+        let a = |n| Actuator::new(n).unwrap();
+        let map = FunctionMap::from_specs(&["tlt", "F4=1"]).unwrap();
+        assert_eq!(map.drives(MotionFunction::new(1).unwrap()), Some(vec![a(1), a(2)]));
+        assert_eq!(map.drives(MotionFunction::new(4).unwrap()), Some(vec![a(1)]));
+        assert!(FunctionMap::from_specs(&["lift"]).unwrap_err().contains("give a preset (scp11, tlt, liftkit) or"));
+        let limits = StrokeLimits::per_actuator(&["1=0:865", "A2=-3:860"]).unwrap();
+        assert_eq!(limits[1].map(|l| l.min_counts), Some(PositionCounts(-3)));
+        assert!(limits[2].is_none());
+        assert!(StrokeLimits::per_actuator(&["1=9:1"]).unwrap_err().contains("9 is above 1"));
     }
 }

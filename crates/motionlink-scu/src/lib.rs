@@ -16,6 +16,8 @@
 //!   Tested with no link at all.
 //! - [`client`]: [`Client`] (blocking) and, with the `tokio` feature, `AsyncClient` run the session over a
 //!   [`Link`](motionlink_link::Link) on the shared driver: the same operations and the same safety.
+//! - [`args`]: every argument of the front ends as a validated type, one rule and one message each;
+//!   [`results`]: every report serialises with the names the command line's `--json` shows.
 //! - [`sim`]: the unit ([`Emulator`]) as a sans-IO state machine with a physical model of its actuators.
 //!
 //! **Closing.** [`Client::close`] (and `AsyncClient::close`) ends the session: RS for every function it
@@ -165,12 +167,14 @@
 //!   the manual's table.
 #![warn(missing_docs)]
 
+pub mod args;
 pub mod client;
 pub mod config;
 pub mod describe;
 pub mod error;
 pub mod model;
 pub mod probe;
+pub mod results;
 pub mod session;
 pub mod sim;
 pub mod value;

@@ -372,34 +372,6 @@ impl Value {
         }
     }
 
-    /// The value as JSON: numbers in their raw unit, bit sets with their named bits.
-    pub fn to_json(&self) -> serde_json::Value {
-        use serde_json::json;
-        match self {
-            Value::Text(t) => json!(t),
-            Value::PositionCounts(v) | Value::RemotePosition(v) => json!(v),
-            Value::Counter(v) | Value::StrokeCounts(v) => json!(v),
-            Value::ActuatorErrors(c) => json!(c),
-            Value::CurrentDeciAmps(v)
-            | Value::AnalogueCentiVolts(v)
-            | Value::BatteryDeciVolts(v)
-            | Value::SpeedPercent(v)
-            | Value::RemoteSpeed(v) => json!(v),
-            Value::TemperatureAdc(v) | Value::Number(v) => json!(v),
-            Value::Flags(f) => json!({ "bits": f.bits, "set": f.set_names().collect::<Vec<_>>() }),
-            Value::ErrorCode(c) => json!({
-                "code": c.0,
-                "bits": c.bits().map(|b| json!({"bit": b.number(), "name": b.name(), "cause": b.cause()})).collect::<Vec<_>>(),
-            }),
-            Value::ConversionFactor(v) => json!(v),
-            Value::UserPositions(p) => json!(p),
-            Value::CyclicObject(o) => json!({
-                "write": o.write.iter().map(|i| i.to_string()).collect::<Vec<_>>(),
-                "read": o.read.iter().map(|i| i.to_string()).collect::<Vec<_>>(),
-            }),
-        }
-    }
-
     /// The value in engineering units, if it has one (A, V, counts, percent).
     pub fn as_f64(&self) -> Option<f64> {
         Some(match self {
@@ -412,6 +384,49 @@ impl Value {
             Value::ConversionFactor(v) => f64::from(*v),
             _ => return None,
         })
+    }
+}
+
+/// A value as every result shows it (the `--json` of the command line, Python, the console): a number in
+/// the unit [`shown_unit`] names (deci-amps as amperes, centi- and deci-volts as volts, the rest raw), a
+/// flag word as `{word, flags, unknown_bits}`, an error code as `{code, bits}`, a text as a string.
+impl serde::Serialize for Value {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        match self {
+            Value::Text(t) => s.serialize_str(t),
+            Value::PositionCounts(v) | Value::RemotePosition(v) => s.serialize_i32(*v),
+            Value::Counter(v) | Value::StrokeCounts(v) => s.serialize_u32(*v),
+            Value::ActuatorErrors(c) => c.serialize(s),
+            Value::CurrentDeciAmps(_) | Value::AnalogueCentiVolts(_) | Value::BatteryDeciVolts(_) => {
+                s.serialize_f64(self.as_f64().unwrap_or(f64::NAN))
+            }
+            Value::SpeedPercent(v) | Value::RemoteSpeed(v) => s.serialize_u16(*v),
+            Value::TemperatureAdc(v) | Value::Number(v) => s.serialize_u8(*v),
+            Value::Flags(f) => f.serialize(s),
+            Value::ErrorCode(c) => c.serialize(s),
+            Value::ConversionFactor(v) => s.serialize_f32(*v),
+            Value::UserPositions(p) => p.serialize(s),
+            Value::CyclicObject(o) => {
+                let names = |v: &[DataIndex]| v.iter().map(|i| i.to_string()).collect::<Vec<_>>();
+                let mut map = s.serialize_map(Some(2))?;
+                map.serialize_entry("write", &names(&o.write))?;
+                map.serialize_entry("read", &names(&o.read))?;
+                map.end()
+            }
+        }
+    }
+}
+
+/// The unit of `e`'s value as results give it ([`Value`]'s serialisation, [`Value::show`]): A and V for
+/// the entries the data list holds in 0.1 A, 0.01 V and 0.1 V, a remote speed's in the unit of `mode`
+/// (the unit's speed mode), else the data list's.
+pub fn shown_unit(e: &DataEntry, mode: crate::model::SpeedMode) -> &'static str {
+    match e.kind {
+        Kind::CurrentDeciAmps => "A",
+        Kind::BatteryDeciVolts | Kind::AnalogueCentiVolts => "V",
+        Kind::RemoteSpeed => mode.unit(),
+        _ => e.unit,
     }
 }
 

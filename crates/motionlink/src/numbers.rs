@@ -35,18 +35,6 @@ where
     }
 }
 
-/// Any whole number the type holds (a position in counts, which may be negative), for an argument whose
-/// number is `what`, in `unit`: "the target position must be a whole number of counts".
-pub fn integer<T>(
-    what: &'static str,
-    unit: &'static str,
-) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static
-where
-    T: std::str::FromStr + Send + Sync + 'static,
-{
-    move |text: &str| text.trim().parse().map_err(|_| format!("{what} must be a whole number of {unit}"))
-}
-
 /// A whole number of at least `min` (no upper bound but the type's) for an option whose number is `what`.
 pub fn at_least<T>(what: &'static str, min: T) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static
 where
@@ -148,9 +136,6 @@ mod tests {
         assert_eq!(count("0"), Err("the number of samples must be a whole number, at least 1".into()));
         assert!(count("-1").is_err() && count("many").is_err());
         assert!(whole::<u8>("x", 0, 255, "")("256").is_err());
-        let counts = integer::<i32>("the target position", "counts");
-        assert_eq!(counts("-400"), Ok(-400));
-        assert_eq!(counts("4e2"), Err("the target position must be a whole number of counts".into()));
     }
 
     #[test]

@@ -66,12 +66,11 @@ impl AsyncScuClient {
         done: Py<PyAny>,
     ) -> PyResult<NativeTask> {
         let c = self.client(py)?;
-        let (a, f, speed) =
-            move_args(&actuator, function.as_ref(), &speed, self.speed_mode).map_err(|f| to_pyerr(py, f))?;
-        let target_counts = self::target_counts(&target_counts).map_err(|f| to_pyerr(py, f))?;
+        let (a, target, f, speed) = move_args(&actuator, &target_counts, function.as_ref(), &speed, self.speed_mode)
+            .map_err(|f| to_pyerr(py, f))?;
         Ok(spawn_task(done, async move {
-            let report = fail(c.move_to(a, PositionCounts(target_counts), speed, f).await)?;
-            deliver(move |py| Ok(move_record(py, target_counts, &report)?.done().into_any().unbind()))
+            let report = fail(c.move_to(a, target, speed, f).await)?;
+            deliver(move |py| Ok(move_py(py, &report)?.unbind()))
         }))
     }
 
@@ -86,24 +85,34 @@ impl AsyncScuClient {
         done: Py<PyAny>,
     ) -> PyResult<NativeTask> {
         let c = self.client(py)?;
-        let (f, action, limit) = run_args(function, direction, seconds).map_err(|f| to_pyerr(py, f))?;
+        let (action, limit) = run_args(function, direction, seconds).map_err(|f| to_pyerr(py, f))?;
         Ok(spawn_task(done, async move {
             let report = fail(c.run(action, limit).await)?;
-            deliver(move |py| Ok(run_record(py, f, &report)?.done().into_any().unbind()))
+            deliver(move |py| Ok(run_py(py, &report)?.unbind()))
         }))
     }
 
-    /// Stops a function (RS).
+    /// Stops what moves, as [`ScuClient::stop`]: `done(ok, report)` with no function (every motion function,
+    /// confirmed), `done(ok, None)` with one.
     #[pyo3(signature = (function, soft, done))]
-    fn stop(&self, py: Python<'_>, function: &str, soft: bool, done: Py<PyAny>) -> PyResult<NativeTask> {
+    fn stop(&self, py: Python<'_>, function: Option<&str>, soft: bool, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client(py)?;
-        let f = parse_function(function).map_err(|f| to_pyerr(py, f))?;
+        let what = stop_what(function, soft).map_err(|f| to_pyerr(py, f))?;
         Ok(spawn_task(done, async move {
-            fail(match f {
-                Function::Motion(m) => c.stop_motion(m, if soft { StopMode::Soft } else { StopMode::Fast }).await,
-                f => c.switch(f, false).await,
-            })?;
-            deliver(|py| Ok(py.None()))
+            match what {
+                StopWhat::Every(mode) => {
+                    let all: Vec<MotionFunction> = MotionFunction::all().collect();
+                    let report = fail(c.stop_functions(&all, mode).await)?;
+                    deliver(move |py| Ok(report_py(py, &report, |_| {})?.unbind()))
+                }
+                StopWhat::One(f, mode) => {
+                    fail(match f {
+                        Function::Motion(m) => c.stop_motion(m, mode).await,
+                        f => c.switch(f, false).await,
+                    })?;
+                    deliver(|py| Ok(py.None()))
+                }
+            }
         }))
     }
 

@@ -81,6 +81,7 @@ use crate::wire::{Command, Request};
 mod asynchronous;
 mod blocking;
 mod follow;
+mod reads;
 
 #[cfg(feature = "tokio")]
 pub use asynchronous::{AsyncClient, AsyncSetpointStream};

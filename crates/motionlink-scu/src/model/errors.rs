@@ -168,6 +168,30 @@ impl ErrorCode {
     }
 }
 
+/// As every result shows an error code: `code` (the 32-bit word) and `bits`, each set bit the manual names
+/// as [`ErrorBit`] serialises.
+impl serde::Serialize for ErrorCode {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut map = s.serialize_map(Some(2))?;
+        map.serialize_entry("code", &self.0)?;
+        map.serialize_entry("bits", &self.bits().collect::<Vec<_>>())?;
+        map.end()
+    }
+}
+
+/// As results show an error bit: `bit` (the manual's number, 1..32), `name` and `cause`.
+impl serde::Serialize for ErrorBit {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut map = s.serialize_map(Some(3))?;
+        map.serialize_entry("bit", &self.number())?;
+        map.serialize_entry("name", motionlink_link::flags::Flag::name(*self))?;
+        map.serialize_entry("cause", self.cause())?;
+        map.end()
+    }
+}
+
 impl fmt::Display for ErrorCode {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "0x{:08X}", self.0)?;

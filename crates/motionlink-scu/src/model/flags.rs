@@ -298,6 +298,23 @@ impl Flags {
     }
 }
 
+/// As every result shows a flag word ([`motionlink_link::flags::WordView`]): `word`, `flags` (the names of the
+/// bits set) and `unknown_bits` (the bits the set does not name), only when nonzero.
+impl serde::Serialize for Flags {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let known = self.set.bits().into_iter().fold(0u32, |m, b| m | (1 << b.bit));
+        let unknown = self.bits & !known;
+        let mut map = s.serialize_map(Some(if unknown != 0 { 3 } else { 2 }))?;
+        map.serialize_entry("word", &self.bits)?;
+        map.serialize_entry("flags", &self.set_names().collect::<Vec<_>>())?;
+        if unknown != 0 {
+            map.serialize_entry("unknown_bits", &unknown)?;
+        }
+        map.end()
+    }
+}
+
 impl fmt::Display for Flags {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let width = self.set.size() * 2;

@@ -177,6 +177,13 @@ impl Function {
     }
 }
 
+/// In results, a function is its number in the manual, 1..22.
+impl serde::Serialize for Function {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_u8(self.number())
+    }
+}
+
 impl fmt::Display for Function {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "F{} ({})", self.number(), self.description())

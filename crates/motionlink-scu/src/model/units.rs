@@ -158,18 +158,6 @@ impl Speed {
         Ok(raw)
     }
 
-    /// Parses a motion speed given as text for a unit of `mode`: a whole number from 1 to the mode's maximum.
-    pub fn parse(text: &str, mode: SpeedMode) -> Result<Speed, String> {
-        let range = format!("1..{} {}", mode.max(), mode.unit());
-        match text.trim().parse::<i64>() {
-            Ok(v) if (1..=i64::from(mode.max())).contains(&v) => {
-                Ok(Speed::of_mode(mode, v as u16).ok_or_else(|| format!("{v}: a motion needs {range}"))?)
-            }
-            Ok(v) => Err(format!("{v}: a motion needs {range}{}", if v == 0 { " (0 would never move)" } else { "" })),
-            Err(_) => Err(format!("{text:?}: give a whole number, {range}")),
-        }
-    }
-
     /// The speed `raw` of a unit that takes speeds as `mode` says, if in range.
     pub const fn of_mode(mode: SpeedMode, raw: u16) -> Option<Speed> {
         match mode {

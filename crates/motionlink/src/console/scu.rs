@@ -8,14 +8,15 @@ use motionlink_link::link::{Connector, Link, SerialSettings};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::SharedClock;
+use motionlink_scu::args::{parse_write, Baud, Checked};
 use motionlink_scu::model::{
-    Actuator, DataIndex, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode, StopMode,
-    TABLE,
+    Actuator, DataIndex, ErrorBit, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode,
+    StopMode, TABLE,
 };
 use motionlink_scu::session::RunAction;
 use motionlink_scu::value::Value as ScuValue;
 use motionlink_scu::{AsyncClient, ClientConfig, Emulator, FunctionMap, SimConfig};
-use serde_json::{json, Value};
+use serde_json::Value;
 
 use super::device::{
     error_history, finite, Action, BoxFuture, Device, ErrorEntry, Failure, JogDirection, Motion, Param, ParamValue,
@@ -36,34 +37,25 @@ pub struct Args {
     pub device: super::DeviceArg,
     /// Baud rate of a serial port: 38400 on standard units, 9600 or 19200 on customised ones (with `--port
     /// sim`: the emulated line runs at this rate).
-    #[arg(long, default_value_t = 38_400, value_parser = clap::value_parser!(u32).range(9_600..=38_400))]
-    pub baud: u32,
+    #[arg(long, default_value_t = Baud::STANDARD, value_parser = Baud::parse_whole)]
+    pub baud: Baud,
     /// Safety_ID sent with RO: 0 a timeout stops all motion and locks remote motion until RO, 1 stops all
     /// motion, 2 stops remote motion only.
-    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=2))]
-    pub safety: u8,
+    #[arg(long, default_value = "0", value_parser = SafetyId::parse_whole)]
+    pub safety: SafetyId,
     /// Which actuators each motion function drives: a preset (scp11, tlt, liftkit) or F1=1,2; repeatable.
     /// The console moves and jogs actuator n with the function that drives it alone (default: Fn).
     #[arg(long = "functions", value_name = "MAP")]
     pub functions: Vec<String>,
     /// How the unit takes remote speeds: percent or counts-per-second.
-    #[arg(long, value_enum, default_value_t = SpeedModeArg::Percent, value_name = "MODE")]
-    pub speed_mode: SpeedModeArg,
+    #[arg(long, default_value = "percent", value_name = "MODE", value_parser = crate::scu::speed_mode_parser())]
+    pub speed_mode: SpeedMode,
     /// The preset the emulator starts from with `--port sim`: scp11, tlt or liftkit. Default: the preset
     /// --functions names, else scp11; the Fn=... of --functions apply on top.
     #[arg(long, value_name = "NAME", value_parser = SimConfig::PRESETS)]
     pub sim_preset: Option<String>,
     #[command(flatten)]
     pub serve: ServeArgs,
-}
-
-/// `--speed-mode`: how the unit's parameterisation gives remote speeds.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SpeedModeArg {
-    /// Percent of the full speed, 1..100.
-    Percent,
-    /// Encoder counts per second, 1..1000.
-    CountsPerSecond,
 }
 
 struct Scu {
@@ -75,20 +67,11 @@ struct Scu {
 
 /// Opens the session `args` ask for, its link tapped into the traffic log.
 pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<dyn Device>, Arc<Traffic>), CliError> {
-    let safety_id = SafetyId::from_code(args.safety)
-        .ok_or_else(|| CliError::usage(format!("--safety {}: the Safety_ID is 0, 1 or 2", args.safety)))?;
-    if ![9_600, 19_200, 38_400].contains(&args.baud) {
-        return Err(CliError::usage(format!("--baud {}: an SCU runs at 9600, 19200 or 38400 baud", args.baud)));
-    }
-    let mut functions = FunctionMap::unknown();
-    for spec in &args.functions {
-        functions = functions.apply(spec).map_err(|e| CliError::usage(format!("--functions {e}")))?;
-    }
-    let speed_mode = match args.speed_mode {
-        SpeedModeArg::Percent => SpeedMode::Percent,
-        SpeedModeArg::CountsPerSecond => SpeedMode::CountsPerSecond,
-    };
-    let config = ClientConfig { safety_id, function_map: functions, speed_mode, ..ClientConfig::default() };
+    let functions =
+        FunctionMap::from_specs(&args.functions).map_err(|e| CliError::usage(format!("--functions {e}")))?;
+    let speed_mode = args.speed_mode;
+    let config =
+        ClientConfig { safety_id: args.safety, function_map: functions, speed_mode, ..ClientConfig::default() };
     config.validate().map_err(|e| CliError::usage(e.to_string()))?;
     let url: PortUrl = port.parse()?;
     let traffic = Arc::new(Traffic::new(
@@ -110,14 +93,14 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
                 variants: &[],
             })?;
             let sim = Emulator::new(sim_config).map_err(|e| CliError::usage(e.to_string()))?;
-            let host = EmulatorHost::new(sim, Arc::clone(clock), PipeConfig::paced(args.baud));
+            let host = EmulatorHost::new(sim, Arc::clone(clock), PipeConfig::paced(args.baud.get()));
             Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>))
         }
         p if p.is_can() => return Err(CliError::usage(format!("{p}: the SCU speaks RS232, not CAN"))),
         _ if args.sim_preset.is_some() => return Err(CliError::usage("--sim-preset is only for --port sim")),
         p => {
             let p = p.clone();
-            let settings = SerialSettings::new(args.baud);
+            let settings = SerialSettings::new(args.baud.get());
             Box::new(move || p.open_byte_link(settings))
         }
     };
@@ -143,12 +126,20 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     Ok((Arc::new(device), traffic))
 }
 
+/// An error bit as results show it, with the unit's reaction besides.
+#[derive(serde::Serialize)]
+struct BitWithReaction {
+    #[serde(flatten)]
+    bit: ErrorBit,
+    reaction: &'static str,
+}
+
 fn failure(e: motionlink_scu::Error) -> Failure {
     Failure::of(&e)
 }
 
 fn actuator(n: u8) -> Result<Actuator, Failure> {
-    Actuator::new(n).ok_or_else(|| Failure::usage(format!("actuator {n}: actuators are 1..6")))
+    Actuator::checked(i64::from(n)).map_err(|e| Failure::usage(format!("actuator {n}: {e}")))
 }
 
 fn le_u16s(data: &[u8]) -> Vec<u16> {
@@ -170,14 +161,8 @@ impl Scu {
     fn speed(&self, speed: Option<f64>) -> Result<Option<Speed>, Failure> {
         let Some(s) = speed else { return Ok(None) };
         let s = finite("speed", s)?;
-        if s.fract() != 0.0 || s < 1.0 || s > f64::from(self.speed_mode.max()) {
-            return Err(Failure::usage(format!(
-                "speed {s}: a whole number from 1 to {} {}",
-                self.speed_mode.max(),
-                self.speed_mode.unit()
-            )));
-        }
-        Speed::of_mode(self.speed_mode, s as u16).map(Some).ok_or_else(|| Failure::usage(format!("speed {s}")))
+        // The page sends numbers: the rule is the library's, for the whole numbers it takes.
+        Speed::parse(&s.to_string(), self.speed_mode).map(Some).map_err(|e| Failure::usage(format!("speed {s}: {e}")))
     }
 
     fn speed_key(&self) -> (&'static str, &'static str) {
@@ -282,12 +267,11 @@ impl Device for Scu {
     fn move_to(self: Arc<Self>, unit: u8, target: f64, speed: Option<f64>) -> Result<Motion, Failure> {
         let a = actuator(unit)?;
         let target = finite("target", target)?;
-        if target.fract() != 0.0 || target < f64::from(i32::MIN) || target > f64::from(i32::MAX) {
-            return Err(Failure::usage(format!("target {target}: a whole number of counts")));
-        }
+        let position = PositionCounts::parse_whole(&target.to_string())
+            .map_err(|e| Failure::usage(format!("target {target}: {e}")))?;
         let speed = self.speed(speed)?.unwrap_or(Speed::of_mode(self.speed_mode, self.speed_mode.max()).expect("max"));
         let function = self.function_of(a)?;
-        let op = self.client.move_to_op(a, PositionCounts(target as i32), speed, Some(function)).map_err(failure)?;
+        let op = self.client.move_to_op(a, position, speed, Some(function)).map_err(failure)?;
         Ok(Box::pin(async move {
             let out = self.client.start(op).await.map_err(failure)?;
             match out {
@@ -384,27 +368,19 @@ impl Device for Scu {
         value: String,
     ) -> BoxFuture<'static, Result<ParamValue, Failure>> {
         Box::pin(async move {
-            let Item::Entry(e) = lookup_entry(&name)? else {
-                return Err(Failure::usage(format!("{name} is a group: write its entries one by one")));
-            };
-            if !e.access.writable() {
-                return Err(Failure::usage(format!(
-                    "{} is read-only (the SCU writes only remote entries 0x3xxx)",
-                    e.name
-                )));
-            }
-            let v = ScuValue::parse(e.kind, &value).map_err(|err| Failure::usage(format!("{}: {err}", e.name)))?;
-            let index = DataIndex(e.id as u16);
-            // The session writes with RT and reads the entry back (a difference is an error).
-            self.client.set(index, &v).await.map_err(failure)?;
-            let back = self.client.get_value(index).await.map_err(failure)?;
+            let (e, v) = parse_write(lookup_entry(&name)?, &value).map_err(Failure::usage)?;
+            // The library writes with RT, reads the entry back and compares (a difference is an error), then
+            // reads what the unit holds; a unit that does not read remote data back says so in the report.
+            let w = self.client.write(e, v).await.map_err(failure)?;
             Ok(ParamValue {
                 name: e.name.to_string(),
                 id: e.id,
-                value: show(&v, self.speed_mode),
+                value: show(&w.value, self.speed_mode),
                 unit: e.unit.to_string(),
-                read_back: Some(ReadBack { name: e.name.to_string(), value: show(&back, self.speed_mode) }),
-                note: String::new(),
+                read_back: w
+                    .read_back
+                    .map(|back| ReadBack { name: e.name.to_string(), value: show(&back, self.speed_mode) }),
+                note: w.set.not_verifiable.join("; "),
             })
         })
     }
@@ -421,7 +397,7 @@ impl Device for Scu {
                         .bits()
                         .map(|b| {
                             words.push(format!("bit {} {}: {} ({})", b.number(), b.name(), b.cause(), b.reaction()));
-                            json!({"bit": b.number(), "name": b.name(), "cause": b.cause(), "reaction": b.reaction()})
+                            crate::common::to_json(&BitWithReaction { bit: b, reaction: b.reaction() })
                         })
                         .collect();
                     if c.unknown_bits() != 0 {

@@ -6,61 +6,14 @@ use std::io::Write;
 use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
+use motionlink_scu::args::TargetLine;
 use motionlink_scu::client::FollowFailure;
-use motionlink_scu::model::{Actuator, MotionFunction, PositionCounts, Speed, SpeedMode};
-use motionlink_scu::{Client, FollowReport, Follower};
-use serde_json::json;
+use motionlink_scu::model::{Actuator, MotionFunction, PositionCounts, Speed};
+use motionlink_scu::results::{FollowStart, TargetsApplied};
+use motionlink_scu::{Client, Follower};
 
-use super::{parse_speed, Report};
+use super::Report;
 use crate::common::{self, CliError};
-
-/// One line of `follow`'s input.
-#[derive(Debug, PartialEq)]
-pub(super) enum FollowLine {
-    /// Nothing (blank or a comment).
-    Skip,
-    /// New targets, one per actuator of the stream.
-    Targets(Vec<PositionCounts>),
-    /// A new speed.
-    Speed(Speed),
-}
-
-/// Parses a line of `follow`'s input for a stream of `actuators`: `400` (all), `400 410` (one each, in
-/// order), `a1=400 a2=410` (each named), `speed 60`; `#` starts a comment.
-pub(super) fn parse_follow_line(line: &str, actuators: &[Actuator], mode: SpeedMode) -> Result<FollowLine, String> {
-    let text = line.split('#').next().unwrap_or("").trim();
-    if text.is_empty() {
-        return Ok(FollowLine::Skip);
-    }
-    let words: Vec<&str> = text.split([' ', '\t', ',']).filter(|w| !w.is_empty()).collect();
-    if let Some(rest) = text.strip_prefix("speed") {
-        let value = rest.trim().trim_start_matches('=').trim();
-        return parse_speed(value, mode).map(FollowLine::Speed).map_err(|e| e.to_string());
-    }
-    let count =
-        |w: &str| w.parse::<i32>().map(PositionCounts).map_err(|_| format!("{w:?} is not a position in counts"));
-    if words.iter().all(|w| !w.contains('=')) {
-        let values = words.iter().map(|w| count(w)).collect::<Result<Vec<_>, _>>()?;
-        return match values.len() {
-            1 => Ok(FollowLine::Targets(vec![values[0]; actuators.len()])),
-            n if n == actuators.len() => Ok(FollowLine::Targets(values)),
-            n => Err(format!("{n} targets for {} actuator(s): give one for all, or one each", actuators.len())),
-        };
-    }
-    let mut targets = vec![None; actuators.len()];
-    for w in words {
-        let (name, value) = w.split_once('=').ok_or_else(|| format!("{w:?}: give ACTUATOR=COUNTS, such as a1=400"))?;
-        let a = name.trim_start_matches(['A', 'a']).parse::<u8>().ok().and_then(Actuator::new);
-        let i = a
-            .and_then(|a| actuators.iter().position(|x| *x == a))
-            .ok_or_else(|| format!("{name:?} is not one of the actuators followed ({})", names(actuators)))?;
-        targets[i] = Some(count(value)?);
-    }
-    if let Some(i) = targets.iter().position(Option::is_none) {
-        return Err(format!("no target for {} (every actuator followed needs one)", actuators[i]));
-    }
-    Ok(FollowLine::Targets(targets.into_iter().flatten().collect()))
-}
 
 fn names(actuators: &[Actuator]) -> String {
     actuators.iter().map(Actuator::to_string).collect::<Vec<_>>().join(", ")
@@ -118,22 +71,19 @@ pub(super) fn follow(
             let _ = tx.send(Input::End);
         })
         .map_err(|e| CliError::transport(format!("cannot read stdin: {e}")))?;
-    if report.json {
-        let list: Vec<u8> = actuators.iter().map(|a| a.number()).collect();
-        report.print(out, json!({"function": function.number(), "following": true, "actuators": list}))?;
-    } else {
-        writeln!(out, "following {function} ({}): targets from stdin", names(&actuators))?;
-    }
+    report.show(out, &FollowStart { function, actuators: actuators.clone() }, |out, _| {
+        writeln!(out, "following {function} ({}): targets from stdin", names(&actuators)).map_err(CliError::from)
+    })?;
     out.flush()?;
     let failure: Option<Result<CliError, motionlink_scu::Error>> = loop {
         if interrupt.is_cancelled() {
             break Some(Ok(CliError::Interrupted(format!("interrupted; {function} stopped"))));
         }
         match rx.recv_timeout(Duration::from_millis(10)) {
-            Ok(Input::Line(line)) => match parse_follow_line(&line, &actuators, mode) {
-                Ok(FollowLine::Skip) => {}
-                Ok(FollowLine::Targets(t)) => follower.offer(t),
-                Ok(FollowLine::Speed(s)) => {
+            Ok(Input::Line(line)) => match TargetLine::parse(&line, &actuators, mode) {
+                Ok(TargetLine::Skip) => {}
+                Ok(TargetLine::Targets(t)) => follower.offer(t),
+                Ok(TargetLine::Speed(s)) => {
                     if let Err(e) = follower.set_speed(s) {
                         break Some(Err(e));
                     }
@@ -169,14 +119,10 @@ pub(super) fn follow(
         Some(Ok(cli)) => (follower.stop_fast().map_err(|e| common::classified(&e))?, Some(cli)),
         Some(Err(scu)) => return Err(common::classified(&follower.abort(scu))),
     };
-    let FollowReport { rest, updates } = stopped;
-    let text: Vec<String> = rest.iter().map(|(a, p)| format!("{a}={}", p.get())).collect();
-    if report.json {
-        let list: Vec<_> = rest.iter().map(|(a, p)| json!({"actuator": a.number(), "reached_counts": p})).collect();
-        report.print(out, json!({"stopped": true, "actuators": list, "updates": updates}))?;
-    } else {
-        writeln!(out, "stopped after {updates} update(s): {} counts", text.join(" "))?;
-    }
+    report.show(out, &stopped, |out, r| {
+        let text: Vec<String> = r.rest.iter().map(|(a, p)| format!("{a}={}", p.get())).collect();
+        writeln!(out, "stopped after {} update(s): {} counts", r.updates, text.join(" ")).map_err(CliError::from)
+    })?;
     error.map_or(Ok(()), Err)
 }
 
@@ -187,14 +133,11 @@ fn print_targets(
     report: &Report<'_>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    if report.json {
-        let list: Vec<_> =
-            actuators.iter().zip(targets).map(|(a, t)| json!({"actuator": a.number(), "target_counts": t})).collect();
-        report.print(out, json!({"targets": list}))?;
-    } else {
-        let text: Vec<String> = actuators.iter().zip(targets).map(|(a, t)| format!("{a}={}", t.get())).collect();
-        writeln!(out, "target {} counts", text.join(" "))?;
-    }
+    let applied = TargetsApplied(actuators.iter().copied().zip(targets.iter().copied()).collect());
+    report.show(out, &applied, |out, t| {
+        let text: Vec<String> = t.0.iter().map(|(a, p)| format!("{a}={}", p.get())).collect();
+        writeln!(out, "target {} counts", text.join(" ")).map_err(CliError::from)
+    })?;
     out.flush()?;
     Ok(())
 }

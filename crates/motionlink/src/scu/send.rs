@@ -3,10 +3,10 @@
 
 use std::io::Write;
 
-use motionlink_scu::model::{DataEntryExt, Function, Item, MotionDirection, SpeedMode, StopMode, DATA_LIST, GROUPS};
-use motionlink_scu::value::Value;
+use motionlink_scu::model::{DataEntryExt, Function, MotionDirection, SpeedMode, StopMode, DATA_LIST, GROUPS};
+use motionlink_scu::results::data_items;
+use motionlink_scu::value::shown_unit;
 use motionlink_scu::wire::{Incoming, Request, RequestDecoder};
-use serde_json::json;
 
 use super::Report;
 use crate::common::{self, CliError, Row};
@@ -76,18 +76,13 @@ pub(super) fn parse(words: &[String]) -> Result<SendRequest, CliError> {
         }
         "RT" => {
             arity(2, 2, "a remote data name and a value, such as RT remote_speed_f1 80")?;
-            let Item::Entry(e) = super::parse_item(&rest[0])? else {
-                return Err(CliError::usage(format!("{}: a group; RT writes one entry", rest[0])));
-            };
-            if !e.access.writable() {
-                return Err(CliError::usage(format!("{} is read-only: RT writes the remote data (0x3xxx)", e.name)));
-            }
-            let v = Value::parse(e.kind, &rest[1]).map_err(|err| CliError::usage(format!("{}: {err}", e.name)))?;
+            let (e, v) =
+                motionlink_scu::args::parse_write(super::parse_item(&rest[0])?, &rest[1]).map_err(CliError::usage)?;
             Ok(SendRequest::Transfer(e.index().0, v.to_bytes()))
         }
         "RE" => {
             arity(1, 3, "a function and its parameters, such as RE F1 out, RE F11 or RE 1 9 -1")?;
-            let f = super::parse_function(&rest[0])?;
+            let f = rest[0].parse::<Function>().map_err(CliError::usage)?;
             let params = match (f, &rest[1..]) {
                 (_, []) if !matches!(f, Function::Motion(_)) => [UNUSED, UNUSED],
                 (Function::Motion(_), []) => {
@@ -104,7 +99,7 @@ pub(super) fn parse(words: &[String]) -> Result<SendRequest, CliError> {
         }
         "RS" => {
             arity(1, 2, "a function and, for F1..F10, fast or soft, such as RS F1 soft")?;
-            let f = super::parse_function(&rest[0])?;
+            let f = rest[0].parse::<Function>().map_err(CliError::usage)?;
             let p = match (f, rest.get(1).map(|s| s.to_ascii_lowercase())) {
                 (Function::Motion(_), None) => StopMode::Fast.code(),
                 (Function::Motion(_), Some(m)) if m == "fast" => StopMode::Fast.code(),
@@ -179,18 +174,20 @@ pub(super) fn send(
     let result = client.request(&r);
     let seen = telegrams.take();
     let (sent, reply) = exchange(&seen, Some(&wire));
-    let (sent_json, reply_json) = print_exchange(out, report.json, sent.as_ref(), reply.as_ref())?;
+    let (request, reply) = print_exchange(out, report.json, sent.as_ref(), reply.as_ref())?;
     if report.json {
+        /// The exchange, each telegram explained (as `decode` explains it), and the reply's data.
+        #[derive(serde::Serialize)]
+        struct Sent {
+            command: String,
+            request: Option<serde_json::Value>,
+            reply: Option<serde_json::Value>,
+            data: Option<String>,
+            ok: bool,
+        }
         let command = String::from_utf8_lossy(&wire[..2]).into_owned();
-        let data = match &result {
-            Ok(Some(d)) => Some(common::hex(d)),
-            _ => None,
-        };
-        report.print(
-            out,
-            json!({"command": command, "request": sent_json, "reply": reply_json, "data": data,
-                   "ok": result.is_ok()}),
-        )?;
+        let data = result.as_ref().ok().and_then(|d| d.as_deref()).map(common::hex);
+        report.print(out, Sent { command, request, reply, data, ok: result.is_ok() })?;
     }
     result.map(|_| ()).map_err(|e| common::classified(&e))
 }
@@ -200,27 +197,22 @@ pub(super) fn send(
 /// of `speed_mode`.
 pub(super) fn names(json: bool, speed_mode: SpeedMode, out: &mut dyn Write) -> Result<(), CliError> {
     if json {
-        for e in DATA_LIST {
-            let unit = super::actions::unit_json(e, speed_mode);
-            common::print_json(
-                out,
-                &json!({"family": "scu", "name": e.name, "id": e.id, "unit": unit, "access": e.access.short(),
-                        "title": e.title, "size": e.size()}),
-            )?;
+        /// One line of `names --json`: the family, then the entry or group.
+        #[derive(serde::Serialize)]
+        struct Named<T> {
+            family: &'static str,
+            #[serde(flatten)]
+            item: T,
         }
-        for g in GROUPS {
-            common::print_json(
-                out,
-                &json!({"family": "scu", "name": g.name, "id": g.index.0, "unit": "", "access": "r",
-                        "title": format!("group 0x{:04X}..0x{:04X}", g.first, g.last), "size": g.size()}),
-            )?;
+        for item in data_items(speed_mode) {
+            common::print_json(out, &common::to_json(&Named { family: "scu", item }))?;
         }
         return Ok(());
     }
     let mut rows: Vec<Row> = DATA_LIST
         .iter()
         .map(|e| {
-            let unit = super::actions::unit_json(e, speed_mode);
+            let unit = shown_unit(e, speed_mode);
             let unit = if unit.is_empty() { String::new() } else { format!(" [{unit}]") };
             (e.name.to_string(), format!("{} {}{unit} {}", e.index(), e.access.short(), e.title))
         })

@@ -4,11 +4,31 @@
 use std::io::Write;
 
 use motionlink_scu::model::{Function, MotionFunction, StopMode};
+use motionlink_scu::session::StopReport;
 use motionlink_scu::Client;
-use serde_json::json;
 
 use super::Report;
 use crate::common::{self, CliError};
+use crate::portlock::Stopped;
+
+/// What `stop --json` prints: the library's report, with what only the command knows (the motionlink
+/// that held the port, the function named).
+#[derive(serde::Serialize)]
+struct StopPrinted<'a, R: serde::Serialize> {
+    action: &'static str,
+    stopped: bool,
+    holder: Option<&'a Stopped>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    function: Option<Function>,
+    #[serde(flatten)]
+    report: R,
+}
+
+/// A switching function switched off: `mode` is `off`.
+#[derive(serde::Serialize)]
+struct SwitchedOff {
+    mode: &'static str,
+}
 
 /// Stops `function` (`None`: every motion function, F1..F10): a motion function with RS (`soft`: along the
 /// stop ramp) and the status read until no actuator moves, then where each connected actuator is; another
@@ -29,36 +49,24 @@ pub(super) fn stop(
         None => MotionFunction::all().collect(),
         Some(f) => {
             client.switch(f, false).map_err(|e| common::classified(&e))?;
-            return if report.json {
-                report.print(
-                    out,
-                    json!({"action": "stop", "function": f.number(), "stopped": true, "mode": "off",
-                                         "holder": holder}),
-                )
-            } else {
-                writeln!(out, "{f} switched off (RS)")?;
-                Ok(())
-            };
+            let printed =
+                StopPrinted { action: "stop", stopped: true, holder, function, report: SwitchedOff { mode: "off" } };
+            return report.show(out, &printed, |out, _| writeln!(out, "{f} switched off (RS)").map_err(CliError::from));
         }
     };
     let mode = if soft { StopMode::Soft } else { StopMode::Fast };
     let stopped = client.stop_functions(&motions, mode).map_err(|e| common::classified(&e))?;
-    if report.json {
-        let mut fields = json!({"action": "stop", "stopped": true, "holder": holder});
-        if let Some(f) = function {
-            fields["function"] = json!(f.number());
-        }
-        if let (Some(map), Ok(serde_json::Value::Object(r))) = (fields.as_object_mut(), serde_json::to_value(&stopped))
-        {
-            map.extend(r);
-        }
-        return report.print(out, fields);
-    }
-    let how = match mode {
+    let printed = StopPrinted { action: "stop", stopped: true, holder, function, report: stopped };
+    report.show(out, &printed, |out, p| print_stop_text(out, &p.report))
+}
+
+/// How the stop went, in words.
+fn print_stop_text(out: &mut dyn Write, stopped: &StopReport) -> Result<(), CliError> {
+    let how = match stopped.mode {
         StopMode::Fast => "fast RS",
         StopMode::Soft => "soft RS, along the stop ramp",
     };
-    let names = match motions.as_slice() {
+    let names = match stopped.functions.as_slice() {
         [one] => one.to_string(),
         _ => "F1..F10".to_string(),
     };

@@ -187,3 +187,112 @@ pub(super) fn watch_into_a_closed_pipe_ends_quietly_with_0() {
         sim.events()
     );
 }
+
+/// Every `--json` result of the SCU, key for key (nested objects too; a list by its first element): the
+/// library's reports serialise with the names the command line has always printed.
+#[test]
+pub(super) fn every_json_result_keeps_its_keys() {
+    use serde_json::json;
+    use std::collections::BTreeMap;
+    /// The keys of a JSON value, recursively.
+    fn shape(v: &serde_json::Value) -> serde_json::Value {
+        match v {
+            serde_json::Value::Object(m) => {
+                serde_json::to_value(m.iter().map(|(k, v)| (k.clone(), shape(v))).collect::<BTreeMap<_, _>>()).unwrap()
+            }
+            serde_json::Value::Array(a) if a.first().is_some_and(|x| x.is_object()) => json!([shape(&a[0])]),
+            _ => json!(null),
+        }
+    }
+    let lines = |args: &[&str], stdin: &str| -> Vec<serde_json::Value> {
+        let mut all = vec!["scu", "--port", "sim", "--json"];
+        all.extend_from_slice(args);
+        let o = common::run_with(&all, &[], stdin);
+        assert!(o.status.success(), "{args:?}: {o:?}");
+        stdout(&o).lines().map(|l| shape(&serde_json::from_str(l).expect("a JSON line"))).collect()
+    };
+    let keys = |spec: &str| -> serde_json::Value {
+        // "a b{c d} e[f]": a, b an object of c and d, e a list of objects of f.
+        fn parse(words: &mut std::iter::Peekable<std::str::Chars<'_>>) -> serde_json::Value {
+            let mut map = BTreeMap::new();
+            let mut name = String::new();
+            while let Some(c) = words.next() {
+                match c {
+                    '{' | '[' => {
+                        let inner = parse(words);
+                        map.insert(std::mem::take(&mut name), if c == '[' { json!([inner]) } else { inner });
+                    }
+                    '}' | ']' => break,
+                    ' ' => {
+                        if !name.is_empty() {
+                            map.insert(std::mem::take(&mut name), json!(null));
+                        }
+                    }
+                    c => name.push(c),
+                }
+            }
+            if !name.is_empty() {
+                map.insert(name, json!(null));
+            }
+            serde_json::to_value(map).unwrap()
+        }
+        parse(&mut spec.chars().peekable())
+    };
+    let state = "actuator position_counts word flags moving";
+    let error_code = "code bits";
+    assert_eq!(
+        lines(&["info"], ""),
+        [keys(&format!(
+            "family port profile firmware configuration battery_mains{{word flags}} last_error{{{error_code}}} actuators[{state}]"
+        ))]
+    );
+    let entry = "family port profile name id value unit access";
+    assert_eq!(
+        lines(&["get", "actual_position_a1", "actual_positions", "battery_mains"], ""),
+        [keys(entry), keys(&format!("{entry} value{{actual_position_a1 actual_position_a2 actual_position_a3 actual_position_a4 actual_position_a5 actual_position_a6}}")), keys(&format!("{entry} value{{word flags}}"))]
+    );
+    assert_eq!(
+        lines(&["set", "remote_speed_f1", "80"], ""),
+        [keys("family port profile name id value unit access read_back verified not_verifiable")]
+    );
+    let outcome = "actuator target_counts reached_counts difference_counts moved";
+    assert_eq!(
+        lines(&["move", "1", "30"], ""),
+        [keys(&format!(
+            "family port profile actuator function reached_counts target_counts difference_counts time_s verified \
+             not_verifiable actuators[{outcome}]"
+        ))]
+    );
+    assert_eq!(
+        lines(&["run", "2", "out", "--seconds", "0.1"], ""),
+        [
+            keys("family port profile function running"),
+            keys("family port profile function stopped interrupted actuators[actuator reached_counts]")
+        ]
+    );
+    let stop = "family port profile action stopped holder functions mode refused at_rest[actuator position_counts]";
+    assert_eq!(lines(&["stop"], ""), [keys(stop)]);
+    assert_eq!(lines(&["stop", "F1", "--soft"], ""), [keys(&format!("{stop} function"))]);
+    assert_eq!(lines(&["stop", "F11"], ""), [keys("family port profile action stopped holder function mode")]);
+    assert_eq!(
+        lines(&["watch", "--count", "1"], ""),
+        [keys(&format!("family port profile t_s last_error{{{error_code}}} actuators[{state} current_amps]"))]
+    );
+    assert_eq!(lines(&["errors"], ""), [keys(&format!("family port profile errors[{error_code}]"))]);
+    let telegram = "bad bytes direction meaning time_s";
+    assert_eq!(
+        lines(&["send", "RG", "actual_position_a1"], ""),
+        [keys(&format!("family port profile command data ok request{{{telegram}}} reply{{{telegram}}}"))]
+    );
+    let names = lines(&["names"], "");
+    let name = keys("family name id unit access title size");
+    assert!(names.len() > 100 && names.iter().all(|n| *n == name), "{:?}", names.first());
+    assert_eq!(
+        lines(&["--functions", "tlt", "--sim-preset", "tlt", "follow", "1"], "200 210\n"),
+        [
+            keys("family port profile function following actuators"),
+            keys("family port profile targets[actuator target_counts]"),
+            keys("family port profile stopped updates actuators[actuator reached_counts]"),
+        ]
+    );
+}
