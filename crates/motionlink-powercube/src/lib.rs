@@ -209,10 +209,12 @@
 
 #![warn(missing_docs)]
 
+pub mod args;
 pub mod client;
 pub mod describe;
 pub mod error;
 pub mod model;
+pub mod report;
 pub mod session;
 pub mod sim;
 pub mod wire;

@@ -40,5 +40,6 @@ pub use blocking::{Client, Module};
 pub use crate::error::{Error, RefreshTiming, RoundTrips, StopOutcome};
 pub use crate::model::WATCHDOG_TIMEOUT;
 pub use crate::session::{
-    BusConfig, Guard, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback, ScanEntry,
+    BusConfig, Guard, HaltReport, HomeReport, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback,
+    ScanEntry,
 };
