@@ -15,11 +15,11 @@ use motionlink_link::can::SlcanAdapter;
 use motionlink_link::describe::Describe;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
-use motionlink_link::{RealClock, SerialSettings, SharedClock};
+use motionlink_link::{RealClock, SharedClock};
 use motionlink_powercube::args::{
     Baud, CanBitRate, MotionTimeout, MoveAcceleration, MoveVelocity, PollInterval, ReplyTimeout, Target, Tolerance,
 };
-use motionlink_powercube::client::{BusConfig, Client, Guard, Module, ModulesAt, MoveSpec, Progress};
+use motionlink_powercube::client::{BusConfig, Client, Guard, Module, ModulesAt, MoveSpec, PortLink, Progress};
 use motionlink_powercube::describe::Describer;
 use motionlink_powercube::model::{
     Action as PcAction, Address, CubeState, ModuleKind, Param, Position, Request, Value,
@@ -227,13 +227,10 @@ fn open(
             "--sim-variant is for --port sim (a served emulator takes `sim powercube --variant`)",
         ));
     }
-    let client = match &url {
-        PortUrl::Serial(_) | PortUrl::Tcp { .. } => {
-            let link =
-                url.open_byte_link(SerialSettings { dtr_rts_on: false, ..SerialSettings::new(args.baud.get()) })?;
-            Client::rs232(tap.link(link, &clock), clock, settings(BusConfig::rs232()))
-        }
-        PortUrl::Sim => {
+    let client = match PortLink::open(&url, args.baud, args.bitrate, &clock).map_err(failed)? {
+        Some(PortLink::Rs232(link)) => Client::rs232(tap.link(link, &clock), clock, settings(BusConfig::rs232())),
+        Some(PortLink::Can(link)) => Client::can(tap.can_link(link, &clock), clock, settings(BusConfig::can())),
+        None => {
             // The emulated bus has the module the command names, in the firmware variants asked for.
             let mut bus = SimConfig::with_addresses(&[args.module.get()]).map_err(CliError::usage)?;
             bus.variants = args.sim_variants.clone();
@@ -242,34 +239,8 @@ fn open(
             let client = Client::rs232(link, clock, settings(BusConfig::rs232())).map_err(failed)?;
             return Ok((client, Some(host)));
         }
-        PortUrl::Slcan(path) => {
-            let link = motionlink_link::url::open_slcan(path, Arc::clone(&clock), args.bitrate.slcan())?;
-            Client::can(tap.can_link(Box::new(link), &clock), clock, settings(BusConfig::can()))
-        }
-        PortUrl::SocketCan(ifname) => open_socketcan(ifname, tap, clock, settings(BusConfig::can()))?,
     };
     Ok((client.map_err(failed)?, None))
-}
-
-#[cfg(target_os = "linux")]
-fn open_socketcan(
-    ifname: &str,
-    tap: &Tap,
-    clock: SharedClock,
-    config: BusConfig,
-) -> Result<Result<Client, Error>, CliError> {
-    let link = motionlink_link::can::socketcan::SocketCanLink::open(ifname)?;
-    Ok(Client::can(tap.can_link(Box::new(link), &clock), clock, config))
-}
-
-#[cfg(not(target_os = "linux"))]
-fn open_socketcan(
-    _ifname: &str,
-    _tap: &Tap,
-    _clock: SharedClock,
-    _config: BusConfig,
-) -> Result<Result<Client, Error>, CliError> {
-    Err(CliError::usage("socketcan:// ports need Linux"))
 }
 
 fn parse_param(text: &str) -> Result<Param, CliError> {

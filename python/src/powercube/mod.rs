@@ -11,13 +11,13 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
-use motionlink_link::url::PortUrl;
-use motionlink_link::SerialSettings;
 use motionlink_powercube::args::{
     Baud, CanBitRate, MotionTimeout, MoveAcceleration, MoveVelocity, PollInterval, ReplyTimeout, Target as MoveTarget,
     Tolerance,
 };
-use motionlink_powercube::client::{BusConfig, Client, Guard, HomeReport, ModuleInfo, ModulesAt, MoveReport, MoveSpec};
+use motionlink_powercube::client::{
+    BusConfig, Client, Guard, HomeReport, ModuleInfo, ModulesAt, MoveReport, MoveSpec, PortLink,
+};
 use motionlink_powercube::model::{Address, AxisUnit, CubeState, ModuleKind, Param, Position, Value};
 use motionlink_powercube::report::SetReport;
 use motionlink_powercube::{AsyncClient, Error};
@@ -104,8 +104,12 @@ fn open(port: Target, s: &Settings) -> Result<(Client, bool), Failure> {
         Target::InProcess(InProcess::PowerCube(host)) => Ok((rs232(Box::new(host.connect().0))?, true)),
         Target::InProcess(InProcess::PowerCubeCan(bus)) => Ok((can(Box::new(bus.connect()))?, true)),
         Target::InProcess(_) => Err(usage("that emulator is not a PowerCube emulator")),
-        Target::Url(url) => match &url {
-            PortUrl::Sim => {
+        Target::Url(url) => match PortLink::open(&url, baud, bitrate, &clock()).map_err(fail)? {
+            Some(PortLink::Rs232(link)) => Ok((rs232(link)?, false)),
+            // An SLCAN adapter on a serial device or behind a TCP port (such as a served emulator's
+            // `slcan://tcp://HOST:PORT`), or SocketCAN.
+            Some(PortLink::Can(link)) => Ok((can(link)?, false)),
+            None => {
                 let device = motionlink_powercube::Emulator::new(&Default::default());
                 let host = motionlink_link::pipe::EmulatorHost::new(
                     device,
@@ -114,31 +118,8 @@ fn open(port: Target, s: &Settings) -> Result<(Client, bool), Failure> {
                 );
                 Ok((rs232(Box::new(host.connect().0))?, true))
             }
-            PortUrl::Serial(_) | PortUrl::Tcp { .. } => {
-                let settings = SerialSettings { dtr_rts_on: false, ..SerialSettings::new(baud.get()) };
-                let link = url.open_byte_link(settings).map_err(|e| e.failure())?;
-                Ok((rs232(link)?, false))
-            }
-            PortUrl::Slcan(path) => {
-                // An SLCAN adapter on a serial device, or behind a TCP port (such as a served emulator's
-                // `slcan://tcp://HOST:PORT`).
-                let link = motionlink_link::url::open_slcan(path, clock(), bitrate.slcan()).map_err(|e| e.failure())?;
-                Ok((can(Box::new(link))?, false))
-            }
-            PortUrl::SocketCan(ifname) => open_socketcan(ifname).and_then(|link| Ok((can(link)?, false))),
         },
     }
-}
-
-#[cfg(target_os = "linux")]
-fn open_socketcan(ifname: &str) -> Result<Box<dyn motionlink_link::can::CanLink>, Failure> {
-    let link = motionlink_link::can::socketcan::SocketCanLink::open(ifname).map_err(|e| e.failure())?;
-    Ok(Box::new(link))
-}
-
-#[cfg(not(target_os = "linux"))]
-fn open_socketcan(_ifname: &str) -> Result<Box<dyn motionlink_link::can::CanLink>, Failure> {
-    Err(usage("socketcan:// ports need Linux"))
 }
 
 fn parse_param(name: &str) -> Result<Param, Failure> {
@@ -277,8 +258,7 @@ impl PowerCubeClient {
     fn info<'py>(&self, py: Python<'py>, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.address(py, module)?;
-        let details =
-            interruptible_read(py, None, move || c.module(Address::new(a)?).details())?.or_raise(py)?;
+        let details = interruptible_read(py, None, move || c.module(Address::new(a)?).details())?.or_raise(py)?;
         let r = info_record(py, &details.info)?;
         let (s, _) = suffix(details.info.kind.axis_unit());
         for (p, v) in details.limits() {

@@ -30,12 +30,14 @@
 mod asynch;
 mod blocking;
 mod calls;
+mod port;
 #[cfg(test)]
 mod tests;
 
 #[cfg(feature = "tokio")]
 pub use asynch::{AsyncClient, AsyncModule};
 pub use blocking::{Client, Module};
+pub use port::PortLink;
 
 pub use crate::error::{Error, RefreshTiming, RoundTrips, StopOutcome};
 pub use crate::model::WATCHDOG_TIMEOUT;

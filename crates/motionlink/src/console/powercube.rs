@@ -9,9 +9,9 @@ use motionlink_link::capture::{TapCanLink, TapLink};
 use motionlink_link::link::Link;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
-use motionlink_link::{SerialSettings, SharedClock};
+use motionlink_link::SharedClock;
 use motionlink_powercube::args::{Baud, CanBitRate, MotionTimeout, MoveVelocity, ReplyTimeout, Target};
-use motionlink_powercube::client::{BusConfig, Client, Guard, ModulesAt, MoveSpec};
+use motionlink_powercube::client::{BusConfig, Client, Guard, ModulesAt, MoveSpec, PortLink};
 use motionlink_powercube::model::{
     Address, AxisUnit, CubeState, ModuleKind, Param, Position, ShortFlag, ShortState, Value as CubeValue, Velocity,
     PARAMS,
@@ -129,47 +129,24 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     let can_link = move |link: Box<dyn CanLink>| -> Box<dyn CanLink> {
         Box::new(TapCanLink::new(link, Arc::clone(&clock3), Arc::clone(&tap2)))
     };
+    // Opening a serial device or an SLCAN adapter blocks: on the blocking pool.
+    let (baud, bitrate, c2, opening) = (args.baud, args.bitrate, Arc::clone(clock), url.clone());
+    let opened = tokio::task::spawn_blocking(move || PortLink::open(&opening, baud, bitrate, &c2))
+        .await
+        .map_err(|e| CliError::transport(format!("the opening task failed: {e}")))?
+        .map_err(|e| crate::common::classified(&e))?;
     let mut host = None;
     let c = Arc::clone(clock);
-    let client: Result<Client, Error> = match &url {
-        PortUrl::Serial(_) | PortUrl::Tcp { .. } => {
-            let url = url.clone();
-            let baud = args.baud.get();
-            let link = tokio::task::spawn_blocking(move || {
-                url.open_byte_link(SerialSettings { dtr_rts_on: false, ..SerialSettings::new(baud) })
-            })
-            .await
-            .map_err(|e| CliError::transport(format!("the opening task failed: {e}")))??;
-            Client::rs232(byte_link(link), c, settings(BusConfig::rs232()))
-        }
-        PortUrl::Sim => {
+    let client = match opened {
+        Some(PortLink::Rs232(link)) => Client::rs232(byte_link(link), c, settings(BusConfig::rs232())),
+        Some(PortLink::Can(link)) => Client::can(can_link(link), c, settings(BusConfig::can())),
+        None => {
             let modules = if args.modules.is_empty() { vec![1] } else { addresses(&args.modules) };
             let bus = SimConfig::with_addresses(&modules).map_err(CliError::usage)?;
             let h = EmulatorHost::new(Emulator::new(&bus), Arc::clone(clock), PipeConfig::paced(args.baud.get()));
             let link: Box<dyn Link> = Box::new(h.connect().0);
             host = Some(h);
             Client::rs232(byte_link(link), c, settings(BusConfig::rs232()))
-        }
-        PortUrl::Slcan(path) => {
-            let rate = args.bitrate.slcan();
-            let path = path.clone();
-            let c2 = Arc::clone(clock);
-            let link = tokio::task::spawn_blocking(move || motionlink_link::url::open_slcan(&path, c2, rate))
-                .await
-                .map_err(|e| CliError::transport(format!("the opening task failed: {e}")))??;
-            Client::can(can_link(Box::new(link)), c, settings(BusConfig::can()))
-        }
-        PortUrl::SocketCan(ifname) => {
-            #[cfg(target_os = "linux")]
-            {
-                let link = motionlink_link::can::socketcan::SocketCanLink::open(ifname)?;
-                Client::can(can_link(Box::new(link)), c, settings(BusConfig::can()))
-            }
-            #[cfg(not(target_os = "linux"))]
-            {
-                let _ = ifname;
-                return Err(CliError::usage("socketcan:// ports need Linux"));
-            }
         }
     };
     let client = client.map_err(|e| crate::common::classified(&e))?;
