@@ -19,8 +19,8 @@ SERVE = str(Path(__file__).with_name("_serve.py"))
 @pytest.mark.parametrize(
     "call,named",
     [
-        (lambda: motionlink.PowerCube("sim").position(300), r"module 300: give a whole number 1\.\.=31"),
-        (lambda: motionlink.PowerCube("sim").position(-1), r"module -1: give a whole number 1\.\.=31"),
+        (lambda: motionlink.PowerCube("sim").position(300), r'module address "300": give a number 1\.\.31'),
+        (lambda: motionlink.PowerCube("sim").position(-1), r'module address "-1": give a number 1\.\.31'),
         (lambda: motionlink.PowerCube("sim", module=2**70), r"module \d+: give a whole number 1\.\.=31"),
         (lambda: motionlink.PowerCube("sim").position("1"), r"module '1' \(a str, not an int\)"),
         (lambda: motionlink.Scu("sim").position(-1), r"actuator -1: the actuator must be a whole number from 1 to 6"),
@@ -43,6 +43,44 @@ def test_a_bad_integer_is_a_usage_error_naming_it(call: Callable[[], object], na
     with pytest.raises(motionlink.UsageError, match=named) as e:
         call()
     assert isinstance(e.value, ValueError) and e.value.kind == "usage"
+
+
+#: A bad value of each PowerCube argument: the command line's words and Python's call that give it.
+POWERCUBE_BAD_VALUES = [
+    (["--module", "0", "info"], lambda: motionlink.PowerCube("sim", module=0)),
+    (["--module", "300", "info"], lambda: motionlink.PowerCube("sim").position(300)),
+    (["--baud", "7", "info"], lambda: motionlink.PowerCube("sim", baud=7)),
+    (["--bitrate", "12345", "info"], lambda: motionlink.PowerCube("sim", bitrate=12345)),
+    (["--timeout-ms", "0", "info"], lambda: motionlink.PowerCube("sim", timeout_ms=0)),
+    (["--poll-ms", "10001", "info"], lambda: motionlink.PowerCube("sim", poll_ms=10001)),
+    (["move", "nan"], lambda: motionlink.PowerCube("sim").move_to(float("nan"))),
+    (["move", "1", "--vel", "-5"], lambda: motionlink.PowerCube("sim").move_to(1, velocity=-5)),
+    (["move", "1", "--acc", "0"], lambda: motionlink.PowerCube("sim").move_to(1, acceleration=0)),
+    (["move", "1", "--tolerance", "0.5"], lambda: motionlink.PowerCube("sim").move_to(1, tolerance=0.5)),
+    (["move", "1", "--timeout-s", "0"], lambda: motionlink.PowerCube("sim").move_to(1, timeout_s=0)),
+    (["home", "--timeout-s", "-1"], lambda: motionlink.PowerCube("sim").home(timeout_s=-1)),
+]
+
+
+@pytest.mark.parametrize("words,call", POWERCUBE_BAD_VALUES, ids=[" ".join(w) for w, _ in POWERCUBE_BAD_VALUES])
+def test_a_bad_powercube_argument_gets_the_same_message_from_the_command_line_and_python(
+    motionlink_bin: Path, words: List[str], call: Callable[[], object]
+) -> None:
+    """One rule per argument, in the library (motionlink_powercube::args): the binary refuses the value
+    before opening anything (exit 2, clap naming the option) with the library's message, and Python raises a
+    UsageError with the same message."""
+    with pytest.raises(motionlink.UsageError) as e:
+        call()
+    message = str(e.value)
+    done = subprocess.run(
+        [str(motionlink_bin), "powercube", "--port", "tcp://127.0.0.1:1", *words],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2, done.stderr
+    first = done.stderr.splitlines()[0]
+    assert first.endswith(": " + message), f"python: {message!r}\ncli:    {first!r}"
 
 
 def test_an_scu_error_bit_is_a_device_error_with_its_code_and_named_bits() -> None:

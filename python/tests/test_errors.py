@@ -34,7 +34,7 @@ def test_usage_error_is_a_value_error_and_nothing_is_sent(cube: motionlink.Power
     assert isinstance(e.value, motionlink.UsageError)
     assert (e.value.kind, e.value.exit_code, e.value.family) == ("usage", 2, "powercube")
     assert e.value.to_dict() == {"kind": "usage", "message": str(e.value), "exit_code": 2}
-    with pytest.raises(motionlink.UsageError, match="outside the module's limit"):
+    with pytest.raises(motionlink.UsageError, match=r"outside MinPos\.\.MaxPos"):
         cube.move_to(10.0)
     with pytest.raises(motionlink.UsageError):
         motionlink.PowerCube("sim", module=40)

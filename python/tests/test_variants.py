@@ -307,8 +307,11 @@ def check_powercube(case: Case, o: Outcome) -> None:
             raised(o, op, motionlink.DeviceError, "cannot arm the watchdog of module 1")
         at = 0.05  # the emulated module's start
     else:
-        assert succeeded(o, "home", "PowerCubeHome")["reached_rad"] == pytest.approx(0.0, abs=1e-3)
+        homed = succeeded(o, "home", "PowerCubeHome")
+        assert homed["reached_rad"] == pytest.approx(0.0, abs=1e-3), homed
         watchdog_reason = [("watchdog could not be armed", "ignores the watchdog refresh broadcast on RS232")]
+        # Homing that ran without the watchdog asked for says so, as a move does.
+        says_what_it_could_not_verify(homed, watchdog_reason if broadcast_ignored else [], f"{case.id} home")
         target_reason = [("the motion's target could not be read back", "keeps TargetPosInc apart")]
         moves = (("move_with_speed", 0.3, ("TargetVel", "TargetAcc")), ("move_without_speed", 0.1, ()))
         for op, target, written in moves:
@@ -323,11 +326,10 @@ def check_powercube(case: Case, o: Outcome) -> None:
                 reasons += watchdog_reason
             says_what_it_could_not_verify(moved, reasons, f"{case.id} {op}")
         at = 0.1
-    if no_life_sign_ack:
-        # The target is checked once the guard is up: here the guard's refusal comes first.
-        raised(o, "move_outside_limit", motionlink.DeviceError, "cannot arm the watchdog of module 1")
-    else:
-        raised(o, "move_outside_limit", motionlink.UsageError, "target position 100", "outside the module's limit")
+    # The limits are checked before the guard arms the watchdog: a target beyond MaxPos is refused as such,
+    # also by a module whose watchdog cannot be armed.
+    message = raised(o, "move_outside_limit", motionlink.UsageError, "target position 100", "outside MinPos..MaxPos")
+    assert "watchdog" not in message, message
     succeeded(o, "stop")
     assert "STATE_HALTED" in succeeded(o, "state_after_stop", "ModuleState")["flags"]
     if no_life_sign_ack:

@@ -209,11 +209,13 @@
 
 #![warn(missing_docs)]
 
+pub mod args;
 pub mod client;
 pub mod describe;
 pub mod error;
 pub mod model;
 pub mod probe;
+pub mod report;
 pub mod session;
 pub mod sim;
 pub mod wire;

@@ -3,7 +3,6 @@
 //! armed and how a move is checked are the library's ([`Guard`], [`Module::move_to_guarded`]).
 
 mod actions;
-mod args;
 mod decode;
 mod demo;
 mod send;
@@ -11,33 +10,31 @@ mod show;
 
 use std::io::Write;
 use std::sync::Arc;
-use std::time::Duration;
 
-use motionlink_link::can::{SlcanAdapter, SlcanBitrate};
+use motionlink_link::can::SlcanAdapter;
 use motionlink_link::describe::Describe;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
-use motionlink_link::{RealClock, SerialSettings, SharedClock};
-use motionlink_powercube::client::{
-    BusConfig, Client, Guard, Module, ModuleInfo, ModulesAt, MoveSpec, Progress, Readback,
+use motionlink_link::{RealClock, SharedClock};
+use motionlink_powercube::args::{
+    Baud, CanBitRate, MotionTimeout, MoveAcceleration, MoveVelocity, PollInterval, ReplyTimeout, Target, Tolerance,
 };
+use motionlink_powercube::client::{BusConfig, Client, Guard, Module, ModulesAt, MoveSpec, PortLink, Progress};
 use motionlink_powercube::describe::Describer;
 use motionlink_powercube::model::{
-    Acceleration, Action as PcAction, Address, CubeState, ModuleKind, Param, Position, Request, Value, Velocity, PARAMS,
+    Action as PcAction, Address, CubeState, ModuleKind, Param, Position, Request, Value,
 };
 use motionlink_powercube::sim::{SimConfig, Variant};
 use motionlink_powercube::wire::Payload;
 use motionlink_powercube::{Emulator, Error};
-use serde_json::json;
 
-use args::{parse_baud, parse_bitrate, positive_secs};
 pub use decode::{decode, DecodeArgs};
 pub use demo::demo;
 use send::{parse_send, print_params, send};
 use show::{info, progress_text, report_done, scan, watch, WatchFormat};
 
 use crate::common::{self, CliError, ServeArgs};
-use crate::numbers::{above_zero, at_least, finite, whole};
+use crate::numbers::{at_least, whole};
 use crate::tap::{LinkArgs, Tap};
 
 /// `motionlink powercube` arguments. Every option may come before or after the action.
@@ -51,23 +48,22 @@ pub struct Args {
     #[command(flatten)]
     pub link: LinkArgs,
     /// The module's address, 1..31.
-    #[arg(long, default_value = "1", value_parser = clap::value_parser!(Address), global = true)]
+    #[arg(long, default_value = "1", global = true)]
     pub module: Address,
     /// RS232 baud rate: one of 1200, 2400, 4800, 9600 (the modules' default), 19200, 38400, 57600, 115200.
-    #[arg(long, default_value_t = 9600, value_parser = parse_baud, global = true)]
-    pub baud: u32,
+    #[arg(long, default_value = "9600", global = true)]
+    pub baud: Baud,
     /// CAN bit rate of an SLCAN adapter: one of the rates SLCAN offers, 10000, 20000, 50000, 100000,
     /// 125000, 250000, 500000, 800000, 1000000.
-    #[arg(long, default_value_t = 1_000_000, value_parser = parse_bitrate, global = true)]
-    pub bitrate: u32,
+    #[arg(long, default_value = "1000000", global = true)]
+    pub bitrate: CanBitRate,
     /// Acknowledge timeout in ms, 1 to 60000 (default: 200 on RS232, 50 on CAN).
-    #[arg(long, value_name = "MS", value_parser = whole::<u64>("the acknowledge timeout", 1, 60_000, "ms"), global = true)]
-    pub timeout_ms: Option<u64>,
+    #[arg(long, value_name = "MS", global = true)]
+    pub timeout_ms: Option<ReplyTimeout>,
     /// How often `home` and `move` read the module's state while they wait, in ms (1 to 10000): polls are
     /// never sent faster than this, however quickly the line answers.
-    #[arg(long, value_name = "MS", default_value_t = 10, global = true,
-          value_parser = whole::<u64>("the poll interval", 1, 10_000, "ms"))]
-    pub poll_ms: u64,
+    #[arg(long, value_name = "MS", default_value = "10", global = true)]
+    pub poll_ms: PollInterval,
     /// `--json` (the global option, set by `main`).
     #[arg(skip)]
     pub json: bool,
@@ -120,9 +116,8 @@ pub enum Action {
     /// Home the module and wait for the end of homing (watchdog armed; a signal halts it).
     Home {
         /// Give up (and halt) after this many seconds (above 0).
-        #[arg(long = "timeout-s", alias = "timeout", value_name = "S", default_value_t = 60.0,
-              value_parser = above_zero::<f64>("the time homing may take", None, "s"))]
-        timeout_s: f64,
+        #[arg(long = "timeout-s", alias = "timeout", value_name = "S", default_value = "60")]
+        timeout_s: MotionTimeout,
     },
     /// Reset the module's error state (and switch off a watchdog that a dead host left expired).
     Reset,
@@ -143,26 +138,23 @@ pub enum Action {
     /// Ramp to a position (rad or m) and wait for the end of the ramp (watchdog armed; a signal halts it).
     /// Succeeds only if the final position read from the module lies within --tolerance of the target.
     Move {
-        /// The target position.
-        #[arg(value_parser = finite::<f32>("the target position", "rad or m, the module's unit"))]
-        position: f32,
+        /// The target position (rad or m, the module's unit).
+        position: Target,
         /// Velocity (rad/s or m/s, above 0), written to TargetVel first; if not given, the module's
         /// TargetVel is used as it is.
-        #[arg(long, value_parser = above_zero::<f32>("the velocity", None, "rad/s or m/s, the module's unit"))]
-        vel: Option<f32>,
+        #[arg(long)]
+        vel: Option<MoveVelocity>,
         /// Acceleration (rad/s² or m/s², above 0), written to TargetAcc first; if not given, the module's
         /// TargetAcc is used as it is.
-        #[arg(long, value_parser = above_zero::<f32>("the acceleration", None, "rad/s² or m/s², the module's unit"))]
-        acc: Option<f32>,
+        #[arg(long)]
+        acc: Option<MoveAcceleration>,
         /// Give up (and halt) after this many seconds (above 0).
-        #[arg(long = "timeout-s", alias = "timeout", value_name = "S", default_value_t = 60.0,
-              value_parser = above_zero::<f64>("the time the move may take", None, "s"))]
-        timeout_s: f64,
+        #[arg(long = "timeout-s", alias = "timeout", value_name = "S", default_value = "60")]
+        timeout_s: MotionTimeout,
         /// In-position tolerance (rad or m, above 0, at most 0.1): the move succeeds only if the final actual
         /// position is at most this far from the target. The manual has no in-position window parameter.
-        #[arg(long, default_value_t = MoveSpec::DEFAULT_TOLERANCE.value(),
-              value_parser = above_zero::<f32>("the in-position tolerance", Some(f64::from(MoveSpec::MAX_TOLERANCE.value())), "rad or m, the module's unit"))]
-        tolerance: f32,
+        #[arg(long, default_value = "0.001")]
+        tolerance: Tolerance,
     },
     /// Print position and state until Ctrl-C (or --count samples).
     Watch {
@@ -186,9 +178,8 @@ pub struct SimArgs {
     #[command(flatten)]
     pub serve: ServeArgs,
     /// Module addresses, such as 1,17 (default: one module at 1).
-    #[arg(long, value_delimiter = ',', conflicts_with = "config",
-          value_parser = whole::<u8>("a module address", 1, 31, ""))]
-    pub modules: Vec<u8>,
+    #[arg(long, value_delimiter = ',', conflicts_with = "config")]
+    pub modules: Vec<Address>,
     /// A TOML file describing the modules (see crates/motionlink-powercube/README.md).
     #[arg(long, value_name = "FILE")]
     pub config: Option<std::path::PathBuf>,
@@ -226,9 +217,9 @@ pub(crate) fn open(
     let clock = Arc::clone(clock);
     let settings = |mut c: BusConfig| {
         if let Some(t) = args.timeout_ms {
-            c.reply_timeout = Duration::from_millis(t);
+            c.reply_timeout = t.get();
         }
-        c.poll_interval = Duration::from_millis(args.poll_ms);
+        c.poll_interval = args.poll_ms.get();
         c
     };
     if !args.sim_variants.is_empty() && !matches!(url, PortUrl::Sim) {
@@ -236,12 +227,10 @@ pub(crate) fn open(
             "--sim-variant is for --port sim (a served emulator takes `sim powercube --variant`)",
         ));
     }
-    let client = match &url {
-        PortUrl::Serial(_) | PortUrl::Tcp { .. } => {
-            let link = url.open_byte_link(SerialSettings { dtr_rts_on: false, ..SerialSettings::new(args.baud) })?;
-            Client::rs232(tap.link(link, &clock), clock, settings(BusConfig::rs232()))
-        }
-        PortUrl::Sim => {
+    let client = match PortLink::open(&url, args.baud, args.bitrate, &clock).map_err(failed)? {
+        Some(PortLink::Rs232(link)) => Client::rs232(tap.link(link, &clock), clock, settings(BusConfig::rs232())),
+        Some(PortLink::Can(link)) => Client::can(tap.can_link(link, &clock), clock, settings(BusConfig::can())),
+        None => {
             // The emulated bus has the module the command names, in the firmware variants asked for.
             let mut bus = SimConfig::with_addresses(&[args.module.get()]).map_err(CliError::usage)?;
             bus.variants = args.sim_variants.clone();
@@ -250,103 +239,17 @@ pub(crate) fn open(
             let client = Client::rs232(link, clock, settings(BusConfig::rs232())).map_err(failed)?;
             return Ok((client, Some(host)));
         }
-        PortUrl::Slcan(path) => {
-            let rate = SlcanBitrate::from_bps(args.bitrate)
-                .ok_or_else(|| CliError::usage(format!("{} bit/s is not an SLCAN bit rate", args.bitrate)))?;
-            let link = motionlink_link::url::open_slcan(path, Arc::clone(&clock), rate)?;
-            Client::can(tap.can_link(Box::new(link), &clock), clock, settings(BusConfig::can()))
-        }
-        PortUrl::SocketCan(ifname) => open_socketcan(ifname, tap, clock, settings(BusConfig::can()))?,
     };
     Ok((client.map_err(failed)?, None))
-}
-
-#[cfg(target_os = "linux")]
-fn open_socketcan(
-    ifname: &str,
-    tap: &Tap,
-    clock: SharedClock,
-    config: BusConfig,
-) -> Result<Result<Client, Error>, CliError> {
-    let link = motionlink_link::can::socketcan::SocketCanLink::open(ifname)?;
-    Ok(Client::can(tap.can_link(Box::new(link), &clock), clock, config))
-}
-
-#[cfg(not(target_os = "linux"))]
-fn open_socketcan(
-    _ifname: &str,
-    _tap: &Tap,
-    _clock: SharedClock,
-    _config: BusConfig,
-) -> Result<Result<Client, Error>, CliError> {
-    Err(CliError::usage("socketcan:// ports need Linux"))
 }
 
 fn parse_param(text: &str) -> Result<Param, CliError> {
     text.parse::<Param>().map_err(CliError::usage)
 }
 
-fn value_json(v: &Value) -> serde_json::Value {
-    match *v {
-        Value::F32(x) => json!(x),
-        Value::U32(x) => json!(x),
-        Value::I32(x) => json!(x),
-        Value::U16(x) => json!(x),
-        Value::I16(x) => json!(x),
-        Value::U8(x) => json!(x),
-        Value::PosStateDio { pos, state, dio } => json!({"position": pos, "short_state": common::flag_word_json(state),
-                                                         "dio": common::flag_word_json(dio)}),
-        Value::PosTime { pos, time_ms } => json!({"position": pos, "time_ms": time_ms}),
-    }
-}
-
-/// What `set` read back, in the parameter's unit: the write-only TargetPos, TargetVel and TargetAcc are read
-/// back by the library through their encoder-tick twins ([`Param::read_back_as`]), converted with the
-/// module's IncRatio by the library's [`Param::from_read_back_ticks`].
-fn read_back_json(m: &Module<'_>, p: Param, read: &Value) -> Result<serde_json::Value, CliError> {
-    let Some(twin) = p.read_back_as() else { return Ok(value_json(read)) };
-    let ratio = m.get(Param::IncRatio).map_err(failed)?;
-    match ratio.as_f64().and_then(|ratio| p.from_read_back_ticks(read, ratio)) {
-        Some(value) => Ok(json!(value)),
-        None => Err(CliError::transport(format!(
-            "{p} was read back from {twin} in encoder ticks, but the module's IncRatio is no number above 0"
-        ))),
-    }
-}
-
-/// The JSON name of a position-like quantity of a module of `kind`: `position_rad` or `position_m` for
-/// `stem` "position" (naming.md: the unit in the name).
-fn unit_key(stem: &str, kind: ModuleKind) -> String {
-    format!("{stem}_{}", kind.unit())
-}
-
-/// CubeState as a flag word (`word`, `flags`, `unknown_bits` when nonzero) with its `faults`.
-fn state_json(s: CubeState) -> serde_json::Value {
-    let mut v = json!({
-        "word": s.0,
-        "flags": s.iter().map(|f| f.label()).collect::<Vec<_>>(),
-    });
-    let unknown = motionlink_link::flags::FlagWord::unknown(s);
-    if unknown != 0 {
-        v["unknown_bits"] = json!(unknown);
-    }
-    v["faults"] = json!(s.faults().map(|f| f.label()).collect::<Vec<_>>());
-    v
-}
-
-/// A module's identity as JSON, `family` and `port` first.
-fn info_json(port: &str, m: &ModuleInfo) -> serde_json::Value {
-    common::identified(
-        "powercube",
-        port,
-        json!({
-            "module": m.address.get(),
-            "kind": m.kind.name(),
-            "version": m.version.to_string(),
-            "serial": m.serial,
-            "state": state_json(m.state),
-        }),
-    )
+/// Prints `result` as one JSON object of `motionlink powercube`: family, port and module first.
+fn print(out: &mut dyn Write, port: &str, module: Address, result: &impl serde::Serialize) -> Result<(), CliError> {
+    common::print_result(out, "powercube", port, &[("module", module.get().into())], result)
 }
 
 /// `motionlink powercube ...`
@@ -397,7 +300,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         _ => result.map_err(|e| {
             tap.name_absent(e, || {
                 let mut scan = format!("motionlink powercube --port {port}");
-                if args.baud != 9600 {
+                if args.baud != Baud::DEFAULT {
                     scan.push_str(&format!(" --baud {}", args.baud));
                 }
                 format!("no module answers at address {} on {port}; `{scan} scan` lists the modules there", args.module)
@@ -411,15 +314,6 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
         (result, closed) => result.and(closed),
     }
-}
-
-/// One JSON object of `motionlink powercube`: family, port and module first.
-fn identified(args: &Args, port: &str, fields: serde_json::Value) -> serde_json::Value {
-    let mut v = common::identified("powercube", port, json!({"module": args.module.get()}));
-    if let (Some(map), serde_json::Value::Object(f)) = (v.as_object_mut(), fields) {
-        map.extend(f);
-    }
-    v
 }
 
 /// Does what `args` ask of the module, on `client`.
@@ -439,11 +333,11 @@ fn act(
         Action::State => actions::state(args, &m, port, out)?,
         Action::Get { params } => actions::get(args, &m, port, params, out)?,
         Action::Set { param, value } => actions::set(args, &m, port, param, value, out)?,
-        Action::Home { timeout_s } => actions::home(args, &m, guard, port, *timeout_s, out)?,
+        Action::Home { timeout_s } => actions::home(args, &m, guard, port, timeout_s.get(), out)?,
         Action::Reset => actions::reset(args, &m, port, out)?,
         Action::Stop => actions::stop(args, &m, port, stopped, out)?,
         Action::Move { position, vel, acc, timeout_s, tolerance } => {
-            let spec = actions::move_spec(*position, *vel, *acc, *timeout_s, *tolerance)?;
+            let spec = MoveSpec::from_args(*position, *vel, *acc, *tolerance, *timeout_s);
             actions::move_to(args, &m, guard, port, &spec, out)?
         }
         Action::Watch { interval_ms, count, csv } => {
@@ -452,9 +346,7 @@ fn act(
                 (false, true) => WatchFormat::Json,
                 (false, false) => WatchFormat::Text,
             };
-            // Every JSON object names the family, the port and the module first.
-            let module_json = |fields| identified(args, port, fields);
-            watch(client, &m, &mut out, format, &module_json, *interval_ms, *count)?
+            watch(client, &m, port, &mut out, format, *interval_ms, *count)?
         }
         Action::Params | Action::Send { .. } => {}
     }
@@ -470,7 +362,8 @@ pub fn sim(args: SimArgs) -> Result<(), CliError> {
             SimConfig::from_toml(&text).map_err(CliError::usage)?
         }
         (None, true) => SimConfig::default(),
-        (None, false) => SimConfig::with_addresses(&args.modules).map_err(CliError::usage)?,
+        (None, false) => SimConfig::with_addresses(&args.modules.iter().map(|a| a.get()).collect::<Vec<_>>())
+            .map_err(CliError::usage)?,
     };
     let mut config = config;
     config.variants.extend(args.variants.iter().copied());

@@ -136,18 +136,11 @@ impl AsyncPowerCubeClient {
             None => self.module,
             Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
         };
-        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
         let guard = self.guard;
         Ok(spawn_task(done, async move {
-            let (p, s) = raise(
-                async {
-                    let m = c.module(Address::new(a)?);
-                    let kind = m.kind().await?;
-                    m.home_guarded(timeout, guard).await.map(|(p, s)| (in_unit(p, kind), s))
-                }
-                .await,
-            )?;
-            dict(move |py| home_record(py, a, p, s))
+            let r = raise(async { c.module(Address::new(a)?).home_guarded(timeout, guard).await }.await)?;
+            dict(move |py| home_record(py, a, &r))
         }))
     }
 
@@ -173,15 +166,8 @@ impl AsyncPowerCubeClient {
         let spec = move_spec(target, velocity, acceleration, tolerance, timeout_s).map_err(|f| to_pyerr(py, f))?;
         let guard = self.guard;
         Ok(spawn_task(done, async move {
-            let report = raise(
-                async {
-                    let m = c.module(Address::new(a)?);
-                    let kind = m.kind().await?;
-                    m.move_to_guarded(&spec, guard).await.map(|r| (kind, r))
-                }
-                .await,
-            )?;
-            dict(move |py| move_record(py, a, spec.target, &report))
+            let report = raise(async { c.module(Address::new(a)?).move_to_guarded(&spec, guard).await }.await)?;
+            dict(move |py| move_record(py, a, &report))
         }))
     }
 
@@ -194,7 +180,7 @@ impl AsyncPowerCubeClient {
             None => self.module,
             Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
         };
-        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
         let halting = Arc::clone(&c);
         let halt = async move {
             if let Err(e) = async { halting.module(Address::new(a)?).halt().await }.await {

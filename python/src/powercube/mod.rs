@@ -10,19 +10,21 @@ use records::*;
 use std::sync::Arc;
 use std::time::Duration;
 
-use motionlink_link::can::SlcanBitrate;
 use motionlink_link::cancel::CancelToken;
-use motionlink_link::url::PortUrl;
-use motionlink_link::SerialSettings;
-use motionlink_powercube::client::{BusConfig, Client, Guard, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Readback};
-use motionlink_powercube::model::{
-    Acceleration, Address, AxisUnit, CubeState, ModuleKind, Param, Position, Value, Velocity,
+use motionlink_powercube::args::{
+    Baud, CanBitRate, MotionTimeout, MoveAcceleration, MoveVelocity, PollInterval, ReplyTimeout, Target as MoveTarget,
+    Tolerance,
 };
+use motionlink_powercube::client::{
+    BusConfig, Client, Guard, HomeReport, ModuleInfo, ModulesAt, MoveReport, MoveSpec, PortLink,
+};
+use motionlink_powercube::model::{Address, AxisUnit, CubeState, ModuleKind, Param, Position, Value};
+use motionlink_powercube::report::SetReport;
 use motionlink_powercube::{AsyncClient, Error};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::common::{f32_py, json_py, opt_within, target, Int, Record, Slot, Target};
+use crate::common::{f32_py, json_py, target, Int, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
 use crate::wait::{
@@ -47,11 +49,35 @@ pub struct Settings {
     profile: Option<String>,
 }
 
-/// A module address as an argument gives it, in the library's range (a usage error naming it).
+/// The decimal text of the integer argument `i`, for the library's parser of the argument (one rule, one
+/// message, the command line's). Something that is no `int` (or an `int` wider than 64 bits) is refused
+/// here, naming `name` and its `range`.
+fn int_text(i: &Int, name: &str, range: std::ops::RangeInclusive<i64>) -> Result<String, Failure> {
+    match i.within::<i64>(FAMILY, name, i64::MIN..=i64::MAX) {
+        Ok(n) => Ok(n.to_string()),
+        Err(_) => Err(i.within::<i64>(FAMILY, name, range).err().unwrap_or_else(|| usage(format!("{name}: no int")))),
+    }
+}
+
+/// The checked value of the integer argument `i` (named `name`, in `range`), parsed by the library as the
+/// command line parses it.
+fn int_arg<T>(i: &Int, name: &str, range: std::ops::RangeInclusive<i64>) -> Result<T, Failure>
+where
+    T: std::str::FromStr,
+    T::Err: std::fmt::Display,
+{
+    int_text(i, name, range)?.parse::<T>().map_err(|e| usage(e.to_string()))
+}
+
+/// A module address as an argument gives it (a usage error naming it).
 fn module_address(module: &Int) -> Result<u8, Failure> {
-    let n: u8 = module.within(FAMILY, "module", 1..=i64::from(motionlink_powercube::wire::MAX_ADDRESS))?;
-    Address::new(n).map_err(|e| Error::from(e).failure())?;
-    Ok(n)
+    let max = i64::from(motionlink_powercube::wire::MAX_ADDRESS);
+    Ok(int_arg::<Address>(module, "module", 1..=max)?.get())
+}
+
+/// A library error (an argument refused) as a failure.
+fn refused(e: Error) -> Failure {
+    e.failure()
 }
 
 fn usage(msg: impl Into<String>) -> Failure {
@@ -61,10 +87,10 @@ fn usage(msg: impl Into<String>) -> Failure {
 /// The session's settings from `s`, checked.
 fn bus_config(s: &Settings, can: bool) -> Result<BusConfig, Failure> {
     let mut c = if can { BusConfig::can() } else { BusConfig::rs232() };
-    if let Some(t) = opt_within::<u64>(s.timeout_ms.as_ref(), FAMILY, "timeout_ms", 1..=60_000)? {
-        c.reply_timeout = Duration::from_millis(t);
+    if let Some(t) = &s.timeout_ms {
+        c.reply_timeout = int_arg::<ReplyTimeout>(t, "timeout_ms", 1..=60_000)?.get();
     }
-    c.poll_interval = Duration::from_millis(s.poll_ms.within(FAMILY, "poll_ms", 1..=10_000)?);
+    c.poll_interval = int_arg::<PollInterval>(&s.poll_ms, "poll_ms", 1..=10_000)?.get();
     Ok(c)
 }
 
@@ -72,8 +98,8 @@ fn bus_config(s: &Settings, can: bool) -> Result<BusConfig, Failure> {
 /// (they die with it: no watchdog is armed for them, as `motionlink powercube --port sim` does).
 fn open(port: Target, s: &Settings) -> Result<(Client, bool), Failure> {
     module_address(&s.module)?;
-    let baud: u32 = s.baud.within(FAMILY, "baud", 1..=4_000_000)?;
-    let bitrate: u32 = s.bitrate.within(FAMILY, "bitrate", 1..=1_000_000)?;
+    let baud = int_arg::<Baud>(&s.baud, "baud", 1200..=115_200)?;
+    let bitrate = int_arg::<CanBitRate>(&s.bitrate, "bitrate", 10_000..=1_000_000)?;
     let fail = |e: Error| e.failure();
     let rs232 = |link| Client::rs232(link, clock(), bus_config(s, false)?).map_err(fail);
     let can = |link| Client::can(link, clock(), bus_config(s, true)?).map_err(fail);
@@ -81,8 +107,12 @@ fn open(port: Target, s: &Settings) -> Result<(Client, bool), Failure> {
         Target::InProcess(InProcess::PowerCube(host)) => Ok((rs232(Box::new(host.connect().0))?, true)),
         Target::InProcess(InProcess::PowerCubeCan(bus)) => Ok((can(Box::new(bus.connect()))?, true)),
         Target::InProcess(_) => Err(usage("that emulator is not a PowerCube emulator")),
-        Target::Url(url) => match &url {
-            PortUrl::Sim => {
+        Target::Url(url) => match PortLink::open(&url, baud, bitrate, &clock()).map_err(fail)? {
+            Some(PortLink::Rs232(link)) => Ok((rs232(link)?, false)),
+            // An SLCAN adapter on a serial device or behind a TCP port (such as a served emulator's
+            // `slcan://tcp://HOST:PORT`), or SocketCAN.
+            Some(PortLink::Can(link)) => Ok((can(link)?, false)),
+            None => {
                 let device = motionlink_powercube::Emulator::new(&Default::default());
                 let host = motionlink_link::pipe::EmulatorHost::new(
                     device,
@@ -91,47 +121,21 @@ fn open(port: Target, s: &Settings) -> Result<(Client, bool), Failure> {
                 );
                 Ok((rs232(Box::new(host.connect().0))?, true))
             }
-            PortUrl::Serial(_) | PortUrl::Tcp { .. } => {
-                let settings = SerialSettings { dtr_rts_on: false, ..SerialSettings::new(baud) };
-                let link = url.open_byte_link(settings).map_err(|e| e.failure())?;
-                Ok((rs232(link)?, false))
-            }
-            PortUrl::Slcan(path) => {
-                let rate = SlcanBitrate::from_bps(bitrate)
-                    .ok_or_else(|| usage(format!("{bitrate} bit/s is not an SLCAN bit rate")))?;
-                // An SLCAN adapter on a serial device, or behind a TCP port (such as a served emulator's
-                // `slcan://tcp://HOST:PORT`).
-                let link = motionlink_link::url::open_slcan(path, clock(), rate).map_err(|e| e.failure())?;
-                Ok((can(Box::new(link))?, false))
-            }
-            PortUrl::SocketCan(ifname) => open_socketcan(ifname).and_then(|link| Ok((can(link)?, false))),
         },
     }
-}
-
-#[cfg(target_os = "linux")]
-fn open_socketcan(ifname: &str) -> Result<Box<dyn motionlink_link::can::CanLink>, Failure> {
-    let link = motionlink_link::can::socketcan::SocketCanLink::open(ifname).map_err(|e| e.failure())?;
-    Ok(Box::new(link))
-}
-
-#[cfg(not(target_os = "linux"))]
-fn open_socketcan(_ifname: &str) -> Result<Box<dyn motionlink_link::can::CanLink>, Failure> {
-    Err(usage("socketcan:// ports need Linux"))
 }
 
 fn parse_param(name: &str) -> Result<Param, Failure> {
     name.parse::<Param>().map_err(|e| usage(e.to_string()))
 }
 
-fn seconds(name: &str, s: f64) -> Result<Duration, Failure> {
-    if !(s.is_finite() && s > 0.0) {
-        return Err(usage(format!("{name} must be a number of seconds above 0, not {s}")));
-    }
-    Duration::try_from_secs_f64(s).map_err(|_| usage(format!("{name} {s} is not a duration in seconds")))
+/// A timeout in seconds, checked by the library.
+fn seconds(s: f64) -> Result<Duration, Failure> {
+    MotionTimeout::from_secs(s).map(MotionTimeout::get).map_err(refused)
 }
 
-/// The checked move `move` asks for; numbers in the module's own unit (rad or m).
+/// The checked move `move` asks for; numbers in the module's own unit (rad or m), each checked by the
+/// library as the command line checks it.
 fn move_spec(
     target: f64,
     velocity: Option<f64>,
@@ -139,15 +143,13 @@ fn move_spec(
     tolerance: Option<f64>,
     timeout_s: f64,
 ) -> Result<MoveSpec, Failure> {
-    let spec = MoveSpec {
-        target: Position::native(target as f32),
-        vel: velocity.map(|v| Velocity::native(v as f32)),
-        acc: acceleration.map(|a| Acceleration::native(a as f32)),
-        tolerance: tolerance.map(|t| Position::native(t as f32)),
-        timeout: seconds("timeout_s", timeout_s)?,
-    };
-    spec.validate().map_err(|e| e.failure())?;
-    Ok(spec)
+    Ok(MoveSpec::from_args(
+        MoveTarget::new(target).map_err(refused)?,
+        velocity.map(MoveVelocity::new).transpose().map_err(refused)?,
+        acceleration.map(MoveAcceleration::new).transpose().map_err(refused)?,
+        tolerance.map(Tolerance::new).transpose().map_err(refused)?.unwrap_or_default(),
+        MotionTimeout::from_secs(timeout_s).map_err(refused)?,
+    ))
 }
 
 /// The value `value` (a Python number) for parameter `p`, parsed as the command line parses it.
@@ -318,20 +320,10 @@ impl PowerCubeClient {
     fn info<'py>(&self, py: Python<'py>, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.address(py, module)?;
-        let (info, limits) = interruptible_read(py, None, move || -> Result<_, Error> {
-            let m = c.module(Address::new(a)?);
-            let info = m.info()?;
-            let limits: Vec<(Param, Value)> =
-                [Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::ActPos]
-                    .into_iter()
-                    .map(|p| m.get(p).map(|v| (p, v)))
-                    .collect::<Result<_, _>>()?;
-            Ok((info, limits))
-        })?
-        .or_raise(py)?;
-        let r = info_record(py, &info)?;
-        let (s, _) = suffix(info.kind.axis_unit());
-        for (p, v) in limits {
+        let details = interruptible_read(py, None, move || c.module(Address::new(a)?).details())?.or_raise(py)?;
+        let r = info_record(py, &details.info)?;
+        let (s, _) = suffix(details.info.kind.axis_unit());
+        for (p, v) in details.limits() {
             let name = match p {
                 Param::MinPos => format!("min_position{s}"),
                 Param::MaxPos => format!("max_position{s}"),
@@ -413,24 +405,13 @@ impl PowerCubeClient {
         let a = self.address(py, module)?;
         let p = parse_param(name).map_err(|f| to_pyerr(py, f))?;
         let v = parse_value(p, value).map_err(|f| to_pyerr(py, f))?;
-        let (read, kind) = py
+        let (readback, kind) = py
             .detach(|| -> Result<_, Error> {
                 let m = c.module(Address::new(a)?);
                 Ok((m.set_checked(p, v)?, m.kind()?))
             })
             .or_raise(py)?;
-        // As the CLI's `powercube set --json`: what was written, `ok`, what the module read back and
-        // whether that was verified (unit and access are attributes, as `get` has them).
-        let r = param_record(py, a, p, kind)?;
-        r.set("value", value_py(py, &v)?)?.set("ok", true)?;
-        let Readback { read, verified, not_verifiable } = read;
-        match read {
-            Some(back) => r.set("read_back", value_py(py, &back)?)?,
-            None => r.set("read_back", py.None())?,
-        };
-        r.set("verified", verified)?.set("not_verifiable", not_verifiable)?;
-        r.extras(&["unit", "access"])?;
-        Ok(r.done())
+        Ok(set_record(py, a, kind, &SetReport { param: p, value: v, readback })?.done())
     }
 
     /// Homes the module and waits for the end of homing (Ctrl-C halts it).
@@ -438,20 +419,15 @@ impl PowerCubeClient {
     fn home<'py>(&self, py: Python<'py>, module: Option<Int>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.address(py, module)?;
-        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
         let guard = self.guard;
         let r = interruptible(
             py,
             Some(&self.token),
-            || {
-                let m = c.module(Address::new(a)?);
-                let kind = m.kind()?;
-                m.home_guarded(timeout, guard, &mut |_| {}).map(|(p, s)| (in_unit(p, kind), s))
-            },
+            || c.module(Address::new(a)?).home_guarded(timeout, guard, &mut |_| {}),
             cancel_cause,
         )?;
-        let (p, s) = r.or_raise(py)?;
-        Ok(home_record(py, a, p, s)?.done())
+        Ok(home_record(py, a, &r.or_raise(py)?)?.done())
     }
 
     /// A checked ramp move to `target` (the module's unit: rad or m), waited for (Ctrl-C halts it).
@@ -474,15 +450,10 @@ impl PowerCubeClient {
         let r = interruptible(
             py,
             Some(&self.token),
-            || {
-                let m = c.module(Address::new(a)?);
-                let kind = m.kind()?;
-                m.move_to_guarded(&spec, guard, &mut |_| {}).map(|r| (kind, r))
-            },
+            || c.module(Address::new(a)?).move_to_guarded(&spec, guard, &mut |_| {}),
             cancel_cause,
         )?;
-        let report = r.or_raise(py)?;
-        Ok(move_record(py, a, spec.target, &report)?.done())
+        Ok(move_record(py, a, &r.or_raise(py)?)?.done())
     }
 
     /// Waits until the module stands still (no STATE_MOTION; Ctrl-C halts it); the state at the end.
@@ -490,7 +461,7 @@ impl PowerCubeClient {
     fn wait<'py>(&self, py: Python<'py>, module: Option<Int>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.address(py, module)?;
-        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
         let r = interruptible(
             py,
             Some(&self.token),

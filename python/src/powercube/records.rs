@@ -93,31 +93,42 @@ pub(super) fn in_unit(p: Position, kind: ModuleKind) -> Position {
     }
 }
 
-pub(super) fn move_record<'py>(
-    py: Python<'py>,
-    module: u8,
-    target: Position,
-    (kind, m): &(ModuleKind, MoveReport),
-) -> PyResult<Record<'py>> {
+pub(super) fn move_record<'py>(py: Python<'py>, module: u8, m: &MoveReport) -> PyResult<Record<'py>> {
     let r = with_state(py, module, m.state)?;
     r.set("action", "reached")?;
-    let unit = kind.axis_unit();
-    put_position(&r, "start", Position::new(m.start.value(), unit))?;
-    put_position(&r, "target", Position::new(target.value(), unit))?;
-    put_position(&r, "reached", Position::new(m.reached.value(), unit))?;
-    put_position(&r, "difference", Position::new(m.reached.value() - target.value(), unit))?;
+    put_position(&r, "start", m.start)?;
+    put_position(&r, "target", m.target)?;
+    put_position(&r, "reached", m.reached)?;
+    put_position(&r, "difference", Position::new(m.reached.value() - m.target.value(), m.kind.axis_unit()))?;
     r.set("verified", m.verified)?.set("not_verifiable", m.not_verifiable.clone())?;
-    let (s, _) = suffix(unit);
+    let (s, _) = suffix(m.kind.axis_unit());
     r.extras(&["unit", &format!("start{s}")])?;
     Ok(r)
 }
 
 /// The end of homing as the CLI's `powercube home --json` prints it.
-pub(super) fn home_record<'py>(py: Python<'py>, module: u8, p: Position, s: CubeState) -> PyResult<Record<'py>> {
-    let r = with_state(py, module, s)?;
+pub(super) fn home_record<'py>(py: Python<'py>, module: u8, h: &HomeReport) -> PyResult<Record<'py>> {
+    let r = with_state(py, module, h.state)?;
     r.set("action", "homed")?;
-    put_position(&r, "reached", p)?;
+    put_position(&r, "reached", h.reached)?;
+    r.set("verified", h.verified)?.set("not_verifiable", h.not_verifiable.clone())?;
     r.extras(&["unit"])?;
+    Ok(r)
+}
+
+/// A parameter written as the CLI's `powercube set --json` prints it: what was written, `ok`, what the
+/// module read back (in the parameter's unit) and whether that was verified (unit and access are
+/// attributes, as `get` has them).
+pub(super) fn set_record<'py>(py: Python<'py>, module: u8, kind: ModuleKind, w: &SetReport) -> PyResult<Record<'py>> {
+    let r = param_record(py, module, w.param, kind)?;
+    r.set("value", value_py(py, &w.value)?)?.set("ok", true)?;
+    match (w.readback.read_in_unit, &w.readback.read) {
+        (Some(in_unit), _) => r.set("read_back", in_unit)?,
+        (None, Some(back)) => r.set("read_back", value_py(py, back)?)?,
+        (None, None) => r.set("read_back", py.None())?,
+    };
+    r.set("verified", w.readback.verified)?.set("not_verifiable", w.readback.not_verifiable.clone())?;
+    r.extras(&["unit", "access"])?;
     Ok(r)
 }
 

@@ -15,8 +15,10 @@ use crate::model::{
     Acceleration, AckKind, Action, Address, Broadcast, ConfigWord, CubeState, Dio, ExtAck, Millis, ModuleKind, Motion,
     Param, Position, Ramp, Reply, Request, ShortState, Ticks, Value, Velocity,
 };
+use crate::report::ModuleDetails;
 use crate::session::{
-    BusConfig, Guard, HaltReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry, Session, Until,
+    BusConfig, Guard, HaltReport, HomeReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry,
+    Session, Until,
 };
 
 /// A session with the modules on one line or one CAN bus, for async callers (tokio). Share it by
@@ -267,6 +269,17 @@ impl AsyncModule<'_> {
         self.client.call(calls::info(self.address)).await
     }
 
+    /// Type, version, serial number and state, with the limits and the position
+    /// ([`ModuleDetails::PARAMS`]).
+    pub async fn details(&self) -> Result<ModuleDetails, Error> {
+        let info = self.info().await?;
+        let mut values = [Value::U8(0); 5];
+        for (v, p) in values.iter_mut().zip(ModuleDetails::PARAMS) {
+            *v = self.get(p).await?;
+        }
+        Ok(ModuleDetails::new(info, values))
+    }
+
     /// Reset.
     pub async fn reset(&self) -> Result<(), Error> {
         self.client.call(calls::action(self.address, Action::Reset)).await
@@ -366,12 +379,12 @@ impl AsyncModule<'_> {
     }
 
     /// Homes and waits for the end of homing; dropping the future halts the module.
-    pub async fn home_and_wait(&self, timeout: Duration) -> Result<(Position, CubeState), Error> {
+    pub async fn home_and_wait(&self, timeout: Duration) -> Result<HomeReport, Error> {
         self.client.call(calls::home_and_wait(self.address, timeout, None)).await
     }
 
     /// [`AsyncModule::home_and_wait`] under `guard`.
-    pub async fn home_guarded(&self, timeout: Duration, guard: Guard) -> Result<(Position, CubeState), Error> {
+    pub async fn home_guarded(&self, timeout: Duration, guard: Guard) -> Result<HomeReport, Error> {
         self.client.call(calls::home_and_wait(self.address, timeout, Some(guard))).await
     }
 

@@ -15,9 +15,10 @@ use crate::model::{
     Acceleration, AckKind, Action, Address, Broadcast, ConfigWord, CubeState, Dio, ExtAck, Millis, ModuleKind, Motion,
     Param, Position, Ramp, Reply, Request, ShortState, Ticks, Value, Velocity,
 };
+use crate::report::ModuleDetails;
 use crate::session::{
-    BusConfig, Guard, HaltReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Progress, Readback, ScanEntry, Session,
-    Until,
+    BusConfig, Guard, HaltReport, HomeReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Progress, Readback,
+    ScanEntry, Session, Until,
 };
 
 /// A session with the modules on one line (RS232) or one CAN bus, for blocking callers (any number of
@@ -342,6 +343,17 @@ impl Module<'_> {
         self.client.call(calls::info(self.address))
     }
 
+    /// Type, version, serial number and state, with the limits and the position
+    /// ([`ModuleDetails::PARAMS`]): what `motionlink powercube info` shows.
+    pub fn details(&self) -> Result<ModuleDetails, Error> {
+        let info = self.info()?;
+        let mut values = [Value::U8(0); 5];
+        for (v, p) in values.iter_mut().zip(ModuleDetails::PARAMS) {
+            *v = self.get(p)?;
+        }
+        Ok(ModuleDetails::new(info, values))
+    }
+
     /// Reset: clears the errors that can be cleared and STATE_HALTED.
     pub fn reset(&self) -> Result<(), Error> {
         self.client.call(calls::action(self.address, Action::Reset))
@@ -433,21 +445,19 @@ impl Module<'_> {
 
     /// Homes the module and waits for the end of homing (see [`Op::HomeAndWait`]); position and state at
     /// the end.
-    pub fn home_and_wait(
-        &self,
-        timeout: Duration,
-        progress: &mut dyn FnMut(&Progress),
-    ) -> Result<(Position, CubeState), Error> {
+    pub fn home_and_wait(&self, timeout: Duration, progress: &mut dyn FnMut(&Progress)) -> Result<HomeReport, Error> {
         self.client.call_with(calls::home_and_wait(self.address, timeout, None), progress)
     }
 
-    /// [`Module::home_and_wait`] under `guard` (see [`Guard`]): what `motionlink powercube home` does.
+    /// [`Module::home_and_wait`] under `guard` (see [`Guard`]): what `motionlink powercube home` does. What
+    /// the guard could not do (a module that ignores the RS232 watchdog refresh homes without its watchdog)
+    /// is in the report's `not_verifiable`.
     pub fn home_guarded(
         &self,
         timeout: Duration,
         guard: Guard,
         progress: &mut dyn FnMut(&Progress),
-    ) -> Result<(Position, CubeState), Error> {
+    ) -> Result<HomeReport, Error> {
         self.client.call_with(calls::home_and_wait(self.address, timeout, Some(guard)), progress)
     }
 

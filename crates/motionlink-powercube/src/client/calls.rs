@@ -9,7 +9,9 @@ use crate::model::{
     Acceleration, AckKind, Action, Address, ConfigWord, CubeState, Dio, ExtAck, Millis, ModuleKind, Motion, Param,
     Position, Reply, Request, ShortState, Ticks, Value, Velocity,
 };
-use crate::session::{Guard, HaltReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry, Until};
+use crate::session::{
+    Guard, HaltReport, HomeReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry, Until,
+};
 
 /// An operation and the typed result it ends with.
 pub(crate) struct Call<T> {
@@ -117,12 +119,12 @@ pub(crate) fn wait(a: Address, until: Until, timeout: Duration) -> Call<CubeStat
     call!(Op::Wait(a, until, timeout), Output::State(s) => s)
 }
 
-pub(crate) fn home_and_wait(a: Address, timeout: Duration, guard: Option<Guard>) -> Call<(Position, CubeState)> {
+pub(crate) fn home_and_wait(a: Address, timeout: Duration, guard: Option<Guard>) -> Call<HomeReport> {
     let op = match guard {
         Some(g) => Op::HomeGuarded(a, timeout, g),
         None => Op::HomeAndWait(a, timeout),
     };
-    call!(op, Output::Homed(p, s) => (p, s))
+    call!(op, Output::Homed(r) => r)
 }
 
 pub(crate) fn move_to(a: Address, spec: MoveSpec, guard: Option<Guard>) -> Call<MoveReport> {

@@ -30,15 +30,18 @@
 mod asynch;
 mod blocking;
 mod calls;
+mod port;
 #[cfg(test)]
 mod tests;
 
 #[cfg(feature = "tokio")]
 pub use asynch::{AsyncClient, AsyncModule};
 pub use blocking::{Client, Module};
+pub use port::PortLink;
 
 pub use crate::error::{Error, RefreshTiming, RoundTrips, StopOutcome};
 pub use crate::model::WATCHDOG_TIMEOUT;
 pub use crate::session::{
-    BusConfig, Guard, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback, ScanEntry,
+    BusConfig, Guard, HaltReport, HomeReport, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback,
+    ScanEntry,
 };

@@ -50,8 +50,8 @@ use motionlink_link::session::{Action as LinkAction, Event, Input, OpId, OpIds};
 use motionlink_link::{LinkError, Timestamp};
 
 pub use types::{
-    BusConfig, Guard, HaltReport, ModuleFindings, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback,
-    ScanEntry, Until, HALT_SETTLE,
+    BusConfig, Guard, HaltReport, HomeReport, ModuleFindings, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress,
+    Readback, ScanEntry, Until, HALT_SETTLE,
 };
 
 use self::core::Core;
@@ -137,9 +137,11 @@ pub enum Op {
     /// tolerance. Any failure after the motion command halts the module and says whether that was
     /// confirmed. [`Output::Moved`].
     MoveTo(Address, MoveSpec),
-    /// [`Op::HomeAndWait`] under a [`Guard`]. [`Output::Homed`].
+    /// [`Op::HomeAndWait`] under a [`Guard`]; what the guard could not do is in the report's
+    /// `not_verifiable`. [`Output::Homed`].
     HomeGuarded(Address, Duration, Guard),
-    /// [`Op::MoveTo`] under a [`Guard`]: what `motionlink powercube move` does. [`Output::Moved`].
+    /// [`Op::MoveTo`] under a [`Guard`]: what `motionlink powercube move` does. The move's numbers, units and
+    /// limits are checked before the guard arms anything. [`Output::Moved`].
     MoveGuarded(Address, MoveSpec, Guard),
     /// Halts a module after an action that may have set it in motion cannot go on: up to three Halts, then
     /// a broadcast Halt and the watchdog refresh stopped. [`Output::Stop`].
@@ -214,8 +216,8 @@ pub enum Output {
     Info(ModuleInfo),
     /// The extended acknowledge of a motion command, if one was asked for.
     ExtAck(Option<ExtAck>),
-    /// Where homing ended, and the state.
-    Homed(Position, CubeState),
+    /// What homing did.
+    Homed(HomeReport),
     /// What a checked move did.
     Moved(MoveReport),
     /// What became of a stop.

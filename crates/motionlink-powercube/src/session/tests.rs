@@ -465,9 +465,16 @@ fn a_scan_asks_each_address_on_rs232_and_all_at_once_on_can() {
 #[test]
 fn homing_is_waited_for_with_progress_at_the_poll_rate() {
     let mut b = Bench::rs232(&[1]);
-    let Ok(Output::Homed(p, s)) = b.run(Op::HomeAndWait(addr(1), Duration::from_secs(10))) else { panic!() };
+    let Ok(Output::Homed(r)) = b.run(Op::HomeAndWait(addr(1), Duration::from_secs(10))) else { panic!() };
+    let (p, s) = (r.reached, r.state);
     assert!(s.contains(StateFlag::HomeOk) && !s.contains(StateFlag::Motion), "{s}");
     assert!(p.value().abs() < 1e-6, "homed at the switch: {p}");
+    assert_eq!(
+        (r.kind, p.unit()),
+        (ModuleKind::Rotary, crate::model::AxisUnit::Radian),
+        "the kind read before homing names the unit"
+    );
+    assert!(r.verified && r.not_verifiable.is_empty(), "no guard asked for: nothing left undone");
     let polls = b.events.iter().filter(|e| matches!(e, Event::Progress(..))).count();
     assert!(polls >= 5, "{polls}");
     assert!(b.session.started().is_empty(), "seen to end");

@@ -160,28 +160,25 @@ impl MoveSpec {
         self.tolerance.unwrap_or(Self::DEFAULT_TOLERANCE)
     }
 
-    /// Checks that every number makes sense (finite; velocity, acceleration, tolerance and timeout above
-    /// 0; the tolerance at most [`MoveSpec::MAX_TOLERANCE`]) and that the units agree with each other (rad and m are not mixed).
+    /// Checks that every number makes sense (the rules of [`crate::args`]: a finite target; velocity,
+    /// acceleration and tolerance above 0, the tolerance at most [`MoveSpec::MAX_TOLERANCE`]; a timeout
+    /// above 0) and that the units agree with each other (rad and m are not mixed).
     pub fn validate(&self) -> Result<(), Error> {
-        let bad = |what, must, value: String| Err(Error::InvalidArgument { what, must, value });
-        if !self.target.value().is_finite() {
-            return bad("the target position", "a finite number", self.target.value().to_string());
+        use crate::args::{MoveAcceleration, MoveVelocity, Target, Tolerance};
+        Target::new(f64::from(self.target.value()))?;
+        if let Some(v) = self.vel {
+            MoveVelocity::new(f64::from(v.value()))?;
         }
-        for (what, v) in
-            [("the velocity", self.vel.map(|v| v.value())), ("the acceleration", self.acc.map(|a| a.value()))]
-        {
-            if let Some(v) = v {
-                if !(v.is_finite() && v > 0.0) {
-                    return bad(what, "a number above 0", v.to_string());
-                }
-            }
+        if let Some(a) = self.acc {
+            MoveAcceleration::new(f64::from(a.value()))?;
         }
-        let tolerance = self.tolerance().value();
-        if !(tolerance.is_finite() && tolerance > 0.0 && tolerance <= Self::MAX_TOLERANCE.value()) {
-            return bad("the tolerance", "a number above 0 and at most 0.1 (rad or m)", tolerance.to_string());
-        }
+        Tolerance::new(f64::from(self.tolerance().value()))?;
         if self.timeout.is_zero() {
-            return bad("the timeout", "above 0", format!("{:?}", self.timeout));
+            return Err(Error::InvalidArgument {
+                what: "the timeout",
+                must: "a number of seconds above 0",
+                value: format!("{:?}", self.timeout),
+            });
         }
         let units = [
             Some(self.target.unit()),
@@ -191,7 +188,11 @@ impl MoveSpec {
         ];
         let said: Vec<AxisUnit> = units.into_iter().flatten().filter(|u| *u != AxisUnit::ModuleUnit).collect();
         if said.windows(2).any(|w| w[0] != w[1]) {
-            return bad("the move's quantities", "all in rad or all in m", format!("{self:?}"));
+            return Err(Error::InvalidArgument {
+                what: "the move's quantities",
+                must: "all in rad or all in m",
+                value: format!("{self:?}"),
+            });
         }
         Ok(())
     }
@@ -205,15 +206,21 @@ pub const HALT_SETTLE: Duration = Duration::from_millis(500);
 /// the Halt, and then its state showed no STATE_MOTION.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HaltReport {
+    /// Rotary or linear: the unit of `position` (read after the Halt, never before it).
+    pub kind: ModuleKind,
     /// The state word read after the Halt (STATE_HALTED set, STATE_MOTION clear).
     pub state: CubeState,
-    /// The actual position then (ActPos; rad or m once the session knows the module's kind).
+    /// The actual position then (ActPos, in the unit of `kind`).
     pub position: Position,
 }
 
 /// What a checked move ([`Op::MoveTo`](super::Op::MoveTo)) did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MoveReport {
+    /// Rotary or linear: the unit of every position here (read before the move).
+    pub kind: ModuleKind,
+    /// The target asked for.
+    pub target: Position,
     /// Where the module stood before.
     pub start: Position,
     /// The final actual position, read from the module after the ramp ended (twice, both within the
@@ -231,6 +238,24 @@ pub struct MoveReport {
     pub not_verifiable: Vec<String>,
 }
 
+/// What homing ([`Op::HomeAndWait`](super::Op::HomeAndWait), [`Op::HomeGuarded`](super::Op::HomeGuarded))
+/// did: the module showed STATE_HOME_OK and stood still.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HomeReport {
+    /// Rotary or linear: the unit of `reached` (read before homing).
+    pub kind: ModuleKind,
+    /// The actual position after homing.
+    pub reached: Position,
+    /// The state word at the end.
+    pub state: CubeState,
+    /// True when homing ran as it was asked to: under a [`Guard::Watchdog`] that could not arm the
+    /// module's watchdog, false.
+    pub verified: bool,
+    /// What the guard could not do, and why, in plain words (empty when `verified`): a module that ignores
+    /// the RS232 broadcast refresh homes without its watchdog.
+    pub not_verifiable: Vec<String>,
+}
+
 /// How a parameter written with [`Op::SetChecked`](super::Op::SetChecked) was verified.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Readback {
@@ -240,6 +265,10 @@ pub struct Readback {
     /// converts it into the written parameter's unit). `None` when nothing could be read back that shows
     /// the value written.
     pub read: Option<Value>,
+    /// For TargetPos / TargetVel / TargetAcc read back through their tick twin: the ticks read, in the
+    /// written parameter's own unit (ticks / IncRatio, [`Param::from_read_back_ticks`](crate::model::Param::from_read_back_ticks)).
+    /// `None` otherwise (`read` is then in the parameter's unit already).
+    pub read_in_unit: Option<f64>,
     /// True when the value was read back and found as written.
     pub verified: bool,
     /// Why the value could not be verified, in plain words (empty when `verified`).
@@ -249,12 +278,12 @@ pub struct Readback {
 impl Readback {
     /// Read back and found as written.
     pub fn same(read: Value) -> Readback {
-        Readback { read: Some(read), verified: true, not_verifiable: Vec::new() }
+        Readback { read: Some(read), read_in_unit: None, verified: true, not_verifiable: Vec::new() }
     }
 
     /// Not verifiable, for the reason given.
     pub fn unverified(why: impl Into<String>) -> Readback {
-        Readback { read: None, verified: false, not_verifiable: vec![why.into()] }
+        Readback { read: None, read_in_unit: None, verified: false, not_verifiable: vec![why.into()] }
     }
 }
 

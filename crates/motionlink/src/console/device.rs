@@ -293,6 +293,12 @@ pub trait Device: Send + Sync + 'static {
         name: String,
         value: String,
     ) -> BoxFuture<'static, Result<ParamValue, Failure>>;
+    /// The library's report of the motion or action `what` ("move", "jog", an action's label) of `unit`
+    /// that just ended well, as it serialises (the fields the command line's `--json` prints): the hub sends
+    /// it with the motion's end (`report`). Taken once; `None` where the family keeps none.
+    fn take_report(&self, _unit: u8, _what: &str) -> Option<Value> {
+        None
+    }
     /// The error history of `unit`, decoded: `{"title", "entries": [{"code", "text", "bits": [...]}]}`.
     fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Value, Failure>>;
     /// Ends the session (the library stops what it started and says whether that was confirmed). Called

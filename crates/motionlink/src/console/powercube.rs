@@ -4,13 +4,14 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use motionlink_link::can::{CanLink, SlcanBitrate};
+use motionlink_link::can::CanLink;
 use motionlink_link::capture::{TapCanLink, TapLink};
 use motionlink_link::link::Link;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
-use motionlink_link::{SerialSettings, SharedClock};
-use motionlink_powercube::client::{BusConfig, Client, Guard, ModulesAt, MoveSpec};
+use motionlink_link::SharedClock;
+use motionlink_powercube::args::{Baud, CanBitRate, MotionTimeout, MoveVelocity, ReplyTimeout, Target};
+use motionlink_powercube::client::{BusConfig, Client, Guard, ModulesAt, MoveSpec, PortLink};
 use motionlink_powercube::model::{
     Address, AxisUnit, CubeState, ModuleKind, Param, Position, ShortFlag, ShortState, Value as CubeValue, Velocity,
     PARAMS,
@@ -21,8 +22,8 @@ use motionlink_powercube::{AsyncClient, Emulator, Error};
 use serde_json::{json, Value};
 
 use super::device::{
-    error_history, finite, Action, BoxFuture, Device, ErrorEntry, Failure, JogDirection, Motion, Param as Row,
-    ParamValue, ReadBack, Sample, Unit,
+    error_history, Action, BoxFuture, Device, ErrorEntry, Failure, JogDirection, Motion, Param as Row, ParamValue,
+    ReadBack, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -39,17 +40,17 @@ pub struct Args {
     pub device: super::DeviceArg,
     /// Only these module addresses (such as 1,17) instead of a scan of 1..31; with `--port sim`, the modules
     /// the emulated bus has (default: 1).
-    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u8).range(1..=31))]
-    pub modules: Vec<u8>,
-    /// RS232 baud rate (with `--port sim`: the emulated line runs at this rate).
-    #[arg(long, default_value_t = 9600, value_parser = clap::value_parser!(u32).range(1..))]
-    pub baud: u32,
-    /// CAN bit rate of an SLCAN adapter (10000 .. 1000000).
-    #[arg(long, default_value_t = 1_000_000)]
-    pub bitrate: u32,
+    #[arg(long, value_delimiter = ',')]
+    pub modules: Vec<Address>,
+    /// RS232 baud rate, one of 1200 .. 115200 (with `--port sim`: the emulated line runs at this rate).
+    #[arg(long, default_value = "9600")]
+    pub baud: Baud,
+    /// CAN bit rate of an SLCAN adapter: one of the rates SLCAN offers, 10000 .. 1000000.
+    #[arg(long, default_value = "1000000")]
+    pub bitrate: CanBitRate,
     /// Acknowledge timeout in ms, 1 to 60000 (default: 200 on RS232, 50 on CAN).
-    #[arg(long, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000))]
-    pub timeout_ms: Option<u64>,
+    #[arg(long, value_name = "MS")]
+    pub timeout_ms: Option<ReplyTimeout>,
     /// Do not arm the module watchdog for moves, jogs and homing (a console that dies then leaves the module
     /// moving). A closed page, Stop and the end of the console still halt it.
     #[arg(long)]
@@ -84,8 +85,16 @@ struct PowerCube {
     turn: std::sync::atomic::AtomicU64,
     /// The last velocity, current and state word read of each module.
     slow: std::sync::Mutex<std::collections::HashMap<u8, Slow>>,
+    /// The report of each motion that ended well, by module and motion ("move", "jog", "Home"), until the
+    /// hub takes it ([`Device::take_report`]).
+    reports: std::sync::Mutex<std::collections::HashMap<(u8, &'static str), Value>>,
     /// The last emulator, kept alive with the session for `--port sim`.
     _host: Option<EmulatorHost<Emulator>>,
+}
+
+/// The numbers of `modules`.
+fn addresses(modules: &[Address]) -> Vec<u8> {
+    modules.iter().map(|a| a.get()).collect()
 }
 
 /// Opens the session `args` ask for, its link tapped into the traffic log.
@@ -104,7 +113,7 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
         let timeout = args.timeout_ms;
         move |mut c: BusConfig| {
             if let Some(t) = timeout {
-                c.reply_timeout = Duration::from_millis(t);
+                c.reply_timeout = t.get();
             }
             c
         }
@@ -120,48 +129,24 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     let can_link = move |link: Box<dyn CanLink>| -> Box<dyn CanLink> {
         Box::new(TapCanLink::new(link, Arc::clone(&clock3), Arc::clone(&tap2)))
     };
+    // Opening a serial device or an SLCAN adapter blocks: on the blocking pool.
+    let (baud, bitrate, c2, opening) = (args.baud, args.bitrate, Arc::clone(clock), url.clone());
+    let opened = tokio::task::spawn_blocking(move || PortLink::open(&opening, baud, bitrate, &c2))
+        .await
+        .map_err(|e| CliError::transport(format!("the opening task failed: {e}")))?
+        .map_err(|e| crate::common::classified(&e))?;
     let mut host = None;
     let c = Arc::clone(clock);
-    let client: Result<Client, Error> = match &url {
-        PortUrl::Serial(_) | PortUrl::Tcp { .. } => {
-            let url = url.clone();
-            let baud = args.baud;
-            let link = tokio::task::spawn_blocking(move || {
-                url.open_byte_link(SerialSettings { dtr_rts_on: false, ..SerialSettings::new(baud) })
-            })
-            .await
-            .map_err(|e| CliError::transport(format!("the opening task failed: {e}")))??;
-            Client::rs232(byte_link(link), c, settings(BusConfig::rs232()))
-        }
-        PortUrl::Sim => {
-            let modules = if args.modules.is_empty() { vec![1] } else { args.modules.clone() };
+    let client = match opened {
+        Some(PortLink::Rs232(link)) => Client::rs232(byte_link(link), c, settings(BusConfig::rs232())),
+        Some(PortLink::Can(link)) => Client::can(can_link(link), c, settings(BusConfig::can())),
+        None => {
+            let modules = if args.modules.is_empty() { vec![1] } else { addresses(&args.modules) };
             let bus = SimConfig::with_addresses(&modules).map_err(CliError::usage)?;
-            let h = EmulatorHost::new(Emulator::new(&bus), Arc::clone(clock), PipeConfig::paced(args.baud));
+            let h = EmulatorHost::new(Emulator::new(&bus), Arc::clone(clock), PipeConfig::paced(args.baud.get()));
             let link: Box<dyn Link> = Box::new(h.connect().0);
             host = Some(h);
             Client::rs232(byte_link(link), c, settings(BusConfig::rs232()))
-        }
-        PortUrl::Slcan(path) => {
-            let rate = SlcanBitrate::from_bps(args.bitrate)
-                .ok_or_else(|| CliError::usage(format!("{} bit/s is not an SLCAN bit rate", args.bitrate)))?;
-            let path = path.clone();
-            let c2 = Arc::clone(clock);
-            let link = tokio::task::spawn_blocking(move || motionlink_link::url::open_slcan(&path, c2, rate))
-                .await
-                .map_err(|e| CliError::transport(format!("the opening task failed: {e}")))??;
-            Client::can(can_link(Box::new(link)), c, settings(BusConfig::can()))
-        }
-        PortUrl::SocketCan(ifname) => {
-            #[cfg(target_os = "linux")]
-            {
-                let link = motionlink_link::can::socketcan::SocketCanLink::open(ifname)?;
-                Client::can(can_link(Box::new(link)), c, settings(BusConfig::can()))
-            }
-            #[cfg(not(target_os = "linux"))]
-            {
-                let _ = ifname;
-                return Err(CliError::usage("socketcan:// ports need Linux"));
-            }
         }
     };
     let client = client.map_err(|e| crate::common::classified(&e))?;
@@ -170,8 +155,9 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     let device = PowerCube {
         client,
         port: port.to_string(),
-        modules: args.modules.clone(),
+        modules: addresses(&args.modules),
         guard,
+        reports: std::sync::Mutex::new(std::collections::HashMap::new()),
         kinds: std::sync::Mutex::new([None; 32]),
         turn: std::sync::atomic::AtomicU64::new(0),
         slow: std::sync::Mutex::new(std::collections::HashMap::new()),
@@ -258,12 +244,14 @@ impl PowerCube {
         }
     }
 
-    fn speed(speed: Option<f64>) -> Result<Option<f32>, Failure> {
-        match speed {
-            None => Ok(None),
-            Some(v) if finite("velocity", v)? > 0.0 => Ok(Some(v as f32)),
-            Some(v) => Err(Failure::usage(format!("velocity {v}: give a number above 0"))),
-        }
+    /// The velocity of a move or jog, checked as every front end checks it.
+    fn speed(speed: Option<f64>) -> Result<Option<MoveVelocity>, Failure> {
+        speed.map(MoveVelocity::new).transpose().map_err(failure)
+    }
+
+    /// Keeps `report` (a motion `what` of module `unit` ended well) for the hub to send with its end.
+    fn keep_report(&self, unit: u8, what: &'static str, report: &impl serde::Serialize) {
+        motionlink_link::clock::lock(&self.reports).insert((unit, what), crate::common::to_json(report));
     }
 }
 
@@ -374,17 +362,18 @@ impl Device for PowerCube {
     }
 
     fn move_to(self: Arc<Self>, unit: u8, target: f64, speed: Option<f64>) -> Result<Motion, Failure> {
-        let target = finite("target", target)?;
+        let target = Target::new(target).map_err(failure)?;
         let vel = Self::speed(speed)?;
         self.module(unit)?;
         Ok(Box::pin(async move {
             let m = self.module(unit)?;
             let axis = self.unit_of(&m).await?;
-            let vel = vel.map(|v| Velocity::new(v, axis));
-            let spec = MoveSpec { vel, ..MoveSpec::to(Position::new(target as f32, axis)) };
+            let vel = vel.map(|v| Velocity::new(v.value(), axis));
+            let spec = MoveSpec { vel, ..MoveSpec::to(Position::new(target.value(), axis)) };
             // Limits, read-backs and the final position checked; dropped, the module is halted.
             let r = m.move_to_guarded(&spec, self.guard).await.map_err(failure)?;
-            Ok(format!("module {unit} at {:.4} (target {target}), state {}", r.reached.value(), r.state))
+            self.keep_report(unit, "move", &r);
+            Ok(format!("module {unit} at {:.4} (target {}), state {}", r.reached.value(), target.value(), r.state))
         }))
     }
 
@@ -394,7 +383,7 @@ impl Device for PowerCube {
         Ok(Box::pin(async move {
             let m = self.module(unit)?;
             let axis = self.unit_of(&m).await?;
-            let vel = vel.map(|v| Velocity::new(v, axis));
+            let vel = vel.map(|v| Velocity::new(v.value(), axis));
             // A checked ramp to the soft limit in the jog's direction; it runs until the jog ends (the future
             // dropped: the module is halted) or the limit is reached.
             let limit = match direction {
@@ -409,6 +398,7 @@ impl Device for PowerCube {
                 ..MoveSpec::to(Position::new(target as f32, axis))
             };
             let r = m.move_to_guarded(&spec, self.guard).await.map_err(failure)?;
+            self.keep_report(unit, "jog", &r);
             Ok(format!("module {unit} reached its {} at {:.4}", limit.name(), r.reached.value()))
         }))
     }
@@ -438,9 +428,12 @@ impl Device for PowerCube {
         self.module(unit)?;
         match name {
             "home" => Ok(Box::pin(async move {
-                let (p, s) =
-                    self.module(unit)?.home_guarded(Duration::from_secs(60), self.guard).await.map_err(failure)?;
-                Ok(format!("module {unit} homed at {:.4}, state {s}", p.value()))
+                let timeout = MotionTimeout::DEFAULT.get();
+                let r = self.module(unit)?.home_guarded(timeout, self.guard).await.map_err(failure)?;
+                self.keep_report(unit, "Home", &r);
+                let unverified =
+                    if r.verified { String::new() } else { format!("; not verified: {}", r.not_verifiable.join("; ")) };
+                Ok(format!("module {unit} homed at {:.4}, state {}{unverified}", r.reached.value(), r.state))
             })),
             "reset" => Ok(Box::pin(async move {
                 let released = self.module(unit)?.reset_and_release_watchdog().await.map_err(failure)?;
@@ -538,6 +531,12 @@ impl Device for PowerCube {
                 &[entry],
             ))
         })
+    }
+
+    fn take_report(&self, unit: u8, what: &str) -> Option<Value> {
+        let mut reports = motionlink_link::clock::lock(&self.reports);
+        let key = *reports.keys().find(|(u, w)| *u == unit && *w == what)?;
+        reports.remove(&key)
     }
 
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {

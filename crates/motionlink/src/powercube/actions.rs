@@ -1,21 +1,40 @@
 //! The actions of `motionlink powercube` on one module: one function per action (`scan`, `info` and `watch`
-//! are in `show`, `send` in `send`).
+//! are in `show`, `send` in `send`). With `--json` each prints the library's report as it serialises.
 
 use super::*;
+use motionlink_powercube::report::{ParamReading, SetReport, StateReport};
+
+/// A report with what the command line adds: the action's tag (`homed`, `reached`, `halted`, `reset`),
+/// `ok` where the action has no report of its own to say so, and for `stop` who held the port.
+#[derive(serde::Serialize)]
+struct Acted<'a, T: serde::Serialize> {
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    ok: bool,
+    action: &'static str,
+    #[serde(flatten)]
+    report: T,
+    /// `stop` only (`Some`): the motionlink it stopped first, or null.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    holder: Option<Option<&'a crate::portlock::Stopped>>,
+}
+
+/// What `reset` did besides the Reset.
+#[derive(serde::Serialize)]
+struct Released {
+    watchdog_released: bool,
+}
 
 /// `state`: reads and prints the module's CubeState, flag by flag.
 pub(super) fn state(args: &Args, m: &Module<'_>, port: &str, out: &mut dyn Write) -> Result<(), CliError> {
     let s = m.state().map_err(failed)?;
     if args.json {
-        common::print_json(out, &identified(args, port, state_json(s)))?;
-    } else {
-        writeln!(out, "CubeState {:#010x}", s.0)?;
-        let rows: Vec<_> =
-            s.iter().map(|f| (f.label(), format!("{:<11}  {}", f.class().name(), f.meaning()))).collect();
-        common::print_table(out, &rows)?;
-        if s.is_empty() {
-            writeln!(out, "(no flag set)")?;
-        }
+        return print(out, port, args.module, &StateReport(s));
+    }
+    writeln!(out, "CubeState {:#010x}", s.0)?;
+    let rows: Vec<_> = s.iter().map(|f| (f.label(), format!("{:<11}  {}", f.class().name(), f.meaning()))).collect();
+    common::print_table(out, &rows)?;
+    if s.is_empty() {
+        writeln!(out, "(no flag set)")?;
     }
     Ok(())
 }
@@ -30,25 +49,16 @@ pub(super) fn get(
 ) -> Result<(), CliError> {
     let params = params.iter().map(|p| parse_param(p)).collect::<Result<Vec<_>, _>>()?;
     let mut rows = Vec::new();
-    for p in params {
-        let v = m.get(p).map_err(failed)?;
+    for param in params {
+        let value = m.get(param).map_err(failed)?;
         // The unit depends on the module type (rad or m): no guessing when it cannot be read.
         let kind = m.kind().map_err(|e| {
-            context(e, format!("{} read, but the module type (and so its unit) cannot be read", p.name()))
+            context(e, format!("{} read, but the module type (and so its unit) cannot be read", param.name()))
         })?;
         if args.json {
-            let access = PARAMS.iter().find(|e| e.id == u32::from(p.id())).map_or("", |e| e.access.short());
-            common::print_json(
-                out,
-                &identified(
-                    args,
-                    port,
-                    json!({"name": p.name(), "id": p.id(), "value": value_json(&v),
-                           "unit": p.unit().symbol(kind), "access": access}),
-                ),
-            )?;
+            print(out, port, args.module, &ParamReading { param, kind, value })?;
         } else {
-            rows.push((p.name().to_string(), v.show(p, kind)));
+            rows.push((param.name().to_string(), value.show(param, kind)));
         }
     }
     if !args.json {
@@ -66,52 +76,49 @@ pub(super) fn set(
     value: &str,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    let p = parse_param(param)?;
-    let v = Value::parse(p, value).map_err(CliError::usage)?;
+    let param = parse_param(param)?;
+    let value = Value::parse(param, value).map_err(CliError::usage)?;
     // Targets beyond their limits are refused; what was written is read back where the module allows it.
-    let Readback { read, verified, not_verifiable } = m.set_checked(p, v).map_err(failed)?;
+    let readback = m.set_checked(param, value).map_err(failed)?;
     if args.json {
-        let read_back = match read {
-            Some(r) => Some(read_back_json(m, p, &r)?),
-            None => None,
-        };
-        let result = json!({"name": p.name(), "id": p.id(), "value": value_json(&v), "ok": true,
-                "read_back": read_back, "verified": verified, "not_verifiable": not_verifiable});
-        common::print_json(out, &identified(args, port, result))?;
-    } else {
-        let kind = m.kind().map_err(|e| {
-            context(e, format!("{} was set, but the module type (and so its unit) cannot be read", p.name()))
-        })?;
-        let how =
-            if verified { "read back".to_string() } else { format!("not verified: {}", not_verifiable.join("; ")) };
-        writeln!(out, "{} set to {} ({how})", p.name(), v.show(p, kind))?;
+        return print(out, port, args.module, &SetReport { param, value, readback });
     }
+    let kind = m.kind().map_err(|e| {
+        context(e, format!("{} was set, but the module type (and so its unit) cannot be read", param.name()))
+    })?;
+    let how = if readback.verified {
+        "read back".to_string()
+    } else {
+        format!("not verified: {}", readback.not_verifiable.join("; "))
+    };
+    writeln!(out, "{} set to {} ({how})", param.name(), value.show(param, kind))?;
     Ok(())
 }
 
-/// `home`: homes the module with a progress bar, giving up after `timeout_s`.
+/// `home`: homes the module with a progress bar, giving up after `timeout`.
 pub(super) fn home(
     args: &Args,
     m: &Module<'_>,
     guard: Guard,
     port: &str,
-    timeout_s: f64,
+    timeout: std::time::Duration,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    let timeout = positive_secs("--timeout-s", timeout_s)?;
     let bar = common::progress_bar(0, format!("homing module {}", args.module));
     let r = m.home_guarded(timeout, guard, &mut |p: &Progress| bar.set_message(progress_text(p)));
     bar.finish_and_clear();
-    let (position, s) = r.map_err(failed)?;
-    let kind = m.kind().map_err(|e| {
-        context(e, "homed, but the module type (and so the unit of its position) cannot be read".into())
-    })?;
+    let report = r.map_err(failed)?;
     if args.json {
-        let fields = json!({"action": "homed", unit_key("reached", kind): position.value(),
-                            "state": state_json(s)});
-        common::print_json(out, &identified(args, port, fields))?;
-    } else {
-        report_done(out, "homed", position, kind, s)?;
+        return print(out, port, args.module, &Acted { ok: false, action: "homed", report, holder: None });
+    }
+    report_done(out, "homed", report.reached, report.kind, report.state)?;
+    not_verified(out, &report.not_verifiable)
+}
+
+/// What a motion could not verify, one line (nothing when it verified everything).
+fn not_verified(out: &mut dyn Write, why: &[String]) -> Result<(), CliError> {
+    if !why.is_empty() {
+        writeln!(out, "not verified: {}", why.join("; "))?;
     }
     Ok(())
 }
@@ -121,10 +128,8 @@ pub(super) fn reset(args: &Args, m: &Module<'_>, port: &str, out: &mut dyn Write
     // After a host died with the watchdog online, a plain Reset would be undone 50 ms later.
     let released = m.reset_and_release_watchdog().map_err(failed)?;
     if args.json {
-        common::print_json(
-            out,
-            &identified(args, port, json!({"ok": true, "action": "reset", "watchdog_released": released})),
-        )?;
+        let report = Released { watchdog_released: released };
+        print(out, port, args.module, &Acted { ok: true, action: "reset", report, holder: None })?;
     } else if released {
         writeln!(out, "reset (the watchdog had expired with no host serving it: switched it offline)")?;
     } else {
@@ -146,41 +151,17 @@ pub(super) fn stop(
         writeln!(out, "{}", h.describe())?;
     }
     let halted = m.halt_confirmed().map_err(failed)?;
-    let kind = m.kind().map_err(|e| {
-        context(e, "halted, but the module type (and so the unit of its position) cannot be read".into())
-    })?;
     if args.json {
-        let fields = json!({"ok": true, "action": "halted", unit_key("position", kind): halted.position.value(),
-                            "state": state_json(halted.state), "holder": stopped});
-        common::print_json(out, &identified(args, port, fields))?;
-    } else {
-        writeln!(
-            out,
-            "module {} halted: at rest (state read back) at {}; it takes no motion until reset",
-            args.module,
-            halted.position.show(kind)
-        )?;
+        let acted = Acted { ok: true, action: "halted", report: halted, holder: Some(stopped) };
+        return print(out, port, args.module, &acted);
     }
+    writeln!(
+        out,
+        "module {} halted: at rest (state read back) at {}; it takes no motion until reset",
+        args.module,
+        halted.position.show(halted.kind)
+    )?;
     Ok(())
-}
-
-/// The move `move` asks for, its numbers in the module's own unit (rad or m).
-pub(super) fn move_spec(
-    position: f32,
-    vel: Option<f32>,
-    acc: Option<f32>,
-    timeout_s: f64,
-    tolerance: f32,
-) -> Result<MoveSpec, CliError> {
-    // Numbers on the command line are in the module's own unit (rad or m).
-    Ok(MoveSpec {
-        target: Position::native(position),
-        // Only what was given is written; TargetVel / TargetAcc otherwise stay as the module has them.
-        vel: vel.map(Velocity::native),
-        acc: acc.map(Acceleration::native),
-        tolerance: Some(Position::native(tolerance)),
-        timeout: positive_secs("--timeout-s", timeout_s)?,
-    })
 }
 
 /// `move`: moves the module as `spec` says with a progress bar and prints where it came to rest.
@@ -203,22 +184,9 @@ pub(super) fn move_to(
     });
     bar.finish_and_clear();
     let report = r.map_err(failed)?;
-    let kind = m.kind().map_err(|e| {
-        context(e, "the move ended, but the module type (and so the unit of its position) cannot be read".into())
-    })?;
     if args.json {
-        let reached = report.reached.value();
-        let fields = json!({"action": "reached", unit_key("target", kind): position,
-                            unit_key("reached", kind): reached,
-                            unit_key("difference", kind): reached - position,
-                            "state": state_json(report.state),
-                            "verified": report.verified, "not_verifiable": report.not_verifiable});
-        common::print_json(out, &identified(args, port, fields))?;
-    } else {
-        report_done(out, "reached", report.reached, kind, report.state)?;
-        if !report.verified {
-            writeln!(out, "not verified: {}", report.not_verifiable.join("; "))?;
-        }
+        return print(out, port, args.module, &Acted { ok: false, action: "reached", report, holder: None });
     }
-    Ok(())
+    report_done(out, "reached", report.reached, report.kind, report.state)?;
+    not_verified(out, &report.not_verifiable)
 }

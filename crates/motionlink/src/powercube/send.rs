@@ -1,6 +1,16 @@
 //! `motionlink powercube send` and `params`: one telegram, typed or in hex, and the parameter table.
 
 use super::*;
+use motionlink_powercube::model::PARAMS;
+use motionlink_powercube::report::ParamRow;
+
+/// A row of `params --json`: the family, then the library's row.
+#[derive(serde::Serialize)]
+struct Listed {
+    family: &'static str,
+    #[serde(flatten)]
+    row: ParamRow,
+}
 
 /// A whole RS232 telegram in hex (STX, TELID, data, BCC, ETX, escapes included), checked: exactly one
 /// frame, a command (not an answer) to module `module`, its BCC and length right. Returns its payload.
@@ -123,17 +133,23 @@ pub(super) fn send(
     let result = client.request(args.module, request);
     let seen = telegrams.take();
     let (sent, reply) = crate::tap::exchange(&seen, None);
-    let (sent_json, reply_json) = crate::tap::print_exchange(out, args.json, sent.as_ref(), reply.as_ref())?;
+    let (request_json, reply_json) = crate::tap::print_exchange(out, args.json, sent.as_ref(), reply.as_ref())?;
     if args.json {
-        let v = common::identified(
-            "powercube",
-            port,
-            json!({"module": args.module.get(), "command": command_text(request, kind), "request": sent_json,
-                   "reply": reply_json, "ok": result.is_ok()}),
-        );
-        common::print_json(out, &v)?;
+        let command = command_text(request, kind);
+        let sent = Sent { command, request: request_json, reply: reply_json, ok: result.is_ok() };
+        print(out, port, args.module, &sent)?;
     }
     result.map(|_| ()).map_err(failed)
+}
+
+/// What `send --json` prints besides the module: the command in words, the telegrams sent and received
+/// (as the tap annotates them) and whether the module took it.
+#[derive(serde::Serialize)]
+struct Sent {
+    command: String,
+    request: Option<serde_json::Value>,
+    reply: Option<serde_json::Value>,
+    ok: bool,
 }
 
 /// A command as text, a value it sets in the unit of the module's `kind` where known.
@@ -148,12 +164,7 @@ pub(super) fn print_params(out: &mut dyn Write, as_json: bool) -> Result<(), Cli
     if as_json {
         // A listing: one object per parameter (JSON Lines), as `scu names`.
         for e in PARAMS.iter() {
-            common::print_json(
-                out,
-                &json!({"family": "powercube", "id": e.id, "name": e.name, "type": e.kind.data_type.name(),
-                        "unit": e.unit, "access": e.access.short(), "class": e.kind.class.name(),
-                        "description": e.title}),
-            )?;
+            common::print_json(out, &common::to_json(&Listed { family: "powercube", row: ParamRow(e) }))?;
         }
         return Ok(());
     }

@@ -1,20 +1,17 @@
 //! What `motionlink powercube` prints: `scan`, `info`, `watch` and the end of a motion.
 
+use std::time::Duration;
+
 use super::*;
 use motionlink_powercube::model::AxisUnit;
+use motionlink_powercube::report::Sample;
 
 pub(super) fn scan(client: &Client, port: &str, out: &mut dyn Write, json: bool) -> Result<(), CliError> {
     let found = client.scan().map_err(failed)?;
     if json {
         // A listing: one object per module (JSON Lines).
         for e in &found {
-            let v = match &e.info {
-                Ok(info) => info_json(port, info),
-                Err(err) => {
-                    common::identified("powercube", port, json!({"module": e.address.get(), "error": err.to_string()}))
-                }
-            };
-            common::print_json(out, &v)?;
+            common::print_result(out, "powercube", port, &[], e)?;
         }
     } else if found.is_empty() {
         writeln!(out, "no module answered on {}", client.describe())?;
@@ -46,38 +43,20 @@ pub(super) fn scan(client: &Client, port: &str, out: &mut dyn Write, json: bool)
 }
 
 pub(super) fn info(m: &Module<'_>, port: &str, out: &mut dyn Write, json: bool) -> Result<(), CliError> {
-    let info = m.info().map_err(failed)?;
-    let limits: Vec<(Param, Value)> = [Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::ActPos]
-        .into_iter()
-        .map(|p| m.get(p).map(|v| (p, v)))
-        .collect::<Result<_, _>>()
-        .map_err(failed)?;
+    let details = m.details().map_err(failed)?;
     if json {
-        let mut j = info_json(port, &info);
-        // snake_case names with the module's unit (naming.md): min_position_rad, max_velocity_m_per_s ...
-        let unit = info.kind.unit();
-        for (p, v) in &limits {
-            let key = match p {
-                Param::MinPos => format!("min_position_{unit}"),
-                Param::MaxPos => format!("max_position_{unit}"),
-                Param::MaxVel => format!("max_velocity_{unit}_per_s"),
-                Param::MaxAcc => format!("max_acceleration_{unit}_per_s2"),
-                _ => format!("position_{unit}"),
-            };
-            j[key] = value_json(v);
-        }
-        common::print_json(out, &j)
-    } else {
-        let mut rows = vec![
-            ("address".to_string(), info.address.to_string()),
-            ("type".to_string(), info.kind.name().to_string()),
-            ("version".to_string(), info.version.to_string()),
-            ("serial".to_string(), info.serial.to_string()),
-            ("state".to_string(), info.state.to_string()),
-        ];
-        rows.extend(limits.iter().map(|(p, v)| (p.name().to_string(), v.show(*p, info.kind))));
-        common::print_table(out, &rows)
+        return print(out, port, m.address(), &details);
     }
+    let info = details.info;
+    let mut rows = vec![
+        ("address".to_string(), info.address.to_string()),
+        ("type".to_string(), info.kind.name().to_string()),
+        ("version".to_string(), info.version.to_string()),
+        ("serial".to_string(), info.serial.to_string()),
+        ("state".to_string(), info.state.to_string()),
+    ];
+    rows.extend(details.limits().iter().map(|(p, v)| (p.name().to_string(), v.show(*p, info.kind))));
+    common::print_table(out, &rows)
 }
 
 /// How `watch` prints.
@@ -88,12 +67,20 @@ pub(super) enum WatchFormat {
     Csv,
 }
 
+/// A sample of `watch --json`: the time since the first, then the library's sample.
+#[derive(serde::Serialize)]
+struct Timed {
+    t_s: f64,
+    #[serde(flatten)]
+    sample: Sample,
+}
+
 pub(super) fn watch(
     client: &Client,
     m: &Module<'_>,
+    port: &str,
     out: &mut dyn Write,
     format: WatchFormat,
-    identified: &dyn Fn(serde_json::Value) -> serde_json::Value,
     interval_ms: u64,
     count: Option<u64>,
 ) -> Result<(), CliError> {
@@ -105,7 +92,7 @@ pub(super) fn watch(
     let started = due;
     let mut n = 0u64;
     if format == WatchFormat::Csv {
-        writeln!(out, "t_s,module,{},flags", unit_key("position", kind))?;
+        writeln!(out, "t_s,module,position_{},flags", kind.unit())?;
     }
     while !token.is_cancelled() && count.is_none_or(|c| n < c) {
         let s = m.state().map_err(failed)?;
@@ -113,10 +100,9 @@ pub(super) fn watch(
         let t = clock.now();
         let t_s = (t - started).as_secs_f64();
         match format {
-            WatchFormat::Json => common::print_json(
-                out,
-                &identified(json!({"t_s": t_s, unit_key("position", kind): p.value(), "state": state_json(s)})),
-            )?,
+            WatchFormat::Json => {
+                print(out, port, m.address(), &Timed { t_s, sample: Sample { kind, position: p, state: s } })?
+            }
             WatchFormat::Csv => {
                 let flags: Vec<String> = s.iter().map(|f| f.label()).collect();
                 let fields = [format!("{t_s:.3}"), m.address().to_string(), p.value().to_string(), flags.join(" ")];

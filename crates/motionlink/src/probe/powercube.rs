@@ -3,6 +3,7 @@
 use motionlink_link::describe::Describe;
 use motionlink_link::probe::{find_baud, BaudChoice, PortKind};
 use motionlink_link::RealClock;
+use motionlink_powercube::args::{Baud, CanBitRate, PollInterval, ReplyTimeout};
 use motionlink_powercube::describe::Describer;
 use motionlink_powercube::model::Address;
 use motionlink_powercube::probe::{baud_choice, probe, save_profile, PowercubeModule};
@@ -27,11 +28,11 @@ pub struct Args {
     #[arg(long, default_value = "9600", value_name = "BAUD|auto", value_parser = baud_choice)]
     pub baud: BaudChoice,
     /// CAN bit rate of an SLCAN adapter (10000 .. 1000000).
-    #[arg(long, default_value_t = 1_000_000)]
-    pub bitrate: u32,
+    #[arg(long, default_value = "1000000")]
+    pub bitrate: CanBitRate,
     /// Acknowledge timeout in ms, 1 to 60000 (default: 200 on RS232, 50 on CAN).
-    #[arg(long, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000))]
-    pub timeout_ms: Option<u64>,
+    #[arg(long, value_name = "MS")]
+    pub timeout_ms: Option<ReplyTimeout>,
     /// With --port sim: the emulated module runs this firmware variant (as `motionlink sim powercube
     /// --variant`); repeat or comma-separate for several.
     #[arg(long = "sim-variant", value_name = "NAME", value_delimiter = ',')]
@@ -56,10 +57,10 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
             port: Some(port.clone()),
             link: args.link.clone(),
             module: Address::new(1).expect("1 is a module address"),
-            baud,
+            baud: Baud::new(baud).map_err(|e| CliError::usage(e.to_string()))?,
             bitrate: args.bitrate,
             timeout_ms: args.timeout_ms,
-            poll_ms: 10,
+            poll_ms: PollInterval::from_ms(10).map_err(|e| CliError::usage(e.to_string()))?,
             json,
             no_watchdog: true,
             sim_variants: args.sim_variants.clone(),

@@ -49,6 +49,34 @@ fn an_scu_write_shows_its_read_back() {
     assert_eq!(read(&mut ws, "actuator", "remote_speed_f1")["value"], "40 %");
 }
 
+/// Waits for the end of the motion `what` of module 1 and returns it.
+fn ended(ws: &mut Ws, what: &str) -> Value {
+    recv_until(ws, Duration::from_secs(20), |v| v["type"] == "motion" && v["state"] == "ended" && v["what"] == what)
+        .unwrap_or_else(|| panic!("the end of {what}"))
+}
+
+#[test]
+fn a_powercube_motion_ends_with_the_report_the_command_line_prints() {
+    let c = console(&["powercube", "--port", "sim", "--modules", "1"]);
+    let mut ws = ws(&c);
+    units(&mut ws);
+    send(&mut ws, json!({"type": "action", "module": 1, "name": "home"}));
+    let homed = ended(&mut ws, "Home");
+    assert_eq!(homed["ok"], true, "{homed}");
+    let r = &homed["report"];
+    assert_eq!(
+        (r["reached_rad"].as_f64(), &r["verified"], &r["not_verifiable"]),
+        (Some(0.0), &json!(true), &json!([]))
+    );
+    assert!(r["state"]["flags"].as_array().unwrap().contains(&json!("STATE_HOME_OK")), "{homed}");
+    send(&mut ws, json!({"type": "move", "module": 1, "target_rad": 0.2}));
+    let moved = ended(&mut ws, "move");
+    let r = &moved["report"];
+    assert_eq!((r["target_rad"].as_f64(), r["verified"].as_bool()), (Some(0.2f32 as f64), Some(true)), "{moved}");
+    assert!((r["reached_rad"].as_f64().unwrap() - 0.2).abs() <= 0.001, "{moved}");
+    assert!(r["difference_rad"].is_number() && r["state"]["faults"] == json!([]), "{moved}");
+}
+
 #[test]
 fn a_powercube_write_shows_its_read_back_and_a_target_its_tick_twin() {
     let c = console(&["powercube", "--port", "sim", "--modules", "1"]);

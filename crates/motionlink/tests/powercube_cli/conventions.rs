@@ -130,3 +130,48 @@ pub(super) fn an_slcan_adapter_behind_a_tcp_port_is_reached_by_slcan_tcp() {
     assert_eq!(code(&out), 2, "a usage error: {out:?}");
     assert!(String::from_utf8_lossy(&out.stderr).contains("SLCAN adapter is on a serial device"), "{out:?}");
 }
+
+/// Every action's `--json` object has the keys it had before results were the library's reports (and
+/// `home` the `verified` / `not_verifiable` a move has), nested the same way: a test against a served
+/// emulator, the session of each command its own.
+#[test]
+fn every_json_result_keeps_its_keys() {
+    let sim = Sim::tcp("powercube");
+    let p = sim.address.as_str();
+    let keys = |args: &[&str]| -> Vec<std::collections::BTreeSet<String>> {
+        let out = ok(p, &[args, &["--json"]].concat());
+        let objects = out.lines().map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap());
+        objects.map(|o| o.as_object().unwrap().keys().cloned().collect()).collect()
+    };
+    let set = |names: &str| -> std::collections::BTreeSet<String> {
+        names.split_whitespace().map(str::to_string).chain(["family".to_string()]).collect()
+    };
+    // `profile`: every command that opens a port says which device profile it took (null: none).
+    let with_port = |names: &str| set(&format!("port profile module {names}"));
+    let identity = "kind version serial state";
+    let limits = "min_position_rad max_position_rad max_velocity_rad_per_s max_acceleration_rad_per_s2 position_rad";
+    // A scan names no module, so it looks for no module's profile.
+    assert_eq!(keys(&["scan"]), [set(&format!("port module {identity}"))]);
+    assert_eq!(keys(&["info"]), [with_port(&format!("{identity} {limits}"))]);
+    assert_eq!(keys(&["state"]), [with_port("word flags faults")]);
+    assert_eq!(keys(&["get", "ActPos", "ActFPosStateDio"]), vec![with_port("name id value unit access"); 2]);
+    let written = with_port("name id value ok read_back verified not_verifiable");
+    assert_eq!(keys(&["set", "TargetVel", "0.5"]), [written]);
+    let verified = "state verified not_verifiable";
+    assert_eq!(keys(&["home"]), [with_port(&format!("action reached_rad {verified}"))]);
+    let moved = format!("action target_rad reached_rad difference_rad {verified}");
+    assert_eq!(keys(&["move", "0.1"]), [with_port(&moved)]);
+    assert_eq!(keys(&["watch", "--count", "1"]), [with_port("t_s position_rad state")]);
+    assert_eq!(keys(&["send", "get", "ActPos"]), [with_port("command request reply ok")]);
+    assert_eq!(keys(&["stop"]), [with_port("ok action position_rad state holder")]);
+    assert_eq!(keys(&["reset"]), [with_port("ok action watchdog_released")]);
+    assert!(keys(&["params"]).iter().all(|k| *k == set("id name type unit access class description")));
+    // Nested: the state word with its faults, the combined read's flag words.
+    let state = ok(p, &["state", "--json"]);
+    let moved: serde_json::Value = serde_json::from_str(ok(p, &["move", "0.2", "--json"]).trim()).unwrap();
+    let nested: std::collections::BTreeSet<String> = moved["state"].as_object().unwrap().keys().cloned().collect();
+    assert_eq!(nested, set("word flags faults").into_iter().filter(|k| k != "family").collect(), "{state}");
+    let got: serde_json::Value = serde_json::from_str(ok(p, &["get", "ActFPosStateDio", "--json"]).trim()).unwrap();
+    assert_eq!(got["value"]["short_state"]["flags"], serde_json::json!(["SHORT_RAMP_END"]), "{got}");
+    assert!(got["value"]["dio"]["word"].is_number() && got["value"]["position"].is_number(), "{got}");
+}

@@ -17,6 +17,8 @@ struct Run {
     home: Output,
     moved_with_speed: Output,
     moved_without_speed: Output,
+    /// A move to 100 rad, beyond MaxPos.
+    beyond: Output,
     /// The stderr of every action, joined.
     stderr: String,
 }
@@ -43,6 +45,8 @@ fn core_actions(variant: &'static str) -> Run {
     let home = go(&["home", "--json"]);
     let moved_with_speed = go(&["move", "0.3", "--vel", "0.7", "--acc", "1.5", "--json"]);
     let moved_without_speed = go(&["move", "0.2", "--json"]);
+    // Refused (exit 2) before anything is sent that changes the module: its stderr is checked alone.
+    let beyond = run(port, &["move", "100", "--json"]);
     let watch = go(&["watch", "--count", "2", "--interval-ms", "10"]);
     assert!(watch.status.success() && String::from_utf8_lossy(&watch.stdout).lines().count() == 2, "{variant}");
     assert!(go(&["halt"]).status.success(), "{variant}");
@@ -54,7 +58,7 @@ fn core_actions(variant: &'static str) -> Run {
             assert!((target - reached).abs() <= 0.001, "{variant}: {what} exited 0 at {reached}, not {target}");
         }
     }
-    Run { variant, set, home, moved_with_speed, moved_without_speed, stderr }
+    Run { variant, set, home, moved_with_speed, moved_without_speed, beyond, stderr }
 }
 
 fn verified(out: &Output) -> (bool, String) {
@@ -79,6 +83,11 @@ fn every_variant_through_the_binary() {
     });
     for r in &runs {
         let v = r.variant;
+        // The limits come first, whatever the guard would do (a module whose watchdog cannot be armed too).
+        let beyond = String::from_utf8_lossy(&r.beyond.stderr);
+        assert_eq!(code(&r.beyond), 2, "{v}: {beyond}");
+        assert!(beyond.contains("the target position 100 rad is outside MinPos..MaxPos"), "{v}: {beyond}");
+        assert!(!beyond.contains("watchdog"), "{v}: {beyond}");
         match v {
             "life-sign-unacknowledged" => {
                 assert!(verified(&r.set).0, "{v}");
@@ -97,6 +106,7 @@ fn every_variant_through_the_binary() {
             }
         }
         let (set, set_why) = verified(&r.set);
+        let (home, home_why) = verified(&r.home);
         let (with_speed, with_why) = verified(&r.moved_with_speed);
         let (without_speed, without_why) = verified(&r.moved_without_speed);
         match v {
@@ -111,13 +121,17 @@ fn every_variant_through_the_binary() {
             }
             "no-broadcast-pair" => {
                 assert!(set, "{v}");
-                for (ok, why) in [(with_speed, &with_why), (without_speed, &without_why)] {
+                // Homing ran without the watchdog as the moves did, and says so.
+                for (ok, why) in [(home, &home_why), (with_speed, &with_why), (without_speed, &without_why)] {
                     assert!(!ok && why.contains("ignores the watchdog refresh broadcast on RS232"), "{v}: {why}");
                 }
                 assert!(r.stderr.contains("ignores the watchdog refresh broadcast"), "{v}: {}", r.stderr);
             }
             _ => {
-                assert!(set && with_speed && without_speed, "{v}: {set_why} {with_why} {without_why}");
+                assert!(
+                    set && home && with_speed && without_speed,
+                    "{v}: {set_why} {home_why} {with_why} {without_why}"
+                );
                 if v == "no-pos-state-dio" {
                     assert!(r.stderr.contains("does not answer ActFPosStateDio"), "{v}: {}", r.stderr);
                 } else {
@@ -126,6 +140,25 @@ fn every_variant_through_the_binary() {
             }
         }
     }
+}
+
+#[test]
+fn homing_without_the_watchdog_asked_for_says_so_in_words() {
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0", "--variant", "no-broadcast-pair"]);
+    let out = run(&sim.address, &["home"]);
+    assert!(out.status.success(), "{out:?}");
+    let text = String::from_utf8_lossy(&out.stdout);
+    let mut lines = text.lines();
+    assert!(lines.next().is_some_and(|l| l.starts_with("homed: position 0.0000 rad")), "{text}");
+    let why = lines.next().unwrap_or_default();
+    assert!(
+        why.starts_with("not verified: ") && why.contains("ignores the watchdog refresh broadcast on RS232"),
+        "{text}"
+    );
+    // The default firmware takes the watchdog: nothing to say.
+    let sim = Sim::tcp("powercube");
+    let out = run(&sim.address, &["home"]);
+    assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 1, "{out:?}");
 }
 
 #[test]

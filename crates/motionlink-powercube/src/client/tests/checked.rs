@@ -66,7 +66,11 @@ fn a_checked_move_ends_within_the_tolerance_or_says_where_it_ended() {
     let m = bus.module(addr(1));
     let report = m.move_to(&spec(0.5), &mut |_| {}).unwrap();
     assert!((report.reached.value() - 0.5).abs() < 1e-6 && report.state.contains(StateFlag::RampEnd), "{report:?}");
-    assert_eq!(report.start, Position::native(0.05));
+    // Every position of the report is in the unit of the module's kind, which the move read first.
+    assert_eq!(
+        (report.kind, report.start, report.target),
+        (ModuleKind::Rotary, Position::rad(0.05), Position::rad(0.5))
+    );
     assert!(bus.started().is_empty());
     // A module that settles 5 mrad beyond its target: outside the default 1 mrad tolerance.
     host.with_device(|d| {
@@ -102,12 +106,20 @@ fn a_checked_move_reads_back_its_ramp_and_target_and_halts_a_corrupted_command()
     let set_vel = Request::set(Param::TargetVel, Value::F32(1.0)).unwrap();
     let mut frame = [0u8; crate::wire::rs232::MAX_FRAME];
     let n = crate::wire::rs232::encode(crate::wire::rs232::TelKind::Send, 1, &set_vel.encode(), &mut frame).unwrap();
-    // The reads before it (state, the one probe of ActFPosStateDio, limits, IncRatio, ActPos, TargetVelInc
-    // before the write: the session does not know yet whether it follows TargetVel) are counted frame by
-    // frame; the byte hit is the float's most significant one.
+    // The reads before it (the kind, limits, state, the one probe of ActFPosStateDio, IncRatio, ActPos,
+    // TargetVelInc before the write: the session does not know yet whether it follows TargetVel) are
+    // counted frame by frame; the byte hit is the float's most significant one.
     let before = faults.bytes_sent(Direction::HostToDevice);
-    let reads =
-        [Param::CubeState, Param::MinPos, Param::MaxPos, Param::MaxVel, Param::MaxAcc, Param::IncRatio, Param::ActPos];
+    let reads = [
+        Param::Config,
+        Param::MinPos,
+        Param::MaxPos,
+        Param::MaxVel,
+        Param::MaxAcc,
+        Param::CubeState,
+        Param::IncRatio,
+        Param::ActPos,
+    ];
     let first_reads = [Param::ActFPosStateDio, Param::TargetVelInc];
     let read_bytes: u64 = reads.iter().chain(&first_reads).map(|p| rs232_request_len(1, &Request::Get(*p))).sum();
     let value_msb = before + read_bytes + (n as u64 - 3); // STX TELID TELID 08 4F v0 v1 v2 v3 BCC ETX
@@ -124,9 +136,9 @@ fn a_checked_move_reads_back_its_ramp_and_target_and_halts_a_corrupted_command()
     let start = faults.bytes_sent(Direction::HostToDevice);
     let motion = Request::motion(Motion::FRamp { pos: Position::native(2.0) }, AckKind::Simple).unwrap();
     // TargetAcc and TargetPos are written the first time with their twin read before and after (TargetPos
-    // as the target, before the motion command sets it).
+    // as the target, before the motion command sets it); the kind is known by now.
     let get = |p| rs232_request_len(1, &Request::Get(p));
-    let all_before_motion: u64 = reads.iter().map(|p| get(*p)).sum::<u64>()
+    let all_before_motion: u64 = reads.iter().filter(|p| **p != Param::Config).map(|p| get(*p)).sum::<u64>()
         + rs232_request_len(1, &Request::set(Param::TargetVel, Value::F32(1.0)).unwrap())
         + get(Param::TargetVelInc)
         + get(Param::TargetAccInc)

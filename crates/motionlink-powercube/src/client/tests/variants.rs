@@ -4,7 +4,7 @@
 //! mirrors but shows another value, a motion target that the module took otherwise.
 
 use super::*;
-use crate::client::{Guard, MoveReport, Readback};
+use crate::client::{Guard, HomeReport, MoveReport, Readback};
 use crate::error::Error;
 use crate::model::{Acceleration, Param, StateFlag, Value};
 use crate::sim::Variant;
@@ -22,7 +22,7 @@ fn rs232_variant(variants: &[Variant]) -> (ManualClock, EmulatorHost<Emulator>, 
 #[derive(Debug)]
 struct Outcome {
     set: Result<Readback, Error>,
-    home: Result<(), Error>,
+    home: Result<HomeReport, Error>,
     moved_with_speed: Result<MoveReport, Error>,
     moved_without_speed: Result<MoveReport, Error>,
     position: f32,
@@ -66,7 +66,7 @@ fn run_core_operations(bus: Client, variants: &[Variant], device_position: &dyn 
         m.position().unwrap();
     }
     let set = m.set_checked(Param::TargetVel, Value::F32(0.8));
-    let home = m.home_guarded(secs(10), Guard::Watchdog, &mut |_| {}).map(|_| ());
+    let home = m.home_guarded(secs(10), Guard::Watchdog, &mut |_| {});
     let with_speed = MoveSpec {
         vel: Some(Velocity::native(0.7)),
         acc: Some(Acceleration::native(1.5)),
@@ -92,7 +92,8 @@ fn the_default_firmware_is_verified_throughout() {
     let o = core_operations(&[]);
     let set = o.set.unwrap();
     assert!(set.verified && set.not_verifiable.is_empty() && set.read.is_some(), "{set:?}");
-    o.home.unwrap();
+    let h = o.home.unwrap();
+    assert!(h.verified && h.not_verifiable.is_empty() && h.state.contains(StateFlag::HomeOk), "{h:?}");
     let r = o.moved_with_speed.unwrap();
     assert!(at(&r, 0.4) && r.verified && r.not_verifiable.is_empty(), "{r:?}");
     let r = o.moved_without_speed.unwrap();
@@ -124,7 +125,11 @@ fn a_module_that_keeps_the_twins_apart_moves_unverified_and_says_why() {
 fn a_module_that_ignores_the_rs232_broadcast_moves_without_a_watchdog_and_says_so() {
     let o = core_operations(&[Variant::NoBroadcastPair]);
     assert!(o.set.unwrap().verified);
-    o.home.unwrap();
+    // Homing ran without the watchdog too, and says so as a move does.
+    let h = o.home.unwrap();
+    assert!(h.state.contains(StateFlag::HomeOk) && !h.verified, "{h:?}");
+    assert_eq!(h.not_verifiable.len(), 1, "{h:?}");
+    assert!(h.not_verifiable[0].contains("ignores the watchdog refresh broadcast on RS232"), "{h:?}");
     for (r, target) in [(o.moved_with_speed.unwrap(), 0.4), (o.moved_without_speed.unwrap(), 0.2)] {
         assert!(at(&r, target) && !r.verified, "{r:?}");
         assert!(r.not_verifiable[0].contains("ignores the watchdog refresh broadcast on RS232"), "{r:?}");
@@ -160,8 +165,16 @@ fn a_life_sign_that_is_not_acknowledged_refuses_the_guarded_motion_and_says_so()
     }
     assert!((o.position - 0.05).abs() <= 0.001, "nothing moved: {}", o.position);
     // Without the watchdog (`--no-watchdog`) the same module moves.
-    let (clock, _host, bus) = rs232_variant(&[Variant::LifeSignUnacknowledged]);
+    let (clock, host, bus) = rs232_variant(&[Variant::LifeSignUnacknowledged]);
     let _me = clock.reserve_participant().enter();
+    // A target beyond MaxPos is refused as such, before the guard tries (and fails) to arm the watchdog:
+    // no life sign, no Config word written.
+    let err = bus.module(addr(1)).move_to_guarded(&spec(100.0), Guard::Watchdog, &mut |_| {}).unwrap_err();
+    let text = err.to_string();
+    assert!(matches!(err, Error::BeyondLimit { limit: Param::MaxPos, .. }) && err.is_usage(), "{text}");
+    assert!(text.contains("the target position 100") && !text.contains("watchdog"), "{text}");
+    let config = host.with_device(|d| d.module(1).unwrap().config_word());
+    assert!(!config.contains(crate::model::ConfigFlag::WatchdogEnable), "the guard never armed: {config}");
     let r = bus.module(addr(1)).move_to_guarded(&spec(0.3), Guard::HaltOnly, &mut |_| {}).unwrap();
     assert!(at(&r, 0.3) && r.verified, "{r:?}");
 }

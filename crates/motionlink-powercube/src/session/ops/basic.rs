@@ -303,7 +303,15 @@ impl Ctx {
             let state = self.state(address).await?;
             if !state.contains(StateFlag::Motion) {
                 let position = self.position(address).await?;
-                return Ok(HaltReport { state, position });
+                // The kind (the unit of the position) only now: nothing comes before the Halt.
+                let kind = self.kind(address).await.map_err(|e| Error::Context {
+                    context: format!(
+                        "module {address} halted (confirmed), but its type (and so the unit of its position) cannot be read"
+                    ),
+                    source: Box::new(e),
+                    hint: "",
+                })?;
+                return Ok(HaltReport { kind, state, position: position.in_unit_of(kind) });
             }
             let waited = self.now().saturating_since(start);
             if waited >= HALT_SETTLE {

@@ -6,12 +6,13 @@ use std::time::Duration;
 
 use crate::error::{unexpected, Error, StopOutcome};
 use crate::model::{
-    AckKind, Broadcast, CubeState, ExtAck, Motion, Param, Position, Reply, Request, ShortState, StateFlag, Value,
+    AckKind, Broadcast, CubeState, ExtAck, ModuleKind, Motion, Param, Position, Reply, Request, ShortState, StateFlag,
+    Value,
 };
 use crate::session::ctx::Ctx;
 use crate::session::ops::checked;
 use crate::session::ops::twins::{self, TwinCheck};
-use crate::session::{MoveReport, MoveSpec, Progress, Readback, Until};
+use crate::session::{HomeReport, MoveReport, MoveSpec, Progress, Readback, Until};
 
 /// A value for messages: the number alone, floats with six decimals.
 fn raw(v: &Value) -> String {
@@ -150,7 +151,9 @@ impl Ctx {
         if param.read_back_as().is_some() && number.is_some() {
             let ratio = self.inc_ratio(a).await?;
             return Ok(match self.write_twinned(a, param, value, ratio).await? {
-                TwinCheck::Verified(read) => Readback::same(read),
+                TwinCheck::Verified(read) => {
+                    Readback { read_in_unit: param.from_read_back_ticks(&read, ratio), ..Readback::same(read) }
+                }
                 TwinCheck::Unverified(why) => Readback::unverified(why),
             });
         }
@@ -333,10 +336,12 @@ impl Ctx {
     }
 
     /// Homes the module and waits for the end of homing (see [`Op::HomeAndWait`](crate::session::Op)).
-    pub async fn home_and_wait(&self, a: u8, timeout: Duration) -> Result<(Position, CubeState), Error> {
+    pub async fn home_and_wait(&self, a: u8, timeout: Duration) -> Result<HomeReport, Error> {
         if timeout.is_zero() {
             return Err(Error::InvalidArgument { what: "the timeout", must: "above 0", value: "0".into() });
         }
+        // The unit of the position the report gives, known before anything moves.
+        let kind = self.kind(a).await?;
         self.ready_for_motion(a).await?;
         if self.cancelled() {
             return Err(Error::Cancelled { address: crate::model::Address::checked(a), stop: StopOutcome::NotStarted });
@@ -346,11 +351,20 @@ impl Ctx {
         }
         tracing::info!("module {a}: homing");
         let state = self.wait(a, Until::Home, timeout).await?;
-        Ok((self.position(a).await?, state))
+        let reached = self.position(a).await?.in_unit_of(kind);
+        Ok(HomeReport { kind, reached, state, verified: true, not_verifiable: Vec::new() })
     }
 
     /// A ramp move with every check this protocol allows (see [`Op::MoveTo`](crate::session::Op)).
     pub async fn move_to(&self, a: u8, spec: &MoveSpec) -> Result<MoveReport, Error> {
+        let kind = self.check_move(a, spec).await?;
+        self.move_checked(a, spec, kind).await
+    }
+
+    /// What can be checked of a move before anything is sent that changes the module: its numbers, their
+    /// units against the module's kind, the target against MinPos/MaxPos and the velocity and acceleration
+    /// against MaxVel/MaxAcc (refused, never clamped). Reads only; the module's kind.
+    pub async fn check_move(&self, a: u8, spec: &MoveSpec) -> Result<ModuleKind, Error> {
         spec.validate()?;
         let tolerance = spec.tolerance();
         let mut units = vec![
@@ -364,7 +378,7 @@ impl Ctx {
             units.push(("the acceleration", acc.unit(), acc.to_string()));
         }
         self.check_units(a, &units).await?;
-        self.ready_for_motion(a).await?;
+        let kind = self.kind(a).await?;
         let target = f64::from(spec.target.value());
         self.within_limit(a, "the target position", target, Param::MinPos, false).await?;
         self.within_limit(a, "the target position", target, Param::MaxPos, true).await?;
@@ -374,6 +388,14 @@ impl Ctx {
         if let Some(acc) = spec.acc {
             self.within_limit(a, "the acceleration", f64::from(acc.value()), Param::MaxAcc, true).await?;
         }
+        Ok(kind)
+    }
+
+    /// [`Ctx::move_to`] after [`Ctx::check_move`] found `spec` fit for module `a` of `kind`.
+    pub async fn move_checked(&self, a: u8, spec: &MoveSpec, kind: ModuleKind) -> Result<MoveReport, Error> {
+        self.ready_for_motion(a).await?;
+        let tolerance = spec.tolerance();
+        let target = f64::from(spec.target.value());
         let ratio = self.inc_ratio(a).await?;
         let start = self.position(a).await?;
         let motion = Request::motion(Motion::FRamp { pos: spec.target }, AckKind::Simple)?;
@@ -459,7 +481,9 @@ impl Ctx {
                 });
             }
         }
-        Ok(MoveReport { start, reached, state, verified: not_verifiable.is_empty(), not_verifiable })
+        let (start, reached) = (start.in_unit_of(kind), reached.in_unit_of(kind));
+        let target = spec.target.in_unit_of(kind);
+        Ok(MoveReport { kind, target, start, reached, state, verified: not_verifiable.is_empty(), not_verifiable })
     }
 
     /// Halts every module this session set in motion that is still moving or cannot be asked (see

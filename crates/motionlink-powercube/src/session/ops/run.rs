@@ -83,18 +83,20 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
             Output::Done
         }
         Op::Wait(a, until, timeout) => Output::State(ctx.wait(a.get(), until, timeout).await?),
-        Op::HomeAndWait(a, timeout) => {
-            let (p, s) = ctx.home_and_wait(a.get(), timeout).await?;
-            Output::Homed(p, s)
-        }
+        Op::HomeAndWait(a, timeout) => Output::Homed(ctx.home_and_wait(a.get(), timeout).await?),
         Op::MoveTo(a, spec) => Output::Moved(ctx.move_to(a.get(), &spec).await?),
         Op::HomeGuarded(a, timeout, guard) => {
-            // What the guard could not do was said on the session's log (homing has no report to carry it).
-            let ((p, s), _) = ctx.guarded(a.get(), guard, ctx.home_and_wait(a.get(), timeout)).await?;
-            Output::Homed(p, s)
+            // What the guard could not do (no watchdog) is said in the report, as a move's is.
+            let (mut report, notes) = ctx.guarded(a.get(), guard, ctx.home_and_wait(a.get(), timeout)).await?;
+            report.verified &= notes.is_empty();
+            report.not_verifiable.extend(notes);
+            Output::Homed(report)
         }
         Op::MoveGuarded(a, spec, guard) => {
-            let (mut report, notes) = ctx.guarded(a.get(), guard, ctx.move_to(a.get(), &spec)).await?;
+            // A move the module would refuse (a target beyond MaxPos) is refused as such, before the guard
+            // arms anything.
+            let kind = ctx.check_move(a.get(), &spec).await?;
+            let (mut report, notes) = ctx.guarded(a.get(), guard, ctx.move_checked(a.get(), &spec, kind)).await?;
             report.verified &= notes.is_empty();
             report.not_verifiable.extend(notes);
             Output::Moved(report)

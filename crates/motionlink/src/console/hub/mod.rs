@@ -369,7 +369,13 @@ impl Hub {
         // Dropping the motion's future is what stops it: the library sends the stop at once.
         drop(motion);
         let mut ended = match end {
-            End::Done(Ok(msg)) => json!({"type": "motion", "state": "ended", "what": what, "ok": true, "message": msg}),
+            End::Done(Ok(msg)) => {
+                let mut ended = json!({"type": "motion", "state": "ended", "what": what, "ok": true, "message": msg});
+                if let Some(report) = self.device.take_report(unit, &what) {
+                    ended["report"] = report;
+                }
+                ended
+            }
             End::Done(Err(e)) => {
                 json!({"type": "motion", "state": "ended", "what": what, "ok": false, "error": e.to_json(),
                        "message": e.message})

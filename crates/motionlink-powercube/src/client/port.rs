@@ -1,0 +1,51 @@
+//! Opening the link a port URL names, as every front end does (the command line, the web console, Python):
+//! RS232 bytes over a serial device or TCP, CAN frames over an SLCAN adapter or SocketCAN.
+
+use motionlink_link::can::CanLink;
+use motionlink_link::url::PortUrl;
+use motionlink_link::{Link, SerialSettings, SharedClock};
+
+use crate::args::{Baud, CanBitRate};
+use crate::error::Error;
+
+/// An opened port: the byte link of an RS232 line ([`Client::rs232`](super::Client::rs232)) or the frame
+/// link of a CAN bus ([`Client::can`](super::Client::can)).
+pub enum PortLink {
+    /// A serial device or a TCP port (ser2net, a served emulator), RS232 framing.
+    Rs232(Box<dyn Link>),
+    /// An SLCAN adapter or a SocketCAN interface.
+    Can(Box<dyn CanLink>),
+}
+
+impl PortLink {
+    /// Opens what `url` names: a serial device at `baud` (DTR and RTS left off: the modules need neither), a
+    /// TCP port, an SLCAN adapter at `bitrate`, a SocketCAN interface (Linux). `None` for `sim`: the
+    /// emulator is the caller's to start.
+    pub fn open(
+        url: &PortUrl,
+        baud: Baud,
+        bitrate: CanBitRate,
+        clock: &SharedClock,
+    ) -> Result<Option<PortLink>, Error> {
+        Ok(Some(match url {
+            PortUrl::Sim => return Ok(None),
+            PortUrl::Serial(_) | PortUrl::Tcp { .. } => PortLink::Rs232(
+                url.open_byte_link(SerialSettings { dtr_rts_on: false, ..SerialSettings::new(baud.get()) })?,
+            ),
+            PortUrl::Slcan(path) => {
+                PortLink::Can(Box::new(motionlink_link::url::open_slcan(path, clock.clone(), bitrate.slcan())?))
+            }
+            PortUrl::SocketCan(ifname) => PortLink::Can(socketcan(ifname)?),
+        }))
+    }
+}
+
+#[cfg(target_os = "linux")]
+fn socketcan(ifname: &str) -> Result<Box<dyn CanLink>, Error> {
+    Ok(Box::new(motionlink_link::can::socketcan::SocketCanLink::open(ifname)?))
+}
+
+#[cfg(not(target_os = "linux"))]
+fn socketcan(_ifname: &str) -> Result<Box<dyn CanLink>, Error> {
+    Err(Error::Unsupported("socketcan:// ports need Linux".into()))
+}
