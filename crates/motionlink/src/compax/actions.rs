@@ -20,6 +20,9 @@ fn with_unit(value: f64, unit: &str) -> String {
     }
 }
 
+/// `move` without a target (clap asks for one: this is the library's last word).
+const NO_TARGET: &str = "give the target: POSITION (the same as --abs POSITION) or --rel DISTANCE";
+
 /// The arguments of `move`, checked before anything is sent.
 pub(super) struct MovePlan {
     pub(super) request: MoveRequest,
@@ -27,6 +30,7 @@ pub(super) struct MovePlan {
 }
 
 /// The arguments of an action that their types alone do not check, checked before the port is opened.
+#[derive(Default)]
 pub(super) struct Checked {
     /// `move`: the move, planned.
     pub(super) move_plan: Option<MovePlan>,
@@ -42,8 +46,7 @@ pub(super) struct Checked {
 
 /// Checks every argument of the action: nothing is sent for an action that cannot be made.
 pub(super) fn check(args: &Args) -> Result<Checked, CliError> {
-    let usage = |e: &dyn std::fmt::Display| CliError::usage(e);
-    let mut checked = Checked { move_plan: None, poll: None, raw_wait: None, output: None, status_ids: Vec::new() };
+    let mut checked = Checked::default();
     match &args.action {
         Action::Move {
             target,
@@ -63,10 +66,10 @@ pub(super) fn check(args: &Args) -> Result<Checked, CliError> {
             let target = match (target.or(*abs), rel) {
                 (Some(a), None) => MoveTarget::Absolute(a),
                 (None, Some(r)) => MoveTarget::Relative(*r),
-                _ => return Err(usage(&"give the target: POSITION (the same as --abs POSITION) or --rel DISTANCE")),
+                _ => return Err(CliError::usage(NO_TARGET)),
             };
-            let limits =
-                TravelLimits::new(*min_pos, *max_pos).map_err(|e| usage(&format!("--min-pos / --max-pos: {e}")))?;
+            let limits = TravelLimits::new(*min_pos, *max_pos)
+                .map_err(|e| CliError::usage(format!("--min-pos / --max-pos: {e}")))?;
             let (speed, accel, binary, timeout) = (*speed, *accel, *binary, Some(timeout_s.duration()));
             let request = MoveRequest { target, speed, accel, binary, limits, timeout };
             checked.move_plan = Some(MovePlan { request, tolerance: *tolerance });
@@ -77,12 +80,10 @@ pub(super) fn check(args: &Args) -> Result<Checked, CliError> {
             checked.poll = Some(poll_ms.duration());
         }
         Action::Output { number, state } => {
-            checked.output = Some((number.get(), state.for_output(*number).map_err(|e| usage(&e))?))
+            checked.output = Some((number.get(), state.for_output(*number).map_err(CliError::usage)?))
         }
-        Action::Set { param, value } => param.check(*value).map_err(|e| usage(&e))?,
-        Action::Status { values } if values.is_empty() => {
-            checked.status_ids = [1, 2, 3, 16, 17, 18].iter().filter_map(|&n| StatusId::new(n).ok()).collect();
-        }
+        Action::Set { param, value } => param.check(*value).map_err(CliError::usage)?,
+        Action::Status { values } if values.is_empty() => checked.status_ids = StatusId::OVERVIEW.to_vec(),
         Action::Status { values } => checked.status_ids = values.clone(),
         _ => {}
     }
