@@ -83,10 +83,10 @@ class Compax(ClientBase):
     def info(self, drive: Optional[int] = None) -> List[StatusValue]:
         """The drive's main status values: S1 position, S2 target, S3 following error, S16/S17 status
         bits, S18 error history."""
-        return self.status(["S1", "S2", "S3", "S16", "S17", "S18"], drive)
+        return self.status([], drive)
 
     def status(self, names: Sequence[Union[str, int]], drive: Optional[int] = None) -> List[StatusValue]:
-        """Status values by name (``"S1"``) or number."""
+        """Status values by name (``"S1"``) or number; none: the main ones, as :meth:`info` reads them."""
         return [StatusValue(d) for d in self._native.status([str(n) for n in names], drive)]
 
     def position(self, drive: Optional[int] = None) -> DrivePosition:

@@ -4,10 +4,11 @@ with its code and named bits."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
-from typing import Callable, List
+from typing import Any, Callable, Dict, List
 
 import pytest
 
@@ -29,11 +30,13 @@ SERVE = str(Path(__file__).with_name("_serve.py"))
         (lambda: motionlink.Scu("sim").move_to(1, 300, function=11), r"function 11: the motion function must be a whole"),
         (lambda: motionlink.Scu("sim", baud=-1), r"baud -1: an SCU runs at 9600, 19200 or 38400 baud"),
         (lambda: motionlink.Scu("sim", safety=True), r"safety True \(a bool\): the Safety_ID must be a whole number from 0 to 2"),
-        (lambda: motionlink.Compax("sim").output(0, 300), r"state \(of the output\) 300: give a whole number 0\.\.=255"),
-        (lambda: motionlink.Compax("sim").output(-1, 1), r"number \(the output\) -1"),
-        (lambda: motionlink.Compax("sim").position(32), r"drive 32: give a whole number 1\.\.=31"),
-        (lambda: motionlink.Compax("sim").move_to(1.0, ramp_ms=-1), r"ramp_ms -1"),
-        (lambda: motionlink.Compax("sim", mode=-1), r"mode \(P196\) -1"),
+        (lambda: motionlink.Compax("sim").output(0, 300), r"output state 300 is out of range \(0 or 1"),
+        (lambda: motionlink.Compax("sim").output(-1, 1), r"output number -1 is out of range \(0\.\.=65535\)"),
+        (lambda: motionlink.Compax("sim").output(1, "1"), r"state \(of the output\) '1' \(a str, not an int\)"),
+        (lambda: motionlink.Compax("sim").position(32), r"drive address 32 is out of range \(1\.\.=31\)"),
+        (lambda: motionlink.Compax("sim").position(2**70), r"drive \d+: give a whole number 1\.\.=31"),
+        (lambda: motionlink.Compax("sim").move_to(1.0, ramp_ms=-1), r"ramp time -1 ms is out of range"),
+        (lambda: motionlink.Compax("sim", mode=-1), r"P196 -1 is out of range"),
         (lambda: motionlink.Emulator("compax", mode=-1), r"mode \(P196\) -1: give a whole number 0\.\.="),
         (lambda: motionlink.Emulator("powercube", modules=[1, 300]), r"modules: address 300: give a whole number 1\.\.=31"),
         (lambda: motionlink.Emulator("compax", drives=[-3]), r"drives: address -3"),
@@ -156,3 +159,48 @@ def test_an_scu_argument_gets_the_same_message_from_the_command_line_and_python(
     )
     assert done.returncode == 2, done.stderr
     assert rule in done.stderr, f"python: {message}\ncli:    {done.stderr}"
+
+
+# The same bad value through the command line and through Python: the same words, from the COMPAX crate's
+# one rule (motionlink_compax::model::args). Each case: the command line's arguments after
+# `compax --port sim`, Python's call on a client (or its constructor's keyword arguments), and the message.
+COMPAX_SAME: List[Any] = [
+    (["--drive", "32", "status"], {"drive": 32}, "drive address 32 is out of range (1..=31)"),
+    (["--mode", "200", "status"], {"mode": 200}, "P196 200 is out of range"),
+    (["--baud", "1234", "status"], {"baud": 1234}, "baud rate 1234 is out of range (one P195 accepts: 150,"),
+    (["--timeout-ms", "0", "status"], {"timeout_ms": 0}, "reply timeout 0 ms is out of range (1..=60000 ms)"),
+    (["move", "1", "--poll-ms", "0"], {"poll_ms": 0}, "poll interval 0 ms is out of range (1..=10000 ms)"),
+    (["move", "1", "--tolerance", "0"], {"tolerance_units": 0.0}, "in-position tolerance 0 is out of range"),
+    (["move", "1", "--accel", "0"], lambda c: c.move_to(1.0, ramp_ms=0), "ramp time 0 ms is out of range"),
+    (["move", "1", "--speed", "0"], lambda c: c.move_to(1.0, speed_percent=0), "speed 0 % is out of range"),
+    (["move", "1", "--speed", "101"], lambda c: c.move_to(1.0, speed_percent=101), "speed 101 % is out of range"),
+    (["move", "1e9"], lambda c: c.move_to(1e9), "position 1000000000 is out of range"),
+    (["move", "1", "--timeout-s", "0"], lambda c: c.move_to(1.0, timeout_s=0), "time limit 0 s is out of range"),
+    (["output", "3", "2"], lambda c: c.output(3, 2), "output state 2 is out of range (0 or 1 (O0: 0, 1 or 2))"),
+    (["output", "70000", "1"], lambda c: c.output(70000, 1), "output number 70000 is out of range (0..=65535)"),
+    (["set", "P196", "200"], lambda c: c.set("P196", 200), "parameter value P196=200 is out of range"),
+    (["get", "devce_address"], lambda c: c.get("devce_address"), "did you mean device_address?"),
+    (["status", "S99"], lambda c: c.status(["S99"]), "status value S99 is out of range (S1..=S40)"),
+]
+
+
+@pytest.mark.parametrize("cli_args,python,message", COMPAX_SAME, ids=[" ".join(c[0]) for c in COMPAX_SAME])
+def test_compax_refuses_a_bad_value_with_the_same_words_as_the_command_line(
+    motionlink_bin: Path, cli_args: List[str], python: Any, message: str
+) -> None:
+    done = subprocess.run(
+        [str(motionlink_bin), "--json", "compax", "--port", "sim", *cli_args], capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 2, done
+    cli_message = json.loads(done.stderr.splitlines()[-1])["message"]
+    with pytest.raises(motionlink.UsageError) as e:
+        if isinstance(python, dict):
+            settings: Dict[str, Any] = python
+            motionlink.Compax("sim", **settings)
+        else:
+            with motionlink.Compax("sim") as drive:
+                python(drive)
+    python_message = str(e.value)
+    assert message in python_message, python_message
+    # The command line says which option or argument it was, then the crate's words, as Python says them.
+    assert python_message in cli_message, (python_message, cli_message)

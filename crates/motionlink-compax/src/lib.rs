@@ -20,6 +20,8 @@
 //!   `AsyncClient`: the same typed operations over [`motionlink_link::driver`] running the session (for
 //!   async callers a drive handle `AsyncDrive` and a watch stream `AsyncWatch`); [`client::Drive`], a handle
 //!   on one drive. Closing stops what was started, bounded in time.
+//! - [`report`]: what the operations report, serialising (serde) with the names of the command line's
+//!   `--json`, which every front end shows.
 //! - [`sim`]: [`Emulator`], a sans-IO emulator of the bus with a motion model.
 //! - [`describe`]: [`Describe`](motionlink_link::describe::Describe) for captures, the demo and
 //!   `motionlink decode compax`.
@@ -174,6 +176,7 @@ pub mod describe;
 pub mod error;
 pub mod model;
 pub mod probe;
+pub mod report;
 pub mod session;
 pub mod sim;
 pub mod wire;

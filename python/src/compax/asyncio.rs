@@ -7,7 +7,7 @@ use super::*;
 #[pyclass(frozen, module = "motionlink._native")]
 pub struct AsyncCompaxClient {
     slot: Slot<AsyncClient>,
-    drive: u8,
+    drive: Address,
     port: String,
 }
 
@@ -17,11 +17,7 @@ impl AsyncCompaxClient {
     }
 
     fn drive(&self, py: Python<'_>, drive: Option<Int>) -> PyResult<Address> {
-        let n = match drive {
-            None => self.drive,
-            Some(d) => drive_number(&d).map_err(|f| to_pyerr(py, f))?,
-        };
-        address(n).map_err(|f| to_pyerr(py, f))
+        drive.map_or(Ok(self.drive), |d| whole(&d, "drive")).map_err(|f| to_pyerr(py, f))
     }
 }
 
@@ -48,7 +44,7 @@ impl AsyncCompaxClient {
             Target::Url(u) => u.to_string(),
         };
         Ok(spawn_task(done, async move {
-            let drive = drive_number(&settings.drive)?;
+            let drive = whole(&settings.drive, "drive")?;
             let opened = tokio::task::spawn_blocking(move || link(t, &settings)).await;
             let (link, cfg) = opened.map_err(|e| {
                 Failure::new(
@@ -100,8 +96,7 @@ impl AsyncCompaxClient {
                 .map_err(|f| to_pyerr(py, f))?;
         Ok(spawn_task(done, async move {
             let report = fail(c.move_to(a, &request).await)?;
-            let tolerance = c.config().in_position_tolerance;
-            deliver(move |py| Ok(move_record(py, &report, tolerance)?.done().into_any().unbind()))
+            deliver(move |py| Ok(move_record(py, &report)?.done().into_any().unbind()))
         }))
     }
 
@@ -110,7 +105,7 @@ impl AsyncCompaxClient {
     fn home(&self, py: Python<'_>, drive: Option<Int>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
-        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
         Ok(spawn_task(done, async move {
             match fail(c.start(Op::Move(a, Command::PosAHome, MoveOptions::default())).await)? {
                 Output::Done => {}
@@ -132,7 +127,7 @@ impl AsyncCompaxClient {
     fn wait(&self, py: Python<'_>, drive: Option<Int>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
-        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
         // The wait's future stops nothing when dropped (the motion may be another call's): a cancelled wait
         // stops the drive here (OUTPUT O0=0, confirmed by S17).
         let stopping = Arc::clone(&c);

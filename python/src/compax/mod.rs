@@ -9,12 +9,12 @@ pub use watch::CompaxWatch;
 use std::sync::Arc;
 use std::time::Duration;
 
-use motionlink_compax::client::{
-    BusConfig, MoveOptions, MoveReport, MoveRequest, MoveTarget, TravelLimits, DEFAULT_IN_POSITION_TOLERANCE,
-};
+use motionlink_compax::client::{BusConfig, MoveOptions, MoveReport, MoveRequest, MoveTarget, TravelLimits};
 use motionlink_compax::model::{
-    Command, OutputState, ParamId, Position, RampMs, S16Bits, S17Bits, SpeedPercent, StatusId, StatusValue, BAUD_RATES,
+    BaudRate, Command, ModelError, OutputNumber, OutputState, ParamId, PollInterval, Position, RampMs, ReplyTimeout,
+    SpeedPercent, StatusId, TimeLimit, Tolerance, WatchInterval, WholeArg,
 };
+use motionlink_compax::report::{DrivePosition, ParamReading, StatusReading};
 use motionlink_compax::session::{Op, Output};
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_compax::{AsyncClient, Client, Error};
@@ -24,15 +24,41 @@ use motionlink_link::url::PortUrl;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::common::{json_py, opt_within, target, Int, Record, Slot, Target};
+use crate::common::{json_py, target, Int, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
 use crate::wait::{block_on_runtime, deliver, interruptible, interruptible_read, spawn_task, NativeTask};
 
 const FAMILY: &str = "compax";
 
-fn usage(msg: impl Into<String>) -> Failure {
-    Failure::usage(FAMILY, msg)
+fn usage(msg: impl std::fmt::Display) -> Failure {
+    Failure::usage(FAMILY, msg.to_string())
+}
+
+/// A value by the crate's rule, with the crate's message (the command line's and the console's).
+fn checked<T>(r: Result<T, ModelError>) -> Result<T, Failure> {
+    r.map_err(usage)
+}
+
+/// An int argument `name` by the rule of its type `T` in motionlink-compax: any int gets the crate's
+/// message; a value that is no int (or wider than 64 bits) the binding's, with `T`'s span.
+fn whole<T: WholeArg>(n: &Int, name: &str) -> Result<T, Failure> {
+    let v = n.within::<i64>(FAMILY, name, i64::MIN..=i64::MAX).or_else(|_| n.within::<i64>(FAMILY, name, T::SPAN))?;
+    checked(T::from_whole(v))
+}
+
+/// A library report as the dict of a record: `family`, then its fields as it serialises (the command line's
+/// `--json` names).
+fn record<'py>(py: Python<'py>, report: serde_json::Result<serde_json::Value>) -> PyResult<Record<'py>> {
+    let fields = report.map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(format!("a report: {e}")))?;
+    let r = Record::new(py);
+    r.set("family", FAMILY)?;
+    if let serde_json::Value::Object(fields) = fields {
+        for (k, v) in &fields {
+            r.set(k, json_py(py, v)?)?;
+        }
+    }
+    Ok(r)
 }
 
 /// How a COMPAX client is opened, as `motionlink.Compax` passes it.
@@ -52,24 +78,18 @@ pub struct Settings {
 
 /// The link `port` names and the session's settings, checked.
 fn link(port: Target, s: &Settings) -> Result<(Box<dyn Link>, BusConfig), Failure> {
-    let p196: u32 = s.mode.within(FAMILY, "mode (P196)", 0..=i64::from(u32::MAX))?;
-    let mode = Mode::from_p196(p196).map_err(|e| usage(format!("mode (P196) {p196}: {e}")))?;
-    let drive = drive_number(&s.drive)?;
-    let baud: u32 = s.baud.within(FAMILY, "baud", 1..=4_000_000)?;
-    if !BAUD_RATES.contains(&baud) {
-        return Err(usage(format!("baud {baud}: not a rate P195 accepts ({BAUD_RATES:?})")));
-    }
-    let timeout_ms: u64 = s.timeout_ms.within(FAMILY, "timeout_ms", 1..=60_000)?;
-    let poll_ms: u64 = s.poll_ms.within(FAMILY, "poll_ms", 1..=10_000)?;
-    if !(s.tolerance_units.is_finite() && s.tolerance_units > 0.0 && s.tolerance_units <= 1e6) {
-        return Err(usage(format!("tolerance_units {}: give a distance above 0 (at most 1000000)", s.tolerance_units)));
-    }
+    let mode: Mode = whole(&s.mode, "mode (P196)")?;
+    let drive: Address = whole(&s.drive, "drive")?;
+    let baud = whole::<BaudRate>(&s.baud, "baud")?.bits_per_s();
+    let reply_timeout: ReplyTimeout = whole(&s.timeout_ms, "timeout_ms")?;
+    let poll: PollInterval = whole(&s.poll_ms, "poll_ms")?;
+    let tolerance = checked(Tolerance::new(s.tolerance_units))?;
     let link: Box<dyn Link> = match port {
         Target::InProcess(InProcess::Compax(host)) => Box::new(host.connect().0),
         Target::InProcess(_) => return Err(usage("that emulator is not a COMPAX emulator")),
         Target::Url(PortUrl::Sim) => {
-            let cfg = motionlink_compax::sim::SimConfig::bus(&[drive], p196, baud);
-            let bus = motionlink_compax::Emulator::new(cfg).map_err(|e| usage(e.to_string()))?;
+            let cfg = motionlink_compax::sim::SimConfig::bus(&[drive.get()], mode.to_p196(), baud);
+            let bus = motionlink_compax::Emulator::new(cfg).map_err(usage)?;
             let host =
                 motionlink_link::pipe::EmulatorHost::new(bus, clock(), motionlink_link::pipe::PipeConfig::instant());
             Box::new(host.connect().0)
@@ -82,9 +102,9 @@ fn link(port: Target, s: &Settings) -> Result<(Box<dyn Link>, BusConfig), Failur
         }
     };
     let mut cfg = BusConfig::new(mode, baud);
-    cfg.reply_timeout = Duration::from_millis(timeout_ms);
-    cfg.poll_interval = Duration::from_millis(poll_ms);
-    cfg.in_position_tolerance = Position::new(s.tolerance_units).map_err(|e| usage(format!("tolerance_units: {e}")))?;
+    cfg.reply_timeout = reply_timeout.duration();
+    cfg.poll_interval = poll.duration();
+    cfg.in_position_tolerance = tolerance.position();
     Ok((link, cfg))
 }
 
@@ -93,62 +113,21 @@ fn open(port: Target, s: &Settings) -> Result<Client, Failure> {
     Client::new(link, clock(), cfg).map_err(|e| e.failure())
 }
 
-/// A drive address (1..31) as an argument gives it.
-fn drive_number(n: &Int) -> Result<u8, Failure> {
-    n.within(FAMILY, "drive", 1..=31)
+fn seconds(s: f64) -> Result<Duration, Failure> {
+    checked(TimeLimit::from_secs(s)).map(TimeLimit::duration)
 }
 
-fn address(n: u8) -> Result<Address, Failure> {
-    Address::drive(n).map_err(|e| usage(format!("drive {n}: {e}")))
-}
-
-fn seconds(name: &str, s: f64) -> Result<Duration, Failure> {
-    Duration::try_from_secs_f64(s)
-        .ok()
-        .filter(|t| !t.is_zero())
-        .ok_or_else(|| usage(format!("{name} {s}: give a number of seconds above 0")))
-}
-
-/// A parameter as the CLI's `compax get --json` prints it (`title` is an extra attribute).
-fn param_record<'py>(py: Python<'py>, drive: u8, id: ParamId) -> PyResult<Record<'py>> {
-    let r = Record::new(py);
-    r.set("family", FAMILY)?.set("drive", drive)?.set("name", id.to_string())?.set("id", id.get())?;
-    r.set("unit", id.info().map_or("", |i| i.unit))?.set("access", id.info().map_or("rw", |i| i.access.short()))?;
-    r.set("title", id.description().unwrap_or(""))?.extras(&["title"])?;
-    Ok(r)
-}
-
-/// S16 / S17 as a flag word: `word`, `flags`, `unknown_bits` (when nonzero) and the drive's own bit
-/// string `pattern` ("1101 0010").
-pub(crate) fn s16_py<'py>(py: Python<'py>, b: S16Bits) -> PyResult<Bound<'py, PyDict>> {
-    let r = Record::new(py);
-    r.flag_word(b)?.set("pattern", b.pattern().to_string())?;
+/// A parameter read or written, as the CLI's `compax get` / `set --json` prints it (`title` is an extra
+/// attribute).
+fn param_record<'py>(
+    py: Python<'py>,
+    drive: Address,
+    id: ParamId,
+    report: serde_json::Result<serde_json::Value>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let r = record(py, report)?;
+    r.set("drive", drive.get())?.set("title", id.description().unwrap_or(""))?.extras(&["title"])?;
     Ok(r.done())
-}
-
-/// S17 as [`s16_py`] gives S16.
-pub(crate) fn s17_py<'py>(py: Python<'py>, b: S17Bits) -> PyResult<Bound<'py, PyDict>> {
-    let r = Record::new(py);
-    r.flag_word(b)?.set("pattern", b.pattern().to_string())?;
-    Ok(r.done())
-}
-
-/// A status value as an entry of the CLI's `compax status --json`: `status` ("S1"), `name` (the title),
-/// `unit`, `value` (`drive` and `id` are extra attributes).
-fn status_record<'py>(py: Python<'py>, drive: u8, id: StatusId, v: &StatusValue) -> PyResult<Record<'py>> {
-    let info = id.info();
-    let r = Record::new(py);
-    r.set("family", FAMILY)?.set("drive", drive)?.set("status", id.to_string())?.set("id", id.get())?;
-    r.set("name", info.map_or("(meaning not documented)", |i| i.title))?.set("unit", info.map_or("", |i| i.unit))?;
-    match v {
-        StatusValue::S16(b) => r.set("value", s16_py(py, *b)?)?,
-        StatusValue::S17(b) => r.set("value", s17_py(py, *b)?)?,
-        StatusValue::Position(p) => r.set("value", p.units())?,
-        StatusValue::Number(n) => r.set("value", *n)?,
-        other => r.set("value", other.to_string())?,
-    };
-    r.extras(&["drive", "id"])?;
-    Ok(r)
 }
 
 fn move_request(
@@ -159,37 +138,28 @@ fn move_request(
     (min_units, max_units): (Option<f64>, Option<f64>),
     timeout_s: f64,
 ) -> Result<MoveRequest, Failure> {
-    let ramp_ms: Option<u32> = opt_within(ramp_ms, FAMILY, "ramp_ms", 0..=i64::from(u32::MAX))?;
     let target = match (target, distance) {
-        (Some(t), None) => MoveTarget::Absolute(Position::new(t).map_err(|e| usage(format!("target: {e}")))?),
-        (None, Some(d)) => MoveTarget::Relative(Position::new(d).map_err(|e| usage(format!("distance: {e}")))?),
+        (Some(t), None) => MoveTarget::Absolute(checked(Position::new(t))?),
+        (None, Some(d)) => MoveTarget::Relative(checked(Position::new(d))?),
         _ => return Err(usage("give one of target= (absolute) and distance= (relative)")),
     };
-    let speed = speed_percent.map(SpeedPercent::new).transpose().map_err(|e| usage(format!("speed_percent: {e}")))?;
-    let accel = ramp_ms.map(RampMs::new).transpose().map_err(|e| usage(format!("ramp_ms: {e}")))?;
-    let limit =
-        |name: &str, v: Option<f64>| v.map(Position::new).transpose().map_err(|e| usage(format!("{name}: {e}")));
-    let limits = TravelLimits::new(limit("min_units", min_units)?, limit("max_units", max_units)?)
-        .map_err(|e| usage(format!("min_units / max_units: {e}")))?;
-    Ok(MoveRequest { target, speed, accel, binary: false, limits, timeout: Some(seconds("timeout_s", timeout_s)?) })
+    let speed = checked(speed_percent.map(SpeedPercent::new).transpose())?;
+    let accel = ramp_ms.map(|r| whole::<RampMs>(r, "ramp_ms")).transpose()?;
+    let limit = |v: Option<f64>| checked(v.map(Position::new).transpose());
+    let limits = TravelLimits::new(limit(min_units)?, limit(max_units)?).map_err(usage)?;
+    Ok(MoveRequest { target, speed, accel, binary: false, limits, timeout: Some(seconds(timeout_s)?) })
 }
 
 /// A move as the CLI's `compax move --json` prints it (`start_units` is an extra attribute).
-fn move_record<'py>(py: Python<'py>, report: &MoveReport, tolerance: Position) -> PyResult<Record<'py>> {
-    let rec = Record::new(py);
-    rec.set("family", FAMILY)?.set("drive", report.address.get())?.set("start_units", report.start.units())?;
-    rec.set("target_units", report.target.units())?.set("reached_units", report.reached.units())?;
-    rec.set("difference_units", report.difference())?.set("tolerance_units", tolerance.units())?;
-    rec.set("waited", true)?.set("verified", report.verified)?.set("not_verifiable", report.not_verifiable.clone())?;
-    rec.extras(&["start_units"])?;
+fn move_record<'py>(py: Python<'py>, report: &MoveReport) -> PyResult<Record<'py>> {
+    let rec = record(py, serde_json::to_value(report))?;
+    rec.set("start_units", report.start.units())?.extras(&["start_units"])?;
     Ok(rec)
 }
 
 /// Where a drive stands (S1): the result of `position`, `wait` and `home`.
-fn position_record<'py>(py: Python<'py>, drive: Address, p: Position) -> PyResult<Record<'py>> {
-    let rec = Record::new(py);
-    rec.set("family", FAMILY)?.set("drive", drive.get())?.set("position_units", p.units())?;
-    Ok(rec)
+fn position_record<'py>(py: Python<'py>, drive: Address, position: Position) -> PyResult<Record<'py>> {
+    record(py, serde_json::to_value(DrivePosition { drive, position }))
 }
 
 /// A session with COMPAX drives on one bus (the native half of `motionlink.Compax`).
@@ -199,7 +169,7 @@ pub struct CompaxClient {
     token: CancelToken,
     /// The tokens of the watches still running (closing the client ends them).
     watches: std::sync::Mutex<Vec<CancelToken>>,
-    drive: u8,
+    drive: Address,
     port: String,
     close_bound: Duration,
     /// The port as given (a URL), for profiles and probes; `None` for an emulator in this process.
@@ -214,11 +184,7 @@ impl CompaxClient {
     }
 
     fn drive(&self, py: Python<'_>, drive: Option<Int>) -> PyResult<Address> {
-        let n = match drive {
-            None => self.drive,
-            Some(d) => drive_number(&d).map_err(|f| to_pyerr(py, f))?,
-        };
-        address(n).map_err(|f| to_pyerr(py, f))
+        drive.map_or(Ok(self.drive), |d| whole(&d, "drive")).map_err(|f| to_pyerr(py, f))
     }
 
     /// Ends the watches still running.
@@ -243,14 +209,13 @@ impl CompaxClient {
             Target::Url(u) => u.to_string(),
         };
         let port_url = (port != "in-process emulator" && port != "sim").then(|| port.clone());
-        let drive = drive_number(&settings.drive).map_err(|f| to_pyerr(py, f))?;
+        let drive: Address = whole(&settings.drive, "drive").map_err(|f| to_pyerr(py, f))?;
         let baud: u32 = settings.baud.within(FAMILY, "baud", 1..=4_000_000).map_err(|f| to_pyerr(py, f))?;
         let (client, profile) = py
             .detach(|| {
                 let client = open(t, &settings)?;
-                let address = Address::drive(drive).map_err(|e| usage(e.to_string()))?;
                 let used = crate::common::use_profile(settings.profile.as_deref(), port_url.as_deref(), |p, port| {
-                    motionlink_compax::probe::use_profile(&client, p, port, address).map_err(|e| e.failure())
+                    motionlink_compax::probe::use_profile(&client, p, port, drive).map_err(|e| e.failure())
                 })?;
                 Ok::<_, Failure>((client, used))
             })
@@ -327,17 +292,11 @@ impl CompaxClient {
         // The library checks the cancel token before each address; Ctrl-C cancels it and raises at once
         // (the address being asked ends within its reply timeout on the scan's thread).
         let found = interruptible_read(py, Some(self.token.clone()), move || c.scan(1..=31))?.or_raise(py)?;
-        found
-            .iter()
-            .map(|(a, p)| {
-                let r = Record::new(py);
-                r.set("family", FAMILY)?.set("drive", a.get())?.set("position_units", p.units())?;
-                Ok(r.done())
-            })
-            .collect()
+        found.into_iter().map(|(a, p)| Ok(position_record(py, a, p)?.done())).collect()
     }
 
-    /// Status values (S1 .. S40) by name ("S1") or number.
+    /// Status values (S1 .. S40) by name ("S1") or number; none: the main ones ([`StatusId::OVERVIEW`]), as
+    /// the CLI's `status`.
     #[pyo3(signature = (names, drive=None))]
     fn status<'py>(
         &self,
@@ -347,14 +306,22 @@ impl CompaxClient {
     ) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
-        let ids: Vec<StatusId> = names
-            .iter()
-            .map(|n| StatusId::parse(n).map_err(|e| usage(format!("status {n:?}: {e}"))))
-            .collect::<Result<_, _>>()
-            .map_err(|f| to_pyerr(py, f))?;
+        let mut ids: Vec<StatusId> =
+            names.iter().map(|n| checked(n.parse())).collect::<Result<_, _>>().map_err(|f| to_pyerr(py, f))?;
+        if ids.is_empty() {
+            ids = StatusId::OVERVIEW.to_vec();
+        }
         let values =
             interruptible_read(py, Some(self.token.clone()), move || c.read_statuses(a, &ids))?.or_raise(py)?;
-        values.iter().map(|(id, v)| Ok(status_record(py, a.get(), *id, v)?.done())).collect()
+        values
+            .into_iter()
+            .map(|(id, value)| {
+                // As an entry of the CLI's `compax status --json` (`drive` and `id` are extra attributes).
+                let r = record(py, serde_json::to_value(StatusReading { id, value }))?;
+                r.set("drive", a.get())?.set("id", id.get())?.extras(&["drive", "id"])?;
+                Ok(r.done())
+            })
+            .collect()
     }
 
     /// The actual position S1, in the drive's unit.
@@ -370,11 +337,9 @@ impl CompaxClient {
     fn get<'py>(&self, py: Python<'py>, name: &str, drive: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
-        let id = ParamId::parse(name).map_err(|e| to_pyerr(py, usage(format!("{name:?}: {e}"))))?;
-        let v = interruptible_read(py, None, move || c.read_param(a, id))?.or_raise(py)?;
-        let r = param_record(py, a.get(), id)?;
-        r.set("value", v)?;
-        Ok(r.done())
+        let id: ParamId = checked(name.parse()).map_err(|f| to_pyerr(py, f))?;
+        let value = interruptible_read(py, None, move || c.read_param(a, id))?.or_raise(py)?;
+        param_record(py, a, id, serde_json::to_value(ParamReading { id, value }))
     }
 
     /// Writes a parameter and reads it back (a different value is a DeviceError).
@@ -382,18 +347,12 @@ impl CompaxClient {
     fn set<'py>(&self, py: Python<'py>, name: &str, value: f64, drive: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
-        let id = ParamId::parse(name)
-            .and_then(|id| id.check(value).map(|()| id))
-            .map_err(|e| to_pyerr(py, usage(format!("{name}: {e}"))))?;
-        // The library writes and compares what it reads back (a difference is an error); the value is then
-        // read once more, so that `read_back` is what the drive holds, not an echo of `value`.
-        let back = py.detach(|| c.write_param(a, id, value).and_then(|()| c.read_param(a, id))).or_raise(py)?;
-        let r = param_record(py, a.get(), id)?;
-        // Always verified (the library compared the value read back): nothing it could not check, as the
-        // other families' `set` says it, so that `not_verifiable` is a list in every family's result.
-        r.set("value", value)?.set("read_back", back)?.set("verified", true)?;
-        r.set("not_verifiable", Vec::<String>::new())?;
-        Ok(r.done())
+        let id = checked(name.parse::<ParamId>().and_then(|id| id.check(value).map(|()| id)))
+            .map_err(|f| to_pyerr(py, f))?;
+        // The library writes, compares what it reads back (a difference is an error) and reads once more:
+        // `read_back` is what the drive holds, not an echo of `value`.
+        let written = py.detach(|| c.set_param(a, id, value)).or_raise(py)?;
+        param_record(py, a, id, serde_json::to_value(written))
     }
 
     /// A checked move (absolute `target` or relative `distance`), waited for; Ctrl-C stops the drive.
@@ -417,8 +376,7 @@ impl CompaxClient {
             move_request(target, distance, speed_percent, ramp_ms.as_ref(), (min_units, max_units), timeout_s)
                 .map_err(|f| to_pyerr(py, f))?;
         let r = interruptible(py, Some(&self.token), || c.move_to(a, &request, &mut |_| {}), cancel_cause)?;
-        let report = r.or_raise(py)?;
-        Ok(move_record(py, &report, c.config().in_position_tolerance)?.done())
+        Ok(move_record(py, &r.or_raise(py)?)?.done())
     }
 
     /// POSA HOME, waited for; Ctrl-C stops the drive.
@@ -426,7 +384,7 @@ impl CompaxClient {
     fn home<'py>(&self, py: Python<'py>, drive: Option<Int>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
-        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
         let r = interruptible(
             py,
             Some(&self.token),
@@ -446,7 +404,7 @@ impl CompaxClient {
     fn wait<'py>(&self, py: Python<'py>, drive: Option<Int>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
-        let timeout = seconds("timeout_s", timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
         let r = interruptible(
             py,
             Some(&self.token),
@@ -473,12 +431,13 @@ impl CompaxClient {
     fn output(&self, py: Python<'_>, number: Int, state: Int, drive: Option<Int>) -> PyResult<()> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
-        let number: u16 =
-            number.within(FAMILY, "number (the output)", 0..=i64::from(u16::MAX)).map_err(|f| to_pyerr(py, f))?;
-        let state: u8 =
-            state.within(FAMILY, "state (of the output)", 0..=i64::from(u8::MAX)).map_err(|f| to_pyerr(py, f))?;
-        let st = OutputState::new(number, state).map_err(|e| to_pyerr(py, usage(e.to_string())))?;
-        py.detach(|| c.set_output(a, number, st, false)).or_raise(py)
+        let output = || -> Result<(OutputNumber, OutputState), Failure> {
+            let number: OutputNumber = whole(&number, "number (the output)")?;
+            let state: OutputState = whole(&state, "state (of the output)")?;
+            Ok((number, checked(state.for_output(number))?))
+        };
+        let (number, state) = output().map_err(|f| to_pyerr(py, f))?;
+        py.detach(|| c.set_output(a, number.get(), state, false)).or_raise(py)
     }
 
     /// Starts the library's watch of the drive (S1 and S17 every `interval_ms`, on a thread of its own):
@@ -487,8 +446,8 @@ impl CompaxClient {
     fn watch_start(&self, py: Python<'_>, drive: Option<Int>, interval_ms: Int) -> PyResult<CompaxWatch> {
         let c = self.client(py)?;
         let a = self.drive(py, drive)?;
-        let ms: u64 = interval_ms.within(FAMILY, "interval_ms", 1..=3_600_000).map_err(|f| to_pyerr(py, f))?;
-        let w = CompaxWatch::start(c, a, Duration::from_millis(ms));
+        let interval: WatchInterval = whole(&interval_ms, "interval_ms").map_err(|f| to_pyerr(py, f))?;
+        let w = CompaxWatch::start(c, a, interval.duration());
         motionlink_link::clock::lock(&self.watches).push(w.token());
         Ok(w)
     }
@@ -519,7 +478,7 @@ impl CompaxClient {
 
 /// The in-position tolerance the library uses unless told otherwise.
 pub fn default_tolerance() -> f64 {
-    DEFAULT_IN_POSITION_TOLERANCE
+    Tolerance::DEFAULT.position().units()
 }
 
 impl Drop for CompaxClient {

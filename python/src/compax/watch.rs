@@ -6,6 +6,7 @@ use std::sync::Mutex;
 use std::thread::JoinHandle;
 use std::time::Instant;
 
+use motionlink_compax::report::Timed;
 use motionlink_compax::session::{Op, Progress, WatchSample};
 use motionlink_link::clock::lock;
 
@@ -82,11 +83,7 @@ impl CompaxWatch {
             match got {
                 Ok(Ok((t_s, s))) => {
                     *lock(&self.rx) = Some(rx);
-                    let r = Record::new(py);
-                    r.set("family", FAMILY)?.set("drive", s.drive.get())?.set("t_s", t_s)?;
-                    r.set("position_units", s.position.units())?.set("s17", s17_py(py, s.s17)?)?;
-                    r.set("moving", s.moving())?;
-                    return Ok(r.done());
+                    return Ok(record(py, serde_json::to_value(Timed { t_s, sample: s }))?.done());
                 }
                 Ok(Err(f)) => return Err(to_pyerr(py, f)),
                 Err(RecvTimeoutError::Timeout) => {

@@ -15,6 +15,7 @@ use crate::error::{Error, Result, StopReport};
 use crate::model::{
     Command, OutputState, ParamId, Position, RampMs, S16Bits, S17Bits, SpeedPercent, StatusId, StatusValue,
 };
+use crate::report::{ParamReading, ParamWritten};
 use crate::session::{
     AfterRaw, BusConfig, MoveOptions, MoveReport, MoveRequest, Op, Output, RawOutcome, Session, StartedMove,
 };
@@ -197,6 +198,13 @@ impl AsyncClient {
     /// A parameter written and read back; see [`Client::write_param`](super::Client::write_param).
     pub async fn write_param(&self, address: Address, id: ParamId, value: f64) -> Result<()> {
         self.done(Op::WriteParam(address, id, value), "a parameter write").await
+    }
+
+    /// A parameter written, read back, and read once more; see [`Client::set_param`](super::Client::set_param).
+    pub async fn set_param(&self, address: Address, id: ParamId, value: f64) -> Result<ParamWritten> {
+        self.write_param(address, id, value).await?;
+        let read_back = self.read_param(address, id).await?;
+        Ok(ParamWritten { written: ParamReading { id, value }, read_back })
     }
 
     /// S1 of every address in `range`.

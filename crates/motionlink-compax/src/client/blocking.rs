@@ -15,6 +15,7 @@ use crate::error::{Error, Result, StopReport};
 use crate::model::{
     Command, OutputState, ParamId, Position, RampMs, S16Bits, S17Bits, SpeedPercent, StatusId, StatusValue,
 };
+use crate::report::{ParamReading, ParamWritten};
 use crate::session::core::Effect;
 use crate::session::{
     AfterRaw, BusConfig, MoveOptions, MoveReport, MoveRequest, Op, Output, Progress, RawOutcome, Session, StartedMove,
@@ -215,6 +216,14 @@ impl Client {
     /// To address 32 (every drive) the value is written and cannot be read back (nobody answers).
     pub fn write_param(&self, address: Address, id: ParamId, value: f64) -> Result<()> {
         self.done(Op::WriteParam(address, id, value), "a parameter write")
+    }
+
+    /// Writes parameter `id` as [`Client::write_param`] does (a value that reads back otherwise is
+    /// [`Error::ReadBack`]), then reads it once more: the report's `read_back` is what the drive holds now.
+    pub fn set_param(&self, address: Address, id: ParamId, value: f64) -> Result<ParamWritten> {
+        self.write_param(address, id, value)?;
+        let read_back = self.read_param(address, id)?;
+        Ok(ParamWritten { written: ParamReading { id, value }, read_back })
     }
 
     /// Tries every address in `range` once with a short timeout; returns the drives that answered S1 with

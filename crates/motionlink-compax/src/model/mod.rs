@@ -7,6 +7,7 @@
 //! [`flag_set!`](motionlink_link::flag_set) words ([`S16Bits`], [`S17Bits`]).
 //!
 //! - [`units`]: [`Position`] (the drive's position unit), [`SpeedPercent`], [`RampMs`], [`OutputState`].
+//! - [`args`]: the rules of the arguments a front end takes ([`FromStr`](std::str::FromStr), [`WholeArg`]).
 //! - [`status`]: [`StatusId`] and its table; [`value`]: [`StatusValue`] as read; [`bits`]: S16 / S17.
 //! - [`param`]: [`ParamId`] and its table; [`error_code`]: [`ErrorCode`]; [`command`]: [`Command`].
 //!
@@ -19,6 +20,7 @@
 //!            "POSR 200 OUTPUT O9=1");
 //! ```
 
+pub mod args;
 pub mod bits;
 pub mod command;
 pub mod error_code;
@@ -29,6 +31,9 @@ mod tests;
 pub mod units;
 pub mod value;
 
+pub use args::{
+    whole_number, BaudRate, OutputNumber, PollInterval, ReplyTimeout, TimeLimit, Tolerance, WatchInterval, WholeArg,
+};
 pub use bits::{bit_mask, BitPattern, S16Bits, S16Flag, S17Bits, S17Flag};
 pub use command::{Command, CommandStyle, CommandText};
 pub use error_code::ErrorCode;

@@ -113,6 +113,17 @@ impl StatusId {
     /// The highest status value number.
     pub const MAX: u8 = 40;
 
+    /// A drive's main status values, what `status` reads when it is given none: S1 position, S2 target,
+    /// S3 contour error, the status bits S16 and S17, the error history S18.
+    pub const OVERVIEW: [StatusId; 6] = [
+        StatusId::ACTUAL_POSITION,
+        StatusId::TARGET_POSITION,
+        StatusId::CONTOUR_ERROR,
+        StatusId::STATUS_BITS_1,
+        StatusId::STATUS_BITS_2,
+        StatusId::ERROR_HISTORY,
+    ];
+
     /// S1..=S40.
     pub fn new(n: u8) -> Result<Self, ModelError> {
         if (1..=Self::MAX).contains(&n) {

@@ -39,6 +39,13 @@ impl Position {
     }
 }
 
+/// A number in the drive's unit (the results name it `..._units`).
+impl serde::Serialize for Position {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_f64(self.0)
+    }
+}
+
 impl fmt::Display for Position {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write_decimal(f, self.0, MAX_DECIMALS)
@@ -117,5 +124,12 @@ impl OutputState {
     /// The number written.
     pub fn get(self) -> u8 {
         self.0
+    }
+}
+
+/// The number written.
+impl serde::Serialize for OutputState {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_u8(self.0)
     }
 }

@@ -181,8 +181,11 @@ pub struct MoveReport {
     pub start: Position,
     /// The target.
     pub target: Position,
-    /// S1 at rest afterwards (within [`BusConfig::in_position_tolerance`] of the target).
+    /// S1 at rest afterwards (within [`MoveReport::tolerance`] of the target).
     pub reached: Position,
+    /// The in-position tolerance the position at rest was checked against
+    /// ([`BusConfig::in_position_tolerance`]).
+    pub tolerance: Position,
     /// True when every check of what the drive took could be made: the echo of the stored move showed the
     /// address, the command and the flags sent (an ASCII move), and S2 the target. (The position at rest is
     /// always checked: a move that did not end within the tolerance is an error, never a report.)

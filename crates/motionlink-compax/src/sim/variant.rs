@@ -78,8 +78,8 @@ impl Variant {
         Ok(v)
     }
 
-    /// Every name, comma-separated, for messages and help texts.
-    pub fn names() -> String {
+    /// The names of every variant, comma-separated (for messages and help texts).
+    pub fn known() -> String {
         Variant::ALL.iter().map(|v| v.name()).collect::<Vec<_>>().join(", ")
     }
 }
@@ -92,16 +92,22 @@ impl fmt::Display for Variant {
 
 /// A variant name that is not one of [`Variant::ALL`].
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown COMPAX emulator variant {name:?}: the variants are {}", Variant::names())]
+#[error("{name:?} is not a COMPAX emulator variant (known: {known})", known = Variant::known())]
 pub struct UnknownVariant {
     /// The name given.
     pub name: String,
 }
 
+/// A name of [`Variant::ALL`], in any case, with `_` for `-` (`no-echo`, `NO_ECHO`), blanks around it
+/// ignored.
 impl FromStr for Variant {
     type Err = UnknownVariant;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Variant::ALL.into_iter().find(|v| v.name() == s.trim()).ok_or_else(|| UnknownVariant { name: s.to_string() })
+        let name = s.trim();
+        Variant::ALL
+            .into_iter()
+            .find(|v| v.name().eq_ignore_ascii_case(name) || v.name().replace('-', "_").eq_ignore_ascii_case(name))
+            .ok_or_else(|| UnknownVariant { name: name.to_string() })
     }
 }
 
@@ -136,8 +142,13 @@ mod tests {
             assert_eq!(v.name().parse::<Variant>(), Ok(v));
         }
         assert_eq!(Variant::list("no-echo, echo-bare,no-echo").unwrap(), vec![Variant::EchoBare, Variant::NoEcho]);
+        assert_eq!(" No_Echo ".parse::<Variant>(), Ok(Variant::NoEcho));
         let e = "echo".parse::<Variant>().unwrap_err().to_string();
-        assert!(e.contains("\"echo\"") && e.contains("echo-without-address") && e.contains("status-value-only"), "{e}");
+        assert_eq!(
+            e,
+            "\"echo\" is not a COMPAX emulator variant (known: echo-without-address, echo-bare, no-echo, \
+             echo-without-store, status-value-only)"
+        );
         let t = b"12POSA 12.5$,?";
         assert_eq!(echo_of(&[], t, 2), t);
         assert_eq!(echo_of(&[Variant::EchoWithoutAddress], t, 2), b"POSA 12.5$,?");

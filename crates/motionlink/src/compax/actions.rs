@@ -1,7 +1,10 @@
 //! The actions of `motionlink compax`: their arguments checked before the port is opened, then one function
-//! per action.
+//! per action. Each prints the library's report: as it serialises with `--json`, in words otherwise.
 
-use super::open::MovePlan;
+use motionlink_compax::error::StopReport;
+use motionlink_compax::report::{DrivePosition, OutputSwitched, ParamReading, StatusReport};
+use motionlink_compax::session::{RawOutcome, StartedMove};
+
 use super::*;
 
 /// What a COMPAX position is in, in text: the drive's own unit (set in the drive; the JSON keys say
@@ -17,7 +20,17 @@ fn with_unit(value: f64, unit: &str) -> String {
     }
 }
 
-/// The arguments of an action, checked before the port is opened.
+/// `move` without a target (clap asks for one: this is the library's last word).
+const NO_TARGET: &str = "give the target: POSITION (the same as --abs POSITION) or --rel DISTANCE";
+
+/// The arguments of `move`, checked before anything is sent.
+pub(super) struct MovePlan {
+    pub(super) request: MoveRequest,
+    pub(super) tolerance: Tolerance,
+}
+
+/// The arguments of an action that their types alone do not check, checked before the port is opened.
+#[derive(Default)]
 pub(super) struct Checked {
     /// `move`: the move, planned.
     pub(super) move_plan: Option<MovePlan>,
@@ -25,15 +38,16 @@ pub(super) struct Checked {
     pub(super) poll: Option<Duration>,
     /// `raw --wait`: how long to wait for a move the command started.
     pub(super) raw_wait: Option<Duration>,
-    /// `watch`: the interval between two lines.
-    pub(super) watch_interval: Option<Duration>,
+    /// `output`: the output and its state.
+    pub(super) output: Option<(u16, OutputState)>,
     /// `status`: the values to read.
     pub(super) status_ids: Vec<StatusId>,
 }
 
 /// Checks every argument of the action: nothing is sent for an action that cannot be made.
 pub(super) fn check(args: &Args) -> Result<Checked, CliError> {
-    let move_plan = match &args.action {
+    let mut checked = Checked::default();
+    match &args.action {
         Action::Move {
             target,
             abs,
@@ -49,53 +63,28 @@ pub(super) fn check(args: &Args) -> Result<Checked, CliError> {
             ..
         } => {
             // A plain target is an absolute one, as `move 100` is in every family.
-            Some(plan_move(
-                target.or(*abs),
-                *rel,
-                *speed,
-                *accel,
-                *binary,
-                *timeout_s,
-                *tolerance,
-                (*min_pos, *max_pos),
-                *poll_ms,
-            )?)
+            let target = match (target.or(*abs), rel) {
+                (Some(a), None) => MoveTarget::Absolute(a),
+                (None, Some(r)) => MoveTarget::Relative(*r),
+                _ => return Err(CliError::usage(NO_TARGET)),
+            };
+            let limits = TravelLimits::new(*min_pos, *max_pos)
+                .map_err(|e| CliError::usage(format!("--min-pos / --max-pos: {e}")))?;
+            let (speed, accel, binary, timeout) = (*speed, *accel, *binary, Some(timeout_s.duration()));
+            let request = MoveRequest { target, speed, accel, binary, limits, timeout };
+            checked.move_plan = Some(MovePlan { request, tolerance: *tolerance });
+            checked.poll = Some(poll_ms.duration());
         }
-        _ => None,
-    };
-    let mut checked = Checked {
-        poll: move_plan.as_ref().map(|p| p.poll),
-        move_plan,
-        raw_wait: None,
-        watch_interval: None,
-        status_ids: Vec::new(),
-    };
-    match &args.action {
         Action::Raw { wait: true, timeout_s, poll_ms, .. } => {
-            checked.raw_wait = Some(checked_s("--timeout-s", *timeout_s)?);
-            checked.poll = Some(checked_ms("--poll-ms", *poll_ms, 1, 10_000)?);
-        }
-        Action::Watch { interval_ms, .. } => {
-            checked.watch_interval = Some(checked_ms("--interval-ms", *interval_ms, 1, 60_000)?)
+            checked.raw_wait = Some(timeout_s.duration());
+            checked.poll = Some(poll_ms.duration());
         }
         Action::Output { number, state } => {
-            OutputState::new(*number, *state).map_err(model_error)?;
+            checked.output = Some((number.get(), state.for_output(*number).map_err(CliError::usage)?))
         }
-        Action::Get { params } => {
-            for param in params {
-                ParamId::parse(param).map_err(model_error)?;
-            }
-        }
-        Action::Set { param, value } => {
-            ParamId::parse(param).and_then(|id| id.check(*value)).map_err(model_error)?;
-        }
-        Action::Status { values } if values.is_empty() => {
-            checked.status_ids = [1, 2, 3, 16, 17, 18].iter().filter_map(|&n| StatusId::new(n).ok()).collect();
-        }
-        Action::Status { values } => {
-            checked.status_ids =
-                values.iter().map(|v| StatusId::parse(v)).collect::<Result<_, _>>().map_err(model_error)?;
-        }
+        Action::Set { param, value } => param.check(*value).map_err(CliError::usage)?,
+        Action::Status { values } if values.is_empty() => checked.status_ids = StatusId::OVERVIEW.to_vec(),
+        Action::Status { values } => checked.status_ids = values.clone(),
         _ => {}
     }
     Ok(checked)
@@ -104,23 +93,18 @@ pub(super) fn check(args: &Args) -> Result<Checked, CliError> {
 /// `scan`: lists the drives that answer on the bus; none is an error.
 pub(super) fn scan(args: &Args, bus: &Client, out: &mut dyn Write) -> Result<(), CliError> {
     // A signal ends the scan between two addresses.
-    let found = bus.scan(1..=31).map_err(|e| error_for(args, e))?;
+    let found: Vec<DrivePosition> =
+        bus.scan(1..=31).map_err(|e| error_for(args, e))?.into_iter().map(DrivePosition::from).collect();
     if args.json {
         // A listing: one object per drive found (JSON Lines).
-        for (a, p) in &found {
-            common::print_json(
-                out,
-                &common::identified(
-                    "compax",
-                    &args.resolved_port,
-                    json!({"drive": a.get(), "position_units": p.units()}),
-                ),
-            )?;
+        for d in &found {
+            common::print_result(out, "compax", &args.resolved_port, &[], d)?;
         }
     } else if found.is_empty() {
         writeln!(out, "no drive answered on {}", args.resolved_port)?;
     } else {
-        let rows: Vec<Row> = found.iter().map(|(a, p)| (format!("drive {a}"), format!("S1 = {p} {UNITS}"))).collect();
+        let rows: Vec<Row> =
+            found.iter().map(|d| (format!("drive {}", d.drive), format!("S1 = {} {UNITS}", d.position))).collect();
         common::print_table(out, &rows)?;
     }
     if found.is_empty() {
@@ -130,41 +114,26 @@ pub(super) fn scan(args: &Args, bus: &Client, out: &mut dyn Write) -> Result<(),
 }
 
 /// `status`: reads and prints the status values `ids`.
-pub(super) fn status(
-    args: &Args,
-    bus: &Client,
-    drive: Address,
-    ids: &[StatusId],
-    out: &mut dyn Write,
-) -> Result<(), CliError> {
+pub(super) fn status(args: &Args, bus: &Client, ids: &[StatusId], out: &mut dyn Write) -> Result<(), CliError> {
     // A signal ends the reads between two values.
-    let values = bus.read_statuses(drive, ids).map_err(|e| error_for(args, e))?;
-    let (rows, js): (Vec<Row>, Vec<serde_json::Value>) = values.iter().map(|(id, v)| status_rows(*id, v)).unzip();
+    let report = StatusReport::from(bus.read_statuses(args.drive, ids).map_err(|e| error_for(args, e))?);
     if args.json {
-        common::print_json(out, &identified(args, json!({"status": js})))?;
+        print(args, out, &report)
     } else {
-        common::print_table(out, &rows)?;
+        common::print_table(out, &report.status.iter().map(status_row).collect::<Vec<_>>())
     }
-    Ok(())
 }
 
 /// `get`: reads and prints the parameters `params`.
-pub(super) fn get(
-    args: &Args,
-    bus: &Client,
-    drive: Address,
-    params: &[String],
-    out: &mut dyn Write,
-) -> Result<(), CliError> {
+pub(super) fn get(args: &Args, bus: &Client, params: &[ParamId], out: &mut dyn Write) -> Result<(), CliError> {
     let mut rows = Vec::new();
-    for param in params {
-        let id = ParamId::parse(param).map_err(model_error)?;
-        let v = bus.read_param(drive, id).map_err(|e| error_for(args, e))?;
-        let desc = id.description().unwrap_or("");
+    for &id in params {
+        let reading = ParamReading { id, value: bus.read_param(args.drive, id).map_err(|e| error_for(args, e))? };
         if args.json {
-            common::print_json(out, &identified(args, param_json(id, json!(v))))?;
+            print(args, out, &reading)?;
         } else {
-            rows.push((format!("{id} {desc}").trim_end().to_string(), with_unit(v, id.info().map_or("", |i| i.unit))));
+            let name = format!("{id} {}", id.description().unwrap_or("")).trim_end().to_string();
+            rows.push((name, with_unit(reading.value, reading.unit())));
         }
     }
     if !args.json {
@@ -173,81 +142,48 @@ pub(super) fn get(
     Ok(())
 }
 
-/// `set`: writes the parameter `param`, reads it back and prints both.
-pub(super) fn set(
-    args: &Args,
-    bus: &Client,
-    drive: Address,
-    param: &str,
-    value: f64,
-    out: &mut dyn Write,
-) -> Result<(), CliError> {
-    let fail = |e: Error| error_for(args, e);
-    let id = ParamId::parse(param).map_err(model_error)?;
+/// `set`: writes the parameter `id`, reads it back and prints both.
+pub(super) fn set(args: &Args, bus: &Client, id: ParamId, value: f64, out: &mut dyn Write) -> Result<(), CliError> {
     // Written and read back: a value that reads back otherwise is an error (exit code 1).
-    bus.write_param(drive, id, value).map_err(fail)?;
-    // The library compared what it read back; the value the drive gives now is `read_back` (one drive is
-    // addressed, 1..=31: it answers).
-    let read_back = bus.read_param(drive, id).map_err(fail)?;
-    let note = match id.info() {
-        Some(i) if i.kind.valid_from == ValidFrom::PowerOn => " (takes effect at the drive's next power-on)",
-        _ => "",
-    };
+    let written = bus.set_param(args.drive, id, value).map_err(|e| error_for(args, e))?;
     if args.json {
-        let mut v = param_json(id, json!(value));
-        v["read_back"] = json!(read_back);
-        v["verified"] = json!(true);
-        // Nothing it could not check (a value that reads back otherwise is an error), as every family says it.
-        v["not_verifiable"] = json!([]);
-        common::print_json(out, &identified(args, v))?;
-    } else {
-        writeln!(out, "{id} = {}, read back{note}", with_unit(value, id.info().map_or("", |i| i.unit)))?;
+        return print(args, out, &written);
     }
+    let note = if written.at_power_on() { " (takes effect at the drive's next power-on)" } else { "" };
+    writeln!(out, "{id} = {}, read back{note}", with_unit(value, written.written.unit()))?;
     Ok(())
 }
 
-/// `move --no-wait`: starts the move and hands it over once the drive has taken it.
-pub(super) fn move_no_wait(
+/// `move --no-wait`'s result: the move the drive took, and where the axis was once it had taken it.
+#[derive(serde::Serialize)]
+struct HandedOver<'a> {
+    #[serde(flatten)]
+    started: &'a StartedMove,
+    position_units: Position,
+}
+
+/// `move`: moves the axis and prints where it came to rest (with `no_wait`: starts the move and hands it
+/// over once the drive has taken it).
+pub(super) fn move_drive(
     args: &Args,
     bus: &Client,
-    drive: Address,
     plan: Option<&MovePlan>,
+    no_wait: bool,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let fail = |e: Error| error_for(args, e);
-    let plan = plan.ok_or_else(|| CliError::usage("move: no plan"))?;
-    // Handed over once its target is read back: the move runs on after this command exits (a signal
-    // before that stops it instead).
-    let started = bus.start_and_release(drive, &plan.request).map_err(fail)?;
-    let now = bus.read_position(drive).map_err(fail)?;
-    if args.json {
-        common::print_json(
-            out,
-            &identified(
-                args,
-                json!({"target_units": started.target.units(), "position_units": now.units(),
-                       "waited": false, "verified": started.not_verifiable.is_empty(),
-                       "not_verifiable": started.not_verifiable}),
-            ),
-        )?;
-    } else {
-        writeln!(out, "drive {drive}: target {} {UNITS}, position {now} {UNITS} (moving on)", started.target)?;
-        if !started.not_verifiable.is_empty() {
-            writeln!(out, "not verified: {}", started.not_verifiable.join("; "))?;
+    let (plan, drive) = (plan.ok_or_else(|| CliError::usage("move: no plan"))?, args.drive);
+    if no_wait {
+        // Handed over once its target is read back: the move runs on after this command exits (a signal
+        // before that stops it instead).
+        let started = bus.start_and_release(drive, &plan.request).map_err(fail)?;
+        let now = bus.read_position(drive).map_err(fail)?;
+        if args.json {
+            return print(args, out, &HandedOver { started: &started, position_units: now });
         }
+        writeln!(out, "drive {drive}: target {} {UNITS}, position {now} {UNITS} (moving on)", started.target)?;
+        return not_verified(out, &started.not_verifiable);
     }
-    Ok(())
-}
-
-/// `move`: moves the axis with a progress bar, waits until it is at rest and prints where it came to rest.
-pub(super) fn move_and_wait(
-    args: &Args,
-    bus: &Client,
-    drive: Address,
-    plan: Option<&MovePlan>,
-    out: &mut dyn Write,
-) -> Result<(), CliError> {
-    let plan = plan.ok_or_else(|| CliError::usage("move: no plan"))?;
     let bar = common::progress_bar(0, format!("drive {drive}"));
     let mut started_at: Option<f64> = None;
     let report = bus.move_to(drive, &plan.request, &mut |p| {
@@ -262,43 +198,52 @@ pub(super) fn move_and_wait(
         bar.set_position(((p.units() - s).abs() * 1000.0).round() as u64);
     });
     bar.finish_and_clear();
-    let report = report.map_err(|e| error_for(args, e))?;
+    let report = report.map_err(fail)?;
     if args.json {
-        common::print_json(
-            out,
-            &identified(
-                args,
-                json!({"target_units": report.target.units(), "reached_units": report.reached.units(),
-                       "difference_units": report.difference(), "tolerance_units": plan.tolerance.units(),
-                       "waited": true, "verified": report.verified, "not_verifiable": report.not_verifiable}),
-            ),
-        )?;
-    } else {
-        writeln!(out, "drive {drive}: target {} {UNITS}, position {} {UNITS}", report.target, report.reached)?;
-        if !report.verified {
-            writeln!(out, "not verified: {}", report.not_verifiable.join("; "))?;
-        }
+        return print(args, out, &report);
+    }
+    writeln!(out, "drive {drive}: target {} {UNITS}, position {} {UNITS}", report.target, report.reached)?;
+    not_verified(out, &report.not_verifiable)
+}
+
+/// What a move could not check, in words (nothing when it checked everything).
+fn not_verified(out: &mut dyn Write, what: &[String]) -> Result<(), CliError> {
+    if !what.is_empty() {
+        writeln!(out, "not verified: {}", what.join("; "))?;
     }
     Ok(())
 }
 
-/// `output`: switches output `number` to `state`.
+/// `output`: switches the output to its state.
 pub(super) fn output(
     args: &Args,
     bus: &Client,
-    drive: Address,
-    number: u16,
-    state: u8,
+    output: Option<(u16, OutputState)>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    let st = OutputState::new(number, state).map_err(model_error)?;
-    bus.set_output(drive, number, st, false).map_err(|e| error_for(args, e))?;
+    let (number, state) = output.ok_or_else(|| CliError::usage("output: not checked"))?;
+    bus.set_output(args.drive, number, state, false).map_err(|e| error_for(args, e))?;
     if args.json {
-        common::print_json(out, &identified(args, json!({"output": number, "state": state})))?;
-    } else {
-        writeln!(out, "drive {drive}: OUTPUT O{number}={state}")?;
+        return print(args, out, &OutputSwitched { output: number, state });
     }
+    writeln!(out, "drive {}: OUTPUT O{number}={}", args.drive, state.get())?;
     Ok(())
+}
+
+/// `stop`'s result: the port's holder it stopped first (if one), the stop of the drive, and where the axis
+/// stands then and whether the drive is switched on (or why that could not be read).
+#[derive(serde::Serialize)]
+struct Stopped<'a> {
+    action: &'static str,
+    holder: Option<&'a crate::portlock::Stopped>,
+    #[serde(flatten)]
+    report: &'a StopReport,
+    position_units: Option<Position>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    position_not_read: Option<String>,
+    o0: Option<u8>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    o0_not_read: Option<String>,
 }
 
 /// `stop`: stops the drive if it moves (S17; `OUTPUT O0=0`, the only stop there is, switches it off; S17
@@ -307,13 +252,13 @@ pub(super) fn output(
 pub(super) fn stop(
     args: &Args,
     bus: &Client,
-    drive: Address,
     stopped: Option<&crate::portlock::Stopped>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     if let (Some(h), false) = (stopped, args.json) {
         writeln!(out, "{}", h.describe())?;
     }
+    let drive = args.drive;
     let report = bus.stop_if_moving(&[drive]).map_err(|e| error_for(args, e))?;
     if !report.all_confirmed() {
         let mut message = report.to_string();
@@ -328,19 +273,19 @@ pub(super) fn stop(
     let position = bus.read_position(drive);
     let o0 = bus.read_s16(drive).map(|s| s.o0_state());
     if args.json {
-        let mut fields = json!({"action": "stop", "holder": stopped,
-                                "position_units": position.as_ref().ok().map(|p| p.units()),
-                                "o0": o0.as_ref().ok()});
-        if let (Some(map), Ok(serde_json::Value::Object(r))) = (fields.as_object_mut(), serde_json::to_value(&report)) {
-            map.extend(r);
-        }
-        for (key, e) in [("position_not_read", position.as_ref().err()), ("o0_not_read", o0.as_ref().err())] {
-            if let Some(e) = e {
-                fields[key] = json!(e.to_string());
-            }
-        }
-        common::print_json(out, &identified(args, fields))?;
-        return Ok(());
+        let not_read = |e: Option<&Error>| e.map(Error::to_string);
+        let (position_not_read, o0_not_read) = (not_read(position.as_ref().err()), not_read(o0.as_ref().err()));
+        let (position_units, o0) = (position.ok(), o0.ok());
+        let result = Stopped {
+            action: "stop",
+            holder: stopped,
+            report: &report,
+            position_units,
+            position_not_read,
+            o0,
+            o0_not_read,
+        };
+        return print(args, out, &result);
     }
     match &position {
         Ok(p) => writeln!(out, "{report}; at rest at {p} {UNITS} (S17 and S1 read back)")?,
@@ -354,31 +299,46 @@ pub(super) fn stop(
     Ok(())
 }
 
+/// `raw`'s result: the command as given, then what it did.
+#[derive(serde::Serialize)]
+struct Raw<'a> {
+    command: &'a str,
+    #[serde(flatten)]
+    outcome: &'a RawOutcome,
+}
+
 /// `raw`: sends `command` as it is and prints the reply; `wait` is how long to wait for a move it starts.
 pub(super) fn raw(
     args: &Args,
     bus: &Client,
-    drive: Address,
     command: &str,
     wait: Option<Duration>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     // A move it starts is waited for (--wait) or handed over: it runs on after the command exits.
     let after = wait.map_or(AfterRaw::HandOver, AfterRaw::Wait);
-    let outcome = bus.raw_motion(drive, command, after).map_err(|e| error_for(args, e))?;
+    let outcome = bus.raw_motion(args.drive, command, after).map_err(|e| error_for(args, e))?;
     if args.json {
-        common::print_json(
-            out,
-            &identified(args, json!({"command": command, "reply": outcome.reply, "waited": outcome.waited})),
-        )?;
-    } else {
-        match outcome.reply {
-            Some(r) if r.is_empty() => writeln!(out, "(acknowledged)")?,
-            Some(r) => writeln!(out, "{r}")?,
-            None => writeln!(out, "(no reply due)")?,
-        }
+        return print(args, out, &Raw { command, outcome: &outcome });
+    }
+    match outcome.reply {
+        Some(r) if r.is_empty() => writeln!(out, "(acknowledged)")?,
+        Some(r) => writeln!(out, "{r}")?,
+        None => writeln!(out, "(no reply due)")?,
     }
     Ok(())
+}
+
+/// `send`'s result: the command, the telegrams as they went on the line (each explained), the reply's
+/// text, the status polls of a wait after it, and whether the drive took it.
+#[derive(serde::Serialize)]
+struct Sent<'a> {
+    command: &'a str,
+    request: Option<serde_json::Value>,
+    reply: Option<serde_json::Value>,
+    reply_text: Option<String>,
+    polls: usize,
+    ok: bool,
 }
 
 /// `send`: sends one command and prints it and the drive's reply as they went on the line, each explained.
@@ -400,17 +360,10 @@ pub(super) fn send(
     // come after that reply and are told apart.
     let (sent, reply, after) = crate::tap::first_exchange(&seen, command.as_bytes());
     let polls = after.iter().filter(|a| a.direction == motionlink_link::describe::Direction::ToDevice).count();
-    let (sent_json, reply_json) = crate::tap::print_exchange(out, args.json, sent.as_ref(), reply.as_ref())?;
+    let (request, reply) = crate::tap::print_exchange(out, args.json, sent.as_ref(), reply.as_ref())?;
     if args.json {
         let reply_text = result.as_ref().ok().and_then(|o| o.reply.clone());
-        common::print_json(
-            out,
-            &identified(
-                args,
-                json!({"command": command, "request": sent_json, "reply": reply_json,
-                       "reply_text": reply_text, "polls": polls, "ok": result.is_ok()}),
-            ),
-        )?;
+        print(args, out, &Sent { command: &command, request, reply, reply_text, polls, ok: result.is_ok() })?;
     } else if polls > 0 {
         writeln!(out, "then {polls} status polls until the move ended (-v shows them)")?;
     }

@@ -14,7 +14,7 @@ use motionlink_link::describe::{Annotation, Captured, Describe, Direction as Way
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::transcript::{TapLink, Transcript, Way as TapWay};
 
-use super::{parse_mode, DecodeArgs, Direction, SimArgs};
+use super::{DecodeArgs, Direction, SimArgs};
 use crate::common::{self, CliError};
 use crate::demo::{DemoOut, DemoTelegram};
 
@@ -29,16 +29,15 @@ pub fn sim(args: SimArgs) -> Result<(), CliError> {
         None => SimConfig::default(),
     };
     if let Some(drives) = &args.drives {
-        let base = SimConfig::bus(drives, cfg.p196, cfg.baud_rate);
-        cfg.drives = base.drives;
+        let addresses: Vec<u8> = drives.iter().map(|a| a.get()).collect();
+        cfg.drives = SimConfig::bus(&addresses, cfg.p196, cfg.baud_rate).drives;
     }
     if let Some(m) = args.mode {
-        parse_mode(m)?;
-        cfg.p196 = m;
+        cfg.p196 = m.to_p196();
         cfg.drives.iter_mut().for_each(|d| d.p196 = None);
     }
     if let Some(b) = args.baud {
-        cfg.baud_rate = b;
+        cfg.baud_rate = b.bits_per_s();
         cfg.drives.iter_mut().for_each(|d| d.baud_rate = None);
     }
     for p in &args.params {
@@ -63,7 +62,7 @@ fn line(a: &Annotation) -> String {
 
 /// Runs `motionlink decode compax`: lines without a direction mark went the way `--direction` says.
 pub fn decode(args: DecodeArgs, json: bool) -> Result<(), CliError> {
-    let mode = parse_mode(args.mode)?;
+    let mode = args.mode;
     let way = match args.direction {
         Direction::Auto => Way::Unknown,
         Direction::Host => Way::ToDevice,
@@ -86,7 +85,7 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
         let clock = ManualClock::new_auto();
         let _me = clock.reserve_participant().enter();
         let (bus, transcript) = demo_bus(&clock, p196)?;
-        let mut describer = Describer::new(parse_mode(p196)?);
+        let mut describer = Describer::new(Mode::from_p196(p196).map_err(CliError::usage)?);
         for a in [1u8, 5] {
             let addr = Address::drive(a).map_err(CliError::usage)?;
             let p = bus.read_position(addr).map_err(fail)?;
@@ -131,7 +130,8 @@ fn demo_bus(clock: &ManualClock, p196: u32) -> Result<(Client, Transcript), CliE
     let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(9600));
     let transcript = Transcript::new();
     let link = TapLink::new(host.connect().0, clock.shared(), transcript.clone());
-    let bus = Client::new(Box::new(link), clock.shared(), BusConfig::new(parse_mode(p196)?, 9600)).map_err(fail)?;
+    let mode = Mode::from_p196(p196).map_err(CliError::usage)?;
+    let bus = Client::new(Box::new(link), clock.shared(), BusConfig::new(mode, 9600)).map_err(fail)?;
     Ok((bus, transcript))
 }
 

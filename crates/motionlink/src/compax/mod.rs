@@ -4,12 +4,10 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use motionlink_compax::client::{
-    AfterRaw, BusConfig, MoveRequest, MoveTarget, TravelLimits, DEFAULT_IN_POSITION_TOLERANCE,
-};
+use motionlink_compax::client::{AfterRaw, BusConfig, MoveRequest, MoveTarget, TravelLimits};
 use motionlink_compax::model::{
-    CommandStyle, ModelError, OutputState, ParamId, Position, RampMs, SpeedPercent, StatusId, StatusValue, ValidFrom,
-    BAUD_RATES,
+    BaudRate, CommandStyle, OutputNumber, OutputState, ParamId, PollInterval, Position, RampMs, ReplyTimeout,
+    SpeedPercent, StatusId, StatusValue, TimeLimit, Tolerance, WatchInterval,
 };
 use motionlink_compax::sim::{SimConfig, Variant};
 use motionlink_compax::wire::{Address, Mode};
@@ -20,11 +18,10 @@ use motionlink_link::link::{Link, SerialSettings};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::RealClock;
-use serde_json::json;
 
 use crate::common::{self, CliError, Row, ServeArgs};
 use crate::decode::CaptureArgs;
-use crate::numbers::{above_zero, at_least, finite, whole};
+use crate::numbers::{at_least, finite};
 use crate::tap::{LinkArgs, Tap};
 use motionlink_compax::describe::Describer;
 use motionlink_link::describe::Describe;
@@ -36,10 +33,10 @@ mod show;
 
 pub use extra::{decode, demo, sim};
 pub(crate) use open::open;
-use open::{check_bus, parse_mode, plan_move};
-use show::{param_json, send_text, status_rows};
+use show::{send_text, status_row};
 
-/// `motionlink compax` arguments. Every option may come before or after the action.
+/// `motionlink compax` arguments. Every option may come before or after the action; every value is checked
+/// by its type's rule in motionlink-compax (the same rule and message as in Python and the console).
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The port: a device path (/dev/ttyUSB0, COM3), tcp://HOST:PORT, or sim. Default: --device, else
@@ -50,18 +47,17 @@ pub struct Args {
     #[command(flatten)]
     pub link: LinkArgs,
     /// The drive's address (P194), 1..=31.
-    #[arg(long, default_value_t = 1, global = true, value_parser = whole::<u8>("the drive's address", 1, 31, ""))]
-    pub drive: u8,
+    #[arg(long, default_value = "1", global = true)]
+    pub drive: Address,
     /// The drives' operating mode P196 (0..=127): BCC, parity, reply end, address prefix...
-    #[arg(long, default_value_t = 0, global = true, value_parser = whole::<u32>("P196", 0, 127, ""))]
-    pub mode: u32,
+    #[arg(long, default_value = "0", global = true)]
+    pub mode: Mode,
     /// The drives' baud rate P195 (150, 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200).
-    #[arg(long, default_value_t = 9600, global = true, value_parser = parse_baud)]
-    pub baud: u32,
+    #[arg(long, default_value = "9600", global = true)]
+    pub baud: BaudRate,
     /// Time a drive may take to start answering, in ms (1..=60000, on top of the wire time).
-    #[arg(long, default_value_t = 200, value_name = "MS", global = true,
-          value_parser = whole::<u64>("the reply timeout", 1, 60_000, "ms"))]
-    pub timeout_ms: u64,
+    #[arg(long, default_value = "200", value_name = "MS", global = true)]
+    pub timeout_ms: ReplyTimeout,
     /// Send the short command names (PA, PR, SD, AL, OT) instead of the long ones.
     #[arg(long, global = true)]
     pub short: bool,
@@ -88,19 +84,19 @@ pub enum Action {
     /// Read status values (default: S1 S2 S3 S16 S17 S18).
     Status {
         /// Status values such as S1 S16.
-        values: Vec<String>,
+        values: Vec<StatusId>,
     },
     /// Read parameters, such as P194; several at once.
     Get {
         /// The parameters.
         #[arg(required = true, value_name = "PARAM")]
-        params: Vec<String>,
+        params: Vec<ParamId>,
     },
     /// Write a parameter, such as P196 8, and read it back (P194..P196 take effect at the drive's next
     /// power-on).
     Set {
         /// The parameter.
-        param: String,
+        param: ParamId,
         /// The value.
         #[arg(value_parser = finite::<f64>("the value", ""))]
         value: f64,
@@ -110,40 +106,39 @@ pub enum Action {
     #[command(group(clap::ArgGroup::new("target_of_move").args(["target", "abs", "rel"]).required(true)))]
     Move {
         /// Move to this absolute position (drive's unit), as --abs does: `move 100` is `move --abs 100`.
-        #[arg(value_name = "POSITION", conflicts_with_all = ["abs", "rel"],
-              value_parser = finite::<f64>("the target position", "drive units"))]
-        target: Option<f64>,
+        #[arg(value_name = "POSITION", conflicts_with_all = ["abs", "rel"])]
+        target: Option<Position>,
         /// Move to this absolute position (drive's unit).
-        #[arg(long, conflicts_with = "rel", value_parser = finite::<f64>("the target position", "drive units"))]
-        abs: Option<f64>,
+        #[arg(long, conflicts_with = "rel")]
+        abs: Option<Position>,
         /// Move by this distance from the drive's target S2 (drive's unit).
-        #[arg(long, value_parser = finite::<f64>("the distance", "drive units"))]
-        rel: Option<f64>,
+        #[arg(long)]
+        rel: Option<Position>,
         /// SPEED in percent of the drive's maximum speed (more than 0, at most 100).
-        #[arg(long, value_parser = above_zero::<f64>("the speed", Some(100.0), "% of the drive's maximum speed"))]
-        speed: Option<f64>,
+        #[arg(long)]
+        speed: Option<SpeedPercent>,
         /// ACCEL: ramp time in ms (1..=32767).
-        #[arg(long, value_parser = whole::<u32>("the ramp time", 1, 32_767, "ms"))]
-        accel: Option<u32>,
+        #[arg(long)]
+        accel: Option<RampMs>,
         /// Send the binary commands.
         #[arg(long)]
         binary: bool,
         /// Give up (and stop the axis) after this many seconds (more than 0).
-        #[arg(long, default_value_t = 600.0, value_parser = above_zero::<f64>("the time the move may take", None, "s"))]
-        timeout_s: f64,
-        /// Success only if the axis comes to rest this close to its target (drive's unit, more than 0).
-        #[arg(long, default_value_t = DEFAULT_IN_POSITION_TOLERANCE,
-              value_parser = above_zero::<f64>("the in-position tolerance", Some(1e6), "drive units"))]
-        tolerance: f64,
+        #[arg(long, default_value = "600")]
+        timeout_s: TimeLimit,
+        /// Success only if the axis comes to rest this close to its target (drive's unit, more than 0, at
+        /// most 1000000).
+        #[arg(long, default_value_t = Tolerance::DEFAULT)]
+        tolerance: Tolerance,
         /// Refuse targets below this position (checked before anything moves).
-        #[arg(long, value_parser = finite::<f64>("the lowest target", "drive units"))]
-        min_pos: Option<f64>,
+        #[arg(long)]
+        min_pos: Option<Position>,
         /// Refuse targets above this position (checked before anything moves).
-        #[arg(long, value_parser = finite::<f64>("the highest target", "drive units"))]
-        max_pos: Option<f64>,
+        #[arg(long)]
+        max_pos: Option<Position>,
         /// Interval of the status polls while waiting, in ms (1..=10000).
-        #[arg(long, default_value_t = 50, value_parser = whole::<u64>("the poll interval", 1, 10_000, "ms"))]
-        poll_ms: u64,
+        #[arg(long, default_value = "50")]
+        poll_ms: PollInterval,
         /// Return once the drive has taken the move (its target read back), without waiting: the move is
         /// handed over and keeps running after the command exits (nothing stops it).
         #[arg(long, conflicts_with = "timeout_s")]
@@ -151,9 +146,9 @@ pub enum Action {
     },
     /// Read S1 and S17 over and over and print them, one line each, until interrupted (or --count lines).
     Watch {
-        /// Interval between two lines, in ms (1..=60000).
-        #[arg(long, default_value_t = 200, value_parser = whole::<u64>("the sample interval", 1, 60_000, "ms"))]
-        interval_ms: u64,
+        /// Interval between two lines, in ms (1..=3600000).
+        #[arg(long, default_value = "200")]
+        interval_ms: WatchInterval,
         /// Stop after this many samples (at least 1).
         #[arg(long, value_parser = at_least::<u64>("the number of samples", 1))]
         count: Option<u64>,
@@ -189,12 +184,10 @@ pub enum Action {
     Stop,
     /// Switch an output: OUTPUT ON=S (output 0 is the drive itself: 0 switches it off, 1 on).
     Output {
-        /// Output number.
-        #[arg(value_parser = whole::<u16>("the output number", 0, u16::MAX, ""))]
-        number: u16,
+        /// Output number (0..=65535).
+        number: OutputNumber,
         /// 0 or 1 (O0: 0, 1 or 2).
-        #[arg(value_parser = whole::<u8>("the output state", 0, 2, ""))]
-        state: u8,
+        state: OutputState,
     },
     /// Send a command as it is, such as "S1", "POSA 10$", "!" (flag characters $ , / ? at the end are sent as
     /// flags); prints the reply. A move it starts keeps running after the command exits, unless --wait.
@@ -206,13 +199,11 @@ pub enum Action {
         #[arg(long)]
         wait: bool,
         /// With --wait: give up (and stop the axis) after this many seconds (more than 0).
-        #[arg(long, default_value_t = 600.0, requires = "wait",
-              value_parser = above_zero::<f64>("the time the move may take", None, "s"))]
-        timeout_s: f64,
+        #[arg(long, default_value = "600", requires = "wait")]
+        timeout_s: TimeLimit,
         /// With --wait: interval of the status polls, in ms (1..=10000).
-        #[arg(long, default_value_t = 50, requires = "wait",
-              value_parser = whole::<u64>("the poll interval", 1, 10_000, "ms"))]
-        poll_ms: u64,
+        #[arg(long, default_value = "50", requires = "wait")]
+        poll_ms: PollInterval,
     },
 }
 
@@ -222,14 +213,14 @@ pub struct SimArgs {
     #[command(flatten)]
     pub serve: ServeArgs,
     /// Addresses of the emulated drives, such as 1,5 (default 1).
-    #[arg(long, value_delimiter = ',', value_parser = whole::<u8>("a drive's address", 1, 31, ""))]
-    pub drives: Option<Vec<u8>>,
+    #[arg(long, value_delimiter = ',')]
+    pub drives: Option<Vec<Address>>,
     /// P196 of every drive (default 0).
-    #[arg(long, value_parser = whole::<u32>("P196", 0, 127, ""))]
-    pub mode: Option<u32>,
+    #[arg(long)]
+    pub mode: Option<Mode>,
     /// The line's and the drives' baud rate (default 9600).
-    #[arg(long, value_parser = parse_baud)]
-    pub baud: Option<u32>,
+    #[arg(long)]
+    pub baud: Option<BaudRate>,
     /// A TOML file describing the bus (see the motionlink-compax README); the options above override it.
     #[arg(long)]
     pub config: Option<PathBuf>,
@@ -250,8 +241,8 @@ pub struct DecodeArgs {
     #[command(flatten)]
     pub capture: CaptureArgs,
     /// P196 of the capture (BCC, reply end, address prefix).
-    #[arg(long, default_value_t = 0, value_parser = whole::<u32>("P196", 0, 127, ""))]
-    pub mode: u32,
+    #[arg(long, default_value = "0")]
+    pub mode: Mode,
     /// Which way the bytes went: auto (guess each telegram), host (requests only), drive (replies only).
     #[arg(long, value_enum, default_value_t = Direction::Auto)]
     pub direction: Direction,
@@ -266,14 +257,6 @@ pub enum Direction {
     Host,
     /// Drive to host.
     Drive,
-}
-
-/// `--baud`: a rate P195 accepts.
-fn parse_baud(text: &str) -> Result<u32, String> {
-    match text.trim().parse::<u32>() {
-        Ok(b) if BAUD_RATES.contains(&b) => Ok(b),
-        _ => Err(format!("the baud rate must be one P195 accepts: {BAUD_RATES:?}")),
-    }
 }
 
 /// How to switch drive `a` on again, as a command line on the same port and bus settings.
@@ -329,32 +312,11 @@ fn error_for(args: &Args, e: Error) -> CliError {
     common::classified(&Explained { error: &e, message })
 }
 
-fn model_error(e: ModelError) -> CliError {
-    CliError::usage(e)
-}
-
-/// A duration in ms given as `name`, within `min..=max`.
-fn checked_ms(name: &str, ms: u64, min: u64, max: u64) -> Result<Duration, CliError> {
-    if (min..=max).contains(&ms) {
-        Ok(Duration::from_millis(ms))
-    } else {
-        Err(CliError::usage(format!("{name} {ms}: give {min} to {max} ms")))
-    }
-}
-
-/// A duration in seconds given as `name`: more than 0, finite.
-fn checked_s(name: &str, s: f64) -> Result<Duration, CliError> {
-    Duration::try_from_secs_f64(s)
-        .ok()
-        .filter(|t| !t.is_zero())
-        .ok_or_else(|| CliError::usage(format!("{name} {s}: give a number of seconds above 0")))
-}
-
 /// Runs `motionlink compax`.
 pub fn run(mut args: Args) -> Result<(), CliError> {
     args.resolved_port = args.link.resolve_port("compax", args.port.as_deref())?;
     let clock: SharedClock = RealClock::shared();
-    let mode = parse_mode(args.mode)?;
+    let mode = args.mode;
     let describer = move || Box::new(Describer::new(mode)) as Box<dyn Describe + Send>;
     let sending = matches!(args.action, Action::Send { .. });
     if let Action::Watch { csv: true, .. } = args.action {
@@ -381,22 +343,18 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
 /// `--mode` and `--baud` as a command line on this bus gives them (only where not the default).
 fn bus_options(args: &Args) -> String {
     let mut options = String::new();
-    if args.mode != 0 {
-        options.push_str(&format!(" --mode {}", args.mode));
+    if args.mode.to_p196() != 0 {
+        options.push_str(&format!(" --mode {}", args.mode.to_p196()));
     }
-    if args.baud != 9600 {
+    if args.baud != BaudRate::DEFAULT {
         options.push_str(&format!(" --baud {}", args.baud));
     }
     options
 }
 
-/// One JSON object of `motionlink compax`: family, port and drive first.
-fn identified(args: &Args, fields: serde_json::Value) -> serde_json::Value {
-    let mut v = common::identified("compax", &args.resolved_port, json!({"drive": args.drive}));
-    if let (Some(map), serde_json::Value::Object(f)) = (v.as_object_mut(), fields) {
-        map.extend(f);
-    }
-    v
+/// Prints `result` as one JSON object of `motionlink compax`: family, port and drive first.
+fn print(args: &Args, out: &mut dyn Write, result: &impl serde::Serialize) -> Result<(), CliError> {
+    common::print_result(out, "compax", &args.resolved_port, &[("drive", args.drive.get().into())], result)
 }
 
 /// Does what `args` ask: checks the action's arguments, opens the port, calls the action's function and
@@ -406,43 +364,40 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
     // Every argument of an action is checked before the port is opened: nothing is sent for an action that
     // cannot be made.
     let checked = actions::check(args)?;
-    check_bus(args)?;
     // Signals are handled before the port is claimed: a `stop` from another terminal may send one at once.
     common::interrupt_token();
     let stopped = match args.action {
         Action::Stop => crate::portlock::claim_for_stop("compax", &args.resolved_port)?,
         _ => crate::portlock::claim("compax", &args.resolved_port).map(|()| None)?,
     };
-    let poll = checked.poll;
-    let tolerance = checked.move_plan.as_ref().map(|p| p.tolerance);
+    let (poll, tolerance) = (checked.poll, checked.move_plan.as_ref().map(|p| p.tolerance));
     let bus = open(args, tap, |cfg| {
         if let Some(p) = poll {
             cfg.poll_interval = p;
         }
         if let Some(t) = tolerance {
-            cfg.in_position_tolerance = t;
+            cfg.in_position_tolerance = t.position();
         }
     })?;
-    let drive = Address::drive(args.drive).map_err(CliError::usage)?;
+    let drive = args.drive;
     if !matches!(args.action, Action::Scan) {
         let port = &args.resolved_port;
         crate::probe::use_profile(|p| motionlink_compax::probe::use_profile(&bus, p, port, drive))?;
     }
-    let plan = checked.move_plan.as_ref();
     match &args.action {
         Action::Scan => actions::scan(args, &bus, &mut out)?,
-        Action::Status { .. } => actions::status(args, &bus, drive, &checked.status_ids, &mut out)?,
-        Action::Get { params } => actions::get(args, &bus, drive, params, &mut out)?,
-        Action::Set { param, value } => actions::set(args, &bus, drive, param, *value, &mut out)?,
-        Action::Move { no_wait: true, .. } => actions::move_no_wait(args, &bus, drive, plan, &mut out)?,
-        Action::Move { .. } => actions::move_and_wait(args, &bus, drive, plan, &mut out)?,
-        Action::Watch { count, csv, .. } => {
-            let interval = checked.watch_interval.unwrap_or(Duration::from_millis(200));
-            show::watch(args, &bus, drive, clock, interval, count, *csv, &mut out)?;
+        Action::Status { .. } => actions::status(args, &bus, &checked.status_ids, &mut out)?,
+        Action::Get { params } => actions::get(args, &bus, params, &mut out)?,
+        Action::Set { param, value } => actions::set(args, &bus, *param, *value, &mut out)?,
+        Action::Move { no_wait, .. } => {
+            actions::move_drive(args, &bus, checked.move_plan.as_ref(), *no_wait, &mut out)?
         }
-        Action::Stop => actions::stop(args, &bus, drive, stopped.as_ref(), &mut out)?,
-        Action::Output { number, state } => actions::output(args, &bus, drive, *number, *state, &mut out)?,
-        Action::Raw { command, .. } => actions::raw(args, &bus, drive, command, checked.raw_wait, &mut out)?,
+        Action::Watch { interval_ms, count, csv } => {
+            show::watch(args, &bus, clock, interval_ms.duration(), count, *csv, &mut out)?;
+        }
+        Action::Stop => actions::stop(args, &bus, stopped.as_ref(), &mut out)?,
+        Action::Output { .. } => actions::output(args, &bus, checked.output, &mut out)?,
+        Action::Raw { command, .. } => actions::raw(args, &bus, command, checked.raw_wait, &mut out)?,
         Action::Send { words } => actions::send(args, tap, &bus, drive, words, &mut out)?,
     }
     // What this command set in motion and did not hand over is stopped here, and the result said.

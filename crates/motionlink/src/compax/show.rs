@@ -1,41 +1,20 @@
-//! What `motionlink compax` prints: status rows, parameters as JSON, `send` text and `watch`.
+//! What `motionlink compax` prints: status rows, `send` text and `watch`.
+
+use motionlink_compax::report::{StatusReading, Timed};
 
 use super::*;
 
-pub(super) fn status_rows(id: StatusId, v: &StatusValue) -> (Row, serde_json::Value) {
-    let info = id.info();
-    let name = info.map_or("(meaning not documented)", |i| i.title);
-    let unit = info.map_or("", |i| i.unit);
-    let (shown, js) = match v {
-        StatusValue::S16(b) => {
-            let bits = b.pattern().to_string();
-            (format!("{bits}  [{}]", b.meanings().join(", ")), bits_json(*b, bits))
-        }
-        StatusValue::S17(b) => {
-            let bits = b.pattern().to_string();
-            (format!("{bits}  [{}]", b.meanings().join(", ")), bits_json(*b, bits))
-        }
+/// A status value as a row of `status`: "S16 status bits S16", then the value in words.
+pub(super) fn status_row(r: &StatusReading) -> Row {
+    let shown = match &r.value {
+        StatusValue::S16(b) => format!("{}  [{}]", b.pattern(), b.meanings().join(", ")),
+        StatusValue::S17(b) => format!("{}  [{}]", b.pattern(), b.meanings().join(", ")),
         // A position is in the drive's own unit (the table says "unit"): "units" in text, as in the JSON keys.
-        StatusValue::Position(p) => (format!("{v} {}", super::actions::UNITS), json!(p.units())),
-        StatusValue::Number(n) => (format!("{v} {unit}").trim_end().to_string(), json!(n)),
-        other => (other.to_string(), json!(other.to_string())),
+        v @ StatusValue::Position(_) => format!("{v} {}", super::actions::UNITS),
+        v @ StatusValue::Number(_) => format!("{v} {}", r.unit()).trim_end().to_string(),
+        other => other.to_string(),
     };
-    ((format!("{id} {name}"), shown), json!({"status": id.to_string(), "name": name, "unit": unit, "value": js}))
-}
-
-/// S16 or S17 as JSON: the flag word (`word`, `flags`, `unknown_bits`) and `pattern`, the drive's own bit
-/// string ("1101 1010").
-pub(super) fn bits_json<W: motionlink_link::flags::FlagWord>(word: W, pattern: String) -> serde_json::Value {
-    let mut v = common::flag_word_json(word);
-    v["pattern"] = json!(pattern);
-    v
-}
-
-/// A parameter as JSON: name, id, value, unit and access (naming.md).
-pub(super) fn param_json(id: ParamId, value: serde_json::Value) -> serde_json::Value {
-    let info = id.info();
-    json!({"name": id.to_string(), "id": id.get(), "value": value, "unit": info.map_or("", |i| i.unit),
-           "access": info.map_or("rw", |i| i.access.short())})
+    (format!("{} {}", r.id, r.name()), shown)
 }
 
 /// The text of `send`'s command: words joined by spaces, or characters given in hex (printable ASCII).
@@ -55,11 +34,9 @@ pub(super) fn send_text(words: &[String]) -> Result<String, CliError> {
 }
 
 /// `watch`: samples of one drive until `count` is reached, a signal arrives or nobody reads any more.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn watch(
     args: &Args,
     bus: &Client,
-    drive: Address,
     clock: &SharedClock,
     interval: Duration,
     count: &Option<u64>,
@@ -67,7 +44,7 @@ pub(super) fn watch(
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let token = common::interrupt_token();
-    let started = clock.now();
+    let (drive, started) = (args.drive, clock.now());
     let mut written =
         if csv { writeln!(out, "t_s,drive,position_units,moving,s17").and_then(|()| out.flush()) } else { Ok(()) };
     let mut n = 0u64;
@@ -86,12 +63,11 @@ pub(super) fn watch(
             ];
             common::csv_line(&fields)
         } else if args.json {
-            identified(
-                args,
-                json!({"t_s": t_s, "position_units": s.position.units(),
-                       "s17": bits_json(s.s17, s.s17.pattern().to_string()), "moving": s.moving()}),
-            )
-            .to_string()
+            let mut line = Vec::new();
+            match print(args, &mut line, &Timed { t_s, sample: *s }) {
+                Ok(()) => String::from_utf8_lossy(&line).trim_end().to_string(),
+                Err(e) => e.to_string(),
+            }
         } else {
             let rest = if s.moving() { "moving" } else { "at rest" };
             format!("drive {drive}  S1 = {} {}  {rest}", s.position, super::actions::UNITS)

@@ -11,9 +11,10 @@ use std::time::Duration;
 
 use motionlink_compax::client::{BusConfig, MoveRequest, MoveTarget, StopOutcome, TravelLimits};
 use motionlink_compax::model::{
-    HistoryEntry, OutputState, ParamId, Position, S16Bits, S17Bits, S17Flag, SpeedPercent, StatusId, StatusValue,
-    ValidFrom, BAUD_RATES, PARAMS,
+    BaudRate, HistoryEntry, OutputState, ParamId, Position, ReplyTimeout, S16Bits, S17Bits, S17Flag, SpeedPercent,
+    StatusId, StatusValue, WholeArg, PARAMS,
 };
+use motionlink_compax::report::ParamReading;
 use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_compax::{AsyncClient, Emulator, Error};
@@ -26,8 +27,8 @@ use motionlink_link::url::PortUrl;
 use serde_json::Value;
 
 use super::device::{
-    error_history, finite, with_unit, Action, BoxFuture, Device, ErrorEntry, Failure, JogDirection, Motion, Param,
-    ParamValue, ReadBack, Sample, Unit,
+    error_history, with_unit, Action, BoxFuture, Device, ErrorEntry, Failure, JogDirection, Motion, Param, ParamValue,
+    ReadBack, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -44,23 +45,23 @@ pub struct Args {
     pub device: super::DeviceArg,
     /// Only these drive addresses (such as 1,5) instead of a scan of 1..31; with `--port sim`, the drives
     /// the emulated bus has (default: 1).
-    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u8).range(1..=31))]
-    pub drives: Vec<u8>,
+    #[arg(long, value_delimiter = ',')]
+    pub drives: Vec<Address>,
     /// The drives' operating mode P196 (0..=127): BCC, parity, reply end, address prefix.
-    #[arg(long, default_value_t = 0)]
-    pub mode: u32,
+    #[arg(long, default_value = "0")]
+    pub mode: Mode,
     /// The drives' baud rate P195 (with `--port sim`: the emulated line runs at this rate).
-    #[arg(long, default_value_t = 9600)]
-    pub baud: u32,
+    #[arg(long, default_value = "9600")]
+    pub baud: BaudRate,
     /// Time a drive may take to start answering, in ms (1..=60000).
-    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..=60_000))]
-    pub timeout_ms: u64,
+    #[arg(long, default_value = "200")]
+    pub timeout_ms: ReplyTimeout,
     /// Refuse move targets below this position (drive's unit); a jog in the negative direction ends here.
     #[arg(long, allow_negative_numbers = true)]
-    pub min_pos: Option<f64>,
+    pub min_pos: Option<Position>,
     /// Refuse move targets above this position (drive's unit); a jog in the positive direction ends here.
     #[arg(long, allow_negative_numbers = true)]
-    pub max_pos: Option<f64>,
+    pub max_pos: Option<Position>,
     /// Without --min-pos / --max-pos, how far one jog may go at most from where it starts (drive's unit).
     #[arg(long, default_value_t = 1000.0)]
     pub jog_range: f64,
@@ -77,7 +78,7 @@ const FLAGS_EVERY: u64 = 4;
 struct Compax {
     client: AsyncClient,
     port: String,
-    drives: Vec<u8>,
+    drives: Vec<Address>,
     limits: TravelLimits,
     jog_range: f64,
     /// The last position of each drive and when it was read, for the speed shown.
@@ -91,15 +92,8 @@ struct Compax {
 
 /// Opens the session `args` ask for, its link tapped into the traffic log.
 pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<dyn Device>, Arc<Traffic>), CliError> {
-    let mode = Mode::from_p196(args.mode).map_err(|e| CliError::usage(format!("--mode: {e}")))?;
-    if !BAUD_RATES.contains(&args.baud) {
-        return Err(CliError::usage(format!("--baud {}: not a rate P195 accepts ({BAUD_RATES:?})", args.baud)));
-    }
-    let limits = TravelLimits::new(
-        args.min_pos.map(position).transpose().map_err(|e| CliError::usage(format!("--min-pos: {}", e.message)))?,
-        args.max_pos.map(position).transpose().map_err(|e| CliError::usage(format!("--max-pos: {}", e.message)))?,
-    )
-    .map_err(|e| CliError::usage(e.to_string()))?;
+    let (mode, baud) = (args.mode, args.baud.bits_per_s());
+    let limits = TravelLimits::new(args.min_pos, args.max_pos).map_err(CliError::usage)?;
     if !(args.jog_range.is_finite() && args.jog_range > 0.0) {
         return Err(CliError::usage(format!("--jog-range {}: give a distance above 0", args.jog_range)));
     }
@@ -113,8 +107,9 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     let tap = Arc::clone(&traffic);
     let tap_clock = Arc::clone(clock);
     let link_clock = Arc::clone(clock);
-    let sim_drives = if args.drives.is_empty() { vec![1] } else { args.drives.clone() };
-    let (p196, baud) = (args.mode, args.baud);
+    let sim_drives: Vec<u8> =
+        if args.drives.is_empty() { vec![1] } else { args.drives.iter().map(|a| a.get()).collect() };
+    let p196 = mode.to_p196();
     let busy = crate::tap::BusyWatch::new(port);
     let open = move || -> Result<Box<dyn Link>, motionlink_link::LinkError> {
         let link: Box<dyn Link> = match url {
@@ -134,8 +129,8 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
         };
         Ok(Box::new(TapLink::new(busy.link(link), tap_clock, tap)) as Box<dyn Link>)
     };
-    let mut cfg = BusConfig::new(mode, args.baud);
-    cfg.reply_timeout = Duration::from_millis(args.timeout_ms);
+    let mut cfg = BusConfig::new(mode, baud);
+    cfg.reply_timeout = args.timeout_ms.duration();
     let client = AsyncClient::open(open, Arc::clone(clock), cfg).await.map_err(|e| crate::common::classified(&e))?;
     let device = Compax {
         client,
@@ -156,16 +151,20 @@ fn failure(e: Error) -> Failure {
 }
 
 fn position(v: f64) -> Result<Position, Failure> {
-    Position::new(finite("position", v)?).map_err(|e| Failure::usage(e.to_string()))
+    Position::new(v).map_err(Failure::usage)
 }
 
 fn address(n: u8) -> Result<Address, Failure> {
-    Address::drive(n).map_err(|e| Failure::usage(format!("drive {n}: {e}")))
+    Address::from_whole(n.into()).map_err(Failure::usage)
 }
 
 fn speed(v: Option<f64>) -> Result<Option<SpeedPercent>, Failure> {
-    v.map(|s| SpeedPercent::new(finite("speed", s)?).map_err(|e| Failure::usage(format!("speed_percent: {e}"))))
-        .transpose()
+    v.map(SpeedPercent::new).transpose().map_err(Failure::usage)
+}
+
+/// The parameter's name in the table (`device_address`), or `P12` for one it does not describe.
+fn param_name(id: ParamId) -> String {
+    id.info().map_or(format!("P{}", id.get()), |i| i.name.to_string())
 }
 
 fn stop_text(report: &motionlink_compax::client::StopReport) -> Result<String, Failure> {
@@ -240,9 +239,9 @@ impl Device for Compax {
                     units.push(self.unit(a.get(), format!("answered the scan at {:.3} units", p.units())));
                 }
             } else {
-                for &n in &self.drives {
-                    match self.client.read_position(address(n)?).await {
-                        Ok(p) => units.push(self.unit(n, format!("at {:.3} units", p.units()))),
+                for &a in &self.drives {
+                    match self.client.read_position(a).await {
+                        Ok(p) => units.push(self.unit(a.get(), format!("at {:.3} units", p.units()))),
                         Err(e) if Failure::of(&e).kind == "timeout" => continue,
                         Err(e) => return Err(failure(e)),
                     }
@@ -389,15 +388,13 @@ impl Device for Compax {
 
     fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<ParamValue, Failure>> {
         Box::pin(async move {
-            let id = ParamId::parse(name.trim()).map_err(|e| Failure::usage(e.to_string()))?;
-            let v = self.client.read_param(address(unit)?, id).await.map_err(failure)?;
-            let info = id.info();
-            let unit = info.map_or("", |i| i.unit);
+            let id: ParamId = name.parse().map_err(Failure::usage)?;
+            let read = ParamReading { id, value: self.client.read_param(address(unit)?, id).await.map_err(failure)? };
             Ok(ParamValue {
-                name: info.map_or(format!("P{}", id.get()), |i| i.name.to_string()),
+                name: param_name(id),
                 id: u32::from(id.get()),
-                value: with_unit(v, unit),
-                unit: unit.to_string(),
+                value: with_unit(read.value, read.unit()),
+                unit: read.unit().to_string(),
                 read_back: None,
                 note: String::new(),
             })
@@ -411,30 +408,24 @@ impl Device for Compax {
         value: String,
     ) -> BoxFuture<'static, Result<ParamValue, Failure>> {
         Box::pin(async move {
-            let id = ParamId::parse(name.trim()).map_err(|e| Failure::usage(e.to_string()))?;
+            let id: ParamId = name.parse().map_err(Failure::usage)?;
             let v: f64 = value
                 .trim()
                 .parse()
                 .map_err(|_| Failure::usage(format!("P{} value {value:?}: give a number", id.get())))?;
-            id.check(v).map_err(|e| Failure::usage(e.to_string()))?;
-            let a = address(unit)?;
-            // The session writes and reads back (a difference is an error); read once more for the page.
-            self.client.write_param(a, id, v).await.map_err(failure)?;
-            let back = self.client.read_param(a, id).await.map_err(failure)?;
-            let info = id.info();
-            let note = match info.map(|i| i.kind.valid_from) {
-                Some(ValidFrom::PowerOn) => "stored; takes effect when the drive is switched off and on".to_string(),
-                _ => String::new(),
-            };
-            let name = info.map_or(format!("P{}", id.get()), |i| i.name.to_string());
-            let unit = info.map_or("", |i| i.unit);
+            id.check(v).map_err(Failure::usage)?;
+            // The library writes, compares what it reads back (a difference is an error) and reads once more.
+            let set = self.client.set_param(address(unit)?, id, v).await.map_err(failure)?;
+            let note =
+                if set.at_power_on() { "stored; takes effect when the drive is switched off and on" } else { "" };
+            let (name, unit) = (param_name(id), set.written.unit());
             Ok(ParamValue {
                 name: name.clone(),
                 id: u32::from(id.get()),
                 value: with_unit(v, unit),
                 unit: unit.to_string(),
-                read_back: Some(ReadBack { name, value: with_unit(back, unit) }),
-                note,
+                read_back: Some(ReadBack { name, value: with_unit(set.read_back, unit) }),
+                note: note.to_string(),
             })
         })
     }

@@ -1,6 +1,7 @@
 //! `motionlink probe compax`.
 
 use motionlink_compax::describe::Describer;
+use motionlink_compax::model::args::{BaudRate, ReplyTimeout, WholeArg};
 use motionlink_compax::probe::{baud_choice, probe, save_profile, CompaxDrive, DriveList};
 use motionlink_compax::sim::Variant;
 use motionlink_compax::wire::{Address, Mode};
@@ -28,14 +29,14 @@ pub struct Args {
     pub drives: DriveList,
     /// The drives' operating mode P196 (0..=127) the session frames telegrams with: BCC 8, reply end CR only
     /// 32, address prefix 64, parity 2 / 6. A drive in another mode gives no reply this session can read.
-    #[arg(long, default_value_t = 0)]
-    pub mode: u32,
+    #[arg(long, default_value = "0")]
+    pub mode: Mode,
     /// The drives' baud rate P195 (150 .. 115200), or auto to try each (9600 first; not over tcp:// or sim).
     #[arg(long, default_value = "9600", value_name = "BAUD|auto", value_parser = baud_choice)]
     pub baud: BaudChoice,
     /// Time a drive may take to start answering, in ms (1..=60000, on top of the wire time).
-    #[arg(long, default_value_t = 200)]
-    pub timeout_ms: u64,
+    #[arg(long, default_value = "200")]
+    pub timeout_ms: ReplyTimeout,
     /// With --port sim: the emulated drive runs this firmware variant (as `motionlink sim compax --variant`);
     /// repeat or comma-separate for several.
     #[arg(long = "sim-variant", value_name = "NAME", value_delimiter = ',')]
@@ -52,7 +53,7 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
     if setup.kind == PortKind::Can {
         return Err(CliError::usage(format!("{port}: COMPAX drives speak RS485 / RS232, not CAN")));
     }
-    let mode = Mode::from_p196(args.mode).map_err(|e| CliError::usage(format!("--mode: {e}")))?;
+    let mode = args.mode;
     crate::portlock::claim("compax", &port)?;
     let clock: SharedClock = RealClock::shared();
     let describer = move || Box::new(Describer::new(mode)) as Box<dyn Describe + Send>;
@@ -63,9 +64,9 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
         let family = crate::compax::Args {
             port: Some(port.clone()),
             link: args.link.clone(),
-            drive: drives[0].get(),
+            drive: drives[0],
             mode: args.mode,
-            baud,
+            baud: BaudRate::from_whole(i64::from(baud)).map_err(|e| CliError::usage(format!("--baud: {e}")))?,
             timeout_ms: args.timeout_ms,
             short: false,
             sim_variants: args.sim_variants.clone(),

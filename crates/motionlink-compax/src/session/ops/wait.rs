@@ -309,6 +309,7 @@ impl Ctx {
             start: started.start,
             target,
             reached,
+            tolerance: Position::from_units_unchecked(tolerance),
             verified: started.not_verifiable.is_empty(),
             not_verifiable: started.not_verifiable.clone(),
         };
