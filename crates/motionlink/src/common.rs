@@ -334,17 +334,6 @@ pub fn set_profile(reference: Option<String>) {
     let _ = PROFILE.set(reference);
 }
 
-/// A JSON object of a family command: `family` and `port` (the identity every such object carries, see
-/// docs/cli.md, "JSON output"), the device profile used (`profile`, once the session looked for one), then
-/// `fields`.
-pub fn identified(family: &str, port: &str, fields: serde_json::Value) -> serde_json::Value {
-    let mut map = identity_map(family, port);
-    if let serde_json::Value::Object(f) = fields {
-        map.extend(f);
-    }
-    serde_json::Value::Object(map)
-}
-
 /// `family`, `port` and, once the session looked for one, `profile`: the first keys of every JSON object of
 /// a family command.
 fn identity_map(family: &str, port: &str) -> serde_json::Map<String, serde_json::Value> {
@@ -357,12 +346,6 @@ fn identity_map(family: &str, port: &str) -> serde_json::Map<String, serde_json:
     map
 }
 
-/// A flag word as every command's JSON gives it: `word`, `flags` and `unknown_bits` (only when nonzero), as
-/// the word serialises ([`motionlink_link::flags::WordView`]).
-pub fn flag_word_json<W: motionlink_link::flags::FlagWord>(w: W) -> serde_json::Value {
-    to_json(&motionlink_link::flags::WordView(w))
-}
-
 /// A result (a library report, which serialises with the names `--json` shows) as a JSON value.
 pub fn to_json<T: serde::Serialize + ?Sized>(result: &T) -> serde_json::Value {
     // A report of plain fields always serialises; a failure would be a library defect, shown, not hidden.
@@ -370,7 +353,7 @@ pub fn to_json<T: serde::Serialize + ?Sized>(result: &T) -> serde_json::Value {
 }
 
 /// Prints a family command's result as one JSON object: `family`, `port` and `profile` first
-/// ([`identified`]), then `identity` (the unit the command names: `module`, `drive`), then the result's own
+/// , then `identity` (the unit the command names: `module`, `drive`), then the result's own
 /// fields, as it serialises.
 pub fn print_result<T: serde::Serialize + ?Sized>(
     out: &mut dyn Write,

@@ -62,52 +62,21 @@ pub fn finite<T: Float>(
     }
 }
 
-/// A number above 0 and at most `max` (when given) for an option whose number is `what`, in `unit` ("" for
-/// none): "the velocity must be a number above 0 (rad/s or m/s)".
-pub fn above_zero<T: Float>(
-    what: &'static str,
-    max: Option<f64>,
-    unit: &'static str,
-) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static {
-    move |text: &str| {
-        let unit = if unit.is_empty() { String::new() } else { format!(" ({unit})") };
-        let refused = || match max {
-            Some(max) => format!("{what} must be a number above 0 and at most {max}{unit}"),
-            None => format!("{what} must be a number above 0{unit}"),
-        };
-        let v = T::parse_finite(text).ok_or_else(refused)?;
-        let x = v.as_f64();
-        if x > 0.0 && max.is_none_or(|m| x <= m) {
-            Ok(v)
-        } else {
-            Err(refused())
-        }
-    }
-}
-
-/// `f32` or `f64`, as [`finite`] and [`above_zero`] parse them.
+/// `f32` or `f64`, as [`finite`] parses them.
 pub trait Float: Copy + Send + Sync + 'static {
     /// The number `text` says, if it is one and finite (in this type).
     fn parse_finite(text: &str) -> Option<Self>;
-    /// The number as an `f64`.
-    fn as_f64(self) -> f64;
 }
 
 impl Float for f64 {
     fn parse_finite(text: &str) -> Option<f64> {
         text.trim().parse::<f64>().ok().filter(|v| v.is_finite())
     }
-    fn as_f64(self) -> f64 {
-        self
-    }
 }
 
 impl Float for f32 {
     fn parse_finite(text: &str) -> Option<f32> {
         text.trim().parse::<f32>().ok().filter(|v| v.is_finite())
-    }
-    fn as_f64(self) -> f64 {
-        f64::from(self)
     }
 }
 
@@ -139,14 +108,8 @@ mod tests {
     }
 
     #[test]
-    fn numbers_above_zero_refuse_zero_negatives_and_what_is_no_number() {
-        let vel = above_zero::<f32>("the velocity", None, "rad/s or m/s");
-        assert_eq!(vel("0.5"), Ok(0.5));
-        for bad in ["-5", "0", "NaN", "inf", "fast"] {
-            assert_eq!(vel(bad), Err("the velocity must be a number above 0 (rad/s or m/s)".into()), "{bad}");
-        }
-        let tol = above_zero::<f64>("the tolerance", Some(0.1), "rad or m");
-        assert!(tol("0.1").is_ok() && tol("0.2").is_err());
+    fn finite_numbers_refuse_what_is_no_number() {
+        assert_eq!(finite::<f32>("the target", "")("NaN"), Err("the target must be a number".into()));
         assert_eq!(finite::<f64>("the target", "")("-1.5"), Ok(-1.5));
         assert_eq!(
             finite::<f64>("the target", "drive units")("x"),
