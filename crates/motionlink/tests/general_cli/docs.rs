@@ -397,7 +397,7 @@ fn the_documented_devices_toml_names_devices_that_answer() {
 /// family, the TLT preset apart), and a `decode` with its family's commands (it reads what they captured).
 fn doc_group(line: &str) -> String {
     let words = shell_words(line);
-    let family = if matches!(words[1].as_str(), "console" | "decode" | "sim") { 2 } else { 1 };
+    let family = if matches!(words[1].as_str(), "console" | "decode" | "sim" | "probe") { 2 } else { 1 };
     let family = words.get(family).cloned().unwrap_or_default();
     if words[1] == "sim" || words.iter().any(|w| w == "sim") {
         format!("{family} in its own process")
@@ -420,8 +420,10 @@ fn run_doc_command(command: &DocCommand, sims: [&Sim; 4], dir: &Path) {
         words.truncate(i);
     }
     if let Some(i) = words.iter().position(|w| w == "--port") {
-        // `motionlink console <family> ...` names its family one word later.
-        let family = if words[1] == "console" { words[2].as_str() } else { words[1].as_str() };
+        // `motionlink console <family> ...` and `motionlink probe <family> ...` name their family one word
+        // later.
+        let family =
+            if matches!(words[1].as_str(), "console" | "probe") { words[2].as_str() } else { words[1].as_str() };
         let sim = match family {
             "scu" if line.contains("--functions tlt") => tlt,
             "scu" => scu,
