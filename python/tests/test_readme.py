@@ -70,7 +70,7 @@ def test_the_blocks_are_found() -> None:
     assert [b.marker for b in BLOCKS].count(EXAMPLE) == 1, BLOCKS
     assert [b.marker for b in BLOCKS].count(FIXTURE) >= 1, BLOCKS
     quick = [b for b in SCRIPTS if b.place.startswith("README.md")]
-    assert any('motionlink.Scu("/dev/ttyUSB0", functions=["tlt"])' in b.code for b in quick), quick
+    assert any('motionlink.Scu("/dev/ttyUSB0", functions="tlt")' in b.code for b in quick), quick
     for client in ("motionlink.PowerCube(", "motionlink.Compax("):
         assert any(client in b.code for b in quick), f"the README's quick start has no {client}"
     assert all(b.marker is None for b in SCRIPTS), [b.place for b in SCRIPTS if b.marker]
@@ -134,8 +134,8 @@ def pointed_at_emulators(code: str, emulators: contextlib.ExitStack) -> str:
 
 def test_ports_are_pointed_at_emulators() -> None:
     with contextlib.ExitStack() as emulators:
-        code = pointed_at_emulators('a = motionlink.Scu("/dev/ttyUSB0", functions=["tlt"])\n', emulators)
-        assert re.fullmatch(r'a = motionlink\.Scu\("tcp://127\.0\.0\.1:\d+", functions=\["tlt"\]\)\n', code), code
+        code = pointed_at_emulators('a = motionlink.Scu("/dev/ttyUSB0", functions="tlt")\n', emulators)
+        assert re.fullmatch(r'a = motionlink\.Scu\("tcp://127\.0\.0\.1:\d+", functions="tlt"\)\n', code), code
         assert pointed_at_emulators('motionlink.Compax("sim")', emulators) == 'motionlink.Compax("sim")'
 
 

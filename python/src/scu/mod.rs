@@ -249,7 +249,7 @@ impl ScuClient {
             crate::common::Target::Url(u) => Some(u.to_string()),
             crate::common::Target::InProcess(_) => None,
         };
-        let baud: u32 = settings.baud.within(FAMILY, "baud", 1..=4_000_000).map_err(|f| to_pyerr(py, f))?;
+        let baud: u32 = checked::<Baud>(&settings.baud, "baud").map_err(|f| to_pyerr(py, f))?.get();
         let (client, profile) = py
             .detach(|| {
                 let client = open(t, &settings)?;
