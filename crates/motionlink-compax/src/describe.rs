@@ -9,16 +9,18 @@
 //! ```
 //! use motionlink_compax::describe::Describer;
 //! use motionlink_compax::wire::Mode;
-//! use motionlink_link::describe::{Captured, Describe, Direction};
+//! use motionlink_link::chunk::{Chunk, Direction};
+//! use motionlink_link::describe::Describe;
 //! let mut d = Describer::new(Mode::from_p196(8).unwrap());
 //! let mut out = Vec::new();
-//! d.describe(Captured::Bytes(b"1S1\rS"), Direction::Unknown, None, &mut out);
+//! d.describe(Chunk::Bytes(b"1S1\rS"), Direction::Unknown, None, &mut out);
 //! d.finish(&mut out);
 //! assert_eq!(out[0].meaning, "request to drive 1: S1 read actual position, relative to the real zero [BCC 53 ok]");
 //! assert_eq!(out[0].direction, Direction::ToDevice);
 //! ```
 
-use motionlink_link::describe::{Annotation, Captured, Describe, Direction};
+use motionlink_link::chunk::{Chunk, Direction};
+use motionlink_link::describe::{Annotation, Describe};
 use motionlink_link::Timestamp;
 
 use crate::model::{Command, ErrorCode, StatusId, StatusKind, StatusValue};
@@ -136,12 +138,12 @@ impl Describer {
 impl Describe for Describer {
     fn describe(
         &mut self,
-        captured: Captured<'_>,
+        captured: Chunk<'_>,
         direction: Direction,
         at: Option<Timestamp>,
         out: &mut Vec<Annotation>,
     ) {
-        let Captured::Bytes(bytes) = captured else {
+        let Chunk::Bytes(bytes) = captured else {
             out.push(Annotation {
                 at,
                 direction,
@@ -336,7 +338,7 @@ mod tests {
     fn lines(bytes: &[u8], mode: &Mode, direction: Direction) -> Vec<String> {
         let mut d = Describer::new(*mode);
         let mut out = Vec::new();
-        d.describe(Captured::Bytes(bytes), direction, None, &mut out);
+        d.describe(Chunk::Bytes(bytes), direction, None, &mut out);
         d.finish(&mut out);
         out.iter().map(|a| format!("{} {}", EscapedBytes(&a.bytes), a.meaning)).collect()
     }
@@ -387,19 +389,19 @@ mod tests {
         let mut d = Describer::new(mode);
         let mut out = Vec::new();
         for piece in [&b"S001: 1"[..], b"2.500\r", b"\n>"] {
-            d.describe(Captured::Bytes(piece), Direction::FromDevice, None, &mut out);
+            d.describe(Chunk::Bytes(piece), Direction::FromDevice, None, &mut out);
         }
-        d.describe(Captured::Bytes(b"5S"), Direction::ToDevice, None, &mut out);
+        d.describe(Chunk::Bytes(b"5S"), Direction::ToDevice, None, &mut out);
         assert_eq!(out.len(), 1, "{out:?}");
         assert_eq!(out[0].meaning, "reply: S1 (actual position) = 12.5");
         assert_eq!((out[0].direction, out[0].bad), (Direction::FromDevice, false));
-        d.describe(Captured::Bytes(b"17\r"), Direction::ToDevice, None, &mut out);
+        d.describe(Chunk::Bytes(b"17\r"), Direction::ToDevice, None, &mut out);
         d.finish(&mut out);
         assert_eq!(out.len(), 2, "{out:?}");
         assert!(out[1].meaning.starts_with("request to drive 5: S17 read status bits"), "{out:?}");
         // A half telegram at the end is reported, not lost.
         let mut out = Vec::new();
-        d.describe(Captured::Bytes(b"3PO"), Direction::ToDevice, None, &mut out);
+        d.describe(Chunk::Bytes(b"3PO"), Direction::ToDevice, None, &mut out);
         assert!(out.is_empty());
         d.finish(&mut out);
         assert!(out.iter().all(|a| a.bad) && !out.is_empty(), "{out:?}");

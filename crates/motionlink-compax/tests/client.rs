@@ -10,9 +10,10 @@ use motionlink_compax::model::{
 use motionlink_compax::sim::{Emulator, SimConfig};
 use motionlink_compax::wire::Mode;
 use motionlink_link::cancel::CancelToken;
+use motionlink_link::chunk;
 use motionlink_link::clock::{Clock, ManualClock};
 use motionlink_link::pipe::{Direction, EmulatorHost, PipeConfig};
-use motionlink_link::transcript::{TapLink, Transcript, Way};
+use motionlink_link::transcript::{TapLink, Transcript};
 
 use crate::support;
 
@@ -85,7 +86,7 @@ fn a_corrupted_request_is_sent_again_after_e72() {
     let frames = sent(&r.transcript);
     assert_eq!(frames.len(), 2, "sent once, refused with E72, sent again: {frames:?}");
     assert_eq!(frames[0], frames[1]);
-    let got = r.transcript.bytes(Way::Received);
+    let got = r.transcript.bytes(chunk::Direction::FromDevice);
     assert!(got.starts_with(b"E72\r\n>"), "{got:?}");
 }
 
@@ -97,7 +98,7 @@ fn a_gap_inside_a_telegram_gives_e73_and_a_resend() {
     // Five character times at 9600 baud are 5.2 ms: hold the third byte back 10 ms.
     r.faults.inject(Direction::HostToDevice, at + 2, motionlink_link::pipe::Fault::Delay(Duration::from_millis(10)));
     bus.write_param(a(2), ParamId::new(10).unwrap(), 7.0).unwrap();
-    assert!(r.transcript.bytes(Way::Received).starts_with(b"E73\r\n>"));
+    assert!(r.transcript.bytes(chunk::Direction::FromDevice).starts_with(b"E73\r\n>"));
     // Sent, E73, sent again; then read back.
     assert_eq!(sent(&r.transcript), [b"2P010=7\r".to_vec(), b"2P010=7\r".to_vec(), b"2P010\r".to_vec()]);
     assert_eq!(bus.read_param(a(2), ParamId::new(10).unwrap()).unwrap(), 7.0);
@@ -109,7 +110,7 @@ fn a_parity_error_gives_e70_and_a_resend() {
     let _me = r.clock.reserve_participant().enter();
     r.host.with_device(|d| d.inject_parity_error());
     assert_eq!(bus.read_position(a(4)).unwrap(), pos(0.0));
-    assert!(r.transcript.bytes(Way::Received).starts_with(b"E70\r\n>"));
+    assert!(r.transcript.bytes(chunk::Direction::FromDevice).starts_with(b"E70\r\n>"));
     assert_eq!(sent(&r.transcript).len(), 2);
 }
 
@@ -208,7 +209,7 @@ fn position_message_with_address_prefix_ends_the_wait_without_polling() {
     let _me = r.clock.reserve_participant().enter();
     bus.sync_start(&[(a(3), Command::PosA(pos(5.0))), (a(12), Command::PosA(pos(8.0)))], true).unwrap();
     bus.wait_reached(&[a(3), a(12)], None, &mut |_, _| panic!("no polling needed")).unwrap();
-    let got = r.transcript.bytes(Way::Received);
+    let got = r.transcript.bytes(chunk::Direction::FromDevice);
     let s = String::from_utf8_lossy(&got);
     assert!(s.contains("3$\r\n>") && s.contains("12$\r\n>"), "{s:?}");
     assert_eq!(r.host.with_device(|d| d.drive(12).unwrap().position()), 8.0);

@@ -10,9 +10,9 @@ use motionlink_compax::model::{
 use motionlink_compax::sim::{Emulator, SimConfig, REFUSED};
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_link::cancel::CancelToken;
+use motionlink_link::chunk;
 use motionlink_link::clock::{Clock, ManualClock, Timestamp};
 use motionlink_link::pipe::{Direction, EmulatorHost, PipeConfig};
-use motionlink_link::transcript::Way;
 
 use crate::support;
 
@@ -191,7 +191,7 @@ fn an_e71_is_reported_not_sent_again_unchanged() {
     assert_eq!(frames.len(), 2, "sent, timed out, sent again, E71, and not a third time: {frames:?}");
     assert_eq!(frames[0], b"1P012=-8388607.999999\r");
     assert_eq!(frames[0], frames[1]);
-    assert!(r.transcript.bytes(Way::Received).starts_with(b"E71\r\n>"));
+    assert!(r.transcript.bytes(chunk::Direction::FromDevice).starts_with(b"E71\r\n>"));
     // E70 / E72 / E73 still are (see the tests above); and the next telegram is fine.
     bus.write_param(a(1), p12, 1.0).unwrap();
 }
@@ -216,7 +216,7 @@ fn a_lost_position_message_does_not_hang_the_wait() {
         bus.wait_reached(&[a(1)], Some(Duration::from_secs(60)), &mut |_, _| {}).unwrap();
         let took = (r.clock.now() - t0).as_secs_f64();
         assert!(took < 1.5, "P196={p196} {fault}: found by the state check after about a second, took {took} s");
-        let received = String::from_utf8_lossy(&r.transcript.bytes(Way::Received)).into_owned();
+        let received = String::from_utf8_lossy(&r.transcript.bytes(chunk::Direction::FromDevice)).into_owned();
         assert_eq!(received.contains("$\r"), fault == "bad BCC", "{fault}: {received:?}");
         assert_eq!(bus.read_position(a(1)).unwrap(), pos(20.0));
         assert!(bus.started().is_empty());

@@ -10,10 +10,11 @@ use motionlink_compax::client::{BusConfig, Client, Error, MoveRequest, MoveTarge
 use motionlink_compax::model::Position;
 use motionlink_compax::sim::{Emulator, SimConfig};
 use motionlink_compax::wire::{bcc, Address, Mode};
+use motionlink_link::chunk;
 use motionlink_link::clock::{Clock, ManualClock};
 use motionlink_link::emulator::Emulator as _;
 use motionlink_link::pipe::{Direction, EmulatorHost, Fault, FaultControl, PipeConfig};
-use motionlink_link::transcript::{TapLink, Transcript, Way};
+use motionlink_link::transcript::{TapLink, Transcript};
 
 const D1: motionlink_compax::wire::Address = motionlink_compax::wire::Address::drive_const(1);
 
@@ -46,7 +47,11 @@ fn pos(v: f64) -> Position {
 
 fn sent(r: &Rig) -> Vec<String> {
     let records = r.transcript.records();
-    records.into_iter().filter(|r| r.way == Way::Sent).map(|r| String::from_utf8_lossy(&r.bytes).into_owned()).collect()
+    records
+        .into_iter()
+        .filter(|r| r.direction == chunk::Direction::ToDevice)
+        .map(|r| String::from_utf8_lossy(&r.bytes).into_owned())
+        .collect()
 }
 
 fn executes(r: &Rig) -> usize {
@@ -113,7 +118,7 @@ fn the_move_is_stored_with_its_echo_then_executed_in_every_reply_format() {
         assert!(frames[at + 2].starts_with("1S2\r"), "P196={p196}: then the target read back: {frames:?}");
         assert_eq!(frames.iter().filter(|f| f.contains("POSA")).count(), 1, "P196={p196}: {frames:?}");
         // The drive sent the telegram back in full (after its address prefix, when P196 has 64).
-        let back = String::from_utf8_lossy(&r.transcript.bytes(Way::Received)).into_owned();
+        let back = String::from_utf8_lossy(&r.transcript.bytes(chunk::Direction::FromDevice)).into_owned();
         let echo = if p196 & 64 != 0 { "11POSA 12.5,?\r" } else { "1POSA 12.5,?\r" };
         assert!(back.contains(echo), "P196={p196}: {back:?}");
         assert_eq!(motions(&r), ["drive 1 motion started to 12.500 from 0.000"], "P196={p196}");

@@ -11,9 +11,10 @@ use motionlink_compax::model::{OutputState, ParamId, Position, SpeedPercent};
 use motionlink_compax::sim::{Emulator, SimConfig, REFUSED};
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_link::cancel::CancelToken;
+use motionlink_link::chunk;
 use motionlink_link::clock::{Clock, ManualClock};
 use motionlink_link::pipe::{Direction, EmulatorHost, Fault, FaultControl, PipeConfig};
-use motionlink_link::transcript::{TapLink, Transcript, Way};
+use motionlink_link::transcript::{TapLink, Transcript};
 
 const D1: motionlink_compax::wire::Address = motionlink_compax::wire::Address::drive_const(1);
 
@@ -52,7 +53,7 @@ fn pos(v: f64) -> Position {
 fn sent(t: &Transcript) -> Vec<String> {
     t.records()
         .into_iter()
-        .filter(|r| r.way == Way::Sent)
+        .filter(|r| r.direction == chunk::Direction::ToDevice)
         .map(|r| String::from_utf8_lossy(&r.bytes).into_owned())
         .collect()
 }

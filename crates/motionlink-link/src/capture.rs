@@ -13,7 +13,7 @@
 //!
 //! ```
 //! use motionlink_link::capture::{parse_line, CapturedLine};
-//! use motionlink_link::describe::Direction;
+//! use motionlink_link::chunk::Direction;
 //! let line = parse_line("(1732470000.5) <- 52 47 06").unwrap().unwrap();
 //! assert_eq!(line.direction, Direction::FromDevice);
 //! assert_eq!(line.data, CapturedLine::Bytes(vec![0x52, 0x47, 0x06]));
@@ -24,27 +24,19 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use crate::can::{CanFrame, CanLink, CandumpLine};
+use crate::chunk::{Chunk, Direction};
 use crate::clock::{lock, SharedClock, Timestamp};
-use crate::describe::Direction;
+use crate::hex::{hex, parse_hex};
 use crate::link::{Link, LinkError};
-
-/// One chunk or frame seen by a tap.
-#[derive(Debug, Clone, Copy)]
-pub enum Tapped<'a> {
-    /// Bytes of a serial line.
-    Bytes(&'a [u8]),
-    /// A CAN frame.
-    Frame(&'a CanFrame),
-}
 
 /// Where a tap sends what it sees.
 pub trait TapSink: Send + Sync {
     /// `data` went `direction` at `at` (on the tap's clock).
-    fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>);
+    fn record(&self, at: Timestamp, direction: Direction, data: Chunk<'_>);
 }
 
 impl<T: TapSink + ?Sized> TapSink for Arc<T> {
-    fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>) {
+    fn record(&self, at: Timestamp, direction: Direction, data: Chunk<'_>) {
         (**self).record(at, direction, data)
     }
 }
@@ -53,7 +45,7 @@ impl<T: TapSink + ?Sized> TapSink for Arc<T> {
 pub struct Fanout(pub Vec<Arc<dyn TapSink>>);
 
 impl TapSink for Fanout {
-    fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>) {
+    fn record(&self, at: Timestamp, direction: Direction, data: Chunk<'_>) {
         for s in &self.0 {
             s.record(at, direction, data);
         }
@@ -76,14 +68,14 @@ impl<L: Link> TapLink<L> {
 
 impl<L: Link> Link for TapLink<L> {
     fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
-        self.sink.record(self.clock.now(), Direction::ToDevice, Tapped::Bytes(bytes));
+        self.sink.record(self.clock.now(), Direction::ToDevice, Chunk::Bytes(bytes));
         self.inner.send(bytes)
     }
 
     fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
         let n = self.inner.recv(buf, timeout)?;
         if n > 0 {
-            self.sink.record(self.clock.now(), Direction::FromDevice, Tapped::Bytes(&buf[..n]));
+            self.sink.record(self.clock.now(), Direction::FromDevice, Chunk::Bytes(&buf[..n]));
         }
         Ok(n)
     }
@@ -113,14 +105,14 @@ impl<L: CanLink> TapCanLink<L> {
 
 impl<L: CanLink> CanLink for TapCanLink<L> {
     fn send(&mut self, frame: &CanFrame) -> Result<(), LinkError> {
-        self.sink.record(self.clock.now(), Direction::ToDevice, Tapped::Frame(frame));
+        self.sink.record(self.clock.now(), Direction::ToDevice, Chunk::Frame(frame));
         self.inner.send(frame)
     }
 
     fn recv(&mut self, timeout: Duration) -> Result<Option<CanFrame>, LinkError> {
         let frame = self.inner.recv(timeout)?;
         if let Some(f) = &frame {
-            self.sink.record(self.clock.now(), Direction::FromDevice, Tapped::Frame(f));
+            self.sink.record(self.clock.now(), Direction::FromDevice, Chunk::Frame(f));
         }
         Ok(frame)
     }
@@ -158,23 +150,11 @@ pub fn format_time(unix: Duration) -> String {
     format!("({}.{:06})", unix.as_secs(), unix.subsec_micros())
 }
 
-/// Formats bytes as spaced upper-case hex.
-pub fn hex(bytes: &[u8]) -> String {
-    let mut s = String::with_capacity(bytes.len() * 3);
-    for (i, b) in bytes.iter().enumerate() {
-        if i > 0 {
-            s.push(' ');
-        }
-        s.push_str(&format!("{b:02X}"));
-    }
-    s
-}
-
 /// One line of a capture file, formatted.
-pub fn format_line(unix: Duration, direction: Direction, data: Tapped<'_>, can_interface: &str) -> String {
+pub fn format_line(unix: Duration, direction: Direction, data: Chunk<'_>, can_interface: &str) -> String {
     match data {
-        Tapped::Bytes(b) => format!("{} {} {}", format_time(unix), direction.arrow(), hex(b)),
-        Tapped::Frame(f) => format!("{} {can_interface} {f}", format_time(unix)),
+        Chunk::Bytes(b) => format!("{} {} {}", format_time(unix), direction.arrow(), hex(b)),
+        Chunk::Frame(f) => format!("{} {can_interface} {f}", format_time(unix)),
     }
 }
 
@@ -210,7 +190,7 @@ impl CaptureWriter {
 }
 
 impl TapSink for CaptureWriter {
-    fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>) {
+    fn record(&self, at: Timestamp, direction: Direction, data: Chunk<'_>) {
         let line = format_line(self.time.at(at), direction, data, &self.can_interface);
         let mut out = lock(&self.out);
         let (w, failed) = &mut *out;
@@ -333,22 +313,6 @@ fn parse_unix(text: &str) -> Option<Duration> {
     Some(Duration::new(secs, nanos))
 }
 
-/// Parses hex bytes: pairs of digits, optionally separated by whitespace, `,`, `:` or `-`, each optionally
-/// prefixed with `0x`.
-pub fn parse_hex(text: &str) -> Result<Vec<u8>, String> {
-    let mut bytes = Vec::new();
-    for token in text.split(|c: char| c.is_whitespace() || matches!(c, ',' | ':' | '-')).filter(|t| !t.is_empty()) {
-        let digits = token.strip_prefix("0x").or_else(|| token.strip_prefix("0X")).unwrap_or(token);
-        if digits.len() % 2 != 0 || !digits.chars().all(|c| c.is_ascii_hexdigit()) {
-            return Err(format!("{token:?} is not hex bytes (expected pairs of hex digits such as 52 47 or 5247)"));
-        }
-        for i in (0..digits.len()).step_by(2) {
-            bytes.push(u8::from_str_radix(&digits[i..i + 2], 16).map_err(|e| e.to_string())?);
-        }
-    }
-    Ok(bytes)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -359,7 +323,7 @@ mod tests {
     struct Lines(Mutex<Vec<String>>);
 
     impl TapSink for Lines {
-        fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>) {
+        fn record(&self, at: Timestamp, direction: Direction, data: Chunk<'_>) {
             let unix = Duration::from_secs(1_732_470_000) + at.since_origin();
             lock(&self.0).push(format_line(unix, direction, data, "can0"));
         }
@@ -370,8 +334,8 @@ mod tests {
         let clock = ManualClock::new();
         let frame = CanFrame::new(0x0F1, &[0x01]).unwrap();
         let sink = Lines::default();
-        sink.record(Timestamp::from_micros(1_500), Direction::ToDevice, Tapped::Bytes(&[0x52, 0x47]));
-        sink.record(Timestamp::from_micros(2_000_250), Direction::FromDevice, Tapped::Frame(&frame));
+        sink.record(Timestamp::from_micros(1_500), Direction::ToDevice, Chunk::Bytes(&[0x52, 0x47]));
+        sink.record(Timestamp::from_micros(2_000_250), Direction::FromDevice, Chunk::Frame(&frame));
         let lines = lock(&sink.0).clone();
         assert_eq!(lines, vec!["(1732470000.001500) -> 52 47", "(1732470002.000250) can0 0F1#01"]);
         let first = parse_line(&lines[0]).unwrap().unwrap();

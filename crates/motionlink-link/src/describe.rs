@@ -6,56 +6,8 @@
 //! A describer keeps state between calls: a telegram may arrive in pieces, and a reply is explained with
 //! the request before it.
 
-use std::fmt;
-
-use crate::can::CanFrame;
+use crate::chunk::{Chunk, Direction};
 use crate::clock::Timestamp;
-
-/// Which way a telegram went.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Direction {
-    /// From the host to the device (a request).
-    ToDevice,
-    /// From the device to the host (an answer, or a message of its own).
-    FromDevice,
-    /// Not known (a capture without direction marks); the describer decides from the bytes.
-    Unknown,
-}
-
-impl Direction {
-    /// `->`, `<-` or `??`, as `motionlink decode` prints it.
-    pub fn arrow(self) -> &'static str {
-        match self {
-            Direction::ToDevice => "->",
-            Direction::FromDevice => "<-",
-            Direction::Unknown => "??",
-        }
-    }
-
-    /// `to_device`, `from_device`, `unknown`, for JSON.
-    pub fn name(self) -> &'static str {
-        match self {
-            Direction::ToDevice => "to_device",
-            Direction::FromDevice => "from_device",
-            Direction::Unknown => "unknown",
-        }
-    }
-}
-
-impl fmt::Display for Direction {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.arrow())
-    }
-}
-
-/// One piece of captured traffic.
-#[derive(Debug, Clone, Copy)]
-pub enum Captured<'a> {
-    /// Bytes of a serial line, in any chunks.
-    Bytes(&'a [u8]),
-    /// One CAN frame.
-    Frame(&'a CanFrame),
-}
 
 /// One telegram (or a stretch of bytes that is none), explained.
 #[derive(Debug, Clone, PartialEq)]
@@ -76,27 +28,12 @@ pub struct Annotation {
 
 /// A family's decoder of captured traffic.
 pub trait Describe {
-    /// Explains `captured`, which went `direction` at `at` (if known), appending one annotation per
+    /// Explains `chunk`, which went `direction` at `at` (if known), appending one annotation per
     /// telegram completed (none while a telegram is still incomplete).
-    fn describe(
-        &mut self,
-        captured: Captured<'_>,
-        direction: Direction,
-        at: Option<Timestamp>,
-        out: &mut Vec<Annotation>,
-    );
+    fn describe(&mut self, chunk: Chunk<'_>, direction: Direction, at: Option<Timestamp>, out: &mut Vec<Annotation>);
 
     /// The capture ended: reports what is left incomplete.
     fn finish(&mut self, out: &mut Vec<Annotation>);
-}
-
-impl<'a> From<crate::capture::Tapped<'a>> for Captured<'a> {
-    fn from(tapped: crate::capture::Tapped<'a>) -> Self {
-        match tapped {
-            crate::capture::Tapped::Bytes(b) => Captured::Bytes(b),
-            crate::capture::Tapped::Frame(f) => Captured::Frame(f),
-        }
-    }
 }
 
 /// What a boxed [`DescribingTap`] does with the telegrams it explains.
@@ -109,15 +46,16 @@ pub type OnTelegrams = Box<dyn Fn(Timestamp, &mut Vec<Annotation>) + Send + Sync
 ///
 /// ```
 /// use std::sync::{Arc, Mutex};
-/// use motionlink_link::capture::{TapSink, Tapped};
-/// use motionlink_link::describe::{Annotation, Captured, Describe, DescribingTap, Direction};
+/// use motionlink_link::capture::TapSink;
+/// use motionlink_link::chunk::{Chunk, Direction};
+/// use motionlink_link::describe::{Annotation, Describe, DescribingTap};
 /// use motionlink_link::Timestamp;
 ///
 /// /// A toy family: every byte is a telegram.
 /// struct Bytes;
 /// impl Describe for Bytes {
-///     fn describe(&mut self, c: Captured<'_>, d: Direction, at: Option<Timestamp>, out: &mut Vec<Annotation>) {
-///         if let Captured::Bytes(b) = c {
+///     fn describe(&mut self, c: Chunk<'_>, d: Direction, at: Option<Timestamp>, out: &mut Vec<Annotation>) {
+///         if let Chunk::Bytes(b) = c {
 ///             for x in b {
 ///                 let meaning = format!("byte {x}");
 ///                 out.push(Annotation { at, direction: d, can_id: None, bytes: vec![*x], meaning, bad: false });
@@ -132,7 +70,7 @@ pub type OnTelegrams = Box<dyn Fn(Timestamp, &mut Vec<Annotation>) + Send + Sync
 /// let tap = DescribingTap::new(Box::new(Bytes), move |_, found: &mut Vec<Annotation>| {
 ///     keep.lock().unwrap().append(found)
 /// });
-/// tap.record(Timestamp::ZERO, Direction::ToDevice, Tapped::Bytes(&[1, 2]));
+/// tap.record(Timestamp::ZERO, Direction::ToDevice, Chunk::Bytes(&[1, 2]));
 /// assert_eq!(seen.lock().unwrap().iter().map(|a| a.meaning.as_str()).collect::<Vec<_>>(), ["byte 1", "byte 2"]);
 /// ```
 pub struct DescribingTap<F = OnTelegrams> {
@@ -155,10 +93,10 @@ impl<F> crate::capture::TapSink for DescribingTap<F>
 where
     F: Fn(Timestamp, &mut Vec<Annotation>) + Send + Sync,
 {
-    fn record(&self, at: Timestamp, direction: Direction, data: crate::capture::Tapped<'_>) {
+    fn record(&self, at: Timestamp, direction: Direction, data: Chunk<'_>) {
         let mut state = crate::clock::lock(&self.describer);
         let (describer, found) = &mut *state;
-        describer.describe(data.into(), direction, Some(at), found);
+        describer.describe(data, direction, Some(at), found);
         if !found.is_empty() {
             (self.on_telegrams)(at, found);
             found.clear();

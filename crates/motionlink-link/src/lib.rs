@@ -2,22 +2,26 @@
 //!
 //! - [`can`]: CAN frames and links (SocketCAN, SLCAN, in-memory bus).
 //! - [`capture`]: taps on links, capture files that `decode` reads back, live traces.
+//! - [`chunk`]: what passes on a link (bytes or a CAN frame) and which way: one vocabulary for sessions,
+//!   taps, transcripts and describers.
 //! - [`cancel`]: a cancellation flag for long actions (Ctrl-C).
 //! - [`clock`]: the [`Clock`] every timeout, period and emulator reads; real and manual.
-//! - [`clock_lock`]: a mutex whose waiters wait on the clock (a session's shared half-duplex line).
 //! - [`error`]: the one classification of errors every family uses.
 //! - [`session`]: the sans-IO [`session::Session`] every family's protocol logic implements.
 //! - [`driver`]: the drivers that run a session over a link, for blocking and async callers.
+//! - [`hex`]: bytes as hex text and back.
 //! - [`flags`], [`table`]: the one flag-set and the one parameter-table mechanism of every family.
 //! - [`describe`]: the one decoder signature of every family (decode, wire trace, captures).
 //! - [`link`]: the [`Link`] trait, a byte stream with read timeouts, and its errors.
 //! - [`serial`], [`tcp`]: links to real ports and serial-over-TCP gateways; pty pairs for tests.
+//! - [`portlock`]: who holds a port (a lock file naming the holder), and a stop from another process.
 //! - [`pipe`]: in-memory links with baud-rate pacing and fault injection, and in-process emulators.
 //! - [`emulator`]: the [`emulator::Emulator`] trait and servers for `motionlink sim`.
 //! - [`url`]: the `--port` syntax.
 //! - [`transcript`]: a recording link wrapper.
 //! - [`probe`]: the shared pieces of a commissioning report (`motionlink probe`): checks, link measurements,
 //!   a USB serial adapter's latency timer, the baud-rate search.
+//! - [`devices`]: the configuration file of named devices (`devices.toml`), and where a port comes from.
 //! - [`profile`]: device profiles (`profiles.toml`), which let a later session skip the probes.
 
 #![warn(missing_docs)]
@@ -25,15 +29,18 @@
 pub mod can;
 pub mod cancel;
 pub mod capture;
+pub mod chunk;
 pub mod clock;
-pub mod clock_lock;
 pub mod describe;
+pub mod devices;
 pub mod driver;
 pub mod emulator;
 pub mod error;
 pub mod flags;
+pub mod hex;
 pub mod link;
 pub mod pipe;
+pub mod portlock;
 pub mod probe;
 pub mod profile;
 pub mod serial;

@@ -42,14 +42,8 @@ impl OpIds {
     }
 }
 
-/// What arrived on the link.
-#[derive(Debug, Clone, Copy)]
-pub enum Input<'a> {
-    /// Bytes of a serial line (any chunk: a telegram may arrive in pieces, or several in one).
-    Bytes(&'a [u8]),
-    /// One CAN frame.
-    Frame(&'a CanFrame),
-}
+/// What arrived on the link: the one [`Chunk`](crate::chunk::Chunk) of every user of a link.
+pub use crate::chunk::Chunk as Input;
 
 /// What a session asks its driver to do.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -5,16 +5,8 @@
 use std::sync::{Arc, Mutex};
 
 use crate::can::CanFrame;
+use crate::chunk::{Chunk, Direction};
 use crate::clock::{lock, Timestamp};
-
-/// Which way a recorded chunk went.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Way {
-    /// Host to device.
-    Sent,
-    /// Device to host.
-    Received,
-}
 
 /// One recorded chunk.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -22,7 +14,7 @@ pub struct Record {
     /// When it was sent or received.
     pub at: Timestamp,
     /// Which way.
-    pub way: Way,
+    pub direction: Direction,
     /// The bytes (a frame's data).
     pub bytes: Vec<u8>,
     /// The CAN frame, for a record of a CAN link.
@@ -50,18 +42,23 @@ impl Transcript {
     }
 
     /// All bytes that went one way, concatenated.
-    pub fn bytes(&self, way: Way) -> Vec<u8> {
-        lock(&self.0).iter().filter(|r| r.way == way).flat_map(|r| r.bytes.iter().copied()).collect()
+    pub fn bytes(&self, direction: Direction) -> Vec<u8> {
+        lock(&self.0).iter().filter(|r| r.direction == direction).flat_map(|r| r.bytes.iter().copied()).collect()
     }
 
-    fn push(&self, at: Timestamp, way: Way, bytes: &[u8], frame: Option<crate::can::CanFrame>) {
+    fn push(&self, at: Timestamp, direction: Direction, bytes: &[u8], frame: Option<crate::can::CanFrame>) {
         let mut log = lock(&self.0);
         // Consecutive chunks the same way are one stream; merge them so a telegram is one record.
         match log.last_mut() {
-            Some(last) if frame.is_none() && last.frame.is_none() && last.way == way && way == Way::Received => {
+            Some(last)
+                if frame.is_none()
+                    && last.frame.is_none()
+                    && last.direction == direction
+                    && direction == Direction::FromDevice =>
+            {
                 last.bytes.extend_from_slice(bytes)
             }
-            _ => log.push(Record { at, way, bytes: bytes.to_vec(), frame }),
+            _ => log.push(Record { at, direction, bytes: bytes.to_vec(), frame }),
         }
     }
 }
@@ -69,11 +66,10 @@ impl Transcript {
 pub use crate::capture::{TapCanLink, TapLink};
 
 impl crate::capture::TapSink for Transcript {
-    fn record(&self, at: Timestamp, direction: crate::describe::Direction, data: crate::capture::Tapped<'_>) {
-        let way = if direction == crate::describe::Direction::FromDevice { Way::Received } else { Way::Sent };
+    fn record(&self, at: Timestamp, direction: Direction, data: Chunk<'_>) {
         match data {
-            crate::capture::Tapped::Bytes(b) => self.push(at, way, b, None),
-            crate::capture::Tapped::Frame(f) => self.push(at, way, f.data(), Some(*f)),
+            Chunk::Bytes(b) => self.push(at, direction, b, None),
+            Chunk::Frame(f) => self.push(at, direction, f.data(), Some(*f)),
         }
     }
 }
@@ -84,7 +80,7 @@ pub struct FrameRecord {
     /// When it was sent or received.
     pub at: Timestamp,
     /// Which way.
-    pub way: Way,
+    pub direction: Direction,
     /// The frame.
     pub frame: CanFrame,
 }
@@ -104,17 +100,16 @@ impl FrameTranscript {
         std::mem::take(&mut *lock(&self.0))
     }
 
-    fn push(&self, at: Timestamp, way: Way, frame: &CanFrame) {
-        lock(&self.0).push(FrameRecord { at, way, frame: *frame });
+    fn push(&self, at: Timestamp, direction: Direction, frame: &CanFrame) {
+        lock(&self.0).push(FrameRecord { at, direction, frame: *frame });
     }
 }
 
 impl crate::capture::TapSink for FrameTranscript {
     /// Keeps CAN frames; bytes of a serial line are not frames and are left out.
-    fn record(&self, at: Timestamp, direction: crate::describe::Direction, data: crate::capture::Tapped<'_>) {
-        if let crate::capture::Tapped::Frame(f) = data {
-            let way = if direction == crate::describe::Direction::FromDevice { Way::Received } else { Way::Sent };
-            self.push(at, way, f);
+    fn record(&self, at: Timestamp, direction: Direction, data: Chunk<'_>) {
+        if let Chunk::Frame(f) = data {
+            self.push(at, direction, f);
         }
     }
 }
@@ -150,8 +145,8 @@ mod tests {
         let got = link.recv(Duration::from_millis(10)).unwrap().unwrap();
         let records = transcript.take();
         assert_eq!(
-            records.iter().map(|r| (r.way, r.frame)).collect::<Vec<_>>(),
-            vec![(Way::Sent, sent), (Way::Received, got)]
+            records.iter().map(|r| (r.direction, r.frame)).collect::<Vec<_>>(),
+            vec![(Direction::ToDevice, sent), (Direction::FromDevice, got)]
         );
         assert!(records[1].at > records[0].at, "stamped when they passed");
         assert!(transcript.take().is_empty());

@@ -4,17 +4,19 @@
 //! writer call it.
 //!
 //! ```
-//! use motionlink_link::describe::{Captured, Describe, Direction};
+//! use motionlink_link::chunk::{Chunk, Direction};
+//! use motionlink_link::describe::Describe;
 //! use motionlink_powercube::describe::Describer;
 //! let mut d = Describer::new();
 //! let mut out = Vec::new();
-//! d.describe(Captured::Bytes(&[0x02, 0x06, 0x21, 0x01, 0x28, 0x03]), Direction::Unknown, None, &mut out);
+//! d.describe(Chunk::Bytes(&[0x02, 0x06, 0x21, 0x01, 0x28, 0x03]), Direction::Unknown, None, &mut out);
 //! assert_eq!(out[0].meaning, "to module 17: Home");
 //! assert_eq!(out[0].direction, Direction::ToDevice);
 //! ```
 
 use motionlink_link::can::CanFrame;
-use motionlink_link::describe::{Annotation, Captured, Describe, Direction};
+use motionlink_link::chunk::{Chunk, Direction};
+use motionlink_link::describe::{Annotation, Describe};
 use motionlink_link::Timestamp;
 
 use crate::model::{Broadcast, BroadcastForm, ConfigFlag, ConfigWord, ModuleKind, Param, Reply, Request, Value};
@@ -191,14 +193,14 @@ impl Describer {
 impl Describe for Describer {
     fn describe(
         &mut self,
-        captured: Captured<'_>,
+        captured: Chunk<'_>,
         direction: Direction,
         at: Option<Timestamp>,
         out: &mut Vec<Annotation>,
     ) {
         match captured {
-            Captured::Bytes(bytes) => self.bytes(bytes, direction, at, out),
-            Captured::Frame(frame) => {
+            Chunk::Bytes(bytes) => self.bytes(bytes, direction, at, out),
+            Chunk::Frame(frame) => {
                 let (meaning, from_id, bad) = self.describe_frame(frame);
                 out.push(Annotation {
                     at,
@@ -241,7 +243,7 @@ impl Describe for Describer {
 mod tests {
     use super::*;
 
-    fn all(d: &mut Describer, captured: Captured<'_>) -> Vec<Annotation> {
+    fn all(d: &mut Describer, captured: Chunk<'_>) -> Vec<Annotation> {
         let mut out = Vec::new();
         d.describe(captured, Direction::Unknown, None, &mut out);
         out
@@ -250,14 +252,14 @@ mod tests {
     #[test]
     fn rs232_in_pieces_with_garbage_and_a_bad_bcc() {
         let mut d = Describer::new();
-        assert!(all(&mut d, Captured::Bytes(&[0x02, 0x06, 0x21])).is_empty(), "a frame in progress");
-        let a = all(&mut d, Captured::Bytes(&[0x10, 0x82, 0x29, 0x03, 0xff, 0x02, 0x06, 0x21, 0x01, 0x00, 0x03]));
+        assert!(all(&mut d, Chunk::Bytes(&[0x02, 0x06, 0x21])).is_empty(), "a frame in progress");
+        let a = all(&mut d, Chunk::Bytes(&[0x10, 0x82, 0x29, 0x03, 0xff, 0x02, 0x06, 0x21, 0x01, 0x00, 0x03]));
         assert_eq!(a.len(), 3, "{a:?}");
         assert_eq!((a[0].meaning.as_str(), a[0].bytes.len(), a[0].bad), ("to module 17: Halt", 7, false));
         assert_eq!(a[1].meaning, "error: 1 byte(s) outside a frame skipped");
         assert!(a[2].bad && a[2].meaning.ends_with("Home [BCC 0x00 wrong, expected 0x28]"), "{}", a[2].meaning);
         let mut tail = Vec::new();
-        all(&mut d, Captured::Bytes(&[0x02, 0x06]));
+        all(&mut d, Chunk::Bytes(&[0x02, 0x06]));
         d.finish(&mut tail);
         assert!(tail[0].bad && tail[0].meaning.contains("incomplete"), "{tail:?}");
     }
@@ -282,7 +284,7 @@ mod tests {
         assert_eq!(d.describe_frame(&put).0, "put to module 5: SetExtended TargetPos = 0.200000 rad|m");
         let mut out = Vec::new();
         let frame = CanFrame::new(0x0C4, &[0x0a, 0x3c]).unwrap();
-        d.describe(Captured::Frame(&frame), Direction::Unknown, None, &mut out);
+        d.describe(Chunk::Frame(&frame), Direction::Unknown, None, &mut out);
         assert_eq!((out[0].can_id, out[0].direction), (Some(0x0C4), Direction::ToDevice));
     }
 }

@@ -2,7 +2,8 @@
 //! transcript and any capture annotation use), and the one-line descriptions it is made of.
 //!
 //! ```
-//! use motionlink_link::describe::{Captured, Describe, Direction};
+//! use motionlink_link::chunk::{Chunk, Direction};
+//! use motionlink_link::describe::Describe;
 //! use motionlink_scu::describe::{describe_request, Describer};
 //! use motionlink_scu::wire::Request;
 //! assert_eq!(
@@ -12,17 +13,19 @@
 //! // A capture of both directions, in pieces: the reply is explained with the request before it.
 //! let mut d = Describer::new();
 //! let mut out = Vec::new();
-//! d.describe(Captured::Bytes(&[0x52, 0x47, 0x11]), Direction::Unknown, None, &mut out);
-//! d.describe(Captured::Bytes(&[0x00, 0x2C, 0x30, 0x52, 0x47, 0x06, 0x04, 0x00]), Direction::Unknown, None, &mut out);
-//! d.describe(Captured::Bytes(&[0x90, 0x01, 0x00, 0x00, 0xA3, 0xAD]), Direction::Unknown, None, &mut out);
+//! d.describe(Chunk::Bytes(&[0x52, 0x47, 0x11]), Direction::Unknown, None, &mut out);
+//! d.describe(Chunk::Bytes(&[0x00, 0x2C, 0x30, 0x52, 0x47, 0x06, 0x04, 0x00]), Direction::Unknown, None, &mut out);
+//! d.describe(Chunk::Bytes(&[0x90, 0x01, 0x00, 0x00, 0xA3, 0xAD]), Direction::Unknown, None, &mut out);
 //! d.finish(&mut out);
 //! assert_eq!(out.len(), 2);
 //! assert_eq!(out[0].direction, Direction::ToDevice);
 //! assert_eq!(out[1].meaning, "RG ACK: actual_position_a1 = 400 counts");
 //! ```
 
-use motionlink_link::describe::{Annotation, Captured, Describe, Direction};
-use motionlink_link::transcript::{Record, Way};
+use motionlink_link::chunk::{Chunk, Direction};
+use motionlink_link::describe::{Annotation, Describe};
+use motionlink_link::hex::hex;
+use motionlink_link::transcript::Record;
 use motionlink_link::Timestamp;
 
 use crate::model::{item, DataIndex, Function, MotionDirection, SafetyId, StopMode, UNUSED};
@@ -44,10 +47,6 @@ fn function_name(id: u8) -> String {
         Some(f) => f.to_string(),
         None => format!("unknown function id {id}"),
     }
-}
-
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02X}")).collect::<Vec<_>>().join(" ")
 }
 
 /// One line about a request.
@@ -236,14 +235,14 @@ impl Describer {
 impl Describe for Describer {
     fn describe(
         &mut self,
-        captured: Captured<'_>,
+        captured: Chunk<'_>,
         direction: Direction,
         at: Option<Timestamp>,
         out: &mut Vec<Annotation>,
     ) {
         let bytes = match captured {
-            Captured::Bytes(b) => b,
-            Captured::Frame(f) => {
+            Chunk::Bytes(b) => b,
+            Chunk::Frame(f) => {
                 out.push(Annotation {
                     at,
                     direction,
@@ -287,8 +286,7 @@ pub fn fold_transcript(records: &[Record]) -> Vec<TranscriptLine> {
     let mut d = Describer::new();
     let mut lines: Vec<Annotation> = Vec::new();
     for r in records {
-        let direction = if r.way == Way::Sent { Direction::ToDevice } else { Direction::FromDevice };
-        d.describe(Captured::Bytes(&r.bytes), direction, Some(r.at), &mut lines);
+        d.describe(Chunk::Bytes(&r.bytes), r.direction, Some(r.at), &mut lines);
     }
     d.finish(&mut lines);
     let mut out = Vec::new();

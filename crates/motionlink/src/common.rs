@@ -472,60 +472,9 @@ pub fn serve<E: Emulator + 'static>(args: &ServeArgs, device: E) -> Result<(), C
     Ok(())
 }
 
-/// Parses hex text: pairs of digits, optionally separated by whitespace, ',', ':' or '-', each optionally
-/// prefixed with 0x. Lines starting with '#' are comments.
-pub fn parse_hex(text: &str) -> Result<Vec<u8>, CliError> {
-    let mut bytes = Vec::new();
-    for (line_no, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.starts_with('#') {
-            continue;
-        }
-        for token in line.split(|c: char| c.is_whitespace() || matches!(c, ',' | ':' | '-')).filter(|t| !t.is_empty()) {
-            let digits = token.strip_prefix("0x").or_else(|| token.strip_prefix("0X")).unwrap_or(token);
-            if digits.len() % 2 != 0 || !digits.chars().all(|c| c.is_ascii_hexdigit()) {
-                return Err(CliError::usage(format!(
-                    "line {}: {token:?} is not hex bytes (expected pairs of hex digits such as 52 47 or 5247)",
-                    line_no + 1
-                )));
-            }
-            for i in (0..digits.len()).step_by(2) {
-                bytes.push(u8::from_str_radix(&digits[i..i + 2], 16).map_err(|e| CliError::usage(e.to_string()))?);
-            }
-        }
-    }
-    Ok(bytes)
-}
-
-/// Formats bytes as spaced upper-case hex.
-pub fn hex(bytes: &[u8]) -> String {
-    let mut s = String::with_capacity(bytes.len() * 3);
-    for (i, b) in bytes.iter().enumerate() {
-        if i > 0 {
-            s.push(' ');
-        }
-        s.push_str(&format!("{b:02X}"));
-    }
-    s
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn hex_accepts_common_spellings() {
-        assert_eq!(
-            parse_hex("52 47 0x11,00:A3-0e\n# comment\n5247").unwrap(),
-            vec![0x52, 0x47, 0x11, 0, 0xA3, 0x0E, 0x52, 0x47]
-        );
-    }
-
-    #[test]
-    fn hex_rejects_odd_digits_and_non_hex() {
-        assert!(matches!(parse_hex("524"), Err(CliError::Usage(_))));
-        assert!(matches!(parse_hex("zz"), Err(CliError::Usage(_))));
-    }
 
     #[test]
     fn csv_quotes_only_what_needs_it() {
@@ -540,10 +489,5 @@ mod tests {
         let j = CliError::usage("bad --speed").to_json();
         assert_eq!(j, serde_json::json!({"kind": "usage", "message": "bad --speed", "exit_code": 2}));
         assert_eq!(CliError::Refused("PE".into()).kind(), "refused");
-    }
-
-    #[test]
-    fn hex_formats_spaced_upper_case() {
-        assert_eq!(hex(&[0x52, 0x0a]), "52 0A");
     }
 }

@@ -6,7 +6,8 @@
 use std::io::{Read, Write};
 
 use motionlink_link::capture::{self, CapturedLine};
-use motionlink_link::describe::{Annotation, Captured, Describe, Direction};
+use motionlink_link::chunk::{Chunk, Direction};
+use motionlink_link::describe::{Annotation, Describe};
 use motionlink_link::Timestamp;
 use serde_json::json;
 
@@ -47,7 +48,7 @@ pub fn annotation_json(a: &Annotation, frame: Option<(&str, &motionlink_link::ca
     let mut v = json!({
         "time_s": a.at.map(|t| t.since_origin().as_secs_f64()),
         "direction": a.direction.arrow(),
-        "bytes": common::hex(&a.bytes),
+        "bytes": motionlink_link::hex::hex(&a.bytes),
         "meaning": a.meaning,
         "bad": a.bad,
     });
@@ -66,7 +67,7 @@ pub fn annotation_text(a: &Annotation, frame: Option<(&str, &motionlink_link::ca
             let iface = if interface.is_empty() { String::new() } else { format!("{interface} ") };
             format!("{}{iface}{:<24} {} {}", stamp(a.at), f.to_string(), mark(a), a.meaning)
         }
-        None => format!("{}{} {:<38} {}", stamp(a.at), mark(a), common::hex(&a.bytes), a.meaning),
+        None => format!("{}{} {:<38} {}", stamp(a.at), mark(a), motionlink_link::hex::hex(&a.bytes), a.meaning),
     }
 }
 
@@ -106,7 +107,7 @@ pub fn run(args: &CaptureArgs, json: bool, describer: &mut dyn Describe, default
             }
         }
         if args.raw {
-            describer.describe(Captured::Bytes(&input), default, None, &mut found);
+            describer.describe(Chunk::Bytes(&input), default, None, &mut found);
             describer.finish(&mut found);
             return print(&mut out, json, &mut found, None);
         }
@@ -135,11 +136,11 @@ pub fn run(args: &CaptureArgs, json: bool, describer: &mut dyn Describe, default
         let direction = if parsed.direction == Direction::Unknown { default } else { parsed.direction };
         match &parsed.data {
             CapturedLine::Bytes(bytes) => {
-                describer.describe(Captured::Bytes(bytes), direction, at, &mut found);
+                describer.describe(Chunk::Bytes(bytes), direction, at, &mut found);
                 print(&mut out, json, &mut found, None)?;
             }
             CapturedLine::Frame { frame, interface } => {
-                describer.describe(Captured::Frame(frame), direction, at, &mut found);
+                describer.describe(Chunk::Frame(frame), direction, at, &mut found);
                 print(&mut out, json, &mut found, Some((interface.as_deref().unwrap_or(""), frame)))?;
             }
         }

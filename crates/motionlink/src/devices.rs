@@ -1,40 +1,18 @@
-//! Where the port comes from: `--port`, a named device of the configuration file (`--device lift`), or the
-//! `MOTIONLINK_PORT` environment variable, in that order; and the options a named device gives its commands.
-//!
-//! The configuration file is `devices.toml` in the platform's configuration directory
-//! (`$XDG_CONFIG_HOME/motionlink/` or `~/.config/motionlink/` on Linux and other Unix systems,
-//! `~/Library/Application Support/motionlink/` on macOS, `%APPDATA%\motionlink\` on Windows), or the file
-//! `MOTIONLINK_CONFIG` names:
-//!
-//! ```toml
-//! [device.lift]
-//! family = "scu"
-//! port = "/dev/ttyUSB0"
-//! functions = "tlt"          # any option of the family's commands, named as the option without `--`
-//! stroke = ["1=0:865", "2=0:865"]
-//!
-//! [device.arm]
-//! family = "powercube"
-//! port = "socketcan://can0"
-//! module = 3
-//! modules = [1, 2, 3]        # `motionlink console powercube`'s option
-//! ```
-//!
-//! A device's keys are the options of its family's commands (`motionlink scu ...`) and of its console
-//! (`motionlink console scu`), as clap declares them: a new option is a new key without a list to edit.
-//! Each command takes the keys it has an option for; an option given on the command line wins over the file.
+//! The options a named device of the configuration file gives a family command or console (`--device
+//! lift`; the file and the port are [`motionlink_link::devices`]'s): every key of the device's entry is an
+//! option of the family's commands (`motionlink scu ...`) or of its console (`motionlink console scu`), as
+//! clap declares them, so a new option is a new key without a list to edit. Each command takes the keys it
+//! has an option for; an option given on the command line wins over the file.
 
-use std::collections::BTreeMap;
 use std::ffi::OsString;
 use std::path::PathBuf;
 
 use clap::error::ErrorKind;
 use clap::parser::ValueSource;
 
-use crate::common::CliError;
+use motionlink_link::devices::{load_with, shown, Device, FAMILIES};
 
-/// The families a device may be of.
-const FAMILIES: [&str; 3] = ["scu", "powercube", "compax"];
+use crate::common::{classified, CliError};
 
 /// Options no device entry gives: the one that names the entry; the console's serving address and its
 /// opt-in to serve beyond this machine; a move's target (`--abs`, `--rel`: a device has no standing target)
@@ -42,109 +20,6 @@ const FAMILIES: [&str; 3] = ["scu", "powercube", "compax"];
 /// clap's own.
 const NOT_FROM_THE_FILE: [&str; 11] =
     ["device", "listen", "listen_any", "abs", "rel", "no_wait", "help", "version", "verbose", "quiet", "json"];
-
-/// One named device.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Device {
-    /// `scu`, `powercube` or `compax`.
-    pub family: String,
-    /// The `--port` to use.
-    pub port: String,
-    /// The other options, by key (`functions`, `module`, `timeout_ms`...), as the file gives them.
-    pub options: BTreeMap<String, toml::Value>,
-}
-
-/// The configuration file's path: `MOTIONLINK_CONFIG`, else `devices.toml` in the platform's directory (the
-/// directory `profiles.toml` lies in too: [`motionlink_link::profile`]).
-pub fn config_path() -> Option<PathBuf> {
-    motionlink_link::profile::devices_path()
-}
-
-/// The devices of the configuration file `text` (named `path` in messages).
-fn parse(text: &str, path: &str) -> Result<BTreeMap<String, Device>, CliError> {
-    #[derive(serde::Deserialize)]
-    #[serde(deny_unknown_fields)]
-    struct File {
-        #[serde(default)]
-        device: BTreeMap<String, toml::Table>,
-    }
-    let file: File = toml::from_str(text).map_err(|e| CliError::usage(format!("{path}: {e}")))?;
-    let mut devices = BTreeMap::new();
-    for (name, mut table) in file.device {
-        let mut text_of = |key: &str| match table.remove(key) {
-            Some(toml::Value::String(s)) => Ok(s),
-            Some(other) => Err(CliError::usage(format!(
-                "{path}: [device.{name}]: `{key}` must be a string, not {}",
-                shown(&other)
-            ))),
-            None => Err(CliError::usage(format!("{path}: [device.{name}]: `{key}` is missing"))),
-        };
-        let family = text_of("family")?;
-        let port = text_of("port")?;
-        if !FAMILIES.contains(&family.as_str()) {
-            return Err(CliError::usage(format!(
-                "{path}: device {name:?}: family {family:?} is not scu, powercube or compax"
-            )));
-        }
-        // Keys as options are spelled on the command line (`timeout-ms`) are the same keys.
-        let options = table.into_iter().map(|(k, v)| (k.replace('-', "_"), v)).collect();
-        devices.insert(name, Device { family, port, options });
-    }
-    Ok(devices)
-}
-
-/// Reads the configuration file (with `read`, from `path`) and returns the device `name` of `family`, and
-/// the path as messages show it.
-fn load(
-    family: &str,
-    name: &str,
-    path: Option<PathBuf>,
-    read: impl Fn(&PathBuf) -> std::io::Result<String>,
-) -> Result<(Device, String), CliError> {
-    let path =
-        path.ok_or_else(|| CliError::usage("--device: no configuration directory is known (set MOTIONLINK_CONFIG)"))?;
-    let shown = path.display().to_string();
-    let text = read(&path).map_err(|e| CliError::usage(format!("--device {name}: cannot read {shown}: {e}")))?;
-    let mut devices = parse(&text, &shown)?;
-    let known: Vec<String> = devices.keys().cloned().collect();
-    let d = devices.remove(name).ok_or_else(|| {
-        CliError::usage(format!("--device {name}: {shown} names no such device (it names: {})", known.join(", ")))
-    })?;
-    if d.family != family {
-        return Err(CliError::usage(format!("--device {name} is a {} device in {shown}, not {family}", d.family)));
-    }
-    Ok((d, shown))
-}
-
-/// Picks the port for a `family` command: `--port`, else `--device` from the configuration file (which
-/// must be of this family), else `MOTIONLINK_PORT`.
-pub fn resolve(family: &str, port: Option<&str>, device: Option<&str>) -> Result<String, CliError> {
-    resolve_with(family, port, device, std::env::var("MOTIONLINK_PORT").ok().as_deref(), config_path(), |p| {
-        std::fs::read_to_string(p)
-    })
-}
-
-fn resolve_with(
-    family: &str,
-    port: Option<&str>,
-    device: Option<&str>,
-    env_port: Option<&str>,
-    path: Option<PathBuf>,
-    read: impl Fn(&PathBuf) -> std::io::Result<String>,
-) -> Result<String, CliError> {
-    if let Some(p) = port {
-        return Ok(p.to_string());
-    }
-    if let Some(name) = device {
-        return Ok(load(family, name, path, read)?.0.port);
-    }
-    match env_port {
-        Some(p) if !p.trim().is_empty() => Ok(p.trim().to_string()),
-        _ => Err(CliError::usage(
-            "no port: give --port PORT, --device NAME (from the configuration file), or set MOTIONLINK_PORT",
-        )),
-    }
-}
 
 /// The command line with the options of the device `--device` names added, where a family command
 /// (`motionlink scu ...`) or a console (`motionlink console scu ...`) names one: each key of the device's
@@ -154,7 +29,7 @@ fn resolve_with(
 /// file's. A command line that clap refuses, or that names no device, is returned as it is (clap then says
 /// what is wrong).
 pub fn with_device_options(args: Vec<OsString>, cli: &clap::Command) -> Result<Vec<OsString>, CliError> {
-    with_device_options_from(args, cli, config_path(), |p| std::fs::read_to_string(p))
+    with_device_options_from(args, cli, motionlink_link::profile::devices_path(), |p| std::fs::read_to_string(p))
 }
 
 fn with_device_options_from(
@@ -167,7 +42,7 @@ fn with_device_options_from(
     let Some(levels) = levels(cli, &matches) else { return Ok(args) };
     let Ok(Some(name)) = levels[0].matches.try_get_one::<String>("device") else { return Ok(args) };
     let family = levels[0].family;
-    let (device, shown) = load(family, name, path, read)?;
+    let (device, shown) = load_with(family, name, path, read).map_err(|e| classified(&e))?;
     let place = format!("{shown}: [device.{name}]");
     check_keys(cli, family, &device, &place)?;
     let port = ("port".to_string(), toml::Value::from(device.port.clone()));
@@ -328,19 +203,6 @@ fn insertion_point(cli: &clap::Command, args: &[OsString], levels: &[Level<'_>])
     args.len()
 }
 
-/// A value of the file as a message shows it: a string quoted, a number or switch as written, else its kind.
-fn shown(value: &toml::Value) -> String {
-    match value {
-        toml::Value::String(s) => format!("{s:?}"),
-        toml::Value::Integer(i) => i.to_string(),
-        toml::Value::Float(f) => f.to_string(),
-        toml::Value::Boolean(b) => b.to_string(),
-        toml::Value::Array(_) => "a list".into(),
-        toml::Value::Table(_) => "a table".into(),
-        toml::Value::Datetime(_) => "a date".into(),
-    }
-}
-
 /// The number of single-character edits between `a` and `b`.
 fn edit_distance(a: &str, b: &str) -> usize {
     let b: Vec<char> = b.chars().collect();
@@ -360,43 +222,6 @@ fn edit_distance(a: &str, b: &str) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    const FILE: &str = "[device.lift]\nfamily = \"scu\"\nport = \"/dev/ttyUSB0\"\n\n[device.arm]\nfamily = \"powercube\"\nport = \"socketcan://can0\"\n";
-
-    fn resolve_in(
-        family: &str,
-        port: Option<&str>,
-        device: Option<&str>,
-        env: Option<&str>,
-    ) -> Result<String, CliError> {
-        resolve_with(family, port, device, env, Some(PathBuf::from("/cfg/devices.toml")), |_| Ok(FILE.to_string()))
-    }
-
-    #[test]
-    fn port_then_device_then_environment() {
-        assert_eq!(resolve_in("scu", Some("sim"), Some("lift"), Some("tcp://x:1")).unwrap(), "sim");
-        assert_eq!(resolve_in("scu", None, Some("lift"), Some("tcp://x:1")).unwrap(), "/dev/ttyUSB0");
-        assert_eq!(resolve_in("powercube", None, Some("arm"), None).unwrap(), "socketcan://can0");
-        assert_eq!(resolve_in("compax", None, None, Some("tcp://x:1")).unwrap(), "tcp://x:1");
-    }
-
-    #[test]
-    fn a_wrong_device_names_what_is_wrong() {
-        let e = resolve_in("scu", None, Some("arm"), None).unwrap_err().to_string();
-        assert!(e.contains("powercube device") && e.contains("not scu"), "{e}");
-        let e = resolve_in("scu", None, Some("nope"), None).unwrap_err().to_string();
-        assert!(e.contains("arm, lift"), "{e}");
-        let e = resolve_in("scu", None, None, None).unwrap_err().to_string();
-        assert!(e.contains("MOTIONLINK_PORT"), "{e}");
-        let bad = resolve_with("scu", None, Some("x"), None, Some(PathBuf::from("f")), |_| {
-            Ok("[device.x]\nfamily = \"plc\"\nport = \"p\"\n".into())
-        });
-        assert!(bad.unwrap_err().to_string().contains("not scu, powercube or compax"));
-        let bad = resolve_with("scu", None, Some("x"), None, Some(PathBuf::from("f")), |_| {
-            Ok("[device.x]\nfamily = \"scu\"\nport = 7\n".into())
-        });
-        assert!(bad.unwrap_err().to_string().contains("`port` must be a string, not 7"));
-    }
 
     /// The command line `words` with the options of `file`'s device added.
     fn with_file(words: &str, file: &str) -> Result<Vec<String>, CliError> {

@@ -322,7 +322,7 @@ fn act(
     client: &Client,
     guard: Guard,
     port: &str,
-    stopped: Option<&crate::portlock::Stopped>,
+    stopped: Option<&motionlink_link::portlock::Stopped>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let mut out = out;

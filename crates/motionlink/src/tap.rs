@@ -7,9 +7,10 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 use motionlink_link::can::CanLink;
-use motionlink_link::capture::{CaptureWriter, Fanout, TapCanLink, TapLink, TapSink, Tapped};
+use motionlink_link::capture::{CaptureWriter, Fanout, TapCanLink, TapLink, TapSink};
+use motionlink_link::chunk::{Chunk, Direction};
 use motionlink_link::clock::lock;
-use motionlink_link::describe::{Annotation, Describe, DescribingTap, Direction, OnTelegrams};
+use motionlink_link::describe::{Annotation, Describe, DescribingTap, OnTelegrams};
 use motionlink_link::error::TransportKind;
 use motionlink_link::link::Link;
 use motionlink_link::LinkError;
@@ -35,7 +36,8 @@ pub struct LinkArgs {
 impl LinkArgs {
     /// The port of a `family` command: `--port`, else `--device`, else `MOTIONLINK_PORT`.
     pub fn resolve_port(&self, family: &str, port: Option<&str>) -> Result<String, CliError> {
-        crate::devices::resolve(family, port, self.device.as_deref())
+        motionlink_link::devices::resolve(family, port, self.device.as_deref())
+            .map_err(|e| crate::common::classified(&e))
     }
 }
 
@@ -155,7 +157,7 @@ impl Telegrams {
 }
 
 impl TapSink for Telegrams {
-    fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>) {
+    fn record(&self, at: Timestamp, direction: Direction, data: Chunk<'_>) {
         self.tap.record(at, direction, data);
     }
 }
@@ -165,7 +167,7 @@ impl TapSink for Telegrams {
 struct Heard(AtomicU64);
 
 impl TapSink for Heard {
-    fn record(&self, _: Timestamp, direction: Direction, _: Tapped<'_>) {
+    fn record(&self, _: Timestamp, direction: Direction, _: Chunk<'_>) {
         if direction == Direction::FromDevice {
             self.0.fetch_add(1, Ordering::Relaxed);
         }

@@ -6,9 +6,10 @@ use std::sync::{Mutex, OnceLock};
 use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle, WeakProgressBar};
-use motionlink_link::capture::{hex, UnixTime};
+use motionlink_link::capture::UnixTime;
 use motionlink_link::clock::{lock, SharedClock, Timestamp};
 use motionlink_link::describe::{Annotation, Describe, DescribingTap};
+use motionlink_link::hex::hex;
 use tracing_subscriber::filter::{LevelFilter, Targets};
 use tracing_subscriber::layer::SubscriberExt as _;
 use tracing_subscriber::util::SubscriberInitExt as _;

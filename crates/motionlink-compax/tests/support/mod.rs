@@ -10,9 +10,10 @@ use motionlink_compax::model::{ParamId, Position};
 use motionlink_compax::sim::{Emulator, SimConfig};
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_link::cancel::CancelToken;
+use motionlink_link::chunk;
 use motionlink_link::clock::ManualClock;
 use motionlink_link::pipe::{EmulatorHost, FaultControl, PipeConfig};
-use motionlink_link::transcript::{TapLink, Transcript, Way};
+use motionlink_link::transcript::{TapLink, Transcript};
 
 pub struct Rig {
     pub clock: ManualClock,
@@ -47,7 +48,7 @@ pub fn pos(v: f64) -> Position {
 }
 
 pub fn sent(t: &Transcript) -> Vec<Vec<u8>> {
-    t.records().into_iter().filter(|r| r.way == Way::Sent).map(|r| r.bytes).collect()
+    t.records().into_iter().filter(|r| r.direction == chunk::Direction::ToDevice).map(|r| r.bytes).collect()
 }
 
 /// Sends `telegram` over a second connection to the emulator (another program on the bus) and reads the

@@ -235,7 +235,7 @@ pub(super) fn output(
 #[derive(serde::Serialize)]
 struct Stopped<'a> {
     action: &'static str,
-    holder: Option<&'a crate::portlock::Stopped>,
+    holder: Option<&'a motionlink_link::portlock::Stopped>,
     #[serde(flatten)]
     report: &'a StopReport,
     position_units: Option<Position>,
@@ -252,7 +252,7 @@ struct Stopped<'a> {
 pub(super) fn stop(
     args: &Args,
     bus: &Client,
-    stopped: Option<&crate::portlock::Stopped>,
+    stopped: Option<&motionlink_link::portlock::Stopped>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     if let (Some(h), false) = (stopped, args.json) {
@@ -359,7 +359,7 @@ pub(super) fn send(
     // The command's reply is the first telegram from the drive after it; the status polls of a wait
     // come after that reply and are told apart.
     let (sent, reply, after) = crate::tap::first_exchange(&seen, command.as_bytes());
-    let polls = after.iter().filter(|a| a.direction == motionlink_link::describe::Direction::ToDevice).count();
+    let polls = after.iter().filter(|a| a.direction == motionlink_link::chunk::Direction::ToDevice).count();
     let (request, reply) = crate::tap::print_exchange(out, args.json, sent.as_ref(), reply.as_ref())?;
     if args.json {
         let reply_text = result.as_ref().ok().and_then(|o| o.reply.clone());

@@ -9,10 +9,11 @@ use motionlink_compax::model::{ParamId, Position, RampMs, S16Flag, S17Flag, Spee
 use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_compax::{Client, Emulator, Error};
+use motionlink_link::chunk::{Chunk, Direction as Way};
 use motionlink_link::clock::{Clock, ManualClock};
-use motionlink_link::describe::{Annotation, Captured, Describe, Direction as Way};
+use motionlink_link::describe::{Annotation, Describe};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
-use motionlink_link::transcript::{TapLink, Transcript, Way as TapWay};
+use motionlink_link::transcript::{TapLink, Transcript};
 
 use super::{DecodeArgs, Direction, SimArgs};
 use crate::common::{self, CliError};
@@ -57,7 +58,7 @@ pub fn sim(args: SimArgs) -> Result<(), CliError> {
 
 /// One annotation as `decode` and the demo print it: the bytes in hex, then what they mean.
 fn line(a: &Annotation) -> String {
-    format!("{:<40} {}", common::hex(&a.bytes), a.meaning)
+    format!("{:<40} {}", motionlink_link::hex::hex(&a.bytes), a.meaning)
 }
 
 /// Runs `motionlink decode compax`: lines without a direction mark went the way `--direction` says.
@@ -138,17 +139,13 @@ fn demo_bus(clock: &ManualClock, p196: u32) -> Result<(Client, Transcript), CliE
 /// Prints what went over the line since the last call, each telegram explained by the library.
 fn print_transcript(out: &mut DemoOut<'_>, transcript: &Transcript, describer: &mut Describer) -> Result<(), CliError> {
     for r in transcript.take() {
-        let way = match r.way {
-            TapWay::Sent => Way::ToDevice,
-            TapWay::Received => Way::FromDevice,
-        };
         let mut found = Vec::new();
-        describer.describe(Captured::Bytes(&r.bytes), way, None, &mut found);
+        describer.describe(Chunk::Bytes(&r.bytes), r.direction, None, &mut found);
         for a in &found {
             let direction = if a.bad { "!!" } else { a.direction.arrow() };
             let text = format!("   {} {}", a.direction.arrow(), line(a));
             let time_s = Some(r.at.since_origin().as_secs_f64());
-            let bytes = common::hex(&a.bytes);
+            let bytes = motionlink_link::hex::hex(&a.bytes);
             out.telegram(&text, &DemoTelegram { time_s, direction, bytes: &bytes, meaning: &a.meaning })?;
         }
     }

@@ -24,7 +24,7 @@ pub(super) fn send_text(words: &[String]) -> Result<String, CliError> {
     if !looks_hex {
         return Ok(joined);
     }
-    let bytes = common::parse_hex(&joined)?;
+    let bytes = motionlink_link::hex::parse_hex(&joined).map_err(CliError::usage)?;
     let text: String = bytes.iter().map(|&b| char::from(b)).collect();
     let text = text.trim_end_matches(['\r', '\n']).to_string();
     if text.is_empty() || !text.chars().all(|c| c.is_ascii_graphic() || c == ' ') {

@@ -143,7 +143,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
 
 /// The console's port: `--port`, else the one of `--device`, else MOTIONLINK_PORT.
 fn port_of(family: &str, port: &Option<String>, device: &DeviceArg) -> Result<String, CliError> {
-    crate::devices::resolve(family, port.as_deref(), device.device.as_deref())
+    motionlink_link::devices::resolve(family, port.as_deref(), device.device.as_deref())
+        .map_err(|e| common::classified(&e))
 }
 
 /// Waits on a thread for the interrupt token, then completes.

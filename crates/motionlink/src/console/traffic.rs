@@ -5,9 +5,11 @@
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 
-use motionlink_link::capture::{format_line, hex, TapSink, Tapped, UnixTime};
+use motionlink_link::capture::{format_line, TapSink, UnixTime};
+use motionlink_link::chunk::{Chunk, Direction};
 use motionlink_link::clock::{lock, SharedClock, Timestamp};
-use motionlink_link::describe::{Annotation, Describe, DescribingTap, Direction, OnTelegrams};
+use motionlink_link::describe::{Annotation, Describe, DescribingTap, OnTelegrams};
+use motionlink_link::hex::hex;
 use serde_json::{json, Value};
 
 /// How many capture lines the download keeps (the oldest go first).
@@ -134,7 +136,7 @@ impl Traffic {
 }
 
 impl TapSink for Traffic {
-    fn record(&self, at: Timestamp, direction: Direction, data: Tapped<'_>) {
+    fn record(&self, at: Timestamp, direction: Direction, data: Chunk<'_>) {
         let line = format_line(self.time.at(at), direction, data, &self.can_interface);
         {
             let mut inner = lock(&self.inner);
@@ -160,8 +162,8 @@ mod tests {
         let shared = clock.shared();
         let traffic = Traffic::new(Box::new(motionlink_scu::describe::Describer::new()), "scu sim", "can0", &shared);
         // RG 0x0011 (the manual's example) and its ACK, the request in two chunks.
-        traffic.record(shared.now(), Direction::ToDevice, Tapped::Bytes(&[0x52, 0x47]));
-        traffic.record(shared.now(), Direction::ToDevice, Tapped::Bytes(&[0x11, 0x00, 0x2C, 0x30]));
+        traffic.record(shared.now(), Direction::ToDevice, Chunk::Bytes(&[0x52, 0x47]));
+        traffic.record(shared.now(), Direction::ToDevice, Chunk::Bytes(&[0x11, 0x00, 0x2C, 0x30]));
         let file = traffic.capture_file();
         let mut lines = file.lines();
         assert_eq!(lines.next(), Some("# motionlink capture: scu sim"));

@@ -15,7 +15,7 @@ struct Acted<'a, T: serde::Serialize> {
     report: T,
     /// `stop` only (`Some`): the motionlink it stopped first, or null.
     #[serde(skip_serializing_if = "Option::is_none")]
-    holder: Option<Option<&'a crate::portlock::Stopped>>,
+    holder: Option<Option<&'a motionlink_link::portlock::Stopped>>,
 }
 
 /// What `reset` did besides the Reset.
@@ -144,7 +144,7 @@ pub(super) fn stop(
     args: &Args,
     m: &Module<'_>,
     port: &str,
-    stopped: Option<&crate::portlock::Stopped>,
+    stopped: Option<&motionlink_link::portlock::Stopped>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     if let (Some(h), false) = (stopped, args.json) {

@@ -1,7 +1,7 @@
 //! `motionlink decode powercube`: RS232 bytes (hex or raw), `--capture` files or candump lines, each
 //! telegram explained by the library's describer.
 
-use motionlink_link::describe::Direction;
+use motionlink_link::chunk::Direction;
 use motionlink_powercube::describe::Describer;
 
 use crate::common::CliError;

@@ -4,10 +4,11 @@
 use std::io::{IsTerminal, Write};
 
 use motionlink_link::can::{CanBus, CanBusConfig};
+use motionlink_link::chunk::{Chunk, Direction};
 use motionlink_link::clock::{Clock, ManualClock, Timestamp};
-use motionlink_link::describe::{Captured, Describe, Direction};
+use motionlink_link::describe::Describe;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
-use motionlink_link::transcript::{FrameTranscript, TapCanLink, TapLink, Transcript, Way};
+use motionlink_link::transcript::{FrameTranscript, TapCanLink, TapLink, Transcript};
 use motionlink_powercube::client::{BusConfig, Client, Module};
 use motionlink_powercube::describe::Describer;
 use motionlink_powercube::model::{AckKind, Address, Motion, Param, Position, Value};
@@ -20,11 +21,8 @@ use crate::demo::{DemoOut, DemoTelegram};
 /// One example of the demo: a name and what the client does.
 type Step = (&'static str, fn(&Module<'_>) -> Result<(), Error>);
 
-fn way(w: Way) -> (&'static str, Direction) {
-    match w {
-        Way::Sent => ("->", Direction::ToDevice),
-        Way::Received => ("<-", Direction::FromDevice),
-    }
+fn way(direction: Direction) -> (&'static str, Direction) {
+    (direction.arrow(), direction)
 }
 
 /// One telegram of the demo: `shown` (a CAN frame or RS232 bytes in hex) in a column `width` wide, then its
@@ -82,8 +80,8 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
             step(&m).map_err(failed)?;
             out.step(name)?;
             for r in transcript.take() {
-                let (arrow, direction) = way(r.way);
-                describer.describe(Captured::Frame(&r.frame), direction, Some(r.at), &mut notes);
+                let (arrow, direction) = way(r.direction);
+                describer.describe(Chunk::Frame(&r.frame), direction, Some(r.at), &mut notes);
                 let frame = r.frame.to_string();
                 for a in notes.drain(..) {
                     show(out, arrow, r.at, &frame, 24, &a.meaning)?;
@@ -123,10 +121,10 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
             step(&m).map_err(failed)?;
             out.step(name)?;
             for r in transcript.take() {
-                let (arrow, direction) = way(r.way);
-                describer.describe(Captured::Bytes(&r.bytes), direction, Some(r.at), &mut notes);
+                let (arrow, direction) = way(r.direction);
+                describer.describe(Chunk::Bytes(&r.bytes), direction, Some(r.at), &mut notes);
                 let meaning = notes.drain(..).map(|a| a.meaning).collect::<Vec<String>>().join("; ");
-                show(out, arrow, r.at, &common::hex(&r.bytes), 33, &meaning)?;
+                show(out, arrow, r.at, &motionlink_link::hex::hex(&r.bytes), 33, &meaning)?;
             }
         }
         bus.close().map_err(failed)?;

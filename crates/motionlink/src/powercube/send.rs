@@ -16,7 +16,7 @@ struct Listed {
 /// frame, a command (not an answer) to module `module`, its BCC and length right. Returns its payload.
 fn telegram_payload(bytes: &[u8], module: u8) -> Result<Payload, CliError> {
     use motionlink_powercube::wire::rs232::{Rs232Decoder, TelKind};
-    let hex = common::hex(bytes);
+    let hex = motionlink_link::hex::hex(bytes);
     let mut decoder = Rs232Decoder::new();
     let frames: Vec<_> = decoder.feed(bytes).collect();
     let frame = match frames.as_slice() {
@@ -87,7 +87,7 @@ pub(super) fn parse_send(words: &[String], module: u8) -> Result<Request, CliErr
         "resettime" => none(Request::Action(PcAction::ResetTime))?,
         "saveparameters" => none(Request::Action(PcAction::SaveParameters))?,
         _ => {
-            let bytes = common::parse_hex(&words.join(" ")).map_err(|_| {
+            let bytes = motionlink_link::hex::parse_hex(&words.join(" ")).map_err(|_| {
                 // A misspelt command is answered with the nearest one (hlat: did you mean halt?).
                 let typed = ["get", "set", "reset", "halt", "recalc-pid", "reset-time", "save-parameters", "home"];
                 match motionlink_link::table::did_you_mean(&motionlink_link::table::nearest(&words[0], typed)) {

@@ -4,8 +4,8 @@ use std::io::Write;
 use std::sync::Arc;
 use std::time::Duration;
 
+use motionlink_link::chunk::Direction;
 use motionlink_link::clock::Clock;
-use motionlink_link::describe::Direction;
 use motionlink_link::link::{Connector, Link};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::transcript::{TapLink, Transcript};
@@ -72,7 +72,7 @@ fn print_transcript(out: &mut DemoOut<'_>, transcript: &Transcript) -> Result<()
             TranscriptLine::Telegram(a) => {
                 let t = a.at.unwrap_or_default().since_origin().as_secs_f64();
                 let direction = if a.bad { "!!" } else { a.direction.arrow() };
-                let bytes = common::hex(&a.bytes);
+                let bytes = motionlink_link::hex::hex(&a.bytes);
                 let text = format!("  {t:>8.3}  {direction} {bytes:<38} {}", a.meaning);
                 out.telegram(&text, &DemoTelegram { time_s: Some(t), direction, bytes: &bytes, meaning: &a.meaning })?;
             }
@@ -96,7 +96,7 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
         ("RA", Request::Abort),
     ];
     for (manual, r) in examples {
-        let bytes = common::hex(&request_to_vec(&r).map_err(|e| CliError::usage(e.to_string()))?);
+        let bytes = motionlink_link::hex::hex(&request_to_vec(&r).map_err(|e| CliError::usage(e.to_string()))?);
         let meaning = describe_request(&r);
         out.set_step(Some(manual));
         let text = format!("  {manual:<22} {bytes:<38} {meaning}");

@@ -276,7 +276,7 @@ pub(super) struct Report<'a> {
     /// The port, as given.
     pub port: &'a str,
     /// `stop`: the motionlink that held the port and was stopped first, if any.
-    pub stopped: Option<crate::portlock::Stopped>,
+    pub stopped: Option<motionlink_link::portlock::Stopped>,
 }
 
 impl Report<'_> {

@@ -109,11 +109,11 @@ pub(super) fn parse(words: &[String]) -> Result<SendRequest, CliError> {
             };
             Ok(SendRequest::Stop(f.id(), p))
         }
-        _ => parse_hex(&words.join(" ")).map_err(|e| {
+        _ => telegram_in_hex(&words.join(" ")).map_err(|e| {
             // Not hex either: a misspelt request is answered with the nearest one (GR: did you mean RG?).
             let typed = ["RG", "RT", "RE", "RS"];
             match motionlink_link::table::did_you_mean(&motionlink_link::table::nearest(&first, typed)) {
-                Some(hint) if common::parse_hex(&words.join(" ")).is_err() => {
+                Some(hint) if motionlink_link::hex::parse_hex(&words.join(" ")).is_err() => {
                     CliError::usage(format!("{:?} is not a request: {hint}", words[0]))
                 }
                 _ => e,
@@ -123,8 +123,8 @@ pub(super) fn parse(words: &[String]) -> Result<SendRequest, CliError> {
 }
 
 /// One whole request telegram in hex, checked by the unit's own decoder.
-fn parse_hex(text: &str) -> Result<SendRequest, CliError> {
-    let bytes = common::parse_hex(text).map_err(|_| {
+fn telegram_in_hex(text: &str) -> Result<SendRequest, CliError> {
+    let bytes = motionlink_link::hex::parse_hex(text).map_err(|_| {
         CliError::usage(format!(
             "{text:?} is neither a typed request (RG, RT, RE, RS) nor the bytes of a telegram in hex"
         ))
@@ -186,7 +186,7 @@ pub(super) fn send(
             ok: bool,
         }
         let command = String::from_utf8_lossy(&wire[..2]).into_owned();
-        let data = result.as_ref().ok().and_then(|d| d.as_deref()).map(common::hex);
+        let data = result.as_ref().ok().and_then(|d| d.as_deref()).map(motionlink_link::hex::hex);
         report.print(out, Sent { command, request, reply, data, ok: result.is_ok() })?;
     }
     result.map(|_| ()).map_err(|e| common::classified(&e))

@@ -9,7 +9,7 @@ use motionlink_scu::Client;
 
 use super::Report;
 use crate::common::{self, CliError};
-use crate::portlock::Stopped;
+use motionlink_link::portlock::Stopped;
 
 /// What `stop --json` prints: the library's report, with what only the command knows (the motionlink
 /// that held the port, the function named).

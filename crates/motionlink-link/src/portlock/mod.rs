@@ -29,13 +29,24 @@ mod tests;
 use std::fs::File;
 use std::io::{Read, Seek, Write};
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use motionlink_link::url::PortUrl;
 use serde::{Deserialize, Serialize};
 
-use crate::common::CliError;
+use crate::error::{Classify, ErrorClass, TransportKind};
+use crate::url::PortUrl;
+
+/// Why a port's lock could not be taken: another process holds the port, or a `stop` could not take it
+/// from its holder. A transport error of the I/O kind (exit code 3 on the command line).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct PortLockError(pub String);
+
+impl Classify for PortLockError {
+    fn class(&self) -> ErrorClass {
+        ErrorClass::Transport(TransportKind::Io)
+    }
+}
 
 /// How long `stop` waits for the holder of a port to stop its motion and let go of the port after its
 /// SIGINT: above the libraries' bound on a close (5 s) with room for the process to end.
@@ -306,37 +317,16 @@ impl Drop for PortLock {
     }
 }
 
-/// The lock this process holds, released by [`release`] at the very end (after the port was closed).
-static HELD: Mutex<Option<PortLock>> = Mutex::new(None);
-
-fn held() -> std::sync::MutexGuard<'static, Option<PortLock>> {
-    HELD.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
-}
-
-/// This command's line after `motionlink`, without `--port PORT`.
-pub fn command_line() -> String {
-    let mut words = Vec::new();
-    let mut args = std::env::args().skip(1);
-    while let Some(a) = args.next() {
-        if a == "--port" {
-            args.next();
-        } else if !a.starts_with("--port=") {
-            words.push(a);
-        }
-    }
-    words.join(" ")
-}
-
-/// The lock of `port` for this process's command of `family` (`scu`, ..., `console scu`), or who holds it.
+/// The lock of `port` for a process's command of `family` (`scu`, ..., `console scu`), or who holds it.
 /// `Ok(None)` for a port that needs none, where lock files cannot be made (not Unix; a runtime directory
 /// that is not private: said in a warning), or a port that does not parse (the connection says why).
-fn take(family: &str, port: &str) -> Result<Option<(LockDir, String, Acquired)>, CliError> {
+fn take(family: &str, port: &str, command: &str) -> Result<Option<(LockDir, String, Acquired)>, PortLockError> {
     if !os::SUPPORTED {
         return Ok(None);
     }
     let Some(key) = port.parse::<PortUrl>().ok().as_ref().and_then(lock_key) else { return Ok(None) };
     let dir = LockDir::new(runtime_dir());
-    let me = Holder { pid: std::process::id(), port: port.to_string(), family: family.into(), command: command_line() };
+    let me = Holder { pid: std::process::id(), port: port.to_string(), family: family.into(), command: command.into() };
     match dir.acquire(&key, &me) {
         Ok(acquired) => Ok(Some((dir, key, acquired))),
         Err(e) => {
@@ -349,12 +339,12 @@ fn take(family: &str, port: &str) -> Result<Option<(LockDir, String, Acquired)>,
     }
 }
 
-/// Holds `lock` until [`release`]; says so if it replaced a stale one.
-fn keep(lock: PortLock, stale: Option<Holder>) {
+/// `lock`, kept; says so if it replaced a stale one.
+fn keep(lock: PortLock, stale: Option<Holder>) -> Option<PortLock> {
     if let Some(s) = stale {
         tracing::info!("replaced the lock file left by pid {} ({}), which no longer holds it", s.pid, s.command);
     }
-    *held() = Some(lock);
+    Some(lock)
 }
 
 /// The family whose `stop` a holder answers: `scu` for `scu` and for a console's `console scu`.
@@ -363,8 +353,8 @@ fn stop_family(holder: &Holder) -> &str {
 }
 
 /// The error of a command that finds `port` held by another process.
-fn in_use(port: &str, holder: Option<&Holder>) -> CliError {
-    CliError::transport(match holder {
+fn in_use(port: &str, holder: Option<&Holder>) -> PortLockError {
+    PortLockError(match holder {
         Some(h) => format!(
             "{port} is in use by motionlink pid {} ({}); `motionlink {} --port {port} stop` stops its motion",
             h.pid,
@@ -375,68 +365,69 @@ fn in_use(port: &str, holder: Option<&Holder>) -> CliError {
     })
 }
 
-/// Takes the lock of `port` for a command of `family` before it opens the port: a port another motionlink
-/// holds is a transport error (exit 3) naming that process and the `stop` that stops its motion.
-pub fn claim(family: &str, port: &str) -> Result<(), CliError> {
-    match take(family, port)? {
-        None => Ok(()),
-        Some((_, _, Acquired::Locked { lock, stale })) => {
-            keep(lock, stale);
-            Ok(())
-        }
+/// Takes the lock of `port` for this process's `command` (its command line, as a holder names it) of
+/// `family` before it opens the port: a port another motionlink holds is an error naming that process and
+/// the `stop` that stops its motion. The lock is held until the [`PortLock`] is dropped (`None`: the port
+/// needs none).
+pub fn claim(family: &str, port: &str, command: &str) -> Result<Option<PortLock>, PortLockError> {
+    match take(family, port, command)? {
+        None => Ok(None),
+        Some((_, _, Acquired::Locked { lock, stale })) => Ok(keep(lock, stale)),
         Some((_, _, Acquired::Held(holder))) => Err(in_use(port, holder.as_ref())),
     }
 }
 
 /// Takes the lock of `port` for `stop`: a port another motionlink holds is taken from it: that process is
-/// asked to stop its motion (SIGINT, after `NAME.stop` names this command), and the port is taken once it
-/// let go (at most [`HANDOVER_TIMEOUT`]). Returns the holder that was stopped and what it said, if any.
-pub fn claim_for_stop(family: &str, port: &str) -> Result<Option<Stopped>, CliError> {
-    let Some((dir, key, first)) = take(family, port)? else { return Ok(None) };
+/// asked to stop its motion (SIGINT, after `NAME.stop` names this command), `notify` is told so, and the port
+/// is taken once it let go (at most [`HANDOVER_TIMEOUT`]). Returns the lock and the holder that was stopped
+/// with what it said, if any.
+pub fn claim_for_stop(
+    family: &str,
+    port: &str,
+    command: &str,
+    notify: impl FnOnce(&str),
+) -> Result<(Option<PortLock>, Option<Stopped>), PortLockError> {
+    let Some((dir, key, first)) = take(family, port, command)? else { return Ok((None, None)) };
     let holder = match first {
-        Acquired::Locked { lock, stale } => {
-            keep(lock, stale);
-            return Ok(None);
-        }
+        Acquired::Locked { lock, stale } => return Ok((keep(lock, stale), None)),
         Acquired::Held(None) => return Err(in_use(port, None)),
         Acquired::Held(Some(h)) => h,
     };
     if !os::alive(holder.pid) {
-        return Err(CliError::transport(format!(
+        return Err(PortLockError(format!(
             "{port} is held, but the pid its lock file names ({}, {}) no longer runs: not signalled",
             holder.pid, holder.command
         )));
     }
     if os::is_motionlink(holder.pid) == Some(false) {
-        return Err(CliError::transport(format!(
+        return Err(PortLockError(format!(
             "{port} is held by pid {}, which its lock file names as motionlink ({}) but which runs another \
              program now: not signalled",
             holder.pid, holder.command
         )));
     }
-    let request = StopRequest { holder_pid: holder.pid, pid: std::process::id(), command: command_line() };
+    let request = StopRequest { holder_pid: holder.pid, pid: std::process::id(), command: command.into() };
     dir.request_stop(&key, &request)
-        .map_err(|e| CliError::transport(format!("cannot ask motionlink pid {} to stop: {e}", holder.pid)))?;
+        .map_err(|e| PortLockError(format!("cannot ask motionlink pid {} to stop: {e}", holder.pid)))?;
     os::interrupt(holder.pid).map_err(|e| {
-        CliError::transport(format!("cannot send SIGINT to motionlink pid {} ({}): {e}", holder.pid, holder.command))
+        PortLockError(format!("cannot send SIGINT to motionlink pid {} ({}): {e}", holder.pid, holder.command))
     })?;
-    crate::common::say(format!(
+    notify(&format!(
         "motionlink: {port} is held by motionlink pid {} ({}): asked it to stop its motion (SIGINT)",
         holder.pid, holder.command
     ));
-    let me = Holder { pid: std::process::id(), port: port.to_string(), family: family.into(), command: command_line() };
+    let me = Holder { pid: std::process::id(), port: port.to_string(), family: family.into(), command: command.into() };
     let deadline = Instant::now() + HANDOVER_TIMEOUT;
     loop {
         match dir.acquire(&key, &me) {
             Ok(Acquired::Locked { lock, stale }) => {
-                keep(lock, stale);
                 let outcome = dir.take_outcome(&key, holder.pid);
-                return Ok(Some(Stopped { holder, outcome }));
+                return Ok((keep(lock, stale), Some(Stopped { holder, outcome })));
             }
             Ok(Acquired::Held(_)) if Instant::now() < deadline => std::thread::sleep(Duration::from_millis(20)),
             Ok(Acquired::Held(now)) => {
                 let still = now.map_or("a process".to_string(), |h| format!("pid {} ({})", h.pid, h.command));
-                return Err(CliError::transport(format!(
+                return Err(PortLockError(format!(
                     "motionlink pid {} ({}) was sent SIGINT but {port} is still held by {still} {} s later: its \
                      motion may still be running",
                     holder.pid,
@@ -444,20 +435,7 @@ pub fn claim_for_stop(family: &str, port: &str) -> Result<Option<Stopped>, CliEr
                     HANDOVER_TIMEOUT.as_secs()
                 )));
             }
-            Err(e) => return Err(CliError::transport(format!("the lock file of {port}: {e}"))),
+            Err(e) => return Err(PortLockError(format!("the lock file of {port}: {e}"))),
         }
-    }
-}
-
-/// The request to stop addressed to this process, if a `stop` sent one (for the note its SIGINT prints).
-pub fn stop_request() -> Option<StopRequest> {
-    held().as_ref().and_then(PortLock::stop_request)
-}
-
-/// Lets go of the port this process holds, if any, at the very end: a `stop` that asked this process to stop
-/// learns `exit_code` and `message` first.
-pub fn release(exit_code: u8, message: &str) {
-    if let Some(lock) = held().take() {
-        lock.release(&command_line(), exit_code, message);
     }
 }
