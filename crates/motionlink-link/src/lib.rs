@@ -7,6 +7,7 @@
 //! - [`clock_lock`]: a mutex whose waiters wait on the clock (a session's shared half-duplex line).
 //! - [`error`]: the one classification of errors every family uses.
 //! - [`session`]: the sans-IO [`session::Session`] every family's protocol logic implements.
+//! - [`exec`]: the one executor of every family's session operations (`async fn`s on the session's clock).
 //! - [`driver`]: the drivers that run a session over a link, for blocking and async callers.
 //! - [`flags`], [`table`]: the one flag-set and the one parameter-table mechanism of every family.
 //! - [`describe`]: the one decoder signature of every family (decode, wire trace, captures).
@@ -28,6 +29,7 @@ pub mod describe;
 pub mod driver;
 pub mod emulator;
 pub mod error;
+pub mod exec;
 pub mod flags;
 pub mod link;
 pub mod pipe;
