@@ -94,8 +94,7 @@ impl Session {
 
     /// Every call into the session tells it the time: the line's and the operations' clock.
     fn now_is(&mut self, now: Timestamp) {
-        self.exec.set_now(now);
-        self.core().now = now;
+        self.exec.core_at(now).now = now;
     }
 
     /// The configuration.

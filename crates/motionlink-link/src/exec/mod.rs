@@ -294,6 +294,14 @@ where
         self.shared.lock().now = now;
     }
 
+    /// Sets the session's time and returns the core, locked (one lock for both: what every call into a
+    /// session does first).
+    pub fn core_at(&self, now: Timestamp) -> CoreGuard<'_, C, P> {
+        let mut shared = self.shared.lock();
+        shared.now = now;
+        CoreGuard::new(shared)
+    }
+
     /// When the next sleeping operation is due, if any sleeps.
     pub fn poll_timeout(&self) -> Option<Timestamp> {
         self.shared.lock().timers.values().min().copied()

@@ -282,8 +282,7 @@ impl Session {
 
     /// Every call into the session tells it the time: the engine's and the operations' clock.
     fn now_is(&mut self, now: Timestamp) {
-        self.exec.set_now(now);
-        self.core().now = now;
+        self.exec.core_at(now).now = now;
     }
 
     /// The session's settings.
@@ -514,13 +513,16 @@ impl SessionTrait for Session {
     }
 
     fn poll_transmit(&mut self, now: Timestamp) -> Option<Action> {
-        self.now_is(now);
-        if let Some(a) = self.core().outbox.pop_front() {
-            return Some(a);
+        {
+            let mut core = self.exec.core_at(now);
+            core.now = now;
+            if let Some(a) = core.outbox.pop_front() {
+                return Some(a);
+            }
+            // Requests that waited too long for room, and waits for a poll that will not come, end first:
+            // their operations may have something else to send.
+            core.fail_waiting(now);
         }
-        // Requests that waited too long for room, and waits for a poll that will not come, end first: their
-        // operations may have something else to send.
-        self.core().fail_waiting(now);
         self.run();
         let mut core = self.core();
         core.schedule(now);
