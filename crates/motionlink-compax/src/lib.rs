@@ -13,7 +13,8 @@
 //!   ([`model::Position`] in the drive's unit, [`model::SpeedPercent`], [`model::RampMs`]).
 //! - [`session`]: the protocol as a sans-IO [`Session`]: request / reply matching, retries of what may be
 //!   retried, every multi-step operation ([`session::Op`]: checked moves, waits, the scan, the synchronous
-//!   start, parameter writes read back, the watch) as a state machine, and the stop of whatever it set in
+//!   start, parameter writes read back, the watch) as an `async fn` run by the one executor of
+//!   `motionlink-link`, and the stop of whatever it set in
 //!   motion when an operation is cancelled or fails and when it is closed; tested with a manual clock and no
 //!   link.
 //! - [`client`]: [`Client`] (blocking, `&self`, shareable between threads) and, with the `tokio` feature,

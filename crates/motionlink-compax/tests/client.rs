@@ -80,8 +80,8 @@ fn a_corrupted_request_is_sent_again_after_e72() {
     let (r, bus) = rig(&[1], 8, 9600);
     let _me = r.clock.reserve_participant().enter();
     // Flip a bit of the command letter (the second byte): the drive's BCC check fails.
-    let at = r.faults.bytes_sent(Direction::HostToDevice);
-    r.faults.inject(Direction::HostToDevice, at + 1, motionlink_link::pipe::Fault::Corrupt { xor: 0x01 });
+    let at = r.faults().bytes_sent(Direction::HostToDevice);
+    r.faults().inject(Direction::HostToDevice, at + 1, motionlink_link::pipe::Fault::Corrupt { xor: 0x01 });
     assert_eq!(bus.read_position(a(1)).unwrap(), pos(0.0));
     let frames = sent(&r.transcript);
     assert_eq!(frames.len(), 2, "sent once, refused with E72, sent again: {frames:?}");
@@ -94,9 +94,9 @@ fn a_corrupted_request_is_sent_again_after_e72() {
 fn a_gap_inside_a_telegram_gives_e73_and_a_resend() {
     let (r, bus) = rig(&[2], 16, 9600);
     let _me = r.clock.reserve_participant().enter();
-    let at = r.faults.bytes_sent(Direction::HostToDevice);
+    let at = r.faults().bytes_sent(Direction::HostToDevice);
     // Five character times at 9600 baud are 5.2 ms: hold the third byte back 10 ms.
-    r.faults.inject(Direction::HostToDevice, at + 2, motionlink_link::pipe::Fault::Delay(Duration::from_millis(10)));
+    r.faults().inject(Direction::HostToDevice, at + 2, motionlink_link::pipe::Fault::Delay(Duration::from_millis(10)));
     bus.write_param(a(2), ParamId::new(10).unwrap(), 7.0).unwrap();
     assert!(r.transcript.bytes(chunk::Direction::FromDevice).starts_with(b"E73\r\n>"));
     // Sent, E73, sent again; then read back.
@@ -143,7 +143,7 @@ fn timeouts_of_idempotent_reads_are_retried_then_reported() {
     let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     // The first reply is lost: the read is sent again.
-    r.faults.drop_next(Direction::DeviceToHost, 14);
+    r.faults().drop_next(Direction::DeviceToHost, 14);
     assert_eq!(bus.read_position(a(1)).unwrap(), pos(0.0));
     assert_eq!(sent(&r.transcript).len(), 2);
     // Nobody at address 9: four attempts, then a transport error.
@@ -158,10 +158,10 @@ fn a_relative_move_whose_reply_is_lost_is_not_sent_again() {
     let _me = r.clock.reserve_participant().enter();
     r.clock.sleep(Duration::from_millis(1));
     // The reply to S2 (read before the move) passes; the reply to POSR ("\r\n>") is lost.
-    let before = r.faults.bytes_sent(Direction::DeviceToHost);
-    r.faults.inject(Direction::DeviceToHost, before + 14, motionlink_link::pipe::Fault::Drop);
-    r.faults.inject(Direction::DeviceToHost, before + 15, motionlink_link::pipe::Fault::Drop);
-    r.faults.inject(Direction::DeviceToHost, before + 16, motionlink_link::pipe::Fault::Drop);
+    let before = r.faults().bytes_sent(Direction::DeviceToHost);
+    r.faults().inject(Direction::DeviceToHost, before + 14, motionlink_link::pipe::Fault::Drop);
+    r.faults().inject(Direction::DeviceToHost, before + 15, motionlink_link::pipe::Fault::Drop);
+    r.faults().inject(Direction::DeviceToHost, before + 16, motionlink_link::pipe::Fault::Drop);
     bus.move_relative(a(1), pos(10.0), MoveOptions::default()).unwrap();
     let posr: Vec<_> = sent(&r.transcript).into_iter().filter(|f| f.starts_with(b"1POSR")).collect();
     assert_eq!(posr.len(), 1, "POSR sent exactly once");
@@ -175,9 +175,9 @@ fn a_relative_move_that_never_arrived_is_sent_again_after_checking() {
     let _me = r.clock.reserve_participant().enter();
     r.clock.sleep(Duration::from_millis(1));
     // The S2 read passes ("1S2\r", 4 bytes); the POSR telegram itself is lost on the way to the drive.
-    let at = r.faults.bytes_sent(Direction::HostToDevice);
+    let at = r.faults().bytes_sent(Direction::HostToDevice);
     for i in 0..9 {
-        r.faults.inject(Direction::HostToDevice, at + 4 + i, motionlink_link::pipe::Fault::Drop);
+        r.faults().inject(Direction::HostToDevice, at + 4 + i, motionlink_link::pipe::Fault::Drop);
     }
     bus.move_relative(a(1), pos(5.0), MoveOptions::default()).unwrap();
     let posr = sent(&r.transcript).into_iter().filter(|f| f.starts_with(b"1POSR")).count();

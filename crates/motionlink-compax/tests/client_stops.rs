@@ -183,8 +183,8 @@ fn an_e71_is_reported_not_sent_again_unchanged() {
     // The CR of the first telegram is damaged: the drive waits on, the client times out and sends the (20
     // character) telegram again; to the drive both are one command of 42 characters: E71.
     let p12 = ParamId::new(12).unwrap();
-    let at = r.faults.bytes_sent(Direction::HostToDevice);
-    r.faults.inject(Direction::HostToDevice, at + 21, motionlink_link::pipe::Fault::Corrupt { xor: 0x55 });
+    let at = r.faults().bytes_sent(Direction::HostToDevice);
+    r.faults().inject(Direction::HostToDevice, at + 21, motionlink_link::pipe::Fault::Corrupt { xor: 0x55 });
     let e = bus.write_param(a(1), p12, -8_388_607.999_999).unwrap_err();
     assert_eq!(e.device_code(), Some(ErrorCode::BUFFER_OVERFLOW), "{e}");
     let frames = sent(&r.transcript);
@@ -204,13 +204,13 @@ fn a_lost_position_message_does_not_hang_the_wait() {
         // 20 units at 100 units/s: 200 ms.
         bus.move_absolute(a(1), pos(20.0), MoveOptions { binary: false, message: true }).unwrap();
         // The next bytes the drive sends are its "$ CR LF > [BCC]".
-        let at = r.faults.bytes_sent(Direction::DeviceToHost);
+        let at = r.faults().bytes_sent(Direction::DeviceToHost);
         match fault {
-            "dropped" => r.faults.drop_next(Direction::DeviceToHost, 4),
+            "dropped" => r.faults().drop_next(Direction::DeviceToHost, 4),
             "bad BCC" => {
-                r.faults.inject(Direction::DeviceToHost, at + 4, motionlink_link::pipe::Fault::Corrupt { xor: 1 })
+                r.faults().inject(Direction::DeviceToHost, at + 4, motionlink_link::pipe::Fault::Corrupt { xor: 1 })
             }
-            _ => r.faults.inject(Direction::DeviceToHost, at, motionlink_link::pipe::Fault::Corrupt { xor: 0x40 }),
+            _ => r.faults().inject(Direction::DeviceToHost, at, motionlink_link::pipe::Fault::Corrupt { xor: 0x40 }),
         }
         let t0 = r.clock.now();
         bus.wait_reached(&[a(1)], Some(Duration::from_secs(60)), &mut |_, _| {}).unwrap();
@@ -355,7 +355,7 @@ fn a_broken_link_during_a_wait_is_a_transport_error() {
     let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
-    r.faults.disconnect();
+    r.faults().disconnect();
     let e = bus.wait_reached(&[a(1)], None, &mut |_, _| {}).unwrap_err();
     assert!(matches!(e.root(), Error::Link(_)), "{e}");
     assert!(e.is_transport());
@@ -403,7 +403,7 @@ fn refused_commands_are_device_errors_and_raw_is_sent_once() {
     r.clock.sleep(Duration::from_millis(20)); // the telegram is still on the wire
     assert_eq!(r.host.with_device(|d| d.drive(1).unwrap().move_settings().0), 10.0);
     // A raw command whose reply is lost is reported, not repeated.
-    r.faults.drop_next(Direction::DeviceToHost, 3);
+    r.faults().drop_next(Direction::DeviceToHost, 3);
     assert!(matches!(bus.raw(a(1), "POSR 1"), Err(Error::Timeout { attempts: 1, .. })));
     assert_eq!(sent(&r.transcript).iter().filter(|f| f.starts_with(b"1POSR")).count(), 1);
     // The drive may have taken it: the client counts it as moving until it has seen otherwise.

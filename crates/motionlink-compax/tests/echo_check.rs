@@ -6,35 +6,21 @@
 
 use std::time::Duration;
 
-use motionlink_compax::client::{BusConfig, Client, Error, MoveRequest, MoveTarget, StopOutcome};
+use motionlink_compax::client::{Client, Error, MoveRequest, MoveTarget, StopOutcome};
 use motionlink_compax::model::Position;
-use motionlink_compax::sim::{Emulator, SimConfig};
-use motionlink_compax::wire::{bcc, Address, Mode};
+use motionlink_compax::sim::SimConfig;
+use motionlink_compax::wire::{bcc, Address};
 use motionlink_link::chunk;
-use motionlink_link::clock::{Clock, ManualClock};
+use motionlink_link::clock::Clock;
 use motionlink_link::emulator::Emulator as _;
-use motionlink_link::pipe::{Direction, EmulatorHost, Fault, FaultControl, PipeConfig};
-use motionlink_link::transcript::{TapLink, Transcript};
+use motionlink_link::pipe::{Direction, Fault};
+
+use crate::support::{rig_on, Rig};
 
 const D1: motionlink_compax::wire::Address = motionlink_compax::wire::Address::drive_const(1);
 
-struct Rig {
-    clock: ManualClock,
-    host: EmulatorHost<Emulator>,
-    faults: FaultControl,
-    transcript: Transcript,
-}
-
 fn rig(addrs: &[u8], p196: u32) -> (Rig, Client) {
-    let clock = ManualClock::new_auto();
-    let sim = Emulator::new(SimConfig::bus(addrs, p196, 9600)).unwrap();
-    let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(9600));
-    let (link, faults) = host.connect();
-    let transcript = Transcript::new();
-    let link = TapLink::new(link, clock.shared(), transcript.clone());
-    let bus =
-        Client::new(Box::new(link), clock.shared(), BusConfig::new(Mode::from_p196(p196).unwrap(), 9600)).unwrap();
-    (Rig { clock, host, faults, transcript }, bus)
+    rig_on(SimConfig::bus(addrs, p196, 9600), p196, 9600, |_| {})
 }
 
 fn a(n: u8) -> Address {
@@ -96,7 +82,7 @@ fn replies_before(p196: u32, relative: bool, then: &[&str]) -> u64 {
     for t in then {
         bus.raw(a(1), t).unwrap();
     }
-    r.faults.bytes_sent(Direction::DeviceToHost)
+    r.faults().bytes_sent(Direction::DeviceToHost)
 }
 
 #[test]
@@ -138,7 +124,7 @@ fn the_move_is_stored_with_its_echo_then_executed_in_every_reply_format() {
 fn flipped(p196: u32, relative: bool, dir: Direction, offset: u64, bit: u8) -> Option<Error> {
     let (r, bus) = rig(&[1, 3], p196);
     let _me = r.clock.reserve_participant().enter();
-    r.faults.inject(dir, offset, Fault::Corrupt { xor: 1 << bit });
+    r.faults().inject(dir, offset, Fault::Corrupt { xor: 1 << bit });
     let (target, request) = if relative {
         (-2.5, MoveRequest::new(MoveTarget::Relative(pos(-2.5))))
     } else {
@@ -234,7 +220,7 @@ fn a_flipped_address_digit_makes_another_drive_echo_and_nothing_moves() {
         // "1POSA 12.5,?\r": '1' (0x31) with bit 1 flipped is '3': drive 3 stores the move and echoes it.
         let (r, bus) = rig(&[1, 3], p196);
         let _me = r.clock.reserve_participant().enter();
-        r.faults.inject(Direction::HostToDevice, before_store(p196, false), Fault::Corrupt { xor: 0x02 });
+        r.faults().inject(Direction::HostToDevice, before_store(p196, false), Fault::Corrupt { xor: 0x02 });
         let e = bus.move_to(a(1), &MoveRequest::new(MoveTarget::Absolute(pos(12.5))), &mut |_| {}).unwrap_err();
         let Error::NotExecuted { address: D1, command, buffered, source, .. } = e.root() else { panic!("{e}") };
         assert_eq!((command.as_str(), buffered.as_slice()), ("POSA 12.5", &[1u8, 3][..]), "P196={p196}");
@@ -253,7 +239,7 @@ fn a_flipped_address_digit_makes_another_drive_echo_and_nothing_moves() {
     // No drive at the flipped address: no echo, the move is stored again at drive 1 and runs once.
     let (r, bus) = rig(&[1], 0);
     let _me = r.clock.reserve_participant().enter();
-    r.faults.inject(Direction::HostToDevice, before_store(0, false), Fault::Corrupt { xor: 0x02 });
+    r.faults().inject(Direction::HostToDevice, before_store(0, false), Fault::Corrupt { xor: 0x02 });
     bus.move_to(a(1), &MoveRequest::new(MoveTarget::Absolute(pos(12.5))), &mut |_| {}).unwrap();
     // (The transcript shows the telegram as the client sent it, before the flip.)
     assert_eq!(sent(&r)[4..7], ["1POSA 12.5,?\r", "1POSA 12.5,?\r", "1!\r"]);
@@ -267,7 +253,7 @@ fn a_lost_echo_stores_the_relative_move_again_and_it_runs_once() {
     let (r, bus) = rig(&[1], 0);
     let _me = r.clock.reserve_participant().enter();
     for i in 0.."1POSR 5,?\r\n>".len() as u64 {
-        r.faults.inject(Direction::DeviceToHost, at + i, Fault::Drop);
+        r.faults().inject(Direction::DeviceToHost, at + i, Fault::Drop);
     }
     let report = bus.move_to(a(1), &MoveRequest::new(MoveTarget::Relative(pos(5.0))), &mut |_| {}).unwrap();
     assert_eq!(report.reached, pos(5.0));
@@ -283,7 +269,7 @@ fn a_lost_reply_to_execute_is_checked_through_s2_and_s17_not_sent_again_blindly(
     let (r, bus) = rig(&[1], 0);
     let _me = r.clock.reserve_participant().enter();
     for i in 0..3 {
-        r.faults.inject(Direction::DeviceToHost, at + i, Fault::Drop);
+        r.faults().inject(Direction::DeviceToHost, at + i, Fault::Drop);
     }
     bus.move_to(a(1), &MoveRequest::new(MoveTarget::Relative(pos(5.0))), &mut |_| {}).unwrap();
     let frames = sent(&r);
@@ -295,9 +281,9 @@ fn a_lost_reply_to_execute_is_checked_through_s2_and_s17_not_sent_again_blindly(
     // start, and only then is '!' sent again.
     let (r, bus) = rig(&[1], 0);
     let _me = r.clock.reserve_participant().enter();
-    let at = r.faults.bytes_sent(Direction::HostToDevice) + 5 + 5 + 4 + 4 + 5 + "1POSR 5,?\r".len() as u64;
+    let at = r.faults().bytes_sent(Direction::HostToDevice) + 5 + 5 + 4 + 4 + 5 + "1POSR 5,?\r".len() as u64;
     for i in 0..3 {
-        r.faults.inject(Direction::HostToDevice, at + i, Fault::Drop);
+        r.faults().inject(Direction::HostToDevice, at + i, Fault::Drop);
     }
     bus.move_to(a(1), &MoveRequest::new(MoveTarget::Relative(pos(5.0))), &mut |_| {}).unwrap();
     let frames = sent(&r);

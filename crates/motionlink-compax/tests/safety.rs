@@ -8,34 +8,20 @@ use motionlink_compax::client::{
     BusConfig, Client, Error, MoveOptions, MoveRequest, MoveTarget, StopOutcome, TravelLimits,
 };
 use motionlink_compax::model::{OutputState, ParamId, Position, SpeedPercent};
-use motionlink_compax::sim::{Emulator, SimConfig, REFUSED};
-use motionlink_compax::wire::{Address, Mode};
+use motionlink_compax::sim::{SimConfig, REFUSED};
+use motionlink_compax::wire::Address;
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::chunk;
-use motionlink_link::clock::{Clock, ManualClock};
-use motionlink_link::pipe::{Direction, EmulatorHost, Fault, FaultControl, PipeConfig};
-use motionlink_link::transcript::{TapLink, Transcript};
+use motionlink_link::clock::Clock;
+use motionlink_link::pipe::{Direction, Fault};
+use motionlink_link::transcript::Transcript;
+
+use crate::support::{rig_on, Rig};
 
 const D1: motionlink_compax::wire::Address = motionlink_compax::wire::Address::drive_const(1);
 
-struct Rig {
-    clock: ManualClock,
-    host: EmulatorHost<Emulator>,
-    faults: FaultControl,
-    transcript: Transcript,
-}
-
 fn rig_with(addrs: &[u8], p196: u32, baud: u32, cfg: impl FnOnce(&mut BusConfig)) -> (Rig, Client) {
-    let clock = ManualClock::new_auto();
-    let sim = Emulator::new(SimConfig::bus(addrs, p196, baud)).unwrap();
-    let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(baud));
-    let (link, faults) = host.connect();
-    let transcript = Transcript::new();
-    let link = TapLink::new(link, clock.shared(), transcript.clone());
-    let mut bus_cfg = BusConfig::new(Mode::from_p196(p196).unwrap(), baud);
-    cfg(&mut bus_cfg);
-    let bus = Client::new(Box::new(link), clock.shared(), bus_cfg).unwrap();
-    (Rig { clock, host, faults, transcript }, bus)
+    rig_on(SimConfig::bus(addrs, p196, baud), p196, baud, cfg)
 }
 
 fn rig(addrs: &[u8], p196: u32, baud: u32) -> (Rig, Client) {
@@ -208,8 +194,8 @@ fn a_corrupted_target_is_caught_by_reading_s2_back_and_the_axis_is_switched_off(
     // In binary (which takes no `,?`: the ASCII move is checked by its echo before it starts, see
     // echo_check.rs) the target is checked after the start: "1S16\r" "1S17\r" "1S1\r", then the binary
     // POSA 15 ('1' 88 41 00 00 00 0F 00 00): flip 0F (byte 6 of the move) into 0E, 14.
-    let at = r.faults.bytes_sent(Direction::HostToDevice);
-    r.faults.inject(Direction::HostToDevice, at + 5 + 5 + 4 + 6, Fault::Corrupt { xor: 0x01 });
+    let at = r.faults().bytes_sent(Direction::HostToDevice);
+    r.faults().inject(Direction::HostToDevice, at + 5 + 5 + 4 + 6, Fault::Corrupt { xor: 0x01 });
     let mut req = to(15.0);
     req.binary = true;
     let e = bus.move_to(a(1), &req, &mut |_| {}).unwrap_err();
@@ -242,7 +228,7 @@ fn one_fault(p196: u32, kind: MoveKind, target: f64, fault: Option<(Direction, u
     let (r, bus) = rig(&[1, 2], p196, 9600);
     let _me = r.clock.reserve_participant().enter();
     if let Some((dir, offset, xor)) = fault {
-        r.faults.inject(dir, offset, Fault::Corrupt { xor });
+        r.faults().inject(dir, offset, Fault::Corrupt { xor });
     }
     let mut req = match kind {
         MoveKind::Relative => MoveRequest::new(MoveTarget::Relative(pos(target))),
@@ -311,7 +297,7 @@ fn clean_move_bytes(p196: u32, kind: MoveKind, target: f64) -> (u64, u64) {
     req.speed = Some(SpeedPercent::new(50.0).unwrap());
     req.binary = kind == MoveKind::Binary;
     bus.move_to(a(1), &req, &mut |_| {}).unwrap();
-    (r.faults.bytes_sent(Direction::HostToDevice), r.faults.bytes_sent(Direction::DeviceToHost))
+    (r.faults().bytes_sent(Direction::HostToDevice), r.faults().bytes_sent(Direction::DeviceToHost))
 }
 
 #[test]
@@ -350,8 +336,8 @@ fn a_corrupted_parameter_write_is_caught_by_the_read_back() {
     let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     // "1P003=-1055.88\r": the last '8' (byte 13) becomes '9': a valid write of another value.
-    let at = r.faults.bytes_sent(Direction::HostToDevice);
-    r.faults.inject(Direction::HostToDevice, at + 13, Fault::Corrupt { xor: 0x01 });
+    let at = r.faults().bytes_sent(Direction::HostToDevice);
+    r.faults().inject(Direction::HostToDevice, at + 13, Fault::Corrupt { xor: 0x01 });
     let p3 = ParamId::new(3).unwrap();
     let e = bus.write_param(a(1), p3, -1055.88).unwrap_err();
     assert!(
@@ -415,8 +401,8 @@ fn a_dead_line_during_a_move_is_reported_with_an_unconfirmed_stop() {
     let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     let started = bus.start_checked_move(a(1), &to(1000.0)).unwrap();
-    r.faults.drop_next(Direction::HostToDevice, u64::MAX);
-    r.faults.drop_next(Direction::DeviceToHost, u64::MAX);
+    r.faults().drop_next(Direction::HostToDevice, u64::MAX);
+    r.faults().drop_next(Direction::DeviceToHost, u64::MAX);
     let t0 = r.clock.now();
     let e = bus.finish_checked_move(&started, None, &mut |_| {}).unwrap_err();
     assert!(e.is_transport(), "{e}");
@@ -433,7 +419,7 @@ fn a_dead_line_during_a_move_is_reported_with_an_unconfirmed_stop() {
     let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     let started = bus.start_checked_move(a(1), &to(1000.0)).unwrap();
-    r.faults.drop_next(Direction::DeviceToHost, u64::MAX);
+    r.faults().drop_next(Direction::DeviceToHost, u64::MAX);
     let e = bus.finish_checked_move(&started, None, &mut |_| {}).unwrap_err();
     assert!(e.to_string().contains("the axis may still be moving"), "{e}");
     assert!(!drive_state(&r, 1).1, "(it was stopped: the drive got OUTPUT O0=0)");

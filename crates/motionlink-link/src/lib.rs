@@ -8,6 +8,7 @@
 //! - [`clock`]: the [`Clock`] every timeout, period and emulator reads; real and manual.
 //! - [`error`]: the one classification of errors every family uses.
 //! - [`session`]: the sans-IO [`session::Session`] every family's protocol logic implements.
+//! - [`exec`]: the one executor of every family's session operations (`async fn`s on the session's clock).
 //! - [`driver`]: the drivers that run a session over a link, for blocking and async callers.
 //! - [`hex`]: bytes as hex text and back.
 //! - [`flags`], [`table`]: the one flag-set and the one parameter-table mechanism of every family.
@@ -36,6 +37,7 @@ pub mod devices;
 pub mod driver;
 pub mod emulator;
 pub mod error;
+pub mod exec;
 pub mod flags;
 pub mod hex;
 pub mod link;

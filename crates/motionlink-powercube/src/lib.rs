@@ -197,8 +197,8 @@
 //!   value decoded from the wire); a quantity in rad or m is checked against the module's kind (read once
 //!   from its Config word) before anything is sent ([`Error::UnitMismatch`]).
 //! - **Operations as `async fn`s.** Each multi-step operation of the [`Session`] is an `async fn` over the
-//!   session's state, which the compiler makes a state machine; the session resumes it with a no-op waker
-//!   when what it waits for is there (no executor, no thread, no I/O).
+//!   session's state, which the compiler makes a state machine; the one executor of `motionlink-link`
+//!   ([`motionlink_link::exec`]) resumes it when what it waits for is there (no thread, no I/O).
 //! - **Cancelling.** A read or a scan that is cancelled ends at once ([`Error::Aborted`]); a motion, a
 //!   wait or homing is halted first ([`Error::Cancelled`] says whether that was confirmed); writes and
 //!   watchdog changes run to their end.

@@ -12,7 +12,8 @@
 //!   for every position of the clients, their reports and errors); typed values with their ranges. [`describe`]: the family's [`Describe`](motionlink_link::describe::Describe).
 //! - [`error`]: [`Error`], with the unit's codes as values and its class for every front end.
 //! - [`session`]: the protocol as a sans-IO [`Session`] (bytes in with the time; bytes out, the next deadline,
-//!   events): request matching, repetitions, the RC keepalive, every multi-step operation as a state machine.
+//!   events): request matching, repetitions, the RC keepalive, every multi-step operation as an `async fn`
+//!   run by the one executor of `motionlink-link`.
 //!   Tested with no link at all.
 //! - [`client`]: [`Client`] (blocking) and, with the `tokio` feature, `AsyncClient` run the session over a
 //!   [`Link`](motionlink_link::Link) on the shared driver: the same operations and the same safety.

@@ -2,11 +2,9 @@
 //! between them with the wire time of 38400 baud and a latency each way that a test can change, on a clock
 //! that jumps from one deadline to the next.
 
-use std::collections::VecDeque;
 use std::time::Duration;
 
-use motionlink_link::emulator::Emulator as _;
-use motionlink_link::session::{Action, Event, Input, OpId, Session as _};
+use motionlink_link::session::Session as _;
 use motionlink_link::Timestamp;
 use motionlink_scu::config::FLUSH_LEN;
 use motionlink_scu::model::{Actuator, DataIndex, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed};
@@ -14,171 +12,34 @@ use motionlink_scu::session::{MoveSpec, MoveTargets, Op, Output, PreparedRequest
 use motionlink_scu::sim::RemoteMode;
 use motionlink_scu::wire::Request;
 use motionlink_scu::{ClientConfig, Emulator, Error, FunctionMap, Session, SimConfig};
+use motionlink_testkit::wired::{Line, Serial, Wired};
 
-/// The time of one byte at 38400 baud, 8N1.
-const BYTE: Duration = Duration::from_nanos(260_417);
+/// The session wired to the unit at 38400 baud, 8N1 (the shared harness).
+type Bench = Wired<Session, Serial<Emulator>>;
 
-struct Bench {
-    session: Session,
-    unit: Emulator,
-    now: Timestamp,
-    /// Latency of each direction, on top of the wire time.
-    one_way: Duration,
-    /// Bytes to the unit are lost while set.
-    cut: bool,
-    to_unit: VecDeque<(Timestamp, Vec<u8>)>,
-    to_host: VecDeque<(Timestamp, Vec<u8>)>,
-    /// When each wire has sent everything queued so far.
-    unit_wire: Timestamp,
-    host_wire: Timestamp,
-    /// Every telegram the session sent, with its time.
-    sent: Vec<(Timestamp, Vec<u8>)>,
-    done: Vec<(OpId, Result<Output, Error>)>,
-    progress: Vec<(OpId, Progress)>,
-    closed: Option<Result<(), Error>>,
-    /// What the unit did, with its time.
-    unit_events: Vec<(Timestamp, String)>,
-    reopens: u32,
-    /// The unit's next reply leaves this much later.
-    hold_next_reply: Option<Duration>,
+/// What these tests ask of the harness.
+trait ScuBench {
+    /// A session on a unit, not yet opened.
+    fn unopened(config: ClientConfig, unit: SimConfig) -> Self;
+    /// A session opened on a unit.
+    fn opened(config: ClientConfig, unit: SimConfig) -> Self;
+    /// The command letters of what the session sent between `from` and `to`.
+    fn sent_between(&self, from: Timestamp, to: Timestamp) -> Vec<String>;
 }
 
-impl Bench {
-    fn new(config: ClientConfig, unit: SimConfig) -> Bench {
-        Bench {
-            session: Session::new(config, Timestamp::ZERO).unwrap(),
-            unit: Emulator::new(unit).unwrap(),
-            now: Timestamp::ZERO,
-            one_way: Duration::ZERO,
-            cut: false,
-            to_unit: VecDeque::new(),
-            to_host: VecDeque::new(),
-            unit_wire: Timestamp::ZERO,
-            host_wire: Timestamp::ZERO,
-            sent: Vec::new(),
-            done: Vec::new(),
-            progress: Vec::new(),
-            closed: None,
-            unit_events: Vec::new(),
-            reopens: 0,
-            hold_next_reply: None,
-        }
+impl ScuBench for Bench {
+    fn unopened(config: ClientConfig, unit: SimConfig) -> Bench {
+        let session = Session::new(config, Timestamp::ZERO).unwrap();
+        Wired::new(session, Serial(Emulator::new(unit).unwrap()), Line::baud(38_400, 10))
     }
 
-    /// A session opened on the default unit.
     fn opened(config: ClientConfig, unit: SimConfig) -> Bench {
-        let mut b = Bench::new(config, unit);
-        let open = b.session.start(Op::Open, b.now);
+        let mut b = Bench::unopened(config, unit);
+        let open = b.start(Op::Open);
         b.wait_done(open).unwrap();
         b
     }
 
-    fn start(&mut self, op: Op) -> OpId {
-        self.session.start(op, self.now)
-    }
-
-    /// Does what the session asks, hands out the events; then advances the clock to the next thing that
-    /// happens (or to `horizon`) and delivers it. False if nothing will ever happen.
-    fn step(&mut self, horizon: Option<Timestamp>) -> bool {
-        while let Some(action) = self.session.poll_transmit(self.now) {
-            match action {
-                Action::Send(bytes) => {
-                    self.sent.push((self.now, bytes.clone()));
-                    let start = self.unit_wire.max(self.now);
-                    self.unit_wire = start + BYTE * bytes.len() as u32;
-                    if !self.cut {
-                        self.to_unit.push_back((self.unit_wire + self.one_way, bytes));
-                    }
-                }
-                Action::DiscardInput => {}
-                Action::Reopen => {
-                    self.reopens += 1;
-                    self.to_host.clear();
-                    self.session.handle_reopened(Ok(()), self.now);
-                }
-                Action::SendFrame(_) => panic!("the SCU speaks RS232"),
-            }
-        }
-        let mut happened = false;
-        while let Some(event) = self.session.poll_event() {
-            happened = true;
-            match event {
-                Event::Progress(id, p) => self.progress.push((id, p)),
-                Event::Done(id, r) => self.done.push((id, r)),
-                Event::Closed(r) => self.closed = Some(r),
-            }
-        }
-        let next = [
-            self.session.poll_timeout(),
-            self.to_unit.front().map(|(t, _)| *t),
-            self.to_host.front().map(|(t, _)| *t),
-            self.unit.next_wakeup(),
-            horizon,
-        ]
-        .into_iter()
-        .flatten()
-        .min();
-        let Some(next) = next else { return happened };
-        self.now = self.now.max(next);
-        let now = self.now;
-        let mut out = Vec::new();
-        while self.to_unit.front().is_some_and(|(t, _)| *t <= now) {
-            let (_, bytes) = self.to_unit.pop_front().unwrap();
-            self.unit.receive(now, &bytes, &mut out);
-        }
-        self.unit.advance(now, &mut out);
-        for e in self.unit.take_events() {
-            self.unit_events.push((now, e));
-        }
-        if !out.is_empty() {
-            let start = self.host_wire.max(now) + self.hold_next_reply.take().unwrap_or_default();
-            self.host_wire = start + BYTE * out.len() as u32;
-            self.to_host.push_back((self.host_wire + self.one_way, out));
-        }
-        while self.to_host.front().is_some_and(|(t, _)| *t <= now) {
-            let (_, bytes) = self.to_host.pop_front().unwrap();
-            self.session.handle_input(Input::Bytes(&bytes), now);
-        }
-        if self.session.poll_timeout().is_some_and(|t| t <= now) {
-            self.session.handle_timeout(now);
-        }
-        true
-    }
-
-    /// Steps until `until` holds, at most `limit` of session time. The clock must move on: a session that
-    /// asks to be woken in the past again and again is a busy loop, and fails the test.
-    fn run_until(&mut self, limit: Duration, until: impl FnMut(&Bench) -> bool) {
-        self.run(limit, None, until);
-    }
-
-    fn run(&mut self, limit: Duration, horizon: Option<Timestamp>, mut until: impl FnMut(&Bench) -> bool) {
-        let give_up = self.now + limit;
-        let mut still = 0;
-        while !until(self) {
-            assert!(self.now < give_up, "not reached within {limit:?}; at {}", self.now);
-            let before = self.now;
-            assert!(self.step(horizon), "nothing more happens at {}", self.now);
-            still = if self.now == before { still + 1 } else { 0 };
-            assert!(still < 1000, "the session spins at {}", self.now);
-        }
-    }
-
-    fn run_for(&mut self, d: Duration) {
-        let end = self.now + d;
-        self.run(d + Duration::from_secs(1), Some(end), |b| b.now >= end);
-    }
-
-    fn wait_done(&mut self, id: OpId) -> Result<Output, Error> {
-        self.run_until(Duration::from_secs(600), |b| b.done.iter().any(|(d, _)| *d == id));
-        let i = self.done.iter().position(|(d, _)| *d == id).unwrap();
-        self.done.remove(i).1
-    }
-
-    fn unit_saw(&self, prefix: &str) -> Option<Timestamp> {
-        self.unit_events.iter().find(|(_, e)| e.starts_with(prefix)).map(|(t, _)| *t)
-    }
-
-    /// The command letters of what the session sent between `from` and `to`.
     fn sent_between(&self, from: Timestamp, to: Timestamp) -> Vec<String> {
         self.sent
             .iter()
@@ -217,7 +78,7 @@ fn is_keepalive(bytes: &[u8]) -> bool {
 fn open_sends_ro_then_rc_and_the_keepalive_keeps_its_grid_of_deadlines() {
     let mut b = Bench::opened(ClientConfig::default(), SimConfig::default());
     assert_eq!(b.sent_between(Timestamp::ZERO, b.now), ["RO", "RC"]);
-    assert_eq!(b.unit.mode(), RemoteMode::Active(SafetyId::StopAllAndLock));
+    assert_eq!(b.device.mode(), RemoteMode::Active(SafetyId::StopAllAndLock));
     let rc_at = b.sent[1].0;
     b.run_for(Duration::from_secs(10));
     let keepalives: Vec<Timestamp> = b.sent.iter().skip(2).filter(|(_, x)| is_keepalive(x)).map(|(t, _)| *t).collect();
@@ -226,7 +87,7 @@ fn open_sends_ro_then_rc_and_the_keepalive_keeps_its_grid_of_deadlines() {
         let due = rc_at + Duration::from_millis(200) * (k as u32 + 1);
         assert_eq!(*t, due, "keepalive {k}: sent on its deadline, never drifting");
     }
-    assert_eq!(b.unit.stats().watchdog_expiries, 0);
+    assert_eq!(b.device.stats().watchdog_expiries, 0);
     assert_eq!(b.session.stats().keepalives, 50);
 }
 
@@ -236,9 +97,9 @@ fn a_move_is_watched_through_the_keepalive_and_every_exchange_while_it_runs_is_a
     let id = b.start(move_a1(300));
     let Output::Move(report) = b.wait_done(id).unwrap() else { panic!() };
     assert_eq!(report.position_counts, PositionCounts(300));
-    assert_eq!(b.unit.position(a(1)), Some(300));
-    let started = b.unit_saw("F1 started").unwrap();
-    let rest = b.unit_saw("A1 at rest").unwrap();
+    assert_eq!(b.device.position(a(1)), Some(300));
+    let started = b.device_saw("F1 started").unwrap();
+    let rest = b.device_saw("A1 at rest").unwrap();
     let during = b.sent_between(started, rest);
     assert!(during.len() > 40 && during.iter().all(|c| c == "RC"), "{during:?}");
     // The poll object (CyclicObj 5) was defined and read back once, before the RE.
@@ -257,8 +118,8 @@ fn a_move_is_watched_through_the_keepalive_and_every_exchange_while_it_runs_is_a
     assert!(seen.len() > 40 && seen.windows(2).all(|w| w[0] <= w[1]), "{seen:?}");
     // RS at the end: nothing stays started.
     assert!(b.session.started_functions().is_empty());
-    assert!(b.unit.executed_functions().is_empty());
-    assert_eq!(b.unit.stats().watchdog_expiries, 0);
+    assert!(b.device.executed_functions().is_empty());
+    assert_eq!(b.device.stats().watchdog_expiries, 0);
 }
 
 #[test]
@@ -266,29 +127,29 @@ fn a_move_keeps_the_unit_alive_with_round_trips_of_300_ms() {
     let mut b = Bench::opened(scp11(), SimConfig::default());
     let id = b.start(move_a1(400));
     // Once the motion runs, the line gets 150 ms of latency each way: round trips of 300 ms and more.
-    b.run_until(Duration::from_secs(5), |b| b.unit_saw("F1 started").is_some());
-    b.one_way = Duration::from_millis(150);
+    b.run_until(Duration::from_secs(5), |b| b.device_saw("F1 started").is_some());
+    b.line.one_way = Duration::from_millis(150);
     let slow_from = b.now;
-    b.run_until(Duration::from_secs(30), |b| b.unit_saw("A1 at rest").is_some());
+    b.run_until(Duration::from_secs(30), |b| b.device_saw("A1 at rest").is_some());
     let slow_to = b.now;
     assert!(b.session.round_trip() >= Duration::from_millis(300), "{:?}", b.session.round_trip());
-    b.one_way = Duration::ZERO;
+    b.line.one_way = Duration::ZERO;
     let Output::Move(report) = b.wait_done(id).unwrap() else { panic!() };
     assert_eq!(report.position_counts, PositionCounts(400));
     // The unit's watchdog never expired: while the round trips were slow, only RCs went out, one after the
     // other, each both feeding the watchdog and reading the state.
-    assert_eq!(b.unit.stats().watchdog_expiries, 0);
+    assert_eq!(b.device.stats().watchdog_expiries, 0);
     let slow = b.sent_between(slow_from, slow_to);
     assert!(slow.len() > 5 && slow.iter().all(|c| c == "RC"), "{slow:?}");
-    assert!(b.unit.executed_functions().is_empty(), "RS after the end of the motion");
+    assert!(b.device.executed_functions().is_empty(), "RS after the end of the motion");
 }
 
 #[test]
 fn a_request_that_would_let_the_watchdog_expire_waits_for_room_and_is_refused_without_a_lapse() {
     let mut b = Bench::opened(scp11(), SimConfig::default());
     let moving = b.start(move_a1(800));
-    b.run_until(Duration::from_secs(5), |b| b.unit_saw("F1 started").is_some());
-    b.one_way = Duration::from_millis(150);
+    b.run_until(Duration::from_secs(5), |b| b.device_saw("F1 started").is_some());
+    b.line.one_way = Duration::from_millis(150);
     b.run_for(Duration::from_secs(1));
     // Another caller reads a position: with 300 ms round trips its reply would come back after the next RC
     // must have gone out (the RC before it and the one after it would reach the unit 600 ms apart).
@@ -298,10 +159,10 @@ fn a_request_that_would_let_the_watchdog_expire_waits_for_room_and_is_refused_wi
     assert!(matches!(result, Err(Error::NoRoom { .. })), "{result:?}");
     assert!(b.now - asked >= Duration::from_secs(1) && b.now - asked < Duration::from_millis(1400));
     assert!(!b.sent_between(asked, b.now).iter().any(|c| c == "RG"), "the read was never sent");
-    b.one_way = Duration::ZERO;
+    b.line.one_way = Duration::ZERO;
     let Output::Move(report) = b.wait_done(moving).unwrap() else { panic!() };
     assert_eq!(report.position_counts, PositionCounts(800));
-    assert_eq!(b.unit.stats().watchdog_expiries, 0);
+    assert_eq!(b.device.stats().watchdog_expiries, 0);
     // On a healthy line the same read goes through.
     let read = b.start(Op::Request(PreparedRequest::new(&Request::Get { index: 0x0011 }).unwrap()));
     assert!(b.wait_done(read).is_ok());
@@ -311,7 +172,7 @@ fn a_request_that_would_let_the_watchdog_expire_waits_for_room_and_is_refused_wi
 fn a_cancelled_move_sends_rs_at_once_and_reports_where_the_actuator_came_to_rest() {
     let mut b = Bench::opened(scp11(), SimConfig::default());
     let id = b.start(move_a1(800));
-    b.run_until(Duration::from_secs(10), |b| b.unit.position(a(1)).unwrap_or(0) > 100);
+    b.run_until(Duration::from_secs(10), |b| b.device.position(a(1)).unwrap_or(0) > 100);
     let cancelled_at = b.now;
     b.session.cancel(id, b.now);
     let result = b.wait_done(id);
@@ -319,8 +180,8 @@ fn a_cancelled_move_sends_rs_at_once_and_reports_where_the_actuator_came_to_rest
     let rs = b.sent.iter().find(|(t, x)| *t >= cancelled_at && x.starts_with(b"RS")).unwrap();
     assert!(rs.0 - cancelled_at < Duration::from_millis(15), "RS {:?} after the cancel", rs.0 - cancelled_at);
     assert_eq!(&rs.1[..4], &[0x52, 0x53, 0x00, 0x00], "a fast stop of F1");
-    assert!(!b.unit.is_moving(a(1)));
-    assert_eq!(Some(position_counts), b.unit.position(a(1)).map(PositionCounts), "the position after the stop");
+    assert!(!b.device.is_moving(a(1)));
+    assert_eq!(Some(position_counts), b.device.position(a(1)).map(PositionCounts), "the position after the stop");
     assert!(b.session.started_functions().is_empty());
 }
 
@@ -332,7 +193,7 @@ fn an_operation_cancelled_before_its_request_went_out_sends_nothing() {
     b.session.cancel(id, b.now);
     assert!(matches!(b.wait_done(id), Err(Error::CancelledBeforeSending(_))));
     assert!(b.sent[sent..].iter().all(|(_, x)| !x.starts_with(b"RE") && !x.starts_with(b"RT")));
-    assert!(b.unit.executed_functions().is_empty());
+    assert!(b.device.executed_functions().is_empty());
 }
 
 #[test]
@@ -342,15 +203,15 @@ fn closing_stops_what_runs_then_sends_rs_for_every_re_and_ra() {
     let started = b.start(Op::Request(PreparedRequest::new(&re).unwrap()));
     b.wait_done(started).unwrap();
     let moving = b.start(move_a1(800));
-    b.run_until(Duration::from_secs(5), |b| b.unit.is_moving(a(1)) && b.unit.is_moving(a(2)));
+    b.run_until(Duration::from_secs(5), |b| b.device.is_moving(a(1)) && b.device.is_moving(a(2)));
     assert_eq!(b.session.started_functions(), [0, 1]);
     b.session.close(b.now);
     b.run_until(Duration::from_secs(5), |b| b.closed.is_some());
     assert!(b.closed.take().unwrap().is_ok());
     assert!(matches!(b.done.iter().find(|(i, _)| *i == moving), Some((_, Err(Error::Cancelled { .. })))));
-    assert!(!b.unit.any_moving());
-    assert!(b.unit.executed_functions().is_empty(), "every RE got its RS");
-    assert_eq!(b.unit.mode(), RemoteMode::Off, "RA");
+    assert!(!b.device.any_moving());
+    assert!(b.device.executed_functions().is_empty(), "every RE got its RS");
+    assert_eq!(b.device.mode(), RemoteMode::Off, "RA");
     assert_eq!(b.sent.last().map(|(_, x)| x[..2].to_vec()), Some(b"RA".to_vec()));
     // Nothing starts after the close.
     let late = b.start(Op::Open);
@@ -363,17 +224,17 @@ fn a_session_the_unit_ended_is_reported_and_never_opened_again_by_itself() {
     b.cut = true;
     b.run_for(Duration::from_secs(1));
     b.cut = false;
-    assert_eq!(b.unit.mode(), RemoteMode::Locked);
+    assert_eq!(b.device.mode(), RemoteMode::Locked);
     let read = b.start(Op::Request(PreparedRequest::new(&Request::Get { index: 0x0011 }).unwrap()));
     let result = b.wait_done(read);
     assert!(matches!(&result, Err(Error::RemoteEnded(t)) if t.contains("Safety_ID 0")), "{result:?}");
     b.run_for(Duration::from_secs(3));
     assert_eq!(b.sent.iter().filter(|(_, x)| x.starts_with(b"RO")).count(), 1, "only the RO of the start");
-    assert_eq!(b.unit.mode(), RemoteMode::Locked);
+    assert_eq!(b.device.mode(), RemoteMode::Locked);
     // The caller decides to go on.
     let reopen = b.start(Op::Reopen);
     b.wait_done(reopen).unwrap();
-    assert!(matches!(b.unit.mode(), RemoteMode::Active(_)));
+    assert!(matches!(b.device.mode(), RemoteMode::Active(_)));
 }
 
 #[test]
@@ -393,19 +254,19 @@ fn a_lost_reply_is_asked_again_after_silence_with_zeros_first_and_the_late_reply
     let read = b.start(Op::Request(PreparedRequest::new(&Request::Get { index: 0x0171 }).unwrap()));
     let Output::Data(Some(status)) = b.wait_done(read).unwrap() else { panic!() };
     assert_eq!(status.len(), 1);
-    assert_eq!(b.unit.stats().watchdog_expiries, 0);
+    assert_eq!(b.device.stats().watchdog_expiries, 0);
 }
 
 #[test]
 fn a_broken_port_fails_what_runs_and_a_reconnect_reopens_it_and_stops_what_was_started() {
     let mut b = Bench::opened(scp11(), SimConfig::default());
     let moving = b.start(move_a1(800));
-    b.run_until(Duration::from_secs(5), |b| b.unit.is_moving(a(1)));
+    b.run_until(Duration::from_secs(5), |b| b.device.is_moving(a(1)));
     b.session.handle_link_error(
         motionlink_link::LinkError::Disconnected { port: "bench".into(), reason: "cable".into() },
         b.now,
     );
-    b.to_unit.clear();
+    b.to_device.clear();
     b.to_host.clear();
     let result = b.wait_done(moving);
     let Err(Error::StopUnconfirmed { cause, .. }) = &result else { panic!("{result:?}") };
@@ -413,12 +274,12 @@ fn a_broken_port_fails_what_runs_and_a_reconnect_reopens_it_and_stops_what_was_s
     assert!(!b.session.is_open());
     // The unit's own watchdog stops the drive.
     b.run_for(Duration::from_secs(1));
-    assert!(!b.unit.any_moving());
+    assert!(!b.device.any_moving());
     let reconnect = b.start(Op::Reconnect);
     b.wait_done(reconnect).unwrap();
     assert_eq!(b.reopens, 1);
     assert!(b.session.is_open());
-    assert!(b.unit.executed_functions().is_empty(), "the RE of before got its RS");
+    assert!(b.device.executed_functions().is_empty(), "the RE of before got its RS");
     assert_eq!(b.session.stats().reconnects, 1);
 }
 
@@ -441,30 +302,30 @@ fn a_run_is_watched_through_the_keepalive_until_its_motion_ends_and_then_stopped
     let id = b.start(Op::Run(RunSpec { action: RunAction::Motion(f(1), MotionDirection::Out), limit: None }));
     let Output::Run(report) = b.wait_done(id).unwrap() else { panic!() };
     assert_eq!(report.rest, [(a(1), PositionCounts(865)), (a(2), PositionCounts(0))], "F1 ran to the Out end");
-    let started = b.unit_saw("F1 started").unwrap();
-    let rest = b.unit_saw("A1 at rest").unwrap();
+    let started = b.device_saw("F1 started").unwrap();
+    let rest = b.device_saw("A1 at rest").unwrap();
     let during = b.sent_between(started, rest);
     assert!(during.len() > 100 && during.iter().all(|c| c == "RC"), "{during:?}");
-    assert!(b.unit.executed_functions().is_empty(), "RS after the run");
-    assert_eq!(b.unit.stats().watchdog_expiries, 0);
+    assert!(b.device.executed_functions().is_empty(), "RS after the run");
+    assert_eq!(b.device.stats().watchdog_expiries, 0);
 }
 
 #[test]
 fn a_cancelled_run_stops_its_function_and_says_where_the_actuators_came_to_rest() {
     let mut b = Bench::opened(ClientConfig::default(), SimConfig::default());
     let id = b.start(Op::Run(RunSpec { action: RunAction::Motion(f(2), MotionDirection::Out), limit: None }));
-    b.run_until(Duration::from_secs(5), |b| b.unit.position(a(2)).unwrap_or(0) > 50);
+    b.run_until(Duration::from_secs(5), |b| b.device.position(a(2)).unwrap_or(0) > 50);
     b.session.cancel(id, b.now);
     let result = b.wait_done(id);
     let Err(Error::RunCancelled { rest, .. }) = result else { panic!("{result:?}") };
-    assert!(!b.unit.is_moving(a(2)));
-    assert_eq!(rest[1], (a(2), PositionCounts(b.unit.position(a(2)).unwrap())));
+    assert!(!b.device.is_moving(a(2)));
+    assert_eq!(rest[1], (a(2), PositionCounts(b.device.position(a(2)).unwrap())));
     assert!(b.session.started_functions().is_empty());
 }
 
 #[test]
 fn a_unit_slow_to_answer_ro_does_not_hold_back_the_requests_after_it() {
-    let mut b = Bench::new(ClientConfig::default(), SimConfig::default());
+    let mut b = Bench::unopened(ClientConfig::default(), SimConfig::default());
     // A unit asleep after a long silence answers the first RO after 1.5 s.
     b.hold_next_reply = Some(Duration::from_millis(1500));
     let open = b.start(Op::Open);

@@ -4,12 +4,14 @@
 //! through their [`Ctx`](super::ctx::Ctx); nothing here does I/O or reads a clock.
 
 use std::collections::{HashMap, HashSet, VecDeque};
+use std::task::Waker;
 use std::time::Duration;
 
+use motionlink_link::exec::{Jobs, Ticket};
 use motionlink_link::session::OpId;
 use motionlink_link::{LinkError, Timestamp};
 
-use super::types::{BusConfig, Progress};
+use super::types::BusConfig;
 use crate::error::{copy_link_error, Error};
 use crate::model::{parse_param_reply, Command, ErrorCode, OutputState, ParamId, StatusId, StatusValue};
 use crate::wire::reply::ReplyError;
@@ -132,7 +134,8 @@ impl Effect {
 /// A telegram to send, and how its reply is matched and retried.
 #[derive(Debug)]
 pub(crate) struct Job {
-    pub id: u64,
+    /// Its ticket, once queued.
+    pub id: Option<Ticket>,
     pub op: OpId,
     pub frame: Vec<u8>,
     pub address: Address,
@@ -159,7 +162,7 @@ impl Job {
     pub(crate) fn new(op: OpId, req: &Request<'_>, cfg: &BusConfig, retry: Retry) -> Result<Job, Error> {
         let frame = req.encode(&cfg.mode)?;
         Ok(Job {
-            id: 0,
+            id: None,
             op,
             frame: frame.as_bytes().to_vec(),
             address: req.address,
@@ -230,22 +233,16 @@ pub(crate) struct Core {
     in_flight: Option<InFlight>,
     /// A job whose reply came corrupt: the rest of the broken reply passes before it is decided on.
     settling: Option<InFlight>,
-    results: HashMap<u64, JobResult>,
-    next_job: u64,
+    /// The outcomes of telegrams, for the operations that await them.
+    pub jobs: Jobs<JobResult>,
     /// XOFF received (since when).
     paused: Option<Timestamp>,
     /// Earliest time of the next send (after a telegram without reply, after a broadcast).
     quiet_until: Timestamp,
-    /// Operations cancelled.
-    pub cancelled: HashSet<OpId>,
-    /// Operations waiting for a time: when.
-    pub sleepers: HashMap<OpId, Timestamp>,
-    /// Operations that listen while they wait: a line failure ends their wait.
-    pub listeners: HashSet<OpId>,
+    /// Operations that listen while they wait: a line failure ends their wait (and wakes them).
+    pub listeners: HashMap<OpId, Waker>,
     /// A line failure for each listening operation.
     pub line_failures: HashMap<OpId, LinkError>,
-    /// Progress reports not yet handed out.
-    pub progress: VecDeque<(OpId, Progress)>,
 }
 
 impl Core {
@@ -267,15 +264,11 @@ impl Core {
             queue: VecDeque::new(),
             in_flight: None,
             settling: None,
-            results: HashMap::new(),
-            next_job: 0,
+            jobs: Jobs::default(),
             paused: None,
             quiet_until: Timestamp::ZERO,
-            cancelled: HashSet::new(),
-            sleepers: HashMap::new(),
-            listeners: HashSet::new(),
+            listeners: HashMap::new(),
             line_failures: HashMap::new(),
-            progress: VecDeque::new(),
         }
     }
 
@@ -348,10 +341,9 @@ impl Core {
     // The line
 
     /// Queues `job`; returns its ticket.
-    pub(crate) fn submit(&mut self, mut job: Job) -> u64 {
-        self.next_job += 1;
-        job.id = self.next_job;
-        let id = job.id;
+    pub(crate) fn submit(&mut self, mut job: Job) -> Ticket {
+        let id = self.jobs.open(job.op);
+        job.id = Some(id);
         if job.urgent {
             let at = self.queue.iter().position(|j| !j.urgent).unwrap_or(self.queue.len());
             self.queue.insert(at, job);
@@ -361,9 +353,18 @@ impl Core {
         id
     }
 
-    /// The outcome of job `ticket`, once there is one.
-    pub(crate) fn take_result(&mut self, ticket: u64) -> Option<JobResult> {
-        self.results.remove(&ticket)
+    /// Hands the outcome of a job to the operation that awaits it.
+    fn finish_job(&mut self, ticket: Option<Ticket>, result: JobResult) {
+        if let Some(t) = ticket {
+            self.jobs.finish(t, result);
+        }
+    }
+
+    /// Forgets what operation `op` waited for (it ended).
+    pub(crate) fn forget(&mut self, op: OpId) {
+        self.jobs.forget(op);
+        self.listeners.remove(&op);
+        self.line_failures.remove(&op);
     }
 
     /// Drops the telegrams of `op` not yet sent: each ends as cancelled.
@@ -372,7 +373,7 @@ impl Core {
         self.queue = kept.into();
         for j in dropped {
             tracing::debug!("drive {}: {:?} not sent: its operation was cancelled", j.address, j.command);
-            self.results.insert(j.id, Err(Error::Cancelled));
+            self.finish_job(j.id, Err(Error::Cancelled));
         }
     }
 
@@ -495,10 +496,10 @@ impl Core {
             }
             ReplyKind::Error(code) => {
                 let e = Error::Device { address: job.address, command: job.command, code: ErrorCode(code) };
-                self.results.insert(job.id, Err(e));
+                self.finish_job(job.id, Err(e));
             }
             _ => {
-                self.results.insert(job.id, Ok(Some(r)));
+                self.finish_job(job.id, Ok(Some(r)));
             }
         }
     }
@@ -523,7 +524,7 @@ impl Core {
             match job.last_corrupt {
                 Some(detail) if job.retry != Retry::Idempotent || !retry_left => {
                     let e = Error::Corrupt { address: job.address, command: job.command, detail };
-                    self.results.insert(job.id, Err(e));
+                    self.finish_job(job.id, Err(e));
                 }
                 _ => self.queue.push_front(job),
             }
@@ -532,7 +533,7 @@ impl Core {
         let waited = f.deadline.saturating_since(f.sent_at);
         let job = f.job;
         if !job.expects_reply {
-            self.results.insert(job.id, Ok(None));
+            self.finish_job(job.id, Ok(None));
             return;
         }
         tracing::info!("drive {}: no reply (attempt {})", job.address, job.attempts);
@@ -547,18 +548,19 @@ impl Core {
             (None, Some(detail)) if job.retry == Retry::Idempotent => Error::Corrupt { address, command, detail },
             _ => Error::Timeout { address, command, attempts: job.attempts, waited, round_trips: self.round_trips },
         };
-        self.results.insert(job.id, Err(e));
+        self.finish_job(job.id, Err(e));
     }
 
     /// The line failed: the telegram on it fails with `error`, and every listening operation learns of it.
     pub(crate) fn line_failed(&mut self, error: LinkError, now: Timestamp) {
         self.now = now;
-        for op in self.listeners.iter() {
-            self.line_failures.insert(*op, copy_link_error(&error));
+        for (op, waker) in self.listeners.drain() {
+            self.line_failures.insert(op, copy_link_error(&error));
+            waker.wake();
         }
         match self.in_flight.take().or_else(|| self.settling.take()) {
             Some(f) => {
-                self.results.insert(f.job.id, Err(Error::Link(error)));
+                self.finish_job(f.job.id, Err(Error::Link(error)));
             }
             None => tracing::debug!("line failure while nothing was on it: {error}"),
         }

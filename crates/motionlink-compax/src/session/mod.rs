@@ -10,7 +10,8 @@
 //!
 //! Every multi-step operation ([`Op`]: a checked move with its limits, S16 / S17 checks, S2 read back, the
 //! wait at its poll rate and the in-position check; the scan; the synchronous start; a parameter write
-//! read back; the watch) is a state machine inside the session (the private module `ops`). Safety lives here too:
+//! read back; the watch) is an `async fn` of the session (the private module `ops`), run by the one executor of
+//! `motionlink-link`. Safety lives here too:
 //!
 //! - [`Session::cancel`](motionlink_link::session::Session::cancel): the operation's telegrams not yet sent
 //!   are dropped (a move not yet sent is never sent); a wait or checked move that had set an axis in
@@ -36,13 +37,11 @@ pub use types::{
 };
 
 use std::collections::VecDeque;
-use std::future::Future;
-use std::pin::Pin;
-use std::sync::{Arc, Mutex, MutexGuard};
-use std::task::{Context, Poll, Waker};
+use std::sync::{Arc, Mutex};
 
 use motionlink_link::clock::lock;
-use motionlink_link::session::{self as contract, Action, Event, Input, OpId, OpIds};
+use motionlink_link::exec::{CoreGuard, Executor, Report};
+use motionlink_link::session::{self as contract, Action, Event, Input, OpId};
 use motionlink_link::{LinkError, Timestamp};
 
 use self::core::{drives_in, Core};
@@ -50,21 +49,15 @@ use self::ctx::Ctx;
 use crate::error::{Error, Result, StopReport};
 use crate::wire::Address;
 
-type OpFuture = Pin<Box<dyn Future<Output = Result<Output>> + Send>>;
-
-/// One operation under way.
-struct Running {
-    id: OpId,
-    future: OpFuture,
-}
+/// The id of the close sequence (operations get ids from 1).
+const CLOSER: OpId = OpId(0);
 
 /// The COMPAX protocol as a sans-IO state machine; see the [module documentation](self).
 pub struct Session {
-    core: Arc<Mutex<Core>>,
-    ids: OpIds,
-    ops: Vec<Running>,
-    /// The close sequence, once it runs.
-    closer: Option<OpFuture>,
+    /// The operations (and the close sequence, once it runs), run by the one executor of `motionlink-link`.
+    exec: Executor<Core, Progress, Result<Output>>,
+    /// The close sequence has started.
+    closer: bool,
     closing: bool,
     /// The close sequence has ended.
     closed: bool,
@@ -77,7 +70,7 @@ pub struct Session {
 
 impl std::fmt::Debug for Session {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Session").field("ops", &self.ops.len()).field("closing", &self.closing).finish()
+        f.debug_struct("Session").field("ops", &self.exec.len()).field("closing", &self.closing).finish()
     }
 }
 
@@ -85,10 +78,8 @@ impl Session {
     /// A session for drives as `cfg` says, starting at `now`.
     pub fn new(cfg: BusConfig, now: Timestamp) -> Self {
         Session {
-            core: Arc::new(Mutex::new(Core::new(cfg, now))),
-            ids: OpIds::default(),
-            ops: Vec::new(),
-            closer: None,
+            exec: Executor::new(Core::new(cfg, now), now),
+            closer: false,
             closing: false,
             closed: false,
             stopped_by_ops: StopReport::default(),
@@ -97,8 +88,13 @@ impl Session {
         }
     }
 
-    fn core(&self) -> MutexGuard<'_, Core> {
-        lock(&self.core)
+    fn core(&self) -> CoreGuard<'_, Core, Progress> {
+        self.exec.core()
+    }
+
+    /// Every call into the session tells it the time: the line's and the operations' clock.
+    fn now_is(&mut self, now: Timestamp) {
+        self.exec.core_at(now).now = now;
     }
 
     /// The configuration.
@@ -141,8 +137,8 @@ impl Session {
         Arc::clone(&self.close_report)
     }
 
-    fn future_of(ctx: Ctx, op: Op) -> OpFuture {
-        Box::pin(async move {
+    async fn run_op(ctx: Ctx, op: Op) -> Result<Output> {
+        {
             Ok(match op {
                 Op::ReadStatus(a, id) => Output::Status(ctx.read_status(a, id).await?),
                 Op::ReadStatuses(a, ids) => Output::Statuses(ctx.read_statuses(a, &ids).await?),
@@ -209,40 +205,21 @@ impl Session {
                     Output::Done
                 }
             })
-        })
+        }
     }
 
     /// Resumes every operation (and the close sequence) until none can go further now.
     fn run(&mut self) {
-        let mut cx = Context::from_waker(Waker::noop());
         loop {
-            let mut ended = false;
-            let mut i = 0;
-            while i < self.ops.len() {
-                if let Poll::Ready(result) = self.ops[i].future.as_mut().poll(&mut cx) {
-                    let op = self.ops.swap_remove(i);
-                    self.forget(op.id);
-                    if let (true, Err(e)) = (self.closing, &result) {
-                        if let Some(stop) = e.stop_report() {
-                            self.stopped_by_ops.drives.extend(stop.drives.iter().cloned());
-                        }
-                    }
-                    self.events.push_back(Event::Done(op.id, result));
-                    ended = true;
-                } else {
-                    i += 1;
-                }
-            }
-            if self.closing && self.ops.is_empty() && self.closer.is_none() && !self.closed {
-                let ctx = Ctx::new(Arc::clone(&self.core), OpId(0));
-                self.closer = Some(Box::pin(async move {
-                    let report = ctx.stop_started().await;
-                    Ok(Output::Stopped(report))
-                }));
-            }
-            if let Some(closer) = self.closer.as_mut() {
-                if let Poll::Ready(result) = closer.as_mut().poll(&mut cx) {
-                    let mut report = std::mem::take(&mut self.stopped_by_ops);
+            let mut ended = Vec::new();
+            let closing = self.closing;
+            let (events, stopped_by_ops, closed) = (&mut self.events, &mut self.stopped_by_ops, &mut self.closed);
+            let close_report = &self.close_report;
+            self.exec.run(|report| match report {
+                Report::Progress(id, p) => events.push_back(Event::Progress(id, p)),
+                Report::Done(CLOSER, result) => {
+                    ended.push(CLOSER);
+                    let mut report = std::mem::take(stopped_by_ops);
                     if let Ok(Output::Stopped(r)) = result {
                         report.drives.extend(r.drives);
                     }
@@ -251,27 +228,30 @@ impl Session {
                     } else {
                         Err(Error::CloseUnconfirmed { stop: report.clone() })
                     };
-                    *lock(&self.close_report) = Some(report);
-                    self.events.push_back(Event::Closed(outcome));
-                    self.closer = None;
-                    self.closed = true;
+                    *lock(close_report) = Some(report);
+                    events.push_back(Event::Closed(outcome));
+                    *closed = true;
                 }
+                Report::Done(id, result) => {
+                    ended.push(id);
+                    if let (true, Err(e)) = (closing, &result) {
+                        if let Some(stop) = e.stop_report() {
+                            stopped_by_ops.drives.extend(stop.drives.iter().cloned());
+                        }
+                    }
+                    events.push_back(Event::Done(id, result));
+                }
+            });
+            for id in ended {
+                self.core().forget(id);
             }
-            let progress: Vec<_> = self.core().progress.drain(..).collect();
-            self.events.extend(progress.into_iter().map(|(id, p)| Event::Progress(id, p)));
-            if !ended {
-                break;
+            if self.closing && self.exec.is_empty() && !self.closer && !self.closed {
+                self.closer = true;
+                self.exec.spawn(CLOSER, |ctx| async move { Ok(Output::Stopped(Ctx::new(ctx).stop_started().await)) });
+                continue;
             }
+            return;
         }
-    }
-
-    /// Drops what the session kept for operation `id`.
-    fn forget(&mut self, id: OpId) {
-        let mut core = self.core();
-        core.cancelled.remove(&id);
-        core.sleepers.remove(&id);
-        core.listeners.remove(&id);
-        core.line_failures.remove(&id);
     }
 }
 
@@ -282,28 +262,24 @@ impl contract::Session for Session {
     type Error = Error;
 
     fn start(&mut self, op: Op, now: Timestamp) -> OpId {
-        let id = self.ids.next_id();
-        self.core().now = now;
+        let id = self.exec.next_id();
+        self.now_is(now);
         if self.closing {
             self.events.push_back(Event::Done(id, Err(Error::Closed)));
             return id;
         }
-        let ctx = Ctx::new(Arc::clone(&self.core), id);
-        self.ops.push(Running { id, future: Self::future_of(ctx, op) });
+        self.exec.spawn(id, |ctx| Self::run_op(Ctx::new(ctx), op));
         self.run();
         id
     }
 
     fn cancel(&mut self, id: OpId, now: Timestamp) {
-        if !self.ops.iter().any(|o| o.id == id) {
+        if id == CLOSER || !self.exec.contains(id) {
             return;
         }
-        {
-            let mut core = self.core();
-            core.now = now;
-            core.cancelled.insert(id);
-            core.drop_queued(id);
-        }
+        self.now_is(now);
+        self.exec.cancel(id);
+        self.core().drop_queued(id);
         self.run();
     }
 
@@ -312,19 +288,16 @@ impl contract::Session for Session {
             return;
         }
         self.closing = true;
-        let ids: Vec<OpId> = self.ops.iter().map(|o| o.id).collect();
-        {
-            let mut core = self.core();
-            core.now = now;
-            for id in ids {
-                core.cancelled.insert(id);
-                core.drop_queued(id);
-            }
+        self.now_is(now);
+        for id in self.exec.ids() {
+            self.exec.cancel(id);
+            self.core().drop_queued(id);
         }
         self.run();
     }
 
     fn handle_input(&mut self, input: Input<'_>, now: Timestamp) {
+        self.now_is(now);
         match input {
             Input::Bytes(bytes) => self.core().receive(bytes, now),
             Input::Frame(_) => tracing::warn!("a CAN frame on a COMPAX session: ignored"),
@@ -334,6 +307,7 @@ impl contract::Session for Session {
 
     fn handle_link_error(&mut self, error: LinkError, now: Timestamp) {
         tracing::info!("line failure: {error}");
+        self.now_is(now);
         self.core().line_failed(error, now);
         self.run();
     }
@@ -346,6 +320,7 @@ impl contract::Session for Session {
     }
 
     fn poll_transmit(&mut self, now: Timestamp) -> Option<Action> {
+        self.now_is(now);
         let frame = {
             let mut core = self.core();
             core.tick(now);
@@ -356,16 +331,14 @@ impl contract::Session for Session {
     }
 
     fn poll_timeout(&self) -> Option<Timestamp> {
-        let core = self.core();
-        let sleepers = core.sleepers.values().copied().min();
-        match (core.line_timeout(), sleepers) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        }
+        let line = self.core().line_timeout();
+        [line, self.exec.poll_timeout()].into_iter().flatten().min()
     }
 
     fn handle_timeout(&mut self, now: Timestamp) {
+        self.now_is(now);
         self.core().tick(now);
+        self.exec.handle_timeout(now);
         self.run();
     }
 
@@ -378,6 +351,6 @@ impl contract::Session for Session {
     }
 
     fn is_idle(&self) -> bool {
-        self.ops.is_empty() && (!self.closing || self.closed) && self.core().line_idle()
+        self.exec.is_empty() && (!self.closing || self.closed) && self.core().line_idle()
     }
 }

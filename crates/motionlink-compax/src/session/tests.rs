@@ -2,12 +2,11 @@
 //! advances. Each byte takes its character time on the line; the emulator answers when the whole telegram
 //! has arrived, and its answer reaches the session byte time by byte time.
 
-use std::collections::VecDeque;
 use std::time::Duration;
 
-use motionlink_link::emulator::Emulator as _;
-use motionlink_link::session::{Action, Event, Input, OpId, Session as _};
+use motionlink_link::session::{OpId, Session as _};
 use motionlink_link::Timestamp;
+use motionlink_testkit::wired::{Line, Serial, Wired};
 
 use super::*;
 use crate::error::StopOutcome;
@@ -15,30 +14,10 @@ use crate::model::{Command, ParamId, Position, S17Flag, SpeedPercent, StatusId, 
 use crate::sim::{Emulator, SimConfig};
 use crate::wire::Mode;
 
-/// A session, an emulated bus, and the line between them.
-struct Bench {
-    session: Session,
-    emu: Emulator,
-    now: Timestamp,
-    char_time: Duration,
-    /// Bytes on their way to the session: when each arrives.
-    to_host: VecDeque<(Timestamp, u8)>,
-    /// Every telegram the session sent, as text.
-    sent: Vec<String>,
-    /// Progress reports, per operation.
-    progress: Vec<(OpId, Progress)>,
-    /// Results of operations not yet collected.
-    done: Vec<(OpId, Result<Output>)>,
-    closed: Option<Result<()>>,
-    /// Bytes from the session to the drives, counted; the byte at this count is flipped by the mask.
-    to_device_count: u64,
-    corrupt_to_device: Option<(u64, u8)>,
-    /// Everything from the drives is lost from this time on.
-    deaf_from: Option<Timestamp>,
-    /// Bytes from the drives, counted; those at these counts are lost.
-    to_host_count: u64,
-    drop_to_host: Vec<u64>,
-}
+/// A session, an emulated bus, and the line between them (the shared harness): each byte takes its character
+/// time, the drives answer when the whole telegram has arrived, and their answer reaches the session byte
+/// by byte.
+type Bench = Wired<Session, Serial<Emulator>>;
 
 fn a(n: u8) -> Address {
     Address::drive(n).unwrap()
@@ -48,148 +27,49 @@ fn pos(v: f64) -> Position {
     Position::new(v).unwrap()
 }
 
-impl Bench {
-    fn new(addrs: &[u8], p196: u32, baud: u32) -> Bench {
-        Self::with(addrs, p196, baud, |_| {})
+/// What these tests ask of the harness.
+trait CompaxBench {
+    /// A session with drives at `addrs`, P196 = `p196`, at `baud`.
+    fn bus(addrs: &[u8], p196: u32, baud: u32) -> Self;
+    /// The same, the session's settings changed by `configure`.
+    fn with(addrs: &[u8], p196: u32, baud: u32, configure: impl FnOnce(&mut BusConfig)) -> Self;
+    /// Runs until `id` ends (at most ten minutes of bus time).
+    fn finish(&mut self, id: OpId) -> Result<Output>;
+    /// Starts `op` and runs it to its end.
+    fn run(&mut self, op: Op) -> Result<Output>;
+    /// Every telegram the session sent, as text.
+    fn sent_text(&self) -> Vec<String>;
+    /// Drive `n` of the emulated bus.
+    fn drive(&self, n: u8) -> &crate::sim::Drive;
+}
+
+impl CompaxBench for Bench {
+    fn bus(addrs: &[u8], p196: u32, baud: u32) -> Bench {
+        Bench::with(addrs, p196, baud, |_| {})
     }
 
     fn with(addrs: &[u8], p196: u32, baud: u32, configure: impl FnOnce(&mut BusConfig)) -> Bench {
         let mut cfg = BusConfig::new(Mode::from_p196(p196).unwrap(), baud);
         configure(&mut cfg);
         let sim = SimConfig::bus(addrs, p196, baud).with_param(ParamId::new(3).unwrap(), 0.0);
-        Bench {
-            char_time: cfg.char_time(),
-            session: Session::new(cfg, Timestamp::ZERO),
-            emu: Emulator::new(sim).unwrap(),
-            now: Timestamp::ZERO,
-            to_host: VecDeque::new(),
-            sent: Vec::new(),
-            progress: Vec::new(),
-            done: Vec::new(),
-            closed: None,
-            to_device_count: 0,
-            corrupt_to_device: None,
-            deaf_from: None,
-            to_host_count: 0,
-            drop_to_host: Vec::new(),
-        }
+        let line = Line { byte_time: cfg.char_time(), ..Line::instant() }.bytewise();
+        Wired::new(Session::new(cfg, Timestamp::ZERO), Serial(Emulator::new(sim).unwrap()), line)
     }
 
-    fn deliver(&mut self, at: Timestamp, bytes: &[u8]) {
-        let start = self.to_host.back().map_or(at, |(t, _)| (*t).max(at));
-        for (i, &b) in bytes.iter().enumerate() {
-            let t = start + self.char_time * (i as u32 + 1);
-            let n = self.to_host_count;
-            self.to_host_count += 1;
-            if self.deaf_from.is_some_and(|d| t >= d) || self.drop_to_host.contains(&n) {
-                continue;
-            }
-            self.to_host.push_back((t, b));
-        }
-    }
-
-    fn collect(&mut self) {
-        while let Some(ev) = self.session.poll_event() {
-            match ev {
-                Event::Progress(id, p) => self.progress.push((id, p)),
-                Event::Done(id, r) => self.done.push((id, r)),
-                Event::Closed(r) => self.closed = Some(r),
-            }
-        }
-    }
-
-    /// One step of the line: a telegram sent, a byte delivered, the emulator or the session woken.
-    /// False when nothing is left to happen.
-    fn step(&mut self) -> bool {
-        self.step_until(None)
-    }
-
-    /// [`Bench::step`], but nothing after `until`: false (and the time at `until`) when nothing happens
-    /// before it.
-    fn step_until(&mut self, until: Option<Timestamp>) -> bool {
-        self.collect();
-        if let Some(Action::Send(mut bytes)) = self.session.poll_transmit(self.now) {
-            self.sent.push(String::from_utf8_lossy(&bytes).into_owned());
-            for b in bytes.iter_mut() {
-                if let Some((at, mask)) = self.corrupt_to_device.filter(|(at, _)| *at == self.to_device_count) {
-                    let _ = at;
-                    *b ^= mask;
-                }
-                self.to_device_count += 1;
-            }
-            let arrived = self.now + self.char_time * bytes.len() as u32;
-            let mut out = Vec::new();
-            self.emu.receive(arrived, &bytes, &mut out);
-            self.deliver(arrived, &out);
-            return true;
-        }
-        let arrival = self.to_host.front().map(|(t, _)| *t);
-        let wake = self.emu.next_wakeup();
-        let timeout = self.session.poll_timeout();
-        let next = [arrival, wake, timeout].into_iter().flatten().min();
-        let next = match (next, until) {
-            (Some(n), Some(u)) if n > u => None,
-            (n, _) => n,
-        };
-        let Some(next) = next else {
-            if let Some(u) = until {
-                self.now = self.now.max(u);
-                let mut out = Vec::new();
-                self.emu.advance(self.now, &mut out);
-                self.deliver(self.now, &out);
-            }
-            return false;
-        };
-        self.now = self.now.max(next);
-        if wake.is_some_and(|w| w <= self.now) {
-            let mut out = Vec::new();
-            self.emu.advance(self.now, &mut out);
-            self.deliver(self.now, &out);
-        }
-        let mut chunk = Vec::new();
-        while self.to_host.front().is_some_and(|(t, _)| *t <= self.now) {
-            chunk.push(self.to_host.pop_front().map(|(_, b)| b).unwrap_or_default());
-        }
-        if !chunk.is_empty() {
-            self.session.handle_input(Input::Bytes(&chunk), self.now);
-        }
-        if self.session.poll_timeout().is_some_and(|t| t <= self.now) {
-            self.session.handle_timeout(self.now);
-        }
-        true
-    }
-
-    fn take_done(&mut self, id: OpId) -> Option<Result<Output>> {
-        let i = self.done.iter().position(|(d, _)| *d == id)?;
-        Some(self.done.swap_remove(i).1)
-    }
-
-    /// Runs until `id` ends (at most ten minutes of bus time).
     fn finish(&mut self, id: OpId) -> Result<Output> {
-        let limit = self.now + Duration::from_secs(600);
-        loop {
-            self.collect();
-            if let Some(r) = self.take_done(id) {
-                return r;
-            }
-            assert!(self.now < limit, "{id} did not end");
-            assert!(self.step(), "{id} waits for nothing: stuck");
-        }
+        self.wait_done_within(id, Duration::from_secs(600))
     }
 
     fn run(&mut self, op: Op) -> Result<Output> {
-        let id = self.session.start(op, self.now);
-        self.finish(id)
+        self.run_op(op)
     }
 
-    /// Runs for `d` of bus time.
-    fn run_for(&mut self, d: Duration) {
-        let until = self.now + d;
-        while self.step_until(Some(until)) {}
+    fn sent_text(&self) -> Vec<String> {
+        self.sent.iter().map(|(_, t)| t.text()).collect()
     }
 
     fn drive(&self, n: u8) -> &crate::sim::Drive {
-        self.emu.drive(n).unwrap()
+        self.device.drive(n).unwrap()
     }
 }
 
@@ -199,21 +79,24 @@ fn to(v: f64) -> MoveRequest {
 
 #[test]
 fn a_checked_move_is_checked_sent_read_back_polled_and_verified() {
-    let mut b = Bench::new(&[1], 0, 9600);
+    let mut b = Bench::bus(&[1], 0, 9600);
     let mut req = to(12.5);
     req.speed = Some(SpeedPercent::new(50.0).unwrap());
     let id = b.session.start(Op::MoveTo(a(1), req), b.now);
-    let Ok(Output::Moved(report)) = b.finish(id) else { panic!("{:?}", b.sent) };
+    let Ok(Output::Moved(report)) = b.finish(id) else { panic!("{:?}", b.sent_text()) };
     assert_eq!((report.start, report.target, report.reached), (pos(0.0), pos(12.5), pos(12.5)));
     assert!(report.verified && report.not_verifiable.is_empty(), "{report:?}");
     // How the drive echoes is found out first (S1 with '?', which it does not execute); the move is stored
     // with its echo (`,?`), executed (`!`) once the echo is the telegram sent, and its target read back.
-    assert_eq!(b.sent[..8], ["1S16\r", "1S17\r", "1S1\r", "1S1?\r", "1SPEED 50\r", "1POSA 12.5,?\r", "1!\r", "1S2\r"]);
+    assert_eq!(
+        b.sent_text()[..8],
+        ["1S16\r", "1S17\r", "1S1\r", "1S1?\r", "1SPEED 50\r", "1POSA 12.5,?\r", "1!\r", "1S2\r"]
+    );
     assert_eq!(b.session.echo_form(a(1)), Some(crate::session::EchoForm::Full));
-    assert_eq!(b.sent.last().unwrap(), "1S1\r");
+    assert_eq!(b.sent_text().last().unwrap(), "1S1\r");
     // 12.5 units at 50 units/s: about a quarter of a second, polled every 50 ms (S17 then S1).
-    let polls = b.sent.iter().filter(|f| *f == "1S17\r").count();
-    assert!((4..=8).contains(&polls), "{polls} polls: {:?}", b.sent);
+    let polls = b.sent_text().iter().filter(|f| *f == "1S17\r").count();
+    assert!((4..=8).contains(&polls), "{polls} polls: {:?}", b.sent_text());
     let positions: Vec<f64> = b
         .progress
         .iter()
@@ -228,45 +111,45 @@ fn a_checked_move_is_checked_sent_read_back_polled_and_verified() {
 
 #[test]
 fn e72_is_answered_by_sending_the_telegram_again() {
-    let mut b = Bench::new(&[1], 8, 9600);
+    let mut b = Bench::bus(&[1], 8, 9600);
     // The second byte of "1S1\r" + BCC: the drive's BCC check fails.
     b.corrupt_to_device = Some((1, 0x01));
     let r = b.run(Op::ReadStatus(a(1), StatusId::ACTUAL_POSITION)).unwrap();
     assert_eq!(r, Output::Status(StatusValue::Position(pos(0.0))));
-    assert_eq!(b.sent.len(), 2);
-    assert_eq!(b.sent[0], b.sent[1], "the same telegram again");
+    assert_eq!(b.sent_text().len(), 2);
+    assert_eq!(b.sent_text()[0], b.sent_text()[1], "the same telegram again");
 }
 
 #[test]
 fn a_relative_move_whose_reply_is_lost_is_checked_through_s2_not_sent_again() {
-    let mut b = Bench::new(&[1], 0, 9600);
+    let mut b = Bench::bus(&[1], 0, 9600);
     // The S2 read before the move is answered ("S002: 0.000\r\n>", 14 bytes); the move's
     // acknowledgement ("\r\n>") is lost.
     let at = b.to_host_count;
     b.drop_to_host = (at + 14..at + 17).collect();
     let id = b.session.start(Op::Move(a(1), Command::PosR(pos(10.0)), MoveOptions::default()), b.now);
     b.finish(id).unwrap();
-    assert_eq!(b.sent.iter().filter(|f| f.starts_with("1POSR")).count(), 1, "{:?}", b.sent);
-    assert_eq!(b.sent, ["1S2\r", "1POSR 10\r", "1S2\r"], "S2 read after the lost reply");
+    assert_eq!(b.sent_text().iter().filter(|f| f.starts_with("1POSR")).count(), 1, "{:?}", b.sent_text());
+    assert_eq!(b.sent_text(), ["1S2\r", "1POSR 10\r", "1S2\r"], "S2 read after the lost reply");
     b.run(Op::Wait(vec![a(1)], None)).unwrap();
     assert_eq!(b.drive(1).position(), 10.0, "moved once");
 }
 
 #[test]
 fn a_position_message_ends_the_wait_without_polling() {
-    let mut b = Bench::new(&[3], 64 + 8, 9600);
+    let mut b = Bench::bus(&[3], 64 + 8, 9600);
     b.run(Op::Move(a(3), Command::PosA(pos(5.0)), MoveOptions { binary: false, message: true })).unwrap();
-    let before = b.sent.len();
+    let before = b.sent_text().len();
     let id = b.session.start(Op::Wait(vec![a(3)], None), b.now);
     b.finish(id).unwrap();
-    assert_eq!(b.sent.len(), before, "no status read: the '$' ended the wait");
+    assert_eq!(b.sent_text().len(), before, "no status read: the '$' ended the wait");
     assert!(b.progress.iter().all(|(i, _)| *i != id));
     assert_eq!(b.drive(3).position(), 5.0);
 }
 
 #[test]
 fn a_cancelled_wait_switches_the_axis_off_and_confirms_it() {
-    let mut b = Bench::new(&[1, 2], 0, 9600);
+    let mut b = Bench::bus(&[1, 2], 0, 9600);
     b.run(Op::Move(a(1), Command::PosA(pos(1000.0)), MoveOptions::default())).unwrap();
     let id = b.session.start(Op::Wait(vec![a(1)], None), b.now);
     b.run_for(Duration::from_millis(500));
@@ -275,25 +158,26 @@ fn a_cancelled_wait_switches_the_axis_off_and_confirms_it() {
     let e = b.finish(id).unwrap_err();
     assert!(matches!(e.root(), Error::Cancelled), "{e}");
     assert_eq!(e.stop_report().unwrap().drives, [(a(1), StopOutcome::SwitchedOff)]);
-    let tail: Vec<&str> = b.sent.iter().rev().take(3).rev().map(String::as_str).collect();
+    let sent = b.sent_text();
+    let tail: Vec<&str> = sent.iter().rev().take(3).rev().map(String::as_str).collect();
     assert_eq!(tail, ["1S17\r", "1OUTPUT O0=0\r", "1S17\r"]);
     assert!(!b.drive(1).is_moving() && b.drive(1).o0() == 0);
     // At 9600 baud the three exchanges take about 60 ms (a poll may be on the line when the cancel comes).
     assert!(b.now - cancelled_at < Duration::from_millis(100), "{:?}", b.now - cancelled_at);
-    assert!(!b.sent.iter().any(|f| f.starts_with('2')), "drive 2 is not this wait's");
+    assert!(!b.sent_text().iter().any(|f| f.starts_with('2')), "drive 2 is not this wait's");
 }
 
 #[test]
 fn a_move_cancelled_before_it_is_sent_is_never_sent() {
-    let mut b = Bench::new(&[1], 0, 9600);
+    let mut b = Bench::bus(&[1], 0, 9600);
     // A read is on the line; the move waits its turn, and is cancelled meanwhile.
     let read = b.session.start(Op::ReadStatus(a(1), StatusId::ACTUAL_POSITION), b.now);
-    assert!(b.step(), "the read goes out");
+    assert!(b.step(None), "the read goes out");
     let mv = b.session.start(Op::Move(a(1), Command::PosA(pos(50.0)), MoveOptions::default()), b.now);
     b.session.cancel(mv, b.now);
     assert!(matches!(b.finish(mv), Err(Error::Cancelled)));
     b.finish(read).unwrap();
-    assert!(!b.sent.iter().any(|f| f.contains("POSA")), "{:?}", b.sent);
+    assert!(!b.sent_text().iter().any(|f| f.contains("POSA")), "{:?}", b.sent_text());
     assert!(b.session.started().is_empty());
     b.run_for(Duration::from_millis(200));
     assert!(!b.drive(1).is_moving());
@@ -301,7 +185,7 @@ fn a_move_cancelled_before_it_is_sent_is_never_sent() {
 
 #[test]
 fn a_read_runs_between_the_polls_of_a_wait() {
-    let mut b = Bench::new(&[1, 5], 0, 115_200);
+    let mut b = Bench::bus(&[1, 5], 0, 115_200);
     b.run(Op::Move(a(1), Command::PosA(pos(100.0)), MoveOptions::default())).unwrap();
     let wait = b.session.start(Op::Wait(vec![a(1)], None), b.now);
     b.run_for(Duration::from_millis(120));
@@ -316,7 +200,7 @@ fn a_read_runs_between_the_polls_of_a_wait() {
 
 #[test]
 fn closing_stops_every_drive_the_session_started_and_reports_it() {
-    let mut b = Bench::new(&[1, 5, 7], 0, 9600);
+    let mut b = Bench::bus(&[1, 5, 7], 0, 9600);
     b.run(Op::Move(a(1), Command::PosA(pos(1000.0)), MoveOptions::default())).unwrap();
     b.run(Op::Move(a(5), Command::PosA(pos(1.0)), MoveOptions::default())).unwrap();
     b.run_for(Duration::from_millis(200));
@@ -324,7 +208,7 @@ fn closing_stops_every_drive_the_session_started_and_reports_it() {
     b.session.close(b.now);
     let late = b.session.start(Op::ReadStatus(a(1), StatusId::ACTUAL_POSITION), b.now);
     while b.closed.is_none() {
-        assert!(b.step(), "the close sequence ends");
+        assert!(b.step(None), "the close sequence ends");
         b.collect();
     }
     assert!(matches!(b.take_done(late), Some(Err(Error::Closed))));
@@ -333,18 +217,18 @@ fn closing_stops_every_drive_the_session_started_and_reports_it() {
     let report = lock(&b.session.close_report()).clone().unwrap();
     assert_eq!(report.drives, [(a(1), StopOutcome::SwitchedOff), (a(5), StopOutcome::AtRest)]);
     assert!(!b.drive(1).is_moving() && b.drive(5).o0() == 1, "drive 5 had stopped: left switched on");
-    assert!(!b.sent.iter().any(|f| f.starts_with('7')));
+    assert!(!b.sent_text().iter().any(|f| f.starts_with('7')));
     assert!(b.session.is_idle());
 }
 
 #[test]
 fn closing_on_a_dead_line_says_the_stop_was_not_confirmed() {
-    let mut b = Bench::new(&[1], 0, 9600);
+    let mut b = Bench::bus(&[1], 0, 9600);
     b.run(Op::Move(a(1), Command::PosA(pos(1000.0)), MoveOptions::default())).unwrap();
-    b.deaf_from = Some(b.now);
+    b.deaf = true;
     b.session.close(b.now);
     while b.closed.is_none() {
-        assert!(b.step());
+        assert!(b.step(None));
         b.collect();
     }
     let Some(Err(e)) = b.closed.take() else { panic!("confirmed on a dead line?") };
@@ -354,7 +238,7 @@ fn closing_on_a_dead_line_says_the_stop_was_not_confirmed() {
 
 #[test]
 fn a_corrupted_parameter_write_is_caught_by_the_read_back() {
-    let mut b = Bench::new(&[1], 0, 9600);
+    let mut b = Bench::bus(&[1], 0, 9600);
     // "1P003=-1055.88\r": the last '8' (byte 13) becomes '9'.
     b.corrupt_to_device = Some((13, 0x01));
     let e = b.run(Op::WriteParam(a(1), ParamId::new(3).unwrap(), -1055.88)).unwrap_err();
@@ -366,7 +250,7 @@ fn a_scan_asks_each_address_once_and_a_watch_reports_until_cancelled() {
     let mut b = Bench::with(&[2, 9], 0, 115_200, |c| c.reply_timeout = Duration::from_millis(20));
     let Ok(Output::Found(found)) = b.run(Op::Scan(1..=10)) else { panic!() };
     assert_eq!(found.iter().map(|(a, _)| a.get()).collect::<Vec<_>>(), [2, 9]);
-    assert_eq!(b.sent.len(), 10, "once each: {:?}", b.sent);
+    assert_eq!(b.sent_text().len(), 10, "once each: {:?}", b.sent_text());
     let id = b.session.start(Op::Watch(a(2), Duration::from_millis(100)), b.now);
     b.run_for(Duration::from_millis(1000));
     b.session.cancel(id, b.now);
@@ -385,10 +269,10 @@ fn a_scan_asks_each_address_once_and_a_watch_reports_until_cancelled() {
 
 #[test]
 fn a_synchronous_start_stores_then_executes_with_one_broadcast() {
-    let mut b = Bench::new(&[1, 5], 0, 19_200);
+    let mut b = Bench::bus(&[1, 5], 0, 19_200);
     let moves = vec![(a(1), Command::PosA(pos(20.0))), (a(5), Command::PosR(pos(-20.0)))];
     b.run(Op::SyncStart(moves, false)).unwrap();
-    assert_eq!(b.sent, ["1POSA 20,\r", "5POSR -20,\r", "32!\r"]);
+    assert_eq!(b.sent_text(), ["1POSA 20,\r", "5POSR -20,\r", "32!\r"]);
     assert_eq!(b.session.started(), [a(1), a(5)]);
     b.run(Op::Wait(vec![a(1), a(5)], None)).unwrap();
     assert_eq!((b.drive(1).position(), b.drive(5).position()), (20.0, -20.0));
@@ -396,7 +280,7 @@ fn a_synchronous_start_stores_then_executes_with_one_broadcast() {
 
 #[test]
 fn a_stop_of_drives_the_session_did_not_start_switches_off_only_the_moving_one_and_confirms_it() {
-    let mut b = Bench::new(&[1, 5], 0, 9600);
+    let mut b = Bench::bus(&[1, 5], 0, 9600);
     b.run(Op::Move(a(1), Command::PosA(pos(1000.0)), MoveOptions::default())).unwrap();
     // Handed over, as `move --no-wait` leaves it: no longer this session's to stop.
     b.session.release(&[a(1)]);
@@ -406,7 +290,10 @@ fn a_stop_of_drives_the_session_did_not_start_switches_off_only_the_moving_one_a
     assert_eq!(report.drives, [(a(1), StopOutcome::SwitchedOff), (a(5), StopOutcome::AtRest)]);
     assert!(!b.drive(1).is_moving() && b.drive(1).o0() == 0, "drive 1 stopped by switching it off");
     assert_eq!(b.drive(5).o0(), 1, "drive 5 was at rest: left switched on");
-    assert!(b.sent.iter().any(|f| f.starts_with("1OUTPUT O0=0")) && !b.sent.iter().any(|f| f.starts_with("5OUTPUT")));
+    assert!(
+        b.sent_text().iter().any(|f| f.starts_with("1OUTPUT O0=0"))
+            && !b.sent_text().iter().any(|f| f.starts_with("5OUTPUT"))
+    );
     let json = serde_json::to_value(&report).unwrap();
     assert_eq!(
         json,

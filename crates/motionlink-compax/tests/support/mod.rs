@@ -1,5 +1,5 @@
-//! What the client tests share: an emulated bus on the manual clock with its transcript, scripted
-//! drives, and a link that cancels a token.
+//! What the client tests share: the bus on the workspace's one rig (`motionlink_testkit::rig`: the emulated
+//! drives on the manual clock, with the transcript), scripted drives, and a link that cancels a token.
 
 #![allow(dead_code)]
 
@@ -11,32 +11,29 @@ use motionlink_compax::sim::{Emulator, SimConfig};
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::chunk;
-use motionlink_link::clock::ManualClock;
-use motionlink_link::pipe::{EmulatorHost, FaultControl, PipeConfig};
-use motionlink_link::transcript::{TapLink, Transcript};
+use motionlink_link::pipe::PipeConfig;
+use motionlink_link::transcript::Transcript;
 
-pub struct Rig {
-    pub clock: ManualClock,
-    pub host: EmulatorHost<Emulator>,
-    pub faults: FaultControl,
-    pub transcript: Transcript,
-}
+/// The drives behind an in-memory link paced at the bus's baud rate, on the manual clock (the shared rig).
+pub type Rig = motionlink_testkit::rig::Rig<Emulator>;
 
+/// Drives at `addrs` with P196 = `p196` at `baud`, with the parameters the tests write, and a client.
 pub fn rig(addrs: &[u8], p196: u32, baud: u32) -> (Rig, Client) {
-    let clock = ManualClock::new_auto();
     // The parameters the tests write besides P194..P196 (the emulator refuses the others).
     let mut cfg = SimConfig::bus(addrs, p196, baud);
     for n in [3, 10, 12, 20] {
         cfg = cfg.with_param(ParamId::new(n).unwrap(), 0.0);
     }
-    let sim = Emulator::new(cfg).unwrap();
-    let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(baud));
-    let (link, faults) = host.connect();
-    let transcript = Transcript::new();
-    let link = TapLink::new(link, clock.shared(), transcript.clone());
-    let bus =
-        Client::new(Box::new(link), clock.shared(), BusConfig::new(Mode::from_p196(p196).unwrap(), baud)).unwrap();
-    (Rig { clock, host, faults, transcript }, bus)
+    rig_on(cfg, p196, baud, |_| {})
+}
+
+/// The bus `sim` at `baud`, and a client for mode `p196` with its settings changed by `configure`.
+pub fn rig_on(sim: SimConfig, p196: u32, baud: u32, configure: impl FnOnce(&mut BusConfig)) -> (Rig, Client) {
+    let rig = Rig::new(Emulator::new(sim).unwrap(), PipeConfig::paced(baud));
+    let mut bus_cfg = BusConfig::new(Mode::from_p196(p196).unwrap(), baud);
+    configure(&mut bus_cfg);
+    let bus = Client::new(rig.link().unwrap(), rig.clock.shared(), bus_cfg).unwrap();
+    (rig, bus)
 }
 
 pub fn a(n: u8) -> Address {

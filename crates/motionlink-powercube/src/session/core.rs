@@ -2,10 +2,11 @@
 //! matched in, answer timeouts, stale answers dropped, the watchdog refresh on its deadlines. Sans-IO: it
 //! is handed bytes or frames and the time, and hands out what to send.
 
-use std::collections::{BTreeMap, BTreeSet, HashMap, VecDeque};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::time::Duration;
 
 use motionlink_link::can::CanFrame;
+use motionlink_link::exec::{Jobs, Ticket};
 use motionlink_link::session::{Action as LinkAction, OpId};
 use motionlink_link::{LinkError, Timestamp};
 
@@ -15,9 +16,6 @@ use crate::model::{Action, Broadcast, BroadcastForm, ConfigWord, ModuleKind, Rep
 use crate::wire::can::{self as can_wire, Role};
 use crate::wire::rs232::{self, Rs232Decoder, TelKind};
 use crate::wire::Payload;
-
-/// A job's handle: the result of an exchange or a broadcast is kept under it until its operation takes it.
-pub(crate) type Ticket = u64;
 
 /// What a finished job gives its operation.
 #[derive(Debug)]
@@ -44,7 +42,6 @@ impl Job {
 /// The exchange under way: every request is out (or going out), acknowledges are matched as they come.
 struct InFlight {
     ticket: Ticket,
-    op: OpId,
     batch: Vec<(u8, Request)>,
     start: Timestamp,
     deadline: Timestamp,
@@ -137,12 +134,12 @@ pub(crate) struct Core {
     in_flight: Option<InFlight>,
     /// A timeout left answers possibly on their way: drop what is pending before the next exchange.
     stale: bool,
-    done: HashMap<Ticket, JobResult>,
-    next_ticket: Ticket,
+    /// The results of exchanges and broadcasts, for the operations that await them.
+    pub jobs: Jobs<JobResult>,
     sent: Sent,
     /// A broadcast handed out and not yet known to have failed: it succeeded unless the driver reports a
     /// link error at once.
-    broadcast_out: Option<(Ticket, OpId)>,
+    broadcast_out: Option<Ticket>,
     pub duty: WatchdogDuty,
     /// Modules this session may have set in motion and has not seen stop.
     pub started: BTreeSet<u8>,
@@ -158,16 +155,6 @@ pub(crate) struct Core {
     pub failed: bool,
     /// The round trips measured on the line: each acknowledge since its request went out.
     pub round_trips: Option<crate::error::RoundTrips>,
-    /// Operations that are running (results of jobs of any other are dropped).
-    pub alive: BTreeSet<OpId>,
-    /// Operations asked to end early.
-    pub cancelled: BTreeSet<OpId>,
-    /// Operations to poll: what they wait for is there.
-    pub wake: BTreeSet<OpId>,
-    /// Operations asleep until a time.
-    pub sleepers: BTreeMap<OpId, Timestamp>,
-    /// Progress reports, oldest first.
-    pub progress: VecDeque<(OpId, super::Progress)>,
 }
 
 impl Core {
@@ -182,8 +169,7 @@ impl Core {
             sending: VecDeque::new(),
             in_flight: None,
             stale: false,
-            done: HashMap::new(),
-            next_ticket: 0,
+            jobs: Jobs::default(),
             sent: Sent::Nothing,
             broadcast_out: None,
             duty: WatchdogDuty::default(),
@@ -194,11 +180,6 @@ impl Core {
             warned: BTreeSet::new(),
             failed: false,
             round_trips: None,
-            alive: BTreeSet::new(),
-            cancelled: BTreeSet::new(),
-            wake: BTreeSet::new(),
-            sleepers: BTreeMap::new(),
-            progress: VecDeque::new(),
         }
     }
 
@@ -209,52 +190,37 @@ impl Core {
         }
     }
 
-    fn ticket(&mut self) -> Ticket {
-        self.next_ticket += 1;
-        self.next_ticket
-    }
-
     /// Queues an exchange for `op`: every request sent (on CAN at once), the acknowledges collected in any
     /// order until all came or `timeout` passed since the first went out.
     pub fn enqueue_exchange(&mut self, op: OpId, batch: Vec<(u8, Request)>, timeout: Duration) -> Ticket {
-        let ticket = self.ticket();
+        let ticket = self.jobs.open(op);
         self.queue.push_back(Job::Exchange { ticket, op, batch, timeout });
         ticket
     }
 
     /// Queues a broadcast for `op` (never acknowledged).
     pub fn enqueue_broadcast(&mut self, op: OpId, broadcast: Broadcast) -> Ticket {
-        let ticket = self.ticket();
+        let ticket = self.jobs.open(op);
         self.queue.push_back(Job::Broadcast { ticket, op, broadcast });
         ticket
     }
 
-    /// The result of job `ticket`, once it is there.
-    pub fn take_result(&mut self, ticket: Ticket) -> Option<JobResult> {
-        self.done.remove(&ticket)
-    }
-
-    fn finish(&mut self, ticket: Ticket, op: OpId, result: JobResult) {
-        if self.alive.contains(&op) {
-            self.done.insert(ticket, result);
-            self.wake.insert(op);
-        }
+    /// Hands the result of a job to the operation that awaits it (dropped if it has ended).
+    fn finish(&mut self, ticket: Ticket, result: JobResult) {
+        self.jobs.finish(ticket, result);
     }
 
     /// Forgets what operation `op` was waiting for: its queued jobs are not sent, the result of one on the
     /// line is dropped when it comes.
     pub fn forget(&mut self, op: OpId) {
-        self.alive.remove(&op);
-        self.cancelled.remove(&op);
-        self.sleepers.remove(&op);
-        self.wake.remove(&op);
+        self.jobs.forget(op);
         self.queue.retain(|j| j.op() != op);
     }
 
     /// A broadcast handed out earlier did not fail: its operation learns so.
     fn settle_broadcast(&mut self) {
-        if let Some((ticket, op)) = self.broadcast_out.take() {
-            self.finish(ticket, op, JobResult::Broadcast(Ok(())));
+        if let Some(ticket) = self.broadcast_out.take() {
+            self.finish(ticket, JobResult::Broadcast(Ok(())));
         }
     }
 
@@ -309,25 +275,25 @@ impl Core {
         }
         let job = self.queue.pop_front()?;
         match job {
-            Job::Broadcast { ticket, op, broadcast } => match self.broadcast_action(&broadcast) {
+            Job::Broadcast { ticket, broadcast, .. } => match self.broadcast_action(&broadcast) {
                 Ok(a) => {
                     self.sent = Sent::Broadcast(ticket);
-                    self.broadcast_out = Some((ticket, op));
+                    self.broadcast_out = Some(ticket);
                     Some(a)
                 }
                 Err(e) => {
-                    self.finish(ticket, op, JobResult::Broadcast(Err(e)));
+                    self.finish(ticket, JobResult::Broadcast(Err(e)));
                     self.poll_transmit(now)
                 }
             },
-            Job::Exchange { ticket, op, batch, timeout } => {
+            Job::Exchange { ticket, batch, timeout, .. } => {
                 let frames: Result<Vec<LinkAction>, Error> =
                     batch.iter().map(|(a, r)| self.frame(*a, &r.encode())).collect();
                 let frames = match frames {
                     Ok(f) => f,
                     Err(e) => {
                         let results = batch.iter().map(|_| Err(clone_encode(&e))).collect();
-                        self.finish(ticket, op, JobResult::Exchange(results));
+                        self.finish(ticket, JobResult::Exchange(results));
                         return self.poll_transmit(now);
                     }
                 };
@@ -340,7 +306,6 @@ impl Core {
                 let n = batch.len();
                 self.in_flight = Some(InFlight {
                     ticket,
-                    op,
                     batch,
                     start: now,
                     deadline: now + timeout,
@@ -358,21 +323,15 @@ impl Core {
     pub fn poll_timeout(&self) -> Option<Timestamp> {
         let answer = self.in_flight.as_ref().map(|f| f.deadline);
         let refresh = self.duty.serving.then_some(self.duty.next_due);
-        let sleep = self.sleepers.values().min().copied();
-        [answer, refresh, sleep].into_iter().flatten().min()
+        [answer, refresh].into_iter().flatten().min()
     }
 
-    /// Time has reached `now`: an exchange whose answers are late ends; sleepers wake.
+    /// Time has reached `now`: an exchange whose answers are late ends.
     pub fn handle_timeout(&mut self, now: Timestamp) {
         self.now = now;
         self.settle_broadcast();
         if self.in_flight.as_ref().is_some_and(|f| now >= f.deadline) {
             self.complete();
-        }
-        let due: Vec<OpId> = self.sleepers.iter().filter(|(_, t)| **t <= now).map(|(op, _)| *op).collect();
-        for op in due {
-            self.sleepers.remove(&op);
-            self.wake.insert(op);
         }
     }
 
@@ -548,7 +507,7 @@ impl Core {
                 }),
             })
             .collect();
-        self.finish(f.ticket, f.op, JobResult::Exchange(results));
+        self.finish(f.ticket, JobResult::Exchange(results));
     }
 
     /// The link failed: the job it was doing fails with it, and the session is failed (it may no longer
@@ -564,12 +523,12 @@ impl Core {
                 return;
             }
             Sent::Broadcast(ticket) => {
-                if let Some((t, op)) = self.broadcast_out.take() {
+                if let Some(t) = self.broadcast_out.take() {
                     if t == ticket {
-                        self.finish(t, op, JobResult::Broadcast(Err(Error::Link(error))));
+                        self.finish(t, JobResult::Broadcast(Err(Error::Link(error))));
                         return;
                     }
-                    self.broadcast_out = Some((t, op));
+                    self.broadcast_out = Some(t);
                 }
             }
             Sent::Exchange | Sent::Nothing => {}
@@ -597,7 +556,7 @@ impl Core {
                 })))
             })
             .collect();
-        self.finish(f.ticket, f.op, JobResult::Exchange(results));
+        self.finish(f.ticket, JobResult::Exchange(results));
     }
 }
 

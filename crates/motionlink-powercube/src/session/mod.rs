@@ -2,7 +2,7 @@
 //! on RS232 or CAN: request/acknowledge matching (module, command and parameter echoed), answer timeouts,
 //! retries of reads only, the watchdog refresh broadcast on its own 20 ms grid, and every multi-step
 //! operation ([`Op`]: a checked move, homing, a scan, arming and disarming watchdogs, the stop of what was
-//! started) as a state machine inside the session. It is told what arrived and what time it is, and says
+//! started) as an `async fn` run by the one executor of `motionlink-link`. It is told what arrived and what time it is, and says
 //! what to send and when to wake it; it has no thread, no clock and no I/O.
 //!
 //! The clients ([`Client`](crate::Client), [`AsyncClient`](crate::client)) run it over a link through
@@ -38,15 +38,11 @@ mod ops;
 mod tests;
 mod types;
 
-use std::collections::{BTreeMap, VecDeque};
-use std::future::Future;
-use std::pin::Pin;
-use std::sync::{Arc, Mutex, MutexGuard};
-use std::task::{Context, Poll, Waker};
+use std::collections::VecDeque;
 use std::time::Duration;
 
-use motionlink_link::clock::lock;
-use motionlink_link::session::{Action as LinkAction, Event, Input, OpId, OpIds};
+use motionlink_link::exec::{CoreGuard, CoreHandle, Executor, Report};
+use motionlink_link::session::{Action as LinkAction, Event, Input, OpId};
 use motionlink_link::{LinkError, Timestamp};
 
 pub use types::{
@@ -228,36 +224,33 @@ pub enum Output {
     Released(bool),
 }
 
-type OpFuture = Pin<Box<dyn Future<Output = Result<Output, Error>> + Send>>;
-
-struct Running {
-    future: OpFuture,
-    abortable: Option<&'static str>,
-}
-
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Closing {
     Open,
     /// Every operation was asked to end; the close sequence starts when they have.
     Waiting,
-    Running(Pin<Box<dyn Future<Output = Result<(), Error>> + Send>>),
+    Running,
     Closed,
 }
 
 /// The id of the close sequence (operations get ids from 1).
 const CLOSE: OpId = OpId(0);
 
+/// The session's operations, run by the one executor of `motionlink-link`.
+type Ops = Executor<Core, Progress, Result<Output, Error>>;
+
 /// A session with the modules on one RS232 line or one CAN bus; see the [module documentation](self).
 pub struct Session {
-    core: Arc<Mutex<Core>>,
-    ids: OpIds,
-    ops: BTreeMap<OpId, Running>,
+    exec: Ops,
+    /// The operations that set nothing in motion and may be dropped at once when cancelled: what each is.
+    abortable: std::collections::BTreeMap<OpId, &'static str>,
     events: VecDeque<Event<Session>>,
     closing: Closing,
 }
 
 impl std::fmt::Debug for Session {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Session").field("port", &self.core().port).field("ops", &self.ops.len()).finish()
+        f.debug_struct("Session").field("port", &self.core().port).field("ops", &self.exec.len()).finish()
     }
 }
 
@@ -274,16 +267,20 @@ impl Session {
 
     fn new(config: BusConfig, can: bool, port: String, now: Timestamp) -> Session {
         Session {
-            core: Arc::new(Mutex::new(Core::new(config, can, port, now))),
-            ids: OpIds::default(),
-            ops: BTreeMap::new(),
+            exec: Executor::new(Core::new(config, can, port, now), now),
+            abortable: std::collections::BTreeMap::new(),
             events: VecDeque::new(),
             closing: Closing::Open,
         }
     }
 
-    fn core(&self) -> MutexGuard<'_, Core> {
-        lock(&self.core)
+    fn core(&self) -> CoreGuard<'_, Core, Progress> {
+        self.exec.core()
+    }
+
+    /// Every call into the session tells it the time: the engine's and the operations' clock.
+    fn now_is(&mut self, now: Timestamp) {
+        self.exec.core_at(now).now = now;
     }
 
     /// The session's settings.
@@ -353,7 +350,7 @@ impl Session {
     /// A view of this session's watchdog duty that outlives the session (a driver that closes drops it):
     /// [`WatchdogView::armed`] says afterwards which modules' watchdogs were left armed.
     pub fn watchdog_view(&self) -> WatchdogView {
-        WatchdogView(Arc::clone(&self.core))
+        WatchdogView(self.exec.handle())
     }
 
     /// When the next watchdog refresh is due, while the session serves it.
@@ -387,42 +384,31 @@ impl Session {
     /// Polls every operation whose awaited result is there, until none is; starts the close sequence when
     /// it is due.
     fn run_ops(&mut self) {
-        let mut cx = Context::from_waker(Waker::noop());
         loop {
-            if matches!(self.closing, Closing::Waiting) && self.ops.is_empty() {
-                let ctx = Ctx::new(Arc::clone(&self.core), CLOSE);
-                self.core().alive.insert(CLOSE);
-                self.core().wake.insert(CLOSE);
-                self.closing = Closing::Running(Box::pin(async move { ctx.close_sequence().await }));
+            if self.closing == Closing::Waiting && self.exec.is_empty() {
+                self.closing = Closing::Running;
+                self.exec.spawn(CLOSE, |ctx| async move { Ctx(ctx).close_sequence().await.map(|()| Output::Done) });
             }
-            let ready = std::mem::take(&mut self.core().wake);
-            if ready.is_empty() {
+            let mut ended = Vec::new();
+            let (events, closing) = (&mut self.events, &mut self.closing);
+            self.exec.run(|report| match report {
+                Report::Progress(op, p) => events.push_back(Event::Progress(op, p)),
+                Report::Done(CLOSE, r) => {
+                    ended.push(CLOSE);
+                    *closing = Closing::Closed;
+                    events.push_back(Event::Closed(r.map(|_| ())));
+                }
+                Report::Done(id, r) => {
+                    ended.push(id);
+                    events.push_back(Event::Done(id, r));
+                }
+            });
+            for id in ended {
+                self.abortable.remove(&id);
+                self.core().forget(id);
+            }
+            if !(self.closing == Closing::Waiting && self.exec.is_empty()) {
                 return;
-            }
-            for id in ready {
-                if id == CLOSE {
-                    if let Closing::Running(f) = &mut self.closing {
-                        if let Poll::Ready(r) = f.as_mut().poll(&mut cx) {
-                            self.core().forget(CLOSE);
-                            self.closing = Closing::Closed;
-                            self.events.push_back(Event::Closed(r));
-                        }
-                    }
-                    continue;
-                }
-                let Some(running) = self.ops.get_mut(&id) else { continue };
-                let poll = running.future.as_mut().poll(&mut cx);
-                let progress: Vec<_> = self.core().progress.drain(..).collect();
-                for (op, p) in progress {
-                    if self.ops.contains_key(&op) {
-                        self.events.push_back(Event::Progress(op, p));
-                    }
-                }
-                if let Poll::Ready(r) = poll {
-                    self.ops.remove(&id);
-                    self.core().forget(id);
-                    self.events.push_back(Event::Done(id, r));
-                }
             }
         }
     }
@@ -435,56 +421,52 @@ impl motionlink_link::session::Session for Session {
     type Error = Error;
 
     fn start(&mut self, op: Op, now: Timestamp) -> OpId {
-        let id = self.ids.next_id();
-        self.core().now = now;
-        if !matches!(self.closing, Closing::Open) {
+        let id = self.exec.next_id();
+        self.now_is(now);
+        if self.closing != Closing::Open {
             self.events.push_back(Event::Done(id, Err(Error::SessionClosed)));
             return id;
         }
-        let abortable = op.abortable();
-        let ctx = Ctx::new(Arc::clone(&self.core), id);
-        {
-            let mut core = self.core();
-            core.alive.insert(id);
-            core.wake.insert(id);
+        if let Some(what) = op.abortable() {
+            self.abortable.insert(id, what);
         }
-        self.ops.insert(id, Running { future: Box::pin(ops::run(ctx, op)), abortable });
+        self.exec.spawn(id, |ctx| ops::run(Ctx(ctx), op));
         self.run_ops();
         id
     }
 
     fn cancel(&mut self, id: OpId, now: Timestamp) {
-        self.core().now = now;
-        let Some(running) = self.ops.get(&id) else { return };
-        match running.abortable {
+        self.now_is(now);
+        if id == CLOSE || !self.exec.contains(id) {
+            return;
+        }
+        match self.abortable.remove(&id) {
             Some(what) => {
-                self.ops.remove(&id);
+                self.exec.abort(id);
                 self.core().forget(id);
                 self.events.push_back(Event::Done(id, Err(Error::Aborted { what })));
             }
             None => {
-                let mut core = self.core();
-                core.cancelled.insert(id);
-                core.wake.insert(id);
+                self.exec.cancel(id);
             }
         }
         self.run_ops();
     }
 
     fn close(&mut self, now: Timestamp) {
-        self.core().now = now;
-        if !matches!(self.closing, Closing::Open) {
+        self.now_is(now);
+        if self.closing != Closing::Open {
             return;
         }
         self.closing = Closing::Waiting;
-        let ids: Vec<OpId> = self.ops.keys().copied().collect();
-        for id in ids {
+        for id in self.exec.ids() {
             self.cancel(id, now);
         }
         self.run_ops();
     }
 
     fn handle_input(&mut self, input: Input<'_>, now: Timestamp) {
+        self.now_is(now);
         match input {
             Input::Bytes(b) => self.core().handle_bytes(b, now),
             Input::Frame(f) => self.core().handle_frame(f, now),
@@ -493,16 +475,18 @@ impl motionlink_link::session::Session for Session {
     }
 
     fn handle_link_error(&mut self, error: LinkError, now: Timestamp) {
+        self.now_is(now);
         self.core().handle_link_error(error, now);
         self.run_ops();
     }
 
     fn handle_reopened(&mut self, _result: Result<(), LinkError>, now: Timestamp) {
         // This session never asks for its port to be reopened.
-        self.core().now = now;
+        self.now_is(now);
     }
 
     fn poll_transmit(&mut self, now: Timestamp) -> Option<LinkAction> {
+        self.now_is(now);
         loop {
             self.run_ops();
             let action = self.core().poll_transmit(now);
@@ -510,18 +494,21 @@ impl motionlink_link::session::Session for Session {
                 return action;
             }
             // Sending may have ended a job (a broadcast that went out): its operation goes on first.
-            if self.core().wake.is_empty() {
+            if !self.exec.has_ready() {
                 return None;
             }
         }
     }
 
     fn poll_timeout(&self) -> Option<Timestamp> {
-        self.core().poll_timeout()
+        let engine = self.core().poll_timeout();
+        [engine, self.exec.poll_timeout()].into_iter().flatten().min()
     }
 
     fn handle_timeout(&mut self, now: Timestamp) {
+        self.now_is(now);
         self.core().handle_timeout(now);
+        self.exec.handle_timeout(now);
         self.run_ops();
     }
 
@@ -534,14 +521,14 @@ impl motionlink_link::session::Session for Session {
     }
 
     fn is_idle(&self) -> bool {
-        self.ops.is_empty() && matches!(self.closing, Closing::Open | Closing::Closed) && self.core().is_quiet()
+        self.exec.is_empty() && matches!(self.closing, Closing::Open | Closing::Closed) && self.core().is_quiet()
     }
 }
 
 /// A handle on a session's watchdog duty ([`Session::watchdog_view`]), still readable once the session is
 /// gone.
 #[derive(Clone)]
-pub struct WatchdogView(Arc<Mutex<Core>>);
+pub struct WatchdogView(CoreHandle<Core, Progress>);
 
 impl std::fmt::Debug for WatchdogView {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -553,7 +540,7 @@ impl WatchdogView {
     /// The modules whose watchdog the session switched on (or may have: a life sign not confirmed) and has
     /// not switched off again, in address order.
     pub fn armed(&self) -> Vec<Address> {
-        let core = lock(&self.0);
+        let core = self.0.core();
         let d = &core.duty;
         addresses(&d.online.union(&d.uncertain).copied().collect())
     }

@@ -10,8 +10,9 @@ const A4: Address = Address::checked(4);
 const A9: Address = Address::checked(9);
 
 use motionlink_link::can::CanEmulator;
-use motionlink_link::session::{Action as LinkAction, Event, Input, OpId, Session as _};
+use motionlink_link::session::{Action as LinkAction, Input, OpId, Session as _};
 use motionlink_link::Timestamp;
+use motionlink_testkit::wired::{Line, SerialOrCan, Telegram, Wired};
 
 use super::*;
 use crate::model::{ConfigFlag, StateFlag};
@@ -21,170 +22,103 @@ use crate::Emulator;
 
 mod polls;
 
-/// What went over the line, for assertions.
-#[derive(Debug, Clone, PartialEq)]
-enum Wire {
-    Rs232(Timestamp, Vec<u8>),
-    Frame(Timestamp, u32, Vec<u8>),
+/// The session wired to the emulated modules on an instant line (the shared harness).
+type Bench = Wired<Session, SerialOrCan<Emulator>>;
+
+/// What these tests ask of the harness.
+trait PowerCubeBench {
+    /// A session on RS232 with modules at `addresses`.
+    fn rs232(addresses: &[u8]) -> Self;
+    /// A session on CAN with modules at `addresses`.
+    fn can(addresses: &[u8]) -> Self;
+    /// A session with these modules, on CAN or RS232.
+    fn with_modules(modules: Vec<ModuleConfig>, can: bool) -> Self;
+    /// Runs `op` to its end (an hour of session time at most).
+    fn run(&mut self, op: Op) -> Result<Output, Error>;
+    /// Closes the session and runs its close sequence to its end.
+    fn close(&mut self) -> Result<(), String>;
+    /// Lets `d` of session time pass.
+    fn idle(&mut self, d: Duration);
+    /// State, position, watchdog online, Config word of module `a`, now.
+    fn module(&mut self, a: u8) -> (CubeState, f32, bool, ConfigWord);
+    /// When each watchdog refresh went out.
+    fn refreshes(&self) -> Vec<Timestamp>;
+    /// From now on the line loses every watchdog refresh on the way to the modules.
+    fn lose_refreshes(&mut self);
+    /// What the modules did since the last call (the lines `motionlink sim --events` prints).
+    fn take_device_events(&mut self) -> Vec<String>;
 }
 
-struct Bench {
-    session: Session,
-    device: Emulator,
-    now: Timestamp,
-    sent: Vec<Wire>,
-    events: Vec<Event<Session>>,
-    /// Drops every answer of the device while true.
-    deaf: bool,
-    /// Loses every watchdog refresh on the way to the device while true (a line that drops them).
-    lose_refreshes: bool,
-}
-
-impl Bench {
+impl PowerCubeBench for Bench {
     fn rs232(addresses: &[u8]) -> Bench {
         let device = Emulator::new(&SimConfig::with_addresses(addresses).unwrap());
         let session = Session::rs232(BusConfig::rs232(), "test line", Timestamp::ZERO);
-        Bench {
-            session,
-            device,
-            now: Timestamp::ZERO,
-            sent: Vec::new(),
-            events: Vec::new(),
-            deaf: false,
-            lose_refreshes: false,
-        }
+        Wired::new(session, SerialOrCan::Serial(device), Line::instant())
     }
 
     fn can(addresses: &[u8]) -> Bench {
         let device = Emulator::new_can(&SimConfig::with_addresses(addresses).unwrap());
         let session = Session::can(BusConfig::can(), "test bus", Timestamp::ZERO);
-        Bench {
-            session,
-            device,
-            now: Timestamp::ZERO,
-            sent: Vec::new(),
-            events: Vec::new(),
-            deaf: false,
-            lose_refreshes: false,
-        }
+        Wired::new(session, SerialOrCan::Can(device), Line::instant())
     }
 
     fn with_modules(modules: Vec<ModuleConfig>, can: bool) -> Bench {
         let config = SimConfig { modules, ..SimConfig::default() };
         let mut b = if can { Bench::can(&[1]) } else { Bench::rs232(&[1]) };
-        b.device = if can { Emulator::new_can(&config) } else { Emulator::new(&config) };
+        b.device = if can {
+            SerialOrCan::Can(Emulator::new_can(&config))
+        } else {
+            SerialOrCan::Serial(Emulator::new(&config))
+        };
         b
     }
 
-    /// Hands over everything the session has to send, and the device's answers, at the present time.
-    fn pump(&mut self) {
-        while let Some(action) = self.session.poll_transmit(self.now) {
-            match action {
-                LinkAction::Send(bytes) if self.lose_refreshes && bytes == REFRESH_RS232 => {
-                    self.sent.push(Wire::Rs232(self.now, bytes.clone()));
-                }
-                LinkAction::SendFrame(frame)
-                    if self.lose_refreshes && (frame.id(), frame.data()) == (0x100, &[7][..]) =>
-                {
-                    self.sent.push(Wire::Frame(self.now, frame.id(), frame.data().to_vec()));
-                }
-                LinkAction::Send(bytes) => {
-                    self.sent.push(Wire::Rs232(self.now, bytes.clone()));
-                    let mut answer = Vec::new();
-                    motionlink_link::emulator::Emulator::receive(&mut self.device, self.now, &bytes, &mut answer);
-                    if !answer.is_empty() && !self.deaf {
-                        self.session.handle_input(Input::Bytes(&answer), self.now);
-                    }
-                }
-                LinkAction::SendFrame(frame) => {
-                    self.sent.push(Wire::Frame(self.now, frame.id(), frame.data().to_vec()));
-                    let mut answers = Vec::new();
-                    CanEmulator::receive(&mut self.device, self.now, &frame, &mut answers);
-                    for a in answers.iter().filter(|_| !self.deaf) {
-                        self.session.handle_input(Input::Frame(a), self.now);
-                    }
-                }
-                LinkAction::DiscardInput | LinkAction::Reopen => {}
-            }
-        }
-        self.events.extend(std::iter::from_fn(|| self.session.poll_event()));
-    }
-
-    /// Moves time to the session's next deadline (at most `limit`), and lets it act.
-    fn step(&mut self, limit: Timestamp) -> bool {
-        self.pump();
-        let Some(t) = self.session.poll_timeout() else { return false };
-        if t > limit {
-            return false;
-        }
-        self.now = self.now.max(t);
-        self.device.update(self.now);
-        self.session.handle_timeout(self.now);
-        self.pump();
-        true
-    }
-
-    fn done(&mut self, id: OpId) -> Option<Result<Output, Error>> {
-        let i = self.events.iter().position(|e| matches!(e, Event::Done(d, _) if *d == id))?;
-        match self.events.remove(i) {
-            Event::Done(_, r) => Some(r),
-            _ => None,
-        }
-    }
-
-    /// Runs `op` to its end (an hour of session time at most).
     fn run(&mut self, op: Op) -> Result<Output, Error> {
-        let id = self.session.start(op, self.now);
-        let limit = self.now + Duration::from_secs(3600);
-        loop {
-            self.pump();
-            if let Some(r) = self.done(id) {
-                return r;
-            }
-            assert!(self.step(limit), "{id} did not end");
-        }
+        self.run_op(op)
     }
 
-    /// Closes the session and runs its close sequence to its end.
     fn close(&mut self) -> Result<(), String> {
-        self.session.close(self.now);
-        let limit = self.now + Duration::from_secs(5);
-        loop {
-            self.pump();
-            if let Some(i) = self.events.iter().position(|e| matches!(e, Event::Closed(_))) {
-                let Event::Closed(r) = self.events.remove(i) else { unreachable!() };
-                return r.map_err(|e| e.to_string());
-            }
-            assert!(self.step(limit), "the close sequence ends: {:?}", self.events);
-        }
+        self.close_session(Duration::from_secs(5)).map_err(|e| e.to_string())
     }
 
-    /// Lets `d` of session time pass.
     fn idle(&mut self, d: Duration) {
-        let until = self.now + d;
-        while self.step(until) {}
-        self.now = until;
-        self.device.update(until);
-        self.session.handle_timeout(until);
-        self.pump();
+        self.run_for(d);
+        self.settle();
     }
 
     fn module(&mut self, a: u8) -> (CubeState, f32, bool, ConfigWord) {
-        self.device.update(self.now);
+        let now = self.now;
+        self.device.update(now);
         let m = self.device.module(a).unwrap();
         (m.state(), m.position().value(), m.watchdog_online(), m.config_word())
     }
 
     fn refreshes(&self) -> Vec<Timestamp> {
-        self.sent
-            .iter()
-            .filter_map(|w| match w {
-                Wire::Frame(t, 0x100, d) if d == &[0x07] => Some(*t),
-                Wire::Rs232(t, b) if b == REFRESH_RS232 => Some(*t),
-                _ => None,
-            })
-            .collect()
+        self.sent.iter().filter(|(_, w)| is_refresh(w)).map(|(t, _)| *t).collect()
     }
+
+    fn lose_refreshes(&mut self) {
+        self.lose = Some(is_refresh);
+    }
+
+    fn take_device_events(&mut self) -> Vec<String> {
+        let mut events: Vec<String> = self.device_events.drain(..).map(|(_, e)| e).collect();
+        events.extend(self.device.take_events());
+        events
+    }
+}
+
+/// True for the watchdog refresh, on CAN or on RS232.
+fn is_refresh(w: &Telegram) -> bool {
+    match w.frame_id() {
+        Some(id) => id == 0x100 && w[..] == [0x07],
+        None => w[..] == *REFRESH_RS232,
+    }
+}
+
+/// True for a CAN frame with identifier `id` and data `d` (any data if `None`).
+fn frame(w: &Telegram, ids: impl Fn(u32) -> bool, d: Option<&[u8]>) -> bool {
+    w.frame_id().is_some_and(ids) && d.is_none_or(|d| w[..] == *d)
 }
 
 /// The watchdog refresh on RS232: the broadcast to address 0 in libm5api's form.
@@ -231,7 +165,7 @@ fn on_can_acknowledges_are_matched_to_their_module_in_one_round() {
     assert!(matches!(v[3], Err(Error::Timeout { address: A9, .. })));
     // Three rounds (the first, and two retries of address 9 alone), each one reply timeout.
     assert_eq!(b.now - t0, ms(150));
-    let gets = b.sent.iter().filter(|w| matches!(w, Wire::Frame(_, id, _) if (0xC1..=0xDF).contains(id))).count();
+    let gets = b.sent.iter().filter(|(_, w)| frame(w, |id| (0xC1..=0xDF).contains(&id), None)).count();
     assert_eq!(gets, 4 + 2);
 }
 
@@ -280,14 +214,7 @@ fn a_checked_move_polls_at_its_rate_reports_progress_and_ends_within_the_toleran
     assert!((report.reached.value() - 1.0).abs() <= 0.001, "{report:?}");
     assert_eq!(report.reached.unit(), crate::model::AxisUnit::Radian, "the kind was read for the units");
     assert_eq!(report.start, Position::rad(0.05));
-    let progress: Vec<Progress> = b
-        .events
-        .iter()
-        .filter_map(|e| match e {
-            Event::Progress(_, p) => Some(*p),
-            _ => None,
-        })
-        .collect();
+    let progress: Vec<Progress> = b.progress.iter().map(|(_, p)| *p).collect();
     assert!(progress.len() > 200, "{}", progress.len());
     for w in progress.windows(2) {
         assert_eq!(w[1].elapsed - w[0].elapsed, ms(10), "one poll per 10 ms");
@@ -308,7 +235,7 @@ fn a_position_in_rad_for_a_linear_module_is_refused_before_anything_moves() {
     assert!(err.is_usage() && err.to_string().contains("0.1 rad"), "{err}");
     let err = b.run(Op::Motion(addr(4), Motion::FVel { vel: Velocity::rad_per_s(0.1) }, AckKind::Simple)).unwrap_err();
     assert!(matches!(err, Error::UnitMismatch { .. }), "{err}");
-    assert_eq!(b.device.take_events(), Vec::<String>::new(), "nothing moved, nothing was written");
+    assert_eq!(b.take_device_events(), Vec::<String>::new(), "nothing moved, nothing was written");
     // In metres it moves; a bare number in the module's own unit too.
     let Ok(Output::Moved(r)) = b.run(Op::MoveTo(addr(4), MoveSpec::to(Position::m(0.1)))) else { panic!() };
     assert_eq!(r.reached.unit(), crate::model::AxisUnit::Metre);
@@ -326,8 +253,8 @@ fn a_cancelled_move_is_halted_and_says_the_module_confirmed_it() {
     b.idle(ms(500));
     assert!(b.module(1).0.contains(StateFlag::Motion));
     b.session.cancel(id, b.now);
-    b.pump();
-    let r = b.done(id).expect("ends at once: the halt is acknowledged within the same instant here");
+    b.settle();
+    let r = b.take_done(id).expect("ends at once: the halt is acknowledged within the same instant here");
     let err = r.unwrap_err();
     assert!(matches!(err, Error::Cancelled { address: A1, stop: StopOutcome::Confirmed }), "{err}");
     let (state, p, _, _) = b.module(1);
@@ -340,10 +267,10 @@ fn a_cancelled_read_ends_at_once_and_sets_nothing_in_motion() {
     let mut b = Bench::rs232(&[1]);
     b.deaf = true;
     let id = b.session.start(Op::Scan, b.now);
-    b.pump();
+    b.settle();
     b.session.cancel(id, b.now);
-    b.pump();
-    assert!(matches!(b.done(id), Some(Err(Error::Aborted { what: "the scan" }))));
+    b.settle();
+    assert!(matches!(b.take_done(id), Some(Err(Error::Aborted { what: "the scan" }))));
     assert!(b.session.is_idle() || b.session.wants_input(), "only the answer of the request on the line is awaited");
 }
 
@@ -361,8 +288,8 @@ fn close_halts_what_the_session_started_and_switches_the_watchdog_off() {
     assert!(!b.module(2).0.contains(StateFlag::Halted), "module 2 did not move: left alone");
     // Nothing new once closed.
     let id = b.session.start(Op::State(addr(1)), b.now);
-    b.pump();
-    assert!(matches!(b.done(id), Some(Err(Error::SessionClosed))));
+    b.settle();
+    assert!(matches!(b.take_done(id), Some(Err(Error::SessionClosed))));
     b.idle(Duration::from_secs(1));
     assert!(!b.module(2).0.has_fault(), "offline: nothing expires");
 }
@@ -379,7 +306,7 @@ fn a_close_that_cannot_confirm_the_stop_says_so_and_leaves_the_watchdog_to_stop_
     assert!(err.contains("could not be confirmed stopped") && err.contains("halts itself within 50 ms"), "{err}");
     // It asked for the state three times; silence from a module that answered before: a Halt broadcast
     // (which reaches the module: the bus carries it, only the answers are lost).
-    let broadcast = b.sent[sent_before..].iter().any(|w| matches!(w, Wire::Frame(_, 0x100, d) if d == &[0x02]));
+    let broadcast = b.sent[sent_before..].iter().any(|(_, w)| frame(w, |id| id == 0x100, Some(&[0x02])));
     assert!(broadcast, "{:?}", &b.sent[sent_before..]);
     assert!(b.session.failed() && !b.session.watchdog_served());
     b.idle(ms(100));
@@ -393,7 +320,7 @@ fn a_guarded_move_arms_the_watchdog_for_its_motion_only() {
     let before = b.module(1).3;
     let spec = MoveSpec { vel: Some(Velocity::native(1.0)), ..MoveSpec::to(Position::native(0.3)) };
     let Ok(Output::Moved(_)) = b.run(Op::MoveGuarded(addr(1), spec, Guard::Watchdog)) else { panic!() };
-    let events = b.device.take_events();
+    let events = b.take_device_events();
     let on = events.iter().position(|e| e == "module 1 watchdog online").expect("armed");
     let started = events.iter().position(|e| e.starts_with("module 1 motion started")).unwrap();
     let off = events.iter().position(|e| e == "module 1 watchdog offline").expect("disarmed");
@@ -405,7 +332,7 @@ fn a_guarded_move_arms_the_watchdog_for_its_motion_only() {
     else {
         panic!()
     };
-    assert!(!b.device.take_events().iter().any(|e| e.contains("watchdog")));
+    assert!(!b.take_device_events().iter().any(|e| e.contains("watchdog")));
 }
 
 #[test]
@@ -430,15 +357,15 @@ fn a_bus_that_answers_in_reverse_order_is_still_matched() {
     let id = b.session.start(Op::ReadMany(addrs(&[1, 2, 3]), Param::DefAddress), b.now);
     let mut answers = Vec::new();
     while let Some(LinkAction::SendFrame(f)) = b.session.poll_transmit(b.now) {
-        CanEmulator::receive(&mut b.device, b.now, &f, &mut answers);
+        CanEmulator::receive(&mut *b.device, b.now, &f, &mut answers);
     }
     assert_eq!(answers.len(), 3);
     for a in answers.iter().rev() {
         assert!(matches!(from_frame(a), Ok((Role::Ack(_), _))));
         b.session.handle_input(Input::Frame(a), b.now);
     }
-    b.pump();
-    let Some(Ok(Output::Values(v))) = b.done(id) else { panic!() };
+    b.settle();
+    let Some(Ok(Output::Values(v))) = b.take_done(id) else { panic!() };
     let got: Vec<Value> = v.into_iter().map(Result::unwrap).collect();
     assert_eq!(got, vec![Value::U8(1), Value::U8(2), Value::U8(3)]);
 }
@@ -475,7 +402,7 @@ fn homing_is_waited_for_with_progress_at_the_poll_rate() {
         "the kind read before homing names the unit"
     );
     assert!(r.verified && r.not_verifiable.is_empty(), "no guard asked for: nothing left undone");
-    let polls = b.events.iter().filter(|e| matches!(e, Event::Progress(..))).count();
+    let polls = b.progress.len();
     assert!(polls >= 5, "{polls}");
     assert!(b.session.started().is_empty(), "seen to end");
 }
@@ -495,11 +422,11 @@ fn an_answer_that_echoes_another_parameter_is_corrupt_and_a_read_is_asked_again(
     let Ok(Output::Value(v)) = ({
         let limit = b.now + Duration::from_secs(1);
         loop {
-            b.pump();
-            if let Some(r) = b.done(id) {
+            b.settle();
+            if let Some(r) = b.take_done(id) {
                 break r;
             }
-            assert!(b.step(limit));
+            assert!(b.step_before(limit));
         }
     }) else {
         panic!()
@@ -514,17 +441,17 @@ fn a_motion_command_cancelled_before_its_acknowledge_is_halted() {
     b.deaf = true; // the command arrives; its acknowledge is lost
     let motion = Motion::FVel { vel: Velocity::native(0.2) };
     let id = b.session.start(Op::Motion(addr(1), motion, AckKind::Simple), b.now);
-    b.pump();
+    b.settle();
     assert!(b.module(1).0.contains(StateFlag::Motion), "the module took it");
     b.session.cancel(id, b.now);
     b.deaf = false;
     let limit = b.now + Duration::from_secs(1);
     let r = loop {
-        b.pump();
-        if let Some(r) = b.done(id) {
+        b.settle();
+        if let Some(r) = b.take_done(id) {
             break r;
         }
-        assert!(b.step(limit));
+        assert!(b.step_before(limit));
     };
     let err = r.unwrap_err();
     assert!(matches!(err, Error::Cancelled { address: A1, stop: StopOutcome::Confirmed }), "{err}");

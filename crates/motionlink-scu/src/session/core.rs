@@ -3,7 +3,6 @@
 
 use std::time::Duration;
 
-use motionlink_link::session::{Event, OpId};
 use motionlink_link::Timestamp;
 
 use super::line::{Exchange, Line};
@@ -105,10 +104,6 @@ impl Core {
         self.last_was_rc = is_rc;
         let exchange = Exchange::start(request, &mut self.line, &self.config, now, &mut self.outbox);
         self.in_flight = Some(InFlight { owner, txn, exchange });
-    }
-
-    pub fn push_progress(&mut self, id: OpId, p: Progress) {
-        self.events.push_back(Event::Progress(id, p));
     }
 
     /// Counts a reopened remote mode.

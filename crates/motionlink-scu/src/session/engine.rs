@@ -1,130 +1,165 @@
-//! How the session goes on: operations resumed and what they want next, exchanges ended, the keepalive's
-//! replies handed out, a lost port, and the choice of what goes out next on the line.
+//! How the session goes on: the operations' requests queued and picked for the line, exchanges ended and
+//! their outcomes handed to the operations that wait for them (the reply, the next poll of a motion, the
+//! port reopened), the keepalive's replies, a lost port.
 
-use std::collections::BTreeMap;
+use motionlink_link::exec::Ticket;
+use motionlink_link::session::{Action, OpId};
+use motionlink_link::{LinkError, Timestamp};
 
-use motionlink_link::session::{Action, Event, OpId};
-use motionlink_link::Timestamp;
-
-use super::ops::{self, Next, Operation, Resume};
+use super::ops;
 use super::request::{OwnedReply, Schedule};
 use super::txn::{Txn, TxnStep};
 use super::*;
 use crate::config::MAX_ROOM_WAIT;
 use crate::wire::{Command, Status};
 
-impl Session {
-    pub(super) fn add_op(&mut self, op: Box<dyn Operation>, kind: Kind) -> OpId {
-        let id = self.core.ids.next_id();
-        self.ops.insert(id, Slot { op, waiting: Waiting::Nothing, kind, cancelled: false });
-        self.advance(id, Resume::Start);
-        id
+impl Core {
+    /// Queues request `req` of operation `op` (admitted); its outcome goes under the ticket returned.
+    /// `cancellable`: a cancel of the operation takes it out of the queue.
+    pub(super) fn enqueue(&mut self, op: OpId, req: Req, cancellable: bool) -> Ticket {
+        let ticket = self.replies.open(op);
+        self.queue.push_back(Queued { owner: op, ticket, req, at: self.now, cancellable });
+        ticket
     }
 
-    /// Resumes operation `id` with `resume` and does what it wants next, until it waits for something.
-    pub(super) fn advance(&mut self, id: OpId, mut resume: Resume) {
-        loop {
-            let Some(slot) = self.ops.get_mut(&id) else { return };
-            let mut cx = Cx { core: &mut self.core, id, cancelled: slot.cancelled };
-            let next = slot.op.step(&mut cx, resume);
-            self.core.subscribers.remove(&id);
-            match next {
-                Next::Send(req) => {
-                    if let Err(e) = self.core.admit(&req) {
-                        resume = Resume::Reply(Err(e));
-                        continue;
+    /// Operation `op` was cancelled: its request still in the queue, if a cancel may take it out, ends with
+    /// [`Error::CancelledBeforeSending`].
+    pub(super) fn cancel_queued(&mut self, op: OpId) {
+        let Some(i) = self.queue.iter().position(|q| q.owner == op && q.cancellable) else { return };
+        let q = self.queue.remove(i).expect("found in the queue");
+        self.replies.finish(q.ticket, Err(Error::CancelledBeforeSending(q.req.request.command)));
+    }
+
+    /// Operation `op` waits for the next poll of a motion; the outcome goes under the ticket returned.
+    pub(super) fn subscribe(&mut self, op: OpId) -> Ticket {
+        if self.subscribers.is_empty() {
+            // Polling starts: the next RC is due one poll interval from now at the latest.
+            let first = self.now + self.config.poll_interval;
+            self.keepalive_due = self.keepalive_due.min(first);
+        }
+        let ticket = self.snapshots.open(op);
+        if let Some(old) = self.subscribers.insert(op, ticket) {
+            self.snapshots.close(old);
+        }
+        ticket
+    }
+
+    /// Operation `op` waits no longer for the next poll.
+    pub(super) fn unsubscribe(&mut self, op: OpId) {
+        if let Some(ticket) = self.subscribers.remove(&op) {
+            self.snapshots.close(ticket);
+        }
+    }
+
+    /// Operation `op` has the port closed and opened again; the outcome goes under the ticket returned.
+    pub(super) fn request_reopen(&mut self, op: OpId) -> Ticket {
+        self.link_up = false;
+        let ticket = self.reopens.open(op);
+        self.reopen_waiter = Some((op, ticket));
+        self.outbox.push_back(Action::Reopen);
+        ticket
+    }
+
+    /// The driver reopened the port, or could not.
+    pub(super) fn reopened(&mut self, result: Result<(), LinkError>) {
+        let Some((_, ticket)) = self.reopen_waiter.take() else { return };
+        let result = match result {
+            Ok(()) => {
+                self.reset_line();
+                Ok(())
+            }
+            Err(e) => Err(Error::from(e)),
+        };
+        self.reopens.finish(ticket, result);
+    }
+
+    /// Forgets what operation `op` waited for (it ended, or was given up): its request in the queue is not
+    /// sent, what it waited for is dropped when it comes.
+    pub(super) fn forget(&mut self, op: OpId) {
+        self.replies.forget(op);
+        self.snapshots.forget(op);
+        self.reopens.forget(op);
+        self.subscribers.remove(&op);
+        self.queue.retain(|q| q.owner != op);
+    }
+
+    /// True while operation `op` has an exchange under way or waits for the port to be reopened.
+    pub(super) fn busy_for(&self, op: OpId) -> bool {
+        matches!(self.in_flight.as_ref().map(|f| f.owner), Some(Owner::Op(o, _)) if o == op)
+            || self.reopen_waiter.is_some_and(|(o, _)| o == op)
+    }
+
+    /// Bytes came from the unit at `now`.
+    pub(super) fn handle_bytes(&mut self, bytes: &[u8], now: Timestamp) {
+        let Some(f) = self.in_flight.as_mut() else {
+            self.line.take_unsolicited(bytes, now);
+            return;
+        };
+        let outcome = f.exchange.on_input(bytes, &mut self.line, &self.config, &mut self.counts, now, &mut self.outbox);
+        if let Some(result) = outcome {
+            let f = self.in_flight.take().expect("checked above");
+            self.exchange_done(f.owner, f.txn, result);
+        }
+    }
+
+    /// Time has reached `now`: the exchange under way may have timed out, late replies are no longer awaited,
+    /// requests that found no room fail.
+    pub(super) fn handle_timeout(&mut self, now: Timestamp) {
+        if let Some(f) = self.in_flight.as_mut() {
+            if let Some(result) =
+                f.exchange.on_timeout(&mut self.line, &self.config, &mut self.counts, now, &mut self.outbox)
+            {
+                let f = self.in_flight.take().expect("checked above");
+                self.exchange_done(f.owner, f.txn, result);
+            }
+        }
+        self.line.expire_late(now);
+        self.fail_roomless(now);
+    }
+
+    /// When the engine next needs the time (the operations' own times apart).
+    pub(super) fn poll_timeout(&self) -> Option<Timestamp> {
+        let mut next: Option<Timestamp> = None;
+        let mut consider = |t: Timestamp| next = Some(next.map_or(t, |n: Timestamp| n.min(t)));
+        if let Some(f) = &self.in_flight {
+            consider(f.exchange.timeout_at());
+        } else if self.link_up && self.reopen_waiter.is_none() {
+            if self.keepalive_running() {
+                // An RC held back by late replies to an earlier RC goes out when they came or their time is up.
+                match self.line.late {
+                    Some(late) if self.line.held_by_late(Command::Cyclic, self.now) => {
+                        consider(self.keepalive_due.max(late.until))
                     }
-                    self.core.queue.push_back(Queued { owner: id, req, at: self.core.now });
-                    slot_mut(&mut self.ops, id).waiting = Waiting::Queued;
-                }
-                Next::Sleep(t) => {
-                    if t <= self.core.now {
-                        resume = Resume::Wake;
-                        continue;
-                    }
-                    slot_mut(&mut self.ops, id).waiting = Waiting::Until(t);
-                }
-                Next::Snapshot => {
-                    if !self.core.link_up {
-                        resume = Resume::Snapshot(Err(self.core.lost_error()));
-                        continue;
-                    }
-                    if self.core.subscribers.is_empty() {
-                        // Polling starts: the next RC is due one poll interval from now at the latest.
-                        let first = self.core.now + self.core.config.poll_interval;
-                        self.core.keepalive_due = self.core.keepalive_due.min(first);
-                    }
-                    self.core.subscribers.insert(id);
-                    slot_mut(&mut self.ops, id).waiting = Waiting::Snapshot;
-                }
-                Next::Reopen => {
-                    self.core.link_up = false;
-                    self.core.reopen_waiter = Some(id);
-                    self.core.outbox.push_back(Action::Reopen);
-                    slot_mut(&mut self.ops, id).waiting = Waiting::Reopen;
-                }
-                Next::Done(result) => {
-                    let slot = self.ops.remove(&id).expect("the slot was just used");
-                    match slot.kind {
-                        Kind::Public => self.core.events.push_back(Event::Done(id, result)),
-                        Kind::Close => {
-                            self.core.state = State::Closed;
-                            self.core.line.remote = false;
-                            self.core.events.push_back(Event::Closed(result.map(|_| ())));
-                        }
-                        Kind::Internal => {
-                            if let Err(e) = result {
-                                tracing::info!("{e}");
-                            }
-                        }
-                    }
-                    self.maybe_start_close();
+                    _ => consider(self.keepalive_due),
                 }
             }
-            return;
+            if let Some(late) = self.line.late {
+                consider(late.until);
+            }
+            for q in &self.queue {
+                if q.req.schedule != Schedule::Now {
+                    consider(q.at + MAX_ROOM_WAIT);
+                }
+            }
         }
-    }
-
-    /// Once every caller's operation has ended, the end of the session begins.
-    pub(super) fn maybe_start_close(&mut self) {
-        if !self.core.closing || self.core.state == State::Closed {
-            return;
+        if matches!(self.state, State::Lost(_)) && self.config.auto_reconnect && !self.closing {
+            consider(self.next_reconnect);
         }
-        if self.ops.values().any(|s| s.kind == Kind::Public || s.kind == Kind::Close) {
-            return;
-        }
-        // An automatic reconnection under way is given up (once its exchange, if any, has ended).
-        if self
-            .ops
-            .values()
-            .any(|s| s.kind == Kind::Internal && matches!(s.waiting, Waiting::InFlight | Waiting::Reopen))
-        {
-            return;
-        }
-        let internal: Vec<OpId> =
-            self.ops.iter().filter(|(_, s)| s.kind == Kind::Internal).map(|(id, _)| *id).collect();
-        for id in internal {
-            self.ops.remove(&id);
-            self.core.queue.retain(|q| q.owner != id);
-        }
-        self.add_op(Box::new(ops::Close::new()), Kind::Close);
+        next
     }
 
     /// The exchange under way ended with `result`.
     pub(super) fn exchange_done(&mut self, owner: Owner, txn: Option<Txn>, result: Result<OwnedReply, Error>) {
         match owner {
             Owner::Keepalive(carries) => self.keepalive_done(carries, result),
-            Owner::Op(id) => {
+            Owner::Op(id, ticket) => {
                 let Some(mut txn) = txn else { return };
-                match txn.next(&mut self.core, result) {
+                match txn.next(self, result) {
                     TxnStep::Again(request) => {
-                        self.core.start_exchange(Owner::Op(id), Some(txn), request);
+                        self.start_exchange(Owner::Op(id, ticket), Some(txn), request);
                     }
                     TxnStep::Finished(result) => {
-                        if let Some(slot) = self.ops.get_mut(&id) {
-                            slot.waiting = Waiting::Nothing;
-                        }
-                        self.advance(id, Resume::Reply(result));
+                        self.replies.finish(ticket, result);
                     }
                 }
             }
@@ -132,19 +167,19 @@ impl Session {
     }
 
     pub(super) fn keepalive_done(&mut self, carries: Carries, result: Result<OwnedReply, Error>) {
-        let now = self.core.now;
+        let now = self.now;
         let snapshot = match result {
             Ok(reply) if reply.status == Status::Ack => {
-                self.core.stats.keepalives += 1;
+                self.stats.keepalives += 1;
                 match carries {
                     Carries::CallersObject => {
                         if let Some(data) = reply.data {
-                            self.core.last_cyclic_read = Some((now, data));
+                            self.last_cyclic_read = Some((now, data));
                         }
                         None
                     }
                     Carries::PollObject => {
-                        self.core.stats.motion_polls += 1;
+                        self.stats.motion_polls += 1;
                         Some(snapshot_of(reply.data.as_deref().unwrap_or_default(), now))
                     }
                     Carries::Nothing => None,
@@ -156,8 +191,8 @@ impl Session {
                     let why = "the unit has left remote mode: it refused even RC with PE (it was reset, or another \
                                host sent RA); the session does not open remote mode again by itself"
                         .to_string();
-                    self.core.state = State::Ended(why.clone());
-                    self.core.line.remote = false;
+                    self.state = State::Ended(why.clone());
+                    self.line.remote = false;
                     Error::RemoteEnded(why)
                 } else {
                     Error::Refused { command: Command::Cyclic, status: reply.status }
@@ -172,125 +207,112 @@ impl Session {
             }
         };
         if let Some(snapshot) = snapshot {
-            let waiting: Vec<OpId> = std::mem::take(&mut self.core.subscribers).into_iter().collect();
-            for id in waiting {
-                if let Some(slot) = self.ops.get_mut(&id) {
-                    slot.waiting = Waiting::Nothing;
-                }
-                self.advance(id, Resume::Snapshot(snapshot.clone()));
-            }
+            self.deliver_snapshots(snapshot);
+        }
+    }
+
+    /// Hands `result` to every operation waiting for the next poll.
+    fn deliver_snapshots(&mut self, result: Result<Snapshot, Error>) {
+        for (_, ticket) in std::mem::take(&mut self.subscribers) {
+            self.snapshots.finish(ticket, result.clone());
         }
     }
 
     /// The port failed: every exchange and request fails, the unit's watchdog stops the drives.
     pub(super) fn lost(&mut self, why: String) {
-        if self.core.state == State::Opening && self.core.started.is_empty() {
+        if self.state == State::Opening && self.started.is_empty() {
             // Nothing was opened or started: the open fails with this, and its caller says so.
             tracing::debug!("SCU session lost while opening: {why}");
         } else {
             tracing::info!("SCU session lost: {why}");
         }
-        let core = &mut self.core;
-        core.link_up = false;
-        core.line.remote = false;
-        core.line.late = None;
-        core.outbox.clear();
-        if core.state != State::Closed {
-            core.state = State::Lost(why.clone());
+        self.link_up = false;
+        self.line.remote = false;
+        self.line.late = None;
+        self.outbox.clear();
+        if self.state != State::Closed {
+            self.state = State::Lost(why.clone());
         }
-        core.next_reconnect = core.now + core.config.reconnect_interval;
+        self.next_reconnect = self.now + self.config.reconnect_interval;
         let e = Error::SessionLost(why);
-        if let Some(f) = core.in_flight.take() {
+        if let Some(f) = self.in_flight.take() {
             self.exchange_done(f.owner, f.txn.map(Txn::abandon), Err(e.clone()));
         }
-        let queued: Vec<Queued> = self.core.queue.drain(..).collect();
+        let queued: Vec<Queued> = self.queue.drain(..).collect();
         for q in queued {
-            if let Some(slot) = self.ops.get_mut(&q.owner) {
-                slot.waiting = Waiting::Nothing;
-            }
-            self.advance(q.owner, Resume::Reply(Err(e.clone())));
+            self.replies.finish(q.ticket, Err(e.clone()));
         }
-        let waiting: Vec<OpId> = std::mem::take(&mut self.core.subscribers).into_iter().collect();
-        for id in waiting {
-            self.advance(id, Resume::Snapshot(Err(e.clone())));
-        }
+        self.deliver_snapshots(Err(e));
     }
 
     /// Starts what can go out now: a stop, the keepalive when due, or a request that has room.
-    pub(super) fn schedule(&mut self) {
-        let now = self.core.now;
-        self.fail_roomless(now);
-        self.fail_watchers_without_keepalive();
-        let core = &mut self.core;
-        if core.in_flight.is_some() || core.reopen_waiter.is_some() || !core.link_up {
+    pub(super) fn schedule(&mut self, now: Timestamp) {
+        if self.in_flight.is_some() || self.reopen_waiter.is_some() || !self.link_up {
             return;
         }
-        let running = core.keepalive_running();
-        let mut rc_due = running && now >= core.keepalive_due;
-        if rc_due && core.line.silent && core.subscribers.is_empty() {
+        let running = self.keepalive_running();
+        let mut rc_due = running && now >= self.keepalive_due;
+        if rc_due && self.line.silent && self.subscribers.is_empty() {
             // The unit has not been heard for a whole request: its watchdog is left to expire (it stops the
             // drives); the next request tries the line. (A motion watched through the RC still gets its RC:
             // one short try, whose failure ends the watch.)
-            core.advance_keepalive(now);
+            self.advance_keepalive(now);
             rc_due = false;
         }
-        let room = core.has_room(now);
-        let urgent = core.queue.iter().position(|q| {
-            !core.line.held_by_late(q.req.request.command, now)
+        let room = self.has_room(now);
+        let urgent = self.queue.iter().position(|q| {
+            !self.line.held_by_late(q.req.request.command, now)
                 && (q.req.schedule == Schedule::Now
                     || (q.req.schedule == Schedule::RoomOrLate && now >= q.at + MAX_ROOM_WAIT))
         });
         let polite = if room {
-            core.queue.iter().position(|q| !core.line.held_by_late(q.req.request.command, now))
+            self.queue.iter().position(|q| !self.line.held_by_late(q.req.request.command, now))
         } else {
             None
         };
-        let rc_free = !core.line.held_by_late(Command::Cyclic, now);
+        let rc_free = !self.line.held_by_late(Command::Cyclic, now);
         let pick = if let Some(i) = urgent {
             Some(i)
-        } else if rc_due && rc_free && (!core.last_was_rc || polite.is_none()) {
-            core.send_keepalive(now);
+        } else if rc_due && rc_free && (!self.last_was_rc || polite.is_none()) {
+            self.send_keepalive(now);
             return;
         } else {
             polite
         };
         let Some(i) = pick else { return };
-        let q = core.queue.remove(i).expect("picked from the queue");
-        if let Some(slot) = self.ops.get_mut(&q.owner) {
-            slot.waiting = Waiting::InFlight;
-        }
+        let q = self.queue.remove(i).expect("picked from the queue");
         let txn = Txn::new(q.req.clone());
         if let Some(f) = q.req.request.starts {
             // Counted as started before it is sent: a lost reply may hide a started motion.
-            self.core.started.insert(f);
+            self.started.insert(f);
         }
-        self.core.start_exchange(Owner::Op(q.owner), Some(txn), q.req.request);
+        self.start_exchange(Owner::Op(q.owner, q.ticket), Some(txn), q.req.request);
+    }
+
+    /// What waits in vain ends: requests that waited too long for room, and waits for the next poll of a
+    /// motion when no RC will come any more.
+    pub(super) fn fail_waiting(&mut self, now: Timestamp) {
+        self.fail_roomless(now);
+        self.fail_watchers_without_keepalive();
     }
 
     /// Operations waiting for the next poll of a motion get an error when no RC will come any more (the
     /// session is no longer open: the unit ended remote mode).
     fn fail_watchers_without_keepalive(&mut self) {
-        if self.core.subscribers.is_empty() || self.core.keepalive_running() || !self.core.link_up {
+        if self.subscribers.is_empty() || self.keepalive_running() || !self.link_up {
             return;
         }
-        let e = match &self.core.state {
+        let e = match &self.state {
             State::Ended(why) => Error::RemoteEnded(why.clone()),
             State::Lost(why) => Error::SessionLost(why.clone()),
             _ => Error::Closed,
         };
-        let waiting: Vec<OpId> = std::mem::take(&mut self.core.subscribers).into_iter().collect();
-        for id in waiting {
-            if let Some(slot) = self.ops.get_mut(&id) {
-                slot.waiting = Waiting::Nothing;
-            }
-            self.advance(id, Resume::Snapshot(Err(e.clone())));
-        }
+        self.deliver_snapshots(Err(e));
     }
 
     /// Requests that waited too long for room: fail, or go anyway.
-    pub(super) fn fail_roomless(&mut self, now: Timestamp) {
+    fn fail_roomless(&mut self, now: Timestamp) {
         let expired: Vec<usize> = self
-            .core
             .queue
             .iter()
             .enumerate()
@@ -298,22 +320,15 @@ impl Session {
             .map(|(i, _)| i)
             .collect();
         for i in expired.into_iter().rev() {
-            let q = self.core.queue.remove(i).expect("index from the queue");
+            let q = self.queue.remove(i).expect("index from the queue");
             let e = Error::NoRoom {
                 command: q.req.request.command,
-                round_trip: self.core.line.recent_round_trip.unwrap_or(self.core.line.round_trip),
+                round_trip: self.line.recent_round_trip.unwrap_or(self.line.round_trip),
                 waited: now - q.at,
             };
-            if let Some(slot) = self.ops.get_mut(&q.owner) {
-                slot.waiting = Waiting::Nothing;
-            }
-            self.advance(q.owner, Resume::Reply(Err(e)));
+            self.replies.finish(q.ticket, Err(e));
         }
     }
-}
-
-pub(super) fn slot_mut(ops: &mut BTreeMap<OpId, Slot>, id: OpId) -> &mut Slot {
-    ops.get_mut(&id).expect("the operation's slot")
 }
 
 /// The state in the read data of the session's cyclic object ([`POLL_READ`]).

@@ -46,23 +46,25 @@
 //!   after the last one; so a link with round trips of 300 ms still keeps the unit alive during a move, which
 //!   it then watches through the RC alone. A request that finds no room within
 //!   [`crate::config::MAX_ROOM_WAIT`] fails ([`crate::Error::NoRoom`]); stops are never held back.
-//! - **Operations** ([`Op`]) are state machines that end with one [`Event::Done`](motionlink_link::session::Event);
+//! - **Operations** ([`Op`]) are `async fn`s that read like the manual's routines, run by the one executor of
+//!   `motionlink-link` ([`motionlink_link::exec`]), and end with one [`Event::Done`](motionlink_link::session::Event);
 //!   a cancelled one stops what it started (RS for every RE); [`Session::close`](motionlink_link::session::Session::close)
 //!   cancels them all, sends RS for every function still started, then RA, and reports [`Event::Closed`](motionlink_link::session::Event).
 
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::time::Duration;
 
-use motionlink_link::session::{Action, Event, Input, OpId, OpIds, Session as SessionTrait};
+use motionlink_link::exec::{CoreGuard, Executor, Jobs, Report, Ticket};
+use motionlink_link::session::{Action, Event, Input, OpId, Session as SessionTrait};
 use motionlink_link::{LinkError, Timestamp};
 
-use crate::config::{ClientConfig, MAX_ROOM_WAIT};
+use crate::config::ClientConfig;
 use crate::error::Error;
 use crate::model::{CyclicObject, DataIndex};
-use crate::wire::Command;
 
 mod caps;
 mod core;
+mod ctx;
 mod engine;
 mod line;
 pub(crate) mod ops;
@@ -71,15 +73,15 @@ mod request;
 mod txn;
 
 pub use caps::Capabilities;
+use ctx::Ctx;
 use line::{Exchange, Line, LineCounts};
 pub use ops::WatchSpec;
-use ops::{Cx, Operation, Resume};
 pub use ops::{MoveSpec, MoveTargets, Op, Output, Progress, RunAction, RunSpec};
 pub use report::{
     ActuatorOutcome, ActuatorRest, ClientStats, MoveProgress, MoveReport, RefusedStop, RunProgress, RunReport,
     SetReport, Snapshot, StopReport,
 };
-pub(crate) use request::{OwnedReply, Req, Schedule};
+pub(crate) use request::{OwnedReply, Req};
 
 pub use request::PreparedRequest;
 use txn::Txn;
@@ -139,7 +141,8 @@ pub(crate) const POLL_READ_LEN: usize = 6 + 24 + 12 + 4;
 /// Who is waiting for the exchange under way.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Owner {
-    Op(OpId),
+    /// An operation, for the reply under this ticket.
+    Op(OpId, Ticket),
     Keepalive(Carries),
 }
 
@@ -159,19 +162,12 @@ struct InFlight {
 
 struct Queued {
     owner: OpId,
+    /// Where its reply goes.
+    ticket: Ticket,
     req: Req,
     at: Timestamp,
-}
-
-/// What an operation waits for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Waiting {
-    Nothing,
-    Queued,
-    InFlight,
-    Until(Timestamp),
-    Snapshot,
-    Reopen,
+    /// A cancel of its operation takes it out of the queue.
+    cancellable: bool,
 }
 
 /// How an operation's end is reported.
@@ -185,18 +181,10 @@ enum Kind {
     Internal,
 }
 
-struct Slot {
-    op: Box<dyn Operation>,
-    waiting: Waiting,
-    kind: Kind,
-    cancelled: bool,
-}
-
-/// Everything but the operations.
+/// Everything the operations share with the session.
 pub(crate) struct Core {
     pub config: ClientConfig,
     pub now: Timestamp,
-    ids: OpIds,
     pub line: Line,
     counts: LineCounts,
     in_flight: Option<InFlight>,
@@ -214,30 +202,42 @@ pub(crate) struct Core {
     last_rc_sent: Option<Timestamp>,
     last_was_rc: bool,
     next_reconnect: Timestamp,
-    reopen_waiter: Option<OpId>,
+    /// The operation waiting for the port to be reopened, and where the outcome goes.
+    reopen_waiter: Option<(OpId, Ticket)>,
     pub cyclic: Option<CyclicUse>,
     pub last_cyclic_read: Option<(Timestamp, Vec<u8>)>,
     pub poll: PollObject,
     /// What the unit was found to do beyond the manual's words.
     pub(crate) probed: caps::Probed,
-    /// Operations waiting for the next poll of a motion.
-    subscribers: BTreeSet<OpId>,
-    events: VecDeque<Event<Session>>,
+    /// Operations waiting for the next poll of a motion, and where it goes.
+    subscribers: BTreeMap<OpId, Ticket>,
+    /// Replies to the operations' requests.
+    pub replies: Jobs<Result<OwnedReply, Error>>,
+    /// The next poll of a motion, for the operations subscribed to it.
+    pub snapshots: Jobs<Result<Snapshot, Error>>,
+    /// The outcome of reopening the port.
+    pub reopens: Jobs<Result<(), Error>>,
     closing: bool,
 }
 
 /// The SCU protocol as a sans-IO session. See the [module documentation](self).
 pub struct Session {
-    core: Core,
-    ops: BTreeMap<OpId, Slot>,
+    /// The settings (the core has them too; this copy can be lent out).
+    config: ClientConfig,
+    /// The operations, run by the one executor of `motionlink-link`, around the core.
+    exec: Executor<Core, Progress, Result<Output, Error>>,
+    /// How each operation's end is reported.
+    kinds: BTreeMap<OpId, Kind>,
+    events: VecDeque<Event<Session>>,
 }
 
 impl std::fmt::Debug for Session {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let core = self.core();
         f.debug_struct("Session")
-            .field("state", &self.core.state)
-            .field("started", &self.core.started)
-            .field("operations", &self.ops.len())
+            .field("state", &core.state)
+            .field("started", &core.started)
+            .field("operations", &self.exec.len())
             .finish()
     }
 }
@@ -246,63 +246,73 @@ impl Session {
     /// A session with `config` (checked) at `now`. Nothing is sent until [`Op::Open`] is started.
     pub fn new(config: ClientConfig, now: Timestamp) -> Result<Session, Error> {
         config.validate()?;
-        Ok(Session {
-            core: Core {
-                config,
-                now,
-                ids: OpIds::default(),
-                line: Line::default(),
-                counts: LineCounts::default(),
-                in_flight: None,
-                outbox: VecDeque::new(),
-                queue: VecDeque::new(),
-                state: State::Opening,
-                link_up: true,
-                started: BTreeSet::new(),
-                stats: ClientStats::default(),
-                keepalive_due: now,
-                last_rc_sent: None,
-                last_was_rc: false,
-                next_reconnect: now,
-                reopen_waiter: None,
-                cyclic: None,
-                last_cyclic_read: None,
-                poll: PollObject::default(),
-                probed: caps::Probed::default(),
-                subscribers: BTreeSet::new(),
-                events: VecDeque::new(),
-                closing: false,
-            },
-            ops: BTreeMap::new(),
-        })
+        let core = Core {
+            config: config.clone(),
+            now,
+            line: Line::default(),
+            counts: LineCounts::default(),
+            in_flight: None,
+            outbox: VecDeque::new(),
+            queue: VecDeque::new(),
+            state: State::Opening,
+            link_up: true,
+            started: BTreeSet::new(),
+            stats: ClientStats::default(),
+            keepalive_due: now,
+            last_rc_sent: None,
+            last_was_rc: false,
+            next_reconnect: now,
+            reopen_waiter: None,
+            cyclic: None,
+            last_cyclic_read: None,
+            poll: PollObject::default(),
+            probed: caps::Probed::default(),
+            subscribers: BTreeMap::new(),
+            replies: Jobs::default(),
+            snapshots: Jobs::default(),
+            reopens: Jobs::default(),
+            closing: false,
+        };
+        Ok(Session { config, exec: Executor::new(core, now), kinds: BTreeMap::new(), events: VecDeque::new() })
+    }
+
+    fn core(&self) -> CoreGuard<'_, Core, Progress> {
+        self.exec.core()
+    }
+
+    /// Every call into the session tells it the time: the engine's and the operations' clock.
+    fn now_is(&mut self, now: Timestamp) {
+        self.exec.core_at(now).now = now;
     }
 
     /// The session's settings.
     pub fn config(&self) -> &ClientConfig {
-        &self.core.config
+        &self.config
     }
 
     /// Counters of the session.
     pub fn stats(&self) -> ClientStats {
-        let mut s = self.core.stats;
-        s.retries = self.core.counts.retries;
-        s.flushes = self.core.counts.flushes;
+        let core = self.core();
+        let mut s = core.stats;
+        s.retries = core.counts.retries;
+        s.flushes = core.counts.flushes;
         s
     }
 
     /// Functions started with RE and not yet stopped (wire ids).
     pub fn started_functions(&self) -> Vec<u8> {
-        self.core.started.iter().copied().collect()
+        self.core().started.iter().copied().collect()
     }
 
     /// True while the session is open (not lost, not ended by the unit, not closed).
     pub fn is_open(&self) -> bool {
-        self.core.state == State::Open
+        self.core().state == State::Open
     }
 
     /// Why the session is not open, if it is not: lost, ended by the unit, or closed.
     pub fn not_open_reason(&self) -> Option<String> {
-        match &self.core.state {
+        let state = self.core().state.clone();
+        match &state {
             State::Open => None,
             State::Opening => Some("the session is not open yet".into()),
             State::Ended(why) => Some(why.clone()),
@@ -314,39 +324,125 @@ impl Session {
     /// The read data of the latest keepalive RC that carried the caller's cyclic object, with its time and
     /// the object.
     pub fn last_cyclic_read(&self) -> Option<(Timestamp, CyclicObject, Vec<u8>)> {
-        let (t, data) = self.core.last_cyclic_read.clone()?;
-        Some((t, self.core.cyclic.as_ref()?.object, data))
+        let core = self.core();
+        let (t, data) = core.last_cyclic_read.clone()?;
+        Some((t, core.cyclic.as_ref()?.object, data))
     }
 
     /// Keepalive RCs carry no cyclic object of the caller's again.
     pub fn stop_cyclic(&mut self) {
-        self.core.cyclic = None;
-        self.core.last_cyclic_read = None;
+        let mut core = self.core();
+        core.cyclic = None;
+        core.last_cyclic_read = None;
     }
 
     /// The caller wrote the definition of CyclicObj `slot`: if the session polls motions through it, it
     /// defines it again before the next move.
     pub fn cyclic_slot_written(&mut self, slot: u8) {
-        if self.core.poll_slot() == Some(slot) {
-            self.core.poll.configured = false;
+        let mut core = self.core();
+        if core.poll_slot() == Some(slot) {
+            core.poll.configured = false;
         }
     }
 
     /// The round trip the session measured lately (the longest, decaying).
     pub fn round_trip(&self) -> Duration {
-        self.core.line.round_trip
+        self.core().line.round_trip
     }
 
     /// What the session found the unit to do where the manual leaves it open (probed as checks needed it).
     pub fn capabilities(&self) -> Capabilities {
-        self.core.probed.caps
+        self.core().probed.caps
+    }
+}
+
+impl Session {
+    /// Starts an operation of `kind`, the future `op` makes of its handle, and runs it until it waits.
+    fn add_op<F>(&mut self, kind: Kind, op: impl FnOnce(Ctx) -> F) -> OpId
+    where
+        F: std::future::Future<Output = Result<Output, Error>> + Send + 'static,
+    {
+        let id = self.exec.next_id();
+        self.kinds.insert(id, kind);
+        self.exec.spawn(id, |ctx| op(Ctx::new(ctx)));
+        self.run();
+        id
+    }
+
+    /// Runs every operation whose awaited result is there, until none is; reports their ends; starts the
+    /// end of the session once the callers' operations have ended.
+    fn run(&mut self) {
+        loop {
+            let mut ended = Vec::new();
+            let mut closed = false;
+            let (events, kinds) = (&mut self.events, &mut self.kinds);
+            self.exec.run(|report| match report {
+                Report::Progress(id, p) => events.push_back(Event::Progress(id, p)),
+                Report::Done(id, result) => {
+                    ended.push(id);
+                    match kinds.remove(&id) {
+                        Some(Kind::Public) => events.push_back(Event::Done(id, result)),
+                        Some(Kind::Close) => {
+                            closed = true;
+                            events.push_back(Event::Closed(result.map(|_| ())));
+                        }
+                        Some(Kind::Internal) | None => {
+                            if let Err(e) = result {
+                                tracing::info!("{e}");
+                            }
+                        }
+                    }
+                }
+            });
+            if ended.is_empty() {
+                return;
+            }
+            {
+                let mut core = self.core();
+                for id in ended {
+                    core.forget(id);
+                }
+                if closed {
+                    core.state = State::Closed;
+                    core.line.remote = false;
+                }
+            }
+            self.maybe_start_close();
+        }
+    }
+
+    /// Once every caller's operation has ended, the end of the session begins.
+    fn maybe_start_close(&mut self) {
+        let internal: Vec<OpId> = {
+            let core = self.core();
+            if !core.closing || core.state == State::Closed {
+                return;
+            }
+            if self.kinds.values().any(|k| *k == Kind::Public || *k == Kind::Close) {
+                return;
+            }
+            let internal: Vec<OpId> =
+                self.kinds.iter().filter(|(_, k)| **k == Kind::Internal).map(|(id, _)| *id).collect();
+            // An automatic reconnection under way is given up (once its exchange, if any, has ended).
+            if internal.iter().any(|id| core.busy_for(*id)) {
+                return;
+            }
+            internal
+        };
+        for id in internal {
+            self.kinds.remove(&id);
+            self.exec.abort(id);
+            self.core().forget(id);
+        }
+        self.add_op(Kind::Close, |ctx| async move { ops::close(&ctx).await });
     }
 
     /// Takes what `known` says of the unit (from a device profile, or a probe) where this session has not
     /// found out yet: those behaviours are not probed again, and no warning is given for them. A finding of
     /// the session stays.
     pub fn seed_capabilities(&mut self, known: Capabilities) {
-        self.core.probed.caps = self.core.probed.caps.or(known);
+        let mut core = self.core();
+        core.probed.caps = core.probed.caps.or(known);
     }
 }
 
@@ -357,188 +453,130 @@ impl SessionTrait for Session {
     type Error = Error;
 
     fn start(&mut self, op: Op, now: Timestamp) -> OpId {
-        self.core.now = now;
-        if self.core.closing || self.core.state == State::Closed {
-            let id = self.core.ids.next_id();
-            self.core.events.push_back(Event::Done(id, Err(Error::Closed)));
+        self.now_is(now);
+        let refused = {
+            let core = self.core();
+            core.closing || core.state == State::Closed
+        };
+        if refused {
+            let id = self.exec.next_id();
+            self.events.push_back(Event::Done(id, Err(Error::Closed)));
             return id;
         }
-        let op = ops::operation(op, &self.core);
-        self.add_op(op, Kind::Public)
+        self.add_op(Kind::Public, |ctx| ops::run(ctx, op))
     }
 
     fn cancel(&mut self, id: OpId, now: Timestamp) {
-        self.core.now = now;
-        let Some(slot) = self.ops.get_mut(&id) else { return };
-        if slot.cancelled || slot.kind != Kind::Public {
+        self.now_is(now);
+        if self.kinds.get(&id) != Some(&Kind::Public) || self.exec.is_cancelled(id) {
             return;
         }
-        slot.cancelled = true;
-        if !slot.op.interruptible() {
-            return;
-        }
-        match slot.waiting {
-            Waiting::Queued => {
-                let Some(i) = self.core.queue.iter().position(|q| q.owner == id) else { return };
-                let q = self.core.queue.remove(i).expect("found in the queue");
-                slot.waiting = Waiting::Nothing;
-                self.advance(id, Resume::Reply(Err(Error::CancelledBeforeSending(q.req.request.command))));
-            }
-            Waiting::Until(_) | Waiting::Snapshot | Waiting::Nothing => {
-                slot.waiting = Waiting::Nothing;
-                self.core.subscribers.remove(&id);
-                self.advance(id, Resume::Wake);
-            }
-            Waiting::InFlight | Waiting::Reopen => {}
-        }
+        // The operation is woken: a pause or a wait for the next poll ends (unless it is stopping what it
+        // started); a request of its still in the queue is dropped.
+        self.exec.cancel(id);
+        self.core().cancel_queued(id);
+        self.run();
     }
 
     fn close(&mut self, now: Timestamp) {
-        self.core.now = now;
-        if self.core.closing {
-            return;
+        self.now_is(now);
+        {
+            let mut core = self.core();
+            if core.closing {
+                return;
+            }
+            core.closing = true;
         }
-        self.core.closing = true;
-        let public: Vec<OpId> = self.ops.iter().filter(|(_, s)| s.kind == Kind::Public).map(|(id, _)| *id).collect();
+        let public: Vec<OpId> = self.kinds.iter().filter(|(_, k)| **k == Kind::Public).map(|(id, _)| *id).collect();
         for id in public {
             self.cancel(id, now);
         }
         self.maybe_start_close();
+        self.run();
     }
 
     fn handle_input(&mut self, input: Input<'_>, now: Timestamp) {
-        self.core.now = now;
+        self.now_is(now);
         let Input::Bytes(bytes) = input else { return };
-        let core = &mut self.core;
-        let Some(f) = core.in_flight.as_mut() else {
-            core.line.take_unsolicited(bytes, now);
-            return;
-        };
-        let outcome = f.exchange.on_input(bytes, &mut core.line, &core.config, &mut core.counts, now, &mut core.outbox);
-        if let Some(result) = outcome {
-            let f = core.in_flight.take().expect("checked above");
-            self.exchange_done(f.owner, f.txn, result);
-        }
+        self.core().handle_bytes(bytes, now);
+        self.run();
     }
 
     fn handle_link_error(&mut self, error: LinkError, now: Timestamp) {
-        self.core.now = now;
-        if self.core.reopen_waiter.is_some() || !self.core.link_up {
-            return;
+        self.now_is(now);
+        {
+            let mut core = self.core();
+            if core.reopen_waiter.is_some() || !core.link_up {
+                return;
+            }
+            core.lost(error.to_string());
         }
-        self.lost(error.to_string());
+        self.run();
     }
 
     fn handle_reopened(&mut self, result: Result<(), LinkError>, now: Timestamp) {
-        self.core.now = now;
-        let Some(id) = self.core.reopen_waiter.take() else { return };
-        let result = match result {
-            Ok(()) => {
-                self.core.reset_line();
-                Ok(())
-            }
-            Err(e) => Err(Error::from(e)),
-        };
-        if let Some(slot) = self.ops.get_mut(&id) {
-            slot.waiting = Waiting::Nothing;
-        }
-        self.advance(id, Resume::Reopened(result));
+        self.now_is(now);
+        self.core().reopened(result);
+        self.run();
     }
 
     fn poll_transmit(&mut self, now: Timestamp) -> Option<Action> {
-        self.core.now = now;
-        if let Some(a) = self.core.outbox.pop_front() {
-            return Some(a);
+        {
+            let mut core = self.exec.core_at(now);
+            core.now = now;
+            if let Some(a) = core.outbox.pop_front() {
+                return Some(a);
+            }
+            // Requests that waited too long for room, and waits for a poll that will not come, end first:
+            // their operations may have something else to send.
+            core.fail_waiting(now);
         }
-        self.schedule();
-        self.core.outbox.pop_front()
+        self.run();
+        let mut core = self.core();
+        core.schedule(now);
+        core.outbox.pop_front()
     }
 
     fn poll_timeout(&self) -> Option<Timestamp> {
-        let core = &self.core;
-        let timers = self.ops.values().filter_map(|s| match s.waiting {
-            Waiting::Until(t) => Some(t),
-            _ => None,
-        });
-        let mut next = timers.min();
-        let mut consider = |t: Timestamp| next = Some(next.map_or(t, |n: Timestamp| n.min(t)));
-        if let Some(f) = &core.in_flight {
-            consider(f.exchange.timeout_at());
-        } else if core.link_up && core.reopen_waiter.is_none() {
-            if core.keepalive_running() {
-                // An RC held back by late replies to an earlier RC goes out when they came or their time is up.
-                match core.line.late {
-                    Some(late) if core.line.held_by_late(Command::Cyclic, core.now) => {
-                        consider(core.keepalive_due.max(late.until))
-                    }
-                    _ => consider(core.keepalive_due),
-                }
-            }
-            if let Some(late) = core.line.late {
-                consider(late.until);
-            }
-            for q in &core.queue {
-                if q.req.schedule != Schedule::Now {
-                    consider(q.at + MAX_ROOM_WAIT);
-                }
-            }
-        }
-        if matches!(core.state, State::Lost(_)) && core.config.auto_reconnect && !core.closing {
-            consider(core.next_reconnect);
-        }
-        next
+        let timers = self.exec.poll_timeout();
+        [timers, self.core().poll_timeout()].into_iter().flatten().min()
     }
 
     fn handle_timeout(&mut self, now: Timestamp) {
-        self.core.now = now;
-        {
-            let core = &mut self.core;
-            if let Some(f) = core.in_flight.as_mut() {
-                if let Some(result) =
-                    f.exchange.on_timeout(&mut core.line, &core.config, &mut core.counts, now, &mut core.outbox)
-                {
-                    let f = core.in_flight.take().expect("checked above");
-                    self.exchange_done(f.owner, f.txn, result);
-                }
-            }
-        }
-        self.core.line.expire_late(now);
-        let due: Vec<OpId> = self
-            .ops
-            .iter()
-            .filter(|(_, s)| matches!(s.waiting, Waiting::Until(t) if t <= now))
-            .map(|(id, _)| *id)
-            .collect();
-        for id in due {
-            engine::slot_mut(&mut self.ops, id).waiting = Waiting::Nothing;
-            self.advance(id, Resume::Wake);
-        }
-        self.fail_roomless(now);
-        let core = &self.core;
-        let reconnect = matches!(core.state, State::Lost(_))
-            && core.config.auto_reconnect
-            && !core.closing
-            && now >= core.next_reconnect
-            && core.reopen_waiter.is_none()
-            && !self.ops.values().any(|s| s.kind == Kind::Internal);
+        self.now_is(now);
+        self.core().handle_timeout(now);
+        self.exec.handle_timeout(now);
+        let reconnect = {
+            let core = self.core();
+            matches!(core.state, State::Lost(_))
+                && core.config.auto_reconnect
+                && !core.closing
+                && now >= core.next_reconnect
+                && core.reopen_waiter.is_none()
+                && !self.kinds.values().any(|k| *k == Kind::Internal)
+        };
         if reconnect {
-            self.core.next_reconnect = now + self.core.config.reconnect_interval;
-            self.add_op(Box::new(ops::Reopen::new(true)), Kind::Internal);
+            let mut core = self.core();
+            core.next_reconnect = now + core.config.reconnect_interval;
+        }
+        if reconnect {
+            self.add_op(Kind::Internal, ops::reconnect);
+        } else {
+            self.run();
         }
     }
 
     fn poll_event(&mut self) -> Option<Event<Self>> {
-        self.core.events.pop_front()
+        self.events.pop_front()
     }
 
     fn wants_input(&self) -> bool {
-        self.core.in_flight.is_some() || self.core.line.late.is_some()
+        let core = self.core();
+        core.in_flight.is_some() || core.line.late.is_some()
     }
 
     fn is_idle(&self) -> bool {
-        self.ops.is_empty()
-            && self.core.queue.is_empty()
-            && self.core.in_flight.is_none()
-            && self.core.outbox.is_empty()
+        let core = self.core();
+        self.exec.is_empty() && core.queue.is_empty() && core.in_flight.is_none() && core.outbox.is_empty()
     }
 }

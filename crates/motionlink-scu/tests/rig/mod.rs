@@ -1,6 +1,6 @@
-//! What the client tests share: the emulator behind an in-memory link on a manual clock that jumps ahead
-//! whenever every participant waits (minutes of device time run in milliseconds, deterministically), a link
-//! that lets a test arrange faults for each request, a slow gateway, and the watchdog scenario.
+//! What the client tests share: the unit on the workspace's one rig (`motionlink_testkit::rig`: the emulator
+//! behind an in-memory link on a manual clock that jumps ahead whenever every participant waits, a link that
+//! lets a test arrange faults for each request), a slow gateway, and the watchdog scenario.
 
 #![allow(dead_code, unused_imports)]
 
@@ -8,7 +8,7 @@ pub use std::sync::{Arc, Mutex};
 pub use std::time::{Duration, Instant};
 
 pub use motionlink_link::cancel::CancelToken;
-pub use motionlink_link::clock::{Clock, ManualClock, ParticipantGuard};
+pub use motionlink_link::clock::{Clock, ManualClock};
 pub use motionlink_link::error::{Classify, ErrorClass, TransportKind};
 pub use motionlink_link::link::{Connector, Link, LinkError};
 pub use motionlink_link::pipe::{Direction, EmulatorHost, Fault, FaultControl, PipeConfig};
@@ -23,103 +23,29 @@ pub use motionlink_scu::wire::{Command, Status};
 pub use motionlink_scu::Emulator;
 pub use motionlink_scu::{Client, ClientConfig, Error, FunctionMap, MoveOptions, MovePolling, StrokeLimits};
 
-/// Called with every request the client sends (its bytes) and the fault control, just before it is sent: a
-/// test arranges faults for that request's reply (its first byte is the next one the unit sends).
-pub type Hook = Arc<dyn Fn(&[u8], &FaultControl) + Send + Sync>;
+/// The unit behind an in-memory link at 38400 baud on the manual clock (the shared rig), the test's thread
+/// among the clock's participants.
+pub struct Rig(motionlink_testkit::rig::Rig<Emulator>);
 
-/// A link that runs a [`Hook`] on each request it sends.
-pub struct Hooked {
-    inner: Box<dyn Link>,
-    pub faults: FaultControl,
-    pub hook: Hook,
-}
-
-impl Link for Hooked {
-    fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
-        (self.hook)(bytes, &self.faults);
-        self.inner.send(bytes)
+impl std::ops::Deref for Rig {
+    type Target = motionlink_testkit::rig::Rig<Emulator>;
+    fn deref(&self) -> &Self::Target {
+        &self.0
     }
-    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
-        self.inner.recv(buf, timeout)
-    }
-    fn discard_input(&mut self) -> Result<(), LinkError> {
-        self.inner.discard_input()
-    }
-    fn describe(&self) -> String {
-        self.inner.describe()
-    }
-}
-
-pub struct Rig {
-    pub clock: ManualClock,
-    pub host: EmulatorHost<Emulator>,
-    pub faults: Arc<Mutex<Option<FaultControl>>>,
-    pub hook: Arc<Mutex<Option<Hook>>>,
-    pub connects: Arc<Mutex<u32>>,
-    /// While set, opening the port fails (the adapter is unplugged).
-    pub unplugged: Arc<Mutex<bool>>,
-    pub _me: ParticipantGuard,
 }
 
 impl Rig {
     pub fn new(config: SimConfig) -> Rig {
-        let clock = ManualClock::new_auto();
-        let me = clock.reserve_participant().enter();
-        let host = EmulatorHost::new(Emulator::new(config).unwrap(), clock.shared(), PipeConfig::paced(38_400));
-        Rig {
-            clock,
-            host,
-            faults: Arc::default(),
-            hook: Arc::default(),
-            connects: Arc::default(),
-            unplugged: Arc::default(),
-            _me: me,
-        }
-    }
-
-    pub fn connector(&self) -> Connector {
-        let host = self.host.clone();
-        let faults = Arc::clone(&self.faults);
-        let connects = Arc::clone(&self.connects);
-        let unplugged = Arc::clone(&self.unplugged);
-        let hook = Arc::clone(&self.hook);
-        Box::new(move || {
-            if *unplugged.lock().unwrap() {
-                return Err(LinkError::Disconnected { port: "sim".into(), reason: "unplugged".into() });
-            }
-            let (link, f) = host.connect();
-            *faults.lock().unwrap() = Some(f.clone());
-            *connects.lock().unwrap() += 1;
-            let hook = Arc::clone(&hook);
-            let hook: Hook = Arc::new(move |bytes: &[u8], faults: &FaultControl| {
-                let h = hook.lock().unwrap().clone();
-                if let Some(h) = h {
-                    h(bytes, faults);
-                }
-            });
-            Ok(Box::new(Hooked { inner: Box::new(link), faults: f, hook }) as Box<dyn Link>)
-        })
+        let unit = Emulator::new(config).unwrap();
+        Rig(motionlink_testkit::rig::Rig::new(unit, PipeConfig::paced(38_400)).with_test_thread())
     }
 
     pub fn client(&self, config: ClientConfig) -> Client {
         Client::open(self.connector(), self.clock.shared(), config).unwrap()
     }
 
-    /// From now on, `hook` sees every request before it is sent.
-    pub fn on_request(&self, hook: impl Fn(&[u8], &FaultControl) + Send + Sync + 'static) {
-        *self.hook.lock().unwrap() = Some(Arc::new(hook));
-    }
-
-    pub fn faults(&self) -> FaultControl {
-        self.faults.lock().unwrap().clone().unwrap()
-    }
-
     pub fn unit<R>(&self, f: impl FnOnce(&mut Emulator) -> R) -> R {
-        self.host.with_device(f)
-    }
-
-    pub fn sleep(&self, ms: u64) {
-        self.clock.sleep(Duration::from_millis(ms));
+        self.device(f)
     }
 }
 

@@ -1,6 +1,7 @@
 //! The operations of a session, each a state machine written as an `async fn` over a [`Ctx`]: the compiler
 //! turns each into an enum of its steps, which the session resumes whenever what a step waits for (a
-//! reply, a time, a cancellation) is there. No executor, no thread, no I/O.
+//! reply, a time, a cancellation) is there: the one executor of `motionlink-link` ([`motionlink_link::exec`])
+//! runs them. No thread, no I/O.
 //!
 //! This file: reads, writes, settings, raw commands, the scan and the watch. [`moves`]: moves, the
 //! synchronous start, broadcasts. [`echoed`]: a move stored with its echo, compared, then executed.

@@ -1,6 +1,6 @@
-//! The client against the emulator, in-process, with an auto-advancing manual clock: the tests of the
-//! blocking client before the session became sans-IO, on the same API (renamed: `Bus` is `Client`,
-//! `SimBus` is `Emulator`), asserting what they asserted.
+//! The client against the emulator, in-process, with an auto-advancing manual clock (the shared rig of
+//! `motionlink-testkit`): the tests of the blocking client before the session became sans-IO, on the same
+//! API (renamed: `Bus` is `Client`, `SimBus` is `Emulator`), asserting what they asserted.
 
 mod basics;
 mod checked;
@@ -21,6 +21,7 @@ use motionlink_link::can::{CanBus, CanBusConfig, CanLink};
 use motionlink_link::clock::{Clock, ManualClock};
 use motionlink_link::pipe::{Direction, EmulatorHost, FaultControl, PipeConfig};
 use motionlink_link::LinkError;
+use motionlink_testkit::rig::{CanRig, Rig};
 
 use crate::client::{BusConfig, Client, ModuleInfo, MoveSpec};
 use crate::model::{Address, ConfigWord, CubeState, Position, Reply, Request, Velocity};
@@ -32,12 +33,19 @@ fn rs232(addresses: &[u8]) -> (ManualClock, EmulatorHost<Emulator>, Client, Faul
 }
 
 fn rs232_with(addresses: &[u8], config: BusConfig) -> (ManualClock, EmulatorHost<Emulator>, Client, FaultControl) {
-    let clock = ManualClock::new_auto();
-    let sim = Emulator::new(&SimConfig::with_addresses(addresses).unwrap());
-    let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(9_600));
-    let (link, faults) = host.connect();
-    let bus = Client::rs232(Box::new(link), clock.shared(), config).unwrap();
-    (clock, host, bus, faults)
+    rs232_on(addresses, PipeConfig::paced(9_600), config)
+}
+
+/// Modules at `addresses` on an RS232 line configured by `pipe` (the shared rig), and a client.
+fn rs232_on(
+    addresses: &[u8],
+    pipe: PipeConfig,
+    config: BusConfig,
+) -> (ManualClock, EmulatorHost<Emulator>, Client, FaultControl) {
+    let rig = Rig::new(Emulator::new(&SimConfig::with_addresses(addresses).unwrap()), pipe);
+    let bus = Client::rs232(rig.link().unwrap(), rig.clock.shared(), config).unwrap();
+    let faults = rig.faults();
+    (rig.clock, rig.host, bus, faults)
 }
 
 /// The infos of a scan in which every module could be read.
@@ -50,11 +58,10 @@ fn scan_infos(bus: &Client) -> Vec<ModuleInfo> {
 }
 
 fn can(addresses: &[u8]) -> (ManualClock, CanBus<Emulator>, Client) {
-    let clock = ManualClock::new_auto();
     let sim = Emulator::new_can(&SimConfig::with_addresses(addresses).unwrap());
-    let canbus = CanBus::with_emulator(sim, clock.shared(), CanBusConfig::paced(1_000_000));
-    let bus = Client::can(Box::new(canbus.connect()), clock.shared(), BusConfig::can()).unwrap();
-    (clock, canbus, bus)
+    let rig = CanRig::new(sim, CanBusConfig::paced(1_000_000));
+    let bus = Client::can(Box::new(rig.link()), rig.clock.shared(), BusConfig::can()).unwrap();
+    (rig.clock, rig.bus, bus)
 }
 
 /// The module address `n` (a valid one: the tests name 1..31).
@@ -94,12 +101,7 @@ fn rs232_len(address: u8, reply: &Reply) -> u64 {
 
 /// An RS232 session whose bytes arrive at once (no 9600 baud pacing): only the session's own timing counts.
 fn rs232_instant(addresses: &[u8]) -> (ManualClock, EmulatorHost<Emulator>, Client, FaultControl) {
-    let clock = ManualClock::new_auto();
-    let sim = Emulator::new(&SimConfig::with_addresses(addresses).unwrap());
-    let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::instant());
-    let (link, faults) = host.connect();
-    let bus = Client::rs232(Box::new(link), clock.shared(), BusConfig::rs232()).unwrap();
-    (clock, host, bus, faults)
+    rs232_on(addresses, PipeConfig::instant(), BusConfig::rs232())
 }
 
 fn spec(target: f32) -> MoveSpec {

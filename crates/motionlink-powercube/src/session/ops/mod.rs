@@ -1,6 +1,7 @@
 //! The operations of a session, each a state machine written as an `async fn` over a [`Ctx`]: the
 //! compiler turns each into an enum of its steps, which the session resumes whenever what a step waits for
-//! (an exchange's answers, a broadcast sent, a time) is there. No executor, no thread, no I/O.
+//! (an exchange's answers, a broadcast sent, a time) is there: the one executor of `motionlink-link`
+//! ([`motionlink_link::exec`]) runs them. No thread, no I/O.
 
 mod basic;
 mod motion;

@@ -10,8 +10,8 @@ fn a_guarded_move_under_way(b: &mut Bench) -> OpId {
         ..MoveSpec::to(Position::native(1.0))
     };
     let id = b.session.start(Op::MoveGuarded(addr(1), spec, Guard::Watchdog), b.now);
-    while !b.events.iter().any(|e| matches!(e, Event::Progress(..))) {
-        assert!(b.step(b.now + Duration::from_secs(1)), "the move starts");
+    while b.progress.is_empty() {
+        assert!(b.step_before(b.now + Duration::from_secs(1)), "the move starts");
     }
     assert!(b.module(1).0.contains(StateFlag::Motion) && b.module(1).2, "moving, watchdog online");
     id
@@ -19,11 +19,11 @@ fn a_guarded_move_under_way(b: &mut Bench) -> OpId {
 
 fn finish(b: &mut Bench, id: OpId) -> Result<Output, Error> {
     loop {
-        b.pump();
-        if let Some(r) = b.done(id) {
+        b.settle();
+        if let Some(r) = b.take_done(id) {
             return r;
         }
-        assert!(b.step(b.now + Duration::from_secs(3600)), "{id} did not end");
+        assert!(b.step_before(b.now + Duration::from_secs(3600)), "{id} did not end");
     }
 }
 
@@ -57,7 +57,7 @@ fn a_watchdog_that_expires_because_the_line_lost_the_refreshes_says_they_went_ou
     for can in [false, true] {
         let mut b = if can { Bench::can(&[1]) } else { Bench::rs232(&[1]) };
         let id = a_guarded_move_under_way(&mut b);
-        b.lose_refreshes = true;
+        b.lose_refreshes();
         let err = finish(&mut b, id).unwrap_err();
         let Error::WatchdogExpired { address: A1, timing, .. } = &err else { panic!("{err:?}") };
         assert!(!timing.was_late() && timing.longest_gap <= ms(20), "{timing:?}");
@@ -69,10 +69,7 @@ fn a_watchdog_that_expires_because_the_line_lost_the_refreshes_says_they_went_ou
 
 /// The GetExtended requests of parameter `p` that went out on a CAN bench.
 fn gets(b: &Bench, p: Param) -> usize {
-    b.sent
-        .iter()
-        .filter(|w| matches!(w, Wire::Frame(_, id, d) if (0xC1..=0xDF).contains(id) && d[..] == [0x0A, p.id()]))
-        .count()
+    b.sent.iter().filter(|(_, w)| frame(w, |id| (0xC1..=0xDF).contains(&id), Some(&[0x0A, p.id()]))).count()
 }
 
 #[test]
@@ -85,7 +82,7 @@ fn a_wait_polls_with_one_exchange_and_reads_the_full_state_only_when_it_may_say_
     };
     let Ok(Output::Moved(report)) = b.run(Op::MoveTo(addr(1), spec)) else { panic!() };
     assert!((report.reached.value() - 1.0).abs() <= 0.001, "{report:?}");
-    let polls = b.events.iter().filter(|e| matches!(e, Event::Progress(..))).count();
+    let polls = b.progress.len();
     assert!(polls > 200, "{polls}");
     // One combined read per poll, and the one before the move that finds out whether the module has it.
     assert_eq!(gets(&b, Param::ActFPosStateDio), polls + 1, "one combined read per poll");
@@ -105,8 +102,8 @@ fn a_fault_in_the_middle_of_a_ramp_is_seen_at_the_next_poll() {
         ..MoveSpec::to(Position::native(1.0))
     };
     let id = b.session.start(Op::MoveTo(addr(1), spec), b.now);
-    while b.events.iter().filter(|e| matches!(e, Event::Progress(..))).count() < 50 {
-        assert!(b.step(b.now + Duration::from_secs(1)), "the move runs");
+    while b.progress.len() < 50 {
+        assert!(b.step_before(b.now + Duration::from_secs(1)), "the move runs");
     }
     let at = b.now;
     b.device.module_mut(1).unwrap().inject_fault(CubeState::EMPTY.with(StateFlag::TowError));
@@ -126,14 +123,14 @@ fn a_flag_the_short_state_does_not_carry_is_seen_within_100_ms() {
         ..MoveSpec::to(Position::native(1.0))
     };
     let id = b.session.start(Op::MoveTo(addr(1), spec), b.now);
-    while b.events.iter().filter(|e| matches!(e, Event::Progress(..))).count() < 50 {
-        assert!(b.step(b.now + Duration::from_secs(1)), "the move runs");
+    while b.progress.len() < 50 {
+        assert!(b.step_before(b.now + Duration::from_secs(1)), "the move runs");
     }
     let at = b.now;
     b.device.module_mut(1).unwrap().set_flag_for_test(StateFlag::CurLimit);
-    b.events.clear();
-    while !b.events.iter().any(|e| matches!(e, Event::Progress(_, p) if p.state.contains(StateFlag::CurLimit))) {
-        assert!(b.step(b.now + Duration::from_secs(1)), "the move runs");
+    b.progress.clear();
+    while !b.progress.iter().any(|(_, p)| p.state.contains(StateFlag::CurLimit)) {
+        assert!(b.step_before(b.now + Duration::from_secs(1)), "the move runs");
     }
     assert!(b.now - at <= ms(110), "{:?}", b.now - at);
     assert!(finish(&mut b, id).is_ok());

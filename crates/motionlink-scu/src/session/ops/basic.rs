@@ -1,148 +1,90 @@
 //! Single requests, verified writes, strokes and cyclic objects.
 
-use super::{get, Cx, Next, Operation, Output, Resume, Step};
-use crate::config::StrokeLimits;
+use super::Output;
+use crate::config::{ClientConfig, StrokeLimits};
 use crate::error::Error;
 use crate::model::{
     item, Actuator, CyclicObject, DataEntry, DataIndex, Item, MotionFunction, PositionCounts, SpeedMode, StopMode,
 };
+use crate::session::ctx::Ctx;
 use crate::session::request::{OwnedReply, PreparedRequest, Req, Schedule};
 use crate::session::CyclicUse;
 use crate::session::SetReport;
 use crate::value::{decode_item, Value};
 use crate::wire::{Command, Request, Status};
 
-/// One request of the caller's. A stop goes out before anything else; an RE whose caller gave up before its
-/// reply came is followed by RS.
-pub(crate) struct Single {
-    request: Option<PreparedRequest>,
-    command: Command,
-    starts: Option<u8>,
-    stopping: bool,
-}
-
-impl Single {
-    pub fn new(request: PreparedRequest) -> Self {
-        Single { command: request.command, starts: request.starts, request: Some(request), stopping: false }
-    }
-}
-
-impl Operation for Single {
-    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
-        match resume {
-            Resume::Start => {
-                let request = self.request.take().expect("started once");
-                let schedule = if self.command == Command::Stop { Schedule::Now } else { Schedule::Room };
-                Next::Send(Req::op(request).when(schedule))
-            }
-            Resume::Reply(result) if self.stopping => {
-                let f = self.starts.unwrap_or_default();
-                let name = crate::model::Function::from_id(f).map_or(format!("function id {f}"), |f| f.to_string());
-                Next::Done(match result.and_then(|r| r.ack(Command::Stop)) {
-                    Ok(_) => Err(Error::Interrupted(format!("cancelled; {name} stopped (the unit acknowledged RS)"))),
-                    Err(e) => Err(Error::StopUnconfirmed {
-                        cause: Box::new(Error::Interrupted(format!("cancelled while the RE of {name} was under way"))),
-                        stop: format!("fast RS of {name}"),
-                        detail: e.to_string(),
-                    }),
-                })
-            }
-            Resume::Reply(result) => {
-                let sent = !matches!(result, Err(Error::CancelledBeforeSending(_)));
-                if let (true, true, Some(f)) = (cx.cancelled, sent, self.starts) {
-                    // The caller gave up while its RE was under way: it may have started a motion.
-                    self.stopping = true;
-                    return Next::Send(Req::op(PreparedRequest::stop(f, StopMode::Fast)).when(Schedule::Now));
-                }
-                Next::Done(result.and_then(|r| r.ack(self.command)).map(|r| Output::Data(r.data)))
-            }
-            Resume::Wake | Resume::Snapshot(_) | Resume::Reopened(_) => {
-                Next::Done(Err(Error::CancelledBeforeSending(self.command)))
-            }
-        }
-    }
-
-    fn interruptible(&self) -> bool {
-        // A stop goes out even if its caller gives up on it.
-        !self.stopping && self.command != Command::Stop
-    }
-}
-
-/// RT, and the RG that reads the value back. Its end: `None` when the value was read back equal (or no
-/// read-back was asked), `Some(why)` when the unit refuses to read remote data back (PDE; remembered for the
-/// session), so the value could not be verified.
-pub(crate) struct Write {
-    index: DataIndex,
-    data: Vec<u8>,
-    verify: bool,
-    reading: bool,
-}
-
-impl Write {
-    /// Writes `data` to `index`; with `verify`, reads it back where the data list has the index.
-    pub fn new(index: DataIndex, data: Vec<u8>, verify: bool) -> Self {
-        Write { index, data, verify, reading: false }
-    }
-
-    pub fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Step<Result<Option<String>, Error>> {
-        match resume {
-            Resume::Start => Step::Wait(Next::Send(Req::op(
-                match PreparedRequest::new(&Request::Transfer { index: self.index.0, data: &self.data }) {
-                    Ok(r) => r,
-                    Err(e) => return Step::Done(Err(e)),
-                },
-            ))),
-            Resume::Reply(result) if !self.reading => {
-                if let Err(e) = result.and_then(|r| r.ack(Command::Transfer)) {
-                    return Step::Done(Err(e));
-                }
-                if !self.verify || item(self.index).is_none() {
-                    return Step::Done(Ok(None));
-                }
-                if cx.core.probed.caps.remote_read_back == Some(false) {
-                    return Step::Done(Ok(Some(self.not_read_back())));
-                }
-                self.reading = true;
-                Step::Wait(get(self.index))
-            }
-            Resume::Reply(result) => Step::Done(match result.and_then(|r| r.data(Command::Get)) {
-                // The first read of remote data is the probe: refused, the session remembers it.
-                Err(Error::Refused { status: Status::ParameterDataError, .. })
-                    if cx.core.probed.caps.remote_read_back.is_none() =>
-                {
-                    cx.core.remote_read_back(false);
-                    Ok(Some(self.not_read_back()))
-                }
-                other => other.and_then(|read| self.compare(cx, read)),
+/// One request of the caller's ([`super::Op::Request`]). A stop goes out before anything else, even if its
+/// caller gives up on it; an RE whose caller gave up before its reply came is followed by RS.
+pub(crate) async fn single(ctx: &Ctx, request: PreparedRequest) -> Result<Output, Error> {
+    let (command, starts) = (request.command, request.starts);
+    let result = if command == Command::Stop {
+        ctx.firm().send(Req::op(request).when(Schedule::Now)).await
+    } else {
+        ctx.send(Req::op(request).when(Schedule::Room)).await
+    };
+    let sent = !matches!(result, Err(Error::CancelledBeforeSending(_)));
+    if let (true, true, Some(f)) = (ctx.cancelled(), sent, starts) {
+        // The caller gave up while its RE was under way: it may have started a motion.
+        let name = crate::model::Function::from_id(f).map_or(format!("function id {f}"), |f| f.to_string());
+        let rs = Req::op(PreparedRequest::stop(f, StopMode::Fast)).when(Schedule::Now);
+        return match ctx.firm().send(rs).await.and_then(|r| r.ack(Command::Stop)) {
+            Ok(_) => Err(Error::Interrupted(format!("cancelled; {name} stopped (the unit acknowledged RS)"))),
+            Err(e) => Err(Error::StopUnconfirmed {
+                cause: Box::new(Error::Interrupted(format!("cancelled while the RE of {name} was under way"))),
+                stop: format!("fast RS of {name}"),
+                detail: e.to_string(),
             }),
-            Resume::Wake | Resume::Snapshot(_) | Resume::Reopened(_) => {
-                Step::Done(Err(Error::CancelledBeforeSending(Command::Transfer)))
-            }
-        }
-    }
-
-    /// The value read back, against the one written.
-    fn compare(&self, cx: &mut Cx<'_>, read: Vec<u8>) -> Result<Option<String>, Error> {
-        cx.core.remote_read_back(true);
-        if read == self.data {
-            return Ok(None);
-        }
-        let Some(it) = item(self.index) else { return Ok(None) };
-        let show = |bytes: &[u8]| match decode_item(it, bytes) {
-            Ok(v) => v.iter().map(|(_, v)| v.to_string()).collect::<Vec<_>>().join(", "),
-            Err(_) => format!("{bytes:02X?}"),
         };
-        Err(Error::ReadBack { name: it.name(), index: self.index, written: show(&self.data), read: show(&read) })
     }
+    result.and_then(|r| r.ack(command)).map(|r| Output::Data(r.data))
+}
 
-    fn not_read_back(&self) -> String {
-        let name = item(self.index).map_or("the value", |it| it.name());
-        format!(
-            "{name} ({}) was written (the unit acknowledged RT) but not read back: the unit refuses to read remote \
-             data (RG: PDE)",
-            self.index
-        )
+/// RT of `data` to `index`, then (with `verify`, where the data list has the index) the RG that reads it
+/// back. Its end: `None` when the value was read back equal (or no read-back was asked), `Some(why)` when
+/// the unit refuses to read remote data back (PDE; remembered for the session), so the value could not be
+/// verified.
+pub(crate) async fn write(ctx: &Ctx, index: DataIndex, data: &[u8], verify: bool) -> Result<Option<String>, Error> {
+    let rt = PreparedRequest::new(&Request::Transfer { index: index.0, data })?;
+    ctx.send(Req::op(rt)).await.and_then(|r| r.ack(Command::Transfer))?;
+    if !verify || item(index).is_none() {
+        return Ok(None);
     }
+    let answered = ctx.core().probed.caps.remote_read_back;
+    if answered == Some(false) {
+        return Ok(Some(not_read_back(index)));
+    }
+    match ctx.get(index).await.and_then(|r| r.data(Command::Get)) {
+        // The first read of remote data is the probe: refused, the session remembers it.
+        Err(Error::Refused { status: Status::ParameterDataError, .. })
+            if ctx.core().probed.caps.remote_read_back.is_none() =>
+        {
+            ctx.core().remote_read_back(false);
+            Ok(Some(not_read_back(index)))
+        }
+        other => other.and_then(|read| compare(ctx, index, data, read)),
+    }
+}
+
+/// The value read back, against the one written.
+fn compare(ctx: &Ctx, index: DataIndex, written: &[u8], read: Vec<u8>) -> Result<Option<String>, Error> {
+    ctx.core().remote_read_back(true);
+    if read == written {
+        return Ok(None);
+    }
+    let Some(it) = item(index) else { return Ok(None) };
+    let show = |bytes: &[u8]| match decode_item(it, bytes) {
+        Ok(v) => v.iter().map(|(_, v)| v.to_string()).collect::<Vec<_>>().join(", "),
+        Err(_) => format!("{bytes:02X?}"),
+    };
+    Err(Error::ReadBack { name: it.name(), index, written: show(written), read: show(&read) })
+}
+
+fn not_read_back(index: DataIndex) -> String {
+    let name = item(index).map_or("the value", |it| it.name());
+    format!(
+        "{name} ({index}) was written (the unit acknowledged RT) but not read back: the unit refuses to read remote \
+         data (RG: PDE)"
+    )
 }
 
 /// Checks that `value` may be written to `index` (a remote entry, the value's kind, its range) and encodes it.
@@ -175,26 +117,9 @@ pub(crate) fn encode_for(
 }
 
 /// A write of the caller's ([`super::Op::Set`]).
-pub(crate) struct SetOp(Write);
-
-impl SetOp {
-    pub fn new(index: DataIndex, data: Vec<u8>, verify: bool) -> Self {
-        SetOp(Write::new(index, data, verify))
-    }
-}
-
-impl Operation for SetOp {
-    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
-        if cx.cancelled && matches!(resume, Resume::Wake) {
-            return Next::Done(Err(Error::CancelledBeforeSending(Command::Transfer)));
-        }
-        match self.0.step(cx, resume) {
-            Step::Wait(next) => next,
-            Step::Done(r) => Next::Done(r.map(|why| {
-                Output::Written(SetReport { verified: why.is_none(), not_verifiable: why.into_iter().collect() })
-            })),
-        }
-    }
+pub(crate) async fn set(ctx: &Ctx, index: DataIndex, data: Vec<u8>, verify: bool) -> Result<Output, Error> {
+    let why = write(ctx, index, &data, verify).await?;
+    Ok(Output::Written(SetReport { verified: why.is_none(), not_verifiable: why.into_iter().collect() }))
 }
 
 /// Where an actuator's stroke comes from, and what it is.
@@ -205,72 +130,67 @@ pub(crate) type Stroke = Option<(StrokeLimits, &'static str)>;
 /// configured).
 pub(crate) type StrokeFound = Result<Stroke, String>;
 
+/// Why actuator `a`'s target could not be checked against a stroke.
+fn stroke_unknown(a: Actuator) -> String {
+    format!(
+        "{a}'s target was not checked against a stroke: the unit refuses UserPositionData ({}, PDE) and no \
+         stroke limits are configured for {a} (--stroke {}=MIN:MAX); the unit's own limits bound the motion",
+        DataIndex(0x2000 + u16::from(a.number())),
+        a.number()
+    )
+}
+
 /// Actuator `a`'s travel range for targets: configured, or the virtual limits of its UserPositionData.
-pub(crate) struct StrokeRead(pub Actuator);
-
-impl StrokeRead {
-    fn unknown(a: Actuator) -> String {
-        format!(
-            "{a}'s target was not checked against a stroke: the unit refuses UserPositionData ({}, PDE) and no \
-             stroke limits are configured for {a} (--stroke {}=MIN:MAX); the unit's own limits bound the motion",
-            DataIndex(0x2000 + u16::from(a.number())),
-            a.number()
-        )
+pub(crate) async fn stroke(ctx: &Ctx, a: Actuator) -> Result<StrokeFound, Error> {
+    let (configured, answered) = {
+        let core = ctx.core();
+        (core.config.stroke_limits[usize::from(a.number() - 1)], core.probed.caps.user_position_data)
+    };
+    if let Some(s) = configured {
+        return Ok(Ok(Some((s, "as configured"))));
     }
+    if answered == Some(false) {
+        return Ok(Err(stroke_unknown(a)));
+    }
+    match ctx.get(DataIndex(0x2000 + u16::from(a.number()))).await.and_then(|r| r.data(Command::Get)) {
+        // The first read of UserPositionData is the probe: refused, the session remembers it.
+        Err(Error::Refused { status: Status::ParameterDataError, .. })
+            if ctx.core().probed.caps.user_position_data.is_none() =>
+        {
+            ctx.core().user_positions_answered(false);
+            Ok(Err(stroke_unknown(a)))
+        }
+        other => other.and_then(|data| stroke_limits_of(ctx, a, data)),
+    }
+}
 
-    pub fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Step<Result<StrokeFound, Error>> {
-        let a = self.0;
-        match resume {
-            Resume::Start => match cx.config().stroke_limits[usize::from(a.number() - 1)] {
-                Some(s) => Step::Done(Ok(Ok(Some((s, "as configured"))))),
-                None if cx.core.probed.caps.user_position_data == Some(false) => Step::Done(Ok(Err(Self::unknown(a)))),
-                None => Step::Wait(get(DataIndex(0x2000 + u16::from(a.number())))),
-            },
-            Resume::Reply(result) => Step::Done(match result.and_then(|r| r.data(Command::Get)) {
-                // The first read of UserPositionData is the probe: refused, the session remembers it.
-                Err(Error::Refused { status: Status::ParameterDataError, .. })
-                    if cx.core.probed.caps.user_position_data.is_none() =>
-                {
-                    cx.core.user_positions_answered(false);
-                    Ok(Err(Self::unknown(a)))
-                }
-                other => other.and_then(|data| Self::limits(cx, a, data)),
-            }),
-            Resume::Wake | Resume::Snapshot(_) | Resume::Reopened(_) => {
-                Step::Done(Err(Error::CancelledBeforeSending(Command::Get)))
+/// The virtual limits in actuator `a`'s UserPositionData.
+fn stroke_limits_of(ctx: &Ctx, a: Actuator, data: Vec<u8>) -> Result<StrokeFound, Error> {
+    ctx.core().user_positions_answered(true);
+    let it = item(DataIndex(0x2000 + u16::from(a.number()))).expect("UserPositionData is in the data list");
+    let values = decode_item(it, &data).map_err(|e| Error::UnexpectedReply {
+        command: Command::Get,
+        detail: format!("UserPositionData of {a}: {e}"),
+    })?;
+    match values.first().map(|(_, v)| v) {
+        Some(Value::UserPositions(u)) => {
+            let (lo, hi) = (u.virtual_limit_in_counts, u.virtual_limit_out_counts);
+            if (lo, hi) == (0, 0) {
+                Ok(Ok(None))
+            } else if lo > hi {
+                Err(Error::UnexpectedReply {
+                    command: Command::Get,
+                    detail: format!("{a}'s virtual limits {lo}..{hi} are reversed"),
+                })
+            } else {
+                Ok(Ok(Some((
+                    StrokeLimits { min_counts: PositionCounts(lo), max_counts: PositionCounts(hi) },
+                    "the virtual limits of its UserPositionData",
+                ))))
             }
         }
-    }
-
-    /// The virtual limits in actuator `a`'s UserPositionData.
-    fn limits(cx: &mut Cx<'_>, a: Actuator, data: Vec<u8>) -> Result<StrokeFound, Error> {
-        cx.core.user_positions_answered(true);
-        let it = item(DataIndex(0x2000 + u16::from(a.number()))).expect("UserPositionData is in the data list");
-        let values = decode_item(it, &data).map_err(|e| Error::UnexpectedReply {
-            command: Command::Get,
-            detail: format!("UserPositionData of {a}: {e}"),
-        })?;
-        match values.first().map(|(_, v)| v) {
-            Some(Value::UserPositions(u)) => {
-                let (lo, hi) = (u.virtual_limit_in_counts, u.virtual_limit_out_counts);
-                if (lo, hi) == (0, 0) {
-                    Ok(Ok(None))
-                } else if lo > hi {
-                    Err(Error::UnexpectedReply {
-                        command: Command::Get,
-                        detail: format!("{a}'s virtual limits {lo}..{hi} are reversed"),
-                    })
-                } else {
-                    Ok(Ok(Some((
-                        StrokeLimits { min_counts: PositionCounts(lo), max_counts: PositionCounts(hi) },
-                        "the virtual limits of its UserPositionData",
-                    ))))
-                }
-            }
-            other => Err(Error::UnexpectedReply {
-                command: Command::Get,
-                detail: format!("UserPositionData of {a}: {other:?}"),
-            }),
+        other => {
+            Err(Error::UnexpectedReply { command: Command::Get, detail: format!("UserPositionData of {a}: {other:?}") })
         }
     }
 }
@@ -292,21 +212,8 @@ pub(crate) fn check_stroke(a: Actuator, target: PositionCounts, stroke: &Stroke)
 }
 
 /// The caller's stroke query ([`super::Op::StrokeLimits`]).
-pub(crate) struct StrokeOp(StrokeRead);
-
-impl StrokeOp {
-    pub fn new(a: Actuator) -> Self {
-        StrokeOp(StrokeRead(a))
-    }
-}
-
-impl Operation for StrokeOp {
-    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
-        match self.0.step(cx, resume) {
-            Step::Wait(next) => next,
-            Step::Done(r) => Next::Done(r.and_then(|s| s.map_err(Error::NotSupported)).map(Output::Stroke)),
-        }
-    }
+pub(crate) async fn stroke_limits(ctx: &Ctx, a: Actuator) -> Result<Output, Error> {
+    stroke(ctx, a).await.and_then(|s| s.map_err(Error::NotSupported)).map(Output::Stroke)
 }
 
 /// The data index of CyclicObj `slot`, 1..5.
@@ -375,80 +282,49 @@ pub fn decode_cyclic_read(object: &CyclicObject, data: &[u8]) -> Result<Vec<(&'s
     Ok(out)
 }
 
-/// Uses CyclicObj `slot` for the keepalive, or exchanges it once: reads its definition first.
-pub(crate) struct CyclicOp {
-    slot: u8,
-    write: Vec<Value>,
-    keep: bool,
-    object: Option<CyclicObject>,
-}
-
-impl CyclicOp {
-    pub fn new(slot: u8, write: Vec<Value>, keep: bool) -> Self {
-        CyclicOp { slot, write, keep, object: None }
-    }
-}
-
 fn definition(reply: Result<OwnedReply, Error>) -> Result<CyclicObject, Error> {
     let data = reply.and_then(|r| r.data(Command::Get))?;
     CyclicObject::from_bytes(&data)
         .ok_or(Error::UnexpectedReply { command: Command::Get, detail: "not a cyclic object".into() })
 }
 
-impl Operation for CyclicOp {
-    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
-        match (resume, self.object) {
-            (Resume::Start, _) => match cyclic_index(self.slot) {
-                Ok(index) => get(index),
-                Err(e) => Next::Done(Err(e)),
-            },
-            (Resume::Reply(result), None) => {
-                let object = match definition(result) {
-                    Ok(o) => o,
-                    Err(e) => return Next::Done(Err(e)),
-                };
-                let bytes = match encode_cyclic_write(&object, &self.write, cx.config().speed_mode) {
-                    Ok(b) => b,
-                    Err(e) => return Next::Done(Err(e)),
-                };
-                if self.keep {
-                    // Keepalive writes are not read back.
-                    cx.core.cyclic = Some(CyclicUse { slot: self.slot, object, write: bytes });
-                    cx.core.last_cyclic_read = None;
-                    return Next::Done(Ok(Output::Done));
-                }
-                if cx.cancelled {
-                    return Next::Done(Err(Error::CancelledBeforeSending(Command::Cyclic)));
-                }
-                self.object = Some(object);
-                let read_len = object.read_size().and_then(|n| u16::try_from(n).ok());
-                match PreparedRequest::with_reply_len(
-                    &Request::Cyclic { object: self.slot - 1, write: &bytes },
-                    read_len,
-                ) {
-                    Ok(r) => Next::Send(Req::op(r)),
-                    Err(e) => Next::Done(Err(e)),
-                }
-            }
-            (Resume::Reply(result), Some(object)) => Next::Done(
-                result
-                    .and_then(|r| r.ack(Command::Cyclic))
-                    .map(|r| Output::Cyclic { object, data: r.data.unwrap_or_default() }),
-            ),
-            _ => Next::Done(Err(Error::CancelledBeforeSending(Command::Get))),
-        }
+/// Uses CyclicObj `slot` for the keepalive (`keep`), or exchanges it once: reads its definition first.
+pub(crate) async fn cyclic(ctx: &Ctx, slot: u8, write: Vec<Value>, keep: bool) -> Result<Output, Error> {
+    let index = cyclic_index(slot)?;
+    let object = definition(ctx.get(index).await)?;
+    let mode = ctx.core().config.speed_mode;
+    let bytes = encode_cyclic_write(&object, &write, mode)?;
+    if keep {
+        // Keepalive writes are not read back.
+        let mut core = ctx.core();
+        core.cyclic = Some(CyclicUse { slot, object, write: bytes });
+        core.last_cyclic_read = None;
+        return Ok(Output::Done);
     }
+    if ctx.cancelled() {
+        return Err(Error::CancelledBeforeSending(Command::Cyclic));
+    }
+    let read_len = object.read_size().and_then(|n| u16::try_from(n).ok());
+    let rc = PreparedRequest::with_reply_len(&Request::Cyclic { object: slot - 1, write: &bytes }, read_len)?;
+    ctx.send(Req::op(rc))
+        .await
+        .and_then(|r| r.ack(Command::Cyclic))
+        .map(|r| Output::Cyclic { object, data: r.data.unwrap_or_default() })
 }
 
 /// The function-map check of a move or a stream: no actuator twice, and exactly the ones the map says the
 /// function drives, if it knows the function.
-pub(crate) fn check_against_map(cx: &Cx<'_>, function: MotionFunction, actuators: &[Actuator]) -> Result<(), Error> {
+pub(crate) fn check_against_map(
+    config: &ClientConfig,
+    function: MotionFunction,
+    actuators: &[Actuator],
+) -> Result<(), Error> {
     for (i, a) in actuators.iter().enumerate() {
         if actuators[..i].contains(a) {
             return Err(Error::invalid(format!("{a} is named twice")));
         }
     }
-    if let Some(drives) = cx.config().function_map.drives(function) {
+    if let Some(drives) = config.function_map.drives(function) {
         if let Some(a) = actuators.iter().find(|a| !drives.contains(a)) {
             return Err(Error::invalid(format!(
                 "{function} does not drive {a}: the function map says it drives {}",

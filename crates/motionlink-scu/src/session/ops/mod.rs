@@ -1,15 +1,13 @@
-//! The operations of a session, each a state machine: it says what it wants next (a request, a pause, the
-//! next poll of a motion, the port reopened) and is resumed with what came of it.
+//! The operations of a session, each an `async fn` over a [`Ctx`] that reads like the manual's routine: it
+//! sends its requests, waits for the next poll of a motion or for a time on the session's clock, and goes
+//! on with what came of it. The one executor of `motionlink-link` runs them; no thread, no I/O.
 
 use std::time::Duration;
 
-use motionlink_link::session::OpId;
-use motionlink_link::Timestamp;
-
+use super::ctx::Ctx;
 use super::report::{MoveProgress, MoveReport, RunProgress, RunReport, SetReport, Snapshot, StopReport};
-use super::request::{OwnedReply, PreparedRequest, Req};
-use super::Core;
-use crate::config::{ClientConfig, StrokeLimits};
+use super::request::PreparedRequest;
+use crate::config::StrokeLimits;
 use crate::error::Error;
 use crate::model::{
     Actuator, ActuatorStatus1, CyclicObject, DataIndex, ErrorCode, Function, MotionDirection, MotionFunction,
@@ -27,8 +25,8 @@ mod stop;
 mod stream;
 mod watch;
 
-pub(crate) use read::ItemRead;
-pub(crate) use remote::{Close, Reopen};
+pub(crate) use read::{read_item, ItemRead};
+pub(crate) use remote::{close, reconnect};
 pub use watch::WatchSpec;
 
 /// An operation a caller starts: what the [`crate::Client`] methods run. See each method for what it does.
@@ -208,96 +206,25 @@ pub enum Progress {
     Watch(Snapshot),
 }
 
-/// What an operation is resumed with.
-#[derive(Debug)]
-pub(crate) enum Resume {
-    /// It was just started.
-    Start,
-    /// The reply to its request (or why there is none; [`Error::CancelledBeforeSending`] if the caller
-    /// cancelled it before it went out).
-    Reply(Result<OwnedReply, Error>),
-    /// Its pause is over, or the caller cancelled it meanwhile.
-    Wake,
-    /// The next poll of the running motion.
-    Snapshot(Result<Snapshot, Error>),
-    /// The port was opened again, or could not be.
-    Reopened(Result<(), Error>),
-}
-
-/// What an operation wants next.
-#[derive(Debug)]
-pub(crate) enum Next {
-    /// Send this request.
-    Send(Req),
-    /// Wait until then.
-    Sleep(Timestamp),
-    /// Wait for the next poll of the running motion (the keepalive RC carries the poll object meanwhile).
-    Snapshot,
-    /// Open the port again.
-    Reopen,
-    /// The end.
-    Done(Result<Output, Error>),
-}
-
-/// A step of a part of an operation: what it wants next, or its end.
-pub(crate) enum Step<T> {
-    Wait(Next),
-    Done(T),
-}
-
-/// An operation as a state machine.
-pub(crate) trait Operation: Send {
-    /// Goes on after `resume`; says what it wants next.
-    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next;
-
-    /// True while a cancel may interrupt what the operation waits for (a request not yet sent is dropped, a
-    /// pause ends at once); false while it stops what it started, which a cancel must not cut short.
-    fn interruptible(&self) -> bool {
-        true
-    }
-}
-
-/// What an operation sees of its session.
-pub(crate) struct Cx<'a> {
-    pub core: &'a mut Core,
-    pub id: OpId,
-    /// The caller asked the operation to end early.
-    pub cancelled: bool,
-}
-
-impl Cx<'_> {
-    pub fn now(&self) -> Timestamp {
-        self.core.now
-    }
-
-    pub fn config(&self) -> &ClientConfig {
-        &self.core.config
-    }
-
-    pub fn progress(&mut self, p: Progress) {
-        self.core.push_progress(self.id, p);
-    }
-}
-
-/// Makes the state machine of `op`.
-pub(crate) fn operation(op: Op, core: &Core) -> Box<dyn Operation> {
+/// Runs `op` to its end.
+pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
     match op {
-        Op::Open => Box::new(remote::Open::new()),
-        Op::Reopen => Box::new(remote::Reopen::new(false)),
-        Op::Reconnect => Box::new(remote::Reopen::new(true)),
-        Op::Request(r) => Box::new(basic::Single::new(r)),
-        Op::Read(index) => Box::new(read::ReadOp(ItemRead::all(index))),
-        Op::Set { index, data, verify } => Box::new(basic::SetOp::new(index, data, verify)),
-        Op::StrokeLimits(a) => Box::new(basic::StrokeOp::new(a)),
-        Op::Move(spec) => Box::new(motion::Move::new(spec, core.now)),
-        Op::UseCyclic { slot, write } => Box::new(basic::CyclicOp::new(slot, write, true)),
-        Op::ExchangeCyclic { slot, write } => Box::new(basic::CyclicOp::new(slot, write, false)),
-        Op::StreamOpen { function, actuators, speed } => Box::new(stream::StreamOpen::new(function, actuators, speed)),
-        Op::StreamTargets { function, targets } => Box::new(stream::StreamTargets::new(function, targets)),
-        Op::Stop { function, mode, watch, after } => Box::new(stop::StopOp::new(function, mode, watch, after)),
-        Op::Run(spec) => Box::new(run::Run::new(spec, core.now)),
-        Op::StopMotions { functions, mode } => Box::new(stop::StopMotionsOp::new(functions, mode)),
-        Op::Watch(spec) => Box::new(watch::Watch::new(spec, core.now)),
+        Op::Open => remote::open(&ctx).await,
+        Op::Reopen => remote::reopen(&ctx, false).await,
+        Op::Reconnect => remote::reopen(&ctx, true).await,
+        Op::Request(r) => basic::single(&ctx, r).await,
+        Op::Read(index) => read_item(&ctx, ItemRead::all(index)).await.map(|d| Output::Data(Some(d))),
+        Op::Set { index, data, verify } => basic::set(&ctx, index, data, verify).await,
+        Op::StrokeLimits(a) => basic::stroke_limits(&ctx, a).await,
+        Op::Move(spec) => motion::move_function(&ctx, spec).await,
+        Op::UseCyclic { slot, write } => basic::cyclic(&ctx, slot, write, true).await,
+        Op::ExchangeCyclic { slot, write } => basic::cyclic(&ctx, slot, write, false).await,
+        Op::StreamOpen { function, actuators, speed } => stream::open(&ctx, function, actuators, speed).await,
+        Op::StreamTargets { function, targets } => stream::targets(&ctx, function, targets).await,
+        Op::Stop { function, mode, watch, after } => stop::stop(&ctx, function, mode, watch, after).await,
+        Op::Run(spec) => run::run(&ctx, spec).await,
+        Op::StopMotions { functions, mode } => stop::stop_motions(&ctx, functions, mode).await,
+        Op::Watch(spec) => watch::watch(&ctx, spec).await,
     }
 }
 
@@ -307,11 +234,6 @@ pub(crate) fn list_actuators(actuators: &[Actuator]) -> String {
         return "no actuator".into();
     }
     actuators.iter().map(Actuator::to_string).collect::<Vec<_>>().join(", ")
-}
-
-/// RG of `index` as an operation's request.
-pub(crate) fn get(index: DataIndex) -> Next {
-    Next::Send(Req::op(PreparedRequest::get(index)))
 }
 
 /// The six status-1 bytes of an RG of 0x0170.

@@ -1,349 +1,189 @@
 //! Remote mode: opening it (RO, RC), opening it again (after the unit ended it, or on a new port), and the
-//! end of the session (RS for every function started, then RA).
+//! end of the session (RS for every function started, then RA). None of it is cut short by a cancel.
 
 use motionlink_link::Timestamp;
 
-use super::{Cx, Next, Operation, Output, Resume};
+use super::Output;
 use crate::error::Error;
 use crate::model::StopMode;
+use crate::session::ctx::Ctx;
 use crate::session::request::{PreparedRequest, Req};
 use crate::session::State;
 use crate::wire::{Command, Request, Status};
 
 /// RO with the configured Safety_ID, then RC. Returns the time the RC went out (the unit's watchdog runs
 /// from when it received it).
-struct Opening {
-    rc_sent: Option<Timestamp>,
+async fn opening(ctx: &Ctx) -> Result<Timestamp, Error> {
+    let safety_id = ctx.core().config.safety_id.code();
+    let ro = PreparedRequest::new(&Request::Open { safety_id })?;
+    let reply = ctx.send(Req::internal(ro)).await;
+    ctx.core().line.remote = false;
+    reply.and_then(|r| r.ack(Command::Open))?;
+    ctx.core().line.remote = true;
+    let rc_sent = ctx.now();
+    ctx.send(Req::internal(PreparedRequest::keepalive())).await.and_then(|r| r.ack(Command::Cyclic))?;
+    Ok(rc_sent)
 }
 
-impl Opening {
-    fn new() -> Self {
-        Opening { rc_sent: None }
-    }
-
-    fn start(&mut self, cx: &Cx<'_>) -> Next {
-        self.rc_sent = None;
-        let ro = Request::Open { safety_id: cx.config().safety_id.code() };
-        match PreparedRequest::new(&ro) {
-            Ok(r) => Next::Send(Req::internal(r)),
-            Err(e) => Next::Done(Err(e)),
-        }
-    }
-
-    /// The reply to RO or RC: the next request, or the outcome (the time of the RC).
-    fn reply(
-        &mut self,
-        cx: &mut Cx<'_>,
-        result: Result<crate::session::OwnedReply, Error>,
-    ) -> Result<Option<Next>, Error> {
-        match self.rc_sent {
-            None => {
-                cx.core.line.remote = false;
-                result.and_then(|r| r.ack(Command::Open))?;
-                cx.core.line.remote = true;
-                self.rc_sent = Some(cx.now());
-                Ok(Some(Next::Send(Req::internal(PreparedRequest::keepalive()))))
-            }
-            Some(_) => {
-                result.and_then(|r| r.ack(Command::Cyclic))?;
-                Ok(None)
-            }
-        }
-    }
+/// RA, as the session's own request.
+fn abort() -> Req {
+    Req::internal(PreparedRequest::new(&Request::Abort).expect("RA encodes"))
 }
 
-/// RS of every function still started, one after the other: each result, and the error of the first that
-/// failed.
-struct StopAll {
-    left: Vec<u8>,
-    first_error: Option<Error>,
-    checked: bool,
-}
-
-impl StopAll {
-    fn new(cx: &Cx<'_>, checked: bool) -> Self {
-        StopAll { left: cx.core.started.iter().copied().collect(), first_error: None, checked }
-    }
-
-    fn next(&mut self) -> Option<Next> {
-        let f = *self.left.first()?;
+/// RS of every function still started, one after the other (`checked`: a PE is looked into). Each failure
+/// is logged and the others are stopped all the same; the first error comes back. With `until_ended`, a unit
+/// that turns out to have ended remote mode ends the sequence (true then).
+async fn stop_all(ctx: &Ctx, checked: bool, until_ended: bool) -> (Option<Error>, bool) {
+    let left: Vec<u8> = ctx.core().started.iter().copied().collect();
+    let mut first_error = None;
+    for f in left {
         let mut req = Req::internal(PreparedRequest::stop(f, StopMode::Fast));
-        req.checked = self.checked;
-        Some(Next::Send(req))
-    }
-
-    /// The reply to the RS under way; `Err` hands back a RemoteEnded that stops the sequence.
-    fn reply(&mut self, result: Result<crate::session::OwnedReply, Error>) -> Result<(), Error> {
-        let f = self.left.remove(0);
-        match result.and_then(|r| r.ack(Command::Stop)) {
-            Ok(_) => Ok(()),
-            Err(e @ Error::RemoteEnded(_)) => Err(e),
+        req.checked = checked;
+        match ctx.send(req).await.and_then(|r| r.ack(Command::Stop)) {
+            Ok(_) => {}
+            Err(Error::RemoteEnded(_)) if until_ended => return (first_error, true),
+            Err(e @ Error::RemoteEnded(_)) => {
+                first_error.get_or_insert(e);
+            }
             Err(e) => {
                 tracing::info!("RS of function id {f} failed: {e}");
-                self.first_error.get_or_insert(e);
-                Ok(())
+                first_error.get_or_insert(e);
             }
         }
     }
+    (first_error, false)
 }
 
 /// The start of a session ([`super::Op::Open`]): RO and RC; if that fails after the unit answered RO, one
 /// short try of RA.
-pub(crate) struct Open {
-    opening: Opening,
-    failed: Option<Error>,
-}
-
-impl Open {
-    pub fn new() -> Self {
-        Open { opening: Opening::new(), failed: None }
-    }
-}
-
-impl Operation for Open {
-    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
-        match resume {
-            Resume::Start => self.opening.start(cx),
-            Resume::Reply(result) if self.failed.is_some() => {
-                if let Err(e) = result {
-                    tracing::debug!("RA after a failed start: {e}");
+pub(crate) async fn open(ctx: &Ctx) -> Result<Output, Error> {
+    let ctx = ctx.firm();
+    match opening(&ctx).await {
+        Ok(rc_sent) => {
+            ctx.core().opened(rc_sent);
+            Ok(Output::Done)
+        }
+        Err(e) => {
+            let answered_ro = {
+                let mut core = ctx.core();
+                let answered = core.line.remote && core.link_up;
+                if answered {
+                    core.line.silent = true;
                 }
-                cx.core.line.remote = false;
-                Next::Done(Err(self.failed.take().expect("checked")))
+                answered
+            };
+            if answered_ro {
+                // Nothing was started; a unit that answered RO gets its RA (one short try).
+                if let Err(ra) = ctx.send(abort()).await {
+                    tracing::debug!("RA after a failed start: {ra}");
+                }
+                ctx.core().line.remote = false;
             }
-            Resume::Reply(result) => match self.opening.reply(cx, result) {
-                Ok(Some(next)) => next,
-                Ok(None) => {
-                    cx.core.opened(self.opening.rc_sent.unwrap_or(cx.now()));
-                    Next::Done(Ok(Output::Done))
-                }
-                Err(e) if cx.core.line.remote && cx.core.link_up => {
-                    // Nothing was started; a unit that answered RO gets its RA (one short try).
-                    self.failed = Some(e);
-                    cx.core.line.silent = true;
-                    Next::Send(Req::internal(PreparedRequest::new(&Request::Abort).expect("RA encodes")))
-                }
-                Err(e) => Next::Done(Err(e)),
-            },
-            Resume::Wake | Resume::Snapshot(_) | Resume::Reopened(_) => {
-                Next::Done(Err(Error::CancelledBeforeSending(Command::Open)))
-            }
+            Err(e)
         }
     }
-
-    fn interruptible(&self) -> bool {
-        false
-    }
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum ReopenPhase {
-    Port,
-    Remote,
-    Stops,
+/// The automatic reconnection of a lost session: [`reopen`] on a new port.
+pub(crate) async fn reconnect(ctx: Ctx) -> Result<Output, Error> {
+    reopen(&ctx, true).await
 }
 
 /// Remote mode opened again ([`super::Op::Reopen`], [`super::Op::Reconnect`], an automatic reconnection):
 /// (the port,) RO, RC, and RS for every function the session started.
-pub(crate) struct Reopen {
-    reconnect: bool,
-    phase: ReopenPhase,
-    opening: Opening,
-    stops: Option<StopAll>,
-}
-
-impl Reopen {
-    pub fn new(reconnect: bool) -> Self {
-        Reopen { reconnect, phase: ReopenPhase::Port, opening: Opening::new(), stops: None }
-    }
-
-    fn failed(&self, cx: &mut Cx<'_>, e: Error) -> Next {
-        if self.reconnect {
+pub(crate) async fn reopen(ctx: &Ctx, reconnect: bool) -> Result<Output, Error> {
+    let ctx = ctx.firm();
+    let failed = |e: Error| {
+        if reconnect {
             // Without a port the session is lost (and the keepalive sleeps until the next attempt).
-            cx.core.link_up = false;
-            cx.core.line.remote = false;
-            cx.core.state = State::Lost(format!("reconnect failed: {e}"));
+            let mut core = ctx.core();
+            core.link_up = false;
+            core.line.remote = false;
+            core.state = State::Lost(format!("reconnect failed: {e}"));
         }
-        Next::Done(Err(e))
-    }
-
-    fn next_stop(&mut self) -> Next {
-        match self.stops.as_mut().and_then(StopAll::next) {
-            Some(next) => next,
-            None => Next::Done(match self.stops.take().and_then(|s| s.first_error) {
-                Some(e) => Err(e),
-                None => Ok(Output::Done),
-            }),
+        Err(e)
+    };
+    if reconnect {
+        // Close the old port first: a serial device can be opened only once.
+        if let Err(e) = ctx.reopen_port().await {
+            return failed(e);
         }
-    }
-}
-
-impl Operation for Reopen {
-    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
-        match (self.phase, resume) {
-            (ReopenPhase::Port, Resume::Start) if self.reconnect => {
-                // Close the old port first: a serial device can be opened only once.
-                Next::Reopen
-            }
-            (ReopenPhase::Port, Resume::Start) => {
-                if !cx.core.link_up {
-                    return Next::Done(Err(Error::SessionLost("port not connected".into())));
-                }
-                tracing::info!("opening remote mode again (RO, RC)");
-                cx.core.line.silent = false;
-                self.phase = ReopenPhase::Remote;
-                self.opening.start(cx)
-            }
-            (ReopenPhase::Port, Resume::Reopened(Ok(()))) => {
-                self.phase = ReopenPhase::Remote;
-                self.opening.start(cx)
-            }
-            (ReopenPhase::Port, Resume::Reopened(Err(e))) => self.failed(cx, e),
-            (ReopenPhase::Remote, Resume::Reply(result)) => match self.opening.reply(cx, result) {
-                Ok(Some(next)) => next,
-                Ok(None) => {
-                    if self.reconnect {
-                        cx.core.stats.reconnects += 1;
-                    } else {
-                        cx.core.stats.reopens += 1;
-                    }
-                    cx.core.opened(self.opening.rc_sent.unwrap_or(cx.now()));
-                    // Every RE needs its RS, even when the unit already stopped the drive (the watchdog did).
-                    self.phase = ReopenPhase::Stops;
-                    self.stops = Some(StopAll::new(cx, false));
-                    self.next_stop()
-                }
-                Err(e) => self.failed(cx, e),
-            },
-            (ReopenPhase::Stops, Resume::Reply(result)) => {
-                if let Some(stops) = self.stops.as_mut() {
-                    if let Err(e) = stops.reply(result) {
-                        stops.first_error.get_or_insert(e);
-                    }
-                }
-                self.next_stop()
-            }
-            (_, other) => Next::Done(Err(Error::UnexpectedReply {
-                command: Command::Open,
-                detail: format!("{other:?} while opening remote mode again"),
-            })),
+    } else {
+        let mut core = ctx.core();
+        if !core.link_up {
+            return Err(Error::SessionLost("port not connected".into()));
         }
+        tracing::info!("opening remote mode again (RO, RC)");
+        core.line.silent = false;
     }
-
-    fn interruptible(&self) -> bool {
-        false
+    let rc_sent = match opening(&ctx).await {
+        Ok(t) => t,
+        Err(e) => return failed(e),
+    };
+    {
+        let mut core = ctx.core();
+        if reconnect {
+            core.stats.reconnects += 1;
+        } else {
+            core.stats.reopens += 1;
+        }
+        core.opened(rc_sent);
     }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum ClosePhase {
-    Stops,
-    Reopening,
-    StopsAfterReopen,
-    Abort,
+    // Every RE needs its RS, even when the unit already stopped the drive (the watchdog did).
+    match stop_all(&ctx, false, false).await {
+        (Some(e), _) => Err(e),
+        (None, _) => Ok(Output::Done),
+    }
 }
 
 /// The end of the session: RS for every started function (motions fast), then RA. Where the unit ended
 /// remote mode and a function still needs the RS the manual asks for after every RE, remote mode is opened
 /// only to send it, and left at once.
-pub(crate) struct Close {
-    phase: ClosePhase,
-    stops: Option<StopAll>,
-    opening: Opening,
-    first_error: Option<Error>,
-}
-
-impl Close {
-    pub fn new() -> Self {
-        Close { phase: ClosePhase::Stops, stops: None, opening: Opening::new(), first_error: None }
+pub(crate) async fn close(ctx: &Ctx) -> Result<Output, Error> {
+    let ctx = ctx.firm();
+    let (link_up, mut ended) = {
+        let core = ctx.core();
+        (core.link_up, matches!(core.state, State::Ended(_)))
+    };
+    if !link_up {
+        return Err(Error::SessionLost("port not connected: the unit's watchdog stops the drives".into()));
     }
-
-    fn after_stops(&mut self, cx: &mut Cx<'_>, ended: bool) -> Next {
-        if let Some(e) = self.stops.take().and_then(|s| s.first_error) {
-            self.first_error.get_or_insert(e);
-        }
-        if ended && !cx.core.started.is_empty() && self.phase == ClosePhase::Stops {
-            tracing::info!("the unit ended remote mode; opening it to send the RS of what this session started");
-            self.phase = ClosePhase::Reopening;
-            cx.core.line.silent = false;
-            return self.opening.start(cx);
-        }
-        self.phase = ClosePhase::Abort;
-        Next::Send(Req::internal(PreparedRequest::new(&Request::Abort).expect("RA encodes")))
+    let mut first_error = None;
+    if !ended {
+        (first_error, ended) = stop_all(&ctx, true, true).await;
     }
-}
-
-impl Operation for Close {
-    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
-        match (self.phase, resume) {
-            (_, Resume::Start) => {
-                if !cx.core.link_up {
-                    return Next::Done(Err(Error::SessionLost(
-                        "port not connected: the unit's watchdog stops the drives".into(),
-                    )));
+    let still_started = !ctx.core().started.is_empty();
+    if ended && still_started {
+        tracing::info!("the unit ended remote mode; opening it to send the RS of what this session started");
+        ctx.core().line.silent = false;
+        match opening(&ctx).await {
+            Ok(rc_sent) => {
+                {
+                    let mut core = ctx.core();
+                    core.stats.reopens += 1;
+                    core.opened(rc_sent);
                 }
-                let ended = matches!(cx.core.state, State::Ended(_));
-                if ended {
-                    return self.after_stops(cx, true);
-                }
-                self.stops = Some(StopAll::new(cx, true));
-                match self.stops.as_mut().and_then(StopAll::next) {
-                    Some(next) => next,
-                    None => self.after_stops(cx, false),
+                if let (Some(e), _) = stop_all(&ctx, false, true).await {
+                    first_error.get_or_insert(e);
                 }
             }
-            (ClosePhase::Stops | ClosePhase::StopsAfterReopen, Resume::Reply(result)) => {
-                let stops = self.stops.as_mut().expect("stopping");
-                if stops.reply(result).is_err() {
-                    return self.after_stops(cx, true);
-                }
-                match stops.next() {
-                    Some(next) => next,
-                    None => self.after_stops(cx, false),
-                }
+            Err(e) => {
+                first_error.get_or_insert(e);
             }
-            (ClosePhase::Reopening, Resume::Reply(result)) => match self.opening.reply(cx, result) {
-                Ok(Some(next)) => next,
-                Ok(None) => {
-                    cx.core.stats.reopens += 1;
-                    cx.core.opened(self.opening.rc_sent.unwrap_or(cx.now()));
-                    self.phase = ClosePhase::StopsAfterReopen;
-                    self.stops = Some(StopAll::new(cx, false));
-                    match self.stops.as_mut().and_then(StopAll::next) {
-                        Some(next) => next,
-                        None => self.after_stops(cx, false),
-                    }
-                }
-                Err(e) => {
-                    self.first_error.get_or_insert(e);
-                    self.phase = ClosePhase::Abort;
-                    Next::Send(Req::internal(PreparedRequest::new(&Request::Abort).expect("RA encodes")))
-                }
-            },
-            (ClosePhase::Abort, Resume::Reply(result)) => {
-                match result {
-                    Ok(r) if r.status == Status::Ack => {}
-                    Ok(r) => {
-                        self.first_error.get_or_insert(Error::Refused { command: Command::Abort, status: r.status });
-                    }
-                    Err(e) => {
-                        self.first_error.get_or_insert(e);
-                    }
-                }
-                cx.core.line.remote = false;
-                Next::Done(match self.first_error.take() {
-                    Some(e) => Err(e),
-                    None => Ok(Output::Done),
-                })
-            }
-            (_, other) => Next::Done(Err(Error::UnexpectedReply {
-                command: Command::Abort,
-                detail: format!("{other:?} while ending the session"),
-            })),
         }
     }
-
-    fn interruptible(&self) -> bool {
-        false
+    match ctx.send(abort()).await {
+        Ok(r) if r.status == Status::Ack => {}
+        Ok(r) => {
+            first_error.get_or_insert(Error::Refused { command: Command::Abort, status: r.status });
+        }
+        Err(e) => {
+            first_error.get_or_insert(e);
+        }
+    }
+    ctx.core().line.remote = false;
+    match first_error {
+        Some(e) => Err(e),
+        None => Ok(Output::Done),
     }
 }

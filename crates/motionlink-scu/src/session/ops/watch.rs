@@ -7,10 +7,11 @@ use std::time::Duration;
 
 use motionlink_link::Timestamp;
 
-use super::object::DefineObject;
-use super::{currents, error_code, positions, statuses, Cx, ItemRead, Next, Operation, Output, Progress, Resume, Step};
+use super::object::define_object;
+use super::{currents, error_code, positions, read_item, statuses, ItemRead, Output, Progress};
 use crate::error::Error;
-use crate::model::{Actuator, ActuatorStatus1, DataIndex, PositionCounts};
+use crate::model::{Actuator, DataIndex};
+use crate::session::ctx::Ctx;
 use crate::session::report::Snapshot;
 use crate::wire::Command;
 
@@ -26,170 +27,100 @@ pub struct WatchSpec {
 /// The four reads of a sample taken with RG, in order.
 const READS: [DataIndex; 4] = [DataIndex(0x0170), DataIndex(0x0010), DataIndex(0x00A0), DataIndex(0x00D1)];
 
-enum Phase {
-    /// The session's cyclic object is defined and probed.
-    Define(DefineObject),
-    /// Waiting until the next sample is due.
-    Pause,
-    /// Waiting for the next keepalive RC that carries the object.
-    Snapshot,
-    /// Reading `READS[i]`.
-    Read(usize, ItemRead),
-}
-
-/// A watch; see [`super::Op::Watch`] and [`crate::Client::watch`].
-pub(crate) struct Watch {
-    spec: WatchSpec,
-    phase: Phase,
-    next_due: Timestamp,
-    samples: u64,
-    last: Option<Snapshot>,
-    /// What the reads of the sample under way gave so far.
-    statuses: [ActuatorStatus1; 6],
-    positions: [PositionCounts; 6],
-    currents: [u16; 6],
-}
-
-impl Watch {
-    pub fn new(spec: WatchSpec, now: Timestamp) -> Self {
-        Watch {
-            spec,
-            phase: Phase::Pause,
-            next_due: now,
-            samples: 0,
-            last: None,
-            statuses: [ActuatorStatus1::EMPTY; 6],
-            positions: [PositionCounts(0); 6],
-            currents: [0; 6],
-        }
+/// A watch ([`super::Op::Watch`], [`crate::Client::watch`]): a sample at once and then every interval, until
+/// the count is reached or a cancel ends it (which is no failure: the samples taken are the result).
+pub(crate) async fn watch(ctx: &Ctx, spec: WatchSpec) -> Result<Output, Error> {
+    let mut next_due = ctx.now();
+    let mut samples = 0;
+    let mut last = None;
+    let end = |samples, last| Ok(Output::Watched { samples, last });
+    match define_object(ctx).await {
+        _ if ctx.cancelled() => return end(samples, last),
+        Ok(()) => {}
+        Err(e) => return Err(e),
     }
-
-    fn end(&self) -> Next {
-        Next::Done(Ok(Output::Watched { samples: self.samples, last: self.last }))
-    }
-
-    /// Takes a sample: through the keepalive where the object is configured, else with reads.
-    fn sample(&mut self, cx: &mut Cx<'_>) -> Next {
-        if cx.core.poll_slot().is_some() && cx.core.poll.configured {
-            self.phase = Phase::Snapshot;
-            return Next::Snapshot;
-        }
-        self.read(cx, 0)
-    }
-
-    /// Starts read `i` of a sample taken with reads (positions and currents of the connected actuators only).
-    fn read(&mut self, cx: &mut Cx<'_>, i: usize) -> Next {
-        let connected: Vec<Actuator> = Actuator::all().filter(|a| self.statuses[idx(*a)].available()).collect();
-        let mut read = match i {
-            0 => ItemRead::all(READS[0]),
-            _ => ItemRead::actuators(READS[i], connected),
+    loop {
+        let configured = {
+            let core = ctx.core();
+            core.poll_slot().is_some() && core.poll.configured
         };
-        let step = read.step(cx, Resume::Start);
-        self.phase = Phase::Read(i, read);
-        self.after_read(cx, i, step)
-    }
-
-    fn after_read(&mut self, cx: &mut Cx<'_>, i: usize, step: Step<Result<Vec<u8>, Error>>) -> Next {
-        let data = match step {
-            // A cancel ends the watch before anything more is asked.
-            Step::Wait(_) | Step::Done(_) if cx.cancelled => return self.end(),
-            Step::Wait(next) => return next,
-            Step::Done(Ok(data)) => data,
-            Step::Done(Err(e)) => return Next::Done(Err(e)),
+        // Through the keepalive where the object is configured, else with reads.
+        let sample = if configured {
+            match ctx.snapshot().await {
+                Some(Ok(s)) => s,
+                Some(Err(e)) => return Err(e),
+                None => return end(samples, last),
+            }
+        } else {
+            match read_sample(ctx).await {
+                Some(Ok(s)) => s,
+                Some(Err(e)) => return Err(e),
+                None => return end(samples, last),
+            }
         };
-        let parsed = match i {
-            0 => statuses(&data).map(|s| self.statuses = s),
-            1 => positions(&data).map(|p| self.positions = p),
-            2 => currents(&data).map(|c| self.currents = c),
-            _ => error_code(&data).map(|last_error| {
-                self.last = Some(Snapshot {
-                    at: cx.now(),
-                    statuses: self.statuses,
-                    positions: self.positions,
-                    currents_deci_amps: self.currents,
-                    last_error,
-                })
-            }),
-        };
-        if let Err(e) = parsed {
-            return Next::Done(Err(e));
+        samples += 1;
+        last = Some(sample);
+        ctx.progress(Progress::Watch(sample));
+        if ctx.cancelled() || spec.count.is_some_and(|c| samples >= c) {
+            return end(samples, last);
         }
-        if i + 1 < READS.len() {
-            return self.read(cx, i + 1);
+        // The next is due one interval after this one was (no drift).
+        let now = ctx.now();
+        while next_due <= now {
+            next_due += spec.interval.max(Duration::from_millis(1));
         }
-        match self.last {
-            Some(s) => self.took(cx, s),
-            None => Next::Done(Err(Error::UnexpectedReply { command: Command::Get, detail: "no sample".into() })),
-        }
-    }
-
-    /// A sample was taken: reported; the next is due one interval after this one was (no drift).
-    fn took(&mut self, cx: &mut Cx<'_>, s: Snapshot) -> Next {
-        self.samples += 1;
-        self.last = Some(s);
-        cx.progress(Progress::Watch(s));
-        if cx.cancelled || self.spec.count.is_some_and(|c| self.samples >= c) {
-            return self.end();
-        }
-        let now = cx.now();
-        while self.next_due <= now {
-            self.next_due += self.spec.interval.max(Duration::from_millis(1));
-        }
-        self.phase = Phase::Pause;
         // Through the keepalive, the sample is asked for a round trip early: the RC that carries it then
         // comes back about when it is due (on a slow link the RC under way is waited for first).
-        let lead = if cx.core.poll.configured {
-            cx.core.line.recent_round_trip.unwrap_or(cx.core.line.round_trip)
-        } else {
-            Duration::ZERO
+        let lead = {
+            let core = ctx.core();
+            if core.poll.configured {
+                core.line.recent_round_trip.unwrap_or(core.line.round_trip)
+            } else {
+                Duration::ZERO
+            }
         };
-        let ask_at = Timestamp::from_duration(self.next_due.since_origin().saturating_sub(lead));
-        Next::Sleep(ask_at.max(now))
+        let ask_at = Timestamp::from_duration(next_due.since_origin().saturating_sub(lead));
+        if ctx.pause_until(ask_at.max(now)).await {
+            return end(samples, last);
+        }
     }
 }
 
-fn idx(a: Actuator) -> usize {
-    usize::from(a.number() - 1)
-}
-
-impl Operation for Watch {
-    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
-        if cx.cancelled && matches!(resume, Resume::Wake) {
-            return self.end();
+/// A sample taken with reads (positions and currents of the connected actuators only). `None`: the watch
+/// was cancelled meanwhile (nothing more is asked then).
+async fn read_sample(ctx: &Ctx) -> Option<Result<Snapshot, Error>> {
+    let reads = ctx.ending_on_cancel(Error::CancelledBeforeSending(Command::Get));
+    let data = read_item(&reads, ItemRead::all(READS[0])).await;
+    if ctx.cancelled() {
+        return None;
+    }
+    let statuses = match data.and_then(|d| statuses(&d)) {
+        Ok(s) => s,
+        Err(e) => return Some(Err(e)),
+    };
+    let connected: Vec<Actuator> =
+        Actuator::all().filter(|a| statuses[usize::from(a.number() - 1)].available()).collect();
+    let mut sample = Snapshot {
+        at: ctx.now(),
+        statuses,
+        positions: Default::default(),
+        currents_deci_amps: [0; 6],
+        last_error: Default::default(),
+    };
+    for (i, index) in READS.iter().enumerate().skip(1) {
+        let data = read_item(&reads, ItemRead::actuators(*index, connected.iter().copied())).await;
+        if ctx.cancelled() {
+            return None;
         }
-        match (std::mem::replace(&mut self.phase, Phase::Pause), resume) {
-            (_, Resume::Start) => match DefineObject::start(cx) {
-                Some((define, next)) => {
-                    self.phase = Phase::Define(define);
-                    next
-                }
-                None => self.sample(cx),
-            },
-            (Phase::Define(mut define), resume) => match define.step(cx, resume) {
-                Step::Wait(next) => {
-                    self.phase = Phase::Define(define);
-                    next
-                }
-                Step::Done(Ok(())) if cx.cancelled => self.end(),
-                Step::Done(Ok(())) => self.sample(cx),
-                Step::Done(Err(_)) if cx.cancelled => self.end(),
-                Step::Done(Err(e)) => Next::Done(Err(e)),
-            },
-            (Phase::Pause, Resume::Wake) => self.sample(cx),
-            (Phase::Snapshot, Resume::Snapshot(Ok(s))) => self.took(cx, s),
-            (Phase::Snapshot, Resume::Snapshot(Err(e))) => Next::Done(Err(e)),
-            (Phase::Read(i, mut read), resume) => {
-                let step = read.step(cx, resume);
-                self.phase = Phase::Read(i, read);
-                self.after_read(cx, i, step)
-            }
-            (phase, other) => {
-                self.phase = phase;
-                Next::Done(Err(Error::UnexpectedReply {
-                    command: Command::Get,
-                    detail: format!("{other:?} while watching"),
-                }))
-            }
+        let parsed = data.and_then(|d| match i {
+            1 => positions(&d).map(|p| sample.positions = p),
+            2 => currents(&d).map(|c| sample.currents_deci_amps = c),
+            _ => error_code(&d).map(|e| sample.last_error = e),
+        });
+        if let Err(e) = parsed {
+            return Some(Err(e));
         }
     }
+    sample.at = ctx.now();
+    Some(Ok(sample))
 }

@@ -6,50 +6,25 @@
 
 use motionlink_link::Timestamp;
 
-use super::basic::{check_against_map, check_stroke, StrokeFound, StrokeRead, Write};
-use super::object::DefineObject;
-use super::stop::{after_stop, StopMachine};
-use super::{positions, statuses, Cx, ItemRead, MoveSpec, MoveTargets, Next, Operation, Output, Resume, Step};
+use super::basic::{check_against_map, check_stroke, stroke, write, StrokeFound};
+use super::object::define_object;
+use super::stop::{after_stop, Stop};
+use super::{positions, read_item, statuses, ItemRead, MoveSpec, MoveTargets, Output};
+use crate::config::ClientConfig;
 use crate::error::Error;
 use crate::model::ActuatorStatus1;
 use crate::model::{Actuator, DataIndex, Function, MotionDirection, PositionCounts, StopMode, UNUSED};
-use crate::session::report::{ActuatorOutcome, Snapshot};
+use crate::session::ctx::Ctx;
+use crate::session::report::ActuatorOutcome;
 use crate::session::request::{PreparedRequest, Req};
 use crate::value::Value;
 use crate::wire::{Command, Request};
 
 mod poll;
 
-enum Phase {
-    /// The status of every actuator: which are connected.
-    Status(ItemRead),
-    /// The stroke of `order[i]`.
-    Stroke(usize, StrokeRead),
-    /// Where the actuators start.
-    Start(ItemRead),
-    /// The session's cyclic object is defined and probed.
-    Define(DefineObject),
-    /// The remote position of `targets[i]`.
-    Target(usize, Write),
-    Speed(Write),
-    Execute,
-    /// Waiting for the next look at the actuators.
-    Poll,
-    /// Reading the status (reads polling); then the positions.
-    PollStatus(ItemRead),
-    PollPositions([ActuatorStatus1; 6], ItemRead),
-    /// Reading Error_Code 1 for the report of a move that ended away from its target.
-    ErrorCode(Error),
-    /// The RS that ends a move that reached its target.
-    FinalStop,
-    /// Stopping after `cause`.
-    Stopping(StopMachine, Option<Error>),
-}
-
-/// A move; see [`super::Op::Move`] and [`crate::Client::move_function`].
-pub(crate) struct Move {
+/// A move under way; see [`super::Op::Move`] and [`crate::Client::move_function`].
+struct Move {
     spec: MoveSpec,
-    phase: Phase,
     started_at: Timestamp,
     speed: u16,
     drives_unknown: bool,
@@ -74,11 +49,22 @@ fn idx(a: Actuator) -> usize {
     usize::from(a.number() - 1)
 }
 
+/// A verified move ([`super::Op::Move`]). Before RE nothing moves: a cancel ends the move where it is
+/// ([`Error::CancelledBeforeSending`]); from RE on, a cancel or any failure stops the function at once and
+/// the stop is confirmed.
+pub(crate) async fn move_function(ctx: &Ctx, spec: MoveSpec) -> Result<Output, Error> {
+    let mut m = Move::new(spec, ctx.now());
+    let config = ctx.core().config.clone();
+    m.check(&config)?;
+    let before_re = ctx.ending_on_cancel(Error::CancelledBeforeSending(Command::Execute));
+    m.prepare(&before_re).await?;
+    m.execute(ctx).await
+}
+
 impl Move {
-    pub fn new(spec: MoveSpec, now: Timestamp) -> Self {
+    fn new(spec: MoveSpec, now: Timestamp) -> Self {
         Move {
             spec,
-            phase: Phase::Poll,
             started_at: now,
             speed: 0,
             drives_unknown: false,
@@ -97,21 +83,20 @@ impl Move {
         }
     }
 
-    fn actuators(&self) -> impl Iterator<Item = Actuator> + '_ {
-        self.targets.iter().map(|(a, _)| *a)
+    fn actuators(&self) -> Vec<Actuator> {
+        self.targets.iter().map(|(a, _)| *a).collect()
     }
 
     /// Checks what can be checked before anything is sent.
-    fn check(&mut self, cx: &Cx<'_>) -> Result<(), Error> {
-        let mode = cx.config().speed_mode;
-        self.speed = self.spec.speed.for_motion(mode).map_err(Error::InvalidArgument)?;
+    fn check(&mut self, config: &ClientConfig) -> Result<(), Error> {
+        self.speed = self.spec.speed.for_motion(config.speed_mode).map_err(Error::InvalidArgument)?;
         match &self.spec.targets {
             MoveTargets::Given(targets) => {
                 if targets.is_empty() {
                     return Err(Error::invalid("a move needs at least one actuator and its target"));
                 }
                 let actuators: Vec<Actuator> = targets.iter().map(|(a, _)| *a).collect();
-                check_against_map(cx, self.spec.function, &actuators)?;
+                check_against_map(config, self.spec.function, &actuators)?;
                 self.targets = targets.clone();
                 if !actuators.contains(&self.spec.primary) {
                     self.spec.primary = actuators[0];
@@ -123,7 +108,35 @@ impl Move {
     }
 
     /// Everything that can refuse the move is checked before the unit is told anything: the actuators are
-    /// connected, and each target lies within its stroke.
+    /// connected, and each target lies within its stroke. Then where they start, the session's cyclic object
+    /// (defined and probed once per session, again after remote mode was opened again), the targets and the
+    /// speed, each read back.
+    async fn prepare(&mut self, ctx: &Ctx) -> Result<(), Error> {
+        let data = read_item(ctx, ItemRead::all(DataIndex(0x0170))).await?;
+        self.checked_status(data)?;
+        for i in 0..self.order.len() {
+            let found = stroke(ctx, self.order[i].0).await;
+            self.stroke_read(i, found)?;
+        }
+        let data = read_item(ctx, ItemRead::actuators(DataIndex(0x0010), self.actuators())).await?;
+        let p = positions(&data)?;
+        self.start = p;
+        self.last_position = p;
+        define_object(ctx).await?;
+        for (a, t) in self.targets.clone() {
+            let index = a.remote_position_index();
+            if write(ctx, index, &Value::RemotePosition(t.get()).to_bytes(), true).await?.is_some() {
+                self.not_read_back.push(index);
+            }
+        }
+        let index = self.spec.function.remote_speed_index();
+        if write(ctx, index, &self.speed.to_le_bytes(), true).await?.is_some() {
+            self.not_read_back.push(index);
+        }
+        Ok(())
+    }
+
+    /// The status of every actuator: which are connected, and which the move drives.
     fn checked_status(&mut self, data: Vec<u8>) -> Result<(), Error> {
         self.status = statuses(&data)?;
         let available = |a: Actuator| self.status[idx(a)].available();
@@ -142,32 +155,8 @@ impl Move {
         Ok(())
     }
 
-    /// Runs `read` (just made) and goes on with what it wants.
-    fn read(&mut self, cx: &mut Cx<'_>, mut read: ItemRead, phase: fn(ItemRead) -> Phase) -> Next {
-        match read.step(cx, Resume::Start) {
-            Step::Wait(next) => {
-                self.phase = phase(read);
-                next
-            }
-            Step::Done(r) => Next::Done(r.map(|d| Output::Data(Some(d)))),
-        }
-    }
-
-    fn next_stroke(&mut self, cx: &mut Cx<'_>, i: usize) -> Next {
-        if i >= self.order.len() {
-            let read = ItemRead::actuators(DataIndex(0x0010), self.actuators().collect::<Vec<_>>());
-            return self.read(cx, read, Phase::Start);
-        }
-        let mut read = StrokeRead(self.order[i].0);
-        let step = read.step(cx, Resume::Start);
-        self.phase = Phase::Stroke(i, read);
-        match step {
-            Step::Wait(next) => next,
-            Step::Done(stroke) => self.stroke_read(cx, i, stroke),
-        }
-    }
-
-    fn stroke_read(&mut self, cx: &mut Cx<'_>, i: usize, stroke: Result<StrokeFound, Error>) -> Next {
+    /// The stroke of `order[i]` was read: its target is checked against it.
+    fn stroke_read(&mut self, i: usize, stroke: Result<StrokeFound, Error>) -> Result<(), Error> {
         let (a, target) = self.order[i];
         let checked = match stroke {
             Ok(Ok(s)) => check_stroke(a, target, &s),
@@ -179,282 +168,67 @@ impl Move {
         };
         match checked {
             Err(e @ Error::OutsideStroke { .. }) if self.drives_unknown && a != self.spec.primary => {
-                Next::Done(Err(Error::InvalidArgument(format!(
+                Err(Error::InvalidArgument(format!(
                     "{e}. The function map does not say which actuators {} drives, so every connected actuator \
                      gets the target; say which ones it drives (ClientConfig::function_map, --functions)",
                     self.spec.function
-                ))))
+                )))
             }
-            Err(e) => Next::Done(Err(e)),
-            Ok(()) => self.next_stroke(cx, i + 1),
+            other => other,
         }
     }
 
-    /// The session's cyclic object is defined and probed once per session (again after remote mode was
-    /// opened again).
-    fn define(&mut self, cx: &mut Cx<'_>) -> Next {
-        match DefineObject::start(cx) {
-            Some((define, next)) => {
-                self.phase = Phase::Define(define);
-                next
-            }
-            None => self.next_target(cx, 0),
-        }
-    }
-
-    fn next_target(&mut self, cx: &mut Cx<'_>, i: usize) -> Next {
-        let mut write = if i < self.targets.len() {
-            let (a, t) = self.targets[i];
-            Write::new(a.remote_position_index(), Value::RemotePosition(t.get()).to_bytes(), true)
-        } else {
-            Write::new(self.spec.function.remote_speed_index(), self.speed.to_le_bytes().to_vec(), true)
-        };
-        let step = write.step(cx, Resume::Start);
-        self.phase = if i < self.targets.len() { Phase::Target(i, write) } else { Phase::Speed(write) };
-        match step {
-            Step::Wait(next) => next,
-            Step::Done(Err(e)) => Next::Done(Err(e)),
-            Step::Done(Ok(_)) => unreachable!("a write waits for its reply"),
-        }
-    }
-
-    /// A write of the move ended: the next one, or the RE.
-    fn written(&mut self, cx: &mut Cx<'_>, i: Option<usize>, done: Result<Option<String>, Error>) -> Next {
-        match done {
-            Ok(why) => {
-                if why.is_some() {
-                    self.not_read_back.push(match i {
-                        Some(i) => self.targets[i].0.remote_position_index(),
-                        None => self.spec.function.remote_speed_index(),
-                    });
-                }
-                match i {
-                    Some(i) => self.next_target(cx, i + 1),
-                    None => self.execute(),
-                }
-            }
-            Err(e) => Next::Done(Err(e)),
-        }
-    }
-
-    fn execute(&mut self) -> Next {
-        self.phase = Phase::Execute;
+    /// RE, then the looks at the actuators until the motion ends (see `poll`).
+    async fn execute(&mut self, ctx: &Ctx) -> Result<Output, Error> {
         let re = Request::Execute {
             function: self.spec.function.id(),
             params: [MotionDirection::RemotePosition.code(), UNUSED],
         };
-        match PreparedRequest::new(&re) {
-            Ok(r) => Next::Send(Req::op(r)),
-            Err(e) => Next::Done(Err(e)),
+        let reply = ctx.send(Req::op(PreparedRequest::new(&re)?)).await;
+        if let Err(e @ Error::CancelledBeforeSending(_)) = reply {
+            return Err(e);
         }
-    }
-
-    /// Stops the function at once after `cause`.
-    fn stop(&mut self, cx: &mut Cx<'_>, cause: Error) -> Next {
-        let watch = self.actuators().collect();
-        let mut machine = StopMachine::new(Function::Motion(self.spec.function), StopMode::Fast, watch);
-        let step = machine.step(cx, Resume::Start);
-        self.phase = Phase::Stopping(machine, Some(cause));
-        match step {
-            Step::Wait(next) => next,
-            Step::Done(_) => unreachable!("a stop sends RS first"),
+        // An RE that failed (refused, a lost or corrupt reply) may still have started the motion: it gets its
+        // RS like any other failure.
+        if let Err(e) = reply.and_then(|r| r.ack(Command::Execute)) {
+            return Err(self.stop(ctx, e).await);
         }
-    }
-
-    /// An RG of a poll ended: the positions next, or the judgement.
-    fn polled(
-        &mut self,
-        cx: &mut Cx<'_>,
-        status: Option<[ActuatorStatus1; 6]>,
-        step: Step<Result<Vec<u8>, Error>>,
-    ) -> Next {
-        let data = match step {
-            Step::Wait(next) => return next,
-            Step::Done(Ok(d)) => d,
-            Step::Done(Err(e)) => return self.stop(cx, e),
+        let primary = self.spec.primary;
+        if ctx.cancelled() {
+            let e = Error::Cancelled { actuator: primary, position_counts: self.start[idx(primary)] };
+            return Err(self.stop(ctx, e).await);
+        }
+        self.by_snapshot = {
+            let core = ctx.core();
+            core.poll_slot().is_some() && core.poll.configured
         };
-        match status {
-            None => match statuses(&data) {
-                Ok(s) => {
-                    let mut read = ItemRead::actuators(DataIndex(0x0010), self.actuators().collect::<Vec<_>>());
-                    let step = read.step(cx, Resume::Start);
-                    self.phase = Phase::PollPositions(s, read);
-                    self.polled(cx, Some(s), step)
-                }
-                Err(e) => self.stop(cx, e),
-            },
-            Some(s) => match positions(&data) {
-                Ok(p) => self.judge(cx, s, p),
-                Err(e) => self.stop(cx, e),
-            },
+        self.next_poll = self.started_at;
+        loop {
+            let ended = match self.look(ctx).await {
+                Ok((status, positions)) => self.judge(ctx, status, positions).await,
+                Err(cause) => Some(Err(Ended::Stop(cause))),
+            };
+            match ended {
+                None => continue,
+                Some(Ok(report)) => return Ok(Output::Move(report)),
+                Some(Err(Ended::Stop(cause))) => return Err(self.stop(ctx, cause).await),
+                Some(Err(Ended::Failed(e))) => return Err(e),
+            }
         }
+    }
+
+    /// Stops the function at once after `cause`; the error to report.
+    async fn stop(&self, ctx: &Ctx, cause: Error) -> Error {
+        let stop = Stop::new(Function::Motion(self.spec.function), StopMode::Fast, self.actuators());
+        let stopped = stop.run(ctx).await.rest;
+        after_stop(cause, stopped.map(|(_, p)| p), stop.describe())
     }
 }
 
-impl Operation for Move {
-    fn step(&mut self, cx: &mut Cx<'_>, resume: Resume) -> Next {
-        // Before RE nothing moves: a cancel ends the move where it is.
-        let before_re = matches!(
-            self.phase,
-            Phase::Status(_)
-                | Phase::Stroke(..)
-                | Phase::Start(_)
-                | Phase::Define(_)
-                | Phase::Target(..)
-                | Phase::Speed(_)
-        );
-        if cx.cancelled && before_re && !matches!(resume, Resume::Start) {
-            return Next::Done(Err(Error::CancelledBeforeSending(Command::Execute)));
-        }
-        // While polling, a cancel stops the function at once (where it came to rest is read after the stop).
-        let polling = matches!(self.phase, Phase::Poll | Phase::PollStatus(_) | Phase::PollPositions(..));
-        if cx.cancelled && polling && !matches!(resume, Resume::Snapshot(Ok(_))) {
-            let p = self.last_position[idx(self.spec.primary)];
-            return self.stop(cx, Error::Cancelled { actuator: self.spec.primary, position_counts: p });
-        }
-        match (std::mem::replace(&mut self.phase, Phase::Poll), resume) {
-            (_, Resume::Start) => {
-                if let Err(e) = self.check(cx) {
-                    return Next::Done(Err(e));
-                }
-                self.read(cx, ItemRead::all(DataIndex(0x0170)), Phase::Status)
-            }
-            (Phase::Status(mut read), resume) => match read.step(cx, resume) {
-                Step::Wait(next) => {
-                    self.phase = Phase::Status(read);
-                    next
-                }
-                Step::Done(r) => match r.and_then(|d| self.checked_status(d)) {
-                    Ok(()) => self.next_stroke(cx, 0),
-                    Err(e) => Next::Done(Err(e)),
-                },
-            },
-            (Phase::Stroke(i, mut read), resume) => match read.step(cx, resume) {
-                Step::Wait(next) => {
-                    self.phase = Phase::Stroke(i, read);
-                    next
-                }
-                Step::Done(stroke) => self.stroke_read(cx, i, stroke),
-            },
-            (Phase::Start(mut read), resume) => match read.step(cx, resume) {
-                Step::Wait(next) => {
-                    self.phase = Phase::Start(read);
-                    next
-                }
-                Step::Done(r) => match r.and_then(|d| positions(&d)) {
-                    Ok(p) => {
-                        self.start = p;
-                        self.last_position = p;
-                        self.define(cx)
-                    }
-                    Err(e) => Next::Done(Err(e)),
-                },
-            },
-            (Phase::Define(mut define), resume) => match define.step(cx, resume) {
-                Step::Wait(next) => {
-                    self.phase = Phase::Define(define);
-                    next
-                }
-                Step::Done(Ok(())) => self.next_target(cx, 0),
-                Step::Done(Err(e)) => Next::Done(Err(e)),
-            },
-            (Phase::Target(i, mut write), resume) => match write.step(cx, resume) {
-                Step::Wait(next) => {
-                    self.phase = Phase::Target(i, write);
-                    next
-                }
-                Step::Done(done) => self.written(cx, Some(i), done),
-            },
-            (Phase::Speed(mut write), resume) => match write.step(cx, resume) {
-                Step::Wait(next) => {
-                    self.phase = Phase::Speed(write);
-                    next
-                }
-                Step::Done(done) => self.written(cx, None, done),
-            },
-            (Phase::Execute, Resume::Reply(Err(Error::CancelledBeforeSending(c)))) => {
-                Next::Done(Err(Error::CancelledBeforeSending(c)))
-            }
-            (Phase::Execute, Resume::Reply(r)) => {
-                // An RE that failed (refused, a lost or corrupt reply) may still have started the motion: it
-                // gets its RS like any other failure.
-                if let Err(e) = r.and_then(|r| r.ack(Command::Execute)) {
-                    return self.stop(cx, e);
-                }
-                if cx.cancelled {
-                    let p = self.start[idx(self.spec.primary)];
-                    return self.stop(cx, Error::Cancelled { actuator: self.spec.primary, position_counts: p });
-                }
-                self.by_snapshot = cx.core.poll_slot().is_some() && cx.core.poll.configured;
-                self.next_poll = self.started_at;
-                self.poll(cx)
-            }
-            (Phase::Poll, Resume::Wake) => {
-                let mut read = ItemRead::actuators(DataIndex(0x0170), self.actuators().collect::<Vec<_>>());
-                let step = read.step(cx, Resume::Start);
-                self.phase = Phase::PollStatus(read);
-                self.polled(cx, None, step)
-            }
-            (Phase::Poll, Resume::Snapshot(Ok(Snapshot { statuses, positions, .. }))) => {
-                self.judge(cx, statuses, positions)
-            }
-            (Phase::Poll, Resume::Snapshot(Err(e))) => self.stop(cx, e),
-            (Phase::PollStatus(mut read), resume) => {
-                let step = read.step(cx, resume);
-                self.phase = Phase::PollStatus(read);
-                self.polled(cx, None, step)
-            }
-            (Phase::PollPositions(s, mut read), resume) => {
-                let step = read.step(cx, resume);
-                self.phase = Phase::PollPositions(s, read);
-                self.polled(cx, Some(s), step)
-            }
-            (Phase::ErrorCode(mut e), Resume::Reply(r)) => {
-                let code = r.and_then(|r| r.data(Command::Get)).ok().and_then(|d| super::error_code(&d).ok());
-                if let (Error::MotionEnded { error_code, .. }, Some(c)) = (&mut e, code) {
-                    *error_code = c;
-                }
-                self.stop(cx, e)
-            }
-            (Phase::FinalStop, Resume::Reply(r)) => match r.and_then(|r| r.ack(Command::Stop)) {
-                Ok(_) => Next::Done(Ok(Output::Move(self.report(cx)))),
-                Err(e) => Next::Done(Err(e)),
-            },
-            (Phase::Stopping(mut machine, mut cause), resume) => match machine.step(cx, resume) {
-                Step::Wait(next) => {
-                    self.phase = Phase::Stopping(machine, cause);
-                    next
-                }
-                Step::Done(stopped) => {
-                    let cause = cause.take().expect("a stop has its cause");
-                    Next::Done(Err(after_stop(cause, stopped.map(|(_, p)| p), machine.describe())))
-                }
-            },
-            (phase, resume) => {
-                let detail = format!("{resume:?} while {}", phase_name(&phase));
-                self.phase = phase;
-                self.stop(cx, Error::UnexpectedReply { command: Command::Execute, detail })
-            }
-        }
-    }
-
-    fn interruptible(&self) -> bool {
-        !matches!(self.phase, Phase::ErrorCode(_) | Phase::FinalStop | Phase::Stopping(..))
-    }
-}
-
-fn phase_name(p: &Phase) -> &'static str {
-    match p {
-        Phase::Status(_) => "reading the status",
-        Phase::Stroke(..) => "reading a stroke",
-        Phase::Start(_) => "reading the positions",
-        Phase::Define(_) => "defining the session's cyclic object",
-        Phase::Target(..) => "writing a target",
-        Phase::Speed(_) => "writing the speed",
-        Phase::Execute => "starting the function",
-        Phase::Poll | Phase::PollStatus(_) | Phase::PollPositions(..) => "polling",
-        Phase::ErrorCode(_) => "reading the error code",
-        Phase::FinalStop => "ending the function",
-        Phase::Stopping(..) => "stopping",
-    }
+/// How a move that did not reach its target ends.
+enum Ended {
+    /// The function is stopped, then this is reported.
+    Stop(Error),
+    /// This is reported as it is (the RS that ends a move that arrived failed).
+    Failed(Error),
 }

@@ -1,58 +1,82 @@
 //! A move's looks at its actuators while the motion runs, their judgement, and its report.
 
-use super::{idx, Move, Phase};
+use super::{idx, Ended, Move};
 use crate::error::Error;
 use crate::model::{ActuatorStatus1, DataIndex, ErrorCode, PositionCounts, StopMode};
-use crate::session::ops::{get, Cx, Next, Progress};
+use crate::session::ctx::Ctx;
+use crate::session::ops::{error_code, positions, read_item, statuses, ItemRead, Progress};
 use crate::session::report::{ActuatorOutcome, MoveProgress, MoveReport};
 use crate::session::request::{PreparedRequest, Req, Schedule};
+use crate::wire::Command;
 
 /// Error_Code 1, read for the report of a move that ended away from its target.
 const LAST_ERROR: DataIndex = DataIndex(0x00D1);
+
+/// A look at the actuators: status 1 and position of A1..A6.
+type Look = ([ActuatorStatus1; 6], [PositionCounts; 6]);
 
 impl Move {
     fn primary_target(&self) -> PositionCounts {
         self.targets.iter().find(|(a, _)| *a == self.spec.primary).map_or(PositionCounts(0), |(_, t)| *t)
     }
 
-    /// Waits for the next look: the next keepalive RC that carries the session's cyclic object, or the time
-    /// of the next reads.
-    pub(super) fn poll(&mut self, cx: &mut Cx<'_>) -> Next {
-        self.phase = Phase::Poll;
+    /// Waits for the next look and takes it: the next keepalive RC that carries the session's cyclic object,
+    /// or, at the time of the next reads, RG of the status and the positions. `Err`: the cause to stop with
+    /// (a cancel meanwhile, with the last position seen; a failed read).
+    pub(super) async fn look(&mut self, ctx: &Ctx) -> Result<Look, Error> {
+        let primary = self.spec.primary;
+        let cancelled =
+            |last: &[PositionCounts; 6]| Error::Cancelled { actuator: primary, position_counts: last[idx(primary)] };
         if self.by_snapshot {
-            return Next::Snapshot;
+            return match ctx.snapshot().await {
+                Some(Ok(s)) => Ok((s.statuses, s.positions)),
+                Some(Err(_)) | None if ctx.cancelled() => Err(cancelled(&self.last_position)),
+                Some(Err(e)) => Err(e),
+                None => Err(cancelled(&self.last_position)),
+            };
         }
-        let now = cx.now();
+        let now = ctx.now();
         // The next poll is due one interval after this one was due (no drift), and never in the past.
-        let interval = cx.config().poll_interval;
+        let interval = ctx.core().config.poll_interval;
         while self.next_poll <= now {
             self.next_poll += interval;
         }
-        Next::Sleep(self.next_poll)
+        ctx.pause_until(self.next_poll).await;
+        if ctx.cancelled() {
+            return Err(cancelled(&self.last_position));
+        }
+        // While polling, a cancel stops the function at once (where it came to rest is read after the stop).
+        let reads = ctx.ending_on_cancel(cancelled(&self.last_position));
+        let status = statuses(&read_item(&reads, ItemRead::actuators(DataIndex(0x0170), self.actuators())).await?)?;
+        let positions = positions(&read_item(&reads, ItemRead::actuators(DataIndex(0x0010), self.actuators())).await?)?;
+        Ok((status, positions))
     }
 
     /// One look at the actuators: progress, the end of the motion and its judgement, a stall, the time limit.
-    pub(super) fn judge(
+    /// `None`: the next look.
+    pub(super) async fn judge(
         &mut self,
-        cx: &mut Cx<'_>,
+        ctx: &Ctx,
         status: [ActuatorStatus1; 6],
         positions: [PositionCounts; 6],
-    ) -> Next {
+    ) -> Option<Result<MoveReport, Ended>> {
         let (tolerance_counts, start_grace, stall_timeout, move_timeout) = {
-            let c = cx.config();
+            let core = ctx.core();
+            let c = &core.config;
             (c.position_tolerance_counts, c.start_grace, c.stall_timeout, c.move_timeout)
         };
-        let now = cx.now();
+        let now = ctx.now();
         let primary = self.spec.primary;
-        cx.progress(Progress::Move(MoveProgress {
+        ctx.progress(Progress::Move(MoveProgress {
             actuator: primary,
             position_counts: positions[idx(primary)],
             start_counts: self.start[idx(primary)],
             target_counts: self.primary_target(),
             status: status[idx(primary)],
         }));
-        if cx.cancelled {
-            return self.stop(cx, Error::Cancelled { actuator: primary, position_counts: positions[idx(primary)] });
+        if ctx.cancelled() {
+            let e = Error::Cancelled { actuator: primary, position_counts: positions[idx(primary)] };
+            return Some(Err(Ended::Stop(e)));
         }
         let tolerance = i64::from(tolerance_counts);
         let mut moving = false;
@@ -82,22 +106,26 @@ impl Move {
                 None => {
                     self.outcomes = outcomes;
                     // Every RE is ended with an RS, even after the drives stopped by themselves.
-                    self.phase = Phase::FinalStop;
                     let rs = PreparedRequest::stop(self.spec.function.id(), StopMode::Soft);
-                    return Next::Send(Req::op(rs).when(Schedule::RoomOrLate));
+                    let ended = ctx.firm().send(Req::op(rs).when(Schedule::RoomOrLate)).await;
+                    return Some(match ended.and_then(|r| r.ack(Command::Stop)) {
+                        Ok(_) => Ok(self.report(ctx)),
+                        Err(e) => Err(Ended::Failed(e)),
+                    });
                 }
                 Some(o) if self.seen_motion.iter().any(|s| *s) || now - self.started_at >= start_grace => {
-                    self.phase = Phase::ErrorCode(Error::MotionEnded {
+                    let read = ctx.firm().get(LAST_ERROR).await;
+                    let code = read.and_then(|r| r.data(Command::Get)).ok().and_then(|d| error_code(&d).ok());
+                    return Some(Err(Ended::Stop(Error::MotionEnded {
                         actuator: o.actuator,
                         position_counts: o.position_counts,
                         target_counts: o.target_counts,
                         tolerance_counts,
-                        error_code: ErrorCode::NONE,
-                    });
-                    return get(LAST_ERROR);
+                        error_code: code.unwrap_or(ErrorCode::NONE),
+                    })));
                 }
                 // The unit has not raised the motion bit yet.
-                Some(_) => return self.poll(cx),
+                Some(_) => return None,
             }
         }
         for &(a, _) in &self.targets {
@@ -108,15 +136,15 @@ impl Move {
             } else if status[i].moving() && now - self.last_progress_at[i] >= stall_timeout {
                 tracing::debug!("{a} stalled at {}", positions[i]);
                 let after = now - self.last_progress_at[i];
-                return self.stop(cx, Error::Stalled { actuator: a, position_counts: positions[i], after });
+                return Some(Err(Ended::Stop(Error::Stalled { actuator: a, position_counts: positions[i], after })));
             }
         }
         if now - self.started_at >= move_timeout {
             let e =
                 Error::MoveTimeout { actuator: primary, position_counts: positions[idx(primary)], after: move_timeout };
-            return self.stop(cx, e);
+            return Some(Err(Ended::Stop(e)));
         }
-        self.poll(cx)
+        None
     }
 
     /// What could not be verified: the strokes that could not be read, and the writes not read back.
@@ -137,7 +165,7 @@ impl Move {
         why
     }
 
-    pub(super) fn report(&self, cx: &Cx<'_>) -> MoveReport {
+    fn report(&self, ctx: &Ctx) -> MoveReport {
         let primary = self.spec.primary;
         let position_counts = self
             .outcomes
@@ -149,7 +177,7 @@ impl Move {
             actuator: primary,
             function: self.spec.function,
             position_counts,
-            duration: cx.now() - self.started_at,
+            duration: ctx.now() - self.started_at,
             actuators: self.outcomes.clone(),
             verified: not_verifiable.is_empty(),
             not_verifiable,
