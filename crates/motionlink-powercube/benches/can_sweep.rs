@@ -22,9 +22,10 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use motionlink_link::can::{CanBus, CanBusConfig, CanEmulator, CanFrame};
 use motionlink_link::{RealClock, Timestamp};
 use motionlink_powercube::client::{BusConfig, Client};
-use motionlink_powercube::model::{Address, Param, Request};
+use motionlink_powercube::model::{Address, Param};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::wire::can::{to_frame, Role};
+use motionlink_powercube::wire::Request;
 use motionlink_powercube::Emulator;
 
 const BITRATE: u32 = 1_000_000;

@@ -19,10 +19,11 @@ use motionlink_link::chunk::{Chunk, Direction};
 use motionlink_link::describe::{Annotation, Describe};
 use motionlink_link::Timestamp;
 
-use crate::model::{Broadcast, BroadcastForm, ConfigFlag, ConfigWord, ModuleKind, Param, Reply, Request, Value};
+use crate::model::{Broadcast, BroadcastForm, ConfigFlag, ConfigWord, ModuleKind, Param, Value};
 use crate::wire::can::{self as can_wire, Role};
 use crate::wire::rs232::{self, Rs232Decoder, Rs232Frame, TelKind};
 use crate::wire::Payload;
+use crate::wire::{Reply, Request};
 
 /// The PowerCube describer: keeps the RS232 decoder's state between chunks, and the kind of each module
 /// as its Config word goes by (so that a position read is shown in rad or m once that is known, and as

@@ -9,8 +9,9 @@ use motionlink_link::error::{Classify, ErrorClass, TransportKind};
 use motionlink_link::session::SessionError;
 use motionlink_link::LinkError;
 
-use crate::model::{Address, CubeState, InvalidAddress, ModelError, ModuleKind, Param, Position, Request};
+use crate::model::{Address, CubeState, InvalidAddress, ModuleKind, Param, Position};
 use crate::wire::rs232::Rs232Error;
+use crate::wire::{ModelError, Request};
 
 mod limit;
 use limit::beyond_limit_text;

@@ -8,10 +8,11 @@ use motionlink_link::can::{CanBus, CanBusConfig};
 use motionlink_link::RealClock;
 use motionlink_powercube::client::{AsyncClient, BusConfig, StopOutcome};
 use motionlink_powercube::model::{
-    Acceleration, Address, AxisUnit, ConfigFlag, ModuleKind, Param, Position, Ramp, Reply, Request, ShortFlag,
-    StateFlag, Value, Velocity,
+    Acceleration, Address, AxisUnit, ConfigFlag, ModuleKind, Param, Position, Ramp, ShortFlag, StateFlag, Value,
+    Velocity,
 };
 use motionlink_powercube::sim::SimConfig;
+use motionlink_powercube::wire::{Reply, Request};
 use motionlink_powercube::{Emulator, Error};
 
 fn setup() -> (CanBus<Emulator>, AsyncClient) {

@@ -7,14 +7,13 @@ use motionlink_link::can::slcan::{self, SlcanDecoder, SlcanMessage};
 use motionlink_link::can::{CanEmulator, CanFrame, SlcanAdapter};
 use motionlink_link::emulator::Emulator as ByteEmulator;
 use motionlink_link::Timestamp;
-use motionlink_powercube::model::{
-    Action, Broadcast, CanBaud, CubeState, DataType, Motion, MotionId, Param, Reply, Request, Value,
-};
+use motionlink_powercube::model::{Broadcast, CanBaud, CubeState, DataType, Motion, MotionId, Param, Value};
 use motionlink_powercube::sim::{Emulator, SimConfig};
 use motionlink_powercube::wire::can::{self as can_wire, Role};
 use motionlink_powercube::wire::profibus::OutputWriter;
 use motionlink_powercube::wire::rs232::{self, Rs232Decoder, TelKind};
 use motionlink_powercube::wire::Payload;
+use motionlink_powercube::wire::{Action, Reply, Request};
 use proptest::prelude::*;
 
 const HOME_17: [u8; 6] = [0x02, 0x06, 0x21, 0x01, 0x28, 0x03];

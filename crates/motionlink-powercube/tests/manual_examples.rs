@@ -5,13 +5,13 @@ use motionlink_link::can::{CanEmulator, CanFrame};
 use motionlink_link::emulator::Emulator as ByteEmulator;
 use motionlink_link::Timestamp;
 use motionlink_powercube::model::{
-    AckKind, AckPosition, Action, CubeState, Motion, Param, Position, ProfibusFlag, ProfibusState, Reply, Request,
-    StateFlag, Value,
+    AckKind, CubeState, Motion, Param, Position, ProfibusFlag, ProfibusState, StateFlag, Value,
 };
 use motionlink_powercube::sim::{Emulator, SimConfig};
 use motionlink_powercube::wire::can::{self, Role};
 use motionlink_powercube::wire::profibus::{InputImage, OutputWriter};
 use motionlink_powercube::wire::rs232::{self, Rs232Decoder, TelKind};
+use motionlink_powercube::wire::{AckPosition, Action, Reply, Request};
 use motionlink_powercube::wire::{Payload, ACK_OK};
 
 fn frame(text: &str) -> CanFrame {

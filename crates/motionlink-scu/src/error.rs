@@ -206,7 +206,7 @@ pub enum Error {
     #[error(
         "{} still report(s) motion after the unit acknowledged the RS: another function or the hand switch may be \
          driving them",
-        crate::session::ops::list_actuators(.0)
+        crate::model::Actuator::list(.0)
     )]
     StillMoving(Vec<Actuator>),
     /// The caller cancelled an operation; what it had started was stopped.

@@ -21,16 +21,12 @@
 //! leaves a running positioning running to its target; nothing on the link stops it.
 
 #[cfg(feature = "tokio")]
-mod async_drive;
-#[cfg(feature = "tokio")]
 mod asynch;
 mod blocking;
 mod drive;
 
 #[cfg(feature = "tokio")]
-pub use async_drive::{AsyncDrive, AsyncWatch};
-#[cfg(feature = "tokio")]
-pub use asynch::AsyncClient;
+pub use asynch::{AsyncClient, AsyncDrive, AsyncWatch};
 pub use blocking::Client;
 pub use drive::Drive;
 

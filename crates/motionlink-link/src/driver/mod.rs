@@ -63,7 +63,8 @@ enum Waiter {
     Waker(Option<Waker>),
 }
 
-struct Slot<S: Session> {
+/// One caller's operation as the driver sees it: its result and progress once they come, and who waits for them.
+struct CallerSlot<S: Session> {
     result: Option<Result<S::Output, S::Error>>,
     progress: Option<S::Progress>,
     waiter: Waiter,
@@ -71,12 +72,13 @@ struct Slot<S: Session> {
     abandoned: bool,
 }
 
-struct Core<S: Session> {
+/// What the driver owns behind its lock: the session, the port while nobody drives it, and each caller's slot.
+struct DriverState<S: Session> {
     session: S,
     /// The port while nobody drives it.
     port: Option<Port>,
     opener: Option<PortOpener>,
-    ops: HashMap<OpId, Slot<S>>,
+    ops: HashMap<OpId, CallerSlot<S>>,
     /// The wake-up of whoever drives the port now.
     driver_wake: Option<Signal>,
     /// Callers waiting for the port to be free.
@@ -90,7 +92,7 @@ struct Core<S: Session> {
     background_sleeps: Option<Option<Timestamp>>,
 }
 
-impl<S: Session> Core<S> {
+impl<S: Session> DriverState<S> {
     /// Hands every event of the session to whoever waits for it.
     fn dispatch(&mut self) {
         while let Some(event) = self.session.poll_event() {
@@ -148,7 +150,7 @@ use background::Background;
 struct Shared<S: Session> {
     clock: SharedClock,
     config: DriverConfig,
-    core: Mutex<Core<S>>,
+    core: Mutex<DriverState<S>>,
     /// The background thread's wake-up.
     background: Signal,
     /// Raised by the background thread when it ends: joining waits on the clock first, so that a manual
@@ -169,7 +171,7 @@ struct Caller<'a, P> {
 }
 
 impl<S: Session> Shared<S> {
-    fn core(&self) -> MutexGuard<'_, Core<S>> {
+    fn core(&self) -> MutexGuard<'_, DriverState<S>> {
         lock(&self.core)
     }
 
@@ -181,7 +183,7 @@ impl<S: Session> Shared<S> {
         me: &Signal,
         hard_deadline: Option<Timestamp>,
         mut caller: Option<&mut Caller<'_, S::Progress>>,
-        until: &dyn Fn(&mut Core<S>, Timestamp) -> bool,
+        until: &dyn Fn(&mut DriverState<S>, Timestamp) -> bool,
     ) {
         let mut buf = [0u8; 1024];
         loop {
@@ -351,7 +353,7 @@ impl<S: Session> Driver<S> {
             this: this.clone(),
             clock: Arc::clone(&clock),
             config,
-            core: Mutex::new(Core {
+            core: Mutex::new(DriverState {
                 session,
                 port: Some(port),
                 opener,
@@ -413,7 +415,7 @@ impl<S: Session> Driver<S> {
         }
         let now = self.shared.clock.now();
         let id = core.session.start(op, now);
-        core.ops.insert(id, Slot { result: None, progress: None, waiter, abandoned: false });
+        core.ops.insert(id, CallerSlot { result: None, progress: None, waiter, abandoned: false });
         core.dispatch();
         match &core.driver_wake {
             Some(s) => s.raise(),

@@ -16,7 +16,8 @@ enum State<R> {
     Done(R),
 }
 
-struct Slot<R> {
+/// One open ticket: the operation it is for, and its result once the core hands it over.
+struct Ticketed<R> {
     op: OpId,
     state: State<R>,
 }
@@ -37,7 +38,7 @@ struct Slot<R> {
 /// ```
 pub struct Jobs<R> {
     next: u64,
-    slots: BTreeMap<Ticket, Slot<R>>,
+    slots: BTreeMap<Ticket, Ticketed<R>>,
 }
 
 impl<R> Default for Jobs<R> {
@@ -57,7 +58,7 @@ impl<R> Jobs<R> {
     pub fn open(&mut self, op: OpId) -> Ticket {
         self.next += 1;
         let ticket = Ticket(self.next);
-        self.slots.insert(ticket, Slot { op, state: State::Waiting(None) });
+        self.slots.insert(ticket, Ticketed { op, state: State::Waiting(None) });
         ticket
     }
 

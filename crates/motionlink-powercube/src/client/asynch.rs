@@ -12,14 +12,15 @@ use super::blocking::{driver, fail_all};
 use super::calls::{self, Call};
 use crate::error::{Error, StopOutcome};
 use crate::model::{
-    Acceleration, AckKind, Action, Address, Broadcast, ConfigWord, CubeState, Dio, ExtAck, Millis, ModuleKind, Motion,
-    Param, Position, Ramp, Reply, Request, ShortState, Ticks, Value, Velocity,
+    Acceleration, AckKind, Address, Broadcast, ConfigWord, CubeState, Dio, Millis, ModuleKind, Motion, Param, Position,
+    Ramp, ShortState, Ticks, Value, Velocity,
 };
 use crate::report::ModuleDetails;
 use crate::session::{
     BusConfig, Guard, HaltReport, HomeReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry,
     Session, Until,
 };
+use crate::wire::{Action, ExtAck, Reply, Request};
 
 /// A session with the modules on one line or one CAN bus, for async callers (tokio). Share it by
 /// reference or in an `Arc`: concurrent operations interleave on the line as the session schedules them.

@@ -6,12 +6,13 @@ use std::time::Duration;
 
 use crate::error::Error;
 use crate::model::{
-    Acceleration, AckKind, Action, Address, ConfigWord, CubeState, Dio, ExtAck, Millis, ModuleKind, Motion, Param,
-    Position, Reply, Request, ShortState, Ticks, Value, Velocity,
+    Acceleration, AckKind, Address, ConfigWord, CubeState, Dio, Millis, ModuleKind, Motion, Param, Position,
+    ShortState, Ticks, Value, Velocity,
 };
 use crate::session::{
     Guard, HaltReport, HomeReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry, Until,
 };
+use crate::wire::{Action, ExtAck, Reply, Request};
 
 /// An operation and the typed result it ends with.
 pub(crate) struct Call<T> {

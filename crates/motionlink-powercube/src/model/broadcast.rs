@@ -3,8 +3,8 @@
 
 use std::fmt;
 
-use super::request::{payload, ModelError};
 use crate::wire::{cmd, Payload};
+use crate::wire::{payload, ModelError};
 
 /// The CAN bit rates of the change-baud-rate broadcast.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -10,8 +10,6 @@ mod broadcast;
 mod flags;
 mod motion;
 mod params;
-mod reply;
-mod request;
 mod units;
 mod value;
 
@@ -22,8 +20,6 @@ pub use flags::{
 };
 pub use motion::{AckKind, Motion, MotionId, MotionShape, Ramp};
 pub use params::{Access, DataType, Param, ParamClass, ParamKind, Unit, UnknownParam, PARAMS, PARAM_ENTRIES};
-pub use reply::{AckPosition, ExtAck, Reply};
-pub use request::{Action, ModelError, Request};
 pub use units::{
     Acceleration, Address, Amperes, AxisUnit, CubeVersion, CurrentDigits, InvalidAddress, Millis, ModuleKind,
     ParseAddressError, Position, Ticks, TicksPerSec, Velocity,

@@ -12,10 +12,11 @@ use motionlink_link::{LinkError, Timestamp};
 
 use super::BusConfig;
 use crate::error::Error;
-use crate::model::{Action, Broadcast, BroadcastForm, ConfigWord, ModuleKind, Reply, Request};
+use crate::model::{Broadcast, BroadcastForm, ConfigWord, ModuleKind};
 use crate::wire::can::{self as can_wire, Role};
 use crate::wire::rs232::{self, Rs232Decoder, TelKind};
 use crate::wire::Payload;
+use crate::wire::{Action, Reply, Request};
 
 /// What a finished job gives its operation.
 #[derive(Debug)]

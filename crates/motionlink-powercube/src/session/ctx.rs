@@ -11,7 +11,8 @@ use motionlink_link::exec;
 use super::core::{Core, JobResult};
 use super::Progress;
 use crate::error::Error;
-use crate::model::{Broadcast, Reply, Request};
+use crate::model::Broadcast;
+use crate::wire::{Reply, Request};
 
 /// One operation's handle on the session.
 #[derive(Clone)]

@@ -54,9 +54,10 @@ use self::core::Core;
 use self::ctx::Ctx;
 use crate::error::{Error, StopOutcome};
 use crate::model::{
-    Acceleration, AckKind, Action, Address, Broadcast, ConfigWord, CubeState, Dio, ExtAck, Millis, ModuleKind, Motion,
-    Param, Position, Reply, Request, ShortState, Ticks, Value, Velocity,
+    Acceleration, AckKind, Address, Broadcast, ConfigWord, CubeState, Dio, Millis, ModuleKind, Motion, Param, Position,
+    ShortState, Ticks, Value, Velocity,
 };
+use crate::wire::{Action, ExtAck, Reply, Request};
 
 /// An operation a [`Session`] runs. Addresses are checked once ([`Address`]); where a list may hold bad
 /// ones (`u8`), each bad one gets its own [`Error::InvalidAddress`] and the others go on.

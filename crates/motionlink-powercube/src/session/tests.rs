@@ -413,7 +413,7 @@ fn an_answer_that_echoes_another_parameter_is_corrupt_and_a_read_is_asked_again(
     let id = b.session.start(Op::Get(addr(1), Param::ActPos), b.now);
     let Some(LinkAction::Send(_)) = b.session.poll_transmit(b.now) else { panic!() };
     // The module answers with PrevActPos (0x3d) instead of ActPos (0x3c): a corrupted echo.
-    let wrong = crate::model::Reply::Get(Param::PrevActPos, Value::F32(0.0)).encode();
+    let wrong = crate::wire::Reply::Get(Param::PrevActPos, Value::F32(0.0)).encode();
     let mut frame = [0u8; crate::wire::rs232::MAX_FRAME];
     let n = crate::wire::rs232::encode(crate::wire::rs232::TelKind::Recv, 1, &wrong, &mut frame).unwrap();
     b.session.handle_input(Input::Bytes(&frame[..n]), b.now);

@@ -12,7 +12,8 @@
 //!
 //! ```
 //! use motionlink_powercube::sim::{Emulator, SimConfig};
-//! use motionlink_powercube::model::{Action, Param, Reply, Request, StateFlag, CubeState, Value};
+//! use motionlink_powercube::model::{Param, StateFlag, CubeState, Value};
+//! use motionlink_powercube::wire::{Action, Reply, Request};
 //! use motionlink_link::Timestamp;
 //!
 //! let mut bus = Emulator::new(&SimConfig::default());
@@ -39,11 +40,12 @@ pub use config::{ModuleConfig, SimConfig, SimConfigError};
 pub use module::{SimModule, SERVO_LAG_S};
 pub use variant::{UnknownVariant, Variant};
 
-use crate::model::{Broadcast, ConfigFlag, Reply, Request};
+use crate::model::{Broadcast, ConfigFlag};
 use crate::wire::can::{self as can_wire, Role};
 use crate::wire::profibus::{InputImage, OutputImage};
 use crate::wire::rs232::{self, Rs232Decoder, TelKind};
 use crate::wire::Payload;
+use crate::wire::{Reply, Request};
 
 /// Counters of what the emulator received and could not use.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

@@ -6,9 +6,10 @@ use std::collections::BTreeMap;
 use super::config::ModuleConfig;
 use super::profile::{self, Phase, Profile};
 use crate::model::{
-    ConfigFlag, ConfigWord, CubeState, Dio, DioWord, DioWordFlag, ModuleKind, Position, Request, SetupWord, StateFlag,
-    Ticks, Value,
+    ConfigFlag, ConfigWord, CubeState, Dio, DioWord, DioWordFlag, ModuleKind, Position, SetupWord, StateFlag, Ticks,
+    Value,
 };
+use crate::wire::Request;
 
 /// The following error of the emulated servo loop is the velocity times this lag (seconds).
 pub const SERVO_LAG_S: f64 = 0.005;

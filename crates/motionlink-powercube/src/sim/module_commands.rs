@@ -3,10 +3,9 @@
 
 use super::module::{within, MotionKind, SimModule};
 use super::profile::{self, Profile};
-use crate::model::{
-    AckKind, AckPosition, Action, ConfigFlag, ExtAck, Motion, Position, Reply, Request, StateFlag, Ticks,
-};
+use crate::model::{AckKind, ConfigFlag, Motion, Position, StateFlag, Ticks};
 use crate::wire::ACK_OK;
+use crate::wire::{AckPosition, Action, ExtAck, Reply, Request};
 
 impl SimModule {
     pub(super) fn accepts_motion(&self, request: &Request) -> bool {

@@ -4,10 +4,11 @@
 
 use super::*;
 use crate::model::{
-    AckKind, AckPosition, Action, Amperes, ConfigFlag, CubeState, Millis, Motion, Param, Position, ShortFlag,
-    StateFlag, Ticks, Value, Velocity,
+    AckKind, Amperes, ConfigFlag, CubeState, Millis, Motion, Param, Position, ShortFlag, StateFlag, Ticks, Value,
+    Velocity,
 };
 use crate::wire::profibus::OutputWriter;
+use crate::wire::{AckPosition, Action};
 
 fn at(ms: u64) -> Timestamp {
     Timestamp::from_millis(ms)

@@ -13,7 +13,13 @@
 
 pub mod can;
 pub mod profibus;
+mod reply;
+mod request;
 pub mod rs232;
+
+pub use reply::{AckPosition, ExtAck, Reply};
+pub(crate) use request::payload;
+pub use request::{Action, ModelError, Request};
 
 use std::fmt;
 

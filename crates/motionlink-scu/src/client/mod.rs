@@ -78,13 +78,13 @@ use crate::value::{decode_item, Value};
 use crate::wire::{Command, Request};
 
 #[cfg(feature = "tokio")]
-mod asynchronous;
+mod asynch;
 mod blocking;
 mod follow;
 mod reads;
 
 #[cfg(feature = "tokio")]
-pub use asynchronous::{AsyncClient, AsyncSetpointStream};
+pub use asynch::{AsyncClient, AsyncSetpointStream};
 pub use blocking::{Client, SetpointStream};
 pub use follow::{FollowFailure, FollowReport, Follower};
 
@@ -137,7 +137,7 @@ pub(crate) fn move_spec(
                 return Err(Error::invalid(format!(
                     "{function} does not drive {actuator}: the function map says it drives {}; name the function \
                      that does",
-                    crate::session::ops::list_actuators(&drives)
+                    crate::model::Actuator::list(&drives)
                 )));
             }
             MoveTargets::Given(drives.iter().map(|a| (*a, target)).collect())
@@ -227,7 +227,7 @@ pub(crate) fn stream_targets(
         return Err(Error::invalid(format!(
             "{} target(s) given; {function} drives {}: one each",
             targets.len(),
-            crate::session::ops::list_actuators(actuators)
+            crate::model::Actuator::list(actuators)
         )));
     }
     for ((a, stroke), &t) in actuators.iter().zip(limits).zip(targets) {

@@ -10,6 +10,14 @@ use super::{per_actuator, DataIndex};
 pub struct Actuator(u8);
 
 impl Actuator {
+    /// "A1, A2" (or "no actuator"), as messages name a set of actuators.
+    pub(crate) fn list(actuators: &[Actuator]) -> String {
+        if actuators.is_empty() {
+            return "no actuator".into();
+        }
+        actuators.iter().map(Actuator::to_string).collect::<Vec<_>>().join(", ")
+    }
+
     /// Actuator `number` (1..6), or `None`.
     pub const fn new(number: u8) -> Option<Actuator> {
         if number >= 1 && number <= 6 {

@@ -6,8 +6,8 @@ use std::time::Duration;
 use motionlink_link::Timestamp;
 
 use super::line::{Exchange, Line};
+use super::pe_guard::PeGuarded;
 use super::request::{PreparedRequest, Req};
-use super::txn::Txn;
 use super::*;
 use crate::config::{MovePolling, RC_DEADLINE};
 use crate::model::SafetyId;
@@ -95,7 +95,7 @@ impl Core {
         }
     }
 
-    pub(super) fn start_exchange(&mut self, owner: Owner, txn: Option<Txn>, request: PreparedRequest) {
+    pub(super) fn start_exchange(&mut self, owner: Owner, pe_guard: Option<PeGuarded>, request: PreparedRequest) {
         let now = self.now;
         let is_rc = request.command == Command::Cyclic;
         if is_rc {
@@ -103,7 +103,7 @@ impl Core {
         }
         self.last_was_rc = is_rc;
         let exchange = Exchange::start(request, &mut self.line, &self.config, now, &mut self.outbox);
-        self.in_flight = Some(InFlight { owner, txn, exchange });
+        self.in_flight = Some(InFlight { owner, pe_guard, exchange });
     }
 
     /// Counts a reopened remote mode.

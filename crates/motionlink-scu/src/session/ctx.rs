@@ -56,7 +56,7 @@ impl Ctx {
     }
 
     /// Sends `req` when the line has room for it (or at once, as its schedule says) and waits for its reply,
-    /// with what a PE answer leads to (see `txn`). A request the session may not send now fails at once.
+    /// with what a PE answer leads to (see `pe_guard`). A request the session may not send now fails at once.
     pub(crate) async fn send(&self, req: Req) -> Result<OwnedReply, Error> {
         let admitted = {
             let mut core = self.core();

@@ -65,12 +65,12 @@ use crate::model::{CyclicObject, DataIndex};
 mod caps;
 mod core;
 mod ctx;
-mod engine;
+mod dispatch;
 mod line;
 pub(crate) mod ops;
+mod pe_guard;
 pub(crate) mod report;
 mod request;
-mod txn;
 
 pub use caps::Capabilities;
 use ctx::Ctx;
@@ -83,8 +83,8 @@ pub use report::{
 };
 pub(crate) use request::{OwnedReply, Req};
 
+use pe_guard::PeGuarded;
 pub use request::PreparedRequest;
-use txn::Txn;
 
 /// Where the session stands with the unit.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -156,7 +156,7 @@ enum Carries {
 
 struct InFlight {
     owner: Owner,
-    txn: Option<Txn>,
+    pe_guard: Option<PeGuarded>,
     exchange: Exchange,
 }
 

@@ -5,6 +5,7 @@ use crate::client::StopOutcome;
 use crate::error::Error;
 use crate::model::*;
 use crate::wire::ACK_OK;
+use crate::wire::{Action, ModelError, Reply, Request};
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::Timestamp;
 
@@ -243,7 +244,7 @@ fn extended_acknowledges_and_steps() {
     let _me = clock.reserve_participant().enter();
     let m = bus.module(addr(4));
     let ext = m.motion(Motion::IRamp { pos: Ticks(1000) }, AckKind::Extended).unwrap().unwrap();
-    assert!(matches!(ext.position, crate::model::AckPosition::Ticks(_)));
+    assert!(matches!(ext.position, crate::wire::AckPosition::Ticks(_)));
     assert!(ext.state.contains(crate::model::ShortFlag::NotOk), "not homed");
     m.wait_motion_end(secs(10), &mut |_| {}).unwrap();
     assert_eq!(m.position_ticks().unwrap(), Ticks(1000));

@@ -6,6 +6,7 @@ use crate::client::MoveReport;
 use crate::client::{Readback, StopOutcome};
 use crate::error::Error;
 use crate::model::*;
+use crate::wire::Request;
 use motionlink_link::Link;
 
 #[test]

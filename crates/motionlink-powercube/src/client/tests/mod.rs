@@ -24,8 +24,9 @@ use motionlink_link::LinkError;
 use motionlink_testkit::rig::{CanRig, Rig};
 
 use crate::client::{BusConfig, Client, ModuleInfo, MoveSpec};
-use crate::model::{Address, ConfigWord, CubeState, Position, Reply, Request, Velocity};
+use crate::model::{Address, ConfigWord, CubeState, Position, Velocity};
 use crate::sim::SimConfig;
+use crate::wire::{Reply, Request};
 use crate::Emulator;
 
 fn rs232(addresses: &[u8]) -> (ManualClock, EmulatorHost<Emulator>, Client, FaultControl) {

@@ -228,7 +228,7 @@ fn on_can_an_extended_acknowledge_on_the_command_identifier_is_taken() {
     let m = bus.module(addr(1));
     let motion = crate::model::Motion::FVel { vel: Velocity::native(0.0) };
     let ack = m.motion(motion, crate::model::AckKind::Extended).unwrap().expect("an extended acknowledge");
-    assert!(matches!(ack.position, crate::model::AckPosition::Unit(p) if (p.value() - 0.05).abs() < 1e-3), "{ack:?}");
+    assert!(matches!(ack.position, crate::wire::AckPosition::Unit(p) if (p.value() - 0.05).abs() < 1e-3), "{ack:?}");
     let r = m.move_to_guarded(&spec(0.3), Guard::Watchdog, &mut |_| {}).unwrap();
     assert!(at(&r, 0.3) && r.verified, "{r:?}");
     bus.close().unwrap();

@@ -4,6 +4,7 @@ use super::*;
 use crate::client::WATCHDOG_TIMEOUT;
 use crate::error::Error;
 use crate::model::*;
+use crate::wire::Request;
 
 #[test]
 fn the_watchdog_is_served_in_the_background_and_trips_when_the_session_dies() {

@@ -5,12 +5,12 @@ use std::time::Duration;
 
 use crate::error::{unexpected, Error};
 use crate::model::{
-    Action, AxisUnit, Broadcast, ConfigFlag, ConfigWord, CubeState, CubeVersion, ModuleKind, Param, Position, Reply,
-    Request, StateFlag, Value,
+    AxisUnit, Broadcast, ConfigFlag, ConfigWord, CubeState, CubeVersion, ModuleKind, Param, Position, StateFlag, Value,
 };
 use crate::session::ctx::Ctx;
 use crate::session::{HaltReport, ModuleInfo, HALT_SETTLE};
 use crate::wire::{is_module_address, ACK_OK};
+use crate::wire::{Action, Reply, Request};
 
 /// A refusal in an acknowledge's status byte is an error.
 fn check_reply(address: u8, request: &Request, reply: Reply) -> Result<Reply, Error> {

@@ -15,10 +15,11 @@ pub(crate) use run::run;
 use std::collections::{BTreeMap, BTreeSet};
 
 use crate::error::Error;
-use crate::model::{Param, Request};
+use crate::model::Param;
 use crate::session::core::Core;
 use crate::session::ctx::Ctx;
 use crate::session::{Guard, ScanEntry};
+use crate::wire::Request;
 use crate::wire::MAX_ADDRESS;
 
 /// Stops refreshing the watchdog and marks the session failed: every module whose watchdog the session

@@ -5,14 +5,12 @@
 use std::time::Duration;
 
 use crate::error::{unexpected, Error, StopOutcome};
-use crate::model::{
-    AckKind, Broadcast, CubeState, ExtAck, ModuleKind, Motion, Param, Position, Reply, Request, ShortState, StateFlag,
-    Value,
-};
+use crate::model::{AckKind, Broadcast, CubeState, ModuleKind, Motion, Param, Position, ShortState, StateFlag, Value};
 use crate::session::ctx::Ctx;
 use crate::session::ops::checked;
 use crate::session::ops::twins::{self, TwinCheck};
 use crate::session::{HomeReport, MoveReport, MoveSpec, Progress, Readback, Until};
+use crate::wire::{ExtAck, Reply, Request};
 
 /// A value for messages: the number alone, floats with six decimals.
 fn raw(v: &Value) -> String {
@@ -346,7 +344,7 @@ impl Ctx {
         if self.cancelled() {
             return Err(Error::Cancelled { address: crate::model::Address::checked(a), stop: StopOutcome::NotStarted });
         }
-        if let Err(e) = self.action(a, crate::model::Action::Home).await {
+        if let Err(e) = self.action(a, crate::wire::Action::Home).await {
             return Err(self.lost(a, e).await);
         }
         tracing::info!("module {a}: homing");
@@ -519,7 +517,7 @@ impl Ctx {
             };
             if moving {
                 tracing::warn!("halting module {a}, set in motion by this session");
-                if let Err(e) = self.action(*a, crate::model::Action::Halt).await {
+                if let Err(e) = self.action(*a, crate::wire::Action::Halt).await {
                     unconfirmed.push(*a);
                     detail = e.to_string();
                 } else {
@@ -562,7 +560,7 @@ impl ExtAck {
     #[must_use]
     pub fn resolved(self, kind: Option<crate::model::ModuleKind>) -> ExtAck {
         let position = match self.position {
-            crate::model::AckPosition::Unit(p) => crate::model::AckPosition::Unit(p.resolved(kind)),
+            crate::wire::AckPosition::Unit(p) => crate::wire::AckPosition::Unit(p.resolved(kind)),
             other => other,
         };
         ExtAck { position, ..self }

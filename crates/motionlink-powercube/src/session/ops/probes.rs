@@ -17,8 +17,9 @@
 //!   that does not acknowledge it (and answers CubeState) is polled with CubeState and ActPos instead.
 
 use crate::error::Error;
-use crate::model::{Action, Param, StateFlag, WATCHDOG_TIMEOUT};
+use crate::model::{Param, StateFlag, WATCHDOG_TIMEOUT};
 use crate::session::ctx::Ctx;
+use crate::wire::Action;
 
 /// What the motion of a guarded operation could not have, in plain words, when a module ignores the RS232
 /// broadcast refresh.

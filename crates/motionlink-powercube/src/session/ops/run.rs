@@ -1,9 +1,10 @@
 //! Runs each [`Op`] on its state machine.
 
 use crate::error::Error;
-use crate::model::{AckKind, Address, Motion, Param, Position, Request, Ticks, Value};
+use crate::model::{AckKind, Address, Motion, Param, Position, Ticks, Value};
 use crate::session::ctx::Ctx;
 use crate::session::{Op, Output};
+use crate::wire::Request;
 
 /// Runs `op` to its end.
 pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {

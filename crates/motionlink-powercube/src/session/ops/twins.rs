@@ -21,8 +21,9 @@
 //! values apart; no probe can tell the two apart without reading the float, which the manual does not allow.
 
 use crate::error::{unexpected, Error};
-use crate::model::{Param, Request, StateFlag, Value};
+use crate::model::{Param, StateFlag, Value};
 use crate::session::ctx::Ctx;
+use crate::wire::Request;
 
 /// What one write through a twin showed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

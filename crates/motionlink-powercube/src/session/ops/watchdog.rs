@@ -4,8 +4,9 @@
 //! confirmed, and releasing one a dead host left expired.
 
 use crate::error::Error;
-use crate::model::{Action, ConfigFlag, ConfigWord, Param, Request, StateFlag, Value, WATCHDOG_TIMEOUT};
+use crate::model::{ConfigFlag, ConfigWord, Param, StateFlag, Value, WATCHDOG_TIMEOUT};
 use crate::session::ctx::Ctx;
+use crate::wire::{Action, Request};
 
 impl Ctx {
     /// True when this session can arm the watchdog: on CAN, and on RS232 unless

@@ -328,13 +328,13 @@ pub(crate) fn check_against_map(
         if let Some(a) = actuators.iter().find(|a| !drives.contains(a)) {
             return Err(Error::invalid(format!(
                 "{function} does not drive {a}: the function map says it drives {}",
-                super::list_actuators(&drives)
+                crate::model::Actuator::list(&drives)
             )));
         }
         if let Some(d) = drives.iter().find(|d| !actuators.contains(d)) {
             return Err(Error::invalid(format!(
                 "{function} also drives {d} (the function map says it drives {}): give {d} a target too",
-                super::list_actuators(&drives)
+                crate::model::Actuator::list(&drives)
             )));
         }
     }

@@ -228,14 +228,6 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
     }
 }
 
-/// "A1, A2".
-pub(crate) fn list_actuators(actuators: &[Actuator]) -> String {
-    if actuators.is_empty() {
-        return "no actuator".into();
-    }
-    actuators.iter().map(Actuator::to_string).collect::<Vec<_>>().join(", ")
-}
-
 /// The six status-1 bytes of an RG of 0x0170.
 pub(crate) fn statuses(data: &[u8]) -> Result<[ActuatorStatus1; 6], Error> {
     <[u8; 6]>::try_from(data).map(|raw| raw.map(ActuatorStatus1)).map_err(|_| Error::UnexpectedReply {

@@ -6,7 +6,7 @@ use super::basic::write;
 use crate::error::Error;
 use crate::model::{CyclicObject, DataIndex};
 use crate::session::ctx::Ctx;
-use crate::session::engine::snapshot_of;
+use crate::session::dispatch::snapshot_of;
 use crate::session::request::{PreparedRequest, Req};
 use crate::session::POLL_READ;
 use crate::wire::Command;

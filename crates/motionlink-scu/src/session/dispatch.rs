@@ -7,8 +7,8 @@ use motionlink_link::session::{Action, OpId};
 use motionlink_link::{LinkError, Timestamp};
 
 use super::ops;
+use super::pe_guard::{PeGuarded, PeStep};
 use super::request::{OwnedReply, Schedule};
-use super::txn::{Txn, TxnStep};
 use super::*;
 use crate::config::MAX_ROOM_WAIT;
 use crate::wire::{Command, Status};
@@ -98,7 +98,7 @@ impl Core {
         let outcome = f.exchange.on_input(bytes, &mut self.line, &self.config, &mut self.counts, now, &mut self.outbox);
         if let Some(result) = outcome {
             let f = self.in_flight.take().expect("checked above");
-            self.exchange_done(f.owner, f.txn, result);
+            self.exchange_done(f.owner, f.pe_guard, result);
         }
     }
 
@@ -110,7 +110,7 @@ impl Core {
                 f.exchange.on_timeout(&mut self.line, &self.config, &mut self.counts, now, &mut self.outbox)
             {
                 let f = self.in_flight.take().expect("checked above");
-                self.exchange_done(f.owner, f.txn, result);
+                self.exchange_done(f.owner, f.pe_guard, result);
             }
         }
         self.line.expire_late(now);
@@ -149,16 +149,21 @@ impl Core {
     }
 
     /// The exchange under way ended with `result`.
-    pub(super) fn exchange_done(&mut self, owner: Owner, txn: Option<Txn>, result: Result<OwnedReply, Error>) {
+    pub(super) fn exchange_done(
+        &mut self,
+        owner: Owner,
+        pe_guard: Option<PeGuarded>,
+        result: Result<OwnedReply, Error>,
+    ) {
         match owner {
             Owner::Keepalive(carries) => self.keepalive_done(carries, result),
             Owner::Op(id, ticket) => {
-                let Some(mut txn) = txn else { return };
-                match txn.next(self, result) {
-                    TxnStep::Again(request) => {
-                        self.start_exchange(Owner::Op(id, ticket), Some(txn), request);
+                let Some(mut pe_guard) = pe_guard else { return };
+                match pe_guard.next(self, result) {
+                    PeStep::Again(request) => {
+                        self.start_exchange(Owner::Op(id, ticket), Some(pe_guard), request);
                     }
-                    TxnStep::Finished(result) => {
+                    PeStep::Finished(result) => {
                         self.replies.finish(ticket, result);
                     }
                 }
@@ -236,7 +241,7 @@ impl Core {
         self.next_reconnect = self.now + self.config.reconnect_interval;
         let e = Error::SessionLost(why);
         if let Some(f) = self.in_flight.take() {
-            self.exchange_done(f.owner, f.txn.map(Txn::abandon), Err(e.clone()));
+            self.exchange_done(f.owner, f.pe_guard.map(PeGuarded::abandon), Err(e.clone()));
         }
         let queued: Vec<Queued> = self.queue.drain(..).collect();
         for q in queued {
@@ -281,12 +286,12 @@ impl Core {
         };
         let Some(i) = pick else { return };
         let q = self.queue.remove(i).expect("picked from the queue");
-        let txn = Txn::new(q.req.clone());
+        let pe_guard = PeGuarded::new(q.req.clone());
         if let Some(f) = q.req.request.starts {
             // Counted as started before it is sent: a lost reply may hide a started motion.
             self.started.insert(f);
         }
-        self.start_exchange(Owner::Op(q.owner, q.ticket), Some(txn), q.req.request);
+        self.start_exchange(Owner::Op(q.owner, q.ticket), Some(pe_guard), q.req.request);
     }
 
     /// What waits in vain ends: requests that waited too long for room, and waits for the next poll of a

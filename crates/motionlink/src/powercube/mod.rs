@@ -21,11 +21,10 @@ use motionlink_powercube::args::{
 };
 use motionlink_powercube::client::{BusConfig, Client, Guard, Module, ModulesAt, MoveSpec, PortLink, Progress};
 use motionlink_powercube::describe::Describer;
-use motionlink_powercube::model::{
-    Action as PcAction, Address, CubeState, ModuleKind, Param, Position, Request, Value,
-};
+use motionlink_powercube::model::{Address, CubeState, ModuleKind, Param, Position, Value};
 use motionlink_powercube::sim::{SimConfig, Variant};
 use motionlink_powercube::wire::Payload;
+use motionlink_powercube::wire::{Action as PcAction, Request};
 use motionlink_powercube::{Emulator, Error};
 
 pub use decode::{decode, DecodeArgs};

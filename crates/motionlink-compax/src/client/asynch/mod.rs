@@ -1,5 +1,7 @@
 //! [`AsyncClient`]: the async driver of a COMPAX session, on tokio (feature `tokio`).
 
+mod drive;
+
 use std::ops::RangeInclusive;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -9,7 +11,6 @@ use motionlink_link::driver::{AsyncDriver, Driver, OpFuture, Port};
 use motionlink_link::link::Link;
 use motionlink_link::LinkError;
 
-use super::async_drive::{AsyncDrive, AsyncWatch};
 use super::{driver_config, output};
 use crate::error::{Error, Result, StopReport};
 use crate::model::{
@@ -20,6 +21,7 @@ use crate::session::{
     AfterRaw, BusConfig, MoveOptions, MoveReport, MoveRequest, Op, Output, RawOutcome, Session, StartedMove,
 };
 use crate::wire::Address;
+pub use drive::{AsyncDrive, AsyncWatch};
 
 /// An async client of one bus of COMPAX drives: the operations of [`Client`](super::Client) as futures,
 /// with the same safety. Each method runs the same [`Op`] of the session as its blocking namesake.

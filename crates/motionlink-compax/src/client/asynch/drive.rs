@@ -170,7 +170,7 @@ impl<'a> AsyncDrive<'a> {
 
 /// S1 and S17 of one drive every interval, for async callers: made by [`AsyncClient::watch`]. Each
 /// [`AsyncWatch::next`] waits until the sample is due (one interval after the previous one was due,
-/// counted from the start of the previous one, as [`Client::watch`](super::Client::watch) samples), handling
+/// counted from the start of the previous one, as [`Client::watch`](crate::client::Client::watch) samples), handling
 /// what arrives meanwhile, then reads S1 and S17 (the session's [`Op::Pause`](crate::session::Op::Pause) and
 /// [`Op::ReadStatuses`](crate::session::Op::ReadStatuses)). The stream has no end of its own: drop it (or
 /// stop calling `next`) to end it. A watch reads and moves nothing, so dropping it stops nothing.

@@ -2,12 +2,12 @@
 
 use std::fmt;
 
-use super::flags::{Dio, ShortState};
-use super::motion::MotionId;
-use super::params::Param;
 use super::request::{payload, Action, ModelError};
-use super::units::{Position, Ticks};
-use super::value::Value;
+use crate::model::MotionId;
+use crate::model::Param;
+use crate::model::Value;
+use crate::model::{Dio, ShortState};
+use crate::model::{Position, Ticks};
 use crate::wire::{cmd, Payload, ACK_OK};
 
 /// The position in an extended motion acknowledge: a float for the float modes, ticks for the integer ones.

@@ -1,7 +1,8 @@
 //! Commands, acknowledges and broadcasts, typed, with their payloads (chapter 4.4).
 //!
 //! ```
-//! use motionlink_powercube::model::{Param, Reply, Request, Value};
+//! use motionlink_powercube::model::{Param, Value};
+//! use motionlink_powercube::wire::{Reply, Request};
 //! let req = Request::set(Param::TargetAcc, Value::F32(0.5)).unwrap();
 //! assert_eq!(req.encode().as_bytes(), &[0x08, 0x50, 0x00, 0x00, 0x00, 0x3f]);
 //! let ack = Reply::decode(&motionlink_powercube::wire::Payload::new(&[0x08, 0x50, 0x64]).unwrap()).unwrap();
@@ -13,12 +14,12 @@
 
 use std::fmt;
 
-use super::flags::ProfibusState;
-use super::motion::{AckKind, Motion, MotionId};
-use super::params::Param;
 use super::reply::Reply;
-use super::units::{Millis, Ticks};
-use super::value::{Value, ValueError};
+use crate::model::Param;
+use crate::model::ProfibusState;
+use crate::model::{AckKind, Motion, MotionId};
+use crate::model::{Millis, Ticks};
+use crate::model::{Value, ValueError};
 use crate::wire::{cmd, Payload};
 
 /// A command that is its command byte alone, and whose acknowledge is that byte too.
@@ -345,8 +346,8 @@ impl fmt::Display for Request {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::units::{Acceleration, Position, Velocity};
-    use crate::model::value::ValueError;
+    use crate::model::ValueError;
+    use crate::model::{Acceleration, Position, Velocity};
     use crate::model::{Amperes, CurrentDigits, TicksPerSec};
 
     #[test]

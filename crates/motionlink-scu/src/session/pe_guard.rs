@@ -26,7 +26,7 @@ enum Phase {
 
 /// A request of an operation and its follow-ups.
 #[derive(Debug)]
-pub(crate) struct Txn {
+pub(crate) struct PeGuarded {
     req: Req,
     phase: Phase,
     stops: Vec<u8>,
@@ -34,20 +34,20 @@ pub(crate) struct Txn {
 }
 
 /// What follows an exchange of a transaction.
-pub(crate) enum TxnStep {
+pub(crate) enum PeStep {
     /// This request goes out next, at once.
     Again(PreparedRequest),
     /// The transaction's outcome.
     Finished(Result<OwnedReply, Error>),
 }
 
-impl Txn {
-    pub fn new(req: Req) -> Txn {
-        Txn { req, phase: Phase::Main, stops: Vec::new(), abandoned: false }
+impl PeGuarded {
+    pub fn new(req: Req) -> PeGuarded {
+        PeGuarded { req, phase: Phase::Main, stops: Vec::new(), abandoned: false }
     }
 
     /// The port is gone: the transaction ends with the error that comes.
-    pub fn abandon(mut self) -> Txn {
+    pub fn abandon(mut self) -> PeGuarded {
         self.abandoned = true;
         self
     }
@@ -57,9 +57,9 @@ impl Txn {
     }
 
     /// The exchange of the present phase ended with `result`.
-    pub fn next(&mut self, core: &mut Core, result: Result<OwnedReply, Error>) -> TxnStep {
+    pub fn next(&mut self, core: &mut Core, result: Result<OwnedReply, Error>) -> PeStep {
         if self.abandoned {
-            return TxnStep::Finished(result);
+            return PeStep::Finished(result);
         }
         let command = self.command();
         match self.phase {
@@ -72,7 +72,7 @@ impl Txn {
                     // An RC is accepted in every state of remote mode (and re-arms the watchdog with Safety_ID 1
                     // and 2); a unit that refuses it has left remote mode altogether.
                     self.phase = Phase::PeRc;
-                    TxnStep::Again(PreparedRequest::keepalive())
+                    PeStep::Again(PreparedRequest::keepalive())
                 }
                 other => self.finish(core, other),
             },
@@ -82,7 +82,7 @@ impl Txn {
                         "the unit has left remote mode: it refused {command} and even RC with PE (it was reset, or \
                          another host sent RA); the session does not open remote mode again by itself"
                     ));
-                    TxnStep::Finished(Err(e))
+                    PeStep::Finished(Err(e))
                 }
                 Ok(_) => {
                     self.phase = Phase::PeProbe;
@@ -92,9 +92,9 @@ impl Txn {
                             Actuator::new(1).map_or(crate::model::DataIndex(0x0171), |a| a.status1_index()),
                         ),
                     };
-                    TxnStep::Again(probe)
+                    PeStep::Again(probe)
                 }
-                Err(e) => TxnStep::Finished(Err(e)),
+                Err(e) => PeStep::Finished(Err(e)),
             },
             Phase::PeProbe => match result {
                 Ok(again) if again.status == Status::PermissionError => {
@@ -103,7 +103,7 @@ impl Txn {
                          communication time-out with Safety_ID 0 (the unit then stops every motion and accepts \
                          remote motion only after a new RO); the session does not open remote mode again by itself"
                     ));
-                    TxnStep::Finished(Err(e))
+                    PeStep::Finished(Err(e))
                 }
                 Ok(again) => match command {
                     // The unit answers again after the RC: its watchdog had expired (Safety_ID 1 or 2) and the
@@ -111,16 +111,16 @@ impl Txn {
                     // its own reasons.
                     Command::Execute | Command::Cyclic => {
                         self.phase = Phase::PeRetry;
-                        TxnStep::Again(self.req.request.clone())
+                        PeStep::Again(self.req.request.clone())
                     }
                     _ => self.lapse(core, again),
                 },
-                Err(e) => TxnStep::Finished(Err(e)),
+                Err(e) => PeStep::Finished(Err(e)),
             },
             Phase::PeRetry => match result {
                 Ok(r) if command == Command::Execute && r.status == Status::PermissionError => self.finish(core, Ok(r)),
                 Ok(r) => self.lapse(core, r),
-                Err(e) => TxnStep::Finished(Err(e)),
+                Err(e) => PeStep::Finished(Err(e)),
             },
             Phase::LapseStops => {
                 let f = self.stops.remove(0);
@@ -132,8 +132,8 @@ impl Txn {
                     Err(e) => tracing::info!("RS of function id {f} after the watchdog lapse: {e}"),
                 }
                 match self.stops.first() {
-                    Some(&next) => TxnStep::Again(PreparedRequest::stop(next, StopMode::Fast)),
-                    None => TxnStep::Finished(Err(Error::RemoteEnded(format!(
+                    Some(&next) => PeStep::Again(PreparedRequest::stop(next, StopMode::Fast)),
+                    None => PeStep::Finished(Err(Error::RemoteEnded(format!(
                         "the unit's communication watchdog had expired (it refused {command} with PE until an RC \
                          re-armed it, as with Safety_ID {}): it stopped {}, including what this session had \
                          started",
@@ -146,7 +146,7 @@ impl Txn {
     }
 
     /// The watchdog had lapsed and an RC re-armed it.
-    fn lapse(&mut self, core: &mut Core, reply: OwnedReply) -> TxnStep {
+    fn lapse(&mut self, core: &mut Core, reply: OwnedReply) -> PeStep {
         core.stats.watchdog_lapses += 1;
         let starts = self.req.request.starts;
         self.stops = core.started.iter().copied().filter(|f| Some(*f) != starts).collect();
@@ -154,7 +154,7 @@ impl Txn {
             Some(&f) => {
                 // The unit stopped them; each still gets the RS the manual asks for after every RE.
                 self.phase = Phase::LapseStops;
-                TxnStep::Again(PreparedRequest::stop(f, StopMode::Fast))
+                PeStep::Again(PreparedRequest::stop(f, StopMode::Fast))
             }
             None => {
                 tracing::info!("the unit's watchdog had expired while the session was idle; an RC re-armed it");
@@ -163,7 +163,7 @@ impl Txn {
         }
     }
 
-    fn finish(&mut self, core: &mut Core, result: Result<OwnedReply, Error>) -> TxnStep {
+    fn finish(&mut self, core: &mut Core, result: Result<OwnedReply, Error>) -> PeStep {
         if let Ok(reply) = &result {
             if reply.status == Status::Ack {
                 if let Some(f) = self.req.request.stops {
@@ -172,6 +172,6 @@ impl Txn {
             }
             core.stats.transactions += 1;
         }
-        TxnStep::Finished(result)
+        PeStep::Finished(result)
     }
 }
