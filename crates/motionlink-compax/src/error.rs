@@ -357,24 +357,6 @@ fn measured(r: &Option<RoundTrips>) -> String {
 /// A result of a COMPAX operation.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
-/// A copy of a link error (the one of the port is handed to the operation whose telegram failed; others
-/// waiting on the line get a copy with the same kind).
-pub(crate) fn copy_link_error(e: &LinkError) -> LinkError {
-    match e {
-        LinkError::Open { port, reason } => LinkError::Open { port: port.clone(), reason: reason.clone() },
-        LinkError::Busy { port } => LinkError::Busy { port: port.clone() },
-        LinkError::Disconnected { port, reason } => {
-            LinkError::Disconnected { port: port.clone(), reason: reason.clone() }
-        }
-        LinkError::Io { port, source } => {
-            LinkError::Io { port: port.clone(), source: std::io::Error::new(source.kind(), source.to_string()) }
-        }
-        LinkError::InvalidPort { port, reason } => {
-            LinkError::InvalidPort { port: port.clone(), reason: reason.clone() }
-        }
-    }
-}
-
 /// How stopping one drive ended. In JSON: `{"outcome": "at_rest" | "switched_off" | "not_confirmed"}`, the
 /// last with its `reason`.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
@@ -528,13 +510,5 @@ mod tests {
         for (e, class) in cases {
             assert_eq!(e.class(), class, "{e}");
         }
-    }
-
-    #[test]
-    fn a_copied_link_error_keeps_its_kind() {
-        let e = LinkError::Io { port: "p".into(), source: std::io::Error::from(std::io::ErrorKind::TimedOut) };
-        let c = copy_link_error(&e);
-        assert_eq!(c.class(), e.class());
-        assert_eq!(c.to_string(), e.to_string());
     }
 }

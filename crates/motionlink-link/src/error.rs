@@ -128,7 +128,7 @@ mod tests {
     fn link_errors_keep_their_kind() {
         let invalid = LinkError::InvalidPort { port: "x".into(), reason: "y".into() };
         assert_eq!(invalid.class(), ErrorClass::Usage);
-        let io = LinkError::Io { port: "x".into(), source: std::io::Error::other("z") };
+        let io = LinkError::Io { port: "x".into(), source: std::sync::Arc::new(std::io::Error::other("z")) };
         assert_eq!(io.class(), ErrorClass::Transport(TransportKind::Io));
     }
 }

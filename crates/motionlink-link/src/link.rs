@@ -3,8 +3,9 @@
 use std::fmt;
 use std::time::Duration;
 
-/// A transport failure: the line itself, not the device's answer.
-#[derive(Debug, thiserror::Error)]
+/// A transport failure: the line itself, not the device's answer. Cloneable (the I/O error is shared), so
+/// that every operation waiting on a line that failed gets the same error.
+#[derive(Debug, Clone, thiserror::Error)]
 pub enum LinkError {
     /// The port could not be opened.
     #[error("cannot open {port}: {reason}")]
@@ -36,7 +37,7 @@ pub enum LinkError {
         port: String,
         /// The underlying error.
         #[source]
-        source: std::io::Error,
+        source: std::sync::Arc<std::io::Error>,
     },
     /// The port name or URL is not understood.
     #[error("invalid port {port:?}: {reason}")]
@@ -60,7 +61,7 @@ impl LinkError {
         if gone {
             LinkError::Disconnected { port: port.to_string(), reason: e.to_string() }
         } else {
-            LinkError::Io { port: port.to_string(), source: e }
+            LinkError::Io { port: port.to_string(), source: std::sync::Arc::new(e) }
         }
     }
 

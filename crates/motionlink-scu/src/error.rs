@@ -49,14 +49,9 @@ pub enum Error {
         /// Attempts made.
         attempts: u32,
     },
-    /// The port failed; `kind` says how.
-    #[error("{message}")]
-    Link {
-        /// What the port reported.
-        message: String,
-        /// How it failed.
-        kind: TransportKind,
-    },
+    /// The port failed.
+    #[error(transparent)]
+    Link(LinkError),
     /// The session is lost (port gone) and not reconnected.
     #[error("session lost: {0}")]
     SessionLost(String),
@@ -308,7 +303,10 @@ impl Classify for Error {
                 ErrorClass::Transport(TransportKind::Timeout)
             }
             Error::Corrupt { .. } | Error::UnexpectedReply { .. } => ErrorClass::Transport(TransportKind::Corrupt),
-            Error::Link { kind, .. } => ErrorClass::Transport(*kind),
+            Error::Link(e) => match e.class() {
+                ErrorClass::Transport(kind) => ErrorClass::Transport(kind),
+                _ => ErrorClass::Transport(TransportKind::Io),
+            },
             Error::SessionLost(_) | Error::RemoteEnded(_) | Error::Closed => {
                 ErrorClass::Transport(TransportKind::Disconnected)
             }
@@ -330,8 +328,7 @@ impl From<LinkError> for Error {
     fn from(e: LinkError) -> Self {
         match e.class() {
             ErrorClass::Usage => Error::InvalidArgument(e.to_string()),
-            ErrorClass::Transport(kind) => Error::Link { message: e.to_string(), kind },
-            _ => Error::Link { message: e.to_string(), kind: TransportKind::Io },
+            _ => Error::Link(e),
         }
     }
 }

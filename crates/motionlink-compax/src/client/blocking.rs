@@ -71,7 +71,7 @@ impl Client {
         let port = Port::Bytes(link);
         let name = port.describe();
         let driver = Driver::new(session, port, None, clock, driver_config(&cfg))
-            .map_err(|source| Error::Link(LinkError::Io { port: name, source }))?;
+            .map_err(|source| Error::Link(LinkError::Io { port: name, source: std::sync::Arc::new(source) }))?;
         Ok(Client { driver, config: cfg, cancel: Mutex::new(CancelToken::new()), close_report })
     }
 

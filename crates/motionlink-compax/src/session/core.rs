@@ -12,7 +12,7 @@ use motionlink_link::session::OpId;
 use motionlink_link::{LinkError, Timestamp};
 
 use super::types::BusConfig;
-use crate::error::{copy_link_error, Error};
+use crate::error::Error;
 use crate::model::{parse_param_reply, Command, ErrorCode, OutputState, ParamId, StatusId, StatusValue};
 use crate::wire::reply::ReplyError;
 use crate::wire::{Address, Body, EscapedBytes, Flags, Reply, ReplyDecoder, ReplyEvent, ReplyKind, Request, BROADCAST};
@@ -555,7 +555,7 @@ impl Core {
     pub(crate) fn line_failed(&mut self, error: LinkError, now: Timestamp) {
         self.now = now;
         for (op, waker) in self.listeners.drain() {
-            self.line_failures.insert(op, copy_link_error(&error));
+            self.line_failures.insert(op, error.clone());
             waker.wake();
         }
         match self.in_flight.take().or_else(|| self.settling.take()) {

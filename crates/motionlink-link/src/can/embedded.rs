@@ -93,7 +93,10 @@ impl<T: embedded_can::nb::Can> EmbeddedCanLink<T> {
     }
 
     fn error(&self, what: &str, e: impl std::fmt::Debug) -> LinkError {
-        LinkError::Io { port: self.name.clone(), source: std::io::Error::other(format!("{what}: {e:?}")) }
+        LinkError::Io {
+            port: self.name.clone(),
+            source: std::sync::Arc::new(std::io::Error::other(format!("{what}: {e:?}"))),
+        }
     }
 }
 

@@ -65,7 +65,10 @@ impl CanLink for SocketCanLink {
     fn send(&mut self, frame: &CanFrame) -> Result<(), LinkError> {
         let raw = to_socketcan(frame).ok_or_else(|| LinkError::Io {
             port: self.name.clone(),
-            source: std::io::Error::new(std::io::ErrorKind::InvalidInput, format!("cannot send {frame}")),
+            source: std::sync::Arc::new(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!("cannot send {frame}"),
+            )),
         })?;
         self.socket.write_frame_insist(&raw).map_err(|e| LinkError::from_io(&self.name, e))
     }

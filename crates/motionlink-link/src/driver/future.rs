@@ -152,7 +152,7 @@ impl<S: Session> AsyncDriver<S> {
             Ok(r) => r,
             Err(e) => Err(S::Error::from(LinkError::Io {
                 port: "?".into(),
-                source: std::io::Error::other(format!("the closing task failed: {e}")),
+                source: std::sync::Arc::new(std::io::Error::other(format!("the closing task failed: {e}"))),
             })),
         }
     }

@@ -494,7 +494,11 @@ impl<S: Session> Driver<S> {
         if let Err(e) = self.shared.start_background() {
             let port = self.describe.clone();
             let source = std::io::Error::other(format!("cannot start the driver's background thread: {e}"));
-            return OpFuture { shared: None, id: OpId(0), early: Some(S::Error::from(LinkError::Io { port, source })) };
+            return OpFuture {
+                shared: None,
+                id: OpId(0),
+                early: Some(S::Error::from(LinkError::Io { port, source: std::sync::Arc::new(source) })),
+            };
         }
         match self.submit(op, Waiter::Waker(None), false) {
             Ok(id) => OpFuture { shared: Some(Arc::clone(&self.shared)), id, early: None },

@@ -51,7 +51,7 @@ impl Port {
             (p @ Port::Closed(_), _) => Err(p.gone()),
             (p, a) => Err(LinkError::Io {
                 port: p.describe(),
-                source: std::io::Error::other(format!("{a:?} does not fit this kind of port")),
+                source: std::sync::Arc::new(std::io::Error::other(format!("{a:?} does not fit this kind of port"))),
             }),
         }
     }

@@ -540,23 +540,8 @@ impl Core {
             return;
         };
         self.sending.clear();
-        let text = error.to_string();
-        let disconnect = error.is_disconnect();
-        let port = self.port.clone();
-        let mut first = Some(error);
-        let results = f
-            .batch
-            .iter()
-            .map(|_| {
-                Err(Error::Link(first.take().unwrap_or_else(|| {
-                    if disconnect {
-                        LinkError::Disconnected { port: port.clone(), reason: text.clone() }
-                    } else {
-                        LinkError::Io { port: port.clone(), source: std::io::Error::other(text.clone()) }
-                    }
-                })))
-            })
-            .collect();
+        // Every request of the batch failed with the line: each gets the line's error.
+        let results = f.batch.iter().map(|_| Err(Error::Link(error.clone()))).collect();
         self.finish(f.ticket, JobResult::Exchange(results));
     }
 }

@@ -5,9 +5,9 @@ use motionlink_link::cancel::CancelToken;
 use motionlink_link::driver::{Driver, DriverConfig, Port, PortOpener};
 use motionlink_link::link::{Connector, SerialSettings};
 use motionlink_link::url::PortUrl;
-use motionlink_link::{SharedClock, Timestamp};
+use motionlink_link::{LinkError, SharedClock, Timestamp};
 
-use super::{expect_output, link_error, move_spec, run_spec, MoveOptions};
+use super::{expect_output, move_spec, run_spec, MoveOptions};
 use crate::config::ClientConfig;
 use crate::error::Error;
 use crate::model::{
@@ -80,7 +80,10 @@ impl Client {
         let session = Session::new(config.clone(), clock.now())?;
         let opener: PortOpener = Box::new(move || connector().map(Port::Bytes));
         let driver_config = DriverConfig { close_bound: config.close_bound, ..DriverConfig::default() };
-        Driver::new(session, Port::Bytes(link), Some(opener), clock, driver_config).map_err(link_error)
+        let port = Port::Bytes(link);
+        let name = port.describe();
+        Driver::new(session, port, Some(opener), clock, driver_config)
+            .map_err(|source| Error::Link(LinkError::Io { port: name, source: std::sync::Arc::new(source) }))
     }
 
     /// The driver underneath (for [`Driver::with_session`], and to run any [`Op`]).

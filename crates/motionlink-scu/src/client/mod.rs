@@ -63,7 +63,6 @@
 //! ```
 
 use motionlink_link::cancel::CancelToken;
-use motionlink_link::error::TransportKind;
 
 use crate::config::ClientConfig;
 use crate::error::Error;
@@ -113,10 +112,6 @@ macro_rules! expect_output {
     };
 }
 pub(crate) use expect_output;
-
-pub(crate) fn link_error(e: std::io::Error) -> Error {
-    Error::Link { message: format!("cannot start the session's thread: {e}"), kind: TransportKind::Io }
-}
 
 /// The move of [`Client::move_to`]: the function, and which actuators get the target.
 pub(crate) fn move_spec(

@@ -58,7 +58,7 @@ fn driver_for(link: Box<dyn Link>, clock: SharedClock, cfg: &BusConfig) -> Resul
     let port = Port::Bytes(link);
     let name = port.describe();
     let driver = Driver::new(session, port, None, clock, driver_config(cfg))
-        .map_err(|source| Error::Link(LinkError::Io { port: name, source }))?;
+        .map_err(|source| Error::Link(LinkError::Io { port: name, source: std::sync::Arc::new(source) }))?;
     Ok((driver, report))
 }
 

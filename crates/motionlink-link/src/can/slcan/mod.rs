@@ -449,10 +449,10 @@ impl<L: Link> SlcanLink<L> {
         let what = frame.map_or_else(|| "a frame".to_string(), |f| f.to_string());
         LinkError::Io {
             port: self.name.clone(),
-            source: std::io::Error::other(format!(
+            source: std::sync::Arc::new(std::io::Error::other(format!(
                 "the adapter refused to send {what} (it rang the bell: channel closed, transmit queue full or \
                  bus off)"
-            )),
+            ))),
         }
     }
 }
