@@ -146,7 +146,7 @@ impl IntoFailure for motionlink_scu::Error {
         let mut f = Failure::of("scu", self);
         let code = match self {
             E::MotionEnded { error_code, .. } => Some(*error_code),
-            E::StopUnconfirmed { cause, .. } | E::EndUnconfirmed { cause, .. } => {
+            E::StopUnconfirmed { cause, .. } | E::CloseUnconfirmed { cause, .. } => {
                 let inner = cause.failure();
                 f.code = inner.code;
                 f.bits = inner.bits;

@@ -309,7 +309,7 @@ impl Classify for Error {
 }
 
 impl SessionError for Error {
-    fn close_unconfirmed(bound: Duration) -> Self {
+    fn close_timed_out(bound: Duration) -> Self {
         Error::CloseTimedOut { bound }
     }
 
@@ -504,7 +504,7 @@ mod tests {
                 },
                 ErrorClass::Device,
             ),
-            (Error::close_unconfirmed(Duration::from_secs(5)), ErrorClass::Transport(TransportKind::Timeout)),
+            (Error::close_timed_out(Duration::from_secs(5)), ErrorClass::Transport(TransportKind::Timeout)),
             (Error::session_closed(), ErrorClass::Usage),
         ];
         for (e, class) in cases {

@@ -87,7 +87,7 @@ where
 pub trait SessionError: Classify + From<LinkError> + fmt::Display + fmt::Debug + Send + 'static {
     /// The driver gave up waiting for the close sequence after `bound`: what was started may not have been
     /// confirmed stopped.
-    fn close_unconfirmed(bound: Duration) -> Self;
+    fn close_timed_out(bound: Duration) -> Self;
 
     /// The operation could not be run because the session is closed (or closing).
     fn session_closed() -> Self;

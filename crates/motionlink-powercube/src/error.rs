@@ -419,7 +419,7 @@ pub enum Error {
     },
     /// The session is closed (or closing): nothing more is sent.
     #[error("the session is closed")]
-    SessionClosed,
+    Closed,
     /// A request that cannot be framed (nothing was sent).
     #[error("cannot frame the request: {0}")]
     Encode(#[from] Rs232Error),
@@ -482,7 +482,7 @@ impl Classify for Error {
             | Error::InvalidArgument { .. }
             | Error::UnitMismatch { .. }
             | Error::Encode(_)
-            | Error::SessionClosed => ErrorClass::Usage,
+            | Error::Closed => ErrorClass::Usage,
             Error::Context { source, .. } => source.class(),
             Error::Also { error, .. } => error.class(),
         }
@@ -490,12 +490,12 @@ impl Classify for Error {
 }
 
 impl SessionError for Error {
-    fn close_unconfirmed(bound: Duration) -> Self {
+    fn close_timed_out(bound: Duration) -> Self {
         Error::CloseTimedOut { bound, armed: None }
     }
 
     fn session_closed() -> Self {
-        Error::SessionClosed
+        Error::Closed
     }
 }
 
@@ -605,8 +605,8 @@ mod tests {
             hint: "",
         };
         assert_eq!(ctx.class(), ErrorClass::Device);
-        assert_eq!(Error::SessionClosed.class(), ErrorClass::Usage);
-        assert_eq!(Error::close_unconfirmed(Duration::from_secs(5)).class().exit_code(), 3);
+        assert_eq!(Error::Closed.class(), ErrorClass::Usage);
+        assert_eq!(Error::close_timed_out(Duration::from_secs(5)).class().exit_code(), 3);
         let unit = Error::UnitMismatch {
             address: Address::checked(3),
             kind: ModuleKind::Linear,

@@ -150,7 +150,7 @@ pub enum Error {
         "the last target was not reached within {tolerance_counts} counts: {}",
         misses.iter().map(TargetMiss::to_string).collect::<Vec<_>>().join("; ")
     )]
-    TargetMissed {
+    NotReached {
         /// The tolerance of the follow.
         tolerance_counts: u32,
         /// Each actuator that missed, in the stream's order.
@@ -230,7 +230,7 @@ pub enum Error {
          stops remote motions by itself 500 ms after the last RC it receives (its watchdog); this program sends none \
          once it has ended"
     )]
-    EndUnconfirmed {
+    CloseUnconfirmed {
         /// The functions still started ("F1, F2").
         functions: String,
         /// Why the end of the session failed.
@@ -238,11 +238,14 @@ pub enum Error {
     },
     /// The end of the session (the RS of every started function, then RA) was not confirmed within the bound.
     #[error(
-        "the end of the session (RS of every function it started, then RA) was not confirmed within {0:?}: the \
+        "the end of the session (RS of every function it started, then RA) was not confirmed within {bound:?}: the \
          actuators may still be moving. The unit stops remote motions by itself 500 ms after the last RC it \
          receives (its watchdog)"
     )]
-    CloseUnconfirmed(Duration),
+    CloseTimedOut {
+        /// The bound waited.
+        bound: Duration,
+    },
 }
 
 /// An actuator that ended a follow away from the last target it was given.
@@ -279,7 +282,7 @@ impl std::fmt::Display for TargetMiss {
 impl Error {
     /// True if this error says that a stop the session tried was not confirmed: the actuators may be moving.
     pub fn stop_unconfirmed(&self) -> bool {
-        matches!(self, Error::StopUnconfirmed { .. } | Error::EndUnconfirmed { .. } | Error::CloseUnconfirmed(_))
+        matches!(self, Error::StopUnconfirmed { .. } | Error::CloseUnconfirmed { .. } | Error::CloseTimedOut { .. })
     }
 
     /// An error of the caller's input.
@@ -293,13 +296,13 @@ impl Classify for Error {
         match self {
             Error::Refused { .. } | Error::NotSupported(_) => ErrorClass::Refused,
             Error::MotionEnded { .. }
-            | Error::TargetMissed { .. }
+            | Error::NotReached { .. }
             | Error::Stalled { .. }
             | Error::MoveTimeout { .. }
             | Error::ReadBack { .. }
             | Error::NotConnected(_)
             | Error::StillMoving(_) => ErrorClass::Device,
-            Error::Timeout { .. } | Error::NoRoom { .. } | Error::CloseUnconfirmed(_) => {
+            Error::Timeout { .. } | Error::NoRoom { .. } | Error::CloseTimedOut { .. } => {
                 ErrorClass::Transport(TransportKind::Timeout)
             }
             Error::Corrupt { .. } | Error::UnexpectedReply { .. } => ErrorClass::Transport(TransportKind::Corrupt),
@@ -316,7 +319,7 @@ impl Classify for Error {
             | Error::Interrupted(_)
             | Error::CancelledBeforeSending(_) => ErrorClass::Cancelled,
             Error::StopUnconfirmed { cause, .. } => cause.class(),
-            Error::EndUnconfirmed { cause, .. } => match cause.class() {
+            Error::CloseUnconfirmed { cause, .. } => match cause.class() {
                 c @ ErrorClass::Transport(_) => c,
                 _ => ErrorClass::Transport(TransportKind::Timeout),
             },
@@ -334,8 +337,8 @@ impl From<LinkError> for Error {
 }
 
 impl SessionError for Error {
-    fn close_unconfirmed(bound: Duration) -> Self {
-        Error::CloseUnconfirmed(bound)
+    fn close_timed_out(bound: Duration) -> Self {
+        Error::CloseTimedOut { bound }
     }
 
     fn session_closed() -> Self {
@@ -363,7 +366,7 @@ mod tests {
         assert_eq!(unconfirmed.class(), ErrorClass::Transport(TransportKind::Disconnected));
         assert!(unconfirmed.stop_unconfirmed());
         assert_eq!(
-            Error::close_unconfirmed(Duration::from_secs(5)).class(),
+            Error::close_timed_out(Duration::from_secs(5)).class(),
             ErrorClass::Transport(TransportKind::Timeout)
         );
     }

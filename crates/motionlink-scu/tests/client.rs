@@ -336,7 +336,7 @@ fn the_end_of_a_session_on_a_dead_link_is_bounded_by_the_close_bound() {
     let started = rig.clock.now();
     let err = client.close().unwrap_err();
     let took = rig.clock.now() - started;
-    assert!(matches!(err, Error::CloseUnconfirmed(b) if b == bound), "{err}");
+    assert!(matches!(err, Error::CloseTimedOut { bound: b } if b == bound), "{err}");
     assert!(err.to_string().contains("may still be moving"), "{err}");
     assert!(took >= bound && took < bound + Duration::from_millis(50), "close took {took:?}");
     // Dropping a client is bounded the same way.

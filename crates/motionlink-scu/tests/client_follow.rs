@@ -78,7 +78,7 @@ fn a_follow_that_ends_away_from_its_last_target_is_a_device_error_naming_actuato
         reached_counts: PositionCounts(a2_before),
     };
     assert!(
-        matches!(&error, Error::TargetMissed { tolerance_counts: 2, misses } if misses[..] == [miss.clone()]),
+        matches!(&error, Error::NotReached { tolerance_counts: 2, misses } if misses[..] == [miss.clone()]),
         "{error:?}"
     );
     assert_eq!(error.class(), ErrorClass::Device);

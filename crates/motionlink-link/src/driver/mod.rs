@@ -538,7 +538,7 @@ impl<S: Session> Driver<S> {
                     break r;
                 }
                 if shared.clock.now() >= give_up {
-                    break Err(S::Error::close_unconfirmed(bound));
+                    break Err(S::Error::close_timed_out(bound));
                 }
                 let port = core.port.take();
                 if port.is_none() {

@@ -119,7 +119,7 @@ impl Classify for ToyError {
 }
 
 impl SessionError for ToyError {
-    fn close_unconfirmed(_bound: Duration) -> Self {
+    fn close_timed_out(_bound: Duration) -> Self {
         ToyError::Unconfirmed
     }
     fn session_closed() -> Self {

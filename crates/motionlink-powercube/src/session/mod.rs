@@ -425,7 +425,7 @@ impl motionlink_link::session::Session for Session {
         let id = self.exec.next_id();
         self.now_is(now);
         if self.closing != Closing::Open {
-            self.events.push_back(Event::Done(id, Err(Error::SessionClosed)));
+            self.events.push_back(Event::Done(id, Err(Error::Closed)));
             return id;
         }
         if let Some(what) = op.abortable() {

@@ -289,7 +289,7 @@ fn close_halts_what_the_session_started_and_switches_the_watchdog_off() {
     // Nothing new once closed.
     let id = b.session.start(Op::State(addr(1)), b.now);
     b.settle();
-    assert!(matches!(b.take_done(id), Some(Err(Error::SessionClosed))));
+    assert!(matches!(b.take_done(id), Some(Err(Error::Closed))));
     b.idle(Duration::from_secs(1));
     assert!(!b.module(2).0.has_fault(), "offline: nothing expires");
 }

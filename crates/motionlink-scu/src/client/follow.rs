@@ -145,7 +145,7 @@ impl<'c> Follower<'c> {
     /// Ends the follow as its input ended: applies the newest pending target, waits until no actuator of the
     /// stream moves (looking every [`ClientConfig::poll_interval`](crate::ClientConfig::poll_interval) on the
     /// session's clock), stops the function along the ramp (soft RS), and checks that each actuator the
-    /// function drives ended within the tolerance of its last target ([`Error::TargetMissed`] if not). A
+    /// function drives ended within the tolerance of its last target ([`Error::NotReached`] if not). A
     /// `cancel` while it waits stops the function at once (fast RS) and fails with [`Error::Interrupted`]; a
     /// device error stops it at once too.
     pub fn finish(mut self, cancel: &CancelToken) -> Result<FollowReport, FollowFailure> {
@@ -184,7 +184,7 @@ impl<'c> Follower<'c> {
         if misses.is_empty() {
             Ok(report)
         } else {
-            Err(FollowFailure { error: Error::TargetMissed { tolerance_counts, misses }, stopped: Some(report) })
+            Err(FollowFailure { error: Error::NotReached { tolerance_counts, misses }, stopped: Some(report) })
         }
     }
 

@@ -257,7 +257,7 @@ pub enum Ending {
     /// The end of the session failed; nothing was left started.
     Failed(Error),
     /// The stop of what was left started is not confirmed: the actuators may still move
-    /// ([`Error::EndUnconfirmed`]).
+    /// ([`Error::CloseUnconfirmed`]).
     Unconfirmed(Error),
 }
 
@@ -274,6 +274,6 @@ pub fn ending(started: &[u8], closed: Result<(), Error>) -> Ending {
         (Ok(()), true) => Ending::Clean,
         (Ok(()), false) => Ending::Stopped(format!("{} stopped (the unit acknowledged RS)", functions())),
         (Err(e), true) => Ending::Failed(e),
-        (Err(e), false) => Ending::Unconfirmed(Error::EndUnconfirmed { functions: functions(), cause: Box::new(e) }),
+        (Err(e), false) => Ending::Unconfirmed(Error::CloseUnconfirmed { functions: functions(), cause: Box::new(e) }),
     }
 }
