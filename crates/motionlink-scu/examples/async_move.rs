@@ -27,7 +27,7 @@ pub struct Seen {
     /// Whether the emulated unit still moved A1 after that.
     pub unit_moving: bool,
     /// Functions the session still counts as started (RE without RS).
-    pub started: Vec<u8>,
+    pub started: Vec<motionlink_scu::model::Function>,
 }
 
 /// The example: returns what it saw.
@@ -74,7 +74,7 @@ pub async fn run() -> Result<Seen, Box<dyn std::error::Error + Send + Sync>> {
         reads,
         rest: (first, second),
         unit_moving: watch.with_device(|u| u.is_moving(a1)),
-        started: client.started_functions(),
+        started: client.started(),
     };
     match Arc::try_unwrap(client) {
         Ok(client) => client.close().await?,

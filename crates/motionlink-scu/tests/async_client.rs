@@ -69,7 +69,7 @@ fn a_dropped_stream_stops_its_function_and_a_dropped_client_ends_the_session() {
         assert!(eventually(|| unit.with_device(|u| u.is_moving(a1))).await);
         drop(stream);
         assert!(eventually(|| !unit.with_device(|u| u.is_moving(a1))).await, "the dropped stream stopped F1");
-        assert!(eventually(|| client.started_functions().is_empty()).await);
+        assert!(eventually(|| client.started().is_empty()).await);
         // A function left started when the client is dropped gets its RS, and the session its RA.
         client.start_motion(f1, motionlink_scu::model::MotionDirection::Out).await.unwrap();
         assert!(eventually(|| unit.with_device(|u| u.is_moving(a1))).await);

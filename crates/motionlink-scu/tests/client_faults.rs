@@ -55,7 +55,7 @@ fn a_lost_reply_to_re_is_sent_again_because_every_re_names_an_absolute_destinati
     client.start_motion(f(1), MotionDirection::Out).unwrap();
     assert_eq!(client.stats().retries, 1);
     assert_eq!(client.stats().flushes, 1);
-    assert_eq!(client.started_functions(), vec![0]);
+    assert_eq!(client.started().iter().map(|f| f.id()).collect::<Vec<_>>(), [0]);
     rig.sleep(500);
     assert!(rig.unit(|u| u.is_moving(a(1))));
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0, "the repetition came well inside the watchdog");
@@ -172,7 +172,7 @@ fn port_loss_is_reported_and_reconnect_restores_the_session() {
     client.reconnect().unwrap();
     assert!(client.is_open());
     assert_eq!(*rig.connects.lock().unwrap(), 2);
-    assert!(client.started_functions().is_empty(), "the RE of before got its RS after the reconnect");
+    assert!(client.started().is_empty(), "the RE of before got its RS after the reconnect");
     assert!(rig.unit(|u| u.executed_functions().is_empty()));
     assert!(client.position(a(1)).unwrap() > PositionCounts(0));
     assert_eq!(client.stats().reconnects, 1);
@@ -217,7 +217,7 @@ fn a_corrupt_reply_to_the_re_of_a_move_is_repeated_and_the_move_ends_with_rs() {
     assert!(*done.lock().unwrap());
     assert_eq!(report.position_counts, PositionCounts(200));
     assert_eq!(client.stats().retries, 1);
-    assert!(client.started_functions().is_empty(), "RS at the end");
+    assert!(client.started().is_empty(), "RS at the end");
     assert!(rig.unit(|u| u.executed_functions().is_empty()));
 }
 
@@ -338,7 +338,7 @@ fn round_trips_of_300_ms_during_a_move_still_keep_the_unit_alive() {
     assert_eq!(report.position_counts, PositionCounts(500));
     assert!(*slow_polls.lock().unwrap() > 5);
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0, "the unit never lost its RC");
-    assert!(client.started_functions().is_empty());
+    assert!(client.started().is_empty());
     client.close().unwrap();
 }
 

@@ -38,7 +38,7 @@ fn a_follower_merges_targets_offered_faster_than_its_rate_and_the_newest_wins() 
     assert_eq!(follower.updates(), 2);
     let report = follower.finish(&CancelToken::new()).unwrap();
     assert_eq!(report, FollowReport { rest: vec![(a(1), PositionCounts(400))], updates: 2 });
-    assert!(client.started_functions().is_empty());
+    assert!(client.started().is_empty());
     assert!(Follower::new(client.stream(f(1), &[a(1)], pct(100)).unwrap(), a(1), 0).is_err(), "rate 0");
 }
 
@@ -122,5 +122,5 @@ fn a_cancel_while_a_follow_settles_stops_it_fast() {
     assert!(rest < PositionCounts(800), "stopped on the way: {rest}");
     assert_eq!(rig.unit(|u| (u.position(a(1)), u.is_moving(a(1)))), (Some(rest.get()), false));
     assert_eq!(stops(&rig), ["F1 stopped (RS fast)"]);
-    assert!(client.started_functions().is_empty());
+    assert!(client.started().is_empty());
 }

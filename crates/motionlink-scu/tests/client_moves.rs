@@ -185,14 +185,14 @@ fn streamed_setpoints_retarget_a_running_motion_and_change_its_speed() {
     assert!(stream.set_targets(&[PositionCounts(1), PositionCounts(2)]).is_err(), "one target per actuator");
     let rest = stream.stop(StopMode::Soft).unwrap();
     assert_eq!(rest, [(a(1), PositionCounts(295))]);
-    assert!(client.started_functions().is_empty());
+    assert!(client.started().is_empty());
     // Dropping a running stream stops it.
     let mut stream = client.stream(f(1), &[a(1)], pct(100)).unwrap();
     stream.set_targets(&[PositionCounts(800)]).unwrap();
     rig.sleep(500);
     drop(stream);
     assert!(!rig.unit(|u| u.is_moving(a(1))));
-    assert!(client.started_functions().is_empty());
+    assert!(client.started().is_empty());
     assert!(matches!(client.stream(f(1), &[a(2)], pct(100)), Err(Error::InvalidArgument(_))), "F1 drives A1");
     assert!(matches!(client.stream(f(1), &[a(1)], pct(0)), Err(Error::InvalidArgument(_))), "speed 0");
 }
@@ -259,7 +259,7 @@ fn safety_id_1_through_the_api_a_watchdog_lapse_during_a_move_is_reported_and_th
         let err = client.position(a(1)).unwrap_err();
         assert!(matches!(&err, Error::RemoteEnded(t) if t.contains("watchdog")), "{err}");
         assert!(client.is_open(), "Safety_ID 1 and 2 need no RO");
-        assert!(client.started_functions().is_empty(), "the stopped function got its RS");
+        assert!(client.started().is_empty(), "the stopped function got its RS");
         // After the RC the session goes on.
         let report = client.move_to(a(1), PositionCounts(100), pct(100), &MoveOptions::default()).unwrap();
         assert_eq!(report.position_counts, PositionCounts(100), "{safety:?}");
@@ -366,7 +366,7 @@ fn set_read_back_mismatch(config: SimConfig) {
     // A move whose speed does not read back is refused before RE.
     let err = client.move_to(a(1), PositionCounts(100), pct(80), &MoveOptions::default()).unwrap_err();
     assert!(matches!(err, Error::ReadBack { .. }), "{err}");
-    assert!(client.started_functions().is_empty(), "no RE was sent");
+    assert!(client.started().is_empty(), "no RE was sent");
 }
 
 #[test]

@@ -23,7 +23,7 @@ fn probed(variants: &[Variant]) -> ScuProbeReport {
     let before = at();
     let report = probe(&client, &sim_setup()).unwrap();
     // Nothing moved, and nothing was left started.
-    assert!(client.started_functions().is_empty());
+    assert!(client.started().is_empty());
     assert_eq!(at(), before);
     client.close().unwrap();
     report

@@ -117,7 +117,7 @@ fn a_move_is_watched_through_the_keepalive_and_every_exchange_while_it_runs_is_a
         .collect();
     assert!(seen.len() > 40 && seen.windows(2).all(|w| w[0] <= w[1]), "{seen:?}");
     // RS at the end: nothing stays started.
-    assert!(b.session.started_functions().is_empty());
+    assert!(b.session.started().is_empty());
     assert!(b.device.executed_functions().is_empty());
     assert_eq!(b.device.stats().watchdog_expiries, 0);
 }
@@ -182,7 +182,7 @@ fn a_cancelled_move_sends_rs_at_once_and_reports_where_the_actuator_came_to_rest
     assert_eq!(&rs.1[..4], &[0x52, 0x53, 0x00, 0x00], "a fast stop of F1");
     assert!(!b.device.is_moving(a(1)));
     assert_eq!(Some(position_counts), b.device.position(a(1)).map(PositionCounts), "the position after the stop");
-    assert!(b.session.started_functions().is_empty());
+    assert!(b.session.started().is_empty());
 }
 
 #[test]
@@ -204,7 +204,7 @@ fn closing_stops_what_runs_then_sends_rs_for_every_re_and_ra() {
     b.wait_done(started).unwrap();
     let moving = b.start(move_a1(800));
     b.run_until(Duration::from_secs(5), |b| b.device.is_moving(a(1)) && b.device.is_moving(a(2)));
-    assert_eq!(b.session.started_functions(), [0, 1]);
+    assert_eq!(b.session.started().iter().map(|f| f.id()).collect::<Vec<_>>(), [0, 1]);
     b.session.close(b.now);
     b.run_until(Duration::from_secs(5), |b| b.closed.is_some());
     assert!(b.closed.take().unwrap().is_ok());
@@ -320,7 +320,7 @@ fn a_cancelled_run_stops_its_function_and_says_where_the_actuators_came_to_rest(
     let Err(Error::RunCancelled { rest, .. }) = result else { panic!("{result:?}") };
     assert!(!b.device.is_moving(a(2)));
     assert_eq!(rest[1], (a(2), PositionCounts(b.device.position(a(2)).unwrap())));
-    assert!(b.session.started_functions().is_empty());
+    assert!(b.session.started().is_empty());
 }
 
 #[test]

@@ -71,7 +71,7 @@ fn a_move_over_a_link_slow_from_the_start_is_refused_before_anything_moves() {
     rig.sleep(1000);
     assert_eq!(rig.unit(|u| u.position(a(1))), Some(0), "nothing moved");
     assert!(rig.unit(|u| u.executed_functions().is_empty()), "no RE reached the unit");
-    assert!(client.started_functions().is_empty());
+    assert!(client.started().is_empty());
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0);
     client.close().unwrap();
 }

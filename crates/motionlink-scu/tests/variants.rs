@@ -42,7 +42,7 @@ fn core_operations(rig: &Rig, config: ClientConfig) -> Outcome {
     assert_eq!((report.verified, report.not_verifiable.len()), (second.verified, second.not_verifiable.len()));
     assert_eq!(report.verified, report.not_verifiable.is_empty());
     // home: F1 to its In end
-    let run = client.run(RunAction::Motion(f(1), MotionDirection::In), None, &|_| {}, None).unwrap();
+    let run = client.run_function(RunAction::Motion(f(1), MotionDirection::In), None, &|_| {}, None).unwrap();
     let home_rest = run.rest.iter().find(|(x, _)| *x == a(1)).map(|(_, p)| *p).unwrap();
     assert_eq!(rig.unit(|u| u.position(a(1))), Some(home_rest.get()));
     // stop
@@ -60,7 +60,7 @@ fn core_operations(rig: &Rig, config: ClientConfig) -> Outcome {
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0);
     let caps = client.capabilities();
     let retries = client.stats().retries;
-    assert!(client.started_functions().is_empty());
+    assert!(client.started().is_empty());
     client.close().unwrap();
     assert!(rig.unit(|u| u.executed_functions().is_empty()));
     Outcome {
@@ -233,7 +233,7 @@ fn a_unit_that_needs_rs_before_a_new_re_refuses_the_second_setpoint_of_a_stream_
     assert!(matches!(e, Error::Refused { command: Command::Execute, status: Status::PermissionError }), "{e}");
     let e = stream.abort(e);
     assert!(matches!(e, Error::Refused { .. }), "the stop was confirmed: {e}");
-    assert!(!rig.unit(|u| u.is_moving(a(1))) && client.started_functions().is_empty());
+    assert!(!rig.unit(|u| u.is_moving(a(1))) && client.started().is_empty());
 }
 
 #[test]

@@ -54,7 +54,7 @@ impl AsyncPowerCubeClient {
                 let (client, err) = match open(t, &s) {
                     Ok((c, in_process)) => {
                         *slot.lock().unwrap_or_else(|e| e.into_inner()) =
-                            Some(Ok((in_process, c.describe().to_string())));
+                            Some(Ok((in_process, c.port().to_string())));
                         (Some(c), None)
                     }
                     Err(f) => {

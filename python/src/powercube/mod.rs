@@ -220,9 +220,9 @@ impl PowerCubeClient {
             })
             .map_err(|f| to_pyerr(py, f))?;
         let token = CancelToken::new();
-        client.set_cancel_token(token.clone());
+        client.set_cancel(token.clone());
         let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !settings.watchdog);
-        let port = client.describe().to_string();
+        let port = client.port().to_string();
         let close_bound = client.config().close_bound;
         Ok(PowerCubeClient {
             slot: Slot::new(client, FAMILY),

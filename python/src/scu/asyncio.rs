@@ -87,7 +87,7 @@ impl AsyncScuClient {
         let c = self.client(py)?;
         let (action, limit) = run_args(function, direction, seconds).map_err(|f| to_pyerr(py, f))?;
         Ok(spawn_task(done, async move {
-            let report = fail(c.run(action, limit).await)?;
+            let report = fail(c.run_function(action, limit).await)?;
             deliver(move |py| Ok(run_py(py, &report)?.unbind()))
         }))
     }

@@ -317,7 +317,7 @@ impl ScuClient {
 
     /// Motion functions (numbers 1..10) this session started and has not seen stop.
     fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
-        Ok(self.client(py)?.started_functions().into_iter().map(|f| f + 1).collect())
+        Ok(self.client(py)?.started().into_iter().map(|f| f.number()).collect())
     }
 
     /// Firmware, configuration, battery/mains, last error and the connected actuators (Ctrl-C raises at
@@ -394,7 +394,7 @@ impl ScuClient {
         let c = self.client(py)?;
         let (action, limit) = run_args(function, direction, seconds).map_err(|f| to_pyerr(py, f))?;
         let token = &self.token;
-        let r = interruptible(py, Some(token), || c.run(action, limit, &|_| {}, Some(token)), cancel_cause)?;
+        let r = interruptible(py, Some(token), || c.run_function(action, limit, &|_| {}, Some(token)), cancel_cause)?;
         run_py(py, &r.or_raise(py)?)
     }
 

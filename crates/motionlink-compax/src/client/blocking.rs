@@ -118,6 +118,11 @@ impl Client {
         &self.driver
     }
 
+    /// The port, for messages.
+    pub fn port(&self) -> &str {
+        self.driver.port_name()
+    }
+
     /// The drives this client set in motion and has not yet seen stop.
     pub fn started(&self) -> Vec<Address> {
         self.driver.with_session(|s| s.started())

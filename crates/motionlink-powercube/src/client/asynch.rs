@@ -72,7 +72,7 @@ impl AsyncClient {
     }
 
     /// The port, for messages.
-    pub fn describe(&self) -> &str {
+    pub fn port(&self) -> &str {
         self.driver.driver().port_name()
     }
 

@@ -80,7 +80,7 @@ impl Client {
     }
 
     /// The port, for messages.
-    pub fn describe(&self) -> &str {
+    pub fn port(&self) -> &str {
         self.driver.port_name()
     }
 
@@ -102,7 +102,7 @@ impl Client {
     /// Every motion and wait of this client watches `token`: when it is cancelled (a signal), the motion is
     /// halted and the call returns [`Error::Cancelled`] saying whether the module confirmed the halt. A
     /// [`Client::scan`] watches it too.
-    pub fn set_cancel_token(&self, token: CancelToken) {
+    pub fn set_cancel(&self, token: CancelToken) {
         *lock(&self.cancel) = Some(token);
     }
 

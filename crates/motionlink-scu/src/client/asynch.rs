@@ -54,7 +54,7 @@ impl AsyncClient {
     /// Opens a session as [`Client::open`] does; the port is opened on tokio's blocking pool.
     pub async fn open(connector: Connector, clock: SharedClock, config: ClientConfig) -> Result<Self, Error> {
         let for_driver = config.clone();
-        let driver = AsyncDriver::open(move || Client::driver(connector, clock, for_driver)).await?;
+        let driver = AsyncDriver::open(move || Client::make_driver(connector, clock, for_driver)).await?;
         if let Err(e) = driver.run(Op::Open).await {
             // As Client::open: nothing was started, and an unconfirmed close adds nothing to the open's error.
             if let Err(close) = driver.close().await {
@@ -96,9 +96,9 @@ impl AsyncClient {
         self.driver.driver().with_session(|s| s.stats())
     }
 
-    /// Functions started with RE and not yet stopped (wire ids).
-    pub fn started_functions(&self) -> Vec<u8> {
-        self.driver.driver().with_session(|s| s.started_functions())
+    /// The functions this session started with RE and has not stopped yet.
+    pub fn started(&self) -> Vec<Function> {
+        self.driver.driver().with_session(|s| s.started())
     }
 
     /// True while the session is open (not lost, not ended by the unit, not closed).
@@ -228,7 +228,7 @@ impl AsyncClient {
 
     /// Runs a function as [`Client::run`]; dropping the future stops it. Progress:
     /// [`AsyncClient::start`] with [`Op::Run`].
-    pub async fn run(&self, action: RunAction, limit: Option<Duration>) -> Result<RunReport, Error> {
+    pub async fn run_function(&self, action: RunAction, limit: Option<Duration>) -> Result<RunReport, Error> {
         expect_output!(self.driver.run(Op::Run(run_spec(action, limit)?)).await, Output::Run(r) => r)
     }
 

@@ -57,7 +57,7 @@ impl Client {
     /// Requests run on the calling thread; with an auto-advancing
     /// [`ManualClock`](motionlink_link::ManualClock) the calling thread must be one of its participants.
     pub fn open(connector: Connector, clock: SharedClock, config: ClientConfig) -> Result<Self, Error> {
-        let driver = Self::driver(connector, clock, config.clone())?;
+        let driver = Self::make_driver(connector, clock, config.clone())?;
         if let Err(e) = driver.run(Op::Open) {
             // Nothing was started: the session is closed here (RA, if remote mode was opened), and a close
             // that cannot be confirmed (the port is gone) says no more than the open's error.
@@ -70,7 +70,7 @@ impl Client {
     }
 
     /// Validates `config`, connects, and makes the driver (nothing is sent yet).
-    pub(crate) fn driver(
+    pub(crate) fn make_driver(
         mut connector: Connector,
         clock: SharedClock,
         config: ClientConfig,
@@ -87,12 +87,12 @@ impl Client {
     }
 
     /// The driver underneath (for [`Driver::with_session`], and to run any [`Op`]).
-    pub fn driver_ref(&self) -> &Driver<Session> {
+    pub fn driver(&self) -> &Driver<Session> {
         &self.driver
     }
 
     /// Runs `op` to its end.
-    pub fn run_op(&self, op: Op) -> Result<Output, Error> {
+    pub fn run(&self, op: Op) -> Result<Output, Error> {
         self.driver.run(op)
     }
 
@@ -128,9 +128,9 @@ impl Client {
         self.driver.with_session(|s| s.seed_capabilities(known))
     }
 
-    /// Functions started with RE and not yet stopped (wire ids).
-    pub fn started_functions(&self) -> Vec<u8> {
-        self.driver.with_session(|s| s.started_functions())
+    /// The functions this session started with RE and has not stopped yet.
+    pub fn started(&self) -> Vec<Function> {
+        self.driver.with_session(|s| s.started())
     }
 
     /// True while the session is open (not lost, not ended by the unit, not closed).
@@ -284,7 +284,7 @@ impl Client {
     /// `cancel` is cancelled; then stops it (fast) and confirms the stop with the status. `progress` sees every
     /// look at the actuators (the first right after the RE was acknowledged). A cancelled run ends with
     /// [`Error::RunCancelled`] naming where the actuators came to rest.
-    pub fn run(
+    pub fn run_function(
         &self,
         action: RunAction,
         limit: Option<std::time::Duration>,

@@ -262,14 +262,8 @@ pub enum Ending {
 }
 
 /// Says what `closed` (the result of [`Client::close`]) means for the functions `started` (wire ids).
-pub fn ending(started: &[u8], closed: Result<(), Error>) -> Ending {
-    let functions = || {
-        started
-            .iter()
-            .map(|id| Function::from_id(*id).map_or(format!("function id {id}"), |f| format!("F{}", f.number())))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
+pub fn ending(started: &[Function], closed: Result<(), Error>) -> Ending {
+    let functions = || started.iter().map(|f| format!("F{}", f.number())).collect::<Vec<_>>().join(", ");
     match (closed, started.is_empty()) {
         (Ok(()), true) => Ending::Clean,
         (Ok(()), false) => Ending::Stopped(format!("{} stopped (the unit acknowledged RS)", functions())),

@@ -299,9 +299,9 @@ impl Session {
         s
     }
 
-    /// Functions started with RE and not yet stopped (wire ids).
-    pub fn started_functions(&self) -> Vec<u8> {
-        self.core().started.iter().copied().collect()
+    /// The functions this session started with RE and has not stopped yet.
+    pub fn started(&self) -> Vec<crate::model::Function> {
+        self.core().started.iter().filter_map(|&id| crate::model::Function::from_id(id)).collect()
     }
 
     /// True while the session is open (not lost, not ended by the unit, not closed).

@@ -299,7 +299,7 @@ impl Device for Scu {
                 self.client.set(function.remote_speed_index(), &ScuValue::RemoteSpeed(raw)).await.map_err(failure)?;
             }
             // Runs until the unit reports the end of travel; dropped, the session sends RS (fast) and checks it.
-            let r = self.client.run(RunAction::Motion(function, dir), None).await.map_err(failure)?;
+            let r = self.client.run_function(RunAction::Motion(function, dir), None).await.map_err(failure)?;
             let rest = r.rest.iter().map(|(a, p)| format!("{a} at {p}")).collect::<Vec<_>>().join(", ");
             Ok(format!("{function} ran {:.2} s to its end of travel: {rest}", r.duration.as_secs_f64()))
         }))
@@ -316,10 +316,10 @@ impl Device for Scu {
 
     fn stop_started(self: Arc<Self>) -> Motion {
         Box::pin(async move {
-            let started = self.client.started_functions();
+            let started = self.client.started();
             let mut done = Vec::new();
             for id in started {
-                let Some(f) = MotionFunction::new(id + 1) else { continue };
+                let Some(f) = MotionFunction::new(id.number()) else { continue };
                 self.client.stop_motion(f, StopMode::Fast).await.map_err(failure)?;
                 done.push(f.to_string());
             }
@@ -431,7 +431,7 @@ impl Device for Scu {
                     return Ok("the session ends with its last request".into());
                 }
             };
-            let started = me.client.started_functions();
+            let started = me.client.started();
             let closed = me.client.close().await;
             match motionlink_scu::ending(&started, closed) {
                 motionlink_scu::Ending::Clean => Ok(String::new()),

@@ -278,7 +278,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let can_interface = port.parse::<PortUrl>().map(|u| crate::tap::can_interface(&u)).unwrap_or_default();
     let tap = Tap::new("powercube", &port, &clock, &args.link, &can_interface, &describer, request.is_some())?;
     let (client, host) = open(&args, &port, &tap, &clock)?;
-    client.set_cancel_token(interrupt);
+    client.set_cancel(interrupt);
     if !matches!(args.action, Action::Scan | Action::Params) {
         let module = args.module;
         crate::probe::use_profile(|p| motionlink_powercube::probe::use_profile(&client, p, &port, module))?;

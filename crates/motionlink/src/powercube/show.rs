@@ -14,7 +14,7 @@ pub(super) fn scan(client: &Client, port: &str, out: &mut dyn Write, json: bool)
             common::print_result(out, "powercube", port, &[], e)?;
         }
     } else if found.is_empty() {
-        writeln!(out, "no module answered on {}", client.describe())?;
+        writeln!(out, "no module answered on {}", client.port())?;
     } else {
         writeln!(out, "{:<7}  {:<6}  {:<7}  {:<8}  state", "address", "type", "version", "serial")?;
         for e in &found {
@@ -33,7 +33,7 @@ pub(super) fn scan(client: &Client, port: &str, out: &mut dyn Write, json: bool)
         }
     }
     if found.is_empty() {
-        return Err(CliError::transport(format!("no module answered on {}", client.describe())));
+        return Err(CliError::transport(format!("no module answered on {}", client.port())));
     }
     // Every module is listed; the exit code still says that one could not be read.
     match found.into_iter().find_map(|e| e.info.err()) {

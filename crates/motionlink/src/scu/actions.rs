@@ -231,7 +231,7 @@ pub(super) fn run(
             let _ = stdout.flush();
         }
     };
-    let outcome = RunOutcome::of(client.run(action, limit, &progress, Some(interrupt))).map_err(cl)?;
+    let outcome = RunOutcome::of(client.run_function(action, limit, &progress, Some(interrupt))).map_err(cl)?;
     report.show(out, &outcome, |out, o| {
         writeln!(out, "{function} stopped")?;
         let rows: Vec<Row> = o.rest.iter().map(|(a, p)| (a.to_string(), p.to_string())).collect();

@@ -358,7 +358,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         None => act(&client, &args, &report, &mut out, &interrupt),
     };
     // Stop what was started and leave remote mode, whatever happened.
-    let started = client.started_functions();
+    let started = client.started();
     let closed = client.close();
     tap.flush();
     finish(result, closed, &started).map_err(|e| tap.name_absent(e, absent))
@@ -374,7 +374,7 @@ fn with_note(e: CliError, note: &str) -> CliError {
 fn finish(
     result: Result<(), CliError>,
     closed: Result<(), motionlink_scu::Error>,
-    started: &[u8],
+    started: &[motionlink_scu::model::Function],
 ) -> Result<(), CliError> {
     match motionlink_scu::ending(started, closed) {
         Ending::Clean => result,
@@ -455,11 +455,12 @@ mod tests {
     #[test]
     fn a_failed_stop_at_the_end_keeps_the_exit_code_and_says_the_actuators_may_move() {
         let lost = motionlink_scu::Error::SessionLost("port gone".into());
-        let e = finish(Err(CliError::Interrupted("interrupted".into())), Err(lost.clone()), &[0]).unwrap_err();
+        let f = |id| motionlink_scu::model::Function::from_id(id).unwrap();
+        let e = finish(Err(CliError::Interrupted("interrupted".into())), Err(lost.clone()), &[f(0)]).unwrap_err();
         assert!(matches!(&e, CliError::Interrupted(m) if m.contains("may still be moving") && m.contains("F1")), "{e}");
-        let e = finish(Ok(()), Err(lost.clone()), &[1]).unwrap_err();
+        let e = finish(Ok(()), Err(lost.clone()), &[f(1)]).unwrap_err();
         assert!(matches!(&e, CliError::Transport(_, m) if m.contains("F2")), "{e}");
-        let e = finish(Err(CliError::Device("stalled".into())), Ok(()), &[0]).unwrap_err();
+        let e = finish(Err(CliError::Device("stalled".into())), Ok(()), &[f(0)]).unwrap_err();
         assert!(matches!(&e, CliError::Device(m) if m.contains("acknowledged RS")), "{e}");
         assert!(finish(Ok(()), Ok(()), &[]).is_ok());
         assert!(matches!(finish(Ok(()), Err(lost), &[]), Err(CliError::Transport(..))));

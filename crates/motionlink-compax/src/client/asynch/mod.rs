@@ -111,6 +111,11 @@ impl AsyncClient {
         &self.driver
     }
 
+    /// The port, for messages.
+    pub fn port(&self) -> &str {
+        self.driver.driver().port_name()
+    }
+
     /// The clock the session runs on.
     pub fn clock(&self) -> &SharedClock {
         self.driver.driver().clock()

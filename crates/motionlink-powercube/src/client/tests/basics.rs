@@ -185,7 +185,7 @@ fn cancelling_a_wait_halts_the_motion() {
     let (clock, host, bus, _) = rs232(&[1]);
     let _me = clock.reserve_participant().enter();
     let token = CancelToken::new();
-    bus.set_cancel_token(token.clone());
+    bus.set_cancel(token.clone());
     let m = bus.module(addr(1));
     m.motion(Motion::FCur { cur: Amperes(1.0) }, AckKind::Simple).unwrap();
     let err = m
@@ -416,7 +416,7 @@ fn a_cancelled_token_ends_a_scan_at_once() {
     let (clock, _host, bus, _faults) = rs232(&[1]);
     let _me = clock.reserve_participant().enter();
     let token = CancelToken::new();
-    bus.set_cancel_token(token.clone());
+    bus.set_cancel(token.clone());
     let whole = {
         let started = clock.now();
         assert_eq!(bus.scan().unwrap().len(), 1);
