@@ -33,7 +33,12 @@ pub struct StopResult<H: Serialize> {
 impl<H: Serialize> StopResult<H> {
     /// The result of a confirmed stop `report`, with S1 (`position`) and O0 from S16 (`o0`) as they were read
     /// (or why they could not be).
-    pub fn new(holder: Option<H>, report: StopReport, position: Result<Position, Error>, o0: Result<u8, Error>) -> Self {
+    pub fn new(
+        holder: Option<H>,
+        report: StopReport,
+        position: Result<Position, Error>,
+        o0: Result<u8, Error>,
+    ) -> Self {
         let not_read = |e: Option<&Error>| e.map(Error::to_string);
         StopResult {
             action: "stop",

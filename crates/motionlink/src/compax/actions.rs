@@ -19,9 +19,6 @@ fn with_unit(value: f64, unit: &str) -> String {
     }
 }
 
-/// `move` without a target (clap asks for one: this is the library's last word).
-const NO_TARGET: &str = "give the target: POSITION (the same as --abs POSITION) or --rel DISTANCE";
-
 /// The arguments of `move`, checked before anything is sent.
 pub(super) struct MovePlan {
     pub(super) request: MoveRequest,
@@ -62,11 +59,7 @@ pub(super) fn check(args: &Args) -> Result<Checked, CliError> {
             ..
         } => {
             // A plain target is an absolute one, as `move 100` is in every family.
-            let target = match (target.or(*abs), rel) {
-                (Some(a), None) => MoveTarget::Absolute(a),
-                (None, Some(r)) => MoveTarget::Relative(*r),
-                _ => return Err(CliError::usage(NO_TARGET)),
-            };
+            let target = MoveTarget::from_args(target.or(*abs), *rel).map_err(CliError::usage)?;
             let limits = TravelLimits::new(*min_pos, *max_pos)
                 .map_err(|e| CliError::usage(format!("--min-pos / --max-pos: {e}")))?;
             let (speed, accel, binary, timeout) = (*speed, *accel, *binary, Some(timeout_s.duration()));

@@ -6,8 +6,8 @@ use std::time::Duration;
 
 use motionlink_compax::client::{AfterRaw, BusConfig, MoveRequest, MoveTarget, TravelLimits};
 use motionlink_compax::model::{
-    BaudRate, OutputNumber, OutputState, ParamId, PollInterval, Position, RampMs, ReplyTimeout,
-    SpeedPercent, StatusId, StatusValue, TimeLimit, Tolerance, WatchInterval,
+    BaudRate, OutputNumber, OutputState, ParamId, PollInterval, Position, RampMs, ReplyTimeout, SpeedPercent, StatusId,
+    StatusValue, TimeLimit, Tolerance, WatchInterval,
 };
 use motionlink_compax::sim::Variant;
 use motionlink_compax::wire::{Address, Mode};
