@@ -7,7 +7,9 @@
 //! prints; a motion lives only as long as its lease is renewed. The topics are a public interface: see
 //! docs/fleet.md.
 
+pub mod args;
 pub mod config;
+pub mod device;
 pub mod error;
 pub mod lease;
 pub mod request;
