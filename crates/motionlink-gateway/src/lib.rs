@@ -8,6 +8,7 @@
 //! docs/fleet.md.
 
 pub mod args;
+pub mod cli;
 pub mod config;
 pub mod device;
 pub mod error;
