@@ -28,43 +28,239 @@ port = "sim"
 
 const S: Duration = Duration::from_secs(1);
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn probe_shapes() {
-    let Some(b) = broker("probe_shapes") else { return };
-    let gw = gateway(&b, "p1", ALL);
-    let mut c = Client::connect(&b, "t-probe", &["motionlink/p1/#", "me/#"]).await;
-    c.wait("online", 10 * S, |m| m.topic == "motionlink/p1/status" && m.payload == "online").await;
-    for dev in ["lift", "arm", "axis"] {
-        let m = c.wait("state", 5 * S, |m| m.topic == format!("motionlink/p1/{dev}/state")).await;
-        eprintln!("STATE {dev}: {}", m.payload);
-    }
-    for (dev, args) in [
-        ("lift", json!({"actuator": 1, "position": 300})),
-        ("arm", json!({"position": 0.5, "vel": 1.0})),
-        ("axis", json!({"abs": 10, "speed": 50})),
-    ] {
-        let id = format!("m-{dev}");
-        c.send(
-            &format!("motionlink/p1/{dev}/cmd"),
-            json!({"id": id, "op": "move", "args": args, "reply_to": "me/r", "lease_ms": 2000}).to_string(),
-        )
-        .await;
-        let t0 = std::time::Instant::now();
-        let r = loop {
-            c.send(&format!("motionlink/p1/{dev}/cmd"), json!({"id": id, "op": "keepalive"}).to_string()).await;
+/// A request on `device`'s `cmd` of gateway `gw`.
+async fn request(c: &Client, gw: &str, device: &str, body: Value) {
+    c.send(&format!("motionlink/{gw}/{device}/cmd"), body.to_string()).await;
+}
+
+/// Keepalives for motion `id` every 200 ms until the task is aborted.
+fn keep_alive(c: &Client, gw: &str, device: &str, id: &str) -> tokio::task::JoinHandle<()> {
+    let (mqtt, topic, body) = (c.mqtt.clone(), format!("motionlink/{gw}/{device}/cmd"), json!({"id": id, "op": "keepalive"}).to_string());
+    tokio::spawn(async move {
+        loop {
+            let _ = mqtt.publish(topic.clone(), rumqttc::v5::mqttbytes::QoS::AtLeastOnce, false, body.clone()).await;
             tokio::time::sleep(Duration::from_millis(200)).await;
-            let got: Vec<Value> = c.drain().into_iter().filter(|m| m.topic == "me/r").map(|m| m.json()).collect();
-            if let Some(r) = got.into_iter().find(|r| r["id"] == id) {
-                break r;
-            }
-            assert!(t0.elapsed() < 60 * S);
-        };
-        eprintln!("REPLY {dev} after {:?}: {r}", t0.elapsed());
-        c.send(&format!("motionlink/p1/{dev}/cmd"), json!({"id": "s", "op": "stop", "reply_to": "me/s"}).to_string())
-            .await;
-        let r = c.reply("me/s", "s", 10 * S).await;
-        eprintln!("STOP {dev}: {r}");
+        }
+    })
+}
+
+/// A connected client of gateway `gw` once it is online, subscribed to its topics and `me/#`.
+async fn online(b: &harness::Broker, gw: &str, client: &str) -> Client {
+    let mut c = Client::connect(b, client, &[&format!("motionlink/{gw}/#"), "me/#"]).await;
+    c.wait("online", 20 * S, |m| m.topic == format!("motionlink/{gw}/status") && m.payload == "online").await;
+    c
+}
+
+/// A move of `device` with `args` under a lease kept alive: its reply.
+async fn leased_move(b: &harness::Broker, gw: &str, device: &str, args: Value) -> Value {
+    let _gw = gateway(b, gw, ALL);
+    let mut c = online(b, gw, &format!("t-{gw}")).await;
+    request(&c, gw, device, json!({"id": "m1", "op": "move", "args": args, "reply_to": "me/r", "lease_ms": 500})).await;
+    let keep = keep_alive(&c, gw, device, "m1");
+    let r = c.reply("me/r", "m1", 60 * S).await;
+    keep.abort();
+    let events: Vec<Value> = c
+        .drain()
+        .into_iter()
+        .filter(|m| m.topic == format!("motionlink/{gw}/{device}/events"))
+        .map(|m| m.json())
+        .collect();
+    let _ = events;
+    r
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn status_and_states_are_retained_and_the_end_is_offline() {
+    let Some(b) = broker("status_and_states_are_retained_and_the_end_is_offline") else { return };
+    let gw = gateway(&b, "r1", ALL);
+    drop(online(&b, "r1", "t-r1-first").await);
+    tokio::time::sleep(2 * S).await;
+    // A client that comes later gets the status and every state at once, retained.
+    let mut c = Client::connect(&b, "t-r1", &["motionlink/r1/#"]).await;
+    let status = c.wait("status", 5 * S, |m| m.topic == "motionlink/r1/status").await;
+    assert!(status.retain && status.payload == "online", "{status:?}");
+    for (dev, keys) in [
+        ("lift", ["actuators", "last_error"]),
+        ("arm", ["position_rad", "state"]),
+        ("axis", ["position_units", "s17"]),
+    ] {
+        let m = c.wait("state", 5 * S, |m| m.topic == format!("motionlink/r1/{dev}/state") && m.retain).await;
+        let state = m.json();
+        for key in keys.iter().chain(&["family", "port", "t_s"]) {
+            assert!(state.get(key).is_some(), "{dev}: no {key} in {state}");
+        }
     }
-    let (code, err) = gw.signal(libc::SIGTERM);
-    eprintln!("EXIT {code:?} {err}");
+    // At rest: about one state a second.
+    c.drain();
+    tokio::time::sleep(Duration::from_millis(3100)).await;
+    let n = c.drain().iter().filter(|m| m.topic == "motionlink/r1/lift/state").count();
+    assert!((2..=5).contains(&n), "{n} states in 3.1 s at rest");
+    let (code, _) = gw.signal(libc::SIGTERM);
+    assert_eq!(code, Some(143));
+    let mut c = Client::connect(&b, "t-r1-after", &["motionlink/r1/status"]).await;
+    let status = c.wait("status", 5 * S, |m| m.topic == "motionlink/r1/status").await;
+    assert!(status.retain && status.payload == "offline", "{status:?}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_leased_scu_move_kept_alive_ends_at_its_target() {
+    let Some(b) = broker("a_leased_scu_move_kept_alive_ends_at_its_target") else { return };
+    let r = leased_move(&b, "l1", "lift", json!({"actuator": 1, "position": 250, "speed": 100})).await;
+    assert_eq!(r["ok"], true, "{r}");
+    let result = &r["result"];
+    assert_eq!((result["family"].as_str(), result["port"].as_str()), (Some("scu"), Some("sim")), "{r}");
+    assert_eq!((result["reached_counts"].as_i64(), result["verified"].as_bool()), (Some(250), Some(true)), "{r}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_leased_powercube_move_kept_alive_ends_at_its_target() {
+    let Some(b) = broker("a_leased_powercube_move_kept_alive_ends_at_its_target") else { return };
+    let r = leased_move(&b, "l2", "arm", json!({"position": 1.0, "vel": 0.8})).await;
+    assert_eq!(r["ok"], true, "{r}");
+    let result = &r["result"];
+    assert_eq!((result["action"].as_str(), result["module"].as_i64()), (Some("reached"), Some(1)), "{r}");
+    assert!((result["reached_rad"].as_f64().unwrap() - 1.0).abs() <= 0.001, "{r}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_leased_compax_move_kept_alive_ends_at_its_target() {
+    let Some(b) = broker("a_leased_compax_move_kept_alive_ends_at_its_target") else { return };
+    let r = leased_move(&b, "l3", "axis", json!({"abs": 40, "speed": 50})).await;
+    assert_eq!(r["ok"], true, "{r}");
+    let result = &r["result"];
+    assert_eq!((result["drive"].as_i64(), result["waited"].as_bool()), (Some(1), Some(true)), "{r}");
+    assert_eq!((result["reached_units"].as_f64(), result["verified"].as_bool()), (Some(40.0), Some(true)), "{r}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_move_whose_keepalives_stop_is_stopped_within_its_lease() {
+    let Some(b) = broker("a_move_whose_keepalives_stop_is_stopped_within_its_lease") else { return };
+    let _gw = gateway(&b, "e1", ALL);
+    let mut c = online(&b, "e1", "t-e1").await;
+    request(&c, "e1", "lift", json!({"id": "m1", "op": "move", "args": {"actuator": 1, "position": 800}, "reply_to": "me/r", "lease_ms": 400})).await;
+    let sent = std::time::Instant::now();
+    let keep = keep_alive(&c, "e1", "lift", "m1");
+    tokio::time::sleep(Duration::from_millis(1000)).await;
+    keep.abort();
+    let stopped_renewing = std::time::Instant::now();
+    let r = c.reply("me/r", "m1", 10 * S).await;
+    let after = stopped_renewing.elapsed();
+    assert_eq!((r["ok"].as_bool(), r["error"]["kind"].as_str()), (Some(false), Some("lease_expired")), "{r}");
+    assert!(r["error"]["message"].as_str().unwrap().contains("400 ms"), "{r}");
+    // Stopped one lease after the last keepalive, confirmed (the stop's read back takes part of a second).
+    assert!(after < Duration::from_millis(400 + 200 + 1500), "the reply came {after:?} after the last keepalive");
+    let m = c.wait("lease event", 2 * S, |m| m.topic == "motionlink/e1/lift/events" && m.json()["event"] == "lease_expired").await;
+    assert_eq!(m.json()["id"], "m1");
+    // At rest short of the target, and staying there.
+    let rest = |m: &harness::Message| m.topic == "motionlink/e1/lift/state" && m.json()["actuators"][0]["moving"] == false;
+    let first = c.wait("at rest", 3 * S, rest).await.json()["actuators"][0]["position_counts"].as_i64().unwrap();
+    tokio::time::sleep(Duration::from_millis(1200)).await;
+    c.drain();
+    let later = c.wait("still", 3 * S, rest).await.json()["actuators"][0]["position_counts"].as_i64().unwrap();
+    assert!(first > 0 && first < 800 && first == later, "{first} then {later} (sent {:?} ago)", sent.elapsed());
+    // The lapsed motion's keepalive renews nothing.
+    request(&c, "e1", "lift", json!({"id": "m1", "op": "keepalive", "reply_to": "me/k"})).await;
+    let k = c.reply("me/k", "m1", 5 * S).await;
+    assert_eq!(k["error"]["kind"], "no_lease", "{k}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn stop_during_a_move_stops_it() {
+    let Some(b) = broker("stop_during_a_move_stops_it") else { return };
+    let _gw = gateway(&b, "s1", ALL);
+    let mut c = online(&b, "s1", "t-s1").await;
+    request(&c, "s1", "axis", json!({"id": "m1", "op": "move", "args": {"abs": 1000, "speed": 10}, "reply_to": "me/r"})).await;
+    let keep = keep_alive(&c, "s1", "axis", "m1");
+    c.wait("moving", 5 * S, |m| m.topic == "motionlink/s1/axis/state" && m.json()["moving"] == true).await;
+    // `stop` needs no lease and no id of the motion.
+    request(&c, "s1", "axis", json!({"id": "s1", "op": "stop", "reply_to": "me/s"})).await;
+    let stop = c.reply("me/s", "s1", 10 * S).await;
+    keep.abort();
+    assert_eq!((stop["ok"].as_bool(), stop["result"]["action"].as_str()), (Some(true), Some("stop")), "{stop}");
+    assert_eq!(stop["result"]["confirmed"], true, "{stop}");
+    let r = c.reply("me/r", "m1", 10 * S).await;
+    assert_eq!((r["ok"].as_bool(), r["error"]["kind"].as_str()), (Some(false), Some("cancelled")), "{r}");
+    assert!(r["error"]["message"].as_str().unwrap().contains("stop request \"s1\""), "{r}");
+    let at = stop["result"]["position_units"].as_f64().unwrap();
+    assert!(at > 0.0 && at < 1000.0, "{stop}");
+    let m = c.wait("at rest", 3 * S, |m| m.topic == "motionlink/s1/axis/state" && m.json()["moving"] == false).await;
+    assert_eq!(m.json()["position_units"].as_f64(), Some(at), "{}", m.payload);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_requests_are_answered_and_nothing_moves() {
+    let Some(b) = broker("bad_requests_are_answered_and_nothing_moves") else { return };
+    let _gw = gateway(&b, "b1", ALL);
+    let mut c = online(&b, "b1", "t-b1").await;
+    let cases = [
+        ("lift", json!({"id": "b1", "op": "fly", "reply_to": "me/r"}), "usage", "\"fly\" is not an action"),
+        ("lift", json!({"id": "b2", "op": "move", "args": {"actuator": 9, "position": 100}, "reply_to": "me/r"}), "usage", "actuator"),
+        ("lift", json!({"id": "b3", "op": "move", "args": {"position": 100}, "reply_to": "me/r"}), "usage", "\"actuator\" is missing"),
+        ("lift", json!({"id": "b4", "op": "move", "args": {"actuator": 1, "position": 100, "speed": 500}, "reply_to": "me/r"}), "usage", "speed"),
+        ("lift", json!({"id": "b5", "op": "move", "args": {"actuator": 1, "position": 100, "sped": 5}, "reply_to": "me/r"}), "usage", "unknown argument \"sped\""),
+        ("lift", json!({"id": "b6", "op": "move", "args": {"actuator": 1, "position": 100}, "reply_to": "me/r", "lease_ms": 20000}), "usage", "lease_ms"),
+        ("lift", json!({"id": "b7", "op": "keepalive", "reply_to": "me/r"}), "no_lease", "no motion \"b7\""),
+        ("axis", json!({"id": "b8", "op": "move", "args": {"abs": 1, "rel": 2}, "reply_to": "me/r"}), "usage", "give the target"),
+        ("arm", json!({"id": "b9", "op": "move", "args": {"position": 1, "vel": -1}, "reply_to": "me/r"}), "usage", "velocity"),
+        ("nope", json!({"id": "b10", "op": "move", "reply_to": "me/r"}), "usage", "no device \"nope\""),
+    ];
+    for (device, body, kind, says) in &cases {
+        request(&c, "b1", device, body.clone()).await;
+        let id = body["id"].as_str().unwrap();
+        let r = c.reply("me/r", id, 5 * S).await;
+        assert_eq!((r["ok"].as_bool(), r["error"]["kind"].as_str()), (Some(false), Some(*kind)), "{r}");
+        assert!(r["error"]["message"].as_str().unwrap().contains(says), "{body}: {r}");
+        assert_eq!(r["error"]["exit_code"], 2, "{r}");
+    }
+    // Not JSON, with nowhere to reply: an error event.
+    c.send("motionlink/b1/lift/cmd", "move please").await;
+    let m = c.wait("error event", 5 * S, |m| m.topic == "motionlink/b1/lift/events").await.json();
+    assert_eq!((m["event"].as_str(), m["error"]["kind"].as_str()), (Some("error"), Some("usage")), "{m}");
+    // Nothing moved, nothing started.
+    tokio::time::sleep(1500 * Duration::from_millis(1)).await;
+    let seen = c.drain();
+    assert!(!seen.iter().any(|m| m.topic.ends_with("/events") && m.payload.contains("motion_started")), "{seen:?}");
+    let lift = seen.iter().rev().find(|m| m.topic == "motionlink/b1/lift/state").expect("a state").json();
+    assert_eq!((lift["actuators"][0]["position_counts"].as_i64(), lift["actuators"][0]["moving"].as_bool()), (Some(0), Some(false)), "{lift}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sigterm_mid_move_stops_it_says_so_and_exits_143() {
+    let Some(b) = broker("sigterm_mid_move_stops_it_says_so_and_exits_143") else { return };
+    let gw = gateway(&b, "k1", ALL);
+    let mut c = online(&b, "k1", "t-k1").await;
+    request(&c, "k1", "arm", json!({"id": "m1", "op": "move", "args": {"position": 3.0, "vel": 0.3}, "reply_to": "me/r", "lease_ms": 2000})).await;
+    let keep = keep_alive(&c, "k1", "arm", "m1");
+    c.wait("started", 5 * S, |m| m.topic == "motionlink/k1/arm/events" && m.payload.contains("motion_started")).await;
+    tokio::time::sleep(Duration::from_millis(700)).await;
+    let (code, stderr) = gw.signal(libc::SIGTERM);
+    keep.abort();
+    assert_eq!(code, Some(143), "{stderr}");
+    assert!(stderr.contains("SIGTERM") && stderr.contains("arm motion m1"), "{stderr}");
+    let r = c.reply("me/r", "m1", 5 * S).await;
+    assert_eq!((r["error"]["kind"].as_str(), r["error"]["exit_code"].as_i64()), (Some("cancelled"), Some(143)), "{r}");
+    assert!(r["error"]["message"].as_str().unwrap().contains("halted"), "{r}");
+    c.wait("offline", 5 * S, |m| m.topic == "motionlink/k1/status" && m.payload == "offline").await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_broker_lost_mid_move_stops_it_and_the_gateway_comes_back_online() {
+    let Some(mut b) = broker("the_broker_lost_mid_move_stops_it_and_the_gateway_comes_back_online") else { return };
+    let _gw = gateway(&b, "x1", ALL);
+    let mut c = online(&b, "x1", "t-x1").await;
+    request(&c, "x1", "lift", json!({"id": "m1", "op": "move", "args": {"actuator": 1, "position": 800}, "reply_to": "me/r", "lease_ms": 5000})).await;
+    let keep = keep_alive(&c, "x1", "lift", "m1");
+    c.wait("moving", 5 * S, |m| m.topic == "motionlink/x1/lift/state" && m.json()["actuators"][0]["moving"] == true).await;
+    b.kill();
+    keep.abort();
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    b.restart();
+    // Back online (the restarted broker kept nothing), with the lift at rest short of its target.
+    let mut c = online(&b, "x1", "t-x1-again").await;
+    let rest = |m: &harness::Message| m.topic == "motionlink/x1/lift/state" && m.json()["actuators"][0]["moving"] == false;
+    let first = c.wait("at rest", 5 * S, rest).await.json()["actuators"][0]["position_counts"].as_i64().unwrap();
+    tokio::time::sleep(Duration::from_millis(1200)).await;
+    c.drain();
+    let later = c.wait("still", 3 * S, rest).await.json()["actuators"][0]["position_counts"].as_i64().unwrap();
+    assert!(first > 0 && first < 800 && first == later, "{first} then {later}");
 }
