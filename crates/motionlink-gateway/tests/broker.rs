@@ -35,7 +35,8 @@ async fn request(c: &Client, gw: &str, device: &str, body: Value) {
 
 /// Keepalives for motion `id` every 200 ms until the task is aborted.
 fn keep_alive(c: &Client, gw: &str, device: &str, id: &str) -> tokio::task::JoinHandle<()> {
-    let (mqtt, topic, body) = (c.mqtt.clone(), format!("motionlink/{gw}/{device}/cmd"), json!({"id": id, "op": "keepalive"}).to_string());
+    let (mqtt, topic, body) =
+        (c.mqtt.clone(), format!("motionlink/{gw}/{device}/cmd"), json!({"id": id, "op": "keepalive"}).to_string());
     tokio::spawn(async move {
         loop {
             let _ = mqtt.publish(topic.clone(), rumqttc::v5::mqttbytes::QoS::AtLeastOnce, false, body.clone()).await;
@@ -55,17 +56,26 @@ async fn online(b: &harness::Broker, gw: &str, client: &str) -> Client {
 async fn leased_move(b: &harness::Broker, gw: &str, device: &str, args: Value) -> Value {
     let _gw = gateway(b, gw, ALL);
     let mut c = online(b, gw, &format!("t-{gw}")).await;
+    c.drain();
     request(&c, gw, device, json!({"id": "m1", "op": "move", "args": args, "reply_to": "me/r", "lease_ms": 500})).await;
+    let started = std::time::Instant::now();
     let keep = keep_alive(&c, gw, device, "m1");
     let r = c.reply("me/r", "m1", 60 * S).await;
+    let took = started.elapsed();
     keep.abort();
-    let events: Vec<Value> = c
-        .drain()
-        .into_iter()
-        .filter(|m| m.topic == format!("motionlink/{gw}/{device}/events"))
-        .map(|m| m.json())
-        .collect();
-    let _ = events;
+    let seen = c.drain();
+    let events: Vec<Value> =
+        seen.iter().filter(|m| m.topic == format!("motionlink/{gw}/{device}/events")).map(|m| m.json()).collect();
+    assert_eq!(events[0]["event"], "motion_started", "{events:?}");
+    assert_eq!((events[0]["op"].as_str(), events[0]["lease_ms"].as_u64()), (Some("move"), Some(500)), "{events:?}");
+    assert_eq!(
+        (events[1]["event"].as_str(), events[1]["ok"].as_bool()),
+        (Some("motion_ended"), Some(true)),
+        "{events:?}"
+    );
+    // States at sample_hz (10) while it moved, not once a second.
+    let states = seen.iter().filter(|m| m.topic == format!("motionlink/{gw}/{device}/state")).count() as f64;
+    assert!(states >= took.as_secs_f64() * 5.0, "{states} states in {took:?} of motion");
     r
 }
 
@@ -79,11 +89,9 @@ async fn status_and_states_are_retained_and_the_end_is_offline() {
     let mut c = Client::connect(&b, "t-r1", &["motionlink/r1/#"]).await;
     let status = c.wait("status", 5 * S, |m| m.topic == "motionlink/r1/status").await;
     assert!(status.retain && status.payload == "online", "{status:?}");
-    for (dev, keys) in [
-        ("lift", ["actuators", "last_error"]),
-        ("arm", ["position_rad", "state"]),
-        ("axis", ["position_units", "s17"]),
-    ] {
+    for (dev, keys) in
+        [("lift", ["actuators", "last_error"]), ("arm", ["position_rad", "state"]), ("axis", ["position_units", "s17"])]
+    {
         let m = c.wait("state", 5 * S, |m| m.topic == format!("motionlink/r1/{dev}/state") && m.retain).await;
         let state = m.json();
         for key in keys.iter().chain(&["family", "port", "t_s"]) {
@@ -149,10 +157,14 @@ async fn a_move_whose_keepalives_stop_is_stopped_within_its_lease() {
     assert!(r["error"]["message"].as_str().unwrap().contains("400 ms"), "{r}");
     // Stopped one lease after the last keepalive, confirmed (the stop's read back takes part of a second).
     assert!(after < Duration::from_millis(400 + 200 + 1500), "the reply came {after:?} after the last keepalive");
-    let m = c.wait("lease event", 2 * S, |m| m.topic == "motionlink/e1/lift/events" && m.json()["event"] == "lease_expired").await;
+    let m = c
+        .wait("lease event", 2 * S, |m| m.topic == "motionlink/e1/lift/events" && m.json()["event"] == "lease_expired")
+        .await;
     assert_eq!(m.json()["id"], "m1");
     // At rest short of the target, and staying there.
-    let rest = |m: &harness::Message| m.topic == "motionlink/e1/lift/state" && m.json()["actuators"][0]["moving"] == false;
+    let rest =
+        |m: &harness::Message| m.topic == "motionlink/e1/lift/state" && m.json()["actuators"][0]["moving"] == false;
+    c.drain();
     let first = c.wait("at rest", 3 * S, rest).await.json()["actuators"][0]["position_counts"].as_i64().unwrap();
     tokio::time::sleep(Duration::from_millis(1200)).await;
     c.drain();
@@ -169,7 +181,13 @@ async fn stop_during_a_move_stops_it() {
     let Some(b) = broker("stop_during_a_move_stops_it") else { return };
     let _gw = gateway(&b, "s1", ALL);
     let mut c = online(&b, "s1", "t-s1").await;
-    request(&c, "s1", "axis", json!({"id": "m1", "op": "move", "args": {"abs": 1000, "speed": 10}, "reply_to": "me/r"})).await;
+    request(
+        &c,
+        "s1",
+        "axis",
+        json!({"id": "m1", "op": "move", "args": {"abs": 1000, "speed": 10}, "reply_to": "me/r"}),
+    )
+    .await;
     let keep = keep_alive(&c, "s1", "axis", "m1");
     c.wait("moving", 5 * S, |m| m.topic == "motionlink/s1/axis/state" && m.json()["moving"] == true).await;
     // `stop` needs no lease and no id of the motion.
@@ -183,6 +201,7 @@ async fn stop_during_a_move_stops_it() {
     assert!(r["error"]["message"].as_str().unwrap().contains("stop request \"s1\""), "{r}");
     let at = stop["result"]["position_units"].as_f64().unwrap();
     assert!(at > 0.0 && at < 1000.0, "{stop}");
+    c.drain();
     let m = c.wait("at rest", 3 * S, |m| m.topic == "motionlink/s1/axis/state" && m.json()["moving"] == false).await;
     assert_eq!(m.json()["position_units"].as_f64(), Some(at), "{}", m.payload);
 }
@@ -194,14 +213,49 @@ async fn bad_requests_are_answered_and_nothing_moves() {
     let mut c = online(&b, "b1", "t-b1").await;
     let cases = [
         ("lift", json!({"id": "b1", "op": "fly", "reply_to": "me/r"}), "usage", "\"fly\" is not an action"),
-        ("lift", json!({"id": "b2", "op": "move", "args": {"actuator": 9, "position": 100}, "reply_to": "me/r"}), "usage", "actuator"),
-        ("lift", json!({"id": "b3", "op": "move", "args": {"position": 100}, "reply_to": "me/r"}), "usage", "\"actuator\" is missing"),
-        ("lift", json!({"id": "b4", "op": "move", "args": {"actuator": 1, "position": 100, "speed": 500}, "reply_to": "me/r"}), "usage", "speed"),
-        ("lift", json!({"id": "b5", "op": "move", "args": {"actuator": 1, "position": 100, "sped": 5}, "reply_to": "me/r"}), "usage", "unknown argument \"sped\""),
-        ("lift", json!({"id": "b6", "op": "move", "args": {"actuator": 1, "position": 100}, "reply_to": "me/r", "lease_ms": 20000}), "usage", "lease_ms"),
+        (
+            "lift",
+            json!({"id": "b2", "op": "move", "args": {"actuator": 9, "position": 100}, "reply_to": "me/r"}),
+            "usage",
+            "actuator",
+        ),
+        (
+            "lift",
+            json!({"id": "b3", "op": "move", "args": {"position": 100}, "reply_to": "me/r"}),
+            "usage",
+            "\"actuator\" is missing",
+        ),
+        (
+            "lift",
+            json!({"id": "b4", "op": "move", "args": {"actuator": 1, "position": 100, "speed": 500}, "reply_to": "me/r"}),
+            "usage",
+            "speed",
+        ),
+        (
+            "lift",
+            json!({"id": "b5", "op": "move", "args": {"actuator": 1, "position": 100, "sped": 5}, "reply_to": "me/r"}),
+            "usage",
+            "unknown argument \"sped\"",
+        ),
+        (
+            "lift",
+            json!({"id": "b6", "op": "move", "args": {"actuator": 1, "position": 100}, "reply_to": "me/r", "lease_ms": 20000}),
+            "usage",
+            "lease_ms",
+        ),
         ("lift", json!({"id": "b7", "op": "keepalive", "reply_to": "me/r"}), "no_lease", "no motion \"b7\""),
-        ("axis", json!({"id": "b8", "op": "move", "args": {"abs": 1, "rel": 2}, "reply_to": "me/r"}), "usage", "give the target"),
-        ("arm", json!({"id": "b9", "op": "move", "args": {"position": 1, "vel": -1}, "reply_to": "me/r"}), "usage", "velocity"),
+        (
+            "axis",
+            json!({"id": "b8", "op": "move", "args": {"abs": 1, "rel": 2}, "reply_to": "me/r"}),
+            "usage",
+            "give the target",
+        ),
+        (
+            "arm",
+            json!({"id": "b9", "op": "move", "args": {"position": 1, "vel": -1}, "reply_to": "me/r"}),
+            "usage",
+            "velocity",
+        ),
         ("nope", json!({"id": "b10", "op": "move", "reply_to": "me/r"}), "usage", "no device \"nope\""),
     ];
     for (device, body, kind, says) in &cases {
@@ -221,7 +275,11 @@ async fn bad_requests_are_answered_and_nothing_moves() {
     let seen = c.drain();
     assert!(!seen.iter().any(|m| m.topic.ends_with("/events") && m.payload.contains("motion_started")), "{seen:?}");
     let lift = seen.iter().rev().find(|m| m.topic == "motionlink/b1/lift/state").expect("a state").json();
-    assert_eq!((lift["actuators"][0]["position_counts"].as_i64(), lift["actuators"][0]["moving"].as_bool()), (Some(0), Some(false)), "{lift}");
+    assert_eq!(
+        (lift["actuators"][0]["position_counts"].as_i64(), lift["actuators"][0]["moving"].as_bool()),
+        (Some(0), Some(false)),
+        "{lift}"
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -229,7 +287,13 @@ async fn sigterm_mid_move_stops_it_says_so_and_exits_143() {
     let Some(b) = broker("sigterm_mid_move_stops_it_says_so_and_exits_143") else { return };
     let gw = gateway(&b, "k1", ALL);
     let mut c = online(&b, "k1", "t-k1").await;
-    request(&c, "k1", "arm", json!({"id": "m1", "op": "move", "args": {"position": 3.0, "vel": 0.3}, "reply_to": "me/r", "lease_ms": 2000})).await;
+    request(
+        &c,
+        "k1",
+        "arm",
+        json!({"id": "m1", "op": "move", "args": {"position": 3.0, "vel": 0.3}, "reply_to": "me/r", "lease_ms": 2000}),
+    )
+    .await;
     let keep = keep_alive(&c, "k1", "arm", "m1");
     c.wait("started", 5 * S, |m| m.topic == "motionlink/k1/arm/events" && m.payload.contains("motion_started")).await;
     tokio::time::sleep(Duration::from_millis(700)).await;
@@ -250,14 +314,17 @@ async fn the_broker_lost_mid_move_stops_it_and_the_gateway_comes_back_online() {
     let mut c = online(&b, "x1", "t-x1").await;
     request(&c, "x1", "lift", json!({"id": "m1", "op": "move", "args": {"actuator": 1, "position": 800}, "reply_to": "me/r", "lease_ms": 5000})).await;
     let keep = keep_alive(&c, "x1", "lift", "m1");
-    c.wait("moving", 5 * S, |m| m.topic == "motionlink/x1/lift/state" && m.json()["actuators"][0]["moving"] == true).await;
+    c.wait("moving", 5 * S, |m| m.topic == "motionlink/x1/lift/state" && m.json()["actuators"][0]["moving"] == true)
+        .await;
     b.kill();
     keep.abort();
     tokio::time::sleep(Duration::from_millis(1500)).await;
     b.restart();
     // Back online (the restarted broker kept nothing), with the lift at rest short of its target.
     let mut c = online(&b, "x1", "t-x1-again").await;
-    let rest = |m: &harness::Message| m.topic == "motionlink/x1/lift/state" && m.json()["actuators"][0]["moving"] == false;
+    let rest =
+        |m: &harness::Message| m.topic == "motionlink/x1/lift/state" && m.json()["actuators"][0]["moving"] == false;
+    c.drain();
     let first = c.wait("at rest", 5 * S, rest).await.json()["actuators"][0]["position_counts"].as_i64().unwrap();
     tokio::time::sleep(Duration::from_millis(1200)).await;
     c.drain();

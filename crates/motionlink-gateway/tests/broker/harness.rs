@@ -166,6 +166,8 @@ impl Message {
 pub struct Client {
     pub mqtt: AsyncClient,
     rx: mpsc::UnboundedReceiver<Message>,
+    /// Messages received but not yet waited for.
+    backlog: Vec<Message>,
 }
 
 impl Client {
@@ -201,7 +203,7 @@ impl Client {
             mqtt.subscribe(*t, QoS::AtLeastOnce).await.unwrap();
             tokio::time::timeout(Duration::from_secs(5), ready.recv()).await.expect("subscribed");
         }
-        Client { mqtt, rx }
+        Client { mqtt, rx, backlog: Vec::new() }
     }
 
     /// Publishes `payload` to `topic`.
@@ -210,12 +212,16 @@ impl Client {
     }
 
     /// The next message for which `want` holds, within `within`, else a panic naming `what`.
+    /// Messages received earlier and not waited for count, in order.
     pub async fn wait(&mut self, what: &str, within: Duration, mut want: impl FnMut(&Message) -> bool) -> Message {
+        if let Some(i) = self.backlog.iter().position(&mut want) {
+            return self.backlog.remove(i);
+        }
         let until = tokio::time::Instant::now() + within;
         loop {
             match tokio::time::timeout_at(until, self.rx.recv()).await {
                 Ok(Some(m)) if want(&m) => return m,
-                Ok(Some(_)) => {}
+                Ok(Some(m)) => self.backlog.push(m),
                 Ok(None) => panic!("{what}: the client's loop ended"),
                 Err(_) => panic!("{what}: nothing within {within:?}"),
             }
@@ -230,7 +236,7 @@ impl Client {
 
     /// Messages already received, without waiting.
     pub fn drain(&mut self) -> Vec<Message> {
-        let mut all = Vec::new();
+        let mut all = std::mem::take(&mut self.backlog);
         while let Ok(m) = self.rx.try_recv() {
             all.push(m);
         }
