@@ -93,8 +93,6 @@ impl Drop for Broker {
 /// A gateway process.
 pub struct Gateway {
     child: Child,
-    /// Its name.
-    pub name: String,
 }
 
 /// The file of a gateway named `name` on `broker` serving `devices` (TOML `[device.NAME]` tables).
@@ -110,7 +108,7 @@ pub fn gateway(broker: &Broker, name: &str, devices: &str) -> Gateway {
         .stderr(Stdio::piped())
         .spawn()
         .expect("the gateway starts");
-    Gateway { child, name: name.to_string() }
+    Gateway { child }
 }
 
 impl Gateway {
