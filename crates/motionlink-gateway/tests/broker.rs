@@ -331,3 +331,33 @@ async fn the_broker_lost_mid_move_stops_it_and_the_gateway_comes_back_online() {
     let later = c.wait("still", 3 * S, rest).await.json()["actuators"][0]["position_counts"].as_i64().unwrap();
     assert!(first > 0 && first < 800 && first == later, "{first} then {later}");
 }
+
+/// No broker needed: the security rule is checked before any connection.
+#[test]
+fn a_remote_broker_without_tls_is_refused_with_exit_2_before_any_connection() {
+    let dir = std::env::temp_dir().join(format!("motionlink-gw-{}-insecure", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("gateway.toml");
+    // 192.0.2.1 (TEST-NET-1) answers nothing: a connection attempt would time out, not exit at once.
+    std::fs::write(&file, format!("[gateway]\nname = \"n1\"\nbroker = \"mqtt://192.0.2.1:1883\"\n{ALL}")).unwrap();
+    let started = std::time::Instant::now();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_motionlink-gateway"))
+        .arg("--config")
+        .arg(&file)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("no TLS") && stderr.contains("--insecure-broker"), "{stderr}");
+    assert!(started.elapsed() < 3 * S, "{:?}", started.elapsed());
+    // A password in the file itself is refused too.
+    std::fs::write(&file, format!("[gateway]\nbroker = \"mqtt://127.0.0.1:1\"\npassword = \"x\"\n{ALL}")).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_motionlink-gateway"))
+        .arg("--config")
+        .arg(&file)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("password_file") && stderr.contains("MOTIONLINK_MQTT_PASSWORD"), "{stderr}");
+}

@@ -15,10 +15,17 @@ use tokio::sync::mpsc;
 /// Where mosquitto may be.
 const MOSQUITTO: [&str; 3] = ["/usr/sbin/mosquitto", "/usr/bin/mosquitto", "/usr/local/sbin/mosquitto"];
 
-/// The broker, or `None` with the test reported skipped by name (a failure with
-/// MOTIONLINK_REQUIRE_BROKER=1).
+/// The broker (MOTIONLINK_MOSQUITTO, else the usual places, else on PATH), or `None` with the test
+/// reported skipped by name (a failure with MOTIONLINK_REQUIRE_BROKER=1).
 pub fn broker(test: &str) -> Option<Broker> {
-    let found = MOSQUITTO.iter().map(PathBuf::from).find(|p| p.exists());
+    let on_path = || {
+        std::env::var_os("PATH")
+            .and_then(|paths| std::env::split_paths(&paths).map(|d| d.join("mosquitto")).find(|p| p.is_file()))
+    };
+    let found = match std::env::var_os("MOTIONLINK_MOSQUITTO") {
+        Some(named) => Some(PathBuf::from(named)).filter(|p| p.is_file()),
+        None => MOSQUITTO.iter().map(PathBuf::from).find(|p| p.exists()).or_else(on_path),
+    };
     match found {
         Some(path) => Some(Broker::start(path, test)),
         None if std::env::var("MOTIONLINK_REQUIRE_BROKER").is_ok_and(|v| v == "1") => {
