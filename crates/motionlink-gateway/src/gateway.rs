@@ -227,7 +227,8 @@ impl Signals {
     }
 }
 
-/// Publishes the device's state (retained) at `sample_hz` while a motion runs, else once a second.
+/// Publishes the device's state (retained) at `sample_hz` while it moves (a motion of the gateway's, or
+/// any motion the device reports), else once a second.
 async fn sample_states(
     device: Arc<Device>,
     mqtt: Mqtt,
@@ -237,28 +238,32 @@ async fn sample_states(
     started: Instant,
 ) {
     let fast = Duration::from_secs(1) / sample_hz.max(1);
+    let slow = Duration::from_secs(1).max(fast);
     let mut due = Instant::now();
     loop {
         let t_s = started.elapsed().as_secs_f64();
+        let mut reported = false;
         match device.sample(t_s).await {
-            Ok(state) => {
+            Ok((state, in_motion)) => {
+                reported = in_motion;
                 let _ = mqtt.try_publish(topic.clone(), QoS::AtMostOnce, true, state.to_string());
             }
             Err(e) => tracing::warn!("{}: state: {}", device.name, e.message),
         }
-        let period =
-            if moving.load(Ordering::Relaxed) { fast } else { Duration::from_secs(1).min(fast * 10).max(fast) };
-        due += period;
-        let now = Instant::now();
-        if due < now {
-            due = now;
-        }
-        // A motion that starts shortens the wait.
-        while Instant::now() < due {
-            if moving.load(Ordering::Relaxed) && due > Instant::now() + fast {
-                due = Instant::now() + fast;
+        let last = due;
+        // The next sample on a fixed schedule (never in the past); a motion that starts meanwhile brings it
+        // forward to one fast period after the last.
+        due = (last + if reported || moving.load(Ordering::Relaxed) { fast } else { slow }).max(Instant::now());
+        loop {
+            let now = Instant::now();
+            if now >= due {
+                break;
             }
-            tokio::time::sleep_until(due.min(Instant::now() + fast)).await;
+            if moving.load(Ordering::Relaxed) && last + fast < due {
+                due = (last + fast).max(now);
+                continue;
+            }
+            tokio::time::sleep_until(due.min(now + fast)).await;
         }
     }
 }

@@ -13,7 +13,7 @@ use motionlink_link::url::PortUrl;
 use motionlink_link::{RealClock, SerialSettings};
 use serde_json::Value;
 
-use super::{failed, identified, unknown_op, Action, Operation, Outcome};
+use super::{failed, identified, unknown_op, Action, Outcome, Sampling};
 use crate::args::Args;
 use crate::error::ReplyError;
 
@@ -116,12 +116,13 @@ impl Compax {
     }
 
     /// One sample as `watch --json` prints it.
-    pub(super) fn sample(&self, t_s: f64) -> Operation {
+    pub(super) fn sample(&self, t_s: f64) -> Sampling {
         let me = self.clone();
         Box::pin(async move {
             let position = me.client.read_position(me.drive).await.map_err(failed)?;
             let s17 = me.client.read_s17(me.drive).await.map_err(failed)?;
-            me.result(&Timed { t_s, sample: WatchSample { drive: me.drive, position, s17 } })
+            let sample = WatchSample { drive: me.drive, position, s17 };
+            Ok((me.result(&Timed { t_s, sample })?, sample.moving()))
         })
     }
 

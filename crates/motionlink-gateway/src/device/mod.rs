@@ -22,6 +22,9 @@ pub type Outcome = Result<Value, ReplyError>;
 /// it, which stops any motion it started (the family's `AsyncClient` does that).
 pub type Operation = Pin<Box<dyn Future<Output = Outcome> + Send>>;
 
+/// A state sample: the object `watch --json` prints, and whether the device reports motion.
+pub type Sampling = Pin<Box<dyn Future<Output = Result<(Value, bool), ReplyError>> + Send>>;
+
 /// What a request asks for, checked.
 pub enum Action {
     /// A motion: it runs under a lease.
@@ -164,8 +167,9 @@ impl Device {
         }
     }
 
-    /// One sample, the object `watch --json` prints (`t_s`: seconds since `epoch`).
-    pub fn sample(&self, t_s: f64) -> Operation {
+    /// One sample, the object `watch --json` prints (`t_s`: seconds since the gateway started), and whether
+    /// the device reports motion (any motion, the gateway's or not).
+    pub fn sample(&self, t_s: f64) -> Sampling {
         match &self.family {
             Family::Scu(d) => d.sample(t_s),
             Family::PowerCube(d) => d.sample(t_s),

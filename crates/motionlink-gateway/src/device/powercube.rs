@@ -8,13 +8,13 @@ use motionlink_link::url::PortUrl;
 use motionlink_link::RealClock;
 use motionlink_powercube::args::{ModuleOptions, MotionTimeout, MoveAcceleration, MoveVelocity, Target, Tolerance};
 use motionlink_powercube::client::{Client, PortLink};
-use motionlink_powercube::model::Address;
+use motionlink_powercube::model::{Address, StateFlag};
 use motionlink_powercube::report::{Acted, Released, Sample, StateReport, Timed};
 use motionlink_powercube::session::{Guard, MoveSpec};
 use motionlink_powercube::{AsyncClient, Emulator};
 use serde_json::Value;
 
-use super::{failed, identified, unknown_op, Action, Operation, Outcome};
+use super::{failed, identified, unknown_op, Action, Outcome, Sampling};
 use crate::args::Args;
 use crate::error::ReplyError;
 
@@ -125,14 +125,15 @@ impl PowerCube {
     }
 
     /// One sample as `watch --json` prints it.
-    pub(super) fn sample(&self, t_s: f64) -> Operation {
+    pub(super) fn sample(&self, t_s: f64) -> Sampling {
         let me = self.clone();
         Box::pin(async move {
             let m = me.client.module(me.module);
             let kind = m.kind().await.map_err(failed)?;
             let state = m.state().await.map_err(failed)?;
             let position = m.position().await.map_err(failed)?;
-            me.result(&Timed { t_s, sample: Sample { kind, position, state } })
+            let moving = state.contains(StateFlag::Motion);
+            Ok((me.result(&Timed { t_s, sample: Sample { kind, position, state } })?, moving))
         })
     }
 

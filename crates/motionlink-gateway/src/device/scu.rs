@@ -11,7 +11,7 @@ use motionlink_scu::model::{Actuator, Function, MotionFunction, PositionCounts, 
 use motionlink_scu::results::{ErrorHistory, SampleReport, StopResult, StopScope, SwitchedOff};
 use motionlink_scu::{AsyncClient, Emulator};
 
-use super::{failed, identified, unknown_op, Action, Operation, Outcome};
+use super::{failed, identified, unknown_op, Action, Outcome, Sampling};
 use crate::args::Args;
 use crate::error::ReplyError;
 
@@ -104,11 +104,13 @@ impl Scu {
     }
 
     /// One sample as `watch --json` prints it.
-    pub(super) fn sample(&self, t_s: f64) -> Operation {
+    pub(super) fn sample(&self, t_s: f64) -> Sampling {
         let me = self.clone();
         Box::pin(async move {
             let snapshot = me.client.sample().await.map_err(failed)?;
-            me.result(&SampleReport::new(&snapshot, t_s))
+            let report = SampleReport::new(&snapshot, t_s);
+            let moving = report.actuators.iter().any(|a| a.status.moving());
+            Ok((me.result(&report)?, moving))
         })
     }
 
