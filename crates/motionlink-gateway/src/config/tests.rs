@@ -96,3 +96,22 @@ fn mistakes_are_named() {
     let m = message(parsed("[gateway]\nname = \"g\"\nbroker = \"mqtt://localhost\"\n", &Options::default(), None));
     assert!(m.contains("no [device.NAME]"), "{m}");
 }
+
+/// The gateway file of docs/fleet.md is one the gateway takes: every key, every device's options.
+#[test]
+fn the_documented_gateway_file_is_read_by_the_gateway() {
+    let page = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/fleet.md")).unwrap();
+    let block = page
+        .split("```toml not-run\n")
+        .skip(1)
+        .map(|rest| rest.split("```").next().unwrap())
+        .find(|b| b.contains("[gateway]"))
+        .expect("a gateway file in docs/fleet.md");
+    let c = parsed(block, &Options::default(), None).unwrap();
+    assert_eq!((c.name.as_str(), c.broker.tls, c.sample_hz), ("wing-a", true, 10));
+    assert_eq!(c.credentials, Some(("gw-wing-a".to_string(), "s3cret".to_string())));
+    assert_eq!(c.devices.len(), 3);
+    for d in &c.devices {
+        crate::device::Spec::of(d).unwrap_or_else(|e| panic!("{}: {e}", d.name));
+    }
+}
