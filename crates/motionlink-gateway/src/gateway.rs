@@ -125,18 +125,28 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         )));
     }
     let far = || Instant::now() + Duration::from_secs(3600);
+    let mut connected = true;
     let (number, name) = loop {
         let deadline = gw.leases.next_deadline().unwrap_or_else(far);
         tokio::select! {
             n = net.recv() => match n {
                 Some(Net::Connected) => {
                     eprintln!("motionlink gateway: connected to {} again", config.broker);
+                    connected = true;
                     gw.online();
                 }
                 Some(Net::Message(p)) => gw.on_message(&p),
                 Some(Net::Lost(e)) => {
+                    // No lease can be renewed: every motion stops (said once per loss, not per retry).
                     let stopped = gw.stop_all(StopReason::BrokerLost);
-                    eprintln!("motionlink gateway: lost the broker {} ({e}); stopping {stopped} motion(s); connecting again", config.broker);
+                    if connected || stopped > 0 {
+                        eprintln!(
+                            "motionlink gateway: lost the broker {} ({e}); stopping {stopped} motion(s); connecting \
+                             again",
+                            config.broker
+                        );
+                    }
+                    connected = false;
                 }
                 Some(Net::Closed) | None => {
                     gw.stop_all(StopReason::BrokerLost);
