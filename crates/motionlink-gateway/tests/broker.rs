@@ -3,6 +3,8 @@
 //! Without mosquitto each test says it is skipped, by name (MOTIONLINK_REQUIRE_BROKER=1 makes that a
 //! failure).
 
+#![cfg(unix)]
+
 use std::time::Duration;
 
 use serde_json::{json, Value};
@@ -360,4 +362,122 @@ fn a_remote_broker_without_tls_is_refused_with_exit_2_before_any_connection() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("password_file") && stderr.contains("MOTIONLINK_MQTT_PASSWORD"), "{stderr}");
+}
+
+/// Runs `program` with `args` in `dir`; false if it is not there or fails.
+fn run_tool(dir: &std::path::Path, program: &str, args: &[&str]) -> bool {
+    std::process::Command::new(program)
+        .args(args)
+        .current_dir(dir)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+#[test]
+fn tls_and_a_password_from_the_environment_connect_and_a_wrong_password_is_refused() {
+    let name = "tls_and_a_password_from_the_environment_connect_and_a_wrong_password_is_refused";
+    let Some(plain) = broker(name) else { return };
+    let dir = harness::dir(name);
+    // A CA, and the broker's certificate for localhost signed by it (openssl); the password file
+    // (mosquitto_passwd, of Debian's mosquitto package).
+    let made = run_tool(
+        &dir,
+        "openssl",
+        &[
+            "req",
+            "-x509",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-days",
+            "2",
+            "-subj",
+            "/CN=test-ca",
+            "-keyout",
+            "ca.key",
+            "-out",
+            "ca.pem",
+        ],
+    ) && run_tool(
+        &dir,
+        "openssl",
+        &[
+            "req",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-subj",
+            "/CN=localhost",
+            "-keyout",
+            "broker.key",
+            "-out",
+            "broker.csr",
+        ],
+    ) && std::fs::write(dir.join("san.ext"), "subjectAltName=DNS:localhost,IP:127.0.0.1\n").is_ok()
+        && run_tool(
+            &dir,
+            "openssl",
+            &[
+                "x509",
+                "-req",
+                "-in",
+                "broker.csr",
+                "-CA",
+                "ca.pem",
+                "-CAkey",
+                "ca.key",
+                "-CAcreateserial",
+                "-days",
+                "2",
+                "-extfile",
+                "san.ext",
+                "-out",
+                "broker.pem",
+            ],
+        )
+        && run_tool(&dir, "mosquitto_passwd", &["-b", "-c", "passwd", "gw-t1", "s3cret"]);
+    if !made {
+        assert!(
+            std::env::var("MOTIONLINK_REQUIRE_BROKER").map_or(true, |v| v != "1"),
+            "{name}: openssl and mosquitto_passwd are needed with MOTIONLINK_REQUIRE_BROKER=1"
+        );
+        eprintln!("SKIPPED broker::{name}: openssl or mosquitto_passwd is missing");
+        return;
+    }
+    // mosquitto started as root reads its files as the user `mosquitto`.
+    for f in ["broker.key", "passwd"] {
+        let mut p = std::fs::metadata(dir.join(f)).unwrap().permissions();
+        std::os::unix::fs::PermissionsExt::set_mode(&mut p, 0o644);
+        std::fs::set_permissions(dir.join(f), p).unwrap();
+    }
+    let d = dir.display();
+    let b = plain.another(
+        &format!("{name}-tls"),
+        &format!(
+            "cafile {d}/ca.pem\ncertfile {d}/broker.pem\nkeyfile {d}/broker.key\nallow_anonymous false\npassword_file {d}/passwd"
+        ),
+    );
+    let file = |gw: &str| {
+        format!(
+            "[gateway]\nname = \"{gw}\"\nbroker = \"mqtts://localhost:{}\"\nca_file = \"{d}/ca.pem\"\nusername = \"gw-t1\"\n{ALL}",
+            b.port
+        )
+    };
+    let mut gw = harness::gateway_of("t1", &file("t1"), &[("MOTIONLINK_MQTT_PASSWORD", "s3cret")]);
+    let line = gw.first_line();
+    assert!(line.contains(&format!("connected to mqtts://localhost:{}", b.port)), "{line}");
+    assert_eq!(gw.signal(libc::SIGTERM).0, Some(143));
+    // A wrong password: the broker refuses it, the gateway does not start (exit 3).
+    let mut gw = harness::gateway_of("t2", &file("t2"), &[("MOTIONLINK_MQTT_PASSWORD", "wrong")]);
+    let line = gw.first_line();
+    assert!(line.contains("the broker mqtts://localhost"), "{line}");
+    assert_eq!(gw.signal(0).0, Some(3), "{line}");
+    // Without the CA the broker's certificate is not trusted.
+    let untrusted = file("t3").replace(&format!("ca_file = \"{d}/ca.pem\"\n"), "");
+    let mut gw = harness::gateway_of("t3", &untrusted, &[("MOTIONLINK_MQTT_PASSWORD", "s3cret")]);
+    let line = gw.first_line();
+    assert!(line.contains("the broker mqtts://localhost"), "{line}");
+    assert_eq!(gw.signal(0).0, Some(3), "{line}");
 }

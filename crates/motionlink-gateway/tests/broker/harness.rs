@@ -27,7 +27,7 @@ pub fn broker(test: &str) -> Option<Broker> {
         None => MOSQUITTO.iter().map(PathBuf::from).find(|p| p.exists()).or_else(on_path),
     };
     match found {
-        Some(path) => Some(Broker::start(path, test)),
+        Some(path) => Some(Broker::start(path, test, "allow_anonymous true")),
         None if std::env::var("MOTIONLINK_REQUIRE_BROKER").is_ok_and(|v| v == "1") => {
             panic!("{test}: mosquitto is not installed and MOTIONLINK_REQUIRE_BROKER=1")
         }
@@ -48,16 +48,20 @@ pub struct Broker {
 }
 
 impl Broker {
-    fn start(path: PathBuf, test: &str) -> Broker {
+    fn start(path: PathBuf, test: &str, settings: &str) -> Broker {
         let port = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-        let dir = std::env::temp_dir().join(format!("motionlink-broker-{}-{test}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let conf = dir.join("mosquitto.conf");
+        let conf = dir(test).join("mosquitto.conf");
         let mut f = std::fs::File::create(&conf).unwrap();
-        writeln!(f, "listener {port} 127.0.0.1\nallow_anonymous true\npersistence false").unwrap();
+        writeln!(f, "listener {port} 127.0.0.1\npersistence false\n{settings}").unwrap();
         let mut b = Broker { path, conf, port, child: None };
         b.restart();
         b
+    }
+
+    /// Another mosquitto of the same installation on another port, configured with `settings` (lines of
+    /// mosquitto.conf after its `listener`).
+    pub fn another(&self, test: &str, settings: &str) -> Broker {
+        Broker::start(self.path.clone(), test, settings)
     }
 
     /// Starts it (again) on its port, and waits until it takes connections.
@@ -97,6 +101,14 @@ impl Drop for Broker {
     }
 }
 
+/// A directory of the test `name`, made empty.
+pub fn dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("motionlink-broker-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
 /// A gateway process.
 pub struct Gateway {
     child: Child,
@@ -104,13 +116,18 @@ pub struct Gateway {
 
 /// The file of a gateway named `name` on `broker` serving `devices` (TOML `[device.NAME]` tables).
 pub fn gateway(broker: &Broker, name: &str, devices: &str) -> Gateway {
-    let dir = std::env::temp_dir().join(format!("motionlink-gw-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let file = dir.join("gateway.toml");
-    std::fs::write(&file, format!("[gateway]\nname = \"{name}\"\nbroker = \"{}\"\n\n{devices}", broker.url())).unwrap();
+    gateway_of(name, &format!("[gateway]\nname = \"{name}\"\nbroker = \"{}\"\n\n{devices}", broker.url()), &[])
+}
+
+/// A gateway `name` of the file `text`, with the environment variables `env`.
+pub fn gateway_of(name: &str, text: &str, env: &[(&str, &str)]) -> Gateway {
+    let file = dir(&format!("gw-{name}")).join("gateway.toml");
+    std::fs::write(&file, text).unwrap();
     let child = Command::new(env!("CARGO_BIN_EXE_motionlink-gateway"))
         .arg("--config")
         .arg(&file)
+        .env_remove("MOTIONLINK_MQTT_PASSWORD")
+        .envs(env.iter().copied())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -119,6 +136,21 @@ pub fn gateway(broker: &Broker, name: &str, devices: &str) -> Gateway {
 }
 
 impl Gateway {
+    /// Waits for the gateway's first line on stderr (its start, or why it could not start).
+    pub fn first_line(&mut self) -> String {
+        let mut err = self.child.stderr.take().expect("stderr");
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut line = Vec::new();
+            let mut byte = [0u8; 1];
+            while std::io::Read::read(&mut err, &mut byte).unwrap_or(0) == 1 && byte[0] != b'\n' {
+                line.push(byte[0]);
+            }
+            let _ = tx.send(String::from_utf8_lossy(&line).to_string());
+        });
+        rx.recv_timeout(Duration::from_secs(20)).expect("a line on stderr")
+    }
+
     /// Sends `signal` and waits for the end: the exit code and stderr.
     pub fn signal(mut self, signal: i32) -> (Option<i32>, String) {
         // SAFETY: kill(2) on the child's pid.
