@@ -7,6 +7,8 @@
 //! prints; a motion lives only as long as its lease is renewed. The topics are a public interface: see
 //! docs/fleet.md.
 
+#![warn(missing_docs)]
+
 pub mod args;
 pub mod cli;
 pub mod config;

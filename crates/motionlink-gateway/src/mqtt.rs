@@ -49,6 +49,10 @@ pub fn options(config: &GatewayConfig, topics: &Topics) -> Result<MqttOptions, G
     o.set_clean_start(true);
     o.set_connection_timeout(5);
     o.set_request_channel_capacity(1024);
+    // Requests and replies are small messages: sent at once, not held back for more (Nagle's algorithm).
+    let mut network = rumqttc::NetworkOptions::new();
+    network.set_tcp_nodelay(true);
+    o.set_network_options(network);
     o.set_last_will(LastWill::new(topics.status(), OFFLINE, QoS::AtLeastOnce, true, None));
     if let Some((user, password)) = &config.credentials {
         o.set_credentials(user.clone(), password.clone());

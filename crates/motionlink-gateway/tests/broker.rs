@@ -316,8 +316,12 @@ async fn the_broker_lost_mid_move_stops_it_and_the_gateway_comes_back_online() {
     let mut c = online(&b, "x1", "t-x1").await;
     request(&c, "x1", "lift", json!({"id": "m1", "op": "move", "args": {"actuator": 1, "position": 800}, "reply_to": "me/r", "lease_ms": 5000})).await;
     let keep = keep_alive(&c, "x1", "lift", "m1");
-    c.wait("moving", 5 * S, |m| m.topic == "motionlink/x1/lift/state" && m.json()["actuators"][0]["moving"] == true)
-        .await;
+    // Under way (a little past its start) when the broker dies.
+    c.wait("moving", 5 * S, |m| {
+        let a1 = &m.json()["actuators"][0];
+        m.topic == "motionlink/x1/lift/state" && a1["moving"] == true && a1["position_counts"].as_i64() > Some(20)
+    })
+    .await;
     b.kill();
     keep.abort();
     tokio::time::sleep(Duration::from_millis(1500)).await;

@@ -1,4 +1,7 @@
-//! A real mosquitto on a free loopback port, the gateway binary, and an MQTT 5 client for the tests.
+//! A real mosquitto on a free loopback port, the gateway binary, and an MQTT 5 client for the tests and
+//! the benchmark (each uses part of it).
+
+#![allow(dead_code)]
 
 use std::io::Write;
 use std::net::TcpListener;
@@ -52,7 +55,7 @@ impl Broker {
         let port = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
         let conf = dir(test).join("mosquitto.conf");
         let mut f = std::fs::File::create(&conf).unwrap();
-        writeln!(f, "listener {port} 127.0.0.1\npersistence false\n{settings}").unwrap();
+        writeln!(f, "listener {port} 127.0.0.1\npersistence false\nset_tcp_nodelay true\n{settings}").unwrap();
         let mut b = Broker { path, conf, port, child: None };
         b.restart();
         b
@@ -136,6 +139,11 @@ pub fn gateway_of(name: &str, text: &str, env: &[(&str, &str)]) -> Gateway {
 }
 
 impl Gateway {
+    /// Its process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
     /// Waits for the gateway's first line on stderr (its start, or why it could not start).
     pub fn first_line(&mut self) -> String {
         let mut err = self.child.stderr.take().expect("stderr");
@@ -212,6 +220,9 @@ impl Client {
     pub async fn connect(broker: &Broker, id: &str, topics: &[&str]) -> Client {
         let mut o = MqttOptions::new(id, "127.0.0.1", broker.port);
         o.set_keep_alive(Duration::from_secs(5));
+        let mut network = rumqttc::NetworkOptions::new();
+        network.set_tcp_nodelay(true);
+        o.set_network_options(network);
         let (mqtt, mut events) = AsyncClient::new(o, 100);
         let (tx, rx) = mpsc::unbounded_channel();
         let (ready_tx, mut ready) = mpsc::unbounded_channel();
