@@ -111,12 +111,24 @@ pub fn kind_of(v: &Value) -> &'static str {
     }
 }
 
+/// A reply: `{"id", "ok": true, "result"}` or `{"id", "ok": false, "error"}`.
+#[derive(Debug, serde::Serialize)]
+struct Reply<'a> {
+    id: Option<&'a str>,
+    ok: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    result: Option<&'a Value>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    error: Option<&'a ReplyError>,
+}
+
 /// The reply to request `id`: its result, or its error.
 pub fn reply(id: Option<&str>, outcome: &Result<Value, ReplyError>) -> Value {
-    match outcome {
-        Ok(result) => serde_json::json!({"id": id, "ok": true, "result": result}),
-        Err(error) => serde_json::json!({"id": id, "ok": false, "error": error}),
-    }
+    let reply = match outcome {
+        Ok(result) => Reply { id, ok: true, result: Some(result), error: None },
+        Err(error) => Reply { id, ok: false, result: None, error: Some(error) },
+    };
+    serde_json::to_value(reply).unwrap_or(Value::Null)
 }
 
 #[cfg(test)]
