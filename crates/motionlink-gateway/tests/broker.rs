@@ -485,3 +485,74 @@ fn tls_and_a_password_from_the_environment_connect_and_a_wrong_password_is_refus
     assert!(line.contains("the broker mqtts://localhost"), "{line}");
     assert_eq!(gw.signal(0).0, Some(3), "{line}");
 }
+
+/// The text of the ```text block of docs/fleet.md that starts with `first`.
+fn documented(first: &str) -> String {
+    let page = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/fleet.md")).unwrap();
+    page.split("```text\n")
+        .skip(1)
+        .map(|rest| rest.split("```").next().unwrap().to_string())
+        .find(|b| b.starts_with(first))
+        .unwrap_or_else(|| panic!("no block starting with {first:?} in docs/fleet.md"))
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_documented_acl_lets_a_dashboard_read_states_but_not_command() {
+    let name = "the_documented_acl_lets_a_dashboard_read_states_but_not_command";
+    let Some(plain) = broker(name) else { return };
+    let dir = harness::dir(name);
+    let users = [("gw-wing-a", "gw-pass"), ("dashboard", "dash-pass"), ("nurse-station", "nurse-pass")];
+    let mut made = true;
+    for (i, (user, password)) in users.iter().enumerate() {
+        let mut args = vec!["-b"];
+        if i == 0 {
+            args.push("-c");
+        }
+        args.extend(["passwd", user, password]);
+        made &= run_tool(&dir, "mosquitto_passwd", &args);
+    }
+    if !made {
+        assert!(std::env::var("MOTIONLINK_REQUIRE_BROKER").map_or(true, |v| v != "1"), "{name}: no mosquitto_passwd");
+        eprintln!("SKIPPED broker::{name}: mosquitto_passwd is missing");
+        return;
+    }
+    std::fs::write(dir.join("acl"), documented("# /etc/mosquitto/motionlink.acl")).unwrap();
+    for f in ["passwd", "acl"] {
+        let mut p = std::fs::metadata(dir.join(f)).unwrap().permissions();
+        std::os::unix::fs::PermissionsExt::set_mode(&mut p, 0o644);
+        std::fs::set_permissions(dir.join(f), p).unwrap();
+    }
+    let d = dir.display();
+    let b = plain
+        .another(&format!("{name}-acl"), &format!("allow_anonymous false\npassword_file {d}/passwd\nacl_file {d}/acl"));
+    let file = format!(
+        "[gateway]\nname = \"wing-a\"\nbroker = \"mqtt://127.0.0.1:{}\"\nusername = \"gw-wing-a\"\n{ALL}",
+        b.port
+    );
+    let _gw = harness::gateway_of("acl", &file, &[("MOTIONLINK_MQTT_PASSWORD", "gw-pass")]);
+    // The dashboard sees the status and the states.
+    let dashboard = Some(("dashboard", "dash-pass"));
+    let mut dash = Client::connect_as(&b, "dash", dashboard, &["motionlink/wing-a/#", "motionlink-reply/#"]).await;
+    dash.wait("online", 20 * S, |m| m.topic == "motionlink/wing-a/status" && m.payload == "online").await;
+    dash.wait("a state", 5 * S, |m| m.topic == "motionlink/wing-a/lift/state").await;
+    // Its command does not reach the gateway: nothing starts, nothing replies.
+    let reply_to = "motionlink-reply/dashboard/r";
+    let move_ = json!({"id": "d1", "op": "move", "args": {"actuator": 1, "position": 300}, "reply_to": reply_to});
+    dash.send("motionlink/wing-a/lift/cmd", move_.to_string()).await;
+    // The operator station's command does, and its reply comes back on its own reply topic.
+    let nurse = Some(("nurse-station", "nurse-pass"));
+    let mut n = Client::connect_as(&b, "nurse", nurse, &["motionlink-reply/nurse-station/#"]).await;
+    let move_ = json!({"id": "n1", "op": "move", "args": {"actuator": 2, "position": 30},
+                       "reply_to": "motionlink-reply/nurse-station/r", "lease_ms": 3000});
+    n.send("motionlink/wing-a/lift/cmd", move_.to_string()).await;
+    let r = n.reply("motionlink-reply/nurse-station/r", "n1", 10 * S).await;
+    assert_eq!((r["ok"].as_bool(), r["result"]["reached_counts"].as_i64()), (Some(true), Some(30)), "{r}");
+    tokio::time::sleep(S).await;
+    let seen = dash.drain();
+    let started: Vec<&str> =
+        seen.iter().filter(|m| m.payload.contains("motion_started")).map(|m| m.payload.as_str()).collect();
+    assert!(started.len() == 1 && started[0].contains("\"n1\""), "{started:?}");
+    assert!(!seen.iter().any(|m| m.topic == reply_to), "the dashboard got a reply: {seen:?}");
+    let lift = seen.iter().rev().find(|m| m.topic == "motionlink/wing-a/lift/state").expect("a state").json();
+    assert_eq!(lift["actuators"][0]["position_counts"], 0, "{lift}");
+}

@@ -218,7 +218,15 @@ pub struct Client {
 impl Client {
     /// Connects to `broker` as `id` and subscribes to `topics`.
     pub async fn connect(broker: &Broker, id: &str, topics: &[&str]) -> Client {
+        Client::connect_as(broker, id, None, topics).await
+    }
+
+    /// Connects to `broker` as `id` with the user name and password `user` and subscribes to `topics`.
+    pub async fn connect_as(broker: &Broker, id: &str, user: Option<(&str, &str)>, topics: &[&str]) -> Client {
         let mut o = MqttOptions::new(id, "127.0.0.1", broker.port);
+        if let Some((name, password)) = user {
+            o.set_credentials(name, password);
+        }
         o.set_keep_alive(Duration::from_secs(5));
         let mut network = rumqttc::NetworkOptions::new();
         network.set_tcp_nodelay(true);
