@@ -556,3 +556,29 @@ async fn the_documented_acl_lets_a_dashboard_read_states_but_not_command() {
     let lift = seen.iter().rev().find(|m| m.topic == "motionlink/wing-a/lift/state").expect("a state").json();
     assert_eq!(lift["actuators"][0]["position_counts"], 0, "{lift}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_mqtt5_request_without_reply_to_is_answered_on_its_response_topic_with_its_correlation_data() {
+    let name = "an_mqtt5_request_without_reply_to_is_answered_on_its_response_topic_with_its_correlation_data";
+    let Some(b) = broker(name) else { return };
+    let _gw = gateway(&b, "c1", ALL);
+    let mut c = online(&b, "c1", "t-c1").await;
+    let properties = rumqttc::v5::mqttbytes::v5::PublishProperties {
+        response_topic: Some("me/response".into()),
+        correlation_data: Some(b"corr-42".to_vec().into()),
+        ..Default::default()
+    };
+    let body = json!({"id": "q1", "op": "state"}).to_string();
+    let qos = rumqttc::v5::mqttbytes::QoS::AtLeastOnce;
+    c.mqtt.publish_with_properties("motionlink/c1/arm/cmd", qos, false, body, properties).await.unwrap();
+    let m = c.wait("the reply", 5 * S, |m| m.topic == "me/response").await;
+    assert_eq!(m.correlation.as_deref(), Some(&b"corr-42"[..]), "{m:?}");
+    let r = m.json();
+    assert_eq!(
+        (r["id"].as_str(), r["ok"].as_bool(), r["result"]["module"].as_i64()),
+        (Some("q1"), Some(true), Some(1)),
+        "{r}"
+    );
+    // The object `powercube state --json` prints: the state word with its flags.
+    assert!(r["result"]["word"].is_u64() && r["result"]["flags"].is_array(), "{r}");
+}

@@ -198,6 +198,8 @@ pub struct Message {
     pub topic: String,
     pub retain: bool,
     pub payload: String,
+    /// The MQTT 5 correlation data, if any.
+    pub correlation: Option<Vec<u8>>,
 }
 
 impl Message {
@@ -242,6 +244,7 @@ impl Client {
                             topic: String::from_utf8_lossy(&p.topic).to_string(),
                             retain: p.retain,
                             payload: String::from_utf8_lossy(&p.payload).to_string(),
+                            correlation: p.properties.and_then(|pp| pp.correlation_data).map(|c| c.to_vec()),
                         };
                         if tx.send(m).is_err() {
                             return;
