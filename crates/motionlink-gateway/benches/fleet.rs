@@ -1,7 +1,9 @@
 //! The gateway at scale, through a real mosquitto on loopback: one gateway with 32 emulated devices (16
 //! COMPAX drives moving under leases, so their states run at 10 Hz, and 16 PowerCube modules at rest):
 //! state messages delivered per second, the gateway's CPU, the round trip of a command through the broker
-//! (a device read, and a keepalive), and a storm of 1,000 requests with nothing lost or duplicated.
+//! (a device read, and a keepalive), and a storm of 1,000 requests with nothing lost or duplicated; then
+//! four gateways with 16 devices each (at rest) on the same broker: states delivered, their CPU, and the
+//! round trip to each.
 //!
 //! `cargo bench -p motionlink-gateway --features bench` (mosquitto installed; without it the benchmark says
 //! it is skipped).
@@ -19,13 +21,14 @@ const GW: &str = "bench";
 const DRIVES: usize = 16;
 const MODULES: usize = 16;
 
-/// The gateway's file: 16 drives, 16 modules, every one in its own emulator.
-fn devices() -> String {
+/// The device tables of a gateway: `drives` COMPAX drives and `modules` PowerCube modules, every one in
+/// its own emulator.
+fn devices(drives: usize, modules: usize) -> String {
     let mut text = String::from("sample_hz = 10\n\n");
-    for i in 0..DRIVES {
+    for i in 0..drives {
         text.push_str(&format!("[device.drive{i}]\nfamily = \"compax\"\nport = \"sim\"\n\n"));
     }
-    for i in 0..MODULES {
+    for i in 0..modules {
         text.push_str(&format!("[device.module{i}]\nfamily = \"powercube\"\nport = \"sim\"\n\n"));
     }
     text
@@ -49,7 +52,7 @@ fn quantile(samples: &mut [Duration], q: f64) -> Duration {
 fn fleet(c: &mut Criterion) {
     let Some(b) = harness::broker("bench_fleet") else { return };
     let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
-    let file = format!("[gateway]\nname = \"{GW}\"\nbroker = \"{}\"\n{}", b.url(), devices());
+    let file = format!("[gateway]\nname = \"{GW}\"\nbroker = \"{}\"\n{}", b.url(), devices(DRIVES, MODULES));
     let gw = harness::gateway_of(GW, &file, &[]);
     let mut client = rt.block_on(async {
         let mut c = harness::Client::connect(&b, "bench-client", &[&format!("motionlink/{GW}/#"), "me/#"]).await;
@@ -158,6 +161,59 @@ fn fleet(c: &mut Criterion) {
     });
     keep.abort();
     let _ = gw.signal(libc::SIGTERM);
+    four_gateways(&b, &rt);
+}
+
+/// Four gateways of 16 devices each (8 drives, 8 modules, at rest) on one broker.
+fn four_gateways(b: &harness::Broker, rt: &tokio::runtime::Runtime) {
+    let names = ["fleet-a", "fleet-b", "fleet-c", "fleet-d"];
+    let gateways: Vec<harness::Gateway> = names
+        .iter()
+        .map(|n| {
+            harness::gateway_of(
+                n,
+                &format!("[gateway]\nname = \"{n}\"\nbroker = \"{}\"\n{}", b.url(), devices(8, 8)),
+                &[],
+            )
+        })
+        .collect();
+    rt.block_on(async {
+        let mut c = harness::Client::connect(b, "bench-four", &["motionlink/+/status", "motionlink/+/+/state", "me/#"]).await;
+        for n in names {
+            c.wait("online", Duration::from_secs(30), |m| m.topic == format!("motionlink/{n}/status") && m.payload == "online")
+                .await;
+        }
+        tokio::time::sleep(Duration::from_secs(2)).await;
+        c.drain();
+        let cpu0: Vec<f64> = gateways.iter().map(|g| cpu_s(g.pid())).collect();
+        let t0 = Instant::now();
+        tokio::time::sleep(Duration::from_secs(10)).await;
+        let wall = t0.elapsed().as_secs_f64();
+        let cpu: Vec<String> =
+            gateways.iter().zip(&cpu0).map(|(g, c0)| format!("{:.1}", 100.0 * (cpu_s(g.pid()) - c0) / wall)).collect();
+        let states = c.drain().iter().filter(|m| m.topic.ends_with("/state")).count() as f64;
+        println!(
+            "fleet: 4 gateways x 16 devices at rest: {:.0} state messages/s delivered; CPU of each gateway {} % of a core",
+            states / wall,
+            cpu.join(" / ")
+        );
+        let mut samples = Vec::new();
+        for n in 0..400 {
+            let gw = names[n % 4];
+            let id = format!("f{n}");
+            c.drain();
+            let t = Instant::now();
+            c.send(&format!("motionlink/{gw}/module{}/cmd", n % 8), json!({"id": id, "op": "state", "reply_to": "me/f"}).to_string()).await;
+            let r = c.reply("me/f", &id, Duration::from_secs(10)).await;
+            samples.push(t.elapsed());
+            assert_eq!(r["ok"], true, "{r}");
+        }
+        let (p50, p99) = (quantile(&mut samples, 0.5), quantile(&mut samples, 0.99));
+        println!("fleet: 4 gateways: state round trip p50 {p50:?}, p99 {p99:?} (400 requests over the 4, one at a time)");
+    });
+    for g in gateways {
+        let _ = g.signal(libc::SIGTERM);
+    }
 }
 
 criterion_group! {
