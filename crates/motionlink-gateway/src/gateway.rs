@@ -183,8 +183,10 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
             }
         }
     }
+    // The samplers end before the sessions close (each holds its device).
     for s in samplers {
         s.abort();
+        let _ = s.await;
     }
     let _ = gw.mqtt.try_publish(gw.topics.status(), QoS::AtLeastOnce, true, OFFLINE);
     let _ = gw.mqtt.try_disconnect();
@@ -389,6 +391,8 @@ impl Gateway {
                 let (name, id) = (device.to_string(), r.id.clone());
                 tokio::spawn(async move {
                     let outcome = run_motion(op, cancelled, &device_handle).await;
+                    // Let go of the device before the loop hears of the end: it may close the session next.
+                    drop(device_handle);
                     let _ = tx.send(Done {
                         device: name,
                         motion_id: Some(id.clone()),

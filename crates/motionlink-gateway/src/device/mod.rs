@@ -189,7 +189,7 @@ impl Device {
     pub async fn close(self: Arc<Device>) -> Result<(), String> {
         let Ok(device) = Arc::try_unwrap(self) else {
             // Still held by a task that is ending: the last one to go closes the session as it drops.
-            return Ok(());
+            return Err("still in use by an operation that is ending; its session closes when that ends".into());
         };
         let r = match device.family {
             Family::Scu(d) => d.close().await,
