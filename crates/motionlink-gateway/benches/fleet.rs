@@ -43,6 +43,21 @@ fn cpu_s(pid: u32) -> f64 {
     (ticks(11) + ticks(12)) / 100.0
 }
 
+/// CPU time so far of each thread of process `pid`, by thread name (Linux /proc), in seconds.
+fn cpu_by_thread(pid: u32) -> std::collections::BTreeMap<String, f64> {
+    let mut by_name = std::collections::BTreeMap::new();
+    let Ok(tasks) = std::fs::read_dir(format!("/proc/{pid}/task")) else { return by_name };
+    for t in tasks.flatten() {
+        let stat = std::fs::read_to_string(t.path().join("stat")).unwrap_or_default();
+        let Some((head, rest)) = stat.rsplit_once(") ") else { continue };
+        let name = head.split_once(" (").map_or("?", |(_, n)| n).to_string();
+        let fields: Vec<&str> = rest.split(' ').collect();
+        let ticks = |i: usize| fields.get(i).and_then(|f| f.parse::<f64>().ok()).unwrap_or(0.0);
+        *by_name.entry(name).or_insert(0.0) += (ticks(11) + ticks(12)) / 100.0;
+    }
+    by_name
+}
+
 /// The `q` quantile of `samples` (sorted here).
 fn quantile(samples: &mut [Duration], q: f64) -> Duration {
     samples.sort();
@@ -86,9 +101,18 @@ fn fleet(c: &mut Criterion) {
     rt.block_on(async {
         tokio::time::sleep(Duration::from_secs(2)).await;
         client.drain();
-        let (cpu0, t0) = (cpu_s(gw.pid()), Instant::now());
+        let (cpu0, threads0, t0) = (cpu_s(gw.pid()), cpu_by_thread(gw.pid()), Instant::now());
         tokio::time::sleep(Duration::from_secs(10)).await;
         let (cpu, wall) = (cpu_s(gw.pid()) - cpu0, t0.elapsed().as_secs_f64());
+        // Where it goes: the async runtime (MQTT, requests, states, JSON) and the other threads (each
+        // device's session driver and, here, its emulator).
+        let split: Vec<String> = cpu_by_thread(gw.pid())
+            .into_iter()
+            .map(|(name, s)| (name.clone(), s - threads0.get(&name).copied().unwrap_or(0.0)))
+            .filter(|(_, s)| *s > 0.0)
+            .map(|(name, s)| format!("{name} {:.1} %", 100.0 * s / wall))
+            .collect();
+        println!("fleet: CPU by thread name: {}", split.join(", "));
         let seen = client.drain();
         let states = seen.iter().filter(|m| m.topic.ends_with("/state")).count() as f64;
         let moving = seen.iter().filter(|m| m.topic.ends_with("/state") && m.payload.contains("\"moving\":true")).count();
