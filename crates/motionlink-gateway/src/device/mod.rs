@@ -231,3 +231,41 @@ pub fn unknown_op(family: &str, op: &str, ops: &[&str]) -> ReplyError {
         ops.join(", ")
     ))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entry(family: &str, port: &str, options: &[(&str, toml::Value)]) -> DeviceEntry {
+        DeviceEntry {
+            name: "d".into(),
+            family: family.into(),
+            port: port.into(),
+            options: options.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(),
+        }
+    }
+
+    #[test]
+    fn a_device_s_options_go_through_the_family_s_rules() {
+        let s = Spec::of(&entry("scu", "sim", &[("functions", "tlt".into()), ("stroke", vec!["1=0:865"].into())]));
+        assert!(matches!(s, Ok(Spec::Scu(o)) if o.functions == ["tlt"] && o.stroke == ["1=0:865"]));
+        let s = Spec::of(&entry("powercube", "/dev/ttyUSB0", &[("module", 3.into()), ("no_watchdog", false.into())]));
+        assert!(matches!(s, Ok(Spec::PowerCube(o)) if o.module.get() == 3));
+        let s = Spec::of(&entry("compax", "tcp://127.0.0.1:4001", &[("drive", 2.into()), ("tolerance", 0.5.into())]));
+        assert!(matches!(s, Ok(Spec::Compax(o)) if o.drive.get() == 2));
+    }
+
+    #[test]
+    fn a_bad_option_is_named_with_the_family_s_rule() {
+        let e = Spec::of(&entry("scu", "sim", &[("modul", 3.into())])).unwrap_err();
+        assert!(e.contains("unknown key `modul`") && e.contains("functions"), "{e}");
+        let e = Spec::of(&entry("powercube", "sim", &[("module", 40.into())])).unwrap_err();
+        assert!(e.starts_with("module: \"40\": "), "{e}");
+        let e = Spec::of(&entry("compax", "/dev/ttyUSB0", &[("sim_variants", "no-echo".into())])).unwrap_err();
+        assert!(e.contains("only for port sim"), "{e}");
+        let e = Spec::of(&entry("scu", "sim", &[("functions", toml::Value::Table(toml::Table::new()))])).unwrap_err();
+        assert!(e.contains("`functions` cannot be"), "{e}");
+        let e = Spec::of(&entry("compax", "nonsense://x", &[])).unwrap_err();
+        assert!(e.starts_with("port \"nonsense://x\""), "{e}");
+    }
+}
