@@ -369,6 +369,7 @@ fn a_remote_broker_without_tls_is_refused_with_exit_2_before_any_connection() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("password_file") && stderr.contains("MOTIONLINK_MQTT_PASSWORD"), "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Runs `program` with `args` in `dir`; false if it is not there or fails.
@@ -487,6 +488,7 @@ fn tls_and_a_password_from_the_environment_connect_and_a_wrong_password_is_refus
     let line = gw.first_line();
     assert!(line.contains("the broker mqtts://localhost"), "{line}");
     assert_eq!(gw.signal(0).0, Some(3), "{line}");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The text of the ```text block of docs/fleet.md that starts with `first`.
@@ -558,6 +560,7 @@ async fn the_documented_acl_lets_a_dashboard_read_states_but_not_command() {
     assert!(!seen.iter().any(|m| m.topic == reply_to), "the dashboard got a reply: {seen:?}");
     let lift = seen.iter().rev().find(|m| m.topic == "motionlink/wing-a/lift/state").expect("a state").json();
     assert_eq!(lift["actuators"][0]["position_counts"], 0, "{lift}");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

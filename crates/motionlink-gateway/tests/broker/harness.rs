@@ -101,6 +101,9 @@ impl Broker {
 impl Drop for Broker {
     fn drop(&mut self) {
         self.kill();
+        if let Some(dir) = self.conf.parent() {
+            let _ = std::fs::remove_dir_all(dir);
+        }
     }
 }
 
@@ -115,6 +118,8 @@ pub fn dir(name: &str) -> PathBuf {
 /// A gateway process.
 pub struct Gateway {
     child: Child,
+    /// The directory of its file (removed when it ends).
+    dir: PathBuf,
 }
 
 /// The file of a gateway named `name` on `broker` serving `devices` (TOML `[device.NAME]` tables).
@@ -124,7 +129,8 @@ pub fn gateway(broker: &Broker, name: &str, devices: &str) -> Gateway {
 
 /// A gateway `name` of the file `text`, with the environment variables `env`.
 pub fn gateway_of(name: &str, text: &str, env: &[(&str, &str)]) -> Gateway {
-    let file = dir(&format!("gw-{name}")).join("gateway.toml");
+    let dir = dir(&format!("gw-{name}"));
+    let file = dir.join("gateway.toml");
     std::fs::write(&file, text).unwrap();
     let child = Command::new(env!("CARGO_BIN_EXE_motionlink-gateway"))
         .arg("--config")
@@ -135,7 +141,7 @@ pub fn gateway_of(name: &str, text: &str, env: &[(&str, &str)]) -> Gateway {
         .stderr(Stdio::piped())
         .spawn()
         .expect("the gateway starts");
-    Gateway { child }
+    Gateway { child, dir }
 }
 
 impl Gateway {
@@ -189,6 +195,7 @@ impl Drop for Gateway {
             unsafe { libc::kill(self.child.id() as i32, libc::SIGTERM) };
             let _ = self.finish();
         }
+        let _ = std::fs::remove_dir_all(&self.dir);
     }
 }
 
