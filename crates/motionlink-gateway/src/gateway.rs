@@ -159,7 +159,9 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         }
     };
     // The end: every motion stopped (and said on stderr), then `offline`, then the devices closed.
-    gw.stop_all(StopReason::Signal { number, name });
+    if number != 0 {
+        gw.stop_all(StopReason::Signal { number, name });
+    }
     let bound = Instant::now() + STOP_BOUND;
     while gw.devices.values().any(|s| s.motion.is_some()) {
         match tokio::time::timeout_at(bound, done.recv()).await {
