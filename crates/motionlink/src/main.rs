@@ -20,6 +20,7 @@ mod console;
 mod decode;
 mod demo;
 mod devices;
+mod gateway;
 mod manpage;
 mod numbers;
 mod portlock;
@@ -94,6 +95,9 @@ enum Command {
     /// Serve a commissioning page for a device in the browser, on 127.0.0.1 (prints its address with a
     /// token).
     Console(console::Args),
+    /// Serve the devices of this machine on an MQTT broker (the fleet gateway; topics in docs/fleet.md)
+    /// until SIGINT or SIGTERM, which stop every motion first.
+    Gateway(gateway::Args),
     /// Serve an emulated device over TCP or a pseudo-terminal until killed.
     Sim {
         #[command(subcommand)]
@@ -174,6 +178,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
             compax::run(args)
         }
         Command::Probe { family } => probe::run(family, json),
+        Command::Gateway(args) => gateway::run(args),
         Command::Console(mut args) => {
             args.json = json;
             console::run(args)

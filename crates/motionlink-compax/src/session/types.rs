@@ -96,6 +96,21 @@ pub enum MoveTarget {
     Relative(Position),
 }
 
+impl MoveTarget {
+    /// What a move must be told: give the target one way, absolute or relative.
+    pub const RULE: &'static str = "give the target: POSITION (the same as --abs POSITION) or --rel DISTANCE";
+
+    /// The target of a move's arguments: an absolute position (`move 100`, `--abs 100`) or a distance
+    /// (`--rel 5`), exactly one of them.
+    pub fn from_args(absolute: Option<Position>, relative: Option<Position>) -> Result<MoveTarget, &'static str> {
+        match (absolute, relative) {
+            (Some(a), None) => Ok(MoveTarget::Absolute(a)),
+            (None, Some(r)) => Ok(MoveTarget::Relative(r)),
+            _ => Err(Self::RULE),
+        }
+    }
+}
+
 /// Travel limits the caller knows for an axis (the drive's own limits are not in the RS485 manual, and
 /// the session does not read them): a target outside them is refused before anything moves.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -5,7 +5,7 @@
 use std::time::Duration;
 
 use motionlink_link::can::CanLink;
-use motionlink_link::driver::{AsyncDriver, Port};
+use motionlink_link::driver::{AsyncDriver, OpFuture, Port};
 use motionlink_link::{Link, SharedClock};
 
 use super::blocking::{driver, fail_all};
@@ -136,6 +136,13 @@ impl AsyncClient {
     /// Runs `op` to its end; dropping the future cancels it (halting a motion it started).
     pub async fn run(&self, op: Op) -> Result<Output, Error> {
         self.driver.run(op).await
+    }
+
+    /// Starts `op`: the future ends with its output. [`OpFuture::cancel`] stops it as a dropped future does
+    /// (a motion it started is halted) and the future still ends with how it ended; its progress can be
+    /// taken meanwhile ([`OpFuture::take_progress`]).
+    pub fn start(&self, op: Op) -> OpFuture<Session> {
+        self.driver.start(op)
     }
 
     async fn call<T>(&self, call: Call<T>) -> Result<T, Error> {

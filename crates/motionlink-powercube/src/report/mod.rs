@@ -10,6 +10,9 @@ use motionlink_link::flags::FlagWord;
 use motionlink_link::table::Entry;
 use serde::ser::{Serialize, SerializeMap, Serializer};
 
+mod acted;
+pub use acted::{Acted, Released, Timed};
+
 use crate::model::{CubeState, ModuleKind, Param, ParamKind, Position, Value};
 use crate::session::{HaltReport, HomeReport, ModuleInfo, MoveReport, Readback, ScanEntry};
 

@@ -28,7 +28,9 @@ use crate::session::RunAction;
 use crate::value::Value;
 
 mod targets;
+mod unit;
 pub use targets::TargetLine;
+pub use unit::{OptionError, UnitOptions};
 
 /// An argument that breaks its rule; the message says what it must be.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

@@ -227,9 +227,16 @@ impl AsyncClient {
     }
 
     /// Runs a function as [`Client::run`]; dropping the future stops it. Progress:
-    /// [`AsyncClient::start`] with [`Op::Run`].
+    /// [`AsyncClient::start`] with [`AsyncClient::run_function_op`].
     pub async fn run_function(&self, action: RunAction, limit: Option<Duration>) -> Result<RunReport, Error> {
-        expect_output!(self.driver.run(Op::Run(run_spec(action, limit)?)).await, Output::Run(r) => r)
+        expect_output!(self.driver.run(self.run_function_op(action, limit)?).await, Output::Run(r) => r)
+    }
+
+    /// The operation of [`AsyncClient::run_function`], to start with [`AsyncClient::start`] (for its progress,
+    /// or to cancel it with [`OpFuture::cancel`] and still learn how it ended: [`Output::Run`], or
+    /// [`Error::RunCancelled`] once the unit confirmed the stop).
+    pub fn run_function_op(&self, action: RunAction, limit: Option<Duration>) -> Result<Op, Error> {
+        Ok(Op::Run(run_spec(action, limit)?))
     }
 
     /// Defines CyclicObj `slot` (1..5) on the unit (and reads the definition back).

@@ -17,6 +17,9 @@
 
 use serde::ser::{Serialize, SerializeMap, SerializeSeq, Serializer};
 
+mod actions;
+pub use actions::{ErrorHistory, Running, StopResult, StopScope, SwitchedOff};
+
 use crate::client::FollowReport;
 use crate::error::Error;
 use crate::model::{

@@ -1,8 +1,7 @@
 //! The actions of `motionlink compax`: their arguments checked before the port is opened, then one function
 //! per action. Each prints the library's report: as it serialises with `--json`, in words otherwise.
 
-use motionlink_compax::error::StopReport;
-use motionlink_compax::report::{DrivePosition, OutputSwitched, ParamReading, StatusReport};
+use motionlink_compax::report::{DrivePosition, OutputSwitched, ParamReading, StatusReport, StopResult};
 use motionlink_compax::session::{RawOutcome, StartedMove};
 
 use super::*;
@@ -19,9 +18,6 @@ fn with_unit(value: f64, unit: &str) -> String {
         format!("{value} {unit}")
     }
 }
-
-/// `move` without a target (clap asks for one: this is the library's last word).
-const NO_TARGET: &str = "give the target: POSITION (the same as --abs POSITION) or --rel DISTANCE";
 
 /// The arguments of `move`, checked before anything is sent.
 pub(super) struct MovePlan {
@@ -63,11 +59,7 @@ pub(super) fn check(args: &Args) -> Result<Checked, CliError> {
             ..
         } => {
             // A plain target is an absolute one, as `move 100` is in every family.
-            let target = match (target.or(*abs), rel) {
-                (Some(a), None) => MoveTarget::Absolute(a),
-                (None, Some(r)) => MoveTarget::Relative(*r),
-                _ => return Err(CliError::usage(NO_TARGET)),
-            };
+            let target = MoveTarget::from_args(target.or(*abs), *rel).map_err(CliError::usage)?;
             let limits = TravelLimits::new(*min_pos, *max_pos)
                 .map_err(|e| CliError::usage(format!("--min-pos / --max-pos: {e}")))?;
             let (speed, accel, binary, timeout) = (*speed, *accel, *binary, Some(timeout_s.duration()));
@@ -230,22 +222,6 @@ pub(super) fn output(
     Ok(())
 }
 
-/// `stop`'s result: the port's holder it stopped first (if one), the stop of the drive, and where the axis
-/// stands then and whether the drive is switched on (or why that could not be read).
-#[derive(serde::Serialize)]
-struct Stopped<'a> {
-    action: &'static str,
-    holder: Option<&'a motionlink_link::portlock::Stopped>,
-    #[serde(flatten)]
-    report: &'a StopReport,
-    position_units: Option<Position>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    position_not_read: Option<String>,
-    o0: Option<u8>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    o0_not_read: Option<String>,
-}
-
 /// `stop`: stops the drive if it moves (S17; `OUTPUT O0=0`, the only stop there is, switches it off; S17
 /// again), reads where it stands, and prints that; first what the motionlink that held the port said when
 /// it was stopped, if one was.
@@ -273,19 +249,7 @@ pub(super) fn stop(
     let position = bus.read_position(drive);
     let o0 = bus.read_s16(drive).map(|s| s.o0_state());
     if args.json {
-        let not_read = |e: Option<&Error>| e.map(Error::to_string);
-        let (position_not_read, o0_not_read) = (not_read(position.as_ref().err()), not_read(o0.as_ref().err()));
-        let (position_units, o0) = (position.ok(), o0.ok());
-        let result = Stopped {
-            action: "stop",
-            holder: stopped,
-            report: &report,
-            position_units,
-            position_not_read,
-            o0,
-            o0_not_read,
-        };
-        return print(args, out, &result);
+        return print(args, out, &StopResult::new(stopped, report, position, o0));
     }
     match &position {
         Ok(p) => writeln!(out, "{report}; at rest at {p} {UNITS} (S17 and S1 read back)")?,

@@ -6,12 +6,12 @@ use std::time::Duration;
 
 use motionlink_compax::client::{AfterRaw, BusConfig, MoveRequest, MoveTarget, TravelLimits};
 use motionlink_compax::model::{
-    BaudRate, CommandStyle, OutputNumber, OutputState, ParamId, PollInterval, Position, RampMs, ReplyTimeout,
-    SpeedPercent, StatusId, StatusValue, TimeLimit, Tolerance, WatchInterval,
+    BaudRate, OutputNumber, OutputState, ParamId, PollInterval, Position, RampMs, ReplyTimeout, SpeedPercent, StatusId,
+    StatusValue, TimeLimit, Tolerance, WatchInterval,
 };
-use motionlink_compax::sim::{SimConfig, Variant};
+use motionlink_compax::sim::Variant;
 use motionlink_compax::wire::{Address, Mode};
-use motionlink_compax::{Client, Emulator, Error};
+use motionlink_compax::{Client, DriveOptions, Emulator, Error};
 use motionlink_link::clock::SharedClock;
 use motionlink_link::error::{Classify, ErrorClass};
 use motionlink_link::link::{Link, SerialSettings};

@@ -2,27 +2,7 @@
 //! are in `show`, `send` in `send`). With `--json` each prints the library's report as it serialises.
 
 use super::*;
-use motionlink_powercube::report::{ParamReading, SetReport, StateReport};
-
-/// A report with what the command line adds: the action's tag (`homed`, `reached`, `halted`, `reset`),
-/// `ok` where the action has no report of its own to say so, and for `stop` who held the port.
-#[derive(serde::Serialize)]
-struct Acted<'a, T: serde::Serialize> {
-    #[serde(skip_serializing_if = "std::ops::Not::not")]
-    ok: bool,
-    action: &'static str,
-    #[serde(flatten)]
-    report: T,
-    /// `stop` only (`Some`): the motionlink it stopped first, or null.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    holder: Option<Option<&'a motionlink_link::portlock::Stopped>>,
-}
-
-/// What `reset` did besides the Reset.
-#[derive(serde::Serialize)]
-struct Released {
-    watchdog_released: bool,
-}
+use motionlink_powercube::report::{Acted, ParamReading, Released, SetReport, StateReport};
 
 /// `state`: reads and prints the module's CubeState, flag by flag.
 pub(super) fn state(args: &Args, m: &Module<'_>, port: &str, out: &mut dyn Write) -> Result<(), CliError> {
@@ -109,7 +89,7 @@ pub(super) fn home(
     bar.finish_and_clear();
     let report = r.map_err(failed)?;
     if args.json {
-        return print(out, port, args.module, &Acted { ok: false, action: "homed", report, holder: None });
+        return print(out, port, args.module, &Acted::homed(report));
     }
     report_done(out, "homed", report.reached, report.kind, report.state)?;
     not_verified(out, &report.not_verifiable)
@@ -128,8 +108,7 @@ pub(super) fn reset(args: &Args, m: &Module<'_>, port: &str, out: &mut dyn Write
     // After a host died with the watchdog online, a plain Reset would be undone 50 ms later.
     let released = m.reset_and_release_watchdog().map_err(failed)?;
     if args.json {
-        let report = Released { watchdog_released: released };
-        print(out, port, args.module, &Acted { ok: true, action: "reset", report, holder: None })?;
+        print(out, port, args.module, &Acted::reset(Released { watchdog_released: released }))?;
     } else if released {
         writeln!(out, "reset (the watchdog had expired with no host serving it: switched it offline)")?;
     } else {
@@ -152,8 +131,7 @@ pub(super) fn stop(
     }
     let halted = m.halt_confirmed().map_err(failed)?;
     if args.json {
-        let acted = Acted { ok: true, action: "halted", report: halted, holder: Some(stopped) };
-        return print(out, port, args.module, &acted);
+        return print(out, port, args.module, &Acted::halted(halted, stopped));
     }
     writeln!(
         out,
@@ -185,7 +163,7 @@ pub(super) fn move_to(
     bar.finish_and_clear();
     let report = r.map_err(failed)?;
     if args.json {
-        return print(out, port, args.module, &Acted { ok: false, action: "reached", report, holder: None });
+        return print(out, port, args.module, &Acted::reached(report));
     }
     report_done(out, "reached", report.reached, report.kind, report.state)?;
     not_verified(out, &report.not_verifiable)

@@ -17,9 +17,10 @@ use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::{RealClock, SharedClock};
 use motionlink_powercube::args::{
-    Baud, CanBitRate, MotionTimeout, MoveAcceleration, MoveVelocity, PollInterval, ReplyTimeout, Target, Tolerance,
+    Baud, CanBitRate, ModuleOptions, MotionTimeout, MoveAcceleration, MoveVelocity, PollInterval, ReplyTimeout, Target,
+    Tolerance,
 };
-use motionlink_powercube::client::{BusConfig, Client, Guard, Module, ModulesAt, MoveSpec, PortLink, Progress};
+use motionlink_powercube::client::{Client, Guard, Module, MoveSpec, PortLink, Progress};
 use motionlink_powercube::describe::Describer;
 use motionlink_powercube::model::{Address, CubeState, ModuleKind, Param, Position, Value};
 use motionlink_powercube::sim::{SimConfig, Variant};
@@ -214,32 +215,38 @@ pub(crate) fn open(
 ) -> Result<(Client, Option<EmulatorHost<Emulator>>), CliError> {
     let url: PortUrl = port.parse()?;
     let clock = Arc::clone(clock);
-    let settings = |mut c: BusConfig| {
-        if let Some(t) = args.timeout_ms {
-            c.reply_timeout = t.get();
-        }
-        c.poll_interval = args.poll_ms.get();
-        c
-    };
-    if !args.sim_variants.is_empty() && !matches!(url, PortUrl::Sim) {
+    let options = module_options(args);
+    if options.check_port(matches!(url, PortUrl::Sim)).is_err() {
         return Err(CliError::usage(
             "--sim-variant is for --port sim (a served emulator takes `sim powercube --variant`)",
         ));
     }
     let client = match PortLink::open(&url, args.baud, args.bitrate, &clock).map_err(failed)? {
-        Some(PortLink::Rs232(link)) => Client::rs232(tap.link(link, &clock), clock, settings(BusConfig::rs232())),
-        Some(PortLink::Can(link)) => Client::can(tap.can_link(link, &clock), clock, settings(BusConfig::can())),
+        Some(PortLink::Rs232(link)) => Client::rs232(tap.link(link, &clock), clock, options.bus_config(false)),
+        Some(PortLink::Can(link)) => Client::can(tap.can_link(link, &clock), clock, options.bus_config(true)),
         None => {
             // The emulated bus has the module the command names, in the firmware variants asked for.
-            let mut bus = SimConfig::with_addresses(&[args.module.get()]).map_err(CliError::usage)?;
-            bus.variants = args.sim_variants.clone();
+            let bus = options.emulated_bus().map_err(|e| CliError::usage(e.message))?;
             let host = EmulatorHost::new(Emulator::new(&bus), Arc::clone(&clock), PipeConfig::instant());
             let link = tap.link(Box::new(host.connect().0), &clock);
-            let client = Client::rs232(link, clock, settings(BusConfig::rs232())).map_err(failed)?;
+            let client = Client::rs232(link, clock, options.bus_config(false)).map_err(failed)?;
             return Ok((client, Some(host)));
         }
     };
     Ok((client.map_err(failed)?, None))
+}
+
+/// The module's options from the command line (the same options a device table gives the gateway).
+pub(crate) fn module_options(args: &Args) -> ModuleOptions {
+    ModuleOptions {
+        module: args.module,
+        baud: args.baud,
+        bitrate: args.bitrate,
+        timeout_ms: args.timeout_ms,
+        poll_ms: args.poll_ms,
+        no_watchdog: args.no_watchdog,
+        sim_variants: args.sim_variants.clone(),
+    }
 }
 
 fn parse_param(text: &str) -> Result<Param, CliError> {
@@ -283,7 +290,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         let module = args.module;
         crate::probe::use_profile(|p| motionlink_powercube::probe::use_profile(&client, p, &port, module))?;
     }
-    let guard = Guard::for_motions(ModulesAt::emulated_in_process(host.is_some()), args.no_watchdog);
+    let guard = module_options(&args).guard(host.is_some());
     let result = match &request {
         Some(r) => send(&args, &client, r, &tap, &port, &mut out),
         None => act(&args, &client, guard, &port, stopped.as_ref(), &mut out),

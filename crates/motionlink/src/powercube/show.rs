@@ -4,7 +4,7 @@ use std::time::Duration;
 
 use super::*;
 use motionlink_powercube::model::AxisUnit;
-use motionlink_powercube::report::Sample;
+use motionlink_powercube::report::{Sample, Timed};
 
 pub(super) fn scan(client: &Client, port: &str, out: &mut dyn Write, json: bool) -> Result<(), CliError> {
     let found = client.scan().map_err(failed)?;
@@ -65,14 +65,6 @@ pub(super) enum WatchFormat {
     Text,
     Json,
     Csv,
-}
-
-/// A sample of `watch --json`: the time since the first, then the library's sample.
-#[derive(serde::Serialize)]
-struct Timed {
-    t_s: f64,
-    #[serde(flatten)]
-    sample: Sample,
 }
 
 pub(super) fn watch(

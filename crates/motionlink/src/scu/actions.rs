@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
 use motionlink_scu::model::{Actuator, DataEntryExt, ErrorCode, Item, MotionFunction, PositionCounts, Speed};
-use motionlink_scu::results::{ActuatorState, GetReport, RunOutcome, SampleReport};
+use motionlink_scu::results::{ActuatorState, ErrorHistory, GetReport, RunOutcome, Running, SampleReport};
 use motionlink_scu::session::{MoveProgress, MoveReport, RunAction, RunProgress, Snapshot};
 use motionlink_scu::{Client, MoveOptions};
 
@@ -114,11 +114,7 @@ pub(super) fn info(client: &Client, report: &Report<'_>, out: &mut dyn Write) ->
 
 /// `errors`: Error_Code 1..5 (JSON: `{"errors": [...]}`).
 pub(super) fn errors(client: &Client, report: &Report<'_>, out: &mut dyn Write) -> Result<(), CliError> {
-    #[derive(serde::Serialize)]
-    struct History {
-        errors: [ErrorCode; 5],
-    }
-    report.show(out, &History { errors: client.error_history().map_err(cl)? }, |out, h| {
+    report.show(out, &ErrorHistory { errors: client.error_history().map_err(cl)? }, |out, h| {
         let mut rows = Vec::new();
         for (i, code) in h.errors.iter().enumerate() {
             let label = match i {
@@ -213,11 +209,6 @@ pub(super) fn run(
     interrupt: &CancelToken,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    #[derive(serde::Serialize)]
-    struct Running {
-        function: motionlink_scu::model::Function,
-        running: bool,
-    }
     let function = action.function();
     // The first progress comes right after the unit acknowledged the RE.
     let said = std::cell::Cell::new(false);

@@ -10,11 +10,13 @@ use motionlink_link::link::{Connector, SerialSettings};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::{RealClock, SharedClock};
-use motionlink_scu::args::{Baud, Checked, PollInterval, ReplyTimeout, RunLimit, ToleranceCounts, UpdateRate};
+use motionlink_scu::args::{
+    Baud, Checked, PollInterval, ReplyTimeout, RunLimit, ToleranceCounts, UnitOptions, UpdateRate,
+};
 use motionlink_scu::describe::Describer;
 use motionlink_scu::model::{Actuator, Function, MotionFunction, PositionCounts, SafetyId, SpeedMode};
 use motionlink_scu::session::RunAction;
-use motionlink_scu::{Client, ClientConfig, Emulator, Ending, FunctionMap, SimConfig, StrokeLimits, Variants};
+use motionlink_scu::{Client, ClientConfig, Emulator, Ending, SimConfig, Variants};
 
 use crate::common::{self, CliError};
 use crate::numbers::{at_least, whole};
@@ -217,22 +219,29 @@ pub enum Action {
     Errors,
 }
 
-/// The session's settings from the command line, checked before anything is sent.
-fn client_config(args: &Args) -> Result<ClientConfig, CliError> {
-    let config = ClientConfig {
-        safety_id: args.safety,
-        reply_timeout: args.timeout_ms.get(),
+/// The unit's options from the command line (the same options a device table gives the gateway).
+fn unit_options(args: &Args) -> UnitOptions {
+    UnitOptions {
+        baud: args.baud,
+        safety: args.safety,
+        timeout_ms: args.timeout_ms,
+        functions: args.functions.clone(),
+        stroke: args.stroke.clone(),
+        tolerance: args.tolerance,
+        poll_ms: args.poll_ms,
         speed_mode: args.speed_mode,
-        function_map: FunctionMap::from_specs(&args.functions)
-            .map_err(|e| CliError::usage(format!("--functions {e}")))?,
-        stroke_limits: StrokeLimits::per_actuator(&args.stroke)
-            .map_err(|e| CliError::usage(format!("--stroke {e}")))?,
-        position_tolerance_counts: args.tolerance.get(),
-        poll_interval: args.poll_ms.get(),
-        ..ClientConfig::default()
-    };
-    config.validate().map_err(|e| CliError::usage(e.to_string()))?;
-    Ok(config)
+        sim_preset: args.sim_preset.clone(),
+        sim_variants: args.sim_variants.clone(),
+    }
+}
+
+/// The session's settings from the command line, checked before anything is sent (the library's rule:
+/// [`UnitOptions::client_config`]; a message names the option as the command line spells it).
+fn client_config(args: &Args) -> Result<ClientConfig, CliError> {
+    unit_options(args).client_config().map_err(|e| match e.key {
+        Some(key) => CliError::usage(format!("--{} {}", key.replace('_', "-"), e.message)),
+        None => CliError::usage(e.message),
+    })
 }
 
 /// Opens the session on `port`, its link watched by `tap`.
@@ -441,6 +450,13 @@ fn act(
 mod tests {
     use super::*;
     use motionlink_scu::model::Speed;
+
+    #[test]
+    fn the_command_line_s_defaults_are_the_library_s() {
+        let cli = <crate::Cli as clap::Parser>::try_parse_from(["motionlink", "scu", "--port", "sim", "info"]).unwrap();
+        let crate::Command::Scu(args) = cli.command else { panic!("scu") };
+        assert_eq!(unit_options(&args), UnitOptions::default());
+    }
 
     #[test]
     fn a_bad_speed_names_the_option_and_gives_the_library_s_rule() {

@@ -3,32 +3,13 @@
 
 use std::io::Write;
 
-use motionlink_scu::model::{Function, MotionFunction, StopMode};
+use motionlink_scu::model::{Function, StopMode};
+use motionlink_scu::results::{StopResult, StopScope, SwitchedOff};
 use motionlink_scu::session::StopReport;
 use motionlink_scu::Client;
 
 use super::Report;
 use crate::common::{self, CliError};
-use motionlink_link::portlock::Stopped;
-
-/// What `stop --json` prints: the library's report, with what only the command knows (the motionlink
-/// that held the port, the function named).
-#[derive(serde::Serialize)]
-struct StopPrinted<'a, R: serde::Serialize> {
-    action: &'static str,
-    stopped: bool,
-    holder: Option<&'a Stopped>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    function: Option<Function>,
-    #[serde(flatten)]
-    report: R,
-}
-
-/// A switching function switched off: `mode` is `off`.
-#[derive(serde::Serialize)]
-struct SwitchedOff {
-    mode: &'static str,
-}
 
 /// Stops `function` (`None`: every motion function, F1..F10): a motion function with RS (`soft`: along the
 /// stop ramp) and the status read until no actuator moves, then where each connected actuator is; another
@@ -44,19 +25,17 @@ pub(super) fn stop(
     if let (Some(h), false) = (holder, report.json) {
         writeln!(out, "{}", h.describe())?;
     }
-    let motions: Vec<MotionFunction> = match function {
-        Some(Function::Motion(m)) => vec![m],
-        None => MotionFunction::all().collect(),
-        Some(f) => {
+    let motions = match StopScope::of(function) {
+        StopScope::Motions(m) => m,
+        StopScope::Switch(f) => {
             client.switch(f, false).map_err(|e| common::classified(&e))?;
-            let printed =
-                StopPrinted { action: "stop", stopped: true, holder, function, report: SwitchedOff { mode: "off" } };
+            let printed = StopResult::new(holder, function, SwitchedOff::OFF);
             return report.show(out, &printed, |out, _| writeln!(out, "{f} switched off (RS)").map_err(CliError::from));
         }
     };
     let mode = if soft { StopMode::Soft } else { StopMode::Fast };
     let stopped = client.stop_functions(&motions, mode).map_err(|e| common::classified(&e))?;
-    let printed = StopPrinted { action: "stop", stopped: true, holder, function, report: stopped };
+    let printed = StopResult::new(holder, function, stopped);
     report.show(out, &printed, |out, p| print_stop_text(out, &p.report))
 }
 

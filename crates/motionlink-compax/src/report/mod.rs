@@ -17,6 +17,9 @@
 
 use serde::ser::{Serialize, SerializeMap, Serializer};
 
+mod stopped;
+pub use stopped::StopResult;
+
 use crate::model::{OutputState, ParamId, Position, S16Bits, S17Bits, StatusId, StatusValue, ValidFrom};
 use crate::session::{MoveReport, RawOutcome, StartedMove, WatchSample};
 use crate::wire::Address;

@@ -1,0 +1,110 @@
+//! A request's `args`, named as the command line's options and arguments are, turned into the family
+//! crate's checked argument types through their `FromStr` (one rule, one message, in every front end).
+
+use std::str::FromStr;
+
+use serde_json::{Map, Value};
+
+use crate::error::ReplyError;
+
+/// The arguments of one request, taken one by one; [`Args::finish`] refuses any left over.
+#[derive(Debug)]
+pub struct Args {
+    op: String,
+    map: Map<String, Value>,
+    taken: Vec<&'static str>,
+}
+
+impl Args {
+    /// The arguments `map` of the action `op`.
+    pub fn new(op: &str, map: Map<String, Value>) -> Args {
+        Args { op: op.to_string(), map, taken: Vec::new() }
+    }
+
+    /// The argument `key` as the text the command line would be given: a string as it is, a number or a
+    /// boolean as written. `None` when it is absent (or null).
+    pub fn text(&mut self, key: &'static str) -> Result<Option<String>, ReplyError> {
+        self.taken.push(key);
+        match self.map.remove(key) {
+            None | Some(Value::Null) => Ok(None),
+            Some(Value::String(s)) => Ok(Some(s)),
+            Some(Value::Number(n)) => Ok(Some(n.to_string())),
+            Some(Value::Bool(b)) => Ok(Some(b.to_string())),
+            Some(other) => Err(ReplyError::usage(format!(
+                "{}: {key} must be a number, a string or a boolean, not {}",
+                self.op,
+                crate::request::kind_of(&other)
+            ))),
+        }
+    }
+
+    /// The argument `key` checked by its type's rule; `None` when absent.
+    pub fn get<T: FromStr>(&mut self, key: &'static str) -> Result<Option<T>, ReplyError>
+    where
+        T::Err: std::fmt::Display,
+    {
+        match self.text(key)? {
+            None => Ok(None),
+            Some(text) => {
+                text.parse::<T>().map(Some).map_err(|e| ReplyError::usage(format!("{} {key} {text:?}: {e}", self.op)))
+            }
+        }
+    }
+
+    /// The argument `key`, which the action needs.
+    pub fn need<T: FromStr>(&mut self, key: &'static str) -> Result<T, ReplyError>
+    where
+        T::Err: std::fmt::Display,
+    {
+        self.get(key)?.ok_or_else(|| ReplyError::usage(format!("{}: the argument {key:?} is missing", self.op)))
+    }
+
+    /// A flag (`binary`, `soft`): true, false or absent (false).
+    pub fn flag(&mut self, key: &'static str) -> Result<bool, ReplyError> {
+        Ok(self.get::<bool>(key)?.unwrap_or(false))
+    }
+
+    /// Refuses arguments the action does not take, naming those it takes.
+    pub fn finish(self) -> Result<(), ReplyError> {
+        match self.map.keys().next() {
+            None => Ok(()),
+            Some(key) => {
+                let takes = match self.taken.is_empty() {
+                    true => "no arguments".to_string(),
+                    false => self.taken.join(", "),
+                };
+                Err(ReplyError::usage(format!("{}: unknown argument {key:?}; it takes {takes}", self.op)))
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(v: Value) -> Args {
+        let Value::Object(m) = v else { panic!("an object") };
+        Args::new("move", m)
+    }
+
+    #[test]
+    fn values_go_through_the_types_own_rules() {
+        let mut a = args(serde_json::json!({"position": 300, "speed": "50", "binary": true, "x": [1]}));
+        assert_eq!(a.need::<u32>("position").unwrap(), 300);
+        assert_eq!(a.get::<u8>("speed").unwrap(), Some(50));
+        assert!(a.flag("binary").unwrap());
+        assert_eq!(a.get::<u8>("accel").unwrap(), None);
+        assert!(a.text("x").unwrap_err().message.contains("not a list"));
+        let mut a = args(serde_json::json!({"position": -1, "vel": 1}));
+        let e = a.need::<u32>("position").unwrap_err();
+        assert!(e.message.starts_with("move position \"-1\": ") && e.kind == "usage", "{}", e.message);
+        assert!(a.need::<u32>("actuator").unwrap_err().message.contains("\"actuator\" is missing"));
+        let e = a.finish().unwrap_err();
+        assert!(
+            e.message.contains("unknown argument \"vel\"") && e.message.contains("position, actuator"),
+            "{}",
+            e.message
+        );
+    }
+}

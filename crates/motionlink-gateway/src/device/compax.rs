@@ -1,0 +1,136 @@
+//! A COMPAX drive on the gateway: `move`, `stop` and the state samples, as the command line's
+//! `motionlink compax` does them, on [`AsyncClient`].
+
+use std::sync::Arc;
+
+use motionlink_compax::model::{Position, RampMs, SpeedPercent, TimeLimit};
+use motionlink_compax::report::{StopResult, Timed};
+use motionlink_compax::session::{MoveRequest, MoveTarget, TravelLimits, WatchSample};
+use motionlink_compax::wire::Address;
+use motionlink_compax::{AsyncClient, DriveOptions, Emulator};
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::url::PortUrl;
+use motionlink_link::{RealClock, SerialSettings};
+use serde_json::Value;
+
+use super::{failed, identified, unknown_op, Action, Outcome, Sampling};
+use crate::args::Args;
+use crate::error::ReplyError;
+
+/// The actions served.
+const OPS: [&str; 2] = ["move", "stop"];
+
+/// The command line's `--timeout-s` of a move when none is given, in s.
+const MOVE_TIMEOUT_S: f64 = 600.0;
+
+/// A session with one drive.
+#[derive(Clone)]
+pub(super) struct Compax {
+    client: Arc<AsyncClient>,
+    drive: Address,
+    port: String,
+}
+
+impl Compax {
+    /// Opens the drive's bus on `port` (`sim`: an emulated bus with the drive the options name); the
+    /// emulator's host comes with it.
+    pub(super) async fn open(
+        options: &DriveOptions,
+        port: &str,
+    ) -> Result<(Compax, Option<Box<dyn std::any::Any + Send>>), ReplyError> {
+        let url: PortUrl = port.parse().map_err(|e| ReplyError::usage(format!("port {port:?}: {e}")))?;
+        let clock = RealClock::shared();
+        let baud = options.baud.bits_per_s();
+        let (client, host): (AsyncClient, Option<Box<dyn std::any::Any + Send>>) = match url {
+            PortUrl::Sim => {
+                let bus = Emulator::new(options.emulated_bus()).map_err(|e| ReplyError::usage(e.to_string()))?;
+                let host = EmulatorHost::new(bus, Arc::clone(&clock), PipeConfig::paced(baud));
+                let link = Box::new(host.connect().0);
+                (AsyncClient::new(link, clock, options.bus_config()).map_err(failed)?, Some(Box::new(host)))
+            }
+            url => {
+                let mut settings = SerialSettings::new(baud);
+                settings.parity = options.mode.parity;
+                let client = AsyncClient::open(move || url.open_byte_link(settings), clock, options.bus_config())
+                    .await
+                    .map_err(failed)?;
+                (client, None)
+            }
+        };
+        Ok((Compax { client: Arc::new(client), drive: options.drive, port: port.to_string() }, host))
+    }
+
+    fn result(&self, report: &impl serde::Serialize) -> Outcome {
+        identified("compax", &self.port, &[("drive", Value::from(self.drive.get()))], report)
+    }
+
+    /// The action `op`, its arguments checked by the library's types.
+    pub(super) fn action(&self, op: &str, mut args: Args) -> Result<Action, ReplyError> {
+        let me = self.clone();
+        let (client, drive) = (Arc::clone(&self.client), self.drive);
+        match op {
+            "move" => {
+                let position: Option<Position> = args.get("position")?;
+                let abs: Option<Position> = args.get("abs")?;
+                let rel: Option<Position> = args.get("rel")?;
+                let speed: Option<SpeedPercent> = args.get("speed")?;
+                let accel: Option<RampMs> = args.get("accel")?;
+                let binary = args.flag("binary")?;
+                let timeout = match args.get::<TimeLimit>("timeout_s")? {
+                    Some(t) => t,
+                    None => TimeLimit::from_secs(MOVE_TIMEOUT_S).map_err(|e| ReplyError::usage(e.to_string()))?,
+                };
+                let min_pos: Option<Position> = args.get("min_pos")?;
+                let max_pos: Option<Position> = args.get("max_pos")?;
+                args.finish()?;
+                if position.is_some() && abs.is_some() {
+                    return Err(ReplyError::usage("move: give position or abs, not both"));
+                }
+                let target = MoveTarget::from_args(position.or(abs), rel).map_err(ReplyError::usage)?;
+                let limits = TravelLimits::new(min_pos, max_pos)
+                    .map_err(|e| ReplyError::usage(format!("move min_pos / max_pos: {e}")))?;
+                let request = MoveRequest { target, speed, accel, binary, limits, timeout: Some(timeout.duration()) };
+                Ok(Action::Motion(Box::pin(async move {
+                    let report = client.move_to(drive, &request).await.map_err(failed)?;
+                    me.result(&report)
+                })))
+            }
+            "stop" => {
+                args.finish()?;
+                Ok(Action::Stop(Box::pin(async move {
+                    let report = client.stop_if_moving(&[drive]).await.map_err(failed)?;
+                    if !report.all_confirmed() {
+                        return Err(ReplyError {
+                            kind: "device".into(),
+                            message: report.to_string(),
+                            exit_code: motionlink_link::error::ErrorClass::Device.exit_code(),
+                        });
+                    }
+                    let position = client.read_position(drive).await;
+                    let o0 = client.read_s16(drive).await.map(|s| s.o0_state());
+                    me.result(&StopResult::new(None::<String>, report, position, o0))
+                })))
+            }
+            other => Err(unknown_op("compax", other, &OPS)),
+        }
+    }
+
+    /// One sample as `watch --json` prints it.
+    pub(super) fn sample(&self, t_s: f64) -> Sampling {
+        let me = self.clone();
+        Box::pin(async move {
+            let position = me.client.read_position(me.drive).await.map_err(failed)?;
+            let s17 = me.client.read_s17(me.drive).await.map_err(failed)?;
+            let sample = WatchSample { drive: me.drive, position, s17 };
+            Ok((me.result(&Timed { t_s, sample })?, sample.moving()))
+        })
+    }
+
+    /// Ends the session (what still moves is stopped).
+    pub(super) async fn close(self) -> Result<(), String> {
+        match Arc::try_unwrap(self.client) {
+            Ok(client) => client.close().await.map(|_| ()).map_err(|e| e.to_string()),
+            Err(_) => Ok(()),
+        }
+    }
+}

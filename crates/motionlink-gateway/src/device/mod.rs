@@ -1,0 +1,271 @@
+//! The devices a gateway serves: each opened on its family crate's `AsyncClient` (`port = "sim"`: an
+//! emulator in this process), its requests turned into the library's operations with the family's checked
+//! argument types, and its results and states the library's serialised reports.
+
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::{Arc, Mutex};
+
+use serde_json::{Map, Value};
+
+use crate::config::DeviceEntry;
+use crate::error::ReplyError;
+
+mod compax;
+mod powercube;
+mod scu;
+
+/// What an operation ends with: the `--json` object of the same action, or the error of the reply.
+pub type Outcome = Result<Value, ReplyError>;
+
+/// An operation, not yet started: nothing is sent before it is polled. Dropping it while it runs cancels
+/// it, which stops any motion it started (the family's `AsyncClient` does that).
+pub type Operation = Pin<Box<dyn Future<Output = Outcome> + Send>>;
+
+/// A state sample: the object `watch --json` prints, and whether the device reports motion.
+pub type Sampling = Pin<Box<dyn Future<Output = Result<(Value, bool), ReplyError>> + Send>>;
+
+/// What a request asks for, checked.
+pub enum Action {
+    /// A motion: it runs under a lease.
+    Motion(Operation),
+    /// `stop`: it needs no lease and always runs.
+    Stop(Operation),
+    /// Anything else: a read, a setting (no lease).
+    Other(Operation),
+}
+
+/// A device's options, checked by the family crate's types before anything is opened.
+#[derive(Debug, Clone)]
+pub enum Spec {
+    /// An SCU unit.
+    Scu(motionlink_scu::args::UnitOptions),
+    /// A PowerCube module.
+    PowerCube(motionlink_powercube::args::ModuleOptions),
+    /// A COMPAX drive.
+    Compax(motionlink_compax::DriveOptions),
+}
+
+/// The text of a device table's value as the family's option takes it (one element each of a list).
+fn texts(key: &str, value: &toml::Value) -> Result<Vec<String>, String> {
+    match value {
+        toml::Value::String(s) => Ok(vec![s.clone()]),
+        toml::Value::Integer(i) => Ok(vec![i.to_string()]),
+        toml::Value::Float(f) => Ok(vec![f.to_string()]),
+        toml::Value::Boolean(b) => Ok(vec![b.to_string()]),
+        toml::Value::Array(items) => {
+            let mut all = Vec::new();
+            for item in items {
+                if matches!(item, toml::Value::Array(_) | toml::Value::Table(_)) {
+                    return Err(format!("`{key}`: a list of plain values"));
+                }
+                all.extend(texts(key, item)?);
+            }
+            Ok(all)
+        }
+        other => Err(format!("`{key}` cannot be {}", other.type_str())),
+    }
+}
+
+impl Spec {
+    /// The options of a device table, each through the family's own rule; an unknown key is named with
+    /// the keys the family takes.
+    pub fn of(entry: &DeviceEntry) -> Result<Spec, String> {
+        let sim = entry.port == "sim";
+        let set = |keys: &[&str], set: &mut dyn FnMut(&str, &str) -> Result<bool, String>| {
+            for (key, value) in &entry.options {
+                for text in texts(key, value)? {
+                    if !set(key, &text)? {
+                        return Err(format!(
+                            "unknown key `{key}`; a {} device takes family, port, {}",
+                            entry.family,
+                            keys.join(", ")
+                        ));
+                    }
+                }
+            }
+            Ok::<(), String>(())
+        };
+        let spec = match entry.family.as_str() {
+            "scu" => {
+                let mut o = motionlink_scu::args::UnitOptions::default();
+                set(&motionlink_scu::args::UnitOptions::KEYS, &mut |k, t| o.set(k, t).map_err(|e| e.to_string()))?;
+                o.check_port(sim).map_err(|e| e.to_string())?;
+                o.client_config().map_err(|e| e.to_string())?;
+                Spec::Scu(o)
+            }
+            "powercube" => {
+                let mut o = motionlink_powercube::args::ModuleOptions::default();
+                set(&motionlink_powercube::args::ModuleOptions::KEYS, &mut |k, t| {
+                    o.set(k, t).map_err(|e| e.to_string())
+                })?;
+                o.check_port(sim).map_err(|e| e.to_string())?;
+                Spec::PowerCube(o)
+            }
+            "compax" => {
+                let mut o = motionlink_compax::DriveOptions::default();
+                set(&motionlink_compax::DriveOptions::KEYS, &mut |k, t| o.set(k, t).map_err(|e| e.to_string()))?;
+                o.check_port(sim).map_err(|e| e.to_string())?;
+                Spec::Compax(o)
+            }
+            other => return Err(format!("family {other:?} is not scu, powercube or compax")),
+        };
+        if !sim {
+            entry.port.parse::<motionlink_link::url::PortUrl>().map_err(|e| format!("port {:?}: {e}", entry.port))?;
+        }
+        Ok(spec)
+    }
+}
+
+/// The family's session with the device.
+#[derive(Clone)]
+enum Family {
+    Scu(scu::Scu),
+    PowerCube(powercube::PowerCube),
+    Compax(compax::Compax),
+}
+
+/// One device, open.
+pub struct Device {
+    /// Its name: its topic level.
+    pub name: String,
+    family: Family,
+    /// The emulator's host for `port = "sim"`, kept as long as the session.
+    host: Mutex<Option<Box<dyn std::any::Any + Send>>>,
+}
+
+impl std::fmt::Debug for Device {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Device").field("name", &self.name).finish()
+    }
+}
+
+impl Device {
+    /// Opens the device of `entry` (its options `spec`), as the command line opens its port.
+    pub async fn open(entry: &DeviceEntry, spec: &Spec) -> Result<Arc<Device>, ReplyError> {
+        let (family, host) = match spec {
+            Spec::Scu(o) => (Family::Scu(scu::Scu::open(o, &entry.port).await?), None),
+            Spec::PowerCube(o) => {
+                let (d, host) = powercube::PowerCube::open(o, &entry.port).await?;
+                (Family::PowerCube(d), host)
+            }
+            Spec::Compax(o) => {
+                let (d, host) = compax::Compax::open(o, &entry.port).await?;
+                (Family::Compax(d), host)
+            }
+        };
+        Ok(Arc::new(Device { name: entry.name.clone(), family, host: Mutex::new(host) }))
+    }
+
+    /// The action `op` with its `args`, checked: an error names what is wrong and nothing is sent.
+    pub fn action(&self, op: &str, args: Map<String, Value>) -> Result<Action, ReplyError> {
+        let args = crate::args::Args::new(op, args);
+        match &self.family {
+            Family::Scu(d) => d.action(op, args),
+            Family::PowerCube(d) => d.action(op, args),
+            Family::Compax(d) => d.action(op, args),
+        }
+    }
+
+    /// One sample, the object `watch --json` prints (`t_s`: seconds since the gateway started), and whether
+    /// the device reports motion (any motion, the gateway's or not).
+    pub fn sample(&self, t_s: f64) -> Sampling {
+        match &self.family {
+            Family::Scu(d) => d.sample(t_s),
+            Family::PowerCube(d) => d.sample(t_s),
+            Family::Compax(d) => d.sample(t_s),
+        }
+    }
+
+    /// `stop` with no arguments: every motion of the device, confirmed as the command line's `stop`.
+    pub fn stop(&self) -> Operation {
+        match self.action("stop", Map::new()) {
+            Ok(Action::Stop(op)) => op,
+            Ok(_) | Err(_) => Box::pin(async { Err(ReplyError::usage("stop: not a stop")) }),
+        }
+    }
+
+    /// Ends the session: the family's close (it stops what was started), then the emulator goes.
+    pub async fn close(self: Arc<Device>) -> Result<(), String> {
+        let Ok(device) = Arc::try_unwrap(self) else {
+            // Still held by a task that is ending: the last one to go closes the session as it drops.
+            return Err("still in use by an operation that is ending; its session closes when that ends".into());
+        };
+        let r = match device.family {
+            Family::Scu(d) => d.close().await,
+            Family::PowerCube(d) => d.close().await,
+            Family::Compax(d) => d.close().await,
+        };
+        drop(device.host);
+        r
+    }
+}
+
+/// An object as the command line's `--json` prints it: the identity (`family`, `port`, and `extra`, such as
+/// the module or the drive) first, then the report's fields.
+pub fn identified(family: &str, port: &str, extra: &[(&str, Value)], report: &impl serde::Serialize) -> Outcome {
+    let mut map = Map::new();
+    map.insert("family".into(), family.into());
+    map.insert("port".into(), port.into());
+    for (k, v) in extra {
+        map.insert((*k).into(), v.clone());
+    }
+    match serde_json::to_value(report).map_err(|e| ReplyError::transport(format!("the report: {e}")))? {
+        Value::Object(fields) => map.extend(fields),
+        other => {
+            map.insert("result".into(), other);
+        }
+    }
+    Ok(Value::Object(map))
+}
+
+/// A library error in a reply, by its class.
+pub fn failed<E: motionlink_link::error::Classify + std::fmt::Display>(e: E) -> ReplyError {
+    ReplyError::classified(&e)
+}
+
+/// An action the family does not serve through the gateway.
+pub fn unknown_op(family: &str, op: &str, ops: &[&str]) -> ReplyError {
+    ReplyError::usage(format!(
+        "{op:?} is not an action of a {family} device here; give one of {}, keepalive",
+        ops.join(", ")
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entry(family: &str, port: &str, options: &[(&str, toml::Value)]) -> DeviceEntry {
+        DeviceEntry {
+            name: "d".into(),
+            family: family.into(),
+            port: port.into(),
+            options: options.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(),
+        }
+    }
+
+    #[test]
+    fn a_device_s_options_go_through_the_family_s_rules() {
+        let s = Spec::of(&entry("scu", "sim", &[("functions", "tlt".into()), ("stroke", vec!["1=0:865"].into())]));
+        assert!(matches!(s, Ok(Spec::Scu(o)) if o.functions == ["tlt"] && o.stroke == ["1=0:865"]));
+        let s = Spec::of(&entry("powercube", "/dev/ttyUSB0", &[("module", 3.into()), ("no_watchdog", false.into())]));
+        assert!(matches!(s, Ok(Spec::PowerCube(o)) if o.module.get() == 3));
+        let s = Spec::of(&entry("compax", "tcp://127.0.0.1:4001", &[("drive", 2.into()), ("tolerance", 0.5.into())]));
+        assert!(matches!(s, Ok(Spec::Compax(o)) if o.drive.get() == 2));
+    }
+
+    #[test]
+    fn a_bad_option_is_named_with_the_family_s_rule() {
+        let e = Spec::of(&entry("scu", "sim", &[("modul", 3.into())])).unwrap_err();
+        assert!(e.contains("unknown key `modul`") && e.contains("functions"), "{e}");
+        let e = Spec::of(&entry("powercube", "sim", &[("module", 40.into())])).unwrap_err();
+        assert!(e.starts_with("module: \"40\": "), "{e}");
+        let e = Spec::of(&entry("compax", "/dev/ttyUSB0", &[("sim_variants", "no-echo".into())])).unwrap_err();
+        assert!(e.contains("only for port sim"), "{e}");
+        let e = Spec::of(&entry("scu", "sim", &[("functions", toml::Value::Table(toml::Table::new()))])).unwrap_err();
+        assert!(e.contains("`functions` cannot be"), "{e}");
+        let e = Spec::of(&entry("compax", "nonsense://x", &[])).unwrap_err();
+        assert!(e.starts_with("port \"nonsense://x\""), "{e}");
+    }
+}

@@ -1,0 +1,147 @@
+//! A PowerCube module on the gateway: `move`, `home`, `stop`, `reset`, `state`, `info` and the state
+//! samples, as the command line's `motionlink powercube` does them, on [`AsyncClient`].
+
+use std::sync::Arc;
+
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::url::PortUrl;
+use motionlink_link::RealClock;
+use motionlink_powercube::args::{ModuleOptions, MotionTimeout, MoveAcceleration, MoveVelocity, Target, Tolerance};
+use motionlink_powercube::client::{Client, PortLink};
+use motionlink_powercube::model::{Address, StateFlag};
+use motionlink_powercube::report::{Acted, Released, Sample, StateReport, Timed};
+use motionlink_powercube::session::{Guard, MoveSpec};
+use motionlink_powercube::{AsyncClient, Emulator};
+use serde_json::Value;
+
+use super::{failed, identified, unknown_op, Action, Outcome, Sampling};
+use crate::args::Args;
+use crate::error::ReplyError;
+
+/// The actions served.
+const OPS: [&str; 6] = ["move", "home", "stop", "reset", "state", "info"];
+
+/// A session with one module.
+#[derive(Clone)]
+pub(super) struct PowerCube {
+    client: Arc<AsyncClient>,
+    module: Address,
+    guard: Guard,
+    port: String,
+}
+
+impl PowerCube {
+    /// Opens the module's bus on `port` (`sim`: an emulated bus with the module the options name); the
+    /// emulator's host comes with it.
+    pub(super) async fn open(
+        options: &ModuleOptions,
+        port: &str,
+    ) -> Result<(PowerCube, Option<Box<dyn std::any::Any + Send>>), ReplyError> {
+        let url: PortUrl = port.parse().map_err(|e| ReplyError::usage(format!("port {port:?}: {e}")))?;
+        let clock = RealClock::shared();
+        let in_process = matches!(url, PortUrl::Sim);
+        let (client, host): (AsyncClient, Option<Box<dyn std::any::Any + Send>>) = if in_process {
+            let bus = options.emulated_bus().map_err(|e| ReplyError::usage(e.to_string()))?;
+            let host = EmulatorHost::new(Emulator::new(&bus), Arc::clone(&clock), PipeConfig::instant());
+            let link = Box::new(host.connect().0);
+            (AsyncClient::rs232(link, clock, options.bus_config(false)).map_err(failed)?, Some(Box::new(host)))
+        } else {
+            let o = options.clone();
+            let client = AsyncClient::open(move || match PortLink::open(&url, o.baud, o.bitrate, &clock)? {
+                Some(PortLink::Rs232(link)) => Client::rs232(link, clock, o.bus_config(false)),
+                Some(PortLink::Can(link)) => Client::can(link, clock, o.bus_config(true)),
+                None => unreachable!("not sim"),
+            })
+            .await
+            .map_err(failed)?;
+            (client, None)
+        };
+        let me = PowerCube {
+            client: Arc::new(client),
+            module: options.module,
+            guard: options.guard(in_process),
+            port: port.to_string(),
+        };
+        Ok((me, host))
+    }
+
+    fn result(&self, report: &impl serde::Serialize) -> Outcome {
+        identified("powercube", &self.port, &[("module", Value::from(self.module.get()))], report)
+    }
+
+    /// The action `op`, its arguments checked by the library's types.
+    pub(super) fn action(&self, op: &str, mut args: Args) -> Result<Action, ReplyError> {
+        let me = self.clone();
+        let (client, module, guard) = (Arc::clone(&self.client), self.module, self.guard);
+        match op {
+            "move" => {
+                let target: Target = args.need("position")?;
+                let vel: Option<MoveVelocity> = args.get("vel")?;
+                let acc: Option<MoveAcceleration> = args.get("acc")?;
+                let timeout = args.get::<MotionTimeout>("timeout_s")?.unwrap_or(MotionTimeout::DEFAULT);
+                let tolerance = args.get::<Tolerance>("tolerance")?.unwrap_or(Tolerance::DEFAULT);
+                args.finish()?;
+                let spec = MoveSpec::from_args(target, vel, acc, tolerance, timeout);
+                Ok(Action::Motion(Box::pin(async move {
+                    let report = client.module(module).move_to_guarded(&spec, guard).await.map_err(failed)?;
+                    me.result(&Acted::reached(report))
+                })))
+            }
+            "home" => {
+                let timeout = args.get::<MotionTimeout>("timeout_s")?.unwrap_or(MotionTimeout::DEFAULT);
+                args.finish()?;
+                Ok(Action::Motion(Box::pin(async move {
+                    let report = client.module(module).home_guarded(timeout.get(), guard).await.map_err(failed)?;
+                    me.result(&Acted::homed(report))
+                })))
+            }
+            "stop" => {
+                args.finish()?;
+                Ok(Action::Stop(Box::pin(async move {
+                    let halted = client.module(module).halt_confirmed().await.map_err(failed)?;
+                    me.result(&Acted::halted(halted, None::<String>))
+                })))
+            }
+            "reset" => {
+                args.finish()?;
+                Ok(Action::Other(Box::pin(async move {
+                    let released = client.module(module).reset_and_release_watchdog().await.map_err(failed)?;
+                    me.result(&Acted::reset(Released { watchdog_released: released }))
+                })))
+            }
+            "state" | "info" => {
+                args.finish()?;
+                let info = op == "info";
+                Ok(Action::Other(Box::pin(async move {
+                    let m = client.module(module);
+                    match info {
+                        true => me.result(&m.details().await.map_err(failed)?),
+                        false => me.result(&StateReport(m.state().await.map_err(failed)?)),
+                    }
+                })))
+            }
+            other => Err(unknown_op("powercube", other, &OPS)),
+        }
+    }
+
+    /// One sample as `watch --json` prints it.
+    pub(super) fn sample(&self, t_s: f64) -> Sampling {
+        let me = self.clone();
+        Box::pin(async move {
+            let m = me.client.module(me.module);
+            let kind = m.kind().await.map_err(failed)?;
+            let state = m.state().await.map_err(failed)?;
+            let position = m.position().await.map_err(failed)?;
+            let moving = state.contains(StateFlag::Motion);
+            Ok((me.result(&Timed { t_s, sample: Sample { kind, position, state } })?, moving))
+        })
+    }
+
+    /// Ends the session (what still moves is halted, the watchdog switched off).
+    pub(super) async fn close(self) -> Result<(), String> {
+        match Arc::try_unwrap(self.client) {
+            Ok(client) => client.close().await.map_err(|e| e.to_string()),
+            Err(_) => Ok(()),
+        }
+    }
+}

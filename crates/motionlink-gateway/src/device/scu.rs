@@ -1,0 +1,125 @@
+//! An SCU unit on the gateway: `move`, `stop`, `info`, `errors` and the state samples, as the command line's
+//! `motionlink scu` does them, on [`AsyncClient`].
+
+use std::sync::Arc;
+
+use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::url::PortUrl;
+use motionlink_link::{RealClock, SerialSettings};
+use motionlink_scu::args::{Checked, UnitOptions};
+use motionlink_scu::model::{Actuator, Function, MotionFunction, PositionCounts, Speed, StopMode};
+use motionlink_scu::results::{ErrorHistory, SampleReport, StopResult, StopScope, SwitchedOff};
+use motionlink_scu::{AsyncClient, Emulator};
+
+use super::{failed, identified, unknown_op, Action, Outcome, Sampling};
+use crate::args::Args;
+use crate::error::ReplyError;
+
+/// The actions served.
+const OPS: [&str; 4] = ["move", "stop", "info", "errors"];
+
+/// A session with one unit.
+#[derive(Clone)]
+pub(super) struct Scu {
+    client: Arc<AsyncClient>,
+    port: String,
+}
+
+impl Scu {
+    /// Opens the unit on `port` (`sim`: the emulated unit the options name).
+    pub(super) async fn open(options: &UnitOptions, port: &str) -> Result<Scu, ReplyError> {
+        let config = options.client_config().map_err(|e| ReplyError::usage(e.to_string()))?;
+        let url: PortUrl = port.parse().map_err(|e| ReplyError::usage(format!("port {port:?}: {e}")))?;
+        let clock = RealClock::shared();
+        let client = match url {
+            PortUrl::Sim => {
+                let unit = options.emulated_unit().map_err(|e| ReplyError::usage(e.to_string()))?;
+                let sim = Emulator::new(unit).map_err(|e| ReplyError::usage(e.to_string()))?;
+                let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(options.baud.get()));
+                let connector: motionlink_link::link::Connector = Box::new(move || Ok(Box::new(host.connect().0)));
+                AsyncClient::open(connector, clock, config).await
+            }
+            url => AsyncClient::open_port(&url, SerialSettings::new(options.baud.get()), clock, config).await,
+        }
+        .map_err(failed)?;
+        Ok(Scu { client: Arc::new(client), port: port.to_string() })
+    }
+
+    fn result(&self, report: &impl serde::Serialize) -> Outcome {
+        identified("scu", &self.port, &[], report)
+    }
+
+    /// The action `op`, its arguments checked by the library's types.
+    pub(super) fn action(&self, op: &str, mut args: Args) -> Result<Action, ReplyError> {
+        let me = self.clone();
+        let client = Arc::clone(&self.client);
+        match op {
+            "move" => {
+                let actuator: Actuator = args.need("actuator")?;
+                let position: PositionCounts = args.need("position")?;
+                let speed = args.text("speed")?.unwrap_or_else(|| "100".into());
+                let speed = Speed::parse(&speed, client.config().speed_mode)
+                    .map_err(|e| ReplyError::usage(format!("move speed {speed:?}: {e}")))?;
+                let function = match args.get::<MotionFunction>("function")? {
+                    Some(f) => f,
+                    None => MotionFunction::checked(i64::from(actuator.number()))
+                        .map_err(|e| ReplyError::usage(e.to_string()))?,
+                };
+                args.finish()?;
+                Ok(Action::Motion(Box::pin(async move {
+                    let report = client.move_to(actuator, position, speed, Some(function)).await.map_err(failed)?;
+                    me.result(&report)
+                })))
+            }
+            "stop" => {
+                let function: Option<Function> = args.get("function")?;
+                let soft = args.flag("soft")?;
+                args.finish()?;
+                Ok(Action::Stop(Box::pin(async move {
+                    match StopScope::of(function) {
+                        StopScope::Motions(motions) => {
+                            let mode = if soft { StopMode::Soft } else { StopMode::Fast };
+                            let report = client.stop_functions(&motions, mode).await.map_err(failed)?;
+                            me.result(&StopResult::new(None::<String>, function, report))
+                        }
+                        StopScope::Switch(f) => {
+                            client.switch(f, false).await.map_err(failed)?;
+                            me.result(&StopResult::new(None::<String>, function, SwitchedOff::OFF))
+                        }
+                    }
+                })))
+            }
+            "info" => {
+                args.finish()?;
+                Ok(Action::Other(Box::pin(async move { me.result(&client.info().await.map_err(failed)?) })))
+            }
+            "errors" => {
+                args.finish()?;
+                Ok(Action::Other(Box::pin(async move {
+                    me.result(&ErrorHistory { errors: client.error_history().await.map_err(failed)? })
+                })))
+            }
+            other => Err(unknown_op("scu", other, &OPS)),
+        }
+    }
+
+    /// One sample as `watch --json` prints it.
+    pub(super) fn sample(&self, t_s: f64) -> Sampling {
+        let me = self.clone();
+        Box::pin(async move {
+            let snapshot = me.client.sample().await.map_err(failed)?;
+            let report = SampleReport::new(&snapshot, t_s);
+            let moving = report.actuators.iter().any(|a| a.status.moving());
+            Ok((me.result(&report)?, moving))
+        })
+    }
+
+    /// Ends the session (RS for every started function, then RA).
+    pub(super) async fn close(self) -> Result<(), String> {
+        match Arc::try_unwrap(self.client) {
+            Ok(client) => client.close().await.map_err(|e| e.to_string()),
+            // Still shared by a task that ends: dropping the last one closes the session.
+            Err(_) => Ok(()),
+        }
+    }
+}

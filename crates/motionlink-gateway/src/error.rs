@@ -1,0 +1,114 @@
+//! How the gateway ends with an error, and the errors its replies carry.
+
+use motionlink_link::error::{Classify, ErrorClass};
+
+/// Why the gateway could not run: a usage error (exit code 2: the file, the command line, the security
+/// rules; found before any connection) or a transport error (exit code 3: the broker cannot be reached at
+/// start).
+#[derive(Debug, thiserror::Error)]
+pub enum GatewayError {
+    /// The configuration or the command line is wrong.
+    #[error("{0}")]
+    Usage(String),
+    /// The broker cannot be reached, or the TLS setup failed.
+    #[error("{0}")]
+    Transport(String),
+}
+
+impl GatewayError {
+    /// The command line's exit code: 2 usage, 3 transport.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            GatewayError::Usage(_) => ErrorClass::Usage.exit_code(),
+            GatewayError::Transport(_) => 3,
+        }
+    }
+}
+
+/// The error of a reply: `{"kind", "message", "exit_code"}`, as the command line's `--json` prints an error
+/// (`kind` is the error class's name, `exit_code` the command line's for it), plus the gateway's own kinds:
+/// `lease_expired`, `busy`, `broker_lost`.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct ReplyError {
+    /// `refused`, `device`, `timeout`, `disconnected`, `corrupt`, `io`, `usage`, `cancelled`, or the
+    /// gateway's `lease_expired`, `busy`, `broker_lost`.
+    pub kind: String,
+    /// What went wrong, in words.
+    pub message: String,
+    /// The command line's exit code for it.
+    pub exit_code: u8,
+}
+
+impl ReplyError {
+    /// A library error, by its class.
+    pub fn classified<E: Classify + std::fmt::Display + ?Sized>(e: &E) -> ReplyError {
+        let class = e.class();
+        ReplyError { kind: class.name().into(), message: e.to_string(), exit_code: class.exit_code() }
+    }
+
+    /// A request that cannot be carried out as it is (nothing was sent to the device).
+    pub fn usage(message: impl Into<String>) -> ReplyError {
+        ReplyError { kind: "usage".into(), message: message.into(), exit_code: ErrorClass::Usage.exit_code() }
+    }
+
+    /// A motion request while another motion runs on the device (exit code 3, as the command line's for a
+    /// port in use).
+    pub fn busy(message: impl Into<String>) -> ReplyError {
+        ReplyError { kind: "busy".into(), message: message.into(), exit_code: 3 }
+    }
+
+    /// The device could not be opened, or its session failed.
+    pub fn transport(message: impl Into<String>) -> ReplyError {
+        ReplyError { kind: "io".into(), message: message.into(), exit_code: 3 }
+    }
+
+    /// Why a motion was stopped by the gateway, with what the library said of the stop.
+    pub fn stopped(reason: &StopReason, library: &str) -> ReplyError {
+        let (kind, exit_code) = match reason {
+            StopReason::LeaseExpired { .. } => ("lease_expired", ErrorClass::Cancelled.exit_code()),
+            StopReason::StopRequest { .. } => ("cancelled", ErrorClass::Cancelled.exit_code()),
+            StopReason::BrokerLost => ("broker_lost", 3),
+            StopReason::Signal { number, .. } => ("cancelled", 128 + *number as u8),
+        };
+        ReplyError { kind: kind.into(), message: format!("{reason}; {library}"), exit_code }
+    }
+}
+
+/// Why the gateway stopped a motion (the library's cancel: the stop Ctrl-C makes on the command line).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum StopReason {
+    /// No keepalive came within the lease.
+    LeaseExpired {
+        /// The lease, in ms.
+        lease_ms: u64,
+    },
+    /// A `stop` request.
+    StopRequest {
+        /// The stop request's id.
+        id: String,
+    },
+    /// The gateway lost the broker: no lease could be renewed.
+    BrokerLost,
+    /// A signal ends the gateway.
+    Signal {
+        /// Its number.
+        number: i32,
+        /// Its name (SIGTERM).
+        name: &'static str,
+    },
+}
+
+impl std::fmt::Display for StopReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            StopReason::LeaseExpired { lease_ms } => {
+                write!(f, "the lease lapsed: no keepalive within {lease_ms} ms, so the gateway stopped the motion")
+            }
+            StopReason::StopRequest { id } => write!(f, "stopped by the stop request {id:?}"),
+            StopReason::BrokerLost => {
+                f.write_str("the gateway lost the broker (no lease could be renewed), so it stopped the motion")
+            }
+            StopReason::Signal { name, .. } => write!(f, "{name} received: the gateway stopped the motion"),
+        }
+    }
+}

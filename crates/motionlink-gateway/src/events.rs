@@ -1,0 +1,39 @@
+//! What a gateway publishes besides replies: the events of a device (`motionlink/<gw>/<device>/events`,
+//! not retained) and the result of a keepalive.
+
+/// One event: a motion started or ended, a lease lapsed, an error with no one to reply to.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Event<'a> {
+    /// `motion_started`, `motion_ended`, `lease_expired`, `error`, `state_failed`.
+    pub event: &'static str,
+    /// The request's (or motion's) id, if there is one.
+    pub id: Option<&'a str>,
+    /// The action (`move`...), if there is one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub op: Option<&'a str>,
+    /// The lease of a motion that started or lapsed, in ms.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lease_ms: Option<u64>,
+    /// How a motion ended: true when it did what was asked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ok: Option<bool>,
+    /// The error, for an error and a motion that failed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<&'a crate::error::ReplyError>,
+}
+
+impl<'a> Event<'a> {
+    /// An event of kind `event` about request `id`.
+    pub fn new(event: &'static str, id: Option<&'a str>) -> Event<'a> {
+        Event { event, id, op: None, lease_ms: None, ok: None, error: None }
+    }
+}
+
+/// The result of a keepalive: `{"renewed": true, "lease_ms"}`.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct Renewed {
+    /// Always true (a keepalive that renews nothing is an error).
+    pub renewed: bool,
+    /// The lease, in ms: the next keepalive is due within it.
+    pub lease_ms: u64,
+}

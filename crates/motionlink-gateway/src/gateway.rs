@@ -1,0 +1,513 @@
+//! The gateway's loop: requests from the broker to the devices, replies and events back, states at their
+//! rate, leases watched, and every motion stopped when its lease lapses, on `stop`, when the broker is
+//! lost and on SIGINT / SIGTERM.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use rumqttc::v5::mqttbytes::v5::{Publish, PublishProperties};
+use rumqttc::v5::mqttbytes::QoS;
+use rumqttc::v5::AsyncClient as Mqtt;
+use serde_json::Value;
+use tokio::sync::{mpsc, oneshot};
+use tokio::time::Instant;
+
+use crate::config::GatewayConfig;
+use crate::device::{Action, Device, Operation, Outcome, Spec};
+use crate::error::{GatewayError, ReplyError, StopReason};
+use crate::events::{Event, Renewed};
+use crate::lease::Leases;
+use crate::mqtt::{self, Net, OFFLINE, ONLINE};
+use crate::request::{self, Request};
+use crate::topics::Topics;
+
+/// How long the gateway waits for its motions to stop when it ends.
+const STOP_BOUND: Duration = Duration::from_secs(10);
+
+/// Where a reply goes: the request's `reply_to`, else the MQTT 5 response topic with its correlation data.
+#[derive(Debug, Clone, Default)]
+struct ReplyTo {
+    topic: Option<String>,
+    properties: Option<PublishProperties>,
+}
+
+/// A motion under way on a device.
+struct Motion {
+    id: String,
+    op: String,
+    reply: ReplyTo,
+    cancel: Option<oneshot::Sender<StopReason>>,
+}
+
+/// A device as the loop serves it.
+struct Served {
+    device: Arc<Device>,
+    motion: Option<Motion>,
+    moving: Arc<AtomicBool>,
+}
+
+/// An operation that ended.
+struct Done {
+    device: String,
+    motion_id: Option<String>,
+    id: Option<String>,
+    reply: ReplyTo,
+    outcome: Outcome,
+}
+
+/// The gateway while it runs.
+struct Gateway {
+    topics: Topics,
+    mqtt: Mqtt,
+    devices: HashMap<String, Served>,
+    leases: Leases,
+    done: mpsc::UnboundedSender<Done>,
+}
+
+/// Runs the gateway of `config` until a signal ends it (its exit code: 130 SIGINT, 143 SIGTERM) or it
+/// cannot start (a usage error, exit 2; a device or the broker that cannot be reached, exit 3).
+pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
+    let topics = Topics::new(&config.name);
+    // Every device's options, checked before anything is opened.
+    let mut specs = Vec::new();
+    for entry in &config.devices {
+        let spec = Spec::of(entry).map_err(|m| GatewayError::Usage(format!("[device.{}]: {m}", entry.name)))?;
+        specs.push((entry, spec));
+    }
+    let options = mqtt::options(&config, &topics)?;
+    let mut signals = Signals::new()?;
+    let mut devices = HashMap::new();
+    for (entry, spec) in &specs {
+        let device = Device::open(entry, spec).await.map_err(|e| {
+            let m = format!("[device.{}] on {}: {}", entry.name, entry.port, e.message);
+            if e.exit_code == 2 {
+                GatewayError::Usage(m)
+            } else {
+                GatewayError::Transport(m)
+            }
+        })?;
+        devices.insert(entry.name.clone(), Served { device, motion: None, moving: Arc::new(AtomicBool::new(false)) });
+    }
+    let (mqtt, events) = Mqtt::new(options, 1024);
+    let (net_tx, mut net) = mpsc::unbounded_channel();
+    let event_loop = tokio::spawn(mqtt::drive(events, net_tx));
+    // The first connection: without it the gateway does not start.
+    match net.recv().await {
+        Some(Net::Connected) => {}
+        Some(Net::Lost(e)) => {
+            event_loop.abort();
+            return Err(GatewayError::Transport(format!("the broker {}: {e}", config.broker)));
+        }
+        other => return Err(GatewayError::Transport(format!("the broker {}: {other:?}", config.broker))),
+    }
+    let (done_tx, mut done) = mpsc::unbounded_channel();
+    let mut gw = Gateway { topics, mqtt, devices, leases: Leases::new(), done: done_tx };
+    gw.online();
+    eprintln!(
+        "motionlink gateway {}: connected to {}, serving {} device(s) under {}",
+        config.name,
+        config.broker,
+        gw.devices.len(),
+        gw.topics.status().trim_end_matches("/status")
+    );
+    let started = Instant::now();
+    let mut samplers = Vec::new();
+    for served in gw.devices.values() {
+        samplers.push(tokio::spawn(sample_states(
+            Arc::clone(&served.device),
+            gw.mqtt.clone(),
+            gw.topics.state(&served.device.name),
+            Arc::clone(&served.moving),
+            config.sample_hz,
+            started,
+        )));
+    }
+    let far = || Instant::now() + Duration::from_secs(3600);
+    let mut connected = true;
+    let (number, name) = loop {
+        let deadline = gw.leases.next_deadline().unwrap_or_else(far);
+        tokio::select! {
+            n = net.recv() => match n {
+                Some(Net::Connected) => {
+                    eprintln!("motionlink gateway: connected to {} again", config.broker);
+                    connected = true;
+                    gw.online();
+                }
+                Some(Net::Message(p)) => gw.on_message(&p),
+                Some(Net::Lost(e)) => {
+                    // No lease can be renewed: every motion stops (said once per loss, not per retry).
+                    let stopped = gw.stop_all(StopReason::BrokerLost);
+                    if connected || stopped > 0 {
+                        eprintln!(
+                            "motionlink gateway: lost the broker {} ({e}); stopping {stopped} motion(s); connecting \
+                             again",
+                            config.broker
+                        );
+                    }
+                    connected = false;
+                }
+                Some(Net::Closed) | None => {
+                    gw.stop_all(StopReason::BrokerLost);
+                    break (0, "");
+                }
+            },
+            Some(d) = done.recv() => gw.on_done(d),
+            _ = tokio::time::sleep_until(deadline) => gw.on_leases(),
+            s = signals.next() => break s,
+        }
+    };
+    // The end: every motion stopped (and said on stderr), then `offline`, then the devices closed.
+    if number != 0 {
+        gw.stop_all(StopReason::Signal { number, name });
+    }
+    let bound = Instant::now() + STOP_BOUND;
+    while gw.devices.values().any(|s| s.motion.is_some()) {
+        match tokio::time::timeout_at(bound, done.recv()).await {
+            Ok(Some(d)) => {
+                if let (Some(id), Err(e)) = (&d.motion_id, &d.outcome) {
+                    eprintln!("motionlink gateway: {name}: {} motion {id}: {}", d.device, e.message);
+                }
+                gw.on_done(d);
+            }
+            _ => {
+                for (dev, s) in &gw.devices {
+                    if let Some(m) = &s.motion {
+                        eprintln!(
+                            "motionlink gateway: {name}: {dev} motion {}: its stop did not end within {} s",
+                            m.id,
+                            STOP_BOUND.as_secs()
+                        );
+                    }
+                }
+                break;
+            }
+        }
+    }
+    // The samplers end before the sessions close (each holds its device).
+    for s in samplers {
+        s.abort();
+        let _ = s.await;
+    }
+    let _ = gw.mqtt.try_publish(gw.topics.status(), QoS::AtLeastOnce, true, OFFLINE);
+    let _ = gw.mqtt.try_disconnect();
+    let _ = tokio::time::timeout(Duration::from_secs(3), event_loop).await;
+    for (name, s) in gw.devices.drain() {
+        if let Err(e) = s.device.close().await {
+            eprintln!("motionlink gateway: closing {name}: {e}");
+        }
+    }
+    Ok(if number == 0 { 0 } else { 128 + number as u8 })
+}
+
+/// SIGINT and SIGTERM.
+struct Signals {
+    #[cfg(unix)]
+    int: tokio::signal::unix::Signal,
+    #[cfg(unix)]
+    term: tokio::signal::unix::Signal,
+}
+
+impl Signals {
+    fn new() -> Result<Signals, GatewayError> {
+        #[cfg(unix)]
+        {
+            use tokio::signal::unix::{signal, SignalKind};
+            let fail = |e: std::io::Error| GatewayError::Transport(format!("signal handlers: {e}"));
+            Ok(Signals {
+                int: signal(SignalKind::interrupt()).map_err(fail)?,
+                term: signal(SignalKind::terminate()).map_err(fail)?,
+            })
+        }
+        #[cfg(not(unix))]
+        Ok(Signals {})
+    }
+
+    /// The next signal: its number and name.
+    async fn next(&mut self) -> (i32, &'static str) {
+        #[cfg(unix)]
+        {
+            tokio::select! {
+                _ = self.int.recv() => (2, "SIGINT"),
+                _ = self.term.recv() => (15, "SIGTERM"),
+            }
+        }
+        #[cfg(not(unix))]
+        {
+            let _ = tokio::signal::ctrl_c().await;
+            (2, "SIGINT")
+        }
+    }
+}
+
+/// Publishes the device's state (retained) at `sample_hz` while it moves (a motion of the gateway's, or
+/// any motion the device reports), else once a second.
+async fn sample_states(
+    device: Arc<Device>,
+    mqtt: Mqtt,
+    topic: String,
+    moving: Arc<AtomicBool>,
+    sample_hz: u32,
+    started: Instant,
+) {
+    let fast = Duration::from_secs(1) / sample_hz.max(1);
+    let slow = Duration::from_secs(1).max(fast);
+    let mut due = Instant::now();
+    loop {
+        let t_s = started.elapsed().as_secs_f64();
+        let mut reported = false;
+        match device.sample(t_s).await {
+            Ok((state, in_motion)) => {
+                reported = in_motion;
+                let _ = mqtt.try_publish(topic.clone(), QoS::AtMostOnce, true, state.to_string());
+            }
+            Err(e) => tracing::warn!("{}: state: {}", device.name, e.message),
+        }
+        let last = due;
+        // The next sample on a fixed schedule (never in the past); a motion that starts meanwhile brings it
+        // forward to one fast period after the last.
+        due = (last + if reported || moving.load(Ordering::Relaxed) { fast } else { slow }).max(Instant::now());
+        loop {
+            let now = Instant::now();
+            if now >= due {
+                break;
+            }
+            if moving.load(Ordering::Relaxed) && last + fast < due {
+                due = (last + fast).max(now);
+                continue;
+            }
+            tokio::time::sleep_until(due.min(now + fast)).await;
+        }
+    }
+}
+
+impl Gateway {
+    /// `online` (retained) and the subscription to every device's `cmd`.
+    fn online(&self) {
+        let _ = self.mqtt.try_subscribe(self.topics.all_cmd(), QoS::AtLeastOnce);
+        let _ = self.mqtt.try_publish(self.topics.status(), QoS::AtLeastOnce, true, ONLINE);
+    }
+
+    fn publish_reply(&self, reply: &ReplyTo, id: Option<&str>, outcome: &Outcome, device: &str) {
+        let body = request::reply(id, outcome).to_string();
+        match &reply.topic {
+            Some(topic) => {
+                let r = match &reply.properties {
+                    Some(p) => {
+                        self.mqtt.try_publish_with_properties(topic.clone(), QoS::AtLeastOnce, false, body, p.clone())
+                    }
+                    None => self.mqtt.try_publish(topic.clone(), QoS::AtLeastOnce, false, body),
+                };
+                if let Err(e) = r {
+                    tracing::warn!("reply to {topic}: {e}");
+                }
+            }
+            None => {
+                if let Err(error) = outcome {
+                    self.event(device, &Event { error: Some(error), ..Event::new("error", id) });
+                }
+            }
+        }
+    }
+
+    fn event(&self, device: &str, event: &Event<'_>) {
+        let body = serde_json::to_string(event).unwrap_or_default();
+        let _ = self.mqtt.try_publish(self.topics.events(device), QoS::AtLeastOnce, false, body);
+    }
+
+    /// One message on a `cmd` topic.
+    fn on_message(&mut self, p: &Publish) {
+        let topic = String::from_utf8_lossy(&p.topic).to_string();
+        let Some(device) = self.topics.device_of_cmd(&topic).map(str::to_string) else { return };
+        let response_topic = p.properties.as_ref().and_then(|pp| pp.response_topic.clone());
+        let properties = p.properties.as_ref().map(|pp| PublishProperties {
+            correlation_data: pp.correlation_data.clone(),
+            ..PublishProperties::default()
+        });
+        let request = request::parse(&p.payload);
+        let reply_of = |reply_to: Option<String>| match reply_to {
+            Some(t) => ReplyTo { topic: Some(t), properties: None },
+            None => ReplyTo { topic: response_topic.clone(), properties: properties.clone() },
+        };
+        let request = match request {
+            Ok(r) => r,
+            Err(bad) => {
+                let reply = reply_of(bad.reply_to);
+                self.publish_reply(&reply, bad.id.as_deref(), &Err(bad.error), &device);
+                return;
+            }
+        };
+        let reply = reply_of(request.reply_to.clone());
+        if let Err(e) = self.on_request(&device, &request, &reply) {
+            self.publish_reply(&reply, Some(&request.id), &Err(e), &device);
+        }
+    }
+
+    fn on_request(&mut self, device: &str, r: &Request, reply: &ReplyTo) -> Result<(), ReplyError> {
+        if !self.devices.contains_key(device) {
+            let names = self.devices.keys().cloned().collect::<Vec<_>>().join(", ");
+            return Err(ReplyError::usage(format!("no device {device:?} on this gateway; it serves {names}")));
+        }
+        if r.op == "keepalive" {
+            if !r.args.is_empty() {
+                return Err(ReplyError::usage("keepalive takes no args: give the motion's id as \"id\""));
+            }
+            let key = lease_key(device, &r.id);
+            return match self.leases.renew(&key, Instant::now()) {
+                Some(lease) if reply.topic.is_some() => {
+                    let renewed = Renewed { renewed: true, lease_ms: lease.as_millis() as u64 };
+                    let outcome = serde_json::to_value(renewed).map_err(|e| ReplyError::transport(e.to_string()));
+                    self.publish_reply(reply, Some(&r.id), &outcome, device);
+                    Ok(())
+                }
+                Some(_) => Ok(()),
+                None => Err(ReplyError {
+                    kind: "no_lease".into(),
+                    message: format!("no motion {:?} holds a lease on {device} (it ended, or its lease lapsed)", r.id),
+                    exit_code: 2,
+                }),
+            };
+        }
+        let action = self.devices[device].device.action(&r.op, r.args.clone())?;
+        match action {
+            Action::Motion(op) => {
+                let served = self.devices.get_mut(device).expect("checked above");
+                if let Some(m) = &served.motion {
+                    return Err(ReplyError::busy(format!(
+                        "{device} is running {} {:?}: stop it, or wait for its end",
+                        m.op, m.id
+                    )));
+                }
+                let (cancel, cancelled) = oneshot::channel();
+                served.motion =
+                    Some(Motion { id: r.id.clone(), op: r.op.clone(), reply: reply.clone(), cancel: Some(cancel) });
+                served.moving.store(true, Ordering::Relaxed);
+                let (device_handle, tx) = (Arc::clone(&served.device), self.done.clone());
+                self.leases.start(&lease_key(device, &r.id), r.lease, Instant::now());
+                let lease_ms = r.lease.as_millis() as u64;
+                self.event(
+                    device,
+                    &Event { op: Some(&r.op), lease_ms: Some(lease_ms), ..Event::new("motion_started", Some(&r.id)) },
+                );
+                let (name, id) = (device.to_string(), r.id.clone());
+                tokio::spawn(async move {
+                    let outcome = run_motion(op, cancelled, &device_handle).await;
+                    // Let go of the device before the loop hears of the end: it may close the session next.
+                    drop(device_handle);
+                    let _ = tx.send(Done {
+                        device: name,
+                        motion_id: Some(id.clone()),
+                        id: Some(id),
+                        reply: ReplyTo::default(),
+                        outcome,
+                    });
+                });
+            }
+            Action::Stop(op) => {
+                if let Some(m) = self.devices.get_mut(device).and_then(|s| s.motion.as_mut()) {
+                    if let Some(c) = m.cancel.take() {
+                        let _ = c.send(StopReason::StopRequest { id: r.id.clone() });
+                    }
+                }
+                self.spawn_reply(device, r, reply, op);
+            }
+            Action::Other(op) => self.spawn_reply(device, r, reply, op),
+        }
+        Ok(())
+    }
+
+    fn spawn_reply(&self, device: &str, r: &Request, reply: &ReplyTo, op: Operation) {
+        let tx = self.done.clone();
+        let (name, id, reply) = (device.to_string(), r.id.clone(), reply.clone());
+        tokio::spawn(async move {
+            let outcome = op.await;
+            let _ = tx.send(Done { device: name, motion_id: None, id: Some(id), reply, outcome });
+        });
+    }
+
+    /// An operation ended: its reply; a motion's end is an event too.
+    fn on_done(&mut self, d: Done) {
+        let mut reply = d.reply;
+        if let Some(id) = &d.motion_id {
+            self.leases.end(&lease_key(&d.device, id));
+            if let Some(served) = self.devices.get_mut(&d.device) {
+                if served.motion.as_ref().is_some_and(|m| &m.id == id) {
+                    let m = served.motion.take().expect("a motion");
+                    served.moving.store(false, Ordering::Relaxed);
+                    reply = m.reply;
+                    let event = Event {
+                        op: Some(&m.op),
+                        ok: Some(d.outcome.is_ok()),
+                        error: d.outcome.as_ref().err(),
+                        ..Event::new("motion_ended", Some(id))
+                    };
+                    self.event(&d.device, &event);
+                }
+            }
+        }
+        self.publish_reply(&reply, d.id.as_deref(), &d.outcome, &d.device);
+    }
+
+    /// Leases that lapsed: their motions are stopped.
+    fn on_leases(&mut self) {
+        for (key, lease) in self.leases.expired(Instant::now()) {
+            let Some((device, id)) = key.split_once('\0') else { continue };
+            let lease_ms = lease.as_millis() as u64;
+            if let Some(m) = self.devices.get_mut(device).and_then(|s| s.motion.as_mut()).filter(|m| m.id == id) {
+                if let Some(c) = m.cancel.take() {
+                    let _ = c.send(StopReason::LeaseExpired { lease_ms });
+                }
+            }
+            self.event(device, &Event { lease_ms: Some(lease_ms), ..Event::new("lease_expired", Some(id)) });
+        }
+    }
+
+    /// Stops every motion for `reason`; how many were asked to stop.
+    fn stop_all(&mut self, reason: StopReason) -> usize {
+        let mut n = 0;
+        for s in self.devices.values_mut() {
+            if let Some(c) = s.motion.as_mut().and_then(|m| m.cancel.take()) {
+                let _ = c.send(reason.clone());
+                n += 1;
+            }
+        }
+        n
+    }
+}
+
+/// A lease's key: the device and the motion's id (ids are the clients', unique per device only).
+fn lease_key(device: &str, id: &str) -> String {
+    format!("{device}\0{id}")
+}
+
+/// Runs a motion until it ends, or until it is cancelled: then the operation is dropped (the library
+/// stops the motion it started, as on Ctrl-C) and the device's `stop` confirms it at rest; the error says
+/// why it was stopped and what the stop found.
+async fn run_motion(mut op: Operation, cancelled: oneshot::Receiver<StopReason>, device: &Device) -> Outcome {
+    let reason = tokio::select! {
+        outcome = &mut op => return outcome,
+        reason = cancelled => reason,
+    };
+    drop(op);
+    let reason = reason.unwrap_or(StopReason::BrokerLost);
+    let said = match device.stop().await {
+        Ok(stop) => format!("the device's stop then: {}", summary(&stop)),
+        Err(e) => format!("the device's stop then failed: {}", e.message),
+    };
+    Err(ReplyError::stopped(&reason, &said))
+}
+
+/// A stop's report in one line (its JSON without the identity).
+fn summary(stop: &Value) -> String {
+    match stop {
+        Value::Object(m) => {
+            let mut m = m.clone();
+            for k in ["family", "port", "module", "drive", "holder"] {
+                m.remove(k);
+            }
+            Value::Object(m).to_string()
+        }
+        other => other.to_string(),
+    }
+}

@@ -1,0 +1,590 @@
+//! The gateway against a real broker (mosquitto on a free loopback port): retained status and states,
+//! leased motions in every family, lease expiry, stop, bad requests, signals and the broker's loss.
+//! Without mosquitto each test says it is skipped, by name (MOTIONLINK_REQUIRE_BROKER=1 makes that a
+//! failure).
+
+#![cfg(unix)]
+
+use std::time::Duration;
+
+use serde_json::{json, Value};
+
+#[path = "broker/harness.rs"]
+mod harness;
+
+use harness::{broker, gateway, Client};
+
+const ALL: &str = r#"
+[device.lift]
+family = "scu"
+port = "sim"
+
+[device.arm]
+family = "powercube"
+port = "sim"
+
+[device.axis]
+family = "compax"
+port = "sim"
+"#;
+
+const S: Duration = Duration::from_secs(1);
+
+/// A request on `device`'s `cmd` of gateway `gw`.
+async fn request(c: &Client, gw: &str, device: &str, body: Value) {
+    c.send(&format!("motionlink/{gw}/{device}/cmd"), body.to_string()).await;
+}
+
+/// Keepalives for motion `id` every 200 ms until the task is aborted.
+fn keep_alive(c: &Client, gw: &str, device: &str, id: &str) -> tokio::task::JoinHandle<()> {
+    let (mqtt, topic, body) =
+        (c.mqtt.clone(), format!("motionlink/{gw}/{device}/cmd"), json!({"id": id, "op": "keepalive"}).to_string());
+    tokio::spawn(async move {
+        loop {
+            let _ = mqtt.publish(topic.clone(), rumqttc::v5::mqttbytes::QoS::AtLeastOnce, false, body.clone()).await;
+            tokio::time::sleep(Duration::from_millis(200)).await;
+        }
+    })
+}
+
+/// A connected client of gateway `gw` once it is online, subscribed to its topics and `me/#`.
+async fn online(b: &harness::Broker, gw: &str, client: &str) -> Client {
+    let mut c = Client::connect(b, client, &[&format!("motionlink/{gw}/#"), "me/#"]).await;
+    c.wait("online", 20 * S, |m| m.topic == format!("motionlink/{gw}/status") && m.payload == "online").await;
+    c
+}
+
+/// A move of `device` with `args` under a lease kept alive: its reply.
+async fn leased_move(b: &harness::Broker, gw: &str, device: &str, args: Value) -> Value {
+    let _gw = gateway(b, gw, ALL);
+    let mut c = online(b, gw, &format!("t-{gw}")).await;
+    c.drain();
+    request(&c, gw, device, json!({"id": "m1", "op": "move", "args": args, "reply_to": "me/r", "lease_ms": 500})).await;
+    let started = std::time::Instant::now();
+    let keep = keep_alive(&c, gw, device, "m1");
+    let r = c.reply("me/r", "m1", 60 * S).await;
+    let took = started.elapsed();
+    keep.abort();
+    let seen = c.drain();
+    let events: Vec<Value> =
+        seen.iter().filter(|m| m.topic == format!("motionlink/{gw}/{device}/events")).map(|m| m.json()).collect();
+    assert_eq!(events[0]["event"], "motion_started", "{events:?}");
+    assert_eq!((events[0]["op"].as_str(), events[0]["lease_ms"].as_u64()), (Some("move"), Some(500)), "{events:?}");
+    assert_eq!(
+        (events[1]["event"].as_str(), events[1]["ok"].as_bool()),
+        (Some("motion_ended"), Some(true)),
+        "{events:?}"
+    );
+    // States at sample_hz (10) while it moved, not once a second.
+    let states = seen.iter().filter(|m| m.topic == format!("motionlink/{gw}/{device}/state")).count() as f64;
+    assert!(states >= took.as_secs_f64() * 5.0, "{states} states in {took:?} of motion");
+    r
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn status_and_states_are_retained_and_the_end_is_offline() {
+    let Some(b) = broker("status_and_states_are_retained_and_the_end_is_offline") else { return };
+    let gw = gateway(&b, "r1", ALL);
+    drop(online(&b, "r1", "t-r1-first").await);
+    tokio::time::sleep(2 * S).await;
+    // A client that comes later gets the status and every state at once, retained.
+    let mut c = Client::connect(&b, "t-r1", &["motionlink/r1/#"]).await;
+    let status = c.wait("status", 5 * S, |m| m.topic == "motionlink/r1/status").await;
+    assert!(status.retain && status.payload == "online", "{status:?}");
+    for (dev, keys) in
+        [("lift", ["actuators", "last_error"]), ("arm", ["position_rad", "state"]), ("axis", ["position_units", "s17"])]
+    {
+        let m = c.wait("state", 5 * S, |m| m.topic == format!("motionlink/r1/{dev}/state") && m.retain).await;
+        let state = m.json();
+        for key in keys.iter().chain(&["family", "port", "t_s"]) {
+            assert!(state.get(key).is_some(), "{dev}: no {key} in {state}");
+        }
+    }
+    // At rest: about one state a second.
+    c.drain();
+    tokio::time::sleep(Duration::from_millis(3100)).await;
+    let n = c.drain().iter().filter(|m| m.topic == "motionlink/r1/lift/state").count();
+    assert!((2..=5).contains(&n), "{n} states in 3.1 s at rest");
+    let (code, stderr) = gw.signal(libc::SIGTERM);
+    assert_eq!(code, Some(143), "{stderr}");
+    // Nothing moved, so nothing to say but the start; every session was closed.
+    assert!(!stderr.contains("closing"), "{stderr}");
+    let mut c = Client::connect(&b, "t-r1-after", &["motionlink/r1/status"]).await;
+    let status = c.wait("status", 5 * S, |m| m.topic == "motionlink/r1/status").await;
+    assert!(status.retain && status.payload == "offline", "{status:?}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_leased_scu_move_kept_alive_ends_at_its_target() {
+    let Some(b) = broker("a_leased_scu_move_kept_alive_ends_at_its_target") else { return };
+    let r = leased_move(&b, "l1", "lift", json!({"actuator": 1, "position": 250, "speed": 100})).await;
+    assert_eq!(r["ok"], true, "{r}");
+    let result = &r["result"];
+    assert_eq!((result["family"].as_str(), result["port"].as_str()), (Some("scu"), Some("sim")), "{r}");
+    assert_eq!((result["reached_counts"].as_i64(), result["verified"].as_bool()), (Some(250), Some(true)), "{r}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_leased_powercube_move_kept_alive_ends_at_its_target() {
+    let Some(b) = broker("a_leased_powercube_move_kept_alive_ends_at_its_target") else { return };
+    let r = leased_move(&b, "l2", "arm", json!({"position": 1.0, "vel": 0.8})).await;
+    assert_eq!(r["ok"], true, "{r}");
+    let result = &r["result"];
+    assert_eq!((result["action"].as_str(), result["module"].as_i64()), (Some("reached"), Some(1)), "{r}");
+    assert!((result["reached_rad"].as_f64().unwrap() - 1.0).abs() <= 0.001, "{r}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_leased_compax_move_kept_alive_ends_at_its_target() {
+    let Some(b) = broker("a_leased_compax_move_kept_alive_ends_at_its_target") else { return };
+    let r = leased_move(&b, "l3", "axis", json!({"abs": 40, "speed": 50})).await;
+    assert_eq!(r["ok"], true, "{r}");
+    let result = &r["result"];
+    assert_eq!((result["drive"].as_i64(), result["waited"].as_bool()), (Some(1), Some(true)), "{r}");
+    assert_eq!((result["reached_units"].as_f64(), result["verified"].as_bool()), (Some(40.0), Some(true)), "{r}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_move_whose_keepalives_stop_is_stopped_within_its_lease() {
+    let Some(b) = broker("a_move_whose_keepalives_stop_is_stopped_within_its_lease") else { return };
+    let _gw = gateway(&b, "e1", ALL);
+    let mut c = online(&b, "e1", "t-e1").await;
+    request(&c, "e1", "lift", json!({"id": "m1", "op": "move", "args": {"actuator": 1, "position": 800}, "reply_to": "me/r", "lease_ms": 400})).await;
+    let sent = std::time::Instant::now();
+    let keep = keep_alive(&c, "e1", "lift", "m1");
+    tokio::time::sleep(Duration::from_millis(1000)).await;
+    keep.abort();
+    let stopped_renewing = std::time::Instant::now();
+    let r = c.reply("me/r", "m1", 10 * S).await;
+    let after = stopped_renewing.elapsed();
+    assert_eq!((r["ok"].as_bool(), r["error"]["kind"].as_str()), (Some(false), Some("lease_expired")), "{r}");
+    assert!(r["error"]["message"].as_str().unwrap().contains("400 ms"), "{r}");
+    // Stopped one lease after the last keepalive, confirmed (the stop's read back takes part of a second).
+    assert!(after < Duration::from_millis(400 + 200 + 1500), "the reply came {after:?} after the last keepalive");
+    let m = c
+        .wait("lease event", 2 * S, |m| m.topic == "motionlink/e1/lift/events" && m.json()["event"] == "lease_expired")
+        .await;
+    assert_eq!(m.json()["id"], "m1");
+    // At rest short of the target, and staying there.
+    let rest =
+        |m: &harness::Message| m.topic == "motionlink/e1/lift/state" && m.json()["actuators"][0]["moving"] == false;
+    c.drain();
+    let first = c.wait("at rest", 3 * S, rest).await.json()["actuators"][0]["position_counts"].as_i64().unwrap();
+    tokio::time::sleep(Duration::from_millis(1200)).await;
+    c.drain();
+    let later = c.wait("still", 3 * S, rest).await.json()["actuators"][0]["position_counts"].as_i64().unwrap();
+    assert!(first > 0 && first < 800 && first == later, "{first} then {later} (sent {:?} ago)", sent.elapsed());
+    // The lapsed motion's keepalive renews nothing.
+    request(&c, "e1", "lift", json!({"id": "m1", "op": "keepalive", "reply_to": "me/k"})).await;
+    let k = c.reply("me/k", "m1", 5 * S).await;
+    assert_eq!(k["error"]["kind"], "no_lease", "{k}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn stop_during_a_move_stops_it() {
+    let Some(b) = broker("stop_during_a_move_stops_it") else { return };
+    let _gw = gateway(&b, "s1", ALL);
+    let mut c = online(&b, "s1", "t-s1").await;
+    request(
+        &c,
+        "s1",
+        "axis",
+        json!({"id": "m1", "op": "move", "args": {"abs": 1000, "speed": 10}, "reply_to": "me/r"}),
+    )
+    .await;
+    let keep = keep_alive(&c, "s1", "axis", "m1");
+    c.wait("moving", 5 * S, |m| m.topic == "motionlink/s1/axis/state" && m.json()["moving"] == true).await;
+    // `stop` needs no lease and no id of the motion.
+    request(&c, "s1", "axis", json!({"id": "s1", "op": "stop", "reply_to": "me/s"})).await;
+    let stop = c.reply("me/s", "s1", 10 * S).await;
+    keep.abort();
+    assert_eq!((stop["ok"].as_bool(), stop["result"]["action"].as_str()), (Some(true), Some("stop")), "{stop}");
+    assert_eq!(stop["result"]["confirmed"], true, "{stop}");
+    let r = c.reply("me/r", "m1", 10 * S).await;
+    assert_eq!((r["ok"].as_bool(), r["error"]["kind"].as_str()), (Some(false), Some("cancelled")), "{r}");
+    assert!(r["error"]["message"].as_str().unwrap().contains("stop request \"s1\""), "{r}");
+    let at = stop["result"]["position_units"].as_f64().unwrap();
+    assert!(at > 0.0 && at < 1000.0, "{stop}");
+    c.drain();
+    let m = c.wait("at rest", 3 * S, |m| m.topic == "motionlink/s1/axis/state" && m.json()["moving"] == false).await;
+    assert_eq!(m.json()["position_units"].as_f64(), Some(at), "{}", m.payload);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_requests_are_answered_and_nothing_moves() {
+    let Some(b) = broker("bad_requests_are_answered_and_nothing_moves") else { return };
+    let _gw = gateway(&b, "b1", ALL);
+    let mut c = online(&b, "b1", "t-b1").await;
+    let cases = [
+        ("lift", json!({"id": "b1", "op": "fly", "reply_to": "me/r"}), "usage", "\"fly\" is not an action"),
+        (
+            "lift",
+            json!({"id": "b2", "op": "move", "args": {"actuator": 9, "position": 100}, "reply_to": "me/r"}),
+            "usage",
+            "actuator",
+        ),
+        (
+            "lift",
+            json!({"id": "b3", "op": "move", "args": {"position": 100}, "reply_to": "me/r"}),
+            "usage",
+            "\"actuator\" is missing",
+        ),
+        (
+            "lift",
+            json!({"id": "b4", "op": "move", "args": {"actuator": 1, "position": 100, "speed": 500}, "reply_to": "me/r"}),
+            "usage",
+            "speed",
+        ),
+        (
+            "lift",
+            json!({"id": "b5", "op": "move", "args": {"actuator": 1, "position": 100, "sped": 5}, "reply_to": "me/r"}),
+            "usage",
+            "unknown argument \"sped\"",
+        ),
+        (
+            "lift",
+            json!({"id": "b6", "op": "move", "args": {"actuator": 1, "position": 100}, "reply_to": "me/r", "lease_ms": 20000}),
+            "usage",
+            "lease_ms",
+        ),
+        ("lift", json!({"id": "b7", "op": "keepalive", "reply_to": "me/r"}), "no_lease", "no motion \"b7\""),
+        (
+            "axis",
+            json!({"id": "b8", "op": "move", "args": {"abs": 1, "rel": 2}, "reply_to": "me/r"}),
+            "usage",
+            "give the target",
+        ),
+        (
+            "arm",
+            json!({"id": "b9", "op": "move", "args": {"position": 1, "vel": -1}, "reply_to": "me/r"}),
+            "usage",
+            "velocity",
+        ),
+        ("nope", json!({"id": "b10", "op": "move", "reply_to": "me/r"}), "usage", "no device \"nope\""),
+    ];
+    for (device, body, kind, says) in &cases {
+        request(&c, "b1", device, body.clone()).await;
+        let id = body["id"].as_str().unwrap();
+        let r = c.reply("me/r", id, 5 * S).await;
+        assert_eq!((r["ok"].as_bool(), r["error"]["kind"].as_str()), (Some(false), Some(*kind)), "{r}");
+        assert!(r["error"]["message"].as_str().unwrap().contains(says), "{body}: {r}");
+        assert_eq!(r["error"]["exit_code"], 2, "{r}");
+    }
+    // Not JSON, with nowhere to reply: an error event.
+    c.send("motionlink/b1/lift/cmd", "move please").await;
+    let m = c.wait("error event", 5 * S, |m| m.topic == "motionlink/b1/lift/events").await.json();
+    assert_eq!((m["event"].as_str(), m["error"]["kind"].as_str()), (Some("error"), Some("usage")), "{m}");
+    // Nothing moved, nothing started.
+    tokio::time::sleep(1500 * Duration::from_millis(1)).await;
+    let seen = c.drain();
+    assert!(!seen.iter().any(|m| m.topic.ends_with("/events") && m.payload.contains("motion_started")), "{seen:?}");
+    let lift = seen.iter().rev().find(|m| m.topic == "motionlink/b1/lift/state").expect("a state").json();
+    assert_eq!(
+        (lift["actuators"][0]["position_counts"].as_i64(), lift["actuators"][0]["moving"].as_bool()),
+        (Some(0), Some(false)),
+        "{lift}"
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sigterm_mid_move_stops_it_says_so_and_exits_143() {
+    let Some(b) = broker("sigterm_mid_move_stops_it_says_so_and_exits_143") else { return };
+    let gw = gateway(&b, "k1", ALL);
+    let mut c = online(&b, "k1", "t-k1").await;
+    request(
+        &c,
+        "k1",
+        "arm",
+        json!({"id": "m1", "op": "move", "args": {"position": 3.0, "vel": 0.3}, "reply_to": "me/r", "lease_ms": 2000}),
+    )
+    .await;
+    let keep = keep_alive(&c, "k1", "arm", "m1");
+    c.wait("started", 5 * S, |m| m.topic == "motionlink/k1/arm/events" && m.payload.contains("motion_started")).await;
+    tokio::time::sleep(Duration::from_millis(700)).await;
+    let (code, stderr) = gw.signal(libc::SIGTERM);
+    keep.abort();
+    assert_eq!(code, Some(143), "{stderr}");
+    assert!(stderr.contains("SIGTERM") && stderr.contains("arm motion m1"), "{stderr}");
+    assert!(!stderr.contains("closing"), "every session closed: {stderr}");
+    let r = c.reply("me/r", "m1", 5 * S).await;
+    assert_eq!((r["error"]["kind"].as_str(), r["error"]["exit_code"].as_i64()), (Some("cancelled"), Some(143)), "{r}");
+    assert!(r["error"]["message"].as_str().unwrap().contains("halted"), "{r}");
+    c.wait("offline", 5 * S, |m| m.topic == "motionlink/k1/status" && m.payload == "offline").await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_broker_lost_mid_move_stops_it_and_the_gateway_comes_back_online() {
+    let Some(mut b) = broker("the_broker_lost_mid_move_stops_it_and_the_gateway_comes_back_online") else { return };
+    let _gw = gateway(&b, "x1", ALL);
+    let mut c = online(&b, "x1", "t-x1").await;
+    request(&c, "x1", "lift", json!({"id": "m1", "op": "move", "args": {"actuator": 1, "position": 800}, "reply_to": "me/r", "lease_ms": 5000})).await;
+    let keep = keep_alive(&c, "x1", "lift", "m1");
+    // Under way (a little past its start) when the broker dies.
+    c.wait("moving", 5 * S, |m| {
+        let a1 = &m.json()["actuators"][0];
+        m.topic == "motionlink/x1/lift/state" && a1["moving"] == true && a1["position_counts"].as_i64() > Some(20)
+    })
+    .await;
+    b.kill();
+    keep.abort();
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    b.restart();
+    // Back online (the restarted broker kept nothing), with the lift at rest short of its target.
+    let mut c = online(&b, "x1", "t-x1-again").await;
+    let rest =
+        |m: &harness::Message| m.topic == "motionlink/x1/lift/state" && m.json()["actuators"][0]["moving"] == false;
+    c.drain();
+    let first = c.wait("at rest", 5 * S, rest).await.json()["actuators"][0]["position_counts"].as_i64().unwrap();
+    tokio::time::sleep(Duration::from_millis(1200)).await;
+    c.drain();
+    let later = c.wait("still", 3 * S, rest).await.json()["actuators"][0]["position_counts"].as_i64().unwrap();
+    assert!(first > 0 && first < 800 && first == later, "{first} then {later}");
+}
+
+/// No broker needed: the security rule is checked before any connection.
+#[test]
+fn a_remote_broker_without_tls_is_refused_with_exit_2_before_any_connection() {
+    let dir = std::env::temp_dir().join(format!("motionlink-gw-{}-insecure", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("gateway.toml");
+    // 192.0.2.1 (TEST-NET-1) answers nothing: a connection attempt would time out, not exit at once.
+    std::fs::write(&file, format!("[gateway]\nname = \"n1\"\nbroker = \"mqtt://192.0.2.1:1883\"\n{ALL}")).unwrap();
+    let started = std::time::Instant::now();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_motionlink-gateway"))
+        .arg("--config")
+        .arg(&file)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("no TLS") && stderr.contains("--insecure-broker"), "{stderr}");
+    assert!(started.elapsed() < 3 * S, "{:?}", started.elapsed());
+    // A password in the file itself is refused too.
+    std::fs::write(&file, format!("[gateway]\nbroker = \"mqtt://127.0.0.1:1\"\npassword = \"x\"\n{ALL}")).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_motionlink-gateway"))
+        .arg("--config")
+        .arg(&file)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("password_file") && stderr.contains("MOTIONLINK_MQTT_PASSWORD"), "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Runs `program` with `args` in `dir`; false if it is not there or fails.
+fn run_tool(dir: &std::path::Path, program: &str, args: &[&str]) -> bool {
+    std::process::Command::new(program)
+        .args(args)
+        .current_dir(dir)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+#[test]
+fn tls_and_a_password_from_the_environment_connect_and_a_wrong_password_is_refused() {
+    let name = "tls_and_a_password_from_the_environment_connect_and_a_wrong_password_is_refused";
+    let Some(plain) = broker(name) else { return };
+    let dir = harness::dir(name);
+    // A CA, and the broker's certificate for localhost signed by it (openssl); the password file
+    // (mosquitto_passwd, of Debian's mosquitto package).
+    let made = run_tool(
+        &dir,
+        "openssl",
+        &[
+            "req",
+            "-x509",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-days",
+            "2",
+            "-subj",
+            "/CN=test-ca",
+            "-keyout",
+            "ca.key",
+            "-out",
+            "ca.pem",
+        ],
+    ) && run_tool(
+        &dir,
+        "openssl",
+        &[
+            "req",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-subj",
+            "/CN=localhost",
+            "-keyout",
+            "broker.key",
+            "-out",
+            "broker.csr",
+        ],
+    ) && std::fs::write(dir.join("san.ext"), "subjectAltName=DNS:localhost,IP:127.0.0.1\n").is_ok()
+        && run_tool(
+            &dir,
+            "openssl",
+            &[
+                "x509",
+                "-req",
+                "-in",
+                "broker.csr",
+                "-CA",
+                "ca.pem",
+                "-CAkey",
+                "ca.key",
+                "-CAcreateserial",
+                "-days",
+                "2",
+                "-extfile",
+                "san.ext",
+                "-out",
+                "broker.pem",
+            ],
+        )
+        && run_tool(&dir, "mosquitto_passwd", &["-b", "-c", "passwd", "gw-t1", "s3cret"]);
+    if !made {
+        assert!(
+            std::env::var("MOTIONLINK_REQUIRE_BROKER").map_or(true, |v| v != "1"),
+            "{name}: openssl and mosquitto_passwd are needed with MOTIONLINK_REQUIRE_BROKER=1"
+        );
+        eprintln!("SKIPPED broker::{name}: openssl or mosquitto_passwd is missing");
+        return;
+    }
+    // mosquitto started as root reads its files as the user `mosquitto`.
+    for f in ["broker.key", "passwd"] {
+        let mut p = std::fs::metadata(dir.join(f)).unwrap().permissions();
+        std::os::unix::fs::PermissionsExt::set_mode(&mut p, 0o644);
+        std::fs::set_permissions(dir.join(f), p).unwrap();
+    }
+    let d = dir.display();
+    let b = plain.another(
+        &format!("{name}-tls"),
+        &format!(
+            "cafile {d}/ca.pem\ncertfile {d}/broker.pem\nkeyfile {d}/broker.key\nallow_anonymous false\npassword_file {d}/passwd"
+        ),
+    );
+    let file = |gw: &str| {
+        format!(
+            "[gateway]\nname = \"{gw}\"\nbroker = \"mqtts://localhost:{}\"\nca_file = \"{d}/ca.pem\"\nusername = \"gw-t1\"\n{ALL}",
+            b.port
+        )
+    };
+    let mut gw = harness::gateway_of("t1", &file("t1"), &[("MOTIONLINK_MQTT_PASSWORD", "s3cret")]);
+    let line = gw.first_line();
+    assert!(line.contains(&format!("connected to mqtts://localhost:{}", b.port)), "{line}");
+    assert_eq!(gw.signal(libc::SIGTERM).0, Some(143));
+    // A wrong password: the broker refuses it, the gateway does not start (exit 3).
+    let mut gw = harness::gateway_of("t2", &file("t2"), &[("MOTIONLINK_MQTT_PASSWORD", "wrong")]);
+    let line = gw.first_line();
+    assert!(line.contains("the broker mqtts://localhost"), "{line}");
+    assert_eq!(gw.signal(0).0, Some(3), "{line}");
+    // Without the CA the broker's certificate is not trusted.
+    let untrusted = file("t3").replace(&format!("ca_file = \"{d}/ca.pem\"\n"), "");
+    let mut gw = harness::gateway_of("t3", &untrusted, &[("MOTIONLINK_MQTT_PASSWORD", "s3cret")]);
+    let line = gw.first_line();
+    assert!(line.contains("the broker mqtts://localhost"), "{line}");
+    assert_eq!(gw.signal(0).0, Some(3), "{line}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The text of the ```text block of docs/fleet.md that starts with `first`.
+fn documented(first: &str) -> String {
+    let page = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/fleet.md")).unwrap();
+    page.split("```text\n")
+        .skip(1)
+        .map(|rest| rest.split("```").next().unwrap().to_string())
+        .find(|b| b.starts_with(first))
+        .unwrap_or_else(|| panic!("no block starting with {first:?} in docs/fleet.md"))
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_documented_acl_lets_a_dashboard_read_states_but_not_command() {
+    let name = "the_documented_acl_lets_a_dashboard_read_states_but_not_command";
+    let Some(plain) = broker(name) else { return };
+    let dir = harness::dir(name);
+    let users = [("gw-wing-a", "gw-pass"), ("dashboard", "dash-pass"), ("nurse-station", "nurse-pass")];
+    let mut made = true;
+    for (i, (user, password)) in users.iter().enumerate() {
+        let mut args = vec!["-b"];
+        if i == 0 {
+            args.push("-c");
+        }
+        args.extend(["passwd", user, password]);
+        made &= run_tool(&dir, "mosquitto_passwd", &args);
+    }
+    if !made {
+        assert!(std::env::var("MOTIONLINK_REQUIRE_BROKER").map_or(true, |v| v != "1"), "{name}: no mosquitto_passwd");
+        eprintln!("SKIPPED broker::{name}: mosquitto_passwd is missing");
+        return;
+    }
+    std::fs::write(dir.join("acl"), documented("# /etc/mosquitto/motionlink.acl")).unwrap();
+    for f in ["passwd", "acl"] {
+        let mut p = std::fs::metadata(dir.join(f)).unwrap().permissions();
+        std::os::unix::fs::PermissionsExt::set_mode(&mut p, 0o644);
+        std::fs::set_permissions(dir.join(f), p).unwrap();
+    }
+    let d = dir.display();
+    let b = plain
+        .another(&format!("{name}-acl"), &format!("allow_anonymous false\npassword_file {d}/passwd\nacl_file {d}/acl"));
+    let file = format!(
+        "[gateway]\nname = \"wing-a\"\nbroker = \"mqtt://127.0.0.1:{}\"\nusername = \"gw-wing-a\"\n{ALL}",
+        b.port
+    );
+    let _gw = harness::gateway_of("acl", &file, &[("MOTIONLINK_MQTT_PASSWORD", "gw-pass")]);
+    // The dashboard sees the status and the states.
+    let dashboard = Some(("dashboard", "dash-pass"));
+    let mut dash = Client::connect_as(&b, "dash", dashboard, &["motionlink/wing-a/#", "motionlink-reply/#"]).await;
+    dash.wait("online", 20 * S, |m| m.topic == "motionlink/wing-a/status" && m.payload == "online").await;
+    dash.wait("a state", 5 * S, |m| m.topic == "motionlink/wing-a/lift/state").await;
+    // Its command does not reach the gateway: nothing starts, nothing replies.
+    let reply_to = "motionlink-reply/dashboard/r";
+    let move_ = json!({"id": "d1", "op": "move", "args": {"actuator": 1, "position": 300}, "reply_to": reply_to});
+    dash.send("motionlink/wing-a/lift/cmd", move_.to_string()).await;
+    // The operator station's command does, and its reply comes back on its own reply topic.
+    let nurse = Some(("nurse-station", "nurse-pass"));
+    let mut n = Client::connect_as(&b, "nurse", nurse, &["motionlink-reply/nurse-station/#"]).await;
+    let move_ = json!({"id": "n1", "op": "move", "args": {"actuator": 2, "position": 30},
+                       "reply_to": "motionlink-reply/nurse-station/r", "lease_ms": 3000});
+    n.send("motionlink/wing-a/lift/cmd", move_.to_string()).await;
+    let r = n.reply("motionlink-reply/nurse-station/r", "n1", 10 * S).await;
+    assert_eq!((r["ok"].as_bool(), r["result"]["reached_counts"].as_i64()), (Some(true), Some(30)), "{r}");
+    tokio::time::sleep(S).await;
+    let seen = dash.drain();
+    let started: Vec<&str> =
+        seen.iter().filter(|m| m.payload.contains("motion_started")).map(|m| m.payload.as_str()).collect();
+    assert!(started.len() == 1 && started[0].contains("\"n1\""), "{started:?}");
+    assert!(!seen.iter().any(|m| m.topic == reply_to), "the dashboard got a reply: {seen:?}");
+    let lift = seen.iter().rev().find(|m| m.topic == "motionlink/wing-a/lift/state").expect("a state").json();
+    assert_eq!(lift["actuators"][0]["position_counts"], 0, "{lift}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_mqtt5_request_without_reply_to_is_answered_on_its_response_topic_with_its_correlation_data() {
+    let name = "an_mqtt5_request_without_reply_to_is_answered_on_its_response_topic_with_its_correlation_data";
+    let Some(b) = broker(name) else { return };
+    let _gw = gateway(&b, "c1", ALL);
+    let mut c = online(&b, "c1", "t-c1").await;
+    let properties = rumqttc::v5::mqttbytes::v5::PublishProperties {
+        response_topic: Some("me/response".into()),
+        correlation_data: Some(b"corr-42".to_vec().into()),
+        ..Default::default()
+    };
+    let body = json!({"id": "q1", "op": "state"}).to_string();
+    let qos = rumqttc::v5::mqttbytes::QoS::AtLeastOnce;
+    c.mqtt.publish_with_properties("motionlink/c1/arm/cmd", qos, false, body, properties).await.unwrap();
+    let m = c.wait("the reply", 5 * S, |m| m.topic == "me/response").await;
+    assert_eq!(m.correlation.as_deref(), Some(&b"corr-42"[..]), "{m:?}");
+    let r = m.json();
+    assert_eq!(
+        (r["id"].as_str(), r["ok"].as_bool(), r["result"]["module"].as_i64()),
+        (Some("q1"), Some(true), Some(1)),
+        "{r}"
+    );
+    // The object `powercube state --json` prints: the state word with its flags.
+    assert!(r["result"]["word"].is_u64() && r["result"]["flags"].is_array(), "{r}");
+}
