@@ -24,10 +24,9 @@ use motionlink_link::flags::{FlagClass, FlagWord};
 use motionlink_link::link::{Link, SerialSettings};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
-use serde_json::Value;
 
 use super::device::{
-    error_history, with_unit, Action, BoxFuture, Device, ErrorEntry, Failure, JogDirection, Motion, Param, ParamValue,
+    with_unit, Action, BoxFuture, Device, ErrorEntry, ErrorHistory, Failure, JogDirection, Motion, Param, ParamValue,
     ReadBack, Sample, Unit,
 };
 use super::traffic::Traffic;
@@ -185,8 +184,9 @@ impl Compax {
             position_unit: "units",
             speed_key: "speed_units_per_s",
             speed_unit: "units/s",
-            command_speed: ("speed_percent", "%"),
-            has_current: false,
+            command_speed_key: "speed_percent",
+            command_speed_unit: "%",
+            current_key: None,
         }
     }
 
@@ -430,7 +430,7 @@ impl Device for Compax {
         })
     }
 
-    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Value, Failure>> {
+    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<ErrorHistory, Failure>> {
         Box::pin(async move {
             let a = address(unit)?;
             let v = self.client.read_status(a, StatusId::ERROR_HISTORY).await.map_err(failure)?;
@@ -461,7 +461,7 @@ impl Device for Compax {
                     }
                 })
                 .collect();
-            Ok(error_history("S18: the last eight errors of the drive, newest first", &entries))
+            Ok(ErrorHistory { title: "S18: the last eight errors of the drive, newest first", entries })
         })
     }
 

@@ -19,10 +19,10 @@ use motionlink_powercube::model::{
 use motionlink_powercube::session::{Op, Output};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{AsyncClient, Emulator, Error};
-use serde_json::{json, Value};
+use serde_json::Value;
 
 use super::device::{
-    error_history, Action, BoxFuture, Device, ErrorEntry, Failure, JogDirection, Motion, Param as Row, ParamValue,
+    Action, BoxFuture, Device, ErrorEntry, ErrorHistory, Failure, JogDirection, Motion, Param as Row, ParamValue,
     ReadBack, Sample, Unit,
 };
 use super::traffic::Traffic;
@@ -226,8 +226,9 @@ impl PowerCube {
             position_unit: unit,
             speed_key: vel,
             speed_unit: vel_unit,
-            command_speed: (vel, vel_unit),
-            has_current: true,
+            command_speed_key: vel,
+            command_speed_unit: vel_unit,
+            current_key: Some("current_amps"),
         }
     }
 
@@ -507,7 +508,7 @@ impl Device for PowerCube {
         })
     }
 
-    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Value, Failure>> {
+    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<ErrorHistory, Failure>> {
         Box::pin(async move {
             let s = self.module(unit)?.state().await.map_err(failure)?;
             let mut words = Vec::new();
@@ -515,7 +516,7 @@ impl Device for PowerCube {
                 .faults()
                 .map(|f| {
                     words.push(format!("{}: {}", f.name(), f.meaning()));
-                    json!({"bit": f.mask().trailing_zeros(), "name": f.name(), "cause": f.meaning()})
+                    crate::common::to_json(&f)
                 })
                 .collect();
             let entry = ErrorEntry {
@@ -526,10 +527,8 @@ impl Device for PowerCube {
                 bits,
                 unknown_bits: 0,
             };
-            Ok(error_history(
-                "PowerCube modules keep no error history: the fault flags of the state word now",
-                &[entry],
-            ))
+            let title = "PowerCube modules keep no error history: the fault flags of the state word now";
+            Ok(ErrorHistory { title, entries: vec![entry] })
         })
     }
 

@@ -19,7 +19,7 @@ use motionlink_scu::{AsyncClient, ClientConfig, Emulator, FunctionMap, SimConfig
 use serde_json::Value;
 
 use super::device::{
-    error_history, finite, Action, BoxFuture, Device, ErrorEntry, Failure, JogDirection, Motion, Param, ParamValue,
+    finite, Action, BoxFuture, Device, ErrorEntry, ErrorHistory, Failure, JogDirection, Motion, Param, ParamValue,
     ReadBack, Sample, Unit,
 };
 use super::traffic::Traffic;
@@ -217,8 +217,9 @@ impl Device for Scu {
                     position_unit: "counts",
                     speed_key: "speed_percent",
                     speed_unit: "%",
-                    command_speed: self.speed_key(),
-                    has_current: true,
+                    command_speed_key: self.speed_key().0,
+                    command_speed_unit: self.speed_key().1,
+                    current_key: Some("current_amps"),
                 });
             }
             Ok(units)
@@ -385,7 +386,7 @@ impl Device for Scu {
         })
     }
 
-    fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<Value, Failure>> {
+    fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<ErrorHistory, Failure>> {
         Box::pin(async move {
             let history = self.client.error_history().await.map_err(failure)?;
             let entries: Vec<ErrorEntry> = history
@@ -417,7 +418,7 @@ impl Device for Scu {
                     }
                 })
                 .collect();
-            Ok(error_history("Error_Code 1..5 of the unit (0x00D1..0x00D5), newest first", &entries))
+            Ok(ErrorHistory { title: "Error_Code 1..5 of the unit (0x00D1..0x00D5), newest first", entries })
         })
     }
 
