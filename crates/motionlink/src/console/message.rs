@@ -1,25 +1,12 @@
 //! The console's messages to a page, as they serialise: `{"type": ..., ...}`, with a unit's number under
 //! the family's key (`actuator`, `module`, `drive`) and a sample's values under the unit's key names.
 
-use serde::ser::{SerializeMap, Serializer};
 use serde::Serialize;
 use serde_json::Value;
 
 use super::device::{Action, ErrorHistory, Failure, Param, ParamValue, Sample, Unit};
 use super::traffic::LogLine;
-
-/// `value` under a name known only at run time (`"module": 3`, `"position_rad": 0.5`); flattened into the
-/// message that holds it.
-#[derive(Debug, Clone, Copy)]
-pub struct Keyed<T>(pub &'static str, pub T);
-
-impl<T: Serialize> Serialize for Keyed<T> {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let mut map = s.serialize_map(Some(1))?;
-        map.serialize_entry(self.0, &self.1)?;
-        map.end()
-    }
-}
+use crate::common::Keyed;
 
 /// `what` with the number of its unit under the family's key.
 #[derive(Debug, Serialize)]
@@ -87,150 +74,92 @@ impl SampleEntry {
     }
 }
 
-/// A message to a page.
+/// A message to a page; the fields of each as the page's script reads them.
 #[derive(Debug, Serialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum Message {
-    /// The first message: what the page shows and may ask.
+    /// The first message: the family, its port and unit key, the parameter table, the other actions, the
+    /// dead-man time and sample period in ms, and the page's role (a `role` message).
     Welcome {
-        /// "scu", "powercube" or "compax".
         family: &'static str,
-        /// The port, as the user gave it.
         port: String,
-        /// The JSON name of a unit's number.
         unit_key: &'static str,
-        /// The parameter table or data list.
         params: Vec<Param>,
-        /// The family's other actions.
         actions: Vec<Action>,
-        /// How long a jog runs without a renewal, in ms.
         dead_man_ms: u64,
-        /// How often the device is sampled, in ms.
         sample_period_ms: u64,
-        /// The page's role (a `role` message).
         role: Box<Message>,
     },
-    /// The page's role.
-    Role {
-        /// "control" or "read-only".
-        role: &'static str,
-        /// True when no page controls the console.
-        control_free: bool,
-        /// The role in words.
-        message: &'static str,
-    },
-    /// The units found (none while scanning).
+    /// The page's role ("control" or "read_only"), whether no page controls, and the role in words.
+    Role { role: &'static str, control_free: bool, message: &'static str },
+    /// The units found, each with its number under the family's key: none while scanning (or after a failed
+    /// scan, with its `error`, while the scan is tried again).
     Units {
-        /// True while the scan is under way (or tried again after a failure).
         scanning: bool,
-        /// The units, each with its number under the family's key.
         units: Vec<Numbered<Unit>>,
-        /// Why the scan failed.
         #[serde(skip_serializing_if = "Option::is_none")]
         error: Option<Failure>,
     },
-    /// One look at every unit.
-    Sample {
-        /// Seconds since the console started.
-        t_s: f64,
-        /// One entry per unit.
-        units: Vec<Numbered<SampleEntry>>,
-    },
-    /// Decoded telegrams of the traffic log.
-    Traffic {
-        /// The new lines.
-        lines: Vec<LogLine>,
-    },
-    /// A motion started, ended or was stopped.
+    /// One look at every unit, `t_s` seconds after the console started.
+    Sample { t_s: f64, units: Vec<Numbered<SampleEntry>> },
+    /// New lines of the decoded traffic log.
+    Traffic { lines: Vec<LogLine> },
+    /// A motion `what` ("move", "jog", an action's label) of a unit is "running", has "ended" (`ok`, and
+    /// the `error` or the library's `report`) or was "stopped" (`ok` when the stop was confirmed, and the
+    /// `reason`); `message` says what happened.
     Motion {
-        /// "running", "ended" or "stopped".
         state: &'static str,
-        /// "move", "jog" or an action's label.
         what: String,
-        /// The unit.
         #[serde(flatten)]
         unit: Keyed<u8>,
-        /// True when it ended well or its stop was confirmed (none while running).
         #[serde(skip_serializing_if = "Option::is_none")]
         ok: Option<bool>,
-        /// Why it was stopped.
         #[serde(skip_serializing_if = "Option::is_none")]
         reason: Option<&'static str>,
-        /// Why it failed.
         #[serde(skip_serializing_if = "Option::is_none")]
         error: Option<Failure>,
-        /// What happened, in words (none while running).
         #[serde(skip_serializing_if = "Option::is_none")]
         message: Option<String>,
-        /// The library's report of a motion that ended well, where the family keeps one.
         #[serde(skip_serializing_if = "Option::is_none")]
         report: Option<Value>,
     },
-    /// The answer to the Stop button.
-    Stopped {
-        /// Always true (a stop that failed is a `failed` message).
-        ok: bool,
-        /// What the device confirmed.
-        message: String,
-    },
-    /// An action that does not move ended well.
-    Action {
-        /// Its name.
-        name: String,
-        /// Its label.
-        label: &'static str,
-        /// Always true.
-        ok: bool,
-        /// What the device did.
-        message: String,
-    },
-    /// A value read or written.
-    Param {
-        /// True for a write (read back).
-        written: bool,
-        /// The value.
-        param: ParamValue,
-    },
+    /// The answer to the Stop button: what the device confirmed (a stop that failed is `failed`).
+    Stopped { ok: bool, message: String },
+    /// An action that does not move ended well: its name, label and what the device did.
+    Action { name: String, label: &'static str, ok: bool, message: String },
+    /// A value read, or written (and read back).
+    Param { written: bool, param: ParamValue },
     /// The error history of a unit.
     Errors(Numbered<ErrorHistory>),
     /// A request that was not made (bad input, wrong role).
-    Refused {
-        /// The request's type ("?" when it was not JSON).
-        request: String,
-        /// Why.
-        error: Failure,
-        /// Why, in words.
-        message: String,
-    },
+    Refused(RequestFailure),
     /// A request that was made and failed.
-    Failed {
-        /// The request's type.
-        request: String,
-        /// Why.
-        error: Failure,
-        /// Why, in words.
-        message: String,
-    },
+    Failed(RequestFailure),
     /// The console is ending.
-    Bye {
-        /// In words.
-        message: &'static str,
-    },
+    Bye { message: &'static str },
+}
+
+/// Why a request of a page failed: its type ("?" when it was not JSON), the failure, and its message.
+#[derive(Debug, Serialize)]
+pub struct RequestFailure {
+    pub request: String,
+    pub error: Failure,
+    pub message: String,
 }
 
 impl Message {
-    /// The message as a JSON value (keys in the order `serde_json` keeps them).
+    /// The message as a JSON value (keys in alphabetical order, as `serde_json` keeps them).
     pub fn json(&self) -> Value {
         crate::common::to_json(self)
     }
 
     /// A `refused` (`made` false) or `failed` message for `request`.
     pub fn failure(request: &str, made: bool, error: Failure) -> Message {
-        let (request, message) = (request.to_string(), error.message.clone());
+        let failure = RequestFailure { request: request.to_string(), message: error.message.clone(), error };
         if made {
-            Message::Failed { request, error, message }
+            Message::Failed(failure)
         } else {
-            Message::Refused { request, error, message }
+            Message::Refused(failure)
         }
     }
 }

@@ -190,11 +190,7 @@ async fn serve_until_interrupted(
     let mut stdout = std::io::stdout().lock();
     let url = format!("http://{local}/?token={token}");
     if json {
-        #[derive(serde::Serialize)]
-        struct Console<'a> {
-            console: &'a str,
-        }
-        writeln!(stdout, "{}", common::to_json(&Console { console: &url }))?;
+        common::print_json(&mut stdout, &common::Keyed("console", &url))?;
     } else {
         writeln!(stdout, "console on {url}")?;
     }

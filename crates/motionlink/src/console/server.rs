@@ -16,8 +16,9 @@ use tokio::time::Instant;
 
 use super::device::{Failure, JogDirection};
 use super::hub::{Hub, Notice, Role, Units};
-use super::message::{Keyed, Message, Numbered};
+use super::message::{Message, Numbered};
 use super::token;
+use crate::common::Keyed;
 
 const INDEX_HTML: &str = include_str!("assets/index.html");
 const APP_JS: &str = include_str!("assets/app.js");

@@ -16,8 +16,9 @@ use tokio::task::JoinHandle;
 use tokio::time::Instant;
 
 use super::device::{Device, Failure, Motion as DeviceMotion, Unit};
-use super::message::{Keyed, Message, SampleEntry};
+use super::message::{Message, SampleEntry};
 use super::traffic::Traffic;
+use crate::common::Keyed;
 
 /// How long a jog runs without a renewal from its page.
 pub const DEAD_MAN: Duration = Duration::from_millis(200);
