@@ -333,7 +333,7 @@ pub fn print_json<T: serde::Serialize + ?Sized>(out: &mut dyn Write, value: &T) 
 
 /// `value` under a name known only at run time (`"module": 3`, `{"log": "..."}`); flattened into the object
 /// that holds it, or an object of its own.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Keyed<T>(pub &'static str, pub T);
 
 impl<T: serde::Serialize> serde::Serialize for Keyed<T> {

@@ -10,6 +10,8 @@ use motionlink_link::error::Classify;
 use serde::Serialize;
 use serde_json::Value;
 
+pub use crate::common::Keyed;
+
 /// A boxed future that can move between threads.
 pub type BoxFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
 
@@ -36,6 +38,12 @@ impl Failure {
     /// A request that cannot be made as it is (bad input from the page).
     pub fn usage(message: impl std::fmt::Display) -> Failure {
         Failure { kind: "usage", message: message.to_string() }
+    }
+}
+
+impl<E: Classify + std::fmt::Display> From<E> for Failure {
+    fn from(e: E) -> Failure {
+        Failure::of(&e)
     }
 }
 
@@ -75,25 +83,31 @@ pub struct Unit {
     pub current_key: Option<&'static str>,
 }
 
-/// One look at a unit.
-#[derive(Debug, Clone, PartialEq)]
+/// One look at a unit, as the page gets it (with the unit's number, [`SampleEntry`](super::message::SampleEntry)).
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Sample {
-    /// Which unit.
-    pub id: u8,
-    /// Its position, in the unit's position unit.
-    pub position: f64,
-    /// Its speed, in the unit's speed unit, where known.
-    pub speed: Option<f64>,
+    /// Its position in the unit's position unit, under the unit's `position_key`.
+    #[serde(flatten)]
+    pub position: Keyed<f64>,
+    /// Its speed in the unit's speed unit under its `speed_key`, where known.
+    #[serde(flatten)]
+    pub speed: Option<Keyed<f64>>,
     /// Its motor current in A, where the device reports it.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub current_amps: Option<f64>,
     /// The names of the state flags that are set, as the library names them.
     pub flags: Vec<&'static str>,
     /// The flags among them that report a fault.
     pub faults: Vec<&'static str>,
-    /// Set bits that have no name.
+    /// Set bits that have no name (left out when none).
+    #[serde(skip_serializing_if = "is_zero")]
     pub unknown_bits: u64,
     /// True while it moves.
     pub moving: bool,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// One row of the family's parameter table or data list.

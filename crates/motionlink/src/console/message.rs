@@ -19,57 +19,23 @@ pub struct Numbered<T> {
     pub what: T,
 }
 
-/// One unit's entry of a sample message: its sample under its key names, or why it could not be taken.
+/// One unit's entry of a sample message: its sample, or why it could not be taken.
 #[derive(Debug, Serialize)]
 #[serde(untagged)]
 pub enum SampleEntry {
     /// A look at the unit.
-    Taken {
-        /// Its position under the unit's position key.
-        #[serde(flatten)]
-        position: Keyed<f64>,
-        /// Its speed under the unit's speed key, where known.
-        #[serde(flatten)]
-        speed: Option<Keyed<f64>>,
-        /// Its motor current in A, where the device reports it.
-        #[serde(skip_serializing_if = "Option::is_none")]
-        current_amps: Option<f64>,
-        /// Set flags, by name.
-        flags: Vec<&'static str>,
-        /// The flags among them that report a fault.
-        faults: Vec<&'static str>,
-        /// True while it moves.
-        moving: bool,
-        /// Set bits that have no name (left out when none).
-        #[serde(skip_serializing_if = "is_zero")]
-        unknown_bits: u64,
-    },
-    /// The look failed.
+    Taken(Sample),
+    /// The look failed: why.
     Failed {
         /// Why.
         error: Failure,
     },
 }
 
-fn is_zero(n: &u64) -> bool {
-    *n == 0
-}
-
 impl SampleEntry {
     /// The entry of `unit` for a sample (or its failure), with its number under `unit_key`.
     pub fn of(unit: &Unit, unit_key: &'static str, sample: Result<Sample, Failure>) -> Numbered<SampleEntry> {
-        let what = match sample {
-            Ok(s) => SampleEntry::Taken {
-                position: Keyed(unit.position_key, s.position),
-                speed: s.speed.map(|v| Keyed(unit.speed_key, v)),
-                current_amps: s.current_amps,
-                flags: s.flags,
-                faults: s.faults,
-                moving: s.moving,
-                unknown_bits: s.unknown_bits,
-            },
-            Err(error) => SampleEntry::Failed { error },
-        };
+        let what = sample.map_or_else(|error| SampleEntry::Failed { error }, SampleEntry::Taken);
         Numbered { unit: Keyed(unit_key, unit.id), what }
     }
 }
