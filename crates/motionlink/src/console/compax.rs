@@ -238,7 +238,7 @@ impl Device for Compax {
                 for &a in &self.drives {
                     match self.client.read_position(a).await {
                         Ok(p) => units.push(self.unit(a.get(), format!("at {:.3} units", p.units()))),
-                        Err(e) if Failure::of(&e).kind == "timeout" => continue,
+                        Err(e) if motionlink_link::error::Classify::class(&e).name() == "timeout" => continue,
                         Err(e) => return Err(e.into()),
                     }
                 }
@@ -375,10 +375,7 @@ impl Device for Compax {
     }
 
     fn params(&self) -> Vec<Param> {
-        PARAMS
-            .iter()
-            .map(|e| Param { name: e.name, id: e.id, unit: e.unit, access: e.access.short(), title: e.title })
-            .collect()
+        Param::rows(&PARAMS)
     }
 
     fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<ParamValue, Failure>> {

@@ -7,6 +7,7 @@ use std::pin::Pin;
 use std::sync::Arc;
 
 use motionlink_link::error::Classify;
+use motionlink_link::table::Entry;
 use serde::Serialize;
 use serde_json::Value;
 
@@ -30,20 +31,16 @@ pub struct Failure {
 }
 
 impl Failure {
-    /// The failure of a classified library error.
-    pub fn of<E: Classify + std::fmt::Display + ?Sized>(e: &E) -> Failure {
-        Failure { kind: e.class().name(), message: e.to_string() }
-    }
-
     /// A request that cannot be made as it is (bad input from the page).
     pub fn usage(message: impl std::fmt::Display) -> Failure {
         Failure { kind: "usage", message: message.to_string() }
     }
 }
 
+/// The failure of a classified library error.
 impl<E: Classify + std::fmt::Display> From<E> for Failure {
     fn from(e: E) -> Failure {
-        Failure::of(&e)
+        Failure { kind: e.class().name(), message: e.to_string() }
     }
 }
 
@@ -123,6 +120,15 @@ pub struct Param {
     pub access: &'static str,
     /// The manual's name or description.
     pub title: &'static str,
+}
+
+impl Param {
+    /// The rows of a family's table.
+    pub fn rows<K>(table: &motionlink_link::table::Table<K>) -> Vec<Param> {
+        let row =
+            |e: &Entry<K>| Param { name: e.name, id: e.id, unit: e.unit, access: e.access.short(), title: e.title };
+        table.iter().map(row).collect()
+    }
 }
 
 /// A value read from the device (or written and read back). It serialises with `read_back` the value read

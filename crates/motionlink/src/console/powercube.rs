@@ -444,10 +444,7 @@ impl Device for PowerCube {
     }
 
     fn params(&self) -> Vec<Row> {
-        PARAMS
-            .iter()
-            .map(|e| Row { name: e.name, id: e.id, unit: e.unit, access: e.access.short(), title: e.title })
-            .collect()
+        Row::rows(&PARAMS)
     }
 
     fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<ParamValue, Failure>> {

@@ -332,10 +332,7 @@ impl Device for Scu {
     }
 
     fn params(&self) -> Vec<Param> {
-        TABLE
-            .iter()
-            .map(|e| Param { name: e.name, id: e.id, unit: e.unit, access: e.access.short(), title: e.title })
-            .collect()
+        Param::rows(&TABLE)
     }
 
     fn read_param(self: Arc<Self>, _unit: u8, name: String) -> BoxFuture<'static, Result<ParamValue, Failure>> {
