@@ -64,9 +64,15 @@ impl CliError {
         self.class().name()
     }
 
-    /// The error as `--json` prints it on stderr: `{"kind": ..., "message": ..., "exit_code": ...}`.
+    /// The error as `--json` prints it on stderr: `{"exit_code": ..., "kind": ..., "message": ...}`.
     pub fn to_json(&self) -> serde_json::Value {
-        serde_json::json!({"kind": self.kind(), "message": self.to_string(), "exit_code": self.exit_code()})
+        #[derive(serde::Serialize)]
+        struct Shown {
+            exit_code: u8,
+            kind: &'static str,
+            message: String,
+        }
+        to_json(&Shown { exit_code: self.exit_code(), kind: self.kind(), message: self.to_string() })
     }
 
     /// The same error with `f` applied to its message (a closed stdout becomes an interruption whose
@@ -319,10 +325,24 @@ pub fn print_table(out: &mut dyn Write, rows: &[Row]) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Prints a JSON value on one line.
-pub fn print_json(out: &mut dyn Write, value: &serde_json::Value) -> Result<(), CliError> {
-    writeln!(out, "{value}")?;
+/// Prints `value` as JSON on one line (keys in alphabetical order, as every JSON line of the command line).
+pub fn print_json<T: serde::Serialize + ?Sized>(out: &mut dyn Write, value: &T) -> Result<(), CliError> {
+    writeln!(out, "{}", to_json(value))?;
     Ok(())
+}
+
+/// `value` under a name known only at run time (`"module": 3`, `{"log": "..."}`); flattened into the object
+/// that holds it, or an object of its own.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Keyed<T>(pub &'static str, pub T);
+
+impl<T: serde::Serialize> serde::Serialize for Keyed<T> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut map = s.serialize_map(Some(1))?;
+        map.serialize_entry(self.0, &self.1)?;
+        map.end()
+    }
 }
 
 /// The device profile the command's session took (`<path>#<key>`), once it looked for one.
@@ -423,8 +443,13 @@ pub fn serve<E: Emulator + 'static>(args: &ServeArgs, device: E) -> Result<(), C
         options.on_event = Some(Arc::new(move |event: &str| {
             let t = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
             let mut err = std::io::stderr().lock();
+            #[derive(serde::Serialize)]
+            struct Event<'a> {
+                event: &'a str,
+                time_s: f64,
+            }
             let _ = if json {
-                writeln!(err, "{}", serde_json::json!({"event": event, "time_s": t.as_secs_f64()}))
+                writeln!(err, "{}", to_json(&Event { event, time_s: t.as_secs_f64() }))
             } else {
                 writeln!(err, "event {:.6} {event}", t.as_secs_f64())
             };
@@ -457,8 +482,13 @@ pub fn serve<E: Emulator + 'static>(args: &ServeArgs, device: E) -> Result<(), C
         }
     };
     let line = if args.json {
+        #[derive(serde::Serialize)]
+        struct Listening<'a> {
+            kind: &'static str,
+            listening: &'a str,
+        }
         let kind = if args.target.tcp.is_some() { "tcp" } else { "pty" };
-        serde_json::json!({"listening": server.address(), "kind": kind}).to_string()
+        to_json(&Listening { kind, listening: server.address() }).to_string()
     } else if args.target.tcp.is_some() {
         format!("listening on {}", server.address())
     } else {
@@ -487,7 +517,7 @@ mod tests {
         let e = classified(&LinkError::Disconnected { port: "p".into(), reason: "reset".into() });
         assert_eq!((e.kind(), e.exit_code()), ("disconnected", 3));
         let j = CliError::usage("bad --speed").to_json();
-        assert_eq!(j, serde_json::json!({"kind": "usage", "message": "bad --speed", "exit_code": 2}));
+        assert_eq!(j.to_string(), r#"{"exit_code":2,"kind":"usage","message":"bad --speed"}"#);
         assert_eq!(CliError::Refused("PE".into()).kind(), "refused");
     }
 }

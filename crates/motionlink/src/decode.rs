@@ -9,7 +9,6 @@ use motionlink_link::capture::{self, CapturedLine};
 use motionlink_link::chunk::{Chunk, Direction};
 use motionlink_link::describe::{Annotation, Describe};
 use motionlink_link::Timestamp;
-use serde_json::json;
 
 use crate::common::{self, CliError};
 
@@ -43,21 +42,44 @@ fn mark(a: &Annotation) -> &'static str {
     }
 }
 
-/// One annotation as JSON (the names of docs/cli.md, "JSON output").
-pub fn annotation_json(a: &Annotation, frame: Option<(&str, &motionlink_link::can::CanFrame)>) -> serde_json::Value {
-    let mut v = json!({
-        "time_s": a.at.map(|t| t.since_origin().as_secs_f64()),
-        "direction": a.direction.arrow(),
-        "bytes": motionlink_link::hex::hex(&a.bytes),
-        "meaning": a.meaning,
-        "bad": a.bad,
-    });
-    if let Some((interface, f)) = frame {
-        v["interface"] = json!(interface);
-        v["can_id"] = json!(f.id());
-        v["frame"] = json!(f.to_string());
+/// One annotation as `--json` shows it (the names of docs/cli.md, "JSON output").
+#[derive(Debug, serde::Serialize)]
+pub struct Telegram<'a> {
+    /// Seconds since the Unix epoch, when known.
+    pub time_s: Option<f64>,
+    /// `->`, `<-` or `?`.
+    pub direction: &'static str,
+    /// The bytes (a frame's data) in hex.
+    pub bytes: String,
+    /// What it means, or what is wrong with it.
+    pub meaning: &'a str,
+    /// True when it is not a valid telegram.
+    pub bad: bool,
+    /// The CAN identifier: with a frame of a capture, and always in the wire trace (null for serial bytes).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub can_id: Option<Option<u32>>,
+    /// The CAN interface of a frame of a capture ("" when the line names none).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub interface: Option<&'a str>,
+    /// The frame of a capture as candump writes it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frame: Option<String>,
+}
+
+impl<'a> Telegram<'a> {
+    /// Annotation `a`, of `frame` (its interface and the frame) when it came from a CAN frame of a capture.
+    pub fn of(a: &'a Annotation, frame: Option<(&'a str, &motionlink_link::can::CanFrame)>) -> Telegram<'a> {
+        Telegram {
+            time_s: a.at.map(|t| t.since_origin().as_secs_f64()),
+            direction: a.direction.arrow(),
+            bytes: motionlink_link::hex::hex(&a.bytes),
+            meaning: &a.meaning,
+            bad: a.bad,
+            can_id: frame.map(|(_, f)| Some(f.id())),
+            interface: frame.map(|(i, _)| i),
+            frame: frame.map(|(_, f)| f.to_string()),
+        }
     }
-    v
 }
 
 /// One annotation as text: the line as a capture holds it, then its meaning.
@@ -80,7 +102,7 @@ fn print(
 ) -> Result<(), CliError> {
     for a in found.drain(..) {
         if json {
-            common::print_json(out, &annotation_json(&a, frame))?;
+            common::print_json(out, &Telegram::of(&a, frame))?;
         } else {
             writeln!(out, "{}", annotation_text(&a, frame))?;
         }
@@ -125,7 +147,13 @@ pub fn run(args: &CaptureArgs, json: bool, describer: &mut dyn Describe, default
                 unreadable += 1;
                 let message = format!("line {}: {e}", i + 1);
                 if json {
-                    common::print_json(&mut out, &json!({"line": i + 1, "bad": true, "meaning": message}))?;
+                    #[derive(serde::Serialize)]
+                    struct Unreadable {
+                        bad: bool,
+                        line: usize,
+                        meaning: String,
+                    }
+                    common::print_json(&mut out, &Unreadable { bad: true, line: i + 1, meaning: message })?;
                 } else {
                     writeln!(out, "!! {message}")?;
                 }

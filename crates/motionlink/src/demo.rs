@@ -4,8 +4,6 @@
 
 use std::io::Write;
 
-use serde_json::json;
-
 use crate::common::CliError;
 
 /// The demo's output of one family.
@@ -19,6 +17,7 @@ pub struct DemoOut<'a> {
 }
 
 /// One telegram of the demo, as it goes into the JSON object.
+#[derive(serde::Serialize)]
 pub struct DemoTelegram<'t> {
     /// Device time of the telegram, seconds, when the demo knows it.
     pub time_s: Option<f64>,
@@ -58,15 +57,14 @@ impl<'a> DemoOut<'a> {
     /// One telegram: `text` is its line in text mode.
     pub fn telegram(&mut self, text: &str, t: &DemoTelegram<'_>) -> Result<(), CliError> {
         if self.json {
-            let value = json!({
-                "family": self.family,
-                "step": self.step,
-                "time_s": t.time_s,
-                "direction": t.direction,
-                "bytes": t.bytes,
-                "meaning": t.meaning,
-            });
-            writeln!(self.out, "{value}")?;
+            #[derive(serde::Serialize)]
+            struct Line<'a> {
+                family: &'static str,
+                step: &'a Option<String>,
+                #[serde(flatten)]
+                telegram: &'a DemoTelegram<'a>,
+            }
+            crate::common::print_json(self.out, &Line { family: self.family, step: &self.step, telegram: t })?;
         } else {
             writeln!(self.out, "{text}")?;
         }
@@ -79,7 +77,12 @@ impl<'a> DemoOut<'a> {
         if text.is_empty() {
             return Ok(());
         }
-        writeln!(self.out, "{}", json!({"family": self.family, "note": text}))
+        #[derive(serde::Serialize)]
+        struct Note<'a> {
+            family: &'static str,
+            note: &'a str,
+        }
+        writeln!(self.out, "{}", crate::common::to_json(&Note { family: self.family, note: text }))
     }
 }
 

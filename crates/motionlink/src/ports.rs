@@ -2,11 +2,10 @@
 
 use std::io::Write;
 
-use serde_json::json;
-
 use crate::common::{self, CliError};
 
-/// One port: the `--port` to give, its kind, and what is known about it.
+/// One port: the `--port` to give, its kind, and what is known about it (a `--json` line).
+#[derive(serde::Serialize)]
 struct Found {
     port: String,
     kind: &'static str,
@@ -63,7 +62,7 @@ pub fn list(json: bool) -> Result<(), CliError> {
     if json {
         // A listing: one object per port (JSON Lines); none found prints nothing.
         for f in &all {
-            common::print_json(&mut out, &json!({"port": f.port, "kind": f.kind, "about": f.about}))?;
+            common::print_json(&mut out, f)?;
         }
         return Ok(());
     }

@@ -331,7 +331,8 @@ pub fn print_exchange(
     let untimed = |a: Option<&Annotation>| a.map(|a| Annotation { at: None, ..a.clone() });
     let (sent, reply) = (untimed(sent), untimed(reply));
     if json {
-        let j = |a: &Option<Annotation>| a.as_ref().map(|a| crate::decode::annotation_json(a, None));
+        let j =
+            |a: &Option<Annotation>| a.as_ref().map(|a| crate::common::to_json(&crate::decode::Telegram::of(a, None)));
         return Ok((j(&sent), j(&reply)));
     }
     for (which, a) in [("request", &sent), ("reply", &reply)] {

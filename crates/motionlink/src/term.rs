@@ -15,6 +15,9 @@ use tracing_subscriber::layer::SubscriberExt as _;
 use tracing_subscriber::util::SubscriberInitExt as _;
 use tracing_subscriber::Layer as _;
 
+use crate::common::Keyed;
+use crate::decode::Telegram;
+
 /// `--color`.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum ColorChoice {
@@ -201,7 +204,7 @@ pub fn note(text: &str) {
         return;
     }
     if output().json {
-        write_stderr(&format!("{}\n", serde_json::json!({ "log": text })));
+        write_stderr(&format!("{}\n", crate::common::to_json(&Keyed("log", text))));
     } else {
         write_stderr(&format!("{text}\n"));
     }
@@ -211,7 +214,7 @@ pub fn note(text: &str) {
 /// `--json` as `{"log": "<text>"}`.
 pub fn error_note(text: &str) {
     if output().json {
-        write_stderr(&format!("{}\n", serde_json::json!({ "log": text })));
+        write_stderr(&format!("{}\n", crate::common::to_json(&Keyed("log", text))));
     } else {
         write_stderr(&error_line(text));
     }
@@ -271,10 +274,8 @@ fn print_trace(time: &UnixTime, annotations: &[Annotation], fallback_at: Timesta
         };
         let mark = if a.bad { "!!" } else { a.direction.arrow() };
         if output().json {
-            let mut v = crate::decode::annotation_json(a, None);
-            v["time_s"] = serde_json::json!(at.as_secs_f64());
-            v["can_id"] = serde_json::json!(a.can_id);
-            write_stderr(&format!("{}\n", serde_json::json!({ "trace": v })));
+            let telegram = Telegram { time_s: Some(at.as_secs_f64()), can_id: Some(a.can_id), ..Telegram::of(a, None) };
+            write_stderr(&format!("{}\n", crate::common::to_json(&Keyed("trace", telegram))));
             continue;
         }
         write_stderr(&format!("{stamp} {mark} {data:<30} {}\n", a.meaning));

@@ -13,13 +13,25 @@ use serde::ser::{Serialize, SerializeMap, Serializer};
 mod acted;
 pub use acted::{Acted, Released, Timed};
 
-use crate::model::{CubeState, ModuleKind, Param, ParamKind, Position, Value};
+use crate::model::{CubeState, ModuleKind, Param, ParamKind, Position, StateFlag, Value};
 use crate::session::{HaltReport, HomeReport, ModuleInfo, MoveReport, Readback, ScanEntry};
 
 /// The name of a quantity `stem` of a module of `kind`: `position_rad`, `max_velocity_m_per_s` (`tail` after
 /// the unit: "", "_per_s", "_per_s2").
 fn key(stem: &str, kind: ModuleKind, tail: &str) -> String {
     format!("{stem}_{}{tail}", kind.unit())
+}
+
+/// A flag of the state word as an error history shows it (as the SCU's error bits): `bit` (its bit number,
+/// 0..31), `name` and `cause` (the manual's meaning).
+impl Serialize for StateFlag {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut map = s.serialize_map(Some(3))?;
+        map.serialize_entry("bit", &self.mask().trailing_zeros())?;
+        map.serialize_entry("name", self.name())?;
+        map.serialize_entry("cause", self.meaning())?;
+        map.end()
+    }
 }
 
 /// The state word as results show it: `word`, `flags` (the manual's names), `unknown_bits` (only when

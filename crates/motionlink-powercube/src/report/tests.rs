@@ -29,6 +29,15 @@ fn the_state_word_shows_its_flags_its_faults_and_its_unknown_bits() {
 }
 
 #[test]
+fn a_fault_flag_shows_its_bit_number_name_and_cause_as_the_scu_error_bits() {
+    let faults: Vec<_> = STATE.faults().map(|f| to_json(&f)).collect();
+    assert_eq!(faults[0]["bit"], json!(0), "STATE_ERROR is bit 0 (mask 0x1): {faults:?}");
+    assert_eq!(faults[0]["name"], json!("STATE_ERROR"));
+    assert_eq!(faults[0]["cause"], json!(StateFlag::Error.meaning()));
+    assert_eq!(faults[1]["bit"], json!(27), "STATE_LOGIC_VOLT is bit 27: {faults:?}");
+}
+
+#[test]
 fn a_value_is_a_number_or_the_fields_of_a_combined_read() {
     assert_eq!(to_json(&Value::F32(0.5)), json!(0.5));
     assert_eq!(to_json(&Value::I32(-3)), json!(-3));

@@ -17,18 +17,17 @@ use motionlink_compax::model::{
 use motionlink_compax::report::ParamReading;
 use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Mode};
-use motionlink_compax::{AsyncClient, Emulator, Error};
+use motionlink_compax::{AsyncClient, Emulator};
 use motionlink_link::capture::TapLink;
 use motionlink_link::clock::{lock, SharedClock, Timestamp};
 use motionlink_link::flags::{FlagClass, FlagWord};
 use motionlink_link::link::{Link, SerialSettings};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
-use serde_json::Value;
 
 use super::device::{
-    error_history, with_unit, Action, BoxFuture, Device, ErrorEntry, Failure, JogDirection, Motion, Param, ParamValue,
-    ReadBack, Sample, Unit,
+    with_unit, Action, BoxFuture, Device, ErrorEntry, ErrorHistory, Failure, JogDirection, Keyed, Motion, Param,
+    ParamValue, ReadBack, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -146,10 +145,6 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     Ok((Arc::new(device), traffic))
 }
 
-fn failure(e: Error) -> Failure {
-    Failure::of(&e)
-}
-
 fn position(v: f64) -> Result<Position, Failure> {
     Position::new(v).map_err(Failure::usage)
 }
@@ -185,8 +180,9 @@ impl Compax {
             position_unit: "units",
             speed_key: "speed_units_per_s",
             speed_unit: "units/s",
-            command_speed: ("speed_percent", "%"),
-            has_current: false,
+            command_speed_key: "speed_percent",
+            command_speed_unit: "%",
+            current_key: None,
         }
     }
 
@@ -207,7 +203,7 @@ impl Compax {
                 timeout: Some(timeout),
                 ..MoveRequest::new(MoveTarget::Absolute(target))
             };
-            let r = self.client.move_to(a, &request).await.map_err(failure)?;
+            let r = self.client.move_to(a, &request).await?;
             Ok(format!(
                 "drive {n} at {:.3} (target {:.3}, difference {:+.3}) units",
                 r.reached.units(),
@@ -235,15 +231,15 @@ impl Device for Compax {
         Box::pin(async move {
             let mut units = Vec::new();
             if self.drives.is_empty() {
-                for (a, p) in self.client.scan(1..=31).await.map_err(failure)? {
+                for (a, p) in self.client.scan(1..=31).await? {
                     units.push(self.unit(a.get(), format!("answered the scan at {:.3} units", p.units())));
                 }
             } else {
                 for &a in &self.drives {
                     match self.client.read_position(a).await {
                         Ok(p) => units.push(self.unit(a.get(), format!("at {:.3} units", p.units()))),
-                        Err(e) if Failure::of(&e).kind == "timeout" => continue,
-                        Err(e) => return Err(failure(e)),
+                        Err(e) if motionlink_link::error::Classify::class(&e).name() == "timeout" => continue,
+                        Err(e) => return Err(e.into()),
                     }
                 }
             }
@@ -258,7 +254,7 @@ impl Device for Compax {
             for u in units {
                 let look = async {
                     let a = Address::drive(u.id).map_err(|e| Failure::usage(e.to_string()))?;
-                    let p = self.client.read_position(a).await.map_err(failure)?.units();
+                    let p = self.client.read_position(a).await?.units();
                     let at = self.clock.now();
                     let before = lock(&self.last).insert(u.id, (at, p));
                     let known = lock(&self.flags).get(&u.id).copied();
@@ -272,8 +268,8 @@ impl Device for Compax {
                             (s16, s17)
                         }
                         _ => {
-                            let s16 = self.client.read_s16(a).await.map_err(failure)?;
-                            let s17 = self.client.read_s17(a).await.map_err(failure)?;
+                            let s16 = self.client.read_s16(a).await?;
+                            let s17 = self.client.read_s17(a).await?;
                             lock(&self.flags).insert(u.id, (s16, s17));
                             (s16, s17)
                         }
@@ -296,9 +292,8 @@ impl Device for Compax {
                         s17.set_flags().into_iter().filter(|f| f.class() == FlagClass::Error).map(|f| f.name()),
                     );
                     Sample {
-                        id: u.id,
-                        position: p,
-                        speed,
+                        position: Keyed(u.position_key, p),
+                        speed: speed.map(|v| Keyed(u.speed_key, v)),
                         current_amps: None,
                         flags,
                         faults,
@@ -315,7 +310,7 @@ impl Device for Compax {
         address(unit)?;
         let target = position(target)?;
         let speed = speed(speed_percent)?;
-        self.limits.check(address(unit)?, target).map_err(failure)?;
+        self.limits.check(address(unit)?, target)?;
         Ok(self.checked_move(unit, target, speed, Duration::from_secs(600)))
     }
 
@@ -325,7 +320,7 @@ impl Device for Compax {
         Ok(Box::pin(async move {
             // A checked move to the end of the jog range; it runs until the jog ends (the future dropped: the
             // drive is switched off, confirmed by S17) or the end is reached.
-            let here = self.client.read_position(a).await.map_err(failure)?.units();
+            let here = self.client.read_position(a).await?.units();
             let end = match direction {
                 JogDirection::Positive => self.limits.max.map_or(here + self.jog_range, |m| m.units()),
                 JogDirection::Negative => self.limits.min.map_or(here - self.jog_range, |m| m.units()),
@@ -338,8 +333,8 @@ impl Device for Compax {
     fn stop(self: Arc<Self>, unit: u8) -> Motion {
         Box::pin(async move {
             let a = address(unit)?;
-            self.client.stop(a).await.map_err(failure)?;
-            let s17 = self.client.read_s17(a).await.map_err(failure)?;
+            self.client.stop(a).await?;
+            let s17 = self.client.read_s17(a).await?;
             if s17.contains(S17Flag::CommandActive) {
                 return Err(Failure {
                     kind: "device",
@@ -365,8 +360,8 @@ impl Device for Compax {
         let a = address(unit)?;
         match name {
             "switch_on" => Ok(Box::pin(async move {
-                self.client.set_output(a, 0, OutputState::ON, false).await.map_err(failure)?;
-                let s16 = self.client.read_s16(a).await.map_err(failure)?;
+                self.client.set_output(a, 0, OutputState::ON, false).await?;
+                let s16 = self.client.read_s16(a).await?;
                 if s16.o0_state() != 1 {
                     return Err(Failure {
                         kind: "device",
@@ -380,16 +375,13 @@ impl Device for Compax {
     }
 
     fn params(&self) -> Vec<Param> {
-        PARAMS
-            .iter()
-            .map(|e| Param { name: e.name, id: e.id, unit: e.unit, access: e.access.short(), title: e.title })
-            .collect()
+        Param::rows(&PARAMS)
     }
 
     fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<ParamValue, Failure>> {
         Box::pin(async move {
             let id: ParamId = name.parse().map_err(Failure::usage)?;
-            let read = ParamReading { id, value: self.client.read_param(address(unit)?, id).await.map_err(failure)? };
+            let read = ParamReading { id, value: self.client.read_param(address(unit)?, id).await? };
             Ok(ParamValue {
                 name: param_name(id),
                 id: u32::from(id.get()),
@@ -415,7 +407,7 @@ impl Device for Compax {
                 .map_err(|_| Failure::usage(format!("P{} value {value:?}: give a number", id.get())))?;
             id.check(v).map_err(Failure::usage)?;
             // The library writes, compares what it reads back (a difference is an error) and reads once more.
-            let set = self.client.set_param(address(unit)?, id, v).await.map_err(failure)?;
+            let set = self.client.set_param(address(unit)?, id, v).await?;
             let note =
                 if set.at_power_on() { "stored; takes effect when the drive is switched off and on" } else { "" };
             let (name, unit) = (param_name(id), set.written.unit());
@@ -430,10 +422,10 @@ impl Device for Compax {
         })
     }
 
-    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Value, Failure>> {
+    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<ErrorHistory, Failure>> {
         Box::pin(async move {
             let a = address(unit)?;
-            let v = self.client.read_status(a, StatusId::ERROR_HISTORY).await.map_err(failure)?;
+            let v = self.client.read_status(a, StatusId::ERROR_HISTORY).await?;
             let StatusValue::History(h) = v else {
                 return Err(Failure { kind: "corrupt", message: format!("S18 read as {v}, not a history") });
             };
@@ -461,7 +453,7 @@ impl Device for Compax {
                     }
                 })
                 .collect();
-            Ok(error_history("S18: the last eight errors of the drive, newest first", &entries))
+            Ok(ErrorHistory { title: "S18: the last eight errors of the drive, newest first", entries })
         })
     }
 
@@ -469,7 +461,7 @@ impl Device for Compax {
         Box::pin(async move {
             match Arc::try_unwrap(self) {
                 Ok(me) => {
-                    let report = me.client.close().await.map_err(failure)?;
+                    let report = me.client.close().await?;
                     let unconfirmed: Vec<_> =
                         report.drives.iter().filter(|(_, o)| matches!(o, StopOutcome::NotConfirmed { .. })).collect();
                     if unconfirmed.is_empty() {

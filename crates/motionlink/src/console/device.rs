@@ -7,7 +7,11 @@ use std::pin::Pin;
 use std::sync::Arc;
 
 use motionlink_link::error::Classify;
-use serde_json::{json, Value};
+use motionlink_link::table::Entry;
+use serde::Serialize;
+use serde_json::Value;
+
+pub use crate::common::Keyed;
 
 /// A boxed future that can move between threads.
 pub type BoxFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
@@ -17,8 +21,8 @@ pub type BoxFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
 pub type Motion = BoxFuture<'static, Result<String, Failure>>;
 
 /// Why a request to the device failed: the error class's name (as the CLI's JSON and Python name it) and
-/// the library's message.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// the library's message; serialises as `{"kind", "message"}`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct Failure {
     /// "refused", "device", "timeout", "disconnected", "corrupt", "io", "usage" or "cancelled".
     pub kind: &'static str,
@@ -27,19 +31,16 @@ pub struct Failure {
 }
 
 impl Failure {
-    /// The failure of a classified library error.
-    pub fn of<E: Classify + std::fmt::Display + ?Sized>(e: &E) -> Failure {
-        Failure { kind: e.class().name(), message: e.to_string() }
-    }
-
     /// A request that cannot be made as it is (bad input from the page).
     pub fn usage(message: impl std::fmt::Display) -> Failure {
         Failure { kind: "usage", message: message.to_string() }
     }
+}
 
-    /// As JSON: `{"kind", "message"}`.
-    pub fn to_json(&self) -> Value {
-        json!({"kind": self.kind, "message": self.message})
+/// The failure of a classified library error.
+impl<E: Classify + std::fmt::Display> From<E> for Failure {
+    fn from(e: E) -> Failure {
+        Failure { kind: e.class().name(), message: e.to_string() }
     }
 }
 
@@ -49,10 +50,12 @@ impl std::fmt::Display for Failure {
     }
 }
 
-/// One addressable unit found on the link: an SCU actuator, a PowerCube module, a COMPAX drive.
-#[derive(Debug, Clone, PartialEq)]
+/// One addressable unit found on the link: an SCU actuator, a PowerCube module, a COMPAX drive. It
+/// serialises without its number, which the page gets under the family's key ([`Numbered`](super::message::Numbered)).
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Unit {
     /// Its number: actuator 1..6, module or drive address 1..31.
+    #[serde(skip)]
     pub id: u8,
     /// How the page names it ("A1", "module 3", "drive 1").
     pub label: String,
@@ -69,78 +72,43 @@ pub struct Unit {
     pub speed_key: &'static str,
     /// The unit of that speed ("%", "rad/s", ...).
     pub speed_unit: &'static str,
-    /// The JSON name of the speed a move or jog is asked to go at, and its unit.
-    pub command_speed: (&'static str, &'static str),
-    /// True when samples carry `current_amps`.
-    pub has_current: bool,
+    /// The JSON name of the speed a move or jog is asked to go at.
+    pub command_speed_key: &'static str,
+    /// The unit of that speed.
+    pub command_speed_unit: &'static str,
+    /// `Some("current_amps")` when samples carry the motor current.
+    pub current_key: Option<&'static str>,
 }
 
-impl Unit {
-    /// As JSON, with the family's key for its number (`actuator`, `module`, `drive`).
-    pub fn to_json(&self, unit_key: &str) -> Value {
-        let mut j = json!({
-            "label": self.label,
-            "detail": self.detail,
-            "position_key": self.position_key,
-            "target_key": self.target_key,
-            "position_unit": self.position_unit,
-            "speed_key": self.speed_key,
-            "speed_unit": self.speed_unit,
-            "command_speed_key": self.command_speed.0,
-            "command_speed_unit": self.command_speed.1,
-            "current_key": if self.has_current { Value::from("current_amps") } else { Value::Null },
-        });
-        j[unit_key] = json!(self.id);
-        j
-    }
-}
-
-/// One look at a unit.
-#[derive(Debug, Clone, PartialEq)]
+/// One look at a unit, as the page gets it (with the unit's number, [`SampleEntry`](super::message::SampleEntry)).
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Sample {
-    /// Which unit.
-    pub id: u8,
-    /// Its position, in the unit's position unit.
-    pub position: f64,
-    /// Its speed, in the unit's speed unit, where known.
-    pub speed: Option<f64>,
+    /// Its position in the unit's position unit, under the unit's `position_key`.
+    #[serde(flatten)]
+    pub position: Keyed<f64>,
+    /// Its speed in the unit's speed unit under its `speed_key`, where known.
+    #[serde(flatten)]
+    pub speed: Option<Keyed<f64>>,
     /// Its motor current in A, where the device reports it.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub current_amps: Option<f64>,
     /// The names of the state flags that are set, as the library names them.
     pub flags: Vec<&'static str>,
     /// The flags among them that report a fault.
     pub faults: Vec<&'static str>,
-    /// Set bits that have no name.
+    /// Set bits that have no name (left out when none).
+    #[serde(skip_serializing_if = "is_zero")]
     pub unknown_bits: u64,
     /// True while it moves.
     pub moving: bool,
 }
 
-impl Sample {
-    /// As JSON, with the unit's own key names.
-    pub fn to_json(&self, unit: &Unit, unit_key: &str) -> Value {
-        let mut j = json!({
-            "flags": self.flags,
-            "faults": self.faults,
-            "moving": self.moving,
-        });
-        j[unit_key] = json!(self.id);
-        j[unit.position_key] = json!(self.position);
-        if let Some(s) = self.speed {
-            j[unit.speed_key] = json!(s);
-        }
-        if let Some(c) = self.current_amps {
-            j["current_amps"] = json!(c);
-        }
-        if self.unknown_bits != 0 {
-            j["unknown_bits"] = json!(self.unknown_bits);
-        }
-        j
-    }
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// One row of the family's parameter table or data list.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Param {
     /// Its name (as the CLI takes it).
     pub name: &'static str,
@@ -154,8 +122,18 @@ pub struct Param {
     pub title: &'static str,
 }
 
-/// A value read from the device (or written and read back).
-#[derive(Debug, Clone, PartialEq)]
+impl Param {
+    /// The rows of a family's table.
+    pub fn rows<K>(table: &motionlink_link::table::Table<K>) -> Vec<Param> {
+        let row =
+            |e: &Entry<K>| Param { name: e.name, id: e.id, unit: e.unit, access: e.access.short(), title: e.title };
+        table.iter().map(row).collect()
+    }
+}
+
+/// A value read from the device (or written and read back). It serialises with `read_back` the value read
+/// back (or null) and `read_back_name` the entry it was read from.
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ParamValue {
     /// The entry's name.
     pub name: String,
@@ -169,6 +147,7 @@ pub struct ParamValue {
     pub unit: String,
     /// For a write: what the device gave back when it was read again (None when it cannot be read back,
     /// with the reason in `note`).
+    #[serde(flatten, serialize_with = "read_back")]
     pub read_back: Option<ReadBack>,
     /// What the page should know besides (takes effect at the next power-on; cannot be read back).
     pub note: String,
@@ -185,14 +164,14 @@ pub struct ReadBack {
     pub value: String,
 }
 
-impl ParamValue {
-    /// As JSON: `read_back` is the value read back (or null) and `read_back_name` the entry it was read
-    /// from.
-    pub fn to_json(&self) -> Value {
-        let rb = self.read_back.as_ref();
-        json!({"name": self.name, "id": self.id, "value": self.value, "unit": self.unit,
-               "read_back": rb.map(|r| &r.value), "read_back_name": rb.map(|r| &r.name), "note": self.note})
+fn read_back<S: serde::Serializer>(rb: &Option<ReadBack>, s: S) -> Result<S::Ok, S::Error> {
+    #[derive(Serialize)]
+    struct Shown<'a> {
+        read_back: Option<&'a str>,
+        read_back_name: Option<&'a str>,
     }
+    let rb = rb.as_ref();
+    Shown { read_back: rb.map(|r| r.value.as_str()), read_back_name: rb.map(|r| r.name.as_str()) }.serialize(s)
 }
 
 /// `number` followed by `unit` (no unit: the number alone).
@@ -205,13 +184,14 @@ pub fn with_unit(number: impl std::fmt::Display, unit: &str) -> String {
 }
 
 /// One entry of an error history as the page shows it.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ErrorEntry {
     /// Which entry ("newest", "Error_Code 2", "CubeState now").
     pub label: String,
     /// The code as a number (0: no error).
     pub code: u64,
-    /// The code as the device's documents write it ("0x00001000", "E92").
+    /// The code as the device's documents write it ("0x00001000", "E92"), serialised as `text`.
+    #[serde(rename = "text")]
     pub code_text: String,
     /// What it means, in words ("" when the code says no error).
     pub meaning: String,
@@ -221,22 +201,17 @@ pub struct ErrorEntry {
     pub unknown_bits: u64,
 }
 
-impl ErrorEntry {
-    /// As JSON: `{"label", "code", "text", "meaning", "bits", "unknown_bits"}` (`text` is the code as
-    /// written).
-    pub fn to_json(&self) -> Value {
-        json!({"label": self.label, "code": self.code, "text": self.code_text, "meaning": self.meaning,
-               "bits": self.bits, "unknown_bits": self.unknown_bits})
-    }
-}
-
-/// An error history as the page gets it: `{"title", "entries": [...]}`.
-pub fn error_history(title: &str, entries: &[ErrorEntry]) -> Value {
-    json!({"title": title, "entries": entries.iter().map(ErrorEntry::to_json).collect::<Vec<_>>()})
+/// An error history as the page gets it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ErrorHistory {
+    /// What the entries are ("Error_Code 1..5 of the unit ...").
+    pub title: &'static str,
+    /// The entries, newest first.
+    pub entries: Vec<ErrorEntry>,
 }
 
 /// An action of the family besides move, jog and stop (PowerCube home and reset, COMPAX switch on).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct Action {
     /// Its name in requests.
     pub name: &'static str,
@@ -299,8 +274,8 @@ pub trait Device: Send + Sync + 'static {
     fn take_report(&self, _unit: u8, _what: &str) -> Option<Value> {
         None
     }
-    /// The error history of `unit`, decoded: `{"title", "entries": [{"code", "text", "bits": [...]}]}`.
-    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Value, Failure>>;
+    /// The error history of `unit`, decoded.
+    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<ErrorHistory, Failure>>;
     /// Ends the session (the library stops what it started and says whether that was confirmed). Called
     /// once, with the last reference.
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>>;

@@ -19,6 +19,7 @@ use crate::common::{self, CliError};
 mod compax;
 pub mod device;
 pub mod hub;
+pub mod message;
 mod powercube;
 mod scu;
 mod server;
@@ -189,7 +190,7 @@ async fn serve_until_interrupted(
     let mut stdout = std::io::stdout().lock();
     let url = format!("http://{local}/?token={token}");
     if json {
-        writeln!(stdout, "{}", serde_json::json!({ "console": url }))?;
+        common::print_json(&mut stdout, &common::Keyed("console", &url))?;
     } else {
         writeln!(stdout, "console on {url}")?;
     }

@@ -19,11 +19,11 @@ use motionlink_powercube::model::{
 use motionlink_powercube::session::{Op, Output};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{AsyncClient, Emulator, Error};
-use serde_json::{json, Value};
+use serde_json::Value;
 
 use super::device::{
-    error_history, Action, BoxFuture, Device, ErrorEntry, Failure, JogDirection, Motion, Param as Row, ParamValue,
-    ReadBack, Sample, Unit,
+    Action, BoxFuture, Device, ErrorEntry, ErrorHistory, Failure, JogDirection, Keyed, Motion, Param as Row,
+    ParamValue, ReadBack, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -166,10 +166,6 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     Ok((Arc::new(device), traffic))
 }
 
-fn failure(e: Error) -> Failure {
-    Failure::of(&e)
-}
-
 fn keys(
     kind: Option<ModuleKind>,
 ) -> (&'static str, &'static str, &'static str, &'static str, &'static str, &'static str) {
@@ -226,13 +222,14 @@ impl PowerCube {
             position_unit: unit,
             speed_key: vel,
             speed_unit: vel_unit,
-            command_speed: (vel, vel_unit),
-            has_current: true,
+            command_speed_key: vel,
+            command_speed_unit: vel_unit,
+            current_key: Some("current_amps"),
         }
     }
 
     fn module(&self, address: u8) -> Result<motionlink_powercube::client::AsyncModule<'_>, Failure> {
-        Ok(self.client.module(Address::new(address).map_err(|e| failure(e.into()))?))
+        Ok(self.client.module(Address::new(address).map_err(Error::from)?))
     }
 
     /// The unit the page shows module `address`'s numbers in (that of the kind found), read from the module
@@ -240,13 +237,13 @@ impl PowerCube {
     async fn unit_of(&self, m: &motionlink_powercube::client::AsyncModule<'_>) -> Result<AxisUnit, Failure> {
         match self.kind(m.address().get()) {
             Some(kind) => Ok(kind.axis_unit()),
-            None => Ok(m.kind().await.map_err(failure)?.axis_unit()),
+            None => Ok(m.kind().await?.axis_unit()),
         }
     }
 
     /// The velocity of a move or jog, checked as every front end checks it.
     fn speed(speed: Option<f64>) -> Result<Option<MoveVelocity>, Failure> {
-        speed.map(MoveVelocity::new).transpose().map_err(failure)
+        speed.map(MoveVelocity::new).transpose().map_err(Failure::from)
     }
 
     /// Keeps `report` (a motion `what` of module `unit` ended well) for the hub to send with its end.
@@ -272,12 +269,12 @@ impl Device for PowerCube {
         Box::pin(async move {
             let mut found = Vec::new();
             if self.modules.is_empty() {
-                for e in self.client.scan().await.map_err(failure)? {
-                    found.push((e.address.get(), e.info.map_err(failure)));
+                for e in self.client.scan().await? {
+                    found.push((e.address.get(), e.info.map_err(Failure::from)));
                 }
             } else {
                 for &a in &self.modules {
-                    let info = self.module(a)?.info().await.map_err(failure);
+                    let info = self.module(a)?.info().await.map_err(Failure::from);
                     if let Err(e) = &info {
                         if e.kind == "timeout" {
                             continue;
@@ -344,9 +341,8 @@ impl Device for PowerCube {
                             None => (Vec::new(), Vec::new(), 0),
                         };
                         Ok(Sample {
-                            id: u.id,
-                            position: f64::from(position.value()),
-                            speed: slow.velocity,
+                            position: Keyed(u.position_key, f64::from(position.value())),
+                            speed: slow.velocity.map(|v| Keyed(u.speed_key, v)),
                             current_amps: slow.current,
                             flags,
                             faults,
@@ -354,7 +350,7 @@ impl Device for PowerCube {
                             moving: short.contains(ShortFlag::Motion),
                         })
                     }
-                    Err(e) => Err(failure(e)),
+                    Err(e) => Err(e.into()),
                 });
             }
             out
@@ -362,7 +358,7 @@ impl Device for PowerCube {
     }
 
     fn move_to(self: Arc<Self>, unit: u8, target: f64, speed: Option<f64>) -> Result<Motion, Failure> {
-        let target = Target::new(target).map_err(failure)?;
+        let target = Target::new(target)?;
         let vel = Self::speed(speed)?;
         self.module(unit)?;
         Ok(Box::pin(async move {
@@ -371,7 +367,7 @@ impl Device for PowerCube {
             let vel = vel.map(|v| Velocity::new(v.value(), axis));
             let spec = MoveSpec { vel, ..MoveSpec::to(Position::new(target.value(), axis)) };
             // Limits, read-backs and the final position checked; dropped, the module is halted.
-            let r = m.move_to_guarded(&spec, self.guard).await.map_err(failure)?;
+            let r = m.move_to_guarded(&spec, self.guard).await?;
             self.keep_report(unit, "move", &r);
             Ok(format!("module {unit} at {:.4} (target {}), state {}", r.reached.value(), target.value(), r.state))
         }))
@@ -390,14 +386,14 @@ impl Device for PowerCube {
                 JogDirection::Positive => Param::MaxPos,
                 JogDirection::Negative => Param::MinPos,
             };
-            let target = f32_of(m.get(limit).await.map_err(failure)?)
+            let target = f32_of(m.get(limit).await?)
                 .ok_or_else(|| Failure::usage(format!("{} is not a number", limit.name())))?;
             let spec = MoveSpec {
                 vel,
                 timeout: Duration::from_secs(3600),
                 ..MoveSpec::to(Position::new(target as f32, axis))
             };
-            let r = m.move_to_guarded(&spec, self.guard).await.map_err(failure)?;
+            let r = m.move_to_guarded(&spec, self.guard).await?;
             self.keep_report(unit, "jog", &r);
             Ok(format!("module {unit} reached its {} at {:.4}", limit.name(), r.reached.value()))
         }))
@@ -405,14 +401,14 @@ impl Device for PowerCube {
 
     fn stop(self: Arc<Self>, unit: u8) -> Motion {
         Box::pin(async move {
-            self.module(unit)?.halt().await.map_err(failure)?;
+            self.module(unit)?.halt().await?;
             Ok(format!("module {unit} halted (acknowledged; it stays halted until a reset)"))
         })
     }
 
     fn stop_started(self: Arc<Self>) -> Motion {
         Box::pin(async move {
-            self.client.halt_started().await.map_err(failure)?;
+            self.client.halt_started().await?;
             Ok(String::new())
         })
     }
@@ -429,14 +425,14 @@ impl Device for PowerCube {
         match name {
             "home" => Ok(Box::pin(async move {
                 let timeout = MotionTimeout::DEFAULT.get();
-                let r = self.module(unit)?.home_guarded(timeout, self.guard).await.map_err(failure)?;
+                let r = self.module(unit)?.home_guarded(timeout, self.guard).await?;
                 self.keep_report(unit, "Home", &r);
                 let unverified =
                     if r.verified { String::new() } else { format!("; not verified: {}", r.not_verifiable.join("; ")) };
                 Ok(format!("module {unit} homed at {:.4}, state {}{unverified}", r.reached.value(), r.state))
             })),
             "reset" => Ok(Box::pin(async move {
-                let released = self.module(unit)?.reset_and_release_watchdog().await.map_err(failure)?;
+                let released = self.module(unit)?.reset_and_release_watchdog().await?;
                 Ok(if released {
                     format!("module {unit} reset (its watchdog had expired with no host serving it: switched offline)")
                 } else {
@@ -448,16 +444,13 @@ impl Device for PowerCube {
     }
 
     fn params(&self) -> Vec<Row> {
-        PARAMS
-            .iter()
-            .map(|e| Row { name: e.name, id: e.id, unit: e.unit, access: e.access.short(), title: e.title })
-            .collect()
+        Row::rows(&PARAMS)
     }
 
     fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<ParamValue, Failure>> {
         Box::pin(async move {
             let p: Param = name.trim().parse().map_err(Failure::usage)?;
-            let v = self.module(unit)?.get(p).await.map_err(failure)?;
+            let v = self.module(unit)?.get(p).await?;
             let kind = self.kind(unit);
             Ok(ParamValue {
                 name: p.name().to_string(),
@@ -481,7 +474,7 @@ impl Device for PowerCube {
             let p: Param = name.trim().parse().map_err(Failure::usage)?;
             let v = CubeValue::parse(p, &value).map_err(Failure::usage)?;
             let kind = self.kind(unit);
-            let readback = self.module(unit)?.set_checked(p, v).await.map_err(failure)?;
+            let readback = self.module(unit)?.set_checked(p, v).await?;
             let (read_back, note) = match readback.read {
                 Some(r) => {
                     // TargetPos, TargetVel and TargetAcc cannot be read: what came back is their twin in
@@ -507,15 +500,15 @@ impl Device for PowerCube {
         })
     }
 
-    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Value, Failure>> {
+    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<ErrorHistory, Failure>> {
         Box::pin(async move {
-            let s = self.module(unit)?.state().await.map_err(failure)?;
+            let s = self.module(unit)?.state().await?;
             let mut words = Vec::new();
             let bits: Vec<Value> = s
                 .faults()
                 .map(|f| {
                     words.push(format!("{}: {}", f.name(), f.meaning()));
-                    json!({"bit": f.mask().trailing_zeros(), "name": f.name(), "cause": f.meaning()})
+                    crate::common::to_json(&f)
                 })
                 .collect();
             let entry = ErrorEntry {
@@ -526,10 +519,8 @@ impl Device for PowerCube {
                 bits,
                 unknown_bits: 0,
             };
-            Ok(error_history(
-                "PowerCube modules keep no error history: the fault flags of the state word now",
-                &[entry],
-            ))
+            let title = "PowerCube modules keep no error history: the fault flags of the state word now";
+            Ok(ErrorHistory { title, entries: vec![entry] })
         })
     }
 
@@ -544,7 +535,7 @@ impl Device for PowerCube {
             match Arc::try_unwrap(self) {
                 Ok(me) => {
                     let PowerCube { client, _host, .. } = me;
-                    let r = client.close().await.map_err(failure).map(|()| String::new());
+                    let r = client.close().await.map_err(Failure::from).map(|()| String::new());
                     // The in-process emulator goes only after the session's end.
                     drop(_host);
                     r

@@ -19,8 +19,8 @@ use motionlink_scu::{AsyncClient, ClientConfig, Emulator, FunctionMap, SimConfig
 use serde_json::Value;
 
 use super::device::{
-    error_history, finite, Action, BoxFuture, Device, ErrorEntry, Failure, JogDirection, Motion, Param, ParamValue,
-    ReadBack, Sample, Unit,
+    finite, Action, BoxFuture, Device, ErrorEntry, ErrorHistory, Failure, JogDirection, Keyed, Motion, Param,
+    ParamValue, ReadBack, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -134,10 +134,6 @@ struct BitWithReaction {
     reaction: &'static str,
 }
 
-fn failure(e: motionlink_scu::Error) -> Failure {
-    Failure::of(&e)
-}
-
 fn actuator(n: u8) -> Result<Actuator, Failure> {
     Actuator::checked(i64::from(n)).map_err(|e| Failure::usage(format!("actuator {n}: {e}")))
 }
@@ -204,7 +200,7 @@ impl Device for Scu {
 
     fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, Failure>> {
         Box::pin(async move {
-            let found = self.client.connected_actuators().await.map_err(failure)?;
+            let found = self.client.connected_actuators().await?;
             let mut units = Vec::new();
             for a in found {
                 let f = self.function_of(a)?;
@@ -217,8 +213,9 @@ impl Device for Scu {
                     position_unit: "counts",
                     speed_key: "speed_percent",
                     speed_unit: "%",
-                    command_speed: self.speed_key(),
-                    has_current: true,
+                    command_speed_key: self.speed_key().0,
+                    command_speed_unit: self.speed_key().1,
+                    current_key: Some("current_amps"),
                 });
             }
             Ok(units)
@@ -236,7 +233,7 @@ impl Device for Scu {
                 Ok::<_, motionlink_scu::Error>((positions, status, speeds, currents))
             };
             match read.await {
-                Err(e) => units.iter().map(|_| Err(failure(e.clone()))).collect(),
+                Err(e) => units.iter().map(|_| Err(Failure::from(e.clone()))).collect(),
                 Ok((positions, status, speeds, currents)) => units
                     .iter()
                     .map(|u| {
@@ -244,9 +241,8 @@ impl Device for Scu {
                         let flags = status[i];
                         use motionlink_link::flags::FlagWord;
                         Ok(Sample {
-                            id: u.id,
-                            position: f64::from(positions[i].get()),
-                            speed: speeds.get(i).map(|s| f64::from(*s)),
+                            position: Keyed(u.position_key, f64::from(positions[i].get())),
+                            speed: speeds.get(i).map(|s| Keyed(u.speed_key, f64::from(*s))),
                             current_amps: currents.get(i).map(|c| f64::from(*c) / 10.0),
                             flags: flags.names(),
                             faults: flags
@@ -271,9 +267,9 @@ impl Device for Scu {
             .map_err(|e| Failure::usage(format!("target {target}: {e}")))?;
         let speed = self.speed(speed)?.unwrap_or(Speed::of_mode(self.speed_mode, self.speed_mode.max()).expect("max"));
         let function = self.function_of(a)?;
-        let op = self.client.move_to_op(a, position, speed, Some(function)).map_err(failure)?;
+        let op = self.client.move_to_op(a, position, speed, Some(function))?;
         Ok(Box::pin(async move {
-            let out = self.client.start(op).await.map_err(failure)?;
+            let out = self.client.start(op).await?;
             match out {
                 motionlink_scu::Output::Move(r) => Ok(format!(
                     "{a} at {} (target {target}) after {:.2} s",
@@ -296,10 +292,10 @@ impl Device for Scu {
         Ok(Box::pin(async move {
             if let Some(s) = speed {
                 let raw = s.for_motion(self.speed_mode).map_err(Failure::usage)?;
-                self.client.set(function.remote_speed_index(), &ScuValue::RemoteSpeed(raw)).await.map_err(failure)?;
+                self.client.set(function.remote_speed_index(), &ScuValue::RemoteSpeed(raw)).await?;
             }
             // Runs until the unit reports the end of travel; dropped, the session sends RS (fast) and checks it.
-            let r = self.client.run_function(RunAction::Motion(function, dir), None).await.map_err(failure)?;
+            let r = self.client.run_function(RunAction::Motion(function, dir), None).await?;
             let rest = r.rest.iter().map(|(a, p)| format!("{a} at {p}")).collect::<Vec<_>>().join(", ");
             Ok(format!("{function} ran {:.2} s to its end of travel: {rest}", r.duration.as_secs_f64()))
         }))
@@ -309,7 +305,7 @@ impl Device for Scu {
         Box::pin(async move {
             let a = actuator(unit)?;
             let f = self.function_of(a)?;
-            self.client.stop_motion(f, StopMode::Fast).await.map_err(failure)?;
+            self.client.stop_motion(f, StopMode::Fast).await?;
             Ok(format!("{f} stopped (RS fast, acknowledged by the unit)"))
         })
     }
@@ -320,7 +316,7 @@ impl Device for Scu {
             let mut done = Vec::new();
             for id in started {
                 let Some(f) = MotionFunction::new(id.number()) else { continue };
-                self.client.stop_motion(f, StopMode::Fast).await.map_err(failure)?;
+                self.client.stop_motion(f, StopMode::Fast).await?;
                 done.push(f.to_string());
             }
             Ok(if done.is_empty() { String::new() } else { format!("{} stopped (RS acknowledged)", done.join(", ")) })
@@ -336,16 +332,13 @@ impl Device for Scu {
     }
 
     fn params(&self) -> Vec<Param> {
-        TABLE
-            .iter()
-            .map(|e| Param { name: e.name, id: e.id, unit: e.unit, access: e.access.short(), title: e.title })
-            .collect()
+        Param::rows(&TABLE)
     }
 
     fn read_param(self: Arc<Self>, _unit: u8, name: String) -> BoxFuture<'static, Result<ParamValue, Failure>> {
         Box::pin(async move {
             let it = lookup_entry(&name)?;
-            let values = self.client.get(it.index()).await.map_err(failure)?;
+            let values = self.client.get(it.index()).await?;
             let unit = match it {
                 Item::Entry(e) => e.unit,
                 Item::Group(_) => "",
@@ -371,7 +364,7 @@ impl Device for Scu {
             let (e, v) = parse_write(lookup_entry(&name)?, &value).map_err(Failure::usage)?;
             // The library writes with RT, reads the entry back and compares (a difference is an error), then
             // reads what the unit holds; a unit that does not read remote data back says so in the report.
-            let w = self.client.write(e, v).await.map_err(failure)?;
+            let w = self.client.write(e, v).await?;
             Ok(ParamValue {
                 name: e.name.to_string(),
                 id: e.id,
@@ -385,9 +378,9 @@ impl Device for Scu {
         })
     }
 
-    fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<Value, Failure>> {
+    fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<ErrorHistory, Failure>> {
         Box::pin(async move {
-            let history = self.client.error_history().await.map_err(failure)?;
+            let history = self.client.error_history().await?;
             let entries: Vec<ErrorEntry> = history
                 .iter()
                 .enumerate()
@@ -417,7 +410,7 @@ impl Device for Scu {
                     }
                 })
                 .collect();
-            Ok(error_history("Error_Code 1..5 of the unit (0x00D1..0x00D5), newest first", &entries))
+            Ok(ErrorHistory { title: "Error_Code 1..5 of the unit (0x00D1..0x00D5), newest first", entries })
         })
     }
 
@@ -436,7 +429,7 @@ impl Device for Scu {
             match motionlink_scu::ending(&started, closed) {
                 motionlink_scu::Ending::Clean => Ok(String::new()),
                 motionlink_scu::Ending::Stopped(note) => Ok(note),
-                motionlink_scu::Ending::Failed(e) | motionlink_scu::Ending::Unconfirmed(e) => Err(failure(e)),
+                motionlink_scu::Ending::Failed(e) | motionlink_scu::Ending::Unconfirmed(e) => Err(e.into()),
             }
         })
     }

@@ -6,17 +6,19 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use axum::body::{Body, Bytes};
-use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
+use axum::extract::ws::{Message as WsMessage, WebSocket, WebSocketUpgrade};
 use axum::extract::{FromRequestParts, Request, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::Response;
-use serde_json::{json, Value};
+use serde_json::Value;
 use tokio::sync::{broadcast, mpsc};
 use tokio::time::Instant;
 
 use super::device::{Failure, JogDirection};
 use super::hub::{Hub, Notice, Role, Units};
+use super::message::{Message, Numbered};
 use super::token;
+use crate::common::Keyed;
 
 const INDEX_HTML: &str = include_str!("assets/index.html");
 const APP_JS: &str = include_str!("assets/app.js");
@@ -124,55 +126,47 @@ pub async fn handle(State(app): State<Arc<App>>, req: Request) -> Response {
     }
 }
 
-/// The units as the page gets them: `null` while scanning, with the failure if the scan failed.
-fn units_json(hub: &Hub, units: &Units) -> Value {
+/// The units as the page gets them: none while scanning, with the failure if the scan failed.
+fn units_message(hub: &Hub, units: &Units) -> Message {
     let key = hub.device().unit_key();
-    match units {
-        Units::Scanning => json!({"type": "units", "scanning": true, "units": []}),
-        Units::Found(list) => {
-            json!({"type": "units", "scanning": false, "units": list.iter().map(|u| u.to_json(key)).collect::<Vec<_>>()})
-        }
-        Units::Failed(e) => json!({"type": "units", "scanning": true, "units": [], "error": e.to_json()}),
-    }
-}
-
-fn role_json(hub: &Hub, page: u64) -> Value {
-    let (role, free) = hub.role_of(page);
-    let message = match role {
-        Role::Control => "this page controls the console".to_string(),
-        Role::ReadOnly if free => "read-only: no page controls the console now; take control to move".to_string(),
-        Role::ReadOnly => "read-only: another page controls the console (Stop still works here)".to_string(),
+    let (scanning, found, error) = match units {
+        Units::Scanning => (true, Vec::new(), None),
+        Units::Found(list) => (false, list.clone(), None),
+        Units::Failed(e) => (true, Vec::new(), Some(e.clone())),
     };
-    json!({"type": "role", "role": role.name(), "control_free": free, "message": message})
+    let units = found.into_iter().map(|u| Numbered { unit: Keyed(key, u.id), what: u }).collect();
+    Message::Units { scanning, units, error }
 }
 
-fn welcome(hub: &Hub, page: u64) -> Value {
+fn role_message(hub: &Hub, page: u64) -> Message {
+    let (role, control_free) = hub.role_of(page);
+    let message = match role {
+        Role::Control => "this page controls the console",
+        Role::ReadOnly if control_free => "read-only: no page controls the console now; take control to move",
+        Role::ReadOnly => "read-only: another page controls the console (Stop still works here)",
+    };
+    Message::Role { role: role.name(), control_free, message }
+}
+
+fn welcome(hub: &Hub, page: u64) -> Message {
     let d = hub.device();
-    let params: Vec<Value> = d
-        .params()
-        .iter()
-        .map(|p| json!({"name": p.name, "id": p.id, "unit": p.unit, "access": p.access, "title": p.title}))
-        .collect();
-    let actions: Vec<Value> =
-        d.actions().iter().map(|a| json!({"name": a.name, "label": a.label, "moves": a.moves})).collect();
-    json!({
-        "type": "welcome",
-        "family": d.family(),
-        "port": d.port(),
-        "unit_key": d.unit_key(),
-        "params": params,
-        "actions": actions,
-        "dead_man_ms": super::hub::DEAD_MAN.as_millis() as u64,
-        "sample_period_ms": super::hub::SAMPLE_PERIOD.as_millis() as u64,
-        "role": role_json(hub, page),
-    })
+    Message::Welcome {
+        family: d.family(),
+        port: d.port(),
+        unit_key: d.unit_key(),
+        params: d.params(),
+        actions: d.actions(),
+        dead_man_ms: super::hub::DEAD_MAN.as_millis() as u64,
+        sample_period_ms: super::hub::SAMPLE_PERIOD.as_millis() as u64,
+        role: Box::new(role_message(hub, page)),
+    }
 }
 
 /// One page's WebSocket: what it sends is done (its role allowing); samples, the traffic log and notices
 /// go to it until it goes away, which stops the motion it owns.
 async fn page(hub: Arc<Hub>, mut socket: WebSocket) {
     let (id, _) = hub.page_opened();
-    let (replies, mut replies_rx) = mpsc::channel::<Value>(64);
+    let (replies, mut replies_rx) = mpsc::channel::<Message>(64);
     let mut notices = hub.notices();
     let mut samples = hub.samples();
     let mut shutdown = hub.shutdown_signal();
@@ -181,33 +175,33 @@ async fn page(hub: Arc<Hub>, mut socket: WebSocket) {
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut last_heard = Instant::now();
     let mut last_ping = Instant::now();
-    let mut outgoing: Vec<Value> = vec![welcome(&hub, id), units_json(&hub, &hub.units().borrow().clone())];
+    let mut outgoing: Vec<Message> = vec![welcome(&hub, id), units_message(&hub, &hub.units().borrow().clone())];
     'page: loop {
         for v in outgoing.drain(..) {
-            if socket.send(Message::Text(v.to_string().into())).await.is_err() {
+            if socket.send(WsMessage::Text(v.json().to_string().into())).await.is_err() {
                 break 'page;
             }
         }
         tokio::select! {
             msg = socket.recv() => match msg {
-                Some(Ok(Message::Text(text))) => {
+                Some(Ok(WsMessage::Text(text))) => {
                     last_heard = Instant::now();
                     if let Some(v) = request(&hub, id, text.as_str(), &replies) {
                         outgoing.push(v);
                     }
                 }
-                Some(Ok(Message::Close(_))) | None | Some(Err(_)) => break 'page,
+                Some(Ok(WsMessage::Close(_))) | None | Some(Err(_)) => break 'page,
                 Some(Ok(_)) => last_heard = Instant::now(),
             },
             Some(v) = replies_rx.recv() => outgoing.push(v),
             notice = notices.recv() => match notice {
                 Ok(Notice::Json(text)) => {
-                    if socket.send(Message::Text(text.as_str().into())).await.is_err() {
+                    if socket.send(WsMessage::Text(text.as_str().into())).await.is_err() {
                         break 'page;
                     }
                 }
-                Ok(Notice::RoleChanged) => outgoing.push(role_json(&hub, id)),
-                Ok(Notice::UnitsChanged) => outgoing.push(units_json(&hub, &hub.units().borrow().clone())),
+                Ok(Notice::RoleChanged) => outgoing.push(role_message(&hub, id)),
+                Ok(Notice::UnitsChanged) => outgoing.push(units_message(&hub, &hub.units().borrow().clone())),
                 Err(broadcast::error::RecvError::Lagged(_)) => {}
                 Err(broadcast::error::RecvError::Closed) => break 'page,
             },
@@ -218,7 +212,7 @@ async fn page(hub: Arc<Hub>, mut socket: WebSocket) {
                 // Each sample goes out as soon as it is taken.
                 let frame = samples.borrow_and_update().clone();
                 if let Some(text) = frame {
-                    if socket.send(Message::Text(text.as_str().into())).await.is_err() {
+                    if socket.send(WsMessage::Text(text.as_str().into())).await.is_err() {
                         break 'page;
                     }
                 }
@@ -227,7 +221,7 @@ async fn page(hub: Arc<Hub>, mut socket: WebSocket) {
                 let lines = hub.traffic.since(last_seq, LOG_BATCH);
                 if let Some(last) = lines.last() {
                     last_seq = last.seq;
-                    outgoing.push(json!({"type": "traffic", "lines": lines.iter().map(|l| l.to_json()).collect::<Vec<_>>()}));
+                    outgoing.push(Message::Traffic { lines });
                 }
                 let now = Instant::now();
                 if now.duration_since(last_heard) > PAGE_SILENCE {
@@ -236,13 +230,14 @@ async fn page(hub: Arc<Hub>, mut socket: WebSocket) {
                 }
                 if now.duration_since(last_ping) >= PING_EVERY {
                     last_ping = now;
-                    if socket.send(Message::Ping(Bytes::from_static(b"ml"))).await.is_err() {
+                    if socket.send(WsMessage::Ping(Bytes::from_static(b"ml"))).await.is_err() {
                         break 'page;
                     }
                 }
             }
             _ = shutdown.changed() => {
-                let _ = socket.send(Message::Text(json!({"type": "bye", "message": "the console is ending"}).to_string().into())).await;
+                let bye = Message::Bye { message: "the console is ending" }.json().to_string();
+                let _ = socket.send(WsMessage::Text(bye.into())).await;
                 break 'page;
             }
         }
@@ -267,37 +262,30 @@ fn unit_of(hub: &Hub, req: &Value) -> Result<u8, Failure> {
         .ok_or_else(|| Failure::usage(format!("the request names no {key}")))
 }
 
-fn refused(request: &str, e: &Failure) -> Value {
-    json!({"type": "refused", "request": request, "error": e.to_json(), "message": e.message})
-}
-
 /// Handles one message of page `page`: an answer to send at once, or none (an answer comes later through
 /// `replies`).
-fn request(hub: &Arc<Hub>, page: u64, text: &str, replies: &mpsc::Sender<Value>) -> Option<Value> {
+fn request(hub: &Arc<Hub>, page: u64, text: &str, replies: &mpsc::Sender<Message>) -> Option<Message> {
     let req: Value = match serde_json::from_str(text) {
         Ok(v) => v,
-        Err(e) => return Some(refused("?", &Failure::usage(format!("not JSON: {e}")))),
+        Err(e) => return Some(Message::failure("?", false, Failure::usage(format!("not JSON: {e}")))),
     };
     let kind = req.get("type").and_then(Value::as_str).unwrap_or("").to_string();
     let result = handle_request(hub, page, &kind, &req, replies);
     match result {
         Ok(answer) => answer,
-        Err(e) => Some(refused(&kind, &e)),
+        Err(e) => Some(Message::failure(&kind, false, e)),
     }
 }
 
 fn spawn_reply(
-    replies: &mpsc::Sender<Value>,
+    replies: &mpsc::Sender<Message>,
     request: &str,
-    work: impl std::future::Future<Output = Result<Value, Failure>> + Send + 'static,
+    work: impl std::future::Future<Output = Result<Message, Failure>> + Send + 'static,
 ) {
     let replies = replies.clone();
     let request = request.to_string();
     tokio::spawn(async move {
-        let answer = match work.await {
-            Ok(v) => v,
-            Err(e) => json!({"type": "failed", "request": request, "error": e.to_json(), "message": e.message}),
-        };
+        let answer = work.await.unwrap_or_else(|e| Message::failure(&request, true, e));
         let _ = replies.send(answer).await;
     });
 }
@@ -307,8 +295,8 @@ fn handle_request(
     page: u64,
     kind: &str,
     req: &Value,
-    replies: &mpsc::Sender<Value>,
-) -> Result<Option<Value>, Failure> {
+    replies: &mpsc::Sender<Message>,
+) -> Result<Option<Message>, Failure> {
     match kind {
         "jog_hold" => {
             // Renewals are frequent and need no answer; a jog that ended is said by its notice.
@@ -323,11 +311,8 @@ fn handle_request(
             let unit = unit_of(hub, req).ok();
             let hub2 = Arc::clone(hub);
             spawn_reply(replies, kind, async move {
-                match hub2.stop(unit).await {
-                    Some(Ok(msg)) => Ok(json!({"type": "stopped", "ok": true, "message": msg})),
-                    Some(Err(e)) => Err(e),
-                    None => Ok(json!({"type": "stopped", "ok": true, "message": "stopping the motion under way"})),
-                }
+                let message = hub2.stop(unit).await.unwrap_or_else(|| Ok("stopping the motion under way".into()))?;
+                Ok(Message::Stopped { ok: true, message })
             });
             Ok(None)
         }
@@ -345,7 +330,7 @@ fn handle_request(
             let u = list.iter().find(|u| u.id == unit).ok_or_else(|| Failure::usage(format!("no unit {unit}")))?;
             let target =
                 number(req, u.target_key)?.ok_or_else(|| Failure::usage(format!("a move needs {}", u.target_key)))?;
-            let speed = number(req, u.command_speed.0)?;
+            let speed = number(req, u.command_speed_key)?;
             hub.check_control(page)?;
             let device = Arc::clone(hub.device());
             let motion = device.move_to(unit, target, speed)?;
@@ -383,8 +368,7 @@ fn handle_request(
             } else {
                 let label = action.label;
                 spawn_reply(replies, kind, async move {
-                    work.await
-                        .map(|m| json!({"type": "action", "name": name, "label": label, "ok": true, "message": m}))
+                    work.await.map(|message| Message::Action { name, label, ok: true, message })
                 });
             }
             Ok(None)
@@ -405,12 +389,12 @@ fn handle_request(
                 };
                 spawn_reply(replies, kind, async move {
                     let v = device.write_param(unit, name, value).await?;
-                    Ok(json!({"type": "param", "written": true, "param": v.to_json()}))
+                    Ok(Message::Param { written: true, param: v })
                 });
             } else {
                 spawn_reply(replies, kind, async move {
                     let v = device.read_param(unit, name).await?;
-                    Ok(json!({"type": "param", "written": false, "param": v.to_json()}))
+                    Ok(Message::Param { written: false, param: v })
                 });
             }
             Ok(None)
@@ -418,14 +402,9 @@ fn handle_request(
         "errors" => {
             let unit = unit_of(hub, req)?;
             let device = Arc::clone(hub.device());
-            let key = device.unit_key();
+            let key = Keyed(device.unit_key(), unit);
             let work = device.errors(unit);
-            spawn_reply(replies, kind, async move {
-                let mut v = work.await?;
-                v["type"] = json!("errors");
-                v[key] = json!(unit);
-                Ok(v)
-            });
+            spawn_reply(replies, kind, async move { Ok(Message::Errors(Numbered { unit: key, what: work.await? })) });
             Ok(None)
         }
         other => Err(Failure::usage(format!("unknown request {other:?}"))),

@@ -10,23 +10,24 @@ use motionlink_link::chunk::{Chunk, Direction};
 use motionlink_link::clock::{lock, SharedClock, Timestamp};
 use motionlink_link::describe::{Annotation, Describe, DescribingTap, OnTelegrams};
 use motionlink_link::hex::hex;
-use serde_json::{json, Value};
 
 /// How many capture lines the download keeps (the oldest go first).
 pub const CAPTURE_LINES: usize = 200_000;
 /// How many decoded telegrams the live log keeps for pages that fall behind.
 pub const LOG_LINES: usize = 2_000;
 
-/// One decoded telegram of the live log.
-#[derive(Debug, Clone)]
+/// One decoded telegram of the live log; serialises with `direction` by name and the bytes as `hex`.
+#[derive(Debug, Clone, serde::Serialize)]
 pub struct LogLine {
     /// Its place in the log (counts up from 1).
     pub seq: u64,
     /// Seconds since the console started.
     pub t_s: f64,
     /// Which way it went.
+    #[serde(serialize_with = "direction_name")]
     pub direction: Direction,
     /// Its bytes (a CAN frame's data).
+    #[serde(rename = "hex", serialize_with = "hex_string")]
     pub bytes: Vec<u8>,
     /// The CAN identifier, for a frame.
     pub can_id: Option<u32>,
@@ -36,12 +37,12 @@ pub struct LogLine {
     pub bad: bool,
 }
 
-impl LogLine {
-    /// As JSON.
-    pub fn to_json(&self) -> Value {
-        json!({"seq": self.seq, "t_s": self.t_s, "direction": self.direction.name(), "hex": hex(&self.bytes),
-               "can_id": self.can_id, "meaning": self.meaning, "bad": self.bad})
-    }
+fn direction_name<S: serde::Serializer>(d: &Direction, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(d.name())
+}
+
+fn hex_string<S: serde::Serializer>(bytes: &[u8], s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(&hex(bytes))
 }
 
 struct Inner {

@@ -9,8 +9,8 @@ use motionlink_link::describe::Describe;
 use motionlink_link::probe::{find_baud, BaudChoice, PortKind};
 use motionlink_link::{RealClock, SharedClock};
 
-use super::{finish, profiles_for_save, setup, Options};
-use crate::common::{self, CliError};
+use super::{finish, setup, Options};
+use crate::common::CliError;
 use crate::compax::{open, Action};
 use crate::tap::{LinkArgs, Tap};
 
@@ -91,15 +91,9 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
     })?;
     setup.baud = (setup.kind == PortKind::Serial).then_some(baud);
     setup.baud_check = Some(baud_check);
-    let report = probe(&bus, &setup, &drives);
-    let closed = bus.close();
+    let ended = (probe(&bus, &setup, &drives), bus.close());
     tap.flush();
-    let mut report = report.map_err(|e| common::classified(&e))?;
-    closed.map_err(|e| common::classified(&e))?;
-    if args.options.save {
-        save_profile(&mut report, &mut profiles_for_save()?).map_err(|e| CliError::usage(format!("--save: {e}")))?;
-    }
-    finish(&report, json, drive_line, &mut std::io::stdout().lock())
+    finish(ended, &args.options, save_profile, json, drive_line)
 }
 
 fn drive_line(d: &CompaxDrive) -> String {

@@ -7,7 +7,7 @@ use std::io::Write;
 
 use motionlink_link::error::Classify;
 use motionlink_link::probe::{BaudChoice, Check, CheckResult, PortKind, ProbeReport, ProbeSetup};
-use motionlink_link::profile::{ProfileUse, Profiles};
+use motionlink_link::profile::{ProfileError, ProfileUse, Profiles};
 use motionlink_link::url::PortUrl;
 use serde::Serialize;
 
@@ -112,9 +112,26 @@ fn profiles_for_save() -> Result<Profiles, CliError> {
     Profiles::load(&path).map_err(|e| CliError::usage(format!("--save: {e}")))
 }
 
+/// Ends a probe: the session's end (`closed`) checked, the report saved as profiles with `--save` (by the
+/// family's `save`), then printed ([`print_report`]).
+fn finish<D: Serialize, E: Classify + std::fmt::Display, C>(
+    (report, closed): (Result<ProbeReport<D>, E>, Result<C, E>),
+    options: &Options,
+    save: fn(&mut ProbeReport<D>, &mut Profiles) -> Result<(), ProfileError>,
+    json: bool,
+    device: impl Fn(&D) -> String,
+) -> Result<(), CliError> {
+    let mut report = report.map_err(|e| common::classified(&e))?;
+    closed.map_err(|e| common::classified(&e))?;
+    if options.save {
+        save(&mut report, &mut profiles_for_save()?).map_err(|e| CliError::usage(format!("--save: {e}")))?;
+    }
+    print_report(&report, json, device, &mut std::io::stdout().lock())
+}
+
 /// Prints `report` (one JSON object with `--json`, else text with `device` giving each device's lines), and
 /// ends with exit code 1 when a check failed.
-fn finish<D: Serialize>(
+fn print_report<D: Serialize>(
     report: &ProbeReport<D>,
     json: bool,
     device: impl Fn(&D) -> String,

@@ -9,7 +9,7 @@ use motionlink_powercube::model::Address;
 use motionlink_powercube::probe::{baud_choice, probe, save_profile, PowercubeModule};
 use motionlink_powercube::sim::Variant;
 
-use super::{finish, profiles_for_save, setup, Options};
+use super::{finish, setup, Options};
 use crate::common::{self, CliError};
 use crate::powercube::{open, Action};
 use crate::tap::{LinkArgs, Tap};
@@ -85,16 +85,10 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
     })?;
     setup.baud = (setup.kind == PortKind::Serial).then_some(baud);
     setup.baud_check = Some(baud_check);
-    let report = probe(&client, &setup);
-    let closed = client.close();
+    let ended = (probe(&client, &setup), client.close());
     drop(host);
     tap.flush();
-    let mut report = report.map_err(|e| common::classified(&e))?;
-    closed.map_err(|e| common::classified(&e))?;
-    if args.options.save {
-        save_profile(&mut report, &mut profiles_for_save()?).map_err(|e| CliError::usage(format!("--save: {e}")))?;
-    }
-    finish(&report, json, module_line, &mut std::io::stdout().lock())
+    finish(ended, &args.options, save_profile, json, module_line)
 }
 
 fn module_line(m: &PowercubeModule) -> String {

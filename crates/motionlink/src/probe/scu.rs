@@ -13,7 +13,7 @@ use motionlink_scu::model::SpeedMode;
 use motionlink_scu::probe::{baud_choice, probe, save_profile, ScuDevice};
 use motionlink_scu::{Client, ClientConfig, Emulator, Variants};
 
-use super::{finish, profiles_for_save, setup, Options};
+use super::{finish, setup, Options};
 use crate::common::{self, CliError};
 use crate::scu::{in_process_config, InProcess};
 use crate::tap::{LinkArgs, Tap};
@@ -88,15 +88,9 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
     })?;
     setup.baud = (setup.kind == PortKind::Serial).then_some(baud);
     setup.baud_check = Some(baud_check);
-    let report = probe(&client, &setup);
-    let closed = client.close();
+    let ended = (probe(&client, &setup), client.close());
     tap.flush();
-    let mut report = report.map_err(|e| common::classified(&e))?;
-    closed.map_err(|e| common::classified(&e))?;
-    if args.options.save {
-        save_profile(&mut report, &mut profiles_for_save()?).map_err(|e| CliError::usage(format!("--save: {e}")))?;
-    }
-    finish(&report, json, unit_line, &mut std::io::stdout().lock())
+    finish(ended, &args.options, save_profile, json, unit_line)
 }
 
 fn unit_line(d: &ScuDevice) -> String {

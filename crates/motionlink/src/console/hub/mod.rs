@@ -11,13 +11,14 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use motionlink_link::clock::lock;
-use serde_json::{json, Value};
 use tokio::sync::{broadcast, oneshot, watch};
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
 
 use super::device::{Device, Failure, Motion as DeviceMotion, Unit};
+use super::message::{Message, SampleEntry};
 use super::traffic::Traffic;
+use crate::common::Keyed;
 
 /// How long a jog runs without a renewal from its page.
 pub const DEAD_MAN: Duration = Duration::from_millis(200);
@@ -178,8 +179,8 @@ impl Hub {
         self.shutdown.subscribe()
     }
 
-    fn notify(&self, value: Value) {
-        let _ = self.notices.send(Notice::Json(Arc::new(value.to_string())));
+    fn notify(&self, message: Message) {
+        let _ = self.notices.send(Notice::Json(Arc::new(message.json().to_string())));
     }
 
     async fn poll(self: Arc<Self>) {
@@ -206,19 +207,8 @@ impl Hub {
         loop {
             let t_s = self.t_s();
             let results = self.device.sample(&units).await;
-            let list: Vec<Value> = units
-                .iter()
-                .zip(results)
-                .map(|(u, r)| match r {
-                    Ok(s) => s.to_json(u, key),
-                    Err(e) => {
-                        let mut j = json!({"error": e.to_json()});
-                        j[key] = json!(u.id);
-                        j
-                    }
-                })
-                .collect();
-            let frame = json!({"type": "sample", "t_s": t_s, "units": list});
+            let units = units.iter().zip(results).map(|(u, r)| SampleEntry::of(u, key, r)).collect();
+            let frame = Message::Sample { t_s, units }.json();
             self.samples.send_replace(Some(Arc::new(frame.to_string())));
             // The next look on a fixed schedule; a slow line is not made up for with a burst.
             due += SAMPLE_PERIOD;
@@ -339,10 +329,18 @@ impl Hub {
         mut motion: DeviceMotion,
         mut cancelled: oneshot::Receiver<StopReason>,
     ) {
-        let key = self.device.unit_key();
-        let mut started = json!({"type": "motion", "state": "running", "what": what});
-        started[key] = json!(unit);
-        self.notify(started);
+        let key = Keyed(self.device.unit_key(), unit);
+        let motion_message = |state, ok, reason, error, message, report| Message::Motion {
+            state,
+            what: what.clone(),
+            unit: key,
+            ok,
+            reason,
+            error,
+            message,
+            report,
+        };
+        self.notify(motion_message("running", None, None, None, None, None));
         enum End {
             Done(Result<String, Failure>),
             Stopped(StopReason),
@@ -368,17 +366,14 @@ impl Hub {
         };
         // Dropping the motion's future is what stops it: the library sends the stop at once.
         drop(motion);
-        let mut ended = match end {
+        let ended = match end {
             End::Done(Ok(msg)) => {
-                let mut ended = json!({"type": "motion", "state": "ended", "what": what, "ok": true, "message": msg});
-                if let Some(report) = self.device.take_report(unit, &what) {
-                    ended["report"] = report;
-                }
-                ended
+                let report = self.device.take_report(unit, &what);
+                motion_message("ended", Some(true), None, None, Some(msg), report)
             }
             End::Done(Err(e)) => {
-                json!({"type": "motion", "state": "ended", "what": what, "ok": false, "error": e.to_json(),
-                       "message": e.message})
+                let msg = e.message.clone();
+                motion_message("ended", Some(false), None, Some(e), Some(msg), None)
             }
             End::Stopped(reason) => {
                 // The stop the library sent when the future was dropped, asked again and confirmed.
@@ -389,11 +384,9 @@ impl Hub {
                         (false, format!("{what} stopped ({}), but the stop is not confirmed: {e}", reason.text()))
                     }
                 };
-                json!({"type": "motion", "state": "stopped", "what": what, "ok": ok, "reason": reason.text(),
-                       "message": msg})
+                motion_message("stopped", Some(ok), Some(reason.text()), None, Some(msg), None)
             }
         };
-        ended[key] = json!(unit);
         let mut st = lock(&self.state);
         if st.motion.as_ref().is_some_and(|m| m.id == id) {
             st.motion = None;

@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::console::device::Motion as DeviceMotion;
-use crate::console::device::{Action, BoxFuture, JogDirection, Param, ParamValue, Sample};
+use crate::console::device::{Action, BoxFuture, ErrorHistory, JogDirection, Param, ParamValue, Sample};
 use crate::console::traffic::Traffic;
 use motionlink_link::clock::ManualClock;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -88,7 +88,7 @@ impl Device for Fake {
     ) -> BoxFuture<'static, Result<ParamValue, Failure>> {
         Box::pin(async { Err(Failure::usage("none")) })
     }
-    fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<Value, Failure>> {
+    fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<ErrorHistory, Failure>> {
         Box::pin(async { Err(Failure::usage("none")) })
     }
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
