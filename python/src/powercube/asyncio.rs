@@ -110,7 +110,7 @@ impl AsyncPowerCubeClient {
                 }
                 .await,
             )?;
-            deliver(move |py| Ok((f32_py(p.value()), suffix(p.unit()).1).into_pyobject(py)?.into_any().unbind()))
+            deliver(move |py| Ok((a, f32_py(p.value()), suffix(p.unit()).1).into_pyobject(py)?.into_any().unbind()))
         }))
     }
 
