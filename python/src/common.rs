@@ -6,7 +6,6 @@ use std::time::{Duration, Instant};
 
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::clock::lock;
-use motionlink_link::flags::FlagWord;
 use motionlink_link::url::PortUrl;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyInt};
@@ -137,16 +136,6 @@ impl<'py> Record<'py> {
     /// Sets `key` (conversion errors are Python errors).
     pub fn set<V: IntoPyObject<'py>>(&self, key: &str, value: V) -> PyResult<&Self> {
         self.0.set_item(key, value)?;
-        Ok(self)
-    }
-
-    /// `word` (the raw word), `flags` (names as the manual spells them) and `unknown_bits` (only when
-    /// nonzero): a flag word as naming.md spells it.
-    pub fn flag_word<W: FlagWord>(&self, word: W) -> PyResult<&Self> {
-        self.set("word", word.raw())?.set("flags", word.names())?;
-        if word.unknown() != 0 {
-            self.set("unknown_bits", word.unknown())?;
-        }
         Ok(self)
     }
 

@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 from typing import Any, List
 
-MODULES = ("powercube", "scu")
+MODULES = ("compax", "powercube", "scu")
 FOLDER = Path(__file__).resolve().parent.parent / "motionlink"
 
 
@@ -53,6 +53,8 @@ def stub(name: str) -> str:
     for node in tree.body:
         if isinstance(node, ast.Assign):
             lines.append(ast.get_source_segment(source, node) or "")
+        elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
+            lines.append(f"{node.target.id}: {ast.get_source_segment(source, node.annotation)}")
     for cls_name in module.__all__:
         cls = getattr(module, cls_name)
         public_bases = [b for b in cls.__mro__[1:] if not b.__name__.startswith("_") and b is not object]

@@ -16,6 +16,10 @@ impl AsyncPowerCubeClient {
     fn client(&self) -> Result<Arc<AsyncClient>, PyErr> {
         Python::attach(|py| self.slot.get().map_err(|f| to_pyerr(py, f)))
     }
+
+    fn address(&self, py: Python<'_>, module: Option<Int>) -> PyResult<u8> {
+        address_or(self.module, py, module)
+    }
 }
 
 /// What an async open learns on the blocking pool: in process or not, and the port's description.
@@ -97,10 +101,7 @@ impl AsyncPowerCubeClient {
     #[pyo3(signature = (module, done))]
     fn position(&self, py: Python<'_>, module: Option<Int>, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = match module {
-            None => self.module,
-            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
-        };
+        let a = self.address(py, module)?;
         Ok(spawn_task(done, async move {
             let p = raise(
                 async {
@@ -118,10 +119,7 @@ impl AsyncPowerCubeClient {
     #[pyo3(signature = (module, done))]
     fn state(&self, py: Python<'_>, module: Option<Int>, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = match module {
-            None => self.module,
-            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
-        };
+        let a = self.address(py, module)?;
         Ok(spawn_task(done, async move {
             let s = raise(async { c.module(Address::new(a)?).state().await }.await)?;
             dict(move |py| state_record(py, a, s))
@@ -132,10 +130,7 @@ impl AsyncPowerCubeClient {
     #[pyo3(signature = (module, timeout_s, done))]
     fn home(&self, py: Python<'_>, module: Option<Int>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = match module {
-            None => self.module,
-            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
-        };
+        let a = self.address(py, module)?;
         let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
         let guard = self.guard;
         Ok(spawn_task(done, async move {
@@ -159,10 +154,7 @@ impl AsyncPowerCubeClient {
         done: Py<PyAny>,
     ) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = match module {
-            None => self.module,
-            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
-        };
+        let a = self.address(py, module)?;
         let spec = move_spec(target, velocity, acceleration, tolerance, timeout_s).map_err(|f| to_pyerr(py, f))?;
         let guard = self.guard;
         Ok(spawn_task(done, async move {
@@ -176,10 +168,7 @@ impl AsyncPowerCubeClient {
     #[pyo3(signature = (module, timeout_s, done))]
     fn wait(&self, py: Python<'_>, module: Option<Int>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = match module {
-            None => self.module,
-            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
-        };
+        let a = self.address(py, module)?;
         let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
         let halting = Arc::clone(&c);
         let halt = async move {
@@ -201,10 +190,7 @@ impl AsyncPowerCubeClient {
     #[pyo3(signature = (module, done))]
     fn stop(&self, py: Python<'_>, module: Option<Int>, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = match module {
-            None => self.module,
-            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
-        };
+        let a = self.address(py, module)?;
         Ok(spawn_task(done, async move {
             raise(async { c.module(Address::new(a)?).halt().await }.await)?;
             deliver(|py| Ok(py.None()))

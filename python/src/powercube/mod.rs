@@ -185,10 +185,15 @@ impl PowerCubeClient {
     }
 
     fn address(&self, py: Python<'_>, module: Option<Int>) -> PyResult<u8> {
-        match module {
-            None => Ok(self.module),
-            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f)),
-        }
+        address_or(self.module, py, module)
+    }
+}
+
+/// The module `module` names, or `default` (the client's) when it names none.
+fn address_or(default: u8, py: Python<'_>, module: Option<Int>) -> PyResult<u8> {
+    match module {
+        None => Ok(default),
+        Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f)),
     }
 }
 
