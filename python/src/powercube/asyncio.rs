@@ -22,14 +22,11 @@ impl AsyncPowerCubeClient {
     }
 }
 
-/// What an async open learns on the blocking pool: in process or not, and the port's description.
-pub(super) type Learned = Result<(bool, String), Failure>;
-
-pub(super) fn raise<T>(r: Result<T, Error>) -> Result<T, Failure> {
+fn raise<T>(r: Result<T, Error>) -> Result<T, Failure> {
     r.map_err(|e| e.failure())
 }
 
-pub(super) fn dict<F>(f: F) -> Outcome
+fn dict<F>(f: F) -> Outcome
 where
     F: for<'py> FnOnce(Python<'py>) -> PyResult<Record<'py>> + Send + 'static,
 {
@@ -51,40 +48,9 @@ impl AsyncPowerCubeClient {
         Ok(spawn_task(done, async move {
             let module = module_address(&s.module)?;
             let watchdog = s.watchdog;
-            // The blocking open runs on tokio's blocking pool; what it learns comes back through `found`.
-            let found: Arc<std::sync::Mutex<Option<Learned>>> = Default::default();
-            let slot = Arc::clone(&found);
-            let opened = AsyncClient::open(move || {
-                let (client, err) = match open(t, &s) {
-                    Ok((c, in_process)) => {
-                        *slot.lock().unwrap_or_else(|e| e.into_inner()) =
-                            Some(Ok((in_process, c.describe().to_string())));
-                        (Some(c), None)
-                    }
-                    Err(f) => {
-                        let message = f.message.clone();
-                        *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(Err(f));
-                        (None, Some(message))
-                    }
-                };
-                client.ok_or_else(|| Error::Unsupported(err.unwrap_or_default()))
-            })
-            .await;
-            let learned = found.lock().unwrap_or_else(|e| e.into_inner()).take();
-            let (in_process, port) = match learned {
-                Some(Ok(x)) => x,
-                Some(Err(f)) => return Err(f),
-                None => {
-                    return Err(raise::<()>(opened.map(|_| ())).err().unwrap_or_else(|| {
-                        Failure::new(
-                            ErrorClass::Transport(TransportKind::Io),
-                            FAMILY,
-                            "the open ended without a result",
-                        )
-                    }))
-                }
-            };
-            let client = raise(opened)?;
+            let (client, in_process) = crate::wait::on_blocking_pool(FAMILY, move || open(t, &s)).await?;
+            let client = raise(AsyncClient::open(move || Ok(client)).await)?;
+            let port = client.describe().to_string();
             let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !watchdog);
             let native = AsyncPowerCubeClient { slot: Slot::new(client, FAMILY), guard, module, port };
             deliver(move |py| Ok(Py::new(py, native)?.into_any()))

@@ -28,7 +28,6 @@ use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
 use crate::wait::{
     block_on_runtime, deliver, interruptible, interruptible_read, spawn_task, spawn_task_stopping, NativeTask, Outcome,
 };
-use motionlink_link::error::{ErrorClass, TransportKind};
 
 const FAMILY: &str = "powercube";
 
