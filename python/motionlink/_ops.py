@@ -95,10 +95,11 @@ class op:
         return self
 
     def __get__(self, client: Any, owner: Any = None) -> Any:
-        if client is None:
-            return self
-        if not is_async(client):
-            return self.blocking.__get__(client, owner)
-        if not self.aio:
-            raise AttributeError(f"{type(client).__name__} has no {self.name}() (the blocking client has)")
-        return self.coroutine.__get__(client, owner)
+        # On the class, the face of that class: a function, or a coroutine function (as a `def` or an
+        # `async def` in the class would be).
+        face = is_async(client if client is not None else owner)
+        if face and not self.aio:
+            who = type(client).__name__ if client is not None else owner.__name__
+            raise AttributeError(f"{who} has no {self.name}() (the blocking client has)")
+        made = self.coroutine if face else self.blocking
+        return made if client is None else made.__get__(client, owner)

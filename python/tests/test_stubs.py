@@ -36,3 +36,8 @@ def test_one_declaration_gives_both_faces() -> None:
     # An operation the asyncio client does not have is not there.
     assert "    async def scan" not in stub and "    def scan(self) -> List[ModuleInfo]: ..." in stub
     assert not hasattr(motionlink.AsyncPowerCube(port="sim"), "scan")
+    assert not hasattr(motionlink.AsyncPowerCube, "scan") and hasattr(motionlink.PowerCube, "scan")
+    # Each class has its face: a function, or a coroutine function, with the declaration's docstring.
+    assert inspect.iscoroutinefunction(motionlink.AsyncPowerCube.move_to)
+    assert not inspect.iscoroutinefunction(motionlink.PowerCube.move_to)
+    assert motionlink.PowerCube.move_to.__doc__ == motionlink.AsyncPowerCube.move_to.__doc__
