@@ -57,7 +57,6 @@ class ScuStop(Record):
     """
 
     __slots__ = ()
-    _nested = {"refused": RefusedStop, "at_rest": ActuatorAtRest}
     family: str
     functions: List[int]
     mode: str
