@@ -51,7 +51,6 @@ class ProbeReport(Record):
     firmware, what was probed), ``link`` (round trips, errors, baud rate, latency timer), ``checks``
     (:class:`ProbeCheck`) and ``saved`` (the profiles written, ``<path>#<key>``)."""
 
-    _nested = {"checks": ProbeCheck}
     family: str
     port: str
     devices: List[Dict[str, Any]]

@@ -3,7 +3,7 @@ shares (error codes, flag words, parameters)."""
 
 from __future__ import annotations
 
-from typing import Any, ClassVar, Dict, List, Mapping
+from typing import Any, ClassVar, Dict, List, Mapping, get_args, get_origin, get_type_hints
 
 __all__ = ["Record", "ErrorBit", "ErrorCode", "FlagWord", "Parameter"]
 
@@ -12,14 +12,28 @@ class Record:
     """A read-only result with named fields (see the module documentation)."""
 
     __slots__ = ("_fields", "_extras")
-    #: Fields whose values are records (or lists of records) of these types.
+    #: Fields whose values are records (or lists of records) of these types besides those the annotations
+    #: say (a field annotated ``FlagWord`` or ``List[ErrorBit]`` is one of them already).
     _nested: ClassVar[Mapping[str, type]] = {}
+
+    @classmethod
+    def _nested_fields(cls) -> Mapping[str, type]:
+        """The fields whose values are records, from the annotations (resolved once per class)."""
+        found = cls.__dict__.get("_nested_resolved")
+        if found is None:
+            found = dict(cls._nested)
+            for name, hint in get_type_hints(cls).items():
+                inner = get_args(hint)[0] if get_origin(hint) is list else hint
+                if isinstance(inner, type) and issubclass(inner, Record):
+                    found[name] = inner
+            type.__setattr__(cls, "_nested_resolved", found)
+        return found  # type: ignore[no-any-return]
 
     def __init__(self, fields: Mapping[str, Any]) -> None:
         own: Dict[str, Any] = dict(fields)
         # Attributes that are not keys of the command line's JSON (the native side names them).
         extras = frozenset(own.pop("_extras", ()))
-        for name, kind in self._nested.items():
+        for name, kind in self._nested_fields().items():
             value = own.get(name)
             if isinstance(value, list):
                 own[name] = [v if isinstance(v, Record) else kind(v) for v in value]
@@ -116,7 +130,6 @@ class ErrorCode(Record):
     """
 
     __slots__ = ()
-    _nested = {"bits": ErrorBit}
     code: int
     bits: List[ErrorBit]
 

@@ -10,6 +10,7 @@ from typing import Any, Dict, Iterator, List, Optional, Sequence, Union
 
 from . import _native
 from ._base import AsyncClientBase, ClientBase, check_interval, resolve_port, run_native
+from ._ops import op
 from ._probe import Profile, ProbeReport, profile_setting, save_setting, warn_profile_notices
 from .records import CompaxHome, CompaxMove, CompaxSample, DriveFound, DrivePosition, Parameter, StatusValue
 
@@ -19,7 +20,82 @@ __all__ = ["Compax", "AsyncCompax"]
 DEFAULT_TOLERANCE_UNITS: float = float(_native.COMPAX_DEFAULT_TOLERANCE_UNITS)
 
 
-class Compax(ClientBase):
+def _position(client: Any, units: float, drive: Optional[int]) -> DrivePosition:
+    d = client.drive if drive is None else drive
+    return DrivePosition({"family": "compax", "drive": d, "position_units": units})
+
+
+def _param(name: Union[str, int]) -> str:
+    return f"P{name}" if isinstance(name, int) and not isinstance(name, bool) else str(name)
+
+
+class _Operations:
+    """The operations of :class:`Compax` and (``aio``) :class:`AsyncCompax`, declared once."""
+
+    @op(DriveFound)
+    def scan(self) -> List[DriveFound]:
+        """Every drive that answers (addresses 1..31), with its position S1. Ctrl-C raises
+        ``KeyboardInterrupt`` at once; the library's scan ends before the next address."""
+
+    @op(StatusValue, args=lambda names, drive: ([str(n) for n in names], drive))
+    def status(self, names: Sequence[Union[str, int]], drive: Optional[int] = None) -> List[StatusValue]:
+        """Status values by name (``"S1"``) or number; none: the main ones, as :meth:`Compax.info` reads
+        them."""
+
+    @op(_position, aio=True, with_args=True)
+    def position(self, drive: Optional[int] = None) -> DrivePosition:
+        """The actual position S1: ``position_units``, in the drive's unit."""
+
+    @op(Parameter, args=lambda name, drive: (_param(name), drive))
+    def get(self, name: Union[str, int], drive: Optional[int] = None) -> Parameter:
+        """Reads a parameter (``"P194"``, ``194``, ``"device_address"``)."""
+
+    @op(Parameter, args=lambda name, value, drive: (_param(name), float(value), drive))
+    def set(self, name: Union[str, int], value: float, drive: Optional[int] = None) -> Parameter:
+        """Writes a parameter; the library reads it back and compares (a difference is a
+        :class:`DeviceError`). ``read_back`` is the value then read from the drive, ``verified`` True and
+        ``not_verifiable`` empty."""
+
+    @op(CompaxMove, aio=True, args=lambda t, drive, distance, *rest: (t, distance, drive, *rest))
+    def move_to(
+        self,
+        target: Optional[float] = None,
+        drive: Optional[int] = None,
+        *,
+        distance: Optional[float] = None,
+        speed_percent: Optional[float] = None,
+        ramp_ms: Optional[int] = None,
+        min_units: Optional[float] = None,
+        max_units: Optional[float] = None,
+        timeout_s: float = 600.0,
+    ) -> CompaxMove:
+        """A checked move to ``target`` (POSA) or by ``distance`` (POSR, never repeated blind), waited for;
+        returns only if the drive came to rest within the tolerance (else :class:`DeviceError`). A target
+        outside ``min_units``/``max_units`` is refused before anything is sent. Ctrl-C (or cancelling the
+        awaiting task) stops the drive."""
+
+    move = move_to
+
+    @op(CompaxHome, aio=True)
+    def home(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> CompaxHome:
+        """POSA HOME (find machine zero), waited for. Ctrl-C (or cancelling the awaiting task) stops the
+        drive."""
+
+    @op(DrivePosition, aio=True)
+    def wait(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> DrivePosition:
+        """Waits until the drive's positioning ended (S17); its position S1 then. Ctrl-C (or cancelling
+        the awaiting task) stops the drive."""
+
+    @op(aio=True)
+    def stop(self, drive: Optional[int] = None) -> None:
+        """Stops the drive: OUTPUT O0=0 switches it off (``output(0, 1)`` switches it on again)."""
+
+    @op()
+    def output(self, number: int, state: int, drive: Optional[int] = None) -> None:
+        """Sets output ``number`` to ``state`` (OUTPUT Ox=y)."""
+
+
+class Compax(_Operations, ClientBase):
     """A session with COMPAX drives on one RS485 bus (or one drive on RS232).
 
     Args:
@@ -75,76 +151,10 @@ class Compax(ClientBase):
         finds."""
         return ProbeReport(self._native.probe(exchanges, low_latency, save_setting(save), drives))
 
-    def scan(self) -> List[DriveFound]:
-        """Every drive that answers (addresses 1..31), with its position S1. Ctrl-C raises
-        ``KeyboardInterrupt`` at once; the library's scan ends before the next address."""
-        return [DriveFound(d) for d in self._native.scan()]
-
     def info(self, drive: Optional[int] = None) -> List[StatusValue]:
         """The drive's main status values: S1 position, S2 target, S3 following error, S16/S17 status
         bits, S18 error history."""
         return self.status([], drive)
-
-    def status(self, names: Sequence[Union[str, int]], drive: Optional[int] = None) -> List[StatusValue]:
-        """Status values by name (``"S1"``) or number; none: the main ones, as :meth:`info` reads them."""
-        return [StatusValue(d) for d in self._native.status([str(n) for n in names], drive)]
-
-    def position(self, drive: Optional[int] = None) -> DrivePosition:
-        """The actual position S1: ``position_units``, in the drive's unit."""
-        return DrivePosition(
-            {"family": "compax", "drive": self._d(drive), "position_units": self._native.position(drive)}
-        )
-
-    def _d(self, drive: Optional[int]) -> int:
-        return self.drive if drive is None else drive
-
-    def get(self, name: Union[str, int], drive: Optional[int] = None) -> Parameter:
-        """Reads a parameter (``"P194"``, ``194``, ``"device_address"``)."""
-        return Parameter(self._native.get(_param(name), drive))
-
-    def set(self, name: Union[str, int], value: float, drive: Optional[int] = None) -> Parameter:
-        """Writes a parameter; the library reads it back and compares (a difference is a
-        :class:`DeviceError`). ``read_back`` is the value then read from the drive, ``verified`` True and
-        ``not_verifiable`` empty."""
-        return Parameter(self._native.set(_param(name), float(value), drive))
-
-    def move_to(
-        self,
-        target: Optional[float] = None,
-        drive: Optional[int] = None,
-        *,
-        distance: Optional[float] = None,
-        speed_percent: Optional[float] = None,
-        ramp_ms: Optional[int] = None,
-        min_units: Optional[float] = None,
-        max_units: Optional[float] = None,
-        timeout_s: float = 600.0,
-    ) -> CompaxMove:
-        """A checked move to ``target`` (POSA) or by ``distance`` (POSR, never repeated blind), waited for;
-        returns only if the drive came to rest within the tolerance (else :class:`DeviceError`). A target
-        outside ``min_units``/``max_units`` is refused before anything is sent. Ctrl-C stops the drive."""
-        return CompaxMove(
-            self._native.move_to(target, distance, drive, speed_percent, ramp_ms, min_units, max_units, timeout_s)
-        )
-
-    move = move_to
-
-    def home(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> CompaxHome:
-        """POSA HOME (find machine zero), waited for. Ctrl-C stops the drive."""
-        return CompaxHome(self._native.home(drive, timeout_s))
-
-    def wait(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> DrivePosition:
-        """Waits until the drive's positioning ended (S17); its position S1 then. Ctrl-C stops the
-        drive."""
-        return DrivePosition(self._native.wait(drive, timeout_s))
-
-    def stop(self, drive: Optional[int] = None) -> None:
-        """Stops the drive: OUTPUT O0=0 switches it off (``output(0, 1)`` switches it on again)."""
-        self._native.stop(drive)
-
-    def output(self, number: int, state: int, drive: Optional[int] = None) -> None:
-        """Sets output ``number`` to ``state`` (OUTPUT Ox=y)."""
-        self._native.output(number, state, drive)
 
     def started(self) -> List[int]:
         """The drives this session set in motion and has not seen stop."""
@@ -184,11 +194,7 @@ def _settings(
     }
 
 
-def _param(name: Union[str, int]) -> str:
-    return f"P{name}" if isinstance(name, int) and not isinstance(name, bool) else str(name)
-
-
-class AsyncCompax(AsyncClientBase):
+class AsyncCompax(_Operations, AsyncClientBase):
     """The asyncio twin of :class:`Compax` (same arguments)::
 
         async with AsyncCompax("tcp://127.0.0.1:5000") as drive:
@@ -224,44 +230,3 @@ class AsyncCompax(AsyncClientBase):
     async def open(self) -> "AsyncCompax":
         """Opens the session (what ``async with`` does)."""
         return await self.__aenter__()
-
-    async def position(self, drive: Optional[int] = None) -> DrivePosition:
-        """The actual position S1: ``position_units``."""
-        units = await self._run(lambda done: self._client().position(drive, done))
-        d = self.drive if drive is None else drive
-        return DrivePosition({"family": "compax", "drive": d, "position_units": units})
-
-    async def move_to(
-        self,
-        target: Optional[float] = None,
-        drive: Optional[int] = None,
-        *,
-        distance: Optional[float] = None,
-        speed_percent: Optional[float] = None,
-        ramp_ms: Optional[int] = None,
-        min_units: Optional[float] = None,
-        max_units: Optional[float] = None,
-        timeout_s: float = 600.0,
-    ) -> CompaxMove:
-        """A checked move, as :meth:`Compax.move_to`; cancelling the task stops the drive."""
-        return CompaxMove(
-            await self._run(
-                lambda done: self._client().move_to(
-                    target, distance, drive, speed_percent, ramp_ms, min_units, max_units, timeout_s, done
-                )
-            )
-        )
-
-    move = move_to
-
-    async def home(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> CompaxHome:
-        """POSA HOME, waited for; cancelling the task stops the drive."""
-        return CompaxHome(await self._run(lambda done: self._client().home(drive, timeout_s, done)))
-
-    async def wait(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> DrivePosition:
-        """Waits until the positioning ended; S1 then. Cancelling the task stops the drive."""
-        return DrivePosition(await self._run(lambda done: self._client().wait(drive, timeout_s, done)))
-
-    async def stop(self, drive: Optional[int] = None) -> None:
-        """Stops the drive (OUTPUT O0=0)."""
-        await self._run(lambda done: self._client().stop(drive, done))

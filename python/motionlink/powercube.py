@@ -10,6 +10,7 @@ from typing import Any, Dict, Iterator, List, Optional, Union
 
 from . import _native
 from ._base import AsyncClientBase, ClientBase, resolve_port, run_native, samples
+from ._ops import op
 from ._probe import Profile, ProbeReport, profile_setting, save_setting, warn_profile_notices
 from .records import (
     ModuleInfo,
@@ -39,13 +40,81 @@ def _settings(
     }
 
 
-def _position(module: int, value_unit: Any) -> ModulePosition:
-    value, unit = value_unit
+def _position(raw: Any) -> ModulePosition:
+    module, value, unit = raw
     suffix = {"rad": "position_rad", "m": "position_m"}.get(unit, "position")
     return ModulePosition({"family": "powercube", "module": module, "unit": unit, suffix: value})
 
 
-class PowerCube(ClientBase):
+class _Operations:
+    """The operations of :class:`PowerCube` and (``aio``) :class:`AsyncPowerCube`, declared once."""
+
+    @op(_position, aio=True)
+    def position(self, module: Optional[int] = None) -> ModulePosition:
+        """The actual position (``position_rad`` or ``position_m``)."""
+
+    @op(ModuleState, aio=True)
+    def state(self, module: Optional[int] = None) -> ModuleState:
+        """The module's state word (CubeState), flag by flag."""
+
+    @op(PowerCubeHome, aio=True)
+    def home(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> PowerCubeHome:
+        """Homes the module and waits for the end of homing (``reached_rad`` / ``reached_m``). Ctrl-C
+        halts it; cancelling the awaiting task halts it."""
+
+    @op(PowerCubeMove, aio=True)
+    def move_to(
+        self,
+        target: float,
+        module: Optional[int] = None,
+        *,
+        velocity: Optional[float] = None,
+        acceleration: Optional[float] = None,
+        tolerance: Optional[float] = None,
+        timeout_s: float = 60.0,
+    ) -> PowerCubeMove:
+        """A ramp move to ``target`` (rad or m, the module's unit), waited for and checked: it returns only
+        if the module came to rest within ``tolerance`` of the target (else :class:`DeviceError`).
+        ``velocity`` (unit/s) and ``acceleration`` (unit/s²) default to the module's. Ctrl-C halts it;
+        cancelling the awaiting task halts it."""
+
+    move = move_to
+
+    @op(ModuleState, aio=True)
+    def wait(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> ModuleState:
+        """Waits until the module stands still; its state then. Ctrl-C halts it; cancelling the awaiting
+        task halts it."""
+
+    @op(aio=True)
+    def stop(self, module: Optional[int] = None) -> None:
+        """Halts the module at once (it stays halted until :meth:`PowerCube.reset`)."""
+
+    @op(ModuleInfo)
+    def scan(self) -> List[ModuleInfo]:
+        """Every module on the bus (an ``error`` field on a module that answered but could not be read).
+        Ctrl-C raises ``KeyboardInterrupt`` at once (the scan sets nothing in motion; it ends on its own
+        thread, and the session's next call waits for it on the line)."""
+
+    @op(ModuleInfo)
+    def info(self, module: Optional[int] = None) -> ModuleInfo:
+        """Kind, firmware version, serial number, state, limits and position of a module."""
+
+    @op(Parameter, args=lambda name, module: (str(name), module))
+    def get(self, name: str, module: Optional[int] = None) -> Parameter:
+        """Reads a parameter by name (``"ActPos"``) or id (``"60"``, ``"0x3c"``)."""
+
+    @op(Parameter, args=lambda name, value, module: (str(name), value, module))
+    def set(self, name: str, value: float, module: Optional[int] = None) -> Parameter:
+        """Writes a parameter (a target beyond its limit is refused) and reads it back: ``read_back`` is the
+        value read (``None`` with ``not_verifiable`` for a parameter that cannot be read)."""
+
+    @op(bool)
+    def reset(self, module: Optional[int] = None) -> bool:
+        """Resets the module's error state; True if it also switched off a watchdog that a dead host had
+        left expired."""
+
+
+class PowerCube(_Operations, ClientBase):
     """A session with PowerCube modules on one bus (RS232 or CAN).
 
     Args:
@@ -98,73 +167,6 @@ class PowerCube(ClientBase):
         variants (``motionlink sim powercube --variant``) show what each probe finds."""
         return ProbeReport(self._native.probe(exchanges, low_latency, save_setting(save)))
 
-    def _m(self, module: Optional[int]) -> int:
-        return self.module if module is None else module
-
-    def scan(self) -> List[ModuleInfo]:
-        """Every module on the bus (an ``error`` field on a module that answered but could not be read).
-        Ctrl-C raises ``KeyboardInterrupt`` at once (the scan sets nothing in motion; it ends on its own
-        thread, and the session's next call waits for it on the line)."""
-        return [ModuleInfo(d) for d in self._native.scan()]
-
-    def info(self, module: Optional[int] = None) -> ModuleInfo:
-        """Kind, firmware version, serial number, state, limits and position of a module."""
-        return ModuleInfo(self._native.info(module))
-
-    def state(self, module: Optional[int] = None) -> ModuleState:
-        """The module's state word (CubeState), flag by flag."""
-        return ModuleState(self._native.state(module))
-
-    def position(self, module: Optional[int] = None) -> ModulePosition:
-        """The actual position (``position_rad`` or ``position_m``)."""
-        return _position(self._m(module), self._native.position(module))
-
-    def get(self, name: str, module: Optional[int] = None) -> Parameter:
-        """Reads a parameter by name (``"ActPos"``) or id (``"60"``, ``"0x3c"``)."""
-        return Parameter(self._native.get(str(name), module))
-
-    def set(self, name: str, value: float, module: Optional[int] = None) -> Parameter:
-        """Writes a parameter (a target beyond its limit is refused) and reads it back: ``read_back`` is the
-        value read (``None`` with ``not_verifiable`` for a parameter that cannot be read)."""
-        return Parameter(self._native.set(str(name), value, module))
-
-    def home(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> PowerCubeHome:
-        """Homes the module and waits for the end of homing (``reached_rad`` / ``reached_m``). Ctrl-C
-        halts it."""
-        return PowerCubeHome(self._native.home(module, timeout_s))
-
-    def move_to(
-        self,
-        target: float,
-        module: Optional[int] = None,
-        *,
-        velocity: Optional[float] = None,
-        acceleration: Optional[float] = None,
-        tolerance: Optional[float] = None,
-        timeout_s: float = 60.0,
-    ) -> PowerCubeMove:
-        """A ramp move to ``target`` (rad or m, the module's unit), waited for and checked: it returns only
-        if the module came to rest within ``tolerance`` of the target (else :class:`DeviceError`).
-        ``velocity`` (unit/s) and ``acceleration`` (unit/s²) default to the module's. Ctrl-C halts it."""
-        return PowerCubeMove(
-            self._native.move_to(target, module, velocity, acceleration, tolerance, timeout_s)
-        )
-
-    move = move_to
-
-    def wait(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> ModuleState:
-        """Waits until the module stands still; its state then. Ctrl-C halts it."""
-        return ModuleState(self._native.wait(module, timeout_s))
-
-    def stop(self, module: Optional[int] = None) -> None:
-        """Halts the module at once (it stays halted until :meth:`reset`)."""
-        self._native.stop(module)
-
-    def reset(self, module: Optional[int] = None) -> bool:
-        """Resets the module's error state; True if it also switched off a watchdog that a dead host had
-        left expired."""
-        return bool(self._native.reset(module))
-
     def started(self) -> List[int]:
         """The modules this session set in motion and has not seen stop."""
         return list(self._native.started())
@@ -174,7 +176,7 @@ class PowerCube(ClientBase):
     ) -> Iterator[PowerCubeSample]:
         """Samples of state and position every ``interval_ms`` (fixed schedule), ``count`` times or until
         the loop ends."""
-        m = self._m(module)
+        m = self.module if module is None else module
 
         def read(t_s: float) -> PowerCubeSample:
             fields = dict(self._native.sample(m))
@@ -184,7 +186,7 @@ class PowerCube(ClientBase):
         return samples(read, interval_ms, count)
 
 
-class AsyncPowerCube(AsyncClientBase):
+class AsyncPowerCube(_Operations, AsyncClientBase):
     """The asyncio twin of :class:`PowerCube` (same arguments)::
 
         async with AsyncPowerCube("tcp://127.0.0.1:5000") as cube:
@@ -219,47 +221,3 @@ class AsyncPowerCube(AsyncClientBase):
     async def open(self) -> "AsyncPowerCube":
         """Opens the session (what ``async with`` does)."""
         return await self.__aenter__()
-
-    def _m(self, module: Optional[int]) -> int:
-        return self.module if module is None else module
-
-    async def position(self, module: Optional[int] = None) -> ModulePosition:
-        """The actual position."""
-        return _position(self._m(module), await self._run(lambda done: self._client().position(module, done)))
-
-    async def state(self, module: Optional[int] = None) -> ModuleState:
-        """The state word."""
-        return ModuleState(await self._run(lambda done: self._client().state(module, done)))
-
-    async def home(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> PowerCubeHome:
-        """Homes and waits; cancelling the task halts the module."""
-        return PowerCubeHome(await self._run(lambda done: self._client().home(module, timeout_s, done)))
-
-    async def move_to(
-        self,
-        target: float,
-        module: Optional[int] = None,
-        *,
-        velocity: Optional[float] = None,
-        acceleration: Optional[float] = None,
-        tolerance: Optional[float] = None,
-        timeout_s: float = 60.0,
-    ) -> PowerCubeMove:
-        """A checked ramp move, waited for; cancelling the task halts the module."""
-        return PowerCubeMove(
-            await self._run(
-                lambda done: self._client().move_to(
-                    target, module, velocity, acceleration, tolerance, timeout_s, done
-                )
-            )
-        )
-
-    move = move_to
-
-    async def wait(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> ModuleState:
-        """Waits until the module stands still; cancelling the task halts it."""
-        return ModuleState(await self._run(lambda done: self._client().wait(module, timeout_s, done)))
-
-    async def stop(self, module: Optional[int] = None) -> None:
-        """Halts the module."""
-        await self._run(lambda done: self._client().stop(module, done))

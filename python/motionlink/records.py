@@ -81,7 +81,6 @@ class _WithState(Record):
     ``faults``)."""
 
     __slots__ = ()
-    _nested = {"state": FlagWord}
     family: str
     module: int
     state: FlagWord
@@ -265,7 +264,6 @@ class ScuInfo(Record):
     """
 
     __slots__ = ()
-    _nested = {"actuators": ActuatorState, "last_error": ErrorCode, "battery_mains": FlagWord}
     family: str
     port: str
     firmware: str
@@ -314,7 +312,6 @@ class ScuMove(Record):
     """
 
     __slots__ = ()
-    _nested = {"actuators": ActuatorOutcome}
     family: str
     function: int
     actuator: int
@@ -352,7 +349,6 @@ class ScuRun(Record):
     """
 
     __slots__ = ()
-    _nested = {"actuators": ActuatorRest}
     family: str
     function: int
     stopped: bool
@@ -391,7 +387,6 @@ class ScuSample(Record):
     """
 
     __slots__ = ()
-    _nested = {"actuators": ActuatorSample, "last_error": ErrorCode}
     family: str
     t_s: float
     actuators: List[ActuatorSample]
@@ -526,7 +521,6 @@ class CompaxSample(Record):
     """
 
     __slots__ = ()
-    _nested = {"s17": FlagWord}
     family: str
     t_s: float
     drive: int

@@ -6,10 +6,11 @@ Positions are encoder counts (``position_counts``); speeds are percent of full s
 
 from __future__ import annotations
 
-from typing import Any, Dict, Iterator, List, Optional, Sequence, Union, overload
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Union
 
 from . import _native
 from ._base import AsyncClientBase, ClientBase, resolve_port, run_native, samples
+from ._ops import op
 from ._probe import Profile, ProbeReport, profile_setting, save_setting, warn_profile_notices
 from ._record import Record
 from .records import ActuatorPosition, ErrorCode, Parameter, ScuInfo, ScuMove, ScuRun, ScuSample
@@ -56,7 +57,6 @@ class ScuStop(Record):
     """
 
     __slots__ = ()
-    _nested = {"refused": RefusedStop, "at_rest": ActuatorAtRest}
     family: str
     functions: List[int]
     mode: str
@@ -99,7 +99,68 @@ def _function(f: Union[int, str]) -> str:
     return f"F{f}" if isinstance(f, int) and not isinstance(f, bool) else str(f)
 
 
-class Scu(ClientBase):
+def _position(client: Any, counts: int, actuator: int) -> ActuatorPosition:
+    return ActuatorPosition({"family": "scu", "actuator": actuator, "position_counts": counts})
+
+
+def _stop_args(function: Optional[Union[int, str]], soft: bool) -> tuple:
+    return (None if function is None else _function(function), soft)
+
+
+class _Operations:
+    """The operations of :class:`Scu` and (``aio``) :class:`AsyncScu`, declared once."""
+
+    @op(ScuInfo)
+    def info(self) -> ScuInfo:
+        """Firmware and configuration texts, battery/mains, the last error and the connected actuators."""
+
+    @op(_position, aio=True, with_args=True)
+    def position(self, actuator: int) -> ActuatorPosition:
+        """The position of ``actuator`` (1..6): ``position_counts``, in encoder counts."""
+
+    @op(Parameter, args=lambda name: (str(name),))
+    def get(self, name: str) -> Parameter:
+        """Reads a data-list entry or group by name (``"actual_position_a1"``, ``"actual_positions"``) or
+        index (``"0x0011"``). Currents come in A, voltages in V (``unit`` says)."""
+
+    @op(Parameter, args=lambda name, value: (str(name), value))
+    def set(self, name: str, value: Union[int, float, str]) -> Parameter:
+        """Writes a remote data entry (``"remote_speed_f1"``, ``"remote_position_a1"``); the library reads it
+        back and compares (a difference is a :class:`DeviceError`). ``read_back`` is the value then read
+        from the unit, ``verified`` True; on a unit that does not read remote data back, ``read_back`` is
+        None, ``verified`` False and ``not_verifiable`` says why."""
+
+    @op(ScuMove, aio=True)
+    def move_to(
+        self, actuator: int, target_counts: int, *, speed: int = 100, function: Optional[int] = None
+    ) -> ScuMove:
+        """Moves ``actuator`` to ``target_counts`` with its function (F1 for A1, or ``function``) at
+        ``speed`` and waits; returns only if every actuator the function drives ended within
+        ``tolerance_counts`` (else :class:`DeviceError`). Ctrl-C stops it (RS); cancelling the awaiting
+        task stops the function."""
+
+    move = move_to
+
+    @op(ScuRun, aio=True, args=lambda function, direction, seconds: (_function(function), direction, seconds))
+    def run(self, function: Union[int, str], direction: str, *, seconds: Optional[float] = None) -> ScuRun:
+        """Runs a function until it ends, ``seconds`` passed, or Ctrl-C (or the awaiting task's
+        cancellation), then stops it: a motion function with a direction (``"in"``, ``"out"``, ``"mem1"``
+        ...), or F11, F17/F18, F20, F21/F22 with ``"on"``."""
+
+    @op(ScuStop, aio=True, args=_stop_args)
+    def stop(self, function: Optional[Union[int, str]] = None, *, soft: bool = False) -> Optional[ScuStop]:
+        """Stops what moves. Without ``function``, as ``motionlink scu stop`` does: RS to every motion
+        function F1..F10 (fast, or along the stop ramp with ``soft``), then the status of every actuator is
+        read until none moves; returns where each connected actuator rests (:class:`ScuStop`), or raises if
+        the unit did not confirm it. With ``function``: its RS (a motion fast or soft; F11..F22 switched
+        off), acknowledged by the unit; returns None."""
+
+    @op(ErrorCode)
+    def errors(self) -> List[ErrorCode]:
+        """The error history: Error_Code 1 (the most recent) to 5, each with its named bits."""
+
+
+class Scu(_Operations, ClientBase):
     """A session with an SCU control unit in remote mode (RO with ``safety``; the library keeps it alive).
 
     Args:
@@ -164,65 +225,6 @@ class Scu(ClientBase):
         ``save`` writes its profile (``True``: profiles.toml beside devices.toml; a path: that file)."""
         return ProbeReport(self._native.probe(exchanges, low_latency, save_setting(save)))
 
-    def info(self) -> ScuInfo:
-        """Firmware and configuration texts, battery/mains, the last error and the connected actuators."""
-        return ScuInfo(self._native.info())
-
-    def position(self, actuator: int) -> ActuatorPosition:
-        """The position of ``actuator`` (1..6): ``position_counts``, in encoder counts."""
-        return ActuatorPosition(
-            {"family": "scu", "actuator": actuator, "position_counts": self._native.position(actuator)}
-        )
-
-    def get(self, name: str) -> Parameter:
-        """Reads a data-list entry or group by name (``"actual_position_a1"``, ``"actual_positions"``) or
-        index (``"0x0011"``). Currents come in A, voltages in V (``unit`` says)."""
-        return Parameter(self._native.get(str(name)))
-
-    def set(self, name: str, value: Union[int, float, str]) -> Parameter:
-        """Writes a remote data entry (``"remote_speed_f1"``, ``"remote_position_a1"``); the library reads it
-        back and compares (a difference is a :class:`DeviceError`). ``read_back`` is the value then read
-        from the unit, ``verified`` True; on a unit that does not read remote data back, ``read_back`` is
-        None, ``verified`` False and ``not_verifiable`` says why."""
-        return Parameter(self._native.set(str(name), value))
-
-    def move_to(
-        self, actuator: int, target_counts: int, *, speed: int = 100, function: Optional[int] = None
-    ) -> ScuMove:
-        """Moves ``actuator`` to ``target_counts`` with its function (F1 for A1, or ``function``) at
-        ``speed`` and waits; returns only if every actuator the function drives ended within
-        ``tolerance_counts`` (else :class:`DeviceError`). Ctrl-C stops it (RS)."""
-        return ScuMove(self._native.move_to(actuator, target_counts, speed, function))
-
-    move = move_to
-
-    def run(self, function: Union[int, str], direction: str, *, seconds: Optional[float] = None) -> ScuRun:
-        """Runs a function until it ends, ``seconds`` passed, or Ctrl-C, then stops it: a motion function
-        with a direction (``"in"``, ``"out"``, ``"mem1"`` ...), or F11, F17/F18, F20, F21/F22 with
-        ``"on"``."""
-        return ScuRun(self._native.run(_function(function), direction, seconds))
-
-    @overload
-    def stop(self, function: None = None, *, soft: bool = False) -> ScuStop: ...
-
-    @overload
-    def stop(self, function: Union[int, str], *, soft: bool = False) -> None: ...
-
-    def stop(self, function: Optional[Union[int, str]] = None, *, soft: bool = False) -> Optional[ScuStop]:
-        """Stops what moves. Without ``function``, as ``motionlink scu stop`` does: RS to every motion
-        function F1..F10 (fast, or along the stop ramp with ``soft``), then the status of every actuator is
-        read until none moves; returns where each connected actuator rests (:class:`ScuStop`), or raises if
-        the unit did not confirm it. With ``function``: its RS (a motion fast or soft; F11..F22 switched
-        off), acknowledged by the unit; returns None."""
-        if function is None:
-            return ScuStop(self._native.stop(None, soft))
-        self._native.stop(_function(function), soft)
-        return None
-
-    def errors(self) -> List[ErrorCode]:
-        """The error history: Error_Code 1 (the most recent) to 5, each with its named bits."""
-        return [ErrorCode(e) for e in self._native.errors()]
-
     def started(self) -> List[int]:
         """The motion functions this session started and has not stopped."""
         return list(self._native.started())
@@ -236,7 +238,7 @@ class Scu(ClientBase):
         return samples(read, interval_ms, count)
 
 
-class AsyncScu(AsyncClientBase):
+class AsyncScu(_Operations, AsyncClientBase):
     """The asyncio twin of :class:`Scu` (same arguments)::
 
         async with AsyncScu("tcp://127.0.0.1:5000") as scu:
@@ -274,37 +276,3 @@ class AsyncScu(AsyncClientBase):
     async def open(self) -> "AsyncScu":
         """Opens the session (what ``async with`` does)."""
         return await self.__aenter__()
-
-    async def position(self, actuator: int) -> ActuatorPosition:
-        """The position of ``actuator``: ``position_counts``."""
-        counts = await self._run(lambda done: self._client().position(actuator, done))
-        return ActuatorPosition({"family": "scu", "actuator": actuator, "position_counts": counts})
-
-    async def move_to(
-        self, actuator: int, target_counts: int, *, speed: int = 100, function: Optional[int] = None
-    ) -> ScuMove:
-        """A verified move, as :meth:`Scu.move_to`; cancelling the task stops the function."""
-        return ScuMove(
-            await self._run(lambda done: self._client().move_to(actuator, target_counts, speed, function, done))
-        )
-
-    move = move_to
-
-    async def run(self, function: Union[int, str], direction: str, *, seconds: Optional[float] = None) -> ScuRun:
-        """Runs a function until it ends or ``seconds`` passed, then stops it; cancelling stops it."""
-        return ScuRun(
-            await self._run(lambda done: self._client().run(_function(function), direction, seconds, done))
-        )
-
-    @overload
-    async def stop(self, function: None = None, *, soft: bool = False) -> ScuStop: ...
-
-    @overload
-    async def stop(self, function: Union[int, str], *, soft: bool = False) -> None: ...
-
-    async def stop(self, function: Optional[Union[int, str]] = None, *, soft: bool = False) -> Optional[ScuStop]:
-        """Stops what moves, as :meth:`Scu.stop`: every motion function, confirmed (the :class:`ScuStop`),
-        or the function named (None)."""
-        name = None if function is None else _function(function)
-        stopped = await self._run(lambda done: self._client().stop(name, soft, done))
-        return None if stopped is None else ScuStop(stopped)

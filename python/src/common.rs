@@ -6,7 +6,6 @@ use std::time::{Duration, Instant};
 
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::clock::lock;
-use motionlink_link::flags::FlagWord;
 use motionlink_link::url::PortUrl;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyInt};
@@ -100,6 +99,22 @@ pub fn f32_py(x: f32) -> f64 {
     }
 }
 
+/// A library report (anything that derives or implements `serde::Serialize`) as a JSON value with the
+/// names its serialisation gives: the command line's `--json`. The one conversion of every result: the
+/// report goes through its JSON text, so that a float of the wire (f32) reads as the command line prints
+/// it (0.05, not 0.05000000074505806).
+pub fn report_value<T: serde::Serialize + ?Sized>(report: &T) -> PyResult<serde_json::Value> {
+    let bad = |e: serde_json::Error| {
+        pyo3::exceptions::PyValueError::new_err(format!("a report that does not serialise: {e}"))
+    };
+    serde_json::from_str(&serde_json::to_string(report).map_err(bad)?).map_err(bad)
+}
+
+/// A library report as Python objects (see [`report_value`]).
+pub fn report_py<'py, T: serde::Serialize + ?Sized>(py: Python<'py>, report: &T) -> PyResult<Bound<'py, PyAny>> {
+    json_py(py, &report_value(report)?)
+}
+
 /// A record under construction: a dict with the names of naming.md.
 pub struct Record<'py>(pub Bound<'py, PyDict>);
 
@@ -109,19 +124,18 @@ impl<'py> Record<'py> {
         Record(PyDict::new(py))
     }
 
+    /// The record of a library report (see [`report_py`]) whose serialisation is a map, with `family` first.
+    pub fn of<T: serde::Serialize + ?Sized>(py: Python<'py>, family: &str, report: &T) -> PyResult<Self> {
+        let fields = report_py(py, report)?.cast_into::<PyDict>()?;
+        let r = Record::new(py);
+        r.set("family", family)?;
+        r.0.update(fields.as_mapping())?;
+        Ok(r)
+    }
+
     /// Sets `key` (conversion errors are Python errors).
     pub fn set<V: IntoPyObject<'py>>(&self, key: &str, value: V) -> PyResult<&Self> {
         self.0.set_item(key, value)?;
-        Ok(self)
-    }
-
-    /// `word` (the raw word), `flags` (names as the manual spells them) and `unknown_bits` (only when
-    /// nonzero): a flag word as naming.md spells it.
-    pub fn flag_word<W: FlagWord>(&self, word: W) -> PyResult<&Self> {
-        self.set("word", word.raw())?.set("flags", word.names())?;
-        if word.unknown() != 0 {
-            self.set("unknown_bits", word.unknown())?;
-        }
         Ok(self)
     }
 
@@ -256,7 +270,12 @@ pub fn use_profile(
 }
 
 /// The setup of a probe of the client's port (`None`: an emulator in this process) at `baud`.
-pub fn probe_setup(port: Option<&str>, baud: u32, exchanges: u32, low_latency: bool) -> motionlink_link::probe::ProbeSetup {
+pub fn probe_setup(
+    port: Option<&str>,
+    baud: u32,
+    exchanges: u32,
+    low_latency: bool,
+) -> motionlink_link::probe::ProbeSetup {
     use motionlink_link::probe::{PortKind, ProbeSetup};
     let kind = port.and_then(|p| p.parse::<PortUrl>().ok()).map_or(PortKind::Sim, |u| PortKind::of(&u));
     let mut setup = ProbeSetup::new(port.unwrap_or("in-process emulator"), kind, baud);
@@ -269,7 +288,9 @@ pub fn probe_setup(port: Option<&str>, baud: u32, exchanges: u32, low_latency: b
 pub fn profiles_for_save(family: &'static str, save: &str) -> Result<motionlink_link::profile::Profiles, Failure> {
     use motionlink_link::profile::{profiles_path, Profiles};
     let path = if save.is_empty() {
-        profiles_path().ok_or_else(|| Failure::usage(family, "save: no configuration directory is known (set MOTIONLINK_CONFIG)"))?
+        profiles_path().ok_or_else(|| {
+            Failure::usage(family, "save: no configuration directory is known (set MOTIONLINK_CONFIG)")
+        })?
     } else {
         std::path::PathBuf::from(save)
     };

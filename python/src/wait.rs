@@ -342,3 +342,18 @@ impl NativeTask {
         motionlink_link::clock::lock(&self.handle).as_ref().is_none_or(|h| h.is_finished())
     }
 }
+
+/// Runs the blocking `work` (opening a port) on tokio's blocking pool; a task that failed to run is a
+/// transport error of `family`.
+pub async fn on_blocking_pool<T: Send + 'static>(
+    family: &'static str,
+    work: impl FnOnce() -> Result<T, crate::errors::Failure> + Send + 'static,
+) -> Result<T, crate::errors::Failure> {
+    tokio::task::spawn_blocking(work).await.map_err(|e| {
+        crate::errors::Failure::new(
+            motionlink_link::error::ErrorClass::Transport(motionlink_link::error::TransportKind::Io),
+            family,
+            format!("the opening task failed: {e}"),
+        )
+    })?
+}

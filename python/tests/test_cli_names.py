@@ -126,3 +126,43 @@ def test_compax_names(cli: Callable[..., List[Any]]) -> None:
         sample = next(drive.watch(interval_ms=10, count=1))
         same_names("watch", sample.to_dict(), cli(*cx, "watch", "--count", "1")[0])
     same_names.check()
+
+
+# ------------------------------------------------------------------------------------- values, not only names
+
+
+def same_values(python: Any, cli: Any) -> bool:
+    """Equal JSON values (``family``, ``port`` and ``profile`` aside); a float of the wire (f32) as Python
+    gives it (the shortest decimal, 0.05) against the command line's widened one (0.05000000074505806)."""
+    if isinstance(python, dict) and isinstance(cli, dict):
+        ours = {k: v for k, v in python.items() if k not in IDENTITY}
+        theirs = {k: v for k, v in cli.items() if k not in IDENTITY}
+        return ours.keys() == theirs.keys() and all(same_values(ours[k], theirs[k]) for k in ours)
+    if isinstance(python, list) and isinstance(cli, list):
+        return len(python) == len(cli) and all(same_values(a, b) for a, b in zip(python, cli))
+    if isinstance(python, float) or isinstance(cli, float):
+        return python == pytest.approx(cli, rel=1e-6)
+    return bool(python == cli)
+
+
+def test_python_gives_the_values_the_command_line_prints(cli: Callable[..., List[Any]]) -> None:
+    """One conversion of the library's reports: a fresh emulator's records equal the command line's
+    objects value for value (the emulators start the same way)."""
+    pc = ("powercube", "--port", "sim", "--json")
+    with motionlink.PowerCube("sim") as cube:
+        for ours, args in [
+            (cube.info(), ("info",)),
+            (cube.state(), ("state",)),
+            (cube.get("MaxVel"), ("get", "MaxVel")),
+            (cube.get("ActFPosStateDio"), ("get", "ActFPosStateDio")),
+        ]:
+            theirs = cli(*pc, *args)[0]
+            assert same_values(ours.to_dict(), theirs), f"{args}: {ours.to_dict()} != {theirs}"
+        scanned = cli(*pc, "scan")
+        assert same_values([m.to_dict() for m in cube.scan()], scanned)
+    with motionlink.Compax("sim") as drive:
+        theirs = cli("compax", "--port", "sim", "--json", "get", "P194")[0]
+        assert same_values(drive.get("P194").to_dict(), theirs), theirs
+    with motionlink.Scu("sim") as scu:
+        theirs = cli("scu", "--port", "sim", "--json", "get", "actual_position_a1")[0]
+        assert same_values(scu.get("actual_position_a1").to_dict(), theirs), theirs

@@ -45,14 +45,7 @@ impl AsyncCompaxClient {
         };
         Ok(spawn_task(done, async move {
             let drive = whole(&settings.drive, "drive")?;
-            let opened = tokio::task::spawn_blocking(move || link(t, &settings)).await;
-            let (link, cfg) = opened.map_err(|e| {
-                Failure::new(
-                    motionlink_link::error::ErrorClass::Transport(motionlink_link::error::TransportKind::Io),
-                    FAMILY,
-                    format!("the opening task failed: {e}"),
-                )
-            })??;
+            let (link, cfg) = crate::wait::on_blocking_pool(FAMILY, move || link(t, &settings)).await?;
             let client = fail(AsyncClient::new(link, clock(), cfg))?;
             let native = AsyncCompaxClient { slot: Slot::new(client, FAMILY), drive, port };
             deliver(move |py| Ok(Py::new(py, native)?.into_any()))

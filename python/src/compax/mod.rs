@@ -49,16 +49,8 @@ fn whole<T: WholeArg>(n: &Int, name: &str) -> Result<T, Failure> {
 
 /// A library report as the dict of a record: `family`, then its fields as it serialises (the command line's
 /// `--json` names).
-fn record<'py>(py: Python<'py>, report: serde_json::Result<serde_json::Value>) -> PyResult<Record<'py>> {
-    let fields = report.map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(format!("a report: {e}")))?;
-    let r = Record::new(py);
-    r.set("family", FAMILY)?;
-    if let serde_json::Value::Object(fields) = fields {
-        for (k, v) in &fields {
-            r.set(k, json_py(py, v)?)?;
-        }
-    }
-    Ok(r)
+fn record<'py, T: serde::Serialize>(py: Python<'py>, report: &T) -> PyResult<Record<'py>> {
+    Record::of(py, FAMILY, report)
 }
 
 /// How a COMPAX client is opened, as `motionlink.Compax` passes it.
@@ -119,11 +111,11 @@ fn seconds(s: f64) -> Result<Duration, Failure> {
 
 /// A parameter read or written, as the CLI's `compax get` / `set --json` prints it (`title` is an extra
 /// attribute).
-fn param_record<'py>(
+fn param_record<'py, T: serde::Serialize>(
     py: Python<'py>,
     drive: Address,
     id: ParamId,
-    report: serde_json::Result<serde_json::Value>,
+    report: &T,
 ) -> PyResult<Bound<'py, PyDict>> {
     let r = record(py, report)?;
     r.set("drive", drive.get())?.set("title", id.description().unwrap_or(""))?.extras(&["title"])?;
@@ -152,14 +144,14 @@ fn move_request(
 
 /// A move as the CLI's `compax move --json` prints it (`start_units` is an extra attribute).
 fn move_record<'py>(py: Python<'py>, report: &MoveReport) -> PyResult<Record<'py>> {
-    let rec = record(py, serde_json::to_value(report))?;
+    let rec = record(py, report)?;
     rec.set("start_units", report.start.units())?.extras(&["start_units"])?;
     Ok(rec)
 }
 
 /// Where a drive stands (S1): the result of `position`, `wait` and `home`.
 fn position_record<'py>(py: Python<'py>, drive: Address, position: Position) -> PyResult<Record<'py>> {
-    record(py, serde_json::to_value(DrivePosition { drive, position }))
+    record(py, &DrivePosition { drive, position })
 }
 
 /// A session with COMPAX drives on one bus (the native half of `motionlink.Compax`).
@@ -256,8 +248,7 @@ impl CompaxClient {
         let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
         let report = py
             .detach(|| {
-                let mut report =
-                    motionlink_compax::probe::probe(&client, &setup, &drives).map_err(|e| e.failure())?;
+                let mut report = motionlink_compax::probe::probe(&client, &setup, &drives).map_err(|e| e.failure())?;
                 if let Some(save) = save {
                     let mut profiles = crate::common::profiles_for_save(FAMILY, &save)?;
                     motionlink_compax::probe::save_profile(&mut report, &mut profiles)
@@ -317,7 +308,7 @@ impl CompaxClient {
             .into_iter()
             .map(|(id, value)| {
                 // As an entry of the CLI's `compax status --json` (`drive` and `id` are extra attributes).
-                let r = record(py, serde_json::to_value(StatusReading { id, value }))?;
+                let r = record(py, &StatusReading { id, value })?;
                 r.set("drive", a.get())?.set("id", id.get())?.extras(&["drive", "id"])?;
                 Ok(r.done())
             })
@@ -339,7 +330,7 @@ impl CompaxClient {
         let a = self.drive(py, drive)?;
         let id: ParamId = checked(name.parse()).map_err(|f| to_pyerr(py, f))?;
         let value = interruptible_read(py, None, move || c.read_param(a, id))?.or_raise(py)?;
-        param_record(py, a, id, serde_json::to_value(ParamReading { id, value }))
+        param_record(py, a, id, &ParamReading { id, value })
     }
 
     /// Writes a parameter and reads it back (a different value is a DeviceError).
@@ -352,7 +343,7 @@ impl CompaxClient {
         // The library writes, compares what it reads back (a difference is an error) and reads once more:
         // `read_back` is what the drive holds, not an echo of `value`.
         let written = py.detach(|| c.set_param(a, id, value)).or_raise(py)?;
-        param_record(py, a, id, serde_json::to_value(written))
+        param_record(py, a, id, &written)
     }
 
     /// A checked move (absolute `target` or relative `distance`), waited for; Ctrl-C stops the drive.

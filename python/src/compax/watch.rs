@@ -83,7 +83,7 @@ impl CompaxWatch {
             match got {
                 Ok(Ok((t_s, s))) => {
                     *lock(&self.rx) = Some(rx);
-                    return Ok(record(py, serde_json::to_value(Timed { t_s, sample: s }))?.done());
+                    return Ok(record(py, &Timed { t_s, sample: s })?.done());
                 }
                 Ok(Err(f)) => return Err(to_pyerr(py, f)),
                 Err(RecvTimeoutError::Timeout) => {

@@ -16,16 +16,17 @@ impl AsyncPowerCubeClient {
     fn client(&self) -> Result<Arc<AsyncClient>, PyErr> {
         Python::attach(|py| self.slot.get().map_err(|f| to_pyerr(py, f)))
     }
+
+    fn address(&self, py: Python<'_>, module: Option<Int>) -> PyResult<u8> {
+        address_or(self.module, py, module)
+    }
 }
 
-/// What an async open learns on the blocking pool: in process or not, and the port's description.
-pub(super) type Learned = Result<(bool, String), Failure>;
-
-pub(super) fn raise<T>(r: Result<T, Error>) -> Result<T, Failure> {
+fn raise<T>(r: Result<T, Error>) -> Result<T, Failure> {
     r.map_err(|e| e.failure())
 }
 
-pub(super) fn dict<F>(f: F) -> Outcome
+fn dict<F>(f: F) -> Outcome
 where
     F: for<'py> FnOnce(Python<'py>) -> PyResult<Record<'py>> + Send + 'static,
 {
@@ -47,40 +48,9 @@ impl AsyncPowerCubeClient {
         Ok(spawn_task(done, async move {
             let module = module_address(&s.module)?;
             let watchdog = s.watchdog;
-            // The blocking open runs on tokio's blocking pool; what it learns comes back through `found`.
-            let found: Arc<std::sync::Mutex<Option<Learned>>> = Default::default();
-            let slot = Arc::clone(&found);
-            let opened = AsyncClient::open(move || {
-                let (client, err) = match open(t, &s) {
-                    Ok((c, in_process)) => {
-                        *slot.lock().unwrap_or_else(|e| e.into_inner()) =
-                            Some(Ok((in_process, c.port().to_string())));
-                        (Some(c), None)
-                    }
-                    Err(f) => {
-                        let message = f.message.clone();
-                        *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(Err(f));
-                        (None, Some(message))
-                    }
-                };
-                client.ok_or_else(|| Error::Unsupported(err.unwrap_or_default()))
-            })
-            .await;
-            let learned = found.lock().unwrap_or_else(|e| e.into_inner()).take();
-            let (in_process, port) = match learned {
-                Some(Ok(x)) => x,
-                Some(Err(f)) => return Err(f),
-                None => {
-                    return Err(raise::<()>(opened.map(|_| ())).err().unwrap_or_else(|| {
-                        Failure::new(
-                            ErrorClass::Transport(TransportKind::Io),
-                            FAMILY,
-                            "the open ended without a result",
-                        )
-                    }))
-                }
-            };
-            let client = raise(opened)?;
+            let (client, in_process) = crate::wait::on_blocking_pool(FAMILY, move || open(t, &s)).await?;
+            let client = raise(AsyncClient::open(move || Ok(client)).await)?;
+            let port = client.port().to_string();
             let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !watchdog);
             let native = AsyncPowerCubeClient { slot: Slot::new(client, FAMILY), guard, module, port };
             deliver(move |py| Ok(Py::new(py, native)?.into_any()))
@@ -97,10 +67,7 @@ impl AsyncPowerCubeClient {
     #[pyo3(signature = (module, done))]
     fn position(&self, py: Python<'_>, module: Option<Int>, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = match module {
-            None => self.module,
-            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
-        };
+        let a = self.address(py, module)?;
         Ok(spawn_task(done, async move {
             let p = raise(
                 async {
@@ -110,7 +77,7 @@ impl AsyncPowerCubeClient {
                 }
                 .await,
             )?;
-            deliver(move |py| Ok((f32_py(p.value()), suffix(p.unit()).1).into_pyobject(py)?.into_any().unbind()))
+            deliver(move |py| Ok((a, f32_py(p.value()), suffix(p.unit()).1).into_pyobject(py)?.into_any().unbind()))
         }))
     }
 
@@ -118,10 +85,7 @@ impl AsyncPowerCubeClient {
     #[pyo3(signature = (module, done))]
     fn state(&self, py: Python<'_>, module: Option<Int>, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = match module {
-            None => self.module,
-            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
-        };
+        let a = self.address(py, module)?;
         Ok(spawn_task(done, async move {
             let s = raise(async { c.module(Address::new(a)?).state().await }.await)?;
             dict(move |py| state_record(py, a, s))
@@ -132,10 +96,7 @@ impl AsyncPowerCubeClient {
     #[pyo3(signature = (module, timeout_s, done))]
     fn home(&self, py: Python<'_>, module: Option<Int>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = match module {
-            None => self.module,
-            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
-        };
+        let a = self.address(py, module)?;
         let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
         let guard = self.guard;
         Ok(spawn_task(done, async move {
@@ -159,10 +120,7 @@ impl AsyncPowerCubeClient {
         done: Py<PyAny>,
     ) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = match module {
-            None => self.module,
-            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
-        };
+        let a = self.address(py, module)?;
         let spec = move_spec(target, velocity, acceleration, tolerance, timeout_s).map_err(|f| to_pyerr(py, f))?;
         let guard = self.guard;
         Ok(spawn_task(done, async move {
@@ -176,10 +134,7 @@ impl AsyncPowerCubeClient {
     #[pyo3(signature = (module, timeout_s, done))]
     fn wait(&self, py: Python<'_>, module: Option<Int>, timeout_s: f64, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = match module {
-            None => self.module,
-            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
-        };
+        let a = self.address(py, module)?;
         let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
         let halting = Arc::clone(&c);
         let halt = async move {
@@ -201,10 +156,7 @@ impl AsyncPowerCubeClient {
     #[pyo3(signature = (module, done))]
     fn stop(&self, py: Python<'_>, module: Option<Int>, done: Py<PyAny>) -> PyResult<NativeTask> {
         let c = self.client()?;
-        let a = match module {
-            None => self.module,
-            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f))?,
-        };
+        let a = self.address(py, module)?;
         Ok(spawn_task(done, async move {
             raise(async { c.module(Address::new(a)?).halt().await }.await)?;
             deliver(|py| Ok(py.None()))

@@ -15,11 +15,9 @@ use motionlink_powercube::args::{
     Baud, CanBitRate, MotionTimeout, MoveAcceleration, MoveVelocity, PollInterval, ReplyTimeout, Target as MoveTarget,
     Tolerance,
 };
-use motionlink_powercube::client::{
-    BusConfig, Client, Guard, HomeReport, ModuleInfo, ModulesAt, MoveReport, MoveSpec, PortLink,
-};
+use motionlink_powercube::client::{BusConfig, Client, Guard, HomeReport, ModulesAt, MoveReport, MoveSpec, PortLink};
 use motionlink_powercube::model::{Address, AxisUnit, CubeState, ModuleKind, Param, Position, Value};
-use motionlink_powercube::report::SetReport;
+use motionlink_powercube::report::{ParamReading, SetReport};
 use motionlink_powercube::{AsyncClient, Error};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -30,7 +28,6 @@ use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
 use crate::wait::{
     block_on_runtime, deliver, interruptible, interruptible_read, spawn_task, spawn_task_stopping, NativeTask, Outcome,
 };
-use motionlink_link::error::{ErrorClass, TransportKind};
 
 const FAMILY: &str = "powercube";
 
@@ -187,10 +184,15 @@ impl PowerCubeClient {
     }
 
     fn address(&self, py: Python<'_>, module: Option<Int>) -> PyResult<u8> {
-        match module {
-            None => Ok(self.module),
-            Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f)),
-        }
+        address_or(self.module, py, module)
+    }
+}
+
+/// The module `module` names, or `default` (the client's) when it names none.
+fn address_or(default: u8, py: Python<'_>, module: Option<Int>) -> PyResult<u8> {
+    match module {
+        None => Ok(default),
+        Some(m) => module_address(&m).map_err(|f| to_pyerr(py, f)),
     }
 }
 
@@ -300,17 +302,9 @@ impl PowerCubeClient {
         let found = interruptible_read(py, Some(self.token.clone()), move || c.scan())?.or_raise(py)?;
         found
             .iter()
-            .map(|e| match &e.info {
-                Ok(i) => {
-                    let r = info_record(py, i)?;
-                    // The CLI's scan lists each module's identity and state, not its unit.
-                    Ok(r.done())
-                }
-                Err(err) => {
-                    let r = Record::new(py);
-                    r.set("family", FAMILY)?.set("module", e.address.get())?.set("error", err.to_string())?;
-                    Ok(r.done())
-                }
+            .map(|e| {
+                let r = record(py, e.address.get(), e, e.info.as_ref().ok().map(|i| i.kind), &[])?;
+                Ok(r.done())
             })
             .collect()
     }
@@ -321,19 +315,7 @@ impl PowerCubeClient {
         let c = self.client(py)?;
         let a = self.address(py, module)?;
         let details = interruptible_read(py, None, move || c.module(Address::new(a)?).details())?.or_raise(py)?;
-        let r = info_record(py, &details.info)?;
-        let (s, _) = suffix(details.info.kind.axis_unit());
-        for (p, v) in details.limits() {
-            let name = match p {
-                Param::MinPos => format!("min_position{s}"),
-                Param::MaxPos => format!("max_position{s}"),
-                Param::MaxVel => format!("max_velocity{s}_per_s"),
-                Param::MaxAcc => format!("max_acceleration{s}_per_s2"),
-                _ => format!("position{s}"),
-            };
-            r.set(&name, value_py(py, &v)?)?;
-        }
-        Ok(r.done())
+        Ok(record(py, a, &details, Some(details.info.kind), &[])?.done())
     }
 
     /// The state word, flag by flag.
@@ -350,19 +332,19 @@ impl PowerCubeClient {
     fn sample<'py>(&self, py: Python<'py>, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
         let c = self.client(py)?;
         let a = self.address(py, module)?;
-        let (p, s) = interruptible_read(py, None, move || -> Result<_, Error> {
+        let p = interruptible_read(py, None, move || -> Result<_, Error> {
             let m = c.module(Address::new(a)?);
             let kind = m.kind()?;
             let s = m.state()?;
-            Ok((in_unit(m.position()?, kind), s))
+            Ok((kind, in_unit(m.position()?, kind), s))
         })?
         .or_raise(py)?;
-        Ok(sample_record(py, a, p, s)?.done())
+        Ok(sample_record(py, a, p.0, p.1, p.2)?.done())
     }
 
     /// The actual position: (value, unit) with unit "rad", "m", or "module" while the kind is not known.
     #[pyo3(signature = (module=None))]
-    fn position(&self, py: Python<'_>, module: Option<Int>) -> PyResult<(f64, &'static str)> {
+    fn position(&self, py: Python<'_>, module: Option<Int>) -> PyResult<(u8, f64, &'static str)> {
         let c = self.client(py)?;
         let a = self.address(py, module)?;
         let p = py
@@ -373,7 +355,7 @@ impl PowerCubeClient {
                 Ok(in_unit(m.position()?, kind))
             })
             .or_raise(py)?;
-        Ok((f32_py(p.value()), suffix(p.unit()).1))
+        Ok((a, f32_py(p.value()), suffix(p.unit()).1))
     }
 
     /// Reads a parameter by name (ActPos) or id (60, 0x3c).
@@ -382,14 +364,12 @@ impl PowerCubeClient {
         let c = self.client(py)?;
         let a = self.address(py, module)?;
         let p = parse_param(name).map_err(|f| to_pyerr(py, f))?;
-        let (v, kind) = interruptible_read(py, None, move || -> Result<_, Error> {
+        let reading = interruptible_read(py, None, move || -> Result<_, Error> {
             let m = c.module(Address::new(a)?);
-            Ok((m.get(p)?, m.kind()?))
+            Ok(ParamReading { param: p, value: m.get(p)?, kind: m.kind()? })
         })?
         .or_raise(py)?;
-        let r = param_record(py, a, p, kind)?;
-        r.set("value", value_py(py, &v)?)?;
-        Ok(r.done())
+        Ok(get_record(py, a, &reading)?.done())
     }
 
     /// Writes a parameter, refusing a target beyond its limit, and reads it back.

@@ -142,15 +142,14 @@ fn parse_function(text: &str) -> Result<Function, Failure> {
 /// A report as Python gets it: the library's serialisation (the command line's `--json` object, without
 /// `port`), with `family`; `extra` adds what Python shows besides (attributes left out of `to_dict()`, named
 /// in `_extras`), converted as `json.loads` would.
-fn report_py<'py, T: motionlink_link::serde::Serialize>(
+fn report_py<'py, T: serde::Serialize>(
     py: Python<'py>,
     report: &T,
     extra: impl FnOnce(&mut serde_json::Map<String, serde_json::Value>),
 ) -> PyResult<Bound<'py, PyAny>> {
-    let mut fields = match serde_json::to_value(report) {
-        Ok(serde_json::Value::Object(fields)) => fields,
-        Ok(other) => return json_py(py, &other),
-        Err(e) => return Err(pyo3::exceptions::PyValueError::new_err(format!("a report that does not serialise: {e}"))),
+    let mut fields = match crate::common::report_value(report)? {
+        serde_json::Value::Object(fields) => fields,
+        other => return json_py(py, &other),
     };
     fields.insert("family".into(), FAMILY.into());
     extra(&mut fields);

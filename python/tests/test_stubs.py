@@ -1,0 +1,43 @@
+"""The client modules' typing stubs are what python/tools/stubs.py writes from the operations' declarations
+(one declaration per operation: the blocking method, the asyncio coroutine and the stub entry)."""
+
+from __future__ import annotations
+
+import importlib.util
+import inspect
+from pathlib import Path
+
+import pytest
+
+import motionlink
+
+TOOL = Path(__file__).resolve().parent.parent / "tools" / "stubs.py"
+
+
+def _tool():
+    spec = importlib.util.spec_from_file_location("motionlink_stubs", TOOL)
+    assert spec and spec.loader
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("name", _tool().MODULES)
+def test_checked_in_stub_is_generated(name: str) -> None:
+    path = TOOL.parent.parent / "motionlink" / f"{name}.pyi"
+    assert path.read_text(encoding="utf-8") == _tool().stub(name), f"run python/tools/stubs.py: {path}"
+
+
+def test_one_declaration_gives_both_faces() -> None:
+    move = motionlink.PowerCube.move_to
+    assert str(inspect.signature(move)) == str(inspect.signature(motionlink.AsyncPowerCube.move_to))
+    stub = (TOOL.parent.parent / "motionlink" / "powercube.pyi").read_text(encoding="utf-8")
+    assert "    def move_to(self, target: float" in stub and "    async def move_to(self, target: float" in stub
+    # An operation the asyncio client does not have is not there.
+    assert "    async def scan" not in stub and "    def scan(self) -> List[ModuleInfo]: ..." in stub
+    assert not hasattr(motionlink.AsyncPowerCube(port="sim"), "scan")
+    assert not hasattr(motionlink.AsyncPowerCube, "scan") and hasattr(motionlink.PowerCube, "scan")
+    # Each class has its face: a function, or a coroutine function, with the declaration's docstring.
+    assert inspect.iscoroutinefunction(motionlink.AsyncPowerCube.move_to)
+    assert not inspect.iscoroutinefunction(motionlink.PowerCube.move_to)
+    assert motionlink.PowerCube.move_to.__doc__ == motionlink.AsyncPowerCube.move_to.__doc__
