@@ -412,6 +412,15 @@ impl Gateway {
                 }
                 self.spawn_reply(device, r, reply, op);
             }
+            Action::Write(op) => {
+                if let Some(m) = &self.devices[device].motion {
+                    return Err(ReplyError::busy(format!(
+                        "{device} is running {} {:?}: {} writes once it has ended (or stop it)",
+                        m.op, m.id, r.op
+                    )));
+                }
+                self.spawn_reply(device, r, reply, op)
+            }
             Action::Other(op) => self.spawn_reply(device, r, reply, op),
         }
         Ok(())
