@@ -1,6 +1,7 @@
-//! Reads and writes through the gateway against a real broker (mosquitto on a free loopback port): SCU
-//! `get`/`set`, PowerCube `get`/`set`, COMPAX `status`/`get`/`set`/`output`, each answered with the
-//! `--json` object of the command line's same action; a write refused while a motion of the device runs.
+//! Reads, writes and SCU `run` through the gateway against a real broker (mosquitto on a free loopback
+//! port): SCU `get`/`set` and a leased `run`, PowerCube `get`/`set`, COMPAX `status`/`get`/`set`/`output`,
+//! each answered with the `--json` object of the command line's same action; a write refused while a motion
+//! of the device runs.
 //! Without mosquitto each test says it is skipped, by name (MOTIONLINK_REQUIRE_BROKER=1 makes that a
 //! failure).
 
@@ -143,4 +144,45 @@ async fn a_write_is_refused_while_the_device_s_motion_runs() {
     // Once it has ended the write is served.
     let r = ask(&mut c, "wm", "axis", "w2", "set", json!({"param": "P196", "value": 8})).await;
     assert_eq!(r["ok"], true, "{r}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_scu_run_is_held_by_its_lease_and_kept_alive_ends_at_its_end_of_travel() {
+    let Some(b) = broker("an_scu_run_is_held_by_its_lease_and_kept_alive_ends_at_its_end_of_travel") else { return };
+    let _gw = gateway(&b, "rn", ALL);
+    let mut c = Client::connect(&b, "t-rn", &["motionlink/rn/#", "me/#"]).await;
+    c.wait("online", 20 * S, |m| m.topic == "motionlink/rn/status" && m.payload == "online").await;
+    let run = |id: &str| json!({"id": id, "op": "run", "args": {"function": "F1", "direction": "out"}, "reply_to": "me/r", "lease_ms": 300});
+    // No keepalive: the lease lapses and the run is stopped short of the end of travel (865 counts).
+    c.send("motionlink/rn/lift/cmd", run("r0").to_string()).await;
+    let r = c.reply("me/r", "r0", 10 * S).await;
+    assert_eq!((r["ok"].as_bool(), r["error"]["kind"].as_str()), (Some(false), Some("lease_expired")), "{r}");
+    c.drain();
+    let m = c.wait("at rest", 3 * S, |m| m.topic == "motionlink/rn/lift/state").await.json();
+    let stopped_at = m["actuators"][0]["position_counts"].as_i64().unwrap();
+    assert!((0..865).contains(&stopped_at) && m["actuators"][0]["moving"] == false, "{m}");
+    // Kept alive: to the end of travel, the CLI's `run --json` object.
+    c.send("motionlink/rn/lift/cmd", run("r1").to_string()).await;
+    let keep = {
+        let (mqtt, body) = (c.mqtt.clone(), json!({"id": "r1", "op": "keepalive"}).to_string());
+        tokio::spawn(async move {
+            loop {
+                let q = rumqttc::v5::mqttbytes::QoS::AtLeastOnce;
+                let _ = mqtt.publish("motionlink/rn/lift/cmd", q, false, body.clone()).await;
+                tokio::time::sleep(Duration::from_millis(100)).await;
+            }
+        })
+    };
+    let r = c.reply("me/r", "r1", 120 * S).await;
+    keep.abort();
+    assert_eq!(
+        result(&r, "scu"),
+        json!({"actuators": [{"actuator": 1, "reached_counts": 865}, {"actuator": 2, "reached_counts": 0}],
+               "function": 1, "interrupted": false, "stopped": true})
+    );
+    let events: Vec<Value> =
+        c.drain().iter().filter(|m| m.topic == "motionlink/rn/lift/events").map(|m| m.json()).collect();
+    let said: Vec<(&str, &str)> =
+        events.iter().map(|e| (e["event"].as_str().unwrap(), e["op"].as_str().unwrap_or(""))).collect();
+    assert_eq!(said, [("motion_started", "run"), ("motion_ended", "run")], "{events:?}");
 }

@@ -1,14 +1,15 @@
-//! An SCU unit on the gateway: `move`, `stop`, `info`, `errors`, `get`, `set` and the state samples, as the command line's
-//! `motionlink scu` does them, on [`AsyncClient`].
+//! An SCU unit on the gateway: `move`, `run`, `stop`, `info`, `errors`, `get`, `set` and the state samples,
+//! as the command line's `motionlink scu` does them, on [`AsyncClient`].
 
 use std::sync::Arc;
 
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::{RealClock, SerialSettings};
-use motionlink_scu::args::{Checked, UnitOptions};
+use motionlink_scu::args::{Checked, RunLimit, UnitOptions};
 use motionlink_scu::model::{find, Actuator, Function, Item, MotionFunction, PositionCounts, Speed, StopMode};
-use motionlink_scu::results::{ErrorHistory, SampleReport, StopResult, StopScope, SwitchedOff};
+use motionlink_scu::results::{ErrorHistory, RunOutcome, SampleReport, StopResult, StopScope, SwitchedOff};
+use motionlink_scu::session::RunAction;
 use motionlink_scu::{AsyncClient, Emulator};
 
 use super::{failed, identified, unknown_op, Action, Outcome, Sampling};
@@ -16,7 +17,7 @@ use crate::args::Args;
 use crate::error::ReplyError;
 
 /// The actions served.
-const OPS: [&str; 6] = ["move", "stop", "info", "errors", "get", "set"];
+const OPS: [&str; 7] = ["move", "run", "stop", "info", "errors", "get", "set"];
 
 /// A session with one unit.
 #[derive(Clone)]
@@ -69,6 +70,19 @@ impl Scu {
                 Ok(Action::Motion(Box::pin(async move {
                     let report = client.move_to(actuator, position, speed, Some(function)).await.map_err(failed)?;
                     me.result(&report)
+                })))
+            }
+            "run" => {
+                let function: String = args.need("function")?;
+                let direction: String = args.need("direction")?;
+                let seconds: Option<RunLimit> = args.get("seconds")?;
+                args.finish()?;
+                let action =
+                    RunAction::parse(&function, &direction).map_err(|e| ReplyError::usage(format!("run: {e}")))?;
+                Ok(Action::Motion(Box::pin(async move {
+                    // To its end of travel (or `seconds`); dropped, the library stops the function (RS).
+                    let report = client.run_function(action, seconds.map(RunLimit::get)).await;
+                    me.result(&RunOutcome::of(report).map_err(failed)?)
                 })))
             }
             "stop" => {
