@@ -59,6 +59,27 @@ impl Args {
         self.get(key)?.ok_or_else(|| ReplyError::usage(format!("{}: the argument {key:?} is missing", self.op)))
     }
 
+    /// The list argument `key` (the command line's repeated argument, such as `values` of COMPAX
+    /// `status`): a JSON list of values or one value, each checked by its type's rule; empty when absent.
+    pub fn list<T: FromStr>(&mut self, key: &'static str) -> Result<Vec<T>, ReplyError>
+    where
+        T::Err: std::fmt::Display,
+    {
+        let items = match self.map.remove(key) {
+            Some(Value::Array(items)) => items,
+            Some(one) => vec![one],
+            None => Vec::new(),
+        };
+        let mut all = Vec::new();
+        for item in items {
+            self.map.insert(key.to_string(), item);
+            all.extend(self.get::<T>(key)?);
+        }
+        self.taken.push(key);
+        self.taken.dedup();
+        Ok(all)
+    }
+
     /// A flag (`binary`, `soft`): true, false or absent (false).
     pub fn flag(&mut self, key: &'static str) -> Result<bool, ReplyError> {
         Ok(self.get::<bool>(key)?.unwrap_or(false))
@@ -96,6 +117,11 @@ mod tests {
         assert!(a.flag("binary").unwrap());
         assert_eq!(a.get::<u8>("accel").unwrap(), None);
         assert!(a.text("x").unwrap_err().message.contains("not a list"));
+        let mut a = args(serde_json::json!({"values": ["S1", "S17"], "one": 2, "bad": [1, [2]]}));
+        assert_eq!(a.list::<String>("values").unwrap(), ["S1", "S17"]);
+        assert_eq!(a.list::<u8>("one").unwrap(), [2]);
+        assert!(a.list::<u8>("none").unwrap().is_empty());
+        assert!(a.list::<u8>("bad").unwrap_err().message.contains("not a list"));
         let mut a = args(serde_json::json!({"position": -1, "vel": 1}));
         let e = a.need::<u32>("position").unwrap_err();
         assert!(e.message.starts_with("move position \"-1\": ") && e.kind == "usage", "{}", e.message);

@@ -66,7 +66,9 @@ impl ReplyError {
     pub fn stopped(reason: &StopReason, library: &str) -> ReplyError {
         let (kind, exit_code) = match reason {
             StopReason::LeaseExpired { .. } => ("lease_expired", ErrorClass::Cancelled.exit_code()),
-            StopReason::StopRequest { .. } => ("cancelled", ErrorClass::Cancelled.exit_code()),
+            StopReason::StopRequest { .. } | StopReason::PortStop { .. } => {
+                ("cancelled", ErrorClass::Cancelled.exit_code())
+            }
             StopReason::BrokerLost => ("broker_lost", 3),
             StopReason::Signal { number, .. } => ("cancelled", 128 + *number as u8),
         };
@@ -87,6 +89,11 @@ pub enum StopReason {
         /// The stop request's id.
         id: String,
     },
+    /// `motionlink FAMILY --port PORT stop` from another process, through the port's lock.
+    PortStop {
+        /// That process: `motionlink pid N (its command)`.
+        who: String,
+    },
     /// The gateway lost the broker: no lease could be renewed.
     BrokerLost,
     /// A signal ends the gateway.
@@ -105,6 +112,7 @@ impl std::fmt::Display for StopReason {
                 write!(f, "the lease lapsed: no keepalive within {lease_ms} ms, so the gateway stopped the motion")
             }
             StopReason::StopRequest { id } => write!(f, "stopped by the stop request {id:?}"),
+            StopReason::PortStop { who } => write!(f, "stopped by a stop from {who} through the port's lock"),
             StopReason::BrokerLost => {
                 f.write_str("the gateway lost the broker (no lease could be renewed), so it stopped the motion")
             }

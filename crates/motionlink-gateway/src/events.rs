@@ -4,7 +4,8 @@
 /// One event: a motion started or ended, a lease lapsed, an error with no one to reply to.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Event<'a> {
-    /// `motion_started`, `motion_ended`, `lease_expired`, `error`, `state_failed`.
+    /// `motion_started`, `motion_ended`, `lease_expired`, `error`, `state_failed`, `port_released` (a
+    /// `stop` from another process took the device's port), `port_taken` (the gateway serves it again).
     pub event: &'static str,
     /// The request's (or motion's) id, if there is one.
     pub id: Option<&'a str>,
@@ -20,12 +21,15 @@ pub struct Event<'a> {
     /// The error, for an error and a motion that failed.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<&'a crate::error::ReplyError>,
+    /// What happened, in words (`port_released`: what was stopped, for whom).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub message: Option<&'a str>,
 }
 
 impl<'a> Event<'a> {
     /// An event of kind `event` about request `id`.
     pub fn new(event: &'static str, id: Option<&'a str>) -> Event<'a> {
-        Event { event, id, op: None, lease_ms: None, ok: None, error: None }
+        Event { event, id, op: None, lease_ms: None, ok: None, error: None, message: None }
     }
 }
 

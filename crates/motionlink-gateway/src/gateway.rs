@@ -14,14 +14,17 @@ use serde_json::Value;
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
 
-use crate::config::GatewayConfig;
+use crate::config::{DeviceEntry, GatewayConfig};
 use crate::device::{Action, Device, Operation, Outcome, Spec};
 use crate::error::{GatewayError, ReplyError, StopReason};
 use crate::events::{Event, Renewed};
 use crate::lease::Leases;
 use crate::mqtt::{self, Net, OFFLINE, ONLINE};
+use crate::ports::PortLocks;
 use crate::request::{self, Request};
 use crate::topics::Topics;
+
+mod handover;
 
 /// How long the gateway waits for its motions to stop when it ends.
 const STOP_BOUND: Duration = Duration::from_secs(10);
@@ -64,6 +67,20 @@ struct Gateway {
     devices: HashMap<String, Served>,
     leases: Leases,
     done: mpsc::UnboundedSender<Done>,
+    /// The gateway's name (how it names itself as a port's holder).
+    name: String,
+    /// The locks of the real ports it serves.
+    ports: PortLocks,
+    /// Each device's table and options (to open it again once its port is back).
+    entries: HashMap<String, (DeviceEntry, Spec)>,
+    /// The devices whose port a `stop` from another process took: served again once it is free.
+    released: Vec<String>,
+    /// Each served device's state sampler.
+    samplers: HashMap<String, tokio::task::JoinHandle<()>>,
+    /// States a second while something moves.
+    sample_hz: u32,
+    /// The gateway's start (states' `t_s`).
+    started: Instant,
 }
 
 /// Runs the gateway of `config` until a signal ends it (its exit code: 130 SIGINT, 143 SIGTERM) or it
@@ -78,6 +95,13 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
     }
     let options = mqtt::options(&config, &topics)?;
     let mut signals = Signals::new()?;
+    // The lock of every real port before any is opened: one held by another process names it (exit 3).
+    let mut ports = PortLocks::new();
+    for (entry, _) in &specs {
+        ports
+            .claim(&config.name, entry)
+            .map_err(|m| GatewayError::Transport(format!("[device.{}]: {m}", entry.name)))?;
+    }
     let mut devices = HashMap::new();
     for (entry, spec) in &specs {
         let device = Device::open(entry, spec).await.map_err(|e| {
@@ -103,7 +127,21 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         other => return Err(GatewayError::Transport(format!("the broker {}: {other:?}", config.broker))),
     }
     let (done_tx, mut done) = mpsc::unbounded_channel();
-    let mut gw = Gateway { topics, mqtt, devices, leases: Leases::new(), done: done_tx };
+    let entries = specs.iter().map(|(e, s)| (e.name.clone(), ((*e).clone(), s.clone()))).collect();
+    let mut gw = Gateway {
+        topics,
+        mqtt,
+        devices,
+        leases: Leases::new(),
+        done: done_tx,
+        name: config.name.clone(),
+        ports,
+        entries,
+        released: Vec::new(),
+        samplers: HashMap::new(),
+        sample_hz: config.sample_hz,
+        started: Instant::now(),
+    };
     gw.online();
     eprintln!(
         "motionlink gateway {}: connected to {}, serving {} device(s) under {}",
@@ -112,18 +150,11 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         gw.devices.len(),
         gw.topics.status().trim_end_matches("/status")
     );
-    let started = Instant::now();
-    let mut samplers = Vec::new();
-    for served in gw.devices.values() {
-        samplers.push(tokio::spawn(sample_states(
-            Arc::clone(&served.device),
-            gw.mqtt.clone(),
-            gw.topics.state(&served.device.name),
-            Arc::clone(&served.moving),
-            config.sample_hz,
-            started,
-        )));
+    let names: Vec<String> = gw.devices.keys().cloned().collect();
+    for name in names {
+        gw.start_sampler(&name);
     }
+    let mut retake = tokio::time::interval(Duration::from_secs(1));
     let far = || Instant::now() + Duration::from_secs(3600);
     let mut connected = true;
     let (number, name) = loop {
@@ -155,7 +186,17 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
             },
             Some(d) = done.recv() => gw.on_done(d),
             _ = tokio::time::sleep_until(deadline) => gw.on_leases(),
-            s = signals.next() => break s,
+            _ = retake.tick() => gw.retake_ports().await,
+            s = signals.next() => {
+                // SIGINT from `motionlink FAMILY --port PORT stop`: that device's motion stops, its port is
+                // let go of; the others are served on. Any other SIGINT (Ctrl-C) or SIGTERM ends the gateway.
+                let asked = gw.ports.stop_requests();
+                if s.0 == 2 && !asked.is_empty() {
+                    gw.hand_over(asked, &mut done).await;
+                    continue;
+                }
+                break s;
+            }
         }
     };
     // The end: every motion stopped (and said on stderr), then `offline`, then the devices closed.
@@ -186,7 +227,7 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         }
     }
     // The samplers end before the sessions close (each holds its device).
-    for s in samplers {
+    for (_, s) in gw.samplers.drain() {
         s.abort();
         let _ = s.await;
     }
@@ -345,6 +386,12 @@ impl Gateway {
     }
 
     fn on_request(&mut self, device: &str, r: &Request, reply: &ReplyTo) -> Result<(), ReplyError> {
+        if self.released.iter().any(|d| d == device) {
+            return Err(ReplyError::busy(format!(
+                "{device}: a stop from another process took its port; the gateway serves it again once the port is \
+                 free"
+            )));
+        }
         if !self.devices.contains_key(device) {
             let names = self.devices.keys().cloned().collect::<Vec<_>>().join(", ");
             return Err(ReplyError::usage(format!("no device {device:?} on this gateway; it serves {names}")));
@@ -411,6 +458,15 @@ impl Gateway {
                     }
                 }
                 self.spawn_reply(device, r, reply, op);
+            }
+            Action::Write(op) => {
+                if let Some(m) = &self.devices[device].motion {
+                    return Err(ReplyError::busy(format!(
+                        "{device} is running {} {:?}: {} writes once it has ended (or stop it)",
+                        m.op, m.id, r.op
+                    )));
+                }
+                self.spawn_reply(device, r, reply, op)
             }
             Action::Other(op) => self.spawn_reply(device, r, reply, op),
         }

@@ -1,10 +1,12 @@
-//! A COMPAX drive on the gateway: `move`, `stop` and the state samples, as the command line's
+//! A COMPAX drive on the gateway: `move`, `stop`, `status`, `get`, `set`, `output` and the state samples, as the command line's
 //! `motionlink compax` does them, on [`AsyncClient`].
 
 use std::sync::Arc;
 
-use motionlink_compax::model::{Position, RampMs, SpeedPercent, TimeLimit};
-use motionlink_compax::report::{StopResult, Timed};
+use motionlink_compax::model::{
+    OutputNumber, OutputState, ParamId, Position, RampMs, SpeedPercent, StatusId, TimeLimit,
+};
+use motionlink_compax::report::{OutputSwitched, ParamReading, StatusReport, StopResult, Timed};
 use motionlink_compax::session::{MoveRequest, MoveTarget, TravelLimits, WatchSample};
 use motionlink_compax::wire::Address;
 use motionlink_compax::{AsyncClient, DriveOptions, Emulator};
@@ -18,7 +20,7 @@ use crate::args::Args;
 use crate::error::ReplyError;
 
 /// The actions served.
-const OPS: [&str; 2] = ["move", "stop"];
+const OPS: [&str; 6] = ["move", "stop", "status", "get", "set", "output"];
 
 /// The command line's `--timeout-s` of a move when none is given, in s.
 const MOVE_TIMEOUT_S: f64 = 600.0;
@@ -109,6 +111,46 @@ impl Compax {
                     let position = client.read_position(drive).await;
                     let o0 = client.read_s16(drive).await.map(|s| s.o0_state());
                     me.result(&StopResult::new(None::<String>, report, position, o0))
+                })))
+            }
+            "status" => {
+                let mut ids: Vec<StatusId> = args.list("values")?;
+                args.finish()?;
+                if ids.is_empty() {
+                    ids = StatusId::OVERVIEW.to_vec();
+                }
+                Ok(Action::Other(Box::pin(async move {
+                    me.result(&StatusReport::from(client.read_statuses(drive, &ids).await.map_err(failed)?))
+                })))
+            }
+            "get" => {
+                let id: ParamId = args.need("param")?;
+                args.finish()?;
+                Ok(Action::Other(Box::pin(async move {
+                    me.result(&ParamReading { id, value: client.read_param(drive, id).await.map_err(failed)? })
+                })))
+            }
+            "set" => {
+                let id: ParamId = args.need("param")?;
+                let value: f64 = args.need("value")?;
+                args.finish()?;
+                if !value.is_finite() {
+                    return Err(ReplyError::usage("set: the value must be a number"));
+                }
+                Ok(Action::Write(Box::pin(async move {
+                    // Written and read back: a value that reads back otherwise is an error.
+                    me.result(&client.set_param(drive, id, value).await.map_err(failed)?)
+                })))
+            }
+            "output" => {
+                let number: OutputNumber = args.need("number")?;
+                let state: OutputState = args.need("state")?;
+                args.finish()?;
+                let state = state.for_output(number).map_err(|e| ReplyError::usage(format!("output state: {e}")))?;
+                let output = number.get();
+                Ok(Action::Write(Box::pin(async move {
+                    client.set_output(drive, output, state, false).await.map_err(failed)?;
+                    me.result(&OutputSwitched { output, state })
                 })))
             }
             other => Err(unknown_op("compax", other, &OPS)),

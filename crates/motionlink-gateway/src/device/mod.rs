@@ -31,7 +31,10 @@ pub enum Action {
     Motion(Operation),
     /// `stop`: it needs no lease and always runs.
     Stop(Operation),
-    /// Anything else: a read, a setting (no lease).
+    /// A write (a parameter, a data entry, an output): no lease, but refused while the device runs a
+    /// motion of the gateway's, as the command line's write is refused while another holds the port.
+    Write(Operation),
+    /// Anything else: a read (no lease).
     Other(Operation),
 }
 

@@ -1,4 +1,4 @@
-//! A PowerCube module on the gateway: `move`, `home`, `stop`, `reset`, `state`, `info` and the state
+//! A PowerCube module on the gateway: `move`, `home`, `stop`, `reset`, `state`, `info`, `get`, `set` and the state
 //! samples, as the command line's `motionlink powercube` does them, on [`AsyncClient`].
 
 use std::sync::Arc;
@@ -8,8 +8,8 @@ use motionlink_link::url::PortUrl;
 use motionlink_link::RealClock;
 use motionlink_powercube::args::{ModuleOptions, MotionTimeout, MoveAcceleration, MoveVelocity, Target, Tolerance};
 use motionlink_powercube::client::{Client, PortLink};
-use motionlink_powercube::model::{Address, StateFlag};
-use motionlink_powercube::report::{Acted, Released, Sample, StateReport, Timed};
+use motionlink_powercube::model::{Address, Param, StateFlag, Value as ParamValue};
+use motionlink_powercube::report::{Acted, ParamReading, Released, Sample, SetReport, StateReport, Timed};
 use motionlink_powercube::session::{Guard, MoveSpec};
 use motionlink_powercube::{AsyncClient, Emulator};
 use serde_json::Value;
@@ -19,7 +19,7 @@ use crate::args::Args;
 use crate::error::ReplyError;
 
 /// The actions served.
-const OPS: [&str; 6] = ["move", "home", "stop", "reset", "state", "info"];
+const OPS: [&str; 8] = ["move", "home", "stop", "reset", "state", "info", "get", "set"];
 
 /// A session with one module.
 #[derive(Clone)]
@@ -118,6 +118,29 @@ impl PowerCube {
                         true => me.result(&m.details().await.map_err(failed)?),
                         false => me.result(&StateReport(m.state().await.map_err(failed)?)),
                     }
+                })))
+            }
+            "get" => {
+                let param: Param = args.need("param")?;
+                args.finish()?;
+                Ok(Action::Other(Box::pin(async move {
+                    let m = client.module(module);
+                    let value = m.get(param).await.map_err(failed)?;
+                    // The unit depends on the module type (rad or m): no guessing when it cannot be read.
+                    let kind = m.kind().await.map_err(failed)?;
+                    me.result(&ParamReading { param, kind, value })
+                })))
+            }
+            "set" => {
+                let param: Param = args.need("param")?;
+                let text: String = args.need("value")?;
+                args.finish()?;
+                let value = ParamValue::parse(param, &text)
+                    .map_err(|e| ReplyError::usage(format!("set value {text:?}: {e}")))?;
+                Ok(Action::Write(Box::pin(async move {
+                    // Targets beyond their limits are refused; what was written is read back where it can be.
+                    let readback = client.module(module).set_checked(param, value).await.map_err(failed)?;
+                    me.result(&SetReport { param, value, readback })
                 })))
             }
             other => Err(unknown_op("powercube", other, &OPS)),

@@ -1,14 +1,15 @@
-//! An SCU unit on the gateway: `move`, `stop`, `info`, `errors` and the state samples, as the command line's
-//! `motionlink scu` does them, on [`AsyncClient`].
+//! An SCU unit on the gateway: `move`, `run`, `stop`, `info`, `errors`, `get`, `set` and the state samples,
+//! as the command line's `motionlink scu` does them, on [`AsyncClient`].
 
 use std::sync::Arc;
 
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::{RealClock, SerialSettings};
-use motionlink_scu::args::{Checked, UnitOptions};
-use motionlink_scu::model::{Actuator, Function, MotionFunction, PositionCounts, Speed, StopMode};
-use motionlink_scu::results::{ErrorHistory, SampleReport, StopResult, StopScope, SwitchedOff};
+use motionlink_scu::args::{Checked, RunLimit, UnitOptions};
+use motionlink_scu::model::{find, Actuator, Function, Item, MotionFunction, PositionCounts, Speed, StopMode};
+use motionlink_scu::results::{ErrorHistory, RunOutcome, SampleReport, StopResult, StopScope, SwitchedOff};
+use motionlink_scu::session::RunAction;
 use motionlink_scu::{AsyncClient, Emulator};
 
 use super::{failed, identified, unknown_op, Action, Outcome, Sampling};
@@ -16,7 +17,7 @@ use crate::args::Args;
 use crate::error::ReplyError;
 
 /// The actions served.
-const OPS: [&str; 4] = ["move", "stop", "info", "errors"];
+const OPS: [&str; 7] = ["move", "run", "stop", "info", "errors", "get", "set"];
 
 /// A session with one unit.
 #[derive(Clone)]
@@ -71,6 +72,19 @@ impl Scu {
                     me.result(&report)
                 })))
             }
+            "run" => {
+                let function: String = args.need("function")?;
+                let direction: String = args.need("direction")?;
+                let seconds: Option<RunLimit> = args.get("seconds")?;
+                args.finish()?;
+                let action =
+                    RunAction::parse(&function, &direction).map_err(|e| ReplyError::usage(format!("run: {e}")))?;
+                Ok(Action::Motion(Box::pin(async move {
+                    // To its end of travel (or `seconds`); dropped, the library stops the function (RS).
+                    let report = client.run_function(action, seconds.map(RunLimit::get)).await;
+                    me.result(&RunOutcome::of(report).map_err(failed)?)
+                })))
+            }
             "stop" => {
                 let function: Option<Function> = args.get("function")?;
                 let soft = args.flag("soft")?;
@@ -99,6 +113,22 @@ impl Scu {
                     me.result(&ErrorHistory { errors: client.error_history().await.map_err(failed)? })
                 })))
             }
+            "get" => {
+                let item = item(&mut args)?;
+                args.finish()?;
+                Ok(Action::Other(Box::pin(async move { me.result(&client.read(item).await.map_err(failed)?) })))
+            }
+            "set" => {
+                let item = item(&mut args)?;
+                let value =
+                    args.text("value")?.ok_or_else(|| ReplyError::usage("set: the argument \"value\" is missing"))?;
+                args.finish()?;
+                let (entry, value) = motionlink_scu::args::parse_write(item, &value)
+                    .map_err(|e| ReplyError::usage(format!("set: {e}")))?;
+                Ok(Action::Write(Box::pin(
+                    async move { me.result(&client.write(entry, value).await.map_err(failed)?) },
+                )))
+            }
             other => Err(unknown_op("scu", other, &OPS)),
         }
     }
@@ -122,4 +152,10 @@ impl Scu {
             Err(_) => Ok(()),
         }
     }
+}
+
+/// The data-list entry or group `item` of `get` / `set`, by name or index (the library's rule and message).
+fn item(args: &mut Args) -> Result<Item, ReplyError> {
+    let text = args.text("item")?.ok_or_else(|| ReplyError::usage("the argument \"item\" is missing"))?;
+    find(&text).map_err(|e| ReplyError::usage(format!("item: {e}")))
 }

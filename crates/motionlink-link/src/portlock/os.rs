@@ -70,13 +70,14 @@ mod imp {
     }
 
     /// Whether process `pid` runs motionlink: on Linux its command name (`/proc/PID/comm`) is this
-    /// program's or `motionlink`; `None` where that cannot be read (another Unix: the lock file's `flock`,
+    /// program's, `motionlink` or `motionlink-...` (`motionlink-gateway`); `None` where that cannot be read (another Unix: the lock file's `flock`,
     /// which only the process that wrote the pid holds, is then the proof).
     pub fn is_motionlink(pid: u32) -> Option<bool> {
         let comm = |p: &str| std::fs::read_to_string(format!("/proc/{p}/comm")).ok().map(|s| s.trim().to_string());
         let theirs = comm(&pid.to_string())?;
         let ours = comm("self");
-        Some(theirs == "motionlink" || Some(&theirs) == ours.as_ref())
+        // `motionlink`, or `motionlink-gateway` (the fleet gateway alone; a name is cut to 15 bytes there).
+        Some(theirs == "motionlink" || theirs.starts_with("motionlink-") || Some(&theirs) == ours.as_ref())
     }
 
     /// Sends SIGINT to `pid`, as Ctrl-C in its terminal would.

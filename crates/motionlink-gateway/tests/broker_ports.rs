@@ -1,0 +1,99 @@
+//! The port locks of the gateway against a real broker (mosquitto on a free loopback port) and a COMPAX
+//! emulator on a TCP port: the gateway holds the lock of the port it serves (a second process is refused,
+//! naming it), and a `stop` through the lock (what `motionlink compax --port PORT stop` does) stops that
+//! device's motion, gets its port and what was stopped, while the gateway serves on and takes the port back
+//! once it is free. Without mosquitto each test says it is skipped, by name (MOTIONLINK_REQUIRE_BROKER=1
+//! makes that a failure).
+
+#![cfg(unix)]
+
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use motionlink_link::portlock;
+use serde_json::json;
+
+#[path = "broker/harness.rs"]
+mod harness;
+
+use harness::{broker, gateway, Client};
+
+const S: Duration = Duration::from_secs(1);
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stop_through_the_port_lock_stops_the_device_s_motion_and_the_gateway_serves_on() {
+    let Some(b) = broker("a_stop_through_the_port_lock_stops_the_device_s_motion_and_the_gateway_serves_on") else {
+        return;
+    };
+    let bus = motionlink_compax::Emulator::new(motionlink_compax::DriveOptions::default().emulated_bus()).unwrap();
+    let server = motionlink_link::emulator::serve_tcp(
+        "127.0.0.1:0",
+        Arc::new(Mutex::new(bus)),
+        motionlink_link::RealClock::shared(),
+    )
+    .unwrap();
+    let port = server.address().to_string();
+    let devices = format!(
+        "[device.axis]\nfamily = \"compax\"\nport = \"{port}\"\n\n[device.lift]\nfamily = \"scu\"\nport = \"sim\"\n"
+    );
+    let gw = gateway(&b, "pl", &devices);
+    let mut c = Client::connect(&b, "t-pl", &["motionlink/pl/#", "me/#"]).await;
+    c.wait("online", 20 * S, |m| m.topic == "motionlink/pl/status" && m.payload == "online").await;
+
+    // The port is the gateway's: another process is refused, told who holds it and how to stop it.
+    let e = portlock::claim("compax", &port, "compax status").unwrap_err().0;
+    assert!(
+        e.contains(&format!("in use by motionlink pid {}", gw.pid())) && e.contains("gateway pl: device axis"),
+        "{e}"
+    );
+    assert!(e.contains(&format!("motionlink compax --port {port} stop")), "{e}");
+    // So is a second gateway on it: exit 3, naming the holder.
+    let second = gateway(&b, "pl2", &devices);
+    let (code, err) = second.signal(0);
+    assert_eq!(code, Some(3), "{err}");
+    assert!(err.contains(&format!("in use by motionlink pid {}", gw.pid())), "{err}");
+
+    // A move under a lease; a stop through the lock stops it and takes the port.
+    let body =
+        json!({"id": "m1", "op": "move", "args": {"abs": 1000, "speed": 10}, "reply_to": "me/m", "lease_ms": 10000});
+    c.send("motionlink/pl/axis/cmd", body.to_string()).await;
+    c.wait("moving", 10 * S, |m| m.topic == "motionlink/pl/axis/state" && m.json()["moving"] == true).await;
+    let p = port.clone();
+    let (lock, stopped) =
+        tokio::task::spawn_blocking(move || portlock::claim_for_stop("compax", &p, "compax stop", |_| {}))
+            .await
+            .unwrap()
+            .unwrap();
+    let stopped = stopped.expect("the gateway was the holder");
+    assert_eq!(stopped.holder.pid, gw.pid());
+    let outcome = stopped.outcome.expect("the gateway said what it stopped");
+    assert!(
+        outcome.message.contains("gateway pl: axis: ") && outcome.message.contains("\"confirmed\":true"),
+        "{outcome:?}"
+    );
+    let m = c.reply("me/m", "m1", 5 * S).await;
+    assert_eq!((m["ok"].as_bool(), m["error"]["kind"].as_str()), (Some(false), Some("cancelled")), "{m}");
+    assert!(m["error"]["message"].as_str().unwrap().contains("through the port's lock"), "{m}");
+    let ev = c
+        .wait("released", 5 * S, |m| m.topic == "motionlink/pl/axis/events" && m.payload.contains("port_released"))
+        .await;
+    assert!(ev.json()["message"].as_str().unwrap().contains("let go of"), "{}", ev.payload);
+
+    // The gateway serves on: the other device answers, this one says where its port went.
+    c.send("motionlink/pl/lift/cmd", json!({"id": "i1", "op": "errors", "reply_to": "me/r"}).to_string()).await;
+    assert_eq!(c.reply("me/r", "i1", 5 * S).await["ok"], true);
+    c.send("motionlink/pl/axis/cmd", json!({"id": "s1", "op": "status", "reply_to": "me/r"}).to_string()).await;
+    let r = c.reply("me/r", "s1", 5 * S).await;
+    assert!(r["error"]["message"].as_str().unwrap().contains("took its port"), "{r}");
+
+    // The stop lets go of the port: the gateway takes it back and serves the drive again, at rest.
+    drop(lock);
+    c.wait("taken", 10 * S, |m| m.topic == "motionlink/pl/axis/events" && m.payload.contains("port_taken")).await;
+    c.send("motionlink/pl/axis/cmd", json!({"id": "s2", "op": "status", "reply_to": "me/r"}).to_string()).await;
+    let r = c.reply("me/r", "s2", 5 * S).await;
+    assert_eq!(r["ok"], true, "{r}");
+    let s1 = r["result"]["status"][0]["value"].as_f64().unwrap();
+    assert!(s1 > 0.0 && s1 < 1000.0, "{r}");
+    let e = portlock::claim("compax", &port, "compax status").unwrap_err().0;
+    assert!(e.contains(&format!("pid {}", gw.pid())), "{e}");
+}
