@@ -150,7 +150,8 @@ impl Gateway {
         self.child.id()
     }
 
-    /// Waits for the gateway's first line on stderr (its start, or why it could not start).
+    /// Waits for the gateway's first line on stderr (its start, or why it could not start); the rest of stderr is
+    /// read and dropped.
     pub fn first_line(&mut self) -> String {
         let mut err = self.child.stderr.take().expect("stderr");
         let (tx, rx) = std::sync::mpsc::channel();
@@ -161,6 +162,8 @@ impl Gateway {
                 line.push(byte[0]);
             }
             let _ = tx.send(String::from_utf8_lossy(&line).to_string());
+            // The rest is drained: a gateway writing to a closed pipe would fail on its next message.
+            let _ = std::io::copy(&mut err, &mut std::io::sink());
         });
         rx.recv_timeout(Duration::from_secs(20)).expect("a line on stderr")
     }
