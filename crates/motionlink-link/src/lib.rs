@@ -45,6 +45,7 @@ pub mod pipe;
 pub mod portlock;
 pub mod probe;
 pub mod profile;
+pub mod result;
 pub mod serial;
 pub mod session;
 pub mod table;

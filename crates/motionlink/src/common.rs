@@ -354,18 +354,6 @@ pub fn set_profile(reference: Option<String>) {
     let _ = PROFILE.set(reference);
 }
 
-/// `family`, `port` and, once the session looked for one, `profile`: the first keys of every JSON object of
-/// a family command.
-fn identity_map(family: &str, port: &str) -> serde_json::Map<String, serde_json::Value> {
-    let mut map = serde_json::Map::new();
-    map.insert("family".into(), family.into());
-    map.insert("port".into(), port.into());
-    if let Some(profile) = PROFILE.get() {
-        map.insert("profile".into(), serde_json::Value::from(profile.clone()));
-    }
-    map
-}
-
 /// A result (a library report, which serialises with the names `--json` shows) as a JSON value.
 pub fn to_json<T: serde::Serialize + ?Sized>(result: &T) -> serde_json::Value {
     // A report of plain fields always serialises; a failure would be a library defect, shown, not hidden.
@@ -382,17 +370,13 @@ pub fn print_result<T: serde::Serialize + ?Sized>(
     identity: &[(&str, serde_json::Value)],
     result: &T,
 ) -> Result<(), CliError> {
-    let mut map = identity_map(family, port);
-    for (k, v) in identity {
-        map.insert((*k).into(), v.clone());
-    }
-    match to_json(result) {
-        serde_json::Value::Object(fields) => map.extend(fields),
-        other => {
-            map.insert("result".into(), other);
-        }
-    }
-    print_json(out, &serde_json::Value::Object(map))
+    // Once the session looked for a device profile, `profile` comes first (null: none taken).
+    let profile = PROFILE.get().map(|p| ("profile", serde_json::Value::from(p.clone())));
+    let keys: Vec<(&str, serde_json::Value)> = profile.into_iter().chain(identity.iter().cloned()).collect();
+    // A report of plain fields always serialises; a failure would be a library defect, shown, not hidden.
+    let shown = motionlink_link::result::identified(family, port, &keys, result)
+        .unwrap_or_else(|e| serde_json::Value::String(format!("(not serialisable: {e})")));
+    print_json(out, &shown)
 }
 
 /// One line of CSV: fields separated by commas, quoted when they hold a comma, a quote or a line break.

@@ -207,19 +207,8 @@ impl Device {
 /// An object as the command line's `--json` prints it: the identity (`family`, `port`, and `extra`, such as
 /// the module or the drive) first, then the report's fields.
 pub fn identified(family: &str, port: &str, extra: &[(&str, Value)], report: &impl serde::Serialize) -> Outcome {
-    let mut map = Map::new();
-    map.insert("family".into(), family.into());
-    map.insert("port".into(), port.into());
-    for (k, v) in extra {
-        map.insert((*k).into(), v.clone());
-    }
-    match serde_json::to_value(report).map_err(|e| ReplyError::transport(format!("the report: {e}")))? {
-        Value::Object(fields) => map.extend(fields),
-        other => {
-            map.insert("result".into(), other);
-        }
-    }
-    Ok(Value::Object(map))
+    motionlink_link::result::identified(family, port, extra, report)
+        .map_err(|e| ReplyError::transport(format!("the report: {e}")))
 }
 
 /// A library error in a reply, by its class.
