@@ -37,7 +37,7 @@ pub enum Error {
         /// How long the last attempt waited (the wire time of request and reply, and the reply timeout).
         waited: Duration,
         /// The round trips the session measured on this line before, if any.
-        round_trips: Option<RoundTrips>,
+        round_trips: Option<RoundTripRange>,
     },
     /// Replies arrived corrupt (BCC, framing), after every retry.
     #[error("drive {address}: corrupt reply to {command:?}: {detail}")]
@@ -318,39 +318,10 @@ impl SessionError for Error {
     }
 }
 
-/// The round trips a session measured on its line (a telegram handed to the line to its reply), for errors
-/// that a slow link may have caused: "replies on this link have taken 45-58 ms".
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct RoundTrips {
-    /// The fastest reply.
-    pub fastest: Duration,
-    /// The slowest reply.
-    pub slowest: Duration,
-}
-
-impl RoundTrips {
-    /// `measured` with one more round trip `d`.
-    pub fn with(measured: Option<RoundTrips>, d: Duration) -> RoundTrips {
-        match measured {
-            Some(r) => RoundTrips { fastest: r.fastest.min(d), slowest: r.slowest.max(d) },
-            None => RoundTrips { fastest: d, slowest: d },
-        }
-    }
-}
-
-impl fmt::Display for RoundTrips {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let (a, b) = (self.fastest.as_millis(), self.slowest.as_millis());
-        if a == b {
-            write!(f, "replies on this link have taken {a} ms")
-        } else {
-            write!(f, "replies on this link have taken {a}-{b} ms")
-        }
-    }
-}
+pub use motionlink_link::error::RoundTripRange;
 
 /// "; " and `r`, or nothing when the session has measured no round trip.
-fn measured(r: &Option<RoundTrips>) -> String {
+fn measured(r: &Option<RoundTripRange>) -> String {
     r.map(|r| format!("; {r}")).unwrap_or_default()
 }
 

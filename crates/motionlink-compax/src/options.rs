@@ -10,26 +10,7 @@ use crate::session::BusConfig;
 use crate::sim::{SimConfig, Variant};
 use crate::wire::{Address, Mode};
 
-/// An option that cannot be used: its key (as a device table names it: `drive`; the command line's option
-/// is `--drive`), and what is wrong.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct OptionError {
-    /// The option's key, if one option is to blame.
-    pub key: Option<&'static str>,
-    /// What is wrong.
-    pub message: String,
-}
-
-impl fmt::Display for OptionError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self.key {
-            Some(key) => write!(f, "{key}: {}", self.message),
-            None => f.write_str(&self.message),
-        }
-    }
-}
-
-impl std::error::Error for OptionError {}
+pub use motionlink_link::devices::OptionError;
 
 /// The options of a session with one COMPAX drive, checked by their types. [`Default`] is what the command
 /// line takes when an option is not given.

@@ -83,7 +83,7 @@ struct Gateway {
     started: Instant,
 }
 
-/// Runs the gateway of `config` until a signal ends it (its exit code: 130 SIGINT, 143 SIGTERM) or it
+/// Runs the gateway of `config` until a signal ends it (its exit code: 128 + its number: 130 SIGINT, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT) or it
 /// cannot start (a usage error, exit 2; a device or the broker that cannot be reached, exit 3).
 pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
     let topics = Topics::new(&config.name);
@@ -242,12 +242,18 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
     Ok(if number == 0 { 0 } else { 128 + number as u8 })
 }
 
-/// SIGINT and SIGTERM.
+/// SIGINT, SIGTERM, SIGHUP (a closed terminal or session) and SIGQUIT: each ends the gateway after it
+/// stopped every motion (none of them may kill it with a motion left running; a COMPAX drive has no
+/// watchdog that would stop it).
 struct Signals {
     #[cfg(unix)]
     int: tokio::signal::unix::Signal,
     #[cfg(unix)]
     term: tokio::signal::unix::Signal,
+    #[cfg(unix)]
+    hup: tokio::signal::unix::Signal,
+    #[cfg(unix)]
+    quit: tokio::signal::unix::Signal,
 }
 
 impl Signals {
@@ -259,6 +265,8 @@ impl Signals {
             Ok(Signals {
                 int: signal(SignalKind::interrupt()).map_err(fail)?,
                 term: signal(SignalKind::terminate()).map_err(fail)?,
+                hup: signal(SignalKind::hangup()).map_err(fail)?,
+                quit: signal(SignalKind::quit()).map_err(fail)?,
             })
         }
         #[cfg(not(unix))]
@@ -272,6 +280,8 @@ impl Signals {
             tokio::select! {
                 _ = self.int.recv() => (2, "SIGINT"),
                 _ = self.term.recv() => (15, "SIGTERM"),
+                _ = self.hup.recv() => (1, "SIGHUP"),
+                _ = self.quit.recv() => (3, "SIGQUIT"),
             }
         }
         #[cfg(not(unix))]

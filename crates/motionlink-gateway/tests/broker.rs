@@ -12,21 +12,7 @@ use serde_json::{json, Value};
 #[path = "broker/harness.rs"]
 mod harness;
 
-use harness::{broker, gateway, Client};
-
-const ALL: &str = r#"
-[device.lift]
-family = "scu"
-port = "sim"
-
-[device.arm]
-family = "powercube"
-port = "sim"
-
-[device.axis]
-family = "compax"
-port = "sim"
-"#;
+use harness::{broker, gateway, Client, ALL};
 
 const S: Duration = Duration::from_secs(1);
 
@@ -310,6 +296,28 @@ async fn sigterm_mid_move_stops_it_says_so_and_exits_143() {
     assert_eq!((r["error"]["kind"].as_str(), r["error"]["exit_code"].as_i64()), (Some("cancelled"), Some(143)), "{r}");
     assert!(r["error"]["message"].as_str().unwrap().contains("halted"), "{r}");
     c.wait("offline", 5 * S, |m| m.topic == "motionlink/k1/status" && m.payload == "offline").await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sighup_mid_move_of_a_drive_without_watchdog_stops_it_and_exits_129() {
+    // A closed terminal (SIGHUP) must not kill the gateway with a COMPAX move running: the drive has no
+    // watchdog, nothing else would stop it.
+    let Some(b) = broker("sighup_mid_move_of_a_drive_without_watchdog_stops_it_and_exits_129") else { return };
+    let gw = gateway(&b, "h1", ALL);
+    let mut c = online(&b, "h1", "t-h1").await;
+    let body =
+        json!({"id": "m1", "op": "move", "args": {"abs": 500, "speed": 10}, "reply_to": "me/r", "lease_ms": 2000});
+    request(&c, "h1", "axis", body).await;
+    let keep = keep_alive(&c, "h1", "axis", "m1");
+    c.wait("started", 5 * S, |m| m.topic == "motionlink/h1/axis/events" && m.payload.contains("motion_started")).await;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let (code, stderr) = gw.signal(libc::SIGHUP);
+    keep.abort();
+    assert_eq!(code, Some(129), "{stderr}");
+    assert!(stderr.contains("SIGHUP") && stderr.contains("axis motion m1"), "{stderr}");
+    let r = c.reply("me/r", "m1", 5 * S).await;
+    assert_eq!((r["error"]["kind"].as_str(), r["error"]["exit_code"].as_i64()), (Some("cancelled"), Some(129)), "{r}");
+    c.wait("offline", 5 * S, |m| m.topic == "motionlink/h1/status" && m.payload == "offline").await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -14,21 +14,7 @@ use serde_json::{json, Value};
 #[path = "broker/harness.rs"]
 mod harness;
 
-use harness::{broker, gateway, Client};
-
-const ALL: &str = r#"
-[device.lift]
-family = "scu"
-port = "sim"
-
-[device.arm]
-family = "powercube"
-port = "sim"
-
-[device.axis]
-family = "compax"
-port = "sim"
-"#;
+use harness::{broker, gateway, Client, ALL};
 
 const S: Duration = Duration::from_secs(1);
 

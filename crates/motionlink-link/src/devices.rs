@@ -149,6 +149,28 @@ pub fn shown(value: &toml::Value) -> String {
     }
 }
 
+/// An option of a device (a device table's key such as `module`, `drive`, `functions`; the command line's
+/// option `--module`...) that cannot be used: its key, or none where the options together are wrong, and
+/// what is wrong. Every family's options (`UnitOptions`, `ModuleOptions`, `DriveOptions`) refuse with it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct OptionError {
+    /// The option's key, if one option is to blame.
+    pub key: Option<&'static str>,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl std::fmt::Display for OptionError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.key {
+            Some(key) => write!(f, "{key}: {}", self.message),
+            None => f.write_str(&self.message),
+        }
+    }
+}
+
+impl std::error::Error for OptionError {}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -408,3 +408,20 @@ pub fn serve_pty_with<E: Emulator + 'static>(
     })?;
     Ok(Server { address, stop, wake: None, threads: vec![thread] })
 }
+
+/// The one of `all` (an emulator's firmware variants) that `text` names by `name`: in any case, with `_`
+/// for `-` (`no-echo`, `NO_ECHO`), blanks around it ignored; the one rule of every family's `--variant`.
+///
+/// ```
+/// use motionlink_link::emulator::variant_named;
+/// let names = |v: u8| ["no-echo", "echo-bare"][v as usize];
+/// assert_eq!(variant_named(&[0, 1], names, " ECHO_BARE "), Some(1));
+/// assert_eq!(variant_named(&[0, 1], names, "echo"), None);
+/// ```
+pub fn variant_named<V: Copy>(all: &[V], name: impl Fn(V) -> &'static str, text: &str) -> Option<V> {
+    let text = text.trim();
+    all.iter().copied().find(|&v| {
+        let n = name(v);
+        n.eq_ignore_ascii_case(text) || n.replace('-', "_").eq_ignore_ascii_case(text)
+    })
+}

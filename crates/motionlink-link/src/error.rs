@@ -103,6 +103,37 @@ impl Classify for LinkError {
     }
 }
 
+/// The round trips a session measured on its line (a request handed to the line to its answer), for errors
+/// that a slow link may have caused: "replies on this link have taken 45-58 ms".
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RoundTripRange {
+    /// The fastest answer.
+    pub fastest: std::time::Duration,
+    /// The slowest answer.
+    pub slowest: std::time::Duration,
+}
+
+impl RoundTripRange {
+    /// `measured` with one more round trip `d`.
+    pub fn with(measured: Option<RoundTripRange>, d: std::time::Duration) -> RoundTripRange {
+        match measured {
+            Some(r) => RoundTripRange { fastest: r.fastest.min(d), slowest: r.slowest.max(d) },
+            None => RoundTripRange { fastest: d, slowest: d },
+        }
+    }
+}
+
+impl fmt::Display for RoundTripRange {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (a, b) = (self.fastest.as_millis(), self.slowest.as_millis());
+        if a == b {
+            write!(f, "replies on this link have taken {a} ms")
+        } else {
+            write!(f, "replies on this link have taken {a}-{b} ms")
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

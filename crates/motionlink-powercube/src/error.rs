@@ -73,7 +73,7 @@ pub struct RefreshTiming {
     /// The most the modules wait for the next refresh ([`WATCHDOG_TIMEOUT`](crate::model::WATCHDOG_TIMEOUT)).
     pub allowed: Duration,
     /// The round trips the session measured on this link, if any (a slow link is named in the message).
-    pub round_trips: Option<RoundTrips>,
+    pub round_trips: Option<RoundTripRange>,
 }
 
 impl RefreshTiming {
@@ -104,39 +104,10 @@ impl fmt::Display for RefreshTiming {
     }
 }
 
-/// The round trips a session measured on its link (a request handed to the line to its answer), for
-/// errors that a slow link may have caused: "replies on this link have taken 45-58 ms".
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct RoundTrips {
-    /// The fastest answer.
-    pub fastest: Duration,
-    /// The slowest answer.
-    pub slowest: Duration,
-}
-
-impl RoundTrips {
-    /// `measured` with one more round trip `d`.
-    pub fn with(measured: Option<RoundTrips>, d: Duration) -> RoundTrips {
-        match measured {
-            Some(r) => RoundTrips { fastest: r.fastest.min(d), slowest: r.slowest.max(d) },
-            None => RoundTrips { fastest: d, slowest: d },
-        }
-    }
-}
-
-impl fmt::Display for RoundTrips {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let (a, b) = (self.fastest.as_millis(), self.slowest.as_millis());
-        if a == b {
-            write!(f, "replies on this link have taken {a} ms")
-        } else {
-            write!(f, "replies on this link have taken {a}-{b} ms")
-        }
-    }
-}
+pub use motionlink_link::error::RoundTripRange;
 
 /// "; " and `r`, or nothing when the session has measured no round trip.
-fn measured(r: &Option<RoundTrips>) -> String {
+fn measured(r: &Option<RoundTripRange>) -> String {
     r.map(|r| format!("; {r}")).unwrap_or_default()
 }
 
@@ -157,7 +128,7 @@ pub enum Error {
         /// How long the session waited (the last attempt).
         waited: Duration,
         /// The round trips the session measured on this link before, if any.
-        round_trips: Option<RoundTrips>,
+        round_trips: Option<RoundTripRange>,
     },
     /// Only a corrupt answer came (bad BCC, broken frame, unknown content).
     #[error("module {address}: corrupt answer to {request}: {detail}")]
@@ -621,7 +592,7 @@ mod tests {
             address: Address::checked(2),
             request: "GetExtended ActPos".into(),
             waited: ms(60),
-            round_trips: Some(RoundTrips { fastest: ms(45), slowest: ms(58) }),
+            round_trips: Some(RoundTripRange { fastest: ms(45), slowest: ms(58) }),
         };
         assert_eq!(
             slow.to_string(),

@@ -11,26 +11,7 @@ use crate::model::Address;
 use crate::session::{BusConfig, Guard, ModulesAt};
 use crate::sim::{SimConfig, Variant};
 
-/// An option that cannot be used: its key (as a device table names it: `module`; the command line's option
-/// is `--module`), or none where the options together are wrong, and what is wrong.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct OptionError {
-    /// The option's key, if one option is to blame.
-    pub key: Option<&'static str>,
-    /// What is wrong.
-    pub message: String,
-}
-
-impl fmt::Display for OptionError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self.key {
-            Some(key) => write!(f, "{key}: {}", self.message),
-            None => f.write_str(&self.message),
-        }
-    }
-}
-
-impl std::error::Error for OptionError {}
+pub use motionlink_link::devices::OptionError;
 
 /// The options of a session with one PowerCube module, checked by their types. [`Default`] is what the
 /// command line takes when an option is not given.

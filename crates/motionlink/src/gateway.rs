@@ -7,7 +7,7 @@ use crate::common::CliError;
 
 pub use motionlink_gateway::cli::Args;
 
-/// Serves until SIGINT or SIGTERM (every motion stopped first; exit 130 or 143).
+/// Serves until SIGINT, SIGTERM, SIGHUP or SIGQUIT (every motion stopped first; exit 128 + the signal's number).
 pub fn run(args: Args) -> Result<(), CliError> {
     match motionlink_gateway::main(&args.options()) {
         Ok(0) => Ok(()),

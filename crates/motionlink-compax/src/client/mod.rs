@@ -30,7 +30,7 @@ pub use asynch::{AsyncClient, AsyncDrive, AsyncWatch};
 pub use blocking::Client;
 pub use drive::Drive;
 
-pub use crate::error::{Error, Result, RoundTrips, StopOutcome, StopReport};
+pub use crate::error::{Error, Result, RoundTripRange, StopOutcome, StopReport};
 pub use crate::session::{
     AfterRaw, BusConfig, EchoForm, MoveOptions, MoveReport, MoveRequest, MoveTarget, Progress, RawOutcome, StartedMove,
     TravelLimits, WatchSample, DEFAULT_IN_POSITION_TOLERANCE,

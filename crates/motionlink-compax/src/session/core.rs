@@ -227,7 +227,7 @@ pub(crate) struct Core {
     /// What was already warned about (drive, which): each finding is said once per session.
     pub warned: HashSet<(u8, &'static str)>,
     /// The round trips measured on the line: each reply since its telegram went out.
-    pub round_trips: Option<crate::error::RoundTrips>,
+    pub round_trips: Option<crate::error::RoundTripRange>,
     decoder: ReplyDecoder,
     queue: VecDeque<Job>,
     in_flight: Option<InFlight>,
@@ -487,7 +487,8 @@ impl Core {
         if !job.address.is_broadcast() {
             self.known |= bit(job.address);
         }
-        self.round_trips = Some(crate::error::RoundTrips::with(self.round_trips, self.now.saturating_since(sent_at)));
+        self.round_trips =
+            Some(crate::error::RoundTripRange::with(self.round_trips, self.now.saturating_since(sent_at)));
         let retry_left = job.attempts <= job.retries;
         match r.kind() {
             ReplyKind::Error(code) if ErrorCode(code).is_retransmit() && retry_left => {

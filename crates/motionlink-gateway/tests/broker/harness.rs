@@ -15,6 +15,21 @@ use rumqttc::v5::{AsyncClient, Event, MqttOptions};
 use serde_json::Value;
 use tokio::sync::mpsc;
 
+/// One emulated device of each family: `lift` (SCU), `arm` (PowerCube), `axis` (COMPAX).
+pub const ALL: &str = r#"
+[device.lift]
+family = "scu"
+port = "sim"
+
+[device.arm]
+family = "powercube"
+port = "sim"
+
+[device.axis]
+family = "compax"
+port = "sim"
+"#;
+
 /// Where mosquitto may be.
 const MOSQUITTO: [&str; 3] = ["/usr/sbin/mosquitto", "/usr/bin/mosquitto", "/usr/local/sbin/mosquitto"];
 

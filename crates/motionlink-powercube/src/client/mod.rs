@@ -39,7 +39,7 @@ pub use asynch::{AsyncClient, AsyncModule};
 pub use blocking::{Client, Module};
 pub use port::PortLink;
 
-pub use crate::error::{Error, RefreshTiming, RoundTrips, StopOutcome};
+pub use crate::error::{Error, RefreshTiming, RoundTripRange, StopOutcome};
 pub use crate::model::WATCHDOG_TIMEOUT;
 pub use crate::session::{
     BusConfig, Guard, HaltReport, HomeReport, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback,

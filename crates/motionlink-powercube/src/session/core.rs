@@ -111,7 +111,7 @@ impl WatchdogDuty {
     pub fn timing(
         &self,
         now: Timestamp,
-        round_trips: Option<crate::error::RoundTrips>,
+        round_trips: Option<crate::error::RoundTripRange>,
     ) -> Option<crate::error::RefreshTiming> {
         let last = self.last_refresh?;
         let open = if self.serving { now.saturating_since(last) } else { Duration::ZERO };
@@ -155,7 +155,7 @@ pub(crate) struct Core {
     /// The session lost its line or could not stop what it started.
     pub failed: bool,
     /// The round trips measured on the line: each acknowledge since its request went out.
-    pub round_trips: Option<crate::error::RoundTrips>,
+    pub round_trips: Option<crate::error::RoundTripRange>,
 }
 
 impl Core {
@@ -433,7 +433,7 @@ impl Core {
                         f.open -= 1;
                         self.known.insert(address);
                         let took = self.now.saturating_since(f.start);
-                        self.round_trips = Some(crate::error::RoundTrips::with(self.round_trips, took));
+                        self.round_trips = Some(crate::error::RoundTripRange::with(self.round_trips, took));
                     }
                     (_, Err(e)) => {
                         tracing::debug!("module {address}: undecodable answer {payload:?}: {e}");

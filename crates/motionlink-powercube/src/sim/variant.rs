@@ -107,7 +107,8 @@ pub struct UnknownVariant {
 impl FromStr for Variant {
     type Err = UnknownVariant;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Variant::ALL.into_iter().find(|v| v.name() == s.trim()).ok_or_else(|| UnknownVariant { name: s.to_string() })
+        motionlink_link::emulator::variant_named(&Variant::ALL, Variant::name, s)
+            .ok_or_else(|| UnknownVariant { name: s.trim().to_string() })
     }
 }
 

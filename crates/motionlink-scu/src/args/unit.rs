@@ -10,26 +10,7 @@ use crate::config::{ClientConfig, FunctionMap, StrokeLimits};
 use crate::model::{SafetyId, SpeedMode};
 use crate::sim::{SimConfig, Variants};
 
-/// An option that cannot be used: its key (as a device table names it: `functions`; the command line's
-/// option is `--functions`), or none where the options together are wrong, and what is wrong.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct OptionError {
-    /// The option's key, if one option is to blame.
-    pub key: Option<&'static str>,
-    /// What is wrong.
-    pub message: String,
-}
-
-impl fmt::Display for OptionError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self.key {
-            Some(key) => write!(f, "{key}: {}", self.message),
-            None => f.write_str(&self.message),
-        }
-    }
-}
-
-impl std::error::Error for OptionError {}
+pub use motionlink_link::devices::OptionError;
 
 fn on(key: &'static str) -> impl Fn(String) -> OptionError {
     move |message| OptionError { key: Some(key), message }

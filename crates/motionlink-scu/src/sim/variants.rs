@@ -92,11 +92,8 @@ impl FromStr for Variant {
     type Err = UnknownVariant;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let name = s.trim();
-        Variant::ALL
-            .into_iter()
-            .find(|v| v.name().eq_ignore_ascii_case(name) || v.name().replace('-', "_").eq_ignore_ascii_case(name))
-            .ok_or_else(|| UnknownVariant { name: name.to_string() })
+        motionlink_link::emulator::variant_named(&Variant::ALL, Variant::name, s)
+            .ok_or_else(|| UnknownVariant { name: s.trim().to_string() })
     }
 }
 
