@@ -2,7 +2,7 @@
 //! line's `--json` names), with the module, and a few attributes that are not in `to_dict()`.
 
 use super::*;
-use motionlink_powercube::report::{Sample, StateReport};
+use motionlink_powercube::report::{Acted, Sample, StateReport};
 
 /// The name suffix of a position in `unit`: "_rad", "_m", or "" with `"unit": "module"`.
 pub(super) fn suffix(unit: AxisUnit) -> (&'static str, &'static str) {
@@ -58,20 +58,15 @@ pub(super) fn in_unit(p: Position, kind: ModuleKind) -> Position {
     }
 }
 
-/// A checked move, with where the module stood before (`start_rad` / `start_m`) as an attribute.
+/// A checked move as the CLI's `powercube move --json` prints it, with where the module stood before (`start_rad` / `start_m`) as an attribute.
 pub(super) fn move_record<'py>(py: Python<'py>, module: u8, m: &MoveReport) -> PyResult<Record<'py>> {
     let start = format!("start_{}", m.kind.unit());
-    let r = record(py, module, m, Some(m.kind), &[(&start, f32_py(m.start.value()))])?;
-    // The command line's `action` (it adds it to the report, as here).
-    r.set("action", "reached")?;
-    Ok(r)
+    record(py, module, &Acted::reached(m), Some(m.kind), &[(&start, f32_py(m.start.value()))])
 }
 
 /// The end of homing as the CLI's `powercube home --json` prints it.
 pub(super) fn home_record<'py>(py: Python<'py>, module: u8, h: &HomeReport) -> PyResult<Record<'py>> {
-    let r = record(py, module, h, Some(h.kind), &[])?;
-    r.set("action", "homed")?;
-    Ok(r)
+    record(py, module, &Acted::homed(h), Some(h.kind), &[])
 }
 
 /// A parameter written as the CLI's `powercube set --json` prints it; its unit and access are attributes,
