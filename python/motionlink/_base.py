@@ -11,6 +11,7 @@ import weakref
 from typing import Any, Callable, Dict, Iterator, Optional, TypeVar
 
 from . import _native
+from ._probe import warn_profile_notices
 from .errors import Cancelled, UsageError
 
 __all__ = ["ClientBase", "AsyncClientBase", "resolve_port"]
@@ -198,6 +199,12 @@ class AsyncClientBase:
         """The port, as the link describes it."""
         return str(self._client().port)
 
+    @property
+    def profile(self) -> Optional[str]:
+        """The device profile the session took (``"<path>#<key>"``, as ``--json`` results name it), or None
+        (see :attr:`ClientBase.profile`)."""
+        return self._client().profile  # type: ignore[no-any-return]
+
     async def _open(self) -> Any:
         raise NotImplementedError
 
@@ -205,6 +212,7 @@ class AsyncClientBase:
         if self._native is None:
             self._native = await self._open()
             _open.add(self)
+            warn_profile_notices(self._native)
         return self
 
     async def __aexit__(self, *exc: Any) -> None:

@@ -218,10 +218,12 @@ class AsyncCompax(_Operations, AsyncClientBase):
         timeout_ms: int = 200,
         poll_ms: int = 50,
         tolerance_units: float = DEFAULT_TOLERANCE_UNITS,
+        profile: Profile = True,
     ) -> None:
         self._port = resolve_port(port, self.family)
         self._settings = _settings(drive, mode, baud, timeout_ms, poll_ms, tolerance_units)
         self.drive = drive
+        self._settings["profile"] = profile_setting(profile)
         super().__init__()
 
     async def _open(self) -> Any:

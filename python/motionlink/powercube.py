@@ -209,10 +209,12 @@ class AsyncPowerCube(_Operations, AsyncClientBase):
         timeout_ms: Optional[int] = None,
         poll_ms: int = 10,
         watchdog: bool = True,
+        profile: Profile = True,
     ) -> None:
         self._port = resolve_port(port, self.family)
         self._settings = _settings(module, baud, bitrate, timeout_ms, poll_ms, watchdog)
         self.module = module
+        self._settings["profile"] = profile_setting(profile)
         super().__init__()
 
     async def _open(self) -> Any:

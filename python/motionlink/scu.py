@@ -263,11 +263,13 @@ class AsyncScu(_Operations, AsyncClientBase):
         tolerance_counts: int = 5,
         poll_ms: int = 50,
         speed_mode: str = "percent",
+        profile: Profile = True,
     ) -> None:
         self._port = resolve_port(port, self.family)
         self._settings = _settings(
             baud, safety, reply_timeout_ms, functions, strokes, tolerance_counts, poll_ms, speed_mode
         )
+        self._settings["profile"] = profile_setting(profile)
         super().__init__()
 
     async def _open(self) -> Any:

@@ -254,18 +254,26 @@ pub fn profiles(setting: Option<&str>) -> Result<Option<motionlink_link::profile
     loaded.map_err(|e| format!("device profiles not used: {e}"))
 }
 
-/// Looks up the profile of the client's device on `port` (`None`: an emulator in this process, which has no
-/// profile) with `apply`, the family's `use_profile`.
-pub fn use_profile(
+/// Where to look up the profile of the client's device on `port` (`None`: an emulator in this process, which
+/// has no profile): `Ok((profiles, port))` for the family's `use_profile`, or `Err` with what the client
+/// makes of profiles without looking (none, or the notice of a file it could not read).
+pub fn profile_lookup(
     setting: Option<&str>,
     port: Option<&str>,
-    apply: impl FnOnce(&motionlink_link::profile::Profiles, &str) -> Result<ProfileUse, Failure>,
-) -> Result<ProfileUse, Failure> {
-    let Some(port) = port else { return Ok(ProfileUse::default()) };
+) -> Result<(motionlink_link::profile::Profiles, String), ProfileUse> {
+    let Some(port) = port else { return Err(ProfileUse::default()) };
     match profiles(setting) {
-        Ok(Some(p)) => apply(&p, port),
-        Ok(None) => Ok(ProfileUse::default()),
-        Err(notice) => Ok(ProfileUse { reference: None, notices: vec![notice] }),
+        Ok(Some(p)) => Ok((p, port.to_string())),
+        Ok(None) => Err(ProfileUse::default()),
+        Err(notice) => Err(ProfileUse { reference: None, notices: vec![notice] }),
+    }
+}
+
+/// The port of `target` as profiles key it: `None` for an emulator in this process.
+pub fn profile_port(target: &Target) -> Option<String> {
+    match target {
+        Target::Url(u) if !matches!(u, PortUrl::Sim) => Some(u.to_string()),
+        _ => None,
     }
 }
 

@@ -52,3 +52,42 @@ def test_a_saved_profile_is_loaded_by_a_later_client_and_another_devices_is_igno
             with motionlink.Scu(emu.port, profile=profiles) as scu:
                 assert scu.profile is None
         assert any("not used" in str(w.message) and "SCU V9 elsewhere" in str(w.message) for w in seen), seen
+
+
+@pytest.mark.parametrize(
+    "family, cls, options",
+    [
+        ("scu", motionlink.AsyncScu, {}),
+        ("powercube", motionlink.AsyncPowerCube, {}),
+        ("compax", motionlink.AsyncCompax, {"drives": "1"}),
+    ],
+)
+def test_async_clients_load_the_saved_profile_and_warn_of_anothers(
+    tmp_path: Path, family: str, cls: type, options: dict
+) -> None:
+    import asyncio
+
+    profiles = tmp_path / "profiles.toml"
+
+    async def opened(port: str) -> "tuple[object, list]":
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            async with cls(port, profile=profiles) as client:
+                taken = client.profile
+        return taken, [str(w.message) for w in seen]
+
+    with motionlink.Emulator(family, serve="tcp") as emu:
+        report = motionlink.probe(family, emu.port, save=profiles, **options)
+        assert len(report.saved) == 1, report.saved
+        taken, seen = asyncio.run(opened(emu.port))
+        assert taken == report.saved[0]
+        assert not [m for m in seen if "not used" in m], seen
+    # The same port, another device (another identity in the file): left alone, with a warning.
+    with motionlink.Emulator(family, serve="tcp") as emu:
+        text = profiles.read_text().replace(report.port, emu.port)
+        identity = report.devices[0].get("identity") or ""
+        assert identity and identity in text, (identity, text)
+        profiles.write_text(text.replace(identity, "another device"))
+        taken, seen = asyncio.run(opened(emu.port))
+        assert taken is None
+        assert any("not used" in m for m in seen), seen

@@ -104,9 +104,35 @@ pub type CompaxProbeReport = ProbeReport<CompaxDrive>;
 
 /// The identity a profile is matched against: S31 and S32 (`-` where refused).
 pub fn identity(client: &Client, address: Address) -> Result<(String, [Option<String>; 2]), Error> {
+    let mut read = Vec::with_capacity(2);
+    for id in IDENTITY_STATUSES {
+        read.push(client.read_status(address, id));
+    }
+    identity_from(read)
+}
+
+/// [`identity`] for an [`AsyncClient`](crate::AsyncClient).
+#[cfg(feature = "tokio")]
+pub async fn identity_async(
+    client: &crate::AsyncClient,
+    address: Address,
+) -> Result<(String, [Option<String>; 2]), Error> {
+    let drive = client.drive(address)?;
+    let mut read = Vec::with_capacity(2);
+    for id in IDENTITY_STATUSES {
+        read.push(drive.read_status(id).await);
+    }
+    identity_from(read)
+}
+
+/// The status values that identify a drive: S31 and S32.
+const IDENTITY_STATUSES: [StatusId; 2] = [StatusId::DEVICE_ID_1, StatusId::DEVICE_ID_2];
+
+/// The identity from the reads of S31 and S32: a value the drive refuses is `-` (None).
+fn identity_from(read: Vec<Result<StatusValue, Error>>) -> Result<(String, [Option<String>; 2]), Error> {
     let mut texts = [None, None];
-    for (i, id) in [StatusId::DEVICE_ID_1, StatusId::DEVICE_ID_2].into_iter().enumerate() {
-        texts[i] = match client.read_status(address, id) {
+    for (slot, r) in texts.iter_mut().zip(read) {
+        *slot = match r {
             Ok(StatusValue::Text(t)) => Some(t.as_str().to_string()),
             Ok(other) => Some(format!("{other}")),
             Err(Error::Device { .. }) => None,
@@ -290,15 +316,42 @@ pub fn save_profile(report: &mut CompaxProbeReport, profiles: &mut Profiles) -> 
 /// (S31, S32) and, when it matches, seeds the session with its findings (the echo probe is skipped); another
 /// identity leaves it unused with a notice. Nothing is read where no profile names the drive.
 pub fn use_profile(client: &Client, profiles: &Profiles, port: &str, address: Address) -> Result<ProfileUse, Error> {
-    let mut used = ProfileUse::default();
-    if profiles.has(FAMILY, port, Some(address.get())) {
-        let (identity, _) = identity(client, address)?;
-        let lookup = profiles.lookup(FAMILY, port, Some(address.get()), &identity);
-        used.take(lookup, |caps: DriveCapabilities| {
-            if let Some(form) = caps.echo_form {
-                client.driver().with_session(|s| s.seed_echo_form(address, form));
-            }
-        });
+    if !profiles.has(FAMILY, port, Some(address.get())) {
+        return Ok(ProfileUse::default());
     }
-    Ok(used)
+    let (identity, _) = identity(client, address)?;
+    Ok(take_profile(client.driver(), profiles, port, address, &identity))
+}
+
+/// [`use_profile`] for an [`AsyncClient`](crate::AsyncClient) (the console's, Python's `AsyncCompax`).
+#[cfg(feature = "tokio")]
+pub async fn use_profile_async(
+    client: &crate::AsyncClient,
+    profiles: &Profiles,
+    port: &str,
+    address: Address,
+) -> Result<ProfileUse, Error> {
+    if !profiles.has(FAMILY, port, Some(address.get())) {
+        return Ok(ProfileUse::default());
+    }
+    let (identity, _) = identity_async(client, address).await?;
+    Ok(take_profile(client.driver().driver(), profiles, port, address, &identity))
+}
+
+/// Takes the profile of the drive with `identity`, where one matches: the session is seeded with its echo form.
+fn take_profile(
+    driver: &motionlink_link::driver::Driver<crate::session::Session>,
+    profiles: &Profiles,
+    port: &str,
+    address: Address,
+    identity: &str,
+) -> ProfileUse {
+    let mut used = ProfileUse::default();
+    let lookup = profiles.lookup(FAMILY, port, Some(address.get()), identity);
+    used.take(lookup, |caps: DriveCapabilities| {
+        if let Some(form) = caps.echo_form {
+            driver.with_session(|s| s.seed_echo_form(address, form));
+        }
+    });
+    used
 }

@@ -9,6 +9,7 @@ pub struct AsyncCompaxClient {
     slot: Slot<AsyncClient>,
     drive: Address,
     port: String,
+    profile: crate::common::ProfileUse,
 }
 
 impl AsyncCompaxClient {
@@ -43,11 +44,17 @@ impl AsyncCompaxClient {
             Target::InProcess(_) => "in-process emulator".to_string(),
             Target::Url(u) => u.to_string(),
         };
+        let lookup =
+            crate::common::profile_lookup(settings.profile.as_deref(), crate::common::profile_port(&t).as_deref());
         Ok(spawn_task(done, async move {
             let drive = whole(&settings.drive, "drive")?;
             let (link, cfg) = crate::wait::on_blocking_pool(FAMILY, move || link(t, &settings)).await?;
             let client = fail(AsyncClient::new(link, clock(), cfg))?;
-            let native = AsyncCompaxClient { slot: Slot::new(client, FAMILY), drive, port };
+            let profile = match lookup {
+                Ok((p, port)) => fail(motionlink_compax::probe::use_profile_async(&client, &p, &port, drive).await)?,
+                Err(used) => used,
+            };
+            let native = AsyncCompaxClient { slot: Slot::new(client, FAMILY), drive, port, profile };
             deliver(move |py| Ok(Py::new(py, native)?.into_any()))
         }))
     }
@@ -56,6 +63,18 @@ impl AsyncCompaxClient {
     #[getter]
     fn port(&self) -> String {
         self.port.clone()
+    }
+
+    /// The device profile the session took (`<path>#<key>`), or None.
+    #[getter]
+    fn profile(&self) -> Option<String> {
+        self.profile.reference.clone()
+    }
+
+    /// One line for each profile the session did not take (another identity, a file it could not read).
+    #[getter]
+    fn profile_notices(&self) -> Vec<String> {
+        self.profile.notices.clone()
     }
 
     /// The actual position S1: `done(ok, float)`.

@@ -200,15 +200,18 @@ impl CompaxClient {
             Target::InProcess(_) => "in-process emulator".to_string(),
             Target::Url(u) => u.to_string(),
         };
-        let port_url = (port != "in-process emulator" && port != "sim").then(|| port.clone());
+        let port_url = crate::common::profile_port(&t);
         let drive: Address = whole(&settings.drive, "drive").map_err(|f| to_pyerr(py, f))?;
         let baud: u32 = settings.baud.within(FAMILY, "baud", 1..=4_000_000).map_err(|f| to_pyerr(py, f))?;
         let (client, profile) = py
             .detach(|| {
                 let client = open(t, &settings)?;
-                let used = crate::common::use_profile(settings.profile.as_deref(), port_url.as_deref(), |p, port| {
-                    motionlink_compax::probe::use_profile(&client, p, port, drive).map_err(|e| e.failure())
-                })?;
+                let used = match crate::common::profile_lookup(settings.profile.as_deref(), port_url.as_deref()) {
+                    Ok((p, port)) => {
+                        motionlink_compax::probe::use_profile(&client, &p, &port, drive).map_err(|e| e.failure())?
+                    }
+                    Err(used) => used,
+                };
                 Ok::<_, Failure>((client, used))
             })
             .map_err(|f| to_pyerr(py, f))?;

@@ -10,6 +10,7 @@ pub struct AsyncPowerCubeClient {
     guard: Guard,
     module: u8,
     port: String,
+    profile: crate::common::ProfileUse,
 }
 
 impl AsyncPowerCubeClient {
@@ -48,11 +49,12 @@ impl AsyncPowerCubeClient {
         Ok(spawn_task(done, async move {
             let module = module_address(&s.module)?;
             let watchdog = s.watchdog;
-            let (client, in_process) = crate::wait::on_blocking_pool(FAMILY, move || open(t, &s)).await?;
+            let (client, in_process, profile) =
+                crate::wait::on_blocking_pool(FAMILY, move || open_profiled(t, &s)).await?;
             let client = raise(AsyncClient::open(move || Ok(client)).await)?;
             let port = client.port().to_string();
             let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !watchdog);
-            let native = AsyncPowerCubeClient { slot: Slot::new(client, FAMILY), guard, module, port };
+            let native = AsyncPowerCubeClient { slot: Slot::new(client, FAMILY), guard, module, port, profile };
             deliver(move |py| Ok(Py::new(py, native)?.into_any()))
         }))
     }
@@ -61,6 +63,18 @@ impl AsyncPowerCubeClient {
     #[getter]
     fn port(&self) -> String {
         self.port.clone()
+    }
+
+    /// The device profile the session took for its module (`<path>#<key>`), or None.
+    #[getter]
+    fn profile(&self) -> Option<String> {
+        self.profile.reference.clone()
+    }
+
+    /// One line for each profile the session did not take (another identity, a file it could not read).
+    #[getter]
+    fn profile_notices(&self) -> Vec<String> {
+        self.profile.notices.clone()
     }
 
     /// The actual position: `done(ok, (value, unit))`.

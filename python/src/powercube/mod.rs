@@ -122,6 +122,20 @@ fn open(port: Target, s: &Settings) -> Result<(Client, bool), Failure> {
     }
 }
 
+/// [`open`], then the device profile of the client's module (the setting `profile`), as both faces take it.
+fn open_profiled(port: Target, s: &Settings) -> Result<(Client, bool, crate::common::ProfileUse), Failure> {
+    let port_url = crate::common::profile_port(&port);
+    let address = Address::new(module_address(&s.module)?).map_err(|e| Error::from(e).failure())?;
+    let (client, in_process) = open(port, s)?;
+    let used = match crate::common::profile_lookup(s.profile.as_deref(), port_url.as_deref()) {
+        Ok((p, port)) => {
+            motionlink_powercube::probe::use_profile(&client, &p, &port, address).map_err(|e| e.failure())?
+        }
+        Err(used) => used,
+    };
+    Ok((client, in_process, used))
+}
+
 fn parse_param(name: &str) -> Result<Param, Failure> {
     name.parse::<Param>().map_err(|e| usage(e.to_string()))
 }
@@ -205,22 +219,10 @@ impl PowerCubeClient {
     #[new]
     fn py_new(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings) -> PyResult<Self> {
         let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
-        let port_url = match &t {
-            crate::common::Target::Url(u) if !matches!(u, motionlink_link::url::PortUrl::Sim) => Some(u.to_string()),
-            _ => None,
-        };
+        let port_url = crate::common::profile_port(&t);
         let module = module_address(&settings.module).map_err(|f| to_pyerr(py, f))?;
         let baud: u32 = settings.baud.within(FAMILY, "baud", 1..=4_000_000).map_err(|f| to_pyerr(py, f))?;
-        let (client, in_process, profile) = py
-            .detach(|| {
-                let (client, in_process) = open(t, &settings)?;
-                let address = Address::new(module).map_err(|e| Error::from(e).failure())?;
-                let used = crate::common::use_profile(settings.profile.as_deref(), port_url.as_deref(), |p, port| {
-                    motionlink_powercube::probe::use_profile(&client, p, port, address).map_err(|e| e.failure())
-                })?;
-                Ok::<_, Failure>((client, in_process, used))
-            })
-            .map_err(|f| to_pyerr(py, f))?;
+        let (client, in_process, profile) = py.detach(|| open_profiled(t, &settings)).map_err(|f| to_pyerr(py, f))?;
         let token = CancelToken::new();
         client.set_cancel(token.clone());
         let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !settings.watchdog);

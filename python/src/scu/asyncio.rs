@@ -10,6 +10,7 @@ pub struct AsyncScuClient {
     slot: Slot<AsyncClient>,
     port: String,
     speed_mode: SpeedMode,
+    profile: crate::common::ProfileUse,
 }
 
 impl AsyncScuClient {
@@ -28,12 +29,17 @@ impl AsyncScuClient {
     #[staticmethod]
     fn open(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings, done: Py<PyAny>) -> PyResult<NativeTask> {
         let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
+        let lookup = crate::common::profile_lookup(settings.profile.as_deref(), port_url(&t).as_deref());
         let (connector, config) = connector(t, &settings).map_err(|f| to_pyerr(py, f))?;
         Ok(spawn_task(done, async move {
             let client = fail(AsyncClient::open(connector, clock(), config).await)?;
+            let profile = match lookup {
+                Ok((p, port)) => fail(motionlink_scu::probe::use_profile_async(&client, &p, &port).await)?,
+                Err(used) => used,
+            };
             let port = client.port().to_string();
             let speed_mode = client.config().speed_mode;
-            let native = AsyncScuClient { slot: Slot::new(client, FAMILY), port, speed_mode };
+            let native = AsyncScuClient { slot: Slot::new(client, FAMILY), port, speed_mode, profile };
             deliver(move |py| Ok(Py::new(py, native)?.into_any()))
         }))
     }
@@ -42,6 +48,18 @@ impl AsyncScuClient {
     #[getter]
     fn port(&self) -> String {
         self.port.clone()
+    }
+
+    /// The device profile the session took (`<path>#<key>`), or None.
+    #[getter]
+    fn profile(&self) -> Option<String> {
+        self.profile.reference.clone()
+    }
+
+    /// One line for each profile the session did not take (another identity, a file it could not read).
+    #[getter]
+    fn profile_notices(&self) -> Vec<String> {
+        self.profile.notices.clone()
     }
 
     /// The position of an actuator in counts: `done(ok, int)`.

@@ -127,6 +127,15 @@ fn open(port: Target, s: &Settings) -> Result<Client, Failure> {
     Client::open(connector, clock(), config).map_err(|e| e.failure())
 }
 
+/// The port as given (a URL, `sim` included: a probe names it and a profile may be saved for it), for probes
+/// and profiles; `None` for an emulator in this process.
+fn port_url(t: &Target) -> Option<String> {
+    match t {
+        Target::Url(u) => Some(u.to_string()),
+        Target::InProcess(_) => None,
+    }
+}
+
 fn actuator(n: &Int) -> Result<Actuator, Failure> {
     checked(n, "actuator")
 }
@@ -244,17 +253,15 @@ impl ScuClient {
     #[new]
     fn py_new(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings) -> PyResult<Self> {
         let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
-        let port_url = match &t {
-            crate::common::Target::Url(u) => Some(u.to_string()),
-            crate::common::Target::InProcess(_) => None,
-        };
+        let port_url = port_url(&t);
         let baud: u32 = checked::<Baud>(&settings.baud, "baud").map_err(|f| to_pyerr(py, f))?.get();
         let (client, profile) = py
             .detach(|| {
                 let client = open(t, &settings)?;
-                let used = crate::common::use_profile(settings.profile.as_deref(), port_url.as_deref(), |p, port| {
-                    motionlink_scu::probe::use_profile(&client, p, port).map_err(|e| e.failure())
-                })?;
+                let used = match crate::common::profile_lookup(settings.profile.as_deref(), port_url.as_deref()) {
+                    Ok((p, port)) => motionlink_scu::probe::use_profile(&client, &p, &port).map_err(|e| e.failure())?,
+                    Err(used) => used,
+                };
                 Ok::<_, Failure>((client, used))
             })
             .map_err(|f| to_pyerr(py, f))?;

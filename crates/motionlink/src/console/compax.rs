@@ -131,6 +131,16 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     let mut cfg = BusConfig::new(mode, baud);
     cfg.reply_timeout = args.timeout_ms.duration();
     let client = AsyncClient::open(open, Arc::clone(clock), cfg).await.map_err(|e| crate::common::classified(&e))?;
+    // The device profile of each drive (`motionlink probe compax --save`), where one names the port.
+    if let Some(profiles) = super::profiles() {
+        let drives = match args.drives.is_empty() {
+            true => vec![Address::new(1).map_err(CliError::usage)?],
+            false => args.drives.clone(),
+        };
+        for drive in drives {
+            super::note_profile(motionlink_compax::probe::use_profile_async(&client, &profiles, port, drive).await);
+        }
+    }
     let device = Compax {
         client,
         port: port.to_string(),

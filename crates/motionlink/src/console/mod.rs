@@ -106,6 +106,31 @@ fn allowed_hosts(local: SocketAddr) -> Option<Vec<String>> {
     Some(hosts)
 }
 
+/// The device profiles (profiles.toml beside devices.toml) the console's device may have one in: `None` where
+/// there is no file, or one that cannot be read (said on stderr: the session then probes as without it).
+fn profiles() -> Option<motionlink_link::profile::Profiles> {
+    match motionlink_link::profile::Profiles::load_default() {
+        Ok(p) => p,
+        Err(e) => {
+            crate::term::note(&format!("device profiles not used: {e}"));
+            None
+        }
+    }
+}
+
+/// Says on stderr what the session made of its device's profile: the one taken, the ones not taken and why,
+/// or why none could be looked up (the session then probes as without it).
+fn note_profile<E: std::fmt::Display>(used: Result<motionlink_link::profile::ProfileUse, E>) {
+    match used {
+        Ok(used) => {
+            for n in used.notices.iter().chain(used.reference.iter()) {
+                crate::term::note(&format!("profile: {n}"));
+            }
+        }
+        Err(e) => crate::term::note(&format!("device profile not used: {e}")),
+    }
+}
+
 /// `motionlink console ...`
 pub fn run(args: Args) -> Result<(), CliError> {
     let serve = match &args.family {

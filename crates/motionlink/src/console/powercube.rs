@@ -150,7 +150,23 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
         }
     };
     let client = client.map_err(|e| crate::common::classified(&e))?;
-    let client = AsyncClient::open(move || Ok(client)).await.map_err(|e| crate::common::classified(&e))?;
+    // The device profile of each module (`motionlink probe powercube --save`), where one names the port: read
+    // on the blocking pool, where the session opens.
+    let profiled = match args.modules.is_empty() {
+        true => vec![Address::new(1).map_err(|e| CliError::usage(e.to_string()))?],
+        false => args.modules.clone(),
+    };
+    let port_key = port.to_string();
+    let client = AsyncClient::open(move || {
+        if let Some(profiles) = super::profiles() {
+            for a in profiled {
+                super::note_profile(motionlink_powercube::probe::use_profile(&client, &profiles, &port_key, a));
+            }
+        }
+        Ok(client)
+    })
+    .await
+    .map_err(|e| crate::common::classified(&e))?;
     let guard = Guard::for_motions(ModulesAt::emulated_in_process(host.is_some()), args.no_watchdog);
     let device = PowerCube {
         client,

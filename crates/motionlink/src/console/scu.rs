@@ -112,15 +112,8 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     let client =
         AsyncClient::open(connector, Arc::clone(clock), config).await.map_err(|e| crate::common::classified(&e))?;
     // The device profile of the unit (`motionlink probe scu --save`), where one names the port.
-    if let Ok(Some(profiles)) = motionlink_link::profile::Profiles::load_default() {
-        match motionlink_scu::probe::use_profile_async(&client, &profiles, port).await {
-            Ok(used) => {
-                for n in used.notices.iter().chain(used.reference.iter().map(|r| r as &String)) {
-                    crate::term::note(&format!("profile: {n}"));
-                }
-            }
-            Err(e) => crate::term::note(&format!("device profile not used: {e}")),
-        }
+    if let Some(profiles) = super::profiles() {
+        super::note_profile(motionlink_scu::probe::use_profile_async(&client, &profiles, port).await);
     }
     let device = Scu { client, port: port.to_string(), functions, speed_mode };
     Ok((Arc::new(device), traffic))

@@ -102,3 +102,33 @@ fn a_console_refused_by_a_busy_emulator_ends_with_one_line_and_exit_code_3() {
         );
     }
 }
+
+/// A console of a PowerCube module or a COMPAX drive takes the device profile `motionlink probe --save` wrote for
+/// its port (issue 21: the console loads profiles as every command does), and says which on stderr.
+#[test]
+fn the_console_takes_the_saved_device_profile_in_every_family() {
+    for (family, sim_args) in [("powercube", &["--modules", "1"][..]), ("compax", &["--drives", "1"][..])] {
+        let mut args = vec!["--tcp", "127.0.0.1:0"];
+        args.extend_from_slice(sim_args);
+        let sim = crate::common::Sim::start(family, &args);
+        let dir = temp_path(&format!("console-profile-{family}"));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let config = dir.join("devices.toml");
+        let env = [("MOTIONLINK_CONFIG", config.to_str().unwrap())];
+        let mut probe = vec!["probe", family, "--port", sim.address.as_str(), "--json", "--save"];
+        if family == "compax" {
+            probe.extend_from_slice(&["--drives", "1"]);
+        }
+        let out = crate::common::run_with(&probe, &env, "");
+        assert!(out.status.success(), "{out:?}");
+        let report: Value = serde_json::from_slice(&out.stdout).expect("the probe's JSON");
+        let saved = report["saved"][0].as_str().expect("a saved profile").to_string();
+
+        let c = console_with_env(&[family, "--port", sim.address.as_str()], &env);
+        let line = c.running.stderr.wait_for(Duration::from_secs(20), |l| l.contains("profile: "));
+        assert_eq!(line.as_deref(), Some(format!("profile: {saved}").as_str()), "{}", c.running.stderr.text());
+        drop(c);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
