@@ -132,17 +132,26 @@ impl Stream for TcpStream {
     }
 }
 
-struct SerialStream(Box<dyn serialport::SerialPort>);
+#[cfg(unix)]
+struct SerialStream(serialport::TTYPort);
 
+#[cfg(unix)]
 impl Read for SerialStream {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         self.0.read(buf)
     }
 }
 
+#[cfg(unix)]
 impl Write for SerialStream {
+    /// One `write(2)` on the pty's descriptor, no poll before it (see [`SerialLink`](crate::serial::SerialLink)).
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        self.0.write(buf)
+        use std::os::fd::AsRawFd;
+        let left = crate::serial::write_fd(self.0.as_raw_fd(), buf)?;
+        match left.len() {
+            n if n == buf.len() => self.0.write(buf),
+            n => Ok(buf.len() - n),
+        }
     }
     /// Nothing to wait for: the emulator's answer is in the pty once written (a drain, `tcdrain`, would
     /// cost the round trip a system call for nothing).
@@ -151,9 +160,10 @@ impl Write for SerialStream {
     }
 }
 
+#[cfg(unix)]
 impl Stream for SerialStream {
     fn set_wait(&mut self, wait: Duration) -> std::io::Result<()> {
-        self.0.set_timeout(wait).map_err(std::io::Error::from)
+        serialport::SerialPort::set_timeout(&mut self.0, wait).map_err(std::io::Error::from)
     }
 }
 
@@ -401,7 +411,7 @@ pub fn serve_pty_with<E: Emulator + 'static>(
     let thread = thread::Builder::new().name("emulator-pty".into()).spawn(move || {
         // Holding the slave side open keeps the master readable between clients.
         let _keep_open = slave;
-        let mut stream = SerialStream(Box::new(master));
+        let mut stream = SerialStream(master);
         if let Err(e) = serve_stream(&mut stream, &device, &clock, &stop2, false, &options) {
             tracing::error!("pty server stopped: {e}");
         }

@@ -7,8 +7,16 @@ use std::time::Duration;
 use crate::link::{Link, LinkError, Parity, SerialSettings};
 
 /// A serial port: a USB adapter, an on-board UART, or one side of a pseudo-terminal.
+///
+/// A request is handed to the kernel and not waited for: no drain (`tcdrain`) after it, which would hold the
+/// session until the bytes have left the wire (a session's reply deadline already counts from before the
+/// write, and COMPAX adds the time on the wire itself), and on unix one `write` with no poll before it. The
+/// kernel sends what it was given, also when the port is closed right after (a last stop command).
 pub struct SerialLink {
     port: Box<dyn serialport::SerialPort>,
+    /// The port's file descriptor (unix, where the port was opened here): requests are written to it directly.
+    #[cfg(unix)]
+    fd: Option<std::os::fd::RawFd>,
     name: String,
 }
 
@@ -30,14 +38,22 @@ impl SerialLink {
             Parity::Even => serialport::Parity::Even,
             Parity::Odd => serialport::Parity::Odd,
         };
-        let mut port = serialport::new(path, settings.baud_rate)
+        let port = serialport::new(path, settings.baud_rate)
             .data_bits(serialport::DataBits::Eight)
             .stop_bits(serialport::StopBits::One)
             .parity(parity)
             .flow_control(serialport::FlowControl::None)
-            .timeout(Duration::from_millis(100))
-            .open()
-            .map_err(|e| LinkError::Open { port: path.to_string(), reason: e.to_string() })?;
+            .timeout(Duration::from_millis(100));
+        let open_err = |e: serialport::Error| LinkError::Open { port: path.to_string(), reason: e.to_string() };
+        #[cfg(unix)]
+        let (mut port, fd) = {
+            use std::os::fd::AsRawFd;
+            let native = port.open_native().map_err(open_err)?;
+            let fd = native.as_raw_fd();
+            (Box::new(native) as Box<dyn serialport::SerialPort>, Some(fd))
+        };
+        #[cfg(not(unix))]
+        let mut port = port.open().map_err(open_err)?;
         if settings.dtr_rts_on {
             let dtr = port.write_data_terminal_ready(true);
             let rts = port.write_request_to_send(true);
@@ -52,18 +68,62 @@ impl SerialLink {
             }
         }
         let _ = port.clear(serialport::ClearBuffer::All);
-        Ok(SerialLink { port, name: path.to_string() })
+        Ok(SerialLink {
+            port,
+            #[cfg(unix)]
+            fd,
+            name: path.to_string(),
+        })
     }
 
     /// Wraps an already open port.
     pub fn from_port(port: Box<dyn serialport::SerialPort>, name: impl Into<String>) -> Self {
-        SerialLink { port, name: name.into() }
+        SerialLink {
+            port,
+            #[cfg(unix)]
+            fd: None,
+            name: name.into(),
+        }
     }
+
+    /// Wraps an open terminal (unix): requests are written to its file descriptor directly.
+    #[cfg(unix)]
+    pub fn from_tty(port: serialport::TTYPort, name: impl Into<String>) -> Self {
+        use std::os::fd::AsRawFd;
+        let fd = Some(port.as_raw_fd());
+        SerialLink { port: Box::new(port), fd, name: name.into() }
+    }
+}
+
+/// Writes `bytes` with `write(2)` on `fd`, a terminal the caller owns and keeps open during the call; what is
+/// left when the descriptor would block (the caller then writes it through the port, which waits until it can).
+#[cfg(unix)]
+pub(crate) fn write_fd(fd: std::os::fd::RawFd, mut bytes: &[u8]) -> std::io::Result<&[u8]> {
+    while !bytes.is_empty() {
+        // SAFETY: `fd` is open for the whole call (the caller's promise), and the pointer and length are those
+        // of a live slice.
+        let n = unsafe { libc::write(fd, bytes.as_ptr().cast(), bytes.len()) };
+        if n < 0 {
+            let e = std::io::Error::last_os_error();
+            match e.kind() {
+                ErrorKind::Interrupted => continue,
+                ErrorKind::WouldBlock => return Ok(bytes),
+                _ => return Err(e),
+            }
+        }
+        bytes = &bytes[n.unsigned_abs()..];
+    }
+    Ok(bytes)
 }
 
 impl Link for SerialLink {
     fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
-        self.port.write_all(bytes).and_then(|_| self.port.flush()).map_err(|e| LinkError::from_io(&self.name, e))
+        #[cfg(unix)]
+        let bytes = match self.fd {
+            Some(fd) => write_fd(fd, bytes).map_err(|e| LinkError::from_io(&self.name, e))?,
+            None => bytes,
+        };
+        self.port.write_all(bytes).map_err(|e| LinkError::from_io(&self.name, e))
     }
 
     fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
