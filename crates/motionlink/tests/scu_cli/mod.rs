@@ -3,6 +3,7 @@
 
 mod conventions;
 mod signals;
+mod slow_link;
 mod variants;
 
 use signals::{wait_at_rest, wait_started};
