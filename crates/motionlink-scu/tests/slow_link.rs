@@ -137,3 +137,19 @@ fn a_unit_without_cyclic_objects_cannot_be_watched_over_a_slow_link_and_its_keep
     assert_eq!(client.sample().unwrap().position(a(2)), PositionCounts(0));
     client.close().unwrap();
 }
+
+#[test]
+fn a_unit_without_cyclic_objects_is_back_in_remote_mode_after_the_lapse_and_the_watch_ends_for_lack_of_room() {
+    let rig = Rig::with_variants(SimConfig::default(), &[Variant::NoCyclicObjects]);
+    let latency = Arc::new(Mutex::new(SLOW));
+    let client = rig.client_behind(&latency, scp11()).unwrap();
+    let mut samples = 0;
+    let e = client.watch(Duration::from_millis(250), Some(3), &mut |_| samples += 1, None).unwrap_err();
+    assert!(matches!(e, Error::NoRoom { command: Command::Get, .. }), "{e}");
+    assert_eq!(samples, 0);
+    assert_eq!(client.capabilities().cyclic_objects, Some(false));
+    assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 1, "the one deliberate lapse, and no other");
+    assert!(client.is_open());
+    assert!(matches!(rig.unit(|u| u.mode()), RemoteMode::Active(_)));
+    client.close().unwrap();
+}
