@@ -164,7 +164,7 @@
 //!   trips apart, beyond 500 ms, and the manual gives no other form) writes it anyway, only while the session
 //!   has started nothing, and lets the watchdog lapse once (the unit records error bit 22 and stops the
 //!   motions its Safety_ID says); RO and an RC carrying the object then open remote mode again, and that RC's
-//!   read data is the first sample and the check ([`ClientStats::deliberate_lapses`]).
+//!   read data is the first sample and the check ([`session::ClientStats::deliberate_lapses`]).
 //! - **Captures.** An RO ACK is byte for byte an RO request with Safety_ID 6; in a capture that mixes both
 //!   directions the reply reading wins.
 //! - **CRC.** CRC-16/XMODEM comes from the `crc` crate (its slice-by-16 tables); the codec walks them eight and

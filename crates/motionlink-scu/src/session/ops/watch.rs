@@ -42,7 +42,11 @@ pub(crate) async fn watch(ctx: &Ctx, spec: WatchSpec) -> Result<Output, Error> {
     match define_object(ctx).await {
         _ if ctx.cancelled() => return end(samples, last),
         Ok(()) => {}
-        Err(e @ Error::NoRoom { .. }) => first = define_across_lapse(ctx, e).await?,
+        Err(e @ Error::NoRoom { .. }) => {
+            first = define_across_lapse(ctx, e).await?;
+            // The first sample is the one the reopening RC brought: the next are due from it.
+            next_due = ctx.now();
+        }
         Err(e) => return Err(e),
     }
     loop {
