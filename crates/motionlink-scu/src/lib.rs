@@ -160,6 +160,11 @@
 //!   expected back before then, by the longest round trip measured lately; one that finds no room within
 //!   1000 ms fails ([`Error::NoRoom`]) rather than let the watchdog expire. Stops (RS), RA and RO never wait;
 //!   the RS that ends a move that reached its target waits for room at most 1000 ms and then goes anyway.
+//! - **A watch on a link too slow for its cyclic object's definition** (RC, RT, RC reach the unit two round
+//!   trips apart, beyond 500 ms, and the manual gives no other form) writes it anyway, only while the session
+//!   has started nothing, and lets the watchdog lapse once (the unit records error bit 22 and stops the
+//!   motions its Safety_ID says); RO and an RC carrying the object then open remote mode again, and that RC's
+//!   read data is the first sample and the check ([`session::ClientStats::deliberate_lapses`]).
 //! - **Captures.** An RO ACK is byte for byte an RO request with Safety_ID 6; in a capture that mixes both
 //!   directions the reply reading wins.
 //! - **CRC.** CRC-16/XMODEM comes from the `crc` crate (its slice-by-16 tables); the codec walks them eight and

@@ -59,9 +59,11 @@ pub const FAMILY: &str = "scu";
 /// The unit a probe found.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct ScuDevice {
-    /// Which edition's name the firmware or configuration text carries: `ewellix`, `schaeffler`, or
-    /// `unknown` (the protocol of both editions is the same; only their texts differ).
+    /// The edition: `ewellix` or `schaeffler` where the firmware or configuration text names it, else
+    /// [`EITHER_EDITION`]: the protocol cannot tell them apart (see [`Self::edition_detail`]).
     pub edition: &'static str,
+    /// How the edition was determined: which text names it, or why no read of the protocol can.
+    pub edition_detail: String,
     /// Firmware info (0x0001): name, version, checksum.
     pub firmware: String,
     /// Configuration info (0x0002): name, version, checksum.
@@ -90,15 +92,25 @@ pub fn identity(client: &Client) -> Result<(String, String), Error> {
     Ok((text(0x0001)?, text(0x0002)?))
 }
 
-fn edition(texts: &[&str]) -> &'static str {
-    let all = texts.join(" ").to_ascii_lowercase();
-    if all.contains("ewellix") {
-        "ewellix"
-    } else if all.contains("schaeffler") {
-        "schaeffler"
-    } else {
-        "unknown"
+/// The edition of a unit whose texts name neither vendor: the two manuals describe one protocol.
+pub const EITHER_EDITION: &str = "either: one protocol";
+
+/// Why the protocol cannot tell the editions apart (the manuals compared).
+pub const ONE_PROTOCOL: &str = "the Ewellix and the Schaeffler manual describe one protocol: the same commands, \
+     acknowledge codes, data indices (0x0001..0x3026, none in one edition only), functions, parameters and error \
+     bits, so no read answers differently by edition; neither manual shows what the firmware (0x0001) or \
+     configuration (0x0002) text holds, and these texts name neither vendor";
+
+/// The edition the firmware or configuration text names, and how that was determined.
+fn edition(firmware: &str, configuration: &str) -> (&'static str, String) {
+    for (vendor, name) in [("ewellix", "Ewellix"), ("schaeffler", "Schaeffler")] {
+        for (which, text) in [("firmware", firmware), ("configuration", configuration)] {
+            if text.to_ascii_lowercase().contains(vendor) {
+                return (vendor, format!("the {which} text names {name} (the protocol of both editions is the same)"));
+            }
+        }
     }
+    (EITHER_EDITION, ONE_PROTOCOL.to_string())
 }
 
 /// Probes the unit of `client` (opened on `setup.port`): identifies it, measures the link, and runs every
@@ -146,8 +158,10 @@ pub fn probe(client: &Client, setup: &ProbeSetup) -> Result<ScuProbeReport, Erro
     }));
 
     let capabilities = client.capabilities();
+    let (edition, edition_detail) = edition(&firmware, &configuration);
     let device = ScuDevice {
-        edition: edition(&[&firmware, &configuration]),
+        edition,
+        edition_detail,
         identity: format!("{firmware} | {configuration}"),
         firmware,
         configuration,
@@ -353,4 +367,22 @@ pub fn use_profile(client: &Client, profiles: &Profiles, port: &str) -> Result<P
         used.take(lookup, |caps: Capabilities| client.seed_capabilities(caps));
     }
     Ok(used)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_edition_is_the_vendor_a_text_names_else_either_with_the_reason() {
+        let (e, why) = edition("SCU V2B3 Ewellix", "SCP11");
+        assert_eq!(e, "ewellix");
+        assert!(why.contains("firmware text names Ewellix"), "{why}");
+        let (e, why) = edition("SCU V2B3", "SCHAEFFLER SCP11 1.0");
+        assert_eq!(e, "schaeffler");
+        assert!(why.contains("configuration text names Schaeffler"), "{why}");
+        let (e, why) = edition("SCU V2B3 motionlink-sim", "SCP11");
+        assert_eq!(e, EITHER_EDITION);
+        assert_eq!(why, ONE_PROTOCOL);
+    }
 }

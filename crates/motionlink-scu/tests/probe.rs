@@ -39,7 +39,10 @@ fn the_default_unit_answers_every_probe_and_is_identified() {
     assert_eq!((r.family, r.port.as_str()), ("scu", "sim"));
     let d = &r.devices[0];
     assert_eq!(d.firmware, "SCU V2B3 motionlink-sim");
-    assert_eq!(d.edition, "unknown");
+    // The emulator's texts name no vendor (the manuals show no such text), and no read tells the editions
+    // apart: the probe says so, with why.
+    assert_eq!(d.edition, "either: one protocol");
+    assert!(d.edition_detail.contains("one protocol") && d.edition_detail.contains("none in one edition only"));
     assert_eq!(d.connected_actuators, vec![1, 2]);
     assert!(d.identity.starts_with("SCU V2B3 motionlink-sim | "), "{}", d.identity);
     let yes = Some(true);

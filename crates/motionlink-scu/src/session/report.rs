@@ -190,6 +190,11 @@ pub struct ClientStats {
     pub reopens: u64,
     /// Times the unit's watchdog was found expired and re-armed by an RC (Safety_ID 1 and 2).
     pub watchdog_lapses: u64,
+    /// Times the session let the unit's watchdog lapse on purpose: a watch on a link too slow for any
+    /// request between two RCs defined its cyclic object so, while the session had started nothing, and
+    /// opened remote mode again with RO and an RC carrying the object (see the crate documentation, "Slow
+    /// links").
+    pub deliberate_lapses: u64,
     /// RC keepalives whose cyclic object read the state of a running motion.
     pub motion_polls: u64,
 }

@@ -96,10 +96,11 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
 fn unit_line(d: &ScuDevice) -> String {
     let actuators: Vec<String> = d.connected_actuators.iter().map(|a| format!("A{a}")).collect();
     format!(
-        "unit: firmware {:?}, configuration {:?} (edition: {}); connected: {}",
+        "unit: firmware {:?}, configuration {:?} (edition: {}: {}); connected: {}",
         d.firmware,
         d.configuration,
         d.edition,
+        d.edition_detail,
         if actuators.is_empty() { "none".into() } else { actuators.join(" ") }
     )
 }

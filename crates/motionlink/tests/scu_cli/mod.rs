@@ -3,6 +3,7 @@
 
 mod conventions;
 mod signals;
+mod slow_link;
 mod variants;
 
 use signals::{wait_at_rest, wait_started};
@@ -459,4 +460,18 @@ fn follow_stops_on_a_bad_line_and_on_a_signal() {
     let ended = running.wait(Duration::from_secs(10));
     assert_eq!(ended.code(), 143, "{ended:?}");
     drop(stdin);
+}
+
+#[test]
+fn probe_reports_the_edition_as_either_with_why_the_protocol_cannot_tell() {
+    let sim = sim_tcp();
+    let out = Command::new(BIN).args(["probe", "scu", "--port", &sim.address, "--json", "--exchanges", "2"]).output();
+    let v = json(&out.expect("run motionlink probe scu"));
+    let device = &v["devices"][0];
+    assert_eq!(device["edition"], "either: one protocol", "{v}");
+    let detail = device["edition_detail"].as_str().unwrap();
+    assert!(detail.contains("describe one protocol") && detail.contains("name neither vendor"), "{detail}");
+    let out = Command::new(BIN).args(["probe", "scu", "--port", &sim.address, "--exchanges", "2"]).output().unwrap();
+    assert!(out.status.success(), "{out:?}");
+    assert!(stdout(&out).contains("(edition: either: one protocol: the Ewellix and the Schaeffler manual"), "{out:?}");
 }

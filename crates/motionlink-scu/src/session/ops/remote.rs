@@ -7,13 +7,24 @@ use super::Output;
 use crate::error::Error;
 use crate::model::StopMode;
 use crate::session::ctx::Ctx;
-use crate::session::request::{PreparedRequest, Req};
+use crate::session::request::{OwnedReply, PreparedRequest, Req};
 use crate::session::State;
 use crate::wire::{Command, Request, Status};
 
 /// RO with the configured Safety_ID, then RC. Returns the time the RC went out (the unit's watchdog runs
 /// from when it received it).
 async fn opening(ctx: &Ctx) -> Result<Timestamp, Error> {
+    let (rc_sent, reply) = opening_with(ctx, PreparedRequest::keepalive()).await?;
+    reply?.ack(Command::Cyclic)?;
+    Ok(rc_sent)
+}
+
+/// RO with the configured Safety_ID (its refusal or failure is the `Err`), then `rc` (an RC): the time it
+/// went out and its reply, whatever the unit answered.
+pub(super) async fn opening_with(
+    ctx: &Ctx,
+    rc: PreparedRequest,
+) -> Result<(Timestamp, Result<OwnedReply, Error>), Error> {
     let safety_id = ctx.core().config.safety_id.code();
     let ro = PreparedRequest::new(&Request::Open { safety_id })?;
     let reply = ctx.send(Req::internal(ro)).await;
@@ -21,8 +32,7 @@ async fn opening(ctx: &Ctx) -> Result<Timestamp, Error> {
     reply.and_then(|r| r.ack(Command::Open))?;
     ctx.core().line.remote = true;
     let rc_sent = ctx.now();
-    ctx.send(Req::internal(PreparedRequest::keepalive())).await.and_then(|r| r.ack(Command::Cyclic))?;
-    Ok(rc_sent)
+    Ok((rc_sent, ctx.send(Req::internal(rc)).await))
 }
 
 /// RA, as the session's own request.

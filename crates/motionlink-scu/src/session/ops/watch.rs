@@ -1,13 +1,15 @@
 //! Watching the state: a sample every interval of every actuator's status, position and current and of the
 //! last error. Where the unit takes the session's cyclic object, each sample rides on a keepalive RC (so a
 //! link whose round trips leave no room for any other request between two RCs can still be watched);
-//! otherwise each sample is four reads, which go out only when there is room beside the keepalive.
+//! otherwise each sample is four reads, which go out only when there is room beside the keepalive. Where the
+//! link leaves no room for the object's definition, it is written across one lapse of the unit's watchdog
+//! while the session has started nothing ([`define_across_lapse`]).
 
 use std::time::Duration;
 
 use motionlink_link::Timestamp;
 
-use super::object::define_object;
+use super::object::{define_across_lapse, define_object};
 use super::{currents, error_code, positions, read_item, statuses, ItemRead, Output, Progress};
 use crate::error::Error;
 use crate::model::{Actuator, DataIndex};
@@ -34,9 +36,17 @@ pub(crate) async fn watch(ctx: &Ctx, spec: WatchSpec) -> Result<Output, Error> {
     let mut samples = 0;
     let mut last = None;
     let end = |samples, last| Ok(Output::Watched { samples, last });
+    // On a link too slow for the definition beside the keepalive, it is made across one lapse of the
+    // watchdog, and the RC that opens remote mode again brings the first sample.
+    let mut first = None;
     match define_object(ctx).await {
         _ if ctx.cancelled() => return end(samples, last),
         Ok(()) => {}
+        Err(e @ Error::NoRoom { .. }) => {
+            first = define_across_lapse(ctx, e).await?;
+            // The first sample is the one the reopening RC brought: the next are due from it.
+            next_due = ctx.now();
+        }
         Err(e) => return Err(e),
     }
     loop {
@@ -45,7 +55,9 @@ pub(crate) async fn watch(ctx: &Ctx, spec: WatchSpec) -> Result<Output, Error> {
             core.poll_slot().is_some() && core.poll.configured
         };
         // Through the keepalive where the object is configured, else with reads.
-        let sample = if configured {
+        let sample = if let Some(s) = first.take() {
+            s
+        } else if configured {
             match ctx.snapshot().await {
                 Some(Ok(s)) => s,
                 Some(Err(e)) => return Err(e),
