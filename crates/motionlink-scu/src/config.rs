@@ -261,6 +261,12 @@ pub struct ClientConfig {
     /// of every started function, then RA) before it reports that the stop was not confirmed. Default 5 s; a
     /// dead link takes about 0.6 s (one short try of RS and of RA).
     pub close_bound: Duration,
+    /// Whether a watch on a link too slow to define its cyclic object beside the keepalive (round trips near
+    /// 290 ms) may define it across one lapse of the unit's 500 ms watchdog, while the session has started
+    /// nothing: the unit then records error bit 22 and stops every motion under way (with Safety_ID 2 the
+    /// remote ones only), a hand switch's included. Default false: such a watch ends with
+    /// [`Error::NoRoom`](crate::Error::NoRoom).
+    pub watch_may_lapse: bool,
 }
 
 impl Default for ClientConfig {
@@ -283,6 +289,7 @@ impl Default for ClientConfig {
             reconnect_interval: Duration::from_secs(1),
             move_polling: MovePolling::default(),
             close_bound: Duration::from_secs(5),
+            watch_may_lapse: false,
         }
     }
 }

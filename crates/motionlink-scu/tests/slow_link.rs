@@ -16,6 +16,11 @@ fn scp11() -> ClientConfig {
     ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() }
 }
 
+/// [`scp11`], and a watch may define its object across one lapse of the watchdog (the user's opt-in).
+fn scp11_may_lapse() -> ClientConfig {
+    ClientConfig { watch_may_lapse: true, ..scp11() }
+}
+
 #[test]
 fn a_watch_rides_on_the_keepalive_when_round_trips_take_290_ms() {
     let rig = Rig::new(SimConfig::default());
@@ -51,7 +56,7 @@ fn a_watch_rides_on_the_keepalive_when_round_trips_take_290_ms() {
 fn a_watch_over_a_link_slow_from_the_start_defines_its_object_across_one_lapse_and_samples_through_the_rc() {
     let rig = Rig::new(SimConfig::default());
     let latency = Arc::new(Mutex::new(SLOW));
-    let client = rig.client_behind(&latency, scp11()).unwrap();
+    let client = rig.client_behind(&latency, scp11_may_lapse()).unwrap();
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0, "opened without a lapse");
     let mut samples = Vec::new();
     let n = client.watch(Duration::from_millis(500), Some(8), &mut |s| samples.push(*s), None).unwrap();
@@ -85,7 +90,7 @@ fn a_watch_over_a_link_slow_from_the_start_defines_its_object_across_one_lapse_a
 fn a_session_that_started_a_function_never_lets_the_watchdog_lapse_for_a_watch() {
     let rig = Rig::new(SimConfig::default());
     let latency = Arc::new(Mutex::new(Duration::ZERO));
-    let client = rig.client_behind(&latency, scp11()).unwrap();
+    let client = rig.client_behind(&latency, scp11_may_lapse()).unwrap();
     // A function of this session is on (binary output 1): a lapse would switch it off.
     client.switch(motionlink_scu::model::Function::BinaryOutput1, true).unwrap();
     *latency.lock().unwrap() = SLOW;
@@ -142,13 +147,29 @@ fn a_unit_without_cyclic_objects_cannot_be_watched_over_a_slow_link_and_its_keep
 fn a_unit_without_cyclic_objects_is_back_in_remote_mode_after_the_lapse_and_the_watch_ends_for_lack_of_room() {
     let rig = Rig::with_variants(SimConfig::default(), &[Variant::NoCyclicObjects]);
     let latency = Arc::new(Mutex::new(SLOW));
-    let client = rig.client_behind(&latency, scp11()).unwrap();
+    let client = rig.client_behind(&latency, scp11_may_lapse()).unwrap();
     let mut samples = 0;
     let e = client.watch(Duration::from_millis(250), Some(3), &mut |_| samples += 1, None).unwrap_err();
     assert!(matches!(e, Error::NoRoom { command: Command::Get, .. }), "{e}");
     assert_eq!(samples, 0);
     assert_eq!(client.capabilities().cyclic_objects, Some(false));
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 1, "the one deliberate lapse, and no other");
+    assert!(client.is_open());
+    assert!(matches!(rig.unit(|u| u.mode()), RemoteMode::Active(_)));
+    client.close().unwrap();
+}
+
+#[test]
+fn without_the_users_leave_a_watch_over_a_link_slow_from_the_start_lets_nothing_lapse_and_ends_for_lack_of_room() {
+    let rig = Rig::new(SimConfig::default());
+    let latency = Arc::new(Mutex::new(SLOW));
+    let client = rig.client_behind(&latency, scp11()).unwrap();
+    let mut samples = 0;
+    let e = client.watch(Duration::from_millis(250), Some(3), &mut |_| samples += 1, None).unwrap_err();
+    assert!(matches!(e, Error::NoRoom { .. }), "{e}");
+    assert_eq!(samples, 0);
+    assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0, "the unit's watchdog never lapsed");
+    assert_eq!(client.stats().deliberate_lapses, 0);
     assert!(client.is_open());
     assert!(matches!(rig.unit(|u| u.mode()), RemoteMode::Active(_)));
     client.close().unwrap();

@@ -160,9 +160,17 @@ pub(super) fn watch(
         }
     };
     let watched = client.watch(Duration::from_millis(interval_ms), count, &mut print, Some(interrupt));
-    match failed {
-        Some(e) => Err(e),
-        None => watched.map(|_| ()).map_err(cl),
+    match (failed, watched) {
+        (Some(e), _) => Err(e),
+        (None, Ok(_)) => Ok(()),
+        // A link too slow for the object's definition, where the user did not allow the lapse: say how.
+        (None, Err(e @ motionlink_scu::Error::NoRoom { .. })) if !client.config().watch_may_lapse => {
+            Err(CliError::transport(format!(
+                "{e}; on a link this slow, `watch --allow-watchdog-lapse` defines the session's cyclic object \
+                 across one lapse of the unit's watchdog, which stops every motion under way on the unit"
+            )))
+        }
+        (None, Err(e)) => Err(cl(e)),
     }
 }
 

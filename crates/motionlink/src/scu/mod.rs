@@ -214,6 +214,12 @@ pub enum Action {
         /// Print CSV (a header line, then one line per actuator and sample) instead of a table.
         #[arg(long)]
         csv: bool,
+        /// On a link too slow to define the cyclic object beside the keepalive (round trips near 290 ms), define
+        /// it across one lapse of the unit's 500 ms watchdog. The unit then records error bit 22 and stops every
+        /// motion under way, a hand switch's included (with --safety 2 the remote ones only); this session must
+        /// have started nothing. Without it, such a watch ends with exit 3 and nothing lapses.
+        #[arg(long)]
+        allow_watchdog_lapse: bool,
     },
     /// The error history (Error_Code 1..5) with each bit's cause.
     Errors,
@@ -315,7 +321,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
         return send::names(args.json, args.speed_mode, &mut std::io::stdout().lock());
     }
     // Check everything that can be checked before the port is opened: nothing is sent for bad input.
-    let config = client_config(&args)?;
+    let mut config = client_config(&args)?;
+    config.watch_may_lapse = matches!(args.action, Action::Watch { allow_watchdog_lapse: true, .. });
     Variants::parse_all(&args.sim_variants).map_err(|e| CliError::usage(format!("--sim-variant: {e}")))?;
     let mut request = None;
     match &args.action {
@@ -437,7 +444,7 @@ fn act(
             actions::run(client, action, seconds.map(RunLimit::get), report, interrupt, out)
         }
         Action::Stop { function, soft } => stop::stop(client, *function, *soft, report, out),
-        Action::Watch { interval_ms, count, csv } => {
+        Action::Watch { interval_ms, count, csv, .. } => {
             let format = if *csv { actions::Format::Csv } else { actions::Format::from_json(report.json) };
             actions::watch(client, report, format, *interval_ms, *count, interrupt, out)
         }

@@ -52,9 +52,17 @@ fn slow_proxy(target: &str) -> String {
 }
 
 #[test]
-fn watch_over_a_290_ms_link_gives_its_samples_and_exits_0_and_a_move_there_is_refused_before_anything_moves() {
+fn watch_over_a_290_ms_link_lapses_only_when_allowed_then_gives_its_samples_and_exits_0_and_a_move_there_is_refused_before_anything_moves(
+) {
     let sim = sim_tcp();
-    let out = scu(&slow_proxy(&sim.address), &["watch", "--count", "4", "--interval-ms", "500", "--json"]);
+    // Without the user's leave, nothing lapses: exit 3, and the message says how (and at what cost).
+    let out = scu(&slow_proxy(&sim.address), &["watch", "--count", "4", "--interval-ms", "500"]);
+    assert_eq!(out.status.code(), Some(3), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(err.contains("--allow-watchdog-lapse") && err.contains("stops every motion"), "{err}");
+    assert!(!sim.stderr.text().contains("ended by watchdog"), "no lapse: {}", sim.stderr.text());
+    let watch = ["watch", "--count", "4", "--interval-ms", "500", "--json", "--allow-watchdog-lapse"];
+    let out = scu(&slow_proxy(&sim.address), &watch);
     let err = String::from_utf8_lossy(&out.stderr).into_owned();
     assert!(out.status.success(), "{out:?}");
     let lines: Vec<serde_json::Value> =

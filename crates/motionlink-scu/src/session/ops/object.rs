@@ -88,7 +88,8 @@ fn object_index(slot: u8) -> DataIndex {
 /// The definition of the session's cyclic object for a watch on a link too slow for it (`no_room`: the
 /// definition found no room between two RCs). The manual gives no form that fits: the RT and RG it needs
 /// come only after the first RC, and the RC alone feeds the watchdog, so an RC, one other request and the
-/// next RC reach the unit two round trips apart, beyond its 500 ms. So, only while the session has started
+/// next RC reach the unit two round trips apart, beyond its 500 ms. So, only where the user allowed it
+/// ([`ClientConfig::watch_may_lapse`](crate::ClientConfig::watch_may_lapse)) and while the session has started
 /// nothing, the RT goes out at once and the watchdog lapses after it (the unit records error bit 22 and
 /// stops the motions its Safety_ID says, none of them this session's); then RO and an RC that carries the
 /// object open remote mode again, and that RC's reply (the object's read data, of the length its
@@ -97,14 +98,15 @@ fn object_index(slot: u8) -> DataIndex {
 ///
 /// Its end: `Ok(Some(sample))`, the state read by that RC (the object is configured); `Ok(None)`, the unit
 /// refused the object (remote mode is open again, the session watches with reads, which find no room);
-/// `Err(no_room)` where the session started a function (nothing lapses then); another `Err` if remote mode
+/// `Err(no_room)` where the lapse is not allowed or the session started a function (nothing lapses then); another `Err` if remote mode
 /// could not be opened again (the session is then ended).
 pub(crate) async fn define_across_lapse(ctx: &Ctx, no_room: Error) -> Result<Option<Snapshot>, Error> {
-    let (slot, started, round_trip) = {
+    let (slot, started, round_trip, may_lapse) = {
         let core = ctx.core();
-        (core.poll_slot(), !core.started.is_empty(), core.line.recent_round_trip.unwrap_or(core.line.round_trip))
+        let round_trip = core.line.recent_round_trip.unwrap_or(core.line.round_trip);
+        (core.poll_slot(), !core.started.is_empty(), round_trip, core.config.watch_may_lapse)
     };
-    let Some(slot) = slot.filter(|_| !started) else { return Err(no_room) };
+    let Some(slot) = slot.filter(|_| !started && may_lapse) else { return Err(no_room) };
     tracing::warn!(
         "round trips of {} ms leave no room beside the keepalive for the definition of CyclicObj {slot}: it is \
          written now and the unit's 500 ms watchdog lapses once, while this session has started nothing (the unit \
