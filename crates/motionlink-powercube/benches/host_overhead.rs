@@ -1,7 +1,10 @@
 //! The host's own time per request, blocking and async side by side: one ActPos read of one module over the
 //! in-memory CAN bus paced at 1 Mbit/s (real clock), minus the time the two frames take on the bus (their
 //! real stuff bits counted). The blocking client drives the link on the caller's thread; the async client
-//! hands each operation to the driver's thread and is woken by it: the difference is what that costs.
+//! hands each operation to the driver's thread and is woken by it: the difference is what that costs. A
+//! third figure, "host's own", has the reader spin until each frame is there: what is left is the work of
+//! the client, the session and the driver, without the operating system's wake-up latency (about 20 µs on the
+//! development machine's virtual CPUs, which a sleeping reader pays once per read on any bus).
 //!
 //! `cargo bench -p motionlink-powercube --features bench --bench host_overhead -- --warm-up-time 1 --measurement-time 3` is
 //! a quick run.
@@ -22,8 +25,12 @@ use motionlink_powercube::Emulator;
 const BITRATE: u32 = 1_000_000;
 
 fn bus() -> CanBus<Emulator> {
+    bus_with(CanBusConfig::paced(BITRATE))
+}
+
+fn bus_with(config: CanBusConfig) -> CanBus<Emulator> {
     let sim = Emulator::new_can(&SimConfig::with_addresses(&[1]).expect("one module"));
-    CanBus::with_emulator(sim, RealClock::shared(), CanBusConfig::paced(BITRATE))
+    CanBus::with_emulator(sim, RealClock::shared(), config)
 }
 
 /// The time one read takes on the bus: the request and the acknowledge, with their stuff bits.
@@ -78,10 +85,23 @@ fn bench(c: &mut Criterion) {
         }
         start.elapsed() / n
     });
+    // The host's own time: the same reads where the client's thread spins until each frame is there, so that
+    // no wake-up latency of the operating system counts (a sleeping reader's wake-up by a timer, here, or by
+    // a frame's interrupt, on a real bus, is the operating system's time, the same for any library).
+    let spin_bus = bus_with(CanBusConfig { reader_spins: true, ..CanBusConfig::paced(BITRATE) });
+    let spinning =
+        Client::can(Box::new(spin_bus.connect()), RealClock::shared(), BusConfig::can()).expect("the session starts");
+    let spin_module = spinning.module(one);
+    let spin_mean = mean(n, || {
+        black_box(spin_module.position().expect("answers"));
+    });
+    spinning.close().expect("closes");
     let wire = wire_time();
     println!("one ActPos read of one module on the in-memory CAN bus at 1 Mbit/s (request + acknowledge)");
     println!("  on the bus (stuff bits counted):  {:>7.1} us", wire.as_secs_f64() * 1e6);
-    for (name, m) in [("blocking client", blocking_mean), ("async client (tokio)", async_mean)] {
+    for (name, m) in
+        [("blocking client", blocking_mean), ("async client (tokio)", async_mean), ("blocking, host's own", spin_mean)]
+    {
         println!(
             "  {name:<22} {:>7.1} us per read, host overhead {:>6.1} us",
             m.as_secs_f64() * 1e6,

@@ -27,6 +27,9 @@ impl<S: Session> Shared<S> {
         let ticket = self.clock.reserve_participant();
         let handle = thread::Builder::new().name("motionlink-driver".into()).spawn(move || {
             let _participant = ticket.enter();
+            // The session's deadlines (keepalives, watchdog refreshes, reply timeouts) are met within a few µs
+            // rather than the default timer slack's 50 µs.
+            crate::clock::precise_timers();
             me.background_loop();
             me.exited_flag.store(true, std::sync::atomic::Ordering::SeqCst);
             me.exited.raise();
