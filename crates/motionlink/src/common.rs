@@ -379,6 +379,89 @@ pub fn print_result<T: serde::Serialize + ?Sized>(
     print_json(out, &shown)
 }
 
+/// How a family command prints its results: with `--json` each as the library's report serialises (the
+/// identity keys first: [`print_result`]), else as text made from the same report.
+#[derive(Debug, Clone, Copy)]
+pub struct Out<'a> {
+    /// `--json`.
+    pub json: bool,
+    /// "scu", "powercube" or "compax".
+    pub family: &'static str,
+    /// The port, as given or resolved.
+    pub port: &'a str,
+    /// The unit the command names (`("module", 3)`, `("drive", 1)`), where it names one.
+    pub unit: Option<(&'static str, u8)>,
+}
+
+impl Out<'_> {
+    /// Prints `result` as one JSON object: `family`, `port`, `profile`, the unit, then its own fields.
+    pub fn print(&self, out: &mut dyn Write, result: impl serde::Serialize) -> Result<(), CliError> {
+        let identity: Vec<(&str, serde_json::Value)> = self.unit.iter().map(|&(k, n)| (k, n.into())).collect();
+        print_result(out, self.family, self.port, &identity, &result)
+    }
+
+    /// `result` as JSON (`--json`), else as `text` writes it.
+    pub fn show<R: serde::Serialize>(
+        &self,
+        out: &mut dyn Write,
+        result: &R,
+        text: impl FnOnce(&mut dyn Write, &R) -> Result<(), CliError>,
+    ) -> Result<(), CliError> {
+        match self.json {
+            true => self.print(out, result),
+            false => text(out, result),
+        }
+    }
+
+    /// `stop`: in text, first what the motionlink that held the port said when it was stopped, if one was.
+    pub fn holder(&self, out: &mut dyn Write, stopped: Option<&motionlink_link::portlock::Stopped>) -> Result<(), CliError> {
+        if let (Some(h), false) = (stopped, self.json) {
+            writeln!(out, "{}", h.describe())?;
+        }
+        Ok(())
+    }
+}
+
+/// What a motion could not verify, one line of text (nothing when it verified everything).
+pub fn not_verified(out: &mut dyn Write, why: &[String]) -> Result<(), CliError> {
+    if !why.is_empty() {
+        writeln!(out, "not verified: {}", why.join("; "))?;
+    }
+    Ok(())
+}
+
+/// `number` followed by `unit` (no unit: the number alone).
+pub fn with_unit(number: impl std::fmt::Display, unit: &str) -> String {
+    if unit.is_empty() {
+        number.to_string()
+    } else {
+        format!("{number} {unit}")
+    }
+}
+
+/// How `watch` prints its samples: `--csv`, `--json` or text.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WatchFormat {
+    /// One line of text per sample.
+    Text,
+    /// One JSON object per sample.
+    Json,
+    /// A CSV header, then lines of values.
+    Csv,
+}
+
+impl WatchFormat {
+    /// The format `--csv` and `--json` ask for (not both).
+    pub fn of(csv: bool, json: bool) -> Result<WatchFormat, CliError> {
+        match (csv, json) {
+            (true, true) => Err(CliError::usage("--csv and --json: give one of them")),
+            (true, false) => Ok(WatchFormat::Csv),
+            (false, true) => Ok(WatchFormat::Json),
+            (false, false) => Ok(WatchFormat::Text),
+        }
+    }
+}
+
 /// One line of CSV: fields separated by commas, quoted when they hold a comma, a quote or a line break.
 pub fn csv_line(fields: &[String]) -> String {
     let quoted: Vec<String> = fields

@@ -122,7 +122,7 @@ pub(super) fn send(
     client: &Client,
     request: &Request,
     tap: &Tap,
-    port: &str,
+    o: &Out<'_>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let telegrams = tap.telegrams().ok_or_else(|| CliError::usage("send: no tap on the link"))?;
@@ -137,7 +137,7 @@ pub(super) fn send(
     if args.json {
         let command = command_text(request, kind);
         let sent = Sent { command, request: request_json, reply: reply_json, ok: result.is_ok() };
-        print(out, port, args.module, &sent)?;
+        o.print(out, sent)?;
     }
     result.map(|_| ()).map_err(failed)
 }

@@ -278,34 +278,19 @@ fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: Clie
     Client::open(connector, clock, config).map_err(|e| common::classified(&e))
 }
 
-/// What every action prints with: JSON or text, and the port the JSON objects name.
+/// What every action prints with ([`common::Out`]: JSON or text, the port the JSON objects name), and what
+/// `stop` found.
 pub(super) struct Report<'a> {
-    /// `--json`.
-    pub json: bool,
-    /// The port, as given.
-    pub port: &'a str,
+    /// How results are printed.
+    pub out: common::Out<'a>,
     /// `stop`: the motionlink that held the port and was stopped first, if any.
     pub stopped: Option<motionlink_link::portlock::Stopped>,
 }
 
-impl Report<'_> {
-    /// Prints one JSON object with the identity (`family`, `port`) first, then `result`'s fields as it
-    /// serialises.
-    pub fn print(&self, out: &mut dyn Write, result: impl serde::Serialize) -> Result<(), CliError> {
-        common::print_result(out, "scu", self.port, &[], &result)
-    }
-
-    /// `result` as JSON (`--json`), else as `text` writes it.
-    pub fn show<R: serde::Serialize>(
-        &self,
-        out: &mut dyn Write,
-        result: &R,
-        text: impl FnOnce(&mut dyn Write, &R) -> Result<(), CliError>,
-    ) -> Result<(), CliError> {
-        match self.json {
-            true => self.print(out, result),
-            false => text(out, result),
-        }
+impl<'a> std::ops::Deref for Report<'a> {
+    type Target = common::Out<'a>;
+    fn deref(&self) -> &common::Out<'a> {
+        &self.out
     }
 }
 
@@ -334,8 +319,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Action::Run { function, direction, .. } => {
             RunAction::parse(function, direction).map_err(CliError::usage)?;
         }
-        Action::Watch { csv: true, .. } if args.json => {
-            return Err(CliError::usage("--csv and --json: give one of them"));
+        Action::Watch { csv, .. } => {
+            common::WatchFormat::of(*csv, args.json)?;
         }
         _ => {}
     }
@@ -361,7 +346,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let client = connect(&args, &port, &tap, &clock, config).map_err(|e| tap.name_absent(e, absent))?;
     crate::probe::use_profile(|p| motionlink_scu::probe::use_profile(&client, p, &port))?;
     let mut out = std::io::stdout().lock();
-    let report = Report { json: args.json, port: &port, stopped };
+    let report = Report { out: common::Out { json: args.json, family: "scu", port: &port, unit: None }, stopped };
     let result = match &request {
         Some(r) => send::send(&client, r, &tap, &report, &mut out),
         None => act(&client, &args, &report, &mut out, &interrupt),
@@ -438,7 +423,7 @@ fn act(
         }
         Action::Stop { function, soft } => stop::stop(client, *function, *soft, report, out),
         Action::Watch { interval_ms, count, csv } => {
-            let format = if *csv { actions::Format::Csv } else { actions::Format::from_json(report.json) };
+            let format = common::WatchFormat::of(*csv, report.json)?;
             actions::watch(client, report, format, *interval_ms, *count, interrupt, out)
         }
         Action::Errors => actions::errors(client, report, out),
