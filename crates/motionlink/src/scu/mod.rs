@@ -247,35 +247,45 @@ fn client_config(args: &Args) -> Result<ClientConfig, CliError> {
 /// Opens the session on `port`, its link watched by `tap`.
 fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: ClientConfig) -> Result<Client, CliError> {
     let port: PortUrl = port.parse()?;
-    let clock = Arc::clone(clock);
-    let connector: Connector = match &port {
+    let sim_options = args.sim_config.is_some() || args.sim_preset.is_some() || !args.sim_variants.is_empty();
+    if sim_options && !matches!(port, PortUrl::Sim) && !port.is_can() {
+        return Err(CliError::usage("--sim-config, --sim-preset and --sim-variant are only for --port sim"));
+    }
+    // The emulated unit is the one the command names: its functions, its speed mode, and the firmware
+    // variants asked for.
+    let unit = InProcess {
+        functions: &args.functions,
+        preset: args.sim_preset.as_deref(),
+        file: args.sim_config.as_ref(),
+        speed_mode: args.speed_mode,
+        variants: &args.sim_variants,
+    };
+    let connector = connector(&port, &unit, args.baud, tap, clock)?;
+    Client::open(connector, Arc::clone(clock), config).map_err(|e| common::classified(&e))
+}
+
+/// The links of an SCU on `port` (the console's and the command's): a serial line at `baud`, or with
+/// `sim` the unit `unit` describes emulated in this process on a line paced to `baud`; watched by `tap`.
+pub(crate) fn connector(
+    port: &PortUrl,
+    unit: &InProcess<'_>,
+    baud: Baud,
+    tap: &Tap,
+    clock: &SharedClock,
+) -> Result<Connector, CliError> {
+    let (tap, clock) = (tap.clone(), Arc::clone(clock));
+    Ok(match port {
         PortUrl::Sim => {
-            // The emulated unit is the one the command names: its functions, its speed mode, and the firmware
-            // variants asked for.
-            let sim_config = in_process_config(&InProcess {
-                functions: &args.functions,
-                preset: args.sim_preset.as_deref(),
-                file: args.sim_config.as_ref(),
-                speed_mode: args.speed_mode,
-                variants: &args.sim_variants,
-            })?;
-            let sim = Emulator::new(sim_config).map_err(|e| CliError::usage(e.to_string()))?;
-            let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(args.baud.get()));
-            let (tap, clock) = (tap.clone(), Arc::clone(&clock));
+            let sim = Emulator::new(in_process_config(unit)?).map_err(|e| CliError::usage(e.to_string()))?;
+            let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(baud.get()));
             Box::new(move || Ok(tap.link(Box::new(host.connect().0), &clock)))
         }
         p if p.is_can() => return Err(CliError::usage(format!("{p}: the SCU speaks RS232, not CAN"))),
         p => {
-            if args.sim_config.is_some() || args.sim_preset.is_some() || !args.sim_variants.is_empty() {
-                return Err(CliError::usage("--sim-config, --sim-preset and --sim-variant are only for --port sim"));
-            }
-            let p = p.clone();
-            let settings = SerialSettings::new(args.baud.get());
-            let (tap, clock) = (tap.clone(), Arc::clone(&clock));
+            let (p, settings) = (p.clone(), SerialSettings::new(baud.get()));
             Box::new(move || Ok(tap.link(p.open_byte_link(settings)?, &clock)))
         }
-    };
-    Client::open(connector, clock, config).map_err(|e| common::classified(&e))
+    })
 }
 
 /// What every action prints with ([`common::Out`]: JSON or text, the port the JSON objects name), and what
