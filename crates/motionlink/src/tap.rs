@@ -267,9 +267,12 @@ impl Tap {
         }
     }
 
-    /// The telegrams kept for `send`.
-    pub fn telegrams(&self) -> Option<&Telegrams> {
-        self.telegrams.as_deref()
+    /// `send`: what `run` returned, and the telegrams seen while it ran.
+    pub fn seen_during<T>(&self, run: impl FnOnce() -> T) -> Result<(T, Vec<Annotation>), CliError> {
+        let telegrams = self.telegrams.as_deref().ok_or_else(|| CliError::usage("send: no tap on the link"))?;
+        telegrams.clear();
+        let result = run();
+        Ok((result, telegrams.take()))
     }
 
     /// Flushes the capture file, if any.

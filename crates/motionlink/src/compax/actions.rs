@@ -296,11 +296,9 @@ pub(super) fn send(
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let command = send_text(words)?;
-    let telegrams = tap.telegrams().ok_or_else(|| CliError::usage("send: no tap on the link"))?;
-    telegrams.clear();
     // A move it starts is waited for (a signal stops it), as `raw --wait` does.
-    let result = bus.raw_motion(drive, &command, AfterRaw::Wait(Duration::from_secs(600)));
-    let seen = telegrams.take();
+    let wait = AfterRaw::Wait(Duration::from_secs(600));
+    let (result, seen) = tap.seen_during(|| bus.raw_motion(drive, &command, wait))?;
     // The command's reply is the first telegram from the drive after it; the status polls of a wait
     // come after that reply and are told apart.
     let (sent, reply, after) = crate::tap::first_exchange(&seen, command.as_bytes());

@@ -366,10 +366,7 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
     let checked = actions::check(args)?;
     // Signals are handled before the port is claimed: a `stop` from another terminal may send one at once.
     common::interrupt_token();
-    let stopped = match args.action {
-        Action::Stop => crate::portlock::claim_for_stop("compax", &args.resolved_port)?,
-        _ => crate::portlock::claim("compax", &args.resolved_port).map(|()| None)?,
-    };
+    let stopped = crate::portlock::claim_as("compax", &args.resolved_port, matches!(args.action, Action::Stop))?;
     let (poll, tolerance) = (checked.poll, checked.move_plan.as_ref().map(|p| p.tolerance));
     let bus = open(args, tap, |cfg| {
         if let Some(p) = poll {

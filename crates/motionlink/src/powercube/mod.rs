@@ -269,10 +269,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let port = args.link.resolve_port("powercube", args.port.as_deref())?;
     // Signals are handled before the port is claimed: a `stop` from another terminal may send one at once.
     let interrupt = common::interrupt_token();
-    let stopped = match args.action {
-        Action::Stop => crate::portlock::claim_for_stop("powercube", &port)?,
-        _ => crate::portlock::claim("powercube", &port).map(|()| None)?,
-    };
+    let stopped = crate::portlock::claim_as("powercube", &port, matches!(args.action, Action::Stop))?;
     let clock = RealClock::shared();
     let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
     let can_interface = port.parse::<PortUrl>().map(|u| crate::tap::can_interface(&u)).unwrap_or_default();

@@ -337,10 +337,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let port = args.link.resolve_port("scu", args.port.as_deref())?;
     let interrupt = common::interrupt_token();
     // Found by another motionlink as the holder of the port; `stop` takes it from a holder first.
-    let stopped = match args.action {
-        Action::Stop { .. } => crate::portlock::claim_for_stop("scu", &port)?,
-        _ => crate::portlock::claim("scu", &port).map(|()| None)?,
-    };
+    let stopped = crate::portlock::claim_as("scu", &port, matches!(args.action, Action::Stop { .. }))?;
     let clock = RealClock::shared();
     let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
     let tap = Tap::new("scu", &port, &clock, &args.link, "can0", &describer, request.is_some())?;
