@@ -174,7 +174,6 @@ fn read_back<S: serde::Serializer>(rb: &Option<ReadBack>, s: S) -> Result<S::Ok,
     Shown { read_back: rb.map(|r| r.value.as_str()), read_back_name: rb.map(|r| r.name.as_str()) }.serialize(s)
 }
 
-
 /// One entry of an error history as the page shows it.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ErrorEntry {

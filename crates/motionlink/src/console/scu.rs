@@ -6,13 +6,13 @@ use std::sync::Arc;
 use motionlink_link::url::PortUrl;
 use motionlink_link::SharedClock;
 use motionlink_scu::args::{parse_write, Baud, Checked};
+use motionlink_scu::describe::Describer;
 use motionlink_scu::model::{
     Actuator, DataIndex, ErrorBit, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode,
     StopMode, TABLE,
 };
 use motionlink_scu::session::RunAction;
 use motionlink_scu::value::Value as ScuValue;
-use motionlink_scu::describe::Describer;
 use motionlink_scu::{AsyncClient, ClientConfig, FunctionMap, SimConfig};
 use serde_json::Value;
 
