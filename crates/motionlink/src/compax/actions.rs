@@ -113,7 +113,7 @@ pub(super) fn get(args: &Args, bus: &Client, params: &[ParamId], out: &mut dyn W
     for &id in params {
         let reading = ParamReading { id, value: bus.read_param(args.drive, id).map_err(|e| error_for(args, e))? };
         if args.json {
-            args.out().print(out, &reading)?;
+            args.out().print(out, reading)?;
         } else {
             let name = format!("{id} {}", id.description().unwrap_or("")).trim_end().to_string();
             rows.push((name, common::with_unit(reading.value, reading.unit())));
@@ -130,7 +130,7 @@ pub(super) fn set(args: &Args, bus: &Client, id: ParamId, value: f64, out: &mut 
     // Written and read back: a value that reads back otherwise is an error (exit code 1).
     let written = bus.set_param(args.drive, id, value).map_err(|e| error_for(args, e))?;
     if args.json {
-        return args.out().print(out, &written);
+        return args.out().print(out, written);
     }
     let note = if written.at_power_on() { " (takes effect at the drive's next power-on)" } else { "" };
     writeln!(out, "{id} = {}, read back{note}", common::with_unit(value, written.written.unit()))?;
@@ -199,7 +199,7 @@ pub(super) fn output(
     let (number, state) = output.ok_or_else(|| CliError::usage("output: not checked"))?;
     bus.set_output(args.drive, number, state, false).map_err(|e| error_for(args, e))?;
     if args.json {
-        return args.out().print(out, &OutputSwitched { output: number, state });
+        return args.out().print(out, OutputSwitched { output: number, state });
     }
     writeln!(out, "drive {}: OUTPUT O{number}={}", args.drive, state.get())?;
     Ok(())
@@ -230,7 +230,7 @@ pub(super) fn stop(
     let position = bus.read_position(drive);
     let o0 = bus.read_s16(drive).map(|s| s.o0_state());
     if args.json {
-        return args.out().print(out, &StopResult::new(stopped, report, position, o0));
+        return args.out().print(out, StopResult::new(stopped, report, position, o0));
     }
     match &position {
         Ok(p) => writeln!(out, "{report}; at rest at {p} {UNITS} (S17 and S1 read back)")?,

@@ -45,7 +45,7 @@ pub(super) fn scan(client: &Client, o: &Out<'_>, out: &mut dyn Write) -> Result<
 pub(super) fn info(o: &Out<'_>, m: &Module<'_>, out: &mut dyn Write) -> Result<(), CliError> {
     let details = m.details().map_err(failed)?;
     if o.json {
-        return o.print(out, &details);
+        return o.print(out, details);
     }
     let info = details.info;
     let mut rows = vec![
