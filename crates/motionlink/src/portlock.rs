@@ -36,6 +36,15 @@ pub fn claim(family: &str, port: &str) -> Result<(), CliError> {
     Ok(())
 }
 
+/// Takes the lock of `port` for a family command: for `stop` (`stop` true) from its holder as
+/// [`claim_for_stop`] does (returning that holder), else as [`claim`] does.
+pub fn claim_as(family: &str, port: &str, stop: bool) -> Result<Option<Stopped>, CliError> {
+    match stop {
+        true => claim_for_stop(family, port),
+        false => claim(family, port).map(|()| None),
+    }
+}
+
 /// Takes the lock of `port` for `stop`, from the motionlink that holds it if one does (asked to stop its
 /// motion first); returns that holder and what it said.
 pub fn claim_for_stop(family: &str, port: &str) -> Result<Option<Stopped>, CliError> {

@@ -225,6 +225,11 @@ impl Tap {
         Ok(Tap { busy: Some(BusyWatch::new(port)), sink, telegrams, capture, heard })
     }
 
+    /// A tap that feeds `sink` alone (the console's traffic log), watching `port` for a busy server's refusal.
+    pub fn into_sink(port: &str, sink: Arc<dyn TapSink>) -> Tap {
+        Tap { busy: Some(BusyWatch::new(port)), sink: Some(sink), ..Tap::default() }
+    }
+
     /// True if anything came from the device on the tapped link (a byte, a CAN frame).
     pub fn heard_anything(&self) -> bool {
         self.heard.0.load(Ordering::Relaxed) > 0
@@ -262,9 +267,12 @@ impl Tap {
         }
     }
 
-    /// The telegrams kept for `send`.
-    pub fn telegrams(&self) -> Option<&Telegrams> {
-        self.telegrams.as_deref()
+    /// `send`: what `run` returned, and the telegrams seen while it ran.
+    pub fn seen_during<T>(&self, run: impl FnOnce() -> T) -> Result<(T, Vec<Annotation>), CliError> {
+        let telegrams = self.telegrams.as_deref().ok_or_else(|| CliError::usage("send: no tap on the link"))?;
+        telegrams.clear();
+        let result = run();
+        Ok((result, telegrams.take()))
     }
 
     /// Flushes the capture file, if any.

@@ -10,15 +10,6 @@ use super::*;
 /// `_units`).
 pub(super) const UNITS: &str = "units";
 
-/// `value` with `unit` after it (nothing when the parameter has no unit).
-fn with_unit(value: f64, unit: &str) -> String {
-    if unit.is_empty() {
-        value.to_string()
-    } else {
-        format!("{value} {unit}")
-    }
-}
-
 /// The arguments of `move`, checked before anything is sent.
 pub(super) struct MovePlan {
     pub(super) request: MoveRequest,
@@ -90,7 +81,7 @@ pub(super) fn scan(args: &Args, bus: &Client, out: &mut dyn Write) -> Result<(),
     if args.json {
         // A listing: one object per drive found (JSON Lines).
         for d in &found {
-            common::print_result(out, "compax", &args.resolved_port, &[], d)?;
+            Out { unit: None, ..args.out() }.print(out, d)?;
         }
     } else if found.is_empty() {
         writeln!(out, "no drive answered on {}", args.resolved_port)?;
@@ -110,7 +101,7 @@ pub(super) fn status(args: &Args, bus: &Client, ids: &[StatusId], out: &mut dyn 
     // A signal ends the reads between two values.
     let report = StatusReport::from(bus.read_statuses(args.drive, ids).map_err(|e| error_for(args, e))?);
     if args.json {
-        print(args, out, &report)
+        args.out().print(out, &report)
     } else {
         common::print_table(out, &report.status.iter().map(status_row).collect::<Vec<_>>())
     }
@@ -122,10 +113,10 @@ pub(super) fn get(args: &Args, bus: &Client, params: &[ParamId], out: &mut dyn W
     for &id in params {
         let reading = ParamReading { id, value: bus.read_param(args.drive, id).map_err(|e| error_for(args, e))? };
         if args.json {
-            print(args, out, &reading)?;
+            args.out().print(out, reading)?;
         } else {
             let name = format!("{id} {}", id.description().unwrap_or("")).trim_end().to_string();
-            rows.push((name, with_unit(reading.value, reading.unit())));
+            rows.push((name, common::with_unit(reading.value, reading.unit())));
         }
     }
     if !args.json {
@@ -139,10 +130,10 @@ pub(super) fn set(args: &Args, bus: &Client, id: ParamId, value: f64, out: &mut 
     // Written and read back: a value that reads back otherwise is an error (exit code 1).
     let written = bus.set_param(args.drive, id, value).map_err(|e| error_for(args, e))?;
     if args.json {
-        return print(args, out, &written);
+        return args.out().print(out, written);
     }
     let note = if written.at_power_on() { " (takes effect at the drive's next power-on)" } else { "" };
-    writeln!(out, "{id} = {}, read back{note}", with_unit(value, written.written.unit()))?;
+    writeln!(out, "{id} = {}, read back{note}", common::with_unit(value, written.written.unit()))?;
     Ok(())
 }
 
@@ -171,10 +162,10 @@ pub(super) fn move_drive(
         let started = bus.start_and_release(drive, &plan.request).map_err(fail)?;
         let now = bus.read_position(drive).map_err(fail)?;
         if args.json {
-            return print(args, out, &HandedOver { started: &started, position_units: now });
+            return args.out().print(out, &HandedOver { started: &started, position_units: now });
         }
         writeln!(out, "drive {drive}: target {} {UNITS}, position {now} {UNITS} (moving on)", started.target)?;
-        return not_verified(out, &started.not_verifiable);
+        return common::not_verified(out, &started.not_verifiable);
     }
     let bar = common::progress_bar(0, format!("drive {drive}"));
     let mut started_at: Option<f64> = None;
@@ -192,18 +183,10 @@ pub(super) fn move_drive(
     bar.finish_and_clear();
     let report = report.map_err(fail)?;
     if args.json {
-        return print(args, out, &report);
+        return args.out().print(out, &report);
     }
     writeln!(out, "drive {drive}: target {} {UNITS}, position {} {UNITS}", report.target, report.reached)?;
-    not_verified(out, &report.not_verifiable)
-}
-
-/// What a move could not check, in words (nothing when it checked everything).
-fn not_verified(out: &mut dyn Write, what: &[String]) -> Result<(), CliError> {
-    if !what.is_empty() {
-        writeln!(out, "not verified: {}", what.join("; "))?;
-    }
-    Ok(())
+    common::not_verified(out, &report.not_verifiable)
 }
 
 /// `output`: switches the output to its state.
@@ -216,7 +199,7 @@ pub(super) fn output(
     let (number, state) = output.ok_or_else(|| CliError::usage("output: not checked"))?;
     bus.set_output(args.drive, number, state, false).map_err(|e| error_for(args, e))?;
     if args.json {
-        return print(args, out, &OutputSwitched { output: number, state });
+        return args.out().print(out, OutputSwitched { output: number, state });
     }
     writeln!(out, "drive {}: OUTPUT O{number}={}", args.drive, state.get())?;
     Ok(())
@@ -231,9 +214,7 @@ pub(super) fn stop(
     stopped: Option<&motionlink_link::portlock::Stopped>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    if let (Some(h), false) = (stopped, args.json) {
-        writeln!(out, "{}", h.describe())?;
-    }
+    args.out().holder(out, stopped)?;
     let drive = args.drive;
     let report = bus.stop_if_moving(&[drive]).map_err(|e| error_for(args, e))?;
     if !report.all_confirmed() {
@@ -249,7 +230,7 @@ pub(super) fn stop(
     let position = bus.read_position(drive);
     let o0 = bus.read_s16(drive).map(|s| s.o0_state());
     if args.json {
-        return print(args, out, &StopResult::new(stopped, report, position, o0));
+        return args.out().print(out, StopResult::new(stopped, report, position, o0));
     }
     match &position {
         Ok(p) => writeln!(out, "{report}; at rest at {p} {UNITS} (S17 and S1 read back)")?,
@@ -283,7 +264,7 @@ pub(super) fn raw(
     let after = wait.map_or(AfterRaw::HandOver, AfterRaw::Wait);
     let outcome = bus.raw_motion(args.drive, command, after).map_err(|e| error_for(args, e))?;
     if args.json {
-        return print(args, out, &Raw { command, outcome: &outcome });
+        return args.out().print(out, &Raw { command, outcome: &outcome });
     }
     match outcome.reply {
         Some(r) if r.is_empty() => writeln!(out, "(acknowledged)")?,
@@ -315,11 +296,9 @@ pub(super) fn send(
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let command = send_text(words)?;
-    let telegrams = tap.telegrams().ok_or_else(|| CliError::usage("send: no tap on the link"))?;
-    telegrams.clear();
     // A move it starts is waited for (a signal stops it), as `raw --wait` does.
-    let result = bus.raw_motion(drive, &command, AfterRaw::Wait(Duration::from_secs(600)));
-    let seen = telegrams.take();
+    let wait = AfterRaw::Wait(Duration::from_secs(600));
+    let (result, seen) = tap.seen_during(|| bus.raw_motion(drive, &command, wait))?;
     // The command's reply is the first telegram from the drive after it; the status polls of a wait
     // come after that reply and are told apart.
     let (sent, reply, after) = crate::tap::first_exchange(&seen, command.as_bytes());
@@ -327,7 +306,7 @@ pub(super) fn send(
     let (request, reply) = crate::tap::print_exchange(out, args.json, sent.as_ref(), reply.as_ref())?;
     if args.json {
         let reply_text = result.as_ref().ok().and_then(|o| o.reply.clone());
-        print(args, out, &Sent { command: &command, request, reply, reply_text, polls, ok: result.is_ok() })?;
+        args.out().print(out, &Sent { command: &command, request, reply, reply_text, polls, ok: result.is_ok() })?;
     } else if polls > 0 {
         writeln!(out, "then {polls} status polls until the move ended (-v shows them)")?;
     }

@@ -19,7 +19,7 @@ use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::RealClock;
 
-use crate::common::{self, CliError, Row, ServeArgs};
+use crate::common::{self, CliError, Out, Row, ServeArgs, WatchFormat};
 use crate::decode::CaptureArgs;
 use crate::numbers::{at_least, finite};
 use crate::tap::{LinkArgs, Tap};
@@ -319,10 +319,8 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     let mode = args.mode;
     let describer = move || Box::new(Describer::new(mode)) as Box<dyn Describe + Send>;
     let sending = matches!(args.action, Action::Send { .. });
-    if let Action::Watch { csv: true, .. } = args.action {
-        if args.json {
-            return Err(CliError::usage("--csv and --json: give one of them"));
-        }
+    if let Action::Watch { csv, .. } = args.action {
+        WatchFormat::of(csv, args.json)?;
     }
     let tap = Tap::new("compax", &args.resolved_port, &clock, &args.link, "can0", &describer, sending)?;
     let result = act(&args, &tap, &clock);
@@ -352,9 +350,11 @@ fn bus_options(args: &Args) -> String {
     options
 }
 
-/// Prints `result` as one JSON object of `motionlink compax`: family, port and drive first.
-fn print(args: &Args, out: &mut dyn Write, result: &impl serde::Serialize) -> Result<(), CliError> {
-    common::print_result(out, "compax", &args.resolved_port, &[("drive", args.drive.get().into())], result)
+impl Args {
+    /// How results are printed: family, port and drive first.
+    fn out(&self) -> Out<'_> {
+        Out { json: self.json, family: "compax", port: &self.resolved_port, unit: Some(("drive", self.drive.get())) }
+    }
 }
 
 /// Does what `args` ask: checks the action's arguments, opens the port, calls the action's function and
@@ -366,10 +366,7 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
     let checked = actions::check(args)?;
     // Signals are handled before the port is claimed: a `stop` from another terminal may send one at once.
     common::interrupt_token();
-    let stopped = match args.action {
-        Action::Stop => crate::portlock::claim_for_stop("compax", &args.resolved_port)?,
-        _ => crate::portlock::claim("compax", &args.resolved_port).map(|()| None)?,
-    };
+    let stopped = crate::portlock::claim_as("compax", &args.resolved_port, matches!(args.action, Action::Stop))?;
     let (poll, tolerance) = (checked.poll, checked.move_plan.as_ref().map(|p| p.tolerance));
     let bus = open(args, tap, |cfg| {
         if let Some(p) = poll {

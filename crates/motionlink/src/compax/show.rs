@@ -64,7 +64,7 @@ pub(super) fn watch(
             common::csv_line(&fields)
         } else if args.json {
             let mut line = Vec::new();
-            match print(args, &mut line, &Timed { t_s, sample: *s }) {
+            match args.out().print(&mut line, Timed { t_s, sample: *s }) {
                 Ok(()) => String::from_utf8_lossy(&line).trim_end().to_string(),
                 Err(e) => e.to_string(),
             }

@@ -18,7 +18,6 @@ use motionlink_compax::report::ParamReading;
 use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_compax::{AsyncClient, Emulator};
-use motionlink_link::capture::TapLink;
 use motionlink_link::clock::{lock, SharedClock, Timestamp};
 use motionlink_link::flags::{FlagClass, FlagWord};
 use motionlink_link::link::{Link, SerialSettings};
@@ -32,6 +31,7 @@ use super::device::{
 use super::traffic::Traffic;
 use super::ServeArgs;
 use crate::common::CliError;
+use crate::tap::Tap;
 
 /// `motionlink console compax` arguments.
 #[derive(clap::Args, Debug)]
@@ -103,13 +103,11 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
         "can0",
         clock,
     ));
-    let tap = Arc::clone(&traffic);
-    let tap_clock = Arc::clone(clock);
+    let tap = Tap::into_sink(port, Arc::clone(&traffic) as _);
     let link_clock = Arc::clone(clock);
     let sim_drives: Vec<u8> =
         if args.drives.is_empty() { vec![1] } else { args.drives.iter().map(|a| a.get()).collect() };
     let p196 = mode.to_p196();
-    let busy = crate::tap::BusyWatch::new(port);
     let open = move || -> Result<Box<dyn Link>, motionlink_link::LinkError> {
         let link: Box<dyn Link> = match url {
             PortUrl::Sim => {
@@ -117,7 +115,7 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
                     motionlink_link::LinkError::InvalidPort { port: "sim".into(), reason: e.to_string() }
                 })?;
                 // Paced to --baud: every byte takes the time it would on the line.
-                let host = EmulatorHost::new(bus, link_clock, PipeConfig::paced(baud));
+                let host = EmulatorHost::new(bus, Arc::clone(&link_clock), PipeConfig::paced(baud));
                 Box::new(host.connect().0)
             }
             other => {
@@ -126,7 +124,7 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
                 other.open_byte_link(settings)?
             }
         };
-        Ok(Box::new(TapLink::new(busy.link(link), tap_clock, tap)) as Box<dyn Link>)
+        Ok(tap.link(link, &link_clock))
     };
     let mut cfg = BusConfig::new(mode, baud);
     cfg.reply_timeout = args.timeout_ms.duration();

@@ -11,7 +11,7 @@ use motionlink_link::table::Entry;
 use serde::Serialize;
 use serde_json::Value;
 
-pub use crate::common::Keyed;
+pub use crate::common::{with_unit, Keyed};
 
 /// A boxed future that can move between threads.
 pub type BoxFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
@@ -172,15 +172,6 @@ fn read_back<S: serde::Serializer>(rb: &Option<ReadBack>, s: S) -> Result<S::Ok,
     }
     let rb = rb.as_ref();
     Shown { read_back: rb.map(|r| r.value.as_str()), read_back_name: rb.map(|r| r.name.as_str()) }.serialize(s)
-}
-
-/// `number` followed by `unit` (no unit: the number alone).
-pub fn with_unit(number: impl std::fmt::Display, unit: &str) -> String {
-    if unit.is_empty() {
-        number.to_string()
-    } else {
-        format!("{number} {unit}")
-    }
 }
 
 /// One entry of an error history as the page shows it.

@@ -106,17 +106,7 @@ fn allowed_hosts(local: SocketAddr) -> Option<Vec<String>> {
     Some(hosts)
 }
 
-/// The device profiles (profiles.toml beside devices.toml) the console's device may have one in: `None` where
-/// there is no file, or one that cannot be read (said on stderr: the session then probes as without it).
-fn profiles() -> Option<motionlink_link::profile::Profiles> {
-    match motionlink_link::profile::Profiles::load_default() {
-        Ok(p) => p,
-        Err(e) => {
-            crate::term::note(&format!("device profiles not used: {e}"));
-            None
-        }
-    }
-}
+use crate::probe::profiles;
 
 /// Says on stderr what the session made of its device's profile: the one taken, the ones not taken and why,
 /// or why none could be looked up (the session then probes as without it).

@@ -4,9 +4,6 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use motionlink_link::can::CanLink;
-use motionlink_link::capture::{TapCanLink, TapLink};
-use motionlink_link::link::Link;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::SharedClock;
@@ -28,6 +25,7 @@ use super::device::{
 use super::traffic::Traffic;
 use super::ServeArgs;
 use crate::common::CliError;
+use crate::tap::Tap;
 
 /// `motionlink console powercube` arguments.
 #[derive(clap::Args, Debug)]
@@ -118,17 +116,7 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
             c
         }
     };
-    let clock2 = Arc::clone(clock);
-    let tap = Arc::clone(&traffic);
-    let busy = crate::tap::BusyWatch::new(port);
-    let byte_link = |link: Box<dyn Link>| -> Box<dyn Link> {
-        Box::new(TapLink::new(busy.link(link), Arc::clone(&clock2), Arc::clone(&tap)))
-    };
-    let clock3 = Arc::clone(clock);
-    let tap2 = Arc::clone(&traffic);
-    let can_link = move |link: Box<dyn CanLink>| -> Box<dyn CanLink> {
-        Box::new(TapCanLink::new(link, Arc::clone(&clock3), Arc::clone(&tap2)))
-    };
+    let tap = Tap::into_sink(port, Arc::clone(&traffic) as _);
     // Opening a serial device or an SLCAN adapter blocks: on the blocking pool.
     let (baud, bitrate, c2, opening) = (args.baud, args.bitrate, Arc::clone(clock), url.clone());
     let opened = tokio::task::spawn_blocking(move || PortLink::open(&opening, baud, bitrate, &c2))
@@ -138,15 +126,15 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     let mut host = None;
     let c = Arc::clone(clock);
     let client = match opened {
-        Some(PortLink::Rs232(link)) => Client::rs232(byte_link(link), c, settings(BusConfig::rs232())),
-        Some(PortLink::Can(link)) => Client::can(can_link(link), c, settings(BusConfig::can())),
+        Some(PortLink::Rs232(link)) => Client::rs232(tap.link(link, &c), c, settings(BusConfig::rs232())),
+        Some(PortLink::Can(link)) => Client::can(tap.can_link(link, &c), c, settings(BusConfig::can())),
         None => {
             let modules = if args.modules.is_empty() { vec![1] } else { addresses(&args.modules) };
             let bus = SimConfig::with_addresses(&modules).map_err(CliError::usage)?;
             let h = EmulatorHost::new(Emulator::new(&bus), Arc::clone(clock), PipeConfig::paced(args.baud.get()));
-            let link: Box<dyn Link> = Box::new(h.connect().0);
+            let link = tap.link(Box::new(h.connect().0), &c);
             host = Some(h);
-            Client::rs232(byte_link(link), c, settings(BusConfig::rs232()))
+            Client::rs232(link, c, settings(BusConfig::rs232()))
         }
     };
     let client = client.map_err(|e| crate::common::classified(&e))?;

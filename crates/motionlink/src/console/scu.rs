@@ -3,19 +3,17 @@
 
 use std::sync::Arc;
 
-use motionlink_link::capture::TapLink;
-use motionlink_link::link::{Connector, Link, SerialSettings};
-use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::SharedClock;
 use motionlink_scu::args::{parse_write, Baud, Checked};
+use motionlink_scu::describe::Describer;
 use motionlink_scu::model::{
     Actuator, DataIndex, ErrorBit, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode,
     StopMode, TABLE,
 };
 use motionlink_scu::session::RunAction;
 use motionlink_scu::value::Value as ScuValue;
-use motionlink_scu::{AsyncClient, ClientConfig, Emulator, FunctionMap, SimConfig};
+use motionlink_scu::{AsyncClient, ClientConfig, FunctionMap, SimConfig};
 use serde_json::Value;
 
 use super::device::{
@@ -25,6 +23,8 @@ use super::device::{
 use super::traffic::Traffic;
 use super::ServeArgs;
 use crate::common::CliError;
+use crate::scu::InProcess;
+use crate::tap::Tap;
 
 /// `motionlink console scu` arguments.
 #[derive(clap::Args, Debug)]
@@ -74,41 +74,20 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
         ClientConfig { safety_id: args.safety, function_map: functions, speed_mode, ..ClientConfig::default() };
     config.validate().map_err(|e| CliError::usage(e.to_string()))?;
     let url: PortUrl = port.parse()?;
-    let traffic = Arc::new(Traffic::new(
-        Box::new(motionlink_scu::describe::Describer::new()),
-        &format!("scu {port}"),
-        "can0",
-        clock,
-    ));
-    let tap = Arc::clone(&traffic);
-    let tap_clock = Arc::clone(clock);
-    let mut inner: Connector = match &url {
-        PortUrl::Sim => {
-            // The emulated unit is the one the console names: its functions, its speed mode.
-            let sim_config = crate::scu::in_process_config(&crate::scu::InProcess {
-                functions: &args.functions,
-                preset: args.sim_preset.as_deref(),
-                file: None,
-                speed_mode,
-                variants: &[],
-            })?;
-            let sim = Emulator::new(sim_config).map_err(|e| CliError::usage(e.to_string()))?;
-            let host = EmulatorHost::new(sim, Arc::clone(clock), PipeConfig::paced(args.baud.get()));
-            Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>))
-        }
-        p if p.is_can() => return Err(CliError::usage(format!("{p}: the SCU speaks RS232, not CAN"))),
-        _ if args.sim_preset.is_some() => return Err(CliError::usage("--sim-preset is only for --port sim")),
-        p => {
-            let p = p.clone();
-            let settings = SerialSettings::new(args.baud.get());
-            Box::new(move || p.open_byte_link(settings))
-        }
+    let traffic = Arc::new(Traffic::new(Box::new(Describer::new()), &format!("scu {port}"), "can0", clock));
+    if args.sim_preset.is_some() && !matches!(url, PortUrl::Sim) && !url.is_can() {
+        return Err(CliError::usage("--sim-preset is only for --port sim"));
+    }
+    // The emulated unit is the one the console names: its functions, its speed mode.
+    let unit = InProcess {
+        functions: &args.functions,
+        preset: args.sim_preset.as_deref(),
+        file: None,
+        speed_mode,
+        variants: &[],
     };
-    let busy = crate::tap::BusyWatch::new(port);
-    let connector: Connector = Box::new(move || {
-        let link = busy.link(inner()?);
-        Ok(Box::new(TapLink::new(link, Arc::clone(&tap_clock), Arc::clone(&tap))) as Box<dyn Link>)
-    });
+    let tap = Tap::into_sink(port, Arc::clone(&traffic) as _);
+    let connector = crate::scu::connector(&url, &unit, args.baud, &tap, clock)?;
     let client =
         AsyncClient::open(connector, Arc::clone(clock), config).await.map_err(|e| crate::common::classified(&e))?;
     // The device profile of the unit (`motionlink probe scu --save`), where one names the port.

@@ -5,10 +5,10 @@ use super::*;
 use motionlink_powercube::report::{Acted, ParamReading, Released, SetReport, StateReport};
 
 /// `state`: reads and prints the module's CubeState, flag by flag.
-pub(super) fn state(args: &Args, m: &Module<'_>, port: &str, out: &mut dyn Write) -> Result<(), CliError> {
+pub(super) fn state(o: &Out<'_>, m: &Module<'_>, out: &mut dyn Write) -> Result<(), CliError> {
     let s = m.state().map_err(failed)?;
-    if args.json {
-        return print(out, port, args.module, &StateReport(s));
+    if o.json {
+        return o.print(out, StateReport(s));
     }
     writeln!(out, "CubeState {:#010x}", s.0)?;
     let rows: Vec<_> = s.iter().map(|f| (f.label(), format!("{:<11}  {}", f.class().name(), f.meaning()))).collect();
@@ -20,13 +20,7 @@ pub(super) fn state(args: &Args, m: &Module<'_>, port: &str, out: &mut dyn Write
 }
 
 /// `get`: reads and prints the parameters `params`, each in the module's unit.
-pub(super) fn get(
-    args: &Args,
-    m: &Module<'_>,
-    port: &str,
-    params: &[String],
-    out: &mut dyn Write,
-) -> Result<(), CliError> {
+pub(super) fn get(o: &Out<'_>, m: &Module<'_>, params: &[String], out: &mut dyn Write) -> Result<(), CliError> {
     let params = params.iter().map(|p| parse_param(p)).collect::<Result<Vec<_>, _>>()?;
     let mut rows = Vec::new();
     for param in params {
@@ -35,33 +29,26 @@ pub(super) fn get(
         let kind = m.kind().map_err(|e| {
             context(e, format!("{} read, but the module type (and so its unit) cannot be read", param.name()))
         })?;
-        if args.json {
-            print(out, port, args.module, &ParamReading { param, kind, value })?;
+        if o.json {
+            o.print(out, ParamReading { param, kind, value })?;
         } else {
             rows.push((param.name().to_string(), value.show(param, kind)));
         }
     }
-    if !args.json {
+    if !o.json {
         common::print_table(out, &rows)?;
     }
     Ok(())
 }
 
 /// `set`: writes `value` to the parameter `param` (targets beyond their limits refused) and reads it back.
-pub(super) fn set(
-    args: &Args,
-    m: &Module<'_>,
-    port: &str,
-    param: &str,
-    value: &str,
-    out: &mut dyn Write,
-) -> Result<(), CliError> {
+pub(super) fn set(o: &Out<'_>, m: &Module<'_>, param: &str, value: &str, out: &mut dyn Write) -> Result<(), CliError> {
     let param = parse_param(param)?;
     let value = Value::parse(param, value).map_err(CliError::usage)?;
     // Targets beyond their limits are refused; what was written is read back where the module allows it.
     let readback = m.set_checked(param, value).map_err(failed)?;
-    if args.json {
-        return print(out, port, args.module, &SetReport { param, value, readback });
+    if o.json {
+        return o.print(out, SetReport { param, value, readback });
     }
     let kind = m.kind().map_err(|e| {
         context(e, format!("{} was set, but the module type (and so its unit) cannot be read", param.name()))
@@ -77,38 +64,29 @@ pub(super) fn set(
 
 /// `home`: homes the module with a progress bar, giving up after `timeout`.
 pub(super) fn home(
-    args: &Args,
+    o: &Out<'_>,
     m: &Module<'_>,
     guard: Guard,
-    port: &str,
     timeout: std::time::Duration,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    let bar = common::progress_bar(0, format!("homing module {}", args.module));
+    let bar = common::progress_bar(0, format!("homing module {}", m.address()));
     let r = m.home_guarded(timeout, guard, &mut |p: &Progress| bar.set_message(progress_text(p)));
     bar.finish_and_clear();
     let report = r.map_err(failed)?;
-    if args.json {
-        return print(out, port, args.module, &Acted::homed(report));
+    if o.json {
+        return o.print(out, Acted::homed(report));
     }
     report_done(out, "homed", report.reached, report.kind, report.state)?;
-    not_verified(out, &report.not_verifiable)
-}
-
-/// What a motion could not verify, one line (nothing when it verified everything).
-fn not_verified(out: &mut dyn Write, why: &[String]) -> Result<(), CliError> {
-    if !why.is_empty() {
-        writeln!(out, "not verified: {}", why.join("; "))?;
-    }
-    Ok(())
+    common::not_verified(out, &report.not_verifiable)
 }
 
 /// `reset`: resets the module, switching off a watchdog that expired with no host serving it.
-pub(super) fn reset(args: &Args, m: &Module<'_>, port: &str, out: &mut dyn Write) -> Result<(), CliError> {
+pub(super) fn reset(o: &Out<'_>, m: &Module<'_>, out: &mut dyn Write) -> Result<(), CliError> {
     // After a host died with the watchdog online, a plain Reset would be undone 50 ms later.
     let released = m.reset_and_release_watchdog().map_err(failed)?;
-    if args.json {
-        print(out, port, args.module, &Acted::reset(Released { watchdog_released: released }))?;
+    if o.json {
+        o.print(out, Acted::reset(Released { watchdog_released: released }))?;
     } else if released {
         writeln!(out, "reset (the watchdog had expired with no host serving it: switched it offline)")?;
     } else {
@@ -120,23 +98,20 @@ pub(super) fn reset(args: &Args, m: &Module<'_>, port: &str, out: &mut dyn Write
 /// `stop` (alias `halt`): halts the module, confirmed by its state, and prints where it stands; first what
 /// the motionlink that held the port said when it was stopped, if one was.
 pub(super) fn stop(
-    args: &Args,
+    o: &Out<'_>,
     m: &Module<'_>,
-    port: &str,
     stopped: Option<&motionlink_link::portlock::Stopped>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    if let (Some(h), false) = (stopped, args.json) {
-        writeln!(out, "{}", h.describe())?;
-    }
+    o.holder(out, stopped)?;
     let halted = m.halt_confirmed().map_err(failed)?;
-    if args.json {
-        return print(out, port, args.module, &Acted::halted(halted, stopped));
+    if o.json {
+        return o.print(out, Acted::halted(halted, stopped));
     }
     writeln!(
         out,
         "module {} halted: at rest (state read back) at {}; it takes no motion until reset",
-        args.module,
+        m.address(),
         halted.position.show(halted.kind)
     )?;
     Ok(())
@@ -144,15 +119,14 @@ pub(super) fn stop(
 
 /// `move`: moves the module as `spec` says with a progress bar and prints where it came to rest.
 pub(super) fn move_to(
-    args: &Args,
+    o: &Out<'_>,
     m: &Module<'_>,
     guard: Guard,
-    port: &str,
     spec: &MoveSpec,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let position = spec.target.value();
-    let bar = common::progress_bar(0, format!("module {}", args.module));
+    let bar = common::progress_bar(0, format!("module {}", m.address()));
     let mut start = None;
     let r = m.move_to_guarded(spec, guard, &mut |p: &Progress| {
         let from = *start.get_or_insert(p.position.value());
@@ -162,9 +136,9 @@ pub(super) fn move_to(
     });
     bar.finish_and_clear();
     let report = r.map_err(failed)?;
-    if args.json {
-        return print(out, port, args.module, &Acted::reached(report));
+    if o.json {
+        return o.print(out, Acted::reached(report));
     }
     report_done(out, "reached", report.reached, report.kind, report.state)?;
-    not_verified(out, &report.not_verifiable)
+    common::not_verified(out, &report.not_verifiable)
 }

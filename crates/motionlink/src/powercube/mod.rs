@@ -31,9 +31,9 @@ use motionlink_powercube::{Emulator, Error};
 pub use decode::{decode, DecodeArgs};
 pub use demo::demo;
 use send::{parse_send, print_params, send};
-use show::{info, progress_text, report_done, scan, watch, WatchFormat};
+use show::{info, progress_text, report_done, scan, watch};
 
-use crate::common::{self, CliError, ServeArgs};
+use crate::common::{self, CliError, Out, ServeArgs, WatchFormat};
 use crate::numbers::{at_least, whole};
 use crate::tap::{LinkArgs, Tap};
 
@@ -253,21 +253,14 @@ fn parse_param(text: &str) -> Result<Param, CliError> {
     text.parse::<Param>().map_err(CliError::usage)
 }
 
-/// Prints `result` as one JSON object of `motionlink powercube`: family, port and module first.
-fn print(out: &mut dyn Write, port: &str, module: Address, result: &impl serde::Serialize) -> Result<(), CliError> {
-    common::print_result(out, "powercube", port, &[("module", module.get().into())], result)
-}
-
 /// `motionlink powercube ...`
 pub fn run(args: Args) -> Result<(), CliError> {
     let mut out = std::io::stdout().lock();
     if let Action::Params = args.action {
         return print_params(&mut out, args.json);
     }
-    if let Action::Watch { csv: true, .. } = args.action {
-        if args.json {
-            return Err(CliError::usage("--csv and --json: give one of them"));
-        }
+    if let Action::Watch { csv, .. } = args.action {
+        WatchFormat::of(csv, args.json)?;
     }
     let request = match &args.action {
         Action::Send { words } => Some(parse_send(words, args.module.get())?),
@@ -276,10 +269,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let port = args.link.resolve_port("powercube", args.port.as_deref())?;
     // Signals are handled before the port is claimed: a `stop` from another terminal may send one at once.
     let interrupt = common::interrupt_token();
-    let stopped = match args.action {
-        Action::Stop => crate::portlock::claim_for_stop("powercube", &port)?,
-        _ => crate::portlock::claim("powercube", &port).map(|()| None)?,
-    };
+    let stopped = crate::portlock::claim_as("powercube", &port, matches!(args.action, Action::Stop))?;
     let clock = RealClock::shared();
     let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
     let can_interface = port.parse::<PortUrl>().map(|u| crate::tap::can_interface(&u)).unwrap_or_default();
@@ -291,9 +281,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
         crate::probe::use_profile(|p| motionlink_powercube::probe::use_profile(&client, p, &port, module))?;
     }
     let guard = module_options(&args).guard(host.is_some());
+    let o = &Out { json: args.json, family: "powercube", port: &port, unit: Some(("module", args.module.get())) };
     let result = match &request {
-        Some(r) => send(&args, &client, r, &tap, &port, &mut out),
-        None => act(&args, &client, guard, &port, stopped.as_ref(), &mut out),
+        Some(r) => send(&args, &client, r, &tap, o, &mut out),
+        None => act(&args, &client, guard, o, stopped.as_ref(), &mut out),
     };
     // Closing stops what is still moving and switches off what was armed, and says whether it could;
     // the in-process emulator goes only after that.
@@ -327,32 +318,26 @@ fn act(
     args: &Args,
     client: &Client,
     guard: Guard,
-    port: &str,
+    o: &Out<'_>,
     stopped: Option<&motionlink_link::portlock::Stopped>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    let mut out = out;
     let m = client.module(args.module);
     match &args.action {
-        Action::Scan => scan(client, port, &mut out, args.json)?,
-        Action::Info => info(&m, port, &mut out, args.json)?,
-        Action::State => actions::state(args, &m, port, out)?,
-        Action::Get { params } => actions::get(args, &m, port, params, out)?,
-        Action::Set { param, value } => actions::set(args, &m, port, param, value, out)?,
-        Action::Home { timeout_s } => actions::home(args, &m, guard, port, timeout_s.get(), out)?,
-        Action::Reset => actions::reset(args, &m, port, out)?,
-        Action::Stop => actions::stop(args, &m, port, stopped, out)?,
+        Action::Scan => scan(client, o, out)?,
+        Action::Info => info(o, &m, out)?,
+        Action::State => actions::state(o, &m, out)?,
+        Action::Get { params } => actions::get(o, &m, params, out)?,
+        Action::Set { param, value } => actions::set(o, &m, param, value, out)?,
+        Action::Home { timeout_s } => actions::home(o, &m, guard, timeout_s.get(), out)?,
+        Action::Reset => actions::reset(o, &m, out)?,
+        Action::Stop => actions::stop(o, &m, stopped, out)?,
         Action::Move { position, vel, acc, timeout_s, tolerance } => {
             let spec = MoveSpec::from_args(*position, *vel, *acc, *tolerance, *timeout_s);
-            actions::move_to(args, &m, guard, port, &spec, out)?
+            actions::move_to(o, &m, guard, &spec, out)?
         }
         Action::Watch { interval_ms, count, csv } => {
-            let format = match (*csv, args.json) {
-                (true, _) => WatchFormat::Csv,
-                (false, true) => WatchFormat::Json,
-                (false, false) => WatchFormat::Text,
-            };
-            watch(client, &m, port, &mut out, format, *interval_ms, *count)?
+            watch(client, o, &m, out, WatchFormat::of(*csv, args.json)?, *interval_ms, *count)?
         }
         Action::Params | Action::Send { .. } => {}
     }

@@ -122,22 +122,19 @@ pub(super) fn send(
     client: &Client,
     request: &Request,
     tap: &Tap,
-    port: &str,
+    o: &Out<'_>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    let telegrams = tap.telegrams().ok_or_else(|| CliError::usage("send: no tap on the link"))?;
     // The module's kind first (its Config word), so that values show in rad or m, not "rad|m"; a module that
     // cannot tell still gets the command.
     let kind = client.module(args.module).kind().ok();
-    telegrams.clear();
-    let result = client.request(args.module, request);
-    let seen = telegrams.take();
+    let (result, seen) = tap.seen_during(|| client.request(args.module, request))?;
     let (sent, reply) = crate::tap::exchange(&seen, None);
     let (request_json, reply_json) = crate::tap::print_exchange(out, args.json, sent.as_ref(), reply.as_ref())?;
     if args.json {
         let command = command_text(request, kind);
         let sent = Sent { command, request: request_json, reply: reply_json, ok: result.is_ok() };
-        print(out, port, args.module, &sent)?;
+        o.print(out, sent)?;
     }
     result.map(|_| ()).map_err(failed)
 }

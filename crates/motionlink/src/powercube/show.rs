@@ -6,12 +6,12 @@ use super::*;
 use motionlink_powercube::model::AxisUnit;
 use motionlink_powercube::report::{Sample, Timed};
 
-pub(super) fn scan(client: &Client, port: &str, out: &mut dyn Write, json: bool) -> Result<(), CliError> {
+pub(super) fn scan(client: &Client, o: &Out<'_>, out: &mut dyn Write) -> Result<(), CliError> {
     let found = client.scan().map_err(failed)?;
-    if json {
+    if o.json {
         // A listing: one object per module (JSON Lines).
         for e in &found {
-            common::print_result(out, "powercube", port, &[], e)?;
+            Out { unit: None, ..*o }.print(out, e)?;
         }
     } else if found.is_empty() {
         writeln!(out, "no module answered on {}", client.port())?;
@@ -42,10 +42,10 @@ pub(super) fn scan(client: &Client, port: &str, out: &mut dyn Write, json: bool)
     }
 }
 
-pub(super) fn info(m: &Module<'_>, port: &str, out: &mut dyn Write, json: bool) -> Result<(), CliError> {
+pub(super) fn info(o: &Out<'_>, m: &Module<'_>, out: &mut dyn Write) -> Result<(), CliError> {
     let details = m.details().map_err(failed)?;
-    if json {
-        return print(out, port, m.address(), &details);
+    if o.json {
+        return o.print(out, details);
     }
     let info = details.info;
     let mut rows = vec![
@@ -59,18 +59,10 @@ pub(super) fn info(m: &Module<'_>, port: &str, out: &mut dyn Write, json: bool) 
     common::print_table(out, &rows)
 }
 
-/// How `watch` prints.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum WatchFormat {
-    Text,
-    Json,
-    Csv,
-}
-
 pub(super) fn watch(
     client: &Client,
+    o: &Out<'_>,
     m: &Module<'_>,
-    port: &str,
     out: &mut dyn Write,
     format: WatchFormat,
     interval_ms: u64,
@@ -92,9 +84,7 @@ pub(super) fn watch(
         let t = clock.now();
         let t_s = (t - started).as_secs_f64();
         match format {
-            WatchFormat::Json => {
-                print(out, port, m.address(), &Timed { t_s, sample: Sample { kind, position: p, state: s } })?
-            }
+            WatchFormat::Json => o.print(out, Timed { t_s, sample: Sample { kind, position: p, state: s } })?,
             WatchFormat::Csv => {
                 let flags: Vec<String> = s.iter().map(|f| f.label()).collect();
                 let fields = [format!("{t_s:.3}"), m.address().to_string(), p.value().to_string(), flags.join(" ")];

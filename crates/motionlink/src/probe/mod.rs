@@ -188,6 +188,15 @@ fn print_report<D: Serialize>(
     }
 }
 
+/// The device profiles (profiles.toml beside devices.toml): `None` where there is no file, or one that
+/// cannot be read (said on stderr: the session then probes as without it).
+pub fn profiles() -> Option<Profiles> {
+    Profiles::load_default().unwrap_or_else(|e| {
+        crate::term::note(&format!("device profiles not used: {e}"));
+        None
+    })
+}
+
 /// For a family command that opened a session on a port: loads the profiles (profiles.toml beside
 /// devices.toml) and lets `apply` seed the session from the one of its device. Its notices go to stderr,
 /// and the profile used (or null) goes into every `--json` result of the command. A file that cannot be
@@ -195,10 +204,9 @@ fn print_report<D: Serialize>(
 pub fn use_profile<E: Classify + std::fmt::Display>(
     apply: impl FnOnce(&Profiles) -> Result<ProfileUse, E>,
 ) -> Result<(), CliError> {
-    let used = match Profiles::load_default() {
-        Ok(Some(profiles)) => apply(&profiles).map_err(|e| common::classified(&e))?,
-        Ok(None) => ProfileUse::default(),
-        Err(e) => ProfileUse { reference: None, notices: vec![format!("device profiles not used: {e}")] },
+    let used = match profiles() {
+        Some(profiles) => apply(&profiles).map_err(|e| common::classified(&e))?,
+        None => ProfileUse::default(),
     };
     for n in &used.notices {
         crate::term::note(n);

@@ -11,29 +11,7 @@ use motionlink_scu::session::{MoveProgress, MoveReport, RunAction, RunProgress, 
 use motionlink_scu::{Client, MoveOptions};
 
 use super::Report;
-use crate::common::{self, CliError, Row};
-
-/// How `watch` prints its samples.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Format {
-    /// One line of text per sample.
-    Text,
-    /// One JSON object per sample.
-    Json,
-    /// A CSV header, then one line per actuator and sample.
-    Csv,
-}
-
-impl Format {
-    /// JSON when `json`, else text.
-    pub fn from_json(json: bool) -> Self {
-        if json {
-            Format::Json
-        } else {
-            Format::Text
-        }
-    }
-}
+use crate::common::{self, CliError, Row, WatchFormat as Format};
 
 /// A library error as the command line reports it.
 fn cl(e: motionlink_scu::Error) -> CliError {

@@ -253,65 +253,60 @@ fn client_config(args: &Args) -> Result<ClientConfig, CliError> {
 /// Opens the session on `port`, its link watched by `tap`.
 fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: ClientConfig) -> Result<Client, CliError> {
     let port: PortUrl = port.parse()?;
-    let clock = Arc::clone(clock);
-    let connector: Connector = match &port {
+    let sim_options = args.sim_config.is_some() || args.sim_preset.is_some() || !args.sim_variants.is_empty();
+    if sim_options && !matches!(port, PortUrl::Sim) && !port.is_can() {
+        return Err(CliError::usage("--sim-config, --sim-preset and --sim-variant are only for --port sim"));
+    }
+    // The emulated unit is the one the command names: its functions, its speed mode, and the firmware
+    // variants asked for.
+    let unit = InProcess {
+        functions: &args.functions,
+        preset: args.sim_preset.as_deref(),
+        file: args.sim_config.as_ref(),
+        speed_mode: args.speed_mode,
+        variants: &args.sim_variants,
+    };
+    let connector = connector(&port, &unit, args.baud, tap, clock)?;
+    Client::open(connector, Arc::clone(clock), config).map_err(|e| common::classified(&e))
+}
+
+/// The links of an SCU on `port` (the console's and the command's): a serial line at `baud`, or with
+/// `sim` the unit `unit` describes emulated in this process on a line paced to `baud`; watched by `tap`.
+pub(crate) fn connector(
+    port: &PortUrl,
+    unit: &InProcess<'_>,
+    baud: Baud,
+    tap: &Tap,
+    clock: &SharedClock,
+) -> Result<Connector, CliError> {
+    let (tap, clock) = (tap.clone(), Arc::clone(clock));
+    Ok(match port {
         PortUrl::Sim => {
-            // The emulated unit is the one the command names: its functions, its speed mode, and the firmware
-            // variants asked for.
-            let sim_config = in_process_config(&InProcess {
-                functions: &args.functions,
-                preset: args.sim_preset.as_deref(),
-                file: args.sim_config.as_ref(),
-                speed_mode: args.speed_mode,
-                variants: &args.sim_variants,
-            })?;
-            let sim = Emulator::new(sim_config).map_err(|e| CliError::usage(e.to_string()))?;
-            let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(args.baud.get()));
-            let (tap, clock) = (tap.clone(), Arc::clone(&clock));
+            let sim = Emulator::new(in_process_config(unit)?).map_err(|e| CliError::usage(e.to_string()))?;
+            let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(baud.get()));
             Box::new(move || Ok(tap.link(Box::new(host.connect().0), &clock)))
         }
         p if p.is_can() => return Err(CliError::usage(format!("{p}: the SCU speaks RS232, not CAN"))),
         p => {
-            if args.sim_config.is_some() || args.sim_preset.is_some() || !args.sim_variants.is_empty() {
-                return Err(CliError::usage("--sim-config, --sim-preset and --sim-variant are only for --port sim"));
-            }
-            let p = p.clone();
-            let settings = SerialSettings::new(args.baud.get());
-            let (tap, clock) = (tap.clone(), Arc::clone(&clock));
+            let (p, settings) = (p.clone(), SerialSettings::new(baud.get()));
             Box::new(move || Ok(tap.link(p.open_byte_link(settings)?, &clock)))
         }
-    };
-    Client::open(connector, clock, config).map_err(|e| common::classified(&e))
+    })
 }
 
-/// What every action prints with: JSON or text, and the port the JSON objects name.
+/// What every action prints with ([`common::Out`]: JSON or text, the port the JSON objects name), and what
+/// `stop` found.
 pub(super) struct Report<'a> {
-    /// `--json`.
-    pub json: bool,
-    /// The port, as given.
-    pub port: &'a str,
+    /// How results are printed.
+    pub out: common::Out<'a>,
     /// `stop`: the motionlink that held the port and was stopped first, if any.
     pub stopped: Option<motionlink_link::portlock::Stopped>,
 }
 
-impl Report<'_> {
-    /// Prints one JSON object with the identity (`family`, `port`) first, then `result`'s fields as it
-    /// serialises.
-    pub fn print(&self, out: &mut dyn Write, result: impl serde::Serialize) -> Result<(), CliError> {
-        common::print_result(out, "scu", self.port, &[], &result)
-    }
-
-    /// `result` as JSON (`--json`), else as `text` writes it.
-    pub fn show<R: serde::Serialize>(
-        &self,
-        out: &mut dyn Write,
-        result: &R,
-        text: impl FnOnce(&mut dyn Write, &R) -> Result<(), CliError>,
-    ) -> Result<(), CliError> {
-        match self.json {
-            true => self.print(out, result),
-            false => text(out, result),
-        }
+impl<'a> std::ops::Deref for Report<'a> {
+    type Target = common::Out<'a>;
+    fn deref(&self) -> &common::Out<'a> {
+        &self.out
     }
 }
 
@@ -341,18 +336,15 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Action::Run { function, direction, .. } => {
             RunAction::parse(function, direction).map_err(CliError::usage)?;
         }
-        Action::Watch { csv: true, .. } if args.json => {
-            return Err(CliError::usage("--csv and --json: give one of them"));
+        Action::Watch { csv, .. } => {
+            common::WatchFormat::of(*csv, args.json)?;
         }
         _ => {}
     }
     let port = args.link.resolve_port("scu", args.port.as_deref())?;
     let interrupt = common::interrupt_token();
     // Found by another motionlink as the holder of the port; `stop` takes it from a holder first.
-    let stopped = match args.action {
-        Action::Stop { .. } => crate::portlock::claim_for_stop("scu", &port)?,
-        _ => crate::portlock::claim("scu", &port).map(|()| None)?,
-    };
+    let stopped = crate::portlock::claim_as("scu", &port, matches!(args.action, Action::Stop { .. }))?;
     let clock = RealClock::shared();
     let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
     let tap = Tap::new("scu", &port, &clock, &args.link, "can0", &describer, request.is_some())?;
@@ -368,7 +360,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let client = connect(&args, &port, &tap, &clock, config).map_err(|e| tap.name_absent(e, absent))?;
     crate::probe::use_profile(|p| motionlink_scu::probe::use_profile(&client, p, &port))?;
     let mut out = std::io::stdout().lock();
-    let report = Report { json: args.json, port: &port, stopped };
+    let report = Report { out: common::Out { json: args.json, family: "scu", port: &port, unit: None }, stopped };
     let result = match &request {
         Some(r) => send::send(&client, r, &tap, &report, &mut out),
         None => act(&client, &args, &report, &mut out, &interrupt),
@@ -445,7 +437,7 @@ fn act(
         }
         Action::Stop { function, soft } => stop::stop(client, *function, *soft, report, out),
         Action::Watch { interval_ms, count, csv, .. } => {
-            let format = if *csv { actions::Format::Csv } else { actions::Format::from_json(report.json) };
+            let format = common::WatchFormat::of(*csv, report.json)?;
             actions::watch(client, report, format, *interval_ms, *count, interrupt, out)
         }
         Action::Errors => actions::errors(client, report, out),

@@ -167,12 +167,9 @@ pub(super) fn send(
     report: &Report<'_>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    let telegrams = tap.telegrams().ok_or_else(|| CliError::usage("send: no tap on the link"))?;
     let r = request.request();
     let wire = motionlink_scu::wire::request_to_vec(&r).map_err(|e| CliError::usage(e.to_string()))?;
-    telegrams.clear();
-    let result = client.request(&r);
-    let seen = telegrams.take();
+    let (result, seen) = tap.seen_during(|| client.request(&r))?;
     let (sent, reply) = exchange(&seen, Some(&wire));
     let (request, reply) = print_exchange(out, report.json, sent.as_ref(), reply.as_ref())?;
     if report.json {

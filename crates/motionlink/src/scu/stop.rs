@@ -22,9 +22,7 @@ pub(super) fn stop(
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let holder = report.stopped.as_ref();
-    if let (Some(h), false) = (holder, report.json) {
-        writeln!(out, "{}", h.describe())?;
-    }
+    report.holder(out, holder)?;
     let motions = match StopScope::of(function) {
         StopScope::Motions(m) => m,
         StopScope::Switch(f) => {

@@ -1,0 +1,162 @@
+//! What every family's commands share: errors with exit codes (here), Ctrl-C and the other signals
+//! ([`signals`]), output as a table or JSON ([`output`]), emulator servers ([`serve`]).
+
+use motionlink_link::error::{Classify, ErrorClass, TransportKind};
+use motionlink_link::LinkError;
+
+mod output;
+mod serve;
+mod signals;
+
+pub use output::*;
+pub use serve::{serve, ServeArgs};
+pub use signals::{interrupt_token, stop_cause, StopCause};
+use signals::{record_stop_cause, SIGINT};
+
+/// An error of the command line, classed by what went wrong (the classes of
+/// [`motionlink_link::error::ErrorClass`]).
+#[derive(Debug, thiserror::Error)]
+pub enum CliError {
+    /// The device answered and refused the request (exit code 1).
+    #[error("{0}")]
+    Refused(String),
+    /// The device reported an error, or a move did not end where it was asked to (exit code 1).
+    #[error("{0}")]
+    Device(String),
+    /// The command line itself is wrong (exit code 2).
+    #[error("{0}")]
+    Usage(String),
+    /// The port, the line or the timing failed; the kind says how (exit code 3).
+    #[error("{1}")]
+    Transport(TransportKind, String),
+    /// A signal or a closed stdout ended the action; what it had started was stopped first (exit code
+    /// 128 + the signal's number: 130 for SIGINT, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT; 0 for a closed stdout).
+    #[error("{0}")]
+    Interrupted(String),
+    /// stdout was closed by its reader (`motionlink ... watch | head`): the command ends quietly with exit
+    /// code 0 after stopping anything it started.
+    #[error("stdout was closed")]
+    OutputClosed,
+}
+
+impl CliError {
+    /// The process exit code for this error: the class's ([`ErrorClass::exit_code`]: 1 refused or device, 2
+    /// usage, 3 transport), except that an interruption exits with 128 + the signal's number and a closed
+    /// stdout with 0.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            CliError::Interrupted(_) => stop_cause().unwrap_or(StopCause::Signal(SIGINT)).exit_code(),
+            CliError::OutputClosed => 0,
+            _ => self.class().exit_code(),
+        }
+    }
+
+    /// The error's class.
+    pub fn class(&self) -> ErrorClass {
+        match self {
+            CliError::Refused(_) => ErrorClass::Refused,
+            CliError::Device(_) => ErrorClass::Device,
+            CliError::Usage(_) => ErrorClass::Usage,
+            CliError::Transport(kind, _) => ErrorClass::Transport(*kind),
+            CliError::Interrupted(_) | CliError::OutputClosed => ErrorClass::Cancelled,
+        }
+    }
+
+    /// The class's name, as `--json` reports it: `refused`, `device`, `timeout`, `disconnected`, `corrupt`,
+    /// `io`, `usage` or `cancelled` ([`ErrorClass::name`]).
+    pub fn kind(&self) -> &'static str {
+        self.class().name()
+    }
+
+    /// The error as `--json` prints it on stderr: `{"exit_code": ..., "kind": ..., "message": ...}`.
+    pub fn to_json(&self) -> serde_json::Value {
+        #[derive(serde::Serialize)]
+        struct Shown {
+            exit_code: u8,
+            kind: &'static str,
+            message: String,
+        }
+        to_json(&Shown { exit_code: self.exit_code(), kind: self.kind(), message: self.to_string() })
+    }
+
+    /// The same error with `f` applied to its message (a closed stdout becomes an interruption whose
+    /// message says so).
+    pub fn map_message(self, f: impl FnOnce(String) -> String) -> CliError {
+        match self {
+            CliError::Refused(m) => CliError::Refused(f(m)),
+            CliError::Device(m) => CliError::Device(f(m)),
+            CliError::Usage(m) => CliError::Usage(f(m)),
+            CliError::Transport(k, m) => CliError::Transport(k, f(m)),
+            CliError::Interrupted(m) => CliError::Interrupted(f(m)),
+            CliError::OutputClosed => CliError::Interrupted(f("stdout closed".into())),
+        }
+    }
+
+    /// A usage error.
+    pub fn usage(msg: impl std::fmt::Display) -> Self {
+        CliError::Usage(msg.to_string())
+    }
+
+    /// A transport error of the I/O kind (a port that cannot be opened, a file that cannot be written).
+    pub fn transport(msg: impl std::fmt::Display) -> Self {
+        CliError::Transport(TransportKind::Io, msg.to_string())
+    }
+}
+
+impl From<LinkError> for CliError {
+    fn from(e: LinkError) -> Self {
+        classified(&e)
+    }
+}
+
+impl From<std::io::Error> for CliError {
+    fn from(e: std::io::Error) -> Self {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            record_stop_cause(StopCause::OutputClosed);
+            return CliError::OutputClosed;
+        }
+        CliError::transport(e)
+    }
+}
+
+/// The command line's error for any classified library error: the one place where error classes become
+/// command-line errors (and so exit codes and `--json` kinds).
+pub fn classified<E: Classify + std::fmt::Display + ?Sized>(e: &E) -> CliError {
+    let msg = e.to_string();
+    match e.class() {
+        ErrorClass::Refused => CliError::Refused(msg),
+        ErrorClass::Device => CliError::Device(msg),
+        ErrorClass::Usage => CliError::Usage(msg),
+        ErrorClass::Transport(kind) => CliError::Transport(kind, msg),
+        ErrorClass::Cancelled => CliError::Interrupted(msg),
+    }
+}
+
+/// Writes one note on stderr and ignores a failure: after SIGHUP the terminal may be gone, and a message
+/// that cannot be shown must not keep the motion from being stopped (`eprintln!` would panic). A progress
+/// bar on screen is hidden while the line is written. Notes are left out with `-q` and once stdout was
+/// closed (the command then ends quietly); errors go through [`say_error`].
+pub fn say(line: impl std::fmt::Display) {
+    crate::term::note(&line.to_string());
+}
+
+/// Writes one error line on stderr (in red when colours are on; with `--json` as `{"log": ...}`), also with
+/// `-q`: for errors besides the one the command ends with, and what must be known though no stop was
+/// confirmed.
+pub fn say_error(line: impl std::fmt::Display) {
+    crate::term::error_note(&line.to_string());
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn errors_carry_their_class_into_json() {
+        let e = classified(&LinkError::Disconnected { port: "p".into(), reason: "reset".into() });
+        assert_eq!((e.kind(), e.exit_code()), ("disconnected", 3));
+        let j = CliError::usage("bad --speed").to_json();
+        assert_eq!(j.to_string(), r#"{"exit_code":2,"kind":"usage","message":"bad --speed"}"#);
+        assert_eq!(CliError::Refused("PE".into()).kind(), "refused");
+    }
+}
