@@ -151,6 +151,16 @@ impl<'py> Record<'py> {
     }
 }
 
+impl<'py> IntoPyObject<'py> for Record<'py> {
+    type Target = PyDict;
+    type Output = Bound<'py, PyDict>;
+    type Error = std::convert::Infallible;
+
+    fn into_pyobject(self, _py: Python<'py>) -> Result<Self::Output, Self::Error> {
+        Ok(self.0)
+    }
+}
+
 /// A client of any family, shared by the calls under way, until it is closed. A call takes a clone of the
 /// `Arc` (so a close waits for nothing but the calls' own ends); closing takes the client out, so that no
 /// new call starts, and cancels what still runs before it ends the session.
