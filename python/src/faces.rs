@@ -26,7 +26,8 @@ pub fn to_py<'py, T: IntoPyObject<'py>>(py: Python<'py>, record: PyResult<T>) ->
 /// ```
 ///
 /// In the operation, `w!(call)` is the call on the blocking client and `call.await` on the async one;
-/// `w!(recv => method(args); progress)` passes `progress` to the blocking client's method only. The
+/// `w!(recv => method(args); p, .. => q, ..)` passes `p, ..` (a progress callback, a cancel token) to the
+/// blocking client's method only and `q, ..` to the async client's only. The
 /// blocking face runs it as its kind says: `read` on a thread of its own, Ctrl-C raising at once
 /// ([`crate::wait::interruptible_read`]); `motion` on a worker while Ctrl-C is watched, which cancels the
 /// client's token (`me.token`: the family's client stops the motion) and waits for the end
@@ -58,8 +59,11 @@ macro_rules! faces {
                     $($prep;)*
                     #[allow(unused_macros)]
                     macro_rules! w {
-                        ($d r:expr => $d m:ident($d ($d a:expr),*) $d (; $d p:expr)?) => {
-                            $d r.$d m($d ($d a,)* $d ($d p)?)
+                        (
+                            $d r:expr => $d m:ident($d ($d a:expr),*)
+                            $d (; $d ($d p:expr),+)? $d (=> $d ($d q:expr),+)?
+                        ) => {
+                            $d r.$d m($d ($d a,)* $d ($d ($d p),+)?)
                         };
                         ($d e:expr) => { $d e };
                     }
@@ -84,8 +88,11 @@ macro_rules! faces {
                     $($prep;)*
                     #[allow(unused_macros)]
                     macro_rules! w {
-                        ($d r:expr => $d m:ident($d ($d a:expr),*) $d (; $d p:expr)?) => {
-                            $d r.$d m($d ($d a),*).await
+                        (
+                            $d r:expr => $d m:ident($d ($d a:expr),*)
+                            $d (; $d ($d p:expr),+)? $d (=> $d ($d q:expr),+)?
+                        ) => {
+                            $d r.$d m($d ($d a,)* $d ($d ($d q),+)?).await
                         };
                         ($d e:expr) => { $d e.await };
                     }
