@@ -33,6 +33,7 @@ pub fn to_py<'py, T: IntoPyObject<'py>>(py: Python<'py>, record: PyResult<T>) ->
 /// client's token (`me.token`: the family's client stops the motion) and waits for the end
 /// ([`crate::wait::interruptible`]); `quick` without the GIL. The async face spawns it: cancelling the
 /// task drops its future (the family's client stops what it set in motion), and runs the `else` future.
+/// Both classes get the getters `port`, `profile` and `profile_notices` of their fields of those names.
 macro_rules! faces {
     (@ ($d:tt)
         $blocking:ident / $asynch:ident, $err:ty;
@@ -126,7 +127,31 @@ macro_rules! faces {
     (@spawn $done:ident, $run:ident, $stop:expr) => {
         Ok(crate::wait::spawn_task_stopping($done, $run, $stop))
     };
-    ($($t:tt)*) => {
-        faces!(@ ($) $($t)*);
+    ($blocking:ident / $asynch:ident, $err:ty; both { $($both:tt)* } $($rest:tt)*) => {
+        faces!(@ ($) $blocking / $asynch, $err;
+            both {
+                /// The port, as the link describes it.
+                #[getter]
+                fn port(&self) -> String {
+                    self.port.clone()
+                }
+
+                /// The device profile the session took (`<path>#<key>`), or None.
+                #[getter]
+                fn profile(&self) -> Option<String> {
+                    self.profile.reference.clone()
+                }
+
+                /// One line for each profile the session did not take (another identity, a file it could
+                /// not read).
+                #[getter]
+                fn profile_notices(&self) -> Vec<String> {
+                    self.profile.notices.clone()
+                }
+
+                $($both)*
+            }
+            $($rest)*
+        );
     };
 }

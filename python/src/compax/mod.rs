@@ -21,7 +21,7 @@ use motionlink_link::url::PortUrl;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::common::{json_py, target, Int, Record, Slot, Target};
+use crate::common::{target, Int, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
 use crate::wait::{block_on_runtime, deliver, interruptible_read, spawn_task, NativeTask};
@@ -207,25 +207,7 @@ impl AsyncCompaxClient {
 faces! {
     CompaxClient / AsyncCompaxClient, Error;
 
-    both {
-        /// The port.
-        #[getter]
-        fn port(&self) -> String {
-            self.port.clone()
-        }
-
-        /// The device profile the session took for its drive (`<path>#<key>`), or None.
-        #[getter]
-        fn profile(&self) -> Option<String> {
-            self.profile.reference.clone()
-        }
-
-        /// One line for each profile the session did not take (another identity, a file it could not read).
-        #[getter]
-        fn profile_notices(&self) -> Vec<String> {
-            self.profile.notices.clone()
-        }
-    }
+    both {}
 
     blocking {
         #[new]
@@ -272,19 +254,8 @@ faces! {
             let client = self.client(py)?;
             let drives = motionlink_compax::probe::parse_drives(drives).map_err(|e| to_pyerr(py, usage(e)))?;
             let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
-            let report = py
-                .detach(|| {
-                    let mut report =
-                        motionlink_compax::probe::probe(&client, &setup, &drives).map_err(|e| e.failure())?;
-                    if let Some(save) = save {
-                        let mut profiles = crate::common::profiles_for_save(FAMILY, &save)?;
-                        motionlink_compax::probe::save_profile(&mut report, &mut profiles)
-                            .map_err(|e| usage(format!("save: {e}")))?;
-                    }
-                    serde_json::to_value(&report).map_err(|e| usage(e.to_string()))
-                })
-                .map_err(|f| to_pyerr(py, f))?;
-            json_py(py, &report)
+            let probe = || motionlink_compax::probe::probe(&client, &setup, &drives).map_err(|e| e.failure());
+            crate::common::probe_py(py, FAMILY, save, probe, motionlink_compax::probe::save_profile)
         }
 
         /// True until closed.

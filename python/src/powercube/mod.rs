@@ -20,7 +20,7 @@ use motionlink_powercube::{AsyncClient, Error};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::common::{f32_py, json_py, target, Int, Record, Slot, Target};
+use crate::common::{f32_py, target, Int, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
 use crate::wait::{block_on_runtime, deliver, interruptible_read, spawn_task, NativeTask};
@@ -230,25 +230,7 @@ impl AsyncPowerCubeClient {
 faces! {
     PowerCubeClient / AsyncPowerCubeClient, Error;
 
-    both {
-        /// The port, as the link describes it.
-        #[getter]
-        fn port(&self) -> String {
-            self.port.clone()
-        }
-
-        /// The device profile the session took for its module (`<path>#<key>`), or None.
-        #[getter]
-        fn profile(&self) -> Option<String> {
-            self.profile.reference.clone()
-        }
-
-        /// One line for each profile the session did not take (another identity, a file it could not read).
-        #[getter]
-        fn profile_notices(&self) -> Vec<String> {
-            self.profile.notices.clone()
-        }
-    }
+    both {}
 
     blocking {
         #[new]
@@ -287,18 +269,8 @@ faces! {
         ) -> PyResult<Bound<'py, PyAny>> {
             let client = self.client(py)?;
             let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
-            let report = py
-                .detach(|| {
-                    let mut report = motionlink_powercube::probe::probe(&client, &setup).map_err(|e| e.failure())?;
-                    if let Some(save) = save {
-                        let mut profiles = crate::common::profiles_for_save(FAMILY, &save)?;
-                        motionlink_powercube::probe::save_profile(&mut report, &mut profiles)
-                            .map_err(|e| usage(format!("save: {e}")))?;
-                    }
-                    serde_json::to_value(&report).map_err(|e| usage(e.to_string()))
-                })
-                .map_err(|f| to_pyerr(py, f))?;
-            json_py(py, &report)
+            let probe = || motionlink_powercube::probe::probe(&client, &setup).map_err(|e| e.failure());
+            crate::common::probe_py(py, FAMILY, save, probe, motionlink_powercube::probe::save_profile)
         }
 
         /// True until closed.

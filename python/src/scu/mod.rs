@@ -261,25 +261,7 @@ impl AsyncScuClient {
 faces! {
     ScuClient / AsyncScuClient, Error;
 
-    both {
-        /// The port, as the link describes it.
-        #[getter]
-        fn port(&self) -> String {
-            self.port.clone()
-        }
-
-        /// The device profile the session took (`<path>#<key>`), or None.
-        #[getter]
-        fn profile(&self) -> Option<String> {
-            self.profile.reference.clone()
-        }
-
-        /// One line for each profile the session did not take (another identity, a file it could not read).
-        #[getter]
-        fn profile_notices(&self) -> Vec<String> {
-            self.profile.notices.clone()
-        }
-    }
+    both {}
 
     blocking {
         #[new]
@@ -317,18 +299,8 @@ faces! {
         ) -> PyResult<Bound<'py, PyAny>> {
             let client = self.client(py)?;
             let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
-            let report = py
-                .detach(|| {
-                    let mut report = motionlink_scu::probe::probe(&client, &setup).map_err(|e| e.failure())?;
-                    if let Some(save) = save {
-                        let mut profiles = crate::common::profiles_for_save(FAMILY, &save)?;
-                        motionlink_scu::probe::save_profile(&mut report, &mut profiles)
-                            .map_err(|e| usage(format!("save: {e}")))?;
-                    }
-                    serde_json::to_value(&report).map_err(|e| usage(e.to_string()))
-                })
-                .map_err(|f| to_pyerr(py, f))?;
-            json_py(py, &report)
+            let probe = || motionlink_scu::probe::probe(&client, &setup).map_err(|e| e.failure());
+            crate::common::probe_py(py, FAMILY, save, probe, motionlink_scu::probe::save_profile)
         }
 
         /// True until closed.
