@@ -25,7 +25,6 @@ class ActuatorAtRest(Record):
         position_counts: Its position, in encoder counts.
     """
 
-    __slots__ = ()
     actuator: int
     position_counts: int
 
@@ -38,7 +37,6 @@ class RefusedStop(Record):
         reason: The unit's answer.
     """
 
-    __slots__ = ()
     function: int
     reason: str
 
@@ -55,7 +53,6 @@ class ScuStop(Record):
         at_rest: Every connected actuator and where it rests, read after the stop.
     """
 
-    __slots__ = ()
     family: str
     functions: List[int]
     mode: str
