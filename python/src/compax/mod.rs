@@ -24,7 +24,7 @@ use pyo3::types::PyDict;
 use crate::common::{target, Int, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::{block_on_runtime, deliver, interruptible_read, spawn_task, NativeTask};
+use crate::wait::{block_on_runtime, deliver, spawn_task, NativeTask};
 
 const FAMILY: &str = "compax";
 
@@ -269,87 +269,6 @@ faces! {
             Ok(self.client(py)?.started().into_iter().map(|a| a.get()).collect())
         }
 
-        /// Every drive that answers (addresses 1..31) with its position S1.
-        fn scan<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
-            let c = self.client(py)?;
-            // The library checks the cancel token before each address; Ctrl-C cancels it and raises at once
-            // (the address being asked ends within its reply timeout on the scan's thread).
-            let found = interruptible_read(py, Some(self.token.clone()), move || c.scan(1..=31))?.or_raise(py)?;
-            found.into_iter().map(|(a, p)| Ok(position_record(py, a, p)?.done())).collect()
-        }
-
-        /// Status values (S1 .. S40) by name ("S1") or number; none: the main ones ([`StatusId::OVERVIEW`]), as
-        /// the CLI's `status`.
-        #[pyo3(signature = (names, drive=None))]
-        fn status<'py>(
-            &self,
-            py: Python<'py>,
-            names: Vec<String>,
-            drive: Option<Int>,
-        ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-            let c = self.client(py)?;
-            let a = self.drive(py, drive)?;
-            let mut ids: Vec<StatusId> =
-                names.iter().map(|n| checked(n.parse())).collect::<Result<_, _>>().map_err(|f| to_pyerr(py, f))?;
-            if ids.is_empty() {
-                ids = StatusId::OVERVIEW.to_vec();
-            }
-            let values =
-                interruptible_read(py, Some(self.token.clone()), move || c.read_statuses(a, &ids))?.or_raise(py)?;
-            values
-                .into_iter()
-                .map(|(id, value)| {
-                    // As an entry of the CLI's `compax status --json` (`drive` and `id` are extra attributes).
-                    let r = record(py, &StatusReading { id, value })?;
-                    r.set("drive", a.get())?.set("id", id.get())?.extras(&["drive", "id"])?;
-                    Ok(r.done())
-                })
-                .collect()
-        }
-
-        /// Reads a parameter (P194, device_address).
-        #[pyo3(signature = (name, drive=None))]
-        fn get<'py>(&self, py: Python<'py>, name: &str, drive: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
-            let c = self.client(py)?;
-            let a = self.drive(py, drive)?;
-            let id: ParamId = checked(name.parse()).map_err(|f| to_pyerr(py, f))?;
-            let value = interruptible_read(py, None, move || c.read_param(a, id))?.or_raise(py)?;
-            param_record(py, a, id, &ParamReading { id, value })
-        }
-
-        /// Writes a parameter and reads it back (a different value is a DeviceError).
-        #[pyo3(signature = (name, value, drive=None))]
-        fn set<'py>(
-            &self,
-            py: Python<'py>,
-            name: &str,
-            value: f64,
-            drive: Option<Int>,
-        ) -> PyResult<Bound<'py, PyDict>> {
-            let c = self.client(py)?;
-            let a = self.drive(py, drive)?;
-            let id = checked(name.parse::<ParamId>().and_then(|id| id.check(value).map(|()| id)))
-                .map_err(|f| to_pyerr(py, f))?;
-            // The library writes, compares what it reads back (a difference is an error) and reads once more:
-            // `read_back` is what the drive holds, not an echo of `value`.
-            let written = py.detach(|| c.set_param(a, id, value)).or_raise(py)?;
-            param_record(py, a, id, &written)
-        }
-
-        /// Sets output `number` to `state` (OUTPUT Ox=y).
-        #[pyo3(signature = (number, state, drive=None))]
-        fn output(&self, py: Python<'_>, number: Int, state: Int, drive: Option<Int>) -> PyResult<()> {
-            let c = self.client(py)?;
-            let a = self.drive(py, drive)?;
-            let output = || -> Result<(OutputNumber, OutputState), Failure> {
-                let number: OutputNumber = whole(&number, "number (the output)")?;
-                let state: OutputState = whole(&state, "state (of the output)")?;
-                Ok((number, checked(state.for_output(number))?))
-            };
-            let (number, state) = output().map_err(|f| to_pyerr(py, f))?;
-            py.detach(|| c.set_output(a, number.get(), state, false)).or_raise(py)
-        }
-
         /// Starts the library's watch of the drive (S1 and S17 every `interval_ms`, on a thread of its own):
         /// the samples come from [`CompaxWatch::next`].
         #[pyo3(signature = (drive, interval_ms))]
@@ -452,6 +371,56 @@ faces! {
             }
         }
     }
+
+    /// Every drive that answers (addresses 1..31) with its position S1. The library checks the cancel token
+    /// before each address; Ctrl-C cancels it and raises at once (the address being asked ends within its
+    /// reply timeout on the scan's thread).
+    blocking scan scan(me, py) {} |c| { c.scan(1..=31) } => |py, found| {
+        found.into_iter().map(|(a, p)| position_record(py, a, p)).collect::<PyResult<Vec<_>>>()
+    };
+
+    /// Status values (S1 .. S40) by name ("S1") or number; none: the main ones ([`StatusId::OVERVIEW`]), as
+    /// the CLI's `status`.
+    blocking scan status(me, py, names: Vec<String>, drive: Option<Int>) {
+        let a = me.drive(py, drive)?;
+        let ids = names.iter().map(|n| checked(n.parse::<StatusId>())).collect::<Result<Vec<_>, _>>();
+        let ids = ids.map_err(|f| to_pyerr(py, f))?;
+        let ids = if ids.is_empty() { StatusId::OVERVIEW.to_vec() } else { ids };
+    } |c| { c.read_statuses(a, &ids) } => |py, values| {
+        let entry = |(id, value): (StatusId, _)| {
+            // As an entry of the CLI's `compax status --json` (`drive` and `id` are extra attributes).
+            let r = record(py, &StatusReading { id, value })?;
+            r.set("drive", a.get())?.set("id", id.get())?.extras(&["drive", "id"])?;
+            Ok(r)
+        };
+        values.into_iter().map(entry).collect::<PyResult<Vec<_>>>()
+    };
+
+    /// Reads a parameter (P194, device_address).
+    blocking read get(me, py, name: String, drive: Option<Int>) {
+        let a = me.drive(py, drive)?;
+        let id = checked(name.parse::<ParamId>()).map_err(|f| to_pyerr(py, f))?;
+    } |c| { c.read_param(a, id) } => |py, value| param_record(py, a, id, &ParamReading { id, value });
+
+    /// Writes a parameter and reads it back (a different value is a DeviceError). The library writes,
+    /// compares what it reads back (a difference is an error) and reads once more: `read_back` is what the
+    /// drive holds, not an echo of `value`.
+    blocking quick set(me, py, name: String, value: f64, drive: Option<Int>) {
+        let a = me.drive(py, drive)?;
+        let id = checked(name.parse::<ParamId>().and_then(|id| id.check(value).map(|()| id)))
+            .map_err(|f| to_pyerr(py, f))?;
+    } |c| { c.set_param(a, id, value) } => |py, written| param_record(py, a, id, &written);
+
+    /// Sets output `number` to `state` (OUTPUT Ox=y).
+    blocking quick output(me, py, number: Int, state: Int, drive: Option<Int>) {
+        let a = me.drive(py, drive)?;
+        let output = |number, state| -> Result<_, Failure> {
+            let number = whole::<OutputNumber>(number, "number (the output)")?;
+            let state = whole::<OutputState>(state, "state (of the output)")?;
+            Ok((number, checked(state.for_output(number))?))
+        };
+        let (number, state) = output(&number, &state).map_err(|f| to_pyerr(py, f))?;
+    } |c| { c.set_output(a, number.get(), state, false) } => |py, done| Ok(done);
 
     /// The actual position S1, in the drive's unit.
     quick position(me, py, drive: Option<Int>) {

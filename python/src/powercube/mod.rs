@@ -18,12 +18,11 @@ use motionlink_powercube::model::{Address, AxisUnit, CubeState, ModuleKind, Para
 use motionlink_powercube::report::{ParamReading, SetReport};
 use motionlink_powercube::{AsyncClient, Error};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
 
 use crate::common::{f32_py, target, Int, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::{block_on_runtime, deliver, interruptible_read, spawn_task, NativeTask};
+use crate::wait::{block_on_runtime, deliver, spawn_task, NativeTask};
 
 const FAMILY: &str = "powercube";
 
@@ -284,90 +283,6 @@ faces! {
             Ok(self.client(py)?.started().into_iter().map(|a| a.get()).collect())
         }
 
-        /// Every module on the bus: a list of records (`error` set for a module that answered but could not be
-        /// read).
-        fn scan<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
-            let c = self.client(py)?;
-            // Ctrl-C raises at once and cancels the session's token: the scan, which watches it, ends on its
-            // thread at once (the address being asked is not waited for).
-            let found = interruptible_read(py, Some(self.token.clone()), move || c.scan())?.or_raise(py)?;
-            found
-                .iter()
-                .map(|e| {
-                    let r = record(py, e.address.get(), e, e.info.as_ref().ok().map(|i| i.kind), &[])?;
-                    Ok(r.done())
-                })
-                .collect()
-        }
-
-        /// Type, version, serial number, state and limits of a module.
-        #[pyo3(signature = (module=None))]
-        fn info<'py>(&self, py: Python<'py>, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
-            let c = self.client(py)?;
-            let a = self.address(py, module)?;
-            let details = interruptible_read(py, None, move || c.module(Address::new(a)?).details())?.or_raise(py)?;
-            Ok(record(py, a, &details, Some(details.info.kind), &[])?.done())
-        }
-
-        /// One sample of `watch`: the position and the state word.
-        #[pyo3(signature = (module=None))]
-        fn sample<'py>(&self, py: Python<'py>, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
-            let c = self.client(py)?;
-            let a = self.address(py, module)?;
-            let p = interruptible_read(py, None, move || -> Result<_, Error> {
-                let m = c.module(Address::new(a)?);
-                let kind = m.kind()?;
-                let s = m.state()?;
-                Ok((kind, in_unit(m.position()?, kind), s))
-            })?
-            .or_raise(py)?;
-            Ok(sample_record(py, a, p.0, p.1, p.2)?.done())
-        }
-
-        /// Reads a parameter by name (ActPos) or id (60, 0x3c).
-        #[pyo3(signature = (name, module=None))]
-        fn get<'py>(&self, py: Python<'py>, name: &str, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
-            let c = self.client(py)?;
-            let a = self.address(py, module)?;
-            let p = parse_param(name).map_err(|f| to_pyerr(py, f))?;
-            let reading = interruptible_read(py, None, move || -> Result<_, Error> {
-                let m = c.module(Address::new(a)?);
-                Ok(ParamReading { param: p, value: m.get(p)?, kind: m.kind()? })
-            })?
-            .or_raise(py)?;
-            Ok(get_record(py, a, &reading)?.done())
-        }
-
-        /// Writes a parameter, refusing a target beyond its limit, and reads it back.
-        #[pyo3(signature = (name, value, module=None))]
-        fn set<'py>(
-            &self,
-            py: Python<'py>,
-            name: &str,
-            value: &Bound<'py, PyAny>,
-            module: Option<Int>,
-        ) -> PyResult<Bound<'py, PyDict>> {
-            let c = self.client(py)?;
-            let a = self.address(py, module)?;
-            let p = parse_param(name).map_err(|f| to_pyerr(py, f))?;
-            let v = parse_value(p, value).map_err(|f| to_pyerr(py, f))?;
-            let (readback, kind) = py
-                .detach(|| -> Result<_, Error> {
-                    let m = c.module(Address::new(a)?);
-                    Ok((m.set_checked(p, v)?, m.kind()?))
-                })
-                .or_raise(py)?;
-            Ok(set_record(py, a, kind, &SetReport { param: p, value: v, readback })?.done())
-        }
-
-        /// Resets the module's error state; true if it switched off a watchdog a dead host left expired.
-        #[pyo3(signature = (module=None))]
-        fn reset(&self, py: Python<'_>, module: Option<Int>) -> PyResult<bool> {
-            let c = self.client(py)?;
-            let a = self.address(py, module)?;
-            py.detach(|| c.module(Address::new(a)?).reset_and_release_watchdog()).or_raise(py)
-        }
-
         /// Ends the session: halts what it set in motion, switches its watchdogs off, and says whether that
         /// was confirmed (an exception if not). Closing twice does nothing.
         fn close(&self, py: Python<'_>) -> PyResult<()> {
@@ -378,22 +293,6 @@ faces! {
                 Some(Ok(client)) => py.detach(|| client.close()).or_raise(py),
                 Some(Err(shared)) => py.detach(|| shared.halt_started()).or_raise(py),
             }
-        }
-
-        /// Loops `n` position reads in Rust (no Python in between): the benchmark's reference.
-        #[pyo3(signature = (n, module=None))]
-        fn _bench_native_reads(&self, py: Python<'_>, n: u32, module: Option<Int>) -> PyResult<f64> {
-            let c = self.client(py)?;
-            let a = self.address(py, module)?;
-            py.detach(|| -> Result<f64, Error> {
-                let m = c.module(Address::new(a)?);
-                let start = std::time::Instant::now();
-                for _ in 0..n {
-                    std::hint::black_box(m.position()?);
-                }
-                Ok(start.elapsed().as_secs_f64())
-            })
-            .or_raise(py)
         }
     }
 
@@ -445,6 +344,65 @@ faces! {
         }
     }
 
+
+    /// Every module on the bus (`error` set for a module that answered but could not be read). Ctrl-C
+    /// raises at once and cancels the session's token: the scan, which watches it, ends on its thread at
+    /// once (the address being asked is not waited for).
+    blocking scan scan(me, py) {} |c| { c.scan() } => |py, found| {
+        let kind = |e: &motionlink_powercube::client::ScanEntry| e.info.as_ref().ok().map(|i| i.kind);
+        found.iter().map(|e| record(py, e.address.get(), e, kind(e), &[])).collect::<PyResult<Vec<_>>>()
+    };
+
+    /// Type, version, serial number, state and limits of a module.
+    blocking read info(me, py, module: Option<Int>) {
+        let a = me.address(py, module)?;
+    } |c| { c.module(Address::new(a)?).details() } => |py, d| record(py, a, &d, Some(d.info.kind), &[]);
+
+    /// One sample of `watch`: the position and the state word.
+    blocking read sample(me, py, module: Option<Int>) {
+        let a = me.address(py, module)?;
+    } |c| {
+        let m = c.module(Address::new(a)?);
+        let kind = m.kind()?;
+        let s = m.state()?;
+        Ok((kind, in_unit(m.position()?, kind), s))
+    } => |py, p| sample_record(py, a, p.0, p.1, p.2);
+
+    /// Reads a parameter by name (ActPos) or id (60, 0x3c).
+    blocking read get(me, py, name: String, module: Option<Int>) {
+        let a = me.address(py, module)?;
+        let p = parse_param(&name).map_err(|f| to_pyerr(py, f))?;
+    } |c| {
+        let m = c.module(Address::new(a)?);
+        Ok(ParamReading { param: p, value: m.get(p)?, kind: m.kind()? })
+    } => |py, reading| get_record(py, a, &reading);
+
+    /// Writes a parameter, refusing a target beyond its limit, and reads it back.
+    blocking quick set(me, py, name: String, value: Bound<'_, PyAny>, module: Option<Int>) {
+        let a = me.address(py, module)?;
+        let p = parse_param(&name).map_err(|f| to_pyerr(py, f))?;
+        let v = parse_value(p, &value).map_err(|f| to_pyerr(py, f))?;
+    } |c| {
+        let m = c.module(Address::new(a)?);
+        Ok((m.set_checked(p, v)?, m.kind()?))
+    } => |py, (readback, kind)| set_record(py, a, kind, &SetReport { param: p, value: v, readback });
+
+    /// Resets the module's error state; true if it switched off a watchdog a dead host left expired.
+    blocking quick reset(me, py, module: Option<Int>) {
+        let a = me.address(py, module)?;
+    } |c| { c.module(Address::new(a)?).reset_and_release_watchdog() } => |py, released| Ok(released);
+
+    /// Loops `n` position reads in Rust (no Python in between): the benchmark's reference.
+    blocking quick _bench_native_reads(me, py, n: u32, module: Option<Int>) {
+        let a = me.address(py, module)?;
+    } |c| {
+        let m = c.module(Address::new(a)?);
+        let start = std::time::Instant::now();
+        for _ in 0..n {
+            std::hint::black_box(m.position()?);
+        }
+        Ok(start.elapsed().as_secs_f64())
+    } => |py, seconds| Ok(seconds);
 
     /// The actual position: (module, value, unit) with unit "rad", "m", or "module" while the kind is not
     /// known.

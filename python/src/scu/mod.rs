@@ -24,7 +24,7 @@ use pyo3::prelude::*;
 use crate::common::{json_py, target, Int, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::{block_on_runtime, deliver, interruptible_read, spawn_task, NativeTask};
+use crate::wait::{block_on_runtime, deliver, spawn_task, NativeTask};
 
 const FAMILY: &str = "scu";
 
@@ -314,54 +314,6 @@ faces! {
             Ok(self.client(py)?.started().into_iter().map(|f| f.number()).collect())
         }
 
-        /// Firmware, configuration, battery/mains, last error and the connected actuators (Ctrl-C raises at
-        /// once: nothing is in motion).
-        fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-            let c = self.client(py)?;
-            let info = interruptible_read(py, None, move || c.info())?.or_raise(py)?;
-            report_py(py, &info, |fields| {
-                fields.insert("port".into(), self.port.clone().into());
-            })
-        }
-
-        /// Reads a data-list entry or group by name or index.
-        fn get<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
-            let c = self.client(py)?;
-            let it = parse_item(name).map_err(|f| to_pyerr(py, f))?;
-            let read = interruptible_read(py, None, move || c.read(it))?.or_raise(py)?;
-            report_py(py, &read, |_| {})
-        }
-
-        /// Writes a remote data entry (0x3xxx); the library reads it back and compares, then reads what the unit
-        /// holds (`read_back`; None, with `verified` False and why, on a unit that does not read remote data back).
-        fn set<'py>(&self, py: Python<'py>, name: &str, value: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
-            let c = self.client(py)?;
-            let it = parse_item(name).map_err(|f| to_pyerr(py, f))?;
-            if value.is_instance_of::<pyo3::types::PyBool>() {
-                return Err(to_pyerr(py, usage(format!("{}: give a number, not a bool", it.name()))));
-            }
-            let text: String = value.str()?.extract()?;
-            let (entry, v) = parse_write(it, &text).map_err(|e| to_pyerr(py, bad("")(e)))?;
-            let written = py.detach(|| c.write(entry, v)).or_raise(py)?;
-            report_py(py, &written, |_| {})
-        }
-
-        /// One sample of `watch`, `t_s` into it: the connected actuators (position, moving, flags, current) and
-        /// Error_Code 1.
-        fn sample<'py>(&self, py: Python<'py>, t_s: f64) -> PyResult<Bound<'py, PyAny>> {
-            let c = self.client(py)?;
-            // The library's sample: through the keepalive RC where the unit takes the session's cyclic object.
-            let s = interruptible_read(py, None, move || c.sample())?.or_raise(py)?;
-            report_py(py, &SampleReport::new(&s, t_s), |_| {})
-        }
-
-        /// The error history: Error_Code 1 (the last) .. 5, each with its named bits.
-        fn errors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-            let c = self.client(py)?;
-            let history = interruptible_read(py, None, move || c.error_history())?.or_raise(py)?;
-            report_py(py, &history, |_| {})
-        }
-
         /// Ends the session: RS for every function it started, then RA; an exception if that was not confirmed.
         fn close(&self, py: Python<'_>) -> PyResult<()> {
             let bound = self.close_bound;
@@ -427,6 +379,39 @@ faces! {
             }
         }
     }
+
+    /// Firmware, configuration, battery/mains, last error and the connected actuators (Ctrl-C raises at
+    /// once: nothing is in motion).
+    blocking read info(me, py) {} |c| { c.info() } => |py, info| {
+        report_py(py, &info, |fields| {
+            fields.insert("port".into(), me.port.clone().into());
+        })
+    };
+
+    /// Reads a data-list entry or group by name or index.
+    blocking read get(me, py, name: String) {
+        let it = parse_item(&name).map_err(|f| to_pyerr(py, f))?;
+    } |c| { c.read(it) } => |py, read| report_py(py, &read, |_| {});
+
+    /// Writes a remote data entry (0x3xxx); the library reads it back and compares, then reads what the unit
+    /// holds (`read_back`; None, with `verified` False and why, on a unit that does not read remote data back).
+    blocking quick set(me, py, name: String, value: Bound<'_, PyAny>) {
+        let it = parse_item(&name).map_err(|f| to_pyerr(py, f))?;
+        if value.is_instance_of::<pyo3::types::PyBool>() {
+            return Err(to_pyerr(py, usage(format!("{}: give a number, not a bool", it.name()))));
+        };
+        let text = value.str()?.extract::<String>()?;
+        let (entry, v) = parse_write(it, &text).map_err(|e| to_pyerr(py, bad("")(e)))?;
+    } |c| { c.write(entry, v) } => |py, written| report_py(py, &written, |_| {});
+
+    /// One sample of `watch`, `t_s` into it: the connected actuators (position, moving, flags, current) and
+    /// Error_Code 1. The library's sample: through the keepalive RC where the unit takes the session's cyclic
+    /// object.
+    blocking read sample(me, py, t_s: f64) {} |c| { c.sample() }
+    => |py, s| report_py(py, &SampleReport::new(&s, t_s), |_| {});
+
+    /// The error history: Error_Code 1 (the last) .. 5, each with its named bits.
+    blocking read errors(me, py) {} |c| { c.error_history() } => |py, history| report_py(py, &history, |_| {});
 
     /// The position of an actuator in counts.
     quick position(me, py, actuator: Int) {
