@@ -37,6 +37,8 @@ pub fn to_py<'py, T: IntoPyObject<'py>>(py: Python<'py>, record: PyResult<T>) ->
 /// async face spawns it: cancelling the task drops its future (the family's client stops what it set in
 /// motion), and runs the `else` future. An operation marked `blocking` is the blocking client's only.
 /// Both classes get the getters `port`, `profile` and `profile_notices` of their fields of those names.
+/// (A `let` among the argument checks takes no type annotation, which the macro's `stmt` does not parse: a
+/// turbofish says the type instead.)
 macro_rules! faces {
     // An operation of the blocking client: its method.
     (@munch ($d:tt) [$blocking:ident $asynch:ident $err:ty] {$($b:tt)*} {$($a:tt)*}
