@@ -60,9 +60,15 @@ class ClientBase:
 
     family: str = ""
     _native: Any
+    #: The name of the family's native client in :mod:`motionlink._native` (``Async`` before it: the
+    #: asyncio client's).
+    _native_name: str = ""
 
-    def __init__(self) -> None:
+    def _start(self, port: Any, settings: Dict[str, Any]) -> None:
+        """Opens the session on ``port`` (see :func:`resolve_port`) with the family's ``settings``."""
+        self._native = getattr(_native, self._native_name)(resolve_port(port, self.family), settings)
         _open.add(self)
+        warn_profile_notices(self._native)
 
     @property
     def port(self) -> str:
@@ -180,8 +186,12 @@ class AsyncClientBase:
 
     family: str = ""
     _native: Any = None
+    _native_name: str = ""
 
-    def __init__(self) -> None:
+    def _start(self, port: Any, settings: Dict[str, Any]) -> None:
+        """Keeps ``port`` and ``settings`` for the opening (``async with`` or :meth:`open`)."""
+        self._port = resolve_port(port, self.family)
+        self._settings = settings
         self._native = None
         self._calls: Calls = {}
 
@@ -205,12 +215,14 @@ class AsyncClientBase:
         (see :attr:`ClientBase.profile`)."""
         return self._client().profile  # type: ignore[no-any-return]
 
-    async def _open(self) -> Any:
-        raise NotImplementedError
+    async def open(self: "_A") -> "_A":
+        """Opens the session (what ``async with`` does)."""
+        return await self.__aenter__()
 
     async def __aenter__(self: "_A") -> "_A":
         if self._native is None:
-            self._native = await self._open()
+            native = getattr(_native, "Async" + self._native_name)
+            self._native = await run_native(lambda done: native.open(self._port, self._settings, done))
             _open.add(self)
             warn_profile_notices(self._native)
         return self

@@ -8,7 +8,16 @@ from typing import Any, ClassVar, Dict, List, Mapping, get_args, get_origin, get
 __all__ = ["Record", "ErrorBit", "ErrorCode", "FlagWord", "Parameter"]
 
 
-class Record:
+class _Slots(type):
+    """Gives each record class empty ``__slots__`` unless it declares its own (a record's fields live in
+    ``_fields``)."""
+
+    def __new__(mcs, name: str, bases: Any, namespace: Dict[str, Any], **kwargs: Any) -> Any:
+        namespace.setdefault("__slots__", ())
+        return super().__new__(mcs, name, bases, namespace, **kwargs)
+
+
+class Record(metaclass=_Slots):
     """A read-only result with named fields (see the module documentation)."""
 
     __slots__ = ("_fields", "_extras")
@@ -96,7 +105,6 @@ class ErrorBit(Record):
         cause: What it means.
     """
 
-    __slots__ = ()
     bit: int
     name: str
     cause: str
@@ -113,7 +121,6 @@ class FlagWord(Record):
         pattern: COMPAX S16 / S17: the word as the drive writes it (``"1101 1010"``, bit 1 first).
     """
 
-    __slots__ = ()
     word: int
     flags: List[str]
     unknown_bits: int
@@ -129,7 +136,6 @@ class ErrorCode(Record):
         bits: The bits set, named.
     """
 
-    __slots__ = ()
     code: int
     bits: List[ErrorBit]
 
@@ -156,7 +162,6 @@ class Parameter(Record):
         title: COMPAX: what the parameter is, where the manual says.
     """
 
-    __slots__ = ()
     family: str
     name: str
     id: int

@@ -6,12 +6,12 @@ percent of the drive's maximum (``speed_percent``), ramps in ms (``ramp_ms``).
 
 from __future__ import annotations
 
-from typing import Any, Dict, Iterator, List, Optional, Sequence, Union
+from typing import Any, Iterator, List, Optional, Sequence, Union
 
 from . import _native
-from ._base import AsyncClientBase, ClientBase, check_interval, resolve_port, run_native
+from ._base import AsyncClientBase, ClientBase, check_interval
 from ._ops import op
-from ._probe import Profile, ProbeReport, profile_setting, save_setting, warn_profile_notices
+from ._probe import Profile, ProbeReport, profile_setting, save_setting
 from .records import CompaxHome, CompaxMove, CompaxSample, DriveFound, DrivePosition, Parameter, StatusValue
 
 __all__ = ["Compax", "AsyncCompax"]
@@ -31,6 +31,26 @@ def _param(name: Union[str, int]) -> str:
 
 class _Operations:
     """The operations of :class:`Compax` and (``aio``) :class:`AsyncCompax`, declared once."""
+
+    family = "compax"
+    _native_name = "CompaxClient"
+    _start: Any
+
+    def __init__(
+        self,
+        port: Optional[Union[str, Any]] = None,
+        drive: int = 1,
+        *,
+        mode: int = 0,
+        baud: int = 9600,
+        timeout_ms: int = 200,
+        poll_ms: int = 50,
+        tolerance_units: float = DEFAULT_TOLERANCE_UNITS,
+        profile: Profile = True,
+    ) -> None:
+        self.drive = drive
+        settings = dict(drive=drive, mode=mode, baud=baud, timeout_ms=timeout_ms, poll_ms=poll_ms)
+        self._start(port, dict(settings, tolerance_units=float(tolerance_units), profile=profile_setting(profile)))
 
     @op(DriveFound)
     def scan(self) -> List[DriveFound]:
@@ -114,27 +134,6 @@ class Compax(_Operations, ClientBase):
     ``wait`` stops the drive, then raises ``KeyboardInterrupt``.
     """
 
-    family = "compax"
-
-    def __init__(
-        self,
-        port: Optional[Union[str, Any]] = None,
-        drive: int = 1,
-        *,
-        mode: int = 0,
-        baud: int = 9600,
-        timeout_ms: int = 200,
-        poll_ms: int = 50,
-        tolerance_units: float = DEFAULT_TOLERANCE_UNITS,
-        profile: Profile = True,
-    ) -> None:
-        settings = _settings(drive, mode, baud, timeout_ms, poll_ms, tolerance_units)
-        settings["profile"] = profile_setting(profile)
-        self._native = _native.CompaxClient(resolve_port(port, self.family), settings)
-        self.drive = drive
-        super().__init__()
-        warn_profile_notices(self._native)
-
     def probe(
         self,
         *,
@@ -181,19 +180,6 @@ class Compax(_Operations, ClientBase):
         return run()
 
 
-def _settings(
-    drive: int, mode: int, baud: int, timeout_ms: int, poll_ms: int, tolerance_units: float
-) -> Dict[str, Any]:
-    return {
-        "drive": drive,
-        "mode": mode,
-        "baud": baud,
-        "timeout_ms": timeout_ms,
-        "poll_ms": poll_ms,
-        "tolerance_units": float(tolerance_units),
-    }
-
-
 class AsyncCompax(_Operations, AsyncClientBase):
     """The asyncio twin of :class:`Compax` (same arguments)::
 
@@ -205,30 +191,3 @@ class AsyncCompax(_Operations, AsyncClientBase):
     operations still under way (their awaiters get :class:`motionlink.Cancelled`), then stops what the
     session set in motion.
     """
-
-    family = "compax"
-
-    def __init__(
-        self,
-        port: Optional[Union[str, Any]] = None,
-        drive: int = 1,
-        *,
-        mode: int = 0,
-        baud: int = 9600,
-        timeout_ms: int = 200,
-        poll_ms: int = 50,
-        tolerance_units: float = DEFAULT_TOLERANCE_UNITS,
-        profile: Profile = True,
-    ) -> None:
-        self._port = resolve_port(port, self.family)
-        self._settings = _settings(drive, mode, baud, timeout_ms, poll_ms, tolerance_units)
-        self.drive = drive
-        self._settings["profile"] = profile_setting(profile)
-        super().__init__()
-
-    async def _open(self) -> Any:
-        return await run_native(lambda done: _native.AsyncCompaxClient.open(self._port, self._settings, done))
-
-    async def open(self) -> "AsyncCompax":
-        """Opens the session (what ``async with`` does)."""
-        return await self.__aenter__()

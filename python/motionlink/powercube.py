@@ -6,12 +6,11 @@ names which (``position_rad`` / ``position_m``, and ``unit``).
 
 from __future__ import annotations
 
-from typing import Any, Dict, Iterator, List, Optional, Union
+from typing import Any, Iterator, List, Optional, Union
 
-from . import _native
-from ._base import AsyncClientBase, ClientBase, resolve_port, run_native, samples
+from ._base import AsyncClientBase, ClientBase, samples
 from ._ops import op
-from ._probe import Profile, ProbeReport, profile_setting, save_setting, warn_profile_notices
+from ._probe import Profile, ProbeReport, profile_setting, save_setting
 from .records import (
     ModuleInfo,
     ModulePosition,
@@ -27,19 +26,6 @@ __all__ = ["PowerCube", "AsyncPowerCube"]
 Port = Union[str, Any]
 
 
-def _settings(
-    module: int, baud: int, bitrate: int, timeout_ms: Optional[int], poll_ms: int, watchdog: bool
-) -> Dict[str, Any]:
-    return {
-        "module": module,
-        "baud": baud,
-        "bitrate": bitrate,
-        "timeout_ms": timeout_ms,
-        "poll_ms": poll_ms,
-        "watchdog": watchdog,
-    }
-
-
 def _position(raw: Any) -> ModulePosition:
     module, value, unit = raw
     suffix = {"rad": "position_rad", "m": "position_m"}.get(unit, "position")
@@ -48,6 +34,26 @@ def _position(raw: Any) -> ModulePosition:
 
 class _Operations:
     """The operations of :class:`PowerCube` and (``aio``) :class:`AsyncPowerCube`, declared once."""
+
+    family = "powercube"
+    _native_name = "PowerCubeClient"
+    _start: Any
+
+    def __init__(
+        self,
+        port: Optional[Port] = None,
+        module: int = 1,
+        *,
+        baud: int = 9600,
+        bitrate: int = 1_000_000,
+        timeout_ms: Optional[int] = None,
+        poll_ms: int = 10,
+        watchdog: bool = True,
+        profile: Profile = True,
+    ) -> None:
+        self.module = module
+        settings = dict(module=module, baud=baud, bitrate=bitrate, timeout_ms=timeout_ms, poll_ms=poll_ms)
+        self._start(port, dict(settings, watchdog=watchdog, profile=profile_setting(profile)))
 
     @op(_position, aio=True)
     def position(self, module: Optional[int] = None) -> ModulePosition:
@@ -135,28 +141,6 @@ class PowerCube(_Operations, ClientBase):
     ``KeyboardInterrupt``.
     """
 
-    family = "powercube"
-
-    def __init__(
-        self,
-        port: Optional[Port] = None,
-        module: int = 1,
-        *,
-        baud: int = 9600,
-        bitrate: int = 1_000_000,
-        timeout_ms: Optional[int] = None,
-        poll_ms: int = 10,
-        watchdog: bool = True,
-        profile: Profile = True,
-    ) -> None:
-        native_port = resolve_port(port, self.family)
-        settings = _settings(module, baud, bitrate, timeout_ms, poll_ms, watchdog)
-        settings["profile"] = profile_setting(profile)
-        self._native = _native.PowerCubeClient(native_port, settings)
-        self.module = module
-        super().__init__()
-        warn_profile_notices(self._native)
-
     def probe(
         self, *, save: Union[bool, str, Any] = False, exchanges: int = 20, low_latency: bool = False
     ) -> ProbeReport:
@@ -197,29 +181,3 @@ class AsyncPowerCube(_Operations, AsyncClientBase):
     awaiters get :class:`motionlink.Cancelled`), then halts what the session set in motion.
     """
 
-    family = "powercube"
-
-    def __init__(
-        self,
-        port: Optional[Port] = None,
-        module: int = 1,
-        *,
-        baud: int = 9600,
-        bitrate: int = 1_000_000,
-        timeout_ms: Optional[int] = None,
-        poll_ms: int = 10,
-        watchdog: bool = True,
-        profile: Profile = True,
-    ) -> None:
-        self._port = resolve_port(port, self.family)
-        self._settings = _settings(module, baud, bitrate, timeout_ms, poll_ms, watchdog)
-        self.module = module
-        self._settings["profile"] = profile_setting(profile)
-        super().__init__()
-
-    async def _open(self) -> Any:
-        return await run_native(lambda done: _native.AsyncPowerCubeClient.open(self._port, self._settings, done))
-
-    async def open(self) -> "AsyncPowerCube":
-        """Opens the session (what ``async with`` does)."""
-        return await self.__aenter__()

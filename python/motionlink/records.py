@@ -67,7 +67,6 @@ class ModuleState(Record):
         unknown_bits: Bits set that no flag names (only when nonzero).
     """
 
-    __slots__ = ()
     family: str
     module: int
     word: int
@@ -80,7 +79,6 @@ class _WithState(Record):
     """A PowerCube result with the module's state word nested as ``state`` (a :class:`FlagWord` with
     ``faults``)."""
 
-    __slots__ = ()
     family: str
     module: int
     state: FlagWord
@@ -101,7 +99,6 @@ class ModuleInfo(_WithState):
         ``_m_per_s2`` on a linear one).
     """
 
-    __slots__ = ()
     kind: str
     unit: str
     version: str
@@ -131,7 +128,6 @@ class ModulePosition(Record):
         position: The position of a module whose kind is not known (its own unit).
     """
 
-    __slots__ = ()
     family: str
     module: int
     unit: str
@@ -162,7 +158,6 @@ class PowerCubeMove(_WithState):
         not_verifiable: What could not be checked, and why (empty when ``verified``).
     """
 
-    __slots__ = ()
     action: str
     unit: str
     verified: bool
@@ -188,7 +183,6 @@ class PowerCubeHome(_WithState):
         reached_m: The position after homing (linear).
     """
 
-    __slots__ = ()
     action: str
     unit: str
     reached_rad: float
@@ -205,7 +199,6 @@ class PowerCubeSample(_WithState):
         position_m: The position (linear).
     """
 
-    __slots__ = ()
     t_s: float
     unit: str
     position_rad: float
@@ -225,7 +218,6 @@ class ActuatorState(Record):
         moving: True while it moves.
     """
 
-    __slots__ = ()
     actuator: int
     position_counts: int
     flags: List[str]
@@ -241,7 +233,6 @@ class ActuatorPosition(Record):
         position_counts: Its position in encoder counts.
     """
 
-    __slots__ = ()
     family: str
     actuator: int
     position_counts: int
@@ -263,7 +254,6 @@ class ScuInfo(Record):
         actuators: The connected actuators.
     """
 
-    __slots__ = ()
     family: str
     port: str
     firmware: str
@@ -286,7 +276,6 @@ class ActuatorOutcome(Record):
         start_counts: Where it stood before (an attribute; not in ``to_dict()``).
     """
 
-    __slots__ = ()
     actuator: int
     target_counts: int
     reached_counts: int
@@ -311,7 +300,6 @@ class ScuMove(Record):
         not_verifiable: What the unit in use could not be asked to verify, and why (empty when verified).
     """
 
-    __slots__ = ()
     family: str
     function: int
     actuator: int
@@ -331,7 +319,6 @@ class ActuatorRest(Record):
         reached_counts: Its position.
     """
 
-    __slots__ = ()
     actuator: int
     reached_counts: int
 
@@ -348,7 +335,6 @@ class ScuRun(Record):
         time_s: How long it ran (an attribute; not in ``to_dict()``).
     """
 
-    __slots__ = ()
     family: str
     function: int
     stopped: bool
@@ -368,7 +354,6 @@ class ActuatorSample(Record):
         current_amps: Its motor current in A.
     """
 
-    __slots__ = ()
     actuator: int
     position_counts: int
     moving: bool
@@ -386,7 +371,6 @@ class ScuSample(Record):
         last_error: Error_Code 1.
     """
 
-    __slots__ = ()
     family: str
     t_s: float
     actuators: List[ActuatorSample]
@@ -405,7 +389,6 @@ class DriveFound(Record):
         position_units: Its actual position S1, in the drive's unit.
     """
 
-    __slots__ = ()
     family: str
     drive: int
     position_units: float
@@ -420,7 +403,6 @@ class DrivePosition(Record):
         position_units: S1.
     """
 
-    __slots__ = ()
     family: str
     drive: int
     position_units: float
@@ -442,7 +424,6 @@ class StatusValue(Record):
         id: Its number, 1 for S1 (an attribute; not in ``to_dict()``).
     """
 
-    __slots__ = ()
     _nested = {"value": FlagWord}
     family: str
     status: str
@@ -463,7 +444,6 @@ class CompaxStarted(Record):
         target_units: The absolute target.
     """
 
-    __slots__ = ()
     family: str
     drive: int
     start_units: float
@@ -489,7 +469,6 @@ class CompaxMove(Record):
         start_units: S1 before the move (an attribute; not in ``to_dict()``).
     """
 
-    __slots__ = ()
     family: str
     drive: int
     waited: bool
@@ -505,8 +484,6 @@ class CompaxMove(Record):
 class CompaxHome(DrivePosition):
     """The end of homing (POSA HOME): S1 at rest (``position_units``)."""
 
-    __slots__ = ()
-
 
 class CompaxSample(Record):
     """One sample of a COMPAX ``watch`` (the library's watch): S1 and S17.
@@ -520,7 +497,6 @@ class CompaxSample(Record):
         moving: True while a command is active (S17 COMMAND_ACTIVE).
     """
 
-    __slots__ = ()
     family: str
     t_s: float
     drive: int

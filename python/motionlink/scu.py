@@ -6,12 +6,11 @@ Positions are encoder counts (``position_counts``); speeds are percent of full s
 
 from __future__ import annotations
 
-from typing import Any, Dict, Iterator, List, Optional, Sequence, Union
+from typing import Any, Iterator, List, Optional, Sequence, Union
 
-from . import _native
-from ._base import AsyncClientBase, ClientBase, resolve_port, run_native, samples
+from ._base import AsyncClientBase, ClientBase, samples
 from ._ops import op
-from ._probe import Profile, ProbeReport, profile_setting, save_setting, warn_profile_notices
+from ._probe import Profile, ProbeReport, profile_setting, save_setting
 from ._record import Record
 from .records import ActuatorPosition, ErrorCode, Parameter, ScuInfo, ScuMove, ScuRun, ScuSample
 
@@ -26,7 +25,6 @@ class ActuatorAtRest(Record):
         position_counts: Its position, in encoder counts.
     """
 
-    __slots__ = ()
     actuator: int
     position_counts: int
 
@@ -39,7 +37,6 @@ class RefusedStop(Record):
         reason: The unit's answer.
     """
 
-    __slots__ = ()
     function: int
     reason: str
 
@@ -56,7 +53,6 @@ class ScuStop(Record):
         at_rest: Every connected actuator and where it rests, read after the stop.
     """
 
-    __slots__ = ()
     family: str
     functions: List[int]
     mode: str
@@ -73,28 +69,6 @@ def _specs(specs: Specs) -> List[str]:
     return [specs] if isinstance(specs, str) else [str(s) for s in specs]
 
 
-def _settings(
-    baud: int,
-    safety: int,
-    reply_timeout_ms: int,
-    functions: Specs,
-    strokes: Specs,
-    tolerance_counts: int,
-    poll_ms: int,
-    speed_mode: str,
-) -> Dict[str, Any]:
-    return {
-        "baud": baud,
-        "safety": safety,
-        "reply_timeout_ms": reply_timeout_ms,
-        "functions": _specs(functions),
-        "strokes": _specs(strokes),
-        "tolerance_counts": tolerance_counts,
-        "poll_ms": poll_ms,
-        "speed_mode": speed_mode,
-    }
-
-
 def _function(f: Union[int, str]) -> str:
     return f"F{f}" if isinstance(f, int) and not isinstance(f, bool) else str(f)
 
@@ -109,6 +83,28 @@ def _stop_args(function: Optional[Union[int, str]], soft: bool) -> tuple:
 
 class _Operations:
     """The operations of :class:`Scu` and (``aio``) :class:`AsyncScu`, declared once."""
+
+    family = "scu"
+    _native_name = "ScuClient"
+    _start: Any
+
+    def __init__(
+        self,
+        port: Optional[Union[str, Any]] = None,
+        *,
+        baud: int = 38_400,
+        safety: int = 0,
+        reply_timeout_ms: int = 2000,
+        functions: Specs = (),
+        strokes: Specs = (),
+        tolerance_counts: int = 5,
+        poll_ms: int = 50,
+        speed_mode: str = "percent",
+        profile: Profile = True,
+    ) -> None:
+        settings = dict(baud=baud, safety=safety, reply_timeout_ms=reply_timeout_ms, functions=_specs(functions))
+        settings.update(strokes=_specs(strokes), tolerance_counts=tolerance_counts, poll_ms=poll_ms)
+        self._start(port, dict(settings, speed_mode=speed_mode, profile=profile_setting(profile)))
 
     @op(ScuInfo)
     def info(self) -> ScuInfo:
@@ -194,30 +190,6 @@ class Scu(_Operations, ClientBase):
     flight end on their own thread).
     """
 
-    family = "scu"
-
-    def __init__(
-        self,
-        port: Optional[Union[str, Any]] = None,
-        *,
-        baud: int = 38_400,
-        safety: int = 0,
-        reply_timeout_ms: int = 2000,
-        functions: Specs = (),
-        strokes: Specs = (),
-        tolerance_counts: int = 5,
-        poll_ms: int = 50,
-        speed_mode: str = "percent",
-        profile: Profile = True,
-    ) -> None:
-        settings = _settings(
-            baud, safety, reply_timeout_ms, functions, strokes, tolerance_counts, poll_ms, speed_mode
-        )
-        settings["profile"] = profile_setting(profile)
-        self._native = _native.ScuClient(resolve_port(port, self.family), settings)
-        super().__init__()
-        warn_profile_notices(self._native)
-
     def probe(
         self, *, save: Union[bool, str, Any] = False, exchanges: int = 20, low_latency: bool = False
     ) -> ProbeReport:
@@ -248,33 +220,3 @@ class AsyncScu(_Operations, AsyncClientBase):
     the block (or ``aclose()``, or the end of the program) first cancels the operations still under way
     (their awaiters get :class:`motionlink.Cancelled`), then sends RS for what the session started, then RA.
     """
-
-    family = "scu"
-
-    def __init__(
-        self,
-        port: Optional[Union[str, Any]] = None,
-        *,
-        baud: int = 38_400,
-        safety: int = 0,
-        reply_timeout_ms: int = 2000,
-        functions: Specs = (),
-        strokes: Specs = (),
-        tolerance_counts: int = 5,
-        poll_ms: int = 50,
-        speed_mode: str = "percent",
-        profile: Profile = True,
-    ) -> None:
-        self._port = resolve_port(port, self.family)
-        self._settings = _settings(
-            baud, safety, reply_timeout_ms, functions, strokes, tolerance_counts, poll_ms, speed_mode
-        )
-        self._settings["profile"] = profile_setting(profile)
-        super().__init__()
-
-    async def _open(self) -> Any:
-        return await run_native(lambda done: _native.AsyncScuClient.open(self._port, self._settings, done))
-
-    async def open(self) -> "AsyncScu":
-        """Opens the session (what ``async with`` does)."""
-        return await self.__aenter__()

@@ -151,6 +151,16 @@ impl<'py> Record<'py> {
     }
 }
 
+impl<'py> IntoPyObject<'py> for Record<'py> {
+    type Target = PyDict;
+    type Output = Bound<'py, PyDict>;
+    type Error = std::convert::Infallible;
+
+    fn into_pyobject(self, _py: Python<'py>) -> Result<Self::Output, Self::Error> {
+        Ok(self.0)
+    }
+}
+
 /// A client of any family, shared by the calls under way, until it is closed. A call takes a clone of the
 /// `Arc` (so a close waits for nothing but the calls' own ends); closing takes the client out, so that no
 /// new call starts, and cancels what still runs before it ends the session.
@@ -290,6 +300,32 @@ pub fn probe_setup(
     setup.exchanges = exchanges.max(1);
     setup.low_latency = low_latency;
     setup
+}
+
+/// A probe's report (nothing moves) as Python objects: `probe` runs without the GIL; with `save` (`""`: the
+/// default profiles file, else a path) `save_profile` then writes the profile of each device it found there.
+pub fn probe_py<'py, R: serde::Serialize>(
+    py: Python<'py>,
+    family: &'static str,
+    save: Option<String>,
+    probe: impl FnOnce() -> Result<R, Failure> + Send,
+    save_profile: fn(
+        &mut R,
+        &mut motionlink_link::profile::Profiles,
+    ) -> Result<(), motionlink_link::profile::ProfileError>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let usage = |e: String| Failure::usage(family, e);
+    let report = py
+        .detach(|| {
+            let mut report = probe()?;
+            if let Some(save) = save {
+                let mut profiles = profiles_for_save(family, &save)?;
+                save_profile(&mut report, &mut profiles).map_err(|e| usage(format!("save: {e}")))?;
+            }
+            serde_json::to_value(&report).map_err(|e| usage(e.to_string()))
+        })
+        .map_err(|f| crate::errors::to_pyerr(py, f))?;
+    json_py(py, &report)
 }
 
 /// The profiles file `save` names: `""` the default one (profiles.toml beside devices.toml), else a path.

@@ -4,6 +4,8 @@
 //! types and the clients their context managers.
 
 mod common;
+#[macro_use]
+mod faces;
 mod compax;
 mod emulator;
 mod errors;

@@ -1,21 +1,18 @@
 //! Parker COMPAX drives from Python: the native half of `motionlink.Compax`. Every operation is one call
 //! of `motionlink_compax::Client`; what stops a drive and how a move is checked are the library's.
 
-mod asyncio;
 mod watch;
-pub use asyncio::AsyncCompaxClient;
 pub use watch::CompaxWatch;
 
 use std::sync::Arc;
 use std::time::Duration;
 
-use motionlink_compax::client::{BusConfig, MoveOptions, MoveReport, MoveRequest, MoveTarget, TravelLimits};
+use motionlink_compax::client::{BusConfig, MoveReport, MoveRequest, MoveTarget, TravelLimits};
 use motionlink_compax::model::{
-    BaudRate, Command, ModelError, OutputNumber, OutputState, ParamId, PollInterval, Position, RampMs, ReplyTimeout,
+    BaudRate, ModelError, OutputNumber, OutputState, ParamId, PollInterval, Position, RampMs, ReplyTimeout,
     SpeedPercent, StatusId, TimeLimit, Tolerance, WatchInterval, WholeArg,
 };
 use motionlink_compax::report::{DrivePosition, ParamReading, StatusReading};
-use motionlink_compax::session::{Op, Output};
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_compax::{AsyncClient, Client, Error};
 use motionlink_link::cancel::CancelToken;
@@ -24,10 +21,10 @@ use motionlink_link::url::PortUrl;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::common::{json_py, target, Int, Record, Slot, Target};
+use crate::common::{target, Int, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::{block_on_runtime, deliver, interruptible, interruptible_read, spawn_task, NativeTask};
+use crate::wait::{block_on_runtime, deliver, spawn_task, NativeTask};
 
 const FAMILY: &str = "compax";
 
@@ -187,287 +184,290 @@ impl CompaxClient {
     }
 }
 
-fn cancel_cause<T>(py: Python<'_>, r: &Result<T, Error>) -> Option<PyErr> {
-    r.as_ref().err().map(|e| to_pyerr(py, e.failure()))
+/// An async session with COMPAX drives (the native half of `motionlink.AsyncCompax`): cancelling a move's,
+/// a homing's or a wait's task drops its future, which stops the drive (OUTPUT O0=0, confirmed by S17).
+#[pyclass(frozen, module = "motionlink._native")]
+pub struct AsyncCompaxClient {
+    slot: Slot<AsyncClient>,
+    drive: Address,
+    port: String,
+    profile: crate::common::ProfileUse,
 }
 
-#[pymethods]
-impl CompaxClient {
-    #[new]
-    fn py_new(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings) -> PyResult<Self> {
-        let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
-        let port = match &t {
-            Target::InProcess(_) => "in-process emulator".to_string(),
-            Target::Url(u) => u.to_string(),
-        };
-        let port_url = crate::common::profile_port(&t);
-        let drive: Address = whole(&settings.drive, "drive").map_err(|f| to_pyerr(py, f))?;
-        let baud: u32 = settings.baud.within(FAMILY, "baud", 1..=4_000_000).map_err(|f| to_pyerr(py, f))?;
-        let (client, profile) = py
-            .detach(|| {
-                let client = open(t, &settings)?;
-                let used = match crate::common::profile_lookup(settings.profile.as_deref(), port_url.as_deref()) {
-                    Ok((p, port)) => {
-                        motionlink_compax::probe::use_profile(&client, &p, &port, drive).map_err(|e| e.failure())?
-                    }
-                    Err(used) => used,
-                };
-                Ok::<_, Failure>((client, used))
-            })
-            .map_err(|f| to_pyerr(py, f))?;
-        let token = CancelToken::new();
-        client.set_cancel(token.clone());
-        let close_bound = client.config().close_bound;
-        let watches = Default::default();
-        let slot = Slot::new(client, FAMILY);
-        Ok(CompaxClient { slot, token, watches, drive, port, close_bound, port_url, baud, profile })
+impl AsyncCompaxClient {
+    fn client(&self, py: Python<'_>) -> PyResult<Arc<AsyncClient>> {
+        self.slot.get().map_err(|f| to_pyerr(py, f))
     }
 
-    /// The device profile the session took for its drive (`<path>#<key>`), or None.
-    #[getter]
-    fn profile(&self) -> Option<String> {
-        self.profile.reference.clone()
+    fn drive(&self, py: Python<'_>, drive: Option<Int>) -> PyResult<Address> {
+        drive.map_or(Ok(self.drive), |d| whole(&d, "drive")).map_err(|f| to_pyerr(py, f))
     }
+}
 
-    /// One line for each profile the session did not take (another identity, a file it could not read).
-    #[getter]
-    fn profile_notices(&self) -> Vec<String> {
-        self.profile.notices.clone()
-    }
+faces! {
+    CompaxClient / AsyncCompaxClient, Error;
 
-    /// `motionlink probe compax`'s report of the drives at `drives` (`"1-31"`, `"1,3"`), as a dict (nothing
-    /// moves); with `save` (`""`: the default profiles file, else a path) the profile of each drive is
-    /// written.
-    fn probe<'py>(
-        &self,
-        py: Python<'py>,
-        exchanges: u32,
-        low_latency: bool,
-        save: Option<String>,
-        drives: &str,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        let client = self.client(py)?;
-        let drives = motionlink_compax::probe::parse_drives(drives).map_err(|e| to_pyerr(py, usage(e)))?;
-        let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
-        let report = py
-            .detach(|| {
-                let mut report = motionlink_compax::probe::probe(&client, &setup, &drives).map_err(|e| e.failure())?;
-                if let Some(save) = save {
-                    let mut profiles = crate::common::profiles_for_save(FAMILY, &save)?;
-                    motionlink_compax::probe::save_profile(&mut report, &mut profiles)
-                        .map_err(|e| usage(format!("save: {e}")))?;
-                }
-                serde_json::to_value(&report).map_err(|e| usage(e.to_string()))
-            })
-            .map_err(|f| to_pyerr(py, f))?;
-        json_py(py, &report)
-    }
+    both {}
 
-    /// The port.
-    #[getter]
-    fn port(&self) -> String {
-        self.port.clone()
-    }
-
-    /// True until closed.
-    #[getter]
-    fn is_open(&self) -> bool {
-        self.slot.is_open()
-    }
-
-    /// Drives this session set in motion and has not seen stop.
-    fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
-        Ok(self.client(py)?.started().into_iter().map(|a| a.get()).collect())
-    }
-
-    /// Every drive that answers (addresses 1..31) with its position S1.
-    fn scan<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        let c = self.client(py)?;
-        // The library checks the cancel token before each address; Ctrl-C cancels it and raises at once
-        // (the address being asked ends within its reply timeout on the scan's thread).
-        let found = interruptible_read(py, Some(self.token.clone()), move || c.scan(1..=31))?.or_raise(py)?;
-        found.into_iter().map(|(a, p)| Ok(position_record(py, a, p)?.done())).collect()
-    }
-
-    /// Status values (S1 .. S40) by name ("S1") or number; none: the main ones ([`StatusId::OVERVIEW`]), as
-    /// the CLI's `status`.
-    #[pyo3(signature = (names, drive=None))]
-    fn status<'py>(
-        &self,
-        py: Python<'py>,
-        names: Vec<String>,
-        drive: Option<Int>,
-    ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        let c = self.client(py)?;
-        let a = self.drive(py, drive)?;
-        let mut ids: Vec<StatusId> =
-            names.iter().map(|n| checked(n.parse())).collect::<Result<_, _>>().map_err(|f| to_pyerr(py, f))?;
-        if ids.is_empty() {
-            ids = StatusId::OVERVIEW.to_vec();
-        }
-        let values =
-            interruptible_read(py, Some(self.token.clone()), move || c.read_statuses(a, &ids))?.or_raise(py)?;
-        values
-            .into_iter()
-            .map(|(id, value)| {
-                // As an entry of the CLI's `compax status --json` (`drive` and `id` are extra attributes).
-                let r = record(py, &StatusReading { id, value })?;
-                r.set("drive", a.get())?.set("id", id.get())?.extras(&["drive", "id"])?;
-                Ok(r.done())
-            })
-            .collect()
-    }
-
-    /// The actual position S1, in the drive's unit.
-    #[pyo3(signature = (drive=None))]
-    fn position(&self, py: Python<'_>, drive: Option<Int>) -> PyResult<f64> {
-        let c = self.client(py)?;
-        let a = self.drive(py, drive)?;
-        py.detach(|| c.read_position(a)).or_raise(py).map(|p| p.units())
-    }
-
-    /// Reads a parameter (P194, device_address).
-    #[pyo3(signature = (name, drive=None))]
-    fn get<'py>(&self, py: Python<'py>, name: &str, drive: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.client(py)?;
-        let a = self.drive(py, drive)?;
-        let id: ParamId = checked(name.parse()).map_err(|f| to_pyerr(py, f))?;
-        let value = interruptible_read(py, None, move || c.read_param(a, id))?.or_raise(py)?;
-        param_record(py, a, id, &ParamReading { id, value })
-    }
-
-    /// Writes a parameter and reads it back (a different value is a DeviceError).
-    #[pyo3(signature = (name, value, drive=None))]
-    fn set<'py>(&self, py: Python<'py>, name: &str, value: f64, drive: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.client(py)?;
-        let a = self.drive(py, drive)?;
-        let id = checked(name.parse::<ParamId>().and_then(|id| id.check(value).map(|()| id)))
-            .map_err(|f| to_pyerr(py, f))?;
-        // The library writes, compares what it reads back (a difference is an error) and reads once more:
-        // `read_back` is what the drive holds, not an echo of `value`.
-        let written = py.detach(|| c.set_param(a, id, value)).or_raise(py)?;
-        param_record(py, a, id, &written)
-    }
-
-    /// A checked move (absolute `target` or relative `distance`), waited for; Ctrl-C stops the drive.
-    #[pyo3(signature = (target=None, distance=None, drive=None, speed_percent=None, ramp_ms=None, min_units=None, max_units=None, timeout_s=600.0))]
-    #[allow(clippy::too_many_arguments)]
-    fn move_to<'py>(
-        &self,
-        py: Python<'py>,
-        target: Option<f64>,
-        distance: Option<f64>,
-        drive: Option<Int>,
-        speed_percent: Option<f64>,
-        ramp_ms: Option<Int>,
-        min_units: Option<f64>,
-        max_units: Option<f64>,
-        timeout_s: f64,
-    ) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.client(py)?;
-        let a = self.drive(py, drive)?;
-        let request =
-            move_request(target, distance, speed_percent, ramp_ms.as_ref(), (min_units, max_units), timeout_s)
+    blocking {
+        #[new]
+        fn py_new(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings) -> PyResult<Self> {
+            let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
+            let port = match &t {
+                Target::InProcess(_) => "in-process emulator".to_string(),
+                Target::Url(u) => u.to_string(),
+            };
+            let port_url = crate::common::profile_port(&t);
+            let drive: Address = whole(&settings.drive, "drive").map_err(|f| to_pyerr(py, f))?;
+            let baud: u32 = settings.baud.within(FAMILY, "baud", 1..=4_000_000).map_err(|f| to_pyerr(py, f))?;
+            let (client, profile) = py
+                .detach(|| {
+                    let client = open(t, &settings)?;
+                    let used = match crate::common::profile_lookup(settings.profile.as_deref(), port_url.as_deref()) {
+                        Ok((p, port)) => {
+                            motionlink_compax::probe::use_profile(&client, &p, &port, drive).map_err(|e| e.failure())?
+                        }
+                        Err(used) => used,
+                    };
+                    Ok::<_, Failure>((client, used))
+                })
                 .map_err(|f| to_pyerr(py, f))?;
-        let r = interruptible(py, Some(&self.token), || c.move_to(a, &request, &mut |_| {}), cancel_cause)?;
-        Ok(move_record(py, &r.or_raise(py)?)?.done())
-    }
+            let token = CancelToken::new();
+            client.set_cancel(token.clone());
+            let close_bound = client.config().close_bound;
+            let watches = Default::default();
+            let slot = Slot::new(client, FAMILY);
+            Ok(CompaxClient { slot, token, watches, drive, port, close_bound, port_url, baud, profile })
+        }
 
-    /// POSA HOME, waited for; Ctrl-C stops the drive.
-    #[pyo3(signature = (drive=None, timeout_s=600.0))]
-    fn home<'py>(&self, py: Python<'py>, drive: Option<Int>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.client(py)?;
-        let a = self.drive(py, drive)?;
-        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
-        let r = interruptible(
-            py,
-            Some(&self.token),
-            || -> Result<Position, Error> {
-                c.home(a, Default::default())?;
-                c.wait_reached(&[a], Some(timeout), &mut |_, _| {})?;
-                c.read_position(a)
-            },
-            cancel_cause,
-        )?;
-        let p = r.or_raise(py)?;
-        Ok(position_record(py, a, p)?.done())
-    }
+        /// `motionlink probe compax`'s report of the drives at `drives` (`"1-31"`, `"1,3"`), as a dict (nothing
+        /// moves); with `save` (`""`: the default profiles file, else a path) the profile of each drive is
+        /// written.
+        fn probe<'py>(
+            &self,
+            py: Python<'py>,
+            exchanges: u32,
+            low_latency: bool,
+            save: Option<String>,
+            drives: &str,
+        ) -> PyResult<Bound<'py, PyAny>> {
+            let client = self.client(py)?;
+            let drives = motionlink_compax::probe::parse_drives(drives).map_err(|e| to_pyerr(py, usage(e)))?;
+            let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
+            let probe = || motionlink_compax::probe::probe(&client, &setup, &drives).map_err(|e| e.failure());
+            crate::common::probe_py(py, FAMILY, save, probe, motionlink_compax::probe::save_profile)
+        }
 
-    /// Waits until the drive reports its positioning ended (S17); Ctrl-C stops the drive.
-    #[pyo3(signature = (drive=None, timeout_s=600.0))]
-    fn wait<'py>(&self, py: Python<'py>, drive: Option<Int>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.client(py)?;
-        let a = self.drive(py, drive)?;
-        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
-        let r = interruptible(
-            py,
-            Some(&self.token),
-            || -> Result<Position, Error> {
-                c.wait_reached(&[a], Some(timeout), &mut |_, _| {})?;
-                c.read_position(a)
-            },
-            cancel_cause,
-        )?;
-        let p = r.or_raise(py)?;
-        Ok(position_record(py, a, p)?.done())
-    }
+        /// True until closed.
+        #[getter]
+        fn is_open(&self) -> bool {
+            self.slot.is_open()
+        }
 
-    /// Stops the drive: OUTPUT O0=0 (switches it off; switch it on with `output(0, 1)`).
-    #[pyo3(signature = (drive=None))]
-    fn stop(&self, py: Python<'_>, drive: Option<Int>) -> PyResult<()> {
-        let c = self.client(py)?;
-        let a = self.drive(py, drive)?;
-        py.detach(|| c.stop(a)).or_raise(py)
-    }
+        /// Drives this session set in motion and has not seen stop.
+        fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
+            Ok(self.client(py)?.started().into_iter().map(|a| a.get()).collect())
+        }
 
-    /// Sets output `number` to `state` (OUTPUT Ox=y).
-    #[pyo3(signature = (number, state, drive=None))]
-    fn output(&self, py: Python<'_>, number: Int, state: Int, drive: Option<Int>) -> PyResult<()> {
-        let c = self.client(py)?;
-        let a = self.drive(py, drive)?;
-        let output = || -> Result<(OutputNumber, OutputState), Failure> {
-            let number: OutputNumber = whole(&number, "number (the output)")?;
-            let state: OutputState = whole(&state, "state (of the output)")?;
-            Ok((number, checked(state.for_output(number))?))
-        };
-        let (number, state) = output().map_err(|f| to_pyerr(py, f))?;
-        py.detach(|| c.set_output(a, number.get(), state, false)).or_raise(py)
-    }
+        /// Starts the library's watch of the drive (S1 and S17 every `interval_ms`, on a thread of its own):
+        /// the samples come from [`CompaxWatch::next`].
+        #[pyo3(signature = (drive, interval_ms))]
+        fn watch_start(&self, py: Python<'_>, drive: Option<Int>, interval_ms: Int) -> PyResult<CompaxWatch> {
+            let c = self.client(py)?;
+            let a = self.drive(py, drive)?;
+            let interval: WatchInterval = whole(&interval_ms, "interval_ms").map_err(|f| to_pyerr(py, f))?;
+            let w = CompaxWatch::start(c, a, interval.duration());
+            motionlink_link::clock::lock(&self.watches).push(w.token());
+            Ok(w)
+        }
 
-    /// Starts the library's watch of the drive (S1 and S17 every `interval_ms`, on a thread of its own):
-    /// the samples come from [`CompaxWatch::next`].
-    #[pyo3(signature = (drive, interval_ms))]
-    fn watch_start(&self, py: Python<'_>, drive: Option<Int>, interval_ms: Int) -> PyResult<CompaxWatch> {
-        let c = self.client(py)?;
-        let a = self.drive(py, drive)?;
-        let interval: WatchInterval = whole(&interval_ms, "interval_ms").map_err(|f| to_pyerr(py, f))?;
-        let w = CompaxWatch::start(c, a, interval.duration());
-        motionlink_link::clock::lock(&self.watches).push(w.token());
-        Ok(w)
-    }
-
-    /// Ends the session: stops what it set in motion that still moves (confirmed by S17); an exception if
-    /// a drive did not confirm.
-    fn close(&self, py: Python<'_>) -> PyResult<()> {
-        let bound = self.close_bound;
-        self.end_watches();
-        let taken = py.detach(|| self.slot.take(&self.token, bound));
-        match taken {
-            None => Ok(()),
-            Some(Ok(client)) => py.detach(|| client.close()).or_raise(py).map(|_| ()),
-            Some(Err(shared)) => {
-                let report = py.detach(|| shared.stop_started());
-                if report.all_confirmed() {
-                    Ok(())
-                } else {
-                    Err(to_pyerr(
-                        py,
-                        Failure::new(motionlink_link::error::ErrorClass::Device, FAMILY, format!("closing: {report}")),
-                    ))
+        /// Ends the session: stops what it set in motion that still moves (confirmed by S17); an exception if
+        /// a drive did not confirm.
+        fn close(&self, py: Python<'_>) -> PyResult<()> {
+            let bound = self.close_bound;
+            self.end_watches();
+            let taken = py.detach(|| self.slot.take(&self.token, bound));
+            match taken {
+                None => Ok(()),
+                Some(Ok(client)) => py.detach(|| client.close()).or_raise(py).map(|_| ()),
+                Some(Err(shared)) => {
+                    let report = py.detach(|| shared.stop_started());
+                    if report.all_confirmed() {
+                        Ok(())
+                    } else {
+                        Err(to_pyerr(
+                            py,
+                            Failure::new(
+                                motionlink_link::error::ErrorClass::Device,
+                                FAMILY,
+                                format!("closing: {report}"),
+                            ),
+                        ))
+                    }
                 }
             }
         }
     }
+
+    asynch {
+        /// Opens a session on the runtime (the port on its blocking pool): `done(ok, client)`.
+        #[staticmethod]
+        fn open(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings, done: Py<PyAny>) -> PyResult<NativeTask> {
+            let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
+            let port = match &t {
+                Target::InProcess(_) => "in-process emulator".to_string(),
+                Target::Url(u) => u.to_string(),
+            };
+            let lookup =
+                crate::common::profile_lookup(settings.profile.as_deref(), crate::common::profile_port(&t).as_deref());
+            Ok(spawn_task(done, async move {
+                let drive = whole(&settings.drive, "drive")?;
+                let (link, cfg) = crate::wait::on_blocking_pool(FAMILY, move || link(t, &settings)).await?;
+                let client = AsyncClient::new(link, clock(), cfg).map_err(|e| e.failure())?;
+                let profile = match lookup {
+                    Ok((p, port)) => motionlink_compax::probe::use_profile_async(&client, &p, &port, drive)
+                        .await
+                        .map_err(|e| e.failure())?,
+                    Err(used) => used,
+                };
+                let native = AsyncCompaxClient { slot: Slot::new(client, FAMILY), drive, port, profile };
+                deliver(move |py| Ok(Py::new(py, native)?.into_any()))
+            }))
+        }
+
+        /// Ends the session (stops what it set in motion that still moves): `done(ok, None)`.
+        fn close(&self, done: Py<PyAny>) -> NativeTask {
+            let taken = self.slot.take(&CancelToken::new(), Duration::ZERO);
+            spawn_task(done, async move {
+                match taken {
+                    None => {}
+                    Some(Ok(client)) => {
+                        client.close().await.map_err(|e| e.failure())?;
+                    }
+                    Some(Err(shared)) => {
+                        let report = shared.stop_started().await;
+                        if !report.all_confirmed() {
+                            return Err(Failure::new(
+                                motionlink_link::error::ErrorClass::Device,
+                                FAMILY,
+                                format!("closing: {report}"),
+                            ));
+                        }
+                    }
+                }
+                deliver(|py| Ok(py.None()))
+            })
+        }
+
+        /// Ends the session from synchronous code (atexit), waiting without the GIL.
+        fn close_blocking(&self, py: Python<'_>) -> PyResult<()> {
+            let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
+            match taken {
+                Ok(client) => block_on_runtime(py, client.close())?.or_raise(py).map(|_| ()),
+                Err(shared) => {
+                    block_on_runtime(py, async move { shared.stop_started().await })?;
+                    Ok(())
+                }
+            }
+        }
+    }
+
+    /// Every drive that answers (addresses 1..31) with its position S1. The library checks the cancel token
+    /// before each address; Ctrl-C cancels it and raises at once (the address being asked ends within its
+    /// reply timeout on the scan's thread).
+    blocking scan scan(me, py) {} |c| { c.scan(1..=31) } => |py, found| {
+        found.into_iter().map(|(a, p)| position_record(py, a, p)).collect::<PyResult<Vec<_>>>()
+    };
+
+    /// Status values (S1 .. S40) by name ("S1") or number; none: the main ones ([`StatusId::OVERVIEW`]), as
+    /// the CLI's `status`.
+    blocking scan status(me, py, names: Vec<String>, drive: Option<Int>) {
+        let a = me.drive(py, drive)?;
+        let ids = names.iter().map(|n| checked(n.parse::<StatusId>())).collect::<Result<Vec<_>, _>>();
+        let ids = ids.map_err(|f| to_pyerr(py, f))?;
+        let ids = if ids.is_empty() { StatusId::OVERVIEW.to_vec() } else { ids };
+    } |c| { c.read_statuses(a, &ids) } => |py, values| {
+        let entry = |(id, value): (StatusId, _)| {
+            // As an entry of the CLI's `compax status --json` (`drive` and `id` are extra attributes).
+            let r = record(py, &StatusReading { id, value })?;
+            r.set("drive", a.get())?.set("id", id.get())?.extras(&["drive", "id"])?;
+            Ok(r)
+        };
+        values.into_iter().map(entry).collect::<PyResult<Vec<_>>>()
+    };
+
+    /// Reads a parameter (P194, device_address).
+    blocking read get(me, py, name: String, drive: Option<Int>) {
+        let a = me.drive(py, drive)?;
+        let id = checked(name.parse::<ParamId>()).map_err(|f| to_pyerr(py, f))?;
+    } |c| { c.read_param(a, id) } => |py, value| param_record(py, a, id, &ParamReading { id, value });
+
+    /// Writes a parameter and reads it back (a different value is a DeviceError). The library writes,
+    /// compares what it reads back (a difference is an error) and reads once more: `read_back` is what the
+    /// drive holds, not an echo of `value`.
+    blocking quick set(me, py, name: String, value: f64, drive: Option<Int>) {
+        let a = me.drive(py, drive)?;
+        let id = checked(name.parse::<ParamId>().and_then(|id| id.check(value).map(|()| id)))
+            .map_err(|f| to_pyerr(py, f))?;
+    } |c| { c.set_param(a, id, value) } => |py, written| param_record(py, a, id, &written);
+
+    /// Sets output `number` to `state` (OUTPUT Ox=y).
+    blocking quick output(me, py, number: Int, state: Int, drive: Option<Int>) {
+        let a = me.drive(py, drive)?;
+        let output = |number, state| -> Result<_, Failure> {
+            let number = whole::<OutputNumber>(number, "number (the output)")?;
+            let state = whole::<OutputState>(state, "state (of the output)")?;
+            Ok((number, checked(state.for_output(number))?))
+        };
+        let (number, state) = output(&number, &state).map_err(|f| to_pyerr(py, f))?;
+    } |c| { c.set_output(a, number.get(), state, false) } => |py, done| Ok(done);
+
+    /// The actual position S1, in the drive's unit.
+    quick position(me, py, drive: Option<Int>) {
+        let a = me.drive(py, drive)?;
+    } |c| { w!(c.read_position(a)) } => |py, p| Ok(p.units());
+
+    /// A checked move (absolute `target` or relative `distance`), waited for; Ctrl-C, or cancelling the
+    /// task, stops the drive.
+    motion move_to(
+        me, py, target: Option<f64>, distance: Option<f64>, drive: Option<Int>, speed_percent: Option<f64>,
+        ramp_ms: Option<Int>, min_units: Option<f64>, max_units: Option<f64>, timeout_s: f64
+    ) {
+        let a = me.drive(py, drive)?;
+        let request =
+            move_request(target, distance, speed_percent, ramp_ms.as_ref(), (min_units, max_units), timeout_s)
+                .map_err(|f| to_pyerr(py, f))?;
+    } |c| { w!(c => move_to(a, &request); &mut |_| {}) } => |py, r| move_record(py, &r);
+
+    /// POSA HOME, waited for; Ctrl-C, or cancelling the task, stops the drive.
+    motion home(me, py, drive: Option<Int>, timeout_s: f64) {
+        let a = me.drive(py, drive)?;
+        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
+    } |c| {
+        w!(c.home(a, Default::default()))?;
+        w!(c => wait_reached(&[a], Some(timeout)); &mut |_, _| {})?;
+        w!(c.read_position(a))
+    } => |py, p| position_record(py, a, p);
+
+    /// Waits until the drive reports its positioning ended (S17); its position then. Ctrl-C stops the
+    /// drive; so does cancelling the task (the wait's future stops nothing when dropped: the motion may be
+    /// another call's, so the drive is stopped here: OUTPUT O0=0, confirmed by S17).
+    motion wait(me, py, drive: Option<Int>, timeout_s: f64) {
+        let a = me.drive(py, drive)?;
+        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
+    } |c| {
+        w!(c => wait_reached(&[a], Some(timeout)); &mut |_, _| {})?;
+        w!(c.read_position(a))
+    } else |stopping| {
+        if let Err(e) = stopping.stop(a).await {
+            crate::wait::say_stop_failed(&format!("drive {a}: the stop after a cancelled wait failed: {e}"));
+        }
+    } => |py, p| position_record(py, a, p);
+
+    /// Stops the drive: OUTPUT O0=0 (switches it off; switch it on with `output(0, 1)`).
+    quick stop(me, py, drive: Option<Int>) {
+        let a = me.drive(py, drive)?;
+    } |c| { w!(c.stop(a)) } => |py, done| Ok(done);
 }
 
 /// The in-position tolerance the library uses unless told otherwise.

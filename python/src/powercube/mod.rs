@@ -2,9 +2,7 @@
 //! `motionlink.AsyncPowerCube` (asyncio). Every operation is one call of the family's `Client` /
 //! `AsyncClient`; what stops a module and when its watchdog is armed are the library's.
 
-mod asyncio;
 mod records;
-pub use asyncio::AsyncPowerCubeClient;
 use records::*;
 
 use std::sync::Arc;
@@ -20,14 +18,11 @@ use motionlink_powercube::model::{Address, AxisUnit, CubeState, ModuleKind, Para
 use motionlink_powercube::report::{ParamReading, SetReport};
 use motionlink_powercube::{AsyncClient, Error};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
 
-use crate::common::{f32_py, json_py, target, Int, Record, Slot, Target};
+use crate::common::{f32_py, target, Int, Record, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::{
-    block_on_runtime, deliver, interruptible, interruptible_read, spawn_task, spawn_task_stopping, NativeTask, Outcome,
-};
+use crate::wait::{block_on_runtime, deliver, spawn_task, NativeTask};
 
 const FAMILY: &str = "powercube";
 
@@ -210,290 +205,277 @@ fn address_or(default: u8, py: Python<'_>, module: Option<Int>) -> PyResult<u8> 
     }
 }
 
-fn cancel_cause<T>(py: Python<'_>, r: &Result<T, Error>) -> Option<PyErr> {
-    r.as_ref().err().map(|e| to_pyerr(py, e.failure()))
+/// An async session with PowerCube modules (the native half of `motionlink.AsyncPowerCube`): the long
+/// operations are coroutines; cancelling one (its task) halts the module.
+#[pyclass(frozen, module = "motionlink._native")]
+pub struct AsyncPowerCubeClient {
+    slot: Slot<AsyncClient>,
+    guard: Guard,
+    module: u8,
+    port: String,
+    profile: crate::common::ProfileUse,
 }
 
-#[pymethods]
-impl PowerCubeClient {
-    #[new]
-    fn py_new(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings) -> PyResult<Self> {
-        let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
-        let port_url = crate::common::profile_port(&t);
-        let module = module_address(&settings.module).map_err(|f| to_pyerr(py, f))?;
-        let baud: u32 = settings.baud.within(FAMILY, "baud", 1..=4_000_000).map_err(|f| to_pyerr(py, f))?;
-        let (client, in_process, profile) = py.detach(|| open_profiled(t, &settings)).map_err(|f| to_pyerr(py, f))?;
-        let token = CancelToken::new();
-        client.set_cancel(token.clone());
-        let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !settings.watchdog);
-        let port = client.port().to_string();
-        let close_bound = client.config().close_bound;
-        Ok(PowerCubeClient {
-            slot: Slot::new(client, FAMILY),
-            token,
-            guard,
-            module,
-            port,
-            close_bound,
-            port_url,
-            baud,
-            profile,
-        })
+impl AsyncPowerCubeClient {
+    fn client(&self, py: Python<'_>) -> PyResult<Arc<AsyncClient>> {
+        self.slot.get().map_err(|f| to_pyerr(py, f))
     }
 
-    /// The device profile the session took for its module (`<path>#<key>`), or None.
-    #[getter]
-    fn profile(&self) -> Option<String> {
-        self.profile.reference.clone()
+    fn address(&self, py: Python<'_>, module: Option<Int>) -> PyResult<u8> {
+        address_or(self.module, py, module)
     }
+}
 
-    /// One line for each profile the session did not take (another identity, a file it could not read).
-    #[getter]
-    fn profile_notices(&self) -> Vec<String> {
-        self.profile.notices.clone()
-    }
+faces! {
+    PowerCubeClient / AsyncPowerCubeClient, Error;
 
-    /// `motionlink probe powercube`'s report of the bus, as a dict (nothing moves); with `save` (`""`: the
-    /// default profiles file, else a path) the profile of each module is written.
-    fn probe<'py>(
-        &self,
-        py: Python<'py>,
-        exchanges: u32,
-        low_latency: bool,
-        save: Option<String>,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        let client = self.client(py)?;
-        let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
-        let report = py
-            .detach(|| {
-                let mut report = motionlink_powercube::probe::probe(&client, &setup).map_err(|e| e.failure())?;
-                if let Some(save) = save {
-                    let mut profiles = crate::common::profiles_for_save(FAMILY, &save)?;
-                    motionlink_powercube::probe::save_profile(&mut report, &mut profiles)
-                        .map_err(|e| usage(format!("save: {e}")))?;
-                }
-                serde_json::to_value(&report).map_err(|e| usage(e.to_string()))
+    both {}
+
+    blocking {
+        #[new]
+        fn py_new(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings) -> PyResult<Self> {
+            let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
+            let port_url = crate::common::profile_port(&t);
+            let module = module_address(&settings.module).map_err(|f| to_pyerr(py, f))?;
+            let baud: u32 = settings.baud.within(FAMILY, "baud", 1..=4_000_000).map_err(|f| to_pyerr(py, f))?;
+            let (client, in_process, profile) = py.detach(|| open_profiled(t, &settings)).map_err(|f| to_pyerr(py, f))?;
+            let token = CancelToken::new();
+            client.set_cancel(token.clone());
+            let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !settings.watchdog);
+            let port = client.port().to_string();
+            let close_bound = client.config().close_bound;
+            Ok(PowerCubeClient {
+                slot: Slot::new(client, FAMILY),
+                token,
+                guard,
+                module,
+                port,
+                close_bound,
+                port_url,
+                baud,
+                profile,
             })
-            .map_err(|f| to_pyerr(py, f))?;
-        json_py(py, &report)
-    }
+        }
 
-    /// The port, as the link describes it.
-    #[getter]
-    fn port(&self) -> String {
-        self.port.clone()
-    }
+        /// `motionlink probe powercube`'s report of the bus, as a dict (nothing moves); with `save` (`""`: the
+        /// default profiles file, else a path) the profile of each module is written.
+        fn probe<'py>(
+            &self,
+            py: Python<'py>,
+            exchanges: u32,
+            low_latency: bool,
+            save: Option<String>,
+        ) -> PyResult<Bound<'py, PyAny>> {
+            let client = self.client(py)?;
+            let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
+            let probe = || motionlink_powercube::probe::probe(&client, &setup).map_err(|e| e.failure());
+            crate::common::probe_py(py, FAMILY, save, probe, motionlink_powercube::probe::save_profile)
+        }
 
-    /// True until closed.
-    #[getter]
-    fn is_open(&self) -> bool {
-        self.slot.is_open()
-    }
+        /// True until closed.
+        #[getter]
+        fn is_open(&self) -> bool {
+            self.slot.is_open()
+        }
 
-    /// Modules this session set in motion and has not seen stop.
-    fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
-        Ok(self.client(py)?.started().into_iter().map(|a| a.get()).collect())
-    }
+        /// Modules this session set in motion and has not seen stop.
+        fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
+            Ok(self.client(py)?.started().into_iter().map(|a| a.get()).collect())
+        }
 
-    /// Every module on the bus: a list of records (`error` set for a module that answered but could not be
-    /// read).
-    fn scan<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        let c = self.client(py)?;
-        // Ctrl-C raises at once and cancels the session's token: the scan, which watches it, ends on its
-        // thread at once (the address being asked is not waited for).
-        let found = interruptible_read(py, Some(self.token.clone()), move || c.scan())?.or_raise(py)?;
-        found
-            .iter()
-            .map(|e| {
-                let r = record(py, e.address.get(), e, e.info.as_ref().ok().map(|i| i.kind), &[])?;
-                Ok(r.done())
-            })
-            .collect()
-    }
-
-    /// Type, version, serial number, state and limits of a module.
-    #[pyo3(signature = (module=None))]
-    fn info<'py>(&self, py: Python<'py>, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.client(py)?;
-        let a = self.address(py, module)?;
-        let details = interruptible_read(py, None, move || c.module(Address::new(a)?).details())?.or_raise(py)?;
-        Ok(record(py, a, &details, Some(details.info.kind), &[])?.done())
-    }
-
-    /// The state word, flag by flag.
-    #[pyo3(signature = (module=None))]
-    fn state<'py>(&self, py: Python<'py>, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.client(py)?;
-        let a = self.address(py, module)?;
-        let s = interruptible_read(py, None, move || c.module(Address::new(a)?).state())?.or_raise(py)?;
-        Ok(state_record(py, a, s)?.done())
-    }
-
-    /// One sample of `watch`: the position and the state word.
-    #[pyo3(signature = (module=None))]
-    fn sample<'py>(&self, py: Python<'py>, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.client(py)?;
-        let a = self.address(py, module)?;
-        let p = interruptible_read(py, None, move || -> Result<_, Error> {
-            let m = c.module(Address::new(a)?);
-            let kind = m.kind()?;
-            let s = m.state()?;
-            Ok((kind, in_unit(m.position()?, kind), s))
-        })?
-        .or_raise(py)?;
-        Ok(sample_record(py, a, p.0, p.1, p.2)?.done())
-    }
-
-    /// The actual position: (value, unit) with unit "rad", "m", or "module" while the kind is not known.
-    #[pyo3(signature = (module=None))]
-    fn position(&self, py: Python<'_>, module: Option<Int>) -> PyResult<(u8, f64, &'static str)> {
-        let c = self.client(py)?;
-        let a = self.address(py, module)?;
-        let p = py
-            .detach(|| -> Result<_, Error> {
-                let m = c.module(Address::new(a)?);
-                // The kind names the unit (rad or m); the session keeps it after the first read.
-                let kind = m.kind()?;
-                Ok(in_unit(m.position()?, kind))
-            })
-            .or_raise(py)?;
-        Ok((a, f32_py(p.value()), suffix(p.unit()).1))
-    }
-
-    /// Reads a parameter by name (ActPos) or id (60, 0x3c).
-    #[pyo3(signature = (name, module=None))]
-    fn get<'py>(&self, py: Python<'py>, name: &str, module: Option<Int>) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.client(py)?;
-        let a = self.address(py, module)?;
-        let p = parse_param(name).map_err(|f| to_pyerr(py, f))?;
-        let reading = interruptible_read(py, None, move || -> Result<_, Error> {
-            let m = c.module(Address::new(a)?);
-            Ok(ParamReading { param: p, value: m.get(p)?, kind: m.kind()? })
-        })?
-        .or_raise(py)?;
-        Ok(get_record(py, a, &reading)?.done())
-    }
-
-    /// Writes a parameter, refusing a target beyond its limit, and reads it back.
-    #[pyo3(signature = (name, value, module=None))]
-    fn set<'py>(
-        &self,
-        py: Python<'py>,
-        name: &str,
-        value: &Bound<'py, PyAny>,
-        module: Option<Int>,
-    ) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.client(py)?;
-        let a = self.address(py, module)?;
-        let p = parse_param(name).map_err(|f| to_pyerr(py, f))?;
-        let v = parse_value(p, value).map_err(|f| to_pyerr(py, f))?;
-        let (readback, kind) = py
-            .detach(|| -> Result<_, Error> {
-                let m = c.module(Address::new(a)?);
-                Ok((m.set_checked(p, v)?, m.kind()?))
-            })
-            .or_raise(py)?;
-        Ok(set_record(py, a, kind, &SetReport { param: p, value: v, readback })?.done())
-    }
-
-    /// Homes the module and waits for the end of homing (Ctrl-C halts it).
-    #[pyo3(signature = (module=None, timeout_s=60.0))]
-    fn home<'py>(&self, py: Python<'py>, module: Option<Int>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.client(py)?;
-        let a = self.address(py, module)?;
-        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
-        let guard = self.guard;
-        let r = interruptible(
-            py,
-            Some(&self.token),
-            || c.module(Address::new(a)?).home_guarded(timeout, guard, &mut |_| {}),
-            cancel_cause,
-        )?;
-        Ok(home_record(py, a, &r.or_raise(py)?)?.done())
-    }
-
-    /// A checked ramp move to `target` (the module's unit: rad or m), waited for (Ctrl-C halts it).
-    #[pyo3(signature = (target, module=None, velocity=None, acceleration=None, tolerance=None, timeout_s=60.0))]
-    #[allow(clippy::too_many_arguments)]
-    fn move_to<'py>(
-        &self,
-        py: Python<'py>,
-        target: f64,
-        module: Option<Int>,
-        velocity: Option<f64>,
-        acceleration: Option<f64>,
-        tolerance: Option<f64>,
-        timeout_s: f64,
-    ) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.client(py)?;
-        let a = self.address(py, module)?;
-        let spec = move_spec(target, velocity, acceleration, tolerance, timeout_s).map_err(|f| to_pyerr(py, f))?;
-        let guard = self.guard;
-        let r = interruptible(
-            py,
-            Some(&self.token),
-            || c.module(Address::new(a)?).move_to_guarded(&spec, guard, &mut |_| {}),
-            cancel_cause,
-        )?;
-        Ok(move_record(py, a, &r.or_raise(py)?)?.done())
-    }
-
-    /// Waits until the module stands still (no STATE_MOTION; Ctrl-C halts it); the state at the end.
-    #[pyo3(signature = (module=None, timeout_s=60.0))]
-    fn wait<'py>(&self, py: Python<'py>, module: Option<Int>, timeout_s: f64) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.client(py)?;
-        let a = self.address(py, module)?;
-        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
-        let r = interruptible(
-            py,
-            Some(&self.token),
-            || c.module(Address::new(a)?).wait_motion_end(timeout, &mut |_| {}),
-            cancel_cause,
-        )?;
-        Ok(state_record(py, a, r.or_raise(py)?)?.done())
-    }
-
-    /// Halts the module at once (it stays halted until a reset).
-    #[pyo3(signature = (module=None))]
-    fn stop(&self, py: Python<'_>, module: Option<Int>) -> PyResult<()> {
-        let c = self.client(py)?;
-        let a = self.address(py, module)?;
-        py.detach(|| c.module(Address::new(a)?).halt()).or_raise(py)
-    }
-
-    /// Resets the module's error state; true if it switched off a watchdog a dead host left expired.
-    #[pyo3(signature = (module=None))]
-    fn reset(&self, py: Python<'_>, module: Option<Int>) -> PyResult<bool> {
-        let c = self.client(py)?;
-        let a = self.address(py, module)?;
-        py.detach(|| c.module(Address::new(a)?).reset_and_release_watchdog()).or_raise(py)
-    }
-
-    /// Ends the session: halts what it set in motion, switches its watchdogs off, and says whether that
-    /// was confirmed (an exception if not). Closing twice does nothing.
-    fn close(&self, py: Python<'_>) -> PyResult<()> {
-        let bound = self.close_bound;
-        let taken = py.detach(|| self.slot.take(&self.token, bound));
-        match taken {
-            None => Ok(()),
-            Some(Ok(client)) => py.detach(|| client.close()).or_raise(py),
-            Some(Err(shared)) => py.detach(|| shared.halt_started()).or_raise(py),
+        /// Ends the session: halts what it set in motion, switches its watchdogs off, and says whether that
+        /// was confirmed (an exception if not). Closing twice does nothing.
+        fn close(&self, py: Python<'_>) -> PyResult<()> {
+            let bound = self.close_bound;
+            let taken = py.detach(|| self.slot.take(&self.token, bound));
+            match taken {
+                None => Ok(()),
+                Some(Ok(client)) => py.detach(|| client.close()).or_raise(py),
+                Some(Err(shared)) => py.detach(|| shared.halt_started()).or_raise(py),
+            }
         }
     }
 
+    asynch {
+        /// Opens a session on the runtime (the port is opened on its blocking pool): `done(ok, client)`.
+        #[staticmethod]
+        fn open(
+            py: Python<'_>,
+            port: &Bound<'_, PyAny>,
+            settings: &Bound<'_, PyAny>,
+            done: Py<PyAny>,
+        ) -> PyResult<NativeTask> {
+            let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
+            let s: Settings = settings.extract()?;
+            Ok(spawn_task(done, async move {
+                let module = module_address(&s.module)?;
+                let watchdog = s.watchdog;
+                let (client, in_process, profile) =
+                    crate::wait::on_blocking_pool(FAMILY, move || open_profiled(t, &s)).await?;
+                let client = AsyncClient::open(move || Ok(client)).await.map_err(|e| e.failure())?;
+                let port = client.port().to_string();
+                let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !watchdog);
+                let native = AsyncPowerCubeClient { slot: Slot::new(client, FAMILY), guard, module, port, profile };
+                deliver(move |py| Ok(Py::new(py, native)?.into_any()))
+            }))
+        }
+
+        /// Ends the session (halts what it set in motion): `done(ok, None)`.
+        fn close(&self, done: Py<PyAny>) -> NativeTask {
+            let taken = self.slot.take(&CancelToken::new(), Duration::ZERO);
+            spawn_task(done, async move {
+                match taken {
+                    None => {}
+                    Some(Ok(client)) => client.close().await.map_err(|e| e.failure())?,
+                    Some(Err(shared)) => shared.halt_started().await.map_err(|e| e.failure())?,
+                }
+                deliver(|py| Ok(py.None()))
+            })
+        }
+
+        /// Ends the session from synchronous code (atexit), waiting without the GIL.
+        fn close_blocking(&self, py: Python<'_>) -> PyResult<()> {
+            let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
+            let r = match taken {
+                Ok(client) => block_on_runtime(py, client.close())?,
+                Err(shared) => block_on_runtime(py, async move { shared.halt_started().await })?,
+            };
+            r.or_raise(py)
+        }
+    }
+
+
+    /// Every module on the bus (`error` set for a module that answered but could not be read). Ctrl-C
+    /// raises at once and cancels the session's token: the scan, which watches it, ends on its thread at
+    /// once (the address being asked is not waited for).
+    blocking scan scan(me, py) {} |c| { c.scan() } => |py, found| {
+        let kind = |e: &motionlink_powercube::client::ScanEntry| e.info.as_ref().ok().map(|i| i.kind);
+        found.iter().map(|e| record(py, e.address.get(), e, kind(e), &[])).collect::<PyResult<Vec<_>>>()
+    };
+
+    /// Type, version, serial number, state and limits of a module.
+    blocking read info(me, py, module: Option<Int>) {
+        let a = me.address(py, module)?;
+    } |c| { c.module(Address::new(a)?).details() } => |py, d| record(py, a, &d, Some(d.info.kind), &[]);
+
+    /// One sample of `watch`: the position and the state word.
+    blocking read sample(me, py, module: Option<Int>) {
+        let a = me.address(py, module)?;
+    } |c| {
+        let m = c.module(Address::new(a)?);
+        let kind = m.kind()?;
+        let s = m.state()?;
+        Ok((kind, in_unit(m.position()?, kind), s))
+    } => |py, p| sample_record(py, a, p.0, p.1, p.2);
+
+    /// Reads a parameter by name (ActPos) or id (60, 0x3c).
+    blocking read get(me, py, name: String, module: Option<Int>) {
+        let a = me.address(py, module)?;
+        let p = parse_param(&name).map_err(|f| to_pyerr(py, f))?;
+    } |c| {
+        let m = c.module(Address::new(a)?);
+        Ok(ParamReading { param: p, value: m.get(p)?, kind: m.kind()? })
+    } => |py, reading| get_record(py, a, &reading);
+
+    /// Writes a parameter, refusing a target beyond its limit, and reads it back.
+    blocking quick set(me, py, name: String, value: Bound<'_, PyAny>, module: Option<Int>) {
+        let a = me.address(py, module)?;
+        let p = parse_param(&name).map_err(|f| to_pyerr(py, f))?;
+        let v = parse_value(p, &value).map_err(|f| to_pyerr(py, f))?;
+    } |c| {
+        let m = c.module(Address::new(a)?);
+        Ok((m.set_checked(p, v)?, m.kind()?))
+    } => |py, (readback, kind)| set_record(py, a, kind, &SetReport { param: p, value: v, readback });
+
+    /// Resets the module's error state; true if it switched off a watchdog a dead host left expired.
+    blocking quick reset(me, py, module: Option<Int>) {
+        let a = me.address(py, module)?;
+    } |c| { c.module(Address::new(a)?).reset_and_release_watchdog() } => |py, released| Ok(released);
+
     /// Loops `n` position reads in Rust (no Python in between): the benchmark's reference.
-    #[pyo3(signature = (n, module=None))]
-    fn _bench_native_reads(&self, py: Python<'_>, n: u32, module: Option<Int>) -> PyResult<f64> {
-        let c = self.client(py)?;
-        let a = self.address(py, module)?;
-        py.detach(|| -> Result<f64, Error> {
-            let m = c.module(Address::new(a)?);
-            let start = std::time::Instant::now();
-            for _ in 0..n {
-                std::hint::black_box(m.position()?);
-            }
-            Ok(start.elapsed().as_secs_f64())
-        })
-        .or_raise(py)
+    blocking quick _bench_native_reads(me, py, n: u32, module: Option<Int>) {
+        let a = me.address(py, module)?;
+    } |c| {
+        let m = c.module(Address::new(a)?);
+        let start = std::time::Instant::now();
+        for _ in 0..n {
+            std::hint::black_box(m.position()?);
+        }
+        Ok(start.elapsed().as_secs_f64())
+    } => |py, seconds| Ok(seconds);
+
+    /// The actual position: (module, value, unit) with unit "rad", "m", or "module" while the kind is not
+    /// known.
+    quick position(me, py, module: Option<Int>) {
+        let a = me.address(py, module)?;
+    } |c| {
+        let m = c.module(Address::new(a)?);
+        // The kind names the unit (rad or m); the session keeps it after the first read.
+        let kind = w!(m.kind())?;
+        Ok(in_unit(w!(m.position())?, kind))
+    } => |py, p| Ok((a, f32_py(p.value()), suffix(p.unit()).1));
+
+    /// The state word, flag by flag.
+    read state(me, py, module: Option<Int>) {
+        let a = me.address(py, module)?;
+    } |c| { w!(c.module(Address::new(a)?).state()) } => |py, s| state_record(py, a, s);
+
+    /// Homes the module and waits for the end of homing (Ctrl-C, or cancelling the task, halts it).
+    motion home(me, py, module: Option<Int>, timeout_s: f64) {
+        let a = me.address(py, module)?;
+        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let guard = me.guard;
+    } |c| { w!(c.module(Address::new(a)?) => home_guarded(timeout, guard); &mut |_| {}) }
+    => |py, r| home_record(py, a, &r);
+
+    /// A checked ramp move to `target` (the module's unit: rad or m), waited for (Ctrl-C, or cancelling the
+    /// task, halts it).
+    motion move_to(
+        me, py, target: f64, module: Option<Int>, velocity: Option<f64>, acceleration: Option<f64>,
+        tolerance: Option<f64>, timeout_s: f64
+    ) {
+        let a = me.address(py, module)?;
+        let spec =
+            move_spec(target, velocity, acceleration, tolerance, timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let guard = me.guard;
+    } |c| { w!(c.module(Address::new(a)?) => move_to_guarded(&spec, guard); &mut |_| {}) }
+    => |py, r| move_record(py, a, &r);
+
+    /// Waits until the module stands still (no STATE_MOTION); the state at the end. Ctrl-C halts it; so does
+    /// cancelling the task (the wait's future stops nothing when dropped: the motion may be another call's,
+    /// so the module is halted here).
+    motion wait(me, py, module: Option<Int>, timeout_s: f64) {
+        let a = me.address(py, module)?;
+        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
+    } |c| { w!(c.module(Address::new(a)?) => wait_motion_end(timeout); &mut |_| {}) }
+    else |halting| {
+        if let Err(e) = async { halting.module(Address::new(a)?).halt().await }.await {
+            crate::wait::say_stop_failed(&format!("module {a}: the halt after a cancelled wait failed: {e}"));
+        }
+    } => |py, s| state_record(py, a, s);
+
+    /// Halts the module at once (it stays halted until a reset).
+    quick stop(me, py, module: Option<Int>) {
+        let a = me.address(py, module)?;
+    } |c| { w!(c.module(Address::new(a)?).halt()) } => |py, done| Ok(done);
+}
+
+impl Drop for AsyncPowerCubeClient {
+    fn drop(&mut self) {
+        // Not closed by its owner: the session ends on the runtime's blocking pool (stopping what it
+        // started), not on the thread that happens to drop the object (which may hold the GIL).
+        if let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) {
+            crate::wait::runtime().spawn(async move { drop(taken) });
+        }
+    }
+}
+
+impl Drop for PowerCubeClient {
+    fn drop(&mut self) {
+        // Not closed by its owner (garbage-collected): the session ends here, stopping what it started as
+        // the family's client does when dropped, without holding the GIL while it waits for the device.
+        if let Some(taken) = self.slot.take(&self.token, self.close_bound) {
+            Python::attach(|py| py.detach(move || drop(taken)));
+        }
     }
 }

@@ -4,9 +4,6 @@
 //! the command line's), and every result is the library's report as it serialises (the command line's
 //! `--json` names), converted to Python objects.
 
-mod asyncio;
-pub use asyncio::AsyncScuClient;
-
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -27,7 +24,7 @@ use pyo3::prelude::*;
 use crate::common::{json_py, target, Int, Slot, Target};
 use crate::emulator::{clock, InProcess};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::{block_on_runtime, deliver, interruptible, interruptible_read, spawn_task, NativeTask};
+use crate::wait::{block_on_runtime, deliver, spawn_task, NativeTask};
 
 const FAMILY: &str = "scu";
 
@@ -244,220 +241,214 @@ impl ScuClient {
     }
 }
 
-fn cancel_cause<T>(py: Python<'_>, r: &Result<T, Error>) -> Option<PyErr> {
-    r.as_ref().err().map(|e| to_pyerr(py, e.failure()))
+/// An async session with an SCU (the native half of `motionlink.AsyncScu`): the operations run on the
+/// library's runtime; cancelling a move's or a run's task drops its future, which stops the function
+/// (fast RS, confirmed).
+#[pyclass(frozen, module = "motionlink._native")]
+pub struct AsyncScuClient {
+    slot: Slot<AsyncClient>,
+    port: String,
+    speed_mode: SpeedMode,
+    profile: crate::common::ProfileUse,
 }
 
-#[pymethods]
-impl ScuClient {
-    #[new]
-    fn py_new(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings) -> PyResult<Self> {
-        let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
-        let port_url = port_url(&t);
-        let baud: u32 = checked::<Baud>(&settings.baud, "baud").map_err(|f| to_pyerr(py, f))?.get();
-        let (client, profile) = py
-            .detach(|| {
-                let client = open(t, &settings)?;
-                let used = match crate::common::profile_lookup(settings.profile.as_deref(), port_url.as_deref()) {
-                    Ok((p, port)) => motionlink_scu::probe::use_profile(&client, &p, &port).map_err(|e| e.failure())?,
+impl AsyncScuClient {
+    fn client(&self, py: Python<'_>) -> PyResult<Arc<AsyncClient>> {
+        self.slot.get().map_err(|f| to_pyerr(py, f))
+    }
+}
+
+faces! {
+    ScuClient / AsyncScuClient, Error;
+
+    both {}
+
+    blocking {
+        #[new]
+        fn py_new(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings) -> PyResult<Self> {
+            let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
+            let port_url = port_url(&t);
+            let baud: u32 = checked::<Baud>(&settings.baud, "baud").map_err(|f| to_pyerr(py, f))?.get();
+            let (client, profile) = py
+                .detach(|| {
+                    let client = open(t, &settings)?;
+                    let used = match crate::common::profile_lookup(settings.profile.as_deref(), port_url.as_deref()) {
+                        Ok((p, port)) => {
+                            motionlink_scu::probe::use_profile(&client, &p, &port).map_err(|e| e.failure())?
+                        }
+                        Err(used) => used,
+                    };
+                    Ok::<_, Failure>((client, used))
+                })
+                .map_err(|f| to_pyerr(py, f))?;
+            let port = client.port().to_string();
+            let speed_mode = client.config().speed_mode;
+            let close_bound = client.config().close_bound;
+            let slot = Slot::new(client, FAMILY);
+            Ok(ScuClient { slot, token: CancelToken::new(), port, speed_mode, close_bound, port_url, baud, profile })
+        }
+
+        /// `motionlink probe scu`'s report of this unit, as a dict (nothing moves); with `save` (`""`: the
+        /// default profiles file, else a path) its profile is written.
+        fn probe<'py>(
+            &self,
+            py: Python<'py>,
+            exchanges: u32,
+            low_latency: bool,
+            save: Option<String>,
+        ) -> PyResult<Bound<'py, PyAny>> {
+            let client = self.client(py)?;
+            let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
+            let probe = || motionlink_scu::probe::probe(&client, &setup).map_err(|e| e.failure());
+            crate::common::probe_py(py, FAMILY, save, probe, motionlink_scu::probe::save_profile)
+        }
+
+        /// True until closed.
+        #[getter]
+        fn is_open(&self) -> bool {
+            self.slot.is_open()
+        }
+
+        /// Motion functions (numbers 1..10) this session started and has not seen stop.
+        fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
+            Ok(self.client(py)?.started().into_iter().map(|f| f.number()).collect())
+        }
+
+        /// Ends the session: RS for every function it started, then RA; an exception if that was not confirmed.
+        fn close(&self, py: Python<'_>) -> PyResult<()> {
+            let bound = self.close_bound;
+            let taken = py.detach(|| self.slot.take(&self.token, bound));
+            match taken {
+                None => Ok(()),
+                Some(Ok(client)) => py.detach(|| client.close()).or_raise(py),
+                // A call of another thread still runs: it was cancelled (its motion stops) and the session ends
+                // (RS, RA) when it returns and drops the client.
+                Some(Err(shared)) => {
+                    drop(shared);
+                    Ok(())
+                }
+            }
+        }
+    }
+
+    asynch {
+        /// Opens a session on the runtime: `done(ok, client)`.
+        #[staticmethod]
+        fn open(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings, done: Py<PyAny>) -> PyResult<NativeTask> {
+            let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
+            let lookup = crate::common::profile_lookup(settings.profile.as_deref(), port_url(&t).as_deref());
+            let (connector, config) = connector(t, &settings).map_err(|f| to_pyerr(py, f))?;
+            Ok(spawn_task(done, async move {
+                let client = AsyncClient::open(connector, clock(), config).await.map_err(|e| e.failure())?;
+                let profile = match lookup {
+                    Ok((p, port)) => {
+                        motionlink_scu::probe::use_profile_async(&client, &p, &port).await.map_err(|e| e.failure())?
+                    }
                     Err(used) => used,
                 };
-                Ok::<_, Failure>((client, used))
-            })
-            .map_err(|f| to_pyerr(py, f))?;
-        let port = client.port().to_string();
-        let speed_mode = client.config().speed_mode;
-        let close_bound = client.config().close_bound;
-        let slot = Slot::new(client, FAMILY);
-        Ok(ScuClient { slot, token: CancelToken::new(), port, speed_mode, close_bound, port_url, baud, profile })
-    }
+                let port = client.port().to_string();
+                let speed_mode = client.config().speed_mode;
+                let native = AsyncScuClient { slot: Slot::new(client, FAMILY), port, speed_mode, profile };
+                deliver(move |py| Ok(Py::new(py, native)?.into_any()))
+            }))
+        }
 
-    /// The device profile the session took (`<path>#<key>`), or None.
-    #[getter]
-    fn profile(&self) -> Option<String> {
-        self.profile.reference.clone()
-    }
-
-    /// One line for each profile the session did not take (another identity, a file it could not read).
-    #[getter]
-    fn profile_notices(&self) -> Vec<String> {
-        self.profile.notices.clone()
-    }
-
-    /// `motionlink probe scu`'s report of this unit, as a dict (nothing moves); with `save` (`""`: the
-    /// default profiles file, else a path) its profile is written.
-    fn probe<'py>(
-        &self,
-        py: Python<'py>,
-        exchanges: u32,
-        low_latency: bool,
-        save: Option<String>,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        let client = self.client(py)?;
-        let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
-        let report = py
-            .detach(|| {
-                let mut report = motionlink_scu::probe::probe(&client, &setup).map_err(|e| e.failure())?;
-                if let Some(save) = save {
-                    let mut profiles = crate::common::profiles_for_save(FAMILY, &save)?;
-                    motionlink_scu::probe::save_profile(&mut report, &mut profiles)
-                        .map_err(|e| usage(format!("save: {e}")))?;
+        /// Ends the session (RS for what it started, then RA): `done(ok, None)`.
+        fn close(&self, done: Py<PyAny>) -> NativeTask {
+            let taken = self.slot.take(&CancelToken::new(), Duration::ZERO);
+            spawn_task(done, async move {
+                match taken {
+                    None => {}
+                    Some(Ok(client)) => client.close().await.map_err(|e| e.failure())?,
+                    // A call still under way holds the session: it ends (RS, RA) when that call ends.
+                    Some(Err(shared)) => drop(shared),
                 }
-                serde_json::to_value(&report).map_err(|e| usage(e.to_string()))
+                deliver(|py| Ok(py.None()))
             })
-            .map_err(|f| to_pyerr(py, f))?;
-        json_py(py, &report)
-    }
+        }
 
-    /// The port, as the link describes it.
-    #[getter]
-    fn port(&self) -> String {
-        self.port.clone()
-    }
-
-    /// True until closed.
-    #[getter]
-    fn is_open(&self) -> bool {
-        self.slot.is_open()
-    }
-
-    /// Motion functions (numbers 1..10) this session started and has not seen stop.
-    fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
-        Ok(self.client(py)?.started().into_iter().map(|f| f.number()).collect())
+        /// Ends the session from synchronous code (atexit), waiting without the GIL.
+        fn close_blocking(&self, py: Python<'_>) -> PyResult<()> {
+            let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
+            match taken {
+                Ok(client) => block_on_runtime(py, client.close())?.or_raise(py),
+                Err(shared) => {
+                    drop(shared);
+                    Ok(())
+                }
+            }
+        }
     }
 
     /// Firmware, configuration, battery/mains, last error and the connected actuators (Ctrl-C raises at
     /// once: nothing is in motion).
-    fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let c = self.client(py)?;
-        let info = interruptible_read(py, None, move || c.info())?.or_raise(py)?;
+    blocking read info(me, py) {} |c| { c.info() } => |py, info| {
         report_py(py, &info, |fields| {
-            fields.insert("port".into(), self.port.clone().into());
+            fields.insert("port".into(), me.port.clone().into());
         })
-    }
-
-    /// The position of an actuator in counts.
-    fn position(&self, py: Python<'_>, actuator: Int) -> PyResult<i32> {
-        let c = self.client(py)?;
-        let a = self::actuator(&actuator).map_err(|f| to_pyerr(py, f))?;
-        py.detach(|| c.position(a).map(PositionCounts::get)).or_raise(py)
-    }
+    };
 
     /// Reads a data-list entry or group by name or index.
-    fn get<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
-        let c = self.client(py)?;
-        let it = parse_item(name).map_err(|f| to_pyerr(py, f))?;
-        let read = interruptible_read(py, None, move || c.read(it))?.or_raise(py)?;
-        report_py(py, &read, |_| {})
-    }
+    blocking read get(me, py, name: String) {
+        let it = parse_item(&name).map_err(|f| to_pyerr(py, f))?;
+    } |c| { c.read(it) } => |py, read| report_py(py, &read, |_| {});
 
     /// Writes a remote data entry (0x3xxx); the library reads it back and compares, then reads what the unit
     /// holds (`read_back`; None, with `verified` False and why, on a unit that does not read remote data back).
-    fn set<'py>(&self, py: Python<'py>, name: &str, value: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
-        let c = self.client(py)?;
-        let it = parse_item(name).map_err(|f| to_pyerr(py, f))?;
+    blocking quick set(me, py, name: String, value: Bound<'_, PyAny>) {
+        let it = parse_item(&name).map_err(|f| to_pyerr(py, f))?;
         if value.is_instance_of::<pyo3::types::PyBool>() {
             return Err(to_pyerr(py, usage(format!("{}: give a number, not a bool", it.name()))));
-        }
-        let text: String = value.str()?.extract()?;
+        };
+        let text = value.str()?.extract::<String>()?;
         let (entry, v) = parse_write(it, &text).map_err(|e| to_pyerr(py, bad("")(e)))?;
-        let written = py.detach(|| c.write(entry, v)).or_raise(py)?;
-        report_py(py, &written, |_| {})
-    }
+    } |c| { c.write(entry, v) } => |py, written| report_py(py, &written, |_| {});
 
-    /// A verified move of `actuator` to `target_counts` (Ctrl-C stops it).
-    #[pyo3(signature = (actuator, target_counts, speed, function=None))]
-    fn move_to<'py>(
-        &self,
-        py: Python<'py>,
-        actuator: Int,
-        target_counts: Int,
-        speed: Int,
-        function: Option<Int>,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        let c = self.client(py)?;
-        let (a, target, f, speed) = move_args(&actuator, &target_counts, function.as_ref(), &speed, self.speed_mode)
+    /// One sample of `watch`, `t_s` into it: the connected actuators (position, moving, flags, current) and
+    /// Error_Code 1. The library's sample: through the keepalive RC where the unit takes the session's cyclic
+    /// object.
+    blocking read sample(me, py, t_s: f64) {} |c| { c.sample() }
+    => |py, s| report_py(py, &SampleReport::new(&s, t_s), |_| {});
+
+    /// The error history: Error_Code 1 (the last) .. 5, each with its named bits.
+    blocking read errors(me, py) {} |c| { c.error_history() } => |py, history| report_py(py, &history, |_| {});
+
+    /// The position of an actuator in counts.
+    quick position(me, py, actuator: Int) {
+        let a = self::actuator(&actuator).map_err(|f| to_pyerr(py, f))?;
+    } |c| { w!(c.position(a)) } => |py, p| Ok(p.get());
+
+    /// A verified move of `actuator` to `target_counts`; Ctrl-C, or cancelling the task, stops the function.
+    motion move_to(me, py, actuator: Int, target_counts: Int, speed: Int, function: Option<Int>) {
+        let (a, target, f, speed) = move_args(&actuator, &target_counts, function.as_ref(), &speed, me.speed_mode)
             .map_err(|f| to_pyerr(py, f))?;
-        let token = &self.token;
-        let r = interruptible(
-            py,
-            Some(token),
-            || c.move_to(a, target, speed, &MoveOptions { cancel: Some(token), progress: None, function: f }),
-            cancel_cause,
-        )?;
-        move_py(py, &r.or_raise(py)?)
-    }
+    } |c| {
+        w!(c => move_to(a, target, speed);
+            &MoveOptions { cancel: Some(&me.token), progress: None, function: f } => f)
+    } => |py, r| move_py(py, &r);
 
-    /// Runs a function until it ends (or `seconds`, or Ctrl-C), then stops it; where the actuators rest.
-    #[pyo3(signature = (function, direction, seconds=None))]
-    fn run<'py>(
-        &self,
-        py: Python<'py>,
-        function: &str,
-        direction: &str,
-        seconds: Option<f64>,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        let c = self.client(py)?;
-        let (action, limit) = run_args(function, direction, seconds).map_err(|f| to_pyerr(py, f))?;
-        let token = &self.token;
-        let r = interruptible(py, Some(token), || c.run_function(action, limit, &|_| {}, Some(token)), cancel_cause)?;
-        run_py(py, &r.or_raise(py)?)
-    }
+    /// Runs a function until it ends (or `seconds`), then stops it; where the actuators rest. Ctrl-C, or
+    /// cancelling the task, stops it.
+    motion run(me, py, function: String, direction: String, seconds: Option<f64>) {
+        let (action, limit) = run_args(&function, &direction, seconds).map_err(|f| to_pyerr(py, f))?;
+    } |c| { w!(c => run_function(action, limit); &|_| {}, Some(&me.token)) } => |py, r| run_py(py, &r);
 
     /// Stops what moves, as `motionlink scu stop` does: with no function, RS to every motion function F1..F10
     /// (fast, or along the stop ramp with `soft`), confirmed by the status read until no actuator moves, and
     /// the stop report; with a function, its RS (a motion fast or soft; another function switched off), and
     /// None.
-    #[pyo3(signature = (function=None, soft=false))]
-    fn stop<'py>(&self, py: Python<'py>, function: Option<&str>, soft: bool) -> PyResult<Option<Bound<'py, PyAny>>> {
-        let c = self.client(py)?;
-        match stop_what(function, soft).map_err(|f| to_pyerr(py, f))? {
+    quick stop(me, py, function: Option<String>, soft: bool) {
+        let what = stop_what(function.as_deref(), soft).map_err(|f| to_pyerr(py, f))?;
+    } |c| {
+        match what {
             StopWhat::Every(mode) => {
                 let all: Vec<MotionFunction> = MotionFunction::all().collect();
-                let report = py.detach(|| c.stop_functions(&all, mode)).or_raise(py)?;
-                report_py(py, &report, |_| {}).map(Some)
+                w!(c.stop_functions(&all, mode)).map(Some)
             }
-            StopWhat::One(f, mode) => py
-                .detach(|| match f {
-                    Function::Motion(m) => c.stop_motion(m, mode),
-                    f => c.switch(f, false),
-                })
-                .or_raise(py)
-                .map(|()| None),
+            StopWhat::One(Function::Motion(m), mode) => w!(c.stop_motion(m, mode)).map(|()| None),
+            StopWhat::One(f, _) => w!(c.switch(f, false)).map(|()| None),
         }
-    }
-
-    /// One sample of `watch`, `t_s` into it: the connected actuators (position, moving, flags, current) and
-    /// Error_Code 1.
-    fn sample<'py>(&self, py: Python<'py>, t_s: f64) -> PyResult<Bound<'py, PyAny>> {
-        let c = self.client(py)?;
-        // The library's sample: through the keepalive RC where the unit takes the session's cyclic object.
-        let s = interruptible_read(py, None, move || c.sample())?.or_raise(py)?;
-        report_py(py, &SampleReport::new(&s, t_s), |_| {})
-    }
-
-    /// The error history: Error_Code 1 (the last) .. 5, each with its named bits.
-    fn errors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let c = self.client(py)?;
-        let history = interruptible_read(py, None, move || c.error_history())?.or_raise(py)?;
-        report_py(py, &history, |_| {})
-    }
-
-    /// Ends the session: RS for every function it started, then RA; an exception if that was not confirmed.
-    fn close(&self, py: Python<'_>) -> PyResult<()> {
-        let bound = self.close_bound;
-        let taken = py.detach(|| self.slot.take(&self.token, bound));
-        match taken {
-            None => Ok(()),
-            Some(Ok(client)) => py.detach(|| client.close()).or_raise(py),
-            // A call of another thread still runs: it was cancelled (its motion stops) and the session ends
-            // (RS, RA) when it returns and drops the client.
-            Some(Err(shared)) => {
-                drop(shared);
-                Ok(())
-            }
-        }
-    }
+    } => |py, r| r.map(|r| report_py(py, &r, |_| {})).transpose();
 }
 
 impl Drop for ScuClient {

@@ -1,0 +1,182 @@
+//! One declaration per operation for both faces of a family's native client: [`faces!`] turns each into
+//! the blocking method (the family's `Client`, run without the GIL, Ctrl-C watched) and the async method
+//! (the family's `AsyncClient`, spawned on the runtime, its outcome handed to a `done` callback).
+
+use pyo3::prelude::*;
+use pyo3::IntoPyObjectExt;
+
+/// The Python object of an operation's record.
+pub fn to_py<'py, T: IntoPyObject<'py>>(py: Python<'py>, record: PyResult<T>) -> PyResult<Py<PyAny>> {
+    record?.into_py_any(py)
+}
+
+/// Declares the operations of a family's blocking native client `B` and async native client `A` once:
+///
+/// ```text
+/// faces! {
+///     B / A, Error;
+///     both { methods of B and A } blocking { other methods of B } asynch { other methods of A }
+///     /// Doc.
+///     motion home(me, py, module: Option<Int>, timeout_s: f64) {
+///         let a = me.address(py, module)?;          // arguments checked (both faces)
+///     } |c| { w!(c.module(..) => home_guarded(t, g); &mut |_| {}) }   // the operation
+///     else |c| { .. }                               // async only: what a cancelled task stops
+///     => |py, report| home_record(py, a, &report);  // the record (a PyResult)
+///     /// Doc.
+///     blocking read info(me, py) {} |c| { c.info() } => |py, i| info_record(py, &i);  // B only
+/// }
+/// ```
+///
+/// In the operation, `w!(call)` is the call on the blocking client and `call.await` on the async one;
+/// `w!(recv => method(args); p, .. => q, ..)` passes `p, ..` (a progress callback, a cancel token) to the
+/// blocking client's method only and `q, ..` to the async client's only. The blocking face runs it as its
+/// kind says: `read` on a thread of its own, Ctrl-C raising at once ([`crate::wait::interruptible_read`]);
+/// `scan` so too, Ctrl-C also cancelling the client's token (`me.token`: the library's scan ends at its
+/// next step); `motion` on a worker while Ctrl-C is watched, which cancels the token (the family's client
+/// stops the motion) and waits for the end ([`crate::wait::interruptible`]); `quick` without the GIL. The
+/// async face spawns it: cancelling the task drops its future (the family's client stops what it set in
+/// motion), and runs the `else` future. An operation marked `blocking` is the blocking client's only.
+/// Both classes get the getters `port`, `profile` and `profile_notices` of their fields of those names.
+/// (A `let` among the argument checks takes no type annotation, which the macro's `stmt` does not parse: a
+/// turbofish says the type instead.)
+macro_rules! faces {
+    // An operation of the blocking client: its method.
+    (@munch ($d:tt) [$blocking:ident $asynch:ident $err:ty] {$($b:tt)*} {$($a:tt)*}
+        $(#[doc = $doc:literal])*
+        blocking $kind:ident $name:ident ($me:ident, $py:ident $(, $arg:ident : $ty:ty)*)
+            { $($prep:stmt;)* }
+            |$c:ident| $body:block
+            $(else |$sc:ident| $stop:block)?
+            => |$rpy:ident, $out:pat_param| $record:expr;
+        $($rest:tt)*
+    ) => {
+        faces!(@munch ($d) [$blocking $asynch $err] {
+            $($b)*
+            $(#[doc = $doc])*
+            #[allow(clippy::too_many_arguments, clippy::redundant_locals, unused_braces, clippy::let_unit_value)]
+            fn $name(&self, $py: Python<'_>, $($arg: $ty),*) -> PyResult<Py<PyAny>> {
+                let $me = self;
+                let $c = $me.client($py)?;
+                $($prep;)*
+                #[allow(unused_macros)]
+                macro_rules! w {
+                    (
+                        $d r:expr => $d m:ident($d ($d a:expr),*)
+                        $d (; $d ($d p:expr),+)? $d (=> $d ($d q:expr),+)?
+                    ) => {
+                        $d r.$d m($d ($d a,)* $d ($d ($d p),+)?)
+                    };
+                    ($d e:expr) => { $d e };
+                }
+                let run = move || -> Result<_, $err> { $body };
+                let $out = faces!(@blocking $kind, $me, $py, run).or_raise($py)?;
+                let $rpy = $py;
+                crate::faces::to_py($py, $record)
+            }
+        } {$($a)*} $($rest)*);
+    };
+    // An operation of both clients: the async client's method, then the blocking client's.
+    (@munch ($d:tt) [$blocking:ident $asynch:ident $err:ty] {$($b:tt)*} {$($a:tt)*}
+        $(#[doc = $doc:literal])*
+        $kind:ident $name:ident ($me:ident, $py:ident $(, $arg:ident : $ty:ty)*)
+            { $($prep:stmt;)* }
+            |$c:ident| $body:block
+            $(else |$sc:ident| $stop:block)?
+            => |$rpy:ident, $out:pat_param| $record:expr;
+        $($rest:tt)*
+    ) => {
+        faces!(@munch ($d) [$blocking $asynch $err] {$($b)*} {
+            $($a)*
+            $(#[doc = $doc])*
+            #[allow(clippy::too_many_arguments, clippy::redundant_locals, unused_braces, clippy::let_unit_value)]
+            fn $name(&self, $py: Python<'_>, $($arg: $ty,)* done: Py<PyAny>) -> PyResult<NativeTask> {
+                let $me = self;
+                let $c = $me.client($py)?;
+                $($prep;)*
+                #[allow(unused_macros)]
+                macro_rules! w {
+                    (
+                        $d r:expr => $d m:ident($d ($d a:expr),*)
+                        $d (; $d ($d p:expr),+)? $d (=> $d ($d q:expr),+)?
+                    ) => {
+                        $d r.$d m($d ($d a,)* $d ($d ($d q),+)?).await
+                    };
+                    ($d e:expr) => { $d e.await };
+                }
+                $(let $sc = std::sync::Arc::clone(&$c);)?
+                let run = async move {
+                    let out: Result<_, $err> = async move $body.await;
+                    let $out = out.map_err(|e| e.failure())?;
+                    crate::wait::deliver(move |$rpy| crate::faces::to_py($rpy, $record))
+                };
+                faces!(@spawn done, run $(, async move $stop)?)
+            }
+        }
+            $(#[doc = $doc])*
+            blocking $kind $name ($me, $py $(, $arg : $ty)*) { $($prep;)* } |$c| $body => |$rpy, $out| $record;
+            $($rest)*
+        );
+    };
+    // Every operation declared: the two classes' methods.
+    (@munch ($d:tt) [$blocking:ident $asynch:ident $err:ty] {$($b:tt)*} {$($a:tt)*}) => {
+        #[pymethods]
+        impl $blocking {
+            $($b)*
+        }
+
+        #[pymethods]
+        impl $asynch {
+            $($a)*
+        }
+    };
+    (@blocking read, $me:ident, $py:ident, $run:ident) => {
+        crate::wait::interruptible_read($py, None, $run)?
+    };
+    (@blocking scan, $me:ident, $py:ident, $run:ident) => {
+        crate::wait::interruptible_read($py, Some($me.token.clone()), $run)?
+    };
+    (@blocking quick, $me:ident, $py:ident, $run:ident) => {
+        $py.detach($run)
+    };
+    (@blocking motion, $me:ident, $py:ident, $run:ident) => {
+        crate::wait::interruptible($py, Some(&$me.token), $run, |py, r| {
+            r.as_ref().err().map(|e| crate::errors::to_pyerr(py, e.failure()))
+        })?
+    };
+    (@spawn $done:ident, $run:ident) => {
+        Ok(crate::wait::spawn_task($done, $run))
+    };
+    (@spawn $done:ident, $run:ident, $stop:expr) => {
+        Ok(crate::wait::spawn_task_stopping($done, $run, $stop))
+    };
+    (@start $heads:tt both { $($both:tt)* } blocking { $($bextra:tt)* } asynch { $($aextra:tt)* } $($ops:tt)*) => {
+        faces!(@munch ($) $heads { $($both)* $($bextra)* } { $($both)* $($aextra)* } $($ops)*);
+    };
+    ($blocking:ident / $asynch:ident, $err:ty; both { $($both:tt)* } $($rest:tt)*) => {
+        faces!(@start [$blocking $asynch $err]
+            both {
+                /// The port, as the link describes it.
+                #[getter]
+                fn port(&self) -> String {
+                    self.port.clone()
+                }
+
+                /// The device profile the session took (`<path>#<key>`), or None.
+                #[getter]
+                fn profile(&self) -> Option<String> {
+                    self.profile.reference.clone()
+                }
+
+                /// One line for each profile the session did not take (another identity, a file it could
+                /// not read).
+                #[getter]
+                fn profile_notices(&self) -> Vec<String> {
+                    self.profile.notices.clone()
+                }
+
+                $($both)*
+            }
+            $($rest)*
+        );
+    };
+}
