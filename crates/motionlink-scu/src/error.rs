@@ -226,13 +226,14 @@ pub enum Error {
     },
     /// The end of a session could not confirm the stop of the functions it had started.
     #[error(
-        "stopping {functions} was NOT confirmed by the unit ({cause}): the actuators may still be moving. The unit \
+        "stopping {} was NOT confirmed by the unit ({cause}): the actuators may still be moving. The unit \
          stops remote motions by itself 500 ms after the last RC it receives (its watchdog); this program sends none \
-         once it has ended"
+         once it has ended",
+        crate::model::function_list(functions)
     )]
     CloseUnconfirmed {
-        /// The functions still started ("F1, F2").
-        functions: String,
+        /// The functions still started.
+        functions: Vec<crate::model::Function>,
         /// Why the end of the session failed.
         cause: Box<Error>,
     },

@@ -263,11 +263,14 @@ pub enum Ending {
 
 /// Says what `closed` (the result of [`Client::close`]) means for the functions `started` (wire ids).
 pub fn ending(started: &[Function], closed: Result<(), Error>) -> Ending {
-    let functions = || started.iter().map(|f| format!("F{}", f.number())).collect::<Vec<_>>().join(", ");
     match (closed, started.is_empty()) {
         (Ok(()), true) => Ending::Clean,
-        (Ok(()), false) => Ending::Stopped(format!("{} stopped (the unit acknowledged RS)", functions())),
+        (Ok(()), false) => {
+            Ending::Stopped(format!("{} stopped (the unit acknowledged RS)", crate::model::function_list(started)))
+        }
         (Err(e), true) => Ending::Failed(e),
-        (Err(e), false) => Ending::Unconfirmed(Error::CloseUnconfirmed { functions: functions(), cause: Box::new(e) }),
+        (Err(e), false) => {
+            Ending::Unconfirmed(Error::CloseUnconfirmed { functions: started.to_vec(), cause: Box::new(e) })
+        }
     }
 }

@@ -198,6 +198,11 @@ impl fmt::Display for Function {
     }
 }
 
+/// Functions as messages name them: `F1, F11`.
+pub fn function_list(functions: &[Function]) -> String {
+    functions.iter().map(|f| format!("F{}", f.number())).collect::<Vec<_>>().join(", ")
+}
+
 /// Where an RE on a motion function moves to (table 6, para_ID motion_direction).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum MotionDirection {
