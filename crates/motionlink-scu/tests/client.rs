@@ -193,18 +193,14 @@ fn cancel_stops_the_actuator_at_once() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(ClientConfig::default());
     let cancel = CancelToken::new();
+    client.set_cancel(cancel.clone());
     let progress = |p: &motionlink_scu::session::MoveProgress| {
         if p.position_counts > PositionCounts(100) {
             cancel.cancel();
         }
     };
     let err = client
-        .move_to(
-            a(1),
-            PositionCounts(800),
-            pct(100),
-            &MoveOptions { cancel: Some(&cancel), progress: Some(&progress), ..Default::default() },
-        )
+        .move_to(a(1), PositionCounts(800), pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() })
         .unwrap_err();
     let Error::Cancelled { position_counts, .. } = err else { panic!("{err}") };
     assert!((PositionCounts(100)..PositionCounts(130)).contains(&position_counts));

@@ -34,7 +34,7 @@ fn a_watch_rides_on_the_keepalive_when_round_trips_take_290_ms() {
     *latency.lock().unwrap() = SLOW;
     let others_before = rig.unit(|u| u.stats().telegrams - u.stats().cyclic);
     let mut samples = Vec::new();
-    let n = client.watch(Duration::from_millis(500), Some(12), &mut |s| samples.push(*s), None).unwrap();
+    let n = client.watch(Duration::from_millis(500), Some(12), &mut |s| samples.push(*s)).unwrap();
     assert_eq!(n, 12);
     // A1 runs out at 110 counts/s towards its end at 865 counts.
     let positions: Vec<i32> = samples.iter().map(|s| s.position(a(1)).get()).collect();
@@ -59,7 +59,7 @@ fn a_watch_over_a_link_slow_from_the_start_defines_its_object_across_one_lapse_a
     let client = rig.client_behind(&latency, scp11_may_lapse()).unwrap();
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0, "opened without a lapse");
     let mut samples = Vec::new();
-    let n = client.watch(Duration::from_millis(500), Some(8), &mut |s| samples.push(*s), None).unwrap();
+    let n = client.watch(Duration::from_millis(500), Some(8), &mut |s| samples.push(*s)).unwrap();
     assert_eq!(n, 8);
     assert_eq!(samples.len(), 8);
     assert!(samples.iter().all(|s| s.position(a(1)) == PositionCounts(0) && !s.moving(a(1))), "{samples:?}");
@@ -94,7 +94,7 @@ fn a_session_that_started_a_function_never_lets_the_watchdog_lapse_for_a_watch()
     // A function of this session is on (binary output 1): a lapse would switch it off.
     client.switch(motionlink_scu::model::Function::BinaryOutput1, true).unwrap();
     *latency.lock().unwrap() = SLOW;
-    let e = client.watch(Duration::from_millis(250), Some(3), &mut |_| {}, None).unwrap_err();
+    let e = client.watch(Duration::from_millis(250), Some(3), &mut |_| {}).unwrap_err();
     // The RT of the definition or its read-back found no room (which one depends on the round trip the
     // session had measured when the link became slow); either way, no lapse.
     assert!(matches!(e, Error::NoRoom { .. }), "{e}");
@@ -131,7 +131,7 @@ fn a_unit_without_cyclic_objects_cannot_be_watched_over_a_slow_link_and_its_keep
     assert_eq!(client.capabilities().cyclic_objects, Some(false));
     *latency.lock().unwrap() = SLOW;
     let mut samples = 0;
-    let e = client.watch(Duration::from_millis(250), None, &mut |_| samples += 1, None).unwrap_err();
+    let e = client.watch(Duration::from_millis(250), None, &mut |_| samples += 1).unwrap_err();
     assert!(matches!(e, Error::NoRoom { command: Command::Get, .. }), "{e}");
     assert_eq!(samples, 0);
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0, "the reads waited for room that never came");
@@ -149,7 +149,7 @@ fn a_unit_without_cyclic_objects_is_back_in_remote_mode_after_the_lapse_and_the_
     let latency = Arc::new(Mutex::new(SLOW));
     let client = rig.client_behind(&latency, scp11_may_lapse()).unwrap();
     let mut samples = 0;
-    let e = client.watch(Duration::from_millis(250), Some(3), &mut |_| samples += 1, None).unwrap_err();
+    let e = client.watch(Duration::from_millis(250), Some(3), &mut |_| samples += 1).unwrap_err();
     assert!(matches!(e, Error::NoRoom { command: Command::Get, .. }), "{e}");
     assert_eq!(samples, 0);
     assert_eq!(client.capabilities().cyclic_objects, Some(false));
@@ -165,7 +165,7 @@ fn without_the_users_leave_a_watch_over_a_link_slow_from_the_start_lets_nothing_
     let latency = Arc::new(Mutex::new(SLOW));
     let client = rig.client_behind(&latency, scp11()).unwrap();
     let mut samples = 0;
-    let e = client.watch(Duration::from_millis(250), Some(3), &mut |_| samples += 1, None).unwrap_err();
+    let e = client.watch(Duration::from_millis(250), Some(3), &mut |_| samples += 1).unwrap_err();
     assert!(matches!(e, Error::NoRoom { .. }), "{e}");
     assert_eq!(samples, 0);
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0, "the unit's watchdog never lapsed");

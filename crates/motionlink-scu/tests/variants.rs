@@ -42,14 +42,14 @@ fn core_operations(rig: &Rig, config: ClientConfig) -> Outcome {
     assert_eq!((report.verified, report.not_verifiable.len()), (second.verified, second.not_verifiable.len()));
     assert_eq!(report.verified, report.not_verifiable.is_empty());
     // home: F1 to its In end
-    let run = client.run_function(RunAction::Motion(f(1), MotionDirection::In), None, &|_| {}, None).unwrap();
+    let run = client.run_function(RunAction::Motion(f(1), MotionDirection::In), None, &|_| {}).unwrap();
     let home_rest = run.rest.iter().find(|(x, _)| *x == a(1)).map(|(_, p)| *p).unwrap();
     assert_eq!(rig.unit(|u| u.position(a(1))), Some(home_rest.get()));
     // stop
     client.stop_motion(f(1), StopMode::Fast).unwrap();
     // watch: three samples, a quarter of a second apart
     let mut samples = Vec::new();
-    let n = client.watch(Duration::from_millis(250), Some(3), &mut |s| samples.push(*s), None).unwrap();
+    let n = client.watch(Duration::from_millis(250), Some(3), &mut |s| samples.push(*s)).unwrap();
     assert_eq!(n, 3);
     for s in &samples {
         assert_eq!((s.position(a(1)), s.position(a(2))), (home_rest, PositionCounts(250)));

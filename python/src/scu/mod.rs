@@ -284,8 +284,10 @@ faces! {
             let port = client.port().to_string();
             let speed_mode = client.config().speed_mode;
             let close_bound = client.config().close_bound;
+            let token = CancelToken::new();
+            client.set_cancel(token.clone());
             let slot = Slot::new(client, FAMILY);
-            Ok(ScuClient { slot, token: CancelToken::new(), port, speed_mode, close_bound, port_url, baud, profile })
+            Ok(ScuClient { slot, token, port, speed_mode, close_bound, port_url, baud, profile })
         }
 
         /// `motionlink probe scu`'s report of this unit, as a dict (nothing moves); with `save` (`""`: the
@@ -424,14 +426,14 @@ faces! {
             .map_err(|f| to_pyerr(py, f))?;
     } |c| {
         w!(c => move_to(a, target, speed);
-            &MoveOptions { cancel: Some(&me.token), progress: None, function: f } => f)
+            &MoveOptions { progress: None, function: f } => f)
     } => |py, r| move_py(py, &r);
 
     /// Runs a function until it ends (or `seconds`), then stops it; where the actuators rest. Ctrl-C, or
     /// cancelling the task, stops it.
     motion run(me, py, function: String, direction: String, seconds: Option<f64>) {
         let (action, limit) = run_args(&function, &direction, seconds).map_err(|f| to_pyerr(py, f))?;
-    } |c| { w!(c => run_function(action, limit); &|_| {}, Some(&me.token)) } => |py, r| run_py(py, &r);
+    } |c| { w!(c => run_function(action, limit); &|_| {}) } => |py, r| run_py(py, &r);
 
     /// Stops what moves, as `motionlink scu stop` does: with no function, RS to every motion function F1..F10
     /// (fast, or along the stop ramp with `soft`), confirmed by the status read until no actuator moves, and

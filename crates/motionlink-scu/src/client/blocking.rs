@@ -30,6 +30,8 @@ use crate::wire::{Command, Request};
 pub struct Client {
     driver: Driver<Session>,
     config: ClientConfig,
+    /// Cancels the long operations (watch, run, moves) of this client: [`Client::set_cancel`].
+    cancel: std::sync::Mutex<Option<CancelToken>>,
 }
 
 impl std::fmt::Debug for Client {
@@ -66,7 +68,7 @@ impl Client {
             }
             return Err(e);
         }
-        Ok(Client { driver, config })
+        Ok(Client { driver, config, cancel: Default::default() })
     }
 
     /// Validates `config`, connects, and makes the driver (nothing is sent yet).
@@ -99,6 +101,17 @@ impl Client {
     /// The port, as the link describes it.
     pub fn port(&self) -> &str {
         self.driver.port_name()
+    }
+
+    /// Makes `token` cancel this client's long operations (a watch, a run, a move), as Ctrl-C does in the
+    /// command line and in Python: the operation stops what it set in motion and ends. The same as the
+    /// PowerCube's and the COMPAX's `set_cancel`.
+    pub fn set_cancel(&self, token: CancelToken) {
+        *motionlink_link::clock::lock(&self.cancel) = Some(token);
+    }
+
+    fn token(&self) -> Option<CancelToken> {
+        motionlink_link::clock::lock(&self.cancel).clone()
     }
 
     /// The session's settings.
@@ -225,7 +238,7 @@ impl Client {
     }
 
     /// Samples as [`Client::sample`] every `interval` (the first at once) until `count` samples were taken
-    /// or `cancel` is cancelled (which ends the watch without an error); `on_sample` sees each. Where the
+    /// or the client's cancel token ([`Client::set_cancel`]) is cancelled (which ends the watch without an error); `on_sample` sees each. Where the
     /// unit takes the session's cyclic object, each sample rides on a keepalive RC, so a link whose round
     /// trips leave no room for other requests beside the keepalive can still be watched once the object is
     /// defined. Returns how many samples were taken.
@@ -234,7 +247,6 @@ impl Client {
         interval: std::time::Duration,
         count: Option<u64>,
         on_sample: &mut dyn FnMut(&Snapshot),
-        cancel: Option<&CancelToken>,
     ) -> Result<u64, Error> {
         let mut each = |p: &Progress| {
             if let Progress::Watch(s) = p {
@@ -242,7 +254,8 @@ impl Client {
             }
         };
         let op = Op::Watch(WatchSpec { interval, count });
-        expect_output!(self.driver.run_with(op, &mut each, cancel), Output::Watched { samples, .. } => samples)
+        let cancel = self.token();
+        expect_output!(self.driver.run_with(op, &mut each, cancel.as_ref()), Output::Watched { samples, .. } => samples)
     }
 
     /// Error_Code 1 (most recent) to 5 (oldest).
@@ -281,7 +294,7 @@ impl Client {
     }
 
     /// Runs a function until it ends (a motion function whose actuators all stopped), `limit` passes, or
-    /// `cancel` is cancelled; then stops it (fast) and confirms the stop with the status. `progress` sees every
+    /// the client's cancel token ([`Client::set_cancel`]) is cancelled; then stops it (fast) and confirms the stop with the status. `progress` sees every
     /// look at the actuators (the first right after the RE was acknowledged). A cancelled run ends with
     /// [`Error::RunCancelled`] naming where the actuators came to rest.
     pub fn run_function(
@@ -289,14 +302,14 @@ impl Client {
         action: RunAction,
         limit: Option<std::time::Duration>,
         progress: &dyn Fn(&RunProgress),
-        cancel: Option<&CancelToken>,
     ) -> Result<RunReport, Error> {
         let mut each = |p: &Progress| {
             if let Progress::Run(r) = p {
                 progress(r);
             }
         };
-        expect_output!(self.driver.run_with(Op::Run(run_spec(action, limit)?), &mut each, cancel), Output::Run(r) => r)
+        let (spec, cancel) = (run_spec(action, limit)?, self.token());
+        expect_output!(self.driver.run_with(Op::Run(spec), &mut each, cancel.as_ref()), Output::Run(r) => r)
     }
 
     // ----- cyclic objects
@@ -390,7 +403,8 @@ impl Client {
                 f(m);
             }
         };
-        expect_output!(self.driver.run_with(Op::Move(spec), &mut each, options.cancel), Output::Move(r) => r)
+        let cancel = self.token();
+        expect_output!(self.driver.run_with(Op::Move(spec), &mut each, cancel.as_ref()), Output::Move(r) => r)
     }
 
     /// Prepares streamed setpoints (as a ros2_control hardware interface sends them, 10..100 times a second)

@@ -62,8 +62,6 @@
 //! # }
 //! ```
 
-use motionlink_link::cancel::CancelToken;
-
 use crate::config::ClientConfig;
 use crate::error::Error;
 use crate::model::ActuatorStatus1;
@@ -87,11 +85,10 @@ pub use asynch::{AsyncClient, AsyncSetpointStream};
 pub use blocking::{Client, SetpointStream};
 pub use follow::{FollowFailure, FollowReport, Follower};
 
-/// Options of a move.
+/// Options of a move (the blocking client's cancel token, [`Client::set_cancel`], cancels it: the actuators
+/// are stopped).
 #[derive(Default)]
 pub struct MoveOptions<'a> {
-    /// Cancels the move (the actuators are stopped).
-    pub cancel: Option<&'a CancelToken>,
     /// Called after every look at the actuators.
     pub progress: Option<&'a dyn Fn(&MoveProgress)>,
     /// For [`Client::move_to`]: use this function instead of the one with the actuator's number.

@@ -59,13 +59,12 @@ pub(super) fn move_to(
     speed: Speed,
     function: MotionFunction,
     report: &Report<'_>,
-    interrupt: &CancelToken,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let start = client.position(a).map_err(cl)?;
     let bar = common::progress_bar(start.counts_from(position).unsigned_abs(), format!("{a} -> {}", position.get()));
     let progress = |p: &MoveProgress| bar.set_position(p.position_counts.counts_from(p.start_counts).unsigned_abs());
-    let options = MoveOptions { cancel: Some(interrupt), progress: Some(&progress), function: Some(function) };
+    let options = MoveOptions { progress: Some(&progress), function: Some(function) };
     let result = client.move_to(a, position, speed, &options);
     bar.finish_and_clear();
     report.show(out, &result.map_err(cl)?, print_move_text)
@@ -137,7 +136,7 @@ pub(super) fn watch(
             }
         }
     };
-    let watched = client.watch(Duration::from_millis(interval_ms), count, &mut print, Some(interrupt));
+    let watched = client.watch(Duration::from_millis(interval_ms), count, &mut print);
     match (failed, watched) {
         (Some(e), _) => Err(e),
         (None, Ok(_)) => Ok(()),
@@ -192,7 +191,6 @@ pub(super) fn run(
     action: RunAction,
     limit: Option<Duration>,
     report: &Report<'_>,
-    interrupt: &CancelToken,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let function = action.function();
@@ -208,7 +206,7 @@ pub(super) fn run(
             let _ = stdout.flush();
         }
     };
-    let outcome = RunOutcome::of(client.run_function(action, limit, &progress, Some(interrupt))).map_err(cl)?;
+    let outcome = RunOutcome::of(client.run_function(action, limit, &progress)).map_err(cl)?;
     report.show(out, &outcome, |out, o| {
         writeln!(out, "{function} stopped")?;
         let rows: Vec<Row> = o.rest.iter().map(|(a, p)| (a.to_string(), p.to_string())).collect();

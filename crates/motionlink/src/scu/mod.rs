@@ -358,6 +358,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         )
     };
     let client = connect(&args, &port, &tap, &clock, config).map_err(|e| tap.name_absent(e, absent))?;
+    client.set_cancel(interrupt.clone());
     crate::probe::use_profile(|p| motionlink_scu::probe::use_profile(&client, p, &port))?;
     let mut out = std::io::stdout().lock();
     let report = Report { out: common::Out { json: args.json, family: "scu", port: &port, unit: None }, stopped };
@@ -424,7 +425,7 @@ fn act(
         Action::Move { actuator, position, speed, function } => {
             let function = function_of(*actuator, *function)?;
             let speed = parse_speed(speed, mode)?;
-            actions::move_to(client, *actuator, *position, speed, function, report, interrupt, out)
+            actions::move_to(client, *actuator, *position, speed, function, report, out)
         }
         Action::Follow { actuator, function, speed, rate } => {
             let function = function_of(*actuator, *function)?;
@@ -433,7 +434,7 @@ fn act(
         }
         Action::Run { function, direction, seconds } => {
             let action = RunAction::parse(function, direction).map_err(CliError::usage)?;
-            actions::run(client, action, seconds.map(RunLimit::get), report, interrupt, out)
+            actions::run(client, action, seconds.map(RunLimit::get), report, out)
         }
         Action::Stop { function, soft } => stop::stop(client, *function, *soft, report, out),
         Action::Watch { interval_ms, count, csv, .. } => {
