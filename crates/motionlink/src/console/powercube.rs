@@ -13,14 +13,14 @@ use motionlink_powercube::model::{
     Address, AxisUnit, CubeState, ModuleKind, Param, Position, ShortFlag, ShortState, Value as CubeValue, Velocity,
     PARAMS,
 };
+use motionlink_powercube::report::{ParamReading, SetReport, StateReport};
 use motionlink_powercube::session::{Op, Output};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{AsyncClient, Emulator, Error};
 use serde_json::Value;
 
 use super::device::{
-    Action, BoxFuture, Device, ErrorEntry, ErrorHistory, Failure, JogDirection, Keyed, Motion, Param as Row,
-    ParamValue, ReadBack, Sample, Unit,
+    report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param as Row, Report, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -204,10 +204,6 @@ fn unexpected_output<T>(address: Address, other: Output) -> Result<T, Error> {
         request: "Get ActFPosStateDio".into(),
         detail: format!("unexpected answer {other:?}"),
     })
-}
-
-fn unit_of(p: Param, kind: Option<ModuleKind>) -> String {
-    kind.map_or(p.unit().generic_symbol(), |k| p.unit().symbol(k)).to_string()
 }
 
 impl PowerCube {
@@ -451,20 +447,17 @@ impl Device for PowerCube {
         Row::rows(&PARAMS)
     }
 
-    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<ParamValue, Failure>> {
+    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<Report, Failure>> {
         Box::pin(async move {
-            let p: Param = name.trim().parse().map_err(Failure::usage)?;
-            let v = self.module(unit)?.get(p).await?;
-            let kind = self.kind(unit);
-            Ok(ParamValue {
-                name: p.name().to_string(),
-                id: u32::from(p.id()),
-                // With its unit (a flag word decoded).
-                value: v.show_in(p, kind),
-                unit: unit_of(p, kind),
-                read_back: None,
-                note: String::new(),
-            })
+            let param: Param = name.trim().parse().map_err(Failure::usage)?;
+            let m = self.module(unit)?;
+            let value = m.get(param).await?;
+            // The unit depends on the module type (rad or m): read where the scan did not.
+            let kind = match self.kind(unit) {
+                Some(k) => k,
+                None => m.kind().await?,
+            };
+            Ok(report(&ParamReading { param, kind, value }))
         })
     }
 
@@ -473,59 +466,19 @@ impl Device for PowerCube {
         unit: u8,
         name: String,
         value: String,
-    ) -> BoxFuture<'static, Result<ParamValue, Failure>> {
+    ) -> BoxFuture<'static, Result<Report, Failure>> {
         Box::pin(async move {
-            let p: Param = name.trim().parse().map_err(Failure::usage)?;
-            let v = CubeValue::parse(p, &value).map_err(Failure::usage)?;
-            let kind = self.kind(unit);
-            let readback = self.module(unit)?.set_checked(p, v).await?;
-            let (read_back, note) = match readback.read {
-                Some(r) => {
-                    // TargetPos, TargetVel and TargetAcc cannot be read: what came back is their twin in
-                    // encoder ticks, shown as what it is.
-                    let from = p.read_back_as().unwrap_or(p);
-                    let note = if from == p {
-                        String::new()
-                    } else {
-                        format!("{} cannot be read: checked against {}, in encoder ticks", p.name(), from.name())
-                    };
-                    (Some(ReadBack { name: from.name().to_string(), value: r.show_in(from, kind) }), note)
-                }
-                None => (None, format!("not read back: {}", readback.not_verifiable.join("; "))),
-            };
-            Ok(ParamValue {
-                name: p.name().to_string(),
-                id: u32::from(p.id()),
-                value: v.show_in(p, kind),
-                unit: unit_of(p, kind),
-                read_back,
-                note,
-            })
+            let param: Param = name.trim().parse().map_err(Failure::usage)?;
+            let value = CubeValue::parse(param, &value).map_err(Failure::usage)?;
+            // Targets beyond their limits are refused; what was written is read back where the module allows it.
+            let readback = self.module(unit)?.set_checked(param, value).await?;
+            Ok(report(&SetReport { param, value, readback }))
         })
     }
 
-    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<ErrorHistory, Failure>> {
-        Box::pin(async move {
-            let s = self.module(unit)?.state().await?;
-            let mut words = Vec::new();
-            let bits: Vec<Value> = s
-                .faults()
-                .map(|f| {
-                    words.push(format!("{}: {}", f.name(), f.meaning()));
-                    crate::common::to_json(&f)
-                })
-                .collect();
-            let entry = ErrorEntry {
-                label: "CubeState now".into(),
-                code: u64::from(s.0),
-                code_text: format!("0x{:08X}", s.0),
-                meaning: if words.is_empty() { "no fault flag set".into() } else { words.join("; ") },
-                bits,
-                unknown_bits: 0,
-            };
-            let title = "PowerCube modules keep no error history: the fault flags of the state word now";
-            Ok(ErrorHistory { title, entries: vec![entry] })
-        })
+    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Report, Failure>> {
+        // PowerCube modules keep no error history: the state word now, as `state` reports it.
+        Box::pin(async move { Ok(report(&StateReport(self.module(unit)?.state().await?))) })
     }
 
     fn take_report(&self, unit: u8, what: &str) -> Option<Value> {
