@@ -7,8 +7,10 @@ use std::time::Duration;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::SharedClock;
-use motionlink_powercube::args::{Baud, CanBitRate, MotionTimeout, MoveVelocity, ReplyTimeout, Target};
-use motionlink_powercube::client::{BusConfig, Client, Guard, ModulesAt, MoveSpec, PortLink};
+use motionlink_powercube::args::{
+    Baud, CanBitRate, ModuleOptions, MotionTimeout, MoveVelocity, PollInterval, ReplyTimeout, Target,
+};
+use motionlink_powercube::client::{Client, Guard, MoveSpec, PortLink};
 use motionlink_powercube::model::{
     Address, AxisUnit, CubeState, ModuleKind, Param, Position, ShortFlag, ShortState, Value as CubeValue, Velocity,
     PARAMS,
@@ -49,6 +51,10 @@ pub struct Args {
     /// Acknowledge timeout in ms, 1 to 60000 (default: 200 on RS232, 50 on CAN).
     #[arg(long, value_name = "MS")]
     pub timeout_ms: Option<ReplyTimeout>,
+    /// How often moves, jogs and homing read the module's state while they wait, in ms (1 to 10000): polls
+    /// are never sent faster than this (as `motionlink powercube --poll-ms`).
+    #[arg(long, value_name = "MS", default_value = "10")]
+    pub poll_ms: PollInterval,
     /// Do not arm the module watchdog for moves, jogs and homing (a console that dies then leaves the module
     /// moving). A closed page, Stop and the end of the console still halt it.
     #[arg(long)]
@@ -107,14 +113,15 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
         },
         clock,
     ));
-    let settings = {
-        let timeout = args.timeout_ms;
-        move |mut c: BusConfig| {
-            if let Some(t) = timeout {
-                c.reply_timeout = t.get();
-            }
-            c
-        }
+    // The session's settings and the guard of its motions by the rules every front end takes (the command
+    // line's `ModuleOptions`); the modules are the console's own (`--modules`).
+    let options = ModuleOptions {
+        baud: args.baud,
+        bitrate: args.bitrate,
+        timeout_ms: args.timeout_ms,
+        poll_ms: args.poll_ms,
+        no_watchdog: args.no_watchdog,
+        ..ModuleOptions::default()
     };
     let tap = Tap::into_sink(port, Arc::clone(&traffic) as _);
     // Opening a serial device or an SLCAN adapter blocks: on the blocking pool.
@@ -126,15 +133,15 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     let mut host = None;
     let c = Arc::clone(clock);
     let client = match opened {
-        Some(PortLink::Rs232(link)) => Client::rs232(tap.link(link, &c), c, settings(BusConfig::rs232())),
-        Some(PortLink::Can(link)) => Client::can(tap.can_link(link, &c), c, settings(BusConfig::can())),
+        Some(PortLink::Rs232(link)) => Client::rs232(tap.link(link, &c), c, options.bus_config(false)),
+        Some(PortLink::Can(link)) => Client::can(tap.can_link(link, &c), c, options.bus_config(true)),
         None => {
             let modules = if args.modules.is_empty() { vec![1] } else { addresses(&args.modules) };
             let bus = SimConfig::with_addresses(&modules).map_err(CliError::usage)?;
             let h = EmulatorHost::new(Emulator::new(&bus), Arc::clone(clock), PipeConfig::paced(args.baud.get()));
             let link = tap.link(Box::new(h.connect().0), &c);
             host = Some(h);
-            Client::rs232(link, c, settings(BusConfig::rs232()))
+            Client::rs232(link, c, options.bus_config(false))
         }
     };
     let client = client.map_err(|e| crate::common::classified(&e))?;
@@ -155,7 +162,7 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     })
     .await
     .map_err(|e| crate::common::classified(&e))?;
-    let guard = Guard::for_motions(ModulesAt::emulated_in_process(host.is_some()), args.no_watchdog);
+    let guard = options.guard(host.is_some());
     let device = PowerCube {
         client,
         port: port.to_string(),
