@@ -129,18 +129,18 @@ def _write(browser, name, value):
     return browser.find_element(By.ID, "param-result")
 
 
-def test_a_powercube_write_shows_the_read_back_with_its_own_name_and_unit(browser):
+def test_a_powercube_write_shows_the_report_of_the_command_line(browser):
     console = Console("powercube", "--port", "sim", "--modules", "1")
     try:
         _open(browser, console)
+        # The report of `motionlink powercube set MaxVel 0.8 --json`, field by field.
         result = _write(browser, "MaxVel", "0.8")
-        assert "written 0.800000 rad/s, read back 0.800000 rad/s" in result.text, result.text
-        # TargetVel cannot be read: the read-back is its twin in encoder ticks, named and in ticks/s.
+        assert "MaxVel (72) written 0.800000011920929, read back 0.800000011920929" in result.text, result.text
+        assert "verified: true" in result.get_attribute("title"), result.get_attribute("title")
+        # TargetVel cannot be read: the library checks it against its twin in ticks and reports it in rad/s.
         result = _write(browser, "TargetVel", "0.5")
-        assert "written 0.500000 rad/s, read back (as TargetVelInc) " in result.text, result.text
-        assert result.get_attribute("data-read-back-name") == "TargetVelInc"
-        assert result.get_attribute("data-read-back").endswith("ticks/s"), result.text
-        assert "rad/s rad/s" not in result.text and "ticks/s rad/s" not in result.text, result.text
+        assert "TargetVel (79) written 0.5, read back 0.5" in result.text, result.text
+        assert abs(float(result.get_attribute("data-read-back")) - 0.5) < 1e-3, result.text
     finally:
         console.stop()
 

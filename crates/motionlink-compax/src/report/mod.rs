@@ -13,11 +13,14 @@
 //!   [`StartedMove`]: `{"drive", "target_units", "waited": false, "verified", "not_verifiable"}`.
 //! - [`RawOutcome`]: `{"reply", "waited"}`; [`OutputSwitched`]: `{"output", "state"}`.
 //! - [`WatchSample`]: `{"drive", "position_units", "s17", "moving"}`, and [`Timed`] puts `t_s` before it.
+//! - [`ErrorHistory`]: S18 decoded, `{"errors": [{"code", "text", "meaning"}]}`.
 //! - [`StopReport`](crate::error::StopReport): `{"drives": [{"drive", "outcome", "reason"?}], "confirmed"}`.
 
 use serde::ser::{Serialize, SerializeMap, Serializer};
 
+mod history;
 mod stopped;
+pub use history::ErrorHistory;
 pub use stopped::StopResult;
 
 use crate::model::{OutputState, ParamId, Position, S16Bits, S17Bits, StatusId, StatusValue, ValidFrom};

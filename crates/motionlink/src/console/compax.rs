@@ -11,10 +11,10 @@ use std::time::Duration;
 
 use motionlink_compax::client::{BusConfig, MoveRequest, MoveTarget, StopOutcome, TravelLimits};
 use motionlink_compax::model::{
-    BaudRate, HistoryEntry, OutputState, ParamId, Position, ReplyTimeout, S16Bits, S17Bits, S17Flag, SpeedPercent,
-    StatusId, StatusValue, WholeArg, PARAMS,
+    BaudRate, OutputState, ParamId, Position, ReplyTimeout, S16Bits, S17Bits, S17Flag, SpeedPercent, StatusId,
+    StatusValue, WholeArg, PARAMS,
 };
-use motionlink_compax::report::ParamReading;
+use motionlink_compax::report::{ErrorHistory, ParamReading};
 use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_compax::{AsyncClient, Emulator};
@@ -25,8 +25,7 @@ use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 
 use super::device::{
-    with_unit, Action, BoxFuture, Device, ErrorEntry, ErrorHistory, Failure, JogDirection, Keyed, Motion, Param,
-    ParamValue, ReadBack, Sample, Unit,
+    report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param, Report, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -163,11 +162,6 @@ fn address(n: u8) -> Result<Address, Failure> {
 
 fn speed(v: Option<f64>) -> Result<Option<SpeedPercent>, Failure> {
     v.map(SpeedPercent::new).transpose().map_err(Failure::usage)
-}
-
-/// The parameter's name in the table (`device_address`), or `P12` for one it does not describe.
-fn param_name(id: ParamId) -> String {
-    id.info().map_or(format!("P{}", id.get()), |i| i.name.to_string())
 }
 
 fn stop_text(report: &motionlink_compax::client::StopReport) -> Result<String, Failure> {
@@ -386,18 +380,10 @@ impl Device for Compax {
         Param::rows(&PARAMS)
     }
 
-    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<ParamValue, Failure>> {
+    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<Report, Failure>> {
         Box::pin(async move {
             let id: ParamId = name.parse().map_err(Failure::usage)?;
-            let read = ParamReading { id, value: self.client.read_param(address(unit)?, id).await? };
-            Ok(ParamValue {
-                name: param_name(id),
-                id: u32::from(id.get()),
-                value: with_unit(read.value, read.unit()),
-                unit: read.unit().to_string(),
-                read_back: None,
-                note: String::new(),
-            })
+            Ok(report(&ParamReading { id, value: self.client.read_param(address(unit)?, id).await? }))
         })
     }
 
@@ -406,7 +392,7 @@ impl Device for Compax {
         unit: u8,
         name: String,
         value: String,
-    ) -> BoxFuture<'static, Result<ParamValue, Failure>> {
+    ) -> BoxFuture<'static, Result<Report, Failure>> {
         Box::pin(async move {
             let id: ParamId = name.parse().map_err(Failure::usage)?;
             let v: f64 = value
@@ -415,53 +401,17 @@ impl Device for Compax {
                 .map_err(|_| Failure::usage(format!("P{} value {value:?}: give a number", id.get())))?;
             id.check(v).map_err(Failure::usage)?;
             // The library writes, compares what it reads back (a difference is an error) and reads once more.
-            let set = self.client.set_param(address(unit)?, id, v).await?;
-            let note =
-                if set.at_power_on() { "stored; takes effect when the drive is switched off and on" } else { "" };
-            let (name, unit) = (param_name(id), set.written.unit());
-            Ok(ParamValue {
-                name: name.clone(),
-                id: u32::from(id.get()),
-                value: with_unit(v, unit),
-                unit: unit.to_string(),
-                read_back: Some(ReadBack { name, value: with_unit(set.read_back, unit) }),
-                note: note.to_string(),
-            })
+            Ok(report(&self.client.set_param(address(unit)?, id, v).await?))
         })
     }
 
-    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<ErrorHistory, Failure>> {
+    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Report, Failure>> {
         Box::pin(async move {
-            let a = address(unit)?;
-            let v = self.client.read_status(a, StatusId::ERROR_HISTORY).await?;
+            let v = self.client.read_status(address(unit)?, StatusId::ERROR_HISTORY).await?;
             let StatusValue::History(h) = v else {
                 return Err(Failure { kind: "corrupt", message: format!("S18 read as {v}, not a history") });
             };
-            let entries: Vec<ErrorEntry> = h
-                .iter()
-                .enumerate()
-                .map(|(i, e)| {
-                    let meaning = match e {
-                        HistoryEntry::Error(c) => {
-                            c.meaning().unwrap_or("an error whose meaning is not documented in our sources").to_string()
-                        }
-                        HistoryEntry::Acknowledged => "the error before was acknowledged".to_string(),
-                        HistoryEntry::PowerOn => "power-on acknowledgement".to_string(),
-                    };
-                    ErrorEntry {
-                        label: if i == 0 { "newest".to_string() } else { format!("{}", i + 1) },
-                        code: u64::from(e.number()),
-                        code_text: match e {
-                            HistoryEntry::Error(c) => format!("E{:02}", c.0),
-                            other => other.number().to_string(),
-                        },
-                        meaning,
-                        bits: Vec::new(),
-                        unknown_bits: 0,
-                    }
-                })
-                .collect();
-            Ok(ErrorHistory { title: "S18: the last eight errors of the drive, newest first", entries })
+            Ok(report(&ErrorHistory(h)))
         })
     }
 

@@ -11,7 +11,7 @@ use motionlink_link::table::Entry;
 use serde::Serialize;
 use serde_json::Value;
 
-pub use crate::common::{with_unit, Keyed};
+pub use crate::common::Keyed;
 
 /// A boxed future that can move between threads.
 pub type BoxFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
@@ -131,74 +131,14 @@ impl Param {
     }
 }
 
-/// A value read from the device (or written and read back). It serialises with `read_back` the value read
-/// back (or null) and `read_back_name` the entry it was read from.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ParamValue {
-    /// The entry's name.
-    pub name: String,
-    /// Its number.
-    pub id: u32,
-    /// The value as read (or written), in words and numbers, with the unit it is shown in: the page shows
-    /// it as it is (it adds no unit).
-    pub value: String,
-    /// The entry's unit in the table ("" when none; the value may be shown in a scaled unit, such as A
-    /// for an entry in 0.1 A).
-    pub unit: String,
-    /// For a write: what the device gave back when it was read again (None when it cannot be read back,
-    /// with the reason in `note`).
-    #[serde(flatten, serialize_with = "read_back")]
-    pub read_back: Option<ReadBack>,
-    /// What the page should know besides (takes effect at the next power-on; cannot be read back).
-    pub note: String,
-}
+/// A library's report as it serialises: the object `motionlink <family> ... --json` prints for the same
+/// action (without the identity fields `family`, `port`, `profile` and the unit's number, which the page
+/// knows).
+pub type Report = Value;
 
-/// What a write was checked against: the entry read again, which is the entry written or, where that one
-/// cannot be read (PowerCube TargetPos, TargetVel, TargetAcc), the entry the device keeps the same setting
-/// in (TargetPosInc, ... in encoder ticks).
-#[derive(Debug, Clone, PartialEq)]
-pub struct ReadBack {
-    /// The name of the entry read.
-    pub name: String,
-    /// The value read, with the unit it is shown in.
-    pub value: String,
-}
-
-fn read_back<S: serde::Serializer>(rb: &Option<ReadBack>, s: S) -> Result<S::Ok, S::Error> {
-    #[derive(Serialize)]
-    struct Shown<'a> {
-        read_back: Option<&'a str>,
-        read_back_name: Option<&'a str>,
-    }
-    let rb = rb.as_ref();
-    Shown { read_back: rb.map(|r| r.value.as_str()), read_back_name: rb.map(|r| r.name.as_str()) }.serialize(s)
-}
-
-/// One entry of an error history as the page shows it.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ErrorEntry {
-    /// Which entry ("newest", "Error_Code 2", "CubeState now").
-    pub label: String,
-    /// The code as a number (0: no error).
-    pub code: u64,
-    /// The code as the device's documents write it ("0x00001000", "E92"), serialised as `text`.
-    #[serde(rename = "text")]
-    pub code_text: String,
-    /// What it means, in words ("" when the code says no error).
-    pub meaning: String,
-    /// For a bit field: each set bit (`{"bit", "name", "cause"}`).
-    pub bits: Vec<Value>,
-    /// Set bits that have no name.
-    pub unknown_bits: u64,
-}
-
-/// An error history as the page gets it.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ErrorHistory {
-    /// What the entries are ("Error_Code 1..5 of the unit ...").
-    pub title: &'static str,
-    /// The entries, newest first.
-    pub entries: Vec<ErrorEntry>,
+/// The report `r` as it serialises.
+pub fn report(r: &impl Serialize) -> Report {
+    crate::common::to_json(r)
 }
 
 /// An action of the family besides move, jog and stop (PowerCube home and reset, COMPAX switch on).
@@ -250,23 +190,24 @@ pub trait Device: Send + Sync + 'static {
     fn action(self: Arc<Self>, unit: u8, name: &str) -> Result<Motion, Failure>;
     /// The parameter table or data list.
     fn params(&self) -> Vec<Param>;
-    /// Reads entry `name` (a name or a number) of `unit`.
-    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<ParamValue, Failure>>;
-    /// Writes entry `name` of `unit` and reads it back.
+    /// Reads entry `name` (a name or a number) of `unit`: the family's report of `get`.
+    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<Report, Failure>>;
+    /// Writes entry `name` of `unit` and reads it back: the family's report of `set`.
     fn write_param(
         self: Arc<Self>,
         unit: u8,
         name: String,
         value: String,
-    ) -> BoxFuture<'static, Result<ParamValue, Failure>>;
+    ) -> BoxFuture<'static, Result<Report, Failure>>;
     /// The library's report of the motion or action `what` ("move", "jog", an action's label) of `unit`
     /// that just ended well, as it serialises (the fields the command line's `--json` prints): the hub sends
     /// it with the motion's end (`report`). Taken once; `None` where the family keeps none.
     fn take_report(&self, _unit: u8, _what: &str) -> Option<Value> {
         None
     }
-    /// The error history of `unit`, decoded.
-    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<ErrorHistory, Failure>>;
+    /// The error history of `unit`, decoded: the family's report (SCU: that of `errors`; PowerCube: the state
+    /// word, that of `state`; COMPAX: S18 decoded).
+    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Report, Failure>>;
     /// Ends the session (the library stops what it started and says whether that was confirmed). Called
     /// once, with the last reference.
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>>;

@@ -4,7 +4,7 @@
 use serde::Serialize;
 use serde_json::Value;
 
-use super::device::{Action, ErrorHistory, Failure, Param, ParamValue, Sample, Unit};
+use super::device::{Action, Failure, Param, Report, Sample, Unit};
 use super::traffic::LogLine;
 use crate::common::Keyed;
 
@@ -93,10 +93,19 @@ pub enum Message {
     Stopped { ok: bool, message: String },
     /// An action that does not move ended well: its name, label and what the device did.
     Action { name: String, label: &'static str, ok: bool, message: String },
-    /// A value read, or written (and read back).
-    Param { written: bool, param: ParamValue },
-    /// The error history of a unit.
-    Errors(Numbered<ErrorHistory>),
+    /// A value read, or written (and read back): the family's report of `get` or `set`.
+    Param {
+        written: bool,
+        #[serde(flatten)]
+        unit: Keyed<u8>,
+        report: Report,
+    },
+    /// The error history of a unit: the family's report.
+    Errors {
+        #[serde(flatten)]
+        unit: Keyed<u8>,
+        report: Report,
+    },
     /// A request that was not made (bad input, wrong role).
     Refused(RequestFailure),
     /// A request that was made and failed.

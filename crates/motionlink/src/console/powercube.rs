@@ -7,20 +7,22 @@ use std::time::Duration;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::SharedClock;
-use motionlink_powercube::args::{Baud, CanBitRate, MotionTimeout, MoveVelocity, ReplyTimeout, Target};
-use motionlink_powercube::client::{BusConfig, Client, Guard, ModulesAt, MoveSpec, PortLink};
+use motionlink_powercube::args::{
+    Baud, CanBitRate, ModuleOptions, MotionTimeout, MoveVelocity, PollInterval, ReplyTimeout, Target,
+};
+use motionlink_powercube::client::{Client, Guard, MoveSpec, PortLink};
 use motionlink_powercube::model::{
     Address, AxisUnit, CubeState, ModuleKind, Param, Position, ShortFlag, ShortState, Value as CubeValue, Velocity,
     PARAMS,
 };
+use motionlink_powercube::report::{ParamReading, SetReport, StateReport};
 use motionlink_powercube::session::{Op, Output};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{AsyncClient, Emulator, Error};
 use serde_json::Value;
 
 use super::device::{
-    Action, BoxFuture, Device, ErrorEntry, ErrorHistory, Failure, JogDirection, Keyed, Motion, Param as Row,
-    ParamValue, ReadBack, Sample, Unit,
+    report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param as Row, Report, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -49,6 +51,10 @@ pub struct Args {
     /// Acknowledge timeout in ms, 1 to 60000 (default: 200 on RS232, 50 on CAN).
     #[arg(long, value_name = "MS")]
     pub timeout_ms: Option<ReplyTimeout>,
+    /// How often moves, jogs and homing read the module's state while they wait, in ms (1 to 10000): polls
+    /// are never sent faster than this (as `motionlink powercube --poll-ms`).
+    #[arg(long, value_name = "MS", default_value = "10")]
+    pub poll_ms: PollInterval,
     /// Do not arm the module watchdog for moves, jogs and homing (a console that dies then leaves the module
     /// moving). A closed page, Stop and the end of the console still halt it.
     #[arg(long)]
@@ -107,14 +113,15 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
         },
         clock,
     ));
-    let settings = {
-        let timeout = args.timeout_ms;
-        move |mut c: BusConfig| {
-            if let Some(t) = timeout {
-                c.reply_timeout = t.get();
-            }
-            c
-        }
+    // The session's settings and the guard of its motions by the rules every front end takes (the command
+    // line's `ModuleOptions`); the modules are the console's own (`--modules`).
+    let options = ModuleOptions {
+        baud: args.baud,
+        bitrate: args.bitrate,
+        timeout_ms: args.timeout_ms,
+        poll_ms: args.poll_ms,
+        no_watchdog: args.no_watchdog,
+        ..ModuleOptions::default()
     };
     let tap = Tap::into_sink(port, Arc::clone(&traffic) as _);
     // Opening a serial device or an SLCAN adapter blocks: on the blocking pool.
@@ -126,15 +133,15 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     let mut host = None;
     let c = Arc::clone(clock);
     let client = match opened {
-        Some(PortLink::Rs232(link)) => Client::rs232(tap.link(link, &c), c, settings(BusConfig::rs232())),
-        Some(PortLink::Can(link)) => Client::can(tap.can_link(link, &c), c, settings(BusConfig::can())),
+        Some(PortLink::Rs232(link)) => Client::rs232(tap.link(link, &c), c, options.bus_config(false)),
+        Some(PortLink::Can(link)) => Client::can(tap.can_link(link, &c), c, options.bus_config(true)),
         None => {
             let modules = if args.modules.is_empty() { vec![1] } else { addresses(&args.modules) };
             let bus = SimConfig::with_addresses(&modules).map_err(CliError::usage)?;
             let h = EmulatorHost::new(Emulator::new(&bus), Arc::clone(clock), PipeConfig::paced(args.baud.get()));
             let link = tap.link(Box::new(h.connect().0), &c);
             host = Some(h);
-            Client::rs232(link, c, settings(BusConfig::rs232()))
+            Client::rs232(link, c, options.bus_config(false))
         }
     };
     let client = client.map_err(|e| crate::common::classified(&e))?;
@@ -155,7 +162,7 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     })
     .await
     .map_err(|e| crate::common::classified(&e))?;
-    let guard = Guard::for_motions(ModulesAt::emulated_in_process(host.is_some()), args.no_watchdog);
+    let guard = options.guard(host.is_some());
     let device = PowerCube {
         client,
         port: port.to_string(),
@@ -204,10 +211,6 @@ fn unexpected_output<T>(address: Address, other: Output) -> Result<T, Error> {
         request: "Get ActFPosStateDio".into(),
         detail: format!("unexpected answer {other:?}"),
     })
-}
-
-fn unit_of(p: Param, kind: Option<ModuleKind>) -> String {
-    kind.map_or(p.unit().generic_symbol(), |k| p.unit().symbol(k)).to_string()
 }
 
 impl PowerCube {
@@ -451,20 +454,17 @@ impl Device for PowerCube {
         Row::rows(&PARAMS)
     }
 
-    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<ParamValue, Failure>> {
+    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<Report, Failure>> {
         Box::pin(async move {
-            let p: Param = name.trim().parse().map_err(Failure::usage)?;
-            let v = self.module(unit)?.get(p).await?;
-            let kind = self.kind(unit);
-            Ok(ParamValue {
-                name: p.name().to_string(),
-                id: u32::from(p.id()),
-                // With its unit (a flag word decoded).
-                value: v.show_in(p, kind),
-                unit: unit_of(p, kind),
-                read_back: None,
-                note: String::new(),
-            })
+            let param: Param = name.trim().parse().map_err(Failure::usage)?;
+            let m = self.module(unit)?;
+            let value = m.get(param).await?;
+            // The unit depends on the module type (rad or m): read where the scan did not.
+            let kind = match self.kind(unit) {
+                Some(k) => k,
+                None => m.kind().await?,
+            };
+            Ok(report(&ParamReading { param, kind, value }))
         })
     }
 
@@ -473,59 +473,19 @@ impl Device for PowerCube {
         unit: u8,
         name: String,
         value: String,
-    ) -> BoxFuture<'static, Result<ParamValue, Failure>> {
+    ) -> BoxFuture<'static, Result<Report, Failure>> {
         Box::pin(async move {
-            let p: Param = name.trim().parse().map_err(Failure::usage)?;
-            let v = CubeValue::parse(p, &value).map_err(Failure::usage)?;
-            let kind = self.kind(unit);
-            let readback = self.module(unit)?.set_checked(p, v).await?;
-            let (read_back, note) = match readback.read {
-                Some(r) => {
-                    // TargetPos, TargetVel and TargetAcc cannot be read: what came back is their twin in
-                    // encoder ticks, shown as what it is.
-                    let from = p.read_back_as().unwrap_or(p);
-                    let note = if from == p {
-                        String::new()
-                    } else {
-                        format!("{} cannot be read: checked against {}, in encoder ticks", p.name(), from.name())
-                    };
-                    (Some(ReadBack { name: from.name().to_string(), value: r.show_in(from, kind) }), note)
-                }
-                None => (None, format!("not read back: {}", readback.not_verifiable.join("; "))),
-            };
-            Ok(ParamValue {
-                name: p.name().to_string(),
-                id: u32::from(p.id()),
-                value: v.show_in(p, kind),
-                unit: unit_of(p, kind),
-                read_back,
-                note,
-            })
+            let param: Param = name.trim().parse().map_err(Failure::usage)?;
+            let value = CubeValue::parse(param, &value).map_err(Failure::usage)?;
+            // Targets beyond their limits are refused; what was written is read back where the module allows it.
+            let readback = self.module(unit)?.set_checked(param, value).await?;
+            Ok(report(&SetReport { param, value, readback }))
         })
     }
 
-    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<ErrorHistory, Failure>> {
-        Box::pin(async move {
-            let s = self.module(unit)?.state().await?;
-            let mut words = Vec::new();
-            let bits: Vec<Value> = s
-                .faults()
-                .map(|f| {
-                    words.push(format!("{}: {}", f.name(), f.meaning()));
-                    crate::common::to_json(&f)
-                })
-                .collect();
-            let entry = ErrorEntry {
-                label: "CubeState now".into(),
-                code: u64::from(s.0),
-                code_text: format!("0x{:08X}", s.0),
-                meaning: if words.is_empty() { "no fault flag set".into() } else { words.join("; ") },
-                bits,
-                unknown_bits: 0,
-            };
-            let title = "PowerCube modules keep no error history: the fault flags of the state word now";
-            Ok(ErrorHistory { title, entries: vec![entry] })
-        })
+    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Report, Failure>> {
+        // PowerCube modules keep no error history: the state word now, as `state` reports it.
+        Box::pin(async move { Ok(report(&StateReport(self.module(unit)?.state().await?))) })
     }
 
     fn take_report(&self, unit: u8, what: &str) -> Option<Value> {

@@ -8,17 +8,16 @@ use motionlink_link::SharedClock;
 use motionlink_scu::args::{parse_write, Baud, Checked};
 use motionlink_scu::describe::Describer;
 use motionlink_scu::model::{
-    Actuator, DataIndex, ErrorBit, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode,
-    StopMode, TABLE,
+    Actuator, DataIndex, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode, StopMode,
+    TABLE,
 };
+use motionlink_scu::results::ErrorHistory;
 use motionlink_scu::session::RunAction;
 use motionlink_scu::value::Value as ScuValue;
 use motionlink_scu::{AsyncClient, ClientConfig, FunctionMap, SimConfig};
-use serde_json::Value;
 
 use super::device::{
-    finite, Action, BoxFuture, Device, ErrorEntry, ErrorHistory, Failure, JogDirection, Keyed, Motion, Param,
-    ParamValue, ReadBack, Sample, Unit,
+    finite, report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param, Report, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -98,14 +97,6 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     Ok((Arc::new(device), traffic))
 }
 
-/// An error bit as results show it, with the unit's reaction besides.
-#[derive(serde::Serialize)]
-struct BitWithReaction {
-    #[serde(flatten)]
-    bit: ErrorBit,
-    reaction: &'static str,
-}
-
 fn actuator(n: u8) -> Result<Actuator, Failure> {
     Actuator::checked(i64::from(n)).map_err(|e| Failure::usage(format!("actuator {n}: {e}")))
 }
@@ -143,18 +134,6 @@ impl Scu {
 
 fn lookup_entry(name: &str) -> Result<Item, Failure> {
     motionlink_scu::model::find(name).map_err(Failure::usage)
-}
-
-/// A value as the page shows it, with its unit (a remote speed in the unit's speed mode).
-fn show(v: &ScuValue, mode: SpeedMode) -> String {
-    v.show(mode)
-}
-
-fn shown(entries: &[(&'static motionlink_scu::model::DataEntry, ScuValue)], mode: SpeedMode) -> String {
-    if let [(_, v)] = entries {
-        return show(v, mode);
-    }
-    entries.iter().map(|(e, v)| format!("{}={}", e.name, show(v, mode))).collect::<Vec<_>>().join(", ")
 }
 
 impl Device for Scu {
@@ -307,23 +286,8 @@ impl Device for Scu {
         Param::rows(&TABLE)
     }
 
-    fn read_param(self: Arc<Self>, _unit: u8, name: String) -> BoxFuture<'static, Result<ParamValue, Failure>> {
-        Box::pin(async move {
-            let it = lookup_entry(&name)?;
-            let values = self.client.get(it.index()).await?;
-            let unit = match it {
-                Item::Entry(e) => e.unit,
-                Item::Group(_) => "",
-            };
-            Ok(ParamValue {
-                name: it.name().to_string(),
-                id: u32::from(it.index().0),
-                value: shown(&values, self.speed_mode),
-                unit: unit.to_string(),
-                read_back: None,
-                note: String::new(),
-            })
-        })
+    fn read_param(self: Arc<Self>, _unit: u8, name: String) -> BoxFuture<'static, Result<Report, Failure>> {
+        Box::pin(async move { Ok(report(&self.client.read(lookup_entry(&name)?).await?)) })
     }
 
     fn write_param(
@@ -331,59 +295,17 @@ impl Device for Scu {
         _unit: u8,
         name: String,
         value: String,
-    ) -> BoxFuture<'static, Result<ParamValue, Failure>> {
+    ) -> BoxFuture<'static, Result<Report, Failure>> {
         Box::pin(async move {
             let (e, v) = parse_write(lookup_entry(&name)?, &value).map_err(Failure::usage)?;
             // The library writes with RT, reads the entry back and compares (a difference is an error), then
             // reads what the unit holds; a unit that does not read remote data back says so in the report.
-            let w = self.client.write(e, v).await?;
-            Ok(ParamValue {
-                name: e.name.to_string(),
-                id: e.id,
-                value: show(&w.value, self.speed_mode),
-                unit: e.unit.to_string(),
-                read_back: w
-                    .read_back
-                    .map(|back| ReadBack { name: e.name.to_string(), value: show(&back, self.speed_mode) }),
-                note: w.set.not_verifiable.join("; "),
-            })
+            Ok(report(&self.client.write(e, v).await?))
         })
     }
 
-    fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<ErrorHistory, Failure>> {
-        Box::pin(async move {
-            let history = self.client.error_history().await?;
-            let entries: Vec<ErrorEntry> = history
-                .iter()
-                .enumerate()
-                .map(|(i, c)| {
-                    let mut words = Vec::new();
-                    let bits: Vec<Value> = c
-                        .bits()
-                        .map(|b| {
-                            words.push(format!("bit {} {}: {} ({})", b.number(), b.name(), b.cause(), b.reaction()));
-                            crate::common::to_json(&BitWithReaction { bit: b, reaction: b.reaction() })
-                        })
-                        .collect();
-                    if c.unknown_bits() != 0 {
-                        words.push(format!("bits 0x{:08X} not in the manual", c.unknown_bits()));
-                    }
-                    ErrorEntry {
-                        label: if i == 0 {
-                            "Error_Code 1 (most recent)".to_string()
-                        } else {
-                            format!("Error_Code {}", i + 1)
-                        },
-                        code: u64::from(c.0),
-                        code_text: format!("0x{:08X}", c.0),
-                        meaning: if c.0 == 0 { "no error".to_string() } else { words.join("; ") },
-                        bits,
-                        unknown_bits: u64::from(c.unknown_bits()),
-                    }
-                })
-                .collect();
-            Ok(ErrorHistory { title: "Error_Code 1..5 of the unit (0x00D1..0x00D5), newest first", entries })
-        })
+    fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<Report, Failure>> {
+        Box::pin(async move { Ok(report(&ErrorHistory { errors: self.client.error_history().await? })) })
     }
 
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {

@@ -380,6 +380,7 @@ fn handle_request(
                 return Err(Failure::usage("give the name or number of the entry"));
             }
             let device = Arc::clone(hub.device());
+            let key = Keyed(device.unit_key(), unit);
             if kind == "write_param" {
                 hub.check_control(page)?;
                 let value = match req.get("value") {
@@ -389,12 +390,12 @@ fn handle_request(
                 };
                 spawn_reply(replies, kind, async move {
                     let v = device.write_param(unit, name, value).await?;
-                    Ok(Message::Param { written: true, param: v })
+                    Ok(Message::Param { written: true, unit: key, report: v })
                 });
             } else {
                 spawn_reply(replies, kind, async move {
                     let v = device.read_param(unit, name).await?;
-                    Ok(Message::Param { written: false, param: v })
+                    Ok(Message::Param { written: false, unit: key, report: v })
                 });
             }
             Ok(None)
@@ -404,7 +405,7 @@ fn handle_request(
             let device = Arc::clone(hub.device());
             let key = Keyed(device.unit_key(), unit);
             let work = device.errors(unit);
-            spawn_reply(replies, kind, async move { Ok(Message::Errors(Numbered { unit: key, what: work.await? })) });
+            spawn_reply(replies, kind, async move { Ok(Message::Errors { unit: key, report: work.await? }) });
             Ok(None)
         }
         other => Err(Failure::usage(format!("unknown request {other:?}"))),

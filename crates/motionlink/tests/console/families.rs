@@ -19,7 +19,7 @@ fn write(ws: &mut Ws, key: &str, name: &str, value: &str) -> Value {
         .expect("an answer to the write");
     assert_eq!(v["type"], "param", "{v}");
     assert_eq!(v["written"], true, "{v}");
-    v["param"].clone()
+    v["report"].clone()
 }
 
 /// Reads `name` of unit 1 and returns the `param` answer.
@@ -28,7 +28,7 @@ fn read(ws: &mut Ws, key: &str, name: &str) -> Value {
     let v = recv_until(ws, Duration::from_secs(10), |v| v["type"] == "param" || v["type"] == "failed")
         .expect("an answer to the read");
     assert_eq!(v["type"], "param", "{v}");
-    v["param"].clone()
+    v["report"].clone()
 }
 
 /// The error history of unit 1.
@@ -43,10 +43,13 @@ fn an_scu_write_shows_its_read_back() {
     let mut ws = ws(&c);
     units(&mut ws);
     let p = write(&mut ws, "actuator", "remote_speed_f1", "40");
-    assert_eq!(p["read_back_name"], "remote_speed_f1", "{p}");
-    assert_eq!(p["read_back"], "40 %", "{p}");
-    assert_eq!(p["value"], "40 %", "the value carries its unit once: {p}");
-    assert_eq!(read(&mut ws, "actuator", "remote_speed_f1")["value"], "40 %");
+    // The report `motionlink scu set remote_speed_f1 40 --json` prints (without the identity fields).
+    assert_eq!(
+        p,
+        json!({"name": "remote_speed_f1", "id": 0x3011, "unit": "%", "access": "rw", "value": 40, "read_back": 40,
+               "verified": true, "not_verifiable": []})
+    );
+    assert_eq!(read(&mut ws, "actuator", "remote_speed_f1")["value"], 40);
 }
 
 /// Waits for the end of the motion `what` of module 1 and returns it.
@@ -78,31 +81,20 @@ fn a_powercube_motion_ends_with_the_report_the_command_line_prints() {
 }
 
 #[test]
-fn a_powercube_write_shows_its_read_back_and_a_target_its_tick_twin() {
+fn a_powercube_write_reports_what_the_command_line_does() {
     let c = console(&["powercube", "--port", "sim", "--modules", "1"]);
     let mut ws = ws(&c);
     units(&mut ws);
-    // A parameter that reads back as itself, its unit once.
+    // The reports of `motionlink powercube set` and `get` (without the identity fields).
     let p = write(&mut ws, "module", "MaxVel", "0.8");
-    assert_eq!(p["read_back_name"], "MaxVel", "{p}");
-    assert_eq!(p["read_back"], "0.800000 rad/s", "{p}");
-    assert_eq!(p["value"], "0.800000 rad/s", "{p}");
-    assert_eq!(read(&mut ws, "module", "MaxVel")["value"], "0.800000 rad/s");
-    // TargetVel cannot be read: what comes back is TargetVelInc, in encoder ticks, and it says so.
-    let ratio: f64 = read(&mut ws, "module", "IncRatio")["value"]
-        .as_str()
-        .and_then(|v| v.split_whitespace().next())
-        .and_then(|n| n.parse().ok())
-        .expect("IncRatio is a number");
+    assert_eq!((&p["name"], &p["verified"], &p["not_verifiable"]), (&json!("MaxVel"), &json!(true), &json!([])));
+    assert_eq!((p["value"].as_f64(), p["read_back"].as_f64()), (Some(0.8f32 as f64), Some(0.8f32 as f64)), "{p}");
+    let r = read(&mut ws, "module", "MaxVel");
+    assert_eq!((r["value"].as_f64(), &r["unit"]), (Some(0.8f32 as f64), &json!("rad/s")), "{r}");
+    // TargetVel cannot be read: the library checks it against TargetVelInc and reports it in rad/s.
     let p = write(&mut ws, "module", "TargetVel", "0.5");
-    assert_eq!(p["value"], "0.500000 rad/s", "{p}");
-    assert_eq!(p["read_back_name"], "TargetVelInc", "{p}");
-    let back = p["read_back"].as_str().expect("a read-back");
-    let (ticks, unit) = back.split_once(' ').unwrap_or_else(|| panic!("no unit in {back:?}"));
-    let ticks: f64 = ticks.parse().unwrap_or_else(|_| panic!("{back:?}"));
-    assert!((ticks - (0.5 * ratio).round()).abs() <= 1.0, "{back:?} for 0.5 rad/s at {ratio} ticks/rad");
-    assert!(unit.contains("ticks") && !unit.contains("rad"), "{back:?}");
-    assert!(p["note"].as_str().unwrap().contains("TargetVelInc"), "{p}");
+    assert_eq!((p["value"].as_f64(), p["verified"].as_bool()), (Some(0.5), Some(true)), "{p}");
+    assert!((p["read_back"].as_f64().unwrap() - 0.5).abs() < 1e-3, "{p}");
 }
 
 #[test]
@@ -116,12 +108,13 @@ fn the_scu_error_history_decodes_an_error_the_unit_raised() {
     sim.wait_event(Duration::from_secs(10), |t| t.starts_with("error bit 12 set")).expect("the unit raised it");
     let v = errors(&mut ws, "actuator");
     let _ = std::fs::remove_file(&config);
-    let newest = &v["entries"][0];
+    // The report of `motionlink scu errors --json`.
+    let newest = &v["report"]["errors"][0];
     assert_eq!(newest["code"], 1 << 11, "{v}");
-    assert_eq!(newest["text"], "0x00000800", "{v}");
-    let meaning = newest["meaning"].as_str().unwrap();
-    assert!(meaning.contains("bit 12 over_temperature") && meaning.contains("overtemperature"), "{v}");
-    assert_eq!(v["entries"][1]["meaning"], "no error", "{v}");
+    assert_eq!(newest["bits"][0]["bit"], 12, "{v}");
+    assert_eq!(newest["bits"][0]["name"], "over_temperature", "{v}");
+    assert!(newest["bits"][0]["cause"].as_str().unwrap().contains("overtemperature"), "{v}");
+    assert_eq!(v["report"]["errors"][1], json!({"code": 0, "bits": []}), "{v}");
 }
 
 #[test]
@@ -151,7 +144,7 @@ fn the_compax_error_history_decodes_an_error_the_drive_raised() {
     let mut ws = ws(&c);
     units(&mut ws);
     let v = errors(&mut ws, "drive");
-    let newest = &v["entries"][0];
+    let newest = &v["report"]["errors"][0];
     assert_eq!(newest["code"], 92, "{v}");
     assert_eq!(newest["text"], "E92", "the code in the Code column: {v}");
     assert!(newest["meaning"].as_str().unwrap().starts_with("command active"), "the meaning in its own: {v}");
@@ -167,7 +160,8 @@ fn the_powercube_error_history_decodes_a_state_fault() {
     let mut ws = ws(&c);
     units(&mut ws);
     let v = errors(&mut ws, "module");
-    assert_eq!(v["entries"][0]["meaning"], "no fault flag set", "{v}");
+    // The report of `motionlink powercube state --json`.
+    assert_eq!(v["report"]["faults"], json!([]), "{v}");
     send(&mut ws, json!({"type": "move", "module": 1, "target_rad": 1.0}));
     sim.wait_event(Duration::from_secs(10), |t| t == "module 1 error: STATE_TOW_ERROR").expect("the tow error");
     recv_until(&mut ws, Duration::from_secs(10), |v| v["type"] == "motion" && v["state"] != "running")
@@ -181,11 +175,9 @@ fn the_powercube_error_history_decodes_a_state_fault() {
     .expect("a sample shows STATE_TOW_ERROR");
     let v = errors(&mut ws, "module");
     let _ = std::fs::remove_file(&config);
-    let now = &v["entries"][0];
-    assert!(now["code"].as_u64().unwrap() != 0, "{v}");
-    assert!(now["text"].as_str().unwrap().starts_with("0x"), "{v}");
-    assert!(now["meaning"].as_str().unwrap().contains("STATE_TOW_ERROR"), "{v}");
-    assert!(now["bits"].as_array().unwrap().iter().any(|b| b["name"] == "STATE_TOW_ERROR"), "{v}");
+    let now = &v["report"];
+    assert!(now["word"].as_u64().unwrap() != 0, "{v}");
+    assert!(now["faults"].as_array().unwrap().iter().any(|f| f == "STATE_TOW_ERROR"), "{v}");
 }
 
 /// A GET of `path` from `host` naming `host_header` as its Host: the status and the body.

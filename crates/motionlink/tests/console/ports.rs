@@ -54,7 +54,8 @@ fn the_console_takes_device_and_motionlink_port() {
 
 #[test]
 fn the_console_of_three_modules_shows_and_moves_each() {
-    let c = console(&["powercube", "--port", "sim", "--modules", "1,2,3"]);
+    // With the command line's --poll-ms (the session's settings by the same ModuleOptions).
+    let c = console(&["powercube", "--port", "sim", "--modules", "1,2,3", "--poll-ms", "20"]);
     let mut ws = super::ws(&c);
     let found = units(&mut ws);
     let labels: Vec<&str> = found.iter().map(|u| u["label"].as_str().unwrap()).collect();
@@ -74,6 +75,14 @@ fn the_console_of_three_modules_shows_and_moves_each() {
     };
     assert!((at(2) - 0.4).abs() < 0.01, "{s}");
     assert!((at(1) - 0.4).abs() > 0.1 && (at(3) - 0.4).abs() > 0.1, "the others stay: {s}");
+}
+
+#[test]
+fn a_powercube_console_takes_poll_ms_by_its_rule() {
+    let ended = crate::common::Running::start(&["console", "powercube", "--port", "sim", "--poll-ms", "0"])
+        .wait(Duration::from_secs(10));
+    assert_eq!(ended.code(), 2, "{ended:?}");
+    assert!(ended.stderr.contains("--poll-ms") && !ended.stderr.contains("unexpected argument"), "{ended:?}");
 }
 
 #[test]

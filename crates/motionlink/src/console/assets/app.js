@@ -201,41 +201,55 @@ const handlers = {
     }
     status(`${msg.request} failed (${msg.error.kind}): ${msg.message}`, true);
   },
-  // Values come with the unit they are shown in: nothing is added here.
+  // A report is the object `motionlink <family> ... --json` prints: shown field by field, as it is.
   param(msg) {
-    const p = msg.param;
-    let text;
+    const r = msg.report;
+    const unit = r.unit ? ` ${r.unit}` : "";
+    let text = `${r.name} (${r.id}) ${msg.written ? "written" : "="} ${show(r.value)}${unit}`;
     if (msg.written) {
-      if (p.read_back === null) {
-        text = `${p.name} (${p.id}) written ${p.value}; not read back: ${p.note}`;
-      } else {
-        const from = p.read_back_name && p.read_back_name !== p.name ? ` (as ${p.read_back_name})` : "";
-        text = `${p.name} (${p.id}) written ${p.value}, read back${from} ${p.read_back}`;
-        if (p.note) text += ` (${p.note})`;
-      }
-    } else {
-      text = `${p.name} (${p.id}) = ${p.value}`;
+      text += r.read_back === null || r.read_back === undefined
+        ? `; not read back: ${(r.not_verifiable || []).join("; ")}`
+        : `, read back ${show(r.read_back)}${unit}`;
     }
     const out = $("param-result");
     out.textContent = text;
-    out.dataset.readBack = p.read_back === null ? "" : p.read_back;
-    out.dataset.readBackName = p.read_back_name || "";
-    const row = document.querySelector(`#params tr[data-name="${CSS.escape(p.name)}"] .value`);
-    if (row) row.textContent = p.value;
+    out.title = fields(r);
+    out.dataset.readBack = r.read_back === null || r.read_back === undefined ? "" : show(r.read_back);
+    const row = document.querySelector(`#params tr[data-name="${CSS.escape(r.name)}"] .value`);
+    if (row) row.textContent = `${show(r.value)}${unit}`;
   },
+  // One row per entry of the report's `errors` (a history), else one row for the report (a state word).
   errors(msg) {
-    $("errors-caption").textContent = msg.title;
+    const r = msg.report;
     const tbody = $("errors").tBodies[0];
     tbody.replaceChildren();
-    for (const e of msg.entries) {
+    const history = Array.isArray(r.errors);
+    $("errors-caption").textContent = history ? "the error history, newest first" : "no error history: the state now";
+    (history ? r.errors : [r]).forEach((e, i) => {
       const tr = tbody.insertRow();
-      tr.insertCell().textContent = e.label;
-      tr.insertCell().textContent = e.text;
-      tr.insertCell().textContent = e.meaning;
-    }
+      tr.insertCell().textContent = !history ? "now" : i === 0 ? "newest" : String(i + 1);
+      const code = e.code !== undefined ? e.code : e.word;
+      tr.insertCell().textContent = e.text !== undefined ? e.text : `0x${code.toString(16).padStart(8, "0")}`;
+      const rest = Object.fromEntries(Object.entries(e).filter(([k]) => !["code", "text", "word"].includes(k)));
+      tr.insertCell().textContent = e.meaning !== undefined ? e.meaning : fields(rest);
+    });
   },
   bye(msg) { $("link-state").textContent = msg.message; },
 };
+
+// A value of a report as text: a number as it is, a list joined, an object field by field.
+function show(v) {
+  if (Array.isArray(v)) return v.map(show).join(", ");
+  if (v !== null && typeof v === "object") return `{${fields(v)}}`;
+  return String(v);
+}
+
+// The fields of a report, `name: value` each (the identity fields the page knows left out).
+function fields(r) {
+  const known = ["family", "port", "profile"];
+  return Object.entries(r).filter(([k, v]) => !known.includes(k) && !(Array.isArray(v) && v.length === 0))
+    .map(([k, v]) => `${k}: ${show(v)}`).join("; ");
+}
 
 function status(text, bad) {
   const p = $("motion");

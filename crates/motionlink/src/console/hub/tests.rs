@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::console::device::Motion as DeviceMotion;
-use crate::console::device::{Action, BoxFuture, ErrorHistory, JogDirection, Param, ParamValue, Sample};
+use crate::console::device::{Action, BoxFuture, JogDirection, Param, Report, Sample};
 use crate::console::traffic::Traffic;
 use motionlink_link::clock::ManualClock;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -77,7 +77,7 @@ impl Device for Fake {
     fn params(&self) -> Vec<Param> {
         Vec::new()
     }
-    fn read_param(self: Arc<Self>, _unit: u8, _name: String) -> BoxFuture<'static, Result<ParamValue, Failure>> {
+    fn read_param(self: Arc<Self>, _unit: u8, _name: String) -> BoxFuture<'static, Result<Report, Failure>> {
         Box::pin(async { Err(Failure::usage("none")) })
     }
     fn write_param(
@@ -85,10 +85,10 @@ impl Device for Fake {
         _unit: u8,
         _name: String,
         _value: String,
-    ) -> BoxFuture<'static, Result<ParamValue, Failure>> {
+    ) -> BoxFuture<'static, Result<Report, Failure>> {
         Box::pin(async { Err(Failure::usage("none")) })
     }
-    fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<ErrorHistory, Failure>> {
+    fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<Report, Failure>> {
         Box::pin(async { Err(Failure::usage("none")) })
     }
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
