@@ -133,13 +133,14 @@ def test_a_powercube_write_shows_the_report_of_the_command_line(browser):
     console = Console("powercube", "--port", "sim", "--modules", "1")
     try:
         _open(browser, console)
-        # The report of `motionlink powercube set MaxVel 0.8 --json`, field by field.
+        # The report of `motionlink powercube set MaxVel 0.8 --json`, field by field; the module's float to the
+        # digits it has, in the unit the parameter list gives.
         result = _write(browser, "MaxVel", "0.8")
-        assert "MaxVel (72) written 0.800000011920929, read back 0.800000011920929" in result.text, result.text
+        assert "MaxVel (72) written 0.8 rad/s, read back 0.8 rad/s" in result.text, result.text
         assert "verified: true" in result.get_attribute("title"), result.get_attribute("title")
         # TargetVel cannot be read: the library checks it against its twin in ticks and reports it in rad/s.
         result = _write(browser, "TargetVel", "0.5")
-        assert "TargetVel (79) written 0.5, read back 0.5" in result.text, result.text
+        assert "TargetVel (79) written 0.5 rad/s, read back 0.5" in result.text, result.text  # 0.500001: from ticks
         assert abs(float(result.get_attribute("data-read-back")) - 0.5) < 1e-3, result.text
     finally:
         console.stop()

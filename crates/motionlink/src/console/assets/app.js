@@ -204,7 +204,13 @@ const handlers = {
   // A report is the object `motionlink <family> ... --json` prints: shown field by field, as it is.
   param(msg) {
     const r = msg.report;
-    const unit = r.unit ? ` ${r.unit}` : "";
+    // The report's unit, else the one the parameter list gives (a write's report names none); where that
+    // list gives a rotary and a linear unit ("rad|m/s"), the one of the selected module's kind.
+    const listed = (info.params || []).find((p) => p.name === r.name);
+    const kind = (unitOf(selected) || {}).position_unit;
+    let u = r.unit || (listed && listed.unit) || "";
+    if (kind === "rad" || kind === "m") u = u.replace("rad|m", kind);
+    const unit = u ? ` ${u}` : "";
     let text = `${r.name} (${r.id}) ${msg.written ? "written" : "="} ${show(r.value)}${unit}`;
     if (msg.written) {
       text += r.read_back === null || r.read_back === undefined
@@ -231,16 +237,19 @@ const handlers = {
       const code = e.code !== undefined ? e.code : e.word;
       tr.insertCell().textContent = e.text !== undefined ? e.text : `0x${code.toString(16).padStart(8, "0")}`;
       const rest = Object.fromEntries(Object.entries(e).filter(([k]) => !["code", "text", "word"].includes(k)));
-      tr.insertCell().textContent = e.meaning !== undefined ? e.meaning : fields(rest);
+      const clean = code === 0 && (!e.bits || e.bits.length === 0);
+      tr.insertCell().textContent = e.meaning !== undefined ? e.meaning : clean ? "no error" : fields(rest);
     });
   },
   bye(msg) { $("link-state").textContent = msg.message; },
 };
 
-// A value of a report as text: a number as it is, a list joined, an object field by field.
+// A value of a report as text: a number to the digits it has, a list joined, an object field by field.
 function show(v) {
   if (Array.isArray(v)) return v.map(show).join(", ");
   if (v !== null && typeof v === "object") return `{${fields(v)}}`;
+  // A device's single-precision float (0.800000011920929) to the 7 digits it has (0.8).
+  if (typeof v === "number" && !Number.isInteger(v)) return String(Number(v.toPrecision(7)));
   return String(v);
 }
 
