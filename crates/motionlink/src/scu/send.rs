@@ -8,7 +8,7 @@ use motionlink_scu::results::data_items;
 use motionlink_scu::value::shown_unit;
 use motionlink_scu::wire::{Incoming, Request, RequestDecoder};
 
-use super::Report;
+use crate::common::Out;
 use crate::common::{self, CliError, Row};
 use crate::tap::{exchange, print_sent, Tap};
 
@@ -164,7 +164,7 @@ pub(super) fn send(
     client: &motionlink_scu::Client,
     request: &SendRequest,
     tap: &Tap,
-    report: &Report<'_>,
+    report: &Out<'_>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let r = request.request();
