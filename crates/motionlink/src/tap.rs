@@ -327,21 +327,40 @@ pub fn first_exchange(
     (Some(telegrams[i].clone()), reply.map(|j| telegrams[j].clone()), telegrams[rest_from..].to_vec())
 }
 
-/// Prints the request and the reply `send` saw, as text lines (`-> ...`, `<- ...`, or `request: none`); with
-/// `json`, prints nothing and returns them as JSON for the command's one object.
-pub fn print_exchange(
+/// What `send --json` prints after the unit's identity: the command in words, the telegrams sent and received
+/// (each explained, as `decode` explains them), whether the device took it, then the family's own fields
+/// (`extra`, flattened into the same object).
+#[derive(serde::Serialize)]
+pub struct Sent<'a, X> {
+    /// The command, in words.
+    pub command: &'a str,
+    /// The request telegram, explained (none seen: null).
+    pub request: Option<serde_json::Value>,
+    /// The reply telegram, explained (none seen: null).
+    pub reply: Option<serde_json::Value>,
+    /// Whether the device took the command.
+    pub ok: bool,
+    /// The family's own fields.
+    #[serde(flatten)]
+    pub extra: X,
+}
+
+/// Prints `send`'s exchange, `sent` and its `reply`: each telegram explained on a line of text (or `which: none`),
+/// or with `--json` one [`Sent`] object through `o` (times of the session's clock are no Unix times: left
+/// out; `-v` and `--capture` give them). `command` is the command in words, `ok` whether the device took it.
+pub fn print_sent<X: serde::Serialize>(
     out: &mut dyn std::io::Write,
-    json: bool,
-    sent: Option<&Annotation>,
-    reply: Option<&Annotation>,
-) -> Result<(Option<serde_json::Value>, Option<serde_json::Value>), CliError> {
-    // Times of the session's clock are no Unix times: left out (`-v` and `--capture` give them).
-    let untimed = |a: Option<&Annotation>| a.map(|a| Annotation { at: None, ..a.clone() });
+    o: &crate::common::Out<'_>,
+    (sent, reply): (Option<Annotation>, Option<Annotation>),
+    command: &str,
+    ok: bool,
+    extra: X,
+) -> Result<(), CliError> {
+    let untimed = |a: Option<Annotation>| a.map(|a| Annotation { at: None, ..a });
     let (sent, reply) = (untimed(sent), untimed(reply));
-    if json {
-        let j =
-            |a: &Option<Annotation>| a.as_ref().map(|a| crate::common::to_json(&crate::decode::Telegram::of(a, None)));
-        return Ok((j(&sent), j(&reply)));
+    if o.json {
+        let j = |a: Option<Annotation>| a.map(|a| crate::common::to_json(&crate::decode::Telegram::of(&a, None)));
+        return o.print(out, Sent { command, request: j(sent), reply: j(reply), ok, extra });
     }
     for (which, a) in [("request", &sent), ("reply", &reply)] {
         match a {
@@ -349,7 +368,7 @@ pub fn print_exchange(
             None => writeln!(out, "{which}: none")?,
         }
     }
-    Ok((None, None))
+    Ok(())
 }
 
 #[cfg(test)]

@@ -83,6 +83,13 @@ impl Default for SimConfig {
 }
 
 impl SimConfig {
+    /// Adds the firmware `variants` to the configuration's, each kept once (sorted).
+    pub fn add_variants(&mut self, variants: impl IntoIterator<Item = Variant>) {
+        self.variants.extend(variants);
+        self.variants.sort();
+        self.variants.dedup();
+    }
+
     /// Drives at `addresses`, every one with `p196` at `baud_rate`.
     pub fn bus(addresses: &[u8], p196: u32, baud_rate: u32) -> Self {
         SimConfig {

@@ -201,6 +201,13 @@ pub enum SimConfigError {
 }
 
 impl SimConfig {
+    /// Adds the firmware `variants` to the configuration's, each kept once (sorted).
+    pub fn add_variants(&mut self, variants: impl IntoIterator<Item = Variant>) {
+        self.variants.extend(variants);
+        self.variants.sort();
+        self.variants.dedup();
+    }
+
     /// Default modules at `addresses`.
     pub fn with_addresses(addresses: &[u8]) -> Result<Self, SimConfigError> {
         let config = SimConfig { modules: addresses.iter().map(|a| ModuleConfig::at(*a)).collect(), ..Self::default() };

@@ -9,7 +9,7 @@ mod serve;
 mod signals;
 
 pub use output::*;
-pub use serve::{serve, ServeArgs};
+pub use serve::{config_text, serve, ServeArgs};
 pub use signals::{interrupt_token, stop_cause, StopCause};
 use signals::{record_stop_cause, SIGINT};
 

@@ -103,3 +103,9 @@ pub fn serve<E: Emulator + 'static>(args: &ServeArgs, device: E) -> Result<(), C
     server.wait();
     Ok(())
 }
+
+/// The text of an emulator's configuration file (`--config`, `--sim-config`); one that cannot be read is a
+/// usage error naming it.
+pub fn config_text(path: &std::path::Path) -> Result<String, CliError> {
+    std::fs::read_to_string(path).map_err(|e| CliError::usage(format!("cannot read {}: {e}", path.display())))
+}

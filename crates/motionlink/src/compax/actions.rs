@@ -274,16 +274,12 @@ pub(super) fn raw(
     Ok(())
 }
 
-/// `send`'s result: the command, the telegrams as they went on the line (each explained), the reply's
-/// text, the status polls of a wait after it, and whether the drive took it.
+/// What `send --json` has besides the exchange ([`crate::tap::Sent`]): the reply's text and the status polls
+/// of a wait after it.
 #[derive(serde::Serialize)]
-struct Sent<'a> {
-    command: &'a str,
-    request: Option<serde_json::Value>,
-    reply: Option<serde_json::Value>,
+struct SentExtra {
     reply_text: Option<String>,
     polls: usize,
-    ok: bool,
 }
 
 /// `send`: sends one command and prints it and the drive's reply as they went on the line, each explained.
@@ -303,11 +299,9 @@ pub(super) fn send(
     // come after that reply and are told apart.
     let (sent, reply, after) = crate::tap::first_exchange(&seen, command.as_bytes());
     let polls = after.iter().filter(|a| a.direction == motionlink_link::chunk::Direction::ToDevice).count();
-    let (request, reply) = crate::tap::print_exchange(out, args.json, sent.as_ref(), reply.as_ref())?;
-    if args.json {
-        let reply_text = result.as_ref().ok().and_then(|o| o.reply.clone());
-        args.out().print(out, &Sent { command: &command, request, reply, reply_text, polls, ok: result.is_ok() })?;
-    } else if polls > 0 {
+    let extra = SentExtra { reply_text: result.as_ref().ok().and_then(|o| o.reply.clone()), polls };
+    crate::tap::print_sent(out, &args.out(), (sent, reply), &command, result.is_ok(), extra)?;
+    if !args.json && polls > 0 {
         writeln!(out, "then {polls} status polls until the move ended (-v shows them)")?;
     }
     result.map_err(|e| error_for(args, e))?;

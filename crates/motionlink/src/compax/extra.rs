@@ -22,11 +22,7 @@ use crate::demo::{DemoOut, DemoTelegram};
 /// Runs `motionlink sim compax`.
 pub fn sim(args: SimArgs) -> Result<(), CliError> {
     let mut cfg = match &args.config {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| CliError::usage(format!("cannot read {}: {e}", path.display())))?;
-            SimConfig::from_toml(&text).map_err(CliError::usage)?
-        }
+        Some(path) => SimConfig::from_toml(&common::config_text(path)?).map_err(CliError::usage)?,
         None => SimConfig::default(),
     };
     if let Some(drives) = &args.drives {
@@ -49,9 +45,7 @@ pub fn sim(args: SimArgs) -> Result<(), CliError> {
             value.trim().parse().map_err(|_| CliError::usage(format!("--param {p}: {value:?} is not a number")))?;
         cfg = cfg.with_param(id, value);
     }
-    cfg.variants.extend(args.variants.iter().copied());
-    cfg.variants.sort();
-    cfg.variants.dedup();
+    cfg.add_variants(args.variants.iter().copied());
     let bus = Emulator::new(cfg).map_err(CliError::usage)?;
     common::serve(&args.serve, bus)
 }

@@ -346,20 +346,13 @@ fn act(
 
 /// `motionlink sim powercube ...`
 pub fn sim(args: SimArgs) -> Result<(), CliError> {
-    let config = match (&args.config, args.modules.is_empty()) {
-        (Some(path), _) => {
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| CliError::usage(format!("cannot read {}: {e}", path.display())))?;
-            SimConfig::from_toml(&text).map_err(CliError::usage)?
-        }
+    let mut config = match (&args.config, args.modules.is_empty()) {
+        (Some(path), _) => SimConfig::from_toml(&common::config_text(path)?).map_err(CliError::usage)?,
         (None, true) => SimConfig::default(),
         (None, false) => SimConfig::with_addresses(&args.modules.iter().map(|a| a.get()).collect::<Vec<_>>())
             .map_err(CliError::usage)?,
     };
-    let mut config = config;
-    config.variants.extend(args.variants.iter().copied());
-    config.variants.sort();
-    config.variants.dedup();
+    config.add_variants(args.variants.iter().copied());
     if args.slcan {
         if args.strict {
             return Err(CliError::usage("--strict is about RS232 BCCs; it has no meaning with --slcan"));

@@ -129,24 +129,9 @@ pub(super) fn send(
     // cannot tell still gets the command.
     let kind = client.module(args.module).kind().ok();
     let (result, seen) = tap.seen_during(|| client.request(args.module, request))?;
-    let (sent, reply) = crate::tap::exchange(&seen, None);
-    let (request_json, reply_json) = crate::tap::print_exchange(out, args.json, sent.as_ref(), reply.as_ref())?;
-    if args.json {
-        let command = command_text(request, kind);
-        let sent = Sent { command, request: request_json, reply: reply_json, ok: result.is_ok() };
-        o.print(out, sent)?;
-    }
+    let exchange = crate::tap::exchange(&seen, None);
+    crate::tap::print_sent(out, o, exchange, &command_text(request, kind), result.is_ok(), ())?;
     result.map(|_| ()).map_err(failed)
-}
-
-/// What `send --json` prints besides the module: the command in words, the telegrams sent and received
-/// (as the tap annotates them) and whether the module took it.
-#[derive(serde::Serialize)]
-struct Sent {
-    command: String,
-    request: Option<serde_json::Value>,
-    reply: Option<serde_json::Value>,
-    ok: bool,
 }
 
 /// A command as text, a value it sets in the unit of the module's `kind` where known.

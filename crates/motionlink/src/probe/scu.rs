@@ -3,19 +3,17 @@
 use std::sync::Arc;
 
 use motionlink_link::describe::Describe;
-use motionlink_link::link::{Connector, SerialSettings};
-use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::probe::{find_baud, PortKind};
-use motionlink_link::url::PortUrl;
-use motionlink_link::{RealClock, SharedClock};
+use motionlink_link::RealClock;
+use motionlink_scu::args::{Baud, Checked};
 use motionlink_scu::describe::Describer;
 use motionlink_scu::model::SpeedMode;
 use motionlink_scu::probe::{baud_choice, probe, save_profile, ScuDevice};
-use motionlink_scu::{Client, ClientConfig, Emulator, Variants};
+use motionlink_scu::{Client, ClientConfig, Variants};
 
 use super::{finish, setup, Options};
 use crate::common::{self, CliError};
-use crate::scu::{in_process_config, InProcess};
+use crate::scu::{connector, InProcess};
 use crate::tap::{LinkArgs, Tap};
 
 /// `motionlink probe scu` arguments.
@@ -39,30 +37,6 @@ pub struct Args {
     pub options: Options,
 }
 
-/// The connector of the session at `baud`, its link watched by `tap`.
-fn connector(url: &PortUrl, args: &Args, baud: u32, tap: &Tap, clock: &SharedClock) -> Result<Connector, CliError> {
-    let (tap, clock) = (tap.clone(), Arc::clone(clock));
-    Ok(match url {
-        PortUrl::Sim => {
-            let config = in_process_config(&InProcess {
-                functions: &[],
-                preset: None,
-                file: None,
-                speed_mode: SpeedMode::Percent,
-                variants: &args.sim_variants,
-            })?;
-            let sim = Emulator::new(config).map_err(|e| CliError::usage(e.to_string()))?;
-            let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(baud));
-            Box::new(move || Ok(tap.link(Box::new(host.connect().0), &clock)))
-        }
-        p => {
-            let p = p.clone();
-            let settings = SerialSettings::new(baud);
-            Box::new(move || Ok(tap.link(p.open_byte_link(settings)?, &clock)))
-        }
-    })
-}
-
 /// `motionlink probe scu ...`
 pub fn run(args: Args, json: bool) -> Result<(), CliError> {
     Variants::parse_all(&args.sim_variants).map_err(|e| CliError::usage(format!("--sim-variant: {e}")))?;
@@ -79,7 +53,11 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
     let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
     let tap = Tap::new("scu", &port, &clock, &args.link, "can0", &describer, false)?;
     let (opened, baud_check) = find_baud(setup.kind, &args.baud, |baud| {
-        let connector = connector(&url, &args, baud, &tap, &clock)?;
+        // The family command's own link: at `--port sim` a unit with the variants asked for, else a serial line.
+        let baud = Baud::checked(i64::from(baud)).map_err(|e| CliError::usage(e.to_string()))?;
+        let variants = &args.sim_variants;
+        let unit = InProcess { functions: &[], preset: None, file: None, speed_mode: SpeedMode::Percent, variants };
+        let connector = connector(&url, &unit, baud, &tap, &clock)?;
         Client::open(connector, Arc::clone(&clock), ClientConfig::default()).map_err(|e| common::classified(&e))
     });
     let (client, baud) = opened.map_err(|e| {

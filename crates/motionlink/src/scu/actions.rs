@@ -10,7 +10,7 @@ use motionlink_scu::results::{ActuatorState, ErrorHistory, GetReport, RunOutcome
 use motionlink_scu::session::{MoveProgress, MoveReport, RunAction, RunProgress, Snapshot};
 use motionlink_scu::{Client, MoveOptions};
 
-use super::Report;
+use crate::common::Out;
 use crate::common::{self, CliError, Row, WatchFormat as Format};
 
 /// A library error as the command line reports it.
@@ -19,7 +19,7 @@ fn cl(e: motionlink_scu::Error) -> CliError {
 }
 
 /// `get`: entries or groups, one after the other (one JSON object each).
-pub(super) fn get(client: &Client, items: &[Item], report: &Report<'_>, out: &mut dyn Write) -> Result<(), CliError> {
+pub(super) fn get(client: &Client, items: &[Item], report: &Out<'_>, out: &mut dyn Write) -> Result<(), CliError> {
     for it in items {
         report.show(out, &client.read(*it).map_err(cl)?, |out, r: &GetReport| {
             let rows: Vec<Row> =
@@ -35,7 +35,7 @@ pub(super) fn set(
     client: &Client,
     it: Item,
     value: &str,
-    report: &Report<'_>,
+    report: &Out<'_>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let (entry, value) = motionlink_scu::args::parse_write(it, value).map_err(CliError::usage)?;
@@ -58,7 +58,7 @@ pub(super) fn move_to(
     position: PositionCounts,
     speed: Speed,
     function: MotionFunction,
-    report: &Report<'_>,
+    report: &Out<'_>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let start = client.position(a).map_err(cl)?;
@@ -75,7 +75,7 @@ fn state_text(s: &ActuatorState) -> String {
     format!("{}, {}", s.position_counts, motionlink_scu::model::Flags::from(s.status))
 }
 
-pub(super) fn info(client: &Client, report: &Report<'_>, out: &mut dyn Write) -> Result<(), CliError> {
+pub(super) fn info(client: &Client, report: &Out<'_>, out: &mut dyn Write) -> Result<(), CliError> {
     report.show(out, &client.info().map_err(cl)?, |out, info| {
         let mut rows: Vec<Row> = vec![
             ("port".into(), client.port().to_string()),
@@ -90,7 +90,7 @@ pub(super) fn info(client: &Client, report: &Report<'_>, out: &mut dyn Write) ->
 }
 
 /// `errors`: Error_Code 1..5 (JSON: `{"errors": [...]}`).
-pub(super) fn errors(client: &Client, report: &Report<'_>, out: &mut dyn Write) -> Result<(), CliError> {
+pub(super) fn errors(client: &Client, report: &Out<'_>, out: &mut dyn Write) -> Result<(), CliError> {
     report.show(out, &ErrorHistory { errors: client.error_history().map_err(cl)? }, |out, h| {
         let mut rows = Vec::new();
         for (i, code) in h.errors.iter().enumerate() {
@@ -114,7 +114,7 @@ pub(super) fn errors(client: &Client, report: &Report<'_>, out: &mut dyn Write) 
 /// this prints each sample, one row per connected actuator.
 pub(super) fn watch(
     client: &Client,
-    report: &Report<'_>,
+    report: &Out<'_>,
     format: Format,
     interval_ms: u64,
     count: Option<u64>,
@@ -152,7 +152,7 @@ pub(super) fn watch(
 }
 
 /// One sample: a JSON object, CSV lines, or a line of text.
-fn print_sample(out: &mut dyn Write, report: &Report<'_>, format: Format, s: &SampleReport) -> Result<(), CliError> {
+fn print_sample(out: &mut dyn Write, report: &Out<'_>, format: Format, s: &SampleReport) -> Result<(), CliError> {
     let amps = |a: &ActuatorState| a.current_amps.unwrap_or(f64::NAN);
     match format {
         Format::Json => report.print(out, s)?,
@@ -190,7 +190,7 @@ pub(super) fn run(
     client: &Client,
     action: RunAction,
     limit: Option<Duration>,
-    report: &Report<'_>,
+    report: &Out<'_>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let function = action.function();

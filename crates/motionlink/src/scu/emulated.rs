@@ -22,8 +22,7 @@ pub(crate) fn load_sim_config(
         None => SimConfig::default(),
     };
     if let Some(path) = path {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| CliError::usage(format!("cannot read {}: {e}", path.display())))?;
+        let text = crate::common::config_text(path)?;
         let text = match preset {
             Some(p) if !text.contains("preset") => format!("preset = \"{p}\"\n{text}"),
             _ => text,

@@ -12,7 +12,7 @@ use motionlink_scu::model::{Actuator, MotionFunction, PositionCounts, Speed};
 use motionlink_scu::results::{FollowStart, TargetsApplied};
 use motionlink_scu::{Client, Follower};
 
-use super::Report;
+use crate::common::Out;
 use crate::common::{self, CliError};
 
 fn names(actuators: &[Actuator]) -> String {
@@ -34,7 +34,7 @@ pub(super) fn follow(
     function: MotionFunction,
     speed: Speed,
     rate_hz: u32,
-    report: &Report<'_>,
+    report: &Out<'_>,
     interrupt: &CancelToken,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
@@ -130,7 +130,7 @@ pub(super) fn follow(
 fn print_targets(
     actuators: &[Actuator],
     targets: &[PositionCounts],
-    report: &Report<'_>,
+    report: &Out<'_>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let applied = TargetsApplied(actuators.iter().copied().zip(targets.iter().copied()).collect());

@@ -294,22 +294,6 @@ pub(crate) fn connector(
     })
 }
 
-/// What every action prints with ([`common::Out`]: JSON or text, the port the JSON objects name), and what
-/// `stop` found.
-pub(super) struct Report<'a> {
-    /// How results are printed.
-    pub out: common::Out<'a>,
-    /// `stop`: the motionlink that held the port and was stopped first, if any.
-    pub stopped: Option<motionlink_link::portlock::Stopped>,
-}
-
-impl<'a> std::ops::Deref for Report<'a> {
-    type Target = common::Out<'a>;
-    fn deref(&self) -> &common::Out<'a> {
-        &self.out
-    }
-}
-
 /// `motionlink scu ...`
 pub fn run(args: Args) -> Result<(), CliError> {
     if let Action::Names = args.action {
@@ -361,10 +345,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
     client.set_cancel(interrupt.clone());
     crate::probe::use_profile(|p| motionlink_scu::probe::use_profile(&client, p, &port))?;
     let mut out = std::io::stdout().lock();
-    let report = Report { out: common::Out { json: args.json, family: "scu", port: &port, unit: None }, stopped };
+    let report = common::Out { json: args.json, family: "scu", port: &port, unit: None };
     let result = match &request {
         Some(r) => send::send(&client, r, &tap, &report, &mut out),
-        None => act(&client, &args, &report, &mut out, &interrupt),
+        None => act(&client, &args, &report, stopped.as_ref(), &mut out, &interrupt),
     };
     // Stop what was started and leave remote mode, whatever happened.
     let started = client.started();
@@ -402,7 +386,8 @@ fn finish(
 fn act(
     client: &Client,
     args: &Args,
-    report: &Report<'_>,
+    report: &common::Out<'_>,
+    stopped: Option<&motionlink_link::portlock::Stopped>,
     out: &mut dyn Write,
     interrupt: &CancelToken,
 ) -> Result<(), CliError> {
@@ -436,7 +421,7 @@ fn act(
             let action = RunAction::parse(function, direction).map_err(CliError::usage)?;
             actions::run(client, action, seconds.map(RunLimit::get), report, out)
         }
-        Action::Stop { function, soft } => stop::stop(client, *function, *soft, report, out),
+        Action::Stop { function, soft } => stop::stop(client, *function, *soft, report, stopped, out),
         Action::Watch { interval_ms, count, csv, .. } => {
             let format = common::WatchFormat::of(*csv, report.json)?;
             actions::watch(client, report, format, *interval_ms, *count, interrupt, out)

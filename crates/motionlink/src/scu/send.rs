@@ -8,9 +8,9 @@ use motionlink_scu::results::data_items;
 use motionlink_scu::value::shown_unit;
 use motionlink_scu::wire::{Incoming, Request, RequestDecoder};
 
-use super::Report;
+use crate::common::Out;
 use crate::common::{self, CliError, Row};
-use crate::tap::{exchange, print_exchange, Tap};
+use crate::tap::{exchange, print_sent, Tap};
 
 /// A request of `send`, owned.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -164,28 +164,17 @@ pub(super) fn send(
     client: &motionlink_scu::Client,
     request: &SendRequest,
     tap: &Tap,
-    report: &Report<'_>,
+    report: &Out<'_>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let r = request.request();
     let wire = motionlink_scu::wire::request_to_vec(&r).map_err(|e| CliError::usage(e.to_string()))?;
     let (result, seen) = tap.seen_during(|| client.request(&r))?;
-    let (sent, reply) = exchange(&seen, Some(&wire));
-    let (request, reply) = print_exchange(out, report.json, sent.as_ref(), reply.as_ref())?;
-    if report.json {
-        /// The exchange, each telegram explained (as `decode` explains it), and the reply's data.
-        #[derive(serde::Serialize)]
-        struct Sent {
-            command: String,
-            request: Option<serde_json::Value>,
-            reply: Option<serde_json::Value>,
-            data: Option<String>,
-            ok: bool,
-        }
-        let command = String::from_utf8_lossy(&wire[..2]).into_owned();
-        let data = result.as_ref().ok().and_then(|d| d.as_deref()).map(motionlink_link::hex::hex);
-        report.print(out, Sent { command, request, reply, data, ok: result.is_ok() })?;
-    }
+    // The JSON object has the reply's data besides the exchange.
+    let data = result.as_ref().ok().and_then(|d| d.as_deref()).map(motionlink_link::hex::hex);
+    let command = String::from_utf8_lossy(&wire[..2]);
+    let data = common::Keyed("data", data);
+    print_sent(out, report, exchange(&seen, Some(&wire)), &command, result.is_ok(), data)?;
     result.map(|_| ()).map_err(|e| common::classified(&e))
 }
 

@@ -8,7 +8,7 @@ use motionlink_scu::results::{StopResult, StopScope, SwitchedOff};
 use motionlink_scu::session::StopReport;
 use motionlink_scu::Client;
 
-use super::Report;
+use crate::common::Out;
 use crate::common::{self, CliError};
 
 /// Stops `function` (`None`: every motion function, F1..F10): a motion function with RS (`soft`: along the
@@ -18,10 +18,10 @@ pub(super) fn stop(
     client: &Client,
     function: Option<Function>,
     soft: bool,
-    report: &Report<'_>,
+    report: &Out<'_>,
+    holder: Option<&motionlink_link::portlock::Stopped>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    let holder = report.stopped.as_ref();
     report.holder(out, holder)?;
     let motions = match StopScope::of(function) {
         StopScope::Motions(m) => m,
