@@ -125,9 +125,7 @@ fn powercube_config(s: &EmulatorSettings) -> Result<motionlink_powercube::sim::S
     use motionlink_powercube::sim::Variant;
     let mut config = powercube_modules(s)?;
     if let Some(names) = variant_names(s) {
-        config.variants.extend(Variant::list(&names).map_err(|e| usage(e.to_string()))?);
-        config.variants.sort();
-        config.variants.dedup();
+        config.add_variants(Variant::list(&names).map_err(|e| usage(e.to_string()))?);
     }
     Ok(config)
 }
@@ -170,9 +168,7 @@ fn compax_device(s: &EmulatorSettings) -> Result<motionlink_compax::Emulator, Fa
     }
     if let Some(names) = variant_names(s) {
         let variants = motionlink_compax::sim::Variant::list(&names).map_err(|e| usage(e.to_string()))?;
-        cfg.variants.extend(variants);
-        cfg.variants.sort();
-        cfg.variants.dedup();
+        cfg.add_variants(variants);
     }
     motionlink_compax::Emulator::new(cfg).map_err(|e| usage(e.to_string()))
 }

@@ -274,6 +274,14 @@ mod tests {
     use super::*;
 
     #[test]
+    fn variants_added_are_kept_once_each_in_order() {
+        let mut c = SimConfig::default();
+        c.add_variants([Variant::AckLength6, Variant::NoTwinMirror]);
+        c.add_variants([Variant::NoTwinMirror, Variant::NoPosStateDio]);
+        assert_eq!(c.variants, vec![Variant::NoTwinMirror, Variant::AckLength6, Variant::NoPosStateDio]);
+    }
+
+    #[test]
     fn defaults_and_toml() {
         let d = SimConfig::default();
         assert_eq!(d.modules.len(), 1);
