@@ -8,6 +8,9 @@ from typing import Any, ClassVar, Dict, List, Mapping, get_args, get_origin, get
 __all__ = ["Record", "ErrorBit", "ErrorCode", "FlagWord", "Parameter"]
 
 
+_NO_EXTRAS: frozenset = frozenset()
+
+
 class _Slots(type):
     """Gives each record class empty ``__slots__`` unless it declares its own (a record's fields live in
     ``_fields``)."""
@@ -41,8 +44,12 @@ class Record(metaclass=_Slots):
     def __init__(self, fields: Mapping[str, Any]) -> None:
         own: Dict[str, Any] = dict(fields)
         # Attributes that are not keys of the command line's JSON (the native side names them).
-        extras = frozenset(own.pop("_extras", ()))
-        for name, kind in self._nested_fields().items():
+        named = own.pop("_extras", None)
+        extras = frozenset(named) if named else _NO_EXTRAS
+        nested = type(self).__dict__.get("_nested_resolved")
+        if nested is None:
+            nested = self._nested_fields()
+        for name, kind in nested.items():
             value = own.get(name)
             if isinstance(value, list):
                 own[name] = [v if isinstance(v, Record) else kind(v) for v in value]
