@@ -99,7 +99,7 @@ async fn reads_and_writes_answer_with_the_cli_s_json() {
         ("arm", "get", json!({"param": "NoSuch"}), "param"),
         ("axis", "status", json!({"values": ["S1", "X9"]}), "values"),
         ("axis", "output", json!({"number": 0, "state": 7}), "state"),
-        ("axis", "set", json!({"param": "P196", "value": "NaN"}), "number"),
+        ("axis", "set", json!({"param": "P196", "value": "NaN"}), "parameter value"),
     ] {
         let r = ask(&mut c, "rw", device, "bad", op, args.clone()).await;
         assert_eq!((r["ok"].as_bool(), r["error"]["exit_code"].as_u64()), (Some(false), Some(2)), "{args}: {r}");
@@ -171,4 +171,56 @@ async fn an_scu_run_is_held_by_its_lease_and_kept_alive_ends_at_its_end_of_trave
     let said: Vec<(&str, &str)> =
         events.iter().map(|e| (e["event"].as_str().unwrap(), e["op"].as_str().unwrap_or(""))).collect();
     assert_eq!(said, [("motion_started", "run"), ("motion_ended", "run")], "{events:?}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_device_table_s_action_options_are_the_device_s_defaults() {
+    let Some(b) = broker("a_device_table_s_action_options_are_the_device_s_defaults") else { return };
+    // Keys of devices.toml: options of the device, of its actions (defaults), and of watch and the
+    // console (accepted, ignored).
+    let devices = r#"
+[device.axis]
+family = "compax"
+port = "sim"
+max_pos = 50
+speed = 100
+csv = true
+jog_range = 5
+
+[device.lift]
+family = "scu"
+port = "sim"
+speed = 100
+soft = true
+capture = "ignored.cap"
+"#;
+    let _gw = gateway(&b, "df", devices);
+    let mut c = Client::connect(&b, "t-df", &["motionlink/df/status", "me/#"]).await;
+    c.wait("online", 20 * S, |m| m.topic == "motionlink/df/status" && m.payload == "online").await;
+    // The device's max_pos refuses a target beyond it, before anything moves...
+    let r = ask(&mut c, "df", "axis", "m1", "move", json!({"abs": 100})).await;
+    assert_eq!((r["ok"].as_bool(), r["error"]["kind"].as_str()), (Some(false), Some("usage")), "{r}");
+    assert!(r["error"]["message"].as_str().unwrap().contains("50"), "{r}");
+    let r = ask(&mut c, "df", "axis", "p1", "status", json!({"values": "S1"})).await;
+    assert_eq!(result(&r, "compax")["status"][0]["value"], 0.0, "{r}");
+    // ...and a request's own max_pos overrides it.
+    let body =
+        json!({"id": "m2", "op": "move", "args": {"abs": 100, "max_pos": 200}, "reply_to": "me/r", "lease_ms": 10000});
+    c.send("motionlink/df/axis/cmd", body.to_string()).await;
+    let r = c.reply("me/r", "m2", 30 * S).await;
+    assert_eq!(result(&r, "compax")["verified"], true, "{r}");
+    // The SCU's soft stop is its stop's default.
+    let r = ask(&mut c, "df", "lift", "s1", "stop", json!({})).await;
+    assert_eq!(result(&r, "scu")["mode"], "soft", "{r}");
+    let r = ask(&mut c, "df", "lift", "s2", "stop", json!({"soft": false})).await;
+    assert_eq!(result(&r, "scu")["mode"], "fast", "{r}");
+}
+
+#[test]
+fn a_device_table_key_no_command_takes_is_refused_naming_it() {
+    let Some(b) = broker("a_device_table_key_no_command_takes_is_refused_naming_it") else { return };
+    let gw = gateway(&b, "uk", "[device.axis]\nfamily = \"compax\"\nport = \"sim\"\nmax_poss = 50\n");
+    let (code, err) = gw.signal(0);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("[device.axis]: unknown key `max_poss`") && err.contains("max_pos"), "{err}");
 }

@@ -4,7 +4,7 @@
 use std::sync::Arc;
 
 use motionlink_compax::model::{
-    OutputNumber, OutputState, ParamId, Position, RampMs, SpeedPercent, StatusId, TimeLimit,
+    OutputNumber, OutputState, ParamId, ParamWrite, Position, RampMs, SpeedPercent, StatusId, TimeLimit,
 };
 use motionlink_compax::report::{OutputSwitched, ParamReading, StatusReport, StopResult, Timed};
 use motionlink_compax::session::{MoveRequest, MoveTarget, TravelLimits, WatchSample};
@@ -132,14 +132,13 @@ impl Compax {
             }
             "set" => {
                 let id: ParamId = args.need("param")?;
-                let value: f64 = args.need("value")?;
+                let text: String = args.need("value")?;
                 args.finish()?;
-                if !value.is_finite() {
-                    return Err(ReplyError::usage("set: the value must be a number"));
-                }
+                // The library's rule: a finite number within the parameter's known range.
+                let write = ParamWrite::parse(id, &text).map_err(|e| ReplyError::usage(format!("set value: {e}")))?;
                 Ok(Action::Write(Box::pin(async move {
                     // Written and read back: a value that reads back otherwise is an error.
-                    me.result(&client.set_param(drive, id, value).await.map_err(failed)?)
+                    me.result(&client.set_param(drive, write.id(), write.value()).await.map_err(failed)?)
                 })))
             }
             "output" => {
@@ -175,4 +174,34 @@ impl Compax {
             Err(_) => Ok(()),
         }
     }
+}
+
+/// Checks the device's default `key` (an option of actions, [`super::keys::COMPAX`]) by its argument's rule.
+pub(super) fn check_default(key: &str, text: &str) -> Result<(), String> {
+    fn rule<T: std::str::FromStr>(text: &str) -> Result<(), String>
+    where
+        T::Err: std::fmt::Display,
+    {
+        text.parse::<T>().map(drop).map_err(|e| e.to_string())
+    }
+    match key {
+        "speed" => rule::<SpeedPercent>(text),
+        "accel" => rule::<RampMs>(text),
+        "binary" => text.parse::<bool>().map(drop).map_err(|_| "give true or false".into()),
+        "timeout_s" => rule::<TimeLimit>(text),
+        "min_pos" | "max_pos" => rule::<Position>(text),
+        other => Err(format!("{other} is no option of an action")),
+    }
+}
+
+/// Checks the device's defaults together: `min_pos` below `max_pos`, as a move checks them.
+pub(super) fn check_defaults(defaults: &serde_json::Map<String, Value>) -> Result<(), String> {
+    let limit = |key: &str| -> Option<Position> {
+        let text = match defaults.get(key)? {
+            Value::String(s) => s.clone(),
+            other => other.to_string(),
+        };
+        text.parse().ok()
+    };
+    TravelLimits::new(limit("min_pos"), limit("max_pos")).map(drop).map_err(|e| format!("min_pos / max_pos: {e}"))
 }
