@@ -472,7 +472,7 @@ impl Gateway {
             Action::Write(op) => {
                 if let Some(m) = &self.devices[device].motion {
                     return Err(ReplyError::busy(format!(
-                        "{device} is running {} {:?}: {} writes once it has ended (or stop it)",
+                        "{device} is running {} {:?}: {} is served once it has ended (or stop it)",
                         m.op, m.id, r.op
                     )));
                 }

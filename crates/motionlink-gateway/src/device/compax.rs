@@ -1,4 +1,4 @@
-//! A COMPAX drive on the gateway: `move`, `stop`, `status`, `get`, `set`, `output` and the state samples, as the command line's
+//! A COMPAX drive on the gateway: `move`, `stop`, `status`, `get`, `set`, `output`, `scan` and the state samples, as the command line's
 //! `motionlink compax` does them, on [`AsyncClient`].
 
 use std::sync::Arc;
@@ -6,7 +6,7 @@ use std::sync::Arc;
 use motionlink_compax::model::{
     OutputNumber, OutputState, ParamId, ParamWrite, Position, RampMs, SpeedPercent, StatusId, TimeLimit,
 };
-use motionlink_compax::report::{OutputSwitched, ParamReading, StatusReport, StopResult, Timed};
+use motionlink_compax::report::{DrivePosition, OutputSwitched, ParamReading, StatusReport, StopResult, Timed};
 use motionlink_compax::session::{MoveRequest, MoveTarget, TravelLimits, WatchSample};
 use motionlink_compax::wire::Address;
 use motionlink_compax::{AsyncClient, DriveOptions, Emulator};
@@ -20,7 +20,7 @@ use crate::args::Args;
 use crate::error::ReplyError;
 
 /// The actions served.
-const OPS: [&str; 6] = ["move", "stop", "status", "get", "set", "output"];
+const OPS: [&str; 7] = ["move", "stop", "status", "get", "set", "output", "scan"];
 
 /// The command line's `--timeout-s` of a move when none is given, in s.
 const MOVE_TIMEOUT_S: f64 = 600.0;
@@ -124,10 +124,40 @@ impl Compax {
                 })))
             }
             "get" => {
-                let id: ParamId = args.need("param")?;
+                // One parameter (its object), or several (a list of their objects, as the command line
+                // prints one per line); every name is checked before anything is read.
+                let (names, list) = args.one_or_many("param", "params")?;
                 args.finish()?;
+                let ids = names
+                    .iter()
+                    .map(|t| t.parse::<ParamId>().map_err(|e| ReplyError::usage(format!("get param {t:?}: {e}"))))
+                    .collect::<Result<Vec<ParamId>, _>>()?;
                 Ok(Action::Other(Box::pin(async move {
-                    me.result(&ParamReading { id, value: client.read_param(drive, id).await.map_err(failed)? })
+                    let mut read = Vec::new();
+                    for id in ids {
+                        let value = client.read_param(drive, id).await.map_err(failed)?;
+                        read.push(me.result(&ParamReading { id, value })?);
+                    }
+                    match list {
+                        true => super::listed(read),
+                        false => Ok(read.remove(0)),
+                    }
+                })))
+            }
+            "scan" => {
+                args.finish()?;
+                Ok(Action::Write(Box::pin(async move {
+                    // Every drive on the bus (S1 of addresses 1..=31), as `compax scan --json` lists them;
+                    // none at all is an error, as there.
+                    let found = client.scan(1..=31).await.map_err(failed)?;
+                    if found.is_empty() {
+                        return Err(ReplyError::transport(format!("no drive answered on {}", me.port)));
+                    }
+                    let listed = found
+                        .into_iter()
+                        .map(|d| identified("compax", &me.port, &[], &DrivePosition::from(d)))
+                        .collect::<Result<_, _>>()?;
+                    super::listed(listed)
                 })))
             }
             "set" => {

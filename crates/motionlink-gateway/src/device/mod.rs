@@ -32,8 +32,10 @@ pub enum Action {
     Motion(Operation),
     /// `stop`: it needs no lease and always runs.
     Stop(Operation),
-    /// A write (a parameter, a data entry, an output): no lease, but refused while the device runs a
-    /// motion of the gateway's, as the command line's write is refused while another holds the port.
+    /// A write (a parameter, a data entry, an output) or a scan of the bus (it holds the bus for up to 31
+    /// replies' timeouts, which would hold up a motion's polls and keepalives): no lease, but refused while
+    /// the device runs a motion of the gateway's, as the command line's is refused while another command
+    /// holds the port.
     Write(Operation),
     /// Anything else: a read (no lease).
     Other(Operation),
@@ -261,6 +263,12 @@ impl Device {
 pub fn identified(family: &str, port: &str, extra: &[(&str, Value)], report: &impl serde::Serialize) -> Outcome {
     motionlink_link::result::identified(family, port, extra, report)
         .map_err(|e| ReplyError::transport(format!("the report: {e}")))
+}
+
+/// The objects of an action that reads several items (`get` of several names, in order), or lists what
+/// it found (`scan`): a JSON list of the objects the command line's `--json` prints, one per line.
+pub fn listed(objects: Vec<Value>) -> Outcome {
+    Ok(Value::Array(objects))
 }
 
 /// A library error in a reply, by its class.

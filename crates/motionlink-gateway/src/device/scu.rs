@@ -122,9 +122,24 @@ impl Scu {
                 })))
             }
             "get" => {
-                let item = item(&mut args)?;
+                // One item (its object), or several (a list of their objects, as the command line prints
+                // one per line); every name is checked before anything is read.
+                let (names, list) = args.one_or_many("item", "items")?;
                 args.finish()?;
-                Ok(Action::Other(Box::pin(async move { me.result(&client.read(item).await.map_err(failed)?) })))
+                let items = names
+                    .iter()
+                    .map(|t| find(t).map_err(|e| ReplyError::usage(format!("get {t:?}: {e}"))))
+                    .collect::<Result<Vec<Item>, _>>()?;
+                Ok(Action::Other(Box::pin(async move {
+                    let mut read = Vec::new();
+                    for item in items {
+                        read.push(me.result(&client.read(item).await.map_err(failed)?)?);
+                    }
+                    match list {
+                        true => super::listed(read),
+                        false => Ok(read.remove(0)),
+                    }
+                })))
             }
             "set" => {
                 let item = item(&mut args)?;
