@@ -166,6 +166,31 @@ impl Spec {
     }
 }
 
+impl Spec {
+    /// What the command line's `--json` puts after `family` and `port` for this device: its module or
+    /// drive (nothing for an SCU unit).
+    pub fn identity(&self) -> Vec<(&'static str, Value)> {
+        match &self.options {
+            FamilyOptions::Scu(_) => Vec::new(),
+            FamilyOptions::PowerCube(o) => vec![("module", Value::from(o.module.get()))],
+            FamilyOptions::Compax(o) => vec![("drive", Value::from(o.drive.get()))],
+        }
+    }
+
+    /// What stops a motion of this device when its host can no longer reach it (a failed port, a dead
+    /// machine): the device's own watchdog, as the family's Safety section says, or nothing.
+    pub fn without_host(&self) -> &'static str {
+        match &self.options {
+            FamilyOptions::Scu(_) => "the SCU unit stops its remote motions 500 ms after the last keepalive (RC)",
+            FamilyOptions::PowerCube(o) if o.no_watchdog => {
+                "the module's watchdog is not armed for this device (no_watchdog): nothing stops the module"
+            }
+            FamilyOptions::PowerCube(_) => "the module's watchdog, armed for motions, halts it within 50 ms",
+            FamilyOptions::Compax(_) => "a COMPAX drive has no watchdog: nothing stops it before its target",
+        }
+    }
+}
+
 /// The family's session with the device.
 #[derive(Clone)]
 enum Family {
