@@ -108,7 +108,7 @@ impl Gateway {
         error: ReplyError,
         ended: Option<(String, String)>,
     ) {
-        if !self.devices.get(device).is_some_and(|s| s.generation == generation) {
+        if self.devices.get(device).is_none_or(|s| s.generation != generation) {
             return; // An older session's, or the device is already handled.
         }
         let Some((entry, spec)) = self.entries.get(device).cloned() else { return };
