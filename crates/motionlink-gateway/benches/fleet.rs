@@ -195,10 +195,10 @@ fn keep_alive(
     })
 }
 
-/// The CPU of a gateway's async runtime (its threads `tokio-runtime-*`: MQTT, requests, states, JSON) in
+/// The CPU of a gateway's async runtime (its threads `tokio-*`: MQTT, requests, states, JSON) in
 /// `by_thread`, in seconds.
 fn runtime_cpu_s(by_thread: &std::collections::BTreeMap<String, f64>) -> f64 {
-    by_thread.iter().filter(|(name, _)| name.starts_with("tokio-runtime")).map(|(_, s)| s).sum()
+    by_thread.iter().filter(|(name, _)| name.starts_with("tokio-")).map(|(_, s)| s).sum()
 }
 
 /// Four gateways of 16 devices each (8 drives moving under leases kept alive, as in the one-gateway case,
