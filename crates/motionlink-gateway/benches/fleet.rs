@@ -2,8 +2,8 @@
 //! COMPAX drives moving under leases, so their states run at 10 Hz, and 16 PowerCube modules at rest):
 //! state messages delivered per second, the gateway's CPU, the round trip of a command through the broker
 //! (a device read, and a keepalive), and a storm of 1,000 requests with nothing lost or duplicated; then
-//! four gateways with 16 devices each (at rest) on the same broker: states delivered, their CPU, and the
-//! round trip to each.
+//! four gateways with 16 devices each on the same broker (8 drives of each moving under leases kept alive,
+//! 8 modules at rest): states delivered, their CPU, and the round trip to each.
 //!
 //! `cargo bench -p motionlink-gateway --features bench` (mosquitto installed; without it the benchmark says
 //! it is skipped).
@@ -84,19 +84,8 @@ fn fleet(c: &mut Criterion) {
         }
         c
     });
-    let keep = rt.spawn({
-        let mqtt = client.mqtt.clone();
-        async move {
-            loop {
-                for i in 0..DRIVES {
-                    let body = json!({"id": format!("m{i}"), "op": "keepalive"}).to_string();
-                    let topic = format!("motionlink/{GW}/drive{i}/cmd");
-                    let _ = mqtt.publish(topic, rumqttc::v5::mqttbytes::QoS::AtLeastOnce, false, body).await;
-                }
-                tokio::time::sleep(Duration::from_millis(500)).await;
-            }
-        }
-    });
+    let ids = (0..DRIVES).map(|i| (GW.to_string(), format!("drive{i}"), format!("m{i}"))).collect();
+    let keep = keep_alive(&rt, client.mqtt.clone(), ids);
     // States delivered, and the gateway's CPU, over 10 s with the drives moving.
     rt.block_on(async {
         tokio::time::sleep(Duration::from_secs(2)).await;
@@ -188,36 +177,89 @@ fn fleet(c: &mut Criterion) {
     four_gateways(&b, &rt);
 }
 
-/// Four gateways of 16 devices each (8 drives, 8 modules, at rest) on one broker.
+/// Keeps the motions `ids` (gateway, device, motion id) alive: a keepalive to each every 500 ms.
+fn keep_alive(
+    rt: &tokio::runtime::Runtime,
+    mqtt: rumqttc::v5::AsyncClient,
+    ids: Vec<(String, String, String)>,
+) -> tokio::task::JoinHandle<()> {
+    rt.spawn(async move {
+        loop {
+            for (gw, device, id) in &ids {
+                let body = json!({"id": id, "op": "keepalive"}).to_string();
+                let topic = format!("motionlink/{gw}/{device}/cmd");
+                let _ = mqtt.publish(topic, rumqttc::v5::mqttbytes::QoS::AtLeastOnce, false, body).await;
+            }
+            tokio::time::sleep(Duration::from_millis(500)).await;
+        }
+    })
+}
+
+/// The CPU of a gateway's async runtime (its threads `tokio-*`: MQTT, requests, states, JSON) in
+/// `by_thread`, in seconds.
+fn runtime_cpu_s(by_thread: &std::collections::BTreeMap<String, f64>) -> f64 {
+    by_thread.iter().filter(|(name, _)| name.starts_with("tokio-")).map(|(_, s)| s).sum()
+}
+
+/// Four gateways of 16 devices each (8 drives moving under leases kept alive, as in the one-gateway case,
+/// and 8 modules at rest) on one broker.
 fn four_gateways(b: &harness::Broker, rt: &tokio::runtime::Runtime) {
+    const DRIVES_EACH: usize = 8;
     let names = ["fleet-a", "fleet-b", "fleet-c", "fleet-d"];
     let gateways: Vec<harness::Gateway> = names
         .iter()
         .map(|n| {
             harness::gateway_of(
                 n,
-                &format!("[gateway]\nname = \"{n}\"\nbroker = \"{}\"\n{}", b.url(), devices(8, 8)),
+                &format!("[gateway]\nname = \"{n}\"\nbroker = \"{}\"\n{}", b.url(), devices(DRIVES_EACH, 8)),
                 &[],
             )
         })
         .collect();
-    rt.block_on(async {
+    let mut c = rt.block_on(async {
         let mut c = harness::Client::connect(b, "bench-four", &["motionlink/+/status", "motionlink/+/+/state", "me/#"]).await;
         for n in names {
             c.wait("online", Duration::from_secs(30), |m| m.topic == format!("motionlink/{n}/status") && m.payload == "online")
                 .await;
         }
+        // Every drive of every gateway moves (a long way, slowly) under a lease kept alive.
+        for n in names {
+            for i in 0..DRIVES_EACH {
+                let move_ = json!({"id": format!("m{i}"), "op": "move", "args": {"abs": 100000, "speed": 1}, "lease_ms": 10000});
+                c.send(&format!("motionlink/{n}/drive{i}/cmd"), move_.to_string()).await;
+            }
+        }
+        c
+    });
+    let ids = names
+        .iter()
+        .flat_map(|n| (0..DRIVES_EACH).map(move |i| (n.to_string(), format!("drive{i}"), format!("m{i}"))))
+        .collect();
+    let keep = keep_alive(rt, c.mqtt.clone(), ids);
+    rt.block_on(async {
         tokio::time::sleep(Duration::from_secs(2)).await;
         c.drain();
-        let cpu0: Vec<f64> = gateways.iter().map(|g| cpu_s(g.pid())).collect();
+        let cpu0: Vec<(f64, f64)> =
+            gateways.iter().map(|g| (cpu_s(g.pid()), runtime_cpu_s(&cpu_by_thread(g.pid())))).collect();
         let t0 = Instant::now();
         tokio::time::sleep(Duration::from_secs(10)).await;
         let wall = t0.elapsed().as_secs_f64();
-        let cpu: Vec<String> =
-            gateways.iter().zip(&cpu0).map(|(g, c0)| format!("{:.1}", 100.0 * (cpu_s(g.pid()) - c0) / wall)).collect();
-        let states = c.drain().iter().filter(|m| m.topic.ends_with("/state")).count() as f64;
+        let cpu: Vec<String> = gateways
+            .iter()
+            .zip(&cpu0)
+            .map(|(g, (p0, r0))| {
+                let process = 100.0 * (cpu_s(g.pid()) - p0) / wall;
+                let runtime = 100.0 * (runtime_cpu_s(&cpu_by_thread(g.pid())) - r0) / wall;
+                format!("{runtime:.1} ({process:.0})")
+            })
+            .collect();
+        let seen = c.drain();
+        let states = seen.iter().filter(|m| m.topic.ends_with("/state")).count() as f64;
+        let moving =
+            seen.iter().filter(|m| m.topic.ends_with("/state") && m.payload.contains("\"moving\":true")).count();
         println!(
-            "fleet: 4 gateways x 16 devices at rest: {:.0} state messages/s delivered; CPU of each gateway {} % of a core",
+            "fleet: 4 gateways x 16 devices ({DRIVES_EACH} drives moving each): {:.0} state messages/s delivered \
+             ({moving} of moving drives in {wall:.1} s); CPU of each gateway's runtime (whole process) {} % of a core",
             states / wall,
             cpu.join(" / ")
         );
@@ -227,14 +269,22 @@ fn four_gateways(b: &harness::Broker, rt: &tokio::runtime::Runtime) {
             let id = format!("f{n}");
             c.drain();
             let t = Instant::now();
-            c.send(&format!("motionlink/{gw}/module{}/cmd", n % 8), json!({"id": id, "op": "state", "reply_to": "me/f"}).to_string()).await;
+            c.send(
+                &format!("motionlink/{gw}/module{}/cmd", n % 8),
+                json!({"id": id, "op": "state", "reply_to": "me/f"}).to_string(),
+            )
+            .await;
             let r = c.reply("me/f", &id, Duration::from_secs(10)).await;
             samples.push(t.elapsed());
             assert_eq!(r["ok"], true, "{r}");
         }
         let (p50, p99) = (quantile(&mut samples, 0.5), quantile(&mut samples, 0.99));
-        println!("fleet: 4 gateways: state round trip p50 {p50:?}, p99 {p99:?} (400 requests over the 4, one at a time)");
+        println!(
+            "fleet: 4 gateways, drives moving: state round trip p50 {p50:?}, p99 {p99:?} (400 requests over the 4, one \
+             at a time)"
+        );
     });
+    keep.abort();
     for g in gateways {
         let _ = g.signal(libc::SIGTERM);
     }

@@ -80,6 +80,24 @@ impl Args {
         Ok(all)
     }
 
+    /// The argument `one` (one value) or `many` (a list of them, the command line's repeated argument, as
+    /// `get` takes several names), exactly one of the two: the texts, and whether a list was given (its
+    /// result is then a list too, even of one).
+    pub fn one_or_many(&mut self, one: &'static str, many: &'static str) -> Result<(Vec<String>, bool), ReplyError> {
+        let given = self.map.contains_key(many);
+        let list = self.list::<String>(many)?;
+        let single = self.text(one)?;
+        match (single, given) {
+            (Some(t), false) => Ok((vec![t], false)),
+            (None, true) if !list.is_empty() => Ok((list, true)),
+            (None, true) => Err(ReplyError::usage(format!("{}: {many:?} is an empty list", self.op))),
+            (Some(_), true) => Err(ReplyError::usage(format!("{}: give {one:?} or {many:?}, not both", self.op))),
+            (None, false) => {
+                Err(ReplyError::usage(format!("{}: the argument {one:?} is missing (or {many:?}, a list)", self.op)))
+            }
+        }
+    }
+
     /// A flag (`binary`, `soft`): true, false or absent (false).
     pub fn flag(&mut self, key: &'static str) -> Result<bool, ReplyError> {
         Ok(self.get::<bool>(key)?.unwrap_or(false))
@@ -126,6 +144,16 @@ mod tests {
         let e = a.need::<u32>("position").unwrap_err();
         assert!(e.message.starts_with("move position \"-1\": ") && e.kind == "usage", "{}", e.message);
         assert!(a.need::<u32>("actuator").unwrap_err().message.contains("\"actuator\" is missing"));
+        let mut b = args(serde_json::json!({"items": ["a", "b"], "item": "c"}));
+        assert!(b.one_or_many("item", "items").unwrap_err().message.contains("not both"));
+        let mut b = args(serde_json::json!({"items": "a"}));
+        assert_eq!(b.one_or_many("item", "items").unwrap(), (vec!["a".to_string()], true));
+        let mut b = args(serde_json::json!({"item": "a"}));
+        assert_eq!(b.one_or_many("item", "items").unwrap(), (vec!["a".to_string()], false));
+        let mut b = args(serde_json::json!({"items": []}));
+        assert!(b.one_or_many("item", "items").unwrap_err().message.contains("empty"));
+        let mut b = args(serde_json::json!({}));
+        assert!(b.one_or_many("item", "items").unwrap_err().message.contains("\"item\" is missing"));
         let e = a.finish().unwrap_err();
         assert!(
             e.message.contains("unknown argument \"vel\"") && e.message.contains("position, actuator"),

@@ -57,6 +57,17 @@ impl ReplyError {
         ReplyError { kind: "busy".into(), message: message.into(), exit_code: 3 }
     }
 
+    /// A device whose port failed, while the gateway opens it again (exit code 3, a transport error).
+    pub fn unavailable(message: impl Into<String>) -> ReplyError {
+        ReplyError { kind: "unavailable".into(), message: message.into(), exit_code: 3 }
+    }
+
+    /// Whether this error says the device's port is gone (the library's `disconnected`): its session must
+    /// be opened again.
+    pub fn port_failed(&self) -> bool {
+        self.kind == "disconnected"
+    }
+
     /// The device could not be opened, or its session failed.
     pub fn transport(message: impl Into<String>) -> ReplyError {
         ReplyError { kind: "io".into(), message: message.into(), exit_code: 3 }
@@ -70,6 +81,7 @@ impl ReplyError {
                 ("cancelled", ErrorClass::Cancelled.exit_code())
             }
             StopReason::BrokerLost => ("broker_lost", 3),
+            StopReason::PortFailed { .. } => ("disconnected", 3),
             StopReason::Signal { number, .. } => ("cancelled", 128 + *number as u8),
         };
         ReplyError { kind: kind.into(), message: format!("{reason}; {library}"), exit_code }
@@ -96,6 +108,11 @@ pub enum StopReason {
     },
     /// The gateway lost the broker: no lease could be renewed.
     BrokerLost,
+    /// The device's port failed (a USB adapter unplugged, a TCP server gone): its session is gone.
+    PortFailed {
+        /// What failed, as the library said.
+        error: String,
+    },
     /// A signal ends the gateway.
     Signal {
         /// Its number.
@@ -117,6 +134,9 @@ impl std::fmt::Display for StopReason {
                 f.write_str("the gateway lost the broker (no lease could be renewed), so it stopped the motion")
             }
             StopReason::Signal { name, .. } => write!(f, "{name} received: the gateway stopped the motion"),
+            StopReason::PortFailed { error } => {
+                write!(f, "the device's port failed ({error}): the gateway's session with it is gone")
+            }
         }
     }
 }

@@ -5,7 +5,8 @@
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Event<'a> {
     /// `motion_started`, `motion_ended`, `lease_expired`, `error`, `state_failed`, `port_released` (a
-    /// `stop` from another process took the device's port), `port_taken` (the gateway serves it again).
+    /// `stop` from another process took the device's port), `port_taken` (the gateway serves it again),
+    /// `port_failed` (the device's port failed: its session is gone), `port_reopened` (served again).
     pub event: &'static str,
     /// The request's (or motion's) id, if there is one.
     pub id: Option<&'a str>,
@@ -40,4 +41,17 @@ pub struct Renewed {
     pub renewed: bool,
     /// The lease, in ms: the next keepalive is due within it.
     pub lease_ms: u64,
+}
+
+/// The state of a device whose port failed (retained on its `state` topic until the device is served
+/// again): after the identity (`family`, `port`, the module or drive), `"available": false`, the error that
+/// ended its session and when (`t_s`, as a state's).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Unavailable<'a> {
+    /// Always false: no state can be read.
+    pub available: bool,
+    /// What failed.
+    pub error: &'a crate::error::ReplyError,
+    /// Seconds since the gateway started, when it failed.
+    pub t_s: f64,
 }

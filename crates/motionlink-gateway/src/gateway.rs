@@ -25,6 +25,11 @@ use crate::request::{self, Request};
 use crate::topics::Topics;
 
 mod handover;
+mod reopen;
+mod signals;
+
+use reopen::{Internal, Lost};
+use signals::Signals;
 
 /// How long the gateway waits for its motions to stop when it ends.
 const STOP_BOUND: Duration = Duration::from_secs(10);
@@ -49,11 +54,15 @@ struct Served {
     device: Arc<Device>,
     motion: Option<Motion>,
     moving: Arc<AtomicBool>,
+    /// Its session's number (a new one each time the device is opened again).
+    generation: u64,
 }
 
 /// An operation that ended.
 struct Done {
     device: String,
+    /// The session it ran on.
+    generation: u64,
     motion_id: Option<String>,
     id: Option<String>,
     reply: ReplyTo,
@@ -81,6 +90,12 @@ struct Gateway {
     sample_hz: u32,
     /// The gateway's start (states' `t_s`).
     started: Instant,
+    /// The devices whose port failed, while it is opened again.
+    lost: HashMap<String, Lost>,
+    /// What the gateway's own tasks tell the loop.
+    internal: mpsc::UnboundedSender<Internal>,
+    /// The last session's number.
+    generation: u64,
 }
 
 /// Runs the gateway of `config` until a signal ends it (its exit code: 128 + its number: 130 SIGINT, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT) or it
@@ -103,6 +118,7 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
             .map_err(|m| GatewayError::Transport(format!("[device.{}]: {m}", entry.name)))?;
     }
     let mut devices = HashMap::new();
+    let mut generation = 0;
     for (entry, spec) in &specs {
         let device = Device::open(entry, spec).await.map_err(|e| {
             let m = format!("[device.{}] on {}: {}", entry.name, entry.port, e.message);
@@ -112,7 +128,9 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
                 GatewayError::Transport(m)
             }
         })?;
-        devices.insert(entry.name.clone(), Served { device, motion: None, moving: Arc::new(AtomicBool::new(false)) });
+        generation += 1;
+        let moving = Arc::new(AtomicBool::new(false));
+        devices.insert(entry.name.clone(), Served { device, motion: None, moving, generation });
     }
     let (mqtt, events) = Mqtt::new(options, 1024);
     let (net_tx, mut net) = mpsc::unbounded_channel();
@@ -127,6 +145,7 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         other => return Err(GatewayError::Transport(format!("the broker {}: {other:?}", config.broker))),
     }
     let (done_tx, mut done) = mpsc::unbounded_channel();
+    let (internal, mut internal_rx) = mpsc::unbounded_channel();
     let entries = specs.iter().map(|(e, s)| (e.name.clone(), ((*e).clone(), s.clone()))).collect();
     let mut gw = Gateway {
         topics,
@@ -141,6 +160,9 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         samplers: HashMap::new(),
         sample_hz: config.sample_hz,
         started: Instant::now(),
+        lost: HashMap::new(),
+        internal,
+        generation,
     };
     gw.online();
     eprintln!(
@@ -185,6 +207,7 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
                 }
             },
             Some(d) = done.recv() => gw.on_done(d),
+            Some(i) = internal_rx.recv() => gw.on_internal(i),
             _ = tokio::time::sleep_until(deadline) => gw.on_leases(),
             _ = retake.tick() => gw.retake_ports().await,
             s = signals.next() => {
@@ -204,7 +227,7 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         gw.stop_all(StopReason::Signal { number, name });
     }
     let bound = Instant::now() + STOP_BOUND;
-    while gw.devices.values().any(|s| s.motion.is_some()) {
+    while gw.any_motion() {
         match tokio::time::timeout_at(bound, done.recv()).await {
             Ok(Some(d)) => {
                 if let (Some(id), Err(e)) = (&d.motion_id, &d.outcome) {
@@ -213,8 +236,9 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
                 gw.on_done(d);
             }
             _ => {
-                for (dev, s) in &gw.devices {
-                    if let Some(m) = &s.motion {
+                let lost = gw.lost.iter().map(|(d, l)| (d, &l.motion));
+                for (dev, motion) in gw.devices.iter().map(|(d, s)| (d, &s.motion)).chain(lost) {
+                    if let Some(m) = motion {
                         eprintln!(
                             "motionlink gateway: {name}: {dev} motion {}: its stop did not end within {} s",
                             m.id,
@@ -226,7 +250,10 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
             }
         }
     }
-    // The samplers end before the sessions close (each holds its device).
+    // The samplers end before the sessions close (each holds its device); failed ports are not opened again.
+    for (_, lost) in gw.lost.drain() {
+        lost.give_up();
+    }
     for (_, s) in gw.samplers.drain() {
         s.abort();
         let _ = s.await;
@@ -242,58 +269,11 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
     Ok(if number == 0 { 0 } else { 128 + number as u8 })
 }
 
-/// SIGINT, SIGTERM, SIGHUP (a closed terminal or session) and SIGQUIT: each ends the gateway after it
-/// stopped every motion (none of them may kill it with a motion left running; a COMPAX drive has no
-/// watchdog that would stop it).
-struct Signals {
-    #[cfg(unix)]
-    int: tokio::signal::unix::Signal,
-    #[cfg(unix)]
-    term: tokio::signal::unix::Signal,
-    #[cfg(unix)]
-    hup: tokio::signal::unix::Signal,
-    #[cfg(unix)]
-    quit: tokio::signal::unix::Signal,
-}
-
-impl Signals {
-    fn new() -> Result<Signals, GatewayError> {
-        #[cfg(unix)]
-        {
-            use tokio::signal::unix::{signal, SignalKind};
-            let fail = |e: std::io::Error| GatewayError::Transport(format!("signal handlers: {e}"));
-            Ok(Signals {
-                int: signal(SignalKind::interrupt()).map_err(fail)?,
-                term: signal(SignalKind::terminate()).map_err(fail)?,
-                hup: signal(SignalKind::hangup()).map_err(fail)?,
-                quit: signal(SignalKind::quit()).map_err(fail)?,
-            })
-        }
-        #[cfg(not(unix))]
-        Ok(Signals {})
-    }
-
-    /// The next signal: its number and name.
-    async fn next(&mut self) -> (i32, &'static str) {
-        #[cfg(unix)]
-        {
-            tokio::select! {
-                _ = self.int.recv() => (2, "SIGINT"),
-                _ = self.term.recv() => (15, "SIGTERM"),
-                _ = self.hup.recv() => (1, "SIGHUP"),
-                _ = self.quit.recv() => (3, "SIGQUIT"),
-            }
-        }
-        #[cfg(not(unix))]
-        {
-            let _ = tokio::signal::ctrl_c().await;
-            (2, "SIGINT")
-        }
-    }
-}
-
 /// Publishes the device's state (retained) at `sample_hz` while it moves (a motion of the gateway's, or
 /// any motion the device reports), else once a second.
+/// A sample that finds the device's port gone ends the sampler and tells the loop (`failed`, with the
+/// session's `generation`).
+#[allow(clippy::too_many_arguments)]
 async fn sample_states(
     device: Arc<Device>,
     mqtt: Mqtt,
@@ -301,6 +281,8 @@ async fn sample_states(
     moving: Arc<AtomicBool>,
     sample_hz: u32,
     started: Instant,
+    generation: u64,
+    failed: mpsc::UnboundedSender<Internal>,
 ) {
     let fast = Duration::from_secs(1) / sample_hz.max(1);
     let slow = Duration::from_secs(1).max(fast);
@@ -312,6 +294,10 @@ async fn sample_states(
             Ok((state, in_motion)) => {
                 reported = in_motion;
                 let _ = mqtt.try_publish(topic.clone(), QoS::AtMostOnce, true, state.to_string());
+            }
+            Err(e) if e.port_failed() => {
+                let _ = failed.send(Internal::SampleFailed { device: device.name.clone(), generation, error: e });
+                return;
             }
             Err(e) => tracing::warn!("{}: state: {}", device.name, e.message),
         }
@@ -402,6 +388,13 @@ impl Gateway {
                  free"
             )));
         }
+        if let Some(e) = self.unavailable(device) {
+            if r.op == "keepalive" {
+                let lapsed = format!("no motion {:?} holds a lease on {device}: its port failed", r.id);
+                return Err(ReplyError { kind: "no_lease".into(), message: lapsed, exit_code: 2 });
+            }
+            return Err(e);
+        }
         if !self.devices.contains_key(device) {
             let names = self.devices.keys().cloned().collect::<Vec<_>>().join(", ");
             return Err(ReplyError::usage(format!("no device {device:?} on this gateway; it serves {names}")));
@@ -440,7 +433,8 @@ impl Gateway {
                 served.motion =
                     Some(Motion { id: r.id.clone(), op: r.op.clone(), reply: reply.clone(), cancel: Some(cancel) });
                 served.moving.store(true, Ordering::Relaxed);
-                let (device_handle, tx) = (Arc::clone(&served.device), self.done.clone());
+                let (device_handle, tx, generation) =
+                    (Arc::clone(&served.device), self.done.clone(), served.generation);
                 self.leases.start(&lease_key(device, &r.id), r.lease, Instant::now());
                 let lease_ms = r.lease.as_millis() as u64;
                 self.event(
@@ -454,6 +448,7 @@ impl Gateway {
                     drop(device_handle);
                     let _ = tx.send(Done {
                         device: name,
+                        generation,
                         motion_id: Some(id.clone()),
                         id: Some(id),
                         reply: ReplyTo::default(),
@@ -472,7 +467,7 @@ impl Gateway {
             Action::Write(op) => {
                 if let Some(m) = &self.devices[device].motion {
                     return Err(ReplyError::busy(format!(
-                        "{device} is running {} {:?}: {} writes once it has ended (or stop it)",
+                        "{device} is running {} {:?}: {} is served once it has ended (or stop it)",
                         m.op, m.id, r.op
                     )));
                 }
@@ -485,23 +480,28 @@ impl Gateway {
 
     fn spawn_reply(&self, device: &str, r: &Request, reply: &ReplyTo, op: Operation) {
         let tx = self.done.clone();
+        let generation = self.devices.get(device).map_or(0, |s| s.generation);
         let (name, id, reply) = (device.to_string(), r.id.clone(), reply.clone());
         tokio::spawn(async move {
             let outcome = op.await;
-            let _ = tx.send(Done { device: name, motion_id: None, id: Some(id), reply, outcome });
+            let _ = tx.send(Done { device: name, generation, motion_id: None, id: Some(id), reply, outcome });
         });
     }
 
     /// An operation ended: its reply; a motion's end is an event too.
     fn on_done(&mut self, d: Done) {
         let mut reply = d.reply;
+        let mut ended = None;
         if let Some(id) = &d.motion_id {
             self.leases.end(&lease_key(&d.device, id));
-            if let Some(served) = self.devices.get_mut(&d.device) {
-                if served.motion.as_ref().is_some_and(|m| &m.id == id) {
-                    let m = served.motion.take().expect("a motion");
-                    served.moving.store(false, Ordering::Relaxed);
+            if let Some(slot) = self.motion_of(&d.device) {
+                if slot.as_ref().is_some_and(|m| &m.id == id) {
+                    let m = slot.take().expect("a motion");
+                    if let Some(served) = self.devices.get(&d.device) {
+                        served.moving.store(false, Ordering::Relaxed);
+                    }
                     reply = m.reply;
+                    ended = Some((m.op.clone(), m.id.clone()));
                     let event = Event {
                         op: Some(&m.op),
                         ok: Some(d.outcome.is_ok()),
@@ -513,6 +513,12 @@ impl Gateway {
             }
         }
         self.publish_reply(&reply, d.id.as_deref(), &d.outcome, &d.device);
+        // An operation that found the port gone: the device's session must be opened again.
+        if let Err(e) = d.outcome {
+            if e.port_failed() {
+                self.port_failed(&d.device, d.generation, e, ended);
+            }
+        }
     }
 
     /// Leases that lapsed: their motions are stopped.

@@ -99,7 +99,7 @@ async fn reads_and_writes_answer_with_the_cli_s_json() {
         ("arm", "get", json!({"param": "NoSuch"}), "param"),
         ("axis", "status", json!({"values": ["S1", "X9"]}), "values"),
         ("axis", "output", json!({"number": 0, "state": 7}), "state"),
-        ("axis", "set", json!({"param": "P196", "value": "NaN"}), "number"),
+        ("axis", "set", json!({"param": "P196", "value": "NaN"}), "parameter value"),
     ] {
         let r = ask(&mut c, "rw", device, "bad", op, args.clone()).await;
         assert_eq!((r["ok"].as_bool(), r["error"]["exit_code"].as_u64()), (Some(false), Some(2)), "{args}: {r}");
@@ -171,4 +171,120 @@ async fn an_scu_run_is_held_by_its_lease_and_kept_alive_ends_at_its_end_of_trave
     let said: Vec<(&str, &str)> =
         events.iter().map(|e| (e["event"].as_str().unwrap(), e["op"].as_str().unwrap_or(""))).collect();
     assert_eq!(said, [("motion_started", "run"), ("motion_ended", "run")], "{events:?}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_device_table_s_action_options_are_the_device_s_defaults() {
+    let Some(b) = broker("a_device_table_s_action_options_are_the_device_s_defaults") else { return };
+    // Keys of devices.toml: options of the device, of its actions (defaults), and of watch and the
+    // console (accepted, ignored).
+    let devices = r#"
+[device.axis]
+family = "compax"
+port = "sim"
+max_pos = 50
+speed = 100
+csv = true
+jog_range = 5
+
+[device.lift]
+family = "scu"
+port = "sim"
+speed = 100
+soft = true
+capture = "ignored.cap"
+"#;
+    let _gw = gateway(&b, "df", devices);
+    let mut c = Client::connect(&b, "t-df", &["motionlink/df/status", "me/#"]).await;
+    c.wait("online", 20 * S, |m| m.topic == "motionlink/df/status" && m.payload == "online").await;
+    // The device's max_pos refuses a target beyond it, before anything moves...
+    let r = ask(&mut c, "df", "axis", "m1", "move", json!({"abs": 100})).await;
+    assert_eq!((r["ok"].as_bool(), r["error"]["kind"].as_str()), (Some(false), Some("usage")), "{r}");
+    assert!(r["error"]["message"].as_str().unwrap().contains("50"), "{r}");
+    let r = ask(&mut c, "df", "axis", "p1", "status", json!({"values": "S1"})).await;
+    assert_eq!(result(&r, "compax")["status"][0]["value"], 0.0, "{r}");
+    // ...and a request's own max_pos overrides it.
+    let body =
+        json!({"id": "m2", "op": "move", "args": {"abs": 100, "max_pos": 200}, "reply_to": "me/r", "lease_ms": 10000});
+    c.send("motionlink/df/axis/cmd", body.to_string()).await;
+    let r = c.reply("me/r", "m2", 30 * S).await;
+    assert_eq!(result(&r, "compax")["verified"], true, "{r}");
+    // The SCU's soft stop is its stop's default.
+    let r = ask(&mut c, "df", "lift", "s1", "stop", json!({})).await;
+    assert_eq!(result(&r, "scu")["mode"], "soft", "{r}");
+    let r = ask(&mut c, "df", "lift", "s2", "stop", json!({"soft": false})).await;
+    assert_eq!(result(&r, "scu")["mode"], "fast", "{r}");
+}
+
+#[test]
+fn a_device_table_key_no_command_takes_is_refused_naming_it() {
+    let Some(b) = broker("a_device_table_key_no_command_takes_is_refused_naming_it") else { return };
+    let gw = gateway(&b, "uk", "[device.axis]\nfamily = \"compax\"\nport = \"sim\"\nmax_poss = 50\n");
+    let (code, err) = gw.signal(0);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("[device.axis]: unknown key `max_poss`") && err.contains("max_pos"), "{err}");
+}
+
+/// The objects of a list result, each without its `port` (checked to be `sim`) and `profile`.
+fn listed(r: &Value) -> Vec<Value> {
+    assert_eq!(r["ok"], true, "{r}");
+    let items = r["result"].as_array().unwrap_or_else(|| panic!("a list: {r}"));
+    items
+        .iter()
+        .map(|o| {
+            let mut m = o.as_object().expect("an object").clone();
+            assert_eq!(m.remove("port"), Some(json!("sim")), "{r}");
+            Value::Object(m)
+        })
+        .collect()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn several_items_in_one_get_and_a_scan_answer_with_the_cli_s_json_lines() {
+    let Some(b) = broker("several_items_in_one_get_and_a_scan_answer_with_the_cli_s_json_lines") else { return };
+    let _gw = gateway(&b, "sc", ALL);
+    let mut c = Client::connect(&b, "t-sc", &["motionlink/sc/status", "me/#"]).await;
+    c.wait("online", 20 * S, |m| m.topic == "motionlink/sc/status" && m.payload == "online").await;
+
+    // `get` of several names: one reply, the list of the objects the command line prints one per line.
+    let r = ask(&mut c, "sc", "lift", "g1", "get", json!({"items": ["actual_position_a1", "remote_speed_f1"]})).await;
+    let got = listed(&r);
+    let names: Vec<&str> = got.iter().map(|o| o["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["actual_position_a1", "remote_speed_f1"], "{r}");
+    assert_eq!((got[0]["family"].as_str(), got[1]["value"].as_i64()), (Some("scu"), Some(100)), "{r}");
+    let r = ask(&mut c, "sc", "arm", "g2", "get", json!({"params": ["ActPos", "MaxPos"]})).await;
+    let got = listed(&r);
+    assert_eq!((got[0]["name"].as_str(), got[1]["name"].as_str()), (Some("ActPos"), Some("MaxPos")), "{r}");
+    assert_eq!((got[1]["module"].as_u64(), got[1]["unit"].as_str()), (Some(1), Some("rad")), "{r}");
+    let r = ask(&mut c, "sc", "axis", "g3", "get", json!({"params": ["P194", "P196"]})).await;
+    let got = listed(&r);
+    assert_eq!(
+        got.iter().map(|o| (o["name"].as_str().unwrap(), o["value"].as_f64().unwrap())).collect::<Vec<_>>(),
+        [("P194", 1.0), ("P196", 0.0)],
+        "{r}"
+    );
+    // Every name checked before anything is read; one name and a list at once is refused.
+    let r = ask(&mut c, "sc", "arm", "g4", "get", json!({"params": ["ActPos", "NoSuch"]})).await;
+    assert_eq!(r["error"]["kind"], "usage", "{r}");
+    assert!(r["error"]["message"].as_str().unwrap().contains("NoSuch"), "{r}");
+    let r = ask(&mut c, "sc", "axis", "g5", "get", json!({"param": "P194", "params": ["P196"]})).await;
+    assert!(r["error"]["message"].as_str().unwrap().contains("not both"), "{r}");
+    // A read that fails ends the reply with its error, as the command line's exit.
+    let r = ask(&mut c, "sc", "arm", "g6", "get", json!({"params": ["ActPos", "TargetVel"]})).await;
+    assert!(r["error"]["message"].as_str().unwrap().contains("write-only"), "{r}");
+
+    // `scan`: the modules and drives on the bus, as `scan --json` lists them.
+    let r = ask(&mut c, "sc", "arm", "sc1", "scan", json!({})).await;
+    let found = listed(&r);
+    assert_eq!(found.len(), 1, "{r}");
+    assert_eq!(
+        (found[0]["family"].as_str(), found[0]["module"].as_u64(), found[0]["kind"].as_str()),
+        (Some("powercube"), Some(1), Some("rotary")),
+        "{r}"
+    );
+    assert!(found[0]["serial"].is_u64() && found[0]["state"]["flags"].is_array(), "{r}");
+    let r = ask(&mut c, "sc", "axis", "sc2", "scan", json!({})).await;
+    assert_eq!(listed(&r), [json!({"drive": 1, "family": "compax", "position_units": 0.0})], "{r}");
+    let r = ask(&mut c, "sc", "lift", "sc3", "scan", json!({})).await;
+    assert!(r["error"]["message"].as_str().unwrap().contains("not an action of a scu device"), "{r}");
 }

@@ -37,7 +37,9 @@ pub use args::{
 pub use bits::{bit_mask, BitPattern, S16Bits, S16Flag, S17Bits, S17Flag};
 pub use command::{Command, CommandStyle, CommandText};
 pub use error_code::ErrorCode;
-pub use param::{parse_param_reply, write_param_reply, ParamDetail, ParamId, ValidFrom, BAUD_RATES, PARAMS};
+pub use param::{
+    parse_param_reply, write_param_reply, ParamDetail, ParamId, ParamWrite, ValidFrom, BAUD_RATES, PARAMS,
+};
 pub use status::{StatusDetail, StatusId, StatusKind, STATUS};
 pub use units::{OutputState, Position, RampMs, SpeedPercent};
 pub use value::{HistoryEntry, StatusValue};

@@ -121,7 +121,7 @@ impl ParamId {
     /// Checks a value against the parameter's known range (unknown parameters accept any finite value).
     pub fn check(self, value: f64) -> Result<(), ModelError> {
         if !value.is_finite() {
-            return Err(ModelError::Range { what: "parameter value", value: value.to_string(), range: "finite" });
+            return Err(ModelError::Range { what: ParamWrite::WHAT, value: value.to_string(), range: "finite" });
         }
         let range_err = |range| ModelError::Range { what: "parameter value", value: format!("{self}={value}"), range };
         match self {
@@ -136,6 +136,55 @@ impl ParamId {
             }
             _ => Ok(()),
         }
+    }
+}
+
+/// A parameter write, checked: the parameter and a finite value within the parameter's known range
+/// ([`ParamId::check`]). Every front end (the command line's `set`, Python's `set`, the gateway's `set`)
+/// builds one with [`ParamWrite::new`] (a number) or [`ParamWrite::parse`] (text), so a value that is no
+/// number, not finite or out of range is refused with the same words everywhere, before anything is sent.
+///
+/// ```
+/// use motionlink_compax::model::{ParamId, ParamWrite};
+/// let w = ParamWrite::parse(ParamId::DEVICE_ADDRESS, "5").unwrap();
+/// assert_eq!((w.id(), w.value()), (ParamId::DEVICE_ADDRESS, 5.0));
+/// assert_eq!(ParamWrite::parse(ParamId::DEVICE_ADDRESS, "NaN").unwrap_err().to_string(),
+///            "cannot read parameter value from \"NaN\"");
+/// assert!(ParamWrite::new(ParamId::DEVICE_ADDRESS, f64::INFINITY).is_err());
+/// assert!(ParamWrite::new(ParamId::DEVICE_ADDRESS, 32.0).is_err());
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ParamWrite {
+    id: ParamId,
+    value: f64,
+}
+
+impl ParamWrite {
+    /// What a value of the write is, in messages.
+    pub const WHAT: &'static str = "parameter value";
+
+    /// `value` for parameter `id`: refused when not finite or outside the parameter's known range.
+    pub fn new(id: ParamId, value: f64) -> Result<ParamWrite, ModelError> {
+        id.check(value)?;
+        Ok(ParamWrite { id, value })
+    }
+
+    /// The value `text` (a decimal number, blanks around it ignored) for parameter `id`, as [`ParamWrite::new`]
+    /// checks it; text that is no finite number is [`ModelError::Syntax`].
+    pub fn parse(id: ParamId, text: &str) -> Result<ParamWrite, ModelError> {
+        let t = text.trim();
+        let value = t.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| syntax(Self::WHAT, t.as_bytes()))?;
+        ParamWrite::new(id, value)
+    }
+
+    /// The parameter.
+    pub fn id(self) -> ParamId {
+        self.id
+    }
+
+    /// The value, in the parameter's unit.
+    pub fn value(self) -> f64 {
+        self.value
     }
 }
 

@@ -1,12 +1,12 @@
-//! A COMPAX drive on the gateway: `move`, `stop`, `status`, `get`, `set`, `output` and the state samples, as the command line's
+//! A COMPAX drive on the gateway: `move`, `stop`, `status`, `get`, `set`, `output`, `scan` and the state samples, as the command line's
 //! `motionlink compax` does them, on [`AsyncClient`].
 
 use std::sync::Arc;
 
 use motionlink_compax::model::{
-    OutputNumber, OutputState, ParamId, Position, RampMs, SpeedPercent, StatusId, TimeLimit,
+    OutputNumber, OutputState, ParamId, ParamWrite, Position, RampMs, SpeedPercent, StatusId, TimeLimit,
 };
-use motionlink_compax::report::{OutputSwitched, ParamReading, StatusReport, StopResult, Timed};
+use motionlink_compax::report::{DrivePosition, OutputSwitched, ParamReading, StatusReport, StopResult, Timed};
 use motionlink_compax::session::{MoveRequest, MoveTarget, TravelLimits, WatchSample};
 use motionlink_compax::wire::Address;
 use motionlink_compax::{AsyncClient, DriveOptions, Emulator};
@@ -20,7 +20,7 @@ use crate::args::Args;
 use crate::error::ReplyError;
 
 /// The actions served.
-const OPS: [&str; 6] = ["move", "stop", "status", "get", "set", "output"];
+const OPS: [&str; 7] = ["move", "stop", "status", "get", "set", "output", "scan"];
 
 /// The command line's `--timeout-s` of a move when none is given, in s.
 const MOVE_TIMEOUT_S: f64 = 600.0;
@@ -124,22 +124,51 @@ impl Compax {
                 })))
             }
             "get" => {
-                let id: ParamId = args.need("param")?;
+                // One parameter (its object), or several (a list of their objects, as the command line
+                // prints one per line); every name is checked before anything is read.
+                let (names, list) = args.one_or_many("param", "params")?;
                 args.finish()?;
+                let ids = names
+                    .iter()
+                    .map(|t| t.parse::<ParamId>().map_err(|e| ReplyError::usage(format!("get param {t:?}: {e}"))))
+                    .collect::<Result<Vec<ParamId>, _>>()?;
                 Ok(Action::Other(Box::pin(async move {
-                    me.result(&ParamReading { id, value: client.read_param(drive, id).await.map_err(failed)? })
+                    let mut read = Vec::new();
+                    for id in ids {
+                        let value = client.read_param(drive, id).await.map_err(failed)?;
+                        read.push(me.result(&ParamReading { id, value })?);
+                    }
+                    match list {
+                        true => super::listed(read),
+                        false => Ok(read.remove(0)),
+                    }
+                })))
+            }
+            "scan" => {
+                args.finish()?;
+                Ok(Action::Write(Box::pin(async move {
+                    // Every drive on the bus (S1 of addresses 1..=31), as `compax scan --json` lists them;
+                    // none at all is an error, as there.
+                    let found = client.scan(1..=31).await.map_err(failed)?;
+                    if found.is_empty() {
+                        return Err(ReplyError::transport(format!("no drive answered on {}", me.port)));
+                    }
+                    let listed = found
+                        .into_iter()
+                        .map(|d| identified("compax", &me.port, &[], &DrivePosition::from(d)))
+                        .collect::<Result<_, _>>()?;
+                    super::listed(listed)
                 })))
             }
             "set" => {
                 let id: ParamId = args.need("param")?;
-                let value: f64 = args.need("value")?;
+                let text: String = args.need("value")?;
                 args.finish()?;
-                if !value.is_finite() {
-                    return Err(ReplyError::usage("set: the value must be a number"));
-                }
+                // The library's rule: a finite number within the parameter's known range.
+                let write = ParamWrite::parse(id, &text).map_err(|e| ReplyError::usage(format!("set value: {e}")))?;
                 Ok(Action::Write(Box::pin(async move {
                     // Written and read back: a value that reads back otherwise is an error.
-                    me.result(&client.set_param(drive, id, value).await.map_err(failed)?)
+                    me.result(&client.set_param(drive, write.id(), write.value()).await.map_err(failed)?)
                 })))
             }
             "output" => {
@@ -175,4 +204,34 @@ impl Compax {
             Err(_) => Ok(()),
         }
     }
+}
+
+/// Checks the device's default `key` (an option of actions, [`super::keys::COMPAX`]) by its argument's rule.
+pub(super) fn check_default(key: &str, text: &str) -> Result<(), String> {
+    fn rule<T: std::str::FromStr>(text: &str) -> Result<(), String>
+    where
+        T::Err: std::fmt::Display,
+    {
+        text.parse::<T>().map(drop).map_err(|e| e.to_string())
+    }
+    match key {
+        "speed" => rule::<SpeedPercent>(text),
+        "accel" => rule::<RampMs>(text),
+        "binary" => text.parse::<bool>().map(drop).map_err(|_| "give true or false".into()),
+        "timeout_s" => rule::<TimeLimit>(text),
+        "min_pos" | "max_pos" => rule::<Position>(text),
+        other => Err(format!("{other} is no option of an action")),
+    }
+}
+
+/// Checks the device's defaults together: `min_pos` below `max_pos`, as a move checks them.
+pub(super) fn check_defaults(defaults: &serde_json::Map<String, Value>) -> Result<(), String> {
+    let limit = |key: &str| -> Option<Position> {
+        let text = match defaults.get(key)? {
+            Value::String(s) => s.clone(),
+            other => other.to_string(),
+        };
+        text.parse().ok()
+    };
+    TravelLimits::new(limit("min_pos"), limit("max_pos")).map(drop).map_err(|e| format!("min_pos / max_pos: {e}"))
 }

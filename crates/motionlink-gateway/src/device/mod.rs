@@ -12,6 +12,7 @@ use crate::config::DeviceEntry;
 use crate::error::ReplyError;
 
 mod compax;
+pub mod keys;
 mod powercube;
 mod scu;
 
@@ -31,8 +32,10 @@ pub enum Action {
     Motion(Operation),
     /// `stop`: it needs no lease and always runs.
     Stop(Operation),
-    /// A write (a parameter, a data entry, an output): no lease, but refused while the device runs a
-    /// motion of the gateway's, as the command line's write is refused while another holds the port.
+    /// A write (a parameter, a data entry, an output) or a scan of the bus (it holds the bus for up to 31
+    /// replies' timeouts, which would hold up a motion's polls and keepalives): no lease, but refused while
+    /// the device runs a motion of the gateway's, as the command line's is refused while another command
+    /// holds the port.
     Write(Operation),
     /// Anything else: a read (no lease).
     Other(Operation),
@@ -40,13 +43,26 @@ pub enum Action {
 
 /// A device's options, checked by the family crate's types before anything is opened.
 #[derive(Debug, Clone)]
-pub enum Spec {
+pub enum FamilyOptions {
     /// An SCU unit.
     Scu(motionlink_scu::args::UnitOptions),
     /// A PowerCube module.
     PowerCube(motionlink_powercube::args::ModuleOptions),
     /// A COMPAX drive.
     Compax(motionlink_compax::DriveOptions),
+}
+
+/// A device table, checked: the device's options, its defaults for the options of actions
+/// ([`keys`]), and for an emulated SCU the unit of its `sim_config` file.
+#[derive(Debug, Clone)]
+pub struct Spec {
+    /// The options of the device and its session.
+    pub options: FamilyOptions,
+    /// The device's defaults for the options of actions (`speed` of a move...), by key, as a request's
+    /// `args` would give them: a request's own override them.
+    pub defaults: Map<String, Value>,
+    /// An SCU emulator's configuration (`sim_config`, `port = "sim"`): the unit as it stands.
+    pub sim_config: Option<motionlink_scu::SimConfig>,
 }
 
 /// The text of a device table's value as the family's option takes it (one element each of a list).
@@ -71,52 +87,107 @@ fn texts(key: &str, value: &toml::Value) -> Result<Vec<String>, String> {
 }
 
 impl Spec {
-    /// The options of a device table, each through the family's own rule; an unknown key is named with
-    /// the keys the family takes.
+    /// The keys of a device table, each through the family's own rule: an option of the device by the
+    /// family's options type, an option of actions by its argument's type (the device's default for
+    /// them), a key that means nothing to a gateway accepted ([`keys`]); an unknown key is named with the
+    /// keys the family takes.
     pub fn of(entry: &DeviceEntry) -> Result<Spec, String> {
         let sim = entry.port == "sim";
-        let set = |keys: &[&str], set: &mut dyn FnMut(&str, &str) -> Result<bool, String>| {
+        let family = keys::of(&entry.family)
+            .ok_or_else(|| format!("family {:?} is not scu, powercube or compax", entry.family))?;
+        // The device's options first (a default's rule may depend on one: an SCU's speed on speed_mode).
+        let set = |set: &mut dyn FnMut(&str, &str) -> Result<bool, String>| {
             for (key, value) in &entry.options {
-                for text in texts(key, value)? {
-                    if !set(key, &text)? {
-                        return Err(format!(
-                            "unknown key `{key}`; a {} device takes family, port, {}",
-                            entry.family,
-                            keys.join(", ")
-                        ));
+                if family.options.contains(&key.as_str()) {
+                    for text in texts(key, value)? {
+                        set(key, &text)?;
                     }
                 }
             }
             Ok::<(), String>(())
         };
-        let spec = match entry.family.as_str() {
+        let mut options = match entry.family.as_str() {
             "scu" => {
                 let mut o = motionlink_scu::args::UnitOptions::default();
-                set(&motionlink_scu::args::UnitOptions::KEYS, &mut |k, t| o.set(k, t).map_err(|e| e.to_string()))?;
+                set(&mut |k, t| o.set(k, t).map_err(|e| e.to_string()))?;
                 o.check_port(sim).map_err(|e| e.to_string())?;
                 o.client_config().map_err(|e| e.to_string())?;
-                Spec::Scu(o)
+                FamilyOptions::Scu(o)
             }
             "powercube" => {
                 let mut o = motionlink_powercube::args::ModuleOptions::default();
-                set(&motionlink_powercube::args::ModuleOptions::KEYS, &mut |k, t| {
-                    o.set(k, t).map_err(|e| e.to_string())
-                })?;
+                set(&mut |k, t| o.set(k, t).map_err(|e| e.to_string()))?;
                 o.check_port(sim).map_err(|e| e.to_string())?;
-                Spec::PowerCube(o)
+                FamilyOptions::PowerCube(o)
             }
-            "compax" => {
+            _ => {
                 let mut o = motionlink_compax::DriveOptions::default();
-                set(&motionlink_compax::DriveOptions::KEYS, &mut |k, t| o.set(k, t).map_err(|e| e.to_string()))?;
+                set(&mut |k, t| o.set(k, t).map_err(|e| e.to_string()))?;
                 o.check_port(sim).map_err(|e| e.to_string())?;
-                Spec::Compax(o)
+                FamilyOptions::Compax(o)
             }
-            other => return Err(format!("family {other:?} is not scu, powercube or compax")),
         };
+        let mut defaults = Map::new();
+        let mut sim_config = None;
+        for (key, value) in &entry.options {
+            if family.options.contains(&key.as_str()) || family.ignored(key).is_some() {
+                continue;
+            }
+            if let Some(d) = family.default_of(key) {
+                let [text] =
+                    texts(key, value)?.try_into().map_err(|_| format!("`{key}` takes one value, not a list"))?;
+                let checked = match &options {
+                    FamilyOptions::Scu(o) => scu::check_default(o, d.key, &text),
+                    FamilyOptions::PowerCube(_) => powercube::check_default(d.key, &text),
+                    FamilyOptions::Compax(_) => compax::check_default(d.key, &text),
+                };
+                checked.map_err(|e| format!("{key}: {text:?}: {e}"))?;
+                defaults.insert(key.clone(), serde_json::to_value(value).map_err(|e| format!("`{key}`: {e}"))?);
+            } else if key == keys::SCU_SIM_CONFIG && entry.family == "scu" {
+                let [path] =
+                    texts(key, value)?.try_into().map_err(|_| format!("`{key}` takes one file, not a list"))?;
+                let FamilyOptions::Scu(o) = &mut options else { unreachable!("an scu device") };
+                sim_config = Some(scu::sim_config(o, sim, &path)?);
+            } else {
+                return Err(format!(
+                    "unknown key `{key}`; a {} device takes family, port, {}",
+                    entry.family,
+                    family.all(&entry.family).join(", ")
+                ));
+            }
+        }
+        if let FamilyOptions::Compax(_) = options {
+            compax::check_defaults(&defaults)?;
+        }
         if !sim {
             entry.port.parse::<motionlink_link::url::PortUrl>().map_err(|e| format!("port {:?}: {e}", entry.port))?;
         }
-        Ok(spec)
+        Ok(Spec { options, defaults, sim_config })
+    }
+}
+
+impl Spec {
+    /// What the command line's `--json` puts after `family` and `port` for this device: its module or
+    /// drive (nothing for an SCU unit).
+    pub fn identity(&self) -> Vec<(&'static str, Value)> {
+        match &self.options {
+            FamilyOptions::Scu(_) => Vec::new(),
+            FamilyOptions::PowerCube(o) => vec![("module", Value::from(o.module.get()))],
+            FamilyOptions::Compax(o) => vec![("drive", Value::from(o.drive.get()))],
+        }
+    }
+
+    /// What stops a motion of this device when its host can no longer reach it (a failed port, a dead
+    /// machine): the device's own watchdog, as the family's Safety section says, or nothing.
+    pub fn without_host(&self) -> &'static str {
+        match &self.options {
+            FamilyOptions::Scu(_) => "the SCU unit stops its remote motions 500 ms after the last keepalive (RC)",
+            FamilyOptions::PowerCube(o) if o.no_watchdog => {
+                "the module's watchdog is not armed for this device (no_watchdog): nothing stops the module"
+            }
+            FamilyOptions::PowerCube(_) => "the module's watchdog, armed for motions, halts it within 50 ms",
+            FamilyOptions::Compax(_) => "a COMPAX drive has no watchdog: nothing stops it before its target",
+        }
     }
 }
 
@@ -133,6 +204,10 @@ pub struct Device {
     /// Its name: its topic level.
     pub name: String,
     family: Family,
+    /// The keys of its family's device tables.
+    keys: &'static keys::FamilyKeys,
+    /// Its defaults for the options of actions.
+    defaults: Map<String, Value>,
     /// The emulator's host for `port = "sim"`, kept as long as the session.
     host: Mutex<Option<Box<dyn std::any::Any + Send>>>,
 }
@@ -146,23 +221,27 @@ impl std::fmt::Debug for Device {
 impl Device {
     /// Opens the device of `entry` (its options `spec`), as the command line opens its port.
     pub async fn open(entry: &DeviceEntry, spec: &Spec) -> Result<Arc<Device>, ReplyError> {
-        let (family, host) = match spec {
-            Spec::Scu(o) => (Family::Scu(scu::Scu::open(o, &entry.port).await?), None),
-            Spec::PowerCube(o) => {
-                let (d, host) = powercube::PowerCube::open(o, &entry.port).await?;
-                (Family::PowerCube(d), host)
+        let (family, host, keys) = match &spec.options {
+            FamilyOptions::Scu(o) => {
+                (Family::Scu(scu::Scu::open(o, spec.sim_config.clone(), &entry.port).await?), None, &keys::SCU)
             }
-            Spec::Compax(o) => {
+            FamilyOptions::PowerCube(o) => {
+                let (d, host) = powercube::PowerCube::open(o, &entry.port).await?;
+                (Family::PowerCube(d), host, &keys::POWERCUBE)
+            }
+            FamilyOptions::Compax(o) => {
                 let (d, host) = compax::Compax::open(o, &entry.port).await?;
-                (Family::Compax(d), host)
+                (Family::Compax(d), host, &keys::COMPAX)
             }
         };
-        Ok(Arc::new(Device { name: entry.name.clone(), family, host: Mutex::new(host) }))
+        let defaults = spec.defaults.clone();
+        Ok(Arc::new(Device { name: entry.name.clone(), family, keys, defaults, host: Mutex::new(host) }))
     }
 
-    /// The action `op` with its `args`, checked: an error names what is wrong and nothing is sent.
+    /// The action `op` with its `args` (over the device's defaults for it), checked: an error names what is
+    /// wrong and nothing is sent.
     pub fn action(&self, op: &str, args: Map<String, Value>) -> Result<Action, ReplyError> {
-        let args = crate::args::Args::new(op, args);
+        let args = crate::args::Args::new(op, self.keys.with_defaults(op, &self.defaults, args));
         match &self.family {
             Family::Scu(d) => d.action(op, args),
             Family::PowerCube(d) => d.action(op, args),
@@ -211,6 +290,12 @@ pub fn identified(family: &str, port: &str, extra: &[(&str, Value)], report: &im
         .map_err(|e| ReplyError::transport(format!("the report: {e}")))
 }
 
+/// The objects of an action that reads several items (`get` of several names, in order), or lists what
+/// it found (`scan`): a JSON list of the objects the command line's `--json` prints, one per line.
+pub fn listed(objects: Vec<Value>) -> Outcome {
+    Ok(Value::Array(objects))
+}
+
 /// A library error in a reply, by its class.
 pub fn failed<E: motionlink_link::error::Classify + std::fmt::Display>(e: E) -> ReplyError {
     ReplyError::classified(&e)
@@ -240,11 +325,13 @@ mod tests {
     #[test]
     fn a_device_s_options_go_through_the_family_s_rules() {
         let s = Spec::of(&entry("scu", "sim", &[("functions", "tlt".into()), ("stroke", vec!["1=0:865"].into())]));
-        assert!(matches!(s, Ok(Spec::Scu(o)) if o.functions == ["tlt"] && o.stroke == ["1=0:865"]));
+        assert!(
+            matches!(s.map(|s| s.options), Ok(FamilyOptions::Scu(o)) if o.functions == ["tlt"] && o.stroke == ["1=0:865"])
+        );
         let s = Spec::of(&entry("powercube", "/dev/ttyUSB0", &[("module", 3.into()), ("no_watchdog", false.into())]));
-        assert!(matches!(s, Ok(Spec::PowerCube(o)) if o.module.get() == 3));
+        assert!(matches!(s.map(|s| s.options), Ok(FamilyOptions::PowerCube(o)) if o.module.get() == 3));
         let s = Spec::of(&entry("compax", "tcp://127.0.0.1:4001", &[("drive", 2.into()), ("tolerance", 0.5.into())]));
-        assert!(matches!(s, Ok(Spec::Compax(o)) if o.drive.get() == 2));
+        assert!(matches!(s.map(|s| s.options), Ok(FamilyOptions::Compax(o)) if o.drive.get() == 2));
     }
 
     #[test]
@@ -259,5 +346,45 @@ mod tests {
         assert!(e.contains("`functions` cannot be"), "{e}");
         let e = Spec::of(&entry("compax", "nonsense://x", &[])).unwrap_err();
         assert!(e.starts_with("port \"nonsense://x\""), "{e}");
+        // A key the command line refuses from a file (a move's target) is refused here too.
+        let e = Spec::of(&entry("compax", "sim", &[("abs", 5.into())])).unwrap_err();
+        assert!(e.contains("unknown key `abs`") && e.contains("max_pos"), "{e}");
+    }
+
+    #[test]
+    fn an_action_s_options_are_the_device_s_defaults_checked_by_their_rules() {
+        let s = Spec::of(&entry(
+            "scu",
+            "sim",
+            &[("speed", 40.into()), ("soft", true.into()), ("function", 2.into()), ("csv", true.into())],
+        ))
+        .unwrap();
+        assert_eq!(Value::Object(s.defaults), serde_json::json!({"function": 2, "soft": true, "speed": 40}));
+        let s = Spec::of(&entry(
+            "powercube",
+            "sim",
+            &[("vel", 0.3.into()), ("timeout_s", 9.into()), ("modules", vec![1, 2].into())],
+        ))
+        .unwrap();
+        assert_eq!(Value::Object(s.defaults), serde_json::json!({"timeout_s": 9, "vel": 0.3}));
+        let s = Spec::of(&entry(
+            "compax",
+            "sim",
+            &[("speed", 10.into()), ("max_pos", 500.into()), ("jog_range", 5.into())],
+        ))
+        .unwrap();
+        assert_eq!(Value::Object(s.defaults), serde_json::json!({"max_pos": 500, "speed": 10}));
+        // Each by its argument's rule, named with the key.
+        let e = Spec::of(&entry("scu", "sim", &[("speed", 150.into())])).unwrap_err();
+        assert!(e.starts_with("speed: \"150\": "), "{e}");
+        let e = Spec::of(&entry("powercube", "sim", &[("vel", (-1).into())])).unwrap_err();
+        assert!(e.starts_with("vel: \"-1\": "), "{e}");
+        let e = Spec::of(&entry("compax", "sim", &[("min_pos", 10.into()), ("max_pos", 5.into())])).unwrap_err();
+        assert!(e.contains("min_pos"), "{e}");
+        let e = Spec::of(&entry("compax", "sim", &[("speed", vec![1, 2].into())])).unwrap_err();
+        assert!(e.contains("not a list"), "{e}");
+        // An SCU speed in counts/s where the unit takes them.
+        let s = Spec::of(&entry("scu", "sim", &[("speed", 800.into()), ("speed_mode", "counts-per-second".into())]));
+        assert!(s.is_ok(), "{s:?}");
     }
 }

@@ -1,4 +1,4 @@
-//! A PowerCube module on the gateway: `move`, `home`, `stop`, `reset`, `state`, `info`, `get`, `set` and the state
+//! A PowerCube module on the gateway: `move`, `home`, `stop`, `reset`, `state`, `info`, `get`, `set`, `scan` and the state
 //! samples, as the command line's `motionlink powercube` does them, on [`AsyncClient`].
 
 use std::sync::Arc;
@@ -19,7 +19,7 @@ use crate::args::Args;
 use crate::error::ReplyError;
 
 /// The actions served.
-const OPS: [&str; 8] = ["move", "home", "stop", "reset", "state", "info", "get", "set"];
+const OPS: [&str; 9] = ["move", "home", "stop", "reset", "state", "info", "get", "set", "scan"];
 
 /// A session with one module.
 #[derive(Clone)]
@@ -121,14 +121,41 @@ impl PowerCube {
                 })))
             }
             "get" => {
-                let param: Param = args.need("param")?;
+                // One parameter (its object), or several (a list of their objects, as the command line
+                // prints one per line); every name is checked before anything is read.
+                let (names, list) = args.one_or_many("param", "params")?;
                 args.finish()?;
+                let params = names
+                    .iter()
+                    .map(|t| t.parse::<Param>().map_err(|e| ReplyError::usage(format!("get param {t:?}: {e}"))))
+                    .collect::<Result<Vec<Param>, _>>()?;
                 Ok(Action::Other(Box::pin(async move {
                     let m = client.module(module);
-                    let value = m.get(param).await.map_err(failed)?;
-                    // The unit depends on the module type (rad or m): no guessing when it cannot be read.
-                    let kind = m.kind().await.map_err(failed)?;
-                    me.result(&ParamReading { param, kind, value })
+                    let mut read = Vec::new();
+                    for param in params {
+                        let value = m.get(param).await.map_err(failed)?;
+                        // The unit depends on the module type (rad or m): no guessing when it cannot be read.
+                        let kind = m.kind().await.map_err(failed)?;
+                        read.push(me.result(&ParamReading { param, kind, value })?);
+                    }
+                    match list {
+                        true => super::listed(read),
+                        false => Ok(read.remove(0)),
+                    }
+                })))
+            }
+            "scan" => {
+                args.finish()?;
+                Ok(Action::Write(Box::pin(async move {
+                    // Every module on the bus, as `powercube scan --json` lists them (no module of the
+                    // device's own: each object names its address); none at all is an error, as there.
+                    let found = client.scan().await.map_err(failed)?;
+                    if found.is_empty() {
+                        return Err(ReplyError::transport(format!("no module answered on {}", me.port)));
+                    }
+                    let listed =
+                        found.iter().map(|e| identified("powercube", &me.port, &[], e)).collect::<Result<_, _>>()?;
+                    super::listed(listed)
                 })))
             }
             "set" => {
@@ -166,5 +193,23 @@ impl PowerCube {
             Ok(client) => client.close().await.map_err(|e| e.to_string()),
             Err(_) => Ok(()),
         }
+    }
+}
+
+/// Checks the device's default `key` (an option of actions, [`super::keys::POWERCUBE`]) by its argument's
+/// rule.
+pub(super) fn check_default(key: &str, text: &str) -> Result<(), String> {
+    fn rule<T: std::str::FromStr>(text: &str) -> Result<(), String>
+    where
+        T::Err: std::fmt::Display,
+    {
+        text.parse::<T>().map(drop).map_err(|e| e.to_string())
+    }
+    match key {
+        "vel" => rule::<MoveVelocity>(text),
+        "acc" => rule::<MoveAcceleration>(text),
+        "tolerance" => rule::<Tolerance>(text),
+        "timeout_s" => rule::<MotionTimeout>(text),
+        other => Err(format!("{other} is no option of an action")),
     }
 }

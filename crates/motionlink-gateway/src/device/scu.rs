@@ -10,7 +10,7 @@ use motionlink_scu::args::{Checked, RunLimit, UnitOptions};
 use motionlink_scu::model::{find, Actuator, Function, Item, MotionFunction, PositionCounts, Speed, StopMode};
 use motionlink_scu::results::{ErrorHistory, RunOutcome, SampleReport, StopResult, StopScope, SwitchedOff};
 use motionlink_scu::session::RunAction;
-use motionlink_scu::{AsyncClient, Emulator};
+use motionlink_scu::{AsyncClient, Emulator, SimConfig, Variants};
 
 use super::{failed, identified, unknown_op, Action, Outcome, Sampling};
 use crate::args::Args;
@@ -27,14 +27,22 @@ pub(super) struct Scu {
 }
 
 impl Scu {
-    /// Opens the unit on `port` (`sim`: the emulated unit the options name).
-    pub(super) async fn open(options: &UnitOptions, port: &str) -> Result<Scu, ReplyError> {
+    /// Opens the unit on `port` (`sim`: the emulated unit `sim_config` describes, else the one the options
+    /// name).
+    pub(super) async fn open(
+        options: &UnitOptions,
+        sim_config: Option<SimConfig>,
+        port: &str,
+    ) -> Result<Scu, ReplyError> {
         let config = options.client_config().map_err(|e| ReplyError::usage(e.to_string()))?;
         let url: PortUrl = port.parse().map_err(|e| ReplyError::usage(format!("port {port:?}: {e}")))?;
         let clock = RealClock::shared();
         let client = match url {
             PortUrl::Sim => {
-                let unit = options.emulated_unit().map_err(|e| ReplyError::usage(e.to_string()))?;
+                let unit = match sim_config {
+                    Some(unit) => unit,
+                    None => options.emulated_unit().map_err(|e| ReplyError::usage(e.to_string()))?,
+                };
                 let sim = Emulator::new(unit).map_err(|e| ReplyError::usage(e.to_string()))?;
                 let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(options.baud.get()));
                 let connector: motionlink_link::link::Connector = Box::new(move || Ok(Box::new(host.connect().0)));
@@ -114,9 +122,24 @@ impl Scu {
                 })))
             }
             "get" => {
-                let item = item(&mut args)?;
+                // One item (its object), or several (a list of their objects, as the command line prints
+                // one per line); every name is checked before anything is read.
+                let (names, list) = args.one_or_many("item", "items")?;
                 args.finish()?;
-                Ok(Action::Other(Box::pin(async move { me.result(&client.read(item).await.map_err(failed)?) })))
+                let items = names
+                    .iter()
+                    .map(|t| find(t).map_err(|e| ReplyError::usage(format!("get {t:?}: {e}"))))
+                    .collect::<Result<Vec<Item>, _>>()?;
+                Ok(Action::Other(Box::pin(async move {
+                    let mut read = Vec::new();
+                    for item in items {
+                        read.push(me.result(&client.read(item).await.map_err(failed)?)?);
+                    }
+                    match list {
+                        true => super::listed(read),
+                        false => Ok(read.remove(0)),
+                    }
+                })))
             }
             "set" => {
                 let item = item(&mut args)?;
@@ -158,4 +181,32 @@ impl Scu {
 fn item(args: &mut Args) -> Result<Item, ReplyError> {
     let text = args.text("item")?.ok_or_else(|| ReplyError::usage("the argument \"item\" is missing"))?;
     find(&text).map_err(|e| ReplyError::usage(format!("item: {e}")))
+}
+
+/// Checks the device's default `key` (an option of actions, [`super::keys::SCU`]) by its argument's rule.
+pub(super) fn check_default(options: &UnitOptions, key: &str, text: &str) -> Result<(), String> {
+    match key {
+        "speed" => Speed::parse(text, options.speed_mode).map(drop).map_err(|e| e.to_string()),
+        "function" => text.parse::<MotionFunction>().map(drop).map_err(|e| e.to_string()),
+        "soft" => text.parse::<bool>().map(drop).map_err(|_| "give true or false".into()),
+        "seconds" => text.parse::<RunLimit>().map(drop).map_err(|e| e.to_string()),
+        other => Err(format!("{other} is no option of an action")),
+    }
+}
+
+/// The emulated unit of `sim_config = FILE` (`port = "sim"` only), as the command line's `--sim-config`
+/// reads it: `sim_preset` is its starting point where the file names no preset of its own, and the
+/// `sim_variants` are added to the file's.
+pub(super) fn sim_config(options: &UnitOptions, sim: bool, path: &str) -> Result<SimConfig, String> {
+    if !sim {
+        return Err("sim_config is only for port sim".into());
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| format!("sim_config: cannot read {path}: {e}"))?;
+    let text = match &options.sim_preset {
+        Some(p) if !text.contains("preset") => format!("preset = \"{p}\"\n{text}"),
+        _ => text,
+    };
+    let mut config = SimConfig::from_toml(&text).map_err(|e| format!("sim_config: {path}: {e}"))?;
+    config.variants.extend(&Variants::parse_all(&options.sim_variants).map_err(|e| e.to_string())?);
+    Ok(config)
 }

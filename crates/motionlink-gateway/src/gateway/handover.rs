@@ -24,6 +24,8 @@ impl Gateway {
             Arc::clone(&served.moving),
             self.sample_hz,
             self.started,
+            served.generation,
+            self.internal.clone(),
         ));
         self.samplers.insert(device.to_string(), task);
     }
@@ -38,6 +40,21 @@ impl Gateway {
     ) {
         for (device, request) in asked {
             let who = format!("motionlink pid {} ({})", request.pid, request.command);
+            if let Some(lost) = self.lost.remove(&device) {
+                // Its port had failed: no session of the gateway's to stop it with; the stop gets the port.
+                lost.give_up();
+                let without = self.entries.get(&device).map(|(_, s)| s.without_host()).unwrap_or_default();
+                let message = format!(
+                    "gateway {}: {device}: its port had failed, so the gateway had no session with it ({without}); \
+                     its port is let go of",
+                    self.name
+                );
+                self.ports.release(&self.name, &device, 3, &message);
+                eprintln!("motionlink gateway: stop from {who}: {message}");
+                self.event(&device, &Event { message: Some(&message), ..Event::new("port_released", None) });
+                self.released.push(device);
+                continue;
+            }
             let Some(served) = self.devices.get_mut(&device) else { continue };
             let mut ended: Option<(u8, String)> = None;
             if let Some(c) = served.motion.as_mut().and_then(|m| m.cancel.take()) {
@@ -93,7 +110,9 @@ impl Gateway {
             }
             match Device::open(&entry, &spec).await {
                 Ok(opened) => {
-                    let served = Served { device: opened, motion: None, moving: Arc::new(AtomicBool::new(false)) };
+                    let generation = self.next_generation();
+                    let moving = Arc::new(AtomicBool::new(false));
+                    let served = Served { device: opened, motion: None, moving, generation };
                     self.devices.insert(device.clone(), served);
                     self.start_sampler(&device);
                     let message = format!("{device} on {} is served again", entry.port);
