@@ -56,6 +56,7 @@ pub const SCU: FamilyKeys = FamilyKeys {
         WATCH[0],
         WATCH[1],
         WATCH[2],
+        ("allow_watchdog_lapse", "an option of watch: the gateway's states never let the unit's watchdog lapse"),
         ("rate", "an option of follow, which the gateway does not serve"),
     ],
 };
