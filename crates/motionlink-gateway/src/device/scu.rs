@@ -10,7 +10,7 @@ use motionlink_scu::args::{Checked, RunLimit, UnitOptions};
 use motionlink_scu::model::{find, Actuator, Function, Item, MotionFunction, PositionCounts, Speed, StopMode};
 use motionlink_scu::results::{ErrorHistory, RunOutcome, SampleReport, StopResult, StopScope, SwitchedOff};
 use motionlink_scu::session::RunAction;
-use motionlink_scu::{AsyncClient, Emulator, SimConfig, Variants};
+use motionlink_scu::{AsyncClient, Emulator, SimConfig};
 
 use super::{failed, identified, unknown_op, Action, Outcome, Sampling};
 use crate::args::Args;
@@ -202,11 +202,6 @@ pub(super) fn sim_config(options: &UnitOptions, sim: bool, path: &str) -> Result
         return Err("sim_config is only for port sim".into());
     }
     let text = std::fs::read_to_string(path).map_err(|e| format!("sim_config: cannot read {path}: {e}"))?;
-    let text = match &options.sim_preset {
-        Some(p) if !text.contains("preset") => format!("preset = \"{p}\"\n{text}"),
-        _ => text,
-    };
-    let mut config = SimConfig::from_toml(&text).map_err(|e| format!("sim_config: {path}: {e}"))?;
-    config.variants.extend(&Variants::parse_all(&options.sim_variants).map_err(|e| e.to_string())?);
-    Ok(config)
+    SimConfig::from_toml_over(&text, options.sim_preset.as_deref(), &options.sim_variants)
+        .map_err(|e| format!("sim_config: {path}: {e}"))
 }

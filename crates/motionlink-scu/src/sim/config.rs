@@ -184,6 +184,30 @@ impl SimConfig {
 
     /// Reads a configuration from TOML text (see the type's documentation).
     pub fn from_toml(text: &str) -> Result<Self, SimConfigError> {
+        Self::from_toml_over(text, None, &[] as &[&str])
+    }
+
+    /// A configuration file's `text` as `motionlink sim scu --sim-config` (and a gateway's `sim_config`) reads
+    /// it: `preset` is its starting point where the file names no preset of its own, and the firmware
+    /// `variants` named (each may be several names separated by commas) are added to the file's.
+    ///
+    /// ```
+    /// use motionlink_scu::SimConfig;
+    /// let c = SimConfig::from_toml_over("default_speed = 80\n", Some("tlt"), &["no-groups"]).unwrap();
+    /// assert_eq!(c.configuration_info, SimConfig::tlt().configuration_info);
+    /// assert!(c.variants.has(motionlink_scu::Variant::NoGroups));
+    /// ```
+    pub fn from_toml_over<S: AsRef<str>>(
+        text: &str,
+        preset: Option<&str>,
+        variants: &[S],
+    ) -> Result<Self, SimConfigError> {
+        let mut c = Self::from_toml_with(text, preset)?;
+        c.variants.extend(&Variants::parse_all(variants).map_err(|e| SimConfigError(e.to_string()))?);
+        Ok(c)
+    }
+
+    fn from_toml_with(text: &str, default_preset: Option<&str>) -> Result<Self, SimConfigError> {
         #[derive(serde::Deserialize)]
         #[serde(deny_unknown_fields)]
         struct File {
@@ -200,7 +224,7 @@ impl SimConfig {
             variants: Option<Variants>,
         }
         let f: File = toml::from_str(text).map_err(|e| SimConfigError(e.to_string()))?;
-        let mut c = match f.preset.as_deref() {
+        let mut c = match f.preset.as_deref().or(default_preset) {
             None | Some("scp11") => SimConfig::scp11(f.actuators.unwrap_or(2)),
             Some(name) => SimConfig::preset(name).ok_or_else(|| {
                 SimConfigError(format!("unknown preset {name:?} (known: {})", SimConfig::PRESETS.join(", ")))

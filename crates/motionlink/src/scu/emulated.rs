@@ -17,21 +17,19 @@ pub(crate) fn load_sim_config(
     preset: Option<&str>,
     variants: &[String],
 ) -> Result<SimConfig, CliError> {
-    let mut config = match preset {
+    let base = match preset {
         Some(name) => SimConfig::preset(name).ok_or_else(|| unknown_preset(name))?,
         None => SimConfig::default(),
     };
-    if let Some(path) = path {
-        let text = crate::common::config_text(path)?;
-        let text = match preset {
-            Some(p) if !text.contains("preset") => format!("preset = \"{p}\"\n{text}"),
-            _ => text,
-        };
-        config = SimConfig::from_toml(&text).map_err(|e| CliError::usage(format!("{}: {e}", path.display())))?;
+    match path {
+        Some(path) => SimConfig::from_toml_over(&crate::common::config_text(path)?, preset, variants)
+            .map_err(|e| CliError::usage(format!("{}: {e}", path.display()))),
+        None => {
+            let mut config = base;
+            config.variants.extend(&Variants::parse_all(variants).map_err(|e| CliError::usage(e.to_string()))?);
+            Ok(config)
+        }
     }
-    let variants = Variants::parse_all(variants).map_err(|e| CliError::usage(e.to_string()))?;
-    config.variants.extend(&variants);
-    Ok(config)
 }
 
 fn unknown_preset(name: &str) -> CliError {
