@@ -108,7 +108,7 @@ fn levels<'a>(cli: &'a clap::Command, matches: &'a clap::ArgMatches) -> Option<V
 
 /// The keys a device of `family` may have: the options of `motionlink <family>`, of its actions, and of
 /// `motionlink console <family>`, but [`NOT_FROM_THE_FILE`].
-fn family_keys(cli: &clap::Command, family: &str) -> Vec<String> {
+pub(crate) fn family_keys(cli: &clap::Command, family: &str) -> Vec<String> {
     let commands =
         [cli.find_subcommand(family), cli.find_subcommand("console").and_then(|c| c.find_subcommand(family))];
     let mut keys: Vec<String> = commands

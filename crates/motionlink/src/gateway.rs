@@ -20,31 +20,15 @@ pub fn run(args: Args) -> Result<(), CliError> {
 
 #[cfg(test)]
 mod tests {
-    /// Options the command line never takes from a device of devices.toml (the list in `crate::devices`:
-    /// the entry's own name, the console's serving address, a move's target and hand-over, clap's own).
-    const NOT_FROM_A_DEVICE: [&str; 11] =
-        ["device", "listen", "listen_any", "abs", "rel", "no_wait", "help", "version", "verbose", "quiet", "json"];
-
     /// A gateway's `[device.NAME]` table takes exactly the keys the command line takes from the same table
     /// of devices.toml: every option of `motionlink FAMILY`, of its actions and of `motionlink console
-    /// FAMILY` (clap's declarations), but those never taken from a file.
+    /// FAMILY` (clap's declarations), but those never taken from a file (and `port`, which every table has).
     #[test]
     fn a_gateway_device_table_takes_the_keys_of_devices_toml() {
         let cli = <crate::Cli as clap::CommandFactory>::command();
         for family in ["scu", "powercube", "compax"] {
-            let commands =
-                [cli.find_subcommand(family), cli.find_subcommand("console").and_then(|c| c.find_subcommand(family))];
-            let mut from_the_cli: Vec<String> = commands
-                .into_iter()
-                .flatten()
-                .flat_map(|c| std::iter::once(c).chain(c.get_subcommands()))
-                .flat_map(|c| c.get_arguments())
-                .filter(|a| !a.is_positional())
-                .map(|a| a.get_id().to_string())
-                .filter(|id| !NOT_FROM_A_DEVICE.contains(&id.as_str()) && id != "port")
-                .collect();
-            from_the_cli.sort();
-            from_the_cli.dedup();
+            let mut from_the_cli = crate::devices::family_keys(&cli, family);
+            from_the_cli.retain(|k| k != "port");
             let keys = motionlink_gateway::device::keys::of(family).expect("a family");
             assert_eq!(keys.all(family), from_the_cli, "{family}");
         }
