@@ -214,7 +214,6 @@ pub mod client;
 pub mod describe;
 pub mod error;
 pub mod model;
-mod options;
 pub mod probe;
 pub mod report;
 pub mod session;

@@ -235,7 +235,7 @@ proptest! {
                 Step::Request(a, r, Carrier::Direct) => {
                     let reply = bus.request(now, a, &r);
                     if let Some(reply) = reply {
-                        prop_assert!(r.is_answered_by(&reply), "{r} answered by {reply}");
+                        prop_assert!(reply.answers(&r), "{r} answered by {reply}");
                     }
                 }
                 Step::Request(a, r, Carrier::Can) => {

@@ -269,6 +269,12 @@ pub struct ClientConfig {
     pub watch_may_lapse: bool,
 }
 
+/// The largest position tolerance a session takes, in counts ([`crate::args::ToleranceCounts`]).
+pub const MAX_TOLERANCE_COUNTS: u32 = 100;
+
+/// The rule of a position tolerance, as messages say it.
+pub const TOLERANCE_RULE: &str = "the position tolerance must be a whole number from 0 to 100 counts";
+
 impl Default for ClientConfig {
     fn default() -> Self {
         ClientConfig {
@@ -324,12 +330,8 @@ impl ClientConfig {
         if self.retries > 10 {
             return bad(format!("retries {}: at most 10", self.retries));
         }
-        if self.position_tolerance_counts > crate::args::ToleranceCounts::MAX {
-            return bad(format!(
-                "position tolerance {} counts: {}",
-                self.position_tolerance_counts,
-                <crate::args::ToleranceCounts as crate::args::Checked>::RULE
-            ));
+        if self.position_tolerance_counts > MAX_TOLERANCE_COUNTS {
+            return bad(format!("position tolerance {} counts: {TOLERANCE_RULE}", self.position_tolerance_counts));
         }
         if !(Duration::from_millis(5)..=Duration::from_secs(10)).contains(&self.poll_interval) {
             return bad(format!("poll interval {:?}: 5 ms to 10 s", self.poll_interval));

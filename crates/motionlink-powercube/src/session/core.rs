@@ -425,7 +425,7 @@ impl Core {
             Incoming::Frame { address, payload } => {
                 let reply = Reply::decode(&payload);
                 let slot = f.batch.iter().enumerate().position(|(i, (a, req))| {
-                    *a == address && f.results[i].is_none() && reply.as_ref().is_ok_and(|r| req.is_answered_by(r))
+                    *a == address && f.results[i].is_none() && reply.as_ref().is_ok_and(|r| r.answers(req))
                 });
                 match (slot, reply) {
                     (Some(i), Ok(r)) => {
@@ -447,7 +447,7 @@ impl Core {
                         // A module acknowledged a motion command it was not sent in this exchange: a command
                         // whose address or content was corrupted on the way (the modules ignore the BCC). It
                         // may be moving: the session halts it when it stops what it started.
-                        let expected_motion = f.batch.iter().any(|(a, req)| *a == address && req.is_answered_by(&r));
+                        let expected_motion = f.batch.iter().any(|(a, req)| *a == address && r.answers(req));
                         if moves(&r) && !expected_motion {
                             tracing::warn!(
                                 "module {address} acknowledged {r}, which it was not sent: it may be moving"

@@ -2,7 +2,7 @@
 
 use std::fmt;
 
-use super::request::{payload, Action, ModelError};
+use super::request::{payload, Action, ModelError, Request};
 use crate::model::MotionId;
 use crate::model::Param;
 use crate::model::Value;
@@ -53,6 +53,23 @@ pub enum Reply {
 }
 
 impl Reply {
+    /// The acknowledge `request` gets in a Profibus input image, decoded with the right length.
+    pub fn from_image(request: &Request, image: &crate::wire::profibus::InputImage) -> Result<Reply, ModelError> {
+        Reply::decode(&image.reply(request.ack_len()))
+    }
+
+    /// True if this is the acknowledge of `request`.
+    pub fn answers(&self, request: &Request) -> bool {
+        match (request, self) {
+            (Request::Action(a), Reply::Action(b)) => a == b,
+            (Request::Get(p), Reply::Get(q, _)) => p == q,
+            (Request::Set(p, _), Reply::Set(q, _)) => p == q,
+            (Request::Motion(m, ack), Reply::Motion { id, .. }) => m.id(*ack) == Some(*id),
+            (Request::IStep { .. }, Reply::IStep) => true,
+            _ => false,
+        }
+    }
+
     /// The payload.
     pub fn encode(&self) -> Payload {
         let mut buf = [0u8; 6];

@@ -6,7 +6,7 @@
 //! let req = Request::set(Param::TargetAcc, Value::F32(0.5)).unwrap();
 //! assert_eq!(req.encode().as_bytes(), &[0x08, 0x50, 0x00, 0x00, 0x00, 0x3f]);
 //! let ack = Reply::decode(&motionlink_powercube::wire::Payload::new(&[0x08, 0x50, 0x64]).unwrap()).unwrap();
-//! assert!(req.is_answered_by(&ack));
+//! assert!(ack.answers(&req));
 //! // No writing to a read-only parameter, no reading a write-only one.
 //! assert!(Request::set(Param::ActPos, Value::F32(0.0)).is_err());
 //! assert!(Request::get(Param::TargetVel).is_err());
@@ -14,7 +14,6 @@
 
 use std::fmt;
 
-use super::reply::Reply;
 use crate::model::Param;
 use crate::model::ProfibusState;
 use crate::model::{AckKind, Motion, MotionId};
@@ -283,18 +282,6 @@ impl Request {
         matches!(self, Request::Action(Action::Home) | Request::Motion(..) | Request::IStep { .. })
     }
 
-    /// True if `reply` is the acknowledge of this request.
-    pub fn is_answered_by(&self, reply: &Reply) -> bool {
-        match (self, reply) {
-            (Request::Action(a), Reply::Action(b)) => a == b,
-            (Request::Get(p), Reply::Get(q, _)) => p == q,
-            (Request::Set(p, _), Reply::Set(q, _)) => p == q,
-            (Request::Motion(m, ack), Reply::Motion { id, .. }) => m.id(*ack) == Some(*id),
-            (Request::IStep { .. }, Reply::IStep) => true,
-            _ => false,
-        }
-    }
-
     /// The length of the acknowledge (for the Profibus image, which has no length).
     pub fn ack_len(&self) -> usize {
         match self {
@@ -304,11 +291,6 @@ impl Request {
             Request::Motion(_, AckKind::Simple) => 3,
             Request::Motion(_, AckKind::Extended) => 8,
         }
-    }
-
-    /// The acknowledge this request gets in a Profibus input image, decoded with the right length.
-    pub fn reply_from_image(&self, image: &crate::wire::profibus::InputImage) -> Result<Reply, ModelError> {
-        Reply::decode(&image.reply(self.ack_len()))
     }
 }
 
@@ -349,6 +331,7 @@ mod tests {
     use crate::model::ValueError;
     use crate::model::{Acceleration, Position, Velocity};
     use crate::model::{Amperes, CurrentDigits, TicksPerSec};
+    use crate::wire::Reply;
 
     #[test]
     fn every_request_round_trips() {

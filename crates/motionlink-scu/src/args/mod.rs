@@ -142,7 +142,7 @@ pub struct ToleranceCounts(u32);
 
 impl ToleranceCounts {
     /// The largest tolerance a session takes.
-    pub const MAX: u32 = 100;
+    pub const MAX: u32 = crate::config::MAX_TOLERANCE_COUNTS;
 
     /// The number of counts.
     pub const fn get(self) -> u32 {
@@ -151,7 +151,7 @@ impl ToleranceCounts {
 }
 
 impl Checked for ToleranceCounts {
-    const RULE: &'static str = "the position tolerance must be a whole number from 0 to 100 counts";
+    const RULE: &'static str = crate::config::TOLERANCE_RULE;
     fn checked(n: i64) -> Result<Self, ArgumentError> {
         rule((0..=i64::from(Self::MAX)).contains(&n), || Some(ToleranceCounts(n as u32)))
     }

@@ -24,7 +24,8 @@ use crate::error::Error;
 use crate::model::{Acceleration, Position, Velocity};
 use crate::session::MoveSpec;
 
-pub use crate::options::{ModuleOptions, OptionError};
+mod options;
+pub use options::{ModuleOptions, OptionError};
 
 /// The refusal of `value` for the argument `what`, which must be `must`.
 fn refused(what: &'static str, must: &'static str, value: impl fmt::Display) -> Error {
