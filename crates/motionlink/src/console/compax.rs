@@ -14,7 +14,7 @@ use motionlink_compax::model::{
     BaudRate, OutputState, ParamId, Position, ReplyTimeout, S16Bits, S17Bits, S17Flag, SpeedPercent, StatusId,
     StatusValue, WholeArg, PARAMS,
 };
-use motionlink_compax::report::{ErrorHistory, ParamReading};
+use motionlink_compax::report::{ErrorHistory, OutputSwitched, ParamReading, StopResult};
 use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_compax::{AsyncClient, Emulator};
@@ -205,13 +205,7 @@ impl Compax {
                 timeout: Some(timeout),
                 ..MoveRequest::new(MoveTarget::Absolute(target))
             };
-            let r = self.client.move_to(a, &request).await?;
-            Ok(format!(
-                "drive {n} at {:.3} (target {:.3}, difference {:+.3}) units",
-                r.reached.units(),
-                r.target.units(),
-                r.difference()
-            ))
+            Ok(report(&self.client.move_to(a, &request).await?))
         })
     }
 }
@@ -334,20 +328,19 @@ impl Device for Compax {
 
     fn stop(self: Arc<Self>, unit: u8) -> Motion {
         Box::pin(async move {
+            // As `motionlink compax stop`: OUTPUT O0=0 if S17 says it moves, confirmed by S17; then S1 and S16.
             let a = address(unit)?;
-            self.client.stop(a).await?;
-            let s17 = self.client.read_s17(a).await?;
-            if s17.contains(S17Flag::CommandActive) {
-                return Err(Failure {
-                    kind: "device",
-                    message: format!("drive {unit} took OUTPUT O0=0 but S17 still says command active"),
-                });
+            let stopped = self.client.stop_if_moving(&[a]).await?;
+            if !stopped.all_confirmed() {
+                return Err(Failure { kind: "device", message: stopped.to_string() });
             }
-            Ok(format!("drive {unit} switched off (OUTPUT O0=0 acknowledged, S17: no command active); Switch on before the next move"))
+            let position = self.client.read_position(a).await;
+            let o0 = self.client.read_s16(a).await.map(|s| s.o0_state());
+            Ok(report(&StopResult::new(None::<()>, stopped, position, o0)))
         })
     }
 
-    fn stop_started(self: Arc<Self>) -> Motion {
+    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
         Box::pin(async move {
             let report = self.client.stop_started().await;
             stop_text(&report)
@@ -370,7 +363,7 @@ impl Device for Compax {
                         message: format!("drive {unit} acknowledged OUTPUT O0=1 but S16 shows O0={}", s16.o0_state()),
                     });
                 }
-                Ok(format!("drive {unit} switched on (S16 confirms O0=1)"))
+                Ok(report(&OutputSwitched { output: 0, state: OutputState::ON }))
             })),
             other => Err(Failure::usage(format!("no action {other:?}"))),
         }

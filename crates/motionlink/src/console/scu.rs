@@ -8,10 +8,10 @@ use motionlink_link::SharedClock;
 use motionlink_scu::args::{parse_write, Baud, Checked};
 use motionlink_scu::describe::Describer;
 use motionlink_scu::model::{
-    Actuator, DataIndex, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode, StopMode,
-    TABLE,
+    Actuator, DataIndex, Function, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode,
+    StopMode, TABLE,
 };
-use motionlink_scu::results::ErrorHistory;
+use motionlink_scu::results::{ErrorHistory, RunOutcome, StopResult};
 use motionlink_scu::session::RunAction;
 use motionlink_scu::value::Value as ScuValue;
 use motionlink_scu::{AsyncClient, ClientConfig, FunctionMap, SimConfig};
@@ -220,14 +220,9 @@ impl Device for Scu {
         let function = self.function_of(a)?;
         let op = self.client.move_to_op(a, position, speed, Some(function))?;
         Ok(Box::pin(async move {
-            let out = self.client.start(op).await?;
-            match out {
-                motionlink_scu::Output::Move(r) => Ok(format!(
-                    "{a} at {} (target {target}) after {:.2} s",
-                    r.position_counts,
-                    r.duration.as_secs_f64()
-                )),
-                other => Ok(format!("{other:?}")),
+            match self.client.start(op).await? {
+                motionlink_scu::Output::Move(r) => Ok(report(&r)),
+                other => Err(Failure { kind: "corrupt", message: format!("a move ended with {other:?}") }),
             }
         }))
     }
@@ -247,8 +242,7 @@ impl Device for Scu {
             }
             // Runs until the unit reports the end of travel; dropped, the session sends RS (fast) and checks it.
             let r = self.client.run_function(RunAction::Motion(function, dir), None).await?;
-            let rest = r.rest.iter().map(|(a, p)| format!("{a} at {p}")).collect::<Vec<_>>().join(", ");
-            Ok(format!("{function} ran {:.2} s to its end of travel: {rest}", r.duration.as_secs_f64()))
+            Ok(report(&RunOutcome::from(&r)))
         }))
     }
 
@@ -256,12 +250,13 @@ impl Device for Scu {
         Box::pin(async move {
             let a = actuator(unit)?;
             let f = self.function_of(a)?;
-            self.client.stop_motion(f, StopMode::Fast).await?;
-            Ok(format!("{f} stopped (RS fast, acknowledged by the unit)"))
+            // As `motionlink scu stop F`: RS, then the status read until no actuator moves.
+            let stopped = self.client.stop_functions(&[f], StopMode::Fast).await?;
+            Ok(report(&StopResult::new(None::<()>, Some(Function::Motion(f)), stopped)))
         })
     }
 
-    fn stop_started(self: Arc<Self>) -> Motion {
+    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
         Box::pin(async move {
             let started = self.client.started();
             let mut done = Vec::new();
