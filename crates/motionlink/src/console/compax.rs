@@ -9,19 +9,16 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use motionlink_compax::client::{BusConfig, MoveRequest, MoveTarget, StopOutcome, TravelLimits};
+use motionlink_compax::client::{MoveRequest, MoveTarget, StopOutcome, TravelLimits};
 use motionlink_compax::model::{
     BaudRate, OutputState, ParamId, Position, ReplyTimeout, S16Bits, S17Bits, S17Flag, SpeedPercent, StatusId,
     StatusValue, WholeArg, PARAMS,
 };
 use motionlink_compax::report::{ErrorHistory, OutputSwitched, ParamReading, StopResult};
-use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Mode};
-use motionlink_compax::{AsyncClient, Emulator};
+use motionlink_compax::{AsyncClient, DriveOptions};
 use motionlink_link::clock::{lock, SharedClock, Timestamp};
 use motionlink_link::flags::{FlagClass, FlagWord};
-use motionlink_link::link::{Link, SerialSettings};
-use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 
 use super::device::{
@@ -90,7 +87,7 @@ struct Compax {
 
 /// Opens the session `args` ask for, its link tapped into the traffic log.
 pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<dyn Device>, Arc<Traffic>), CliError> {
-    let (mode, baud) = (args.mode, args.baud.bits_per_s());
+    let mode = args.mode;
     let limits = TravelLimits::new(args.min_pos, args.max_pos).map_err(CliError::usage)?;
     if !(args.jog_range.is_finite() && args.jog_range > 0.0) {
         return Err(CliError::usage(format!("--jog-range {}: give a distance above 0", args.jog_range)));
@@ -103,31 +100,19 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
         clock,
     ));
     let tap = Tap::into_sink(port, Arc::clone(&traffic) as _);
-    let link_clock = Arc::clone(clock);
     let sim_drives: Vec<u8> =
         if args.drives.is_empty() { vec![1] } else { args.drives.iter().map(|a| a.get()).collect() };
-    let p196 = mode.to_p196();
-    let open = move || -> Result<Box<dyn Link>, motionlink_link::LinkError> {
-        let link: Box<dyn Link> = match url {
-            PortUrl::Sim => {
-                let bus = Emulator::new(SimConfig::bus(&sim_drives, p196, baud)).map_err(|e| {
-                    motionlink_link::LinkError::InvalidPort { port: "sim".into(), reason: e.to_string() }
-                })?;
-                // Paced to --baud: every byte takes the time it would on the line.
-                let host = EmulatorHost::new(bus, Arc::clone(&link_clock), PipeConfig::paced(baud));
-                Box::new(host.connect().0)
-            }
-            other => {
-                let mut settings = SerialSettings::new(baud);
-                settings.parity = mode.parity;
-                other.open_byte_link(settings)?
-            }
-        };
-        Ok(tap.link(link, &link_clock))
-    };
-    let mut cfg = BusConfig::new(mode, baud);
-    cfg.reply_timeout = args.timeout_ms.duration();
-    let client = AsyncClient::open(open, Arc::clone(clock), cfg).await.map_err(|e| crate::common::classified(&e))?;
+    // The session's settings and its link by the command line's rules (`DriveOptions`); the drives are the
+    // console's own (`--drives`). Opening a serial device blocks: on the blocking pool.
+    let options =
+        DriveOptions { mode: args.mode, baud: args.baud, timeout_ms: args.timeout_ms, ..DriveOptions::default() };
+    let (o, c) = (options.clone(), Arc::clone(clock));
+    let link = tokio::task::spawn_blocking(move || crate::compax::link(&o, url, &sim_drives, &tap, &c))
+        .await
+        .map_err(|e| CliError::transport(format!("the opening task failed: {e}")))??;
+    let client = AsyncClient::open(move || Ok(link), Arc::clone(clock), options.bus_config())
+        .await
+        .map_err(|e| crate::common::classified(&e))?;
     // The device profile of each drive (`motionlink probe compax --save`), where one names the port.
     if let Some(profiles) = super::profiles() {
         let drives = match args.drives.is_empty() {
