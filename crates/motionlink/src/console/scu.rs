@@ -8,8 +8,8 @@ use motionlink_link::SharedClock;
 use motionlink_scu::args::{parse_write, Baud, Checked};
 use motionlink_scu::describe::Describer;
 use motionlink_scu::model::{
-    Actuator, DataIndex, Function, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode,
-    StopMode, TABLE,
+    Actuator, DataEntry, DataIndex, Function, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed,
+    SpeedMode, StopMode, TABLE,
 };
 use motionlink_scu::results::{ErrorHistory, RunOutcome, StopResult};
 use motionlink_scu::session::RunAction;
@@ -101,8 +101,17 @@ fn actuator(n: u8) -> Result<Actuator, Failure> {
     Actuator::checked(i64::from(n)).map_err(|e| Failure::usage(format!("actuator {n}: {e}")))
 }
 
-fn le_u16s(data: &[u8]) -> Vec<u16> {
-    data.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect()
+/// The numbers of a group read (`AsyncClient::get`), decoded by the data list (currents in A), by actuator
+/// number (an entry 0x00F3 is actuator 3's).
+fn by_actuator(group: &[(&'static DataEntry, ScuValue)]) -> [Option<f64>; 6] {
+    let mut out = [None; 6];
+    for (entry, value) in group {
+        let n = (entry.id & 0x0F) as usize;
+        if (1..=6).contains(&n) {
+            out[n - 1] = value.as_f64();
+        }
+    }
+    out
 }
 
 impl Scu {
@@ -175,12 +184,12 @@ impl Device for Scu {
 
     fn sample<'a>(&'a self, units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, Failure>>> {
         Box::pin(async move {
-            // Four reads of groups cover every actuator at once.
+            // Four reads of groups cover every actuator at once, each decoded by the library.
             let read = async {
                 let positions = self.client.positions().await?;
                 let status = self.client.statuses().await?;
-                let speeds = le_u16s(&self.client.get_raw(DataIndex(0x00F0)).await?);
-                let currents = le_u16s(&self.client.get_raw(DataIndex(0x00A0)).await?);
+                let speeds = by_actuator(&self.client.get(DataIndex(0x00F0)).await?);
+                let currents = by_actuator(&self.client.get(DataIndex(0x00A0)).await?);
                 Ok::<_, motionlink_scu::Error>((positions, status, speeds, currents))
             };
             match read.await {
@@ -193,8 +202,8 @@ impl Device for Scu {
                         use motionlink_link::flags::FlagWord;
                         Ok(Sample {
                             position: Keyed(u.position_key, f64::from(positions[i].get())),
-                            speed: speeds.get(i).map(|s| Keyed(u.speed_key, f64::from(*s))),
-                            current_amps: currents.get(i).map(|c| f64::from(*c) / 10.0),
+                            speed: speeds[i].map(|s| Keyed(u.speed_key, s)),
+                            current_amps: currents[i],
                             flags: flags.names(),
                             faults: flags
                                 .set_flags()
