@@ -9,7 +9,7 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use motionlink_compax::client::{MoveRequest, MoveTarget, StopOutcome, TravelLimits};
+use motionlink_compax::client::{MoveRequest, MoveTarget, TravelLimits};
 use motionlink_compax::model::{
     BaudRate, OutputState, ParamId, Position, ReplyTimeout, S16Bits, S17Bits, S17Flag, SpeedPercent, StatusId,
     StatusValue, WholeArg, PARAMS,
@@ -22,7 +22,7 @@ use motionlink_link::flags::{FlagClass, FlagWord};
 use motionlink_link::url::PortUrl;
 
 use super::device::{
-    report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param, Report, Sample, Unit,
+    close_last, report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param, Report, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -394,23 +394,6 @@ impl Device for Compax {
     }
 
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
-        Box::pin(async move {
-            match Arc::try_unwrap(self) {
-                Ok(me) => {
-                    let report = me.client.close().await?;
-                    let unconfirmed: Vec<_> =
-                        report.drives.iter().filter(|(_, o)| matches!(o, StopOutcome::NotConfirmed { .. })).collect();
-                    if unconfirmed.is_empty() {
-                        stop_text(&report)
-                    } else {
-                        Err(Failure { kind: "device", message: report.to_string() })
-                    }
-                }
-                Err(shared) => {
-                    drop(shared);
-                    Ok("the session ends with its last request".into())
-                }
-            }
-        })
+        close_last(self, |me| async move { stop_text(&me.client.close().await?) })
     }
 }

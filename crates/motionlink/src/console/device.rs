@@ -210,6 +210,28 @@ pub trait Device: Send + Sync + 'static {
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>>;
 }
 
+/// The end of the session `device` holds: `close` with the device itself once nothing else holds it; while a
+/// request still does, the session ends (its library stops what it started) with that request, and this
+/// says so.
+pub fn close_last<D, F>(
+    device: Arc<D>,
+    close: impl FnOnce(D) -> F + Send + 'static,
+) -> BoxFuture<'static, Result<String, Failure>>
+where
+    D: Send + Sync + 'static,
+    F: Future<Output = Result<String, Failure>> + Send + 'static,
+{
+    Box::pin(async move {
+        match Arc::try_unwrap(device) {
+            Ok(me) => close(me).await,
+            Err(shared) => {
+                drop(shared);
+                Ok("the session ends with its last request".into())
+            }
+        }
+    })
+}
+
 /// A finite number from the page, or an error naming `what`.
 pub fn finite(what: &str, v: f64) -> Result<f64, Failure> {
     if v.is_finite() {

@@ -21,7 +21,8 @@ use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{AsyncClient, Emulator, Error};
 
 use super::device::{
-    report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param as Row, Report, Sample, Unit,
+    close_last, report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param as Row, Report, Sample,
+    Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -467,20 +468,12 @@ impl Device for PowerCube {
     }
 
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
-        Box::pin(async move {
-            match Arc::try_unwrap(self) {
-                Ok(me) => {
-                    let PowerCube { client, _host, .. } = me;
-                    let r = client.close().await.map_err(Failure::from).map(|()| String::new());
-                    // The in-process emulator goes only after the session's end.
-                    drop(_host);
-                    r
-                }
-                Err(shared) => {
-                    drop(shared);
-                    Ok("the session ends with its last request".into())
-                }
-            }
+        close_last(self, |me| async move {
+            let PowerCube { client, _host, .. } = me;
+            let r = client.close().await.map_err(Failure::from).map(|()| String::new());
+            // The in-process emulator goes only after the session's end.
+            drop(_host);
+            r
         })
     }
 }

@@ -17,7 +17,8 @@ use motionlink_scu::value::Value as ScuValue;
 use motionlink_scu::{AsyncClient, ClientConfig, FunctionMap, SimConfig};
 
 use super::device::{
-    finite, report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param, Report, Sample, Unit,
+    close_last, finite, report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param, Report, Sample,
+    Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -313,15 +314,8 @@ impl Device for Scu {
     }
 
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
-        Box::pin(async move {
-            let me = match Arc::try_unwrap(self) {
-                Ok(me) => me,
-                Err(shared) => {
-                    // A request still holds the session: it ends (RS, RA) when that ends.
-                    drop(shared);
-                    return Ok("the session ends with its last request".into());
-                }
-            };
+        // While a request still holds the session, it ends (RS, RA) when that ends.
+        close_last(self, |me| async move {
             let started = me.client.started();
             let closed = me.client.close().await;
             match motionlink_scu::ending(&started, closed) {
