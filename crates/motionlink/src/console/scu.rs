@@ -269,13 +269,17 @@ impl Device for Scu {
     fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
         Box::pin(async move {
             let started = self.client.started();
-            let mut done = Vec::new();
-            for id in started {
-                let Some(f) = MotionFunction::new(id.number()) else { continue };
-                self.client.stop_motion(f, StopMode::Fast).await?;
-                done.push(f.to_string());
+            let motions: Vec<MotionFunction> =
+                started.iter().filter_map(|f| if let Function::Motion(m) = f { Some(*m) } else { None }).collect();
+            if motions.is_empty() {
+                return Ok(String::new());
             }
-            Ok(if done.is_empty() { String::new() } else { format!("{} stopped (RS acknowledged)", done.join(", ")) })
+            // As `motionlink scu stop`: RS, confirmed by the status; said as it says it.
+            let stopped = self.client.stop_functions(&motions, StopMode::Fast).await?;
+            let mut text = Vec::new();
+            crate::scu::print_stop_text(&mut text, &stopped)
+                .map_err(|e| Failure { kind: "io", message: e.to_string() })?;
+            Ok(String::from_utf8_lossy(&text).trim_end().to_string())
         })
     }
 
