@@ -62,6 +62,9 @@ def test_stop_halts_the_emulated_axis(browser, compax_sim, compax_console):
     assert rest, compax_sim.events()
     assert off[0] - pressed < 0.5, f"stopped {off[0] - pressed:.3f} s after the click"
     _wait(browser, lambda b: "Stop pressed" in b.find_element(By.ID, "motion").text, 5, "the page says it stopped")
+    # With the report of the confirmed stop (`compax stop --json`), field by field.
+    said = browser.find_element(By.ID, "motion").text
+    assert "action: stop" in said and "position_units: " in said and "o0: 0" in said, said
     # The axis stays where it stopped.
     _wait(browser, lambda b: b.find_element(By.CSS_SELECTOR, "#unit-1 .moving").text == "at rest", 5)
 

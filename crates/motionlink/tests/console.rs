@@ -283,6 +283,10 @@ fn a_move_runs_and_its_position_is_sampled_then_stop_halts_it() {
         .expect("the page is told");
     assert_eq!(m["ok"], true, "{m}");
     assert!(m["message"].as_str().unwrap().contains("Stop pressed"), "{m}");
+    // The report of the confirmed stop, as `motionlink compax stop --json` prints it.
+    let r = &m["report"];
+    assert_eq!((&r["action"], &r["o0"]), (&json!("stop"), &json!(0)), "{m}");
+    assert!(r["position_units"].is_number(), "{m}");
 }
 
 #[test]
@@ -459,6 +463,7 @@ fn family_rules(case: &FamilyCase) {
             let v = recv_until(ws, Duration::from_secs(10), |v| v["type"] == "action" || v["type"] == "failed")
                 .expect("the action's answer");
             assert_eq!(v["ok"], true, "{family}: {v}");
+            assert!(v["report"].is_object(), "{family}: the action's report: {v}");
         }
     };
 
@@ -472,8 +477,10 @@ fn family_rules(case: &FamilyCase) {
     send(&mut ws, json!({"type": "stop", case.key: unit}));
     let stopped = sim.wait_event_after(pressed, Duration::from_secs(5), case.stopped).expect("Stop halts the move");
     assert!(stopped.at - pressed < 0.3, "{family}: stopped {:.3} s after Stop", stopped.at - pressed);
-    recv_until(&mut ws, Duration::from_secs(5), |v| v["type"] == "motion" && v["state"] == "stopped")
+    let m = recv_until(&mut ws, Duration::from_secs(5), |v| v["type"] == "motion" && v["state"] == "stopped")
         .expect("the page is told");
+    // The report of the stop the device confirmed, as `motionlink <family> stop --json` prints it.
+    assert!(m["report"]["action"].is_string(), "{family}: {m}");
     rearm(&mut ws);
 
     // A jog runs while renewed, then stops by its deadline.
@@ -496,8 +503,10 @@ fn family_rules(case: &FamilyCase) {
         sim.wait_event_after(last_renewal, Duration::from_secs(5), case.stopped).expect("the deadline stops it");
     let after = stopped.at - last_renewal;
     assert!((0.195..0.45).contains(&after), "{family}: stopped {after:.3} s after the last renewal");
-    recv_until(&mut ws, Duration::from_secs(5), |v| v["type"] == "motion" && v["state"] == "stopped")
+    let m = recv_until(&mut ws, Duration::from_secs(5), |v| v["type"] == "motion" && v["state"] == "stopped")
         .expect("the page is told");
+    // The report of the stop the device confirmed, as `motionlink <family> stop --json` prints it.
+    assert!(m["report"]["action"].is_string(), "{family}: {m}");
     rearm(&mut ws);
 
     // A lost WebSocket stops the move of its page.

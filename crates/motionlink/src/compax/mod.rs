@@ -32,7 +32,7 @@ mod open;
 mod show;
 
 pub use extra::{decode, demo, sim};
-pub(crate) use open::open;
+pub(crate) use open::{link, open};
 use show::{send_text, status_row};
 
 /// `motionlink compax` arguments. Every option may come before or after the action; every value is checked

@@ -9,6 +9,24 @@ pub(crate) fn open(args: &Args, tap: &Tap, configure: impl FnOnce(&mut BusConfig
     let clock: SharedClock = RealClock::shared();
     // Installed before the port opens: a signal from here on stops what the command starts.
     let token = common::interrupt_token();
+    let link = link(&options, url, &[options.drive.get()], tap, &clock)?;
+    let mut cfg = options.bus_config();
+    configure(&mut cfg);
+    let bus = Client::new(link, clock, cfg).map_err(|e| common::classified(&e))?;
+    bus.set_cancel(token);
+    Ok(bus)
+}
+
+/// The link `options` name on `url`, watched by `tap`: an emulator in this process of the drives
+/// `sim_drives` (in the options' mode, baud rate and firmware variants), paced to the baud rate, or the
+/// serial line (gateway) in the options' baud rate and parity. The console opens its bus by it too.
+pub(crate) fn link(
+    options: &DriveOptions,
+    url: PortUrl,
+    sim_drives: &[u8],
+    tap: &Tap,
+    clock: &SharedClock,
+) -> Result<Box<dyn Link>, CliError> {
     if options.check_port(matches!(url, PortUrl::Sim)).is_err() {
         return Err(CliError::usage(
             "--sim-variant is for --port sim (a served emulator takes `sim compax --variant`)",
@@ -17,21 +35,19 @@ pub(crate) fn open(args: &Args, tap: &Tap, configure: impl FnOnce(&mut BusConfig
     let baud = options.baud.bits_per_s();
     let link: Box<dyn Link> = match url {
         PortUrl::Sim => {
-            let bus = Emulator::new(options.emulated_bus()).map_err(CliError::usage)?;
+            let mut config = options.emulated_bus();
+            config.drives = motionlink_compax::sim::SimConfig::bus(sim_drives, options.mode.to_p196(), baud).drives;
+            let bus = Emulator::new(config).map_err(CliError::usage)?;
             let host = EmulatorHost::new(bus, clock.clone(), PipeConfig::paced(baud));
-            tap.link(Box::new(host.connect().0), &clock)
+            Box::new(host.connect().0)
         }
         other => {
             let mut settings = SerialSettings::new(baud);
             settings.parity = options.mode.parity;
-            tap.link(other.open_byte_link(settings)?, &clock)
+            other.open_byte_link(settings)?
         }
     };
-    let mut cfg = options.bus_config();
-    configure(&mut cfg);
-    let bus = Client::new(link, clock, cfg).map_err(|e| common::classified(&e))?;
-    bus.set_cancel(token);
-    Ok(bus)
+    Ok(tap.link(link, clock))
 }
 
 /// The drive's options from the command line (the same options a device table gives the gateway; a move's

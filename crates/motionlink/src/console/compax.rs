@@ -9,23 +9,20 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use motionlink_compax::client::{BusConfig, MoveRequest, MoveTarget, StopOutcome, TravelLimits};
+use motionlink_compax::client::{MoveRequest, MoveTarget, TravelLimits};
 use motionlink_compax::model::{
     BaudRate, OutputState, ParamId, Position, ReplyTimeout, S16Bits, S17Bits, S17Flag, SpeedPercent, StatusId,
     StatusValue, WholeArg, PARAMS,
 };
-use motionlink_compax::report::{ErrorHistory, ParamReading};
-use motionlink_compax::sim::SimConfig;
+use motionlink_compax::report::{ErrorHistory, OutputSwitched, ParamReading, StopResult};
 use motionlink_compax::wire::{Address, Mode};
-use motionlink_compax::{AsyncClient, Emulator};
+use motionlink_compax::{AsyncClient, DriveOptions};
 use motionlink_link::clock::{lock, SharedClock, Timestamp};
 use motionlink_link::flags::{FlagClass, FlagWord};
-use motionlink_link::link::{Link, SerialSettings};
-use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 
 use super::device::{
-    report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param, Report, Sample, Unit,
+    close_last, report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param, Report, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -90,7 +87,7 @@ struct Compax {
 
 /// Opens the session `args` ask for, its link tapped into the traffic log.
 pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<dyn Device>, Arc<Traffic>), CliError> {
-    let (mode, baud) = (args.mode, args.baud.bits_per_s());
+    let mode = args.mode;
     let limits = TravelLimits::new(args.min_pos, args.max_pos).map_err(CliError::usage)?;
     if !(args.jog_range.is_finite() && args.jog_range > 0.0) {
         return Err(CliError::usage(format!("--jog-range {}: give a distance above 0", args.jog_range)));
@@ -103,31 +100,19 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
         clock,
     ));
     let tap = Tap::into_sink(port, Arc::clone(&traffic) as _);
-    let link_clock = Arc::clone(clock);
     let sim_drives: Vec<u8> =
         if args.drives.is_empty() { vec![1] } else { args.drives.iter().map(|a| a.get()).collect() };
-    let p196 = mode.to_p196();
-    let open = move || -> Result<Box<dyn Link>, motionlink_link::LinkError> {
-        let link: Box<dyn Link> = match url {
-            PortUrl::Sim => {
-                let bus = Emulator::new(SimConfig::bus(&sim_drives, p196, baud)).map_err(|e| {
-                    motionlink_link::LinkError::InvalidPort { port: "sim".into(), reason: e.to_string() }
-                })?;
-                // Paced to --baud: every byte takes the time it would on the line.
-                let host = EmulatorHost::new(bus, Arc::clone(&link_clock), PipeConfig::paced(baud));
-                Box::new(host.connect().0)
-            }
-            other => {
-                let mut settings = SerialSettings::new(baud);
-                settings.parity = mode.parity;
-                other.open_byte_link(settings)?
-            }
-        };
-        Ok(tap.link(link, &link_clock))
-    };
-    let mut cfg = BusConfig::new(mode, baud);
-    cfg.reply_timeout = args.timeout_ms.duration();
-    let client = AsyncClient::open(open, Arc::clone(clock), cfg).await.map_err(|e| crate::common::classified(&e))?;
+    // The session's settings and its link by the command line's rules (`DriveOptions`); the drives are the
+    // console's own (`--drives`). Opening a serial device blocks: on the blocking pool.
+    let options =
+        DriveOptions { mode: args.mode, baud: args.baud, timeout_ms: args.timeout_ms, ..DriveOptions::default() };
+    let (o, c) = (options.clone(), Arc::clone(clock));
+    let link = tokio::task::spawn_blocking(move || crate::compax::link(&o, url, &sim_drives, &tap, &c))
+        .await
+        .map_err(|e| CliError::transport(format!("the opening task failed: {e}")))??;
+    let client = AsyncClient::open(move || Ok(link), Arc::clone(clock), options.bus_config())
+        .await
+        .map_err(|e| crate::common::classified(&e))?;
     // The device profile of each drive (`motionlink probe compax --save`), where one names the port.
     if let Some(profiles) = super::profiles() {
         let drives = match args.drives.is_empty() {
@@ -205,13 +190,7 @@ impl Compax {
                 timeout: Some(timeout),
                 ..MoveRequest::new(MoveTarget::Absolute(target))
             };
-            let r = self.client.move_to(a, &request).await?;
-            Ok(format!(
-                "drive {n} at {:.3} (target {:.3}, difference {:+.3}) units",
-                r.reached.units(),
-                r.target.units(),
-                r.difference()
-            ))
+            Ok(report(&self.client.move_to(a, &request).await?))
         })
     }
 }
@@ -334,20 +313,19 @@ impl Device for Compax {
 
     fn stop(self: Arc<Self>, unit: u8) -> Motion {
         Box::pin(async move {
+            // As `motionlink compax stop`: OUTPUT O0=0 if S17 says it moves, confirmed by S17; then S1 and S16.
             let a = address(unit)?;
-            self.client.stop(a).await?;
-            let s17 = self.client.read_s17(a).await?;
-            if s17.contains(S17Flag::CommandActive) {
-                return Err(Failure {
-                    kind: "device",
-                    message: format!("drive {unit} took OUTPUT O0=0 but S17 still says command active"),
-                });
+            let stopped = self.client.stop_if_moving(&[a]).await?;
+            if !stopped.all_confirmed() {
+                return Err(Failure { kind: "device", message: stopped.to_string() });
             }
-            Ok(format!("drive {unit} switched off (OUTPUT O0=0 acknowledged, S17: no command active); Switch on before the next move"))
+            let position = self.client.read_position(a).await;
+            let o0 = self.client.read_s16(a).await.map(|s| s.o0_state());
+            Ok(report(&StopResult::new(None::<()>, stopped, position, o0)))
         })
     }
 
-    fn stop_started(self: Arc<Self>) -> Motion {
+    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
         Box::pin(async move {
             let report = self.client.stop_started().await;
             stop_text(&report)
@@ -370,7 +348,7 @@ impl Device for Compax {
                         message: format!("drive {unit} acknowledged OUTPUT O0=1 but S16 shows O0={}", s16.o0_state()),
                     });
                 }
-                Ok(format!("drive {unit} switched on (S16 confirms O0=1)"))
+                Ok(report(&OutputSwitched { output: 0, state: OutputState::ON }))
             })),
             other => Err(Failure::usage(format!("no action {other:?}"))),
         }
@@ -416,23 +394,6 @@ impl Device for Compax {
     }
 
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
-        Box::pin(async move {
-            match Arc::try_unwrap(self) {
-                Ok(me) => {
-                    let report = me.client.close().await?;
-                    let unconfirmed: Vec<_> =
-                        report.drives.iter().filter(|(_, o)| matches!(o, StopOutcome::NotConfirmed { .. })).collect();
-                    if unconfirmed.is_empty() {
-                        stop_text(&report)
-                    } else {
-                        Err(Failure { kind: "device", message: report.to_string() })
-                    }
-                }
-                Err(shared) => {
-                    drop(shared);
-                    Ok("the session ends with its last request".into())
-                }
-            }
-        })
+        close_last(self, |me| async move { stop_text(&me.client.close().await?) })
     }
 }

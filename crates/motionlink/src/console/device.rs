@@ -16,9 +16,10 @@ pub use crate::common::Keyed;
 /// A boxed future that can move between threads.
 pub type BoxFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
 
-/// A motion (or any action) under way: it ends with what the device did, in words; dropping it before it
-/// ends stops what it set in motion.
-pub type Motion = BoxFuture<'static, Result<String, Failure>>;
+/// A motion (or any action, or a stop) under way: it ends with the family library's report of what the
+/// device did (the object `motionlink <family> ... --json` prints for it); dropping it before it ends stops
+/// what it set in motion.
+pub type Motion = BoxFuture<'static, Result<Report, Failure>>;
 
 /// Why a request to the device failed: the error class's name (as the CLI's JSON and Python name it) and
 /// the library's message; serialises as `{"kind", "message"}`.
@@ -180,10 +181,12 @@ pub trait Device: Send + Sync + 'static {
     fn move_to(self: Arc<Self>, unit: u8, target: f64, speed: Option<f64>) -> Result<Motion, Failure>;
     /// Moves `unit` in `direction` until the future is dropped (or the axis reaches its end of travel).
     fn jog(self: Arc<Self>, unit: u8, direction: JogDirection, speed: Option<f64>) -> Result<Motion, Failure>;
-    /// The Stop button: stops `unit` (whoever started its motion) and says what the device confirmed.
+    /// The Stop button: stops `unit` (whoever started its motion) as the command line's `stop` does, confirmed
+    /// by the device: the library's report of that stop.
     fn stop(self: Arc<Self>, unit: u8) -> Motion;
-    /// Stops everything this console's session set in motion (the end of the console).
-    fn stop_started(self: Arc<Self>) -> Motion;
+    /// Stops everything this console's session set in motion (the end of the console), and says what it
+    /// stopped in words (empty: nothing).
+    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>>;
     /// The family's other actions.
     fn actions(&self) -> Vec<Action>;
     /// Runs action `name` on `unit`.
@@ -199,18 +202,34 @@ pub trait Device: Send + Sync + 'static {
         name: String,
         value: String,
     ) -> BoxFuture<'static, Result<Report, Failure>>;
-    /// The library's report of the motion or action `what` ("move", "jog", an action's label) of `unit`
-    /// that just ended well, as it serialises (the fields the command line's `--json` prints): the hub sends
-    /// it with the motion's end (`report`). Taken once; `None` where the family keeps none.
-    fn take_report(&self, _unit: u8, _what: &str) -> Option<Value> {
-        None
-    }
     /// The error history of `unit`, decoded: the family's report (SCU: that of `errors`; PowerCube: the state
     /// word, that of `state`; COMPAX: S18 decoded).
     fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Report, Failure>>;
     /// Ends the session (the library stops what it started and says whether that was confirmed). Called
     /// once, with the last reference.
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>>;
+}
+
+/// The end of the session `device` holds: `close` with the device itself once nothing else holds it; while a
+/// request still does, the session ends (its library stops what it started) with that request, and this
+/// says so.
+pub fn close_last<D, F>(
+    device: Arc<D>,
+    close: impl FnOnce(D) -> F + Send + 'static,
+) -> BoxFuture<'static, Result<String, Failure>>
+where
+    D: Send + Sync + 'static,
+    F: Future<Output = Result<String, Failure>> + Send + 'static,
+{
+    Box::pin(async move {
+        match Arc::try_unwrap(device) {
+            Ok(me) => close(me).await,
+            Err(shared) => {
+                drop(shared);
+                Ok("the session ends with its last request".into())
+            }
+        }
+    })
 }
 
 /// A finite number from the page, or an error naming `what`.

@@ -89,10 +89,17 @@ pub enum Message {
         #[serde(skip_serializing_if = "Option::is_none")]
         report: Option<Value>,
     },
-    /// The answer to the Stop button: what the device confirmed (a stop that failed is `failed`).
-    Stopped { ok: bool, message: String },
-    /// An action that does not move ended well: its name, label and what the device did.
-    Action { name: String, label: &'static str, ok: bool, message: String },
+    /// The answer to the Stop button: what was stopped, in words, and the library's report of the stop the
+    /// device confirmed (that of `<family> stop --json`) where a unit was stopped (a stop that failed is
+    /// `failed`).
+    Stopped {
+        ok: bool,
+        message: String,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        report: Option<Report>,
+    },
+    /// An action that does not move ended well: its name, label, and the library's report of it.
+    Action { name: String, label: &'static str, ok: bool, report: Report },
     /// A value read, or written (and read back): the family's report of `get` or `set`.
     Param {
         written: bool,

@@ -15,14 +15,14 @@ use motionlink_powercube::model::{
     Address, AxisUnit, CubeState, ModuleKind, Param, Position, ShortFlag, ShortState, Value as CubeValue, Velocity,
     PARAMS,
 };
-use motionlink_powercube::report::{ParamReading, SetReport, StateReport};
+use motionlink_powercube::report::{Acted, ParamReading, Released, SetReport, StateReport};
 use motionlink_powercube::session::{Op, Output};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{AsyncClient, Emulator, Error};
-use serde_json::Value;
 
 use super::device::{
-    report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param as Row, Report, Sample, Unit,
+    close_last, report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param as Row, Report, Sample,
+    Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -89,9 +89,6 @@ struct PowerCube {
     turn: std::sync::atomic::AtomicU64,
     /// The last velocity, current and state word read of each module.
     slow: std::sync::Mutex<std::collections::HashMap<u8, Slow>>,
-    /// The report of each motion that ended well, by module and motion ("move", "jog", "Home"), until the
-    /// hub takes it ([`Device::take_report`]).
-    reports: std::sync::Mutex<std::collections::HashMap<(u8, &'static str), Value>>,
     /// The last emulator, kept alive with the session for `--port sim`.
     _host: Option<EmulatorHost<Emulator>>,
 }
@@ -168,7 +165,6 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
         port: port.to_string(),
         modules: addresses(&args.modules),
         guard,
-        reports: std::sync::Mutex::new(std::collections::HashMap::new()),
         kinds: std::sync::Mutex::new([None; 32]),
         turn: std::sync::atomic::AtomicU64::new(0),
         slow: std::sync::Mutex::new(std::collections::HashMap::new()),
@@ -251,11 +247,6 @@ impl PowerCube {
     /// The velocity of a move or jog, checked as every front end checks it.
     fn speed(speed: Option<f64>) -> Result<Option<MoveVelocity>, Failure> {
         speed.map(MoveVelocity::new).transpose().map_err(Failure::from)
-    }
-
-    /// Keeps `report` (a motion `what` of module `unit` ended well) for the hub to send with its end.
-    fn keep_report(&self, unit: u8, what: &'static str, report: &impl serde::Serialize) {
-        motionlink_link::clock::lock(&self.reports).insert((unit, what), crate::common::to_json(report));
     }
 }
 
@@ -374,9 +365,7 @@ impl Device for PowerCube {
             let vel = vel.map(|v| Velocity::new(v.value(), axis));
             let spec = MoveSpec { vel, ..MoveSpec::to(Position::new(target.value(), axis)) };
             // Limits, read-backs and the final position checked; dropped, the module is halted.
-            let r = m.move_to_guarded(&spec, self.guard).await?;
-            self.keep_report(unit, "move", &r);
-            Ok(format!("module {unit} at {:.4} (target {}), state {}", r.reached.value(), target.value(), r.state))
+            Ok(report(&Acted::reached(m.move_to_guarded(&spec, self.guard).await?)))
         }))
     }
 
@@ -400,20 +389,18 @@ impl Device for PowerCube {
                 timeout: Duration::from_secs(3600),
                 ..MoveSpec::to(Position::new(target as f32, axis))
             };
-            let r = m.move_to_guarded(&spec, self.guard).await?;
-            self.keep_report(unit, "jog", &r);
-            Ok(format!("module {unit} reached its {} at {:.4}", limit.name(), r.reached.value()))
+            Ok(report(&Acted::reached(m.move_to_guarded(&spec, self.guard).await?)))
         }))
     }
 
     fn stop(self: Arc<Self>, unit: u8) -> Motion {
         Box::pin(async move {
-            self.module(unit)?.halt().await?;
-            Ok(format!("module {unit} halted (acknowledged; it stays halted until a reset)"))
+            // As `motionlink powercube stop`: Halt, confirmed by the state, and where the module stands.
+            Ok(report(&Acted::halted(self.module(unit)?.halt_confirmed().await?, None::<()>)))
         })
     }
 
-    fn stop_started(self: Arc<Self>) -> Motion {
+    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
         Box::pin(async move {
             self.client.halt_started().await?;
             Ok(String::new())
@@ -432,19 +419,11 @@ impl Device for PowerCube {
         match name {
             "home" => Ok(Box::pin(async move {
                 let timeout = MotionTimeout::DEFAULT.get();
-                let r = self.module(unit)?.home_guarded(timeout, self.guard).await?;
-                self.keep_report(unit, "Home", &r);
-                let unverified =
-                    if r.verified { String::new() } else { format!("; not verified: {}", r.not_verifiable.join("; ")) };
-                Ok(format!("module {unit} homed at {:.4}, state {}{unverified}", r.reached.value(), r.state))
+                Ok(report(&Acted::homed(self.module(unit)?.home_guarded(timeout, self.guard).await?)))
             })),
             "reset" => Ok(Box::pin(async move {
-                let released = self.module(unit)?.reset_and_release_watchdog().await?;
-                Ok(if released {
-                    format!("module {unit} reset (its watchdog had expired with no host serving it: switched offline)")
-                } else {
-                    format!("module {unit} reset")
-                })
+                let watchdog_released = self.module(unit)?.reset_and_release_watchdog().await?;
+                Ok(report(&Acted::reset(Released { watchdog_released })))
             })),
             other => Err(Failure::usage(format!("no action {other:?}"))),
         }
@@ -488,27 +467,13 @@ impl Device for PowerCube {
         Box::pin(async move { Ok(report(&StateReport(self.module(unit)?.state().await?))) })
     }
 
-    fn take_report(&self, unit: u8, what: &str) -> Option<Value> {
-        let mut reports = motionlink_link::clock::lock(&self.reports);
-        let key = *reports.keys().find(|(u, w)| *u == unit && *w == what)?;
-        reports.remove(&key)
-    }
-
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
-        Box::pin(async move {
-            match Arc::try_unwrap(self) {
-                Ok(me) => {
-                    let PowerCube { client, _host, .. } = me;
-                    let r = client.close().await.map_err(Failure::from).map(|()| String::new());
-                    // The in-process emulator goes only after the session's end.
-                    drop(_host);
-                    r
-                }
-                Err(shared) => {
-                    drop(shared);
-                    Ok("the session ends with its last request".into())
-                }
-            }
+        close_last(self, |me| async move {
+            let PowerCube { client, _host, .. } = me;
+            let r = client.close().await.map_err(Failure::from).map(|()| String::new());
+            // The in-process emulator goes only after the session's end.
+            drop(_host);
+            r
         })
     }
 }

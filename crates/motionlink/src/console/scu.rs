@@ -8,16 +8,17 @@ use motionlink_link::SharedClock;
 use motionlink_scu::args::{parse_write, Baud, Checked};
 use motionlink_scu::describe::Describer;
 use motionlink_scu::model::{
-    Actuator, DataIndex, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode, StopMode,
-    TABLE,
+    Actuator, DataEntry, DataIndex, Function, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed,
+    SpeedMode, StopMode, TABLE,
 };
-use motionlink_scu::results::ErrorHistory;
+use motionlink_scu::results::{ErrorHistory, RunOutcome, StopResult};
 use motionlink_scu::session::RunAction;
 use motionlink_scu::value::Value as ScuValue;
 use motionlink_scu::{AsyncClient, ClientConfig, FunctionMap, SimConfig};
 
 use super::device::{
-    finite, report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param, Report, Sample, Unit,
+    close_last, finite, report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param, Report, Sample,
+    Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -101,8 +102,17 @@ fn actuator(n: u8) -> Result<Actuator, Failure> {
     Actuator::checked(i64::from(n)).map_err(|e| Failure::usage(format!("actuator {n}: {e}")))
 }
 
-fn le_u16s(data: &[u8]) -> Vec<u16> {
-    data.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect()
+/// The numbers of a group read (`AsyncClient::get`), decoded by the data list (currents in A), by actuator
+/// number (an entry 0x00F3 is actuator 3's).
+fn by_actuator(group: &[(&'static DataEntry, ScuValue)]) -> [Option<f64>; 6] {
+    let mut out = [None; 6];
+    for (entry, value) in group {
+        let n = (entry.id & 0x0F) as usize;
+        if (1..=6).contains(&n) {
+            out[n - 1] = value.as_f64();
+        }
+    }
+    out
 }
 
 impl Scu {
@@ -175,12 +185,12 @@ impl Device for Scu {
 
     fn sample<'a>(&'a self, units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, Failure>>> {
         Box::pin(async move {
-            // Four reads of groups cover every actuator at once.
+            // Four reads of groups cover every actuator at once, each decoded by the library.
             let read = async {
                 let positions = self.client.positions().await?;
                 let status = self.client.statuses().await?;
-                let speeds = le_u16s(&self.client.get_raw(DataIndex(0x00F0)).await?);
-                let currents = le_u16s(&self.client.get_raw(DataIndex(0x00A0)).await?);
+                let speeds = by_actuator(&self.client.get(DataIndex(0x00F0)).await?);
+                let currents = by_actuator(&self.client.get(DataIndex(0x00A0)).await?);
                 Ok::<_, motionlink_scu::Error>((positions, status, speeds, currents))
             };
             match read.await {
@@ -193,8 +203,8 @@ impl Device for Scu {
                         use motionlink_link::flags::FlagWord;
                         Ok(Sample {
                             position: Keyed(u.position_key, f64::from(positions[i].get())),
-                            speed: speeds.get(i).map(|s| Keyed(u.speed_key, f64::from(*s))),
-                            current_amps: currents.get(i).map(|c| f64::from(*c) / 10.0),
+                            speed: speeds[i].map(|s| Keyed(u.speed_key, s)),
+                            current_amps: currents[i],
                             flags: flags.names(),
                             faults: flags
                                 .set_flags()
@@ -220,14 +230,9 @@ impl Device for Scu {
         let function = self.function_of(a)?;
         let op = self.client.move_to_op(a, position, speed, Some(function))?;
         Ok(Box::pin(async move {
-            let out = self.client.start(op).await?;
-            match out {
-                motionlink_scu::Output::Move(r) => Ok(format!(
-                    "{a} at {} (target {target}) after {:.2} s",
-                    r.position_counts,
-                    r.duration.as_secs_f64()
-                )),
-                other => Ok(format!("{other:?}")),
+            match self.client.start(op).await? {
+                motionlink_scu::Output::Move(r) => Ok(report(&r)),
+                other => Err(Failure { kind: "corrupt", message: format!("a move ended with {other:?}") }),
             }
         }))
     }
@@ -247,8 +252,7 @@ impl Device for Scu {
             }
             // Runs until the unit reports the end of travel; dropped, the session sends RS (fast) and checks it.
             let r = self.client.run_function(RunAction::Motion(function, dir), None).await?;
-            let rest = r.rest.iter().map(|(a, p)| format!("{a} at {p}")).collect::<Vec<_>>().join(", ");
-            Ok(format!("{function} ran {:.2} s to its end of travel: {rest}", r.duration.as_secs_f64()))
+            Ok(report(&RunOutcome::from(&r)))
         }))
     }
 
@@ -256,21 +260,26 @@ impl Device for Scu {
         Box::pin(async move {
             let a = actuator(unit)?;
             let f = self.function_of(a)?;
-            self.client.stop_motion(f, StopMode::Fast).await?;
-            Ok(format!("{f} stopped (RS fast, acknowledged by the unit)"))
+            // As `motionlink scu stop F`: RS, then the status read until no actuator moves.
+            let stopped = self.client.stop_functions(&[f], StopMode::Fast).await?;
+            Ok(report(&StopResult::new(None::<()>, Some(Function::Motion(f)), stopped)))
         })
     }
 
-    fn stop_started(self: Arc<Self>) -> Motion {
+    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
         Box::pin(async move {
             let started = self.client.started();
-            let mut done = Vec::new();
-            for id in started {
-                let Some(f) = MotionFunction::new(id.number()) else { continue };
-                self.client.stop_motion(f, StopMode::Fast).await?;
-                done.push(f.to_string());
+            let motions: Vec<MotionFunction> =
+                started.iter().filter_map(|f| if let Function::Motion(m) = f { Some(*m) } else { None }).collect();
+            if motions.is_empty() {
+                return Ok(String::new());
             }
-            Ok(if done.is_empty() { String::new() } else { format!("{} stopped (RS acknowledged)", done.join(", ")) })
+            // As `motionlink scu stop`: RS, confirmed by the status; said as it says it.
+            let stopped = self.client.stop_functions(&motions, StopMode::Fast).await?;
+            let mut text = Vec::new();
+            crate::scu::print_stop_text(&mut text, &stopped)
+                .map_err(|e| Failure { kind: "io", message: e.to_string() })?;
+            Ok(String::from_utf8_lossy(&text).trim_end().to_string())
         })
     }
 
@@ -309,15 +318,8 @@ impl Device for Scu {
     }
 
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
-        Box::pin(async move {
-            let me = match Arc::try_unwrap(self) {
-                Ok(me) => me,
-                Err(shared) => {
-                    // A request still holds the session: it ends (RS, RA) when that ends.
-                    drop(shared);
-                    return Ok("the session ends with its last request".into());
-                }
-            };
+        // While a request still holds the session, it ends (RS, RA) when that ends.
+        close_last(self, |me| async move {
             let started = me.client.started();
             let closed = me.client.close().await;
             match motionlink_scu::ending(&started, closed) {

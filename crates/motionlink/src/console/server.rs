@@ -310,10 +310,7 @@ fn handle_request(
         "stop" => {
             let unit = unit_of(hub, req).ok();
             let hub2 = Arc::clone(hub);
-            spawn_reply(replies, kind, async move {
-                let message = hub2.stop(unit).await.unwrap_or_else(|| Ok("stopping the motion under way".into()))?;
-                Ok(Message::Stopped { ok: true, message })
-            });
+            spawn_reply(replies, kind, async move { hub2.stop(unit).await });
             Ok(None)
         }
         "take_control" => {
@@ -368,7 +365,7 @@ fn handle_request(
             } else {
                 let label = action.label;
                 spawn_reply(replies, kind, async move {
-                    work.await.map(|message| Message::Action { name, label, ok: true, message })
+                    work.await.map(|report| Message::Action { name, label, ok: true, report })
                 });
             }
             Ok(None)

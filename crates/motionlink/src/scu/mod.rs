@@ -29,6 +29,7 @@ mod follow;
 mod parse;
 mod send;
 mod stop;
+pub(crate) use stop::print_stop_text;
 
 pub use demo::{decode, demo, sim, DecodeArgs, SimArgs};
 pub(crate) use emulated::{in_process_config, InProcess};

@@ -37,8 +37,8 @@ pub(super) fn stop(
     report.show(out, &printed, |out, p| print_stop_text(out, &p.report))
 }
 
-/// How the stop went, in words.
-fn print_stop_text(out: &mut dyn Write, stopped: &StopReport) -> Result<(), CliError> {
+/// How the stop went, in words (the console says it so too).
+pub(crate) fn print_stop_text(out: &mut dyn Write, stopped: &StopReport) -> Result<(), CliError> {
     let how = match stopped.mode {
         StopMode::Fast => "fast RS",
         StopMode::Soft => "soft RS, along the stop ramp",

@@ -81,6 +81,51 @@ fn a_powercube_motion_ends_with_the_report_the_command_line_prints() {
 }
 
 #[test]
+fn an_scu_and_a_compax_move_end_with_the_report_the_command_line_prints() {
+    // `motionlink scu move --json` prints the library's MoveReport; `motionlink compax move --json` its own.
+    for (family, key, target_key, target, reached_key) in [
+        ("scu", "actuator", "target_counts", 300.0, "reached_counts"),
+        ("compax", "drive", "target_units", 5.0, "reached_units"),
+    ] {
+        let c = console(&[family, "--port", "sim"]);
+        let mut ws = ws(&c);
+        units(&mut ws);
+        send(&mut ws, json!({"type": "move", key: 1, target_key: target}));
+        let moved = recv_until(&mut ws, Duration::from_secs(30), |v| v["type"] == "motion" && v["state"] == "ended")
+            .unwrap_or_else(|| panic!("{family}: the end of the move"));
+        assert_eq!(moved["ok"], true, "{family}: {moved}");
+        let r = &moved["report"];
+        assert_eq!((r[target_key].as_f64(), &r["verified"]), (Some(target), &json!(true)), "{family}: {moved}");
+        assert!((r[reached_key].as_f64().unwrap() - target).abs() <= 1.0, "{family}: {moved}");
+    }
+}
+
+#[test]
+fn an_scu_sample_shows_speed_and_current_while_it_moves() {
+    // The emulator's actuator draws 3.0 A at full speed: the speeds (%) and currents (0.1 A) groups decoded
+    // by the library, the current in A.
+    let c = console(&["scu", "--port", "sim"]);
+    let mut ws = ws(&c);
+    units(&mut ws);
+    send(&mut ws, json!({"type": "move", "actuator": 1, "target_counts": 800}));
+    let moving = |v: &Value| v["type"] == "sample" && v["units"][0]["speed_percent"].as_f64().is_some_and(|s| s > 0.0);
+    let mut seen = Vec::new();
+    let v = recv_until(&mut ws, Duration::from_secs(20), |v| {
+        seen.push(v.clone());
+        moving(v)
+    });
+    let v = v.unwrap_or_else(|| {
+        panic!(
+            "a sample while it moves: {:?}",
+            seen.iter().filter(|v| v["type"] != "traffic").take(8).collect::<Vec<_>>()
+        )
+    });
+    let s = &v["units"][0];
+    assert!(s["current_amps"].as_f64().is_some_and(|a| a > 0.0 && a <= 6.0), "{v}");
+    assert!(s["speed_percent"].as_f64().is_some_and(|p| p <= 100.0), "{v}");
+}
+
+#[test]
 fn a_powercube_write_reports_what_the_command_line_does() {
     let c = console(&["powercube", "--port", "sim", "--modules", "1"]);
     let mut ws = ws(&c);

@@ -189,11 +189,11 @@ const handlers = {
     p.dataset.state = msg.state;
     p.className = msg.ok === false ? "failed" : "";
     if (msg.state === "running") p.textContent = `${msg.what} of ${who} running`;
-    else p.textContent = msg.message || `${msg.what} of ${who} ${msg.state}`;
+    else p.textContent = reported(msg.message || `${msg.what} of ${who} ${msg.state}`, msg.report);
     if (msg.state !== "running" && jogButton) stopJogTimer();
   },
-  stopped(msg) { status(msg.message, !msg.ok); },
-  action(msg) { status(msg.message, !msg.ok); },
+  stopped(msg) { status(reported(msg.message, msg.report), !msg.ok); },
+  action(msg) { status(reported(msg.label, msg.report), !msg.ok); },
   refused(msg) { status(`refused (${msg.request}): ${msg.message}`, true); },
   failed(msg) {
     if (msg.request === "read_param" || msg.request === "write_param") {
@@ -258,6 +258,11 @@ function fields(r) {
   const known = ["family", "port", "profile"];
   return Object.entries(r).filter(([k, v]) => !known.includes(k) && !(Array.isArray(v) && v.length === 0))
     .map(([k, v]) => `${k}: ${show(v)}`).join("; ");
+}
+
+// `text`, then the library's report (of a motion, a stop, an action) field by field.
+function reported(text, r) {
+  return r ? `${text} — ${fields(r)}` : text;
 }
 
 function status(text, bad) {

@@ -15,7 +15,7 @@ use tokio::sync::{broadcast, oneshot, watch};
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
 
-use super::device::{Device, Failure, Motion as DeviceMotion, Unit};
+use super::device::{Device, Failure, Motion as DeviceMotion, Report, Unit};
 use super::message::{Message, SampleEntry};
 use super::traffic::Traffic;
 use crate::common::Keyed;
@@ -342,7 +342,7 @@ impl Hub {
         };
         self.notify(motion_message("running", None, None, None, None, None));
         enum End {
-            Done(Result<String, Failure>),
+            Done(Result<Report, Failure>),
             Stopped(StopReason),
         }
         let end = loop {
@@ -367,9 +367,9 @@ impl Hub {
         // Dropping the motion's future is what stops it: the library sends the stop at once.
         drop(motion);
         let ended = match end {
-            End::Done(Ok(msg)) => {
-                let report = self.device.take_report(unit, &what);
-                motion_message("ended", Some(true), None, None, Some(msg), report)
+            End::Done(Ok(report)) => {
+                let msg = format!("{what} of {} {unit} ended", key.0);
+                motion_message("ended", Some(true), None, None, Some(msg), Some(report))
             }
             End::Done(Err(e)) => {
                 let msg = e.message.clone();
@@ -378,13 +378,13 @@ impl Hub {
             End::Stopped(reason) => {
                 // The stop the library sent when the future was dropped, asked again and confirmed.
                 let confirmed = Arc::clone(&self.device).stop(unit).await;
-                let (ok, msg) = match &confirmed {
-                    Ok(m) => (true, format!("{what} stopped: {}; {m}", reason.text())),
+                let (ok, msg, report) = match confirmed {
+                    Ok(r) => (true, format!("{what} stopped: {}; the stop confirmed", reason.text()), Some(r)),
                     Err(e) => {
-                        (false, format!("{what} stopped ({}), but the stop is not confirmed: {e}", reason.text()))
+                        (false, format!("{what} stopped ({}), but the stop is not confirmed: {e}", reason.text()), None)
                     }
                 };
-                motion_message("stopped", Some(ok), Some(reason.text()), None, Some(msg), None)
+                motion_message("stopped", Some(ok), Some(reason.text()), None, Some(msg), report)
             }
         };
         let mut st = lock(&self.state);
@@ -419,8 +419,9 @@ impl Hub {
     }
 
     /// The Stop button of any page (a read-only page may stop too: a stop never sets anything in motion).
-    /// Stops the console's motion, and `unit` if the motion was not its own (or none ran).
-    pub async fn stop(self: &Arc<Self>, unit: Option<u8>) -> Option<Result<String, Failure>> {
+    /// Stops the console's motion, and `unit` if the motion was not its own (or none ran); the answer to the
+    /// page (the motion's own end is told by its task, with the report of its stop).
+    pub async fn stop(self: &Arc<Self>, unit: Option<u8>) -> Result<Message, Failure> {
         let running = lock(&self.state).motion.as_mut().map(|m| (m.unit, m.cancel.take()));
         let motion_unit = match running {
             Some((u, Some(cancel))) => {
@@ -430,11 +431,18 @@ impl Hub {
             Some((u, None)) => Some(u),
             None => None,
         };
+        let key = self.device.unit_key();
         match unit {
             // The motion's task stops its unit and reports it.
-            Some(u) if Some(u) != motion_unit => Some(Arc::clone(&self.device).stop(u).await),
-            None if motion_unit.is_none() => Some(Arc::clone(&self.device).stop_started().await),
-            _ => None,
+            Some(u) if Some(u) != motion_unit => {
+                let report = Arc::clone(&self.device).stop(u).await?;
+                Ok(Message::Stopped { ok: true, message: format!("{key} {u} stopped"), report: Some(report) })
+            }
+            None if motion_unit.is_none() => {
+                let message = Arc::clone(&self.device).stop_started().await?;
+                Ok(Message::Stopped { ok: true, message, report: None })
+            }
+            _ => Ok(Message::Stopped { ok: true, message: "stopping the motion under way".into(), report: None }),
         }
     }
 

@@ -5,6 +5,7 @@ use crate::console::device::Motion as DeviceMotion;
 use crate::console::device::{Action, BoxFuture, JogDirection, Param, Report, Sample};
 use crate::console::traffic::Traffic;
 use motionlink_link::clock::ManualClock;
+use serde_json::json;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use tokio::sync::mpsc;
 
@@ -33,7 +34,7 @@ impl Fake {
             // Made when the motion runs: a motion refused before it started reports no drop.
             let _guard = OnDrop(tx);
             std::future::pending::<()>().await;
-            Ok(String::new())
+            Ok(serde_json::Value::Null)
         })
     }
 }
@@ -60,11 +61,11 @@ impl Device for Fake {
     fn jog(self: Arc<Self>, _unit: u8, _direction: JogDirection, _speed: Option<f64>) -> Result<DeviceMotion, Failure> {
         Ok(self.forever())
     }
-    fn stop(self: Arc<Self>, _unit: u8) -> DeviceMotion {
+    fn stop(self: Arc<Self>, unit: u8) -> DeviceMotion {
         self.stops.fetch_add(1, Ordering::SeqCst);
-        Box::pin(async { Ok("stopped".to_string()) })
+        Box::pin(async move { Ok(serde_json::json!({"action": "stop", "drive": unit})) })
     }
-    fn stop_started(self: Arc<Self>) -> DeviceMotion {
+    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
         self.stop_started.fetch_add(1, Ordering::SeqCst);
         Box::pin(async { Ok(String::new()) })
     }
@@ -171,8 +172,25 @@ async fn stop_from_a_read_only_page_and_shutdown_stop_the_motion() {
     let (second, _) = hub.page_opened();
     hub.start_motion(first, 1, "move", false, motion(&fake)).unwrap();
     running.recv().await.unwrap();
-    assert_eq!(hub.stop(Some(1)).await, None, "the motion's own task reports the stop");
+    let mut notices = hub.notices();
+    let answer = hub.stop(Some(1)).await.unwrap().json();
+    assert!(answer.get("report").is_none(), "the motion's own task reports the stop: {answer}");
     tokio::time::timeout(Duration::from_secs(1), dropped.recv()).await.expect("Stop stops it").unwrap();
+    // The motion's end carries the report of the confirmed stop.
+    let end = loop {
+        let Ok(Ok(Notice::Json(m))) = tokio::time::timeout(Duration::from_secs(1), notices.recv()).await else {
+            panic!("no notice of the stop");
+        };
+        let m: serde_json::Value = serde_json::from_str(&m).unwrap();
+        if m["state"] == "stopped" {
+            break m;
+        }
+    };
+    assert_eq!((&end["ok"], &end["report"]), (&json!(true), &json!({"action": "stop", "drive": 1})), "{end}");
+    assert!(end["message"].as_str().unwrap().contains("Stop pressed"), "{end}");
+    // A unit the console did not set in motion is stopped at once, with the report of its stop.
+    let other = hub.stop(Some(2)).await.unwrap().json();
+    assert_eq!((&other["type"], &other["report"]), (&json!("stopped"), &json!({"action": "stop", "drive": 2})));
     let _ = second;
     // The ended motion's task clears its slot after the confirmed stop.
     while hub.start_motion(first, 1, "move", false, motion(&fake)).is_err() {
