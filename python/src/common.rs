@@ -10,31 +10,7 @@ use motionlink_link::url::PortUrl;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyInt};
 
-use crate::emulator::{InProcess, NativeEmulator};
 use crate::errors::Failure;
-
-/// Where a client connects: a port URL, or an emulator in this process.
-pub enum Target {
-    /// A port URL (`sim` included).
-    Url(PortUrl),
-    /// An emulator in this process.
-    InProcess(InProcess),
-}
-
-/// `port` as `motionlink` passes it: a port URL (str) or a native emulator.
-pub fn target(port: &Bound<'_, PyAny>, family: &'static str) -> Result<Target, Failure> {
-    if let Ok(emulator) = port.cast::<NativeEmulator>() {
-        let emulator = emulator.get();
-        return match emulator.served_port() {
-            Some(url) => url.parse().map(Target::Url).map_err(|e| Failure::of(family, &e)),
-            None => emulator.in_process(family).map(Target::InProcess),
-        };
-    }
-    let text: String = port.extract().map_err(|_| {
-        Failure::usage(family, "port must be a port URL (str), such as \"sim\", \"tcp://HOST:PORT\" or \"/dev/ttyUSB0\", or a motionlink.Emulator")
-    })?;
-    text.parse().map(Target::Url).map_err(|e| Failure::of(family, &e))
-}
 
 /// An integer argument as Python passes it: any `int` (however wide), or something else, kept for the
 /// usage error that names the argument and its range (instead of an `OverflowError` or a `TypeError`).
@@ -276,14 +252,6 @@ pub fn profile_lookup(
         Ok(Some(p)) => Ok((p, port.to_string())),
         Ok(None) => Err(ProfileUse::default()),
         Err(notice) => Err(ProfileUse { reference: None, notices: vec![notice] }),
-    }
-}
-
-/// The port of `target` as profiles key it: `None` for an emulator in this process.
-pub fn profile_port(target: &Target) -> Option<String> {
-    match target {
-        Target::Url(u) if !matches!(u, PortUrl::Sim) => Some(u.to_string()),
-        _ => None,
     }
 }
 

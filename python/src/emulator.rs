@@ -374,3 +374,36 @@ impl NativeEmulator {
         py.detach(move || drop(running));
     }
 }
+
+/// Where a client connects: a port URL, or an emulator in this process.
+pub enum Target {
+    /// A port URL (`sim` included).
+    Url(motionlink_link::url::PortUrl),
+    /// An emulator in this process.
+    InProcess(InProcess),
+}
+
+/// `port` as `motionlink` passes it: a port URL (str) or a native emulator.
+pub fn target(port: &Bound<'_, PyAny>, family: &'static str) -> Result<Target, Failure> {
+    if let Ok(emulator) = port.cast::<NativeEmulator>() {
+        let emulator = emulator.get();
+        return match emulator.served_port() {
+            Some(url) => url.parse().map(Target::Url).map_err(|e| Failure::of(family, &e)),
+            None => emulator.in_process(family).map(Target::InProcess),
+        };
+    }
+    let text: String = port.extract().map_err(|_| {
+        Failure::usage(family, "port must be a port URL (str), such as \"sim\", \"tcp://HOST:PORT\" or \"/dev/ttyUSB0\", or a motionlink.Emulator")
+    })?;
+    text.parse().map(Target::Url).map_err(|e| Failure::of(family, &e))
+}
+
+impl Target {
+    /// The port as profiles key it: `None` for an emulator in this process.
+    pub fn profile_port(&self) -> Option<String> {
+        match self {
+            Target::Url(u) if !matches!(u, motionlink_link::url::PortUrl::Sim) => Some(u.to_string()),
+            _ => None,
+        }
+    }
+}

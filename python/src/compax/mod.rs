@@ -21,8 +21,9 @@ use motionlink_link::url::PortUrl;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::common::{target, Int, Record, Slot, Target};
+use crate::common::{Int, Record, Slot};
 use crate::emulator::{clock, InProcess};
+use crate::emulator::{target, Target};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
 use crate::wait::{block_on_runtime, deliver, spawn_task, NativeTask};
 
@@ -217,7 +218,7 @@ faces! {
                 Target::InProcess(_) => "in-process emulator".to_string(),
                 Target::Url(u) => u.to_string(),
             };
-            let port_url = crate::common::profile_port(&t);
+            let port_url = t.profile_port();
             let drive: Address = whole(&settings.drive, "drive").map_err(|f| to_pyerr(py, f))?;
             let baud: u32 = settings.baud.within(FAMILY, "baud", 1..=4_000_000).map_err(|f| to_pyerr(py, f))?;
             let (client, profile) = py
@@ -319,7 +320,7 @@ faces! {
                 Target::Url(u) => u.to_string(),
             };
             let lookup =
-                crate::common::profile_lookup(settings.profile.as_deref(), crate::common::profile_port(&t).as_deref());
+                crate::common::profile_lookup(settings.profile.as_deref(), t.profile_port().as_deref());
             Ok(spawn_task(done, async move {
                 let drive = whole(&settings.drive, "drive")?;
                 let (link, cfg) = crate::wait::on_blocking_pool(FAMILY, move || link(t, &settings)).await?;

@@ -19,8 +19,9 @@ use motionlink_powercube::report::{ParamReading, SetReport};
 use motionlink_powercube::{AsyncClient, Error};
 use pyo3::prelude::*;
 
-use crate::common::{f32_py, target, Int, Record, Slot, Target};
+use crate::common::{f32_py, Int, Record, Slot};
 use crate::emulator::{clock, InProcess};
+use crate::emulator::{target, Target};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
 use crate::wait::{block_on_runtime, deliver, spawn_task, NativeTask};
 
@@ -119,7 +120,7 @@ fn open(port: Target, s: &Settings) -> Result<(Client, bool), Failure> {
 
 /// [`open`], then the device profile of the client's module (the setting `profile`), as both faces take it.
 fn open_profiled(port: Target, s: &Settings) -> Result<(Client, bool, crate::common::ProfileUse), Failure> {
-    let port_url = crate::common::profile_port(&port);
+    let port_url = port.profile_port();
     let address = Address::new(module_address(&s.module)?).map_err(|e| Error::from(e).failure())?;
     let (client, in_process) = open(port, s)?;
     let used = match crate::common::profile_lookup(s.profile.as_deref(), port_url.as_deref()) {
@@ -235,7 +236,7 @@ faces! {
         #[new]
         fn py_new(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings) -> PyResult<Self> {
             let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
-            let port_url = crate::common::profile_port(&t);
+            let port_url = t.profile_port();
             let module = module_address(&settings.module).map_err(|f| to_pyerr(py, f))?;
             let baud: u32 = settings.baud.within(FAMILY, "baud", 1..=4_000_000).map_err(|f| to_pyerr(py, f))?;
             let (client, in_process, profile) = py.detach(|| open_profiled(t, &settings)).map_err(|f| to_pyerr(py, f))?;

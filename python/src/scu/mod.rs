@@ -21,8 +21,9 @@ use motionlink_scu::session::{MoveReport, RunAction, RunReport};
 use motionlink_scu::{AsyncClient, Client, ClientConfig, Error, FunctionMap, MoveOptions, StrokeLimits};
 use pyo3::prelude::*;
 
-use crate::common::{json_py, target, Int, Slot, Target};
+use crate::common::{json_py, Int, Slot};
 use crate::emulator::{clock, InProcess};
+use crate::emulator::{target, Target};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
 use crate::wait::{block_on_runtime, deliver, spawn_task, NativeTask};
 
