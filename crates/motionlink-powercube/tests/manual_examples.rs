@@ -235,7 +235,7 @@ fn chapter_10_profibus_images() {
         // The printed acknowledge in input bytes 0..7, with the cyclic bytes 8..15 after it.
         let input = InputImage::new(&Payload::new(&ack[..req.ack_len()]).unwrap(), 123_456, 0x0084, 17);
         assert_eq!(input.reply_bytes(), &ack, "{req}");
-        assert_eq!(Reply::from_image(&req, &input).unwrap(), reply, "{req}");
+        assert_eq!(Reply::from_image(req, &input).unwrap(), reply, "{req}");
         assert_eq!(input.0[8], 0, "byte 8 is unused");
         assert_eq!(&input.0[9..13], &123_456i32.to_le_bytes());
         assert_eq!(&input.0[13..15], &[0x84, 0x00]);
@@ -258,7 +258,7 @@ fn chapter_10_the_emulator_exchanges_images() {
     for (i, (req, (_, ack))) in profibus_requests().iter().zip(PROFIBUS_EXAMPLES).enumerate() {
         let img = bus.profibus_exchange(at(1000 * i as u64), 17, &w.image(&req.encode()).unwrap()).unwrap();
         assert_eq!(img.reply_bytes(), &ack, "{req}");
-        assert!(Reply::from_image(&req, &img).is_ok(), "{req}");
+        assert!(Reply::from_image(req, &img).is_ok(), "{req}");
         assert_eq!(img.0[8], 0, "byte 8 is unused");
     }
     let req = Request::Get(Param::CubeState);
