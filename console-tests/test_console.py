@@ -65,6 +65,7 @@ def test_stop_halts_the_emulated_axis(browser, compax_sim, compax_console):
     # With the report of the confirmed stop (`compax stop --json`), field by field.
     said = browser.find_element(By.ID, "motion").text
     assert "action: stop" in said and "position_units: " in said and "o0: 0" in said, said
+    assert "switch the drive on before the next move" in said, said
     # The axis stays where it stopped.
     _wait(browser, lambda b: b.find_element(By.CSS_SELECTOR, "#unit-1 .moving").text == "at rest", 5)
 

@@ -262,7 +262,10 @@ function fields(r) {
 
 // `text`, then the library's report (of a motion, a stop, an action) field by field.
 function reported(text, r) {
-  return r ? `${text} — ${fields(r)}` : text;
+  if (!r) return text;
+  // A COMPAX drive switched off by its stop (O0 = 0) takes no move until it is switched on again.
+  const off = r.o0 === 0 ? "; switch the drive on before the next move" : "";
+  return `${text} — ${fields(r)}${off}`;
 }
 
 function status(text, bad) {
