@@ -98,6 +98,20 @@ impl Args {
         }
     }
 
+    /// [`Args::one_or_many`], each text parsed by `parse` (all of them before anything is read): a text it
+    /// refuses is a usage error naming it.
+    pub fn one_or_many_parsed<T, E: std::fmt::Display>(
+        &mut self,
+        one: &'static str,
+        many: &'static str,
+        parse: impl Fn(&str) -> Result<T, E>,
+    ) -> Result<(Vec<T>, bool), ReplyError> {
+        let (texts, list) = self.one_or_many(one, many)?;
+        let parsed =
+            texts.iter().map(|t| parse(t).map_err(|e| ReplyError::usage(format!("{} {one} {t:?}: {e}", self.op))));
+        Ok((parsed.collect::<Result<_, _>>()?, list))
+    }
+
     /// A flag (`binary`, `soft`): true, false or absent (false).
     pub fn flag(&mut self, key: &'static str) -> Result<bool, ReplyError> {
         Ok(self.get::<bool>(key)?.unwrap_or(false))

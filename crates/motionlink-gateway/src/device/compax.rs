@@ -126,22 +126,15 @@ impl Compax {
             "get" => {
                 // One parameter (its object), or several (a list of their objects, as the command line
                 // prints one per line); every name is checked before anything is read.
-                let (names, list) = args.one_or_many("param", "params")?;
+                let (ids, list) = args.one_or_many_parsed("param", "params", str::parse::<ParamId>)?;
                 args.finish()?;
-                let ids = names
-                    .iter()
-                    .map(|t| t.parse::<ParamId>().map_err(|e| ReplyError::usage(format!("get param {t:?}: {e}"))))
-                    .collect::<Result<Vec<ParamId>, _>>()?;
                 Ok(Action::Other(Box::pin(async move {
                     let mut read = Vec::new();
                     for id in ids {
                         let value = client.read_param(drive, id).await.map_err(failed)?;
                         read.push(me.result(&ParamReading { id, value })?);
                     }
-                    match list {
-                        true => super::listed(read),
-                        false => Ok(read.remove(0)),
-                    }
+                    super::one_or_listed(read, list)
                 })))
             }
             "scan" => {

@@ -296,6 +296,15 @@ pub fn listed(objects: Vec<Value>) -> Outcome {
     Ok(Value::Array(objects))
 }
 
+/// The result of a get of one name (its object) or of a list of names (the list of their objects, as the
+/// command line prints one per line).
+pub fn one_or_listed(mut objects: Vec<Value>, list: bool) -> Outcome {
+    match list || objects.len() != 1 {
+        true => listed(objects),
+        false => Ok(objects.remove(0)),
+    }
+}
+
 /// A library error in a reply, by its class.
 pub fn failed<E: motionlink_link::error::Classify + std::fmt::Display>(e: E) -> ReplyError {
     ReplyError::classified(&e)

@@ -123,12 +123,8 @@ impl PowerCube {
             "get" => {
                 // One parameter (its object), or several (a list of their objects, as the command line
                 // prints one per line); every name is checked before anything is read.
-                let (names, list) = args.one_or_many("param", "params")?;
+                let (params, list) = args.one_or_many_parsed("param", "params", str::parse::<Param>)?;
                 args.finish()?;
-                let params = names
-                    .iter()
-                    .map(|t| t.parse::<Param>().map_err(|e| ReplyError::usage(format!("get param {t:?}: {e}"))))
-                    .collect::<Result<Vec<Param>, _>>()?;
                 Ok(Action::Other(Box::pin(async move {
                     let m = client.module(module);
                     let mut read = Vec::new();
@@ -138,10 +134,7 @@ impl PowerCube {
                         let kind = m.kind().await.map_err(failed)?;
                         read.push(me.result(&ParamReading { param, kind, value })?);
                     }
-                    match list {
-                        true => super::listed(read),
-                        false => Ok(read.remove(0)),
-                    }
+                    super::one_or_listed(read, list)
                 })))
             }
             "scan" => {

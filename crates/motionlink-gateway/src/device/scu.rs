@@ -124,21 +124,14 @@ impl Scu {
             "get" => {
                 // One item (its object), or several (a list of their objects, as the command line prints
                 // one per line); every name is checked before anything is read.
-                let (names, list) = args.one_or_many("item", "items")?;
+                let (items, list) = args.one_or_many_parsed("item", "items", find)?;
                 args.finish()?;
-                let items = names
-                    .iter()
-                    .map(|t| find(t).map_err(|e| ReplyError::usage(format!("get {t:?}: {e}"))))
-                    .collect::<Result<Vec<Item>, _>>()?;
                 Ok(Action::Other(Box::pin(async move {
                     let mut read = Vec::new();
                     for item in items {
                         read.push(me.result(&client.read(item).await.map_err(failed)?)?);
                     }
-                    match list {
-                        true => super::listed(read),
-                        false => Ok(read.remove(0)),
-                    }
+                    super::one_or_listed(read, list)
                 })))
             }
             "set" => {
