@@ -3,8 +3,6 @@
 //! gateway's file). One rule turns them into the session's settings ([`DriveOptions::bus_config`]) and the
 //! bus an in-process emulator stands for ([`DriveOptions::emulated_bus`]).
 
-use std::fmt;
-
 use crate::model::{BaudRate, CommandStyle, PollInterval, ReplyTimeout, Tolerance};
 use crate::session::BusConfig;
 use crate::sim::{SimConfig, Variant};
@@ -58,23 +56,17 @@ impl DriveOptions {
     /// comma-separated names per call, added to those before; `short` takes `true` or `false`), by the
     /// option's own type and rule. `false` for a key that is not one of [`DriveOptions::KEYS`].
     pub fn set(&mut self, key: &str, text: &str) -> Result<bool, OptionError> {
-        fn parsed<T: std::str::FromStr>(key: &'static str, text: &str) -> Result<T, OptionError>
-        where
-            T::Err: fmt::Display,
-        {
-            text.parse::<T>().map_err(|e| OptionError { key: Some(key), message: format!("{text:?}: {e}") })
-        }
         match key {
-            "drive" => self.drive = parsed("drive", text)?,
-            "mode" => self.mode = parsed("mode", text)?,
-            "baud" => self.baud = parsed("baud", text)?,
-            "timeout_ms" => self.timeout_ms = parsed("timeout_ms", text)?,
-            "short" => self.short = parsed("short", text)?,
-            "poll_ms" => self.poll_ms = Some(parsed("poll_ms", text)?),
-            "tolerance" => self.tolerance = Some(parsed("tolerance", text)?),
+            "drive" => self.drive = OptionError::parsed("drive", text)?,
+            "mode" => self.mode = OptionError::parsed("mode", text)?,
+            "baud" => self.baud = OptionError::parsed("baud", text)?,
+            "timeout_ms" => self.timeout_ms = OptionError::parsed("timeout_ms", text)?,
+            "short" => self.short = OptionError::parsed("short", text)?,
+            "poll_ms" => self.poll_ms = Some(OptionError::parsed("poll_ms", text)?),
+            "tolerance" => self.tolerance = Some(OptionError::parsed("tolerance", text)?),
             "sim_variants" => {
                 for name in text.split(',') {
-                    self.sim_variants.push(parsed("sim_variants", name.trim())?);
+                    self.sim_variants.push(OptionError::parsed("sim_variants", name.trim())?);
                 }
             }
             _ => return Ok(false),

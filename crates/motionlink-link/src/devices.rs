@@ -171,6 +171,16 @@ impl std::fmt::Display for OptionError {
 
 impl std::error::Error for OptionError {}
 
+impl OptionError {
+    /// The option `key`'s `text` parsed by its type's rule (`FromStr`); a refusal names the key and the text.
+    pub fn parsed<T: std::str::FromStr>(key: &'static str, text: &str) -> Result<T, OptionError>
+    where
+        T::Err: std::fmt::Display,
+    {
+        text.parse::<T>().map_err(|e| OptionError { key: Some(key), message: format!("{text:?}: {e}") })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

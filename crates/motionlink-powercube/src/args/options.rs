@@ -4,8 +4,6 @@
 //! the guard of its motions ([`ModuleOptions::guard`]) and the bus an in-process emulator stands for
 //! ([`ModuleOptions::emulated_bus`]).
 
-use std::fmt;
-
 use crate::args::{Baud, CanBitRate, PollInterval, ReplyTimeout};
 use crate::model::Address;
 use crate::session::{BusConfig, Guard, ModulesAt};
@@ -56,22 +54,16 @@ impl ModuleOptions {
     /// comma-separated names per call, added to those before; `no_watchdog` takes `true` or `false`), by the
     /// option's own type and rule. `false` for a key that is not one of [`ModuleOptions::KEYS`].
     pub fn set(&mut self, key: &str, text: &str) -> Result<bool, OptionError> {
-        fn parsed<T: std::str::FromStr>(key: &'static str, text: &str) -> Result<T, OptionError>
-        where
-            T::Err: fmt::Display,
-        {
-            text.parse::<T>().map_err(|e| OptionError { key: Some(key), message: format!("{text:?}: {e}") })
-        }
         match key {
-            "module" => self.module = parsed("module", text)?,
-            "baud" => self.baud = parsed("baud", text)?,
-            "bitrate" => self.bitrate = parsed("bitrate", text)?,
-            "timeout_ms" => self.timeout_ms = Some(parsed("timeout_ms", text)?),
-            "poll_ms" => self.poll_ms = parsed("poll_ms", text)?,
-            "no_watchdog" => self.no_watchdog = parsed("no_watchdog", text)?,
+            "module" => self.module = OptionError::parsed("module", text)?,
+            "baud" => self.baud = OptionError::parsed("baud", text)?,
+            "bitrate" => self.bitrate = OptionError::parsed("bitrate", text)?,
+            "timeout_ms" => self.timeout_ms = Some(OptionError::parsed("timeout_ms", text)?),
+            "poll_ms" => self.poll_ms = OptionError::parsed("poll_ms", text)?,
+            "no_watchdog" => self.no_watchdog = OptionError::parsed("no_watchdog", text)?,
             "sim_variants" => {
                 for name in text.split(',') {
-                    self.sim_variants.push(parsed("sim_variants", name.trim())?);
+                    self.sim_variants.push(OptionError::parsed("sim_variants", name.trim())?);
                 }
             }
             _ => return Ok(false),

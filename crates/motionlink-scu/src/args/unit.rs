@@ -3,8 +3,6 @@
 //! the gateway's file). One rule turns them into the session's settings ([`UnitOptions::client_config`]) and
 //! into the unit an in-process emulator stands for ([`UnitOptions::emulated_unit`]).
 
-use std::fmt;
-
 use super::{Baud, PollInterval, ReplyTimeout, ToleranceCounts};
 use crate::config::{ClientConfig, FunctionMap, StrokeLimits};
 use crate::model::{SafetyId, SpeedMode};
@@ -78,21 +76,15 @@ impl UnitOptions {
     /// call, added to those before), by the option's own type and rule. `false` for a key that is not one of
     /// [`UnitOptions::KEYS`].
     pub fn set(&mut self, key: &str, text: &str) -> Result<bool, OptionError> {
-        fn parsed<T: std::str::FromStr>(key: &'static str, text: &str) -> Result<T, OptionError>
-        where
-            T::Err: fmt::Display,
-        {
-            text.parse::<T>().map_err(|e| on(key)(format!("{text:?}: {e}")))
-        }
         match key {
-            "baud" => self.baud = parsed("baud", text)?,
-            "safety" => self.safety = parsed("safety", text)?,
-            "timeout_ms" => self.timeout_ms = parsed("timeout_ms", text)?,
+            "baud" => self.baud = OptionError::parsed("baud", text)?,
+            "safety" => self.safety = OptionError::parsed("safety", text)?,
+            "timeout_ms" => self.timeout_ms = OptionError::parsed("timeout_ms", text)?,
             "functions" => self.functions.push(text.to_string()),
             "stroke" => self.stroke.push(text.to_string()),
-            "tolerance" => self.tolerance = parsed("tolerance", text)?,
-            "poll_ms" => self.poll_ms = parsed("poll_ms", text)?,
-            "speed_mode" => self.speed_mode = parsed("speed_mode", text)?,
+            "tolerance" => self.tolerance = OptionError::parsed("tolerance", text)?,
+            "poll_ms" => self.poll_ms = OptionError::parsed("poll_ms", text)?,
+            "speed_mode" => self.speed_mode = OptionError::parsed("speed_mode", text)?,
             "sim_preset" => {
                 if SimConfig::preset(text).is_none() {
                     return Err(on("sim_preset")(format!(
