@@ -130,6 +130,7 @@ fn a_blocking_move_reports_progress_and_ends_at_the_target() {
     let end = driver.run_with(Op::Move(20), &mut |p| seen.push(*p), None).unwrap();
     assert_eq!(end, 20);
     assert!(seen.len() >= 5 && seen.windows(2).all(|w| w[0] <= w[1]), "{seen:?}");
+    assert_eq!(seen.last(), Some(&20), "the progress that came with the end reaches the caller: {seen:?}");
     assert_eq!(host.with_device(|d| (d.position, d.watchdog_stops)), (20, 0));
     driver.close().unwrap();
 }

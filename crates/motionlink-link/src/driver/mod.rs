@@ -450,7 +450,13 @@ impl<S: Session> Driver<S> {
                     let mut core = shared.core();
                     let slot = core.ops.get_mut(&id).expect("a waited-for operation keeps its slot");
                     if let Some(r) = slot.result.take() {
+                        // The progress that came with the end (a watch's last sample) is still the caller's.
+                        let last = slot.progress.take();
                         core.ops.remove(&id);
+                        drop(core);
+                        if let Some(p) = last {
+                            (caller.progress)(&p);
+                        }
                         return r;
                     }
                     let progress = slot.progress.take();

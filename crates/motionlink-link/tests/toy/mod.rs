@@ -222,6 +222,8 @@ impl ToySession {
                             *next_poll = Some(now + POLL);
                         } else if value == target {
                             self.moving = false;
+                            // The last look comes with the end (as a watch's last sample does).
+                            self.events.push_back(Event::Progress(id, value));
                             self.finish(id, Ok(value));
                         } else {
                             *next_poll = Some(now + POLL);
