@@ -15,7 +15,7 @@ use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use motionlink_compax::client::BusConfig;
+use motionlink_compax::client::Config;
 use motionlink_compax::model::{Command, CommandStyle, CommandText, StatusId, StatusValue};
 use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Body, Flags, Frame, Mode, ReplyDecoder, ReplyEventRef, Request};
@@ -136,7 +136,7 @@ fn poll_31_with(c: &mut Criterion, baud: u32, loaded: bool) {
     let clock = RealClock::shared();
     let sim = Emulator::new(SimConfig::bus(&addrs, 0, baud)).unwrap();
     let host = EmulatorHost::new(sim, clock.clone(), PipeConfig::paced(baud));
-    let bus = Client::new(Box::new(host.connect().0), clock, BusConfig::new(Mode::default(), baud)).unwrap();
+    let bus = Client::new(Box::new(host.connect().0), clock, Config::new(Mode::default(), baud)).unwrap();
     let drives: Vec<Address> = addrs.iter().map(|&a| Address::drive(a).unwrap()).collect();
     // Wire time of one sweep: each request ("NS1\r" or "NNS1\r") and reply ("S001: 0.000\r\n>", 14 bytes).
     let bytes: u32 = drives.iter().map(|a| if a.get() >= 10 { 5 } else { 4 } + 14).sum();
@@ -218,7 +218,7 @@ fn host_overhead(c: &mut Criterion) {
     let clock = RealClock::shared();
     let sim = Emulator::new(SimConfig::bus(&[17], 0, BAUD)).unwrap();
     let host = EmulatorHost::new(sim, clock.clone(), PipeConfig::paced(BAUD));
-    let cfg = BusConfig::new(Mode::default(), BAUD);
+    let cfg = Config::new(Mode::default(), BAUD);
     let blocking = Client::new(Box::new(host.connect().0), clock.clone(), cfg.clone()).unwrap();
     let drive = Address::drive(17).unwrap();
     // "17S1\r" and "S001: 0.000\r\n>".

@@ -13,7 +13,7 @@ use std::future::Future as _;
 use std::task::Poll;
 use std::time::Duration;
 
-use motionlink_compax::client::{BusConfig, MoveRequest, MoveTarget};
+use motionlink_compax::client::{Config, MoveRequest, MoveTarget};
 use motionlink_compax::model::{Position, S17Flag, SpeedPercent};
 use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Mode};
@@ -41,7 +41,7 @@ pub async fn run() -> Result<Summary, Box<dyn std::error::Error>> {
     let clock = RealClock::shared();
     let sim = Emulator::new(SimConfig::bus(&[1], 0, 115_200))?;
     let host = EmulatorHost::new(sim, clock.clone(), PipeConfig::paced(115_200));
-    let client = AsyncClient::new(Box::new(host.connect().0), clock, BusConfig::new(Mode::default(), 115_200))?;
+    let client = AsyncClient::new(Box::new(host.connect().0), clock, Config::new(Mode::default(), 115_200))?;
     let one = Address::drive(1)?;
 
     // 1000 units at 50 units/s: 20 s unless stopped.

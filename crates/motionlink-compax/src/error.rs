@@ -125,7 +125,7 @@ pub enum Error {
         reached: Position,
         /// `reached - target`.
         difference: Position,
-        /// [`BusConfig::in_position_tolerance`](crate::session::BusConfig::in_position_tolerance).
+        /// [`Config::in_position_tolerance`](crate::session::Config::in_position_tolerance).
         tolerance: Position,
     },
     /// The target a drive reports (S2, read twice after the move was sent) is not the one sent: a telegram
@@ -234,7 +234,7 @@ pub enum Error {
         "closing the session: the stop of the axes it moved did not end within {bound:?}; they may still be moving"
     )]
     CloseTimedOut {
-        /// The bound ([`BusConfig::close_bound`](crate::session::BusConfig::close_bound)).
+        /// The bound ([`Config::close_bound`](crate::session::Config::close_bound)).
         bound: Duration,
     },
 }

@@ -29,7 +29,7 @@
 //! - [`Error`]: one error type, classified ([`Classify`](motionlink_link::error::Classify)).
 //!
 //! ```
-//! use motionlink_compax::client::{BusConfig, MoveOptions};
+//! use motionlink_compax::client::{Config, MoveOptions};
 //! use motionlink_compax::model::{Position, SpeedPercent};
 //! use motionlink_compax::sim::SimConfig;
 //! use motionlink_compax::wire::{Address, Mode};
@@ -41,7 +41,7 @@
 //! let sim = Emulator::new(SimConfig::bus(&[1, 5], 8, 9600)).unwrap(); // P196 = 8: with BCC
 //! let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(9600));
 //! let bus = Client::new(Box::new(host.connect().0), clock.shared(),
-//!                       BusConfig::new(Mode::from_p196(8).unwrap(), 9600)).unwrap();
+//!                       Config::new(Mode::from_p196(8).unwrap(), 9600)).unwrap();
 //! let one = Address::drive(1).unwrap();
 //! bus.set_speed(one, SpeedPercent::new(50.0).unwrap(), false).unwrap();
 //! bus.move_relative(one, Position::new(10.0).unwrap(), MoveOptions { binary: true, message: false }).unwrap();
@@ -98,7 +98,7 @@
 //!   watchdog.
 //! - **Checked moves** ([`Client::move_to`]): the manuals give no position window for this protocol,
 //!   so the in-position tolerance is
-//!   [`BusConfig::in_position_tolerance`](session::BusConfig::in_position_tolerance) (0.01 by default); they
+//!   [`Config::in_position_tolerance`](session::Config::in_position_tolerance) (0.01 by default); they
 //!   name no travel limits, so the caller gives them ([`session::TravelLimits`]). The move is checked
 //!   before it starts: it is stored in the drive's buffer with its echo (`POSA 12.5,?`), the echo is
 //!   compared byte for byte with the telegram sent (address prefix, address, command, value, flags), and
@@ -128,7 +128,7 @@
 //!   [`Error::MoveUncertain`]. E70, E72 and E73 are always answered by sending the telegram again;
 //!   E71 (buffer overflow) is reported, since the manual asks for fewer characters, not the same again.
 //! - **Timeouts**: the manual gives none. A reply may take the wire time of request and a 48-character reply
-//!   plus 200 ms ([`BusConfig::reply_timeout`](session::BusConfig::reply_timeout)); after a broadcast the
+//!   plus 200 ms ([`Config::reply_timeout`](session::Config::reply_timeout)); after a broadcast the
 //!   client keeps the line quiet for 20 ms.
 //! - **Threads**: COMPAX has no watchdog or keepalive. The blocking client drives the line from the calling
 //!   thread; the shared driver's one thread (every client starts one) drives it for the async client's

@@ -1,10 +1,10 @@
 //! The options that describe a session with one drive, as every front end that names a drive takes them:
 //! the command line's `--drive`, `--mode`... and a device table's keys `drive`, `mode`... (devices.toml, the
-//! gateway's file). One rule turns them into the session's settings ([`DriveOptions::bus_config`]) and the
-//! bus an in-process emulator stands for ([`DriveOptions::emulated_bus`]).
+//! gateway's file). One rule turns them into the session's settings ([`DriveOptions::config`]) and the
+//! bus an in-process emulator stands for ([`DriveOptions::emulated`]).
 
 use crate::model::{BaudRate, CommandStyle, PollInterval, ReplyTimeout, Tolerance};
-use crate::session::BusConfig;
+use crate::session::Config;
 use crate::sim::{SimConfig, Variant};
 use crate::wire::{Address, Mode};
 
@@ -75,8 +75,8 @@ impl DriveOptions {
     }
 
     /// The session's settings.
-    pub fn bus_config(&self) -> BusConfig {
-        let mut config = BusConfig::new(self.mode, self.baud.bits_per_s());
+    pub fn config(&self) -> Config {
+        let mut config = Config::new(self.mode, self.baud.bits_per_s());
         config.reply_timeout = self.timeout_ms.duration();
         config.style = if self.short { CommandStyle::Short } else { CommandStyle::Long };
         if let Some(p) = self.poll_ms {
@@ -98,7 +98,7 @@ impl DriveOptions {
 
     /// The bus an emulator in this process stands for: the drive these options name, in their mode and
     /// baud rate and the firmware variants asked for.
-    pub fn emulated_bus(&self) -> SimConfig {
+    pub fn emulated(&self) -> SimConfig {
         let mut config = SimConfig::bus(&[self.drive.get()], self.mode.to_p196(), self.baud.bits_per_s());
         config.variants = self.sim_variants.clone();
         config
@@ -115,12 +115,12 @@ mod tests {
         assert!(o.set("drive", "3").unwrap() && o.set("mode", "8").unwrap() && o.set("short", "true").unwrap());
         assert!(o.set("tolerance", "0.5").unwrap() && o.set("poll_ms", "20").unwrap());
         assert!(!o.set("max_pos", "1").unwrap(), "a move's option, not the session's");
-        let c = o.bus_config();
+        let c = o.config();
         assert_eq!((c.mode.to_p196(), c.style, c.in_position_tolerance.units()), (8, CommandStyle::Short, 0.5));
         assert_eq!(c.poll_interval, std::time::Duration::from_millis(20));
         assert!(o.set("drive", "32").is_ok() || o.set("drive", "40").is_err());
         assert!(o.set("baud", "1234").unwrap_err().to_string().starts_with("baud: \"1234\": "));
-        assert_eq!(o.emulated_bus().drives.len(), 1);
+        assert_eq!(o.emulated().drives.len(), 1);
         o.set("sim_variants", "no-echo").unwrap();
         assert!(o.check_port(false).is_err() && o.check_port(true).is_ok());
     }

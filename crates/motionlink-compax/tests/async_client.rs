@@ -9,7 +9,7 @@ use std::future::Future as _;
 use std::task::Poll;
 use std::time::Duration;
 
-use motionlink_compax::client::{AfterRaw, BusConfig, MoveOptions, MoveRequest, MoveTarget, StopOutcome};
+use motionlink_compax::client::{AfterRaw, Config, MoveOptions, MoveRequest, MoveTarget, StopOutcome};
 use motionlink_compax::model::{Position, S17Flag, SpeedPercent, StatusId, StatusValue};
 use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Mode};
@@ -39,7 +39,7 @@ fn setup() -> (EmulatorHost<Emulator>, AsyncClient) {
         clock.clone(),
         PipeConfig::paced(BAUD),
     );
-    let client = AsyncClient::new(Box::new(host.connect().0), clock, BusConfig::new(Mode::default(), BAUD)).unwrap();
+    let client = AsyncClient::new(Box::new(host.connect().0), clock, Config::new(Mode::default(), BAUD)).unwrap();
     (host, client)
 }
 
@@ -216,7 +216,7 @@ fn silent_line_with_a_move(
     let (link, faults) = host.connect();
     let dropped = std::sync::Arc::new(std::sync::Mutex::new(None));
     let link = DropClock { inner: link, dropped: dropped.clone() };
-    let mut cfg = BusConfig::new(Mode::default(), BAUD);
+    let mut cfg = Config::new(Mode::default(), BAUD);
     cfg.close_bound = BOUND;
     let client = AsyncClient::new(Box::new(link), clock, cfg).unwrap();
     runtime.block_on(client.move_absolute(a(1), pos(1000.0), MoveOptions::default())).unwrap();

@@ -4,7 +4,7 @@
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use motionlink_compax::client::{BusConfig, Client, MoveOptions};
+use motionlink_compax::client::{Client, Config, MoveOptions};
 use motionlink_compax::model::{Command, OutputState, ParamId, Position, SpeedPercent, StatusId, StatusValue};
 use motionlink_compax::sim::{Emulator, SimConfig};
 use motionlink_compax::wire::{Address, Mode};
@@ -27,7 +27,7 @@ fn session(server: &Server, p196: u32, port: PortUrl) -> Client {
     settings.parity = mode.parity;
     let link = port.open_byte_link(settings).unwrap();
     let _ = server;
-    Client::new(link, RealClock::shared(), BusConfig::new(mode, 115_200)).unwrap()
+    Client::new(link, RealClock::shared(), Config::new(mode, 115_200)).unwrap()
 }
 
 fn exercise(bus: &Client) {

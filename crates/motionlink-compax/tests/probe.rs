@@ -2,7 +2,7 @@
 //! `unsupported` for the behaviour a variant changes and what the default drives say otherwise; a saved
 //! profile seeds a later session (whose echo probe disappears) only when the drive's identity matches.
 
-use motionlink_compax::client::{BusConfig, Client};
+use motionlink_compax::client::{Client, Config};
 use motionlink_compax::model::StatusId;
 use motionlink_compax::probe::{parse_drives, probe, save_profile, use_profile, CompaxProbeReport};
 use motionlink_compax::session::{EchoForm, Op};
@@ -53,7 +53,7 @@ fn emulated(variants: &[Variant], p196: u32) -> (Me, EmulatorHost<Emulator>, Cli
     cfg.variants = variants.to_vec();
     let host = EmulatorHost::new(Emulator::new(cfg).unwrap(), clock.shared(), PipeConfig::paced(9600));
     let client =
-        Client::new(Box::new(host.connect().0), clock.shared(), BusConfig::new(Mode::from_p196(p196).unwrap(), 9600))
+        Client::new(Box::new(host.connect().0), clock.shared(), Config::new(Mode::from_p196(p196).unwrap(), 9600))
             .unwrap();
     ((clock, me), host, client)
 }
@@ -118,7 +118,7 @@ fn a_wrong_mode_finds_no_drive_and_says_why() {
     let bus = Client::new(
         Box::new(_host.connect().0),
         client.driver().clock().clone(),
-        BusConfig::new(Mode::from_p196(0).unwrap(), 9600),
+        Config::new(Mode::from_p196(0).unwrap(), 9600),
     )
     .unwrap();
     drop(client);
@@ -156,7 +156,7 @@ fn a_saved_profile_seeds_the_drive_and_its_echo_probe_disappears() {
     let sent = Arc::new(AtomicUsize::new(0));
     let fresh = || {
         let link = Counted { inner: Box::new(host.connect().0), sent: Arc::clone(&sent) };
-        Client::new(Box::new(link), _me.0.shared(), BusConfig::new(Mode::from_p196(0).unwrap(), 9600)).unwrap()
+        Client::new(Box::new(link), _me.0.shared(), Config::new(Mode::from_p196(0).unwrap(), 9600)).unwrap()
     };
     let client = fresh();
     let used = use_profile(&client, &profiles, "bus", a(3)).unwrap();

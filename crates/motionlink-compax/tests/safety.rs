@@ -5,7 +5,7 @@
 use std::time::Duration;
 
 use motionlink_compax::client::{
-    BusConfig, Client, Error, MoveOptions, MoveRequest, MoveTarget, StopOutcome, TravelLimits,
+    Client, Config, Error, MoveOptions, MoveRequest, MoveTarget, StopOutcome, TravelLimits,
 };
 use motionlink_compax::model::{OutputState, ParamId, Position, SpeedPercent};
 use motionlink_compax::sim::{SimConfig, REFUSED};
@@ -20,7 +20,7 @@ use crate::support::{rig_on, Rig};
 
 const D1: motionlink_compax::wire::Address = motionlink_compax::wire::Address::drive_const(1);
 
-fn rig_with(addrs: &[u8], p196: u32, baud: u32, cfg: impl FnOnce(&mut BusConfig)) -> (Rig, Client) {
+fn rig_with(addrs: &[u8], p196: u32, baud: u32, cfg: impl FnOnce(&mut Config)) -> (Rig, Client) {
     rig_on(SimConfig::bus(addrs, p196, baud), p196, baud, cfg)
 }
 

@@ -3,7 +3,7 @@
 
 use std::time::Duration;
 
-use motionlink_compax::client::{BusConfig, MoveOptions, MoveRequest, MoveTarget, StopOutcome};
+use motionlink_compax::client::{Config, MoveOptions, MoveRequest, MoveTarget, StopOutcome};
 use motionlink_compax::model::Position;
 use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Mode};
@@ -19,14 +19,14 @@ fn pos(v: f64) -> Position {
     Position::new(v).unwrap()
 }
 
-fn rig(clock: &ManualClock, cfg: impl FnOnce(&mut BusConfig)) -> (EmulatorHost<Emulator>, FaultControl, Client) {
+fn rig(clock: &ManualClock, cfg: impl FnOnce(&mut Config)) -> (EmulatorHost<Emulator>, FaultControl, Client) {
     let host = EmulatorHost::new(
         Emulator::new(SimConfig::bus(&[1, 2], 0, 9600)).unwrap(),
         clock.shared(),
         PipeConfig::paced(9600),
     );
     let (link, faults) = host.connect();
-    let mut c = BusConfig::new(Mode::default(), 9600);
+    let mut c = Config::new(Mode::default(), 9600);
     cfg(&mut c);
     let client = Client::new(Box::new(link), clock.shared(), c).unwrap();
     (host, faults, client)
@@ -91,7 +91,7 @@ fn a_dead_line_bounds_the_close_and_says_the_axis_may_still_move() {
     assert!(host.with_device(|d| d.drive(1).unwrap().is_moving()), "COMPAX has no watchdog: it moves on");
 }
 
-/// Dropping the client instead of closing it: the same bound ([`BusConfig::close_bound`]).
+/// Dropping the client instead of closing it: the same bound ([`Config::close_bound`]).
 #[test]
 fn dropping_the_client_on_a_silent_line_returns_within_the_close_bound() {
     let clock = ManualClock::new_auto();

@@ -7,7 +7,7 @@
 
 use std::time::Duration;
 
-use motionlink_compax::client::{BusConfig, Client, EchoForm, Error, MoveRequest, MoveTarget};
+use motionlink_compax::client::{Client, Config, EchoForm, Error, MoveRequest, MoveTarget};
 use motionlink_compax::model::{ParamId, SpeedPercent, StatusId};
 use motionlink_compax::sim::{Emulator, SimConfig, Variant};
 use motionlink_compax::wire::Mode;
@@ -24,7 +24,7 @@ fn emulated(variants: &[Variant], p196: u32) -> (ManualClock, EmulatorHost<Emula
     let host = EmulatorHost::new(Emulator::new(cfg).unwrap(), clock.shared(), PipeConfig::paced(9600));
     let (link, faults) = host.connect();
     let client =
-        Client::new(Box::new(link), clock.shared(), BusConfig::new(Mode::from_p196(p196).unwrap(), 9600)).unwrap();
+        Client::new(Box::new(link), clock.shared(), Config::new(Mode::from_p196(p196).unwrap(), 9600)).unwrap();
     (clock, host, faults, client)
 }
 

@@ -25,7 +25,7 @@ async fn a_stop_through_the_port_lock_stops_the_device_s_motion_and_the_gateway_
     let Some(b) = broker("a_stop_through_the_port_lock_stops_the_device_s_motion_and_the_gateway_serves_on") else {
         return;
     };
-    let bus = motionlink_compax::Emulator::new(motionlink_compax::DriveOptions::default().emulated_bus()).unwrap();
+    let bus = motionlink_compax::Emulator::new(motionlink_compax::DriveOptions::default().emulated()).unwrap();
     let server = motionlink_link::emulator::serve_tcp(
         "127.0.0.1:0",
         Arc::new(Mutex::new(bus)),

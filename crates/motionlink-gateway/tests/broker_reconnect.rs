@@ -32,7 +32,7 @@ const SIM_ADDRESS: &str = "MOTIONLINK_TEST_SIM_ADDRESS";
 #[ignore = "the emulator process of a_failed_port_is_opened_again_and_the_other_devices_are_served_on"]
 fn compax_emulator_process() {
     let Ok(address) = std::env::var(SIM_ADDRESS) else { return };
-    let bus = motionlink_compax::Emulator::new(motionlink_compax::DriveOptions::default().emulated_bus()).unwrap();
+    let bus = motionlink_compax::Emulator::new(motionlink_compax::DriveOptions::default().emulated()).unwrap();
     let server =
         motionlink_link::emulator::serve_tcp(&address, Arc::new(Mutex::new(bus)), motionlink_link::RealClock::shared())
             .unwrap();

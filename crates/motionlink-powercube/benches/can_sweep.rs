@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use motionlink_link::can::{CanBus, CanBusConfig, CanEmulator, CanFrame};
 use motionlink_link::{RealClock, Timestamp};
-use motionlink_powercube::client::{BusConfig, Client};
+use motionlink_powercube::client::{Client, Config};
 use motionlink_powercube::model::{Address, Param};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::wire::can::{to_frame, Role};
@@ -60,7 +60,7 @@ fn setup() -> (Client, Vec<Address>) {
     let clock = RealClock::shared();
     let sim = Emulator::new_can(&SimConfig::with_addresses(&addresses).expect("31 addresses"));
     let can = CanBus::with_emulator(sim, clock.clone(), CanBusConfig::paced(BITRATE));
-    let bus = Client::can(Box::new(can.connect()), clock, BusConfig::can()).expect("the session starts");
+    let bus = Client::can(Box::new(can.connect()), clock, Config::can()).expect("the session starts");
     (bus, addresses.iter().map(|&a| Address::new(a).expect("1..31")).collect())
 }
 

@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use criterion::{criterion_group, criterion_main, Criterion};
 use motionlink_link::can::{CanBus, CanBusConfig, CanEmulator, CanFrame};
 use motionlink_link::{RealClock, Timestamp};
-use motionlink_powercube::client::{AsyncClient, BusConfig, Client};
+use motionlink_powercube::client::{AsyncClient, Client, Config};
 use motionlink_powercube::model::{Address, Param};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::wire::can::{to_frame, Role};
@@ -53,14 +53,14 @@ fn mean(n: u32, mut read: impl FnMut()) -> Duration {
 
 fn bench(c: &mut Criterion) {
     let blocking_bus = bus();
-    let blocking = Client::can(Box::new(blocking_bus.connect()), RealClock::shared(), BusConfig::can())
-        .expect("the session starts");
+    let blocking =
+        Client::can(Box::new(blocking_bus.connect()), RealClock::shared(), Config::can()).expect("the session starts");
     let one = Address::new(1).expect("address 1");
     let module = blocking.module(one);
 
     let runtime = tokio::runtime::Builder::new_current_thread().enable_time().build().expect("a tokio runtime");
     let async_bus = bus();
-    let asynchronous = AsyncClient::can(Box::new(async_bus.connect()), RealClock::shared(), BusConfig::can())
+    let asynchronous = AsyncClient::can(Box::new(async_bus.connect()), RealClock::shared(), Config::can())
         .expect("the session starts");
     let async_module = asynchronous.module(one);
 
@@ -90,7 +90,7 @@ fn bench(c: &mut Criterion) {
     // a frame's interrupt, on a real bus, is the operating system's time, the same for any library).
     let spin_bus = bus_with(CanBusConfig { reader_spins: true, ..CanBusConfig::paced(BITRATE) });
     let spinning =
-        Client::can(Box::new(spin_bus.connect()), RealClock::shared(), BusConfig::can()).expect("the session starts");
+        Client::can(Box::new(spin_bus.connect()), RealClock::shared(), Config::can()).expect("the session starts");
     let spin_module = spinning.module(one);
     let spin_mean = mean(n, || {
         black_box(spin_module.position().expect("answers"));

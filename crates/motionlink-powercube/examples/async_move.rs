@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use motionlink_link::can::{CanBus, CanBusConfig};
 use motionlink_link::RealClock;
-use motionlink_powercube::client::{AsyncClient, BusConfig, MoveSpec};
+use motionlink_powercube::client::{AsyncClient, Config, MoveSpec};
 use motionlink_powercube::model::{Acceleration, Address, CubeState, Position, StateFlag, Velocity};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{Emulator, Error};
@@ -32,7 +32,7 @@ pub async fn run() -> Result<Seen, Error> {
     let config = SimConfig::with_addresses(&[1, 2]).map_err(|e| Error::Unsupported(e.to_string()))?;
     let sim = Emulator::new_can(&config);
     let bus = CanBus::with_emulator(sim, clock.clone(), CanBusConfig::paced(1_000_000));
-    let client = AsyncClient::can(Box::new(bus.connect()), clock, BusConfig::can())?;
+    let client = AsyncClient::can(Box::new(bus.connect()), clock, Config::can())?;
     let (one, two) = (Address::new(1)?, Address::new(2)?);
     let joint = client.module(one);
     println!("module 1 is {}", joint.kind().await?.name()); // from now on its positions read in rad

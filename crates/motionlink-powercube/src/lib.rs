@@ -31,7 +31,7 @@
 //! ```
 //! use motionlink_link::can::{CanBus, CanBusConfig};
 //! use motionlink_link::clock::{Clock, ManualClock};
-//! use motionlink_powercube::client::BusConfig;
+//! use motionlink_powercube::client::Config;
 //! use motionlink_powercube::model::Address;
 //! use motionlink_powercube::sim::SimConfig;
 //! use motionlink_powercube::{Client, Emulator};
@@ -40,7 +40,7 @@
 //! let _me = clock.reserve_participant().enter();
 //! let sim = Emulator::new_can(&SimConfig::with_addresses(&[1, 2, 3]).unwrap());
 //! let can = CanBus::with_emulator(sim, clock.shared(), CanBusConfig::paced(1_000_000));
-//! let bus = Client::can(Box::new(can.connect()), clock.shared(), BusConfig::can()).unwrap();
+//! let bus = Client::can(Box::new(can.connect()), clock.shared(), Config::can()).unwrap();
 //! let found = bus.scan().unwrap();
 //! assert_eq!(found.len(), 3);
 //! let modules: Vec<Address> = found.iter().map(|e| e.address).collect(); // 1, 2, 3
@@ -73,7 +73,7 @@
 //!   `decode` take both forms, on both carriers. The padded form has a second merit: a bit flipped in its
 //!   address cannot make it the life sign of one module (`07` alone to one module toggles its watchdog;
 //!   `07 00` to one module is no command). The watchdog is therefore armed on RS232 by default
-//!   ([`session::BusConfig::watchdog_on_rs232`] switches that off). Whether a module takes that form is
+//!   ([`session::Config::watchdog_on_rs232`] switches that off). Whether a module takes that form is
 //!   found out the first time its watchdog is armed on RS232 (it must stay online past its 50 ms); one
 //!   that ignores it has its watchdog switched off again and reset, and its motions run without one, each
 //!   result saying so ([`session::ModuleFindings`]).
@@ -173,7 +173,7 @@
 //!   request fails at once as a transport error, not after a timeout.
 //! - **Timeouts.** RS232 200 ms (a frame takes up to 25 ms each way at 9600 baud), CAN 50 ms; reads are
 //!   retried twice; the scan waits 60 ms per address on RS232 and 50 ms for all 31 on CAN. Waits poll every
-//!   10 ms on a fixed schedule, never faster. All are [`session::BusConfig`] settings.
+//!   10 ms on a fixed schedule, never faster. All are [`session::Config`] settings.
 //! - **In-position.** The manual has no in-position window parameter: [`client::Module::move_to`] takes the
 //!   tolerance from its caller ([`session::MoveSpec::DEFAULT_TOLERANCE`]: 0.001 rad or m) and reads the final
 //!   position twice; both readings must lie within it.
@@ -202,7 +202,7 @@
 //! - **Cancelling.** A read or a scan that is cancelled ends at once ([`Error::Aborted`]); a motion, a
 //!   wait or homing is halted first ([`Error::Cancelled`] says whether that was confirmed); writes and
 //!   watchdog changes run to their end.
-//! - **Closing is bounded** ([`session::BusConfig::close_bound`], 5 s): past it, [`Error::CloseTimedOut`],
+//! - **Closing is bounded** ([`session::Config::close_bound`], 5 s): past it, [`Error::CloseTimedOut`],
 //!   and the refresh stops with the session, so an armed module halts itself within 50 ms.
 //! - **DISABLE_ACK.** The client refuses to set CONFIGID_MOD_DISABLE_ACK on CAN (it needs acknowledges).
 //!   The emulator honours it; the write that sets it is still acknowledged.

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use motionlink_link::can::{CanBus, CanBusConfig};
 use motionlink_link::RealClock;
-use motionlink_powercube::client::{AsyncClient, BusConfig, StopOutcome};
+use motionlink_powercube::client::{AsyncClient, Config, StopOutcome};
 use motionlink_powercube::model::{
     Acceleration, Address, AxisUnit, ConfigFlag, ModuleKind, Param, Position, Ramp, ShortFlag, StateFlag, Value,
     Velocity,
@@ -19,7 +19,7 @@ fn setup() -> (CanBus<Emulator>, AsyncClient) {
     let clock = RealClock::shared();
     let sim = Emulator::new_can(&SimConfig::with_addresses(&[1, 2]).unwrap());
     let bus = CanBus::with_emulator(sim, clock.clone(), CanBusConfig::paced(1_000_000));
-    let client = AsyncClient::can(Box::new(bus.connect()), clock, BusConfig::can()).unwrap();
+    let client = AsyncClient::can(Box::new(bus.connect()), clock, Config::can()).unwrap();
     (bus, client)
 }
 

@@ -9,7 +9,7 @@ use embedded_can::{ErrorKind, Frame, Id, StandardId};
 use motionlink_link::can::embedded::{from_embedded, EmbeddedCanLink};
 use motionlink_link::can::CanEmulator;
 use motionlink_link::{RealClock, SharedClock};
-use motionlink_powercube::client::{BusConfig, Client, MoveSpec};
+use motionlink_powercube::client::{Client, Config, MoveSpec};
 use motionlink_powercube::model::{Address, Position, StateFlag, Velocity};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::Emulator;
@@ -81,7 +81,7 @@ fn a_session_runs_over_any_embedded_can_driver() {
     let bus = Emulator::new_can(&SimConfig::with_addresses(&[3, 7]).unwrap());
     let peripheral = Peripheral { bus, clock: clock.clone(), rx: VecDeque::new() };
     let link = EmbeddedCanLink::new(peripheral, clock.clone(), Duration::from_micros(100), "hal can0");
-    let client = Client::can(Box::new(link), clock, BusConfig::can()).unwrap();
+    let client = Client::can(Box::new(link), clock, Config::can()).unwrap();
     let found: Vec<u8> = client.scan().unwrap().iter().map(|e| e.address.get()).collect();
     assert_eq!(found, vec![3, 7]);
     let seven = Address::new(7).unwrap();

@@ -34,7 +34,7 @@ use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::RealClock;
 use motionlink_scu::model::DataIndex;
 use motionlink_scu::wire::*;
-use motionlink_scu::{AsyncClient, Client, ClientConfig};
+use motionlink_scu::{AsyncClient, Client, Config};
 use motionlink_scu::{Emulator, SimConfig};
 
 /// Encodes and decodes `request` and `reply` once; returns something that depends on every step.
@@ -154,7 +154,7 @@ fn client_on(pipe: PipeConfig) -> Client {
     let clock = RealClock::shared();
     let host = EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), Arc::clone(&clock), pipe);
     let connector: Connector = Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>));
-    Client::open(connector, clock, ClientConfig::default()).unwrap()
+    Client::open(connector, clock, Config::default()).unwrap()
 }
 
 /// Median and 90th percentile of `n` single RG transactions' host overhead above the wire time.
@@ -176,7 +176,7 @@ fn async_client_on_emulator(runtime: &tokio::runtime::Runtime) -> AsyncClient {
     let host =
         EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), Arc::clone(&clock), PipeConfig::paced(38_400));
     let connector: Connector = Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>));
-    runtime.block_on(AsyncClient::open(connector, clock, ClientConfig::default())).unwrap()
+    runtime.block_on(AsyncClient::open(connector, clock, Config::default())).unwrap()
 }
 
 /// As [`single_transactions`], through the async client on `runtime`.
@@ -300,8 +300,8 @@ fn keepalive_lateness(duration: Duration) -> Vec<Duration> {
     let connector: Connector = Box::new(move || {
         Ok(Box::new(KeepaliveTimes { inner: Box::new(host.connect().0), sent: Arc::clone(&record) }) as Box<dyn Link>)
     });
-    let period = ClientConfig::default().keepalive_period;
-    let client = Client::open(connector, clock, ClientConfig::default()).unwrap();
+    let period = Config::default().keepalive_period;
+    let client = Client::open(connector, clock, Config::default()).unwrap();
     std::thread::sleep(duration);
     drop(client);
     let times = sent.lock().unwrap().clone();

@@ -15,7 +15,7 @@ use motionlink_link::link::Link;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::RealClock;
 use motionlink_scu::model::{Actuator, PositionCounts, Speed};
-use motionlink_scu::{AsyncClient, ClientConfig, Emulator, FunctionMap, SimConfig};
+use motionlink_scu::{AsyncClient, Config, Emulator, FunctionMap, SimConfig};
 
 /// What the example saw.
 #[derive(Debug)]
@@ -35,7 +35,7 @@ pub async fn run() -> Result<Seen, Box<dyn std::error::Error + Send + Sync>> {
     let clock = RealClock::shared();
     let unit = EmulatorHost::new(Emulator::new(SimConfig::default())?, Arc::clone(&clock), PipeConfig::paced(38_400));
     let watch = unit.clone();
-    let config = ClientConfig { function_map: FunctionMap::scp11(), ..ClientConfig::default() };
+    let config = Config { function_map: FunctionMap::scp11(), ..Config::default() };
     let connector = Box::new(move || Ok(Box::new(unit.connect().0) as Box<dyn Link>));
     let client = Arc::new(AsyncClient::open(connector, clock, config).await?);
     let a1 = Actuator::new(1).ok_or("actuator 1")?;

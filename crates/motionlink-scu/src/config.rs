@@ -1,4 +1,4 @@
-//! The settings of a session ([`ClientConfig`]), which actuators each function drives ([`FunctionMap`]), and
+//! The settings of a session ([`Config`]), which actuators each function drives ([`FunctionMap`]), and
 //! the travel range of an actuator ([`StrokeLimits`]).
 
 use std::time::Duration;
@@ -39,7 +39,7 @@ pub const DEFAULT_POLL_SLOT: u8 = 5;
 pub const DEFAULT_POLL_INTERVAL: Duration = Duration::from_millis(50);
 
 /// The silence after which a request is sent again, unless the reply timeout is shorter than twice this
-/// ([`ClientConfig::effective_retry_after`]).
+/// ([`Config::effective_retry_after`]).
 pub const DEFAULT_RETRY_AFTER: Duration = Duration::from_millis(150);
 
 /// Which actuators each motion function F1..F10 drives: the unit's parameterisation, which the data list
@@ -166,7 +166,7 @@ pub struct StrokeLimits {
 pub enum MovePolling {
     /// Through the RC keepalive: the session defines CyclicObj `slot` (1..5) to read the status 1, the
     /// position and the current of every actuator and Error_Code 1 (0x0170, 0x0010, 0x00A0, 0x00D1), and while
-    /// a motion or a watch runs, the RCs carry it, one every [`ClientConfig::poll_interval`] at most: each
+    /// a motion or a watch runs, the RCs carry it, one every [`Config::poll_interval`] at most: each
     /// exchange both feeds the unit's watchdog and reads the state. A unit that refuses the definition, its
     /// read-back or an RC carrying it is polled with reads instead. The default (slot
     /// [`DEFAULT_POLL_SLOT`]); while [`crate::Client::use_cyclic`] has the keepalive carry the caller's own
@@ -175,7 +175,7 @@ pub enum MovePolling {
         /// The cyclic object the session defines, 1..5.
         slot: u8,
     },
-    /// With RG: status 1, then the positions, every [`ClientConfig::poll_interval`]; the keepalive goes on
+    /// With RG: status 1, then the positions, every [`Config::poll_interval`]; the keepalive goes on
     /// beside them.
     Reads,
 }
@@ -202,7 +202,7 @@ impl StrokeLimits {
     }
 
     /// The travel ranges `specs` give (`1=0:865`, one per actuator; a later one for the same actuator
-    /// wins), as [`ClientConfig::stroke_limits`] takes them.
+    /// wins), as [`Config::stroke_limits`] takes them.
     pub fn per_actuator<S: AsRef<str>>(specs: &[S]) -> Result<[Option<StrokeLimits>; 6], String> {
         let mut limits = [None; 6];
         for spec in specs {
@@ -215,7 +215,7 @@ impl StrokeLimits {
 
 /// Settings of a session. The defaults follow the manual.
 #[derive(Debug, Clone)]
-pub struct ClientConfig {
+pub struct Config {
     /// What the unit does when the watchdog expires (RO's Safety_ID). Default 0.
     pub safety_id: SafetyId,
     /// Time between RC keepalives. Default 200 ms; more than [`MAX_KEEPALIVE_PERIOD`] is refused.
@@ -227,7 +227,7 @@ pub struct ClientConfig {
     /// the longest round trip measured lately, if that is longer), then after twice this, four times this
     /// ... of silence, within the reply timeout. `None` (the default): [`DEFAULT_RETRY_AFTER`], or half the
     /// reply timeout if that is shorter, so that a short reply timeout brings a short retry with it
-    /// ([`ClientConfig::effective_retry_after`]); a value set here must be below the reply timeout.
+    /// ([`Config::effective_retry_after`]); a value set here must be below the reply timeout.
     pub retry_after: Option<Duration>,
     /// How many times a request is sent again after a corrupt reply, a CSE or a PCE. Default 2.
     pub retries: u32,
@@ -251,7 +251,7 @@ pub struct ClientConfig {
     /// After RE, how long the motion bit may take to come up before a still-standing actuator is an error.
     /// Default 1 s.
     pub start_grace: Duration,
-    /// Reconnect by itself when the port is lost (every [`ClientConfig::reconnect_interval`]). Default off.
+    /// Reconnect by itself when the port is lost (every [`Config::reconnect_interval`]). Default off.
     pub auto_reconnect: bool,
     /// Time between automatic reconnection attempts. Default 1 s.
     pub reconnect_interval: Duration,
@@ -275,9 +275,9 @@ pub const MAX_TOLERANCE_COUNTS: u32 = 100;
 /// The rule of a position tolerance, as messages say it.
 pub const TOLERANCE_RULE: &str = "the position tolerance must be a whole number from 0 to 100 counts";
 
-impl Default for ClientConfig {
+impl Default for Config {
     fn default() -> Self {
-        ClientConfig {
+        Config {
             safety_id: SafetyId::StopAllAndLock,
             keepalive_period: Duration::from_millis(200),
             reply_timeout: timing::MAX_REPLY_DELAY,
@@ -300,8 +300,8 @@ impl Default for ClientConfig {
     }
 }
 
-impl ClientConfig {
-    /// The silence after which a request is sent again: [`ClientConfig::retry_after`] as set, or
+impl Config {
+    /// The silence after which a request is sent again: [`Config::retry_after`] as set, or
     /// [`DEFAULT_RETRY_AFTER`], or half the reply timeout if that is shorter.
     pub fn effective_retry_after(&self) -> Duration {
         self.retry_after.unwrap_or_else(|| DEFAULT_RETRY_AFTER.min(self.reply_timeout / 2))
@@ -374,10 +374,10 @@ mod tests {
 
     #[test]
     fn the_retry_follows_a_short_reply_timeout_unless_it_was_set() {
-        let mut c = ClientConfig { reply_timeout: Duration::from_millis(100), ..ClientConfig::default() };
+        let mut c = Config { reply_timeout: Duration::from_millis(100), ..Config::default() };
         assert_eq!(c.effective_retry_after(), Duration::from_millis(50), "half of a short reply timeout");
         assert!(c.validate().is_ok(), "{:?}", c.validate());
-        assert_eq!(ClientConfig::default().effective_retry_after(), DEFAULT_RETRY_AFTER);
+        assert_eq!(Config::default().effective_retry_after(), DEFAULT_RETRY_AFTER);
         c.retry_after = Some(Duration::from_millis(150));
         let e = c.validate().unwrap_err().to_string();
         assert!(e.contains("retry_after 150ms") && e.contains("100ms"), "a setting made is checked: {e}");

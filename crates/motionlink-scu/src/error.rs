@@ -170,7 +170,7 @@ pub enum Error {
         /// How long without progress.
         after: Duration,
     },
-    /// A move took longer than [`crate::ClientConfig::move_timeout`]; it was stopped.
+    /// A move took longer than [`crate::Config::move_timeout`]; it was stopped.
     #[error("{actuator} did not reach its target within {after:?}; stopped at {position_counts}")]
     MoveTimeout {
         /// The actuator.

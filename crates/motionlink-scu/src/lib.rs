@@ -23,13 +23,13 @@
 //!
 //! **Closing.** [`Client::close`] (and `AsyncClient::close`) ends the session: RS for every function it
 //! started (motions fast), then RA, and returns the outcome. Dropping a client does the same, waiting at most
-//! [`ClientConfig::close_bound`] (5 s by default; a dead link takes about 0.6 s: one short try of RS and of
+//! [`Config::close_bound`] (5 s by default; a dead link takes about 0.6 s: one short try of RS and of
 //! RA); after that the stop is reported unconfirmed and the unit's own watchdog (500 ms) is what stops the
 //! drives. A dropped async future cancels its operation, which stops any motion it started.
 //!
 //! ```
 //! use motionlink_link::{pipe::{EmulatorHost, PipeConfig}, link::Link, ManualClock, Clock};
-//! use motionlink_scu::{model::{Actuator, PositionCounts, Speed}, Client, ClientConfig, Emulator, SimConfig};
+//! use motionlink_scu::{model::{Actuator, PositionCounts, Speed}, Client, Config, Emulator, SimConfig};
 //!
 //! // A virtual clock: ten seconds of device time take a few milliseconds.
 //! let clock = ManualClock::new_auto();
@@ -38,7 +38,7 @@
 //! let client = Client::open(
 //!     Box::new(move || Ok(Box::new(unit.connect().0) as Box<dyn Link>)),
 //!     clock.shared(),
-//!     ClientConfig::default(),
+//!     Config::default(),
 //! )?;
 //! let a1 = Actuator::new(1).unwrap();
 //! // Positions are `PositionCounts`, speeds `Speed` (percent or counts/s): a bare number is neither.
@@ -61,7 +61,7 @@
 //!   long. But the unit's watchdog expires 500 ms after the last RC, and no RC can go out while a reply is
 //!   awaited, so in remote mode a reply is awaited at most 1000 ms: a unit silent that long has stopped its
 //!   drives and left remote mode anyway. A request is sent again when not one byte of its reply came within
-//!   [`ClientConfig::retry_after`] (150 ms, or twice the measured round trip, or half a shorter reply
+//!   [`Config::retry_after`] (150 ms, or twice the measured round trip, or half a shorter reply
 //!   timeout), then after 300, 600 ms
 //!   of silence; the reply to any sending is accepted, the others are read and dropped. Before the first
 //!   repetition the client sends 256 zero bytes, which complete a telegram whose corrupted length byte left
@@ -124,7 +124,7 @@
 //! - **Grouping indices** (0x0010, 0x0170, 0x00A0, 0x00D0): refused with PDE, every group is read entry by
 //!   entry from then on (`no-groups`).
 //! - **UserPositionData** as the stroke of targets: refused, targets are checked against
-//!   [`ClientConfig::stroke_limits`] only, and a move without them says that its target was not checked
+//!   [`Config::stroke_limits`] only, and a move without them says that its target was not checked
 //!   (`no-user-positions`).
 //! - **Cyclic objects** (the session's CyclicObj 5 carried by the keepalive RC): refused, motions and samples
 //!   are read with RG (`no-cyclic-objects`).
@@ -189,7 +189,7 @@ pub mod wire;
 pub use client::{ending, Client, Ending, FollowReport, Follower, MoveOptions, SetpointStream};
 #[cfg(feature = "tokio")]
 pub use client::{AsyncClient, AsyncSetpointStream};
-pub use config::{ClientConfig, FunctionMap, MovePolling, StrokeLimits};
+pub use config::{Config, FunctionMap, MovePolling, StrokeLimits};
 pub use error::Error;
 pub use session::{Op, Output, Progress, Session};
 pub use sim::{Emulator, SimConfig, Variant, Variants};

@@ -20,7 +20,7 @@
 //! ```
 //! use motionlink_link::{pipe::{EmulatorHost, PipeConfig}, link::Link, probe::{CheckResult, PortKind, ProbeSetup}};
 //! use motionlink_link::{Clock, ManualClock};
-//! use motionlink_scu::{Client, ClientConfig, Emulator, SimConfig, Variant};
+//! use motionlink_scu::{Client, Config, Emulator, SimConfig, Variant};
 //!
 //! let clock = ManualClock::new_auto();
 //! let _me = clock.reserve_participant().enter();
@@ -28,7 +28,7 @@
 //! sim.variants = sim.variants.with(Variant::NoGroups);
 //! let unit = EmulatorHost::new(Emulator::new(sim)?, clock.shared(), PipeConfig::paced(38_400));
 //! let connector = Box::new(move || Ok(Box::new(unit.connect().0) as Box<dyn Link>));
-//! let client = Client::open(connector, clock.shared(), ClientConfig::default())?;
+//! let client = Client::open(connector, clock.shared(), Config::default())?;
 //! let report = motionlink_scu::probe::probe(&client, &ProbeSetup::new("sim", PortKind::Sim, 38_400))?;
 //! assert_eq!(report.check("grouping_indices", None).unwrap().result, CheckResult::Unsupported);
 //! assert_eq!(report.devices[0].capabilities.grouping_indices, Some(false));

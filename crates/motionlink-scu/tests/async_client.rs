@@ -12,14 +12,14 @@ use motionlink_link::RealClock;
 use motionlink_scu::model::{Actuator, DataIndex, MotionFunction, PositionCounts, Speed};
 use motionlink_scu::sim::RemoteMode;
 use motionlink_scu::value::Value;
-use motionlink_scu::{AsyncClient, ClientConfig, Emulator, FunctionMap, SimConfig};
+use motionlink_scu::{AsyncClient, Config, Emulator, FunctionMap, SimConfig};
 
 fn setup() -> (EmulatorHost<Emulator>, impl std::future::Future<Output = AsyncClient>) {
     let clock = RealClock::shared();
     let unit =
         EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), Arc::clone(&clock), PipeConfig::paced(38_400));
     let host = unit.clone();
-    let config = ClientConfig { function_map: FunctionMap::scp11(), ..ClientConfig::default() };
+    let config = Config { function_map: FunctionMap::scp11(), ..Config::default() };
     let connector = Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>));
     (unit, async move { AsyncClient::open(connector, clock, config).await.unwrap() })
 }

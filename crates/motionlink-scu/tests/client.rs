@@ -8,7 +8,7 @@ use rig::*;
 #[test]
 fn open_sends_ro_and_rc_and_close_leaves_remote_mode() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Active(SafetyId::StopAllAndLock));
     client.close().unwrap();
     assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Off);
@@ -24,7 +24,7 @@ fn a_unit_that_ignores_the_first_ro_after_a_long_silence_is_opened_by_the_second
         faults.drop_next(Direction::HostToDevice, 5); // the first RO, all five bytes
         Ok(Box::new(link) as Box<dyn Link>)
     });
-    let client = Client::open(connector, rig.clock.shared(), ClientConfig::default()).unwrap();
+    let client = Client::open(connector, rig.clock.shared(), Config::default()).unwrap();
     assert_eq!(client.stats().retries, 1);
     assert!(matches!(rig.unit(|u| u.mode()), RemoteMode::Active(_)));
     client.close().unwrap();
@@ -33,7 +33,7 @@ fn a_unit_that_ignores_the_first_ro_after_a_long_silence_is_opened_by_the_second
 #[test]
 fn the_chosen_safety_id_goes_into_ro() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig { safety_id: SafetyId::StopRemoteOnly, ..Default::default() });
+    let client = rig.client(Config { safety_id: SafetyId::StopRemoteOnly, ..Default::default() });
     assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Active(SafetyId::StopRemoteOnly));
     drop(client);
 }
@@ -41,7 +41,7 @@ fn the_chosen_safety_id_goes_into_ro() {
 #[test]
 fn a_session_is_kept_alive_for_ten_minutes_of_device_time_without_busy_waiting() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     let real = Instant::now();
     rig.sleep(600_050); // not on a keepalive's deadline: its reply is in when the counts are compared
     let stats = client.stats();
@@ -60,13 +60,13 @@ fn keepalive_period_above_450_ms_is_refused() {
     let err = Client::open(
         rig.connector(),
         rig.clock.shared(),
-        ClientConfig { keepalive_period: Duration::from_millis(451), ..Default::default() },
+        Config { keepalive_period: Duration::from_millis(451), ..Default::default() },
     )
     .unwrap_err();
     assert!(matches!(err, Error::InvalidArgument(_)), "{err}");
     assert_eq!(*rig.connects.lock().unwrap(), 0, "nothing was opened");
     // 450 ms is allowed and keeps the unit alive.
-    let client = rig.client(ClientConfig { keepalive_period: Duration::from_millis(450), ..Default::default() });
+    let client = rig.client(Config { keepalive_period: Duration::from_millis(450), ..Default::default() });
     rig.sleep(10_000);
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0);
     drop(client);
@@ -95,7 +95,7 @@ fn watchdog_expiry_with_safety_id_2() {
 #[test]
 fn typed_reads_of_entries_and_groups() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     assert_eq!(client.position(a(1)).unwrap(), PositionCounts(0));
     let status = client.status1(a(1)).unwrap();
     assert!(status.available() && status.contains(Status1Flag::InPosition) && !status.moving());
@@ -113,7 +113,7 @@ fn typed_reads_of_entries_and_groups() {
 #[test]
 fn writes_are_checked_before_anything_is_sent() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     let non_rc = |s: motionlink_scu::sim::SimStats| s.telegrams - s.cyclic;
     let before = rig.unit(|u| non_rc(u.stats()));
     for (index, value) in [
@@ -133,7 +133,7 @@ fn writes_are_checked_before_anything_is_sent() {
 #[test]
 fn the_unit_refusing_is_a_device_error() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     let err = client.start_motion(f(6), MotionDirection::Out).unwrap_err();
     assert!(matches!(err, Error::Refused { command: Command::Execute, status: Status::PermissionError }), "{err}");
     assert_eq!(err.class(), ErrorClass::Refused);
@@ -142,7 +142,7 @@ fn the_unit_refusing_is_a_device_error() {
 #[test]
 fn move_to_moves_and_ends_with_rs() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     let seen = Mutex::new(Vec::new());
     let progress = |p: &motionlink_scu::session::MoveProgress| seen.lock().unwrap().push(p.position_counts);
     let report = client
@@ -163,7 +163,7 @@ fn move_to_moves_and_ends_with_rs() {
 #[test]
 fn move_to_with_the_tlt_function_map() {
     let rig = Rig::new(SimConfig::tlt());
-    let client = rig.client(ClientConfig { function_map: FunctionMap::tlt(), ..Default::default() });
+    let client = rig.client(Config { function_map: FunctionMap::tlt(), ..Default::default() });
     // F3 drives column 2 alone.
     let report = client
         .move_to(a(2), PositionCounts(120), pct(100), &MoveOptions { function: Some(f(3)), ..Default::default() })
@@ -191,7 +191,7 @@ fn move_to_with_the_tlt_function_map() {
 #[test]
 fn cancel_stops_the_actuator_at_once() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     let cancel = CancelToken::new();
     client.set_cancel(cancel.clone());
     let progress = |p: &motionlink_scu::session::MoveProgress| {
@@ -213,7 +213,7 @@ fn cancel_stops_the_actuator_at_once() {
 #[test]
 fn a_stalled_actuator_is_stopped_and_reported() {
     let rig = Rig::new(SimConfig::tlt());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     let err = client
         .move_to(a(1), PositionCounts(300), pct(20), &MoveOptions { function: Some(f(2)), ..Default::default() })
         .unwrap_err();
@@ -226,7 +226,7 @@ fn a_stalled_actuator_is_stopped_and_reported() {
 #[test]
 fn a_target_outside_the_stroke_is_refused_before_anything_moves() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     let remote_before = client.get_value(DataIndex(0x3022)).unwrap();
     let err = client.move_to(a(2), PositionCounts(2000), pct(100), &MoveOptions::default()).unwrap_err();
     let Error::OutsideStroke {
@@ -252,7 +252,7 @@ fn a_target_outside_the_stroke_is_refused_before_anything_moves() {
     drop(client);
     let mut limits = [None; 6];
     limits[0] = Some(StrokeLimits { min_counts: PositionCounts(0), max_counts: PositionCounts(300) });
-    let client = rig.client(ClientConfig { stroke_limits: limits, ..Default::default() });
+    let client = rig.client(Config { stroke_limits: limits, ..Default::default() });
     let err = client.move_to(a(1), PositionCounts(400), pct(100), &MoveOptions::default()).unwrap_err();
     assert!(
         matches!(err, Error::OutsideStroke { max_counts: PositionCounts(300), limits_from: "as configured", .. }),
@@ -266,7 +266,7 @@ fn a_move_that_ends_short_of_its_target_names_target_position_and_difference() {
     // A stroke configured wider than the unit's: the unit stops at its Out end, 865.
     let mut limits = [None; 6];
     limits[1] = Some(StrokeLimits { min_counts: PositionCounts(0), max_counts: PositionCounts(2000) });
-    let config = ClientConfig { stroke_limits: limits, function_map: FunctionMap::scp11(), ..Default::default() };
+    let config = Config { stroke_limits: limits, function_map: FunctionMap::scp11(), ..Default::default() };
     let client = rig.client(config);
     let err = client.move_to(a(2), PositionCounts(900), pct(100), &MoveOptions::default()).unwrap_err();
     assert!(
@@ -290,7 +290,7 @@ fn a_move_that_ends_short_of_its_target_names_target_position_and_difference() {
 #[test]
 fn a_drive_fault_during_a_move_is_reported() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     let progress = |p: &motionlink_scu::session::MoveProgress| {
         if p.position_counts > PositionCounts(50) {
             rig.unit(|u| u.inject_error(ErrorCode::from_bit(15)));
@@ -306,7 +306,7 @@ fn a_drive_fault_during_a_move_is_reported() {
 #[test]
 fn dropping_the_client_stops_what_it_started_and_leaves_remote_mode() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     client.set(DataIndex(0x3021), &Value::RemotePosition(800)).unwrap();
     client.set(DataIndex(0x3022), &Value::RemotePosition(800)).unwrap();
     client.start_motion(f(1), MotionDirection::RemotePosition).unwrap();
@@ -325,7 +325,7 @@ fn dropping_the_client_stops_what_it_started_and_leaves_remote_mode() {
 fn the_end_of_a_session_on_a_dead_link_is_bounded_by_the_close_bound() {
     let rig = Rig::new(SimConfig::default());
     let bound = Duration::from_millis(500);
-    let client = rig.client(ClientConfig { close_bound: bound, ..Default::default() });
+    let client = rig.client(Config { close_bound: bound, ..Default::default() });
     client.start_motion(f(1), MotionDirection::Out).unwrap();
     // The unit answers nothing any more: the RS of F1 alone would be tried for a whole second.
     rig.faults().drop_next(Direction::DeviceToHost, u64::MAX / 2);
@@ -337,7 +337,7 @@ fn the_end_of_a_session_on_a_dead_link_is_bounded_by_the_close_bound() {
     assert!(took >= bound && took < bound + Duration::from_millis(50), "close took {took:?}");
     // Dropping a client is bounded the same way.
     rig.faults().heal();
-    let client = rig.client(ClientConfig { close_bound: bound, ..Default::default() });
+    let client = rig.client(Config { close_bound: bound, ..Default::default() });
     client.start_motion(f(1), MotionDirection::Out).unwrap();
     rig.faults().drop_next(Direction::DeviceToHost, u64::MAX / 2);
     let started = rig.clock.now();
@@ -352,7 +352,7 @@ fn the_end_of_a_session_on_a_dead_link_is_bounded_by_the_close_bound() {
 #[test]
 fn keepalives_carry_a_cyclic_object() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     let obj = CyclicObject::new(&[DataIndex(0x3011)], &[DataIndex(0x0011), DataIndex(0x0171)]).unwrap();
     client.configure_cyclic(1, &obj).unwrap();
     client.use_cyclic(1, &[Value::RemoteSpeed(60)]).unwrap();
@@ -380,7 +380,7 @@ fn keepalives_carry_a_cyclic_object() {
 fn error_history_names_the_watchdog() {
     let rig = Rig::new(SimConfig::default());
     rig.unit(|u| u.inject_error(ErrorCode::from_bit(12)));
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     let history = client.error_history().unwrap();
     assert_eq!(history[0], ErrorCode::from_bit(12));
     assert!(history[1..].iter().all(|c| *c == ErrorCode::NONE));
@@ -390,7 +390,7 @@ fn error_history_names_the_watchdog() {
 #[test]
 fn switching_functions() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     client.switch(Function::BinaryOutput2, true).unwrap();
     assert_eq!(client.get_value(DataIndex(0x0110)).unwrap().to_string(), "0x02 [output2]");
     client.switch(Function::BinaryOutput2, false).unwrap();
@@ -401,7 +401,7 @@ fn switching_functions() {
 #[test]
 fn stop_functions_stops_every_motion_function_and_reads_where_the_actuators_rest() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     client.start_motion(f(1), MotionDirection::Out).unwrap();
     client.start_motion(f(2), MotionDirection::Out).unwrap();
     rig.sleep(500);

@@ -8,7 +8,7 @@ use rig::*;
 #[test]
 fn a_corrupt_reply_to_a_read_is_retried() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     rig.sleep(50); // between keepalives
     rig.faults().corrupt_next(Direction::DeviceToHost, 0x40);
     assert_eq!(client.position(a(1)).unwrap(), PositionCounts(0));
@@ -28,7 +28,7 @@ fn a_corrupt_reply_to_a_read_is_retried() {
 #[test]
 fn a_corrupt_request_gets_cse_and_is_sent_again_even_for_re() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     rig.sleep(50);
     // Corrupt the RE's direction byte (its fourth): the unit sees an RE with a wrong CRC.
     let faults = rig.faults();
@@ -47,7 +47,7 @@ fn a_corrupt_request_gets_cse_and_is_sent_again_even_for_re() {
 #[test]
 fn a_lost_reply_to_re_is_sent_again_because_every_re_names_an_absolute_destination() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     rig.sleep(50);
     // The RE reply (5 bytes) is lost on its way back: after 150 ms of silence the session sends the zeros that
     // would complete a half-received telegram, and the RE again. The unit drives F1 to its Out end either way.
@@ -107,7 +107,7 @@ fn a_session_the_unit_ended_still_gets_the_rs_of_its_motion_when_it_ends() {
 #[test]
 fn a_slow_unit_is_given_the_full_reply_timeout_and_its_late_replies_are_dropped() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     client.set(DataIndex(0x3022), &Value::RemotePosition(800)).unwrap();
     client.start_motion(f(2), MotionDirection::RemotePosition).unwrap();
     rig.sleep(1000);
@@ -132,7 +132,7 @@ fn a_slow_unit_is_given_the_full_reply_timeout_and_its_late_replies_are_dropped(
 #[test]
 fn reads_give_up_after_a_second_of_silence_and_later_requests_get_one_short_try() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     rig.sleep(50);
     rig.faults().drop_next(Direction::DeviceToHost, 10_000);
     let started = rig.clock.now();
@@ -158,7 +158,7 @@ fn reads_give_up_after_a_second_of_silence_and_later_requests_get_one_short_try(
 #[test]
 fn port_loss_is_reported_and_reconnect_restores_the_session() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     client.set(DataIndex(0x3021), &Value::RemotePosition(800)).unwrap();
     client.start_motion(f(1), MotionDirection::RemotePosition).unwrap();
     rig.sleep(300);
@@ -181,7 +181,7 @@ fn port_loss_is_reported_and_reconnect_restores_the_session() {
 #[test]
 fn a_failed_reconnect_leaves_the_session_lost_and_idle() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     *rig.unplugged.lock().unwrap() = true;
     assert!(client.reconnect().is_err());
     assert!(!client.is_open(), "no port: the session is lost");
@@ -198,7 +198,7 @@ fn a_failed_reconnect_leaves_the_session_lost_and_idle() {
 #[test]
 fn a_corrupt_reply_to_the_re_of_a_move_is_repeated_and_the_move_ends_with_rs() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
+    let client = rig.client(Config { function_map: FunctionMap::scp11(), ..Default::default() });
     // Corrupt the CRC of the ACK of the first RE.
     let done = Arc::new(Mutex::new(false));
     let once = Arc::clone(&done);
@@ -224,7 +224,7 @@ fn a_corrupt_reply_to_the_re_of_a_move_is_repeated_and_the_move_ends_with_rs() {
 #[test]
 fn a_keepalive_without_answer_does_not_give_up_the_port() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     client.set(DataIndex(0x3021), &Value::RemotePosition(800)).unwrap();
     client.start_motion(f(1), MotionDirection::RemotePosition).unwrap();
     // The unit's answers are lost for three seconds: keepalives fail, the port is still there.
@@ -242,7 +242,7 @@ fn a_keepalive_without_answer_does_not_give_up_the_port() {
 #[test]
 fn auto_reconnect() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig { auto_reconnect: true, ..Default::default() });
+    let client = rig.client(Config { auto_reconnect: true, ..Default::default() });
     rig.faults().disconnect();
     rig.sleep(3_000);
     assert!(client.is_open(), "reconnected by itself");
@@ -255,7 +255,7 @@ fn auto_reconnect() {
 #[test]
 fn the_keepalive_keeps_its_grid_of_deadlines_while_the_caller_keeps_the_line_busy() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     let times = record_keepalives(&rig);
     // A caller reading a 104-byte structure back to back (30 ms each on the line) for ten seconds.
     let end = rig.clock.now() + Duration::from_secs(10);
@@ -288,7 +288,7 @@ fn round_trips_of_300_ms_still_keep_the_unit_alive() {
             queue: Default::default(),
         }) as Box<dyn Link>)
     });
-    let client = Client::open(connector, rig.clock.shared(), ClientConfig::default()).unwrap();
+    let client = Client::open(connector, rig.clock.shared(), Config::default()).unwrap();
     let keepalives_before = client.stats().keepalives;
     rig.sleep(10_000);
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0, "the unit never lost its RC");
@@ -322,7 +322,7 @@ fn round_trips_of_300_ms_during_a_move_still_keep_the_unit_alive() {
     let client = Client::open(
         connector,
         rig.clock.shared(),
-        ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() },
+        Config { function_map: FunctionMap::scp11(), ..Default::default() },
     )
     .unwrap();
     // Once the actuator moves, every reply takes 300 ms more; when it stops, the line is quick again.
@@ -345,7 +345,7 @@ fn round_trips_of_300_ms_during_a_move_still_keep_the_unit_alive() {
 #[test]
 fn a_corrupted_length_byte_in_a_request_costs_less_than_one_reply_timeout_and_loses_nothing() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     rig.sleep(20);
     // Bit 7 of the ctp of the next RT: the unit reads ctp 134 and waits for 128 more bytes than come.
     let done = Arc::new(Mutex::new(false));
@@ -371,7 +371,7 @@ fn a_corrupted_length_byte_in_a_request_costs_less_than_one_reply_timeout_and_lo
 #[test]
 fn a_corrupted_length_byte_in_a_reply_is_rejected_at_once_and_the_read_repeated() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     rig.sleep(20);
     for xor in [0x01u8, 0x80] {
         let done = Arc::new(Mutex::new(false));
@@ -397,7 +397,7 @@ fn a_corrupted_length_byte_in_a_reply_is_rejected_at_once_and_the_read_repeated(
 /// One move of A1 from 0 to 60 counts with one bit flipped at byte `offset` of direction `dir`.
 fn move_with_one_flipped_bit(dir: Direction, offset: u64, bit: u8) -> (Result<i32, Error>, i32) {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
+    let client = rig.client(Config { function_map: FunctionMap::scp11(), ..Default::default() });
     let faults = rig.faults();
     faults.inject(dir, faults.bytes_sent(dir) + offset, Fault::Corrupt { xor: 1 << bit });
     let result =
@@ -430,7 +430,7 @@ fn one_flipped_bit_anywhere_in_a_move_never_yields_success_elsewhere() {
 #[test]
 fn a_dead_link_during_a_move_is_given_up_quickly_and_the_error_says_the_axis_may_still_move() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
+    let client = rig.client(Config { function_map: FunctionMap::scp11(), ..Default::default() });
     let cut_at = Arc::new(Mutex::new(None));
     let cut = Arc::clone(&cut_at);
     let clock = rig.clock.shared();
@@ -469,7 +469,7 @@ fn a_dead_link_during_a_move_is_given_up_quickly_and_the_error_says_the_axis_may
 #[test]
 fn a_broken_port_during_a_move_is_reported_with_an_unconfirmed_stop() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
+    let client = rig.client(Config { function_map: FunctionMap::scp11(), ..Default::default() });
     let faults = Arc::clone(&rig.faults);
     let progress = move |p: &motionlink_scu::session::MoveProgress| {
         if p.position_counts > PositionCounts(100) {

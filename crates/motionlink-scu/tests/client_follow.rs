@@ -11,7 +11,7 @@ use rig::*;
 
 fn scp11() -> (Rig, Client) {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
+    let client = rig.client(Config { function_map: FunctionMap::scp11(), ..Default::default() });
     (rig, client)
 }
 
@@ -67,7 +67,7 @@ fn a_follow_that_ends_away_from_its_last_target_is_a_device_error_naming_actuato
     // The session is told that F1 drives A1 and A2; on this SCP11 unit it drives A1 alone, so A2 stays put.
     let rig = Rig::new(SimConfig::default());
     let map = FunctionMap::scp11().apply("F1=1,2").unwrap();
-    let client = rig.client(ClientConfig { function_map: map, position_tolerance_counts: 2, ..Default::default() });
+    let client = rig.client(Config { function_map: map, position_tolerance_counts: 2, ..Default::default() });
     let a2_before = rig.unit(|u| u.position(a(2))).unwrap();
     let mut follower = Follower::new(client.stream(f(1), &[a(1), a(2)], pct(100)).unwrap(), a(1), 20).unwrap();
     follower.offer(vec![PositionCounts(300), PositionCounts(a2_before + 200)]);

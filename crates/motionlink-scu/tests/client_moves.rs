@@ -9,7 +9,7 @@ use rig::*;
 #[test]
 fn a_function_that_drives_two_actuators_moves_each_to_its_own_target_with_one_re() {
     let rig = Rig::new(SimConfig::liftkit());
-    let client = rig.client(ClientConfig { function_map: FunctionMap::liftkit(), ..Default::default() });
+    let client = rig.client(Config { function_map: FunctionMap::liftkit(), ..Default::default() });
     let f8 = f(8);
     let report = client
         .move_function(
@@ -52,14 +52,14 @@ fn a_function_that_drives_two_actuators_moves_each_to_its_own_target_with_one_re
 fn without_a_function_map_move_to_gives_every_connected_actuator_the_target_and_reports_the_ones_that_moved() {
     // A TLT, of which the client is not told: F1 drives both columns, and both end at 400.
     let rig = Rig::new(SimConfig::tlt());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     let report = client.move_to(a(1), PositionCounts(400), pct(100), &MoveOptions::default()).unwrap();
     assert_eq!(rig.unit(|u| (u.position(a(1)), u.position(a(2)))), (Some(400), Some(400)));
     let each: Vec<_> = report.actuators.iter().map(|o| (o.actuator, o.position_counts, o.moved)).collect();
     assert_eq!(each, [(a(1), PositionCounts(400), true), (a(2), PositionCounts(400), true)]);
     // An SCP11 unit: F1 drives A1 alone; A2 gets the remote position but does not move, and is reported so.
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     let report = client.move_to(a(1), PositionCounts(400), pct(100), &MoveOptions::default()).unwrap();
     let each: Vec<_> = report.actuators.iter().map(|o| (o.actuator, o.position_counts, o.moved)).collect();
     assert_eq!(each, [(a(1), PositionCounts(400), true), (a(2), PositionCounts(0), false)]);
@@ -71,8 +71,7 @@ fn a_move_polls_at_its_interval_and_not_as_fast_as_the_line_answers() {
     // Polling with reads (the choice when the keepalive cannot carry the poll object).
     let rig = Rig::new(SimConfig::default());
     let reads = MovePolling::Reads;
-    let client =
-        rig.client(ClientConfig { function_map: FunctionMap::scp11(), move_polling: reads, ..Default::default() });
+    let client = rig.client(Config { function_map: FunctionMap::scp11(), move_polling: reads, ..Default::default() });
     let before = rig.unit(|u| u.stats().telegrams - u.stats().cyclic);
     let report = client.move_to(a(1), PositionCounts(400), pct(100), &MoveOptions::default()).unwrap();
     let requests = rig.unit(|u| u.stats().telegrams - u.stats().cyclic) - before;
@@ -81,7 +80,7 @@ fn a_move_polls_at_its_interval_and_not_as_fast_as_the_line_answers() {
     assert!(requests <= 2 * polls + 16, "{requests} requests for {polls} polls");
     assert!(requests >= 2 * polls - 4, "{requests} requests for {polls} polls");
     drop(client);
-    let client = rig.client(ClientConfig {
+    let client = rig.client(Config {
         function_map: FunctionMap::scp11(),
         poll_interval: Duration::from_millis(200),
         move_polling: reads,
@@ -96,7 +95,7 @@ fn a_move_polls_at_its_interval_and_not_as_fast_as_the_line_answers() {
 #[test]
 fn a_move_polls_through_the_keepalive_at_its_interval_and_sends_nothing_else_while_the_motion_runs() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
+    let client = rig.client(Config { function_map: FunctionMap::scp11(), ..Default::default() });
     // Every request the session sends, with whether the unit's actuator moved when it went out.
     let sent = Arc::new(Mutex::new(Vec::new()));
     let sink = Arc::clone(&sent);
@@ -125,8 +124,7 @@ fn a_move_reads_its_result_after_the_unit_reports_the_end_of_the_motion() {
     // the positions come in one reply, read at one instant: see the test below.)
     let rig = Rig::new(SimConfig::default());
     let reads = MovePolling::Reads;
-    let client =
-        rig.client(ClientConfig { function_map: FunctionMap::scp11(), move_polling: reads, ..Default::default() });
+    let client = rig.client(Config { function_map: FunctionMap::scp11(), move_polling: reads, ..Default::default() });
     // Every position read is recorded with whether the unit reported motion just before.
     let reads = Arc::new(Mutex::new(Vec::new()));
     let sink = Arc::clone(&reads);
@@ -145,7 +143,7 @@ fn a_move_reads_its_result_after_the_unit_reports_the_end_of_the_motion() {
 #[test]
 fn a_move_polled_through_the_keepalive_judges_the_reply_that_reports_the_end_of_the_motion() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
+    let client = rig.client(Config { function_map: FunctionMap::scp11(), ..Default::default() });
     // Every RC that carries the poll object (CyclicObj 5: object index 4), with whether the unit moved.
     let polls = Arc::new(Mutex::new(Vec::new()));
     let sink = Arc::clone(&polls);
@@ -166,7 +164,7 @@ fn a_move_polled_through_the_keepalive_judges_the_reply_that_reports_the_end_of_
 #[test]
 fn streamed_setpoints_retarget_a_running_motion_and_change_its_speed() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() });
+    let client = rig.client(Config { function_map: FunctionMap::scp11(), ..Default::default() });
     let mut stream = client.stream(f(1), &[a(1)], pct(100)).unwrap();
     stream.set_targets(&[PositionCounts(600)]).unwrap();
     rig.sleep(1_000);
@@ -200,7 +198,7 @@ fn streamed_setpoints_retarget_a_running_motion_and_change_its_speed() {
 #[test]
 fn cyclic_objects_may_name_groups() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     // Write all six remote positions (group 0x3020), read all positions and all status bytes (groups).
     let obj = CyclicObject::new(&[DataIndex(0x3020)], &[DataIndex(0x0010), DataIndex(0x0170)]).unwrap();
     client.configure_cyclic(2, &obj).unwrap();
@@ -220,7 +218,7 @@ fn cyclic_objects_may_name_groups() {
 fn safety_id_1_through_the_api_a_watchdog_lapse_during_a_move_is_reported_and_the_session_goes_on() {
     for safety in [SafetyId::StopAll, SafetyId::StopRemoteOnly] {
         let rig = Rig::new(SimConfig::default());
-        let config = ClientConfig { safety_id: safety, function_map: FunctionMap::scp11(), ..Default::default() };
+        let config = Config { safety_id: safety, function_map: FunctionMap::scp11(), ..Default::default() };
         let client = rig.client(config);
         assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Active(safety));
         let faults = Arc::clone(&rig.faults);
@@ -270,7 +268,7 @@ fn safety_id_1_through_the_api_a_watchdog_lapse_during_a_move_is_reported_and_th
 #[test]
 fn while_idle_a_lapse_with_safety_id_1_is_re_armed_and_a_lock_with_safety_id_0_is_reported() {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig { safety_id: SafetyId::StopAll, ..Default::default() });
+    let client = rig.client(Config { safety_id: SafetyId::StopAll, ..Default::default() });
     rig.faults().drop_next(Direction::HostToDevice, u64::MAX / 2);
     rig.sleep(1_500);
     rig.faults().heal();
@@ -280,7 +278,7 @@ fn while_idle_a_lapse_with_safety_id_1_is_re_armed_and_a_lock_with_safety_id_0_i
     assert_eq!(client.stats().watchdog_lapses, 1);
     assert!(client.is_open());
     drop(client);
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     rig.faults().drop_next(Direction::HostToDevice, u64::MAX / 2);
     rig.sleep(1_500);
     rig.faults().heal();
@@ -357,7 +355,7 @@ fn set_read_back_mismatch(config: SimConfig) {
         PipeConfig::paced(38_400),
     );
     let connector: Connector = Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>));
-    let client = Client::open(connector, clock.shared(), ClientConfig::default()).unwrap();
+    let client = Client::open(connector, clock.shared(), Config::default()).unwrap();
     client.set(DataIndex(0x3011), &Value::RemoteSpeed(40)).unwrap();
     let err = client.set(DataIndex(0x3011), &Value::RemoteSpeed(80)).unwrap_err();
     let Error::ReadBack { name, written, read, .. } = &err else { panic!("{err}") };

@@ -7,7 +7,7 @@ use std::time::Duration;
 use motionlink_link::link::Link;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::RealClock;
-use motionlink_scu::{Client, ClientConfig};
+use motionlink_scu::{Client, Config};
 use motionlink_scu::{Emulator, SimConfig};
 
 /// CPU time this process has used (user + system), from /proc/self/stat, in clock ticks (normally 10 ms).
@@ -25,7 +25,7 @@ fn an_idle_session_costs_no_measurable_cpu() {
     let clock = RealClock::shared();
     let unit = EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), clock.clone(), PipeConfig::instant());
     let client =
-        Client::open(Box::new(move || Ok(Box::new(unit.connect().0) as Box<dyn Link>)), clock, ClientConfig::default())
+        Client::open(Box::new(move || Ok(Box::new(unit.connect().0) as Box<dyn Link>)), clock, Config::default())
             .unwrap();
     let before = cpu_ticks();
     std::thread::sleep(Duration::from_secs(2));

@@ -18,7 +18,7 @@ fn sim_setup() -> ProbeSetup {
 
 fn probed(variants: &[Variant]) -> ScuProbeReport {
     let rig = Rig::with_variants(SimConfig::default(), variants);
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     let at = || rig.unit(|u| (u.position(a(1)), u.position(a(2))));
     let before = at();
     let report = probe(&client, &sim_setup()).unwrap();
@@ -109,7 +109,7 @@ fn a_saved_profile_seeds_the_next_session_and_its_probe_exchanges_disappear() {
     let dir = std::env::temp_dir().join(format!("motionlink-scu-profile-{}", std::process::id()));
     let path = dir.join("profiles.toml");
     let rig = Rig::with_variants(SimConfig::default(), &[Variant::NoGroups, Variant::NoUserPositions]);
-    let client = rig.client(ClientConfig::default());
+    let client = rig.client(Config::default());
     let mut report = probe(&client, &ProbeSetup::new("lift", PortKind::Sim, 38_400)).unwrap();
     client.close().unwrap();
     let mut profiles = Profiles::load(&path).unwrap();
@@ -125,14 +125,14 @@ fn a_saved_profile_seeds_the_next_session_and_its_probe_exchanges_disappear() {
         sent.iter().filter(|b| b.starts_with(b"RG") && (b[2..4] == [0x70, 0x01] || b[2..4] == [0x01, 0x20])).count()
     };
     let profiles = Profiles::load(&path).unwrap();
-    let fresh = rig.client(ClientConfig::default());
+    let fresh = rig.client(Config::default());
     fresh.statuses().unwrap();
     fresh.stroke_limits(a(1)).unwrap_err();
     assert_eq!(refused_reads(&sent.lock().unwrap()), 2, "without the profile the session probes");
     fresh.close().unwrap();
 
     sent.lock().unwrap().clear();
-    let seeded = rig.client(ClientConfig::default());
+    let seeded = rig.client(Config::default());
     let used = use_profile(&seeded, &profiles, "lift").unwrap();
     assert_eq!(used.reference.as_deref(), Some(report.saved[0].as_str()));
     assert!(used.notices.is_empty());
@@ -145,7 +145,7 @@ fn a_saved_profile_seeds_the_next_session_and_its_probe_exchanges_disappear() {
 
     // Another unit on the same port: the profile is left unused, with a notice.
     let other = Rig::new(SimConfig { firmware_info: "SCU V2B4 other".into(), ..SimConfig::default() });
-    let client = other.client(ClientConfig::default());
+    let client = other.client(Config::default());
     let used = use_profile(&client, &profiles, "lift").unwrap();
     assert_eq!(used.reference, None);
     assert!(used.notices[0].contains("V2B4") && used.notices[0].contains("not used"), "{:?}", used.notices);
@@ -191,7 +191,7 @@ fn baud_auto_finds_the_rate_the_unit_answers_at() {
             let (link, _) = host.connect();
             Ok(Box::new(AtRate { inner: Box::new(link), garble: baud != 19_200 }) as Box<dyn Link>)
         });
-        Client::open(connector, rig.clock.shared(), ClientConfig::default())
+        Client::open(connector, rig.clock.shared(), Config::default())
     };
     let (found, check) = find_baud(PortKind::Serial, &BaudChoice::Auto(BAUD_RATES), open);
     let (client, baud) = found.unwrap();

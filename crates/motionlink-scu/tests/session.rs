@@ -11,7 +11,7 @@ use motionlink_scu::model::{Actuator, DataIndex, MotionDirection, MotionFunction
 use motionlink_scu::session::{MoveSpec, MoveTargets, Op, Output, PreparedRequest, Progress, RunAction, RunSpec};
 use motionlink_scu::sim::RemoteMode;
 use motionlink_scu::wire::Request;
-use motionlink_scu::{ClientConfig, Emulator, Error, FunctionMap, Session, SimConfig};
+use motionlink_scu::{Config, Emulator, Error, FunctionMap, Session, SimConfig};
 use motionlink_testkit::wired::{Line, Serial, Wired};
 
 /// The session wired to the unit at 38400 baud, 8N1 (the shared harness).
@@ -20,20 +20,20 @@ type Bench = Wired<Session, Serial<Emulator>>;
 /// What these tests ask of the harness.
 trait ScuBench {
     /// A session on a unit, not yet opened.
-    fn unopened(config: ClientConfig, unit: SimConfig) -> Self;
+    fn unopened(config: Config, unit: SimConfig) -> Self;
     /// A session opened on a unit.
-    fn opened(config: ClientConfig, unit: SimConfig) -> Self;
+    fn opened(config: Config, unit: SimConfig) -> Self;
     /// The command letters of what the session sent between `from` and `to`.
     fn sent_between(&self, from: Timestamp, to: Timestamp) -> Vec<String>;
 }
 
 impl ScuBench for Bench {
-    fn unopened(config: ClientConfig, unit: SimConfig) -> Bench {
+    fn unopened(config: Config, unit: SimConfig) -> Bench {
         let session = Session::new(config, Timestamp::ZERO).unwrap();
         Wired::new(session, Serial(Emulator::new(unit).unwrap()), Line::baud(38_400, 10))
     }
 
-    fn opened(config: ClientConfig, unit: SimConfig) -> Bench {
+    fn opened(config: Config, unit: SimConfig) -> Bench {
         let mut b = Bench::unopened(config, unit);
         let open = b.start(Op::Open);
         b.wait_done(open).unwrap();
@@ -66,8 +66,8 @@ fn move_a1(target: i32) -> Op {
     })
 }
 
-fn scp11() -> ClientConfig {
-    ClientConfig { function_map: FunctionMap::scp11(), ..ClientConfig::default() }
+fn scp11() -> Config {
+    Config { function_map: FunctionMap::scp11(), ..Config::default() }
 }
 
 fn is_keepalive(bytes: &[u8]) -> bool {
@@ -76,7 +76,7 @@ fn is_keepalive(bytes: &[u8]) -> bool {
 
 #[test]
 fn open_sends_ro_then_rc_and_the_keepalive_keeps_its_grid_of_deadlines() {
-    let mut b = Bench::opened(ClientConfig::default(), SimConfig::default());
+    let mut b = Bench::opened(Config::default(), SimConfig::default());
     assert_eq!(b.sent_between(Timestamp::ZERO, b.now), ["RO", "RC"]);
     assert_eq!(b.device.mode(), RemoteMode::Active(SafetyId::StopAllAndLock));
     let rc_at = b.sent[1].0;
@@ -220,7 +220,7 @@ fn closing_stops_what_runs_then_sends_rs_for_every_re_and_ra() {
 
 #[test]
 fn a_session_the_unit_ended_is_reported_and_never_opened_again_by_itself() {
-    let mut b = Bench::opened(ClientConfig::default(), SimConfig::default());
+    let mut b = Bench::opened(Config::default(), SimConfig::default());
     b.cut = true;
     b.run_for(Duration::from_secs(1));
     b.cut = false;
@@ -239,7 +239,7 @@ fn a_session_the_unit_ended_is_reported_and_never_opened_again_by_itself() {
 
 #[test]
 fn a_lost_reply_is_asked_again_after_silence_with_zeros_first_and_the_late_reply_is_dropped() {
-    let mut b = Bench::opened(ClientConfig::default(), SimConfig::default());
+    let mut b = Bench::opened(Config::default(), SimConfig::default());
     b.run_for(Duration::from_millis(50));
     // The unit's reply is held back 300 ms: the RG goes out again after 150 ms of silence, behind the zeros
     // that complete a telegram the unit may hold half-received.
@@ -285,7 +285,7 @@ fn a_broken_port_fails_what_runs_and_a_reconnect_reopens_it_and_stops_what_was_s
 
 #[test]
 fn a_write_is_read_back_and_a_value_the_unit_refuses_is_a_refusal() {
-    let mut b = Bench::opened(ClientConfig::default(), SimConfig::default());
+    let mut b = Bench::opened(Config::default(), SimConfig::default());
     // Written and read back: RT, RG.
     let set = b.start(Op::Set { index: DataIndex(0x3011), data: vec![40, 0], verify: true });
     b.wait_done(set).unwrap();
@@ -298,7 +298,7 @@ fn a_write_is_read_back_and_a_value_the_unit_refuses_is_a_refusal() {
 
 #[test]
 fn a_run_is_watched_through_the_keepalive_until_its_motion_ends_and_then_stopped() {
-    let mut b = Bench::opened(ClientConfig::default(), SimConfig::default());
+    let mut b = Bench::opened(Config::default(), SimConfig::default());
     let id = b.start(Op::Run(RunSpec { action: RunAction::Motion(f(1), MotionDirection::Out), limit: None }));
     let Output::Run(report) = b.wait_done(id).unwrap() else { panic!() };
     assert_eq!(report.rest, [(a(1), PositionCounts(865)), (a(2), PositionCounts(0))], "F1 ran to the Out end");
@@ -312,7 +312,7 @@ fn a_run_is_watched_through_the_keepalive_until_its_motion_ends_and_then_stopped
 
 #[test]
 fn a_cancelled_run_stops_its_function_and_says_where_the_actuators_came_to_rest() {
-    let mut b = Bench::opened(ClientConfig::default(), SimConfig::default());
+    let mut b = Bench::opened(Config::default(), SimConfig::default());
     let id = b.start(Op::Run(RunSpec { action: RunAction::Motion(f(2), MotionDirection::Out), limit: None }));
     b.run_until(Duration::from_secs(5), |b| b.device.position(a(2)).unwrap_or(0) > 50);
     b.session.cancel(id, b.now);
@@ -325,7 +325,7 @@ fn a_cancelled_run_stops_its_function_and_says_where_the_actuators_came_to_rest(
 
 #[test]
 fn a_unit_slow_to_answer_ro_does_not_hold_back_the_requests_after_it() {
-    let mut b = Bench::unopened(ClientConfig::default(), SimConfig::default());
+    let mut b = Bench::unopened(Config::default(), SimConfig::default());
     // A unit asleep after a long silence answers the first RO after 1.5 s.
     b.hold_next_reply = Some(Duration::from_millis(1500));
     let open = b.start(Op::Open);

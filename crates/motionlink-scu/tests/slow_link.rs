@@ -12,13 +12,13 @@ use rig::*;
 
 const SLOW: Duration = Duration::from_millis(290);
 
-fn scp11() -> ClientConfig {
-    ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() }
+fn scp11() -> Config {
+    Config { function_map: FunctionMap::scp11(), ..Default::default() }
 }
 
 /// [`scp11`], and a watch may define its object across one lapse of the watchdog (the user's opt-in).
-fn scp11_may_lapse() -> ClientConfig {
-    ClientConfig { watch_may_lapse: true, ..scp11() }
+fn scp11_may_lapse() -> Config {
+    Config { watch_may_lapse: true, ..scp11() }
 }
 
 #[test]

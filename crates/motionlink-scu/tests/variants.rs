@@ -22,7 +22,7 @@ struct Outcome {
 }
 
 /// Open, get, set, move (two functions, two speeds), home (F1 In), stop, watch, close: each must succeed.
-fn core_operations(rig: &Rig, config: ClientConfig) -> Outcome {
+fn core_operations(rig: &Rig, config: Config) -> Outcome {
     let client = rig.client(config);
     // get: a group (every position) and an entry, the same values either way.
     let all = client.get(DataIndex(0x0010)).unwrap();
@@ -75,8 +75,8 @@ fn core_operations(rig: &Rig, config: ClientConfig) -> Outcome {
     }
 }
 
-fn scp11() -> ClientConfig {
-    ClientConfig { function_map: FunctionMap::scp11(), ..Default::default() }
+fn scp11() -> Config {
+    Config { function_map: FunctionMap::scp11(), ..Default::default() }
 }
 
 fn run_on(variants: &[Variant]) -> (Rig, Outcome) {
@@ -139,7 +139,7 @@ fn without_user_position_data_a_move_says_its_target_was_not_checked_unless_stro
     assert!(matches!(e, Error::MotionEnded { position_counts: PositionCounts(865), .. }), "{e}");
     // With the stroke configured, the client's limits are the check: verified, and refused before moving.
     let stroke = StrokeLimits { min_counts: PositionCounts(0), max_counts: PositionCounts(865) };
-    let client = rig.client(ClientConfig { stroke_limits: [Some(stroke); 6], ..scp11() });
+    let client = rig.client(Config { stroke_limits: [Some(stroke); 6], ..scp11() });
     let report = client.move_to(a(1), PositionCounts(500), pct(100), &MoveOptions::default()).unwrap();
     assert!(report.verified, "{:?}", report.not_verifiable);
     let e = client.move_to(a(1), PositionCounts(900), pct(100), &MoveOptions::default()).unwrap_err();
@@ -215,7 +215,7 @@ fn after_homing_a_column_reads_a_few_counts_below_its_in_end_which_the_tolerance
     client.move_to(a(1), PositionCounts(200), pct(100), &MoveOptions::default()).unwrap();
     let report = client.move_to(a(1), PositionCounts(0), pct(100), &MoveOptions::default()).unwrap();
     assert_eq!(report.position_counts, PositionCounts(-3));
-    let strict = rig.client(ClientConfig { position_tolerance_counts: 2, ..scp11() });
+    let strict = rig.client(Config { position_tolerance_counts: 2, ..scp11() });
     strict.move_to(a(1), PositionCounts(200), pct(100), &MoveOptions::default()).unwrap();
     let e = strict.move_to(a(1), PositionCounts(0), pct(100), &MoveOptions::default()).unwrap_err();
     assert!(matches!(e, Error::MotionEnded { position_counts: PositionCounts(-3), .. }), "{e}");

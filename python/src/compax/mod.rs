@@ -7,7 +7,7 @@ pub use watch::CompaxWatch;
 use std::sync::Arc;
 use std::time::Duration;
 
-use motionlink_compax::client::{BusConfig, MoveReport, MoveRequest, MoveTarget, TravelLimits};
+use motionlink_compax::client::{Config, MoveReport, MoveRequest, MoveTarget, TravelLimits};
 use motionlink_compax::model::{
     BaudRate, ModelError, OutputNumber, OutputState, ParamId, PollInterval, Position, RampMs, ReplyTimeout,
     SpeedPercent, StatusId, TimeLimit, Tolerance, WatchInterval, WholeArg,
@@ -67,7 +67,7 @@ pub struct Settings {
 }
 
 /// The link `port` names and the session's settings, checked.
-fn link(port: Target, s: &Settings) -> Result<(Box<dyn Link>, BusConfig), Failure> {
+fn link(port: Target, s: &Settings) -> Result<(Box<dyn Link>, Config), Failure> {
     let mode: Mode = whole(&s.mode, "mode (P196)")?;
     let drive: Address = whole(&s.drive, "drive")?;
     let baud = whole::<BaudRate>(&s.baud, "baud")?.bits_per_s();
@@ -91,7 +91,7 @@ fn link(port: Target, s: &Settings) -> Result<(Box<dyn Link>, BusConfig), Failur
             p.open_byte_link(settings).map_err(|e| e.failure())?
         }
     };
-    let mut cfg = BusConfig::new(mode, baud);
+    let mut cfg = Config::new(mode, baud);
     cfg.reply_timeout = reply_timeout.duration();
     cfg.poll_interval = poll.duration();
     cfg.in_position_tolerance = tolerance.position();

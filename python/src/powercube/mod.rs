@@ -13,7 +13,7 @@ use motionlink_powercube::args::{
     Baud, CanBitRate, MotionTimeout, MoveAcceleration, MoveVelocity, PollInterval, ReplyTimeout, Target as MoveTarget,
     Tolerance,
 };
-use motionlink_powercube::client::{BusConfig, Client, Guard, HomeReport, ModulesAt, MoveReport, MoveSpec, PortLink};
+use motionlink_powercube::client::{Client, Config, Guard, HomeReport, ModulesAt, MoveReport, MoveSpec, PortLink};
 use motionlink_powercube::model::{Address, AxisUnit, CubeState, ModuleKind, Param, Position, Value};
 use motionlink_powercube::report::{ParamReading, SetReport};
 use motionlink_powercube::{AsyncClient, Error};
@@ -78,8 +78,8 @@ fn usage(msg: impl Into<String>) -> Failure {
 }
 
 /// The session's settings from `s`, checked.
-fn bus_config(s: &Settings, can: bool) -> Result<BusConfig, Failure> {
-    let mut c = if can { BusConfig::can() } else { BusConfig::rs232() };
+fn bus_config(s: &Settings, can: bool) -> Result<Config, Failure> {
+    let mut c = if can { Config::can() } else { Config::rs232() };
     if let Some(t) = &s.timeout_ms {
         c.reply_timeout = int_arg::<ReplyTimeout>(t, "timeout_ms", 1..=60_000)?.get();
     }

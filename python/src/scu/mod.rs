@@ -18,7 +18,7 @@ use motionlink_scu::model::{
 };
 use motionlink_scu::results::{RunOutcome, SampleReport};
 use motionlink_scu::session::{MoveReport, RunAction, RunReport};
-use motionlink_scu::{AsyncClient, Client, ClientConfig, Error, FunctionMap, MoveOptions, StrokeLimits};
+use motionlink_scu::{AsyncClient, Client, Config, Error, FunctionMap, MoveOptions, StrokeLimits};
 use pyo3::prelude::*;
 
 use crate::common::{json_py, Int, Slot};
@@ -81,9 +81,9 @@ pub struct Settings {
 }
 
 /// The session's settings and the line's baud rate, each checked by the library's rule.
-fn client_config(s: &Settings) -> Result<(ClientConfig, Baud), Failure> {
+fn client_config(s: &Settings) -> Result<(Config, Baud), Failure> {
     let baud: Baud = checked(&s.baud, "baud")?;
-    let config = ClientConfig {
+    let config = Config {
         safety_id: checked::<SafetyId>(&s.safety, "safety")?,
         reply_timeout: checked::<ReplyTimeout>(&s.reply_timeout_ms, "reply_timeout_ms")?.get(),
         speed_mode: s.speed_mode.parse::<SpeedMode>().map_err(bad("speed_mode"))?,
@@ -91,7 +91,7 @@ fn client_config(s: &Settings) -> Result<(ClientConfig, Baud), Failure> {
         stroke_limits: StrokeLimits::per_actuator(&s.strokes).map_err(|e| usage(format!("strokes: {e}")))?,
         position_tolerance_counts: checked::<ToleranceCounts>(&s.tolerance_counts, "tolerance_counts")?.get(),
         poll_interval: checked::<PollInterval>(&s.poll_ms, "poll_ms")?.get(),
-        ..ClientConfig::default()
+        ..Config::default()
     };
     config.validate().map_err(|e| usage(e.to_string()))?;
     Ok((config, baud))
@@ -99,7 +99,7 @@ fn client_config(s: &Settings) -> Result<(ClientConfig, Baud), Failure> {
 
 /// How to reach the unit `port` names, and the session's settings. `port="sim"` emulates, in this process,
 /// the unit the session is told it is (its function map and speed mode).
-fn connector(port: Target, s: &Settings) -> Result<(Connector, ClientConfig), Failure> {
+fn connector(port: Target, s: &Settings) -> Result<(Connector, Config), Failure> {
     let (config, baud) = client_config(s)?;
     let connector: Connector = match port {
         Target::InProcess(InProcess::Scu(host)) => Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>)),

@@ -18,7 +18,7 @@ use crate::model::{
 use crate::report::{ParamReading, ParamWritten};
 use crate::session::core::Effect;
 use crate::session::{
-    AfterRaw, BusConfig, MoveOptions, MoveReport, MoveRequest, Op, Output, Progress, RawOutcome, Session, StartedMove,
+    AfterRaw, Config, MoveOptions, MoveReport, MoveRequest, Op, Output, Progress, RawOutcome, Session, StartedMove,
     WatchSample,
 };
 use crate::wire::{Address, Body, Flags};
@@ -29,7 +29,7 @@ use crate::wire::{Address, Body, Flags};
 /// turns on the line as the session schedules them.
 ///
 /// ```
-/// use motionlink_compax::client::{BusConfig, MoveOptions};
+/// use motionlink_compax::client::{Config, MoveOptions};
 /// use motionlink_compax::model::Position;
 /// use motionlink_compax::sim::SimConfig;
 /// use motionlink_compax::wire::{Address, Mode};
@@ -41,7 +41,7 @@ use crate::wire::{Address, Body, Flags};
 /// let host = EmulatorHost::new(Emulator::new(SimConfig::bus(&[1, 5], 0, 9600)).unwrap(),
 ///                              clock.shared(), PipeConfig::paced(9600));
 /// let (link, _faults) = host.connect();
-/// let bus = Client::new(Box::new(link), clock.shared(), BusConfig::new(Mode::default(), 9600)).unwrap();
+/// let bus = Client::new(Box::new(link), clock.shared(), Config::new(Mode::default(), 9600)).unwrap();
 /// let five = Address::drive(5).unwrap();
 /// bus.move_absolute(five, Position::new(25.0).unwrap(), MoveOptions::default()).unwrap();
 /// bus.wait_reached(&[five], None, &mut |_, _| {}).unwrap();
@@ -51,7 +51,7 @@ use crate::wire::{Address, Body, Flags};
 /// ```
 pub struct Client {
     driver: Driver<Session>,
-    config: BusConfig,
+    config: Config,
     cancel: Mutex<CancelToken>,
     close_report: Arc<Mutex<Option<StopReport>>>,
 }
@@ -65,7 +65,7 @@ impl std::fmt::Debug for Client {
 impl Client {
     /// A client on `link`, timed by `clock`. Starts the driver's thread (which runs the session's
     /// operations for async callers and otherwise sleeps: COMPAX has no keepalive).
-    pub fn new(link: Box<dyn Link>, clock: SharedClock, cfg: BusConfig) -> Result<Self> {
+    pub fn new(link: Box<dyn Link>, clock: SharedClock, cfg: Config) -> Result<Self> {
         let session = Session::new(cfg.clone(), clock.now());
         let close_report = session.close_report();
         let port = Port::Bytes(link);
@@ -109,7 +109,7 @@ impl Client {
     }
 
     /// The configuration.
-    pub fn config(&self) -> &BusConfig {
+    pub fn config(&self) -> &Config {
         &self.config
     }
 
@@ -158,7 +158,7 @@ impl Client {
     // Reading
 
     /// Reads status value `id`. Address 32 is refused with [`Error::Broadcast`]. A reply that does not read
-    /// as that value is asked for again, up to [`BusConfig::retries`] times: a read changes nothing.
+    /// as that value is asked for again, up to [`Config::retries`] times: a read changes nothing.
     pub fn read_status(&self, address: Address, id: StatusId) -> Result<StatusValue> {
         output(self.run(Op::ReadStatus(address, id))?, "a status read", |o| match o {
             Output::Status(v) => Ok(v),
@@ -384,10 +384,10 @@ impl Client {
     }
 
     /// Waits until every drive in `drives` has ended its positioning: by its `$` message when the move asked
-    /// for one, otherwise by polling S17 every [`BusConfig::poll_interval`]; `progress` gets each polled
+    /// for one, otherwise by polling S17 every [`Config::poll_interval`]; `progress` gets each polled
     /// position. While it listens for `$` messages it still reads each drive's S17 every
-    /// [`BusConfig::message_check_interval`]. Without a `timeout` it waits at most
-    /// [`BusConfig::wait_timeout`]. On timeout, cancellation or a line failure, the drives it waits for
+    /// [`Config::message_check_interval`]. Without a `timeout` it waits at most
+    /// [`Config::wait_timeout`]. On timeout, cancellation or a line failure, the drives it waits for
     /// that this client started are stopped and the error is [`Error::Aborted`]. Address 32 is refused.
     pub fn wait_reached(
         &self,
@@ -469,7 +469,7 @@ impl Client {
 
     /// Stops what this client set in motion that still moves (as [`Client::stop_started`]), ends the
     /// session and returns the report: `Err` if a drive did not confirm its stop
-    /// ([`Error::CloseUnconfirmed`]), or if the stop did not end within [`BusConfig::close_bound`].
+    /// ([`Error::CloseUnconfirmed`]), or if the stop did not end within [`Config::close_bound`].
     pub fn close(self) -> Result<StopReport> {
         let Client { driver, close_report, .. } = self;
         driver.close()?;
@@ -482,7 +482,7 @@ impl Client {
 
     /// Moves one drive and makes sure it got there: [`Client::start_checked_move`], then
     /// [`Client::finish_checked_move`]. `progress` gets each polled position. Returns where the axis came
-    /// to rest, within [`BusConfig::in_position_tolerance`] of the target; any other outcome is an error,
+    /// to rest, within [`Config::in_position_tolerance`] of the target; any other outcome is an error,
     /// and an error (or a cancel) while the axis may move has stopped it ([`Error::Aborted`]).
     pub fn move_to(
         &self,
@@ -533,7 +533,7 @@ impl Client {
     }
 
     /// Waits for a move [`Client::start_checked_move`] started and checks where the axis came to rest: S1
-    /// must lie within [`BusConfig::in_position_tolerance`] of the target, or the error is
+    /// must lie within [`Config::in_position_tolerance`] of the target, or the error is
     /// [`Error::NotReached`] naming target, reached position and difference. Errors during the wait stop the
     /// axis.
     pub fn finish_checked_move(

@@ -13,7 +13,7 @@
 //!
 //! Closing ([`Client::close`], or dropping the client) stops every axis the session set in motion that
 //! still moves and returns the report; it waits for that at most
-//! [`BusConfig::close_bound`](crate::session::BusConfig::close_bound) (5 s by default), never longer: past
+//! [`Config::close_bound`](crate::session::Config::close_bound) (5 s by default), never longer: past
 //! that, the error says the axes may still be moving. [`Client::release`] hands a running move over: the
 //! session forgets it and does not stop it.
 //!
@@ -32,7 +32,7 @@ pub use drive::Drive;
 
 pub use crate::error::{Error, Result, RoundTripRange, StopOutcome, StopReport};
 pub use crate::session::{
-    AfterRaw, BusConfig, EchoForm, MoveOptions, MoveReport, MoveRequest, MoveTarget, Progress, RawOutcome, StartedMove,
+    AfterRaw, Config, EchoForm, MoveOptions, MoveReport, MoveRequest, MoveTarget, Progress, RawOutcome, StartedMove,
     TravelLimits, WatchSample, DEFAULT_IN_POSITION_TOLERANCE,
 };
 
@@ -41,7 +41,7 @@ use motionlink_link::driver::DriverConfig;
 use crate::session::Output;
 
 /// The driver settings of a session configured by `cfg`.
-fn driver_config(cfg: &BusConfig) -> DriverConfig {
+fn driver_config(cfg: &Config) -> DriverConfig {
     DriverConfig { close_bound: cfg.close_bound, read_slice: cfg.read_slice }
 }
 

@@ -11,7 +11,7 @@ use motionlink_link::exec::{Jobs, Ticket};
 use motionlink_link::session::OpId;
 use motionlink_link::{LinkError, Timestamp};
 
-use super::types::BusConfig;
+use super::types::Config;
 use crate::error::Error;
 use crate::model::{parse_param_reply, Command, ErrorCode, OutputState, ParamId, StatusId, StatusValue};
 use crate::wire::reply::ReplyError;
@@ -159,7 +159,7 @@ pub(crate) struct Job {
 
 impl Job {
     /// A job for `req`, owned by `op`.
-    pub(crate) fn new(op: OpId, req: &Request<'_>, cfg: &BusConfig, retry: Retry) -> Result<Job, Error> {
+    pub(crate) fn new(op: OpId, req: &Request<'_>, cfg: &Config, retry: Retry) -> Result<Job, Error> {
         let frame = req.encode(&cfg.mode)?;
         Ok(Job {
             id: None,
@@ -205,7 +205,7 @@ struct InFlight {
 /// The session's state, shared by its operations.
 #[derive(Debug)]
 pub(crate) struct Core {
-    pub cfg: BusConfig,
+    pub cfg: Config,
     /// The time of the latest call into the session.
     pub now: Timestamp,
     /// Drives this session set in motion and has not yet seen stop (bit n: address n).
@@ -246,7 +246,7 @@ pub(crate) struct Core {
 }
 
 impl Core {
-    pub(crate) fn new(cfg: BusConfig, now: Timestamp) -> Self {
+    pub(crate) fn new(cfg: Config, now: Timestamp) -> Self {
         Core {
             decoder: ReplyDecoder::new(&cfg.mode),
             cfg,

@@ -32,7 +32,7 @@ mod tests;
 mod types;
 
 pub use types::{
-    AfterRaw, BusConfig, EchoForm, MoveOptions, MoveReport, MoveRequest, MoveTarget, Op, Output, Progress, RawOutcome,
+    AfterRaw, Config, EchoForm, MoveOptions, MoveReport, MoveRequest, MoveTarget, Op, Output, Progress, RawOutcome,
     StartedMove, TravelLimits, WatchSample, DEFAULT_IN_POSITION_TOLERANCE,
 };
 
@@ -76,7 +76,7 @@ impl std::fmt::Debug for Session {
 
 impl Session {
     /// A session for drives as `cfg` says, starting at `now`.
-    pub fn new(cfg: BusConfig, now: Timestamp) -> Self {
+    pub fn new(cfg: Config, now: Timestamp) -> Self {
         Session {
             exec: Executor::new(Core::new(cfg, now), now),
             closer: false,
@@ -98,7 +98,7 @@ impl Session {
     }
 
     /// The configuration.
-    pub fn config(&self) -> BusConfig {
+    pub fn config(&self) -> Config {
         self.core().cfg.clone()
     }
 

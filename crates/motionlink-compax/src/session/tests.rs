@@ -32,7 +32,7 @@ trait CompaxBench {
     /// A session with drives at `addrs`, P196 = `p196`, at `baud`.
     fn bus(addrs: &[u8], p196: u32, baud: u32) -> Self;
     /// The same, the session's settings changed by `configure`.
-    fn with(addrs: &[u8], p196: u32, baud: u32, configure: impl FnOnce(&mut BusConfig)) -> Self;
+    fn with(addrs: &[u8], p196: u32, baud: u32, configure: impl FnOnce(&mut Config)) -> Self;
     /// Runs until `id` ends (at most ten minutes of bus time).
     fn finish(&mut self, id: OpId) -> Result<Output>;
     /// Starts `op` and runs it to its end.
@@ -48,8 +48,8 @@ impl CompaxBench for Bench {
         Bench::with(addrs, p196, baud, |_| {})
     }
 
-    fn with(addrs: &[u8], p196: u32, baud: u32, configure: impl FnOnce(&mut BusConfig)) -> Bench {
-        let mut cfg = BusConfig::new(Mode::from_p196(p196).unwrap(), baud);
+    fn with(addrs: &[u8], p196: u32, baud: u32, configure: impl FnOnce(&mut Config)) -> Bench {
+        let mut cfg = Config::new(Mode::from_p196(p196).unwrap(), baud);
         configure(&mut cfg);
         let sim = SimConfig::bus(addrs, p196, baud).with_param(ParamId::new(3).unwrap(), 0.0);
         let line = Line { byte_time: cfg.char_time(), ..Line::instant() }.bytewise();

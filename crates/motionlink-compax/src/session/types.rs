@@ -10,12 +10,12 @@ use crate::error::{Error, Result, StopReport};
 use crate::model::{Command, CommandStyle, ModelError, ParamId, Position, S16Bits, S17Bits, StatusId, StatusValue};
 use crate::wire::{Address, Mode};
 
-/// The default of [`BusConfig::in_position_tolerance`], in the drive's position unit.
+/// The default of [`Config::in_position_tolerance`], in the drive's position unit.
 pub const DEFAULT_IN_POSITION_TOLERANCE: f64 = 0.01;
 
 /// How a session talks to the bus.
 #[derive(Debug, Clone, PartialEq)]
-pub struct BusConfig {
+pub struct Config {
     /// P196 of the drives (they must all have the same).
     pub mode: Mode,
     /// P195 of the drives, bit/s (it sets the wire time the timeouts allow for).
@@ -53,10 +53,10 @@ pub struct BusConfig {
     pub read_slice: Duration,
 }
 
-impl BusConfig {
+impl Config {
     /// Defaults for drives with mode `mode` at `baud_rate`.
     pub fn new(mode: Mode, baud_rate: u32) -> Self {
-        BusConfig {
+        Config {
             mode,
             baud_rate,
             reply_timeout: Duration::from_millis(200),
@@ -162,7 +162,7 @@ pub struct MoveRequest {
     pub binary: bool,
     /// Targets outside these are refused before anything is sent.
     pub limits: TravelLimits,
-    /// How long the wait may take ([`BusConfig::wait_timeout`] if `None`); then the axis is stopped.
+    /// How long the wait may take ([`Config::wait_timeout`] if `None`); then the axis is stopped.
     pub timeout: Option<Duration>,
 }
 
@@ -199,7 +199,7 @@ pub struct MoveReport {
     /// S1 at rest afterwards (within [`MoveReport::tolerance`] of the target).
     pub reached: Position,
     /// The in-position tolerance the position at rest was checked against
-    /// ([`BusConfig::in_position_tolerance`]).
+    /// ([`Config::in_position_tolerance`]).
     pub tolerance: Position,
     /// True when every check of what the drive took could be made: the echo of the stored move showed the
     /// address, the command and the flags sent (an ASCII move), and S2 the target. (The position at rest is

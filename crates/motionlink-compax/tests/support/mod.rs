@@ -5,7 +5,7 @@
 
 use std::time::Duration;
 
-use motionlink_compax::client::{BusConfig, Client};
+use motionlink_compax::client::{Client, Config};
 use motionlink_compax::model::{ParamId, Position};
 use motionlink_compax::sim::{Emulator, SimConfig};
 use motionlink_compax::wire::{Address, Mode};
@@ -28,9 +28,9 @@ pub fn rig(addrs: &[u8], p196: u32, baud: u32) -> (Rig, Client) {
 }
 
 /// The bus `sim` at `baud`, and a client for mode `p196` with its settings changed by `configure`.
-pub fn rig_on(sim: SimConfig, p196: u32, baud: u32, configure: impl FnOnce(&mut BusConfig)) -> (Rig, Client) {
+pub fn rig_on(sim: SimConfig, p196: u32, baud: u32, configure: impl FnOnce(&mut Config)) -> (Rig, Client) {
     let rig = Rig::new(Emulator::new(sim).unwrap(), PipeConfig::paced(baud));
-    let mut bus_cfg = BusConfig::new(Mode::from_p196(p196).unwrap(), baud);
+    let mut bus_cfg = Config::new(Mode::from_p196(p196).unwrap(), baud);
     configure(&mut bus_cfg);
     let bus = Client::new(rig.link().unwrap(), rig.clock.shared(), bus_cfg).unwrap();
     (rig, bus)

@@ -45,15 +45,15 @@ impl Compax {
         let baud = options.baud.bits_per_s();
         let (client, host): (AsyncClient, Option<Box<dyn std::any::Any + Send>>) = match url {
             PortUrl::Sim => {
-                let bus = Emulator::new(options.emulated_bus()).map_err(|e| ReplyError::usage(e.to_string()))?;
+                let bus = Emulator::new(options.emulated()).map_err(|e| ReplyError::usage(e.to_string()))?;
                 let host = EmulatorHost::new(bus, Arc::clone(&clock), PipeConfig::paced(baud));
                 let link = Box::new(host.connect().0);
-                (AsyncClient::new(link, clock, options.bus_config()).map_err(failed)?, Some(Box::new(host)))
+                (AsyncClient::new(link, clock, options.config()).map_err(failed)?, Some(Box::new(host)))
             }
             url => {
                 let mut settings = SerialSettings::new(baud);
                 settings.parity = options.mode.parity;
-                let client = AsyncClient::open(move || url.open_byte_link(settings), clock, options.bus_config())
+                let client = AsyncClient::open(move || url.open_byte_link(settings), clock, options.config())
                     .await
                     .map_err(failed)?;
                 (client, None)

@@ -111,7 +111,7 @@ impl Spec {
                 let mut o = motionlink_scu::args::UnitOptions::default();
                 set(&mut |k, t| o.set(k, t).map_err(|e| e.to_string()))?;
                 o.check_port(sim).map_err(|e| e.to_string())?;
-                o.client_config().map_err(|e| e.to_string())?;
+                o.config().map_err(|e| e.to_string())?;
                 FamilyOptions::Scu(o)
             }
             "powercube" => {

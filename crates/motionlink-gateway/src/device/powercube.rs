@@ -41,15 +41,15 @@ impl PowerCube {
         let clock = RealClock::shared();
         let in_process = matches!(url, PortUrl::Sim);
         let (client, host): (AsyncClient, Option<Box<dyn std::any::Any + Send>>) = if in_process {
-            let bus = options.emulated_bus().map_err(|e| ReplyError::usage(e.to_string()))?;
+            let bus = options.emulated().map_err(|e| ReplyError::usage(e.to_string()))?;
             let host = EmulatorHost::new(Emulator::new(&bus), Arc::clone(&clock), PipeConfig::instant());
             let link = Box::new(host.connect().0);
-            (AsyncClient::rs232(link, clock, options.bus_config(false)).map_err(failed)?, Some(Box::new(host)))
+            (AsyncClient::rs232(link, clock, options.config(false)).map_err(failed)?, Some(Box::new(host)))
         } else {
             let o = options.clone();
             let client = AsyncClient::open(move || match PortLink::open(&url, o.baud, o.bitrate, &clock)? {
-                Some(PortLink::Rs232(link)) => Client::rs232(link, clock, o.bus_config(false)),
-                Some(PortLink::Can(link)) => Client::can(link, clock, o.bus_config(true)),
+                Some(PortLink::Rs232(link)) => Client::rs232(link, clock, o.config(false)),
+                Some(PortLink::Can(link)) => Client::can(link, clock, o.config(true)),
                 None => unreachable!("not sim"),
             })
             .await

@@ -34,14 +34,14 @@ impl Scu {
         sim_config: Option<SimConfig>,
         port: &str,
     ) -> Result<Scu, ReplyError> {
-        let config = options.client_config().map_err(|e| ReplyError::usage(e.to_string()))?;
+        let config = options.config().map_err(|e| ReplyError::usage(e.to_string()))?;
         let url: PortUrl = port.parse().map_err(|e| ReplyError::usage(format!("port {port:?}: {e}")))?;
         let clock = RealClock::shared();
         let client = match url {
             PortUrl::Sim => {
                 let unit = match sim_config {
                     Some(unit) => unit,
-                    None => options.emulated_unit().map_err(|e| ReplyError::usage(e.to_string()))?,
+                    None => options.emulated().map_err(|e| ReplyError::usage(e.to_string()))?,
                 };
                 let sim = Emulator::new(unit).map_err(|e| ReplyError::usage(e.to_string()))?;
                 let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(options.baud.get()));

@@ -165,12 +165,12 @@ macro_rules! millis {
 }
 
 millis!(
-    /// How long to wait for an acknowledge ([`BusConfig::reply_timeout`](crate::session::BusConfig::reply_timeout)):
+    /// How long to wait for an acknowledge ([`Config::reply_timeout`](crate::session::Config::reply_timeout)):
     /// 1 to 60000 ms.
     ReplyTimeout, "the acknowledge timeout", 1, 60_000, "a whole number from 1 to 60000 ms"
 );
 millis!(
-    /// How often a wait polls the module ([`BusConfig::poll_interval`](crate::session::BusConfig::poll_interval)):
+    /// How often a wait polls the module ([`Config::poll_interval`](crate::session::Config::poll_interval)):
     /// 1 to 10000 ms.
     PollInterval, "the poll interval", 1, 10_000, "a whole number from 1 to 10000 ms"
 );

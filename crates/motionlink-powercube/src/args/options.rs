@@ -1,12 +1,12 @@
 //! The options that describe a session with one module, as every front end that names a module takes them:
 //! the command line's `--module`, `--baud`... and a device table's keys `module`, `baud`... (devices.toml,
-//! the gateway's file). One rule turns them into the session's settings ([`ModuleOptions::bus_config`]),
+//! the gateway's file). One rule turns them into the session's settings ([`ModuleOptions::config`]),
 //! the guard of its motions ([`ModuleOptions::guard`]) and the bus an in-process emulator stands for
-//! ([`ModuleOptions::emulated_bus`]).
+//! ([`ModuleOptions::emulated`]).
 
 use crate::args::{Baud, CanBitRate, PollInterval, ReplyTimeout};
 use crate::model::Address;
-use crate::session::{BusConfig, Guard, ModulesAt};
+use crate::session::{Config, Guard, ModulesAt};
 use crate::sim::{SimConfig, Variant};
 
 pub use motionlink_link::devices::OptionError;
@@ -72,8 +72,8 @@ impl ModuleOptions {
     }
 
     /// The session's settings on an RS232 line or (`can`) a CAN bus.
-    pub fn bus_config(&self, can: bool) -> BusConfig {
-        let mut config = if can { BusConfig::can() } else { BusConfig::rs232() };
+    pub fn config(&self, can: bool) -> Config {
+        let mut config = if can { Config::can() } else { Config::rs232() };
         if let Some(t) = self.timeout_ms {
             config.reply_timeout = t.get();
         }
@@ -97,7 +97,7 @@ impl ModuleOptions {
 
     /// The bus an emulator in this process stands for: the module these options name, in the firmware
     /// variants asked for.
-    pub fn emulated_bus(&self) -> Result<SimConfig, OptionError> {
+    pub fn emulated(&self) -> Result<SimConfig, OptionError> {
         let mut bus = SimConfig::with_addresses(&[self.module.get()])
             .map_err(|e| OptionError { key: Some("module"), message: e.to_string() })?;
         bus.variants = self.sim_variants.clone();
@@ -116,8 +116,8 @@ mod tests {
         assert!(o.set("sim_variants", "no-twin-mirror, ack-length-6").unwrap());
         assert!(!o.set("modules", "1").unwrap(), "not a key of these options");
         assert_eq!((o.module.get(), o.sim_variants.len()), (3, 2));
-        assert_eq!(o.bus_config(true).reply_timeout, std::time::Duration::from_millis(80));
-        assert_eq!(o.emulated_bus().unwrap().modules.len(), 1);
+        assert_eq!(o.config(true).reply_timeout, std::time::Duration::from_millis(80));
+        assert_eq!(o.emulated().unwrap().modules.len(), 1);
         assert!(o.set("module", "40").unwrap_err().to_string().starts_with("module: \"40\": "));
         assert!(o.set("no_watchdog", "yes").is_err());
         assert!(o.check_port(false).is_err() && o.check_port(true).is_ok());

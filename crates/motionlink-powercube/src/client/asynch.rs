@@ -17,8 +17,8 @@ use crate::model::{
 };
 use crate::report::ModuleDetails;
 use crate::session::{
-    BusConfig, Guard, HaltReport, HomeReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry,
-    Session, Until,
+    Config, Guard, HaltReport, HomeReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry, Session,
+    Until,
 };
 use crate::wire::{Action, ExtAck, Reply, Request};
 
@@ -26,10 +26,10 @@ use crate::wire::{Action, ExtAck, Reply, Request};
 /// reference or in an `Arc`: concurrent operations interleave on the line as the session schedules them.
 ///
 /// Closing ([`AsyncClient::close`]) halts what the session set in motion and switches off the watchdogs it
-/// switched on, bounded by [`BusConfig::close_bound`]; dropping it does the same on tokio's blocking pool.
+/// switched on, bounded by [`Config::close_bound`]; dropping it does the same on tokio's blocking pool.
 pub struct AsyncClient {
     driver: AsyncDriver<Session>,
-    config: BusConfig,
+    config: Config,
     can: bool,
 }
 
@@ -41,14 +41,14 @@ impl std::fmt::Debug for AsyncClient {
 
 impl AsyncClient {
     /// A session over an RS232 byte link.
-    pub fn rs232(link: Box<dyn Link>, clock: SharedClock, config: BusConfig) -> Result<AsyncClient, Error> {
+    pub fn rs232(link: Box<dyn Link>, clock: SharedClock, config: Config) -> Result<AsyncClient, Error> {
         let session = Session::rs232(config.clone(), link.describe(), clock.now());
         let driver = AsyncDriver::from_driver(driver(session, Port::Bytes(link), clock, &config)?);
         Ok(AsyncClient { driver, config, can: false })
     }
 
     /// A session over a CAN link (any [`CanLink`], embedded-can drivers included).
-    pub fn can(link: Box<dyn CanLink>, clock: SharedClock, config: BusConfig) -> Result<AsyncClient, Error> {
+    pub fn can(link: Box<dyn CanLink>, clock: SharedClock, config: Config) -> Result<AsyncClient, Error> {
         let session = Session::can(config.clone(), link.describe(), clock.now());
         let driver = AsyncDriver::from_driver(driver(session, Port::Can(link), clock, &config)?);
         Ok(AsyncClient { driver, config, can: true })
@@ -82,7 +82,7 @@ impl AsyncClient {
     }
 
     /// The session's settings.
-    pub fn config(&self) -> &BusConfig {
+    pub fn config(&self) -> &Config {
         &self.config
     }
 

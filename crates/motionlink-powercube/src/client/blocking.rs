@@ -17,8 +17,8 @@ use crate::model::{
 };
 use crate::report::ModuleDetails;
 use crate::session::{
-    BusConfig, Guard, HaltReport, HomeReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Progress, Readback,
-    ScanEntry, Session, Until,
+    Config, Guard, HaltReport, HomeReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Progress, Readback, ScanEntry,
+    Session, Until,
 };
 use crate::wire::{Action, ExtAck, Reply, Request};
 
@@ -30,14 +30,14 @@ use crate::wire::{Action, ExtAck, Reply, Request};
 ///
 /// Closing ([`Client::close`], or dropping it) halts every module the session set in motion that is still
 /// moving (or cannot be asked), then, if the session switched watchdogs on and has not failed, switches them
-/// off again and restores the Config words. It waits for that at most [`BusConfig::close_bound`] (5 s by
+/// off again and restores the Config words. It waits for that at most [`Config::close_bound`] (5 s by
 /// default; the call returns at most one read slice of the driver, 20 ms, later); then the refresh stops. A session that failed (its line broke, a refresh could not be sent, a
 /// module it started could not be confirmed stopped) leaves the watchdogs online: the modules halt within
 /// 50 ms, which is the watchdog's purpose.
 pub struct Client {
     driver: Driver<Session>,
     cancel: Mutex<Option<CancelToken>>,
-    config: BusConfig,
+    config: Config,
     can: bool,
 }
 
@@ -52,7 +52,7 @@ pub(crate) fn driver(
     session: Session,
     port: Port,
     clock: SharedClock,
-    config: &BusConfig,
+    config: &Config,
 ) -> Result<Driver<Session>, Error> {
     let name = port.describe();
     let driver_config = DriverConfig { close_bound: config.close_bound, ..DriverConfig::default() };
@@ -63,19 +63,19 @@ pub(crate) fn driver(
 
 impl Client {
     /// A session over an RS232 byte link (a serial port, TCP, a pty, an in-memory link).
-    pub fn rs232(link: Box<dyn Link>, clock: SharedClock, config: BusConfig) -> Result<Client, Error> {
+    pub fn rs232(link: Box<dyn Link>, clock: SharedClock, config: Config) -> Result<Client, Error> {
         let session = Session::rs232(config.clone(), link.describe(), clock.now());
         Client::with_driver(driver(session, Port::Bytes(link), clock, &config)?, config, false)
     }
 
     /// A session over a CAN link: SocketCAN, SLCAN, the in-memory bus, or any embedded-can driver through
     /// [`EmbeddedCanLink`](motionlink_link::can::embedded::EmbeddedCanLink).
-    pub fn can(link: Box<dyn CanLink>, clock: SharedClock, config: BusConfig) -> Result<Client, Error> {
+    pub fn can(link: Box<dyn CanLink>, clock: SharedClock, config: Config) -> Result<Client, Error> {
         let session = Session::can(config.clone(), link.describe(), clock.now());
         Client::with_driver(driver(session, Port::Can(link), clock, &config)?, config, true)
     }
 
-    fn with_driver(driver: Driver<Session>, config: BusConfig, can: bool) -> Result<Client, Error> {
+    fn with_driver(driver: Driver<Session>, config: Config, can: bool) -> Result<Client, Error> {
         Ok(Client { driver, cancel: Mutex::new(None), config, can })
     }
 
@@ -90,7 +90,7 @@ impl Client {
     }
 
     /// The session's settings.
-    pub fn config(&self) -> &BusConfig {
+    pub fn config(&self) -> &Config {
         &self.config
     }
 
@@ -193,7 +193,7 @@ impl Client {
         self.call(calls::done(Op::DisableWatchdog))
     }
 
-    /// True when this session can arm the watchdog (CAN; RS232 unless [`BusConfig::watchdog_on_rs232`] is
+    /// True when this session can arm the watchdog (CAN; RS232 unless [`Config::watchdog_on_rs232`] is
     /// false). A host that dies then stops the modules whose watchdog it switched on within 50 ms.
     pub fn watchdog_reliable(&self) -> bool {
         self.session(|s| s.watchdog_reliable())
@@ -247,7 +247,7 @@ impl Client {
     }
 
     /// Ends the session: halts what it set in motion and still moves, switches off the watchdogs it switched
-    /// on (unless it failed), and says whether that was confirmed, within [`BusConfig::close_bound`].
+    /// on (unless it failed), and says whether that was confirmed, within [`Config::close_bound`].
     pub fn close(self) -> Result<(), Error> {
         let view = self.driver.with_session(|s| s.watchdog_view());
         self.driver.close().map_err(|e| view.explain(e))

@@ -8,7 +8,7 @@
 //! ```
 //! use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 //! use motionlink_link::clock::{Clock, ManualClock};
-//! use motionlink_powercube::client::{BusConfig, Client, MoveSpec};
+//! use motionlink_powercube::client::{Config, Client, MoveSpec};
 //! use motionlink_powercube::model::{Address, Position, StateFlag, Velocity};
 //! use motionlink_powercube::Emulator;
 //! use std::time::Duration;
@@ -16,7 +16,7 @@
 //! let clock = ManualClock::new_auto();
 //! let _me = clock.reserve_participant().enter();
 //! let host = EmulatorHost::new(Emulator::new(&Default::default()), clock.shared(), PipeConfig::paced(9_600));
-//! let client = Client::rs232(Box::new(host.connect().0), clock.shared(), BusConfig::rs232()).unwrap();
+//! let client = Client::rs232(Box::new(host.connect().0), clock.shared(), Config::rs232()).unwrap();
 //! let joint = client.module(Address::new(1).unwrap());
 //! joint.home_and_wait(Duration::from_secs(10), &mut |_| {}).unwrap();
 //! let spec = MoveSpec { vel: Some(Velocity::rad_per_s(0.5)), ..MoveSpec::to(Position::rad(0.5)) };
@@ -42,6 +42,5 @@ pub use port::PortLink;
 pub use crate::error::{Error, RefreshTiming, RoundTripRange, StopOutcome};
 pub use crate::model::WATCHDOG_TIMEOUT;
 pub use crate::session::{
-    BusConfig, Guard, HaltReport, HomeReport, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback,
-    ScanEntry,
+    Config, Guard, HaltReport, HomeReport, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback, ScanEntry,
 };

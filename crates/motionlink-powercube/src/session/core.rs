@@ -10,7 +10,7 @@ use motionlink_link::exec::{Jobs, Ticket};
 use motionlink_link::session::{Action as LinkAction, OpId};
 use motionlink_link::{LinkError, Timestamp};
 
-use super::BusConfig;
+use super::Config;
 use crate::error::Error;
 use crate::model::{Broadcast, BroadcastForm, ConfigWord, ModuleKind};
 use crate::wire::can::{self as can_wire, Role};
@@ -126,7 +126,7 @@ impl WatchdogDuty {
 /// Everything a session and its operations share.
 pub(crate) struct Core {
     pub now: Timestamp,
-    pub config: BusConfig,
+    pub config: Config,
     pub can: bool,
     pub port: String,
     rs232: Rs232Decoder,
@@ -159,7 +159,7 @@ pub(crate) struct Core {
 }
 
 impl Core {
-    pub fn new(config: BusConfig, can: bool, port: String, now: Timestamp) -> Core {
+    pub fn new(config: Config, can: bool, port: String, now: Timestamp) -> Core {
         Core {
             now,
             config,

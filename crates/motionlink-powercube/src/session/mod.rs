@@ -13,11 +13,11 @@
 //! use motionlink_link::emulator::Emulator as _;
 //! use motionlink_link::Timestamp;
 //! use motionlink_powercube::model::{Address, Param, Value};
-//! use motionlink_powercube::session::{BusConfig, Op, Output};
+//! use motionlink_powercube::session::{Config, Op, Output};
 //! use motionlink_powercube::{Emulator, Session};
 //!
 //! let mut device = Emulator::new(&Default::default());
-//! let mut session = Session::rs232(BusConfig::rs232(), "in the test", Timestamp::ZERO);
+//! let mut session = Session::rs232(Config::rs232(), "in the test", Timestamp::ZERO);
 //! let now = Timestamp::ZERO;
 //! let id = session.start(Op::Get(Address::new(1).unwrap(), Param::DefCubeSerial), now);
 //! while let Some(Action::Send(bytes)) = session.poll_transmit(now) {
@@ -46,7 +46,7 @@ use motionlink_link::session::{Action as LinkAction, Event, Input, OpId};
 use motionlink_link::{LinkError, Timestamp};
 
 pub use types::{
-    BusConfig, Guard, HaltReport, HomeReport, ModuleFindings, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress,
+    Config, Guard, HaltReport, HomeReport, ModuleFindings, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress,
     Readback, ScanEntry, Until, HALT_SETTLE,
 };
 
@@ -102,7 +102,7 @@ pub enum Op {
     Action(Address, Action),
     /// Halt. [`Output::Done`].
     Halt(Address),
-    /// Halt, then the state until STATE_MOTION is clear (polled every [`BusConfig::poll_interval`], at most
+    /// Halt, then the state until STATE_MOTION is clear (polled every [`Config::poll_interval`], at most
     /// [`HALT_SETTLE`]), then the position: what `motionlink powercube stop` does. Still moving then:
     /// [`Error::StillMoving`](crate::Error::StillMoving). [`Output::Halted`].
     HaltConfirmed(Address),
@@ -121,7 +121,7 @@ pub enum Op {
         /// TargetAcc to write first.
         acc: Option<Acceleration>,
     },
-    /// Waits for homing or a motion to end, polled every [`BusConfig::poll_interval`], with progress;
+    /// Waits for homing or a motion to end, polled every [`Config::poll_interval`], with progress;
     /// halts on a timeout, a cancellation or a failing line. [`Output::State`].
     Wait(Address, Until, Duration),
     /// Home and wait, with what a failure needs (a Home that is not acknowledged may have started: halted).
@@ -257,16 +257,16 @@ impl std::fmt::Debug for Session {
 
 impl Session {
     /// A session on an RS232 line (a serial port, TCP, a pty), `port` naming it in messages.
-    pub fn rs232(config: BusConfig, port: impl Into<String>, now: Timestamp) -> Session {
+    pub fn rs232(config: Config, port: impl Into<String>, now: Timestamp) -> Session {
         Session::new(config, false, port.into(), now)
     }
 
     /// A session on a CAN bus.
-    pub fn can(config: BusConfig, port: impl Into<String>, now: Timestamp) -> Session {
+    pub fn can(config: Config, port: impl Into<String>, now: Timestamp) -> Session {
         Session::new(config, true, port.into(), now)
     }
 
-    fn new(config: BusConfig, can: bool, port: String, now: Timestamp) -> Session {
+    fn new(config: Config, can: bool, port: String, now: Timestamp) -> Session {
         Session {
             exec: Executor::new(Core::new(config, can, port, now), now),
             abortable: std::collections::BTreeMap::new(),
@@ -285,7 +285,7 @@ impl Session {
     }
 
     /// The session's settings.
-    pub fn config(&self) -> BusConfig {
+    pub fn config(&self) -> Config {
         self.core().config.clone()
     }
 
@@ -330,7 +330,7 @@ impl Session {
     }
 
     /// True when this session can arm the watchdog: on CAN, and on RS232 unless
-    /// [`BusConfig::watchdog_on_rs232`] is false.
+    /// [`Config::watchdog_on_rs232`] is false.
     pub fn watchdog_reliable(&self) -> bool {
         let core = self.core();
         core.can || core.config.watchdog_on_rs232

@@ -52,13 +52,13 @@ trait PowerCubeBench {
 impl PowerCubeBench for Bench {
     fn rs232(addresses: &[u8]) -> Bench {
         let device = Emulator::new(&SimConfig::with_addresses(addresses).unwrap());
-        let session = Session::rs232(BusConfig::rs232(), "test line", Timestamp::ZERO);
+        let session = Session::rs232(Config::rs232(), "test line", Timestamp::ZERO);
         Wired::new(session, SerialOrCan::Serial(device), Line::instant())
     }
 
     fn can(addresses: &[u8]) -> Bench {
         let device = Emulator::new_can(&SimConfig::with_addresses(addresses).unwrap());
-        let session = Session::can(BusConfig::can(), "test bus", Timestamp::ZERO);
+        let session = Session::can(Config::can(), "test bus", Timestamp::ZERO);
         Wired::new(session, SerialOrCan::Can(device), Line::instant())
     }
 

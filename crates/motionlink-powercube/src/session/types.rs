@@ -9,7 +9,7 @@ use crate::model::{
 
 /// Timing and retry settings of a session; the defaults depend on the carrier.
 #[derive(Debug, Clone, PartialEq)]
-pub struct BusConfig {
+pub struct Config {
     /// How long to wait for an acknowledge.
     pub reply_timeout: Duration,
     /// How often a read is repeated after a timeout or a corrupt answer (writes and motions never are).
@@ -35,10 +35,10 @@ pub struct BusConfig {
     pub close_bound: Duration,
 }
 
-impl BusConfig {
+impl Config {
     /// RS232: a full frame takes up to 25 ms each way at 9600 baud; acknowledges within 200 ms.
     pub fn rs232() -> Self {
-        BusConfig {
+        Config {
             reply_timeout: Duration::from_millis(200),
             read_retries: 2,
             scan_timeout: Duration::from_millis(60),
@@ -51,7 +51,7 @@ impl BusConfig {
 
     /// CAN: acknowledges within 50 ms.
     pub fn can() -> Self {
-        BusConfig {
+        Config {
             reply_timeout: Duration::from_millis(50),
             read_retries: 2,
             scan_timeout: Duration::from_millis(50),
@@ -68,7 +68,7 @@ impl BusConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Guard {
     /// Arm the module's watchdog for the motion (where the link allows it: CAN, and RS232 unless
-    /// [`BusConfig::watchdog_on_rs232`] is false), so that a host that dies stops it within 50 ms; switch it
+    /// [`Config::watchdog_on_rs232`] is false), so that a host that dies stops it within 50 ms; switch it
     /// off again after. What `motionlink powercube move` and `home` do by default.
     #[default]
     Watchdog,
@@ -85,7 +85,7 @@ impl Guard {
     /// The watchdog protects a motion against a host that dies; modules emulated in this process die with
     /// it, so they are not armed ([`Guard::HaltOnly`]), and neither are modules the user said to leave
     /// alone. Everything else is armed ([`Guard::Watchdog`]) where the link allows it (the session decides
-    /// that: CAN, and RS232 unless [`BusConfig::watchdog_on_rs232`] is false).
+    /// that: CAN, and RS232 unless [`Config::watchdog_on_rs232`] is false).
     pub fn for_motions(modules: ModulesAt, no_watchdog: bool) -> Guard {
         match (modules, no_watchdog) {
             (ModulesAt::Elsewhere, false) => Guard::Watchdog,

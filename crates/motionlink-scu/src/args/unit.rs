@@ -1,10 +1,10 @@
 //! The options that describe a session with one unit, as every front end that names a unit takes them: the
 //! command line's `--baud`, `--functions`... and a device table's keys `baud`, `functions`... (devices.toml,
-//! the gateway's file). One rule turns them into the session's settings ([`UnitOptions::client_config`]) and
-//! into the unit an in-process emulator stands for ([`UnitOptions::emulated_unit`]).
+//! the gateway's file). One rule turns them into the session's settings ([`UnitOptions::config`]) and
+//! into the unit an in-process emulator stands for ([`UnitOptions::emulated`]).
 
 use super::{Baud, PollInterval, ReplyTimeout, ToleranceCounts};
-use crate::config::{ClientConfig, FunctionMap, StrokeLimits};
+use crate::config::{Config, FunctionMap, StrokeLimits};
 use crate::model::{SafetyId, SpeedMode};
 use crate::sim::{SimConfig, Variants};
 
@@ -104,9 +104,9 @@ impl UnitOptions {
     }
 
     /// The session's settings: the function map and stroke limits parsed, every value checked together
-    /// ([`ClientConfig::validate`]).
-    pub fn client_config(&self) -> Result<ClientConfig, OptionError> {
-        let config = ClientConfig {
+    /// ([`Config::validate`]).
+    pub fn config(&self) -> Result<Config, OptionError> {
+        let config = Config {
             safety_id: self.safety,
             reply_timeout: self.timeout_ms.get(),
             speed_mode: self.speed_mode,
@@ -114,7 +114,7 @@ impl UnitOptions {
             stroke_limits: StrokeLimits::per_actuator(&self.stroke).map_err(on("stroke"))?,
             position_tolerance_counts: self.tolerance.get(),
             poll_interval: self.poll_ms.get(),
-            ..ClientConfig::default()
+            ..Config::default()
         };
         config.validate().map_err(|e| OptionError { key: None, message: e.to_string() })?;
         Ok(config)
@@ -131,7 +131,7 @@ impl UnitOptions {
 
     /// The unit an emulator in this process stands for ([`super::emulated_unit`]): the one these options
     /// name, with the firmware variants asked for.
-    pub fn emulated_unit(&self) -> Result<SimConfig, OptionError> {
+    pub fn emulated(&self) -> Result<SimConfig, OptionError> {
         let mut config = super::emulated_unit(self.sim_preset.as_deref(), &self.functions, self.speed_mode)
             .map_err(|message| OptionError { key: None, message })?;
         let variants = Variants::parse_all(&self.sim_variants).map_err(|e| on("sim_variants")(e.to_string()))?;
@@ -156,11 +156,11 @@ mod tests {
         let e = o.set("baud", "5").unwrap_err();
         assert_eq!(e.to_string(), format!("baud: \"5\": {}", Baud::RULE));
         assert!(o.set("sim_preset", "lift").unwrap_err().message.contains("tlt"));
-        let config = o.client_config().unwrap();
+        let config = o.config().unwrap();
         assert_eq!(config.stroke_limits[0].map(|l| l.max_counts.0), Some(865));
-        assert_eq!(o.emulated_unit().unwrap(), SimConfig::tlt());
+        assert_eq!(o.emulated().unwrap(), SimConfig::tlt());
         o.functions.push("F30=1".into());
-        assert_eq!(o.client_config().unwrap_err().key, Some("functions"));
+        assert_eq!(o.config().unwrap_err().key, Some("functions"));
     }
 
     #[test]

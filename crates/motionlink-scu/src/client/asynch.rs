@@ -10,7 +10,7 @@ use motionlink_link::url::PortUrl;
 use motionlink_link::{SharedClock, Timestamp};
 
 use super::{expect_output, move_spec, run_spec, Client};
-use crate::config::{ClientConfig, StrokeLimits};
+use crate::config::{Config, StrokeLimits};
 use crate::error::Error;
 use crate::model::{
     Actuator, ActuatorStatus1, CyclicObject, DataEntry, DataIndex, ErrorCode, Function, MotionDirection,
@@ -26,10 +26,10 @@ use crate::wire::{Command, Request};
 
 /// A session with an SCU control unit, for async callers (tokio). Share it with `Arc`; every method takes
 /// `&self`. Dropping it ends the session on tokio's blocking pool (RS for every started function, then RA,
-/// at most [`ClientConfig::close_bound`]); [`AsyncClient::close`] does the same and returns the outcome.
+/// at most [`Config::close_bound`]); [`AsyncClient::close`] does the same and returns the outcome.
 pub struct AsyncClient {
     driver: AsyncDriver<Session>,
-    config: ClientConfig,
+    config: Config,
 }
 
 impl std::fmt::Debug for AsyncClient {
@@ -44,7 +44,7 @@ impl AsyncClient {
         port: &PortUrl,
         settings: SerialSettings,
         clock: SharedClock,
-        config: ClientConfig,
+        config: Config,
     ) -> Result<Self, Error> {
         let port = port.clone();
         let connector: Connector = Box::new(move || port.open_byte_link(settings));
@@ -52,7 +52,7 @@ impl AsyncClient {
     }
 
     /// Opens a session as [`Client::open`] does; the port is opened on tokio's blocking pool.
-    pub async fn open(connector: Connector, clock: SharedClock, config: ClientConfig) -> Result<Self, Error> {
+    pub async fn open(connector: Connector, clock: SharedClock, config: Config) -> Result<Self, Error> {
         let for_driver = config.clone();
         let driver = AsyncDriver::open(move || Client::make_driver(connector, clock, for_driver)).await?;
         if let Err(e) = driver.run(Op::Open).await {
@@ -82,7 +82,7 @@ impl AsyncClient {
     }
 
     /// The session's settings.
-    pub fn config(&self) -> &ClientConfig {
+    pub fn config(&self) -> &Config {
         &self.config
     }
 
@@ -331,7 +331,7 @@ impl AsyncClient {
     }
 
     /// Ends the session: RS for every started function (motions fast), then RA; waits at most
-    /// [`ClientConfig::close_bound`]; runs on tokio's blocking pool.
+    /// [`Config::close_bound`]; runs on tokio's blocking pool.
     pub async fn close(self) -> Result<(), Error> {
         self.driver.close().await
     }

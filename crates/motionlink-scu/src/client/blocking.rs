@@ -8,7 +8,7 @@ use motionlink_link::url::PortUrl;
 use motionlink_link::{LinkError, SharedClock, Timestamp};
 
 use super::{expect_output, move_spec, run_spec, MoveOptions};
-use crate::config::ClientConfig;
+use crate::config::Config;
 use crate::error::Error;
 use crate::model::{
     Actuator, ActuatorStatus1, CyclicObject, DataEntry, DataIndex, ErrorCode, Function, MotionDirection,
@@ -26,10 +26,10 @@ use crate::wire::{Command, Request};
 ///
 /// `Client` is `Sync`: share it between threads (`&Client`, `Arc<Client>`); their requests interleave on the
 /// line as the session schedules them. Dropping it ends the session as [`Client::close`] does (waiting at
-/// most [`ClientConfig::close_bound`], 5 s by default).
+/// most [`Config::close_bound`], 5 s by default).
 pub struct Client {
     driver: Driver<Session>,
-    config: ClientConfig,
+    config: Config,
     /// Cancels the long operations (watch, run, moves) of this client: [`Client::set_cancel`].
     cancel: std::sync::Mutex<Option<CancelToken>>,
 }
@@ -46,7 +46,7 @@ impl Client {
         port: &PortUrl,
         settings: SerialSettings,
         clock: SharedClock,
-        config: ClientConfig,
+        config: Config,
     ) -> Result<Self, Error> {
         let port = port.clone();
         let connector: Connector = Box::new(move || port.open_byte_link(settings));
@@ -58,7 +58,7 @@ impl Client {
     ///
     /// Requests run on the calling thread; with an auto-advancing
     /// [`ManualClock`](motionlink_link::ManualClock) the calling thread must be one of its participants.
-    pub fn open(connector: Connector, clock: SharedClock, config: ClientConfig) -> Result<Self, Error> {
+    pub fn open(connector: Connector, clock: SharedClock, config: Config) -> Result<Self, Error> {
         let driver = Self::make_driver(connector, clock, config.clone())?;
         if let Err(e) = driver.run(Op::Open) {
             // Nothing was started: the session is closed here (RA, if remote mode was opened), and a close
@@ -75,7 +75,7 @@ impl Client {
     pub(crate) fn make_driver(
         mut connector: Connector,
         clock: SharedClock,
-        config: ClientConfig,
+        config: Config,
     ) -> Result<Driver<Session>, Error> {
         config.validate()?;
         let link = connector()?;
@@ -115,7 +115,7 @@ impl Client {
     }
 
     /// The session's settings.
-    pub fn config(&self) -> &ClientConfig {
+    pub fn config(&self) -> &Config {
         &self.config
     }
 
@@ -223,7 +223,7 @@ impl Client {
         Ok(super::connected(&self.statuses()?))
     }
 
-    /// Actuator `a`'s travel range for targets: [`ClientConfig::stroke_limits`] if set, else the virtual limits
+    /// Actuator `a`'s travel range for targets: [`Config::stroke_limits`] if set, else the virtual limits
     /// of its UserPositionData (0x2001..0x2006) as the unit reports them; `None` if the unit has none (both 0).
     pub fn stroke_limits(&self, a: Actuator) -> Result<Option<(crate::config::StrokeLimits, &'static str)>, Error> {
         expect_output!(self.driver.run(Op::StrokeLimits(a)), Output::Stroke(s) => s)
@@ -355,7 +355,7 @@ impl Client {
 
     /// Moves `actuator` to `target` at `speed` with the function of the same number (F1 for A1;
     /// [`MoveOptions::function`] names another). Every actuator that function drives gets the same target: the
-    /// ones [`ClientConfig::function_map`] names, or, where the map does not know the function, every
+    /// ones [`Config::function_map`] names, or, where the map does not know the function, every
     /// connected actuator (its remote position is written; an actuator the function does not drive stays where
     /// it is and is reported as not moved). See [`Client::move_function`] for how the move runs and ends.
     pub fn move_to(
@@ -372,13 +372,13 @@ impl Client {
     /// Moves the actuators `function` drives, each to its own target, with one RE: checks every target against
     /// its actuator's stroke (nothing moves if one is outside), writes and reads back each remote position
     /// and the function's remote speed, starts the function with direction 9, watches the actuators every
-    /// [`ClientConfig::poll_interval`] (through the keepalive RC, see [`crate::config::MovePolling`]), and when
+    /// [`Config::poll_interval`] (through the keepalive RC, see [`crate::config::MovePolling`]), and when
     /// the unit reports that none of them moves any more judges where they ended. It succeeds if each is within
-    /// [`ClientConfig::position_tolerance_counts`] of its target, and ends the function with RS. A cancel, a
+    /// [`Config::position_tolerance_counts`] of its target, and ends the function with RS. A cancel, a
     /// stall, a timeout or any error stops the function at once (fast RS); if the unit does not confirm that
     /// stop, the error is [`Error::StopUnconfirmed`].
     ///
-    /// If [`ClientConfig::function_map`] knows `function`, `targets` must name exactly the actuators it
+    /// If [`Config::function_map`] knows `function`, `targets` must name exactly the actuators it
     /// drives.
     pub fn move_function(
         &self,
@@ -437,7 +437,7 @@ impl Client {
     }
 
     /// Ends the session: RS for every started function (motions fast), then RA; waits at most
-    /// [`ClientConfig::close_bound`]. The session is closed even if that fails; the error says what could not
+    /// [`Config::close_bound`]. The session is closed even if that fails; the error says what could not
     /// be sent or confirmed.
     pub fn close(self) -> Result<(), Error> {
         self.driver.close()

@@ -3,7 +3,7 @@
 //! `rate_hz` times a second, the newest pending one winning; at the end the newest pending target is applied,
 //! the motion is let reach it and the stream ends along the ramp (soft RS); a cancel or an error ends it at
 //! once (fast RS); success means each actuator the function drives ended within
-//! [`ClientConfig::position_tolerance_counts`](crate::ClientConfig::position_tolerance_counts) of its last target.
+//! [`Config::position_tolerance_counts`](crate::Config::position_tolerance_counts) of its last target.
 
 use std::time::Duration;
 
@@ -75,7 +75,7 @@ pub struct Follower<'c> {
 
 impl<'c> Follower<'c> {
     /// Follows with `stream` at most `rate_hz` (at least 1) updates a second. `primary` is the actuator asked
-    /// for: where [`ClientConfig::function_map`](crate::ClientConfig::function_map) does not know the
+    /// for: where [`Config::function_map`](crate::Config::function_map) does not know the
     /// stream's function, only it is judged at the end (the others of the stream are not known to be driven).
     pub fn new(stream: SetpointStream<'c>, primary: Actuator, rate_hz: u32) -> Result<Self, Error> {
         if rate_hz == 0 {
@@ -143,7 +143,7 @@ impl<'c> Follower<'c> {
     }
 
     /// Ends the follow as its input ended: applies the newest pending target, waits until no actuator of the
-    /// stream moves (looking every [`ClientConfig::poll_interval`](crate::ClientConfig::poll_interval) on the
+    /// stream moves (looking every [`Config::poll_interval`](crate::Config::poll_interval) on the
     /// session's clock), stops the function along the ramp (soft RS), and checks that each actuator the
     /// function drives ended within the tolerance of its last target ([`Error::NotReached`] if not). A
     /// `cancel` while it waits stops the function at once (fast RS) and fails with [`Error::Interrupted`]; a

@@ -3,13 +3,13 @@
 //! [`Session`](crate::Session) under the shared driver).
 //!
 //! ```no_run
-//! use motionlink_scu::{Client, ClientConfig, FunctionMap};
+//! use motionlink_scu::{Client, Config, FunctionMap};
 //! use motionlink_scu::model::{Actuator, PositionCounts, Speed};
 //! use motionlink_link::{url::PortUrl, RealClock, SerialSettings};
 //!
 //! let port: PortUrl = "/dev/ttyUSB0".parse()?;
 //! // The unit's parameterisation decides which actuators each function drives; tell the session.
-//! let config = ClientConfig { function_map: FunctionMap::scp11(), ..ClientConfig::default() };
+//! let config = Config { function_map: FunctionMap::scp11(), ..Config::default() };
 //! let client = Client::open_port(&port, SerialSettings::new(38_400), RealClock::shared(), config)?;
 //! let a1 = Actuator::new(1).unwrap();
 //! let report = client.move_to(a1, PositionCounts(400), Speed::percent(80).unwrap(), &Default::default())?;
@@ -25,10 +25,10 @@
 //! ```no_run
 //! use motionlink_link::{url::PortUrl, RealClock, SerialSettings};
 //! use motionlink_scu::model::{Actuator, DataIndex, MotionFunction, PositionCounts, SafetyId, Speed, StopMode};
-//! use motionlink_scu::{Client, ClientConfig, FunctionMap, MoveOptions};
+//! use motionlink_scu::{Client, Config, FunctionMap, MoveOptions};
 //!
 //! let port: PortUrl = "/dev/ttyUSB0".parse()?;
-//! let config = ClientConfig { function_map: FunctionMap::liftkit(), safety_id: SafetyId::StopAll, ..Default::default() };
+//! let config = Config { function_map: FunctionMap::liftkit(), safety_id: SafetyId::StopAll, ..Default::default() };
 //! let client = Client::open_port(&port, SerialSettings::new(38_400), RealClock::shared(), config)?;
 //! let (a1, a2) = (Actuator::new(1).unwrap(), Actuator::new(2).unwrap());
 //! let pct = |p| Speed::percent(p).unwrap();                     // percent and counts/s are different types
@@ -62,7 +62,7 @@
 //! # }
 //! ```
 
-use crate::config::ClientConfig;
+use crate::config::Config;
 use crate::error::Error;
 use crate::model::ActuatorStatus1;
 use crate::model::{
@@ -112,7 +112,7 @@ pub(crate) use expect_output;
 
 /// The move of [`Client::move_to`]: the function, and which actuators get the target.
 pub(crate) fn move_spec(
-    config: &ClientConfig,
+    config: &Config,
     actuator: Actuator,
     target: PositionCounts,
     speed: Speed,

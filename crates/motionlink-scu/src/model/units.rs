@@ -4,7 +4,7 @@
 //! A unit takes remote speeds (0x3011..0x301A) either in percent ("speed select relative", the standard
 //! units) or in encoder counts per second ("speed select absolute"); the same number on the wire means one
 //! or the other by the unit's parameterisation. A session knows which its unit uses
-//! ([`crate::ClientConfig::speed_mode`]) and refuses a [`Speed`] of the other kind.
+//! ([`crate::Config::speed_mode`]) and refuses a [`Speed`] of the other kind.
 //!
 //! ```
 //! use motionlink_scu::model::{Speed, SpeedMode, SpeedPercent};

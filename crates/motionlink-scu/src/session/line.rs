@@ -10,7 +10,7 @@ use motionlink_link::session::Action;
 use motionlink_link::Timestamp;
 
 use super::request::{OwnedReply, PreparedRequest};
-use crate::config::{ClientConfig, FLUSH_LEN, SESSION_REPLY_LIMIT, SILENT_TRY};
+use crate::config::{Config, FLUSH_LEN, SESSION_REPLY_LIMIT, SILENT_TRY};
 use crate::error::Error;
 use crate::wire::{Command, ReplyDecoder, ReplyShape, Status, WireError};
 
@@ -134,7 +134,7 @@ impl Exchange {
     pub fn start(
         request: PreparedRequest,
         line: &mut Line,
-        config: &ClientConfig,
+        config: &Config,
         now: Timestamp,
         out: &mut VecDeque<Action>,
     ) -> Exchange {
@@ -199,7 +199,7 @@ impl Exchange {
         &mut self,
         mut input: &[u8],
         line: &mut Line,
-        config: &ClientConfig,
+        config: &Config,
         counts: &mut LineCounts,
         now: Timestamp,
         out: &mut VecDeque<Action>,
@@ -231,7 +231,7 @@ impl Exchange {
     pub fn on_timeout(
         &mut self,
         line: &mut Line,
-        config: &ClientConfig,
+        config: &Config,
         counts: &mut LineCounts,
         now: Timestamp,
         out: &mut VecDeque<Action>,
@@ -247,7 +247,7 @@ impl Exchange {
         &mut self,
         reply: OwnedReply,
         line: &mut Line,
-        config: &ClientConfig,
+        config: &Config,
         counts: &mut LineCounts,
         now: Timestamp,
         out: &mut VecDeque<Action>,
@@ -294,7 +294,7 @@ impl Exchange {
         &mut self,
         e: AttemptError,
         line: &mut Line,
-        config: &ClientConfig,
+        config: &Config,
         counts: &mut LineCounts,
         now: Timestamp,
         out: &mut VecDeque<Action>,

@@ -7,10 +7,10 @@
 //! use motionlink_link::emulator::Emulator as _;
 //! use motionlink_link::session::{Action, Event, Input, Session as _};
 //! use motionlink_link::Timestamp;
-//! use motionlink_scu::{ClientConfig, Emulator, Op, Session, SimConfig};
+//! use motionlink_scu::{Config, Emulator, Op, Session, SimConfig};
 //!
 //! let mut unit = Emulator::new(SimConfig::default())?;
-//! let mut session = Session::new(ClientConfig::default(), Timestamp::ZERO)?;
+//! let mut session = Session::new(Config::default(), Timestamp::ZERO)?;
 //! let open = session.start(Op::Open, Timestamp::ZERO);
 //! let mut now = Timestamp::ZERO;
 //! loop {
@@ -37,8 +37,8 @@
 //! - **Requests** go out one at a time (the line is half-duplex); each is matched with its reply by command
 //!   and expected length, and repeated as the crate documentation says ("Decisions": "Reply timeout and
 //!   retries" and "RE is repeated").
-//! - **The keepalive**: an RC on a grid of deadlines one [`crate::ClientConfig::keepalive_period`] apart
-//!   (it cannot drift), or one [`crate::ClientConfig::poll_interval`] apart while a motion is polled through
+//! - **The keepalive**: an RC on a grid of deadlines one [`crate::Config::keepalive_period`] apart
+//!   (it cannot drift), or one [`crate::Config::poll_interval`] apart while a motion is polled through
 //!   it: then each RC carries the session's poll object and reads the status and position of every actuator,
 //!   so every exchange of a move feeds the unit's watchdog.
 //! - **Room on the line**: a request other than RC goes out only if its reply is expected back (by the round
@@ -58,7 +58,7 @@ use motionlink_link::exec::{CoreGuard, Executor, Jobs, Report, Ticket};
 use motionlink_link::session::{Action, Event, Input, OpId, Session as SessionTrait};
 use motionlink_link::{LinkError, Timestamp};
 
-use crate::config::ClientConfig;
+use crate::config::Config;
 use crate::error::Error;
 use crate::model::{CyclicObject, DataIndex};
 
@@ -183,7 +183,7 @@ enum Kind {
 
 /// Everything the operations share with the session.
 pub(crate) struct Core {
-    pub config: ClientConfig,
+    pub config: Config,
     pub now: Timestamp,
     pub line: Line,
     counts: LineCounts,
@@ -223,7 +223,7 @@ pub(crate) struct Core {
 /// The SCU protocol as a sans-IO session. See the [module documentation](self).
 pub struct Session {
     /// The settings (the core has them too; this copy can be lent out).
-    config: ClientConfig,
+    config: Config,
     /// The operations, run by the one executor of `motionlink-link`, around the core.
     exec: Executor<Core, Progress, Result<Output, Error>>,
     /// How each operation's end is reported.
@@ -244,7 +244,7 @@ impl std::fmt::Debug for Session {
 
 impl Session {
     /// A session with `config` (checked) at `now`. Nothing is sent until [`Op::Open`] is started.
-    pub fn new(config: ClientConfig, now: Timestamp) -> Result<Session, Error> {
+    pub fn new(config: Config, now: Timestamp) -> Result<Session, Error> {
         config.validate()?;
         let core = Core {
             config: config.clone(),
@@ -286,7 +286,7 @@ impl Session {
     }
 
     /// The session's settings.
-    pub fn config(&self) -> &ClientConfig {
+    pub fn config(&self) -> &Config {
         &self.config
     }
 

@@ -21,7 +21,7 @@ pub use motionlink_scu::sim::{RemoteMode, SimConfig};
 pub use motionlink_scu::value::Value;
 pub use motionlink_scu::wire::{Command, Status};
 pub use motionlink_scu::Emulator;
-pub use motionlink_scu::{Client, ClientConfig, Error, FunctionMap, MoveOptions, MovePolling, StrokeLimits};
+pub use motionlink_scu::{Client, Config, Error, FunctionMap, MoveOptions, MovePolling, StrokeLimits};
 
 /// The unit behind an in-memory link at 38400 baud on the manual clock (the shared rig), the test's thread
 /// among the clock's participants.
@@ -40,7 +40,7 @@ impl Rig {
         Rig(motionlink_testkit::rig::Rig::new(unit, PipeConfig::paced(38_400)).with_test_thread())
     }
 
-    pub fn client(&self, config: ClientConfig) -> Client {
+    pub fn client(&self, config: Config) -> Client {
         Client::open(self.connector(), self.clock.shared(), config).unwrap()
     }
 
@@ -65,7 +65,7 @@ pub fn pct(n: u16) -> Speed {
 /// the unit's own watchdog must stop the drive 500 ms after the last RC it received.
 pub fn watchdog_expires_after_500_ms(safety: SafetyId) -> (Rig, Client) {
     let rig = Rig::new(SimConfig::default());
-    let client = rig.client(ClientConfig { safety_id: safety, ..Default::default() });
+    let client = rig.client(Config { safety_id: safety, ..Default::default() });
     client.set(DataIndex(0x3021), &Value::RemotePosition(800)).unwrap();
     client.start_motion(f(1), MotionDirection::RemotePosition).unwrap();
     rig.sleep(1000);
@@ -167,7 +167,7 @@ impl Rig {
     }
 
     /// A client whose replies reach it `latency` (which the test may change) after the unit sent them.
-    pub fn client_behind(&self, latency: &Arc<Mutex<Duration>>, config: ClientConfig) -> Result<Client, Error> {
+    pub fn client_behind(&self, latency: &Arc<Mutex<Duration>>, config: Config) -> Result<Client, Error> {
         let host = self.host.clone();
         let clock = self.clock.shared();
         let latency = Arc::clone(latency);

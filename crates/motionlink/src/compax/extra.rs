@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::time::Duration;
 
-use motionlink_compax::client::{BusConfig, MoveOptions};
+use motionlink_compax::client::{Config, MoveOptions};
 use motionlink_compax::describe::Describer;
 use motionlink_compax::model::{ParamId, Position, RampMs, S16Flag, S17Flag, SpeedPercent};
 use motionlink_compax::sim::SimConfig;
@@ -126,7 +126,7 @@ fn demo_bus(clock: &ManualClock, p196: u32) -> Result<(Client, Transcript), CliE
     let transcript = Transcript::new();
     let link = TapLink::new(host.connect().0, clock.shared(), transcript.clone());
     let mode = Mode::from_p196(p196).map_err(CliError::usage)?;
-    let bus = Client::new(Box::new(link), clock.shared(), BusConfig::new(mode, 9600)).map_err(fail)?;
+    let bus = Client::new(Box::new(link), clock.shared(), Config::new(mode, 9600)).map_err(fail)?;
     Ok((bus, transcript))
 }
 

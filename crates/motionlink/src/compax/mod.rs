@@ -4,7 +4,7 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use motionlink_compax::client::{AfterRaw, BusConfig, MoveRequest, MoveTarget, TravelLimits};
+use motionlink_compax::client::{AfterRaw, Config, MoveRequest, MoveTarget, TravelLimits};
 use motionlink_compax::model::{
     BaudRate, OutputNumber, OutputState, ParamId, PollInterval, Position, RampMs, ReplyTimeout, SpeedPercent, StatusId,
     StatusValue, TimeLimit, Tolerance, WatchInterval,

@@ -3,14 +3,14 @@
 use super::*;
 
 /// Opens the port, its link watched by `tap` (the bus arguments were checked by their types).
-pub(crate) fn open(args: &Args, tap: &Tap, configure: impl FnOnce(&mut BusConfig)) -> Result<Client, CliError> {
+pub(crate) fn open(args: &Args, tap: &Tap, configure: impl FnOnce(&mut Config)) -> Result<Client, CliError> {
     let options = drive_options(args);
     let url: PortUrl = args.resolved_port.parse()?;
     let clock: SharedClock = RealClock::shared();
     // Installed before the port opens: a signal from here on stops what the command starts.
     let token = common::interrupt_token();
     let link = link(&options, url, &[options.drive.get()], tap, &clock)?;
-    let mut cfg = options.bus_config();
+    let mut cfg = options.config();
     configure(&mut cfg);
     let bus = Client::new(link, clock, cfg).map_err(|e| common::classified(&e))?;
     bus.set_cancel(token);
@@ -35,7 +35,7 @@ pub(crate) fn link(
     let baud = options.baud.bits_per_s();
     let link: Box<dyn Link> = match url {
         PortUrl::Sim => {
-            let mut config = options.emulated_bus();
+            let mut config = options.emulated();
             config.drives = motionlink_compax::sim::SimConfig::bus(sim_drives, options.mode.to_p196(), baud).drives;
             let bus = Emulator::new(config).map_err(CliError::usage)?;
             let host = EmulatorHost::new(bus, clock.clone(), PipeConfig::paced(baud));

@@ -130,15 +130,15 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     let mut host = None;
     let c = Arc::clone(clock);
     let client = match opened {
-        Some(PortLink::Rs232(link)) => Client::rs232(tap.link(link, &c), c, options.bus_config(false)),
-        Some(PortLink::Can(link)) => Client::can(tap.can_link(link, &c), c, options.bus_config(true)),
+        Some(PortLink::Rs232(link)) => Client::rs232(tap.link(link, &c), c, options.config(false)),
+        Some(PortLink::Can(link)) => Client::can(tap.can_link(link, &c), c, options.config(true)),
         None => {
             let modules = if args.modules.is_empty() { vec![1] } else { addresses(&args.modules) };
             let bus = SimConfig::with_addresses(&modules).map_err(CliError::usage)?;
             let h = EmulatorHost::new(Emulator::new(&bus), Arc::clone(clock), PipeConfig::paced(args.baud.get()));
             let link = tap.link(Box::new(h.connect().0), &c);
             host = Some(h);
-            Client::rs232(link, c, options.bus_config(false))
+            Client::rs232(link, c, options.config(false))
         }
     };
     let client = client.map_err(|e| crate::common::classified(&e))?;

@@ -14,7 +14,7 @@ use motionlink_scu::model::{
 use motionlink_scu::results::{ErrorHistory, RunOutcome, StopResult};
 use motionlink_scu::session::RunAction;
 use motionlink_scu::value::Value as ScuValue;
-use motionlink_scu::{AsyncClient, ClientConfig, FunctionMap, SimConfig};
+use motionlink_scu::{AsyncClient, Config, FunctionMap, SimConfig};
 
 use super::device::{
     close_last, finite, report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param, Report, Sample,
@@ -70,8 +70,7 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     let functions =
         FunctionMap::from_specs(&args.functions).map_err(|e| CliError::usage(format!("--functions {e}")))?;
     let speed_mode = args.speed_mode;
-    let config =
-        ClientConfig { safety_id: args.safety, function_map: functions, speed_mode, ..ClientConfig::default() };
+    let config = Config { safety_id: args.safety, function_map: functions, speed_mode, ..Config::default() };
     config.validate().map_err(|e| CliError::usage(e.to_string()))?;
     let url: PortUrl = port.parse()?;
     let traffic = Arc::new(Traffic::new(Box::new(Describer::new()), &format!("scu {port}"), "can0", clock));

@@ -9,7 +9,7 @@ use motionlink_scu::args::{Baud, Checked};
 use motionlink_scu::describe::Describer;
 use motionlink_scu::model::SpeedMode;
 use motionlink_scu::probe::{baud_choice, probe, save_profile, ScuDevice};
-use motionlink_scu::{Client, ClientConfig, Variants};
+use motionlink_scu::{Client, Config, Variants};
 
 use super::{finish, setup, Options};
 use crate::common::{self, CliError};
@@ -58,7 +58,7 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
         let variants = &args.sim_variants;
         let unit = InProcess { functions: &[], preset: None, file: None, speed_mode: SpeedMode::Percent, variants };
         let connector = connector(&url, &unit, baud, &tap, &clock)?;
-        Client::open(connector, Arc::clone(&clock), ClientConfig::default()).map_err(|e| common::classified(&e))
+        Client::open(connector, Arc::clone(&clock), Config::default()).map_err(|e| common::classified(&e))
     });
     let (client, baud) = opened.map_err(|e| {
         tap.flush();

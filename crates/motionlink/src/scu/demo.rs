@@ -14,7 +14,7 @@ use motionlink_scu::describe::{describe_request, fold_transcript, Describer, Tra
 use motionlink_scu::model::{Actuator, DataIndex, MotionDirection, MotionFunction, PositionCounts, StopMode};
 use motionlink_scu::value::Value;
 use motionlink_scu::wire::{request_to_vec, Request};
-use motionlink_scu::{Client, ClientConfig, Emulator, SimConfig};
+use motionlink_scu::{Client, Config, Emulator, SimConfig};
 use std::path::PathBuf;
 
 use super::emulated::load_sim_config;
@@ -126,8 +126,7 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
         Ok(Box::new(TapLink::new(tap_host.connect().0, Arc::clone(&tap_clock), tap_transcript.clone()))
             as Box<dyn Link>)
     });
-    let client =
-        Client::open(connector, Arc::clone(&shared), ClientConfig::default()).map_err(|e| common::classified(&e))?;
+    let client = Client::open(connector, Arc::clone(&shared), Config::default()).map_err(|e| common::classified(&e))?;
     let a1 = Actuator::new(1).ok_or_else(|| CliError::usage("actuator 1"))?;
     let f1 = MotionFunction::new(1).ok_or_else(|| CliError::usage("F1"))?;
     let target = PositionCounts(400);

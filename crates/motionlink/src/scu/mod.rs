@@ -16,7 +16,7 @@ use motionlink_scu::args::{
 use motionlink_scu::describe::Describer;
 use motionlink_scu::model::{Actuator, Function, MotionFunction, PositionCounts, SafetyId, SpeedMode};
 use motionlink_scu::session::RunAction;
-use motionlink_scu::{Client, ClientConfig, Emulator, Ending, SimConfig, Variants};
+use motionlink_scu::{Client, Config, Emulator, Ending, SimConfig, Variants};
 
 use crate::common::{self, CliError};
 use crate::numbers::{at_least, whole};
@@ -243,16 +243,16 @@ fn unit_options(args: &Args) -> UnitOptions {
 }
 
 /// The session's settings from the command line, checked before anything is sent (the library's rule:
-/// [`UnitOptions::client_config`]; a message names the option as the command line spells it).
-fn client_config(args: &Args) -> Result<ClientConfig, CliError> {
-    unit_options(args).client_config().map_err(|e| match e.key {
+/// [`UnitOptions::config`]; a message names the option as the command line spells it).
+fn client_config(args: &Args) -> Result<Config, CliError> {
+    unit_options(args).config().map_err(|e| match e.key {
         Some(key) => CliError::usage(format!("--{} {}", key.replace('_', "-"), e.message)),
         None => CliError::usage(e.message),
     })
 }
 
 /// Opens the session on `port`, its link watched by `tap`.
-fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: ClientConfig) -> Result<Client, CliError> {
+fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: Config) -> Result<Client, CliError> {
     let port: PortUrl = port.parse()?;
     let sim_options = args.sim_config.is_some() || args.sim_preset.is_some() || !args.sim_variants.is_empty();
     if sim_options && !matches!(port, PortUrl::Sim) && !port.is_can() {

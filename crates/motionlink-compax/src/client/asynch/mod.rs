@@ -18,7 +18,7 @@ use crate::model::{
 };
 use crate::report::{ParamReading, ParamWritten};
 use crate::session::{
-    AfterRaw, BusConfig, MoveOptions, MoveReport, MoveRequest, Op, Output, RawOutcome, Session, StartedMove,
+    AfterRaw, Config, MoveOptions, MoveReport, MoveRequest, Op, Output, RawOutcome, Session, StartedMove,
 };
 use crate::wire::Address;
 pub use drive::{AsyncDrive, AsyncWatch};
@@ -36,10 +36,10 @@ pub use drive::{AsyncDrive, AsyncWatch};
 ///
 /// The session runs on the driver's thread; opening and closing (which block on I/O) run on tokio's
 /// blocking pool. Dropping the client closes the session there (stopping what it set in motion, bounded
-/// by [`BusConfig::close_bound`]).
+/// by [`Config::close_bound`]).
 pub struct AsyncClient {
     driver: AsyncDriver<Session>,
-    config: BusConfig,
+    config: Config,
     close_report: ReportSlot,
 }
 
@@ -52,7 +52,7 @@ impl std::fmt::Debug for AsyncClient {
 /// Where the close sequence's report is put.
 type ReportSlot = Arc<Mutex<Option<StopReport>>>;
 
-fn driver_for(link: Box<dyn Link>, clock: SharedClock, cfg: &BusConfig) -> Result<(Driver<Session>, ReportSlot)> {
+fn driver_for(link: Box<dyn Link>, clock: SharedClock, cfg: &Config) -> Result<(Driver<Session>, ReportSlot)> {
     let session = Session::new(cfg.clone(), clock.now());
     let report = session.close_report();
     let port = Port::Bytes(link);
@@ -64,7 +64,7 @@ fn driver_for(link: Box<dyn Link>, clock: SharedClock, cfg: &BusConfig) -> Resul
 
 impl AsyncClient {
     /// A client on `link` (already open), timed by `clock`.
-    pub fn new(link: Box<dyn Link>, clock: SharedClock, cfg: BusConfig) -> Result<Self> {
+    pub fn new(link: Box<dyn Link>, clock: SharedClock, cfg: Config) -> Result<Self> {
         let (driver, close_report) = driver_for(link, clock, &cfg)?;
         Ok(AsyncClient { driver: AsyncDriver::from_driver(driver), config: cfg, close_report })
     }
@@ -74,7 +74,7 @@ impl AsyncClient {
     pub async fn open(
         open: impl FnOnce() -> std::result::Result<Box<dyn Link>, LinkError> + Send + 'static,
         clock: SharedClock,
-        cfg: BusConfig,
+        cfg: Config,
     ) -> Result<Self> {
         let report = Arc::new(Mutex::new(None));
         let slot = Arc::clone(&report);
@@ -90,7 +90,7 @@ impl AsyncClient {
     }
 
     /// The configuration.
-    pub fn config(&self) -> &BusConfig {
+    pub fn config(&self) -> &Config {
         &self.config
     }
 

@@ -41,7 +41,7 @@ fn close_on_a_dead_line_says_the_stop_was_not_confirmed_and_the_watchdog_stops_t
 #[test]
 fn close_and_drop_are_bounded_in_time_and_a_missed_bound_is_reported() {
     // RS232 with a 300 ms bound: the close sequence would take 600 ms asking a silent module for its state.
-    let config = BusConfig { close_bound: Duration::from_millis(300), ..BusConfig::rs232() };
+    let config = Config { close_bound: Duration::from_millis(300), ..Config::rs232() };
     let (clock, host, bus, faults) = rs232_with(&[1], config.clone());
     let _me = clock.reserve_participant().enter();
     bus.enable_watchdog(&addrs(&[1])).unwrap();
@@ -124,7 +124,7 @@ fn the_front_ends_guard_rule_arms_only_modules_outside_this_process_that_the_use
 #[test]
 fn a_close_that_times_out_without_a_watchdog_does_not_claim_one() {
     // The same missed bound, with no watchdog armed (`--no-watchdog`): the error must not promise a halt.
-    let config = BusConfig { close_bound: Duration::from_millis(300), ..BusConfig::rs232() };
+    let config = Config { close_bound: Duration::from_millis(300), ..Config::rs232() };
     let (clock, host, bus, faults) = rs232_with(&[1], config);
     let _me = clock.reserve_participant().enter();
     bus.module(addr(1)).motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();

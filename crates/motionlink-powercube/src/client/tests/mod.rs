@@ -23,17 +23,17 @@ use motionlink_link::pipe::{Direction, EmulatorHost, FaultControl, PipeConfig};
 use motionlink_link::LinkError;
 use motionlink_testkit::rig::{CanRig, Rig};
 
-use crate::client::{BusConfig, Client, ModuleInfo, MoveSpec};
+use crate::client::{Client, Config, ModuleInfo, MoveSpec};
 use crate::model::{Address, ConfigWord, CubeState, Position, Velocity};
 use crate::sim::SimConfig;
 use crate::wire::{Reply, Request};
 use crate::Emulator;
 
 fn rs232(addresses: &[u8]) -> (ManualClock, EmulatorHost<Emulator>, Client, FaultControl) {
-    rs232_with(addresses, BusConfig::rs232())
+    rs232_with(addresses, Config::rs232())
 }
 
-fn rs232_with(addresses: &[u8], config: BusConfig) -> (ManualClock, EmulatorHost<Emulator>, Client, FaultControl) {
+fn rs232_with(addresses: &[u8], config: Config) -> (ManualClock, EmulatorHost<Emulator>, Client, FaultControl) {
     rs232_on(addresses, PipeConfig::paced(9_600), config)
 }
 
@@ -41,7 +41,7 @@ fn rs232_with(addresses: &[u8], config: BusConfig) -> (ManualClock, EmulatorHost
 fn rs232_on(
     addresses: &[u8],
     pipe: PipeConfig,
-    config: BusConfig,
+    config: Config,
 ) -> (ManualClock, EmulatorHost<Emulator>, Client, FaultControl) {
     let rig = Rig::new(Emulator::new(&SimConfig::with_addresses(addresses).unwrap()), pipe);
     let bus = Client::rs232(rig.link().unwrap(), rig.clock.shared(), config).unwrap();
@@ -61,7 +61,7 @@ fn scan_infos(bus: &Client) -> Vec<ModuleInfo> {
 fn can(addresses: &[u8]) -> (ManualClock, CanBus<Emulator>, Client) {
     let sim = Emulator::new_can(&SimConfig::with_addresses(addresses).unwrap());
     let rig = CanRig::new(sim, CanBusConfig::paced(1_000_000));
-    let bus = Client::can(Box::new(rig.link()), rig.clock.shared(), BusConfig::can()).unwrap();
+    let bus = Client::can(Box::new(rig.link()), rig.clock.shared(), Config::can()).unwrap();
     (rig.clock, rig.bus, bus)
 }
 
@@ -102,7 +102,7 @@ fn rs232_len(address: u8, reply: &Reply) -> u64 {
 
 /// An RS232 session whose bytes arrive at once (no 9600 baud pacing): only the session's own timing counts.
 fn rs232_instant(addresses: &[u8]) -> (ManualClock, EmulatorHost<Emulator>, Client, FaultControl) {
-    rs232_on(addresses, PipeConfig::instant(), BusConfig::rs232())
+    rs232_on(addresses, PipeConfig::instant(), Config::rs232())
 }
 
 fn spec(target: f32) -> MoveSpec {

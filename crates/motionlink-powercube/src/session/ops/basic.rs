@@ -45,7 +45,7 @@ impl Ctx {
     }
 
     /// One request, checked before it is sent, its acknowledge checked; reads are retried
-    /// ([`BusConfig::read_retries`](crate::session::BusConfig::read_retries)), nothing else is.
+    /// ([`Config::read_retries`](crate::session::Config::read_retries)), nothing else is.
     pub async fn request(&self, address: u8, request: Request) -> Result<Reply, Error> {
         self.check(address, &request)?;
         let (attempts, timeout) = {

@@ -221,7 +221,7 @@ impl Ctx {
         Ok(())
     }
 
-    /// Waits for `until` (polled every [`BusConfig::poll_interval`](crate::session::BusConfig) on a fixed
+    /// Waits for `until` (polled every [`Config::poll_interval`](crate::session::Config) on a fixed
     /// schedule), halting on a timeout, a cancellation or a failing line.
     pub async fn wait(&self, a: u8, until: Until, timeout: Duration) -> Result<CubeState, Error> {
         let start = self.now();

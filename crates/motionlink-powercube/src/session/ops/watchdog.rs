@@ -10,7 +10,7 @@ use crate::wire::{Action, Request};
 
 impl Ctx {
     /// True when this session can arm the watchdog: on CAN, and on RS232 unless
-    /// [`BusConfig::watchdog_on_rs232`](crate::session::BusConfig::watchdog_on_rs232) is false.
+    /// [`Config::watchdog_on_rs232`](crate::session::Config::watchdog_on_rs232) is false.
     pub fn watchdog_reliable(&self) -> bool {
         let core = self.core();
         core.can || core.config.watchdog_on_rs232
@@ -36,8 +36,7 @@ impl Ctx {
         };
         if !can && !on_rs232 {
             return Err(Error::Unsupported(
-                "the watchdog on RS232 is switched off in this session's settings (BusConfig::watchdog_on_rs232)"
-                    .into(),
+                "the watchdog on RS232 is switched off in this session's settings (Config::watchdog_on_rs232)".into(),
             ));
         }
         if failed {

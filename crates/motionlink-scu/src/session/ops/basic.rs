@@ -1,7 +1,7 @@
 //! Single requests, verified writes, strokes and cyclic objects.
 
 use super::Output;
-use crate::config::{ClientConfig, StrokeLimits};
+use crate::config::{Config, StrokeLimits};
 use crate::error::Error;
 use crate::model::{
     item, Actuator, CyclicObject, DataEntry, DataIndex, Item, MotionFunction, PositionCounts, SpeedMode, StopMode,
@@ -315,7 +315,7 @@ pub(crate) async fn cyclic(ctx: &Ctx, slot: u8, write: Vec<Value>, keep: bool) -
 /// The function-map check of a move or a stream: no actuator twice, and exactly the ones the map says the
 /// function drives, if it knows the function.
 pub(crate) fn check_against_map(
-    config: &ClientConfig,
+    config: &Config,
     function: MotionFunction,
     actuators: &[Actuator],
 ) -> Result<(), Error> {

@@ -89,7 +89,7 @@ fn object_index(slot: u8) -> DataIndex {
 /// definition found no room between two RCs). The manual gives no form that fits: the RT and RG it needs
 /// come only after the first RC, and the RC alone feeds the watchdog, so an RC, one other request and the
 /// next RC reach the unit two round trips apart, beyond its 500 ms. So, only where the user allowed it
-/// ([`ClientConfig::watch_may_lapse`](crate::ClientConfig::watch_may_lapse)) and while the session has started
+/// ([`Config::watch_may_lapse`](crate::Config::watch_may_lapse)) and while the session has started
 /// nothing, the RT goes out at once and the watchdog lapses after it (the unit records error bit 22 and
 /// stops the motions its Safety_ID says, none of them this session's); then RO and an RC that carries the
 /// object open remote mode again, and that RC's reply (the object's read data, of the length its

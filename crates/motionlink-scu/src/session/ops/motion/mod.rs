@@ -10,7 +10,7 @@ use super::basic::{check_against_map, check_stroke, stroke, write, StrokeFound};
 use super::object::define_object;
 use super::stop::{after_stop, Stop};
 use super::{positions, read_item, statuses, ItemRead, MoveSpec, MoveTargets, Output};
-use crate::config::ClientConfig;
+use crate::config::Config;
 use crate::error::Error;
 use crate::model::ActuatorStatus1;
 use crate::model::{Actuator, DataIndex, Function, MotionDirection, PositionCounts, StopMode, UNUSED};
@@ -88,7 +88,7 @@ impl Move {
     }
 
     /// Checks what can be checked before anything is sent.
-    fn check(&mut self, config: &ClientConfig) -> Result<(), Error> {
+    fn check(&mut self, config: &Config) -> Result<(), Error> {
         self.speed = self.spec.speed.for_motion(config.speed_mode).map_err(Error::InvalidArgument)?;
         match &self.spec.targets {
             MoveTargets::Given(targets) => {
@@ -170,7 +170,7 @@ impl Move {
             Err(e @ Error::OutsideStroke { .. }) if self.drives_unknown && a != self.spec.primary => {
                 Err(Error::InvalidArgument(format!(
                     "{e}. The function map does not say which actuators {} drives, so every connected actuator \
-                     gets the target; say which ones it drives (ClientConfig::function_map, --functions)",
+                     gets the target; say which ones it drives (Config::function_map, --functions)",
                     self.spec.function
                 )))
             }
