@@ -136,7 +136,7 @@ fn poll_31_with(c: &mut Criterion, baud: u32, loaded: bool) {
     let clock = RealClock::shared();
     let sim = Emulator::new(SimConfig::bus(&addrs, 0, baud)).unwrap();
     let host = EmulatorHost::new(sim, clock.clone(), PipeConfig::paced(baud));
-    let bus = Client::new(Box::new(host.connect().0), clock, Config::new(Mode::default(), baud)).unwrap();
+    let bus = Client::with_link(Box::new(host.connect().0), clock, Config::new(Mode::default(), baud)).unwrap();
     let drives: Vec<Address> = addrs.iter().map(|&a| Address::drive(a).unwrap()).collect();
     // Wire time of one sweep: each request ("NS1\r" or "NNS1\r") and reply ("S001: 0.000\r\n>", 14 bytes).
     let bytes: u32 = drives.iter().map(|a| if a.get() >= 10 { 5 } else { 4 } + 14).sum();
@@ -219,7 +219,7 @@ fn host_overhead(c: &mut Criterion) {
     let sim = Emulator::new(SimConfig::bus(&[17], 0, BAUD)).unwrap();
     let host = EmulatorHost::new(sim, clock.clone(), PipeConfig::paced(BAUD));
     let cfg = Config::new(Mode::default(), BAUD);
-    let blocking = Client::new(Box::new(host.connect().0), clock.clone(), cfg.clone()).unwrap();
+    let blocking = Client::with_link(Box::new(host.connect().0), clock.clone(), cfg.clone()).unwrap();
     let drive = Address::drive(17).unwrap();
     // "17S1\r" and "S001: 0.000\r\n>".
     let wire = char_time(BAUD, Parity::None) * (5 + 14);
@@ -251,8 +251,9 @@ fn host_overhead(c: &mut Criterion) {
         let (b_median, b_p90) = median_p90(single);
         // A second connection to the same emulated bus, driven by the async client (the blocking client
         // stays idle meanwhile).
-        let async_client = runtime
-            .block_on(async { AsyncClient::new(Box::new(host.connect().0), clock.clone(), cfg.clone()).unwrap() });
+        let async_client = runtime.block_on(async {
+            AsyncClient::with_link(Box::new(host.connect().0), clock.clone(), cfg.clone()).await.unwrap()
+        });
         g.bench_function(format!("async client (tokio), S1 at 115200 baud{what}"), |b| {
             b.iter_custom(|iters| {
                 runtime.block_on(async {

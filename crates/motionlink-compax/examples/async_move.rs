@@ -41,7 +41,8 @@ pub async fn run() -> Result<Summary, Box<dyn std::error::Error>> {
     let clock = RealClock::shared();
     let sim = Emulator::new(SimConfig::bus(&[1], 0, 115_200))?;
     let host = EmulatorHost::new(sim, clock.clone(), PipeConfig::paced(115_200));
-    let client = AsyncClient::new(Box::new(host.connect().0), clock, Config::new(Mode::default(), 115_200))?;
+    let client =
+        AsyncClient::with_link(Box::new(host.connect().0), clock, Config::new(Mode::default(), 115_200)).await?;
     let one = Address::drive(1)?;
 
     // 1000 units at 50 units/s: 20 s unless stopped.

@@ -40,7 +40,7 @@
 //! let _me = clock.reserve_participant().enter();
 //! let sim = Emulator::new(SimConfig::bus(&[1, 5], 8, 9600)).unwrap(); // P196 = 8: with BCC
 //! let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::paced(9600));
-//! let bus = Client::new(Box::new(host.connect().0), clock.shared(),
+//! let bus = Client::with_link(Box::new(host.connect().0), clock.shared(),
 //!                       Config::new(Mode::from_p196(8).unwrap(), 9600)).unwrap();
 //! let one = Address::drive(1).unwrap();
 //! bus.set_speed(one, SpeedPercent::new(50.0).unwrap(), false).unwrap();

@@ -32,14 +32,15 @@ fn runtime() -> tokio::runtime::Runtime {
     tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap()
 }
 
-fn setup() -> (EmulatorHost<Emulator>, AsyncClient) {
+async fn setup() -> (EmulatorHost<Emulator>, AsyncClient) {
     let clock = RealClock::shared();
     let host = EmulatorHost::new(
         Emulator::new(SimConfig::bus(&[1, 2], 0, BAUD)).unwrap(),
         clock.clone(),
         PipeConfig::paced(BAUD),
     );
-    let client = AsyncClient::new(Box::new(host.connect().0), clock, Config::new(Mode::default(), BAUD)).unwrap();
+    let client =
+        AsyncClient::with_link(Box::new(host.connect().0), clock, Config::new(Mode::default(), BAUD)).await.unwrap();
     (host, client)
 }
 
@@ -73,7 +74,7 @@ async fn drop_when<T: std::fmt::Debug>(op: impl std::future::Future<Output = T>,
 #[test]
 fn home_raw_motion_with_wait_and_read_statuses() {
     runtime().block_on(async {
-        let (host, client) = setup();
+        let (host, client) = setup().await;
         client.set_speed(a(1), SpeedPercent::new(100.0).unwrap(), false).await.unwrap();
         client.move_absolute(a(1), pos(30.0), MoveOptions::default()).await.unwrap();
         client.wait_reached(&[a(1)], Some(Duration::from_secs(5))).await.unwrap();
@@ -107,7 +108,7 @@ fn home_raw_motion_with_wait_and_read_statuses() {
 #[test]
 fn a_dropped_raw_motion_future_stops_the_axis_it_started() {
     runtime().block_on(async {
-        let (host, client) = setup();
+        let (host, client) = setup().await;
         // 1000 units at 100 units/s: ten seconds unless stopped.
         let moving = || host.with_device(|d| d.drive(1).unwrap().position() > 5.0);
         drop_when(client.raw_motion(a(1), "POSA 1000", AfterRaw::Wait(Duration::from_secs(60))), moving).await;
@@ -123,7 +124,7 @@ fn a_dropped_raw_motion_future_stops_the_axis_it_started() {
 #[test]
 fn start_and_release_hands_the_move_over_and_close_leaves_it_running() {
     runtime().block_on(async {
-        let (host, client) = setup();
+        let (host, client) = setup().await;
         let mut request = MoveRequest::new(MoveTarget::Absolute(pos(1000.0)));
         request.speed = Some(SpeedPercent::new(10.0).unwrap());
         let started = client.start_and_release(a(2), &request).await.unwrap();
@@ -137,7 +138,7 @@ fn start_and_release_hands_the_move_over_and_close_leaves_it_running() {
 #[test]
 fn a_drive_handle_moves_and_a_watch_stream_follows_it() {
     runtime().block_on(async {
-        let (host, client) = setup();
+        let (host, client) = setup().await;
         assert!(matches!(client.drive(Address::BROADCAST), Err(Error::Broadcast(_))));
         assert!(matches!(client.watch(Address::BROADCAST, Duration::from_millis(20)), Err(Error::Broadcast(_))));
         let two = client.drive(a(2)).unwrap();
@@ -218,7 +219,7 @@ fn silent_line_with_a_move(
     let link = DropClock { inner: link, dropped: dropped.clone() };
     let mut cfg = Config::new(Mode::default(), BAUD);
     cfg.close_bound = BOUND;
-    let client = AsyncClient::new(Box::new(link), clock, cfg).unwrap();
+    let client = runtime.block_on(AsyncClient::with_link(Box::new(link), clock, cfg)).unwrap();
     runtime.block_on(client.move_absolute(a(1), pos(1000.0), MoveOptions::default())).unwrap();
     faults.drop_next(Direction::HostToDevice, u64::MAX / 2);
     faults.drop_next(Direction::DeviceToHost, u64::MAX / 2);

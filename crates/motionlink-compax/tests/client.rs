@@ -251,7 +251,7 @@ fn a_cancelled_scan_ends_between_drives_and_a_cancelled_token_keeps_moves_unsent
     let transcript = Transcript::new();
     let link = TapLink::new(host.connect().0, clock.shared(), transcript.clone());
     let link = CancelAfter { inner: link, token: token.clone(), sends: 0, n: 3 };
-    let bus = Client::new(Box::new(link), clock.shared(), Config::new(Mode::default(), 9600)).unwrap();
+    let bus = Client::with_link(Box::new(link), clock.shared(), Config::new(Mode::default(), 9600)).unwrap();
     bus.set_cancel(token.clone());
     // Cancelled while the third address is asked: that answer is awaited, the fourth is not asked.
     assert!(matches!(bus.scan(1..=31), Err(Error::Cancelled)));

@@ -250,7 +250,7 @@ fn a_wait_without_a_timeout_ends_after_the_default_one() {
     let mut cfg = Config::new(Mode::default(), 9600);
     assert_eq!(cfg.wait_timeout, Duration::from_secs(600));
     cfg.wait_timeout = Duration::from_secs(3);
-    let bus = Client::new(Box::new(host.connect().0), clock.shared(), cfg).unwrap();
+    let bus = Client::with_link(Box::new(host.connect().0), clock.shared(), cfg).unwrap();
     // 1000 units at 100 units/s: 10 s.
     bus.move_absolute(a(1), pos(1000.0), MoveOptions::default()).unwrap();
     let t0 = clock.now();
@@ -285,7 +285,7 @@ fn comparator_numbers_are_expected_only_until_the_positioning_ends() {
         }
     };
     let link = Scripted { clock: clock.shared(), answer: Box::new(answer), pending: Default::default() };
-    let bus = Client::new(Box::new(link), clock.shared(), Config::new(Mode::default(), 9600)).unwrap();
+    let bus = Client::with_link(Box::new(link), clock.shared(), Config::new(Mode::default(), 9600)).unwrap();
     let comparator = Command::PosROutput { distance: pos(5.0), output: 9, state: OutputState::ON };
     assert_eq!(bus.command(a(1), &comparator).unwrap(), "");
     bus.move_absolute(a(1), pos(10.0), MoveOptions::default()).unwrap();
@@ -374,7 +374,8 @@ fn scan_finds_the_drives_and_skips_the_deaf_one() {
     let mut cfg = SimConfig::bus(&[2, 9, 31], 0, 19_200);
     cfg.drives[1].baud_rate = Some(9600); // drive 9 listens at another baud rate: it hears only noise
     let host = EmulatorHost::new(Emulator::new(cfg).unwrap(), clock.shared(), PipeConfig::paced(19_200));
-    let bus = Client::new(Box::new(host.connect().0), clock.shared(), Config::new(Mode::default(), 19_200)).unwrap();
+    let bus =
+        Client::with_link(Box::new(host.connect().0), clock.shared(), Config::new(Mode::default(), 19_200)).unwrap();
     let found: Vec<u8> = bus.scan(1..=31).unwrap().into_iter().map(|(a, _)| a.get()).collect();
     assert_eq!(found, [2, 31]);
 }
@@ -453,7 +454,7 @@ fn bare_values_answering_a_read_are_replies_while_a_comparator_is_armed() {
         }
     };
     let link = Scripted { clock: clock.shared(), answer: Box::new(answer), pending: Default::default() };
-    let bus = Client::new(Box::new(link), clock.shared(), Config::new(Mode::default(), 9600)).unwrap();
+    let bus = Client::with_link(Box::new(link), clock.shared(), Config::new(Mode::default(), 9600)).unwrap();
     let comparator = Command::PosROutput { distance: pos(5.0), output: 9, state: OutputState::ON };
     assert_eq!(bus.command(a(1), &comparator).unwrap(), "");
     bus.move_absolute(a(1), pos(10.0), MoveOptions::default()).unwrap();
@@ -486,7 +487,7 @@ fn a_failed_synchronous_store_names_the_drives_left_with_a_buffered_move() {
         }
     };
     let link = Scripted { clock: clock.shared(), answer: Box::new(answer), pending: Default::default() };
-    let bus = Client::new(Box::new(link), clock.shared(), Config::new(Mode::default(), 9600)).unwrap();
+    let bus = Client::with_link(Box::new(link), clock.shared(), Config::new(Mode::default(), 9600)).unwrap();
     let e = bus.sync_start(&[(a(1), Command::PosA(pos(100.0))), (a(5), Command::PosA(pos(100.0)))], false).unwrap_err();
     match &e {
         Error::SyncIncomplete { failed, source, buffered } => {
@@ -547,7 +548,7 @@ fn stop_started_sends_the_stop_when_s17_cannot_be_read() {
         }
     };
     let link = Scripted { clock: clock.shared(), answer: Box::new(answer), pending: Default::default() };
-    let bus = Client::new(Box::new(link), clock.shared(), Config::new(Mode::default(), 9600)).unwrap();
+    let bus = Client::with_link(Box::new(link), clock.shared(), Config::new(Mode::default(), 9600)).unwrap();
     bus.move_absolute(a(1), pos(10.0), MoveOptions::default()).unwrap();
     let report = bus.stop_started();
     let frames = sent_frames.lock().unwrap().clone();

@@ -9,7 +9,6 @@ use motionlink_compax::model::{Command, OutputState, ParamId, Position, SpeedPer
 use motionlink_compax::sim::{Emulator, SimConfig};
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_link::emulator::{serve_tcp, Server};
-use motionlink_link::link::SerialSettings;
 use motionlink_link::url::PortUrl;
 use motionlink_link::RealClock;
 
@@ -21,13 +20,21 @@ fn pos(v: f64) -> Position {
     Position::new(v).unwrap()
 }
 
+/// A session opened by the port's name, as a user's program opens it (`Client::open`, the mode's parity).
 fn session(server: &Server, p196: u32, port: PortUrl) -> Client {
-    let mode = Mode::from_p196(p196).unwrap();
-    let mut settings = SerialSettings::new(115_200);
-    settings.parity = mode.parity;
-    let link = port.open_byte_link(settings).unwrap();
     let _ = server;
-    Client::new(link, RealClock::shared(), Config::new(mode, 115_200)).unwrap()
+    Client::open(&port, RealClock::shared(), Config::new(Mode::from_p196(p196).unwrap(), 115_200)).unwrap()
+}
+
+#[test]
+fn opening_by_name_refuses_sim_and_can_naming_what_to_do() {
+    for (port, says) in [("sim", "give its link to `with_link`"), ("socketcan://can0", "not CAN")] {
+        let err =
+            Client::open(&port.parse().unwrap(), RealClock::shared(), Config::new(Mode::default(), 9600)).unwrap_err();
+        let text = err.to_string();
+        assert!(text.contains(port) && text.contains(says), "{text}");
+        assert_eq!(motionlink_link::error::Classify::class(&err), motionlink_link::error::ErrorClass::Usage);
+    }
 }
 
 fn exercise(bus: &Client) {

@@ -52,9 +52,12 @@ fn emulated(variants: &[Variant], p196: u32) -> (Me, EmulatorHost<Emulator>, Cli
     let mut cfg = SimConfig::bus(&[1, 3], p196, 9600);
     cfg.variants = variants.to_vec();
     let host = EmulatorHost::new(Emulator::new(cfg).unwrap(), clock.shared(), PipeConfig::paced(9600));
-    let client =
-        Client::new(Box::new(host.connect().0), clock.shared(), Config::new(Mode::from_p196(p196).unwrap(), 9600))
-            .unwrap();
+    let client = Client::with_link(
+        Box::new(host.connect().0),
+        clock.shared(),
+        Config::new(Mode::from_p196(p196).unwrap(), 9600),
+    )
+    .unwrap();
     ((clock, me), host, client)
 }
 
@@ -115,7 +118,7 @@ fn each_variant_shows_as_unsupported_in_its_own_check_and_nowhere_else() {
 fn a_wrong_mode_finds_no_drive_and_says_why() {
     let (_me, _host, client) = emulated(&[], 8);
     // The drives want a BCC (P196 8); this session sends none.
-    let bus = Client::new(
+    let bus = Client::with_link(
         Box::new(_host.connect().0),
         client.driver().clock().clone(),
         Config::new(Mode::from_p196(0).unwrap(), 9600),
@@ -156,7 +159,7 @@ fn a_saved_profile_seeds_the_drive_and_its_echo_probe_disappears() {
     let sent = Arc::new(AtomicUsize::new(0));
     let fresh = || {
         let link = Counted { inner: Box::new(host.connect().0), sent: Arc::clone(&sent) };
-        Client::new(Box::new(link), _me.0.shared(), Config::new(Mode::from_p196(0).unwrap(), 9600)).unwrap()
+        Client::with_link(Box::new(link), _me.0.shared(), Config::new(Mode::from_p196(0).unwrap(), 9600)).unwrap()
     };
     let client = fresh();
     let used = use_profile(&client, &profiles, "bus", a(3)).unwrap();

@@ -28,7 +28,7 @@ fn rig(clock: &ManualClock, cfg: impl FnOnce(&mut Config)) -> (EmulatorHost<Emul
     let (link, faults) = host.connect();
     let mut c = Config::new(Mode::default(), 9600);
     cfg(&mut c);
-    let client = Client::new(Box::new(link), clock.shared(), c).unwrap();
+    let client = Client::with_link(Box::new(link), clock.shared(), c).unwrap();
     (host, faults, client)
 }
 

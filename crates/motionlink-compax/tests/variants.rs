@@ -24,7 +24,7 @@ fn emulated(variants: &[Variant], p196: u32) -> (ManualClock, EmulatorHost<Emula
     let host = EmulatorHost::new(Emulator::new(cfg).unwrap(), clock.shared(), PipeConfig::paced(9600));
     let (link, faults) = host.connect();
     let client =
-        Client::new(Box::new(link), clock.shared(), Config::new(Mode::from_p196(p196).unwrap(), 9600)).unwrap();
+        Client::with_link(Box::new(link), clock.shared(), Config::new(Mode::from_p196(p196).unwrap(), 9600)).unwrap();
     (clock, host, faults, client)
 }
 

@@ -60,7 +60,8 @@ fn setup() -> (Client, Vec<Address>) {
     let clock = RealClock::shared();
     let sim = Emulator::new_can(&SimConfig::with_addresses(&addresses).expect("31 addresses"));
     let can = CanBus::with_emulator(sim, clock.clone(), CanBusConfig::paced(BITRATE));
-    let bus = Client::can(Box::new(can.connect()), clock, Config::can()).expect("the session starts");
+    let bus =
+        Client::with_link(PortLink::Can(Box::new(can.connect())), clock, Config::can()).expect("the session starts");
     (bus, addresses.iter().map(|&a| Address::new(a).expect("1..31")).collect())
 }
 

@@ -54,13 +54,19 @@ fn mean(n: u32, mut read: impl FnMut()) -> Duration {
 fn bench(c: &mut Criterion) {
     let blocking_bus = bus();
     let blocking =
-        Client::can(Box::new(blocking_bus.connect()), RealClock::shared(), Config::can()).expect("the session starts");
+        Client::with_link(PortLink::Can(Box::new(blocking_bus.connect())), RealClock::shared(), Config::can())
+            .expect("the session starts");
     let one = Address::new(1).expect("address 1");
     let module = blocking.module(one);
 
     let runtime = tokio::runtime::Builder::new_current_thread().enable_time().build().expect("a tokio runtime");
     let async_bus = bus();
-    let asynchronous = AsyncClient::can(Box::new(async_bus.connect()), RealClock::shared(), Config::can())
+    let asynchronous = runtime
+        .block_on(AsyncClient::with_link(
+            PortLink::Can(Box::new(async_bus.connect())),
+            RealClock::shared(),
+            Config::can(),
+        ))
         .expect("the session starts");
     let async_module = asynchronous.module(one);
 
@@ -89,8 +95,8 @@ fn bench(c: &mut Criterion) {
     // no wake-up latency of the operating system counts (a sleeping reader's wake-up by a timer, here, or by
     // a frame's interrupt, on a real bus, is the operating system's time, the same for any library).
     let spin_bus = bus_with(CanBusConfig { reader_spins: true, ..CanBusConfig::paced(BITRATE) });
-    let spinning =
-        Client::can(Box::new(spin_bus.connect()), RealClock::shared(), Config::can()).expect("the session starts");
+    let spinning = Client::with_link(PortLink::Can(Box::new(spin_bus.connect())), RealClock::shared(), Config::can())
+        .expect("the session starts");
     let spin_module = spinning.module(one);
     let spin_mean = mean(n, || {
         black_box(spin_module.position().expect("answers"));

@@ -4,6 +4,7 @@
 //!
 //! `cargo run -p motionlink-powercube --example powercube_async_move --features tokio`
 
+use motionlink_powercube::PortLink;
 use std::time::Duration;
 
 use motionlink_link::can::{CanBus, CanBusConfig};
@@ -32,7 +33,7 @@ pub async fn run() -> Result<Seen, Error> {
     let config = SimConfig::with_addresses(&[1, 2]).map_err(|e| Error::Unsupported(e.to_string()))?;
     let sim = Emulator::new_can(&config);
     let bus = CanBus::with_emulator(sim, clock.clone(), CanBusConfig::paced(1_000_000));
-    let client = AsyncClient::can(Box::new(bus.connect()), clock, Config::can())?;
+    let client = AsyncClient::with_link(PortLink::Can(Box::new(bus.connect())), clock, Config::can()).await?;
     let (one, two) = (Address::new(1)?, Address::new(2)?);
     let joint = client.module(one);
     println!("module 1 is {}", joint.kind().await?.name()); // from now on its positions read in rad

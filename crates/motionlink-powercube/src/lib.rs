@@ -34,13 +34,13 @@
 //! use motionlink_powercube::client::Config;
 //! use motionlink_powercube::model::Address;
 //! use motionlink_powercube::sim::SimConfig;
-//! use motionlink_powercube::{Client, Emulator};
+//! use motionlink_powercube::{Client, Emulator, PortLink};
 //!
 //! let clock = ManualClock::new_auto();
 //! let _me = clock.reserve_participant().enter();
 //! let sim = Emulator::new_can(&SimConfig::with_addresses(&[1, 2, 3]).unwrap());
 //! let can = CanBus::with_emulator(sim, clock.shared(), CanBusConfig::paced(1_000_000));
-//! let bus = Client::can(Box::new(can.connect()), clock.shared(), Config::can()).unwrap();
+//! let bus = Client::with_link(PortLink::Can(Box::new(can.connect())), clock.shared(), Config::can()).unwrap();
 //! let found = bus.scan().unwrap();
 //! assert_eq!(found.len(), 3);
 //! let modules: Vec<Address> = found.iter().map(|e| e.address).collect(); // 1, 2, 3
@@ -223,6 +223,7 @@ pub mod wire;
 #[cfg(feature = "tokio")]
 pub use client::AsyncClient;
 pub use client::Client;
+pub use client::PortLink;
 pub use error::Error;
 pub use session::Session;
 pub use sim::Emulator;

@@ -2,6 +2,7 @@
 //! at 1 Mbit/s, real time): the operations the blocking client has beyond the checked move, with the same
 //! results. Waits are on the module's state, never fixed sleeps.
 
+use motionlink_powercube::PortLink;
 use std::time::Duration;
 
 use motionlink_link::can::{CanBus, CanBusConfig};
@@ -15,11 +16,11 @@ use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::wire::{Reply, Request};
 use motionlink_powercube::{Emulator, Error};
 
-fn setup() -> (CanBus<Emulator>, AsyncClient) {
+async fn setup() -> (CanBus<Emulator>, AsyncClient) {
     let clock = RealClock::shared();
     let sim = Emulator::new_can(&SimConfig::with_addresses(&[1, 2]).unwrap());
     let bus = CanBus::with_emulator(sim, clock.clone(), CanBusConfig::paced(1_000_000));
-    let client = AsyncClient::can(Box::new(bus.connect()), clock, Config::can()).unwrap();
+    let client = AsyncClient::with_link(PortLink::Can(Box::new(bus.connect())), clock, Config::can()).await.unwrap();
     (bus, client)
 }
 
@@ -38,7 +39,7 @@ fn emulator_events(bus: &CanBus<Emulator>, prefix: &str) -> Vec<String> {
 #[test]
 fn async_home_starts_without_waiting_and_wait_home_sees_it_end() {
     run(async {
-        let (_bus, client) = setup();
+        let (_bus, client) = setup().await;
         let m = client.module(a(1));
         assert!(!m.state().await.unwrap().contains(StateFlag::HomeOk));
         m.home().await.unwrap();
@@ -56,7 +57,7 @@ fn async_home_starts_without_waiting_and_wait_home_sees_it_end() {
 #[test]
 fn async_move_ramp_runs_to_its_target_and_wait_motion_end_waits_for_it() {
     run(async {
-        let (_bus, client) = setup();
+        let (_bus, client) = setup().await;
         let m = client.module(a(1));
         m.home().await.unwrap();
         m.wait_home(Duration::from_secs(5)).await.unwrap();
@@ -85,7 +86,7 @@ fn async_move_ramp_runs_to_its_target_and_wait_motion_end_waits_for_it() {
 #[test]
 fn async_stop_motion_halts_a_running_ramp_and_says_the_module_confirmed_it() {
     run(async {
-        let (bus, client) = setup();
+        let (bus, client) = setup().await;
         let m = client.module(a(1));
         m.home().await.unwrap();
         m.wait_home(Duration::from_secs(5)).await.unwrap();
@@ -108,7 +109,7 @@ fn async_stop_motion_halts_a_running_ramp_and_says_the_module_confirmed_it() {
 #[test]
 fn async_request_many_answers_each_request_and_refuses_a_bad_one_alone() {
     run(async {
-        let (_bus, client) = setup();
+        let (_bus, client) = setup().await;
         let serial = Request::get(Param::DefCubeSerial).unwrap();
         let write_read_only = Request::Set(Param::DefCubeSerial, Value::U32(7));
         let replies =

@@ -2,6 +2,7 @@
 //! trait, with a frame type of its own, wrapped in `EmbeddedCanLink`, runs a scan, a checked move and the
 //! close, as the in-memory bus and SocketCAN do.
 
+use motionlink_powercube::PortLink;
 use std::collections::VecDeque;
 use std::time::Duration;
 
@@ -81,7 +82,7 @@ fn a_session_runs_over_any_embedded_can_driver() {
     let bus = Emulator::new_can(&SimConfig::with_addresses(&[3, 7]).unwrap());
     let peripheral = Peripheral { bus, clock: clock.clone(), rx: VecDeque::new() };
     let link = EmbeddedCanLink::new(peripheral, clock.clone(), Duration::from_micros(100), "hal can0");
-    let client = Client::can(Box::new(link), clock, Config::can()).unwrap();
+    let client = Client::with_link(PortLink::Can(Box::new(link)), clock, Config::can()).unwrap();
     let found: Vec<u8> = client.scan().unwrap().iter().map(|e| e.address.get()).collect();
     assert_eq!(found, vec![3, 7]);
     let seven = Address::new(7).unwrap();

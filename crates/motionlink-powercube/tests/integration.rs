@@ -9,4 +9,5 @@ mod async_example;
 mod embedded_can;
 mod fuzz;
 mod manual_examples;
+mod opening;
 mod probe;

@@ -2,6 +2,7 @@
 //! `unsupported` for the behaviour a variant changes and what the default modules say otherwise; a saved
 //! profile seeds a later session (whose probe exchange disappears) only when the module's identity matches.
 
+use motionlink_powercube::PortLink;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
@@ -51,7 +52,7 @@ fn bus(config: &SimConfig) -> (Me, Client, Arc<AtomicUsize>) {
     let host = EmulatorHost::new(Emulator::new(config), clock.shared(), PipeConfig::paced(9_600));
     let sent = Arc::new(AtomicUsize::new(0));
     let link = Counted { inner: Box::new(host.connect().0), sent: Arc::clone(&sent) };
-    let client = Client::rs232(Box::new(link), clock.shared(), Config::rs232()).unwrap();
+    let client = Client::with_link(PortLink::Rs232(Box::new(link)), clock.shared(), Config::rs232()).unwrap();
     ((clock, me), client, sent)
 }
 
@@ -154,7 +155,7 @@ fn on_can_the_broadcast_is_the_manuals_and_not_probed() {
     let _me = clock.reserve_participant().enter();
     let sim = Emulator::new_can(&SimConfig::with_addresses(&[3]).unwrap());
     let canbus = CanBus::with_emulator(sim, clock.shared(), CanBusConfig::paced(1_000_000));
-    let client = Client::can(Box::new(canbus.connect()), clock.shared(), Config::can()).unwrap();
+    let client = Client::with_link(PortLink::Can(Box::new(canbus.connect())), clock.shared(), Config::can()).unwrap();
     let r = probe(&client, &ProbeSetup::new("socketcan://can0", PortKind::Can, 0)).unwrap();
     assert_eq!(r.devices.len(), 1);
     assert_eq!(r.check("pos_state_dio", Some(3)).unwrap().result, CheckResult::Ok);

@@ -153,8 +153,8 @@ fn client_on_emulator() -> Client {
 fn client_on(pipe: PipeConfig) -> Client {
     let clock = RealClock::shared();
     let host = EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), Arc::clone(&clock), pipe);
-    let connector: Connector = Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>));
-    Client::open(connector, clock, Config::default()).unwrap()
+    let connector: Connector = host.connector();
+    Client::with_connector(connector, clock, Config::default()).unwrap()
 }
 
 /// Median and 90th percentile of `n` single RG transactions' host overhead above the wire time.
@@ -175,8 +175,8 @@ fn async_client_on_emulator(runtime: &tokio::runtime::Runtime) -> AsyncClient {
     let clock = RealClock::shared();
     let host =
         EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), Arc::clone(&clock), PipeConfig::paced(38_400));
-    let connector: Connector = Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>));
-    runtime.block_on(AsyncClient::open(connector, clock, Config::default())).unwrap()
+    let connector: Connector = host.connector();
+    runtime.block_on(AsyncClient::with_connector(connector, clock, Config::default())).unwrap()
 }
 
 /// As [`single_transactions`], through the async client on `runtime`.
@@ -301,7 +301,7 @@ fn keepalive_lateness(duration: Duration) -> Vec<Duration> {
         Ok(Box::new(KeepaliveTimes { inner: Box::new(host.connect().0), sent: Arc::clone(&record) }) as Box<dyn Link>)
     });
     let period = Config::default().keepalive_period;
-    let client = Client::open(connector, clock, Config::default()).unwrap();
+    let client = Client::with_connector(connector, clock, Config::default()).unwrap();
     std::thread::sleep(duration);
     drop(client);
     let times = sent.lock().unwrap().clone();

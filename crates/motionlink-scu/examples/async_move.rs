@@ -11,7 +11,6 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use motionlink_link::link::Link;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::RealClock;
 use motionlink_scu::model::{Actuator, PositionCounts, Speed};
@@ -36,8 +35,8 @@ pub async fn run() -> Result<Seen, Box<dyn std::error::Error + Send + Sync>> {
     let unit = EmulatorHost::new(Emulator::new(SimConfig::default())?, Arc::clone(&clock), PipeConfig::paced(38_400));
     let watch = unit.clone();
     let config = Config { function_map: FunctionMap::scp11(), ..Config::default() };
-    let connector = Box::new(move || Ok(Box::new(unit.connect().0) as Box<dyn Link>));
-    let client = Arc::new(AsyncClient::open(connector, clock, config).await?);
+    let connector = unit.connector();
+    let client = Arc::new(AsyncClient::with_connector(connector, clock, config).await?);
     let a1 = Actuator::new(1).ok_or("actuator 1")?;
     let full = Speed::percent(100).ok_or("100 %")?;
 

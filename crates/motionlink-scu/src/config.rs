@@ -3,6 +3,7 @@
 
 use std::time::Duration;
 
+use crate::args::Baud;
 use crate::error::Error;
 use crate::model::{timing, Actuator, MotionFunction, PositionCounts, SafetyId, SpeedMode};
 use crate::wire::MAX_REQUEST_LEN;
@@ -216,6 +217,8 @@ impl StrokeLimits {
 /// Settings of a session. The defaults follow the manual.
 #[derive(Debug, Clone)]
 pub struct Config {
+    /// The serial line's rate, for [`Client::open`](crate::Client::open). Default 38400 (the manual's standard).
+    pub baud: Baud,
     /// What the unit does when the watchdog expires (RO's Safety_ID). Default 0.
     pub safety_id: SafetyId,
     /// Time between RC keepalives. Default 200 ms; more than [`MAX_KEEPALIVE_PERIOD`] is refused.
@@ -278,6 +281,7 @@ pub const TOLERANCE_RULE: &str = "the position tolerance must be a whole number 
 impl Default for Config {
     fn default() -> Self {
         Config {
+            baud: Baud::STANDARD,
             safety_id: SafetyId::StopAllAndLock,
             keepalive_period: Duration::from_millis(200),
             reply_timeout: timing::MAX_REPLY_DELAY,

@@ -35,11 +35,7 @@
 //! let clock = ManualClock::new_auto();
 //! let _me = clock.reserve_participant().enter();
 //! let unit = EmulatorHost::new(Emulator::new(SimConfig::default())?, clock.shared(), PipeConfig::paced(38_400));
-//! let client = Client::open(
-//!     Box::new(move || Ok(Box::new(unit.connect().0) as Box<dyn Link>)),
-//!     clock.shared(),
-//!     Config::default(),
-//! )?;
+//! let client = Client::with_connector(unit.connector(), clock.shared(), Config::default())?;
 //! let a1 = Actuator::new(1).unwrap();
 //! // Positions are `PositionCounts`, speeds `Speed` (percent or counts/s): a bare number is neither.
 //! let report = client.move_to(a1, PositionCounts(400), Speed::percent(80).unwrap(), &Default::default())?;
@@ -186,7 +182,7 @@ pub mod sim;
 pub mod value;
 pub mod wire;
 
-pub use client::{ending, Client, Ending, FollowReport, Follower, MoveOptions, SetpointStream};
+pub use client::{ending, port_connector, Client, Ending, FollowReport, Follower, MoveOptions, SetpointStream};
 #[cfg(feature = "tokio")]
 pub use client::{AsyncClient, AsyncSetpointStream};
 pub use config::{Config, FunctionMap, MovePolling, StrokeLimits};

@@ -27,8 +27,8 @@
 //! let mut sim = SimConfig::default();
 //! sim.variants = sim.variants.with(Variant::NoGroups);
 //! let unit = EmulatorHost::new(Emulator::new(sim)?, clock.shared(), PipeConfig::paced(38_400));
-//! let connector = Box::new(move || Ok(Box::new(unit.connect().0) as Box<dyn Link>));
-//! let client = Client::open(connector, clock.shared(), Config::default())?;
+//! let connector = unit.connector();
+//! let client = Client::with_connector(connector, clock.shared(), Config::default())?;
 //! let report = motionlink_scu::probe::probe(&client, &ProbeSetup::new("sim", PortKind::Sim, 38_400))?;
 //! assert_eq!(report.check("grouping_indices", None).unwrap().result, CheckResult::Unsupported);
 //! assert_eq!(report.devices[0].capabilities.grouping_indices, Some(false));

@@ -6,7 +6,6 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use motionlink_link::link::Link;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::RealClock;
 use motionlink_scu::model::{Actuator, DataIndex, MotionFunction, PositionCounts, Speed};
@@ -20,8 +19,8 @@ fn setup() -> (EmulatorHost<Emulator>, impl std::future::Future<Output = AsyncCl
         EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), Arc::clone(&clock), PipeConfig::paced(38_400));
     let host = unit.clone();
     let config = Config { function_map: FunctionMap::scp11(), ..Config::default() };
-    let connector = Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>));
-    (unit, async move { AsyncClient::open(connector, clock, config).await.unwrap() })
+    let connector = host.connector();
+    (unit, async move { AsyncClient::with_connector(connector, clock, config).await.unwrap() })
 }
 
 /// Waits (at most 2 s) until `done` says so.

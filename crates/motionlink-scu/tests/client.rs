@@ -24,7 +24,7 @@ fn a_unit_that_ignores_the_first_ro_after_a_long_silence_is_opened_by_the_second
         faults.drop_next(Direction::HostToDevice, 5); // the first RO, all five bytes
         Ok(Box::new(link) as Box<dyn Link>)
     });
-    let client = Client::open(connector, rig.clock.shared(), Config::default()).unwrap();
+    let client = Client::with_connector(connector, rig.clock.shared(), Config::default()).unwrap();
     assert_eq!(client.stats().retries, 1);
     assert!(matches!(rig.unit(|u| u.mode()), RemoteMode::Active(_)));
     client.close().unwrap();
@@ -57,7 +57,7 @@ fn a_session_is_kept_alive_for_ten_minutes_of_device_time_without_busy_waiting()
 #[test]
 fn keepalive_period_above_450_ms_is_refused() {
     let rig = Rig::new(SimConfig::default());
-    let err = Client::open(
+    let err = Client::with_connector(
         rig.connector(),
         rig.clock.shared(),
         Config { keepalive_period: Duration::from_millis(451), ..Default::default() },
@@ -424,4 +424,33 @@ fn stop_functions_stops_every_motion_function_and_reads_where_the_actuators_rest
     let again = client.stop_functions(&[f(1)], StopMode::Soft).unwrap();
     assert_eq!(again.at_rest.iter().find(|r| r.actuator == a(1)).unwrap().position_counts, a1.position_counts);
     client.close().unwrap();
+}
+
+#[test]
+fn a_session_opened_by_the_port_s_name_runs_over_tcp_and_sim_and_can_are_refused_naming_what_to_do() {
+    let clock = motionlink_link::RealClock::shared();
+    let unit = Arc::new(Mutex::new(Emulator::new(SimConfig::default()).unwrap()));
+    let server = motionlink_link::emulator::serve_tcp("127.0.0.1:0", Arc::clone(&unit), clock.clone()).unwrap();
+    let client = Client::open(&server.address().parse().unwrap(), clock.clone(), Config::default()).unwrap();
+    assert!(matches!(unit.lock().unwrap().mode(), RemoteMode::Active(_)));
+    client.position(Actuator::new(1).unwrap()).unwrap();
+    client.close().unwrap();
+    assert_eq!(unit.lock().unwrap().mode(), RemoteMode::Off);
+    for (port, says) in [("sim", "give its link to `with_link`"), ("socketcan://can0", "not CAN")] {
+        let err = Client::open(&port.parse().unwrap(), clock.clone(), Config::default()).unwrap_err();
+        let text = err.to_string();
+        assert!(text.contains(port) && text.contains(says), "{text}");
+        assert_eq!(err.class(), ErrorClass::Usage);
+    }
+}
+
+#[test]
+fn a_session_on_a_link_given_to_it_cannot_reconnect_and_says_why() {
+    let rig = Rig::new(SimConfig::default());
+    let (link, faults) = rig.host.connect();
+    let client = Client::with_link(Box::new(link), rig.clock.shared(), Config::default()).unwrap();
+    assert!(matches!(rig.unit(|u| u.mode()), RemoteMode::Active(_)));
+    faults.disconnect();
+    let err = client.reconnect().unwrap_err();
+    assert!(err.to_string().contains("cannot be opened again (with_connector reconnects)"), "{err}");
 }

@@ -288,7 +288,7 @@ fn round_trips_of_300_ms_still_keep_the_unit_alive() {
             queue: Default::default(),
         }) as Box<dyn Link>)
     });
-    let client = Client::open(connector, rig.clock.shared(), Config::default()).unwrap();
+    let client = Client::with_connector(connector, rig.clock.shared(), Config::default()).unwrap();
     let keepalives_before = client.stats().keepalives;
     rig.sleep(10_000);
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0, "the unit never lost its RC");
@@ -319,7 +319,7 @@ fn round_trips_of_300_ms_during_a_move_still_keep_the_unit_alive() {
             queue: Default::default(),
         }) as Box<dyn Link>)
     });
-    let client = Client::open(
+    let client = Client::with_connector(
         connector,
         rig.clock.shared(),
         Config { function_map: FunctionMap::scp11(), ..Default::default() },

@@ -354,8 +354,8 @@ fn set_read_back_mismatch(config: SimConfig) {
         clock.shared(),
         PipeConfig::paced(38_400),
     );
-    let connector: Connector = Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>));
-    let client = Client::open(connector, clock.shared(), Config::default()).unwrap();
+    let connector: Connector = host.connector();
+    let client = Client::with_connector(connector, clock.shared(), Config::default()).unwrap();
     client.set(DataIndex(0x3011), &Value::RemoteSpeed(40)).unwrap();
     let err = client.set(DataIndex(0x3011), &Value::RemoteSpeed(80)).unwrap_err();
     let Error::ReadBack { name, written, read, .. } = &err else { panic!("{err}") };

@@ -4,7 +4,6 @@
 
 use std::time::Duration;
 
-use motionlink_link::link::Link;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::RealClock;
 use motionlink_scu::{Client, Config};
@@ -24,9 +23,7 @@ fn cpu_ticks() -> u64 {
 fn an_idle_session_costs_no_measurable_cpu() {
     let clock = RealClock::shared();
     let unit = EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), clock.clone(), PipeConfig::instant());
-    let client =
-        Client::open(Box::new(move || Ok(Box::new(unit.connect().0) as Box<dyn Link>)), clock, Config::default())
-            .unwrap();
+    let client = Client::with_connector(unit.connector(), clock, Config::default()).unwrap();
     let before = cpu_ticks();
     std::thread::sleep(Duration::from_secs(2));
     let used = cpu_ticks() - before;

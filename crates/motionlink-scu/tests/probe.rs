@@ -191,7 +191,7 @@ fn baud_auto_finds_the_rate_the_unit_answers_at() {
             let (link, _) = host.connect();
             Ok(Box::new(AtRate { inner: Box::new(link), garble: baud != 19_200 }) as Box<dyn Link>)
         });
-        Client::open(connector, rig.clock.shared(), Config::default())
+        Client::with_connector(connector, rig.clock.shared(), Config::default())
     };
     let (found, check) = find_baud(PortKind::Serial, &BaudChoice::Auto(BAUD_RATES), open);
     let (client, baud) = found.unwrap();

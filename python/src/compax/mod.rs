@@ -7,6 +7,7 @@ pub use watch::CompaxWatch;
 use std::sync::Arc;
 use std::time::Duration;
 
+use motionlink_compax::client::open_line;
 use motionlink_compax::client::{Config, MoveReport, MoveRequest, MoveTarget, TravelLimits};
 use motionlink_compax::model::{
     BaudRate, ModelError, OutputNumber, OutputState, ParamId, PollInterval, Position, RampMs, ReplyTimeout,
@@ -16,7 +17,7 @@ use motionlink_compax::report::{DrivePosition, ParamReading, StatusReading};
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_compax::{AsyncClient, Client, Error};
 use motionlink_link::cancel::CancelToken;
-use motionlink_link::link::{Link, SerialSettings};
+use motionlink_link::link::Link;
 use motionlink_link::url::PortUrl;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -74,6 +75,10 @@ fn link(port: Target, s: &Settings) -> Result<(Box<dyn Link>, Config), Failure> 
     let reply_timeout: ReplyTimeout = whole(&s.timeout_ms, "timeout_ms")?;
     let poll: PollInterval = whole(&s.poll_ms, "poll_ms")?;
     let tolerance = checked(Tolerance::new(s.tolerance_units))?;
+    let mut cfg = Config::new(mode, baud);
+    cfg.reply_timeout = reply_timeout.duration();
+    cfg.poll_interval = poll.duration();
+    cfg.in_position_tolerance = tolerance.position();
     let link: Box<dyn Link> = match port {
         Target::InProcess(InProcess::Compax(host)) => Box::new(host.connect().0),
         Target::InProcess(_) => return Err(usage("that emulator is not a COMPAX emulator")),
@@ -84,23 +89,14 @@ fn link(port: Target, s: &Settings) -> Result<(Box<dyn Link>, Config), Failure> 
                 motionlink_link::pipe::EmulatorHost::new(bus, clock(), motionlink_link::pipe::PipeConfig::instant());
             Box::new(host.connect().0)
         }
-        Target::Url(p) if p.is_can() => return Err(usage(format!("{p}: COMPAX drives speak RS485/RS232, not CAN"))),
-        Target::Url(p) => {
-            let mut settings = SerialSettings::new(baud);
-            settings.parity = mode.parity;
-            p.open_byte_link(settings).map_err(|e| e.failure())?
-        }
+        Target::Url(p) => open_line(&p, &cfg).map_err(|e| e.failure())?,
     };
-    let mut cfg = Config::new(mode, baud);
-    cfg.reply_timeout = reply_timeout.duration();
-    cfg.poll_interval = poll.duration();
-    cfg.in_position_tolerance = tolerance.position();
     Ok((link, cfg))
 }
 
 fn open(port: Target, s: &Settings) -> Result<Client, Failure> {
     let (link, cfg) = link(port, s)?;
-    Client::new(link, clock(), cfg).map_err(|e| e.failure())
+    Client::with_link(link, clock(), cfg).map_err(|e| e.failure())
 }
 
 fn seconds(s: f64) -> Result<Duration, Failure> {
@@ -324,7 +320,7 @@ faces! {
             Ok(spawn_task(done, async move {
                 let drive = whole(&settings.drive, "drive")?;
                 let (link, cfg) = crate::wait::on_blocking_pool(FAMILY, move || link(t, &settings)).await?;
-                let client = AsyncClient::new(link, clock(), cfg).map_err(|e| e.failure())?;
+                let client = AsyncClient::with_link(link, clock(), cfg).await.map_err(|e| e.failure())?;
                 let profile = match lookup {
                     Ok((p, port)) => motionlink_compax::probe::use_profile_async(&client, &p, &port, drive)
                         .await

@@ -94,8 +94,8 @@ fn open(port: Target, s: &Settings) -> Result<(Client, bool), Failure> {
     let baud = int_arg::<Baud>(&s.baud, "baud", 1200..=115_200)?;
     let bitrate = int_arg::<CanBitRate>(&s.bitrate, "bitrate", 10_000..=1_000_000)?;
     let fail = |e: Error| e.failure();
-    let rs232 = |link| Client::rs232(link, clock(), bus_config(s, false)?).map_err(fail);
-    let can = |link| Client::can(link, clock(), bus_config(s, true)?).map_err(fail);
+    let rs232 = |link| Client::with_link(PortLink::Rs232(link), clock(), bus_config(s, false)?).map_err(fail);
+    let can = |link| Client::with_link(PortLink::Can(link), clock(), bus_config(s, true)?).map_err(fail);
     match port {
         Target::InProcess(InProcess::PowerCube(host)) => Ok((rs232(Box::new(host.connect().0))?, true)),
         Target::InProcess(InProcess::PowerCubeCan(bus)) => Ok((can(Box::new(bus.connect()))?, true)),
@@ -313,7 +313,7 @@ faces! {
                 let watchdog = s.watchdog;
                 let (client, in_process, profile) =
                     crate::wait::on_blocking_pool(FAMILY, move || open_profiled(t, &s)).await?;
-                let client = AsyncClient::open(move || Ok(client)).await.map_err(|e| e.failure())?;
+                let client = AsyncClient::from_client(client);
                 let port = client.port().to_string();
                 let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !watchdog);
                 let native = AsyncPowerCubeClient { slot: Slot::new(client, FAMILY), guard, module, port, profile };

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
-use motionlink_link::link::{Connector, Link, SerialSettings};
+use motionlink_link::link::Connector;
 use motionlink_link::url::PortUrl;
 use motionlink_scu::args::{
     emulated_unit, parse_write, ArgumentError, Baud, Checked, PollInterval, ReplyTimeout, RunLimit, ToleranceCounts,
@@ -18,7 +18,7 @@ use motionlink_scu::model::{
 };
 use motionlink_scu::results::{RunOutcome, SampleReport};
 use motionlink_scu::session::{MoveReport, RunAction, RunReport};
-use motionlink_scu::{AsyncClient, Client, Config, Error, FunctionMap, MoveOptions, StrokeLimits};
+use motionlink_scu::{port_connector, AsyncClient, Client, Config, Error, FunctionMap, MoveOptions, StrokeLimits};
 use pyo3::prelude::*;
 
 use crate::common::{json_py, Int, Slot};
@@ -80,10 +80,10 @@ pub struct Settings {
     profile: Option<String>,
 }
 
-/// The session's settings and the line's baud rate, each checked by the library's rule.
-fn client_config(s: &Settings) -> Result<(Config, Baud), Failure> {
-    let baud: Baud = checked(&s.baud, "baud")?;
+/// The session's settings, each checked by the library's rule.
+fn client_config(s: &Settings) -> Result<Config, Failure> {
     let config = Config {
+        baud: checked::<Baud>(&s.baud, "baud")?,
         safety_id: checked::<SafetyId>(&s.safety, "safety")?,
         reply_timeout: checked::<ReplyTimeout>(&s.reply_timeout_ms, "reply_timeout_ms")?.get(),
         speed_mode: s.speed_mode.parse::<SpeedMode>().map_err(bad("speed_mode"))?,
@@ -94,35 +94,31 @@ fn client_config(s: &Settings) -> Result<(Config, Baud), Failure> {
         ..Config::default()
     };
     config.validate().map_err(|e| usage(e.to_string()))?;
-    Ok((config, baud))
+    Ok(config)
 }
 
 /// How to reach the unit `port` names, and the session's settings. `port="sim"` emulates, in this process,
 /// the unit the session is told it is (its function map and speed mode).
 fn connector(port: Target, s: &Settings) -> Result<(Connector, Config), Failure> {
-    let (config, baud) = client_config(s)?;
+    let config = client_config(s)?;
     let connector: Connector = match port {
-        Target::InProcess(InProcess::Scu(host)) => Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>)),
+        Target::InProcess(InProcess::Scu(host)) => host.connector(),
         Target::InProcess(_) => return Err(usage("that emulator is not an SCU emulator")),
         Target::Url(PortUrl::Sim) => {
             let sim = emulated_unit(None, &s.functions, config.speed_mode).map_err(usage)?;
             let device = motionlink_scu::Emulator::new(sim).map_err(|e| usage(e.to_string()))?;
             let host =
                 motionlink_link::pipe::EmulatorHost::new(device, clock(), motionlink_link::pipe::PipeConfig::instant());
-            Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>))
+            host.connector()
         }
-        Target::Url(p) if p.is_can() => return Err(usage(format!("{p}: the SCU speaks RS232, not CAN"))),
-        Target::Url(p) => {
-            let settings = SerialSettings::new(baud.get());
-            Box::new(move || p.open_byte_link(settings))
-        }
+        Target::Url(p) => port_connector(&p, &config).map_err(|e| e.failure())?,
     };
     Ok((connector, config))
 }
 
 fn open(port: Target, s: &Settings) -> Result<Client, Failure> {
     let (connector, config) = connector(port, s)?;
-    Client::open(connector, clock(), config).map_err(|e| e.failure())
+    Client::with_connector(connector, clock(), config).map_err(|e| e.failure())
 }
 
 /// The port as given (a URL, `sim` included: a probe names it and a profile may be saved for it), for probes
@@ -342,7 +338,7 @@ faces! {
             let lookup = crate::common::profile_lookup(settings.profile.as_deref(), port_url(&t).as_deref());
             let (connector, config) = connector(t, &settings).map_err(|f| to_pyerr(py, f))?;
             Ok(spawn_task(done, async move {
-                let client = AsyncClient::open(connector, clock(), config).await.map_err(|e| e.failure())?;
+                let client = AsyncClient::with_connector(connector, clock(), config).await.map_err(|e| e.failure())?;
                 let profile = match lookup {
                     Ok((p, port)) => {
                         motionlink_scu::probe::use_profile_async(&client, &p, &port).await.map_err(|e| e.failure())?

@@ -8,9 +8,10 @@ use motionlink_link::cancel::CancelToken;
 use motionlink_link::clock::{lock, SharedClock};
 use motionlink_link::driver::{Driver, Port};
 use motionlink_link::link::Link;
+use motionlink_link::url::PortUrl;
 use motionlink_link::LinkError;
 
-use super::{driver_config, output, Drive};
+use super::{driver_config, open_line, output, Drive};
 use crate::error::{Error, Result, StopReport};
 use crate::model::{
     Command, OutputState, ParamId, Position, RampMs, S16Bits, S17Bits, SpeedPercent, StatusId, StatusValue,
@@ -41,7 +42,7 @@ use crate::wire::{Address, Body, Flags};
 /// let host = EmulatorHost::new(Emulator::new(SimConfig::bus(&[1, 5], 0, 9600)).unwrap(),
 ///                              clock.shared(), PipeConfig::paced(9600));
 /// let (link, _faults) = host.connect();
-/// let bus = Client::new(Box::new(link), clock.shared(), Config::new(Mode::default(), 9600)).unwrap();
+/// let bus = Client::with_link(Box::new(link), clock.shared(), Config::new(Mode::default(), 9600)).unwrap();
 /// let five = Address::drive(5).unwrap();
 /// bus.move_absolute(five, Position::new(25.0).unwrap(), MoveOptions::default()).unwrap();
 /// bus.wait_reached(&[five], None, &mut |_, _| {}).unwrap();
@@ -63,9 +64,16 @@ impl std::fmt::Debug for Client {
 }
 
 impl Client {
-    /// A client on `link`, timed by `clock`. Starts the driver's thread (which runs the session's
-    /// operations for async callers and otherwise sleeps: COMPAX has no keepalive).
-    pub fn new(link: Box<dyn Link>, clock: SharedClock, cfg: Config) -> Result<Self> {
+    /// Opens the serial line or TCP port `url` names (not `sim`) at the configuration's baud rate, with the
+    /// parity of its mode, and starts a session on it.
+    pub fn open(url: &PortUrl, clock: SharedClock, cfg: Config) -> Result<Self> {
+        let link = open_line(url, &cfg)?;
+        Client::with_link(link, clock, cfg)
+    }
+
+    /// A client on `link`, already open, timed by `clock`. Starts the driver's thread (which runs the
+    /// session's operations for async callers and otherwise sleeps: COMPAX has no keepalive).
+    pub fn with_link(link: Box<dyn Link>, clock: SharedClock, cfg: Config) -> Result<Self> {
         let session = Session::new(cfg.clone(), clock.now());
         let close_report = session.close_report();
         let port = Port::Bytes(link);

@@ -37,8 +37,28 @@ pub use crate::session::{
 };
 
 use motionlink_link::driver::DriverConfig;
+use motionlink_link::link::{Link, SerialSettings};
+use motionlink_link::url::PortUrl;
+use motionlink_link::LinkError;
 
 use crate::session::Output;
+
+/// The line [`Client::open`] opens: the serial device or TCP port `url` names, at the configuration's baud
+/// rate with the parity of its mode. `sim` and CAN ports are refused, naming what to do instead.
+pub fn open_line(url: &PortUrl, cfg: &Config) -> Result<Box<dyn Link>> {
+    let refuse = |reason: &str| Error::Link(LinkError::InvalidPort { port: url.to_string(), reason: reason.into() });
+    match url {
+        PortUrl::Sim => {
+            Err(refuse("an emulator in this process: make one (`Emulator`) and give its link to `with_link`"))
+        }
+        u if u.is_can() => Err(refuse("COMPAX drives speak RS485 / RS232, not CAN")),
+        u => {
+            let mut settings = SerialSettings::new(cfg.baud_rate);
+            settings.parity = cfg.mode.parity;
+            Ok(u.open_byte_link(settings)?)
+        }
+    }
+}
 
 /// The driver settings of a session configured by `cfg`.
 fn driver_config(cfg: &Config) -> DriverConfig {

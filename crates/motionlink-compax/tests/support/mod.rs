@@ -32,7 +32,7 @@ pub fn rig_on(sim: SimConfig, p196: u32, baud: u32, configure: impl FnOnce(&mut 
     let rig = Rig::new(Emulator::new(sim).unwrap(), PipeConfig::paced(baud));
     let mut bus_cfg = Config::new(Mode::from_p196(p196).unwrap(), baud);
     configure(&mut bus_cfg);
-    let bus = Client::new(rig.link().unwrap(), rig.clock.shared(), bus_cfg).unwrap();
+    let bus = Client::with_link(rig.link().unwrap(), rig.clock.shared(), bus_cfg).unwrap();
     (rig, bus)
 }
 

@@ -12,7 +12,7 @@ use motionlink_compax::wire::Address;
 use motionlink_compax::{AsyncClient, DriveOptions, Emulator};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
-use motionlink_link::{RealClock, SerialSettings};
+use motionlink_link::RealClock;
 use serde_json::Value;
 
 use super::{failed, identified, unknown_op, Action, Outcome, Sampling};
@@ -48,16 +48,9 @@ impl Compax {
                 let bus = Emulator::new(options.emulated()).map_err(|e| ReplyError::usage(e.to_string()))?;
                 let host = EmulatorHost::new(bus, Arc::clone(&clock), PipeConfig::paced(baud));
                 let link = Box::new(host.connect().0);
-                (AsyncClient::new(link, clock, options.config()).map_err(failed)?, Some(Box::new(host)))
+                (AsyncClient::with_link(link, clock, options.config()).await.map_err(failed)?, Some(Box::new(host)))
             }
-            url => {
-                let mut settings = SerialSettings::new(baud);
-                settings.parity = options.mode.parity;
-                let client = AsyncClient::open(move || url.open_byte_link(settings), clock, options.config())
-                    .await
-                    .map_err(failed)?;
-                (client, None)
-            }
+            url => (AsyncClient::open(&url, clock, options.config()).await.map_err(failed)?, None),
         };
         Ok((Compax { client: Arc::new(client), drive: options.drive, port: port.to_string() }, host))
     }

@@ -5,9 +5,9 @@ use std::sync::Arc;
 
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
+use motionlink_link::Link;
 use motionlink_link::RealClock;
 use motionlink_powercube::args::{ModuleOptions, MotionTimeout, MoveAcceleration, MoveVelocity, Target, Tolerance};
-use motionlink_powercube::client::{Client, PortLink};
 use motionlink_powercube::model::{Address, Param, StateFlag, Value as ParamValue};
 use motionlink_powercube::report::{Acted, ParamReading, Released, Sample, SetReport, StateReport, Timed};
 use motionlink_powercube::session::{Guard, MoveSpec};
@@ -43,18 +43,10 @@ impl PowerCube {
         let (client, host): (AsyncClient, Option<Box<dyn std::any::Any + Send>>) = if in_process {
             let bus = options.emulated().map_err(|e| ReplyError::usage(e.to_string()))?;
             let host = EmulatorHost::new(Emulator::new(&bus), Arc::clone(&clock), PipeConfig::instant());
-            let link = Box::new(host.connect().0);
-            (AsyncClient::rs232(link, clock, options.config(false)).map_err(failed)?, Some(Box::new(host)))
+            let link: Box<dyn Link> = Box::new(host.connect().0);
+            (AsyncClient::with_link(link, clock, options.config(false)).await.map_err(failed)?, Some(Box::new(host)))
         } else {
-            let o = options.clone();
-            let client = AsyncClient::open(move || match PortLink::open(&url, o.baud, o.bitrate, &clock)? {
-                Some(PortLink::Rs232(link)) => Client::rs232(link, clock, o.config(false)),
-                Some(PortLink::Can(link)) => Client::can(link, clock, o.config(true)),
-                None => unreachable!("not sim"),
-            })
-            .await
-            .map_err(failed)?;
-            (client, None)
+            (AsyncClient::open(&url, clock, options.config(url.is_can())).await.map_err(failed)?, None)
         };
         let me = PowerCube {
             client: Arc::new(client),

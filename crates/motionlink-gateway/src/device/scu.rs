@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
-use motionlink_link::{RealClock, SerialSettings};
+use motionlink_link::RealClock;
 use motionlink_scu::args::{Checked, RunLimit, UnitOptions};
 use motionlink_scu::model::{find, Actuator, Function, Item, MotionFunction, PositionCounts, Speed, StopMode};
 use motionlink_scu::results::{ErrorHistory, RunOutcome, SampleReport, StopResult, StopScope, SwitchedOff};
@@ -45,10 +45,9 @@ impl Scu {
                 };
                 let sim = Emulator::new(unit).map_err(|e| ReplyError::usage(e.to_string()))?;
                 let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(options.baud.get()));
-                let connector: motionlink_link::link::Connector = Box::new(move || Ok(Box::new(host.connect().0)));
-                AsyncClient::open(connector, clock, config).await
+                AsyncClient::with_connector(host.connector(), clock, config).await
             }
-            url => AsyncClient::open_port(&url, SerialSettings::new(options.baud.get()), clock, config).await,
+            url => AsyncClient::open(&url, clock, config).await,
         }
         .map_err(failed)?;
         Ok(Scu { client: Arc::new(client), port: port.to_string() })

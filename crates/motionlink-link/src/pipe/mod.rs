@@ -466,6 +466,16 @@ impl<E: Emulator> EmulatorHost<E> {
         }
     }
 
+    /// A [`Connector`](crate::link::Connector) that plugs a new connection in at each call ([`EmulatorHost::connect`]):
+    /// a client that reconnects finds the same device again.
+    pub fn connector(&self) -> crate::link::Connector
+    where
+        E: 'static,
+    {
+        let host = self.clone();
+        Box::new(move || Ok(Box::new(host.connect().0) as Box<dyn Link>))
+    }
+
     /// A new connection to the device (as if a cable were plugged in), with its own fault control. Bytes
     /// still in flight on an earlier connection are lost, as on a real line.
     pub fn connect(&self) -> (EmulatorLink<E>, FaultControl) {

@@ -78,6 +78,7 @@ impl ModuleOptions {
             config.reply_timeout = t.get();
         }
         config.poll_interval = self.poll_ms.get();
+        (config.baud, config.can_bitrate) = (self.baud, self.bitrate);
         config
     }
 

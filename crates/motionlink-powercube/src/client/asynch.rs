@@ -4,12 +4,13 @@
 
 use std::time::Duration;
 
-use motionlink_link::can::CanLink;
-use motionlink_link::driver::{AsyncDriver, OpFuture, Port};
-use motionlink_link::{Link, SharedClock};
+use motionlink_link::driver::{AsyncDriver, OpFuture};
+use motionlink_link::url::PortUrl;
+use motionlink_link::SharedClock;
 
-use super::blocking::{driver, fail_all};
+use super::blocking::{driver_on, fail_all};
 use super::calls::{self, Call};
+use super::PortLink;
 use crate::error::{Error, StopOutcome};
 use crate::model::{
     Acceleration, AckKind, Address, Broadcast, ConfigWord, CubeState, Dio, Millis, ModuleKind, Motion, Param, Position,
@@ -40,30 +41,37 @@ impl std::fmt::Debug for AsyncClient {
 }
 
 impl AsyncClient {
-    /// A session over an RS232 byte link.
-    pub fn rs232(link: Box<dyn Link>, clock: SharedClock, config: Config) -> Result<AsyncClient, Error> {
-        let session = Session::rs232(config.clone(), link.describe(), clock.now());
-        let driver = AsyncDriver::from_driver(driver(session, Port::Bytes(link), clock, &config)?);
-        Ok(AsyncClient { driver, config, can: false })
-    }
-
-    /// A session over a CAN link (any [`CanLink`], embedded-can drivers included).
-    pub fn can(link: Box<dyn CanLink>, clock: SharedClock, config: Config) -> Result<AsyncClient, Error> {
-        let session = Session::can(config.clone(), link.describe(), clock.now());
-        let driver = AsyncDriver::from_driver(driver(session, Port::Can(link), clock, &config)?);
-        Ok(AsyncClient { driver, config, can: true })
-    }
-
-    /// Opens a port with `open` (blocking work: it runs on tokio's blocking pool) and makes the client.
-    pub async fn open(
-        open: impl FnOnce() -> Result<super::Client, Error> + Send + 'static,
-    ) -> Result<AsyncClient, Error> {
-        let client = match tokio::task::spawn_blocking(open).await {
+    /// Opens the port `url` names as [`Client::open`](super::Client::open) does; the port is opened on
+    /// tokio's blocking pool.
+    pub async fn open(url: &PortUrl, clock: SharedClock, config: Config) -> Result<AsyncClient, Error> {
+        let url = url.clone();
+        let for_open = config.clone();
+        let opened = tokio::task::spawn_blocking(move || {
+            let link = PortLink::open_configured(&url, &for_open, &clock)?;
+            driver_on(link, clock, &for_open)
+        })
+        .await;
+        let (driver, can) = match opened {
             Ok(r) => r?,
             Err(e) => return Err(Error::Unsupported(format!("the opening task failed: {e}"))),
         };
+        Ok(AsyncClient { driver: AsyncDriver::from_driver(driver), config, can })
+    }
+
+    /// A session over an open link (RS232 bytes or CAN frames), as [`Client::with_link`](super::Client::with_link).
+    pub async fn with_link(
+        link: impl Into<PortLink>,
+        clock: SharedClock,
+        config: Config,
+    ) -> Result<AsyncClient, Error> {
+        let (driver, can) = driver_on(link.into(), clock, &config)?;
+        Ok(AsyncClient { driver: AsyncDriver::from_driver(driver), config, can })
+    }
+
+    /// The asynchronous face of an open blocking client (its session goes on, nothing is sent).
+    pub fn from_client(client: super::Client) -> AsyncClient {
         let (config, can) = (client.config().clone(), client.is_can());
-        Ok(AsyncClient { driver: AsyncDriver::from_driver(client.into_driver()), config, can })
+        AsyncClient { driver: AsyncDriver::from_driver(client.into_driver()), config, can }
     }
 
     /// Runs `f` on the session (its statistics, its watchdog duty).

@@ -7,9 +7,11 @@ use motionlink_link::can::CanLink;
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::clock::lock;
 use motionlink_link::driver::{Driver, DriverConfig, Port};
-use motionlink_link::{Link, LinkError, SharedClock};
+use motionlink_link::url::PortUrl;
+use motionlink_link::{LinkError, SharedClock};
 
 use super::calls::{self, Call};
+use super::PortLink;
 use crate::error::{Error, StopOutcome};
 use crate::model::{
     Acceleration, AckKind, Address, Broadcast, ConfigWord, CubeState, Dio, Millis, ModuleKind, Motion, Param, Position,
@@ -47,13 +49,22 @@ impl std::fmt::Debug for Client {
     }
 }
 
+/// The driver of a session on `link`, and whether it is a CAN bus.
+pub(crate) fn driver_on(link: PortLink, clock: SharedClock, config: &Config) -> Result<(Driver<Session>, bool), Error> {
+    Ok(match link {
+        PortLink::Rs232(link) => {
+            let session = Session::rs232(config.clone(), link.describe(), clock.now());
+            (driver(session, Port::Bytes(link), clock, config)?, false)
+        }
+        PortLink::Can(link) => {
+            let session = Session::can(config.clone(), link.describe(), clock.now());
+            (driver(session, Port::Can(link), clock, config)?, true)
+        }
+    })
+}
+
 /// The driver for `session` over `port`, closing within the session's bound.
-pub(crate) fn driver(
-    session: Session,
-    port: Port,
-    clock: SharedClock,
-    config: &Config,
-) -> Result<Driver<Session>, Error> {
+fn driver(session: Session, port: Port, clock: SharedClock, config: &Config) -> Result<Driver<Session>, Error> {
     let name = port.describe();
     let driver_config = DriverConfig { close_bound: config.close_bound, ..DriverConfig::default() };
     Driver::new(session, port, None, clock, driver_config).map_err(|e| {
@@ -62,20 +73,18 @@ pub(crate) fn driver(
 }
 
 impl Client {
-    /// A session over an RS232 byte link (a serial port, TCP, a pty, an in-memory link).
-    pub fn rs232(link: Box<dyn Link>, clock: SharedClock, config: Config) -> Result<Client, Error> {
-        let session = Session::rs232(config.clone(), link.describe(), clock.now());
-        Client::with_driver(driver(session, Port::Bytes(link), clock, &config)?, config, false)
+    /// Opens the port `url` names (a serial device or TCP port at [`Config::baud`], an SLCAN adapter at
+    /// [`Config::can_bitrate`], a SocketCAN interface; not `sim`) and starts a session on it.
+    pub fn open(url: &PortUrl, clock: SharedClock, config: Config) -> Result<Client, Error> {
+        let link = PortLink::open_configured(url, &config, &clock)?;
+        Client::with_link(link, clock, config)
     }
 
-    /// A session over a CAN link: SocketCAN, SLCAN, the in-memory bus, or any embedded-can driver through
-    /// [`EmbeddedCanLink`](motionlink_link::can::embedded::EmbeddedCanLink).
-    pub fn can(link: Box<dyn CanLink>, clock: SharedClock, config: Config) -> Result<Client, Error> {
-        let session = Session::can(config.clone(), link.describe(), clock.now());
-        Client::with_driver(driver(session, Port::Can(link), clock, &config)?, config, true)
-    }
-
-    fn with_driver(driver: Driver<Session>, config: Config, can: bool) -> Result<Client, Error> {
+    /// A session over an open link: an RS232 byte link (a serial port, TCP, a pty, an in-memory link) or a CAN
+    /// link (SocketCAN, SLCAN, the in-memory bus, or any embedded-can driver through
+    /// [`EmbeddedCanLink`](motionlink_link::can::embedded::EmbeddedCanLink)).
+    pub fn with_link(link: impl Into<PortLink>, clock: SharedClock, config: Config) -> Result<Client, Error> {
+        let (driver, can) = driver_on(link.into(), clock, &config)?;
         Ok(Client { driver, cancel: Mutex::new(None), config, can })
     }
 

@@ -8,7 +8,7 @@
 //! ```
 //! use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 //! use motionlink_link::clock::{Clock, ManualClock};
-//! use motionlink_powercube::client::{Config, Client, MoveSpec};
+//! use motionlink_powercube::client::{Config, Client, MoveSpec, PortLink};
 //! use motionlink_powercube::model::{Address, Position, StateFlag, Velocity};
 //! use motionlink_powercube::Emulator;
 //! use std::time::Duration;
@@ -16,7 +16,7 @@
 //! let clock = ManualClock::new_auto();
 //! let _me = clock.reserve_participant().enter();
 //! let host = EmulatorHost::new(Emulator::new(&Default::default()), clock.shared(), PipeConfig::paced(9_600));
-//! let client = Client::rs232(Box::new(host.connect().0), clock.shared(), Config::rs232()).unwrap();
+//! let client = Client::with_link(PortLink::Rs232(Box::new(host.connect().0)), clock.shared(), Config::rs232()).unwrap();
 //! let joint = client.module(Address::new(1).unwrap());
 //! joint.home_and_wait(Duration::from_secs(10), &mut |_| {}).unwrap();
 //! let spec = MoveSpec { vel: Some(Velocity::rad_per_s(0.5)), ..MoveSpec::to(Position::rad(0.5)) };

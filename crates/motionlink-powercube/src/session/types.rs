@@ -2,6 +2,7 @@
 
 use std::time::Duration;
 
+use crate::args::{Baud, CanBitRate};
 use crate::error::Error;
 use crate::model::{
     Acceleration, Address, AxisUnit, CubeState, CubeVersion, ModuleKind, Param, Position, StateFlag, Value, Velocity,
@@ -33,6 +34,10 @@ pub struct Config {
     /// default. When it gives up, the watchdog refresh stops with the session: a module whose watchdog it
     /// armed halts itself within 50 ms.
     pub close_bound: Duration,
+    /// The RS232 line's rate, for [`Client::open`](crate::Client::open). Default 9600.
+    pub baud: Baud,
+    /// An SLCAN adapter's CAN bit rate, for [`Client::open`](crate::Client::open). Default 1 Mbit/s.
+    pub can_bitrate: CanBitRate,
 }
 
 impl Config {
@@ -46,6 +51,8 @@ impl Config {
             poll_interval: Duration::from_millis(10),
             watchdog_on_rs232: true,
             close_bound: Duration::from_secs(5),
+            baud: Baud::DEFAULT,
+            can_bitrate: CanBitRate::DEFAULT,
         }
     }
 
@@ -59,6 +66,8 @@ impl Config {
             poll_interval: Duration::from_millis(10),
             watchdog_on_rs232: true,
             close_bound: Duration::from_secs(5),
+            baud: Baud::DEFAULT,
+            can_bitrate: CanBitRate::DEFAULT,
         }
     }
 }

@@ -107,6 +107,7 @@ impl UnitOptions {
     /// ([`Config::validate`]).
     pub fn config(&self) -> Result<Config, OptionError> {
         let config = Config {
+            baud: self.baud,
             safety_id: self.safety,
             reply_timeout: self.timeout_ms.get(),
             speed_mode: self.speed_mode,

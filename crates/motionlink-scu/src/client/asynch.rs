@@ -5,9 +5,9 @@
 use std::time::Duration;
 
 use motionlink_link::driver::{AsyncDriver, OpFuture};
-use motionlink_link::link::{Connector, SerialSettings};
+use motionlink_link::link::Connector;
 use motionlink_link::url::PortUrl;
-use motionlink_link::{SharedClock, Timestamp};
+use motionlink_link::{Link, SharedClock, Timestamp};
 
 use super::{expect_output, move_spec, run_spec, Client};
 use crate::config::{Config, StrokeLimits};
@@ -39,20 +39,19 @@ impl std::fmt::Debug for AsyncClient {
 }
 
 impl AsyncClient {
-    /// Opens a session on a serial port or TCP gateway (`--port` syntax; not `sim`).
-    pub async fn open_port(
-        port: &PortUrl,
-        settings: SerialSettings,
-        clock: SharedClock,
-        config: Config,
-    ) -> Result<Self, Error> {
-        let port = port.clone();
-        let connector: Connector = Box::new(move || port.open_byte_link(settings));
-        Self::open(connector, clock, config).await
+    /// Opens a session as [`Client::open`] does; the port is opened on tokio's blocking pool.
+    pub async fn open(port: &PortUrl, clock: SharedClock, config: Config) -> Result<Self, Error> {
+        let connector = super::port_connector(port, &config)?;
+        Self::with_connector(connector, clock, config).await
     }
 
-    /// Opens a session as [`Client::open`] does; the port is opened on tokio's blocking pool.
-    pub async fn open(connector: Connector, clock: SharedClock, config: Config) -> Result<Self, Error> {
+    /// Opens a session on `link` as [`Client::with_link`] does.
+    pub async fn with_link(link: Box<dyn Link>, clock: SharedClock, config: Config) -> Result<Self, Error> {
+        Self::with_connector(super::link_connector(link), clock, config).await
+    }
+
+    /// Opens a session as [`Client::with_connector`] does; the port is opened on tokio's blocking pool.
+    pub async fn with_connector(connector: Connector, clock: SharedClock, config: Config) -> Result<Self, Error> {
         let for_driver = config.clone();
         let driver = AsyncDriver::open(move || Client::make_driver(connector, clock, for_driver)).await?;
         if let Err(e) = driver.run(Op::Open).await {

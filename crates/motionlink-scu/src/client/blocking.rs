@@ -3,9 +3,9 @@
 
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::driver::{Driver, DriverConfig, Port, PortOpener};
-use motionlink_link::link::{Connector, SerialSettings};
+use motionlink_link::link::Connector;
 use motionlink_link::url::PortUrl;
-use motionlink_link::{LinkError, SharedClock, Timestamp};
+use motionlink_link::{Link, LinkError, SharedClock, Timestamp};
 
 use super::{expect_output, move_spec, run_spec, MoveOptions};
 use crate::config::Config;
@@ -41,16 +41,17 @@ impl std::fmt::Debug for Client {
 }
 
 impl Client {
-    /// Opens a session on a serial port or TCP gateway (`--port` syntax; not `sim`).
-    pub fn open_port(
-        port: &PortUrl,
-        settings: SerialSettings,
-        clock: SharedClock,
-        config: Config,
-    ) -> Result<Self, Error> {
-        let port = port.clone();
-        let connector: Connector = Box::new(move || port.open_byte_link(settings));
-        Self::open(connector, clock, config)
+    /// Opens a session on the serial line or TCP port `port` names (`--port` syntax; not `sim`), at
+    /// [`Config::baud`]; a lost port is opened again by the same name (see [`Config::auto_reconnect`]).
+    pub fn open(port: &PortUrl, clock: SharedClock, config: Config) -> Result<Self, Error> {
+        let connector = super::port_connector(port, &config)?;
+        Self::with_connector(connector, clock, config)
+    }
+
+    /// Opens a session on `link`, already open (a pty, an emulator's link, a port opened by the caller). A
+    /// session on it cannot reconnect once it is lost: [`Client::with_connector`] can.
+    pub fn with_link(link: Box<dyn Link>, clock: SharedClock, config: Config) -> Result<Self, Error> {
+        Self::with_connector(super::link_connector(link), clock, config)
     }
 
     /// Opens a session: checks the configuration, connects, sends RO with the configured Safety_ID and a
@@ -58,7 +59,7 @@ impl Client {
     ///
     /// Requests run on the calling thread; with an auto-advancing
     /// [`ManualClock`](motionlink_link::ManualClock) the calling thread must be one of its participants.
-    pub fn open(connector: Connector, clock: SharedClock, config: Config) -> Result<Self, Error> {
+    pub fn with_connector(connector: Connector, clock: SharedClock, config: Config) -> Result<Self, Error> {
         let driver = Self::make_driver(connector, clock, config.clone())?;
         if let Err(e) = driver.run(Op::Open) {
             // Nothing was started: the session is closed here (RA, if remote mode was opened), and a close

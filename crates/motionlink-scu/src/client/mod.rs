@@ -5,12 +5,12 @@
 //! ```no_run
 //! use motionlink_scu::{Client, Config, FunctionMap};
 //! use motionlink_scu::model::{Actuator, PositionCounts, Speed};
-//! use motionlink_link::{url::PortUrl, RealClock, SerialSettings};
+//! use motionlink_link::{url::PortUrl, RealClock};
 //!
 //! let port: PortUrl = "/dev/ttyUSB0".parse()?;
 //! // The unit's parameterisation decides which actuators each function drives; tell the session.
 //! let config = Config { function_map: FunctionMap::scp11(), ..Config::default() };
-//! let client = Client::open_port(&port, SerialSettings::new(38_400), RealClock::shared(), config)?;
+//! let client = Client::open(&port, RealClock::shared(), config)?;
 //! let a1 = Actuator::new(1).unwrap();
 //! let report = client.move_to(a1, PositionCounts(400), Speed::percent(80).unwrap(), &Default::default())?;
 //! println!("actuator 1 at {}", report.position_counts); // "400 counts"
@@ -23,13 +23,13 @@
 //! the flag word [`ActuatorStatus1`](crate::model::ActuatorStatus1)):
 //!
 //! ```no_run
-//! use motionlink_link::{url::PortUrl, RealClock, SerialSettings};
+//! use motionlink_link::{url::PortUrl, RealClock};
 //! use motionlink_scu::model::{Actuator, DataIndex, MotionFunction, PositionCounts, SafetyId, Speed, StopMode};
 //! use motionlink_scu::{Client, Config, FunctionMap, MoveOptions};
 //!
 //! let port: PortUrl = "/dev/ttyUSB0".parse()?;
 //! let config = Config { function_map: FunctionMap::liftkit(), safety_id: SafetyId::StopAll, ..Default::default() };
-//! let client = Client::open_port(&port, SerialSettings::new(38_400), RealClock::shared(), config)?;
+//! let client = Client::open(&port, RealClock::shared(), config)?;
 //! let (a1, a2) = (Actuator::new(1).unwrap(), Actuator::new(2).unwrap());
 //! let pct = |p| Speed::percent(p).unwrap();                     // percent and counts/s are different types
 //! let at = PositionCounts;                                      // a position is counts, said so: at(400)
@@ -61,6 +61,10 @@
 //! # Ok(())
 //! # }
 //! ```
+
+use motionlink_link::link::{Connector, SerialSettings};
+use motionlink_link::url::PortUrl;
+use motionlink_link::{Link, LinkError};
 
 use crate::config::Config;
 use crate::error::Error;
@@ -111,6 +115,33 @@ macro_rules! expect_output {
 pub(crate) use expect_output;
 
 /// The move of [`Client::move_to`]: the function, and which actuators get the target.
+/// The connector of [`Client::open`]: the serial line or TCP port `port` names, at [`Config::baud`]. `sim`
+/// and CAN ports are refused, naming what to do instead.
+pub fn port_connector(port: &PortUrl, config: &Config) -> Result<Connector, Error> {
+    let refuse =
+        |reason: &str| Err(Error::from(LinkError::InvalidPort { port: port.to_string(), reason: reason.into() }));
+    match port {
+        PortUrl::Sim => refuse("an emulator in this process: make one (`Emulator`) and give its link to `with_link`"),
+        p if p.is_can() => refuse("the SCU speaks RS232, not CAN"),
+        p => {
+            let (p, settings) = (p.clone(), SerialSettings::new(config.baud.get()));
+            Ok(Box::new(move || p.open_byte_link(settings)))
+        }
+    }
+}
+
+/// The connector of [`Client::with_link`]: `link` once; a reconnection after it is lost is refused.
+pub(crate) fn link_connector(link: Box<dyn Link>) -> Connector {
+    let name = link.describe();
+    let mut link = Some(link);
+    Box::new(move || {
+        link.take().ok_or_else(|| LinkError::Open {
+            port: name.clone(),
+            reason: "a link given to with_link cannot be opened again (with_connector reconnects)".into(),
+        })
+    })
+}
+
 pub(crate) fn move_spec(
     config: &Config,
     actuator: Actuator,

@@ -41,7 +41,7 @@ impl Rig {
     }
 
     pub fn client(&self, config: Config) -> Client {
-        Client::open(self.connector(), self.clock.shared(), config).unwrap()
+        Client::with_connector(self.connector(), self.clock.shared(), config).unwrap()
     }
 
     pub fn unit<R>(&self, f: impl FnOnce(&mut Emulator) -> R) -> R {
@@ -180,6 +180,6 @@ impl Rig {
                 queue: Default::default(),
             }) as Box<dyn Link>)
         });
-        Client::open(connector, self.clock.shared(), config)
+        Client::with_connector(connector, self.clock.shared(), config)
     }
 }

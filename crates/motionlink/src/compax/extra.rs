@@ -126,7 +126,7 @@ fn demo_bus(clock: &ManualClock, p196: u32) -> Result<(Client, Transcript), CliE
     let transcript = Transcript::new();
     let link = TapLink::new(host.connect().0, clock.shared(), transcript.clone());
     let mode = Mode::from_p196(p196).map_err(CliError::usage)?;
-    let bus = Client::new(Box::new(link), clock.shared(), Config::new(mode, 9600)).map_err(fail)?;
+    let bus = Client::with_link(Box::new(link), clock.shared(), Config::new(mode, 9600)).map_err(fail)?;
     Ok((bus, transcript))
 }
 

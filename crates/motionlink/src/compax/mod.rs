@@ -14,7 +14,7 @@ use motionlink_compax::wire::{Address, Mode};
 use motionlink_compax::{Client, DriveOptions, Emulator, Error};
 use motionlink_link::clock::SharedClock;
 use motionlink_link::error::{Classify, ErrorClass};
-use motionlink_link::link::{Link, SerialSettings};
+use motionlink_link::link::Link;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::RealClock;

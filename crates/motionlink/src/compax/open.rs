@@ -12,7 +12,7 @@ pub(crate) fn open(args: &Args, tap: &Tap, configure: impl FnOnce(&mut Config)) 
     let link = link(&options, url, &[options.drive.get()], tap, &clock)?;
     let mut cfg = options.config();
     configure(&mut cfg);
-    let bus = Client::new(link, clock, cfg).map_err(|e| common::classified(&e))?;
+    let bus = Client::with_link(link, clock, cfg).map_err(|e| common::classified(&e))?;
     bus.set_cancel(token);
     Ok(bus)
 }
@@ -41,11 +41,7 @@ pub(crate) fn link(
             let host = EmulatorHost::new(bus, clock.clone(), PipeConfig::paced(baud));
             Box::new(host.connect().0)
         }
-        other => {
-            let mut settings = SerialSettings::new(baud);
-            settings.parity = options.mode.parity;
-            other.open_byte_link(settings)?
-        }
+        other => motionlink_compax::client::open_line(&other, &options.config()).map_err(|e| common::classified(&e))?,
     };
     Ok(tap.link(link, clock))
 }

@@ -110,7 +110,7 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     let link = tokio::task::spawn_blocking(move || crate::compax::link(&o, url, &sim_drives, &tap, &c))
         .await
         .map_err(|e| CliError::transport(format!("the opening task failed: {e}")))??;
-    let client = AsyncClient::open(move || Ok(link), Arc::clone(clock), options.config())
+    let client = AsyncClient::with_link(link, Arc::clone(clock), options.config())
         .await
         .map_err(|e| crate::common::classified(&e))?;
     // The device profile of each drive (`motionlink probe compax --save`), where one names the port.

@@ -130,15 +130,15 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     let mut host = None;
     let c = Arc::clone(clock);
     let client = match opened {
-        Some(PortLink::Rs232(link)) => Client::rs232(tap.link(link, &c), c, options.config(false)),
-        Some(PortLink::Can(link)) => Client::can(tap.can_link(link, &c), c, options.config(true)),
+        Some(PortLink::Rs232(link)) => Client::with_link(tap.link(link, &c), c, options.config(false)),
+        Some(PortLink::Can(link)) => Client::with_link(tap.can_link(link, &c), c, options.config(true)),
         None => {
             let modules = if args.modules.is_empty() { vec![1] } else { addresses(&args.modules) };
             let bus = SimConfig::with_addresses(&modules).map_err(CliError::usage)?;
             let h = EmulatorHost::new(Emulator::new(&bus), Arc::clone(clock), PipeConfig::paced(args.baud.get()));
             let link = tap.link(Box::new(h.connect().0), &c);
             host = Some(h);
-            Client::rs232(link, c, options.config(false))
+            Client::with_link(link, c, options.config(false))
         }
     };
     let client = client.map_err(|e| crate::common::classified(&e))?;
@@ -149,16 +149,16 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
         false => args.modules.clone(),
     };
     let port_key = port.to_string();
-    let client = AsyncClient::open(move || {
+    let client = tokio::task::spawn_blocking(move || {
         if let Some(profiles) = super::profiles() {
             for a in profiled {
                 super::note_profile(motionlink_powercube::probe::use_profile(&client, &profiles, &port_key, a));
             }
         }
-        Ok(client)
+        AsyncClient::from_client(client)
     })
     .await
-    .map_err(|e| crate::common::classified(&e))?;
+    .map_err(|e| CliError::transport(format!("the opening task failed: {e}")))?;
     let guard = options.guard(host.is_some());
     let device = PowerCube {
         client,

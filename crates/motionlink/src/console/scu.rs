@@ -87,8 +87,9 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     };
     let tap = Tap::into_sink(port, Arc::clone(&traffic) as _);
     let connector = crate::scu::connector(&url, &unit, args.baud, &tap, clock)?;
-    let client =
-        AsyncClient::open(connector, Arc::clone(clock), config).await.map_err(|e| crate::common::classified(&e))?;
+    let client = AsyncClient::with_connector(connector, Arc::clone(clock), config)
+        .await
+        .map_err(|e| crate::common::classified(&e))?;
     // The device profile of the unit (`motionlink probe scu --save`), where one names the port.
     if let Some(profiles) = super::profiles() {
         super::note_profile(motionlink_scu::probe::use_profile_async(&client, &profiles, port).await);

@@ -9,7 +9,7 @@ use motionlink_link::clock::{Clock, ManualClock, Timestamp};
 use motionlink_link::describe::Describe;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::transcript::{FrameTranscript, TapCanLink, TapLink, Transcript};
-use motionlink_powercube::client::{Client, Config, Module};
+use motionlink_powercube::client::{Client, Config, Module, PortLink};
 use motionlink_powercube::describe::Describer;
 use motionlink_powercube::model::{AckKind, Address, Motion, Param, Position, Value};
 use motionlink_powercube::sim::SimConfig;
@@ -78,7 +78,7 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
         let can = CanBus::with_emulator(Emulator::new_can(&config), clock.shared(), CanBusConfig::paced(1_000_000));
         let transcript = FrameTranscript::new();
         let link = TapCanLink::new(can.connect(), clock.shared(), transcript.clone());
-        let bus = Client::can(Box::new(link), clock.shared(), Config::can()).map_err(failed)?;
+        let bus = Client::with_link(PortLink::Can(Box::new(link)), clock.shared(), Config::can()).map_err(failed)?;
         let steps: [Step; 9] = [
             ("Home", |m| m.home()),
             ("Reset", |m| m.reset()),
@@ -115,7 +115,7 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
     let host = EmulatorHost::new(Emulator::new(&config), clock.shared(), PipeConfig::paced(9_600));
     let transcript = Transcript::new();
     let link = TapLink::new(host.connect().0, clock.shared(), transcript.clone());
-    let bus = Client::rs232(Box::new(link), clock.shared(), Config::rs232()).map_err(failed)?;
+    let bus = Client::with_link(PortLink::Rs232(Box::new(link)), clock.shared(), Config::rs232()).map_err(failed)?;
     let steps: [Step; 6] = [
         ("Home", |m| m.home()),
         ("Reset", |m| m.reset()),

@@ -222,14 +222,18 @@ pub(crate) fn open(
         ));
     }
     let client = match PortLink::open(&url, args.baud, args.bitrate, &clock).map_err(failed)? {
-        Some(PortLink::Rs232(link)) => Client::rs232(tap.link(link, &clock), clock, options.config(false)),
-        Some(PortLink::Can(link)) => Client::can(tap.can_link(link, &clock), clock, options.config(true)),
+        Some(PortLink::Rs232(link)) => {
+            Client::with_link(PortLink::Rs232(tap.link(link, &clock)), clock, options.config(false))
+        }
+        Some(PortLink::Can(link)) => {
+            Client::with_link(PortLink::Can(tap.can_link(link, &clock)), clock, options.config(true))
+        }
         None => {
             // The emulated bus has the module the command names, in the firmware variants asked for.
             let bus = options.emulated().map_err(|e| CliError::usage(e.message))?;
             let host = EmulatorHost::new(Emulator::new(&bus), Arc::clone(&clock), PipeConfig::instant());
             let link = tap.link(Box::new(host.connect().0), &clock);
-            let client = Client::rs232(link, clock, options.config(false)).map_err(failed)?;
+            let client = Client::with_link(PortLink::Rs232(link), clock, options.config(false)).map_err(failed)?;
             return Ok((client, Some(host)));
         }
     };

@@ -58,7 +58,7 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
         let variants = &args.sim_variants;
         let unit = InProcess { functions: &[], preset: None, file: None, speed_mode: SpeedMode::Percent, variants };
         let connector = connector(&url, &unit, baud, &tap, &clock)?;
-        Client::open(connector, Arc::clone(&clock), Config::default()).map_err(|e| common::classified(&e))
+        Client::with_connector(connector, Arc::clone(&clock), Config::default()).map_err(|e| common::classified(&e))
     });
     let (client, baud) = opened.map_err(|e| {
         tap.flush();

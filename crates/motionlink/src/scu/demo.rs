@@ -126,7 +126,8 @@ pub fn demo(out: &mut DemoOut<'_>) -> Result<(), CliError> {
         Ok(Box::new(TapLink::new(tap_host.connect().0, Arc::clone(&tap_clock), tap_transcript.clone()))
             as Box<dyn Link>)
     });
-    let client = Client::open(connector, Arc::clone(&shared), Config::default()).map_err(|e| common::classified(&e))?;
+    let client = Client::with_connector(connector, Arc::clone(&shared), Config::default())
+        .map_err(|e| common::classified(&e))?;
     let a1 = Actuator::new(1).ok_or_else(|| CliError::usage("actuator 1"))?;
     let f1 = MotionFunction::new(1).ok_or_else(|| CliError::usage("F1"))?;
     let target = PositionCounts(400);

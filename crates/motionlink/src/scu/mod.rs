@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use motionlink_link::cancel::CancelToken;
 use motionlink_link::describe::Describe;
-use motionlink_link::link::{Connector, SerialSettings};
+use motionlink_link::link::Connector;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::{RealClock, SharedClock};
@@ -268,7 +268,7 @@ fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: Conf
         variants: &args.sim_variants,
     };
     let connector = connector(&port, &unit, args.baud, tap, clock)?;
-    Client::open(connector, Arc::clone(clock), config).map_err(|e| common::classified(&e))
+    Client::with_connector(connector, Arc::clone(clock), config).map_err(|e| common::classified(&e))
 }
 
 /// The links of an SCU on `port` (the console's and the command's): a serial line at `baud`, or with
@@ -287,10 +287,10 @@ pub(crate) fn connector(
             let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(baud.get()));
             Box::new(move || Ok(tap.link(Box::new(host.connect().0), &clock)))
         }
-        p if p.is_can() => return Err(CliError::usage(format!("{p}: the SCU speaks RS232, not CAN"))),
         p => {
-            let (p, settings) = (p.clone(), SerialSettings::new(baud.get()));
-            Box::new(move || Ok(tap.link(p.open_byte_link(settings)?, &clock)))
+            let mut line = motionlink_scu::port_connector(p, &Config { baud, ..Config::default() })
+                .map_err(|e| common::classified(&e))?;
+            Box::new(move || Ok(tap.link(line()?, &clock)))
         }
     })
 }

@@ -9,6 +9,7 @@ use std::time::Duration;
 use motionlink_link::clock::{lock, SharedClock};
 use motionlink_link::driver::{AsyncDriver, Driver, OpFuture, Port};
 use motionlink_link::link::Link;
+use motionlink_link::url::PortUrl;
 use motionlink_link::LinkError;
 
 use super::{driver_config, output};
@@ -63,24 +64,21 @@ fn driver_for(link: Box<dyn Link>, clock: SharedClock, cfg: &Config) -> Result<(
 }
 
 impl AsyncClient {
-    /// A client on `link` (already open), timed by `clock`.
-    pub fn new(link: Box<dyn Link>, clock: SharedClock, cfg: Config) -> Result<Self> {
+    /// A client on `link` (already open), timed by `clock`, as [`Client::with_link`](super::Client::with_link).
+    pub async fn with_link(link: Box<dyn Link>, clock: SharedClock, cfg: Config) -> Result<Self> {
         let (driver, close_report) = driver_for(link, clock, &cfg)?;
         Ok(AsyncClient { driver: AsyncDriver::from_driver(driver), config: cfg, close_report })
     }
 
-    /// Opens the link with `open` on tokio's blocking pool (opening a serial port or a TCP connection
-    /// blocks), then starts the session on it.
-    pub async fn open(
-        open: impl FnOnce() -> std::result::Result<Box<dyn Link>, LinkError> + Send + 'static,
-        clock: SharedClock,
-        cfg: Config,
-    ) -> Result<Self> {
+    /// Opens the line `url` names as [`Client::open`](super::Client::open) does, on tokio's blocking pool
+    /// (opening a serial port or a TCP connection blocks), then starts the session on it.
+    pub async fn open(url: &PortUrl, clock: SharedClock, cfg: Config) -> Result<Self> {
         let report = Arc::new(Mutex::new(None));
         let slot = Arc::clone(&report);
         let for_open = cfg.clone();
+        let url = url.clone();
         let driver = AsyncDriver::open(move || -> Result<Driver<Session>> {
-            let (driver, r) = driver_for(open()?, clock, &for_open)?;
+            let (driver, r) = driver_for(super::open_line(&url, &for_open)?, clock, &for_open)?;
             *lock(&slot) = Some(r);
             Ok(driver)
         })

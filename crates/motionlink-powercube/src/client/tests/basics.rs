@@ -362,7 +362,7 @@ fn on_can_acknowledges_are_matched_in_whatever_order_they_arrive() {
         reordered: Arc::clone(&reordered),
     };
     let _me = clock.reserve_participant().enter();
-    let bus = Client::can(Box::new(link), clock.shared(), Config::can()).unwrap();
+    let bus = Client::with_link(PortLink::Can(Box::new(link)), clock.shared(), Config::can()).unwrap();
 
     // Each module's own serial number comes back to it, however the answers are ordered.
     let t0 = clock.now();
@@ -492,7 +492,7 @@ fn an_slcan_adapter_that_refuses_a_frame_is_a_link_error_not_a_timeout() {
     let host = EmulatorHost::new(adapter, clock.shared(), PipeConfig::paced(115_200));
     let _me = clock.reserve_participant().enter();
     let link = SlcanLink::open(host.connect().0, clock.shared(), SlcanBitrate::M1).unwrap();
-    let bus = Client::can(Box::new(link), clock.shared(), Config::can()).unwrap();
+    let bus = Client::with_link(PortLink::Can(Box::new(link)), clock.shared(), Config::can()).unwrap();
     let m = bus.module(addr(3));
     assert!(m.state().is_ok());
     // The adapter's transmit queue is full: it rings the bell instead of sending the write.

@@ -300,8 +300,8 @@ fn waiting_polls_at_the_set_rate_not_as_fast_as_the_line_answers() {
         let clock = ManualClock::new_auto();
         let sim = Emulator::new(&SimConfig::default());
         let host = EmulatorHost::new(sim, clock.shared(), PipeConfig::instant());
-        let bus = Client::rs232(
-            Box::new(host.connect().0),
+        let bus = Client::with_link(
+            PortLink::Rs232(Box::new(host.connect().0)),
             clock.shared(),
             Config { poll_interval: Duration::from_millis(50), ..Config::rs232() },
         )
@@ -322,7 +322,7 @@ fn an_answer_that_echoes_another_command_or_has_a_wrong_length_is_corrupt() {
     let clock = ManualClock::new_auto();
     let _me = clock.reserve_participant().enter();
     let (host_end, mut device_end, _faults) = motionlink_link::pipe::pipe(clock.shared(), PipeConfig::instant());
-    let bus = Client::rs232(Box::new(host_end), clock.shared(), Config::rs232()).unwrap();
+    let bus = Client::with_link(PortLink::Rs232(Box::new(host_end)), clock.shared(), Config::rs232()).unwrap();
     let answer = |payload: &[u8], len: u8| {
         let p = crate::wire::Payload::new(payload).unwrap();
         let id = telid(TelKind::Recv, 1, len);

@@ -18,6 +18,8 @@ const A9: Address = Address::checked(9);
 const A17: Address = Address::checked(17);
 
 use motionlink_link::can::{CanBus, CanBusConfig, CanLink};
+
+use crate::client::PortLink;
 use motionlink_link::clock::{Clock, ManualClock};
 use motionlink_link::pipe::{Direction, EmulatorHost, FaultControl, PipeConfig};
 use motionlink_link::LinkError;
@@ -44,7 +46,7 @@ fn rs232_on(
     config: Config,
 ) -> (ManualClock, EmulatorHost<Emulator>, Client, FaultControl) {
     let rig = Rig::new(Emulator::new(&SimConfig::with_addresses(addresses).unwrap()), pipe);
-    let bus = Client::rs232(rig.link().unwrap(), rig.clock.shared(), config).unwrap();
+    let bus = Client::with_link(PortLink::Rs232(rig.link().unwrap()), rig.clock.shared(), config).unwrap();
     let faults = rig.faults();
     (rig.clock, rig.host, bus, faults)
 }
@@ -61,7 +63,7 @@ fn scan_infos(bus: &Client) -> Vec<ModuleInfo> {
 fn can(addresses: &[u8]) -> (ManualClock, CanBus<Emulator>, Client) {
     let sim = Emulator::new_can(&SimConfig::with_addresses(addresses).unwrap());
     let rig = CanRig::new(sim, CanBusConfig::paced(1_000_000));
-    let bus = Client::can(Box::new(rig.link()), rig.clock.shared(), Config::can()).unwrap();
+    let bus = Client::with_link(PortLink::Can(Box::new(rig.link())), rig.clock.shared(), Config::can()).unwrap();
     (rig.clock, rig.bus, bus)
 }
 

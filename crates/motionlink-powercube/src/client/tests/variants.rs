@@ -14,7 +14,7 @@ fn rs232_variant(variants: &[Variant]) -> (ManualClock, EmulatorHost<Emulator>, 
     let clock = ManualClock::new_auto();
     let config = SimConfig { variants: variants.to_vec(), ..SimConfig::default() };
     let host = EmulatorHost::new(Emulator::new(&config), clock.shared(), PipeConfig::paced(9_600));
-    let bus = Client::rs232(Box::new(host.connect().0), clock.shared(), Config::rs232()).unwrap();
+    let bus = Client::with_link(PortLink::Rs232(Box::new(host.connect().0)), clock.shared(), Config::rs232()).unwrap();
     (clock, host, bus)
 }
 
@@ -34,7 +34,7 @@ fn can_variant(variants: &[Variant]) -> (ManualClock, CanBus<Emulator>, Client) 
     let clock = ManualClock::new_auto();
     let config = SimConfig { variants: variants.to_vec(), ..SimConfig::default() };
     let canbus = CanBus::with_emulator(Emulator::new_can(&config), clock.shared(), CanBusConfig::paced(1_000_000));
-    let bus = Client::can(Box::new(canbus.connect()), clock.shared(), Config::can()).unwrap();
+    let bus = Client::with_link(PortLink::Can(Box::new(canbus.connect())), clock.shared(), Config::can()).unwrap();
     (clock, canbus, bus)
 }
 
@@ -224,7 +224,7 @@ fn on_can_an_extended_acknowledge_on_the_command_identifier_is_taken() {
     let _me = clock.reserve_participant().enter();
     let config = SimConfig { variants: vec![Variant::ExtAckOnPutId], ..SimConfig::default() };
     let canbus = CanBus::with_emulator(Emulator::new_can(&config), clock.shared(), CanBusConfig::paced(1_000_000));
-    let bus = Client::can(Box::new(canbus.connect()), clock.shared(), Config::can()).unwrap();
+    let bus = Client::with_link(PortLink::Can(Box::new(canbus.connect())), clock.shared(), Config::can()).unwrap();
     let m = bus.module(addr(1));
     let motion = crate::model::Motion::FVel { vel: Velocity::native(0.0) };
     let ack = m.motion(motion, crate::model::AckKind::Extended).unwrap().expect("an extended acknowledge");

@@ -153,7 +153,7 @@ fn a_host_that_dies_while_moving_is_stopped_by_the_watchdog_within_50_ms() {
 
     // The next session: arming is refused (a life sign would switch the expired watchdog off) and changes
     // nothing; a reset that releases the watchdog brings the module back for good.
-    let bus = Client::can(Box::new(canbus.connect()), clock.shared(), Config::can()).unwrap();
+    let bus = Client::with_link(PortLink::Can(Box::new(canbus.connect())), clock.shared(), Config::can()).unwrap();
     let m = bus.module(addr(1));
     let err = bus.enable_watchdog(&addrs(&[1])).unwrap_err();
     assert!(matches!(err, Error::Device { address: A1, state } if state.contains(StateFlag::CommError)), "{err}");
@@ -180,7 +180,7 @@ fn a_watchdog_another_host_serves_is_not_released() {
     canbus.drop_next_to_device(3);
     clock.sleep(Duration::from_millis(200));
     assert!(device_view(&canbus, &clock, 1).0.contains(StateFlag::CommError));
-    let host_b = Client::can(Box::new(canbus.connect()), clock.shared(), Config::can()).unwrap();
+    let host_b = Client::with_link(PortLink::Can(Box::new(canbus.connect())), clock.shared(), Config::can()).unwrap();
     assert!(!host_b.module(addr(1)).reset_and_release_watchdog().unwrap(), "host A serves it");
     clock.sleep(secs(1));
     let (state, _, online, _) = device_view(&canbus, &clock, 1);
@@ -314,7 +314,7 @@ fn a_normal_drop_switches_the_watchdog_off_and_a_new_session_can_arm_it_again() 
     assert!(device_view(&canbus, &clock, 1).0.contains(StateFlag::Halted));
     assert!(!device_view(&canbus, &clock, 2).0.contains(StateFlag::Halted));
     // A new session arms them again (a watchdog left online and expired would be refused).
-    let bus = Client::can(Box::new(canbus.connect()), clock.shared(), Config::can()).unwrap();
+    let bus = Client::with_link(PortLink::Can(Box::new(canbus.connect())), clock.shared(), Config::can()).unwrap();
     bus.module(addr(1)).reset().unwrap();
     bus.enable_watchdog(&addrs(&[1, 2])).unwrap();
     assert!(device_view(&canbus, &clock, 1).2 && device_view(&canbus, &clock, 2).2);
@@ -387,7 +387,7 @@ fn can_losing(addresses: &[u8], outgoing: bool) -> (ManualClock, CanBus<Emulator
     let sim = Emulator::new_can(&SimConfig::with_addresses(addresses).unwrap());
     let canbus = CanBus::with_emulator(sim, clock.shared(), CanBusConfig::paced(1_000_000));
     let link = LoseLifeSign { inner: canbus.connect(), outgoing, left: 1 };
-    let bus = Client::can(Box::new(link), clock.shared(), Config::can()).unwrap();
+    let bus = Client::with_link(PortLink::Can(Box::new(link)), clock.shared(), Config::can()).unwrap();
     (clock, canbus, bus)
 }
 
