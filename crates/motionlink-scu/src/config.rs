@@ -3,9 +3,8 @@
 
 use std::time::Duration;
 
-use crate::args::Baud;
 use crate::error::Error;
-use crate::model::{timing, Actuator, MotionFunction, PositionCounts, SafetyId, SpeedMode};
+use crate::model::{timing, Actuator, Baud, MotionFunction, PositionCounts, SafetyId, SpeedMode};
 use crate::wire::MAX_REQUEST_LEN;
 
 /// The longest keepalive period accepted: the unit's watchdog is 500 ms, and a period must leave room for a

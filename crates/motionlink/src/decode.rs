@@ -11,6 +11,7 @@ use motionlink_link::describe::{Annotation, Describe};
 use motionlink_link::Timestamp;
 
 use crate::common::{self, CliError};
+use crate::json::Telegram;
 
 /// Input of `motionlink decode`.
 #[derive(clap::Args, Debug, Clone)]
@@ -39,46 +40,6 @@ fn mark(a: &Annotation) -> &'static str {
         "!!"
     } else {
         a.direction.arrow()
-    }
-}
-
-/// One annotation as `--json` shows it (the names of docs/cli.md, "JSON output").
-#[derive(Debug, serde::Serialize)]
-pub struct Telegram<'a> {
-    /// Seconds since the Unix epoch, when known.
-    pub time_s: Option<f64>,
-    /// `->`, `<-` or `?`.
-    pub direction: &'static str,
-    /// The bytes (a frame's data) in hex.
-    pub bytes: String,
-    /// What it means, or what is wrong with it.
-    pub meaning: &'a str,
-    /// True when it is not a valid telegram.
-    pub bad: bool,
-    /// The CAN identifier: with a frame of a capture, and always in the wire trace (null for serial bytes).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub can_id: Option<Option<u32>>,
-    /// The CAN interface of a frame of a capture ("" when the line names none).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub interface: Option<&'a str>,
-    /// The frame of a capture as candump writes it.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub frame: Option<String>,
-}
-
-impl<'a> Telegram<'a> {
-    /// Annotation `a`, of `frame` (its interface and the frame) when it came from a CAN frame of a capture.
-    pub fn of(a: &'a Annotation, frame: Option<(&'a str, &motionlink_link::can::CanFrame)>) -> Telegram<'a> {
-        Telegram {
-            time_s: a.at.map(|t| t.since_origin().as_secs_f64()),
-            direction: a.direction.arrow(),
-            bytes: motionlink_link::hex::hex(&a.bytes),
-            meaning: &a.meaning,
-            bad: a.bad,
-            can_id: frame.map(|(_, f)| Some(f.id())),
-            interface: frame.map(|(i, _)| i),
-            frame: frame.map(|(_, f)| f.to_string()),
-        }
     }
 }
 

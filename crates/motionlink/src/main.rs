@@ -21,6 +21,7 @@ mod decode;
 mod demo;
 mod devices;
 mod gateway;
+mod json;
 mod manpage;
 mod numbers;
 mod portlock;

@@ -359,7 +359,7 @@ pub fn print_sent<X: serde::Serialize>(
     let untimed = |a: Option<Annotation>| a.map(|a| Annotation { at: None, ..a });
     let (sent, reply) = (untimed(sent), untimed(reply));
     if o.json {
-        let j = |a: Option<Annotation>| a.map(|a| crate::common::to_json(&crate::decode::Telegram::of(&a, None)));
+        let j = |a: Option<Annotation>| a.map(|a| crate::common::to_json(&crate::json::Telegram::of(&a, None)));
         return o.print(out, Sent { command, request: j(sent), reply: j(reply), ok, extra });
     }
     for (which, a) in [("request", &sent), ("reply", &reply)] {

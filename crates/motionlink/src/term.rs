@@ -15,8 +15,7 @@ use tracing_subscriber::layer::SubscriberExt as _;
 use tracing_subscriber::util::SubscriberInitExt as _;
 use tracing_subscriber::Layer as _;
 
-use crate::common::Keyed;
-use crate::decode::Telegram;
+use crate::json::{to_json, Keyed, Telegram};
 
 /// `--color`.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -196,15 +195,28 @@ impl<'a> tracing_subscriber::fmt::MakeWriter<'a> for LogWriter {
     }
 }
 
+/// Set once stdout was closed by its reader: notes are left out from then on.
+static OUTPUT_CLOSED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Records that stdout was closed by its reader.
+pub fn mark_output_closed() {
+    OUTPUT_CLOSED.store(true, std::sync::atomic::Ordering::SeqCst);
+}
+
+/// True once stdout was closed by its reader.
+fn output_closed() -> bool {
+    OUTPUT_CLOSED.load(std::sync::atomic::Ordering::SeqCst)
+}
+
 /// A line of information on stderr (a log event, a note of the command): as it is, or with `--json` as
 /// `{"log": "<text>"}`. Left out with `-q` (only errors) and once stdout was closed: the command then ends
 /// quietly, after stopping what it started.
 pub fn note(text: &str) {
-    if output().quiet || crate::common::stop_cause() == Some(crate::common::StopCause::OutputClosed) {
+    if output().quiet || output_closed() {
         return;
     }
     if output().json {
-        write_stderr(&format!("{}\n", crate::common::to_json(&Keyed("log", text))));
+        write_stderr(&format!("{}\n", to_json(&Keyed("log", text))));
     } else {
         write_stderr(&format!("{text}\n"));
     }
@@ -214,7 +226,7 @@ pub fn note(text: &str) {
 /// `--json` as `{"log": "<text>"}`.
 pub fn error_note(text: &str) {
     if output().json {
-        write_stderr(&format!("{}\n", crate::common::to_json(&Keyed("log", text))));
+        write_stderr(&format!("{}\n", to_json(&Keyed("log", text))));
     } else {
         write_stderr(&error_line(text));
     }
@@ -275,7 +287,7 @@ fn print_trace(time: &UnixTime, annotations: &[Annotation], fallback_at: Timesta
         let mark = if a.bad { "!!" } else { a.direction.arrow() };
         if output().json {
             let telegram = Telegram { time_s: Some(at.as_secs_f64()), can_id: Some(a.can_id), ..Telegram::of(a, None) };
-            write_stderr(&format!("{}\n", crate::common::to_json(&Keyed("trace", telegram))));
+            write_stderr(&format!("{}\n", to_json(&Keyed("trace", telegram))));
             continue;
         }
         write_stderr(&format!("{stamp} {mark} {data:<30} {}\n", a.meaning));

@@ -15,7 +15,6 @@
 //! assert_eq!("2".parse::<SafetyId>().unwrap(), SafetyId::StopRemoteOnly);
 //! ```
 
-use std::fmt;
 use std::str::FromStr;
 use std::time::Duration;
 
@@ -29,6 +28,7 @@ use crate::value::Value;
 
 mod targets;
 mod unit;
+pub use crate::model::Baud;
 pub use targets::TargetLine;
 pub use unit::{OptionError, UnitOptions};
 
@@ -99,32 +99,6 @@ impl Checked for PositionCounts {
     const RULE: &'static str = "a position must be a whole number of counts, -2147483648 to 2147483647";
     fn checked(n: i64) -> Result<Self, ArgumentError> {
         rule(true, || i32::try_from(n).ok().map(PositionCounts))
-    }
-}
-
-/// The baud rate of an SCU's serial line: 38400 on standard units, 9600 or 19200 on customised ones.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct Baud(u32);
-
-impl Baud {
-    /// The rate of standard units.
-    pub const STANDARD: Baud = Baud(38_400);
-
-    /// Bits per second.
-    pub const fn get(self) -> u32 {
-        self.0
-    }
-}
-
-impl Default for Baud {
-    fn default() -> Self {
-        Baud::STANDARD
-    }
-}
-
-impl fmt::Display for Baud {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}", self.0)
     }
 }
 

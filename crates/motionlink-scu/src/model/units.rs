@@ -220,3 +220,30 @@ impl fmt::Display for PositionCounts {
         write!(f, "{} counts", self.0)
     }
 }
+
+/// The baud rate of an SCU's serial line: 38400 on standard units, 9600 or 19200 on customised ones
+/// (checked from a number by [`Checked`](crate::args::Checked): `"19200".parse::<Baud>()`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Baud(pub(crate) u32);
+
+impl Baud {
+    /// The rate of standard units.
+    pub const STANDARD: Baud = Baud(38_400);
+
+    /// Bits per second.
+    pub const fn get(self) -> u32 {
+        self.0
+    }
+}
+
+impl Default for Baud {
+    fn default() -> Self {
+        Baud::STANDARD
+    }
+}
+
+impl fmt::Display for Baud {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.0)
+    }
+}

@@ -4,6 +4,7 @@ use std::io::Write;
 use std::sync::OnceLock;
 
 use super::CliError;
+pub use crate::json::{to_json, Keyed};
 
 /// One row of a human-readable table: a name and a value.
 pub type Row = (String, String);
@@ -23,20 +24,6 @@ pub fn print_json<T: serde::Serialize + ?Sized>(out: &mut dyn Write, value: &T) 
     Ok(())
 }
 
-/// `value` under a name known only at run time (`"module": 3`, `{"log": "..."}`); flattened into the object
-/// that holds it, or an object of its own.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Keyed<T>(pub &'static str, pub T);
-
-impl<T: serde::Serialize> serde::Serialize for Keyed<T> {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        use serde::ser::SerializeMap;
-        let mut map = s.serialize_map(Some(1))?;
-        map.serialize_entry(self.0, &self.1)?;
-        map.end()
-    }
-}
-
 /// The device profile the command's session took (`<path>#<key>`), once it looked for one.
 static PROFILE: OnceLock<Option<String>> = OnceLock::new();
 
@@ -44,12 +31,6 @@ static PROFILE: OnceLock<Option<String>> = OnceLock::new();
 /// names it from now on (`"profile"`).
 pub fn set_profile(reference: Option<String>) {
     let _ = PROFILE.set(reference);
-}
-
-/// A result (a library report, which serialises with the names `--json` shows) as a JSON value.
-pub fn to_json<T: serde::Serialize + ?Sized>(result: &T) -> serde_json::Value {
-    // A report of plain fields always serialises; a failure would be a library defect, shown, not hidden.
-    serde_json::to_value(result).unwrap_or_else(|e| serde_json::Value::String(format!("(not serialisable: {e})")))
 }
 
 /// Prints a family command's result as one JSON object: `family`, `port` and `profile` first

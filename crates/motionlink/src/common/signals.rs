@@ -61,6 +61,9 @@ pub fn stop_cause() -> Option<StopCause> {
 
 /// Records why the command stops; the first cause wins.
 pub(super) fn record_stop_cause(cause: StopCause) {
+    if cause == StopCause::OutputClosed {
+        crate::term::mark_output_closed();
+    }
     let mut slot = STOP_CAUSE.get_or_init(|| Mutex::new(None)).lock().unwrap_or_else(|e| e.into_inner());
     slot.get_or_insert(cause);
 }
