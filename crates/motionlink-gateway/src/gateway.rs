@@ -272,7 +272,10 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
 /// Publishes the device's state (retained) at `sample_hz` while it moves (a motion of the gateway's, or
 /// any motion the device reports), else once a second.
 /// A sample that finds the device's port gone ends the sampler and tells the loop (`failed`, with the
-/// session's `generation`).
+/// session's `generation`). A sample that fails otherwise (the device does not answer over a port that is
+/// fine: powered off, its cable out) publishes the unavailable state `unavailable` makes in place of the
+/// last state (which would otherwise stand, retained, as if the device were at rest), once, and tells the
+/// loop; the next sample that succeeds publishes the state again and tells the loop too.
 #[allow(clippy::too_many_arguments)]
 async fn sample_states(
     device: Arc<Device>,
@@ -283,7 +286,9 @@ async fn sample_states(
     started: Instant,
     generation: u64,
     failed: mpsc::UnboundedSender<Internal>,
+    unavailable: impl Fn(&ReplyError, f64) -> Option<String> + Send,
 ) {
+    let mut silent = false;
     let fast = Duration::from_secs(1) / sample_hz.max(1);
     let slow = Duration::from_secs(1).max(fast);
     let mut due = Instant::now();
@@ -294,12 +299,24 @@ async fn sample_states(
             Ok((state, in_motion)) => {
                 reported = in_motion;
                 let _ = mqtt.try_publish(topic.clone(), QoS::AtMostOnce, true, state.to_string());
+                if std::mem::take(&mut silent) {
+                    let _ = failed.send(Internal::Silent { device: device.name.clone(), generation, error: None });
+                }
             }
             Err(e) if e.port_failed() => {
                 let _ = failed.send(Internal::SampleFailed { device: device.name.clone(), generation, error: e });
                 return;
             }
-            Err(e) => tracing::warn!("{}: state: {}", device.name, e.message),
+            Err(e) => {
+                tracing::warn!("{}: state: {}", device.name, e.message);
+                if !silent {
+                    silent = true;
+                    if let Some(body) = unavailable(&e, t_s) {
+                        let _ = mqtt.try_publish(topic.clone(), QoS::AtLeastOnce, true, body);
+                    }
+                    let _ = failed.send(Internal::Silent { device: device.name.clone(), generation, error: Some(e) });
+                }
+            }
         }
         let last = due;
         // The next sample on a fixed schedule (never in the past); a motion that starts meanwhile brings it

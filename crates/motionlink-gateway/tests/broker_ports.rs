@@ -97,3 +97,74 @@ async fn a_stop_through_the_port_lock_stops_the_device_s_motion_and_the_gateway_
     let e = portlock::claim("compax", &port, "compax status").unwrap_err().0;
     assert!(e.contains(&format!("pid {}", gw.pid())), "{e}");
 }
+
+/// A COMPAX bus that stops answering while its port stays open (a drive switched off behind a serial
+/// server), and answers again when `silent` is cleared.
+struct Silenceable {
+    bus: motionlink_compax::Emulator,
+    silent: Arc<std::sync::atomic::AtomicBool>,
+}
+
+impl motionlink_link::emulator::Emulator for Silenceable {
+    fn receive(&mut self, now: motionlink_link::Timestamp, bytes: &[u8], out: &mut Vec<u8>) {
+        if !self.silent.load(std::sync::atomic::Ordering::SeqCst) {
+            self.bus.receive(now, bytes, out);
+        }
+    }
+    fn advance(&mut self, now: motionlink_link::Timestamp, out: &mut Vec<u8>) {
+        let mut said = Vec::new();
+        self.bus.advance(now, &mut said);
+        if !self.silent.load(std::sync::atomic::Ordering::SeqCst) {
+            out.extend(said);
+        }
+    }
+    fn next_wakeup(&self) -> Option<motionlink_link::Timestamp> {
+        self.bus.next_wakeup()
+    }
+    fn connection_closed(&mut self, now: motionlink_link::Timestamp) {
+        self.bus.connection_closed(now);
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_device_that_stops_answering_is_published_unavailable_until_it_answers_again() {
+    let Some(b) = broker("a_device_that_stops_answering_is_published_unavailable_until_it_answers_again") else {
+        return;
+    };
+    let silent = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let bus = motionlink_compax::Emulator::new(motionlink_compax::DriveOptions::default().emulated()).unwrap();
+    let device = Silenceable { bus, silent: Arc::clone(&silent) };
+    let server = motionlink_link::emulator::serve_tcp(
+        "127.0.0.1:0",
+        Arc::new(Mutex::new(device)),
+        motionlink_link::RealClock::shared(),
+    )
+    .unwrap();
+    let port = server.address().to_string();
+    let gw = gateway(&b, "sl", &format!("[device.axis]\nfamily = \"compax\"\nport = \"{port}\"\n"));
+    let mut c = Client::connect(&b, "t-sl", &["motionlink/sl/#"]).await;
+    let state = |m: &harness::Message| m.topic == "motionlink/sl/axis/state";
+    c.wait("a state", 20 * S, |m| state(m) && m.json()["position_units"].is_number()).await;
+
+    // Silent: the retained state says so (not the last position, as if at rest), and an event.
+    silent.store(true, std::sync::atomic::Ordering::SeqCst);
+    let m = c.wait("unavailable", 10 * S, |m| state(m) && m.json()["available"] == false).await.json();
+    assert_eq!((m["family"].as_str(), m["drive"].as_u64()), (Some("compax"), Some(1)), "{m}");
+    assert_eq!(m["error"]["kind"], "timeout", "{m}");
+    let ev = c.wait("silent", 5 * S, |m| m.topic == "motionlink/sl/axis/events" && m.payload.contains("device_silent"));
+    let ev = ev.await.json();
+    assert!(ev["message"].as_str().unwrap().contains("does not answer"), "{ev}");
+    assert_eq!(ev["error"]["kind"], "timeout", "{ev}");
+    // A late subscriber sees the unavailable state, retained.
+    let mut late = Client::connect(&b, "t-sl2", &["motionlink/sl/axis/state"]).await;
+    let r = late.wait("retained", 5 * S, state).await.json();
+    assert_eq!(r["available"], false, "{r}");
+
+    // Answering again: the state is published again, and an event says so.
+    silent.store(false, std::sync::atomic::Ordering::SeqCst);
+    c.wait("back", 10 * S, |m| state(m) && m.json()["position_units"].is_number()).await;
+    c.wait("answers", 5 * S, |m| m.topic == "motionlink/sl/axis/events" && m.payload.contains("device_answers")).await;
+    let (code, err) = gw.signal(libc::SIGTERM);
+    assert_eq!(code, Some(143), "{err}");
+    assert!(err.contains("axis: does not answer") && err.contains("axis: answers again"), "{err}");
+}

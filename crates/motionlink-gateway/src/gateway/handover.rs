@@ -10,13 +10,19 @@ use tokio::time::Instant;
 
 use super::{sample_states, summary, Done, Gateway, Served, STOP_BOUND};
 use crate::device::Device;
-use crate::error::StopReason;
-use crate::events::Event;
+use crate::error::{ReplyError, StopReason};
+use crate::events::{Event, Unavailable};
 
 impl Gateway {
     /// Starts publishing `device`'s state.
     pub(super) fn start_sampler(&mut self, device: &str) {
         let Some(served) = self.devices.get(device) else { return };
+        let Some((entry, spec)) = self.entries.get(device) else { return };
+        let (family, port, identity) = (entry.family.clone(), entry.port.clone(), spec.identity());
+        let unavailable = move |error: &ReplyError, t_s: f64| {
+            let state = Unavailable { available: false, error, t_s };
+            motionlink_link::result::identified(&family, &port, &identity, &state).ok().map(|v| v.to_string())
+        };
         let task = tokio::spawn(sample_states(
             Arc::clone(&served.device),
             self.mqtt.clone(),
@@ -26,6 +32,7 @@ impl Gateway {
             self.started,
             served.generation,
             self.internal.clone(),
+            unavailable,
         ));
         self.samplers.insert(device.to_string(), task);
     }

@@ -36,6 +36,16 @@ pub(super) enum Internal {
         /// What the library said.
         error: ReplyError,
     },
+    /// A state sample found the device silent over a port that is fine (`error`: what the library said),
+    /// or (`None`) answering again.
+    Silent {
+        /// The device.
+        device: String,
+        /// The session the sample was of.
+        generation: u64,
+        /// What the library said; `None`: it answers again.
+        error: Option<ReplyError>,
+    },
     /// A failed device's port is open again.
     Reopened {
         /// The device.
@@ -95,7 +105,37 @@ impl Gateway {
         match i {
             Internal::SampleFailed { device, generation, error } => self.port_failed(&device, generation, error, None),
             Internal::Reopened { device, opened } => self.reopened(&device, opened),
+            Internal::Silent { device, generation, error } => self.silent(&device, generation, error),
         }
+    }
+
+    /// The state samples of `device` (its session `generation`) found it silent (`error`) or answering again:
+    /// `device_silent` or `device_answers` said (its state was published by the sampler).
+    fn silent(&self, device: &str, generation: u64, error: Option<ReplyError>) {
+        if self.devices.get(device).is_none_or(|s| s.generation != generation) {
+            return;
+        }
+        let event = match &error {
+            Some(e) => {
+                let message = format!(
+                    "{device}: does not answer ({}); its state is unavailable until it answers again, and requests \
+                     to it are sent and answered as the device answers them",
+                    e.message
+                );
+                eprintln!("motionlink gateway: {message}");
+                serde_json::to_string(&Event {
+                    message: Some(&message),
+                    error: Some(e),
+                    ..Event::new("device_silent", None)
+                })
+            }
+            None => {
+                let message = format!("{device}: answers again");
+                eprintln!("motionlink gateway: {message}");
+                serde_json::to_string(&Event { message: Some(&message), ..Event::new("device_answers", None) })
+            }
+        };
+        let _ = self.mqtt.try_publish(self.topics.events(device), QoS::AtLeastOnce, false, event.unwrap_or_default());
     }
 
     /// The port of `device` (its session `generation`) failed with `error`: its motion is cancelled (or
