@@ -166,37 +166,16 @@ enum DemoPart {
 fn run(cli: Cli) -> Result<(), CliError> {
     let json = cli.json;
     match cli.command {
-        Command::Scu(mut args) => {
-            args.json = json;
-            scu::run(args)
-        }
-        Command::Powercube(mut args) => {
-            args.json = json;
-            powercube::run(args)
-        }
-        Command::Compax(mut args) => {
-            args.json = json;
-            compax::run(args)
-        }
+        Command::Scu(args) => scu::run(args),
+        Command::Powercube(args) => powercube::run(args),
+        Command::Compax(args) => compax::run(args),
         Command::Probe { family } => probe::run(family, json),
         Command::Gateway(args) => gateway::run(args),
-        Command::Console(mut args) => {
-            args.json = json;
-            console::run(args)
-        }
+        Command::Console(args) => console::run(args),
         Command::Sim { family } => match family {
-            SimFamily::Scu(mut args) => {
-                args.serve.json = json;
-                scu::sim(args)
-            }
-            SimFamily::Powercube(mut args) => {
-                args.serve.json = json;
-                powercube::sim(args)
-            }
-            SimFamily::Compax(mut args) => {
-                args.serve.json = json;
-                compax::sim(args)
-            }
+            SimFamily::Scu(args) => scu::sim(args),
+            SimFamily::Powercube(args) => powercube::sim(args),
+            SimFamily::Compax(args) => compax::sim(args),
         },
         Command::Decode { family } => match family {
             DecodeFamily::Scu(args) => scu::decode(args, json),

@@ -45,6 +45,11 @@ pub struct Output {
 
 static OUTPUT: OnceLock<Output> = OnceLock::new();
 
+/// `--json`, the global option: results, errors and notes are JSON.
+pub fn json() -> bool {
+    output().json
+}
+
 /// The output settings (defaults before [`init`]).
 pub fn output() -> Output {
     *OUTPUT.get().unwrap_or(&Output { color: false, quiet: false, verbose: 0, json: false })

@@ -18,9 +18,6 @@ pub struct ServeArgs {
     /// TIME}`).
     #[arg(long)]
     pub events: bool,
-    /// `--json`: the listening line as a JSON object (set by `main`).
-    #[arg(skip)]
-    pub json: bool,
 }
 
 /// `--tcp ADDR` or `--pty`.
@@ -41,7 +38,7 @@ pub fn serve<E: Emulator + 'static>(args: &ServeArgs, device: E) -> Result<(), C
     let clock = RealClock::shared();
     let mut options = ServeOptions::default();
     if args.events {
-        let json = args.json;
+        let json = crate::term::json();
         options.on_event = Some(Arc::new(move |event: &str| {
             let t = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
             let mut err = std::io::stderr().lock();
@@ -83,7 +80,7 @@ pub fn serve<E: Emulator + 'static>(args: &ServeArgs, device: E) -> Result<(), C
             return Err(CliError::usage("--pty needs a Unix system"));
         }
     };
-    let line = if args.json {
+    let line = if crate::term::json() {
         #[derive(serde::Serialize)]
         struct Listening<'a> {
             kind: &'static str,

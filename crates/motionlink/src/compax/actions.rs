@@ -78,7 +78,7 @@ pub(super) fn scan(args: &Args, bus: &Client, out: &mut dyn Write) -> Result<(),
     // A signal ends the scan between two addresses.
     let found: Vec<DrivePosition> =
         bus.scan(1..=31).map_err(|e| error_for(args, e))?.into_iter().map(DrivePosition::from).collect();
-    if args.json {
+    if crate::term::json() {
         // A listing: one object per drive found (JSON Lines).
         for d in &found {
             Out { unit: None, ..args.out() }.print(out, d)?;
@@ -100,7 +100,7 @@ pub(super) fn scan(args: &Args, bus: &Client, out: &mut dyn Write) -> Result<(),
 pub(super) fn status(args: &Args, bus: &Client, ids: &[StatusId], out: &mut dyn Write) -> Result<(), CliError> {
     // A signal ends the reads between two values.
     let report = StatusReport::from(bus.read_statuses(args.drive, ids).map_err(|e| error_for(args, e))?);
-    if args.json {
+    if crate::term::json() {
         args.out().print(out, &report)
     } else {
         common::print_table(out, &report.status.iter().map(status_row).collect::<Vec<_>>())
@@ -112,14 +112,14 @@ pub(super) fn get(args: &Args, bus: &Client, params: &[ParamId], out: &mut dyn W
     let mut rows = Vec::new();
     for &id in params {
         let reading = ParamReading { id, value: bus.read_param(args.drive, id).map_err(|e| error_for(args, e))? };
-        if args.json {
+        if crate::term::json() {
             args.out().print(out, reading)?;
         } else {
             let name = format!("{id} {}", id.description().unwrap_or("")).trim_end().to_string();
             rows.push((name, common::with_unit(reading.value, reading.unit())));
         }
     }
-    if !args.json {
+    if !crate::term::json() {
         common::print_table(out, &rows)?;
     }
     Ok(())
@@ -129,7 +129,7 @@ pub(super) fn get(args: &Args, bus: &Client, params: &[ParamId], out: &mut dyn W
 pub(super) fn set(args: &Args, bus: &Client, id: ParamId, value: f64, out: &mut dyn Write) -> Result<(), CliError> {
     // Written and read back: a value that reads back otherwise is an error (exit code 1).
     let written = bus.set_param(args.drive, id, value).map_err(|e| error_for(args, e))?;
-    if args.json {
+    if crate::term::json() {
         return args.out().print(out, written);
     }
     let note = if written.at_power_on() { " (takes effect at the drive's next power-on)" } else { "" };
@@ -161,7 +161,7 @@ pub(super) fn move_drive(
         // before that stops it instead).
         let started = bus.start_and_release(drive, &plan.request).map_err(fail)?;
         let now = bus.read_position(drive).map_err(fail)?;
-        if args.json {
+        if crate::term::json() {
             return args.out().print(out, &HandedOver { started: &started, position_units: now });
         }
         writeln!(out, "drive {drive}: target {} {UNITS}, position {now} {UNITS} (moving on)", started.target)?;
@@ -182,7 +182,7 @@ pub(super) fn move_drive(
     });
     bar.finish_and_clear();
     let report = report.map_err(fail)?;
-    if args.json {
+    if crate::term::json() {
         return args.out().print(out, &report);
     }
     writeln!(out, "drive {drive}: target {} {UNITS}, position {} {UNITS}", report.target, report.reached)?;
@@ -198,7 +198,7 @@ pub(super) fn output(
 ) -> Result<(), CliError> {
     let (number, state) = output.ok_or_else(|| CliError::usage("output: not checked"))?;
     bus.set_output(args.drive, number, state, false).map_err(|e| error_for(args, e))?;
-    if args.json {
+    if crate::term::json() {
         return args.out().print(out, OutputSwitched { output: number, state });
     }
     writeln!(out, "drive {}: OUTPUT O{number}={}", args.drive, state.get())?;
@@ -229,7 +229,7 @@ pub(super) fn stop(
     // (S16: this stop, or an earlier one, may have switched it off). What cannot be read is said.
     let position = bus.read_position(drive);
     let o0 = bus.read_s16(drive).map(|s| s.o0_state());
-    if args.json {
+    if crate::term::json() {
         return args.out().print(out, StopResult::new(stopped, report, position, o0));
     }
     match &position {
@@ -263,7 +263,7 @@ pub(super) fn raw(
     // A move it starts is waited for (--wait) or handed over: it runs on after the command exits.
     let after = wait.map_or(AfterRaw::HandOver, AfterRaw::Wait);
     let outcome = bus.raw_motion(args.drive, command, after).map_err(|e| error_for(args, e))?;
-    if args.json {
+    if crate::term::json() {
         return args.out().print(out, &Raw { command, outcome: &outcome });
     }
     match outcome.reply {
@@ -301,7 +301,7 @@ pub(super) fn send(
     let polls = after.iter().filter(|a| a.direction == motionlink_link::chunk::Direction::ToDevice).count();
     let extra = SentExtra { reply_text: result.as_ref().ok().and_then(|o| o.reply.clone()), polls };
     crate::tap::print_sent(out, &args.out(), (sent, reply), &command, result.is_ok(), extra)?;
-    if !args.json && polls > 0 {
+    if !crate::term::json() && polls > 0 {
         writeln!(out, "then {polls} status polls until the move ended (-v shows them)")?;
     }
     result.map_err(|e| error_for(args, e))?;

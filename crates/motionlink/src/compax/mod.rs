@@ -27,13 +27,17 @@ use motionlink_compax::describe::Describer;
 use motionlink_link::describe::Describe;
 
 mod actions;
-mod extra;
+mod decode;
+mod demo;
 mod open;
 mod show;
+mod sim;
 
-pub use extra::{decode, demo, sim};
+pub use decode::{decode, DecodeArgs};
+pub use demo::demo;
 pub(crate) use open::{link, open};
 use show::{send_text, status_row};
+pub use sim::{sim, SimArgs};
 
 /// `motionlink compax` arguments. Every option may come before or after the action; every value is checked
 /// by its type's rule in motionlink-compax (the same rule and message as in Python and the console).
@@ -65,9 +69,6 @@ pub struct Args {
     /// with commas; `motionlink sim compax --help` lists them).
     #[arg(long = "sim-variant", value_name = "NAME", value_delimiter = ',', global = true)]
     pub sim_variants: Vec<Variant>,
-    /// `--json` (the global option, set by `main`).
-    #[arg(skip)]
-    pub json: bool,
     /// The port resolved from --port, --device or MOTIONLINK_PORT (set by `run`).
     #[arg(skip)]
     pub resolved_port: String,
@@ -207,47 +208,6 @@ pub enum Action {
     },
 }
 
-/// `motionlink sim compax` arguments.
-#[derive(clap::Args, Debug)]
-pub struct SimArgs {
-    #[command(flatten)]
-    pub serve: ServeArgs,
-    /// Addresses of the emulated drives, such as 1,5 (default 1).
-    #[arg(long, value_delimiter = ',')]
-    pub drives: Option<Vec<Address>>,
-    /// P196 of every drive (default 0).
-    #[arg(long)]
-    pub mode: Option<Mode>,
-    /// The line's and the drives' baud rate (default 9600).
-    #[arg(long)]
-    pub baud: Option<BaudRate>,
-    /// A TOML file describing the bus (see the motionlink-compax README); the options above override it.
-    #[arg(long)]
-    pub config: Option<PathBuf>,
-    /// A parameter besides P194..P196 that every drive models, with its value at power-on, such as P12=0
-    /// (repeatable). The drives refuse (E90) every other parameter.
-    #[arg(long = "param", value_name = "PNNN=VALUE")]
-    pub params: Vec<String>,
-    /// Run the drives as this firmware variant, one behaviour the manual leaves open done the other way
-    /// (repeat the option, or separate names with commas): echo-without-address, echo-bare, no-echo,
-    /// echo-without-store, status-value-only (see the crate's README).
-    #[arg(long = "variant", value_name = "NAME", value_delimiter = ',')]
-    pub variants: Vec<Variant>,
-}
-
-/// `motionlink decode compax` arguments.
-#[derive(clap::Args, Debug)]
-pub struct DecodeArgs {
-    #[command(flatten)]
-    pub capture: CaptureArgs,
-    /// P196 of the capture (BCC, reply end, address prefix).
-    #[arg(long, default_value = "0")]
-    pub mode: Mode,
-    /// Which way the bytes went: auto (guess each telegram), host (requests only), drive (replies only).
-    #[arg(long, value_enum, default_value_t = Direction::Auto)]
-    pub direction: Direction,
-}
-
 /// Direction of a capture.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Direction {
@@ -320,7 +280,7 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     let describer = move || Box::new(Describer::new(mode)) as Box<dyn Describe + Send>;
     let sending = matches!(args.action, Action::Send { .. });
     if let Action::Watch { csv, .. } = args.action {
-        WatchFormat::of(csv, args.json)?;
+        WatchFormat::of(csv, crate::term::json())?;
     }
     let tap = Tap::new("compax", &args.resolved_port, &clock, &args.link, "can0", &describer, sending)?;
     let result = act(&args, &tap, &clock);
@@ -353,7 +313,12 @@ fn bus_options(args: &Args) -> String {
 impl Args {
     /// How results are printed: family, port and drive first.
     fn out(&self) -> Out<'_> {
-        Out { json: self.json, family: "compax", port: &self.resolved_port, unit: Some(("drive", self.drive.get())) }
+        Out {
+            json: crate::term::json(),
+            family: "compax",
+            port: &self.resolved_port,
+            unit: Some(("drive", self.drive.get())),
+        }
     }
 }
 

@@ -62,7 +62,7 @@ pub(super) fn watch(
                 s.s17.pattern().to_string(),
             ];
             common::csv_line(&fields)
-        } else if args.json {
+        } else if crate::term::json() {
             let mut line = Vec::new();
             match args.out().print(&mut line, Timed { t_s, sample: *s }) {
                 Ok(()) => String::from_utf8_lossy(&line).trim_end().to_string(),

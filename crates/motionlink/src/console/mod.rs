@@ -32,9 +32,6 @@ pub struct Args {
     /// The family of the device.
     #[command(subcommand)]
     pub family: Family,
-    /// `--json` (global, set by `main`): the one line as a JSON object, `{"console": URL}`.
-    #[arg(skip)]
-    pub json: bool,
 }
 
 /// Which family the console drives.
@@ -150,7 +147,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             Family::Powercube(a) => powercube::open(a, &port, &clock).await?,
             Family::Compax(a) => compax::open(a, &port, &clock).await?,
         };
-        serve_until_interrupted(device, traffic, addr, &interrupt, &clock, args.json).await
+        serve_until_interrupted(device, traffic, addr, &interrupt, &clock, crate::term::json()).await
     });
     // What is left on the blocking pool (a close that outlived the console) gets a bounded wait.
     runtime.shutdown_timeout(std::time::Duration::from_secs(6));

@@ -5,8 +5,10 @@
 mod actions;
 mod decode;
 mod demo;
+mod open;
 mod send;
 mod show;
+mod sim;
 
 use std::io::Write;
 use std::sync::Arc;
@@ -30,8 +32,10 @@ use motionlink_powercube::{Emulator, Error};
 
 pub use decode::{decode, DecodeArgs};
 pub use demo::demo;
+pub(crate) use open::{module_options, open};
 use send::{parse_send, print_params, send};
 use show::{info, progress_text, report_done, scan, watch};
+pub use sim::{sim, SimArgs};
 
 use crate::common::{self, CliError, Out, ServeArgs, WatchFormat};
 use crate::numbers::{at_least, whole};
@@ -64,9 +68,6 @@ pub struct Args {
     /// never sent faster than this, however quickly the line answers.
     #[arg(long, value_name = "MS", default_value = "10", global = true)]
     pub poll_ms: PollInterval,
-    /// `--json` (the global option, set by `main`).
-    #[arg(skip)]
-    pub json: bool,
     /// Do not arm the module watchdog for `home` and `move` (the Config word is left alone; a host that dies
     /// then leaves the module moving). Signals, a closed stdout and errors still halt it.
     #[arg(long, global = true)]
@@ -172,30 +173,6 @@ pub enum Action {
     Params,
 }
 
-/// `motionlink sim powercube` arguments.
-#[derive(clap::Args, Debug)]
-pub struct SimArgs {
-    #[command(flatten)]
-    pub serve: ServeArgs,
-    /// Module addresses, such as 1,17 (default: one module at 1).
-    #[arg(long, value_delimiter = ',', conflicts_with = "config")]
-    pub modules: Vec<Address>,
-    /// A TOML file describing the modules (see crates/motionlink-powercube/README.md).
-    #[arg(long, value_name = "FILE")]
-    pub config: Option<std::path::PathBuf>,
-    /// Serve the modules on CAN through an emulated SLCAN serial adapter instead of RS232 framing.
-    #[arg(long)]
-    pub slcan: bool,
-    /// Drop RS232 frames with a wrong BCC (the modules accept them).
-    #[arg(long)]
-    pub strict: bool,
-    /// Run the modules as this firmware variant, one behaviour the manual leaves open done the other way
-    /// (repeat the option, or separate names with commas): no-twin-mirror, no-broadcast-pair, ack-length-6,
-    /// ext-ack-on-put-id, no-pos-state-dio, life-sign-unacknowledged (see the crate's README).
-    #[arg(long = "variant", value_name = "NAME", value_delimiter = ',')]
-    pub variants: Vec<Variant>,
-}
-
 /// A library error as a command-line error (its class decides the exit code).
 fn failed(e: Error) -> CliError {
     common::classified(&e)
@@ -206,53 +183,6 @@ fn context(e: Error, context: String) -> CliError {
     failed(Error::Context { context, source: Box::new(e), hint: "" })
 }
 
-/// Opens the session `args` ask for; the in-process emulator's host with it for `--port sim`.
-pub(crate) fn open(
-    args: &Args,
-    port: &str,
-    tap: &Tap,
-    clock: &SharedClock,
-) -> Result<(Client, Option<EmulatorHost<Emulator>>), CliError> {
-    let url: PortUrl = port.parse()?;
-    let clock = Arc::clone(clock);
-    let options = module_options(args);
-    if options.check_port(matches!(url, PortUrl::Sim)).is_err() {
-        return Err(CliError::usage(
-            "--sim-variant is for --port sim (a served emulator takes `sim powercube --variant`)",
-        ));
-    }
-    let client = match PortLink::open(&url, args.baud, args.bitrate, &clock).map_err(failed)? {
-        Some(PortLink::Rs232(link)) => {
-            Client::with_link(PortLink::Rs232(tap.link(link, &clock)), clock, options.config(false))
-        }
-        Some(PortLink::Can(link)) => {
-            Client::with_link(PortLink::Can(tap.can_link(link, &clock)), clock, options.config(true))
-        }
-        None => {
-            // The emulated bus has the module the command names, in the firmware variants asked for.
-            let bus = options.emulated().map_err(|e| CliError::usage(e.message))?;
-            let host = EmulatorHost::new(Emulator::new(&bus), Arc::clone(&clock), PipeConfig::instant());
-            let link = tap.link(Box::new(host.connect().0), &clock);
-            let client = Client::with_link(PortLink::Rs232(link), clock, options.config(false)).map_err(failed)?;
-            return Ok((client, Some(host)));
-        }
-    };
-    Ok((client.map_err(failed)?, None))
-}
-
-/// The module's options from the command line (the same options a device table gives the gateway).
-pub(crate) fn module_options(args: &Args) -> ModuleOptions {
-    ModuleOptions {
-        module: args.module,
-        baud: args.baud,
-        bitrate: args.bitrate,
-        timeout_ms: args.timeout_ms,
-        poll_ms: args.poll_ms,
-        no_watchdog: args.no_watchdog,
-        sim_variants: args.sim_variants.clone(),
-    }
-}
-
 fn parse_param(text: &str) -> Result<Param, CliError> {
     text.parse::<Param>().map_err(CliError::usage)
 }
@@ -261,10 +191,10 @@ fn parse_param(text: &str) -> Result<Param, CliError> {
 pub fn run(args: Args) -> Result<(), CliError> {
     let mut out = std::io::stdout().lock();
     if let Action::Params = args.action {
-        return print_params(&mut out, args.json);
+        return print_params(&mut out, crate::term::json());
     }
     if let Action::Watch { csv, .. } = args.action {
-        WatchFormat::of(csv, args.json)?;
+        WatchFormat::of(csv, crate::term::json())?;
     }
     let request = match &args.action {
         Action::Send { words } => Some(parse_send(words, args.module.get())?),
@@ -285,7 +215,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
         crate::probe::use_profile(|p| motionlink_powercube::probe::use_profile(&client, p, &port, module))?;
     }
     let guard = module_options(&args).guard(host.is_some());
-    let o = &Out { json: args.json, family: "powercube", port: &port, unit: Some(("module", args.module.get())) };
+    let o =
+        &Out { json: crate::term::json(), family: "powercube", port: &port, unit: Some(("module", args.module.get())) };
     let result = match &request {
         Some(r) => send(&args, &client, r, &tap, o, &mut out),
         None => act(&args, &client, guard, o, stopped.as_ref(), &mut out),
@@ -341,30 +272,9 @@ fn act(
             actions::move_to(o, &m, guard, &spec, out)?
         }
         Action::Watch { interval_ms, count, csv } => {
-            watch(client, o, &m, out, WatchFormat::of(*csv, args.json)?, *interval_ms, *count)?
+            watch(client, o, &m, out, WatchFormat::of(*csv, crate::term::json())?, *interval_ms, *count)?
         }
         Action::Params | Action::Send { .. } => {}
     }
     Ok(())
-}
-
-/// `motionlink sim powercube ...`
-pub fn sim(args: SimArgs) -> Result<(), CliError> {
-    let mut config = match (&args.config, args.modules.is_empty()) {
-        (Some(path), _) => SimConfig::from_toml(&common::config_text(path)?).map_err(CliError::usage)?,
-        (None, true) => SimConfig::default(),
-        (None, false) => SimConfig::with_addresses(&args.modules.iter().map(|a| a.get()).collect::<Vec<_>>())
-            .map_err(CliError::usage)?,
-    };
-    config.add_variants(args.variants.iter().copied());
-    if args.slcan {
-        if args.strict {
-            return Err(CliError::usage("--strict is about RS232 BCCs; it has no meaning with --slcan"));
-        }
-        common::serve(&args.serve, SlcanAdapter::new(Emulator::new_can(&config)))
-    } else {
-        let mut bus = Emulator::new(&config);
-        bus.set_strict_bcc(args.strict);
-        common::serve(&args.serve, bus)
-    }
 }

@@ -70,7 +70,6 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
             timeout_ms: args.timeout_ms,
             short: false,
             sim_variants: args.sim_variants.clone(),
-            json,
             resolved_port: port.clone(),
             action: Action::Scan,
         };

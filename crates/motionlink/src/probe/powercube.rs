@@ -61,7 +61,6 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
             bitrate: args.bitrate,
             timeout_ms: args.timeout_ms,
             poll_ms: PollInterval::from_ms(10).map_err(|e| CliError::usage(e.to_string()))?,
-            json,
             no_watchdog: true,
             sim_variants: args.sim_variants.clone(),
             action: Action::Scan,

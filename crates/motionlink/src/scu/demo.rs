@@ -1,66 +1,22 @@
-//! `motionlink sim scu`, `motionlink decode scu` and the SCU part of `motionlink demo`.
+//! The SCU part of `motionlink demo`.
 
 use std::io::Write;
 use std::sync::Arc;
 use std::time::Duration;
 
-use motionlink_link::chunk::Direction;
 use motionlink_link::clock::Clock;
 use motionlink_link::link::{Connector, Link};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::transcript::{TapLink, Transcript};
 use motionlink_link::{ManualClock, SharedClock};
-use motionlink_scu::describe::{describe_request, fold_transcript, Describer, TranscriptLine};
+use motionlink_scu::describe::{describe_request, fold_transcript, TranscriptLine};
 use motionlink_scu::model::{Actuator, DataIndex, MotionDirection, MotionFunction, PositionCounts, StopMode};
 use motionlink_scu::value::Value;
 use motionlink_scu::wire::{request_to_vec, Request};
 use motionlink_scu::{Client, Config, Emulator, SimConfig};
-use std::path::PathBuf;
 
-use super::emulated::load_sim_config;
-use crate::common::{self, CliError, ServeArgs};
-use crate::decode::CaptureArgs;
+use crate::common::{self, CliError};
 use crate::demo::{DemoOut, DemoTelegram};
-
-/// `motionlink sim scu` arguments.
-#[derive(clap::Args, Debug)]
-pub struct SimArgs {
-    #[command(flatten)]
-    pub serve: ServeArgs,
-    /// Parameterisation (TOML): actuators, function mapping, stroke, speed, variants. See docs/scu.md (Emulator).
-    #[arg(long, value_name = "FILE")]
-    pub config: Option<PathBuf>,
-    /// Start from a preset: scp11 (default; actuator n on Fn), tlt (F1 drives both columns, F2 and F3 one each)
-    /// or liftkit (F1 actuator 1, F2 actuator 2, F8 both, as the public LIFTKIT/TLT drivers assume).
-    #[arg(long, value_parser = ["scp11", "tlt", "liftkit"])]
-    pub preset: Option<String>,
-    /// A firmware variant: the unit does what the manual leaves open the other plausible way. no-groups,
-    /// no-user-positions, no-cyclic-objects, no-remote-readback, rc-empty-data, sleepy, sticky-errors,
-    /// in-end-undershoot, re-needs-rs (see docs/assumptions.md). Repeat or comma-separate for several; added to the
-    /// configuration's `variants`.
-    #[arg(long = "variant", value_name = "NAME")]
-    pub variants: Vec<String>,
-}
-
-/// `motionlink decode scu` arguments.
-#[derive(clap::Args, Debug)]
-pub struct DecodeArgs {
-    #[command(flatten)]
-    pub capture: CaptureArgs,
-}
-
-/// `motionlink sim scu`
-pub fn sim(args: SimArgs) -> Result<(), CliError> {
-    let config = load_sim_config(args.config.as_ref(), args.preset.as_deref(), &args.variants)?;
-    let device = Emulator::new(config).map_err(|e| CliError::usage(e.to_string()))?;
-    common::serve(&args.serve, device)
-}
-
-/// `motionlink decode scu`: the library's describer over the capture; lines without a direction mark are
-/// told apart by their bytes.
-pub fn decode(args: DecodeArgs, json: bool) -> Result<(), CliError> {
-    crate::decode::run(&args.capture, json, &mut Describer::new(), Direction::Unknown)
-}
 
 // ---------------------------------------------------------------------------------------------------------
 // Demo

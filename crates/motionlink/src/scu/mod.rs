@@ -23,18 +23,26 @@ use crate::numbers::{at_least, whole};
 use crate::tap::{LinkArgs, Tap};
 
 mod actions;
+mod decode;
 mod demo;
-mod emulated;
 mod follow;
+mod open;
 mod parse;
 mod send;
+mod sim;
 mod stop;
 pub(crate) use stop::print_stop_text;
 
-pub use demo::{decode, demo, sim, DecodeArgs, SimArgs};
-pub(crate) use emulated::{in_process_config, InProcess};
+pub use decode::{decode, DecodeArgs};
+pub use demo::demo;
+pub(crate) use open::connector;
+#[cfg(test)]
+use open::unit_options;
+use open::{client_config, connect};
 pub(crate) use parse::speed_mode_parser;
 use parse::{parse_item, parse_speed};
+pub(crate) use sim::{in_process_config, InProcess};
+pub use sim::{sim, SimArgs};
 
 /// `motionlink scu` arguments. Every option may come before or after the action.
 #[derive(clap::Args, Debug)]
@@ -94,9 +102,6 @@ pub struct Args {
     /// on top.
     #[arg(long, value_name = "NAME", global = true, value_parser = SimConfig::PRESETS)]
     pub sim_preset: Option<String>,
-    /// `--json` (the global option, set by `main`).
-    #[arg(skip)]
-    pub json: bool,
     #[command(subcommand)]
     pub action: Action,
 }
@@ -226,79 +231,10 @@ pub enum Action {
     Errors,
 }
 
-/// The unit's options from the command line (the same options a device table gives the gateway).
-fn unit_options(args: &Args) -> UnitOptions {
-    UnitOptions {
-        baud: args.baud,
-        safety: args.safety,
-        timeout_ms: args.timeout_ms,
-        functions: args.functions.clone(),
-        stroke: args.stroke.clone(),
-        tolerance: args.tolerance,
-        poll_ms: args.poll_ms,
-        speed_mode: args.speed_mode,
-        sim_preset: args.sim_preset.clone(),
-        sim_variants: args.sim_variants.clone(),
-    }
-}
-
-/// The session's settings from the command line, checked before anything is sent (the library's rule:
-/// [`UnitOptions::config`]; a message names the option as the command line spells it).
-fn client_config(args: &Args) -> Result<Config, CliError> {
-    unit_options(args).config().map_err(|e| match e.key {
-        Some(key) => CliError::usage(format!("--{} {}", key.replace('_', "-"), e.message)),
-        None => CliError::usage(e.message),
-    })
-}
-
-/// Opens the session on `port`, its link watched by `tap`.
-fn connect(args: &Args, port: &str, tap: &Tap, clock: &SharedClock, config: Config) -> Result<Client, CliError> {
-    let port: PortUrl = port.parse()?;
-    let sim_options = args.sim_config.is_some() || args.sim_preset.is_some() || !args.sim_variants.is_empty();
-    if sim_options && !matches!(port, PortUrl::Sim) && !port.is_can() {
-        return Err(CliError::usage("--sim-config, --sim-preset and --sim-variant are only for --port sim"));
-    }
-    // The emulated unit is the one the command names: its functions, its speed mode, and the firmware
-    // variants asked for.
-    let unit = InProcess {
-        functions: &args.functions,
-        preset: args.sim_preset.as_deref(),
-        file: args.sim_config.as_ref(),
-        speed_mode: args.speed_mode,
-        variants: &args.sim_variants,
-    };
-    let connector = connector(&port, &unit, args.baud, tap, clock)?;
-    Client::with_connector(connector, Arc::clone(clock), config).map_err(|e| common::classified(&e))
-}
-
-/// The links of an SCU on `port` (the console's and the command's): a serial line at `baud`, or with
-/// `sim` the unit `unit` describes emulated in this process on a line paced to `baud`; watched by `tap`.
-pub(crate) fn connector(
-    port: &PortUrl,
-    unit: &InProcess<'_>,
-    baud: Baud,
-    tap: &Tap,
-    clock: &SharedClock,
-) -> Result<Connector, CliError> {
-    let (tap, clock) = (tap.clone(), Arc::clone(clock));
-    Ok(match port {
-        PortUrl::Sim => {
-            let sim = Emulator::new(in_process_config(unit)?).map_err(|e| CliError::usage(e.to_string()))?;
-            let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(baud.get()));
-            Box::new(move || Ok(tap.link(Box::new(host.connect().0), &clock)))
-        }
-        p => {
-            let mut line = motionlink_scu::port_connector(p, &Config { baud, ..Config::default() })
-                .map_err(|e| common::classified(&e))?;
-            Box::new(move || Ok(tap.link(line()?, &clock)))
-        }
-    })
-}
-
 /// `motionlink scu ...`
 pub fn run(args: Args) -> Result<(), CliError> {
     if let Action::Names = args.action {
-        return send::names(args.json, args.speed_mode, &mut std::io::stdout().lock());
+        return send::names(crate::term::json(), args.speed_mode, &mut std::io::stdout().lock());
     }
     // Check everything that can be checked before the port is opened: nothing is sent for bad input.
     let mut config = client_config(&args)?;
@@ -322,7 +258,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             RunAction::parse(function, direction).map_err(CliError::usage)?;
         }
         Action::Watch { csv, .. } => {
-            common::WatchFormat::of(*csv, args.json)?;
+            common::WatchFormat::of(*csv, crate::term::json())?;
         }
         _ => {}
     }
@@ -346,7 +282,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     client.set_cancel(interrupt.clone());
     crate::probe::use_profile(|p| motionlink_scu::probe::use_profile(&client, p, &port))?;
     let mut out = std::io::stdout().lock();
-    let report = common::Out { json: args.json, family: "scu", port: &port, unit: None };
+    let report = common::Out { json: crate::term::json(), family: "scu", port: &port, unit: None };
     let result = match &request {
         Some(r) => send::send(&client, r, &tap, &report, &mut out),
         None => act(&client, &args, &report, stopped.as_ref(), &mut out, &interrupt),

@@ -1,13 +1,13 @@
-//! The emulated unit of `motionlink sim scu` and of `--port sim` (the command's own process, and the
+//! `motionlink sim scu`, and the emulated unit of `--port sim` (the command's own process, and the
 //! console's): a preset, a configuration file, and for `--port sim` the unit the command names, whose
 //! functions drive what `--functions` says they drive.
 
 use std::path::PathBuf;
 
 use motionlink_scu::model::SpeedMode;
-use motionlink_scu::{SimConfig, Variants};
+use motionlink_scu::{Emulator, SimConfig, Variants};
 
-use crate::common::CliError;
+use crate::common::{self, CliError, ServeArgs};
 
 /// The emulator's configuration: `preset` (scp11, tlt, liftkit), then the file at `path` over it (a file
 /// naming no preset of its own starts from `preset`), then the firmware `variants` named (each may be
@@ -63,4 +63,31 @@ pub(crate) fn in_process_config(unit: &InProcess<'_>) -> Result<SimConfig, CliEr
     let variants = Variants::parse_all(unit.variants).map_err(|e| CliError::usage(e.to_string()))?;
     config.variants.extend(&variants);
     Ok(config)
+}
+
+/// `motionlink sim scu` arguments.
+#[derive(clap::Args, Debug)]
+pub struct SimArgs {
+    #[command(flatten)]
+    pub serve: ServeArgs,
+    /// Parameterisation (TOML): actuators, function mapping, stroke, speed, variants. See docs/scu.md (Emulator).
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Start from a preset: scp11 (default; actuator n on Fn), tlt (F1 drives both columns, F2 and F3 one each)
+    /// or liftkit (F1 actuator 1, F2 actuator 2, F8 both, as the public LIFTKIT/TLT drivers assume).
+    #[arg(long, value_parser = ["scp11", "tlt", "liftkit"])]
+    pub preset: Option<String>,
+    /// A firmware variant: the unit does what the manual leaves open the other plausible way. no-groups,
+    /// no-user-positions, no-cyclic-objects, no-remote-readback, rc-empty-data, sleepy, sticky-errors,
+    /// in-end-undershoot, re-needs-rs (see docs/assumptions.md). Repeat or comma-separate for several; added to the
+    /// configuration's `variants`.
+    #[arg(long = "variant", value_name = "NAME")]
+    pub variants: Vec<String>,
+}
+
+/// `motionlink sim scu`
+pub fn sim(args: SimArgs) -> Result<(), CliError> {
+    let config = load_sim_config(args.config.as_ref(), args.preset.as_deref(), &args.variants)?;
+    let device = Emulator::new(config).map_err(|e| CliError::usage(e.to_string()))?;
+    common::serve(&args.serve, device)
 }

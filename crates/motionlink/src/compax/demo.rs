@@ -1,70 +1,23 @@
-//! `motionlink sim compax`, `motionlink decode compax` and the COMPAX part of the demo.
+//! The COMPAX part of `motionlink demo`.
 
 use std::io::Write;
 use std::time::Duration;
 
 use motionlink_compax::client::{Config, MoveOptions};
 use motionlink_compax::describe::Describer;
-use motionlink_compax::model::{ParamId, Position, RampMs, S16Flag, S17Flag, SpeedPercent};
+use motionlink_compax::model::{Position, RampMs, S16Flag, S17Flag, SpeedPercent};
 use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_compax::{Client, Emulator, Error};
-use motionlink_link::chunk::{Chunk, Direction as Way};
+use motionlink_link::chunk::Chunk;
 use motionlink_link::clock::{Clock, ManualClock};
-use motionlink_link::describe::{Annotation, Describe};
+use motionlink_link::describe::Describe;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::transcript::{TapLink, Transcript};
 
-use super::{DecodeArgs, Direction, SimArgs};
+use super::decode::line;
 use crate::common::{self, CliError};
 use crate::demo::{DemoOut, DemoTelegram};
-
-/// Runs `motionlink sim compax`.
-pub fn sim(args: SimArgs) -> Result<(), CliError> {
-    let mut cfg = match &args.config {
-        Some(path) => SimConfig::from_toml(&common::config_text(path)?).map_err(CliError::usage)?,
-        None => SimConfig::default(),
-    };
-    if let Some(drives) = &args.drives {
-        let addresses: Vec<u8> = drives.iter().map(|a| a.get()).collect();
-        cfg.drives = SimConfig::bus(&addresses, cfg.p196, cfg.baud_rate).drives;
-    }
-    if let Some(m) = args.mode {
-        cfg.p196 = m.to_p196();
-        cfg.drives.iter_mut().for_each(|d| d.p196 = None);
-    }
-    if let Some(b) = args.baud {
-        cfg.baud_rate = b.bits_per_s();
-        cfg.drives.iter_mut().for_each(|d| d.baud_rate = None);
-    }
-    for p in &args.params {
-        let (name, value) =
-            p.split_once('=').ok_or_else(|| CliError::usage(format!("--param {p}: expected PNNN=VALUE")))?;
-        let id = ParamId::parse(name).map_err(|e| CliError::usage(format!("--param {p}: {e}")))?;
-        let value: f64 =
-            value.trim().parse().map_err(|_| CliError::usage(format!("--param {p}: {value:?} is not a number")))?;
-        cfg = cfg.with_param(id, value);
-    }
-    cfg.add_variants(args.variants.iter().copied());
-    let bus = Emulator::new(cfg).map_err(CliError::usage)?;
-    common::serve(&args.serve, bus)
-}
-
-/// One annotation as `decode` and the demo print it: the bytes in hex, then what they mean.
-fn line(a: &Annotation) -> String {
-    format!("{:<40} {}", motionlink_link::hex::hex(&a.bytes), a.meaning)
-}
-
-/// Runs `motionlink decode compax`: lines without a direction mark went the way `--direction` says.
-pub fn decode(args: DecodeArgs, json: bool) -> Result<(), CliError> {
-    let mode = args.mode;
-    let way = match args.direction {
-        Direction::Auto => Way::Unknown,
-        Direction::Host => Way::ToDevice,
-        Direction::Drive => Way::FromDevice,
-    };
-    crate::decode::run(&args.capture, json, &mut Describer::new(mode), way)
-}
 
 fn fail(e: Error) -> CliError {
     common::classified(&e)

@@ -1,0 +1,50 @@
+//! Opening the port of `motionlink powercube`: the session's settings and the link from the command line's options.
+
+use super::*;
+
+/// Opens the session `args` ask for; the in-process emulator's host with it for `--port sim`.
+pub(crate) fn open(
+    args: &Args,
+    port: &str,
+    tap: &Tap,
+    clock: &SharedClock,
+) -> Result<(Client, Option<EmulatorHost<Emulator>>), CliError> {
+    let url: PortUrl = port.parse()?;
+    let clock = Arc::clone(clock);
+    let options = module_options(args);
+    if options.check_port(matches!(url, PortUrl::Sim)).is_err() {
+        return Err(CliError::usage(
+            "--sim-variant is for --port sim (a served emulator takes `sim powercube --variant`)",
+        ));
+    }
+    let client = match PortLink::open(&url, args.baud, args.bitrate, &clock).map_err(failed)? {
+        Some(PortLink::Rs232(link)) => {
+            Client::with_link(PortLink::Rs232(tap.link(link, &clock)), clock, options.config(false))
+        }
+        Some(PortLink::Can(link)) => {
+            Client::with_link(PortLink::Can(tap.can_link(link, &clock)), clock, options.config(true))
+        }
+        None => {
+            // The emulated bus has the module the command names, in the firmware variants asked for.
+            let bus = options.emulated().map_err(|e| CliError::usage(e.message))?;
+            let host = EmulatorHost::new(Emulator::new(&bus), Arc::clone(&clock), PipeConfig::instant());
+            let link = tap.link(Box::new(host.connect().0), &clock);
+            let client = Client::with_link(PortLink::Rs232(link), clock, options.config(false)).map_err(failed)?;
+            return Ok((client, Some(host)));
+        }
+    };
+    Ok((client.map_err(failed)?, None))
+}
+
+/// The module's options from the command line (the same options a device table gives the gateway).
+pub(crate) fn module_options(args: &Args) -> ModuleOptions {
+    ModuleOptions {
+        module: args.module,
+        baud: args.baud,
+        bitrate: args.bitrate,
+        timeout_ms: args.timeout_ms,
+        poll_ms: args.poll_ms,
+        no_watchdog: args.no_watchdog,
+        sim_variants: args.sim_variants.clone(),
+    }
+}
