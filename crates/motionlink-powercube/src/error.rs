@@ -123,8 +123,8 @@ pub enum Error {
     Timeout {
         /// The module.
         address: Address,
-        /// The request, described.
-        request: String,
+        /// The request.
+        request: Request,
         /// How long the session waited (the last attempt).
         waited: Duration,
         /// The round trips the session measured on this link before, if any.
@@ -135,8 +135,8 @@ pub enum Error {
     Corrupt {
         /// The module.
         address: Address,
-        /// The request, described.
-        request: String,
+        /// The request.
+        request: Request,
         /// What was wrong.
         detail: String,
     },
@@ -188,8 +188,8 @@ pub enum Error {
     Refused {
         /// The module.
         address: Address,
-        /// The request, described.
-        request: String,
+        /// The request.
+        request: Request,
         /// The status byte.
         status: u8,
     },
@@ -538,7 +538,7 @@ fn list(addresses: &[Address]) -> String {
 pub(crate) fn unexpected(address: u8, request: &Request, what: impl fmt::Display) -> Error {
     Error::Corrupt {
         address: Address::checked(address),
-        request: request.to_string(),
+        request: *request,
         detail: format!("unexpected answer {what}"),
     }
 }
@@ -551,7 +551,7 @@ mod tests {
     fn every_error_has_the_class_its_exit_code_needs() {
         let timeout = || Error::Timeout {
             address: Address::checked(1),
-            request: "x".into(),
+            request: Request::Get(crate::model::Param::ActPos),
             waited: Duration::from_millis(1),
             round_trips: None,
         };
@@ -590,7 +590,7 @@ mod tests {
         let ms = Duration::from_millis;
         let slow = Error::Timeout {
             address: Address::checked(2),
-            request: "GetExtended ActPos".into(),
+            request: Request::Get(crate::model::Param::ActPos),
             waited: ms(60),
             round_trips: Some(RoundTripRange { fastest: ms(45), slowest: ms(58) }),
         };

@@ -495,14 +495,12 @@ impl Core {
             .zip(&f.batch)
             .map(|((r, c), (address, request))| match (r, c) {
                 (Some(r), _) => Ok(r),
-                (None, Some(detail)) => Err(Error::Corrupt {
-                    address: crate::model::Address::checked(*address),
-                    request: request.to_string(),
-                    detail,
-                }),
+                (None, Some(detail)) => {
+                    Err(Error::Corrupt { address: crate::model::Address::checked(*address), request: *request, detail })
+                }
                 (None, None) => Err(Error::Timeout {
                     address: crate::model::Address::checked(*address),
-                    request: request.to_string(),
+                    request: *request,
                     waited,
                     round_trips: self.round_trips,
                 }),

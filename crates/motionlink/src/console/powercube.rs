@@ -204,7 +204,7 @@ fn agrees(state: CubeState, short: ShortState) -> bool {
 fn unexpected_output<T>(address: Address, other: Output) -> Result<T, Error> {
     Err(Error::Corrupt {
         address,
-        request: "Get ActFPosStateDio".into(),
+        request: motionlink_powercube::wire::Request::Get(Param::ActFPosStateDio),
         detail: format!("unexpected answer {other:?}"),
     })
 }

@@ -15,11 +15,9 @@ use crate::wire::{Action, Reply, Request};
 /// A refusal in an acknowledge's status byte is an error.
 fn check_reply(address: u8, request: &Request, reply: Reply) -> Result<Reply, Error> {
     match reply {
-        Reply::Set(_, status) | Reply::Motion { status: Some(status), .. } if status != ACK_OK => Err(Error::Refused {
-            address: crate::model::Address::checked(address),
-            request: request.to_string(),
-            status,
-        }),
+        Reply::Set(_, status) | Reply::Motion { status: Some(status), .. } if status != ACK_OK => {
+            Err(Error::Refused { address: crate::model::Address::checked(address), request: *request, status })
+        }
         r => Ok(r),
     }
 }
