@@ -136,6 +136,26 @@ fn a_blocking_move_reports_progress_and_ends_at_the_target() {
 }
 
 #[test]
+fn every_progress_report_reaches_a_blocking_caller_in_order_even_two_at_once() {
+    // Each look is reported twice in one go (v, then -v): both reach the caller, in order, none replaced by
+    // the next before the caller saw it.
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let host = EmulatorHost::new(Toy::default(), clock.shared(), PipeConfig::paced(115_200));
+    let mut session = ToySession::new(clock.now());
+    session.double_progress = true;
+    let port = Port::Bytes(Box::new(host.connect().0));
+    let driver = Driver::new(session, port, None, clock.shared(), DriverConfig::default()).unwrap();
+    let mut seen = Vec::new();
+    assert_eq!(driver.run_with(Op::Move(20), &mut |p| seen.push(*p), None).unwrap(), 20);
+    let (last, pairs) = seen.split_last().unwrap();
+    assert_eq!(*last, 20, "{seen:?}");
+    assert!(pairs.len() >= 4 && pairs.len() % 2 == 0, "{seen:?}");
+    assert!(pairs.chunks(2).all(|p| p[1] == -p[0]), "each look and its twin, in order: {seen:?}");
+    driver.close().unwrap();
+}
+
+#[test]
 fn the_background_thread_does_not_spin_while_a_caller_holds_the_port_past_a_deadline() {
     // On the real clock: a deadline due while a blocking caller drives the port (here the keepalive pings,
     // due every 30 ms during a move of about 200 ms) is the caller's to meet; the background thread waits

@@ -26,10 +26,11 @@ impl<S: Session> OpFuture<S> {
         self.id
     }
 
-    /// The latest progress report not yet taken, if any.
+    /// The latest progress report not yet taken, if any (the earlier ones not taken are dropped: an async
+    /// caller looks at where the operation is now).
     pub fn take_progress(&self) -> Option<S::Progress> {
         let shared = self.shared.as_ref()?;
-        shared.core().ops.get_mut(&self.id).and_then(|s| s.progress.take())
+        shared.core().ops.get_mut(&self.id).and_then(|s| s.progress.drain(..).last())
     }
 
     /// Cancels the operation (it stops what it started and ends with a cancelled error, or with its result

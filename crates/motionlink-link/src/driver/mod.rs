@@ -14,7 +14,7 @@
 //! stops everything the session started, and waits for it at most [`DriverConfig::close_bound`]. Dropping
 //! an [`OpFuture`] before it is done cancels its operation, which stops any motion it started.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::task::Waker;
 use std::time::Duration;
@@ -58,6 +58,10 @@ impl Default for DriverConfig {
     }
 }
 
+/// The most progress reports an operation keeps for its caller: a caller that falls this far behind loses
+/// the oldest (a watch's samples come at most every few ms; a caller reads them at each wake-up).
+const PROGRESS_KEPT: usize = 256;
+
 enum Waiter {
     Signal(Signal),
     Waker(Option<Waker>),
@@ -66,7 +70,8 @@ enum Waiter {
 /// One caller's operation as the driver sees it: its result and progress once they come, and who waits for them.
 struct CallerSlot<S: Session> {
     result: Option<Result<S::Output, S::Error>>,
-    progress: Option<S::Progress>,
+    /// Progress reports not yet taken, oldest first (at most [`PROGRESS_KEPT`]: beyond, the oldest goes).
+    progress: VecDeque<S::Progress>,
     waiter: Waiter,
     /// The caller went away (a dropped future): the result is dropped when it comes.
     abandoned: bool,
@@ -99,7 +104,10 @@ impl<S: Session> DriverState<S> {
             match event {
                 Event::Progress(id, p) => {
                     if let Some(slot) = self.ops.get_mut(&id) {
-                        slot.progress = Some(p);
+                        if slot.progress.len() == PROGRESS_KEPT {
+                            slot.progress.pop_front();
+                        }
+                        slot.progress.push_back(p);
                         if let Waiter::Signal(s) = &slot.waiter {
                             s.raise();
                         }
@@ -188,7 +196,6 @@ impl<S: Session> Shared<S> {
         let mut buf = [0u8; 1024];
         loop {
             // Cancellation and progress of the caller that drives.
-            let mut progress = None;
             if let Some(c) = caller.as_deref_mut() {
                 let mut core = self.core();
                 if !c.cancel_sent && c.cancel.is_some_and(CancelToken::is_cancelled) {
@@ -196,10 +203,13 @@ impl<S: Session> Shared<S> {
                     let now = self.clock.now();
                     core.session.cancel(c.id, now);
                 }
-                progress = core.ops.get_mut(&c.id).and_then(|s| s.progress.take());
-            }
-            if let (Some(p), Some(c)) = (progress, caller.as_deref_mut()) {
-                (c.progress)(&p);
+                drop(core);
+                // Every report in order, each taken alone (the lock is not held while the caller looks).
+                loop {
+                    let next = self.core().ops.get_mut(&c.id).and_then(|s| s.progress.pop_front());
+                    let Some(p) = next else { break };
+                    (c.progress)(&p);
+                }
             }
             // Everything there is to send, one action at a time (the lock is not held during I/O).
             let mut acted = false;
@@ -415,7 +425,7 @@ impl<S: Session> Driver<S> {
         }
         let now = self.shared.clock.now();
         let id = core.session.start(op, now);
-        core.ops.insert(id, CallerSlot { result: None, progress: None, waiter, abandoned: false });
+        core.ops.insert(id, CallerSlot { result: None, progress: VecDeque::new(), waiter, abandoned: false });
         core.dispatch();
         match &core.driver_wake {
             Some(s) => s.raise(),
@@ -430,7 +440,8 @@ impl<S: Session> Driver<S> {
         self.run_with(op, &mut |_| {}, None)
     }
 
-    /// Runs `op` to its end on the calling thread, calling `progress` with each progress report, and
+    /// Runs `op` to its end on the calling thread, calling `progress` with each progress report in order (none
+    /// is left out because two came before the caller looked), and
     /// cancelling the operation (which stops what it started) when `cancel` is cancelled.
     pub fn run_with(
         &self,
@@ -451,15 +462,12 @@ impl<S: Session> Driver<S> {
                     let slot = core.ops.get_mut(&id).expect("a waited-for operation keeps its slot");
                     if let Some(r) = slot.result.take() {
                         // The progress that came with the end (a watch's last sample) is still the caller's.
-                        let last = slot.progress.take();
-                        core.ops.remove(&id);
+                        let last = core.ops.remove(&id).map(|s| s.progress).unwrap_or_default();
                         drop(core);
-                        if let Some(p) = last {
-                            (caller.progress)(&p);
-                        }
+                        last.iter().for_each(|p| (caller.progress)(p));
                         return r;
                     }
-                    let progress = slot.progress.take();
+                    let progress = slot.progress.pop_front();
                     if !caller.cancel_sent && cancel.is_some_and(CancelToken::is_cancelled) {
                         caller.cancel_sent = true;
                         let now = shared.clock.now();
@@ -478,7 +486,7 @@ impl<S: Session> Driver<S> {
                 }
                 match port {
                     Some(port) => shared.drive(port, &me, None, Some(&mut caller), &|core, _| {
-                        core.ops.get(&id).is_none_or(|s| s.result.is_some() || s.progress.is_some())
+                        core.ops.get(&id).is_none_or(|s| s.result.is_some() || !s.progress.is_empty())
                     }),
                     None => {
                         me.wait_until(None);

@@ -163,6 +163,8 @@ pub struct ToySession {
     /// How often the driver's background thread looked at the session.
     pub background_looks: std::sync::atomic::AtomicU32,
     pub retries: HashMap<String, u32>,
+    /// Report each look twice, the second as its negative (two reports in one go, before a caller reads).
+    pub double_progress: bool,
 }
 
 const ANSWER: Duration = Duration::from_millis(20);
@@ -182,6 +184,7 @@ impl ToySession {
             moving: false,
             closing: false,
             pings: true,
+            double_progress: false,
             sent: Vec::new(),
             sent_by: Vec::new(),
             background_looks: std::sync::atomic::AtomicU32::new(0),
@@ -228,6 +231,9 @@ impl ToySession {
                         } else {
                             *next_poll = Some(now + POLL);
                             self.events.push_back(Event::Progress(id, value));
+                            if self.double_progress {
+                                self.events.push_back(Event::Progress(id, -value));
+                            }
                         }
                     }
                 }
