@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use motionlink_link::can::{CanBus, CanBusConfig, CanEmulator, CanFrame};
 use motionlink_link::{RealClock, Timestamp};
-use motionlink_powercube::client::{Client, Config};
+use motionlink_powercube::client::{Client, Config, PortLink};
 use motionlink_powercube::model::{Address, Param};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::wire::can::{to_frame, Role};
