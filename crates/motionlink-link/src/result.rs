@@ -36,6 +36,74 @@ pub fn identified<T: serde::Serialize + ?Sized>(
     Ok(Value::Object(map))
 }
 
+/// A value under a name known only at run time (`"position_rad": 0.5`, `{"log": "..."}`): one entry, of the
+/// object it is flattened into or of an object of its own.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Named<T>(pub &'static str, pub T);
+
+impl<T: serde::Serialize> serde::Serialize for Named<T> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut map = s.serialize_map(Some(1))?;
+        map.serialize_entry(self.0, &self.1)?;
+        map.end()
+    }
+}
+
+/// One look at an axis as a live view shows it (the web console's rows, many times a second): its position
+/// and speed under their names with units, its motor current where the device reports it, the names of the
+/// flags set, the faults among them (by the family's rule), set bits without a name, and whether it moves.
+/// Each family makes it from its own readings (`axis_look` in its results).
+///
+/// ```
+/// use motionlink_link::result::{AxisLook, Named};
+/// let look = AxisLook { speed: Some(Named("velocity_rad_per_s", 0.1)), ..AxisLook::at(Named("position_rad", 0.5)) };
+/// assert_eq!(
+///     serde_json::to_value(&look).unwrap(),
+///     serde_json::json!({"position_rad": 0.5, "velocity_rad_per_s": 0.1, "flags": [], "faults": [], "moving": false})
+/// );
+/// ```
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct AxisLook {
+    /// The position, under its name with its unit (`position_counts`, `position_rad`, ...).
+    #[serde(flatten)]
+    pub position: Named<f64>,
+    /// The speed, under its name with its unit, where known.
+    #[serde(flatten)]
+    pub speed: Option<Named<f64>>,
+    /// The motor current in A, where the device reports it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub current_amps: Option<f64>,
+    /// The names of the flags set, as the family names them.
+    pub flags: Vec<&'static str>,
+    /// The flags among them (or the clear bits) that report a fault.
+    pub faults: Vec<&'static str>,
+    /// Set bits that have no name (left out when none).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub unknown_bits: u64,
+    /// True while it moves.
+    pub moving: bool,
+}
+
+impl AxisLook {
+    /// An axis at `position`, with nothing else known yet.
+    pub fn at(position: Named<f64>) -> AxisLook {
+        AxisLook {
+            position,
+            speed: None,
+            current_amps: None,
+            flags: Vec::new(),
+            faults: Vec::new(),
+            unknown_bits: 0,
+            moving: false,
+        }
+    }
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

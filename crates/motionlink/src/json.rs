@@ -4,19 +4,8 @@
 
 use motionlink_link::describe::Annotation;
 
-/// `value` under a name known only at run time (`"module": 3`, `{"log": "..."}`); flattened into the object
-/// that holds it, or an object of its own.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Keyed<T>(pub &'static str, pub T);
-
-impl<T: serde::Serialize> serde::Serialize for Keyed<T> {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        use serde::ser::SerializeMap;
-        let mut map = s.serialize_map(Some(1))?;
-        map.serialize_entry(self.0, &self.1)?;
-        map.end()
-    }
-}
+/// `value` under a name known only at run time (`"module": 3`, `{"log": "..."}`): the link crate's.
+pub use motionlink_link::result::Named as Keyed;
 
 /// A result (a library report, which serialises with the names `--json` shows) as a JSON value.
 pub fn to_json<T: serde::Serialize + ?Sized>(result: &T) -> serde_json::Value {

@@ -261,5 +261,36 @@ pub struct OutputSwitched {
     pub state: OutputState,
 }
 
+/// The names of a drive's position and speed in its [`axis_look`]: drive units, and units per second.
+pub const LOOK_KEYS: (&str, &str) = ("position_units", "speed_units_per_s");
+
+/// One look at a drive as a live view shows it: `position` (S1), its speed where known, the flags of S16 and
+/// S17, moving while a command is active. The faults are S16's NO_FAULT clear (its absence is the fault) and
+/// the error-class flags of S17; unknown bits are S16's above S17's (shifted by 8).
+pub fn axis_look(
+    position: Position,
+    speed_units_per_s: Option<f64>,
+    s16: S16Bits,
+    s17: S17Bits,
+) -> motionlink_link::result::AxisLook {
+    use motionlink_link::flags::{FlagClass, FlagWord};
+    use motionlink_link::result::{AxisLook, Named};
+    let mut flags = s16.names();
+    flags.extend(s17.names());
+    let mut faults: Vec<&'static str> = Vec::new();
+    if !s16.contains(crate::model::S16Flag::NoFault) {
+        faults.push("FAULT (S16 NO_FAULT clear)");
+    }
+    faults.extend(s17.set_flags().into_iter().filter(|f| f.class() == FlagClass::Error).map(|f| f.name()));
+    AxisLook {
+        speed: speed_units_per_s.map(|v| Named(LOOK_KEYS.1, v)),
+        flags,
+        faults,
+        unknown_bits: (s16.unknown() << 8) | s17.unknown(),
+        moving: s17.contains(crate::model::S17Flag::CommandActive),
+        ..AxisLook::at(Named(LOOK_KEYS.0, position.units()))
+    }
+}
+
 #[cfg(test)]
 mod tests;

@@ -127,3 +127,17 @@ fn a_watch_sample_with_its_time() {
                "s17": {"word": 34, "flags": ["COMMAND_ACTIVE", "RUN"], "pattern": "0010 0010"}})
     );
 }
+
+#[test]
+fn a_look_at_a_drive_takes_a_clear_no_fault_bit_as_its_fault_and_moves_while_a_command_is_active() {
+    use crate::model::bit_mask;
+    let at = Position::new(12.5).unwrap();
+    let look = axis_look(at, Some(2.0), S16Bits(bit_mask(5)), S17Bits(bit_mask(3)));
+    assert_eq!(
+        to_json(&look),
+        json!({"position_units": 12.5, "speed_units_per_s": 2.0, "moving": true,
+               "flags": ["POSITION_REACHED", "COMMAND_ACTIVE"], "faults": ["FAULT (S16 NO_FAULT clear)"]})
+    );
+    let fine = axis_look(at, None, S16Bits(bit_mask(1)), S17Bits(0));
+    assert!(fine.faults.is_empty() && !fine.moving && fine.speed.is_none(), "{fine:?}");
+}

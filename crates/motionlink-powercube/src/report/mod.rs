@@ -300,5 +300,40 @@ impl Serialize for ParamRow {
     }
 }
 
+/// The names of a module's position and velocity in its [`axis_look`], by its kind (plain `position` and
+/// `velocity` while the kind is not known).
+pub fn look_keys(kind: Option<ModuleKind>) -> (&'static str, &'static str) {
+    match kind {
+        Some(ModuleKind::Rotary) => ("position_rad", "velocity_rad_per_s"),
+        Some(ModuleKind::Linear) => ("position_m", "velocity_m_per_s"),
+        None => ("position", "velocity"),
+    }
+}
+
+/// One look at a module as a live view shows it: `position`, moving as its short state says, the flags of
+/// its state word where read (the ones that are not information are its faults), its velocity and motor
+/// current where read.
+pub fn axis_look(
+    kind: Option<ModuleKind>,
+    position: Position,
+    moving: bool,
+    state: Option<CubeState>,
+    velocity: Option<f64>,
+    current_amps: Option<f64>,
+) -> motionlink_link::result::AxisLook {
+    use motionlink_link::result::{AxisLook, Named};
+    let (position_key, velocity_key) = look_keys(kind);
+    let mut look = AxisLook {
+        speed: velocity.map(|v| Named(velocity_key, v)),
+        current_amps,
+        moving,
+        ..AxisLook::at(Named(position_key, f64::from(position.value())))
+    };
+    if let Some(s) = state {
+        (look.flags, look.faults, look.unknown_bits) = (s.names(), s.faults().map(|f| f.name()).collect(), s.unknown());
+    }
+    look
+}
+
 #[cfg(test)]
 mod tests;

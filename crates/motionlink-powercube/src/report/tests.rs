@@ -158,3 +158,19 @@ fn a_sample_and_a_row_of_the_table() {
                "description": Param::ActPos.entry().title})
     );
 }
+
+#[test]
+fn a_look_at_a_module_takes_every_flag_that_is_not_information_as_a_fault() {
+    let look = axis_look(Some(ModuleKind::Linear), Position::rad(0.25), true, Some(CubeState(0x13)), Some(0.5), None);
+    assert_eq!(
+        to_json(&look),
+        json!({"position_m": 0.25, "velocity_m_per_s": 0.5, "moving": true,
+               "flags": ["STATE_ERROR", "STATE_HOME_OK", "STATE_TOW_ERROR"], "faults": ["STATE_ERROR", "STATE_TOW_ERROR"]})
+    );
+    // Before its kind and state word were read: plain names, no flags.
+    let first = axis_look(None, Position::rad(0.5), false, None, None, Some(1.25));
+    assert_eq!(
+        to_json(&first),
+        json!({"position": 0.5, "current_amps": 1.25, "flags": [], "faults": [], "moving": false})
+    );
+}

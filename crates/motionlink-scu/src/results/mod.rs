@@ -363,5 +363,29 @@ pub fn data_items(speed_mode: SpeedMode) -> impl Iterator<Item = DataItemInfo> {
     entries.chain(groups)
 }
 
+/// The names of an actuator's position and speed in its [`axis_look`]: counts, and the remote speed in %.
+pub const LOOK_KEYS: (&str, &str) = ("position_counts", "speed_percent");
+
+/// One look at an actuator as a live view shows it: `position` with `status` (its flags; the error-class ones
+/// are its faults), the speed it runs at (%) and its motor current (A) where read.
+pub fn axis_look(
+    position: PositionCounts,
+    status: ActuatorStatus1,
+    speed_percent: Option<f64>,
+    current_amps: Option<f64>,
+) -> motionlink_link::result::AxisLook {
+    use motionlink_link::flags::{FlagClass, FlagWord};
+    use motionlink_link::result::{AxisLook, Named};
+    AxisLook {
+        speed: speed_percent.map(|s| Named(LOOK_KEYS.1, s)),
+        current_amps,
+        flags: status.names(),
+        faults: status.set_flags().into_iter().filter(|f| f.class() == FlagClass::Error).map(|f| f.name()).collect(),
+        unknown_bits: status.unknown(),
+        moving: status.moving(),
+        ..AxisLook::at(Named(LOOK_KEYS.0, f64::from(position.get())))
+    }
+}
+
 #[cfg(test)]
 mod tests;

@@ -232,3 +232,13 @@ fn names_list_entries_then_groups_with_the_unit_results_use() {
     let group = items.iter().find(|i| i.name == "actual_positions").unwrap();
     assert_eq!((group.title.as_str(), group.size, group.access), ("group 0x0011..0x0016", 24, "r"));
 }
+
+#[test]
+fn a_look_at_an_actuator_names_its_flags_and_moves_with_its_motion_bit() {
+    let look = axis_look(PositionCounts(120), ActuatorStatus1(0x11), Some(80.0), Some(1.5));
+    assert_eq!(
+        to_value(&look).unwrap(),
+        json!({"position_counts": 120.0, "speed_percent": 80.0, "current_amps": 1.5,
+               "flags": ["available", "motion"], "faults": [], "moving": true})
+    );
+}

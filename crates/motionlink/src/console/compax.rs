@@ -18,11 +18,10 @@ use motionlink_compax::report::{ErrorHistory, OutputSwitched, ParamReading, Stop
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_compax::{AsyncClient, DriveOptions};
 use motionlink_link::clock::{lock, SharedClock, Timestamp};
-use motionlink_link::flags::{FlagClass, FlagWord};
 use motionlink_link::url::PortUrl;
 
 use super::device::{
-    close_last, report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param, Report, Sample, Unit,
+    close_last, report, Action, BoxFuture, Device, Failure, JogDirection, Motion, Param, Report, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -162,10 +161,10 @@ impl Compax {
             id: n,
             label: format!("drive {n}"),
             detail,
-            position_key: "position_units",
+            position_key: motionlink_compax::report::LOOK_KEYS.0,
             target_key: "target_units",
             position_unit: "units",
-            speed_key: "speed_units_per_s",
+            speed_key: motionlink_compax::report::LOOK_KEYS.1,
             speed_unit: "units/s",
             command_speed_key: "speed_percent",
             command_speed_unit: "%",
@@ -235,7 +234,8 @@ impl Device for Compax {
             for u in units {
                 let look = async {
                     let a = Address::drive(u.id).map_err(|e| Failure::usage(e.to_string()))?;
-                    let p = self.client.read_position(a).await?.units();
+                    let position = self.client.read_position(a).await?;
+                    let p = position.units();
                     let at = self.clock.now();
                     let before = lock(&self.last).insert(u.id, (at, p));
                     let known = lock(&self.flags).get(&u.id).copied();
@@ -255,32 +255,14 @@ impl Device for Compax {
                             (s16, s17)
                         }
                     };
-                    Ok::<_, Failure>((p, at, before, s16, s17))
+                    Ok::<_, Failure>((position, p, at, before, s16, s17))
                 };
-                out.push(look.await.map(|(p, at, before, s16, s17)| {
+                out.push(look.await.map(|(position, p, at, before, s16, s17)| {
                     let speed = before.and_then(|(t0, p0)| {
                         let dt = at.saturating_since(t0).as_secs_f64();
                         (dt > 0.0).then(|| (p - p0) / dt)
                     });
-                    let mut flags = s16.names();
-                    flags.extend(s17.names());
-                    // S16 bit 1 is "no fault": its absence is the fault.
-                    let mut faults: Vec<&'static str> = Vec::new();
-                    if !s16.contains(motionlink_compax::model::S16Flag::NoFault) {
-                        faults.push("FAULT (S16 NO_FAULT clear)");
-                    }
-                    faults.extend(
-                        s17.set_flags().into_iter().filter(|f| f.class() == FlagClass::Error).map(|f| f.name()),
-                    );
-                    Sample {
-                        position: Keyed(u.position_key, p),
-                        speed: speed.map(|v| Keyed(u.speed_key, v)),
-                        current_amps: None,
-                        flags,
-                        faults,
-                        unknown_bits: (s16.unknown() << 8) | s17.unknown(),
-                        moving: s17.contains(S17Flag::CommandActive),
-                    }
+                    motionlink_compax::report::axis_look(position, speed, s16, s17)
                 }));
             }
             out

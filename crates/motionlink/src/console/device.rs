@@ -11,8 +11,6 @@ use motionlink_link::table::Entry;
 use serde::Serialize;
 use serde_json::Value;
 
-pub use crate::common::Keyed;
-
 /// A boxed future that can move between threads.
 pub type BoxFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
 
@@ -81,32 +79,9 @@ pub struct Unit {
     pub current_key: Option<&'static str>,
 }
 
-/// One look at a unit, as the page gets it (with the unit's number, [`SampleEntry`](super::message::SampleEntry)).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Sample {
-    /// Its position in the unit's position unit, under the unit's `position_key`.
-    #[serde(flatten)]
-    pub position: Keyed<f64>,
-    /// Its speed in the unit's speed unit under its `speed_key`, where known.
-    #[serde(flatten)]
-    pub speed: Option<Keyed<f64>>,
-    /// Its motor current in A, where the device reports it.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub current_amps: Option<f64>,
-    /// The names of the state flags that are set, as the library names them.
-    pub flags: Vec<&'static str>,
-    /// The flags among them that report a fault.
-    pub faults: Vec<&'static str>,
-    /// Set bits that have no name (left out when none).
-    #[serde(skip_serializing_if = "is_zero")]
-    pub unknown_bits: u64,
-    /// True while it moves.
-    pub moving: bool,
-}
-
-fn is_zero(n: &u64) -> bool {
-    *n == 0
-}
+/// One look at a unit, as the page gets it (with the unit's number, [`SampleEntry`](super::message::SampleEntry)):
+/// the library's look of an axis, which each family makes from its readings.
+pub type Sample = motionlink_link::result::AxisLook;
 
 /// One row of the family's parameter table or data list.
 #[derive(Debug, Clone, PartialEq, Serialize)]

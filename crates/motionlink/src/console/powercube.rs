@@ -21,8 +21,7 @@ use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{AsyncClient, Emulator, Error};
 
 use super::device::{
-    close_last, report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param as Row, Report, Sample,
-    Unit,
+    close_last, report, Action, BoxFuture, Device, Failure, JogDirection, Motion, Param as Row, Report, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -176,10 +175,12 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
 fn keys(
     kind: Option<ModuleKind>,
 ) -> (&'static str, &'static str, &'static str, &'static str, &'static str, &'static str) {
+    // The names of the position and velocity are the library's look's.
+    let (pos, vel) = motionlink_powercube::report::look_keys(kind);
     match kind {
-        Some(ModuleKind::Rotary) => ("position_rad", "target_rad", "rad", "velocity_rad_per_s", "rad/s", "rotary"),
-        Some(ModuleKind::Linear) => ("position_m", "target_m", "m", "velocity_m_per_s", "m/s", "linear"),
-        None => ("position", "target", "module unit", "velocity", "module unit/s", "kind not read"),
+        Some(ModuleKind::Rotary) => (pos, "target_rad", "rad", vel, "rad/s", "rotary"),
+        Some(ModuleKind::Linear) => (pos, "target_m", "m", vel, "m/s", "linear"),
+        None => (pos, "target", "module unit", vel, "module unit/s", "kind not read"),
     }
 }
 
@@ -188,11 +189,6 @@ fn f32_of(v: CubeValue) -> Option<f64> {
         CubeValue::F32(x) => Some(f64::from(x)),
         _ => None,
     }
-}
-
-fn state_names(s: CubeState) -> (Vec<&'static str>, Vec<&'static str>, u64) {
-    use motionlink_link::flags::FlagWord;
-    (s.names(), s.faults().map(|f| f.name()).collect(), s.unknown())
 }
 
 /// True when the short state `short` says what the state word `state` would: the state word read last is
@@ -334,19 +330,14 @@ impl Device for PowerCube {
                             }
                             *slot
                         };
-                        let (flags, faults, unknown_bits) = match slow.state {
-                            Some(s) => state_names(s),
-                            None => (Vec::new(), Vec::new(), 0),
-                        };
-                        Ok(Sample {
-                            position: Keyed(u.position_key, f64::from(position.value())),
-                            speed: slow.velocity.map(|v| Keyed(u.speed_key, v)),
-                            current_amps: slow.current,
-                            flags,
-                            faults,
-                            unknown_bits,
-                            moving: short.contains(ShortFlag::Motion),
-                        })
+                        Ok(motionlink_powercube::report::axis_look(
+                            self.kind(u.id),
+                            position,
+                            short.contains(ShortFlag::Motion),
+                            slow.state,
+                            slow.velocity,
+                            slow.current,
+                        ))
                     }
                     Err(e) => Err(e.into()),
                 });

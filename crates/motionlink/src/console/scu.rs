@@ -17,8 +17,7 @@ use motionlink_scu::value::Value as ScuValue;
 use motionlink_scu::{AsyncClient, Config, FunctionMap, SimConfig};
 
 use super::device::{
-    close_last, finite, report, Action, BoxFuture, Device, Failure, JogDirection, Keyed, Motion, Param, Report, Sample,
-    Unit,
+    close_last, finite, report, Action, BoxFuture, Device, Failure, JogDirection, Motion, Param, Report, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -169,10 +168,10 @@ impl Device for Scu {
                     id: a.number(),
                     label: format!("A{}", a.number()),
                     detail: format!("moved and jogged with {f}"),
-                    position_key: "position_counts",
+                    position_key: motionlink_scu::results::LOOK_KEYS.0,
                     target_key: "target_counts",
                     position_unit: "counts",
-                    speed_key: "speed_percent",
+                    speed_key: motionlink_scu::results::LOOK_KEYS.1,
                     speed_unit: "%",
                     command_speed_key: self.speed_key().0,
                     command_speed_unit: self.speed_key().1,
@@ -199,22 +198,7 @@ impl Device for Scu {
                     .iter()
                     .map(|u| {
                         let i = usize::from(u.id.saturating_sub(1)).min(5);
-                        let flags = status[i];
-                        use motionlink_link::flags::FlagWord;
-                        Ok(Sample {
-                            position: Keyed(u.position_key, f64::from(positions[i].get())),
-                            speed: speeds[i].map(|s| Keyed(u.speed_key, s)),
-                            current_amps: currents[i],
-                            flags: flags.names(),
-                            faults: flags
-                                .set_flags()
-                                .into_iter()
-                                .filter(|f| f.class() == motionlink_link::flags::FlagClass::Error)
-                                .map(|f| f.name())
-                                .collect(),
-                            unknown_bits: flags.unknown(),
-                            moving: flags.moving(),
-                        })
+                        Ok(motionlink_scu::results::axis_look(positions[i], status[i], speeds[i], currents[i]))
                     })
                     .collect(),
             }
