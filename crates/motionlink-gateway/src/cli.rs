@@ -9,6 +9,7 @@ use crate::config::Options;
 pub struct Args {
     /// The gateway's file: a [gateway] table (name, broker, sample_hz, ca_file, username, password_file) and
     /// the [device.NAME] tables of devices.toml (port = "sim" serves an emulator).
+    #[allow(rustdoc::broken_intra_doc_links)] // the text is the help of `--config`: [gateway] is a TOML table
     #[arg(long, value_name = "FILE")]
     pub config: PathBuf,
     /// The broker, mqtt://HOST:PORT or mqtts://HOST:PORT, instead of the file's.

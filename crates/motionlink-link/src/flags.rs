@@ -86,7 +86,7 @@ pub trait FlagWord: Copy + fmt::Display {
 
 /// A flag word as every result shows it (the `--json` of every command, Python's records, the console, the
 /// gateway): `word` (the raw word), `flags` (the manual's names of the bits set, in the table's order) and
-/// `unknown_bits` (the bits no name covers), only when nonzero. Every word of [`flag_set!`] serialises so.
+/// `unknown_bits` (the bits no name covers), only when nonzero. Every word of [`flag_set!`](crate::flag_set) serialises so.
 #[derive(Debug, Clone, Copy)]
 pub struct WordView<W>(pub W);
 

@@ -208,7 +208,7 @@ pub enum Error {
         /// What became of the Halt.
         stop: StopOutcome,
     },
-    /// The action was cancelled (Ctrl-C, a signal, [`Client::set_cancel_token`](crate::Client::set_cancel_token),
+    /// The action was cancelled (Ctrl-C, a signal, [`Client::set_cancel`](crate::Client::set_cancel),
     /// a dropped future); what it had set in motion was halted ([`Error::Cancelled::stop`] says whether that
     /// was confirmed).
     #[error("module {address}: cancelled; {stop}")]

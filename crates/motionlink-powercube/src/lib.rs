@@ -11,8 +11,8 @@
 //! - [`model`]: the vocabulary. The parameter table ([`model::Param`], rows of the shared
 //!   [`Table`](motionlink_link::table::Table): [`model::PARAMS`]), the 18 motion modes ([`model::MotionId`],
 //!   [`model::Motion`]), every flag word through the shared `flag_set!` ([`model::CubeState`],
-//!   [`model::ConfigWord`] ...), typed commands, acknowledges and broadcasts ([`model::Request`],
-//!   [`model::Reply`], [`model::Broadcast`]), and quantities with their unit ([`model::Position`] in rad, m or
+//!   [`model::ConfigWord`] ...), typed commands, acknowledges and broadcasts ([`wire::Request`],
+//!   [`wire::Reply`], [`model::Broadcast`]), and quantities with their unit ([`model::Position`] in rad, m or
 //!   explicitly the module's own unit; [`model::Address`] checked once).
 //! - [`session`]: the protocol as a sans-IO [`Session`]: request matching, retries of reads only, the
 //!   watchdog refresh on its 20 ms grid, and every multi-step operation ([`session::Op`]: checked moves,
@@ -139,8 +139,8 @@
 //!   limit to anything: a NaN or infinite value, a motion to a NaN or infinite target, a soft limit that
 //!   would cross the other one (MinPos above MaxPos): acknowledged with 0x64 (the manual defines no other
 //!   status for SetExtended) and ignored, so MinPos <= MaxPos always holds. The client refuses such requests
-//!   before sending, however they were built: every request goes through [`model::Request::validate`] (the
-//!   rules of [`model::Request::set`], [`model::Request::get`], [`model::Request::motion`]: access, type,
+//!   before sending, however they were built: every request goes through [`wire::Request::validate`] (the
+//!   rules of [`wire::Request::set`], [`wire::Request::get`], [`wire::Request::motion`]: access, type,
 //!   finite floats, a MotionID for the acknowledge asked).
 //! - **Config's class.** The manual marks Config "(Vorgabe)", a label no other parameter has and which is
 //!   none of its four classes: it is not in ROM (DefConfig is), limits nothing and is no motion target. It

@@ -267,7 +267,7 @@ pub struct Config {
     /// 290 ms) may define it across one lapse of the unit's 500 ms watchdog, while the session has started
     /// nothing: the unit then records error bit 22 and stops every motion under way (with Safety_ID 2 the
     /// remote ones only), a hand switch's included. Default false: such a watch ends with
-    /// [`Error::NoRoom`](crate::Error::NoRoom).
+    /// [`Error::NoRoom`].
     pub watch_may_lapse: bool,
 }
 

@@ -8,7 +8,7 @@
 //!   S17: [`WithPattern`]) or text (S18, identification).
 //! - [`ParamReading`]: `{"name": "P194", "id", "value", "unit", "access"}`; [`ParamWritten`] adds
 //!   `read_back`, `verified` and `not_verifiable`.
-//! - [`MoveReport`](crate::session::MoveReport): `{"drive", "target_units", "reached_units",
+//! - [`MoveReport`]: `{"drive", "target_units", "reached_units",
 //!   "difference_units", "tolerance_units", "waited": true, "verified", "not_verifiable"}`;
 //!   [`StartedMove`]: `{"drive", "target_units", "waited": false, "verified", "not_verifiable"}`.
 //! - [`RawOutcome`]: `{"reply", "waited"}`; [`OutputSwitched`]: `{"output", "state"}`.

@@ -121,7 +121,7 @@ impl Client {
     }
 
     /// Runs `op` to its end, with `progress` for its progress reports; a motion or wait is cancelled (and
-    /// its motion halted) when the token of [`Client::set_cancel_token`] is.
+    /// its motion halted) when the token of [`Client::set_cancel`] is.
     pub fn run_with(&self, op: Op, progress: &mut dyn FnMut(&Progress)) -> Result<Output, Error> {
         // Reads set nothing in motion: a cancellation does not cut them short (a program that was asked to
         // stop still reads what it needs to report). Except the scan: up to 31 reply timeouts on a quiet
@@ -187,7 +187,7 @@ impl Client {
     /// Asks addresses 1..31 for their version; returns every address that answers, with its type, serial
     /// number and state, or the error that kept them from being read. Silence is absence; a corrupt answer
     /// is asked again. Only a failed line fails the whole scan. Ends with [`Error::Aborted`] as soon as the
-    /// token of [`Client::set_cancel_token`] is cancelled (the only read that watches it).
+    /// token of [`Client::set_cancel`] is cancelled (the only read that watches it).
     pub fn scan(&self) -> Result<Vec<ScanEntry>, Error> {
         self.call(calls::scan())
     }

@@ -104,7 +104,7 @@ pub enum Op {
     Halt(Address),
     /// Halt, then the state until STATE_MOTION is clear (polled every [`Config::poll_interval`], at most
     /// [`HALT_SETTLE`]), then the position: what `motionlink powercube stop` does. Still moving then:
-    /// [`Error::StillMoving`](crate::Error::StillMoving). [`Output::Halted`].
+    /// [`Error::StillMoving`]. [`Output::Halted`].
     HaltConfirmed(Address),
     /// A motion command, its units checked against the module's kind. [`Output::ExtAck`].
     Motion(Address, Motion, AckKind),

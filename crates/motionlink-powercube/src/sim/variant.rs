@@ -14,7 +14,7 @@
 use std::fmt;
 use std::str::FromStr;
 
-/// One firmware variant of the emulated modules (see the [module documentation](self)).
+/// One firmware variant of the emulated modules (see the module documentation of `sim::variant`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Deserialize)]
 #[serde(try_from = "String")]
 pub enum Variant {

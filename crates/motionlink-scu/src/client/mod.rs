@@ -19,8 +19,8 @@
 //! ```
 //!
 //! The typed API, as the README's "From Rust" (and docs/scu.md) shows it (the same code; positions are
-//! [`PositionCounts`](crate::model::PositionCounts), speeds [`Speed`](crate::model::Speed), actuator status 1
-//! the flag word [`ActuatorStatus1`](crate::model::ActuatorStatus1)):
+//! [`PositionCounts`], speeds [`Speed`], actuator status 1
+//! the flag word [`ActuatorStatus1`]):
 //!
 //! ```no_run
 //! use motionlink_link::{url::PortUrl, RealClock};
@@ -274,7 +274,7 @@ pub(crate) fn stream_positions(
 }
 
 /// What the end of a session says about the functions that were still started when it began (as
-/// [`Client::started_functions`] gave them just before [`Client::close`]).
+/// [`Client::started`] gave them just before [`Client::close`]).
 #[derive(Debug)]
 pub enum Ending {
     /// Nothing was left started, and the session ended cleanly.

@@ -3,7 +3,7 @@
 //! `time_s`). The command line prints these, the web console and Python send and convert them: nobody
 //! builds a copy of a result by hand.
 //!
-//! The session's own reports ([`MoveReport`], [`StopReport`], [`SetReport`]) serialise here too; this module
+//! The session's own reports ([`MoveReport`], [`StopReport`](crate::session::StopReport), [`SetReport`]) serialise here too; this module
 //! adds the reports that several reads make up ([`InfoReport`], [`GetReport`], [`WriteReport`],
 //! [`SampleReport`]) and how a run or a stream of targets ended ([`RunOutcome`], [`FollowReport`]).
 //!

@@ -4,7 +4,7 @@
 //! the next (a telegram arriving, the session's or the emulator's next deadline), so minutes of device
 //! time run in milliseconds, deterministically. Faults are arranged per test: telegrams lost either way, a
 //! byte flipped, a reply held back. Every family's session tests run on it: any
-//! [`Session`](motionlink_link::session::Session), any emulator ([`Serial`] around an
+//! [`Session`], any emulator ([`Serial`] around an
 //! [`Emulator`](motionlink_link::emulator::Emulator) for a serial line, [`Can`] around a
 //! [`CanEmulator`](motionlink_link::can::CanEmulator) for a CAN bus):
 //! `Wired::new(session, Serial(emulator), Line::baud(38_400, 10))`, then [`Wired::start`] and

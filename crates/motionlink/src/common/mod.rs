@@ -1,5 +1,5 @@
 //! What every family's commands share: errors with exit codes (here), Ctrl-C and the other signals
-//! ([`signals`]), output as a table or JSON ([`output`]), emulator servers ([`serve`]).
+//! ([`signals`]), output as a table or JSON ([`output`]), emulator servers ([`serve`](mod@serve)).
 
 use motionlink_link::error::{Classify, ErrorClass, TransportKind};
 use motionlink_link::LinkError;

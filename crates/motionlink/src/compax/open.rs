@@ -47,7 +47,7 @@ pub(crate) fn link(
 }
 
 /// The drive's options from the command line (the same options a device table gives the gateway; a move's
-/// tolerance and poll interval are given to the session by the action: `configure` of [`open`]).
+/// tolerance and poll interval are given to the session by the action: `configure` of [`open`](fn@open)).
 pub(crate) fn drive_options(args: &Args) -> DriveOptions {
     DriveOptions {
         drive: args.drive,

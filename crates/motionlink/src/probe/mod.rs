@@ -65,11 +65,13 @@ pub struct Options {
     /// Write a device profile (profiles.toml beside devices.toml, one entry per port and device identity):
     /// later sessions on this port whose device gives the same identity take its findings and skip those
     /// probes; their --json results name it ("profile": "<path>#<key>").
+    #[allow(rustdoc::invalid_html_tags)] // the text is the help of `--save`, not HTML
     #[arg(long)]
     pub save: bool,
     /// Set a USB serial adapter's latency timer to 1 ms where it is higher (Linux: writes
     /// /sys/bus/usb-serial/devices/<tty>/latency_timer; needs the right to write it, and lasts until the
     /// adapter is plugged in again). Without it the report gives the fix.
+    #[allow(rustdoc::invalid_html_tags)] // the text is the help of `--low-latency`, not HTML
     #[arg(long)]
     pub low_latency: bool,
     /// Exchanges that measure the link (round trips and errors), 1..=1000.

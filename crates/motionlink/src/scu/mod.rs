@@ -130,6 +130,7 @@ pub enum Action {
     /// VALUE, RE FUNCTION [DIRECTION|P0 [P1]], RS FUNCTION [fast|soft]) or the whole telegram in hex (command,
     /// data and CRC: "52 47 11 00 2C 30"; the CRC is checked). RO, RA and RC belong to the session and are
     /// refused; a function an RE starts is stopped (RS) when the command ends.
+    #[allow(rustdoc::broken_intra_doc_links)] // the text is the help of `scu send`: [P1] is an optional word
     Send {
         /// The request's words, or the whole telegram in hex.
         #[arg(required = true, value_name = "WORD", allow_negative_numbers = true)]
