@@ -75,10 +75,11 @@ pub async fn run() -> Result<Seen, Box<dyn std::error::Error + Send + Sync>> {
         unit_moving: watch.with_device(|u| u.is_moving(a1)),
         started: client.started(),
     };
+    // Closing stops what the session started (and returns those functions).
     match Arc::try_unwrap(client) {
         Ok(client) => client.close().await?,
         Err(_) => return Err("the client is still shared".into()),
-    }
+    };
     Ok(seen)
 }
 

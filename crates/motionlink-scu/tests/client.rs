@@ -332,8 +332,13 @@ fn the_end_of_a_session_on_a_dead_link_is_bounded_by_the_close_bound() {
     let started = rig.clock.now();
     let err = client.close().unwrap_err();
     let took = rig.clock.now() - started;
-    assert!(matches!(err, Error::CloseTimedOut { bound: b } if b == bound), "{err}");
-    assert!(err.to_string().contains("may still be moving"), "{err}");
+    // The close names what it left unconfirmed (F1), and why: its bound ran out.
+    assert!(
+        matches!(&err, Error::CloseUnconfirmed { functions, cause }
+            if functions.iter().map(|g| g.id()).eq([f(1).id()]) && matches!(**cause, Error::CloseTimedOut { bound: b } if b == bound)),
+        "{err}"
+    );
+    assert!(err.to_string().contains("may still be moving") && err.to_string().contains("F1"), "{err}");
     assert!(took >= bound && took < bound + Duration::from_millis(50), "close took {took:?}");
     // Dropping a client is bounded the same way.
     rig.faults().heal();

@@ -291,7 +291,7 @@ faces! {
             let taken = py.detach(|| self.slot.take(&self.token, bound));
             match taken {
                 None => Ok(()),
-                Some(Ok(client)) => py.detach(|| client.close()).or_raise(py),
+                Some(Ok(client)) => py.detach(|| client.close().map(|_| ())).or_raise(py),
                 Some(Err(shared)) => py.detach(|| shared.halt_started()).or_raise(py),
             }
         }
@@ -327,7 +327,7 @@ faces! {
             spawn_task(done, async move {
                 match taken {
                     None => {}
-                    Some(Ok(client)) => client.close().await.map_err(|e| e.failure())?,
+                    Some(Ok(client)) => client.close().await.map(|_| ()).map_err(|e| e.failure())?,
                     Some(Err(shared)) => shared.halt_started().await.map_err(|e| e.failure())?,
                 }
                 deliver(|py| Ok(py.None()))
@@ -338,7 +338,7 @@ faces! {
         fn close_blocking(&self, py: Python<'_>) -> PyResult<()> {
             let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
             let r = match taken {
-                Ok(client) => block_on_runtime(py, client.close())?,
+                Ok(client) => block_on_runtime(py, async { client.close().await.map(|_| ()) })?,
                 Err(shared) => block_on_runtime(py, async move { shared.halt_started().await })?,
             };
             r.or_raise(py)

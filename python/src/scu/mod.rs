@@ -319,7 +319,7 @@ faces! {
             let taken = py.detach(|| self.slot.take(&self.token, bound));
             match taken {
                 None => Ok(()),
-                Some(Ok(client)) => py.detach(|| client.close()).or_raise(py),
+                Some(Ok(client)) => py.detach(|| client.close().map(|_| ())).or_raise(py),
                 // A call of another thread still runs: it was cancelled (its motion stops) and the session ends
                 // (RS, RA) when it returns and drops the client.
                 Some(Err(shared)) => {
@@ -358,7 +358,7 @@ faces! {
             spawn_task(done, async move {
                 match taken {
                     None => {}
-                    Some(Ok(client)) => client.close().await.map_err(|e| e.failure())?,
+                    Some(Ok(client)) => client.close().await.map(|_| ()).map_err(|e| e.failure())?,
                     // A call still under way holds the session: it ends (RS, RA) when that call ends.
                     Some(Err(shared)) => drop(shared),
                 }
@@ -370,7 +370,7 @@ faces! {
         fn close_blocking(&self, py: Python<'_>) -> PyResult<()> {
             let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
             match taken {
-                Ok(client) => block_on_runtime(py, client.close())?.or_raise(py),
+                Ok(client) => block_on_runtime(py, async { client.close().await.map(|_| ()) })?.or_raise(py),
                 Err(shared) => {
                     drop(shared);
                     Ok(())

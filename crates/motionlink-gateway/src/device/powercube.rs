@@ -175,7 +175,7 @@ impl PowerCube {
     /// Ends the session (what still moves is halted, the watchdog switched off).
     pub(super) async fn close(self) -> Result<(), String> {
         match Arc::try_unwrap(self.client) {
-            Ok(client) => client.close().await.map_err(|e| e.to_string()),
+            Ok(client) => client.close().await.map(|_| ()).map_err(|e| e.to_string()),
             Err(_) => Ok(()),
         }
     }

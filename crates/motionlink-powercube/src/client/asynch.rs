@@ -214,10 +214,10 @@ impl AsyncClient {
         self.call(calls::done(Op::HaltStarted)).await
     }
 
-    /// Ends the session (see [`Client::close`](super::Client::close)).
-    pub async fn close(self) -> Result<(), Error> {
-        let view = self.driver.driver().with_session(|s| s.watchdog_view());
-        self.driver.close().await.map_err(|e| view.explain(e))
+    /// Ends the session; returns the modules it halted (see [`Client::close`](super::Client::close)).
+    pub async fn close(self) -> Result<Vec<Address>, Error> {
+        let (view, started) = self.driver.driver().with_session(|s| (s.watchdog_view(), s.started()));
+        self.driver.close().await.map(|()| started).map_err(|e| view.explain(e))
     }
 }
 

@@ -256,10 +256,12 @@ impl Client {
     }
 
     /// Ends the session: halts what it set in motion and still moves, switches off the watchdogs it switched
-    /// on (unless it failed), and says whether that was confirmed, within [`Config::close_bound`].
-    pub fn close(self) -> Result<(), Error> {
-        let view = self.driver.with_session(|s| s.watchdog_view());
-        self.driver.close().map_err(|e| view.explain(e))
+    /// on (unless it failed), and says whether that was confirmed, within [`Config::close_bound`]. Returns the
+    /// modules it set in motion and had not seen stop, which the close halted (none when nothing was left
+    /// moving).
+    pub fn close(self) -> Result<Vec<Address>, Error> {
+        let (view, started) = self.driver.with_session(|s| (s.watchdog_view(), s.started()));
+        self.driver.close().map(|()| started).map_err(|e| view.explain(e))
     }
 }
 

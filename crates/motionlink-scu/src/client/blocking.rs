@@ -438,10 +438,12 @@ impl Client {
     }
 
     /// Ends the session: RS for every started function (motions fast), then RA; waits at most
-    /// [`Config::close_bound`]. The session is closed even if that fails; the error says what could not
-    /// be sent or confirmed.
-    pub fn close(self) -> Result<(), Error> {
-        self.driver.close()
+    /// [`Config::close_bound`]. Returns the functions it stopped (the unit acknowledged their RS; none when
+    /// nothing was left started). The session is closed even if that fails; the error says what could not be
+    /// sent or confirmed ([`Error::CloseUnconfirmed`], naming the functions, when some were left started).
+    pub fn close(self) -> Result<Vec<Function>, Error> {
+        let started = self.started();
+        super::closed(started, self.driver.close())
     }
 }
 

@@ -273,8 +273,8 @@ pub(crate) fn stream_positions(
         .collect()
 }
 
-/// What the end of a session says about the functions that were still started when it began (as
-/// [`Client::started`] gave them just before [`Client::close`]).
+/// What the end of a session ([`Client::close`]) says about the functions that were still started when it
+/// began.
 #[derive(Debug)]
 pub enum Ending {
     /// Nothing was left started, and the session ended cleanly.
@@ -289,16 +289,47 @@ pub enum Ending {
     Unconfirmed(Error),
 }
 
-/// Says what `closed` (the result of [`Client::close`]) means for the functions `started` (wire ids).
-pub fn ending(started: &[Function], closed: Result<(), Error>) -> Ending {
-    match (closed, started.is_empty()) {
-        (Ok(()), true) => Ending::Clean,
-        (Ok(()), false) => {
-            Ending::Stopped(format!("{} stopped (the unit acknowledged RS)", crate::model::function_list(started)))
+/// Says what `closed` (the result of [`Client::close`]: the functions it stopped) means.
+pub fn ending(closed: Result<Vec<Function>, Error>) -> Ending {
+    match closed {
+        Ok(stopped) if stopped.is_empty() => Ending::Clean,
+        Ok(stopped) => {
+            Ending::Stopped(format!("{} stopped (the unit acknowledged RS)", crate::model::function_list(&stopped)))
         }
-        (Err(e), true) => Ending::Failed(e),
-        (Err(e), false) => {
-            Ending::Unconfirmed(Error::CloseUnconfirmed { functions: started.to_vec(), cause: Box::new(e) })
-        }
+        Err(e @ Error::CloseUnconfirmed { .. }) => Ending::Unconfirmed(e),
+        Err(e) => Ending::Failed(e),
+    }
+}
+
+/// The result of a close that found `started` left started: those functions stopped, or the error, which
+/// names them when there were some ([`Error::CloseUnconfirmed`]).
+pub(crate) fn closed(started: Vec<Function>, result: Result<(), Error>) -> Result<Vec<Function>, Error> {
+    match result {
+        Ok(()) => Ok(started),
+        Err(e @ Error::CloseUnconfirmed { .. }) => Err(e),
+        Err(e) if started.is_empty() => Err(e),
+        Err(e) => Err(Error::CloseUnconfirmed { functions: started, cause: Box::new(e) }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_close_says_what_it_stopped_or_names_what_it_could_not_confirm() {
+        let f1 = Function::from_id(0).unwrap();
+        assert_eq!(closed(vec![f1], Ok(())).unwrap(), vec![f1]);
+        let lost = || Error::SessionLost("port gone".into());
+        let e = closed(vec![f1], Err(lost())).unwrap_err();
+        assert!(matches!(&e, Error::CloseUnconfirmed { functions, .. } if *functions == vec![f1]), "{e}");
+        assert!(matches!(closed(Vec::new(), Err(lost())), Err(Error::SessionLost(_))));
+        // Already unconfirmed by the session: not wrapped twice.
+        let once = closed(vec![f1], Err(e)).unwrap_err();
+        assert!(matches!(&once, Error::CloseUnconfirmed { cause, .. } if matches!(**cause, Error::SessionLost(_))));
+        assert!(matches!(ending(Ok(vec![f1])), Ending::Stopped(n) if n.contains("F1")));
+        assert!(matches!(ending(Ok(Vec::new())), Ending::Clean));
+        assert!(matches!(ending(closed(vec![f1], Err(lost()))), Ending::Unconfirmed(_)));
+        assert!(matches!(ending(Err(lost())), Ending::Failed(_)));
     }
 }

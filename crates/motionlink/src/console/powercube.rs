@@ -461,7 +461,7 @@ impl Device for PowerCube {
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
         close_last(self, |me| async move {
             let PowerCube { client, _host, .. } = me;
-            let r = client.close().await.map_err(Failure::from).map(|()| String::new());
+            let r = client.close().await.map_err(Failure::from).map(|_| String::new());
             // The in-process emulator goes only after the session's end.
             drop(_host);
             r

@@ -304,9 +304,7 @@ impl Device for Scu {
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
         // While a request still holds the session, it ends (RS, RA) when that ends.
         close_last(self, |me| async move {
-            let started = me.client.started();
-            let closed = me.client.close().await;
-            match motionlink_scu::ending(&started, closed) {
+            match motionlink_scu::ending(me.client.close().await) {
                 motionlink_scu::Ending::Clean => Ok(String::new()),
                 motionlink_scu::Ending::Stopped(note) => Ok(note),
                 motionlink_scu::Ending::Failed(e) | motionlink_scu::Ending::Unconfirmed(e) => Err(e.into()),

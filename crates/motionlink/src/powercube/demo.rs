@@ -55,7 +55,7 @@ fn run_steps(
         out.step(name)?;
         shown(out, &mut describer)?;
     }
-    bus.close().map_err(failed)
+    bus.close().map(|_| ()).map_err(failed)
 }
 
 fn failed(e: Error) -> CliError {

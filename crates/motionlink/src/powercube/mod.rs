@@ -223,7 +223,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     };
     // Closing stops what is still moving and switches off what was armed, and says whether it could;
     // the in-process emulator goes only after that.
-    let closed = client.close().map_err(failed);
+    let closed = client.close().map(|_| ()).map_err(failed);
     drop(host);
     tap.flush();
     // A module that never answered is named as absent (a scan says so itself).

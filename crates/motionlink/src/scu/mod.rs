@@ -289,10 +289,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
         None => act(&client, &args, &report, stopped.as_ref(), &mut out, &interrupt),
     };
     // Stop what was started and leave remote mode, whatever happened.
-    let started = client.started();
     let closed = client.close();
     tap.flush();
-    finish(result, closed, &started).map_err(|e| tap.name_absent(e, absent))
+    finish(result, closed).map_err(|e| tap.name_absent(e, absent))
 }
 
 /// Appends `note` to the message of `e`, keeping its exit code.
@@ -304,10 +303,9 @@ fn with_note(e: CliError, note: &str) -> CliError {
 /// a stop the unit did not confirm is said in words (keeping the exit code of what went wrong first).
 fn finish(
     result: Result<(), CliError>,
-    closed: Result<(), motionlink_scu::Error>,
-    started: &[motionlink_scu::model::Function],
+    closed: Result<Vec<motionlink_scu::model::Function>, motionlink_scu::Error>,
 ) -> Result<(), CliError> {
-    match motionlink_scu::ending(started, closed) {
+    match motionlink_scu::ending(closed) {
         Ending::Clean => result,
         Ending::Stopped(note) => result.map_err(|e| match e {
             CliError::OutputClosed => CliError::OutputClosed,
@@ -395,13 +393,16 @@ mod tests {
     fn a_failed_stop_at_the_end_keeps_the_exit_code_and_says_the_actuators_may_move() {
         let lost = motionlink_scu::Error::SessionLost("port gone".into());
         let f = |id| motionlink_scu::model::Function::from_id(id).unwrap();
-        let e = finish(Err(CliError::Interrupted("interrupted".into())), Err(lost.clone()), &[f(0)]).unwrap_err();
+        // What Client::close says when the functions `functions` were left started and the port was gone.
+        let unconfirmed =
+            |functions| motionlink_scu::Error::CloseUnconfirmed { functions, cause: Box::new(lost.clone()) };
+        let e = finish(Err(CliError::Interrupted("interrupted".into())), Err(unconfirmed(vec![f(0)]))).unwrap_err();
         assert!(matches!(&e, CliError::Interrupted(m) if m.contains("may still be moving") && m.contains("F1")), "{e}");
-        let e = finish(Ok(()), Err(lost.clone()), &[f(1)]).unwrap_err();
+        let e = finish(Ok(()), Err(unconfirmed(vec![f(1)]))).unwrap_err();
         assert!(matches!(&e, CliError::Transport(_, m) if m.contains("F2")), "{e}");
-        let e = finish(Err(CliError::Device("stalled".into())), Ok(()), &[f(0)]).unwrap_err();
+        let e = finish(Err(CliError::Device("stalled".into())), Ok(vec![f(0)])).unwrap_err();
         assert!(matches!(&e, CliError::Device(m) if m.contains("acknowledged RS")), "{e}");
-        assert!(finish(Ok(()), Ok(()), &[]).is_ok());
-        assert!(matches!(finish(Ok(()), Err(lost), &[]), Err(CliError::Transport(..))));
+        assert!(finish(Ok(()), Ok(vec![])).is_ok());
+        assert!(matches!(finish(Ok(()), Err(lost.clone())), Err(CliError::Transport(..))));
     }
 }

@@ -13,7 +13,7 @@ fn close_stops_what_was_started_and_says_it_was_confirmed() {
     bus.enable_watchdog(&addrs(&[1, 2])).unwrap();
     bus.module(addr(1)).motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
     clock.sleep(Duration::from_millis(300));
-    assert_eq!(bus.close().map_err(|e| e.to_string()), Ok(()));
+    assert_eq!(bus.close().map_err(|e| e.to_string()), Ok(vec![addr(1)]), "the close halted the module set in motion");
     let (state, _, online, config) = device_view(&canbus, &clock, 1);
     assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
     assert!(!online && config == before, "watchdog off, Config word as it was");
