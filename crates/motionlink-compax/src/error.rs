@@ -51,7 +51,7 @@ pub enum Error {
     },
     /// A reply the client cannot read.
     #[error("drive {address}: unexpected reply {reply:?} to {command:?}")]
-    Unexpected {
+    UnexpectedReply {
         /// The drive.
         address: Address,
         /// The command sent.
@@ -73,7 +73,7 @@ pub enum Error {
     Link(#[from] LinkError),
     /// An argument out of range.
     #[error(transparent)]
-    Invalid(#[from] ModelError),
+    Model(#[from] ModelError),
     /// A telegram that cannot be built.
     #[error(transparent)]
     Wire(#[from] WireError),
@@ -208,7 +208,7 @@ pub enum Error {
         command: String,
         /// What happened (`its echo was not the telegram sent ... so no '!' was sent`).
         why: String,
-        /// The error behind it: the echo that came back ([`Error::Unexpected`]), a lost or corrupt reply,
+        /// The error behind it: the echo that came back ([`Error::UnexpectedReply`]), a lost or corrupt reply,
         /// the drive's refusal of `!`.
         source: Box<Error>,
         /// Drives (ascending) that may hold the command in their buffer: the drive addressed, and a drive
@@ -294,11 +294,11 @@ impl Classify for Error {
             Error::Timeout { .. } | Error::MoveUncertain { .. } | Error::CloseTimedOut { .. } => {
                 ErrorClass::Transport(TransportKind::Timeout)
             }
-            Error::Corrupt { .. } | Error::Unexpected { .. } | Error::WrongOutput { .. } => {
+            Error::Corrupt { .. } | Error::UnexpectedReply { .. } | Error::WrongOutput { .. } => {
                 ErrorClass::Transport(TransportKind::Corrupt)
             }
             Error::Link(e) => e.class(),
-            Error::Invalid(_) | Error::Wire(_) | Error::Broadcast(_) | Error::OutsideLimits { .. } | Error::Closed => {
+            Error::Model(_) | Error::Wire(_) | Error::Broadcast(_) | Error::OutsideLimits { .. } | Error::Closed => {
                 ErrorClass::Usage
             }
             Error::Cancelled => ErrorClass::Cancelled,
@@ -454,7 +454,7 @@ mod tests {
                 ErrorClass::Transport(TransportKind::Timeout),
             ),
             (
-                Error::Unexpected { address: Address::drive(1).unwrap(), command: "S1".into(), reply: "x".into() },
+                Error::UnexpectedReply { address: Address::drive(1).unwrap(), command: "S1".into(), reply: "x".into() },
                 ErrorClass::Transport(TransportKind::Corrupt),
             ),
             (

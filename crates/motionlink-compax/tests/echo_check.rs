@@ -224,7 +224,7 @@ fn a_flipped_address_digit_makes_another_drive_echo_and_nothing_moves() {
         let e = bus.move_to(a(1), &MoveRequest::new(MoveTarget::Absolute(pos(12.5))), &mut |_| {}).unwrap_err();
         let Error::NotExecuted { address: D1, command, buffered, source, .. } = e.root() else { panic!("{e}") };
         assert_eq!((command.as_str(), buffered.as_slice()), ("POSA 12.5", &[1u8, 3][..]), "P196={p196}");
-        let Error::Unexpected { reply, .. } = source.as_ref() else { panic!("{source}") };
+        let Error::UnexpectedReply { reply, .. } = source.as_ref() else { panic!("{source}") };
         let want = if p196 & 64 != 0 { "3:3POSA 12.5,?" } else { "3POSA 12.5,?" };
         assert_eq!(reply, want, "P196={p196}: the error names what came back");
         let text = e.to_string();

@@ -30,7 +30,7 @@ pub struct Seen {
 /// Runs the example; what it saw, for the test that runs it too (`tests/async_example.rs`).
 pub async fn run() -> Result<Seen, Error> {
     let clock = RealClock::shared();
-    let config = SimConfig::with_addresses(&[1, 2]).map_err(|e| Error::Unsupported(e.to_string()))?;
+    let config = SimConfig::with_addresses(&[1, 2]).map_err(|e| Error::NotSupported(e.to_string()))?;
     let sim = Emulator::new_can(&config);
     let bus = CanBus::with_emulator(sim, clock.clone(), CanBusConfig::paced(1_000_000));
     let client = AsyncClient::with_link(PortLink::Can(Box::new(bus.connect())), clock, Config::can()).await?;
@@ -50,10 +50,10 @@ pub async fn run() -> Result<Seen, Error> {
     loop {
         if let Ok(done) = tokio::time::timeout(Duration::from_millis(50), moving.as_mut()).await {
             println!("the move ended before it was cancelled: {done:?}");
-            return Err(Error::Unsupported("the move ended too soon".into()));
+            return Err(Error::NotSupported("the move ended too soon".into()));
         }
         let both = client.positions(&[one, two]).await;
-        let p = both[0].as_ref().map_err(|e| Error::Unsupported(e.to_string()))?;
+        let p = both[0].as_ref().map_err(|e| Error::NotSupported(e.to_string()))?;
         println!(
             "module 1 at {p}, module 2 at {}",
             both[1].as_ref().map_or_else(ToString::to_string, ToString::to_string)

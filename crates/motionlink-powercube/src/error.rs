@@ -253,7 +253,7 @@ pub enum Error {
     /// A parameter read back after it was written differs from what was written: the module limited it, or
     /// the write was corrupted on the way (the modules ignore the checksum).
     #[error("module {address}: {param} was written as {wrote} but reads back as {read} (the module limited it, or the write was corrupted on the way)")]
-    Mismatch {
+    ReadBack {
         /// The module.
         address: Address,
         /// The parameter written.
@@ -311,7 +311,7 @@ pub enum Error {
     InvalidAddress(u8),
     /// Something this client does not do.
     #[error("{0}")]
-    Unsupported(String),
+    NotSupported(String),
     /// The session failed with the watchdog of these modules online: it was left online (its refresh
     /// stopped), so they halt within 50 ms with STATE_COMM_ERROR; `reset_and_release_watchdog` (the `reset`
     /// command) clears them afterwards.
@@ -442,13 +442,13 @@ impl Classify for Error {
             | Error::WaitTimeout { .. }
             | Error::WatchdogUnconfirmed { .. }
             | Error::WatchdogLeftOnline { .. }
-            | Error::Mismatch { .. }
+            | Error::ReadBack { .. }
             | Error::TargetMismatch { .. }
             | Error::NotReached { .. } => ErrorClass::Device,
             Error::Cancelled { .. } | Error::Aborted { .. } => ErrorClass::Cancelled,
             Error::Model(_)
             | Error::InvalidAddress(_)
-            | Error::Unsupported(_)
+            | Error::NotSupported(_)
             | Error::BeyondLimit { .. }
             | Error::InvalidArgument { .. }
             | Error::UnitMismatch { .. }

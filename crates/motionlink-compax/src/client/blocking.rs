@@ -186,7 +186,7 @@ impl Client {
     fn position_value(&self, address: Address, id: StatusId) -> Result<Position> {
         match self.read_status(address, id)? {
             StatusValue::Position(p) => Ok(p),
-            other => Err(Error::Unexpected { address, command: id.to_string(), reply: other.to_string() }),
+            other => Err(Error::UnexpectedReply { address, command: id.to_string(), reply: other.to_string() }),
         }
     }
 
@@ -204,7 +204,7 @@ impl Client {
     pub fn read_s16(&self, address: Address) -> Result<S16Bits> {
         match self.read_status(address, StatusId::STATUS_BITS_1)? {
             StatusValue::S16(b) => Ok(b),
-            other => Err(Error::Unexpected { address, command: "S16".into(), reply: other.to_string() }),
+            other => Err(Error::UnexpectedReply { address, command: "S16".into(), reply: other.to_string() }),
         }
     }
 
@@ -212,7 +212,7 @@ impl Client {
     pub fn read_s17(&self, address: Address) -> Result<S17Bits> {
         match self.read_status(address, StatusId::STATUS_BITS_2)? {
             StatusValue::S17(b) => Ok(b),
-            other => Err(Error::Unexpected { address, command: "S17".into(), reply: other.to_string() }),
+            other => Err(Error::UnexpectedReply { address, command: "S17".into(), reply: other.to_string() }),
         }
     }
 

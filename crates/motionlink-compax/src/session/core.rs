@@ -545,7 +545,7 @@ impl Core {
         }
         let (address, command) = (job.address, job.command);
         let e = match (job.unfit, job.last_corrupt) {
-            (Some(reply), _) => Error::Unexpected { address, command, reply },
+            (Some(reply), _) => Error::UnexpectedReply { address, command, reply },
             (None, Some(detail)) if job.retry == Retry::Idempotent => Error::Corrupt { address, command, detail },
             _ => Error::Timeout { address, command, attempts: job.attempts, waited, round_trips: self.round_trips },
         };

@@ -53,7 +53,7 @@ impl AsyncClient {
         .await;
         let (driver, can) = match opened {
             Ok(r) => r?,
-            Err(e) => return Err(Error::Unsupported(format!("the opening task failed: {e}"))),
+            Err(e) => return Err(Error::NotSupported(format!("the opening task failed: {e}"))),
         };
         Ok(AsyncClient { driver: AsyncDriver::from_driver(driver), config, can })
     }

@@ -284,7 +284,7 @@ fn op_is_read(op: &Op) -> bool {
 
 /// One copy of `e` per request (an operation that failed as a whole: the session was closed).
 pub(crate) fn fail_all<T>(n: usize, e: &Error) -> Vec<Result<T, Error>> {
-    (0..n).map(|_| Err(Error::Unsupported(e.to_string()))).collect()
+    (0..n).map(|_| Err(Error::NotSupported(e.to_string()))).collect()
 }
 
 /// One module on a [`Client`], by address.
@@ -315,7 +315,7 @@ impl Module<'_> {
 
     /// Writes `param` and checks that the module took it: a target beyond the module's limit is refused
     /// ([`Error::BeyondLimit`]) before anything is sent; then the value is read back (the write-only targets
-    /// through their tick twins) and a difference is [`Error::Mismatch`].
+    /// through their tick twins) and a difference is [`Error::ReadBack`].
     pub fn set_checked(&self, param: Param, value: Value) -> Result<Readback, Error> {
         self.client.call(calls::set_checked(self.address, param, value))
     }

@@ -24,7 +24,7 @@ impl<T> Call<T> {
     /// The typed result of `output` (an output of another kind never comes from the session; should it,
     /// it is an error naming it rather than a panic).
     pub fn result(&self, output: Result<Output, Error>) -> Result<T, Error> {
-        (self.take)(output?).map_err(|other| Error::Unsupported(format!("the session answered {other:?}")))
+        (self.take)(output?).map_err(|other| Error::NotSupported(format!("the session answered {other:?}")))
     }
 }
 

@@ -76,5 +76,5 @@ fn socketcan(ifname: &str) -> Result<Box<dyn CanLink>, Error> {
 
 #[cfg(not(target_os = "linux"))]
 fn socketcan(_ifname: &str) -> Result<Box<dyn CanLink>, Error> {
-    Err(Error::Unsupported("socketcan:// ports need Linux".into()))
+    Err(Error::NotSupported("socketcan:// ports need Linux".into()))
 }

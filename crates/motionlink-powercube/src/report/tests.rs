@@ -55,7 +55,7 @@ fn a_module_found_shows_its_identity_and_one_that_failed_its_error() {
     assert_eq!(to_json(&info(ModuleKind::Linear)), expected);
     let found = ScanEntry { address: Address::new(17).unwrap(), info: Ok(info(ModuleKind::Linear)) };
     assert_eq!(to_json(&found), expected);
-    let failed = ScanEntry { address: Address::new(3).unwrap(), info: Err(Error::Unsupported("no answer".into())) };
+    let failed = ScanEntry { address: Address::new(3).unwrap(), info: Err(Error::NotSupported("no answer".into())) };
     assert_eq!(to_json(&failed), json!({"module": 3, "error": "no answer"}));
 }
 

@@ -552,6 +552,6 @@ fn moves(r: &Reply) -> bool {
 fn clone_encode(e: &Error) -> Error {
     match e {
         Error::Encode(x) => Error::Encode(*x),
-        other => Error::Unsupported(other.to_string()),
+        other => Error::NotSupported(other.to_string()),
     }
 }

@@ -41,7 +41,7 @@ impl Ctx {
         let ticket = self.core().enqueue_broadcast(self.id(), broadcast);
         match self.job(ticket, |core: &mut Core| &mut core.jobs).await {
             JobResult::Broadcast(r) => r,
-            JobResult::Exchange(_) => Err(Error::Unsupported("a broadcast was answered".into())),
+            JobResult::Exchange(_) => Err(Error::NotSupported("a broadcast was answered".into())),
         }
     }
 }

@@ -216,7 +216,7 @@ impl<'a> AsyncWatch<'a> {
             [(_, StatusValue::Position(position)), (_, StatusValue::S17(s17))] => {
                 Ok(WatchSample { drive: self.drive, position: *position, s17: *s17 })
             }
-            other => Err(Error::Unexpected {
+            other => Err(Error::UnexpectedReply {
                 address: self.drive,
                 command: "S1, S17".into(),
                 reply: other.iter().map(|(_, v)| v.to_string()).collect::<Vec<_>>().join(", "),

@@ -164,7 +164,7 @@ impl AsyncClient {
     pub async fn read_position(&self, address: Address) -> Result<Position> {
         match self.read_status(address, StatusId::ACTUAL_POSITION).await? {
             StatusValue::Position(p) => Ok(p),
-            v => Err(Error::Unexpected { address, command: "S1".into(), reply: v.to_string() }),
+            v => Err(Error::UnexpectedReply { address, command: "S1".into(), reply: v.to_string() }),
         }
     }
 
@@ -172,7 +172,7 @@ impl AsyncClient {
     pub async fn read_target(&self, address: Address) -> Result<Position> {
         match self.read_status(address, StatusId::TARGET_POSITION).await? {
             StatusValue::Position(p) => Ok(p),
-            v => Err(Error::Unexpected { address, command: "S2".into(), reply: v.to_string() }),
+            v => Err(Error::UnexpectedReply { address, command: "S2".into(), reply: v.to_string() }),
         }
     }
 
@@ -180,7 +180,7 @@ impl AsyncClient {
     pub async fn read_s16(&self, address: Address) -> Result<S16Bits> {
         match self.read_status(address, StatusId::STATUS_BITS_1).await? {
             StatusValue::S16(b) => Ok(b),
-            v => Err(Error::Unexpected { address, command: "S16".into(), reply: v.to_string() }),
+            v => Err(Error::UnexpectedReply { address, command: "S16".into(), reply: v.to_string() }),
         }
     }
 
@@ -188,7 +188,7 @@ impl AsyncClient {
     pub async fn read_s17(&self, address: Address) -> Result<S17Bits> {
         match self.read_status(address, StatusId::STATUS_BITS_2).await? {
             StatusValue::S17(b) => Ok(b),
-            v => Err(Error::Unexpected { address, command: "S17".into(), reply: v.to_string() }),
+            v => Err(Error::UnexpectedReply { address, command: "S17".into(), reply: v.to_string() }),
         }
     }
 

@@ -41,7 +41,7 @@ impl Ctx {
     /// the value of S1, silence) counts only when it comes twice: one flipped bit of the probe can make a
     /// drive refuse it or read S1, and a drive that echoes must never be taken for one that does not. An echo
     /// of another command text is sent once more; twice, it is a discrepancy no form explains: refused
-    /// ([`Error::Unexpected`]).
+    /// ([`Error::UnexpectedReply`]).
     pub(crate) async fn echo_form(&self, address: Address) -> Result<EchoForm> {
         if let Some(form) = self.core().echo_forms[usize::from(address.get())] {
             return Ok(form);
@@ -74,7 +74,7 @@ impl Ctx {
                     // with ',?' without a word, or run it.
                     let read = StatusValue::parse(StatusId::ACTUAL_POSITION, r.text()).is_ok();
                     tracing::info!("drive {address}: {:?} in answer to {:?}", r.text_str(), sent);
-                    Some(Error::Unexpected {
+                    Some(Error::UnexpectedReply {
                         address,
                         command: format!("{text}?"),
                         reply: format!(
@@ -180,7 +180,7 @@ impl Ctx {
                         "drive {address}: no echo of the stored move: storing it again (it replaces itself)"
                     );
                 }
-                Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. } | Error::Unexpected { .. })) => {
+                Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. } | Error::UnexpectedReply { .. })) => {
                     let why = if matches!(e, Error::Timeout { .. }) {
                         "no echo came back, so no '!' was sent"
                     } else {
@@ -197,7 +197,7 @@ impl Ctx {
                 Some(a) => format!("{a}:{}", echo.text_str()),
                 None => echo.text_str().to_string(),
             };
-            let source = Error::Unexpected { address, command: format!("{text}{flags}"), reply: shown.clone() };
+            let source = Error::UnexpectedReply { address, command: format!("{text}{flags}"), reply: shown.clone() };
             let why = format!(
                 "its echo was not the telegram sent (expected {:?} from drive {address}, the form it echoes in), \
                  so no '!' was sent; the echo {shown:?} is what the drive that answered received, and what its \
@@ -217,12 +217,12 @@ impl Ctx {
             attempts += 1;
             let lost = match self.exchange(&exec, Retry::DiscardedOnly).await {
                 Ok(Some(r)) if r.text().is_empty() => return Ok(()),
-                Ok(r) => Error::Unexpected {
+                Ok(r) => Error::UnexpectedReply {
                     address,
                     command: "!".into(),
                     reply: r.map(|r| r.text_str().to_string()).unwrap_or_default(),
                 },
-                Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. } | Error::Unexpected { .. })) => e,
+                Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. } | Error::UnexpectedReply { .. })) => e,
                 Err(e @ Error::Device { .. }) => {
                     let why = "the drive refused '!' right after echoing the stored move: it may not store a \
                                command sent with ',?' (the manual does not say that it does), so nothing ran";

@@ -45,7 +45,7 @@ impl Ctx {
     }
 
     fn unexpected(address: Address, command: &Command, r: &[u8]) -> Error {
-        Error::Unexpected { address, command: command.to_string(), reply: String::from_utf8_lossy(r).into_owned() }
+        Error::UnexpectedReply { address, command: command.to_string(), reply: String::from_utf8_lossy(r).into_owned() }
     }
 
     /// Reads status value `id`, asking again when the reply does not read as that value (without a BCC a
@@ -95,7 +95,7 @@ impl Ctx {
     async fn read_position_value(&self, address: Address, id: StatusId, retries: u32) -> Result<Position> {
         match self.read_status_retries(address, id, retries).await? {
             StatusValue::Position(p) => Ok(p),
-            other => Err(Error::Unexpected { address, command: id.to_string(), reply: other.to_string() }),
+            other => Err(Error::UnexpectedReply { address, command: id.to_string(), reply: other.to_string() }),
         }
     }
 
@@ -114,7 +114,7 @@ impl Ctx {
     /// S16.
     pub(crate) async fn read_s16(&self, address: Address) -> Result<S16Bits> {
         let v = self.read_status(address, StatusId::STATUS_BITS_1).await?;
-        s16_of(&v).ok_or_else(|| Error::Unexpected { address, command: "S16".into(), reply: v.to_string() })
+        s16_of(&v).ok_or_else(|| Error::UnexpectedReply { address, command: "S16".into(), reply: v.to_string() })
     }
 
     /// S17.
@@ -126,7 +126,7 @@ impl Ctx {
     /// S17 with `retries` retries.
     pub(crate) async fn read_s17_retries(&self, address: Address, retries: u32) -> Result<S17Bits> {
         let v = self.read_status_retries(address, StatusId::STATUS_BITS_2, retries).await?;
-        s17_of(&v).ok_or_else(|| Error::Unexpected { address, command: "S17".into(), reply: v.to_string() })
+        s17_of(&v).ok_or_else(|| Error::UnexpectedReply { address, command: "S17".into(), reply: v.to_string() })
     }
 
     /// Reads parameter `id`, asking again when the reply does not read as a value.

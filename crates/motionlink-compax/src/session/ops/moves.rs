@@ -82,7 +82,7 @@ impl Ctx {
             attempts += 1;
             match self.exchange(&req, Retry::DiscardedOnly).await {
                 Ok(_) => return Ok(()),
-                Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. } | Error::Unexpected { .. })) => {
+                Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. } | Error::UnexpectedReply { .. })) => {
                     // The reply is lost (or only a reply that cannot be the acknowledgement came): did the
                     // drive take the move? Its target position tells.
                     let target = self.read_target(address).await?.units();

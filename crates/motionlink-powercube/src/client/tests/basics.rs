@@ -253,7 +253,7 @@ fn extended_acknowledges_and_steps() {
     assert_eq!(m.position_ticks().unwrap(), Ticks(0));
     let (_, short, _) = m.position_state_dio().unwrap();
     assert!(!short.contains(crate::model::ShortFlag::Motion));
-    assert!(matches!(m.set(Param::Config, Value::U32(0x0400_0000)), Err(Error::Unsupported(_))));
+    assert!(matches!(m.set(Param::Config, Value::U32(0x0400_0000)), Err(Error::NotSupported(_))));
 }
 
 #[test]
@@ -307,7 +307,7 @@ fn every_request_is_checked_before_it_is_sent() {
     let (clock, _canbus, bus) = can(&[1]);
     let _me = clock.reserve_participant().enter();
     let err = bus.request(addr(1), &Request::Set(Param::Config, Value::U32(0x0400_0000))).unwrap_err();
-    assert!(matches!(err, Error::Unsupported(_)), "{err}");
+    assert!(matches!(err, Error::NotSupported(_)), "{err}");
 }
 
 /// A CAN link that hands over what it receives in reverse order: whatever arrives within `window` of a

@@ -250,12 +250,12 @@ fn a_twin_that_mirrors_another_value_is_refused() {
     let at = faults.bytes_sent(Direction::HostToDevice) + reads + rs232_request_len(1, &write) - 3;
     faults.inject(Direction::HostToDevice, at, motionlink_link::pipe::Fault::Corrupt { xor: 0x01 });
     let err = m.set_checked(Param::TargetVel, Value::F32(0.6)).unwrap_err();
-    assert!(matches!(err, Error::Mismatch { param: Param::TargetVel, .. }) && err.is_device(), "{err}");
+    assert!(matches!(err, Error::ReadBack { param: Param::TargetVel, .. }) && err.is_device(), "{err}");
     // A write that leaves the twin exactly as it was is refused too once the module is known to mirror (a
     // module of the other kind is never concluded from it).
     host.with_device(|d| d.set_variants(&[Variant::NoTwinMirror]));
     let err = m.set_checked(Param::TargetVel, Value::F32(0.5)).unwrap_err();
-    assert!(matches!(err, Error::Mismatch { param: Param::TargetVel, .. }), "{err}");
+    assert!(matches!(err, Error::ReadBack { param: Param::TargetVel, .. }), "{err}");
     assert_eq!(bus.session(|s| s.findings(addr(1))).target_vel_twin, Some(true), "still known to mirror");
 }
 

@@ -211,7 +211,7 @@ fn rs232_arms_the_watchdog_with_libm5api_broadcasts_unless_told_not_to() {
     assert!(!bus.watchdog_reliable());
     let sent = faults.bytes_sent(Direction::HostToDevice);
     let err = bus.enable_watchdog(&addrs(&[1])).unwrap_err();
-    assert!(matches!(err, Error::Unsupported(_)) && err.is_usage(), "{err}");
+    assert!(matches!(err, Error::NotSupported(_)) && err.is_usage(), "{err}");
     assert!(err.to_string().contains("watchdog_on_rs232"), "the setting is named: {err}");
     assert_eq!(faults.bytes_sent(Direction::HostToDevice), sent, "nothing was sent");
     assert!(!bus.watchdog_served());

@@ -34,7 +34,7 @@ impl Ctx {
         if let Request::Set(Param::Config, value) = request {
             let word = value.as_u32().map(ConfigWord);
             if self.core().can && word.is_some_and(|w| w.contains(ConfigFlag::DisableAck)) {
-                return Err(Error::Unsupported(
+                return Err(Error::NotSupported(
                     "CONFIGID_MOD_DISABLE_ACK: this client needs the acknowledges of its commands".into(),
                 ));
             }
@@ -66,7 +66,7 @@ impl Ctx {
                 None => break,
             }
         }
-        Err(last.unwrap_or_else(|| Error::Unsupported("no answer was collected".into())))
+        Err(last.unwrap_or_else(|| Error::NotSupported("no answer was collected".into())))
     }
 
     /// Several requests to several modules; on CAN all are sent at once and the acknowledges collected in
@@ -111,7 +111,7 @@ impl Ctx {
                 results[i] = Some(answer.and_then(|r| check_reply(*address, request, r)));
             }
         }
-        results.into_iter().map(|r| r.unwrap_or_else(|| Err(Error::Unsupported("not sent".into())))).collect()
+        results.into_iter().map(|r| r.unwrap_or_else(|| Err(Error::NotSupported("not sent".into())))).collect()
     }
 
     /// Reads `param` of every module in `addresses` (on CAN in one round).
@@ -244,7 +244,7 @@ impl Ctx {
             return Ok(k);
         }
         self.config_word(address).await?;
-        self.known_kind(address).ok_or_else(|| Error::Unsupported("the module's kind was not kept".into()))
+        self.known_kind(address).ok_or_else(|| Error::NotSupported("the module's kind was not kept".into()))
     }
 
     /// Refuses a quantity whose unit does not fit the module (rad for a linear module, m for a rotary one);

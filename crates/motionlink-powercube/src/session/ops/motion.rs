@@ -171,7 +171,7 @@ impl Ctx {
         if same {
             Ok(Readback::same(read))
         } else {
-            Err(Error::Mismatch {
+            Err(Error::ReadBack {
                 address: crate::model::Address::checked(a),
                 param,
                 wrote: raw(&value),

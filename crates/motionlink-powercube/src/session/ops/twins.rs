@@ -14,7 +14,7 @@
 //!   position target is not written on a guess), nor a module in motion: the write is then reported as not
 //!   verifiable.
 //! - Once a pair is known to mirror, every write is checked strictly (a twin that does not show the value
-//!   written is [`Error::Mismatch`]); once known to be kept apart, writes are made as the manual describes
+//!   written is [`Error::ReadBack`]); once known to be kept apart, writes are made as the manual describes
 //!   them and their results say that they could not be read back.
 //!
 //! A module that mirrors but ignores a write it acknowledged looks, the first time, like one that keeps the
@@ -126,7 +126,7 @@ impl Ctx {
     /// The error of a twin that shows `ticks` after `param` was written as `value` (`expected` ticks).
     pub(crate) fn twin_mismatch(a: u8, param: Param, value: f64, expected: f64, ticks: f64, ratio: f64) -> Error {
         let twin = param.read_back_as().unwrap_or(param);
-        Error::Mismatch {
+        Error::ReadBack {
             address: crate::model::Address::checked(a),
             param,
             wrote: format!("{value:.6} ({expected} ticks)"),

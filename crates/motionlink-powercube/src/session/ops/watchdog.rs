@@ -35,12 +35,12 @@ impl Ctx {
             (core.can, core.config.watchdog_on_rs232, core.failed)
         };
         if !can && !on_rs232 {
-            return Err(Error::Unsupported(
+            return Err(Error::NotSupported(
                 "the watchdog on RS232 is switched off in this session's settings (Config::watchdog_on_rs232)".into(),
             ));
         }
         if failed {
-            return Err(Error::Unsupported(
+            return Err(Error::NotSupported(
                 "this session has failed (its line broke or a stop was not confirmed): it cannot serve a watchdog"
                     .into(),
             ));
