@@ -212,15 +212,18 @@ pub enum Error {
     CancelledBeforeSending(Command),
     /// An action failed, and the stop that followed was not confirmed by the unit.
     #[error(
-        "{cause}; then the stop ({stop}) was NOT confirmed by the unit ({detail}): the actuators may still be \
+        "{cause}; then the stop ({}) was NOT confirmed by the unit ({detail}): the actuators may still be \
          moving. The unit stops remote motions by itself 500 ms after the last RC it receives (its watchdog); \
-         this program sends none once it has ended"
+         this program sends none once it has ended",
+        crate::model::stop_words(functions, *mode)
     )]
     StopUnconfirmed {
         /// What went wrong first.
         cause: Box<Error>,
-        /// The stop that was tried ("RS of F1").
-        stop: String,
+        /// The functions the stop was sent to.
+        functions: Vec<crate::model::Function>,
+        /// How (fast or soft).
+        mode: crate::model::StopMode,
         /// Why it is not confirmed.
         detail: String,
     },
@@ -361,7 +364,8 @@ mod tests {
         assert_eq!(refused.class().exit_code(), 1);
         let unconfirmed = Error::StopUnconfirmed {
             cause: Box::new(Error::SessionLost("x".into())),
-            stop: "RS".into(),
+            functions: vec![crate::model::Function::from_id(0).unwrap()],
+            mode: crate::model::StopMode::Fast,
             detail: "y".into(),
         };
         assert_eq!(unconfirmed.class(), ErrorClass::Transport(TransportKind::Disconnected));

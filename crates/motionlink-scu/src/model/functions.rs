@@ -203,6 +203,24 @@ pub fn function_list(functions: &[Function]) -> String {
     functions.iter().map(|f| format!("F{}", f.number())).collect::<Vec<_>>().join(", ")
 }
 
+/// A stop in words: "fast RS of F1", "soft RS of F1, F2", "RS of F11" (a function that is not a motion
+/// function, or one soft stop).
+pub fn stop_words(functions: &[Function], mode: StopMode) -> String {
+    let names: Vec<String> = functions
+        .iter()
+        .map(|f| match f {
+            Function::Motion(m) => m.to_string(),
+            other => other.to_string(),
+        })
+        .collect();
+    let motion = functions.iter().all(|f| matches!(f, Function::Motion(_)));
+    match (motion, mode) {
+        (true, StopMode::Fast) => format!("fast RS of {}", names.join(", ")),
+        (true, StopMode::Soft) if functions.len() > 1 => format!("soft RS of {}", names.join(", ")),
+        _ => format!("RS of {}", names.join(", ")),
+    }
+}
+
 /// Where an RE on a motion function moves to (table 6, para_ID motion_direction).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum MotionDirection {

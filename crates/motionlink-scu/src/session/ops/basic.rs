@@ -25,13 +25,15 @@ pub(crate) async fn single(ctx: &Ctx, request: PreparedRequest) -> Result<Output
     let sent = !matches!(result, Err(Error::CancelledBeforeSending(_)));
     if let (true, true, Some(f)) = (ctx.cancelled(), sent, starts) {
         // The caller gave up while its RE was under way: it may have started a motion.
-        let name = crate::model::Function::from_id(f).map_or(format!("function id {f}"), |f| f.to_string());
+        let function = crate::model::Function::from_id(f);
+        let name = function.map_or(format!("function id {f}"), |f| f.to_string());
         let rs = Req::op(PreparedRequest::stop(f, StopMode::Fast)).when(Schedule::Now);
         return match ctx.firm().send(rs).await.and_then(|r| r.ack(Command::Stop)) {
             Ok(_) => Err(Error::Interrupted(format!("cancelled; {name} stopped (the unit acknowledged RS)"))),
             Err(e) => Err(Error::StopUnconfirmed {
                 cause: Box::new(Error::Interrupted(format!("cancelled while the RE of {name} was under way"))),
-                stop: format!("fast RS of {name}"),
+                functions: function.into_iter().collect(),
+                mode: StopMode::Fast,
                 detail: e.to_string(),
             }),
         };

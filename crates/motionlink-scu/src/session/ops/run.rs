@@ -164,11 +164,9 @@ impl Run {
                     Ok(Output::Run(RunReport { function, duration, rest }))
                 }
             }
-            Err((detail, _)) if ctx.cancelled() => Err(Error::StopUnconfirmed {
-                cause: Box::new(Error::Interrupted(format!("cancelled while {function} ran"))),
-                stop: stop.describe(),
-                detail,
-            }),
+            Err((detail, _)) if ctx.cancelled() => {
+                Err(stop.unconfirmed(Error::Interrupted(format!("cancelled while {function} ran")), detail))
+            }
             Err((_, e)) => Err(e),
         }
     }

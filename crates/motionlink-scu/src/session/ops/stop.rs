@@ -47,22 +47,9 @@ impl Stop {
         Stop { functions, mode, watch }
     }
 
-    /// "fast RS of F1", "soft RS of F1, F2".
-    pub fn describe(&self) -> String {
-        let names: Vec<String> = self
-            .functions
-            .iter()
-            .map(|f| match f {
-                Function::Motion(m) => m.to_string(),
-                other => other.to_string(),
-            })
-            .collect();
-        let motion = self.functions.iter().all(|f| matches!(f, Function::Motion(_)));
-        match (motion, self.mode) {
-            (true, StopMode::Fast) => format!("fast RS of {}", names.join(", ")),
-            (true, StopMode::Soft) if self.functions.len() > 1 => format!("soft RS of {}", names.join(", ")),
-            _ => format!("RS of {}", names.join(", ")),
-        }
+    /// The error of `cause` (what went wrong first) when this stop is then not confirmed (`detail`).
+    pub(crate) fn unconfirmed(&self, cause: Error, detail: String) -> Error {
+        Error::StopUnconfirmed { cause: Box::new(cause), functions: self.functions.clone(), mode: self.mode, detail }
     }
 
     fn patience(&self) -> Duration {
@@ -146,7 +133,7 @@ impl Stop {
 /// The error to report after `cause` ended an action and the stop that followed ended with `stopped`:
 /// `cause` (a cancel with the position where its actuator came to rest) when the stop was confirmed,
 /// [`Error::StopUnconfirmed`] otherwise.
-pub(crate) fn after_stop(cause: Error, stopped: Result<[PositionCounts; 6], Unconfirmed>, stop: String) -> Error {
+pub(crate) fn after_stop(cause: Error, stopped: Result<[PositionCounts; 6], Unconfirmed>, stop: &Stop) -> Error {
     match stopped {
         Ok(p) => match cause {
             Error::Cancelled { actuator, .. } => {
@@ -154,7 +141,7 @@ pub(crate) fn after_stop(cause: Error, stopped: Result<[PositionCounts; 6], Unco
             }
             other => other,
         },
-        Err((detail, _)) => Error::StopUnconfirmed { cause: Box::new(cause), stop, detail },
+        Err((detail, _)) => stop.unconfirmed(cause, detail),
     }
 }
 
@@ -169,10 +156,10 @@ pub(crate) async fn stop(
     let stop = Stop::new(Function::Motion(function), mode, watch);
     let stopped = stop.run(ctx).await.rest;
     match after {
-        Some(cause) => Err(after_stop(*cause, stopped.map(|(_, p)| p), stop.describe())),
+        Some(cause) => Err(after_stop(*cause, stopped.map(|(_, p)| p), &stop)),
         None => match stopped {
             Ok((_, p)) => Ok(Output::Rest(stop.watch.iter().map(|a| (*a, p[usize::from(a.number() - 1)])).collect())),
-            Err((detail, e)) => Err(Error::StopUnconfirmed { cause: Box::new(e), stop: stop.describe(), detail }),
+            Err((detail, e)) => Err(stop.unconfirmed(e, detail)),
         },
     }
 }
@@ -197,6 +184,6 @@ pub(crate) async fn stop_motions(ctx: &Ctx, functions: Vec<MotionFunction>, mode
                 .collect();
             Ok(Output::Stopped(StopReport { functions, mode, refused, at_rest }))
         }
-        Err((detail, e)) => Err(Error::StopUnconfirmed { cause: Box::new(e), stop: stop.describe(), detail }),
+        Err((detail, e)) => Err(stop.unconfirmed(e, detail)),
     }
 }

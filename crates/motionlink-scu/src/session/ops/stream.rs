@@ -84,11 +84,9 @@ pub(crate) async fn targets(
         let stop = Stop::new(Function::Motion(function), StopMode::Fast, watch);
         return match stop.run(ctx).await.rest {
             Ok(_) => Err(Error::Interrupted(format!("cancelled; {function} stopped (the unit confirmed it)"))),
-            Err((detail, _)) => Err(Error::StopUnconfirmed {
-                cause: Box::new(Error::Interrupted(format!("cancelled while {function} was started"))),
-                stop: stop.describe(),
-                detail,
-            }),
+            Err((detail, _)) => {
+                Err(stop.unconfirmed(Error::Interrupted(format!("cancelled while {function} was started")), detail))
+            }
         };
     }
     result.map(|_| Output::Done)

@@ -221,7 +221,7 @@ impl Move {
     async fn stop(&self, ctx: &Ctx, cause: Error) -> Error {
         let stop = Stop::new(Function::Motion(self.spec.function), StopMode::Fast, self.actuators());
         let stopped = stop.run(ctx).await.rest;
-        after_stop(cause, stopped.map(|(_, p)| p), stop.describe())
+        after_stop(cause, stopped.map(|(_, p)| p), &stop)
     }
 }
 
