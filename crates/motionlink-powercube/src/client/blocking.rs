@@ -74,7 +74,8 @@ fn driver(session: Session, port: Port, clock: SharedClock, config: &Config) -> 
 
 impl Client {
     /// Opens the port `url` names (a serial device or TCP port at [`Config::baud`], an SLCAN adapter at
-    /// [`Config::can_bitrate`], a SocketCAN interface; not `sim`) and starts a session on it.
+    /// [`Config::can_bitrate`], a SocketCAN interface; not `sim`) and starts a session on it. The timing
+    /// defaults differ by carrier: give [`Config::can`] for a CAN port and [`Config::rs232`] for the others.
     pub fn open(url: &PortUrl, clock: SharedClock, config: Config) -> Result<Client, Error> {
         let link = PortLink::open_configured(url, &config, &clock)?;
         Client::with_link(link, clock, config)
