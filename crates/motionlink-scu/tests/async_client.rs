@@ -35,6 +35,27 @@ async fn eventually(mut done: impl FnMut() -> bool) -> bool {
 }
 
 #[test]
+fn a_session_opened_by_the_port_s_name_runs_over_tcp_and_its_close_says_what_it_stopped() {
+    let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+    let clock = RealClock::shared();
+    let unit = Arc::new(std::sync::Mutex::new(Emulator::new(SimConfig::default()).unwrap()));
+    let server = motionlink_link::emulator::serve_tcp("127.0.0.1:0", Arc::clone(&unit), clock.clone()).unwrap();
+    runtime.block_on(async {
+        let url = server.address().parse().unwrap();
+        let config = Config { function_map: FunctionMap::scp11(), ..Config::default() };
+        let client = AsyncClient::open(&url, clock, config).await.unwrap();
+        let f1 = MotionFunction::new(1).unwrap();
+        client.start_motion(f1, motionlink_scu::model::MotionDirection::Out).await.unwrap();
+        assert_eq!(client.started().len(), 1);
+        // The close stops F1 (RS) and says so.
+        let stopped = client.close().await.unwrap();
+        assert_eq!(stopped.iter().map(|f| f.id()).collect::<Vec<_>>(), [f1.id()]);
+    });
+    assert_eq!(unit.lock().unwrap().mode(), RemoteMode::Off);
+    assert!(!unit.lock().unwrap().any_moving(), "F1 was stopped");
+}
+
+#[test]
 fn writes_are_read_back_and_a_move_reaches_its_target() {
     let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
     runtime.block_on(async {
