@@ -47,7 +47,7 @@
 //! stream.set_speed(pct(40))?;
 //! for (a, p) in stream.stop(StopMode::Soft)? { println!("{a} rests at {p}"); }
 //! for code in client.error_history()? { println!("{code}"); }  // named bits
-//! client.close()?;                                              // RS for anything it started, then RA: confirmed?
+//! let stopped = client.close()?;                                // RS for anything it started, then RA: what it stopped
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
