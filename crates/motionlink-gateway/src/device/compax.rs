@@ -194,18 +194,12 @@ impl Compax {
 
 /// Checks the device's default `key` (an option of actions, [`super::keys::COMPAX`]) by its argument's rule.
 pub(super) fn check_default(key: &str, text: &str) -> Result<(), String> {
-    fn rule<T: std::str::FromStr>(text: &str) -> Result<(), String>
-    where
-        T::Err: std::fmt::Display,
-    {
-        text.parse::<T>().map(drop).map_err(|e| e.to_string())
-    }
     match key {
-        "speed" => rule::<SpeedPercent>(text),
-        "accel" => rule::<RampMs>(text),
-        "binary" => text.parse::<bool>().map(drop).map_err(|_| "give true or false".into()),
-        "timeout_s" => rule::<TimeLimit>(text),
-        "min_pos" | "max_pos" => rule::<Position>(text),
+        "speed" => super::parses::<SpeedPercent>(text),
+        "accel" => super::parses::<RampMs>(text),
+        "binary" => super::flag(text),
+        "timeout_s" => super::parses::<TimeLimit>(text),
+        "min_pos" | "max_pos" => super::parses::<Position>(text),
         other => Err(format!("{other} is no option of an action")),
     }
 }

@@ -318,6 +318,19 @@ pub fn unknown_op(family: &str, op: &str, ops: &[&str]) -> ReplyError {
     ))
 }
 
+/// Whether `text` is a value of `T` by `T`'s own rule (a device table's default for an action's option).
+pub(super) fn parses<T: std::str::FromStr>(text: &str) -> Result<(), String>
+where
+    T::Err: std::fmt::Display,
+{
+    text.parse::<T>().map(drop).map_err(|e| e.to_string())
+}
+
+/// Whether `text` is a flag's value (a device table's default for an action's flag).
+pub(super) fn flag(text: &str) -> Result<(), String> {
+    text.parse::<bool>().map(drop).map_err(|_| "give true or false".into())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -184,17 +184,11 @@ impl PowerCube {
 /// Checks the device's default `key` (an option of actions, [`super::keys::POWERCUBE`]) by its argument's
 /// rule.
 pub(super) fn check_default(key: &str, text: &str) -> Result<(), String> {
-    fn rule<T: std::str::FromStr>(text: &str) -> Result<(), String>
-    where
-        T::Err: std::fmt::Display,
-    {
-        text.parse::<T>().map(drop).map_err(|e| e.to_string())
-    }
     match key {
-        "vel" => rule::<MoveVelocity>(text),
-        "acc" => rule::<MoveAcceleration>(text),
-        "tolerance" => rule::<Tolerance>(text),
-        "timeout_s" => rule::<MotionTimeout>(text),
+        "vel" => super::parses::<MoveVelocity>(text),
+        "acc" => super::parses::<MoveAcceleration>(text),
+        "tolerance" => super::parses::<Tolerance>(text),
+        "timeout_s" => super::parses::<MotionTimeout>(text),
         other => Err(format!("{other} is no option of an action")),
     }
 }

@@ -179,9 +179,9 @@ fn item(args: &mut Args) -> Result<Item, ReplyError> {
 pub(super) fn check_default(options: &UnitOptions, key: &str, text: &str) -> Result<(), String> {
     match key {
         "speed" => Speed::parse(text, options.speed_mode).map(drop).map_err(|e| e.to_string()),
-        "function" => text.parse::<MotionFunction>().map(drop).map_err(|e| e.to_string()),
-        "soft" => text.parse::<bool>().map(drop).map_err(|_| "give true or false".into()),
-        "seconds" => text.parse::<RunLimit>().map(drop).map_err(|e| e.to_string()),
+        "function" => super::parses::<MotionFunction>(text),
+        "soft" => super::flag(text),
+        "seconds" => super::parses::<RunLimit>(text),
         other => Err(format!("{other} is no option of an action")),
     }
 }
