@@ -7,7 +7,8 @@ pub struct Event<'a> {
     /// `motion_started`, `motion_ended`, `lease_expired`, `error`, `port_released` (a `stop` from another
     /// process took the device's port), `port_taken` (the gateway serves it again), `port_failed` (the
     /// device's port failed: its session is gone), `port_reopened` (served again), `device_silent` (the
-    /// device does not answer over a port that is fine), `device_answers` (it answers again).
+    /// device does not answer over a port that is fine), `state_failed` (a state sample failed otherwise),
+    /// `device_answers` (a state sample succeeds again).
     pub event: &'static str,
     /// The request's (or motion's) id, if there is one.
     pub id: Option<&'a str>,

@@ -273,9 +273,9 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
 /// any motion the device reports), else once a second.
 /// A sample that finds the device's port gone ends the sampler and tells the loop (`failed`, with the
 /// session's `generation`). A sample that fails otherwise (the device does not answer over a port that is
-/// fine: powered off, its cable out) publishes the unavailable state `unavailable` makes in place of the
-/// last state (which would otherwise stand, retained, as if the device were at rest), once, and tells the
-/// loop; the next sample that succeeds publishes the state again and tells the loop too.
+/// fine: powered off, its cable out; or it refuses a read) publishes the unavailable state `unavailable`
+/// makes in place of the last state (which would otherwise stand, retained, as if the device were at rest),
+/// once, and tells the loop; the next sample that succeeds publishes the state again and tells the loop too.
 #[allow(clippy::too_many_arguments)]
 async fn sample_states(
     device: Arc<Device>,

@@ -166,5 +166,5 @@ async fn a_device_that_stops_answering_is_published_unavailable_until_it_answers
     c.wait("answers", 5 * S, |m| m.topic == "motionlink/sl/axis/events" && m.payload.contains("device_answers")).await;
     let (code, err) = gw.signal(libc::SIGTERM);
     assert_eq!(code, Some(143), "{err}");
-    assert!(err.contains("axis: does not answer") && err.contains("axis: answers again"), "{err}");
+    assert!(err.contains("axis: does not answer") && err.contains("axis: its state is read again"), "{err}");
 }

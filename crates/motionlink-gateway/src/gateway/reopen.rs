@@ -117,20 +117,22 @@ impl Gateway {
         }
         let event = match &error {
             Some(e) => {
+                // A timeout is a device that does not answer; anything else (a refusal, a corrupt answer) is
+                // a state that could not be read.
+                let (event, what) = match e.kind.as_str() {
+                    "timeout" => ("device_silent", "does not answer"),
+                    _ => ("state_failed", "its state could not be read"),
+                };
                 let message = format!(
-                    "{device}: does not answer ({}); its state is unavailable until it answers again, and requests \
-                     to it are sent and answered as the device answers them",
+                    "{device}: {what} ({}); its state is unavailable until a state sample succeeds again, and \
+                     requests to it are sent and answered as the device answers them",
                     e.message
                 );
                 eprintln!("motionlink gateway: {message}");
-                serde_json::to_string(&Event {
-                    message: Some(&message),
-                    error: Some(e),
-                    ..Event::new("device_silent", None)
-                })
+                serde_json::to_string(&Event { message: Some(&message), error: Some(e), ..Event::new(event, None) })
             }
             None => {
-                let message = format!("{device}: answers again");
+                let message = format!("{device}: its state is read again");
                 eprintln!("motionlink gateway: {message}");
                 serde_json::to_string(&Event { message: Some(&message), ..Event::new("device_answers", None) })
             }
