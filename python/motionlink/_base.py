@@ -8,7 +8,7 @@ import atexit
 import os
 import time
 import weakref
-from typing import Any, Callable, Dict, Iterator, Optional, TypeVar
+from typing import Any, Callable, Dict, Iterator, List, Optional, TypeVar
 
 from . import _native
 from ._probe import warn_profile_notices
@@ -86,12 +86,20 @@ class ClientBase:
         none is kept for this port, its identity differs (a warning said so), or ``profile=False``."""
         return self._native.profile  # type: ignore[no-any-return]
 
-    def close(self) -> None:
+    def started(self) -> List[int]:
+        """The ids of what this session set in motion and has not seen stop: SCU motion function numbers
+        (1..10), PowerCube module addresses, COMPAX drive addresses."""
+        return list(self._native.started())
+
+    def close(self) -> List[int]:
         """Ends the session: stops what it set in motion and still moves, then leaves the device as the
-        family's library leaves it (see docs/safety.md). Raises if the stop could not be
-        confirmed. Closing twice does nothing."""
+        family's library leaves it (see docs/safety.md). Returns the ids of what it stopped, as
+        :meth:`started` names them (SCU motion function numbers, PowerCube modules, COMPAX drives; while
+        another thread's call still holds the session, that call is cancelled and these are the ones
+        being stopped). Raises if the stop could not be confirmed. Closing twice does nothing (and
+        returns ``[]``)."""
         _open.discard(self)
-        self._native.close()
+        return list(self._native.close())
 
     def _close_at_exit(self) -> None:
         self.close()
@@ -215,6 +223,11 @@ class AsyncClientBase:
         (see :attr:`ClientBase.profile`)."""
         return self._client().profile  # type: ignore[no-any-return]
 
+    def started(self) -> List[int]:
+        """The ids of what this session set in motion and has not seen stop (see
+        :meth:`ClientBase.started`)."""
+        return list(self._client().started())
+
     async def open(self: "_A") -> "_A":
         """Opens the session (what ``async with`` does)."""
         return await self.__aenter__()
@@ -230,19 +243,24 @@ class AsyncClientBase:
     async def __aexit__(self, *exc: Any) -> None:
         await self.aclose()
 
-    async def aclose(self) -> None:
+    async def aclose(self) -> List[int]:
         """Ends the session: cancels the operations still under way on it (which stops their motions),
-        then stops what it set in motion and still moves. Raises if the stop could not be confirmed.
-        Closing twice does nothing."""
+        then stops what it set in motion and still moves. Returns the ids of what it stopped (as
+        :meth:`ClientBase.close` does). Raises if the stop could not be confirmed. Closing twice does
+        nothing (and returns ``[]``)."""
         native = self._native
-        if native is not None:
-            _open.discard(self)
-            loop = asyncio.get_running_loop()
-            for task, fut in list(self._calls.items()):
-                await loop.run_in_executor(None, task.cancel)
-                if not fut.done():
-                    fut.set_exception(self._closed_under_it())
-            await run_native(native.close)
+        if native is None:
+            return []
+        _open.discard(self)
+        # What is in motion now: the cancelled calls stop theirs, the close the rest.
+        stopped = list(native.started()) if native.is_open else []
+        loop = asyncio.get_running_loop()
+        for task, fut in list(self._calls.items()):
+            await loop.run_in_executor(None, task.cancel)
+            if not fut.done():
+                fut.set_exception(self._closed_under_it())
+        ended = await run_native(native.close)
+        return stopped + [i for i in ended if i not in stopped]
 
     def _closed_under_it(self) -> Cancelled:
         return Cancelled(

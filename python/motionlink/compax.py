@@ -155,10 +155,6 @@ class Compax(_Operations, ClientBase):
         bits, S18 error history."""
         return self.status([], drive)
 
-    def started(self) -> List[int]:
-        """The drives this session set in motion and has not seen stop."""
-        return list(self._native.started())
-
     def watch(
         self, drive: Optional[int] = None, *, interval_ms: int = 200, count: Optional[int] = None
     ) -> Iterator[CompaxSample]:

@@ -151,10 +151,6 @@ class PowerCube(_Operations, ClientBase):
         variants (``motionlink sim powercube --variant``) show what each probe finds."""
         return ProbeReport(self._native.probe(exchanges, low_latency, save_setting(save)))
 
-    def started(self) -> List[int]:
-        """The modules this session set in motion and has not seen stop."""
-        return list(self._native.started())
-
     def watch(
         self, module: Optional[int] = None, *, interval_ms: int = 200, count: Optional[int] = None
     ) -> Iterator[PowerCubeSample]:

@@ -197,10 +197,6 @@ class Scu(_Operations, ClientBase):
         ``save`` writes its profile (``True``: profiles.toml beside devices.toml; a path: that file)."""
         return ProbeReport(self._native.probe(exchanges, low_latency, save_setting(save)))
 
-    def started(self) -> List[int]:
-        """The motion functions this session started and has not stopped."""
-        return list(self._native.started())
-
     def watch(self, *, interval_ms: int = 250, count: Optional[int] = None) -> Iterator[ScuSample]:
         """Samples of every connected actuator (position, moving, flags, current) every ``interval_ms``."""
 

@@ -36,7 +36,10 @@ pub fn to_py<'py, T: IntoPyObject<'py>>(py: Python<'py>, record: PyResult<T>) ->
 /// stops the motion) and waits for the end ([`crate::wait::interruptible`]); `quick` without the GIL. The
 /// async face spawns it: cancelling the task drops its future (the family's client stops what it set in
 /// motion), and runs the `else` future. An operation marked `blocking` is the blocking client's only.
-/// Both classes get the getters `port`, `profile` and `profile_notices` of their fields of those names.
+/// Both classes get the getters `port`, `profile` and `profile_notices` of their fields of those names,
+/// `is_open`, `started` and `close` (and the async class `close_blocking`) from the family's
+/// [`crate::session::Session`] / [`crate::session::AsyncSession`] over their field `slot` (the blocking
+/// class's `token` and `close_bound` too), and a `Drop` that ends a session its owner did not close.
 /// (A `let` among the argument checks takes no type annotation, which the macro's `stmt` does not parse: a
 /// turbofish says the type instead.)
 macro_rules! faces {
@@ -152,7 +155,20 @@ macro_rules! faces {
     (@start $heads:tt both { $($both:tt)* } blocking { $($bextra:tt)* } asynch { $($aextra:tt)* } $($ops:tt)*) => {
         faces!(@munch ($) $heads { $($both)* $($bextra)* } { $($both)* $($aextra)* } $($ops)*);
     };
-    ($blocking:ident / $asynch:ident, $err:ty; both { $($both:tt)* } $($rest:tt)*) => {
+    ($blocking:ident / $asynch:ident, $err:ty; both { $($both:tt)* } blocking { $($bextra:tt)* } asynch { $($aextra:tt)* } $($rest:tt)*) => {
+        impl Drop for $blocking {
+            fn drop(&mut self) {
+                crate::faces::Closing::closing(self);
+                crate::session::drop_unclosed(&self.slot, &self.token, self.close_bound);
+            }
+        }
+
+        impl Drop for $asynch {
+            fn drop(&mut self) {
+                crate::session::drop_unclosed_async(&self.slot);
+            }
+        }
+
         faces!(@start [$blocking $asynch $err]
             both {
                 /// The port, as the link describes it.
@@ -174,9 +190,55 @@ macro_rules! faces {
                     self.profile.notices.clone()
                 }
 
+                /// True until closed.
+                #[getter]
+                fn is_open(&self) -> bool {
+                    self.slot.is_open()
+                }
+
                 $($both)*
+            }
+            blocking {
+                /// The ids of what this session set in motion and has not seen stop (SCU motion function
+                /// numbers 1..10, PowerCube module and COMPAX drive addresses).
+                fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
+                    Ok(crate::session::Session::started_ids(&*self.client(py)?))
+                }
+
+                /// Ends the session: stops what it set in motion (the family's `close`); the ids of what it
+                /// stopped (an exception if that was not confirmed). Closing twice does nothing.
+                fn close(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
+                    crate::faces::Closing::closing(self);
+                    crate::session::close(py, &self.slot, &self.token, self.close_bound)
+                }
+
+                $($bextra)*
+            }
+            asynch {
+                /// The ids of what this session set in motion and has not seen stop.
+                fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
+                    Ok(crate::session::AsyncSession::started_ids(&*self.client(py)?))
+                }
+
+                /// Ends the session (stops what it set in motion) on the runtime: `done(ok, ids)`.
+                fn close(&self, done: Py<PyAny>) -> NativeTask {
+                    crate::session::close_async(&self.slot, done)
+                }
+
+                /// Ends the session from synchronous code (atexit), waiting without the GIL.
+                fn close_blocking(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
+                    crate::session::close_async_blocking(py, &self.slot)
+                }
+
+                $($aextra)*
             }
             $($rest)*
         );
     };
+}
+
+/// What a blocking native client ends before its session closes (COMPAX: the watches still running).
+pub trait Closing {
+    /// Called by `close()` and by a drop of a client not closed, before the session ends.
+    fn closing(&self) {}
 }

@@ -11,6 +11,7 @@ mod emulator;
 mod errors;
 mod powercube;
 mod scu;
+mod session;
 mod wait;
 
 use pyo3::prelude::*;

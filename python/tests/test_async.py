@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import time
+from typing import Any
 
 import pytest
 from _events import EVENTS
@@ -93,24 +94,30 @@ def test_an_async_client_must_be_opened() -> None:
 @pytest.mark.parametrize("family", ["scu", "powercube", "compax"])
 def test_closing_an_async_client_cancels_its_calls_under_way(family: str) -> None:
     """Leaving `async with` while a move's task is still under way stops the move and ends the session
-    (not only once that task is cancelled by someone else, or never); the move's awaiter gets Cancelled."""
+    (not only once that task is cancelled by someone else, or never); the move's awaiter gets Cancelled.
+    `aclose()` (what leaving the block calls) returns what it stopped: the function, module or drive the
+    move had set in motion; closing again returns []."""
     started, stopped, closed = EVENTS[family]
     with motionlink.Emulator(family, serve="tcp") as emu:
 
         async def main() -> None:
+            client: Any
             if family == "scu":
-                async with motionlink.AsyncScu(emu.port) as scu:
-                    move = asyncio.create_task(scu.move_to(1, 800, speed=5))
-                    await in_thread(lambda: emu.wait_event(started, 10))
+                client = motionlink.AsyncScu(emu.port)
+                moving = lambda: client.move_to(1, 800, speed=5)  # noqa: E731
             elif family == "powercube":
-                async with motionlink.AsyncPowerCube(emu.port) as cube:
-                    move = asyncio.create_task(cube.move_to(3.0, velocity=0.1))
-                    await in_thread(lambda: emu.wait_event(started, 10))
+                client = motionlink.AsyncPowerCube(emu.port)
+                moving = lambda: client.move_to(3.0, velocity=0.1)  # noqa: E731
             else:
-                async with motionlink.AsyncCompax(emu.port) as drive:
-                    move = asyncio.create_task(drive.move_to(100000.0, speed_percent=1))
-                    await in_thread(lambda: emu.wait_event(started, 10))
+                client = motionlink.AsyncCompax(emu.port)
+                moving = lambda: client.move_to(100000.0, speed_percent=1)  # noqa: E731
+            async with client:
+                move = asyncio.create_task(moving())
+                await in_thread(lambda: emu.wait_event(started, 10))
+                assert client.started() == [1]
+                assert await client.aclose() == [1]
             left_at = time.time()
+            assert await client.aclose() == []
             # Stopped, and the session ended, by the time the block was left.
             assert emu.wait_event(stopped, 0).at <= left_at
             if closed is not None:

@@ -80,6 +80,26 @@ def test_leaving_the_block_stops_the_motion(family: str, leave_by: object) -> No
 
 
 @pytest.mark.parametrize("family", ["powercube", "scu", "compax"])
+def test_close_returns_what_it_stopped(family: str) -> None:
+    """close() stops the motion another thread's call set going (cancelling that call) and returns what it
+    stopped, as started() names it; closing again returns []."""
+    started, stopped, _ = EVENTS[family]
+    with motionlink.Emulator(family) as emu:
+        client, op = open_client(family, emu)
+        assert client.started() == []
+        mover = run_in_thread(op)
+        emu.wait_event(started, 10)
+        assert client.started() == [1]
+        assert client.close() == [1]
+        emu.wait_event(stopped, 0)
+        mover.join(5)
+        assert isinstance(mover.outcome[0], motionlink.Cancelled), mover.outcome  # type: ignore[attr-defined]
+        assert client.close() == []
+        with pytest.raises(motionlink.UsageError, match="closed"):
+            client.started()
+
+
+@pytest.mark.parametrize("family", ["powercube", "scu", "compax"])
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_ctrl_c_stops_the_motion_within_100_ms_and_raises_keyboard_interrupt(family: str, signum: int) -> None:
     """SIGINT raises KeyboardInterrupt; SIGTERM with the README's handler raises SystemExit(143). Both stop

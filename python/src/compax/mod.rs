@@ -26,7 +26,7 @@ use crate::common::{Int, Record, Slot};
 use crate::emulator::{clock, InProcess};
 use crate::emulator::{target, Target};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::{block_on_runtime, deliver, spawn_task, NativeTask};
+use crate::wait::{deliver, spawn_task, NativeTask};
 
 const FAMILY: &str = "compax";
 
@@ -201,6 +201,56 @@ impl AsyncCompaxClient {
     }
 }
 
+impl crate::faces::Closing for CompaxClient {
+    /// The watches still running end first.
+    fn closing(&self) {
+        self.end_watches();
+    }
+}
+
+/// Drive addresses, as `started()` names them.
+fn addresses(drives: Vec<Address>) -> Vec<u8> {
+    drives.into_iter().map(Address::get).collect()
+}
+
+/// The drives of a stop, or an error naming those whose stop was not confirmed.
+fn stopped(report: motionlink_compax::error::StopReport) -> Result<Vec<u8>, Failure> {
+    if report.all_confirmed() {
+        Ok(addresses(report.drives.into_iter().map(|(a, _)| a).collect()))
+    } else {
+        Err(Failure::new(motionlink_link::error::ErrorClass::Device, FAMILY, format!("closing: {report}")))
+    }
+}
+
+impl crate::session::Session for Client {
+    fn started_ids(&self) -> Vec<u8> {
+        addresses(self.started())
+    }
+
+    fn end(self) -> Result<Vec<u8>, Failure> {
+        self.close().map_err(|e| e.failure()).and_then(stopped)
+    }
+
+    /// The call under way was cancelled: the drives it set in motion are stopped here.
+    fn end_shared(shared: Arc<Self>) -> Result<Vec<u8>, Failure> {
+        stopped(shared.stop_started())
+    }
+}
+
+impl crate::session::AsyncSession for AsyncClient {
+    fn started_ids(&self) -> Vec<u8> {
+        addresses(self.started())
+    }
+
+    async fn end(self) -> Result<Vec<u8>, Failure> {
+        self.close().await.map_err(|e| e.failure()).and_then(stopped)
+    }
+
+    async fn end_shared(shared: Arc<Self>) -> Result<Vec<u8>, Failure> {
+        stopped(shared.stop_started().await)
+    }
+}
+
 faces! {
     CompaxClient / AsyncCompaxClient, Error;
 
@@ -255,17 +305,6 @@ faces! {
             crate::common::probe_py(py, FAMILY, save, probe, motionlink_compax::probe::save_profile)
         }
 
-        /// True until closed.
-        #[getter]
-        fn is_open(&self) -> bool {
-            self.slot.is_open()
-        }
-
-        /// Drives this session set in motion and has not seen stop.
-        fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
-            Ok(self.client(py)?.started().into_iter().map(|a| a.get()).collect())
-        }
-
         /// Starts the library's watch of the drive (S1 and S17 every `interval_ms`, on a thread of its own):
         /// the samples come from [`CompaxWatch::next`].
         #[pyo3(signature = (drive, interval_ms))]
@@ -278,32 +317,6 @@ faces! {
             Ok(w)
         }
 
-        /// Ends the session: stops what it set in motion that still moves (confirmed by S17); an exception if
-        /// a drive did not confirm.
-        fn close(&self, py: Python<'_>) -> PyResult<()> {
-            let bound = self.close_bound;
-            self.end_watches();
-            let taken = py.detach(|| self.slot.take(&self.token, bound));
-            match taken {
-                None => Ok(()),
-                Some(Ok(client)) => py.detach(|| client.close()).or_raise(py).map(|_| ()),
-                Some(Err(shared)) => {
-                    let report = py.detach(|| shared.stop_started());
-                    if report.all_confirmed() {
-                        Ok(())
-                    } else {
-                        Err(to_pyerr(
-                            py,
-                            Failure::new(
-                                motionlink_link::error::ErrorClass::Device,
-                                FAMILY,
-                                format!("closing: {report}"),
-                            ),
-                        ))
-                    }
-                }
-            }
-        }
     }
 
     asynch {
@@ -332,41 +345,6 @@ faces! {
             }))
         }
 
-        /// Ends the session (stops what it set in motion that still moves): `done(ok, None)`.
-        fn close(&self, done: Py<PyAny>) -> NativeTask {
-            let taken = self.slot.take(&CancelToken::new(), Duration::ZERO);
-            spawn_task(done, async move {
-                match taken {
-                    None => {}
-                    Some(Ok(client)) => {
-                        client.close().await.map_err(|e| e.failure())?;
-                    }
-                    Some(Err(shared)) => {
-                        let report = shared.stop_started().await;
-                        if !report.all_confirmed() {
-                            return Err(Failure::new(
-                                motionlink_link::error::ErrorClass::Device,
-                                FAMILY,
-                                format!("closing: {report}"),
-                            ));
-                        }
-                    }
-                }
-                deliver(|py| Ok(py.None()))
-            })
-        }
-
-        /// Ends the session from synchronous code (atexit), waiting without the GIL.
-        fn close_blocking(&self, py: Python<'_>) -> PyResult<()> {
-            let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
-            match taken {
-                Ok(client) => block_on_runtime(py, client.close())?.or_raise(py).map(|_| ()),
-                Err(shared) => {
-                    block_on_runtime(py, async move { shared.stop_started().await })?;
-                    Ok(())
-                }
-            }
-        }
     }
 
     /// Every drive that answers (addresses 1..31) with its position S1. The library checks the cancel token
@@ -470,15 +448,4 @@ faces! {
 /// The in-position tolerance the library uses unless told otherwise.
 pub fn default_tolerance() -> f64 {
     Tolerance::DEFAULT.position().units()
-}
-
-impl Drop for CompaxClient {
-    fn drop(&mut self) {
-        // Not closed by its owner (garbage-collected): the session ends here, stopping what it started as
-        // the family's client does when dropped, without holding the GIL while it waits for the device.
-        self.end_watches();
-        if let Some(taken) = self.slot.take(&self.token, self.close_bound) {
-            Python::attach(|py| py.detach(move || drop(taken)));
-        }
-    }
 }

@@ -23,7 +23,7 @@ use crate::common::{f32_py, Int, Record, Slot};
 use crate::emulator::{clock, InProcess};
 use crate::emulator::{target, Target};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::{block_on_runtime, deliver, spawn_task, NativeTask};
+use crate::wait::{deliver, spawn_task, NativeTask};
 
 const FAMILY: &str = "powercube";
 
@@ -227,6 +227,46 @@ impl AsyncPowerCubeClient {
     }
 }
 
+impl crate::faces::Closing for PowerCubeClient {}
+
+/// Module addresses, as `started()` names them.
+fn addresses(modules: Vec<Address>) -> Vec<u8> {
+    modules.into_iter().map(Address::get).collect()
+}
+
+impl crate::session::Session for Client {
+    fn started_ids(&self) -> Vec<u8> {
+        addresses(self.started())
+    }
+
+    fn end(self) -> Result<Vec<u8>, Failure> {
+        self.close().map(addresses).map_err(|e| e.failure())
+    }
+
+    /// The call under way was cancelled: the modules it set in motion are halted here.
+    fn end_shared(shared: Arc<Self>) -> Result<Vec<u8>, Failure> {
+        let modules = addresses(shared.started());
+        shared.halt_started().map_err(|e| e.failure())?;
+        Ok(modules)
+    }
+}
+
+impl crate::session::AsyncSession for AsyncClient {
+    fn started_ids(&self) -> Vec<u8> {
+        addresses(self.started())
+    }
+
+    async fn end(self) -> Result<Vec<u8>, Failure> {
+        self.close().await.map(addresses).map_err(|e| e.failure())
+    }
+
+    async fn end_shared(shared: Arc<Self>) -> Result<Vec<u8>, Failure> {
+        let modules = addresses(shared.started());
+        shared.halt_started().await.map_err(|e| e.failure())?;
+        Ok(modules)
+    }
+}
+
 faces! {
     PowerCubeClient / AsyncPowerCubeClient, Error;
 
@@ -273,28 +313,6 @@ faces! {
             crate::common::probe_py(py, FAMILY, save, probe, motionlink_powercube::probe::save_profile)
         }
 
-        /// True until closed.
-        #[getter]
-        fn is_open(&self) -> bool {
-            self.slot.is_open()
-        }
-
-        /// Modules this session set in motion and has not seen stop.
-        fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
-            Ok(self.client(py)?.started().into_iter().map(|a| a.get()).collect())
-        }
-
-        /// Ends the session: halts what it set in motion, switches its watchdogs off, and says whether that
-        /// was confirmed (an exception if not). Closing twice does nothing.
-        fn close(&self, py: Python<'_>) -> PyResult<()> {
-            let bound = self.close_bound;
-            let taken = py.detach(|| self.slot.take(&self.token, bound));
-            match taken {
-                None => Ok(()),
-                Some(Ok(client)) => py.detach(|| client.close().map(|_| ())).or_raise(py),
-                Some(Err(shared)) => py.detach(|| shared.halt_started()).or_raise(py),
-            }
-        }
     }
 
     asynch {
@@ -321,28 +339,6 @@ faces! {
             }))
         }
 
-        /// Ends the session (halts what it set in motion): `done(ok, None)`.
-        fn close(&self, done: Py<PyAny>) -> NativeTask {
-            let taken = self.slot.take(&CancelToken::new(), Duration::ZERO);
-            spawn_task(done, async move {
-                match taken {
-                    None => {}
-                    Some(Ok(client)) => client.close().await.map(|_| ()).map_err(|e| e.failure())?,
-                    Some(Err(shared)) => shared.halt_started().await.map_err(|e| e.failure())?,
-                }
-                deliver(|py| Ok(py.None()))
-            })
-        }
-
-        /// Ends the session from synchronous code (atexit), waiting without the GIL.
-        fn close_blocking(&self, py: Python<'_>) -> PyResult<()> {
-            let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
-            let r = match taken {
-                Ok(client) => block_on_runtime(py, async { client.close().await.map(|_| ()) })?,
-                Err(shared) => block_on_runtime(py, async move { shared.halt_started().await })?,
-            };
-            r.or_raise(py)
-        }
     }
 
 
@@ -459,24 +455,4 @@ faces! {
     quick stop(me, py, module: Option<Int>) {
         let a = me.address(py, module)?;
     } |c| { w!(c.module(Address::new(a)?).halt()) } => |py, done| Ok(done);
-}
-
-impl Drop for AsyncPowerCubeClient {
-    fn drop(&mut self) {
-        // Not closed by its owner: the session ends on the runtime's blocking pool (stopping what it
-        // started), not on the thread that happens to drop the object (which may hold the GIL).
-        if let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) {
-            crate::wait::runtime().spawn(async move { drop(taken) });
-        }
-    }
-}
-
-impl Drop for PowerCubeClient {
-    fn drop(&mut self) {
-        // Not closed by its owner (garbage-collected): the session ends here, stopping what it started as
-        // the family's client does when dropped, without holding the GIL while it waits for the device.
-        if let Some(taken) = self.slot.take(&self.token, self.close_bound) {
-            Python::attach(|py| py.detach(move || drop(taken)));
-        }
-    }
 }

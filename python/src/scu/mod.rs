@@ -25,7 +25,7 @@ use crate::common::{json_py, Int, Slot};
 use crate::emulator::{clock, InProcess};
 use crate::emulator::{target, Target};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
-use crate::wait::{block_on_runtime, deliver, spawn_task, NativeTask};
+use crate::wait::{deliver, spawn_task, NativeTask};
 
 const FAMILY: &str = "scu";
 
@@ -255,6 +255,43 @@ impl AsyncScuClient {
     }
 }
 
+impl crate::faces::Closing for ScuClient {}
+
+/// Function numbers (1..10), as `started()` names them.
+fn numbers(functions: Vec<Function>) -> Vec<u8> {
+    functions.into_iter().map(|f| f.number()).collect()
+}
+
+impl crate::session::Session for Client {
+    fn started_ids(&self) -> Vec<u8> {
+        numbers(self.started())
+    }
+
+    fn end(self) -> Result<Vec<u8>, Failure> {
+        self.close().map(numbers).map_err(|e| e.failure())
+    }
+
+    /// The call under way was cancelled (its motion stops) and the session ends (RS, RA) when it returns
+    /// and drops the client: the functions it stops.
+    fn end_shared(shared: Arc<Self>) -> Result<Vec<u8>, Failure> {
+        Ok(numbers(shared.started()))
+    }
+}
+
+impl crate::session::AsyncSession for AsyncClient {
+    fn started_ids(&self) -> Vec<u8> {
+        numbers(self.started())
+    }
+
+    async fn end(self) -> Result<Vec<u8>, Failure> {
+        self.close().await.map(numbers).map_err(|e| e.failure())
+    }
+
+    async fn end_shared(shared: Arc<Self>) -> Result<Vec<u8>, Failure> {
+        Ok(numbers(shared.started()))
+    }
+}
+
 faces! {
     ScuClient / AsyncScuClient, Error;
 
@@ -301,33 +338,6 @@ faces! {
             let probe = || motionlink_scu::probe::probe(&client, &setup).map_err(|e| e.failure());
             crate::common::probe_py(py, FAMILY, save, probe, motionlink_scu::probe::save_profile)
         }
-
-        /// True until closed.
-        #[getter]
-        fn is_open(&self) -> bool {
-            self.slot.is_open()
-        }
-
-        /// Motion functions (numbers 1..10) this session started and has not seen stop.
-        fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
-            Ok(self.client(py)?.started().into_iter().map(|f| f.number()).collect())
-        }
-
-        /// Ends the session: RS for every function it started, then RA; an exception if that was not confirmed.
-        fn close(&self, py: Python<'_>) -> PyResult<()> {
-            let bound = self.close_bound;
-            let taken = py.detach(|| self.slot.take(&self.token, bound));
-            match taken {
-                None => Ok(()),
-                Some(Ok(client)) => py.detach(|| client.close().map(|_| ())).or_raise(py),
-                // A call of another thread still runs: it was cancelled (its motion stops) and the session ends
-                // (RS, RA) when it returns and drops the client.
-                Some(Err(shared)) => {
-                    drop(shared);
-                    Ok(())
-                }
-            }
-        }
     }
 
     asynch {
@@ -350,32 +360,6 @@ faces! {
                 let native = AsyncScuClient { slot: Slot::new(client, FAMILY), port, speed_mode, profile };
                 deliver(move |py| Ok(Py::new(py, native)?.into_any()))
             }))
-        }
-
-        /// Ends the session (RS for what it started, then RA): `done(ok, None)`.
-        fn close(&self, done: Py<PyAny>) -> NativeTask {
-            let taken = self.slot.take(&CancelToken::new(), Duration::ZERO);
-            spawn_task(done, async move {
-                match taken {
-                    None => {}
-                    Some(Ok(client)) => client.close().await.map(|_| ()).map_err(|e| e.failure())?,
-                    // A call still under way holds the session: it ends (RS, RA) when that call ends.
-                    Some(Err(shared)) => drop(shared),
-                }
-                deliver(|py| Ok(py.None()))
-            })
-        }
-
-        /// Ends the session from synchronous code (atexit), waiting without the GIL.
-        fn close_blocking(&self, py: Python<'_>) -> PyResult<()> {
-            let Some(taken) = self.slot.take(&CancelToken::new(), Duration::ZERO) else { return Ok(()) };
-            match taken {
-                Ok(client) => block_on_runtime(py, async { client.close().await.map(|_| ()) })?.or_raise(py),
-                Err(shared) => {
-                    drop(shared);
-                    Ok(())
-                }
-            }
         }
     }
 
@@ -448,14 +432,4 @@ faces! {
             StopWhat::One(f, _) => w!(c.switch(f, false)).map(|()| None),
         }
     } => |py, r| r.map(|r| report_py(py, &r, |_| {})).transpose();
-}
-
-impl Drop for ScuClient {
-    fn drop(&mut self) {
-        // Not closed by its owner (garbage-collected): the session ends here, stopping what it started as
-        // the family's client does when dropped, without holding the GIL while it waits for the device.
-        if let Some(taken) = self.slot.take(&self.token, self.close_bound) {
-            Python::attach(|py| py.detach(move || drop(taken)));
-        }
-    }
 }

@@ -1,0 +1,102 @@
+//! How a native session ends, written once for every family: [`faces!`] gives both faces of a family's
+//! native client `is_open`, `started` and `close` from these, and ends a client its owner dropped unclosed.
+//! A family says only what its clients stop ([`Session`], [`AsyncSession`]); what is stopped is named by
+//! its ids, as `started()` names it: SCU motion function numbers (1..10), PowerCube module addresses,
+//! COMPAX drive addresses.
+
+use std::future::Future;
+use std::sync::Arc;
+use std::time::Duration;
+
+use motionlink_link::cancel::CancelToken;
+use pyo3::prelude::*;
+use pyo3::IntoPyObjectExt;
+
+use crate::common::Slot;
+use crate::errors::{to_pyerr, Failure};
+use crate::wait::{block_on_runtime, deliver, runtime, spawn_task, NativeTask};
+
+/// A family's blocking client as a session that ends.
+pub trait Session: Send + Sync + Sized + 'static {
+    /// The ids of what the session set in motion and has not seen stop.
+    fn started_ids(&self) -> Vec<u8>;
+    /// Ends the session (the family's `close`): the ids of what it stopped.
+    fn end(self) -> Result<Vec<u8>, Failure>;
+    /// Stops what the session set in motion while a call of another thread still holds it (that call was
+    /// cancelled, and the session ends when it returns): the ids of what is being stopped.
+    fn end_shared(shared: Arc<Self>) -> Result<Vec<u8>, Failure>;
+}
+
+/// A family's async client as a session that ends ([`Session`]'s methods as futures).
+pub trait AsyncSession: Send + Sync + Sized + 'static {
+    /// The ids of what the session set in motion and has not seen stop.
+    fn started_ids(&self) -> Vec<u8>;
+    /// Ends the session: the ids of what it stopped.
+    fn end(self) -> impl Future<Output = Result<Vec<u8>, Failure>> + Send;
+    /// Stops what the session set in motion while a call still holds it: the ids.
+    fn end_shared(shared: Arc<Self>) -> impl Future<Output = Result<Vec<u8>, Failure>> + Send;
+}
+
+/// The blocking face's `close()`: calls of other threads are cancelled and waited for (at most `bound`),
+/// then the session ends without the GIL; the ids of what it stopped, those a cancelled call stopped
+/// included (none when closed already).
+pub fn close<C: Session>(py: Python<'_>, slot: &Slot<C>, token: &CancelToken, bound: Duration) -> PyResult<Vec<u8>> {
+    let before = slot.get().map(|c| c.started_ids()).unwrap_or_default();
+    let ended = py.detach(|| match slot.take(token, bound) {
+        None => Ok(Vec::new()),
+        Some(Ok(client)) => client.end(),
+        Some(Err(shared)) => C::end_shared(shared),
+    });
+    ended.map(|ids| and(before, ids)).map_err(|f| to_pyerr(py, f))
+}
+
+/// What was in motion when the close began (a call it cancelled stopped it), then what the end stopped.
+fn and(mut before: Vec<u8>, ended: Vec<u8>) -> Vec<u8> {
+    for id in ended {
+        if !before.contains(&id) {
+            before.push(id);
+        }
+    }
+    before
+}
+
+/// The async face's `close(done)`: the session ends on the runtime, `done(ok, ids)` (the Python side
+/// cancels the calls under way first, and adds what they had in motion).
+pub fn close_async<C: AsyncSession>(slot: &Slot<C>, done: Py<PyAny>) -> NativeTask {
+    let taken = slot.take(&CancelToken::new(), Duration::ZERO);
+    spawn_task(done, async move {
+        let ids = end_async(taken).await?;
+        deliver(move |py| ids.into_py_any(py))
+    })
+}
+
+/// The async face's `close_blocking()` (atexit): the session ends on the runtime while this thread waits
+/// without the GIL.
+pub fn close_async_blocking<C: AsyncSession>(py: Python<'_>, slot: &Slot<C>) -> PyResult<Vec<u8>> {
+    let taken = slot.take(&CancelToken::new(), Duration::ZERO);
+    block_on_runtime(py, end_async(taken))?.map_err(|f| to_pyerr(py, f))
+}
+
+async fn end_async<C: AsyncSession>(taken: Option<Result<C, Arc<C>>>) -> Result<Vec<u8>, Failure> {
+    match taken {
+        None => Ok(Vec::new()),
+        Some(Ok(client)) => client.end().await,
+        Some(Err(shared)) => C::end_shared(shared).await,
+    }
+}
+
+/// A blocking client its owner did not close (garbage-collected): the session ends here, stopping what
+/// it started as the family's client does when dropped, without holding the GIL while it waits.
+pub fn drop_unclosed<C: Send + Sync>(slot: &Slot<C>, token: &CancelToken, bound: Duration) {
+    if let Some(taken) = slot.take(token, bound) {
+        Python::attach(|py| py.detach(move || drop(taken)));
+    }
+}
+
+/// An async client its owner did not close: the session ends on the runtime (stopping what it started),
+/// not on the thread that happens to drop the object (which may hold the GIL).
+pub fn drop_unclosed_async<C: Send + Sync + 'static>(slot: &Slot<C>) {
+    if let Some(taken) = slot.take(&CancelToken::new(), Duration::ZERO) {
+        runtime().spawn(async move { drop(taken) });
+    }
+}
