@@ -1,6 +1,6 @@
 """Position reads of one PowerCube module over a pseudo-terminal, against a separate emulator process.
 
-    python python/bench/pty_reads.py [--reads N] [--rounds R] [--bin PATH]
+    python python/bench/pty_reads.py [--reads N] [--rounds R] [--bin PATH] [--floor PATH]
 
 The set-up of the vendor's figures (libm5api, the C++ library: 15.9 k reads/s at 25 us of CPU per read over
 one pty against one `motionlink sim powercube --pty` process): this script starts that process, opens the
@@ -9,7 +9,10 @@ It prints, for the best round, the reads per second and the CPU time of this pro
 call, the native client and the line's I/O; the emulator's own CPU is the other process's), and the same
 loop in Rust through the native module with no Python in between.
 
-The binary is `--bin`, else `MOTIONLINK_BIN`, else `motionlink` on the PATH.
+The binary is `--bin`, else `MOTIONLINK_BIN`, else `motionlink` on the PATH. With `--floor`, the path of
+the `pty_floor` example (`cargo build --release -p motionlink-powercube --example pty_floor`, then
+`target/release/examples/pty_floor`), the same reads are then made over the same pty with nothing but the
+line's I/O: the floor that the kernel and the emulator set on this machine.
 """
 
 from __future__ import annotations
@@ -53,6 +56,7 @@ def main() -> None:
     ap.add_argument("--reads", type=int, default=2000)
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--bin", default=os.environ.get("MOTIONLINK_BIN") or shutil.which("motionlink"))
+    ap.add_argument("--floor", help="the pty_floor example's binary: also measure the floor")
     args = ap.parse_args()
     if not args.bin:
         sys.exit("no motionlink binary: give --bin or set MOTIONLINK_BIN")
@@ -71,6 +75,13 @@ def main() -> None:
 
             py_wall, py_cpu = best_round(python_loop, args.reads, args.rounds)
             rs_wall, rs_cpu = best_round(rust_loop, args.reads, args.rounds)
+        # The client has closed the pty (it holds it exclusively): the floor's reads over the same one.
+        floor = None
+        if args.floor:
+            done = subprocess.run(
+                [args.floor, pty, str(args.reads), str(args.rounds)], capture_output=True, text=True, check=True
+            )
+            floor = done.stdout.strip().splitlines()[-1]
     finally:
         proc.terminate()
         proc.wait()
@@ -78,6 +89,8 @@ def main() -> None:
     print(f"Rust loop (native module):  {1 / rs_wall / 1e3:6.1f} k reads/s, {rs_cpu * 1e6:6.1f} us CPU per read")
     print(f"PowerCube.position():       {1 / py_wall / 1e3:6.1f} k reads/s, {py_cpu * 1e6:6.1f} us CPU per read")
     print(f"Python vs Rust rate:        {py_wall / rs_wall * 100 - 100:+6.1f} % time per read")
+    if floor:
+        print(f"floor (the line's I/O only):  {floor}")
     print("libm5api (vendor, C++):       15.9 k reads/s,   25.0 us CPU per read")
 
 
