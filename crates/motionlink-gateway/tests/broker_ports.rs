@@ -99,24 +99,38 @@ async fn a_stop_through_the_port_lock_stops_the_device_s_motion_and_the_gateway_
 }
 
 /// A COMPAX bus that stops answering while its port stays open (a drive switched off behind a serial
-/// server), and answers again when `silent` is cleared.
+/// server), or refuses every request (with E92), as `mode` says:
+/// [`ANSWERS`], [`SILENT`] or [`REFUSES`].
 struct Silenceable {
     bus: motionlink_compax::Emulator,
-    silent: Arc<std::sync::atomic::AtomicBool>,
+    mode: Arc<std::sync::atomic::AtomicU8>,
+}
+
+const ANSWERS: u8 = 0;
+const SILENT: u8 = 1;
+const REFUSES: u8 = 2;
+
+impl Silenceable {
+    /// What the bus said, as `mode` lets it through.
+    fn pass(&self, said: Vec<u8>, out: &mut Vec<u8>) {
+        match self.mode.load(std::sync::atomic::Ordering::SeqCst) {
+            ANSWERS => out.extend(said),
+            REFUSES if !said.is_empty() => out.extend_from_slice(b"E92\r\n>"),
+            _ => {}
+        }
+    }
 }
 
 impl motionlink_link::emulator::Emulator for Silenceable {
     fn receive(&mut self, now: motionlink_link::Timestamp, bytes: &[u8], out: &mut Vec<u8>) {
-        if !self.silent.load(std::sync::atomic::Ordering::SeqCst) {
-            self.bus.receive(now, bytes, out);
-        }
+        let mut said = Vec::new();
+        self.bus.receive(now, bytes, &mut said);
+        self.pass(said, out);
     }
     fn advance(&mut self, now: motionlink_link::Timestamp, out: &mut Vec<u8>) {
         let mut said = Vec::new();
         self.bus.advance(now, &mut said);
-        if !self.silent.load(std::sync::atomic::Ordering::SeqCst) {
-            out.extend(said);
-        }
+        self.pass(said, out);
     }
     fn next_wakeup(&self) -> Option<motionlink_link::Timestamp> {
         self.bus.next_wakeup()
@@ -131,9 +145,9 @@ async fn a_device_that_stops_answering_is_published_unavailable_until_it_answers
     let Some(b) = broker("a_device_that_stops_answering_is_published_unavailable_until_it_answers_again") else {
         return;
     };
-    let silent = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let mode = Arc::new(std::sync::atomic::AtomicU8::new(ANSWERS));
     let bus = motionlink_compax::Emulator::new(motionlink_compax::DriveOptions::default().emulated()).unwrap();
-    let device = Silenceable { bus, silent: Arc::clone(&silent) };
+    let device = Silenceable { bus, mode: Arc::clone(&mode) };
     let server = motionlink_link::emulator::serve_tcp(
         "127.0.0.1:0",
         Arc::new(Mutex::new(device)),
@@ -147,7 +161,7 @@ async fn a_device_that_stops_answering_is_published_unavailable_until_it_answers
     c.wait("a state", 20 * S, |m| state(m) && m.json()["position_units"].is_number()).await;
 
     // Silent: the retained state says so (not the last position, as if at rest), and an event.
-    silent.store(true, std::sync::atomic::Ordering::SeqCst);
+    mode.store(SILENT, std::sync::atomic::Ordering::SeqCst);
     let m = c.wait("unavailable", 10 * S, |m| state(m) && m.json()["available"] == false).await.json();
     assert_eq!((m["family"].as_str(), m["drive"].as_u64()), (Some("compax"), Some(1)), "{m}");
     assert_eq!(m["error"]["kind"], "timeout", "{m}");
@@ -161,10 +175,24 @@ async fn a_device_that_stops_answering_is_published_unavailable_until_it_answers
     assert_eq!(r["available"], false, "{r}");
 
     // Answering again: the state is published again, and an event says so.
-    silent.store(false, std::sync::atomic::Ordering::SeqCst);
+    mode.store(ANSWERS, std::sync::atomic::Ordering::SeqCst);
     c.wait("back", 10 * S, |m| state(m) && m.json()["position_units"].is_number()).await;
     c.wait("answers", 5 * S, |m| m.topic == "motionlink/sl/axis/events" && m.payload.contains("device_answers")).await;
+
+    // Refusing the reads: unavailable again, said as a state that could not be read (not as a device that
+    // does not answer).
+    mode.store(REFUSES, std::sync::atomic::Ordering::SeqCst);
+    let m = c.wait("unreadable", 10 * S, |m| state(m) && m.json()["available"] == false).await.json();
+    assert_eq!(m["error"]["kind"], "refused", "{m}");
+    assert!(m["error"]["message"].as_str().unwrap().contains("E92"), "{m}");
+    let ev = c.wait("failed", 5 * S, |m| m.topic == "motionlink/sl/axis/events" && m.payload.contains("state_failed"));
+    let ev = ev.await.json();
+    assert!(ev["message"].as_str().unwrap().contains("its state could not be read"), "{ev}");
+    assert_eq!(ev["error"]["kind"], m["error"]["kind"], "{ev}");
+    mode.store(ANSWERS, std::sync::atomic::Ordering::SeqCst);
+    c.wait("back again", 10 * S, |m| state(m) && m.json()["position_units"].is_number()).await;
     let (code, err) = gw.signal(libc::SIGTERM);
     assert_eq!(code, Some(143), "{err}");
     assert!(err.contains("axis: does not answer") && err.contains("axis: its state is read again"), "{err}");
+    assert!(err.contains("axis: its state could not be read"), "{err}");
 }
