@@ -570,3 +570,35 @@ fn with_json_the_one_line_is_a_json_object() {
     let url = value["console"].as_str().unwrap_or_default();
     assert!(url.starts_with("http://127.0.0.1:") && url.contains("/?token="), "{line}");
 }
+
+/// The console takes its family command's session options, declared once for both: the same bad value is
+/// refused with the same message, an emulator's option is refused on a port that is no emulator, and a
+/// firmware variant of the emulated device is run (its units found and sampled as on the plain device).
+#[test]
+fn the_console_takes_its_family_command_s_options_by_the_same_rules() {
+    let refused: [(&[&str], &str); 3] = [
+        (&["scu", "--port", "sim", "--timeout-ms", "0"], "info"),
+        (&["powercube", "--port", "tcp://127.0.0.1:9", "--sim-variant", "no-twin-mirror"], "state"),
+        (&["compax", "--port", "sim", "--baud", "1234"], "status"),
+    ];
+    for (options, action) in refused {
+        let command = common::run_with(&[options, &[action]].concat(), &[], "");
+        let said = String::from_utf8_lossy(&command.stderr);
+        assert_eq!(command.status.code(), Some(2), "{said}");
+        let console = Running::start(&[&["console"], options].concat()).wait(Duration::from_secs(20));
+        assert_eq!(console.code(), 2, "{}", console.stderr);
+        let first = |text: &str| text.lines().next().unwrap_or_default().to_string();
+        assert_eq!(first(&console.stderr), first(&said), "{options:?}");
+    }
+    for (family, options, key) in [
+        ("scu", &["--timeout-ms", "500", "--sim-variant", "no-groups"][..], "position_counts"),
+        ("powercube", &["--modules", "1", "--sim-variant", "no-twin-mirror", "--poll-ms", "20"][..], "position_rad"),
+        ("compax", &["--drives", "1", "--sim-variant", "echo-without-address", "--short"][..], "position_units"),
+    ] {
+        let c = console(&[&[family, "--port", "sim"], options].concat());
+        let mut ws = ws(&c);
+        assert!(!units(&mut ws).is_empty(), "{family}");
+        let sample = recv_until(&mut ws, Duration::from_secs(10), of_type("sample")).expect("a sample");
+        assert!(sample["units"][0][key].is_number(), "{family}: {sample}");
+    }
+}

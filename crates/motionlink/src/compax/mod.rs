@@ -35,7 +35,7 @@ mod sim;
 
 pub use decode::{decode, DecodeArgs};
 pub use demo::demo;
-pub(crate) use open::{link, open};
+pub(crate) use open::{line_options, link, open};
 use show::{send_text, status_row};
 pub use sim::{sim, SimArgs};
 
@@ -53,10 +53,26 @@ pub struct Args {
     /// The drive's address (P194), 1..=31.
     #[arg(long, default_value = "1", global = true)]
     pub drive: Address,
+    #[command(flatten)]
+    pub line: LineArgs,
+    /// The port resolved from --port, --device or MOTIONLINK_PORT (set by `run`).
+    #[arg(skip)]
+    pub resolved_port: String,
+    /// What to do.
+    #[command(subcommand)]
+    pub action: Action,
+}
+
+/// The line's options: the session's settings and, with `--port sim`, the emulated drives' firmware. Every
+/// `motionlink compax` action and `motionlink console compax` take them (a device table gives them as the
+/// same keys).
+#[derive(clap::Args, Debug, Clone)]
+pub struct LineArgs {
     /// The drives' operating mode P196 (0..=127): BCC, parity, reply end, address prefix...
     #[arg(long, default_value = "0", global = true)]
     pub mode: Mode,
-    /// The drives' baud rate P195 (150, 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200).
+    /// The drives' baud rate P195 (150, 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200; the
+    /// console's emulated line, with `--port sim`, runs at this rate).
     #[arg(long, default_value = "9600", global = true)]
     pub baud: BaudRate,
     /// Time a drive may take to start answering, in ms (1..=60000, on top of the wire time).
@@ -65,16 +81,10 @@ pub struct Args {
     /// Send the short command names (PA, PR, SD, AL, OT) instead of the long ones.
     #[arg(long, global = true)]
     pub short: bool,
-    /// With --port sim: the emulated drive runs this firmware variant (repeat the option, or separate names
+    /// With --port sim: the emulated drives run this firmware variant (repeat the option, or separate names
     /// with commas; `motionlink sim compax --help` lists them).
     #[arg(long = "sim-variant", value_name = "NAME", value_delimiter = ',', global = true)]
     pub sim_variants: Vec<Variant>,
-    /// The port resolved from --port, --device or MOTIONLINK_PORT (set by `run`).
-    #[arg(skip)]
-    pub resolved_port: String,
-    /// What to do.
-    #[command(subcommand)]
-    pub action: Action,
 }
 
 /// `motionlink compax` actions.
@@ -276,7 +286,7 @@ fn error_for(args: &Args, e: Error) -> CliError {
 pub fn run(mut args: Args) -> Result<(), CliError> {
     args.resolved_port = args.link.resolve_port("compax", args.port.as_deref())?;
     let clock: SharedClock = RealClock::shared();
-    let mode = args.mode;
+    let mode = args.line.mode;
     let describer = move || Box::new(Describer::new(mode)) as Box<dyn Describe + Send>;
     let sending = matches!(args.action, Action::Send { .. });
     if let Action::Watch { csv, .. } = args.action {
@@ -301,11 +311,11 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
 /// `--mode` and `--baud` as a command line on this bus gives them (only where not the default).
 fn bus_options(args: &Args) -> String {
     let mut options = String::new();
-    if args.mode.to_p196() != 0 {
-        options.push_str(&format!(" --mode {}", args.mode.to_p196()));
+    if args.line.mode.to_p196() != 0 {
+        options.push_str(&format!(" --mode {}", args.line.mode.to_p196()));
     }
-    if args.baud != BaudRate::DEFAULT {
-        options.push_str(&format!(" --baud {}", args.baud));
+    if args.line.baud != BaudRate::DEFAULT {
+        options.push_str(&format!(" --baud {}", args.line.baud));
     }
     options
 }

@@ -49,14 +49,20 @@ pub(crate) fn link(
 /// The drive's options from the command line (the same options a device table gives the gateway; a move's
 /// tolerance and poll interval are given to the session by the action: `configure` of [`open`](fn@open)).
 pub(crate) fn drive_options(args: &Args) -> DriveOptions {
+    DriveOptions { drive: args.drive, ..line_options(&args.line) }
+}
+
+/// The line's options from the command line (of `motionlink compax` and `motionlink console compax`), for
+/// drive 1.
+pub(crate) fn line_options(line: &LineArgs) -> DriveOptions {
     DriveOptions {
-        drive: args.drive,
-        mode: args.mode,
-        baud: args.baud,
-        timeout_ms: args.timeout_ms,
-        short: args.short,
+        mode: line.mode,
+        baud: line.baud,
+        timeout_ms: line.timeout_ms,
+        short: line.short,
         poll_ms: None,
         tolerance: None,
-        sim_variants: args.sim_variants.clone(),
+        sim_variants: line.sim_variants.clone(),
+        ..DriveOptions::default()
     }
 }

@@ -11,12 +11,11 @@ use std::time::Duration;
 
 use motionlink_compax::client::{MoveRequest, MoveTarget, TravelLimits};
 use motionlink_compax::model::{
-    BaudRate, OutputState, ParamId, Position, ReplyTimeout, S16Bits, S17Bits, S17Flag, SpeedPercent, StatusId,
-    StatusValue, WholeArg, PARAMS,
+    OutputState, ParamId, Position, S16Bits, S17Bits, S17Flag, SpeedPercent, StatusId, StatusValue, WholeArg, PARAMS,
 };
 use motionlink_compax::report::{ErrorHistory, OutputSwitched, ParamReading, StopResult};
-use motionlink_compax::wire::{Address, Mode};
-use motionlink_compax::{AsyncClient, DriveOptions};
+use motionlink_compax::wire::Address;
+use motionlink_compax::AsyncClient;
 use motionlink_link::clock::{lock, SharedClock, Timestamp};
 use motionlink_link::url::PortUrl;
 
@@ -41,15 +40,8 @@ pub struct Args {
     /// the emulated bus has (default: 1).
     #[arg(long, value_delimiter = ',')]
     pub drives: Vec<Address>,
-    /// The drives' operating mode P196 (0..=127): BCC, parity, reply end, address prefix.
-    #[arg(long, default_value = "0")]
-    pub mode: Mode,
-    /// The drives' baud rate P195 (with `--port sim`: the emulated line runs at this rate).
-    #[arg(long, default_value = "9600")]
-    pub baud: BaudRate,
-    /// Time a drive may take to start answering, in ms (1..=60000).
-    #[arg(long, default_value = "200")]
-    pub timeout_ms: ReplyTimeout,
+    #[command(flatten)]
+    pub line: crate::compax::LineArgs,
     /// Refuse move targets below this position (drive's unit); a jog in the negative direction ends here.
     #[arg(long, allow_negative_numbers = true)]
     pub min_pos: Option<Position>,
@@ -86,7 +78,7 @@ struct Compax {
 
 /// Opens the session `args` ask for, its link tapped into the traffic log.
 pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<dyn Device>, Arc<Traffic>), CliError> {
-    let mode = args.mode;
+    let mode = args.line.mode;
     let limits = TravelLimits::new(args.min_pos, args.max_pos).map_err(CliError::usage)?;
     if !(args.jog_range.is_finite() && args.jog_range > 0.0) {
         return Err(CliError::usage(format!("--jog-range {}: give a distance above 0", args.jog_range)));
@@ -101,10 +93,9 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     let tap = Tap::into_sink(port, Arc::clone(&traffic) as _);
     let sim_drives: Vec<u8> =
         if args.drives.is_empty() { vec![1] } else { args.drives.iter().map(|a| a.get()).collect() };
-    // The session's settings and its link by the command line's rules (`DriveOptions`); the drives are the
-    // console's own (`--drives`). Opening a serial device blocks: on the blocking pool.
-    let options =
-        DriveOptions { mode: args.mode, baud: args.baud, timeout_ms: args.timeout_ms, ..DriveOptions::default() };
+    // The session's settings and its link by the rules of `motionlink compax` (its options); the drives are
+    // the console's own (`--drives`). Opening a serial device blocks: on the blocking pool.
+    let options = crate::compax::line_options(&args.line);
     let (o, c) = (options.clone(), Arc::clone(clock));
     let link = tokio::task::spawn_blocking(move || crate::compax::link(&o, url, &sim_drives, &tap, &c))
         .await

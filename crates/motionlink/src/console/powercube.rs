@@ -7,9 +7,7 @@ use std::time::Duration;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::SharedClock;
-use motionlink_powercube::args::{
-    Baud, CanBitRate, ModuleOptions, MotionTimeout, MoveVelocity, PollInterval, ReplyTimeout, Target,
-};
+use motionlink_powercube::args::{MotionTimeout, MoveVelocity, Target};
 use motionlink_powercube::client::{Client, Guard, MoveSpec, PortLink};
 use motionlink_powercube::model::{
     Address, AxisUnit, CubeState, ModuleKind, Param, Position, ShortFlag, ShortState, Value as CubeValue, Velocity,
@@ -41,23 +39,8 @@ pub struct Args {
     /// the emulated bus has (default: 1).
     #[arg(long, value_delimiter = ',')]
     pub modules: Vec<Address>,
-    /// RS232 baud rate, one of 1200 .. 115200 (with `--port sim`: the emulated line runs at this rate).
-    #[arg(long, default_value = "9600")]
-    pub baud: Baud,
-    /// CAN bit rate of an SLCAN adapter: one of the rates SLCAN offers, 10000 .. 1000000.
-    #[arg(long, default_value = "1000000")]
-    pub bitrate: CanBitRate,
-    /// Acknowledge timeout in ms, 1 to 60000 (default: 200 on RS232, 50 on CAN).
-    #[arg(long, value_name = "MS")]
-    pub timeout_ms: Option<ReplyTimeout>,
-    /// How often moves, jogs and homing read the module's state while they wait, in ms (1 to 10000): polls
-    /// are never sent faster than this (as `motionlink powercube --poll-ms`).
-    #[arg(long, value_name = "MS", default_value = "10")]
-    pub poll_ms: PollInterval,
-    /// Do not arm the module watchdog for moves, jogs and homing (a console that dies then leaves the module
-    /// moving). A closed page, Stop and the end of the console still halt it.
-    #[arg(long)]
-    pub no_watchdog: bool,
+    #[command(flatten)]
+    pub bus: crate::powercube::BusArgs,
     #[command(flatten)]
     pub serve: ServeArgs,
 }
@@ -109,19 +92,17 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
         },
         clock,
     ));
-    // The session's settings and the guard of its motions by the rules every front end takes (the command
-    // line's `ModuleOptions`); the modules are the console's own (`--modules`).
-    let options = ModuleOptions {
-        baud: args.baud,
-        bitrate: args.bitrate,
-        timeout_ms: args.timeout_ms,
-        poll_ms: args.poll_ms,
-        no_watchdog: args.no_watchdog,
-        ..ModuleOptions::default()
-    };
+    // The session's settings and the guard of its motions by the rules of `motionlink powercube` (its
+    // options); the modules are the console's own (`--modules`).
+    let options = crate::powercube::bus_options(&args.bus);
+    if options.check_port(matches!(url, PortUrl::Sim)).is_err() {
+        return Err(CliError::usage(
+            "--sim-variant is for --port sim (a served emulator takes `sim powercube --variant`)",
+        ));
+    }
     let tap = Tap::into_sink(port, Arc::clone(&traffic) as _);
     // Opening a serial device or an SLCAN adapter blocks: on the blocking pool.
-    let (baud, bitrate, c2, opening) = (args.baud, args.bitrate, Arc::clone(clock), url.clone());
+    let (baud, bitrate, c2, opening) = (args.bus.baud, args.bus.bitrate, Arc::clone(clock), url.clone());
     let opened = tokio::task::spawn_blocking(move || PortLink::open(&opening, baud, bitrate, &c2))
         .await
         .map_err(|e| CliError::transport(format!("the opening task failed: {e}")))?
@@ -133,8 +114,9 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
         Some(PortLink::Can(link)) => Client::with_link(tap.can_link(link, &c), c, options.config(true)),
         None => {
             let modules = if args.modules.is_empty() { vec![1] } else { addresses(&args.modules) };
-            let bus = SimConfig::with_addresses(&modules).map_err(CliError::usage)?;
-            let h = EmulatorHost::new(Emulator::new(&bus), Arc::clone(clock), PipeConfig::paced(args.baud.get()));
+            let mut bus = SimConfig::with_addresses(&modules).map_err(CliError::usage)?;
+            bus.variants = options.sim_variants.clone();
+            let h = EmulatorHost::new(Emulator::new(&bus), Arc::clone(clock), PipeConfig::paced(baud.get()));
             let link = tap.link(Box::new(h.connect().0), &c);
             host = Some(h);
             Client::with_link(link, c, options.config(false))

@@ -5,16 +5,16 @@ use std::sync::Arc;
 
 use motionlink_link::url::PortUrl;
 use motionlink_link::SharedClock;
-use motionlink_scu::args::{parse_write, Baud, Checked};
+use motionlink_scu::args::{parse_write, Checked};
 use motionlink_scu::describe::Describer;
 use motionlink_scu::model::{
-    Actuator, DataEntry, DataIndex, Function, Item, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed,
-    SpeedMode, StopMode, TABLE,
+    Actuator, DataEntry, DataIndex, Function, Item, MotionDirection, MotionFunction, PositionCounts, Speed, SpeedMode,
+    StopMode, TABLE,
 };
 use motionlink_scu::results::{ErrorHistory, RunOutcome, StopResult};
 use motionlink_scu::session::RunAction;
 use motionlink_scu::value::Value as ScuValue;
-use motionlink_scu::{AsyncClient, Config, FunctionMap, SimConfig};
+use motionlink_scu::{AsyncClient, FunctionMap};
 
 use super::device::{
     close_last, finite, report, Action, BoxFuture, Device, Failure, JogDirection, Motion, Param, Report, Sample, Unit,
@@ -22,7 +22,6 @@ use super::device::{
 use super::traffic::Traffic;
 use super::ServeArgs;
 use crate::common::CliError;
-use crate::scu::InProcess;
 use crate::tap::Tap;
 
 /// `motionlink console scu` arguments.
@@ -34,25 +33,8 @@ pub struct Args {
     pub port: Option<String>,
     #[command(flatten)]
     pub device: super::DeviceArg,
-    /// Baud rate of a serial port: 38400 on standard units, 9600 or 19200 on customised ones (with `--port
-    /// sim`: the emulated line runs at this rate).
-    #[arg(long, default_value_t = Baud::STANDARD, value_parser = Baud::parse_whole)]
-    pub baud: Baud,
-    /// Safety_ID sent with RO: 0 a timeout stops all motion and locks remote motion until RO, 1 stops all
-    /// motion, 2 stops remote motion only.
-    #[arg(long, default_value = "0", value_parser = SafetyId::parse_whole)]
-    pub safety: SafetyId,
-    /// Which actuators each motion function drives: a preset (scp11, tlt, liftkit) or F1=1,2; repeatable.
-    /// The console moves and jogs actuator n with the function that drives it alone (default: Fn).
-    #[arg(long = "functions", value_name = "MAP")]
-    pub functions: Vec<String>,
-    /// How the unit takes remote speeds: percent or counts-per-second.
-    #[arg(long, default_value = "percent", value_name = "MODE", value_parser = crate::scu::speed_mode_parser())]
-    pub speed_mode: SpeedMode,
-    /// The preset the emulator starts from with `--port sim`: scp11, tlt or liftkit. Default: the preset
-    /// --functions names, else scp11; the Fn=... of --functions apply on top.
-    #[arg(long, value_name = "NAME", value_parser = SimConfig::PRESETS)]
-    pub sim_preset: Option<String>,
+    #[command(flatten)]
+    pub unit: crate::scu::UnitArgs,
     #[command(flatten)]
     pub serve: ServeArgs,
 }
@@ -66,26 +48,14 @@ struct Scu {
 
 /// Opens the session `args` ask for, its link tapped into the traffic log.
 pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<dyn Device>, Arc<Traffic>), CliError> {
-    let functions =
-        FunctionMap::from_specs(&args.functions).map_err(|e| CliError::usage(format!("--functions {e}")))?;
-    let speed_mode = args.speed_mode;
-    let config = Config { safety_id: args.safety, function_map: functions, speed_mode, ..Config::default() };
-    config.validate().map_err(|e| CliError::usage(e.to_string()))?;
+    // The session's settings and the emulated unit by the rules of `motionlink scu` (its options).
+    let config = crate::scu::client_config(&args.unit)?;
+    let (functions, speed_mode) = (config.function_map.clone(), config.speed_mode);
     let url: PortUrl = port.parse()?;
     let traffic = Arc::new(Traffic::new(Box::new(Describer::new()), &format!("scu {port}"), "can0", clock));
-    if args.sim_preset.is_some() && !matches!(url, PortUrl::Sim) && !url.is_can() {
-        return Err(CliError::usage("--sim-preset is only for --port sim"));
-    }
-    // The emulated unit is the one the console names: its functions, its speed mode.
-    let unit = InProcess {
-        functions: &args.functions,
-        preset: args.sim_preset.as_deref(),
-        file: None,
-        speed_mode,
-        variants: &[],
-    };
+    let unit = crate::scu::in_process(&args.unit, &url)?;
     let tap = Tap::into_sink(port, Arc::clone(&traffic) as _);
-    let connector = crate::scu::connector(&url, &unit, args.baud, &tap, clock)?;
+    let connector = crate::scu::connector(&url, &unit, args.unit.baud, &tap, clock)?;
     let client = AsyncClient::with_connector(connector, Arc::clone(clock), config)
         .await
         .map_err(|e| crate::common::classified(&e))?;

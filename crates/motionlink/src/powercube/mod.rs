@@ -32,7 +32,7 @@ use motionlink_powercube::{Emulator, Error};
 
 pub use decode::{decode, DecodeArgs};
 pub use demo::demo;
-pub(crate) use open::{module_options, open};
+pub(crate) use open::{bus_options, module_options, open};
 use send::{parse_send, print_params, send};
 use show::{info, progress_text, report_done, scan, watch};
 pub use sim::{sim, SimArgs};
@@ -54,7 +54,20 @@ pub struct Args {
     /// The module's address, 1..31.
     #[arg(long, default_value = "1", global = true)]
     pub module: Address,
-    /// RS232 baud rate: one of 1200, 2400, 4800, 9600 (the modules' default), 19200, 38400, 57600, 115200.
+    #[command(flatten)]
+    pub bus: BusArgs,
+    /// What to do.
+    #[command(subcommand)]
+    pub action: Action,
+}
+
+/// The bus's options: the session's settings and, with `--port sim`, the emulated modules' firmware. Every
+/// `motionlink powercube` action and `motionlink console powercube` take them (a device table gives them as
+/// the same keys).
+#[derive(clap::Args, Debug, Clone)]
+pub struct BusArgs {
+    /// RS232 baud rate: one of 1200, 2400, 4800, 9600 (the modules' default), 19200, 38400, 57600, 115200
+    /// (the console's emulated line, with `--port sim`, runs at this rate).
     #[arg(long, default_value = "9600", global = true)]
     pub baud: Baud,
     /// CAN bit rate of an SLCAN adapter: one of the rates SLCAN offers, 10000, 20000, 50000, 100000,
@@ -64,21 +77,19 @@ pub struct Args {
     /// Acknowledge timeout in ms, 1 to 60000 (default: 200 on RS232, 50 on CAN).
     #[arg(long, value_name = "MS", global = true)]
     pub timeout_ms: Option<ReplyTimeout>,
-    /// How often `home` and `move` read the module's state while they wait, in ms (1 to 10000): polls are
-    /// never sent faster than this, however quickly the line answers.
+    /// How often `home` and `move` (and the console's moves, jogs and homing) read the module's state while
+    /// they wait, in ms (1 to 10000): polls are never sent faster than this, however quickly the line answers.
     #[arg(long, value_name = "MS", default_value = "10", global = true)]
     pub poll_ms: PollInterval,
-    /// Do not arm the module watchdog for `home` and `move` (the Config word is left alone; a host that dies
-    /// then leaves the module moving). Signals, a closed stdout and errors still halt it.
+    /// Do not arm the module watchdog for `home` and `move` (and the console's motions): the Config word is
+    /// left alone, and a host that dies then leaves the module moving. Signals, a closed stdout (a closed
+    /// page, Stop and the end of the console) and errors still halt it.
     #[arg(long, global = true)]
     pub no_watchdog: bool,
     /// With --port sim: the emulated modules run this firmware variant (repeat the option, or separate
     /// names with commas; `motionlink sim powercube --help` lists them).
     #[arg(long = "sim-variant", value_name = "NAME", value_delimiter = ',', global = true)]
     pub sim_variants: Vec<Variant>,
-    /// What to do.
-    #[command(subcommand)]
-    pub action: Action,
 }
 
 /// What `motionlink powercube` does.
@@ -232,8 +243,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
         _ => result.map_err(|e| {
             tap.name_absent(e, || {
                 let mut scan = format!("motionlink powercube --port {port}");
-                if args.baud != Baud::DEFAULT {
-                    scan.push_str(&format!(" --baud {}", args.baud));
+                if args.bus.baud != Baud::DEFAULT {
+                    scan.push_str(&format!(" --baud {}", args.bus.baud));
                 }
                 format!("no module answers at address {} on {port}; `{scan} scan` lists the modules there", args.module)
             })

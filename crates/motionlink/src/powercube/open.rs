@@ -17,7 +17,7 @@ pub(crate) fn open(
             "--sim-variant is for --port sim (a served emulator takes `sim powercube --variant`)",
         ));
     }
-    let client = match PortLink::open(&url, args.baud, args.bitrate, &clock).map_err(failed)? {
+    let client = match PortLink::open(&url, args.bus.baud, args.bus.bitrate, &clock).map_err(failed)? {
         Some(PortLink::Rs232(link)) => {
             Client::with_link(PortLink::Rs232(tap.link(link, &clock)), clock, options.config(false))
         }
@@ -38,13 +38,19 @@ pub(crate) fn open(
 
 /// The module's options from the command line (the same options a device table gives the gateway).
 pub(crate) fn module_options(args: &Args) -> ModuleOptions {
+    ModuleOptions { module: args.module, ..bus_options(&args.bus) }
+}
+
+/// The bus's options from the command line (of `motionlink powercube` and `motionlink console powercube`),
+/// for module 1.
+pub(crate) fn bus_options(bus: &BusArgs) -> ModuleOptions {
     ModuleOptions {
-        module: args.module,
-        baud: args.baud,
-        bitrate: args.bitrate,
-        timeout_ms: args.timeout_ms,
-        poll_ms: args.poll_ms,
-        no_watchdog: args.no_watchdog,
-        sim_variants: args.sim_variants.clone(),
+        baud: bus.baud,
+        bitrate: bus.bitrate,
+        timeout_ms: bus.timeout_ms,
+        poll_ms: bus.poll_ms,
+        no_watchdog: bus.no_watchdog,
+        sim_variants: bus.sim_variants.clone(),
+        ..ModuleOptions::default()
     }
 }

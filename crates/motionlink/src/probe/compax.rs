@@ -65,11 +65,13 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
             port: Some(port.clone()),
             link: args.link.clone(),
             drive: drives[0],
-            mode: args.mode,
-            baud: BaudRate::from_whole(i64::from(baud)).map_err(|e| CliError::usage(format!("--baud: {e}")))?,
-            timeout_ms: args.timeout_ms,
-            short: false,
-            sim_variants: args.sim_variants.clone(),
+            line: crate::compax::LineArgs {
+                mode: args.mode,
+                baud: BaudRate::from_whole(i64::from(baud)).map_err(|e| CliError::usage(format!("--baud: {e}")))?,
+                timeout_ms: args.timeout_ms,
+                short: false,
+                sim_variants: args.sim_variants.clone(),
+            },
             resolved_port: port.clone(),
             action: Action::Scan,
         };

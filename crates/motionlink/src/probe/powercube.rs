@@ -57,12 +57,14 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
             port: Some(port.clone()),
             link: args.link.clone(),
             module: Address::new(1).expect("1 is a module address"),
-            baud: Baud::new(baud).map_err(|e| CliError::usage(e.to_string()))?,
-            bitrate: args.bitrate,
-            timeout_ms: args.timeout_ms,
-            poll_ms: PollInterval::from_ms(10).map_err(|e| CliError::usage(e.to_string()))?,
-            no_watchdog: true,
-            sim_variants: args.sim_variants.clone(),
+            bus: crate::powercube::BusArgs {
+                baud: Baud::new(baud).map_err(|e| CliError::usage(e.to_string()))?,
+                bitrate: args.bitrate,
+                timeout_ms: args.timeout_ms,
+                poll_ms: PollInterval::from_ms(10).map_err(|e| CliError::usage(e.to_string()))?,
+                no_watchdog: true,
+                sim_variants: args.sim_variants.clone(),
+            },
             action: Action::Scan,
         };
         let (client, host) = open(&family, &port, &tap, &clock)?;

@@ -35,10 +35,10 @@ pub(crate) use stop::print_stop_text;
 
 pub use decode::{decode, DecodeArgs};
 pub use demo::demo;
-pub(crate) use open::connector;
+use open::connect;
 #[cfg(test)]
 use open::unit_options;
-use open::{client_config, connect};
+pub(crate) use open::{client_config, connector, in_process};
 pub(crate) use parse::speed_mode_parser;
 use parse::{parse_item, parse_speed};
 pub(crate) use sim::{in_process_config, InProcess};
@@ -54,7 +54,18 @@ pub struct Args {
     pub port: Option<String>,
     #[command(flatten)]
     pub link: LinkArgs,
-    /// Baud rate of a serial port: 38400 on standard units, 9600 or 19200 on customised ones.
+    #[command(flatten)]
+    pub unit: UnitArgs,
+    #[command(subcommand)]
+    pub action: Action,
+}
+
+/// The unit's options: the session's settings and, with `--port sim`, the emulated unit. Every `motionlink
+/// scu` action and `motionlink console scu` take them (a device table gives them as the same keys).
+#[derive(clap::Args, Debug, Clone)]
+pub struct UnitArgs {
+    /// Baud rate of a serial port: 38400 on standard units, 9600 or 19200 on customised ones (with `--port
+    /// sim`: the emulated line runs at this rate).
     #[arg(long, default_value_t = Baud::STANDARD, value_parser = Baud::parse_whole, global = true)]
     pub baud: Baud,
     /// Safety_ID sent with RO: 0 a timeout stops all motion and locks remote motion until RO, 1 stops all
@@ -69,7 +80,8 @@ pub struct Args {
     /// Which actuators each motion function drives (the unit's parameterisation, which the data list does not
     /// show): a preset, scp11 (Fn drives An), tlt (F1 both columns, F2 A1, F3 A2) or liftkit (F1 A1, F2 A2, F8
     /// both), or one function, F1=1,2. Repeat to combine (--functions scp11 --functions F7=1,2). Without it,
-    /// move gives every connected actuator the target and reports the ones that moved.
+    /// move gives every connected actuator the target and reports the ones that moved; the console moves and
+    /// jogs actuator n with the function that drives it alone (default: Fn).
     #[arg(long = "functions", value_name = "MAP", global = true)]
     pub functions: Vec<String>,
     /// The travel range of an actuator for move targets, ACTUATOR=MIN:MAX in counts (such as 1=0:865), instead of
@@ -79,7 +91,7 @@ pub struct Args {
     /// How close to its target a move must end to succeed, in counts.
     #[arg(long, default_value = "5", value_name = "COUNTS", global = true, value_parser = ToleranceCounts::parse_whole)]
     pub tolerance: ToleranceCounts,
-    /// How often a move (or a run) looks at the actuators, in ms: each look is one RC keepalive that also reads
+    /// How often a move (or a run, or the console's move or jog) looks at the actuators, in ms: each look is one RC keepalive that also reads
     /// the status, position and current of every actuator (about 16 ms of the 38400-baud line). A watch's
     /// samples ride on such RCs too: at most one per this interval.
     #[arg(long, default_value = "50", value_name = "MS", global = true, alias = "poll-interval",
@@ -102,8 +114,6 @@ pub struct Args {
     /// on top.
     #[arg(long, value_name = "NAME", global = true, value_parser = SimConfig::PRESETS)]
     pub sim_preset: Option<String>,
-    #[command(subcommand)]
-    pub action: Action,
 }
 
 /// What to do.
@@ -235,12 +245,12 @@ pub enum Action {
 /// `motionlink scu ...`
 pub fn run(args: Args) -> Result<(), CliError> {
     if let Action::Names = args.action {
-        return send::names(crate::term::json(), args.speed_mode, &mut std::io::stdout().lock());
+        return send::names(crate::term::json(), args.unit.speed_mode, &mut std::io::stdout().lock());
     }
     // Check everything that can be checked before the port is opened: nothing is sent for bad input.
-    let mut config = client_config(&args)?;
+    let mut config = client_config(&args.unit)?;
     config.watch_may_lapse = matches!(args.action, Action::Watch { allow_watchdog_lapse: true, .. });
-    Variants::parse_all(&args.sim_variants).map_err(|e| CliError::usage(format!("--sim-variant: {e}")))?;
+    Variants::parse_all(&args.unit.sim_variants).map_err(|e| CliError::usage(format!("--sim-variant: {e}")))?;
     let mut request = None;
     match &args.action {
         Action::Get { items } => {
@@ -253,7 +263,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
         Action::Send { words } => request = Some(send::parse(words)?),
         Action::Move { speed, .. } | Action::Follow { speed, .. } => {
-            parse_speed(speed, args.speed_mode)?;
+            parse_speed(speed, args.unit.speed_mode)?;
         }
         Action::Run { function, direction, .. } => {
             RunAction::parse(function, direction).map_err(CliError::usage)?;
@@ -275,11 +285,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
             "the SCU on {port} does not answer (nothing came back to RO within {} ms): check the cable, the baud \
              rate (--baud {}; standard units run at 38400, customised ones at 9600 or 19200) and that the control \
              unit is powered",
-            args.timeout_ms.get().as_millis(),
-            args.baud
+            args.unit.timeout_ms.get().as_millis(),
+            args.unit.baud
         )
     };
-    let client = connect(&args, &port, &tap, &clock, config).map_err(|e| tap.name_absent(e, absent))?;
+    let client = connect(&args.unit, &port, &tap, &clock, config).map_err(|e| tap.name_absent(e, absent))?;
     client.set_cancel(interrupt.clone());
     crate::probe::use_profile(|p| motionlink_scu::probe::use_profile(&client, p, &port))?;
     let mut out = std::io::stdout().lock();
@@ -376,7 +386,7 @@ mod tests {
     fn the_command_line_s_defaults_are_the_library_s() {
         let cli = <crate::Cli as clap::Parser>::try_parse_from(["motionlink", "scu", "--port", "sim", "info"]).unwrap();
         let crate::Command::Scu(args) = cli.command else { panic!("scu") };
-        assert_eq!(unit_options(&args), UnitOptions::default());
+        assert_eq!(unit_options(&args.unit), UnitOptions::default());
     }
 
     #[test]

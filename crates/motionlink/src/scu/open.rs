@@ -3,7 +3,7 @@
 use super::*;
 
 /// The unit's options from the command line (the same options a device table gives the gateway).
-pub(super) fn unit_options(args: &Args) -> UnitOptions {
+pub(super) fn unit_options(args: &UnitArgs) -> UnitOptions {
     UnitOptions {
         baud: args.baud,
         safety: args.safety,
@@ -20,7 +20,7 @@ pub(super) fn unit_options(args: &Args) -> UnitOptions {
 
 /// The session's settings from the command line, checked before anything is sent (the library's rule:
 /// [`UnitOptions::config`]; a message names the option as the command line spells it).
-pub(super) fn client_config(args: &Args) -> Result<Config, CliError> {
+pub(crate) fn client_config(args: &UnitArgs) -> Result<Config, CliError> {
     unit_options(args).config().map_err(|e| match e.key {
         Some(key) => CliError::usage(format!("--{} {}", key.replace('_', "-"), e.message)),
         None => CliError::usage(e.message),
@@ -29,28 +29,31 @@ pub(super) fn client_config(args: &Args) -> Result<Config, CliError> {
 
 /// Opens the session on `port`, its link watched by `tap`.
 pub(super) fn connect(
-    args: &Args,
+    args: &UnitArgs,
     port: &str,
     tap: &Tap,
     clock: &SharedClock,
     config: Config,
 ) -> Result<Client, CliError> {
     let port: PortUrl = port.parse()?;
+    let connector = connector(&port, &in_process(args, &port)?, args.baud, tap, clock)?;
+    Client::with_connector(connector, Arc::clone(clock), config).map_err(|e| common::classified(&e))
+}
+
+/// The unit emulated with `--port sim`: the one the options name (its functions, its speed mode, the
+/// firmware variants asked for); the emulator's options on another port are refused.
+pub(crate) fn in_process<'a>(args: &'a UnitArgs, port: &PortUrl) -> Result<InProcess<'a>, CliError> {
     let sim_options = args.sim_config.is_some() || args.sim_preset.is_some() || !args.sim_variants.is_empty();
     if sim_options && !matches!(port, PortUrl::Sim) && !port.is_can() {
         return Err(CliError::usage("--sim-config, --sim-preset and --sim-variant are only for --port sim"));
     }
-    // The emulated unit is the one the command names: its functions, its speed mode, and the firmware
-    // variants asked for.
-    let unit = InProcess {
+    Ok(InProcess {
         functions: &args.functions,
         preset: args.sim_preset.as_deref(),
         file: args.sim_config.as_ref(),
         speed_mode: args.speed_mode,
         variants: &args.sim_variants,
-    };
-    let connector = connector(&port, &unit, args.baud, tap, clock)?;
-    Client::with_connector(connector, Arc::clone(clock), config).map_err(|e| common::classified(&e))
+    })
 }
 
 /// The links of an SCU on `port` (the console's and the command's): a serial line at `baud`, or with
