@@ -50,7 +50,7 @@ struct Scu {
 pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<dyn Device>, Arc<Traffic>), CliError> {
     // The session's settings and the emulated unit by the rules of `motionlink scu` (its options).
     let config = crate::scu::client_config(&args.unit)?;
-    let (functions, speed_mode) = (config.function_map.clone(), config.speed_mode);
+    let (functions, speed_mode) = (config.function_map, config.speed_mode);
     let url: PortUrl = port.parse()?;
     let traffic = Arc::new(Traffic::new(Box::new(Describer::new()), &format!("scu {port}"), "can0", clock));
     let unit = crate::scu::in_process(&args.unit, &url)?;
