@@ -156,6 +156,11 @@ impl<C> Slot<C> {
         lock(&self.client).clone().ok_or_else(|| Failure::usage(self.family, "the client is closed"))
     }
 
+    /// The client, as a Python call takes it: a usage error once it is closed.
+    pub fn client(&self, py: Python<'_>) -> PyResult<Arc<C>> {
+        self.get().map_err(|f| crate::errors::to_pyerr(py, f))
+    }
+
     /// True until [`Slot::take`].
     pub fn is_open(&self) -> bool {
         lock(&self.client).is_some()

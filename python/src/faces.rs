@@ -59,7 +59,7 @@ macro_rules! faces {
             #[allow(clippy::too_many_arguments, clippy::redundant_locals, unused_braces, clippy::let_unit_value)]
             fn $name(&self, $py: Python<'_>, $($arg: $ty),*) -> PyResult<Py<PyAny>> {
                 let $me = self;
-                let $c = $me.client($py)?;
+                let $c = $me.slot.client($py)?;
                 $($prep;)*
                 #[allow(unused_macros)]
                 macro_rules! w {
@@ -94,7 +94,7 @@ macro_rules! faces {
             #[allow(clippy::too_many_arguments, clippy::redundant_locals, unused_braces, clippy::let_unit_value)]
             fn $name(&self, $py: Python<'_>, $($arg: $ty,)* done: Py<PyAny>) -> PyResult<NativeTask> {
                 let $me = self;
-                let $c = $me.client($py)?;
+                let $c = $me.slot.client($py)?;
                 $($prep;)*
                 #[allow(unused_macros)]
                 macro_rules! w {
@@ -202,7 +202,7 @@ macro_rules! faces {
                 /// The ids of what this session set in motion and has not seen stop (SCU motion function
                 /// numbers 1..10, PowerCube module and COMPAX drive addresses).
                 fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
-                    Ok(crate::session::Session::started_ids(&*self.client(py)?))
+                    Ok(crate::session::Session::started_ids(&*self.slot.client(py)?))
                 }
 
                 /// Ends the session: stops what it set in motion (the family's `close`); the ids of what it
@@ -217,7 +217,7 @@ macro_rules! faces {
             asynch {
                 /// The ids of what this session set in motion and has not seen stop.
                 fn started(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
-                    Ok(crate::session::AsyncSession::started_ids(&*self.client(py)?))
+                    Ok(crate::session::AsyncSession::started_ids(&*self.slot.client(py)?))
                 }
 
                 /// Ends the session (stops what it set in motion) on the runtime: `done(ok, ids)`.

@@ -165,10 +165,6 @@ pub struct CompaxClient {
 }
 
 impl CompaxClient {
-    fn client(&self, py: Python<'_>) -> PyResult<Arc<Client>> {
-        self.slot.get().map_err(|f| to_pyerr(py, f))
-    }
-
     fn drive(&self, py: Python<'_>, drive: Option<Int>) -> PyResult<Address> {
         drive.map_or(Ok(self.drive), |d| whole(&d, "drive")).map_err(|f| to_pyerr(py, f))
     }
@@ -192,10 +188,6 @@ pub struct AsyncCompaxClient {
 }
 
 impl AsyncCompaxClient {
-    fn client(&self, py: Python<'_>) -> PyResult<Arc<AsyncClient>> {
-        self.slot.get().map_err(|f| to_pyerr(py, f))
-    }
-
     fn drive(&self, py: Python<'_>, drive: Option<Int>) -> PyResult<Address> {
         drive.map_or(Ok(self.drive), |d| whole(&d, "drive")).map_err(|f| to_pyerr(py, f))
     }
@@ -298,7 +290,7 @@ faces! {
             save: Option<String>,
             drives: &str,
         ) -> PyResult<Bound<'py, PyAny>> {
-            let client = self.client(py)?;
+            let client = self.slot.client(py)?;
             let drives = motionlink_compax::probe::parse_drives(drives).map_err(|e| to_pyerr(py, usage(e)))?;
             let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
             let probe = || motionlink_compax::probe::probe(&client, &setup, &drives).map_err(|e| e.failure());
@@ -309,7 +301,7 @@ faces! {
         /// the samples come from [`CompaxWatch::next`].
         #[pyo3(signature = (drive, interval_ms))]
         fn watch_start(&self, py: Python<'_>, drive: Option<Int>, interval_ms: Int) -> PyResult<CompaxWatch> {
-            let c = self.client(py)?;
+            let c = self.slot.client(py)?;
             let a = self.drive(py, drive)?;
             let interval: WatchInterval = whole(&interval_ms, "interval_ms").map_err(|f| to_pyerr(py, f))?;
             let w = CompaxWatch::start(c, a, interval.duration());

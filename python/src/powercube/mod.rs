@@ -189,10 +189,6 @@ pub struct PowerCubeClient {
 }
 
 impl PowerCubeClient {
-    fn client(&self, py: Python<'_>) -> PyResult<Arc<Client>> {
-        self.slot.get().map_err(|f| to_pyerr(py, f))
-    }
-
     fn address(&self, py: Python<'_>, module: Option<Int>) -> PyResult<u8> {
         address_or(self.module, py, module)
     }
@@ -218,10 +214,6 @@ pub struct AsyncPowerCubeClient {
 }
 
 impl AsyncPowerCubeClient {
-    fn client(&self, py: Python<'_>) -> PyResult<Arc<AsyncClient>> {
-        self.slot.get().map_err(|f| to_pyerr(py, f))
-    }
-
     fn address(&self, py: Python<'_>, module: Option<Int>) -> PyResult<u8> {
         address_or(self.module, py, module)
     }
@@ -307,7 +299,7 @@ faces! {
             low_latency: bool,
             save: Option<String>,
         ) -> PyResult<Bound<'py, PyAny>> {
-            let client = self.client(py)?;
+            let client = self.slot.client(py)?;
             let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
             let probe = || motionlink_powercube::probe::probe(&client, &setup).map_err(|e| e.failure());
             crate::common::probe_py(py, FAMILY, save, probe, motionlink_powercube::probe::save_profile)

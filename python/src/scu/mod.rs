@@ -232,12 +232,6 @@ pub struct ScuClient {
     profile: crate::common::ProfileUse,
 }
 
-impl ScuClient {
-    fn client(&self, py: Python<'_>) -> PyResult<Arc<Client>> {
-        self.slot.get().map_err(|f| to_pyerr(py, f))
-    }
-}
-
 /// An async session with an SCU (the native half of `motionlink.AsyncScu`): the operations run on the
 /// library's runtime; cancelling a move's or a run's task drops its future, which stops the function
 /// (fast RS, confirmed).
@@ -247,12 +241,6 @@ pub struct AsyncScuClient {
     port: String,
     speed_mode: SpeedMode,
     profile: crate::common::ProfileUse,
-}
-
-impl AsyncScuClient {
-    fn client(&self, py: Python<'_>) -> PyResult<Arc<AsyncClient>> {
-        self.slot.get().map_err(|f| to_pyerr(py, f))
-    }
 }
 
 impl crate::faces::Closing for ScuClient {}
@@ -333,7 +321,7 @@ faces! {
             low_latency: bool,
             save: Option<String>,
         ) -> PyResult<Bound<'py, PyAny>> {
-            let client = self.client(py)?;
+            let client = self.slot.client(py)?;
             let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
             let probe = || motionlink_scu::probe::probe(&client, &setup).map_err(|e| e.failure());
             crate::common::probe_py(py, FAMILY, save, probe, motionlink_scu::probe::save_profile)

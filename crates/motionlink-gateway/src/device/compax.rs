@@ -185,10 +185,7 @@ impl Compax {
 
     /// Ends the session (what still moves is stopped).
     pub(super) async fn close(self) -> Result<(), String> {
-        match Arc::try_unwrap(self.client) {
-            Ok(client) => client.close().await.map(|_| ()).map_err(|e| e.to_string()),
-            Err(_) => Ok(()),
-        }
+        super::close_client(self.client, |c| c.close()).await
     }
 }
 

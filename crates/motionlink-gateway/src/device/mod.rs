@@ -410,3 +410,16 @@ mod tests {
         assert!(s.is_ok(), "{s:?}");
     }
 }
+
+/// Ends a family's session held in `client` by the family's `close` (which stops what the session started);
+/// a session still shared by a task that is ending closes when that task drops it.
+async fn close_client<C, T, E, F>(client: Arc<C>, close: impl FnOnce(C) -> F) -> Result<(), String>
+where
+    E: std::fmt::Display,
+    F: std::future::Future<Output = Result<T, E>>,
+{
+    match Arc::try_unwrap(client) {
+        Ok(client) => close(client).await.map(|_| ()).map_err(|e| e.to_string()),
+        Err(_) => Ok(()),
+    }
+}

@@ -174,10 +174,7 @@ impl PowerCube {
 
     /// Ends the session (what still moves is halted, the watchdog switched off).
     pub(super) async fn close(self) -> Result<(), String> {
-        match Arc::try_unwrap(self.client) {
-            Ok(client) => client.close().await.map(|_| ()).map_err(|e| e.to_string()),
-            Err(_) => Ok(()),
-        }
+        super::close_client(self.client, |c| c.close()).await
     }
 }
 

@@ -161,11 +161,7 @@ impl Scu {
 
     /// Ends the session (RS for every started function, then RA).
     pub(super) async fn close(self) -> Result<(), String> {
-        match Arc::try_unwrap(self.client) {
-            Ok(client) => client.close().await.map(|_| ()).map_err(|e| e.to_string()),
-            // Still shared by a task that ends: dropping the last one closes the session.
-            Err(_) => Ok(()),
-        }
+        super::close_client(self.client, |c| c.close()).await
     }
 }
 
