@@ -331,6 +331,19 @@ pub(super) fn flag(text: &str) -> Result<(), String> {
     text.parse::<bool>().map(drop).map_err(|_| "give true or false".into())
 }
 
+/// Ends a family's session held in `client` by the family's `close` (which stops what the session started);
+/// a session still shared by a task that is ending closes when that task drops it.
+async fn close_client<C, T, E, F>(client: Arc<C>, close: impl FnOnce(C) -> F) -> Result<(), String>
+where
+    E: std::fmt::Display,
+    F: std::future::Future<Output = Result<T, E>>,
+{
+    match Arc::try_unwrap(client) {
+        Ok(client) => close(client).await.map(|_| ()).map_err(|e| e.to_string()),
+        Err(_) => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -408,18 +421,5 @@ mod tests {
         // An SCU speed in counts/s where the unit takes them.
         let s = Spec::of(&entry("scu", "sim", &[("speed", 800.into()), ("speed_mode", "counts-per-second".into())]));
         assert!(s.is_ok(), "{s:?}");
-    }
-}
-
-/// Ends a family's session held in `client` by the family's `close` (which stops what the session started);
-/// a session still shared by a task that is ending closes when that task drops it.
-async fn close_client<C, T, E, F>(client: Arc<C>, close: impl FnOnce(C) -> F) -> Result<(), String>
-where
-    E: std::fmt::Display,
-    F: std::future::Future<Output = Result<T, E>>,
-{
-    match Arc::try_unwrap(client) {
-        Ok(client) => close(client).await.map(|_| ()).map_err(|e| e.to_string()),
-        Err(_) => Ok(()),
     }
 }
