@@ -21,32 +21,51 @@ use crate::common::{classified, CliError};
 const NOT_FROM_THE_FILE: [&str; 11] =
     ["device", "listen", "listen_any", "abs", "rel", "no_wait", "help", "version", "verbose", "quiet", "json"];
 
-/// The command line with the options of the device `--device` names added, where a family command
+/// `cli` with the options of the device `--device` names in `args` as its defaults, where a family command
 /// (`motionlink scu ...`) or a console (`motionlink console scu ...`) names one: each key of the device's
 /// entry for which the command (or its action: `move`'s `--max-pos`) has an option, unless the command line
-/// gives that option itself or one that excludes it (`--no-wait` and `timeout_s`). A key that no command of
+/// gives that option itself or one that excludes it (`--no-wait` and `timeout_s`). The command line is
+/// parsed as it is, by the command this returns: what it gives wins over the file. A key that no command of
 /// the family has is refused, named, with the nearest one; a value the option refuses is refused as the
-/// file's. A command line that clap refuses, or that names no device, is returned as it is (clap then says
+/// file's. A command line that clap refuses, or that names no device, leaves `cli` as it is (clap then says
 /// what is wrong).
-pub fn with_device_options(args: Vec<OsString>, cli: &clap::Command) -> Result<Vec<OsString>, CliError> {
+pub fn with_device_options(args: &[OsString], cli: clap::Command) -> Result<clap::Command, CliError> {
     with_device_options_from(args, cli, motionlink_link::profile::devices_path(), |p| std::fs::read_to_string(p))
 }
 
 fn with_device_options_from(
-    args: Vec<OsString>,
+    args: &[OsString],
+    cli: clap::Command,
+    path: Option<PathBuf>,
+    read: impl Fn(&PathBuf) -> std::io::Result<String>,
+) -> Result<clap::Command, CliError> {
+    let taken = device_defaults(args, &cli, path, read)?;
+    Ok(taken.into_iter().fold(cli, |cli, (path, id, values)| with_default(cli, &path, &id, values)))
+}
+
+/// The default values the device gives: the words that name the option's command (`["scu", "move"]`), the
+/// option's id and its values.
+type Defaults = Vec<(Vec<String>, String, Vec<String>)>;
+
+fn device_defaults(
+    args: &[OsString],
     cli: &clap::Command,
     path: Option<PathBuf>,
     read: impl Fn(&PathBuf) -> std::io::Result<String>,
-) -> Result<Vec<OsString>, CliError> {
-    let Ok(matches) = cli.clone().try_get_matches_from(&args) else { return Ok(args) };
-    let Some(levels) = levels(cli, &matches) else { return Ok(args) };
-    let Ok(Some(name)) = levels[0].matches.try_get_one::<String>("device") else { return Ok(args) };
+) -> Result<Defaults, CliError> {
+    let Ok(matches) = cli.clone().try_get_matches_from(args) else { return Ok(Vec::new()) };
+    let Some(levels) = levels(cli, &matches) else { return Ok(Vec::new()) };
+    let Ok(Some(name)) = levels[0].matches.try_get_one::<String>("device") else { return Ok(Vec::new()) };
     let family = levels[0].family;
     let (device, shown) = load_with(family, name, path, read).map_err(|e| classified(&e))?;
     let place = format!("{shown}: [device.{name}]");
     check_keys(cli, family, &device, &place)?;
     let port = ("port".to_string(), toml::Value::from(device.port.clone()));
-    let mut out = args;
+    // What the file adds is checked on a command line with its options written out, one after the other, so
+    // that its mistakes are told as the file's; an option that this use of the action cannot take (one it
+    // requires is not given) is left out.
+    let mut checked = args.to_vec();
+    let mut taken = Vec::new();
     for (key, value) in device.options.iter().chain(std::iter::once((&port.0, &port.1))) {
         // The action's option if it has one (`move --tolerance`), else the family's (`--module`).
         let found = levels.iter().enumerate().rev().find_map(|(depth, level)| {
@@ -58,14 +77,23 @@ fn with_device_options_from(
         if given(key) || level.command.get_arg_conflicts_with(arg).iter().any(|a| given(a.get_id().as_str())) {
             continue;
         }
-        let words = option_words(arg, key, value).map_err(|e| CliError::usage(format!("{place}: {e}")))?;
-        let at = insertion_point(cli, &out, &levels[..=depth]);
-        let mut candidate = out.clone();
+        let Some(values) = option_values(arg, key, value).map_err(|e| CliError::usage(format!("{place}: {e}")))? else {
+            continue;
+        };
+        let long = arg.get_long().unwrap_or(key);
+        let words: Vec<OsString> = match arg.get_action().takes_values() {
+            true => values.iter().map(|v| format!("--{long}={v}").into()).collect(),
+            false => vec![format!("--{long}").into()],
+        };
+        let at = insertion_point(cli, &checked, &levels[..=depth]);
+        let mut candidate = checked.clone();
         candidate.splice(at..at, words);
-        // What the file adds is checked here, so that its mistakes are told as the file's; an option that
-        // this use of the action cannot take (one it requires is not given) is left out.
         match cli.clone().try_get_matches_from(&candidate) {
-            Ok(_) => out = candidate,
+            Ok(_) => {
+                checked = candidate;
+                let words = levels[..=depth].iter().flat_map(|l| l.words.iter().map(|w| w.to_string())).collect();
+                taken.push((words, key.clone(), values));
+            }
             Err(e) if matches!(e.kind(), ErrorKind::MissingRequiredArgument | ErrorKind::ArgumentConflict) => {}
             Err(e) => {
                 let text = e.render().to_string();
@@ -74,7 +102,15 @@ fn with_device_options_from(
             }
         }
     }
-    Ok(out)
+    Ok(taken)
+}
+
+/// `cli` with `values` the default of option `id` of the command `path` names below it.
+fn with_default(cli: clap::Command, path: &[String], id: &str, values: Vec<String>) -> clap::Command {
+    match path.split_first() {
+        Some((name, rest)) => cli.mut_subcommand(name, |c| with_default(c, rest, id, values)),
+        None => cli.mut_arg(id, |a| a.default_values(values.into_iter().map(clap::builder::OsStr::from))),
+    }
 }
 
 /// One level of a family's command line: the family command (`scu`, `console scu`) and then its action
@@ -145,15 +181,20 @@ fn check_keys(cli: &clap::Command, family: &str, device: &Device, place: &str) -
     Ok(())
 }
 
-/// The words that give option `arg` the file's `value`: `--name=value`, once per element of an array for
-/// an option that may be repeated, `--name` for a switch that is true.
-fn option_words(arg: &clap::Arg, key: &str, value: &toml::Value) -> Result<Vec<OsString>, String> {
-    let long = arg.get_long().ok_or_else(|| format!("`{key}` has no long option"))?;
+/// The values that give option `arg` the file's `value`: one per element of an array for an option that may
+/// be repeated, `true` for a switch that is on; `None` for a switch that is off.
+fn option_values(arg: &clap::Arg, key: &str, value: &toml::Value) -> Result<Option<Vec<String>>, String> {
+    if arg.get_long().is_none() {
+        return Err(format!("`{key}` has no long option"));
+    }
     if !arg.get_action().takes_values() {
-        return match value {
-            toml::Value::Boolean(true) => Ok(vec![format!("--{long}").into()]),
-            toml::Value::Boolean(false) => Ok(Vec::new()),
-            other => Err(format!("`{key}` is a switch: give true or false, not {}", shown(other))),
+        return match (arg.get_action(), value) {
+            (clap::ArgAction::SetTrue, toml::Value::Boolean(true)) => Ok(Some(vec!["true".into()])),
+            (clap::ArgAction::SetTrue, toml::Value::Boolean(false)) => Ok(None),
+            (clap::ArgAction::SetTrue, other) => {
+                Err(format!("`{key}` is a switch: give true or false, not {}", shown(other)))
+            }
+            _ => Err(format!("`{key}` cannot come from the file (give it on the command line)")),
         };
     }
     let scalar = |v: &toml::Value| match v {
@@ -164,10 +205,10 @@ fn option_words(arg: &clap::Arg, key: &str, value: &toml::Value) -> Result<Vec<O
     };
     match value {
         toml::Value::Array(items) if matches!(arg.get_action(), clap::ArgAction::Append) => {
-            items.iter().map(|v| Ok(format!("--{long}={}", scalar(v)?).into())).collect()
+            items.iter().map(scalar).collect::<Result<_, _>>().map(Some)
         }
         toml::Value::Array(_) => Err(format!("`{key}` takes one value, not a list")),
-        v => Ok(vec![format!("--{long}={}", scalar(v)?).into()]),
+        v => Ok(Some(vec![scalar(v)?])),
     }
 }
 
@@ -223,61 +264,61 @@ fn edit_distance(a: &str, b: &str) -> usize {
 mod tests {
     use super::*;
 
-    /// The command line `words` with the options of `file`'s device added.
-    fn with_file(words: &str, file: &str) -> Result<Vec<String>, CliError> {
+    /// The command line `words` parsed with the options of `file`'s device as defaults: each option's values
+    /// (`None` where it has none), with ` (default)` after those the command line does not give (the file's,
+    /// or the option's own default), at the level
+    /// `path` names.
+    fn parsed(words: &str, file: &str, path: &[&str], ids: &[&str]) -> Result<Vec<Option<String>>, CliError> {
         let args: Vec<OsString> = std::iter::once("motionlink").chain(words.split(' ')).map(OsString::from).collect();
-        let cli = <crate::Cli as clap::CommandFactory>::command();
-        let out = with_device_options_from(args, &cli, Some(PathBuf::from("d.toml")), |_| Ok(file.to_string()))?;
-        Ok(out.iter().skip(1).map(|w| w.to_string_lossy().into_owned()).collect())
+        let cli = crate::numbers::negative_values(<crate::Cli as clap::CommandFactory>::command());
+        let cli = with_device_options_from(&args, cli, Some(PathBuf::from("d.toml")), |_| Ok(file.to_string()))?;
+        let matches = cli.try_get_matches_from(&args).map_err(|e| CliError::usage(e.to_string()))?;
+        let level = path.iter().fold(&matches, |m, name| m.subcommand_matches(name).expect("the level"));
+        Ok(ids
+            .iter()
+            .map(|id| {
+                let values = level.get_raw(id)?.map(|v| v.to_string_lossy().into_owned()).collect::<Vec<_>>();
+                let given = level.value_source(id) == Some(ValueSource::CommandLine);
+                Some(format!("{}{}", values.join(","), if given { "" } else { " (default)" }))
+            })
+            .collect())
     }
 
     #[test]
-    fn a_devices_options_go_after_the_words_of_their_command() {
-        let file = "[device.move]\nfamily = \"compax\"\nport = \"sim\"\ndrive = 3\nmax_pos = 50\ntimeout_s = 9\n";
-        // The family's option after `compax`, the action's after `move` (not after the device named move).
+    fn a_devices_options_are_the_defaults_of_their_command() {
+        let file = "[device.move]\nfamily = \"compax\"\nport = \"sim\"\ndrive = 3\nmax_pos = 50\ntimeout_s = 9\n\
+                    sim_variants = [\"echo-bare\", \"no-echo\"]\nshort = true\n";
+        let some = |s: &str| Some(s.to_string());
+        // The family's options at `compax`, the action's at `move` (not taken for the device named move).
+        let words = "--color never compax --device move move --abs 5";
         assert_eq!(
-            with_file("--color never compax --device move move --abs 5", file).unwrap(),
-            [
-                "--color",
-                "never",
-                "compax",
-                "--port=sim",
-                "--drive=3",
-                "--device",
-                "move",
-                "move",
-                "--timeout-s=9",
-                "--max-pos=50",
-                "--abs",
-                "5"
-            ]
+            parsed(words, file, &["compax"], &["port", "drive", "sim_variants", "short"]).unwrap(),
+            [some("sim (default)"), some("3 (default)"), some("echo-bare,no-echo (default)"), some("true (default)")]
         );
-        // Given on the command line, or excluded by what is: left out.
         assert_eq!(
-            with_file("compax --device move move --abs 5 --no-wait --drive 1 --max-pos 60", file).unwrap(),
-            [
-                "compax",
-                "--port=sim",
-                "--device",
-                "move",
-                "move",
-                "--abs",
-                "5",
-                "--no-wait",
-                "--drive",
-                "1",
-                "--max-pos",
-                "60"
-            ]
+            parsed(words, file, &["compax", "move"], &["timeout_s", "max_pos", "abs"]).unwrap(),
+            [some("9 (default)"), some("50 (default)"), some("5")]
         );
-        // The console: its own options (max_pos), not the command's (drive).
+        // Given on the command line, or excluded by what is: the command line's.
+        let words = "compax --device move move --abs 5 --no-wait --drive 1 --max-pos 60";
+        assert_eq!(parsed(words, file, &["compax"], &["drive"]).unwrap(), [some("1")]);
         assert_eq!(
-            with_file("console compax --device move", file).unwrap(),
-            ["console", "compax", "--port=sim", "--max-pos=50", "--device", "move"]
+            parsed(words, file, &["compax", "move"], &["timeout_s", "max_pos"]).unwrap(),
+            [some("600 (default)"), some("60")]
+        );
+        // The console: its own options and the family's line options (max_pos, short), not the command's
+        // one drive.
+        assert_eq!(
+            parsed("console compax --device move", file, &["console", "compax"], &["port", "max_pos", "short"])
+                .unwrap(),
+            [some("sim (default)"), some("50 (default)"), some("true (default)")]
         );
         // No --device, another command: as it is.
-        assert_eq!(with_file("compax --port sim status", file).unwrap(), ["compax", "--port", "sim", "status"]);
-        assert_eq!(with_file("decode compax", file).unwrap(), ["decode", "compax"]);
+        assert_eq!(parsed("compax --port sim status", file, &["compax"], &["port", "drive"]).unwrap()[0], some("sim"));
+        // A value the option refuses is the file's mistake.
+        let bad = file.replace("drive = 3", "drive = 40");
+        let e = parsed("compax --device move status", &bad, &["compax"], &["drive"]).unwrap_err().to_string();
+        assert!(e.starts_with("d.toml: [device.move]: ") && e.contains("40"), "{e}");
     }
 
     #[test]

@@ -267,8 +267,9 @@ fn with_negative_numbers(args: Vec<std::ffi::OsString>) -> Vec<std::ffi::OsStrin
 /// Parses the command line; with `--json` anywhere in it, a usage error is the JSON error object.
 fn parse() -> Cli {
     let args = with_negative_numbers(std::env::args_os().collect());
-    // The options of the device `--device` names, where the command line does not give them.
-    let args = devices::with_device_options(args, &Cli::command()).unwrap_or_else(|e| {
+    let command = numbers::negative_values(Cli::command().color(clap_color(&args)));
+    // The options of the device `--device` names: the defaults of the options the command line does not give.
+    let command = devices::with_device_options(&args, command).unwrap_or_else(|e| {
         if std::env::args_os().any(|a| a == "--json") {
             term::write_stderr(&format!("{}\n", e.to_json()));
         } else {
@@ -276,7 +277,6 @@ fn parse() -> Cli {
         }
         std::process::exit(i32::from(e.exit_code()));
     });
-    let command = numbers::negative_values(Cli::command().color(clap_color(&args)));
     let parsed = command
         .clone()
         .try_get_matches_from(&args)
