@@ -18,6 +18,10 @@
 //!   the other: the CPU of one exchange on a hot core (client, session, driver and the emulator's answer).
 //!   After a sleep of a few milliseconds the same work takes several times longer (caches and an idle
 //!   virtual CPU coming back), which is most of the overhead measured at 38400 baud.
+//! - line utilisation, quiet and loaded: RG transactions back to back for 3 s over the link paced at 38400
+//!   baud (the session's keepalive RCs between them, as they come due); printed is the share of the time the
+//!   line carried bytes: every byte sent and received, at 10 bits, over the time taken. The line is half
+//!   duplex in use (the unit answers after the request), so 100 % is the wire limit. Target: at least 98 %.
 //! - keepalive jitter, quiet and loaded: an idle session on the real clock; every keepalive RC's sending time is
 //!   recorded and compared with its deadline on the 200 ms grid. Printed: median, 99th percentile and maximum
 //!   lateness. Target: 99th percentile under 5 ms under load. `SCU_BENCH_QUICK=1` measures 4 s instead of 20 s
@@ -290,6 +294,67 @@ impl Link for KeepaliveTimes {
     }
 }
 
+/// A link that counts the bytes it carries, both ways.
+struct Counting {
+    inner: Box<dyn Link>,
+    bytes: Arc<std::sync::atomic::AtomicU64>,
+}
+
+impl Link for Counting {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        self.bytes.fetch_add(bytes.len() as u64, Ordering::Relaxed);
+        self.inner.send(bytes)
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
+        let n = self.inner.recv(buf, timeout)?;
+        self.bytes.fetch_add(n as u64, Ordering::Relaxed);
+        Ok(n)
+    }
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        self.inner.discard_input()
+    }
+    fn describe(&self) -> String {
+        self.inner.describe()
+    }
+}
+
+/// The share of `duration` that the line at 38400 baud carried bytes while RG transactions ran back to back.
+fn line_utilisation(duration: Duration) -> f64 {
+    let clock = RealClock::shared();
+    let host =
+        EmulatorHost::new(Emulator::new(SimConfig::default()).unwrap(), Arc::clone(&clock), PipeConfig::paced(38_400));
+    let bytes = Arc::new(std::sync::atomic::AtomicU64::new(0));
+    let count = Arc::clone(&bytes);
+    let connector: Connector = Box::new(move || {
+        Ok(Box::new(Counting { inner: Box::new(host.connect().0), bytes: Arc::clone(&count) }) as Box<dyn Link>)
+    });
+    let client = Client::with_connector(connector, clock, Config::default()).unwrap();
+    // From the end of a first transaction: the line is busy from then on.
+    black_box(client.get_raw(DataIndex(0x0011)).unwrap());
+    let (start, before) = (Instant::now(), bytes.load(Ordering::Relaxed));
+    while start.elapsed() < duration {
+        black_box(client.get_raw(DataIndex(0x0011)).unwrap());
+    }
+    let carried = bytes.load(Ordering::Relaxed) - before;
+    let elapsed = start.elapsed();
+    drop(client);
+    (char_time(38_400, Parity::None) * carried as u32).as_secs_f64() / elapsed.as_secs_f64()
+}
+
+fn utilisation(_c: &mut Criterion) {
+    for loaded in [false, true] {
+        let _load = loaded.then(|| Load::start(2));
+        let share = line_utilisation(Duration::from_secs(3));
+        eprintln!(
+            "line utilisation, RG transactions back to back at 38400 baud for 3 s{}: {:.1} % of the wire limit \
+             (target: at least 98 %: {})",
+            if loaded { ", two busy threads beside the session" } else { " (quiet)" },
+            share * 100.0,
+            if share >= 0.98 { "met" } else { "NOT met" }
+        );
+    }
+}
+
 /// How late each keepalive went out after its deadline on the grid, sorted.
 fn keepalive_lateness(duration: Duration) -> Vec<Duration> {
     let clock = RealClock::shared();
@@ -333,5 +398,5 @@ fn keepalive(_c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, codec, transaction, keepalive);
+criterion_group!(benches, codec, transaction, utilisation, keepalive);
 criterion_main!(benches);
