@@ -593,6 +593,10 @@ fn the_console_takes_its_family_command_s_options_by_the_same_rules() {
     for (family, options, key) in [
         ("scu", &["--timeout-ms", "500", "--sim-variant", "no-groups"][..], "position_counts"),
         ("powercube", &["--modules", "1", "--sim-variant", "no-twin-mirror", "--poll-ms", "20"][..], "position_rad"),
+        ("powercube", &["--modules", "1", "--sim-variant", "no-pos-state-dio,ack-length-6"][..], "position_rad"),
+        ("scu", &["--sim-variant", "no-cyclic-objects,sticky-errors"][..], "position_counts"),
+        ("compax", &["--drives", "1", "--sim-variant", "no-echo"][..], "position_units"),
+        ("compax", &["--drives", "1", "--sim-variant", "status-value-only"][..], "position_units"),
         ("compax", &["--drives", "1", "--sim-variant", "echo-without-address", "--short"][..], "position_units"),
     ] {
         let c = console(&[&[family, "--port", "sim"], options].concat());

@@ -265,6 +265,11 @@ impl AsyncModule<'_> {
         self.client.call(calls::position_state_dio(self.address)).await
     }
 
+    /// As [`Module::look`](crate::client::Module::look).
+    pub async fn look(&self) -> Result<(Position, ShortState, Option<CubeState>), Error> {
+        self.client.call(calls::look(self.address)).await
+    }
+
     /// The Config word.
     pub async fn config_word(&self) -> Result<ConfigWord, Error> {
         self.client.call(calls::config_word(self.address)).await

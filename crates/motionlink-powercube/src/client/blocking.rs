@@ -276,6 +276,7 @@ fn op_is_read(op: &Op) -> bool {
             | Op::PositionTicks(_)
             | Op::State(_)
             | Op::PositionStateDio(_)
+            | Op::Look(_)
             | Op::ConfigWord(_)
             | Op::Kind(_)
             | Op::Info(_)
@@ -339,6 +340,14 @@ impl Module<'_> {
     /// Position, short state and DIO in one read (ActFPosStateDio).
     pub fn position_state_dio(&self) -> Result<(Position, ShortState, Dio), Error> {
         self.client.call(calls::position_state_dio(self.address))
+    }
+
+    /// The position and the short state for a display or a control loop, in the fewest reads the module
+    /// allows: one ActFPosStateDio where the module answers it (probed at the first call), else CubeState
+    /// and ActPos, whose full state word comes with them. The position is in the module's unit once its
+    /// kind is known.
+    pub fn look(&self) -> Result<(Position, ShortState, Option<CubeState>), Error> {
+        self.client.call(calls::look(self.address))
     }
 
     /// The Config word.

@@ -88,6 +88,10 @@ pub(crate) fn position_state_dio(a: Address) -> Call<(Position, ShortState, Dio)
     call!(Op::PositionStateDio(a), Output::PositionStateDio(p, s, d) => (p, s, d))
 }
 
+pub(crate) fn look(a: Address) -> Call<(Position, ShortState, Option<CubeState>)> {
+    call!(Op::Look(a), Output::Look(p, s, w) => (p, s, w))
+}
+
 pub(crate) fn config_word(a: Address) -> Call<ConfigWord> {
     call!(Op::ConfigWord(a), Output::ConfigWord(w) => w)
 }

@@ -92,6 +92,9 @@ pub enum Op {
     State(Address),
     /// ActFPosStateDio. [`Output::PositionStateDio`].
     PositionStateDio(Address),
+    /// The position and the short state in the fewest reads the module allows: ActFPosStateDio where it
+    /// answers it (probed once), else CubeState and ActPos. [`Output::Look`].
+    Look(Address),
     /// The Config word. [`Output::ConfigWord`].
     ConfigWord(Address),
     /// Rotary or linear (read once). [`Output::Kind`].
@@ -169,7 +172,9 @@ impl Op {
             Op::Request(_, r) if r.is_idempotent() => "a read",
             Op::RequestMany(rs) if rs.iter().all(|(_, r)| r.is_idempotent()) => "reads",
             Op::ReadMany(..) | Op::Get(..) => "a read",
-            Op::Positions(_) | Op::Position(_) | Op::PositionTicks(_) | Op::PositionStateDio(_) => "a position read",
+            Op::Positions(_) | Op::Position(_) | Op::PositionTicks(_) | Op::PositionStateDio(_) | Op::Look(_) => {
+                "a position read"
+            }
             Op::State(_) | Op::ConfigWord(_) | Op::Kind(_) | Op::Info(_) => "a read",
             Op::Scan => "the scan",
             Op::ProbePosStateDio(_) => "a read",
@@ -205,6 +210,9 @@ pub enum Output {
     State(CubeState),
     /// Position, short state and DIO.
     PositionStateDio(Position, ShortState, Dio),
+    /// A position and short state, with the full state word where it was read for them (a module without
+    /// ActFPosStateDio).
+    Look(Position, ShortState, Option<CubeState>),
     /// A Config word.
     ConfigWord(ConfigWord),
     /// Rotary or linear.

@@ -14,7 +14,6 @@ use motionlink_powercube::model::{
     PARAMS,
 };
 use motionlink_powercube::report::{Acted, ParamReading, Released, SetReport, StateReport};
-use motionlink_powercube::session::{Op, Output};
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{AsyncClient, Emulator, Error};
 
@@ -179,14 +178,6 @@ fn agrees(state: CubeState, short: ShortState) -> bool {
     state.short_state() == short
 }
 
-fn unexpected_output<T>(address: Address, other: Output) -> Result<T, Error> {
-    Err(Error::Corrupt {
-        address,
-        request: motionlink_powercube::wire::Request::Get(Param::ActFPosStateDio),
-        detail: format!("unexpected answer {other:?}"),
-    })
-}
-
 impl PowerCube {
     fn kind(&self, address: u8) -> Option<ModuleKind> {
         motionlink_link::clock::lock(&self.kinds).get(usize::from(address)).copied().flatten()
@@ -288,26 +279,33 @@ impl Device for PowerCube {
                 let turn = TURNS[(self.turn.fetch_add(1, std::sync::atomic::Ordering::Relaxed) % 3) as usize];
                 let look = async {
                     let m = self.client.module(Address::new(u.id)?);
-                    let (position, short) = match self.client.run(Op::PositionStateDio(m.address())).await? {
-                        Output::PositionStateDio(p, s, _) => (p, s),
-                        other => unexpected_output(m.address(), other)?,
-                    };
+                    // One ActFPosStateDio where the module has it; else CubeState and ActPos (the library's
+                    // probe), whose state word is then as fresh as the position.
+                    let (position, short, full) = m.look().await?;
                     let last = motionlink_link::clock::lock(&self.slow).get(&u.id).copied().unwrap_or_default();
-                    let stale = last.state.is_none_or(|k| !agrees(k, short)) && !last.forced;
-                    let param = if stale { Param::CubeState } else { turn };
+                    let stale = full.is_none() && last.state.is_none_or(|k| !agrees(k, short)) && !last.forced;
+                    let param = match (stale, full.is_some() && turn == Param::CubeState) {
+                        (true, _) => Param::CubeState,
+                        // The state word came with the look: the turn's read is not needed.
+                        (false, true) => return Ok((position, short, full, turn, None)),
+                        (false, false) => turn,
+                    };
                     let other = m.get(param).await?;
-                    Ok::<_, Error>((position, short, param, other))
+                    Ok::<_, Error>((position, short, full, param, Some(other)))
                 };
                 out.push(match look.await {
-                    Ok((position, short, param, other)) => {
+                    Ok((position, short, full, param, other)) => {
                         let slow = {
                             let mut all = motionlink_link::clock::lock(&self.slow);
                             let slot = all.entry(u.id).or_default();
+                            if let Some(w) = full {
+                                slot.state = Some(w);
+                            }
                             slot.forced = param == Param::CubeState && param != turn;
                             match (param, other) {
-                                (Param::CubeState, CubeValue::U32(w)) => slot.state = Some(CubeState(w)),
-                                (Param::ActVel, v) => slot.velocity = f32_of(v),
-                                (Param::ActFMotorCurrent, v) => slot.current = f32_of(v),
+                                (Param::CubeState, Some(CubeValue::U32(w))) => slot.state = Some(CubeState(w)),
+                                (Param::ActVel, Some(v)) => slot.velocity = f32_of(v),
+                                (Param::ActFMotorCurrent, Some(v)) => slot.current = f32_of(v),
                                 _ => {}
                             }
                             *slot

@@ -287,3 +287,25 @@ fn a_timeout_names_the_round_trips_measured_on_the_link() {
     // At 9600 baud a GetExtended of CubeState and its acknowledge take about 15 ms on the wire.
     assert!(text.contains("did not answer") && text.contains("replies on this link have taken 1"), "{text}");
 }
+
+#[test]
+fn a_look_reads_position_and_short_state_in_one_where_the_module_can_and_in_two_where_it_cannot() {
+    for (variants, full_state) in [(&[][..], false), (&[Variant::NoPosStateDio][..], true)] {
+        let (clock, host, bus) = rs232_variant(variants);
+        let _me = clock.reserve_participant().enter();
+        let m = bus.module(addr(1));
+        m.kind().unwrap();
+        let (position, short, state) = m.look().unwrap();
+        let expected = host.with_device(|d| d.module(1).unwrap().position().value());
+        assert!((position.value() - expected).abs() < 1e-6, "{variants:?}: {position:?} against {expected}");
+        assert_eq!(position.unit(), crate::model::AxisUnit::Radian, "{variants:?}");
+        assert_eq!(state.is_some(), full_state, "{variants:?}");
+        if let Some(state) = state {
+            assert_eq!(state.short_state(), short, "{variants:?}");
+        }
+        // The probe is made once: a second look on a module without ActFPosStateDio costs no timeout.
+        let before = clock.now();
+        m.look().unwrap();
+        assert!(clock.now().saturating_since(before) < std::time::Duration::from_millis(100), "{variants:?}");
+    }
+}

@@ -51,6 +51,24 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
                 .await?;
             Output::PositionStateDio(Position::native(pos).resolved(kind), state, dio)
         }
+        Op::Look(a) => {
+            let a = a.get();
+            ctx.probe_pos_state_dio(a).await?;
+            let kind = ctx.known_kind(a);
+            if ctx.lacks_pos_state_dio(a) {
+                let state = ctx.state(a).await?;
+                let pos = ctx.get_f32(a, Param::ActPos).await?;
+                Output::Look(Position::native(pos).resolved(kind), state.short_state(), Some(state))
+            } else {
+                let (pos, short) = ctx
+                    .get_as(a, Param::ActFPosStateDio, |v| match *v {
+                        Value::PosStateDio { pos, state, .. } => Some((pos, state)),
+                        _ => None,
+                    })
+                    .await?;
+                Output::Look(Position::native(pos).resolved(kind), short, None)
+            }
+        }
         Op::ConfigWord(a) => Output::ConfigWord(ctx.config_word(a.get()).await?),
         Op::Kind(a) => Output::Kind(ctx.kind(a.get()).await?),
         Op::Info(a) => Output::Info(ctx.info(a.get()).await?),
