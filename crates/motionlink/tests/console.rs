@@ -446,10 +446,16 @@ struct FamilyCase {
     rearm: Option<&'static str>,
     /// The console's options naming the units (no scan of all 31 addresses).
     units_named: &'static [&'static str],
+    /// The emulator's firmware variants (`motionlink sim <family> --variant`).
+    variants: &'static [&'static str],
 }
 
 fn family_rules(case: &FamilyCase) {
-    let sim = Sim::start(case.family, &["--tcp", "127.0.0.1:0"]);
+    let mut sim_args = vec!["--tcp", "127.0.0.1:0"];
+    for v in case.variants {
+        sim_args.extend(["--variant", v]);
+    }
+    let sim = Sim::start(case.family, &sim_args);
     let mut args = vec![case.family, "--port", &sim.address];
     args.extend_from_slice(case.units_named);
     let c = console(&args);
@@ -531,6 +537,7 @@ fn scu_stop_jog_dead_man_and_lost_page() {
         stopped: |t| t == "F1 stopped (RS fast)",
         rearm: None,
         units_named: &[],
+        variants: &[],
     });
 }
 
@@ -545,6 +552,7 @@ fn powercube_stop_jog_dead_man_and_lost_page() {
         stopped: |t| t == "module 1 halted",
         rearm: Some("reset"),
         units_named: &["--modules", "1"],
+        variants: &[],
     });
 }
 
@@ -559,6 +567,7 @@ fn compax_stop_jog_dead_man_and_lost_page() {
         stopped: |t| t == "drive 1 switched off (O0=0)",
         rearm: Some("switch_on"),
         units_named: &["--drives", "1"],
+        variants: &[],
     });
 }
 
@@ -604,5 +613,79 @@ fn the_console_takes_its_family_command_s_options_by_the_same_rules() {
         assert!(!units(&mut ws).is_empty(), "{family}");
         let sample = recv_until(&mut ws, Duration::from_secs(10), of_type("sample")).expect("a sample");
         assert!(sample["units"][0][key].is_number(), "{family}: {sample}");
+    }
+}
+
+/// The console's rules hold on every firmware variant of each family's emulator that the library takes as
+/// it is (Stop, the jog's dead-man deadline, a lost page); on the two whose moves the library refuses by
+/// design, the page is told why and nothing moves.
+#[test]
+fn the_console_s_rules_hold_on_every_firmware_variant() {
+    let scu = |variants| FamilyCase {
+        family: "scu",
+        key: "actuator",
+        target_key: "target_counts",
+        targets: [800.0, 0.0],
+        started: |t| t.starts_with("F1 started"),
+        stopped: |t| t == "F1 stopped (RS fast)",
+        rearm: None,
+        units_named: &[],
+        variants,
+    };
+    let powercube = |variants| FamilyCase {
+        family: "powercube",
+        key: "module",
+        target_key: "target_rad",
+        targets: [3.0, -3.0],
+        started: |t| t.starts_with("module 1 motion started"),
+        stopped: |t| t == "module 1 halted",
+        rearm: Some("reset"),
+        units_named: &["--modules", "1"],
+        variants,
+    };
+    let compax = |variants| FamilyCase {
+        family: "compax",
+        key: "drive",
+        target_key: "target_units",
+        targets: [700.0, -700.0],
+        started: |t| t.starts_with("drive 1 motion started"),
+        stopped: |t| t == "drive 1 switched off (O0=0)",
+        rearm: Some("switch_on"),
+        units_named: &["--drives", "1"],
+        variants,
+    };
+    for v in [
+        "no-groups",
+        "no-user-positions",
+        "no-cyclic-objects",
+        "no-remote-readback",
+        "rc-empty-data",
+        "sleepy",
+        "sticky-errors",
+        "in-end-undershoot",
+        "re-needs-rs",
+    ] {
+        family_rules(&scu(Box::leak(Box::new([v]))));
+    }
+    for v in ["no-twin-mirror", "no-broadcast-pair", "ack-length-6", "ext-ack-on-put-id", "no-pos-state-dio"] {
+        family_rules(&powercube(Box::leak(Box::new([v]))));
+    }
+    for v in ["echo-without-address", "echo-bare", "no-echo", "status-value-only"] {
+        family_rules(&compax(Box::leak(Box::new([v]))));
+    }
+    for (case, why) in
+        [(powercube(&["life-sign-unacknowledged"]), "watchdog"), (compax(&["echo-without-store"]), "store")]
+    {
+        let sim = Sim::start(case.family, &["--tcp", "127.0.0.1:0", "--variant", case.variants[0]]);
+        let c = console(&[&[case.family, "--port", &sim.address], case.units_named].concat());
+        let mut ws = ws(&c);
+        let unit = units(&mut ws)[0][case.key].as_u64().expect("a unit number");
+        send(&mut ws, json!({"type": "move", case.key: unit, case.target_key: case.targets[0]}));
+        let told = recv_until(&mut ws, Duration::from_secs(10), |v| {
+            v["type"] == "failed" || (v["type"] == "motion" && v["ok"] == false)
+        })
+        .unwrap_or_else(|| panic!("{}: the page is not told that the move failed", case.variants[0]));
+        assert!(told.to_string().contains(why), "{}: {told}", case.variants[0]);
+        assert!(!sim.events().iter().any(|e| (case.started)(&e.text)), "{}: something moved", case.variants[0]);
     }
 }
