@@ -66,6 +66,9 @@ fn writes_are_read_back_and_a_move_reaches_its_target() {
         // Raw bytes, read back as well (little-endian remote speed 40 %).
         client.set_raw(DataIndex(0x3012), &[40, 0]).await.unwrap();
         assert_eq!(client.get_value(DataIndex(0x3012)).await.unwrap(), Value::RemoteSpeed(40));
+        // Any operation by `run`, as in every family: the same read as an `Op`.
+        let read = client.run(motionlink_scu::Op::Read(DataIndex(0x3012))).await.unwrap();
+        assert!(matches!(read, motionlink_scu::Output::Data(Some(ref d)) if d[..] == [40, 0]), "{read:?}");
         assert!(client.is_open() && client.not_open_reason().is_none());
         let a1 = Actuator::new(1).unwrap();
         let report = client.move_to(a1, PositionCounts(60), Speed::percent(100).unwrap(), None).await.unwrap();

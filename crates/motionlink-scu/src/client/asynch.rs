@@ -70,6 +70,12 @@ impl AsyncClient {
         self.driver.start(op)
     }
 
+    /// Runs `op` to its end; dropping the future cancels it, as [`AsyncClient::start`] (a function it
+    /// started is stopped).
+    pub async fn run(&self, op: Op) -> Result<Output, Error> {
+        self.driver.run(op).await
+    }
+
     /// The driver underneath.
     pub fn driver(&self) -> &AsyncDriver<Session> {
         &self.driver
