@@ -79,6 +79,11 @@ impl AsyncClient {
         self.driver.driver().with_session(f)
     }
 
+    /// The driver underneath (to look at the session).
+    pub fn driver(&self) -> &AsyncDriver<Session> {
+        &self.driver
+    }
+
     /// The port, for messages.
     pub fn port(&self) -> &str {
         self.driver.driver().port_name()

@@ -89,6 +89,11 @@ impl Client {
         Ok(Client { driver, cancel: Mutex::new(None), config, can })
     }
 
+    /// The driver underneath (to run any [`Op`] with [`Driver::run_with`], or look at the session).
+    pub fn driver(&self) -> &Driver<Session> {
+        &self.driver
+    }
+
     /// The port, for messages.
     pub fn port(&self) -> &str {
         self.driver.port_name()

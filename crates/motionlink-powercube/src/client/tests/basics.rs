@@ -253,6 +253,9 @@ fn extended_acknowledges_and_steps() {
     assert_eq!(m.position_ticks().unwrap(), Ticks(0));
     let (_, short, _) = m.position_state_dio().unwrap();
     assert!(!short.contains(crate::model::ShortFlag::Motion));
+    // The driver underneath, as every family's client gives it: the session it runs is this one.
+    assert_eq!(bus.driver().port_name(), bus.port());
+    assert_eq!(bus.driver().with_session(|s| s.started()), bus.started());
     assert!(matches!(m.set(Param::Config, Value::U32(0x0400_0000)), Err(Error::NotSupported(_))));
 }
 
