@@ -172,7 +172,7 @@ impl IntoFailure for motionlink_powercube::Error {
         match self {
             E::Device { state, .. }
             | E::Halted { state, .. }
-            | E::WaitTimeout { state, .. }
+            | E::MoveTimeout { state, .. }
             | E::NotReached { state, .. }
             | E::WatchdogExpired { state, .. } => f.with_word(*state),
             E::Context { source, .. } | E::LostDuringMotion { cause: source, .. } => {

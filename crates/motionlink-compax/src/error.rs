@@ -76,7 +76,7 @@ pub enum Error {
     Model(#[from] ModelError),
     /// A telegram that cannot be built.
     #[error(transparent)]
-    Wire(#[from] WireError),
+    Encode(#[from] WireError),
     /// A move's reply was lost and the drive's state does not tell whether it took the move.
     #[error("drive {address}: the reply to {command:?} was lost and the drive's target ({target}) does not tell whether it was executed")]
     MoveUncertain {
@@ -298,7 +298,7 @@ impl Classify for Error {
                 ErrorClass::Transport(TransportKind::Corrupt)
             }
             Error::Link(e) => e.class(),
-            Error::Model(_) | Error::Wire(_) | Error::Broadcast(_) | Error::OutsideLimits { .. } | Error::Closed => {
+            Error::Model(_) | Error::Encode(_) | Error::Broadcast(_) | Error::OutsideLimits { .. } | Error::Closed => {
                 ErrorClass::Usage
             }
             Error::Cancelled => ErrorClass::Cancelled,

@@ -119,7 +119,7 @@ fn overflow_is_refused_before_sending_and_e71_is_a_device_error() {
     let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();
     let long = format!("P1={}", "1".repeat(40));
-    assert!(matches!(bus.raw(a(1), &long), Err(Error::Wire(_))));
+    assert!(matches!(bus.raw(a(1), &long), Err(Error::Encode(_))));
     assert!(sent(&r.transcript).is_empty());
     // Sent by hand (as a foreign program would), the drive answers E71.
     use motionlink_link::link::Link;
@@ -234,7 +234,7 @@ fn binary_moves_end_to_end_in_process() {
     assert!(frames.iter().any(|f| f[..3] == [b'7', 0x88, 0x41]), "binary POSA sent");
     assert!(matches!(
         bus.move_absolute(a(7), pos(1.0), MoveOptions { binary: true, message: true }),
-        Err(Error::Wire(_))
+        Err(Error::Encode(_))
     ));
 }
 

@@ -193,10 +193,10 @@ pub enum Error {
         /// The status byte.
         status: u8,
     },
-    /// Homing or a motion did not end in time; the motion was halted ([`Error::WaitTimeout::stop`] says
+    /// Homing or a motion did not end in time; the motion was halted ([`Error::MoveTimeout::stop`] says
     /// whether that was confirmed).
     #[error("module {address}: {what} did not happen within {} ms (state: {state}); {stop}", waited.as_millis())]
-    WaitTimeout {
+    MoveTimeout {
         /// The module.
         address: Address,
         /// What was waited for.
@@ -439,7 +439,7 @@ impl Classify for Error {
             | Error::WatchdogExpired { .. }
             | Error::Halted { .. }
             | Error::StillMoving { .. }
-            | Error::WaitTimeout { .. }
+            | Error::MoveTimeout { .. }
             | Error::WatchdogUnconfirmed { .. }
             | Error::WatchdogLeftOnline { .. }
             | Error::ReadBack { .. }
@@ -496,7 +496,7 @@ impl Error {
     /// What became of the stop of a motion this error interrupted, if it interrupted one.
     pub fn stop(&self) -> Option<&StopOutcome> {
         match self {
-            Error::WaitTimeout { stop, .. }
+            Error::MoveTimeout { stop, .. }
             | Error::Cancelled { stop, .. }
             | Error::LostDuringMotion { stop, .. }
             | Error::TargetMismatch { stop, .. } => Some(stop),

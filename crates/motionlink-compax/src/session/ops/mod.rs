@@ -227,7 +227,7 @@ impl Ctx {
                 core.after_send(address, effect);
                 Ok(r.map(|r| r.text_str().to_string()))
             }
-            Err(e @ (Error::Device { .. } | Error::Cancelled | Error::Wire(_))) => {
+            Err(e @ (Error::Device { .. } | Error::Cancelled | Error::Encode(_))) => {
                 // Refused, or never sent: it started nothing (an axis that was moving before still is).
                 self.core().started = saved;
                 if effect == Effect::Starts && matches!(e, Error::Device { .. }) {

@@ -203,7 +203,7 @@ fn cancelling_a_wait_halts_the_motion() {
     m.reset().unwrap();
     m.motion(Motion::FVel { vel: Velocity::native(0.1) }, AckKind::Simple).unwrap();
     let err = m.wait_motion_end(Duration::from_millis(300), &mut |_| {}).unwrap_err();
-    assert!(matches!(err, Error::WaitTimeout { stop: StopOutcome::Confirmed, .. }), "{err}");
+    assert!(matches!(err, Error::MoveTimeout { stop: StopOutcome::Confirmed, .. }), "{err}");
     assert!(host.with_device(|d| d.module(1).unwrap().state().contains(StateFlag::Halted)));
 }
 

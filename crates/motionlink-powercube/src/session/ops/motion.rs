@@ -263,7 +263,7 @@ impl Ctx {
             }
             if now >= deadline {
                 let stop = self.stop_motion(a).await;
-                return Err(Error::WaitTimeout {
+                return Err(Error::MoveTimeout {
                     address: crate::model::Address::checked(a),
                     what: until.what(),
                     waited: timeout,
