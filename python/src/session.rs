@@ -41,13 +41,16 @@ pub trait AsyncSession: Send + Sync + Sized + 'static {
 /// then the session ends without the GIL; the ids of what it stopped, those a cancelled call stopped
 /// included (none when closed already).
 pub fn close<C: Session>(py: Python<'_>, slot: &Slot<C>, token: &CancelToken, bound: Duration) -> PyResult<Vec<u8>> {
-    let before = slot.get().map(|c| c.started_ids()).unwrap_or_default();
-    let ended = py.detach(|| match slot.take(token, bound) {
-        None => Ok(Vec::new()),
-        Some(Ok(client)) => client.end(),
-        Some(Err(shared)) => C::end_shared(shared),
+    let ended = py.detach(|| {
+        let before = slot.get().map(|c| c.started_ids()).unwrap_or_default();
+        let ended = match slot.take(token, bound) {
+            None => Ok(Vec::new()),
+            Some(Ok(client)) => client.end(),
+            Some(Err(shared)) => C::end_shared(shared),
+        };
+        ended.map(|ids| and(before, ids))
     });
-    ended.map(|ids| and(before, ids)).map_err(|f| to_pyerr(py, f))
+    ended.map_err(|f| to_pyerr(py, f))
 }
 
 /// What was in motion when the close began (a call it cancelled stopped it), then what the end stopped.
