@@ -596,3 +596,53 @@ async fn an_mqtt5_request_without_reply_to_is_answered_on_its_response_topic_wit
     // The object `powercube state --json` prints: the state word with its flags.
     assert!(r["result"]["word"].is_u64() && r["result"]["flags"].is_array(), "{r}");
 }
+
+/// Devices whose firmware does what the manuals leave open the other way (emulator variants, given in the
+/// device table as `sim_variants`): their states are published and their leased moves end at the target,
+/// each saying in `verified` / `not_verifiable` what could not be checked.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn devices_of_other_firmware_variants_are_sampled_and_moved() {
+    let Some(b) = broker("devices_of_other_firmware_variants_are_sampled_and_moved") else { return };
+    let devices = r#"
+[device.lift]
+family = "scu"
+port = "sim"
+sim_variants = ["no-groups", "no-cyclic-objects", "no-remote-readback"]
+
+[device.arm]
+family = "powercube"
+port = "sim"
+sim_variants = ["no-pos-state-dio", "no-twin-mirror"]
+
+[device.axis]
+family = "compax"
+port = "sim"
+sim_variants = ["echo-without-address"]
+"#;
+    let _gw = gateway(&b, "v1", devices);
+    let mut c = online(&b, "v1", "t-v1").await;
+    for (dev, key) in [("lift", "actuators"), ("arm", "position_rad"), ("axis", "position_units")] {
+        let m = c.wait("state", 20 * S, |m| m.topic == format!("motionlink/v1/{dev}/state")).await;
+        assert!(m.json().get(key).is_some(), "{dev}: no {key} in {}", m.payload);
+    }
+    for (dev, args, reached, target) in [
+        ("lift", json!({"actuator": 1, "position": 250, "speed": 100}), "reached_counts", 250.0),
+        ("arm", json!({"position": 0.5, "vel": 0.8}), "reached_rad", 0.5),
+        ("axis", json!({"abs": 40, "speed": 50}), "reached_units", 40.0),
+    ] {
+        c.drain();
+        let id = format!("m-{dev}");
+        request(&c, "v1", dev, json!({"id": id, "op": "move", "args": args, "reply_to": "me/r", "lease_ms": 500}))
+            .await;
+        let keep = keep_alive(&c, "v1", dev, &id);
+        let r = c.reply("me/r", &id, 60 * S).await;
+        keep.abort();
+        assert_eq!(r["ok"], true, "{dev}: {r}");
+        let result = &r["result"];
+        assert!((result[reached].as_f64().unwrap() - target).abs() <= 0.001, "{dev}: {r}");
+        // What the variant keeps from being checked is said, never claimed verified.
+        let verified = result["verified"].as_bool().unwrap_or(false);
+        let said = result["not_verifiable"].as_array().is_some_and(|a| !a.is_empty());
+        assert!(verified != said, "{dev}: {r}");
+    }
+}
