@@ -282,7 +282,9 @@ fn echo_row(client: &Client, a: Address) -> Check {
         (_, Some(EchoForm::Full)) => {
             (CheckResult::Ok, "echoes in full (address, command and flags): a stored move is checked before '!'".into())
         }
-        (_, Some(f)) => (CheckResult::Unsupported, format!("echoes {f:?}: {}", f.unchecked(a, prefixed).join("; "))),
+        (_, Some(f)) => {
+            (CheckResult::Unsupported, format!("echoes {}: {}", f.described(), f.unchecked(a, prefixed).join("; ")))
+        }
         (Err(e), None) => (CheckResult::Failed, e.to_string()),
         (Ok(_), None) => (CheckResult::Failed, "not settled".into()),
     };

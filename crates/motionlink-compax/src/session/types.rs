@@ -248,6 +248,17 @@ impl EchoForm {
         Some([address, command, flags].concat())
     }
 
+    /// The form in words: how the drive sends a telegram back.
+    pub fn described(self) -> &'static str {
+        match self {
+            EchoForm::Full => "in full",
+            EchoForm::WithoutAddress => "without its address digits",
+            EchoForm::WithoutFlags => "without its flag characters",
+            EchoForm::Bare => "as the command alone (no address digits, no flag characters)",
+            EchoForm::None => "not at all",
+        }
+    }
+
     /// The form `echo` is in, for that telegram; `None` when it is in none (another command text).
     pub fn of(echo: &[u8], digits: &[u8], command: &[u8], flags: &[u8]) -> Option<EchoForm> {
         [EchoForm::Full, EchoForm::WithoutAddress, EchoForm::WithoutFlags, EchoForm::Bare]

@@ -111,7 +111,9 @@ impl Ctx {
         if !why.is_empty() {
             core.warn_once(address, "echo", || {
                 format!(
-                    "drive {address} echoes {form:?} (the manual says only \"in full\"): {}; moves say so in their results",
+                    "drive {address} echoes a telegram sent with '?' {} (the manual says only \"in full\"): {}; moves \
+                     say so in their results",
+                    form.described(),
                     why.join("; ")
                 )
             });
