@@ -185,7 +185,7 @@ pub enum Error {
     /// acknowledged storing theirs (and the failed drive may have stored its own if its reply was lost): the
     /// manual has no command that empties a drive's buffer, so the next `!` to such a drive, or any `32!` on
     /// the bus, starts that move. The session counts them as started once it sends such a `!` itself.
-    #[error("drive {failed}: storing the synchronous move failed ({source}); no '!' was sent, but drives {buffered:?} still hold a buffered move that the next '!' to them or '32!' starts (the manual has no command to empty a buffer)")]
+    #[error("drive {failed}: storing the synchronous move failed ({source}); no '!' was sent, but a buffered move is still held by {}: the next '!' to such a drive, or any '32!', starts it (the manual has no command to empty a buffer)", drives(buffered))]
     SyncIncomplete {
         /// The drive whose move could not be stored.
         failed: u8,
@@ -200,7 +200,7 @@ pub enum Error {
     /// not start it. The drives in `buffered` may still hold the command (as they received it) in their
     /// buffer: the manual has no command that empties a buffer, so the next `!` to such a drive, or any
     /// `32!` on the bus, executes it.
-    #[error("drive {address}: the move {command:?} was stored in the buffer, not executed: {why} ({source}); drives {buffered:?} may still hold the command as they received it in their buffer, and the next '!' to them or any '32!' on the bus executes it (the manual has no command to empty a buffer)")]
+    #[error("drive {address}: the move {command:?} was stored in the buffer, not executed: {why} ({source}); the command may still be held, as received, in the buffer of {}: the next '!' to such a drive, or any '32!' on the bus, executes it (the manual has no command to empty a buffer)", drives(buffered))]
     NotExecuted {
         /// The drive the move was for.
         address: Address,
@@ -418,6 +418,15 @@ impl fmt::Display for StopReport {
             }
         }
         Ok(())
+    }
+}
+
+/// Drive addresses in words: "drive 1", "drives 1, 3".
+fn drives(list: &[u8]) -> String {
+    let numbers: Vec<String> = list.iter().map(u8::to_string).collect();
+    match numbers.len() {
+        1 => format!("drive {}", numbers[0]),
+        _ => format!("drives {}", numbers.join(", ")),
     }
 }
 

@@ -497,7 +497,7 @@ fn a_failed_synchronous_store_names_the_drives_left_with_a_buffered_move() {
         }
         other => panic!("{other}"),
     }
-    assert!(e.to_string().contains("drives [1] still hold a buffered move"), "{e}");
+    assert!(e.to_string().contains("a buffered move is still held by drive 1:"), "{e}");
     assert!(!sent_frames.lock().unwrap().iter().any(|f| f == b"32!\r"), "no '!' after a failed store");
     assert!(bus.started().is_empty(), "nothing runs yet");
     // The `!` this client sends later starts drive 1's buffered move: dropping the client stops it.
