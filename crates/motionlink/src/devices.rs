@@ -53,7 +53,20 @@ fn device_defaults(
     path: Option<PathBuf>,
     read: impl Fn(&PathBuf) -> std::io::Result<String>,
 ) -> Result<Defaults, CliError> {
-    let Ok(matches) = cli.clone().try_get_matches_from(args) else { return Ok(Vec::new()) };
+    // With `--help`, the device is found on the command line without it (which may lack what an action
+    // requires), so that the help shows the device's values as the defaults; its values are checked when
+    // the command runs.
+    let without_help: Vec<OsString>;
+    let (args, parser, matches) = match cli.clone().try_get_matches_from(args) {
+        Ok(matches) => (args, cli.clone(), matches),
+        Err(e) if e.kind() == ErrorKind::DisplayHelp => {
+            without_help = args.iter().filter(|a| *a != "--help" && *a != "-h").cloned().collect();
+            let parser = cli.clone().ignore_errors(true);
+            let Ok(matches) = parser.clone().try_get_matches_from(&without_help) else { return Ok(Vec::new()) };
+            (&without_help[..], parser, matches)
+        }
+        Err(_) => return Ok(Vec::new()),
+    };
     let Some(levels) = levels(cli, &matches) else { return Ok(Vec::new()) };
     let Ok(Some(name)) = levels[0].matches.try_get_one::<String>("device") else { return Ok(Vec::new()) };
     let family = levels[0].family;
@@ -88,7 +101,7 @@ fn device_defaults(
         let at = insertion_point(cli, &checked, &levels[..=depth]);
         let mut candidate = checked.clone();
         candidate.splice(at..at, words);
-        match cli.clone().try_get_matches_from(&candidate) {
+        match parser.clone().try_get_matches_from(&candidate) {
             Ok(_) => {
                 checked = candidate;
                 let words = levels[..=depth].iter().flat_map(|l| l.words.iter().map(|w| w.to_string())).collect();
@@ -315,6 +328,16 @@ mod tests {
         );
         // No --device, another command: as it is.
         assert_eq!(parsed("compax --port sim status", file, &["compax"], &["port", "drive"]).unwrap()[0], some("sim"));
+        // With --help: the device's values are the defaults the help shows.
+        let args: Vec<OsString> =
+            ["motionlink", "compax", "--device", "move", "move", "--help"].iter().map(OsString::from).collect();
+        // (`move` without its target: the command line clap would refuse but for --help.)
+        let cli = crate::numbers::negative_values(<crate::Cli as clap::CommandFactory>::command());
+        let mut cli =
+            with_device_options_from(&args, cli, Some(PathBuf::from("d.toml")), |_| Ok(file.to_string())).unwrap();
+        let help = cli.find_subcommand_mut("compax").unwrap().find_subcommand_mut("move").unwrap().render_long_help();
+        // The action's `--timeout-s` (600 of its own) shows the device's 9.
+        assert!(help.to_string().contains("[default: 9]"), "{help}");
         // A value the option refuses is the file's mistake.
         let bad = file.replace("drive = 3", "drive = 40");
         let e = parsed("compax --device move status", &bad, &["compax"], &["drive"]).unwrap_err().to_string();
