@@ -526,9 +526,9 @@ fn family_rules(case: &FamilyCase) {
     assert!(stopped.at - gone < 0.3, "{family}: stopped {:.3} s after the page went", stopped.at - gone);
 }
 
-#[test]
-fn scu_stop_jog_dead_man_and_lost_page() {
-    family_rules(&FamilyCase {
+/// The SCU's case: F1 moves actuator 1.
+fn scu_case(variants: &'static [&'static str]) -> FamilyCase {
+    FamilyCase {
         family: "scu",
         key: "actuator",
         target_key: "target_counts",
@@ -537,13 +537,13 @@ fn scu_stop_jog_dead_man_and_lost_page() {
         stopped: |t| t == "F1 stopped (RS fast)",
         rearm: None,
         units_named: &[],
-        variants: &[],
-    });
+        variants,
+    }
 }
 
-#[test]
-fn powercube_stop_jog_dead_man_and_lost_page() {
-    family_rules(&FamilyCase {
+/// The PowerCube's case: module 1, reset after each halt.
+fn powercube_case(variants: &'static [&'static str]) -> FamilyCase {
+    FamilyCase {
         family: "powercube",
         key: "module",
         target_key: "target_rad",
@@ -552,13 +552,13 @@ fn powercube_stop_jog_dead_man_and_lost_page() {
         stopped: |t| t == "module 1 halted",
         rearm: Some("reset"),
         units_named: &["--modules", "1"],
-        variants: &[],
-    });
+        variants,
+    }
 }
 
-#[test]
-fn compax_stop_jog_dead_man_and_lost_page() {
-    family_rules(&FamilyCase {
+/// The COMPAX case: drive 1, switched on again after each stop.
+fn compax_case(variants: &'static [&'static str]) -> FamilyCase {
+    FamilyCase {
         family: "compax",
         key: "drive",
         target_key: "target_units",
@@ -567,8 +567,23 @@ fn compax_stop_jog_dead_man_and_lost_page() {
         stopped: |t| t == "drive 1 switched off (O0=0)",
         rearm: Some("switch_on"),
         units_named: &["--drives", "1"],
-        variants: &[],
-    });
+        variants,
+    }
+}
+
+#[test]
+fn scu_stop_jog_dead_man_and_lost_page() {
+    family_rules(&scu_case(&[]));
+}
+
+#[test]
+fn powercube_stop_jog_dead_man_and_lost_page() {
+    family_rules(&powercube_case(&[]));
+}
+
+#[test]
+fn compax_stop_jog_dead_man_and_lost_page() {
+    family_rules(&compax_case(&[]));
 }
 
 #[test]
@@ -621,39 +636,6 @@ fn the_console_takes_its_family_command_s_options_by_the_same_rules() {
 /// design, the page is told why and nothing moves.
 #[test]
 fn the_console_s_rules_hold_on_every_firmware_variant() {
-    let scu = |variants| FamilyCase {
-        family: "scu",
-        key: "actuator",
-        target_key: "target_counts",
-        targets: [800.0, 0.0],
-        started: |t| t.starts_with("F1 started"),
-        stopped: |t| t == "F1 stopped (RS fast)",
-        rearm: None,
-        units_named: &[],
-        variants,
-    };
-    let powercube = |variants| FamilyCase {
-        family: "powercube",
-        key: "module",
-        target_key: "target_rad",
-        targets: [3.0, -3.0],
-        started: |t| t.starts_with("module 1 motion started"),
-        stopped: |t| t == "module 1 halted",
-        rearm: Some("reset"),
-        units_named: &["--modules", "1"],
-        variants,
-    };
-    let compax = |variants| FamilyCase {
-        family: "compax",
-        key: "drive",
-        target_key: "target_units",
-        targets: [700.0, -700.0],
-        started: |t| t.starts_with("drive 1 motion started"),
-        stopped: |t| t == "drive 1 switched off (O0=0)",
-        rearm: Some("switch_on"),
-        units_named: &["--drives", "1"],
-        variants,
-    };
     for v in [
         "no-groups",
         "no-user-positions",
@@ -665,16 +647,16 @@ fn the_console_s_rules_hold_on_every_firmware_variant() {
         "in-end-undershoot",
         "re-needs-rs",
     ] {
-        family_rules(&scu(Box::leak(Box::new([v]))));
+        family_rules(&scu_case(Box::leak(Box::new([v]))));
     }
     for v in ["no-twin-mirror", "no-broadcast-pair", "ack-length-6", "ext-ack-on-put-id", "no-pos-state-dio"] {
-        family_rules(&powercube(Box::leak(Box::new([v]))));
+        family_rules(&powercube_case(Box::leak(Box::new([v]))));
     }
     for v in ["echo-without-address", "echo-bare", "no-echo", "status-value-only"] {
-        family_rules(&compax(Box::leak(Box::new([v]))));
+        family_rules(&compax_case(Box::leak(Box::new([v]))));
     }
     for (case, why) in
-        [(powercube(&["life-sign-unacknowledged"]), "watchdog"), (compax(&["echo-without-store"]), "store")]
+        [(powercube_case(&["life-sign-unacknowledged"]), "watchdog"), (compax_case(&["echo-without-store"]), "store")]
     {
         let sim = Sim::start(case.family, &["--tcp", "127.0.0.1:0", "--variant", case.variants[0]]);
         let c = console(&[&[case.family, "--port", &sim.address], case.units_named].concat());
