@@ -308,7 +308,6 @@ faces! {
             motionlink_link::clock::lock(&self.watches).push(w.token());
             Ok(w)
         }
-
     }
 
     asynch {
@@ -336,7 +335,6 @@ faces! {
                 deliver(move |py| Ok(Py::new(py, native)?.into_any()))
             }))
         }
-
     }
 
     /// Every drive that answers (addresses 1..31) with its position S1. The library checks the cancel token

@@ -304,7 +304,6 @@ faces! {
             let probe = || motionlink_powercube::probe::probe(&client, &setup).map_err(|e| e.failure());
             crate::common::probe_py(py, FAMILY, save, probe, motionlink_powercube::probe::save_profile)
         }
-
     }
 
     asynch {
