@@ -39,7 +39,11 @@ fn with_device_options_from(
     path: Option<PathBuf>,
     read: impl Fn(&PathBuf) -> std::io::Result<String>,
 ) -> Result<clap::Command, CliError> {
-    let taken = device_defaults(args, &cli, path, read)?;
+    let taken = match device_defaults(args, &cli, path, read) {
+        // Help is shown whatever the device's entry holds (running the command says what is wrong in it).
+        Err(_) if args.iter().any(|a| a == "--help" || a == "-h") => return Ok(cli),
+        other => other?,
+    };
     Ok(taken.into_iter().fold(cli, |cli, (path, id, values)| with_default(cli, &path, &id, values)))
 }
 
@@ -338,10 +342,15 @@ mod tests {
         let help = cli.find_subcommand_mut("compax").unwrap().find_subcommand_mut("move").unwrap().render_long_help();
         // The action's `--timeout-s` (600 of its own) shows the device's 9.
         assert!(help.to_string().contains("[default: 9]"), "{help}");
-        // A value the option refuses is the file's mistake.
+        // A value the option refuses is the file's mistake; the help is shown all the same.
         let bad = file.replace("drive = 3", "drive = 40");
         let e = parsed("compax --device move status", &bad, &["compax"], &["drive"]).unwrap_err().to_string();
         assert!(e.starts_with("d.toml: [device.move]: ") && e.contains("40"), "{e}");
+        let args: Vec<OsString> =
+            ["motionlink", "compax", "--device", "move", "--help"].iter().map(OsString::from).collect();
+        let cli = <crate::Cli as clap::CommandFactory>::command();
+        let unknown = format!("{file}nonsense = 1\n");
+        assert!(with_device_options_from(&args, cli, Some(PathBuf::from("d.toml")), |_| Ok(unknown.clone())).is_ok());
     }
 
     #[test]

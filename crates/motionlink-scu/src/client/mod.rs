@@ -114,7 +114,6 @@ macro_rules! expect_output {
 }
 pub(crate) use expect_output;
 
-/// The move of [`Client::move_to`]: the function, and which actuators get the target.
 /// The connector of [`Client::open`]: the serial line or TCP port `port` names, at [`Config::baud`]. `sim`
 /// and CAN ports are refused, naming what to do instead.
 pub fn port_connector(port: &PortUrl, config: &Config) -> Result<Connector, Error> {
@@ -142,6 +141,7 @@ pub(crate) fn link_connector(link: Box<dyn Link>) -> Connector {
     })
 }
 
+/// The move of [`Client::move_to`]: the function, and which actuators get the target.
 pub(crate) fn move_spec(
     config: &Config,
     actuator: Actuator,
