@@ -141,8 +141,10 @@ impl motionlink_link::emulator::Emulator for Silenceable {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_device_that_stops_answering_is_published_unavailable_until_it_answers_again() {
-    let Some(b) = broker("a_device_that_stops_answering_is_published_unavailable_until_it_answers_again") else {
+async fn a_device_that_stops_answering_or_refuses_its_reads_is_published_unavailable_until_it_answers_again() {
+    let Some(b) =
+        broker("a_device_that_stops_answering_or_refuses_its_reads_is_published_unavailable_until_it_answers_again")
+    else {
         return;
     };
     let mode = Arc::new(std::sync::atomic::AtomicU8::new(ANSWERS));

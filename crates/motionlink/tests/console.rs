@@ -636,24 +636,24 @@ fn the_console_takes_its_family_command_s_options_by_the_same_rules() {
 /// design, the page is told why and nothing moves.
 #[test]
 fn the_console_s_rules_hold_on_every_firmware_variant() {
-    for v in [
-        "no-groups",
-        "no-user-positions",
-        "no-cyclic-objects",
-        "no-remote-readback",
-        "rc-empty-data",
-        "sleepy",
-        "sticky-errors",
-        "in-end-undershoot",
-        "re-needs-rs",
-    ] {
-        family_rules(&scu_case(Box::leak(Box::new([v]))));
+    // Every variant the library knows (a new one is run here as soon as it exists), but the two whose moves
+    // the library refuses by design, which are told apart below.
+    let refused = ["life-sign-unacknowledged", "echo-without-store"];
+    let each = |names: Vec<String>| -> Vec<&'static [&'static str]> {
+        names
+            .into_iter()
+            .filter(|v| !refused.contains(&v.as_str()))
+            .map(|v| &*Box::leak(Box::new([&*Box::leak(v.into_boxed_str())])) as &'static [&'static str])
+            .collect()
+    };
+    for v in each(motionlink_scu::Variant::ALL.iter().map(ToString::to_string).collect()) {
+        family_rules(&scu_case(v));
     }
-    for v in ["no-twin-mirror", "no-broadcast-pair", "ack-length-6", "ext-ack-on-put-id", "no-pos-state-dio"] {
-        family_rules(&powercube_case(Box::leak(Box::new([v]))));
+    for v in each(motionlink_powercube::sim::Variant::ALL.iter().map(ToString::to_string).collect()) {
+        family_rules(&powercube_case(v));
     }
-    for v in ["echo-without-address", "echo-bare", "no-echo", "status-value-only"] {
-        family_rules(&compax_case(Box::leak(Box::new([v]))));
+    for v in each(motionlink_compax::sim::Variant::ALL.iter().map(ToString::to_string).collect()) {
+        family_rules(&compax_case(v));
     }
     for (case, why) in
         [(powercube_case(&["life-sign-unacknowledged"]), "watchdog"), (compax_case(&["echo-without-store"]), "store")]

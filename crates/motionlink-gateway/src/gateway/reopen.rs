@@ -36,8 +36,8 @@ pub(super) enum Internal {
         /// What the library said.
         error: ReplyError,
     },
-    /// A state sample found the device silent over a port that is fine (`error`: what the library said),
-    /// or (`None`) answering again.
+    /// A state sample failed over a port that is fine (`error`: what the library said: the device is silent,
+    /// or refused the read), or (`None`) one succeeds again.
     Silent {
         /// The device.
         device: String,
@@ -109,8 +109,9 @@ impl Gateway {
         }
     }
 
-    /// The state samples of `device` (its session `generation`) found it silent (`error`) or answering again:
-    /// `device_silent` or `device_answers` said (its state was published by the sampler).
+    /// The state samples of `device` (its session `generation`) failed (`error`) or succeed again:
+    /// `device_silent` (a timeout), `state_failed` (any other failure) or `device_answers` said (its state was
+    /// published by the sampler).
     fn silent(&self, device: &str, generation: u64, error: Option<ReplyError>) {
         if self.devices.get(device).is_none_or(|s| s.generation != generation) {
             return;
