@@ -175,7 +175,7 @@ impl IntoFailure for motionlink_powercube::Error {
             | E::MoveTimeout { state, .. }
             | E::NotReached { state, .. }
             | E::WatchdogExpired { state, .. } => f.with_word(*state),
-            E::Context { source, .. } | E::LostDuringMotion { cause: source, .. } => {
+            E::Context { source, .. } | E::FailedDuringMotion { cause: source, .. } => {
                 let inner = source.failure();
                 Failure { code: inner.code, bits: inner.bits, ..f }
             }

@@ -95,16 +95,24 @@ pub enum Error {
         /// The time waited.
         after: Duration,
     },
-    /// The operation was cancelled (a cancelled token, a dropped future, the session closing): no move is
-    /// sent once it is. A cancelled wait or move returns it inside [`Error::Aborted`], which says how the
-    /// axes were stopped.
+    /// The operation was cancelled (a cancelled token, a dropped future, the session closing) while
+    /// nothing this session set in motion was in its scope: nothing was stopped, and no move is sent once
+    /// it is. Cancelled once axes it moved may run, the operation stops them instead ([`Error::Cancelled`]).
     #[error("cancelled: no further motion is sent")]
-    Cancelled,
-    /// An action failed, or was cancelled, while axes this client set in motion may have been moving: the
-    /// client tried to stop them, and `stop` says for each drive whether the drive confirmed it (and, if
-    /// not, that the axis may still be moving).
+    CancelledBeforeMotion,
+    /// The operation was cancelled while axes this session set in motion may have been moving: the client
+    /// stopped them, and `stop` says for each drive whether the drive confirmed it (and, if not, that the
+    /// axis may still be moving).
+    #[error("cancelled: no further motion is sent; {stop}")]
+    Cancelled {
+        /// What the client did to stop the axes, drive by drive.
+        stop: StopReport,
+    },
+    /// An action failed while axes this client set in motion may have been moving: the client tried to
+    /// stop them, and `stop` says for each drive whether the drive confirmed it (and, if not, that the
+    /// axis may still be moving).
     #[error("{cause}; {stop}")]
-    Aborted {
+    FailedDuringMotion {
         /// What went wrong.
         cause: Box<Error>,
         /// What the client did to stop the axes, drive by drive.
@@ -130,7 +138,7 @@ pub enum Error {
     },
     /// The target a drive reports (S2, read twice after the move was sent) is not the one sent: a telegram
     /// was corrupted on the way (without a BCC a flipped bit in a digit is still a valid command). Returned
-    /// inside [`Error::Aborted`]: the session stops the axis at once.
+    /// inside [`Error::FailedDuringMotion`]: the session stops the axis at once.
     #[error(
         "drive {address} took target {taken} instead of {requested} (its S2 after the move; a corrupted telegram?)"
     )]
@@ -241,12 +249,12 @@ pub enum Error {
 
 impl Error {
     /// True for errors of the line (timeout, corrupt reply, port), as opposed to the drive's answers (for
-    /// [`Error::Aborted`]: of its cause).
+    /// [`Error::FailedDuringMotion`]: of its cause).
     pub fn is_transport(&self) -> bool {
         self.class().is_transport()
     }
 
-    /// The drive's error code, if the drive refused (for [`Error::Aborted`]: in its cause).
+    /// The drive's error code, if the drive refused (for [`Error::FailedDuringMotion`]: in its cause).
     pub fn device_code(&self) -> Option<ErrorCode> {
         match self.root() {
             Error::Device { code, .. } => Some(*code),
@@ -255,19 +263,21 @@ impl Error {
         }
     }
 
-    /// What went wrong in the first place: the cause of an [`Error::Aborted`], or the error itself.
+    /// What went wrong in the first place: the cause of an [`Error::FailedDuringMotion`], or the error itself.
     pub fn root(&self) -> &Error {
         match self {
-            Error::Aborted { cause, .. } => cause.root(),
+            Error::FailedDuringMotion { cause, .. } => cause.root(),
             other => other,
         }
     }
 
     /// What the session did to stop the axes, when the error ended an action that may have left them
-    /// moving ([`Error::Aborted`], [`Error::CloseUnconfirmed`]).
+    /// moving ([`Error::Cancelled`], [`Error::FailedDuringMotion`], [`Error::CloseUnconfirmed`]).
     pub fn stop_report(&self) -> Option<&StopReport> {
         match self {
-            Error::Aborted { stop, .. } | Error::CloseUnconfirmed { stop } => Some(stop),
+            Error::Cancelled { stop } | Error::FailedDuringMotion { stop, .. } | Error::CloseUnconfirmed { stop } => {
+                Some(stop)
+            }
             _ => None,
         }
     }
@@ -301,8 +311,8 @@ impl Classify for Error {
             Error::Model(_) | Error::Encode(_) | Error::Broadcast(_) | Error::OutsideLimits { .. } | Error::Closed => {
                 ErrorClass::Usage
             }
-            Error::Cancelled => ErrorClass::Cancelled,
-            Error::Aborted { cause, .. } => cause.class(),
+            Error::CancelledBeforeMotion | Error::Cancelled { .. } => ErrorClass::Cancelled,
+            Error::FailedDuringMotion { cause, .. } => cause.class(),
             Error::SyncIncomplete { source, .. } | Error::NotExecuted { source, .. } => source.class(),
         }
     }
@@ -471,10 +481,10 @@ mod tests {
                 ErrorClass::Transport(TransportKind::Disconnected),
             ),
             (Error::Broadcast("x"), ErrorClass::Usage),
-            (Error::Cancelled, ErrorClass::Cancelled),
-            (Error::Aborted { cause: Box::new(Error::Cancelled), stop: stop.clone() }, ErrorClass::Cancelled),
+            (Error::CancelledBeforeMotion, ErrorClass::Cancelled),
+            (Error::Cancelled { stop: stop.clone() }, ErrorClass::Cancelled),
             (
-                Error::Aborted {
+                Error::FailedDuringMotion {
                     cause: Box::new(Error::TargetMismatch {
                         address: Address::drive_const(3),
                         requested: Position::new(15.0).unwrap(),

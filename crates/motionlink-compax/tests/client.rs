@@ -254,15 +254,15 @@ fn a_cancelled_scan_ends_between_drives_and_a_cancelled_token_keeps_moves_unsent
     let bus = Client::with_link(Box::new(link), clock.shared(), Config::new(Mode::default(), 9600)).unwrap();
     bus.set_cancel(token.clone());
     // Cancelled while the third address is asked: that answer is awaited, the fourth is not asked.
-    assert!(matches!(bus.scan(1..=31), Err(Error::Cancelled)));
+    assert!(matches!(bus.scan(1..=31), Err(Error::CancelledBeforeMotion)));
     assert_eq!(sent(&transcript), [b"1S1\r".to_vec(), b"2S1\r".to_vec(), b"3S1\r".to_vec()]);
     assert!(bus.is_cancelled());
     // No move goes out while the token is cancelled, in any form.
-    assert!(matches!(bus.move_absolute(a(1), pos(10.0), MoveOptions::default()), Err(Error::Cancelled)));
-    assert!(matches!(bus.move_relative(a(1), pos(10.0), MoveOptions::default()), Err(Error::Cancelled)));
-    assert!(matches!(bus.sync_start(&[(a(1), Command::PosA(pos(1.0)))], false), Err(Error::Cancelled)));
-    assert!(matches!(bus.raw(a(1), "POSA 10"), Err(Error::Cancelled)));
-    assert!(matches!(bus.broadcast(&Command::PosA(pos(1.0))), Err(Error::Cancelled)));
+    assert!(matches!(bus.move_absolute(a(1), pos(10.0), MoveOptions::default()), Err(Error::CancelledBeforeMotion)));
+    assert!(matches!(bus.move_relative(a(1), pos(10.0), MoveOptions::default()), Err(Error::CancelledBeforeMotion)));
+    assert!(matches!(bus.sync_start(&[(a(1), Command::PosA(pos(1.0)))], false), Err(Error::CancelledBeforeMotion)));
+    assert!(matches!(bus.raw(a(1), "POSA 10"), Err(Error::CancelledBeforeMotion)));
+    assert!(matches!(bus.broadcast(&Command::PosA(pos(1.0))), Err(Error::CancelledBeforeMotion)));
     assert_eq!(sent(&transcript).len(), 3, "{:?}", sent(&transcript));
     // Reads and stops still work; after a reset, moves too.
     assert_eq!(bus.read_position(a(1)).unwrap(), pos(0.0));

@@ -323,7 +323,7 @@ fn cancelling_a_wait_stops_the_axes() {
             }
         })
         .unwrap_err();
-    assert!(matches!(e.root(), Error::Cancelled), "{e}");
+    assert!(matches!(e, Error::Cancelled { .. }), "{e}");
     let stop = e.stop_report().expect("the wait stopped the axes");
     assert_eq!(stop.switched_off(), [a(1), a(5)], "{e}");
     assert!(stop.all_confirmed());

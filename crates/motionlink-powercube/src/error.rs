@@ -219,10 +219,10 @@ pub enum Error {
         stop: StopOutcome,
     },
     /// The line failed, or the module stopped answering, while a motion this session started may have been
-    /// running: the session tried to halt it, and [`Error::LostDuringMotion::stop`] says whether the module
+    /// running: the session tried to halt it, and [`Error::FailedDuringMotion::stop`] says whether the module
     /// confirmed that.
     #[error("while module {address} may have been moving: {cause}; {stop}")]
-    LostDuringMotion {
+    FailedDuringMotion {
         /// The module.
         address: Address,
         /// What failed.
@@ -396,7 +396,7 @@ pub enum Error {
     Encode(#[from] Rs232Error),
     /// An operation that sets nothing in motion was cancelled before its end.
     #[error("{what} cancelled (nothing had been set in motion)")]
-    Aborted {
+    CancelledBeforeMotion {
         /// What was cancelled.
         what: &'static str,
     },
@@ -429,7 +429,7 @@ impl Classify for Error {
             Error::Timeout { .. } | Error::CloseTimedOut { .. } => ErrorClass::Transport(TransportKind::Timeout),
             Error::Corrupt { .. } => ErrorClass::Transport(TransportKind::Corrupt),
             // A motion that may still run after the line failed: a transport error of the cause's kind.
-            Error::LostDuringMotion { cause, .. } => match cause.class() {
+            Error::FailedDuringMotion { cause, .. } => match cause.class() {
                 ErrorClass::Transport(kind) => ErrorClass::Transport(kind),
                 _ => ErrorClass::Transport(TransportKind::Io),
             },
@@ -445,7 +445,7 @@ impl Classify for Error {
             | Error::ReadBack { .. }
             | Error::TargetMismatch { .. }
             | Error::NotReached { .. } => ErrorClass::Device,
-            Error::Cancelled { .. } | Error::Aborted { .. } => ErrorClass::Cancelled,
+            Error::Cancelled { .. } | Error::CancelledBeforeMotion { .. } => ErrorClass::Cancelled,
             Error::Model(_)
             | Error::InvalidAddress(_)
             | Error::NotSupported(_)
@@ -498,7 +498,7 @@ impl Error {
         match self {
             Error::MoveTimeout { stop, .. }
             | Error::Cancelled { stop, .. }
-            | Error::LostDuringMotion { stop, .. }
+            | Error::FailedDuringMotion { stop, .. }
             | Error::TargetMismatch { stop, .. } => Some(stop),
             Error::Context { source, .. } => source.stop(),
             Error::Also { error, .. } => error.stop(),
@@ -562,7 +562,7 @@ mod tests {
             Error::Cancelled { address: Address::checked(1), stop: StopOutcome::Confirmed }.class(),
             ErrorClass::Cancelled
         );
-        let lost = Error::LostDuringMotion {
+        let lost = Error::FailedDuringMotion {
             address: Address::checked(1),
             cause: Box::new(timeout()),
             stop: StopOutcome::Confirmed,

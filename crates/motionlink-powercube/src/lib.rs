@@ -199,7 +199,7 @@
 //! - **Operations as `async fn`s.** Each multi-step operation of the [`Session`] is an `async fn` over the
 //!   session's state, which the compiler makes a state machine; the one executor of `motionlink-link`
 //!   ([`motionlink_link::exec`]) resumes it when what it waits for is there (no thread, no I/O).
-//! - **Cancelling.** A read or a scan that is cancelled ends at once ([`Error::Aborted`]); a motion, a
+//! - **Cancelling.** A read or a scan that is cancelled ends at once ([`Error::CancelledBeforeMotion`]); a motion, a
 //!   wait or homing is halted first ([`Error::Cancelled`] says whether that was confirmed); writes and
 //!   watchdog changes run to their end.
 //! - **Closing is bounded** ([`session::Config::close_bound`], 5 s): past it, [`Error::CloseTimedOut`],

@@ -209,7 +209,7 @@ pub enum Error {
     Interrupted(String),
     /// The caller cancelled an operation before it sent anything that starts a motion.
     #[error("cancelled before {0} was sent; nothing was started")]
-    CancelledBeforeSending(Command),
+    CancelledBeforeMotion(Command),
     /// An action failed, and the stop that followed was not confirmed by the unit.
     #[error(
         "{cause}; then the stop ({}) was NOT confirmed by the unit ({detail}): the actuators may still be \
@@ -321,7 +321,7 @@ impl Classify for Error {
             Error::Cancelled { .. }
             | Error::RunCancelled { .. }
             | Error::Interrupted(_)
-            | Error::CancelledBeforeSending(_) => ErrorClass::Cancelled,
+            | Error::CancelledBeforeMotion(_) => ErrorClass::Cancelled,
             Error::StopUnconfirmed { cause, .. } => cause.class(),
             Error::CloseUnconfirmed { cause, .. } => match cause.class() {
                 c @ ErrorClass::Transport(_) => c,

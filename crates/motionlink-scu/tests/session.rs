@@ -191,7 +191,7 @@ fn an_operation_cancelled_before_its_request_went_out_sends_nothing() {
     let sent = b.sent.len();
     let id = b.start(move_a1(800));
     b.session.cancel(id, b.now);
-    assert!(matches!(b.wait_done(id), Err(Error::CancelledBeforeSending(_))));
+    assert!(matches!(b.wait_done(id), Err(Error::CancelledBeforeMotion(_))));
     assert!(b.sent[sent..].iter().all(|(_, x)| !x.starts_with(b"RE") && !x.starts_with(b"RT")));
     assert!(b.device.executed_functions().is_empty());
 }

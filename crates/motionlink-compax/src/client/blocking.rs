@@ -85,8 +85,8 @@ impl Client {
 
     /// Long actions watch `token`: a wait or checked move stops its axes when it is cancelled, a scan ends,
     /// and no move is sent once it is cancelled (until the token is reset). All of them return
-    /// [`Error::Cancelled`] (inside [`Error::Aborted`] when axes were stopped). Reads, settings and stops
-    /// still work.
+    /// [`Error::CancelledBeforeMotion`], or [`Error::Cancelled`] with its stop report when axes were
+    /// stopped. Reads, settings and stops still work.
     pub fn set_cancel(&self, token: CancelToken) {
         *lock(&self.cancel) = token;
     }
@@ -102,7 +102,7 @@ impl Client {
 
     fn check_cancel(&self) -> Result<()> {
         if self.is_cancelled() {
-            Err(Error::Cancelled)
+            Err(Error::CancelledBeforeMotion)
         } else {
             Ok(())
         }
@@ -240,7 +240,7 @@ impl Client {
     }
 
     /// Tries every address in `range` once with a short timeout; returns the drives that answered S1 with
-    /// their positions. Ends with [`Error::Cancelled`] when the cancel token is cancelled (checked before
+    /// their positions. Ends with [`Error::CancelledBeforeMotion`] when the cancel token is cancelled (checked before
     /// each address).
     pub fn scan(&self, range: RangeInclusive<u8>) -> Result<Vec<(Address, Position)>> {
         self.check_cancel()?;
@@ -281,7 +281,7 @@ impl Client {
 
     /// Sends `text` as [`Client::raw`] does, then hands what it set in motion over (it runs on after the
     /// call) or waits for it to end: what `motionlink compax raw` runs. Cancelled while it is sent, what
-    /// it started is stopped instead ([`Error::Aborted`]).
+    /// it started is stopped instead ([`Error::Cancelled`]).
     pub fn raw_motion(&self, address: Address, text: &str, after: AfterRaw) -> Result<RawOutcome> {
         if self.raw_starts(text) {
             self.check_cancel()?;
@@ -396,7 +396,8 @@ impl Client {
     /// position. While it listens for `$` messages it still reads each drive's S17 every
     /// [`Config::message_check_interval`]. Without a `timeout` it waits at most
     /// [`Config::wait_timeout`]. On timeout, cancellation or a line failure, the drives it waits for
-    /// that this client started are stopped and the error is [`Error::Aborted`]. Address 32 is refused.
+    /// that this client started are stopped and the error is [`Error::FailedDuringMotion`] (a cancel:
+    /// [`Error::Cancelled`]). Address 32 is refused.
     pub fn wait_reached(
         &self,
         drives: &[Address],
@@ -413,7 +414,7 @@ impl Client {
     }
 
     /// Waits `d`, handling what arrives meanwhile (`$` and comparator messages), and ends early with
-    /// [`Error::Cancelled`] once the cancel token is cancelled.
+    /// [`Error::CancelledBeforeMotion`] once the cancel token is cancelled.
     pub fn pause(&self, d: Duration) -> Result<()> {
         self.check_cancel()?;
         output(self.run_cancellable(Op::Pause(d), &mut |_| {})?, "a pause", |o| {
@@ -491,7 +492,8 @@ impl Client {
     /// Moves one drive and makes sure it got there: [`Client::start_checked_move`], then
     /// [`Client::finish_checked_move`]. `progress` gets each polled position. Returns where the axis came
     /// to rest, within [`Config::in_position_tolerance`] of the target; any other outcome is an error,
-    /// and an error (or a cancel) while the axis may move has stopped it ([`Error::Aborted`]).
+    /// and an error (or a cancel) while the axis may move has stopped it ([`Error::FailedDuringMotion`],
+    /// [`Error::Cancelled`]).
     pub fn move_to(
         &self,
         address: Address,
@@ -518,7 +520,7 @@ impl Client {
     /// when the echo is the telegram sent byte for byte (otherwise [`Error::NotExecuted`], naming the echo
     /// and the drives that may hold the command in their buffer; a binary move, which takes no flags, is
     /// sent as it is); S2 read back right after the start: a target off by more than the tolerance twice
-    /// switches the axis off ([`Error::TargetMismatch`] inside [`Error::Aborted`]). Once the move may have
+    /// switches the axis off ([`Error::TargetMismatch`] inside [`Error::FailedDuringMotion`]). Once the move may have
     /// been sent, any error or a cancel stops the axis if it moves.
     pub fn start_checked_move(&self, address: Address, request: &MoveRequest) -> Result<StartedMove> {
         self.start_checked(address, request, false)

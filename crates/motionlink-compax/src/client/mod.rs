@@ -8,7 +8,7 @@
 //! or cancelled wait or checked move (a cancel token of the blocking client, a dropped future of the async
 //! one) stops the drives it concerns that still move with `OUTPUT O0=0` ("switch off drive", the one
 //! documented command that ends a running positioning), reading S17 first and again to confirm. The error
-//! says per drive whether the drive confirmed the stop ([`Error::Aborted`],
+//! says per drive whether the drive confirmed the stop ([`Error::Cancelled`], [`Error::FailedDuringMotion`],
 //! [`StopReport`]); if not, that the axis may still be moving.
 //!
 //! Closing ([`Client::close`], or dropping the client) stops every axis the session set in motion that

@@ -58,7 +58,12 @@ mod tests {
 
     #[test]
     fn what_could_not_be_read_is_said() {
-        let r = StopResult::new(None::<String>, StopReport::default(), Ok(Position(1.5)), Err(Error::Cancelled));
+        let r = StopResult::new(
+            None::<String>,
+            StopReport::default(),
+            Ok(Position(1.5)),
+            Err(Error::CancelledBeforeMotion),
+        );
         let json = serde_json::to_value(&r).unwrap();
         assert_eq!((json["action"].clone(), json["position_units"].clone()), ("stop".into(), 1.5.into()));
         assert!(json["o0"].is_null() && json["o0_not_read"].is_string() && json.get("position_not_read").is_none());

@@ -373,7 +373,7 @@ impl Core {
         self.queue = kept.into();
         for j in dropped {
             tracing::debug!("drive {}: {:?} not sent: its operation was cancelled", j.address, j.command);
-            self.finish_job(j.id, Err(Error::Cancelled));
+            self.finish_job(j.id, Err(Error::CancelledBeforeMotion));
         }
     }
 

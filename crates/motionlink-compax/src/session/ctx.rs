@@ -44,10 +44,10 @@ impl Ctx {
         self.cancelled()
     }
 
-    /// [`Error::Cancelled`] once the operation is cancelled.
+    /// [`Error::CancelledBeforeMotion`] once the operation is cancelled.
     pub(crate) fn check_cancel(&self) -> Result<()> {
         if self.is_cancelled() {
-            Err(Error::Cancelled)
+            Err(Error::CancelledBeforeMotion)
         } else {
             Ok(())
         }
@@ -72,7 +72,7 @@ impl Ctx {
     }
 
     /// Waits until `until` while listening for the drives' messages; ends early with
-    /// [`Error::Cancelled`] once the operation is cancelled, or with the line's failure.
+    /// [`Error::CancelledBeforeMotion`] once the operation is cancelled, or with the line's failure.
     pub(crate) async fn listen_until(&self, until: Timestamp) -> Result<()> {
         self.poll_core(|op, cx| {
             let id = op.id();

@@ -16,7 +16,7 @@
 //! - [`Session::cancel`](motionlink_link::session::Session::cancel): the operation's telegrams not yet sent
 //!   are dropped (a move not yet sent is never sent); a wait or checked move that had set an axis in
 //!   motion stops it (`OUTPUT O0=0` to that drive if S17 says it still moves, confirmed by S17) and ends
-//!   with [`Error::Aborted`] saying whether each drive confirmed its stop.
+//!   with [`Error::Cancelled`] saying whether each drive confirmed its stop.
 //! - [`Session::close`](motionlink_link::session::Session::close): every operation is cancelled, then every
 //!   drive the session set in motion and has not seen stop is stopped the same way; [`Event::Closed`] is
 //!   `Ok` once every drive confirmed, [`Error::CloseUnconfirmed`] otherwise.

@@ -156,7 +156,7 @@ fn a_cancelled_wait_switches_the_axis_off_and_confirms_it() {
     let cancelled_at = b.now;
     b.session.cancel(id, b.now);
     let e = b.finish(id).unwrap_err();
-    assert!(matches!(e.root(), Error::Cancelled), "{e}");
+    assert!(matches!(e, Error::Cancelled { .. }), "{e}");
     assert_eq!(e.stop_report().unwrap().drives, [(a(1), StopOutcome::SwitchedOff)]);
     let sent = b.sent_text();
     let tail: Vec<&str> = sent.iter().rev().take(3).rev().map(String::as_str).collect();
@@ -175,7 +175,7 @@ fn a_move_cancelled_before_it_is_sent_is_never_sent() {
     assert!(b.step(None), "the read goes out");
     let mv = b.session.start(Op::Move(a(1), Command::PosA(pos(50.0)), MoveOptions::default()), b.now);
     b.session.cancel(mv, b.now);
-    assert!(matches!(b.finish(mv), Err(Error::Cancelled)));
+    assert!(matches!(b.finish(mv), Err(Error::CancelledBeforeMotion)));
     b.finish(read).unwrap();
     assert!(!b.sent_text().iter().any(|f| f.contains("POSA")), "{:?}", b.sent_text());
     assert!(b.session.started().is_empty());

@@ -453,7 +453,7 @@ impl motionlink_link::session::Session for Session {
             Some(what) => {
                 self.exec.abort(id);
                 self.core().forget(id);
-                self.events.push_back(Event::Done(id, Err(Error::Aborted { what })));
+                self.events.push_back(Event::Done(id, Err(Error::CancelledBeforeMotion { what })));
             }
             None => {
                 self.exec.cancel(id);

@@ -270,7 +270,7 @@ fn a_cancelled_read_ends_at_once_and_sets_nothing_in_motion() {
     b.settle();
     b.session.cancel(id, b.now);
     b.settle();
-    assert!(matches!(b.take_done(id), Some(Err(Error::Aborted { what: "the scan" }))));
+    assert!(matches!(b.take_done(id), Some(Err(Error::CancelledBeforeMotion { what: "the scan" }))));
     assert!(b.session.is_idle() || b.session.wants_input(), "only the answer of the request on the line is awaited");
 }
 

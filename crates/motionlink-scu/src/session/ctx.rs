@@ -5,7 +5,7 @@
 //! when it has it; nothing here does I/O or reads a clock.
 //!
 //! How a cancel reaches an operation depends on the handle it waits through. A plain handle's request still
-//! in the queue is dropped (it ends with [`Error::CancelledBeforeSending`]), and its pause or its wait for
+//! in the queue is dropped (it ends with [`Error::CancelledBeforeMotion`]), and its pause or its wait for
 //! the next poll ends at once. A [`Ctx::firm`] handle's waits are not cut short: what stops a motion is
 //! never held back by the cancel it answers. A handle from [`Ctx::ending_on_cancel`] ends each request
 //! with a given error once the operation is cancelled (the part of an operation that nothing may follow

@@ -23,11 +23,11 @@ impl Core {
     }
 
     /// Operation `op` was cancelled: its request still in the queue, if a cancel may take it out, ends with
-    /// [`Error::CancelledBeforeSending`].
+    /// [`Error::CancelledBeforeMotion`].
     pub(super) fn cancel_queued(&mut self, op: OpId) {
         let Some(i) = self.queue.iter().position(|q| q.owner == op && q.cancellable) else { return };
         let q = self.queue.remove(i).expect("found in the queue");
-        self.replies.finish(q.ticket, Err(Error::CancelledBeforeSending(q.req.request.command)));
+        self.replies.finish(q.ticket, Err(Error::CancelledBeforeMotion(q.req.request.command)));
     }
 
     /// Operation `op` waits for the next poll of a motion; the outcome goes under the ticket returned.

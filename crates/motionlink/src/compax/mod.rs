@@ -265,8 +265,8 @@ impl std::fmt::Display for Explained<'_> {
 fn error_for(args: &Args, e: Error) -> CliError {
     let cause = common::stop_cause();
     let mut message = match (e.root(), e.stop_report(), cause) {
-        (Error::Cancelled, Some(stop), Some(cause)) => format!("{} received: {stop}", cause.name()),
-        (Error::Cancelled, None, cause) => {
+        (Error::Cancelled { stop }, _, Some(cause)) => format!("{} received: {stop}", cause.name()),
+        (Error::CancelledBeforeMotion, _, cause) => {
             let cause = cause.map_or("interrupted".to_string(), |c| format!("{} received", c.name()));
             format!("{cause}: the action ended before it was done; nothing was moved")
         }

@@ -31,7 +31,7 @@ fn errors_map_to_exit_codes_and_say_how_to_switch_a_drive_on() {
     let stop = motionlink_compax::error::StopReport {
         drives: vec![(Address::drive(3).unwrap(), motionlink_compax::error::StopOutcome::SwitchedOff)],
     };
-    let mismatch = Error::Aborted {
+    let mismatch = Error::FailedDuringMotion {
         cause: Box::new(Error::TargetMismatch { address: D3, requested: p(15.0), taken: p(14.0) }),
         stop,
     };
@@ -40,7 +40,7 @@ fn errors_map_to_exit_codes_and_say_how_to_switch_a_drive_on() {
     let text = e.to_string();
     assert!(text.contains("took target 14 instead of 15"), "{text}");
     assert!(text.contains("motionlink compax --port tcp://gw:4001 --mode 8 --drive 3 output 0 1"), "{text}");
-    let lost = Error::Aborted {
+    let lost = Error::FailedDuringMotion {
         cause: Box::new(Error::Timeout {
             address: D3,
             command: "S17".into(),

@@ -227,7 +227,7 @@ impl Ctx {
                 core.after_send(address, effect);
                 Ok(r.map(|r| r.text_str().to_string()))
             }
-            Err(e @ (Error::Device { .. } | Error::Cancelled | Error::Encode(_))) => {
+            Err(e @ (Error::Device { .. } | Error::CancelledBeforeMotion | Error::Encode(_))) => {
                 // Refused, or never sent: it started nothing (an axis that was moving before still is).
                 self.core().started = saved;
                 if effect == Effect::Starts && matches!(e, Error::Device { .. }) {
@@ -274,7 +274,7 @@ impl Ctx {
             match self.read_position_value(a, StatusId::ACTUAL_POSITION, 0).await {
                 Ok(p) => found.push((a, p)),
                 Err(Error::Timeout { .. } | Error::Corrupt { .. }) => {}
-                Err(e @ (Error::Link(_) | Error::Cancelled)) => {
+                Err(e @ (Error::Link(_) | Error::CancelledBeforeMotion)) => {
                     result = Err(e);
                     break;
                 }
@@ -300,13 +300,13 @@ impl Ctx {
             next = (next + interval).max(self.now());
             match self.listen_until(next).await {
                 Ok(()) => {}
-                Err(Error::Cancelled) => return Ok(()),
+                Err(Error::CancelledBeforeMotion) => return Ok(()),
                 Err(e) => return Err(e),
             }
         }
     }
 
-    /// Listens for `d` (a cancel ends it with [`Error::Cancelled`]).
+    /// Listens for `d` (a cancel ends it with [`Error::CancelledBeforeMotion`]).
     pub(crate) async fn pause(&self, d: Duration) -> Result<()> {
         let until = self.now() + d;
         self.listen_until(until).await

@@ -109,7 +109,7 @@ impl Ctx {
                         target: Position::from_units_unchecked(target),
                     });
                 }
-                Err(e @ Error::Cancelled) => {
+                Err(e @ Error::CancelledBeforeMotion) => {
                     // Cancelled before it went out: never sent.
                     restore();
                     return Err(e);
@@ -174,12 +174,12 @@ impl Ctx {
         let req = Request { address: Address::BROADCAST, body: Body::Execute, flags: Flags::NONE };
         match self.exchange(&req, Retry::DiscardedOnly).await {
             Ok(_) => Ok(()),
-            Err(Error::Cancelled) => {
+            Err(Error::CancelledBeforeMotion) => {
                 // The `!` never went out: the moves stay in the buffers.
                 let mut core = self.core();
                 core.started &= !stored;
                 core.buffered |= stored;
-                Err(Error::Cancelled)
+                Err(Error::CancelledBeforeMotion)
             }
             Err(e) => Err(e),
         }
@@ -198,7 +198,7 @@ impl Ctx {
         let req = Request { address: Address::BROADCAST, body: Body::Command(text.as_bytes()), flags: Flags::NONE };
         match self.exchange(&req, Retry::DiscardedOnly).await {
             Ok(_) => {}
-            Err(e @ Error::Cancelled) => {
+            Err(e @ Error::CancelledBeforeMotion) => {
                 self.core().started = saved;
                 return Err(e);
             }
@@ -215,7 +215,7 @@ impl Ctx {
         let reply = self.raw(address, text).await?;
         let started = drives_in(self.core().started & !before);
         if self.is_cancelled() && !started.is_empty() {
-            return Err(self.abort(Error::Cancelled, &started).await);
+            return Err(self.abort(Error::CancelledBeforeMotion, &started).await);
         }
         let waited = match (after, started.is_empty()) {
             (AfterRaw::Wait(timeout), false) => {

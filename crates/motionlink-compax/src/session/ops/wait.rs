@@ -15,7 +15,7 @@ impl Ctx {
     /// asked for one, otherwise by polling S17 every poll interval, reporting each polled position. While it
     /// listens for `$` messages it still reads each drive's S17 every message check interval. On timeout,
     /// cancellation or a line failure, the drives it waits for that this session started are stopped and
-    /// the error is [`Error::Aborted`].
+    /// the error is [`Error::FailedDuringMotion`] (a cancel: [`Error::Cancelled`]).
     pub(crate) async fn wait_reached(&self, drives: &[Address], timeout: Option<Duration>) -> Result<()> {
         if drives.iter().any(|a| a.is_broadcast()) {
             return Err(Error::Broadcast("a wait reads each drive's state: name the drives"));
@@ -96,7 +96,8 @@ impl Ctx {
     }
 
     /// `cause` ended an action while axes of this session in `scope` may be moving: stops them and says
-    /// how that went ([`Error::Aborted`]); with nothing to stop, `cause` alone.
+    /// how that went ([`Error::Cancelled`] for a cancel, else [`Error::FailedDuringMotion`]); with nothing
+    /// to stop, `cause` alone.
     pub(crate) async fn abort(&self, cause: Error, scope: &[Address]) -> Error {
         let scope_bits = scope.iter().fold(0u32, |acc, a| acc | bit(*a));
         let to_stop = drives_in(self.core().started & scope_bits);
@@ -105,7 +106,10 @@ impl Ctx {
         }
         tracing::info!("{cause}: stopping the axes this session moved");
         let stop = self.stop_drives(&to_stop).await;
-        Error::Aborted { cause: Box::new(cause), stop }
+        match cause {
+            Error::CancelledBeforeMotion => Error::Cancelled { stop },
+            cause => Error::FailedDuringMotion { cause: Box::new(cause), stop },
+        }
     }
 
     /// `OUTPUT O0=0` to one drive (32: every drive), acknowledged.
@@ -199,7 +203,7 @@ impl Ctx {
     /// echo, compared with the telegram sent, and executed with `!` only when they match
     /// ([`Ctx::start_echoed_move`]; a binary move, which takes no flags, is sent as it is); S2 read back
     /// (twice if it differs: a mismatch stops the axis, [`Error::TargetMismatch`]). Once the move may have
-    /// been sent, any error, and a cancel, stops the axis if it moves ([`Error::Aborted`]).
+    /// been sent, any error, and a cancel, stops the axis if it moves ([`Error::FailedDuringMotion`]).
     pub(crate) async fn start_checked_move(&self, address: Address, request: &MoveRequest) -> Result<StartedMove> {
         if address.is_broadcast() {
             return Err(Error::Broadcast("a checked move reads one drive's state"));
@@ -242,7 +246,7 @@ impl Ctx {
         }
         if self.is_cancelled() {
             // Cancelled while the move was sent: it is stopped, not handed on.
-            return Err(self.abort(Error::Cancelled, &[address]).await);
+            return Err(self.abort(Error::CancelledBeforeMotion, &[address]).await);
         }
         let prefixed = self.core().cfg.mode.reply_address;
         let not_verifiable = form.map(|f| f.unchecked(address, prefixed)).unwrap_or_default();

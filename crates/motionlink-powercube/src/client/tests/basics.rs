@@ -437,7 +437,7 @@ fn a_cancelled_token_ends_a_scan_at_once() {
     let err = bus.scan().unwrap_err();
     let took = clock.now() - started;
     canceller.join().unwrap();
-    assert!(matches!(err, Error::Aborted { what: "the scan" }), "{err}");
+    assert!(matches!(err, Error::CancelledBeforeMotion { what: "the scan" }), "{err}");
     assert!(took < Duration::from_millis(200), "ended {took:?} after its start");
     // The session goes on: with the token reset, reads and scans work again.
     token.reset();

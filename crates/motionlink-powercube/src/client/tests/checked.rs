@@ -210,7 +210,7 @@ fn a_line_that_fails_during_a_move_is_stopped_and_the_error_says_so() {
         })
         .unwrap_err();
     match &err {
-        Error::LostDuringMotion { stop: StopOutcome::Confirmed, cause, .. } => {
+        Error::FailedDuringMotion { stop: StopOutcome::Confirmed, cause, .. } => {
             assert!(matches!(**cause, Error::Timeout { .. } | Error::Corrupt { .. }), "{cause}")
         }
         other => panic!("{other}"),
@@ -238,7 +238,7 @@ fn a_line_that_fails_during_a_move_is_stopped_and_the_error_says_so() {
         })
         .unwrap_err();
     match &err {
-        Error::LostDuringMotion { stop: StopOutcome::Unconfirmed { watchdog_armed: true, .. }, .. } => {}
+        Error::FailedDuringMotion { stop: StopOutcome::Unconfirmed { watchdog_armed: true, .. }, .. } => {}
         other => panic!("{other}"),
     }
     let text = err.to_string();
@@ -268,7 +268,7 @@ fn a_line_that_fails_during_a_move_is_stopped_and_the_error_says_so() {
         .unwrap_err();
     assert!(matches!(
         err,
-        Error::LostDuringMotion { stop: StopOutcome::Unconfirmed { watchdog_armed: false, .. }, .. }
+        Error::FailedDuringMotion { stop: StopOutcome::Unconfirmed { watchdog_armed: false, .. }, .. }
     ));
     let text = err.to_string();
     assert!(text.contains("the axis may still be moving") && text.contains("no watchdog is armed"), "{text}");

@@ -57,7 +57,7 @@ impl Ctx {
     /// whether that was confirmed.
     pub async fn lost(&self, a: u8, cause: Error) -> Error {
         let stop = self.stop_motion(a).await;
-        Error::LostDuringMotion { address: crate::model::Address::checked(a), cause: Box::new(cause), stop }
+        Error::FailedDuringMotion { address: crate::model::Address::checked(a), cause: Box::new(cause), stop }
     }
 
     /// Refuses a module that would ignore a motion command: one with an error flag ([`Error::Device`]) or

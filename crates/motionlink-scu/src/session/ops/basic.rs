@@ -22,7 +22,7 @@ pub(crate) async fn single(ctx: &Ctx, request: PreparedRequest) -> Result<Output
     } else {
         ctx.send(Req::op(request).when(Schedule::Room)).await
     };
-    let sent = !matches!(result, Err(Error::CancelledBeforeSending(_)));
+    let sent = !matches!(result, Err(Error::CancelledBeforeMotion(_)));
     if let (true, true, Some(f)) = (ctx.cancelled(), sent, starts) {
         // The caller gave up while its RE was under way: it may have started a motion.
         let function = crate::model::Function::from_id(f);
@@ -304,7 +304,7 @@ pub(crate) async fn cyclic(ctx: &Ctx, slot: u8, write: Vec<Value>, keep: bool) -
         return Ok(Output::Done);
     }
     if ctx.cancelled() {
-        return Err(Error::CancelledBeforeSending(Command::Cyclic));
+        return Err(Error::CancelledBeforeMotion(Command::Cyclic));
     }
     let read_len = object.read_size().and_then(|n| u16::try_from(n).ok());
     let rc = PreparedRequest::with_reply_len(&Request::Cyclic { object: slot - 1, write: &bytes }, read_len)?;

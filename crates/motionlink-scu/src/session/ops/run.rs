@@ -34,7 +34,7 @@ pub(crate) async fn run(ctx: &Ctx, spec: RunSpec) -> Result<Output, Error> {
     }
     if run.is_motion() {
         // A motion function is watched through the keepalive where the unit takes the session's object.
-        define_object(&ctx.ending_on_cancel(Error::CancelledBeforeSending(Command::Execute))).await?;
+        define_object(&ctx.ending_on_cancel(Error::CancelledBeforeMotion(Command::Execute))).await?;
     }
     let params = match spec.action {
         RunAction::Motion(_, direction) => [direction.code(), UNUSED],
@@ -42,7 +42,7 @@ pub(crate) async fn run(ctx: &Ctx, spec: RunSpec) -> Result<Output, Error> {
     };
     let re = PreparedRequest::new(&Request::Execute { function: function.id(), params })?;
     match ctx.send(Req::op(re)).await {
-        Err(e @ Error::CancelledBeforeSending(_)) => return Err(e),
+        Err(e @ Error::CancelledBeforeMotion(_)) => return Err(e),
         reply => match reply.and_then(|r| r.ack(Command::Execute)) {
             // The unit refused: nothing started.
             Err(e @ Error::Refused { .. }) => return Err(e),
@@ -112,7 +112,7 @@ impl Run {
         if ctx.cancelled() || self.spec.limit.is_some_and(|l| ctx.now() - self.started_at >= l) {
             return true;
         }
-        let reads = ctx.ending_on_cancel(Error::CancelledBeforeSending(Command::Get));
+        let reads = ctx.ending_on_cancel(Error::CancelledBeforeMotion(Command::Get));
         let status = read_item(&reads, ItemRead::all(DataIndex(0x0170))).await;
         if ctx.cancelled() {
             return true;

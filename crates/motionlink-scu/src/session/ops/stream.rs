@@ -28,7 +28,7 @@ pub(crate) async fn open(
         return Err(Error::invalid("a stream needs at least one actuator"));
     }
     check_against_map(&config, function, &actuators)?;
-    let ctx = ctx.ending_on_cancel(Error::CancelledBeforeSending(Command::Execute));
+    let ctx = ctx.ending_on_cancel(Error::CancelledBeforeMotion(Command::Execute));
     let status = statuses(&read_item(&ctx, ItemRead::actuators(DataIndex(0x0170), actuators.clone())).await?)?;
     if let Some(a) = actuators.iter().find(|a| !status[usize::from(a.number() - 1)].available()) {
         return Err(Error::NotConnected(*a));
@@ -62,13 +62,13 @@ pub(crate) async fn targets(
         let data = Value::RemotePosition(t.get()).to_bytes();
         let rt = PreparedRequest::new(&Request::Transfer { index: a.remote_position_index().0, data: &data })?;
         match ctx.send(Req::op(rt)).await {
-            Err(e @ Error::CancelledBeforeSending(_)) => return Err(e),
+            Err(e @ Error::CancelledBeforeMotion(_)) => return Err(e),
             reply => {
                 reply.and_then(|r| r.ack(Command::Transfer))?;
             }
         }
         if ctx.cancelled() {
-            return Err(Error::CancelledBeforeSending(Command::Execute));
+            return Err(Error::CancelledBeforeMotion(Command::Execute));
         }
     }
     let re = PreparedRequest::new(&Request::Execute {
@@ -76,7 +76,7 @@ pub(crate) async fn targets(
         params: [MotionDirection::RemotePosition.code(), UNUSED],
     })?;
     let result = match ctx.send(Req::op(re)).await {
-        Err(e @ Error::CancelledBeforeSending(_)) => return Err(e),
+        Err(e @ Error::CancelledBeforeMotion(_)) => return Err(e),
         reply => reply.and_then(|r| r.ack(Command::Execute)),
     };
     if ctx.cancelled() {

@@ -101,7 +101,7 @@ pub(crate) async fn watch(ctx: &Ctx, spec: WatchSpec) -> Result<Output, Error> {
 /// A sample taken with reads (positions and currents of the connected actuators only). `None`: the watch
 /// was cancelled meanwhile (nothing more is asked then).
 async fn read_sample(ctx: &Ctx) -> Option<Result<Snapshot, Error>> {
-    let reads = ctx.ending_on_cancel(Error::CancelledBeforeSending(Command::Get));
+    let reads = ctx.ending_on_cancel(Error::CancelledBeforeMotion(Command::Get));
     let data = read_item(&reads, ItemRead::all(READS[0])).await;
     if ctx.cancelled() {
         return None;

@@ -50,13 +50,13 @@ fn idx(a: Actuator) -> usize {
 }
 
 /// A verified move ([`super::Op::Move`]). Before RE nothing moves: a cancel ends the move where it is
-/// ([`Error::CancelledBeforeSending`]); from RE on, a cancel or any failure stops the function at once and
+/// ([`Error::CancelledBeforeMotion`]); from RE on, a cancel or any failure stops the function at once and
 /// the stop is confirmed.
 pub(crate) async fn move_function(ctx: &Ctx, spec: MoveSpec) -> Result<Output, Error> {
     let mut m = Move::new(spec, ctx.now());
     let config = ctx.core().config.clone();
     m.check(&config)?;
-    let before_re = ctx.ending_on_cancel(Error::CancelledBeforeSending(Command::Execute));
+    let before_re = ctx.ending_on_cancel(Error::CancelledBeforeMotion(Command::Execute));
     m.prepare(&before_re).await?;
     m.execute(ctx).await
 }
@@ -185,7 +185,7 @@ impl Move {
             params: [MotionDirection::RemotePosition.code(), UNUSED],
         };
         let reply = ctx.send(Req::op(PreparedRequest::new(&re)?)).await;
-        if let Err(e @ Error::CancelledBeforeSending(_)) = reply {
+        if let Err(e @ Error::CancelledBeforeMotion(_)) = reply {
             return Err(e);
         }
         // An RE that failed (refused, a lost or corrupt reply) may still have started the motion: it gets its
