@@ -9,7 +9,7 @@ use motionlink_link::error::{Classify, ErrorClass, TransportKind};
 use motionlink_link::session::SessionError;
 use motionlink_link::LinkError;
 
-use crate::model::{Address, CubeState, InvalidAddress, ModuleKind, Param, Position};
+use crate::model::{Address, CubeState, InvalidAddress, ModuleKind, Param, Position, Value};
 use crate::wire::rs232::Rs232Error;
 use crate::wire::{ModelError, Request};
 
@@ -252,16 +252,24 @@ pub enum Error {
     },
     /// A parameter read back after it was written differs from what was written: the module limited it, or
     /// the write was corrupted on the way (the modules ignore the checksum).
-    #[error("module {address}: {param} was written as {wrote} but reads back as {read} (the module limited it, or the write was corrupted on the way)")]
+    #[error(
+        "module {address}: {param} was written as {} but reads back as {} (the module limited it, or the write \
+         was corrupted on the way)",
+        read_back_side(wrote, twin.as_ref().map(|t| (t.expected_ticks, None))),
+        read_back_side(read, twin.as_ref().map(|t| (t.read_ticks, Some(t.param))))
+    )]
     ReadBack {
         /// The module.
         address: Address,
         /// The parameter written.
         param: Param,
         /// What was written.
-        wrote: String,
-        /// What the module holds.
-        read: String,
+        wrote: Value,
+        /// What the module holds: `param` read back, or, read back through its tick twin (`twin`), what the
+        /// twin's ticks amount to in `param`'s unit.
+        read: Value,
+        /// For a parameter read back through its tick twin (TargetVel through TargetVelInc): the ticks.
+        twin: Option<TwinTicks>,
     },
     /// After the motion command, the module's target (TargetPosInc) is not the target sent: the command
     /// was corrupted on the way; the motion was halted.
@@ -400,6 +408,32 @@ pub enum Error {
         /// What was cancelled.
         what: &'static str,
     },
+}
+
+/// A parameter read back through its tick twin ([`Error::ReadBack::twin`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TwinTicks {
+    /// The twin read (TargetVelInc for TargetVel).
+    pub param: Param,
+    /// The ticks the value written amounts to.
+    pub expected_ticks: f64,
+    /// The ticks the twin shows.
+    pub read_ticks: f64,
+}
+
+/// One side of a read-back message: a float with six decimals, a large word in hex, with its ticks (and the
+/// twin that shows them) where it was read back through a twin.
+fn read_back_side(v: &Value, ticks: Option<(f64, Option<Param>)>) -> String {
+    let shown = match *v {
+        Value::F32(x) => format!("{x:.6}"),
+        Value::U32(x) if x > 0xFFFF => format!("{x:#010x}"),
+        other => other.as_f64().map_or_else(|| format!("{other:?}"), |n| format!("{n}")),
+    };
+    match ticks {
+        None => shown,
+        Some((ticks, None)) => format!("{shown} ({ticks} ticks)"),
+        Some((ticks, Some(twin))) => format!("{shown} ({ticks} ticks in {twin})"),
+    }
 }
 
 /// A number for messages: a value that came from a float parameter is shown as that float (0.05, not

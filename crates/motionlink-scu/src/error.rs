@@ -85,17 +85,19 @@ pub enum Error {
         /// How long it waited.
         waited: Duration,
     },
-    /// A value written to the unit reads back different.
-    #[error("{name} ({index}): wrote {written}, the unit reads back {read}")]
+    /// A value written to the unit reads back different. The data are as on the wire:
+    /// [`decode_item`](crate::value::decode_item) of the index's [`item`](crate::model::item) gives their
+    /// values (the message shows them so).
+    #[error("{name} ({index}): wrote {}, the unit reads back {}", shown(*index, wrote), shown(*index, read))]
     ReadBack {
         /// The entry.
         name: &'static str,
         /// Its index.
         index: DataIndex,
-        /// What was written.
-        written: String,
-        /// What the unit returned.
-        read: String,
+        /// The data written.
+        wrote: Vec<u8>,
+        /// The data the unit returned.
+        read: Vec<u8>,
     },
     /// The caller asked for something impossible (bad index, value out of range, read-only entry).
     #[error("{0}")]
@@ -328,6 +330,14 @@ impl Classify for Error {
                 _ => ErrorClass::Transport(TransportKind::Timeout),
             },
         }
+    }
+}
+
+/// Data of `index` as their values ("12, 300"), or as bytes where they do not decode.
+fn shown(index: DataIndex, data: &[u8]) -> String {
+    match crate::model::item(index).map(|it| crate::value::decode_item(it, data)) {
+        Some(Ok(values)) => values.iter().map(|(_, v)| v.to_string()).collect::<Vec<_>>().join(", "),
+        _ => format!("{data:02X?}"),
     }
 }
 

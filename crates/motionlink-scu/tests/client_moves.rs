@@ -358,8 +358,16 @@ fn set_read_back_mismatch(config: SimConfig) {
     let client = Client::with_connector(connector, clock.shared(), Config::default()).unwrap();
     client.set(DataIndex(0x3011), &Value::RemoteSpeed(40)).unwrap();
     let err = client.set(DataIndex(0x3011), &Value::RemoteSpeed(80)).unwrap_err();
-    let Error::ReadBack { name, written, read, .. } = &err else { panic!("{err}") };
-    assert_eq!((*name, written.as_str(), read.as_str()), ("remote_speed_f1", "80", "50"));
+    let Error::ReadBack { name, index, wrote, read } = &err else { panic!("{err}") };
+    let values = |data: &[u8]| -> Vec<Value> {
+        let it = motionlink_scu::model::item(*index).unwrap();
+        motionlink_scu::value::decode_item(it, data).unwrap().into_iter().map(|(_, v)| v).collect()
+    };
+    assert_eq!(
+        (*name, values(wrote), values(read)),
+        ("remote_speed_f1", vec![Value::RemoteSpeed(80)], vec![Value::RemoteSpeed(50)])
+    );
+    assert!(err.to_string().ends_with("wrote 80, the unit reads back 50"), "{err}");
     assert_eq!(err.class(), ErrorClass::Device);
     // A move whose speed does not read back is refused before RE.
     let err = client.move_to(a(1), PositionCounts(100), pct(80), &MoveOptions::default()).unwrap_err();

@@ -127,7 +127,11 @@ fn a_checked_move_reads_back_its_ramp_and_target_and_halts_a_corrupted_command()
     assert_eq!(frame[n - 3], 0x3f, "1.0f32 ends in 0x3f");
     faults.inject(Direction::HostToDevice, value_msb, motionlink_link::pipe::Fault::Corrupt { xor: 0x01 });
     let err = m.move_to(&spec(0.5), &mut |_| {}).unwrap_err();
-    assert!(matches!(err, Error::ReadBack { param: Param::TargetVel, .. }), "{err}");
+    let Error::ReadBack { param: Param::TargetVel, wrote, read, twin: Some(twin), .. } = &err else { panic!("{err}") };
+    assert_eq!((*wrote, twin.param), (Value::F32(1.0), Param::TargetVelInc), "the velocity of the spec: {err}");
+    assert_ne!(twin.read_ticks, twin.expected_ticks, "{err}");
+    assert_ne!(*read, *wrote, "{err}");
+    assert!(err.to_string().contains(&format!("({} ticks in TargetVelInc)", twin.read_ticks)), "{err}");
     assert!(!sim_module(&host, 1).0.contains(StateFlag::Motion), "nothing moved");
     // TargetVelInc changed, to another value: the module mirrors (and took a wrong one).
     assert_eq!(bus.session(|s| s.findings(addr(1))).target_vel_twin, Some(true));
@@ -180,7 +184,18 @@ fn set_checked_reads_back_and_names_a_mismatch() {
     assert!(!cur.verified && cur.read.is_none() && cur.not_verifiable[0].contains("measured current"), "{cur:?}");
     // The module limits a limit to its ROM default (DefMaxVel = 1 rad/s): not silently.
     let err = m.set_checked(Param::MaxVel, Value::F32(10.0)).unwrap_err();
-    assert!(matches!(err, Error::ReadBack { param: Param::MaxVel, .. }) && err.is_device(), "{err}");
+    let read_back = Error::ReadBack {
+        address: addr(1),
+        param: Param::MaxVel,
+        wrote: Value::F32(10.0),
+        read: Value::F32(1.0),
+        twin: None,
+    };
+    assert_eq!(err.to_string(), read_back.to_string());
+    assert!(
+        matches!(err, Error::ReadBack { wrote: Value::F32(10.0), read: Value::F32(1.0), twin: None, .. })
+            && err.is_device()
+    );
     assert!(err.to_string().contains("10.000000") && err.to_string().contains("1.000000"), "{err}");
     // A target beyond its limit is refused before it is written.
     let velinc = host.with_device(|d| d.request(clock.now(), 1, &Request::Get(Param::TargetVelInc)));

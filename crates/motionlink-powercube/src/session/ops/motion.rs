@@ -12,15 +12,6 @@ use crate::session::ops::twins::{self, TwinCheck};
 use crate::session::{HomeReport, MoveReport, MoveSpec, Progress, Readback, Until};
 use crate::wire::{ExtAck, Reply, Request};
 
-/// A value for messages: the number alone, floats with six decimals.
-fn raw(v: &Value) -> String {
-    match *v {
-        Value::F32(x) => format!("{x:.6}"),
-        Value::U32(x) if x > 0xFFFF => format!("{x:#010x}"),
-        other => other.as_f64().map_or_else(|| format!("{other:?}"), |n| format!("{n}")),
-    }
-}
-
 impl Ctx {
     /// Stops module `a` after an action that may have set it in motion cannot go on, and says whether the
     /// module confirmed it: up to three Halts by address (a Halt may be repeated safely; not after the line
@@ -171,12 +162,7 @@ impl Ctx {
         if same {
             Ok(Readback::same(read))
         } else {
-            Err(Error::ReadBack {
-                address: crate::model::Address::checked(a),
-                param,
-                wrote: raw(&value),
-                read: raw(&read),
-            })
+            Err(Error::ReadBack { address: crate::model::Address::checked(a), param, wrote: value, read, twin: None })
         }
     }
 

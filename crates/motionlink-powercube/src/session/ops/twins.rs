@@ -20,7 +20,7 @@
 //! A module that mirrors but ignores a write it acknowledged looks, the first time, like one that keeps the
 //! values apart; no probe can tell the two apart without reading the float, which the manual does not allow.
 
-use crate::error::{unexpected, Error};
+use crate::error::{unexpected, Error, TwinTicks};
 use crate::model::{Param, StateFlag, Value};
 use crate::session::ctx::Ctx;
 use crate::wire::Request;
@@ -124,13 +124,14 @@ impl Ctx {
     }
 
     /// The error of a twin that shows `ticks` after `param` was written as `value` (`expected` ticks).
-    pub(crate) fn twin_mismatch(a: u8, param: Param, value: f64, expected: f64, ticks: f64, ratio: f64) -> Error {
+    pub(crate) fn twin_mismatch(a: u8, param: Param, value: f32, expected: f64, ticks: f64, ratio: f64) -> Error {
         let twin = param.read_back_as().unwrap_or(param);
         Error::ReadBack {
             address: crate::model::Address::checked(a),
             param,
-            wrote: format!("{value:.6} ({expected} ticks)"),
-            read: format!("{:.6} ({ticks} ticks in {twin})", ticks / ratio),
+            wrote: Value::F32(value),
+            read: Value::F32((ticks / ratio) as f32),
+            twin: Some(TwinTicks { param: twin, expected_ticks: expected, read_ticks: ticks }),
         }
     }
 
@@ -201,7 +202,7 @@ impl Ctx {
                     Verdict::Undecided => Ok(TwinCheck::Unverified(undecided(param))),
                     Verdict::Discrepancy => {
                         self.remember_twin(a, param, true);
-                        Err(Self::twin_mismatch(a, param, f64::from(v), expected, after, ratio))
+                        Err(Self::twin_mismatch(a, param, v, expected, after, ratio))
                     }
                 };
             }
@@ -228,7 +229,7 @@ impl Ctx {
             (true, Some(true)) => Ok(TwinCheck::Verified(read)),
             // Undecided: the twin showed the value before the write too.
             (true, _) => Ok(TwinCheck::Unverified(undecided(param))),
-            (false, _) => Err(Self::twin_mismatch(a, param, f64::from(v), expected, after, ratio)),
+            (false, _) => Err(Self::twin_mismatch(a, param, v, expected, after, ratio)),
         }
     }
 }

@@ -74,11 +74,7 @@ fn compare(ctx: &Ctx, index: DataIndex, written: &[u8], read: Vec<u8>) -> Result
         return Ok(None);
     }
     let Some(it) = item(index) else { return Ok(None) };
-    let show = |bytes: &[u8]| match decode_item(it, bytes) {
-        Ok(v) => v.iter().map(|(_, v)| v.to_string()).collect::<Vec<_>>().join(", "),
-        Err(_) => format!("{bytes:02X?}"),
-    };
-    Err(Error::ReadBack { name: it.name(), index, written: show(written), read: show(&read) })
+    Err(Error::ReadBack { name: it.name(), index, wrote: written.to_vec(), read })
 }
 
 fn not_read_back(index: DataIndex) -> String {
