@@ -17,7 +17,7 @@ use crate::wire::{Address, WireError};
 pub enum Error {
     /// The drive answered with an error message.
     #[error("drive {address}: {command:?} refused with {code}")]
-    Device {
+    Refused {
         /// The drive.
         address: Address,
         /// The command sent.
@@ -257,7 +257,7 @@ impl Error {
     /// The drive's error code, if the drive refused (for [`Error::FailedDuringMotion`]: in its cause).
     pub fn device_code(&self) -> Option<ErrorCode> {
         match self.root() {
-            Error::Device { code, .. } => Some(*code),
+            Error::Refused { code, .. } => Some(*code),
             Error::SwitchedOff { refused, .. } => *refused,
             _ => None,
         }
@@ -294,7 +294,7 @@ impl Error {
 impl Classify for Error {
     fn class(&self) -> ErrorClass {
         match self {
-            Error::Device { .. } => ErrorClass::Refused,
+            Error::Refused { .. } => ErrorClass::Refused,
             Error::MoveTimeout { .. }
             | Error::NotReached { .. }
             | Error::TargetMismatch { .. }
@@ -449,7 +449,7 @@ mod tests {
         let stop = StopReport { drives: vec![(Address::drive(3).unwrap(), StopOutcome::SwitchedOff)] };
         let cases: Vec<(Error, ErrorClass)> = vec![
             (
-                Error::Device { address: Address::drive_const(1), command: "S1".into(), code: ErrorCode(92) },
+                Error::Refused { address: Address::drive_const(1), command: "S1".into(), code: ErrorCode(92) },
                 ErrorClass::Refused,
             ),
             (

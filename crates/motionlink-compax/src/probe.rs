@@ -135,7 +135,7 @@ fn identity_from(read: Vec<Result<StatusValue, Error>>) -> Result<(String, [Opti
         *slot = match r {
             Ok(StatusValue::Text(t)) => Some(t.as_str().to_string()),
             Ok(other) => Some(format!("{other}")),
-            Err(Error::Device { .. }) => None,
+            Err(Error::Refused { .. }) => None,
             Err(e) => return Err(e),
         };
     }

@@ -233,7 +233,7 @@ pub enum Error {
     /// A value outside one of the module's limits: refused before anything was sent that moves (the module
     /// would have limited it silently).
     #[error("{}", beyond_limit_text(*address, what, *value, *limit, *limit_value, unit, *other_limit))]
-    BeyondLimit {
+    OutsideLimits {
         /// The module.
         address: Address,
         /// What the value is ("target position", "--vel", "TargetVel").
@@ -483,7 +483,7 @@ impl Classify for Error {
             Error::Model(_)
             | Error::InvalidAddress(_)
             | Error::NotSupported(_)
-            | Error::BeyondLimit { .. }
+            | Error::OutsideLimits { .. }
             | Error::InvalidArgument { .. }
             | Error::UnitMismatch { .. }
             | Error::Encode(_)

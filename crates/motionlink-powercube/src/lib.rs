@@ -179,7 +179,7 @@
 //!   position twice; both readings must lie within it.
 //! - **Limits are refused, not clamped.** The modules limit targets to MinPos/MaxPos (once homed), MaxVel,
 //!   MaxAcc, MaxCur (chapter 12). [`client::Module::move_to`] and [`client::Module::set_checked`] refuse such
-//!   values before anything moves ([`Error::BeyondLimit`]), homed or not, and read back what they
+//!   values before anything moves ([`Error::OutsideLimits`]), homed or not, and read back what they
 //!   write ([`Error::ReadBack`]); a module's own limits, when written, are read back as well.
 //! - **The target of a running motion.** TargetPosInc is taken as the target of the motion the module runs
 //!   (the emulator sets it from FRAMP); `move_to` reads it right after the motion command and halts the

@@ -108,7 +108,7 @@ pub enum Error {
          ({limits_from}); nothing was moved",
         min_counts.get()
     )]
-    OutsideStroke {
+    OutsideLimits {
         /// The actuator.
         actuator: Actuator,
         /// The target asked for.
@@ -319,7 +319,7 @@ impl Classify for Error {
             Error::SessionLost(_) | Error::RemoteEnded(_) | Error::Closed => {
                 ErrorClass::Transport(TransportKind::Disconnected)
             }
-            Error::InvalidArgument(_) | Error::OutsideStroke { .. } => ErrorClass::Usage,
+            Error::InvalidArgument(_) | Error::OutsideLimits { .. } => ErrorClass::Usage,
             Error::Cancelled { .. }
             | Error::RunCancelled { .. }
             | Error::Interrupted(_)

@@ -229,7 +229,7 @@ fn a_target_outside_the_stroke_is_refused_before_anything_moves() {
     let client = rig.client(Config::default());
     let remote_before = client.get_value(DataIndex(0x3022)).unwrap();
     let err = client.move_to(a(2), PositionCounts(2000), pct(100), &MoveOptions::default()).unwrap_err();
-    let Error::OutsideStroke {
+    let Error::OutsideLimits {
         actuator,
         target_counts: PositionCounts(2000),
         min_counts: PositionCounts(0),
@@ -247,7 +247,7 @@ fn a_target_outside_the_stroke_is_refused_before_anything_moves() {
     // Below the In end as well; and a configured stroke replaces the unit's.
     assert!(matches!(
         client.move_to(a(1), PositionCounts(-1), pct(100), &MoveOptions::default()),
-        Err(Error::OutsideStroke { .. })
+        Err(Error::OutsideLimits { .. })
     ));
     drop(client);
     let mut limits = [None; 6];
@@ -255,7 +255,7 @@ fn a_target_outside_the_stroke_is_refused_before_anything_moves() {
     let client = rig.client(Config { stroke_limits: limits, ..Default::default() });
     let err = client.move_to(a(1), PositionCounts(400), pct(100), &MoveOptions::default()).unwrap_err();
     assert!(
-        matches!(err, Error::OutsideStroke { max_counts: PositionCounts(300), limits_from: "as configured", .. }),
+        matches!(err, Error::OutsideLimits { max_counts: PositionCounts(300), limits_from: "as configured", .. }),
         "{err}"
     );
 }

@@ -44,7 +44,7 @@ fn a_function_that_drives_two_actuators_moves_each_to_its_own_target_with_one_re
             &MoveOptions::default(),
         )
         .unwrap_err();
-    assert!(matches!(err, Error::OutsideStroke { target_counts: PositionCounts(900), .. }), "{err}");
+    assert!(matches!(err, Error::OutsideLimits { target_counts: PositionCounts(900), .. }), "{err}");
     assert_eq!(rig.unit(|u| (u.position(a(1)), u.position(a(2)))), (Some(300), Some(320)));
 }
 

@@ -143,7 +143,7 @@ fn without_user_position_data_a_move_says_its_target_was_not_checked_unless_stro
     let report = client.move_to(a(1), PositionCounts(500), pct(100), &MoveOptions::default()).unwrap();
     assert!(report.verified, "{:?}", report.not_verifiable);
     let e = client.move_to(a(1), PositionCounts(900), pct(100), &MoveOptions::default()).unwrap_err();
-    assert!(matches!(e, Error::OutsideStroke { limits_from: "as configured", .. }), "{e}");
+    assert!(matches!(e, Error::OutsideLimits { limits_from: "as configured", .. }), "{e}");
     // A stream checks every target against the stroke: without one it says so before anything moves.
     let client = rig.client(scp11());
     let e = client.stream(f(1), &[a(1)], pct(50)).unwrap_err();

@@ -496,7 +496,7 @@ impl Core {
                 self.queue.push_front(job);
             }
             ReplyKind::Error(code) => {
-                let e = Error::Device { address: job.address, command: job.command, code: ErrorCode(code) };
+                let e = Error::Refused { address: job.address, command: job.command, code: ErrorCode(code) };
                 self.finish_job(job.id, Err(e));
             }
             _ => {

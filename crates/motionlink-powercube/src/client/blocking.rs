@@ -321,7 +321,7 @@ impl Module<'_> {
     }
 
     /// Writes `param` and checks that the module took it: a target beyond the module's limit is refused
-    /// ([`Error::BeyondLimit`]) before anything is sent; then the value is read back (the write-only targets
+    /// ([`Error::OutsideLimits`]) before anything is sent; then the value is read back (the write-only targets
     /// through their tick twins) and a difference is [`Error::ReadBack`].
     pub fn set_checked(&self, param: Param, value: Value) -> Result<Readback, Error> {
         self.client.call(calls::set_checked(self.address, param, value))

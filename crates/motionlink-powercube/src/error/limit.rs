@@ -1,9 +1,9 @@
-//! The message of a value beyond a module's limit ([`Error::BeyondLimit`](super::Error::BeyondLimit)).
+//! The message of a value beyond a module's limit ([`Error::OutsideLimits`](super::Error::OutsideLimits)).
 
 use super::number;
 use crate::model::{Address, Param};
 
-/// The message of [`Error::BeyondLimit`]: the value and the limit (or the whole range) with their unit,
+/// The message of [`Error::OutsideLimits`]: the value and the limit (or the whole range) with their unit,
 /// and, for a value in rad that is plainly no angle in radians (beyond a full turn) but would be within the
 /// limits as degrees, what it is in rad: "module 1: the target position 90 rad is outside MinPos..MaxPos =
 /// -3.14..3.14 rad (90 degrees is 1.5708 rad)".
@@ -58,7 +58,7 @@ mod tests {
     #[test]
     fn a_value_beyond_a_limit_is_named_with_its_unit_the_range_and_a_degrees_hint() {
         let beyond = |value, limit, limit_value, unit, other_limit| {
-            Error::BeyondLimit {
+            Error::OutsideLimits {
                 address: Address::checked(1),
                 what: "the target position".into(),
                 value,

@@ -85,8 +85,8 @@ impl Ctx {
                     })
                 }
                 Ok(None) => return Err(Error::Broadcast("an echo needs one drive's answer")),
-                Err(e @ Error::Device { code, .. }) if (70..=74).contains(&code.0) => Some(e),
-                Err(Error::Device { .. } | Error::Timeout { .. }) => None,
+                Err(e @ Error::Refused { code, .. }) if (70..=74).contains(&code.0) => Some(e),
+                Err(Error::Refused { .. } | Error::Timeout { .. }) => None,
                 Err(e) => return Err(e),
             };
             match garble {
@@ -225,7 +225,7 @@ impl Ctx {
                     reply: r.map(|r| r.text_str().to_string()).unwrap_or_default(),
                 },
                 Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. } | Error::UnexpectedReply { .. })) => e,
-                Err(e @ Error::Device { .. }) => {
+                Err(e @ Error::Refused { .. }) => {
                     let why = "the drive refused '!' right after echoing the stored move: it may not store a \
                                command sent with ',?' (the manual does not say that it does), so nothing ran";
                     return Err(fail(Failure { why: why.into(), source: e, holders: 0 }));

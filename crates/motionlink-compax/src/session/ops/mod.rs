@@ -227,10 +227,10 @@ impl Ctx {
                 core.after_send(address, effect);
                 Ok(r.map(|r| r.text_str().to_string()))
             }
-            Err(e @ (Error::Device { .. } | Error::CancelledBeforeMotion | Error::Encode(_))) => {
+            Err(e @ (Error::Refused { .. } | Error::CancelledBeforeMotion | Error::Encode(_))) => {
                 // Refused, or never sent: it started nothing (an axis that was moving before still is).
                 self.core().started = saved;
-                if effect == Effect::Starts && matches!(e, Error::Device { .. }) {
+                if effect == Effect::Starts && matches!(e, Error::Refused { .. }) {
                     return Err(self.explain_refused_move(address, e).await);
                 }
                 Err(e)
@@ -242,7 +242,7 @@ impl Ctx {
     /// A move `address` refused: if the drive is switched off (S16), that is the reason to give
     /// ([`Error::SwitchedOff`]) rather than the bare code. E92 (the axis still moves) needs no reading.
     pub(crate) async fn explain_refused_move(&self, address: Address, e: Error) -> Error {
-        let Error::Device { code, .. } = e else { return e };
+        let Error::Refused { code, .. } = e else { return e };
         if code == crate::model::ErrorCode::COMMAND_ACTIVE || address.is_broadcast() {
             return e;
         }

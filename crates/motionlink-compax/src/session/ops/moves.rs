@@ -115,7 +115,7 @@ impl Ctx {
                     return Err(e);
                 }
                 Err(e) => {
-                    if matches!(e, Error::Device { .. }) {
+                    if matches!(e, Error::Refused { .. }) {
                         // Refused (E92 while it still moves, for one): it started nothing new, and an axis
                         // this session set moving before is still its to stop.
                         restore();

@@ -218,7 +218,7 @@ impl Ctx {
         }
         if self.read_s17(address).await?.contains(S17Flag::CommandActive) {
             // Someone else's positioning (or one this session handed over): not this call's to stop.
-            return Err(Error::Device { address, command: "S17".into(), code: ErrorCode::COMMAND_ACTIVE });
+            return Err(Error::Refused { address, command: "S17".into(), code: ErrorCode::COMMAND_ACTIVE });
         }
         let start = self.read_position(address).await?;
         let (cmd, target, before) = match request.target {

@@ -27,7 +27,7 @@ fn a_checked_move_refuses_targets_beyond_the_limits_before_anything_moves() {
     ] {
         let err = m.move_to(&s, &mut |_| {}).unwrap_err();
         match &err {
-            Error::BeyondLimit { limit: l, .. } => assert_eq!(*l, limit, "{err}"),
+            Error::OutsideLimits { limit: l, .. } => assert_eq!(*l, limit, "{err}"),
             other => panic!("{other}"),
         }
         assert!(err.is_usage() && err.to_string().contains(limit.name()), "{err}");
@@ -200,11 +200,11 @@ fn set_checked_reads_back_and_names_a_mismatch() {
     // A target beyond its limit is refused before it is written.
     let velinc = host.with_device(|d| d.request(clock.now(), 1, &Request::Get(Param::TargetVelInc)));
     let err = m.set_checked(Param::TargetVel, Value::F32(2.0)).unwrap_err();
-    assert!(matches!(err, Error::BeyondLimit { limit: Param::MaxVel, .. }) && err.is_usage(), "{err}");
+    assert!(matches!(err, Error::OutsideLimits { limit: Param::MaxVel, .. }) && err.is_usage(), "{err}");
     let err = m.set_checked(Param::TargetPos, Value::F32(4.0)).unwrap_err();
-    assert!(matches!(err, Error::BeyondLimit { limit: Param::MaxPos, .. }), "{err}");
+    assert!(matches!(err, Error::OutsideLimits { limit: Param::MaxPos, .. }), "{err}");
     let err = m.set_checked(Param::Cur, Value::F32(6.0)).unwrap_err();
-    assert!(matches!(err, Error::BeyondLimit { limit: Param::MaxCur, .. }), "{err}");
+    assert!(matches!(err, Error::OutsideLimits { limit: Param::MaxCur, .. }), "{err}");
     assert_eq!(host.with_device(|d| d.request(clock.now(), 1, &Request::Get(Param::TargetVelInc))), velinc);
 }
 

@@ -171,7 +171,7 @@ fn a_life_sign_that_is_not_acknowledged_refuses_the_guarded_motion_and_says_so()
     // no life sign, no Config word written.
     let err = bus.module(addr(1)).move_to_guarded(&spec(100.0), Guard::Watchdog, &mut |_| {}).unwrap_err();
     let text = err.to_string();
-    assert!(matches!(err, Error::BeyondLimit { limit: Param::MaxPos, .. }) && err.is_usage(), "{text}");
+    assert!(matches!(err, Error::OutsideLimits { limit: Param::MaxPos, .. }) && err.is_usage(), "{text}");
     assert!(text.contains("the target position 100") && !text.contains("watchdog"), "{text}");
     let config = host.with_device(|d| d.module(1).unwrap().config_word());
     assert!(!config.contains(crate::model::ConfigFlag::WatchdogEnable), "the guard never armed: {config}");

@@ -103,7 +103,7 @@ impl Ctx {
                 Some(p) => self.get_finite(a, p).await.ok().map(|v| (p, f64::from(v))),
                 None => None,
             };
-            return Err(Error::BeyondLimit {
+            return Err(Error::OutsideLimits {
                 address: crate::model::Address::checked(a),
                 what: what.into(),
                 value,

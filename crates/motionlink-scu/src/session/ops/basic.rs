@@ -197,7 +197,7 @@ fn stroke_limits_of(ctx: &Ctx, a: Actuator, data: Vec<u8>) -> Result<StrokeFound
 pub(crate) fn check_stroke(a: Actuator, target: PositionCounts, stroke: &Stroke) -> Result<(), Error> {
     if let Some((s, limits_from)) = stroke {
         if !(s.min_counts..=s.max_counts).contains(&target) {
-            return Err(Error::OutsideStroke {
+            return Err(Error::OutsideLimits {
                 actuator: a,
                 target_counts: target,
                 min_counts: s.min_counts,

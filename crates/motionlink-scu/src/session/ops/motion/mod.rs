@@ -167,7 +167,7 @@ impl Move {
             Err(e) => Err(e),
         };
         match checked {
-            Err(e @ Error::OutsideStroke { .. }) if self.drives_unknown && a != self.spec.primary => {
+            Err(e @ Error::OutsideLimits { .. }) if self.drives_unknown && a != self.spec.primary => {
                 Err(Error::InvalidArgument(format!(
                     "{e}. The function map does not say which actuators {} drives, so every connected actuator \
                      gets the target; say which ones it drives (Config::function_map, --functions)",
