@@ -206,9 +206,17 @@ pub enum Error {
         crate::model::Actuator::list(.0)
     )]
     StillMoving(Vec<Actuator>),
-    /// The caller cancelled an operation; what it had started was stopped.
-    #[error("{0}")]
-    Interrupted(String),
+    /// The caller cancelled an operation while a function it had set going may have been moving (its RE
+    /// still awaiting the ACK, a stream, a follow). As the error of the operation, `stopped`: the unit
+    /// acknowledged the RS that followed. As the cause of [`Error::StopUnconfirmed`] (`stopped` false),
+    /// what was cancelled.
+    #[error("{}", cancelled_text(*function_id, *stopped))]
+    FunctionCancelled {
+        /// The function's id on the wire (`Function::from_id`; an RE may name an id the manual does not).
+        function_id: u8,
+        /// The unit acknowledged the RS of the function.
+        stopped: bool,
+    },
     /// The caller cancelled an operation before it sent anything that starts a motion.
     #[error("cancelled before {0} was sent; nothing was started")]
     CancelledBeforeMotion(Command),
@@ -322,7 +330,7 @@ impl Classify for Error {
             Error::InvalidArgument(_) | Error::OutsideLimits { .. } => ErrorClass::Usage,
             Error::Cancelled { .. }
             | Error::RunCancelled { .. }
-            | Error::Interrupted(_)
+            | Error::FunctionCancelled { .. }
             | Error::CancelledBeforeMotion(_) => ErrorClass::Cancelled,
             Error::StopUnconfirmed { cause, .. } => cause.class(),
             Error::CloseUnconfirmed { cause, .. } => match cause.class() {
@@ -330,6 +338,16 @@ impl Classify for Error {
                 _ => ErrorClass::Transport(TransportKind::Timeout),
             },
         }
+    }
+}
+
+/// "cancelled; F1 stopped (the unit acknowledged RS)" or "cancelled while F1 was under way" (an id no
+/// function has: "function id 12").
+fn cancelled_text(id: u8, stopped: bool) -> String {
+    let name = crate::model::Function::from_id(id).map_or(format!("function id {id}"), |f| format!("F{}", f.number()));
+    match stopped {
+        true => format!("cancelled; {name} stopped (the unit acknowledged RS)"),
+        false => format!("cancelled while {name} was under way"),
     }
 }
 
@@ -384,5 +402,20 @@ mod tests {
             Error::close_timed_out(Duration::from_secs(5)).class(),
             ErrorClass::Transport(TransportKind::Timeout)
         );
+    }
+
+    #[test]
+    fn a_cancelled_function_is_named_and_says_whether_its_stop_was_acknowledged() {
+        let stopped = Error::FunctionCancelled { function_id: 1, stopped: true };
+        assert_eq!(stopped.to_string(), "cancelled; F2 stopped (the unit acknowledged RS)");
+        assert_eq!(stopped.class(), ErrorClass::Cancelled);
+        let unconfirmed = Error::StopUnconfirmed {
+            cause: Box::new(Error::FunctionCancelled { function_id: 12, stopped: false }),
+            functions: Vec::new(),
+            mode: crate::model::StopMode::Fast,
+            detail: "no ACK".into(),
+        };
+        assert!(unconfirmed.to_string().starts_with("cancelled while function id 12 was under way; then the stop"));
+        assert_eq!(unconfirmed.class(), ErrorClass::Cancelled, "the class of what went wrong first");
     }
 }

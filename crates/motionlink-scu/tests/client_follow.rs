@@ -116,7 +116,8 @@ fn a_cancel_while_a_follow_settles_stops_it_fast() {
     let FollowFailure { error, stopped } = follower.finish(&cancel).unwrap_err();
     canceller.join().unwrap();
     assert!(clock.now() - started < Duration::from_millis(500), "stopped at the cancel, not at 800");
-    assert!(matches!(&error, Error::Interrupted(m) if m == "interrupted; F1 stopped"), "{error:?}");
+    assert!(matches!(&error, Error::FunctionCancelled { function_id: 0, stopped: true }), "{error:?}");
+    assert_eq!(error.to_string(), "cancelled; F1 stopped (the unit acknowledged RS)");
     assert_eq!(error.class(), ErrorClass::Cancelled);
     let [(_, rest)] = stopped.expect("where it came to rest").rest[..] else { panic!() };
     assert!(rest < PositionCounts(800), "stopped on the way: {rest}");

@@ -146,7 +146,7 @@ impl<'c> Follower<'c> {
     /// stream moves (looking every [`Config::poll_interval`](crate::Config::poll_interval) on the
     /// session's clock), stops the function along the ramp (soft RS), and checks that each actuator the
     /// function drives ended within the tolerance of its last target ([`Error::NotReached`] if not). A
-    /// `cancel` while it waits stops the function at once (fast RS) and fails with [`Error::Interrupted`]; a
+    /// `cancel` while it waits stops the function at once (fast RS) and fails with [`Error::FunctionCancelled`]; a
     /// device error stops it at once too.
     pub fn finish(mut self, cancel: &CancelToken) -> Result<FollowReport, FollowFailure> {
         let failed = |error| FollowFailure { error, stopped: None };
@@ -166,7 +166,7 @@ impl<'c> Follower<'c> {
         let client = stream.client();
         let report = FollowReport { rest: stream.stop(mode).map_err(failed)?, updates };
         if cancelled {
-            let error = Error::Interrupted(format!("interrupted; {function} stopped"));
+            let error = Error::FunctionCancelled { function_id: function.id(), stopped: true };
             return Err(FollowFailure { error, stopped: Some(report) });
         }
         let Some(targets) = last_targets else { return Ok(report) };

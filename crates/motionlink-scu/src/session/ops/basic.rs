@@ -26,12 +26,11 @@ pub(crate) async fn single(ctx: &Ctx, request: PreparedRequest) -> Result<Output
     if let (true, true, Some(f)) = (ctx.cancelled(), sent, starts) {
         // The caller gave up while its RE was under way: it may have started a motion.
         let function = crate::model::Function::from_id(f);
-        let name = function.map_or(format!("function id {f}"), |f| f.to_string());
         let rs = Req::op(PreparedRequest::stop(f, StopMode::Fast)).when(Schedule::Now);
         return match ctx.firm().send(rs).await.and_then(|r| r.ack(Command::Stop)) {
-            Ok(_) => Err(Error::Interrupted(format!("cancelled; {name} stopped (the unit acknowledged RS)"))),
+            Ok(_) => Err(Error::FunctionCancelled { function_id: f, stopped: true }),
             Err(e) => Err(Error::StopUnconfirmed {
-                cause: Box::new(Error::Interrupted(format!("cancelled while the RE of {name} was under way"))),
+                cause: Box::new(Error::FunctionCancelled { function_id: f, stopped: false }),
                 functions: function.into_iter().collect(),
                 mode: StopMode::Fast,
                 detail: e.to_string(),

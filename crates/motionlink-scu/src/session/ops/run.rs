@@ -165,7 +165,7 @@ impl Run {
                 }
             }
             Err((detail, _)) if ctx.cancelled() => {
-                Err(stop.unconfirmed(Error::Interrupted(format!("cancelled while {function} ran")), detail))
+                Err(stop.unconfirmed(Error::FunctionCancelled { function_id: function.id(), stopped: false }, detail))
             }
             Err((_, e)) => Err(e),
         }

@@ -83,9 +83,9 @@ pub(crate) async fn targets(
         let watch = targets.iter().map(|(a, _)| *a).collect();
         let stop = Stop::new(Function::Motion(function), StopMode::Fast, watch);
         return match stop.run(ctx).await.rest {
-            Ok(_) => Err(Error::Interrupted(format!("cancelled; {function} stopped (the unit confirmed it)"))),
+            Ok(_) => Err(Error::FunctionCancelled { function_id: function.id(), stopped: true }),
             Err((detail, _)) => {
-                Err(stop.unconfirmed(Error::Interrupted(format!("cancelled while {function} was started")), detail))
+                Err(stop.unconfirmed(Error::FunctionCancelled { function_id: function.id(), stopped: false }, detail))
             }
         };
     }
