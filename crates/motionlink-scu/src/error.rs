@@ -344,7 +344,8 @@ impl Classify for Error {
 /// "cancelled; F1 stopped (the unit acknowledged RS)" or "cancelled while F1 was under way" (an id no
 /// function has: "function id 12").
 fn cancelled_text(id: u8, stopped: bool) -> String {
-    let name = crate::model::Function::from_id(id).map_or(format!("function id {id}"), |f| format!("F{}", f.number()));
+    let name =
+        crate::model::Function::from_id(id).map_or(format!("function id {id}"), |f| crate::model::function_list(&[f]));
     match stopped {
         true => format!("cancelled; {name} stopped (the unit acknowledged RS)"),
         false => format!("cancelled while {name} was under way"),

@@ -192,8 +192,8 @@ impl Client {
 
     /// Asks addresses 1..31 for their version; returns every address that answers, with its type, serial
     /// number and state, or the error that kept them from being read. Silence is absence; a corrupt answer
-    /// is asked again. Only a failed line fails the whole scan. Ends with [`Error::CancelledBeforeMotion`] as soon as the
-    /// token of [`Client::set_cancel`] is cancelled (the only read that watches it).
+    /// is asked again. Only a failed line fails the whole scan. Ends with [`Error::CancelledBeforeMotion`] as
+    /// soon as the token of [`Client::set_cancel`] is cancelled (the only read that watches it).
     pub fn scan(&self) -> Result<Vec<ScanEntry>, Error> {
         self.call(calls::scan())
     }
