@@ -9,7 +9,7 @@ use motionlink_link::error::{Classify, ErrorClass, TransportKind};
 use motionlink_link::session::SessionError;
 use motionlink_link::LinkError;
 
-use crate::model::{Address, CubeState, InvalidAddress, ModuleKind, Param, Position, Value};
+use crate::model::{Address, CubeState, InvalidAddress, ModuleKind, Param, Position, Quantity, Value};
 use crate::wire::rs232::Rs232Error;
 use crate::wire::{ModelError, Request};
 
@@ -352,7 +352,7 @@ pub enum Error {
         /// What the quantity is ("the target position", "the velocity").
         what: &'static str,
         /// The quantity, with its unit.
-        value: String,
+        value: Quantity,
     },
     /// An error with what was being done when it happened (and, after it, a hint).
     #[error("{context}: {source}{hint}")]
@@ -616,7 +616,7 @@ mod tests {
             address: Address::checked(3),
             kind: ModuleKind::Linear,
             what: "the target position",
-            value: "0.5 rad".into(),
+            value: Quantity::Position(Position::rad(0.5)),
         };
         assert_eq!(unit.class(), ErrorClass::Usage);
         assert_eq!(unit.to_string(), "module 3 is linear (its unit is m): the target position 0.5 rad does not fit it");

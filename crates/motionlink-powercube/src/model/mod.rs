@@ -22,6 +22,6 @@ pub use motion::{AckKind, Motion, MotionId, MotionShape, Ramp};
 pub use params::{Access, DataType, Param, ParamClass, ParamKind, Unit, UnknownParam, PARAMS, PARAM_ENTRIES};
 pub use units::{
     Acceleration, Address, Amperes, AxisUnit, CubeVersion, CurrentDigits, InvalidAddress, Millis, ModuleKind,
-    ParseAddressError, Position, Ticks, TicksPerSec, Velocity,
+    ParseAddressError, Position, Quantity, Ticks, TicksPerSec, Velocity,
 };
 pub use value::{Value, ValueError};

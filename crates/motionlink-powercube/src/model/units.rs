@@ -180,6 +180,40 @@ axis_quantity!(
     Acceleration, "acceleration", "/s²", rad_per_s2, m_per_s2
 );
 
+/// A position, velocity or acceleration, as a check of its unit against a module names it
+/// ([`Error::UnitMismatch`](crate::Error::UnitMismatch)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Quantity {
+    /// A position.
+    Position(Position),
+    /// A velocity.
+    Velocity(Velocity),
+    /// An acceleration.
+    Acceleration(Acceleration),
+}
+
+impl Quantity {
+    /// Its unit.
+    pub fn unit(self) -> AxisUnit {
+        match self {
+            Quantity::Position(p) => p.unit(),
+            Quantity::Velocity(v) => v.unit(),
+            Quantity::Acceleration(a) => a.unit(),
+        }
+    }
+}
+
+/// The value with its unit (`0.5 rad`, `0.1 m/s`).
+impl fmt::Display for Quantity {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Quantity::Position(p) => p.fmt(f),
+            Quantity::Velocity(v) => v.fmt(f),
+            Quantity::Acceleration(a) => a.fmt(f),
+        }
+    }
+}
+
 macro_rules! quantity {
     ($(#[$meta:meta])* $name:ident($inner:ty), $suffix:literal) => {
         $(#[$meta])*

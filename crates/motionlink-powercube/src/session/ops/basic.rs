@@ -5,7 +5,8 @@ use std::time::Duration;
 
 use crate::error::{unexpected, Error};
 use crate::model::{
-    AxisUnit, Broadcast, ConfigFlag, ConfigWord, CubeState, CubeVersion, ModuleKind, Param, Position, StateFlag, Value,
+    AxisUnit, Broadcast, ConfigFlag, ConfigWord, CubeState, CubeVersion, ModuleKind, Param, Position, Quantity,
+    StateFlag, Value,
 };
 use crate::session::ctx::Ctx;
 use crate::session::{HaltReport, ModuleInfo, HALT_SETTLE};
@@ -249,18 +250,15 @@ impl Ctx {
 
     /// Refuses a quantity whose unit does not fit the module (rad for a linear module, m for a rotary one);
     /// reads the module's kind only if a unit is said (the module's own unit fits any module).
-    pub async fn check_units(&self, address: u8, quantities: &[(&'static str, AxisUnit, String)]) -> Result<(), Error> {
-        if quantities.iter().all(|(_, u, _)| *u == AxisUnit::ModuleUnit) {
+    pub async fn check_units(&self, address: u8, quantities: &[(&'static str, Quantity)]) -> Result<(), Error> {
+        if quantities.iter().all(|(_, q)| q.unit() == AxisUnit::ModuleUnit) {
             return Ok(());
         }
         let kind = self.kind(address).await?;
-        match quantities.iter().find(|(_, u, _)| !u.fits(kind)) {
-            Some((what, _, value)) => Err(Error::UnitMismatch {
-                address: crate::model::Address::checked(address),
-                kind,
-                what,
-                value: value.clone(),
-            }),
+        match quantities.iter().find(|(_, q)| !q.unit().fits(kind)) {
+            Some(&(what, value)) => {
+                Err(Error::UnitMismatch { address: crate::model::Address::checked(address), kind, what, value })
+            }
             None => Ok(()),
         }
     }

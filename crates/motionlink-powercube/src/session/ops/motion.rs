@@ -5,7 +5,9 @@
 use std::time::Duration;
 
 use crate::error::{unexpected, Error, StopOutcome};
-use crate::model::{AckKind, Broadcast, CubeState, ModuleKind, Motion, Param, Position, ShortState, StateFlag, Value};
+use crate::model::{
+    AckKind, Broadcast, CubeState, ModuleKind, Motion, Param, Position, Quantity, ShortState, StateFlag, Value,
+};
 use crate::session::ctx::Ctx;
 use crate::session::ops::checked;
 use crate::session::ops::twins::{self, TwinCheck};
@@ -172,10 +174,10 @@ impl Ctx {
         let request = Request::motion(motion, ack)?;
         let units = match motion {
             Motion::FRamp { pos } | Motion::FRampLoop { pos } | Motion::FStep { pos, .. } => {
-                vec![("the target position", pos.unit(), pos.to_string())]
+                vec![("the target position", Quantity::Position(pos))]
             }
-            Motion::FCosLoop { pos, .. } => vec![("the loop's far end", pos.unit(), pos.to_string())],
-            Motion::FVel { vel } => vec![("the velocity", vel.unit(), vel.to_string())],
+            Motion::FCosLoop { pos, .. } => vec![("the loop's far end", Quantity::Position(pos))],
+            Motion::FVel { vel } => vec![("the velocity", Quantity::Velocity(vel))],
             _ => Vec::new(),
         };
         self.check_units(a, &units).await?;
@@ -352,15 +354,11 @@ impl Ctx {
         spec.validate()?;
         let tolerance = spec.tolerance();
         let mut units = vec![
-            ("the target position", spec.target.unit(), spec.target.to_string()),
-            ("the tolerance", tolerance.unit(), tolerance.to_string()),
+            ("the target position", Quantity::Position(spec.target)),
+            ("the tolerance", Quantity::Position(tolerance)),
         ];
-        if let Some(v) = spec.vel {
-            units.push(("the velocity", v.unit(), v.to_string()));
-        }
-        if let Some(acc) = spec.acc {
-            units.push(("the acceleration", acc.unit(), acc.to_string()));
-        }
+        units.extend(spec.vel.map(|v| ("the velocity", Quantity::Velocity(v))));
+        units.extend(spec.acc.map(|acc| ("the acceleration", Quantity::Acceleration(acc))));
         self.check_units(a, &units).await?;
         let kind = self.kind(a).await?;
         let target = f64::from(spec.target.value());

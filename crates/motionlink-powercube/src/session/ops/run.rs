@@ -1,7 +1,7 @@
 //! Runs each [`Op`] on its state machine.
 
 use crate::error::Error;
-use crate::model::{AckKind, Address, Motion, Param, Position, Ticks, Value};
+use crate::model::{AckKind, Address, Motion, Param, Position, Quantity, Ticks, Value};
 use crate::session::ctx::Ctx;
 use crate::session::{Op, Output};
 use crate::wire::Request;
@@ -91,9 +91,9 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
             let motion = Request::motion(Motion::FRamp { pos }, AckKind::Simple)?;
             let vel_req = vel.map(|v| Request::set(Param::TargetVel, Value::F32(v.value()))).transpose()?;
             let acc_req = acc.map(|x| Request::set(Param::TargetAcc, Value::F32(x.value()))).transpose()?;
-            let mut units = vec![("the target position", pos.unit(), pos.to_string())];
-            units.extend(vel.map(|v| ("the velocity", v.unit(), v.to_string())));
-            units.extend(acc.map(|x| ("the acceleration", x.unit(), x.to_string())));
+            let mut units = vec![("the target position", Quantity::Position(pos))];
+            units.extend(vel.map(|v| ("the velocity", Quantity::Velocity(v))));
+            units.extend(acc.map(|x| ("the acceleration", Quantity::Acceleration(x))));
             ctx.check_units(a, &units).await?;
             for r in [vel_req, acc_req].into_iter().flatten() {
                 ctx.request(a, r).await?;
