@@ -7,7 +7,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use motionlink_link::can::{CanBus, CanBusConfig, SlcanAdapter};
 use motionlink_link::clock::lock;
-use motionlink_link::emulator::{serve_tcp_with, Emulator as EmulatorTrait, ServeOptions, Server};
+use motionlink_link::emulator::{serve_tcp_with, Emulator as EmulatorTrait, FirmwareVariant, ServeOptions, Server};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::{RealClock, SharedClock};
 use pyo3::prelude::*;

@@ -195,5 +195,6 @@ def test_an_unknown_variant_is_a_usage_error_naming_the_known_ones() -> None:
     with pytest.raises(motionlink.UsageError, match="no-cyclic-objects"):
         motionlink.Emulator("scu", variant="no-cyclic-object")
     # An SCU variant is no COMPAX variant: the message lists the family's own.
-    with pytest.raises(motionlink.UsageError, match="\"no-groups\" is not a COMPAX emulator variant \\(known: .*echo-bare"):
+    unknown = "\"no-groups\" is not a variant of the COMPAX emulator \\(known: .*echo-bare"
+    with pytest.raises(motionlink.UsageError, match=unknown):
         motionlink.Emulator("compax", variant="no-groups")

@@ -6,7 +6,7 @@ use motionlink_compax::client::{Client, Config};
 use motionlink_compax::model::StatusId;
 use motionlink_compax::probe::{parse_drives, probe, save_profile, use_profile, CompaxProbeReport};
 use motionlink_compax::session::{EchoForm, Op};
-use motionlink_compax::sim::{Emulator, SimConfig, Variant};
+use motionlink_compax::sim::{Emulator, FirmwareVariant, SimConfig, Variant};
 use motionlink_compax::wire::Mode;
 use motionlink_link::clock::{Clock, ManualClock, ParticipantGuard};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
@@ -96,7 +96,7 @@ fn the_default_drives_are_found_identified_and_echo_in_full() {
 #[test]
 fn each_variant_shows_as_unsupported_in_its_own_check_and_nowhere_else() {
     let base = results(&probed(&[], 0));
-    for v in Variant::ALL {
+    for &v in Variant::ALL {
         let r = probed(&[v], 0);
         let changed: Vec<_> = results(&r).into_iter().zip(&base).filter(|(x, y)| x != *y).map(|(x, _)| x).collect();
         let unsupported =

@@ -204,7 +204,7 @@ fn the_variants_are_named_in_the_configuration() {
     let c = SimConfig::from_toml("variants = [\"echo-bare\", \"no-echo\"]\n[[drive]]\naddress = 2\n").unwrap();
     assert_eq!(c.variants, [Variant::EchoBare, Variant::NoEcho]);
     let e = SimConfig::from_toml("variants = [\"echo\"]\n").unwrap_err().to_string();
-    assert!(e.contains("\"echo\" is not a COMPAX emulator variant (known: echo-without-address"), "{e}");
+    assert!(e.contains("\"echo\" is not a variant of the COMPAX emulator (known: echo-without-address"), "{e}");
     // The emulator answers as the variant says.
     let mut cfg = SimConfig::bus(&[1], 0, 9600);
     cfg.variants = vec![Variant::StatusValueOnly, Variant::EchoBare];

@@ -419,19 +419,102 @@ pub fn serve_pty_with<E: Emulator + 'static>(
     Ok(Server { address, stop, wake: None, threads: vec![thread] })
 }
 
-/// The one of `all` (an emulator's firmware variants) that `text` names by `name`: in any case, with `_`
-/// for `-` (`no-echo`, `NO_ECHO`), blanks around it ignored; the one rule of every family's `--variant`.
+/// A firmware variant of a family's emulator: one behaviour the manual leaves open, done the other plausible
+/// way (`motionlink sim FAMILY --variant NAME`, `variants = [...]` in the emulator's TOML, Python's
+/// `Emulator(variants=...)`). Each family's `sim::Variant` implements it, so that every family names, parses
+/// and refuses variants by the same rule and with the same message.
 ///
 /// ```
-/// use motionlink_link::emulator::variant_named;
-/// let names = |v: u8| ["no-echo", "echo-bare"][v as usize];
-/// assert_eq!(variant_named(&[0, 1], names, " ECHO_BARE "), Some(1));
-/// assert_eq!(variant_named(&[0, 1], names, "echo"), None);
+/// use motionlink_link::emulator::FirmwareVariant;
+/// #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+/// enum Echo { Bare, None }
+/// impl FirmwareVariant for Echo {
+///     const FAMILY: &'static str = "COMPAX";
+///     const ALL: &'static [Echo] = &[Echo::Bare, Echo::None];
+///     fn name(self) -> &'static str { ["echo-bare", "no-echo"][self as usize] }
+///     fn description(self) -> &'static str { "" }
+/// }
+/// assert_eq!(Echo::named(" NO_ECHO "), Ok(Echo::None));
+/// assert_eq!(Echo::list("no-echo, echo-bare,no-echo"), Ok(vec![Echo::Bare, Echo::None]));
+/// assert_eq!(
+///     Echo::named("echo").unwrap_err().to_string(),
+///     "\"echo\" is not a variant of the COMPAX emulator (known: echo-bare, no-echo)"
+/// );
 /// ```
-pub fn variant_named<V: Copy>(all: &[V], name: impl Fn(V) -> &'static str, text: &str) -> Option<V> {
-    let text = text.trim();
-    all.iter().copied().find(|&v| {
-        let n = name(v);
-        n.eq_ignore_ascii_case(text) || n.replace('-', "_").eq_ignore_ascii_case(text)
-    })
+pub trait FirmwareVariant: Copy + Ord + Sized + 'static {
+    /// The family, as messages name it ("SCU", "PowerCube", "COMPAX").
+    const FAMILY: &'static str;
+    /// Every variant, in the order the family's documentation lists them.
+    const ALL: &'static [Self];
+
+    /// The name the command line, the TOML configuration and Python take (`no-echo`).
+    fn name(self) -> &'static str;
+
+    /// What the device does differently, in one sentence.
+    fn description(self) -> &'static str;
+
+    /// The variant `text` names: in any case, with `_` for `-` (`no-echo`, `NO_ECHO`), blanks around it
+    /// ignored.
+    fn named(text: &str) -> Result<Self, UnknownVariant> {
+        let text = text.trim();
+        let found = Self::ALL.iter().copied().find(|&v| {
+            let n = v.name();
+            n.eq_ignore_ascii_case(text) || n.replace('-', "_").eq_ignore_ascii_case(text)
+        });
+        found.ok_or_else(|| UnknownVariant { family: Self::FAMILY, name: text.to_string(), known: Self::known() })
+    }
+
+    /// Names separated by commas (empty entries ignored), each once in the result, in the order of
+    /// [`ALL`](Self::ALL).
+    fn list(text: &str) -> Result<Vec<Self>, UnknownVariant> {
+        let mut found =
+            text.split(',').map(str::trim).filter(|s| !s.is_empty()).map(Self::named).collect::<Result<Vec<_>, _>>()?;
+        found.sort();
+        found.dedup();
+        Ok(found)
+    }
+
+    /// The names of every variant, comma-separated (for messages and help texts).
+    fn known() -> String {
+        Self::ALL.iter().map(|v| v.name()).collect::<Vec<_>>().join(", ")
+    }
+}
+
+/// A name that is none of a family's [`FirmwareVariant`]s.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{name:?} is not a variant of the {family} emulator (known: {known})")]
+pub struct UnknownVariant {
+    /// The family ("SCU", "PowerCube", "COMPAX").
+    pub family: &'static str,
+    /// The name given, blanks around it removed.
+    pub name: String,
+    /// Every name the family knows, comma-separated.
+    pub known: String,
+}
+
+/// Implements `Display` (the name), `FromStr` and `TryFrom<String>` (serde's `try_from`) for a family's
+/// [`FirmwareVariant`] by the trait's rule.
+#[macro_export]
+macro_rules! firmware_variant_traits {
+    ($variant:ty) => {
+        impl ::std::fmt::Display for $variant {
+            fn fmt(&self, f: &mut ::std::fmt::Formatter<'_>) -> ::std::fmt::Result {
+                f.write_str($crate::emulator::FirmwareVariant::name(*self))
+            }
+        }
+
+        impl ::std::str::FromStr for $variant {
+            type Err = $crate::emulator::UnknownVariant;
+            fn from_str(s: &str) -> Result<Self, Self::Err> {
+                <$variant as $crate::emulator::FirmwareVariant>::named(s)
+            }
+        }
+
+        impl TryFrom<String> for $variant {
+            type Error = $crate::emulator::UnknownVariant;
+            fn try_from(s: String) -> Result<Self, Self::Error> {
+                <$variant as $crate::emulator::FirmwareVariant>::named(&s)
+            }
+        }
+    };
 }

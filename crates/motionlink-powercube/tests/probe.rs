@@ -18,7 +18,7 @@ use motionlink_powercube::client::{Client, Config};
 use motionlink_powercube::model::Address;
 use motionlink_powercube::probe::{probe, save_profile, use_profile, PowercubeProbeReport};
 use motionlink_powercube::session::{ModuleFindings, Op};
-use motionlink_powercube::sim::{SimConfig, Variant};
+use motionlink_powercube::sim::{FirmwareVariant, SimConfig, Variant};
 use motionlink_powercube::Emulator;
 
 /// A link that counts the telegrams sent.
@@ -97,7 +97,7 @@ fn the_default_modules_are_found_identified_and_answer_the_harmless_probe() {
 #[test]
 fn each_variant_shows_as_unsupported_in_its_own_check_and_nowhere_else() {
     let base = results(&probed(&[]));
-    for v in Variant::ALL {
+    for &v in Variant::ALL {
         let r = probed(&[v]);
         let changed: Vec<_> = results(&r).into_iter().zip(&base).filter(|(x, y)| x != *y).map(|(x, _)| x).collect();
         let expected = match v {

@@ -9,7 +9,7 @@ use motionlink_link::probe::{find_baud, BaudChoice, CheckResult, PortKind, Probe
 use motionlink_link::profile::Profiles;
 use motionlink_scu::probe::{probe, save_profile, use_profile, ScuProbeReport, BAUD_RATES};
 use motionlink_scu::session::Capabilities;
-use motionlink_scu::Variant;
+use motionlink_scu::{FirmwareVariant, Variant};
 use rig::*;
 
 fn sim_setup() -> ProbeSetup {
@@ -78,7 +78,7 @@ fn the_default_unit_answers_every_probe_and_is_identified() {
 #[test]
 fn each_variant_shows_as_unsupported_in_its_own_check_and_nowhere_else() {
     let base = probed(&[]);
-    for v in Variant::ALL {
+    for &v in Variant::ALL {
         let r = probed(&[v]);
         let changed: Vec<_> = results(&r).into_iter().zip(results(&base)).filter(|(x, y)| x != y).collect();
         let expected: Vec<(&str, CheckResult)> = match v {

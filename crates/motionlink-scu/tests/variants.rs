@@ -6,7 +6,7 @@
 use crate::rig;
 
 use motionlink_scu::session::{Capabilities, RunAction, Snapshot};
-use motionlink_scu::Variant;
+use motionlink_scu::{FirmwareVariant, Variant};
 use rig::*;
 
 /// What the core operations gave on one unit.
@@ -238,7 +238,7 @@ fn a_unit_that_needs_rs_before_a_new_re_refuses_the_second_setpoint_of_a_stream_
 
 #[test]
 fn every_variant_together_still_runs_the_core_operations() {
-    let (_, o) = run_on(&Variant::ALL);
+    let (_, o) = run_on(Variant::ALL);
     assert!(!o.move_verified && o.move_why.len() == 2, "{:?}", o.move_why);
     assert_eq!(o.home_rest, PositionCounts(-3));
 }

@@ -639,6 +639,7 @@ fn the_console_s_rules_hold_on_every_firmware_variant() {
     // Every variant the library knows (a new one is run here as soon as it exists), but the two whose moves
     // the library refuses by design, which are told apart below.
     let refused = ["life-sign-unacknowledged", "echo-without-store"];
+    use motionlink_link::emulator::FirmwareVariant;
     let each = |names: Vec<String>| -> Vec<&'static [&'static str]> {
         names
             .into_iter()

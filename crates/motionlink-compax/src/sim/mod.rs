@@ -44,6 +44,7 @@ mod variant;
 
 pub use config::{DriveConfig, SimConfig, SimConfigError};
 pub use drive::Drive;
+pub use motionlink_link::emulator::FirmwareVariant;
 pub use variant::{UnknownVariant, Variant};
 
 use std::time::Duration;

@@ -17,8 +17,8 @@
 //! Every reply keeps the framing P196 asks for (its address prefix, its end, its BCC): a variant changes
 //! what the drive says, not how it frames it.
 
-use std::fmt;
-use std::str::FromStr;
+use motionlink_link::emulator::FirmwareVariant;
+pub use motionlink_link::emulator::UnknownVariant;
 
 /// One firmware variant of the emulated drives (see the module documentation of `sim::variant`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Deserialize)]
@@ -36,9 +36,10 @@ pub enum Variant {
     StatusValueOnly,
 }
 
-impl Variant {
+impl FirmwareVariant for Variant {
+    const FAMILY: &'static str = "COMPAX";
     /// Every variant, in the order of the table above.
-    pub const ALL: [Variant; 5] = [
+    const ALL: &'static [Variant] = &[
         Variant::EchoWithoutAddress,
         Variant::EchoBare,
         Variant::NoEcho,
@@ -47,7 +48,7 @@ impl Variant {
     ];
 
     /// The name the command line, the TOML configuration and Python take.
-    pub fn name(self) -> &'static str {
+    fn name(self) -> &'static str {
         match self {
             Variant::EchoWithoutAddress => "echo-without-address",
             Variant::EchoBare => "echo-bare",
@@ -58,7 +59,7 @@ impl Variant {
     }
 
     /// What the drives do differently, in one sentence.
-    pub fn description(self) -> &'static str {
+    fn description(self) -> &'static str {
         match self {
             Variant::EchoWithoutAddress => "the echo leaves out the address digits",
             Variant::EchoBare => "the echo is the command alone, without the address and the flag characters",
@@ -67,53 +68,9 @@ impl Variant {
             Variant::StatusValueOnly => "status values come without their name (12.500, not S001: 12.500)",
         }
     }
-
-    /// Parses names separated by commas (spaces around a name and empty entries are ignored), each once in
-    /// the result, in the order of [`Variant::ALL`].
-    pub fn list(text: &str) -> Result<Vec<Variant>, UnknownVariant> {
-        let mut v =
-            text.split(',').map(str::trim).filter(|s| !s.is_empty()).map(str::parse).collect::<Result<Vec<_>, _>>()?;
-        v.sort();
-        v.dedup();
-        Ok(v)
-    }
-
-    /// The names of every variant, comma-separated (for messages and help texts).
-    pub fn known() -> String {
-        Variant::ALL.iter().map(|v| v.name()).collect::<Vec<_>>().join(", ")
-    }
 }
 
-impl fmt::Display for Variant {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-/// A variant name that is not one of [`Variant::ALL`].
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{name:?} is not a COMPAX emulator variant (known: {known})", known = Variant::known())]
-pub struct UnknownVariant {
-    /// The name given.
-    pub name: String,
-}
-
-/// A name of [`Variant::ALL`], in any case, with `_` for `-` (`no-echo`, `NO_ECHO`), blanks around it
-/// ignored.
-impl FromStr for Variant {
-    type Err = UnknownVariant;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        motionlink_link::emulator::variant_named(&Variant::ALL, Variant::name, s)
-            .ok_or_else(|| UnknownVariant { name: s.trim().to_string() })
-    }
-}
-
-impl TryFrom<String> for Variant {
-    type Error = UnknownVariant;
-    fn try_from(s: String) -> Result<Self, Self::Error> {
-        s.parse()
-    }
-}
+motionlink_link::firmware_variant_traits!(Variant);
 
 /// The echo a drive of `variants` sends for the telegram `received` (everything before its CR) whose
 /// address took its first `address_len` bytes.
@@ -135,15 +92,16 @@ mod tests {
 
     #[test]
     fn names_parse_unknown_ones_are_refused_with_the_list_and_the_echo_forms() {
-        for v in Variant::ALL {
+        for &v in Variant::ALL {
             assert_eq!(v.name().parse::<Variant>(), Ok(v));
+            assert!(v.description().len() > 10 && v.to_string() == v.name(), "{v}");
         }
         assert_eq!(Variant::list("no-echo, echo-bare,no-echo").unwrap(), vec![Variant::EchoBare, Variant::NoEcho]);
         assert_eq!(" No_Echo ".parse::<Variant>(), Ok(Variant::NoEcho));
         let e = "echo".parse::<Variant>().unwrap_err().to_string();
         assert_eq!(
             e,
-            "\"echo\" is not a COMPAX emulator variant (known: echo-without-address, echo-bare, no-echo, \
+            "\"echo\" is not a variant of the COMPAX emulator (known: echo-without-address, echo-bare, no-echo, \
              echo-without-store, status-value-only)"
         );
         let t = b"12POSA 12.5$,?";

@@ -301,7 +301,10 @@ mod tests {
             .unwrap();
         assert_eq!(c.variants, [Variant::NoTwinMirror, Variant::AckLength6]);
         let e = SimConfig::from_toml("variants = [\"nope\"]\n[[module]]\naddress = 5\n").unwrap_err().to_string();
-        assert!(e.contains("unknown PowerCube emulator variant") && e.contains("no-twin-mirror"), "{e}");
+        assert!(
+            e.contains("\"nope\" is not a variant of the PowerCube emulator") && e.contains("no-twin-mirror"),
+            "{e}"
+        );
     }
 
     #[test]

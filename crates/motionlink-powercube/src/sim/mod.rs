@@ -38,6 +38,7 @@ use motionlink_link::Timestamp;
 
 pub use config::{ModuleConfig, SimConfig, SimConfigError};
 pub use module::{SimModule, SERVO_LAG_S};
+pub use motionlink_link::emulator::FirmwareVariant;
 pub use variant::{UnknownVariant, Variant};
 
 use crate::model::{Broadcast, ConfigFlag};

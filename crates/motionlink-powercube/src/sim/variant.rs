@@ -11,8 +11,8 @@
 //! | `no-pos-state-dio` | GetExtended of ActFPosStateDio (0x62, a later firmware's parameter) gets no acknowledge, as any parameter a module does not know. |
 //! | `life-sign-unacknowledged` | The individual life sign (0x07) switches the watchdog as usual but is not acknowledged. |
 
-use std::fmt;
-use std::str::FromStr;
+use motionlink_link::emulator::FirmwareVariant;
+pub use motionlink_link::emulator::UnknownVariant;
 
 /// One firmware variant of the emulated modules (see the module documentation of `sim::variant`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Deserialize)]
@@ -32,9 +32,10 @@ pub enum Variant {
     LifeSignUnacknowledged,
 }
 
-impl Variant {
+impl FirmwareVariant for Variant {
+    const FAMILY: &'static str = "PowerCube";
     /// Every variant, in the order of the table above.
-    pub const ALL: [Variant; 6] = [
+    const ALL: &'static [Variant] = &[
         Variant::NoTwinMirror,
         Variant::NoBroadcastPair,
         Variant::AckLength6,
@@ -44,7 +45,7 @@ impl Variant {
     ];
 
     /// The name the command line, the TOML configuration and Python take.
-    pub fn name(self) -> &'static str {
+    fn name(self) -> &'static str {
         match self {
             Variant::NoTwinMirror => "no-twin-mirror",
             Variant::NoBroadcastPair => "no-broadcast-pair",
@@ -56,7 +57,7 @@ impl Variant {
     }
 
     /// What the modules do differently, in one sentence.
-    pub fn description(self) -> &'static str {
+    fn description(self) -> &'static str {
         match self {
             Variant::NoTwinMirror => {
                 "TargetPosInc, TargetVelInc and TargetAccInc are values of their own, apart from TargetPos, \
@@ -73,51 +74,9 @@ impl Variant {
             Variant::LifeSignUnacknowledged => "the individual life sign (0x07) is not acknowledged",
         }
     }
-
-    /// Parses names separated by commas (`"no-twin-mirror,ack-length-6"`; spaces around a name and empty
-    /// entries are ignored), each once in the result, in the order of [`Variant::ALL`].
-    pub fn list(text: &str) -> Result<Vec<Variant>, UnknownVariant> {
-        let mut v =
-            text.split(',').map(str::trim).filter(|s| !s.is_empty()).map(str::parse).collect::<Result<Vec<_>, _>>()?;
-        v.sort();
-        v.dedup();
-        Ok(v)
-    }
-
-    /// Every name, comma-separated, for messages and help texts.
-    pub fn names() -> String {
-        Variant::ALL.iter().map(|v| v.name()).collect::<Vec<_>>().join(", ")
-    }
 }
 
-impl fmt::Display for Variant {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-/// A variant name that is not one of [`Variant::ALL`].
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown PowerCube emulator variant {name:?}: the variants are {}", Variant::names())]
-pub struct UnknownVariant {
-    /// The name given.
-    pub name: String,
-}
-
-impl FromStr for Variant {
-    type Err = UnknownVariant;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        motionlink_link::emulator::variant_named(&Variant::ALL, Variant::name, s)
-            .ok_or_else(|| UnknownVariant { name: s.trim().to_string() })
-    }
-}
-
-impl TryFrom<String> for Variant {
-    type Error = UnknownVariant;
-    fn try_from(s: String) -> Result<Self, Self::Error> {
-        s.parse()
-    }
-}
+motionlink_link::firmware_variant_traits!(Variant);
 
 /// The variants one module runs, as flags (what the emulator's code asks).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -143,8 +102,9 @@ mod tests {
 
     #[test]
     fn names_parse_and_unknown_ones_are_refused_with_the_list() {
-        for v in Variant::ALL {
+        for &v in Variant::ALL {
             assert_eq!(v.name().parse::<Variant>(), Ok(v));
+            assert!(v.description().len() > 10 && v.to_string() == v.name(), "{v}");
         }
         assert_eq!(
             Variant::list(" ack-length-6, no-twin-mirror,,ack-length-6").unwrap(),

@@ -75,6 +75,7 @@ mod variants;
 pub use crate::model::timing::{INTER_BYTE_LIMIT, WATCHDOG};
 use actuator::{ActuatorState, Origin};
 pub use config::{ActuatorConfig, ScheduledError, SimConfig, SimConfigError};
+pub use motionlink_link::emulator::FirmwareVariant;
 pub use variants::{UnknownVariant, Variant, Variants, SLEEP_AFTER};
 
 /// Step of the physical model.

@@ -8,6 +8,9 @@ use std::fmt;
 use std::str::FromStr;
 use std::time::Duration;
 
+use motionlink_link::emulator::FirmwareVariant;
+pub use motionlink_link::emulator::UnknownVariant;
+
 use crate::model::{item, DataIndex, Item};
 
 /// One way a real unit may differ from the emulator's default reading of the manual.
@@ -39,9 +42,10 @@ pub enum Variant {
     ReNeedsRs,
 }
 
-impl Variant {
+impl FirmwareVariant for Variant {
+    const FAMILY: &'static str = "SCU";
     /// Every variant, in the order `--help` lists them.
-    pub const ALL: [Variant; 9] = [
+    const ALL: &'static [Variant] = &[
         Variant::NoGroups,
         Variant::NoUserPositions,
         Variant::NoCyclicObjects,
@@ -54,7 +58,7 @@ impl Variant {
     ];
 
     /// Its name, as `--variant` takes it.
-    pub const fn name(self) -> &'static str {
+    fn name(self) -> &'static str {
         match self {
             Variant::NoGroups => "no-groups",
             Variant::NoUserPositions => "no-user-positions",
@@ -68,34 +72,27 @@ impl Variant {
         }
     }
 
-    /// The names of every variant, comma-separated (for messages).
-    pub fn known() -> String {
-        Variant::ALL.iter().map(|v| v.name()).collect::<Vec<_>>().join(", ")
+    /// What the unit does differently, in one sentence.
+    fn description(self) -> &'static str {
+        match self {
+            Variant::NoGroups => "RG of a grouping index (and a cyclic object or an RT naming one) is refused with PDE",
+            Variant::NoUserPositions => "RG of UserPositionData (0x2000..0x2006) is refused with PDE",
+            Variant::NoCyclicObjects => {
+                "RC with a cyclic object index is refused with PDE (it still feeds the watchdog)"
+            }
+            Variant::NoRemoteReadBack => {
+                "RG of remote data (0x3xxx) is refused with PDE: what RT writes cannot be read back"
+            }
+            Variant::RcEmptyData => "RC without a cyclic object is answered with ACK, ctp 0 and no data",
+            Variant::Sleepy => "the first telegram after 2 s of silence only wakes the unit and is not answered",
+            Variant::StickyErrors => "the error bits reset on the next motion (14..21) stay set when it starts",
+            Variant::InEndUndershoot => "every actuator reads 3 counts below its In end after reaching it",
+            Variant::ReNeedsRs => "RE of a motion function started and not yet ended with RS is refused with PE",
+        }
     }
 }
 
-impl fmt::Display for Variant {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-/// A name that is not a variant.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{name:?} is not an SCU emulator variant (known: {known})", known = Variant::known())]
-pub struct UnknownVariant {
-    /// The name given.
-    pub name: String,
-}
-
-impl FromStr for Variant {
-    type Err = UnknownVariant;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        motionlink_link::emulator::variant_named(&Variant::ALL, Variant::name, s)
-            .ok_or_else(|| UnknownVariant { name: s.trim().to_string() })
-    }
-}
+motionlink_link::firmware_variant_traits!(Variant);
 
 /// The variants an emulated unit has (none: the manual as the emulator reads it).
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -210,8 +207,9 @@ mod tests {
 
     #[test]
     fn names_parse_one_by_one_or_comma_separated_and_unknown_ones_list_the_known_ones() {
-        for v in Variant::ALL {
+        for &v in Variant::ALL {
             assert_eq!(v.name().parse::<Variant>(), Ok(v));
+            assert!(v.description().len() > 10 && v.to_string() == v.name(), "{v}");
         }
         let both: Variants = "no-groups, sleepy".parse().unwrap();
         assert!(both.has(Variant::NoGroups) && both.has(Variant::Sleepy) && !both.has(Variant::StickyErrors));
