@@ -1,6 +1,7 @@
 //! What every family's commands share: errors with exit codes (here), Ctrl-C and the other signals
 //! ([`signals`]), output as a table or JSON ([`output`]), emulator servers ([`serve`](mod@serve)).
 
+use motionlink_link::emulator::FirmwareVariant;
 use motionlink_link::error::{Classify, ErrorClass, TransportKind};
 use motionlink_link::LinkError;
 
@@ -145,6 +146,33 @@ pub fn say(line: impl std::fmt::Display) {
 /// confirmed.
 pub fn say_error(line: impl std::fmt::Display) {
     crate::term::error_note(&line.to_string());
+}
+
+/// The parser of `--variant` and `--sim-variant`: a family's firmware variant by the family's rule
+/// ([`FirmwareVariant::named`]), every name with its description in `--help` (and in shell completions).
+pub fn variant_parser<V: FirmwareVariant + Send + Sync>() -> VariantParser<V> {
+    VariantParser(std::marker::PhantomData)
+}
+
+/// See [`variant_parser`].
+#[derive(Clone)]
+pub struct VariantParser<V>(std::marker::PhantomData<fn() -> V>);
+
+impl<V: FirmwareVariant + Send + Sync> clap::builder::TypedValueParser for VariantParser<V> {
+    type Value = V;
+
+    fn parse_ref(
+        &self,
+        cmd: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &std::ffi::OsStr,
+    ) -> Result<V, clap::Error> {
+        clap::builder::StringValueParser::new().try_map(|s| V::named(&s)).parse_ref(cmd, arg, value)
+    }
+
+    fn possible_values(&self) -> Option<Box<dyn Iterator<Item = clap::builder::PossibleValue> + '_>> {
+        Some(Box::new(V::ALL.iter().map(|v| clap::builder::PossibleValue::new(v.name()).help(v.description()))))
+    }
 }
 
 #[cfg(test)]

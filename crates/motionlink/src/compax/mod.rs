@@ -82,8 +82,14 @@ pub struct LineArgs {
     #[arg(long, global = true)]
     pub short: bool,
     /// With --port sim: the emulated drives run this firmware variant (repeat the option, or separate names
-    /// with commas; `motionlink sim compax --help` lists them).
-    #[arg(long = "sim-variant", value_name = "NAME", value_delimiter = ',', global = true)]
+    /// with commas).
+    #[arg(
+        long = "sim-variant",
+        value_name = "NAME",
+        value_delimiter = ',',
+        value_parser = crate::common::variant_parser::<Variant>(),
+        global = true
+    )]
     pub sim_variants: Vec<Variant>,
 }
 

@@ -26,9 +26,13 @@ pub struct SimArgs {
     #[arg(long = "param", value_name = "PNNN=VALUE")]
     pub params: Vec<String>,
     /// Run the drives as this firmware variant, one behaviour the manual leaves open done the other way
-    /// (repeat the option, or separate names with commas): echo-without-address, echo-bare, no-echo,
-    /// echo-without-store, status-value-only (see the crate's README).
-    #[arg(long = "variant", value_name = "NAME", value_delimiter = ',')]
+    /// (repeat the option, or separate names with commas; see docs/assumptions.md).
+    #[arg(
+        long = "variant",
+        value_name = "NAME",
+        value_delimiter = ',',
+        value_parser = crate::common::variant_parser::<Variant>()
+    )]
     pub variants: Vec<Variant>,
 }
 

@@ -87,8 +87,14 @@ pub struct BusArgs {
     #[arg(long, global = true)]
     pub no_watchdog: bool,
     /// With --port sim: the emulated modules run this firmware variant (repeat the option, or separate
-    /// names with commas; `motionlink sim powercube --help` lists them).
-    #[arg(long = "sim-variant", value_name = "NAME", value_delimiter = ',', global = true)]
+    /// names with commas).
+    #[arg(
+        long = "sim-variant",
+        value_name = "NAME",
+        value_delimiter = ',',
+        value_parser = common::variant_parser::<Variant>(),
+        global = true
+    )]
     pub sim_variants: Vec<Variant>,
 }
 

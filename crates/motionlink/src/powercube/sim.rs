@@ -20,9 +20,13 @@ pub struct SimArgs {
     #[arg(long)]
     pub strict: bool,
     /// Run the modules as this firmware variant, one behaviour the manual leaves open done the other way
-    /// (repeat the option, or separate names with commas): no-twin-mirror, no-broadcast-pair, ack-length-6,
-    /// ext-ack-on-put-id, no-pos-state-dio, life-sign-unacknowledged (see the crate's README).
-    #[arg(long = "variant", value_name = "NAME", value_delimiter = ',')]
+    /// (repeat the option, or separate names with commas; see docs/assumptions.md).
+    #[arg(
+        long = "variant",
+        value_name = "NAME",
+        value_delimiter = ',',
+        value_parser = common::variant_parser::<Variant>()
+    )]
     pub variants: Vec<Variant>,
 }
 

@@ -39,7 +39,12 @@ pub struct Args {
     pub timeout_ms: ReplyTimeout,
     /// With --port sim: the emulated drive runs this firmware variant (as `motionlink sim compax --variant`);
     /// repeat or comma-separate for several.
-    #[arg(long = "sim-variant", value_name = "NAME", value_delimiter = ',')]
+    #[arg(
+        long = "sim-variant",
+        value_name = "NAME",
+        value_delimiter = ',',
+        value_parser = crate::common::variant_parser::<Variant>()
+    )]
     pub sim_variants: Vec<Variant>,
     #[command(flatten)]
     pub options: Options,

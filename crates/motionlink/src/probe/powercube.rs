@@ -35,7 +35,12 @@ pub struct Args {
     pub timeout_ms: Option<ReplyTimeout>,
     /// With --port sim: the emulated module runs this firmware variant (as `motionlink sim powercube
     /// --variant`); repeat or comma-separate for several.
-    #[arg(long = "sim-variant", value_name = "NAME", value_delimiter = ',')]
+    #[arg(
+        long = "sim-variant",
+        value_name = "NAME",
+        value_delimiter = ',',
+        value_parser = crate::common::variant_parser::<Variant>()
+    )]
     pub sim_variants: Vec<Variant>,
     #[command(flatten)]
     pub options: Options,

@@ -9,7 +9,7 @@ use motionlink_scu::args::{Baud, Checked};
 use motionlink_scu::describe::Describer;
 use motionlink_scu::model::SpeedMode;
 use motionlink_scu::probe::{baud_choice, probe, save_profile, ScuDevice};
-use motionlink_scu::{Client, Config, Variants};
+use motionlink_scu::{Client, Config};
 
 use super::{finish, setup, Options};
 use crate::common::{self, CliError};
@@ -31,7 +31,7 @@ pub struct Args {
     pub baud: motionlink_link::probe::BaudChoice,
     /// With --port sim: a firmware variant of the emulated unit (as `motionlink sim scu --variant`); repeat
     /// or comma-separate for several.
-    #[arg(long = "sim-variant", value_name = "NAME")]
+    #[arg(long = "sim-variant", value_name = "NAME", value_delimiter = ',', value_parser = crate::scu::variant_name())]
     pub sim_variants: Vec<String>,
     #[command(flatten)]
     pub options: Options,
@@ -39,7 +39,6 @@ pub struct Args {
 
 /// `motionlink probe scu ...`
 pub fn run(args: Args, json: bool) -> Result<(), CliError> {
-    Variants::parse_all(&args.sim_variants).map_err(|e| CliError::usage(format!("--sim-variant: {e}")))?;
     let port = args.link.resolve_port("scu", args.port.as_deref())?;
     let (mut setup, url) = setup(&port, args.baud.first(), &args.options)?;
     match setup.kind {

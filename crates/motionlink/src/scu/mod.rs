@@ -16,7 +16,7 @@ use motionlink_scu::args::{
 use motionlink_scu::describe::Describer;
 use motionlink_scu::model::{Actuator, Function, MotionFunction, PositionCounts, SafetyId, SpeedMode};
 use motionlink_scu::session::RunAction;
-use motionlink_scu::{Client, Config, Emulator, Ending, SimConfig, Variants};
+use motionlink_scu::{Client, Config, Emulator, Ending, SimConfig};
 
 use crate::common::{self, CliError};
 use crate::numbers::{at_least, whole};
@@ -107,7 +107,13 @@ pub struct UnitArgs {
     pub sim_config: Option<PathBuf>,
     /// A firmware variant of the emulator when the port is sim (as `motionlink sim scu --variant`); repeat
     /// or comma-separate for several.
-    #[arg(long = "sim-variant", value_name = "NAME", global = true)]
+    #[arg(
+        long = "sim-variant",
+        value_name = "NAME",
+        value_delimiter = ',',
+        value_parser = variant_name(),
+        global = true
+    )]
     pub sim_variants: Vec<String>,
     /// The preset the emulator starts from when the port is sim: scp11, tlt or liftkit (as `motionlink sim
     /// scu --preset`). Default: the preset --functions names, else scp11; the Fn=... of --functions apply
@@ -242,6 +248,13 @@ pub enum Action {
     Errors,
 }
 
+/// The parser of the SCU's `--variant` / `--sim-variant`: a variant's name (checked, its description in
+/// `--help`), kept as the text [`Variants::parse_all`] and the emulator's configuration take.
+pub(crate) fn variant_name() -> impl clap::builder::TypedValueParser<Value = String> {
+    use clap::builder::TypedValueParser;
+    common::variant_parser::<motionlink_scu::Variant>().map(|v| v.to_string())
+}
+
 /// `motionlink scu ...`
 pub fn run(args: Args) -> Result<(), CliError> {
     if let Action::Names = args.action {
@@ -250,7 +263,6 @@ pub fn run(args: Args) -> Result<(), CliError> {
     // Check everything that can be checked before the port is opened: nothing is sent for bad input.
     let mut config = client_config(&args.unit)?;
     config.watch_may_lapse = matches!(args.action, Action::Watch { allow_watchdog_lapse: true, .. });
-    Variants::parse_all(&args.unit.sim_variants).map_err(|e| CliError::usage(format!("--sim-variant: {e}")))?;
     let mut request = None;
     match &args.action {
         Action::Get { items } => {

@@ -77,11 +77,9 @@ pub struct SimArgs {
     /// or liftkit (F1 actuator 1, F2 actuator 2, F8 both, as the public LIFTKIT/TLT drivers assume).
     #[arg(long, value_parser = ["scp11", "tlt", "liftkit"])]
     pub preset: Option<String>,
-    /// A firmware variant: the unit does what the manual leaves open the other plausible way. no-groups,
-    /// no-user-positions, no-cyclic-objects, no-remote-readback, rc-empty-data, sleepy, sticky-errors,
-    /// in-end-undershoot, re-needs-rs (see docs/assumptions.md). Repeat or comma-separate for several; added to the
-    /// configuration's `variants`.
-    #[arg(long = "variant", value_name = "NAME")]
+    /// A firmware variant: the unit does what the manual leaves open the other plausible way (see
+    /// docs/assumptions.md). Repeat or comma-separate for several; added to the configuration's `variants`.
+    #[arg(long = "variant", value_name = "NAME", value_delimiter = ',', value_parser = crate::scu::variant_name())]
     pub variants: Vec<String>,
 }
 

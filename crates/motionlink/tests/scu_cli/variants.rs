@@ -139,6 +139,24 @@ fn variants_combine_in_the_configuration_and_on_the_command_line_and_unknown_nam
     assert_eq!(bad.status.code(), Some(2), "{bad:?}");
     let bad = scu("tcp://127.0.0.1:9", &["--sim-variant", "sleepy", "info"]);
     assert_eq!(bad.status.code(), Some(2), "--sim-variant is only for --port sim: {bad:?}");
+    // `--help` lists every variant with what it does, from the library's list, in every family.
+    use motionlink_link::emulator::FirmwareVariant;
+    let help = |family: &str| {
+        let out = std::process::Command::new(common::BIN).args(["sim", family, "--help"]).output().expect("run");
+        String::from_utf8_lossy(&out.stdout).split_whitespace().collect::<Vec<_>>().join(" ")
+    };
+    let lists = |text: &str, names: Vec<(&str, &str)>| {
+        let said = |d: &str| d.split_whitespace().collect::<Vec<_>>().join(" ");
+        names.iter().all(|(n, d)| text.contains(&format!("- {n}:")) && text.contains(&said(d)))
+    };
+    let text = help("scu");
+    assert!(lists(&text, motionlink_scu::Variant::ALL.iter().map(|v| (v.name(), v.description())).collect()), "{text}");
+    let text = help("powercube");
+    let powercube = motionlink_powercube::sim::Variant::ALL.iter().map(|v| (v.name(), v.description())).collect();
+    assert!(lists(&text, powercube), "{text}");
+    let text = help("compax");
+    let compax = motionlink_compax::sim::Variant::ALL.iter().map(|v| (v.name(), v.description())).collect();
+    assert!(lists(&text, compax), "{text}");
 }
 
 #[test]
