@@ -5,7 +5,7 @@ use std::str::FromStr;
 
 use serde_json::{Map, Value};
 
-use crate::error::ReplyError;
+use crate::error::ErrorReport;
 
 /// The arguments of one request, taken one by one; [`Args::finish`] refuses any left over.
 #[derive(Debug)]
@@ -23,14 +23,14 @@ impl Args {
 
     /// The argument `key` as the text the command line would be given: a string as it is, a number or a
     /// boolean as written. `None` when it is absent (or null).
-    pub fn text(&mut self, key: &'static str) -> Result<Option<String>, ReplyError> {
+    pub fn text(&mut self, key: &'static str) -> Result<Option<String>, ErrorReport> {
         self.taken.push(key);
         match self.map.remove(key) {
             None | Some(Value::Null) => Ok(None),
             Some(Value::String(s)) => Ok(Some(s)),
             Some(Value::Number(n)) => Ok(Some(n.to_string())),
             Some(Value::Bool(b)) => Ok(Some(b.to_string())),
-            Some(other) => Err(ReplyError::usage(format!(
+            Some(other) => Err(ErrorReport::usage(format!(
                 "{}: {key} must be a number, a string or a boolean, not {}",
                 self.op,
                 crate::request::kind_of(&other)
@@ -39,29 +39,29 @@ impl Args {
     }
 
     /// The argument `key` checked by its type's rule; `None` when absent.
-    pub fn get<T: FromStr>(&mut self, key: &'static str) -> Result<Option<T>, ReplyError>
+    pub fn get<T: FromStr>(&mut self, key: &'static str) -> Result<Option<T>, ErrorReport>
     where
         T::Err: std::fmt::Display,
     {
         match self.text(key)? {
             None => Ok(None),
             Some(text) => {
-                text.parse::<T>().map(Some).map_err(|e| ReplyError::usage(format!("{} {key} {text:?}: {e}", self.op)))
+                text.parse::<T>().map(Some).map_err(|e| ErrorReport::usage(format!("{} {key} {text:?}: {e}", self.op)))
             }
         }
     }
 
     /// The argument `key`, which the action needs.
-    pub fn need<T: FromStr>(&mut self, key: &'static str) -> Result<T, ReplyError>
+    pub fn need<T: FromStr>(&mut self, key: &'static str) -> Result<T, ErrorReport>
     where
         T::Err: std::fmt::Display,
     {
-        self.get(key)?.ok_or_else(|| ReplyError::usage(format!("{}: the argument {key:?} is missing", self.op)))
+        self.get(key)?.ok_or_else(|| ErrorReport::usage(format!("{}: the argument {key:?} is missing", self.op)))
     }
 
     /// The list argument `key` (the command line's repeated argument, such as `values` of COMPAX
     /// `status`): a JSON list of values or one value, each checked by its type's rule; empty when absent.
-    pub fn list<T: FromStr>(&mut self, key: &'static str) -> Result<Vec<T>, ReplyError>
+    pub fn list<T: FromStr>(&mut self, key: &'static str) -> Result<Vec<T>, ErrorReport>
     where
         T::Err: std::fmt::Display,
     {
@@ -83,17 +83,17 @@ impl Args {
     /// The argument `one` (one value) or `many` (a list of them, the command line's repeated argument, as
     /// `get` takes several names), exactly one of the two: the texts, and whether a list was given (its
     /// result is then a list too, even of one).
-    pub fn one_or_many(&mut self, one: &'static str, many: &'static str) -> Result<(Vec<String>, bool), ReplyError> {
+    pub fn one_or_many(&mut self, one: &'static str, many: &'static str) -> Result<(Vec<String>, bool), ErrorReport> {
         let given = self.map.contains_key(many);
         let list = self.list::<String>(many)?;
         let single = self.text(one)?;
         match (single, given) {
             (Some(t), false) => Ok((vec![t], false)),
             (None, true) if !list.is_empty() => Ok((list, true)),
-            (None, true) => Err(ReplyError::usage(format!("{}: {many:?} is an empty list", self.op))),
-            (Some(_), true) => Err(ReplyError::usage(format!("{}: give {one:?} or {many:?}, not both", self.op))),
+            (None, true) => Err(ErrorReport::usage(format!("{}: {many:?} is an empty list", self.op))),
+            (Some(_), true) => Err(ErrorReport::usage(format!("{}: give {one:?} or {many:?}, not both", self.op))),
             (None, false) => {
-                Err(ReplyError::usage(format!("{}: the argument {one:?} is missing (or {many:?}, a list)", self.op)))
+                Err(ErrorReport::usage(format!("{}: the argument {one:?} is missing (or {many:?}, a list)", self.op)))
             }
         }
     }
@@ -105,20 +105,20 @@ impl Args {
         one: &'static str,
         many: &'static str,
         parse: impl Fn(&str) -> Result<T, E>,
-    ) -> Result<(Vec<T>, bool), ReplyError> {
+    ) -> Result<(Vec<T>, bool), ErrorReport> {
         let (texts, list) = self.one_or_many(one, many)?;
         let parsed =
-            texts.iter().map(|t| parse(t).map_err(|e| ReplyError::usage(format!("{} {one} {t:?}: {e}", self.op))));
+            texts.iter().map(|t| parse(t).map_err(|e| ErrorReport::usage(format!("{} {one} {t:?}: {e}", self.op))));
         Ok((parsed.collect::<Result<_, _>>()?, list))
     }
 
     /// A flag (`binary`, `soft`): true, false or absent (false).
-    pub fn flag(&mut self, key: &'static str) -> Result<bool, ReplyError> {
+    pub fn flag(&mut self, key: &'static str) -> Result<bool, ErrorReport> {
         Ok(self.get::<bool>(key)?.unwrap_or(false))
     }
 
     /// Refuses arguments the action does not take, naming those it takes.
-    pub fn finish(self) -> Result<(), ReplyError> {
+    pub fn finish(self) -> Result<(), ErrorReport> {
         match self.map.keys().next() {
             None => Ok(()),
             Some(key) => {
@@ -126,7 +126,7 @@ impl Args {
                     true => "no arguments".to_string(),
                     false => self.taken.join(", "),
                 };
-                Err(ReplyError::usage(format!("{}: unknown argument {key:?}; it takes {takes}", self.op)))
+                Err(ErrorReport::usage(format!("{}: unknown argument {key:?}; it takes {takes}", self.op)))
             }
         }
     }

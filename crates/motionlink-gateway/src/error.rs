@@ -1,6 +1,6 @@
 //! How the gateway ends with an error, and the errors its replies carry.
 
-use motionlink_link::error::{Classify, ErrorClass};
+use motionlink_link::error::ErrorClass;
 
 /// Why the gateway could not run: a usage error (exit code 2: the file, the command line, the security
 /// rules; found before any connection) or a transport error (exit code 3: the broker cannot be reached at
@@ -25,56 +25,41 @@ impl GatewayError {
     }
 }
 
-/// The error of a reply: `{"kind", "message", "exit_code"}`, as the command line's `--json` prints an error
-/// (`kind` is the error class's name, `exit_code` the command line's for it), plus the gateway's own kinds:
-/// `lease_expired`, `busy`, `broker_lost`.
-#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
-pub struct ReplyError {
-    /// `refused`, `device`, `timeout`, `disconnected`, `corrupt`, `io`, `usage`, `cancelled`, or the
-    /// gateway's `lease_expired`, `busy`, `broker_lost`.
-    pub kind: String,
-    /// What went wrong, in words.
-    pub message: String,
-    /// The command line's exit code for it.
-    pub exit_code: u8,
-}
+pub use motionlink_link::error::ErrorReport;
 
-impl ReplyError {
-    /// A library error, by its class.
-    pub fn classified<E: Classify + std::fmt::Display + ?Sized>(e: &E) -> ReplyError {
-        let class = e.class();
-        ReplyError { kind: class.name().into(), message: e.to_string(), exit_code: class.exit_code() }
-    }
-
-    /// A request that cannot be carried out as it is (nothing was sent to the device).
-    pub fn usage(message: impl Into<String>) -> ReplyError {
-        ReplyError { kind: "usage".into(), message: message.into(), exit_code: ErrorClass::Usage.exit_code() }
-    }
-
+/// The error of a reply is an [`ErrorReport`]: `{"kind", "message", "exit_code"}`, as the command line's
+/// `--json` prints an error (`kind` is the error class's name, `exit_code` the command line's for it); the
+/// gateway adds kinds of its own (`lease_expired`, `busy`, `broker_lost`, `unavailable`, `no_lease`), made
+/// here.
+pub trait GatewayErrors {
     /// A motion request while another motion runs on the device (exit code 3, as the command line's for a
     /// port in use).
-    pub fn busy(message: impl Into<String>) -> ReplyError {
-        ReplyError { kind: "busy".into(), message: message.into(), exit_code: 3 }
-    }
-
+    fn busy(message: impl Into<String>) -> Self;
     /// A device whose port failed, while the gateway opens it again (exit code 3, a transport error).
-    pub fn unavailable(message: impl Into<String>) -> ReplyError {
-        ReplyError { kind: "unavailable".into(), message: message.into(), exit_code: 3 }
-    }
-
+    fn unavailable(message: impl Into<String>) -> Self;
+    /// The device could not be opened, or its session failed.
+    fn transport(message: impl Into<String>) -> Self;
+    /// Why a motion was stopped by the gateway, with what the library said of the stop.
+    fn stopped(reason: &StopReason, library: &str) -> Self;
     /// Whether this error says the device's port is gone (the library's `disconnected`): its session must
     /// be opened again.
-    pub fn port_failed(&self) -> bool {
-        self.kind == "disconnected"
+    fn port_failed(&self) -> bool;
+}
+
+impl GatewayErrors for ErrorReport {
+    fn busy(message: impl Into<String>) -> Self {
+        ErrorReport::new("busy", message, 3)
     }
 
-    /// The device could not be opened, or its session failed.
-    pub fn transport(message: impl Into<String>) -> ReplyError {
-        ReplyError { kind: "io".into(), message: message.into(), exit_code: 3 }
+    fn unavailable(message: impl Into<String>) -> Self {
+        ErrorReport::new("unavailable", message, 3)
     }
 
-    /// Why a motion was stopped by the gateway, with what the library said of the stop.
-    pub fn stopped(reason: &StopReason, library: &str) -> ReplyError {
+    fn transport(message: impl Into<String>) -> Self {
+        ErrorReport::new("io", message, 3)
+    }
+
+    fn stopped(reason: &StopReason, library: &str) -> Self {
         let (kind, exit_code) = match reason {
             StopReason::LeaseExpired { .. } => ("lease_expired", ErrorClass::Cancelled.exit_code()),
             StopReason::StopRequest { .. } | StopReason::PortStop { .. } => {
@@ -84,7 +69,11 @@ impl ReplyError {
             StopReason::PortFailed { .. } => ("disconnected", 3),
             StopReason::Signal { number, .. } => ("cancelled", 128 + *number as u8),
         };
-        ReplyError { kind: kind.into(), message: format!("{reason}; {library}"), exit_code }
+        ErrorReport::new(kind, format!("{reason}; {library}"), exit_code)
+    }
+
+    fn port_failed(&self) -> bool {
+        self.kind == "disconnected"
     }
 }
 

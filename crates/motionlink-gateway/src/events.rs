@@ -23,7 +23,7 @@ pub struct Event<'a> {
     pub ok: Option<bool>,
     /// The error, for an error and a motion that failed.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub error: Option<&'a crate::error::ReplyError>,
+    pub error: Option<&'a crate::error::ErrorReport>,
     /// What happened, in words (`port_released`: what was stopped, for whom).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub message: Option<&'a str>,
@@ -53,7 +53,7 @@ pub struct Unavailable<'a> {
     /// Always false: no state can be read.
     pub available: bool,
     /// What failed.
-    pub error: &'a crate::error::ReplyError,
+    pub error: &'a crate::error::ErrorReport,
     /// Seconds since the gateway started, when it failed.
     pub t_s: f64,
 }

@@ -16,7 +16,7 @@ use tokio::time::Instant;
 
 use crate::config::{DeviceEntry, GatewayConfig};
 use crate::device::{Action, Device, Operation, Outcome, Spec};
-use crate::error::{GatewayError, ReplyError, StopReason};
+use crate::error::{ErrorReport, GatewayError, GatewayErrors, StopReason};
 use crate::events::{Event, Renewed};
 use crate::lease::Leases;
 use crate::mqtt::{self, Net, OFFLINE, ONLINE};
@@ -286,7 +286,7 @@ async fn sample_states(
     started: Instant,
     generation: u64,
     failed: mpsc::UnboundedSender<Internal>,
-    unavailable: impl Fn(&ReplyError, f64) -> Option<String> + Send,
+    unavailable: impl Fn(&ErrorReport, f64) -> Option<String> + Send,
 ) {
     let mut silent = false;
     let fast = Duration::from_secs(1) / sample_hz.max(1);
@@ -398,9 +398,9 @@ impl Gateway {
         }
     }
 
-    fn on_request(&mut self, device: &str, r: &Request, reply: &ReplyTo) -> Result<(), ReplyError> {
+    fn on_request(&mut self, device: &str, r: &Request, reply: &ReplyTo) -> Result<(), ErrorReport> {
         if self.released.iter().any(|d| d == device) {
-            return Err(ReplyError::busy(format!(
+            return Err(ErrorReport::busy(format!(
                 "{device}: a stop from another process took its port; the gateway serves it again once the port is \
                  free"
             )));
@@ -408,28 +408,28 @@ impl Gateway {
         if let Some(e) = self.unavailable(device) {
             if r.op == "keepalive" {
                 let lapsed = format!("no motion {:?} holds a lease on {device}: its port failed", r.id);
-                return Err(ReplyError { kind: "no_lease".into(), message: lapsed, exit_code: 2 });
+                return Err(ErrorReport { kind: "no_lease".into(), message: lapsed, exit_code: 2 });
             }
             return Err(e);
         }
         if !self.devices.contains_key(device) {
             let names = self.devices.keys().cloned().collect::<Vec<_>>().join(", ");
-            return Err(ReplyError::usage(format!("no device {device:?} on this gateway; it serves {names}")));
+            return Err(ErrorReport::usage(format!("no device {device:?} on this gateway; it serves {names}")));
         }
         if r.op == "keepalive" {
             if !r.args.is_empty() {
-                return Err(ReplyError::usage("keepalive takes no args: give the motion's id as \"id\""));
+                return Err(ErrorReport::usage("keepalive takes no args: give the motion's id as \"id\""));
             }
             let key = lease_key(device, &r.id);
             return match self.leases.renew(&key, Instant::now()) {
                 Some(lease) if reply.topic.is_some() => {
                     let renewed = Renewed { renewed: true, lease_ms: lease.as_millis() as u64 };
-                    let outcome = serde_json::to_value(renewed).map_err(|e| ReplyError::transport(e.to_string()));
+                    let outcome = serde_json::to_value(renewed).map_err(|e| ErrorReport::transport(e.to_string()));
                     self.publish_reply(reply, Some(&r.id), &outcome, device);
                     Ok(())
                 }
                 Some(_) => Ok(()),
-                None => Err(ReplyError {
+                None => Err(ErrorReport {
                     kind: "no_lease".into(),
                     message: format!("no motion {:?} holds a lease on {device} (it ended, or its lease lapsed)", r.id),
                     exit_code: 2,
@@ -441,7 +441,7 @@ impl Gateway {
             Action::Motion(op) => {
                 let served = self.devices.get_mut(device).expect("checked above");
                 if let Some(m) = &served.motion {
-                    return Err(ReplyError::busy(format!(
+                    return Err(ErrorReport::busy(format!(
                         "{device} is running {} {:?}: stop it, or wait for its end",
                         m.op, m.id
                     )));
@@ -483,7 +483,7 @@ impl Gateway {
             }
             Action::Write(op) => {
                 if let Some(m) = &self.devices[device].motion {
-                    return Err(ReplyError::busy(format!(
+                    return Err(ErrorReport::busy(format!(
                         "{device} is running {} {:?}: {} is served once it has ended (or stop it)",
                         m.op, m.id, r.op
                     )));
@@ -584,7 +584,7 @@ async fn run_motion(mut op: Operation, cancelled: oneshot::Receiver<StopReason>,
         Ok(stop) => format!("the device's stop then: {}", summary(&stop)),
         Err(e) => format!("the device's stop then failed: {}", e.message),
     };
-    Err(ReplyError::stopped(&reason, &said))
+    Err(ErrorReport::stopped(&reason, &said))
 }
 
 /// A stop's report in one line (its JSON without the identity).

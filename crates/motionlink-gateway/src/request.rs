@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use serde_json::{Map, Value};
 
-use crate::error::ReplyError;
+use crate::error::ErrorReport;
 
 /// The lease of a motion unless the request gives one.
 pub const DEFAULT_LEASE: Duration = Duration::from_millis(1000);
@@ -38,7 +38,7 @@ pub struct BadRequest {
     /// Where the reply goes, if the request said it.
     pub reply_to: Option<String>,
     /// What is wrong.
-    pub error: ReplyError,
+    pub error: ErrorReport,
 }
 
 /// Reads a request from a `cmd` payload.
@@ -46,7 +46,7 @@ pub fn parse(payload: &[u8]) -> Result<Request, BadRequest> {
     let bad = |id: Option<String>, reply_to: Option<String>, m: String| BadRequest {
         id,
         reply_to,
-        error: ReplyError::usage(m),
+        error: ErrorReport::usage(m),
     };
     let value: Value = serde_json::from_slice(payload)
         .map_err(|e| bad(None, None, format!("a request must be a JSON object: {e}")))?;
@@ -119,11 +119,11 @@ struct Reply<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     result: Option<&'a Value>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    error: Option<&'a ReplyError>,
+    error: Option<&'a ErrorReport>,
 }
 
 /// The reply to request `id`: its result, or its error.
-pub fn reply(id: Option<&str>, outcome: &Result<Value, ReplyError>) -> Value {
+pub fn reply(id: Option<&str>, outcome: &Result<Value, ErrorReport>) -> Value {
     let reply = match outcome {
         Ok(result) => Reply { id, ok: true, result: Some(result), error: None },
         Err(error) => Reply { id, ok: false, result: None, error: Some(error) },
@@ -177,7 +177,7 @@ mod tests {
     fn replies_carry_the_result_or_the_error() {
         let ok = reply(Some("m1"), &Ok(serde_json::json!({"reached": 1})));
         assert_eq!(ok, serde_json::json!({"id": "m1", "ok": true, "result": {"reached": 1}}));
-        let e = reply(None, &Err(ReplyError::usage("no")));
+        let e = reply(None, &Err(ErrorReport::usage("no")));
         assert_eq!(
             e,
             serde_json::json!({"id": null, "ok": false, "error": {"kind": "usage", "message": "no", "exit_code": 2}})

@@ -103,6 +103,66 @@ impl Classify for LinkError {
     }
 }
 
+/// An error as every front end reports it: the command line's `--json` (on stderr), the web console's and the
+/// fleet gateway's replies, and Python's `MotionlinkError.to_dict()` have these three fields.
+///
+/// ```
+/// use motionlink_link::error::{ErrorReport, TransportKind};
+/// use motionlink_link::LinkError;
+/// let e = LinkError::Disconnected { port: "/dev/ttyUSB0".into(), reason: "unplugged".into() };
+/// let report = ErrorReport::of(&e);
+/// assert_eq!((report.kind.as_ref(), report.exit_code), ("disconnected", 3));
+/// let json = serde_json::to_string(&ErrorReport::usage("bad --speed")).unwrap();
+/// assert_eq!(json, r#"{"kind":"usage","message":"bad --speed","exit_code":2}"#);
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct ErrorReport {
+    /// The error class's name ([`ErrorClass::name`]: `refused`, `device`, `timeout`, `disconnected`,
+    /// `corrupt`, `io`, `usage`, `cancelled`), or a front end's own kind (the gateway's `busy`,
+    /// `lease_expired` ...).
+    pub kind: std::borrow::Cow<'static, str>,
+    /// What went wrong, in words.
+    pub message: String,
+    /// The command line's exit code for it.
+    pub exit_code: u8,
+}
+
+impl ErrorReport {
+    /// A report of `kind` with its exit code.
+    pub fn new(kind: impl Into<std::borrow::Cow<'static, str>>, message: impl Into<String>, exit_code: u8) -> Self {
+        ErrorReport { kind: kind.into(), message: message.into(), exit_code }
+    }
+
+    /// An error of `class`.
+    pub fn classed(class: ErrorClass, message: impl Into<String>) -> Self {
+        ErrorReport::new(class.name(), message, class.exit_code())
+    }
+
+    /// A library error, by its class.
+    pub fn of<E: Classify + fmt::Display + ?Sized>(e: &E) -> Self {
+        ErrorReport::classed(e.class(), e.to_string())
+    }
+
+    /// A request that cannot be carried out as it is (bad input: nothing was sent to the device).
+    pub fn usage(message: impl fmt::Display) -> Self {
+        ErrorReport::classed(ErrorClass::Usage, message.to_string())
+    }
+}
+
+/// A classified library error as its report (`?` in a front end that answers with reports).
+impl<E: Classify + fmt::Display> From<E> for ErrorReport {
+    fn from(e: E) -> Self {
+        ErrorReport::of(&e)
+    }
+}
+
+/// The message, then the kind: `"no reply within 200 ms (timeout)"`.
+impl fmt::Display for ErrorReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} ({})", self.message, self.kind)
+    }
+}
+
 /// The round trips a session measured on its line (a request handed to the line to its answer), for errors
 /// that a slow link may have caused: "replies on this link have taken 45-58 ms".
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -17,7 +17,7 @@ use serde_json::Value;
 
 use super::{failed, identified, unknown_op, Action, Outcome, Sampling};
 use crate::args::Args;
-use crate::error::ReplyError;
+use crate::error::{ErrorReport, GatewayErrors};
 
 /// The actions served.
 const OPS: [&str; 7] = ["move", "stop", "status", "get", "set", "output", "scan"];
@@ -39,13 +39,13 @@ impl Compax {
     pub(super) async fn open(
         options: &DriveOptions,
         port: &str,
-    ) -> Result<(Compax, Option<Box<dyn std::any::Any + Send>>), ReplyError> {
-        let url: PortUrl = port.parse().map_err(|e| ReplyError::usage(format!("port {port:?}: {e}")))?;
+    ) -> Result<(Compax, Option<Box<dyn std::any::Any + Send>>), ErrorReport> {
+        let url: PortUrl = port.parse().map_err(|e| ErrorReport::usage(format!("port {port:?}: {e}")))?;
         let clock = RealClock::shared();
         let baud = options.baud.bits_per_s();
         let (client, host): (AsyncClient, Option<Box<dyn std::any::Any + Send>>) = match url {
             PortUrl::Sim => {
-                let bus = Emulator::new(options.emulated()).map_err(|e| ReplyError::usage(e.to_string()))?;
+                let bus = Emulator::new(options.emulated()).map_err(|e| ErrorReport::usage(e.to_string()))?;
                 let host = EmulatorHost::new(bus, Arc::clone(&clock), PipeConfig::paced(baud));
                 let link = Box::new(host.connect().0);
                 (AsyncClient::with_link(link, clock, options.config()).await.map_err(failed)?, Some(Box::new(host)))
@@ -60,7 +60,7 @@ impl Compax {
     }
 
     /// The action `op`, its arguments checked by the library's types.
-    pub(super) fn action(&self, op: &str, mut args: Args) -> Result<Action, ReplyError> {
+    pub(super) fn action(&self, op: &str, mut args: Args) -> Result<Action, ErrorReport> {
         let me = self.clone();
         let (client, drive) = (Arc::clone(&self.client), self.drive);
         match op {
@@ -73,17 +73,17 @@ impl Compax {
                 let binary = args.flag("binary")?;
                 let timeout = match args.get::<TimeLimit>("timeout_s")? {
                     Some(t) => t,
-                    None => TimeLimit::from_secs(MOVE_TIMEOUT_S).map_err(|e| ReplyError::usage(e.to_string()))?,
+                    None => TimeLimit::from_secs(MOVE_TIMEOUT_S).map_err(|e| ErrorReport::usage(e.to_string()))?,
                 };
                 let min_pos: Option<Position> = args.get("min_pos")?;
                 let max_pos: Option<Position> = args.get("max_pos")?;
                 args.finish()?;
                 if position.is_some() && abs.is_some() {
-                    return Err(ReplyError::usage("move: give position or abs, not both"));
+                    return Err(ErrorReport::usage("move: give position or abs, not both"));
                 }
-                let target = MoveTarget::from_args(position.or(abs), rel).map_err(ReplyError::usage)?;
+                let target = MoveTarget::from_args(position.or(abs), rel).map_err(ErrorReport::usage)?;
                 let limits = TravelLimits::new(min_pos, max_pos)
-                    .map_err(|e| ReplyError::usage(format!("move min_pos / max_pos: {e}")))?;
+                    .map_err(|e| ErrorReport::usage(format!("move min_pos / max_pos: {e}")))?;
                 let request = MoveRequest { target, speed, accel, binary, limits, timeout: Some(timeout.duration()) };
                 Ok(Action::Motion(Box::pin(async move {
                     let report = client.move_to(drive, &request).await.map_err(failed)?;
@@ -95,7 +95,7 @@ impl Compax {
                 Ok(Action::Stop(Box::pin(async move {
                     let report = client.stop_if_moving(&[drive]).await.map_err(failed)?;
                     if !report.all_confirmed() {
-                        return Err(ReplyError {
+                        return Err(ErrorReport {
                             kind: "device".into(),
                             message: report.to_string(),
                             exit_code: motionlink_link::error::ErrorClass::Device.exit_code(),
@@ -137,7 +137,7 @@ impl Compax {
                     // none at all is an error, as there.
                     let found = client.scan(1..=31).await.map_err(failed)?;
                     if found.is_empty() {
-                        return Err(ReplyError::transport(format!("no drive answered on {}", me.port)));
+                        return Err(ErrorReport::transport(format!("no drive answered on {}", me.port)));
                     }
                     let listed = found
                         .into_iter()
@@ -151,7 +151,7 @@ impl Compax {
                 let text: String = args.need("value")?;
                 args.finish()?;
                 // The library's rule: a finite number within the parameter's known range.
-                let write = ParamWrite::parse(id, &text).map_err(|e| ReplyError::usage(format!("set value: {e}")))?;
+                let write = ParamWrite::parse(id, &text).map_err(|e| ErrorReport::usage(format!("set value: {e}")))?;
                 Ok(Action::Write(Box::pin(async move {
                     // Written and read back: a value that reads back otherwise is an error.
                     me.result(&client.set_param(drive, write.id(), write.value()).await.map_err(failed)?)
@@ -161,7 +161,7 @@ impl Compax {
                 let number: OutputNumber = args.need("number")?;
                 let state: OutputState = args.need("state")?;
                 args.finish()?;
-                let state = state.for_output(number).map_err(|e| ReplyError::usage(format!("output state: {e}")))?;
+                let state = state.for_output(number).map_err(|e| ErrorReport::usage(format!("output state: {e}")))?;
                 let output = number.get();
                 Ok(Action::Write(Box::pin(async move {
                     client.set_output(drive, output, state, false).await.map_err(failed)?;

@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex};
 use serde_json::{Map, Value};
 
 use crate::config::DeviceEntry;
-use crate::error::ReplyError;
+use crate::error::{ErrorReport, GatewayErrors};
 
 mod compax;
 pub mod keys;
@@ -17,14 +17,14 @@ mod powercube;
 mod scu;
 
 /// What an operation ends with: the `--json` object of the same action, or the error of the reply.
-pub type Outcome = Result<Value, ReplyError>;
+pub type Outcome = Result<Value, ErrorReport>;
 
 /// An operation, not yet started: nothing is sent before it is polled. Dropping it while it runs cancels
 /// it, which stops any motion it started (the family's `AsyncClient` does that).
 pub type Operation = Pin<Box<dyn Future<Output = Outcome> + Send>>;
 
 /// A state sample: the object `watch --json` prints, and whether the device reports motion.
-pub type Sampling = Pin<Box<dyn Future<Output = Result<(Value, bool), ReplyError>> + Send>>;
+pub type Sampling = Pin<Box<dyn Future<Output = Result<(Value, bool), ErrorReport>> + Send>>;
 
 /// What a request asks for, checked.
 pub enum Action {
@@ -220,7 +220,7 @@ impl std::fmt::Debug for Device {
 
 impl Device {
     /// Opens the device of `entry` (its options `spec`), as the command line opens its port.
-    pub async fn open(entry: &DeviceEntry, spec: &Spec) -> Result<Arc<Device>, ReplyError> {
+    pub async fn open(entry: &DeviceEntry, spec: &Spec) -> Result<Arc<Device>, ErrorReport> {
         let (family, host, keys) = match &spec.options {
             FamilyOptions::Scu(o) => {
                 (Family::Scu(scu::Scu::open(o, spec.sim_config.clone(), &entry.port).await?), None, &keys::SCU)
@@ -240,7 +240,7 @@ impl Device {
 
     /// The action `op` with its `args` (over the device's defaults for it), checked: an error names what is
     /// wrong and nothing is sent.
-    pub fn action(&self, op: &str, args: Map<String, Value>) -> Result<Action, ReplyError> {
+    pub fn action(&self, op: &str, args: Map<String, Value>) -> Result<Action, ErrorReport> {
         let args = crate::args::Args::new(op, self.keys.with_defaults(op, &self.defaults, args));
         match &self.family {
             Family::Scu(d) => d.action(op, args),
@@ -263,7 +263,7 @@ impl Device {
     pub fn stop(&self) -> Operation {
         match self.action("stop", Map::new()) {
             Ok(Action::Stop(op)) => op,
-            Ok(_) | Err(_) => Box::pin(async { Err(ReplyError::usage("stop: not a stop")) }),
+            Ok(_) | Err(_) => Box::pin(async { Err(ErrorReport::usage("stop: not a stop")) }),
         }
     }
 
@@ -287,7 +287,7 @@ impl Device {
 /// the module or the drive) first, then the report's fields.
 pub fn identified(family: &str, port: &str, extra: &[(&str, Value)], report: &impl serde::Serialize) -> Outcome {
     motionlink_link::result::identified(family, port, extra, report)
-        .map_err(|e| ReplyError::transport(format!("the report: {e}")))
+        .map_err(|e| ErrorReport::transport(format!("the report: {e}")))
 }
 
 /// The objects of an action that reads several items (`get` of several names, in order), or lists what
@@ -306,13 +306,13 @@ pub fn one_or_listed(mut objects: Vec<Value>, list: bool) -> Outcome {
 }
 
 /// A library error in a reply, by its class.
-pub fn failed<E: motionlink_link::error::Classify + std::fmt::Display>(e: E) -> ReplyError {
-    ReplyError::classified(&e)
+pub fn failed<E: motionlink_link::error::Classify + std::fmt::Display>(e: E) -> ErrorReport {
+    ErrorReport::of(&e)
 }
 
 /// An action the family does not serve through the gateway.
-pub fn unknown_op(family: &str, op: &str, ops: &[&str]) -> ReplyError {
-    ReplyError::usage(format!(
+pub fn unknown_op(family: &str, op: &str, ops: &[&str]) -> ErrorReport {
+    ErrorReport::usage(format!(
         "{op:?} is not an action of a {family} device here; give one of {}, keepalive",
         ops.join(", ")
     ))

@@ -16,7 +16,7 @@ use serde_json::Value;
 
 use super::{failed, identified, unknown_op, Action, Outcome, Sampling};
 use crate::args::Args;
-use crate::error::ReplyError;
+use crate::error::{ErrorReport, GatewayErrors};
 
 /// The actions served.
 const OPS: [&str; 9] = ["move", "home", "stop", "reset", "state", "info", "get", "set", "scan"];
@@ -36,12 +36,12 @@ impl PowerCube {
     pub(super) async fn open(
         options: &ModuleOptions,
         port: &str,
-    ) -> Result<(PowerCube, Option<Box<dyn std::any::Any + Send>>), ReplyError> {
-        let url: PortUrl = port.parse().map_err(|e| ReplyError::usage(format!("port {port:?}: {e}")))?;
+    ) -> Result<(PowerCube, Option<Box<dyn std::any::Any + Send>>), ErrorReport> {
+        let url: PortUrl = port.parse().map_err(|e| ErrorReport::usage(format!("port {port:?}: {e}")))?;
         let clock = RealClock::shared();
         let in_process = matches!(url, PortUrl::Sim);
         let (client, host): (AsyncClient, Option<Box<dyn std::any::Any + Send>>) = if in_process {
-            let bus = options.emulated().map_err(|e| ReplyError::usage(e.to_string()))?;
+            let bus = options.emulated().map_err(|e| ErrorReport::usage(e.to_string()))?;
             let host = EmulatorHost::new(Emulator::new(&bus), Arc::clone(&clock), PipeConfig::instant());
             let link: Box<dyn Link> = Box::new(host.connect().0);
             (AsyncClient::with_link(link, clock, options.config(false)).await.map_err(failed)?, Some(Box::new(host)))
@@ -62,7 +62,7 @@ impl PowerCube {
     }
 
     /// The action `op`, its arguments checked by the library's types.
-    pub(super) fn action(&self, op: &str, mut args: Args) -> Result<Action, ReplyError> {
+    pub(super) fn action(&self, op: &str, mut args: Args) -> Result<Action, ErrorReport> {
         let me = self.clone();
         let (client, module, guard) = (Arc::clone(&self.client), self.module, self.guard);
         match op {
@@ -136,7 +136,7 @@ impl PowerCube {
                     // device's own: each object names its address); none at all is an error, as there.
                     let found = client.scan().await.map_err(failed)?;
                     if found.is_empty() {
-                        return Err(ReplyError::transport(format!("no module answered on {}", me.port)));
+                        return Err(ErrorReport::transport(format!("no module answered on {}", me.port)));
                     }
                     let listed =
                         found.iter().map(|e| identified("powercube", &me.port, &[], e)).collect::<Result<_, _>>()?;
@@ -148,7 +148,7 @@ impl PowerCube {
                 let text: String = args.need("value")?;
                 args.finish()?;
                 let value = ParamValue::parse(param, &text)
-                    .map_err(|e| ReplyError::usage(format!("set value {text:?}: {e}")))?;
+                    .map_err(|e| ErrorReport::usage(format!("set value {text:?}: {e}")))?;
                 Ok(Action::Write(Box::pin(async move {
                     // Targets beyond their limits are refused; what was written is read back where it can be.
                     let readback = client.module(module).set_checked(param, value).await.map_err(failed)?;

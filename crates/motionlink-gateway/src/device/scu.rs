@@ -14,7 +14,7 @@ use motionlink_scu::{AsyncClient, Emulator, SimConfig};
 
 use super::{failed, identified, unknown_op, Action, Outcome, Sampling};
 use crate::args::Args;
-use crate::error::ReplyError;
+use crate::error::ErrorReport;
 
 /// The actions served.
 const OPS: [&str; 7] = ["move", "run", "stop", "info", "errors", "get", "set"];
@@ -33,17 +33,17 @@ impl Scu {
         options: &UnitOptions,
         sim_config: Option<SimConfig>,
         port: &str,
-    ) -> Result<Scu, ReplyError> {
-        let config = options.config().map_err(|e| ReplyError::usage(e.to_string()))?;
-        let url: PortUrl = port.parse().map_err(|e| ReplyError::usage(format!("port {port:?}: {e}")))?;
+    ) -> Result<Scu, ErrorReport> {
+        let config = options.config().map_err(|e| ErrorReport::usage(e.to_string()))?;
+        let url: PortUrl = port.parse().map_err(|e| ErrorReport::usage(format!("port {port:?}: {e}")))?;
         let clock = RealClock::shared();
         let client = match url {
             PortUrl::Sim => {
                 let unit = match sim_config {
                     Some(unit) => unit,
-                    None => options.emulated().map_err(|e| ReplyError::usage(e.to_string()))?,
+                    None => options.emulated().map_err(|e| ErrorReport::usage(e.to_string()))?,
                 };
-                let sim = Emulator::new(unit).map_err(|e| ReplyError::usage(e.to_string()))?;
+                let sim = Emulator::new(unit).map_err(|e| ErrorReport::usage(e.to_string()))?;
                 let host = EmulatorHost::new(sim, Arc::clone(&clock), PipeConfig::paced(options.baud.get()));
                 AsyncClient::with_connector(host.connector(), clock, config).await
             }
@@ -58,7 +58,7 @@ impl Scu {
     }
 
     /// The action `op`, its arguments checked by the library's types.
-    pub(super) fn action(&self, op: &str, mut args: Args) -> Result<Action, ReplyError> {
+    pub(super) fn action(&self, op: &str, mut args: Args) -> Result<Action, ErrorReport> {
         let me = self.clone();
         let client = Arc::clone(&self.client);
         match op {
@@ -67,11 +67,11 @@ impl Scu {
                 let position: PositionCounts = args.need("position")?;
                 let speed = args.text("speed")?.unwrap_or_else(|| "100".into());
                 let speed = Speed::parse(&speed, client.config().speed_mode)
-                    .map_err(|e| ReplyError::usage(format!("move speed {speed:?}: {e}")))?;
+                    .map_err(|e| ErrorReport::usage(format!("move speed {speed:?}: {e}")))?;
                 let function = match args.get::<MotionFunction>("function")? {
                     Some(f) => f,
                     None => MotionFunction::checked(i64::from(actuator.number()))
-                        .map_err(|e| ReplyError::usage(e.to_string()))?,
+                        .map_err(|e| ErrorReport::usage(e.to_string()))?,
                 };
                 args.finish()?;
                 Ok(Action::Motion(Box::pin(async move {
@@ -85,7 +85,7 @@ impl Scu {
                 let seconds: Option<RunLimit> = args.get("seconds")?;
                 args.finish()?;
                 let action =
-                    RunAction::parse(&function, &direction).map_err(|e| ReplyError::usage(format!("run: {e}")))?;
+                    RunAction::parse(&function, &direction).map_err(|e| ErrorReport::usage(format!("run: {e}")))?;
                 Ok(Action::Motion(Box::pin(async move {
                     // To its end of travel (or `seconds`); dropped, the library stops the function (RS).
                     let report = client.run_function(action, seconds.map(RunLimit::get)).await;
@@ -136,10 +136,10 @@ impl Scu {
             "set" => {
                 let item = item(&mut args)?;
                 let value =
-                    args.text("value")?.ok_or_else(|| ReplyError::usage("set: the argument \"value\" is missing"))?;
+                    args.text("value")?.ok_or_else(|| ErrorReport::usage("set: the argument \"value\" is missing"))?;
                 args.finish()?;
                 let (entry, value) = motionlink_scu::args::parse_write(item, &value)
-                    .map_err(|e| ReplyError::usage(format!("set: {e}")))?;
+                    .map_err(|e| ErrorReport::usage(format!("set: {e}")))?;
                 Ok(Action::Write(Box::pin(
                     async move { me.result(&client.write(entry, value).await.map_err(failed)?) },
                 )))
@@ -166,9 +166,9 @@ impl Scu {
 }
 
 /// The data-list entry or group `item` of `get` / `set`, by name or index (the library's rule and message).
-fn item(args: &mut Args) -> Result<Item, ReplyError> {
-    let text = args.text("item")?.ok_or_else(|| ReplyError::usage("the argument \"item\" is missing"))?;
-    find(&text).map_err(|e| ReplyError::usage(format!("item: {e}")))
+fn item(args: &mut Args) -> Result<Item, ErrorReport> {
+    let text = args.text("item")?.ok_or_else(|| ErrorReport::usage("the argument \"item\" is missing"))?;
+    find(&text).map_err(|e| ErrorReport::usage(format!("item: {e}")))
 }
 
 /// Checks the device's default `key` (an option of actions, [`super::keys::SCU`]) by its argument's rule.

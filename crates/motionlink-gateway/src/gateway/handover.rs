@@ -10,7 +10,7 @@ use tokio::time::Instant;
 
 use super::{sample_states, summary, Done, Gateway, Served, STOP_BOUND};
 use crate::device::Device;
-use crate::error::{ReplyError, StopReason};
+use crate::error::{ErrorReport, StopReason};
 use crate::events::{Event, Unavailable};
 
 impl Gateway {
@@ -19,7 +19,7 @@ impl Gateway {
         let Some(served) = self.devices.get(device) else { return };
         let Some((entry, spec)) = self.entries.get(device) else { return };
         let (family, port, identity) = (entry.family.clone(), entry.port.clone(), spec.identity());
-        let unavailable = move |error: &ReplyError, t_s: f64| {
+        let unavailable = move |error: &ErrorReport, t_s: f64| {
             let state = Unavailable { available: false, error, t_s };
             motionlink_link::result::identified(&family, &port, &identity, &state).ok().map(|v| v.to_string())
         };

@@ -17,7 +17,7 @@ use tokio::time::Instant;
 use super::{lease_key, Gateway, Motion, Served};
 use crate::config::DeviceEntry;
 use crate::device::{Device, Spec};
-use crate::error::{ReplyError, StopReason};
+use crate::error::{ErrorReport, GatewayErrors, StopReason};
 use crate::events::{Event, Unavailable};
 
 /// The first wait before a device's port is opened again; it doubles up to [`MAX_REOPEN_WAIT`].
@@ -34,7 +34,7 @@ pub(super) enum Internal {
         /// The session the sample was of.
         generation: u64,
         /// What the library said.
-        error: ReplyError,
+        error: ErrorReport,
     },
     /// A state sample failed over a port that is fine (`error`: what the library said: the device is silent,
     /// or refused the read), or (`None`) one succeeds again.
@@ -44,7 +44,7 @@ pub(super) enum Internal {
         /// The session the sample was of.
         generation: u64,
         /// What the library said; `None`: it answers again.
-        error: Option<ReplyError>,
+        error: Option<ErrorReport>,
     },
     /// A failed device's port is open again.
     Reopened {
@@ -60,7 +60,7 @@ pub(super) struct Lost {
     /// Its motion, while its cancellation ends (its reply is still due).
     pub(super) motion: Option<Motion>,
     /// What failed.
-    error: ReplyError,
+    error: ErrorReport,
     /// When.
     since: Instant,
     /// The task that opens the port again.
@@ -90,10 +90,10 @@ impl Gateway {
     }
 
     /// The answer to a request for a device whose port failed.
-    pub(super) fn unavailable(&self, device: &str) -> Option<ReplyError> {
+    pub(super) fn unavailable(&self, device: &str) -> Option<ErrorReport> {
         let lost = self.lost.get(device)?;
         let port = self.entries.get(device).map(|(e, _)| e.port.as_str()).unwrap_or("its port");
-        Some(ReplyError::unavailable(format!(
+        Some(ErrorReport::unavailable(format!(
             "{device}: its port {port} failed {:.1} s ago ({}); the gateway is opening it again",
             lost.since.elapsed().as_secs_f64(),
             lost.error.message
@@ -112,7 +112,7 @@ impl Gateway {
     /// The state samples of `device` (its session `generation`) failed (`error`) or succeed again:
     /// `device_silent` (a timeout), `state_failed` (any other failure) or `device_answers` said (its state was
     /// published by the sampler).
-    fn silent(&self, device: &str, generation: u64, error: Option<ReplyError>) {
+    fn silent(&self, device: &str, generation: u64, error: Option<ErrorReport>) {
         if self.devices.get(device).is_none_or(|s| s.generation != generation) {
             return;
         }
@@ -120,7 +120,7 @@ impl Gateway {
             Some(e) => {
                 // A timeout is a device that does not answer; anything else (a refusal, a corrupt answer) is
                 // a state that could not be read.
-                let (event, what) = match e.kind.as_str() {
+                let (event, what) = match e.kind.as_ref() {
                     "timeout" => ("device_silent", "does not answer"),
                     _ => ("state_failed", "its state could not be read"),
                 };
@@ -148,7 +148,7 @@ impl Gateway {
         &mut self,
         device: &str,
         generation: u64,
-        error: ReplyError,
+        error: ErrorReport,
         ended: Option<(String, String)>,
     ) {
         if self.devices.get(device).is_none_or(|s| s.generation != generation) {

@@ -2,7 +2,7 @@
 //! ([`signals`]), output as a table or JSON ([`output`]), emulator servers ([`serve`](mod@serve)).
 
 use motionlink_link::emulator::FirmwareVariant;
-use motionlink_link::error::{Classify, ErrorClass, TransportKind};
+use motionlink_link::error::{Classify, ErrorClass, ErrorReport, TransportKind};
 use motionlink_link::LinkError;
 
 mod output;
@@ -69,15 +69,9 @@ impl CliError {
         self.class().name()
     }
 
-    /// The error as `--json` prints it on stderr: `{"exit_code": ..., "kind": ..., "message": ...}`.
+    /// The error as `--json` prints it on stderr: its [`ErrorReport`] (`{"exit_code", "kind", "message"}`).
     pub fn to_json(&self) -> serde_json::Value {
-        #[derive(serde::Serialize)]
-        struct Shown {
-            exit_code: u8,
-            kind: &'static str,
-            message: String,
-        }
-        to_json(&Shown { exit_code: self.exit_code(), kind: self.kind(), message: self.to_string() })
+        to_json(&ErrorReport::new(self.kind(), self.to_string(), self.exit_code()))
     }
 
     /// The same error with `f` applied to its message (a closed stdout becomes an interruption whose

@@ -5,6 +5,7 @@
 //! The drives report no speed and no current over RS485: the speed shown is the change of S1 between two
 //! samples (units/s), and no current is shown.
 
+use motionlink_link::error::{ErrorClass, TransportKind};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -20,7 +21,7 @@ use motionlink_link::clock::{lock, SharedClock, Timestamp};
 use motionlink_link::url::PortUrl;
 
 use super::device::{
-    close_last, report, Action, BoxFuture, Device, Failure, JogDirection, Motion, Param, Report, Sample, Unit,
+    close_last, report, Action, BoxFuture, Device, ErrorReport, JogDirection, Motion, Param, Report, Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -127,21 +128,21 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     Ok((Arc::new(device), traffic))
 }
 
-fn position(v: f64) -> Result<Position, Failure> {
-    Position::new(v).map_err(Failure::usage)
+fn position(v: f64) -> Result<Position, ErrorReport> {
+    Position::new(v).map_err(ErrorReport::usage)
 }
 
-fn address(n: u8) -> Result<Address, Failure> {
-    Address::from_whole(n.into()).map_err(Failure::usage)
+fn address(n: u8) -> Result<Address, ErrorReport> {
+    Address::from_whole(n.into()).map_err(ErrorReport::usage)
 }
 
-fn speed(v: Option<f64>) -> Result<Option<SpeedPercent>, Failure> {
-    v.map(SpeedPercent::new).transpose().map_err(Failure::usage)
+fn speed(v: Option<f64>) -> Result<Option<SpeedPercent>, ErrorReport> {
+    v.map(SpeedPercent::new).transpose().map_err(ErrorReport::usage)
 }
 
-fn stop_text(report: &motionlink_compax::client::StopReport) -> Result<String, Failure> {
+fn stop_text(report: &motionlink_compax::client::StopReport) -> Result<String, ErrorReport> {
     if !report.all_confirmed() {
-        return Err(Failure { kind: "device", message: report.to_string() });
+        return Err(ErrorReport::classed(ErrorClass::Device, report.to_string()));
     }
     Ok(if report.is_empty() { String::new() } else { report.to_string() })
 }
@@ -198,7 +199,7 @@ impl Device for Compax {
         self.port.clone()
     }
 
-    fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, Failure>> {
+    fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, ErrorReport>> {
         Box::pin(async move {
             let mut units = Vec::new();
             if self.drives.is_empty() {
@@ -218,13 +219,13 @@ impl Device for Compax {
         })
     }
 
-    fn sample<'a>(&'a self, units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, Failure>>> {
+    fn sample<'a>(&'a self, units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, ErrorReport>>> {
         Box::pin(async move {
             let turn = self.turn.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             let mut out = Vec::new();
             for u in units {
                 let look = async {
-                    let a = Address::drive(u.id).map_err(|e| Failure::usage(e.to_string()))?;
+                    let a = Address::drive(u.id).map_err(|e| ErrorReport::usage(e.to_string()))?;
                     let position = self.client.read_position(a).await?;
                     let p = position.units();
                     let at = self.clock.now();
@@ -246,7 +247,7 @@ impl Device for Compax {
                             (s16, s17)
                         }
                     };
-                    Ok::<_, Failure>((position, p, at, before, s16, s17))
+                    Ok::<_, ErrorReport>((position, p, at, before, s16, s17))
                 };
                 out.push(look.await.map(|(position, p, at, before, s16, s17)| {
                     let speed = before.and_then(|(t0, p0)| {
@@ -260,7 +261,7 @@ impl Device for Compax {
         })
     }
 
-    fn move_to(self: Arc<Self>, unit: u8, target: f64, speed_percent: Option<f64>) -> Result<Motion, Failure> {
+    fn move_to(self: Arc<Self>, unit: u8, target: f64, speed_percent: Option<f64>) -> Result<Motion, ErrorReport> {
         address(unit)?;
         let target = position(target)?;
         let speed = speed(speed_percent)?;
@@ -268,7 +269,12 @@ impl Device for Compax {
         Ok(self.checked_move(unit, target, speed, Duration::from_secs(600)))
     }
 
-    fn jog(self: Arc<Self>, unit: u8, direction: JogDirection, speed_percent: Option<f64>) -> Result<Motion, Failure> {
+    fn jog(
+        self: Arc<Self>,
+        unit: u8,
+        direction: JogDirection,
+        speed_percent: Option<f64>,
+    ) -> Result<Motion, ErrorReport> {
         let a = address(unit)?;
         let speed = speed(speed_percent)?;
         Ok(Box::pin(async move {
@@ -290,7 +296,7 @@ impl Device for Compax {
             let a = address(unit)?;
             let stopped = self.client.stop_if_moving(&[a]).await?;
             if !stopped.all_confirmed() {
-                return Err(Failure { kind: "device", message: stopped.to_string() });
+                return Err(ErrorReport::classed(ErrorClass::Device, stopped.to_string()));
             }
             let position = self.client.read_position(a).await;
             let o0 = self.client.read_s16(a).await.map(|s| s.o0_state());
@@ -298,7 +304,7 @@ impl Device for Compax {
         })
     }
 
-    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
+    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, ErrorReport>> {
         Box::pin(async move {
             let report = self.client.stop_started().await;
             stop_text(&report)
@@ -309,21 +315,21 @@ impl Device for Compax {
         vec![Action { name: "switch_on", label: "Switch on (OUTPUT O0=1)", moves: false }]
     }
 
-    fn action(self: Arc<Self>, unit: u8, name: &str) -> Result<Motion, Failure> {
+    fn action(self: Arc<Self>, unit: u8, name: &str) -> Result<Motion, ErrorReport> {
         let a = address(unit)?;
         match name {
             "switch_on" => Ok(Box::pin(async move {
                 self.client.set_output(a, 0, OutputState::ON, false).await?;
                 let s16 = self.client.read_s16(a).await?;
                 if s16.o0_state() != 1 {
-                    return Err(Failure {
-                        kind: "device",
-                        message: format!("drive {unit} acknowledged OUTPUT O0=1 but S16 shows O0={}", s16.o0_state()),
-                    });
+                    return Err(ErrorReport::classed(
+                        ErrorClass::Device,
+                        format!("drive {unit} acknowledged OUTPUT O0=1 but S16 shows O0={}", s16.o0_state()),
+                    ));
                 }
                 Ok(report(&OutputSwitched { output: 0, state: OutputState::ON }))
             })),
-            other => Err(Failure::usage(format!("no action {other:?}"))),
+            other => Err(ErrorReport::usage(format!("no action {other:?}"))),
         }
     }
 
@@ -331,9 +337,9 @@ impl Device for Compax {
         Param::rows(&PARAMS)
     }
 
-    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<Report, Failure>> {
+    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<Report, ErrorReport>> {
         Box::pin(async move {
-            let id: ParamId = name.parse().map_err(Failure::usage)?;
+            let id: ParamId = name.parse().map_err(ErrorReport::usage)?;
             Ok(report(&ParamReading { id, value: self.client.read_param(address(unit)?, id).await? }))
         })
     }
@@ -343,30 +349,33 @@ impl Device for Compax {
         unit: u8,
         name: String,
         value: String,
-    ) -> BoxFuture<'static, Result<Report, Failure>> {
+    ) -> BoxFuture<'static, Result<Report, ErrorReport>> {
         Box::pin(async move {
-            let id: ParamId = name.parse().map_err(Failure::usage)?;
+            let id: ParamId = name.parse().map_err(ErrorReport::usage)?;
             let v: f64 = value
                 .trim()
                 .parse()
-                .map_err(|_| Failure::usage(format!("P{} value {value:?}: give a number", id.get())))?;
-            id.check(v).map_err(Failure::usage)?;
+                .map_err(|_| ErrorReport::usage(format!("P{} value {value:?}: give a number", id.get())))?;
+            id.check(v).map_err(ErrorReport::usage)?;
             // The library writes, compares what it reads back (a difference is an error) and reads once more.
             Ok(report(&self.client.set_param(address(unit)?, id, v).await?))
         })
     }
 
-    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Report, Failure>> {
+    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Report, ErrorReport>> {
         Box::pin(async move {
             let v = self.client.read_status(address(unit)?, StatusId::ERROR_HISTORY).await?;
             let StatusValue::History(h) = v else {
-                return Err(Failure { kind: "corrupt", message: format!("S18 read as {v}, not a history") });
+                return Err(ErrorReport::classed(
+                    ErrorClass::Transport(TransportKind::Corrupt),
+                    format!("S18 read as {v}, not a history"),
+                ));
             };
             Ok(report(&ErrorHistory(h)))
         })
     }
 
-    fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
+    fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, ErrorReport>> {
         close_last(self, |me| async move { stop_text(&me.client.close().await?) })
     }
 }

@@ -6,7 +6,6 @@ use std::future::Future;
 use std::pin::Pin;
 use std::sync::Arc;
 
-use motionlink_link::error::Classify;
 use motionlink_link::table::Entry;
 use serde::Serialize;
 use serde_json::Value;
@@ -17,37 +16,11 @@ pub type BoxFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
 /// A motion (or any action, or a stop) under way: it ends with the family library's report of what the
 /// device did (the object `motionlink <family> ... --json` prints for it); dropping it before it ends stops
 /// what it set in motion.
-pub type Motion = BoxFuture<'static, Result<Report, Failure>>;
+pub type Motion = BoxFuture<'static, Result<Report, ErrorReport>>;
 
-/// Why a request to the device failed: the error class's name (as the CLI's JSON and Python name it) and
-/// the library's message; serialises as `{"kind", "message"}`.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
-pub struct Failure {
-    /// "refused", "device", "timeout", "disconnected", "corrupt", "io", "usage" or "cancelled".
-    pub kind: &'static str,
-    /// What went wrong, as the library says it.
-    pub message: String,
-}
-
-impl Failure {
-    /// A request that cannot be made as it is (bad input from the page).
-    pub fn usage(message: impl std::fmt::Display) -> Failure {
-        Failure { kind: "usage", message: message.to_string() }
-    }
-}
-
-/// The failure of a classified library error.
-impl<E: Classify + std::fmt::Display> From<E> for Failure {
-    fn from(e: E) -> Failure {
-        Failure { kind: e.class().name(), message: e.to_string() }
-    }
-}
-
-impl std::fmt::Display for Failure {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{} ({})", self.message, self.kind)
-    }
-}
+/// Why a request to the device failed: the error's report, as the command line's `--json` and the gateway
+/// give it (`{"kind", "message", "exit_code"}`).
+pub use motionlink_link::error::ErrorReport;
 
 /// One addressable unit found on the link: an SCU actuator, a PowerCube module, a COMPAX drive. It
 /// serialises without its number, which the page gets under the family's key ([`Numbered`](super::message::Numbered)).
@@ -148,41 +121,41 @@ pub trait Device: Send + Sync + 'static {
     /// The port, as the user gave it.
     fn port(&self) -> String;
     /// Finds the units on the link (SCU: the connected actuators; PowerCube, COMPAX: a scan).
-    fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, Failure>>;
+    fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, ErrorReport>>;
     /// One look at each of `units`.
-    fn sample<'a>(&'a self, units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, Failure>>>;
+    fn sample<'a>(&'a self, units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, ErrorReport>>>;
     /// Moves `unit` to `target` (its position unit) at `speed` (its command speed unit; None: the device's
     /// setting). Checked before the future is made: a bad request is an error at once.
-    fn move_to(self: Arc<Self>, unit: u8, target: f64, speed: Option<f64>) -> Result<Motion, Failure>;
+    fn move_to(self: Arc<Self>, unit: u8, target: f64, speed: Option<f64>) -> Result<Motion, ErrorReport>;
     /// Moves `unit` in `direction` until the future is dropped (or the axis reaches its end of travel).
-    fn jog(self: Arc<Self>, unit: u8, direction: JogDirection, speed: Option<f64>) -> Result<Motion, Failure>;
+    fn jog(self: Arc<Self>, unit: u8, direction: JogDirection, speed: Option<f64>) -> Result<Motion, ErrorReport>;
     /// The Stop button: stops `unit` (whoever started its motion) as the command line's `stop` does, confirmed
     /// by the device: the library's report of that stop.
     fn stop(self: Arc<Self>, unit: u8) -> Motion;
     /// Stops everything this console's session set in motion (the end of the console), and says what it
     /// stopped in words (empty: nothing).
-    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>>;
+    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, ErrorReport>>;
     /// The family's other actions.
     fn actions(&self) -> Vec<Action>;
     /// Runs action `name` on `unit`.
-    fn action(self: Arc<Self>, unit: u8, name: &str) -> Result<Motion, Failure>;
+    fn action(self: Arc<Self>, unit: u8, name: &str) -> Result<Motion, ErrorReport>;
     /// The parameter table or data list.
     fn params(&self) -> Vec<Param>;
     /// Reads entry `name` (a name or a number) of `unit`: the family's report of `get`.
-    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<Report, Failure>>;
+    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<Report, ErrorReport>>;
     /// Writes entry `name` of `unit` and reads it back: the family's report of `set`.
     fn write_param(
         self: Arc<Self>,
         unit: u8,
         name: String,
         value: String,
-    ) -> BoxFuture<'static, Result<Report, Failure>>;
+    ) -> BoxFuture<'static, Result<Report, ErrorReport>>;
     /// The error history of `unit`, decoded: the family's report (SCU: that of `errors`; PowerCube: the state
     /// word, that of `state`; COMPAX: S18 decoded).
-    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Report, Failure>>;
+    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Report, ErrorReport>>;
     /// Ends the session (the library stops what it started and says whether that was confirmed). Called
     /// once, with the last reference.
-    fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>>;
+    fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, ErrorReport>>;
 }
 
 /// The end of the session `device` holds: `close` with the device itself once nothing else holds it; while a
@@ -191,10 +164,10 @@ pub trait Device: Send + Sync + 'static {
 pub fn close_last<D, F>(
     device: Arc<D>,
     close: impl FnOnce(D) -> F + Send + 'static,
-) -> BoxFuture<'static, Result<String, Failure>>
+) -> BoxFuture<'static, Result<String, ErrorReport>>
 where
     D: Send + Sync + 'static,
-    F: Future<Output = Result<String, Failure>> + Send + 'static,
+    F: Future<Output = Result<String, ErrorReport>> + Send + 'static,
 {
     Box::pin(async move {
         match Arc::try_unwrap(device) {
@@ -208,10 +181,10 @@ where
 }
 
 /// A finite number from the page, or an error naming `what`.
-pub fn finite(what: &str, v: f64) -> Result<f64, Failure> {
+pub fn finite(what: &str, v: f64) -> Result<f64, ErrorReport> {
     if v.is_finite() {
         Ok(v)
     } else {
-        Err(Failure::usage(format!("{what}: {v} is not a number")))
+        Err(ErrorReport::usage(format!("{what}: {v} is not a number")))
     }
 }

@@ -4,7 +4,7 @@
 use serde::Serialize;
 use serde_json::Value;
 
-use super::device::{Action, Failure, Param, Report, Sample, Unit};
+use super::device::{Action, ErrorReport, Param, Report, Sample, Unit};
 use super::traffic::LogLine;
 use crate::common::Keyed;
 
@@ -28,13 +28,13 @@ pub enum SampleEntry {
     /// The look failed: why.
     Failed {
         /// Why.
-        error: Failure,
+        error: ErrorReport,
     },
 }
 
 impl SampleEntry {
     /// The entry of `unit` for a sample (or its failure), with its number under `unit_key`.
-    pub fn of(unit: &Unit, unit_key: &'static str, sample: Result<Sample, Failure>) -> Numbered<SampleEntry> {
+    pub fn of(unit: &Unit, unit_key: &'static str, sample: Result<Sample, ErrorReport>) -> Numbered<SampleEntry> {
         let what = sample.map_or_else(|error| SampleEntry::Failed { error }, SampleEntry::Taken);
         Numbered { unit: Keyed(unit_key, unit.id), what }
     }
@@ -64,7 +64,7 @@ pub enum Message {
         scanning: bool,
         units: Vec<Numbered<Unit>>,
         #[serde(skip_serializing_if = "Option::is_none")]
-        error: Option<Failure>,
+        error: Option<ErrorReport>,
     },
     /// One look at every unit, `t_s` seconds after the console started.
     Sample { t_s: f64, units: Vec<Numbered<SampleEntry>> },
@@ -83,7 +83,7 @@ pub enum Message {
         #[serde(skip_serializing_if = "Option::is_none")]
         reason: Option<&'static str>,
         #[serde(skip_serializing_if = "Option::is_none")]
-        error: Option<Failure>,
+        error: Option<ErrorReport>,
         #[serde(skip_serializing_if = "Option::is_none")]
         message: Option<String>,
         #[serde(skip_serializing_if = "Option::is_none")]
@@ -125,7 +125,7 @@ pub enum Message {
 #[derive(Debug, Serialize)]
 pub struct RequestFailure {
     pub request: String,
-    pub error: Failure,
+    pub error: ErrorReport,
     pub message: String,
 }
 
@@ -136,7 +136,7 @@ impl Message {
     }
 
     /// A `refused` (`made` false) or `failed` message for `request`.
-    pub fn failure(request: &str, made: bool, error: Failure) -> Message {
+    pub fn failure(request: &str, made: bool, error: ErrorReport) -> Message {
         let failure = RequestFailure { request: request.to_string(), message: error.message.clone(), error };
         if made {
             Message::Failed(failure)

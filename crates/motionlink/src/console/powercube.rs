@@ -18,7 +18,8 @@ use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{AsyncClient, Emulator, Error};
 
 use super::device::{
-    close_last, report, Action, BoxFuture, Device, Failure, JogDirection, Motion, Param as Row, Report, Sample, Unit,
+    close_last, report, Action, BoxFuture, Device, ErrorReport, JogDirection, Motion, Param as Row, Report, Sample,
+    Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -200,13 +201,13 @@ impl PowerCube {
         }
     }
 
-    fn module(&self, address: u8) -> Result<motionlink_powercube::client::AsyncModule<'_>, Failure> {
+    fn module(&self, address: u8) -> Result<motionlink_powercube::client::AsyncModule<'_>, ErrorReport> {
         Ok(self.client.module(Address::new(address).map_err(Error::from)?))
     }
 
     /// The unit the page shows module `address`'s numbers in (that of the kind found), read from the module
     /// if it was not found: the positions and velocities sent are built in it, so the library checks it.
-    async fn unit_of(&self, m: &motionlink_powercube::client::AsyncModule<'_>) -> Result<AxisUnit, Failure> {
+    async fn unit_of(&self, m: &motionlink_powercube::client::AsyncModule<'_>) -> Result<AxisUnit, ErrorReport> {
         match self.kind(m.address().get()) {
             Some(kind) => Ok(kind.axis_unit()),
             None => Ok(m.kind().await?.axis_unit()),
@@ -214,8 +215,8 @@ impl PowerCube {
     }
 
     /// The velocity of a move or jog, checked as every front end checks it.
-    fn speed(speed: Option<f64>) -> Result<Option<MoveVelocity>, Failure> {
-        speed.map(MoveVelocity::new).transpose().map_err(Failure::from)
+    fn speed(speed: Option<f64>) -> Result<Option<MoveVelocity>, ErrorReport> {
+        speed.map(MoveVelocity::new).transpose().map_err(ErrorReport::from)
     }
 }
 
@@ -232,16 +233,16 @@ impl Device for PowerCube {
         self.port.clone()
     }
 
-    fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, Failure>> {
+    fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, ErrorReport>> {
         Box::pin(async move {
             let mut found = Vec::new();
             if self.modules.is_empty() {
                 for e in self.client.scan().await? {
-                    found.push((e.address.get(), e.info.map_err(Failure::from)));
+                    found.push((e.address.get(), e.info.map_err(ErrorReport::from)));
                 }
             } else {
                 for &a in &self.modules {
-                    let info = self.module(a)?.info().await.map_err(Failure::from);
+                    let info = self.module(a)?.info().await.map_err(ErrorReport::from);
                     if let Err(e) = &info {
                         if e.kind == "timeout" {
                             continue;
@@ -267,7 +268,7 @@ impl Device for PowerCube {
         })
     }
 
-    fn sample<'a>(&'a self, units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, Failure>>> {
+    fn sample<'a>(&'a self, units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, ErrorReport>>> {
         Box::pin(async move {
             let mut out = Vec::new();
             for u in units {
@@ -326,7 +327,7 @@ impl Device for PowerCube {
         })
     }
 
-    fn move_to(self: Arc<Self>, unit: u8, target: f64, speed: Option<f64>) -> Result<Motion, Failure> {
+    fn move_to(self: Arc<Self>, unit: u8, target: f64, speed: Option<f64>) -> Result<Motion, ErrorReport> {
         let target = Target::new(target)?;
         let vel = Self::speed(speed)?;
         self.module(unit)?;
@@ -340,7 +341,7 @@ impl Device for PowerCube {
         }))
     }
 
-    fn jog(self: Arc<Self>, unit: u8, direction: JogDirection, speed: Option<f64>) -> Result<Motion, Failure> {
+    fn jog(self: Arc<Self>, unit: u8, direction: JogDirection, speed: Option<f64>) -> Result<Motion, ErrorReport> {
         let vel = Self::speed(speed)?;
         self.module(unit)?;
         Ok(Box::pin(async move {
@@ -354,7 +355,7 @@ impl Device for PowerCube {
                 JogDirection::Negative => Param::MinPos,
             };
             let target = f32_of(m.get(limit).await?)
-                .ok_or_else(|| Failure::usage(format!("{} is not a number", limit.name())))?;
+                .ok_or_else(|| ErrorReport::usage(format!("{} is not a number", limit.name())))?;
             let spec = MoveSpec {
                 vel,
                 timeout: Duration::from_secs(3600),
@@ -371,7 +372,7 @@ impl Device for PowerCube {
         })
     }
 
-    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
+    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, ErrorReport>> {
         Box::pin(async move {
             self.client.halt_started().await?;
             Ok(String::new())
@@ -385,7 +386,7 @@ impl Device for PowerCube {
         ]
     }
 
-    fn action(self: Arc<Self>, unit: u8, name: &str) -> Result<Motion, Failure> {
+    fn action(self: Arc<Self>, unit: u8, name: &str) -> Result<Motion, ErrorReport> {
         self.module(unit)?;
         match name {
             "home" => Ok(Box::pin(async move {
@@ -396,7 +397,7 @@ impl Device for PowerCube {
                 let watchdog_released = self.module(unit)?.reset_and_release_watchdog().await?;
                 Ok(report(&Acted::reset(Released { watchdog_released })))
             })),
-            other => Err(Failure::usage(format!("no action {other:?}"))),
+            other => Err(ErrorReport::usage(format!("no action {other:?}"))),
         }
     }
 
@@ -404,9 +405,9 @@ impl Device for PowerCube {
         Row::rows(&PARAMS)
     }
 
-    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<Report, Failure>> {
+    fn read_param(self: Arc<Self>, unit: u8, name: String) -> BoxFuture<'static, Result<Report, ErrorReport>> {
         Box::pin(async move {
-            let param: Param = name.trim().parse().map_err(Failure::usage)?;
+            let param: Param = name.trim().parse().map_err(ErrorReport::usage)?;
             let m = self.module(unit)?;
             let value = m.get(param).await?;
             // The unit depends on the module type (rad or m): read where the scan did not.
@@ -423,25 +424,25 @@ impl Device for PowerCube {
         unit: u8,
         name: String,
         value: String,
-    ) -> BoxFuture<'static, Result<Report, Failure>> {
+    ) -> BoxFuture<'static, Result<Report, ErrorReport>> {
         Box::pin(async move {
-            let param: Param = name.trim().parse().map_err(Failure::usage)?;
-            let value = CubeValue::parse(param, &value).map_err(Failure::usage)?;
+            let param: Param = name.trim().parse().map_err(ErrorReport::usage)?;
+            let value = CubeValue::parse(param, &value).map_err(ErrorReport::usage)?;
             // Targets beyond their limits are refused; what was written is read back where the module allows it.
             let readback = self.module(unit)?.set_checked(param, value).await?;
             Ok(report(&SetReport { param, value, readback }))
         })
     }
 
-    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Report, Failure>> {
+    fn errors(self: Arc<Self>, unit: u8) -> BoxFuture<'static, Result<Report, ErrorReport>> {
         // PowerCube modules keep no error history: the state word now, as `state` reports it.
         Box::pin(async move { Ok(report(&StateReport(self.module(unit)?.state().await?))) })
     }
 
-    fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
+    fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, ErrorReport>> {
         close_last(self, |me| async move {
             let PowerCube { client, _host, .. } = me;
-            let r = client.close().await.map_err(Failure::from).map(|_| String::new());
+            let r = client.close().await.map_err(ErrorReport::from).map(|_| String::new());
             // The in-process emulator goes only after the session's end.
             drop(_host);
             r

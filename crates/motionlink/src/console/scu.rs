@@ -1,6 +1,7 @@
 //! The console over an SCU control unit: its connected actuators, moves through the remote position, jogs as
 //! a run of the actuator's motion function in or out (RS when the future is dropped), the data list.
 
+use motionlink_link::error::{ErrorClass, TransportKind};
 use std::sync::Arc;
 
 use motionlink_link::url::PortUrl;
@@ -17,7 +18,8 @@ use motionlink_scu::value::Value as ScuValue;
 use motionlink_scu::{AsyncClient, FunctionMap};
 
 use super::device::{
-    close_last, finite, report, Action, BoxFuture, Device, Failure, JogDirection, Motion, Param, Report, Sample, Unit,
+    close_last, finite, report, Action, BoxFuture, Device, ErrorReport, JogDirection, Motion, Param, Report, Sample,
+    Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -67,8 +69,8 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
     Ok((Arc::new(device), traffic))
 }
 
-fn actuator(n: u8) -> Result<Actuator, Failure> {
-    Actuator::checked(i64::from(n)).map_err(|e| Failure::usage(format!("actuator {n}: {e}")))
+fn actuator(n: u8) -> Result<Actuator, ErrorReport> {
+    Actuator::checked(i64::from(n)).map_err(|e| ErrorReport::usage(format!("actuator {n}: {e}")))
 }
 
 /// The numbers of a group read (`AsyncClient::get`), decoded by the data list (currents in A), by actuator
@@ -86,21 +88,23 @@ fn by_actuator(group: &[(&'static DataEntry, ScuValue)]) -> [Option<f64>; 6] {
 
 impl Scu {
     /// The motion function that moves actuator `a` alone: the one the map says drives only it, else Fn.
-    fn function_of(&self, a: Actuator) -> Result<MotionFunction, Failure> {
+    fn function_of(&self, a: Actuator) -> Result<MotionFunction, ErrorReport> {
         for n in 1..=10 {
             let Some(f) = MotionFunction::new(n) else { continue };
             if self.functions.drives(f).is_some_and(|d| d == [a]) {
                 return Ok(f);
             }
         }
-        MotionFunction::new(a.number()).ok_or_else(|| Failure::usage(format!("{a} has no motion function")))
+        MotionFunction::new(a.number()).ok_or_else(|| ErrorReport::usage(format!("{a} has no motion function")))
     }
 
-    fn speed(&self, speed: Option<f64>) -> Result<Option<Speed>, Failure> {
+    fn speed(&self, speed: Option<f64>) -> Result<Option<Speed>, ErrorReport> {
         let Some(s) = speed else { return Ok(None) };
         let s = finite("speed", s)?;
         // The page sends numbers: the rule is the library's, for the whole numbers it takes.
-        Speed::parse(&s.to_string(), self.speed_mode).map(Some).map_err(|e| Failure::usage(format!("speed {s}: {e}")))
+        Speed::parse(&s.to_string(), self.speed_mode)
+            .map(Some)
+            .map_err(|e| ErrorReport::usage(format!("speed {s}: {e}")))
     }
 
     fn speed_key(&self) -> (&'static str, &'static str) {
@@ -111,8 +115,8 @@ impl Scu {
     }
 }
 
-fn lookup_entry(name: &str) -> Result<Item, Failure> {
-    motionlink_scu::model::find(name).map_err(Failure::usage)
+fn lookup_entry(name: &str) -> Result<Item, ErrorReport> {
+    motionlink_scu::model::find(name).map_err(ErrorReport::usage)
 }
 
 impl Device for Scu {
@@ -128,7 +132,7 @@ impl Device for Scu {
         self.port.clone()
     }
 
-    fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, Failure>> {
+    fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, ErrorReport>> {
         Box::pin(async move {
             let found = self.client.connected_actuators().await?;
             let mut units = Vec::new();
@@ -152,7 +156,7 @@ impl Device for Scu {
         })
     }
 
-    fn sample<'a>(&'a self, units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, Failure>>> {
+    fn sample<'a>(&'a self, units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, ErrorReport>>> {
         Box::pin(async move {
             // Four reads of groups cover every actuator at once, each decoded by the library.
             let read = async {
@@ -163,7 +167,7 @@ impl Device for Scu {
                 Ok::<_, motionlink_scu::Error>((positions, status, speeds, currents))
             };
             match read.await {
-                Err(e) => units.iter().map(|_| Err(Failure::from(e.clone()))).collect(),
+                Err(e) => units.iter().map(|_| Err(ErrorReport::from(e.clone()))).collect(),
                 Ok((positions, status, speeds, currents)) => units
                     .iter()
                     .map(|u| {
@@ -175,23 +179,26 @@ impl Device for Scu {
         })
     }
 
-    fn move_to(self: Arc<Self>, unit: u8, target: f64, speed: Option<f64>) -> Result<Motion, Failure> {
+    fn move_to(self: Arc<Self>, unit: u8, target: f64, speed: Option<f64>) -> Result<Motion, ErrorReport> {
         let a = actuator(unit)?;
         let target = finite("target", target)?;
         let position = PositionCounts::parse_whole(&target.to_string())
-            .map_err(|e| Failure::usage(format!("target {target}: {e}")))?;
+            .map_err(|e| ErrorReport::usage(format!("target {target}: {e}")))?;
         let speed = self.speed(speed)?.unwrap_or(Speed::of_mode(self.speed_mode, self.speed_mode.max()).expect("max"));
         let function = self.function_of(a)?;
         let op = self.client.move_to_op(a, position, speed, Some(function))?;
         Ok(Box::pin(async move {
             match self.client.start(op).await? {
                 motionlink_scu::Output::Move(r) => Ok(report(&r)),
-                other => Err(Failure { kind: "corrupt", message: format!("a move ended with {other:?}") }),
+                other => Err(ErrorReport::classed(
+                    ErrorClass::Transport(TransportKind::Corrupt),
+                    format!("a move ended with {other:?}"),
+                )),
             }
         }))
     }
 
-    fn jog(self: Arc<Self>, unit: u8, direction: JogDirection, speed: Option<f64>) -> Result<Motion, Failure> {
+    fn jog(self: Arc<Self>, unit: u8, direction: JogDirection, speed: Option<f64>) -> Result<Motion, ErrorReport> {
         let a = actuator(unit)?;
         let speed = self.speed(speed)?;
         let function = self.function_of(a)?;
@@ -201,7 +208,7 @@ impl Device for Scu {
         };
         Ok(Box::pin(async move {
             if let Some(s) = speed {
-                let raw = s.for_motion(self.speed_mode).map_err(Failure::usage)?;
+                let raw = s.for_motion(self.speed_mode).map_err(ErrorReport::usage)?;
                 self.client.set(function.remote_speed_index(), &ScuValue::RemoteSpeed(raw)).await?;
             }
             // Runs until the unit reports the end of travel; dropped, the session sends RS (fast) and checks it.
@@ -220,7 +227,7 @@ impl Device for Scu {
         })
     }
 
-    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
+    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, ErrorReport>> {
         Box::pin(async move {
             let started = self.client.started();
             let motions: Vec<MotionFunction> =
@@ -232,7 +239,7 @@ impl Device for Scu {
             let stopped = self.client.stop_functions(&motions, StopMode::Fast).await?;
             let mut text = Vec::new();
             crate::scu::print_stop_text(&mut text, &stopped)
-                .map_err(|e| Failure { kind: "io", message: e.to_string() })?;
+                .map_err(|e| ErrorReport::classed(ErrorClass::Transport(TransportKind::Io), e.to_string()))?;
             Ok(String::from_utf8_lossy(&text).trim_end().to_string())
         })
     }
@@ -241,15 +248,15 @@ impl Device for Scu {
         Vec::new()
     }
 
-    fn action(self: Arc<Self>, _unit: u8, name: &str) -> Result<Motion, Failure> {
-        Err(Failure::usage(format!("the SCU console has no action {name:?}")))
+    fn action(self: Arc<Self>, _unit: u8, name: &str) -> Result<Motion, ErrorReport> {
+        Err(ErrorReport::usage(format!("the SCU console has no action {name:?}")))
     }
 
     fn params(&self) -> Vec<Param> {
         Param::rows(&TABLE)
     }
 
-    fn read_param(self: Arc<Self>, _unit: u8, name: String) -> BoxFuture<'static, Result<Report, Failure>> {
+    fn read_param(self: Arc<Self>, _unit: u8, name: String) -> BoxFuture<'static, Result<Report, ErrorReport>> {
         Box::pin(async move { Ok(report(&self.client.read(lookup_entry(&name)?).await?)) })
     }
 
@@ -258,20 +265,20 @@ impl Device for Scu {
         _unit: u8,
         name: String,
         value: String,
-    ) -> BoxFuture<'static, Result<Report, Failure>> {
+    ) -> BoxFuture<'static, Result<Report, ErrorReport>> {
         Box::pin(async move {
-            let (e, v) = parse_write(lookup_entry(&name)?, &value).map_err(Failure::usage)?;
+            let (e, v) = parse_write(lookup_entry(&name)?, &value).map_err(ErrorReport::usage)?;
             // The library writes with RT, reads the entry back and compares (a difference is an error), then
             // reads what the unit holds; a unit that does not read remote data back says so in the report.
             Ok(report(&self.client.write(e, v).await?))
         })
     }
 
-    fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<Report, Failure>> {
+    fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<Report, ErrorReport>> {
         Box::pin(async move { Ok(report(&ErrorHistory { errors: self.client.error_history().await? })) })
     }
 
-    fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
+    fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, ErrorReport>> {
         // While a request still holds the session, it ends (RS, RA) when that ends.
         close_last(self, |me| async move {
             match motionlink_scu::ending(me.client.close().await) {

@@ -14,7 +14,7 @@ use serde_json::Value;
 use tokio::sync::{broadcast, mpsc};
 use tokio::time::Instant;
 
-use super::device::{Failure, JogDirection};
+use super::device::{ErrorReport, JogDirection};
 use super::hub::{Hub, Notice, Role, Units};
 use super::message::{Message, Numbered};
 use super::token;
@@ -246,20 +246,20 @@ async fn page(hub: Arc<Hub>, mut socket: WebSocket) {
 }
 
 /// A number field of a request.
-fn number(req: &Value, key: &str) -> Result<Option<f64>, Failure> {
+fn number(req: &Value, key: &str) -> Result<Option<f64>, ErrorReport> {
     match req.get(key) {
         None | Some(Value::Null) => Ok(None),
-        Some(v) => v.as_f64().map(Some).ok_or_else(|| Failure::usage(format!("{key}: {v} is not a number"))),
+        Some(v) => v.as_f64().map(Some).ok_or_else(|| ErrorReport::usage(format!("{key}: {v} is not a number"))),
     }
 }
 
 /// The unit a request names with the family's key (`actuator`, `module`, `drive`).
-fn unit_of(hub: &Hub, req: &Value) -> Result<u8, Failure> {
+fn unit_of(hub: &Hub, req: &Value) -> Result<u8, ErrorReport> {
     let key = hub.device().unit_key();
     req.get(key)
         .and_then(Value::as_u64)
         .and_then(|n| u8::try_from(n).ok())
-        .ok_or_else(|| Failure::usage(format!("the request names no {key}")))
+        .ok_or_else(|| ErrorReport::usage(format!("the request names no {key}")))
 }
 
 /// Handles one message of page `page`: an answer to send at once, or none (an answer comes later through
@@ -267,7 +267,7 @@ fn unit_of(hub: &Hub, req: &Value) -> Result<u8, Failure> {
 fn request(hub: &Arc<Hub>, page: u64, text: &str, replies: &mpsc::Sender<Message>) -> Option<Message> {
     let req: Value = match serde_json::from_str(text) {
         Ok(v) => v,
-        Err(e) => return Some(Message::failure("?", false, Failure::usage(format!("not JSON: {e}")))),
+        Err(e) => return Some(Message::failure("?", false, ErrorReport::usage(format!("not JSON: {e}")))),
     };
     let kind = req.get("type").and_then(Value::as_str).unwrap_or("").to_string();
     let result = handle_request(hub, page, &kind, &req, replies);
@@ -280,7 +280,7 @@ fn request(hub: &Arc<Hub>, page: u64, text: &str, replies: &mpsc::Sender<Message
 fn spawn_reply(
     replies: &mpsc::Sender<Message>,
     request: &str,
-    work: impl std::future::Future<Output = Result<Message, Failure>> + Send + 'static,
+    work: impl std::future::Future<Output = Result<Message, ErrorReport>> + Send + 'static,
 ) {
     let replies = replies.clone();
     let request = request.to_string();
@@ -296,7 +296,7 @@ fn handle_request(
     kind: &str,
     req: &Value,
     replies: &mpsc::Sender<Message>,
-) -> Result<Option<Message>, Failure> {
+) -> Result<Option<Message>, ErrorReport> {
     match kind {
         "jog_hold" => {
             // Renewals are frequent and need no answer; a jog that ended is said by its notice.
@@ -317,16 +317,16 @@ fn handle_request(
             if hub.take_control(page) {
                 Ok(None)
             } else {
-                Err(Failure::usage("another page controls the console"))
+                Err(ErrorReport::usage("another page controls the console"))
             }
         }
         "move" => {
             let unit = unit_of(hub, req)?;
             let units = hub.units().borrow().clone();
-            let Units::Found(list) = units else { return Err(Failure::usage("the units are not found yet")) };
-            let u = list.iter().find(|u| u.id == unit).ok_or_else(|| Failure::usage(format!("no unit {unit}")))?;
-            let target =
-                number(req, u.target_key)?.ok_or_else(|| Failure::usage(format!("a move needs {}", u.target_key)))?;
+            let Units::Found(list) = units else { return Err(ErrorReport::usage("the units are not found yet")) };
+            let u = list.iter().find(|u| u.id == unit).ok_or_else(|| ErrorReport::usage(format!("no unit {unit}")))?;
+            let target = number(req, u.target_key)?
+                .ok_or_else(|| ErrorReport::usage(format!("a move needs {}", u.target_key)))?;
             let speed = number(req, u.command_speed_key)?;
             hub.check_control(page)?;
             let device = Arc::clone(hub.device());
@@ -339,7 +339,7 @@ fn handle_request(
             let direction = match req.get("direction").and_then(Value::as_str) {
                 Some("positive") => JogDirection::Positive,
                 Some("negative") => JogDirection::Negative,
-                other => return Err(Failure::usage(format!("direction {other:?}: positive or negative"))),
+                other => return Err(ErrorReport::usage(format!("direction {other:?}: positive or negative"))),
             };
             let speed = number(req, "speed")?;
             hub.check_control(page)?;
@@ -356,7 +356,7 @@ fn handle_request(
                 .actions()
                 .into_iter()
                 .find(|a| a.name == name)
-                .ok_or_else(|| Failure::usage(format!("no action {name:?}")))?;
+                .ok_or_else(|| ErrorReport::usage(format!("no action {name:?}")))?;
             hub.check_control(page)?;
             let device = Arc::clone(hub.device());
             let work = device.action(unit, &name)?;
@@ -374,7 +374,7 @@ fn handle_request(
             let unit = unit_of(hub, req)?;
             let name = req.get("name").and_then(Value::as_str).unwrap_or("").trim().to_string();
             if name.is_empty() {
-                return Err(Failure::usage("give the name or number of the entry"));
+                return Err(ErrorReport::usage("give the name or number of the entry"));
             }
             let device = Arc::clone(hub.device());
             let key = Keyed(device.unit_key(), unit);
@@ -383,7 +383,7 @@ fn handle_request(
                 let value = match req.get("value") {
                     Some(Value::String(s)) => s.clone(),
                     Some(Value::Number(n)) => n.to_string(),
-                    _ => return Err(Failure::usage("give the value to write")),
+                    _ => return Err(ErrorReport::usage("give the value to write")),
                 };
                 spawn_reply(replies, kind, async move {
                     let v = device.write_param(unit, name, value).await?;
@@ -405,6 +405,6 @@ fn handle_request(
             spawn_reply(replies, kind, async move { Ok(Message::Errors { unit: key, report: work.await? }) });
             Ok(None)
         }
-        other => Err(Failure::usage(format!("unknown request {other:?}"))),
+        other => Err(ErrorReport::usage(format!("unknown request {other:?}"))),
     }
 }

@@ -7,6 +7,7 @@
 //! makes the library stop the axis; then it asks the device for the stop ([`Device::stop`]) and reports
 //! what the device confirmed.
 
+use motionlink_link::error::{ErrorClass, TransportKind};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -15,7 +16,7 @@ use tokio::sync::{broadcast, oneshot, watch};
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
 
-use super::device::{Device, Failure, Motion as DeviceMotion, Report, Unit};
+use super::device::{Device, ErrorReport, Motion as DeviceMotion, Report, Unit};
 use super::message::{Message, SampleEntry};
 use super::traffic::Traffic;
 use crate::common::Keyed;
@@ -35,7 +36,7 @@ pub enum Units {
     /// These units answered.
     Found(Vec<Unit>),
     /// The scan failed (it is tried again).
-    Failed(Failure),
+    Failed(ErrorReport),
 }
 
 /// Why a motion was stopped before it ended by itself.
@@ -191,7 +192,10 @@ impl Hub {
                 Ok(found) if !found.is_empty() => break found,
                 Ok(_) => {
                     let what = format!("no {} answered on {}", self.device.unit_key(), self.device.port());
-                    self.units.send_replace(Units::Failed(Failure { kind: "timeout", message: what }));
+                    self.units.send_replace(Units::Failed(ErrorReport::classed(
+                        ErrorClass::Transport(TransportKind::Timeout),
+                        what,
+                    )));
                 }
                 Err(e) => {
                     self.units.send_replace(Units::Failed(e));
@@ -276,11 +280,11 @@ impl Hub {
     }
 
     /// Checks that `page` controls.
-    pub fn check_control(&self, page: u64) -> Result<(), Failure> {
+    pub fn check_control(&self, page: u64) -> Result<(), ErrorReport> {
         if lock(&self.state).controller == Some(page) {
             Ok(())
         } else {
-            Err(Failure::usage("this page is read-only: another page controls the console"))
+            Err(ErrorReport::usage("this page is read-only: another page controls the console"))
         }
     }
 
@@ -293,13 +297,13 @@ impl Hub {
         what: &str,
         jog: bool,
         motion: DeviceMotion,
-    ) -> Result<(), Failure> {
+    ) -> Result<(), ErrorReport> {
         let mut st = lock(&self.state);
         if st.controller != Some(page) {
-            return Err(Failure::usage("this page is read-only: another page controls the console"));
+            return Err(ErrorReport::usage("this page is read-only: another page controls the console"));
         }
         if let Some(m) = &st.motion {
-            return Err(Failure::usage(format!("{} of {} is under way: stop it first", m.what, m.unit)));
+            return Err(ErrorReport::usage(format!("{} of {} is under way: stop it first", m.what, m.unit)));
         }
         let id = st.next_motion;
         st.next_motion += 1;
@@ -342,7 +346,7 @@ impl Hub {
         };
         self.notify(motion_message("running", None, None, None, None, None));
         enum End {
-            Done(Result<Report, Failure>),
+            Done(Result<Report, ErrorReport>),
             Stopped(StopReason),
         }
         let end = loop {
@@ -421,7 +425,7 @@ impl Hub {
     /// The Stop button of any page (a read-only page may stop too: a stop never sets anything in motion).
     /// Stops the console's motion, and `unit` if the motion was not its own (or none ran); the answer to the
     /// page (the motion's own end is told by its task, with the report of its stop).
-    pub async fn stop(self: &Arc<Self>, unit: Option<u8>) -> Result<Message, Failure> {
+    pub async fn stop(self: &Arc<Self>, unit: Option<u8>) -> Result<Message, ErrorReport> {
         let running = lock(&self.state).motion.as_mut().map(|m| (m.unit, m.cancel.take()));
         let motion_unit = match running {
             Some((u, Some(cancel))) => {
@@ -448,7 +452,7 @@ impl Hub {
 
     /// Ends the console: pages are told to go, the motion under way is stopped (and its stop awaited),
     /// sampling ends, and whatever the session still has in motion is stopped. Returns what was stopped.
-    pub async fn shutdown(self: &Arc<Self>) -> Result<String, Failure> {
+    pub async fn shutdown(self: &Arc<Self>) -> Result<String, ErrorReport> {
         self.shutdown.send_replace(true);
         let motion = lock(&self.state).motion.as_mut().map(|m| (m.cancel.take(), m.task.take()));
         if let Some((cancel, task)) = motion {

@@ -49,50 +49,55 @@ impl Device for Fake {
     fn port(&self) -> String {
         "fake".into()
     }
-    fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, Failure>> {
+    fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, ErrorReport>> {
         Box::pin(async { Ok(Vec::new()) })
     }
-    fn sample<'a>(&'a self, _units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, Failure>>> {
+    fn sample<'a>(&'a self, _units: &'a [Unit]) -> BoxFuture<'a, Vec<Result<Sample, ErrorReport>>> {
         Box::pin(async { Vec::new() })
     }
-    fn move_to(self: Arc<Self>, _unit: u8, _target: f64, _speed: Option<f64>) -> Result<DeviceMotion, Failure> {
+    fn move_to(self: Arc<Self>, _unit: u8, _target: f64, _speed: Option<f64>) -> Result<DeviceMotion, ErrorReport> {
         Ok(self.forever())
     }
-    fn jog(self: Arc<Self>, _unit: u8, _direction: JogDirection, _speed: Option<f64>) -> Result<DeviceMotion, Failure> {
+    fn jog(
+        self: Arc<Self>,
+        _unit: u8,
+        _direction: JogDirection,
+        _speed: Option<f64>,
+    ) -> Result<DeviceMotion, ErrorReport> {
         Ok(self.forever())
     }
     fn stop(self: Arc<Self>, unit: u8) -> DeviceMotion {
         self.stops.fetch_add(1, Ordering::SeqCst);
         Box::pin(async move { Ok(serde_json::json!({"action": "stop", "drive": unit})) })
     }
-    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
+    fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, ErrorReport>> {
         self.stop_started.fetch_add(1, Ordering::SeqCst);
         Box::pin(async { Ok(String::new()) })
     }
     fn actions(&self) -> Vec<Action> {
         Vec::new()
     }
-    fn action(self: Arc<Self>, _unit: u8, name: &str) -> Result<DeviceMotion, Failure> {
-        Err(Failure::usage(name))
+    fn action(self: Arc<Self>, _unit: u8, name: &str) -> Result<DeviceMotion, ErrorReport> {
+        Err(ErrorReport::usage(name))
     }
     fn params(&self) -> Vec<Param> {
         Vec::new()
     }
-    fn read_param(self: Arc<Self>, _unit: u8, _name: String) -> BoxFuture<'static, Result<Report, Failure>> {
-        Box::pin(async { Err(Failure::usage("none")) })
+    fn read_param(self: Arc<Self>, _unit: u8, _name: String) -> BoxFuture<'static, Result<Report, ErrorReport>> {
+        Box::pin(async { Err(ErrorReport::usage("none")) })
     }
     fn write_param(
         self: Arc<Self>,
         _unit: u8,
         _name: String,
         _value: String,
-    ) -> BoxFuture<'static, Result<Report, Failure>> {
-        Box::pin(async { Err(Failure::usage("none")) })
+    ) -> BoxFuture<'static, Result<Report, ErrorReport>> {
+        Box::pin(async { Err(ErrorReport::usage("none")) })
     }
-    fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<Report, Failure>> {
-        Box::pin(async { Err(Failure::usage("none")) })
+    fn errors(self: Arc<Self>, _unit: u8) -> BoxFuture<'static, Result<Report, ErrorReport>> {
+        Box::pin(async { Err(ErrorReport::usage("none")) })
     }
-    fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, Failure>> {
+    fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, ErrorReport>> {
         Box::pin(async { Ok(String::new()) })
     }
 }
