@@ -249,7 +249,7 @@ pub enum Action {
 }
 
 /// The parser of the SCU's `--variant` / `--sim-variant`: a variant's name (checked, its description in
-/// `--help`), kept as the text [`Variants::parse_all`] and the emulator's configuration take.
+/// `--help`), kept as the text [`motionlink_scu::Variants::parse_all`] and the emulator's configuration take.
 pub(crate) fn variant_name() -> impl clap::builder::TypedValueParser<Value = String> {
     use clap::builder::TypedValueParser;
     common::variant_parser::<motionlink_scu::Variant>().map(|v| v.to_string())
