@@ -8,61 +8,26 @@ use motionlink_compax::probe::{parse_drives, probe, save_profile, use_profile, C
 use motionlink_compax::session::{EchoForm, Op};
 use motionlink_compax::sim::{Emulator, FirmwareVariant, SimConfig, Variant};
 use motionlink_compax::wire::Mode;
-use motionlink_link::clock::{Clock, ManualClock, ParticipantGuard};
-use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::pipe::PipeConfig;
 use motionlink_link::probe::{CheckResult, PortKind, ProbeSetup};
 use motionlink_link::profile::Profiles;
 
 use crate::support::a;
 
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Arc;
-use std::time::Duration;
+/// The drives on the workspace's rig (the test thread among the clock's participants).
+type Rig = motionlink_testkit::rig::Rig<Emulator>;
 
-use motionlink_link::link::Link;
-use motionlink_link::LinkError;
-
-/// A link that counts the telegrams sent.
-struct Counted {
-    inner: Box<dyn Link>,
-    sent: Arc<AtomicUsize>,
-}
-
-impl Link for Counted {
-    fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
-        self.sent.fetch_add(1, Ordering::SeqCst);
-        self.inner.send(bytes)
-    }
-    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
-        self.inner.recv(buf, timeout)
-    }
-    fn discard_input(&mut self) -> Result<(), LinkError> {
-        self.inner.discard_input()
-    }
-    fn describe(&self) -> String {
-        self.inner.describe()
-    }
-}
-
-type Me = (ManualClock, ParticipantGuard);
-
-fn emulated(variants: &[Variant], p196: u32) -> (Me, EmulatorHost<Emulator>, Client) {
-    let clock = ManualClock::new_auto();
-    let me = clock.reserve_participant().enter();
+fn emulated(variants: &[Variant], p196: u32) -> (Rig, Client) {
     let mut cfg = SimConfig::bus(&[1, 3], p196, 9600);
     cfg.variants = variants.to_vec();
-    let host = EmulatorHost::new(Emulator::new(cfg).unwrap(), clock.shared(), PipeConfig::paced(9600));
-    let client = Client::with_link(
-        Box::new(host.connect().0),
-        clock.shared(),
-        Config::new(Mode::from_p196(p196).unwrap(), 9600),
-    )
-    .unwrap();
-    ((clock, me), host, client)
+    let rig = Rig::new(Emulator::new(cfg).unwrap(), PipeConfig::paced(9600)).with_test_thread();
+    let config = Config::new(Mode::from_p196(p196).unwrap(), 9600);
+    let client = Client::with_link(rig.link().unwrap(), rig.shared_clock(), config).unwrap();
+    (rig, client)
 }
 
 fn probed(variants: &[Variant], p196: u32) -> CompaxProbeReport {
-    let (_me, _host, client) = emulated(variants, p196);
+    let (_rig, client) = emulated(variants, p196);
     let report = probe(&client, &ProbeSetup::new("sim", PortKind::Sim, 9600), &parse_drives("1-4").unwrap()).unwrap();
     assert!(client.started().is_empty(), "nothing set in motion");
     client.close().unwrap();
@@ -116,14 +81,11 @@ fn each_variant_shows_as_unsupported_in_its_own_check_and_nowhere_else() {
 
 #[test]
 fn a_wrong_mode_finds_no_drive_and_says_why() {
-    let (_me, _host, client) = emulated(&[], 8);
+    let (rig, client) = emulated(&[], 8);
     // The drives want a BCC (P196 8); this session sends none.
-    let bus = Client::with_link(
-        Box::new(_host.connect().0),
-        client.driver().clock().clone(),
-        Config::new(Mode::from_p196(0).unwrap(), 9600),
-    )
-    .unwrap();
+    let bus =
+        Client::with_link(rig.link().unwrap(), rig.shared_clock(), Config::new(Mode::from_p196(0).unwrap(), 9600))
+            .unwrap();
     drop(client);
     let r = probe(&bus, &ProbeSetup::new("sim", PortKind::Sim, 9600), &parse_drives("1").unwrap()).unwrap();
     assert!(r.devices.is_empty());
@@ -146,7 +108,7 @@ fn drives_are_a_list_or_ranges_and_bad_ones_are_named() {
 fn a_saved_profile_seeds_the_drive_and_its_echo_probe_disappears() {
     let dir = std::env::temp_dir().join(format!("motionlink-compax-profile-{}", std::process::id()));
     let path = dir.join("profiles.toml");
-    let (_me, host, client) = emulated(&[Variant::EchoWithoutAddress], 0);
+    let (rig, client) = emulated(&[Variant::EchoWithoutAddress], 0);
     let mut report =
         probe(&client, &ProbeSetup::new("bus", PortKind::Sim, 9600), &parse_drives("1,3").unwrap()).unwrap();
     client.close().unwrap();
@@ -156,16 +118,15 @@ fn a_saved_profile_seeds_the_drive_and_its_echo_probe_disappears() {
     let text = std::fs::read_to_string(&path).unwrap();
     assert!(text.contains("echo_form = \"without_address\""), "{text}");
 
-    let sent = Arc::new(AtomicUsize::new(0));
     let fresh = || {
-        let link = Counted { inner: Box::new(host.connect().0), sent: Arc::clone(&sent) };
-        Client::with_link(Box::new(link), _me.0.shared(), Config::new(Mode::from_p196(0).unwrap(), 9600)).unwrap()
+        Client::with_link(rig.link().unwrap(), rig.shared_clock(), Config::new(Mode::from_p196(0).unwrap(), 9600))
+            .unwrap()
     };
     let client = fresh();
     let used = use_profile(&client, &profiles, "bus", a(3)).unwrap();
     assert_eq!(used.reference.as_deref(), Some(report.saved[1].as_str()));
     assert_eq!(client.driver().with_session(|s| s.echo_form(a(3))), Some(EchoForm::WithoutAddress));
-    let echoes = || sent.load(Ordering::SeqCst);
+    let echoes = || rig.sent().len();
     let before = echoes();
     client.run(Op::ProbeEcho(a(3))).unwrap();
     assert_eq!(echoes(), before, "known from the profile: no echo asked for");

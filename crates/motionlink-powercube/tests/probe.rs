@@ -3,17 +3,12 @@
 //! profile seeds a later session (whose probe exchange disappears) only when the module's identity matches.
 
 use motionlink_powercube::PortLink;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Arc;
-use std::time::Duration;
 
 use motionlink_link::can::{CanBus, CanBusConfig};
-use motionlink_link::clock::{Clock, ManualClock, ParticipantGuard};
-use motionlink_link::link::Link;
-use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::clock::{Clock, ManualClock};
+use motionlink_link::pipe::PipeConfig;
 use motionlink_link::probe::{CheckResult, PortKind, ProbeSetup};
 use motionlink_link::profile::Profiles;
-use motionlink_link::LinkError;
 use motionlink_powercube::client::{Client, Config};
 use motionlink_powercube::model::Address;
 use motionlink_powercube::probe::{probe, save_profile, use_profile, PowercubeProbeReport};
@@ -21,39 +16,13 @@ use motionlink_powercube::session::{ModuleFindings, Op};
 use motionlink_powercube::sim::{FirmwareVariant, SimConfig, Variant};
 use motionlink_powercube::Emulator;
 
-/// A link that counts the telegrams sent.
-struct Counted {
-    inner: Box<dyn Link>,
-    sent: Arc<AtomicUsize>,
-}
+/// The modules on the workspace's rig (the test thread among the clock's participants).
+type Rig = motionlink_testkit::rig::Rig<Emulator>;
 
-impl Link for Counted {
-    fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
-        self.sent.fetch_add(1, Ordering::SeqCst);
-        self.inner.send(bytes)
-    }
-    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
-        self.inner.recv(buf, timeout)
-    }
-    fn discard_input(&mut self) -> Result<(), LinkError> {
-        self.inner.discard_input()
-    }
-    fn describe(&self) -> String {
-        self.inner.describe()
-    }
-}
-
-/// The test thread's place among the clock's participants (held while the client is used).
-type Me = (ManualClock, ParticipantGuard);
-
-fn bus(config: &SimConfig) -> (Me, Client, Arc<AtomicUsize>) {
-    let clock = ManualClock::new_auto();
-    let me = clock.reserve_participant().enter();
-    let host = EmulatorHost::new(Emulator::new(config), clock.shared(), PipeConfig::paced(9_600));
-    let sent = Arc::new(AtomicUsize::new(0));
-    let link = Counted { inner: Box::new(host.connect().0), sent: Arc::clone(&sent) };
-    let client = Client::with_link(PortLink::Rs232(Box::new(link)), clock.shared(), Config::rs232()).unwrap();
-    ((clock, me), client, sent)
+fn bus(config: &SimConfig) -> (Rig, Client) {
+    let rig = Rig::new(Emulator::new(config), PipeConfig::paced(9_600)).with_test_thread();
+    let client = Client::with_link(PortLink::Rs232(rig.link().unwrap()), rig.shared_clock(), Config::rs232()).unwrap();
+    (rig, client)
 }
 
 fn config(variants: &[Variant]) -> SimConfig {
@@ -63,7 +32,7 @@ fn config(variants: &[Variant]) -> SimConfig {
 }
 
 fn probed(variants: &[Variant]) -> PowercubeProbeReport {
-    let (_clock, client, _) = bus(&config(variants));
+    let (_rig, client) = bus(&config(variants));
     let report = probe(&client, &ProbeSetup::new("sim", PortKind::Sim, 9_600)).unwrap();
     assert!(client.started().is_empty(), "nothing set in motion");
     client.close().unwrap();
@@ -117,7 +86,7 @@ fn a_saved_profile_seeds_the_module_and_its_probe_exchange_disappears() {
     let dir = std::env::temp_dir().join(format!("motionlink-pc-profile-{}", std::process::id()));
     let path = dir.join("profiles.toml");
     let setup = ProbeSetup::new("/dev/ttyS9", PortKind::Sim, 9_600);
-    let (_clock, client, _) = bus(&config(&[Variant::NoPosStateDio]));
+    let (_rig, client) = bus(&config(&[Variant::NoPosStateDio]));
     let mut report = probe(&client, &setup).unwrap();
     client.close().unwrap();
     let mut profiles = Profiles::load(&path).unwrap();
@@ -125,22 +94,22 @@ fn a_saved_profile_seeds_the_module_and_its_probe_exchange_disappears() {
     assert_eq!(report.saved.len(), 2);
 
     let a1 = Address::new(1).unwrap();
-    let (_clock, client, sent) = bus(&config(&[Variant::NoPosStateDio]));
+    let (rig, client) = bus(&config(&[Variant::NoPosStateDio]));
     let used = use_profile(&client, &profiles, "/dev/ttyS9", a1).unwrap();
     assert_eq!(used.reference.as_deref(), Some(report.saved[0].as_str()));
     assert_eq!(client.session(|s| s.findings(a1)).pos_state_dio, Some(false));
-    let before = sent.load(Ordering::SeqCst);
+    let before = rig.sent().len();
     client.run(Op::ProbePosStateDio(a1)).unwrap();
-    assert_eq!(sent.load(Ordering::SeqCst), before, "known from the profile: nothing sent");
+    assert_eq!(rig.sent().len(), before, "known from the profile: nothing sent");
     // Module 17 was not looked up: its probe is made (and sends).
     client.run(Op::ProbePosStateDio(Address::new(17).unwrap())).unwrap();
-    assert!(sent.load(Ordering::SeqCst) > before);
+    assert!(rig.sent().len() > before);
     client.close().unwrap();
 
     // Another module at address 1 (another serial number): ignored, with a notice.
     let mut other = config(&[]);
     other.modules[0].serial += 1;
-    let (_clock, client, _) = bus(&other);
+    let (_rig, client) = bus(&other);
     let used = use_profile(&client, &profiles, "/dev/ttyS9", a1).unwrap();
     assert_eq!(used.reference, None);
     assert!(used.notices[0].contains("not used") && used.notices[0].contains("(address 1)"), "{:?}", used.notices);
