@@ -106,8 +106,12 @@ fn recv_until(ws: &mut Ws, timeout: Duration, mut pred: impl FnMut(&Value) -> bo
                 }
             }
             Ok(_) => {}
+            // A read timeout, or a signal that interrupted the read (EINTR): read on until the deadline.
             Err(tungstenite::Error::Io(e))
-                if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut | std::io::ErrorKind::Interrupted
+                ) => {}
             Err(e) => panic!("WebSocket read: {e}"),
         }
     }
