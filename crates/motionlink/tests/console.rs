@@ -395,7 +395,9 @@ fn a_parameter_write_shows_its_read_back() {
     // A bad value is refused with its reason, and nothing is written.
     send(&mut ws, json!({"type": "write_param", "drive": 1, "name": "P3", "value": "abc"}));
     let v = recv_until(&mut ws, Duration::from_secs(10), of_type("failed")).expect("refused");
-    assert_eq!(v["error"]["kind"], "usage", "{v}");
+    // The error as the command line's `--json` gives it (`ErrorReport`).
+    assert_eq!((&v["error"]["kind"], &v["error"]["exit_code"]), (&json!("usage"), &json!(2)), "{v}");
+    assert_eq!(v["error"]["message"], v["message"], "{v}");
 }
 
 #[test]
