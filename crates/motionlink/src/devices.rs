@@ -11,6 +11,7 @@ use clap::error::ErrorKind;
 use clap::parser::ValueSource;
 
 use motionlink_link::devices::{load_with, shown, Device, FAMILIES};
+use motionlink_link::table;
 
 use crate::common::{classified, CliError};
 
@@ -185,10 +186,9 @@ fn check_keys(cli: &clap::Command, family: &str, device: &Device, place: &str) -
         if keys.contains(key) {
             continue;
         }
-        // The nearest key, if it is near: a third of the key's letters at most (at least one) differ.
-        let near = (key.chars().count() / 3).max(1);
-        let nearest = keys.iter().min_by_key(|k| edit_distance(k, key)).filter(|k| edit_distance(k, key) <= near);
-        let hint = nearest.map(|k| format!(" (did you mean `{k}`?)")).unwrap_or_default();
+        // The nearest keys, if near, by the rule of every "did you mean" of motionlink.
+        let near = table::nearest(key, keys.iter().map(String::as_str));
+        let hint = table::did_you_mean(&near).map(|d| format!(" ({d})")).unwrap_or_default();
         let why = if NOT_FROM_THE_FILE.contains(&key.as_str()) { " (give it on the command line)" } else { "" };
         return Err(CliError::usage(format!(
             "{place}: unknown key `{key}`{why}{hint}; the {family} options are: {}",
@@ -259,22 +259,6 @@ fn insertion_point(cli: &clap::Command, args: &[OsString], levels: &[Level<'_>])
         }
     }
     args.len()
-}
-
-/// The number of single-character edits between `a` and `b`.
-fn edit_distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut diagonal = row[0];
-        row[0] = i + 1;
-        for (j, cb) in b.iter().enumerate() {
-            let next = (diagonal + usize::from(ca != *cb)).min(row[j] + 1).min(row[j + 1] + 1);
-            diagonal = row[j + 1];
-            row[j + 1] = next;
-        }
-    }
-    row[b.len()]
 }
 
 #[cfg(test)]
@@ -351,13 +335,5 @@ mod tests {
         let cli = <crate::Cli as clap::CommandFactory>::command();
         let unknown = format!("{file}nonsense = 1\n");
         assert!(with_device_options_from(&args, cli, Some(PathBuf::from("d.toml")), |_| Ok(unknown.clone())).is_ok());
-    }
-
-    #[test]
-    fn edit_distance_counts_single_edits() {
-        assert_eq!(edit_distance("functions", "functoins"), 2);
-        assert_eq!(edit_distance("module", "modules"), 1);
-        assert_eq!(edit_distance("", "abc"), 3);
-        assert_eq!(edit_distance("baud", "baud"), 0);
     }
 }

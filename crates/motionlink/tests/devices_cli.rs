@@ -111,7 +111,7 @@ fn a_devices_options_apply_and_the_command_line_wins() {
 #[test]
 fn a_wrong_key_or_value_is_named_with_the_file_and_the_device() {
     let e = usage_error(&with_devices(&["scu", "--device", "typo", "info"]));
-    assert!(e.contains("[device.typo]: unknown key `functoins` (did you mean `functions`?)"), "{e}");
+    assert!(e.contains("[device.typo]: unknown key `functoins` (did you mean functions?)"), "{e}");
     assert!(e.contains("the scu options are: ") && e.contains("speed_mode") && e.contains("tolerance"), "{e}");
     assert!(e.contains(" speed,") && e.contains("sim_preset"), "actions' and the console's options: {e}");
     assert!(e.contains("devices-"), "the file is named: {e}");
