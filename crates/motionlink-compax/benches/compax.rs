@@ -23,6 +23,7 @@ use motionlink_compax::{AsyncClient, Client, Emulator};
 use motionlink_link::link::{char_time, Parity};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::RealClock;
+use motionlink_testkit::load::Load;
 
 /// Build + parse rounds per second the codec should reach.
 const CODEC_TARGET_PER_S: f64 = 20e6;
@@ -96,39 +97,6 @@ fn build_and_parse(c: &mut Criterion) {
         CODEC_TARGET_PER_S / 1e6,
         met(rate >= CODEC_TARGET_PER_S)
     );
-}
-
-/// Two threads that keep a core each busy until dropped: the load of a busy machine beside the session.
-struct Load {
-    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
-    threads: Vec<std::thread::JoinHandle<()>>,
-}
-
-impl Load {
-    fn start(n: usize) -> Load {
-        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-        let threads = (0..n)
-            .map(|_| {
-                let stop = stop.clone();
-                std::thread::spawn(move || {
-                    let mut x = 0u64;
-                    while !stop.load(std::sync::atomic::Ordering::Relaxed) {
-                        x = black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
-                    }
-                })
-            })
-            .collect();
-        Load { stop, threads }
-    }
-}
-
-impl Drop for Load {
-    fn drop(&mut self) {
-        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
-        for t in self.threads.drain(..) {
-            let _ = t.join();
-        }
-    }
 }
 
 fn poll_31_with(c: &mut Criterion, baud: u32, loaded: bool) {

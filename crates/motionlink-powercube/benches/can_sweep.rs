@@ -14,8 +14,6 @@
 //! a quick run.
 
 use std::hint::black_box;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
@@ -27,6 +25,7 @@ use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::wire::can::{to_frame, Role};
 use motionlink_powercube::wire::Request;
 use motionlink_powercube::Emulator;
+use motionlink_testkit::load::Load;
 
 const BITRATE: u32 = 1_000_000;
 const MODULES: u8 = 31;
@@ -71,39 +70,6 @@ fn sweep(bus: &Client, addresses: &[Address]) {
     }
 }
 
-/// Two threads that keep a core busy each until dropped: the load beside the session.
-struct Load {
-    stop: Arc<AtomicBool>,
-    threads: Vec<std::thread::JoinHandle<()>>,
-}
-
-impl Load {
-    fn start() -> Load {
-        let stop = Arc::new(AtomicBool::new(false));
-        let threads = (0..2)
-            .map(|_| {
-                let stop = Arc::clone(&stop);
-                std::thread::spawn(move || {
-                    let mut x = 0u64;
-                    while !stop.load(Ordering::Relaxed) {
-                        x = black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
-                    }
-                })
-            })
-            .collect();
-        Load { stop, threads }
-    }
-}
-
-impl Drop for Load {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        for t in self.threads.drain(..) {
-            let _ = t.join();
-        }
-    }
-}
-
 fn measured_rate(bus: &Client, addresses: &[Address]) -> f64 {
     let sweeps = 300;
     let start = Instant::now();
@@ -120,7 +86,7 @@ fn bench(c: &mut Criterion) {
     group.sample_size(30).measurement_time(Duration::from_secs(4));
     group.bench_function("sweep ActPos of 31 modules at 1 Mbit/s, quiet", |b| b.iter(|| sweep(&bus, &addresses)));
     {
-        let _load = Load::start();
+        let _load = Load::start(2);
         group.bench_function("sweep ActPos of 31 modules at 1 Mbit/s, two CPU-bound threads beside", |b| {
             b.iter(|| sweep(&bus, &addresses))
         });
@@ -129,7 +95,7 @@ fn bench(c: &mut Criterion) {
 
     let quiet = measured_rate(&bus, &addresses);
     let loaded = {
-        let _load = Load::start();
+        let _load = Load::start(2);
         measured_rate(&bus, &addresses)
     };
     let (plain, stuffed, worst) = bits_per_sweep();

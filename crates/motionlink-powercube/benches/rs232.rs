@@ -6,13 +6,12 @@
 //! run.
 
 use std::hint::black_box;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use motionlink_powercube::wire::rs232::{self, Rs232Decoder, TelKind};
 use motionlink_powercube::wire::Payload;
+use motionlink_testkit::load::Load;
 
 const BATCH: u64 = 1_000;
 
@@ -26,39 +25,6 @@ fn round_trip(decoder: &mut Rs232Decoder, payload: &Payload, address: u8) -> usi
         }
     }
     len
-}
-
-/// Two threads that keep a core busy each until dropped: the load beside the codec.
-struct Load {
-    stop: Arc<AtomicBool>,
-    threads: Vec<std::thread::JoinHandle<()>>,
-}
-
-impl Load {
-    fn start() -> Load {
-        let stop = Arc::new(AtomicBool::new(false));
-        let threads = (0..2)
-            .map(|_| {
-                let stop = Arc::clone(&stop);
-                std::thread::spawn(move || {
-                    let mut x = 0u64;
-                    while !stop.load(Ordering::Relaxed) {
-                        x = black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
-                    }
-                })
-            })
-            .collect();
-        Load { stop, threads }
-    }
-}
-
-impl Drop for Load {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        for t in self.threads.drain(..) {
-            let _ = t.join();
-        }
-    }
 }
 
 /// Frames per second over 5 million round trips (alternating the two frames).
@@ -94,7 +60,7 @@ fn bench(c: &mut Criterion) {
         })
     });
     {
-        let _load = Load::start();
+        let _load = Load::start(2);
         group.bench_function("encode+decode 1000 escaped frames, two CPU-bound threads beside", |b| {
             let mut decoder = Rs232Decoder::new();
             b.iter(|| {
@@ -112,7 +78,7 @@ fn bench(c: &mut Criterion) {
     // The numbers the issue asks for, printed plainly.
     let quiet = rate(&halt, &set);
     let loaded = {
-        let _load = Load::start();
+        let _load = Load::start(2);
         rate(&halt, &set)
     };
     for (name, r) in [("quiet", quiet), ("loaded (two CPU-bound threads)", loaded)] {

@@ -28,7 +28,7 @@
 //!   per variant.
 
 use std::hint::black_box;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -40,6 +40,7 @@ use motionlink_scu::model::DataIndex;
 use motionlink_scu::wire::*;
 use motionlink_scu::{AsyncClient, Client, Config};
 use motionlink_scu::{Emulator, SimConfig};
+use motionlink_testkit::load::Load;
 
 /// Encodes and decodes `request` and `reply` once; returns something that depends on every step.
 fn exchange(
@@ -114,40 +115,6 @@ fn codec(c: &mut Criterion) {
         );
     }
     g.finish();
-}
-
-/// Threads that keep a core busy each, until dropped: the bench's own load.
-struct Load {
-    stop: Arc<AtomicBool>,
-    threads: Vec<std::thread::JoinHandle<u64>>,
-}
-
-impl Load {
-    fn start(threads: usize) -> Load {
-        let stop = Arc::new(AtomicBool::new(false));
-        let threads = (0..threads)
-            .map(|_| {
-                let stop = Arc::clone(&stop);
-                std::thread::spawn(move || {
-                    let mut x = 0u64;
-                    while !stop.load(Ordering::Relaxed) {
-                        x = black_box(x.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1));
-                    }
-                    x
-                })
-            })
-            .collect();
-        Load { stop, threads }
-    }
-}
-
-impl Drop for Load {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        for t in self.threads.drain(..) {
-            let _ = t.join();
-        }
-    }
 }
 
 fn client_on_emulator() -> Client {
