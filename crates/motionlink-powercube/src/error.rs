@@ -373,10 +373,23 @@ pub enum Error {
         /// What went wrong while cleaning up after it.
         also: Box<Error>,
     },
-    /// Modules this session set in motion could not be confirmed stopped when it ended: no Halt by address
-    /// was acknowledged, a Halt was broadcast and the watchdog refresh stopped.
+    /// Modules this session set in motion could not be confirmed stopped (`stop_started`, and after a
+    /// motion the guard ended): no Halt by address was acknowledged, a Halt was broadcast. The end of a
+    /// session says the same as [`Error::CloseUnconfirmed`].
     #[error("module {} set in motion by this session could not be confirmed stopped ({detail}): the axis may still be moving{}", list(addresses), if *watchdog_armed { "; its watchdog is online and no longer refreshed, so the module halts itself within 50 ms of the last refresh that reached it" } else { "" })]
     StopUnconfirmed {
+        /// The modules.
+        addresses: Vec<Address>,
+        /// Why.
+        detail: String,
+        /// A watchdog this session switched on is left online (no longer refreshed).
+        watchdog_armed: bool,
+    },
+    /// The end of the session could not confirm the stop of modules it had set in motion: no Halt by
+    /// address was acknowledged, a Halt was broadcast and the watchdog refresh stopped (as SCU's and
+    /// COMPAX's `CloseUnconfirmed`).
+    #[error("closing the session: module {} set in motion by this session could not be confirmed stopped ({detail}): the axis may still be moving{}", list(addresses), if *watchdog_armed { "; its watchdog is online and no longer refreshed, so the module halts itself within 50 ms of the last refresh that reached it" } else { "" })]
+    CloseUnconfirmed {
         /// The modules.
         addresses: Vec<Address>,
         /// Why.
@@ -467,7 +480,9 @@ impl Classify for Error {
                 ErrorClass::Transport(kind) => ErrorClass::Transport(kind),
                 _ => ErrorClass::Transport(TransportKind::Io),
             },
-            Error::StopUnconfirmed { .. } => ErrorClass::Transport(TransportKind::Timeout),
+            Error::StopUnconfirmed { .. } | Error::CloseUnconfirmed { .. } => {
+                ErrorClass::Transport(TransportKind::Timeout)
+            }
             Error::Refused { .. } => ErrorClass::Refused,
             Error::Device { .. }
             | Error::WatchdogExpired { .. }

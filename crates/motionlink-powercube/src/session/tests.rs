@@ -303,7 +303,11 @@ fn a_close_that_cannot_confirm_the_stop_says_so_and_leaves_the_watchdog_to_stop_
     b.deaf = true; // the modules' answers are lost from now on
     let sent_before = b.sent.len();
     let err = b.close().unwrap_err();
-    assert!(err.contains("could not be confirmed stopped") && err.contains("halts itself within 50 ms"), "{err}");
+    assert!(
+        err.starts_with("closing the session: module 1 set in motion by this session could not be confirmed stopped"),
+        "{err}"
+    );
+    assert!(err.contains("halts itself within 50 ms"), "{err}");
     // It asked for the state three times; silence from a module that answered before: a Halt broadcast
     // (which reaches the module: the bus carries it, only the answers are lost).
     let broadcast = b.sent[sent_before..].iter().any(|(_, w)| frame(w, |id| id == 0x100, Some(&[0x02])));

@@ -30,7 +30,7 @@ fn close_on_a_dead_line_says_the_stop_was_not_confirmed_and_the_watchdog_stops_t
     canbus.drop_next_from_device(u64::MAX);
     let t0 = clock.now();
     let err = bus.close().unwrap_err();
-    assert!(matches!(err, Error::StopUnconfirmed { watchdog_armed: true, .. }), "{err}");
+    assert!(matches!(err, Error::CloseUnconfirmed { watchdog_armed: true, .. }), "{err}");
     assert!(err.is_transport() && err.to_string().contains("the axis may still be moving"), "{err}");
     assert!(clock.now() - t0 < Duration::from_millis(300), "three state polls of 50 ms, then the broadcast");
     clock.sleep(Duration::from_millis(100));

@@ -168,7 +168,12 @@ impl Ctx {
     /// failed, switches off the watchdogs it switched on and restores their Config words; then stops the
     /// refresh. After a failure the watchdogs stay online and the modules halt within 50 ms.
     pub async fn close_sequence(&self) -> Result<(), Error> {
-        let stopped = self.halt_started().await;
+        let stopped = self.halt_started().await.map_err(|e| match e {
+            Error::StopUnconfirmed { addresses, detail, watchdog_armed } => {
+                Error::CloseUnconfirmed { addresses, detail, watchdog_armed }
+            }
+            other => other,
+        });
         let (armed, failed) = {
             let core = self.core();
             let d = &core.duty;
