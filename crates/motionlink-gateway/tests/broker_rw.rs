@@ -25,11 +25,13 @@ async fn ask(c: &mut Client, gw: &str, device: &str, id: &str, op: &str, args: V
     c.reply("me/r", id, 10 * S).await
 }
 
-/// The reply's result without its identity (`family`, `port`, `module`, `drive`), checked to be the device's.
+/// The reply's result without its identity (`family`, `port`, `profile`, `module`, `drive`), checked to be the
+/// device's (no device profile: null, as the command line's `--json` names it).
 fn result(r: &Value, family: &str) -> Value {
     assert_eq!((r["ok"].as_bool(), r["result"]["family"].as_str()), (Some(true), Some(family)), "{r}");
     let mut m = r["result"].as_object().expect("an object").clone();
     assert_eq!(m.remove("port"), Some(json!("sim")), "{r}");
+    assert_eq!(m.remove("profile"), Some(Value::Null), "{r}");
     for k in ["family", "module", "drive"] {
         m.remove(k);
     }
@@ -225,7 +227,7 @@ fn a_device_table_key_no_command_takes_is_refused_naming_it() {
     assert!(err.contains("[device.axis]: unknown key `max_poss`") && err.contains("max_pos"), "{err}");
 }
 
-/// The objects of a list result, each without its `port` (checked to be `sim`) and `profile`.
+/// The objects of a list result, each without its `port` (checked to be `sim`).
 fn listed(r: &Value) -> Vec<Value> {
     assert_eq!(r["ok"], true, "{r}");
     let items = r["result"].as_array().unwrap_or_else(|| panic!("a list: {r}"));

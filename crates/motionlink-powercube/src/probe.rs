@@ -186,3 +186,20 @@ pub fn use_profile(client: &Client, profiles: &Profiles, port: &str, address: Ad
     }
     Ok(used)
 }
+
+/// [`use_profile`] for an [`AsyncClient`](crate::AsyncClient) (the console's and the gateway's).
+#[cfg(feature = "tokio")]
+pub async fn use_profile_async(
+    client: &crate::AsyncClient,
+    profiles: &Profiles,
+    port: &str,
+    address: Address,
+) -> Result<ProfileUse, Error> {
+    let mut used = ProfileUse::default();
+    if profiles.has(FAMILY, port, Some(address.get())) {
+        let info = client.module(address).info().await?;
+        let lookup = profiles.lookup(FAMILY, port, Some(address.get()), &identity_of(&info));
+        used.take(lookup, |f: ModuleFindings| client.session(|s| s.seed_findings(address, f)));
+    }
+    Ok(used)
+}

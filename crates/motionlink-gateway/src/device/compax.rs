@@ -11,6 +11,7 @@ use motionlink_compax::session::{MoveRequest, MoveTarget, TravelLimits, WatchSam
 use motionlink_compax::wire::Address;
 use motionlink_compax::{AsyncClient, DriveOptions, Emulator};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::profile::Profiles;
 use motionlink_link::url::PortUrl;
 use motionlink_link::RealClock;
 use serde_json::Value;
@@ -31,6 +32,8 @@ pub(super) struct Compax {
     client: Arc<AsyncClient>,
     drive: Address,
     port: String,
+    /// The device profile the session took (null: none).
+    profile: Value,
 }
 
 impl Compax {
@@ -39,6 +42,8 @@ impl Compax {
     pub(super) async fn open(
         options: &DriveOptions,
         port: &str,
+        profiles: Option<&Profiles>,
+        name: &str,
     ) -> Result<(Compax, Option<Box<dyn std::any::Any + Send>>), ErrorReport> {
         let url: PortUrl = port.parse().map_err(|e| ErrorReport::usage(format!("port {port:?}: {e}")))?;
         let clock = RealClock::shared();
@@ -52,11 +57,20 @@ impl Compax {
             }
             url => (AsyncClient::open(&url, clock, options.config()).await.map_err(failed)?, None),
         };
-        Ok((Compax { client: Arc::new(client), drive: options.drive, port: port.to_string() }, host))
+        // The drive's device profile, where the profiles name it (S31 and S32), as every command takes it.
+        let profile = match profiles {
+            Some(p) => super::took_profile(
+                name,
+                motionlink_compax::probe::use_profile_async(&client, p, port, options.drive).await,
+            ),
+            None => Value::Null,
+        };
+        Ok((Compax { client: Arc::new(client), drive: options.drive, port: port.to_string(), profile }, host))
     }
 
     fn result(&self, report: &impl serde::Serialize) -> Outcome {
-        identified("compax", &self.port, &[("drive", Value::from(self.drive.get()))], report)
+        let identity = [("profile", self.profile.clone()), ("drive", Value::from(self.drive.get()))];
+        identified("compax", &self.port, &identity, report)
     }
 
     /// The action `op`, its arguments checked by the library's types.

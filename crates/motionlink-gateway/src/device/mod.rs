@@ -6,6 +6,7 @@ use std::future::Future;
 use std::pin::Pin;
 use std::sync::{Arc, Mutex};
 
+use motionlink_link::profile::{ProfileUse, Profiles};
 use serde_json::{Map, Value};
 
 use crate::config::DeviceEntry;
@@ -219,18 +220,32 @@ impl std::fmt::Debug for Device {
 }
 
 impl Device {
-    /// Opens the device of `entry` (its options `spec`), as the command line opens its port.
+    /// Opens the device of `entry` (its options `spec`), as the command line opens its port, and takes its
+    /// device profile from the profiles every command loads ([`profiles`]).
     pub async fn open(entry: &DeviceEntry, spec: &Spec) -> Result<Arc<Device>, ErrorReport> {
+        Device::open_with(entry, spec, profiles().as_ref()).await
+    }
+
+    /// [`Device::open`] with the device profiles `profiles` (`motionlink probe ... --save`): the one of the
+    /// device, where its identity matches, seeds the session (those probes are skipped) and every result
+    /// names it (`"profile"`, null for none), as the command line's `--json` does.
+    pub async fn open_with(
+        entry: &DeviceEntry,
+        spec: &Spec,
+        profiles: Option<&Profiles>,
+    ) -> Result<Arc<Device>, ErrorReport> {
+        let name = entry.name.as_str();
         let (family, host, keys) = match &spec.options {
             FamilyOptions::Scu(o) => {
-                (Family::Scu(scu::Scu::open(o, spec.sim_config.clone(), &entry.port).await?), None, &keys::SCU)
+                let d = scu::Scu::open(o, spec.sim_config.clone(), &entry.port, profiles, name).await?;
+                (Family::Scu(d), None, &keys::SCU)
             }
             FamilyOptions::PowerCube(o) => {
-                let (d, host) = powercube::PowerCube::open(o, &entry.port).await?;
+                let (d, host) = powercube::PowerCube::open(o, &entry.port, profiles, name).await?;
                 (Family::PowerCube(d), host, &keys::POWERCUBE)
             }
             FamilyOptions::Compax(o) => {
-                let (d, host) = compax::Compax::open(o, &entry.port).await?;
+                let (d, host) = compax::Compax::open(o, &entry.port, profiles, name).await?;
                 (Family::Compax(d), host, &keys::COMPAX)
             }
         };
@@ -280,6 +295,37 @@ impl Device {
         };
         drop(device.host);
         r
+    }
+}
+
+/// The device profiles every command loads (`motionlink probe ... --save` writes them: profiles.toml beside
+/// devices.toml); `None` where there is none, or a file that cannot be read (said on stderr: the devices are
+/// then probed as without it).
+pub fn profiles() -> Option<Profiles> {
+    Profiles::load_default().unwrap_or_else(|e| {
+        eprintln!("motionlink gateway: device profiles not used: {e}");
+        None
+    })
+}
+
+/// What device `name` took of the profiles: the reference its results name (`"profile"`, null for none).
+/// Its notices (a profile of another identity) go to stderr; a profile that could not be looked up (the
+/// device did not give its identity) is said there too, and the session probes as without it.
+fn took_profile<E: std::fmt::Display>(name: &str, used: Result<ProfileUse, E>) -> Value {
+    match used {
+        Ok(used) => {
+            for n in &used.notices {
+                eprintln!("motionlink gateway: [device.{name}] profile: {n}");
+            }
+            if let Some(r) = &used.reference {
+                eprintln!("motionlink gateway: [device.{name}] profile: {r}");
+            }
+            used.reference.map_or(Value::Null, Value::from)
+        }
+        Err(e) => {
+            eprintln!("motionlink gateway: [device.{name}] device profile not used: {e}");
+            Value::Null
+        }
     }
 }
 
@@ -354,6 +400,82 @@ mod tests {
             family: family.into(),
             port: port.into(),
             options: options.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(),
+        }
+    }
+
+    /// Profiles at a fresh path, with the profile `probe` saves of the device the options emulate on port
+    /// `sim` (the family's probe on a blocking client over its own emulator of the same options).
+    fn saved_profile(family: &str) -> (Profiles, String) {
+        use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+        use motionlink_link::probe::{PortKind, ProbeSetup};
+        let dir = std::env::temp_dir().join(format!("motionlink-gw-profile-{family}-{}", std::process::id()));
+        let mut profiles = Profiles::empty(dir.join("profiles.toml"));
+        let clock = motionlink_link::RealClock::shared();
+        let setup = ProbeSetup::new("sim", PortKind::Sim, 38_400);
+        let saved = match family {
+            "scu" => {
+                use motionlink_scu::{probe, Client, Emulator};
+                let unit = Emulator::new(motionlink_scu::args::UnitOptions::default().emulated().unwrap()).unwrap();
+                let host = EmulatorHost::new(unit, clock.clone(), PipeConfig::instant());
+                let client = Client::with_connector(host.connector(), clock, Default::default()).unwrap();
+                let mut report = probe::probe(&client, &setup).unwrap();
+                client.close().unwrap();
+                probe::save_profile(&mut report, &mut profiles).unwrap();
+                report.saved
+            }
+            "powercube" => {
+                use motionlink_powercube::{probe, Client, Emulator};
+                let options = motionlink_powercube::args::ModuleOptions::default();
+                let host = EmulatorHost::new(
+                    Emulator::new(&options.emulated().unwrap()),
+                    clock.clone(),
+                    PipeConfig::instant(),
+                );
+                let link: Box<dyn motionlink_link::Link> = Box::new(host.connect().0);
+                let client = Client::with_link(link, clock, options.config(false)).unwrap();
+                let mut report = probe::probe(&client, &setup).unwrap();
+                client.close().unwrap();
+                probe::save_profile(&mut report, &mut profiles).unwrap();
+                report.saved
+            }
+            _ => {
+                use motionlink_compax::{probe, Client, Emulator};
+                let options = motionlink_compax::DriveOptions::default();
+                let host =
+                    EmulatorHost::new(Emulator::new(options.emulated()).unwrap(), clock.clone(), PipeConfig::instant());
+                let client = Client::with_link(Box::new(host.connect().0), clock, options.config()).unwrap();
+                let mut report = probe::probe(&client, &setup, &[options.drive]).unwrap();
+                client.close().unwrap();
+                probe::save_profile(&mut report, &mut profiles).unwrap();
+                report.saved
+            }
+        };
+        let _ = std::fs::remove_dir_all(&dir);
+        assert_eq!(saved.len(), 1, "{saved:?}");
+        (profiles, saved[0].clone())
+    }
+
+    /// A device takes its saved profile as every command does, and every result and sample names it
+    /// (`"profile"`, as the command line's `--json`); without a profile for the device it is null.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_device_takes_its_saved_profile_and_its_results_name_it() {
+        for (family, op) in [("scu", "info"), ("powercube", "state"), ("compax", "status")] {
+            let (profiles, saved) = saved_profile(family);
+            let e = entry(family, "sim", &[]);
+            let spec = Spec::of(&e).unwrap();
+            let device = Device::open_with(&e, &spec, Some(&profiles)).await.unwrap();
+            let Ok(Action::Other(read)) = device.action(op, Map::new()) else { panic!("{family} {op}: a read") };
+            let result = read.await.unwrap();
+            assert_eq!(result["profile"], Value::from(saved.clone()), "{family}: {result}");
+            let (sample, _) = device.sample(0.0).await.unwrap();
+            assert_eq!(sample["profile"], Value::from(saved), "{family}: {sample}");
+            device.close().await.unwrap();
+            // None saved for this device (another port): null, as the command line prints it.
+            let none = Profiles::empty(std::env::temp_dir().join("motionlink-gw-no-profile.toml"));
+            let device = Device::open_with(&e, &spec, Some(&none)).await.unwrap();
+            let Ok(Action::Other(read)) = device.action(op, Map::new()) else { panic!("{family} {op}: a read") };
+            assert_eq!(read.await.unwrap()["profile"], Value::Null, "{family}");
+            device.close().await.unwrap();
         }
     }
 

@@ -4,6 +4,7 @@
 use std::sync::Arc;
 
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::profile::Profiles;
 use motionlink_link::url::PortUrl;
 use motionlink_link::Link;
 use motionlink_link::RealClock;
@@ -28,6 +29,8 @@ pub(super) struct PowerCube {
     module: Address,
     guard: Guard,
     port: String,
+    /// The device profile the session took (null: none).
+    profile: Value,
 }
 
 impl PowerCube {
@@ -36,6 +39,8 @@ impl PowerCube {
     pub(super) async fn open(
         options: &ModuleOptions,
         port: &str,
+        profiles: Option<&Profiles>,
+        name: &str,
     ) -> Result<(PowerCube, Option<Box<dyn std::any::Any + Send>>), ErrorReport> {
         let url: PortUrl = port.parse().map_err(|e| ErrorReport::usage(format!("port {port:?}: {e}")))?;
         let clock = RealClock::shared();
@@ -48,17 +53,27 @@ impl PowerCube {
         } else {
             (AsyncClient::open(&url, clock, options.config(url.is_can())).await.map_err(failed)?, None)
         };
+        // The module's device profile, where the profiles name it (a few reads), as every command takes it.
+        let profile = match profiles {
+            Some(p) => super::took_profile(
+                name,
+                motionlink_powercube::probe::use_profile_async(&client, p, port, options.module).await,
+            ),
+            None => Value::Null,
+        };
         let me = PowerCube {
             client: Arc::new(client),
             module: options.module,
             guard: options.guard(in_process),
             port: port.to_string(),
+            profile,
         };
         Ok((me, host))
     }
 
     fn result(&self, report: &impl serde::Serialize) -> Outcome {
-        identified("powercube", &self.port, &[("module", Value::from(self.module.get()))], report)
+        let identity = [("profile", self.profile.clone()), ("module", Value::from(self.module.get()))];
+        identified("powercube", &self.port, &identity, report)
     }
 
     /// The action `op`, its arguments checked by the library's types.

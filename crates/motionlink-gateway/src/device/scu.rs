@@ -4,6 +4,7 @@
 use std::sync::Arc;
 
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+use motionlink_link::profile::Profiles;
 use motionlink_link::url::PortUrl;
 use motionlink_link::RealClock;
 use motionlink_scu::args::{Checked, RunLimit, UnitOptions};
@@ -11,6 +12,8 @@ use motionlink_scu::model::{find, Actuator, Function, Item, MotionFunction, Posi
 use motionlink_scu::results::{ErrorHistory, RunOutcome, SampleReport, StopResult, StopScope, SwitchedOff};
 use motionlink_scu::session::RunAction;
 use motionlink_scu::{AsyncClient, Emulator, SimConfig};
+
+use serde_json::Value;
 
 use super::{failed, identified, unknown_op, Action, Outcome, Sampling};
 use crate::args::Args;
@@ -24,6 +27,8 @@ const OPS: [&str; 7] = ["move", "run", "stop", "info", "errors", "get", "set"];
 pub(super) struct Scu {
     client: Arc<AsyncClient>,
     port: String,
+    /// The device profile the session took (null: none).
+    profile: Value,
 }
 
 impl Scu {
@@ -33,6 +38,8 @@ impl Scu {
         options: &UnitOptions,
         sim_config: Option<SimConfig>,
         port: &str,
+        profiles: Option<&Profiles>,
+        name: &str,
     ) -> Result<Scu, ErrorReport> {
         let config = options.config().map_err(|e| ErrorReport::usage(e.to_string()))?;
         let url: PortUrl = port.parse().map_err(|e| ErrorReport::usage(format!("port {port:?}: {e}")))?;
@@ -50,11 +57,16 @@ impl Scu {
             url => AsyncClient::open(&url, clock, config).await,
         }
         .map_err(failed)?;
-        Ok(Scu { client: Arc::new(client), port: port.to_string() })
+        // The unit's device profile, where the profiles name the port (two RG), as every command takes it.
+        let profile = match profiles {
+            Some(p) => super::took_profile(name, motionlink_scu::probe::use_profile_async(&client, p, port).await),
+            None => Value::Null,
+        };
+        Ok(Scu { client: Arc::new(client), port: port.to_string(), profile })
     }
 
     fn result(&self, report: &impl serde::Serialize) -> Outcome {
-        identified("scu", &self.port, &[], report)
+        identified("scu", &self.port, &[("profile", self.profile.clone())], report)
     }
 
     /// The action `op`, its arguments checked by the library's types.

@@ -151,6 +151,8 @@ pub fn gateway_of(name: &str, text: &str, env: &[(&str, &str)]) -> Gateway {
         .arg("--config")
         .arg(&file)
         .env_remove("MOTIONLINK_MQTT_PASSWORD")
+        // Device profiles beside a devices.toml of its own (none): not the user's.
+        .env("MOTIONLINK_CONFIG", dir.join("devices.toml"))
         .envs(env.iter().copied())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

@@ -122,24 +122,17 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
             Client::with_link(link, c, options.config(false))
         }
     };
-    let client = client.map_err(|e| crate::common::classified(&e))?;
-    // The device profile of each module (`motionlink probe powercube --save`), where one names the port: read
-    // on the blocking pool, where the session opens.
-    let profiled = match args.modules.is_empty() {
-        true => vec![Address::new(1).map_err(|e| CliError::usage(e.to_string()))?],
-        false => args.modules.clone(),
-    };
-    let port_key = port.to_string();
-    let client = tokio::task::spawn_blocking(move || {
-        if let Some(profiles) = super::profiles() {
-            for a in profiled {
-                super::note_profile(motionlink_powercube::probe::use_profile(&client, &profiles, &port_key, a));
-            }
+    let client = AsyncClient::from_client(client.map_err(|e| crate::common::classified(&e))?);
+    // The device profile of each module (`motionlink probe powercube --save`), where one names the port.
+    if let Some(profiles) = super::profiles() {
+        let profiled = match args.modules.is_empty() {
+            true => vec![Address::new(1).map_err(|e| CliError::usage(e.to_string()))?],
+            false => args.modules.clone(),
+        };
+        for a in profiled {
+            super::note_profile(motionlink_powercube::probe::use_profile_async(&client, &profiles, port, a).await);
         }
-        AsyncClient::from_client(client)
-    })
-    .await
-    .map_err(|e| CliError::transport(format!("the opening task failed: {e}")))?;
+    }
     let guard = options.guard(host.is_some());
     let device = PowerCube {
         client,
