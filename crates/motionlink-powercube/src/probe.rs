@@ -178,13 +178,11 @@ pub fn save_profile(report: &mut PowercubeProbeReport, profiles: &mut Profiles) 
 /// from it (those probes are skipped); another identity leaves it unused with a notice. Nothing is read
 /// where no profile names the module.
 pub fn use_profile(client: &Client, profiles: &Profiles, port: &str, address: Address) -> Result<ProfileUse, Error> {
-    let mut used = ProfileUse::default();
-    if profiles.has(FAMILY, port, Some(address.get())) {
-        let info = client.module(address).info()?;
-        let lookup = profiles.lookup(FAMILY, port, Some(address.get()), &identity_of(&info));
-        used.take(lookup, |f: ModuleFindings| client.session(|s| s.seed_findings(address, f)));
+    if !profiles.has(FAMILY, port, Some(address.get())) {
+        return Ok(ProfileUse::default());
     }
-    Ok(used)
+    let info = client.module(address).info()?;
+    Ok(take_profile(profiles, port, &info, |f| client.session(|s| s.seed_findings(address, f))))
 }
 
 /// [`use_profile`] for an [`AsyncClient`](crate::AsyncClient) (the console's and the gateway's).
@@ -195,11 +193,16 @@ pub async fn use_profile_async(
     port: &str,
     address: Address,
 ) -> Result<ProfileUse, Error> {
-    let mut used = ProfileUse::default();
-    if profiles.has(FAMILY, port, Some(address.get())) {
-        let info = client.module(address).info().await?;
-        let lookup = profiles.lookup(FAMILY, port, Some(address.get()), &identity_of(&info));
-        used.take(lookup, |f: ModuleFindings| client.session(|s| s.seed_findings(address, f)));
+    if !profiles.has(FAMILY, port, Some(address.get())) {
+        return Ok(ProfileUse::default());
     }
-    Ok(used)
+    let info = client.module(address).info().await?;
+    Ok(take_profile(profiles, port, &info, |f| client.session(|s| s.seed_findings(address, f))))
+}
+
+/// Takes the profile of the module `info` describes, where one matches: `seed` gets its findings.
+fn take_profile(profiles: &Profiles, port: &str, info: &ModuleInfo, seed: impl FnOnce(ModuleFindings)) -> ProfileUse {
+    let mut used = ProfileUse::default();
+    used.take(profiles.lookup(FAMILY, port, Some(info.address.get()), &identity_of(info)), seed);
+    used
 }
