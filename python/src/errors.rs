@@ -1,42 +1,28 @@
 //! The one place where a family's error becomes a Python exception: its class
 //! ([`ErrorClass`](motionlink_link::error::ErrorClass)) picks the exception class of `motionlink.errors`,
-//! and the family adds what the device said (a code and its named bits).
+//! and its [`ErrorReport`] (what every front end reports: the kind, the message, the exit code, and the
+//! code and bits the device reported) gives the exception's attributes.
 
-use motionlink_link::error::{Classify, ErrorClass, TransportKind};
-use motionlink_link::flags::{Flag, FlagWord};
+use motionlink_link::error::{Classify, ErrorClass, ErrorReport, TransportKind};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyDict, PyList, PyModule};
 
-/// One named bit of a device's error code or state word.
-pub struct Bit {
-    /// The bit's number as the manual counts (SCU: 1..32; PowerCube: 0..31).
-    pub bit: u32,
-    /// The manual's name.
-    pub name: String,
-    /// What it means.
-    pub cause: String,
-}
-
-/// A failure on its way to Python: its class, its message, and what the device reported.
+/// A failure on its way to Python: its class, and its report.
 pub struct Failure {
-    /// The class (decides the exception class and the exit code).
+    /// The class (decides the exception class).
     pub class: ErrorClass,
-    /// The library's message.
-    pub message: String,
+    /// The report: kind, message, exit code, and what the device reported.
+    pub report: ErrorReport,
     /// "scu", "powercube", "compax", or "" for the bindings themselves.
     pub family: &'static str,
-    /// The device's error code or state word, where it reported one.
-    pub code: Option<u64>,
-    /// The named bits of `code`.
-    pub bits: Vec<Bit>,
 }
 
 impl Failure {
     /// A failure of `class` with `message` and nothing from a device.
     pub fn new(class: ErrorClass, family: &'static str, message: impl Into<String>) -> Self {
-        Failure { class, message: message.into(), family, code: None, bits: Vec::new() }
+        Failure { class, report: ErrorReport::classed(class, message), family }
     }
 
     /// A usage error (a bad argument), found before anything was sent.
@@ -44,20 +30,9 @@ impl Failure {
         Failure::new(ErrorClass::Usage, family, message)
     }
 
-    /// `e` classified, with no device details.
+    /// `e` classified, with what the device reported ([`ErrorReport::of`]).
     pub fn of<E: Classify + std::fmt::Display>(family: &'static str, e: &E) -> Self {
-        Failure::new(e.class(), family, e.to_string())
-    }
-
-    /// The set flags of `word` as bits (numbered from 0, as the PowerCube manual does).
-    pub fn with_word<W: FlagWord>(mut self, word: W) -> Self {
-        self.code = Some(word.raw());
-        self.bits = word
-            .set_flags()
-            .into_iter()
-            .map(|f| Bit { bit: f.mask_u64().trailing_zeros(), name: f.name().to_string(), cause: f.meaning().into() })
-            .collect();
-        self
+        Failure { class: e.class(), report: ErrorReport::of(e), family }
     }
 }
 
@@ -86,14 +61,16 @@ fn errors_module(py: Python<'_>) -> PyResult<&Bound<'_, PyModule>> {
 pub fn to_pyerr(py: Python<'_>, failure: Failure) -> PyErr {
     match build(py, &failure) {
         Ok(e) => e,
-        Err(e) => PyRuntimeError::new_err(format!("{} (and the exception could not be made: {e})", failure.message)),
+        Err(e) => {
+            PyRuntimeError::new_err(format!("{} (and the exception could not be made: {e})", failure.report.message))
+        }
     }
 }
 
 fn build(py: Python<'_>, f: &Failure) -> PyResult<PyErr> {
     let class = errors_module(py)?.getattr(class_name(f.class))?;
     let bits = PyList::empty(py);
-    for b in &f.bits {
+    for b in f.report.device.iter().flat_map(|d| &d.bits) {
         let d = PyDict::new(py);
         d.set_item("bit", b.bit)?;
         d.set_item("name", &b.name)?;
@@ -101,12 +78,12 @@ fn build(py: Python<'_>, f: &Failure) -> PyResult<PyErr> {
         bits.append(d)?;
     }
     let kwargs = PyDict::new(py);
-    kwargs.set_item("kind", f.class.name())?;
-    kwargs.set_item("exit_code", f.class.exit_code())?;
+    kwargs.set_item("kind", f.report.kind.as_ref())?;
+    kwargs.set_item("exit_code", f.report.exit_code)?;
     kwargs.set_item("family", f.family)?;
-    kwargs.set_item("code", f.code)?;
+    kwargs.set_item("code", f.report.device.as_ref().map(|d| d.code))?;
     kwargs.set_item("bits", bits)?;
-    let value = class.call((f.message.as_str(),), Some(&kwargs))?;
+    let value = class.call((f.report.message.as_str(),), Some(&kwargs))?;
     Ok(PyErr::from_value(value))
 }
 
@@ -130,70 +107,25 @@ impl<T, E: IntoFailure> OrRaise<T> for Result<T, E> {
 
 impl IntoFailure for Failure {
     fn failure(&self) -> Failure {
-        Failure {
-            class: self.class,
-            message: self.message.clone(),
-            family: self.family,
-            code: self.code,
-            bits: self.bits.iter().map(|b| Bit { bit: b.bit, name: b.name.clone(), cause: b.cause.clone() }).collect(),
-        }
+        Failure { class: self.class, report: self.report.clone(), family: self.family }
     }
 }
 
 impl IntoFailure for motionlink_scu::Error {
     fn failure(&self) -> Failure {
-        use motionlink_scu::Error as E;
-        let mut f = Failure::of("scu", self);
-        let code = match self {
-            E::MotionEnded { error_code, .. } => Some(*error_code),
-            E::StopUnconfirmed { cause, .. } | E::CloseUnconfirmed { cause, .. } => {
-                let inner = cause.failure();
-                f.code = inner.code;
-                f.bits = inner.bits;
-                None
-            }
-            _ => None,
-        };
-        if let Some(code) = code {
-            f.code = Some(u64::from(code.0));
-            f.bits = code
-                .bits()
-                .map(|b| Bit { bit: u32::from(b.number()), name: b.name().to_string(), cause: b.cause().to_string() })
-                .collect();
-        }
-        f
+        Failure::of("scu", self)
     }
 }
 
 impl IntoFailure for motionlink_powercube::Error {
     fn failure(&self) -> Failure {
-        use motionlink_powercube::Error as E;
-        let f = Failure::of("powercube", self);
-        match self {
-            E::Device { state, .. }
-            | E::Halted { state, .. }
-            | E::MoveTimeout { state, .. }
-            | E::NotReached { state, .. }
-            | E::WatchdogExpired { state, .. } => f.with_word(*state),
-            E::Context { source, .. } | E::FailedDuringMotion { cause: source, .. } => {
-                let inner = source.failure();
-                Failure { code: inner.code, bits: inner.bits, ..f }
-            }
-            E::Also { error, .. } => {
-                let inner = error.failure();
-                Failure { code: inner.code, bits: inner.bits, ..f }
-            }
-            _ => f,
-        }
+        Failure::of("powercube", self)
     }
 }
 
 impl IntoFailure for motionlink_compax::Error {
     fn failure(&self) -> Failure {
-        let mut f = Failure::of("compax", self);
-        // An `Exx` answer is a number, not a word of bits: `code` carries it, the message its meaning.
-        f.code = self.device_code().map(|c| u64::from(c.0));
-        f
+        Failure::of("compax", self)
     }
 }
 

@@ -4,7 +4,7 @@
 use std::fmt;
 use std::time::Duration;
 
-use motionlink_link::error::{Classify, ErrorClass, TransportKind};
+use motionlink_link::error::{Classify, DeviceCode, ErrorClass, TransportKind};
 use motionlink_link::session::SessionError;
 use motionlink_link::LinkError;
 
@@ -315,6 +315,11 @@ impl Classify for Error {
             Error::FailedDuringMotion { cause, .. } => cause.class(),
             Error::SyncIncomplete { source, .. } | Error::NotExecuted { source, .. } => source.class(),
         }
+    }
+
+    /// The drive's `Exx` number ([`Error::device_code`]): a number, not a word of bits.
+    fn reported(&self) -> Option<DeviceCode> {
+        self.device_code().map(|c| DeviceCode { code: u64::from(c.0), bits: Vec::new() })
     }
 }
 

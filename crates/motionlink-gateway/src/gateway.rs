@@ -408,7 +408,7 @@ impl Gateway {
         if let Some(e) = self.unavailable(device) {
             if r.op == "keepalive" {
                 let lapsed = format!("no motion {:?} holds a lease on {device}: its port failed", r.id);
-                return Err(ErrorReport { kind: "no_lease".into(), message: lapsed, exit_code: 2 });
+                return Err(ErrorReport::new("no_lease", lapsed, 2));
             }
             return Err(e);
         }
@@ -429,11 +429,11 @@ impl Gateway {
                     Ok(())
                 }
                 Some(_) => Ok(()),
-                None => Err(ErrorReport {
-                    kind: "no_lease".into(),
-                    message: format!("no motion {:?} holds a lease on {device} (it ended, or its lease lapsed)", r.id),
-                    exit_code: 2,
-                }),
+                None => Err(ErrorReport::new(
+                    "no_lease",
+                    format!("no motion {:?} holds a lease on {device} (it ended, or its lease lapsed)", r.id),
+                    2,
+                )),
             };
         }
         let action = self.devices[device].device.action(&r.op, r.args.clone())?;

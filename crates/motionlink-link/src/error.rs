@@ -89,6 +89,59 @@ impl fmt::Display for ErrorClass {
 pub trait Classify {
     /// The class of this error.
     fn class(&self) -> ErrorClass;
+
+    /// What the device reported with it, where it reported something (an SCU's Error_Code, a PowerCube
+    /// module's state word, a COMPAX drive's `Exx` number): the code and its named bits, as data for every
+    /// front end ([`ErrorReport::device`]). None by default.
+    fn reported(&self) -> Option<DeviceCode> {
+        None
+    }
+}
+
+/// What a device reported with an error: the number it gave and the manual's names of the bits set in it
+/// (none for a code that is a number, not a word of bits: a COMPAX `Exx`).
+///
+/// ```
+/// use motionlink_link::error::{DeviceCode, ErrorBit};
+/// let code = DeviceCode { code: 0x21, bits: vec![ErrorBit { bit: 0, name: "A".into(), cause: "the first".into() }] };
+/// let json = serde_json::to_string(&code).unwrap();
+/// assert_eq!(json, r#"{"code":33,"bits":[{"bit":0,"name":"A","cause":"the first"}]}"#);
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct DeviceCode {
+    /// The error code or state word.
+    pub code: u64,
+    /// The bits of `code` the manual names, set.
+    pub bits: Vec<ErrorBit>,
+}
+
+/// One named bit of a device's error code or state word.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct ErrorBit {
+    /// The bit's number as the manual counts (SCU: 1..32; PowerCube: 0..31).
+    pub bit: u32,
+    /// The manual's name.
+    pub name: String,
+    /// What it means.
+    pub cause: String,
+}
+
+impl DeviceCode {
+    /// A state word with its set flags as bits, numbered from 0 by their mask (as the PowerCube manual
+    /// numbers them).
+    pub fn of_word<W: crate::flags::FlagWord>(word: W) -> DeviceCode {
+        use crate::flags::Flag;
+        let bits = word
+            .set_flags()
+            .into_iter()
+            .map(|f| ErrorBit {
+                bit: f.mask_u64().trailing_zeros(),
+                name: f.name().to_string(),
+                cause: f.meaning().into(),
+            })
+            .collect();
+        DeviceCode { code: word.raw(), bits }
+    }
 }
 
 impl Classify for LinkError {
@@ -104,7 +157,8 @@ impl Classify for LinkError {
 }
 
 /// An error as every front end reports it: the command line's `--json` (on stderr), the web console's and the
-/// fleet gateway's replies, and Python's `MotionlinkError.to_dict()` have these three fields.
+/// fleet gateway's replies, and Python's `MotionlinkError.to_dict()` have these fields: `kind`, `message`,
+/// `exit_code`, and `code` and `bits` where the device reported them ([`Classify::reported`]).
 ///
 /// ```
 /// use motionlink_link::error::{ErrorReport, TransportKind};
@@ -125,12 +179,15 @@ pub struct ErrorReport {
     pub message: String,
     /// The command line's exit code for it.
     pub exit_code: u8,
+    /// What the device reported with it (`code` and `bits`, flattened into the object), if anything.
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub device: Option<Box<DeviceCode>>,
 }
 
 impl ErrorReport {
     /// A report of `kind` with its exit code.
     pub fn new(kind: impl Into<std::borrow::Cow<'static, str>>, message: impl Into<String>, exit_code: u8) -> Self {
-        ErrorReport { kind: kind.into(), message: message.into(), exit_code }
+        ErrorReport { kind: kind.into(), message: message.into(), exit_code, device: None }
     }
 
     /// An error of `class`.
@@ -138,9 +195,9 @@ impl ErrorReport {
         ErrorReport::new(class.name(), message, class.exit_code())
     }
 
-    /// A library error, by its class.
+    /// A library error, by its class, with what the device reported.
     pub fn of<E: Classify + fmt::Display + ?Sized>(e: &E) -> Self {
-        ErrorReport::classed(e.class(), e.to_string())
+        ErrorReport { device: e.reported().map(Box::new), ..ErrorReport::classed(e.class(), e.to_string()) }
     }
 
     /// A request that cannot be carried out as it is (bad input: nothing was sent to the device).
@@ -197,6 +254,39 @@ impl fmt::Display for RoundTripRange {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A device's refusal with code 5 (bits 0 and 2 named).
+    #[derive(Debug)]
+    struct Refusal;
+
+    impl fmt::Display for Refusal {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            f.write_str("refused with 5")
+        }
+    }
+
+    impl Classify for Refusal {
+        fn class(&self) -> ErrorClass {
+            ErrorClass::Refused
+        }
+
+        fn reported(&self) -> Option<DeviceCode> {
+            let bit = |bit, name: &str| ErrorBit { bit, name: name.into(), cause: format!("{name} set") };
+            Some(DeviceCode { code: 5, bits: vec![bit(0, "A"), bit(2, "C")] })
+        }
+    }
+
+    #[test]
+    fn a_report_carries_what_the_device_reported_flattened_and_nothing_else_without() {
+        let json = serde_json::to_value(ErrorReport::of(&Refusal)).unwrap();
+        let bits =
+            [("A", 0), ("C", 2)].map(|(n, b)| serde_json::json!({"bit": b, "name": n, "cause": format!("{n} set")}));
+        let want = serde_json::json!({"kind": "refused", "message": "refused with 5", "exit_code": 1, "code": 5, "bits": bits});
+        assert_eq!(json, want);
+        let link = LinkError::Busy { port: "p".into() };
+        let json = serde_json::to_value(ErrorReport::of(&link)).unwrap();
+        assert_eq!(json.as_object().unwrap().keys().collect::<Vec<_>>(), ["exit_code", "kind", "message"]);
+    }
 
     #[test]
     fn every_class_has_its_exit_code_and_name() {

@@ -5,7 +5,7 @@
 use std::fmt;
 use std::time::Duration;
 
-use motionlink_link::error::{Classify, ErrorClass, TransportKind};
+use motionlink_link::error::{Classify, DeviceCode, ErrorClass, TransportKind};
 use motionlink_link::session::SessionError;
 use motionlink_link::LinkError;
 
@@ -505,6 +505,21 @@ impl Classify for Error {
             | Error::Closed => ErrorClass::Usage,
             Error::Context { source, .. } => source.class(),
             Error::Also { error, .. } => error.class(),
+        }
+    }
+
+    /// The module's state word (CubeState) with its flags set, numbered from bit 0, where the error carries
+    /// it (also as the cause of another).
+    fn reported(&self) -> Option<DeviceCode> {
+        match self {
+            Error::Device { state, .. }
+            | Error::Halted { state, .. }
+            | Error::MoveTimeout { state, .. }
+            | Error::NotReached { state, .. }
+            | Error::WatchdogExpired { state, .. } => Some(DeviceCode::of_word(*state)),
+            Error::Context { source, .. } | Error::FailedDuringMotion { cause: source, .. } => source.reported(),
+            Error::Also { error, .. } => error.reported(),
+            _ => None,
         }
     }
 }

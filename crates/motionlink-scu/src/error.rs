@@ -11,7 +11,7 @@
 
 use std::time::Duration;
 
-use motionlink_link::error::{Classify, ErrorClass, TransportKind};
+use motionlink_link::error::{Classify, DeviceCode, ErrorBit, ErrorClass, TransportKind};
 use motionlink_link::session::SessionError;
 use motionlink_link::LinkError;
 
@@ -337,6 +337,22 @@ impl Classify for Error {
                 c @ ErrorClass::Transport(_) => c,
                 _ => ErrorClass::Transport(TransportKind::Timeout),
             },
+        }
+    }
+
+    /// The unit's Error_Code with its named bits (numbered 1..32 as the manual counts), of a motion that
+    /// ended with one, also when a stop after it was not confirmed.
+    fn reported(&self) -> Option<DeviceCode> {
+        match self {
+            Error::MotionEnded { error_code, .. } => Some(DeviceCode {
+                code: u64::from(error_code.0),
+                bits: error_code
+                    .bits()
+                    .map(|b| ErrorBit { bit: u32::from(b.number()), name: b.name().into(), cause: b.cause().into() })
+                    .collect(),
+            }),
+            Error::StopUnconfirmed { cause, .. } | Error::CloseUnconfirmed { cause, .. } => cause.reported(),
+            _ => None,
         }
     }
 }

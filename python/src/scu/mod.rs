@@ -47,7 +47,7 @@ fn whole<T>(
         // Not an int: the bindings' message names the value and its type ("True (a bool)"); the rule
         // replaces its range.
         Err(f) => {
-            let shown = f.message.split(": give a whole number").next().unwrap_or(&f.message);
+            let shown = f.report.message.split(": give a whole number").next().unwrap_or(&f.report.message);
             Err(usage(format!("{shown}: {rule}")))
         }
     }

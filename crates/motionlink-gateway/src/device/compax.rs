@@ -10,6 +10,7 @@ use motionlink_compax::report::{DrivePosition, OutputSwitched, ParamReading, Sta
 use motionlink_compax::session::{MoveRequest, MoveTarget, TravelLimits, WatchSample};
 use motionlink_compax::wire::Address;
 use motionlink_compax::{AsyncClient, DriveOptions, Emulator};
+use motionlink_link::error::ErrorClass;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::profile::Profiles;
 use motionlink_link::url::PortUrl;
@@ -109,11 +110,7 @@ impl Compax {
                 Ok(Action::Stop(Box::pin(async move {
                     let report = client.stop_if_moving(&[drive]).await.map_err(failed)?;
                     if !report.all_confirmed() {
-                        return Err(ErrorReport {
-                            kind: "device".into(),
-                            message: report.to_string(),
-                            exit_code: motionlink_link::error::ErrorClass::Device.exit_code(),
-                        });
+                        return Err(ErrorReport::classed(ErrorClass::Device, report.to_string()));
                     }
                     let position = client.read_position(drive).await;
                     let o0 = client.read_s16(drive).await.map(|s| s.o0_state());

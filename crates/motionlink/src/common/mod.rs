@@ -38,6 +38,11 @@ pub enum CliError {
     /// code 0 after stopping anything it started.
     #[error("stdout was closed")]
     OutputClosed,
+    /// A library error with what the device reported (an SCU's Error_Code, a PowerCube module's state word,
+    /// a COMPAX drive's `Exx`): of its class, and `--json` gives the code and its bits
+    /// ([`ErrorReport::device`]).
+    #[error("{}", .1.message)]
+    Reported(ErrorClass, ErrorReport),
 }
 
 impl CliError {
@@ -46,7 +51,9 @@ impl CliError {
     /// stdout with 0.
     pub fn exit_code(&self) -> u8 {
         match self {
-            CliError::Interrupted(_) => stop_cause().unwrap_or(StopCause::Signal(SIGINT)).exit_code(),
+            CliError::Interrupted(_) | CliError::Reported(ErrorClass::Cancelled, _) => {
+                stop_cause().unwrap_or(StopCause::Signal(SIGINT)).exit_code()
+            }
             CliError::OutputClosed => 0,
             _ => self.class().exit_code(),
         }
@@ -60,6 +67,7 @@ impl CliError {
             CliError::Usage(_) => ErrorClass::Usage,
             CliError::Transport(kind, _) => ErrorClass::Transport(*kind),
             CliError::Interrupted(_) | CliError::OutputClosed => ErrorClass::Cancelled,
+            CliError::Reported(class, _) => *class,
         }
     }
 
@@ -69,9 +77,14 @@ impl CliError {
         self.class().name()
     }
 
-    /// The error as `--json` prints it on stderr: its [`ErrorReport`] (`{"exit_code", "kind", "message"}`).
+    /// The error as `--json` prints it on stderr: its [`ErrorReport`] (`{"exit_code", "kind", "message"}`, and
+    /// `code` and `bits` where the device reported them).
     pub fn to_json(&self) -> serde_json::Value {
-        to_json(&ErrorReport::new(self.kind(), self.to_string(), self.exit_code()))
+        let device = match self {
+            CliError::Reported(_, r) => r.device.clone(),
+            _ => None,
+        };
+        to_json(&ErrorReport { device, ..ErrorReport::new(self.kind(), self.to_string(), self.exit_code()) })
     }
 
     /// The same error with `f` applied to its message (a closed stdout becomes an interruption whose
@@ -84,6 +97,10 @@ impl CliError {
             CliError::Transport(k, m) => CliError::Transport(k, f(m)),
             CliError::Interrupted(m) => CliError::Interrupted(f(m)),
             CliError::OutputClosed => CliError::Interrupted(f("stdout closed".into())),
+            CliError::Reported(c, r) => {
+                let message = f(r.message);
+                CliError::Reported(c, ErrorReport { message, ..r })
+            }
         }
     }
 
@@ -117,6 +134,9 @@ impl From<std::io::Error> for CliError {
 /// The command line's error for any classified library error: the one place where error classes become
 /// command-line errors (and so exit codes and `--json` kinds).
 pub fn classified<E: Classify + std::fmt::Display + ?Sized>(e: &E) -> CliError {
+    if e.reported().is_some() {
+        return CliError::Reported(e.class(), ErrorReport::of(e));
+    }
     let msg = e.to_string();
     match e.class() {
         ErrorClass::Refused => CliError::Refused(msg),

@@ -257,6 +257,10 @@ impl Classify for Explained<'_> {
     fn class(&self) -> ErrorClass {
         self.error.class()
     }
+
+    fn reported(&self) -> Option<motionlink_link::error::DeviceCode> {
+        self.error.reported()
+    }
 }
 
 impl std::fmt::Display for Explained<'_> {

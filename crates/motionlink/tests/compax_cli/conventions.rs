@@ -49,6 +49,8 @@ pub(super) fn options_anywhere_json_send_get_and_watch_csv() {
         "{e}"
     );
     assert!(e["message"].as_str().unwrap().contains("E90"), "{e}");
+    // The drive's number as data: a number, not a word of bits.
+    assert_eq!((&e["code"], &e["bits"]), (&90.into(), &serde_json::json!([])), "{e}");
 }
 
 /// `-v` traces each telegram live; `--capture` writes a file `decode compax` reads back; `--device` and

@@ -296,3 +296,22 @@ pub(super) fn every_json_result_keeps_its_keys() {
         ]
     );
 }
+
+/// A device error carries what the unit reported, as data: `--json` gives its Error_Code (`code`) and the
+/// bits set with the manual's names (`bits`), as Python's `to_dict()`, the console and the gateway do. The
+/// emulated unit raises error bit 12 (over-temperature) 2 s after power-on, while A1 moves slowly.
+#[test]
+pub(super) fn a_device_error_s_code_and_bits_come_in_the_json_error() {
+    let path = common::temp_path("scu-error-bit.toml");
+    std::fs::write(&path, "preset = \"scp11\"\n[[error]]\nbit = 12\nat_ms = 2000\n").expect("write the unit");
+    let config = path.to_str().expect("a UTF-8 temporary path");
+    let args = ["--json", "--sim-config", config, "--functions", "scp11", "move", "1", "800", "--speed", "5"];
+    let out = scu("sim", &args);
+    let e = common::json_error(&out);
+    assert_eq!((e["kind"].as_str(), e["exit_code"].as_i64(), out.status.code()), (Some("device"), Some(1), Some(1)));
+    assert_eq!(e["code"], 0x800, "{e}");
+    let bit =
+        serde_json::json!({"bit": 12, "name": "over_temperature", "cause": "overtemperature at rectifier or FET"});
+    assert_eq!(e["bits"], serde_json::json!([bit]), "{e}");
+    assert!(e["message"].as_str().unwrap().contains("A1 ended at"), "{e}");
+}
