@@ -108,9 +108,9 @@ fn scu_device(s: &EmulatorSettings) -> Result<motionlink_scu::Emulator, Failure>
     }
     .map_err(|e| usage(e.to_string()))?;
     let mut config = config;
-    if let Some(names) = &s.variant {
-        let variants = motionlink_scu::Variants::parse_all(names).map_err(|e| usage(format!("variant: {e}")))?;
-        config.variants.extend(&variants);
+    if let Some(names) = variant_names(s) {
+        use motionlink_scu::FirmwareVariant;
+        config.add_variants(motionlink_scu::Variant::list(&names).map_err(|e| usage(e.to_string()))?);
     }
     motionlink_scu::Emulator::new(config).map_err(|e| usage(e.to_string()))
 }

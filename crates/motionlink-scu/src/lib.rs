@@ -188,4 +188,4 @@ pub use client::{AsyncClient, AsyncSetpointStream};
 pub use config::{Config, FunctionMap, MovePolling, StrokeLimits};
 pub use error::Error;
 pub use session::{Op, Output, Progress, Session};
-pub use sim::{Emulator, FirmwareVariant, SimConfig, Variant, Variants};
+pub use sim::{Emulator, FirmwareVariant, SimConfig, Variant};

@@ -25,7 +25,7 @@
 //! let clock = ManualClock::new_auto();
 //! let _me = clock.reserve_participant().enter();
 //! let mut sim = SimConfig::default();
-//! sim.variants = sim.variants.with(Variant::NoGroups);
+//! sim.add_variants([Variant::NoGroups]);
 //! let unit = EmulatorHost::new(Emulator::new(sim)?, clock.shared(), PipeConfig::paced(38_400));
 //! let connector = unit.connector();
 //! let client = Client::with_connector(connector, clock.shared(), Config::default())?;

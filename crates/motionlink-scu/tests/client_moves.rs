@@ -339,7 +339,7 @@ fn set_reads_the_value_back_and_a_mismatch_is_an_error() {
     let plain = SimConfig::default();
     let mut refusing = SimConfig::default();
     for v in [Variant::NoGroups, Variant::NoUserPositions, Variant::NoCyclicObjects] {
-        refusing.variants = std::mem::take(&mut refusing.variants).with(v);
+        refusing.add_variants([v]);
     }
     for config in [plain, refusing] {
         set_read_back_mismatch(config);

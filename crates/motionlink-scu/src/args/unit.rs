@@ -6,7 +6,8 @@
 use super::{Baud, PollInterval, ReplyTimeout, ToleranceCounts};
 use crate::config::{Config, FunctionMap, StrokeLimits};
 use crate::model::{SafetyId, SpeedMode};
-use crate::sim::{SimConfig, Variants};
+use crate::sim::{SimConfig, Variant};
+use motionlink_link::emulator::FirmwareVariant;
 
 pub use motionlink_link::devices::OptionError;
 
@@ -36,8 +37,8 @@ pub struct UnitOptions {
     pub speed_mode: SpeedMode,
     /// `sim_preset`: the preset an in-process emulator starts from.
     pub sim_preset: Option<String>,
-    /// `sim_variants`: firmware variants of an in-process emulator (names, or comma-separated names).
-    pub sim_variants: Vec<String>,
+    /// `sim_variants`: firmware variants of an in-process emulator.
+    pub sim_variants: Vec<Variant>,
 }
 
 impl Default for UnitOptions {
@@ -95,8 +96,7 @@ impl UnitOptions {
                 self.sim_preset = Some(text.to_string())
             }
             "sim_variants" => {
-                Variants::parse_all(&[text]).map_err(|e| on("sim_variants")(e.to_string()))?;
-                self.sim_variants.push(text.to_string())
+                self.sim_variants.extend(Variant::list(text).map_err(|e| on("sim_variants")(e.to_string()))?)
             }
             _ => return Ok(false),
         }
@@ -126,7 +126,6 @@ impl UnitOptions {
         if !sim && (self.sim_preset.is_some() || !self.sim_variants.is_empty()) {
             return Err(OptionError { key: None, message: "sim_preset and sim_variants are only for port sim".into() });
         }
-        Variants::parse_all(&self.sim_variants).map_err(|e| on("sim_variants")(e.to_string()))?;
         Ok(())
     }
 
@@ -135,8 +134,7 @@ impl UnitOptions {
     pub fn emulated(&self) -> Result<SimConfig, OptionError> {
         let mut config = super::emulated_unit(self.sim_preset.as_deref(), &self.functions, self.speed_mode)
             .map_err(|message| OptionError { key: None, message })?;
-        let variants = Variants::parse_all(&self.sim_variants).map_err(|e| on("sim_variants")(e.to_string()))?;
-        config.variants.extend(&variants);
+        config.add_variants(self.sim_variants.iter().copied());
         Ok(config)
     }
 }

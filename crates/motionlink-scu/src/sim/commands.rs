@@ -55,7 +55,7 @@ impl Emulator {
                 self.note_rest();
             }
             Request::Cyclic { object, write } => self.handle_cyclic(object, write),
-            Request::Get { index } if self.config.variants.refuses_get(DataIndex(index)) => {
+            Request::Get { index } if variants::refuses_get(&self.config.variants, DataIndex(index)) => {
                 self.reply_status(command, Status::ParameterDataError)
             }
             Request::Get { index } => match item(DataIndex(index)) {
@@ -68,7 +68,9 @@ impl Emulator {
             },
             Request::Transfer { index, data } => {
                 let status = match item(DataIndex(index)) {
-                    Some(Item::Group(_)) if self.config.variants.has(Variant::NoGroups) => Status::ParameterDataError,
+                    Some(Item::Group(_)) if self.config.variants.contains(&Variant::NoGroups) => {
+                        Status::ParameterDataError
+                    }
                     Some(it) => self.write_item(it, data).err().unwrap_or(Status::Ack),
                     None => Status::ParameterDataError,
                 };
@@ -97,14 +99,14 @@ impl Emulator {
         if object == UNUSED {
             if !write.is_empty() {
                 self.reply_status(command, Status::ParameterCountError);
-            } else if self.config.variants.has(Variant::RcEmptyData) {
+            } else if self.config.variants.contains(&Variant::RcEmptyData) {
                 self.push_reply(&Reply::with_data(command, &[]));
             } else {
                 self.reply_status(command, Status::Ack);
             }
             return;
         }
-        if self.config.variants.has(Variant::NoCyclicObjects) {
+        if self.config.variants.contains(&Variant::NoCyclicObjects) {
             // The RC fed the watchdog; its cyclic object is not known to this firmware.
             self.reply_status(command, Status::ParameterDataError);
             return;
@@ -157,7 +159,7 @@ impl Emulator {
                 if drives.is_empty() || self.emergency_stop {
                     return Err(Status::PermissionError);
                 }
-                if self.config.variants.has(Variant::ReNeedsRs) && self.executed[usize::from(function)] {
+                if self.config.variants.contains(&Variant::ReNeedsRs) && self.executed[usize::from(function)] {
                     // This firmware takes a new RE of a started function only after its RS.
                     return Err(Status::PermissionError);
                 }

@@ -112,11 +112,19 @@ pub struct SimConfig {
     pub total_current_limit_deci_amps: u16,
     /// Errors the unit raises by itself at chosen times.
     pub scheduled_errors: Vec<ScheduledError>,
-    /// How this unit's firmware differs from the emulator's default reading of the manual.
-    pub variants: Variants,
+    /// How this unit's firmware differs from the emulator's default reading of the manual (each once, in
+    /// the order of [`Variant::ALL`]: [`SimConfig::add_variants`]).
+    pub variants: Vec<Variant>,
 }
 
 impl SimConfig {
+    /// Adds the firmware `variants` to the configuration's, each kept once (sorted).
+    pub fn add_variants(&mut self, variants: impl IntoIterator<Item = Variant>) {
+        self.variants.extend(variants);
+        self.variants.sort();
+        self.variants.dedup();
+    }
+
     /// SCP11 with `n` actuators: actuator k on function Fk.
     pub fn scp11(n: usize) -> Self {
         let n = n.clamp(1, 6);
@@ -133,7 +141,7 @@ impl SimConfig {
             configuration_info: "SCP11 motionlink emulator".into(),
             total_current_limit_deci_amps: 0,
             scheduled_errors: Vec::new(),
-            variants: Variants::none(),
+            variants: Vec::new(),
         }
     }
 
@@ -184,26 +192,23 @@ impl SimConfig {
 
     /// Reads a configuration from TOML text (see the type's documentation).
     pub fn from_toml(text: &str) -> Result<Self, SimConfigError> {
-        Self::from_toml_over(text, None, &[] as &[&str])
+        Self::from_toml_over(text, None, &[])
     }
 
     /// A configuration file's `text` as `motionlink sim scu --sim-config` (and a gateway's `sim_config`) reads
     /// it: `preset` is its starting point where the file names no preset of its own, and the firmware
-    /// `variants` named (each may be several names separated by commas) are added to the file's.
+    /// `variants` are added to the file's.
     ///
     /// ```
     /// use motionlink_scu::SimConfig;
-    /// let c = SimConfig::from_toml_over("default_speed = 80\n", Some("tlt"), &["no-groups"]).unwrap();
+    /// use motionlink_scu::Variant;
+    /// let c = SimConfig::from_toml_over("default_speed = 80\n", Some("tlt"), &[Variant::NoGroups]).unwrap();
     /// assert_eq!(c.configuration_info, SimConfig::tlt().configuration_info);
-    /// assert!(c.variants.has(motionlink_scu::Variant::NoGroups));
+    /// assert_eq!(c.variants, [Variant::NoGroups]);
     /// ```
-    pub fn from_toml_over<S: AsRef<str>>(
-        text: &str,
-        preset: Option<&str>,
-        variants: &[S],
-    ) -> Result<Self, SimConfigError> {
+    pub fn from_toml_over(text: &str, preset: Option<&str>, variants: &[Variant]) -> Result<Self, SimConfigError> {
         let mut c = Self::from_toml_with(text, preset)?;
-        c.variants.extend(&Variants::parse_all(variants).map_err(|e| SimConfigError(e.to_string()))?);
+        c.add_variants(variants.iter().copied());
         Ok(c)
     }
 
@@ -221,7 +226,7 @@ impl SimConfig {
             actuator: Option<Vec<toml::Table>>,
             total_current_limit_deci_amps: Option<u16>,
             error: Option<Vec<ScheduledError>>,
-            variants: Option<Variants>,
+            variants: Option<Vec<Variant>>,
         }
         let f: File = toml::from_str(text).map_err(|e| SimConfigError(e.to_string()))?;
         let mut c = match f.preset.as_deref().or(default_preset) {
@@ -237,7 +242,8 @@ impl SimConfig {
             c.scheduled_errors = errors;
         }
         if let Some(v) = f.variants {
-            c.variants = v;
+            c.variants.clear();
+            c.add_variants(v);
         }
         if let Some(n) = f.actuators {
             if !(1..=6).contains(&n) {

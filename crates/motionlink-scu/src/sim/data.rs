@@ -116,7 +116,10 @@ impl Emulator {
         let i = e.index().0;
         match (i, v) {
             (0x3001..=0x3005, Value::CyclicObject(o)) => {
-                if o.write_indices().chain(o.read_indices()).any(|x| self.config.variants.refuses_in_object(x)) {
+                if o.write_indices()
+                    .chain(o.read_indices())
+                    .any(|x| variants::refuses_in_object(&self.config.variants, x))
+                {
                     return Err(Status::ParameterDataError);
                 }
                 self.cyclic_objects[usize::from(i - 0x3001)] = o

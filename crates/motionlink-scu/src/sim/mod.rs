@@ -76,7 +76,7 @@ pub use crate::model::timing::{INTER_BYTE_LIMIT, WATCHDOG};
 use actuator::{ActuatorState, Origin};
 pub use config::{ActuatorConfig, ScheduledError, SimConfig, SimConfigError};
 pub use motionlink_link::emulator::FirmwareVariant;
-pub use variants::{UnknownVariant, Variant, Variants, SLEEP_AFTER};
+pub use variants::{UnknownVariant, Variant, SLEEP_AFTER};
 
 /// Step of the physical model.
 const STEP: Duration = Duration::from_millis(5);
@@ -166,7 +166,7 @@ impl Emulator {
     /// A unit with `config`, powered on at time zero.
     pub fn new(mut config: SimConfig) -> Result<Self, SimConfigError> {
         config.validate()?;
-        if config.variants.has(Variant::InEndUndershoot) {
+        if config.variants.contains(&Variant::InEndUndershoot) {
             for a in &mut config.actuators {
                 a.in_end_undershoot_counts = a.in_end_undershoot_counts.max(3);
             }
@@ -333,7 +333,7 @@ impl Emulator {
 
     /// A motion starts: the bits the manual resets "on the next motion" (14, 15..20, 21) leave Error_Code 1.
     fn reset_errors_on_motion(&mut self) {
-        if self.config.variants.has(Variant::StickyErrors) {
+        if self.config.variants.contains(&Variant::StickyErrors) {
             return;
         }
         let cleared = self.error_history[0] & RESET_ON_NEXT_MOTION;
@@ -466,7 +466,7 @@ impl EmulatorTrait for Emulator {
         }
         if !bytes.is_empty() {
             self.last_byte = Some(now);
-            if self.config.variants.has(Variant::Sleepy)
+            if self.config.variants.contains(&Variant::Sleepy)
                 && self.last_rx.is_none_or(|t| now.saturating_since(t) >= SLEEP_AFTER)
             {
                 self.dozing = true;

@@ -58,14 +58,14 @@ fn every_entry_of_the_data_list_has_a_modelled_value() {
 #[test]
 fn each_variant_refuses_or_answers_as_its_firmware_would() {
     use crate::model::CyclicObject;
-    let open = |variants: Variants| {
+    let open = |variants: Vec<Variant>| {
         let mut unit = Emulator::new(SimConfig { variants, ..SimConfig::default() }).unwrap();
         send(&mut unit, 0, Request::Open { safety_id: 0 });
         send(&mut unit, 0, Request::Cyclic { object: UNUSED, write: &[] });
         unit
     };
     let status = |reply: &[u8]| Status::from_code(reply[2]).unwrap();
-    let v = |v: Variant| Variants::none().with(v);
+    let v = |v: Variant| vec![v];
     // Grouping indices: refused to RG, to RT, and in a cyclic object's definition; entries answer.
     let mut unit = open(v(Variant::NoGroups));
     assert_eq!(status(&send(&mut unit, 1, Request::Get { index: 0x0010 })), Status::ParameterDataError);

@@ -3,9 +3,6 @@
 //! the TOML configuration). The README's "What motionlink assumes beyond the manuals" lists them with the
 //! probe that tells them apart.
 
-use std::collections::BTreeSet;
-use std::fmt;
-use std::str::FromStr;
 use std::time::Duration;
 
 use motionlink_link::emulator::FirmwareVariant;
@@ -14,7 +11,8 @@ pub use motionlink_link::emulator::UnknownVariant;
 use crate::model::{item, DataIndex, Item};
 
 /// One way a real unit may differ from the emulator's default reading of the manual.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Deserialize)]
+#[serde(try_from = "String")]
 pub enum Variant {
     /// RG of a grouping index (0x0010, 0x0170, 0x00A0, 0x00D0 ... and the collections) is refused with PDE, as
     /// is a cyclic object or an RT naming one: only individual indices answer.
@@ -94,85 +92,6 @@ impl FirmwareVariant for Variant {
 
 motionlink_link::firmware_variant_traits!(Variant);
 
-/// The variants an emulated unit has (none: the manual as the emulator reads it).
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct Variants(BTreeSet<Variant>);
-
-impl Variants {
-    /// No variant.
-    pub fn none() -> Self {
-        Variants::default()
-    }
-
-    /// True if `v` is one of them.
-    pub fn has(&self, v: Variant) -> bool {
-        self.0.contains(&v)
-    }
-
-    /// Adds `v`.
-    pub fn with(mut self, v: Variant) -> Self {
-        self.0.insert(v);
-        self
-    }
-
-    /// Adds every variant of `other`.
-    pub fn extend(&mut self, other: &Variants) {
-        self.0.extend(other.0.iter().copied());
-    }
-
-    /// The variants, in [`Variant::ALL`] order.
-    pub fn iter(&self) -> impl Iterator<Item = Variant> + '_ {
-        self.0.iter().copied()
-    }
-
-    /// True if there are none.
-    pub fn is_empty(&self) -> bool {
-        self.0.is_empty()
-    }
-
-    /// Parses names, each possibly a comma-separated list (`--variant a,b --variant c`).
-    pub fn parse_all<S: AsRef<str>>(names: &[S]) -> Result<Self, UnknownVariant> {
-        let mut all = Variants::none();
-        for n in names {
-            all.extend(&n.as_ref().parse()?);
-        }
-        Ok(all)
-    }
-}
-
-impl FromStr for Variants {
-    type Err = UnknownVariant;
-
-    /// A comma-separated list of names ("no-groups,sleepy"); empty items are skipped.
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let mut set = BTreeSet::new();
-        for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
-            set.insert(part.parse::<Variant>()?);
-        }
-        Ok(Variants(set))
-    }
-}
-
-impl fmt::Display for Variants {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let names: Vec<&str> = self.0.iter().map(|v| v.name()).collect();
-        f.write_str(&names.join(","))
-    }
-}
-
-impl serde::Serialize for Variants {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.collect_seq(self.0.iter().map(|v| v.name()))
-    }
-}
-
-impl<'de> serde::Deserialize<'de> for Variants {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        let names = Vec::<String>::deserialize(d)?;
-        Variants::parse_all(&names).map_err(serde::de::Error::custom)
-    }
-}
-
 /// How long the line must be silent before a [`Variant::Sleepy`] unit dozes off.
 pub const SLEEP_AFTER: Duration = Duration::from_secs(2);
 
@@ -186,19 +105,17 @@ pub(super) fn is_user_positions(index: DataIndex) -> bool {
     (0x2000..=0x2006).contains(&index.0)
 }
 
-impl Variants {
-    /// True if a unit of these variants refuses an RG of `index` (with PDE).
-    pub(super) fn refuses_get(&self, index: DataIndex) -> bool {
-        (self.has(Variant::NoGroups) && is_group(index))
-            || (self.has(Variant::NoUserPositions) && is_user_positions(index))
-            || (self.has(Variant::NoRemoteReadBack) && index.is_remote())
-    }
+/// True if a unit of `variants` refuses an RG of `index` (with PDE).
+pub(super) fn refuses_get(variants: &[Variant], index: DataIndex) -> bool {
+    (variants.contains(&Variant::NoGroups) && is_group(index))
+        || (variants.contains(&Variant::NoUserPositions) && is_user_positions(index))
+        || (variants.contains(&Variant::NoRemoteReadBack) && index.is_remote())
+}
 
-    /// True if a unit of these variants refuses a cyclic object definition that names `index`.
-    pub(super) fn refuses_in_object(&self, index: DataIndex) -> bool {
-        (self.has(Variant::NoGroups) && is_group(index))
-            || (self.has(Variant::NoUserPositions) && is_user_positions(index))
-    }
+/// True if a unit of `variants` refuses a cyclic object definition that names `index`.
+pub(super) fn refuses_in_object(variants: &[Variant], index: DataIndex) -> bool {
+    (variants.contains(&Variant::NoGroups) && is_group(index))
+        || (variants.contains(&Variant::NoUserPositions) && is_user_positions(index))
 }
 
 #[cfg(test)]
@@ -211,17 +128,14 @@ mod tests {
             assert_eq!(v.name().parse::<Variant>(), Ok(v));
             assert!(v.description().len() > 10 && v.to_string() == v.name(), "{v}");
         }
-        let both: Variants = "no-groups, sleepy".parse().unwrap();
-        assert!(both.has(Variant::NoGroups) && both.has(Variant::Sleepy) && !both.has(Variant::StickyErrors));
-        assert_eq!(both.to_string(), "no-groups,sleepy");
-        let all = Variants::parse_all(&["no_groups", "re-needs-rs,rc-empty-data"]).unwrap();
-        assert_eq!(all.iter().count(), 3);
-        let e = "no-group".parse::<Variants>().unwrap_err();
+        let both = Variant::list("sleepy, no-groups,sleepy").unwrap();
+        assert_eq!(both, [Variant::NoGroups, Variant::Sleepy], "each once, in the order of ALL");
+        let e = Variant::list("no-groups,no-group").unwrap_err();
         assert!(e.to_string().contains("\"no-group\"") && e.to_string().contains("no-cyclic-objects"), "{e}");
-        assert!("".parse::<Variants>().unwrap().is_empty());
+        assert!(Variant::list("").unwrap().is_empty());
         // In the configuration file.
         let c = crate::sim::SimConfig::from_toml("variants = [\"sleepy\", \"no-groups\"]").unwrap();
-        assert!(c.variants.has(Variant::Sleepy) && c.variants.has(Variant::NoGroups));
+        assert_eq!(c.variants, [Variant::NoGroups, Variant::Sleepy]);
         let e = crate::sim::SimConfig::from_toml("variants = [\"sleep\"]").unwrap_err();
         assert!(e.to_string().contains("\"sleep\"") && e.to_string().contains("re-needs-rs"), "{e}");
     }

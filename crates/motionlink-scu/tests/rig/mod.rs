@@ -160,9 +160,7 @@ impl Link for Latency {
 impl Rig {
     /// A unit with `config` whose firmware has `variants`.
     pub fn with_variants(mut config: SimConfig, variants: &[motionlink_scu::Variant]) -> Rig {
-        for v in variants {
-            config.variants = std::mem::take(&mut config.variants).with(*v);
-        }
+        config.add_variants(variants.iter().copied());
         Rig::new(config)
     }
 

@@ -16,7 +16,7 @@ use motionlink_scu::args::{
 use motionlink_scu::describe::Describer;
 use motionlink_scu::model::{Actuator, Function, MotionFunction, PositionCounts, SafetyId, SpeedMode};
 use motionlink_scu::session::RunAction;
-use motionlink_scu::{Client, Config, Emulator, Ending, SimConfig};
+use motionlink_scu::{Client, Config, Emulator, Ending, SimConfig, Variant};
 
 use crate::common::{self, CliError};
 use crate::numbers::{at_least, whole};
@@ -111,10 +111,10 @@ pub struct UnitArgs {
         long = "sim-variant",
         value_name = "NAME",
         value_delimiter = ',',
-        value_parser = variant_name(),
+        value_parser = common::variant_parser::<Variant>(),
         global = true
     )]
-    pub sim_variants: Vec<String>,
+    pub sim_variants: Vec<Variant>,
     /// The preset the emulator starts from when the port is sim: scp11, tlt or liftkit (as `motionlink sim
     /// scu --preset`). Default: the preset --functions names, else scp11; the Fn=... of --functions apply
     /// on top.
@@ -246,13 +246,6 @@ pub enum Action {
     },
     /// The error history (Error_Code 1..5) with each bit's cause.
     Errors,
-}
-
-/// The parser of the SCU's `--variant` / `--sim-variant`: a variant's name (checked, its description in
-/// `--help`), kept as the text [`motionlink_scu::Variants::parse_all`] and the emulator's configuration take.
-pub(crate) fn variant_name() -> impl clap::builder::TypedValueParser<Value = String> {
-    use clap::builder::TypedValueParser;
-    common::variant_parser::<motionlink_scu::Variant>().map(|v| v.to_string())
 }
 
 /// `motionlink scu ...`

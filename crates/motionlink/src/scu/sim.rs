@@ -5,17 +5,16 @@
 use std::path::PathBuf;
 
 use motionlink_scu::model::SpeedMode;
-use motionlink_scu::{Emulator, SimConfig, Variants};
+use motionlink_scu::{Emulator, SimConfig, Variant};
 
 use crate::common::{self, CliError, ServeArgs};
 
 /// The emulator's configuration: `preset` (scp11, tlt, liftkit), then the file at `path` over it (a file
-/// naming no preset of its own starts from `preset`), then the firmware `variants` named (each may be
-/// several names separated by commas), added to the file's.
+/// naming no preset of its own starts from `preset`), then the firmware `variants`, added to the file's.
 pub(crate) fn load_sim_config(
     path: Option<&PathBuf>,
     preset: Option<&str>,
-    variants: &[String],
+    variants: &[Variant],
 ) -> Result<SimConfig, CliError> {
     let base = match preset {
         Some(name) => SimConfig::preset(name).ok_or_else(|| unknown_preset(name))?,
@@ -26,7 +25,7 @@ pub(crate) fn load_sim_config(
             .map_err(|e| CliError::usage(format!("{}: {e}", path.display()))),
         None => {
             let mut config = base;
-            config.variants.extend(&Variants::parse_all(variants).map_err(|e| CliError::usage(e.to_string()))?);
+            config.add_variants(variants.iter().copied());
             Ok(config)
         }
     }
@@ -47,7 +46,7 @@ pub(crate) struct InProcess<'a> {
     /// `--speed-mode`.
     pub speed_mode: SpeedMode,
     /// `--sim-variant`: firmware variants of the emulated unit.
-    pub variants: &'a [String],
+    pub variants: &'a [Variant],
 }
 
 /// The unit `--port sim` emulates: the one the command names. A `--sim-config` file is the unit as it
@@ -60,8 +59,7 @@ pub(crate) fn in_process_config(unit: &InProcess<'_>) -> Result<SimConfig, CliEr
     }
     let mut config = motionlink_scu::args::emulated_unit(unit.preset, unit.functions, unit.speed_mode)
         .map_err(|e| CliError::usage(format!("--port sim: {e}")))?;
-    let variants = Variants::parse_all(unit.variants).map_err(|e| CliError::usage(e.to_string()))?;
-    config.variants.extend(&variants);
+    config.add_variants(unit.variants.iter().copied());
     Ok(config)
 }
 
@@ -79,8 +77,8 @@ pub struct SimArgs {
     pub preset: Option<String>,
     /// A firmware variant: the unit does what the manual leaves open the other plausible way (see
     /// docs/assumptions.md). Repeat or comma-separate for several; added to the configuration's `variants`.
-    #[arg(long = "variant", value_name = "NAME", value_delimiter = ',', value_parser = crate::scu::variant_name())]
-    pub variants: Vec<String>,
+    #[arg(long = "variant", value_name = "NAME", value_delimiter = ',', value_parser = common::variant_parser::<Variant>())]
+    pub variants: Vec<Variant>,
 }
 
 /// `motionlink sim scu`
