@@ -640,6 +640,11 @@ mod tests {
             hint: "",
         };
         assert_eq!(ctx.class(), ErrorClass::Device);
+        // What the module reported comes through the context: its state word, STATE_HALTED as bit 2.
+        let reported = ctx.reported().expect("the state word");
+        assert_eq!((reported.code, reported.bits.len(), reported.bits[0].bit), (4, 1, 2), "{reported:?}");
+        assert_eq!(reported.bits[0].name, "STATE_HALTED");
+        assert_eq!(timeout().reported(), None);
         assert_eq!(Error::Closed.class(), ErrorClass::Usage);
         assert_eq!(Error::close_timed_out(Duration::from_secs(5)).class().exit_code(), 3);
         let unit = Error::UnitMismatch {
