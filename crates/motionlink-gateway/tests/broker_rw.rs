@@ -92,6 +92,11 @@ async fn reads_and_writes_answer_with_the_cli_s_json() {
     assert_eq!(result(&r, "compax")["value"], 8.0, "{r}");
     let r = ask(&mut c, "rw", "axis", "o1", "output", json!({"number": 0, "state": 1})).await;
     assert_eq!(result(&r, "compax"), json!({"output": 0, "state": 1}));
+    // A read the drive refuses: its Exx number as data, as the command line's `--json` error gives it.
+    let r = ask(&mut c, "rw", "axis", "g5", "get", json!({"param": "P13"})).await;
+    let e = &r["error"];
+    assert_eq!((e["kind"].as_str(), e["exit_code"].as_i64(), e["code"].as_u64()), (Some("refused"), Some(1), Some(90)));
+    assert_eq!(e["bits"], json!([]), "{r}");
 
     // Bad arguments: the family's rule and message, nothing sent.
     for (device, op, args, says) in [
