@@ -398,6 +398,13 @@ fn a_parameter_write_shows_its_read_back() {
     // The error as the command line's `--json` gives it (`ErrorReport`).
     assert_eq!((&v["error"]["kind"], &v["error"]["exit_code"]), (&json!("usage"), &json!(2)), "{v}");
     assert_eq!(v["error"]["message"], v["message"], "{v}");
+    // A read the drive refuses: its Exx number comes as data, as in the command line's `--json` error.
+    send(&mut ws, json!({"type": "read_param", "drive": 1, "name": "P13"}));
+    let v = recv_until(&mut ws, Duration::from_secs(10), of_type("failed")).expect("refused by the drive");
+    assert_eq!(
+        (&v["error"]["kind"], &v["error"]["code"], &v["error"]["bits"]),
+        (&json!("refused"), &json!(90), &json!([]))
+    );
 }
 
 #[test]
