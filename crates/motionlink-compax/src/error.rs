@@ -311,6 +311,9 @@ impl Classify for Error {
             Error::Model(_) | Error::Encode(_) | Error::Broadcast(_) | Error::OutsideLimits { .. } | Error::Closed => {
                 ErrorClass::Usage
             }
+            // A cancel is of class Cancelled only once every drive confirmed the stop (the class promises that
+            // what was started was stopped); otherwise the axis may still move, as after a failed line.
+            Error::Cancelled { stop } if !stop.all_confirmed() => ErrorClass::Transport(TransportKind::Timeout),
             Error::CancelledBeforeMotion | Error::Cancelled { .. } => ErrorClass::Cancelled,
             Error::FailedDuringMotion { cause, .. } => cause.class(),
             Error::SyncIncomplete { source, .. } | Error::NotExecuted { source, .. } => source.class(),
@@ -488,6 +491,15 @@ mod tests {
             (Error::Broadcast("x"), ErrorClass::Usage),
             (Error::CancelledBeforeMotion, ErrorClass::Cancelled),
             (Error::Cancelled { stop: stop.clone() }, ErrorClass::Cancelled),
+            // A cancel whose stop a drive did not confirm is no clean cancel (exit 130 promises the stop).
+            (
+                Error::Cancelled {
+                    stop: StopReport {
+                        drives: vec![(Address::drive_const(3), StopOutcome::NotConfirmed { reason: "silent".into() })],
+                    },
+                },
+                ErrorClass::Transport(TransportKind::Timeout),
+            ),
             (
                 Error::FailedDuringMotion {
                     cause: Box::new(Error::TargetMismatch {

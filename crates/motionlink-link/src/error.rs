@@ -29,7 +29,9 @@ pub enum ErrorClass {
     Transport(TransportKind),
     /// The caller asked for something invalid; found before anything was sent.
     Usage,
-    /// The caller cancelled (a signal, a dropped future); what had been started was stopped.
+    /// The caller cancelled (a signal, a dropped future); what had been started was stopped, as the device
+    /// confirmed. A cancel whose stop the device did not confirm is of the class of what kept it from
+    /// confirming (a timeout of the line): the axis may still be moving.
     Cancelled,
 }
 

@@ -494,6 +494,11 @@ impl Classify for Error {
             | Error::ReadBack { .. }
             | Error::TargetMismatch { .. }
             | Error::NotReached { .. } => ErrorClass::Device,
+            // A cancel is of class Cancelled only once the module confirmed the halt (the class promises that
+            // what was started was stopped); one whose halt was not acknowledged is the line's failure.
+            Error::Cancelled { stop: StopOutcome::Unconfirmed { .. }, .. } => {
+                ErrorClass::Transport(TransportKind::Timeout)
+            }
             Error::Cancelled { .. } | Error::CancelledBeforeMotion { .. } => ErrorClass::Cancelled,
             Error::Model(_)
             | Error::InvalidAddress(_)
@@ -625,6 +630,12 @@ mod tests {
         assert_eq!(
             Error::Cancelled { address: Address::checked(1), stop: StopOutcome::Confirmed }.class(),
             ErrorClass::Cancelled
+        );
+        // A cancel whose halt was not acknowledged is no clean cancel (exit 130 promises the stop).
+        let unconfirmed = StopOutcome::Unconfirmed { reason: "no answer".into(), watchdog_armed: true };
+        assert_eq!(
+            Error::Cancelled { address: Address::checked(1), stop: unconfirmed }.class(),
+            ErrorClass::Transport(TransportKind::Timeout)
         );
         let lost = Error::FailedDuringMotion {
             address: Address::checked(1),

@@ -222,9 +222,10 @@ pub enum Error {
     CancelledBeforeMotion(Command),
     /// An action failed, and the stop that followed was not confirmed by the unit.
     #[error(
-        "{cause}; then the stop ({}) was NOT confirmed by the unit ({detail}): the actuators may still be \
+        "{}; then the stop ({}) was NOT confirmed by the unit ({detail}): the actuators may still be \
          moving. The unit stops remote motions by itself 500 ms after the last RC it receives (its watchdog); \
          this program sends none once it has ended",
+        unconfirmed_cause(cause),
         crate::model::stop_words(functions, *mode)
     )]
     StopUnconfirmed {
@@ -328,11 +329,17 @@ impl Classify for Error {
                 ErrorClass::Transport(TransportKind::Disconnected)
             }
             Error::InvalidArgument(_) | Error::OutsideLimits { .. } => ErrorClass::Usage,
+            // A cancel is of class Cancelled only once the unit confirmed the stop (the class promises that
+            // what was started was stopped); one whose RS was not acknowledged is the line's failure.
+            Error::FunctionCancelled { stopped: false, .. } => ErrorClass::Transport(TransportKind::Timeout),
             Error::Cancelled { .. }
             | Error::RunCancelled { .. }
             | Error::FunctionCancelled { .. }
             | Error::CancelledBeforeMotion(_) => ErrorClass::Cancelled,
-            Error::StopUnconfirmed { cause, .. } => cause.class(),
+            Error::StopUnconfirmed { cause, .. } => match cause.class() {
+                ErrorClass::Cancelled => ErrorClass::Transport(TransportKind::Timeout),
+                c => c,
+            },
             Error::CloseUnconfirmed { cause, .. } => match cause.class() {
                 c @ ErrorClass::Transport(_) => c,
                 _ => ErrorClass::Transport(TransportKind::Timeout),
@@ -354,6 +361,17 @@ impl Classify for Error {
             Error::StopUnconfirmed { cause, .. } | Error::CloseUnconfirmed { cause, .. } => cause.reported(),
             _ => None,
         }
+    }
+}
+
+/// What went wrong first, as the message of a stop that was then not confirmed says it: a cancelled move
+/// names where its actuator was last seen, not that it stopped there.
+fn unconfirmed_cause(cause: &Error) -> String {
+    match cause {
+        Error::Cancelled { actuator, position_counts } => {
+            format!("cancelled while {actuator} was moving (last seen at {position_counts})")
+        }
+        other => other.to_string(),
     }
 }
 
@@ -433,6 +451,7 @@ mod tests {
             detail: "no ACK".into(),
         };
         assert!(unconfirmed.to_string().starts_with("cancelled while function id 12 was under way; then the stop"));
-        assert_eq!(unconfirmed.class(), ErrorClass::Cancelled, "the class of what went wrong first");
+        // Not a clean cancel: the class Cancelled promises that what was started was stopped.
+        assert_eq!(unconfirmed.class(), ErrorClass::Transport(TransportKind::Timeout));
     }
 }

@@ -205,3 +205,26 @@ fn a_dead_link_before_the_session_opens_ends_the_command_within_3_s() {
     assert!(took < Duration::from_secs(3), "{took:?}");
     assert_eq!(out.status.code(), Some(3), "{out:?}");
 }
+
+/// Ctrl-C while the line is silent: the RS the command sends is not acknowledged, so the command does not
+/// end as a clean interruption (128 + n promises that what it started was stopped) but with exit 3 and the
+/// message that the actuators may still be moving. (The unit's watchdog then stops them.)
+#[cfg(unix)]
+#[test]
+fn ctrl_c_whose_stop_the_unit_does_not_confirm_exits_3_not_130() {
+    let sim = sim_tcp();
+    let running = Running::start(&["scu", "--port", &sim.address, "move", "1", "800", "--speed", "100"]);
+    wait_started(&sim, "F1");
+    // The emulator stops answering (the TCP connection stays up), and at once the command is interrupted.
+    // SAFETY: kill(2) on our own children.
+    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGSTOP) }, 0);
+    running.signal(libc::SIGINT);
+    let ended = running.wait(Duration::from_secs(10));
+    // SAFETY: as above.
+    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGCONT) }, 0);
+    assert_eq!(ended.code(), 3, "{ended:?}");
+    assert!(ended.stderr.contains("NOT confirmed") && ended.stderr.contains("may still be moving"), "{}", ended.stderr);
+    // Where the actuator was last seen, not that it stopped there.
+    assert!(ended.stderr.contains("cancelled while A1 was moving (last seen at "), "{}", ended.stderr);
+    assert!(!ended.stderr.contains("stopped at"), "{}", ended.stderr);
+}
