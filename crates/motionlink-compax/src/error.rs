@@ -299,11 +299,12 @@ impl Classify for Error {
             | Error::NotReached { .. }
             | Error::TargetMismatch { .. }
             | Error::SwitchedOff { .. }
-            | Error::ReadBack { .. }
-            | Error::CloseUnconfirmed { .. } => ErrorClass::Device,
-            Error::Timeout { .. } | Error::MoveUncertain { .. } | Error::CloseTimedOut { .. } => {
-                ErrorClass::Transport(TransportKind::Timeout)
-            }
+            | Error::ReadBack { .. } => ErrorClass::Device,
+            // What the session started may still move: the line's failure, as in every family.
+            Error::Timeout { .. }
+            | Error::MoveUncertain { .. }
+            | Error::CloseTimedOut { .. }
+            | Error::CloseUnconfirmed { .. } => ErrorClass::Transport(TransportKind::Timeout),
             Error::Corrupt { .. } | Error::UnexpectedReply { .. } | Error::WrongOutput { .. } => {
                 ErrorClass::Transport(TransportKind::Corrupt)
             }
@@ -315,6 +316,12 @@ impl Classify for Error {
             // what was started was stopped); otherwise the axis may still move, as after a failed line.
             Error::Cancelled { stop } if !stop.all_confirmed() => ErrorClass::Transport(TransportKind::Timeout),
             Error::CancelledBeforeMotion | Error::Cancelled { .. } => ErrorClass::Cancelled,
+            // A failure whose stop a drive did not confirm: the axis may still move, a transport error of the
+            // cause's kind (a timeout when the cause was no transport error), as in every family.
+            Error::FailedDuringMotion { cause, stop } if !stop.all_confirmed() => match cause.class() {
+                c @ ErrorClass::Transport(_) => c,
+                _ => ErrorClass::Transport(TransportKind::Timeout),
+            },
             Error::FailedDuringMotion { cause, .. } => cause.class(),
             Error::SyncIncomplete { source, .. } | Error::NotExecuted { source, .. } => source.class(),
         }
@@ -455,6 +462,13 @@ mod tests {
     #[test]
     fn every_error_has_the_class_a_front_end_maps() {
         let stop = StopReport { drives: vec![(Address::drive(3).unwrap(), StopOutcome::SwitchedOff)] };
+        let not_confirmed = StopOutcome::NotConfirmed { reason: "silent".into() };
+        let unconfirmed = StopReport { drives: vec![(Address::drive_const(3), not_confirmed)] };
+        let mismatch = || Error::TargetMismatch {
+            address: Address::drive_const(3),
+            requested: Position::new(15.0).unwrap(),
+            taken: Position::new(14.0).unwrap(),
+        };
         let cases: Vec<(Error, ErrorClass)> = vec![
             (
                 Error::Refused { address: Address::drive_const(1), command: "S1".into(), code: ErrorCode(92) },
@@ -491,26 +505,15 @@ mod tests {
             (Error::Broadcast("x"), ErrorClass::Usage),
             (Error::CancelledBeforeMotion, ErrorClass::Cancelled),
             (Error::Cancelled { stop: stop.clone() }, ErrorClass::Cancelled),
-            // A cancel whose stop a drive did not confirm is no clean cancel (exit 130 promises the stop).
+            // A cancel, a failure or a close whose stop a drive did not confirm: the axis may still move, a
+            // transport error (exit 3), never the class of a settled end.
+            (Error::Cancelled { stop: unconfirmed.clone() }, ErrorClass::Transport(TransportKind::Timeout)),
+            (Error::CloseUnconfirmed { stop: unconfirmed.clone() }, ErrorClass::Transport(TransportKind::Timeout)),
             (
-                Error::Cancelled {
-                    stop: StopReport {
-                        drives: vec![(Address::drive_const(3), StopOutcome::NotConfirmed { reason: "silent".into() })],
-                    },
-                },
+                Error::FailedDuringMotion { cause: Box::new(mismatch()), stop: unconfirmed },
                 ErrorClass::Transport(TransportKind::Timeout),
             ),
-            (
-                Error::FailedDuringMotion {
-                    cause: Box::new(Error::TargetMismatch {
-                        address: Address::drive_const(3),
-                        requested: Position::new(15.0).unwrap(),
-                        taken: Position::new(14.0).unwrap(),
-                    }),
-                    stop,
-                },
-                ErrorClass::Device,
-            ),
+            (Error::FailedDuringMotion { cause: Box::new(mismatch()), stop }, ErrorClass::Device),
             (Error::close_timed_out(Duration::from_secs(5)), ErrorClass::Transport(TransportKind::Timeout)),
             (Error::session_closed(), ErrorClass::Usage),
         ];

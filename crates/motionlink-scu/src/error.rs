@@ -336,11 +336,10 @@ impl Classify for Error {
             | Error::RunCancelled { .. }
             | Error::FunctionCancelled { .. }
             | Error::CancelledBeforeMotion(_) => ErrorClass::Cancelled,
-            Error::StopUnconfirmed { cause, .. } => match cause.class() {
-                ErrorClass::Cancelled => ErrorClass::Transport(TransportKind::Timeout),
-                c => c,
-            },
-            Error::CloseUnconfirmed { cause, .. } => match cause.class() {
+            // The stop after a failure (or the end of the session) was not confirmed: the actuators may still
+            // move, a transport error of the cause's kind (a timeout when the cause was no transport error),
+            // as in every family.
+            Error::StopUnconfirmed { cause, .. } | Error::CloseUnconfirmed { cause, .. } => match cause.class() {
                 c @ ErrorClass::Transport(_) => c,
                 _ => ErrorClass::Transport(TransportKind::Timeout),
             },
@@ -433,6 +432,17 @@ mod tests {
         };
         assert_eq!(unconfirmed.class(), ErrorClass::Transport(TransportKind::Disconnected));
         assert!(unconfirmed.stop_unconfirmed());
+        // After a device error, a stop the unit did not confirm: the actuators may still move, exit 3 (the
+        // unit's Error_Code still comes with it).
+        let ended = Error::StillMoving(vec![Actuator::new(1).unwrap()]);
+        assert_eq!(ended.class(), ErrorClass::Device);
+        let unconfirmed = Error::StopUnconfirmed {
+            cause: Box::new(ended),
+            functions: Vec::new(),
+            mode: crate::model::StopMode::Fast,
+            detail: "y".into(),
+        };
+        assert_eq!(unconfirmed.class(), ErrorClass::Transport(TransportKind::Timeout));
         assert_eq!(
             Error::close_timed_out(Duration::from_secs(5)).class(),
             ErrorClass::Transport(TransportKind::Timeout)
