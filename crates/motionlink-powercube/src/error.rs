@@ -475,10 +475,13 @@ impl Classify for Error {
             Error::Link(e) => e.class(),
             Error::Timeout { .. } | Error::CloseTimedOut { .. } => ErrorClass::Transport(TransportKind::Timeout),
             Error::Corrupt { .. } => ErrorClass::Transport(TransportKind::Corrupt),
-            // A motion that may still run after the line failed: a transport error of the cause's kind.
-            Error::FailedDuringMotion { cause, .. } => match cause.class() {
-                ErrorClass::Transport(kind) => ErrorClass::Transport(kind),
-                _ => ErrorClass::Transport(TransportKind::Io),
+            // A motion that may still run after the line failed: a transport error of the cause's kind; a
+            // halt not confirmed after another failure: a timeout, as in every family. A confirmed halt
+            // leaves the class of what went wrong.
+            Error::FailedDuringMotion { cause, stop, .. } => match (cause.class(), stop) {
+                (c @ ErrorClass::Transport(_), _) => c,
+                (_, StopOutcome::Unconfirmed { .. }) => ErrorClass::Transport(TransportKind::Timeout),
+                (c, _) => c,
             },
             Error::StopUnconfirmed { .. } | Error::CloseUnconfirmed { .. } => {
                 ErrorClass::Transport(TransportKind::Timeout)
@@ -643,6 +646,14 @@ mod tests {
             stop: StopOutcome::Confirmed,
         };
         assert_eq!(lost.class(), ErrorClass::Transport(TransportKind::Timeout));
+        // Another failure during a motion: its class once the halt was confirmed, a timeout (exit 3) if not.
+        let halted = || Box::new(Error::Halted { address: Address::checked(1), state: CubeState(4) });
+        let settled =
+            Error::FailedDuringMotion { address: Address::checked(1), cause: halted(), stop: StopOutcome::Confirmed };
+        assert_eq!(settled.class(), ErrorClass::Device);
+        let open = StopOutcome::Unconfirmed { reason: "no answer".into(), watchdog_armed: false };
+        let unsettled = Error::FailedDuringMotion { address: Address::checked(1), cause: halted(), stop: open };
+        assert_eq!(unsettled.class(), ErrorClass::Transport(TransportKind::Timeout));
         let link = LinkError::Disconnected { port: "p".into(), reason: "r".into() };
         assert_eq!(Error::Link(link).class(), ErrorClass::Transport(TransportKind::Disconnected));
         let ctx = Error::Context {
