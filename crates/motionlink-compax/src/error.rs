@@ -230,6 +230,13 @@ pub enum Error {
     /// The session is closed (or closing): it takes no new operation.
     #[error("the COMPAX session is closed: it takes no new operation")]
     Closed,
+    /// A stop (`stop`, `stop_started`, [`StopReport::confirmed`]) that a drive did not confirm: its axis may
+    /// still be moving.
+    #[error("{stop}")]
+    StopUnconfirmed {
+        /// Drive by drive, how the stop ended.
+        stop: StopReport,
+    },
     /// Closing the session: the stop of what it had set in motion was not confirmed for every drive.
     #[error("closing the session: {stop}")]
     CloseUnconfirmed {
@@ -272,12 +279,14 @@ impl Error {
     }
 
     /// What the session did to stop the axes, when the error ended an action that may have left them
-    /// moving ([`Error::Cancelled`], [`Error::FailedDuringMotion`], [`Error::CloseUnconfirmed`]).
+    /// moving ([`Error::Cancelled`], [`Error::FailedDuringMotion`], [`Error::StopUnconfirmed`],
+    /// [`Error::CloseUnconfirmed`]).
     pub fn stop_report(&self) -> Option<&StopReport> {
         match self {
-            Error::Cancelled { stop } | Error::FailedDuringMotion { stop, .. } | Error::CloseUnconfirmed { stop } => {
-                Some(stop)
-            }
+            Error::Cancelled { stop }
+            | Error::FailedDuringMotion { stop, .. }
+            | Error::StopUnconfirmed { stop }
+            | Error::CloseUnconfirmed { stop } => Some(stop),
             _ => None,
         }
     }
@@ -304,6 +313,7 @@ impl Classify for Error {
             Error::Timeout { .. }
             | Error::MoveUncertain { .. }
             | Error::CloseTimedOut { .. }
+            | Error::StopUnconfirmed { .. }
             | Error::CloseUnconfirmed { .. } => ErrorClass::Transport(TransportKind::Timeout),
             Error::Corrupt { .. } | Error::UnexpectedReply { .. } | Error::WrongOutput { .. } => {
                 ErrorClass::Transport(TransportKind::Corrupt)
@@ -314,14 +324,10 @@ impl Classify for Error {
             }
             // A cancel is of class Cancelled only once every drive confirmed the stop (the class promises that
             // what was started was stopped); otherwise the axis may still move, as after a failed line.
-            Error::Cancelled { stop } if !stop.all_confirmed() => ErrorClass::Transport(TransportKind::Timeout),
+            Error::Cancelled { stop } if !stop.all_confirmed() => ErrorClass::Cancelled.stop_unconfirmed(),
             Error::CancelledBeforeMotion | Error::Cancelled { .. } => ErrorClass::Cancelled,
-            // A failure whose stop a drive did not confirm: the axis may still move, a transport error of the
-            // cause's kind (a timeout when the cause was no transport error), as in every family.
-            Error::FailedDuringMotion { cause, stop } if !stop.all_confirmed() => match cause.class() {
-                c @ ErrorClass::Transport(_) => c,
-                _ => ErrorClass::Transport(TransportKind::Timeout),
-            },
+            // A failure whose stop a drive did not confirm: the axis may still move.
+            Error::FailedDuringMotion { cause, stop } if !stop.all_confirmed() => cause.class().stop_unconfirmed(),
             Error::FailedDuringMotion { cause, .. } => cause.class(),
             Error::SyncIncomplete { source, .. } | Error::NotExecuted { source, .. } => source.class(),
         }
@@ -392,6 +398,15 @@ impl StopReport {
     /// The drives switched off (they need `OUTPUT O0=1` before the next move).
     pub fn switched_off(&self) -> Vec<Address> {
         self.drives.iter().filter(|(_, o)| *o == StopOutcome::SwitchedOff).map(|(a, _)| *a).collect()
+    }
+
+    /// The report, once every drive confirmed its stop; else [`Error::StopUnconfirmed`] (a transport error,
+    /// as every error after which an axis may still move).
+    pub fn confirmed(self) -> Result<StopReport, Error> {
+        match self.all_confirmed() {
+            true => Ok(self),
+            false => Err(Error::StopUnconfirmed { stop: self }),
+        }
     }
 
     /// The drives whose stop was not confirmed (they may still be moving).
@@ -509,6 +524,7 @@ mod tests {
             // transport error (exit 3), never the class of a settled end.
             (Error::Cancelled { stop: unconfirmed.clone() }, ErrorClass::Transport(TransportKind::Timeout)),
             (Error::CloseUnconfirmed { stop: unconfirmed.clone() }, ErrorClass::Transport(TransportKind::Timeout)),
+            (unconfirmed.clone().confirmed().unwrap_err(), ErrorClass::Transport(TransportKind::Timeout)),
             (
                 Error::FailedDuringMotion { cause: Box::new(mismatch()), stop: unconfirmed },
                 ErrorClass::Transport(TransportKind::Timeout),

@@ -467,11 +467,18 @@ pub trait FirmwareVariant: Copy + Ord + Sized + 'static {
     /// Names separated by commas (empty entries ignored), each once in the result, in the order of
     /// [`ALL`](Self::ALL).
     fn list(text: &str) -> Result<Vec<Self>, UnknownVariant> {
-        let mut found =
-            text.split(',').map(str::trim).filter(|s| !s.is_empty()).map(Self::named).collect::<Result<Vec<_>, _>>()?;
-        found.sort();
-        found.dedup();
+        let mut found = Vec::new();
+        let named = text.split(',').map(str::trim).filter(|s| !s.is_empty()).map(Self::named);
+        Self::merge(&mut found, named.collect::<Result<Vec<_>, _>>()?);
         Ok(found)
+    }
+
+    /// Adds `more` to `variants`, each once in the result, in the order of [`ALL`](Self::ALL) (how every
+    /// family's emulator configuration keeps them: `SimConfig::add_variants`).
+    fn merge(variants: &mut Vec<Self>, more: impl IntoIterator<Item = Self>) {
+        variants.extend(more);
+        variants.sort();
+        variants.dedup();
     }
 
     /// The names of every variant, comma-separated (for messages and help texts).

@@ -75,6 +75,23 @@ impl ErrorClass {
         }
     }
 
+    /// The class of an error after which the device did not confirm a stop, whose first failure was of
+    /// this class: a transport error of its kind, else a timeout. What was started may still move, so it is
+    /// never a class that says the end was settled (`Cancelled`, `Device`...), in every family.
+    ///
+    /// ```
+    /// use motionlink_link::error::{ErrorClass, TransportKind};
+    /// assert_eq!(ErrorClass::Cancelled.stop_unconfirmed(), ErrorClass::Transport(TransportKind::Timeout));
+    /// let lost = ErrorClass::Transport(TransportKind::Disconnected);
+    /// assert_eq!(lost.stop_unconfirmed(), lost);
+    /// ```
+    pub fn stop_unconfirmed(self) -> ErrorClass {
+        match self {
+            c @ ErrorClass::Transport(_) => c,
+            _ => ErrorClass::Transport(TransportKind::Timeout),
+        }
+    }
+
     /// True for every transport kind.
     pub fn is_transport(self) -> bool {
         matches!(self, ErrorClass::Transport(_))

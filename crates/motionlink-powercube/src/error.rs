@@ -376,7 +376,7 @@ pub enum Error {
     /// Modules this session set in motion could not be confirmed stopped (`stop_started`, and after a
     /// motion the guard ended): no Halt by address was acknowledged, a Halt was broadcast. The end of a
     /// session says the same as [`Error::CloseUnconfirmed`].
-    #[error("module {} set in motion by this session could not be confirmed stopped ({detail}): the axis may still be moving{}", list(addresses), if *watchdog_armed { "; its watchdog is online and no longer refreshed, so the module halts itself within 50 ms of the last refresh that reached it" } else { "" })]
+    #[error("{}", unconfirmed_text(addresses, detail, *watchdog_armed))]
     StopUnconfirmed {
         /// The modules.
         addresses: Vec<Address>,
@@ -388,7 +388,7 @@ pub enum Error {
     /// The end of the session could not confirm the stop of modules it had set in motion: no Halt by
     /// address was acknowledged, a Halt was broadcast and the watchdog refresh stopped (as SCU's and
     /// COMPAX's `CloseUnconfirmed`).
-    #[error("closing the session: module {} set in motion by this session could not be confirmed stopped ({detail}): the axis may still be moving{}", list(addresses), if *watchdog_armed { "; its watchdog is online and no longer refreshed, so the module halts itself within 50 ms of the last refresh that reached it" } else { "" })]
+    #[error("closing the session: {}", unconfirmed_text(addresses, detail, *watchdog_armed))]
     CloseUnconfirmed {
         /// The modules.
         addresses: Vec<Address>,
@@ -480,7 +480,7 @@ impl Classify for Error {
             // leaves the class of what went wrong.
             Error::FailedDuringMotion { cause, stop, .. } => match (cause.class(), stop) {
                 (c @ ErrorClass::Transport(_), _) => c,
-                (_, StopOutcome::Unconfirmed { .. }) => ErrorClass::Transport(TransportKind::Timeout),
+                (c, StopOutcome::Unconfirmed { .. }) => c.stop_unconfirmed(),
                 (c, _) => c,
             },
             Error::StopUnconfirmed { .. } | Error::CloseUnconfirmed { .. } => {
@@ -499,9 +499,7 @@ impl Classify for Error {
             | Error::NotReached { .. } => ErrorClass::Device,
             // A cancel is of class Cancelled only once the module confirmed the halt (the class promises that
             // what was started was stopped); one whose halt was not acknowledged is the line's failure.
-            Error::Cancelled { stop: StopOutcome::Unconfirmed { .. }, .. } => {
-                ErrorClass::Transport(TransportKind::Timeout)
-            }
+            Error::Cancelled { stop: StopOutcome::Unconfirmed { .. }, .. } => ErrorClass::Cancelled.stop_unconfirmed(),
             Error::Cancelled { .. } | Error::CancelledBeforeMotion { .. } => ErrorClass::Cancelled,
             Error::Model(_)
             | Error::InvalidAddress(_)
@@ -600,6 +598,23 @@ fn watchdogs_left(armed: Option<&[Address]>) -> String {
             list(many)
         ),
     }
+}
+
+/// "module 1 set in motion by this session could not be confirmed stopped (why): the axis may still be
+/// moving", and what its watchdog does where the session had armed it.
+fn unconfirmed_text(addresses: &[Address], detail: &str, watchdog_armed: bool) -> String {
+    let watchdog = match watchdog_armed {
+        true => {
+            "; its watchdog is online and no longer refreshed, so the module halts itself within 50 ms of the \
+                 last refresh that reached it"
+        }
+        false => "",
+    };
+    format!(
+        "module {} set in motion by this session could not be confirmed stopped ({detail}): the axis may still be \
+         moving{watchdog}",
+        list(addresses)
+    )
 }
 
 fn list(addresses: &[Address]) -> String {

@@ -331,18 +331,16 @@ impl Classify for Error {
             Error::InvalidArgument(_) | Error::OutsideLimits { .. } => ErrorClass::Usage,
             // A cancel is of class Cancelled only once the unit confirmed the stop (the class promises that
             // what was started was stopped); one whose RS was not acknowledged is the line's failure.
-            Error::FunctionCancelled { stopped: false, .. } => ErrorClass::Transport(TransportKind::Timeout),
+            Error::FunctionCancelled { stopped: false, .. } => ErrorClass::Cancelled.stop_unconfirmed(),
             Error::Cancelled { .. }
             | Error::RunCancelled { .. }
             | Error::FunctionCancelled { .. }
             | Error::CancelledBeforeMotion(_) => ErrorClass::Cancelled,
             // The stop after a failure (or the end of the session) was not confirmed: the actuators may still
-            // move, a transport error of the cause's kind (a timeout when the cause was no transport error),
-            // as in every family.
-            Error::StopUnconfirmed { cause, .. } | Error::CloseUnconfirmed { cause, .. } => match cause.class() {
-                c @ ErrorClass::Transport(_) => c,
-                _ => ErrorClass::Transport(TransportKind::Timeout),
-            },
+            // move.
+            Error::StopUnconfirmed { cause, .. } | Error::CloseUnconfirmed { cause, .. } => {
+                cause.class().stop_unconfirmed()
+            }
         }
     }
 

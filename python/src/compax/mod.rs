@@ -205,13 +205,10 @@ fn addresses(drives: Vec<Address>) -> Vec<u8> {
     drives.into_iter().map(Address::get).collect()
 }
 
-/// The drives of a stop, or an error naming those whose stop was not confirmed.
+/// The drives of a stop, or the library's error naming those whose stop was not confirmed.
 fn stopped(report: motionlink_compax::error::StopReport) -> Result<Vec<u8>, Failure> {
-    if report.all_confirmed() {
-        Ok(addresses(report.drives.into_iter().map(|(a, _)| a).collect()))
-    } else {
-        Err(Failure::new(motionlink_link::error::ErrorClass::Device, FAMILY, format!("closing: {report}")))
-    }
+    let report = report.confirmed().map_err(|e| e.failure())?;
+    Ok(addresses(report.drives.into_iter().map(|(a, _)| a).collect()))
 }
 
 impl crate::session::Session for Client {

@@ -8,6 +8,7 @@ use serde::Deserialize;
 use super::variant::Variant;
 use crate::model::{ParamId, Position, BAUD_RATES};
 use crate::wire::Mode;
+use motionlink_link::emulator::FirmwareVariant;
 
 /// A configuration error of the emulator.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -85,9 +86,7 @@ impl Default for SimConfig {
 impl SimConfig {
     /// Adds the firmware `variants` to the configuration's, each kept once (sorted).
     pub fn add_variants(&mut self, variants: impl IntoIterator<Item = Variant>) {
-        self.variants.extend(variants);
-        self.variants.sort();
-        self.variants.dedup();
+        Variant::merge(&mut self.variants, variants);
     }
 
     /// Drives at `addresses`, every one with `p196` at `baud_rate`.

@@ -10,7 +10,6 @@ use motionlink_compax::report::{DrivePosition, OutputSwitched, ParamReading, Sta
 use motionlink_compax::session::{MoveRequest, MoveTarget, TravelLimits, WatchSample};
 use motionlink_compax::wire::Address;
 use motionlink_compax::{AsyncClient, DriveOptions, Emulator};
-use motionlink_link::error::ErrorClass;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::profile::Profiles;
 use motionlink_link::url::PortUrl;
@@ -108,10 +107,7 @@ impl Compax {
             "stop" => {
                 args.finish()?;
                 Ok(Action::Stop(Box::pin(async move {
-                    let report = client.stop_if_moving(&[drive]).await.map_err(failed)?;
-                    if !report.all_confirmed() {
-                        return Err(ErrorReport::classed(ErrorClass::Device, report.to_string()));
-                    }
+                    let report = client.stop_if_moving(&[drive]).await.and_then(|r| r.confirmed()).map_err(failed)?;
                     let position = client.read_position(drive).await;
                     let o0 = client.read_s16(drive).await.map(|s| s.o0_state());
                     me.result(&StopResult::new(None::<String>, report, position, o0))

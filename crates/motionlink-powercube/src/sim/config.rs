@@ -29,6 +29,7 @@ use serde::Deserialize;
 use super::variant::Variant;
 use crate::model::ModuleKind;
 use crate::wire::is_module_address;
+use motionlink_link::emulator::FirmwareVariant;
 
 /// One module's defaults. In TOML (and any serde format) `address` is required; every other key may be
 /// left out and takes the value of [`ModuleConfig::at`] that address.
@@ -203,9 +204,7 @@ pub enum SimConfigError {
 impl SimConfig {
     /// Adds the firmware `variants` to the configuration's, each kept once (sorted).
     pub fn add_variants(&mut self, variants: impl IntoIterator<Item = Variant>) {
-        self.variants.extend(variants);
-        self.variants.sort();
-        self.variants.dedup();
+        Variant::merge(&mut self.variants, variants);
     }
 
     /// Default modules at `addresses`.

@@ -120,9 +120,7 @@ pub struct SimConfig {
 impl SimConfig {
     /// Adds the firmware `variants` to the configuration's, each kept once (sorted).
     pub fn add_variants(&mut self, variants: impl IntoIterator<Item = Variant>) {
-        self.variants.extend(variants);
-        self.variants.sort();
-        self.variants.dedup();
+        Variant::merge(&mut self.variants, variants);
     }
 
     /// SCP11 with `n` actuators: actuator k on function Fk.

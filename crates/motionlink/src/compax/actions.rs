@@ -216,15 +216,8 @@ pub(super) fn stop(
 ) -> Result<(), CliError> {
     args.out().holder(out, stopped)?;
     let drive = args.drive;
-    let report = bus.stop_if_moving(&[drive]).map_err(|e| error_for(args, e))?;
-    if !report.all_confirmed() {
-        let mut message = report.to_string();
-        for a in report.switched_off() {
-            message.push('\n');
-            message.push_str(&switch_on_hint(args, a.get()));
-        }
-        return Err(CliError::Device(message));
-    }
+    // Not confirmed: the error says so (with how to switch on a drive it switched off), exit 3.
+    let report = bus.stop_if_moving(&[drive]).and_then(|r| r.confirmed()).map_err(|e| error_for(args, e))?;
     // The stop is confirmed by S17; then where the axis stands (S1) and whether the drive is switched on
     // (S16: this stop, or an earlier one, may have switched it off). What cannot be read is said.
     let position = bus.read_position(drive);

@@ -140,10 +140,8 @@ fn speed(v: Option<f64>) -> Result<Option<SpeedPercent>, ErrorReport> {
     v.map(SpeedPercent::new).transpose().map_err(ErrorReport::usage)
 }
 
-fn stop_text(report: &motionlink_compax::client::StopReport) -> Result<String, ErrorReport> {
-    if !report.all_confirmed() {
-        return Err(ErrorReport::classed(ErrorClass::Device, report.to_string()));
-    }
+fn stop_text(report: motionlink_compax::client::StopReport) -> Result<String, ErrorReport> {
+    let report = report.confirmed()?;
     Ok(if report.is_empty() { String::new() } else { report.to_string() })
 }
 
@@ -294,10 +292,7 @@ impl Device for Compax {
         Box::pin(async move {
             // As `motionlink compax stop`: OUTPUT O0=0 if S17 says it moves, confirmed by S17; then S1 and S16.
             let a = address(unit)?;
-            let stopped = self.client.stop_if_moving(&[a]).await?;
-            if !stopped.all_confirmed() {
-                return Err(ErrorReport::classed(ErrorClass::Device, stopped.to_string()));
-            }
+            let stopped = self.client.stop_if_moving(&[a]).await?.confirmed()?;
             let position = self.client.read_position(a).await;
             let o0 = self.client.read_s16(a).await.map(|s| s.o0_state());
             Ok(report(&StopResult::new(None::<()>, stopped, position, o0)))
@@ -307,7 +302,7 @@ impl Device for Compax {
     fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, ErrorReport>> {
         Box::pin(async move {
             let report = self.client.stop_started().await;
-            stop_text(&report)
+            stop_text(report)
         })
     }
 
@@ -376,6 +371,6 @@ impl Device for Compax {
     }
 
     fn close(self: Arc<Self>) -> BoxFuture<'static, Result<String, ErrorReport>> {
-        close_last(self, |me| async move { stop_text(&me.client.close().await?) })
+        close_last(self, |me| async move { stop_text(me.client.close().await?) })
     }
 }

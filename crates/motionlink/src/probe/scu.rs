@@ -31,7 +31,12 @@ pub struct Args {
     pub baud: motionlink_link::probe::BaudChoice,
     /// With --port sim: a firmware variant of the emulated unit (as `motionlink sim scu --variant`); repeat
     /// or comma-separate for several.
-    #[arg(long = "sim-variant", value_name = "NAME", value_delimiter = ',', value_parser = crate::common::variant_parser::<motionlink_scu::Variant>())]
+    #[arg(
+        long = "sim-variant",
+        value_name = "NAME",
+        value_delimiter = ',',
+        value_parser = crate::common::variant_parser::<motionlink_scu::Variant>()
+    )]
     pub sim_variants: Vec<motionlink_scu::Variant>,
     #[command(flatten)]
     pub options: Options,

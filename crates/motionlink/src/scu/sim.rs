@@ -77,7 +77,12 @@ pub struct SimArgs {
     pub preset: Option<String>,
     /// A firmware variant: the unit does what the manual leaves open the other plausible way (see
     /// docs/assumptions.md). Repeat or comma-separate for several; added to the configuration's `variants`.
-    #[arg(long = "variant", value_name = "NAME", value_delimiter = ',', value_parser = common::variant_parser::<Variant>())]
+    #[arg(
+        long = "variant",
+        value_name = "NAME",
+        value_delimiter = ',',
+        value_parser = common::variant_parser::<Variant>()
+    )]
     pub variants: Vec<Variant>,
 }
 
