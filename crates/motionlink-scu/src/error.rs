@@ -223,8 +223,7 @@ pub enum Error {
     /// An action failed, and the stop that followed was not confirmed by the unit.
     #[error(
         "{}; then the stop ({}) was NOT confirmed by the unit ({detail}): the actuators may still be \
-         moving. The unit stops remote motions by itself 500 ms after the last RC it receives (its watchdog); \
-         this program sends none once it has ended",
+         moving. {WATCHDOG_NOTE}",
         unconfirmed_cause(cause),
         crate::model::stop_words(functions, *mode)
     )]
@@ -240,9 +239,7 @@ pub enum Error {
     },
     /// The end of a session could not confirm the stop of the functions it had started.
     #[error(
-        "stopping {} was NOT confirmed by the unit ({cause}): the actuators may still be moving. The unit \
-         stops remote motions by itself 500 ms after the last RC it receives (its watchdog); this program sends none \
-         once it has ended",
+        "stopping {} was NOT confirmed by the unit ({cause}): the actuators may still be moving. {WATCHDOG_NOTE}",
         crate::model::function_list(functions)
     )]
     CloseUnconfirmed {
@@ -261,6 +258,26 @@ pub enum Error {
         /// The bound waited.
         bound: Duration,
     },
+}
+
+/// What the unit does when a stop is not confirmed, as the errors that say so end.
+pub const WATCHDOG_NOTE: &str = "The unit stops remote motions by itself 500 ms after the last RC it receives \
+                                 (its watchdog); this program sends none once it has ended";
+
+impl Error {
+    /// This error (the end of a session: [`Error::CloseUnconfirmed`]) as a note after an error that said
+    /// already that a stop was not confirmed and what the unit's watchdog does then ([`WATCHDOG_NOTE`]):
+    /// "the end of the session sent RS to F1 again: not confirmed either (cause)". Any other error as
+    /// "then" and its message.
+    pub fn note_after_unconfirmed(&self) -> String {
+        match self {
+            Error::CloseUnconfirmed { functions, cause } => format!(
+                "the end of the session sent RS to {} again: not confirmed either ({cause})",
+                crate::model::function_list(functions)
+            ),
+            other => format!("then {other}"),
+        }
+    }
 }
 
 /// An actuator that ended a follow away from the last target it was given.

@@ -601,7 +601,7 @@ impl<S: Session> Drop for Driver<S> {
     fn drop(&mut self) {
         if self.open {
             if let Err(e) = self.close_inner() {
-                tracing::warn!("{}: closing the session on drop: {e}", self.describe);
+                tracing::warn!("{}: dropped without close(): {e}", self.describe);
             }
         }
     }

@@ -329,6 +329,10 @@ fn finish(
         Ending::Failed(e) => result.and(Err(common::classified(&e))),
         Ending::Unconfirmed(e) => Err(match result {
             Ok(()) => common::classified(&e),
+            // An error that said already that a stop was not confirmed is not said again in full.
+            Err(cli) if cli.to_string().contains(motionlink_scu::error::WATCHDOG_NOTE) => {
+                with_note(cli, &e.note_after_unconfirmed())
+            }
             Err(cli) => with_note(cli, &format!("then {e}")),
         }),
     }

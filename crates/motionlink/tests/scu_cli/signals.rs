@@ -227,4 +227,11 @@ fn ctrl_c_whose_stop_the_unit_does_not_confirm_exits_3_not_130() {
     // Where the actuator was last seen, not that it stopped there.
     assert!(ended.stderr.contains("cancelled while A1 was moving (last seen at "), "{}", ended.stderr);
     assert!(!ended.stderr.contains("stopped at"), "{}", ended.stderr);
+    // The close tried again: said once, with the watchdog's sentence once.
+    assert_eq!(ended.stderr.matches("its watchdog").count(), 1, "{}", ended.stderr);
+    assert!(
+        ended.stderr.contains("the end of the session sent RS to F1 again: not confirmed either"),
+        "{}",
+        ended.stderr
+    );
 }
