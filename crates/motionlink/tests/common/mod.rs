@@ -151,6 +151,15 @@ impl Sim {
         self.child.id()
     }
 
+    /// Stops the emulator process (SIGSTOP) until the guard drops (SIGCONT): its link stays up and carries
+    /// nothing, as a cut cable behind a serial gateway.
+    #[cfg(unix)]
+    pub fn freeze(&self) -> Frozen {
+        // SAFETY: kill(2) on our own child.
+        assert_eq!(unsafe { libc::kill(self.pid() as i32, libc::SIGSTOP) }, 0, "SIGSTOP to the emulator");
+        Frozen(self.pid())
+    }
+
     /// Every device event so far.
     pub fn events(&self) -> Vec<Event> {
         self.stderr.all().iter().filter_map(|l| parse_event(l)).collect()
@@ -166,6 +175,18 @@ impl Sim {
         self.stderr
             .wait_for(timeout, |l| parse_event(l).is_some_and(|e| e.at >= after && pred(&e.text)))
             .and_then(|l| parse_event(&l))
+    }
+}
+
+/// An emulator stopped by [`Sim::freeze`]; it runs again when this drops.
+#[cfg(unix)]
+pub struct Frozen(u32);
+
+#[cfg(unix)]
+impl Drop for Frozen {
+    fn drop(&mut self) {
+        // SAFETY: kill(2) on our own child.
+        unsafe { libc::kill(self.0 as i32, libc::SIGCONT) };
     }
 }
 

@@ -243,6 +243,25 @@ fn every_signal_stops_a_move_within_100_ms_over_tcp() {
     }
 }
 
+/// Ctrl-C during a move on a line that went silent: the stop (OUTPUT O0=0) is not confirmed, so the command
+/// says the axis may still be moving and exits 3 (a transport error), not 130 (which promises a confirmed
+/// stop). COMPAX has no host watchdog: nothing is said of one.
+#[cfg(unix)]
+#[test]
+fn ctrl_c_whose_stop_the_drive_does_not_confirm_exits_3_not_130() {
+    let sim = start_sim(&["--tcp", "127.0.0.1:0"]);
+    let run = Running::start(&["compax", "--port", &sim.address, "move", "--abs", "1000", "--speed", "10"]);
+    wait_started(&sim, 1);
+    let frozen = sim.freeze();
+    run.signal(libc::SIGINT);
+    let ended = run.wait(TEN_S);
+    drop(frozen);
+    assert_eq!(ended.code(), 3, "{ended:?}");
+    let said = &ended.stderr;
+    assert!(said.contains("NOT confirmed") && said.contains("may still be moving"), "{said}");
+    assert!(!said.contains("watchdog") && !said.contains("was stopped"), "{said}");
+}
+
 #[cfg(unix)]
 #[test]
 fn a_signal_stops_a_move_over_a_pty() {

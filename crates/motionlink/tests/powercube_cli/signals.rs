@@ -197,6 +197,31 @@ fn a_signal_ends_a_scan_at_once() {
     assert!((4..=6).contains(&n), "asked up to module {n} after the signal at {at:.3}:\n{}", ended.stderr);
 }
 
+/// Ctrl-C during a move on a line that went silent: the halt is not confirmed, so the command says the axis
+/// may still be moving and that the module's watchdog, no longer refreshed, halts it; it exits 3 (a
+/// transport error), not 130 (which promises a confirmed stop). Once the line carries again, the module is
+/// at rest.
+#[cfg(unix)]
+#[test]
+fn ctrl_c_whose_halt_the_module_does_not_confirm_exits_3_not_130() {
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0"]);
+    let port = sim.address.clone();
+    ok(&port, &["home"]);
+    let running = start_moving(&sim, &port, "1", &["move", "2.0", "--vel", "0.2", "--acc", "1"]);
+    let frozen = sim.freeze();
+    running.signal(libc::SIGINT);
+    let ended = running.wait(Duration::from_secs(10));
+    let resumed = unix_now();
+    drop(frozen);
+    assert_eq!(ended.code(), 3, "{ended:?}");
+    let said = &ended.stderr;
+    assert!(said.contains("not confirmed") && said.contains("may still be moving"), "{said}");
+    assert!(said.contains("halts itself within 50 ms"), "what the watchdog does: {said}");
+    assert!(!said.contains("it has stopped"), "{said}");
+    let rest = sim.wait_event_after(resumed - 1.0, Duration::from_secs(5), |e| e.starts_with("module 1 at rest"));
+    assert!(rest.is_some(), "{:?}", sim.events());
+}
+
 /// SIGKILL of a move: no halt, no goodbye; the module's watchdog halts it with STATE_COMM_ERROR within
 /// 100 ms of the kill. `reset` then clears it for good. With `--no-watchdog` it keeps moving.
 #[cfg(unix)]

@@ -159,13 +159,11 @@ fn a_dead_link_during_a_move_ends_the_command_within_3_s_saying_the_axis_may_sti
     let running = Running::start(&["scu", "--port", &sim.address, "move", "1", "800", "--speed", "100"]);
     wait_started(&sim, "F1");
     // The emulator stops answering (the TCP connection stays up): as a cut cable behind a serial gateway.
-    // SAFETY: kill(2) on our own child.
-    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGSTOP) }, 0);
+    let frozen = sim.freeze();
     let cut = std::time::Instant::now();
     let ended = running.wait(Duration::from_secs(10));
     let took = cut.elapsed();
-    // SAFETY: as above.
-    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGCONT) }, 0);
+    drop(frozen);
     assert!(took < Duration::from_secs(3), "the command took {took:?} to give up");
     assert_eq!(ended.code(), 3, "{ended:?}");
     assert!(ended.stderr.contains("may still be moving"), "{}", ended.stderr);
@@ -179,11 +177,9 @@ fn a_dead_link_during_watch_is_reported_as_a_silent_unit() {
     let sim = sim_tcp();
     let running = Running::start(&["scu", "--port", &sim.address, "watch", "--interval", "100"]);
     running.stdout.wait_for(Duration::from_secs(5), |l| l.contains("A1")).expect("a first sample");
-    // SAFETY: kill(2) on our own child.
-    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGSTOP) }, 0);
+    let frozen = sim.freeze();
     let ended = running.wait(Duration::from_secs(10));
-    // SAFETY: as above.
-    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGCONT) }, 0);
+    drop(frozen);
     assert_eq!(ended.code(), 3, "{ended:?}");
     // Either the request on the line timed out, or one queued behind an unanswered keepalive was not sent:
     // both say that the unit does not answer.
@@ -195,13 +191,11 @@ fn a_dead_link_during_watch_is_reported_as_a_silent_unit() {
 #[test]
 fn a_dead_link_before_the_session_opens_ends_the_command_within_3_s() {
     let sim = sim_tcp();
-    // SAFETY: kill(2) on our own child.
-    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGSTOP) }, 0);
+    let frozen = sim.freeze();
     let started = std::time::Instant::now();
     let out = scu(&sim.address, &["info"]);
     let took = started.elapsed();
-    // SAFETY: as above.
-    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGCONT) }, 0);
+    drop(frozen);
     assert!(took < Duration::from_secs(3), "{took:?}");
     assert_eq!(out.status.code(), Some(3), "{out:?}");
 }
@@ -216,12 +210,10 @@ fn ctrl_c_whose_stop_the_unit_does_not_confirm_exits_3_not_130() {
     let running = Running::start(&["scu", "--port", &sim.address, "move", "1", "800", "--speed", "100"]);
     wait_started(&sim, "F1");
     // The emulator stops answering (the TCP connection stays up), and at once the command is interrupted.
-    // SAFETY: kill(2) on our own children.
-    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGSTOP) }, 0);
+    let frozen = sim.freeze();
     running.signal(libc::SIGINT);
     let ended = running.wait(Duration::from_secs(10));
-    // SAFETY: as above.
-    assert_eq!(unsafe { libc::kill(sim.pid() as i32, libc::SIGCONT) }, 0);
+    drop(frozen);
     assert_eq!(ended.code(), 3, "{ended:?}");
     assert!(ended.stderr.contains("NOT confirmed") && ended.stderr.contains("may still be moving"), "{}", ended.stderr);
     // Where the actuator was last seen, not that it stopped there.
