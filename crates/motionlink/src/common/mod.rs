@@ -168,6 +168,32 @@ pub fn variant_parser<V: FirmwareVariant + Send + Sync>() -> VariantParser<V> {
     VariantParser(std::marker::PhantomData)
 }
 
+/// `--sim-variant` of a family's commands and probe: with `--port sim`, firmware variants of the emulated
+/// device, by [`variant_parser`] (the argument's id is `sim_variants`, the key of devices.toml).
+#[derive(clap::Args, Debug, Clone)]
+pub struct SimVariants<V: FirmwareVariant + Clone + Send + Sync + 'static> {
+    /// With --port sim: the emulated device runs this firmware variant (as `motionlink sim FAMILY --variant`);
+    /// repeat or comma-separate for several.
+    #[arg(
+        id = "sim_variants",
+        long = "sim-variant",
+        value_name = "NAME",
+        value_delimiter = ',',
+        value_parser = variant_parser::<V>(),
+        global = true
+    )]
+    pub list: Vec<V>,
+}
+
+/// `--variant` of `motionlink sim FAMILY`: firmware variants of the emulated device, by [`variant_parser`].
+#[derive(clap::Args, Debug, Clone)]
+pub struct Variants<V: FirmwareVariant + Clone + Send + Sync + 'static> {
+    /// A firmware variant: the emulated device does what the manual leaves open the other plausible way (see
+    /// docs/assumptions.md). Repeat or comma-separate for several; added to the configuration's `variants`.
+    #[arg(id = "variants", long = "variant", value_name = "NAME", value_delimiter = ',', value_parser = variant_parser::<V>())]
+    pub list: Vec<V>,
+}
+
 /// See [`variant_parser`].
 #[derive(Clone)]
 pub struct VariantParser<V>(std::marker::PhantomData<fn() -> V>);

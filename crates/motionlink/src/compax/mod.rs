@@ -81,16 +81,8 @@ pub struct LineArgs {
     /// Send the short command names (PA, PR, SD, AL, OT) instead of the long ones.
     #[arg(long, global = true)]
     pub short: bool,
-    /// With --port sim: the emulated drives run this firmware variant (repeat the option, or separate names
-    /// with commas).
-    #[arg(
-        long = "sim-variant",
-        value_name = "NAME",
-        value_delimiter = ',',
-        value_parser = crate::common::variant_parser::<Variant>(),
-        global = true
-    )]
-    pub sim_variants: Vec<Variant>,
+    #[command(flatten)]
+    pub sim_variants: crate::common::SimVariants<Variant>,
 }
 
 /// `motionlink compax` actions.

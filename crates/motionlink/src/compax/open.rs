@@ -62,7 +62,7 @@ pub(crate) fn line_options(line: &LineArgs) -> DriveOptions {
         short: line.short,
         poll_ms: None,
         tolerance: None,
-        sim_variants: line.sim_variants.clone(),
+        sim_variants: line.sim_variants.list.clone(),
         ..DriveOptions::default()
     }
 }

@@ -25,15 +25,8 @@ pub struct SimArgs {
     /// (repeatable). The drives refuse (E90) every other parameter.
     #[arg(long = "param", value_name = "PNNN=VALUE")]
     pub params: Vec<String>,
-    /// Run the drives as this firmware variant, one behaviour the manual leaves open done the other way
-    /// (repeat the option, or separate names with commas; see docs/assumptions.md).
-    #[arg(
-        long = "variant",
-        value_name = "NAME",
-        value_delimiter = ',',
-        value_parser = crate::common::variant_parser::<Variant>()
-    )]
-    pub variants: Vec<Variant>,
+    #[command(flatten)]
+    pub variants: crate::common::Variants<Variant>,
 }
 
 /// Runs `motionlink sim compax`.
@@ -62,7 +55,7 @@ pub fn sim(args: SimArgs) -> Result<(), CliError> {
             value.trim().parse().map_err(|_| CliError::usage(format!("--param {p}: {value:?} is not a number")))?;
         cfg = cfg.with_param(id, value);
     }
-    cfg.add_variants(args.variants.iter().copied());
+    cfg.add_variants(args.variants.list.iter().copied());
     let bus = Emulator::new(cfg).map_err(CliError::usage)?;
     common::serve(&args.serve, bus)
 }

@@ -86,16 +86,8 @@ pub struct BusArgs {
     /// page, Stop and the end of the console) and errors still halt it.
     #[arg(long, global = true)]
     pub no_watchdog: bool,
-    /// With --port sim: the emulated modules run this firmware variant (repeat the option, or separate
-    /// names with commas).
-    #[arg(
-        long = "sim-variant",
-        value_name = "NAME",
-        value_delimiter = ',',
-        value_parser = common::variant_parser::<Variant>(),
-        global = true
-    )]
-    pub sim_variants: Vec<Variant>,
+    #[command(flatten)]
+    pub sim_variants: crate::common::SimVariants<Variant>,
 }
 
 /// What `motionlink powercube` does.

@@ -50,7 +50,7 @@ pub(crate) fn bus_options(bus: &BusArgs) -> ModuleOptions {
         timeout_ms: bus.timeout_ms,
         poll_ms: bus.poll_ms,
         no_watchdog: bus.no_watchdog,
-        sim_variants: bus.sim_variants.clone(),
+        sim_variants: bus.sim_variants.list.clone(),
         ..ModuleOptions::default()
     }
 }

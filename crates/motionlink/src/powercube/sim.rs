@@ -19,15 +19,8 @@ pub struct SimArgs {
     /// Drop RS232 frames with a wrong BCC (the modules accept them).
     #[arg(long)]
     pub strict: bool,
-    /// Run the modules as this firmware variant, one behaviour the manual leaves open done the other way
-    /// (repeat the option, or separate names with commas; see docs/assumptions.md).
-    #[arg(
-        long = "variant",
-        value_name = "NAME",
-        value_delimiter = ',',
-        value_parser = common::variant_parser::<Variant>()
-    )]
-    pub variants: Vec<Variant>,
+    #[command(flatten)]
+    pub variants: crate::common::Variants<Variant>,
 }
 
 /// `motionlink sim powercube ...`
@@ -38,7 +31,7 @@ pub fn sim(args: SimArgs) -> Result<(), CliError> {
         (None, false) => SimConfig::with_addresses(&args.modules.iter().map(|a| a.get()).collect::<Vec<_>>())
             .map_err(CliError::usage)?,
     };
-    config.add_variants(args.variants.iter().copied());
+    config.add_variants(args.variants.list.iter().copied());
     if args.slcan {
         if args.strict {
             return Err(CliError::usage("--strict is about RS232 BCCs; it has no meaning with --slcan"));

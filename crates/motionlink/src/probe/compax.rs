@@ -37,15 +37,8 @@ pub struct Args {
     /// Time a drive may take to start answering, in ms (1..=60000, on top of the wire time).
     #[arg(long, default_value = "200")]
     pub timeout_ms: ReplyTimeout,
-    /// With --port sim: the emulated drive runs this firmware variant (as `motionlink sim compax --variant`);
-    /// repeat or comma-separate for several.
-    #[arg(
-        long = "sim-variant",
-        value_name = "NAME",
-        value_delimiter = ',',
-        value_parser = crate::common::variant_parser::<Variant>()
-    )]
-    pub sim_variants: Vec<Variant>,
+    #[command(flatten)]
+    pub sim_variants: crate::common::SimVariants<Variant>,
     #[command(flatten)]
     pub options: Options,
 }

@@ -33,15 +33,8 @@ pub struct Args {
     /// Acknowledge timeout in ms, 1 to 60000 (default: 200 on RS232, 50 on CAN).
     #[arg(long, value_name = "MS")]
     pub timeout_ms: Option<ReplyTimeout>,
-    /// With --port sim: the emulated module runs this firmware variant (as `motionlink sim powercube
-    /// --variant`); repeat or comma-separate for several.
-    #[arg(
-        long = "sim-variant",
-        value_name = "NAME",
-        value_delimiter = ',',
-        value_parser = crate::common::variant_parser::<Variant>()
-    )]
-    pub sim_variants: Vec<Variant>,
+    #[command(flatten)]
+    pub sim_variants: crate::common::SimVariants<Variant>,
     #[command(flatten)]
     pub options: Options,
 }

@@ -29,15 +29,8 @@ pub struct Args {
     /// each in that order (not over tcp:// or sim, where the gateway or emulator sets the rate).
     #[arg(long, default_value = "38400", value_name = "BAUD|auto", value_parser = baud_choice)]
     pub baud: motionlink_link::probe::BaudChoice,
-    /// With --port sim: a firmware variant of the emulated unit (as `motionlink sim scu --variant`); repeat
-    /// or comma-separate for several.
-    #[arg(
-        long = "sim-variant",
-        value_name = "NAME",
-        value_delimiter = ',',
-        value_parser = crate::common::variant_parser::<motionlink_scu::Variant>()
-    )]
-    pub sim_variants: Vec<motionlink_scu::Variant>,
+    #[command(flatten)]
+    pub sim_variants: crate::common::SimVariants<motionlink_scu::Variant>,
     #[command(flatten)]
     pub options: Options,
 }
@@ -49,7 +42,7 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
     match setup.kind {
         PortKind::Can => return Err(CliError::usage(format!("{port}: the SCU speaks RS232, not CAN"))),
         PortKind::Sim => {}
-        _ if !args.sim_variants.is_empty() => return Err(CliError::usage("--sim-variant is only for --port sim")),
+        _ if !args.sim_variants.list.is_empty() => return Err(CliError::usage("--sim-variant is only for --port sim")),
         _ => {}
     }
     crate::portlock::claim("scu", &port)?;
@@ -59,7 +52,7 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
     let (opened, baud_check) = find_baud(setup.kind, &args.baud, |baud| {
         // The family command's own link: at `--port sim` a unit with the variants asked for, else a serial line.
         let baud = Baud::checked(i64::from(baud)).map_err(|e| CliError::usage(e.to_string()))?;
-        let variants = &args.sim_variants;
+        let variants = &args.sim_variants.list;
         let unit = InProcess { functions: &[], preset: None, file: None, speed_mode: SpeedMode::Percent, variants };
         let connector = connector(&url, &unit, baud, &tap, &clock)?;
         Client::with_connector(connector, Arc::clone(&clock), Config::default()).map_err(|e| common::classified(&e))

@@ -105,16 +105,8 @@ pub struct UnitArgs {
     /// what the command believes of it).
     #[arg(long, value_name = "FILE", global = true)]
     pub sim_config: Option<PathBuf>,
-    /// A firmware variant of the emulator when the port is sim (as `motionlink sim scu --variant`); repeat
-    /// or comma-separate for several.
-    #[arg(
-        long = "sim-variant",
-        value_name = "NAME",
-        value_delimiter = ',',
-        value_parser = common::variant_parser::<Variant>(),
-        global = true
-    )]
-    pub sim_variants: Vec<Variant>,
+    #[command(flatten)]
+    pub sim_variants: crate::common::SimVariants<Variant>,
     /// The preset the emulator starts from when the port is sim: scp11, tlt or liftkit (as `motionlink sim
     /// scu --preset`). Default: the preset --functions names, else scp11; the Fn=... of --functions apply
     /// on top.

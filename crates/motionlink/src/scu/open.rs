@@ -14,7 +14,7 @@ pub(super) fn unit_options(args: &UnitArgs) -> UnitOptions {
         poll_ms: args.poll_ms,
         speed_mode: args.speed_mode,
         sim_preset: args.sim_preset.clone(),
-        sim_variants: args.sim_variants.clone(),
+        sim_variants: args.sim_variants.list.clone(),
     }
 }
 
@@ -43,7 +43,7 @@ pub(super) fn connect(
 /// The unit emulated with `--port sim`: the one the options name (its functions, its speed mode, the
 /// firmware variants asked for); the emulator's options on another port are refused.
 pub(crate) fn in_process<'a>(args: &'a UnitArgs, port: &PortUrl) -> Result<InProcess<'a>, CliError> {
-    let sim_options = args.sim_config.is_some() || args.sim_preset.is_some() || !args.sim_variants.is_empty();
+    let sim_options = args.sim_config.is_some() || args.sim_preset.is_some() || !args.sim_variants.list.is_empty();
     if sim_options && !matches!(port, PortUrl::Sim) && !port.is_can() {
         return Err(CliError::usage("--sim-config, --sim-preset and --sim-variant are only for --port sim"));
     }
@@ -52,7 +52,7 @@ pub(crate) fn in_process<'a>(args: &'a UnitArgs, port: &PortUrl) -> Result<InPro
         preset: args.sim_preset.as_deref(),
         file: args.sim_config.as_ref(),
         speed_mode: args.speed_mode,
-        variants: &args.sim_variants,
+        variants: &args.sim_variants.list,
     })
 }
 

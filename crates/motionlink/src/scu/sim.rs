@@ -75,20 +75,13 @@ pub struct SimArgs {
     /// or liftkit (F1 actuator 1, F2 actuator 2, F8 both, as the public LIFTKIT/TLT drivers assume).
     #[arg(long, value_parser = ["scp11", "tlt", "liftkit"])]
     pub preset: Option<String>,
-    /// A firmware variant: the unit does what the manual leaves open the other plausible way (see
-    /// docs/assumptions.md). Repeat or comma-separate for several; added to the configuration's `variants`.
-    #[arg(
-        long = "variant",
-        value_name = "NAME",
-        value_delimiter = ',',
-        value_parser = common::variant_parser::<Variant>()
-    )]
-    pub variants: Vec<Variant>,
+    #[command(flatten)]
+    pub variants: crate::common::Variants<Variant>,
 }
 
 /// `motionlink sim scu`
 pub fn sim(args: SimArgs) -> Result<(), CliError> {
-    let config = load_sim_config(args.config.as_ref(), args.preset.as_deref(), &args.variants)?;
+    let config = load_sim_config(args.config.as_ref(), args.preset.as_deref(), &args.variants.list)?;
     let device = Emulator::new(config).map_err(|e| CliError::usage(e.to_string()))?;
     common::serve(&args.serve, device)
 }
