@@ -36,6 +36,12 @@ pub enum StopOutcome {
     },
 }
 
+/// What an unconfirmed halt's message says of the watchdog the session had armed: it was left online, and
+/// how the module is cleared after it halted itself.
+pub const WATCHDOG_LEFT_NOTE: &str = "its watchdog is online and no longer refreshed, so if the halt did not \
+                                      reach it the module halts itself within 50 ms of the last refresh that \
+                                      did (STATE_COMM_ERROR; `reset` clears it)";
+
 impl StopOutcome {
     /// True unless a Halt was needed and not confirmed.
     pub fn is_confirmed(&self) -> bool {
@@ -51,10 +57,7 @@ impl fmt::Display for StopOutcome {
             StopOutcome::Unconfirmed { reason, watchdog_armed } => {
                 write!(f, "the halt was not confirmed ({reason}): the axis may still be moving")?;
                 if *watchdog_armed {
-                    f.write_str(
-                        "; its watchdog is online and no longer refreshed, so if the halt did not reach it the \
-                         module halts itself within 50 ms of the last refresh that did",
-                    )
+                    write!(f, "; {WATCHDOG_LEFT_NOTE}")
                 } else {
                     f.write_str("; no watchdog is armed on it: only a halt or the emergency stop stops it now")
                 }

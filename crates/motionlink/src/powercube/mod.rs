@@ -232,7 +232,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     };
     // Closing stops what is still moving and switches off what was armed, and says whether it could;
     // the in-process emulator goes only after that.
-    let closed = client.close().map(|_| ()).map_err(failed);
+    let closed = client.close().map(|_| ());
     drop(host);
     tap.flush();
     // A module that never answered is named as absent (a scan says so itself).
@@ -249,11 +249,17 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }),
     };
     match (result, closed) {
+        // An unconfirmed halt's error said already that the watchdog was left online.
+        (Err(e), Err(motionlink_powercube::Error::WatchdogLeftOnline { .. }))
+            if e.to_string().contains(motionlink_powercube::error::WATCHDOG_LEFT_NOTE) =>
+        {
+            Err(e)
+        }
         (Err(e), Err(also)) => {
             common::say_error(format!("motionlink: {also}"));
             Err(e)
         }
-        (result, closed) => result.and(closed),
+        (result, closed) => result.and(closed.map_err(failed)),
     }
 }
 

@@ -170,9 +170,11 @@ fn a_line_that_dies_during_a_move_is_reported_with_what_that_means() {
     assert_eq!(ended.code(), 3, "{ended:?}");
     assert!(ended.stderr.contains("the halt was not confirmed"), "{}", ended.stderr);
     assert!(ended.stderr.contains("the axis may still be moving"), "{}", ended.stderr);
-    // Its watchdog was armed: the message says what that does, and that it is left online.
+    // Its watchdog was armed: the message says what that does, that it is left online, and how to clear the
+    // module afterwards; once.
+    assert!(ended.stderr.contains("its watchdog is online and no longer refreshed"), "{}", ended.stderr);
     assert!(ended.stderr.contains("halts itself within 50 ms"), "{}", ended.stderr);
-    assert!(ended.stderr.contains("is left online"), "{}", ended.stderr);
+    assert_eq!(ended.stderr.matches("`reset` clears it").count(), 1, "{}", ended.stderr);
 }
 
 #[test]

@@ -217,6 +217,9 @@ fn ctrl_c_whose_halt_the_module_does_not_confirm_exits_3_not_130() {
     let said = &ended.stderr;
     assert!(said.contains("not confirmed") && said.contains("may still be moving"), "{said}");
     assert!(said.contains("halts itself within 50 ms"), "what the watchdog does: {said}");
+    // Said once, with how to clear the module; no second line saying the watchdog was left online.
+    assert_eq!(said.matches("`reset` clears it").count(), 1, "{said}");
+    assert!(!said.contains("is left online"), "{said}");
     assert!(!said.contains("it has stopped"), "{said}");
     let rest = sim.wait_event_after(resumed - 1.0, Duration::from_secs(5), |e| e.starts_with("module 1 at rest"));
     assert!(rest.is_some(), "{:?}", sim.events());

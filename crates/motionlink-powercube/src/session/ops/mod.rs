@@ -14,7 +14,7 @@ pub(crate) use run::run;
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use crate::error::Error;
+use crate::error::{Error, StopOutcome};
 use crate::model::Param;
 use crate::session::core::Core;
 use crate::session::ctx::Ctx;
@@ -159,6 +159,12 @@ impl Ctx {
                 source: Box::new(e),
                 hint: "",
             }),
+            // A motion whose halt was not confirmed says already that its watchdog was left online.
+            (Err(e), Err(Error::WatchdogLeftOnline { .. }))
+                if matches!(e.stop(), Some(StopOutcome::Unconfirmed { watchdog_armed: true, .. })) =>
+            {
+                Err(e)
+            }
             (Err(e), Err(undo)) => Err(Error::Also { error: Box::new(e), also: Box::new(undo) }),
         }
     }
@@ -187,7 +193,8 @@ impl Ctx {
                     result = Err(e);
                 }
             } else {
-                tracing::warn!("the session failed: the watchdog stays online and the modules halt within 50 ms");
+                // Said by the close's error (or the error of what failed before it).
+                tracing::info!("the session failed: the watchdog stays online and the modules halt within 50 ms");
                 let left: Vec<u8> = {
                     let core = self.core();
                     core.duty.online.iter().chain(core.duty.uncertain.iter()).copied().collect()
