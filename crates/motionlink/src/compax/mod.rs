@@ -358,26 +358,60 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
         let port = &args.resolved_port;
         crate::probe::use_profile(|p| motionlink_compax::probe::use_profile(&bus, p, port, drive))?;
     }
-    match &args.action {
-        Action::Scan => actions::scan(args, &bus, &mut out)?,
-        Action::Status { .. } => actions::status(args, &bus, &checked.status_ids, &mut out)?,
-        Action::Get { params } => actions::get(args, &bus, params, &mut out)?,
-        Action::Set { param, value } => actions::set(args, &bus, *param, *value, &mut out)?,
-        Action::Move { no_wait, .. } => {
-            actions::move_drive(args, &bus, checked.move_plan.as_ref(), *no_wait, &mut out)?
+    let result = act_on(args, tap, clock, &bus, &checked, stopped.as_ref(), &mut out);
+    // What this command set in motion and did not hand over is stopped here, and the result said (also
+    // after an error: the stop is tried again).
+    match (result, bus.close()) {
+        (result, Ok(report)) => {
+            if !report.is_empty() {
+                common::say(format!("motionlink: {report}"));
+            }
+            result
         }
-        Action::Watch { interval_ms, count, csv } => {
-            show::watch(args, &bus, clock, interval_ms.duration(), count, *csv, &mut out)?;
+        (Ok(()) | Err(CliError::OutputClosed), Err(e)) => Err(error_for(args, e)),
+        (Err(first), Err(e)) => {
+            // An error that said already that a stop was not confirmed is not said again in full.
+            let said = first.to_string().contains(motionlink_compax::error::STOP_NOT_CONFIRMED);
+            let note = match &e {
+                Error::CloseUnconfirmed { stop } if said => {
+                    let drives: Vec<String> = stop.unconfirmed().iter().map(|a| a.to_string()).collect();
+                    let s = if drives.len() == 1 { "" } else { "s" };
+                    format!(
+                        "the end of the session sent the stop again: drive{s} {} not confirmed either",
+                        drives.join(", ")
+                    )
+                }
+                _ => format!("then {}", error_for(args, e)),
+            };
+            Err(first.map_message(|m| format!("{m}; {note}")))
         }
-        Action::Stop => actions::stop(args, &bus, stopped.as_ref(), &mut out)?,
-        Action::Output { .. } => actions::output(args, &bus, checked.output, &mut out)?,
-        Action::Raw { command, .. } => actions::raw(args, &bus, command, checked.raw_wait, &mut out)?,
-        Action::Send { words } => actions::send(args, tap, &bus, drive, words, &mut out)?,
     }
-    // What this command set in motion and did not hand over is stopped here, and the result said.
-    let report = bus.close().map_err(|e| error_for(args, e))?;
-    if !report.is_empty() {
-        common::say(format!("motionlink: {report}"));
+}
+
+/// The action `args` ask for, on the open bus.
+fn act_on(
+    args: &Args,
+    tap: &Tap,
+    clock: &SharedClock,
+    bus: &Client,
+    checked: &actions::Checked,
+    stopped: Option<&motionlink_link::portlock::Stopped>,
+    out: &mut dyn Write,
+) -> Result<(), CliError> {
+    let drive = args.drive;
+    match &args.action {
+        Action::Scan => actions::scan(args, bus, out)?,
+        Action::Status { .. } => actions::status(args, bus, &checked.status_ids, out)?,
+        Action::Get { params } => actions::get(args, bus, params, out)?,
+        Action::Set { param, value } => actions::set(args, bus, *param, *value, out)?,
+        Action::Move { no_wait, .. } => actions::move_drive(args, bus, checked.move_plan.as_ref(), *no_wait, out)?,
+        Action::Watch { interval_ms, count, csv } => {
+            show::watch(args, bus, clock, interval_ms.duration(), count, *csv, out)?;
+        }
+        Action::Stop => actions::stop(args, bus, stopped, out)?,
+        Action::Output { .. } => actions::output(args, bus, checked.output, out)?,
+        Action::Raw { command, .. } => actions::raw(args, bus, command, checked.raw_wait, out)?,
+        Action::Send { words } => actions::send(args, tap, bus, drive, words, out)?,
     }
     Ok(())
 }
