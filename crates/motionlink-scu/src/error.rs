@@ -267,12 +267,12 @@ pub const WATCHDOG_NOTE: &str = "The unit stops remote motions by itself 500 ms 
 impl Error {
     /// This error (the end of a session: [`Error::CloseUnconfirmed`]) as a note after an error that said
     /// already that a stop was not confirmed and what the unit's watchdog does then ([`WATCHDOG_NOTE`]):
-    /// "the end of the session sent RS to F1 again: not confirmed either (cause)". Any other error as
+    /// "the end of the session tried RS to F1 again: not confirmed either (cause)". Any other error as
     /// "then" and its message.
     pub fn note_after_unconfirmed(&self) -> String {
         match self {
             Error::CloseUnconfirmed { functions, cause } => format!(
-                "the end of the session sent RS to {} again: not confirmed either ({cause})",
+                "the end of the session tried RS to {} again: not confirmed either ({cause})",
                 crate::model::function_list(functions)
             ),
             other => format!("then {other}"),

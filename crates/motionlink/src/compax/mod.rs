@@ -377,7 +377,7 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
                     let drives: Vec<String> = stop.unconfirmed().iter().map(|a| a.to_string()).collect();
                     let s = if drives.len() == 1 { "" } else { "s" };
                     format!(
-                        "the end of the session sent the stop again: drive{s} {} not confirmed either",
+                        "the end of the session tried the stop again: drive{s} {} not confirmed either",
                         drives.join(", ")
                     )
                 }

@@ -262,7 +262,7 @@ fn ctrl_c_whose_stop_the_drive_does_not_confirm_exits_3_not_130() {
     assert!(!said.contains("watchdog") && !said.contains("was stopped"), "{said}");
     // The close tried the stop again: said once, not the whole message a second time.
     assert_eq!(said.matches("NOT confirmed").count(), 1, "{said}");
-    assert!(said.contains("the end of the session sent the stop again: drive 1 not confirmed either"), "{said}");
+    assert!(said.contains("the end of the session tried the stop again: drive 1 not confirmed either"), "{said}");
 }
 
 #[cfg(unix)]

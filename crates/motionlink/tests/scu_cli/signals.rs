@@ -222,7 +222,7 @@ fn ctrl_c_whose_stop_the_unit_does_not_confirm_exits_3_not_130() {
     // The close tried again: said once, with the watchdog's sentence once.
     assert_eq!(ended.stderr.matches("its watchdog").count(), 1, "{}", ended.stderr);
     assert!(
-        ended.stderr.contains("the end of the session sent RS to F1 again: not confirmed either"),
+        ended.stderr.contains("the end of the session tried RS to F1 again: not confirmed either"),
         "{}",
         ended.stderr
     );
