@@ -190,7 +190,13 @@ pub struct SimVariants<V: FirmwareVariant + Clone + Send + Sync + 'static> {
 pub struct Variants<V: FirmwareVariant + Clone + Send + Sync + 'static> {
     /// A firmware variant: the emulated device does what the manual leaves open the other plausible way (see
     /// docs/assumptions.md). Repeat or comma-separate for several; added to the configuration's `variants`.
-    #[arg(id = "variants", long = "variant", value_name = "NAME", value_delimiter = ',', value_parser = variant_parser::<V>())]
+    #[arg(
+        id = "variants",
+        long = "variant",
+        value_name = "NAME",
+        value_delimiter = ',',
+        value_parser = variant_parser::<V>()
+    )]
     pub list: Vec<V>,
 }
 
