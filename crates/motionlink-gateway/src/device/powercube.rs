@@ -47,7 +47,8 @@ impl PowerCube {
         let in_process = matches!(url, PortUrl::Sim);
         let (client, host): (AsyncClient, Option<Box<dyn std::any::Any + Send>>) = if in_process {
             let bus = options.emulated().map_err(|e| ErrorReport::usage(e.to_string()))?;
-            let host = EmulatorHost::new(Emulator::new(&bus), Arc::clone(&clock), PipeConfig::instant());
+            let host =
+                EmulatorHost::new(Emulator::new(&bus), Arc::clone(&clock), PipeConfig::paced(options.baud.get()));
             let link: Box<dyn Link> = Box::new(host.connect().0);
             (AsyncClient::with_link(link, clock, options.config(false)).await.map_err(failed)?, Some(Box::new(host)))
         } else {

@@ -27,7 +27,8 @@ pub(crate) fn open(
         None => {
             // The emulated bus has the module the command names, in the firmware variants asked for.
             let bus = options.emulated().map_err(|e| CliError::usage(e.message))?;
-            let host = EmulatorHost::new(Emulator::new(&bus), Arc::clone(&clock), PipeConfig::instant());
+            let host =
+                EmulatorHost::new(Emulator::new(&bus), Arc::clone(&clock), PipeConfig::paced(args.bus.baud.get()));
             let link = tap.link(Box::new(host.connect().0), &clock);
             let client = Client::with_link(PortLink::Rs232(link), clock, options.config(false)).map_err(failed)?;
             return Ok((client, Some(host)));

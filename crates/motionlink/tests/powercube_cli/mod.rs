@@ -211,6 +211,27 @@ fn the_in_process_sim_port() {
     assert!(out.contains("rotary") && out.contains("1001"), "{out}");
 }
 
+/// The `-v` trace's time of day of the first line that contains `what`, in seconds.
+fn traced_at(trace: &str, what: &str) -> f64 {
+    let line = trace.lines().find(|l| l.contains(what)).unwrap_or_else(|| panic!("no {what:?} in:\n{trace}"));
+    let stamp = line.split_whitespace().next().unwrap();
+    stamp.split(':').fold(0.0, |total, part| total * 60.0 + part.parse::<f64>().unwrap())
+}
+
+/// `--port sim`'s line is paced to `--baud`: at 9600 baud a GetExtended ActPos (7 bytes) and its reply (11
+/// bytes) take 18.75 ms on the wire, and the reply is traced no sooner.
+#[test]
+fn the_in_process_sim_port_is_paced_to_the_baud_rate() {
+    let out = run("sim", &["-v", "--baud", "9600", "get", "ActPos"]);
+    assert!(out.status.success(), "{out:?}");
+    let trace = String::from_utf8_lossy(&out.stderr);
+    let sent = traced_at(&trace, "to module 1: GetExtended ActPos");
+    let answered = traced_at(&trace, "from module 1: ActPos =");
+    // (A trace across midnight starts the day again.)
+    let took_ms = (answered - sent).rem_euclid(86_400.0) * 1e3;
+    assert!(took_ms >= 18.0, "the reply came {took_ms:.1} ms after the request:\n{trace}");
+}
+
 /// `get PARAM --json` of module 1, as a number.
 fn number(port: &str, param: &str) -> f64 {
     let j: serde_json::Value = serde_json::from_str(&ok(port, &["--json", "get", param])).unwrap();
