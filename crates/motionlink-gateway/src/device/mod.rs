@@ -479,6 +479,25 @@ mod tests {
         }
     }
 
+    /// A `port = "sim"` device's emulator is behind a line paced to the device's baud rate, in every family: a
+    /// read takes at least the wire time of its telegrams (a PowerCube's state: 7 + 11 bytes at 9600 baud,
+    /// 18.75 ms; a COMPAX drive's status, S1 first: 4 + 13 bytes at 9600, 17.7 ms; an SCU's info, its first
+    /// RG and reply: 6 + 11 bytes at 38400, 4.4 ms).
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_sim_device_s_line_takes_the_time_of_its_baud_rate() {
+        for (family, op, wire_ms) in [("powercube", "state", 18.0), ("compax", "status", 17.0), ("scu", "info", 4.0)] {
+            let e = entry(family, "sim", &[]);
+            let spec = Spec::of(&e).unwrap();
+            let device = Device::open_with(&e, &spec, None).await.unwrap();
+            let Ok(Action::Other(read)) = device.action(op, Map::new()) else { panic!("{family} {op}: a read") };
+            let started = std::time::Instant::now();
+            read.await.unwrap();
+            let took_ms = started.elapsed().as_secs_f64() * 1e3;
+            assert!(took_ms >= wire_ms, "{family} {op}: {took_ms:.1} ms, less than its wire time");
+            device.close().await.unwrap();
+        }
+    }
+
     #[test]
     fn a_device_s_options_go_through_the_family_s_rules() {
         let s = Spec::of(&entry("scu", "sim", &[("functions", "tlt".into()), ("stroke", vec!["1=0:865"].into())]));
