@@ -247,6 +247,17 @@ impl Tap {
         }
     }
 
+    /// As [`Tap::name_absent`], for a `stop`: the message of what the stop did (whether anything was
+    /// stopped) stays, and `absent()` follows it.
+    pub fn name_absent_after(&self, e: CliError, absent: impl FnOnce() -> String) -> CliError {
+        match e {
+            CliError::Transport(TransportKind::Timeout, said) if !self.heard_anything() => {
+                CliError::Transport(TransportKind::Timeout, format!("{said}; {}", absent()))
+            }
+            e => e,
+        }
+    }
+
     /// `link`, watched for a busy server's refusal ([`BusyWatch`]) and tapped if anything watches it.
     pub fn link(&self, link: Box<dyn Link>, clock: &SharedClock) -> Box<dyn Link> {
         let link = match &self.busy {

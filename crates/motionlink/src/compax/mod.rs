@@ -301,11 +301,16 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     match args.action {
         Action::Scan => result,
         _ => result.map_err(|e| {
-            tap.name_absent(e, || {
+            let absent = || {
                 let port = &args.resolved_port;
                 let (drive, options) = (args.drive, bus_options(&args));
                 format!("drive {drive} does not answer on {port}; `motionlink compax --port {port}{options} scan` lists the drives there")
-            })
+            };
+            // A stop's own message says whether anything was stopped: it stays.
+            match args.action {
+                Action::Stop => tap.name_absent_after(e, absent),
+                _ => tap.name_absent(e, absent),
+            }
         }),
     }
 }

@@ -239,13 +239,18 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let result = match args.action {
         Action::Scan => result,
         _ => result.map_err(|e| {
-            tap.name_absent(e, || {
+            let absent = || {
                 let mut scan = format!("motionlink powercube --port {port}");
                 if args.bus.baud != Baud::DEFAULT {
                     scan.push_str(&format!(" --baud {}", args.bus.baud));
                 }
                 format!("no module answers at address {} on {port}; `{scan} scan` lists the modules there", args.module)
-            })
+            };
+            // A stop's own message says whether anything was stopped: it stays.
+            match args.action {
+                Action::Stop => tap.name_absent_after(e, absent),
+                _ => tap.name_absent(e, absent),
+            }
         }),
     };
     match (result, closed) {

@@ -278,10 +278,12 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
     let tap = Tap::new("scu", &port, &clock, &args.link, "can0", &describer, request.is_some())?;
     let absent = || {
+        // A stop says that it sent no stop: RS goes out only in the remote mode that RO opens.
+        let stop = if matches!(args.action, Action::Stop { .. }) { "; this command sent no RS" } else { "" };
         format!(
             "the SCU on {port} does not answer (nothing came back to RO within {} ms): check the cable, the baud \
              rate (--baud {}; standard units run at 38400, customised ones at 9600 or 19200) and that the control \
-             unit is powered",
+             unit is powered{stop}",
             args.unit.timeout_ms.get().as_millis(),
             args.unit.baud
         )

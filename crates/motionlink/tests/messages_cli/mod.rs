@@ -98,6 +98,36 @@ fn a_module_or_drive_that_does_not_answer_is_named_with_the_scan_that_lists_what
     assert!(scan.status.success() && stdout(&scan).contains("drive 1"), "{scan:?}");
 }
 
+/// `stop` of a device that does not answer first says what the stop did, then names the device as absent:
+/// a PowerCube's Halt, sent three times (it may be repeated), not acknowledged; a COMPAX drive's stop not
+/// confirmed; for the SCU, that no RS went out (it needs the remote mode that RO opens). Each may leave an
+/// axis moving, and the message must not read as a mere wrong address.
+#[test]
+fn a_stop_that_nobody_answers_says_what_it_did_before_naming_the_device_absent() {
+    let sim = Sim::tcp("powercube");
+    let port = sim.address.as_str();
+    let out = ml(&["powercube", "--port", port, "--module", "9", "--timeout-ms", "50", "stop"]);
+    assert_eq!(out.status.code(), Some(3), "{out:?}");
+    let err = stderr(&out);
+    assert!(err.starts_with("motionlink: module 9: Halt not acknowledged (3 sent): "), "{err}");
+    assert!(err.contains("; the axis may still be moving; no module answers at address 9 on"), "{err}");
+
+    let sim = Sim::tcp("compax");
+    let port = sim.address.as_str();
+    let out = ml(&["compax", "--port", port, "--drive", "9", "--timeout-ms", "50", "stop"]);
+    assert_eq!(out.status.code(), Some(3), "{out:?}");
+    let err = stderr(&out);
+    assert!(err.starts_with("motionlink: drive 9: the stop was NOT confirmed by the drive"), "{err}");
+    assert!(err.contains("the axis may still be moving; drive 9 does not answer on"), "{err}");
+
+    let port = silent_port();
+    let out = ml(&["scu", "--port", &port, "--timeout-ms", "300", "stop"]);
+    assert_eq!(out.status.code(), Some(3), "{out:?}");
+    let err = stderr(&out);
+    assert!(err.starts_with(&format!("motionlink: the SCU on {port} does not answer")), "{err}");
+    assert!(err.trim_end().ends_with("; this command sent no RS"), "{err}");
+}
+
 #[cfg(unix)]
 #[test]
 fn ctrl_c_during_a_compax_move_prints_no_log_lines() {

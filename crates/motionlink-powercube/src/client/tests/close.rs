@@ -158,3 +158,27 @@ fn a_confirmed_halt_reads_the_state_and_the_position_after_the_halt() {
     let again = m.halt_confirmed().unwrap();
     assert!((again.position.value() - report.position.value()).abs() < 1e-6);
 }
+
+#[test]
+fn a_halt_that_is_not_acknowledged_is_sent_again_and_then_said_unacknowledged() {
+    let (clock, canbus, bus) = can(&[1]);
+    let _me = clock.reserve_participant().enter();
+    let m = bus.module(addr(1));
+    m.motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
+    // Two acknowledgements lost: the third Halt is acknowledged, and the stop confirmed.
+    canbus.drop_next_from_device(2);
+    let report = m.halt_confirmed().unwrap();
+    assert!(report.state.contains(StateFlag::Halted) && !report.state.contains(StateFlag::Motion), "{report:?}");
+    // None acknowledged: three sent (the read retries' count), then an error that says the axis may move.
+    bus.module(addr(1)).reset().unwrap();
+    m.motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
+    canbus.drop_next_from_device(3);
+    let err = m.halt_confirmed().unwrap_err();
+    let text = err.to_string();
+    assert!(text.starts_with("module 1: Halt not acknowledged (3 sent): "), "{text}");
+    assert!(text.ends_with("; the axis may still be moving") && err.is_transport(), "{text}");
+    // The Halts reached it (their acknowledgements were lost), which the session cannot know: it still
+    // counts the module as set in motion, and the close halts it again.
+    assert!(device_view(&canbus, &clock, 1).0.contains(StateFlag::Halted));
+    assert_eq!(bus.close().map_err(|e| e.to_string()), Ok(vec![addr(1)]));
+}

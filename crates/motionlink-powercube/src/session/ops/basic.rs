@@ -290,9 +290,30 @@ impl Ctx {
         Ok(())
     }
 
-    /// Halt, then the state until STATE_MOTION is clear (at most [`HALT_SETTLE`]), then the position.
+    /// Halt (sent again when it is not acknowledged, as often as a read is asked again: a Halt is
+    /// idempotent), then the state until STATE_MOTION is clear (at most [`HALT_SETTLE`]), then the position.
+    /// A Halt never acknowledged is an error that says the axis may still be moving.
     pub async fn halt_confirmed(&self, address: u8) -> Result<HaltReport, Error> {
-        self.halt(address).await?;
+        // A Halt may be sent again (it is idempotent): as often as a read is asked again.
+        let attempts = 1 + self.core().config.read_retries;
+        let mut tried = 0;
+        loop {
+            tried += 1;
+            match self.halt(address).await {
+                Ok(()) => break,
+                Err(e) if e.retryable() && tried < attempts => {
+                    tracing::info!("module {address}: Halt not acknowledged ({e}); sending it again")
+                }
+                Err(e) if e.retryable() || matches!(e, Error::Link(_)) => {
+                    return Err(Error::Context {
+                        context: format!("module {address}: Halt not acknowledged ({tried} sent)"),
+                        source: Box::new(e),
+                        hint: "; the axis may still be moving",
+                    })
+                }
+                Err(e) => return Err(e),
+            }
+        }
         let start = self.now();
         let period = self.core().config.poll_interval.max(Duration::from_micros(100));
         loop {
