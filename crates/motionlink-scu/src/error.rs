@@ -271,10 +271,17 @@ impl Error {
     /// "then" and its message.
     pub fn note_after_unconfirmed(&self) -> String {
         match self {
-            Error::CloseUnconfirmed { functions, cause } => format!(
-                "the end of the session tried RS to {} again: not confirmed either ({cause})",
-                crate::model::function_list(functions)
-            ),
+            Error::CloseUnconfirmed { functions, cause } => {
+                let why = match &**cause {
+                    // Its message says what the watchdog does again.
+                    Error::CloseTimedOut { bound } => format!("the close's bound of {bound:?} passed"),
+                    other => other.to_string(),
+                };
+                format!(
+                    "the end of the session tried RS to {} again: not confirmed either ({why})",
+                    crate::model::function_list(functions)
+                )
+            }
             other => format!("then {other}"),
         }
     }
@@ -430,6 +437,22 @@ impl SessionError for Error {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The close's note after an error that said a stop was not confirmed: what the close tried, and why it
+    /// failed, without the watchdog's sentence a second time (also when the close ran out of its bound).
+    #[test]
+    fn the_close_s_note_after_an_unconfirmed_stop_says_the_watchdog_once() {
+        let f1 = vec![crate::model::Function::from_id(0).unwrap()];
+        for cause in
+            [Error::SessionLost("port not connected".into()), Error::CloseTimedOut { bound: Duration::from_secs(5) }]
+        {
+            let close = Error::CloseUnconfirmed { functions: f1.clone(), cause: Box::new(cause) };
+            let note = close.note_after_unconfirmed();
+            assert!(note.starts_with("the end of the session tried RS to F1 again: not confirmed either ("), "{note}");
+            assert!(!note.contains("its watchdog"), "{note}");
+        }
+        assert!(Error::SessionLost("x".into()).note_after_unconfirmed().starts_with("then "));
+    }
 
     #[test]
     fn every_error_keeps_its_class() {

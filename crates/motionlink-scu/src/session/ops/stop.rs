@@ -48,7 +48,12 @@ impl Stop {
     }
 
     /// The error of `cause` (what went wrong first) when this stop is then not confirmed (`detail`).
+    /// A cause that says already that a stop was not confirmed (and what the unit's watchdog does) is that
+    /// error: wrapped in a second one, the message would say it twice.
     pub(crate) fn unconfirmed(&self, cause: Error, detail: String) -> Error {
+        if matches!(cause, Error::StopUnconfirmed { .. }) {
+            return cause;
+        }
         Error::StopUnconfirmed { cause: Box::new(cause), functions: self.functions.clone(), mode: self.mode, detail }
     }
 
@@ -185,5 +190,20 @@ pub(crate) async fn stop_motions(ctx: &Ctx, functions: Vec<MotionFunction>, mode
             Ok(Output::Stopped(StopReport { functions, mode, refused, at_rest }))
         }
         Err((detail, e)) => Err(stop.unconfirmed(e, detail)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_stop_unconfirmed_after_one_that_was_already_is_said_once() {
+        let f1 = Function::from_id(0).unwrap();
+        let stop = Stop::new(f1, StopMode::Fast, Vec::new());
+        let first = stop.unconfirmed(Error::SessionLost("gone".into()), "no reply to RS".into());
+        let again = stop.unconfirmed(first, "no reply to RS either".into());
+        assert!(matches!(&again, Error::StopUnconfirmed { cause, .. } if matches!(**cause, Error::SessionLost(_))));
+        assert_eq!(again.to_string().matches("its watchdog").count(), 1, "{again}");
     }
 }
