@@ -152,12 +152,20 @@ impl Sim {
     }
 
     /// Stops the emulator process (SIGSTOP) until the guard drops (SIGCONT): its link stays up and carries
-    /// nothing, as a cut cable behind a serial gateway.
+    /// nothing, as a cut cable behind a serial gateway. Returns once every thread of it has stopped: a
+    /// group stop reaches the threads one by one, and a request sent at once is answered in most cases
+    /// (measured: 195 of 200) by a thread the stop has not reached yet.
     #[cfg(unix)]
     pub fn freeze(&self) -> Frozen {
         // SAFETY: kill(2) on our own child.
         assert_eq!(unsafe { libc::kill(self.pid() as i32, libc::SIGSTOP) }, 0, "SIGSTOP to the emulator");
-        Frozen(self.pid())
+        let frozen = Frozen(self.pid());
+        let deadline = std::time::Instant::now() + Duration::from_secs(5);
+        while !all_threads_stopped(self.pid()) {
+            assert!(std::time::Instant::now() < deadline, "the emulator did not stop within 5 s of SIGSTOP");
+            std::thread::sleep(Duration::from_micros(500));
+        }
+        frozen
     }
 
     /// Every device event so far.
@@ -176,6 +184,25 @@ impl Sim {
             .wait_for(timeout, |l| parse_event(l).is_some_and(|e| e.at >= after && pred(&e.text)))
             .and_then(|l| parse_event(&l))
     }
+}
+
+/// True when every thread of process `pid` is stopped (state `T` in /proc/PID/task/*/stat).
+#[cfg(target_os = "linux")]
+fn all_threads_stopped(pid: u32) -> bool {
+    let Ok(tasks) = std::fs::read_dir(format!("/proc/{pid}/task")) else { return false };
+    tasks.filter_map(Result::ok).all(|t| {
+        let stat = std::fs::read_to_string(t.path().join("stat")).unwrap_or_default();
+        // The state follows the command name's closing parenthesis.
+        let state = stat.rsplit_once(')').and_then(|(_, rest)| rest.split_whitespace().next());
+        matches!(state, Some("T" | "t"))
+    })
+}
+
+/// Without /proc: a stop is taken to have reached every thread after 100 ms.
+#[cfg(all(unix, not(target_os = "linux")))]
+fn all_threads_stopped(_pid: u32) -> bool {
+    std::thread::sleep(Duration::from_millis(100));
+    true
 }
 
 /// An emulator stopped by [`Sim::freeze`]; it runs again when this drops.

@@ -221,7 +221,7 @@ fn ctrl_c_whose_stop_the_unit_does_not_confirm_exits_3_not_130() {
     let cancelled = ended.stderr.contains("cancelled while A1 was moving (last seen at ");
     assert!(cancelled || ended.stderr.contains("no reply to RE within"), "{}", ended.stderr);
     assert!(!ended.stderr.contains("stopped at"), "{}", ended.stderr);
-    // The close tried again: said once, with the watchdog's sentence once.
+    // The close tried the RS again: said once, with the watchdog's sentence once.
     assert_eq!(ended.stderr.matches("its watchdog").count(), 1, "{}", ended.stderr);
     assert!(
         ended.stderr.contains("the end of the session tried RS to F1 again: not confirmed either"),
