@@ -69,20 +69,19 @@ pub fn to_pyerr(py: Python<'_>, failure: Failure) -> PyErr {
 
 fn build(py: Python<'_>, f: &Failure) -> PyResult<PyErr> {
     let class = errors_module(py)?.getattr(class_name(f.class))?;
-    let bits = PyList::empty(py);
-    for b in f.report.device.iter().flat_map(|d| &d.bits) {
-        let d = PyDict::new(py);
-        d.set_item("bit", b.bit)?;
-        d.set_item("name", &b.name)?;
-        d.set_item("cause", &b.cause)?;
-        bits.append(d)?;
-    }
+    // The report as it serialises (kind, exit_code, and code and bits where the device reported them),
+    // the message aside: it is the exception's argument.
     let kwargs = PyDict::new(py);
-    kwargs.set_item("kind", f.report.kind.as_ref())?;
-    kwargs.set_item("exit_code", f.report.exit_code)?;
+    if let serde_json::Value::Object(fields) = crate::common::report_value(&f.report)? {
+        for (key, value) in fields.iter().filter(|(k, _)| k.as_str() != "message") {
+            kwargs.set_item(key, crate::common::json_py(py, value)?)?;
+        }
+    }
+    if f.report.device.is_none() {
+        kwargs.set_item("code", py.None())?;
+        kwargs.set_item("bits", PyList::empty(py))?;
+    }
     kwargs.set_item("family", f.family)?;
-    kwargs.set_item("code", f.report.device.as_ref().map(|d| d.code))?;
-    kwargs.set_item("bits", bits)?;
     let value = class.call((f.report.message.as_str(),), Some(&kwargs))?;
     Ok(PyErr::from_value(value))
 }

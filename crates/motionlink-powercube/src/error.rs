@@ -481,10 +481,9 @@ impl Classify for Error {
             // A motion that may still run after the line failed: a transport error of the cause's kind; a
             // halt not confirmed after another failure: a timeout, as in every family. A confirmed halt
             // leaves the class of what went wrong.
-            Error::FailedDuringMotion { cause, stop, .. } => match (cause.class(), stop) {
-                (c @ ErrorClass::Transport(_), _) => c,
-                (c, StopOutcome::Unconfirmed { .. }) => c.stop_unconfirmed(),
-                (c, _) => c,
+            Error::FailedDuringMotion { cause, stop, .. } => match stop {
+                StopOutcome::Unconfirmed { .. } => cause.class().stop_unconfirmed(),
+                _ => cause.class(),
             },
             Error::StopUnconfirmed { .. } | Error::CloseUnconfirmed { .. } => {
                 ErrorClass::Transport(TransportKind::Timeout)

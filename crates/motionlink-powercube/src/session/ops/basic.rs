@@ -290,30 +290,33 @@ impl Ctx {
         Ok(())
     }
 
+    /// Halt, sent again while it is not acknowledged (a Halt may be repeated safely), as often as a read is
+    /// asked again (three in all by default), but not after the line itself failed: the last error and how
+    /// many Halts were sent, when none was acknowledged.
+    pub async fn halt_repeated(&self, address: u8) -> Result<(), (Error, u32)> {
+        let attempts = 1 + self.core().config.read_retries;
+        let mut sent = 0;
+        loop {
+            sent += 1;
+            match self.halt(address).await {
+                Ok(()) => return Ok(()),
+                Err(e) if sent < attempts && !matches!(e, Error::Link(_)) => {
+                    tracing::info!("module {address}: Halt not acknowledged ({e}); sending it again")
+                }
+                Err(e) => return Err((e, sent)),
+            }
+        }
+    }
+
     /// Halt (sent again when it is not acknowledged, as often as a read is asked again: a Halt is
     /// idempotent), then the state until STATE_MOTION is clear (at most [`HALT_SETTLE`]), then the position.
     /// A Halt never acknowledged is an error that says the axis may still be moving.
     pub async fn halt_confirmed(&self, address: u8) -> Result<HaltReport, Error> {
-        // A Halt may be sent again (it is idempotent): as often as a read is asked again.
-        let attempts = 1 + self.core().config.read_retries;
-        let mut tried = 0;
-        loop {
-            tried += 1;
-            match self.halt(address).await {
-                Ok(()) => break,
-                Err(e) if e.retryable() && tried < attempts => {
-                    tracing::info!("module {address}: Halt not acknowledged ({e}); sending it again")
-                }
-                Err(e) if e.retryable() || matches!(e, Error::Link(_)) => {
-                    return Err(Error::Context {
-                        context: format!("module {address}: Halt not acknowledged ({tried} sent)"),
-                        source: Box::new(e),
-                        hint: "; the axis may still be moving",
-                    })
-                }
-                Err(e) => return Err(e),
-            }
-        }
+        self.halt_repeated(address).await.map_err(|(e, sent)| Error::Context {
+            context: format!("module {address}: Halt not acknowledged ({sent} sent)"),
+            source: Box::new(e),
+            hint: "; the axis may still be moving",
+        })?;
         let start = self.now();
         let period = self.core().config.poll_interval.max(Duration::from_micros(100));
         loop {

@@ -20,21 +20,10 @@ impl Ctx {
     /// itself failed), then, if none was acknowledged, a Halt broadcast to every module and the watchdog
     /// refresh stopped, so that an armed module halts itself within 50 ms.
     pub async fn stop_motion(&self, a: u8) -> StopOutcome {
-        let attempts = 1 + self.core().config.read_retries;
-        let mut last = None;
-        for _ in 0..attempts {
-            match self.halt(a).await {
-                Ok(()) => return StopOutcome::Confirmed,
-                Err(e) => {
-                    let line_failed = matches!(e, Error::Link(_));
-                    last = Some(e);
-                    if line_failed {
-                        break;
-                    }
-                }
-            }
-        }
-        let reason = last.map_or_else(|| "no halt could be sent".to_string(), |e| e.to_string());
+        let reason = match self.halt_repeated(a).await {
+            Ok(()) => return StopOutcome::Confirmed,
+            Err((e, _)) => e.to_string(),
+        };
         tracing::warn!(
             "module {a}: halt not confirmed ({reason}); broadcasting a halt and stopping the watchdog refresh"
         );
