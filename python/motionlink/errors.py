@@ -61,6 +61,9 @@ class MotionlinkError(Exception):
         code: The device's error code or state word, when it reported one (SCU: Error_Code; PowerCube:
             CubeState; COMPAX: the number of its ``Exx`` answer), else ``None``.
         bits: The named bits set in ``code``: a list of dicts ``{"bit": int, "name": str, "cause": str}``.
+        stop_unconfirmed: True when the failure says that a stop was not confirmed by the device: what
+            the client had set in motion may still be moving (the message says what stops it then).
+            Such an error is a :class:`TransportError`.
     """
 
     kind: str
@@ -69,6 +72,7 @@ class MotionlinkError(Exception):
     family: str
     code: Optional[int]
     bits: List[Dict[str, Any]]
+    stop_unconfirmed: bool
 
     _default_kind = "io"
 
@@ -81,6 +85,7 @@ class MotionlinkError(Exception):
         family: str = "",
         code: Optional[int] = None,
         bits: Optional[List[Dict[str, Any]]] = None,
+        stop_unconfirmed: bool = False,
     ) -> None:
         super().__init__(message)
         self.message = message
@@ -89,14 +94,17 @@ class MotionlinkError(Exception):
         self.family = family
         self.code = code
         self.bits = list(bits or [])
+        self.stop_unconfirmed = stop_unconfirmed
 
     def __str__(self) -> str:
         return self.message
 
     def to_dict(self) -> Dict[str, Any]:
-        """The error as the command line's ``--json`` prints it (``kind``, ``message``, ``exit_code``, and
-        ``code`` and ``bits`` where the device reported them)."""
+        """The error as the command line's ``--json`` prints it (``kind``, ``message``, ``exit_code``,
+        ``stop_unconfirmed`` when true, and ``code`` and ``bits`` where the device reported them)."""
         d: Dict[str, Any] = {"kind": self.kind, "message": self.message, "exit_code": self.exit_code}
+        if self.stop_unconfirmed:
+            d["stop_unconfirmed"] = True
         if self.code is not None:
             d["code"] = self.code
             d["bits"] = list(self.bits)

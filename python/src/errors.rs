@@ -57,7 +57,7 @@ fn errors_module(py: Python<'_>) -> PyResult<&Bound<'_, PyModule>> {
 }
 
 /// The Python exception for `failure`: an instance of the class its [`ErrorClass`] names, with the
-/// attributes `kind`, `message`, `exit_code`, `family`, `code` and `bits`.
+/// attributes `kind`, `message`, `exit_code`, `family`, `code`, `bits` and `stop_unconfirmed`.
 pub fn to_pyerr(py: Python<'_>, failure: Failure) -> PyErr {
     match build(py, &failure) {
         Ok(e) => e,
@@ -69,7 +69,8 @@ pub fn to_pyerr(py: Python<'_>, failure: Failure) -> PyErr {
 
 fn build(py: Python<'_>, f: &Failure) -> PyResult<PyErr> {
     let class = errors_module(py)?.getattr(class_name(f.class))?;
-    // The report as it serialises (kind, exit_code, and code and bits where the device reported them),
+    // The report as it serialises (kind, exit_code, stop_unconfirmed when true, and code and bits where the
+    // device reported them),
     // the message aside: it is the exception's argument.
     let kwargs = PyDict::new(py);
     if let serde_json::Value::Object(fields) = crate::common::report_value(&f.report)? {

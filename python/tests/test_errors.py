@@ -3,6 +3,7 @@ misbehaving peer), with the attributes the command line's JSON names."""
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import threading
 from typing import Callable, Iterator
@@ -146,3 +147,54 @@ def test_cancelled_for_a_move_whose_client_is_closed(
     assert "halt" in str(outcome[0]) and outcome[0].kind == "cancelled"
     with pytest.raises(motionlink.UsageError, match="closed"):
         cube.position()
+
+
+def test_a_stop_the_module_does_not_confirm_says_so_as_data() -> None:
+    """A move whose client is closed while the line is silent: the halt is not acknowledged, so the error
+    is the line's (a TimeoutError, not Cancelled) and ``stop_unconfirmed`` says the axis may still move."""
+    silent = threading.Event()
+    with motionlink.Emulator("powercube", serve="tcp") as emu:
+        host, port = emu.port[len("tcp://") :].rsplit(":", 1)
+        srv = socket.socket()
+        srv.bind(("127.0.0.1", 0))
+        srv.listen(1)
+
+        def proxy() -> None:
+            conn, _ = srv.accept()
+            up = socket.create_connection((host, int(port)))
+
+            def down() -> None:
+                while data := up.recv(4096):
+                    if not silent.is_set():
+                        conn.sendall(data)
+
+            threading.Thread(target=down, daemon=True).start()
+            while data := conn.recv(4096):
+                up.sendall(data)
+
+        threading.Thread(target=proxy, daemon=True).start()
+        cube = motionlink.PowerCube(f"tcp://127.0.0.1:{srv.getsockname()[1]}")
+        cube.home()
+        emu.take_events()  # the home's own "motion started" is not the move's
+        outcome = []
+
+        def move() -> None:
+            try:
+                cube.move_to(2.0, velocity=0.2)
+            except motionlink.MotionlinkError as e:
+                outcome.append(e)
+
+        t = threading.Thread(target=move)
+        t.start()
+        emu.wait_event(lambda s: "motion started" in s)
+        silent.set()
+        # The close says what it could not do either (the watchdog left online, or its own stop); the
+        # move's error is the one under test.
+        with contextlib.suppress(motionlink.MotionlinkError):
+            cube.close()
+        t.join(10)
+        srv.close()
+    err = outcome[0]
+    assert isinstance(err, motionlink.TimeoutError) and err.stop_unconfirmed, err
+    assert "may still be moving" in str(err)
+    assert err.to_dict() == {"kind": "timeout", "message": str(err), "exit_code": 3, "stop_unconfirmed": True}

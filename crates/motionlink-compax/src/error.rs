@@ -333,6 +333,16 @@ impl Classify for Error {
         }
     }
 
+    /// A drive did not confirm a stop the session sent: the axis may be moving.
+    fn stop_unconfirmed(&self) -> bool {
+        match self {
+            Error::StopUnconfirmed { .. } | Error::CloseUnconfirmed { .. } | Error::CloseTimedOut { .. } => true,
+            Error::Cancelled { stop } | Error::FailedDuringMotion { stop, .. } => !stop.all_confirmed(),
+            Error::SyncIncomplete { source, .. } | Error::NotExecuted { source, .. } => source.stop_unconfirmed(),
+            _ => false,
+        }
+    }
+
     /// The drive's `Exx` number ([`Error::device_code`]): a number, not a word of bits.
     fn reported(&self) -> Option<DeviceCode> {
         self.device_code().map(|c| DeviceCode { code: u64::from(c.0), bits: Vec::new() })
@@ -537,6 +547,24 @@ mod tests {
         ];
         for (e, class) in cases {
             assert_eq!(e.class(), class, "{e}");
+            // Flagged exactly where a stop was not confirmed (here: the errors carrying `unconfirmed`, the
+            // close's bound), each of which says the axis may still move.
+            let says = e.to_string().contains("may still be moving") || e.to_string().contains("NOT confirmed");
+            assert_eq!(e.stop_unconfirmed(), says, "{e}");
         }
+        let inner = Error::FailedDuringMotion {
+            cause: Box::new(Error::CancelledBeforeMotion),
+            stop: StopReport {
+                drives: vec![(Address::drive_const(2), StopOutcome::NotConfirmed { reason: "x".into() })],
+            },
+        };
+        let sync = Error::NotExecuted {
+            address: Address::drive_const(2),
+            command: "POSA 1".into(),
+            why: "x".into(),
+            source: Box::new(inner),
+            buffered: vec![2],
+        };
+        assert!(sync.stop_unconfirmed(), "a wrapped unconfirmed stop: {sync}");
     }
 }

@@ -115,6 +115,12 @@ pub trait Classify {
     fn reported(&self) -> Option<DeviceCode> {
         None
     }
+
+    /// True when this error says that a stop was not confirmed by the device: what the session had set in
+    /// motion may still be moving (its message says so, and what stops it then). False by default.
+    fn stop_unconfirmed(&self) -> bool {
+        false
+    }
 }
 
 /// What a device reported with an error: the number it gave and the manual's names of the bits set in it
@@ -177,7 +183,8 @@ impl Classify for LinkError {
 
 /// An error as every front end reports it: the command line's `--json` (on stderr), the web console's and the
 /// fleet gateway's replies, and Python's `MotionlinkError.to_dict()` have these fields: `kind`, `message`,
-/// `exit_code`, and `code` and `bits` where the device reported them ([`Classify::reported`]).
+/// `exit_code`, `stop_unconfirmed: true` where a stop was not confirmed ([`Classify::stop_unconfirmed`]),
+/// and `code` and `bits` where the device reported them ([`Classify::reported`]).
 ///
 /// ```
 /// use motionlink_link::error::{ErrorReport, TransportKind};
@@ -198,6 +205,11 @@ pub struct ErrorReport {
     pub message: String,
     /// The command line's exit code for it.
     pub exit_code: u8,
+    /// True when the error says that a stop was not confirmed by the device: what was set in motion may
+    /// still be moving ([`Classify::stop_unconfirmed`]). In the object only when true
+    /// (`"stop_unconfirmed": true`).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub stop_unconfirmed: bool,
     /// What the device reported with it (`code` and `bits`, flattened into the object), if anything.
     #[serde(flatten, skip_serializing_if = "Option::is_none")]
     pub device: Option<Box<DeviceCode>>,
@@ -206,7 +218,7 @@ pub struct ErrorReport {
 impl ErrorReport {
     /// A report of `kind` with its exit code.
     pub fn new(kind: impl Into<std::borrow::Cow<'static, str>>, message: impl Into<String>, exit_code: u8) -> Self {
-        ErrorReport { kind: kind.into(), message: message.into(), exit_code, device: None }
+        ErrorReport { kind: kind.into(), message: message.into(), exit_code, stop_unconfirmed: false, device: None }
     }
 
     /// An error of `class`.
@@ -216,7 +228,11 @@ impl ErrorReport {
 
     /// A library error, by its class, with what the device reported.
     pub fn of<E: Classify + fmt::Display + ?Sized>(e: &E) -> Self {
-        ErrorReport { device: e.reported().map(Box::new), ..ErrorReport::classed(e.class(), e.to_string()) }
+        ErrorReport {
+            stop_unconfirmed: e.stop_unconfirmed(),
+            device: e.reported().map(Box::new),
+            ..ErrorReport::classed(e.class(), e.to_string())
+        }
     }
 
     /// A request that cannot be carried out as it is (bad input: nothing was sent to the device).

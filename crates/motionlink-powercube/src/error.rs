@@ -516,6 +516,18 @@ impl Classify for Error {
         }
     }
 
+    /// A Halt the session needed was not acknowledged, or the end of the session could not confirm its
+    /// stop: the axis may be moving.
+    fn stop_unconfirmed(&self) -> bool {
+        match self {
+            Error::FailedDuringMotion { stop, .. } | Error::Cancelled { stop, .. } => !stop.is_confirmed(),
+            Error::StopUnconfirmed { .. } | Error::CloseUnconfirmed { .. } | Error::CloseTimedOut { .. } => true,
+            Error::Context { source, .. } => source.stop_unconfirmed(),
+            Error::Also { error, also } => error.stop_unconfirmed() || also.stop_unconfirmed(),
+            _ => false,
+        }
+    }
+
     /// The module's state word (CubeState) with its flags set, numbered from bit 0, where the error carries
     /// it (also as the cause of another).
     fn reported(&self) -> Option<DeviceCode> {
@@ -671,6 +683,11 @@ mod tests {
         let open = StopOutcome::Unconfirmed { reason: "no answer".into(), watchdog_armed: false };
         let unsettled = Error::FailedDuringMotion { address: Address::checked(1), cause: halted(), stop: open };
         assert_eq!(unsettled.class(), ErrorClass::Transport(TransportKind::Timeout));
+        // Flagged as a stop not confirmed where the halt was not, also inside a context; not otherwise.
+        assert!(unsettled.stop_unconfirmed() && !settled.stop_unconfirmed() && !lost.stop_unconfirmed());
+        let wrapped = Error::Context { context: "moving".into(), source: Box::new(unsettled), hint: "" };
+        assert!(wrapped.stop_unconfirmed(), "{wrapped}");
+        assert!(Error::close_timed_out(Duration::from_secs(5)).stop_unconfirmed());
         let link = LinkError::Disconnected { port: "p".into(), reason: "r".into() };
         assert_eq!(Error::Link(link).class(), ErrorClass::Transport(TransportKind::Disconnected));
         let ctx = Error::Context {

@@ -319,11 +319,6 @@ impl std::fmt::Display for TargetMiss {
 }
 
 impl Error {
-    /// True if this error says that a stop the session tried was not confirmed: the actuators may be moving.
-    pub fn stop_unconfirmed(&self) -> bool {
-        matches!(self, Error::StopUnconfirmed { .. } | Error::CloseUnconfirmed { .. } | Error::CloseTimedOut { .. })
-    }
-
     /// An error of the caller's input.
     pub(crate) fn invalid(what: impl Into<String>) -> Self {
         Error::InvalidArgument(what.into())
@@ -366,6 +361,17 @@ impl Classify for Error {
                 cause.class().stop_unconfirmed()
             }
         }
+    }
+
+    /// A stop the session tried was not confirmed: the actuators may be moving.
+    fn stop_unconfirmed(&self) -> bool {
+        matches!(
+            self,
+            Error::StopUnconfirmed { .. }
+                | Error::CloseUnconfirmed { .. }
+                | Error::CloseTimedOut { .. }
+                | Error::FunctionCancelled { stopped: false, .. }
+        )
     }
 
     /// The unit's Error_Code with its named bits (numbered 1..32 as the manual counts), of a motion that

@@ -11,7 +11,7 @@ use motionlink_link::capture::{CaptureWriter, Fanout, TapCanLink, TapLink, TapSi
 use motionlink_link::chunk::{Chunk, Direction};
 use motionlink_link::clock::lock;
 use motionlink_link::describe::{Annotation, Describe, DescribingTap, OnTelegrams};
-use motionlink_link::error::TransportKind;
+use motionlink_link::error::{ErrorClass, TransportKind};
 use motionlink_link::link::Link;
 use motionlink_link::LinkError;
 use motionlink_link::{SharedClock, Timestamp};
@@ -237,25 +237,32 @@ impl Tap {
 
     /// `e` as the user reads it when it is a timeout and nothing at all came from the device during the
     /// session: `absent()` names the device as absent (and what to check), instead of the request that went
-    /// unanswered. The error's class (and so its exit code and `--json` kind) stays.
+    /// unanswered. The error's class (and so its exit code and `--json` kind) stays. An error that says a
+    /// stop was not confirmed keeps its message, and `absent()` follows it ([`Tap::name_absent_after`]).
     pub fn name_absent(&self, e: CliError, absent: impl FnOnce() -> String) -> CliError {
-        match e {
-            CliError::Transport(TransportKind::Timeout, _) if !self.heard_anything() => {
-                CliError::Transport(TransportKind::Timeout, absent())
-            }
-            e => e,
+        if e.stop_unconfirmed() {
+            return self.name_absent_after(e, absent);
+        }
+        if self.unheard_timeout(&e) {
+            e.map_message(|_| absent())
+        } else {
+            e
         }
     }
 
     /// As [`Tap::name_absent`], for a `stop`: the message of what the stop did (whether anything was
     /// stopped) stays, and `absent()` follows it.
     pub fn name_absent_after(&self, e: CliError, absent: impl FnOnce() -> String) -> CliError {
-        match e {
-            CliError::Transport(TransportKind::Timeout, said) if !self.heard_anything() => {
-                CliError::Transport(TransportKind::Timeout, format!("{said}; {}", absent()))
-            }
-            e => e,
+        if self.unheard_timeout(&e) {
+            e.map_message(|said| format!("{said}; {}", absent()))
+        } else {
+            e
         }
+    }
+
+    /// True if `e` is a timeout and nothing came from the device.
+    fn unheard_timeout(&self, e: &CliError) -> bool {
+        e.class() == ErrorClass::Transport(TransportKind::Timeout) && !self.heard_anything()
     }
 
     /// `link`, watched for a busy server's refusal ([`BusyWatch`]) and tapped if anything watches it.

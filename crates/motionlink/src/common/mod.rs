@@ -39,8 +39,8 @@ pub enum CliError {
     #[error("stdout was closed")]
     OutputClosed,
     /// A library error with what the device reported (an SCU's Error_Code, a PowerCube module's state word,
-    /// a COMPAX drive's `Exx`): of its class, and `--json` gives the code and its bits
-    /// ([`ErrorReport::device`]).
+    /// a COMPAX drive's `Exx`), or one that says a stop was not confirmed: of its class, and `--json` gives
+    /// the code and its bits ([`ErrorReport::device`]) and `"stop_unconfirmed": true`.
     #[error("{}", .1.message)]
     Reported(ErrorClass, ErrorReport),
 }
@@ -84,7 +84,14 @@ impl CliError {
             CliError::Reported(_, r) => r.device.clone(),
             _ => None,
         };
-        to_json(&ErrorReport { device, ..ErrorReport::new(self.kind(), self.to_string(), self.exit_code()) })
+        let report = ErrorReport::new(self.kind(), self.to_string(), self.exit_code());
+        to_json(&ErrorReport { device, stop_unconfirmed: self.stop_unconfirmed(), ..report })
+    }
+
+    /// True when the error says that a stop was not confirmed by the device (the library's
+    /// [`Classify::stop_unconfirmed`]): what was set in motion may still be moving.
+    pub fn stop_unconfirmed(&self) -> bool {
+        matches!(self, CliError::Reported(_, r) if r.stop_unconfirmed)
     }
 
     /// The same error with `f` applied to its message (a closed stdout becomes an interruption whose
@@ -102,6 +109,22 @@ impl CliError {
                 CliError::Reported(c, ErrorReport { message, ..r })
             }
         }
+    }
+
+    /// This error, followed by a stop the device did not confirm (the end of the session tried it again,
+    /// in vain): what was set in motion may still be moving, so it is of a transport class (its kind kept,
+    /// else a timeout: exit code 3, whatever the first error was) and `--json` says `"stop_unconfirmed":
+    /// true`. The message is kept (it says what the stop did).
+    pub fn stop_not_confirmed(self) -> CliError {
+        let class = self.class().stop_unconfirmed();
+        let (message, device) = match self {
+            CliError::Reported(_, r) => (r.message, r.device),
+            e => (e.to_string(), None),
+        };
+        CliError::Reported(
+            class,
+            ErrorReport { stop_unconfirmed: true, device, ..ErrorReport::classed(class, message) },
+        )
     }
 
     /// A usage error.
@@ -134,7 +157,7 @@ impl From<std::io::Error> for CliError {
 /// The command line's error for any classified library error: the one place where error classes become
 /// command-line errors (and so exit codes and `--json` kinds).
 pub fn classified<E: Classify + std::fmt::Display + ?Sized>(e: &E) -> CliError {
-    if e.reported().is_some() {
+    if e.reported().is_some() || e.stop_unconfirmed() {
         return CliError::Reported(e.class(), ErrorReport::of(e));
     }
     let msg = e.to_string();

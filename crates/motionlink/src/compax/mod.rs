@@ -253,6 +253,10 @@ impl Classify for Explained<'_> {
     fn reported(&self) -> Option<motionlink_link::error::DeviceCode> {
         self.error.reported()
     }
+
+    fn stop_unconfirmed(&self) -> bool {
+        self.error.stop_unconfirmed()
+    }
 }
 
 impl std::fmt::Display for Explained<'_> {
@@ -376,7 +380,8 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
         (Ok(()) | Err(CliError::OutputClosed), Err(e)) => Err(error_for(args, e)),
         (Err(first), Err(e)) => {
             // An error that said already that a stop was not confirmed is not said again in full.
-            let said = first.to_string().contains(motionlink_compax::error::STOP_NOT_CONFIRMED);
+            let said = first.stop_unconfirmed();
+            let again = e.stop_unconfirmed();
             let note = match &e {
                 Error::CloseUnconfirmed { stop } if said => {
                     let drives: Vec<String> = stop.unconfirmed().iter().map(|a| a.to_string()).collect();
@@ -388,7 +393,8 @@ fn act(args: &Args, tap: &Tap, clock: &SharedClock) -> Result<(), CliError> {
                 }
                 _ => format!("then {}", error_for(args, e)),
             };
-            Err(first.map_message(|m| format!("{m}; {note}")))
+            let first = first.map_message(|m| format!("{m}; {note}"));
+            Err(if again { first.stop_not_confirmed() } else { first })
         }
     }
 }

@@ -255,14 +255,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
     };
     match (result, closed) {
         // An unconfirmed halt's error said already that the watchdog was left online.
-        (Err(e), Err(motionlink_powercube::Error::WatchdogLeftOnline { .. }))
-            if e.to_string().contains(motionlink_powercube::error::WATCHDOG_LEFT_NOTE) =>
-        {
-            Err(e)
-        }
+        (Err(e), Err(motionlink_powercube::Error::WatchdogLeftOnline { .. })) if e.stop_unconfirmed() => Err(e),
         (Err(e), Err(also)) => {
             common::say_error(format!("motionlink: {also}"));
-            Err(e)
+            Err(if motionlink_link::error::Classify::stop_unconfirmed(&also) { e.stop_not_confirmed() } else { e })
         }
         (result, closed) => result.and(closed.map_err(failed)),
     }

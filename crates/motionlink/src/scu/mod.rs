@@ -324,10 +324,8 @@ fn finish(
         Ending::Unconfirmed(e) => Err(match result {
             Ok(()) => common::classified(&e),
             // An error that said already that a stop was not confirmed is not said again in full.
-            Err(cli) if cli.to_string().contains(motionlink_scu::error::WATCHDOG_NOTE) => {
-                with_note(cli, &e.note_after_unconfirmed())
-            }
-            Err(cli) => with_note(cli, &format!("then {e}")),
+            Err(cli) if cli.stop_unconfirmed() => with_note(cli, &e.note_after_unconfirmed()),
+            Err(cli) => with_note(cli, &format!("then {e}")).stop_not_confirmed(),
         }),
     }
 }
@@ -384,6 +382,7 @@ fn act(
 mod tests {
     use super::*;
     use motionlink_scu::model::Speed;
+    use serde_json::json;
 
     #[test]
     fn the_command_line_s_defaults_are_the_library_s() {
@@ -409,10 +408,24 @@ mod tests {
         // What Client::close says when the functions `functions` were left started and the port was gone.
         let unconfirmed =
             |functions| motionlink_scu::Error::CloseUnconfirmed { functions, cause: Box::new(lost.clone()) };
+        // A stop not confirmed at the end makes any first error one of the line (exit code 3), flagged.
         let e = finish(Err(CliError::Interrupted("interrupted".into())), Err(unconfirmed(vec![f(0)]))).unwrap_err();
-        assert!(matches!(&e, CliError::Interrupted(m) if m.contains("may still be moving") && m.contains("F1")), "{e}");
+        assert!(e.to_string().starts_with("interrupted; then ") && e.to_string().contains("F1"), "{e}");
+        assert!(e.to_string().contains("may still be moving") && e.stop_unconfirmed(), "{e}");
+        assert_eq!((e.kind(), e.exit_code(), &e.to_json()["stop_unconfirmed"]), ("timeout", 3, &json!(true)));
         let e = finish(Ok(()), Err(unconfirmed(vec![f(1)]))).unwrap_err();
-        assert!(matches!(&e, CliError::Transport(_, m) if m.contains("F2")), "{e}");
+        assert!(e.to_string().contains("F2") && e.stop_unconfirmed(), "{e}");
+        assert_eq!((e.kind(), e.exit_code()), ("disconnected", 3));
+        // An error that said so already is followed by the short note, and stays flagged.
+        let said = common::classified(&unconfirmed(vec![f(0)]));
+        let e = finish(Err(said), Err(unconfirmed(vec![f(0)]))).unwrap_err();
+        assert!(
+            e.to_string().ends_with(
+                "the end of the session tried RS to F1 again: not confirmed either (session lost: port gone)"
+            ),
+            "{e}"
+        );
+        assert!(e.stop_unconfirmed(), "{e}");
         let e = finish(Err(CliError::Device("stalled".into())), Ok(vec![f(0)])).unwrap_err();
         assert!(matches!(&e, CliError::Device(m) if m.contains("acknowledged RS")), "{e}");
         assert!(finish(Ok(()), Ok(vec![])).is_ok());

@@ -249,6 +249,12 @@ impl Ended {
     pub fn code(&self) -> i32 {
         self.status.code().unwrap_or(-1)
     }
+
+    /// The JSON object a `--json` command printed last on stderr: its error.
+    pub fn json_error(&self) -> serde_json::Value {
+        let line = self.stderr.lines().last().unwrap_or_else(|| panic!("no error on stderr: {self:?}"));
+        serde_json::from_str(line).unwrap_or_else(|e| panic!("not a JSON object ({e}): {}", self.stderr))
+    }
 }
 
 impl Running {

@@ -250,7 +250,7 @@ fn every_signal_stops_a_move_within_100_ms_over_tcp() {
 #[test]
 fn ctrl_c_whose_stop_the_drive_does_not_confirm_exits_3_not_130() {
     let sim = start_sim(&["--tcp", "127.0.0.1:0"]);
-    let run = Running::start(&["compax", "--port", &sim.address, "move", "--abs", "1000", "--speed", "10"]);
+    let run = Running::start(&["--json", "compax", "--port", &sim.address, "move", "--abs", "1000", "--speed", "10"]);
     wait_started(&sim, 1);
     let frozen = sim.freeze();
     run.signal(libc::SIGINT);
@@ -263,6 +263,9 @@ fn ctrl_c_whose_stop_the_drive_does_not_confirm_exits_3_not_130() {
     // The close tried the stop again: said once, not the whole message a second time.
     assert_eq!(said.matches("NOT confirmed").count(), 1, "{said}");
     assert!(said.contains("the end of the session tried the stop again: drive 1 not confirmed either"), "{said}");
+    // The error says so as data too.
+    let e = ended.json_error();
+    assert_eq!((&e["stop_unconfirmed"], &e["exit_code"]), (&serde_json::json!(true), &serde_json::json!(3)), "{e}");
 }
 
 #[cfg(unix)]

@@ -207,7 +207,7 @@ fn ctrl_c_whose_halt_the_module_does_not_confirm_exits_3_not_130() {
     let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0"]);
     let port = sim.address.clone();
     ok(&port, &["home"]);
-    let running = start_moving(&sim, &port, "1", &["move", "2.0", "--vel", "0.2", "--acc", "1"]);
+    let running = start_moving(&sim, &port, "1", &["--json", "move", "2.0", "--vel", "0.2", "--acc", "1"]);
     let frozen = sim.freeze();
     running.signal(libc::SIGINT);
     let ended = running.wait(Duration::from_secs(10));
@@ -221,6 +221,9 @@ fn ctrl_c_whose_halt_the_module_does_not_confirm_exits_3_not_130() {
     assert_eq!(said.matches("`reset` clears it").count(), 1, "{said}");
     assert!(!said.contains("is left online"), "{said}");
     assert!(!said.contains("it has stopped"), "{said}");
+    // The error says so as data too.
+    let e = ended.json_error();
+    assert_eq!((&e["stop_unconfirmed"], &e["exit_code"]), (&serde_json::json!(true), &serde_json::json!(3)), "{e}");
     let rest = sim.wait_event_after(resumed - 1.0, Duration::from_secs(5), |e| e.starts_with("module 1 at rest"));
     assert!(rest.is_some(), "{:?}", sim.events());
 }

@@ -207,7 +207,7 @@ fn a_dead_link_before_the_session_opens_ends_the_command_within_3_s() {
 #[test]
 fn ctrl_c_whose_stop_the_unit_does_not_confirm_exits_3_not_130() {
     let sim = sim_tcp();
-    let running = Running::start(&["scu", "--port", &sim.address, "move", "1", "800", "--speed", "100"]);
+    let running = Running::start(&["--json", "scu", "--port", &sim.address, "move", "1", "800", "--speed", "100"]);
     wait_started(&sim, "F1");
     // The emulator stops answering (the TCP connection stays up), and at once the command is interrupted.
     let frozen = sim.freeze();
@@ -228,4 +228,7 @@ fn ctrl_c_whose_stop_the_unit_does_not_confirm_exits_3_not_130() {
         "{}",
         ended.stderr
     );
+    // The error says so as data too.
+    let e = ended.json_error();
+    assert_eq!((&e["stop_unconfirmed"], &e["exit_code"]), (&serde_json::json!(true), &serde_json::json!(3)), "{e}");
 }
