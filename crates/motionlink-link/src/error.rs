@@ -323,6 +323,35 @@ mod tests {
         assert_eq!(json.as_object().unwrap().keys().collect::<Vec<_>>(), ["exit_code", "kind", "message"]);
     }
 
+    /// A stop the device did not confirm.
+    #[derive(Debug)]
+    struct Unconfirmed;
+
+    impl fmt::Display for Unconfirmed {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            f.write_str("the stop was not confirmed: the axis may still be moving")
+        }
+    }
+
+    impl Classify for Unconfirmed {
+        fn class(&self) -> ErrorClass {
+            ErrorClass::Cancelled.stop_unconfirmed()
+        }
+
+        fn stop_unconfirmed(&self) -> bool {
+            true
+        }
+    }
+
+    #[test]
+    fn a_report_says_a_stop_was_not_confirmed_only_when_it_was_not() {
+        let json = serde_json::to_value(ErrorReport::of(&Unconfirmed)).unwrap();
+        let message = Unconfirmed.to_string();
+        let want = serde_json::json!({"kind": "timeout", "message": message, "exit_code": 3, "stop_unconfirmed": true});
+        assert_eq!(json, want);
+        assert!(!ErrorReport::of(&Refusal).stop_unconfirmed);
+    }
+
     #[test]
     fn every_class_has_its_exit_code_and_name() {
         let all = [
