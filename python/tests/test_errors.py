@@ -83,12 +83,15 @@ def test_transport_error_for_a_port_that_cannot_be_opened() -> None:
     assert type(e.value) is motionlink.TransportError and e.value.kind == "io"
 
 
+Replies = Callable[[bytes], bytes]
+
+
 @pytest.fixture
-def mangling_proxy() -> Iterator[Callable[[str], str]]:
-    """A TCP proxy in front of an emulator that changes the second byte of every reply."""
+def proxy() -> Iterator[Callable[[str, Replies], str]]:
+    """A TCP proxy in front of an emulator that passes each chunk of the replies through a function."""
     servers = []
 
-    def start(upstream: str) -> str:
+    def start(upstream: str, replies: Replies) -> str:
         host, port = upstream[len("tcp://") :].rsplit(":", 1)
         srv = socket.socket()
         srv.bind(("127.0.0.1", 0))
@@ -101,7 +104,8 @@ def mangling_proxy() -> Iterator[Callable[[str], str]]:
 
             def down() -> None:
                 while data := up.recv(4096):
-                    conn.sendall(data[:1] + b"A" + data[2:] if len(data) > 2 else data)
+                    if passed := replies(data):
+                        conn.sendall(passed)
 
             threading.Thread(target=down, daemon=True).start()
             while data := conn.recv(4096):
@@ -117,9 +121,10 @@ def mangling_proxy() -> Iterator[Callable[[str], str]]:
 
 
 @pytest.mark.parametrize("family", ["powercube", "compax"])
-def test_corrupt_frame_for_mangled_replies(family: str, mangling_proxy: Callable[[str], str]) -> None:
+def test_corrupt_frame_for_mangled_replies(family: str, proxy: Callable[[str, Replies], str]) -> None:
     with motionlink.Emulator(family, serve="tcp") as emu:
-        port = mangling_proxy(emu.port)
+        # The second byte of every reply changed.
+        port = proxy(emu.port, lambda data: data[:1] + b"A" + data[2:] if len(data) > 2 else data)
         with pytest.raises(motionlink.CorruptFrame) as e:
             client = motionlink.PowerCube(port) if family == "powercube" else motionlink.Compax(port)
             with client:
@@ -149,31 +154,12 @@ def test_cancelled_for_a_move_whose_client_is_closed(
         cube.position()
 
 
-def test_a_stop_the_module_does_not_confirm_says_so_as_data() -> None:
+def test_a_stop_the_module_does_not_confirm_says_so_as_data(proxy: Callable[[str, Replies], str]) -> None:
     """A move whose client is closed while the line is silent: the halt is not acknowledged, so the error
     is the line's (a TimeoutError, not Cancelled) and ``stop_unconfirmed`` says the axis may still move."""
     silent = threading.Event()
     with motionlink.Emulator("powercube", serve="tcp") as emu:
-        host, port = emu.port[len("tcp://") :].rsplit(":", 1)
-        srv = socket.socket()
-        srv.bind(("127.0.0.1", 0))
-        srv.listen(1)
-
-        def proxy() -> None:
-            conn, _ = srv.accept()
-            up = socket.create_connection((host, int(port)))
-
-            def down() -> None:
-                while data := up.recv(4096):
-                    if not silent.is_set():
-                        conn.sendall(data)
-
-            threading.Thread(target=down, daemon=True).start()
-            while data := conn.recv(4096):
-                up.sendall(data)
-
-        threading.Thread(target=proxy, daemon=True).start()
-        cube = motionlink.PowerCube(f"tcp://127.0.0.1:{srv.getsockname()[1]}")
+        cube = motionlink.PowerCube(proxy(emu.port, lambda data: b"" if silent.is_set() else data))
         cube.home()
         emu.take_events()  # the home's own "motion started" is not the move's
         outcome = []
@@ -193,7 +179,6 @@ def test_a_stop_the_module_does_not_confirm_says_so_as_data() -> None:
         with contextlib.suppress(motionlink.MotionlinkError):
             cube.close()
         t.join(10)
-        srv.close()
     err = outcome[0]
     assert isinstance(err, motionlink.TimeoutError) and err.stop_unconfirmed, err
     assert "may still be moving" in str(err)
