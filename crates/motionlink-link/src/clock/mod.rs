@@ -22,7 +22,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
 use std::ops::{Add, AddAssign, Sub};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, Once, Weak};
 use std::time::{Duration, Instant};
 
 /// A point in time on a [`Clock`]: the time elapsed since the clock's origin.
@@ -195,7 +195,8 @@ impl ParticipantTicket {
     /// Marks the calling thread as the participant; it stays one until the guard is dropped.
     pub fn enter(mut self) -> ParticipantGuard {
         if let Some((shared, clock_id)) = self.slot.take() {
-            PARTICIPANT_OF.with(|p| p.borrow_mut().push(clock_id));
+            free_clocks_on_panic();
+            PARTICIPANT_OF.with(|p| p.borrow_mut().push((clock_id, Arc::downgrade(&shared))));
             ParticipantGuard { slot: Some((shared, clock_id)), _not_send: std::marker::PhantomData }
         } else {
             ParticipantGuard { slot: None, _not_send: std::marker::PhantomData }
@@ -228,7 +229,7 @@ impl Drop for ParticipantGuard {
         if let Some((shared, clock_id)) = self.slot.take() {
             PARTICIPANT_OF.with(|p| {
                 let mut p = p.borrow_mut();
-                if let Some(i) = p.iter().rposition(|&c| c == clock_id) {
+                if let Some(i) = p.iter().rposition(|(c, _)| *c == clock_id) {
                     p.remove(i);
                 }
             });
@@ -238,7 +239,27 @@ impl Drop for ParticipantGuard {
 }
 
 thread_local! {
-    static PARTICIPANT_OF: RefCell<Vec<u64>> = const { RefCell::new(Vec::new()) };
+    /// The clocks the current thread takes part in.
+    static PARTICIPANT_OF: RefCell<Vec<(u64, Weak<ManualShared>)>> = const { RefCell::new(Vec::new()) };
+}
+
+/// Installs, once per process, a panic hook (run before the one there was) that frees every auto-advancing
+/// clock the panicking thread takes part in ([`ManualShared::abandon`]). A participant that panics may block
+/// while it unwinds (a drop that joins a thread or closes a session whose I/O runs on this clock): the
+/// clock, waiting for it to wait, would never move, and the test would hang instead of failing.
+fn free_clocks_on_panic() {
+    static HOOK: Once = Once::new();
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            let _ = PARTICIPANT_OF.try_with(|p| {
+                if let Ok(p) = p.try_borrow() {
+                    p.iter().filter_map(|(_, clock)| clock.upgrade()).for_each(|clock| clock.abandon());
+                }
+            });
+            previous(info);
+        }));
+    });
 }
 
 // ---------------------------------------------------------------------------------------------------------
@@ -403,6 +424,8 @@ static NEXT_CLOCK_ID: AtomicU64 = AtomicU64::new(1);
 struct ManualShared {
     id: u64,
     auto: bool,
+    /// A participant panicked: the clock jumps whenever anyone waits ([`ManualShared::abandon`]).
+    abandoned: AtomicBool,
     state: Mutex<ManualState>,
     cv: Condvar,
 }
@@ -438,6 +461,8 @@ impl ManualClock {
     }
 
     /// A clock at [`Timestamp::ZERO`] that also jumps to the next deadline whenever all participants wait.
+    /// Once a participant panics, it jumps whenever anyone waits: a failing test that unwinds through a
+    /// drop waiting on this clock's threads fails instead of hanging.
     pub fn new_auto() -> Self {
         Self::with_mode(true)
     }
@@ -447,6 +472,7 @@ impl ManualClock {
             shared: Arc::new(ManualShared {
                 id: NEXT_CLOCK_ID.fetch_add(1, Ordering::Relaxed),
                 auto,
+                abandoned: AtomicBool::new(false),
                 state: Mutex::new(ManualState::default()),
                 cv: Condvar::new(),
             }),
@@ -490,9 +516,18 @@ impl ManualShared {
         self.maybe_auto_advance(&mut st);
     }
 
-    /// If every participant is blocked, jump to the earliest deadline of any waiter.
+    /// A participant panicked: from now on the clock no longer waits for the participants, but jumps to the
+    /// earliest deadline whenever anyone waits, so that what still runs on it ends (and the test fails)
+    /// instead of waiting for a thread that is unwinding. Takes no lock: it runs in a panic hook.
+    fn abandon(&self) {
+        self.abandoned.store(true, Ordering::SeqCst);
+        self.cv.notify_all();
+    }
+
+    /// If every participant is blocked (or one panicked), jump to the earliest deadline of any waiter.
     fn maybe_auto_advance(&self, st: &mut ManualState) {
-        if !self.auto || st.participants == 0 || st.idle_participants() < st.participants {
+        let free = self.abandoned.load(Ordering::SeqCst);
+        if !self.auto || (!free && (st.participants == 0 || st.idle_participants() < st.participants)) {
             return;
         }
         if !st.raised.is_empty() && st.waiting.keys().any(|id| st.raised.contains(id)) {
@@ -543,7 +578,7 @@ impl RawSignal for ManualSignal {
     }
 
     fn wait_until(&self, deadline: Option<Timestamp>) -> Wake {
-        let participant = PARTICIPANT_OF.with(|p| p.borrow().contains(&self.shared.id));
+        let participant = PARTICIPANT_OF.with(|p| p.borrow().iter().any(|(c, _)| *c == self.shared.id));
         let mut st = lock(&self.shared.state);
         let mut registered = false;
         loop {
@@ -562,6 +597,9 @@ impl RawSignal for ManualSignal {
                 continue;
             }
             st = self.shared.cv.wait(st).unwrap_or_else(|e| e.into_inner());
+            if self.shared.abandoned.load(Ordering::SeqCst) {
+                self.shared.maybe_auto_advance(&mut st);
+            }
         }
     }
 }

@@ -170,3 +170,38 @@ fn raising_a_waiter_counts_it_as_running_at_once() {
     }
     assert_eq!(t.join().unwrap(), Timestamp::ZERO);
 }
+
+/// Joins a thread when dropped.
+struct JoinOnDrop(Option<thread::JoinHandle<Timestamp>>);
+
+impl Drop for JoinOnDrop {
+    fn drop(&mut self) {
+        if let Some(t) = self.0.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+#[test]
+fn a_participant_that_panics_frees_the_clock_for_what_it_waits_on_while_unwinding() {
+    let clock = ManualClock::new_auto();
+    let ticket = clock.reserve_participant();
+    let other = clock.clone();
+    let sleeper = thread::spawn(move || {
+        let _me = ticket.enter();
+        other.sleep(Duration::from_secs(600));
+        other.now()
+    });
+    let me = clock.clone();
+    let unwound = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
+        let _me = me.reserve_participant().enter();
+        // Dropped first while unwinding, with this thread still a participant that does not wait on the
+        // clock: without the panic the clock would never move, and the join would never end.
+        let _join = JoinOnDrop(Some(sleeper));
+        thread::sleep(Duration::from_millis(20));
+        assert_eq!(me.now(), Timestamp::ZERO, "a running participant holds the clock");
+        panic!("on purpose: a failing test");
+    }));
+    assert!(unwound.is_err());
+    assert_eq!(clock.now(), Timestamp::ZERO + Duration::from_secs(600), "the sleeper's deadline was reached");
+}
