@@ -39,8 +39,11 @@ pub trait GatewayErrors {
     fn unavailable(message: impl Into<String>) -> Self;
     /// The device could not be opened, or its session failed.
     fn transport(message: impl Into<String>) -> Self;
-    /// Why a motion was stopped by the gateway, with what the library said of the stop.
-    fn stopped(reason: &StopReason, library: &str) -> Self;
+    /// Why a motion was stopped by the gateway, with the device's stop that followed: its report in one
+    /// line, or its error. A stop that failed was not confirmed: the axis may still be moving, so the
+    /// error says `stop_unconfirmed` and exit code 3, as the command line's after a Ctrl-C whose stop the
+    /// device did not confirm (its kind still says why the gateway stopped it).
+    fn stopped(reason: &StopReason, stop: Result<String, ErrorReport>) -> Self;
     /// Whether this error says the device's port is gone (the library's `disconnected`): its session must
     /// be opened again.
     fn port_failed(&self) -> bool;
@@ -59,7 +62,7 @@ impl GatewayErrors for ErrorReport {
         ErrorReport::new("io", message, 3)
     }
 
-    fn stopped(reason: &StopReason, library: &str) -> Self {
+    fn stopped(reason: &StopReason, stop: Result<String, ErrorReport>) -> Self {
         let (kind, exit_code) = match reason {
             StopReason::LeaseExpired { .. } => ("lease_expired", ErrorClass::Cancelled.exit_code()),
             StopReason::StopRequest { .. } | StopReason::PortStop { .. } => {
@@ -69,7 +72,13 @@ impl GatewayErrors for ErrorReport {
             StopReason::PortFailed { .. } => ("disconnected", 3),
             StopReason::Signal { number, .. } => ("cancelled", 128 + *number as u8),
         };
-        ErrorReport::new(kind, format!("{reason}; {library}"), exit_code)
+        match stop {
+            Ok(summary) => ErrorReport::new(kind, format!("{reason}; the device's stop then: {summary}"), exit_code),
+            Err(e) => {
+                let message = format!("{reason}; the device's stop then failed: {}", e.message);
+                ErrorReport { stop_unconfirmed: true, ..ErrorReport::new(kind, message, 3) }
+            }
+        }
     }
 
     fn port_failed(&self) -> bool {
@@ -127,5 +136,24 @@ impl std::fmt::Display for StopReason {
                 write!(f, "the device's port failed ({error}): the gateway's session with it is gone")
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_stop_of_the_gateway_that_failed_says_the_axis_may_still_move() {
+        let lapsed = StopReason::LeaseExpired { lease_ms: 500 };
+        let done = ErrorReport::stopped(&lapsed, Ok("{\"stopped\":true}".into()));
+        assert_eq!((done.kind.as_ref(), done.exit_code, done.stop_unconfirmed), ("lease_expired", 130, false));
+        assert!(done.message.ends_with("the device's stop then: {\"stopped\":true}"), "{}", done.message);
+        let silent = ErrorReport::new("timeout", "module 1: Halt not acknowledged (3 sent)", 3);
+        let failed = ErrorReport::stopped(&lapsed, Err(silent));
+        assert_eq!((failed.kind.as_ref(), failed.exit_code, failed.stop_unconfirmed), ("lease_expired", 3, true));
+        assert!(failed.message.ends_with("the device's stop then failed: module 1: Halt not acknowledged (3 sent)"));
+        let json = serde_json::to_value(&failed).unwrap();
+        assert_eq!(json["stop_unconfirmed"], true, "{json}");
     }
 }

@@ -580,11 +580,7 @@ async fn run_motion(mut op: Operation, cancelled: oneshot::Receiver<StopReason>,
     };
     drop(op);
     let reason = reason.unwrap_or(StopReason::BrokerLost);
-    let said = match device.stop().await {
-        Ok(stop) => format!("the device's stop then: {}", summary(&stop)),
-        Err(e) => format!("the device's stop then failed: {}", e.message),
-    };
-    Err(ErrorReport::stopped(&reason, &said))
+    Err(ErrorReport::stopped(&reason, device.stop().await.map(|stop| summary(&stop))))
 }
 
 /// A stop's report in one line (its JSON without the identity).
