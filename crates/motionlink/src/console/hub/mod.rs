@@ -382,13 +382,15 @@ impl Hub {
             End::Stopped(reason) => {
                 // The stop the library sent when the future was dropped, asked again and confirmed.
                 let confirmed = Arc::clone(&self.device).stop(unit).await;
-                let (ok, msg, report) = match confirmed {
-                    Ok(r) => (true, format!("{what} stopped: {}; the stop confirmed", reason.text()), Some(r)),
+                let (ok, msg, report, error) = match confirmed {
+                    Ok(r) => (true, format!("{what} stopped: {}; the stop confirmed", reason.text()), Some(r), None),
                     Err(e) => {
-                        (false, format!("{what} stopped ({}), but the stop is not confirmed: {e}", reason.text()), None)
+                        let msg = format!("{what} stopped ({}), but the stop is not confirmed: {e}", reason.text());
+                        // Whatever failed, the axis may still be moving.
+                        (false, msg, None, Some(ErrorReport { stop_unconfirmed: true, ..e }))
                     }
                 };
-                motion_message("stopped", Some(ok), Some(reason.text()), None, Some(msg), report)
+                motion_message("stopped", Some(ok), Some(reason.text()), error, Some(msg), report)
             }
         };
         let mut st = lock(&self.state);

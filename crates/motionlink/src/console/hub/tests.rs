@@ -15,6 +15,8 @@ struct Fake {
     running: mpsc::UnboundedSender<()>,
     stops: AtomicUsize,
     stop_started: AtomicUsize,
+    /// Its stop is not confirmed (a silent line).
+    stop_fails: std::sync::atomic::AtomicBool,
 }
 
 struct OnDrop(mpsc::UnboundedSender<std::time::Instant>);
@@ -68,6 +70,10 @@ impl Device for Fake {
     }
     fn stop(self: Arc<Self>, unit: u8) -> DeviceMotion {
         self.stops.fetch_add(1, Ordering::SeqCst);
+        if self.stop_fails.load(Ordering::SeqCst) {
+            let e = ErrorReport::new("timeout", format!("drive {unit}: no reply to S17"), 3);
+            return Box::pin(async move { Err(e) });
+        }
         Box::pin(async move { Ok(serde_json::json!({"action": "stop", "drive": unit})) })
     }
     fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, ErrorReport>> {
@@ -108,7 +114,13 @@ type Running = mpsc::UnboundedReceiver<()>;
 fn hub() -> (Arc<Hub>, Arc<Fake>, Dropped, Running) {
     let (tx, rx) = mpsc::unbounded_channel();
     let (running, running_rx) = mpsc::unbounded_channel();
-    let fake = Arc::new(Fake { dropped: tx, running, stops: AtomicUsize::new(0), stop_started: AtomicUsize::new(0) });
+    let fake = Arc::new(Fake {
+        dropped: tx,
+        running,
+        stops: AtomicUsize::new(0),
+        stop_started: AtomicUsize::new(0),
+        stop_fails: Default::default(),
+    });
     let clock = ManualClock::new().shared();
     let traffic = Arc::new(Traffic::new(
         Box::new(motionlink_compax::describe::Describer::new(motionlink_compax::wire::Mode::from_p196(0).unwrap())),
@@ -205,4 +217,34 @@ async fn stop_from_a_read_only_page_and_shutdown_stop_the_motion() {
     hub.shutdown().await.unwrap();
     tokio::time::timeout(Duration::from_secs(1), dropped.recv()).await.expect("shutdown stops it").unwrap();
     assert_eq!(fake.stop_started.load(Ordering::SeqCst), 1);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stop_the_device_does_not_confirm_is_said_with_its_error_flagged() {
+    let (hub, fake, mut dropped, mut running) = hub();
+    fake.stop_fails.store(true, Ordering::SeqCst);
+    let (page, _) = hub.page_opened();
+    hub.start_motion(page, 1, "move", false, motion(&fake)).unwrap();
+    running.recv().await.unwrap();
+    let mut notices = hub.notices();
+    hub.page_closed(page);
+    tokio::time::timeout(Duration::from_secs(1), dropped.recv()).await.expect("stopped").unwrap();
+    let end = loop {
+        let Ok(Ok(notice)) = tokio::time::timeout(Duration::from_secs(1), notices.recv()).await else {
+            panic!("no notice of the stop");
+        };
+        // The page's going changes the roles first.
+        let Notice::Json(m) = notice else { continue };
+        let m: serde_json::Value = serde_json::from_str(&m).unwrap();
+        if m["state"] == "stopped" {
+            break m;
+        }
+    };
+    assert_eq!((&end["ok"], end.get("report")), (&json!(false), None), "{end}");
+    assert!(end["message"].as_str().unwrap().contains("the stop is not confirmed: drive 1: no reply to S17"), "{end}");
+    let error = &end["error"];
+    assert_eq!(
+        (&error["kind"], &error["exit_code"], &error["stop_unconfirmed"]),
+        (&json!("timeout"), &json!(3), &json!(true))
+    );
 }
