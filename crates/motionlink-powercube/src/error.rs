@@ -412,6 +412,17 @@ pub enum Error {
         /// was made (the driver's drop); [`Client::close`](crate::Client::close) always says.
         armed: Option<Vec<Address>>,
     },
+    /// A Halt (the `stop` of a module: [`Module::halt_confirmed`](crate::client::Module::halt_confirmed))
+    /// was sent `sent` times and none was acknowledged: the axis may still be moving.
+    #[error("module {address}: Halt not acknowledged ({sent} sent): {cause}; the axis may still be moving")]
+    HaltUnacknowledged {
+        /// The module.
+        address: Address,
+        /// How many Halts were sent.
+        sent: u32,
+        /// The last one's error.
+        cause: Box<Error>,
+    },
     /// The session is closed (or closing): nothing more is sent.
     #[error("the session is closed")]
     Closed,
@@ -488,6 +499,7 @@ impl Classify for Error {
             Error::StopUnconfirmed { .. } | Error::CloseUnconfirmed { .. } => {
                 ErrorClass::Transport(TransportKind::Timeout)
             }
+            Error::HaltUnacknowledged { cause, .. } => cause.class().stop_unconfirmed(),
             Error::Refused { .. } => ErrorClass::Refused,
             Error::Device { .. }
             | Error::WatchdogExpired { .. }
@@ -521,7 +533,10 @@ impl Classify for Error {
     fn stop_unconfirmed(&self) -> bool {
         match self {
             Error::FailedDuringMotion { stop, .. } | Error::Cancelled { stop, .. } => !stop.is_confirmed(),
-            Error::StopUnconfirmed { .. } | Error::CloseUnconfirmed { .. } | Error::CloseTimedOut { .. } => true,
+            Error::StopUnconfirmed { .. }
+            | Error::CloseUnconfirmed { .. }
+            | Error::CloseTimedOut { .. }
+            | Error::HaltUnacknowledged { .. } => true,
             Error::Context { source, .. } => source.stop_unconfirmed(),
             Error::Also { error, also } => error.stop_unconfirmed() || also.stop_unconfirmed(),
             _ => false,

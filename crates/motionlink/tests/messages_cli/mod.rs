@@ -119,6 +119,16 @@ fn a_stop_that_nobody_answers_says_what_it_did_before_naming_the_device_absent()
     let err = stderr(&out);
     assert!(err.starts_with("motionlink: drive 9: the stop was NOT confirmed by the drive"), "{err}");
     assert!(err.contains("the axis may still be moving; drive 9 does not answer on"), "{err}");
+    // Both say it as data too: a stop sent and not confirmed.
+    let ps = Sim::tcp("powercube");
+    for (family, unit, port) in [("powercube", "--module", ps.address.as_str()), ("compax", "--drive", port)] {
+        let e = common::json_error(&ml(&["--json", family, "--port", port, unit, "9", "--timeout-ms", "50", "stop"]));
+        assert_eq!(
+            (&e["kind"], &e["stop_unconfirmed"]),
+            (&serde_json::json!("timeout"), &serde_json::json!(true)),
+            "{e}"
+        );
+    }
 
     let port = silent_port();
     let out = ml(&["scu", "--port", &port, "--timeout-ms", "300", "stop"]);

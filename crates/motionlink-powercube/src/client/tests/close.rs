@@ -4,6 +4,7 @@ use super::*;
 use crate::client::Guard;
 use crate::error::Error;
 use crate::model::*;
+use motionlink_link::error::Classify;
 
 #[test]
 fn close_stops_what_was_started_and_says_it_was_confirmed() {
@@ -177,6 +178,7 @@ fn a_halt_that_is_not_acknowledged_is_sent_again_and_then_said_unacknowledged() 
     let text = err.to_string();
     assert!(text.starts_with("module 1: Halt not acknowledged (3 sent): "), "{text}");
     assert!(text.ends_with("; the axis may still be moving") && err.is_transport(), "{text}");
+    assert!(matches!(err, Error::HaltUnacknowledged { sent: 3, .. }) && err.stop_unconfirmed(), "{err:?}");
     // The Halts reached it (their acknowledgements were lost), which the session cannot know: it still
     // counts the module as set in motion, and the close halts it again.
     assert!(device_view(&canbus, &clock, 1).0.contains(StateFlag::Halted));

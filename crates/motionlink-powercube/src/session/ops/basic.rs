@@ -312,10 +312,10 @@ impl Ctx {
     /// idempotent), then the state until STATE_MOTION is clear (at most [`HALT_SETTLE`]), then the position.
     /// A Halt never acknowledged is an error that says the axis may still be moving.
     pub async fn halt_confirmed(&self, address: u8) -> Result<HaltReport, Error> {
-        self.halt_repeated(address).await.map_err(|(e, sent)| Error::Context {
-            context: format!("module {address}: Halt not acknowledged ({sent} sent)"),
-            source: Box::new(e),
-            hint: "; the axis may still be moving",
+        self.halt_repeated(address).await.map_err(|(e, sent)| Error::HaltUnacknowledged {
+            address: crate::model::Address::checked(address),
+            sent,
+            cause: Box::new(e),
         })?;
         let start = self.now();
         let period = self.core().config.poll_interval.max(Duration::from_micros(100));
