@@ -496,7 +496,9 @@ impl Classify for Error {
                 StopOutcome::Unconfirmed { .. } => cause.class().stop_unconfirmed(),
                 _ => cause.class(),
             },
-            Error::StopUnconfirmed { .. } | Error::CloseUnconfirmed { .. } => {
+            // A halt not confirmed at rest (still moving after it was acknowledged, as the SCU's status after
+            // an RS): a timeout, as every stop not confirmed.
+            Error::StopUnconfirmed { .. } | Error::CloseUnconfirmed { .. } | Error::StillMoving { .. } => {
                 ErrorClass::Transport(TransportKind::Timeout)
             }
             Error::HaltUnacknowledged { cause, .. } => cause.class().stop_unconfirmed(),
@@ -504,7 +506,6 @@ impl Classify for Error {
             Error::Device { .. }
             | Error::WatchdogExpired { .. }
             | Error::Halted { .. }
-            | Error::StillMoving { .. }
             | Error::MoveTimeout { .. }
             | Error::WatchdogUnconfirmed { .. }
             | Error::WatchdogLeftOnline { .. }
@@ -536,7 +537,8 @@ impl Classify for Error {
             Error::StopUnconfirmed { .. }
             | Error::CloseUnconfirmed { .. }
             | Error::CloseTimedOut { .. }
-            | Error::HaltUnacknowledged { .. } => true,
+            | Error::HaltUnacknowledged { .. }
+            | Error::StillMoving { .. } => true,
             Error::Context { source, .. } => source.stop_unconfirmed(),
             Error::Also { error, also } => error.stop_unconfirmed() || also.stop_unconfirmed(),
             _ => false,
@@ -703,6 +705,9 @@ mod tests {
         let wrapped = Error::Context { context: "moving".into(), source: Box::new(unsettled), hint: "" };
         assert!(wrapped.stop_unconfirmed(), "{wrapped}");
         assert!(Error::close_timed_out(Duration::from_secs(5)).stop_unconfirmed());
+        // Acknowledged, but still moving: not confirmed either, a timeout as the SCU's stop says it.
+        let moving = Error::StillMoving { address: Address::checked(1), state: CubeState(0), waited: Duration::ZERO };
+        assert!(moving.stop_unconfirmed() && moving.class() == ErrorClass::Transport(TransportKind::Timeout));
         let link = LinkError::Disconnected { port: "p".into(), reason: "r".into() };
         assert_eq!(Error::Link(link).class(), ErrorClass::Transport(TransportKind::Disconnected));
         let ctx = Error::Context {
