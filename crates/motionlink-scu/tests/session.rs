@@ -338,3 +338,41 @@ fn a_unit_slow_to_answer_ro_does_not_hold_back_the_requests_after_it() {
     b.wait_done(read).unwrap();
     assert!(b.now - asked < Duration::from_millis(20), "{:?}", b.now - asked);
 }
+
+/// A cancel while the move's RE awaits its acknowledgement, whose reply was lost: the RE is not sent again
+/// (a repeat could start the motion being stopped) and the RS goes out when that one sending goes
+/// unanswered, not after the RE's whole timeout of repetitions.
+#[test]
+fn a_cancel_while_an_unanswered_re_is_repeated_sends_no_more_re_and_stops_sooner() {
+    for line_comes_back in [true, false] {
+        let mut b = Bench::opened(scp11(), SimConfig::default());
+        let id = b.start(move_a1(800));
+        b.run_until(Duration::from_secs(5), |b| b.sent.iter().any(|(_, x)| x.starts_with(b"RE")));
+        // The unit's answer to the RE is lost (also if it is on its way already); the caller gives up at once.
+        b.deaf = true;
+        b.to_host.clear();
+        let cancelled_at = b.now;
+        b.session.cancel(id, b.now);
+        b.run_until(Duration::from_secs(5), |b| b.device_saw("F1 started").is_some());
+        b.deaf = !line_comes_back;
+        let result = b.wait_done_within(id, Duration::from_secs(10));
+        let after: Vec<_> = b.sent.iter().filter(|(t, _)| *t > cancelled_at).collect();
+        assert!(
+            after.iter().all(|(_, x)| !x.starts_with(b"RE")),
+            "an RE after the cancel: {:?}",
+            b.sent_between(cancelled_at, b.now)
+        );
+        let rs = after.iter().find(|(_, x)| x.starts_with(b"RS")).expect("an RS");
+        let waited = rs.0 - cancelled_at;
+        // One reply window (150 ms, or twice the round trip), not the RE's second of repetitions.
+        assert!(waited < Duration::from_millis(400), "RS {waited:?} after the cancel");
+        if line_comes_back {
+            assert!(result.is_err() && !b.device.is_moving(a(1)), "{result:?}");
+            let e = result.unwrap_err();
+            assert!(!motionlink_link::error::Classify::stop_unconfirmed(&e), "the RS was acknowledged: {e}");
+        } else {
+            let e = result.unwrap_err();
+            assert!(motionlink_link::error::Classify::stop_unconfirmed(&e), "{e}");
+        }
+    }
+}

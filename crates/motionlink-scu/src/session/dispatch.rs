@@ -83,9 +83,21 @@ impl Core {
         self.queue.retain(|q| q.owner != op);
     }
 
+    /// Operation `op` was cancelled: its own exchange under way, if a repetition of it is all that would
+    /// follow (an RG, or an RE that the cancel makes unwanted), is sent no more once its present sending
+    /// goes unanswered, so the stop that answers the cancel goes out sooner on a line that lost a reply.
+    /// A request of the part of an operation that stops what it started is never cut short.
+    pub(super) fn cut_short(&mut self, op: OpId) {
+        if let Some(f) = self.in_flight.as_mut() {
+            if matches!(f.owner, Owner::Op { id, cancellable: true, .. } if id == op) {
+                f.exchange.cut_short();
+            }
+        }
+    }
+
     /// True while operation `op` has an exchange under way or waits for the port to be reopened.
     pub(super) fn busy_for(&self, op: OpId) -> bool {
-        matches!(self.in_flight.as_ref().map(|f| f.owner), Some(Owner::Op(o, _)) if o == op)
+        matches!(self.in_flight.as_ref().map(|f| f.owner), Some(Owner::Op { id, .. }) if id == op)
             || self.reopen_waiter.is_some_and(|(o, _)| o == op)
     }
 
@@ -157,11 +169,11 @@ impl Core {
     ) {
         match owner {
             Owner::Keepalive(carries) => self.keepalive_done(carries, result),
-            Owner::Op(id, ticket) => {
+            Owner::Op { id, ticket, cancellable } => {
                 let Some(mut pe_guard) = pe_guard else { return };
                 match pe_guard.next(self, result) {
                     PeStep::Again(request) => {
-                        self.start_exchange(Owner::Op(id, ticket), Some(pe_guard), request);
+                        self.start_exchange(Owner::Op { id, ticket, cancellable }, Some(pe_guard), request);
                     }
                     PeStep::Finished(result) => {
                         self.replies.finish(ticket, result);
@@ -291,7 +303,8 @@ impl Core {
             // Counted as started before it is sent: a lost reply may hide a started motion.
             self.started.insert(f);
         }
-        self.start_exchange(Owner::Op(q.owner, q.ticket), Some(pe_guard), q.req.request);
+        let owner = Owner::Op { id: q.owner, ticket: q.ticket, cancellable: q.cancellable };
+        self.start_exchange(owner, Some(pe_guard), q.req.request);
     }
 
     /// What waits in vain ends: requests that waited too long for room, and waits for the next poll of a

@@ -127,6 +127,8 @@ pub(crate) struct Exchange {
     heard: bool,
     /// Bytes came during the present sending.
     stray: bool,
+    /// Its operation was cancelled: no sending after the present one ([`Exchange::cut_short`]).
+    last_sending: bool,
 }
 
 impl Exchange {
@@ -169,9 +171,19 @@ impl Exchange {
             progress_at: now,
             heard: false,
             stray: false,
+            last_sending: false,
         };
         exchange.send(line, now, out);
         exchange
+    }
+
+    /// The operation that sent this request was cancelled: a read (RG) or an RE (which the cancel makes
+    /// unwanted: a repeat could start the motion that is being stopped) is not sent again; when the present
+    /// sending goes unanswered, the exchange fails at once. Other requests (RT, RS, RO, RA, RC) go on.
+    pub fn cut_short(&mut self) {
+        if matches!(self.request.command, Command::Get | Command::Execute) {
+            self.last_sending = true;
+        }
     }
 
     /// When it first went out.
@@ -300,9 +312,12 @@ impl Exchange {
         out: &mut VecDeque<Action>,
     ) -> Option<Result<OwnedReply, Error>> {
         let command = self.request.command;
-        let may_repair = !self.single_try && self.repairs < config.retries && now < self.deadline;
+        let again = !self.single_try && !self.last_sending && now < self.deadline;
+        let may_repair = again && self.repairs < config.retries;
+        // A cut-short exchange says how long it waited, not the timeout it would have waited.
+        let timeout = if self.last_sending { now.saturating_since(self.first_sent) } else { self.limit };
         match e {
-            AttemptError::Silent { stray } if !self.single_try && now < self.deadline => {
+            AttemptError::Silent { stray } if again => {
                 self.heard_anything |= stray;
                 tracing::debug!("no reply to {command} yet; sending again");
                 if !self.flushed {
@@ -336,14 +351,13 @@ impl Exchange {
                 None
             }
             AttemptError::Silent { stray } => {
-                if !stray && !self.heard_anything {
+                // One sending cut short proves no silent line: the stop that follows gets its repetitions.
+                if !stray && !self.heard_anything && !self.last_sending {
                     line.silent = true;
                 }
-                Some(Err(Error::Timeout { command, timeout: self.limit, attempts: self.attempts }))
+                Some(Err(Error::Timeout { command, timeout, attempts: self.attempts }))
             }
-            AttemptError::Incomplete => {
-                Some(Err(Error::Timeout { command, timeout: self.limit, attempts: self.attempts }))
-            }
+            AttemptError::Incomplete => Some(Err(Error::Timeout { command, timeout, attempts: self.attempts })),
             AttemptError::Corrupt(error) => Some(Err(Error::Corrupt { command, error, attempts: self.attempts })),
         }
     }

@@ -141,8 +141,13 @@ pub(crate) const POLL_READ_LEN: usize = 6 + 24 + 12 + 4;
 /// Who is waiting for the exchange under way.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Owner {
-    /// An operation, for the reply under this ticket.
-    Op(OpId, Ticket),
+    /// An operation, for the reply under `ticket`; `cancellable`: sent by the operation's own part (not by
+    /// the part that stops what it started), so a cancel may cut its repetitions short.
+    Op {
+        id: OpId,
+        ticket: Ticket,
+        cancellable: bool,
+    },
     Keepalive(Carries),
 }
 
@@ -475,6 +480,7 @@ impl SessionTrait for Session {
         // started); a request of its still in the queue is dropped.
         self.exec.cancel(id);
         self.core().cancel_queued(id);
+        self.core().cut_short(id);
         self.run();
     }
 
