@@ -367,6 +367,18 @@ impl Core {
         self.line_failures.remove(&op);
     }
 
+    /// Operation `op` was cancelled: its telegram on the line (or being settled), unless it belongs to a
+    /// stop (urgent), is not sent again; when the present sending goes unanswered it fails at once, so the
+    /// stop that answers the cancel goes out one reply timeout after the cancel at most, not after the
+    /// telegram's retries (a COMPAX drive has no watchdog: the axis moves until the stop arrives).
+    pub(crate) fn cut_short(&mut self, op: OpId) {
+        let on_line = self.in_flight.as_mut().map(|f| &mut f.job);
+        let settling = self.settling.as_mut().map(|f| &mut f.job);
+        for job in [on_line, settling].into_iter().flatten().filter(|j| j.op == op && !j.urgent) {
+            job.retries = job.retries.min(job.attempts.saturating_sub(1));
+        }
+    }
+
     /// Drops the telegrams of `op` not yet sent: each ends as cancelled.
     pub(crate) fn drop_queued(&mut self, op: OpId) {
         let (dropped, kept): (Vec<Job>, Vec<Job>) = self.queue.drain(..).partition(|j| j.op == op && !j.urgent);

@@ -280,6 +280,7 @@ impl contract::Session for Session {
         self.now_is(now);
         self.exec.cancel(id);
         self.core().drop_queued(id);
+        self.core().cut_short(id);
         self.run();
     }
 

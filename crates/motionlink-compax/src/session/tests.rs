@@ -302,3 +302,39 @@ fn a_stop_of_drives_the_session_did_not_start_switches_off_only_the_moving_one_a
     );
     assert!(matches!(b.run(Op::StopIfMoving(vec![Address::BROADCAST])), Err(Error::Broadcast(_))));
 }
+
+/// A cancel while a poll of the wait awaits a reply that was lost: the poll is not sent again (its retries
+/// would hold the stop back by up to three more reply timeouts, and a COMPAX drive has no watchdog), so the
+/// stop goes out once that one sending went unanswered, and the error is the cancel's.
+#[test]
+fn a_cancel_while_a_poll_is_unanswered_sends_the_stop_after_one_reply_timeout() {
+    let mut b = Bench::bus(&[1], 0, 9600);
+    b.run(Op::Move(a(1), Command::PosA(pos(1000.0)), MoveOptions::default())).unwrap();
+    let id = b.session.start(Op::Wait(vec![a(1)], None), b.now);
+    b.run_for(Duration::from_millis(300));
+    let from = b.now;
+    b.run_until(Duration::from_secs(5), |b| b.sent.last().is_some_and(|(t, x)| *t > from && x.text() == "1S17\r"));
+    // Its reply is lost (also if on its way already), and the caller gives up at once.
+    b.deaf = true;
+    b.to_host.clear();
+    let cancelled_at = b.now;
+    b.session.cancel(id, b.now);
+    b.run_for(Duration::from_millis(50));
+    b.deaf = false;
+    let e = b.finish(id).unwrap_err();
+    assert!(matches!(e, Error::Cancelled { .. }), "{e}");
+    assert_eq!(e.stop_report().unwrap().drives, [(a(1), StopOutcome::SwitchedOff)]);
+    let after: Vec<(Timestamp, String)> =
+        b.sent.iter().filter(|(t, _)| *t > cancelled_at).map(|(t, x)| (*t, x.text())).collect();
+    let stop = after.iter().find(|(_, x)| x == "1OUTPUT O0=0\r").expect("the stop");
+    // One reply timeout (200 ms) for the poll on the line, then the stop's own S17 (one attempt): not the
+    // poll's three retries.
+    assert!(
+        stop.0 - cancelled_at < Duration::from_millis(300),
+        "stop {:?} after the cancel: {after:?}",
+        stop.0 - cancelled_at
+    );
+    let polls_before_stop = after.iter().take_while(|(_, x)| x != "1OUTPUT O0=0\r").count();
+    assert_eq!(polls_before_stop, 1, "only the stop's S17 before it: {after:?}");
+    assert!(!b.drive(1).is_moving() && b.drive(1).o0() == 0);
+}

@@ -62,9 +62,11 @@ impl Ctx {
                     still.push(a);
                     continue;
                 }
-                let s17 = self.read_s17(a).await?;
-                // Cancelled meanwhile: the stop goes out before anything more is read.
+                let s17 = self.read_s17(a).await;
+                // Cancelled meanwhile: the stop goes out before anything more is read. A poll that failed
+                // after the cancel (which cuts its retries short) is that cancel.
                 self.check_cancel()?;
+                let s17 = s17?;
                 if let Ok(p) = self.read_position(a).await {
                     self.progress(Progress::Position { drive: a, position: p });
                 }
