@@ -462,3 +462,30 @@ fn a_motion_command_cancelled_before_its_acknowledge_is_halted() {
     let (state, ..) = b.module(1);
     assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
 }
+
+#[test]
+fn a_cancel_while_a_poll_is_unanswered_halts_without_asking_again() {
+    let mut b = Bench::can(&[1]);
+    let spec = MoveSpec { vel: Some(Velocity::native(0.2)), ..MoveSpec::to(Position::native(2.0)) };
+    let id = b.session.start(Op::MoveTo(addr(1), spec), b.now);
+    b.idle(ms(500));
+    // The next poll's answer is lost; the caller gives up at once.
+    b.deaf = true;
+    let n = b.sent.len();
+    // Requests to module 1: 0x0C1 (reads), 0x0E1 (commands).
+    let to_module = |w: &Telegram| frame(w, |id| id == 0xC1 || id == 0xE1, None);
+    b.run_until(ms(1000), |b| b.sent[n..].iter().any(|(_, w)| to_module(w)));
+    b.deaf = false;
+    let lost = n + b.sent[n..].iter().position(|(_, w)| to_module(w)).expect("the poll");
+    let cancelled_at = b.now;
+    b.session.cancel(id, b.now);
+    let err = b.wait_done_within(id, Duration::from_secs(5)).unwrap_err();
+    assert!(matches!(err, Error::Cancelled { address: A1, stop: StopOutcome::Confirmed }), "{err}");
+    // The first request to the module after the cancel is the Halt (CMD_HALT, 0x02): the poll is not asked
+    // again, which would hold the Halt back by a reply timeout per retry.
+    let first = b.sent[lost + 1..].iter().find(|(_, w)| to_module(w)).map(|(t, w)| (*t, w[..].to_vec()));
+    let (at, data) = first.expect("a request after the cancel");
+    assert_eq!(data, [0x02], "the Halt first, not the poll again");
+    assert!(at - cancelled_at <= Config::can().reply_timeout, "Halt {:?} after the cancel", at - cancelled_at);
+    assert!(!b.module(1).0.contains(StateFlag::Motion));
+}

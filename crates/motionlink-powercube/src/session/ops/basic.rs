@@ -44,7 +44,9 @@ impl Ctx {
     }
 
     /// One request, checked before it is sent, its acknowledge checked; reads are retried
-    /// ([`Config::read_retries`](crate::session::Config::read_retries)), nothing else is.
+    /// ([`Config::read_retries`](crate::session::Config::read_retries)), nothing else is, and not once the
+    /// operation is cancelled: the Halt that answers the cancel goes out after one unanswered read, not
+    /// after its retries.
     pub async fn request(&self, address: u8, request: Request) -> Result<Reply, Error> {
         self.check(address, &request)?;
         let (attempts, timeout) = {
@@ -59,7 +61,7 @@ impl Ctx {
         for attempt in 0..attempts {
             match self.exchange(vec![(address, request)], timeout).await.pop() {
                 Some(Ok(reply)) => return check_reply(address, &request, reply),
-                Some(Err(e)) if e.retryable() && attempt + 1 < attempts => {
+                Some(Err(e)) if e.retryable() && attempt + 1 < attempts && !self.cancelled() => {
                     tracing::debug!("{e}; trying again");
                     last = Some(e);
                 }

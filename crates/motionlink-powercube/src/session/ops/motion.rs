@@ -213,6 +213,11 @@ impl Ctx {
             let polled = self.poll_state(a, &mut poll).await;
             let (state, position) = match polled {
                 Ok(x) => x,
+                // A poll that failed once the wait was cancelled (it is not retried then) is the cancel.
+                Err(_) if self.cancelled() => {
+                    let stop = self.stop_motion(a).await;
+                    return Err(Error::Cancelled { address: crate::model::Address::checked(a), stop });
+                }
                 // The line is failing, or the module stopped answering, while a motion may be running.
                 Err(e) => return Err(self.lost(a, e).await),
             };
