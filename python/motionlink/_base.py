@@ -12,7 +12,7 @@ from typing import Any, Callable, Dict, Iterator, List, Optional, TypeVar
 
 from . import _native
 from ._probe import warn_profile_notices
-from .errors import Cancelled, UsageError
+from .errors import Cancelled, MotionlinkError, UsageError
 
 __all__ = ["ClientBase", "AsyncClientBase", "resolve_port"]
 
@@ -107,8 +107,12 @@ class ClientBase:
     def __enter__(self: "_C") -> "_C":
         return self
 
-    def __exit__(self, *exc: Any) -> None:
-        self.close()
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
+        try:
+            self.close()
+        except MotionlinkError as closing:
+            if not _said_already(exc, closing):
+                raise
 
     def __repr__(self) -> str:
         state = "open" if self.is_open else "closed"
@@ -116,6 +120,22 @@ class ClientBase:
 
 
 _C = TypeVar("_C", bound=ClientBase)
+
+
+def _said_already(error: Any, closing: MotionlinkError) -> bool:
+    """True when the block ended with ``error``, which said already that a stop was not confirmed (the axis
+    may still be moving), and the close failed too (it tried the stop again, or left a watchdog online):
+    the block's error goes on, with the close's as a note (``add_note``, Python 3.11+; ``__notes__``
+    before), instead of a second exception that would hide it. After any other error the close's failure
+    is raised (chained to it): it is then the news about what may still move."""
+    if not (isinstance(error, MotionlinkError) and error.stop_unconfirmed):
+        return False
+    note = f"then the end of the session: {closing}"
+    if hasattr(error, "add_note"):
+        error.add_note(note)
+    else:
+        error.__notes__ = [*getattr(error, "__notes__", []), note]
+    return True
 
 
 def check_interval(interval_ms: int, count: Optional[int]) -> None:
@@ -240,8 +260,12 @@ class AsyncClientBase:
             warn_profile_notices(self._native)
         return self
 
-    async def __aexit__(self, *exc: Any) -> None:
-        await self.aclose()
+    async def __aexit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
+        try:
+            await self.aclose()
+        except MotionlinkError as closing:
+            if not _said_already(exc, closing):
+                raise
 
     async def aclose(self) -> List[int]:
         """Ends the session: cancels the operations still under way on it (which stops their motions),

@@ -3,6 +3,7 @@ misbehaving peer), with the attributes the command line's JSON names."""
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import socket
 import threading
@@ -183,3 +184,36 @@ def test_a_stop_the_module_does_not_confirm_says_so_as_data(proxy: Callable[[str
     assert isinstance(err, motionlink.TimeoutError) and err.stop_unconfirmed, err
     assert "may still be moving" in str(err)
     assert err.to_dict() == {"kind": "timeout", "message": str(err), "exit_code": 3, "stop_unconfirmed": True}
+
+
+@pytest.mark.parametrize("face", ["sync", "async"])
+def test_a_with_block_whose_stop_was_not_confirmed_raises_that_error_with_the_close_as_a_note(
+    face: str, proxy: Callable[[str, Replies], str]
+) -> None:
+    """The move's error says the stop was not confirmed; the close at the end of the block fails too: the
+    move's error is what the block raises, the close's is a note on it (not a second exception)."""
+    silent = threading.Event()
+    with motionlink.Emulator("powercube", serve="tcp") as emu:
+        port = proxy(emu.port, lambda data: b"" if silent.is_set() else data)
+
+        def cut_under_the_move() -> None:
+            emu.take_events()
+            threading.Thread(target=lambda: (emu.wait_event(lambda s: "motion started" in s), silent.set())).start()
+
+        async def in_async_with() -> None:
+            async with motionlink.AsyncPowerCube(port) as cube:
+                await cube.home()
+                cut_under_the_move()
+                await cube.move_to(2.0, velocity=0.2)
+
+        with pytest.raises(motionlink.TimeoutError) as e:
+            if face == "async":
+                asyncio.run(in_async_with())
+            else:
+                with motionlink.PowerCube(port) as cube:
+                    cube.home()
+                    cut_under_the_move()
+                    cube.move_to(2.0, velocity=0.2)
+    assert e.value.stop_unconfirmed and "may still be moving" in str(e.value)
+    notes = getattr(e.value, "__notes__", [])
+    assert len(notes) == 1 and notes[0].startswith("then the end of the session: "), notes
