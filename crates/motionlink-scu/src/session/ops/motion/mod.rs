@@ -189,11 +189,18 @@ impl Move {
             return Err(e);
         }
         // An RE that failed (refused, a lost or corrupt reply) may still have started the motion: it gets its
-        // RS like any other failure.
-        if let Err(e) = reply.and_then(|r| r.ack(Command::Execute)) {
-            return Err(self.stop(ctx, e).await);
-        }
+        // RS like any other failure. One whose reply was lost after a cancel (it is not sent again then) is
+        // that cancel.
         let primary = self.spec.primary;
+        if let Err(e) = reply.and_then(|r| r.ack(Command::Execute)) {
+            let cause = match e {
+                Error::Timeout { .. } if ctx.cancelled() => {
+                    Error::Cancelled { actuator: primary, position_counts: self.start[idx(primary)] }
+                }
+                e => e,
+            };
+            return Err(self.stop(ctx, cause).await);
+        }
         if ctx.cancelled() {
             let e = Error::Cancelled { actuator: primary, position_counts: self.start[idx(primary)] };
             return Err(self.stop(ctx, e).await);
