@@ -61,6 +61,8 @@ impl Ctx {
 
     /// Sends `req` and waits for its reply, sent again at most `retries` times.
     pub(crate) async fn exchange_retries(&self, req: &Request<'_>, retry: Retry, retries: u32) -> JobResult {
+        // Once the operation is cancelled only a stop's telegrams (urgent) are sent again when unanswered.
+        let retries = if self.is_cancelled() && !self.urgent { 0 } else { retries };
         let ticket = {
             let mut core = self.core();
             let mut job = Job::new(self.id(), req, &core.cfg, retry)?;

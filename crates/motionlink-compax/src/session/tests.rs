@@ -338,3 +338,24 @@ fn a_cancel_while_a_poll_is_unanswered_sends_the_stop_after_one_reply_timeout() 
     assert_eq!(polls_before_stop, 1, "only the stop's S17 before it: {after:?}");
     assert!(!b.drive(1).is_moving() && b.drive(1).o0() == 0);
 }
+
+/// A cancel while the move's execute (`!`) awaits a reply that was lost: nothing is sent again, the drive
+/// (which got the `!` and moves) is stopped, and the error is the cancel's, with the stop's report.
+#[test]
+fn a_cancel_while_the_move_s_execute_is_unanswered_stops_the_drive_and_says_cancelled() {
+    let mut b = Bench::bus(&[1], 0, 9600);
+    let id = b.session.start(Op::MoveTo(a(1), to(1000.0)), b.now);
+    b.run_until(Duration::from_secs(5), |b| b.sent.last().is_some_and(|(_, x)| x.text() == "1!\r"));
+    b.deaf = true;
+    b.to_host.clear();
+    let cancelled_at = b.now;
+    b.session.cancel(id, b.now);
+    b.run_for(Duration::from_millis(50));
+    b.deaf = false;
+    let e = b.finish(id).unwrap_err();
+    assert!(matches!(e, Error::Cancelled { .. }), "{e}");
+    assert_eq!(e.stop_report().unwrap().drives, [(a(1), StopOutcome::SwitchedOff)]);
+    let after: Vec<String> = b.sent.iter().filter(|(t, _)| *t > cancelled_at).map(|(_, x)| x.text()).collect();
+    assert_eq!(after, ["1S17\r", "1OUTPUT O0=0\r", "1S17\r"], "the stop only");
+    assert!(!b.drive(1).is_moving() && b.drive(1).o0() == 0);
+}

@@ -232,6 +232,10 @@ impl Ctx {
                 }
                 Err(e) => return Err(e),
             };
+            // Cancelled meanwhile: the move counts as started, and the stop tells (no S2 read first).
+            if self.is_cancelled() {
+                return Err(lost);
+            }
             // The reply to '!' is lost: did the move start? The target S2 and "command active" tell.
             let target = self.read_target(address).await?.units();
             if close(target, expected) {

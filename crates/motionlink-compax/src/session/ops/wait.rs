@@ -97,6 +97,15 @@ impl Ctx {
         }
     }
 
+    /// `e`, or the cancel when it is a telegram that went unanswered after the operation was cancelled (it
+    /// is not sent again then: [`Core::cut_short`](super::super::core::Core::cut_short)).
+    fn cancel_or(&self, e: Error) -> Error {
+        match e {
+            Error::Timeout { .. } if self.is_cancelled() => Error::CancelledBeforeMotion,
+            e => e,
+        }
+    }
+
     /// `cause` ended an action while axes of this session in `scope` may be moving: stops them and says
     /// how that went ([`Error::Cancelled`] for a cancel, else [`Error::FailedDuringMotion`]); with nothing
     /// to stop, `cause` alone.
@@ -241,13 +250,16 @@ impl Ctx {
         let sent = self.send_checked_move(address, request, cmd, before, form).await;
         if let Err(e) = sent {
             self.core().started |= bit(address);
-            return Err(self.abort(e, &[address]).await);
+            return Err(self.abort(self.cancel_or(e), &[address]).await);
+        }
+        // Cancelled while the move was sent: it is stopped, not handed on (nor its target read first).
+        if self.is_cancelled() {
+            return Err(self.abort(Error::CancelledBeforeMotion, &[address]).await);
         }
         if let Err(e) = self.confirm_target(address, target).await {
-            return Err(self.abort(e, &[address]).await);
+            return Err(self.abort(self.cancel_or(e), &[address]).await);
         }
         if self.is_cancelled() {
-            // Cancelled while the move was sent: it is stopped, not handed on.
             return Err(self.abort(Error::CancelledBeforeMotion, &[address]).await);
         }
         let prefixed = self.core().cfg.mode.reply_address;
