@@ -166,6 +166,12 @@ pub enum Op {
 }
 
 impl Op {
+    /// A stop (HaltConfirmed): a cancel leaves it running to its end, so that its reads are retried as any
+    /// stop's (the caller that gave up on it still wants the module halted).
+    fn firm(&self) -> bool {
+        matches!(self, Op::HaltConfirmed(_))
+    }
+
     /// The name of an operation that sets nothing in motion and may be dropped at once when cancelled.
     fn abortable(&self) -> Option<&'static str> {
         Some(match self {
@@ -253,6 +259,8 @@ pub struct Session {
     exec: Ops,
     /// The operations that set nothing in motion and may be dropped at once when cancelled: what each is.
     abortable: std::collections::BTreeMap<OpId, &'static str>,
+    /// The stops under way ([`Op::firm`]): a cancel does not reach them.
+    firm: std::collections::BTreeSet<OpId>,
     events: VecDeque<Event<Session>>,
     closing: Closing,
 }
@@ -278,6 +286,7 @@ impl Session {
         Session {
             exec: Executor::new(Core::new(config, can, port, now), now),
             abortable: std::collections::BTreeMap::new(),
+            firm: std::collections::BTreeSet::new(),
             events: VecDeque::new(),
             closing: Closing::Open,
         }
@@ -414,6 +423,7 @@ impl Session {
             });
             for id in ended {
                 self.abortable.remove(&id);
+                self.firm.remove(&id);
                 self.core().forget(id);
             }
             if !(self.closing == Closing::Waiting && self.exec.is_empty()) {
@@ -436,6 +446,9 @@ impl motionlink_link::session::Session for Session {
             self.events.push_back(Event::Done(id, Err(Error::Closed)));
             return id;
         }
+        if op.firm() {
+            self.firm.insert(id);
+        }
         if let Some(what) = op.abortable() {
             self.abortable.insert(id, what);
         }
@@ -446,7 +459,7 @@ impl motionlink_link::session::Session for Session {
 
     fn cancel(&mut self, id: OpId, now: Timestamp) {
         self.now_is(now);
-        if id == CLOSE || !self.exec.contains(id) {
+        if id == CLOSE || self.firm.contains(&id) || !self.exec.contains(id) {
             return;
         }
         match self.abortable.remove(&id) {

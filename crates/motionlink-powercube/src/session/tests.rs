@@ -489,3 +489,27 @@ fn a_cancel_while_a_poll_is_unanswered_halts_without_asking_again() {
     assert!(at - cancelled_at <= Config::can().reply_timeout, "Halt {:?} after the cancel", at - cancelled_at);
     assert!(!b.module(1).0.contains(StateFlag::Motion));
 }
+
+/// Loses the first state read (GetExtended CubeState) to module 1, once per test run of
+/// [`a_stop_whose_caller_gave_up_still_retries_its_reads`].
+static STATE_READ_LOST: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+fn lose_the_first_state_read(w: &Telegram) -> bool {
+    let read = frame(w, |id| id == 0xC1, Some(&[0x0A, 0x27]));
+    read && !STATE_READ_LOST.swap(true, std::sync::atomic::Ordering::SeqCst)
+}
+
+#[test]
+fn a_stop_whose_caller_gave_up_still_retries_its_reads() {
+    let mut b = Bench::can(&[1]);
+    b.run(Op::Motion(addr(1), Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple)).unwrap();
+    b.idle(ms(100));
+    b.lose = Some(lose_the_first_state_read);
+    let id = b.session.start(Op::HaltConfirmed(addr(1)), b.now);
+    // The caller gives up at once: the stop runs to its end all the same, its lost read asked again.
+    b.session.cancel(id, b.now);
+    let r = b.wait_done_within(id, Duration::from_secs(5));
+    assert!(STATE_READ_LOST.load(std::sync::atomic::Ordering::SeqCst), "a state read was lost");
+    let Ok(Output::Halted(report)) = r else { panic!("{r:?}") };
+    assert!(report.state.contains(StateFlag::Halted) && !report.state.contains(StateFlag::Motion));
+}
