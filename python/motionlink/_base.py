@@ -111,7 +111,7 @@ class ClientBase:
         try:
             self.close()
         except MotionlinkError as closing:
-            if not _said_already(exc, closing):
+            if not _kept_with_a_note(exc, closing):
                 raise
 
     def __repr__(self) -> str:
@@ -122,12 +122,12 @@ class ClientBase:
 _C = TypeVar("_C", bound=ClientBase)
 
 
-def _said_already(error: Any, closing: MotionlinkError) -> bool:
-    """True when the block ended with ``error``, which said already that a stop was not confirmed (the axis
-    may still be moving), and the close failed too (it tried the stop again, or left a watchdog online):
-    the block's error goes on, with the close's as a note (``add_note``, Python 3.11+; ``__notes__``
-    before), instead of a second exception that would hide it. After any other error the close's failure
-    is raised (chained to it): it is then the news about what may still move."""
+def _kept_with_a_note(error: Any, closing: MotionlinkError) -> bool:
+    """True, and the note added, when the block ended with ``error``, which said already that a stop was
+    not confirmed (the axis may still be moving), and the close failed too (it tried the stop again, or
+    left a watchdog online): the block's error goes on, with the close's as a note (``add_note``, Python
+    3.11+; ``__notes__`` before), instead of a second exception that would hide it. After any other error
+    the close's failure is raised (chained to it): it is then the news about what may still move."""
     if not (isinstance(error, MotionlinkError) and error.stop_unconfirmed):
         return False
     note = f"then the end of the session: {closing}"
@@ -264,7 +264,7 @@ class AsyncClientBase:
         try:
             await self.aclose()
         except MotionlinkError as closing:
-            if not _said_already(exc, closing):
+            if not _kept_with_a_note(exc, closing):
                 raise
 
     async def aclose(self) -> List[int]:

@@ -461,17 +461,15 @@ impl fmt::Display for StopReport {
                     "drive {a} was stopped by switching it off (OUTPUT O0=0, confirmed by the drive): the drive is \
                      now switched off and takes no move until OUTPUT O0=1 switches it on"
                 )?,
-                StopOutcome::NotConfirmed { reason } => {
-                    write!(f, "drive {a}: {STOP_NOT_CONFIRMED} ({reason}): the axis may still be moving")?
-                }
+                StopOutcome::NotConfirmed { reason } => write!(
+                    f,
+                    "drive {a}: the stop was NOT confirmed by the drive ({reason}): the axis may still be moving"
+                )?,
             }
         }
         Ok(())
     }
 }
-
-/// What a stop's report says of a drive that did not confirm it (after "drive N: ").
-pub const STOP_NOT_CONFIRMED: &str = "the stop was NOT confirmed by the drive";
 
 /// Drive addresses in words: "drive 1", "drives 1, 3".
 fn drives(list: &[u8]) -> String {
@@ -551,6 +549,8 @@ mod tests {
             // close's bound), each of which says the axis may still move.
             let says = e.to_string().contains("may still be moving") || e.to_string().contains("NOT confirmed");
             assert_eq!(e.stop_unconfirmed(), says, "{e}");
+            // And each such error is of the line (exit 3), never the class of a settled end.
+            assert!(!e.stop_unconfirmed() || e.class().is_transport(), "{e}");
         }
         let inner = Error::FailedDuringMotion {
             cause: Box::new(Error::CancelledBeforeMotion),

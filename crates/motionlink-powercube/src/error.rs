@@ -36,12 +36,6 @@ pub enum StopOutcome {
     },
 }
 
-/// What an unconfirmed halt's message says of the watchdog the session had armed: it was left online, and
-/// how the module is cleared after it halted itself.
-pub const WATCHDOG_LEFT_NOTE: &str = "its watchdog is online and no longer refreshed, so if the halt did not \
-                                      reach it the module halts itself within 50 ms of the last refresh that \
-                                      did (STATE_COMM_ERROR; `reset` clears it)";
-
 impl StopOutcome {
     /// True unless a Halt was needed and not confirmed.
     pub fn is_confirmed(&self) -> bool {
@@ -57,7 +51,12 @@ impl fmt::Display for StopOutcome {
             StopOutcome::Unconfirmed { reason, watchdog_armed } => {
                 write!(f, "the halt was not confirmed ({reason}): the axis may still be moving")?;
                 if *watchdog_armed {
-                    write!(f, "; {WATCHDOG_LEFT_NOTE}")
+                    // The watchdog the session had armed was left online, and how the module is cleared.
+                    f.write_str(
+                        "; its watchdog is online and no longer refreshed, so if the halt did not reach it the \
+                         module halts itself within 50 ms of the last refresh that did (STATE_COMM_ERROR; \
+                         `reset` clears it)",
+                    )
                 } else {
                     f.write_str("; no watchdog is armed on it: only a halt or the emergency stop stops it now")
                 }
@@ -525,6 +524,8 @@ impl Classify for Error {
             | Error::Encode(_)
             | Error::Closed => ErrorClass::Usage,
             Error::Context { source, .. } => source.class(),
+            // A stop not confirmed while cleaning up makes it one of the line, as every such error.
+            Error::Also { error, also } if also.stop_unconfirmed() => error.class().stop_unconfirmed(),
             Error::Also { error, .. } => error.class(),
         }
     }
@@ -705,6 +706,12 @@ mod tests {
         let wrapped = Error::Context { context: "moving".into(), source: Box::new(unsettled), hint: "" };
         assert!(wrapped.stop_unconfirmed(), "{wrapped}");
         assert!(Error::close_timed_out(Duration::from_secs(5)).stop_unconfirmed());
+        // A motion's device error, then a stop after it not confirmed: flagged, and of the line (exit 3).
+        let halted = Error::Halted { address: Address::checked(1), state: CubeState(4) };
+        let stop =
+            Error::StopUnconfirmed { addresses: vec![Address::checked(1)], detail: "x".into(), watchdog_armed: false };
+        let also = Error::Also { error: Box::new(halted), also: Box::new(stop) };
+        assert!(also.stop_unconfirmed() && also.class() == ErrorClass::Transport(TransportKind::Timeout), "{also}");
         // Acknowledged, but still moving: not confirmed either, a timeout as the SCU's stop says it.
         let moving = Error::StillMoving { address: Address::checked(1), state: CubeState(0), waited: Duration::ZERO };
         assert!(moving.stop_unconfirmed() && moving.class() == ErrorClass::Transport(TransportKind::Timeout));

@@ -303,6 +303,18 @@ fn a_stop_of_drives_the_session_did_not_start_switches_off_only_the_moving_one_a
     assert!(matches!(b.run(Op::StopIfMoving(vec![Address::BROADCAST])), Err(Error::Broadcast(_))));
 }
 
+/// Cancels `id` while the reply to the telegram just sent is lost (also if on its way already); the line
+/// carries again 50 ms later, for the stop. When the cancel came.
+fn cancel_with_the_reply_lost(b: &mut Bench, id: OpId) -> Timestamp {
+    b.deaf = true;
+    b.to_host.clear();
+    let cancelled_at = b.now;
+    b.session.cancel(id, b.now);
+    b.run_for(Duration::from_millis(50));
+    b.deaf = false;
+    cancelled_at
+}
+
 /// A cancel while a poll of the wait awaits a reply that was lost: the poll is not sent again (its retries
 /// would hold the stop back by up to three more reply timeouts, and a COMPAX drive has no watchdog), so the
 /// stop goes out once that one sending went unanswered, and the error is the cancel's.
@@ -314,13 +326,7 @@ fn a_cancel_while_a_poll_is_unanswered_sends_the_stop_after_one_reply_timeout() 
     b.run_for(Duration::from_millis(300));
     let from = b.now;
     b.run_until(Duration::from_secs(5), |b| b.sent.last().is_some_and(|(t, x)| *t > from && x.text() == "1S17\r"));
-    // Its reply is lost (also if on its way already), and the caller gives up at once.
-    b.deaf = true;
-    b.to_host.clear();
-    let cancelled_at = b.now;
-    b.session.cancel(id, b.now);
-    b.run_for(Duration::from_millis(50));
-    b.deaf = false;
+    let cancelled_at = cancel_with_the_reply_lost(&mut b, id);
     let e = b.finish(id).unwrap_err();
     assert!(matches!(e, Error::Cancelled { .. }), "{e}");
     assert_eq!(e.stop_report().unwrap().drives, [(a(1), StopOutcome::SwitchedOff)]);
@@ -346,12 +352,7 @@ fn a_cancel_while_the_move_s_execute_is_unanswered_stops_the_drive_and_says_canc
     let mut b = Bench::bus(&[1], 0, 9600);
     let id = b.session.start(Op::MoveTo(a(1), to(1000.0)), b.now);
     b.run_until(Duration::from_secs(5), |b| b.sent.last().is_some_and(|(_, x)| x.text() == "1!\r"));
-    b.deaf = true;
-    b.to_host.clear();
-    let cancelled_at = b.now;
-    b.session.cancel(id, b.now);
-    b.run_for(Duration::from_millis(50));
-    b.deaf = false;
+    let cancelled_at = cancel_with_the_reply_lost(&mut b, id);
     let e = b.finish(id).unwrap_err();
     assert!(matches!(e, Error::Cancelled { .. }), "{e}");
     assert_eq!(e.stop_report().unwrap().drives, [(a(1), StopOutcome::SwitchedOff)]);
