@@ -38,9 +38,18 @@ class AsyncScu(AsyncClientBase):
 
 
 class ScuStop(Record):
+    family: str
+    functions: List[int]
+    mode: str
+    refused: List[RefusedStop]
+    at_rest: List[ActuatorAtRest]
 
 
 class ActuatorAtRest(Record):
+    actuator: int
+    position_counts: int
 
 
 class RefusedStop(Record):
+    function: int
+    reason: str

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import ast
+import importlib
 import importlib.util
 import inspect
 from pathlib import Path
@@ -41,3 +43,21 @@ def test_one_declaration_gives_both_faces() -> None:
     assert inspect.iscoroutinefunction(motionlink.AsyncPowerCube.move_to)
     assert not inspect.iscoroutinefunction(motionlink.PowerCube.move_to)
     assert motionlink.PowerCube.move_to.__doc__ == motionlink.AsyncPowerCube.move_to.__doc__
+
+
+@pytest.mark.parametrize("name", _tool().MODULES)
+def test_stub_is_python_with_each_records_fields(name: str) -> None:
+    # A type checker reads the stub: it must parse, and a record class declared in the module lists its
+    # fields (an empty class body was a syntax error that made every user's type check of the package fail).
+    text = (TOOL.parent.parent / "motionlink" / f"{name}.pyi").read_text(encoding="utf-8")
+    tree = ast.parse(text)
+    module = importlib.import_module(f"motionlink.{name}")
+    for node in tree.body:
+        if isinstance(node, ast.ClassDef):
+            cls = getattr(module, node.name)
+            fields = [n.target for n in node.body if isinstance(n, ast.AnnAssign)]
+            stubbed = {t.id for t in fields if isinstance(t, ast.Name)}
+            own = {k for k in vars(cls).get("__annotations__", {}) if not k.startswith("_")}
+            assert own <= stubbed, f"{name}.pyi: {node.name} lacks {sorted(own - stubbed)}"
+    if name == "scu":
+        assert "class ScuStop(Record):\n    family: str\n" in text

@@ -61,8 +61,14 @@ def stub(name: str) -> str:
         lines += ["", "", f"class {cls_name}({public_bases[0].__name__}):"]
         is_async = hasattr(cls, "_run")
         own = [k for k in cls.__mro__ if k.__module__ == module.__name__]
+        body = len(lines)
         seen = set()
         for klass in own:
+            # A record's fields are its annotations (strings: the modules use postponed annotations).
+            for attr, hint in vars(klass).get("__annotations__", {}).items():
+                if attr not in seen and not attr.startswith("_"):
+                    seen.add(attr)
+                    lines.append(f"    {attr}: {hint}")
             for attr, member in vars(klass).items():
                 if attr in seen or (attr.startswith("_") and attr != "__init__"):
                     continue
@@ -79,6 +85,8 @@ def stub(name: str) -> str:
                     lines.append(f"    {prefix} {attr}{_params(member)}: ...")
                 elif not callable(member):
                     lines.append(f"    {attr}: {type(member).__name__}")
+        if len(lines) == body:
+            lines.append("    ...")
     return "\n".join(lines) + "\n"
 
 
