@@ -98,7 +98,7 @@ impl PowerCubeBench for Bench {
     }
 
     fn lose_refreshes(&mut self) {
-        self.lose = Some(is_refresh);
+        self.lose = Some(Box::new(is_refresh));
     }
 
     fn take_device_events(&mut self) -> Vec<String> {
@@ -490,13 +490,21 @@ fn a_cancel_while_a_poll_is_unanswered_halts_without_asking_again() {
     assert!(!b.module(1).0.contains(StateFlag::Motion));
 }
 
-/// Loses the first state read (GetExtended CubeState) to module 1, once per test run of
-/// [`a_stop_whose_caller_gave_up_still_retries_its_reads`].
-static STATE_READ_LOST: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
-
-fn lose_the_first_state_read(w: &Telegram) -> bool {
-    let read = frame(w, |id| id == 0xC1, Some(&[0x0A, 0x27]));
-    read && !STATE_READ_LOST.swap(true, std::sync::atomic::Ordering::SeqCst)
+/// A loss of the `n`th (from 1) read of `param_id` from module 1 (GetExtended, 0x0A), and whether it
+/// happened.
+fn lose_read(param_id: u8, n: u32) -> (motionlink_testkit::wired::Loss, std::rc::Rc<std::cell::Cell<bool>>) {
+    let lost = std::rc::Rc::new(std::cell::Cell::new(false));
+    let (seen, flag) = (std::cell::Cell::new(0), lost.clone());
+    let lose = move |w: &Telegram| {
+        if !frame(w, |id| id == 0xC1, Some(&[0x0A, param_id])) {
+            return false;
+        }
+        seen.set(seen.get() + 1);
+        let now = seen.get() == n;
+        flag.set(flag.get() || now);
+        now
+    };
+    (Box::new(lose), lost)
 }
 
 #[test]
@@ -504,12 +512,37 @@ fn a_stop_whose_caller_gave_up_still_retries_its_reads() {
     let mut b = Bench::can(&[1]);
     b.run(Op::Motion(addr(1), Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple)).unwrap();
     b.idle(ms(100));
-    b.lose = Some(lose_the_first_state_read);
+    let (lose, lost) = lose_read(0x27, 1); // the first CubeState read
+    b.lose = Some(lose);
     let id = b.session.start(Op::HaltConfirmed(addr(1)), b.now);
     // The caller gives up at once: the stop runs to its end all the same, its lost read asked again.
     b.session.cancel(id, b.now);
     let r = b.wait_done_within(id, Duration::from_secs(5));
-    assert!(STATE_READ_LOST.load(std::sync::atomic::Ordering::SeqCst), "a state read was lost");
+    assert!(lost.get(), "a state read was lost");
     let Ok(Output::Halted(report)) = r else { panic!("{r:?}") };
     assert!(report.state.contains(StateFlag::Halted) && !report.state.contains(StateFlag::Motion));
+}
+
+#[test]
+fn a_move_cancelled_while_its_target_read_back_is_unanswered_reports_the_cancel() {
+    let mut b = Bench::can(&[1]);
+    // Every TargetPosInc read after the motion command (its target read back) is lost.
+    let (moving, lost) = (std::cell::Cell::new(false), std::rc::Rc::new(std::cell::Cell::new(false)));
+    let flag = lost.clone();
+    b.lose = Some(Box::new(move |w: &Telegram| {
+        moving.set(moving.get() || frame(w, |id| id == 0xE1, None) && w[0] == 0x0B);
+        let now = moving.get() && frame(w, |id| id == 0xC1, Some(&[0x0A, 0x28]));
+        flag.set(flag.get() || now);
+        now
+    }));
+    let spec = MoveSpec { vel: Some(Velocity::native(0.2)), ..MoveSpec::to(Position::native(2.0)) };
+    let id = b.session.start(Op::MoveTo(addr(1), spec), b.now);
+    let seen = lost.clone();
+    b.run_until(ms(1000), move |_| seen.get());
+    // The caller gives up while the read-back goes unanswered: what ends the move is the cancel (its stop
+    // confirmed), not a failing line.
+    b.session.cancel(id, b.now);
+    let err = b.wait_done_within(id, Duration::from_secs(5)).unwrap_err();
+    assert!(matches!(err, Error::Cancelled { address: A1, stop: StopOutcome::Confirmed }), "{err:?}");
+    assert!(!b.module(1).0.contains(StateFlag::Motion));
 }

@@ -54,6 +54,9 @@ impl Line {
     }
 }
 
+/// Which telegrams to the device are lost (see [`Wired::lose`]).
+pub type Loss = Box<dyn FnMut(&Telegram) -> bool>;
+
 /// A session wired to a device; see the [module documentation](self). Fields are the test's to read and
 /// to set (the faults, the line's timing) between steps.
 pub struct Wired<S: Session, D> {
@@ -69,8 +72,8 @@ pub struct Wired<S: Session, D> {
     pub cut: bool,
     /// Everything the device answers is lost while set.
     pub deaf: bool,
-    /// Telegrams to the device for which this is true are lost.
-    pub lose: Option<fn(&Telegram) -> bool>,
+    /// Telegrams to the device for which this is true are lost (it may count what it has seen).
+    pub lose: Option<Loss>,
     /// The byte with this number (counted from the first sent, see [`Wired::to_device_count`]) is XORed with
     /// the mask on its way to the device.
     pub corrupt_to_device: Option<(u64, u8)>,
@@ -169,7 +172,7 @@ impl<S: Session, D: Device> Wired<S, D> {
             Telegram::Frame(_) => self.line.frame_time,
         };
         self.device_wire = self.device_wire.max(self.now) + on_wire;
-        if self.cut || self.lose.is_some_and(|lose| lose(&telegram)) {
+        if self.cut || self.lose.as_mut().is_some_and(|lose| lose(&telegram)) {
             return;
         }
         self.to_device.push_back((self.device_wire + self.line.one_way, telegram));

@@ -36,10 +36,16 @@ impl Ctx {
     }
 
     /// An error of a request sent while module `a` may be moving: the motion is stopped, and the error says
-    /// whether that was confirmed.
+    /// whether that was confirmed. Once the operation is cancelled, a request that failed (not retried then)
+    /// ends it as the cancel: [`Error::Cancelled`], with the stop's outcome.
     pub async fn lost(&self, a: u8, cause: Error) -> Error {
         let stop = self.stop_motion(a).await;
-        Error::FailedDuringMotion { address: crate::model::Address::checked(a), cause: Box::new(cause), stop }
+        let address = crate::model::Address::checked(a);
+        if self.cancelled() {
+            tracing::debug!("module {a}: after the cancel: {cause}");
+            return Error::Cancelled { address, stop };
+        }
+        Error::FailedDuringMotion { address, cause: Box::new(cause), stop }
     }
 
     /// Refuses a module that would ignore a motion command: one with an error flag ([`Error::Device`]) or
@@ -213,12 +219,8 @@ impl Ctx {
             let polled = self.poll_state(a, &mut poll).await;
             let (state, position) = match polled {
                 Ok(x) => x,
-                // A poll that failed once the wait was cancelled (it is not retried then) is the cancel.
-                Err(_) if self.cancelled() => {
-                    let stop = self.stop_motion(a).await;
-                    return Err(Error::Cancelled { address: crate::model::Address::checked(a), stop });
-                }
-                // The line is failing, or the module stopped answering, while a motion may be running.
+                // The line is failing, or the module stopped answering, while a motion may be running (or
+                // the poll was not asked again after a cancel: the cancel, see `lost`).
                 Err(e) => return Err(self.lost(a, e).await),
             };
             let now = self.now();
