@@ -546,3 +546,23 @@ fn a_move_cancelled_while_its_target_read_back_is_unanswered_reports_the_cancel(
     assert!(matches!(err, Error::Cancelled { address: A1, stop: StopOutcome::Confirmed }), "{err:?}");
     assert!(!b.module(1).0.contains(StateFlag::Motion));
 }
+
+#[test]
+fn a_module_whose_halt_was_not_confirmed_stays_started_and_the_close_says_so() {
+    let mut b = Bench::can(&[1]);
+    let spec = MoveSpec { vel: Some(Velocity::native(0.2)), ..MoveSpec::to(Position::native(2.0)) };
+    let id = b.session.start(Op::MoveGuarded(addr(1), spec, Guard::HaltOnly), b.now);
+    b.idle(ms(300));
+    // The line breaks both ways while the module moves: neither the poll nor a Halt gets through.
+    (b.cut, b.deaf) = (true, true);
+    let err = b.wait_done_within(id, Duration::from_secs(5)).unwrap_err();
+    assert!(motionlink_link::error::Classify::stop_unconfirmed(&err), "{err}");
+    // It is still among what the session started, and the close tries again and says it could not.
+    assert_eq!(b.session.started(), [A1]);
+    let closed = b.close().unwrap_err();
+    assert!(
+        closed
+            .starts_with("closing the session: module 1 set in motion by this session could not be confirmed stopped"),
+        "{closed}"
+    );
+}

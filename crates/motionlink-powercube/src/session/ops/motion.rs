@@ -31,6 +31,9 @@ impl Ctx {
         if let Err(e) = self.broadcast(Broadcast::Halt).await {
             tracing::warn!("the halt broadcast could not be sent either: {e}");
         }
+        // Nothing confirmed it: the module stays among those the session started (the broadcast on CAN
+        // takes it off), so that `started()` names it and the close tries again.
+        self.core().started.insert(a);
         self.abandon_watchdog();
         StopOutcome::Unconfirmed { reason, watchdog_armed }
     }
@@ -465,7 +468,9 @@ impl Ctx {
     }
 
     /// Halts every module this session set in motion that is still moving or cannot be asked (see
-    /// [`Op::HaltStarted`](crate::session::Op)). An error if a Halt had to be broadcast (the session failed).
+    /// [`Op::HaltStarted`](crate::session::Op)). An error if a Halt had to be broadcast (the session failed);
+    /// the modules whose halt was not confirmed stay among those the session started, so that `started()`
+    /// names them and the close tries again (and says so if it cannot confirm it either).
     pub async fn halt_started(&self) -> Result<(), Error> {
         let (started, known): (Vec<u8>, _) = {
             let core = self.core();
@@ -515,9 +520,14 @@ impl Ctx {
             if let Err(e) = self.broadcast(Broadcast::Halt).await {
                 tracing::warn!("the halt broadcast could not be sent either: {e}");
             }
-            Err(Error::StopUnconfirmed { addresses: checked(unconfirmed), detail, watchdog_armed })
+            Err(Error::StopUnconfirmed { addresses: checked(unconfirmed.clone()), detail, watchdog_armed })
         };
-        self.core().started.clear();
+        // The modules whose halt was not confirmed stay (the broadcast on CAN took them off).
+        {
+            let mut core = self.core();
+            core.started.retain(|a| unconfirmed.contains(a));
+            core.started.extend(unconfirmed);
+        }
         result
     }
 }
