@@ -277,18 +277,28 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let clock = RealClock::shared();
     let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
     let tap = Tap::new("scu", &port, &clock, &args.link, "can0", &describer, request.is_some())?;
+    let is_stop = matches!(args.action, Action::Stop { .. });
     let absent = || {
-        // A stop says that it sent no stop: RS goes out only in the remote mode that RO opens.
-        let stop = if matches!(args.action, Action::Stop { .. }) { "; this command sent no RS" } else { "" };
+        // A stop says first that it sent no stop: RS goes out only in the remote mode that RO opens.
+        let stop = if is_stop { "this command sent no RS (RS needs the remote mode RO opens): " } else { "" };
         format!(
-            "the SCU on {port} does not answer (nothing came back to RO within {} ms): check the cable, the baud \
-             rate (--baud {}; standard units run at 38400, customised ones at 9600 or 19200) and that the control \
-             unit is powered{stop}",
+            "{stop}the SCU on {port} does not answer (nothing came back to RO within {} ms): check the cable, the \
+             baud rate (--baud {}; standard units run at 38400, customised ones at 9600 or 19200) and that the \
+             control unit is powered",
             args.unit.timeout_ms.get().as_millis(),
             args.unit.baud
         )
     };
-    let client = connect(&args.unit, &port, &tap, &clock, config).map_err(|e| tap.name_absent(e, absent))?;
+    let client = connect(&args.unit, &port, &tap, &clock, config).map_err(|e| {
+        let e = tap.name_absent(e, absent);
+        // A stop whose line failed before it could send RS is a stop not confirmed, as the other families'
+        // stops on a silent device are.
+        if is_stop && matches!(e.class(), motionlink_link::error::ErrorClass::Transport(_)) {
+            e.stop_not_confirmed()
+        } else {
+            e
+        }
+    })?;
     client.set_cancel(interrupt.clone());
     crate::probe::use_profile(|p| motionlink_scu::probe::use_profile(&client, p, &port))?;
     let mut out = std::io::stdout().lock();

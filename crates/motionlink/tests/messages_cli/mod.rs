@@ -134,8 +134,13 @@ fn a_stop_that_nobody_answers_says_what_it_did_before_naming_the_device_absent()
     let out = ml(&["scu", "--port", &port, "--timeout-ms", "300", "stop"]);
     assert_eq!(out.status.code(), Some(3), "{out:?}");
     let err = stderr(&out);
-    assert!(err.starts_with(&format!("motionlink: the SCU on {port} does not answer")), "{err}");
-    assert!(err.trim_end().ends_with("; this command sent no RS"), "{err}");
+    let said = format!(
+        "motionlink: this command sent no RS (RS needs the remote mode RO opens): the SCU on {port} does not answer"
+    );
+    assert!(err.starts_with(&said), "{err}");
+    // The SCU's stop that sent nothing is a stop not confirmed too.
+    let e = common::json_error(&ml(&["--json", "scu", "--port", &port, "--timeout-ms", "300", "stop"]));
+    assert_eq!((&e["kind"], &e["stop_unconfirmed"]), (&serde_json::json!("timeout"), &serde_json::json!(true)), "{e}");
 }
 
 #[cfg(unix)]
