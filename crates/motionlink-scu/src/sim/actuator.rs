@@ -103,7 +103,8 @@ impl ActuatorState {
     }
 
     /// Starts a motion to `target` (clamped to the travel range, as a unit stops at its limits). Returns false
-    /// if the actuator is already there and nothing moves.
+    /// if the actuator is already there at rest and nothing moves; one that is leaving that place (a motion
+    /// to elsewhere just began) turns back to it.
     pub(super) fn start(
         &mut self,
         target: i32,
@@ -115,7 +116,7 @@ impl ActuatorState {
         let (lo, hi) = self.travel_range();
         let target = target.clamp(lo, hi);
         let t = f64::from(target);
-        if (t - self.position).abs() < 0.5 {
+        if (t - self.position).abs() < 0.5 && !self.moving() {
             // Already there: nothing moves.
             return false;
         }

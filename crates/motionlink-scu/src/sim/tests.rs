@@ -115,3 +115,23 @@ fn each_variant_refuses_or_answers_as_its_firmware_would() {
     assert_eq!(status(&send(&mut unit, 3, Request::Stop { function: 0, param: 0 })), Status::Ack);
     assert_eq!(status(&send(&mut unit, 4, re)), Status::Ack);
 }
+
+#[test]
+fn a_new_target_where_a_motion_just_began_turns_the_actuator_back_to_it() {
+    let mut cfg = SimConfig::default().actuators[0].clone();
+    cfg.start_position_counts = 460;
+    let mut a = actuator::ActuatorState::new(cfg);
+    let start = a.reported_position();
+    assert!(a.start(start - 40, 1000.0, 100, Origin::Remote, Some(0)));
+    a.step(0.001); // on its way, still within half a count of where it started
+    assert!((a.reported_position() - start).abs() < 1, "{}", a.reported_position());
+    // The newest target is where it started: it goes back there (follow's last line), not on to the first.
+    assert!(a.start(start, 1000.0, 100, Origin::Remote, Some(0)));
+    for _ in 0..5000 {
+        a.step(0.001);
+    }
+    assert!(!a.moving());
+    assert_eq!(a.reported_position(), start);
+    // At rest there, the same target moves nothing.
+    assert!(!a.start(start, 1000.0, 100, Origin::Remote, Some(0)));
+}

@@ -97,6 +97,23 @@ pub(super) fn follow(
         match follower.apply_due() {
             Ok(Some(targets)) => print_targets(&actuators, targets, report, out)?,
             Ok(None) => {}
+            // A target outside the stroke is a bad line: refused, and the motion of the lines before it is
+            // stopped (the library's message says nothing was moved, which holds for a move only).
+            Err(motionlink_scu::Error::OutsideLimits {
+                actuator,
+                target_counts,
+                min_counts,
+                max_counts,
+                limits_from,
+            }) => {
+                break Some(Ok(CliError::usage(format!(
+                    "target {} counts for {actuator} refused: it lies outside {actuator}'s stroke {}..{} \
+                     ({limits_from}); {function} stopped",
+                    target_counts.get(),
+                    min_counts.get(),
+                    max_counts.get()
+                ))))
+            }
             Err(e) => break Some(Err(e)),
         }
     };

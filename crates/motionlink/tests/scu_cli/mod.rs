@@ -447,6 +447,24 @@ fn follow_stops_on_a_bad_line_and_on_a_signal() {
     let (_, p) = wait_at_rest(&sim, "A1", 0.0);
     assert!(p < 800, "stopped on the way: {p}");
 
+    // A target outside the stroke is a bad line too: the motion is stopped, and the message says so.
+    let (running, mut stdin) =
+        Running::start_with_stdin(&["scu", "--port", &sim.address, "--functions", "scp11", "follow", "1"]);
+    running.stdout.wait_for(Duration::from_secs(5), |l| l.starts_with("following F1 (A1)")).expect("ready");
+    let t = unix_now();
+    writeln!(stdin, "0").unwrap();
+    sim.wait_event_after(t, Duration::from_secs(5), |e| e.starts_with("F1 started")).expect("moving");
+    writeln!(stdin, "9999").unwrap();
+    let ended = running.wait(Duration::from_secs(10));
+    assert_eq!(ended.code(), 2, "{ended:?}");
+    assert!(
+        ended.stderr.contains("target 9999 counts for A1 refused: it lies outside A1's stroke"),
+        "{}",
+        ended.stderr
+    );
+    assert!(ended.stderr.trim_end().ends_with("F1 stopped") && !ended.stderr.contains("nothing was moved"));
+    assert!(ended.stdout.contains("stopped after"), "{}", ended.stdout);
+
     let (running, mut stdin) =
         Running::start_with_stdin(&["scu", "--port", &sim.address, "--functions", "scp11", "follow", "1"]);
     running.stdout.wait_for(Duration::from_secs(5), |l| l.starts_with("following")).expect("ready");
