@@ -459,3 +459,21 @@ fn a_session_on_a_link_given_to_it_cannot_reconnect_and_says_why() {
     let err = client.reconnect().unwrap_err();
     assert!(err.to_string().contains("cannot be opened again (with_connector reconnects)"), "{err}");
 }
+
+#[test]
+fn a_watch_samples_once_per_interval() {
+    // Every interval from 100 ms to 1 s: the samples come one interval apart (within 20 ms), never two a
+    // poll interval apart and then a long gap (the samples riding on the keepalive RC).
+    for interval_ms in [100, 150, 300, 1000] {
+        let rig = Rig::new(SimConfig::default());
+        let client = rig.client(Config::default());
+        let mut at = Vec::new();
+        let n = client.watch(Duration::from_millis(interval_ms), Some(6), &mut |s| at.push(s.at)).unwrap();
+        assert_eq!(n, 6);
+        let gaps: Vec<u128> = at.windows(2).map(|w| (w[1] - w[0]).as_millis()).collect();
+        assert!(
+            gaps.iter().all(|g| g.abs_diff(u128::from(interval_ms)) <= 20),
+            "every {interval_ms} ms: gaps {gaps:?} ms"
+        );
+    }
+}

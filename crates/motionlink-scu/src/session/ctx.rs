@@ -93,13 +93,27 @@ impl Ctx {
     /// (polled every poll interval while anyone waits for it). `None`: a plain handle's operation was
     /// cancelled while it waited.
     pub(crate) async fn snapshot(&self) -> Option<Result<Snapshot, Error>> {
+        self.snapshot_within(false).await
+    }
+
+    /// As [`Ctx::snapshot`], with the RC that carries it sent as soon as the line is free, not on the poll
+    /// interval's grid (a watch asks a round trip before its sample is due).
+    pub(crate) async fn snapshot_now(&self) -> Option<Result<Snapshot, Error>> {
+        self.snapshot_within(true).await
+    }
+
+    async fn snapshot_within(&self, at_once: bool) -> Option<Result<Snapshot, Error>> {
         let ticket = {
             let mut core = self.core();
             if !core.link_up {
                 return Some(Err(core.lost_error()));
             }
             let id = self.id();
-            core.subscribe(id)
+            let ticket = core.subscribe(id);
+            if at_once {
+                core.keepalive_due = core.keepalive_due.min(core.now);
+            }
+            ticket
         };
         let interruptible = !self.firm;
         self.poll_core(move |op, cx| {

@@ -32,7 +32,6 @@ const READS: [DataIndex; 4] = [DataIndex(0x0170), DataIndex(0x0010), DataIndex(0
 /// A watch ([`super::Op::Watch`], [`crate::Client::watch`]): a sample at once and then every interval, until
 /// the count is reached or a cancel ends it (which is no failure: the samples taken are the result).
 pub(crate) async fn watch(ctx: &Ctx, spec: WatchSpec) -> Result<Output, Error> {
-    let mut next_due = ctx.now();
     let mut samples = 0;
     let mut last = None;
     let end = |samples, last| Ok(Output::Watched { samples, last });
@@ -43,12 +42,13 @@ pub(crate) async fn watch(ctx: &Ctx, spec: WatchSpec) -> Result<Output, Error> {
         _ if ctx.cancelled() => return end(samples, last),
         Ok(()) => {}
         Err(e @ Error::NoRoom { .. }) => {
+            // The first sample is the one the reopening RC brought.
             first = define_across_lapse(ctx, e).await?;
-            // The first sample is the one the reopening RC brought: the next are due from it.
-            next_due = ctx.now();
         }
         Err(e) => return Err(e),
     }
+    // The first sample is taken now, once the object is defined; the next are due from now.
+    let mut next_due = ctx.now();
     loop {
         let configured = {
             let core = ctx.core();
@@ -58,7 +58,7 @@ pub(crate) async fn watch(ctx: &Ctx, spec: WatchSpec) -> Result<Output, Error> {
         let sample = if let Some(s) = first.take() {
             s
         } else if configured {
-            match ctx.snapshot().await {
+            match ctx.snapshot_now().await {
                 Some(Ok(s)) => s,
                 Some(Err(e)) => return Err(e),
                 None => return end(samples, last),
@@ -76,10 +76,13 @@ pub(crate) async fn watch(ctx: &Ctx, spec: WatchSpec) -> Result<Output, Error> {
         if ctx.cancelled() || spec.count.is_some_and(|c| samples >= c) {
             return end(samples, last);
         }
-        // The next is due one interval after this one was (no drift).
+        // The next is due one interval after this one was (no drift); a sample that came back a little
+        // before its time still takes its slot, and one that came late skips the slots it missed.
         let now = ctx.now();
+        let interval = spec.interval.max(Duration::from_millis(1));
+        next_due += interval;
         while next_due <= now {
-            next_due += spec.interval.max(Duration::from_millis(1));
+            next_due += interval;
         }
         // Through the keepalive, the sample is asked for a round trip early: the RC that carries it then
         // comes back about when it is due (on a slow link the RC under way is waited for first).
