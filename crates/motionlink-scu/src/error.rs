@@ -73,9 +73,11 @@ pub enum Error {
     /// must go out, and the unit's watchdog would expire (which stops every motion, and with Safety_ID 0 ends
     /// remote mode).
     #[error(
-        "{command} was not sent: with round trips of {round_trip:?} on this link its reply would come back after \
-         the next RC must be sent, and the unit's watchdog (500 ms without RC) would expire; waited {waited:?} \
-         for room between the RC keepalives"
+        "{command} was not sent: with round trips of {} ms on this link its reply would come back after the next \
+         RC must be sent, and the unit's watchdog (500 ms without RC) would expire; waited {} ms for room between \
+         the RC keepalives",
+        round_trip.as_millis(),
+        waited.as_millis()
     )]
     NoRoom {
         /// The request's command.
@@ -160,9 +162,10 @@ pub enum Error {
     },
     /// A move's actuator stopped advancing though the unit reports motion; it was stopped.
     #[error(
-        "{actuator} stalled at {position_counts} (no progress for {after:?} while the unit reported motion); stopped \
+        "{actuator} stalled at {position_counts} (no progress for {} ms while the unit reported motion); stopped \
          (RS sent). A stall is an actuator that is driven but does not move: an obstacle or an end stop, a load too \
-         heavy, or a speed too low for it (a TLT column stalls below about 30 % speed)"
+         heavy, or a speed too low for it (a TLT column stalls below about 30 % speed)",
+        after.as_millis()
     )]
     Stalled {
         /// The actuator.
@@ -173,7 +176,7 @@ pub enum Error {
         after: Duration,
     },
     /// A move took longer than [`crate::Config::move_timeout`]; it was stopped.
-    #[error("{actuator} did not reach its target within {after:?}; stopped at {position_counts}")]
+    #[error("{actuator} did not reach its target within {} s; stopped at {position_counts}", after.as_secs_f64())]
     MoveTimeout {
         /// The actuator.
         actuator: Actuator,
