@@ -317,8 +317,13 @@ pub fn latency_timer(root: &Path, port: &str, set_low: bool) -> Option<Result<La
 pub fn latency_check(root: &Path, kind: PortKind, port: &str, set_low: bool) -> (Check, Option<LatencyTimer>) {
     const NAME: &str = "latency_timer";
     const SENDS: &str = "nothing: reads /sys/bus/usb-serial/devices/<tty>/latency_timer (--low-latency writes 1)";
-    if kind != PortKind::Serial {
-        let why = kind.no_baud().unwrap_or("not a serial port");
+    let why = match kind {
+        PortKind::Serial => None,
+        PortKind::Tcp => Some("a tcp:// port: a USB adapter's latency timer, if any, is the gateway's"),
+        PortKind::Sim => Some("an emulator in this process: there is no line"),
+        PortKind::Can => Some("a CAN port: no USB serial adapter's timer applies"),
+    };
+    if let Some(why) = why {
         return (Check::new(NAME, CheckResult::Skipped, format!("not a serial port: {why}")).sending(SENDS), None);
     }
     let timer = match latency_timer(root, port, set_low) {
@@ -534,7 +539,8 @@ mod tests {
         let (check, t) = latency_check(&root, PortKind::Serial, "/dev/ttyS0", false);
         assert_eq!((check.result, t), (CheckResult::Skipped, None));
         let (check, _) = latency_check(&root, PortKind::Tcp, "tcp://127.0.0.1:1", false);
-        assert!(check.result == CheckResult::Skipped && check.detail.contains("gateway"), "{check:?}");
+        assert!(check.result == CheckResult::Skipped && check.detail.contains("latency timer"), "{check:?}");
+        assert!(!check.detail.contains("baud"), "{check:?}");
         std::fs::remove_dir_all(root).unwrap();
     }
 
