@@ -200,7 +200,12 @@ async fn serve_until_interrupted(
     let router = axum::Router::new().fallback(server::handle).with_state(app);
     hub.start();
     let mut stdout = std::io::stdout().lock();
-    let url = format!("http://{local}/?token={token}");
+    // Bound to every address (0.0.0.0, [::]), the address to open is this machine's, by its host name.
+    let shown = match motionlink_gateway::config::host_name() {
+        Some(host) if local.ip().is_unspecified() => format!("{host}:{}", local.port()),
+        _ => local.to_string(),
+    };
+    let url = format!("http://{shown}/?token={token}");
     if json {
         common::print_json(&mut stdout, &common::Keyed("console", &url))?;
     } else {

@@ -367,8 +367,13 @@ impl Device for PowerCube {
 
     fn stop_started(self: Arc<Self>) -> BoxFuture<'static, Result<String, ErrorReport>> {
         Box::pin(async move {
+            let started = self.client.started();
+            if started.is_empty() {
+                return Ok(String::new());
+            }
             self.client.halt_started().await?;
-            Ok(String::new())
+            let list: Vec<String> = started.iter().map(|a| a.get().to_string()).collect();
+            Ok(format!("halted what still moved of module(s) {} (set in motion by this console)", list.join(", ")))
         })
     }
 

@@ -262,6 +262,14 @@ fn unit_of(hub: &Hub, req: &Value) -> Result<u8, ErrorReport> {
         .ok_or_else(|| ErrorReport::usage(format!("the request names no {key}")))
 }
 
+/// The unit `unit` of those the console found (a panel acts on a unit of the units table).
+fn found_unit(hub: &Hub, unit: u8) -> Result<crate::console::device::Unit, ErrorReport> {
+    let Units::Found(list) = hub.units().borrow().clone() else {
+        return Err(ErrorReport::usage("the units are not found yet"));
+    };
+    list.into_iter().find(|u| u.id == unit).ok_or_else(|| ErrorReport::usage(format!("no unit {unit}")))
+}
+
 /// Handles one message of page `page`: an answer to send at once, or none (an answer comes later through
 /// `replies`).
 fn request(hub: &Arc<Hub>, page: u64, text: &str, replies: &mpsc::Sender<Message>) -> Option<Message> {
@@ -285,7 +293,11 @@ fn spawn_reply(
     let replies = replies.clone();
     let request = request.to_string();
     tokio::spawn(async move {
-        let answer = work.await.unwrap_or_else(|e| Message::failure(&request, true, e));
+        // A usage error is found before anything reaches the device: the request was not made (refused).
+        let answer = work.await.unwrap_or_else(|e| {
+            let made = e.kind != motionlink_link::error::ErrorClass::Usage.name();
+            Message::failure(&request, made, e)
+        });
         let _ = replies.send(answer).await;
     });
 }
@@ -322,9 +334,7 @@ fn handle_request(
         }
         "move" => {
             let unit = unit_of(hub, req)?;
-            let units = hub.units().borrow().clone();
-            let Units::Found(list) = units else { return Err(ErrorReport::usage("the units are not found yet")) };
-            let u = list.iter().find(|u| u.id == unit).ok_or_else(|| ErrorReport::usage(format!("no unit {unit}")))?;
+            let u = found_unit(hub, unit)?;
             let target = number(req, u.target_key)?
                 .ok_or_else(|| ErrorReport::usage(format!("a move needs {}", u.target_key)))?;
             let speed = number(req, u.command_speed_key)?;
@@ -336,10 +346,13 @@ fn handle_request(
         }
         "jog" => {
             let unit = unit_of(hub, req)?;
-            let direction = match req.get("direction").and_then(Value::as_str) {
-                Some("positive") => JogDirection::Positive,
-                Some("negative") => JogDirection::Negative,
-                other => return Err(ErrorReport::usage(format!("direction {other:?}: positive or negative"))),
+            let direction = match req.get("direction") {
+                Some(Value::String(s)) if s == "positive" => JogDirection::Positive,
+                Some(Value::String(s)) if s == "negative" => JogDirection::Negative,
+                Some(other) => {
+                    return Err(ErrorReport::usage(format!("direction {other}: give \"positive\" or \"negative\"")))
+                }
+                None => return Err(ErrorReport::usage("a jog needs its direction: \"positive\" or \"negative\"")),
             };
             let speed = number(req, "speed")?;
             hub.check_control(page)?;
@@ -361,7 +374,7 @@ fn handle_request(
             let device = Arc::clone(hub.device());
             let work = device.action(unit, &name)?;
             if action.moves {
-                hub.start_motion(page, unit, action.label, false, work)?;
+                hub.start_motion(page, unit, action.name, false, work)?;
             } else {
                 let label = action.label;
                 spawn_reply(replies, kind, async move {
@@ -399,6 +412,7 @@ fn handle_request(
         }
         "errors" => {
             let unit = unit_of(hub, req)?;
+            found_unit(hub, unit)?;
             let device = Arc::clone(hub.device());
             let key = Keyed(device.unit_key(), unit);
             let work = device.errors(unit);

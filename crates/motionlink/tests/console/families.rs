@@ -64,7 +64,7 @@ fn a_powercube_motion_ends_with_the_report_the_command_line_prints() {
     let mut ws = ws(&c);
     units(&mut ws);
     send(&mut ws, json!({"type": "action", "module": 1, "name": "home"}));
-    let homed = ended(&mut ws, "Home");
+    let homed = ended(&mut ws, "home");
     assert_eq!(homed["ok"], true, "{homed}");
     let r = &homed["report"];
     assert_eq!(
@@ -336,4 +336,33 @@ fn one_unit_samples_at_20_hz_over_an_emulator_paced_at_9600_baud_an_scu_at_38400
         eprintln!("{family} {args:?}: {rate:.1} samples/s");
         assert!(rate >= 20.0, "{family} {args:?}: {rate:.1} samples/s");
     }
+}
+
+/// The answer to `request`: the first `refused`, `failed`, `stopped` or `param` message.
+fn answer(ws: &mut Ws, request: Value) -> Value {
+    send(ws, request);
+    let kinds = ["refused", "failed", "stopped", "param"];
+    recv_until(ws, Duration::from_secs(10), |v| kinds.iter().any(|k| v["type"] == *k)).expect("an answer")
+}
+
+#[test]
+fn bad_requests_are_refused_naming_what_was_wrong_and_nothing_is_sent() {
+    let c = console(&["compax", "--port", "sim"]);
+    let mut ws = ws(&c);
+    units(&mut ws);
+    send(&mut ws, json!({"type": "take_control"}));
+    // A jog's direction as given, not as Rust shows an Option.
+    let v = answer(&mut ws, json!({"type": "jog", "drive": 1, "direction": "sideways"}));
+    assert_eq!((&v["type"], &v["error"]["kind"]), (&json!("refused"), &json!("usage")), "{v}");
+    assert_eq!(v["message"], "direction \"sideways\": give \"positive\" or \"negative\"", "{v}");
+    // A parameter that does not exist: refused (nothing was asked of the drive), not failed.
+    let v = answer(&mut ws, json!({"type": "read_param", "drive": 1, "name": "nope"}));
+    assert_eq!((&v["type"], &v["request"]), (&json!("refused"), &json!("read_param")), "{v}");
+    // The error history of a unit the console did not find is not asked on the line.
+    let v = answer(&mut ws, json!({"type": "errors", "drive": 7}));
+    assert_eq!((&v["type"], &v["message"]), (&json!("refused"), &json!("no unit 7")), "{v}");
+    // Stop with nothing running says so.
+    let v = answer(&mut ws, json!({"type": "stop"}));
+    assert_eq!(v["type"], "stopped", "{v}");
+    assert!(!v["message"].as_str().unwrap_or_default().is_empty(), "{v}");
 }

@@ -445,7 +445,10 @@ impl Hub {
                 Ok(Message::Stopped { ok: true, message: format!("{key} {u} stopped"), report: Some(report) })
             }
             None if motion_unit.is_none() => {
-                let message = Arc::clone(&self.device).stop_started().await?;
+                let mut message = Arc::clone(&self.device).stop_started().await?;
+                if message.is_empty() {
+                    message = "nothing this console set in motion was moving".into();
+                }
                 Ok(Message::Stopped { ok: true, message, report: None })
             }
             _ => Ok(Message::Stopped { ok: true, message: "stopping the motion under way".into(), report: None }),
