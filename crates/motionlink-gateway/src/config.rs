@@ -183,7 +183,15 @@ pub fn parse(
         Some(n) => n,
         None => host_name().ok_or_else(|| usage("[gateway]: no `name`, and the host name cannot be read".into()))?,
     };
-    check_name(&name).map_err(|e| usage(format!("the gateway's name {name:?}: {e}")))?;
+    check_name(&name).map_err(|e| {
+        // A name given on the command line is not the file's mistake.
+        let said = format!("the gateway's name {name:?}: {e}");
+        if options.name.is_some() {
+            GatewayError::Usage(format!("--name: {said}"))
+        } else {
+            usage(said)
+        }
+    })?;
     let url =
         options.broker.clone().or(gateway.broker).ok_or_else(|| {
             usage("[gateway]: no `broker` (mqtt://HOST:PORT or mqtts://HOST:PORT; or --broker)".into())
@@ -233,7 +241,17 @@ pub fn parse(
 /// One device table, its family and port taken out.
 fn device(name: &str, table: toml::Table) -> Result<DeviceEntry, String> {
     check_name(name).map_err(|e| format!("the name {name:?}: {e}"))?;
-    let mut options: BTreeMap<String, toml::Value> = table.into_iter().map(|(k, v)| (k.replace('-', "_"), v)).collect();
+    let mut options: BTreeMap<String, toml::Value> = BTreeMap::new();
+    for (written, value) in table {
+        // Keys spelt with `-` are the same keys, and `--sim-variant`'s key is its option's name or its id.
+        let key = match written.replace('-', "_") {
+            k if k == "sim_variant" => "sim_variants".to_string(),
+            k => k,
+        };
+        if options.insert(key.clone(), value).is_some() {
+            return Err(format!("`{written}` is given twice (as `{key}` too): give it once"));
+        }
+    }
     let mut text_of = |key: &str| match options.remove(key) {
         Some(toml::Value::String(s)) => Ok(s),
         Some(other) => Err(format!("`{key}` must be a string, not {other}")),

@@ -95,6 +95,27 @@ fn mistakes_are_named() {
     }
     let m = message(parsed("[gateway]\nname = \"g\"\nbroker = \"mqtt://localhost\"\n", &Options::default(), None));
     assert!(m.contains("no [device.NAME]"), "{m}");
+    // `--sim-variant`'s key by its option's name, as the command line's devices.toml takes it.
+    let c = parsed(
+        &FILE.replace("functions = \"tlt\"", "functions = \"tlt\"\nsim_variant = \"no-groups\""),
+        &Options::default(),
+        None,
+    )
+    .unwrap();
+    let lift = c.devices.iter().find(|d| d.name == "lift").unwrap();
+    assert!(lift.options.contains_key("sim_variants"), "{:?}", lift.options);
+    crate::device::Spec::of(lift).unwrap();
+    // One key twice, spelt two ways.
+    let m = message(parsed(
+        &FILE.replace("port = \"sim\"", "port = \"sim\"\npoll_ms = 50\npoll-ms = 60"),
+        &Options::default(),
+        None,
+    ));
+    assert!(m.contains("given twice"), "{m}");
+    // A bad --name is the command line's, not the file's.
+    let o = Options { name: Some("bad/name".into()), ..Options::default() };
+    let m = message(parsed(FILE, &o, None));
+    assert!(m.starts_with("--name: the gateway's name \"bad/name\""), "{m}");
 }
 
 /// The gateway file of docs/fleet.md is one the gateway takes: every key, every device's options.
