@@ -70,7 +70,16 @@ pub fn parse(text: &str, path: &str) -> Result<BTreeMap<String, Device>, ConfigE
                 "{path}: device {name:?}: family {family:?} is not scu, powercube or compax"
             )));
         }
-        let options = table.into_iter().map(|(k, v)| (k.replace('-', "_"), v)).collect();
+        // Keys spelt with `-` are the same keys: one given both ways is a mistake, not a silent choice.
+        let mut options = BTreeMap::new();
+        for (written, value) in table {
+            let key = written.replace('-', "_");
+            if options.insert(key.clone(), value).is_some() {
+                return Err(ConfigError(format!(
+                    "{path}: [device.{name}]: `{written}` is given twice (as `{key}` too): give it once"
+                )));
+            }
+        }
         devices.insert(name, Device { family, port, options });
     }
     Ok(devices)
@@ -226,5 +235,7 @@ mod tests {
     fn keys_spelt_as_options_are_the_same_keys() {
         let d = parse("[device.a]\nfamily = \"compax\"\nport = \"sim\"\ntimeout-ms = 9\n", "f").unwrap();
         assert_eq!(d["a"].options.get("timeout_ms"), Some(&toml::Value::Integer(9)));
+        let twice = parse("[device.a]\nfamily = \"compax\"\nport = \"sim\"\ntimeout-ms = 9\ntimeout_ms = 8\n", "f");
+        assert!(twice.unwrap_err().to_string().contains("is given twice"));
     }
 }
