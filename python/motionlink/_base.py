@@ -206,7 +206,27 @@ async def run_native(start: Callable[[Callable[[bool, Any], None]], Any], calls:
             calls.pop(task, None)
 
 
-class AsyncClientBase:
+def _blocking_only(cls: type) -> "set[str]":
+    """The operations ``cls`` declares (:class:`motionlink._ops.op`) for the blocking client only."""
+    from ._ops import op
+
+    return {
+        name
+        for klass in cls.__mro__
+        for name, member in vars(klass).items()
+        if isinstance(member, op) and not member.aio
+    }
+
+
+class _AsyncFace(type):
+    """The class of the asyncio clients: ``dir()`` of one leaves out the operations only the blocking client
+    has (asking an asyncio client for one raises ``AttributeError``)."""
+
+    def __dir__(cls) -> List[str]:
+        return sorted(set(super().__dir__()) - _blocking_only(cls))
+
+
+class AsyncClientBase(metaclass=_AsyncFace):
     """An async session with a device: ``async with`` opens it and closes it (stopping what it started);
     cancelling a task that awaits a long operation (a move, homing, a wait) stops that motion. Closing
     the client cancels the operations still under way on it first (their motions stop; whoever awaits
@@ -222,6 +242,9 @@ class AsyncClientBase:
         self._settings = settings
         self._native = None
         self._calls: Calls = {}
+
+    def __dir__(self) -> List[str]:
+        return sorted(set(super().__dir__()) - _blocking_only(type(self)))
 
     def _client(self) -> Any:
         if self._native is None:

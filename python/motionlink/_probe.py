@@ -5,10 +5,13 @@ clients, which load the device profile that ``probe(..., save=True)`` or ``motio
 from __future__ import annotations
 
 import os
+import sys
 import warnings
 from typing import Any, Dict, List, Optional, Union
 
+from ._args import refused
 from ._record import Record
+from .errors import UsageError
 
 __all__ = ["probe", "ProbeReport", "ProbeCheck", "profile_setting", "warn_profile_notices"]
 
@@ -25,14 +28,32 @@ def profile_setting(profile: Profile) -> str:
         return "off"
     if isinstance(profile, (str, os.PathLike)):
         return os.fspath(profile)
-    raise TypeError(f"profile {profile!r}: give True, False or the path of a profiles file")
+    raise refused("profile", profile, "True, False or the path of a profiles file")
+
+
+_PACKAGE = os.path.dirname(os.path.abspath(__file__))
+
+
+def _outside_the_package() -> int:
+    """The ``stacklevel`` of a warning issued by the caller of this function that points at the first frame
+    outside this package: the user's line, however many of the package's frames lie between (a
+    constructor, ``async with``, ``await client.open()``, :func:`probe`)."""
+    frame = sys._getframe(2)
+    level = 2
+    while frame is not None and os.path.dirname(os.path.abspath(frame.f_code.co_filename)) == _PACKAGE:
+        frame = frame.f_back  # type: ignore[assignment]
+        level += 1
+    return level
 
 
 def warn_profile_notices(native: Any) -> None:
-    """Says, as a :class:`UserWarning`, each profile the session did not take (another identity, a file it
-    could not read)."""
-    for notice in native.profile_notices:
-        warnings.warn(notice, UserWarning, stacklevel=3)
+    """Says, as a :class:`UserWarning` pointing at the user's line, each profile the session did not take
+    (another identity, a file it could not read)."""
+    notices = native.profile_notices
+    if notices:
+        level = _outside_the_package()
+        for notice in notices:
+            warnings.warn(notice, UserWarning, stacklevel=level)
 
 
 class ProbeCheck(Record):
@@ -88,8 +109,6 @@ def probe(
 
     clients = {"scu": Scu, "powercube": PowerCube, "compax": Compax}
     if family not in clients:
-        from .errors import UsageError
-
         raise UsageError(f"family {family!r}: give one of {', '.join(clients)}")
     drives = options.pop("drives", "1-31") if family == "compax" else None
     with clients[family](port, profile=False, **options) as client:
@@ -102,4 +121,6 @@ def save_setting(save: Union[bool, str, "os.PathLike[str]"]) -> Optional[str]:
         return None
     if save is True:
         return ""
-    return os.fspath(save)
+    if isinstance(save, (str, os.PathLike)):
+        return os.fspath(save)
+    raise refused("save", save, "True, False or the path of a profiles file")

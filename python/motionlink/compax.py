@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Any, Iterator, List, Optional, Sequence, Union
 
 from . import _native
+from ._args import items
 from ._base import AsyncClientBase, ClientBase, check_interval
 from ._ops import op
 from ._probe import Profile, ProbeReport, profile_setting, save_setting
@@ -35,6 +36,8 @@ class _Operations:
     family = "compax"
     _native_name = "CompaxClient"
     _start: Any
+    #: The drive the operations address unless they name another (1..31): the constructor's ``drive``.
+    drive: int
 
     def __init__(
         self,
@@ -50,17 +53,19 @@ class _Operations:
     ) -> None:
         self.drive = drive
         settings = dict(drive=drive, mode=mode, baud=baud, timeout_ms=timeout_ms, poll_ms=poll_ms)
-        self._start(port, dict(settings, tolerance_units=float(tolerance_units), profile=profile_setting(profile)))
+        self._start(port, dict(settings, tolerance_units=tolerance_units, profile=profile_setting(profile)))
 
     @op(DriveFound)
     def scan(self) -> List[DriveFound]:
         """Every drive that answers (addresses 1..31), with its position S1. Ctrl-C raises
         ``KeyboardInterrupt`` at once; the library's scan ends before the next address."""
 
-    @op(StatusValue, args=lambda names, drive: ([str(n) for n in names], drive))
-    def status(self, names: Sequence[Union[str, int]], drive: Optional[int] = None) -> List[StatusValue]:
-        """Status values by name (``"S1"``) or number; none: the main ones, as :meth:`Compax.info` reads
-        them."""
+    @op(StatusValue, args=lambda names, drive: (items(names, "names", "compax"), drive))
+    def status(
+        self, names: Union[str, int, Sequence[Union[str, int]]], drive: Optional[int] = None
+    ) -> List[StatusValue]:
+        """Status values by name (``"S1"``) or number: one (a str or an int), or a list of them; an empty
+        list: the main ones, as :meth:`Compax.info` reads them."""
 
     @op(_position, aio=True, with_args=True)
     def position(self, drive: Optional[int] = None) -> DrivePosition:
@@ -70,7 +75,7 @@ class _Operations:
     def get(self, name: Union[str, int], drive: Optional[int] = None) -> Parameter:
         """Reads a parameter (``"P194"``, ``194``, ``"device_address"``)."""
 
-    @op(Parameter, args=lambda name, value, drive: (_param(name), float(value), drive))
+    @op(Parameter, args=lambda name, value, drive: (_param(name), value, drive))
     def set(self, name: Union[str, int], value: float, drive: Optional[int] = None) -> Parameter:
         """Writes a parameter; the library reads it back and compares (a difference is a
         :class:`DeviceError`). ``read_back`` is the value then read from the drive, ``verified`` True and

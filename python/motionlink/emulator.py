@@ -7,6 +7,7 @@ import time
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 from . import _native
+from ._args import listed, mapping, texts
 
 __all__ = ["Emulator", "Event"]
 
@@ -73,20 +74,19 @@ class Emulator:
         can: bool = False,
         variant: Optional[Union[str, Sequence[str]]] = None,
     ) -> None:
-        variants = [variant] if isinstance(variant, str) else variant
         settings = {
             "preset": preset,
             "config": config,
-            "modules": list(modules) if modules is not None else None,
-            "drives": list(drives) if drives is not None else None,
+            "modules": listed(modules, "modules") if modules is not None else None,
+            "drives": listed(drives, "drives") if drives is not None else None,
             "mode": mode,
             "baud": baud,
-            "params": [(str(k), float(v)) for k, v in params.items()] if params is not None else None,
+            "params": mapping(params, "params") if params is not None else None,
             "strict": strict,
             "can": can,
             "serve": serve,
             "bind": bind,
-            "variant": [str(v) for v in variants] if variants is not None else None,
+            "variant": texts(variant, "variant") if variant is not None else None,
         }
         self._native = _native.NativeEmulator(family, settings)
         self._pending: List[Event] = []
@@ -131,7 +131,10 @@ class Emulator:
             time.sleep(0.002)
 
     def close(self) -> None:
-        """Stops the emulator (a served one stops listening and drops its connection)."""
+        """Stops the emulator. The clients still connected to an emulator in this process get
+        :class:`motionlink.Disconnected` from their next call, as after a pulled cable (so close them
+        first: a client's ``with`` block inside the emulator's does); a served emulator stops listening and
+        drops its connection. Closing twice does nothing."""
         self._native.close()
 
     def __enter__(self) -> "Emulator":

@@ -29,7 +29,11 @@ Port = Union[str, Any]
 def _position(raw: Any) -> ModulePosition:
     module, value, unit = raw
     suffix = {"rad": "position_rad", "m": "position_m"}.get(unit, "position")
-    return ModulePosition({"family": "powercube", "module": module, "unit": unit, suffix: value})
+    # `unit` is an attribute only, not in `to_dict()`: the key of the position names the unit, as in the
+    # command line's JSON (`powercube watch --json`: `position_rad`, no `unit`).
+    return ModulePosition(
+        {"family": "powercube", "module": module, suffix: value, "unit": unit, "_extras": ("unit",)}
+    )
 
 
 class _Operations:
@@ -38,6 +42,8 @@ class _Operations:
     family = "powercube"
     _native_name = "PowerCubeClient"
     _start: Any
+    #: The module the operations address unless they name another (1..31): the constructor's ``module``.
+    module: int
 
     def __init__(
         self,

@@ -122,7 +122,8 @@ class ModulePosition(Record):
     Attributes:
         family: ``"powercube"``.
         module: The address.
-        unit: ``"rad"``, ``"m"``, or ``"module"`` while the module's kind is not known.
+        unit: ``"rad"``, ``"m"``, or ``"module"`` while the module's kind is not known (an attribute;
+            not in ``to_dict()``, whose key of the position names the unit).
         position_rad: The position of a rotary module.
         position_m: The position of a linear module.
         position: The position of a module whose kind is not known (its own unit).

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Any, Iterator, List, Optional, Sequence, Union
 
+from ._args import texts
 from ._base import AsyncClientBase, ClientBase, samples
 from ._ops import op
 from ._probe import Profile, ProbeReport, profile_setting, save_setting
@@ -64,9 +65,10 @@ Specs = Union[str, Sequence[str]]
 """One specification (a str), or several (a list), as the command line's repeated option takes them."""
 
 
-def _specs(specs: Specs) -> List[str]:
-    """A str is one specification (``"tlt"``, ``"F1=1,2"``), never a sequence of letters."""
-    return [specs] if isinstance(specs, str) else [str(s) for s in specs]
+def _specs(specs: Specs, name: str) -> List[str]:
+    """A str is one specification (``"tlt"``, ``"F1=1,2"``), never a sequence of letters; a list holds
+    several. Anything else is a :class:`UsageError` naming ``name``."""
+    return texts(specs, name, "scu")
 
 
 def _function(f: Union[int, str]) -> str:
@@ -102,8 +104,8 @@ class _Operations:
         speed_mode: str = "percent",
         profile: Profile = True,
     ) -> None:
-        settings = dict(baud=baud, safety=safety, reply_timeout_ms=reply_timeout_ms, functions=_specs(functions))
-        settings.update(strokes=_specs(strokes), tolerance_counts=tolerance_counts, poll_ms=poll_ms)
+        settings = dict(baud=baud, safety=safety, reply_timeout_ms=reply_timeout_ms, functions=_specs(functions, "functions"))
+        settings.update(strokes=_specs(strokes, "strokes"), tolerance_counts=tolerance_counts, poll_ms=poll_ms)
         self._start(port, dict(settings, speed_mode=speed_mode, profile=profile_setting(profile)))
 
     @op(ScuInfo)
@@ -143,7 +145,15 @@ class _Operations:
         cancellation), then stops it: a motion function with a direction (``"in"``, ``"out"``, ``"mem1"``
         ...), or F11, F17/F18, F20, F21/F22 with ``"on"``."""
 
-    @op(ScuStop, aio=True, args=_stop_args)
+    @op(
+        ScuStop,
+        aio=True,
+        args=_stop_args,
+        overloads=(
+            "(self, function: None = ..., *, soft: bool = ...) -> ScuStop",
+            "(self, function: Union[int, str], *, soft: bool = ...) -> None",
+        ),
+    )
     def stop(self, function: Optional[Union[int, str]] = None, *, soft: bool = False) -> Optional[ScuStop]:
         """Stops what moves. Without ``function``, as ``motionlink scu stop`` does: RS to every motion
         function F1..F10 (fast, or along the stop ramp with ``soft``), then the status of every actuator is

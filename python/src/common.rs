@@ -8,9 +8,21 @@ use motionlink_link::cancel::CancelToken;
 use motionlink_link::clock::lock;
 use motionlink_link::url::PortUrl;
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict, PyInt};
+use pyo3::types::{PyBool, PyDict, PyInt, PyString};
 
 use crate::errors::Failure;
+
+/// `obj` as an argument's value is shown in a usage error: its `repr`.
+fn shown(obj: &Borrowed<'_, '_, PyAny>) -> String {
+    obj.repr().map(|r| r.to_string()).unwrap_or_else(|_| "the value".into())
+}
+
+/// The name of `obj`'s type with its article, for a usage error ("a str", "an int", "a NoneType").
+fn type_name(obj: &Borrowed<'_, '_, PyAny>) -> String {
+    let name = obj.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "object".into());
+    let vowel = name.chars().next().is_some_and(|c| "aeiouAEIOU".contains(c));
+    format!("{} {name}", if vowel { "an" } else { "a" })
+}
 
 /// An integer argument as Python passes it: any `int` (however wide), or something else, kept for the
 /// usage error that names the argument and its range (instead of an `OverflowError` or a `TypeError`).
@@ -20,16 +32,95 @@ impl<'a, 'py> FromPyObject<'a, 'py> for Int {
     type Error = PyErr;
 
     fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
-        let shown = || obj.repr().map(|r| r.to_string()).unwrap_or_else(|_| "the value".into());
         if obj.is_instance_of::<PyBool>() {
-            return Ok(Int(Err(format!("{} (a bool)", shown()))));
+            return Ok(Int(Err(format!("{} (a bool)", shown(&obj)))));
         }
         if obj.is_instance_of::<PyInt>() {
-            return Ok(Int(obj.extract::<i64>().map_err(|_| shown())));
+            return Ok(Int(obj.extract::<i64>().map_err(|_| shown(&obj))));
         }
-        let type_name = obj.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "object".into());
-        Ok(Int(Err(format!("{} (a {type_name}, not an int)", shown()))))
+        Ok(Int(Err(format!("{} ({}, not an int)", shown(&obj), type_name(&obj)))))
     }
+}
+
+/// A number argument as Python passes it: an `int` or a `float` (or anything else Python's `float()`
+/// takes, a text aside), or something else, a bool included, kept for the usage error that names the
+/// argument and its value (instead of a `TypeError`, or a bool taken as 0.0 or 1.0). The one extractor of
+/// every float argument of the bindings.
+pub struct Float(Result<f64, String>);
+
+impl<'a, 'py> FromPyObject<'a, 'py> for Float {
+    type Error = PyErr;
+
+    fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        if obj.is_instance_of::<PyBool>() {
+            return Ok(Float(Err(format!("{} (a bool)", shown(&obj)))));
+        }
+        Ok(Float(obj.extract::<f64>().map_err(|_| {
+            if obj.is_instance_of::<PyInt>() {
+                format!("{} (an int too large for a float)", shown(&obj))
+            } else {
+                format!("{} ({}, not a number)", shown(&obj), type_name(&obj))
+            }
+        })))
+    }
+}
+
+impl Float {
+    /// The number, or a usage error of `family` naming `name` and the value given.
+    pub fn get(&self, family: &'static str, name: &str) -> Result<f64, Failure> {
+        self.0.clone().map_err(|shown| Failure::usage(family, format!("{name} {shown}: give a number")))
+    }
+}
+
+/// An optional number argument checked as [`Float::get`] does.
+pub fn opt_float(v: Option<&Float>, family: &'static str, name: &str) -> Result<Option<f64>, Failure> {
+    v.map(|f| f.get(family, name)).transpose()
+}
+
+/// A bool argument as Python passes it (`True`, `False`), or something else, kept for the usage error that
+/// names the argument and its value (instead of a `TypeError`; a truthy value is no bool either).
+pub struct Bool(Result<bool, String>);
+
+impl<'a, 'py> FromPyObject<'a, 'py> for Bool {
+    type Error = PyErr;
+
+    fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        Ok(Bool(obj.extract::<bool>().map_err(|_| format!("{} ({}, not a bool)", shown(&obj), type_name(&obj)))))
+    }
+}
+
+impl Bool {
+    /// The bool, or a usage error of `family` naming `name` and the value given.
+    pub fn get(&self, family: &'static str, name: &str) -> Result<bool, Failure> {
+        self.0.clone().map_err(|shown| Failure::usage(family, format!("{name} {shown}: give True or False")))
+    }
+}
+
+/// A text argument as Python passes it (a `str`), or something else, kept for the usage error that names
+/// the argument and its value (instead of a `TypeError`).
+pub struct Text(Result<String, String>);
+
+impl<'a, 'py> FromPyObject<'a, 'py> for Text {
+    type Error = PyErr;
+
+    fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        if obj.is_instance_of::<PyString>() {
+            return Ok(Text(obj.extract::<String>().map_err(|_| shown(&obj))));
+        }
+        Ok(Text(Err(format!("{} ({}, not a str)", shown(&obj), type_name(&obj)))))
+    }
+}
+
+impl Text {
+    /// The text, or a usage error of `family` naming `name` and the value given.
+    pub fn get(&self, family: &'static str, name: &str) -> Result<&str, Failure> {
+        self.0.as_deref().map_err(|shown| Failure::usage(family, format!("{name} {shown}: give a str")))
+    }
+}
+
+/// An optional text argument checked as [`Text::get`] does.
+pub fn opt_text<'t>(v: Option<&'t Text>, family: &'static str, name: &str) -> Result<Option<&'t str>, Failure> {
+    v.map(|t| t.get(family, name)).transpose()
 }
 
 impl Int {
@@ -260,19 +351,25 @@ pub fn profile_lookup(
     }
 }
 
-/// The setup of a probe of the client's port (`None`: an emulator in this process) at `baud`.
+/// The setup of a probe of the client's port (`None`: an emulator in this process) at `baud`, with the
+/// probe's arguments `exchanges` (the library's rule, [`motionlink_link::probe::ProbeSetup::EXCHANGES`]) and
+/// `low_latency` checked.
 pub fn probe_setup(
+    family: &'static str,
     port: Option<&str>,
     baud: u32,
-    exchanges: u32,
-    low_latency: bool,
-) -> motionlink_link::probe::ProbeSetup {
+    exchanges: &Int,
+    low_latency: &Bool,
+) -> Result<motionlink_link::probe::ProbeSetup, Failure> {
     use motionlink_link::probe::{PortKind, ProbeSetup};
+    let range = ProbeSetup::EXCHANGES;
+    let exchanges: u32 = exchanges.within(family, "exchanges", i64::from(*range.start())..=i64::from(*range.end()))?;
+    let low_latency = low_latency.get(family, "low_latency")?;
     let kind = port.and_then(|p| p.parse::<PortUrl>().ok()).map_or(PortKind::Sim, |u| PortKind::of(&u));
     let mut setup = ProbeSetup::new(port.unwrap_or("in-process emulator"), kind, baud);
-    setup.exchanges = exchanges.max(1);
+    setup.exchanges = exchanges;
     setup.low_latency = low_latency;
-    setup
+    Ok(setup)
 }
 
 /// A probe's report (nothing moves) as Python objects: `probe` runs without the GIL; with `save` (`""`: the

@@ -8,11 +8,12 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use motionlink_link::can::{CanBus, CanBusConfig, SlcanAdapter};
 use motionlink_link::clock::lock;
 use motionlink_link::emulator::{serve_tcp_with, Emulator as EmulatorTrait, FirmwareVariant, ServeOptions, Server};
-use motionlink_link::pipe::{EmulatorHost, PipeConfig};
-use motionlink_link::{RealClock, SharedClock};
+use motionlink_link::link::{Connector, Link};
+use motionlink_link::pipe::{EmulatorHost, EmulatorLink, FaultControl, PipeConfig};
+use motionlink_link::{LinkError, RealClock, SharedClock};
 use pyo3::prelude::*;
 
-use crate::common::{opt_within, Int};
+use crate::common::{opt_text, opt_within, Bool, Float, Int, Text};
 use crate::errors::{to_pyerr, Failure};
 
 /// Addresses 1..31 (`name`: "modules" or "drives") as the settings give them.
@@ -30,17 +31,74 @@ fn unix_now() -> f64 {
     SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs_f64()).unwrap_or_default()
 }
 
+/// The connections made to an emulator in this process (each one's fault control), until it is closed.
+type Plugs = Arc<Mutex<Option<Vec<FaultControl>>>>;
+
+/// A device behind an in-process line, and the connections clients made to it: closing the emulator
+/// breaks them (each client then gets `Disconnected` from its next call), and refuses new ones (a client
+/// that reconnects, as an SCU session does, finds the line gone).
+pub struct Hosted<E> {
+    host: EmulatorHost<E>,
+    plugs: Plugs,
+}
+
+impl<E> Clone for Hosted<E> {
+    fn clone(&self) -> Self {
+        Hosted { host: self.host.clone(), plugs: Arc::clone(&self.plugs) }
+    }
+}
+
+impl<E: EmulatorTrait + 'static> Hosted<E> {
+    fn new(device: E) -> Self {
+        Hosted {
+            host: EmulatorHost::new(device, clock(), PipeConfig::instant()),
+            plugs: Arc::new(Mutex::new(Some(Vec::new()))),
+        }
+    }
+
+    /// A new connection to the device (a `Disconnected` error once the emulator is closed).
+    pub fn connect(&self) -> Result<EmulatorLink<E>, LinkError> {
+        let mut plugs = lock(&self.plugs);
+        let Some(plugs) = plugs.as_mut() else {
+            return Err(LinkError::Disconnected {
+                port: "sim (in-process emulator)".into(),
+                reason: "the emulator was closed".into(),
+            });
+        };
+        let (link, control) = self.host.connect();
+        plugs.push(control);
+        Ok(link)
+    }
+
+    /// A connector that makes a new connection at each call ([`Hosted::connect`]).
+    pub fn connector(&self) -> Connector {
+        let hosted = self.clone();
+        Box::new(move || hosted.connect().map(|l| Box::new(l) as Box<dyn Link>))
+    }
+
+    /// Breaks every connection made, and refuses new ones.
+    fn close(&self) {
+        if let Some(plugs) = lock(&self.plugs).take() {
+            plugs.iter().for_each(FaultControl::disconnect);
+        }
+    }
+
+    fn with_device<R>(&self, f: impl FnOnce(&mut E) -> R) -> R {
+        self.host.with_device(f)
+    }
+}
+
 /// An emulator in this process, as a client reaches it.
 #[derive(Clone)]
 pub enum InProcess {
     /// An SCU control unit on an RS232 line.
-    Scu(EmulatorHost<motionlink_scu::Emulator>),
+    Scu(Hosted<motionlink_scu::Emulator>),
     /// PowerCube modules on an RS232 line.
-    PowerCube(EmulatorHost<motionlink_powercube::Emulator>),
+    PowerCube(Hosted<motionlink_powercube::Emulator>),
     /// PowerCube modules on a CAN bus.
     PowerCubeCan(CanBus<motionlink_powercube::Emulator>),
     /// COMPAX drives on an RS485 bus.
-    Compax(EmulatorHost<motionlink_compax::Emulator>),
+    Compax(Hosted<motionlink_compax::Emulator>),
 }
 
 impl InProcess {
@@ -50,6 +108,16 @@ impl InProcess {
             InProcess::PowerCube(h) => h.with_device(|d| d.take_events()),
             InProcess::PowerCubeCan(b) => b.with_device(|d| d.take_events()).unwrap_or_default(),
             InProcess::Compax(h) => h.with_device(|d| d.take_events()),
+        }
+    }
+
+    /// Ends the emulator for the clients connected to it: their lines break (a CAN bus: the bus).
+    fn close(&self) {
+        match self {
+            InProcess::Scu(h) => h.close(),
+            InProcess::PowerCube(h) => h.close(),
+            InProcess::PowerCubeCan(b) => b.disconnect(),
+            InProcess::Compax(h) => h.close(),
         }
     }
 }
@@ -71,8 +139,24 @@ pub struct NativeEmulator {
 }
 
 /// The settings of an emulator, as `motionlink.Emulator` passes them.
-#[derive(FromPyObject, Default)]
+#[derive(FromPyObject)]
 #[pyo3(from_item_all)]
+pub struct EmulatorArgs {
+    preset: Option<Text>,
+    config: Option<Text>,
+    modules: Option<Vec<Int>>,
+    drives: Option<Vec<Int>>,
+    mode: Option<Int>,
+    baud: Option<Int>,
+    params: Option<Vec<(String, Float)>>,
+    strict: Bool,
+    can: Bool,
+    serve: Option<Text>,
+    bind: Option<Text>,
+    variant: Option<Vec<String>>,
+}
+
+/// The settings of an emulator, each of a type it can have (checked from [`EmulatorArgs`]).
 pub struct EmulatorSettings {
     preset: Option<String>,
     config: Option<String>,
@@ -86,6 +170,35 @@ pub struct EmulatorSettings {
     serve: Option<String>,
     bind: Option<String>,
     variant: Option<Vec<String>>,
+}
+
+impl EmulatorArgs {
+    /// The settings, or a usage error naming the first that has a value of another type.
+    fn checked(self) -> Result<EmulatorSettings, Failure> {
+        let text = |t: Option<Text>, name: &str| opt_text(t.as_ref(), "", name).map(|t| t.map(str::to_string));
+        let params = match self.params {
+            Some(list) => Some(
+                list.into_iter()
+                    .map(|(name, value)| value.get("", &format!("params {name}")).map(|v| (name, v)))
+                    .collect::<Result<Vec<_>, Failure>>()?,
+            ),
+            None => None,
+        };
+        Ok(EmulatorSettings {
+            preset: text(self.preset, "preset")?,
+            config: text(self.config, "config")?,
+            modules: self.modules,
+            drives: self.drives,
+            mode: self.mode,
+            baud: self.baud,
+            params,
+            strict: self.strict.get("", "strict")?,
+            can: self.can.get("", "can")?,
+            serve: text(self.serve, "serve")?,
+            bind: text(self.bind, "bind")?,
+            variant: self.variant,
+        })
+    }
 }
 
 fn usage(msg: impl Into<String>) -> Failure {
@@ -259,9 +372,8 @@ impl NativeEmulator {
         let bind = s.bind.as_deref().unwrap_or("127.0.0.1:0");
         let (running, port) = match s.serve.as_deref() {
             None => {
-                let pipe = PipeConfig::instant();
                 let running = match family {
-                    "scu" => InProcess::Scu(EmulatorHost::new(scu_device(s)?, clock(), pipe)),
+                    "scu" => InProcess::Scu(Hosted::new(scu_device(s)?)),
                     "powercube" if s.can => {
                         let cfg = powercube_config(s)?;
                         let device = motionlink_powercube::Emulator::new_can(&cfg);
@@ -270,9 +382,9 @@ impl NativeEmulator {
                     "powercube" => {
                         let mut device = motionlink_powercube::Emulator::new(&powercube_config(s)?);
                         device.set_strict_bcc(s.strict);
-                        InProcess::PowerCube(EmulatorHost::new(device, clock(), pipe))
+                        InProcess::PowerCube(Hosted::new(device))
                     }
-                    _ => InProcess::Compax(EmulatorHost::new(compax_device(s)?, clock(), pipe)),
+                    _ => InProcess::Compax(Hosted::new(compax_device(s)?)),
                 };
                 (Running::InProcess(running), String::new())
             }
@@ -329,8 +441,9 @@ impl NativeEmulator {
 impl NativeEmulator {
     #[new]
     #[pyo3(signature = (family, settings))]
-    fn py_new(py: Python<'_>, family: &str, settings: EmulatorSettings) -> PyResult<Self> {
-        NativeEmulator::start(family, &settings).map_err(|f| to_pyerr(py, f))
+    fn py_new(py: Python<'_>, family: Text, settings: EmulatorArgs) -> PyResult<Self> {
+        let started = family.get("", "family").and_then(|family| NativeEmulator::start(family, &settings.checked()?));
+        started.map_err(|f| to_pyerr(py, f))
     }
 
     /// The family: "scu", "powercube" or "compax".
@@ -368,10 +481,17 @@ impl NativeEmulator {
         })
     }
 
-    /// Stops the emulator (a served one stops listening and closes its connection).
+    /// Stops the emulator: the clients connected to one in this process get `Disconnected` from their next
+    /// call (their lines break, and they cannot reconnect); a served one stops listening and closes its
+    /// connection.
     fn close(&self, py: Python<'_>) {
         let running = lock(&self.running).take();
-        py.detach(move || drop(running));
+        py.detach(move || {
+            if let Some(Running::InProcess(h)) = &running {
+                h.close();
+            }
+            drop(running)
+        });
     }
 }
 

@@ -204,3 +204,132 @@ def test_compax_refuses_a_bad_value_with_the_same_words_as_the_command_line(
     assert message in python_message, python_message
     # The command line says which option or argument it was, then the crate's words, as Python says them.
     assert python_message in cli_message, (python_message, cli_message)
+
+
+# ------------------------------------------------------------------------------------- values of another type
+# A value of the wrong type is a UsageError naming the argument and the value, never a TypeError, a ValueError
+# from a conversion, an OverflowError, or a bool taken as a number (True moved a PowerCube to 1.0 rad).
+
+
+def _on_scu(call: Callable[[motionlink.Scu], object]) -> Callable[[], object]:
+    def run() -> object:
+        with motionlink.Scu("sim") as scu:
+            return call(scu)
+
+    return run
+
+
+def _on_cube(call: Callable[[motionlink.PowerCube], object]) -> Callable[[], object]:
+    def run() -> object:
+        with motionlink.PowerCube("sim") as cube:
+            return call(cube)
+
+    return run
+
+
+def _on_drive(call: Callable[[motionlink.Compax], object]) -> Callable[[], object]:
+    def run() -> object:
+        with motionlink.Compax("sim") as drive:
+            return call(drive)
+
+    return run
+
+
+WRONG_TYPES = [
+    # A bool or a str where a number goes (motion targets included).
+    (_on_cube(lambda c: c.move_to(True)), r"^target True \(a bool\): give a number$"),
+    (_on_cube(lambda c: c.move_to("0.5")), r"^target '0\.5' \(a str, not a number\): give a number$"),
+    (_on_cube(lambda c: c.move_to(0.5, velocity=True)), r"^velocity True \(a bool\)"),
+    (_on_cube(lambda c: c.move_to(0.5, acceleration="1")), r"^acceleration '1' \(a str, not a number\)"),
+    (_on_cube(lambda c: c.move_to(0.5, tolerance=False)), r"^tolerance False \(a bool\)"),
+    (_on_cube(lambda c: c.move_to(0.5, timeout_s=True)), r"^timeout_s True \(a bool\)"),
+    (_on_cube(lambda c: c.home(timeout_s="60")), r"^timeout_s '60' \(a str, not a number\)"),
+    (_on_cube(lambda c: c.wait(timeout_s=None)), r"^timeout_s None \(a NoneType, not a number\)"),
+    (_on_cube(lambda c: c.set("TargetVel", True)), r"^value True \(a bool\): give a number$"),
+    (_on_drive(lambda d: d.move_to(True)), r"^target True \(a bool\): give a number$"),
+    (_on_drive(lambda d: d.move_to(distance=True)), r"^distance True \(a bool\)"),
+    (_on_drive(lambda d: d.move_to(1.0, speed_percent=True)), r"^speed_percent True \(a bool\)"),
+    (_on_drive(lambda d: d.move_to(1.0, timeout_s=True)), r"^timeout_s True \(a bool\)"),
+    (_on_drive(lambda d: d.move_to(1.0, min_units="0")), r"^min_units '0' \(a str, not a number\)"),
+    (_on_drive(lambda d: d.home(timeout_s=True)), r"^timeout_s True \(a bool\)"),
+    (_on_drive(lambda d: d.set("P194", True)), r"^value True \(a bool\): give a number$"),
+    (_on_drive(lambda d: d.set("P194", "x")), r"^value 'x' \(a str, not a number\): give a number$"),
+    (lambda: motionlink.Compax("sim", tolerance_units=True), r"^tolerance_units True \(a bool\)"),
+    (lambda: motionlink.Compax("sim", tolerance_units="x"), r"^tolerance_units 'x' \(a str, not a number\)"),
+    (_on_scu(lambda s: s.run(1, "out", seconds=True)), r"^seconds True \(a bool\): give a number$"),
+    (_on_scu(lambda s: s.run(1, 5)), r"^direction 5 \(an int, not a str\): give a str$"),
+    # Something else where a bool goes.
+    (lambda: motionlink.PowerCube("sim", watchdog="no"), r"^watchdog 'no' \(a str, not a bool\): give True or False$"),
+    (_on_scu(lambda s: s.stop(1, soft="yes")), r"^soft 'yes' \(a str, not a bool\): give True or False$"),
+    (lambda: motionlink.Emulator("powercube", strict="x"), r"^strict 'x' \(a str, not a bool\)"),
+    (lambda: motionlink.Emulator("powercube", can=1), r"^can 1 \(an int, not a bool\)"),
+    (lambda: motionlink.probe("scu", "sim", low_latency="x"), r"^low_latency 'x' \(a str, not a bool\)"),
+    # A number (or None) where a text or a list goes.
+    (lambda: motionlink.Scu("sim", functions=5), r"^functions 5 \(an int\): give a str or a list of str$"),
+    (lambda: motionlink.Scu("sim", functions=None), r"^functions None \(a NoneType\): give a str or a list"),
+    (lambda: motionlink.Scu("sim", functions=["tlt", 5]), r"^functions 5 \(an int\): give a str$"),
+    (lambda: motionlink.Scu("sim", strokes=5), r"^strokes 5 \(an int\): give a str or a list of str$"),
+    (lambda: motionlink.Scu("sim", speed_mode=1), r"^speed_mode 1 \(an int, not a str\)"),
+    (lambda: motionlink.Emulator("compax", drives=5), r"^drives 5 \(an int\): give a list$"),
+    (lambda: motionlink.Emulator("powercube", modules="12"), r"^modules '12' \(a str\): give a list$"),
+    (lambda: motionlink.Emulator("compax", variant=5), r"^variant 5 \(an int\): give a str or a list of str$"),
+    (lambda: motionlink.Emulator("compax", params=5), r"^params 5 \(an int\): give a dict$"),
+    (lambda: motionlink.Emulator("compax", params={"P12": "x"}), r"^params P12 'x' \(a str, not a number\)"),
+    (lambda: motionlink.Emulator("compax", params={"P12": True}), r"^params P12 True \(a bool\)"),
+    (lambda: motionlink.Emulator("scu", preset=5), r"^preset 5 \(an int, not a str\)"),
+    (lambda: motionlink.Emulator(5), r"^family 5 \(an int, not a str\)"),
+    (lambda: motionlink.Scu("sim", profile=5), r"^profile 5 \(an int\)"),
+    (lambda: motionlink.probe("scu", "sim", save=5), r"^save 5 \(an int\)"),
+    (_on_drive(lambda d: d.status(None)), r"^names None \(a NoneType\)"),
+    (_on_drive(lambda d: d.status([True])), r"^names True \(a bool\)"),
+    # probe(exchanges=): the command line's rule, 1..=1000 (`--exchanges 0` exits 2).
+    (lambda: motionlink.probe("scu", "sim", exchanges=-1), r"^exchanges -1: give a whole number 1\.\.=1000$"),
+    (lambda: motionlink.probe("scu", "sim", exchanges=0), r"^exchanges 0: give a whole number 1\.\.=1000$"),
+    (lambda: motionlink.probe("powercube", "sim", exchanges=1001), r"^exchanges 1001: give a whole number 1\.\.=1000$"),
+    (lambda: motionlink.probe("compax", "sim", exchanges=100_000), r"^exchanges 100000: give a whole number"),
+    (lambda: motionlink.probe("scu", "sim", exchanges=True), r"^exchanges True \(a bool\): give a whole number"),
+    (lambda: motionlink.probe("scu", "sim", exchanges=2**70), rf"^exchanges {2**70}: give a whole number 1\.\.=1000$"),
+]
+
+
+def _case(named: str) -> str:
+    """A case's id: what the message starts with (the argument and the value), without the regex's escapes."""
+    return named.replace("\\", "").lstrip("^").split(" (")[0].split(":")[0]
+
+
+@pytest.mark.parametrize("call,named", WRONG_TYPES, ids=[_case(n) for _, n in WRONG_TYPES])
+def test_a_value_of_another_type_is_a_usage_error_naming_the_argument_and_the_value(
+    call: Callable[[], object], named: str
+) -> None:
+    with pytest.raises(motionlink.UsageError, match=named) as e:
+        call()
+    assert isinstance(e.value, ValueError) and e.value.kind == "usage" and e.value.exit_code == 2
+
+
+def test_a_number_of_either_type_is_taken_where_a_float_goes() -> None:
+    """An int is a number wherever a float goes (and a float that is a whole number writes as an int does)."""
+    with motionlink.PowerCube("sim") as cube:
+        assert cube.move_to(1, velocity=1, timeout_s=30).reached_rad == pytest.approx(1.0, abs=1e-3)
+        assert cube.set("TargetVel", 1).value == cube.set("TargetVel", 1.0).value
+    with motionlink.Compax("sim", tolerance_units=1) as drive:
+        assert drive.move_to(2, speed_percent=50, timeout_s=60).reached_units == pytest.approx(2.0, abs=0.01)
+        assert drive.set("P3", 5).read_back == 5.0
+    with motionlink.Scu("sim") as scu:
+        assert scu.run(1, "out", seconds=0).function == 1
+
+
+def test_probe_takes_the_command_lines_range_of_exchanges(motionlink_bin: Path) -> None:
+    """1..=1000, as `motionlink probe --exchanges` takes it: the ends are taken, and the binary refuses what
+    Python refuses."""
+    assert motionlink.probe("scu", "sim", exchanges=1).link["exchanges"] == 1
+    assert motionlink.probe("scu", "sim", exchanges=1000).link["exchanges"] == 1000
+    for n in (0, 1001):
+        with pytest.raises(motionlink.UsageError):
+            motionlink.probe("scu", "sim", exchanges=n)
+        done = subprocess.run(
+            [str(motionlink_bin), "probe", "scu", "--port", "sim", "--exchanges", str(n)],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert done.returncode == 2 and "1..=1000" in done.stderr, done.stderr

@@ -127,3 +127,25 @@ def test_closing_an_async_client_cancels_its_calls_under_way(family: str) -> Non
             assert e.value.family == family
 
         asyncio.run(main())
+
+
+@pytest.mark.parametrize(
+    "cls, blocking_only",
+    [
+        (motionlink.AsyncScu, {"info", "get", "set", "errors"}),
+        (motionlink.AsyncPowerCube, {"scan", "info", "get", "set", "reset"}),
+        (motionlink.AsyncCompax, {"scan", "status", "get", "set", "output"}),
+    ],
+)
+def test_dir_of_an_async_client_lists_only_what_it_has(cls: Any, blocking_only: "set[str]") -> None:
+    """`dir()` of the class and of an instance leaves out the operations only the blocking client has
+    (asking for one raises AttributeError), and lists every one it has."""
+    client = cls("sim")
+    for names in (set(dir(cls)), set(dir(client))):
+        assert not names & blocking_only, sorted(names & blocking_only)
+        assert {"move_to", "position", "stop", "aclose", "open"} <= names
+        for name in names:
+            if not name.startswith("_"):
+                assert hasattr(cls, name) or name in vars(client), name
+    for name in blocking_only:
+        assert not hasattr(client, name) and not hasattr(cls, name)

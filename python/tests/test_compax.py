@@ -81,3 +81,30 @@ def test_travel_limits_refuse_before_sending(compax: motionlink.Compax, compax_e
 def test_sim_url() -> None:
     with motionlink.Compax("sim") as c:
         assert c.scan()[0].drive == 1
+
+
+def test_stop_and_output_return_none(compax: motionlink.Compax) -> None:
+    """As their stubs say (`-> None`), and as the SCU's `stop(1)` does: not an empty tuple."""
+    assert compax.stop() is None
+    assert compax.output(0, 1) is None
+    assert compax.stop(drive=2) is None
+
+    async def main() -> None:
+        with motionlink.Emulator("compax") as emu:
+            async with motionlink.AsyncCompax(emu) as drive:
+                assert await drive.stop() is None
+
+    import asyncio
+
+    asyncio.run(main())
+
+
+def test_a_str_is_one_status_value(compax: motionlink.Compax) -> None:
+    """`status("S1")` reads S1 (a str is one name, as `Scu(functions="tlt")` is one specification), not the
+    letters "S" and "1"; an int is one number; a list holds several."""
+    (s1,) = compax.status("S1")
+    assert (s1.status, s1.value) == ("S1", 0.0)
+    assert compax.status("actual_position") == [s1]
+    assert compax.status(1) == [s1]
+    assert [s.status for s in compax.status(("S1", 17))] == ["S1", "S17"]
+    assert len(compax.status([])) == 6

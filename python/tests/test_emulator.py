@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import pytest
 
 import motionlink
@@ -72,3 +74,35 @@ def test_a_client_of_another_family_is_refused() -> None:
 def test_wait_event_times_out_naming_what_it_saw(powercube_emulator: motionlink.Emulator) -> None:
     with pytest.raises(TimeoutError, match="no matching event"):
         powercube_emulator.wait_event(lambda t: "never" in t, 0.05)
+
+
+@pytest.mark.parametrize(
+    "family, client, call",
+    [
+        ("powercube", motionlink.PowerCube, lambda c: c.move_to(0.7)),
+        ("powercube-can", motionlink.PowerCube, lambda c: c.position()),
+        ("scu", motionlink.Scu, lambda c: c.position(1)),
+        ("compax", motionlink.Compax, lambda c: c.move_to(1.0)),
+    ],
+)
+def test_closing_an_emulator_ends_it_for_its_clients(family: str, client: type, call: Any) -> None:
+    """`close()` stops the emulator for the clients connected to it too: their next call raises
+    Disconnected (it moved the module before), and a client that reconnects (an SCU session does) finds
+    it gone."""
+    emu = motionlink.Emulator(family.split("-")[0], can=True) if family.endswith("can") else motionlink.Emulator(family)
+    c = client(emu)
+    assert c.position(1) if family == "scu" else c.position()
+    emu.close()
+    assert not emu.running
+    with pytest.raises(motionlink.Disconnected):
+        call(c)
+    with pytest.raises(motionlink.Disconnected):
+        call(c)
+    try:
+        c.close()
+    except motionlink.TransportError:
+        pass  # the close's stop could not reach the device either
+    assert not c.is_open
+    with pytest.raises(motionlink.UsageError, match="closed"):
+        client(emu)
+    emu.close()  # closing twice does nothing

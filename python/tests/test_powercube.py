@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+from pathlib import Path
 
 import pytest
 
@@ -156,3 +157,40 @@ def test_results_compare_and_are_read_only(cube: motionlink.PowerCube) -> None:
     assert a == b and math.isfinite(a.value)
     with pytest.raises(AttributeError):
         a.unit = "m"  # type: ignore[misc]
+
+
+def test_stop_returns_none(cube: motionlink.PowerCube) -> None:
+    """As the stub says (`-> None`), and as the SCU's `stop(1)` does: not an empty tuple."""
+    assert cube.stop() is None
+    assert cube.reset() is False
+
+    async def main() -> None:
+        with motionlink.Emulator("powercube") as emu:
+            async with motionlink.AsyncPowerCube(emu) as c:
+                assert await c.stop() is None
+
+    asyncio.run(main())
+
+
+def test_a_positions_dict_is_the_command_lines_object_and_its_unit_an_attribute(motionlink_bin: Path) -> None:
+    """`to_dict()` of a position has the command line's keys (it has no position command: a `watch --json`
+    sample names the position `position_rad`, with no `unit`; `t_s` and `state` are the sample's); `unit`
+    is an attribute only, as records.py and docs/python.md say of a PowerCube record's unit."""
+    import json
+    import subprocess
+
+    done = subprocess.run(
+        [str(motionlink_bin), "--json", "powercube", "--port", "sim", "watch", "--count", "1"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 0, done.stderr
+    sample = json.loads(done.stdout.splitlines()[0])
+    theirs = {k: v for k, v in sample.items() if k not in {"port", "profile", "t_s", "state"}}
+    with motionlink.PowerCube("sim") as cube:
+        p = cube.position()
+    assert p.unit == "rad" and p.value == p.position_rad
+    assert "unit" not in p.to_dict()
+    assert p.to_dict().keys() == theirs.keys() == {"family", "module", "position_rad"}
+    assert p.to_dict() == {**theirs, "position_rad": pytest.approx(theirs["position_rad"], rel=1e-6)}

@@ -4,6 +4,7 @@ is left alone with a warning."""
 
 from __future__ import annotations
 
+import sys
 import warnings
 from pathlib import Path
 
@@ -91,3 +92,46 @@ def test_async_clients_load_the_saved_profile_and_warn_of_anothers(
         taken, seen = asyncio.run(opened(emu.port))
         assert taken is None
         assert any("not used" in m for m in seen), seen
+
+
+@pytest.mark.parametrize("family, blocking, asynchronous", [
+    ("scu", motionlink.Scu, motionlink.AsyncScu),
+    ("powercube", motionlink.PowerCube, motionlink.AsyncPowerCube),
+    ("compax", motionlink.Compax, motionlink.AsyncCompax),
+])
+def test_a_profile_warning_points_at_the_users_line(
+    tmp_path: Path, family: str, blocking: type, asynchronous: type
+) -> None:
+    """A profile the client did not take is a UserWarning whose filename and line are the user's (this file),
+    not the package's: from the blocking constructor, `async with`, and `await client.open()`."""
+    import asyncio
+
+    broken = tmp_path / "profiles.toml"
+    broken.write_text("this is [[ not TOML\n")
+
+    def warned(seen: "list[warnings.WarningMessage]") -> "warnings.WarningMessage":
+        notices = [w for w in seen if "device profiles not used" in str(w.message)]
+        assert len(notices) == 1, [str(w.message) for w in seen]
+        return notices[0]
+
+    async def with_block(port: str) -> None:
+        async with asynchronous(port, profile=broken):
+            pass
+
+    async def opened(port: str) -> None:
+        client = await asynchronous(port, profile=broken).open()
+        await client.aclose()
+
+    with motionlink.Emulator(family, serve="tcp") as emu:
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            line = sys._getframe().f_lineno + 1
+            client = blocking(emu.port, profile=broken)
+        client.close()
+        w = warned(seen)
+        assert (w.filename, w.lineno) == (__file__, line), (w.filename, w.lineno)
+        for run in (with_block, opened):
+            with warnings.catch_warnings(record=True) as seen:
+                warnings.simplefilter("always")
+                asyncio.run(run(emu.port))
+            assert warned(seen).filename == __file__, (run.__name__, warned(seen).filename)

@@ -61,3 +61,61 @@ def test_stub_is_python_with_each_records_fields(name: str) -> None:
             assert own <= stubbed, f"{name}.pyi: {node.name} lacks {sorted(own - stubbed)}"
     if name == "scu":
         assert "class ScuStop(Record):\n    family: str\n" in text
+
+
+@pytest.mark.parametrize(
+    "name, classes, attribute",
+    [("powercube", ("PowerCube", "AsyncPowerCube"), "module"), ("compax", ("Compax", "AsyncCompax"), "drive")],
+)
+def test_the_clients_public_attributes_are_in_the_stubs(name: str, classes: "tuple[str, ...]", attribute: str) -> None:
+    """`PowerCube.module` and `Compax.drive` (what the operations address unless told otherwise) are public:
+    each client class of the stub declares it, so that a type checker knows them."""
+    text = (TOOL.parent.parent / "motionlink" / f"{name}.pyi").read_text(encoding="utf-8")
+    tree = ast.parse(text)
+    declared = {
+        node.name: {n.target.id for n in node.body if isinstance(n, ast.AnnAssign) and isinstance(n.target, ast.Name)}
+        for node in tree.body
+        if isinstance(node, ast.ClassDef)
+    }
+    for cls in classes:
+        assert attribute in declared[cls], f"{name}.pyi: {cls} lacks {attribute}"
+        client = getattr(motionlink, cls)("sim", 2)
+        try:
+            assert getattr(client, attribute) == 2
+        finally:
+            if not cls.startswith("Async"):
+                client.close()
+
+
+def test_a_type_checker_accepts_a_users_program(tmp_path: Path) -> None:
+    """mypy --strict on a user's program as the documentation writes one: the clients' attributes
+    (`cube.module`, `drive.drive`), an SCU stop of everything (a report) and of one function (None), a
+    record's fields, an async client. `.ci/run` installs mypy; elsewhere the test says it was skipped."""
+    api = pytest.importorskip("mypy.api")
+    program = tmp_path / "program.py"
+    program.write_text(
+        "import asyncio\n"
+        "import motionlink\n"
+        "from typing import List\n"
+        "\n"
+        "def main() -> None:\n"
+        "    cube = motionlink.PowerCube('sim')\n"
+        "    drive = motionlink.Compax('sim')\n"
+        "    n: int = cube.module + drive.drive\n"
+        "    with motionlink.Scu('sim', functions='tlt') as lift:\n"
+        "        moved = lift.move_to(1, 400)\n"
+        "        rest: List[motionlink.scu.ActuatorAtRest] = lift.stop().at_rest\n"
+        "        nothing: None = lift.stop(1)\n"
+        "        print(moved.to_dict(), rest, nothing, n)\n"
+        "\n"
+        "async def amain() -> None:\n"
+        "    async with motionlink.AsyncScu('sim') as lift:\n"
+        "        stopped = await lift.stop()\n"
+        "        print(stopped.functions)\n"
+        "    async with motionlink.AsyncPowerCube('sim') as cube:\n"
+        "        print((await cube.move_to(0.5)).reached_rad)\n"
+    )
+    out, err, status = api.run(
+        ["--strict", str(program), "--no-incremental", "--cache-dir", str(tmp_path / "cache")]
+    )
+    assert status == 0, out + err

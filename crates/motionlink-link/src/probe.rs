@@ -381,6 +381,8 @@ pub struct ProbeSetup {
 impl ProbeSetup {
     /// Exchanges made to measure a link, unless told otherwise.
     pub const DEFAULT_EXCHANGES: u32 = 20;
+    /// How many exchanges a probe may be asked to make (every front end's rule).
+    pub const EXCHANGES: std::ops::RangeInclusive<u32> = 1..=1000;
 
     /// A probe of `port` at `baud` (kept for serial ports only), with the defaults: 20 exchanges, sysfs at
     /// [`sysfs_root`], the latency timer left as it is.

@@ -22,7 +22,7 @@ use motionlink_link::url::PortUrl;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::common::{Int, Record, Slot};
+use crate::common::{opt_float, Bool, Float, Int, Record, Slot, Text};
 use crate::emulator::{clock, InProcess};
 use crate::emulator::{target, Target};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
@@ -61,7 +61,7 @@ pub struct Settings {
     baud: Int,
     timeout_ms: Int,
     poll_ms: Int,
-    tolerance_units: f64,
+    tolerance_units: Float,
     /// The device profiles: `"auto"` (default) profiles.toml beside devices.toml, `"off"`, or a path.
     #[pyo3(default)]
     profile: Option<String>,
@@ -74,13 +74,13 @@ fn link(port: Target, s: &Settings) -> Result<(Box<dyn Link>, Config), Failure> 
     let baud = whole::<BaudRate>(&s.baud, "baud")?.bits_per_s();
     let reply_timeout: ReplyTimeout = whole(&s.timeout_ms, "timeout_ms")?;
     let poll: PollInterval = whole(&s.poll_ms, "poll_ms")?;
-    let tolerance = checked(Tolerance::new(s.tolerance_units))?;
+    let tolerance = checked(Tolerance::new(s.tolerance_units.get(FAMILY, "tolerance_units")?))?;
     let mut cfg = Config::new(mode, baud);
     cfg.reply_timeout = reply_timeout.duration();
     cfg.poll_interval = poll.duration();
     cfg.in_position_tolerance = tolerance.position();
     let link: Box<dyn Link> = match port {
-        Target::InProcess(InProcess::Compax(host)) => Box::new(host.connect().0),
+        Target::InProcess(InProcess::Compax(host)) => Box::new(host.connect().map_err(|e| Failure::of(FAMILY, &e))?),
         Target::InProcess(_) => return Err(usage("that emulator is not a COMPAX emulator")),
         Target::Url(PortUrl::Sim) => {
             let cfg = motionlink_compax::sim::SimConfig::bus(&[drive.get()], mode.to_p196(), baud);
@@ -99,8 +99,9 @@ fn open(port: Target, s: &Settings) -> Result<Client, Failure> {
     Client::with_link(link, clock(), cfg).map_err(|e| e.failure())
 }
 
-fn seconds(s: f64) -> Result<Duration, Failure> {
-    checked(TimeLimit::from_secs(s)).map(TimeLimit::duration)
+/// The time limit `timeout_s`, checked by the library.
+fn seconds(timeout_s: &Float) -> Result<Duration, Failure> {
+    checked(TimeLimit::from_secs(timeout_s.get(FAMILY, "timeout_s")?)).map(TimeLimit::duration)
 }
 
 /// A parameter read or written, as the CLI's `compax get` / `set --json` prints it (`title` is an extra
@@ -117,13 +118,17 @@ fn param_record<'py, T: serde::Serialize>(
 }
 
 fn move_request(
-    target: Option<f64>,
-    distance: Option<f64>,
-    speed_percent: Option<f64>,
+    target: Option<&Float>,
+    distance: Option<&Float>,
+    speed_percent: Option<&Float>,
     ramp_ms: Option<&Int>,
-    (min_units, max_units): (Option<f64>, Option<f64>),
-    timeout_s: f64,
+    (min_units, max_units): (Option<&Float>, Option<&Float>),
+    timeout_s: &Float,
 ) -> Result<MoveRequest, Failure> {
+    let number = |v: Option<&Float>, name: &str| opt_float(v, FAMILY, name);
+    let (target, distance) = (number(target, "target")?, number(distance, "distance")?);
+    let speed_percent = number(speed_percent, "speed_percent")?;
+    let (min_units, max_units) = (number(min_units, "min_units")?, number(max_units, "max_units")?);
     let target = match (target, distance) {
         (Some(t), None) => MoveTarget::Absolute(checked(Position::new(t))?),
         (None, Some(d)) => MoveTarget::Relative(checked(Position::new(d))?),
@@ -282,14 +287,17 @@ faces! {
         fn probe<'py>(
             &self,
             py: Python<'py>,
-            exchanges: u32,
-            low_latency: bool,
+            exchanges: Int,
+            low_latency: Bool,
             save: Option<String>,
-            drives: &str,
+            drives: Text,
         ) -> PyResult<Bound<'py, PyAny>> {
             let client = self.slot.client(py)?;
+            let drives = drives.get(FAMILY, "drives").map_err(|f| to_pyerr(py, f))?;
             let drives = motionlink_compax::probe::parse_drives(drives).map_err(|e| to_pyerr(py, usage(e)))?;
-            let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
+            let setup =
+                crate::common::probe_setup(FAMILY, self.port_url.as_deref(), self.baud, &exchanges, &low_latency)
+                    .map_err(|f| to_pyerr(py, f))?;
             let probe = || motionlink_compax::probe::probe(&client, &setup, &drives).map_err(|e| e.failure());
             crate::common::probe_py(py, FAMILY, save, probe, motionlink_compax::probe::save_profile)
         }
@@ -367,8 +375,9 @@ faces! {
     /// Writes a parameter and reads it back (a different value is a DeviceError). The library writes,
     /// compares what it reads back (a difference is an error) and reads once more: `read_back` is what the
     /// drive holds, not an echo of `value`.
-    blocking quick set(me, py, name: String, value: f64, drive: Option<Int>) {
+    blocking quick set(me, py, name: String, value: Float, drive: Option<Int>) {
         let a = me.drive(py, drive)?;
+        let value = value.get(FAMILY, "value").map_err(|f| to_pyerr(py, f))?;
         let id = checked(name.parse::<ParamId>().and_then(|id| id.check(value).map(|()| id)))
             .map_err(|f| to_pyerr(py, f))?;
     } |c| { c.set_param(a, id, value) } => |py, written| param_record(py, a, id, &written);
@@ -382,7 +391,7 @@ faces! {
             Ok((number, checked(state.for_output(number))?))
         };
         let (number, state) = output(&number, &state).map_err(|f| to_pyerr(py, f))?;
-    } |c| { c.set_output(a, number.get(), state, false) } => |py, done| Ok(done);
+    } |c| { c.set_output(a, number.get(), state, false) } => |py, ()| Ok(py.None());
 
     /// The actual position S1, in the drive's unit.
     quick position(me, py, drive: Option<Int>) {
@@ -392,19 +401,25 @@ faces! {
     /// A checked move (absolute `target` or relative `distance`), waited for; Ctrl-C, or cancelling the
     /// task, stops the drive.
     motion move_to(
-        me, py, target: Option<f64>, distance: Option<f64>, drive: Option<Int>, speed_percent: Option<f64>,
-        ramp_ms: Option<Int>, min_units: Option<f64>, max_units: Option<f64>, timeout_s: f64
+        me, py, target: Option<Float>, distance: Option<Float>, drive: Option<Int>, speed_percent: Option<Float>,
+        ramp_ms: Option<Int>, min_units: Option<Float>, max_units: Option<Float>, timeout_s: Float
     ) {
         let a = me.drive(py, drive)?;
-        let request =
-            move_request(target, distance, speed_percent, ramp_ms.as_ref(), (min_units, max_units), timeout_s)
-                .map_err(|f| to_pyerr(py, f))?;
+        let request = move_request(
+            target.as_ref(),
+            distance.as_ref(),
+            speed_percent.as_ref(),
+            ramp_ms.as_ref(),
+            (min_units.as_ref(), max_units.as_ref()),
+            &timeout_s,
+        )
+        .map_err(|f| to_pyerr(py, f))?;
     } |c| { w!(c => move_to(a, &request); &mut |_| {}) } => |py, r| move_record(py, &r);
 
     /// POSA HOME, waited for; Ctrl-C, or cancelling the task, stops the drive.
-    motion home(me, py, drive: Option<Int>, timeout_s: f64) {
+    motion home(me, py, drive: Option<Int>, timeout_s: Float) {
         let a = me.drive(py, drive)?;
-        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let timeout = seconds(&timeout_s).map_err(|f| to_pyerr(py, f))?;
     } |c| {
         w!(c.home(a, Default::default()))?;
         w!(c => wait_reached(&[a], Some(timeout)); &mut |_, _| {})?;
@@ -414,9 +429,9 @@ faces! {
     /// Waits until the drive reports its positioning ended (S17); its position then. Ctrl-C stops the
     /// drive; so does cancelling the task (the wait's future stops nothing when dropped: the motion may be
     /// another call's, so the drive is stopped here: OUTPUT O0=0, confirmed by S17).
-    motion wait(me, py, drive: Option<Int>, timeout_s: f64) {
+    motion wait(me, py, drive: Option<Int>, timeout_s: Float) {
         let a = me.drive(py, drive)?;
-        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let timeout = seconds(&timeout_s).map_err(|f| to_pyerr(py, f))?;
     } |c| {
         w!(c => wait_reached(&[a], Some(timeout)); &mut |_, _| {})?;
         w!(c.read_position(a))
@@ -429,7 +444,7 @@ faces! {
     /// Stops the drive: OUTPUT O0=0 (switches it off; switch it on with `output(0, 1)`).
     quick stop(me, py, drive: Option<Int>) {
         let a = me.drive(py, drive)?;
-    } |c| { w!(c.stop(a)) } => |py, done| Ok(done);
+    } |c| { w!(c.stop(a)) } => |py, ()| Ok(py.None());
 }
 
 /// The in-position tolerance the library uses unless told otherwise.

@@ -19,7 +19,7 @@ use motionlink_powercube::report::{ParamReading, SetReport};
 use motionlink_powercube::{AsyncClient, Error};
 use pyo3::prelude::*;
 
-use crate::common::{f32_py, Int, Record, Slot};
+use crate::common::{f32_py, opt_float, Bool, Float, Int, Record, Slot};
 use crate::emulator::{clock, InProcess};
 use crate::emulator::{target, Target};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
@@ -36,7 +36,7 @@ pub struct Settings {
     bitrate: Int,
     timeout_ms: Option<Int>,
     poll_ms: Int,
-    watchdog: bool,
+    watchdog: Bool,
     /// The device profiles: `"auto"` (default) profiles.toml beside devices.toml, `"off"`, or a path.
     #[pyo3(default)]
     profile: Option<String>,
@@ -97,7 +97,9 @@ fn open(port: Target, s: &Settings) -> Result<(Client, bool), Failure> {
     let rs232 = |link| Client::with_link(PortLink::Rs232(link), clock(), bus_config(s, false)?).map_err(fail);
     let can = |link| Client::with_link(PortLink::Can(link), clock(), bus_config(s, true)?).map_err(fail);
     match port {
-        Target::InProcess(InProcess::PowerCube(host)) => Ok((rs232(Box::new(host.connect().0))?, true)),
+        Target::InProcess(InProcess::PowerCube(host)) => {
+            Ok((rs232(Box::new(host.connect().map_err(|e| Failure::of(FAMILY, &e))?))?, true))
+        }
         Target::InProcess(InProcess::PowerCubeCan(bus)) => Ok((can(Box::new(bus.connect()))?, true)),
         Target::InProcess(_) => Err(usage("that emulator is not a PowerCube emulator")),
         Target::Url(url) => match PortLink::open(&url, baud, bitrate, &clock()).map_err(fail)? {
@@ -136,20 +138,25 @@ fn parse_param(name: &str) -> Result<Param, Failure> {
     name.parse::<Param>().map_err(|e| usage(e.to_string()))
 }
 
-/// A timeout in seconds, checked by the library.
-fn seconds(s: f64) -> Result<Duration, Failure> {
-    MotionTimeout::from_secs(s).map(MotionTimeout::get).map_err(refused)
+/// The timeout `timeout_s`, checked by the library.
+fn seconds(timeout_s: &Float) -> Result<Duration, Failure> {
+    MotionTimeout::from_secs(timeout_s.get(FAMILY, "timeout_s")?).map(MotionTimeout::get).map_err(refused)
 }
 
 /// The checked move `move` asks for; numbers in the module's own unit (rad or m), each checked by the
 /// library as the command line checks it.
 fn move_spec(
-    target: f64,
-    velocity: Option<f64>,
-    acceleration: Option<f64>,
-    tolerance: Option<f64>,
-    timeout_s: f64,
+    target: &Float,
+    velocity: Option<&Float>,
+    acceleration: Option<&Float>,
+    tolerance: Option<&Float>,
+    timeout_s: &Float,
 ) -> Result<MoveSpec, Failure> {
+    let target = target.get(FAMILY, "target")?;
+    let velocity = opt_float(velocity, FAMILY, "velocity")?;
+    let acceleration = opt_float(acceleration, FAMILY, "acceleration")?;
+    let tolerance = opt_float(tolerance, FAMILY, "tolerance")?;
+    let timeout_s = timeout_s.get(FAMILY, "timeout_s")?;
     Ok(MoveSpec::from_args(
         MoveTarget::new(target).map_err(refused)?,
         velocity.map(MoveVelocity::new).transpose().map_err(refused)?,
@@ -159,17 +166,10 @@ fn move_spec(
     ))
 }
 
-/// The value `value` (a Python number) for parameter `p`, parsed as the command line parses it.
-fn parse_value(p: Param, value: &Bound<'_, PyAny>) -> Result<Value, Failure> {
-    let text = if value.is_instance_of::<pyo3::types::PyBool>() {
-        return Err(usage(format!("{}: give a number, not a bool", p.name())));
-    } else if let Ok(i) = value.extract::<i64>() {
-        i.to_string()
-    } else if let Ok(f) = value.extract::<f64>() {
-        f.to_string()
-    } else {
-        return Err(usage(format!("{}: give a number", p.name())));
-    };
+/// The value `value` (a Python number) for parameter `p`, parsed as the command line parses it (a whole
+/// number is written without a fraction: `5.0` reads as `5`).
+fn parse_value(p: Param, value: &Float) -> Result<Value, Failure> {
+    let text = value.get(FAMILY, "value")?.to_string();
     Value::parse(p, &text).map_err(|e| usage(e.to_string()))
 }
 
@@ -271,10 +271,11 @@ faces! {
             let port_url = t.profile_port();
             let module = module_address(&settings.module).map_err(|f| to_pyerr(py, f))?;
             let baud: u32 = settings.baud.within(FAMILY, "baud", 1..=4_000_000).map_err(|f| to_pyerr(py, f))?;
+            let watchdog = settings.watchdog.get(FAMILY, "watchdog").map_err(|f| to_pyerr(py, f))?;
             let (client, in_process, profile) = py.detach(|| open_profiled(t, &settings)).map_err(|f| to_pyerr(py, f))?;
             let token = CancelToken::new();
             client.set_cancel(token.clone());
-            let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !settings.watchdog);
+            let guard = Guard::for_motions(ModulesAt::emulated_in_process(in_process), !watchdog);
             let port = client.port().to_string();
             let close_bound = client.config().close_bound;
             Ok(PowerCubeClient {
@@ -295,12 +296,14 @@ faces! {
         fn probe<'py>(
             &self,
             py: Python<'py>,
-            exchanges: u32,
-            low_latency: bool,
+            exchanges: Int,
+            low_latency: Bool,
             save: Option<String>,
         ) -> PyResult<Bound<'py, PyAny>> {
             let client = self.slot.client(py)?;
-            let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
+            let setup =
+                crate::common::probe_setup(FAMILY, self.port_url.as_deref(), self.baud, &exchanges, &low_latency)
+                    .map_err(|f| to_pyerr(py, f))?;
             let probe = || motionlink_powercube::probe::probe(&client, &setup).map_err(|e| e.failure());
             crate::common::probe_py(py, FAMILY, save, probe, motionlink_powercube::probe::save_profile)
         }
@@ -319,7 +322,7 @@ faces! {
             let s: Settings = settings.extract()?;
             Ok(spawn_task(done, async move {
                 let module = module_address(&s.module)?;
-                let watchdog = s.watchdog;
+                let watchdog = s.watchdog.get(FAMILY, "watchdog")?;
                 let (client, in_process, profile) =
                     crate::wait::on_blocking_pool(FAMILY, move || open_profiled(t, &s)).await?;
                 let client = AsyncClient::from_client(client);
@@ -366,7 +369,7 @@ faces! {
     } => |py, reading| get_record(py, a, &reading);
 
     /// Writes a parameter, refusing a target beyond its limit, and reads it back.
-    blocking quick set(me, py, name: String, value: Bound<'_, PyAny>, module: Option<Int>) {
+    blocking quick set(me, py, name: String, value: Float, module: Option<Int>) {
         let a = me.address(py, module)?;
         let p = parse_param(&name).map_err(|f| to_pyerr(py, f))?;
         let v = parse_value(p, &value).map_err(|f| to_pyerr(py, f))?;
@@ -409,9 +412,9 @@ faces! {
     } |c| { w!(c.module(Address::new(a)?).state()) } => |py, s| state_record(py, a, s);
 
     /// Homes the module and waits for the end of homing (Ctrl-C, or cancelling the task, halts it).
-    motion home(me, py, module: Option<Int>, timeout_s: f64) {
+    motion home(me, py, module: Option<Int>, timeout_s: Float) {
         let a = me.address(py, module)?;
-        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let timeout = seconds(&timeout_s).map_err(|f| to_pyerr(py, f))?;
         let guard = me.guard;
     } |c| { w!(c.module(Address::new(a)?) => home_guarded(timeout, guard); &mut |_| {}) }
     => |py, r| home_record(py, a, &r);
@@ -419,12 +422,12 @@ faces! {
     /// A checked ramp move to `target` (the module's unit: rad or m), waited for (Ctrl-C, or cancelling the
     /// task, halts it).
     motion move_to(
-        me, py, target: f64, module: Option<Int>, velocity: Option<f64>, acceleration: Option<f64>,
-        tolerance: Option<f64>, timeout_s: f64
+        me, py, target: Float, module: Option<Int>, velocity: Option<Float>, acceleration: Option<Float>,
+        tolerance: Option<Float>, timeout_s: Float
     ) {
         let a = me.address(py, module)?;
-        let spec =
-            move_spec(target, velocity, acceleration, tolerance, timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let spec = move_spec(&target, velocity.as_ref(), acceleration.as_ref(), tolerance.as_ref(), &timeout_s)
+            .map_err(|f| to_pyerr(py, f))?;
         let guard = me.guard;
     } |c| { w!(c.module(Address::new(a)?) => move_to_guarded(&spec, guard); &mut |_| {}) }
     => |py, r| move_record(py, a, &r);
@@ -432,9 +435,9 @@ faces! {
     /// Waits until the module stands still (no STATE_MOTION); the state at the end. Ctrl-C halts it; so does
     /// cancelling the task (the wait's future stops nothing when dropped: the motion may be another call's,
     /// so the module is halted here).
-    motion wait(me, py, module: Option<Int>, timeout_s: f64) {
+    motion wait(me, py, module: Option<Int>, timeout_s: Float) {
         let a = me.address(py, module)?;
-        let timeout = seconds(timeout_s).map_err(|f| to_pyerr(py, f))?;
+        let timeout = seconds(&timeout_s).map_err(|f| to_pyerr(py, f))?;
     } |c| { w!(c.module(Address::new(a)?) => wait_motion_end(timeout); &mut |_| {}) }
     else |halting| {
         if let Err(e) = async { halting.module(Address::new(a)?).halt().await }.await {
@@ -445,5 +448,5 @@ faces! {
     /// Halts the module at once (it stays halted until a reset).
     quick stop(me, py, module: Option<Int>) {
         let a = me.address(py, module)?;
-    } |c| { w!(c.module(Address::new(a)?).halt()) } => |py, done| Ok(done);
+    } |c| { w!(c.module(Address::new(a)?).halt()) } => |py, ()| Ok(py.None());
 }

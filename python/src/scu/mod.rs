@@ -21,7 +21,7 @@ use motionlink_scu::session::{MoveReport, RunAction, RunReport};
 use motionlink_scu::{port_connector, AsyncClient, Client, Config, Error, FunctionMap, MoveOptions, StrokeLimits};
 use pyo3::prelude::*;
 
-use crate::common::{json_py, Int, Slot};
+use crate::common::{json_py, opt_float, Bool, Float, Int, Slot, Text};
 use crate::emulator::{clock, InProcess};
 use crate::emulator::{target, Target};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
@@ -74,7 +74,7 @@ pub struct Settings {
     strokes: Vec<String>,
     tolerance_counts: Int,
     poll_ms: Int,
-    speed_mode: String,
+    speed_mode: Text,
     /// The device profiles: `"auto"` (default) profiles.toml beside devices.toml, `"off"`, or a path.
     #[pyo3(default)]
     profile: Option<String>,
@@ -86,7 +86,7 @@ fn client_config(s: &Settings) -> Result<Config, Failure> {
         baud: checked::<Baud>(&s.baud, "baud")?,
         safety_id: checked::<SafetyId>(&s.safety, "safety")?,
         reply_timeout: checked::<ReplyTimeout>(&s.reply_timeout_ms, "reply_timeout_ms")?.get(),
-        speed_mode: s.speed_mode.parse::<SpeedMode>().map_err(bad("speed_mode"))?,
+        speed_mode: s.speed_mode.get(FAMILY, "speed_mode")?.parse::<SpeedMode>().map_err(bad("speed_mode"))?,
         function_map: FunctionMap::from_specs(&s.functions).map_err(|e| usage(format!("functions: {e}")))?,
         stroke_limits: StrokeLimits::per_actuator(&s.strokes).map_err(|e| usage(format!("strokes: {e}")))?,
         position_tolerance_counts: checked::<ToleranceCounts>(&s.tolerance_counts, "tolerance_counts")?.get(),
@@ -198,8 +198,13 @@ fn move_args(
 }
 
 /// A run's checked arguments: the function and what to do, and the time limit.
-fn run_args(function: &str, direction: &str, seconds: Option<f64>) -> Result<(RunAction, Option<Duration>), Failure> {
-    let action = RunAction::parse(function, direction).map_err(bad(""))?;
+fn run_args(
+    function: &str,
+    direction: &Text,
+    seconds: Option<&Float>,
+) -> Result<(RunAction, Option<Duration>), Failure> {
+    let action = RunAction::parse(function, direction.get(FAMILY, "direction")?).map_err(bad(""))?;
+    let seconds = opt_float(seconds, FAMILY, "seconds")?;
     let limit = seconds.map(|s| RunLimit::seconds(s).map_err(|e| usage(format!("seconds {s}: {e}")))).transpose()?;
     Ok((action, limit.map(RunLimit::get)))
 }
@@ -210,8 +215,8 @@ enum StopWhat {
     One(Function, StopMode),
 }
 
-fn stop_what(function: Option<&str>, soft: bool) -> Result<StopWhat, Failure> {
-    let mode = if soft { StopMode::Soft } else { StopMode::Fast };
+fn stop_what(function: Option<&str>, soft: &Bool) -> Result<StopWhat, Failure> {
+    let mode = if soft.get(FAMILY, "soft")? { StopMode::Soft } else { StopMode::Fast };
     Ok(match function {
         None => StopWhat::Every(mode),
         Some(f) => StopWhat::One(parse_function(f)?, mode),
@@ -317,12 +322,14 @@ faces! {
         fn probe<'py>(
             &self,
             py: Python<'py>,
-            exchanges: u32,
-            low_latency: bool,
+            exchanges: Int,
+            low_latency: Bool,
             save: Option<String>,
         ) -> PyResult<Bound<'py, PyAny>> {
             let client = self.slot.client(py)?;
-            let setup = crate::common::probe_setup(self.port_url.as_deref(), self.baud, exchanges, low_latency);
+            let setup =
+                crate::common::probe_setup(FAMILY, self.port_url.as_deref(), self.baud, &exchanges, &low_latency)
+                    .map_err(|f| to_pyerr(py, f))?;
             let probe = || motionlink_scu::probe::probe(&client, &setup).map_err(|e| e.failure());
             crate::common::probe_py(py, FAMILY, save, probe, motionlink_scu::probe::save_profile)
         }
@@ -400,16 +407,16 @@ faces! {
 
     /// Runs a function until it ends (or `seconds`), then stops it; where the actuators rest. Ctrl-C, or
     /// cancelling the task, stops it.
-    motion run(me, py, function: String, direction: String, seconds: Option<f64>) {
-        let (action, limit) = run_args(&function, &direction, seconds).map_err(|f| to_pyerr(py, f))?;
+    motion run(me, py, function: String, direction: Text, seconds: Option<Float>) {
+        let (action, limit) = run_args(&function, &direction, seconds.as_ref()).map_err(|f| to_pyerr(py, f))?;
     } |c| { w!(c => run_function(action, limit); &|_| {}) } => |py, r| run_py(py, &r);
 
     /// Stops what moves, as `motionlink scu stop` does: with no function, RS to every motion function F1..F10
     /// (fast, or along the stop ramp with `soft`), confirmed by the status read until no actuator moves, and
     /// the stop report; with a function, its RS (a motion fast or soft; another function switched off), and
     /// None.
-    quick stop(me, py, function: Option<String>, soft: bool) {
-        let what = stop_what(function.as_deref(), soft).map_err(|f| to_pyerr(py, f))?;
+    quick stop(me, py, function: Option<String>, soft: Bool) {
+        let what = stop_what(function.as_deref(), &soft).map_err(|f| to_pyerr(py, f))?;
     } |c| {
         match what {
             StopWhat::Every(mode) => {

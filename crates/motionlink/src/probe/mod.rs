@@ -76,7 +76,7 @@ pub struct Options {
     pub low_latency: bool,
     /// Exchanges that measure the link (round trips and errors), 1..=1000.
     #[arg(long, default_value_t = ProbeSetup::DEFAULT_EXCHANGES, value_name = "N",
-          value_parser = clap::value_parser!(u32).range(1..=1000))]
+          value_parser = clap::value_parser!(u32).range(i64::from(*ProbeSetup::EXCHANGES.start())..=i64::from(*ProbeSetup::EXCHANGES.end())))]
     pub exchanges: u32,
 }
 
