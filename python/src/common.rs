@@ -373,10 +373,12 @@ pub fn probe_setup(
 }
 
 /// A probe's report (nothing moves) as Python objects: `probe` runs without the GIL; with `save` (`""`: the
-/// default profiles file, else a path) `save_profile` then writes the profile of each device it found there.
+/// default profiles file, else a path) `save_profile` then writes the profile of each device it found there,
+/// keyed by `port` (the port as given; `None`, an emulator object in this process, has none: refused).
 pub fn probe_py<'py, R: serde::Serialize>(
     py: Python<'py>,
     family: &'static str,
+    port: Option<&str>,
     save: Option<String>,
     probe: impl FnOnce() -> Result<R, Failure> + Send,
     save_profile: fn(
@@ -385,6 +387,16 @@ pub fn probe_py<'py, R: serde::Serialize>(
     ) -> Result<(), motionlink_link::profile::ProfileError>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let usage = |e: String| Failure::usage(family, e);
+    if save.is_some() && port.is_none() {
+        return Err(crate::errors::to_pyerr(
+            py,
+            usage(
+                "save: a motionlink.Emulator object has no port to key a profile by (no later session could take \
+                 it); probe port=\"sim\", or the emulator served (serve=\"tcp\") by its URL"
+                    .into(),
+            ),
+        ));
+    }
     let report = py
         .detach(|| {
             let mut report = probe()?;

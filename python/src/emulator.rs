@@ -519,11 +519,12 @@ pub fn target(port: &Bound<'_, PyAny>, family: &'static str) -> Result<Target, F
 }
 
 impl Target {
-    /// The port as profiles key it: `None` for an emulator in this process.
+    /// The port as profiles key it (a URL, `sim` included, as the command line keys it): `None` for an
+    /// emulator object in this process.
     pub fn profile_port(&self) -> Option<String> {
         match self {
-            Target::Url(u) if !matches!(u, motionlink_link::url::PortUrl::Sim) => Some(u.to_string()),
-            _ => None,
+            Target::Url(u) => Some(u.to_string()),
+            Target::InProcess(_) => None,
         }
     }
 }

@@ -135,3 +135,24 @@ def test_a_profile_warning_points_at_the_users_line(
                 warnings.simplefilter("always")
                 asyncio.run(run(emu.port))
             assert warned(seen).filename == __file__, (run.__name__, warned(seen).filename)
+
+
+@pytest.mark.parametrize("family, cls, options", [
+    ("scu", motionlink.Scu, {}),
+    ("powercube", motionlink.PowerCube, {}),
+    ("compax", motionlink.Compax, {"drives": "1"}),
+])
+def test_a_profile_of_port_sim_is_loaded_as_the_command_line_loads_it(
+    tmp_path: Path, family: str, cls: type, options: dict
+) -> None:
+    """Every family keys `port="sim"` as the command line does (`motionlink probe <family> --port sim --save`
+    and then `--port sim`), and names it alike; an Emulator object has no port to key a profile by."""
+    profiles = tmp_path / "profiles.toml"
+    report = motionlink.probe(family, "sim", save=profiles, **options)
+    assert len(report.saved) == 1 and report.saved[0].startswith(f"{profiles}#{family}:sim:"), report.saved
+    with cls("sim", profile=profiles) as client:
+        assert client.profile == report.saved[0]
+        assert client.port == "sim (in-process emulator)"
+    with motionlink.Emulator(family) as emu:
+        with pytest.raises(motionlink.UsageError, match="no port to key a profile by"):
+            motionlink.probe(family, emu, save=profiles, **options)

@@ -254,10 +254,6 @@ faces! {
         #[new]
         fn py_new(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings) -> PyResult<Self> {
             let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
-            let port = match &t {
-                Target::InProcess(_) => "in-process emulator".to_string(),
-                Target::Url(u) => u.to_string(),
-            };
             let port_url = t.profile_port();
             let drive: Address = whole(&settings.drive, "drive").map_err(|f| to_pyerr(py, f))?;
             let baud: u32 = settings.baud.within(FAMILY, "baud", 1..=4_000_000).map_err(|f| to_pyerr(py, f))?;
@@ -273,6 +269,7 @@ faces! {
                     Ok::<_, Failure>((client, used))
                 })
                 .map_err(|f| to_pyerr(py, f))?;
+            let port = client.port().to_string();
             let token = CancelToken::new();
             client.set_cancel(token.clone());
             let close_bound = client.config().close_bound;
@@ -299,7 +296,7 @@ faces! {
                 crate::common::probe_setup(FAMILY, self.port_url.as_deref(), self.baud, &exchanges, &low_latency)
                     .map_err(|f| to_pyerr(py, f))?;
             let probe = || motionlink_compax::probe::probe(&client, &setup, &drives).map_err(|e| e.failure());
-            crate::common::probe_py(py, FAMILY, save, probe, motionlink_compax::probe::save_profile)
+            crate::common::probe_py(py, FAMILY, self.port_url.as_deref(), save, probe, motionlink_compax::probe::save_profile)
         }
 
         /// Starts the library's watch of the drive (S1 and S17 every `interval_ms`, on a thread of its own):
@@ -320,10 +317,6 @@ faces! {
         #[staticmethod]
         fn open(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings, done: Py<PyAny>) -> PyResult<NativeTask> {
             let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
-            let port = match &t {
-                Target::InProcess(_) => "in-process emulator".to_string(),
-                Target::Url(u) => u.to_string(),
-            };
             let lookup =
                 crate::common::profile_lookup(settings.profile.as_deref(), t.profile_port().as_deref());
             Ok(spawn_task(done, async move {
@@ -336,6 +329,7 @@ faces! {
                         .map_err(|e| e.failure())?,
                     Err(used) => used,
                 };
+                let port = client.port().to_string();
                 let native = AsyncCompaxClient { slot: Slot::new(client, FAMILY), drive, port, profile };
                 deliver(move |py| Ok(Py::new(py, native)?.into_any()))
             }))

@@ -305,7 +305,7 @@ faces! {
                 crate::common::probe_setup(FAMILY, self.port_url.as_deref(), self.baud, &exchanges, &low_latency)
                     .map_err(|f| to_pyerr(py, f))?;
             let probe = || motionlink_powercube::probe::probe(&client, &setup).map_err(|e| e.failure());
-            crate::common::probe_py(py, FAMILY, save, probe, motionlink_powercube::probe::save_profile)
+            crate::common::probe_py(py, FAMILY, self.port_url.as_deref(), save, probe, motionlink_powercube::probe::save_profile)
         }
     }
 

@@ -121,15 +121,6 @@ fn open(port: Target, s: &Settings) -> Result<Client, Failure> {
     Client::with_connector(connector, clock(), config).map_err(|e| e.failure())
 }
 
-/// The port as given (a URL, `sim` included: a probe names it and a profile may be saved for it), for probes
-/// and profiles; `None` for an emulator in this process.
-fn port_url(t: &Target) -> Option<String> {
-    match t {
-        Target::Url(u) => Some(u.to_string()),
-        Target::InProcess(_) => None,
-    }
-}
-
 fn actuator(n: &Int) -> Result<Actuator, Failure> {
     checked(n, "actuator")
 }
@@ -294,7 +285,7 @@ faces! {
         #[new]
         fn py_new(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings) -> PyResult<Self> {
             let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
-            let port_url = port_url(&t);
+            let port_url = t.profile_port();
             let baud: u32 = checked::<Baud>(&settings.baud, "baud").map_err(|f| to_pyerr(py, f))?.get();
             let (client, profile) = py
                 .detach(|| {
@@ -331,7 +322,7 @@ faces! {
                 crate::common::probe_setup(FAMILY, self.port_url.as_deref(), self.baud, &exchanges, &low_latency)
                     .map_err(|f| to_pyerr(py, f))?;
             let probe = || motionlink_scu::probe::probe(&client, &setup).map_err(|e| e.failure());
-            crate::common::probe_py(py, FAMILY, save, probe, motionlink_scu::probe::save_profile)
+            crate::common::probe_py(py, FAMILY, self.port_url.as_deref(), save, probe, motionlink_scu::probe::save_profile)
         }
     }
 
@@ -340,7 +331,7 @@ faces! {
         #[staticmethod]
         fn open(py: Python<'_>, port: &Bound<'_, PyAny>, settings: Settings, done: Py<PyAny>) -> PyResult<NativeTask> {
             let t = target(port, FAMILY).map_err(|f| to_pyerr(py, f))?;
-            let lookup = crate::common::profile_lookup(settings.profile.as_deref(), port_url(&t).as_deref());
+            let lookup = crate::common::profile_lookup(settings.profile.as_deref(), t.profile_port().as_deref());
             let (connector, config) = connector(t, &settings).map_err(|f| to_pyerr(py, f))?;
             Ok(spawn_task(done, async move {
                 let client = AsyncClient::with_connector(connector, clock(), config).await.map_err(|e| e.failure())?;
