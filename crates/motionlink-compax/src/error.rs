@@ -174,6 +174,17 @@ pub enum Error {
         /// The drive's answer to the move, when the move was sent.
         refused: Option<ErrorCode>,
     },
+    /// A checked move was not sent: S17 shows the drive still executing a command (a positioning that runs,
+    /// someone else's or one handed over), and the drive takes no move until it has ended (it would refuse
+    /// one with E92). Nothing was sent to move; no device error code was reported.
+    #[error(
+        "drive {address} is still executing a command (S17 shows a command active, such as a positioning that \
+         runs): the move was not sent; wait until it has ended, or stop it"
+    )]
+    StillMoving {
+        /// The drive.
+        address: Address,
+    },
     /// A parameter written reads back another value.
     #[error(
         "drive {address}: {param} reads back {read} after {wrote} was written: the drive did not store the value \
@@ -188,6 +199,27 @@ pub enum Error {
         wrote: f64,
         /// The value read back.
         read: f64,
+    },
+    /// A parameter written reads back as the value rounded (or cut) to the decimals the drive answers it
+    /// with: the drive keeps the parameter in steps of that size, and holds the nearest step instead of the
+    /// value written. Not a corrupted telegram ([`Error::ReadBack`]): the value is not one the drive holds.
+    #[error(
+        "drive {address}: {param} reads back {read} after {wrote} was written: the drive keeps {param} in steps of \
+         {} (the decimals it answers with) and holds {read}, the step it could store; write {}",
+        step(*decimals),
+        whole(*decimals)
+    )]
+    Rounded {
+        /// The drive.
+        address: Address,
+        /// The parameter.
+        param: ParamId,
+        /// The value written.
+        wrote: f64,
+        /// The value read back.
+        read: f64,
+        /// The decimals of the drive's reply.
+        decimals: usize,
     },
     /// A synchronous start could not store every move, and sent no `!`. The drives in `buffered`
     /// acknowledged storing theirs (and the failed drive may have stored its own if its reply was lost): the
@@ -308,7 +340,9 @@ impl Classify for Error {
             | Error::NotReached { .. }
             | Error::TargetMismatch { .. }
             | Error::SwitchedOff { .. }
-            | Error::ReadBack { .. } => ErrorClass::Device,
+            | Error::StillMoving { .. }
+            | Error::ReadBack { .. }
+            | Error::Rounded { .. } => ErrorClass::Device,
             // What the session started may still move: the line's failure, as in every family.
             Error::Timeout { .. }
             | Error::MoveUncertain { .. }
@@ -360,6 +394,23 @@ impl SessionError for Error {
 }
 
 pub use motionlink_link::error::RoundTripRange;
+
+/// The step of a value shown with `decimals` decimals: `1`, `0.1`, `0.001`.
+fn step(decimals: usize) -> String {
+    match decimals {
+        0 => "1".to_string(),
+        d => format!("0.{}1", "0".repeat(d - 1)),
+    }
+}
+
+/// What value to write to a parameter the drive keeps to `decimals` decimals.
+fn whole(decimals: usize) -> String {
+    match decimals {
+        0 => "a whole number".to_string(),
+        1 => "a value of at most 1 decimal".to_string(),
+        d => format!("a value of at most {d} decimals"),
+    }
+}
 
 /// "; " and `r`, or nothing when the session has measured no round trip.
 fn measured(r: &Option<RoundTripRange>) -> String {

@@ -22,7 +22,7 @@ use crate::session::{
     AfterRaw, Config, MoveOptions, MoveReport, MoveRequest, Op, Output, Progress, RawOutcome, Session, StartedMove,
     WatchSample,
 };
-use crate::wire::{Address, Body, Flags};
+use crate::wire::{Address, Request};
 
 /// A blocking client of one bus of COMPAX drives; see the [module documentation](super).
 ///
@@ -294,8 +294,7 @@ impl Client {
     }
 
     fn raw_starts(&self, text: &str) -> bool {
-        let (body, flags) = Flags::split(text.trim().as_bytes());
-        let body = if body == b"!" { Body::Execute } else { Body::Command(body) };
+        let Request { body, flags, .. } = Request::raw(Address::BROADCAST, text);
         Effect::of_request(&body, flags) == Effect::Starts
     }
 

@@ -20,7 +20,7 @@ use std::ops::RangeInclusive;
 use std::str::FromStr;
 use std::time::Duration;
 
-use super::{ModelError, OutputState, ParamId, Position, RampMs, SpeedPercent, StatusId, BAUD_RATES};
+use super::{shown, ModelError, OutputState, ParamId, Position, RampMs, SpeedPercent, StatusId, BAUD_RATES};
 use crate::wire::{Address, Mode};
 
 /// An argument given as a whole number: its one rule, for front ends that have the number itself (Python's
@@ -157,7 +157,7 @@ impl FromStr for RampMs {
     }
 }
 
-/// A speed in percent, more than 0 and at most 100 (`--speed`, `speed_percent=`).
+/// A speed in percent, 0.000001 to 100 (`--speed`, `speed_percent=`): see [`SpeedPercent::new`].
 impl FromStr for SpeedPercent {
     type Err = ModelError;
     fn from_str(s: &str) -> Result<Self, ModelError> {
@@ -259,7 +259,11 @@ impl Tolerance {
         if units.is_finite() && units > 0.0 && units <= 1e6 {
             Ok(Tolerance(Position(units)))
         } else {
-            Err(out_of_range("in-position tolerance", units, "more than 0, at most 1000000, in the drive's unit"))
+            Err(out_of_range(
+                "in-position tolerance",
+                shown(units),
+                "more than 0, at most 1000000, in the drive's unit",
+            ))
         }
     }
 
@@ -294,7 +298,7 @@ impl TimeLimit {
             .ok()
             .filter(|d| !d.is_zero())
             .map(TimeLimit)
-            .ok_or_else(|| out_of_range("time limit", format!("{s} s"), "more than 0 s"))
+            .ok_or_else(|| out_of_range("time limit", format!("{} s", shown(s)), "more than 0 s"))
     }
 
     /// The limit.
@@ -415,7 +419,14 @@ mod tests {
         // The wire still carries 0 (a capture may show it): only an argument is refused.
         assert_eq!(RampMs::new(0).unwrap().ms(), 0);
 
-        assert_eq!(refused::<SpeedPercent>("0"), "speed 0 % is out of range (more than 0, at most 100 %)");
+        let speed_range = "0.000001 to 100 %; a SPEED command carries six decimals: less would be sent as 0";
+        assert_eq!(refused::<SpeedPercent>("0"), format!("speed 0 % is out of range ({speed_range})"));
+        // A speed the command would carry as 0 is refused as 0 is, naming the value as given.
+        assert_eq!(refused::<SpeedPercent>("1e-300"), format!("speed 1e-300 % is out of range ({speed_range})"));
+        assert_eq!(refused::<SpeedPercent>("0.0000009"), format!("speed 0.0000009 % is out of range ({speed_range})"));
+        assert_eq!("0.000001".parse::<SpeedPercent>().unwrap().to_string(), "0.000001");
+        assert_eq!(refused::<TimeLimit>("1e-300"), "time limit 1e-300 s is out of range (more than 0 s)");
+        assert!(refused::<Position>("1e300").starts_with("position 1e300 is out of range"));
         assert_eq!(refused::<SpeedPercent>("fast"), "cannot read speed from \"fast\"");
         assert_eq!(refused::<Position>("nan"), "cannot read position from \"nan\"");
         assert_eq!("-1055.88".parse::<Position>().unwrap().units(), -1055.88);

@@ -120,11 +120,28 @@ impl Command {
         }
         text.clear();
         if self.write_ascii(style, text).is_err() {
-            let len = text.as_bytes().len() + 1;
             text.clear();
-            return Err(WireError::TooLong(len).into());
+            return Err(WireError::TooLong(self.ascii_len(style)).into());
         }
         Ok(())
+    }
+
+    /// How many characters the ASCII command string has, however long: what a message about one too long
+    /// for the drive's input buffer names.
+    #[cold]
+    fn ascii_len(&self, style: CommandStyle) -> usize {
+        /// Counts what is written.
+        struct Count(usize);
+        impl fmt::Write for Count {
+            fn write_str(&mut self, s: &str) -> fmt::Result {
+                self.0 += s.len();
+                Ok(())
+            }
+        }
+        let mut n = Count(0);
+        // Counting cannot fail.
+        let _ = self.write_ascii(style, &mut n);
+        n.0
     }
 
     fn write_ascii(&self, style: CommandStyle, t: &mut impl fmt::Write) -> fmt::Result {

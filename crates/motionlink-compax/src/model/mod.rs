@@ -37,6 +37,7 @@ pub use args::{
 pub use bits::{bit_mask, BitPattern, S16Bits, S16Flag, S17Bits, S17Flag};
 pub use command::{Command, CommandStyle, CommandText};
 pub use error_code::ErrorCode;
+pub(crate) use param::param_reply_decimals;
 pub use param::{
     parse_param_reply, write_param_reply, ParamDetail, ParamId, ParamWrite, ValidFrom, BAUD_RATES, PARAMS,
 };
@@ -78,6 +79,17 @@ pub enum ModelError {
         /// The nearest names ("did you mean device_address?"), or the forms that are taken.
         hint: String,
     },
+    /// A value the command's decimal text would carry as another number: it has more decimals that matter
+    /// than a command carries ([`MAX_DECIMALS`](crate::wire::number::MAX_DECIMALS)).
+    #[error("{what} {value} has more decimals than a command carries (6): it would be sent as {sent}")]
+    Precision {
+        /// What the value is.
+        what: &'static str,
+        /// The value as given.
+        value: String,
+        /// What the command would carry instead.
+        sent: String,
+    },
     /// The command has no binary form.
     #[error("{0} has no binary form")]
     NoBinary(&'static str),
@@ -96,6 +108,18 @@ pub(crate) fn unknown_name<K>(
 ) -> ModelError {
     let hint = motionlink_link::table::did_you_mean(&table.suggest(text)).unwrap_or_else(|| forms.to_string());
     ModelError::UnknownName { what, text: text.to_string(), hint }
+}
+
+/// `v` as a message names a value: as Rust writes it (`-1055.88`, `0.0000001`), or with an exponent where
+/// that would be long (`1e-300`, `1e308`: Rust writes no exponent, so a tiny or huge value would be hundreds of
+/// digits).
+pub(crate) fn shown(v: f64) -> String {
+    let plain = v.to_string();
+    if plain.len() > 24 {
+        format!("{v:e}")
+    } else {
+        plain
+    }
 }
 
 pub(crate) fn syntax(what: &'static str, text: &[u8]) -> ModelError {

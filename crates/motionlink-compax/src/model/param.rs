@@ -13,8 +13,8 @@ use std::fmt;
 use motionlink_link::table::{Access, Entry, Table};
 
 use super::value::strip_name;
-use super::{syntax, unknown_name, ModelError};
-use crate::wire::number::{parse_decimal_trimmed, write_decimal, MAX_DECIMALS};
+use super::{shown, syntax, unknown_name, Command, CommandStyle, ModelError};
+use crate::wire::number::{decimal_as_sent, parse_decimal_trimmed, same_decimal, write_decimal, MAX_DECIMALS};
 
 /// A parameter number, P1..=P250.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -118,12 +118,31 @@ impl ParamId {
             .and_then(ParamId::new)
     }
 
-    /// Checks a value against the parameter's known range (unknown parameters accept any finite value).
+    /// Checks a value against the parameter's known range (unknown parameters accept any finite value), and
+    /// that the command `P003=value` carries it: a value with more decimals that matter than the command's
+    /// six is refused ([`ModelError::Precision`]: it would be written as another number, `P003=0` for
+    /// 0.0000001, and read back as that), and so is a command longer than the drive's input buffer
+    /// ([`WireError::TooLong`](crate::wire::WireError::TooLong)).
     pub fn check(self, value: f64) -> Result<(), ModelError> {
         if !value.is_finite() {
-            return Err(ModelError::Range { what: ParamWrite::WHAT, value: value.to_string(), range: "finite" });
+            return Err(ModelError::Range { what: ParamWrite::WHAT, value: shown(value), range: "finite" });
         }
-        let range_err = |range| ModelError::Range { what: "parameter value", value: format!("{self}={value}"), range };
+        self.check_range(value)?;
+        let sent = decimal_as_sent(value);
+        if !same_decimal(value, sent) {
+            return Err(ModelError::Precision {
+                what: ParamWrite::WHAT,
+                value: format!("{self}={}", shown(value)),
+                sent: format!("{self}={}", shown(sent)),
+            });
+        }
+        Command::WriteParam(self, value).to_ascii(CommandStyle::Long).map(|_| ())
+    }
+
+    /// The parameter's known range.
+    fn check_range(self, value: f64) -> Result<(), ModelError> {
+        let range_err =
+            |range| ModelError::Range { what: "parameter value", value: format!("{self}={}", shown(value)), range };
         match self {
             ParamId::BAUD_RATE if !BAUD_RATES.iter().any(|&b| f64::from(b) == value) => {
                 Err(range_err("150, 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200"))
@@ -197,6 +216,13 @@ impl fmt::Display for ParamId {
 /// Reads the reply text to `P<id>`: `P194=5`, `P194: 5`, or the value alone.
 pub fn parse_param_reply(id: ParamId, text: &[u8]) -> Result<f64, ModelError> {
     parse_decimal_trimmed(strip_name(text, b'P', id.0)).ok_or_else(|| syntax("a parameter value", text))
+}
+
+/// How many decimals the reply text to `P<id>` shows (`P003=1.000`: 3, `P003=1`: 0): the finest step the
+/// drive gives the value in.
+pub(crate) fn param_reply_decimals(id: ParamId, text: &[u8]) -> usize {
+    let v = strip_name(text, b'P', id.0);
+    v.iter().position(|&c| c == b'.').map_or(0, |i| v[i + 1..].iter().take_while(|c| c.is_ascii_digit()).count())
 }
 
 /// Writes the reply a drive sends for `P<id>` (the emulator's side): `P194=5`, the form of a write.

@@ -168,6 +168,42 @@ fn errors_and_params() {
     assert_eq!(StatusId::parse("S016").unwrap(), StatusId::STATUS_BITS_1);
 }
 
+/// A value the command `P003=value` would carry as another number (six decimals) is refused before anything
+/// is sent, naming the value and what it would be sent as; one that makes the command longer than the input
+/// buffer is refused with the real length of the command.
+#[test]
+fn a_parameter_value_the_command_does_not_carry_is_refused() {
+    let p3 = ParamId::new(3).unwrap();
+    assert_eq!(
+        p3.check(0.0000001).unwrap_err().to_string(),
+        "parameter value P003=0.0000001 has more decimals than a command carries (6): it would be sent as P003=0"
+    );
+    assert_eq!(
+        ParamWrite::new(p3, -1.23456789).unwrap_err().to_string(),
+        "parameter value P003=-1.23456789 has more decimals than a command carries (6): it would be sent as \
+         P003=-1.234568"
+    );
+    for fine in [-1055.88, 0.000001, 0.1 + 0.2, 123456.123456, 0.0] {
+        assert!(p3.check(fine).is_ok(), "{fine}");
+    }
+    // "P003=" and 309 digits; "P003=" and 42.
+    let too_long = |v: f64| p3.check(v).unwrap_err();
+    assert_eq!(too_long(1e308), ModelError::Wire(crate::wire::WireError::TooLong(314)));
+    assert_eq!(
+        too_long("123456789012345678901234567890123456789012".parse().unwrap()).to_string(),
+        "command string of 47 characters is longer than the drive's input buffer (40)"
+    );
+    assert_eq!(
+        Command::WriteParam(p3, 1e308).to_ascii(CommandStyle::Long).unwrap_err(),
+        ModelError::Wire(crate::wire::WireError::TooLong(314))
+    );
+    // 40 characters fit, 41 do not.
+    assert!(p3.check(12345678901234567890123456789012345.0).is_ok());
+    assert_eq!(too_long(123456789012345678901234567890123456.0).to_string(), {
+        "command string of 41 characters is longer than the drive's input buffer (40)"
+    });
+}
+
 #[test]
 fn a_misspelt_name_is_answered_with_the_nearest_one() {
     let e = ParamId::parse("devce_address").unwrap_err().to_string();

@@ -3,7 +3,7 @@
 
 use std::fmt;
 
-use super::ModelError;
+use super::{shown, ModelError};
 use crate::wire::number::{fits_fixed24, write_decimal, Fixed24, MAX_DECIMALS};
 
 /// A position or distance in the drive's position unit (mm, inch, degrees: whatever the drive is configured
@@ -18,7 +18,7 @@ impl Position {
         if fits_fixed24(units) {
             Ok(Position(units))
         } else {
-            Err(ModelError::Range { what: "position", value: units.to_string(), range: "-8388608 to 8388607.99" })
+            Err(ModelError::Range { what: "position", value: shown(units), range: "-8388608 to 8388607.99" })
         }
     }
 
@@ -52,17 +52,35 @@ impl fmt::Display for Position {
     }
 }
 
-/// A speed in percent of the drive's maximum speed: more than 0, at most 100.
+/// A speed in percent of the drive's maximum speed: 0.000001 to 100.
+///
+/// The smallest is the finest step the SPEED command carries (six decimals, [`MAX_DECIMALS`]): a smaller speed
+/// would go out as `SPEED 0`, which the drive refuses, so it is refused here, before anything is sent.
+///
+/// ```
+/// use motionlink_compax::model::SpeedPercent;
+/// assert_eq!(SpeedPercent::new(0.000001).unwrap().to_string(), "0.000001");
+/// assert_eq!(SpeedPercent::new(1e-300).unwrap_err().to_string(),
+///            "speed 1e-300 % is out of range (0.000001 to 100 %; a SPEED command carries six decimals: \
+///             less would be sent as 0)");
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, PartialOrd)]
 pub struct SpeedPercent(pub(crate) f64);
 
 impl SpeedPercent {
-    /// A speed; refused outside (0, 100].
+    /// The smallest speed: 0.000001 %, the finest step of the command's number.
+    pub const MIN: f64 = 0.000_001;
+
+    /// A speed; refused outside [`SpeedPercent::MIN`]..=100 (and when not finite).
     pub fn new(percent: f64) -> Result<Self, ModelError> {
-        if percent.is_finite() && percent > 0.0 && percent <= 100.0 {
+        if percent.is_finite() && (Self::MIN..=100.0).contains(&percent) {
             Ok(SpeedPercent(percent))
         } else {
-            Err(ModelError::Range { what: "speed", value: format!("{percent} %"), range: "more than 0, at most 100 %" })
+            Err(ModelError::Range {
+                what: "speed",
+                value: format!("{} %", shown(percent)),
+                range: "0.000001 to 100 %; a SPEED command carries six decimals: less would be sent as 0",
+            })
         }
     }
 

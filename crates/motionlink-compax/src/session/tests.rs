@@ -4,9 +4,10 @@
 
 use std::time::Duration;
 
+use motionlink_link::error::{Classify, ErrorClass};
 use motionlink_link::session::{OpId, Session as _};
 use motionlink_link::Timestamp;
-use motionlink_testkit::wired::{Line, Serial, Wired};
+use motionlink_testkit::wired::{Line, Serial, Telegram, Wired};
 
 use super::*;
 use crate::error::StopOutcome;
@@ -243,6 +244,118 @@ fn a_corrupted_parameter_write_is_caught_by_the_read_back() {
     b.corrupt_to_device = Some((13, 0x01));
     let e = b.run(Op::WriteParam(a(1), ParamId::new(3).unwrap(), -1055.88)).unwrap_err();
     assert!(matches!(e, Error::ReadBack { read, .. } if read == -1055.89), "{e}");
+}
+
+/// A drive that keeps P003 to three decimals: it answers a read of P003 with the value it was given,
+/// rounded to 0.001 (the emulator keeps any value).
+struct ThreeDecimals(Serial<Emulator>);
+
+impl motionlink_testkit::wired::Device for ThreeDecimals {
+    fn receive(&mut self, now: Timestamp, telegram: &Telegram, out: &mut Vec<Telegram>) {
+        let mut answers = Vec::new();
+        self.0.receive(now, telegram, &mut answers);
+        for t in answers {
+            let text = t.text();
+            let rounded = text.strip_prefix("P003=").and_then(|r| r.strip_suffix("\r\n>")).map(|v| {
+                let v: f64 = v.parse().unwrap();
+                Telegram::Bytes(format!("P003={v:.3}\r\n>").into_bytes())
+            });
+            out.push(rounded.unwrap_or(t));
+        }
+    }
+    fn advance(&mut self, now: Timestamp, out: &mut Vec<Telegram>) {
+        self.0.advance(now, out);
+    }
+    fn next_wakeup(&self) -> Option<Timestamp> {
+        self.0.next_wakeup()
+    }
+    fn take_events(&mut self) -> Vec<String> {
+        self.0.take_events()
+    }
+}
+
+/// A value the drive holds only to its own step reads back rounded: said as that (the step the drive
+/// answers with), not as a corrupted telegram; a value off by more than the rounding still is one.
+#[test]
+fn a_parameter_the_drive_keeps_to_fewer_decimals_reads_back_rounded_not_corrupted() {
+    let cfg = Config::new(Mode::default(), 9600);
+    let sim = SimConfig::bus(&[1], 0, 9600).with_param(ParamId::new(3).unwrap(), 0.0);
+    let line = Line { byte_time: cfg.char_time(), ..Line::instant() }.bytewise();
+    let device = ThreeDecimals(Serial(Emulator::new(sim).unwrap()));
+    let mut b = Wired::new(Session::new(cfg, Timestamp::ZERO), device, line);
+    let p3 = ParamId::new(3).unwrap();
+    b.run_op(Op::WriteParam(a(1), p3, 2.5)).unwrap();
+    let e = b.run_op(Op::WriteParam(a(1), p3, 1.0004)).unwrap_err();
+    assert!(matches!(e, Error::Rounded { read, decimals: 3, .. } if read == 1.0), "{e}");
+    assert_eq!(
+        e.to_string(),
+        "drive 1: P003 reads back 1 after 1.0004 was written: the drive keeps P003 in steps of 0.001 (the \
+         decimals it answers with) and holds 1, the step it could store; write a value of at most 3 decimals"
+    );
+    assert!(!e.to_string().contains("corrupt"), "{e}");
+    assert_eq!(e.class(), ErrorClass::Device);
+    // A negative value too.
+    let e = b.run_op(Op::WriteParam(a(1), p3, -7.0009)).unwrap_err();
+    assert!(matches!(e, Error::Rounded { .. }), "{e}");
+    // "1P003=-1055.88\r": the last '8' (byte 13) becomes '9': the drive holds -1055.89, which no rounding of
+    // -1055.88 to its three decimals gives: a corrupted telegram.
+    b.corrupt_to_device = Some((b.to_device_count + 13, 0x01));
+    let e = b.run_op(Op::WriteParam(a(1), p3, -1055.88)).unwrap_err();
+    assert!(matches!(e, Error::ReadBack { read, .. } if read == -1055.89), "{e}");
+}
+
+/// A checked move to a drive still executing a command (S17) is not sent, and the error says so: the
+/// drive reported no error code (it answered S17 normally), so none is made up.
+#[test]
+fn a_checked_move_to_a_drive_still_moving_is_not_sent_and_no_code_is_made_up() {
+    let mut b = Bench::bus(&[1], 0, 9600);
+    b.run(Op::Move(a(1), Command::PosA(pos(1000.0)), MoveOptions::default())).unwrap();
+    let before = b.sent_text().len();
+    let e = b.run(Op::MoveTo(a(1), to(10.0))).unwrap_err();
+    assert!(matches!(e, Error::StillMoving { address } if address == a(1)), "{e}");
+    assert_eq!(
+        e.to_string(),
+        "drive 1 is still executing a command (S17 shows a command active, such as a positioning that runs): \
+         the move was not sent; wait until it has ended, or stop it"
+    );
+    assert_eq!((e.device_code(), e.reported()), (None, None), "the drive reported no code");
+    assert_eq!(e.class(), ErrorClass::Device);
+    assert_eq!(b.sent_text()[before..], ["1S16\r", "1S17\r"], "S16 and S17 read, nothing sent to move");
+    assert!(!b.device_events.iter().any(|(_, t)| t.contains("E92")), "{:?}", b.device_events);
+}
+
+/// A scan's warning names the drive once (it said "drive 3: drive 3: ...").
+#[test]
+fn a_scan_names_the_drive_of_an_error_once() {
+    let e = Error::Refused { address: a(3), command: "S1".into(), code: crate::model::ErrorCode(90) };
+    assert_eq!(super::ops::scan_warning(a(3), &e), e.to_string());
+    assert!(e.to_string().starts_with("drive 3: \"S1\" refused with E90"), "{e}");
+    let other = Error::Broadcast("x");
+    assert!(super::ops::scan_warning(a(3), &other).starts_with("drive 3: address 32"));
+}
+
+/// A scan by a host without a BCC of a bus whose drives check one: the one drive answers E72 (late, while
+/// the next address is asked, the only time it is addressed), and no drive it does not have answers.
+#[test]
+fn a_scan_without_the_drives_bcc_hears_e72_only_where_the_one_drive_is_addressed() {
+    let cfg = Config { reply_timeout: Duration::from_millis(20), ..Config::new(Mode::default(), 115_200) };
+    let sim = SimConfig::bus(&[1], 8, 115_200);
+    let line = Line { byte_time: cfg.char_time(), ..Line::instant() }.bytewise();
+    let mut b = Wired::new(Session::new(cfg, Timestamp::ZERO), Serial(Emulator::new(sim).unwrap()), line);
+    let Ok(Output::Found(found)) = b.run_op(Op::Scan(1..=31)) else { panic!() };
+    assert!(found.is_empty());
+    let e72: Vec<&String> = b.device_events.iter().map(|(_, t)| t).filter(|t| t.contains("E72")).collect();
+    // "1S1\r" with '2' taken for its BCC; then the "1S1\r" inside "11S1\r12S1\r" and "21S1\r22S1\r".
+    assert_eq!(e72.len(), 3, "{e72:?}");
+    assert!(e72.iter().all(|t| t.starts_with("drive 1 error E72")), "{e72:?}");
+    let warning = super::ops::bcc_mismatch_warning(&Mode::default(), &[a(2), a(12), a(22)]);
+    assert!(
+        warning.starts_with(
+            "E72 (BCC error) answered S1 at addresses 2, 12, 22, although this client sends \
+                                 no BCC (P196 0 has no valence 8)"
+        ),
+        "{warning}"
+    );
 }
 
 #[test]

@@ -110,7 +110,7 @@ impl Drive {
             address: cfg.address,
             mode,
             baud_rate: baud,
-            rx: RequestDecoder::new(&mode),
+            rx: RequestDecoder::for_drive(&mode),
             rx_last: Timestamp::ZERO,
             rx_parity_error: false,
             buffer: None,

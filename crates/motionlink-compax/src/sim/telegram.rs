@@ -319,7 +319,7 @@ impl Drive {
         self.address = p(ParamId::DEVICE_ADDRESS) as u8;
         self.baud_rate = p(ParamId::BAUD_RATE) as u32;
         self.mode = Mode::from_p196(p(ParamId::OPERATING_MODE) as u32).unwrap_or_default();
-        self.rx = RequestDecoder::new(&self.mode);
+        self.rx = RequestDecoder::for_drive(&self.mode);
         self.rx_parity_error = false;
         self.buffer = None;
         if self.motion.take().is_some() {

@@ -263,3 +263,23 @@ fn a_command_stored_with_its_echo_is_sent_back_and_waits_for_execute() {
     assert_eq!(b.drive(1).unwrap().buffered(), None);
     assert!(!b.drive(3).unwrap().is_moving());
 }
+
+/// A host without a BCC scanning a bus whose drives check one (P196 8 on the drives, 0 on the host): drive
+/// 1 takes the `2` of "2S1" for the BCC of "1S1" and answers E72 once. What follows, "S1\r3S1\r...", is
+/// addressed to no drive: the emulator, like a drive that reads its address at the start of a telegram,
+/// answers none of it (it once took the `1` of each "S1" for drive 1's address and answered E72 for every
+/// address asked, drives it does not have).
+#[test]
+fn a_telegram_that_does_not_start_with_an_address_is_no_drives() {
+    let mut b = bus(&[1], 8);
+    let scan: Vec<u8> = (1..=9).flat_map(|a| format!("{a}S1\r").into_bytes()).collect();
+    let mut e72 = b"E72\r\n>".to_vec();
+    e72.push(crate::wire::bcc(b"E72"));
+    assert_eq!(String::from_utf8_lossy(&ask(&mut b, 0, &scan)), String::from_utf8_lossy(&e72), "drive 1's, once");
+    // Without a BCC too: a telegram that starts with no address is skipped to its CR, whatever digits it
+    // holds; an LF between telegrams is skipped by itself.
+    let mut b = bus(&[1], 0);
+    assert_eq!(ask(&mut b, 0, b"S1\r"), b"");
+    assert_eq!(ask(&mut b, 0, b"X 1S1\r"), b"");
+    assert_eq!(ask(&mut b, 0, b"\n1S1\r"), b"S001: 0.000\r\n>");
+}

@@ -138,6 +138,29 @@ pub fn write_decimal(out: &mut impl fmt::Write, v: f64, decimals: usize) -> fmt:
     out.write_str(s)
 }
 
+/// The number the decimal text of `v` ([`write_decimal`] with [`MAX_DECIMALS`]) carries: `v` rounded to six
+/// decimals, as a drive reads the command (0 for a value nearer 0 than 0.0000005).
+///
+/// ```
+/// use motionlink_compax::wire::number::decimal_as_sent;
+/// assert_eq!(decimal_as_sent(-1055.88), -1055.88);
+/// assert_eq!(decimal_as_sent(0.0000001), 0.0);
+/// assert_eq!(decimal_as_sent(1.23456789), 1.234568);
+/// ```
+pub fn decimal_as_sent(v: f64) -> f64 {
+    let mut t = String::new();
+    match write_decimal(&mut t, v, MAX_DECIMALS) {
+        Ok(()) => t.parse().unwrap_or(v),
+        Err(_) => v,
+    }
+}
+
+/// True when `read` is `wrote` as decimal text carries it back: equal to within a billionth of the value (at
+/// least of 1). What a parameter written reads back as, and what a command must carry of a value.
+pub fn same_decimal(wrote: f64, read: f64) -> bool {
+    (read - wrote).abs() <= 1e-9 * wrote.abs().max(1.0)
+}
+
 /// Parses a decimal number: optional sign, digits, optional `.` and digits (`+0360.000`, `-1055.88`, `5`).
 /// Leading and trailing spaces are ignored. Fast and allocation-free.
 ///

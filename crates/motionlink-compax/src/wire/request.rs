@@ -109,6 +109,32 @@ pub struct Request<'a> {
     pub flags: Flags,
 }
 
+impl<'a> Request<'a> {
+    /// The request for a command as typed (`S1`, `POSA 10$`, `!`, `OUTPUT O9=1/`): flag characters at its
+    /// end are its flags, `!` alone the execute character; blanks around it are dropped. What the clients'
+    /// `raw` sends.
+    ///
+    /// ```
+    /// use motionlink_compax::wire::{Address, Body, Mode, Request};
+    /// let r = Request::raw(Address::new(1).unwrap(), " POSA 10$ ");
+    /// assert_eq!((r.body, r.flags.position_message), (Body::Command(b"POSA 10"), true));
+    /// assert_eq!(Request::raw(Address::new(1).unwrap(), "").encode(&Mode::default()).unwrap_err().to_string(),
+    ///            "empty command");
+    /// ```
+    pub fn raw(address: Address, text: &'a str) -> Request<'a> {
+        let (body, flags) = Flags::split(text.trim().as_bytes());
+        let body = if body == [EXECUTE] { Body::Execute } else { Body::Command(body) };
+        Request { address, body, flags }
+    }
+}
+
+/// Checks a command as typed for `raw` ([`Request::raw`]): the reason the telegram cannot be built (an empty
+/// command, a character that cannot be sent, a leading digit, more than the drive's input buffer holds,
+/// flags that do not go together), found before anything is sent.
+pub fn check_raw(text: &str) -> Result<(), WireError> {
+    Request::raw(Address::BROADCAST, text).encode(&Mode::default()).map(|_| ())
+}
+
 impl Request<'_> {
     /// True when a drive will answer: not a broadcast and not `/`.
     #[inline]
@@ -424,8 +450,14 @@ enum RxState {
     Idle,
     Address,
     Text,
-    Binary { remaining: usize },
+    Binary {
+        remaining: usize,
+    },
     Bcc,
+    /// A telegram addressed to no drive (a drive's framing): skipped up to its CR.
+    Skip,
+    /// The BCC after such a telegram's CR: skipped too.
+    SkipBcc,
 }
 
 /// Splits the host's byte stream into request telegrams, one byte at a time (what a drive does).
@@ -443,16 +475,21 @@ enum RxState {
 pub struct RequestDecoder {
     bcc: bool,
     xon_xoff: bool,
+    /// A drive's framing ([`RequestDecoder::for_drive`]).
+    drive: bool,
     state: RxState,
     frame: RequestFrame,
 }
 
 impl RequestDecoder {
-    /// A decoder for telegrams in `mode`.
+    /// A decoder for telegrams in `mode`, as a reader of a capture frames them: a byte that starts no
+    /// telegram is skipped by itself, and the next address digit starts one (it finds the next telegram
+    /// after any garbage).
     pub fn new(mode: &Mode) -> Self {
         RequestDecoder {
             bcc: mode.bcc,
             xon_xoff: mode.xon_xoff,
+            drive: false,
             state: RxState::Idle,
             frame: RequestFrame {
                 raw: [0; 64],
@@ -465,6 +502,24 @@ impl RequestDecoder {
                 bcc: None,
             },
         }
+    }
+
+    /// A decoder for telegrams in `mode`, as a drive frames them (the emulator's): a telegram begins with
+    /// the first byte after the previous one ended, and one that begins with a printable character other
+    /// than an address digit is addressed to no drive. It is skipped up to its CR, and with a BCC the byte
+    /// after it, and never read as a telegram to the drive whose address digit it holds further on (such as
+    /// the `1` of `S1` in the rest of a telegram whose address digit a drive took for the BCC of the one
+    /// before, when host and drives disagree on P196). Control characters and blanks between telegrams (an
+    /// LF after the CR, a NUL of noise) are skipped one at a time, as [`RequestDecoder::new`] does.
+    ///
+    /// ```
+    /// use motionlink_compax::wire::{Mode, RequestDecoder, RequestEvent};
+    /// let mut d = RequestDecoder::for_drive(&Mode::default());
+    /// let frames = b"S1\r\n1S1\r".iter().filter(|&&b| matches!(d.push(b), Some(RequestEvent::Frame(_)))).count();
+    /// assert_eq!(frames, 1); // "S1" addressed nobody; "1S1" is drive 1's
+    /// ```
+    pub fn for_drive(mode: &Mode) -> Self {
+        RequestDecoder { drive: true, ..RequestDecoder::new(mode) }
     }
 
     /// True between telegrams.
@@ -544,10 +599,23 @@ impl RequestDecoder {
                 if b.is_ascii_digit() {
                     self.address_digit(b);
                     self.state = RxState::Address;
-                    None
-                } else {
-                    Some(RequestEvent::Garbage(b))
+                } else if self.drive && b.is_ascii_graphic() {
+                    self.state = RxState::Skip;
                 }
+                (!b.is_ascii_digit()).then_some(RequestEvent::Garbage(b))
+            }
+            RxState::Skip => {
+                if flow {
+                    return Some(RequestEvent::Flow(b == XOFF));
+                }
+                if b == CR {
+                    self.state = if self.bcc { RxState::SkipBcc } else { RxState::Idle };
+                }
+                Some(RequestEvent::Garbage(b))
+            }
+            RxState::SkipBcc => {
+                self.state = RxState::Idle;
+                Some(RequestEvent::Garbage(b))
             }
             RxState::Address => {
                 if flow {

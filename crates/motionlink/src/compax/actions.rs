@@ -3,6 +3,7 @@
 
 use motionlink_compax::report::{DrivePosition, OutputSwitched, ParamReading, StatusReport, StopResult};
 use motionlink_compax::session::{RawOutcome, StartedMove};
+use motionlink_compax::wire::request::check_raw;
 
 use super::*;
 
@@ -58,10 +59,16 @@ pub(super) fn check(args: &Args) -> Result<Checked, CliError> {
             checked.move_plan = Some(MovePlan { request, tolerance: *tolerance });
             checked.poll = Some(poll_ms.duration());
         }
-        Action::Raw { wait: true, timeout_s, poll_ms, .. } => {
-            checked.raw_wait = Some(timeout_s.duration());
-            checked.poll = Some(poll_ms.duration());
+        Action::Raw { command, wait, timeout_s, poll_ms } => {
+            check_raw(command).map_err(CliError::usage)?;
+            if *wait {
+                checked.raw_wait = Some(timeout_s.duration());
+                checked.poll = Some(poll_ms.duration());
+            }
         }
+        // A command that cannot be sent (empty, too long, ...) is refused before the port is opened, with
+        // no exchange printed.
+        Action::Send { words } => check_raw(&send_text(words)?).map_err(CliError::usage)?,
         Action::Output { number, state } => {
             checked.output = Some((number.get(), state.for_output(*number).map_err(CliError::usage)?))
         }
@@ -288,6 +295,12 @@ pub(super) fn send(
     // A move it starts is waited for (a signal stops it), as `raw --wait` does.
     let wait = AfterRaw::Wait(Duration::from_secs(600));
     let (result, seen) = tap.seen_during(|| bus.raw_motion(drive, &command, wait))?;
+    // A usage error (a command that cannot be built) sent nothing: there is no exchange to print, only the
+    // error.
+    let result = match result {
+        Err(e) if e.class() == ErrorClass::Usage => return Err(error_for(args, e)),
+        r => r,
+    };
     // The command's reply is the first telegram from the drive after it; the status polls of a wait
     // come after that reply and are told apart.
     let (sent, reply, after) = crate::tap::first_exchange(&seen, command.as_bytes());

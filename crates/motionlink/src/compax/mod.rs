@@ -123,7 +123,7 @@ pub enum Action {
         /// Move by this distance from the drive's target S2 (drive's unit).
         #[arg(long)]
         rel: Option<Position>,
-        /// SPEED in percent of the drive's maximum speed (more than 0, at most 100).
+        /// SPEED in percent of the drive's maximum speed (0.000001 to 100: a command carries six decimals).
         #[arg(long)]
         speed: Option<SpeedPercent>,
         /// ACCEL: ramp time in ms (1..=32767).

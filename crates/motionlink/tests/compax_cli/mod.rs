@@ -492,6 +492,23 @@ fn bad_arguments_are_refused_naming_them_before_anything_is_sent() {
         (&["set", "P196", "1000"], "P196"),
         (&["set", "P003", "NaN"], "the value must be a number"),
         (&["status", "S99"], "S99"),
+        // A speed the command would carry as 0 (it went out as SPEED 0, refused by the drive with E90).
+        (
+            &["move", "--abs", "10", "--speed", "1e-300"],
+            "'1e-300' for '--speed <SPEED>': speed 1e-300 % is out of range",
+        ),
+        (&["move", "--abs", "10", "--speed", "0.0000004"], "speed 0.0000004 % is out of range (0.000001 to 100 %"),
+        // A value the command would carry as another number (it went out as P003=0 and "read back wrong").
+        (
+            &["set", "P003", "0.0000001"],
+            "parameter value P003=0.0000001 has more decimals than a command carries (6): it would be sent as P003=0",
+        ),
+        // Too long for the drive's input buffer, with the command's real length ("P003=" and the digits).
+        (&["set", "P003", "1e308"], "command string of 314 characters is longer than the drive's input buffer (40)"),
+        (&["set", "P003", "123456789012345678901234567890123456789012"], "command string of 47 characters"),
+        (&["send", ""], "empty command"),
+        (&["raw", ""], "empty command"),
+        (&["send", "POSA 1234567890123456789012345678901234567"], "command string of 42 characters"),
     ] {
         let mut v = vec!["-vvv"];
         v.extend_from_slice(&["compax", "--port", p]);
@@ -545,4 +562,86 @@ fn sim_config_file() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("address 32"), "{}", String::from_utf8_lossy(&o.stderr));
     let _ = std::fs::remove_file(&path);
+}
+
+/// A usage error prints no result: `send ''` printed a result object (`--json`) or `request: none` /
+/// `reply: none` on stdout besides the error on stderr.
+#[test]
+fn a_command_that_cannot_be_sent_prints_no_result() {
+    let sim = start_sim(&["--tcp", "127.0.0.1:0", "--drives", "5"]);
+    let p = sim.address.as_str();
+    for json_output in [true, false] {
+        let mut args = vec!["--drive", "5", "send", ""];
+        if json_output {
+            args.push("--json");
+        }
+        let o = compax(p, &args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert_eq!(stdout(&o), "", "no result for a usage error ({args:?}); stderr: {err}");
+        if json_output {
+            let e = common::json_error(&o);
+            assert_eq!((e["kind"].as_str(), e["message"].as_str()), (Some("usage"), Some("empty command")), "{e}");
+            assert_eq!(err.lines().count(), 1, "{err}");
+        } else {
+            assert_eq!(err.trim_end(), "motionlink: empty command");
+        }
+    }
+    assert!(sim.events().is_empty(), "{}", sim.stderr.text());
+}
+
+/// A move while the drive still executes another: refused before anything is sent to move, saying what the
+/// drive showed (a command active in S17), with no error code the drive never sent (it said `"S17" refused
+/// with E92`, `"code":92`, although the drive had answered S17 normally). Exit 1: the drive's state, as for
+/// a drive switched off.
+#[test]
+fn a_move_while_the_drive_still_moves_says_so_without_a_made_up_code() {
+    let sim = start_sim(&["--tcp", "127.0.0.1:0", "--drives", "1,5"]);
+    let p = sim.address.as_str();
+    let o = compax(p, &["--drive", "5", "move", "500", "--no-wait", "--speed", "10"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = compax(p, &["-v", "--drive", "5", "move", "10"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    let said = err.lines().find(|l| l.starts_with("motionlink: ")).unwrap_or_default();
+    assert_eq!(
+        said,
+        "motionlink: drive 5 is still executing a command (S17 shows a command active, such as a positioning that \
+         runs): the move was not sent; wait until it has ended, or stop it",
+        "{err}"
+    );
+    assert_eq!(err.lines().filter(|l| l.starts_with("motionlink: ")).count(), 1, "{err}");
+    // S16 and S17 were read; nothing was sent to move.
+    assert!(!err.lines().any(|l| l.contains("-> ") && (l.contains("POSA") || l.contains("SPEED"))), "{err}");
+    let o = compax(p, &["--drive", "5", "--json", "move", "10"]);
+    let e = common::json_error(&o);
+    assert_eq!((e["kind"].as_str(), e["exit_code"].as_i64()), (Some("device"), Some(1)), "{e}");
+    assert!(e.get("code").is_none() && e.get("bits").is_none(), "no code the drive did not report: {e}");
+    assert!(!sim.events().iter().any(|e| e.text.contains("E92")), "{}", sim.stderr.text());
+}
+
+/// A scan in the wrong mode (no BCC against drives that check one): the one drive (1) answers E72 where
+/// it is addressed, late, while the client asks 2, 12 and 22; the drives it does not have answer nothing
+/// (the emulator answered for 2..9 and 12, reading the "1" of "S1" as drive 1's address). Said once, with
+/// the drive named once (it said "drive 2: drive 2: ..." for each) and the likely cause.
+#[test]
+fn a_scan_in_the_wrong_mode_says_why_once() {
+    let sim = start_sim(&["--tcp", "127.0.0.1:0", "--mode", "8"]);
+    let o = compax(&sim.address, &["--timeout-ms", "30", "scan"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(!err.contains("drive 2: drive 2"), "{err}");
+    let warnings: Vec<&str> = err.lines().filter(|l| l.starts_with("motionlink: warning: ")).collect();
+    assert_eq!(warnings.len(), 1, "{err}");
+    assert!(
+        warnings[0].contains("E72 (BCC error) answered S1 at addresses 2, 12, 22, although this client sends no BCC"),
+        "{err}"
+    );
+    assert!(err.lines().last().unwrap().ends_with("no drive answered"), "{err}");
+    // The drive's own errors: three E72, all drive 1's.
+    let e72: Vec<String> = sim.events().into_iter().map(|e| e.text).filter(|t| t.contains("E72")).collect();
+    assert_eq!(e72.len(), 3, "{e72:?}");
+    // In its mode, the scan finds it.
+    let o = compax(&sim.address, &["--timeout-ms", "30", "--mode", "8", "scan"]);
+    assert!(o.status.success() && stdout(&o).starts_with("drive 1 "), "{}", String::from_utf8_lossy(&o.stderr));
 }

@@ -19,9 +19,48 @@ use super::ctx::Ctx;
 use super::types::{s16_of, s17_of, Progress, WatchSample};
 use crate::error::{Error, Result};
 use crate::model::{
-    parse_param_reply, Command, ModelError, ParamId, Position, S16Bits, S17Bits, StatusId, StatusValue,
+    param_reply_decimals, parse_param_reply, Command, ErrorCode, ModelError, ParamId, Position, S16Bits, S17Bits,
+    StatusId, StatusValue,
 };
-use crate::wire::{Address, Body, Flags, Reply, Request};
+use crate::wire::number::{same_decimal, MAX_DECIMALS};
+use crate::wire::{Address, Body, Flags, Mode, Reply, Request};
+
+/// `v` rounded to `decimals` decimals, to the nearest (as decimal text shows it).
+fn rounded(v: f64, decimals: usize) -> f64 {
+    format!("{v:.decimals$}").parse().unwrap_or(v)
+}
+
+/// `v` cut to `decimals` decimals (the digits after them dropped).
+fn truncated(v: f64, decimals: usize) -> f64 {
+    let text = format!("{v:.prec$}", prec = MAX_DECIMALS + 3);
+    let cut = text.find('.').map_or(text.len(), |i| if decimals == 0 { i } else { (i + 1 + decimals).min(text.len()) });
+    text[..cut].parse().unwrap_or(v)
+}
+
+/// What a scan says of address `a` when an error answered its S1: the error, which names the drive once.
+pub(crate) fn scan_warning(a: Address, e: &Error) -> String {
+    match e {
+        Error::Refused { .. } | Error::UnexpectedReply { .. } => e.to_string(),
+        _ => format!("drive {a}: {e}"),
+    }
+}
+
+/// What a scan says once of the addresses whose S1 was answered with a BCC error (E72) although the session
+/// sends no BCC: a drive on the bus checks one, so the drives' P196 is not the session's. Such a drive waits
+/// after the CR for a BCC that never comes, takes the next telegram's first byte for it and answers then:
+/// the answer comes while another address is asked, and without the reply address (valence 64) nothing tells
+/// whose it is.
+pub(crate) fn bcc_mismatch_warning(mode: &Mode, addresses: &[Address]) -> String {
+    let list: Vec<String> = addresses.iter().map(|a| a.to_string()).collect();
+    let s = if list.len() == 1 { "" } else { "es" };
+    format!(
+        "E72 (BCC error) answered S1 at address{s} {}, although this client sends no BCC (P196 {} has no valence \
+         8): a drive on the bus checks a BCC, so the drives' P196 is another (with valence 8); a drive that waits \
+         for a BCC answers when the next telegram begins, so these answers may all come from another drive, late",
+        list.join(", "),
+        mode.to_p196()
+    )
+}
 
 impl Ctx {
     /// Sends `cmd` to `address` as a command of its own (no flags).
@@ -131,6 +170,11 @@ impl Ctx {
 
     /// Reads parameter `id`, asking again when the reply does not read as a value.
     pub(crate) async fn read_param(&self, address: Address, id: ParamId) -> Result<f64> {
+        self.read_param_shown(address, id).await.map(|(v, _)| v)
+    }
+
+    /// [`Ctx::read_param`], and how many decimals the drive's reply shows.
+    async fn read_param_shown(&self, address: Address, id: ParamId) -> Result<(f64, usize)> {
         let retries = self.core().cfg.retries;
         let cmd = Command::ReadParam(id);
         let mut attempts = 0;
@@ -138,7 +182,7 @@ impl Ctx {
             attempts += 1;
             let r = self.ask(address, &cmd, "a parameter cannot be read from it", retries).await?;
             match parse_param_reply(id, r.text()) {
-                Ok(v) => return Ok(v),
+                Ok(v) => return Ok((v, param_reply_decimals(id, r.text()))),
                 Err(_) if attempts <= retries => {
                     tracing::info!("drive {address}: {id} answered {:?}, not a value: reading again", r.text_str());
                 }
@@ -147,20 +191,27 @@ impl Ctx {
         }
     }
 
-    /// Writes parameter `id` (checked against its known range first) and reads it back. To address 32 the
-    /// value is written and cannot be read back.
+    /// Writes parameter `id` (checked against its known range, and that the command carries it, first) and
+    /// reads it back. To address 32 the value is written and cannot be read back. A value that reads back
+    /// as itself rounded to the decimals the drive shows it with is [`Error::Rounded`] (the drive keeps the
+    /// parameter at that step); any other value read back is [`Error::ReadBack`].
     pub(crate) async fn write_param(&self, address: Address, id: ParamId, value: f64) -> Result<()> {
         id.check(value)?;
         self.expect_ack(address, &Command::WriteParam(id, value)).await?;
         if address.is_broadcast() {
             return Ok(());
         }
-        let read = self.read_param(address, id).await?;
+        let (read, decimals) = self.read_param_shown(address, id).await?;
         // The reply is decimal text: what was written reads back as the same number, at any magnitude.
-        if (read - value).abs() > 1e-9 * value.abs().max(1.0) {
-            return Err(Error::ReadBack { address, param: id, wrote: value, read });
+        if same_decimal(value, read) {
+            return Ok(());
         }
-        Ok(())
+        if decimals < MAX_DECIMALS
+            && [rounded(value, decimals), truncated(value, decimals)].iter().any(|&r| same_decimal(r, read))
+        {
+            return Err(Error::Rounded { address, param: id, wrote: value, read, decimals });
+        }
+        Err(Error::ReadBack { address, param: id, wrote: value, read })
     }
 
     pub(crate) async fn expect_ack(&self, address: Address, cmd: &Command) -> Result<()> {
@@ -204,8 +255,7 @@ impl Ctx {
     /// or E73. A move or `!` counts as started (for address 32: every drive that has answered); `OUTPUT
     /// O0=0` counts as a stop.
     pub(crate) async fn raw(&self, address: Address, text: &str) -> Result<Option<String>> {
-        let (body, flags) = Flags::split(text.trim().as_bytes());
-        let body = if body == b"!" { Body::Execute } else { Body::Command(body) };
+        let Request { body, flags, .. } = Request::raw(address, text);
         let effect = Effect::of_request(&body, flags);
         if effect == Effect::Starts {
             self.check_cancel()?;
@@ -266,6 +316,8 @@ impl Ctx {
     pub(crate) async fn scan(&self, range: RangeInclusive<u8>) -> Result<Vec<(Address, Position)>> {
         let mut found = Vec::new();
         let mut result = Ok(());
+        let mode = self.core().cfg.mode;
+        let mut bcc_errors = Vec::new();
         for a in range.filter_map(|a| Address::drive(a).ok()) {
             if let Err(e) = self.check_cancel() {
                 result = Err(e);
@@ -278,8 +330,12 @@ impl Ctx {
                     result = Err(e);
                     break;
                 }
-                Err(e) => tracing::warn!("drive {a}: {e}"),
+                Err(Error::Refused { code: ErrorCode::BCC, .. }) if !mode.bcc => bcc_errors.push(a),
+                Err(e) => tracing::warn!("{}", scan_warning(a, &e)),
             }
+        }
+        if !bcc_errors.is_empty() {
+            tracing::warn!("{}", bcc_mismatch_warning(&mode, &bcc_errors));
         }
         result.map(|()| found)
     }

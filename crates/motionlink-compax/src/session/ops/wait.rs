@@ -7,7 +7,7 @@ use super::super::core::{bit, drives_in};
 use super::super::ctx::Ctx;
 use super::super::types::{EchoForm, MoveOptions, MoveReport, MoveRequest, MoveTarget, Progress, StartedMove};
 use crate::error::{Error, Result, StopOutcome, StopReport};
-use crate::model::{Command, ErrorCode, Position, S17Flag};
+use crate::model::{Command, Position, S17Flag};
 use crate::wire::Address;
 
 impl Ctx {
@@ -209,8 +209,8 @@ impl Ctx {
 
     /// Starts a move and confirms the drive took the right target, in this order: an absolute target
     /// outside the limits is refused before anything is sent; S16 (a drive switched off is refused), S17 (a
-    /// drive still moving is refused), S1 (the start), for a relative move S2 (the drive adds the distance
-    /// to it) and the limits for the target that makes; SPEED and ACCEL if given; the move stored with its
+    /// drive still executing a command is refused, [`Error::StillMoving`]), S1 (the start), for a relative
+    /// move S2 (the drive adds the distance to it) and the limits for the target that makes; SPEED and ACCEL if given; the move stored with its
     /// echo, compared with the telegram sent, and executed with `!` only when they match
     /// ([`Ctx::start_echoed_move`]; a binary move, which takes no flags, is sent as it is); S2 read back
     /// (twice if it differs: a mismatch stops the axis, [`Error::TargetMismatch`]). Once the move may have
@@ -228,8 +228,9 @@ impl Ctx {
             return Err(Error::SwitchedOff { address, o0: s16.o0_state(), refused: None });
         }
         if self.read_s17(address).await?.contains(S17Flag::CommandActive) {
-            // Someone else's positioning (or one this session handed over): not this call's to stop.
-            return Err(Error::Refused { address, command: "S17".into(), code: ErrorCode::COMMAND_ACTIVE });
+            // Someone else's positioning (or one this session handed over): not this call's to stop. The
+            // drive reported no error: S17 shows it busy, and the move is not sent.
+            return Err(Error::StillMoving { address });
         }
         let start = self.read_position(address).await?;
         let (cmd, target, before) = match request.target {
