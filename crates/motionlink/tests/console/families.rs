@@ -293,8 +293,9 @@ fn a_closed_page_stops_its_jog_at_once_not_by_the_dead_man_deadline() {
     // Renewed just now: the dead-man deadline is 200 ms away. The page closes (a close frame, as a closed tab).
     send(&mut jogging, json!({"type": "jog_hold"}));
     last_renewal = last_renewal.max(unix_now());
-    jogging.close(None).unwrap();
+    // Taken before the close: under load the stop can come before this thread runs again.
     let closed = unix_now();
+    jogging.close(None).unwrap();
     drop(jogging);
     let off = sim
         .wait_event_after(closed, Duration::from_secs(5), |t| t == "drive 1 switched off (O0=0)")
