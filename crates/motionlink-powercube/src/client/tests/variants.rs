@@ -309,3 +309,22 @@ fn a_look_reads_position_and_short_state_in_one_where_the_module_can_and_in_two_
         assert!(clock.now().saturating_since(before) < std::time::Duration::from_millis(100), "{variants:?}");
     }
 }
+
+#[test]
+fn the_broadcast_probe_never_resets_a_module_halted_before_it() {
+    // A module that ignores the RS232 broadcast is found out by the probe, which resets it afterwards (of the
+    // STATE_COMM_ERROR its own life sign caused). A module halted before (a `stop`) must stay halted: the
+    // move is refused as on any module, nothing is reset, nothing moves.
+    let (clock, host, bus) = rs232_variant(&[Variant::NoBroadcastPair]);
+    let _me = clock.reserve_participant().enter();
+    let m = bus.module(addr(1));
+    m.halt_confirmed().unwrap();
+    let before = host.with_device(|d| d.module(1).unwrap().position().value());
+    let spec = MoveSpec { vel: Some(Velocity::native(0.3)), ..MoveSpec::to(Position::native(0.2)) };
+    let err = m.move_to_guarded(&spec, Guard::Watchdog, &mut |_| {}).unwrap_err();
+    assert!(matches!(err, Error::Halted { .. }), "{err}");
+    let state = host.with_device(|d| d.module(1).unwrap().state());
+    assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
+    assert_eq!(host.with_device(|d| d.module(1).unwrap().position().value()), before);
+    assert!(!host.with_device(|d| d.take_events()).iter().any(|e| e.contains("reset")));
+}

@@ -120,22 +120,30 @@ impl Ctx {
             let stopped = self.halt_started().await;
             return both(result, stopped).map(|v| (v, notes));
         }
-        if let Err(e) = self.enable_watchdog(&[a]).await {
-            // Undo what was done before the failure (a Config word changed, a life sign sent).
-            if let Err(undo) = self.disable_watchdog().await {
-                tracing::warn!("switching the watchdog off again failed: {undo}");
-            }
+        // The probe of the RS232 broadcast refresh may end with a Reset (of the STATE_COMM_ERROR its own life
+        // sign caused): a module halted or in error before it is refused first, so that the probe's Reset
+        // never clears a latch someone else set (a `stop`'s Halt, an error) and moves it.
+        let cannot_arm = |e: Error| {
             let hint = match &e {
                 Error::Device { state, .. } if state.contains(crate::model::StateFlag::CommError) => {
                     " (its watchdog expired: a host stopped refreshing it; `reset` clears it)"
                 }
                 _ => "",
             };
-            return Err(Error::Context {
-                context: format!("cannot arm the watchdog of module {a}"),
-                source: Box::new(e),
-                hint,
-            });
+            Error::Context { context: format!("cannot arm the watchdog of module {a}"), source: Box::new(e), hint }
+        };
+        if self.broadcast_probe_due(a) {
+            self.ready_for_motion(a).await.map_err(|e| match e {
+                Error::Device { .. } => cannot_arm(e),
+                e => e,
+            })?;
+        }
+        if let Err(e) = self.enable_watchdog(&[a]).await {
+            // Undo what was done before the failure (a Config word changed, a life sign sent).
+            if let Err(undo) = self.disable_watchdog().await {
+                tracing::warn!("switching the watchdog off again failed: {undo}");
+            }
+            return Err(cannot_arm(e));
         }
         tracing::info!("watchdog armed in module {a}");
         let result = match self.probe_broadcast_refresh(a).await {

@@ -53,7 +53,7 @@ impl Ctx {
 
     /// Refuses a module that would ignore a motion command: one with an error flag ([`Error::Device`]) or
     /// halted ([`Error::Halted`]; a reset clears it).
-    async fn ready_for_motion(&self, a: u8) -> Result<(), Error> {
+    pub(crate) async fn ready_for_motion(&self, a: u8) -> Result<(), Error> {
         let state = self.state(a).await?;
         if state.has_fault() {
             return Err(Error::Device { address: crate::model::Address::checked(a), state });

@@ -38,17 +38,23 @@ impl Ctx {
         !core.can && core.findings.get(&a).and_then(|f| f.rs232_broadcast) == Some(false)
     }
 
+    /// True if arming the watchdog of module `a` is followed by the probe of the RS232 broadcast refresh
+    /// ([`Ctx::probe_broadcast_refresh`]): on RS232, the first time.
+    pub(crate) fn broadcast_probe_due(&self, a: u8) -> bool {
+        let core = self.core();
+        !core.can && core.findings.get(&a).and_then(|f| f.rs232_broadcast).is_none()
+    }
+
     /// Right after the watchdog of module `a` was armed: on RS232, the first time, finds out whether the
     /// refresh reaches it (see the [module documentation](self)). `Ok(None)`: it does (or CAN, or known);
-    /// `Ok(Some(note))`: it does not, and the watchdog has been switched off again and the module reset.
+    /// `Ok(Some(note))`: it does not, and the watchdog has been switched off again and the module reset (of
+    /// the STATE_COMM_ERROR the probe's life sign caused: a module halted or in error before is refused
+    /// before its watchdog is armed, see `Ctx::guarded`).
     pub(crate) async fn probe_broadcast_refresh(&self, a: u8) -> Result<Option<String>, Error> {
-        let (can, known, period) = {
-            let core = self.core();
-            (core.can, core.findings.get(&a).and_then(|f| f.rs232_broadcast), core.config.watchdog_period)
-        };
-        if can || known.is_some() {
+        if !self.broadcast_probe_due(a) {
             return Ok(None);
         }
+        let period = self.core().config.watchdog_period;
         let until = self.now() + WATCHDOG_TIMEOUT + period * 2;
         self.sleep_until(until).await;
         let state = self.state(a).await?;
