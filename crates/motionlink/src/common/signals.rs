@@ -7,7 +7,7 @@ use std::sync::{Mutex, OnceLock};
 
 use motionlink_link::cancel::CancelToken;
 
-use super::{say, say_error};
+use super::say;
 
 /// SIGINT's number, the cause assumed when a cancellation has no recorded cause.
 pub(super) const SIGINT: i32 = 2;
@@ -102,8 +102,20 @@ fn on_signal(token: &CancelToken, presses: &mut u32, n: i32) {
         },
         2 => say(format!("motionlink: {name}: still stopping the motion; once more exits without waiting")),
         _ => {
-            say_error(format!("motionlink: {name} again, exiting before the stop was confirmed"));
-            std::process::exit(i32::from(StopCause::Signal(n).exit_code()));
+            // The stop is not waited for, so it is not confirmed: exit 3 and the flag, as every error after
+            // which a stop was not confirmed (main's end, which this exit skips, prints it the same way).
+            let e = super::CliError::Interrupted(format!(
+                "{name} again: exited before the stop was confirmed; what this command set in motion may still \
+                 be moving"
+            ))
+            .stop_not_confirmed();
+            crate::portlock::release(e.exit_code(), &e.to_string());
+            if crate::term::json() {
+                crate::term::write_stderr(&format!("{}\n", e.to_json()));
+            } else {
+                crate::term::write_stderr(&crate::term::error_line(&format!("motionlink: {e}")));
+            }
+            std::process::exit(i32::from(e.exit_code()));
         }
     }
     token.cancel();

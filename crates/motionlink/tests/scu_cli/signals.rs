@@ -231,3 +231,23 @@ fn ctrl_c_whose_stop_the_unit_does_not_confirm_exits_3_not_130() {
     let e = ended.json_error();
     assert_eq!((&e["stop_unconfirmed"], &e["exit_code"]), (&serde_json::json!(true), &serde_json::json!(3)), "{e}");
 }
+
+#[test]
+fn a_third_signal_exits_at_once_saying_the_stop_was_not_confirmed() {
+    let sim = sim_tcp();
+    let running = Running::start(&["--json", "scu", "--port", &sim.address, "move", "1", "800", "--speed", "100"]);
+    wait_started(&sim, "F1");
+    // The line carries nothing any more: the stop that the first signal starts cannot be confirmed.
+    let frozen = sim.freeze();
+    for _ in 0..3 {
+        running.signal(libc::SIGINT);
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let ended = running.wait(Duration::from_secs(5));
+    drop(frozen);
+    assert_eq!(ended.code(), 3, "{ended:?}");
+    let last = ended.stderr.lines().last().unwrap_or_default();
+    let e: serde_json::Value = serde_json::from_str(last).expect("the error object last");
+    assert_eq!((&e["exit_code"], &e["stop_unconfirmed"]), (&serde_json::json!(3), &serde_json::json!(true)), "{e}");
+    assert!(e["message"].as_str().unwrap().contains("may still be moving"), "{e}");
+}
