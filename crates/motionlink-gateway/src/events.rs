@@ -11,7 +11,7 @@ pub struct Event<'a> {
     /// `device_answers` (a state sample succeeds again).
     pub event: &'static str,
     /// The request's (or motion's) id, if there is one.
-    pub id: Option<&'a str>,
+    pub id: Option<&'a crate::request::RequestId>,
     /// The action (`move`...), if there is one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub op: Option<&'a str>,
@@ -31,7 +31,7 @@ pub struct Event<'a> {
 
 impl<'a> Event<'a> {
     /// An event of kind `event` about request `id`.
-    pub fn new(event: &'static str, id: Option<&'a str>) -> Event<'a> {
+    pub fn new(event: &'static str, id: Option<&'a crate::request::RequestId>) -> Event<'a> {
         Event { event, id, op: None, lease_ms: None, ok: None, error: None, message: None }
     }
 }

@@ -21,7 +21,7 @@ use crate::events::{Event, Renewed};
 use crate::lease::Leases;
 use crate::mqtt::{self, Net, OFFLINE, ONLINE};
 use crate::ports::PortLocks;
-use crate::request::{self, Request};
+use crate::request::{self, Request, RequestId};
 use crate::topics::Topics;
 
 mod handover;
@@ -43,7 +43,7 @@ struct ReplyTo {
 
 /// A motion under way on a device.
 struct Motion {
-    id: String,
+    id: RequestId,
     op: String,
     reply: ReplyTo,
     cancel: Option<oneshot::Sender<StopReason>>,
@@ -63,8 +63,8 @@ struct Done {
     device: String,
     /// The session it ran on.
     generation: u64,
-    motion_id: Option<String>,
-    id: Option<String>,
+    motion_id: Option<RequestId>,
+    id: Option<RequestId>,
     reply: ReplyTo,
     outcome: Outcome,
 }
@@ -343,7 +343,7 @@ impl Gateway {
         let _ = self.mqtt.try_publish(self.topics.status(), QoS::AtLeastOnce, true, ONLINE);
     }
 
-    fn publish_reply(&self, reply: &ReplyTo, id: Option<&str>, outcome: &Outcome, device: &str) {
+    fn publish_reply(&self, reply: &ReplyTo, id: Option<&RequestId>, outcome: &Outcome, device: &str) {
         let body = request::reply(id, outcome).to_string();
         match &reply.topic {
             Some(topic) => {
@@ -388,7 +388,7 @@ impl Gateway {
             Ok(r) => r,
             Err(bad) => {
                 let reply = reply_of(bad.reply_to);
-                self.publish_reply(&reply, bad.id.as_deref(), &Err(bad.error), &device);
+                self.publish_reply(&reply, bad.id.as_ref(), &Err(bad.error), &device);
                 return;
             }
         };
@@ -476,7 +476,7 @@ impl Gateway {
             Action::Stop(op) => {
                 if let Some(m) = self.devices.get_mut(device).and_then(|s| s.motion.as_mut()) {
                     if let Some(c) = m.cancel.take() {
-                        let _ = c.send(StopReason::StopRequest { id: r.id.clone() });
+                        let _ = c.send(StopReason::StopRequest { id: r.id.to_string() });
                     }
                 }
                 self.spawn_reply(device, r, reply, op);
@@ -529,7 +529,7 @@ impl Gateway {
                 }
             }
         }
-        self.publish_reply(&reply, d.id.as_deref(), &d.outcome, &d.device);
+        self.publish_reply(&reply, d.id.as_ref(), &d.outcome, &d.device);
         // An operation that found the port gone: the device's session must be opened again.
         if let Err(e) = d.outcome {
             if e.port_failed() {
@@ -543,12 +543,18 @@ impl Gateway {
         for (key, lease) in self.leases.expired(Instant::now()) {
             let Some((device, id)) = key.split_once('\0') else { continue };
             let lease_ms = lease.as_millis() as u64;
-            if let Some(m) = self.devices.get_mut(device).and_then(|s| s.motion.as_mut()).filter(|m| m.id == id) {
-                if let Some(c) = m.cancel.take() {
-                    let _ = c.send(StopReason::LeaseExpired { lease_ms });
+            let motion = self.devices.get_mut(device).and_then(|s| s.motion.as_mut()).filter(|m| *m.id == *id);
+            // The event names the motion's id as its request gave it (a number as a number).
+            let id = match motion {
+                Some(m) => {
+                    if let Some(c) = m.cancel.take() {
+                        let _ = c.send(StopReason::LeaseExpired { lease_ms });
+                    }
+                    m.id.clone()
                 }
-            }
-            self.event(device, &Event { lease_ms: Some(lease_ms), ..Event::new("lease_expired", Some(id)) });
+                None => RequestId::text(id),
+            };
+            self.event(device, &Event { lease_ms: Some(lease_ms), ..Event::new("lease_expired", Some(&id)) });
         }
     }
 

@@ -15,11 +15,59 @@ pub const MAX_LEASE: Duration = Duration::from_millis(10_000);
 /// The keys a request may have.
 const KEYS: [&str; 5] = ["id", "op", "args", "reply_to", "lease_ms"];
 
+/// A request's id as the request gave it: a string, or a whole number, which the replies and events give
+/// back the same (a number as a number). Compared and keyed by its text (`42` and `"42"` name one motion).
+#[derive(Clone, PartialEq, Eq)]
+pub struct RequestId {
+    text: String,
+    number: bool,
+}
+
+impl RequestId {
+    /// A string id.
+    pub fn text(text: impl Into<String>) -> RequestId {
+        RequestId { text: text.into(), number: false }
+    }
+}
+
+impl std::ops::Deref for RequestId {
+    type Target = str;
+    fn deref(&self) -> &str {
+        &self.text
+    }
+}
+
+/// As the request gave it: `"m1"`, `7` (what messages quote).
+impl std::fmt::Debug for RequestId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.number {
+            f.write_str(&self.text)
+        } else {
+            write!(f, "{:?}", self.text)
+        }
+    }
+}
+
+impl std::fmt::Display for RequestId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.text)
+    }
+}
+
+impl serde::Serialize for RequestId {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self.text.parse::<serde_json::Number>() {
+            Ok(n) if self.number => n.serialize(s),
+            _ => s.serialize_str(&self.text),
+        }
+    }
+}
+
 /// One request, checked as far as it can be without knowing the device.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Request {
-    /// The request's id (a string, or a whole number given as one); a keepalive names its motion's id.
-    pub id: String,
+    /// The request's id (a string, or a whole number); a keepalive names its motion's id.
+    pub id: RequestId,
     /// The action (`move`, `stop`...) or `keepalive`.
     pub op: String,
     /// The action's arguments, named as its options and arguments are.
@@ -34,7 +82,7 @@ pub struct Request {
 #[derive(Debug, Clone, PartialEq)]
 pub struct BadRequest {
     /// The request's id, if it had one.
-    pub id: Option<String>,
+    pub id: Option<RequestId>,
     /// Where the reply goes, if the request said it.
     pub reply_to: Option<String>,
     /// What is wrong.
@@ -43,7 +91,7 @@ pub struct BadRequest {
 
 /// Reads a request from a `cmd` payload.
 pub fn parse(payload: &[u8]) -> Result<Request, BadRequest> {
-    let bad = |id: Option<String>, reply_to: Option<String>, m: String| BadRequest {
+    let bad = |id: Option<RequestId>, reply_to: Option<String>, m: String| BadRequest {
         id,
         reply_to,
         error: ErrorReport::usage(m),
@@ -62,9 +110,12 @@ pub fn parse(payload: &[u8]) -> Result<Request, BadRequest> {
         }
     };
     let id = match map.remove("id") {
-        Some(Value::String(s)) if !s.is_empty() => s,
-        Some(Value::Number(n)) if n.is_u64() || n.is_i64() => n.to_string(),
+        Some(Value::String(s)) if !s.is_empty() => RequestId::text(s),
+        Some(Value::Number(n)) if n.is_u64() || n.is_i64() => RequestId { text: n.to_string(), number: true },
         None | Some(Value::Null) => return Err(bad(None, reply_to, "a request needs an \"id\"".into())),
+        Some(Value::String(_)) => {
+            return Err(bad(None, reply_to, "\"id\" must not be empty: give a string or a whole number".into()));
+        }
         Some(other) => {
             return Err(bad(None, reply_to, format!("\"id\" must be a string or a whole number, not {other}")));
         }
@@ -114,7 +165,7 @@ pub fn kind_of(v: &Value) -> &'static str {
 /// A reply: `{"id", "ok": true, "result"}` or `{"id", "ok": false, "error"}`.
 #[derive(Debug, serde::Serialize)]
 struct Reply<'a> {
-    id: Option<&'a str>,
+    id: Option<&'a RequestId>,
     ok: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
     result: Option<&'a Value>,
@@ -123,7 +174,7 @@ struct Reply<'a> {
 }
 
 /// The reply to request `id`: its result, or its error.
-pub fn reply(id: Option<&str>, outcome: &Result<Value, ErrorReport>) -> Value {
+pub fn reply(id: Option<&RequestId>, outcome: &Result<Value, ErrorReport>) -> Value {
     let reply = match outcome {
         Ok(result) => Reply { id, ok: true, result: Some(result), error: None },
         Err(error) => Reply { id, ok: false, result: None, error: Some(error) },
@@ -143,10 +194,14 @@ mod tests {
     fn a_request_has_an_id_an_op_args_a_reply_topic_and_a_lease() {
         let r = parse(br#"{"id": "m1", "op": "move", "args": {"actuator": 1, "position": 300}, "reply_to": "me/r", "lease_ms": 500}"#)
             .unwrap();
-        assert_eq!((r.id.as_str(), r.op.as_str(), r.reply_to.as_deref()), ("m1", "move", Some("me/r")));
+        assert_eq!((&*r.id, r.op.as_str(), r.reply_to.as_deref()), ("m1", "move", Some("me/r")));
         assert_eq!((r.args["position"].clone(), r.lease), (Value::from(300), Duration::from_millis(500)));
         let r = parse(br#"{"id": 7, "op": "keepalive"}"#).unwrap();
-        assert_eq!((r.id.as_str(), r.lease, r.args.len()), ("7", DEFAULT_LEASE, 0));
+        assert_eq!((&*r.id, r.lease, r.args.len()), ("7", DEFAULT_LEASE, 0));
+        // A number is given back as a number (a client matches its replies by the id it sent).
+        assert_eq!(reply(Some(&r.id), &Ok(Value::Null))["id"], serde_json::json!(7));
+        let r = parse(br#"{"id": -12345678901234567, "op": "keepalive"}"#).unwrap();
+        assert_eq!(reply(Some(&r.id), &Ok(Value::Null))["id"], serde_json::json!(-12345678901234567i64));
     }
 
     #[test]
@@ -160,6 +215,8 @@ mod tests {
         let e = err(r#"{"id": "a", "op": "move", "reply_to": "me/r", "lease": 5}"#);
         assert_eq!(e.id.as_deref(), Some("a"));
         assert!(e.error.message.contains("\"lease\"") && e.error.message.contains("lease_ms"), "{}", e.error.message);
+        let e = err(r#"{"id": "", "op": "move"}"#);
+        assert!(e.error.message.contains("must not be empty"), "{}", e.error.message);
         for (text, said) in [
             (r#"{"id": "a", "op": "move", "lease_ms": 10001}"#, "10000"),
             (r#"{"id": "a", "op": "move", "lease_ms": 0}"#, "from 1"),
@@ -175,7 +232,7 @@ mod tests {
 
     #[test]
     fn replies_carry_the_result_or_the_error() {
-        let ok = reply(Some("m1"), &Ok(serde_json::json!({"reached": 1})));
+        let ok = reply(Some(&RequestId::text("m1")), &Ok(serde_json::json!({"reached": 1})));
         assert_eq!(ok, serde_json::json!({"id": "m1", "ok": true, "result": {"reached": 1}}));
         let e = reply(None, &Err(ErrorReport::usage("no")));
         assert_eq!(

@@ -101,12 +101,22 @@ impl MoveTarget {
     pub const RULE: &'static str = "give the target: POSITION (the same as --abs POSITION) or --rel DISTANCE";
 
     /// The target of a move's arguments: an absolute position (`move 100`, `--abs 100`) or a distance
-    /// (`--rel 5`), exactly one of them.
+    /// (`--rel 5`), exactly one of them; the error says which mistake was made (neither, or both).
+    ///
+    /// ```
+    /// use motionlink_compax::model::Position;
+    /// use motionlink_compax::session::MoveTarget;
+    /// let p = |u| Some(Position::new(u).unwrap());
+    /// assert!(matches!(MoveTarget::from_args(p(10.0), None), Ok(MoveTarget::Absolute(_))));
+    /// assert!(MoveTarget::from_args(p(10.0), p(5.0)).unwrap_err().starts_with("a position and a distance"));
+    /// assert_eq!(MoveTarget::from_args(None, None).unwrap_err(), MoveTarget::RULE);
+    /// ```
     pub fn from_args(absolute: Option<Position>, relative: Option<Position>) -> Result<MoveTarget, &'static str> {
         match (absolute, relative) {
             (Some(a), None) => Ok(MoveTarget::Absolute(a)),
             (None, Some(r)) => Ok(MoveTarget::Relative(r)),
-            _ => Err(Self::RULE),
+            (Some(_), Some(_)) => Err("a position and a distance (--rel) were both given: give one of them"),
+            (None, None) => Err(Self::RULE),
         }
     }
 }

@@ -149,7 +149,7 @@ impl Gateway {
         device: &str,
         generation: u64,
         error: ErrorReport,
-        ended: Option<(String, String)>,
+        ended: Option<(String, crate::request::RequestId)>,
     ) {
         if self.devices.get(device).is_none_or(|s| s.generation != generation) {
             return; // An older session's, or the device is already handled.
