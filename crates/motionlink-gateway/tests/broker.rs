@@ -238,7 +238,7 @@ async fn bad_requests_are_answered_and_nothing_moves() {
             "axis",
             json!({"id": "b8", "op": "move", "args": {"abs": 1, "rel": 2}, "reply_to": "me/r"}),
             "usage",
-            "give the target",
+            "both a target position and a relative distance were given",
         ),
         (
             "arm",

@@ -108,14 +108,14 @@ impl MoveTarget {
     /// use motionlink_compax::session::MoveTarget;
     /// let p = |u| Some(Position::new(u).unwrap());
     /// assert!(matches!(MoveTarget::from_args(p(10.0), None), Ok(MoveTarget::Absolute(_))));
-    /// assert!(MoveTarget::from_args(p(10.0), p(5.0)).unwrap_err().starts_with("a position and a distance"));
+    /// assert!(MoveTarget::from_args(p(10.0), p(5.0)).unwrap_err().starts_with("both a target position and"));
     /// assert_eq!(MoveTarget::from_args(None, None).unwrap_err(), MoveTarget::RULE);
     /// ```
     pub fn from_args(absolute: Option<Position>, relative: Option<Position>) -> Result<MoveTarget, &'static str> {
         match (absolute, relative) {
             (Some(a), None) => Ok(MoveTarget::Absolute(a)),
             (None, Some(r)) => Ok(MoveTarget::Relative(r)),
-            (Some(_), Some(_)) => Err("a position and a distance (--rel) were both given: give one of them"),
+            (Some(_), Some(_)) => Err("both a target position and a relative distance were given: give one of them"),
             (None, None) => Err(Self::RULE),
         }
     }
