@@ -241,17 +241,8 @@ pub fn parse(
 /// One device table, its family and port taken out.
 fn device(name: &str, table: toml::Table) -> Result<DeviceEntry, String> {
     check_name(name).map_err(|e| format!("the name {name:?}: {e}"))?;
-    let mut options: BTreeMap<String, toml::Value> = BTreeMap::new();
-    for (written, value) in table {
-        // Keys spelt with `-` are the same keys, and `--sim-variant`'s key is its option's name or its id.
-        let key = match written.replace('-', "_") {
-            k if k == "sim_variant" => "sim_variants".to_string(),
-            k => k,
-        };
-        if options.insert(key.clone(), value).is_some() {
-            return Err(format!("`{written}` is given twice (as `{key}` too): give it once"));
-        }
-    }
+    // The keys as devices.toml takes them (`-` as `_`, sim_variant as sim_variants, none twice).
+    let mut options = motionlink_link::devices::options_of(table)?;
     let mut text_of = |key: &str| match options.remove(key) {
         Some(toml::Value::String(s)) => Ok(s),
         Some(other) => Err(format!("`{key}` must be a string, not {other}")),

@@ -45,6 +45,24 @@ pub struct Device {
     pub options: BTreeMap<String, toml::Value>,
 }
 
+/// The options of a device table (this file's, or a gateway's) by key: a key spelt as on the command line
+/// (`timeout-ms`) is the same key (`timeout_ms`), and `sim_variant` (the option `--sim-variant`) is
+/// `sim_variants` (its id, the key every front end reads). One key given twice so is an error, not a silent
+/// choice of one of the values.
+pub fn options_of(table: toml::Table) -> Result<BTreeMap<String, toml::Value>, String> {
+    let mut options = BTreeMap::new();
+    for (written, value) in table {
+        let key = match written.replace('-', "_") {
+            k if k == "sim_variant" => "sim_variants".to_string(),
+            k => k,
+        };
+        if options.insert(key.clone(), value).is_some() {
+            return Err(format!("`{written}` is given twice (as `{key}` too): give it once"));
+        }
+    }
+    Ok(options)
+}
+
 /// The devices of the configuration file `text` (named `path` in messages).
 pub fn parse(text: &str, path: &str) -> Result<BTreeMap<String, Device>, ConfigError> {
     #[derive(serde::Deserialize)]
@@ -70,16 +88,7 @@ pub fn parse(text: &str, path: &str) -> Result<BTreeMap<String, Device>, ConfigE
                 "{path}: device {name:?}: family {family:?} is not scu, powercube or compax"
             )));
         }
-        // Keys spelt with `-` are the same keys: one given both ways is a mistake, not a silent choice.
-        let mut options = BTreeMap::new();
-        for (written, value) in table {
-            let key = written.replace('-', "_");
-            if options.insert(key.clone(), value).is_some() {
-                return Err(ConfigError(format!(
-                    "{path}: [device.{name}]: `{written}` is given twice (as `{key}` too): give it once"
-                )));
-            }
-        }
+        let options = options_of(table).map_err(|e| ConfigError(format!("{path}: [device.{name}]: {e}")))?;
         devices.insert(name, Device { family, port, options });
     }
     Ok(devices)

@@ -106,9 +106,8 @@ pub enum Error {
     InvalidArgument(String),
     /// A move's target lies outside the actuator's travel range; nothing was moved.
     #[error(
-        "target {target_counts} for {actuator} refused: it lies outside {actuator}'s stroke {}..{max_counts} \
-         ({limits_from}); nothing was moved",
-        min_counts.get()
+        "{}; nothing was moved",
+        stroke_refusal(*actuator, *target_counts, *min_counts, *max_counts, limits_from)
     )]
     OutsideLimits {
         /// The actuator.
@@ -325,6 +324,34 @@ impl Error {
     /// An error of the caller's input.
     pub(crate) fn invalid(what: impl Into<String>) -> Self {
         Error::InvalidArgument(what.into())
+    }
+}
+
+/// Why a target outside the stroke is refused (what [`Error::OutsideLimits`] says before what that means for
+/// a move).
+fn stroke_refusal(
+    actuator: Actuator,
+    target: PositionCounts,
+    min: PositionCounts,
+    max: PositionCounts,
+    limits_from: &str,
+) -> String {
+    format!(
+        "target {target} for {actuator} refused: it lies outside {actuator}'s stroke {}..{max} ({limits_from})",
+        min.get()
+    )
+}
+
+impl Error {
+    /// For [`Error::OutsideLimits`]: why the target was refused, without "nothing was moved", which holds for
+    /// a move only (a follow's target refused after earlier ones had moved the actuators).
+    pub fn stroke_refusal(&self) -> Option<String> {
+        match self {
+            Error::OutsideLimits { actuator, target_counts, min_counts, max_counts, limits_from } => {
+                Some(stroke_refusal(*actuator, *target_counts, *min_counts, *max_counts, limits_from))
+            }
+            _ => None,
+        }
     }
 }
 

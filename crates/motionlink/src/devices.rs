@@ -87,14 +87,12 @@ fn device_defaults(
     for (key, value) in device.options.iter().chain(std::iter::once((&port.0, &port.1))) {
         // The action's option if it has one (`move --tolerance`), else the family's (`--module`).
         let found = levels.iter().enumerate().rev().find_map(|(depth, level)| {
-            level.command.get_arguments().find(|a| is_key(a, key) && !a.is_positional()).map(|a| (depth, a))
+            level.command.get_arguments().find(|a| a.get_id() == key.as_str() && !a.is_positional()).map(|a| (depth, a))
         });
         let Some((depth, arg)) = found else { continue };
         let level = &levels[depth];
         let given = |id: &str| level.matches.value_source(id) == Some(ValueSource::CommandLine);
-        if given(arg.get_id().as_str())
-            || level.command.get_arg_conflicts_with(arg).iter().any(|a| given(a.get_id().as_str()))
-        {
+        if given(key) || level.command.get_arg_conflicts_with(arg).iter().any(|a| given(a.get_id().as_str())) {
             continue;
         }
         let Some(values) = option_values(arg, key, value).map_err(|e| CliError::usage(format!("{place}: {e}")))? else {
@@ -112,7 +110,7 @@ fn device_defaults(
             Ok(_) => {
                 checked = candidate;
                 let words = levels[..=depth].iter().flat_map(|l| l.words.iter().map(|w| w.to_string())).collect();
-                taken.push((words, arg.get_id().to_string(), values));
+                taken.push((words, key.clone(), values));
             }
             Err(e) if matches!(e.kind(), ErrorKind::MissingRequiredArgument | ErrorKind::ArgumentConflict) => {}
             Err(e) => {
@@ -165,36 +163,27 @@ fn levels<'a>(cli: &'a clap::Command, matches: &'a clap::ArgMatches) -> Option<V
 /// The keys a device of `family` may have: the options of `motionlink <family>`, of its actions, and of
 /// `motionlink console <family>`, but [`NOT_FROM_THE_FILE`].
 pub(crate) fn family_keys(cli: &clap::Command, family: &str) -> Vec<String> {
-    let mut keys: Vec<String> = family_options(cli, family).map(|a| a.get_id().to_string()).collect();
-    keys.sort();
-    keys.dedup();
-    keys
-}
-
-/// The options a device of `family` may set (see [`family_keys`]).
-fn family_options<'a>(cli: &'a clap::Command, family: &str) -> impl Iterator<Item = &'a clap::Arg> {
     let commands =
         [cli.find_subcommand(family), cli.find_subcommand("console").and_then(|c| c.find_subcommand(family))];
-    commands
+    let mut keys: Vec<String> = commands
         .into_iter()
         .flatten()
         .flat_map(|c| std::iter::once(c).chain(c.get_subcommands()))
         .flat_map(|c| c.get_arguments())
-        .filter(|a| !a.is_positional() && !NOT_FROM_THE_FILE.contains(&a.get_id().as_str()))
-}
-
-/// True if `key` names `arg` in devices.toml: its id (the key [`family_keys`] lists, which the gateway's
-/// device tables share), or its long name without the dashes, `-` written `_`, where that differs
-/// (`--sim-variant`: `sim_variant` as well as `sim_variants`).
-fn is_key(arg: &clap::Arg, key: &str) -> bool {
-    arg.get_id() == key || arg.get_long().is_some_and(|long| long.replace('-', "_") == key)
+        .filter(|a| !a.is_positional())
+        .map(|a| a.get_id().to_string())
+        .filter(|id| !NOT_FROM_THE_FILE.contains(&id.as_str()))
+        .collect();
+    keys.sort();
+    keys.dedup();
+    keys
 }
 
 /// Refuses a key no command of the family has, naming the nearest one and every one there is.
 fn check_keys(cli: &clap::Command, family: &str, device: &Device, place: &str) -> Result<(), CliError> {
     let keys = family_keys(cli, family);
     for key in device.options.keys() {
-        if family_options(cli, family).any(|a| is_key(a, key)) {
+        if keys.contains(key) {
             continue;
         }
         // The nearest keys, if near, by the rule of every "did you mean" of motionlink.
@@ -307,7 +296,8 @@ mod tests {
             parsed(words, file, &["compax"], &["port", "drive", "sim_variants", "short"]).unwrap(),
             [some("sim (default)"), some("3 (default)"), some("echo-bare,no-echo (default)"), some("true (default)")]
         );
-        // The key is the option's name (`--sim-variant`: sim_variant); the option's id is taken too.
+        // The key is the option's name (`--sim-variant`: sim_variant) as well as its id (the file's reader
+        // takes one for the other).
         let by_name = file.replace("sim_variants", "sim_variant");
         assert_eq!(
             parsed(words, &by_name, &["compax"], &["sim_variants"]).unwrap(),

@@ -297,7 +297,6 @@ fn parse() -> Cli {
 fn main() -> ExitCode {
     let cli = parse();
     term::init(cli.verbose, cli.quiet, cli.color, cli.json);
-    let json = cli.json;
     // A busy `motionlink sim` that refused the first connection: one plain line, whatever the family.
     let result = run(cli).map_err(tap::refused_as_busy);
     let (code, error) = match (result, common::stop_cause()) {
@@ -315,12 +314,7 @@ fn main() -> ExitCode {
     // The port was closed; a `stop` from another terminal waiting for it learns how this command ended.
     portlock::release(code, &error.as_ref().map(ToString::to_string).unwrap_or_default());
     if let Some(e) = error {
-        if json {
-            // One JSON object, the error's class name as its kind (the one place that maps errors to JSON).
-            term::write_stderr(&format!("{}\n", e.to_json()));
-        } else {
-            term::write_stderr(&term::error_line(&format!("motionlink: {e}")));
-        }
+        common::print_final_error(&e);
     }
     ExitCode::from(code)
 }

@@ -178,6 +178,16 @@ pub fn say(line: impl std::fmt::Display) {
     crate::term::note(&line.to_string());
 }
 
+/// Writes the error a command ends with on stderr: with `--json` one JSON object, the error's class name as
+/// its kind (the one place that maps errors to JSON), else one line.
+pub fn print_final_error(e: &CliError) {
+    if crate::term::json() {
+        crate::term::write_stderr(&format!("{}\n", e.to_json()));
+    } else {
+        crate::term::write_stderr(&crate::term::error_line(&format!("motionlink: {e}")));
+    }
+}
+
 /// Writes one error line on stderr (in red when colours are on; with `--json` as `{"log": ...}`), also with
 /// `-q`: for errors besides the one the command ends with, and what must be known though no stop was
 /// confirmed.

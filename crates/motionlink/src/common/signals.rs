@@ -103,18 +103,14 @@ fn on_signal(token: &CancelToken, presses: &mut u32, n: i32) {
         2 => say(format!("motionlink: {name}: still stopping the motion; once more exits without waiting")),
         _ => {
             // The stop is not waited for, so it is not confirmed: exit 3 and the flag, as every error after
-            // which a stop was not confirmed (main's end, which this exit skips, prints it the same way).
+            // which a stop was not confirmed (printed as main's end, which this exit skips, prints an error).
             let e = super::CliError::Interrupted(format!(
                 "{name} again: exited before the stop was confirmed; what this command set in motion may still \
                  be moving"
             ))
             .stop_not_confirmed();
             crate::portlock::release(e.exit_code(), &e.to_string());
-            if crate::term::json() {
-                crate::term::write_stderr(&format!("{}\n", e.to_json()));
-            } else {
-                crate::term::write_stderr(&crate::term::error_line(&format!("motionlink: {e}")));
-            }
+            super::print_final_error(&e);
             std::process::exit(i32::from(e.exit_code()));
         }
     }

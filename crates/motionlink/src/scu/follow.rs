@@ -98,23 +98,11 @@ pub(super) fn follow(
             Ok(Some(targets)) => print_targets(&actuators, targets, report, out)?,
             Ok(None) => {}
             // A target outside the stroke is a bad line: refused, and the motion of the lines before it is
-            // stopped (the library's message says nothing was moved, which holds for a move only).
-            Err(motionlink_scu::Error::OutsideLimits {
-                actuator,
-                target_counts,
-                min_counts,
-                max_counts,
-                limits_from,
-            }) => {
-                break Some(Ok(CliError::usage(format!(
-                    "target {} counts for {actuator} refused: it lies outside {actuator}'s stroke {}..{} \
-                     ({limits_from}); {function} stopped",
-                    target_counts.get(),
-                    min_counts.get(),
-                    max_counts.get()
-                ))))
-            }
-            Err(e) => break Some(Err(e)),
+            // stopped (not "nothing was moved", which holds for a move only).
+            Err(e) => match e.stroke_refusal() {
+                Some(refused) => break Some(Ok(CliError::usage(format!("{refused}; {function} stopped")))),
+                None => break Some(Err(e)),
+            },
         }
     };
     let (stopped, error) = match failure {

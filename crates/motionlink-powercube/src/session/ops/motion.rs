@@ -522,12 +522,8 @@ impl Ctx {
             }
             Err(Error::StopUnconfirmed { addresses: checked(unconfirmed.clone()), detail, watchdog_armed })
         };
-        // The modules whose halt was not confirmed stay (the broadcast on CAN took them off).
-        {
-            let mut core = self.core();
-            core.started.retain(|a| unconfirmed.contains(a));
-            core.started.extend(unconfirmed);
-        }
+        // Only the modules whose halt was not confirmed stay (the broadcast on CAN took them off too).
+        self.core().started = unconfirmed.into_iter().collect();
         result
     }
 }
