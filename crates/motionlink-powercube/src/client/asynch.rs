@@ -104,47 +104,7 @@ impl AsyncClient {
         self.driver.driver().clock()
     }
 
-    /// True when this session can arm the watchdog (see
-    /// [`Client::watchdog_reliable`](super::Client::watchdog_reliable)).
-    pub fn watchdog_reliable(&self) -> bool {
-        self.session(|s| s.watchdog_reliable())
-    }
-
-    /// Stops refreshing the watchdog on purpose and marks the session failed (see
-    /// [`Session::abandon_watchdog`]).
-    pub fn abandon_watchdog(&self) -> bool {
-        self.session(Session::abandon_watchdog)
-    }
-
-    /// True if this session switched the watchdog of `address` on (or may have) and still refreshes it.
-    pub fn watchdog_armed(&self, address: Address) -> bool {
-        self.session(|s| s.watchdog_armed(address))
-    }
-
-    /// True while the session refreshes the watchdog.
-    pub fn watchdog_served(&self) -> bool {
-        self.session(|s| s.watchdog_served())
-    }
-
-    /// The last failure of the refresh, if any.
-    pub fn watchdog_error(&self) -> Option<String> {
-        self.session(|s| s.watchdog_error())
-    }
-
-    /// True once the session has failed (see [`Session::failed`]).
-    pub fn failed(&self) -> bool {
-        self.session(|s| s.failed())
-    }
-
-    /// Modules known to exist: every address that answered this session.
-    pub fn known(&self) -> Vec<Address> {
-        self.session(|s| s.known())
-    }
-
-    /// Modules this session set in motion and has not seen stop.
-    pub fn started(&self) -> Vec<Address> {
-        self.session(|s| s.started())
-    }
+    super::session_state!();
 
     /// Runs `op` to its end; dropping the future cancels it (halting a motion it started).
     pub async fn run(&self, op: Op) -> Result<Output, Error> {

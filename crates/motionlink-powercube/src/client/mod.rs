@@ -26,6 +26,54 @@
 //! client.close().unwrap();
 //! ```
 
+/// The session's state as both clients read it (each has `session`): one list of getters for both.
+macro_rules! session_state {
+    () => {
+        /// True when this session can arm the watchdog (CAN; RS232 unless
+        /// [`Config::watchdog_on_rs232`](crate::session::Config::watchdog_on_rs232) is false). A host that dies then stops the modules whose watchdog it switched on within 50 ms.
+        pub fn watchdog_reliable(&self) -> bool {
+            self.session(|s| s.watchdog_reliable())
+        }
+
+        /// Stops refreshing the watchdog on purpose and marks the session failed (see
+        /// [`Session::abandon_watchdog`](crate::Session::abandon_watchdog)).
+        pub fn abandon_watchdog(&self) -> bool {
+            self.session(crate::Session::abandon_watchdog)
+        }
+
+        /// True if this session switched the watchdog of `address` on (or may have) and still refreshes it.
+        pub fn watchdog_armed(&self, address: crate::model::Address) -> bool {
+            self.session(|s| s.watchdog_armed(address))
+        }
+
+        /// True while the session refreshes the watchdog.
+        pub fn watchdog_served(&self) -> bool {
+            self.session(|s| s.watchdog_served())
+        }
+
+        /// The last failure of the refresh, if any.
+        pub fn watchdog_error(&self) -> Option<String> {
+            self.session(|s| s.watchdog_error())
+        }
+
+        /// True once the session has failed (see [`Session::failed`](crate::Session::failed)).
+        pub fn failed(&self) -> bool {
+            self.session(|s| s.failed())
+        }
+
+        /// Modules known to exist: every address that answered this session.
+        pub fn known(&self) -> Vec<crate::model::Address> {
+            self.session(|s| s.known())
+        }
+
+        /// Modules this session set in motion and has not seen stop.
+        pub fn started(&self) -> Vec<crate::model::Address> {
+            self.session(|s| s.started())
+        }
+    };
+}
+use session_state;
+
 #[cfg(feature = "tokio")]
 mod asynch;
 mod blocking;
