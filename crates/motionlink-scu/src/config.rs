@@ -201,13 +201,20 @@ impl StrokeLimits {
         Ok((a, StrokeLimits { min_counts: PositionCounts(lo), max_counts: PositionCounts(hi) }))
     }
 
-    /// The travel ranges `specs` give (`1=0:865`, one per actuator; a later one for the same actuator
-    /// wins), as [`Config::stroke_limits`] takes them.
+    /// The travel ranges `specs` give (`1=0:865`, one per actuator: an actuator given twice is an error,
+    /// not a choice between two limits), as [`Config::stroke_limits`] takes them.
     pub fn per_actuator<S: AsRef<str>>(specs: &[S]) -> Result<[Option<StrokeLimits>; 6], String> {
         let mut limits = [None; 6];
         for spec in specs {
             let (a, l) = StrokeLimits::parse_for_actuator(spec.as_ref())?;
-            limits[usize::from(a.number() - 1)] = Some(l);
+            let slot = &mut limits[usize::from(a.number() - 1)];
+            if slot.is_some() {
+                return Err(format!(
+                    "the stroke of {a} is given twice ({:?}): give each actuator's once",
+                    spec.as_ref()
+                ));
+            }
+            *slot = Some(l);
         }
         Ok(limits)
     }
@@ -399,5 +406,7 @@ mod tests {
         assert_eq!(limits[1].map(|l| l.min_counts), Some(PositionCounts(-3)));
         assert!(limits[2].is_none());
         assert!(StrokeLimits::per_actuator(&["1=9:1"]).unwrap_err().contains("9 is above 1"));
+        let twice = StrokeLimits::per_actuator(&["1=0:100", "A1=0:865"]).unwrap_err();
+        assert!(twice.contains("A1") && twice.contains("twice") && twice.contains("A1=0:865"), "{twice}");
     }
 }

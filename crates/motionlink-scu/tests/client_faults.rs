@@ -485,3 +485,24 @@ fn a_broken_port_during_a_move_is_reported_with_an_unconfirmed_stop() {
     rig.sleep(600);
     assert!(!rig.unit(|u| u.any_moving()), "the unit's watchdog stopped it");
 }
+
+#[test]
+fn a_close_that_cannot_confirm_the_stop_leaves_remote_mode_on_so_the_units_watchdog_stops_the_drive() {
+    // The manual says of remote mode that the unit stops the motions 500 ms after the last RC; of RA only
+    // that it sets normal mode. A close whose RS is not answered does not send RA.
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(Config::default());
+    client.start_motion(f(1), MotionDirection::Out).unwrap();
+    let sent: Arc<Mutex<Vec<Vec<u8>>>> = Arc::default();
+    let log = Arc::clone(&sent);
+    rig.on_request(move |bytes, _| log.lock().unwrap().push(bytes[..2].to_vec()));
+    // The unit hears the host, the host does not hear the unit.
+    rig.faults().drop_next(Direction::DeviceToHost, u64::MAX / 2);
+    let err = client.close().unwrap_err();
+    assert!(matches!(&err, Error::CloseUnconfirmed { .. }), "{err}");
+    assert!(!sent.lock().unwrap().iter().any(|b| b == b"RA"), "{:?}", sent.lock().unwrap());
+    assert_ne!(rig.unit(|u| u.mode()), RemoteMode::Off, "no RA: the unit was not set to normal mode");
+    rig.sleep(600);
+    assert!(!rig.unit(|u| u.any_moving()), "the unit's watchdog stopped the drive");
+    assert_eq!(rig.unit(|u| u.last_error()), ErrorCode::from_bit(22));
+}

@@ -21,9 +21,11 @@ struct Outcome {
     retries: u64,
 }
 
-/// Open, get, set, move (two functions, two speeds), home (F1 In), stop, watch, close: each must succeed.
-fn core_operations(rig: &Rig, config: Config) -> Outcome {
+/// Open (with what a device profile says of the unit: `seed`), get, set, move (two functions, two speeds),
+/// home (F1 In), stop, watch, close: each must succeed.
+fn core_operations(rig: &Rig, config: Config, seed: Capabilities) -> Outcome {
     let client = rig.client(config);
+    client.seed_capabilities(seed);
     // get: a group (every position) and an entry, the same values either way.
     let all = client.get(DataIndex(0x0010)).unwrap();
     assert_eq!(all.len(), 6);
@@ -81,8 +83,30 @@ fn scp11() -> Config {
 
 fn run_on(variants: &[Variant]) -> (Rig, Outcome) {
     let rig = Rig::with_variants(SimConfig::default(), variants);
-    let outcome = core_operations(&rig, scp11());
+    let outcome = core_operations(&rig, scp11(), Capabilities::default());
     (rig, outcome)
+}
+
+#[test]
+fn a_profile_that_says_the_unit_does_everything_is_corrected_by_a_unit_that_does_not() {
+    // A profile saved on a unit that answered every probe, used on a unit of the same identity that does
+    // not: each behaviour is found out as without the profile (the plain form, what was not verified said),
+    // never an error on the profile's word.
+    let all = Some(true);
+    let said =
+        Capabilities { grouping_indices: all, user_position_data: all, cyclic_objects: all, remote_read_back: all };
+    for variant in [Variant::NoGroups, Variant::NoUserPositions, Variant::NoCyclicObjects, Variant::NoRemoteReadBack] {
+        let (_, plain) = run_on(&[variant]);
+        let rig = Rig::with_variants(SimConfig::default(), &[variant]);
+        let seeded = core_operations(&rig, scp11(), said);
+        assert_eq!(seeded.move_verified, plain.move_verified, "{variant:?}: {:?}", seeded.move_why);
+        assert_eq!(seeded.move_why, plain.move_why, "{variant:?}");
+        assert_eq!((seeded.set_verified, &seeded.set_why), (plain.set_verified, &plain.set_why), "{variant:?}");
+        let refused = |c: Capabilities| {
+            [c.grouping_indices, c.user_position_data, c.cyclic_objects, c.remote_read_back].map(|x| x == Some(false))
+        };
+        assert_eq!(refused(seeded.caps), refused(plain.caps), "{variant:?}: what the unit refused is known");
+    }
 }
 
 #[test]
@@ -241,4 +265,30 @@ fn every_variant_together_still_runs_the_core_operations() {
     let (_, o) = run_on(Variant::ALL);
     assert!(!o.move_verified && o.move_why.len() == 2, "{:?}", o.move_why);
     assert_eq!(o.home_rest, PositionCounts(-3));
+}
+
+#[test]
+fn a_unit_with_no_virtual_limits_set_moves_and_says_the_target_was_not_checked_against_a_stroke() {
+    // UserPositionData answered, its virtual limits 0 / 0: the manual's "none set", so nothing bounds the
+    // target but the unit's own limits; the move says so rather than claim every check was made.
+    let config = SimConfig::from_toml(
+        "[[actuator]]\n[actuator.user_positions]\nvirtual_limit_in_counts = 0\nvirtual_limit_out_counts = 0\n\
+         users = [{memory_counts = [0, 0, 0, 0], intermediate_in_counts = 0, intermediate_out_counts = 0}, \
+         {memory_counts = [0, 0, 0, 0], intermediate_in_counts = 0, intermediate_out_counts = 0}, \
+         {memory_counts = [0, 0, 0, 0], intermediate_in_counts = 0, intermediate_out_counts = 0}, \
+         {memory_counts = [0, 0, 0, 0], intermediate_in_counts = 0, intermediate_out_counts = 0}]\n",
+    )
+    .unwrap();
+    let rig = Rig::new(config);
+    let client = rig.client(scp11());
+    let report = client.move_to(a(1), PositionCounts(300), pct(100), &MoveOptions::default()).unwrap();
+    assert_eq!(report.position_counts, PositionCounts(300));
+    assert!(!report.verified);
+    assert_eq!(report.not_verifiable.len(), 1, "{:?}", report.not_verifiable);
+    assert!(report.not_verifiable[0].contains("0 / 0") && report.not_verifiable[0].contains("--stroke 1="));
+    // Configured limits are the check then.
+    let bounded = rig.client(Config { stroke_limits: StrokeLimits::per_actuator(&["1=0:500"]).unwrap(), ..scp11() });
+    assert!(bounded.move_to(a(1), PositionCounts(200), pct(100), &MoveOptions::default()).unwrap().verified);
+    client.close().unwrap();
+    bounded.close().unwrap();
 }

@@ -137,7 +137,8 @@ impl Client {
     }
 
     /// Takes what `known` says of the unit (a device profile's capabilities) where the session has not found
-    /// out yet: those probes are skipped ([`Session::seed_capabilities`]).
+    /// out yet: what the unit lacks is not asked for, what it has is confirmed by the first check that
+    /// depends on it ([`Session::seed_capabilities`]).
     pub fn seed_capabilities(&self, known: Capabilities) {
         self.driver.with_session(|s| s.seed_capabilities(known))
     }

@@ -39,17 +39,39 @@ impl Capabilities {
     }
 }
 
-/// The session's memory of what the unit answered.
+/// The session's memory of what the unit answered (`caps`), and what a device profile said of it
+/// (`seeded`). A behaviour the profile says the unit lacks is not asked for (the plain form is used); one it
+/// says the unit has is still probed where that costs no more than the check itself (the first RG of
+/// remote data or UserPositionData, the RC of the cyclic object): a unit that refuses it is taken as the
+/// probe found it, with a warning naming the profile, never failed on the profile's word.
 #[derive(Debug, Default)]
 pub(crate) struct Probed {
     pub caps: Capabilities,
+    pub seeded: Capabilities,
+}
+
+impl Probed {
+    /// What is known: the session's findings, then the profile's where the session has none.
+    pub fn known(&self) -> Capabilities {
+        self.caps.or(self.seeded)
+    }
+
+    /// ", though the device profile said it does" where the profile said `said` of a behaviour the unit
+    /// refused; else nothing.
+    fn contradicted(said: Option<bool>) -> &'static str {
+        if said == Some(true) {
+            " (the device profile said it does: the unit in use differs from the one probed)"
+        } else {
+            ""
+        }
+    }
 }
 
 impl Core {
     /// True if the unit refused a grouping index in this session: every group is then read entry by entry
     /// (a firmware that does not know one grouping index is taken not to know the others).
     pub fn group_refused(&self, _index: DataIndex) -> bool {
-        self.probed.caps.grouping_indices == Some(false)
+        self.probed.known().grouping_indices == Some(false)
     }
 
     /// The unit answered RG of a grouping index.
@@ -61,8 +83,9 @@ impl Core {
     pub fn refuse_group(&mut self, index: DataIndex) {
         if self.probed.caps.grouping_indices != Some(false) {
             tracing::warn!(
-                "the unit refused the grouping index {index} (PDE): this session reads the entries of every group \
-                 one by one instead (the manual's plain form), and watches motions with such reads"
+                "the unit refused the grouping index {index} (PDE){}: this session reads the entries of every group \
+                 one by one instead (the manual's plain form), and watches motions with such reads",
+                Probed::contradicted(self.probed.seeded.grouping_indices)
             );
         }
         self.probed.caps.grouping_indices = Some(false);
@@ -70,31 +93,37 @@ impl Core {
 
     /// Records whether the unit answered RG of UserPositionData; warns the first time it refused.
     pub fn user_positions_answered(&mut self, answered: bool) {
-        let caps = &mut self.probed.caps;
-        if !answered && caps.user_position_data != Some(false) {
+        if !answered && self.probed.caps.user_position_data != Some(false) {
             tracing::warn!(
-                "the unit refused UserPositionData (PDE): move targets are checked against the configured stroke \
-                 limits only (--stroke); where none are configured, the move says that its target was not checked"
+                "the unit refused UserPositionData (PDE){}: move targets are checked against the configured stroke \
+                 limits only (--stroke); where none are configured, the move says that its target was not checked",
+                Probed::contradicted(self.probed.seeded.user_position_data)
             );
         }
-        caps.user_position_data = Some(answered);
+        self.probed.caps.user_position_data = Some(answered);
     }
 
     /// Records whether the unit read remote data back; warns the first time it refused.
     pub fn remote_read_back(&mut self, answered: bool) {
-        let caps = &mut self.probed.caps;
-        if !answered && caps.remote_read_back != Some(false) {
+        if !answered && self.probed.caps.remote_read_back != Some(false) {
             tracing::warn!(
-                "the unit refused to read remote data back (RG of 0x3xxx: PDE): this session's writes are checked by \
-                 the unit's ACK only, and its results say so"
+                "the unit refused to read remote data back (RG of 0x3xxx: PDE){}: this session's writes are checked \
+                 by the unit's ACK only, and its results say so",
+                Probed::contradicted(self.probed.seeded.remote_read_back)
             );
         }
-        caps.remote_read_back = Some(answered);
+        self.probed.caps.remote_read_back = Some(answered);
     }
 
     /// Records whether the unit took the session's cyclic object (the caller warns, once: see
     /// [`crate::session::PollObject`]).
     pub fn cyclic_objects(&mut self, answered: bool) {
+        if !answered && self.probed.seeded.cyclic_objects == Some(true) {
+            tracing::warn!(
+                "the unit refused the session's cyclic object{}",
+                Probed::contradicted(self.probed.seeded.cyclic_objects)
+            );
+        }
         self.probed.caps.cyclic_objects = Some(answered);
     }
 }

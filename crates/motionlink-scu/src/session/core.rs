@@ -10,10 +10,30 @@ use super::pe_guard::PeGuarded;
 use super::request::{PreparedRequest, Req};
 use super::*;
 use crate::config::{MovePolling, RC_DEADLINE};
-use crate::model::SafetyId;
+use crate::model::{Function, SafetyId};
 use crate::wire::{Command, Request};
 
 impl Core {
+    /// The stop of `functions` was not confirmed: the end of the session stops them again and looks for
+    /// rest before it leaves remote mode.
+    pub fn stop_unconfirmed(&mut self, functions: &[Function]) {
+        for f in functions {
+            if !self.unconfirmed_stops.contains(f) {
+                self.unconfirmed_stops.push(*f);
+            }
+        }
+    }
+
+    /// The stop of `functions` was confirmed (`every_actuator`: every actuator was found at rest, so no
+    /// earlier stop is left unconfirmed either).
+    pub fn stop_confirmed(&mut self, functions: &[Function], every_actuator: bool) {
+        if every_actuator {
+            self.unconfirmed_stops.clear();
+        } else {
+            self.unconfirmed_stops.retain(|f| !functions.contains(f));
+        }
+    }
+
     /// The error every request gets while the port is gone.
     pub fn lost_error(&self) -> Error {
         match &self.state {

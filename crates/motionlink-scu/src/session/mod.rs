@@ -200,6 +200,9 @@ pub(crate) struct Core {
     pub link_up: bool,
     /// Functions started with RE and not yet stopped with an acknowledged RS (wire ids).
     pub started: BTreeSet<u8>,
+    /// Functions whose stop (RS acknowledged or not) was not confirmed by the status: the end of the session
+    /// does not leave remote mode until their actuators are found at rest.
+    pub unconfirmed_stops: Vec<crate::model::Function>,
     pub stats: ClientStats,
     /// When the next RC is due: a grid of deadlines.
     keepalive_due: Timestamp,
@@ -262,6 +265,7 @@ impl Session {
             state: State::Opening,
             link_up: true,
             started: BTreeSet::new(),
+            unconfirmed_stops: Vec::new(),
             stats: ClientStats::default(),
             keepalive_due: now,
             last_rc_sent: None,
@@ -357,7 +361,7 @@ impl Session {
 
     /// What the session found the unit to do where the manual leaves it open (probed as checks needed it).
     pub fn capabilities(&self) -> Capabilities {
-        self.core().probed.caps
+        self.core().probed.known()
     }
 }
 
@@ -443,11 +447,13 @@ impl Session {
     }
 
     /// Takes what `known` says of the unit (from a device profile, or a probe) where this session has not
-    /// found out yet: those behaviours are not probed again, and no warning is given for them. A finding of
-    /// the session stays.
+    /// found out yet. What the unit lacks is not asked for again (the plain form is used, without a
+    /// warning); what it has is still found out by the first check that depends on it, where that costs no
+    /// more than the check (a unit that refuses it then runs in the plain form, with a warning that names
+    /// the profile). A finding of the session stays.
     pub fn seed_capabilities(&mut self, known: Capabilities) {
         let mut core = self.core();
-        core.probed.caps = core.probed.caps.or(known);
+        core.probed.seeded = core.probed.seeded.or(known);
     }
 }
 

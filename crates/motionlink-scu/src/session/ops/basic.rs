@@ -29,12 +29,15 @@ pub(crate) async fn single(ctx: &Ctx, request: PreparedRequest) -> Result<Output
         let rs = Req::op(PreparedRequest::stop(f, StopMode::Fast)).when(Schedule::Now);
         return match ctx.firm().send(rs).await.and_then(|r| r.ack(Command::Stop)) {
             Ok(_) => Err(Error::FunctionCancelled { function_id: f, stopped: true }),
-            Err(e) => Err(Error::StopUnconfirmed {
-                cause: Box::new(Error::FunctionCancelled { function_id: f, stopped: false }),
-                functions: function.into_iter().collect(),
-                mode: StopMode::Fast,
-                detail: e.to_string(),
-            }),
+            Err(e) => {
+                ctx.core().stop_unconfirmed(&Vec::from_iter(function));
+                Err(Error::StopUnconfirmed {
+                    cause: Box::new(Error::FunctionCancelled { function_id: f, stopped: false }),
+                    functions: function.into_iter().collect(),
+                    mode: StopMode::Fast,
+                    detail: e.to_string(),
+                })
+            }
         };
     }
     result.and_then(|r| r.ack(command)).map(|r| Output::Data(r.data))
@@ -50,12 +53,13 @@ pub(crate) async fn write(ctx: &Ctx, index: DataIndex, data: &[u8], verify: bool
     if !verify || item(index).is_none() {
         return Ok(None);
     }
-    let answered = ctx.core().probed.caps.remote_read_back;
+    let answered = ctx.core().probed.known().remote_read_back;
     if answered == Some(false) {
         return Ok(Some(not_read_back(index)));
     }
     match ctx.get(index).await.and_then(|r| r.data(Command::Get)) {
-        // The first read of remote data is the probe: refused, the session remembers it.
+        // The first read of remote data in the session is the probe (also where a device profile said the unit
+        // reads it back): refused, the session remembers it.
         Err(Error::Refused { status: Status::ParameterDataError, .. })
             if ctx.core().probed.caps.remote_read_back.is_none() =>
         {
@@ -137,11 +141,22 @@ fn stroke_unknown(a: Actuator) -> String {
     )
 }
 
+/// Why actuator `a`'s target could not be checked against a stroke where the unit has none set for it.
+pub(crate) fn stroke_not_set(a: Actuator) -> String {
+    format!(
+        "{a}'s target was not checked against a stroke: the virtual limits of its UserPositionData ({}) are 0 / 0 \
+         (none set) and no stroke limits are configured for {a} (--stroke {}=MIN:MAX); the unit's own limits bound \
+         the motion",
+        DataIndex(0x2000 + u16::from(a.number())),
+        a.number()
+    )
+}
+
 /// Actuator `a`'s travel range for targets: configured, or the virtual limits of its UserPositionData.
 pub(crate) async fn stroke(ctx: &Ctx, a: Actuator) -> Result<StrokeFound, Error> {
     let (configured, answered) = {
         let core = ctx.core();
-        (core.config.stroke_limits[usize::from(a.number() - 1)], core.probed.caps.user_position_data)
+        (core.config.stroke_limits[usize::from(a.number() - 1)], core.probed.known().user_position_data)
     };
     if let Some(s) = configured {
         return Ok(Ok(Some((s, "as configured"))));
@@ -150,7 +165,8 @@ pub(crate) async fn stroke(ctx: &Ctx, a: Actuator) -> Result<StrokeFound, Error>
         return Ok(Err(stroke_unknown(a)));
     }
     match ctx.get(DataIndex(0x2000 + u16::from(a.number()))).await.and_then(|r| r.data(Command::Get)) {
-        // The first read of UserPositionData is the probe: refused, the session remembers it.
+        // The first read of UserPositionData in the session is the probe (also where a device profile said the
+        // unit answers it): refused, the session remembers it.
         Err(Error::Refused { status: Status::ParameterDataError, .. })
             if ctx.core().probed.caps.user_position_data.is_none() =>
         {

@@ -22,7 +22,7 @@ pub(crate) async fn define_object(ctx: &Ctx) -> Result<(), Error> {
         (
             core.poll_slot(),
             core.poll.configured,
-            core.probed.caps.cyclic_objects == Some(false),
+            core.probed.known().cyclic_objects == Some(false),
             POLL_READ.iter().any(|i| core.group_refused(*i)),
         )
     };
@@ -41,6 +41,8 @@ pub(crate) async fn define_object(ctx: &Ctx) -> Result<(), Error> {
         return Ok(());
     }
     match write(ctx, object_index(slot), &poll_object().to_bytes(), true).await {
+        // Found in this session (remote mode opened again): the RC is not asked again. A device profile's
+        // word is not enough: the RC below probes it (one keepalive's worth).
         Ok(None) if ctx.core().probed.caps.cyclic_objects == Some(true) => {
             ctx.core().poll.configured = true;
             return Ok(());

@@ -3,9 +3,10 @@
 
 use motionlink_link::Timestamp;
 
+use super::stop::Stop;
 use super::Output;
 use crate::error::Error;
-use crate::model::StopMode;
+use crate::model::{Actuator, StopMode};
 use crate::session::ctx::Ctx;
 use crate::session::request::{OwnedReply, PreparedRequest, Req};
 use crate::session::State;
@@ -146,7 +147,9 @@ pub(crate) async fn reopen(ctx: &Ctx, reconnect: bool) -> Result<Output, Error> 
     }
 }
 
-/// The end of the session: RS for every started function (motions fast), then RA. Where the unit ended
+/// The end of the session: RS for every started function (motions fast), then RA; where a stop was not
+/// confirmed, RS again and the status of every actuator before RA, which is not sent while they are not
+/// found at rest (the unit then stays in remote mode, where its watchdog stops them). Where the unit ended
 /// remote mode and a function still needs the RS the manual asks for after every RE, remote mode is opened
 /// only to send it, and left at once.
 pub(crate) async fn close(ctx: &Ctx) -> Result<Output, Error> {
@@ -181,6 +184,25 @@ pub(crate) async fn close(ctx: &Ctx) -> Result<Output, Error> {
                 first_error.get_or_insert(e);
             }
         }
+    }
+    // A stop this session could not confirm: RS again, and the status of every actuator. Until they are
+    // found at rest, remote mode is not left: in it the unit stops the motions by itself 500 ms after the last
+    // RC (the manual says so of remote mode; of RA it says only that it sets normal mode).
+    let unconfirmed = ctx.core().unconfirmed_stops.clone();
+    if !unconfirmed.is_empty() && !ended {
+        let stop = Stop::several(unconfirmed.clone(), StopMode::Fast, Actuator::all().collect());
+        if let Err((_, e)) = stop.run(&ctx).await.rest {
+            first_error = Some(Error::CloseUnconfirmed { functions: unconfirmed, cause: Box::new(e) });
+        }
+    }
+    let at_rest = { ctx.core().unconfirmed_stops.is_empty() && ctx.core().started.is_empty() };
+    if !at_rest && !ended {
+        tracing::warn!(
+            "RA is not sent: the stop of what this session started is not confirmed, so the unit stays in remote \
+             mode, where it stops the motions by itself 500 ms after the last RC (this one's)"
+        );
+        ctx.core().line.remote = false;
+        return Err(first_error.unwrap_or_else(|| Error::SessionLost("the stop is not confirmed".into())));
     }
     match ctx.send(abort()).await {
         Ok(r) if r.status == Status::Ack => {}

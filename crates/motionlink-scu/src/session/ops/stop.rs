@@ -74,6 +74,7 @@ impl Stop {
                 let answered = matches!(e.class(), ErrorClass::Refused | ErrorClass::Device);
                 if !(answered && self.functions.len() > 1) {
                     tracing::info!("could not stop {function}: {e}");
+                    ctx.core().stop_unconfirmed(&self.functions);
                     return Stopped { rest: Err((e.to_string(), e)), refused };
                 }
                 // The unit answered: the line works; the other functions are stopped all the same.
@@ -81,7 +82,12 @@ impl Stop {
                 refused.push((function, e.to_string()));
             }
         }
-        Stopped { rest: self.confirm(&ctx).await, refused }
+        let rest = self.confirm(&ctx).await;
+        match rest {
+            Ok(_) => ctx.core().stop_confirmed(&self.functions, self.watch.len() == Actuator::all().count()),
+            Err(_) => ctx.core().stop_unconfirmed(&self.functions),
+        }
+        Stopped { rest, refused }
     }
 
     /// The status of the watched actuators until none moves, then where they are.

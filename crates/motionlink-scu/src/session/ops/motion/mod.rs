@@ -6,7 +6,7 @@
 
 use motionlink_link::Timestamp;
 
-use super::basic::{check_against_map, check_stroke, stroke, write, StrokeFound};
+use super::basic::{check_against_map, check_stroke, stroke, stroke_not_set, write, StrokeFound};
 use super::object::define_object;
 use super::stop::{after_stop, Stop};
 use super::{positions, read_item, statuses, ItemRead, MoveSpec, MoveTargets, Output};
@@ -159,6 +159,10 @@ impl Move {
     fn stroke_read(&mut self, i: usize, stroke: Result<StrokeFound, Error>) -> Result<(), Error> {
         let (a, target) = self.order[i];
         let checked = match stroke {
+            Ok(Ok(None)) => {
+                self.not_verifiable.push(stroke_not_set(a));
+                Ok(())
+            }
             Ok(Ok(s)) => check_stroke(a, target, &s),
             Ok(Err(why)) => {
                 self.not_verifiable.push(why);
