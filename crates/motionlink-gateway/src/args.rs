@@ -59,6 +59,11 @@ impl Args {
         self.get(key)?.ok_or_else(|| ErrorReport::usage(format!("{}: the argument {key:?} is missing", self.op)))
     }
 
+    /// True when the request gives the argument `key` (whatever its value).
+    pub fn has(&self, key: &str) -> bool {
+        self.map.contains_key(key)
+    }
+
     /// The list argument `key` (the command line's repeated argument, such as `values` of COMPAX
     /// `status`): a JSON list of values or one value, each checked by its type's rule; empty when absent.
     pub fn list<T: FromStr>(&mut self, key: &'static str) -> Result<Vec<T>, ErrorReport>

@@ -19,6 +19,9 @@ pub const ONLINE: &str = "online";
 /// What `status` holds once the gateway is gone (its last will, and its clean exit).
 pub const OFFLINE: &str = "offline";
 
+/// The largest MQTT packet the gateway takes (a request is a few hundred bytes).
+pub const MAX_PACKET_BYTES: u32 = 64 * 1024;
+
 /// The first wait before a reconnection; it doubles up to [`MAX_BACKOFF`].
 pub const FIRST_BACKOFF: Duration = Duration::from_millis(250);
 /// The longest wait between two reconnections.
@@ -49,6 +52,10 @@ pub fn options(config: &GatewayConfig, topics: &Topics) -> Result<MqttOptions, G
     o.set_clean_start(true);
     o.set_connection_timeout(5);
     o.set_request_channel_capacity(1024);
+    // The largest packet the gateway takes, told the broker in CONNECT (MQTT 5 Maximum Packet Size): a
+    // larger message is the broker's to drop, and never reaches the connection, which would fail on it and
+    // stop every motion the gateway serves.
+    o.set_max_packet_size(Some(MAX_PACKET_BYTES));
     // Requests and replies are small messages: sent at once, not held back for more (Nagle's algorithm).
     let mut network = rumqttc::NetworkOptions::new();
     network.set_tcp_nodelay(true);

@@ -89,6 +89,60 @@ pub struct BadRequest {
     pub error: ErrorReport,
 }
 
+/// A walk over a JSON text that fails at the first key an object gives twice (`key "args.position" given
+/// twice`, the path from the request's top), where reading it into a map would keep the last value silently.
+struct OnceEach(String);
+
+impl<'de> serde::de::DeserializeSeed<'de> for OnceEach {
+    type Value = ();
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_any(self)
+    }
+}
+
+impl<'de> serde::de::Visitor<'de> for OnceEach {
+    type Value = ();
+    fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("JSON")
+    }
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
+        let mut seen = std::collections::HashSet::new();
+        while let Some(key) = map.next_key::<String>()? {
+            let path = if self.0.is_empty() { key.clone() } else { format!("{}.{key}", self.0) };
+            if !seen.insert(key) {
+                return Err(serde::de::Error::custom(format!("key {path:?} given twice")));
+            }
+            map.next_value_seed(OnceEach(path))?;
+        }
+        Ok(())
+    }
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
+        let mut i = 0;
+        while seq.next_element_seed(OnceEach(format!("{}[{i}]", self.0)))?.is_some() {
+            i += 1;
+        }
+        Ok(())
+    }
+    fn visit_str<E>(self, _: &str) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_bool<E>(self, _: bool) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_i64<E>(self, _: i64) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_u64<E>(self, _: u64) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_f64<E>(self, _: f64) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_unit<E>(self) -> Result<(), E> {
+        Ok(())
+    }
+}
+
 /// Reads a request from a `cmd` payload.
 pub fn parse(payload: &[u8]) -> Result<Request, BadRequest> {
     let bad = |id: Option<RequestId>, reply_to: Option<String>, m: String| BadRequest {
@@ -120,6 +174,19 @@ pub fn parse(payload: &[u8]) -> Result<Request, BadRequest> {
             return Err(bad(None, reply_to, format!("\"id\" must be a string or a whole number, not {other}")));
         }
     };
+    if let Err(e) = serde::de::DeserializeSeed::deserialize(
+        OnceEach(String::new()),
+        &mut serde_json::Deserializer::from_slice(payload),
+    ) {
+        // Which of two ids or reply topics is meant is not known: such a request is answered as an event.
+        let (id, reply_to) = if e.to_string().starts_with("key \"id\"") || e.to_string().starts_with("key \"reply_to\"")
+        {
+            (None, None)
+        } else {
+            (Some(id), reply_to)
+        };
+        return Err(bad(id, reply_to, format!("{e}: give each key of a request once")));
+    }
     let fail = |m: String| bad(Some(id.clone()), reply_to.clone(), m);
     if let Some(key) = map.keys().find(|k| !KEYS.contains(&k.as_str())) {
         return Err(fail(format!("unknown key {key:?} in a request; a request has {}", KEYS.join(", "))));
@@ -202,6 +269,28 @@ mod tests {
         assert_eq!(reply(Some(&r.id), &Ok(Value::Null))["id"], serde_json::json!(7));
         let r = parse(br#"{"id": -12345678901234567, "op": "keepalive"}"#).unwrap();
         assert_eq!(reply(Some(&r.id), &Ok(Value::Null))["id"], serde_json::json!(-12345678901234567i64));
+    }
+
+    #[test]
+    fn a_key_given_twice_is_refused_not_taken_at_its_last_value() {
+        let e = err(
+            r#"{"id": "d1", "op": "move", "args": {"actuator": 1, "position": 10, "position": 300}, "reply_to": "me/r"}"#,
+        );
+        assert_eq!((e.id.as_deref(), e.reply_to.as_deref()), (Some("d1"), Some("me/r")));
+        assert!(e.error.message.contains("key \"args.position\" given twice"), "{}", e.error.message);
+        assert_eq!(e.error.kind, "usage");
+        let e = err(r#"{"id": "d2", "op": "info", "op": "stop", "reply_to": "me/r"}"#);
+        assert!(e.error.message.contains("key \"op\" given twice") && e.id.is_some(), "{}", e.error.message);
+        // Two ids: which one the client matches is not known, so no reply names either.
+        let e = err(r#"{"id": "m1", "op": "move", "id": "m2", "reply_to": "me/r"}"#);
+        assert_eq!((e.id, e.reply_to), (None, None));
+        assert!(e.error.message.contains("key \"id\" given twice"), "{}", e.error.message);
+        // In a list too; the same key in two objects is fine.
+        assert!(err(r#"{"id": "d3", "op": "get", "args": {"items": [{"a": 1, "a": 2}]}}"#)
+            .error
+            .message
+            .contains("args.items[0].a"));
+        parse(br#"{"id": "d4", "op": "get", "args": {"items": [{"a": 1}, {"a": 2}]}}"#).unwrap();
     }
 
     #[test]

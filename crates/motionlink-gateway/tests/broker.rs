@@ -247,6 +247,12 @@ async fn bad_requests_are_answered_and_nothing_moves() {
             "velocity",
         ),
         ("nope", json!({"id": "b10", "op": "move", "reply_to": "me/r"}), "usage", "no device \"nope\""),
+        (
+            "axis",
+            json!({"id": "b14", "op": "status", "args": {"values": []}, "reply_to": "me/r"}),
+            "usage",
+            "empty list",
+        ),
     ];
     for (device, body, kind, says) in &cases {
         request(&c, "b1", device, body.clone()).await;
@@ -260,9 +266,24 @@ async fn bad_requests_are_answered_and_nothing_moves() {
     c.send("motionlink/b1/lift/cmd", "move please").await;
     let m = c.wait("error event", 5 * S, |m| m.topic == "motionlink/b1/lift/events").await.json();
     assert_eq!((m["event"].as_str(), m["error"]["kind"].as_str()), (Some("error"), Some("usage")), "{m}");
+    // A key given twice (which a JSON map would take at its last value): refused.
+    c.send(
+        "motionlink/b1/lift/cmd",
+        r#"{"id": "b11", "op": "move", "args": {"actuator": 1, "position": 10, "position": 300}, "reply_to": "me/r"}"#,
+    )
+    .await;
+    let r = c.reply("me/r", "b11", 5 * S).await;
+    assert!(r["error"]["message"].as_str().unwrap().contains("\"args.position\" given twice"), "{r}");
+    // A request larger than the gateway takes (64 KiB) on any device's topic: the broker drops it (the
+    // gateway told it its maximum packet size), the gateway stays connected and answers the next one.
+    let huge = json!({"id": "b12", "op": "info", "reply_to": "me/r", "args": {"pad": "A".repeat(100_000)}});
+    Client::connect(&b, "t-b1-big", &[]).await.send("motionlink/b1/axis/cmd", huge.to_string()).await;
+    request(&c, "b1", "lift", json!({"id": "b13", "op": "fly", "reply_to": "me/r"})).await;
+    c.reply("me/r", "b13", 5 * S).await;
     // Nothing moved, nothing started.
     tokio::time::sleep(1500 * Duration::from_millis(1)).await;
     let seen = c.drain();
+    assert!(!seen.iter().any(|m| m.topic == "motionlink/b1/status" && m.payload == "offline"), "{seen:?}");
     assert!(!seen.iter().any(|m| m.topic.ends_with("/events") && m.payload.contains("motion_started")), "{seen:?}");
     let lift = seen.iter().rev().find(|m| m.topic == "motionlink/b1/lift/state").expect("a state").json();
     assert_eq!(

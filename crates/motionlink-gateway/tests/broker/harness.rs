@@ -257,6 +257,8 @@ impl Client {
             o.set_credentials(name, password);
         }
         o.set_keep_alive(Duration::from_secs(5));
+        // As the gateway: larger messages are the broker's to drop (a test sends one).
+        o.set_max_packet_size(Some(64 * 1024));
         let mut network = rumqttc::NetworkOptions::new();
         network.set_tcp_nodelay(true);
         o.set_network_options(network);
