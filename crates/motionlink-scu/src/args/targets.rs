@@ -49,6 +49,9 @@ impl TargetLine {
                 let followed = actuators.iter().map(Actuator::to_string).collect::<Vec<_>>().join(", ");
                 bad(format!("{name:?} is not one of the actuators followed ({followed})"))
             })?;
+            if targets[i].is_some() {
+                return Err(bad(format!("{} is given twice: give one target each", actuators[i])));
+            }
             targets[i] = Some(count(value)?);
         }
         if let Some(i) = targets.iter().position(Option::is_none) {
@@ -79,6 +82,7 @@ mod tests {
             assert!(p(bad).is_err(), "{bad}");
         }
         assert_eq!(p("a1=400").unwrap_err().0, "no target for A2 (every actuator followed needs one)");
+        assert_eq!(p("a1=400 a1=500 a2=1").unwrap_err().0, "A1 is given twice: give one target each");
         assert!(p("speed 0").unwrap_err().0.starts_with("speed 0: a motion needs"));
     }
 }

@@ -22,6 +22,8 @@ fn names(actuators: &[Actuator]) -> String {
 /// What the stdin reader hands over.
 enum Input {
     Line(String),
+    /// A line that is not UTF-8 (as far as it can be shown).
+    NotText(String),
     End,
     Failed(String),
 }
@@ -58,12 +60,18 @@ pub(super) fn follow(
         .name("follow-stdin".into())
         .spawn(move || {
             use std::io::BufRead;
-            for line in std::io::stdin().lock().lines() {
-                let message = match line {
-                    Ok(l) => Input::Line(l),
+            for line in std::io::stdin().lock().split(b'\n') {
+                let message = match line.map(String::from_utf8) {
+                    Ok(Ok(mut l)) => {
+                        if l.ends_with('\r') {
+                            l.pop();
+                        }
+                        Input::Line(l)
+                    }
+                    Ok(Err(e)) => Input::NotText(String::from_utf8_lossy(e.as_bytes()).into_owned()),
                     Err(e) => Input::Failed(e.to_string()),
                 };
-                let failed = matches!(message, Input::Failed(_));
+                let failed = matches!(message, Input::Failed(_) | Input::NotText(_));
                 if tx.send(message).is_err() || failed {
                     return;
                 }
@@ -92,6 +100,9 @@ pub(super) fn follow(
             },
             Ok(Input::End) | Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break None,
             Ok(Input::Failed(e)) => break Some(Ok(CliError::transport(format!("reading stdin: {e}")))),
+            Ok(Input::NotText(line)) => {
+                break Some(Ok(CliError::usage(format!("stdin line {line:?}: not UTF-8 text"))));
+            }
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
         }
         match follower.apply_due() {

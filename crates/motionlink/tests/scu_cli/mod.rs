@@ -447,6 +447,15 @@ fn follow_stops_on_a_bad_line_and_on_a_signal() {
     let (_, p) = wait_at_rest(&sim, "A1", 0.0);
     assert!(p < 800, "stopped on the way: {p}");
 
+    // A line that is not text is a bad line (exit 2, named), not a transport error.
+    let (running, mut stdin) =
+        Running::start_with_stdin(&["scu", "--port", &sim.address, "--functions", "scp11", "follow", "1"]);
+    running.stdout.wait_for(Duration::from_secs(5), |l| l.starts_with("following F1 (A1)")).expect("ready");
+    stdin.write_all(b"3\xff0\n").unwrap();
+    let ended = running.wait(Duration::from_secs(10));
+    assert_eq!(ended.code(), 2, "{ended:?}");
+    assert!(ended.stderr.contains("stdin line \"3\u{fffd}0\": not UTF-8 text"), "{}", ended.stderr);
+
     // A target outside the stroke is a bad line too: the motion is stopped, and the message says so.
     let (running, mut stdin) =
         Running::start_with_stdin(&["scu", "--port", &sim.address, "--functions", "scp11", "follow", "1"]);
