@@ -186,7 +186,18 @@ impl Describer {
         let mut run: Option<(usize, bool)> = None;
         while at < self.pending[i].len() {
             let bytes = &self.pending[i][at..];
-            let (n, found) = capture_step(bytes, dir);
+            let (n, found) = match capture_step(bytes, dir) {
+                // The capture ended inside what looked like the start of a telegram, but a whole one follows:
+                // that start was a stray byte (`R` and a letter no command has), and the next frame is found.
+                (_, CaptureItem::Truncated)
+                    if all
+                        && (1..bytes.len())
+                            .any(|j| matches!(capture_step(&bytes[j..], dir).1, CaptureItem::Telegram(_))) =>
+                {
+                    (1, CaptureItem::Error(WireError::Garbage { count: 1 }))
+                }
+                step => step,
+            };
             if matches!(found, CaptureItem::Truncated) && !all {
                 break;
             }

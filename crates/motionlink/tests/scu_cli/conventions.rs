@@ -55,6 +55,13 @@ pub(super) fn every_action_speaks_json_and_send_names_get_watch_csv() {
     let decoded = lines(&out);
     assert_eq!((&decoded[0]["direction"], &decoded[1]["direction"]), (&"->".into(), &"<-".into()));
     assert!(decoded[1]["meaning"].as_str().unwrap().contains("400 counts"), "{decoded:?}");
+    // A stray `R` and a letter no command has, then two whole telegrams at the end of the capture: the stray
+    // bytes are bad, the telegrams after them are found.
+    let out = common::run_with(&["decode", "scu", "--json"], &[], "52 58 52 47 11 00 2C 30 52 47 11 00 2C 30\n");
+    let decoded = lines(&out);
+    let shown: Vec<(bool, &str)> =
+        decoded.iter().map(|d| (d["bad"].as_bool().unwrap(), d["bytes"].as_str().unwrap())).collect();
+    assert_eq!(shown, [(true, "52 58"), (false, "52 47 11 00 2C 30"), (false, "52 47 11 00 2C 30")], "{decoded:?}");
 
     let got = lines(&scu(p, &["get", "actual_position_a1", "remote_speed_f1", "0x0012", "--json"]));
     let names: Vec<&str> = got.iter().map(|v| v["name"].as_str().unwrap()).collect();
