@@ -92,9 +92,9 @@ impl Describer {
                 // garbage (a stray byte before a request), and the next frame is found.
                 Some(f)
                     if !f.bytes.is_empty()
-                        && !(f.bad
-                            && (pos + 1..pos + f.bytes.len())
-                                .any(|j| self.find(&bytes[j..], direction).is_some_and(|g| !g.bad))) =>
+                        && (!f.bad
+                            || (pos + 1..pos + f.bytes.len())
+                                .all(|j| self.find(&bytes[j..], direction).is_none_or(|g| g.bad))) =>
                 {
                     flush(&mut garbage, out);
                     pos += f.bytes.len();
