@@ -152,8 +152,11 @@ impl Describer {
         for &b in bytes {
             self.bytes += 1;
             self.frame.push(b);
+            // The bytes before a new STX: what an error the STX reveals is about.
+            let mut before = Vec::new();
             if b == rs232::STX && self.frame.len() > 1 {
-                self.frame = vec![b];
+                before = std::mem::replace(&mut self.frame, vec![b]);
+                before.pop();
             }
             match self.decoder.push(b) {
                 Some(Ok(f)) => {
@@ -173,17 +176,16 @@ impl Describer {
                     });
                 }
                 Some(Err(e)) => {
+                    // The bytes the error is about: those before the STX that ended them, else those so far.
+                    let bytes = if b == rs232::STX { before } else { std::mem::take(&mut self.frame) };
                     out.push(Annotation {
                         at,
                         direction,
                         can_id: None,
-                        bytes: Vec::new(),
+                        bytes,
                         meaning: format!("error: {e}"),
                         bad: true,
                     });
-                    if b != rs232::STX {
-                        self.frame.clear();
-                    }
                 }
                 None => {}
             }
@@ -257,7 +259,10 @@ mod tests {
         let a = all(&mut d, Chunk::Bytes(&[0x10, 0x82, 0x29, 0x03, 0xff, 0x02, 0x06, 0x21, 0x01, 0x00, 0x03]));
         assert_eq!(a.len(), 3, "{a:?}");
         assert_eq!((a[0].meaning.as_str(), a[0].bytes.len(), a[0].bad), ("to module 17: Halt", 7, false));
-        assert_eq!(a[1].meaning, "error: 1 byte(s) outside a frame skipped");
+        assert_eq!(
+            (a[1].meaning.as_str(), a[1].bytes.as_slice()),
+            ("error: 1 byte(s) outside a frame skipped", &[0xff][..])
+        );
         assert!(a[2].bad && a[2].meaning.ends_with("Home [BCC 0x00 wrong, expected 0x28]"), "{}", a[2].meaning);
         let mut tail = Vec::new();
         all(&mut d, Chunk::Bytes(&[0x02, 0x06]));
