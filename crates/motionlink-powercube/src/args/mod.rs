@@ -32,6 +32,12 @@ fn refused(what: &'static str, must: &'static str, value: impl fmt::Display) -> 
     Error::InvalidArgument { what, must, value: value.to_string() }
 }
 
+/// [`refused`] of a number, shown as the user could have typed it (`1e39`, not its 40 digits).
+fn refused_number(what: &'static str, must: &'static str, value: f64) -> Error {
+    let plain = value.to_string();
+    refused(what, must, if plain.len() > 24 { format!("{value:e}") } else { plain })
+}
+
 /// `text` as a number of type `T`, or the refusal naming the argument.
 fn number<T: FromStr>(what: &'static str, must: &'static str, text: &str) -> Result<T, Error> {
     text.trim().parse().map_err(|_| refused(what, must, text.trim()))
@@ -191,7 +197,7 @@ impl MotionTimeout {
         if seconds > 0.0 && seconds <= 1e9 {
             Ok(MotionTimeout(Duration::from_secs_f64(seconds)))
         } else {
-            Err(refused(TIMEOUT_WHAT, TIMEOUT_MUST, seconds))
+            Err(refused_number(TIMEOUT_WHAT, TIMEOUT_MUST, seconds))
         }
     }
 
@@ -233,8 +239,11 @@ macro_rules! move_number {
                 let narrow = value as f32;
                 if narrow.is_finite() && ok(value) {
                     Ok($name(narrow))
+                } else if value.is_finite() && ok(value) {
+                    // A number, beyond what the module's 32-bit floats hold.
+                    Err(refused($what, "within the module's 32-bit float range (about 3.4e38)", format!("{value:e}")))
                 } else {
-                    Err(refused($what, $must, value))
+                    Err(refused_number($what, $must, value))
                 }
             }
 
@@ -347,7 +356,11 @@ mod tests {
         assert!(says(MoveAcceleration::new(0.0).unwrap_err()).starts_with("the acceleration must be a number above 0"));
         assert!(says(Tolerance::new(0.5).unwrap_err()).ends_with("at most 0.1 (rad or m, the module's unit), not 0.5"));
         assert_eq!(Tolerance::new(0.1).ok().map(Tolerance::value), Some(0.1));
-        assert!(says(Target::new(1e39).unwrap_err()).starts_with("the target position must be a number"), "beyond f32");
+        assert_eq!(
+            says(Target::new(1e39).unwrap_err()),
+            "the target position must be within the module's 32-bit float range (about 3.4e38), not 1e39"
+        );
+        assert!(says("1e300".parse::<MotionTimeout>().unwrap_err()).ends_with(", not 1e300"));
         assert_eq!("-0.25".parse::<Target>().ok().map(Target::position), Some(Position::native(-0.25)));
     }
 
