@@ -150,7 +150,7 @@ pub enum Action {
         poll_ms: PollInterval,
         /// Return once the drive has taken the move (its target read back), without waiting: the move is
         /// handed over and keeps running after the command exits (nothing stops it).
-        #[arg(long, conflicts_with = "timeout_s")]
+        #[arg(long, conflicts_with_all = ["timeout_s", "tolerance", "poll_ms"])]
         no_wait: bool,
     },
     /// Read S1 and S17 over and over and print them, one line each, until interrupted (or --count lines).

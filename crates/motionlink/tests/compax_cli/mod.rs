@@ -193,6 +193,12 @@ fn move_no_wait_hands_the_move_over() {
     assert_eq!(at, 20.0);
     // --no-wait with --timeout-s is a contradiction.
     assert_eq!(compax(p, &["move", "--abs", "1", "--no-wait", "--timeout-s", "5"]).status.code(), Some(2));
+    // So are the options of the wait it does not do (they would be taken and ignored).
+    for waits in [["--tolerance", "3"], ["--poll-ms", "5"]] {
+        let out = compax(p, &["move", "--abs", "1", "--no-wait", waits[0], waits[1]]);
+        assert_eq!(out.status.code(), Some(2), "{waits:?}");
+        assert!(String::from_utf8_lossy(&out.stderr).contains(waits[0]), "{waits:?}");
+    }
 }
 
 /// A signal during a move: the emulated axis is at rest within 100 ms of the signal, switched off; the
