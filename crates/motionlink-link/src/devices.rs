@@ -143,11 +143,17 @@ pub fn resolve_with(
     if let Some(p) = port {
         return Ok(p.to_string());
     }
+    // A port from elsewhere than the command line is checked here, so that its error says where it came from.
+    let checked = |port: String, from: &dyn Fn() -> String| match port.parse::<crate::url::PortUrl>() {
+        Ok(_) => Ok(port),
+        Err(e) => Err(ConfigError(format!("{}: {e}", from()))),
+    };
     if let Some(name) = device {
-        return Ok(load_with(family, name, path, read)?.0.port);
+        let (d, shown) = load_with(family, name, path, read)?;
+        return checked(d.port, &|| format!("{shown}: [device.{name}]: `port`"));
     }
     match env_port {
-        Some(p) if !p.trim().is_empty() => Ok(p.trim().to_string()),
+        Some(p) if !p.trim().is_empty() => checked(p.trim().to_string(), &|| "MOTIONLINK_PORT".to_string()),
         _ => Err(ConfigError(
             "no port: give --port PORT, --device NAME (from the configuration file), or set MOTIONLINK_PORT".into(),
         )),
@@ -238,6 +244,13 @@ mod tests {
             Ok("[device.x]\nfamily = \"scu\"\nport = 7\n".into())
         });
         assert!(bad.unwrap_err().to_string().contains("`port` must be a string, not 7"));
+        // A port that is no port says where it came from: the file and device, or the environment.
+        let bad = resolve_with("scu", None, Some("x"), None, Some(PathBuf::from("f")), |_| {
+            Ok("[device.x]\nfamily = \"scu\"\nport = \"\"\n".into())
+        });
+        assert!(bad.unwrap_err().to_string().starts_with("f: [device.x]: `port`: invalid port \"\""));
+        let e = resolve_in("scu", None, None, Some("tcp://x")).unwrap_err().to_string();
+        assert!(e.starts_with("MOTIONLINK_PORT: invalid port \"tcp://x\""), "{e}");
     }
 
     #[test]
