@@ -506,3 +506,28 @@ fn a_close_that_cannot_confirm_the_stop_leaves_remote_mode_on_so_the_units_watch
     assert!(!rig.unit(|u| u.any_moving()), "the unit's watchdog stopped the drive");
     assert_eq!(rig.unit(|u| u.last_error()), ErrorCode::from_bit(22));
 }
+
+#[test]
+fn a_stop_left_unconfirmed_is_confirmed_by_the_close_before_it_leaves_remote_mode() {
+    // A soft stop of an actuator with a 20 s ramp that ran 4 s takes 4 s: longer than the stop's 3 s of
+    // patience, so the stop is not confirmed while the line and remote mode are fine.
+    let config = SimConfig::from_toml("[[actuator]]\nramp_ms = 20000\n").unwrap();
+    let rig = Rig::new(config);
+    let client = rig.client(Config { function_map: FunctionMap::scp11(), ..Default::default() });
+    client.start_motion(f(1), MotionDirection::Out).unwrap();
+    rig.sleep(4000);
+    let err = client.stop_functions(&[f(1)], StopMode::Soft).unwrap_err();
+    assert!(err.stop_unconfirmed() && err.to_string().contains("still report(s) motion"), "{err}");
+    assert!(matches!(rig.unit(|u| u.mode()), RemoteMode::Active(_)));
+    // The close stops F1 again (fast) and reads the status until it is at rest, then sends RA.
+    let sent: Arc<Mutex<Vec<Vec<u8>>>> = Arc::default();
+    let log = Arc::clone(&sent);
+    rig.on_request(move |bytes, _| log.lock().unwrap().push(bytes[..2].to_vec()));
+    assert_eq!(client.close().unwrap(), Vec::new(), "F1's RS was acknowledged before: nothing left started");
+    let sent = sent.lock().unwrap().clone();
+    let ra = sent.iter().position(|b| b == b"RA").expect("RA sent");
+    let rs = sent[..ra].iter().position(|b| b == b"RS").unwrap_or_else(|| panic!("RS again before RA: {sent:?}"));
+    assert!(sent[rs..ra].iter().any(|b| b == b"RG" || b == b"RC"), "the status between RS and RA: {sent:?}");
+    assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Off);
+    assert!(!rig.unit(|u| u.any_moving()));
+}
