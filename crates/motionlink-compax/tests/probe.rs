@@ -151,3 +151,13 @@ fn a_saved_profile_seeds_the_drive_and_its_echo_probe_disappears() {
     client.close().unwrap();
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+#[test]
+fn an_echo_without_the_address_where_replies_carry_it_is_ok_and_says_why() {
+    // P196 64: every reply starts with the drive's address, which names the drive that echoed.
+    let r = probed(&[Variant::EchoWithoutAddress], 64);
+    let c = r.check("echo_form", Some(1)).unwrap();
+    assert_eq!(c.result, CheckResult::Ok, "{c:?}");
+    assert!(c.detail.contains("without its address digits, but every reply starts with the drive's address"), "{c:?}");
+    assert!(!c.detail.trim_end().ends_with(':'), "{c:?}");
+}
