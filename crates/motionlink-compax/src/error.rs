@@ -235,12 +235,13 @@ pub enum Error {
         /// reply was lost.
         buffered: Vec<u8>,
     },
-    /// A checked move stored in the drive's buffer with its echo (`,?`) was not executed: its echo did not
+    /// A checked move sent to the drive's buffer with its echo (`,?`) was not executed: its echo did not
     /// come back as the telegram sent (or not at all), so no `!` was sent, or the `!` was refused or did
-    /// not start it. The drives in `buffered` may still hold the command (as they received it) in their
+    /// not start it (or, where the drive refused the `!` and something may have run, the move was not sent
+    /// again as a command of its own). The drives in `buffered` may still hold the command (as they received it) in their
     /// buffer: the manual has no command that empties a buffer, so the next `!` to such a drive, or any
     /// `32!` on the bus, executes it.
-    #[error("drive {address}: the move {command:?} was stored in the buffer, not executed: {why} ({source}); the command may still be held, as received, in the buffer of {}: the next '!' to such a drive, or any '32!' on the bus, executes it (the manual has no command to empty a buffer)", drives(buffered))]
+    #[error("drive {address}: the move {command:?}, sent with ',?' to be stored and echoed, was not executed by a '!' of this session: {why} ({source}); the command may still be held, as received, in the buffer of {}: the next '!' to such a drive, or any '32!' on the bus, executes it (the manual has no command to empty a buffer)", drives(buffered))]
     NotExecuted {
         /// The drive the move was for.
         address: Address,

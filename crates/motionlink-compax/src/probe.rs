@@ -10,7 +10,7 @@
 //! a command (`,`) replaces the drive's buffer and is not probed.
 
 use motionlink_link::probe::{Check, CheckResult, ProbeReport, ProbeSetup, RoundTrips};
-use motionlink_link::profile::{ProfileEntry, ProfileError, ProfileUse, Profiles};
+use motionlink_link::profile::{Lookup, ProfileEntry, ProfileError, ProfileUse, Profiles};
 
 use crate::client::Client;
 use crate::error::Error;
@@ -350,7 +350,8 @@ pub async fn use_profile_async(
     Ok(take_profile(client.driver().driver(), profiles, port, address, &identity))
 }
 
-/// Takes the profile of the drive with `identity`, where one matches: the session is seeded with its echo form.
+/// Takes the profile of the drive with `identity`, where one matches: the session is seeded with its echo form
+/// (which a drive that then behaves otherwise has found out again, with a warning naming the profile).
 fn take_profile(
     driver: &motionlink_link::driver::Driver<crate::session::Session>,
     profiles: &Profiles,
@@ -360,9 +361,13 @@ fn take_profile(
 ) -> ProfileUse {
     let mut used = ProfileUse::default();
     let lookup = profiles.lookup(FAMILY, port, Some(address.get()), identity);
+    let reference = match &lookup {
+        Lookup::Found { reference, .. } => reference.clone(),
+        _ => String::new(),
+    };
     used.take(lookup, |caps: DriveCapabilities| {
         if let Some(form) = caps.echo_form {
-            driver.with_session(|s| s.seed_echo_form(address, form));
+            driver.with_session(|s| s.seed_echo_form(address, form, &reference));
         }
     });
     used

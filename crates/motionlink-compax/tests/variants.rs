@@ -132,7 +132,8 @@ fn an_echo_in_another_form_than_found_is_refused() {
     host.with_device(|d| d.set_variants(&[Variant::EchoWithoutAddress]));
     let e = bus.move_to(a(1), &to(12.0), &mut |_| {}).unwrap_err();
     let Error::NotExecuted { why, buffered, .. } = e.root() else { panic!("{e}") };
-    assert!(why.contains("expected \"1POSA 12") && why.contains("the echo \"POSA 12"), "{why}");
+    assert!(why.contains("expected \"1POSA 12") && why.contains("echo \"POSA 12"), "{why}");
+    assert!(!why.contains("is what the drive that answered received"), "{why}");
     assert_eq!(buffered, &[1]);
     assert_eq!(host.with_device(|d| d.drive(1).unwrap().position()), 10.0, "not executed");
 
@@ -187,16 +188,100 @@ fn no_flipped_bit_of_the_probe_makes_a_drive_that_echoes_pass_for_one_that_does_
     assert!(done > 0);
 }
 
+/// "motion started" events of the emulator since the last call.
+fn starts(host: &EmulatorHost<Emulator>) -> usize {
+    host.with_device(|d| d.take_events()).iter().filter(|e| e.contains("motion started")).count()
+}
+
 #[test]
-fn a_drive_that_echoes_without_storing_refuses_the_move_and_says_so() {
+fn a_drive_that_echoes_without_storing_gets_its_moves_as_commands_of_their_own_and_says_so() {
     let (clock, host, _faults, bus) = emulated(&[Variant::EchoWithoutStore], 0);
     let _me = clock.reserve_participant().enter();
-    let e = bus.move_to(a(1), &to(10.0), &mut |_| {}).unwrap_err();
+    // The '!' after the echo is refused: nothing ran (S17), so the move goes out in the plain form, once.
+    let r = bus.move_to(a(1), &to(10.0), &mut |_| {}).unwrap();
+    assert!(!r.verified && r.reached == pos(10.0), "{r:?}");
+    let why = r.not_verifiable.join("\n");
+    assert!(why.contains("refused the '!' after echoing a move sent with ',?'"), "{why}");
+    assert!(why.contains("without being checked before it started") && !why.contains("was stored"), "{why}");
+    assert!(bus.driver().with_session(|s| s.echo_without_store(a(1))), "remembered");
+    assert_eq!(starts(&host), 1);
+    // Remembered: a relative move goes out as a command of its own at once, and runs once (S2 checked).
+    let r = bus.move_to(a(1), &MoveRequest::new(MoveTarget::Relative(pos(-4.0))), &mut |_| {}).unwrap();
+    assert!(!r.verified && r.reached == pos(6.0) && r.not_verifiable.join("\n") == why, "{r:?}");
+    assert_eq!(host.with_device(|d| d.drive(1).unwrap().position()), 6.0, "the distance once");
+    assert_eq!(starts(&host), 1);
+    // A relative move as the first of a session: the refused '!' is followed by S17 and S2, then the plain
+    // POSR, which runs once.
+    let (clock, host, _faults, bus) = emulated(&[Variant::EchoWithoutStore], 0);
+    let _me = clock.reserve_participant().enter();
+    let r = bus.move_to(a(1), &MoveRequest::new(MoveTarget::Relative(pos(3.0))), &mut |_| {}).unwrap();
+    assert!(!r.verified && r.reached == pos(3.0), "{r:?}");
+    assert_eq!(host.with_device(|d| d.drive(1).unwrap().position()), 3.0, "the distance once");
+    assert_eq!(starts(&host), 1);
+}
+
+#[test]
+fn a_profile_form_the_drive_contradicts_is_found_again_and_the_move_runs_once() {
+    for v in [Variant::NoEcho, Variant::EchoBare, Variant::EchoWithoutAddress] {
+        for relative in [false, true] {
+            let what = format!("{v:?} relative {relative}");
+            let (clock, host, _faults, bus) = emulated(&[v], 0);
+            let _me = clock.reserve_participant().enter();
+            // A profile saved from a drive that echoed in full.
+            bus.driver().with_session(|s| s.seed_echo_form(a(1), EchoForm::Full, "profiles.toml#compax:x"));
+            let req = if relative { MoveRequest::new(MoveTarget::Relative(pos(3.0))) } else { to(20.0) };
+            let r = bus.move_to(a(1), &req, &mut |_| {}).unwrap_or_else(|e| panic!("{what}: {e}"));
+            let target = if relative { 3.0 } else { 20.0 };
+            assert!(!r.verified && r.reached == pos(target), "{what}: {r:?}");
+            assert_eq!(host.with_device(|d| d.drive(1).unwrap().position()), target, "{what}: once");
+            assert_eq!(starts(&host), 1, "{what}");
+            let (found, why) = match v {
+                Variant::NoEcho => (EchoForm::None, "does not echo"),
+                Variant::EchoBare => (EchoForm::Bare, "without the flag characters"),
+                _ => (EchoForm::WithoutAddress, "echoes without its address"),
+            };
+            assert!(r.not_verifiable.join("\n").contains(why), "{what}: {r:?}");
+            assert_eq!(bus.driver().with_session(|s| s.echo_form(a(1))), Some(found), "{what}");
+            // Found now: the next move is checked in that form.
+            let r = bus.move_to(a(1), &MoveRequest::new(MoveTarget::Relative(pos(-1.0))), &mut |_| {}).unwrap();
+            assert_eq!(r.reached, pos(target - 1.0), "{what}");
+            assert_eq!(starts(&host), 1, "{what}");
+            bus.close().unwrap();
+        }
+    }
+}
+
+#[test]
+fn a_profile_form_an_echo_has_shown_is_checked_as_one_found() {
+    // The profile's form confirmed by the first echo; then the drive drops its address: refused, as for a
+    // form found by this session, and nothing runs.
+    let (clock, host, _faults, bus) = emulated(&[], 0);
+    let _me = clock.reserve_participant().enter();
+    bus.driver().with_session(|s| s.seed_echo_form(a(1), EchoForm::Full, "profiles.toml#compax:x"));
+    assert!(bus.move_to(a(1), &to(10.0), &mut |_| {}).unwrap().verified);
+    host.with_device(|d| d.set_variants(&[Variant::EchoWithoutAddress]));
+    let e = bus.move_to(a(1), &to(12.0), &mut |_| {}).unwrap_err();
     let Error::NotExecuted { why, .. } = e.root() else { panic!("{e}") };
-    assert!(why.contains("refused '!'") && why.contains("may not store a command sent with ',?'"), "{why}");
-    assert_eq!(host.with_device(|d| d.drive(1).unwrap().position()), 0.0, "nothing ran");
-    use motionlink_link::error::Classify;
-    assert_eq!(e.class().exit_code(), 1, "a device refusal: {e}");
+    assert!(why.contains("without its address digits, not in full as drive 1 was found to echo"), "{why}");
+    assert!(!why.contains("is what the drive that answered received"), "{why}");
+    assert_eq!(host.with_device(|d| d.drive(1).unwrap().position()), 10.0, "not executed");
+}
+
+#[test]
+fn a_binary_move_says_it_was_not_checked_before_it_started() {
+    for v in [&[][..], &[Variant::NoEcho], &[Variant::EchoWithoutStore]] {
+        let (clock, _host, _faults, bus) = emulated(v, 0);
+        let _me = clock.reserve_participant().enter();
+        let mut req = MoveRequest::new(MoveTarget::Relative(pos(3.0)));
+        req.binary = true;
+        let r = bus.move_to(a(1), &req, &mut |_| {}).unwrap();
+        assert_eq!(r.reached, pos(3.0));
+        let why = r.not_verifiable.join("\n");
+        assert!(
+            !r.verified && why.contains("binary") && why.contains("without being checked before it started"),
+            "{why}"
+        );
+    }
 }
 
 #[test]

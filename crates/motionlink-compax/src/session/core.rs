@@ -224,6 +224,12 @@ pub(crate) struct Core {
     pub buffered: u32,
     /// How each drive echoes, once found out (index: address).
     pub echo_forms: [Option<super::types::EchoForm>; 32],
+    /// The device profile (its reference) each drive's echo form was taken from, while no exchange of this
+    /// session has shown the drive to echo so: a drive that then behaves otherwise has the form found again.
+    pub echo_profiles: HashMap<u8, String>,
+    /// Drives that echoed a move sent with `,?` and then refused the `!` (they do not store such a command):
+    /// their moves go out as commands of their own.
+    pub echo_without_store: u32,
     /// What was already warned about (drive, which): each finding is said once per session.
     pub warned: HashSet<(u8, &'static str)>,
     /// The round trips measured on the line: each reply since its telegram went out.
@@ -259,6 +265,8 @@ impl Core {
             comparators: 0,
             buffered: 0,
             echo_forms: [None; 32],
+            echo_profiles: HashMap::new(),
+            echo_without_store: 0,
             warned: HashSet::new(),
             round_trips: None,
             queue: VecDeque::new(),

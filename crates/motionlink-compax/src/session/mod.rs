@@ -112,12 +112,23 @@ impl Session {
         self.core().echo_forms.get(usize::from(address.get())).copied().flatten()
     }
 
-    /// Takes how drive `address` echoes from `form` (a device profile's finding) where this session has not
-    /// found out yet: the probe is skipped, and no warning is given for it.
-    pub fn seed_echo_form(&mut self, address: Address, form: EchoForm) {
-        if let Some(slot) = self.core().echo_forms.get_mut(usize::from(address.get())) {
-            slot.get_or_insert(form);
+    /// Takes how drive `address` echoes from `form`, the finding of the device profile `profile` (its
+    /// reference, which messages name), where this session has not found out yet: the probe is skipped, and
+    /// no warning is given for it. A drive that then contradicts it (refuses a move sent with `,?`, or
+    /// echoes one in another form) has its form found out again, as without a profile, with a warning that
+    /// names the profile; once an echo has shown the form, it is checked as one found by this session.
+    pub fn seed_echo_form(&mut self, address: Address, form: EchoForm, profile: &str) {
+        let mut core = self.core();
+        if let Some(slot @ None) = core.echo_forms.get_mut(usize::from(address.get())) {
+            *slot = Some(form);
+            core.echo_profiles.insert(address.get(), profile.to_string());
         }
+    }
+
+    /// True when drive `address` was found this session to echo a move sent with `,?` without storing it
+    /// (it refused the `!` after the echo): its moves are sent as commands of their own.
+    pub fn echo_without_store(&self, address: Address) -> bool {
+        self.core().echo_without_store & self::core::bit(address) != 0
     }
 
     /// The drives that have answered this session.

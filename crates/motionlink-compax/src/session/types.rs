@@ -192,8 +192,11 @@ pub struct StartedMove {
     pub start: Position,
     /// The absolute target (for a relative move: S2 before it plus the distance, as the drive computes it).
     pub target: Position,
-    /// What the echo of the stored move could not show on this drive (see [`EchoForm`]), in plain words;
-    /// empty when the echo checked everything it checks on a drive that echoes in full.
+    /// What could not be checked before the move started, in plain words: what the echo of the stored move
+    /// could not show on this drive (see [`EchoForm::unchecked`]), or that the move went out unechoed (a
+    /// drive that does not echo, or does not store a command sent with `,?`; a binary move,
+    /// [`EchoForm::binary_unchecked`]); empty when the echo checked everything it checks on a drive that
+    /// echoes in full.
     pub not_verifiable: Vec<String>,
 }
 
@@ -301,6 +304,15 @@ impl EchoForm {
             ));
         }
         why
+    }
+
+    /// What a binary move (which takes no flags, manual 4.4: no store, no echo) to `drive` could not show,
+    /// in the terms of [`EchoForm::unchecked`].
+    pub fn binary_unchecked(drive: Address) -> String {
+        format!(
+            "the move to drive {drive} was sent in binary, which takes no echo (manual 4.4): it was sent without \
+             being checked before it started (its target was read back after, from S2)"
+        )
     }
 }
 

@@ -68,6 +68,10 @@ fn over_tcp_every_action() {
     assert_eq!(m["reached_units"], 1.5);
     let m = json(&with(&["--drive", "5", "--json", "move", "--rel", "-0.5", "--binary"]));
     assert_eq!(m["reached_units"], 1.0);
+    // A binary move takes no echo: nothing was checked before it started, and the result says so.
+    assert_eq!(m["verified"], false, "{m}");
+    let why = m["not_verifiable"][0].as_str().unwrap_or_default();
+    assert!(why.contains("binary") && why.contains("without being checked before it started"), "{m}");
 
     let o = with(&["--drive", "1", "output", "9", "1"]);
     assert!(o.status.success());

@@ -68,3 +68,63 @@ fn a_drive_in_another_mode_is_not_found_and_the_report_says_why() {
     assert!(out.status.success(), "{out:?}");
     assert_eq!(one_json(&out)["devices"][0]["p196_mode"], 8.0);
 }
+
+#[test]
+fn a_profile_the_drive_then_contradicts_is_not_used_and_the_move_runs_in_the_form_that_fits() {
+    // Saved from a drive that echoes in full; then the same port is served by a drive of each variant (the
+    // identity, S31 and S32, cannot tell them apart).
+    let dir = config_dir("probe-compax-contradicted");
+    let port = {
+        let sim = Sim::start("compax", &["--tcp", "127.0.0.1:0"]);
+        let out = run_in(&dir, &["probe", "compax", "--port", &sim.address, "--drives", "1", "--json", "--save"], &[]);
+        assert_eq!(one_json(&out)["devices"][0]["capabilities"]["echo_form"], "full", "{out:?}");
+        sim.address.clone()
+    };
+    let listen = port.strip_prefix("tcp://").unwrap();
+    for variant in ["no-echo", "echo-bare", "echo-without-address"] {
+        let sim = Sim::start("compax", &["--tcp", listen, "--variant", variant]);
+        assert_eq!(sim.address, port);
+        let moved = |args: &[&str]| {
+            let mut all = vec!["compax", "--port", &port, "--drive", "1", "--json", "move"];
+            all.extend_from_slice(args);
+            run_in(&dir, &all, &[])
+        };
+        for (args, target) in [(&["20"][..], 20.0), (&["--rel", "3"][..], 23.0)] {
+            let out = moved(args);
+            assert!(out.status.success(), "{variant} {args:?}: {out:?}");
+            let m = one_json(&out);
+            assert_eq!((m["reached_units"].as_f64(), m["verified"].as_bool()), (Some(target), Some(false)), "{m}");
+            assert!(m["profile"].as_str().unwrap().contains("#compax:"), "{m}");
+            let err = stderr(&out);
+            let reference = m["profile"].as_str().unwrap();
+            assert!(
+                err.contains(&format!("the device profile {reference} says it echoes in full"))
+                    && err.contains("the profile's finding is not used this session"),
+                "{variant}: {err}"
+            );
+            assert!(!err.contains("is what the drive that answered received"), "{variant}: {err}");
+        }
+        // Each move ran once: 20, then 3 more.
+        let rest = sim.stderr.wait_for(std::time::Duration::from_secs(5), |l| l.contains("at rest 23.000"));
+        let events = sim.stderr.text();
+        assert!(rest.is_some(), "{variant}: {events}");
+        assert_eq!(events.lines().filter(|l| l.contains("motion started")).count(), 2, "{variant}: {events}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn an_echo_without_the_address_under_the_address_prefix_is_ok_with_its_reason() {
+    let sim = Sim::start("compax", &["--tcp", "127.0.0.1:0", "--mode", "64", "--variant", "echo-without-address"]);
+    let dir = config_dir("probe-compax-prefix");
+    let out = run_in(&dir, &["probe", "compax", "--port", &sim.address, "--drives", "1", "--mode", "64"], &[]);
+    assert!(out.status.success(), "{out:?}");
+    let text = stdout(&out);
+    let line = text.lines().find(|l| l.contains("echo_form @1")).unwrap_or_else(|| panic!("{text}"));
+    assert!(line.trim_start().starts_with("ok "), "{line}");
+    assert!(
+        line.contains("echoes without its address digits, but every reply starts with the drive's address"),
+        "{line}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

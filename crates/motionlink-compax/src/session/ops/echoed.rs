@@ -15,10 +15,23 @@
 
 use super::super::core::{bit, Retry};
 use super::super::ctx::Ctx;
-use super::super::types::EchoForm;
+use super::super::types::{EchoForm, MoveOptions};
 use crate::error::{Error, Result};
 use crate::model::{Command, Position, S17Flag, StatusId, StatusValue};
 use crate::wire::{Address, Body, Flags, Reply, Request, BROADCAST};
+
+/// A move sent as a command of its own: ASCII, no `$`.
+const PLAIN: MoveOptions = MoveOptions { binary: false, message: false };
+
+/// What a move sent as a command of its own to a drive that echoes a command sent with `,?` without
+/// storing it could not check.
+fn no_store(address: Address) -> String {
+    format!(
+        "drive {address} refused the '!' after echoing a move sent with ',?', and is taken not to store a command \
+         sent so (the manual does not say that it does): the move was sent as a command of its own, without being \
+         checked before it started (its target was read back after, from S2)"
+    )
+}
 
 /// What an error of the store or of `!` leaves behind.
 struct Failure {
@@ -107,6 +120,8 @@ impl Ctx {
         };
         let mut core = self.core();
         core.echo_forms[usize::from(address.get())] = Some(form);
+        // Found by this session: no longer a profile's finding.
+        core.echo_profiles.remove(&address.get());
         let why = form.unchecked(address, mode.reply_address);
         if !why.is_empty() {
             core.warn_once(address, "echo", || {
@@ -121,19 +136,41 @@ impl Ctx {
         Ok(form)
     }
 
+    /// The echo form of `address` where it was taken from a device profile and no echo of this session has
+    /// shown it yet: forgotten (the next [`Ctx::echo_form`] finds it out on the drive), with the profile's
+    /// reference and the form it gave.
+    fn forget_profile_form(&self, address: Address) -> Option<(String, EchoForm)> {
+        let mut core = self.core();
+        let profile = core.echo_profiles.remove(&address.get())?;
+        let form = core.echo_forms[usize::from(address.get())].take()?;
+        Some((profile, form))
+    }
+
     /// Stores move `cmd` in `address`'s buffer with its echo, compares the echo with the telegram sent, and
     /// executes it with `!` only when they are the same. `before` is the drive's target S2 read before (a
-    /// POSR adds its distance to it). Errors: [`Error::NotExecuted`] when the echo differs, is corrupt or
-    /// never comes, or when `!` is refused or did not start the move (each naming the drives that may hold
-    /// the command in their buffer); [`Error::MoveUncertain`] when the reply to `!` was lost and S2 / S17
-    /// do not tell whether it started.
+    /// POSR adds its distance to it). Returns what could not be checked (see [`EchoForm::unchecked`]).
+    ///
+    /// Where the form came from a device profile and the drive contradicts it (it refuses the store, or
+    /// echoes the command in another form), the profile's finding is forgotten and the form found on the
+    /// drive as without a profile (S1 sent with `?`): a drive that does not echo gets the move as a command
+    /// of its own; one whose echo of S1 is in the form its echo of the move showed gets the `!`. A drive
+    /// that echoes the move and then refuses the `!` does not store a command sent with `,?`: remembered,
+    /// and the move sent as a command of its own once S17 (and for a POSR S2) show that nothing ran.
+    ///
+    /// Errors: [`Error::NotExecuted`] when the echo differs, is corrupt or never comes, or when `!` did not
+    /// start the move (each naming the drives that may hold the command in their buffer);
+    /// [`Error::MoveUncertain`] when the reply to `!` was lost and S2 / S17 do not tell whether it started.
     pub(crate) async fn start_echoed_move(
         &self,
         address: Address,
         cmd: Command,
         before: Option<f64>,
         form: EchoForm,
-    ) -> Result<()> {
+    ) -> Result<Vec<String>> {
+        if self.core().echo_without_store & bit(address) != 0 {
+            self.start_move(address, cmd, PLAIN, before).await?;
+            return Ok(vec![no_store(address)]);
+        }
         let (style, retries, mode) = {
             let core = self.core();
             (core.cfg.style, core.cfg.retries, core.cfg.mode)
@@ -145,9 +182,10 @@ impl Ctx {
         // The telegram as received: everything before its CR; the echo is that in the drive's form.
         let sent = frame.as_bytes().split(|&b| b == b'\r').next().unwrap_or_default().to_vec();
         let (digits, flag_chars) = parts(&sent, address, text.as_bytes());
-        let Some(expected_echo) = form.render(digits, text.as_bytes(), flag_chars) else {
+        let Some(mut expected_echo) = form.render(digits, text.as_bytes(), flag_chars) else {
             return Err(Error::Broadcast("a drive that does not echo takes no stored move with its echo"));
         };
+        let mut form = form;
         let expected = match cmd {
             Command::PosR(d) => before.unwrap_or(0.0) + d.units(),
             Command::PosA(p) => p.units(),
@@ -190,9 +228,25 @@ impl Ctx {
                     };
                     return Err(fail(Failure { why: why.into(), source: e, holders: 0 }));
                 }
+                // Refused (not an RS485 line error) where the form is only a profile's finding: perhaps a
+                // drive that does not know '?'. Found out on this drive before anything else is sent.
+                Err(e @ Error::Refused { code, .. }) if !(70..=74).contains(&code.0) => {
+                    let Some((profile, said)) = self.forget_profile_form(address) else { return Err(e) };
+                    return self.after_refused_store(address, cmd, before, e, &profile, said).await;
+                }
                 Err(e) => return Err(e),
             }
         };
+        let from_ok = |r: &Reply| {
+            let from = r.address();
+            if mode.reply_address {
+                from == Some(address.get())
+            } else {
+                from.is_none()
+            }
+        };
+        // The form the echo is in, where it is the telegram sent (the command text byte for byte).
+        let shown_form = EchoForm::of(echo.text(), digits, text.as_bytes(), flag_chars).filter(|_| from_ok(&echo));
         if let Some(holders) = Self::echo_differs(address, &echo, &expected_echo, mode.reply_address) {
             tracing::info!("drive {address}: the echo {:?} is not the telegram sent {:?}", echo.text_str(), sent);
             let shown = match echo.address() {
@@ -200,14 +254,76 @@ impl Ctx {
                 None => echo.text_str().to_string(),
             };
             let source = Error::UnexpectedReply { address, command: format!("{text}{flags}"), reply: shown.clone() };
-            let why = format!(
-                "its echo was not the telegram sent (expected {:?} from drive {address}, the form it echoes in), \
-                 so no '!' was sent; the echo {shown:?} is what the drive that answered received, and what its \
-                 buffer holds if the ',' arrived",
-                String::from_utf8_lossy(&expected_echo)
-            );
-            return Err(fail(Failure { why, source, holders }));
+            let expected_text = String::from_utf8_lossy(&expected_echo).into_owned();
+            let profile = shown_form.and_then(|_| self.forget_profile_form(address));
+            match (shown_form, profile) {
+                // The command as sent, in another form than a device profile says: the form is found out on
+                // this drive (S1 sent with '?', which stores nothing and runs nothing); the echo is taken when
+                // that shows the same form.
+                (Some(shown_in), Some((profile, said))) => {
+                    let found = match self.echo_form(address).await {
+                        Ok(found) => found,
+                        Err(e) => {
+                            let why = format!(
+                                "its echo {shown:?} is the telegram sent, but {} (not {} as the device profile \
+                                 {profile} says), and finding the form again with S1 sent with '?' failed, so no \
+                                 '!' was sent",
+                                shown_in.described(),
+                                said.described()
+                            );
+                            return Err(fail(Failure { why, source: e, holders }));
+                        }
+                    };
+                    if found != shown_in {
+                        let why = format!(
+                            "its echo {shown:?} is the telegram sent, but {}, while its echo of S1 sent with '?' \
+                             came {} (and the device profile {profile} says {}): no form explains both, so no '!' \
+                             was sent",
+                            shown_in.described(),
+                            found.described(),
+                            said.described()
+                        );
+                        return Err(fail(Failure { why, source, holders }));
+                    }
+                    self.core().warn_once(address, "profile", || {
+                        format!(
+                            "drive {address}: the device profile {profile} says it echoes {}, but it echoed \
+                             {shown:?} for {:?}, {}, and so does its echo of S1 sent with '?': the profile's \
+                             finding is not used this session; moves are checked in the form found",
+                            said.described(),
+                            String::from_utf8_lossy(&sent),
+                            shown_in.described()
+                        )
+                    });
+                    form = shown_in;
+                    expected_echo = form.render(digits, text.as_bytes(), flag_chars).unwrap_or_default();
+                    debug_assert!(Self::echo_differs(address, &echo, &expected_echo, mode.reply_address).is_none());
+                }
+                (Some(shown_in), None) => {
+                    let why = format!(
+                        "its echo {shown:?} is the telegram sent, but {}, not {} as drive {address} was found to \
+                         echo (expected {expected_text:?}): an echo in another form than found is not taken, so no \
+                         '!' was sent",
+                        shown_in.described(),
+                        form.described()
+                    );
+                    return Err(fail(Failure { why, source, holders }));
+                }
+                (None, _) => {
+                    let why = format!(
+                        "its echo was not the telegram sent (expected {expected_text:?} from drive {address}, the \
+                         form it echoes in), so no '!' was sent; the echo {shown:?} shows what the drive that \
+                         answered received (in the form it echoes in) unless the echo was changed on its way \
+                         back, and what its buffer holds if the ',' arrived"
+                    );
+                    return Err(fail(Failure { why, source, holders }));
+                }
+            }
+        } else {
+            // The drive echoed in the form taken: a profile's finding is now this session's.
+            self.core().echo_profiles.remove(&address.get());
         }
+        let prefixed = mode.reply_address;
 
         // 2. The execution: counted as started before it is sent.
         self.check_cancel()?;
@@ -218,17 +334,42 @@ impl Ctx {
         loop {
             attempts += 1;
             let lost = match self.exchange(&exec, Retry::DiscardedOnly).await {
-                Ok(Some(r)) if r.text().is_empty() => return Ok(()),
+                Ok(Some(r)) if r.text().is_empty() => return Ok(form.unchecked(address, prefixed)),
                 Ok(r) => Error::UnexpectedReply {
                     address,
                     command: "!".into(),
                     reply: r.map(|r| r.text_str().to_string()).unwrap_or_default(),
                 },
                 Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. } | Error::UnexpectedReply { .. })) => e,
+                Err(e @ Error::Refused { code, .. }) if (70..=74).contains(&code.0) => {
+                    let why = format!("the drive refused '!' with {code}, an RS485 line error");
+                    return Err(fail(Failure { why, source: e, holders: 0 }));
+                }
                 Err(e @ Error::Refused { .. }) => {
-                    let why = "the drive refused '!' right after echoing the stored move: it may not store a \
-                               command sent with ',?' (the manual does not say that it does), so nothing ran";
-                    return Err(fail(Failure { why: why.into(), source: e, holders: 0 }));
+                    // '!' refused right after the echo of the move: the drive did not store it (the manual lists
+                    // ',' and '?' as optional characters of one telegram, and says neither that a drive
+                    // stores nor that it does not store what it echoes). Remembered for the session.
+                    {
+                        let mut core = self.core();
+                        core.echo_without_store |= bit(address);
+                        // It may hold the command after all (the manual has no command that empties a buffer).
+                        core.buffered |= bit(address);
+                    }
+                    let what = format!(
+                        "the drive refused '!' right after echoing the move sent with ',?' ({e}): it is taken not to \
+                         store a command sent with ',?'"
+                    );
+                    self.send_plain_after_refusal(address, cmd, before, e, &what).await?;
+                    self.core().warn_once(address, "store", || {
+                        format!(
+                            "drive {address} echoed a move sent with ',?' and then refused the '!' after it, and \
+                             S17{} showed that nothing ran: it is taken not to store a command sent with ',?' (the \
+                             manual does not say that it does); moves are sent as commands of their own, not \
+                             checked before they start, and say so in their results",
+                            if before.is_some() { " and S2" } else { "" }
+                        )
+                    });
+                    return Ok(vec![no_store(address)]);
                 }
                 Err(e) => return Err(e),
             };
@@ -240,7 +381,7 @@ impl Ctx {
             let target = self.read_target(address).await?.units();
             if close(target, expected) {
                 tracing::info!("drive {address}: reply to '!' lost, but the move started (S2 = {target})");
-                return Ok(());
+                return Ok(form.unchecked(address, prefixed));
             }
             let moving = self.read_s17(address).await?.contains(S17Flag::CommandActive);
             let unchanged = before.is_none_or(|b| close(target, b));
@@ -262,6 +403,98 @@ impl Ctx {
             tracing::info!("drive {address}: reply to '!' lost and the move did not start (S2, S17): '!' again");
             self.core().execute_buffers(address);
         }
+    }
+
+    /// The store of move `cmd` with `,?` was refused (`refused`) while the echo form was only the finding of
+    /// device profile `profile` (`said`), now forgotten: the form is found out on the drive. One that does
+    /// not echo explains the refusal, and gets the move as a command of its own (once nothing of the
+    /// refused telegram is seen to have run); for one that echoes, the refusal stands.
+    async fn after_refused_store(
+        &self,
+        address: Address,
+        cmd: Command,
+        before: Option<f64>,
+        refused: Error,
+        profile: &str,
+        said: EchoForm,
+    ) -> Result<Vec<String>> {
+        let found = self.echo_form(address).await?;
+        let (command, code) = match &refused {
+            Error::Refused { command, code, .. } => (command.clone(), *code),
+            _ => return Err(refused),
+        };
+        if found != EchoForm::None {
+            self.core().warn_once(address, "profile", || {
+                format!(
+                    "drive {address}: the device profile {profile} says it echoes {}; it echoes S1 sent with '?' {}: \
+                     the profile's finding is not used this session",
+                    said.described(),
+                    found.described()
+                )
+            });
+            // The drive echoes: what it refused is the move itself.
+            return Err(refused);
+        }
+        let what = format!(
+            "drive {address} refused {command:?} with {code} and refuses S1 sent with '?' too: it does not echo"
+        );
+        self.send_plain_after_refusal(address, cmd, before, refused, &what).await?;
+        self.core().warn_once(address, "profile", || {
+            format!(
+                "drive {address}: the device profile {profile} says it echoes {}, but it refused {command:?} with \
+                 {code}, and S1 sent with '?' too: it does not echo, so the profile's finding is not used this \
+                 session; the move was sent as a command of its own, not checked before it started",
+                said.described()
+            )
+        });
+        let prefixed = self.core().cfg.mode.reply_address;
+        Ok(EchoForm::None.unchecked(address, prefixed))
+    }
+
+    /// Sends move `cmd` as a command of its own (the manual's plain form) after the drive refused a telegram
+    /// of it (`refused`; `what` says which and what that shows). Not a repeat of an executed command: the
+    /// drive answered that telegram with an error in place of its acknowledgement (manual 4.3), and a
+    /// stored command runs only by a '!' the drive takes (4.2). The manual does not say in so many words that
+    /// a refused telegram ran nothing, so S17 must show no command active and, for a POSR, S2 still the
+    /// target read before it (a POSR that ran would have moved it by its distance) before the move goes out;
+    /// otherwise nothing more is sent and the error says what was seen. (A POSA sent again would be
+    /// harmless: the same absolute target.)
+    async fn send_plain_after_refusal(
+        &self,
+        address: Address,
+        cmd: Command,
+        before: Option<f64>,
+        refused: Error,
+        what: &str,
+    ) -> Result<()> {
+        let active = self.read_s17(address).await?.contains(S17Flag::CommandActive);
+        let target = match before {
+            Some(_) => Some(self.read_target(address).await?.units()),
+            None => None,
+        };
+        let moved = match (before, target) {
+            (Some(b), Some(t)) if (t - b).abs() >= 0.0015 => Some((b, t)),
+            _ => None,
+        };
+        if active || moved.is_some() {
+            let seen = match moved {
+                Some((b, t)) => format!("S2 reads {t}, not {b} as before"),
+                None => "S17 shows a command active".into(),
+            };
+            let text = cmd.to_ascii(self.core().cfg.style)?;
+            return Err(Error::NotExecuted {
+                address,
+                command: text.to_string(),
+                why: format!(
+                    "{what}; but then {seen}: something may have run, so the move was not sent again as a command \
+                     of its own"
+                ),
+                source: Box::new(refused),
+                buffered: vec![address.get()],
+            });
+        }
+        tracing::info!("drive {address}: {what}; nothing ran (S17, S2): sending the move as a command of its own");
+        self.start_move(address, cmd, PLAIN, before).await
     }
 
     /// `None` when `echo` is `expected`, the telegram sent in the form the drive echoes in (as a drive

@@ -248,11 +248,13 @@ impl Ctx {
         // this session's to stop: without a BCC one flipped bit turns a binary SPEED into a POSR (53 -> 52),
         // and a move the drive then refuses with E92 means exactly that.
         self.core().started |= bit(address);
-        let sent = self.send_checked_move(address, request, cmd, before, form).await;
-        if let Err(e) = sent {
-            self.core().started |= bit(address);
-            return Err(self.abort(self.cancel_or(e), &[address]).await);
-        }
+        let not_verifiable = match self.send_checked_move(address, request, cmd, before, form).await {
+            Ok(why) => why,
+            Err(e) => {
+                self.core().started |= bit(address);
+                return Err(self.abort(self.cancel_or(e), &[address]).await);
+            }
+        };
         // Cancelled while the move was sent: it is stopped, not handed on (nor its target read first).
         if self.is_cancelled() {
             return Err(self.abort(Error::CancelledBeforeMotion, &[address]).await);
@@ -263,11 +265,11 @@ impl Ctx {
         if self.is_cancelled() {
             return Err(self.abort(Error::CancelledBeforeMotion, &[address]).await);
         }
-        let prefixed = self.core().cfg.mode.reply_address;
-        let not_verifiable = form.map(|f| f.unchecked(address, prefixed)).unwrap_or_default();
         Ok(StartedMove { address, start, target, not_verifiable })
     }
 
+    /// Sends the settings and the move of a checked move; returns what could not be checked before it
+    /// started (empty for a move stored with its echo in full and executed with `!`).
     async fn send_checked_move(
         &self,
         address: Address,
@@ -275,7 +277,7 @@ impl Ctx {
         cmd: Command,
         before: Option<f64>,
         form: Option<EchoForm>,
-    ) -> Result<()> {
+    ) -> Result<Vec<String>> {
         if let Some(speed) = request.speed {
             self.setting(address, &Command::Speed(speed), request.binary).await?;
         }
@@ -287,7 +289,11 @@ impl Ctx {
             // not echo get its move stored. Either is sent as it is, its target read back after.
             None | Some(EchoForm::None) => {
                 let opts = MoveOptions { binary: request.binary, message: false };
-                self.start_move(address, cmd, opts, before).await
+                self.start_move(address, cmd, opts, before).await?;
+                Ok(match form {
+                    Some(f) => f.unchecked(address, self.core().cfg.mode.reply_address),
+                    None => vec![EchoForm::binary_unchecked(address)],
+                })
             }
             Some(form) => self.start_echoed_move(address, cmd, before, form).await,
         }
