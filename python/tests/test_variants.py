@@ -374,7 +374,9 @@ def compax_echo(case: Case) -> Tuple[Optional[List[Tuple[str, ...]]], Optional[s
     if "no-echo" in v:
         return [("drive 1 does not echo a telegram sent with '?'", "read back after, from S2")], None
     if "echo-without-store" in v:
-        return None, "may not store a command sent with ',?'"
+        # The '!' after the echo is refused: nothing ran, so the move goes out as a command of its own.
+        refused = ("drive 1 refused the '!' after echoing a move sent with ',?'", "without being checked before it started")
+        return [refused], None
     if "echo-bare" in v:
         bare = ("drive 1 echoes without the flag characters", "could not be checked")
         return ([] if prefixed else [address]) + [bare], None
