@@ -375,8 +375,8 @@ def compax_echo(case: Case) -> Tuple[Optional[List[Tuple[str, ...]]], Optional[s
         return [("drive 1 does not echo a telegram sent with '?'", "read back after, from S2")], None
     if "echo-without-store" in v:
         # The '!' after the echo is refused: nothing ran, so the move goes out as a command of its own.
-        refused = ("drive 1 refused the '!' after echoing a move sent with ',?'", "without being checked before it started")
-        return [refused], None
+        refused = "drive 1 refused the '!' after echoing a move sent with ',?'"
+        return [(refused, "without being checked before it started")], None
     if "echo-bare" in v:
         bare = ("drive 1 echoes without the flag characters", "could not be checked")
         return ([] if prefixed else [address]) + [bare], None
