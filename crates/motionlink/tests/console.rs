@@ -671,7 +671,8 @@ fn the_console_s_rules_hold_on_every_firmware_variant() {
     for v in each(motionlink_compax::sim::Variant::ALL.iter().map(ToString::to_string).collect()) {
         family_rules(&compax_case(v));
     }
-    for (case, why) in [(powercube_case(&["life-sign-unacknowledged"]), "watchdog")] {
+    {
+        let (case, why) = (powercube_case(&["life-sign-unacknowledged"]), "watchdog");
         let sim = Sim::start(case.family, &["--tcp", "127.0.0.1:0", "--variant", case.variants[0]]);
         let c = console(&[&[case.family, "--port", &sim.address], case.units_named].concat());
         let mut ws = ws(&c);
