@@ -246,17 +246,30 @@ fn after_homing_a_column_reads_a_few_counts_below_its_in_end_which_the_tolerance
 }
 
 #[test]
-fn a_unit_that_needs_rs_before_a_new_re_refuses_the_second_setpoint_of_a_stream_which_stops() {
+fn a_unit_that_needs_rs_before_a_new_re_gets_it_and_the_stream_goes_on_in_the_manuals_form() {
     let (rig, o) = run_on(&[Variant::ReNeedsRs]);
     assert!(o.move_verified);
     let client = rig.client(scp11());
+    let sent: Arc<Mutex<Vec<Vec<u8>>>> = Arc::default();
+    let log = Arc::clone(&sent);
+    rig.on_request(move |bytes, _| log.lock().unwrap().push(bytes[..2].to_vec()));
     let mut stream = client.stream(f(1), &[a(1)], pct(100)).unwrap();
     stream.set_targets(&[PositionCounts(600)]).unwrap();
     rig.sleep(300);
-    let e = stream.set_targets(&[PositionCounts(500)]).unwrap_err();
-    assert!(matches!(e, Error::Refused { command: Command::Execute, status: Status::PermissionError }), "{e}");
-    let e = stream.abort(e);
-    assert!(matches!(e, Error::Refused { .. }), "the stop was confirmed: {e}");
+    // The unit refuses the second RE while F1 runs (PE): RS, then the RE again, which it takes.
+    stream.set_targets(&[PositionCounts(500)]).unwrap();
+    rig.sleep(300);
+    stream.set_targets(&[PositionCounts(450)]).unwrap();
+    let sent = sent.lock().unwrap().clone();
+    let commands: Vec<&[u8]> = sent.iter().map(|b| &b[..]).filter(|b| *b == b"RE" || *b == b"RS").collect();
+    // (The refused RE is looked into by the session once before it is taken as a refusal.)
+    let first_rs = commands.iter().position(|c| *c == b"RS").expect("an RS");
+    assert!(first_rs >= 2 && commands[..first_rs].iter().all(|c| *c == b"RE"), "{commands:?}");
+    assert_eq!(commands[first_rs..], [&b"RS"[..], b"RE", b"RS", b"RE"], "RS before each RE from then on");
+    rig.sleep(10_000);
+    assert_eq!(rig.unit(|u| u.position(a(1))), Some(450), "the last setpoint reached");
+    let rest = stream.stop(StopMode::Fast).unwrap();
+    assert_eq!(rest, [(a(1), PositionCounts(450))]);
     assert!(!rig.unit(|u| u.is_moving(a(1))) && client.started().is_empty());
 }
 

@@ -203,6 +203,8 @@ pub(crate) struct Core {
     /// Functions whose stop (RS acknowledged or not) was not confirmed by the status: the end of the session
     /// does not leave remote mode until their actuators are found at rest.
     pub unconfirmed_stops: Vec<crate::model::Function>,
+    /// The unit refused an RE of a running function (PE): a stream sends RS before each new RE.
+    pub re_needs_rs: bool,
     pub stats: ClientStats,
     /// When the next RC is due: a grid of deadlines.
     keepalive_due: Timestamp,
@@ -266,6 +268,7 @@ impl Session {
             link_up: true,
             started: BTreeSet::new(),
             unconfirmed_stops: Vec::new(),
+            re_needs_rs: false,
             stats: ClientStats::default(),
             keepalive_due: now,
             last_rc_sent: None,

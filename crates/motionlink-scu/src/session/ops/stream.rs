@@ -11,7 +11,7 @@ use crate::model::{
 use crate::session::ctx::Ctx;
 use crate::session::request::{PreparedRequest, Req};
 use crate::value::Value;
-use crate::wire::{Command, Request};
+use crate::wire::{Command, Request, Status};
 
 /// The checks of a stream ([`super::Op::StreamOpen`]): the actuators (connected; exactly the ones the
 /// function map says the function drives, if it knows it), their strokes, and the speed (read back). A
@@ -75,10 +75,31 @@ pub(crate) async fn targets(
         function: function.id(),
         params: [MotionDirection::RemotePosition.code(), UNUSED],
     })?;
-    let result = match ctx.send(Req::op(re)).await {
+    // A unit found to refuse an RE of a running function gets the RS the manual asks for after every RE first.
+    if ctx.core().re_needs_rs && ctx.core().started.contains(&function.id()) {
+        rs_before_re(ctx, function).await?;
+    }
+    let mut result = match ctx.send(Req::op(re.clone())).await {
         Err(e @ Error::CancelledBeforeMotion(_)) => return Err(e),
         reply => reply.and_then(|r| r.ack(Command::Execute)),
     };
+    // The stream relies on a new RE retargeting a running function (beyond the manual's words, which say each
+    // RE must be stopped with RS). A PE to it while the function runs is the unit asking for that RS: it is
+    // sent (soft: the motion goes on to the new target at once), the RE again (an RE to remote positions is
+    // absolute: sending it again repeats nothing), and so is every later update of the session.
+    if matches!(result, Err(Error::Refused { command: Command::Execute, status: Status::PermissionError }))
+        && !ctx.core().re_needs_rs
+        && ctx.core().started.contains(&function.id())
+        && !ctx.cancelled()
+    {
+        tracing::warn!(
+            "the unit refused an RE of {function} while it runs (PE): it needs the RS the manual asks for after \
+             every RE; each new setpoint of this session goes out as RS then RE (the manual's plain form)"
+        );
+        ctx.core().re_needs_rs = true;
+        rs_before_re(ctx, function).await?;
+        result = ctx.send(Req::op(re)).await.and_then(|r| r.ack(Command::Execute));
+    }
     if ctx.cancelled() {
         let watch = targets.iter().map(|(a, _)| *a).collect();
         let stop = Stop::new(Function::Motion(function), StopMode::Fast, watch);
@@ -90,4 +111,10 @@ pub(crate) async fn targets(
         };
     }
     result.map(|_| Output::Done)
+}
+
+/// The soft RS of `function` before its next RE, on a unit that needs it ([`targets`]).
+async fn rs_before_re(ctx: &Ctx, function: MotionFunction) -> Result<(), Error> {
+    let rs = Req::op(PreparedRequest::stop(function.id(), StopMode::Soft));
+    ctx.firm().send(rs).await.and_then(|r| r.ack(Command::Stop)).map(|_| ())
 }
