@@ -47,7 +47,14 @@ where
         if n < lo {
             return Err(refused());
         }
-        T::try_from(n).map_err(|_| refused())
+        // A whole number the type cannot hold: its largest said, not the rule it met.
+        T::try_from(n).map_err(|_| {
+            let widths =
+                [u64::MAX.into(), i64::MAX.into(), u32::MAX.into(), i32::MAX.into(), u16::MAX.into(), u8::MAX.into()];
+            let most = widths.into_iter().find(|m: &i128| T::try_from(*m).is_ok());
+            let most = most.map_or_else(String::new, |m| format!(" (at most {m})"));
+            format!("{what} {} is too large{most}", text.trim())
+        })
     }
 }
 
@@ -102,6 +109,11 @@ mod tests {
         }
         let count = at_least::<u64>("the number of samples", 1);
         assert_eq!(count("3"), Ok(3));
+        assert_eq!(
+            count("99999999999999999999999"),
+            Err("the number of samples 99999999999999999999999 is too large (at most 18446744073709551615)".into())
+        );
+        assert!(at_least::<u32>("n", 1)("4294967296").unwrap_err().ends_with("(at most 4294967295)"));
         assert_eq!(count("0"), Err("the number of samples must be a whole number, at least 1".into()));
         assert!(count("-1").is_err() && count("many").is_err());
         assert!(whole::<u8>("x", 0, 255, "")("256").is_err());
