@@ -170,6 +170,10 @@ pub fn parse(payload: &[u8]) -> Result<Request, BadRequest> {
         Some(Value::String(_)) => {
             return Err(bad(None, reply_to, "\"id\" must not be empty: give a string or a whole number".into()));
         }
+        Some(Value::Number(n)) if n.as_f64().is_some_and(|f| f.fract() == 0.0) => {
+            let m = format!("\"id\" {n} is a whole number too large for 64 bits: give a smaller one, or a string");
+            return Err(bad(None, reply_to, m));
+        }
         Some(other) => {
             return Err(bad(None, reply_to, format!("\"id\" must be a string or a whole number, not {other}")));
         }
@@ -267,6 +271,8 @@ mod tests {
         assert_eq!((&*r.id, r.lease, r.args.len()), ("7", DEFAULT_LEASE, 0));
         // A number is given back as a number (a client matches its replies by the id it sent).
         assert_eq!(reply(Some(&r.id), &Ok(Value::Null))["id"], serde_json::json!(7));
+        let e = parse(br#"{"id": 123456789012345678901234567890, "op": "keepalive"}"#).unwrap_err();
+        assert!(e.error.message.contains("too large for 64 bits"), "{}", e.error.message);
         let r = parse(br#"{"id": -12345678901234567, "op": "keepalive"}"#).unwrap();
         assert_eq!(reply(Some(&r.id), &Ok(Value::Null))["id"], serde_json::json!(-12345678901234567i64));
     }
