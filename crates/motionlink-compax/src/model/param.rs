@@ -148,10 +148,10 @@ impl ParamId {
                 Err(range_err("150, 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200"))
             }
             ParamId::OPERATING_MODE if value.fract() != 0.0 || !(0.0..=127.0).contains(&value) => {
-                Err(range_err("0..=127 (sum of the valences 1, 2, 4, 8, 16, 32, 64)"))
+                Err(range_err("a whole number 0..=127 (sum of the valences 1, 2, 4, 8, 16, 32, 64)"))
             }
             ParamId::DEVICE_ADDRESS if value.fract() != 0.0 || !(0.0..=31.0).contains(&value) => {
-                Err(range_err("0..=31"))
+                Err(range_err("a whole number 0..=31"))
             }
             _ => Ok(()),
         }
