@@ -330,7 +330,11 @@ impl SimConfig {
                 return Err(SimConfigError(format!("actuator {}: start_position_counts is outside the stroke", i + 1)));
             }
             if !(a.counts_per_second_at_full_speed > 0.0 && a.counts_per_second_at_full_speed.is_finite()) {
-                return Err(SimConfigError(format!("actuator {}: counts_per_second_at_full_speed must be > 0", i + 1)));
+                return Err(SimConfigError(format!(
+                    "actuator {}: counts_per_second_at_full_speed must be a finite number above 0, not {}",
+                    i + 1,
+                    a.counts_per_second_at_full_speed
+                )));
             }
         }
         for e in &self.scheduled_errors {
