@@ -217,7 +217,8 @@ fn option_values(arg: &clap::Arg, key: &str, value: &toml::Value) -> Result<Opti
     let scalar = |v: &toml::Value| match v {
         toml::Value::String(s) => Ok(s.clone()),
         toml::Value::Integer(i) => Ok(i.to_string()),
-        toml::Value::Float(f) => Ok(f.to_string()),
+        // With its decimal point (`50.0`, not `50`): an option of whole numbers refuses it, as on the command line.
+        toml::Value::Float(f) => Ok(format!("{f:?}")),
         other => Err(format!("`{key}` = {}: give a string or a number", shown(other))),
     };
     match value {
@@ -321,6 +322,14 @@ mod tests {
                 .unwrap(),
             [some("sim (default)"), some("50 (default)"), some("true (default)")]
         );
+        // A float keeps its decimal point: a whole-number option refuses `9.0` from the file as from the
+        // command line (it was taken as 9).
+        let words = "compax --device move move --abs 5";
+        let float = file.replace("timeout_s = 9", "timeout_s = 9.5");
+        assert_eq!(parsed(words, &float, &["compax", "move"], &["timeout_s"]).unwrap(), [some("9.5 (default)")]);
+        let whole = file.replace("drive = 3", "drive = 3.0");
+        let e = parsed(words, &whole, &["compax"], &["drive"]).unwrap_err();
+        assert!(format!("{e:?}").contains("'3.0' for '--drive"), "{e:?}");
         // No --device, another command: as it is.
         assert_eq!(parsed("compax --port sim status", file, &["compax"], &["port", "drive"]).unwrap()[0], some("sim"));
         // With --help: the device's values are the defaults the help shows.
