@@ -143,6 +143,26 @@ fn every_variant_through_the_binary() {
 }
 
 #[test]
+fn a_tick_target_is_set_within_its_int32_limit_and_refused_beyond_it() {
+    for (param, value) in [("TargetVelInc", "100"), ("TargetAccInc", "100"), ("TargetPosInc", "-100")] {
+        let out = run("sim", &["--module", "1", "set", param, value]);
+        assert!(out.status.success(), "{param}: {out:?}");
+        let said = String::from_utf8_lossy(&out.stdout);
+        assert!(said.contains(&format!("{param} set to {value}")) && said.contains("read back"), "{param}: {said}");
+    }
+    for (param, value, limit) in [
+        ("TargetVelInc", "100000000", "ActIMaxVel"),
+        ("TargetAccInc", "100000000", "ActIMaxAcc"),
+        ("TargetPosInc", "100000000", "ActIMinPos..ActIMaxPos"),
+    ] {
+        let out = run("sim", &["--module", "1", "set", param, value]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(code(&out), 2, "{param}: {err}");
+        assert!(err.contains(limit) && !err.contains("corrupt"), "{param}: {err}");
+    }
+}
+
+#[test]
 fn homing_without_the_watchdog_asked_for_says_so_in_words() {
     let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0", "--variant", "no-broadcast-pair"]);
     let out = run(&sim.address, &["home"]);

@@ -209,6 +209,40 @@ fn set_checked_reads_back_and_names_a_mismatch() {
 }
 
 #[test]
+fn the_tick_targets_are_checked_against_the_int32_tick_limits() {
+    let (clock, host, bus, _) = rs232_instant(&[1]);
+    let _me = clock.reserve_participant().enter();
+    let m = bus.module(addr(1));
+    let limit = |p: Param| match host.with_device(|d| d.request(clock.now(), 1, &Request::Get(p))) {
+        Some(crate::wire::Reply::Get(_, Value::I32(v))) => v,
+        other => panic!("{p}: {other:?}"),
+    };
+    let (max_vel, max_acc, max_pos) = (limit(Param::ActIMaxVel), limit(Param::ActIMaxAcc), limit(Param::ActIMaxPos));
+    assert!(max_vel > 100 && max_acc > 100 && max_pos > 100, "{max_vel} {max_acc} {max_pos}");
+    for (param, value) in [
+        (Param::TargetVelInc, Value::U32(100)),
+        (Param::TargetAccInc, Value::U32(100)),
+        (Param::TargetPosInc, Value::I32(100)),
+        (Param::TargetPosInc, Value::I32(-100)),
+    ] {
+        let r = m.set_checked(param, value).unwrap_or_else(|e| panic!("{param} {value:?}: {e}"));
+        assert_eq!(r.read, Some(value), "{param}");
+    }
+    for (param, value, refused_by) in [
+        (Param::TargetVelInc, Value::U32(max_vel as u32 + 1), Param::ActIMaxVel),
+        (Param::TargetAccInc, Value::U32(max_acc as u32 + 1), Param::ActIMaxAcc),
+        (Param::TargetPosInc, Value::I32(max_pos + 1), Param::ActIMaxPos),
+        (Param::TargetPosInc, Value::I32(limit(Param::ActIMinPos) - 1), Param::ActIMinPos),
+    ] {
+        let err = m.set_checked(param, value).unwrap_err();
+        assert!(matches!(err, Error::OutsideLimits { limit, .. } if limit == refused_by), "{param}: {err}");
+        assert!(err.is_usage() && err.to_string().contains(refused_by.name()), "{err}");
+    }
+    let err = m.set_checked(Param::TargetPosInc, Value::I32(max_pos + 1)).unwrap_err().to_string();
+    assert!(err.contains(&format!("ActIMinPos..ActIMaxPos = {}..{max_pos}", limit(Param::ActIMinPos))), "{err}");
+}
+
+#[test]
 fn a_line_that_fails_during_a_move_is_stopped_and_the_error_says_so() {
     // Answers lost for a while: the poll's read times out three times, the halt gets through.
     let (clock, host, bus, faults) = rs232_instant(&[1]);

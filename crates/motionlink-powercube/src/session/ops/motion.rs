@@ -6,7 +6,8 @@ use std::time::Duration;
 
 use crate::error::{unexpected, Error, StopOutcome};
 use crate::model::{
-    AckKind, Broadcast, CubeState, ModuleKind, Motion, Param, Position, Quantity, ShortState, StateFlag, Value,
+    AckKind, Broadcast, CubeState, DataType, ModuleKind, Motion, Param, Position, Quantity, ShortState, StateFlag,
+    Value,
 };
 use crate::session::ctx::Ctx;
 use crate::session::ops::checked;
@@ -85,9 +86,18 @@ impl Ctx {
         }
     }
 
+    /// A limit parameter of module `a` as a number, read as the type the manual gives it: a float (MinPos,
+    /// MaxVel ...) that must be finite, or an Int32 in ticks (ActIMinPos, ActIMaxVel ...).
+    async fn limit_value(&self, a: u8, param: Param) -> Result<f64, Error> {
+        match param.data_type() {
+            DataType::I32 => self.get_as(a, param, Value::as_i32).await.map(f64::from),
+            _ => self.get_finite(a, param).await.map(f64::from),
+        }
+    }
+
     /// Refuses `value` (named `what`) if it lies beyond the limit `param` of the module (`upper`: a maximum).
     async fn within_limit(&self, a: u8, what: &str, value: f64, param: Param, upper: bool) -> Result<(), Error> {
-        let limit = f64::from(self.get_finite(a, param).await?);
+        let limit = self.limit_value(a, param).await?;
         let beyond = if upper { value > limit } else { value < limit };
         if beyond {
             // The message gives the unit and, for a position, the whole range.
@@ -100,7 +110,7 @@ impl Ctx {
                 _ => None,
             };
             let other_limit = match other {
-                Some(p) => self.get_finite(a, p).await.ok().map(|v| (p, f64::from(v))),
+                Some(p) => self.limit_value(a, p).await.ok().map(|v| (p, v)),
                 None => None,
             };
             return Err(Error::OutsideLimits {
@@ -131,9 +141,9 @@ impl Ctx {
                 self.within_limit(a, name, v, Param::ActIMaxPos, true).await?;
             }
             (Param::TargetVel, Some(v)) => self.within_limit(a, name, v.abs(), Param::MaxVel, true).await?,
-            (Param::TargetVelInc, Some(v)) => self.within_limit(a, name, v, Param::ActIMaxVel, true).await?,
+            (Param::TargetVelInc, Some(v)) => self.within_limit(a, name, v.abs(), Param::ActIMaxVel, true).await?,
             (Param::TargetAcc, Some(v)) => self.within_limit(a, name, v.abs(), Param::MaxAcc, true).await?,
-            (Param::TargetAccInc, Some(v)) => self.within_limit(a, name, v, Param::ActIMaxAcc, true).await?,
+            (Param::TargetAccInc, Some(v)) => self.within_limit(a, name, v.abs(), Param::ActIMaxAcc, true).await?,
             (Param::Cur, Some(v)) => self.within_limit(a, name, v.abs(), Param::MaxCur, true).await?,
             _ => {}
         }
