@@ -143,6 +143,28 @@ fn every_variant_through_the_binary() {
 }
 
 #[test]
+fn a_move_without_vel_on_a_module_whose_tick_twins_are_apart_moves_at_its_own_speed() {
+    // The module keeps TargetVelInc apart from TargetVel: TargetVelInc 0 says nothing of the 0.5 rad/s the
+    // ramp uses, and is set to 0 here as a user would.
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0", "--variant", "no-twin-mirror"]);
+    let port = sim.address.as_str();
+    for param in ["TargetVelInc", "TargetAccInc"] {
+        let out = run(port, &["--module", "1", "send", "set", param, "0"]);
+        assert!(out.status.success(), "{out:?}");
+    }
+    let out = run(port, &["--module", "1", "--json", "move", "0.3"]);
+    assert_eq!(code(&out), 0, "{out:?}");
+    let j = json_of(&out);
+    assert!((j["reached"].as_f64().or(j["reached_rad"].as_f64()).unwrap_or(f64::NAN) - 0.3).abs() < 1e-3, "{j}");
+    assert_eq!(j["verified"], false, "the target's twin is kept apart: {j}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("TargetVelInc reads 0, but whether it shows the module's own TargetVel is not known"),
+        "{err}"
+    );
+}
+
+#[test]
 fn a_tick_target_is_set_within_its_int32_limit_and_refused_beyond_it() {
     for (param, value) in [("TargetVelInc", "100"), ("TargetAccInc", "100"), ("TargetPosInc", "-100")] {
         let out = run("sim", &["--module", "1", "set", param, value]);

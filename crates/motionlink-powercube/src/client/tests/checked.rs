@@ -45,10 +45,12 @@ fn a_checked_move_refuses_targets_beyond_the_limits_before_anything_moves() {
     ] {
         assert!(matches!(m.move_to(&s, &mut |_| {}), Err(Error::InvalidArgument { .. })), "{s:?}");
     }
-    // A module whose own TargetVel is 0 would never arrive: refused when no velocity is given.
-    m.set(Param::TargetVel, Value::F32(0.0)).unwrap();
+    // A module whose own TargetVel is 0 would never arrive: refused when no velocity is given, once its
+    // TargetVelInc is found to mirror it (the checked write finds it out).
+    m.set_checked(Param::TargetVel, Value::F32(0.0)).unwrap();
     let err = m.move_to(&MoveSpec::to(Position::native(0.5)), &mut |_| {}).unwrap_err();
     assert!(matches!(err, Error::InvalidArgument { what: "the velocity", .. }), "{err}");
+    assert!(err.to_string().contains("found to mirror it"), "{err}");
     assert!(!sim_module(&host, 1).0.contains(StateFlag::Motion));
     // A halted module would ignore the motion command: refused, named, before anything is written.
     m.halt().unwrap();

@@ -180,6 +180,24 @@ fn a_life_sign_that_is_not_acknowledged_refuses_the_guarded_motion_and_says_so()
 }
 
 #[test]
+fn a_move_without_speed_on_a_module_whose_twins_are_apart_uses_the_module_s_own_speed() {
+    let (clock, host, bus) = rs232_variant(&[Variant::NoTwinMirror]);
+    let _me = clock.reserve_participant().enter();
+    let m = bus.module(addr(1));
+    // TargetVelInc reads 0 (written as a user would), the float TargetVel the ramp uses is the module's own.
+    m.set(Param::TargetVelInc, Value::U32(0)).unwrap();
+    m.set(Param::TargetAccInc, Value::U32(0)).unwrap();
+    assert_eq!(m.get(Param::TargetVelInc).unwrap(), Value::U32(0));
+    let r = m.move_to(&MoveSpec::to(Position::native(0.3)), &mut |_| {}).unwrap();
+    assert!(at(&r, 0.3), "{r:?}");
+    assert!(!r.verified && r.not_verifiable.iter().any(|w| w.contains("TargetPosInc")), "{r:?}");
+    assert!(host.with_device(|d| d.module(1).unwrap().position().value() - 0.3).abs() < 1e-3);
+    // Found out now (kept apart): a second move does not even read the twin.
+    let r = m.move_to(&MoveSpec::to(Position::native(0.1)), &mut |_| {}).unwrap();
+    assert!(at(&r, 0.1), "{r:?}");
+}
+
+#[test]
 fn every_variant_on_can() {
     // On CAN the broadcast refresh is the manual's (not probed) and the RS232 framing variants change nothing.
     for v in [
