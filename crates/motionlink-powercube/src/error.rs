@@ -18,17 +18,20 @@ use limit::beyond_limit_text;
 
 /// What became of the Halt an action sent to a module it had set in motion, when the action could not go
 /// on (a failing line, a timeout, a cancellation).
-/// What became of the Halt an action sent to a module it had set in motion, when the action could not go
-/// on (a failing line, a timeout, a cancellation).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum StopOutcome {
     /// Nothing had been set in motion yet: nothing to stop.
     NotStarted,
-    /// The module acknowledged the Halt: it stopped at once (and stays halted until a reset).
+    /// The module acknowledged the Halt and then reported no STATE_MOTION (its state read after the Halt,
+    /// for at most [`HALT_SETTLE`](crate::session::HALT_SETTLE)): it is at rest, and stays halted until a
+    /// reset.
     Confirmed,
-    /// No Halt was acknowledged (it was tried three times, then broadcast): the axis may still be moving.
+    /// The stop was not seen through: no Halt was acknowledged (it was tried three times), or the module
+    /// acknowledged it but still reported STATE_MOTION after
+    /// [`HALT_SETTLE`](crate::session::HALT_SETTLE), or its state could not be read after it. A Halt was
+    /// broadcast; the axis may still be moving.
     Unconfirmed {
-        /// Why: the last Halt's error.
+        /// Why: the last Halt's error, or what the state read after an acknowledged Halt showed.
         reason: String,
         /// The session had switched the module's watchdog on: its refresh has been stopped, so a module
         /// that the Halt did not reach halts itself within 50 ms of the last refresh that reached it.
@@ -47,7 +50,9 @@ impl fmt::Display for StopOutcome {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             StopOutcome::NotStarted => f.write_str("nothing had been set in motion"),
-            StopOutcome::Confirmed => f.write_str("the module acknowledged the halt: it has stopped"),
+            StopOutcome::Confirmed => f.write_str(
+                "the module acknowledged the halt and then reported no motion (STATE_MOTION clear): it is at rest",
+            ),
             StopOutcome::Unconfirmed { reason, watchdog_armed } => {
                 write!(f, "the halt was not confirmed ({reason}): the axis may still be moving")?;
                 if *watchdog_armed {

@@ -186,8 +186,9 @@
 //!   module on a difference of more than one tick: the modules ignore the BCC, so a corrupted command would
 //!   otherwise run to a wrong place. To be confirmed on real hardware.
 //! - **Stops that cannot be confirmed.** When an action that may have set a module in motion cannot go on,
-//!   the module is halted: up to three Halts by address (a Halt may be repeated), then a broadcast Halt and,
-//!   if none was acknowledged, the watchdog refresh stopped on purpose ([`Session::abandon_watchdog`]):
+//!   the module is halted: up to three Halts by address (a Halt may be repeated), the state read after an
+//!   acknowledged one until STATE_MOTION clears (at most [`session::HALT_SETTLE`]), and, unless it was seen
+//!   at rest, a broadcast Halt and the watchdog refresh stopped on purpose ([`Session::abandon_watchdog`]):
 //!   an armed module then halts itself within 50 ms. The error carries a [`error::StopOutcome`] whose text
 //!   says whether the module confirmed the stop, and if not, that the axis may still be moving.
 //! - **Acknowledges nobody asked for.** A module that acknowledges a motion command it was not sent in this

@@ -260,6 +260,101 @@ fn a_cancelled_move_is_halted_and_says_the_module_confirmed_it() {
     let (state, p, _, _) = b.module(1);
     assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
     assert!(p > 0.05 && p < 0.2, "{p}");
+    // Confirmed means seen at rest: after the Halt (0x02 to 0x0E1), CubeState (0x0A 0x27) was read.
+    let halt = b.sent.iter().rposition(|(_, w)| frame(w, |id| id == 0xE1, Some(&[0x02]))).expect("the Halt");
+    assert!(b.sent[halt + 1..].iter().any(|(_, w)| frame(w, |id| id == 0xC1, Some(&[0x0A, 0x27]))), "{:?}", b.sent);
+    assert!(err.to_string().ends_with("it is at rest"), "{err}");
+}
+
+/// Module 1's CubeState reads (GetExtended 0x27) on CAN.
+fn is_state_read(w: &Telegram) -> bool {
+    frame(w, |id| id == 0xC1, Some(&[0x0A, 0x27]))
+}
+
+/// The Halt to module 1 (CMD_HALT, 0x02) on CAN.
+fn is_halt(w: &Telegram) -> bool {
+    frame(w, |id| id == 0xE1, Some(&[0x02]))
+}
+
+#[test]
+fn a_cancelled_move_whose_state_cannot_be_read_after_the_halt_is_not_confirmed() {
+    let mut b = Bench::can(&[1]);
+    b.run(Op::EnableWatchdog(addrs(&[1]))).unwrap();
+    let spec = MoveSpec { vel: Some(Velocity::native(0.2)), ..MoveSpec::to(Position::native(2.0)) };
+    let id = b.session.start(Op::MoveTo(addr(1), spec), b.now);
+    b.idle(ms(300));
+    // From the Halt on, every CubeState read is lost: the Halt is acknowledged, the rest is not seen.
+    let halted = std::cell::Cell::new(false);
+    b.lose = Some(Box::new(move |w: &Telegram| {
+        halted.set(halted.get() || is_halt(w));
+        halted.get() && is_state_read(w)
+    }));
+    b.session.cancel(id, b.now);
+    let err = b.wait_done_within(id, Duration::from_secs(5)).unwrap_err();
+    match &err {
+        Error::Cancelled { stop: StopOutcome::Unconfirmed { reason, watchdog_armed: true }, .. } => {
+            assert!(reason.contains("acknowledged the Halt, but its state could not be read"), "{reason}")
+        }
+        other => panic!("{other:?}"),
+    }
+    let text = err.to_string();
+    assert!(!text.contains("it is at rest") && text.contains("may still be moving"), "{text}");
+    assert!(text.contains("halts itself within 50 ms"), "{text}");
+    assert!(motionlink_link::error::Classify::stop_unconfirmed(&err), "exit 3, flagged: {err}");
+    // The state was asked three times (as any read, also after the cancel), then a Halt broadcast.
+    let halt = b.sent.iter().position(|(_, w)| is_halt(w)).unwrap();
+    assert_eq!(b.sent[halt..].iter().filter(|(_, w)| is_state_read(w)).count(), 3, "{:?}", &b.sent[halt..]);
+    assert!(b.sent[halt..].iter().any(|(_, w)| frame(w, |id| id == 0x100, Some(&[0x02]))));
+    assert!(b.session.failed() && !b.session.watchdog_served());
+}
+
+#[test]
+fn a_cancelled_move_whose_module_acknowledges_the_halt_but_keeps_moving_is_not_confirmed() {
+    let mut b = Bench::can(&[1]);
+    let spec = MoveSpec { vel: Some(Velocity::native(0.2)), ..MoveSpec::to(Position::native(2.0)) };
+    let id = b.session.start(Op::MoveTo(addr(1), spec), b.now);
+    b.idle(ms(300));
+    // Every Halt by address is kept from the module, and acknowledged here in its name: a module that
+    // acknowledges the Halt and goes on moving.
+    let halts = std::rc::Rc::new(std::cell::Cell::new(0u32));
+    let seen = halts.clone();
+    b.lose = Some(Box::new(move |w: &Telegram| {
+        let halt = is_halt(w);
+        seen.set(seen.get() + u32::from(halt));
+        halt
+    }));
+    b.session.cancel(id, b.now);
+    let ack = crate::wire::can::to_frame(
+        crate::wire::can::Role::Ack(1),
+        &crate::wire::Reply::Action(crate::wire::Action::Halt).encode(),
+    );
+    let mut acked = 0;
+    let limit = b.now + Duration::from_secs(5);
+    let err = loop {
+        b.settle();
+        if acked < halts.get() {
+            acked += 1;
+            b.session.handle_input(Input::Frame(&ack), b.now);
+            continue;
+        }
+        if let Some(r) = b.take_done(id) {
+            break r.unwrap_err();
+        }
+        assert!(b.step_before(limit), "the stop ends");
+    };
+    assert_eq!(halts.get(), 1, "acknowledged at once: one Halt by address");
+    match &err {
+        Error::Cancelled { stop: StopOutcome::Unconfirmed { reason, watchdog_armed: false }, .. } => {
+            assert!(reason.contains("acknowledged the Halt, but still reported STATE_MOTION 500 ms later"), "{reason}")
+        }
+        other => panic!("{other:?}"),
+    }
+    let text = err.to_string();
+    assert!(text.contains("may still be moving") && text.contains("no watchdog is armed on it"), "{text}");
+    assert!(motionlink_link::error::Classify::stop_unconfirmed(&err), "{err}");
+    // Bounded: about HALT_SETTLE after the cancel. The broadcast Halt (which reaches the module) stops it.
+    assert!(b.sent.iter().any(|(_, w)| frame(w, |id| id == 0x100, Some(&[0x02]))));
+    assert!(!b.module(1).0.contains(StateFlag::Motion));
 }
 
 #[test]

@@ -37,8 +37,20 @@ fn interrupt_and_check(sim: &Sim, running: Running, module: &str, sig: i32) -> f
     assert!(rest.at - at < 0.100, "signal {sig}: at rest {:.1} ms after the signal", (rest.at - at) * 1e3);
     assert_eq!(ended.code(), 128 + sig, "signal {sig}: {ended:?}");
     assert!(
-        ended.stderr.contains("the module acknowledged the halt: it has stopped"),
+        ended.stderr.contains(
+            "the module acknowledged the halt and then reported no motion (STATE_MOTION clear): it is at rest"
+        ),
         "signal {sig}: {}",
+        ended.stderr
+    );
+    // Said only once seen: after the Halt's acknowledge, the state was read (the trace of `-v`).
+    let lines: Vec<&str> = ended.stderr.lines().collect();
+    let acked =
+        lines.iter().position(|l| l.contains("Halt acknowledged")).unwrap_or_else(|| panic!("{}", ended.stderr));
+    let state_read = format!("to module {module}: GetExtended CubeState");
+    assert!(
+        lines[acked..].iter().any(|l| l.contains(&state_read)),
+        "signal {sig}: no state read after the Halt: {}",
         ended.stderr
     );
     at

@@ -267,7 +267,7 @@ fn a_line_that_fails_during_a_move_is_stopped_and_the_error_says_so() {
         other => panic!("{other}"),
     }
     assert!(err.is_transport(), "exit code 3");
-    assert!(err.to_string().contains("the module acknowledged the halt: it has stopped"), "{err}");
+    assert!(err.to_string().contains("the module acknowledged the halt and then reported no motion"), "{err}");
     let (state, _) = sim_module(&host, 1);
     assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
     drop(bus);

@@ -48,6 +48,12 @@ impl Ctx {
     /// operation is cancelled: the Halt that answers the cancel goes out after one unanswered read, not
     /// after its retries.
     pub async fn request(&self, address: u8, request: Request) -> Result<Reply, Error> {
+        self.request_retrying(address, request, false).await
+    }
+
+    /// [`Ctx::request`], whose read is asked again also after the operation was cancelled where
+    /// `after_cancel` says so: the reads that confirm a stop, which comes after the cancel.
+    async fn request_retrying(&self, address: u8, request: Request, after_cancel: bool) -> Result<Reply, Error> {
         self.check(address, &request)?;
         let (attempts, timeout) = {
             let mut core = self.core();
@@ -61,7 +67,7 @@ impl Ctx {
         for attempt in 0..attempts {
             match self.exchange(vec![(address, request)], timeout).await.pop() {
                 Some(Ok(reply)) => return check_reply(address, &request, reply),
-                Some(Err(e)) if e.retryable() && attempt + 1 < attempts && !self.cancelled() => {
+                Some(Err(e)) if e.retryable() && attempt + 1 < attempts && (after_cancel || !self.cancelled()) => {
                     tracing::debug!("{e}; trying again");
                     last = Some(e);
                 }
@@ -319,21 +325,34 @@ impl Ctx {
             sent,
             cause: Box::new(e),
         })?;
+        let state = self.at_rest_after_halt(address).await?;
+        let position = self.position(address).await?;
+        // The kind (the unit of the position) only now: nothing comes before the Halt.
+        let kind = self.kind(address).await.map_err(|e| Error::Context {
+            context: format!(
+                "module {address} halted (confirmed), but its type (and so the unit of its position) cannot be read"
+            ),
+            source: Box::new(e),
+            hint: "",
+        })?;
+        Ok(HaltReport { kind, state, position: position.in_unit_of(kind) })
+    }
+
+    /// After a Halt the module acknowledged: its state, read until STATE_MOTION is clear, for at most
+    /// [`HALT_SETTLE`] (each read asked again as any read, also after a cancel: this is the stop that
+    /// answers it). The state at rest; [`Error::StillMoving`] if STATE_MOTION was still set then; the read's
+    /// error if the state could not be read.
+    pub async fn at_rest_after_halt(&self, address: u8) -> Result<CubeState, Error> {
         let start = self.now();
         let period = self.core().config.poll_interval.max(Duration::from_micros(100));
+        let request = Request::Get(Param::CubeState);
         loop {
-            let state = self.state(address).await?;
+            let state = match self.request_retrying(address, request, true).await? {
+                Reply::Get(_, Value::U32(s)) => CubeState(s),
+                other => return Err(unexpected(address, &request, other)),
+            };
             if !state.contains(StateFlag::Motion) {
-                let position = self.position(address).await?;
-                // The kind (the unit of the position) only now: nothing comes before the Halt.
-                let kind = self.kind(address).await.map_err(|e| Error::Context {
-                    context: format!(
-                        "module {address} halted (confirmed), but its type (and so the unit of its position) cannot be read"
-                    ),
-                    source: Box::new(e),
-                    hint: "",
-                })?;
-                return Ok(HaltReport { kind, state, position: position.in_unit_of(kind) });
+                return Ok(state);
             }
             let waited = self.now().saturating_since(start);
             if waited >= HALT_SETTLE {

@@ -18,11 +18,23 @@ use crate::wire::{ExtAck, Reply, Request};
 impl Ctx {
     /// Stops module `a` after an action that may have set it in motion cannot go on, and says whether the
     /// module confirmed it: up to three Halts by address (a Halt may be repeated safely; not after the line
-    /// itself failed), then, if none was acknowledged, a Halt broadcast to every module and the watchdog
-    /// refresh stopped, so that an armed module halts itself within 50 ms.
+    /// itself failed), then, once one is acknowledged, the state until STATE_MOTION clears (at most
+    /// [`HALT_SETTLE`](crate::session::HALT_SETTLE), as `stop` reads it). Confirmed only when the module
+    /// showed itself at rest; otherwise (no Halt acknowledged, still in motion, its state unreadable) a Halt
+    /// broadcast to every module and the watchdog refresh stopped, so that an armed module halts itself
+    /// within 50 ms.
     pub async fn stop_motion(&self, a: u8) -> StopOutcome {
         let reason = match self.halt_repeated(a).await {
-            Ok(()) => return StopOutcome::Confirmed,
+            Ok(()) => match self.at_rest_after_halt(a).await {
+                Ok(_) => return StopOutcome::Confirmed,
+                Err(Error::StillMoving { state, waited, .. }) => format!(
+                    "module {a} acknowledged the Halt, but still reported STATE_MOTION {} ms later (state: {state})",
+                    waited.as_millis()
+                ),
+                Err(e) => {
+                    format!("module {a} acknowledged the Halt, but its state could not be read to see it at rest: {e}")
+                }
+            },
             Err((e, _)) => e.to_string(),
         };
         tracing::warn!(
