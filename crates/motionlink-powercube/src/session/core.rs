@@ -80,6 +80,10 @@ pub(crate) struct WatchdogDuty {
     pub config_before: BTreeMap<u8, ConfigWord>,
     /// Modules that got a life sign this session could not confirm: their watchdog may be online or not.
     pub uncertain: BTreeSet<u8>,
+    /// The state word of each module as the last arming read it, before its Config word or life sign:
+    /// whether a Reset after a failed arming would clear a latch set before it (see
+    /// `Ctx::release_failed_arming`).
+    pub state_before: BTreeMap<u8, crate::model::CubeState>,
     /// The last failure of a refresh.
     pub last_error: Option<String>,
     /// When the last refresh was handed to the driver, on the session's time (none yet since the refresh

@@ -185,6 +185,27 @@ fn a_tick_target_is_set_within_its_int32_limit_and_refused_beyond_it() {
 }
 
 #[test]
+fn a_refused_arming_leaves_the_module_able_to_move_and_says_so() {
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0", "--variant", "life-sign-unacknowledged"]);
+    let port = sim.address.as_str();
+    for attempt in 0..2 {
+        let out = run(port, &["--module", "1", "--json", "move", "0.5", "--vel", "0.5", "--acc", "1"]);
+        assert_eq!(code(&out), 1, "{attempt}: {out:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("cannot arm the watchdog of module 1"), "{attempt}: {err}");
+        assert!(!err.contains("reports an error"), "{attempt}: not left in error: {err}");
+        assert!(err.contains("module 1 is left as it was"), "{attempt}: {err}");
+    }
+    let state: serde_json::Value =
+        serde_json::from_slice(&run(port, &["--module", "1", "--json", "state"]).stdout).unwrap();
+    let flags = state["flags"].as_array().unwrap();
+    assert!(!flags.iter().any(|f| f == "STATE_COMM_ERROR" || f == "STATE_HALTED" || f == "STATE_ERROR"), "{state}");
+    // The module moves when the watchdog is not asked for.
+    let out = run(port, &["--module", "1", "--no-watchdog", "move", "0.5", "--vel", "0.5", "--acc", "1"]);
+    assert!(out.status.success(), "{out:?}");
+}
+
+#[test]
 fn homing_without_the_watchdog_asked_for_says_so_in_words() {
     let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0", "--variant", "no-broadcast-pair"]);
     let out = run(&sim.address, &["home"]);

@@ -180,6 +180,60 @@ fn a_life_sign_that_is_not_acknowledged_refuses_the_guarded_motion_and_says_so()
 }
 
 #[test]
+fn a_refused_arming_leaves_the_module_as_it_was_and_the_next_guarded_move_is_refused_the_same_way() {
+    let (clock, host, bus) = rs232_variant(&[Variant::LifeSignUnacknowledged]);
+    let _me = clock.reserve_participant().enter();
+    let m = bus.module(addr(1));
+    let config_before = host.with_device(|d| d.module(1).unwrap().config_word());
+    for attempt in 0..2 {
+        let err = m.move_to_guarded(&spec(0.5), Guard::Watchdog, &mut |_| {}).unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.contains("cannot arm the watchdog of module 1: module 1: watchdog not confirmed online"),
+            "{text}"
+        );
+        // Said what became of it: it had gone online, expired once its refresh stopped, and was released
+        // (the manual's restart, chapter 13): the module as before, not in error.
+        assert!(text.contains("expired; it was switched offline and the module reset"), "{attempt}: {text}");
+        assert!(text.contains("module 1 is left as it was"), "{attempt}: {text}");
+        assert!(!text.contains("reports an error"), "{attempt}: the module was not in error: {text}");
+        let (state, online, config) = host.with_device(|d| {
+            let m = d.module(1).unwrap();
+            (m.state(), m.watchdog_online(), m.config_word())
+        });
+        assert!(!state.has_fault() && !state.contains(StateFlag::Halted), "{attempt}: {state}");
+        assert!(!online && config == config_before, "{attempt}: watchdog offline, Config word as it was");
+    }
+    // Nothing is left for the close to find out.
+    bus.close().unwrap();
+}
+
+#[test]
+fn a_refused_arming_of_a_halted_module_resets_nothing_and_says_what_it_is_left_in() {
+    // On CAN (on RS232, a module whose broadcast refresh is not yet found out is refused as halted before
+    // any arming): the arming goes ahead, and its refusal must not clear the halt.
+    let (clock, canbus, bus) = can_variant(&[Variant::LifeSignUnacknowledged]);
+    let _me = clock.reserve_participant().enter();
+    let host = canbus;
+    let m = bus.module(addr(1));
+    m.halt().unwrap();
+    let err = m.move_to_guarded(&spec(0.5), Guard::Watchdog, &mut |_| {}).unwrap_err();
+    let text = err.to_string();
+    assert!(text.contains("cannot arm the watchdog of module 1"), "{text}");
+    assert!(
+        text.contains("module 1 is left halted with STATE_COMM_ERROR") && text.contains("`reset` clears it"),
+        "{text}"
+    );
+    assert!(text.contains("halted or in error before, so it was not reset here"), "{text}");
+    let state = host.with_device(|d| d.module(1).unwrap().state()).unwrap();
+    assert!(state.contains(StateFlag::Halted) && state.contains(StateFlag::CommError), "as said: {state}");
+    // `reset` clears it, as said.
+    assert!(m.reset_and_release_watchdog().unwrap());
+    assert!(!host.with_device(|d| d.module(1).unwrap().state()).unwrap().has_fault());
+    bus.close().unwrap();
+}
+
+#[test]
 fn a_move_without_speed_on_a_module_whose_twins_are_apart_uses_the_module_s_own_speed() {
     let (clock, host, bus) = rs232_variant(&[Variant::NoTwinMirror]);
     let _me = clock.reserve_participant().enter();

@@ -139,10 +139,22 @@ impl Ctx {
             })?;
         }
         if let Err(e) = self.enable_watchdog(&[a]).await {
-            // Undo what was done before the failure (a Config word changed, a life sign sent).
+            // Undo what was done before the failure (a Config word changed, a life sign sent), and say what
+            // the module is left in: a life sign not acknowledged may have switched the watchdog online, which
+            // expires once the refresh stops (see `release_failed_arming`).
             if let Err(undo) = self.disable_watchdog().await {
-                tracing::warn!("switching the watchdog off again failed: {undo}");
+                tracing::info!("switching the watchdog off again: {undo}");
             }
+            let e = match (e, self.release_failed_arming(a).await) {
+                (Error::WatchdogUnconfirmed { address, on, detail }, Some(left)) => {
+                    Error::WatchdogUnconfirmed { address, on, detail: format!("{detail}; {left}") }
+                }
+                (e, Some(left)) => {
+                    tracing::warn!("module {a}: {left}");
+                    e
+                }
+                (e, None) => e,
+            };
             return Err(cannot_arm(e));
         }
         tracing::info!("watchdog armed in module {a}");

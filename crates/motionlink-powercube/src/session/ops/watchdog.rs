@@ -51,6 +51,7 @@ impl Ctx {
                 return Err(Error::InvalidAddress(a));
             }
             let state = self.state(a).await?;
+            self.core().duty.state_before.insert(a, state);
             if state.contains(StateFlag::CommError) && !self.core().duty.online.contains(&a) {
                 return Err(Error::Device { address: crate::model::Address::checked(a), state });
             }
@@ -217,6 +218,110 @@ impl Ctx {
             }
         }
         first_error.map_or(Ok(()), Err)
+    }
+
+    /// After an arming of module `a` that failed, with [`Ctx::disable_watchdog`] run: what more can be
+    /// undone, and what the module is left in, in words for the refusal (`None`: the arming failed before
+    /// anything was left to undo, or it was all undone by `disable_watchdog`, said as such).
+    ///
+    /// A module whose life sign was not acknowledged stays uncertain when `disable_watchdog`, having
+    /// stopped the refresh, saw its watchdog expire (STATE_COMM_ERROR, STATE_HALTED): the life sign had
+    /// arrived, so the watchdog is known to be online. Chapter 13's first way to restart then applies: a
+    /// life sign (to a watchdog known online, it switches it offline) and a Reset; twice the watchdog's time
+    /// later the state shows whether it expired again (the life sign lost: left as it is, said so). Not on a
+    /// module that was halted or in error before the arming: the Reset would clear a latch set before (a
+    /// `stop`'s Halt), which only a `reset` asked for may clear.
+    pub(crate) async fn release_failed_arming(&self, a: u8) -> Option<String> {
+        let (uncertain, online, config_changed, before) = {
+            let core = self.core();
+            let d = &core.duty;
+            (
+                d.uncertain.contains(&a),
+                d.online.contains(&a),
+                d.config_before.contains_key(&a),
+                d.state_before.get(&a).copied(),
+            )
+        };
+        if online {
+            return Some(format!("its watchdog could not be switched off again: module {a} halts itself within 50 ms (STATE_COMM_ERROR; `reset` clears it)"));
+        }
+        if !uncertain {
+            // Seen offline (no expiry after the refresh stopped), Config word restored if it was changed.
+            return Some(if config_changed {
+                format!("its Config word could not be restored: CONFIGID_MOD_WATCHDOG_ENABLE is left set in module {a}")
+            } else {
+                format!("its watchdog was seen offline (no expiry once the refresh stopped) and its Config word is as it was: module {a} is left as it was")
+            })
+            .filter(|_| before.is_some());
+        }
+        let left = |state: crate::model::CubeState, why: &str| {
+            format!(
+                "its watchdog had gone online all the same and, no longer refreshed, expired{why}: module {a} is left \
+                 halted with STATE_COMM_ERROR (state: {state}; `reset` clears it)"
+            )
+        };
+        let state = match self.state(a).await {
+            Ok(state) => state,
+            Err(e) => {
+                return Some(format!(
+                "its watchdog may have gone online and, no longer refreshed, expired, but module {a}'s state cannot \
+                     be read to see ({e}); if it did, the module is halted with STATE_COMM_ERROR (`reset` clears it)"
+            ))
+            }
+        };
+        if !state.contains(StateFlag::CommError) {
+            // Readable now, and not expired: the watchdog is offline.
+            self.core().duty.uncertain.remove(&a);
+            return self.restore_after_arming(a, format!("its watchdog is offline (state: {state})")).await;
+        }
+        if before.is_none_or(|b| b.contains(StateFlag::Halted) || b.has_fault()) {
+            return Some(left(state, " (the module was halted or in error before, so it was not reset here)"));
+        }
+        tracing::info!(
+            "module {a}: its watchdog expired after an unacknowledged life sign: switching it offline and resetting"
+        );
+        match self.request(a, Request::Action(Action::LifeSign)).await {
+            Ok(_) | Err(Error::Timeout { .. } | Error::Corrupt { .. }) => {}
+            Err(e) => return Some(left(state, &format!(" (switching it offline failed: {e})"))),
+        }
+        if let Err(e) = self.action(a, Action::Reset).await {
+            return Some(left(state, &format!(" (switched offline, but the Reset failed: {e})")));
+        }
+        let until = self.now() + WATCHDOG_TIMEOUT * 2;
+        self.sleep_until(until).await;
+        match self.state(a).await {
+            Ok(after) if !after.contains(StateFlag::CommError) => {
+                self.core().duty.uncertain.remove(&a);
+                let what = format!(
+                    "its watchdog had gone online all the same and, no longer refreshed, expired; it was switched \
+                     offline and the module reset (the manual's restart, chapter 13), and {} ms later it showed no \
+                     expiry (state: {after})",
+                    (WATCHDOG_TIMEOUT * 2).as_millis()
+                );
+                self.restore_after_arming(a, what).await
+            }
+            Ok(after) => Some(left(after, ", and it expired again after a life sign and a Reset")),
+            Err(e) => {
+                Some(left(state, &format!(" (switched offline and reset, but the state cannot be read to see: {e})")))
+            }
+        }
+    }
+
+    /// The Config word of module `a` as it was before an arming that failed, `what` said first.
+    async fn restore_after_arming(&self, a: u8, what: String) -> Option<String> {
+        let before = self.core().duty.config_before.get(&a).copied();
+        let Some(before) = before else {
+            return Some(format!("{what}: module {a} is left as it was"));
+        };
+        match self.restore_watchdog_flag(a, before).await {
+            Ok(()) => {
+                self.core().duty.config_before.remove(&a);
+                Some(format!("{what}, and its Config word was restored: module {a} is left as it was"))
+            }
+            Err(e) => Some(format!(
+                "{what}, but its Config word could not be restored ({e}): CONFIGID_MOD_WATCHDOG_ENABLE may be left set"
+            )),
+        }
     }
 
     /// Gives CONFIGID_MOD_WATCHDOG_ENABLE of module `a` back the value it had in `before`, every other bit
