@@ -207,6 +207,13 @@ fn set_checked_reads_back_and_names_a_mismatch() {
     assert!(matches!(err, Error::OutsideLimits { limit: Param::MaxPos, .. }), "{err}");
     let err = m.set_checked(Param::Cur, Value::F32(6.0)).unwrap_err();
     assert!(matches!(err, Error::OutsideLimits { limit: Param::MaxCur, .. }), "{err}");
+    // A ramp's velocity and acceleration are sizes: a negative one is refused as given (not by its size).
+    for (param, given) in [(Param::TargetVel, -1.0), (Param::TargetVel, -5.0), (Param::TargetAcc, -1.0)] {
+        let err = m.set_checked(param, Value::F32(given)).unwrap_err();
+        assert!(matches!(err, Error::InvalidArgument { .. }) && err.is_usage(), "{err}");
+        assert!(err.to_string().starts_with(&format!("{param} must be at least 0")), "{err}");
+        assert!(err.to_string().ends_with(&format!("not {given}")), "{err}");
+    }
     assert_eq!(host.with_device(|d| d.request(clock.now(), 1, &Request::Get(Param::TargetVelInc))), velinc);
 }
 

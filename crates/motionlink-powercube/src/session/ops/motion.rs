@@ -143,6 +143,19 @@ impl Ctx {
         Request::set(param, value)?;
         let number = value.as_f64();
         let name = param.name();
+        // A ramp's velocity and acceleration are sizes (the target gives the direction; the Inc twins are
+        // UInt32 in the manual's table): a negative one is refused, named as given.
+        if let (Param::TargetVel | Param::TargetAcc | Param::TargetVelInc | Param::TargetAccInc, Some(v)) =
+            (param, number)
+        {
+            if v < 0.0 {
+                return Err(Error::InvalidArgument {
+                    what: name,
+                    must: "at least 0 (a ramp's size: the target position gives the direction)",
+                    value: v.to_string(),
+                });
+            }
+        }
         match (param, number) {
             (Param::TargetPos, Some(v)) => {
                 self.within_limit(a, name, v, Param::MinPos, false).await?;
