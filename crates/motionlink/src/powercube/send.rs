@@ -104,7 +104,15 @@ pub(super) fn parse_send(words: &[String], module: u8) -> Result<Request, CliErr
             } else {
                 Payload::new(&bytes).map_err(|e| CliError::usage(e.to_string()))?
             };
-            Request::decode(&payload).map_err(|e| CliError::usage(format!("not a command: {e}")))?
+            Request::decode(&payload).map_err(|e| {
+                // Bytes that start as a telegram does (STX, a TELID) were likely meant as one.
+                let telegram = if bytes.first() == Some(&0x02) && bytes.len() >= 3 && bytes.last() != Some(&0x03) {
+                    "; as a whole RS232 telegram it lacks its ETX (03) at the end"
+                } else {
+                    ""
+                };
+                CliError::usage(format!("not a command: {e}{telegram}"))
+            })?
         }
     };
     if request.starts_motion() {

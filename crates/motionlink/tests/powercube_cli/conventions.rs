@@ -41,6 +41,10 @@ pub(super) fn options_anywhere_json_send_get_and_watch_csv() {
         let o = run(&[&["powercube", "--port", p][..], refused].concat());
         assert_eq!(code(&o), 2, "{refused:?}: {o:?}");
     }
+    // A telegram without its ETX: the message says what it lacks.
+    let o = run(&["powercube", "--port", p, "send", "02", "04", "22", "0A", "3C", "6C"]);
+    assert_eq!(code(&o), 2, "{o:?}");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("lacks its ETX (03)"), "{o:?}");
 
     let csv = String::from_utf8_lossy(
         &run(&["powercube", "watch", "--count", "2", "--csv", "--interval-ms", "10", "--port", p]).stdout,
