@@ -107,8 +107,13 @@ impl FromStr for PortUrl {
         match scheme {
             "tcp" => {
                 let (host, port) = rest.rsplit_once(':').ok_or_else(|| invalid("expected tcp://HOST:PORT"))?;
-                let host = host.trim_start_matches('[').trim_end_matches(']');
-                if host.is_empty() {
+                // An IPv6 address in brackets: both of them, or neither.
+                let host = match (host.strip_prefix('['), host.ends_with(']')) {
+                    (Some(inner), true) => &inner[..inner.len() - 1],
+                    (None, false) => host,
+                    _ => return Err(invalid("unbalanced brackets: an IPv6 host is tcp://[ADDRESS]:PORT")),
+                };
+                if host.is_empty() || host.contains(['[', ']']) {
                     return Err(invalid("missing host in tcp://HOST:PORT"));
                 }
                 let port: u16 = port.parse().map_err(|_| invalid("the TCP port must be a number 1..65535"))?;
@@ -167,9 +172,19 @@ mod tests {
 
     #[test]
     fn rejects_bad_ports_with_a_reason() {
-        for bad in
-            ["", "tcp://host", "tcp://:80", "tcp://h:0", "tcp://h:99999", "udp://h:1", "socketcan://", "slcan://"]
-        {
+        for bad in [
+            "",
+            "tcp://host",
+            "tcp://:80",
+            "tcp://h:0",
+            "tcp://h:99999",
+            "udp://h:1",
+            "socketcan://",
+            "slcan://",
+            "tcp://[::1:1",
+            "tcp://::1]:1",
+            "tcp://[]:1",
+        ] {
             let err = bad.parse::<PortUrl>().unwrap_err();
             assert!(matches!(err, LinkError::InvalidPort { .. }), "{bad}: {err}");
         }
