@@ -68,7 +68,10 @@ impl<L: Link> TapLink<L> {
 
 impl<L: Link> Link for TapLink<L> {
     fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
-        self.sink.record(self.clock.now(), Direction::ToDevice, Chunk::Bytes(bytes));
+        // Nothing sent, nothing recorded (a capture line has bytes).
+        if !bytes.is_empty() {
+            self.sink.record(self.clock.now(), Direction::ToDevice, Chunk::Bytes(bytes));
+        }
         self.inner.send(bytes)
     }
 
@@ -245,8 +248,14 @@ pub fn parse_line(line: &str) -> Result<Option<ParsedLine>, String> {
     };
     for (arrow, direction) in [("->", Direction::ToDevice), ("<-", Direction::FromDevice)] {
         if let Some(hex_text) = rest.strip_prefix(arrow) {
+            if hex_text.trim().is_empty() {
+                return Err(format!("no bytes after {arrow}"));
+            }
             return Ok(Some(ParsedLine { unix, direction, data: CapturedLine::Bytes(parse_hex(hex_text)?) }));
         }
+    }
+    if unix.is_some() && rest.is_empty() {
+        return Err("a time stamp without bytes".into());
     }
     let (rest, direction) = candump_direction(rest);
     if looks_like_candump(&rest) {
@@ -355,6 +364,8 @@ mod tests {
         assert_eq!((plain.direction, plain.data), (Direction::Unknown, CapturedLine::Bytes(vec![0x52, 0x47, 0x11, 0])));
         assert!(parse_line("(12x) -> 52").unwrap_err().contains("time stamp"));
         assert!(parse_line("-> 5").unwrap_err().contains("not hex"));
+        assert_eq!(parse_line("(1) <-").unwrap_err(), "no bytes after <-");
+        assert_eq!(parse_line("(1)").unwrap_err(), "a time stamp without bytes");
         let screen = parse_line("  can0  0F1   [1]  01").unwrap().unwrap();
         assert!(matches!(screen.data, CapturedLine::Frame { .. }));
     }
