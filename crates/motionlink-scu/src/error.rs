@@ -224,9 +224,9 @@ pub enum Error {
     CancelledBeforeMotion(Command),
     /// An action failed, and the stop that followed was not confirmed by the unit.
     #[error(
-        "{}; then the stop ({}) was NOT confirmed by the unit ({detail}): the actuators may still be \
-         moving. {WATCHDOG_NOTE}",
-        unconfirmed_cause(cause),
+        "{}the stop ({}) was NOT confirmed by the unit ({detail}): the actuators may still be moving. \
+         {WATCHDOG_NOTE}",
+        unconfirmed_cause(cause, detail),
         crate::model::stop_words(functions, *mode)
     )]
     StopUnconfirmed {
@@ -423,12 +423,21 @@ impl Classify for Error {
 
 /// What went wrong first, as the message of a stop that was then not confirmed says it: a cancelled move
 /// names where its actuator was last seen, not that it stopped there.
-fn unconfirmed_cause(cause: &Error) -> String {
+/// What went wrong before a stop that was not confirmed, with "; then " after it; nothing where the stop's
+/// own failure is the cause (`detail` says it already: "X; then the stop ... (X)" would say it twice).
+fn unconfirmed_cause(cause: &Error, detail: &str) -> String {
     match cause {
         Error::Cancelled { actuator, position_counts } => {
-            format!("cancelled while {actuator} was moving (last seen at {position_counts})")
+            format!("cancelled while {actuator} was moving (last seen at {position_counts}); then ")
         }
-        other => other.to_string(),
+        other => {
+            let text = other.to_string();
+            if detail.ends_with(&text) {
+                String::new()
+            } else {
+                format!("{text}; then ")
+            }
+        }
     }
 }
 
@@ -537,5 +546,15 @@ mod tests {
         assert!(unconfirmed.to_string().starts_with("cancelled while function id 12 was under way; then the stop"));
         // Not a clean cancel: the class Cancelled promises that what was started was stopped.
         assert_eq!(unconfirmed.class(), ErrorClass::Transport(TransportKind::Timeout));
+        // A stop whose own failure is the cause says it once.
+        let moving = Error::StillMoving(vec![crate::model::Actuator::new(1).unwrap()]);
+        let own = Error::StopUnconfirmed {
+            detail: moving.to_string(),
+            cause: Box::new(moving),
+            functions: Vec::new(),
+            mode: crate::model::StopMode::Soft,
+        };
+        assert!(own.to_string().starts_with("the stop ("), "{own}");
+        assert_eq!(own.to_string().matches("still report").count(), 1, "{own}");
     }
 }
