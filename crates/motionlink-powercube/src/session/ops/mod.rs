@@ -120,9 +120,10 @@ impl Ctx {
             let stopped = self.halt_started().await;
             return both(result, stopped).map(|v| (v, notes));
         }
-        // The probe of the RS232 broadcast refresh may end with a Reset (of the STATE_COMM_ERROR its own life
-        // sign caused): a module halted or in error before it is refused first, so that the probe's Reset
-        // never clears a latch someone else set (a `stop`'s Halt, an error) and moves it.
+        // A module halted or in error is refused before its watchdog is armed: the motion would refuse it
+        // anyway, and the arming would leave it more to clear (the probe of the RS232 broadcast refresh may end
+        // with a Reset, which must never clear a latch someone else set, a `stop`'s Halt or an error, and move
+        // it; a life sign it does not acknowledge leaves an expired watchdog).
         let cannot_arm = |e: Error| {
             let hint = match &e {
                 Error::Device { state, .. } if state.contains(crate::model::StateFlag::CommError) => {
@@ -132,12 +133,10 @@ impl Ctx {
             };
             Error::Context { context: format!("cannot arm the watchdog of module {a}"), source: Box::new(e), hint }
         };
-        if self.broadcast_probe_due(a) {
-            self.ready_for_motion(a).await.map_err(|e| match e {
-                Error::Device { .. } => cannot_arm(e),
-                e => e,
-            })?;
-        }
+        self.ready_for_motion(a).await.map_err(|e| match e {
+            Error::Device { .. } => cannot_arm(e),
+            e => e,
+        })?;
         if let Err(e) = self.enable_watchdog(&[a]).await {
             // Undo what was done before the failure (a Config word changed, a life sign sent), and say what
             // the module is left in: a life sign not acknowledged may have switched the watchdog online, which
