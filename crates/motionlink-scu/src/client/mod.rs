@@ -14,7 +14,7 @@
 //! let a1 = Actuator::new(1).unwrap();
 //! let report = client.move_to(a1, PositionCounts(400), Speed::percent(80).unwrap(), &Default::default())?;
 //! println!("actuator 1 at {}", report.position_counts); // "400 counts"
-//! // Dropping the client stops anything it started (RS) and leaves remote mode (RA).
+//! // Dropping the client stops anything it started (RS) and, once that is confirmed, leaves remote mode (RA).
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
