@@ -170,7 +170,8 @@ pub fn parse(payload: &[u8]) -> Result<Request, BadRequest> {
         Some(Value::String(_)) => {
             return Err(bad(None, reply_to, "\"id\" must not be empty: give a string or a whole number".into()));
         }
-        Some(Value::Number(n)) if n.as_f64().is_some_and(|f| f.fract() == 0.0) => {
+        // A whole number serde_json could not hold in 64 bits (it came as a float): not `7.0`, which is a float.
+        Some(Value::Number(n)) if n.as_f64().is_some_and(|f| f.fract() == 0.0 && f.abs() >= 9.2e18) => {
             let m = format!("\"id\" {n} is a whole number too large for 64 bits: give a smaller one, or a string");
             return Err(bad(None, reply_to, m));
         }
@@ -273,6 +274,10 @@ mod tests {
         assert_eq!(reply(Some(&r.id), &Ok(Value::Null))["id"], serde_json::json!(7));
         let e = parse(br#"{"id": 123456789012345678901234567890, "op": "keepalive"}"#).unwrap_err();
         assert!(e.error.message.contains("too large for 64 bits"), "{}", e.error.message);
+        for float in ["7.0", "-0.0", "1e3"] {
+            let e = parse(format!(r#"{{"id": {float}, "op": "keepalive"}}"#).as_bytes()).unwrap_err();
+            assert!(e.error.message.contains("must be a string or a whole number"), "{float}: {}", e.error.message);
+        }
         let r = parse(br#"{"id": -12345678901234567, "op": "keepalive"}"#).unwrap();
         assert_eq!(reply(Some(&r.id), &Ok(Value::Null))["id"], serde_json::json!(-12345678901234567i64));
     }

@@ -43,7 +43,13 @@ where
     let lo = min.into();
     move |text: &str| {
         let refused = || format!("{what} must be {}", whole_range(lo, None, ""));
-        let n: i128 = text.trim().parse().map_err(|_| refused())?;
+        let digits = text.trim().strip_prefix('+').unwrap_or(text.trim());
+        let n: i128 = match digits.parse() {
+            Ok(n) => n,
+            // All digits, too many for any type: too large, not "no whole number".
+            Err(_) if !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit()) => i128::MAX,
+            Err(_) => return Err(refused()),
+        };
         if n < lo {
             return Err(refused());
         }
@@ -114,6 +120,8 @@ mod tests {
             Err("the number of samples 99999999999999999999999 is too large (at most 18446744073709551615)".into())
         );
         assert!(at_least::<u32>("n", 1)("4294967296").unwrap_err().ends_with("(at most 4294967295)"));
+        let long = "9".repeat(50);
+        assert!(count(&long).unwrap_err().contains("is too large (at most 18446744073709551615)"));
         assert_eq!(count("0"), Err("the number of samples must be a whole number, at least 1".into()));
         assert!(count("-1").is_err() && count("many").is_err());
         assert!(whole::<u8>("x", 0, 255, "")("256").is_err());
