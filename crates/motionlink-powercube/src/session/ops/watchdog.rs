@@ -246,11 +246,16 @@ impl Ctx {
             return Some(format!("its watchdog could not be switched off again: module {a} halts itself within 50 ms (STATE_COMM_ERROR; `reset` clears it)"));
         }
         if !uncertain {
-            // Seen offline (no expiry after the refresh stopped), Config word restored if it was changed.
+            // Not left online (switched off, or never switched on: the arming may have failed before its life
+            // sign), Config word restored if it was changed.
             return Some(if config_changed {
-                format!("its Config word could not be restored: CONFIGID_MOD_WATCHDOG_ENABLE is left set in module {a}")
+                format!(
+                    "its Config word could not be restored: CONFIGID_MOD_WATCHDOG_ENABLE may be left set in module {a}"
+                )
             } else {
-                format!("its watchdog was seen offline (no expiry once the refresh stopped) and its Config word is as it was: module {a} is left as it was")
+                format!(
+                    "its watchdog is not left online and its Config word is as it was: module {a} is left as it was"
+                )
             })
             .filter(|_| before.is_some());
         }
