@@ -210,14 +210,16 @@ fn a_drive_that_echoes_without_storing_gets_its_moves_as_commands_of_their_own_a
     assert!(!r.verified && r.reached == pos(6.0) && r.not_verifiable.join("\n") == why, "{r:?}");
     assert_eq!(host.with_device(|d| d.drive(1).unwrap().position()), 6.0, "the distance once");
     assert_eq!(starts(&host), 1);
-    // A relative move as the first of a session: the refused '!' is followed by S17 and S2, then the plain
-    // POSR, which runs once.
+    // A relative move as the first of a session: after the refused '!' it is not sent again (the drive may
+    // hold it after all, and a later '!' would run it a second time): nothing ran, and the error says so.
     let (clock, host, _faults, bus) = emulated(&[Variant::EchoWithoutStore], 0);
     let _me = clock.reserve_participant().enter();
-    let r = bus.move_to(a(1), &MoveRequest::new(MoveTarget::Relative(pos(3.0))), &mut |_| {}).unwrap();
-    assert!(!r.verified && r.reached == pos(3.0), "{r:?}");
-    assert_eq!(host.with_device(|d| d.drive(1).unwrap().position()), 3.0, "the distance once");
-    assert_eq!(starts(&host), 1);
+    let e = bus.move_to(a(1), &MoveRequest::new(MoveTarget::Relative(pos(3.0))), &mut |_| {}).unwrap_err();
+    assert!(e.to_string().contains("a relative move is not sent again"), "{e}");
+    assert!(e.to_string().contains("already at rest"), "the stop that followed found it at rest: {e}");
+    assert_eq!(host.with_device(|d| d.drive(1).unwrap().position()), 0.0, "nothing ran");
+    assert_eq!(starts(&host), 0);
+    assert!(!bus.driver().with_session(|s| s.echo_without_store(a(1))));
 }
 
 #[test]

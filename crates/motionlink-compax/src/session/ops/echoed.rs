@@ -345,10 +345,20 @@ impl Ctx {
                     let why = format!("the drive refused '!' with {code}, an RS485 line error");
                     return Err(fail(Failure { why, source: e, holders: 0 }));
                 }
+                // '!' refused after the echo of a relative move: it is not sent again as a command of its own.
+                // Whether the drive holds it after all is not known (the refusal may have another reason), and a
+                // later '!' (a `32!` of a synchronous start) would run it a second time after the plain one.
+                Err(e @ Error::Refused { .. }) if matches!(cmd, Command::PosR(_)) => {
+                    let why = "the drive refused '!' right after echoing the stored move (it may not store a \
+                               command sent with ',?'; the manual does not say that it does): a relative move is not \
+                               sent again as a command of its own, so it did not run";
+                    return Err(fail(Failure { why: why.into(), source: e, holders: 0 }));
+                }
                 Err(e @ Error::Refused { .. }) => {
                     // '!' refused right after the echo of the move: the drive did not store it (the manual lists
                     // ',' and '?' as optional characters of one telegram, and says neither that a drive
-                    // stores nor that it does not store what it echoes). Remembered for the session.
+                    // stores nor that it does not store what it echoes). Remembered for the session. (An
+                    // absolute move sent again goes to the same target, should the drive hold it after all.)
                     {
                         let mut core = self.core();
                         core.echo_without_store |= bit(address);
