@@ -1,8 +1,10 @@
 //! Benchmarks: request build + reply parse (target: 20 million per second, no allocation); polling S1
 //! of 31 drives over the in-memory link paced at 115200 and at 9600 baud, quiet (target: 95 % of the
 //! wire-limited rate) and loaded: the benchmark starts two CPU-bound threads beside the session (target:
-//! 97 %); and the host overhead of one S1 read above its wire time at 115200 baud, through the blocking
-//! client and through the async one (tokio), side by side.
+//! 97 %); the host overhead of one S1 read above its wire time at 115200 baud, through the blocking
+//! client and through the async one (tokio), side by side; and `decode` of a capture without a COMPAX
+//! telegram (another family's bytes, read in 4 kB pieces), 120 kB and 1.2 MB (target: time linear in the
+//! length: the longer at most 3 times the shorter's time per byte; it was quadratic, 1.2 MB took 7.6 s).
 //!
 //! `COMPAX_BENCH_QUICK=1` shortens the extra measurements (the ratio and overhead runs) for a smoke run.
 //!
@@ -16,10 +18,13 @@ use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use motionlink_compax::client::Config;
+use motionlink_compax::describe::Describer;
 use motionlink_compax::model::{Command, CommandStyle, CommandText, StatusId, StatusValue};
 use motionlink_compax::sim::SimConfig;
 use motionlink_compax::wire::{Address, Body, Flags, Frame, Mode, ReplyDecoder, ReplyEventRef, Request};
 use motionlink_compax::{AsyncClient, Client, Emulator};
+use motionlink_link::chunk::{Chunk, Direction};
+use motionlink_link::describe::Describe;
 use motionlink_link::link::{char_time, Parity};
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::RealClock;
@@ -255,5 +260,55 @@ fn host_overhead(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, build_and_parse, poll_31, poll_31_loaded, poll_31_9600, poll_31_9600_loaded, host_overhead);
+/// Decodes `bytes` as `motionlink decode compax` reads a file: in 4 kB pieces, direction unknown; the
+/// number of annotations.
+fn decode_capture(bytes: &[u8]) -> usize {
+    let mut d = Describer::new(Mode::default());
+    let mut out = Vec::new();
+    for piece in bytes.chunks(4096) {
+        d.describe(Chunk::Bytes(piece), Direction::Unknown, None, &mut out);
+    }
+    d.finish(&mut out);
+    out.len()
+}
+
+fn decode_without_telegrams(c: &mut Criterion) {
+    let capture = |n: usize| [0x52u8, 0x47, 0x11, 0x00, 0x2C, 0x30].repeat(n / 6);
+    let (short, long) = (capture(120_000), capture(1_200_000));
+    let mut g = c.benchmark_group("decode");
+    g.sample_size(10);
+    g.throughput(Throughput::Bytes(short.len() as u64));
+    g.bench_function("a capture without a COMPAX telegram, 120 kB", |b| b.iter(|| decode_capture(black_box(&short))));
+    g.finish();
+    let per_byte = |bytes: &[u8]| {
+        let fastest = (0..3)
+            .map(|_| {
+                let t = Instant::now();
+                black_box(decode_capture(bytes));
+                t.elapsed()
+            })
+            .min()
+            .unwrap_or_default();
+        fastest.as_secs_f64() / bytes.len() as f64
+    };
+    let (a, b) = (per_byte(&short), per_byte(&long));
+    eprintln!(
+        "decode of a capture without a telegram: {:.0} ns per byte at 120 kB, {:.0} ns at 1.2 MB (target: at most \
+         3 times as much per byte at 1.2 MB: {})",
+        a * 1e9,
+        b * 1e9,
+        met(b <= 3.0 * a)
+    );
+}
+
+criterion_group!(
+    benches,
+    build_and_parse,
+    poll_31,
+    poll_31_loaded,
+    poll_31_9600,
+    poll_31_9600_loaded,
+    host_overhead,
+    decode_without_telegrams
+);
 criterion_main!(benches);

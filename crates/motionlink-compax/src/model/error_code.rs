@@ -37,6 +37,12 @@ impl ErrorCode {
         Self::KNOWN.iter().find(|(c, _)| *c == self).map(|(_, m)| *m)
     }
 
+    /// E70..E74: an error of the RS485 line (parity, buffer overflow, BCC, timeout, busy), not a refusal of
+    /// what the telegram asked.
+    pub fn is_line_error(self) -> bool {
+        (70..=74).contains(&self.0)
+    }
+
     /// E70, E72, E73: the drive discarded the telegram (parity, BCC, timeout); sending the same telegram
     /// again is safe and is what the manual asks for. Not E71: its measure is "retransmit with fewer
     /// characters", and the same telegram would overflow the buffer again.

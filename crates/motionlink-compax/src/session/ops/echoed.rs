@@ -98,7 +98,7 @@ impl Ctx {
                     })
                 }
                 Ok(None) => return Err(Error::Broadcast("an echo needs one drive's answer")),
-                Err(e @ Error::Refused { code, .. }) if (70..=74).contains(&code.0) => Some(e),
+                Err(e @ Error::Refused { code, .. }) if code.is_line_error() => Some(e),
                 Err(Error::Refused { .. } | Error::Timeout { .. }) => None,
                 Err(e) => return Err(e),
             };
@@ -230,7 +230,7 @@ impl Ctx {
                 }
                 // Refused (not an RS485 line error) where the form is only a profile's finding: perhaps a
                 // drive that does not know '?'. Found out on this drive before anything else is sent.
-                Err(e @ Error::Refused { code, .. }) if !(70..=74).contains(&code.0) => {
+                Err(e @ Error::Refused { code, .. }) if !code.is_line_error() => {
                     let Some((profile, said)) = self.forget_profile_form(address) else { return Err(e) };
                     return self.after_refused_store(address, cmd, before, e, &profile, said).await;
                 }
@@ -341,7 +341,7 @@ impl Ctx {
                     reply: r.map(|r| r.text_str().to_string()).unwrap_or_default(),
                 },
                 Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. } | Error::UnexpectedReply { .. })) => e,
-                Err(e @ Error::Refused { code, .. }) if (70..=74).contains(&code.0) => {
+                Err(e @ Error::Refused { code, .. }) if code.is_line_error() => {
                     let why = format!("the drive refused '!' with {code}, an RS485 line error");
                     return Err(fail(Failure { why, source: e, holders: 0 }));
                 }

@@ -165,10 +165,10 @@ impl Ctx {
                 self.within_limit(a, name, v, Param::ActIMinPos, false).await?;
                 self.within_limit(a, name, v, Param::ActIMaxPos, true).await?;
             }
-            (Param::TargetVel, Some(v)) => self.within_limit(a, name, v.abs(), Param::MaxVel, true).await?,
-            (Param::TargetVelInc, Some(v)) => self.within_limit(a, name, v.abs(), Param::ActIMaxVel, true).await?,
-            (Param::TargetAcc, Some(v)) => self.within_limit(a, name, v.abs(), Param::MaxAcc, true).await?,
-            (Param::TargetAccInc, Some(v)) => self.within_limit(a, name, v.abs(), Param::ActIMaxAcc, true).await?,
+            (Param::TargetVel, Some(v)) => self.within_limit(a, name, v, Param::MaxVel, true).await?,
+            (Param::TargetVelInc, Some(v)) => self.within_limit(a, name, v, Param::ActIMaxVel, true).await?,
+            (Param::TargetAcc, Some(v)) => self.within_limit(a, name, v, Param::MaxAcc, true).await?,
+            (Param::TargetAccInc, Some(v)) => self.within_limit(a, name, v, Param::ActIMaxAcc, true).await?,
             (Param::Cur, Some(v)) => self.within_limit(a, name, v.abs(), Param::MaxCur, true).await?,
             _ => {}
         }

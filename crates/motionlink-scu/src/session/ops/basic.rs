@@ -133,21 +133,27 @@ pub(crate) type StrokeFound = Result<Stroke, String>;
 
 /// Why actuator `a`'s target could not be checked against a stroke.
 fn stroke_unknown(a: Actuator) -> String {
-    format!(
-        "{a}'s target was not checked against a stroke: the unit refuses UserPositionData ({}, PDE) and no \
-         stroke limits are configured for {a} (--stroke {}=MIN:MAX); the unit's own limits bound the motion",
-        DataIndex(0x2000 + u16::from(a.number())),
-        a.number()
-    )
+    stroke_unchecked(a, &format!("the unit refuses UserPositionData ({}, PDE)", user_positions(a)))
 }
 
 /// Why actuator `a`'s target could not be checked against a stroke where the unit has none set for it.
 pub(crate) fn stroke_not_set(a: Actuator) -> String {
+    stroke_unchecked(
+        a,
+        &format!("the virtual limits of its UserPositionData ({}) are 0 / 0 (none set)", user_positions(a)),
+    )
+}
+
+/// The data index of actuator `a`'s UserPositionData (0x2001..0x2006).
+fn user_positions(a: Actuator) -> DataIndex {
+    DataIndex(0x2000 + u16::from(a.number()))
+}
+
+/// "`a`'s target was not checked against a stroke: `why` and no stroke limits are configured for it".
+fn stroke_unchecked(a: Actuator, why: &str) -> String {
     format!(
-        "{a}'s target was not checked against a stroke: the virtual limits of its UserPositionData ({}) are 0 / 0 \
-         (none set) and no stroke limits are configured for {a} (--stroke {}=MIN:MAX); the unit's own limits bound \
-         the motion",
-        DataIndex(0x2000 + u16::from(a.number())),
+        "{a}'s target was not checked against a stroke: {why} and no stroke limits are configured for {a} \
+         (--stroke {}=MIN:MAX); the unit's own limits bound the motion",
         a.number()
     )
 }
@@ -164,7 +170,7 @@ pub(crate) async fn stroke(ctx: &Ctx, a: Actuator) -> Result<StrokeFound, Error>
     if answered == Some(false) {
         return Ok(Err(stroke_unknown(a)));
     }
-    match ctx.get(DataIndex(0x2000 + u16::from(a.number()))).await.and_then(|r| r.data(Command::Get)) {
+    match ctx.get(user_positions(a)).await.and_then(|r| r.data(Command::Get)) {
         // The first read of UserPositionData in the session is the probe (also where a device profile said the
         // unit answers it): refused, the session remembers it.
         Err(Error::Refused { status: Status::ParameterDataError, .. })
@@ -180,7 +186,7 @@ pub(crate) async fn stroke(ctx: &Ctx, a: Actuator) -> Result<StrokeFound, Error>
 /// The virtual limits in actuator `a`'s UserPositionData.
 fn stroke_limits_of(ctx: &Ctx, a: Actuator, data: Vec<u8>) -> Result<StrokeFound, Error> {
     ctx.core().user_positions_answered(true);
-    let it = item(DataIndex(0x2000 + u16::from(a.number()))).expect("UserPositionData is in the data list");
+    let it = item(user_positions(a)).expect("UserPositionData is in the data list");
     let values = decode_item(it, &data).map_err(|e| Error::UnexpectedReply {
         command: Command::Get,
         detail: format!("UserPositionData of {a}: {e}"),
