@@ -59,18 +59,17 @@ impl Args {
         self.get(key)?.ok_or_else(|| ErrorReport::usage(format!("{}: the argument {key:?} is missing", self.op)))
     }
 
-    /// True when the request gives the argument `key` (whatever its value).
-    pub fn has(&self, key: &str) -> bool {
-        self.map.contains_key(key)
-    }
-
     /// The list argument `key` (the command line's repeated argument, such as `values` of COMPAX
-    /// `status`): a JSON list of values or one value, each checked by its type's rule; empty when absent.
+    /// `status`): a JSON list of values or one value, each checked by its type's rule; empty when absent (an
+    /// empty list given is a mistake, refused: absent is how a request asks for the action's default).
     pub fn list<T: FromStr>(&mut self, key: &'static str) -> Result<Vec<T>, ErrorReport>
     where
         T::Err: std::fmt::Display,
     {
         let items = match self.map.remove(key) {
+            Some(Value::Array(items)) if items.is_empty() => {
+                return Err(ErrorReport::usage(format!("{}: {key:?} is an empty list", self.op)));
+            }
             Some(Value::Array(items)) => items,
             Some(one) => vec![one],
             None => Vec::new(),
@@ -94,8 +93,7 @@ impl Args {
         let single = self.text(one)?;
         match (single, given) {
             (Some(t), false) => Ok((vec![t], false)),
-            (None, true) if !list.is_empty() => Ok((list, true)),
-            (None, true) => Err(ErrorReport::usage(format!("{}: {many:?} is an empty list", self.op))),
+            (None, true) => Ok((list, true)),
             (Some(_), true) => Err(ErrorReport::usage(format!("{}: give {one:?} or {many:?}, not both", self.op))),
             (None, false) => {
                 Err(ErrorReport::usage(format!("{}: the argument {one:?} is missing (or {many:?}, a list)", self.op)))
@@ -158,6 +156,8 @@ mod tests {
         assert_eq!(a.list::<String>("values").unwrap(), ["S1", "S17"]);
         assert_eq!(a.list::<u8>("one").unwrap(), [2]);
         assert!(a.list::<u8>("none").unwrap().is_empty());
+        let mut empty = args(serde_json::json!({"values": []}));
+        assert!(empty.list::<String>("values").unwrap_err().message.contains("\"values\" is an empty list"));
         assert!(a.list::<u8>("bad").unwrap_err().message.contains("not a list"));
         let mut a = args(serde_json::json!({"position": -1, "vel": 1}));
         let e = a.need::<u32>("position").unwrap_err();
