@@ -235,6 +235,14 @@ pub enum Error {
         /// reply was lost.
         buffered: Vec<u8>,
     },
+    /// A synchronous start refused before it sent anything: drives outside its list may still hold a move
+    /// this session stored in their buffer and never executed (an earlier [`Error::NotExecuted`] or
+    /// [`Error::SyncIncomplete`] named them), and its `32!` would start that move too.
+    #[error("a '32!' would also execute the move still held in the buffer of {} (stored by this session and never executed: an earlier error named it); nothing was sent: give those drives a move of this synchronous start (a store replaces what a drive's buffer holds), or execute or replace their buffered move first", drives(held))]
+    BufferHeld {
+        /// Drives (ascending) outside the start's list that may hold a buffered move of this session.
+        held: Vec<u8>,
+    },
     /// A checked move sent to the drive's buffer with its echo (`,?`) was not executed: its echo did not
     /// come back as the telegram sent (or not at all), so no `!` was sent, or the `!` was refused or did
     /// not start it (or, where the drive refused the `!` and something may have run, the move was not sent
@@ -354,9 +362,12 @@ impl Classify for Error {
                 ErrorClass::Transport(TransportKind::Corrupt)
             }
             Error::Link(e) => e.class(),
-            Error::Model(_) | Error::Encode(_) | Error::Broadcast(_) | Error::OutsideLimits { .. } | Error::Closed => {
-                ErrorClass::Usage
-            }
+            Error::Model(_)
+            | Error::Encode(_)
+            | Error::Broadcast(_)
+            | Error::OutsideLimits { .. }
+            | Error::BufferHeld { .. }
+            | Error::Closed => ErrorClass::Usage,
             // A cancel is of class Cancelled only once every drive confirmed the stop (the class promises that
             // what was started was stopped); otherwise the axis may still move, as after a failed line.
             Error::Cancelled { stop } if !stop.all_confirmed() => ErrorClass::Cancelled.stop_unconfirmed(),

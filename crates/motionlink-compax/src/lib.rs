@@ -163,7 +163,9 @@
 //! - **Synchronous start**: the manual has no command that empties a drive's buffer. If
 //!   [`Client::sync_start`] fails to store one move, it sends no `!` and returns
 //!   [`Error::SyncIncomplete`] naming the drives that still hold a buffered move (the next `!` to
-//!   them, or any `32!`, starts it); a `!` the client sends later counts them as started.
+//!   them, or any `32!`, starts it); a `!` the client sends later counts them as started. A later
+//!   synchronous start whose `32!` would run such a move of a drive outside its list is refused before
+//!   anything is sent ([`Error::BufferHeld`]).
 //! - **Emulator parameters and status values**: the manual defines P194..P196 and no error code for an
 //!   invalid parameter or status number (it lists E70..E74 only), so the emulator answers a read or write
 //!   of a parameter it does not model ([`sim::SimConfig::params`] adds some) and a status value it does not

@@ -510,6 +510,51 @@ fn a_failed_synchronous_store_names_the_drives_left_with_a_buffered_move() {
 }
 
 #[test]
+fn a_synchronous_start_is_refused_while_a_drive_outside_it_holds_a_buffered_move() {
+    let clock = ManualClock::new_auto();
+    let _me = clock.reserve_participant().enter();
+    let sent_frames = std::sync::Arc::new(std::sync::Mutex::new(Vec::<Vec<u8>>::new()));
+    let log = sent_frames.clone();
+    let refuse_five = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+    let refusing = refuse_five.clone();
+    let answer = move |t: &[u8]| -> Vec<u8> {
+        log.lock().unwrap().push(t.to_vec());
+        match t {
+            b"1POSA 100,\r" | b"1POSA 7,\r" | b"3POSA 9,\r" | b"1OUTPUT O0=0\r" | b"3OUTPUT O0=0\r" => {
+                b"\r\n>".to_vec()
+            }
+            // Drive 5 refuses to store its first move.
+            b"5POSA 100,\r" if refusing.load(std::sync::atomic::Ordering::SeqCst) => b"E90\r\n>".to_vec(),
+            b"5POSA 100,\r" => b"\r\n>".to_vec(),
+            b"32!\r" => Vec::new(),
+            b"1S17\r" | b"3S17\r" | b"5S17\r" => b"S017: 0000 0010\r\n>".to_vec(),
+            other => panic!("unexpected telegram {other:?}"),
+        }
+    };
+    let link = Scripted { clock: clock.shared(), answer: Box::new(answer), pending: Default::default() };
+    let bus = Client::with_link(Box::new(link), clock.shared(), Config::new(Mode::default(), 9600)).unwrap();
+    let both = [(a(1), Command::PosA(pos(100.0))), (a(5), Command::PosA(pos(100.0)))];
+    assert!(matches!(bus.sync_start(&both, false), Err(Error::SyncIncomplete { .. })));
+    // Drive 1 holds POSA 100 in its buffer: a start of drives 3 and 5 alone would run it too.
+    let count = sent_frames.lock().unwrap().len();
+    let others = [(a(3), Command::PosA(pos(9.0))), (a(5), Command::PosA(pos(100.0)))];
+    let e = bus.sync_start(&others, false).unwrap_err();
+    assert!(matches!(&e, Error::BufferHeld { held } if held == &[1]), "{e:?}");
+    assert_eq!(motionlink_link::error::Classify::class(&e), motionlink_link::error::ErrorClass::Usage);
+    let text = e.to_string();
+    assert!(text.contains("buffer of drive 1") && text.contains("nothing was sent"), "{text}");
+    assert_eq!(sent_frames.lock().unwrap().len(), count, "nothing sent: {:?}", &sent_frames.lock().unwrap()[count..]);
+    assert!(bus.started().is_empty());
+    // A start that stores a new move for drive 1 replaces what its buffer held: it goes out.
+    refuse_five.store(false, std::sync::atomic::Ordering::SeqCst);
+    let all = [(a(1), Command::PosA(pos(7.0))), (a(3), Command::PosA(pos(9.0))), (a(5), Command::PosA(pos(100.0)))];
+    bus.sync_start(&all, false).unwrap();
+    let frames = sent_frames.lock().unwrap()[count..].to_vec();
+    assert_eq!(frames, [b"1POSA 7,\r".to_vec(), b"3POSA 9,\r".to_vec(), b"5POSA 100,\r".to_vec(), b"32!\r".to_vec()]);
+    assert_eq!(bus.started(), [a(1), a(3), a(5)]);
+}
+
+#[test]
 fn stop_started_switches_off_only_the_axes_that_still_move() {
     let (r, bus) = rig(&[1, 5], 0, 9600);
     let _me = r.clock.reserve_participant().enter();

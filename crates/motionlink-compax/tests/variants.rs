@@ -8,7 +8,7 @@
 use std::time::Duration;
 
 use motionlink_compax::client::{Client, Config, EchoForm, Error, MoveRequest, MoveTarget};
-use motionlink_compax::model::{ParamId, SpeedPercent, StatusId};
+use motionlink_compax::model::{Command, ParamId, SpeedPercent, StatusId};
 use motionlink_compax::sim::{Emulator, SimConfig, Variant};
 use motionlink_compax::wire::Mode;
 use motionlink_link::clock::{Clock, ManualClock};
@@ -136,6 +136,12 @@ fn an_echo_in_another_form_than_found_is_refused() {
     assert!(!why.contains("is what the drive that answered received"), "{why}");
     assert_eq!(buffered, &[1]);
     assert_eq!(host.with_device(|d| d.drive(1).unwrap().position()), 10.0, "not executed");
+    // Drive 1 holds "POSA 12" in its buffer: a synchronous start of drive 3 alone (whose `32!` would run
+    // it) is refused, and nothing moves.
+    let e = bus.sync_start(&[(a(3), Command::PosA(pos(5.0)))], false).unwrap_err();
+    assert!(matches!(&e, Error::BufferHeld { held } if held == &[1]), "{e}");
+    assert_eq!(host.with_device(|d| d.drive(1).unwrap().buffered().map(str::to_string)).as_deref(), Some("POSA 12"));
+    assert_eq!(host.with_device(|d| d.drive(3).unwrap().buffered().map(str::to_string)), None, "nothing stored");
 
     // Found to echo without its address; an echo of other command text is refused all the same.
     let (clock, host, faults, bus) = emulated(&[Variant::EchoWithoutAddress], 0);

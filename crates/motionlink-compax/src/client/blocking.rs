@@ -363,7 +363,10 @@ impl Client {
     /// Hazard: if storing the move fails for one drive, no `!` is sent, but the drives before it keep their
     /// buffered move, and the manual has no command that empties a buffer. The call then returns
     /// [`Error::SyncIncomplete`], which names those drives: the next `!` to one of them, or any `32!` on the
-    /// bus, starts its move. If this client sends that `!`, it counts those drives as started.
+    /// bus, starts its move. If this client sends that `!`, it counts those drives as started. While a drive
+    /// outside `moves` may still hold a move this session stored and never executed (after
+    /// [`Error::SyncIncomplete`] or [`Error::NotExecuted`]), the `32!` would run it too: the call is refused
+    /// before anything is sent, with [`Error::BufferHeld`] naming those drives.
     pub fn sync_start(&self, moves: &[(Address, Command)], message: bool) -> Result<()> {
         self.check_cancel()?;
         let op = Op::SyncStart(moves.to_vec(), message);

@@ -129,12 +129,18 @@ impl Ctx {
 
     /// Stores each move in its drive's buffer (`,`), then sends one `32!` that executes them all. If
     /// storing fails for one drive, no `!` is sent and the error names the drives that still hold a
-    /// buffered move ([`Error::SyncIncomplete`]).
+    /// buffered move ([`Error::SyncIncomplete`]). A drive outside `moves` that may still hold a move of this
+    /// session in its buffer would run it at the `32!`: refused before anything is sent ([`Error::BufferHeld`]).
     pub(crate) async fn sync_start(&self, moves: &[(Address, Command)], message: bool) -> Result<()> {
         for (a, c) in moves {
             if !c.is_move() || a.is_broadcast() {
                 return Err(ModelError::Syntax { what: "a move to one drive", text: format!("{a}: {c}") }.into());
             }
+        }
+        let listed = moves.iter().fold(0u32, |m, (a, _)| m | bit(*a));
+        let held = self.core().buffered & !listed;
+        if held != 0 {
+            return Err(Error::BufferHeld { held: drives_in(held).iter().map(|d| d.get()).collect() });
         }
         self.check_cancel()?;
         let mut stored = 0u32;
