@@ -1,7 +1,8 @@
 //! clap's "a similar subcommand exists" and "a similar argument exists" tips, chosen the way every name of
 //! motionlink is matched ([`motionlink_link::table::nearest`]: the edit distance, ignoring case, the best
 //! one or two within a third of the length): `powercube stpo` suggests `stop` alone (clap's own measure
-//! also offers `set`), `powercube STOP` suggests `stop`, `move --vell` suggests `--vel`.
+//! also offers `set`), `powercube STOP` suggests `stop`, `move --vell` suggests `--vel`. A negative number
+//! in a form clap splits into short options (`-5e`, `-inf`) is named whole, as a value that is not a number.
 
 use std::ffi::OsString;
 
@@ -29,6 +30,12 @@ pub fn better_tips(mut error: clap::Error, command: &clap::Command, args: &[OsSt
         }
         ErrorKind::UnknownArgument => {
             let Some(ContextValue::String(word)) = error.get(ContextKind::InvalidArg).cloned() else { return error };
+            if let Some(number) = malformed_number(args, &word) {
+                let message = format!(
+                    "invalid value '{number}': not a number (a negative number is written like -5, -0.5 or -1e-3)"
+                );
+                return clap::Error::raw(ErrorKind::InvalidValue, format!("{message}\n")).with_cmd(&command);
+            }
             let Some(flag) = word.strip_prefix("--") else { return error };
             let flag = flag.split_once('=').map_or(flag, |(f, _)| f);
             let level = level_of(&command, args, &word);
@@ -48,6 +55,20 @@ pub fn better_tips(mut error: clap::Error, command: &clap::Command, args: &[OsSt
         _ => {}
     }
     error
+}
+
+/// The word of `args` (before `--`) that clap split into the unknown short option `flag` (`-5` of `-5e`, `-i`
+/// of `-inf`), when that word is a negative number in a form clap does not take for one (`-5e`, `-1_0`,
+/// `-.5e`, `-inf`, `-NaN`): no option of motionlink is a dash and a digit, so the user meant a number.
+fn malformed_number(args: &[OsString], flag: &str) -> Option<String> {
+    let is_number_like = |word: &str| {
+        word.strip_prefix('-').is_some_and(|rest| {
+            rest.starts_with(|c: char| c.is_ascii_digit() || c == '.')
+                || ["inf", "infinity", "nan"].iter().any(|n| rest.eq_ignore_ascii_case(n))
+        })
+    };
+    let words = args.iter().skip(1).map(|a| a.to_string_lossy()).take_while(|a| a != "--");
+    words.filter(|w| w.starts_with(flag) && is_number_like(w)).map(|w| w.into_owned()).next()
 }
 
 /// The (sub)command that `word` was given to in `args`: the deepest subcommand named before it.
@@ -91,5 +112,31 @@ mod tests {
         assert_eq!(port.1, Some(ContextValue::String("--port".into())), "a global option of the family");
         let none = tip(&["motionlink", "powercube", "banana"]);
         assert_eq!(none.1, None, "nothing near: no tip");
+    }
+
+    #[test]
+    fn a_negative_number_clap_does_not_take_is_named_whole() {
+        let message = |args: &[&str]| {
+            let args: Vec<OsString> = args.iter().map(OsString::from).collect();
+            let command = crate::Cli::command();
+            let e = command.clone().try_get_matches_from(&args).unwrap_err();
+            let e = better_tips(e, &command, &args);
+            (e.kind(), e.render().to_string())
+        };
+        for (word, args) in [
+            ("-5e", &["motionlink", "powercube", "move", "-5e"][..]),
+            ("-5e", &["motionlink", "powercube", "move", "1", "--vel", "-5e"][..]),
+            ("-1_0", &["motionlink", "compax", "move", "-1_0"][..]),
+            ("-.5e", &["motionlink", "compax", "move", "-.5e"][..]),
+            ("-inf", &["motionlink", "scu", "move", "1", "-inf"][..]),
+        ] {
+            let (kind, text) = message(args);
+            assert_eq!(kind, ErrorKind::InvalidValue, "{args:?}: {text}");
+            assert!(text.contains(&format!("invalid value '{word}': not a number")), "{args:?}: {text}");
+            assert!(!text.contains("unexpected argument"), "{text}");
+        }
+        // An unknown option that is no number keeps clap's own message.
+        let (kind, text) = message(&["motionlink", "powercube", "move", "1", "-x"]);
+        assert_eq!(kind, ErrorKind::UnknownArgument, "{text}");
     }
 }

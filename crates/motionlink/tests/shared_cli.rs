@@ -262,7 +262,7 @@ fn option_names_are_the_same_in_every_family() {
     assert!(old.status.success(), "the old spellings: {old:?}");
 }
 
-/// Negative numbers in every form a number takes are values, not options: `-1e-1`, `-.3`.
+/// Negative numbers in every form a number takes are values, not options: `-1e-1`, `-.3`; `-5e` is no number.
 #[test]
 fn negative_numbers_in_every_form_are_values() {
     let pc = Sim::tcp("powercube");
@@ -278,4 +278,11 @@ fn negative_numbers_in_every_form_are_values() {
     // An option that only looks like one stays an option: refused, named.
     let o = run_with(&["compax", "--port", &cx.address, "move", "-abs"], &[], "");
     assert_eq!(o.status.code(), Some(2), "{o:?}");
+    // A negative number in a form no number takes is named whole (clap would split it into options).
+    for bad in ["-5e", "-inf"] {
+        let o = run_with(&["powercube", "--port", &pc.address, "move", bad], &[], "");
+        assert_eq!(o.status.code(), Some(2), "{o:?}");
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(stderr.contains(&format!("invalid value '{bad}': not a number")), "{stderr}");
+    }
 }
