@@ -89,60 +89,6 @@ pub struct BadRequest {
     pub error: ErrorReport,
 }
 
-/// A walk over a JSON text that fails at the first key an object gives twice (`key "args.position" given
-/// twice`, the path from the request's top), where reading it into a map would keep the last value silently.
-struct OnceEach(String);
-
-impl<'de> serde::de::DeserializeSeed<'de> for OnceEach {
-    type Value = ();
-    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
-        d.deserialize_any(self)
-    }
-}
-
-impl<'de> serde::de::Visitor<'de> for OnceEach {
-    type Value = ();
-    fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str("JSON")
-    }
-    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
-        let mut seen = std::collections::HashSet::new();
-        while let Some(key) = map.next_key::<String>()? {
-            let path = if self.0.is_empty() { key.clone() } else { format!("{}.{key}", self.0) };
-            if !seen.insert(key) {
-                return Err(serde::de::Error::custom(format!("key {path:?} given twice")));
-            }
-            map.next_value_seed(OnceEach(path))?;
-        }
-        Ok(())
-    }
-    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
-        let mut i = 0;
-        while seq.next_element_seed(OnceEach(format!("{}[{i}]", self.0)))?.is_some() {
-            i += 1;
-        }
-        Ok(())
-    }
-    fn visit_str<E>(self, _: &str) -> Result<(), E> {
-        Ok(())
-    }
-    fn visit_bool<E>(self, _: bool) -> Result<(), E> {
-        Ok(())
-    }
-    fn visit_i64<E>(self, _: i64) -> Result<(), E> {
-        Ok(())
-    }
-    fn visit_u64<E>(self, _: u64) -> Result<(), E> {
-        Ok(())
-    }
-    fn visit_f64<E>(self, _: f64) -> Result<(), E> {
-        Ok(())
-    }
-    fn visit_unit<E>(self) -> Result<(), E> {
-        Ok(())
-    }
-}
-
 /// Reads a request from a `cmd` payload.
 pub fn parse(payload: &[u8]) -> Result<Request, BadRequest> {
     let bad = |id: Option<RequestId>, reply_to: Option<String>, m: String| BadRequest {
@@ -179,10 +125,7 @@ pub fn parse(payload: &[u8]) -> Result<Request, BadRequest> {
             return Err(bad(None, reply_to, format!("\"id\" must be a string or a whole number, not {other}")));
         }
     };
-    if let Err(e) = serde::de::DeserializeSeed::deserialize(
-        OnceEach(String::new()),
-        &mut serde_json::Deserializer::from_slice(payload),
-    ) {
+    if let Err(e) = motionlink_link::result::each_key_once(payload) {
         // Which of two ids or reply topics is meant is not known: such a request is answered as an event.
         let (id, reply_to) = if e.to_string().starts_with("key \"id\"") || e.to_string().starts_with("key \"reply_to\"")
         {

@@ -104,6 +104,73 @@ fn is_zero(n: &u64) -> bool {
     *n == 0
 }
 
+/// Fails at the first key an object of the JSON text `json` gives twice, with its path from the top
+/// (`key "args.position" given twice`), where reading the text into a map (`serde_json::Value`) would keep
+/// the last value silently. A request of a page or of the gateway is refused so, never half-read.
+///
+/// ```
+/// use motionlink_link::result::each_key_once;
+/// assert!(each_key_once(br#"{"op": "move", "args": {"position": 1, "speed": [1, 2]}}"#).is_ok());
+/// let e = each_key_once(br#"{"args": {"position": 1, "position": 2}}"#).unwrap_err();
+/// assert_eq!(e.to_string(), r#"key "args.position" given twice at line 1 column 35"#);
+/// ```
+pub fn each_key_once(json: &[u8]) -> Result<(), serde_json::Error> {
+    serde::de::DeserializeSeed::deserialize(OnceEach(String::new()), &mut serde_json::Deserializer::from_slice(json))
+}
+
+/// The walk of [`each_key_once`] below the path it carries.
+struct OnceEach(String);
+
+impl<'de> serde::de::DeserializeSeed<'de> for OnceEach {
+    type Value = ();
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_any(self)
+    }
+}
+
+impl<'de> serde::de::Visitor<'de> for OnceEach {
+    type Value = ();
+    fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("JSON")
+    }
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
+        let mut seen = std::collections::HashSet::new();
+        while let Some(key) = map.next_key::<String>()? {
+            let path = if self.0.is_empty() { key.clone() } else { format!("{}.{key}", self.0) };
+            if !seen.insert(key) {
+                return Err(serde::de::Error::custom(format!("key {path:?} given twice")));
+            }
+            map.next_value_seed(OnceEach(path))?;
+        }
+        Ok(())
+    }
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
+        let mut i = 0;
+        while seq.next_element_seed(OnceEach(format!("{}[{i}]", self.0)))?.is_some() {
+            i += 1;
+        }
+        Ok(())
+    }
+    fn visit_str<E>(self, _: &str) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_bool<E>(self, _: bool) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_i64<E>(self, _: i64) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_u64<E>(self, _: u64) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_f64<E>(self, _: f64) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_unit<E>(self) -> Result<(), E> {
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -399,6 +399,15 @@ fn a_parameter_write_shows_its_read_back() {
     // The error as the command line's `--json` gives it (`ErrorReport`).
     assert_eq!((&v["error"]["kind"], &v["error"]["exit_code"]), (&json!("usage"), &json!(2)), "{v}");
     assert_eq!(v["error"]["message"], v["message"], "{v}");
+    // A key given twice is refused, naming it, and nothing is written (a map would keep the last value).
+    ws.send(Message::text(r#"{"type": "write_param", "drive": 1, "name": "P3", "value": "3.5", "value": "9"}"#))
+        .expect("send on the WebSocket");
+    let v = recv_until(&mut ws, Duration::from_secs(10), of_type("refused")).expect("refused");
+    assert_eq!((&v["request"], &v["error"]["kind"]), (&json!("write_param"), &json!("usage")), "{v}");
+    assert!(v["message"].as_str().unwrap().starts_with("key \"value\" given twice"), "{v}");
+    send(&mut ws, json!({"type": "read_param", "drive": 1, "name": "3"}));
+    let v = recv_until(&mut ws, Duration::from_secs(10), of_type("param")).expect("the read");
+    assert_eq!(v["report"]["value"], 2.5, "nothing written: {v}");
     // A read the drive refuses: its Exx number comes as data, as in the command line's `--json` error.
     send(&mut ws, json!({"type": "read_param", "drive": 1, "name": "P13"}));
     let v = recv_until(&mut ws, Duration::from_secs(10), of_type("failed")).expect("refused by the drive");

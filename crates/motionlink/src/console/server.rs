@@ -278,6 +278,15 @@ fn request(hub: &Arc<Hub>, page: u64, text: &str, replies: &mpsc::Sender<Message
         Err(e) => return Some(Message::failure("?", false, ErrorReport::usage(format!("not JSON: {e}")))),
     };
     let kind = req.get("type").and_then(Value::as_str).unwrap_or("").to_string();
+    if let Err(e) = motionlink_link::result::each_key_once(text.as_bytes()) {
+        // Which of two types is meant is not known: such a request is answered as "?".
+        let kind = if e.to_string().starts_with("key \"type\"") { "?" } else { &kind };
+        return Some(Message::failure(
+            kind,
+            false,
+            ErrorReport::usage(format!("{e}: give each key of a request once")),
+        ));
+    }
     let result = handle_request(hub, page, &kind, &req, replies);
     match result {
         Ok(answer) => answer,
