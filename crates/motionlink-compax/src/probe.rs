@@ -3,9 +3,10 @@
 //! beyond the manual's words that a harmless exchange can settle ([`probe`]); and the device profile of each
 //! drive that lets a later session skip those probes ([`save_profile`], [`use_profile`]).
 //!
-//! Nothing moves. What is sent: S1 to each address asked for (the scan), then to each drive found S31 and
-//! S32 (identification), P194, P195 and P196 (reads), S1 once as it is (its reply shows the status value's
-//! form) and [`ProbeSetup::exchanges`] times more (the link), and S1 with `?` (an echo
+//! Nothing moves. What is sent: S1 to each address asked for (the scan), then to the first drive found S1
+//! once as it is (its reply shows the status value's form) and [`ProbeSetup::exchanges`] times more (the
+//! link), then to each drive found S31 and S32 (identification), P194, P195 and P196 (reads), and S1 with
+//! `?` (an echo
 //! of a read, which a drive does not execute; at most twice, a plain S1 between) for the echo form. Storing
 //! a command (`,`) replaces the drive's buffer and is not probed.
 

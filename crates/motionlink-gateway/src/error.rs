@@ -23,6 +23,14 @@ impl GatewayError {
             GatewayError::Transport(_) => 3,
         }
     }
+
+    /// The error as the command line's `--json` prints one: `{"exit_code", "kind", "message"}`.
+    pub fn report(&self) -> ErrorReport {
+        match self {
+            GatewayError::Usage(m) => ErrorReport::usage(m),
+            GatewayError::Transport(m) => <ErrorReport as GatewayErrors>::transport(m.clone()),
+        }
+    }
 }
 
 pub use motionlink_link::error::ErrorReport;

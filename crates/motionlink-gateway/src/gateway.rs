@@ -165,7 +165,7 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         generation,
     };
     gw.online();
-    eprintln!(
+    crate::notice::say!(
         "motionlink gateway {}: connected to {}, serving {} device(s) under {}",
         config.name,
         config.broker,
@@ -184,7 +184,7 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         tokio::select! {
             n = net.recv() => match n {
                 Some(Net::Connected) => {
-                    eprintln!("motionlink gateway: connected to {} again", config.broker);
+                    crate::notice::say!("motionlink gateway: connected to {} again", config.broker);
                     connected = true;
                     gw.online();
                 }
@@ -193,7 +193,7 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
                     // No lease can be renewed: every motion stops (said once per loss, not per retry).
                     let stopped = gw.stop_all(StopReason::BrokerLost);
                     if connected || stopped > 0 {
-                        eprintln!(
+                        crate::notice::say!(
                             "motionlink gateway: lost the broker {} ({e}); stopping {stopped} motion(s); connecting \
                              again",
                             config.broker
@@ -231,7 +231,7 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         match tokio::time::timeout_at(bound, done.recv()).await {
             Ok(Some(d)) => {
                 if let (Some(id), Err(e)) = (&d.motion_id, &d.outcome) {
-                    eprintln!("motionlink gateway: {name}: {} motion {id}: {}", d.device, e.message);
+                    crate::notice::say!("motionlink gateway: {name}: {} motion {id}: {}", d.device, e.message);
                 }
                 gw.on_done(d);
             }
@@ -239,7 +239,7 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
                 let lost = gw.lost.iter().map(|(d, l)| (d, &l.motion));
                 for (dev, motion) in gw.devices.iter().map(|(d, s)| (d, &s.motion)).chain(lost) {
                     if let Some(m) = motion {
-                        eprintln!(
+                        crate::notice::say!(
                             "motionlink gateway: {name}: {dev} motion {}: its stop did not end within {} s",
                             m.id,
                             STOP_BOUND.as_secs()
@@ -263,7 +263,7 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
     let _ = tokio::time::timeout(Duration::from_secs(3), event_loop).await;
     for (name, s) in gw.devices.drain() {
         if let Err(e) = s.device.close().await {
-            eprintln!("motionlink gateway: closing {name}: {e}");
+            crate::notice::say!("motionlink gateway: closing {name}: {e}");
         }
     }
     Ok(if number == 0 { 0 } else { 128 + number as u8 })

@@ -18,6 +18,7 @@ pub mod events;
 pub mod gateway;
 pub mod lease;
 pub mod mqtt;
+pub mod notice;
 pub mod ports;
 pub mod request;
 pub mod topics;

@@ -8,14 +8,23 @@ use std::process::ExitCode;
 struct Cli {
     #[command(flatten)]
     args: motionlink_gateway::cli::Args,
+    /// Notices and the final error on stderr as JSON lines (`{"log": ...}`; the error as
+    /// `{"exit_code", "kind", "message"}`), as `motionlink --json gateway` writes them.
+    #[arg(long)]
+    json: bool,
 }
 
 fn main() -> ExitCode {
     let cli = <Cli as clap::Parser>::parse();
+    motionlink_gateway::notice::set_json(cli.json);
     match motionlink_gateway::main(&cli.args.options()) {
         Ok(code) => ExitCode::from(code),
         Err(e) => {
-            eprintln!("motionlink gateway: {e}");
+            if cli.json {
+                eprintln!("{}", serde_json::to_string(&e.report()).unwrap_or_else(|_| e.to_string()));
+            } else {
+                eprintln!("motionlink gateway: {e}");
+            }
             ExitCode::from(e.exit_code())
         }
     }

@@ -667,3 +667,30 @@ sim_variants = ["echo-without-address"]
         assert!(verified != said, "{dev}: {r}");
     }
 }
+
+/// With `--json` every line on stderr is JSON: the notices as `{"log": ...}` (the start, the signal's end),
+/// a gateway that cannot start its error object.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn with_json_stderr_carries_json_lines_only() {
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_motionlink-gateway"))
+        .args(["--json", "--config", "/nonexistent/gateway.toml"])
+        .output()
+        .expect("the gateway runs");
+    assert_eq!(bad.status.code(), Some(2), "{bad:?}");
+    let line: Value = serde_json::from_slice(&bad.stderr).expect("one JSON object");
+    assert_eq!((&line["kind"], &line["exit_code"]), (&json!("usage"), &json!(2)), "{line}");
+    assert!(line["message"].as_str().unwrap().contains("/nonexistent/gateway.toml"), "{line}");
+
+    let Some(b) = broker("with_json_stderr_carries_json_lines_only") else { return };
+    let text = format!("[gateway]\nname = \"j1\"\nbroker = \"{}\"\n\n{ALL}", b.url());
+    let gw = harness::gateway_with("j1", &text, &[], &["--json"]);
+    drop(online(&b, "j1", "t-j1").await);
+    let (code, stderr) = gw.signal(libc::SIGTERM);
+    assert_eq!(code, Some(143), "{stderr}");
+    let lines: Vec<Value> = stderr
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("not JSON ({e}): {l:?} in {stderr}")))
+        .collect();
+    assert!(lines.iter().all(|l| l["log"].is_string()), "{stderr}");
+    assert!(lines.iter().any(|l| l["log"].as_str().unwrap().contains("connected to mqtt://")), "{stderr}");
+}

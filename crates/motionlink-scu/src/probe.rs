@@ -9,7 +9,8 @@
 //! - `grouping_indices`: RG of 0x0170 (status 1 of every actuator; entry by entry where refused);
 //! - `user_position_data`: RG of 0x2001.. (UserPositionData) of each connected actuator (of A1 if none is);
 //! - `cyclic_objects` and `remote_read_back`: the session's cyclic object, as a `watch` defines it: RT of
-//!   CyclicObj 5 (volatile remote data that only selects what an RC reads), RG of it back, one RC carrying it;
+//!   CyclicObj 5 (volatile remote data that only selects what an RC reads), RG of it back, one RC carrying it
+//!   and one more that takes a sample, as `watch` does;
 //!   where that is not tried, RG of 0x3011 (remote speed F1) for the read-back;
 //! - `answers_first_telegram`: nothing more: whether the session's opening RO had to be sent again.
 //!
@@ -253,7 +254,8 @@ fn user_positions(client: &Client, connected: &[Actuator]) -> Check {
 }
 
 fn cyclic_and_read_back(client: &Client) -> [Check; 2] {
-    const SENDS_OBJECT: &str = "RT of CyclicObj 5 (the session's definition), RG of it back, one RC carrying it";
+    const SENDS_OBJECT: &str =
+        "RT of CyclicObj 5 (the session's definition), RG of it back, one RC carrying it, one more with a sample";
     const SENDS_READ: &str = "RG of remote data (the definition written, else 0x3011)";
     let sampled = client.sample();
     let mut caps = client.capabilities();

@@ -9,6 +9,8 @@ pub use motionlink_gateway::cli::Args;
 
 /// Serves until SIGINT, SIGTERM, SIGHUP or SIGQUIT (every motion stopped first; exit 128 + the signal's number).
 pub fn run(args: Args) -> Result<(), CliError> {
+    // With `--json`, the gateway's notices are JSON lines too, as every command's logs.
+    motionlink_gateway::notice::set_json(crate::term::output().json);
     match motionlink_gateway::main(&args.options()) {
         Ok(0) => Ok(()),
         // Ended by a signal after its motions were stopped and `offline` published (said on stderr).

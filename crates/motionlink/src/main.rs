@@ -97,7 +97,7 @@ enum Command {
     /// token).
     Console(console::Args),
     /// Serve the devices of this machine on an MQTT broker (the fleet gateway; topics in docs/fleet.md)
-    /// until SIGINT or SIGTERM, which stop every motion first.
+    /// until SIGINT, SIGTERM, SIGHUP or SIGQUIT, which stop every motion first.
     Gateway(gateway::Args),
     /// Serve an emulated device over TCP or a pseudo-terminal until killed.
     Sim {

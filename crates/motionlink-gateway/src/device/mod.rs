@@ -303,7 +303,7 @@ impl Device {
 /// then probed as without it).
 pub fn profiles() -> Option<Profiles> {
     Profiles::load_default().unwrap_or_else(|e| {
-        eprintln!("motionlink gateway: device profiles not used: {e}");
+        crate::notice::say!("motionlink gateway: device profiles not used: {e}");
         None
     })
 }
@@ -315,15 +315,15 @@ fn took_profile<E: std::fmt::Display>(name: &str, used: Result<ProfileUse, E>) -
     match used {
         Ok(used) => {
             for n in &used.notices {
-                eprintln!("motionlink gateway: [device.{name}] profile: {n}");
+                crate::notice::say!("motionlink gateway: [device.{name}] profile: {n}");
             }
             if let Some(r) = &used.reference {
-                eprintln!("motionlink gateway: [device.{name}] profile: {r}");
+                crate::notice::say!("motionlink gateway: [device.{name}] profile: {r}");
             }
             used.reference.map_or(Value::Null, Value::from)
         }
         Err(e) => {
-            eprintln!("motionlink gateway: [device.{name}] device profile not used: {e}");
+            crate::notice::say!("motionlink gateway: [device.{name}] device profile not used: {e}");
             Value::Null
         }
     }

@@ -57,7 +57,7 @@ impl Gateway {
                     self.name
                 );
                 self.ports.release(&self.name, &device, 3, &message);
-                eprintln!("motionlink gateway: stop from {who}: {message}");
+                crate::notice::say!("motionlink gateway: stop from {who}: {message}");
                 self.event(&device, &Event { message: Some(&message), ..Event::new("port_released", None) });
                 self.released.push(device);
                 continue;
@@ -97,10 +97,10 @@ impl Gateway {
             };
             let message = format!("gateway {}: {device}: {message}; its port is let go of", self.name);
             if let Err(e) = Device::close(served.device).await {
-                eprintln!("motionlink gateway: closing {device}: {e}");
+                crate::notice::say!("motionlink gateway: closing {device}: {e}");
             }
             self.ports.release(&self.name, &device, exit_code, &message);
-            eprintln!("motionlink gateway: stop from {who}: {message}");
+            crate::notice::say!("motionlink gateway: stop from {who}: {message}");
             self.event(&device, &Event { message: Some(&message), ..Event::new("port_released", None) });
             self.released.push(device);
         }
@@ -123,7 +123,7 @@ impl Gateway {
                     self.devices.insert(device.clone(), served);
                     self.start_sampler(&device);
                     let message = format!("{device} on {} is served again", entry.port);
-                    eprintln!("motionlink gateway: {message}");
+                    crate::notice::say!("motionlink gateway: {message}");
                     self.event(&device, &Event { message: Some(&message), ..Event::new("port_taken", None) });
                 }
                 Err(e) => {

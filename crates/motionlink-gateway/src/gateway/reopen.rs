@@ -129,12 +129,12 @@ impl Gateway {
                      requests to it are sent and answered as the device answers them",
                     e.message
                 );
-                eprintln!("motionlink gateway: {message}");
+                crate::notice::say!("motionlink gateway: {message}");
                 serde_json::to_string(&Event { message: Some(&message), error: Some(e), ..Event::new(event, None) })
             }
             None => {
                 let message = format!("{device}: its state is read again");
-                eprintln!("motionlink gateway: {message}");
+                crate::notice::say!("motionlink gateway: {message}");
                 serde_json::to_string(&Event { message: Some(&message), ..Event::new("device_answers", None) })
             }
         };
@@ -187,7 +187,7 @@ impl Gateway {
             FIRST_REOPEN_WAIT.as_secs_f64(),
             MAX_REOPEN_WAIT.as_secs()
         ));
-        eprintln!("motionlink gateway: {message}");
+        crate::notice::say!("motionlink gateway: {message}");
         self.event(device, &Event { message: Some(&message), error: Some(&error), ..Event::new("port_failed", None) });
         let state = Unavailable { available: false, error: &error, t_s: self.started.elapsed().as_secs_f64() };
         match motionlink_link::result::identified(&entry.family, &entry.port, &spec.identity(), &state) {
@@ -225,7 +225,7 @@ impl Gateway {
             "{device} on {port} is served again ({:.1} s after its port failed)",
             lost.since.elapsed().as_secs_f64()
         );
-        eprintln!("motionlink gateway: {message}");
+        crate::notice::say!("motionlink gateway: {message}");
         self.event(device, &Event { message: Some(&message), ..Event::new("port_reopened", None) });
     }
 

@@ -144,10 +144,16 @@ pub fn gateway(broker: &Broker, name: &str, devices: &str) -> Gateway {
 
 /// A gateway `name` of the file `text`, with the environment variables `env`.
 pub fn gateway_of(name: &str, text: &str, env: &[(&str, &str)]) -> Gateway {
+    gateway_with(name, text, env, &[])
+}
+
+/// [`gateway_of`] with the command-line arguments `args` after `--config FILE`.
+pub fn gateway_with(name: &str, text: &str, env: &[(&str, &str)], args: &[&str]) -> Gateway {
     let dir = dir(&format!("gw-{name}"));
     let file = dir.join("gateway.toml");
     std::fs::write(&file, text).unwrap();
     let child = Command::new(env!("CARGO_BIN_EXE_motionlink-gateway"))
+        .args(args)
         .arg("--config")
         .arg(&file)
         .env_remove("MOTIONLINK_MQTT_PASSWORD")

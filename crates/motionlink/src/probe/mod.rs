@@ -26,7 +26,8 @@ pub enum Family {
     /// What is sent (nothing moves): RO and RC (the session), RG of 0x0001 and 0x0002 (identity), RG of
     /// 0x0171 N times (the link), RG of 0x0170 (grouping indices), RG of 0x2001.. (UserPositionData of each
     /// connected actuator), the session's cyclic object as `watch` defines it (RT of CyclicObj 5, volatile
-    /// remote data that only selects what an RC reads, its RG back and one RC carrying it; else RG of 0x3011),
+    /// remote data that only selects what an RC reads, its RG back, one RC carrying it and one more that takes a
+    /// sample as `watch` does; else RG of 0x3011),
     /// then RA. `--baud auto` opens the session at 38400, 19200 and 9600 in turn.
     ///
     /// Every check is named in `docs/commissioning.md`; each behaviour has an emulator variant
@@ -38,7 +39,7 @@ pub enum Family {
     /// and what each module does where the manual leaves it open.
     ///
     /// What is sent (nothing moves): GetExtended of DefCubeVersion (0x1D) to each address (the scan), then of
-    /// the Config word, serial number and CubeState of each module found (identity), ActPos N times (the
+    /// the Config word, serial number and CubeState of each module found (identity), CubeState N times (the
     /// link), ActFPosStateDio (0x62) of each module. The Inc twins, the RS232 broadcast refresh and the life
     /// sign's acknowledge are not probed: each needs a write of another value or an armed watchdog.
     ///
@@ -49,9 +50,10 @@ pub enum Family {
     /// Probe a bus of COMPAX drives: the drives at addresses 1..31 (or --drives), their identification
     /// texts and P194..P196 (P196: the operating mode), the link, and how each echoes.
     ///
-    /// What is sent (nothing moves): S1 to each address (the scan), S31 and S32 (identification), P194, P195
-    /// and P196 (reads), S1 N times (the link), S1 with `?` (an echo of a read: a drive does not execute what
-    /// it echoes) twice at most per drive, with a plain S1 between. Storing a command (`,`) is not probed.
+    /// What is sent (nothing moves): S1 to each address (the scan), S1 N + 1 times to the first drive found
+    /// (the link, and the status value's form), then to each drive S31 and S32 (identification), P194, P195
+    /// and P196 (reads), S1 with `?` (an echo of a read: a drive does not execute what it echoes) twice at
+    /// most, with a plain S1 between. Storing a command (`,`) is not probed.
     ///
     /// Each behaviour has an emulator variant (`motionlink sim compax --variant NAME`). `--save` writes one
     /// profile per drive (profiles.toml beside devices.toml), loaded by later sessions when the drive gives
