@@ -22,7 +22,9 @@ class Event(Tuple[float, str]):
 
     @property
     def at(self) -> float:
-        """When the emulator reported it (Unix time, s)."""
+        """When the emulated device did it (Unix time, s): for an emulator in this process, the instant of
+        the device's step that produced it (as the client's line ran the device); for a served one, when
+        its server reported it."""
         return self[0]
 
     @property
@@ -48,7 +50,7 @@ class Emulator:
             variant's name, or a list of them: ``"no-twin-mirror"``, ``"no-broadcast-pair"``,
             ``"ack-length-6"``, ``"ext-ack-on-put-id"``, ``"no-pos-state-dio"``,
             ``"life-sign-unacknowledged"``; as ``motionlink sim powercube --variant``).
-        compax: ``drives`` (addresses), ``mode`` (P196), ``baud``, ``params`` ({"P194": 10.0}),
+        compax: ``drives`` (addresses), ``mode`` (P196), ``baud``, ``params`` ({"P3": 10.0}; P194..P196 come from ``drives``, ``mode`` and ``baud``),
             ``config`` (TOML text), ``variant`` (a firmware variant's name, or a list of them:
             ``"echo-without-address"``, ``"echo-bare"``, ``"no-echo"``, ``"echo-without-store"``,
             ``"status-value-only"``; as

@@ -10,6 +10,7 @@ use motionlink_link::clock::lock;
 use motionlink_link::emulator::{serve_tcp_with, Emulator as EmulatorTrait, FirmwareVariant, ServeOptions, Server};
 use motionlink_link::link::{Connector, Link};
 use motionlink_link::pipe::{EmulatorHost, EmulatorLink, FaultControl, PipeConfig};
+use motionlink_link::clock::Timestamp;
 use motionlink_link::{LinkError, RealClock, SharedClock};
 use pyo3::prelude::*;
 
@@ -50,10 +51,9 @@ impl<E> Clone for Hosted<E> {
 
 impl<E: EmulatorTrait + 'static> Hosted<E> {
     fn new(device: E) -> Self {
-        Hosted {
-            host: EmulatorHost::new(device, clock(), PipeConfig::instant()),
-            plugs: Arc::new(Mutex::new(Some(Vec::new()))),
-        }
+        let host = EmulatorHost::new(device, clock(), PipeConfig::instant());
+        host.keep_event_times();
+        Hosted { host, plugs: Arc::new(Mutex::new(Some(Vec::new()))) }
     }
 
     /// A new connection to the device (a `Disconnected` error once the emulator is closed).
@@ -83,9 +83,6 @@ impl<E: EmulatorTrait + 'static> Hosted<E> {
         }
     }
 
-    fn with_device<R>(&self, f: impl FnOnce(&mut E) -> R) -> R {
-        self.host.with_device(f)
-    }
 }
 
 /// An emulator in this process, as a client reaches it.
@@ -102,13 +99,18 @@ pub enum InProcess {
 }
 
 impl InProcess {
-    fn take_events(&self) -> Vec<String> {
-        match self {
-            InProcess::Scu(h) => h.with_device(|d| d.take_events()),
-            InProcess::PowerCube(h) => h.with_device(|d| d.take_events()),
-            InProcess::PowerCubeCan(b) => b.with_device(|d| d.take_events()).unwrap_or_default(),
-            InProcess::Compax(h) => h.with_device(|d| d.take_events()),
-        }
+    /// The device's events since the last call, each at the Unix time (s) it happened.
+    fn take_events(&self) -> Vec<(f64, String)> {
+        let events = match self {
+            InProcess::Scu(h) => h.host.take_timed_events(),
+            InProcess::PowerCube(h) => h.host.take_timed_events(),
+            InProcess::PowerCubeCan(b) => b.take_timed_events(),
+            InProcess::Compax(h) => h.host.take_timed_events(),
+        };
+        let (now, unix) = (clock().now(), unix_now());
+        // A CAN bus may have run its device a little ahead of the clock (to the arrival of a frame).
+        let at = |t: Timestamp| unix + t.saturating_since(now).as_secs_f64() - now.saturating_since(t).as_secs_f64();
+        events.into_iter().map(|(t, e)| (at(t), e)).collect()
     }
 
     /// Ends the emulator for the clients connected to it: their lines break (a CAN bus: the bus).
@@ -377,7 +379,9 @@ impl NativeEmulator {
                     "powercube" if s.can => {
                         let cfg = powercube_config(s)?;
                         let device = motionlink_powercube::Emulator::new_can(&cfg);
-                        InProcess::PowerCubeCan(CanBus::with_emulator(device, clock(), CanBusConfig::instant()))
+                        let bus = CanBus::with_emulator(device, clock(), CanBusConfig::instant());
+                        bus.keep_event_times();
+                        InProcess::PowerCubeCan(bus)
                     }
                     "powercube" => {
                         let mut device = motionlink_powercube::Emulator::new(&powercube_config(s)?);
@@ -472,10 +476,7 @@ impl NativeEmulator {
                 _ => None,
             };
             match in_process {
-                Some(h) => {
-                    let t = unix_now();
-                    h.take_events().into_iter().map(|e| (t, e)).collect()
-                }
+                Some(h) => h.take_events(),
                 None => std::mem::take(&mut *lock(&self.served_events)),
             }
         })

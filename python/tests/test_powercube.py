@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+import time
 from pathlib import Path
 
 import pytest
@@ -81,6 +82,21 @@ def test_scan_finds_every_module() -> None:
 def test_can_bus_in_process() -> None:
     with motionlink.Emulator("powercube", can=True) as emu, motionlink.PowerCube(emu) as c:
         assert c.move_to(0.2).reached_rad == pytest.approx(0.2, abs=1e-3)
+
+
+@pytest.mark.parametrize("can", [False, True], ids=["rs232", "can"])
+def test_in_process_events_carry_the_time_they_happened(can: bool) -> None:
+    """An in-process emulator's events are stamped when the device produced them, not when they are taken."""
+    with motionlink.Emulator("powercube", can=can) as emu, motionlink.PowerCube(emu) as c:
+        emu.take_events()
+        before = time.time()
+        c.move_to(0.5)
+        after = time.time()
+        time.sleep(0.3)
+        events = emu.take_events()
+        started = next(e for e in events if "motion started" in e.text)
+        rest = next(e for e in events if "at rest" in e.text)
+        assert before <= started.at < rest.at <= after + 0.005, (before, events, after)
 
 
 def test_can_bus_behind_a_served_slcan_adapter() -> None:

@@ -59,6 +59,46 @@ impl<E: Emulator + ?Sized> Emulator for Box<E> {
     }
 }
 
+/// The device's events with the time each happened, as a host that runs the device lazily (an
+/// [`EmulatorHost`](crate::pipe::EmulatorHost), a [`CanBus`](crate::can::CanBus)) keeps them once asked
+/// to: after each step of the device (a byte or frame received, a timer fired) its events are taken, at
+/// that step's time. At most [`TimedEvents::MOST`] are kept (the oldest go first).
+#[derive(Debug, Default)]
+pub(crate) struct TimedEvents {
+    keep: bool,
+    list: std::collections::VecDeque<(Timestamp, String)>,
+}
+
+impl TimedEvents {
+    /// How many events are kept for a caller that does not take them.
+    pub(crate) const MOST: usize = 1000;
+
+    /// From now on the events are taken after each step.
+    pub(crate) fn keep(&mut self) {
+        self.keep = true;
+    }
+
+    /// True once [`TimedEvents::keep`] was called.
+    pub(crate) fn kept(&self) -> bool {
+        self.keep
+    }
+
+    /// The `events` the device produced at `t`.
+    pub(crate) fn add(&mut self, t: Timestamp, events: Vec<String>) {
+        for e in events {
+            if self.list.len() == Self::MOST {
+                self.list.pop_front();
+            }
+            self.list.push_back((t, e));
+        }
+    }
+
+    /// The events kept, oldest first.
+    pub(crate) fn take(&mut self) -> Vec<(Timestamp, String)> {
+        self.list.drain(..).collect()
+    }
+}
+
 /// Where a server reports the device's events ([`Emulator::take_events`]); called on the serving thread
 /// right after the device produced them.
 pub type EventSink = Arc<dyn Fn(&str) + Send + Sync>;

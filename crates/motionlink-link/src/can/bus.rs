@@ -125,6 +125,8 @@ struct BusState<E> {
     drop_from_device: u64,
     broken: bool,
     frames_carried: u64,
+    /// The device's events with their times, once [`CanBus::keep_event_times`] asked for them.
+    events: crate::emulator::TimedEvents,
 }
 
 impl<E: CanEmulator> BusState<E> {
@@ -181,10 +183,16 @@ impl<E: CanEmulator> BusState<E> {
                 if device.next_wakeup() == before && out.is_empty() {
                     self.device_last = t;
                     self.scratch = out;
+                    if self.events.kept() {
+                        self.events.add(t, device.take_events());
+                    }
                     break;
                 }
             }
             self.device_last = self.device_last.max(t);
+            if self.events.kept() {
+                self.events.add(t, device.take_events());
+            }
             for f in out.drain(..) {
                 self.transmit(Sender::Device, t, f);
             }
@@ -196,6 +204,9 @@ impl<E: CanEmulator> BusState<E> {
         if now >= self.device_last {
             device.advance(now, &mut out);
             self.device_last = now;
+            if self.events.kept() {
+                self.events.add(now, device.take_events());
+            }
         }
         for f in out.drain(..) {
             self.transmit(Sender::Device, now, f);
@@ -264,6 +275,7 @@ impl<E: CanEmulator> CanBus<E> {
                 drop_from_device: 0,
                 broken: false,
                 frames_carried: 0,
+                events: Default::default(),
             })),
             clock,
         }
@@ -294,6 +306,20 @@ impl<E: CanEmulator> CanBus<E> {
         let mut st = lock(&self.state);
         st.pump(self.clock.now());
         st.device.as_mut().map(f)
+    }
+
+    /// From now on the device's events are kept with the time each happened, for
+    /// [`CanBus::take_timed_events`] (as [`EmulatorHost::keep_event_times`](crate::pipe::EmulatorHost::keep_event_times)).
+    pub fn keep_event_times(&self) {
+        lock(&self.state).events.keep();
+    }
+
+    /// The events kept since the last call, oldest first, each with the clock's time at which the device
+    /// produced it; the device is brought up to date first.
+    pub fn take_timed_events(&self) -> Vec<(Timestamp, String)> {
+        let mut st = lock(&self.state);
+        st.pump(self.clock.now());
+        st.events.take()
     }
 
     /// Loses the next `count` frames the nodes send to the device (a device that misses them).
@@ -444,6 +470,7 @@ mod tests {
     struct Plus1 {
         seen: Vec<Timestamp>,
         told: bool,
+        said: bool,
     }
 
     impl CanEmulator for Plus1 {
@@ -460,6 +487,21 @@ mod tests {
         fn next_wakeup(&self) -> Option<Timestamp> {
             (!self.told).then_some(Timestamp::from_millis(10))
         }
+        fn take_events(&mut self) -> Vec<String> {
+            let told = self.told && !self.said;
+            self.said |= told;
+            told.then(|| "told".to_string()).into_iter().collect()
+        }
+    }
+
+    #[test]
+    fn kept_events_carry_the_time_the_device_produced_them() {
+        let clock = ManualClock::new();
+        let bus = CanBus::with_emulator(Plus1::default(), clock.shared(), CanBusConfig::paced(500_000));
+        bus.keep_event_times();
+        clock.advance(Duration::from_millis(40));
+        assert_eq!(bus.take_timed_events(), [(Timestamp::from_millis(10), "told".to_string())]);
+        assert!(bus.take_timed_events().is_empty());
     }
 
     #[test]

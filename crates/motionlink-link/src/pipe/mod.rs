@@ -387,9 +387,19 @@ struct EmulatorSide<E> {
     scratch: Vec<u8>,
     /// The last time the device was brought up to date.
     last: Timestamp,
+    /// The device's events with their times, once [`EmulatorHost::keep_event_times`] asked for them.
+    events: crate::emulator::TimedEvents,
 }
 
 impl<E: Emulator> EmulatorSide<E> {
+    /// The device's events of the step at `t`, where they are kept.
+    fn events_at(&mut self, t: Timestamp) {
+        if self.events.kept() {
+            let events = self.device.take_events();
+            self.events.add(t, events);
+        }
+    }
+
     /// Runs the device up to `now`: delivers arrived bytes at their own arrival times, fires its timers in
     /// time order, and puts what it says on the wire to the host.
     fn pump(&mut self, faults: &mut Faults, now: Timestamp) -> bool {
@@ -414,10 +424,12 @@ impl<E: Emulator> EmulatorSide<E> {
                 if self.device.next_wakeup() == before && self.scratch.is_empty() {
                     // A timer that does not move on would spin: let the final advance handle it.
                     self.last = t;
+                    self.events_at(t);
                     break;
                 }
             }
             self.last = self.last.max(t);
+            self.events_at(t);
             if !self.scratch.is_empty() {
                 ok &= faults.wires[1].offer(t, &self.scratch);
             }
@@ -425,6 +437,7 @@ impl<E: Emulator> EmulatorSide<E> {
         self.scratch.clear();
         self.device.advance(now, &mut self.scratch);
         self.last = self.last.max(now);
+        self.events_at(now);
         if !self.scratch.is_empty() {
             ok &= faults.wires[1].offer(now, &self.scratch);
         }
@@ -459,7 +472,12 @@ impl<E: Emulator> EmulatorHost<E> {
     /// Puts `device` behind links timed by `clock` and shaped by `config`.
     pub fn new(device: E, clock: SharedClock, config: PipeConfig) -> Self {
         EmulatorHost {
-            side: Arc::new(Mutex::new(EmulatorSide { device, scratch: Vec::new(), last: Timestamp::ZERO })),
+            side: Arc::new(Mutex::new(EmulatorSide {
+                device,
+                scratch: Vec::new(),
+                last: Timestamp::ZERO,
+                events: Default::default(),
+            })),
             clock,
             config,
             current: Arc::new(Mutex::new(None)),
@@ -514,8 +532,23 @@ impl<E: Emulator> EmulatorHost<E> {
                 side.scratch.clear();
                 side.device.advance(now, &mut side.scratch);
                 side.last = side.last.max(now);
+                side.events_at(now);
             }
         }
+    }
+
+    /// From now on the device's events are kept with the time each happened (the step of the device that
+    /// produced it, as the link ran it), for [`EmulatorHost::take_timed_events`]; its own
+    /// [`Emulator::take_events`] then gives nothing more.
+    pub fn keep_event_times(&self) {
+        lock(&self.side).events.keep();
+    }
+
+    /// The events kept since the last call ([`EmulatorHost::keep_event_times`]), oldest first, each with the
+    /// clock's time at which the device produced it; the device is brought up to date first.
+    pub fn take_timed_events(&self) -> Vec<(Timestamp, String)> {
+        self.bring_up_to_date();
+        lock(&self.side).events.take()
     }
 
     /// Runs `f` on the device, brought up to the clock's current time first.

@@ -70,23 +70,30 @@ fn dropping_one_end_disconnects_the_other_after_draining() {
     assert!(a.recv(&mut buf, Duration::from_millis(1)).unwrap_err().is_disconnect());
 }
 
-/// Echoes every byte back incremented, and says "T" by itself at 100 ms.
+/// Echoes every byte back incremented, and says "T" by itself at 100 ms (events: each byte received, and
+/// "told").
 #[derive(Default)]
 struct Echo {
     received_at: Vec<Timestamp>,
     told: bool,
+    events: Vec<String>,
 }
 
 impl Emulator for Echo {
     fn receive(&mut self, now: Timestamp, bytes: &[u8], out: &mut Vec<u8>) {
         self.received_at.push(now);
+        self.events.extend(bytes.iter().map(|b| format!("got {b}")));
         out.extend(bytes.iter().map(|b| b + 1));
     }
     fn advance(&mut self, now: Timestamp, out: &mut Vec<u8>) {
         if !self.told && now >= Timestamp::from_millis(100) {
             self.told = true;
+            self.events.push("told".into());
             out.push(b'T');
         }
+    }
+    fn take_events(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.events)
     }
     fn next_wakeup(&self) -> Option<Timestamp> {
         (!self.told).then_some(Timestamp::from_millis(100))
@@ -107,6 +114,22 @@ fn emulator_sees_each_byte_at_its_arrival_time() {
     assert_eq!(&buf[..2], &[2, 3]);
     let stamps = host.with_device(|d| d.received_at.clone());
     assert_eq!(stamps, vec![Timestamp::from_millis(1), Timestamp::from_millis(2)]);
+}
+
+#[test]
+fn kept_events_carry_the_time_the_device_produced_them() {
+    let clock = ManualClock::new();
+    let host = EmulatorHost::new(Echo::default(), clock.shared(), PipeConfig::paced(10_000));
+    host.keep_event_times();
+    let (mut link, _) = host.connect();
+    link.send(&[1, 2]).unwrap();
+    // Nothing looks at the device until 250 ms: the events keep the times of the bytes and the timer.
+    clock.advance(Duration::from_millis(250));
+    let events = host.take_timed_events();
+    let expected = [(1, "got 1"), (2, "got 2"), (100, "told")];
+    assert_eq!(events, expected.map(|(ms, e)| (Timestamp::from_millis(ms), e.to_string())));
+    assert!(host.take_timed_events().is_empty(), "taken once");
+    assert!(host.with_device(|d| d.take_events()).is_empty(), "kept by the host, not left in the device");
 }
 
 #[test]
