@@ -49,8 +49,9 @@ class Emulator:
             ``can`` (a CAN bus; served, it sits behind an emulated SLCAN adapter), ``variant`` (a firmware
             variant's name, or a list of them: ``"no-twin-mirror"``, ``"no-broadcast-pair"``,
             ``"ack-length-6"``, ``"ext-ack-on-put-id"``, ``"no-pos-state-dio"``,
-            ``"life-sign-unacknowledged"``; as ``motionlink sim powercube --variant``).
-        compax: ``drives`` (addresses), ``mode`` (P196), ``baud``, ``params`` ({"P3": 10.0}; P194..P196 come from ``drives``, ``mode`` and ``baud``),
+            ``"life-sign-unacknowledged"``, ``"no-config-word"``; as ``motionlink sim powercube --variant``).
+        compax: ``drives`` (addresses), ``mode`` (P196), ``baud``, ``params`` ({"P3": 10.0}; P194..P196
+            come from ``drives``, ``mode`` and ``baud``),
             ``config`` (TOML text), ``variant`` (a firmware variant's name, or a list of them:
             ``"echo-without-address"``, ``"echo-bare"``, ``"no-echo"``, ``"echo-without-store"``,
             ``"status-value-only"``; as

@@ -149,6 +149,8 @@ impl SimModule {
                 Some(Reply::Action(action))
             }
             Request::Get(param) => self.get(t, param).map(|v| Reply::Get(param, v)),
+            // A module before version 3.5.00 does not know the Config word: nothing written, no acknowledge.
+            Request::Set(crate::model::Param::Config, _) if self.firmware.no_config_word => None,
             Request::Set(param, value) => {
                 self.set(t, param, value);
                 Some(Reply::Set(param, ACK_OK))

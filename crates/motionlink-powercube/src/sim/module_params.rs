@@ -48,6 +48,8 @@ impl SimModule {
             P::TargetVelInc => Value::U32(ticks(self.twin(1, self.target_vel)).unsigned_abs()),
             P::TargetAccInc => Value::U32(ticks(self.twin(2, self.target_acc)).unsigned_abs()),
             P::StepInc => Value::I32(ticks(self.step_target)),
+            // A module before version 3.5.00 (manual 7.2): no acknowledge, as for any parameter it does not know.
+            P::Config if self.firmware.no_config_word => return None,
             P::Config => Value::U32(self.config.0),
             P::MoveMode => Value::U8(self.move_mode),
             P::IncRatio => f(ratio),

@@ -593,3 +593,26 @@ fn the_can_emulator_reports_the_same_events() {
     assert_eq!(events[..2], ["module 3 motion started: homing".to_string(), "module 3 halted".into()]);
     assert!(events[2].starts_with("module 3 at rest 0.04"), "{events:?}");
 }
+
+/// A bus of the default module running `variant`.
+fn with_variant(v: Variant) -> Emulator {
+    Emulator::new(&SimConfig { variants: vec![v], ..SimConfig::default() })
+}
+
+#[test]
+fn no_config_word_leaves_the_config_word_unanswered_and_unwritten() {
+    // GetExtended Config (02 04 22 0A 39 69 03) and SetExtended Config get no acknowledge; DefConfig is
+    // answered.
+    let get_config = [0x02, 0x04, 0x22, 0x0A, 0x39, 0x69, 0x03];
+    let mut out = Vec::new();
+    ByteEmulator::receive(&mut Emulator::new(&SimConfig::default()), at(0), &get_config, &mut out);
+    assert_eq!(out[..5], [0x02, 0x08, 0x26, 0x0A, 0x39], "the default answers: {out:02X?}");
+    let mut bus = with_variant(Variant::NoConfigWord);
+    let mut out = Vec::new();
+    ByteEmulator::receive(&mut bus, at(0), &get_config, &mut out);
+    assert!(out.is_empty(), "{out:02X?}");
+    let word = Value::U32(ConfigFlag::WatchdogEnable.mask());
+    assert_eq!(bus.request(at(1), 1, &Request::Set(Param::Config, word)), None);
+    assert!(!bus.module(1).unwrap().config_word().contains(ConfigFlag::WatchdogEnable), "nothing written");
+    assert!(matches!(bus.request(at(2), 1, &Request::Get(Param::DefConfig)), Some(Reply::Get(_, Value::U32(_)))));
+}

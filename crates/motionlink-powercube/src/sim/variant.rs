@@ -10,6 +10,7 @@
 //! | `ext-ack-on-put-id` | On CAN, the extended acknowledge of a motion command comes on the command identifier `0x0E0 + address`, as the manual's last CAN table shows, instead of `0x0A0 + address`. |
 //! | `no-pos-state-dio` | GetExtended of ActFPosStateDio (0x62, a later firmware's parameter) gets no acknowledge, as any parameter a module does not know. |
 //! | `life-sign-unacknowledged` | The individual life sign (0x07) switches the watchdog as usual but is not acknowledged. |
+//! | `no-config-word` | The Config word (parameter 57, from module version 3.5.00) is not known: GetExtended and SetExtended of it get no acknowledge, as any parameter a module does not know (DefConfig, the ROM default, is still answered). |
 
 use motionlink_link::emulator::FirmwareVariant;
 pub use motionlink_link::emulator::UnknownVariant;
@@ -30,6 +31,8 @@ pub enum Variant {
     NoPosStateDio,
     /// The individual life sign is not acknowledged.
     LifeSignUnacknowledged,
+    /// The Config word (parameter 57) is not known: no acknowledge.
+    NoConfigWord,
 }
 
 impl FirmwareVariant for Variant {
@@ -42,6 +45,7 @@ impl FirmwareVariant for Variant {
         Variant::ExtAckOnPutId,
         Variant::NoPosStateDio,
         Variant::LifeSignUnacknowledged,
+        Variant::NoConfigWord,
     ];
 
     /// The name the command line, the TOML configuration and Python take.
@@ -53,6 +57,7 @@ impl FirmwareVariant for Variant {
             Variant::ExtAckOnPutId => "ext-ack-on-put-id",
             Variant::NoPosStateDio => "no-pos-state-dio",
             Variant::LifeSignUnacknowledged => "life-sign-unacknowledged",
+            Variant::NoConfigWord => "no-config-word",
         }
     }
 
@@ -72,6 +77,9 @@ impl FirmwareVariant for Variant {
             Variant::ExtAckOnPutId => "CAN extended motion acknowledges come on 0x0E0 + address",
             Variant::NoPosStateDio => "ActFPosStateDio (0x62) is not known: it gets no acknowledge",
             Variant::LifeSignUnacknowledged => "the individual life sign (0x07) is not acknowledged",
+            Variant::NoConfigWord => {
+                "the Config word (parameter 57, from module version 3.5.00) is not known: it gets no acknowledge"
+            }
         }
     }
 }
@@ -84,6 +92,7 @@ pub(crate) struct Firmware {
     pub no_twin_mirror: bool,
     pub life_sign_unacknowledged: bool,
     pub no_pos_state_dio: bool,
+    pub no_config_word: bool,
 }
 
 impl Firmware {
@@ -92,6 +101,7 @@ impl Firmware {
             no_twin_mirror: variants.contains(&Variant::NoTwinMirror),
             life_sign_unacknowledged: variants.contains(&Variant::LifeSignUnacknowledged),
             no_pos_state_dio: variants.contains(&Variant::NoPosStateDio),
+            no_config_word: variants.contains(&Variant::NoConfigWord),
         }
     }
 }

@@ -76,6 +76,7 @@ fn every_variant_through_the_binary() {
         "ack-length-6,ext-ack-on-put-id",
         "no-pos-state-dio",
         "life-sign-unacknowledged",
+        "no-config-word",
     ];
     let runs: Vec<Run> = std::thread::scope(|s| {
         let handles: Vec<_> = variants.iter().map(|v| s.spawn(move || core_actions(v))).collect();
@@ -97,6 +98,19 @@ fn every_variant_through_the_binary() {
                     assert!(err.contains("cannot arm the watchdog of module 1"), "{v}: {err}");
                 }
                 assert!(r.stderr.contains("not acknowledged"), "{v}: {}", r.stderr);
+                continue;
+            }
+            "no-config-word" => {
+                // Its type read from DefConfig (the scan, the set, the limits); the arming's read of the
+                // Config word fails with its timeout (exit 3), which is named and explained.
+                assert!(verified(&r.set).0, "{v}");
+                for out in [&r.home, &r.moved_with_speed, &r.moved_without_speed] {
+                    assert_eq!(code(out), 3, "{v}: {out:?}");
+                    let err = String::from_utf8_lossy(&out.stderr);
+                    assert!(err.contains("cannot arm the watchdog of module 1: module 1 did not answer"), "{v}: {err}");
+                    assert!(err.contains("a module before version 3.5.00 has no Config word"), "{v}: {err}");
+                }
+                assert!(r.stderr.contains("its type is read from DefConfig"), "{v}: {}", r.stderr);
                 continue;
             }
             _ => {
@@ -203,6 +217,42 @@ fn a_refused_arming_leaves_the_module_able_to_move_and_says_so() {
     // The module moves when the watchdog is not asked for.
     let out = run(port, &["--module", "1", "--no-watchdog", "move", "0.5", "--vel", "0.5", "--acc", "1"]);
     assert!(out.status.success(), "{out:?}");
+}
+
+#[test]
+fn a_module_without_the_config_word_is_refused_its_watchdog_before_anything_moves() {
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0", "--variant", "no-config-word"]);
+    let port = sim.address.as_str();
+    for action in [&["move", "0.5", "--vel", "0.5", "--acc", "1"][..], &["home"][..]] {
+        let out = run(port, &[&["-v", "--json", "--module", "1"][..], action].concat());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(code(&out), 3, "{action:?}: {err}");
+        let lines: Vec<serde_json::Value> = err.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+        let e = lines.last().unwrap();
+        assert_eq!((e["kind"].as_str(), e["exit_code"].as_i64()), (Some("timeout"), Some(3)), "{e}");
+        let message = e["message"].as_str().unwrap_or_default();
+        assert!(message.starts_with("cannot arm the watchdog of module 1: module 1 did not answer GetExtended Config"));
+        assert!(message.contains("no Config word, manual 7.2") && message.contains("`--no-watchdog`"), "{e}");
+        // The trace: the Config word asked, never written; no life sign, no motion command, no Home.
+        let sent: Vec<&str> = lines
+            .iter()
+            .filter(|l| l["trace"]["direction"] == "->")
+            .filter_map(|l| l["trace"]["meaning"].as_str())
+            .collect();
+        assert!(sent.contains(&"to module 1: GetExtended Config"), "{action:?}: {err}");
+        for never in ["SetExtended", "LifeSign", "SetMotion", ": Home", "Halt"] {
+            assert!(!sent.iter().any(|l| l.contains(never)), "{action:?}: {never} sent: {err}");
+        }
+    }
+    let events = sim.events();
+    assert!(!events.iter().any(|e| e.text.contains("motion started") || e.text.contains("watchdog")), "{events:?}");
+    // Without the watchdog it moves, its type (rad) read from DefConfig.
+    let out = run(port, &["--module", "1", "--json", "--no-watchdog", "move", "0.3"]);
+    assert!(out.status.success(), "{out:?}");
+    let j = json_of(&out);
+    assert!((j["reached_rad"].as_f64().unwrap() - 0.3).abs() < 1e-3 && j["verified"] == true, "{j}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("module 1 does not answer the Config word (parameter 57"), "{err}");
 }
 
 #[test]

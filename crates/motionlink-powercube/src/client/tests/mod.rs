@@ -5,6 +5,7 @@
 mod basics;
 mod checked;
 mod close;
+mod firmware;
 mod variants;
 mod watchdog;
 

@@ -180,6 +180,20 @@ fn a_life_sign_that_is_not_acknowledged_refuses_the_guarded_motion_and_says_so()
 }
 
 #[test]
+fn a_module_without_the_config_word_is_scanned_and_set_but_its_guarded_motions_are_refused() {
+    // Its type comes from DefConfig (the scan, the set); the arming's read of the Config word fails, so the
+    // guarded home and moves are refused and nothing moves.
+    let o = core_operations(&[Variant::NoConfigWord]);
+    assert!(o.set.as_ref().is_ok_and(|s| s.verified), "{o:?}");
+    for e in [o.home.unwrap_err(), o.moved_with_speed.unwrap_err(), o.moved_without_speed.unwrap_err()] {
+        let text = e.to_string();
+        assert!(text.contains("cannot arm the watchdog of module 1") && text.contains("GetExtended Config"), "{text}");
+    }
+    assert!((o.position - 0.05).abs() <= 0.001, "nothing moved: {}", o.position);
+    o.closed.unwrap();
+}
+
+#[test]
 fn a_refused_arming_leaves_the_module_as_it_was_and_the_next_guarded_move_is_refused_the_same_way() {
     let (clock, host, bus) = rs232_variant(&[Variant::LifeSignUnacknowledged]);
     let _me = clock.reserve_participant().enter();
@@ -265,6 +279,9 @@ fn every_variant_on_can() {
     assert!(at(&r, 0.4) && !r.verified && r.not_verifiable.len() == 3, "{r:?}");
     let o = core_operations_can(&[Variant::LifeSignUnacknowledged]);
     assert!(o.home.unwrap_err().to_string().contains("not acknowledged"));
+    assert!(o.moved_with_speed.is_err() && (o.position - 0.05).abs() <= 0.001, "nothing moved");
+    let o = core_operations_can(&[Variant::NoConfigWord]);
+    assert!(o.home.unwrap_err().to_string().contains("a module before version 3.5.00 has no Config word"));
     assert!(o.moved_with_speed.is_err() && (o.position - 0.05).abs() <= 0.001, "nothing moved");
 }
 

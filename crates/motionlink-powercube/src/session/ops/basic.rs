@@ -237,9 +237,14 @@ impl Ctx {
     /// The Config word (the module's kind is learnt from it on the way).
     pub async fn config_word(&self, address: u8) -> Result<ConfigWord, Error> {
         let word = ConfigWord(self.get_u32(address, Param::Config).await?);
+        self.learn_kind(address, word);
+        Ok(word)
+    }
+
+    /// Remembers the kind CONFIGID_MOD_LINEAR of `word` gives module `address`.
+    fn learn_kind(&self, address: u8, word: ConfigWord) {
         let kind = if word.contains(ConfigFlag::Linear) { ModuleKind::Linear } else { ModuleKind::Rotary };
         self.core().kinds.insert(address, kind);
-        Ok(word)
     }
 
     /// The module's kind if the session has read it.
@@ -247,12 +252,27 @@ impl Ctx {
         self.core().kinds.get(&address).copied()
     }
 
-    /// Rotary or linear (read once from the Config word, then remembered).
+    /// Rotary or linear (read once from the Config word, then remembered). A module that gives no
+    /// acknowledge for the Config word (parameter 57, "available from module version 3.5.00", manual 7.2)
+    /// while it answers DefConfig, the Config word's ROM default, has its kind read from that (one warning).
     pub async fn kind(&self, address: u8) -> Result<ModuleKind, Error> {
         if let Some(k) = self.known_kind(address) {
             return Ok(k);
         }
-        self.config_word(address).await?;
+        match self.config_word(address).await {
+            Ok(_) => {}
+            Err(e @ Error::Timeout { .. }) => {
+                let Ok(word) = self.get_u32(address, Param::DefConfig).await else { return Err(e) };
+                self.learn_kind(address, ConfigWord(word));
+                self.core().warn_once(address, "config_word", || {
+                    format!(
+                        "module {address} does not answer the Config word (parameter 57, from module version \
+                         3.5.00): its type is read from DefConfig"
+                    )
+                });
+            }
+            Err(e) => return Err(e),
+        }
         self.known_kind(address).ok_or_else(|| Error::NotSupported("the module's kind was not kept".into()))
     }
 

@@ -129,6 +129,12 @@ impl Ctx {
                 Error::Device { state, .. } if state.contains(crate::model::StateFlag::CommError) => {
                     " (its watchdog expired: a host stopped refreshing it; `reset` clears it)"
                 }
+                // The arming reads CubeState first: silence to the Config word alone is a module that does
+                // not know it.
+                Error::Timeout { request: Request::Get(Param::Config), .. } => {
+                    " (a module before version 3.5.00 has no Config word, manual 7.2, and so no way to enable its \
+                     watchdog; without the watchdog, `--no-watchdog`, it moves)"
+                }
                 _ => "",
             };
             Error::Context { context: format!("cannot arm the watchdog of module {a}"), source: Box::new(e), hint }
