@@ -49,7 +49,8 @@ class Emulator:
             ``can`` (a CAN bus; served, it sits behind an emulated SLCAN adapter), ``variant`` (a firmware
             variant's name, or a list of them: ``"no-twin-mirror"``, ``"no-broadcast-pair"``,
             ``"ack-length-6"``, ``"ext-ack-on-put-id"``, ``"no-pos-state-dio"``,
-            ``"life-sign-unacknowledged"``, ``"no-config-word"``; as ``motionlink sim powercube --variant``).
+            ``"life-sign-unacknowledged"``, ``"no-config-word"``, ``"reset-clears-watchdog"``,
+            ``"no-extended-ack"``; as ``motionlink sim powercube --variant``).
         compax: ``drives`` (addresses), ``mode`` (P196), ``baud``, ``params`` ({"P3": 10.0}; P194..P196
             come from ``drives``, ``mode`` and ``baud``),
             ``config`` (TOML text), ``variant`` (a firmware variant's name, or a list of them:

@@ -158,7 +158,8 @@ pub enum Op {
     /// leaves them online ([`Error::WatchdogLeftOnline`]). [`Output::Done`].
     DisableWatchdog,
     /// Reset; if STATE_COMM_ERROR comes back (a host died with the watchdog online), a life sign switches it
-    /// offline and a second Reset clears it. [`Output::Released`].
+    /// offline and a second Reset clears it. Refused ([`Error::NotSupported`], nothing sent) for a module
+    /// whose watchdog this session serves. [`Output::Released`].
     ResetAndReleaseWatchdog(Address),
     /// Whether the module answers ActFPosStateDio (0x62), found out once (a read) and remembered in its
     /// [`ModuleFindings`]. [`Output::Done`].

@@ -214,7 +214,10 @@ impl SimModule {
             // Power faults other than voltage need a power cycle.
             self.flags = self.flags.with(StateFlag::Error).with(StateFlag::Halted);
         }
-        if self.watchdog_online {
+        if self.watchdog_online && self.firmware.reset_clears_watchdog {
+            self.watchdog_online = false;
+            self.event(t, "watchdog offline");
+        } else if self.watchdog_online {
             self.last_refresh = t;
         }
     }

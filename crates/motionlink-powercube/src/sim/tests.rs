@@ -616,3 +616,19 @@ fn no_config_word_leaves_the_config_word_unanswered_and_unwritten() {
     assert!(!bus.module(1).unwrap().config_word().contains(ConfigFlag::WatchdogEnable), "nothing written");
     assert!(matches!(bus.request(at(2), 1, &Request::Get(Param::DefConfig)), Some(Reply::Get(_, Value::U32(_)))));
 }
+
+#[test]
+fn reset_clears_watchdog_switches_an_online_watchdog_offline() {
+    // Without the variant, the watchdog expires again 50 ms after the Reset.
+    let word = Value::U32(ConfigFlag::WatchdogEnable.mask());
+    for (variants, expires_again) in [(vec![], true), (vec![Variant::ResetClearsWatchdog], false)] {
+        let mut bus = Emulator::new(&SimConfig { variants, ..SimConfig::default() });
+        set(&mut bus, 0, Param::Config, word);
+        bus.request(at(1), 1, &Request::Action(Action::LifeSign));
+        assert!(state(&mut bus, 100).contains(StateFlag::CommError), "expired");
+        bus.broadcast(at(110), &Broadcast::Reset);
+        assert!(!state(&mut bus, 111).contains(StateFlag::CommError), "cleared");
+        assert_eq!(state(&mut bus, 200).contains(StateFlag::CommError), expires_again);
+        assert_eq!(bus.module(1).unwrap().watchdog_online(), expires_again);
+    }
+}

@@ -11,6 +11,7 @@
 //! | `no-pos-state-dio` | GetExtended of ActFPosStateDio (0x62, a later firmware's parameter) gets no acknowledge, as any parameter a module does not know. |
 //! | `life-sign-unacknowledged` | The individual life sign (0x07) switches the watchdog as usual but is not acknowledged. |
 //! | `no-config-word` | The Config word (parameter 57, from module version 3.5.00) is not known: GetExtended and SetExtended of it get no acknowledge, as any parameter a module does not know (DefConfig, the ROM default, is still answered). |
+//! | `reset-clears-watchdog` | A Reset (addressed or broadcast) also switches an online watchdog offline, so that an unrefreshed watchdog does not expire again after it. |
 
 use motionlink_link::emulator::FirmwareVariant;
 pub use motionlink_link::emulator::UnknownVariant;
@@ -33,6 +34,8 @@ pub enum Variant {
     LifeSignUnacknowledged,
     /// The Config word (parameter 57) is not known: no acknowledge.
     NoConfigWord,
+    /// A Reset also switches an online watchdog offline.
+    ResetClearsWatchdog,
 }
 
 impl FirmwareVariant for Variant {
@@ -46,6 +49,7 @@ impl FirmwareVariant for Variant {
         Variant::NoPosStateDio,
         Variant::LifeSignUnacknowledged,
         Variant::NoConfigWord,
+        Variant::ResetClearsWatchdog,
     ];
 
     /// The name the command line, the TOML configuration and Python take.
@@ -58,6 +62,7 @@ impl FirmwareVariant for Variant {
             Variant::NoPosStateDio => "no-pos-state-dio",
             Variant::LifeSignUnacknowledged => "life-sign-unacknowledged",
             Variant::NoConfigWord => "no-config-word",
+            Variant::ResetClearsWatchdog => "reset-clears-watchdog",
         }
     }
 
@@ -80,6 +85,7 @@ impl FirmwareVariant for Variant {
             Variant::NoConfigWord => {
                 "the Config word (parameter 57, from module version 3.5.00) is not known: it gets no acknowledge"
             }
+            Variant::ResetClearsWatchdog => "a Reset also switches an online watchdog offline",
         }
     }
 }
@@ -93,6 +99,7 @@ pub(crate) struct Firmware {
     pub life_sign_unacknowledged: bool,
     pub no_pos_state_dio: bool,
     pub no_config_word: bool,
+    pub reset_clears_watchdog: bool,
 }
 
 impl Firmware {
@@ -102,6 +109,7 @@ impl Firmware {
             life_sign_unacknowledged: variants.contains(&Variant::LifeSignUnacknowledged),
             no_pos_state_dio: variants.contains(&Variant::NoPosStateDio),
             no_config_word: variants.contains(&Variant::NoConfigWord),
+            reset_clears_watchdog: variants.contains(&Variant::ResetClearsWatchdog),
         }
     }
 }

@@ -77,6 +77,7 @@ fn every_variant_through_the_binary() {
         "no-pos-state-dio",
         "life-sign-unacknowledged",
         "no-config-word",
+        "reset-clears-watchdog",
     ];
     let runs: Vec<Run> = std::thread::scope(|s| {
         let handles: Vec<_> = variants.iter().map(|v| s.spawn(move || core_actions(v))).collect();
@@ -253,6 +254,57 @@ fn a_module_without_the_config_word_is_refused_its_watchdog_before_anything_move
     assert!((j["reached_rad"].as_f64().unwrap() - 0.3).abs() < 1e-3 && j["verified"] == true, "{j}");
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("module 1 does not answer the Config word (parameter 57"), "{err}");
+}
+
+/// A host killed during a move leaves the module halted by its watchdog (STATE_COMM_ERROR, the watchdog
+/// online). On a module whose Reset switches the watchdog offline, `reset` sees no expiry 100 ms after its
+/// Reset and sends nothing more; on the default one the expiry comes back and a life sign and a second
+/// Reset release it.
+#[cfg(unix)]
+#[test]
+fn reset_observes_whether_its_reset_left_the_expired_watchdog_online() {
+    let both = |variant: &'static str| {
+        let mut args = vec!["--tcp", "127.0.0.1:0"];
+        if !variant.is_empty() {
+            args.extend(["--variant", variant]);
+        }
+        let sim = Sim::start("powercube", &args);
+        let port = sim.address.clone();
+        let mut running = super::start_moving(&sim, &port, "1", &["move", "2.0", "--vel", "0.2", "--acc", "1"]);
+        let at = running.kill();
+        sim.wait_event_after(at, Duration::from_secs(5), |e| e == "module 1 watchdog expired: STATE_COMM_ERROR")
+            .unwrap_or_else(|| panic!("{variant}: no expiry: {:?}", sim.events()));
+        running.wait(Duration::from_secs(5));
+        let t0 = common::unix_now();
+        let out = run(&port, &["-v", "--module", "1", "reset"]);
+        assert!(out.status.success(), "{variant}: {out:?}");
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        let sent: Vec<String> = err
+            .lines()
+            .filter(|l| l.contains(" -> "))
+            .filter_map(|l| l.split("to module 1: ").nth(1).map(str::to_string))
+            .collect();
+        let state = run(&port, &["--module", "1", "--json", "state"]);
+        let state: serde_json::Value = serde_json::from_slice(&state.stdout).unwrap();
+        let after: Vec<String> = sim.events().into_iter().filter(|e| e.at >= t0).map(|e| e.text).collect();
+        (String::from_utf8_lossy(&out.stdout).into_owned(), sent, state, after)
+    };
+    let ((said, sent, state, events), (said_default, sent_default, state_default, events_default)) =
+        std::thread::scope(|s| {
+            let variant = s.spawn(|| both("reset-clears-watchdog"));
+            let default = s.spawn(|| both(""));
+            (variant.join().unwrap(), default.join().unwrap())
+        });
+    assert_eq!(said, "reset\n");
+    assert_eq!(sent, ["GetExtended CubeState", "Reset", "GetExtended CubeState"], "nothing more");
+    assert_eq!(events, ["module 1 reset", "module 1 watchdog offline"], "no second expiry");
+    assert!(state["flags"].as_array().unwrap().is_empty(), "{state}");
+    // The default: released.
+    assert_eq!(said_default, "reset (the watchdog had expired with no host serving it: switched it offline)\n");
+    let released = ["GetExtended CubeState", "Reset", "GetExtended CubeState", "LifeSign (watchdog on/off)", "Reset"];
+    assert_eq!(sent_default, released);
+    assert!(events_default.iter().any(|e| e == "module 1 watchdog expired: STATE_COMM_ERROR"), "{events_default:?}");
+    assert!(state_default["flags"].as_array().unwrap().is_empty(), "{state_default}");
 }
 
 #[test]

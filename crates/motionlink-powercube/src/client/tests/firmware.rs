@@ -1,6 +1,6 @@
-//! The client against the firmware variants of older modules (`no-config-word`), on RS232 through the
-//! shared rig: what each operation sends, what it is refused with, that nothing moves when it is refused,
-//! and what the default firmware does instead.
+//! The client against the firmware variants of older modules (`no-config-word`, `reset-clears-watchdog`),
+//! on RS232 through the shared rig: what each operation sends, what it is refused with, that nothing moves
+//! when it is refused, and what the default firmware does instead.
 
 use super::*;
 use crate::client::Guard;
@@ -8,6 +8,7 @@ use crate::error::Error;
 use crate::model::{ModuleKind, Param, StateFlag};
 use crate::sim::{ModuleConfig, Variant};
 use crate::wire::rs232::{Rs232Decoder, TelKind};
+use crate::wire::Action;
 
 /// Module 1 of `kind` running `variants` on an RS232 line at 9600 baud (the shared rig, the test thread among
 /// the clock's participants), and a client.
@@ -108,4 +109,74 @@ fn a_module_without_the_config_word_refuses_the_guarded_motion_and_moves_without
     assert!((r.reached.value() - 0.3).abs() < 1e-3 && r.verified, "{r:?}");
     bus.close().unwrap();
     assert!(!rig.device(|d| d.module(1).unwrap().state().has_fault()));
+}
+
+/// A host that armed the watchdog of module 1 and died: the module halted with STATE_COMM_ERROR, its
+/// watchdog online. Returns the rig and a new client.
+fn left_expired(variants: &[Variant]) -> (Rig<Emulator>, Client) {
+    let (rig, dead) = module_of(ModuleKind::Rotary, variants);
+    dead.enable_watchdog(&addrs(&[1])).unwrap();
+    kill(dead);
+    rig.sleep(200);
+    let (state, online) = rig.device(|d| (d.module(1).unwrap().state(), d.module(1).unwrap().watchdog_online()));
+    assert!(state.contains(StateFlag::CommError) && state.contains(StateFlag::Halted) && online, "{state}");
+    let bus = Client::with_link(PortLink::Rs232(rig.link().unwrap()), rig.shared_clock(), Config::rs232()).unwrap();
+    (rig, bus)
+}
+
+#[test]
+fn a_reset_that_clears_the_watchdog_is_observed_and_nothing_more_is_sent() {
+    let reset = Request::Action(Action::Reset);
+    let state = Request::Get(Param::CubeState);
+    let life_sign = Request::Action(Action::LifeSign);
+    for (variants, released, expected) in [
+        // The default: the Reset re-arms the expired watchdog, which expires again; a life sign switches
+        // it offline and a second Reset clears it.
+        (&[][..], true, vec![state, reset, state, life_sign, reset]),
+        // A Reset that switches the watchdog offline: 100 ms later it has not expired again; nothing more.
+        (&[Variant::ResetClearsWatchdog][..], false, vec![state, reset, state]),
+    ] {
+        let (rig, bus) = left_expired(variants);
+        let from = rig.sent().len();
+        let before = rig.clock.now();
+        assert_eq!(bus.module(addr(1)).reset_and_release_watchdog().unwrap(), released, "{variants:?}");
+        assert!(rig.clock.now().saturating_since(before) >= Duration::from_millis(100), "{variants:?}: waited");
+        let sent = sent_since(&rig, from);
+        assert!(sent.iter().all(|(a, _)| *a == 1), "{variants:?}: {sent:?}");
+        assert_eq!(to_module_1(&sent), expected, "{variants:?}");
+        rig.sleep(1_000);
+        let (state, online) = rig.device(|d| (d.module(1).unwrap().state(), d.module(1).unwrap().watchdog_online()));
+        assert!(!online && !state.contains(StateFlag::Halted) && !state.has_fault(), "{variants:?}: {state}");
+        // It moves again, under a watchdog of this session's.
+        let r = bus.module(addr(1)).move_to_guarded(&spec(0.3), Guard::Watchdog, &mut |_| {}).unwrap();
+        assert!((r.reached.value() - 0.3).abs() < 1e-3 && r.verified, "{variants:?}: {r:?}");
+        bus.close().unwrap();
+        assert!(!rig.device(|d| d.module(1).unwrap().watchdog_online()), "{variants:?}");
+    }
+}
+
+#[test]
+fn a_reset_of_a_module_whose_watchdog_this_session_serves_is_refused() {
+    // On a module whose Reset switches the watchdog offline, it would leave a guarded motion unguarded and
+    // the session's second life sign would switch the watchdog on again (the module halted 50 ms after a
+    // close that said it switched it off). Refused on every module: the session cannot tell them apart.
+    for variants in [&[][..], &[Variant::ResetClearsWatchdog][..]] {
+        let (rig, bus) = module_of(ModuleKind::Rotary, variants);
+        bus.enable_watchdog(&addrs(&[1])).unwrap();
+        let m = bus.module(addr(1));
+        let from = rig.sent().len();
+        let err = m.reset_and_release_watchdog().unwrap_err();
+        assert!(matches!(err, Error::NotSupported(_)) && err.is_usage(), "{variants:?}: {err}");
+        assert!(err.to_string().contains("module 1's watchdog is armed by this session"), "{err}");
+        assert_eq!(to_module_1(&sent_since(&rig, from)), vec![], "{variants:?}: nothing sent to it");
+        rig.sleep(200);
+        assert!(rig.device(|d| d.module(1).unwrap().watchdog_online()), "{variants:?}: still online, served");
+        bus.disable_watchdog().unwrap();
+        rig.sleep(200);
+        let (state, online) = rig.device(|d| (d.module(1).unwrap().state(), d.module(1).unwrap().watchdog_online()));
+        assert!(!online && !state.has_fault() && !state.contains(StateFlag::Halted), "{variants:?}: {state}");
+        // Once switched off, the module is reset as usual.
+        assert!(!m.reset_and_release_watchdog().unwrap(), "{variants:?}");
+        bus.close().unwrap();
+    }
 }

@@ -139,7 +139,8 @@ fn a_module_that_ignores_the_rs232_broadcast_moves_without_a_watchdog_and_says_s
 
 #[test]
 fn variants_the_client_takes_as_they_are() {
-    for v in [Variant::AckLength6, Variant::NoPosStateDio, Variant::ExtAckOnPutId] {
+    // The Reset here clears no expired watchdog.
+    for v in [Variant::AckLength6, Variant::NoPosStateDio, Variant::ExtAckOnPutId, Variant::ResetClearsWatchdog] {
         let o = core_operations(&[v]);
         assert!(o.set.as_ref().is_ok_and(|s| s.verified), "{v}: {o:?}");
         assert!(o.home.is_ok(), "{v}: {o:?}");
@@ -266,6 +267,7 @@ fn every_variant_on_can() {
         Some(Variant::AckLength6),
         Some(Variant::ExtAckOnPutId),
         Some(Variant::NoPosStateDio),
+        Some(Variant::ResetClearsWatchdog),
     ] {
         let o = core_operations_can(v.as_slice());
         assert!(o.set.as_ref().is_ok_and(|s| s.verified), "{v:?}: {o:?}");

@@ -350,9 +350,19 @@ impl Ctx {
 
     /// Reset, and the manual's first way to restart after a watchdog expiry (see
     /// [`Op::ResetAndReleaseWatchdog`](crate::session::Op)). True if it switched the watchdog offline.
+    ///
+    /// Refused, before anything is sent, for a module whose watchdog this session serves: the manual does
+    /// not say what a Reset does to an online watchdog, and a module whose Reset switches it offline would
+    /// leave the motion it guards unguarded, and have it switched on again by the session's second life sign.
     pub async fn reset_and_release_watchdog(&self, a: u8) -> Result<bool, Error> {
-        let served = self.core().duty.online.contains(&a);
-        let before = if served { crate::model::CubeState::EMPTY } else { self.state(a).await? };
+        if self.core().duty.online.contains(&a) {
+            return Err(Error::NotSupported(format!(
+                "module {a}'s watchdog is armed by this session (for a guarded motion, or by enable_watchdog): a \
+                 Reset may switch it offline on some modules, leaving the motion unguarded; reset the module once \
+                 the watchdog is switched off again (the motion ended or stopped)"
+            )));
+        }
+        let before = self.state(a).await?;
         self.action(a, Action::Reset).await?;
         if !before.contains(StateFlag::CommError) {
             return Ok(false);
