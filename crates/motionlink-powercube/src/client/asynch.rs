@@ -359,6 +359,8 @@ impl AsyncModule<'_> {
     }
 
     /// A motion command, its units checked; dropping the future before its acknowledge halts the module.
+    /// As [`Module::motion`](crate::client::Module::motion): `None` to [`AckKind::Extended`] is the simple
+    /// acknowledge of a firmware before extended ones, and the motion runs.
     pub async fn motion(&self, motion: Motion, ack: AckKind) -> Result<Option<ExtAck>, Error> {
         Request::motion(motion, ack)?;
         self.client.call(calls::motion(self.address, motion, ack)).await

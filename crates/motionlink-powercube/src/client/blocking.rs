@@ -389,7 +389,9 @@ impl Module<'_> {
     }
 
     /// A motion command in any mode, its units checked against the module's kind (rad for a linear module
-    /// is refused); returns the extended acknowledge if `ack` asks for one.
+    /// is refused); returns the extended acknowledge if `ack` asks for one and the module gives it. `None`
+    /// to [`AckKind::Extended`]: the module took the command with the simple acknowledge, as firmware before
+    /// PowerCube-OS 2.5.16 / 3.5.13 does (manual 4.5; one warning), so the motion runs.
     pub fn motion(&self, motion: Motion, ack: AckKind) -> Result<Option<ExtAck>, Error> {
         Request::motion(motion, ack)?;
         self.client.call(calls::motion(self.address, motion, ack))

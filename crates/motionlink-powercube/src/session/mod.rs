@@ -109,7 +109,8 @@ pub enum Op {
     /// [`HALT_SETTLE`]), then the position: what `motionlink powercube stop` does. Still moving then:
     /// [`Error::StillMoving`]. [`Output::Halted`].
     HaltConfirmed(Address),
-    /// A motion command, its units checked against the module's kind. [`Output::ExtAck`].
+    /// A motion command, its units checked against the module's kind. [`Output::ExtAck`]: `None` to an
+    /// extended acknowledge asked for is a module that answered with the simple one (the motion taken).
     Motion(Address, Motion, AckKind),
     /// SetIStep. [`Output::Done`].
     IStep(Address, Ticks, Millis),

@@ -158,6 +158,9 @@ impl SimModule {
             Request::Motion(motion, ack) => {
                 self.motion_or_pending(t, request);
                 let id = motion.id(ack)?;
+                // A firmware before extended acknowledges answers every motion command simply, with the
+                // MotionID it received.
+                let ack = if self.firmware.no_extended_ack { AckKind::Simple } else { ack };
                 Some(match ack {
                     AckKind::Simple => Reply::Motion { id, status: Some(ACK_OK), ext: None },
                     AckKind::Extended => {

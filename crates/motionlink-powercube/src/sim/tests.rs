@@ -632,3 +632,13 @@ fn reset_clears_watchdog_switches_an_online_watchdog_offline() {
         assert_eq!(bus.module(1).unwrap().watchdog_online(), expires_again);
     }
 }
+
+#[test]
+fn no_extended_ack_runs_the_motion_with_the_simple_acknowledge() {
+    // FRAMP_ACK (14) runs and gets [0x0b][14][0x64].
+    let mut bus = with_variant(Variant::NoExtendedAck);
+    let ramp = Request::Motion(Motion::FRamp { pos: Position::native(0.5) }, AckKind::Extended);
+    let ack = bus.request(at(0), 1, &ramp).unwrap();
+    assert_eq!(ack.encode().as_bytes(), [0x0b, 14, 0x64]);
+    assert!(state(&mut bus, 100).contains(StateFlag::Motion));
+}

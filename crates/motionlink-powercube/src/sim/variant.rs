@@ -12,6 +12,7 @@
 //! | `life-sign-unacknowledged` | The individual life sign (0x07) switches the watchdog as usual but is not acknowledged. |
 //! | `no-config-word` | The Config word (parameter 57, from module version 3.5.00) is not known: GetExtended and SetExtended of it get no acknowledge, as any parameter a module does not know (DefConfig, the ROM default, is still answered). |
 //! | `reset-clears-watchdog` | A Reset (addressed or broadcast) also switches an online watchdog offline, so that an unrefreshed watchdog does not expire again after it. |
+//! | `no-extended-ack` | Motion commands with an extended-acknowledge MotionID (FRAMP_ACK ... ICUR_ACK, from PowerCube-OS 2.5.16 / 3.5.13) run as their plain mode does and get the simple acknowledge `[0x0b][motionID][0x64]`. |
 
 use motionlink_link::emulator::FirmwareVariant;
 pub use motionlink_link::emulator::UnknownVariant;
@@ -36,6 +37,8 @@ pub enum Variant {
     NoConfigWord,
     /// A Reset also switches an online watchdog offline.
     ResetClearsWatchdog,
+    /// Motion commands get only the simple acknowledge.
+    NoExtendedAck,
 }
 
 impl FirmwareVariant for Variant {
@@ -50,6 +53,7 @@ impl FirmwareVariant for Variant {
         Variant::LifeSignUnacknowledged,
         Variant::NoConfigWord,
         Variant::ResetClearsWatchdog,
+        Variant::NoExtendedAck,
     ];
 
     /// The name the command line, the TOML configuration and Python take.
@@ -63,6 +67,7 @@ impl FirmwareVariant for Variant {
             Variant::LifeSignUnacknowledged => "life-sign-unacknowledged",
             Variant::NoConfigWord => "no-config-word",
             Variant::ResetClearsWatchdog => "reset-clears-watchdog",
+            Variant::NoExtendedAck => "no-extended-ack",
         }
     }
 
@@ -86,6 +91,10 @@ impl FirmwareVariant for Variant {
                 "the Config word (parameter 57, from module version 3.5.00) is not known: it gets no acknowledge"
             }
             Variant::ResetClearsWatchdog => "a Reset also switches an online watchdog offline",
+            Variant::NoExtendedAck => {
+                "motion commands get the simple acknowledge, also with an extended-acknowledge MotionID (before \
+                 PowerCube-OS 2.5.16 / 3.5.13)"
+            }
         }
     }
 }
@@ -100,6 +109,7 @@ pub(crate) struct Firmware {
     pub no_pos_state_dio: bool,
     pub no_config_word: bool,
     pub reset_clears_watchdog: bool,
+    pub no_extended_ack: bool,
 }
 
 impl Firmware {
@@ -110,6 +120,7 @@ impl Firmware {
             no_pos_state_dio: variants.contains(&Variant::NoPosStateDio),
             no_config_word: variants.contains(&Variant::NoConfigWord),
             reset_clears_watchdog: variants.contains(&Variant::ResetClearsWatchdog),
+            no_extended_ack: variants.contains(&Variant::NoExtendedAck),
         }
     }
 }

@@ -77,7 +77,7 @@ fn every_variant_through_the_binary() {
         "no-pos-state-dio",
         "life-sign-unacknowledged",
         "no-config-word",
-        "reset-clears-watchdog",
+        "reset-clears-watchdog,no-extended-ack",
     ];
     let runs: Vec<Run> = std::thread::scope(|s| {
         let handles: Vec<_> = variants.iter().map(|v| s.spawn(move || core_actions(v))).collect();

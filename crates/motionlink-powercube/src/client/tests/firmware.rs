@@ -1,14 +1,14 @@
-//! The client against the firmware variants of older modules (`no-config-word`, `reset-clears-watchdog`),
-//! on RS232 through the shared rig: what each operation sends, what it is refused with, that nothing moves
-//! when it is refused, and what the default firmware does instead.
+//! The client against the firmware variants of older modules (`no-config-word`, `reset-clears-watchdog`,
+//! `no-extended-ack`), on RS232 through the shared rig: what each operation sends, what it is refused with,
+//! that nothing moves when it is refused, and what the default firmware does instead.
 
 use super::*;
 use crate::client::Guard;
 use crate::error::Error;
-use crate::model::{ModuleKind, Param, StateFlag};
+use crate::model::{AckKind, ConfigFlag, ModuleKind, Motion, Param, StateFlag};
 use crate::sim::{ModuleConfig, Variant};
 use crate::wire::rs232::{Rs232Decoder, TelKind};
-use crate::wire::Action;
+use crate::wire::{Action, ExtAck};
 
 /// Module 1 of `kind` running `variants` on an RS232 line at 9600 baud (the shared rig, the test thread among
 /// the clock's participants), and a client.
@@ -153,6 +153,42 @@ fn a_reset_that_clears_the_watchdog_is_observed_and_nothing_more_is_sent() {
         bus.close().unwrap();
         assert!(!rig.device(|d| d.module(1).unwrap().watchdog_online()), "{variants:?}");
     }
+}
+
+#[test]
+fn an_extended_acknowledge_asked_of_an_older_firmware_comes_back_simple_and_the_motion_runs() {
+    let motion = Motion::FRamp { pos: Position::native(0.4) };
+    // The default: the extended acknowledge, position 0.05 rad at the start.
+    let (rig, bus) = module_of(ModuleKind::Rotary, &[]);
+    let ext: Option<ExtAck> = bus.module(addr(1)).motion(motion, AckKind::Extended).unwrap();
+    let ext = ext.expect("an extended acknowledge");
+    assert!(matches!(ext.position, crate::wire::AckPosition::Unit(p) if (p.value() - 0.05).abs() < 1e-3), "{ext:?}");
+    bus.close().unwrap();
+    drop(rig);
+
+    let (rig, bus) = module_of(ModuleKind::Rotary, &[Variant::NoExtendedAck]);
+    let m = bus.module(addr(1));
+    let from = rig.sent().len();
+    assert_eq!(m.motion(motion, AckKind::Extended).unwrap(), None, "the simple acknowledge");
+    // Sent as asked, with the extended-acknowledge MotionID (FRAMP_ACK, 14).
+    let sent = to_module_1(&sent_since(&rig, from));
+    assert_eq!(sent.last(), Some(&Request::Motion(motion, AckKind::Extended)), "{sent:?}");
+    // The module took it: it moves, and the session counts it as started, so the close halts it.
+    assert_eq!(bus.started(), addrs(&[1]));
+    rig.sleep(300);
+    let (state, p) = rig.device(|d| (d.module(1).unwrap().state(), d.module(1).unwrap().position().value()));
+    assert!(state.contains(StateFlag::Motion) && p > 0.06, "{state} at {p}");
+    // The checked move and homing use the simple acknowledge: unchanged.
+    m.halt().unwrap();
+    m.reset().unwrap();
+    let r = m.move_to(&spec(0.2), &mut |_| {}).unwrap();
+    assert!((r.reached.value() - 0.2).abs() < 1e-3 && r.verified, "{r:?}");
+    m.motion(motion, AckKind::Extended).unwrap();
+    bus.close().unwrap();
+    let state = rig.device(|d| d.module(1).unwrap().state());
+    assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "halted by the close: {state}");
+    // The Config word was left as it was by all of it.
+    assert!(!rig.device(|d| d.module(1).unwrap().config_word().contains(ConfigFlag::WatchdogEnable)));
 }
 
 #[test]

@@ -139,8 +139,14 @@ fn a_module_that_ignores_the_rs232_broadcast_moves_without_a_watchdog_and_says_s
 
 #[test]
 fn variants_the_client_takes_as_they_are() {
-    // The Reset here clears no expired watchdog.
-    for v in [Variant::AckLength6, Variant::NoPosStateDio, Variant::ExtAckOnPutId, Variant::ResetClearsWatchdog] {
+    // The guarded home and moves use the simple acknowledge, and the Reset here clears no expired watchdog.
+    for v in [
+        Variant::AckLength6,
+        Variant::NoPosStateDio,
+        Variant::ExtAckOnPutId,
+        Variant::ResetClearsWatchdog,
+        Variant::NoExtendedAck,
+    ] {
         let o = core_operations(&[v]);
         assert!(o.set.as_ref().is_ok_and(|s| s.verified), "{v}: {o:?}");
         assert!(o.home.is_ok(), "{v}: {o:?}");
@@ -268,6 +274,7 @@ fn every_variant_on_can() {
         Some(Variant::ExtAckOnPutId),
         Some(Variant::NoPosStateDio),
         Some(Variant::ResetClearsWatchdog),
+        Some(Variant::NoExtendedAck),
     ] {
         let o = core_operations_can(v.as_slice());
         assert!(o.set.as_ref().is_ok_and(|s| s.verified), "{v:?}: {o:?}");

@@ -202,7 +202,9 @@ impl Ctx {
     }
 
     /// A motion command in any mode, its units checked against the module's kind; the extended
-    /// acknowledge if `ack` asks for one. Cancelled while its acknowledge is awaited, the module is halted.
+    /// acknowledge if `ack` asks for one and the module gives it (a firmware before PowerCube-OS 2.5.16 /
+    /// 3.5.13 answers with the simple one: `None`, the motion taken, one warning). Cancelled while its
+    /// acknowledge is awaited, the module is halted.
     pub async fn motion(&self, a: u8, motion: Motion, ack: AckKind) -> Result<Option<ExtAck>, Error> {
         let request = Request::motion(motion, ack)?;
         let units = match motion {
@@ -217,7 +219,18 @@ impl Ctx {
         let reply = self.request(a, request).await;
         self.halt_if_cancelled(a, &request).await?;
         match reply? {
-            Reply::Motion { ext, .. } => Ok(ext.map(|e| e.resolved(self.known_kind(a)))),
+            Reply::Motion { ext, .. } => {
+                if ext.is_none() && ack == AckKind::Extended {
+                    self.core().warn_once(a, "extended_ack", || {
+                        format!(
+                            "module {a} answers a motion command with an extended-acknowledge MotionID with the \
+                             simple acknowledge (PowerCube-OS before 2.5.16 / 3.5.13): the motion was taken, \
+                             without position, state and DIO"
+                        )
+                    });
+                }
+                Ok(ext.map(|e| e.resolved(self.known_kind(a))))
+            }
             other => Err(unexpected(a, &request, other)),
         }
     }
