@@ -51,6 +51,9 @@ VARIANTS: Dict[str, Tuple[str, ...]] = {
         "ext-ack-on-put-id",
         "no-pos-state-dio",
         "life-sign-unacknowledged",
+        "no-config-word",
+        "reset-clears-watchdog",
+        "no-extended-ack",
     ),
     "compax": ("echo-without-address", "echo-bare", "no-echo", "echo-without-store", "status-value-only"),
 }
@@ -110,7 +113,8 @@ CASES: List[Case] = [
     Case("powercube", (), serve="tcp"),
     Case("powercube", ("no-broadcast-pair",), serve="tcp"),
     Case("powercube", ("life-sign-unacknowledged",), serve="tcp"),
-    Case("powercube", tuple(v for v in ALL_PC if v != "life-sign-unacknowledged"), serve="tcp"),
+    Case("powercube", ("no-config-word",), serve="tcp"),
+    Case("powercube", tuple(v for v in ALL_PC if v not in ("life-sign-unacknowledged", "no-config-word")), serve="tcp"),
     Case("powercube", ALL_PC, serve="tcp"),
     Case("powercube", (), client="async"),
     Case("powercube", ALL_PC, client="async"),
@@ -297,10 +301,18 @@ def check_powercube(case: Case, o: Outcome) -> None:
     twins_apart = "no-twin-mirror" in v
     # Only a served module gets a watchdog (an in-process emulator dies with the program anyway).
     watchdog = case.serve is not None
-    no_life_sign_ack = watchdog and "life-sign-unacknowledged" in v
+    # Without the Config word the arming fails at its first read, before any life sign.
+    no_config_word = watchdog and "no-config-word" in v
+    no_life_sign_ack = watchdog and "life-sign-unacknowledged" in v and not no_config_word
     broadcast_ignored = watchdog and "no-broadcast-pair" in v
+    no_config_word_refusal = ("cannot arm the watchdog of module 1", "before version 3.5.00 has no Config word")
     succeeded(o, "open")
-    if no_life_sign_ack:
+    if no_config_word:
+        # Its type is read from DefConfig; the arming's read of the Config word times out: refused, nothing moves.
+        for op in ("home", "move_with_speed", "move_without_speed"):
+            raised(o, op, motionlink.TimeoutError, *no_config_word_refusal)
+        at = 0.05  # the emulated module's start
+    elif no_life_sign_ack:
         # Whether the watchdog went online is not known: the guarded motions are refused, nothing moves; the
         # watchdog the life sign switched on all the same is switched off again and the module left as it was.
         raised(o, "home", motionlink.DeviceError, "cannot arm the watchdog of module 1", "not acknowledged")
@@ -352,7 +364,9 @@ def check_powercube(case: Case, o: Outcome) -> None:
     # The refused armings before left no expired watchdog: the halted module is refused as halted.
     raised(o, "move_halted", motionlink.DeviceError, "halted (STATE_HALTED)", "send a reset")
     assert succeeded(o, "reset") is False
-    if no_life_sign_ack:
+    if no_config_word:
+        raised(o, "move_after_reset", motionlink.TimeoutError, *no_config_word_refusal)
+    elif no_life_sign_ack:
         raised(o, "move_after_reset", motionlink.DeviceError, "cannot arm the watchdog of module 1", "left as it was")
     else:
         reached(succeeded(o, "move_after_reset", "PowerCubeMove"), "rad", 0.2, 1e-3, "move_after_reset")
