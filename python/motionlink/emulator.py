@@ -51,8 +51,6 @@ class Emulator:
             ``"ack-length-6"``, ``"ext-ack-on-put-id"``, ``"no-pos-state-dio"``,
             ``"life-sign-unacknowledged"``, ``"no-config-word"``, ``"reset-clears-watchdog"``,
             ``"no-extended-ack"``; as ``motionlink sim powercube --variant``).
-            ``"life-sign-unacknowledged"``, ``"no-config-word"``, ``"reset-clears-watchdog"``,
-            ``"no-extended-ack"``; as ``motionlink sim powercube --variant``).
         compax: ``drives`` (addresses), ``mode`` (P196), ``baud``, ``params`` ({"P3": 10.0}; P194..P196
             come from ``drives``, ``mode`` and ``baud``),
             ``config`` (TOML text), ``variant`` (a firmware variant's name, or a list of them:
