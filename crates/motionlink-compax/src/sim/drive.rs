@@ -1,6 +1,6 @@
 //! One emulated drive: its state, its status values, and its motion model.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 
 use std::fmt::Write as _;
 
@@ -19,6 +19,14 @@ use crate::wire::{Mode, TextBuf};
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Stored {
     Text(TextBuf<48>, bool),
+}
+
+impl Stored {
+    /// The command's text (`POSA 12.5`).
+    fn text(&self) -> &str {
+        let Stored::Text(t, _) = self;
+        std::str::from_utf8(t.as_bytes()).unwrap_or("")
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -62,7 +70,9 @@ pub struct Drive {
     pub(super) rx: RequestDecoder,
     pub(super) rx_last: Timestamp,
     pub(super) rx_parity_error: bool,
-    pub(super) buffer: Option<Stored>,
+    /// The buffer: one command, or with [`Variant::BufferQueues`](super::Variant::BufferQueues) a queue of
+    /// them, oldest first.
+    pub(super) buffer: VecDeque<Stored>,
     pub(super) next: MoveSettings,
     pub(super) motion: Option<Motion>,
     pub(super) position: f64,
@@ -113,7 +123,7 @@ impl Drive {
             rx: RequestDecoder::for_drive(&mode),
             rx_last: Timestamp::ZERO,
             rx_parity_error: false,
-            buffer: None,
+            buffer: VecDeque::new(),
             next: MoveSettings {
                 speed_percent: 100.0,
                 accel_ms: 0,
@@ -218,9 +228,16 @@ impl Drive {
         self.telegrams
     }
 
-    /// The command held in the buffer (stored with `,`, executed by `!`), if any: `POSA 12.5`.
+    /// The command held in the buffer (stored with `,`, executed by `!`), if any: `POSA 12.5`. Where the
+    /// buffer is a queue ([`Variant::BufferQueues`](super::Variant::BufferQueues)), the oldest: the one the
+    /// next `!` executes.
     pub fn buffered(&self) -> Option<&str> {
-        self.buffer.as_ref().map(|Stored::Text(t, _)| std::str::from_utf8(t.as_bytes()).unwrap_or(""))
+        self.buffer.front().map(Stored::text)
+    }
+
+    /// Every command held in the buffer, oldest first (more than one only where the buffer is a queue).
+    pub fn buffered_all(&self) -> Vec<&str> {
+        self.buffer.iter().map(Stored::text).collect()
     }
 
     /// The speed and ramp settings for the next positioning: (percent, accel ms, brake ms).
@@ -323,7 +340,7 @@ impl Drive {
                 if m.homing {
                     self.homed = true;
                 }
-                if m.position_message {
+                if m.position_message && !self.variants.contains(&super::Variant::NoPositionMessage) {
                     let mut t = TextBuf::new();
                     let _ = t.write_str("$");
                     self.pending.push(t);

@@ -45,8 +45,9 @@ mod variant;
 pub use config::{DriveConfig, SimConfig, SimConfigError};
 pub use drive::Drive;
 pub use motionlink_link::emulator::FirmwareVariant;
-pub use variant::{UnknownVariant, Variant};
+pub use variant::{UnknownVariant, Variant, QUEUE_DEPTH, SLOW_REPLY_DELAY};
 
+use std::collections::VecDeque;
 use std::time::Duration;
 
 use motionlink_link::clock::Timestamp;
@@ -82,6 +83,8 @@ pub struct Emulator {
     drives: Vec<Drive>,
     line_baud: u32,
     parity_error_next: bool,
+    /// What the drives said, held back until it is due ([`Variant::SlowReplies`]), oldest first.
+    delayed: VecDeque<(Timestamp, Vec<u8>)>,
 }
 
 impl Emulator {
@@ -89,7 +92,7 @@ impl Emulator {
     pub fn new(config: SimConfig) -> Result<Self, SimConfigError> {
         config.validate()?;
         let drives = config.drives.iter().map(|d| Drive::new(d, &config)).collect();
-        Ok(Emulator { drives, line_baud: config.baud_rate, parity_error_next: false })
+        Ok(Emulator { drives, line_baud: config.baud_rate, parity_error_next: false, delayed: VecDeque::new() })
     }
 
     /// The drive whose address in force is `address`.
@@ -132,38 +135,61 @@ impl Emulator {
             d.variants = variants.to_vec();
         }
     }
+
+    /// Hands what the drives said at `now` (`said`, drained) to the line: at once, or, for drives of the
+    /// `slow-replies` variant, [`SLOW_REPLY_DELAY`] later (in order); then whatever held back is due by
+    /// `now`.
+    fn send(&mut self, now: Timestamp, said: &mut Vec<u8>, out: &mut Vec<u8>) {
+        if !said.is_empty() {
+            if self.variants().contains(&Variant::SlowReplies) {
+                self.delayed.push_back((now + SLOW_REPLY_DELAY, std::mem::take(said)));
+            } else {
+                out.append(said);
+            }
+        }
+        while self.delayed.front().is_some_and(|(due, _)| *due <= now) {
+            if let Some((_, bytes)) = self.delayed.pop_front() {
+                out.extend_from_slice(&bytes);
+            }
+        }
+    }
 }
 
 impl EmulatorTrait for Emulator {
     fn receive(&mut self, now: Timestamp, bytes: &[u8], out: &mut Vec<u8>) {
+        let mut said = Vec::new();
         for d in &mut self.drives {
             d.update(now);
         }
         for &b in bytes {
             let parity_error = std::mem::take(&mut self.parity_error_next);
             for d in &mut self.drives {
-                d.on_byte(now, b, parity_error, self.line_baud, out);
+                d.on_byte(now, b, parity_error, self.line_baud, &mut said);
             }
         }
         for d in &mut self.drives {
-            d.flush_pending(out);
+            d.flush_pending(&mut said);
         }
+        self.send(now, &mut said, out);
     }
 
     fn advance(&mut self, now: Timestamp, out: &mut Vec<u8>) {
+        let mut said = Vec::new();
         for d in &mut self.drives {
             d.update(now);
-            d.check_timeout(now, out);
+            d.check_timeout(now, &mut said);
             if d.baud_rate == self.line_baud {
-                d.flush_pending(out);
+                d.flush_pending(&mut said);
             } else {
                 d.pending.clear();
             }
         }
+        self.send(now, &mut said, out);
     }
 
     fn next_wakeup(&self) -> Option<Timestamp> {
-        self.drives.iter().filter_map(Drive::next_wakeup).min()
+        let due = self.delayed.front().map(|(due, _)| *due);
+        self.drives.iter().filter_map(Drive::next_wakeup).chain(due).min()
     }
 
     /// Each drive's events since the last call, drive by drive (oldest first within a drive): `drive 1
@@ -175,9 +201,11 @@ impl EmulatorTrait for Emulator {
         self.drives.iter_mut().flat_map(|d| std::mem::take(&mut d.events)).collect()
     }
 
-    /// A telegram the host left half-sent is dropped by every drive; motion, XON/XOFF and buffers stay.
+    /// A telegram the host left half-sent is dropped by every drive, and what slow drives had yet to send
+    /// is lost with the connection; motion, XON/XOFF and buffers stay.
     fn connection_closed(&mut self, _now: Timestamp) {
         self.parity_error_next = false;
+        self.delayed.clear();
         for d in &mut self.drives {
             d.rx.reset();
             d.rx_parity_error = false;

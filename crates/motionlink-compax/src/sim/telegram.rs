@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use motionlink_link::clock::Timestamp;
 
 use super::drive::{Comparator, Drive, Motion, Stored};
-use super::REFUSED;
+use super::{Variant, QUEUE_DEPTH, REFUSED};
 use crate::model::{write_param_reply, Command, ErrorCode, ParamId, Position};
 use crate::wire::reply::encode_reply;
 use crate::wire::request::{Body, ParsedRequest, RequestDecoder, RequestError, RequestEvent, RequestFrame};
@@ -124,7 +124,7 @@ impl Drive {
             self.history[0] = 99;
         }
         let answer = answer && !p.flags.no_reply;
-        if p.flags.echo && self.variants.contains(&super::Variant::NoEcho) {
+        if p.flags.echo && self.variants.contains(&Variant::NoEcho) {
             // A firmware that does not know '?': a syntax it cannot read, refused; nothing is stored.
             if answer {
                 self.error(out, REFUSED);
@@ -134,11 +134,12 @@ impl Drive {
             return;
         }
         if p.flags.echo {
-            if p.flags.buffer && !self.variants.contains(&super::Variant::EchoWithoutStore) {
+            if p.flags.buffer && !self.variants.contains(&Variant::EchoWithoutStore) {
                 // `,?`: stored as with `,` alone (a command the drive cannot read is not), and echoed, so the
                 // host sees what the buffer holds before it sends `!`.
                 if let Body::Command(text) = p.body {
-                    self.store(text, p.flags.position_message);
+                    // A queue that is full stores nothing; the echo goes back all the same.
+                    let _ = self.store(text, p.flags.position_message);
                 }
             }
             if answer {
@@ -162,7 +163,7 @@ impl Drive {
     pub(super) fn execute(&mut self, now: Timestamp, p: &ParsedRequest<'_>) -> Result<TextBuf<48>, ErrorCode> {
         self.update(now);
         match p.body {
-            Body::Execute => match self.buffer.take() {
+            Body::Execute => match self.buffer.pop_front() {
                 None => Err(REFUSED),
                 Some(Stored::Text(t, dollar)) => {
                     let c = Command::parse(t.as_bytes()).map_err(|_| REFUSED)?;
@@ -175,7 +176,7 @@ impl Drive {
                     return Err(REFUSED);
                 }
                 if p.flags.buffer {
-                    self.store(text, p.flags.position_message);
+                    self.store(text, p.flags.position_message)?;
                     return Ok(TextBuf::new());
                 }
                 self.run(now, c, p.flags.position_message)
@@ -187,16 +188,24 @@ impl Drive {
         }
     }
 
-    /// Stores command `text` in the buffer (`,`), replacing what it held: the buffer holds one command. A
-    /// command the drive cannot read, or a `$` on one that is not a move, is not stored.
-    pub(super) fn store(&mut self, text: &[u8], position_message: bool) {
-        let Ok(c) = Command::parse(text) else { return };
+    /// Stores command `text` in the buffer (`,`), replacing what it held: the buffer holds one command. With
+    /// [`Variant::BufferQueues`] it is appended instead, and refused ([`REFUSED`], nothing stored) when the
+    /// queue already holds [`QUEUE_DEPTH`] commands. A command the drive cannot read, or a `$` on one that
+    /// is not a move, is not stored (and refused).
+    pub(super) fn store(&mut self, text: &[u8], position_message: bool) -> Result<(), ErrorCode> {
+        let c = Command::parse(text).map_err(|_| REFUSED)?;
         if position_message && !c.is_move() {
-            return;
+            return Err(REFUSED);
         }
         let mut t = TextBuf::new();
         let _ = t.write_str(std::str::from_utf8(text).unwrap_or(""));
-        self.buffer = Some(Stored::Text(t, position_message));
+        if !self.variants.contains(&Variant::BufferQueues) {
+            self.buffer.clear();
+        } else if self.buffer.len() >= QUEUE_DEPTH {
+            return Err(REFUSED);
+        }
+        self.buffer.push_back(Stored::Text(t, position_message));
+        Ok(())
     }
 
     pub(super) fn run(&mut self, now: Timestamp, c: Command, position_message: bool) -> Result<TextBuf<48>, ErrorCode> {
@@ -293,7 +302,7 @@ impl Drive {
             Command::ReadStatus(id) => {
                 let mut t = TextBuf::new();
                 let _ = self.status(id, now)?.write_reply(id, &mut t);
-                if self.variants.contains(&super::Variant::StatusValueOnly) {
+                if self.variants.contains(&Variant::StatusValueOnly) {
                     // `S001: 12.500` without its name.
                     let mut value = TextBuf::new();
                     let _ = value.write_str(t.as_str().split_once(": ").map_or(t.as_str(), |(_, v)| v));
@@ -321,7 +330,7 @@ impl Drive {
         self.mode = Mode::from_p196(p(ParamId::OPERATING_MODE) as u32).unwrap_or_default();
         self.rx = RequestDecoder::for_drive(&self.mode);
         self.rx_parity_error = false;
-        self.buffer = None;
+        self.buffer.clear();
         if self.motion.take().is_some() {
             self.event(format!("at rest {:.3}", self.position));
         }

@@ -283,3 +283,88 @@ fn a_telegram_that_does_not_start_with_an_address_is_no_drives() {
     assert_eq!(ask(&mut b, 0, b"X 1S1\r"), b"");
     assert_eq!(ask(&mut b, 0, b"\n1S1\r"), b"S001: 0.000\r\n>");
 }
+
+fn bus_of(addrs: &[u8], p196: u32, variants: &[Variant]) -> Emulator {
+    let mut cfg = SimConfig::bus(addrs, p196, 9600);
+    cfg.variants = variants.to_vec();
+    Emulator::new(cfg).unwrap()
+}
+
+#[test]
+fn a_drive_without_the_position_message_runs_the_move_and_says_nothing_when_it_ends() {
+    let mut b = bus_of(&[3], 64, &[Variant::NoPositionMessage]);
+    assert_eq!(ask(&mut b, 0, b"3POSA 1$\r"), b"3\r\n>", "taken (with its '$')");
+    assert!(b.drive(3).unwrap().is_moving());
+    let mut out = Vec::new();
+    b.advance(Timestamp::from_millis(100), &mut out);
+    assert!(out.is_empty(), "{out:?}");
+    assert_eq!(b.drive(3).unwrap().position(), 1.0, "it ran to its end");
+    assert!(!b.drive(3).unwrap().is_moving());
+    // Stored and executed the same.
+    assert_eq!(ask(&mut b, 200, b"3POSR 1$,\r"), b"3\r\n>");
+    assert_eq!(ask(&mut b, 201, b"3!\r"), b"3\r\n>");
+    b.advance(Timestamp::from_millis(400), &mut out);
+    assert!(out.is_empty(), "{out:?}");
+    assert_eq!(b.drive(3).unwrap().position(), 2.0);
+}
+
+#[test]
+fn a_slow_drive_sends_everything_300_ms_late_in_order() {
+    let mut b = bus_of(&[1, 3], 0, &[Variant::SlowReplies]);
+    // Executed at once, answered 300 ms later.
+    assert_eq!(ask(&mut b, 0, b"1POSA 1$\r"), b"");
+    assert!(b.drive(1).unwrap().is_moving());
+    assert_eq!(ask(&mut b, 5, b"3S1\r"), b"");
+    let mut out = Vec::new();
+    // Drive 1 reaches 1.0 at 10 ms: its '$' is due 300 ms later, after drive 3's reply.
+    b.advance(Timestamp::from_millis(20), &mut out);
+    assert!(!b.drive(1).unwrap().is_moving());
+    b.advance(Timestamp::from_millis(299), &mut out);
+    assert!(out.is_empty(), "{out:?}");
+    assert_eq!(b.next_wakeup(), Some(Timestamp::from_millis(300)));
+    b.advance(Timestamp::from_millis(300), &mut out);
+    assert_eq!(out, b"\r\n>", "the acknowledgement");
+    out.clear();
+    b.advance(Timestamp::from_millis(400), &mut out);
+    assert_eq!(String::from_utf8_lossy(&out), "S001: 0.000\r\n>$\r\n>");
+    // A closed connection loses what was still to come.
+    assert_eq!(ask(&mut b, 500, b"1S1\r"), b"");
+    b.connection_closed(Timestamp::from_millis(501));
+    assert_eq!(b.next_wakeup(), None);
+    out.clear();
+    b.advance(Timestamp::from_millis(900), &mut out);
+    assert!(out.is_empty(), "{out:?}");
+}
+
+#[test]
+fn a_queueing_buffer_executes_the_oldest_command_first() {
+    let mut b = bus_of(&[1], 0, &[Variant::BufferQueues]);
+    // A store sent twice (its echo lost, say) leaves two copies.
+    assert_eq!(ask(&mut b, 0, b"1POSR 5,?\r"), b"1POSR 5,?\r\n>");
+    assert_eq!(ask(&mut b, 1, b"1POSR 5,?\r"), b"1POSR 5,?\r\n>");
+    assert_eq!(ask(&mut b, 2, b"1POSA 20,\r"), b"\r\n>");
+    assert_eq!(b.drive(1).unwrap().buffered_all(), ["POSR 5", "POSR 5", "POSA 20"]);
+    assert_eq!(ask(&mut b, 3, b"1!\r"), b"\r\n>");
+    assert_eq!(b.drive(1).unwrap().target(), 5.0, "the oldest");
+    let mut out = Vec::new();
+    b.advance(Timestamp::from_millis(200), &mut out);
+    assert_eq!(ask(&mut b, 200, b"1!\r"), b"\r\n>");
+    assert_eq!(b.drive(1).unwrap().target(), 10.0, "the relative move a second time");
+    b.advance(Timestamp::from_millis(400), &mut out);
+    assert_eq!(b.drive(1).unwrap().buffered(), Some("POSA 20"));
+    assert_eq!(ask(&mut b, 400, b"1!\r"), b"\r\n>");
+    assert_eq!(ask(&mut b, 401, b"1!\r"), b"E90\r\n>", "empty");
+    // It holds QUEUE_DEPTH commands; a store beyond is refused and stores nothing.
+    b.power_cycle(Timestamp::from_millis(1000));
+    for i in 0..QUEUE_DEPTH {
+        assert_eq!(ask(&mut b, 1001 + i as u64, format!("1POSA {i},\r").as_bytes()), b"\r\n>");
+    }
+    assert_eq!(ask(&mut b, 1100, b"1POSA 99,\r"), b"E90\r\n>");
+    assert_eq!(b.drive(1).unwrap().buffered_all().len(), QUEUE_DEPTH);
+    assert_eq!(b.drive(1).unwrap().buffered(), Some("POSA 0"));
+    // The default drive keeps one: the next store replaces it.
+    let mut b = bus(&[1], 0);
+    assert_eq!(ask(&mut b, 0, b"1POSR 5,\r"), b"\r\n>");
+    assert_eq!(ask(&mut b, 1, b"1POSR 5,\r"), b"\r\n>");
+    assert_eq!(b.drive(1).unwrap().buffered_all(), ["POSR 5"]);
+}

@@ -4,7 +4,10 @@
 //!
 //! The manual says of the echo only that "COMPAX will send the received data back in full". The default
 //! emulator reads "in full" as everything before the CR: the address digits, the command and the flag
-//! characters (`1POSA 12.5,?`). The variants:
+//! characters (`1POSA 12.5,?`). It sends the `$` message when a positioning asked for one ends (the user
+//! guide's word), answers at once (the manual gives no reply time; the client allows 200 ms beyond the wire
+//! time), and holds one command in its buffer, which the next store replaces (the manual speaks of "the
+//! COMPAX buffer" and says neither how many commands it holds nor whether a store replaces one). The variants:
 //!
 //! | variant | what the drives do differently |
 //! |---|---|
@@ -13,12 +16,24 @@
 //! | `no-echo` | `?` is not known: a telegram with it is refused (E90, as any syntax the drive cannot read) and nothing is stored. |
 //! | `echo-without-store` | `?` sends the telegram back instead of processing it, `,` included: a command sent with `,?` is echoed but not stored (so the `!` after it finds an empty buffer). |
 //! | `status-value-only` | A status value is answered with the value alone (`12.500`), not after its name (`S001: 12.500`). |
+//! | `no-position-message` | A move sent with `$` runs, but the drive never sends the `$` message when it ends. |
+//! | `slow-replies` | Everything the drives send goes out [`SLOW_REPLY_DELAY`] (300 ms) after it would have: beyond the client's default reply timeout of 200 ms. |
+//! | `buffer-queues` | The buffer is a queue: each store (`,`) appends a command (up to [`QUEUE_DEPTH`]; beyond, a store is refused with E90 and nothing stored), and `!` executes the oldest. |
 //!
 //! Every reply keeps the framing P196 asks for (its address prefix, its end, its BCC): a variant changes
 //! what the drive says, not how it frames it.
 
+use std::time::Duration;
+
 use motionlink_link::emulator::FirmwareVariant;
 pub use motionlink_link::emulator::UnknownVariant;
+
+/// How much later than the default drives a drive of the `slow-replies` variant sends everything
+/// ([`Variant::SlowReplies`]): 300 ms, beyond the client's default reply timeout of 200 ms.
+pub const SLOW_REPLY_DELAY: Duration = Duration::from_millis(300);
+
+/// How many commands the buffer of a drive of the `buffer-queues` variant holds ([`Variant::BufferQueues`]).
+pub const QUEUE_DEPTH: usize = 8;
 
 /// One firmware variant of the emulated drives (see the module documentation of `sim::variant`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Deserialize)]
@@ -34,6 +49,12 @@ pub enum Variant {
     EchoWithoutStore,
     /// Status values without their name.
     StatusValueOnly,
+    /// No `$` message when a positioning that asked for one ends.
+    NoPositionMessage,
+    /// Everything the drives send comes [`SLOW_REPLY_DELAY`] late.
+    SlowReplies,
+    /// The buffer is a queue: each store appends, `!` executes the oldest.
+    BufferQueues,
 }
 
 impl FirmwareVariant for Variant {
@@ -45,6 +66,9 @@ impl FirmwareVariant for Variant {
         Variant::NoEcho,
         Variant::EchoWithoutStore,
         Variant::StatusValueOnly,
+        Variant::NoPositionMessage,
+        Variant::SlowReplies,
+        Variant::BufferQueues,
     ];
 
     /// The name the command line, the TOML configuration and Python take.
@@ -55,6 +79,9 @@ impl FirmwareVariant for Variant {
             Variant::NoEcho => "no-echo",
             Variant::EchoWithoutStore => "echo-without-store",
             Variant::StatusValueOnly => "status-value-only",
+            Variant::NoPositionMessage => "no-position-message",
+            Variant::SlowReplies => "slow-replies",
+            Variant::BufferQueues => "buffer-queues",
         }
     }
 
@@ -66,6 +93,11 @@ impl FirmwareVariant for Variant {
             Variant::NoEcho => "'?' is refused (E90) and nothing is stored",
             Variant::EchoWithoutStore => "a command sent with ',?' is echoed but not stored",
             Variant::StatusValueOnly => "status values come without their name (12.500, not S001: 12.500)",
+            Variant::NoPositionMessage => "a move sent with '$' runs, but no '$' message comes when it ends",
+            Variant::SlowReplies => {
+                "every reply comes 300 ms late (beyond the client's default reply timeout of 200 ms)"
+            }
+            Variant::BufferQueues => "the buffer is a queue: each store appends a command, '!' executes the oldest",
         }
     }
 }
@@ -102,7 +134,7 @@ mod tests {
         assert_eq!(
             e,
             "\"echo\" is not a variant of the COMPAX emulator (known: echo-without-address, echo-bare, no-echo, \
-             echo-without-store, status-value-only)"
+             echo-without-store, status-value-only, no-position-message, slow-replies, buffer-queues)"
         );
         let t = b"12POSA 12.5$,?";
         assert_eq!(echo_of(&[], t, 2), t);
