@@ -18,14 +18,28 @@ use motionlink_link::pipe::{Direction, EmulatorHost, Fault, FaultControl, PipeCo
 use crate::support::{a, pos};
 
 fn emulated(variants: &[Variant], p196: u32) -> (ManualClock, EmulatorHost<Emulator>, FaultControl, Client) {
+    emulated_with(variants, p196, Config::new(Mode::from_p196(p196).unwrap(), 9600))
+}
+
+fn emulated_with(
+    variants: &[Variant],
+    p196: u32,
+    config: Config,
+) -> (ManualClock, EmulatorHost<Emulator>, FaultControl, Client) {
     let clock = ManualClock::new_auto();
     let mut cfg = SimConfig::bus(&[1, 3], p196, 9600).with_param(ParamId::new(3).unwrap(), 0.0);
     cfg.variants = variants.to_vec();
     let host = EmulatorHost::new(Emulator::new(cfg).unwrap(), clock.shared(), PipeConfig::paced(9600));
     let (link, faults) = host.connect();
-    let client =
-        Client::with_link(Box::new(link), clock.shared(), Config::new(Mode::from_p196(p196).unwrap(), 9600)).unwrap();
+    let client = Client::with_link(Box::new(link), clock.shared(), config).unwrap();
     (clock, host, faults, client)
+}
+
+/// The reply timeout drives of the `slow-replies` variant (300 ms late) need: `--timeout-ms 600`.
+fn slow_enough(p196: u32) -> Config {
+    let mut config = Config::new(Mode::from_p196(p196).unwrap(), 9600);
+    config.reply_timeout = Duration::from_millis(600);
+    config
 }
 
 fn to(v: f64) -> MoveRequest {
@@ -39,7 +53,12 @@ type Moves =
 /// Scan, status, parameter write, home, a move with a speed and a relative move without one, watch, stop,
 /// close.
 fn core_operations(variants: &[Variant], p196: u32) -> Moves {
-    let (clock, host, _faults, bus) = emulated(variants, p196);
+    // Slow drives with the reply timeout they need (with the default one nothing is answered in time).
+    let (clock, host, _faults, bus) = if variants.contains(&Variant::SlowReplies) {
+        emulated_with(variants, p196, slow_enough(p196))
+    } else {
+        emulated(variants, p196)
+    };
     let _me = clock.reserve_participant().enter();
     let what = format!("{variants:?} P196={p196}");
     let found = bus.scan(1..=4).unwrap();
@@ -82,6 +101,9 @@ fn every_variant_in_every_address_mode() {
             &[Variant::NoEcho],
             &[Variant::StatusValueOnly],
             &[Variant::EchoBare, Variant::StatusValueOnly],
+            &[Variant::NoPositionMessage],
+            &[Variant::SlowReplies],
+            &[Variant::BufferQueues],
         ] {
             let what = format!("{variants:?} P196={p196}");
             let (first, second) = core_operations(variants, p196);
@@ -89,7 +111,12 @@ fn every_variant_in_every_address_mode() {
             assert_eq!(first.verified, second.verified, "{what}");
             assert_eq!(first.not_verifiable, second.not_verifiable, "{what}");
             let why = first.not_verifiable.join("\n");
-            let echo = variants.iter().find(|v| **v != Variant::StatusValueOnly);
+            let echo = variants.iter().find(|v| {
+                matches!(
+                    v,
+                    Variant::EchoWithoutAddress | Variant::EchoBare | Variant::NoEcho | Variant::EchoWithoutStore
+                )
+            });
             match echo {
                 None => assert!(first.verified && why.is_empty(), "{what}: {why}"),
                 // The address prefix names the drive that echoed: only the missing address is then no loss.
