@@ -26,7 +26,7 @@ pub enum Error {
         code: ErrorCode,
     },
     /// No reply in time, after every retry.
-    #[error("drive {address}: no reply to {command:?} within {} ms ({attempts} attempts){}", waited.as_millis(), measured(round_trips))]
+    #[error("drive {address}: no reply to {command:?} within {} ms ({attempts} attempts){}{}", waited.as_millis(), measured(round_trips), too_late(late))]
     Timeout {
         /// The drive.
         address: Address,
@@ -38,6 +38,9 @@ pub enum Error {
         waited: Duration,
         /// The round trips the session measured on this line before, if any.
         round_trips: Option<RoundTripRange>,
+        /// Replies that came on this line after their telegram's time (and were not taken, so that none is
+        /// taken for a later telegram's), if any: how long after their telegrams they came.
+        late: Option<RoundTripRange>,
     },
     /// Replies arrived corrupt (BCC, framing), after every retry.
     #[error("drive {address}: corrupt reply to {command:?}: {detail}")]
@@ -429,6 +432,16 @@ fn measured(r: &Option<RoundTripRange>) -> String {
     r.map(|r| format!("; {r}")).unwrap_or_default()
 }
 
+/// The replies that came too late, for [`Error::Timeout`].
+fn too_late(r: &Option<RoundTripRange>) -> String {
+    let Some(r) = r else { return String::new() };
+    let (a, b) = (r.fastest.as_millis(), r.slowest.as_millis());
+    let took = if a == b { format!("{a} ms") } else { format!("{a}-{b} ms") };
+    format!(
+        "; replies came {took} after their telegrams, too late to be taken (a longer reply timeout allows for them)"
+    )
+}
+
 /// A result of a COMPAX operation.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
@@ -579,6 +592,7 @@ mod tests {
                     attempts: 4,
                     waited: Duration::from_millis(210),
                     round_trips: None,
+                    late: None,
                 },
                 ErrorClass::Transport(TransportKind::Timeout),
             ),

@@ -129,7 +129,14 @@
 //!   E71 (buffer overflow) is reported, since the manual asks for fewer characters, not the same again.
 //! - **Timeouts**: the manual gives none. A reply may take the wire time of request and a 48-character reply
 //!   plus 200 ms ([`Config::reply_timeout`](session::Config::reply_timeout)); after a broadcast the
-//!   client keeps the line quiet for 20 ms.
+//!   client keeps the line quiet for 20 ms. A telegram unanswered in that time keeps the line quiet for as
+//!   long again before anything else is sent (its resend, the next telegram): a reply that comes then is
+//!   its own, late, and is dropped rather than taken for the next telegram's (replies name no telegram:
+//!   without P196's address prefix a late S1 of drive 1 would read as drive 2's). The timeout then names
+//!   how late the replies came ([`Error::Timeout`]`::late`), and a scan warns of an address that answered
+//!   too late. Not for the stop's telegrams (a stop does not wait; S17 confirms it), those of a cancelled
+//!   operation, nor for the further sendings of a telegram whose late window stayed silent (the line lost
+//!   the reply; the drive is not slow).
 //! - **Threads**: COMPAX has no watchdog or keepalive. The blocking client drives the line from the calling
 //!   thread; the shared driver's one thread (every client starts one) drives it for the async client's
 //!   operations, and otherwise only while the session has work and no caller drives the line (as during a

@@ -425,3 +425,39 @@ fn a_dead_line_during_a_move_is_reported_with_an_unconfirmed_stop() {
     assert!(!drive_state(&r, 1).1, "(it was stopped: the drive got OUTPUT O0=0)");
     bus.release(&[a(1)]);
 }
+
+#[test]
+fn a_stop_is_not_held_back_by_the_late_window_of_a_drive_that_turned_slow() {
+    // A move runs (100 units/s); 1 s in the drive starts answering 300 ms late, beyond the reply timeout, so
+    // the wait's polls go unanswered in time (each followed by a late window); at 1.5 s the move is cancelled.
+    let (r, bus) = rig(&[1], 0, 9600);
+    let token = CancelToken::new();
+    bus.set_cancel(token.clone());
+    let _me = r.clock.reserve_participant().enter();
+    let ticket = r.clock.reserve_participant();
+    let (clock, host) = (r.clock.clone(), r.host.clone());
+    let canceller = std::thread::spawn(move || {
+        let _me = ticket.enter();
+        clock.sleep(Duration::from_millis(1000));
+        host.with_device(|d| d.set_variants(&[motionlink_compax::sim::Variant::SlowReplies]));
+        clock.sleep(Duration::from_millis(500));
+        token.cancel();
+        host.with_device(|d| d.drive(1).unwrap().position())
+    });
+    let result = bus.move_to(a(1), &to(1000.0), &mut |_| {});
+    let at_cancel = canceller.join().unwrap();
+    // Whatever happened, the close has nothing left to stop (it would wait on a clock nobody advances once
+    // this thread stops taking part in it).
+    bus.release(&[a(1)]);
+    drop(bus);
+    let e = result.unwrap_err();
+    assert!(matches!(e, Error::Cancelled { .. }), "{e}");
+    assert_eq!(e.stop_report().unwrap().switched_off(), [a(1)], "confirmed: {e}");
+    let (p, moving, o0) = drive_state(&r, 1);
+    assert!(!moving && o0 == 0, "switched off: {e}");
+    // The poll on the line fails at its deadline (a cancelled operation's telegram gets no late window), the
+    // stop's S17 (one sending, no window) likewise, then OUTPUT O0=0: about 0.5 s at 9600 baud, 50 units.
+    // A late window before either would add 0.2 s (20 units).
+    let ran_on = p - at_cancel;
+    assert!(ran_on > 0.0 && ran_on < 55.0, "the axis ran {ran_on} units after the cancel: {e}");
+}

@@ -346,3 +346,38 @@ fn a_timeout_names_the_round_trips_measured_on_the_line() {
     let Error::Timeout { round_trips: Some(r), .. } = e else { panic!("{e:?}") };
     assert!(r.fastest <= r.slowest && r.slowest < Duration::from_millis(40), "{r:?}");
 }
+
+#[test]
+fn a_slow_drive_times_out_naming_its_late_replies_and_nothing_is_taken_for_a_later_telegram_s_reply() {
+    let (clock, host, _faults, bus) = emulated(&[Variant::SlowReplies], 0);
+    let _me = clock.reserve_participant().enter();
+    let e = bus.read_position(a(1)).unwrap_err();
+    let text = e.to_string();
+    assert!(text.contains("drive 1: no reply to \"S1\" within 25") && text.contains("ms (4 attempts)"), "{text}");
+    assert!(text.contains("; replies came 31") && text.contains("too late to be taken"), "{text}");
+    let Error::Timeout { round_trips: None, late: Some(late), .. } = &e else { panic!("{e:?}") };
+    // "1S1\r" takes 4 ms at 9600 baud, the reply "S001: 0.000\r\n>" 15 ms: 300 ms late, 319 ms in all.
+    assert!(late.fastest >= Duration::from_millis(300) && late.slowest < Duration::from_millis(330), "{late:?}");
+    // A late reply is never another telegram's: a scan finds no drive (none at 2 or 4 answering with the late
+    // replies of 1 and 3), and says that 1 and 3 answered too late.
+    assert_eq!(bus.scan(1..=4).unwrap(), []);
+    // A checked move ends at its first read: nothing moved, nothing was switched off.
+    let e = bus.move_to(a(1), &to(10.0), &mut |_| {}).unwrap_err();
+    assert!(e.is_transport() && matches!(e.root(), Error::Timeout { command, .. } if command == "S16"), "{e}");
+    assert!(e.stop_report().is_none(), "{e}");
+    host.with_device(|d| {
+        let d = d.drive(1).unwrap();
+        assert_eq!((d.position(), d.o0(), d.is_moving()), (0.0, 1, false));
+    });
+    bus.close().unwrap();
+
+    // With the reply timeout such a drive needs, it is found and moves; its round trips are measured.
+    let (clock, _host, _faults, bus) = emulated_with(&[Variant::SlowReplies], 0, slow_enough(0));
+    let _me = clock.reserve_participant().enter();
+    let found: Vec<u8> = bus.scan(1..=4).unwrap().into_iter().map(|(d, _)| d.get()).collect();
+    assert_eq!(found, [1, 3]);
+    let r = bus.move_to(a(1), &MoveRequest::new(MoveTarget::Relative(pos(5.0))), &mut |_| {}).unwrap();
+    assert!(r.verified && r.reached == pos(5.0), "{r:?}");
+    let e = bus.read_position(a(9)).unwrap_err().to_string();
+    assert!(e.contains("replies on this link have taken 3") && !e.contains("too late"), "{e}");
+}

@@ -155,6 +155,11 @@ pub(crate) struct Job {
     attempts: u32,
     last_corrupt: Option<ReplyError>,
     unfit: Option<String>,
+    /// Its operation was cancelled ([`Core::cut_short`]): unanswered, it fails at once, without a late window.
+    cut: bool,
+    /// A late window of it passed without any reply: the line lost that reply rather than that the drive
+    /// is slow, and its further sendings get no window.
+    window_silent: bool,
 }
 
 impl Job {
@@ -176,6 +181,8 @@ impl Job {
             attempts: 0,
             last_corrupt: None,
             unfit: None,
+            cut: false,
+            window_silent: false,
         })
     }
 }
@@ -191,6 +198,18 @@ pub(crate) fn command_text(body: &Body<'_>, flags: Flags) -> String {
 
 /// The outcome of a job: the reply (`None` when none is due), or why there is none.
 pub(crate) type JobResult = Result<Option<Reply>, Error>;
+
+/// A telegram whose reply did not come in time, while the line stays quiet for its late reply.
+#[derive(Debug)]
+struct LateWindow {
+    job: Job,
+    /// When it was sent.
+    sent_at: Timestamp,
+    /// How long it waited (the wire time of request and reply, and the reply timeout).
+    waited: Duration,
+    /// The end of the window: one more reply timeout after the telegram's deadline.
+    until: Timestamp,
+}
 
 /// The telegram on the line.
 #[derive(Debug)]
@@ -234,11 +253,19 @@ pub(crate) struct Core {
     pub warned: HashSet<(u8, &'static str)>,
     /// The round trips measured on the line: each reply since its telegram went out.
     pub round_trips: Option<crate::error::RoundTripRange>,
+    /// Replies that came after their telegram's time (in its late window, and dropped): how long after
+    /// the telegram went out.
+    pub late_replies: Option<crate::error::RoundTripRange>,
+    /// How long after its telegram the latest late reply came (a scan takes it to name the address).
+    pub last_late: Option<Duration>,
     decoder: ReplyDecoder,
     queue: VecDeque<Job>,
     in_flight: Option<InFlight>,
     /// A job whose reply came corrupt: the rest of the broken reply passes before it is decided on.
     settling: Option<InFlight>,
+    /// A job whose reply did not come in time: nothing is sent until its late reply came (dropped) or as
+    /// long again has passed, so that a late reply is never taken for the next telegram's.
+    late: Option<LateWindow>,
     /// The outcomes of telegrams, for the operations that await them.
     pub jobs: Jobs<JobResult>,
     /// XOFF received (since when).
@@ -269,9 +296,12 @@ impl Core {
             echo_without_store: 0,
             warned: HashSet::new(),
             round_trips: None,
+            late_replies: None,
+            last_late: None,
             queue: VecDeque::new(),
             in_flight: None,
             settling: None,
+            late: None,
             jobs: Jobs::default(),
             paused: None,
             quiet_until: Timestamp::ZERO,
@@ -382,8 +412,14 @@ impl Core {
     pub(crate) fn cut_short(&mut self, op: OpId) {
         let on_line = self.in_flight.as_mut().map(|f| &mut f.job);
         let settling = self.settling.as_mut().map(|f| &mut f.job);
-        for job in [on_line, settling].into_iter().flatten().filter(|j| j.op == op && !j.urgent) {
+        let late = self.late.as_mut().map(|l| &mut l.job);
+        for job in [on_line, settling, late].into_iter().flatten().filter(|j| j.op == op && !j.urgent) {
             job.retries = job.retries.min(job.attempts.saturating_sub(1));
+            job.cut = true;
+        }
+        // Already unanswered: it fails now, not at the end of its late window.
+        if self.late.as_ref().is_some_and(|l| l.job.cut) {
+            self.end_late_window();
         }
     }
 
@@ -397,9 +433,9 @@ impl Core {
         }
     }
 
-    /// True while a telegram is on the line or being settled.
+    /// True while a telegram is on the line, being settled, or in its late window.
     pub(crate) fn busy(&self) -> bool {
-        self.in_flight.is_some() || self.settling.is_some()
+        self.in_flight.is_some() || self.settling.is_some() || self.late.is_some()
     }
 
     /// True when nothing is queued or on the line.
@@ -411,6 +447,7 @@ impl Core {
     pub(crate) fn wants_input(&self) -> bool {
         self.in_flight.as_ref().is_some_and(|f| f.job.expects_reply)
             || self.settling.is_some()
+            || self.late.is_some()
             || (!self.listeners.is_empty() && (self.awaiting_message | self.comparators) != 0)
     }
 
@@ -418,6 +455,9 @@ impl Core {
     pub(crate) fn line_timeout(&self) -> Option<Timestamp> {
         if let Some(f) = self.in_flight.as_ref().or(self.settling.as_ref()) {
             return Some(f.deadline);
+        }
+        if let Some(l) = &self.late {
+            return Some(l.until);
         }
         if self.queue.is_empty() {
             return None;
@@ -438,6 +478,10 @@ impl Core {
     /// The next telegram to send at `now`, if one may go.
     pub(crate) fn transmit(&mut self, now: Timestamp) -> Option<Vec<u8>> {
         self.now = now;
+        if self.late.is_some() && self.queue.front().is_some_and(|j| j.urgent) {
+            // A stop does not wait for a late reply: the late window ends (its telegram is decided on now).
+            self.end_late_window();
+        }
         if self.busy() || self.queue.is_empty() || now < self.quiet_until {
             return None;
         }
@@ -486,6 +530,23 @@ impl Core {
 
     /// A reply that is not an unsolicited message.
     fn reply(&mut self, r: Reply) {
+        if let Some(l) = &self.late {
+            // Nothing was sent since the telegram whose time is up: this is its reply, late. Dropped (the
+            // telegram is decided on as unanswered), and measured, so that its timeout names it.
+            let took = self.now.saturating_since(l.sent_at);
+            tracing::info!(
+                "drive {}: {:?} came {} ms after {:?} was sent, later than the {} ms allowed: not taken",
+                l.job.address,
+                r.text_str(),
+                took.as_millis(),
+                l.job.command,
+                l.waited.as_millis()
+            );
+            self.late_replies = Some(crate::error::RoundTripRange::with(self.late_replies, took));
+            self.last_late = Some(took);
+            self.end_late_window();
+            return;
+        }
         let Some(f) = self.in_flight.as_mut().filter(|f| f.job.expects_reply) else {
             tracing::debug!("unexpected while listening: {r:?}");
             return;
@@ -550,6 +611,10 @@ impl Core {
                 _ => self.queue.push_front(job),
             }
         }
+        if let Some(l) = self.late.as_mut().filter(|l| now >= l.until) {
+            l.job.window_silent = true;
+            self.end_late_window();
+        }
         let Some(f) = self.in_flight.take_if(|f| now >= f.deadline) else { return };
         let waited = f.deadline.saturating_since(f.sent_at);
         let job = f.job;
@@ -558,16 +623,42 @@ impl Core {
             return;
         }
         tracing::info!("drive {}: no reply (attempt {})", job.address, job.attempts);
+        // A drive slower than the allowance answers after all: the line stays quiet for as long again, and
+        // a reply that comes then is this telegram's, late (never the next telegram's). A stop's telegram
+        // (urgent), and one of a cancelled operation (a stop follows), are decided on at once: a stop does
+        // not wait; its telegrams (S17, OUTPUT O0=0) are told apart by their replies' forms, and it is
+        // confirmed by S17 read after it. So is a telegram whose earlier late window stayed silent.
+        let until = now + self.cfg.reply_timeout;
+        let at_once = job.cut || job.urgent || job.window_silent;
+        self.late = Some(LateWindow { job, sent_at: f.sent_at, waited, until });
+        if at_once || now >= until {
+            self.end_late_window();
+        }
+    }
+
+    /// The late window ends (its time is up, the late reply came, a stop must go, or its operation was
+    /// cancelled): its telegram, unanswered in time, is sent again if it may be, or fails.
+    fn end_late_window(&mut self) {
+        let Some(LateWindow { job, waited, .. }) = self.late.take() else { return };
         let retry_left = job.attempts <= job.retries;
         if job.retry == Retry::Idempotent && retry_left {
-            self.queue.push_front(job);
+            // Behind a stop that is waiting, ahead of everything else.
+            let at = if job.urgent { 0 } else { self.queue.iter().position(|j| !j.urgent).unwrap_or(self.queue.len()) };
+            self.queue.insert(at, job);
             return;
         }
         let (address, command) = (job.address, job.command);
         let e = match (job.unfit, job.last_corrupt) {
             (Some(reply), _) => Error::UnexpectedReply { address, command, reply },
             (None, Some(detail)) if job.retry == Retry::Idempotent => Error::Corrupt { address, command, detail },
-            _ => Error::Timeout { address, command, attempts: job.attempts, waited, round_trips: self.round_trips },
+            _ => Error::Timeout {
+                address,
+                command,
+                attempts: job.attempts,
+                waited,
+                round_trips: self.round_trips,
+                late: self.late_replies,
+            },
         };
         self.finish_job(job.id, Err(e));
     }
@@ -579,9 +670,10 @@ impl Core {
             self.line_failures.insert(op, error.clone());
             waker.wake();
         }
-        match self.in_flight.take().or_else(|| self.settling.take()) {
-            Some(f) => {
-                self.finish_job(f.job.id, Err(Error::Link(error)));
+        let job = self.in_flight.take().or_else(|| self.settling.take()).map(|f| f.job);
+        match job.or_else(|| self.late.take().map(|l| l.job)) {
+            Some(job) => {
+                self.finish_job(job.id, Err(Error::Link(error)));
             }
             None => tracing::debug!("line failure while nothing was on it: {error}"),
         }

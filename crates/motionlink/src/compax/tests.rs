@@ -47,6 +47,7 @@ fn errors_map_to_exit_codes_and_say_how_to_switch_a_drive_on() {
             attempts: 4,
             waited: std::time::Duration::from_millis(210),
             round_trips: None,
+            late: None,
         }),
         stop: motionlink_compax::error::StopReport {
             drives: vec![(

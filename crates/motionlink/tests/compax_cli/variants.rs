@@ -1,8 +1,8 @@
 //! The core actions through the binary against every firmware variant of `motionlink sim compax --variant
 //! X`: each works (saying what it could not verify) or ends with an error that says what the drive did not
 //! do; a move that exits 0 ended at its target. The variants run side by side, at 115200 baud. A drive that
-//! answers late (`slow-replies`) is not among them: a scan of 31 addresses with a reply timeout long enough
-//! for it takes over half a minute.
+//! answers late (`slow-replies`) has a test of its own: with the default reply timeout nothing it says is
+//! taken, and a scan of 31 addresses with a timeout long enough for it takes over half a minute.
 
 use super::*;
 
@@ -130,4 +130,36 @@ fn variants_are_named_and_checked() {
     let sim = start_sim(&["--tcp", "127.0.0.1:0"]);
     let out = compax(&sim.address, &["--sim-variant", "echo-bare", "status"]);
     assert_eq!(out.status.code(), Some(2), "{out:?}");
+}
+
+/// A drive that answers 300 ms late (`slow-replies`), beyond the default reply timeout: each command ends
+/// with exit 3 and a message that names how late the replies came; nothing moved, nothing was switched off.
+/// With `--timeout-ms 600` the same commands work, and the relative move runs once.
+#[test]
+fn a_slow_drive_times_out_naming_its_late_replies_and_works_with_a_longer_reply_timeout() {
+    let sim = start_sim(&["--tcp", "127.0.0.1:0", "--baud", "115200", "--variant", "slow-replies"]);
+    let go = |extra: &[&str]| {
+        let mut v = vec!["--baud", "115200"];
+        v.extend_from_slice(extra);
+        compax(&sim.address, &v)
+    };
+    for (action, first) in [(&["status", "S1"][..], "S1"), (&["move", "--rel", "5"][..], "S16")] {
+        let out = go(action);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(3), "{action:?}: {err}");
+        assert!(err.contains(&format!("drive 1: no reply to \"{first}\" within 20")), "{action:?}: {err}");
+        assert!(
+            err.contains("ms (4 attempts); replies came 30") && err.contains("too late to be taken"),
+            "{action:?}: {err}"
+        );
+    }
+    let events: Vec<String> = sim.events().into_iter().map(|e| e.text).collect();
+    assert!(!events.iter().any(|e| e.contains("motion started") || e.contains("switched off")), "{events:?}");
+
+    let status = json(&go(&["--timeout-ms", "600", "--json", "status", "S1"]));
+    assert_eq!(status["status"][0]["value"], 0.0, "{status}");
+    let moved = json(&go(&["--timeout-ms", "600", "--json", "move", "--rel", "5"]));
+    assert_eq!((moved["reached_units"].as_f64(), moved["verified"].as_bool()), (Some(5.0), Some(true)), "{moved}");
+    let events: Vec<String> = sim.events().into_iter().map(|e| e.text).collect();
+    assert_eq!(events.iter().filter(|e| e.contains("motion started")).count(), 1, "{events:?}");
 }

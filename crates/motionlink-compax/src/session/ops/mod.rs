@@ -323,9 +323,22 @@ impl Ctx {
                 result = Err(e);
                 break;
             }
+            self.core().last_late = None;
             match self.read_position_value(a, StatusId::ACTUAL_POSITION, 0).await {
                 Ok(p) => found.push((a, p)),
-                Err(Error::Timeout { .. } | Error::Corrupt { .. }) => {}
+                Err(Error::Timeout { waited, .. }) => {
+                    // Answered, but too late to be taken (nothing else was sent meanwhile): not counted as
+                    // found, and said, so that "no drive answered" is not the whole story.
+                    if let Some(took) = self.core().last_late.take() {
+                        tracing::warn!(
+                            "address {a}: a reply to S1 came {} ms after it was sent, later than the {} ms allowed: \
+                             not counted as a drive (a longer reply timeout allows for a drive that slow)",
+                            took.as_millis(),
+                            waited.as_millis()
+                        );
+                    }
+                }
+                Err(Error::Corrupt { .. }) => {}
                 Err(e @ (Error::Link(_) | Error::CancelledBeforeMotion)) => {
                     result = Err(e);
                     break;
