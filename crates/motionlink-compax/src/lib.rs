@@ -111,9 +111,10 @@
 //!   flipped address digit that reached another drive) sends no `!` and is [`Error::NotExecuted`], which
 //!   names what came back and the drives that may now hold the command in their buffer (the manual has no
 //!   command that empties one: the next `!` to such a drive, or any `32!`, executes it). A store whose echo
-//!   is lost is stored again, even a POSR: the buffer holds one command (see `!` above; the RS485 manual
-//!   does not say how many, nor that a store replaces one), which the new store replaces, and a repeat
-//!   stores, it never executes; `!` is never repeated blind: after a lost reply to it,
+//!   is lost is stored again for a POSA only: the RS485 manual does not say how many commands the buffer
+//!   holds, nor that a store replaces one, and were it a queue a second POSR would run the distance twice
+//!   (a second POSA goes to the same target); a POSR whose echo is lost ends in [`Error::NotExecuted`],
+//!   naming the drive that may hold it. `!` is never repeated blind: after a lost reply to it,
 //!   S2 and S17 tell whether the move started, and `!` goes again only when S2 is unchanged and no command
 //!   is active. After the start S2 is read back as a second check, and a mismatch switches the axis off.
 //!   A binary move takes no `,` or `?` (manual 4.4): it is checked by S2 after the start only. The drive
@@ -121,9 +122,10 @@
 //!   SPEED into POSR).
 //! - **Replies that cannot answer the request** (text to a move, an acknowledgement or another value to a
 //!   read) are taken for late or garbled ones and not used; a read whose reply does not parse is sent again.
-//! - **Lost replies**: reads, settings, POSA and buffered commands are sent again after a timeout or a corrupt
+//! - **Lost replies**: reads, settings, POSA and buffered POSA are sent again after a timeout or a corrupt
 //!   reply (a checked move's store with its echo only after a timeout: a corrupt echo refuses the move). A
-//!   POSR sent on its own is not: the client read the target S2 before sending it and reads it again; unchanged, the
+//!   POSR stored for a synchronous start is not (were the buffer a queue, it would run twice): the start
+//!   ends in [`Error::SyncIncomplete`]. A POSR sent on its own is not either: the client read the target S2 before sending it and reads it again; unchanged, the
 //!   move did not arrive and is sent again; moved by the distance, it arrived; otherwise the caller gets
 //!   [`Error::MoveUncertain`]. E70, E72 and E73 are always answered by sending the telegram again;
 //!   E71 (buffer overflow) is reported, since the manual asks for fewer characters, not the same again.

@@ -7,11 +7,13 @@
 //!
 //! Sent again: the manual speaks of "the COMPAX buffer" and of `!` executing "a command previously
 //! stored", without saying how many it holds or whether a store replaces one; the crate reads it as one
-//! command that the next `,` replaces (the emulator does so). Storing the same command again therefore
-//! leaves one copy in the buffer (were it a queue, a second copy would wait there), and one `!` runs one. That is why a store whose echo is lost is sent again even
-//! for a relative move (POSR): what is repeated is the store, never the execution. An echo that comes back
-//! otherwise than sent, or corrupt, is not repaired by a resend: the move is refused, no `!` goes out. The
-//! `!` itself is not repeated blind: after a lost reply to it, S2 and S17 tell whether the move started.
+//! command that the next `,` replaces (the emulator does so), but does not rely on that where a second
+//! copy would run a move twice. A store whose echo is lost is sent again for an absolute move (POSA): were
+//! the buffer a queue (the emulator's `buffer-queues`), the copy left in it would go to the same target.
+//! A relative move (POSR) is not stored again: the move ends in [`Error::NotExecuted`], naming the drive
+//! that may hold it. An echo that comes back otherwise than sent, or corrupt, is not repaired by a resend:
+//! the move is refused, no `!` goes out. The `!` itself is not repeated blind: after a lost reply to it,
+//! S2 and S17 tell whether the move started.
 
 use super::super::core::{bit, Retry};
 use super::super::ctx::Ctx;
@@ -215,16 +217,23 @@ impl Ctx {
                 Ok(None) => {
                     return Err(Error::Broadcast("a buffered move with its echo needs one drive's answer"));
                 }
-                Err(Error::Timeout { .. }) if attempts <= retries => {
+                // An absolute move is stored again: should the buffer queue commands, the copy left in it
+                // goes to the same target.
+                Err(Error::Timeout { .. }) if attempts <= retries && cmd.is_idempotent() => {
                     tracing::info!(
                         "drive {address}: no echo of the stored move: storing it again (it replaces itself)"
                     );
                 }
                 Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. } | Error::UnexpectedReply { .. })) => {
-                    let why = if matches!(e, Error::Timeout { .. }) {
-                        "no echo came back, so no '!' was sent"
-                    } else {
-                        "its echo came back corrupt, so no '!' was sent"
+                    let why = match e {
+                        // A relative move is not: a buffer that queued two copies would run it twice.
+                        Error::Timeout { .. } if !cmd.is_idempotent() => {
+                            "no echo came back, so no '!' was sent; a relative move is not stored again (the manual \
+                             does not say that a store replaces the command held: a buffer that kept both would \
+                             run it twice)"
+                        }
+                        Error::Timeout { .. } => "no echo came back, so no '!' was sent",
+                        _ => "its echo came back corrupt, so no '!' was sent",
                     };
                     return Err(fail(Failure { why: why.into(), source: e, holders: 0 }));
                 }

@@ -63,11 +63,14 @@ pub(crate) fn bcc_mismatch_warning(mode: &Mode, addresses: &[Address]) -> String
 }
 
 impl Ctx {
-    /// Sends `cmd` to `address` as a command of its own (no flags).
+    /// Sends `cmd` to `address` with `flags`. A command that is not idempotent (a POSR, a comparator) is
+    /// sent again only after E70 / E72 / E73 (the drive did not take it), also when it is stored (`,`): the
+    /// manual does not say that a store replaces the command held, and a buffer that kept both would run a
+    /// relative move twice.
     pub(crate) async fn send_command(&self, address: Address, cmd: &Command, flags: Flags) -> Result<Option<Reply>> {
         let style = self.core().cfg.style;
         let text = cmd.to_ascii(style)?;
-        let retry = if cmd.is_idempotent() || flags.buffer { Retry::Idempotent } else { Retry::DiscardedOnly };
+        let retry = if cmd.is_idempotent() { Retry::Idempotent } else { Retry::DiscardedOnly };
         self.exchange(&Request { address, body: Body::Command(text.as_bytes()), flags }, retry).await
     }
 
