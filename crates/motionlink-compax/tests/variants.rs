@@ -7,7 +7,7 @@
 
 use std::time::Duration;
 
-use motionlink_compax::client::{Client, Config, EchoForm, Error, MoveRequest, MoveTarget};
+use motionlink_compax::client::{Client, Config, EchoForm, Error, MoveOptions, MoveRequest, MoveTarget};
 use motionlink_compax::model::{Command, ParamId, SpeedPercent, StatusId};
 use motionlink_compax::sim::{Emulator, SimConfig, Variant};
 use motionlink_compax::wire::Mode;
@@ -380,4 +380,35 @@ fn a_slow_drive_times_out_naming_its_late_replies_and_nothing_is_taken_for_a_lat
     assert!(r.verified && r.reached == pos(5.0), "{r:?}");
     let e = bus.read_position(a(9)).unwrap_err().to_string();
     assert!(e.contains("replies on this link have taken 3") && !e.contains("too late"), "{e}");
+}
+
+#[test]
+fn a_move_whose_position_message_never_comes_ends_its_wait_by_s17() {
+    for variants in [&[][..], &[Variant::NoPositionMessage]] {
+        let (clock, host, _faults, bus) = emulated(variants, 0);
+        let _me = clock.reserve_participant().enter();
+        let reads = || host.with_device(|d| d.drive(1).unwrap().telegrams());
+        bus.move_absolute(a(1), pos(10.0), MoveOptions { binary: false, message: true }).unwrap();
+        let (t0, before) = (clock.now(), reads());
+        bus.wait_reached(&[a(1)], Some(Duration::from_secs(5)), &mut |_, _| {}).unwrap();
+        let (waited, read) = (clock.now() - t0, reads() - before);
+        assert_eq!(bus.read_position(a(1)).unwrap(), pos(10.0), "{variants:?}");
+        assert!(bus.started().is_empty(), "{variants:?}");
+        if variants.is_empty() {
+            // The '$' at 100 ms ended it (seen at the next poll interval); nothing was read meanwhile.
+            assert!(waited <= Duration::from_millis(200) && read == 0, "{waited:?}, {read} telegrams");
+        } else {
+            // No '$': S17 (and S1), read once a second while a wait listens for one, ended it.
+            assert!(waited >= Duration::from_secs(1) && waited < Duration::from_millis(1100), "{waited:?}");
+            assert_eq!(read, 2, "S17 and S1, once");
+        }
+        // A synchronous start of two drives with '$' likewise.
+        let moves = [(a(1), Command::PosA(pos(20.0))), (a(3), Command::PosA(pos(5.0)))];
+        bus.sync_start(&moves, true).unwrap();
+        let t0 = clock.now();
+        bus.wait_reached(&[a(1), a(3)], Some(Duration::from_secs(5)), &mut |_, _| {}).unwrap();
+        assert!(clock.now() - t0 < Duration::from_millis(1200), "{variants:?}");
+        assert_eq!((bus.read_position(a(1)).unwrap(), bus.read_position(a(3)).unwrap()), (pos(20.0), pos(5.0)));
+        bus.close().unwrap();
+    }
 }
