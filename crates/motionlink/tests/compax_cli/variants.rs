@@ -163,3 +163,15 @@ fn a_slow_drive_times_out_naming_its_late_replies_and_works_with_a_longer_reply_
     let events: Vec<String> = sim.events().into_iter().map(|e| e.text).collect();
     assert_eq!(events.iter().filter(|e| e.contains("motion started")).count(), 1, "{events:?}");
 }
+
+/// The binary's one way to send a move with `$` (`raw "POSA 10$" --wait`, as compax.md shows it) on a drive
+/// that never sends the `$` message: the wait ends by S17, and the drive is at its target.
+#[test]
+fn raw_with_a_position_message_waits_by_s17_on_a_drive_that_sends_none() {
+    let sim = start_sim(&["--tcp", "127.0.0.1:0", "--baud", "115200", "--variant", "no-position-message"]);
+    let r = json(&compax(&sim.address, &["--baud", "115200", "--json", "raw", "POSA 10$", "--wait"]));
+    assert_eq!(r["waited"], true, "{r}");
+    let s = json(&compax(&sim.address, &["--baud", "115200", "--json", "status", "S1", "S17"]));
+    assert_eq!(s["status"][0]["value"], 10.0, "{s}");
+    assert_eq!(s["status"][1]["value"]["pattern"], "0000 0010", "at rest: {s}");
+}
