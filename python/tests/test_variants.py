@@ -55,7 +55,30 @@ VARIANTS: Dict[str, Tuple[str, ...]] = {
         "reset-clears-watchdog",
         "no-extended-ack",
     ),
-    "compax": ("echo-without-address", "echo-bare", "no-echo", "echo-without-store", "status-value-only"),
+    "compax": (
+        "echo-without-address",
+        "echo-bare",
+        "no-echo",
+        "echo-without-store",
+        "status-value-only",
+        "no-position-message",
+        "slow-replies",
+        "buffer-queues",
+    ),
+}
+
+#: Variants the matrix leaves out, each with the reason (and where it is tested instead).
+NOT_IN_MATRIX: Dict[str, Dict[str, str]] = {
+    "compax": {
+        "slow-replies": "its replies come 300 ms late: the suite's 50 ms reply timeout takes none of them, and with "
+        "the 600 ms one such a drive needs a scan of 31 addresses takes over half a minute; the Rust tests run it "
+        "(crates/motionlink-compax/tests/variants.rs, crates/motionlink/tests/compax_cli/variants.rs)",
+    },
+}
+
+#: The variants the matrix runs, each alone and all together.
+MATRIX: Dict[str, Tuple[str, ...]] = {
+    family: tuple(v for v in names if v not in NOT_IN_MATRIX.get(family, {})) for family, names in VARIANTS.items()
 }
 
 
@@ -74,7 +97,7 @@ class Case:
 
     @property
     def id(self) -> str:
-        every = set(self.variants) == set(VARIANTS[self.family])
+        every = set(self.variants) == set(MATRIX[self.family])
         names = "all" if every else "+".join(self.variants) or "manual"
         where = [self.client, self.serve or ("can" if self.can else "in-process")]
         if self.mode:
@@ -95,9 +118,9 @@ class Case:
 
 
 def each(family: str, **how: Any) -> List[Case]:
-    """The manual's firmware, each variant alone, and all of them together."""
-    alone = [Case(family, (v,), **how) for v in VARIANTS[family]]
-    return [Case(family, (), **how), *alone, Case(family, VARIANTS[family], **how)]
+    """The manual's firmware, each variant of the matrix alone, and all of them together."""
+    alone = [Case(family, (v,), **how) for v in MATRIX[family]]
+    return [Case(family, (), **how), *alone, Case(family, MATRIX[family], **how)]
 
 
 ALL_PC = VARIANTS["powercube"]
@@ -123,8 +146,8 @@ CASES: List[Case] = [
     Case("compax", ("echo-without-address",), mode=64),
     Case("compax", ("echo-bare",), mode=8),
     Case("compax", (), client="async"),
-    Case("compax", VARIANTS["compax"], client="async"),
-    Case("compax", VARIANTS["compax"], serve="tcp"),
+    Case("compax", MATRIX["compax"], client="async"),
+    Case("compax", MATRIX["compax"], serve="tcp"),
 ]
 
 
@@ -453,13 +476,15 @@ def test_core_operations(case: Case, outcomes: Dict[Case, "Future[Outcome]"]) ->
 
 def test_the_matrix_covers_every_variant() -> None:
     """The lists above are the emulators' own (from the message that refuses an unknown name), and every
-    variant runs alone and with the others in the matrix."""
+    variant runs alone and with the others in the matrix, but those it leaves out with a reason."""
     for family, ours in VARIANTS.items():
         with pytest.raises(motionlink.UsageError) as e:
             motionlink.Emulator(family, variant="not-a-variant")
         listed = re.search(r"(?:known: |the variants are )([a-z0-9, -]+)", str(e.value))
         assert listed is not None, str(e.value)
         assert tuple(n.strip() for n in listed.group(1).split(",")) == ours, str(e.value)
+        left_out = NOT_IN_MATRIX.get(family, {})
+        assert set(left_out) <= set(ours) and all(left_out.values()), family
         alone = {c.variants[0] for c in CASES if c.family == family and len(c.variants) == 1}
-        assert alone == set(ours), family
-        assert any(c.variants == ours for c in CASES if c.family == family), family
+        assert alone == set(ours) - set(left_out), family
+        assert any(c.variants == MATRIX[family] for c in CASES if c.family == family), family
