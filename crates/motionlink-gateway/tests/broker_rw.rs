@@ -20,9 +20,22 @@ const S: Duration = Duration::from_secs(1);
 
 /// The reply to `op` with `args` on `device` of gateway `gw`.
 async fn ask(c: &mut Client, gw: &str, device: &str, id: &str, op: &str, args: Value) -> Value {
+    ask_within(c, gw, device, id, op, args, 10 * S).await
+}
+
+/// [`ask`], the reply awaited for `within`.
+async fn ask_within(
+    c: &mut Client,
+    gw: &str,
+    device: &str,
+    id: &str,
+    op: &str,
+    args: Value,
+    within: Duration,
+) -> Value {
     let body = json!({"id": id, "op": op, "args": args, "reply_to": "me/r"});
     c.send(&format!("motionlink/{gw}/{device}/cmd"), body.to_string()).await;
-    c.reply("me/r", id, 10 * S).await
+    c.reply("me/r", id, within).await
 }
 
 /// The reply's result without its identity (`family`, `port`, `profile`, `module`, `drive`), checked to be the
@@ -290,7 +303,9 @@ async fn several_items_in_one_get_and_a_scan_answer_with_the_cli_s_json_lines() 
         "{r}"
     );
     assert!(found[0]["serial"].is_u64() && found[0]["state"]["flags"].is_array(), "{r}");
-    let r = ask(&mut c, "sc", "axis", "sc2", "scan", json!({})).await;
+    // 30 addresses without a drive, each the reply timeout and as long again for a late reply (9600 baud):
+    // about 14 s.
+    let r = ask_within(&mut c, "sc", "axis", "sc2", "scan", json!({}), 25 * S).await;
     assert_eq!(listed(&r), [json!({"drive": 1, "family": "compax", "position_units": 0.0})], "{r}");
     let r = ask(&mut c, "sc", "lift", "sc3", "scan", json!({})).await;
     assert!(r["error"]["message"].as_str().unwrap().contains("not an action of a scu device"), "{r}");
