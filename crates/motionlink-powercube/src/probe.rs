@@ -5,7 +5,9 @@
 //!
 //! Nothing moves. What is sent: the scan (GetExtended of DefCubeVersion, 0x1D, to addresses 1..31; then the
 //! Config word, DefCubeSerial and CubeState of each module that answers), CubeState of the first module
-//! [`ProbeSetup::exchanges`] times (the link), and ActFPosStateDio (0x62) of each module (`pos_state_dio`).
+//! [`ProbeSetup::exchanges`] times (the link), ActFPosStateDio (0x62) of each module (`pos_state_dio`), and
+//! its Config word once more (`config_word`: a module before version 3.5.00 has none, and no watchdog a
+//! guarded motion can enable).
 //! The other behaviours of the list need a write of another value (the Inc twins), an armed watchdog (the
 //! RS232 broadcast refresh, the life sign's acknowledge), or are taken in every form (the acknowledge's
 //! length, the identifier of an extended acknowledge): their rows say `skipped` and why.
@@ -107,6 +109,7 @@ pub fn probe(client: &Client, setup: &ProbeSetup) -> Result<PowercubeProbeReport
     for info in &modules {
         let a = info.address;
         checks.push(pos_state_dio(client, a));
+        checks.push(config_word(client, a));
         checks.push(broadcast_row(client.is_can()).at(a.get()));
         for (name, why, variant) in NOT_PROBED {
             checks.push(Check::new(name, CheckResult::Skipped, why).at(a.get()).variant(variant));
@@ -143,6 +146,22 @@ fn pos_state_dio(client: &Client, a: Address) -> Check {
         (Ok(_), None) => Check::new("pos_state_dio", CheckResult::Failed, "not settled"),
     };
     c.at(a.get()).sending("GetExtended ActFPosStateDio (0x62)").variant("no-pos-state-dio")
+}
+
+/// Whether the module answers the Config word (parameter 57, "available from module version 3.5.00",
+/// manual 7.2), where a guarded motion enables the watchdog.
+fn config_word(client: &Client, a: Address) -> Check {
+    let c = match client.module(a).config_word() {
+        Ok(_) => Check::new("config_word", CheckResult::Ok, "answered: a guarded home or move can enable the watchdog"),
+        Err(Error::Timeout { .. }) => Check::new(
+            "config_word",
+            CheckResult::Unsupported,
+            "not answered (from module version 3.5.00): the module's type is read from DefConfig; its watchdog \
+             cannot be enabled, so a guarded home or move is refused (`--no-watchdog` moves it)",
+        ),
+        Err(e) => Check::new("config_word", CheckResult::Failed, e.to_string()),
+    };
+    c.at(a.get()).sending("GetExtended Config (0x39)").variant("no-config-word")
 }
 
 fn broadcast_row(can: bool) -> Check {

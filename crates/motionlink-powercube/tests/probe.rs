@@ -52,11 +52,12 @@ fn the_default_modules_are_found_identified_and_answer_the_harmless_probe() {
         assert_eq!(m.findings, ModuleFindings { pos_state_dio: Some(true), ..Default::default() });
     }
     for (name, address, result) in results(&r) {
-        let expected = if name == "pos_state_dio" { CheckResult::Ok } else { CheckResult::Skipped };
+        let answered = ["pos_state_dio", "config_word"].contains(&name);
+        let expected = if answered { CheckResult::Ok } else { CheckResult::Skipped };
         assert_eq!(result, expected, "{name} of {address:?}");
     }
-    // Two link rows, then six per module.
-    assert_eq!(r.checks.len(), 2 + 2 * 6);
+    // Two link rows, then seven per module.
+    assert_eq!(r.checks.len(), 2 + 2 * 7);
     assert_eq!((r.link.exchanges, r.link.errors), (20, 0));
     assert!(r.link.round_trip_ms.unwrap().min > 5.0, "9600 baud: {:?}", r.link.round_trip_ms);
     let broadcast = r.check("rs232_broadcast", Some(1)).unwrap();
@@ -73,6 +74,10 @@ fn each_variant_shows_as_unsupported_in_its_own_check_and_nowhere_else() {
             Variant::NoPosStateDio => vec![
                 ("pos_state_dio", Some(1), CheckResult::Unsupported),
                 ("pos_state_dio", Some(17), CheckResult::Unsupported),
+            ],
+            Variant::NoConfigWord => vec![
+                ("config_word", Some(1), CheckResult::Unsupported),
+                ("config_word", Some(17), CheckResult::Unsupported),
             ],
             // Shown only with a write of another value or an armed watchdog, or taken in both forms.
             _ => vec![],

@@ -40,8 +40,9 @@ pub enum Family {
     ///
     /// What is sent (nothing moves): GetExtended of DefCubeVersion (0x1D) to each address (the scan), then of
     /// the Config word, serial number and CubeState of each module found (identity), CubeState N times (the
-    /// link), ActFPosStateDio (0x62) of each module. The Inc twins, the RS232 broadcast refresh and the life
-    /// sign's acknowledge are not probed: each needs a write of another value or an armed watchdog.
+    /// link), ActFPosStateDio (0x62) and the Config word once more of each module. The Inc twins, the RS232
+    /// broadcast refresh and the life sign's acknowledge are not probed: each needs a write of another value
+    /// or an armed watchdog.
     ///
     /// Each behaviour has an emulator variant (`motionlink sim powercube --variant NAME`). `--save` writes
     /// one profile per module (profiles.toml beside devices.toml), loaded by later sessions when the module
