@@ -368,6 +368,17 @@ fn a_stopped_console_stops_the_motion_it_started() {
         .wait_event_after(at, Duration::from_secs(5), |t| t == "drive 1 switched off (O0=0)")
         .expect("the end of the console stops the axis");
     assert!(off.at - at < 0.3, "stopped {:.3} s after SIGTERM", off.at - at);
+    // The page is told that the motion was stopped, and why, before it is told to go.
+    let mut seen = Vec::new();
+    let bye = recv_until(&mut ws, Duration::from_secs(10), |v| {
+        seen.push(v.clone());
+        v["type"] == "bye"
+    });
+    assert!(bye.is_some(), "a bye: {seen:?}");
+    let stopped = seen.iter().find(|v| v["type"] == "motion" && v["state"] == "stopped");
+    let stopped = stopped.unwrap_or_else(|| panic!("the stop before the bye: {seen:?}"));
+    assert_eq!(stopped["ok"], true, "{stopped}");
+    assert!(stopped["message"].as_str().unwrap().contains("ending"), "{stopped}");
     let ended = c.running.wait(Duration::from_secs(10));
     assert_eq!(ended.code(), 128 + libc::SIGTERM, "{}", ended.stderr);
 }

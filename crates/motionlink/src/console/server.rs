@@ -236,6 +236,12 @@ async fn page(hub: Arc<Hub>, mut socket: WebSocket) {
                 }
             }
             _ = shutdown.changed() => {
+                // What the hub said before (the stop of the motion under way) goes out before the bye.
+                while let Ok(notice) = notices.try_recv() {
+                    if let Notice::Json(text) = notice {
+                        let _ = socket.send(WsMessage::Text(text.as_str().into())).await;
+                    }
+                }
                 let bye = Message::Bye { message: "the console is ending" }.json().to_string();
                 let _ = socket.send(WsMessage::Text(bye.into())).await;
                 break 'page;
@@ -278,6 +284,9 @@ fn request(hub: &Arc<Hub>, page: u64, text: &str, replies: &mpsc::Sender<Message
         Err(e) => return Some(Message::failure("?", false, ErrorReport::usage(format!("not JSON: {e}")))),
     };
     let kind = req.get("type").and_then(Value::as_str).unwrap_or("").to_string();
+    if hub.ending() && !matches!(kind.as_str(), "stop" | "jog_release" | "jog_hold") {
+        return Some(Message::failure(&kind, false, ErrorReport::usage("the console is ending")));
+    }
     if let Err(e) = motionlink_link::result::each_key_once(text.as_bytes()) {
         // Which of two types is meant is not known: such a request is answered as "?".
         let kind = if e.to_string().starts_with("key \"type\"") { "?" } else { &kind };

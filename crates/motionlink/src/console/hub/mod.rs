@@ -93,6 +93,8 @@ struct State {
     next_page: u64,
     motion: Option<Motion>,
     next_motion: u64,
+    /// The console is ending: no motion starts; the pages are told to go once the motion is stopped.
+    ending: bool,
 }
 
 /// The console's shared state: the device, who controls, the motion under way, the latest sample.
@@ -138,7 +140,7 @@ impl Hub {
             samples: watch::channel(None).0,
             notices: broadcast::channel(256).0,
             shutdown: watch::channel(false).0,
-            state: Mutex::new(State { controller: None, next_page: 1, motion: None, next_motion: 1 }),
+            state: Mutex::new(State { controller: None, next_page: 1, motion: None, next_motion: 1, ending: false }),
             started: Instant::now(),
             poller: Mutex::new(None),
         })
@@ -299,6 +301,9 @@ impl Hub {
         motion: DeviceMotion,
     ) -> Result<(), ErrorReport> {
         let mut st = lock(&self.state);
+        if st.ending {
+            return Err(ErrorReport::usage("the console is ending"));
+        }
         if st.controller != Some(page) {
             return Err(ErrorReport::usage("this page is read-only: another page controls the console"));
         }
@@ -455,11 +460,20 @@ impl Hub {
         }
     }
 
-    /// Ends the console: pages are told to go, the motion under way is stopped (and its stop awaited),
-    /// sampling ends, and whatever the session still has in motion is stopped. Returns what was stopped.
+    /// True once the console is ending ([`Hub::shutdown`]): requests other than Stop are refused.
+    pub fn ending(&self) -> bool {
+        lock(&self.state).ending
+    }
+
+    /// Ends the console: no motion starts any more, the motion under way is stopped (and its stop awaited:
+    /// the pages get its `motion` message, "the console is ending"), then the pages are told to go, sampling
+    /// ends, and whatever the session still has in motion is stopped. Returns what was stopped.
     pub async fn shutdown(self: &Arc<Self>) -> Result<String, ErrorReport> {
-        self.shutdown.send_replace(true);
-        let motion = lock(&self.state).motion.as_mut().map(|m| (m.cancel.take(), m.task.take()));
+        let motion = {
+            let mut st = lock(&self.state);
+            st.ending = true;
+            st.motion.as_mut().map(|m| (m.cancel.take(), m.task.take()))
+        };
         if let Some((cancel, task)) = motion {
             if let Some(c) = cancel {
                 let _ = c.send(StopReason::ConsoleEnding);
@@ -468,6 +482,7 @@ impl Hub {
                 let _ = t.await;
             }
         }
+        self.shutdown.send_replace(true);
         let poller = lock(&self.poller).take();
         if let Some(p) = poller {
             p.abort();
