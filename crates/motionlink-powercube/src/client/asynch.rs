@@ -266,7 +266,8 @@ impl AsyncModule<'_> {
         Ok(ModuleDetails::new(info, values))
     }
 
-    /// Reset.
+    /// Reset; refused while this session serves the module's watchdog, as
+    /// [`Module::reset`](crate::client::Module::reset).
     pub async fn reset(&self) -> Result<(), Error> {
         self.client.call(calls::action(self.address, Action::Reset)).await
     }

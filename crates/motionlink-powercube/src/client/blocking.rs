@@ -341,7 +341,8 @@ impl Module<'_> {
         Ok(ModuleDetails::new(info, values))
     }
 
-    /// Reset: clears the errors that can be cleared and STATE_HALTED.
+    /// Reset: clears the errors that can be cleared and STATE_HALTED. Refused ([`Error::NotSupported`],
+    /// nothing sent) while this session serves the module's watchdog (a guarded motion runs).
     pub fn reset(&self) -> Result<(), Error> {
         self.client.call(calls::action(self.address, Action::Reset))
     }

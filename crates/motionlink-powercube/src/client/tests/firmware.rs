@@ -204,6 +204,9 @@ fn a_reset_of_a_module_whose_watchdog_this_session_serves_is_refused() {
         let err = m.reset_and_release_watchdog().unwrap_err();
         assert!(matches!(err, Error::NotSupported(_)) && err.is_usage(), "{variants:?}: {err}");
         assert!(err.to_string().contains("module 1's watchdog is armed by this session"), "{err}");
+        // The plain Reset too.
+        let err = m.reset().unwrap_err();
+        assert!(err.to_string().contains("module 1's watchdog is armed by this session"), "{err}");
         assert_eq!(to_module_1(&sent_since(&rig, from)), vec![], "{variants:?}: nothing sent to it");
         rig.sleep(200);
         assert!(rig.device(|d| d.module(1).unwrap().watchdog_online()), "{variants:?}: still online, served");

@@ -4,7 +4,7 @@ use crate::error::Error;
 use crate::model::{AckKind, Address, Motion, Param, Position, Quantity, Ticks, Value};
 use crate::session::ctx::Ctx;
 use crate::session::{Op, Output};
-use crate::wire::Request;
+use crate::wire::{Action, Request};
 
 /// Runs `op` to its end.
 pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
@@ -73,6 +73,9 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
         Op::Kind(a) => Output::Kind(ctx.kind(a.get()).await?),
         Op::Info(a) => Output::Info(ctx.info(a.get()).await?),
         Op::Action(a, action) => {
+            if action == Action::Reset {
+                ctx.refuse_reset_while_served(a.get())?;
+            }
             ctx.raw_request(a.get(), Request::Action(action)).await?;
             Output::Done
         }

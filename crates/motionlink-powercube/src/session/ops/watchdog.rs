@@ -348,13 +348,10 @@ impl Ctx {
         Ok(())
     }
 
-    /// Reset, and the manual's first way to restart after a watchdog expiry (see
-    /// [`Op::ResetAndReleaseWatchdog`](crate::session::Op)). True if it switched the watchdog offline.
-    ///
-    /// Refused, before anything is sent, for a module whose watchdog this session serves: the manual does
-    /// not say what a Reset does to an online watchdog, and a module whose Reset switches it offline would
-    /// leave the motion it guards unguarded, and have it switched on again by the session's second life sign.
-    pub async fn reset_and_release_watchdog(&self, a: u8) -> Result<bool, Error> {
+    /// A Reset of module `a` (the plain one, or [`Ctx::reset_and_release_watchdog`]'s) is refused while this
+    /// session serves its watchdog: the manual does not say what a Reset does to an online watchdog, and on a
+    /// module whose Reset switches it offline the motion it guards would run unguarded.
+    pub(crate) fn refuse_reset_while_served(&self, a: u8) -> Result<(), Error> {
         if self.core().duty.online.contains(&a) {
             return Err(Error::NotSupported(format!(
                 "module {a}'s watchdog is armed by this session (for a guarded motion, or by enable_watchdog): a \
@@ -362,6 +359,17 @@ impl Ctx {
                  the watchdog is switched off again (the motion ended or stopped)"
             )));
         }
+        Ok(())
+    }
+
+    /// Reset, and the manual's first way to restart after a watchdog expiry (see
+    /// [`Op::ResetAndReleaseWatchdog`](crate::session::Op)). True if it switched the watchdog offline.
+    ///
+    /// Refused, before anything is sent, for a module whose watchdog this session serves: the manual does
+    /// not say what a Reset does to an online watchdog, and a module whose Reset switches it offline would
+    /// leave the motion it guards unguarded, and have it switched on again by the session's second life sign.
+    pub async fn reset_and_release_watchdog(&self, a: u8) -> Result<bool, Error> {
+        self.refuse_reset_while_served(a)?;
         let before = self.state(a).await?;
         self.action(a, Action::Reset).await?;
         if !before.contains(StateFlag::CommError) {
