@@ -78,14 +78,12 @@ impl TimedEvents {
         self.keep = true;
     }
 
-    /// True once [`TimedEvents::keep`] was called.
-    pub(crate) fn kept(&self) -> bool {
-        self.keep
-    }
-
-    /// The `events` the device produced at `t`.
-    pub(crate) fn add(&mut self, t: Timestamp, events: Vec<String>) {
-        for e in events {
+    /// Where events are kept, those the device produced at `t` (`take`: its `take_events`).
+    pub(crate) fn collect(&mut self, t: Timestamp, take: impl FnOnce() -> Vec<String>) {
+        if !self.keep {
+            return;
+        }
+        for e in take() {
             if self.list.len() == Self::MOST {
                 self.list.pop_front();
             }

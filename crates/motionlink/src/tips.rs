@@ -59,13 +59,15 @@ pub fn better_tips(mut error: clap::Error, command: &clap::Command, args: &[OsSt
 
 /// The word of `args` (before `--`) that clap split into the unknown short option `flag` (`-5` of `-5e`, `-i`
 /// of `-inf`), when that word is a negative number in a form clap does not take for one (`-5e`, `-1_0`,
-/// `-.5e`, `-inf`, `-NaN`): no option of motionlink is a dash and a digit, so the user meant a number.
+/// `-.5e`, `-inf`, `-NaN`): no option of motionlink is a dash and a digit, so the user meant a number. A
+/// word that is a number (`-5` where no value is taken) keeps clap's "unexpected argument".
 fn malformed_number(args: &[OsString], flag: &str) -> Option<String> {
     let is_number_like = |word: &str| {
-        word.strip_prefix('-').is_some_and(|rest| {
-            rest.starts_with(|c: char| c.is_ascii_digit() || c == '.')
-                || ["inf", "infinity", "nan"].iter().any(|n| rest.eq_ignore_ascii_case(n))
-        })
+        word.parse::<f64>().map_or(true, |v| !v.is_finite())
+            && word.strip_prefix('-').is_some_and(|rest| {
+                rest.starts_with(|c: char| c.is_ascii_digit() || c == '.')
+                    || ["inf", "infinity", "nan"].iter().any(|n| rest.eq_ignore_ascii_case(n))
+            })
     };
     let words = args.iter().skip(1).map(|a| a.to_string_lossy()).take_while(|a| a != "--");
     words.filter(|w| w.starts_with(flag) && is_number_like(w)).map(|w| w.into_owned()).next()
@@ -135,8 +137,12 @@ mod tests {
             assert!(text.contains(&format!("invalid value '{word}': not a number")), "{args:?}: {text}");
             assert!(!text.contains("unexpected argument"), "{text}");
         }
-        // An unknown option that is no number keeps clap's own message.
+        // An unknown option that is no number keeps clap's own message, and so does a number where no value
+        // is taken.
         let (kind, text) = message(&["motionlink", "powercube", "move", "1", "-x"]);
         assert_eq!(kind, ErrorKind::UnknownArgument, "{text}");
+        let (kind, text) = message(&["motionlink", "powercube", "info", "-5"]);
+        assert_ne!(kind, ErrorKind::InvalidValue, "{text}");
+        assert!(text.contains("unexpected argument '-5'") && !text.contains("not a number"), "{text}");
     }
 }

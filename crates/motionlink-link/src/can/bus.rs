@@ -183,16 +183,12 @@ impl<E: CanEmulator> BusState<E> {
                 if device.next_wakeup() == before && out.is_empty() {
                     self.device_last = t;
                     self.scratch = out;
-                    if self.events.kept() {
-                        self.events.add(t, device.take_events());
-                    }
+                    self.events.collect(t, || device.take_events());
                     break;
                 }
             }
             self.device_last = self.device_last.max(t);
-            if self.events.kept() {
-                self.events.add(t, device.take_events());
-            }
+            self.events.collect(t, || device.take_events());
             for f in out.drain(..) {
                 self.transmit(Sender::Device, t, f);
             }
@@ -204,9 +200,7 @@ impl<E: CanEmulator> BusState<E> {
         if now >= self.device_last {
             device.advance(now, &mut out);
             self.device_last = now;
-            if self.events.kept() {
-                self.events.add(now, device.take_events());
-            }
+            self.events.collect(now, || device.take_events());
         }
         for f in out.drain(..) {
             self.transmit(Sender::Device, now, f);

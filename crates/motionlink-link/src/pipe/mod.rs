@@ -394,10 +394,8 @@ struct EmulatorSide<E> {
 impl<E: Emulator> EmulatorSide<E> {
     /// The device's events of the step at `t`, where they are kept.
     fn events_at(&mut self, t: Timestamp) {
-        if self.events.kept() {
-            let events = self.device.take_events();
-            self.events.add(t, events);
-        }
+        let device = &mut self.device;
+        self.events.collect(t, || device.take_events());
     }
 
     /// Runs the device up to `now`: delivers arrived bytes at their own arrival times, fires its timers in
