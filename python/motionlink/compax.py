@@ -13,7 +13,16 @@ from ._args import items
 from ._base import AsyncClientBase, ClientBase, check_interval
 from ._ops import op
 from ._probe import Profile, ProbeReport, profile_setting, save_setting
-from .records import CompaxHome, CompaxMove, CompaxSample, DriveFound, DrivePosition, Parameter, StatusValue
+from .records import (
+    CompaxHome,
+    CompaxMove,
+    CompaxSample,
+    CompaxStop,
+    DriveFound,
+    DrivePosition,
+    Parameter,
+    StatusValue,
+)
 
 __all__ = ["Compax", "AsyncCompax"]
 
@@ -111,9 +120,12 @@ class _Operations:
         """Waits until the drive's positioning ended (S17); its position S1 then. Ctrl-C (or cancelling
         the awaiting task) stops the drive."""
 
-    @op(aio=True)
-    def stop(self, drive: Optional[int] = None) -> None:
-        """Stops the drive: OUTPUT O0=0 switches it off (``output(0, 1)`` switches it on again)."""
+    @op(CompaxStop, aio=True)
+    def stop(self, drive: Optional[int] = None) -> CompaxStop:
+        """Stops the drive as ``motionlink compax stop`` does: if S17 shows it moving (or cannot be read),
+        OUTPUT O0=0, the only stop there is, which switches it off (``output(0, 1)`` switches it on again);
+        a drive at rest is left as it is. Returns the stop, confirmed by S17, and S1 and O0 read after it
+        (:class:`CompaxStop`); raises if the drive did not confirm it."""
 
     @op()
     def output(self, number: int, state: int, drive: Optional[int] = None) -> None:

@@ -19,6 +19,7 @@ from .records import (
     PowerCubeHome,
     PowerCubeMove,
     PowerCubeSample,
+    PowerCubeStop,
 )
 
 __all__ = ["PowerCube", "AsyncPowerCube"]
@@ -97,9 +98,11 @@ class _Operations:
         """Waits until the module stands still; its state then. Ctrl-C halts it; cancelling the awaiting
         task halts it."""
 
-    @op(aio=True)
-    def stop(self, module: Optional[int] = None) -> None:
-        """Halts the module at once (it stays halted until :meth:`PowerCube.reset`)."""
+    @op(PowerCubeStop, aio=True)
+    def stop(self, module: Optional[int] = None) -> PowerCubeStop:
+        """Halts the module at once (it stays halted until :meth:`PowerCube.reset`), as ``motionlink
+        powercube stop`` does: confirmed by its state read back until it is at rest; returns that state
+        and where it stands (:class:`PowerCubeStop`), or raises if the module did not confirm it."""
 
     @op(ModuleInfo)
     def scan(self) -> List[ModuleInfo]:

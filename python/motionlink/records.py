@@ -32,6 +32,7 @@ __all__ = [
     "ModulePosition",
     "PowerCubeMove",
     "PowerCubeHome",
+    "PowerCubeStop",
     "PowerCubeSample",
     "ActuatorState",
     "ActuatorPosition",
@@ -48,6 +49,8 @@ __all__ = [
     "CompaxStarted",
     "CompaxMove",
     "CompaxHome",
+    "DriveStopped",
+    "CompaxStop",
     "CompaxSample",
 ]
 
@@ -188,6 +191,26 @@ class PowerCubeHome(_WithState):
     unit: str
     reached_rad: float
     reached_m: float
+
+
+class PowerCubeStop(_WithState):
+    """A halt confirmed by the module's state read back until it was at rest, as ``motionlink powercube
+    stop --json`` reports it (without ``holder``, which only the command knows): the state (``state``,
+    STATE_HALTED set) and where the module stands.
+
+    Attributes:
+        ok: True.
+        action: ``"halted"``.
+        unit: ``"rad"`` or ``"m"`` (an attribute; not in ``to_dict()``).
+        position_rad: The position read after the halt (rotary).
+        position_m: The position read after the halt (linear).
+    """
+
+    ok: bool
+    action: str
+    unit: str
+    position_rad: float
+    position_m: float
 
 
 class PowerCubeSample(_WithState):
@@ -484,6 +507,46 @@ class CompaxMove(Record):
 
 class CompaxHome(DrivePosition):
     """The end of homing (POSA HOME): S1 at rest (``position_units``)."""
+
+
+class DriveStopped(Record):
+    """How a stop ended for one drive.
+
+    Attributes:
+        drive: The drive.
+        outcome: ``"at_rest"`` (S17 showed it at rest: nothing was sent, it stays switched on),
+            ``"switched_off"`` (OUTPUT O0=0, confirmed by S17) or ``"not_confirmed"``.
+        reason: Why it was not confirmed (only then).
+    """
+
+    drive: int
+    outcome: str
+    reason: str
+
+
+class CompaxStop(Record):
+    """A stop confirmed by S17, as ``motionlink compax stop --json`` reports it (without ``action`` and
+    ``holder``, which only the command knows).
+
+    Attributes:
+        family: ``"compax"``.
+        drive: The drive.
+        drives: How the stop ended, per drive (:class:`DriveStopped`).
+        confirmed: True (an unconfirmed stop raises).
+        position_units: S1 read after the stop (``None`` if it could not be read; then
+            ``position_not_read`` says why).
+        o0: Output O0 from S16 read after the stop: 1 the drive is switched on, 0 off (``None`` if S16 could
+            not be read; then ``o0_not_read`` says why). ``output(0, 1)`` switches it on again.
+    """
+
+    family: str
+    drive: int
+    drives: List[DriveStopped]
+    confirmed: bool
+    position_units: Any
+    position_not_read: str
+    o0: Any
+    o0_not_read: str
 
 
 class CompaxSample(Record):

@@ -7,10 +7,10 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use motionlink_link::can::{CanBus, CanBusConfig, SlcanAdapter};
 use motionlink_link::clock::lock;
+use motionlink_link::clock::Timestamp;
 use motionlink_link::emulator::{serve_tcp_with, Emulator as EmulatorTrait, FirmwareVariant, ServeOptions, Server};
 use motionlink_link::link::{Connector, Link};
 use motionlink_link::pipe::{EmulatorHost, EmulatorLink, FaultControl, PipeConfig};
-use motionlink_link::clock::Timestamp;
 use motionlink_link::{LinkError, RealClock, SharedClock};
 use pyo3::prelude::*;
 
@@ -82,7 +82,6 @@ impl<E: EmulatorTrait + 'static> Hosted<E> {
             plugs.iter().for_each(FaultControl::disconnect);
         }
     }
-
 }
 
 /// An emulator in this process, as a client reaches it.

@@ -158,6 +158,7 @@ def compax_sync(port: Any, mode: int) -> None:
     run("watch", lambda: list(c.watch(interval_ms=20, count=3)))
     run("move_outside_limits", lambda: c.move_to(50.0, max_units=30.0, timeout_s=MOTION_TIMEOUT_S))
     run("stop", c.stop)
+    run("switch_off", lambda: c.output(0, 0))
     run("move_switched_off", lambda: c.move_to(10.0, timeout_s=MOTION_TIMEOUT_S))
     run("switch_on", lambda: c.output(0, 1))
     run("move_after_switch_on", lambda: c.move_to(10.0, timeout_s=MOTION_TIMEOUT_S))

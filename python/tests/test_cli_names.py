@@ -1,7 +1,7 @@
 """Python's results carry the command line's JSON names (naming.md, "Decisions of 2026-11-25"): for each
-family's info, get, set, move, status or scan, and watch, ``to_dict()`` has exactly the keys, nested the
-same way, that ``motionlink <family> --port sim --json ...`` prints (``family``, ``port`` and ``profile``
-aside).
+family's info, get, set, move, status or scan, watch and stop, ``to_dict()`` has exactly the keys, nested
+the same way, that ``motionlink <family> --port sim --json ...`` prints (``family``, ``port`` and
+``profile`` aside; of a stop, what only the command knows: ``holder``, and COMPAX's ``action``).
 
 The binary is the ``motionlink_bin`` fixture's (conftest.py): without it these tests are skipped, or fail
 when ``MOTIONLINK_REQUIRE_CLI=1``.
@@ -40,6 +40,11 @@ def shape(value: Any) -> Any:
     if isinstance(value, list) and value and isinstance(value[0], dict):
         return [shape(value[0])]
     return None
+
+
+def without(value: Any, *keys: str) -> Any:
+    """A command's JSON object without the keys only the command has (a stop's ``holder``)."""
+    return {k: v for k, v in value.items() if k not in keys}
 
 
 class Names:
@@ -101,6 +106,7 @@ def test_powercube_names(cli: Callable[..., List[Any]]) -> None:
         same_names("move_to", cube.move_to(0.3).to_dict(), cli(*pc, "move", "0.3")[0])
         sample = next(cube.watch(interval_ms=10, count=1))
         same_names("watch", sample.to_dict(), cli(*pc, "watch", "--count", "1")[0])
+        same_names("stop", cube.stop().to_dict(), without(cli(*pc, "stop")[0], "holder"))
     same_names.check()
 
 
@@ -125,6 +131,7 @@ def test_compax_names(cli: Callable[..., List[Any]]) -> None:
         same_names("move_to", drive.move_to(10.0).to_dict(), cli(*cx, "move", "--abs", "10")[0])
         sample = next(drive.watch(interval_ms=10, count=1))
         same_names("watch", sample.to_dict(), cli(*cx, "watch", "--count", "1")[0])
+        same_names("stop", drive.stop().to_dict(), without(cli(*cx, "stop")[0], "action", "holder"))
     same_names.check()
 
 

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from typing import List
+
 import pytest
 
 import motionlink
-from motionlink.records import CompaxHome, CompaxMove, CompaxSample, DriveFound, Parameter, StatusValue
+from motionlink.records import CompaxHome, CompaxMove, CompaxSample, CompaxStop, DriveFound, Parameter, StatusValue
 
 
 def test_scan_finds_both_drives(compax: motionlink.Compax) -> None:
@@ -50,7 +52,7 @@ def test_move_home_wait_watch_stop(compax: motionlink.Compax, compax_emulator: m
     sample = next(compax.watch(interval_ms=10, count=1))
     assert isinstance(sample, CompaxSample) and sample.moving is False and sample.t_s >= 0
     assert sample.s17.pattern == "0000 0010" and "COMMAND_ACTIVE" not in sample.s17.flags
-    compax.stop()
+    compax.output(0, 0)
     texts = [e.text for e in compax_emulator.take_events()]
     assert "drive 1 switched off (O0=0)" in texts, texts
     with pytest.raises(motionlink.DeviceError, match="switched off"):
@@ -83,16 +85,41 @@ def test_sim_url() -> None:
         assert c.scan()[0].drive == 1
 
 
-def test_stop_and_output_return_none(compax: motionlink.Compax) -> None:
-    """As their stubs say (`-> None`), and as the SCU's `stop(1)` does: not an empty tuple."""
-    assert compax.stop() is None
+def test_stop_is_the_command_lines_stop(compax: motionlink.Compax, compax_emulator: motionlink.Emulator) -> None:
+    """`stop()` does what `motionlink compax stop` does and returns its record: a drive at rest is left
+    switched on (nothing is sent but S17, S1 and S16); a drive that moves (here under another thread's move)
+    gets OUTPUT O0=0, confirmed by S17, and the record says where it stands and that it is switched off.
+    `output` returns None (as its stub says: not an empty tuple)."""
+    import threading
+
+    rest = compax.stop()
+    assert isinstance(rest, CompaxStop) and (rest.drive, rest.confirmed, rest.o0) == (1, True, 1), rest
+    assert [(d.drive, d.outcome) for d in rest.drives] == [(1, "at_rest")] and rest.position_units == 0.0
+    assert "o0_not_read" not in rest and "action" not in rest.to_dict()
+    compax_emulator.take_events()
+    failed: List[Exception] = []
+
+    def far() -> None:
+        try:
+            compax.move_to(100000.0, speed_percent=1)
+        except motionlink.MotionlinkError as e:
+            failed.append(e)
+
+    mover = threading.Thread(target=far)
+    mover.start()
+    compax_emulator.wait_event(lambda t: "motion started" in t)
+    stopped = compax.stop()
+    mover.join(30)
+    assert [(d.drive, d.outcome) for d in stopped.drives] == [(1, "switched_off")] and stopped.o0 == 0, stopped
+    assert 0 < stopped.position_units < 100000.0, stopped
+    assert failed and not mover.is_alive(), "the move under way ended in an error"
     assert compax.output(0, 1) is None
-    assert compax.stop(drive=2) is None
+    assert compax.stop(drive=2).drive == 2
 
     async def main() -> None:
         with motionlink.Emulator("compax") as emu:
             async with motionlink.AsyncCompax(emu) as drive:
-                assert await drive.stop() is None
+                assert (await drive.stop()).drives[0].outcome == "at_rest"
 
     import asyncio
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 import motionlink
-from motionlink.records import ModuleInfo, ModulePosition, ModuleState, Parameter, PowerCubeHome, PowerCubeMove
+from motionlink.records import ModuleInfo, ModulePosition, ModuleState, Parameter, PowerCubeHome, PowerCubeMove, PowerCubeStop
 
 
 def test_info_names_the_kind_and_its_units(cube: motionlink.PowerCube) -> None:
@@ -175,15 +175,19 @@ def test_results_compare_and_are_read_only(cube: motionlink.PowerCube) -> None:
         a.unit = "m"  # type: ignore[misc]
 
 
-def test_stop_returns_none(cube: motionlink.PowerCube) -> None:
-    """As the stub says (`-> None`), and as the SCU's `stop(1)` does: not an empty tuple."""
-    assert cube.stop() is None
+def test_stop_is_confirmed_and_reported(cube: motionlink.PowerCube) -> None:
+    """`stop()` is `motionlink powercube stop`: the halt, confirmed by the state read back, and where the
+    module stands (a record without the command's `holder`)."""
+    halted = cube.stop()
+    assert isinstance(halted, PowerCubeStop) and (halted.module, halted.action, halted.ok) == (1, "halted", True)
+    assert "STATE_HALTED" in halted.state.flags and halted.unit == "rad" and math.isfinite(halted.position_rad)
+    assert "holder" not in halted.to_dict() and "unit" not in halted.to_dict()
     assert cube.reset() is False
 
     async def main() -> None:
         with motionlink.Emulator("powercube") as emu:
             async with motionlink.AsyncPowerCube(emu) as c:
-                assert await c.stop() is None
+                assert "STATE_HALTED" in (await c.stop()).state.flags
 
     asyncio.run(main())
 

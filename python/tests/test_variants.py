@@ -432,7 +432,10 @@ def check_compax(case: Case, o: Outcome) -> None:
         says_what_it_could_not_verify(moved, reasons, f"{case.id} {op}")
         at = target
     raised(o, "move_outside_limits", motionlink.UsageError, "target 50 is outside the travel limits", "maximum 30")
-    succeeded(o, "stop")
+    # At rest: `stop` (as `compax stop`) sends nothing but its reads and leaves the drive switched on.
+    stopped = succeeded(o, "stop", "CompaxStop")
+    assert stopped["confirmed"] and [d["outcome"] for d in stopped["drives"]] == ["at_rest"], stopped
+    assert stopped["position_units"] == at, stopped
     succeeded(o, "close")
     if case.client == "async":
         assert succeeded(o, "position", "DrivePosition")["position_units"] == 0.0
@@ -448,6 +451,8 @@ def check_compax(case: Case, o: Outcome) -> None:
     says_what_it_could_not_verify(written, [], f"{case.id} set")
     samples = succeeded(o, "watch", "CompaxSample")
     assert len(samples) == 3 and all((s["position_units"], s["moving"]) == (at, False) for s in samples), samples
+    assert stopped["o0"] == 1, stopped
+    succeeded(o, "switch_off")
     raised(o, "move_switched_off", motionlink.DeviceError, "drive 1 is switched off (O0=0", "OUTPUT O0=1")
     succeeded(o, "switch_on")
     if reasons is None:

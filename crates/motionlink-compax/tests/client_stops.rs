@@ -555,6 +555,32 @@ fn a_synchronous_start_is_refused_while_a_drive_outside_it_holds_a_buffered_move
 }
 
 #[test]
+fn stop_confirmed_is_the_command_s_stop_with_where_the_axis_stands_and_whether_it_is_on() {
+    let (r, bus) = rig(&[1, 5], 0, 9600);
+    let _me = r.clock.reserve_participant().enter();
+    // At rest: S17 read, nothing switched off; S1 and S16 read after it.
+    let rest = bus.stop_confirmed(a(1)).unwrap();
+    assert_eq!(rest.report.drives, [(a(1), StopOutcome::AtRest)]);
+    assert_eq!((rest.position_units, rest.o0), (Some(pos(0.0)), Some(1)));
+    assert!(!sent(&r.transcript).iter().any(|f| f.starts_with(b"1OUTPUT")));
+    // Moving: OUTPUT O0=0, confirmed by S17; where it came to rest, and that it is switched off.
+    bus.move_absolute(a(5), pos(1000.0), MoveOptions::default()).unwrap();
+    r.clock.sleep(Duration::from_millis(300));
+    let stop = bus.stop_confirmed(a(5)).unwrap();
+    assert_eq!(stop.report.drives, [(a(5), StopOutcome::SwitchedOff)]);
+    let at = stop.position_units.unwrap().units();
+    assert!(at > 0.0 && at < 1000.0, "{stop:?}");
+    assert_eq!(stop.o0, Some(0));
+    assert!(stop.position_not_read.is_none() && stop.o0_not_read.is_none());
+    let json = serde_json::to_value(motionlink_compax::report::StopResult::new(None::<()>, stop)).unwrap();
+    assert_eq!(
+        (json["action"].as_str(), json["o0"].as_u64(), json["confirmed"].as_bool()),
+        (Some("stop"), Some(0), Some(true))
+    );
+    assert!(bus.started().is_empty());
+}
+
+#[test]
 fn stop_started_switches_off_only_the_axes_that_still_move() {
     let (r, bus) = rig(&[1, 5], 0, 9600);
     let _me = r.clock.reserve_participant().enter();

@@ -13,7 +13,7 @@ use motionlink_compax::model::{
     BaudRate, ModelError, OutputNumber, OutputState, ParamId, PollInterval, Position, RampMs, ReplyTimeout,
     SpeedPercent, StatusId, TimeLimit, Tolerance, WatchInterval, WholeArg,
 };
-use motionlink_compax::report::{DrivePosition, ParamReading, StatusReading};
+use motionlink_compax::report::{DrivePosition, DriveStop, ParamReading, StatusReading};
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_compax::{AsyncClient, Client, Error};
 use motionlink_link::cancel::CancelToken;
@@ -145,6 +145,15 @@ fn move_request(
 fn move_record<'py>(py: Python<'py>, report: &MoveReport) -> PyResult<Record<'py>> {
     let rec = record(py, report)?;
     rec.set("start_units", report.start.units())?.extras(&["start_units"])?;
+    Ok(rec)
+}
+
+/// A confirmed stop as the CLI's `compax stop --json` prints it, but `action` and `holder` (the command
+/// line's own).
+fn stop_record<'py>(py: Python<'py>, drive: Address, stop: &DriveStop) -> PyResult<Record<'py>> {
+    let rec = Record::new(py);
+    rec.set("family", FAMILY)?.set("drive", drive.get())?;
+    rec.0.update(record(py, stop)?.0.as_mapping())?;
     Ok(rec)
 }
 
@@ -435,10 +444,11 @@ faces! {
         }
     } => |py, p| position_record(py, a, p);
 
-    /// Stops the drive: OUTPUT O0=0 (switches it off; switch it on with `output(0, 1)`).
+    /// Stops the drive as `motionlink compax stop` does: OUTPUT O0=0 if S17 shows it moves (switching it
+    /// off), confirmed by S17; then S1 and S16 read (where it stands, whether it is switched on).
     quick stop(me, py, drive: Option<Int>) {
         let a = me.drive(py, drive)?;
-    } |c| { w!(c.stop(a)) } => |py, ()| Ok(py.None());
+    } |c| { w!(c.stop_confirmed(a)) } => |py, s| stop_record(py, a, &s);
 }
 
 /// The in-position tolerance the library uses unless told otherwise.

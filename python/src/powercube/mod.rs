@@ -13,7 +13,9 @@ use motionlink_powercube::args::{
     Baud, CanBitRate, MotionTimeout, MoveAcceleration, MoveVelocity, PollInterval, ReplyTimeout, Target as MoveTarget,
     Tolerance,
 };
-use motionlink_powercube::client::{Client, Config, Guard, HomeReport, ModulesAt, MoveReport, MoveSpec, PortLink};
+use motionlink_powercube::client::{
+    Client, Config, Guard, HaltReport, HomeReport, ModulesAt, MoveReport, MoveSpec, PortLink,
+};
 use motionlink_powercube::model::{Address, AxisUnit, CubeState, ModuleKind, Param, Position, Value};
 use motionlink_powercube::report::{ParamReading, SetReport};
 use motionlink_powercube::{AsyncClient, Error};
@@ -445,8 +447,9 @@ faces! {
         }
     } => |py, s| state_record(py, a, s);
 
-    /// Halts the module at once (it stays halted until a reset).
+    /// Halts the module at once (it stays halted until a reset), confirmed by its state read back until it
+    /// is at rest; the state and where it stands then, as `motionlink powercube stop --json` prints them.
     quick stop(me, py, module: Option<Int>) {
         let a = me.address(py, module)?;
-    } |c| { w!(c.module(Address::new(a)?).halt()) } => |py, ()| Ok(py.None());
+    } |c| { w!(c.module(Address::new(a)?).halt_confirmed()) } => |py, h| halt_record(py, a, &h);
 }

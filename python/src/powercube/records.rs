@@ -64,6 +64,12 @@ pub(super) fn move_record<'py>(py: Python<'py>, module: u8, m: &MoveReport) -> P
     record(py, module, &Acted::reached(m), Some(m.kind), &[(&start, f32_py(m.start.value()))])
 }
 
+/// A confirmed halt as the CLI's `powercube stop --json` prints it, but `holder` (the command line's own).
+pub(super) fn halt_record<'py>(py: Python<'py>, module: u8, h: &HaltReport) -> PyResult<Record<'py>> {
+    let halted = Acted { holder: None::<Option<()>>, ..Acted::halted(h, None::<()>) };
+    record(py, module, &halted, Some(h.kind), &[])
+}
+
 /// The end of homing as the CLI's `powercube home --json` prints it.
 pub(super) fn home_record<'py>(py: Python<'py>, module: u8, h: &HomeReport) -> PyResult<Record<'py>> {
     record(py, module, &Acted::homed(h), Some(h.kind), &[])

@@ -16,7 +16,7 @@ use crate::error::{Error, Result, StopReport};
 use crate::model::{
     Command, OutputState, ParamId, Position, RampMs, S16Bits, S17Bits, SpeedPercent, StatusId, StatusValue,
 };
-use crate::report::{ParamReading, ParamWritten};
+use crate::report::{DriveStop, ParamReading, ParamWritten};
 use crate::session::core::Effect;
 use crate::session::{
     AfterRaw, Config, MoveOptions, MoveReport, MoveRequest, Op, Output, Progress, RawOutcome, Session, StartedMove,
@@ -476,6 +476,16 @@ impl Client {
             Output::Stopped(r) => Ok(r),
             o => Err(o),
         })
+    }
+
+    /// `motionlink compax stop` of one drive: [`Client::stop_if_moving`] (`OUTPUT O0=0` if S17 shows it
+    /// moves or cannot be read), an error unless the stop is confirmed by S17; then S1 and S16 are read, so
+    /// that the report says where the axis stands and whether the drive is still switched on (what could
+    /// not be read is said in the report).
+    pub fn stop_confirmed(&self, address: Address) -> Result<DriveStop> {
+        let report = self.stop_if_moving(&[address])?.confirmed()?;
+        let position = self.read_position(address);
+        Ok(DriveStop::new(report, position, self.read_s16(address).map(|s| s.o0_state())))
     }
 
     /// Stops what this client set in motion that still moves (as [`Client::stop_started`]), ends the

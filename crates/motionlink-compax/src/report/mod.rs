@@ -14,14 +14,16 @@
 //! - [`RawOutcome`]: `{"reply", "waited"}`; [`OutputSwitched`]: `{"output", "state"}`.
 //! - [`WatchSample`]: `{"drive", "position_units", "s17", "moving"}`, and [`Timed`] puts `t_s` before it.
 //! - [`ErrorHistory`]: S18 decoded, `{"errors": [{"code", "text", "meaning"}]}`.
-//! - [`StopReport`](crate::error::StopReport): `{"drives": [{"drive", "outcome", "reason"?}], "confirmed"}`.
+//! - [`StopReport`](crate::error::StopReport): `{"drives": [{"drive", "outcome", "reason"?}], "confirmed"}`;
+//!   [`DriveStop`] adds `position_units`, `o0` (and why either could not be read), [`StopResult`] `action`
+//!   and `holder`.
 
 use serde::ser::{Serialize, SerializeMap, Serializer};
 
 mod history;
 mod stopped;
 pub use history::ErrorHistory;
-pub use stopped::StopResult;
+pub use stopped::{DriveStop, StopResult};
 
 use crate::model::{OutputState, ParamId, Position, S16Bits, S17Bits, StatusId, StatusValue, ValidFrom};
 use crate::session::{MoveReport, RawOutcome, StartedMove, WatchSample};

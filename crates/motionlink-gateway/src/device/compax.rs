@@ -107,10 +107,8 @@ impl Compax {
             "stop" => {
                 args.finish()?;
                 Ok(Action::Stop(Box::pin(async move {
-                    let report = client.stop_if_moving(&[drive]).await.and_then(|r| r.confirmed()).map_err(failed)?;
-                    let position = client.read_position(drive).await;
-                    let o0 = client.read_s16(drive).await.map(|s| s.o0_state());
-                    me.result(&StopResult::new(None::<String>, report, position, o0))
+                    let stop = client.stop_confirmed(drive).await.map_err(failed)?;
+                    me.result(&StopResult::new(None::<String>, stop))
                 })))
             }
             "status" => {

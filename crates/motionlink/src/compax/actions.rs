@@ -223,23 +223,30 @@ pub(super) fn stop(
 ) -> Result<(), CliError> {
     args.out().holder(out, stopped)?;
     let drive = args.drive;
-    // Not confirmed: the error says so (with how to switch on a drive it switched off), exit 3.
-    let report = bus.stop_if_moving(&[drive]).and_then(|r| r.confirmed()).map_err(|e| error_for(args, e))?;
-    // The stop is confirmed by S17; then where the axis stands (S1) and whether the drive is switched on
-    // (S16: this stop, or an earlier one, may have switched it off). What cannot be read is said.
-    let position = bus.read_position(drive);
-    let o0 = bus.read_s16(drive).map(|s| s.o0_state());
+    // Not confirmed: the error says so (with how to switch on a drive it switched off), exit 3. Confirmed
+    // by S17; then where the axis stands (S1) and whether the drive is switched on (S16: this stop, or an
+    // earlier one, may have switched it off). What cannot be read is said.
+    let stop = bus.stop_confirmed(drive).map_err(|e| error_for(args, e))?;
     if crate::term::json() {
-        return args.out().print(out, StopResult::new(stopped, report, position, o0));
+        return args.out().print(out, StopResult::new(stopped, stop));
     }
-    match &position {
-        Ok(p) => writeln!(out, "{report}; at rest at {p} {UNITS} (S17 and S1 read back)")?,
-        Err(e) => writeln!(out, "{report}; at rest (S17 read back), but the position could not be read: {e}")?,
+    let report = &stop.report;
+    match (&stop.position_units, &stop.position_not_read) {
+        (Some(p), _) => writeln!(out, "{report}; at rest at {p} {UNITS} (S17 and S1 read back)")?,
+        (None, why) => writeln!(
+            out,
+            "{report}; at rest (S17 read back), but the position could not be read: {}",
+            why.as_deref().unwrap_or("no reply")
+        )?,
     }
-    match o0 {
-        Ok(1) => {}
-        Ok(_) => writeln!(out, "{}", switch_on_hint(args, drive.get()))?,
-        Err(e) => writeln!(out, "whether drive {drive} is switched on could not be read (S16): {e}")?,
+    match (stop.o0, &stop.o0_not_read) {
+        (Some(1), _) => {}
+        (Some(_), _) => writeln!(out, "{}", switch_on_hint(args, drive.get()))?,
+        (None, why) => writeln!(
+            out,
+            "whether drive {drive} is switched on could not be read (S16): {}",
+            why.as_deref().unwrap_or("no reply")
+        )?,
     }
     Ok(())
 }

@@ -292,10 +292,7 @@ impl Device for Compax {
         Box::pin(async move {
             // As `motionlink compax stop`: OUTPUT O0=0 if S17 says it moves, confirmed by S17; then S1 and S16.
             let a = address(unit)?;
-            let stopped = self.client.stop_if_moving(&[a]).await?.confirmed()?;
-            let position = self.client.read_position(a).await;
-            let o0 = self.client.read_s16(a).await.map(|s| s.o0_state());
-            Ok(report(&StopResult::new(None::<()>, stopped, position, o0)))
+            Ok(report(&StopResult::new(None::<()>, self.client.stop_confirmed(a).await?)))
         })
     }
 

@@ -17,7 +17,7 @@ use crate::error::{Error, Result, StopReport};
 use crate::model::{
     Command, OutputState, ParamId, Position, RampMs, S16Bits, S17Bits, SpeedPercent, StatusId, StatusValue,
 };
-use crate::report::{ParamReading, ParamWritten};
+use crate::report::{DriveStop, ParamReading, ParamWritten};
 use crate::session::{
     AfterRaw, Config, MoveOptions, MoveReport, MoveRequest, Op, Output, RawOutcome, Session, StartedMove,
 };
@@ -363,6 +363,14 @@ impl AsyncClient {
             Output::Stopped(r) => Ok(r),
             o => Err(o),
         })
+    }
+
+    /// One drive's stop, confirmed, and S1 and S16 read after it, as
+    /// [`Client::stop_confirmed`](super::Client::stop_confirmed).
+    pub async fn stop_confirmed(&self, address: Address) -> Result<DriveStop> {
+        let report = self.stop_if_moving(&[address]).await?.confirmed()?;
+        let position = self.read_position(address).await;
+        Ok(DriveStop::new(report, position, self.read_s16(address).await.map(|s| s.o0_state())))
     }
 
     /// Stops every drive this client set in motion that still moves, confirmed by S17.
