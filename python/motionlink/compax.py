@@ -16,6 +16,7 @@ from ._probe import Profile, ProbeReport, profile_setting, save_setting
 from .records import (
     CompaxHome,
     CompaxMove,
+    CompaxOutput,
     CompaxSample,
     CompaxStop,
     DriveFound,
@@ -127,9 +128,11 @@ class _Operations:
         a drive at rest is left as it is. Returns the stop, confirmed by S17, and S1 and O0 read after it
         (:class:`CompaxStop`); raises if the drive did not confirm it."""
 
-    @op()
-    def output(self, number: int, state: int, drive: Optional[int] = None) -> None:
-        """Sets output ``number`` to ``state`` (OUTPUT Ox=y)."""
+    @op(CompaxOutput)
+    def output(self, number: int, state: int, drive: Optional[int] = None) -> CompaxOutput:
+        """Sets output ``number`` to ``state`` (OUTPUT Ox=y), as ``motionlink compax output`` does: O0 (the
+        drive switched on or off) is read back from S16 (another state raises :class:`DeviceError`); another
+        output is not read back, and the record says so (``verified`` False)."""
 
 
 class Compax(_Operations, ClientBase):

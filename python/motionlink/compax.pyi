@@ -9,6 +9,7 @@ from ._probe import Profile, ProbeReport, profile_setting, save_setting
 from .records import (
     CompaxHome,
     CompaxMove,
+    CompaxOutput,
     CompaxSample,
     CompaxStop,
     DriveFound,
@@ -38,7 +39,7 @@ class Compax(ClientBase):
     def home(self, drive: Optional[int] = ..., *, timeout_s: float = ...) -> CompaxHome: ...
     def wait(self, drive: Optional[int] = ..., *, timeout_s: float = ...) -> DrivePosition: ...
     def stop(self, drive: Optional[int] = ...) -> CompaxStop: ...
-    def output(self, number: int, state: int, drive: Optional[int] = ...) -> None: ...
+    def output(self, number: int, state: int, drive: Optional[int] = ...) -> CompaxOutput: ...
 
 
 class AsyncCompax(AsyncClientBase):

@@ -51,6 +51,7 @@ __all__ = [
     "CompaxHome",
     "DriveStopped",
     "CompaxStop",
+    "CompaxOutput",
     "CompaxSample",
 ]
 
@@ -547,6 +548,29 @@ class CompaxStop(Record):
     position_not_read: str
     o0: Any
     o0_not_read: str
+
+
+class CompaxOutput(Record):
+    """An output switched (OUTPUT Ox=y), as ``motionlink compax output --json`` reports it.
+
+    Attributes:
+        family: ``"compax"``.
+        drive: The drive.
+        output: The output's number (0: the drive itself, switched off, on, or 2).
+        state: The state sent.
+        read_back: O0 as S16 showed it afterwards (``None`` for another output, which is not read back, or
+            when S16 could not be read). O0 read back as another state raises :class:`DeviceError`.
+        verified: True when the state was read back and is the one sent.
+        not_verifiable: Why it was not read back (empty when ``verified``).
+    """
+
+    family: str
+    drive: int
+    output: int
+    state: int
+    read_back: Any
+    verified: bool
+    not_verifiable: List[str]
 
 
 class CompaxSample(Record):

@@ -1,7 +1,8 @@
 """Python's results carry the command line's JSON names (naming.md, "Decisions of 2026-11-25"): for each
-family's info, get, set, move, status or scan, watch and stop, ``to_dict()`` has exactly the keys, nested
-the same way, that ``motionlink <family> --port sim --json ...`` prints (``family``, ``port`` and
-``profile`` aside; of a stop, what only the command knows: ``holder``, and COMPAX's ``action``).
+family's info, get, set, move, status or scan, watch and stop (and COMPAX's output), ``to_dict()`` has
+exactly the keys, nested the same way, that ``motionlink <family> --port sim --json ...`` prints
+(``family``, ``port`` and ``profile`` aside; of a stop, what only the command knows: ``holder``, and
+COMPAX's ``action``).
 
 The binary is the ``motionlink_bin`` fixture's (conftest.py): without it these tests are skipped, or fail
 when ``MOTIONLINK_REQUIRE_CLI=1``.
@@ -132,6 +133,7 @@ def test_compax_names(cli: Callable[..., List[Any]]) -> None:
         sample = next(drive.watch(interval_ms=10, count=1))
         same_names("watch", sample.to_dict(), cli(*cx, "watch", "--count", "1")[0])
         same_names("stop", drive.stop().to_dict(), without(cli(*cx, "stop")[0], "action", "holder"))
+        same_names("output", drive.output(3, 1).to_dict(), cli(*cx, "output", "3", "1")[0])
     same_names.check()
 
 

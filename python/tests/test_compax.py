@@ -7,7 +7,16 @@ from typing import List
 import pytest
 
 import motionlink
-from motionlink.records import CompaxHome, CompaxMove, CompaxSample, CompaxStop, DriveFound, Parameter, StatusValue
+from motionlink.records import (
+    CompaxHome,
+    CompaxMove,
+    CompaxOutput,
+    CompaxSample,
+    CompaxStop,
+    DriveFound,
+    Parameter,
+    StatusValue,
+)
 
 
 def test_scan_finds_both_drives(compax: motionlink.Compax) -> None:
@@ -89,7 +98,7 @@ def test_stop_is_the_command_lines_stop(compax: motionlink.Compax, compax_emulat
     """`stop()` does what `motionlink compax stop` does and returns its record: a drive at rest is left
     switched on (nothing is sent but S17, S1 and S16); a drive that moves (here under another thread's move)
     gets OUTPUT O0=0, confirmed by S17, and the record says where it stands and that it is switched off.
-    `output` returns None (as its stub says: not an empty tuple)."""
+    `output` reads O0 back from S16 (another output is not read back: said so)."""
     import threading
 
     rest = compax.stop()
@@ -113,7 +122,11 @@ def test_stop_is_the_command_lines_stop(compax: motionlink.Compax, compax_emulat
     assert [(d.drive, d.outcome) for d in stopped.drives] == [(1, "switched_off")] and stopped.o0 == 0, stopped
     assert 0 < stopped.position_units < 100000.0, stopped
     assert failed and not mover.is_alive(), "the move under way ended in an error"
-    assert compax.output(0, 1) is None
+    on = compax.output(0, 1)
+    assert isinstance(on, CompaxOutput) and (on.drive, on.output, on.state, on.read_back) == (1, 0, 1, 1)
+    assert on.verified and on.not_verifiable == []
+    other = compax.output(3, 1)
+    assert (other.read_back, other.verified) == (None, False) and "O0 only" in other.not_verifiable[0], other
     assert compax.stop(drive=2).drive == 2
 
     async def main() -> None:

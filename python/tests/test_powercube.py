@@ -10,7 +10,15 @@ from pathlib import Path
 import pytest
 
 import motionlink
-from motionlink.records import ModuleInfo, ModulePosition, ModuleState, Parameter, PowerCubeHome, PowerCubeMove, PowerCubeStop
+from motionlink.records import (
+    ModuleInfo,
+    ModulePosition,
+    ModuleState,
+    Parameter,
+    PowerCubeHome,
+    PowerCubeMove,
+    PowerCubeStop,
+)
 
 
 def test_info_names_the_kind_and_its_units(cube: motionlink.PowerCube) -> None:

@@ -177,6 +177,20 @@ pub enum Error {
         /// The drive's answer to the move, when the move was sent.
         refused: Option<ErrorCode>,
     },
+    /// An `OUTPUT O0=s` the drive acknowledged, but S16 read afterwards shows O0 in another state: the drive
+    /// did not take it (or a corrupted telegram switched something else).
+    #[error(
+        "drive {address} acknowledged OUTPUT O0={wrote} but S16 read afterwards shows O0={read}: the drive did not \
+         take it"
+    )]
+    OutputNotTaken {
+        /// The drive.
+        address: Address,
+        /// The state sent.
+        wrote: u8,
+        /// The state S16 shows.
+        read: u8,
+    },
     /// A checked move was not sent: S17 shows the drive still executing a command (a positioning that runs,
     /// someone else's or one handed over), and the drive takes no move until it has ended (it would refuse
     /// one with E92). Nothing was sent to move; no device error code was reported.
@@ -354,6 +368,7 @@ impl Classify for Error {
             | Error::SwitchedOff { .. }
             | Error::StillMoving { .. }
             | Error::ReadBack { .. }
+            | Error::OutputNotTaken { .. }
             | Error::Rounded { .. } => ErrorClass::Device,
             // What the session started may still move: the line's failure, as in every family.
             Error::Timeout { .. }

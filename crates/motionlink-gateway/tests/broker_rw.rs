@@ -104,7 +104,10 @@ async fn reads_and_writes_answer_with_the_cli_s_json() {
     let r = ask(&mut c, "rw", "axis", "g4", "get", json!({"param": "P196"})).await;
     assert_eq!(result(&r, "compax")["value"], 8.0, "{r}");
     let r = ask(&mut c, "rw", "axis", "o1", "output", json!({"number": 0, "state": 1})).await;
-    assert_eq!(result(&r, "compax"), json!({"output": 0, "state": 1}));
+    assert_eq!(
+        result(&r, "compax"),
+        json!({"output": 0, "state": 1, "read_back": 1, "verified": true, "not_verifiable": []})
+    );
     // A read the drive refuses: its Exx number as data, as the command line's `--json` error gives it.
     let r = ask(&mut c, "rw", "axis", "g5", "get", json!({"param": "P13"})).await;
     let e = &r["error"];

@@ -13,7 +13,7 @@ use motionlink_compax::model::{
     BaudRate, ModelError, OutputNumber, OutputState, ParamId, PollInterval, Position, RampMs, ReplyTimeout,
     SpeedPercent, StatusId, TimeLimit, Tolerance, WatchInterval, WholeArg,
 };
-use motionlink_compax::report::{DrivePosition, DriveStop, ParamReading, StatusReading};
+use motionlink_compax::report::{DrivePosition, ParamReading, StatusReading};
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_compax::{AsyncClient, Client, Error};
 use motionlink_link::cancel::CancelToken;
@@ -148,12 +148,13 @@ fn move_record<'py>(py: Python<'py>, report: &MoveReport) -> PyResult<Record<'py
     Ok(rec)
 }
 
-/// A confirmed stop as the CLI's `compax stop --json` prints it, but `action` and `holder` (the command
-/// line's own).
-fn stop_record<'py>(py: Python<'py>, drive: Address, stop: &DriveStop) -> PyResult<Record<'py>> {
+/// The record of a report about `drive` that does not name it, as the CLI prints it (`family`, `drive`, then
+/// the report's keys): a confirmed stop (`compax stop --json` but `action` and `holder`, the command line's
+/// own), an output switched.
+fn drive_record<'py, T: serde::Serialize>(py: Python<'py>, drive: Address, report: &T) -> PyResult<Record<'py>> {
     let rec = Record::new(py);
     rec.set("family", FAMILY)?.set("drive", drive.get())?;
-    rec.0.update(record(py, stop)?.0.as_mapping())?;
+    rec.0.update(record(py, report)?.0.as_mapping())?;
     Ok(rec)
 }
 
@@ -385,7 +386,7 @@ faces! {
             .map_err(|f| to_pyerr(py, f))?;
     } |c| { c.set_param(a, id, value) } => |py, written| param_record(py, a, id, &written);
 
-    /// Sets output `number` to `state` (OUTPUT Ox=y).
+    /// Sets output `number` to `state` (OUTPUT Ox=y); O0 is read back from S16 (another state raises).
     blocking quick output(me, py, number: Int, state: Int, drive: Option<Int>) {
         let a = me.drive(py, drive)?;
         let output = |number, state| -> Result<_, Failure> {
@@ -394,7 +395,7 @@ faces! {
             Ok((number, checked(state.for_output(number))?))
         };
         let (number, state) = output(&number, &state).map_err(|f| to_pyerr(py, f))?;
-    } |c| { c.set_output(a, number.get(), state, false) } => |py, ()| Ok(py.None());
+    } |c| { c.switch_output(a, number.get(), state) } => |py, o| drive_record(py, a, &o);
 
     /// The actual position S1, in the drive's unit.
     quick position(me, py, drive: Option<Int>) {
@@ -448,7 +449,7 @@ faces! {
     /// off), confirmed by S17; then S1 and S16 read (where it stands, whether it is switched on).
     quick stop(me, py, drive: Option<Int>) {
         let a = me.drive(py, drive)?;
-    } |c| { w!(c.stop_confirmed(a)) } => |py, s| stop_record(py, a, &s);
+    } |c| { w!(c.stop_confirmed(a)) } => |py, s| drive_record(py, a, &s);
 }
 
 /// The in-position tolerance the library uses unless told otherwise.

@@ -16,7 +16,7 @@ use crate::error::{Error, Result, StopReport};
 use crate::model::{
     Command, OutputState, ParamId, Position, RampMs, S16Bits, S17Bits, SpeedPercent, StatusId, StatusValue,
 };
-use crate::report::{DriveStop, ParamReading, ParamWritten};
+use crate::report::{DriveStop, OutputSwitched, ParamReading, ParamWritten};
 use crate::session::core::Effect;
 use crate::session::{
     AfterRaw, Config, MoveOptions, MoveReport, MoveRequest, Op, Output, Progress, RawOutcome, Session, StartedMove,
@@ -325,6 +325,20 @@ impl Client {
     /// drive's output (and `O0=0` switches every drive off: the client forgets every axis it moved).
     pub fn set_output(&self, address: Address, output: u16, state: OutputState, binary: bool) -> Result<()> {
         self.done(Op::Setting(address, Command::Output { output, state }, binary), "a setting")
+    }
+
+    /// OUTPUT O`output`=`state` to one drive (as [`Client::set_output`](crate::Client::set_output)), then
+    /// read back where the drive shows it: O0 (the drive switched on or off) in S16, an error
+    /// ([`Error::OutputNotTaken`]) if it shows another state. No other output can be read: the report
+    /// says so (`verified` false), as it does when S16 could not be read or the switch went to every drive.
+    pub fn switch_output(&self, address: Address, output: u16, state: OutputState) -> Result<OutputSwitched> {
+        self.set_output(address, output, state, false)?;
+        let read = if output == 0 && !address.is_broadcast() {
+            Some(self.read_s16(address).map(|s| s.o0_state()))
+        } else {
+            None
+        };
+        OutputSwitched::checked(address, output, state, read)
     }
 
     // --------------------------------------------------------------------------------------------------

@@ -11,7 +11,8 @@
 //! - [`MoveReport`]: `{"drive", "target_units", "reached_units",
 //!   "difference_units", "tolerance_units", "waited": true, "verified", "not_verifiable"}`;
 //!   [`StartedMove`]: `{"drive", "target_units", "waited": false, "verified", "not_verifiable"}`.
-//! - [`RawOutcome`]: `{"reply", "waited"}`; [`OutputSwitched`]: `{"output", "state"}`.
+//! - [`RawOutcome`]: `{"reply", "waited"}`; [`OutputSwitched`]: `{"output", "state", "read_back", "verified",
+//!   "not_verifiable"}`.
 //! - [`WatchSample`]: `{"drive", "position_units", "s17", "moving"}`, and [`Timed`] puts `t_s` before it.
 //! - [`ErrorHistory`]: S18 decoded, `{"errors": [{"code", "text", "meaning"}]}`.
 //! - [`StopReport`](crate::error::StopReport): `{"drives": [{"drive", "outcome", "reason"?}], "confirmed"}`;
@@ -254,13 +255,50 @@ pub struct Timed<T> {
     pub sample: T,
 }
 
-/// An output switched (OUTPUT On=s): `{"output", "state"}`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+/// An output switched (OUTPUT On=s): `{"output", "state", "read_back", "verified", "not_verifiable"}`, as a
+/// parameter written names what was read back. O0 (the drive switched on or off) is read back from S16; of
+/// the outputs, the status values show O0 only.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
 pub struct OutputSwitched {
     /// The output's number (0: the drive itself).
     pub output: u16,
     /// What it was switched to.
     pub state: OutputState,
+    /// O0 as S16 showed it after the switch (null where nothing was read back).
+    pub read_back: Option<u8>,
+    /// True when the state was read back and is the one sent.
+    pub verified: bool,
+    /// Why it was not read back (empty when `verified`).
+    pub not_verifiable: Vec<String>,
+}
+
+impl OutputSwitched {
+    /// The outcome of `OUTPUT O{output}={state}` acknowledged by `address`, with O0 as S16 showed it after
+    /// (`read`: `None` when it was not read: another output, or every drive at once). O0 read back as
+    /// another state is an error ([`Error::OutputNotTaken`](crate::Error::OutputNotTaken)); an S16 that
+    /// could not be read makes the switch not verified, saying why.
+    pub fn checked(
+        address: Address,
+        output: u16,
+        state: OutputState,
+        read: Option<Result<u8, crate::Error>>,
+    ) -> Result<Self, crate::Error> {
+        let unverified =
+            |why: String| OutputSwitched { output, state, read_back: None, verified: false, not_verifiable: vec![why] };
+        Ok(match read {
+            Some(Ok(o0)) if o0 == state.get() => {
+                OutputSwitched { output, state, read_back: Some(o0), verified: true, not_verifiable: Vec::new() }
+            }
+            Some(Ok(o0)) => return Err(crate::Error::OutputNotTaken { address, wrote: state.get(), read: o0 }),
+            Some(Err(e)) => unverified(format!("S16 could not be read after the switch: {e}")),
+            None if address.is_broadcast() => {
+                unverified("sent to every drive at once (address 32): none answers, nothing was read back".into())
+            }
+            None => unverified(format!(
+                "output O{output} is not read back: of the outputs, the status values show O0 only (S16)"
+            )),
+        })
+    }
 }
 
 /// The names of a drive's position and speed in its [`axis_look`]: drive units, and units per second.

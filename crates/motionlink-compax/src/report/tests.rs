@@ -102,8 +102,21 @@ fn a_raw_command_a_switched_output_and_a_stop() {
     assert_eq!(to_json(&raw), json!({"reply": "S001: 0.000", "waited": false}));
     let none = RawOutcome { reply: None, started: Vec::new(), waited: true };
     assert_eq!(to_json(&none), json!({"reply": null, "waited": true}));
-    let out = OutputSwitched { output: 0, state: OutputState::ON };
-    assert_eq!(to_json(&out), json!({"output": 0, "state": 1}));
+    let on = OutputSwitched::checked(D5, 0, OutputState::ON, Some(Ok(1))).unwrap();
+    assert_eq!(to_json(&on), json!({"output": 0, "state": 1, "read_back": 1, "verified": true, "not_verifiable": []}));
+    let e = OutputSwitched::checked(D5, 0, OutputState::ON, Some(Ok(0))).unwrap_err();
+    assert!(matches!(e, crate::Error::OutputNotTaken { wrote: 1, read: 0, .. }), "{e:?}");
+    assert!(e.to_string().contains("acknowledged OUTPUT O0=1 but S16 read afterwards shows O0=0"), "{e}");
+    let unread = OutputSwitched::checked(D5, 0, OutputState::OFF, Some(Err(crate::Error::CancelledBeforeMotion)));
+    let unread = unread.unwrap();
+    assert!(!unread.verified && unread.read_back.is_none() && unread.not_verifiable[0].starts_with("S16 could not"));
+    let other = OutputSwitched::checked(D5, 3, OutputState::ON, None).unwrap();
+    assert_eq!(
+        to_json(&other)["not_verifiable"],
+        json!(["output O3 is not read back: of the outputs, the status values show O0 only (S16)"])
+    );
+    let every = OutputSwitched::checked(Address::BROADCAST, 0, OutputState::OFF, None).unwrap();
+    assert!(!every.verified && every.not_verifiable[0].contains("address 32"), "{every:?}");
     let stop = StopReport {
         drives: vec![
             (D5, StopOutcome::SwitchedOff),

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use motionlink_compax::model::{
     OutputNumber, OutputState, ParamId, ParamWrite, Position, RampMs, SpeedPercent, StatusId, TimeLimit,
 };
-use motionlink_compax::report::{DrivePosition, OutputSwitched, ParamReading, StatusReport, StopResult, Timed};
+use motionlink_compax::report::{DrivePosition, ParamReading, StatusReport, StopResult, Timed};
 use motionlink_compax::session::{MoveRequest, MoveTarget, TravelLimits, WatchSample};
 use motionlink_compax::wire::Address;
 use motionlink_compax::{AsyncClient, DriveOptions, Emulator};
@@ -170,8 +170,7 @@ impl Compax {
                 let state = state.for_output(number).map_err(|e| ErrorReport::usage(format!("output state: {e}")))?;
                 let output = number.get();
                 Ok(Action::Write(Box::pin(async move {
-                    client.set_output(drive, output, state, false).await.map_err(failed)?;
-                    me.result(&OutputSwitched { output, state })
+                    me.result(&client.switch_output(drive, output, state).await.map_err(failed)?)
                 })))
             }
             other => Err(unknown_op("compax", other, &OPS)),

@@ -1,7 +1,7 @@
 //! The actions of `motionlink compax`: their arguments checked before the port is opened, then one function
 //! per action. Each prints the library's report: as it serialises with `--json`, in words otherwise.
 
-use motionlink_compax::report::{DrivePosition, OutputSwitched, ParamReading, StatusReport, StopResult};
+use motionlink_compax::report::{DrivePosition, ParamReading, StatusReport, StopResult};
 use motionlink_compax::session::{RawOutcome, StartedMove};
 use motionlink_compax::wire::request::check_raw;
 
@@ -204,12 +204,14 @@ pub(super) fn output(
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let (number, state) = output.ok_or_else(|| CliError::usage("output: not checked"))?;
-    bus.set_output(args.drive, number, state, false).map_err(|e| error_for(args, e))?;
+    // O0 read back from S16 (another state is an error); another output cannot be read: said so.
+    let switched = bus.switch_output(args.drive, number, state).map_err(|e| error_for(args, e))?;
     if crate::term::json() {
-        return args.out().print(out, OutputSwitched { output: number, state });
+        return args.out().print(out, &switched);
     }
-    writeln!(out, "drive {}: OUTPUT O{number}={}", args.drive, state.get())?;
-    Ok(())
+    let read = if switched.verified { " (S16 read back)" } else { "" };
+    writeln!(out, "drive {}: OUTPUT O{number}={}{read}", args.drive, state.get())?;
+    common::not_verified(out, &switched.not_verifiable)
 }
 
 /// `stop`: stops the drive if it moves (S17; `OUTPUT O0=0`, the only stop there is, switches it off; S17

@@ -14,7 +14,7 @@ use motionlink_compax::client::{MoveRequest, MoveTarget, TravelLimits};
 use motionlink_compax::model::{
     OutputState, ParamId, Position, S16Bits, S17Bits, S17Flag, SpeedPercent, StatusId, StatusValue, WholeArg, PARAMS,
 };
-use motionlink_compax::report::{ErrorHistory, OutputSwitched, ParamReading, StopResult};
+use motionlink_compax::report::{ErrorHistory, ParamReading, StopResult};
 use motionlink_compax::wire::Address;
 use motionlink_compax::AsyncClient;
 use motionlink_link::clock::{lock, SharedClock, Timestamp};
@@ -310,17 +310,9 @@ impl Device for Compax {
     fn action(self: Arc<Self>, unit: u8, name: &str) -> Result<Motion, ErrorReport> {
         let a = address(unit)?;
         match name {
-            "switch_on" => Ok(Box::pin(async move {
-                self.client.set_output(a, 0, OutputState::ON, false).await?;
-                let s16 = self.client.read_s16(a).await?;
-                if s16.o0_state() != 1 {
-                    return Err(ErrorReport::classed(
-                        ErrorClass::Device,
-                        format!("drive {unit} acknowledged OUTPUT O0=1 but S16 shows O0={}", s16.o0_state()),
-                    ));
-                }
-                Ok(report(&OutputSwitched { output: 0, state: OutputState::ON }))
-            })),
+            "switch_on" => {
+                Ok(Box::pin(async move { Ok(report(&self.client.switch_output(a, 0, OutputState::ON).await?)) }))
+            }
             other => Err(ErrorReport::usage(format!("no action {other:?}"))),
         }
     }

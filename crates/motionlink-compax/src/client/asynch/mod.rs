@@ -17,7 +17,7 @@ use crate::error::{Error, Result, StopReport};
 use crate::model::{
     Command, OutputState, ParamId, Position, RampMs, S16Bits, S17Bits, SpeedPercent, StatusId, StatusValue,
 };
-use crate::report::{DriveStop, ParamReading, ParamWritten};
+use crate::report::{DriveStop, OutputSwitched, ParamReading, ParamWritten};
 use crate::session::{
     AfterRaw, Config, MoveOptions, MoveReport, MoveRequest, Op, Output, RawOutcome, Session, StartedMove,
 };
@@ -273,6 +273,20 @@ impl AsyncClient {
     /// OUTPUT O`output`=`state` (output 0 is the drive itself: 0 switches it off, 1 on).
     pub async fn set_output(&self, address: Address, output: u16, state: OutputState, binary: bool) -> Result<()> {
         self.done(Op::Setting(address, Command::Output { output, state }, binary), "a setting").await
+    }
+
+    /// OUTPUT O`output`=`state` to one drive (as [`Client::set_output`](crate::Client::set_output)), then
+    /// read back where the drive shows it: O0 (the drive switched on or off) in S16, an error
+    /// ([`Error::OutputNotTaken`]) if it shows another state. No other output can be read: the report
+    /// says so (`verified` false), as it does when S16 could not be read or the switch went to every drive.
+    pub async fn switch_output(&self, address: Address, output: u16, state: OutputState) -> Result<OutputSwitched> {
+        self.set_output(address, output, state, false).await?;
+        let read = if output == 0 && !address.is_broadcast() {
+            Some(self.read_s16(address).await.map(|s| s.o0_state()))
+        } else {
+            None
+        };
+        OutputSwitched::checked(address, output, state, read)
     }
 
     /// POSA; returns once the drive has taken it.
