@@ -207,25 +207,13 @@ fn usage(msg: impl Into<String>) -> Failure {
 }
 
 fn scu_device(s: &EmulatorSettings) -> Result<motionlink_scu::Emulator, Failure> {
-    use motionlink_scu::SimConfig;
-    let preset =
-        match &s.preset {
-            Some(p) => Some(SimConfig::preset(p).ok_or_else(|| {
-                usage(format!("SCU preset {p:?} is not known: give \"scp11\", \"tlt\" or \"liftkit\""))
-            })?),
-            None => None,
-        };
-    let config = match (&s.config, &s.preset) {
-        (Some(text), Some(p)) if !text.contains("preset") => SimConfig::from_toml(&format!("preset = \"{p}\"\n{text}")),
-        (Some(text), _) => SimConfig::from_toml(text),
-        (None, _) => Ok(preset.unwrap_or_default()),
-    }
-    .map_err(|e| usage(e.to_string()))?;
-    let mut config = config;
-    if let Some(names) = variant_names(s) {
-        use motionlink_scu::FirmwareVariant;
-        config.add_variants(motionlink_scu::Variant::list(&names).map_err(|e| usage(e.to_string()))?);
-    }
+    use motionlink_scu::{FirmwareVariant, SimConfig, Variant};
+    let variants = variant_names(s).map(|n| Variant::list(&n)).transpose().map_err(|e| usage(e.to_string()))?;
+    // The preset is where the TOML configuration starts (a preset the text names wins), as `motionlink sim
+    // scu --preset P --config FILE` takes them: one rule, the library's.
+    let text = s.config.as_deref().unwrap_or("");
+    let config = SimConfig::from_toml_over(text, s.preset.as_deref(), &variants.unwrap_or_default())
+        .map_err(|e| usage(format!("SCU emulator: {e}")))?;
     motionlink_scu::Emulator::new(config).map_err(|e| usage(e.to_string()))
 }
 

@@ -66,6 +66,21 @@ def test_bad_settings_are_usage_errors() -> None:
         motionlink.Emulator("compax", serve="udp")
 
 
+def test_an_scu_preset_is_where_the_configuration_starts() -> None:
+    """`preset=` with `config=` is `motionlink sim scu --preset P --config FILE`: the preset is the starting
+    point of the text (a comment that mentions the word changes nothing); a preset the text names wins."""
+
+    def configuration(**settings: str) -> str:
+        with motionlink.Emulator("scu", **settings) as emu, motionlink.Scu(emu, functions="tlt") as lift:
+            return str(lift.info().configuration)
+
+    tlt = configuration(preset="tlt")
+    assert configuration(preset="tlt", config="# no preset here\ndefault_speed = 80\n") == tlt
+    assert configuration(preset="tlt", config='preset = "liftkit"\n') == configuration(preset="liftkit") != tlt
+    with pytest.raises(motionlink.UsageError, match=r"unknown preset \"nope\""):
+        motionlink.Emulator("scu", preset="nope", config="default_speed = 80\n")
+
+
 def test_a_client_of_another_family_is_refused() -> None:
     with motionlink.Emulator("scu") as emu, pytest.raises(motionlink.UsageError, match="scu emulator"):
         motionlink.PowerCube(emu)
