@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import functools
 import inspect
-from typing import Any, Callable, Optional, Tuple
+from typing import Any, Callable, Optional
 
 __all__ = ["op", "is_async"]
 
@@ -33,15 +33,11 @@ class op:
         aio: bool = False,
         args: Optional[Callable[..., tuple]] = None,
         with_args: bool = False,
-        overloads: Tuple[str, ...] = (),
     ) -> None:
         self.result = result
         self.aio = aio
         self.args = args
         self.with_args = with_args
-        #: The stub's ``@overload`` signatures (after the name: ``"(self) -> ScuStop"``), where the return
-        #: type depends on the arguments; the declared signature is the implementation's.
-        self.overloads = overloads
 
     def __call__(self, declared: Callable[..., Any]) -> "op":
         self.declared = declared

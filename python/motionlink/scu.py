@@ -43,18 +43,21 @@ class RefusedStop(Record):
 
 
 class ScuStop(Record):
-    """How :meth:`Scu.stop` stopped every motion function, as ``motionlink scu stop --json`` reports it
-    (without what only the command knows: ``action``, ``holder``, ``stopped``).
+    """How :meth:`Scu.stop` stopped, as ``motionlink scu stop [FUNCTION] --json`` reports it (without what only
+    the command knows: ``action``, ``holder``, ``stopped``).
 
     Attributes:
         family: ``"scu"``.
-        functions: The functions sent RS, in that order (1..10).
-        mode: ``"fast"`` or ``"soft"`` (along the stop ramp).
+        function: The function named (1..22; absent when every motion function was stopped).
+        functions: The motion functions sent RS, in that order (1..10).
+        mode: ``"fast"`` or ``"soft"`` (along the stop ramp); ``"off"`` for a switching function (F11..F22)
+            named, switched off with RS (its record has ``function`` and ``mode`` only).
         refused: The RS the unit refused, with its answer.
         at_rest: Every connected actuator and where it rests, read after the stop.
     """
 
     family: str
+    function: int
     functions: List[int]
     mode: str
     refused: List[RefusedStop]
@@ -145,21 +148,14 @@ class _Operations:
         cancellation), then stops it: a motion function with a direction (``"in"``, ``"out"``, ``"mem1"``
         ...), or F11, F17/F18, F20, F21/F22 with ``"on"``."""
 
-    @op(
-        ScuStop,
-        aio=True,
-        args=_stop_args,
-        overloads=(
-            "(self, function: None = ..., *, soft: bool = ...) -> ScuStop",
-            "(self, function: Union[int, str], *, soft: bool = ...) -> None",
-        ),
-    )
-    def stop(self, function: Optional[Union[int, str]] = None, *, soft: bool = False) -> Optional[ScuStop]:
-        """Stops what moves. Without ``function``, as ``motionlink scu stop`` does: RS to every motion
-        function F1..F10 (fast, or along the stop ramp with ``soft``), then the status of every actuator is
-        read until none moves; returns where each connected actuator rests (:class:`ScuStop`), or raises if
-        the unit did not confirm it. With ``function``: its RS (a motion fast or soft; F11..F22 switched
-        off), acknowledged by the unit; returns None."""
+    @op(ScuStop, aio=True, args=_stop_args)
+    def stop(self, function: Optional[Union[int, str]] = None, *, soft: bool = False) -> ScuStop:
+        """Stops what moves, as ``motionlink scu stop`` does: RS to the motion function named (``1``,
+        ``"F1"``), or without ``function`` to every one (F1..F10), fast or along the stop ramp (``soft``);
+        then the status of every actuator is read until none moves. Returns where each connected actuator
+        rests (:class:`ScuStop`), or raises if the unit did not confirm it. A switching function named
+        (F11..F22: buzzer, outputs, emergency stop, LEDs) is switched off with RS, acknowledged by the unit
+        (its record: ``function`` and ``mode`` ``"off"``)."""
 
     @op(ErrorCode)
     def errors(self) -> List[ErrorCode]:

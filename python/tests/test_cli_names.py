@@ -2,7 +2,7 @@
 family's info, get, set, move, status or scan, watch and stop (and COMPAX's output), ``to_dict()`` has
 exactly the keys, nested the same way, that ``motionlink <family> --port sim --json ...`` prints
 (``family``, ``port`` and ``profile`` aside; of a stop, what only the command knows: ``holder``, and
-COMPAX's ``action``).
+the SCU's and COMPAX's ``action``, the SCU's ``stopped``).
 
 The binary is the ``motionlink_bin`` fixture's (conftest.py): without it these tests are skipped, or fail
 when ``MOTIONLINK_REQUIRE_CLI=1``.
@@ -87,6 +87,9 @@ def test_scu_names(cli: Callable[..., List[Any]]) -> None:
         same_names("run", scu.run(2, "out", seconds=0.2).to_dict(), ran[-1])
         sample = next(scu.watch(interval_ms=10, count=1))
         same_names("watch", sample.to_dict(), cli("scu", "--port", "sim", "--json", "watch", "--count", "1")[0])
+        for named in ([], ["2"], ["F11"]):
+            theirs = without(cli("scu", "--port", "sim", "--json", "stop", *named)[0], "action", "stopped", "holder")
+            same_names(f"stop {named}", scu.stop(*named).to_dict(), theirs)
     same_names.check()
 
 

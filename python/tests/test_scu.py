@@ -104,7 +104,12 @@ def test_stop_without_a_function_stops_every_motion_function_and_says_where_they
     assert len(outcome) == 1, "the move stopped by someone else does not end as a success"
     assert any("F2 stopped" in e.text for e in scu_emulator.take_events())
     assert scu.stop(soft=True).mode == "soft"
-    assert scu.stop(1) is None, "a function named: its RS, acknowledged"
+    # A function named: its RS, then the status until nothing moves, as `motionlink scu stop 1`.
+    one = scu.stop(1)
+    assert (one.function, one.functions, one.mode, len(one.at_rest)) == (1, [1], "fast", 2), one
+    assert set(one.to_dict()) == {"family", "function", "functions", "mode", "refused", "at_rest"}
+    switched = scu.stop("F11")
+    assert switched.to_dict() == {"family": "scu", "function": 11, "mode": "off"}, switched
 
 
 def test_error_history(scu: motionlink.Scu) -> None:

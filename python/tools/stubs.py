@@ -77,10 +77,7 @@ def stub(name: str) -> str:
                     if is_async and not member.aio:
                         continue
                     prefix = "async def" if is_async else "def"
-                    for signature in member.overloads:
-                        lines += ["    @overload", f"    {prefix} {attr}{signature}: ..."]
-                    if not member.overloads:
-                        lines.append(f"    {prefix} {attr}{_params(member.declared)}: ...")
+                    lines.append(f"    {prefix} {attr}{_params(member.declared)}: ...")
                 elif isinstance(member, property):
                     lines += ["    @property", f"    def {attr}{_params(member.fget)}: ..."]
                 elif inspect.isfunction(member):
@@ -90,8 +87,6 @@ def stub(name: str) -> str:
                     lines.append(f"    {attr}: {type(member).__name__}")
         if len(lines) == body:
             lines.append("    ...")
-    if any("    @overload" == line for line in lines):
-        lines.insert(2, "from typing import overload")
     return "\n".join(lines) + "\n"
 
 

@@ -16,7 +16,7 @@ use motionlink_scu::args::{
 use motionlink_scu::model::{
     find, Actuator, Function, Item, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode, StopMode,
 };
-use motionlink_scu::results::{RunOutcome, SampleReport};
+use motionlink_scu::results::{RunOutcome, SampleReport, StopScope, SwitchedOff};
 use motionlink_scu::session::{MoveReport, RunAction, RunReport};
 use motionlink_scu::{port_connector, AsyncClient, Client, Config, Error, FunctionMap, MoveOptions, StrokeLimits};
 use pyo3::prelude::*;
@@ -200,18 +200,23 @@ fn run_args(
     Ok((action, limit.map(RunLimit::get)))
 }
 
-/// What `stop` stops: every motion function (`None`), or the function named.
-enum StopWhat {
-    Every(StopMode),
-    One(Function, StopMode),
+/// What `stop` stops, as `motionlink scu stop [FUNCTION] [--soft]` does: the function named (`None`: every
+/// motion function), its scope (motion functions: RS, then the status until no actuator moves; another
+/// function: RS), and how a motion stops.
+fn stop_what(function: Option<&str>, soft: &Bool) -> Result<(Option<Function>, StopScope, StopMode), Failure> {
+    let mode = if soft.get(FAMILY, "soft")? { StopMode::Soft } else { StopMode::Fast };
+    let function = function.map(parse_function).transpose()?;
+    Ok((function, StopScope::of(function), mode))
 }
 
-fn stop_what(function: Option<&str>, soft: &Bool) -> Result<StopWhat, Failure> {
-    let mode = if soft.get(FAMILY, "soft")? { StopMode::Soft } else { StopMode::Fast };
-    Ok(match function {
-        None => StopWhat::Every(mode),
-        Some(f) => StopWhat::One(parse_function(f)?, mode),
-    })
+/// A stop as the CLI's `scu stop --json` prints it, without what only the command knows (`action`,
+/// `stopped`, `holder`): the function named (if one was) and the library's report.
+#[derive(serde::Serialize)]
+struct Stopped<R: serde::Serialize> {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    function: Option<Function>,
+    #[serde(flatten)]
+    report: R,
 }
 
 /// A session with an SCU control unit (the native half of `motionlink.Scu`).
@@ -402,20 +407,19 @@ faces! {
         let (action, limit) = run_args(&function, &direction, seconds.as_ref()).map_err(|f| to_pyerr(py, f))?;
     } |c| { w!(c => run_function(action, limit); &|_| {}) } => |py, r| run_py(py, &r);
 
-    /// Stops what moves, as `motionlink scu stop` does: with no function, RS to every motion function F1..F10
-    /// (fast, or along the stop ramp with `soft`), confirmed by the status read until no actuator moves, and
-    /// the stop report; with a function, its RS (a motion fast or soft; another function switched off), and
-    /// None.
+    /// Stops what moves, as `motionlink scu stop` does: RS to the motion function named, or with no function
+    /// to every one (F1..F10), fast or along the stop ramp (`soft`), confirmed by the status read until no
+    /// actuator moves: the stop report, with where each connected actuator rests. Another function named
+    /// (F11..F22) is switched off with RS: `{function, mode: "off"}`.
     quick stop(me, py, function: Option<String>, soft: Bool) {
-        let what = stop_what(function.as_deref(), &soft).map_err(|f| to_pyerr(py, f))?;
+        let (function, scope, mode) = stop_what(function.as_deref(), &soft).map_err(|f| to_pyerr(py, f))?;
     } |c| {
-        match what {
-            StopWhat::Every(mode) => {
-                let all: Vec<MotionFunction> = MotionFunction::all().collect();
-                w!(c.stop_functions(&all, mode)).map(Some)
-            }
-            StopWhat::One(Function::Motion(m), mode) => w!(c.stop_motion(m, mode)).map(|()| None),
-            StopWhat::One(f, _) => w!(c.switch(f, false)).map(|()| None),
+        match scope {
+            StopScope::Motions(all) => w!(c.stop_functions(&all, mode)).map(Ok),
+            StopScope::Switch(f) => w!(c.switch(f, false)).map(|()| Err(SwitchedOff::OFF)),
         }
-    } => |py, r| r.map(|r| report_py(py, &r, |_| {})).transpose();
+    } => |py, r| match r {
+        Ok(report) => report_py(py, &Stopped { function, report }, |_| {}),
+        Err(off) => report_py(py, &Stopped { function, report: off }, |_| {}),
+    };
 }
