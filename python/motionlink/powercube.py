@@ -125,8 +125,9 @@ class _Operations:
 
     @op(bool)
     def reset(self, module: Optional[int] = None) -> bool:
-        """Resets the module's error state; True if it also switched off a watchdog that a dead host had
-        left expired."""
+        """Resets the module's error state, confirmed by the state read back (STATE_ERROR still set, as a
+        servo amplifier fault leaves it, raises :class:`DeviceError`); True if it also switched off a
+        watchdog that a dead host had left expired."""
 
 
 class PowerCube(_Operations, ClientBase):

@@ -380,7 +380,8 @@ faces! {
         Ok((m.set_checked(p, v)?, m.kind()?))
     } => |py, (readback, kind)| set_record(py, a, kind, &SetReport { param: p, value: v, readback });
 
-    /// Resets the module's error state; true if it switched off a watchdog a dead host left expired.
+    /// Resets the module's error state, confirmed by the state read back; true if it switched off a watchdog a
+    /// dead host left expired.
     blocking quick reset(me, py, module: Option<Int>) {
         let a = me.address(py, module)?;
     } |c| { c.module(Address::new(a)?).reset_and_release_watchdog() } => |py, released| Ok(released);

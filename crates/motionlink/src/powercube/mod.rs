@@ -129,7 +129,8 @@ pub enum Action {
         #[arg(long = "timeout-s", alias = "timeout", value_name = "S", default_value = "60")]
         timeout_s: MotionTimeout,
     },
-    /// Reset the module's error state (and switch off a watchdog that a dead host left expired).
+    /// Reset the module's error state (and switch off a watchdog that a dead host left expired), confirmed by
+    /// the state read back: STATE_ERROR still set (a servo amplifier fault: switch the module off) is an error.
     Reset,
     /// Stop what moves: Halt, confirmed by the state read back (halted until a reset); a motionlink holding
     /// the port (a move in another terminal) is stopped first.

@@ -526,3 +526,22 @@ fn a_corrupt_answer_then_silence_is_absence_not_a_module() {
     assert_eq!(entries.iter().map(|e| e.address.get()).collect::<Vec<_>>(), vec![1], "{entries:?}");
     assert!(entries[0].info.is_ok());
 }
+
+#[test]
+fn a_reset_is_confirmed_by_the_state_and_a_fault_it_leaves_is_an_error() {
+    let (clock, host, bus, _) = rs232(&[1]);
+    let _me = clock.reserve_participant().enter();
+    let m = bus.module(addr(1));
+    // A following error: the Reset clears it, read back.
+    host.with_device(|d| d.module_mut(1).unwrap().inject_fault(CubeState::EMPTY.with(StateFlag::TowError)));
+    assert!(!m.reset_and_release_watchdog().unwrap());
+    assert!(!m.state().unwrap().contains(StateFlag::Error));
+    // A fault of the servo amplifier outlives the Reset (manual 5: the module is switched off to reset it).
+    let fet = CubeState::EMPTY.with(StateFlag::PowerFault).with(StateFlag::PowFetTemp);
+    host.with_device(|d| d.module_mut(1).unwrap().inject_fault(fet));
+    let e = m.reset_and_release_watchdog().unwrap_err();
+    assert!(e.is_device(), "{e:?}");
+    let text = e.to_string();
+    assert!(text.starts_with("the Reset of module 1 left STATE_ERROR set: module 1 reports an error:"), "{text}");
+    assert!(text.contains("STATE_POW_FET_TEMP") && text.contains("switching the module off"), "{text}");
+}

@@ -4,7 +4,7 @@
 //! confirmed, and releasing one a dead host left expired.
 
 use crate::error::Error;
-use crate::model::{ConfigFlag, ConfigWord, Param, StateFlag, Value, WATCHDOG_TIMEOUT};
+use crate::model::{ConfigFlag, ConfigWord, CubeState, Param, StateFlag, Value, WATCHDOG_TIMEOUT};
 use crate::session::ctx::Ctx;
 use crate::wire::{Action, Request};
 
@@ -368,17 +368,21 @@ impl Ctx {
     /// Refused, before anything is sent, for a module whose watchdog this session serves: the manual does
     /// not say what a Reset does to an online watchdog, and a module whose Reset switches it offline would
     /// leave the motion it guards unguarded, and have it switched on again by the session's second life sign.
+    ///
+    /// The state is read after the Reset: STATE_ERROR still set is an error naming the flags the Reset left
+    /// (a servo amplifier fault, STATE_POWERFAULT, needs the module switched off in most cases: manual 5).
     pub async fn reset_and_release_watchdog(&self, a: u8) -> Result<bool, Error> {
         self.refuse_reset_while_served(a)?;
         let before = self.state(a).await?;
         self.action(a, Action::Reset).await?;
         if !before.contains(StateFlag::CommError) {
-            return Ok(false);
+            return self.reset_cleared(a, self.state(a).await?).map(|()| false);
         }
         let until = self.now() + WATCHDOG_TIMEOUT * 2;
         self.sleep_until(until).await;
-        if !self.state(a).await?.contains(StateFlag::CommError) {
-            return Ok(false);
+        let after = self.state(a).await?;
+        if !after.contains(StateFlag::CommError) {
+            return self.reset_cleared(a, after).map(|()| false);
         }
         tracing::info!("module {a}: its watchdog expires again after a reset; switching it offline");
         match self.request(a, Request::Action(Action::LifeSign)).await {
@@ -387,6 +391,22 @@ impl Ctx {
         }
         self.core().duty.uncertain.remove(&a);
         self.action(a, Action::Reset).await?;
-        Ok(true)
+        self.reset_cleared(a, self.state(a).await?).map(|()| true)
+    }
+
+    /// The state `after` a Reset of module `a`: an error if STATE_ERROR is still set.
+    fn reset_cleared(&self, a: u8, after: CubeState) -> Result<(), Error> {
+        if !after.contains(StateFlag::Error) {
+            return Ok(());
+        }
+        let hint = if after.contains(StateFlag::PowerFault) {
+            "; a fault of the servo amplifier (STATE_POWERFAULT) is cleared in most cases only by switching the \
+             module off (STATE_POW_VOLT_ERR: once the supply voltage is back)"
+        } else {
+            ""
+        };
+        let address = crate::model::Address::checked(a);
+        let source = Box::new(Error::Device { address, state: after });
+        Err(Error::Context { context: format!("the Reset of module {a} left STATE_ERROR set"), source, hint })
     }
 }
