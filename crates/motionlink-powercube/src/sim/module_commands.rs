@@ -214,8 +214,21 @@ impl SimModule {
             self.flags = self.flags.without(f);
         }
         if self.flags.contains(StateFlag::PowerFault) {
-            // Power faults other than voltage need a power cycle.
-            self.flags = self.flags.with(StateFlag::Error).with(StateFlag::Halted);
+            // Manual 5: a fault of the servo amplifier whose cause is flagged by bits 19..23 is reset only by
+            // switching the module off; one of the supply voltage (STATE_POW_VOLT_ERR, the voltage being
+            // back in this emulator) by a Reset.
+            let power_off = [
+                StateFlag::PowFetTemp,
+                StateFlag::PowWdgTemp,
+                StateFlag::PowShortCur,
+                StateFlag::PowHallErr,
+                StateFlag::PowIntegralErr,
+            ];
+            if power_off.iter().any(|f| self.flags.contains(*f)) {
+                self.flags = self.flags.with(StateFlag::Error).with(StateFlag::Halted);
+            } else {
+                self.flags = self.flags.without(StateFlag::PowerFault);
+            }
         }
         if self.watchdog_online && self.firmware.reset_clears_watchdog {
             self.watchdog_online = false;
