@@ -252,18 +252,13 @@ fn compax_device(s: &EmulatorSettings) -> Result<motionlink_compax::Emulator, Fa
         Some(text) => SimConfig::from_toml(text).map_err(|e| usage(e.to_string()))?,
         None => SimConfig::default(),
     };
-    if let Some(drives) = addresses("compax", "drives", &s.drives)? {
-        cfg.drives = SimConfig::bus(&drives, cfg.p196, cfg.baud_rate).drives;
-    }
-    if let Some(m) = opt_within::<u32>(s.mode.as_ref(), "compax", "mode (P196)", 0..=i64::from(u32::MAX))? {
+    let drives = addresses("compax", "drives", &s.drives)?;
+    let mode = opt_within::<u32>(s.mode.as_ref(), "compax", "mode (P196)", 0..=i64::from(u32::MAX))?;
+    if let Some(m) = mode {
         motionlink_compax::wire::Mode::from_p196(m).map_err(|e| usage(format!("mode (P196) {m}: {e}")))?;
-        cfg.p196 = m;
-        cfg.drives.iter_mut().for_each(|d| d.p196 = None);
     }
-    if let Some(b) = opt_within::<u32>(s.baud.as_ref(), "compax", "baud", 1..=4_000_000)? {
-        cfg.baud_rate = b;
-        cfg.drives.iter_mut().for_each(|d| d.baud_rate = None);
-    }
+    let baud = opt_within::<u32>(s.baud.as_ref(), "compax", "baud", 1..=4_000_000)?;
+    cfg = cfg.overridden(drives.as_deref(), mode, baud);
     for (name, value) in s.params.iter().flatten() {
         let id = ParamId::parse(name).map_err(|e| usage(format!("params {name}: {e}")))?;
         cfg = cfg.with_param(id, *value);

@@ -104,6 +104,31 @@ impl SimConfig {
         }
     }
 
+    /// The bus with what a command line or a program sets over its configuration (`motionlink sim compax
+    /// --drives --mode --baud`, Python's `Emulator("compax", drives=, mode=, baud=)`): drives at `addresses`
+    /// in place of the configuration's (each with the bus's settings), and P196 and the baud rate of every
+    /// drive (a drive's own setting dropped).
+    ///
+    /// ```
+    /// use motionlink_compax::sim::SimConfig;
+    /// let c = SimConfig::default().overridden(Some(&[1, 5]), Some(8), Some(19_200));
+    /// assert_eq!((c.drives.len(), c.p196, c.baud_rate), (2, 8, 19_200));
+    /// ```
+    pub fn overridden(mut self, addresses: Option<&[u8]>, p196: Option<u32>, baud_rate: Option<u32>) -> Self {
+        if let Some(addresses) = addresses {
+            self.drives = SimConfig::bus(addresses, self.p196, self.baud_rate).drives;
+        }
+        if let Some(p196) = p196 {
+            self.p196 = p196;
+            self.drives.iter_mut().for_each(|d| d.p196 = None);
+        }
+        if let Some(baud_rate) = baud_rate {
+            self.baud_rate = baud_rate;
+            self.drives.iter_mut().for_each(|d| d.baud_rate = None);
+        }
+        self
+    }
+
     /// Lets every drive model parameter `id` (besides P194..P196), starting at `value`.
     pub fn with_param(mut self, id: ParamId, value: f64) -> Self {
         self.params.insert(id.to_string(), value);

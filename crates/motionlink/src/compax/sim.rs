@@ -35,18 +35,8 @@ pub fn sim(args: SimArgs) -> Result<(), CliError> {
         Some(path) => SimConfig::from_toml(&common::config_text(path)?).map_err(CliError::usage)?,
         None => SimConfig::default(),
     };
-    if let Some(drives) = &args.drives {
-        let addresses: Vec<u8> = drives.iter().map(|a| a.get()).collect();
-        cfg.drives = SimConfig::bus(&addresses, cfg.p196, cfg.baud_rate).drives;
-    }
-    if let Some(m) = args.mode {
-        cfg.p196 = m.to_p196();
-        cfg.drives.iter_mut().for_each(|d| d.p196 = None);
-    }
-    if let Some(b) = args.baud {
-        cfg.baud_rate = b.bits_per_s();
-        cfg.drives.iter_mut().for_each(|d| d.baud_rate = None);
-    }
+    let addresses: Option<Vec<u8>> = args.drives.as_ref().map(|d| d.iter().map(|a| a.get()).collect());
+    cfg = cfg.overridden(addresses.as_deref(), args.mode.map(|m| m.to_p196()), args.baud.map(|b| b.bits_per_s()));
     for p in &args.params {
         let (name, value) =
             p.split_once('=').ok_or_else(|| CliError::usage(format!("--param {p}: expected PNNN=VALUE")))?;
