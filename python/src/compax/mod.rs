@@ -432,7 +432,8 @@ faces! {
 
     /// Waits until the drive reports its positioning ended (S17); its position then. Ctrl-C stops the
     /// drive; so does cancelling the task (the wait's future stops nothing when dropped: the motion may be
-    /// another call's, so the drive is stopped here: OUTPUT O0=0, confirmed by S17).
+    /// another call's, so the drive is stopped here as `stop` does: OUTPUT O0=0 if S17 shows it moving,
+    /// confirmed by S17).
     motion wait(me, py, drive: Option<Int>, timeout_s: Float) {
         let a = me.drive(py, drive)?;
         let timeout = seconds(&timeout_s).map_err(|f| to_pyerr(py, f))?;
@@ -440,7 +441,7 @@ faces! {
         w!(c => wait_reached(&[a], Some(timeout)); &mut |_, _| {})?;
         w!(c.read_position(a))
     } else |stopping| {
-        if let Err(e) = stopping.stop(a).await {
+        if let Err(e) = stopping.stop_confirmed(a).await {
             crate::wait::say_stop_failed(&format!("drive {a}: the stop after a cancelled wait failed: {e}"));
         }
     } => |py, p| position_record(py, a, p);

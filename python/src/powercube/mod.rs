@@ -437,13 +437,13 @@ faces! {
 
     /// Waits until the module stands still (no STATE_MOTION); the state at the end. Ctrl-C halts it; so does
     /// cancelling the task (the wait's future stops nothing when dropped: the motion may be another call's,
-    /// so the module is halted here).
+    /// so the module is halted here, confirmed by its state as `stop` does).
     motion wait(me, py, module: Option<Int>, timeout_s: Float) {
         let a = me.address(py, module)?;
         let timeout = seconds(&timeout_s).map_err(|f| to_pyerr(py, f))?;
     } |c| { w!(c.module(Address::new(a)?) => wait_motion_end(timeout); &mut |_| {}) }
     else |halting| {
-        if let Err(e) = async { halting.module(Address::new(a)?).halt().await }.await {
+        if let Err(e) = async { halting.module(Address::new(a)?).halt_confirmed().await }.await {
             crate::wait::say_stop_failed(&format!("module {a}: the halt after a cancelled wait failed: {e}"));
         }
     } => |py, s| state_record(py, a, s);
