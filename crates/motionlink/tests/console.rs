@@ -714,3 +714,23 @@ fn the_console_s_rules_hold_on_every_firmware_variant() {
         assert!(!sim.events().iter().any(|e| (case.started)(&e.text)), "{}: something moved", case.variants[0]);
     }
 }
+
+#[test]
+fn an_scu_move_without_a_speed_takes_every_front_end_s_default_not_the_maximum() {
+    // A unit set to absolute speed (counts/s, at most 1000): the default is 100 counts/s, as `scu move`,
+    // the gateway and Python take it (was: the maximum, ten times faster from the browser).
+    let c = console(&["scu", "--port", "sim", "--speed-mode", "counts-per-second"]);
+    let mut ws = ws(&c);
+    units(&mut ws);
+    // Another speed first: the move writes its own (the unit starts at 100).
+    send(&mut ws, json!({"type": "write_param", "actuator": 1, "name": "remote_speed_f1", "value": "500"}));
+    let v = recv_until(&mut ws, Duration::from_secs(10), of_type("param")).expect("the write");
+    assert_eq!(v["report"]["read_back"], 500, "{v}");
+    send(&mut ws, json!({"type": "move", "actuator": 1, "target_counts": 30.0}));
+    let m = recv_until(&mut ws, Duration::from_secs(20), |v| v["type"] == "motion" && v["state"] != "running")
+        .expect("the move ends");
+    assert_eq!(m["ok"], true, "{m}");
+    send(&mut ws, json!({"type": "read_param", "actuator": 1, "name": "remote_speed_f1"}));
+    let v = recv_until(&mut ws, Duration::from_secs(10), of_type("param")).expect("the read");
+    assert_eq!(v["report"]["value"], 100, "{v}");
+}

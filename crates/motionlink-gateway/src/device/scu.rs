@@ -77,9 +77,12 @@ impl Scu {
             "move" => {
                 let actuator: Actuator = args.need("actuator")?;
                 let position: PositionCounts = args.need("position")?;
-                let speed = args.text("speed")?.unwrap_or_else(|| "100".into());
-                let speed = Speed::parse(&speed, client.config().speed_mode)
-                    .map_err(|e| ErrorReport::usage(format!("move speed {speed:?}: {e}")))?;
+                let mode = client.config().speed_mode;
+                let speed = match args.text("speed")? {
+                    Some(speed) => Speed::parse(&speed, mode)
+                        .map_err(|e| ErrorReport::usage(format!("move speed {speed:?}: {e}")))?,
+                    None => Speed::default_for(mode),
+                };
                 let function = match args.get::<MotionFunction>("function")? {
                     Some(f) => f,
                     None => MotionFunction::checked(i64::from(actuator.number()))

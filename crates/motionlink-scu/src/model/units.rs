@@ -158,6 +158,21 @@ impl Speed {
         Ok(raw)
     }
 
+    /// The speed of a move that names none, in every front end (the command line's `--speed` default, the
+    /// console, the gateway, Python): 100 in the unit's mode, that is 100 %, or 100 counts/s on a unit set
+    /// to absolute speed (whose maximum is 1000).
+    ///
+    /// ```
+    /// use motionlink_scu::model::{Speed, SpeedMode};
+    /// assert_eq!(Speed::default_for(SpeedMode::CountsPerSecond).for_motion(SpeedMode::CountsPerSecond), Ok(100));
+    /// ```
+    pub const fn default_for(mode: SpeedMode) -> Speed {
+        match mode {
+            SpeedMode::Percent => Speed::Percent(SpeedPercent(100)),
+            SpeedMode::CountsPerSecond => Speed::CountsPerSecond(SpeedCountsPerSecond(100)),
+        }
+    }
+
     /// The speed `raw` of a unit that takes speeds as `mode` says, if in range.
     pub const fn of_mode(mode: SpeedMode, raw: u16) -> Option<Speed> {
         match mode {

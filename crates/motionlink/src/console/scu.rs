@@ -184,7 +184,8 @@ impl Device for Scu {
         let target = finite("target", target)?;
         let position = PositionCounts::parse_whole(&target.to_string())
             .map_err(|e| ErrorReport::usage(format!("target {target}: {e}")))?;
-        let speed = self.speed(speed)?.unwrap_or(Speed::of_mode(self.speed_mode, self.speed_mode.max()).expect("max"));
+        // No speed given: the default of every front end (the command line's `--speed 100`), not the maximum.
+        let speed = self.speed(speed)?.unwrap_or(Speed::default_for(self.speed_mode));
         let function = self.function_of(a)?;
         let op = self.client.move_to_op(a, position, speed, Some(function))?;
         Ok(Box::pin(async move {
