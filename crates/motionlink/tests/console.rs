@@ -734,3 +734,31 @@ fn an_scu_move_without_a_speed_takes_every_front_end_s_default_not_the_maximum()
     let v = recv_until(&mut ws, Duration::from_secs(10), of_type("param")).expect("the read");
     assert_eq!(v["report"]["value"], 100, "{v}");
 }
+
+#[test]
+fn a_console_move_is_judged_by_the_tolerance_its_command_takes() {
+    // COMPAX: `--tolerance` and `--poll-ms` (a device's keys, as for `compax move`) are the session's: the
+    // move's report names the tolerance it was checked against (was: always the default, 0.01).
+    let drive = console(&["compax", "--port", "sim", "--drives", "1", "--tolerance", "0.5", "--poll-ms", "20"]);
+    let mut page = ws(&drive);
+    units(&mut page);
+    send(&mut page, json!({"type": "move", "drive": 1, "target_units": 10.0}));
+    let m = recv_until(&mut page, Duration::from_secs(20), |v| v["type"] == "motion" && v["state"] != "running")
+        .expect("the move ends");
+    assert_eq!((&m["ok"], &m["report"]["tolerance_units"]), (&json!(true), &json!(0.5)), "{m}");
+    // PowerCube: its `--tolerance` takes the values, and gives the message, of `powercube move --tolerance`.
+    let said = common::run_with(&["powercube", "--port", "sim", "move", "0.1", "--tolerance", "0.5"], &[], "");
+    let said = String::from_utf8_lossy(&said.stderr).lines().next().unwrap_or_default().to_string();
+    assert!(said.contains("--tolerance") && said.contains("0.5"), "{said}");
+    let ended = Running::start(&["console", "powercube", "--port", "sim", "--tolerance", "0.5"]);
+    let ended = ended.wait(Duration::from_secs(20));
+    assert_eq!(ended.code(), 2, "{}", ended.stderr);
+    assert_eq!(ended.stderr.lines().next().unwrap_or_default(), said);
+    let cube = console(&["powercube", "--port", "sim", "--modules", "1", "--tolerance", "0.01"]);
+    let mut page = ws(&cube);
+    units(&mut page);
+    send(&mut page, json!({"type": "move", "module": 1, "target_rad": 0.2}));
+    let m = recv_until(&mut page, Duration::from_secs(20), |v| v["type"] == "motion" && v["state"] != "running")
+        .expect("the move ends");
+    assert_eq!(m["ok"], true, "{m}");
+}

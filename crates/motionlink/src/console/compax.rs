@@ -12,11 +12,13 @@ use std::time::Duration;
 
 use motionlink_compax::client::{MoveRequest, MoveTarget, TravelLimits};
 use motionlink_compax::model::{
-    OutputState, ParamId, Position, S16Bits, S17Bits, S17Flag, SpeedPercent, StatusId, StatusValue, WholeArg, PARAMS,
+    OutputState, ParamId, PollInterval, Position, S16Bits, S17Bits, S17Flag, SpeedPercent, StatusId, StatusValue,
+    Tolerance, WholeArg, PARAMS,
 };
 use motionlink_compax::report::{ErrorHistory, ParamReading, StopResult};
 use motionlink_compax::wire::Address;
 use motionlink_compax::AsyncClient;
+use motionlink_compax::DriveOptions;
 use motionlink_link::clock::{lock, SharedClock, Timestamp};
 use motionlink_link::url::PortUrl;
 
@@ -52,6 +54,14 @@ pub struct Args {
     /// Without --min-pos / --max-pos, how far one jog may go at most from where it starts (drive's unit).
     #[arg(long, default_value_t = 1000.0)]
     pub jog_range: f64,
+    /// How close to its target a move must come to rest to succeed, in the drive's unit (default 0.01), as
+    /// `compax move --tolerance` (a device's `tolerance` key).
+    #[arg(long)]
+    pub tolerance: Option<Tolerance>,
+    /// Interval of the status polls while a move is waited for, in ms (1..=10000; default 50), as `compax
+    /// move --poll-ms` (a device's `poll_ms` key).
+    #[arg(long)]
+    pub poll_ms: Option<PollInterval>,
     #[command(flatten)]
     pub serve: ServeArgs,
 }
@@ -96,7 +106,8 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
         if args.drives.is_empty() { vec![1] } else { args.drives.iter().map(|a| a.get()).collect() };
     // The session's settings and its link by the rules of `motionlink compax` (its options); the drives are
     // the console's own (`--drives`). Opening a serial device blocks: on the blocking pool.
-    let options = crate::compax::line_options(&args.line);
+    let options =
+        DriveOptions { tolerance: args.tolerance, poll_ms: args.poll_ms, ..crate::compax::line_options(&args.line) };
     let (o, c) = (options.clone(), Arc::clone(clock));
     let link = tokio::task::spawn_blocking(move || crate::compax::link(&o, url, &sim_drives, &tap, &c))
         .await

@@ -7,7 +7,7 @@ use std::time::Duration;
 use motionlink_link::pipe::{EmulatorHost, PipeConfig};
 use motionlink_link::url::PortUrl;
 use motionlink_link::SharedClock;
-use motionlink_powercube::args::{MotionTimeout, MoveVelocity, Target};
+use motionlink_powercube::args::{MotionTimeout, MoveVelocity, Target, Tolerance};
 use motionlink_powercube::client::{Client, Guard, MoveSpec, PortLink};
 use motionlink_powercube::model::{
     Address, AxisUnit, CubeState, ModuleKind, Param, Position, ShortFlag, ShortState, Value as CubeValue, Velocity,
@@ -41,6 +41,11 @@ pub struct Args {
     pub modules: Vec<Address>,
     #[command(flatten)]
     pub bus: crate::powercube::BusArgs,
+    /// In-position tolerance of a move (rad or m, above 0, at most 0.1; default 0.001), as `powercube move
+    /// --tolerance` (a device's `tolerance` key): the move succeeds only if the final actual position is at
+    /// most this far from the target.
+    #[arg(long)]
+    pub tolerance: Option<Tolerance>,
     #[command(flatten)]
     pub serve: ServeArgs,
 }
@@ -65,6 +70,8 @@ struct PowerCube {
     port: String,
     modules: Vec<u8>,
     guard: Guard,
+    /// A move's in-position tolerance (`--tolerance`; `None`: the library's default).
+    tolerance: Option<Tolerance>,
     /// The kind of each module found (rotary or linear), by address.
     kinds: std::sync::Mutex<[Option<ModuleKind>; 32]>,
     /// Which of [`TURNS`] the next sample reads.
@@ -139,6 +146,7 @@ pub async fn open(args: &Args, port: &str, clock: &SharedClock) -> Result<(Arc<d
         port: port.to_string(),
         modules: addresses(&args.modules),
         guard,
+        tolerance: args.tolerance,
         kinds: std::sync::Mutex::new([None; 32]),
         turn: std::sync::atomic::AtomicU64::new(0),
         slow: std::sync::Mutex::new(std::collections::HashMap::new()),
@@ -328,7 +336,8 @@ impl Device for PowerCube {
             let m = self.module(unit)?;
             let axis = self.unit_of(&m).await?;
             let vel = vel.map(|v| Velocity::new(v.value(), axis));
-            let spec = MoveSpec { vel, ..MoveSpec::to(Position::new(target.value(), axis)) };
+            let tolerance = self.tolerance.map(|t| t.position());
+            let spec = MoveSpec { vel, tolerance, ..MoveSpec::to(Position::new(target.value(), axis)) };
             // Limits, read-backs and the final position checked; dropped, the module is halted.
             Ok(report(&Acted::reached(m.move_to_guarded(&spec, self.guard).await?)))
         }))
