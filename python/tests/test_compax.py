@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from typing import List
 
 import pytest
@@ -117,6 +118,9 @@ def test_stop_is_the_command_lines_stop(compax: motionlink.Compax, compax_emulat
     mover = threading.Thread(target=far)
     mover.start()
     compax_emulator.wait_event(lambda t: "motion started" in t)
+    deadline = time.monotonic() + 10
+    while compax.position().position_units <= 0 and time.monotonic() < deadline:
+        time.sleep(0.01)
     stopped = compax.stop()
     mover.join(30)
     assert [(d.drive, d.outcome) for d in stopped.drives] == [(1, "switched_off")] and stopped.o0 == 0, stopped
