@@ -736,7 +736,7 @@ fn an_scu_move_without_a_speed_takes_every_front_end_s_default_not_the_maximum()
 }
 
 #[test]
-fn a_console_move_is_judged_by_the_tolerance_its_command_takes() {
+fn a_console_move_takes_the_tolerance_of_its_family_s_command() {
     // COMPAX: `--tolerance` and `--poll-ms` (a device's keys, as for `compax move`) are the session's: the
     // move's report names the tolerance it was checked against (was: always the default, 0.01).
     let drive = console(&["compax", "--port", "sim", "--drives", "1", "--tolerance", "0.5", "--poll-ms", "20"]);
@@ -754,11 +754,6 @@ fn a_console_move_is_judged_by_the_tolerance_its_command_takes() {
     let ended = ended.wait(Duration::from_secs(20));
     assert_eq!(ended.code(), 2, "{}", ended.stderr);
     assert_eq!(ended.stderr.lines().next().unwrap_or_default(), said);
-    let cube = console(&["powercube", "--port", "sim", "--modules", "1", "--tolerance", "0.01"]);
-    let mut page = ws(&cube);
-    units(&mut page);
-    send(&mut page, json!({"type": "move", "module": 1, "target_rad": 0.2}));
-    let m = recv_until(&mut page, Duration::from_secs(20), |v| v["type"] == "motion" && v["state"] != "running")
-        .expect("the move ends");
-    assert_eq!(m["ok"], true, "{m}");
+    // (A PowerCube move's report does not name its tolerance, and the emulator ends a ramp on its target:
+    // that the console's move takes the value is read in console/powercube.rs, not seen here.)
 }

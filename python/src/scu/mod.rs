@@ -17,7 +17,7 @@ use motionlink_scu::model::{
     find, Actuator, Function, Item, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode, StopMode,
 };
 use motionlink_scu::results::{RunOutcome, SampleReport, StopScope, SwitchedOff};
-use motionlink_scu::session::{MoveReport, RunAction, RunReport};
+use motionlink_scu::session::{MoveReport, RunAction, RunReport, StopReport};
 use motionlink_scu::{port_connector, AsyncClient, Client, Config, Error, FunctionMap, MoveOptions, StrokeLimits};
 use pyo3::prelude::*;
 
@@ -209,14 +209,22 @@ fn stop_what(function: Option<&str>, soft: &Bool) -> Result<(Option<Function>, S
     Ok((function, StopScope::of(function), mode))
 }
 
-/// A stop as the CLI's `scu stop --json` prints it, without what only the command knows (`action`,
-/// `stopped`, `holder`): the function named (if one was) and the library's report.
+/// What a stop did: motion functions stopped (the library's report), or a switching function switched off.
 #[derive(serde::Serialize)]
-struct Stopped<R: serde::Serialize> {
+#[serde(untagged)]
+enum Stopped {
+    Motions(StopReport),
+    Switch(SwitchedOff),
+}
+
+/// A stop as the CLI's `scu stop --json` prints it, without what only the command knows (`action`,
+/// `stopped`, `holder`): the function named (if one was) and what the stop did.
+#[derive(serde::Serialize)]
+struct StopRecord {
     #[serde(skip_serializing_if = "Option::is_none")]
     function: Option<Function>,
     #[serde(flatten)]
-    report: R,
+    report: Stopped,
 }
 
 /// A session with an SCU control unit (the native half of `motionlink.Scu`).
@@ -415,11 +423,8 @@ faces! {
         let (function, scope, mode) = stop_what(function.as_deref(), &soft).map_err(|f| to_pyerr(py, f))?;
     } |c| {
         match scope {
-            StopScope::Motions(all) => w!(c.stop_functions(&all, mode)).map(Ok),
-            StopScope::Switch(f) => w!(c.switch(f, false)).map(|()| Err(SwitchedOff::OFF)),
+            StopScope::Motions(all) => w!(c.stop_functions(&all, mode)).map(Stopped::Motions),
+            StopScope::Switch(f) => w!(c.switch(f, false)).map(|()| Stopped::Switch(SwitchedOff::OFF)),
         }
-    } => |py, r| match r {
-        Ok(report) => report_py(py, &Stopped { function, report }, |_| {}),
-        Err(off) => report_py(py, &Stopped { function, report: off }, |_| {}),
-    };
+    } => |py, report| report_py(py, &StopRecord { function, report }, |_| {});
 }

@@ -273,6 +273,11 @@ pub struct OutputSwitched {
 }
 
 impl OutputSwitched {
+    /// True when `OUTPUT O{output}=s` to `address` can be read back: O0 of one drive, in S16 (bits 7 and 8).
+    pub fn shown_in_s16(address: Address, output: u16) -> bool {
+        output == 0 && !address.is_broadcast()
+    }
+
     /// The outcome of `OUTPUT O{output}={state}` acknowledged by `address`, with O0 as S16 showed it after
     /// (`read`: `None` when it was not read: another output, or every drive at once). O0 read back as
     /// another state is an error ([`Error::OutputNotTaken`](crate::Error::OutputNotTaken)); an S16 that

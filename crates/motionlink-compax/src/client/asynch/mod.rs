@@ -281,10 +281,9 @@ impl AsyncClient {
     /// says so (`verified` false), as it does when S16 could not be read or the switch went to every drive.
     pub async fn switch_output(&self, address: Address, output: u16, state: OutputState) -> Result<OutputSwitched> {
         self.set_output(address, output, state, false).await?;
-        let read = if output == 0 && !address.is_broadcast() {
-            Some(self.read_s16(address).await.map(|s| s.o0_state()))
-        } else {
-            None
+        let read = match OutputSwitched::shown_in_s16(address, output) {
+            true => Some(self.read_s16(address).await.map(|s| s.o0_state())),
+            false => None,
         };
         OutputSwitched::checked(address, output, state, read)
     }

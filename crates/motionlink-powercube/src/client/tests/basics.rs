@@ -539,7 +539,10 @@ fn a_reset_is_confirmed_by_the_state_and_a_fault_it_leaves_is_an_error() {
     // A fault of the servo amplifier outlives the Reset (manual 5: the module is switched off to reset it).
     let fet = CubeState::EMPTY.with(StateFlag::PowerFault).with(StateFlag::PowFetTemp);
     host.with_device(|d| d.module_mut(1).unwrap().inject_fault(fet));
+    let t0 = clock.now();
     let e = m.reset_and_release_watchdog().unwrap_err();
+    // The state was read again for the settling time (a Reset may take effect a little later).
+    assert!(clock.now().saturating_since(t0) >= Duration::from_millis(100), "{:?}", clock.now().saturating_since(t0));
     assert!(e.is_device(), "{e:?}");
     let text = e.to_string();
     assert!(text.starts_with("the Reset of module 1 left STATE_ERROR set: module 1 reports an error:"), "{text}");

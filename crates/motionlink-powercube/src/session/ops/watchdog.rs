@@ -8,6 +8,10 @@ use crate::model::{ConfigFlag, ConfigWord, CubeState, Param, StateFlag, Value, W
 use crate::session::ctx::Ctx;
 use crate::wire::{Action, Request};
 
+/// How long after a Reset its module may still show STATE_ERROR before the Reset counts as not having cleared
+/// it (the state is read again in the meantime).
+pub(crate) const RESET_SETTLE: std::time::Duration = std::time::Duration::from_millis(100);
+
 impl Ctx {
     /// True when this session can arm the watchdog: on CAN, and on RS232 unless
     /// [`Config::watchdog_on_rs232`](crate::session::Config::watchdog_on_rs232) is false.
@@ -369,20 +373,21 @@ impl Ctx {
     /// not say what a Reset does to an online watchdog, and a module whose Reset switches it offline would
     /// leave the motion it guards unguarded, and have it switched on again by the session's second life sign.
     ///
-    /// The state is read after the Reset: STATE_ERROR still set is an error naming the flags the Reset left
-    /// (a servo amplifier fault, STATE_POWERFAULT, needs the module switched off in most cases: manual 5).
+    /// The state is read after the Reset: STATE_ERROR still set [`RESET_SETTLE`] after it is an error naming
+    /// the flags the Reset left (a servo amplifier fault, STATE_POWERFAULT, needs the module switched off in
+    /// most cases: manual 5).
     pub async fn reset_and_release_watchdog(&self, a: u8) -> Result<bool, Error> {
         self.refuse_reset_while_served(a)?;
         let before = self.state(a).await?;
         self.action(a, Action::Reset).await?;
         if !before.contains(StateFlag::CommError) {
-            return self.reset_cleared(a, self.state(a).await?).map(|()| false);
+            return self.reset_cleared(a, self.state(a).await?).await.map(|()| false);
         }
         let until = self.now() + WATCHDOG_TIMEOUT * 2;
         self.sleep_until(until).await;
         let after = self.state(a).await?;
         if !after.contains(StateFlag::CommError) {
-            return self.reset_cleared(a, after).map(|()| false);
+            return self.reset_cleared(a, after).await.map(|()| false);
         }
         tracing::info!("module {a}: its watchdog expires again after a reset; switching it offline");
         match self.request(a, Request::Action(Action::LifeSign)).await {
@@ -391,11 +396,19 @@ impl Ctx {
         }
         self.core().duty.uncertain.remove(&a);
         self.action(a, Action::Reset).await?;
-        self.reset_cleared(a, self.state(a).await?).map(|()| true)
+        self.reset_cleared(a, self.state(a).await?).await.map(|()| true)
     }
 
-    /// The state `after` a Reset of module `a`: an error if STATE_ERROR is still set.
-    fn reset_cleared(&self, a: u8, after: CubeState) -> Result<(), Error> {
+    /// The state `after` a Reset of module `a`, read again until STATE_ERROR is clear for at most
+    /// [`RESET_SETTLE`] (the manual does not say how soon a Reset takes effect): an error if it is still set.
+    async fn reset_cleared(&self, a: u8, mut after: CubeState) -> Result<(), Error> {
+        let until = self.now() + RESET_SETTLE;
+        let period = self.core().config.poll_interval.max(std::time::Duration::from_micros(100));
+        while after.contains(StateFlag::Error) && self.now() < until {
+            let next = self.now() + period;
+            self.sleep_until(next).await;
+            after = self.state(a).await?;
+        }
         if !after.contains(StateFlag::Error) {
             return Ok(());
         }
