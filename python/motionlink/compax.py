@@ -67,7 +67,8 @@ class _Operations:
 
     @op(DriveFound)
     def scan(self) -> List[DriveFound]:
-        """Every drive that answers (addresses 1..31), with its position S1. Ctrl-C raises
+        """Every drive that answers (addresses 1..31), with its position S1; an empty list when none
+        answers (``motionlink compax scan`` calls that an error, exit 3). Ctrl-C raises
         ``KeyboardInterrupt`` at once; the library's scan ends before the next address."""
 
     @op(StatusValue, args=lambda names, drive: (items(names, "names", "compax"), drive))

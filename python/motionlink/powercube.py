@@ -106,7 +106,8 @@ class _Operations:
 
     @op(ModuleInfo)
     def scan(self) -> List[ModuleInfo]:
-        """Every module on the bus (an ``error`` field on a module that answered but could not be read).
+        """Every module on the bus (an ``error`` field on a module that answered but could not be read); an
+        empty list when none answers (``motionlink powercube scan`` calls that an error, exit 3).
         Ctrl-C raises ``KeyboardInterrupt`` at once (the scan sets nothing in motion; it ends on its own
         thread, and the session's next call waits for it on the line)."""
 

@@ -43,6 +43,7 @@ VARIANTS: Dict[str, Tuple[str, ...]] = {
         "sticky-errors",
         "in-end-undershoot",
         "re-needs-rs",
+        "late-motion-bit",
     ),
     "powercube": (
         "no-twin-mirror",

@@ -130,7 +130,8 @@
 //!   a unit that answers only the second telegram after a silence is sent it again (`sleepy`); error bits that
 //!   stay after the next motion, positions a few counts below the In end after homing, a unit that refuses a
 //!   second RE without RS: no check depends on the first two, and the third ends a stream with the unit's PE
-//!   (`sticky-errors`, `in-end-undershoot`, `re-needs-rs`).
+//!   (`sticky-errors`, `in-end-undershoot`, `re-needs-rs`); a motion bit that rises 0.4 s after the RE is
+//!   waited for ([`Config::start_grace`], 1 s) before an actuator still standing is judged (`late-motion-bit`).
 //! - **RA** fast-stops remote motions that are still running: a motion nobody can stop any more is worse.
 //! - **Emergency stop (F20)** shows as every function locked in Lock Status (0x0162) and the release flags of
 //!   actuator status 2 cleared; F21 and F22 are the hand switch's LED 1 and 2 (0x0120).

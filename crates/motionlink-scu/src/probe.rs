@@ -176,7 +176,7 @@ pub fn probe(client: &Client, setup: &ProbeSetup) -> Result<ScuProbeReport, Erro
 const NAMES: [&str; 4] = ["grouping_indices", "user_position_data", "cyclic_objects", "remote_read_back"];
 
 /// The behaviours of the list that no harmless exchange shows: name, why, variant.
-const NOT_PROBED: [(&str, &str, Option<&str>); 4] = [
+const NOT_PROBED: [(&str, &str, Option<&str>); 5] = [
     (
         "rc_reply_form",
         "nothing to probe: an RC without cyclic object is taken as the status alone or with ctp 0",
@@ -196,6 +196,12 @@ const NOT_PROBED: [(&str, &str, Option<&str>); 4] = [
         "second_re_without_rs",
         "needs a motion (an RE moves): a stream on a unit that refuses it ends with the unit's PE",
         Some("re-needs-rs"),
+    ),
+    (
+        "motion_bit_rises",
+        "needs a motion (an RE moves): a move or run waits up to 1 s after the RE for the motion bit before \
+         it judges where the actuators stand",
+        Some("late-motion-bit"),
     ),
 ];
 

@@ -305,3 +305,24 @@ fn a_unit_with_no_virtual_limits_set_moves_and_says_the_target_was_not_checked_a
     client.close().unwrap();
     bounded.close().unwrap();
 }
+
+#[test]
+fn a_unit_whose_motion_bit_rises_late_is_waited_for_within_the_start_grace_and_beyond_it_the_move_fails_plainly() {
+    // The drives start, and the motion bit rises, 0.4 s after the RE's ACK: within the session's start
+    // grace (1 s), so every core operation runs as on any unit.
+    let (rig, o) = run_on(&[Variant::LateMotionBit]);
+    assert!(o.move_verified && o.set_verified, "{:?}", o.move_why);
+    // A start grace shorter than the unit's delay: a unit without the delay moves as usual ...
+    let short = || Config { start_grace: Duration::from_millis(200), ..scp11() };
+    let prompt = Rig::new(SimConfig::default());
+    prompt.client(short()).move_to(a(1), PositionCounts(300), pct(100), &MoveOptions::default()).unwrap();
+    // ... this one still stands when the grace ends: the move is judged where it stands, away from its
+    // target (an error naming it, never a success), and its function is stopped before the drive starts.
+    let before = rig.unit(|u| u.position(a(1))).unwrap();
+    let client = rig.client(short());
+    let e = client.move_to(a(1), PositionCounts(before + 300), pct(100), &MoveOptions::default()).unwrap_err();
+    assert!(matches!(e, Error::MotionEnded { position_counts, .. } if position_counts.get() == before), "{e}");
+    rig.sleep(1_000);
+    assert_eq!(rig.unit(|u| u.position(a(1))), Some(before), "stopped (RS) before it started");
+    assert!(!rig.unit(|u| u.is_moving(a(1))) && client.started().is_empty());
+}

@@ -45,6 +45,9 @@ pub(super) struct ActuatorState {
     pub(super) relay_out_cycles: u32,
     pub(super) max_current: u16,
     pub(super) error_count: u32,
+    /// Time before a motion just started begins, s: it stands, its motion bit clear
+    /// ([`Variant::LateMotionBit`]).
+    pub(super) start_delay_s: f64,
 }
 
 impl ActuatorState {
@@ -67,6 +70,7 @@ impl ActuatorState {
             relay_out_cycles: 0,
             max_current: 0,
             error_count: 0,
+            start_delay_s: 0.0,
             cfg,
         }
     }
@@ -142,6 +146,7 @@ impl ActuatorState {
     }
 
     pub(super) fn fast_stop(&mut self) {
+        self.start_delay_s = 0.0;
         self.target = None;
         self.velocity = 0.0;
         self.soft_stopping = false;
@@ -151,6 +156,7 @@ impl ActuatorState {
     }
 
     pub(super) fn soft_stop(&mut self) {
+        self.start_delay_s = 0.0;
         if self.moving() {
             self.soft_stopping = true;
             self.target = None;
@@ -182,6 +188,13 @@ impl ActuatorState {
     /// Runs the model for `dt`. Returns true when the drive's stall time-out expired: the caller raises its
     /// drive error.
     pub(super) fn step(&mut self, dt: f64) -> bool {
+        // A motion that has not begun yet stands (the rest of the step moves it).
+        let waited = self.start_delay_s.min(dt);
+        self.start_delay_s -= waited;
+        let dt = dt - waited;
+        if self.start_delay_s > 0.0 || dt <= 0.0 {
+            return false;
+        }
         let accel = self.acceleration();
         if self.soft_stopping {
             let dv = accel * dt;
@@ -275,7 +288,7 @@ impl ActuatorState {
         if at_out {
             s |= Status1Flag::Switch2.mask() | Status1Flag::OutPosition.mask();
         }
-        if self.moving() {
+        if self.moving() && self.start_delay_s <= 0.0 {
             s |= Status1Flag::Motion.mask();
         }
         s

@@ -186,8 +186,12 @@ impl Emulator {
                         MotionDirection::RemotePosition => self.remote_position[i],
                     };
                     let (counts_per_s, percent) = self.speed_of(i, speed);
+                    let from_rest = !self.actuators[i].moving();
                     let moves_now =
                         self.actuators[i].start(target, counts_per_s, percent, Origin::Remote, Some(m.id()));
+                    if moves_now && from_rest && self.config.variants.contains(&Variant::LateMotionBit) {
+                        self.actuators[i].start_delay_s = super::variants::LATE_START.as_secs_f64();
+                    }
                     let (lo, hi) = self.actuators[i].travel_range();
                     moves.push(format!(
                         "{a} -> {}{}",

@@ -38,6 +38,9 @@ pub enum Variant {
     /// RE of a motion function that was started and not yet ended with RS is refused with PE (a new RE needs
     /// an RS first, as the public drivers' habit of sending RS before every RE suggests).
     ReNeedsRs,
+    /// After an RE, actuators at rest start [`LATE_START`] after the ACK, and their motion bit rises only
+    /// then (a unit whose relays or soft start take that long; the manual does not say when the bit rises).
+    LateMotionBit,
 }
 
 impl FirmwareVariant for Variant {
@@ -53,6 +56,7 @@ impl FirmwareVariant for Variant {
         Variant::StickyErrors,
         Variant::InEndUndershoot,
         Variant::ReNeedsRs,
+        Variant::LateMotionBit,
     ];
 
     /// Its name, as `--variant` takes it.
@@ -67,6 +71,7 @@ impl FirmwareVariant for Variant {
             Variant::StickyErrors => "sticky-errors",
             Variant::InEndUndershoot => "in-end-undershoot",
             Variant::ReNeedsRs => "re-needs-rs",
+            Variant::LateMotionBit => "late-motion-bit",
         }
     }
 
@@ -86,6 +91,9 @@ impl FirmwareVariant for Variant {
             Variant::StickyErrors => "the error bits reset on the next motion (14..21) stay set when it starts",
             Variant::InEndUndershoot => "every actuator reads 3 counts below its In end after reaching it",
             Variant::ReNeedsRs => "RE of a motion function started and not yet ended with RS is refused with PE",
+            Variant::LateMotionBit => {
+                "after an RE, actuators at rest start, and their motion bit rises, 0.4 s after the ACK"
+            }
         }
     }
 }
@@ -94,6 +102,9 @@ motionlink_link::firmware_variant_traits!(Variant);
 
 /// How long the line must be silent before a [`Variant::Sleepy`] unit dozes off.
 pub const SLEEP_AFTER: Duration = Duration::from_secs(2);
+
+/// How long after an RE's ACK the actuators of a [`Variant::LateMotionBit`] unit start from rest.
+pub const LATE_START: Duration = Duration::from_millis(400);
 
 /// True if `index` is a grouping index (a group of the data list, or one of the collections).
 pub(super) fn is_group(index: DataIndex) -> bool {

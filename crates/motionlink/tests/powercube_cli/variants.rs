@@ -274,6 +274,10 @@ fn reset_observes_whether_its_reset_left_the_expired_watchdog_online() {
         let at = running.kill();
         sim.wait_event_after(at, Duration::from_secs(5), |e| e == "module 1 watchdog expired: STATE_COMM_ERROR")
             .unwrap_or_else(|| panic!("{variant}: no expiry: {:?}", sim.events()));
+        // The halt the expiry made ramps the module down: at rest before the reset, so that the events
+        // after it are the reset's alone.
+        sim.wait_event_after(at, Duration::from_secs(5), |e| e.starts_with("module 1 at rest"))
+            .unwrap_or_else(|| panic!("{variant}: not at rest: {:?}", sim.events()));
         running.wait(Duration::from_secs(5));
         let t0 = common::unix_now();
         let out = run(&port, &["-v", "--module", "1", "reset"]);

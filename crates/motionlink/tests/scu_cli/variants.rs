@@ -12,7 +12,7 @@ use crate::common::{self, Sim};
 
 /// Every variant `motionlink sim scu --variant` knows (the library's list: a new one fails this test until
 /// it is added here with what it changes).
-const VARIANTS: [&str; 9] = [
+const VARIANTS: [&str; 10] = [
     "no-groups",
     "no-user-positions",
     "no-cyclic-objects",
@@ -22,6 +22,7 @@ const VARIANTS: [&str; 9] = [
     "sticky-errors",
     "in-end-undershoot",
     "re-needs-rs",
+    "late-motion-bit",
 ];
 
 const FAST: &str = "[[actuator]]\ncounts_per_second_at_full_speed = 2000.0\nramp_ms = 30\n\
