@@ -38,7 +38,7 @@ pub enum Variant {
     /// RE of a motion function that was started and not yet ended with RS is refused with PE (a new RE needs
     /// an RS first, as the public drivers' habit of sending RS before every RE suggests).
     ReNeedsRs,
-    /// After an RE, actuators at rest start [`LATE_START`] after the ACK, and their motion bit rises only
+    /// After an RE, actuators at rest start 0.4 s after the ACK, and their motion bit rises only
     /// then (a unit whose relays or soft start take that long; the manual does not say when the bit rises).
     LateMotionBit,
 }
