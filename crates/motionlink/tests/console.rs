@@ -379,6 +379,13 @@ fn a_stopped_console_stops_the_motion_it_started() {
     let stopped = stopped.unwrap_or_else(|| panic!("the stop before the bye: {seen:?}"));
     assert_eq!(stopped["ok"], true, "{stopped}");
     assert!(stopped["message"].as_str().unwrap().contains("ending"), "{stopped}");
+    // Then the WebSocket's own end: a close frame, 1001 (going away), not a connection cut off.
+    match ws.read() {
+        Ok(Message::Close(Some(frame))) => {
+            assert_eq!((u16::from(frame.code), frame.reason.as_str()), (1001, "the console is ending"))
+        }
+        other => panic!("a close frame after the bye: {other:?}"),
+    }
     let ended = c.running.wait(Duration::from_secs(10));
     assert_eq!(ended.code(), 128 + libc::SIGTERM, "{}", ended.stderr);
 }

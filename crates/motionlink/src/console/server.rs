@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use axum::body::{Body, Bytes};
-use axum::extract::ws::{Message as WsMessage, WebSocket, WebSocketUpgrade};
+use axum::extract::ws::{CloseFrame, Message as WsMessage, WebSocket, WebSocketUpgrade};
 use axum::extract::{FromRequestParts, Request, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::Response;
@@ -244,6 +244,9 @@ async fn page(hub: Arc<Hub>, mut socket: WebSocket) {
                 }
                 let bye = Message::Bye { message: "the console is ending" }.json().to_string();
                 let _ = socket.send(WsMessage::Text(bye.into())).await;
+                // The WebSocket's own end: 1001, going away.
+                let close = CloseFrame { code: 1001, reason: "the console is ending".into() };
+                let _ = socket.send(WsMessage::Close(Some(close))).await;
                 break 'page;
             }
         }

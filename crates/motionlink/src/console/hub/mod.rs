@@ -27,6 +27,9 @@ pub const DEAD_MAN: Duration = Duration::from_millis(200);
 pub const SAMPLE_PERIOD: Duration = Duration::from_millis(40);
 /// How long the hub waits before it scans again after a scan found nothing or failed.
 const RESCAN_AFTER: Duration = Duration::from_secs(2);
+/// How long the end of the console waits for its pages to have been told to go (the stop's message and the
+/// bye sent, the WebSocket closed) before the session closes and the process ends.
+const PAGES_TOLD: Duration = Duration::from_secs(2);
 
 /// What the hub found on the link.
 #[derive(Debug, Clone, PartialEq)]
@@ -106,6 +109,8 @@ pub struct Hub {
     samples: watch::Sender<Option<Arc<String>>>,
     notices: broadcast::Sender<Notice>,
     shutdown: watch::Sender<bool>,
+    /// How many pages are connected.
+    pages_open: watch::Sender<usize>,
     state: Mutex<State>,
     started: Instant,
     poller: Mutex<Option<JoinHandle<()>>>,
@@ -140,6 +145,7 @@ impl Hub {
             samples: watch::channel(None).0,
             notices: broadcast::channel(256).0,
             shutdown: watch::channel(false).0,
+            pages_open: watch::channel(0).0,
             state: Mutex::new(State { controller: None, next_page: 1, motion: None, next_motion: 1, ending: false }),
             started: Instant::now(),
             poller: Mutex::new(None),
@@ -238,6 +244,7 @@ impl Hub {
             Role::ReadOnly
         };
         drop(st);
+        self.pages_open.send_modify(|n| *n += 1);
         let _ = self.notices.send(Notice::RoleChanged);
         (id, role)
     }
@@ -278,6 +285,7 @@ impl Hub {
         if let Some(cancel) = owned {
             let _ = cancel.send(StopReason::PageGone);
         }
+        self.pages_open.send_modify(|n| *n = n.saturating_sub(1));
         let _ = self.notices.send(Notice::RoleChanged);
     }
 
@@ -466,8 +474,9 @@ impl Hub {
     }
 
     /// Ends the console: no motion starts any more, the motion under way is stopped (and its stop awaited:
-    /// the pages get its `motion` message, "the console is ending"), then the pages are told to go, sampling
-    /// ends, and whatever the session still has in motion is stopped. Returns what was stopped.
+    /// the pages get its `motion` message, "the console is ending"), then the pages are told to go (waited
+    /// for, at most 2 s), sampling ends, and whatever the session still has in motion is stopped. Returns
+    /// what was stopped.
     pub async fn shutdown(self: &Arc<Self>) -> Result<String, ErrorReport> {
         let motion = {
             let mut st = lock(&self.state);
@@ -483,6 +492,10 @@ impl Hub {
             }
         }
         self.shutdown.send_replace(true);
+        // Each page sends what it has and the bye, and closes its WebSocket, on its own task: waited for
+        // (bounded), so that the end of the process does not cut a page off before it was told.
+        let mut pages = self.pages_open.subscribe();
+        let _ = tokio::time::timeout(PAGES_TOLD, pages.wait_for(|n| *n == 0)).await;
         let poller = lock(&self.poller).take();
         if let Some(p) = poller {
             p.abort();
