@@ -55,7 +55,8 @@ class Emulator:
             come from ``drives``, ``mode`` and ``baud``),
             ``config`` (TOML text), ``variant`` (a firmware variant's name, or a list of them:
             ``"echo-without-address"``, ``"echo-bare"``, ``"no-echo"``, ``"echo-without-store"``,
-            ``"status-value-only"``, ``"no-position-message"``, ``"slow-replies"``, ``"buffer-queues"``; as
+            ``"status-value-only"``, ``"no-position-message"``, ``"slow-replies"``, ``"buffer-queues"``,
+            ``"no-command-bit"``; as
             ``motionlink sim compax --variant``).
 
     Use it as a context manager (or call :meth:`close`).

@@ -65,6 +65,7 @@ VARIANTS: Dict[str, Tuple[str, ...]] = {
         "no-position-message",
         "slow-replies",
         "buffer-queues",
+        "no-command-bit",
     ),
 }
 
@@ -242,6 +243,17 @@ def says_what_it_could_not_verify(result: Dict[str, Any], reasons: Sequence[Sequ
     for phrases in reasons:
         hits = [w for w in why if all(p in w for p in phrases)]
         assert len(hits) == 1, f"{what}: no single reason says {list(phrases)}: {why}"
+
+
+def without_reason(result: Dict[str, Any], phrase: str) -> Dict[str, Any]:
+    """``result`` without the one reason of ``not_verifiable`` that says ``phrase`` (if it has it), and
+    ``verified`` as the other reasons make it."""
+    why = result["not_verifiable"]
+    left = [w for w in why if phrase not in w]
+    if len(left) == len(why):
+        return result
+    assert len(left) == len(why) - 1 and result["verified"] is False, f"{phrase!r}: {result}"
+    return {**result, "not_verifiable": left, "verified": not left}
 
 
 def reached(result: Dict[str, Any], suffix: str, target: float, tolerance: float, what: str) -> None:
@@ -430,6 +442,11 @@ def check_compax(case: Case, o: Outcome) -> None:
         moved = succeeded(o, op, "CompaxMove")
         reached(moved, "units", target, moved["tolerance_units"], f"{case.id} {op}")
         assert moved["waited"] is True
+        if "no-command-bit" in case.variants:
+            # Seen (S1 moving while S17 shows no command) only if the move still runs at its first poll,
+            # which the timing decides: a reason more if so (crates/motionlink-compax/tests/variants.rs
+            # shows it on the manual clock).
+            moved = without_reason(moved, "S17 did not show the positioning")
         says_what_it_could_not_verify(moved, reasons, f"{case.id} {op}")
         at = target
     raised(o, "move_outside_limits", motionlink.UsageError, "target 50 is outside the travel limits", "maximum 30")

@@ -412,8 +412,11 @@ fn refused_commands_are_device_errors_and_raw_is_sent_once() {
     r.clock.sleep(Duration::from_secs(1));
     drop(bus); // (while this thread still drives the clock)
     assert_eq!(r.host.with_device(|d| d.drive(1).unwrap().position()), 1.0);
+    // Checked on drop: S17 shows no command, and (its S17 never seen to show a positioning) S1 holds still
+    // over a poll interval: it had stopped, so no OUTPUT O0=0.
     let frames = sent(&r.transcript);
-    assert_eq!(frames.last().unwrap(), b"1S17\r", "checked on drop; it had stopped, so no OUTPUT O0=0");
+    let n = frames.len();
+    assert_eq!(frames[n - 3..], [b"1S17\r".to_vec(), b"1S1\r".to_vec(), b"1S1\r".to_vec()], "{frames:?}");
 }
 
 #[test]
@@ -481,8 +484,9 @@ fn a_failed_synchronous_store_names_the_drives_left_with_a_buffered_move() {
             b"32!\r" => Vec::new(),
             // Drive 1 runs the move the later `32!` started.
             b"1S17\r" => b"S017: 0010 0010\r\n>".to_vec(),
-            // Drive 5 has nothing buffered: it does not move.
+            // Drive 5 has nothing buffered: it does not move (S17 shows no command, S1 holds still).
             b"5S17\r" => b"S017: 0000 0010\r\n>".to_vec(),
+            b"5S1\r" => b"S001: 0.000\r\n>".to_vec(),
             other => panic!("unexpected telegram {other:?}"),
         }
     };
@@ -528,6 +532,8 @@ fn a_synchronous_start_is_refused_while_a_drive_outside_it_holds_a_buffered_move
             b"5POSA 100,\r" => b"\r\n>".to_vec(),
             b"32!\r" => Vec::new(),
             b"1S17\r" | b"3S17\r" | b"5S17\r" => b"S017: 0000 0010\r\n>".to_vec(),
+            // At rest: S1 holds still (a stop reads it twice where S17 has not shown a positioning yet).
+            b"1S1\r" | b"3S1\r" | b"5S1\r" => b"S001: 0.000\r\n>".to_vec(),
             other => panic!("unexpected telegram {other:?}"),
         }
     };

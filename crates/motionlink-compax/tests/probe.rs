@@ -54,7 +54,7 @@ fn the_default_drives_are_found_identified_and_echo_in_full() {
         assert_eq!(d.capabilities.echo_form, Some(EchoForm::Full));
         for (name, address, result) in results(&r) {
             let expected = match name {
-                "baud" | "latency_timer" | "echo_stores" => CheckResult::Skipped,
+                "baud" | "latency_timer" | "echo_stores" | "command_bit" => CheckResult::Skipped,
                 _ => CheckResult::Ok,
             };
             assert_eq!(result, expected, "{name} of {address:?}, P196 {p196}: {:?}", r.check(name, address));
@@ -74,8 +74,10 @@ fn each_variant_shows_as_unsupported_in_its_own_check_and_nowhere_else() {
         let expected = match v {
             Variant::EchoWithoutAddress | Variant::EchoBare | Variant::NoEcho => unsupported("echo_form"),
             Variant::StatusValueOnly => vec![("status_value_form", Some(1), CheckResult::Unsupported)],
-            // Storing is not harmless: not probed; nor is a move (for the '$' message).
-            Variant::EchoWithoutStore | Variant::BufferQueues | Variant::NoPositionMessage => vec![],
+            // Storing is not harmless: not probed; nor is a move (for the '$' message, for S17's bit 3).
+            Variant::EchoWithoutStore | Variant::BufferQueues | Variant::NoPositionMessage | Variant::NoCommandBit => {
+                vec![]
+            }
             // Given a reply timeout long enough, a slow drive is probed as any other.
             Variant::SlowReplies => vec![],
         };

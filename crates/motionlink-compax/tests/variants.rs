@@ -104,6 +104,7 @@ fn every_variant_in_every_address_mode() {
             &[Variant::NoPositionMessage],
             &[Variant::SlowReplies],
             &[Variant::BufferQueues],
+            &[Variant::NoCommandBit],
         ] {
             let what = format!("{variants:?} P196={p196}");
             let (first, second) = core_operations(variants, p196);
@@ -118,6 +119,10 @@ fn every_variant_in_every_address_mode() {
                 )
             });
             match echo {
+                // Both moves still run at their first poll: S1 moves while S17 shows no command.
+                None if variants.contains(&Variant::NoCommandBit) => {
+                    assert!(!first.verified && why.contains("S17 did not show the positioning"), "{what}: {why}")
+                }
                 None => assert!(first.verified && why.is_empty(), "{what}: {why}"),
                 // The address prefix names the drive that echoed: only the missing address is then no loss.
                 Some(Variant::EchoWithoutAddress) if prefixed => assert!(first.verified, "{what}: {why}"),
@@ -398,9 +403,10 @@ fn a_move_whose_position_message_never_comes_ends_its_wait_by_s17() {
             // The '$' at 100 ms ended it (seen at the next poll interval); nothing was read meanwhile.
             assert!(waited <= Duration::from_millis(200) && read == 0, "{waited:?}, {read} telegrams");
         } else {
-            // No '$': S17 (and S1), read once a second while a wait listens for one, ended it.
-            assert!(waited >= Duration::from_secs(1) && waited < Duration::from_millis(1100), "{waited:?}");
-            assert_eq!(read, 2, "S17 and S1, once");
+            // No '$': S17 (and S1), read once a second while a wait listens for one, ended it, once S1
+            // held still over a poll interval (the session had not seen this drive's S17 show a positioning).
+            assert!(waited >= Duration::from_secs(1) && waited < Duration::from_millis(1150), "{waited:?}");
+            assert_eq!(read, 4, "S17 and S1, then S1 twice a poll interval apart");
         }
         // A synchronous start of two drives with '$' likewise.
         let moves = [(a(1), Command::PosA(pos(20.0))), (a(3), Command::PosA(pos(5.0)))];
@@ -411,4 +417,49 @@ fn a_move_whose_position_message_never_comes_ends_its_wait_by_s17() {
         assert_eq!((bus.read_position(a(1)).unwrap(), bus.read_position(a(3)).unwrap()), (pos(20.0), pos(5.0)));
         bus.close().unwrap();
     }
+}
+
+#[test]
+fn a_drive_whose_s17_never_shows_its_positioning_is_judged_by_s1_and_stopped_while_it_moves() {
+    let (clock, host, _faults, bus) = emulated(&[Variant::NoCommandBit], 0);
+    let _me = clock.reserve_participant().enter();
+    let moving = || host.with_device(|d| d.drive(1).unwrap().is_moving());
+    // A checked move: S17 shows no command from the first poll on, but S1 moves: the wait goes on until S1
+    // holds still, the move ends at its target, and it says how its end was judged.
+    let report = bus.move_to(a(1), &to(50.0), &mut |_| {}).unwrap();
+    assert_eq!(report.reached, pos(50.0));
+    assert!(!moving());
+    assert!(!report.verified, "{report:?}");
+    assert!(report.not_verifiable.iter().any(|w| w.contains("S17 did not show the positioning")), "{report:?}");
+    // A cancelled wait stops the drive: it is seen to move by S1, and switched off.
+    let token = motionlink_link::cancel::CancelToken::new();
+    bus.set_cancel(token.clone());
+    bus.move_absolute(a(1), pos(500.0), MoveOptions::default()).unwrap();
+    let mut polls = 0;
+    let e = bus
+        .wait_reached(&[a(1)], None, &mut |_, _| {
+            polls += 1;
+            if polls == 3 {
+                token.cancel();
+            }
+        })
+        .unwrap_err();
+    assert!(matches!(e, Error::Cancelled { .. }), "{e}");
+    assert_eq!(e.stop_report().expect("a stop").switched_off(), [a(1)], "{e}");
+    assert!(!moving() && host.with_device(|d| d.drive(1).unwrap().o0()) == 0);
+    token.reset();
+    // On a new session (nothing seen yet): a stop of a drive S17 calls idle but S1 shows moving switches it
+    // off; one that rests is left switched on.
+    drop(bus);
+    let (clock, host, _faults, bus) = emulated(&[Variant::NoCommandBit], 0);
+    let _me = clock.reserve_participant().enter();
+    let stopped = bus.stop_confirmed(a(1)).unwrap();
+    assert!(stopped.report.switched_off().is_empty(), "{stopped:?}");
+    assert_eq!(host.with_device(|d| d.drive(1).unwrap().o0()), 1, "at rest: left switched on");
+    bus.move_absolute(a(1), pos(500.0), MoveOptions::default()).unwrap();
+    while bus.read_position(a(1)).unwrap().units() < 1.0 {}
+    let stopped = bus.stop_confirmed(a(1)).unwrap();
+    assert_eq!(stopped.report.switched_off(), [a(1)], "{stopped:?}");
+    assert!(!host.with_device(|d| d.drive(1).unwrap().is_moving()));
+    bus.close().unwrap();
 }

@@ -249,6 +249,11 @@ pub(crate) struct Core {
     /// Drives that echoed a move sent with `,?` and then refused the `!` (they do not store such a command):
     /// their moves go out as commands of their own.
     pub echo_without_store: u32,
+    /// Drives whose S17 has shown "command active" in this session: their S17 is taken to show a positioning.
+    pub command_bit_seen: u32,
+    /// Drives found moving (S1 changing) while their S17 showed no command active: whether they rest is
+    /// judged by S1 from then on.
+    pub command_bit_missing: u32,
     /// What was already warned about (drive, which): each finding is said once per session.
     pub warned: HashSet<(u8, &'static str)>,
     /// The round trips measured on the line: each reply since its telegram went out.
@@ -294,6 +299,8 @@ impl Core {
             echo_forms: [None; 32],
             echo_profiles: HashMap::new(),
             echo_without_store: 0,
+            command_bit_seen: 0,
+            command_bit_missing: 0,
             warned: HashSet::new(),
             round_trips: None,
             late_replies: None,

@@ -260,7 +260,8 @@ impl Drive {
 
     pub(super) fn s17(&self) -> S17Bits {
         let mut b = S17Bits(0);
-        b.set(S17Flag::CommandActive, self.motion.is_some());
+        let shows_command = !self.variants.contains(&super::Variant::NoCommandBit);
+        b.set(S17Flag::CommandActive, self.motion.is_some() && shows_command);
         b.set(S17Flag::Run, self.o0 == 1);
         b
     }

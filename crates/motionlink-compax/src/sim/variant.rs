@@ -19,6 +19,7 @@
 //! | `no-position-message` | A move sent with `$` runs, but the drive never sends the `$` message when it ends. |
 //! | `slow-replies` | Everything the drives send goes out [`SLOW_REPLY_DELAY`] (300 ms) after it would have: beyond the client's default reply timeout of 200 ms. |
 //! | `buffer-queues` | The buffer is a queue: each store (`,`) appends a command (up to [`QUEUE_DEPTH`]; beyond, a store is refused with E90 and nothing stored), and `!` executes the oldest. |
+//! | `no-command-bit` | S17 bit 3 ("command active", the user guide's, not the RS485 manual's) stays clear while a positioning runs. |
 //!
 //! Every reply keeps the framing P196 asks for (its address prefix, its end, its BCC): a variant changes
 //! what the drive says, not how it frames it.
@@ -55,6 +56,8 @@ pub enum Variant {
     SlowReplies,
     /// The buffer is a queue: each store appends, `!` executes the oldest.
     BufferQueues,
+    /// S17 never shows "command active": a positioning runs with the bit clear.
+    NoCommandBit,
 }
 
 impl FirmwareVariant for Variant {
@@ -69,6 +72,7 @@ impl FirmwareVariant for Variant {
         Variant::NoPositionMessage,
         Variant::SlowReplies,
         Variant::BufferQueues,
+        Variant::NoCommandBit,
     ];
 
     /// The name the command line, the TOML configuration and Python take.
@@ -82,6 +86,7 @@ impl FirmwareVariant for Variant {
             Variant::NoPositionMessage => "no-position-message",
             Variant::SlowReplies => "slow-replies",
             Variant::BufferQueues => "buffer-queues",
+            Variant::NoCommandBit => "no-command-bit",
         }
     }
 
@@ -98,6 +103,7 @@ impl FirmwareVariant for Variant {
                 "every reply comes 300 ms late (beyond the client's default reply timeout of 200 ms)"
             }
             Variant::BufferQueues => "the buffer is a queue: each store appends a command, '!' executes the oldest",
+            Variant::NoCommandBit => "S17 bit 3 (command active) stays clear while a positioning runs",
         }
     }
 }
@@ -134,7 +140,7 @@ mod tests {
         assert_eq!(
             e,
             "\"echo\" is not a variant of the COMPAX emulator (known: echo-without-address, echo-bare, no-echo, \
-             echo-without-store, status-value-only, no-position-message, slow-replies, buffer-queues)"
+             echo-without-store, status-value-only, no-position-message, slow-replies, buffer-queues, no-command-bit)"
         );
         let t = b"12POSA 12.5$,?";
         assert_eq!(echo_of(&[], t, 2), t);

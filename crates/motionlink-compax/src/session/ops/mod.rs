@@ -14,13 +14,13 @@ mod wait;
 use std::ops::RangeInclusive;
 use std::time::Duration;
 
-use super::core::{Effect, Retry};
+use super::core::{bit, Effect, Retry};
 use super::ctx::Ctx;
 use super::types::{s16_of, s17_of, Progress, WatchSample};
 use crate::error::{Error, Result};
 use crate::model::{
     param_reply_decimals, parse_param_reply, Command, ErrorCode, ModelError, ParamId, Position, S16Bits, S17Bits,
-    StatusId, StatusValue,
+    S17Flag, StatusId, StatusValue,
 };
 use crate::wire::number::{same_decimal, MAX_DECIMALS};
 use crate::wire::{Address, Body, Flags, Mode, Reply, Request};
@@ -168,7 +168,15 @@ impl Ctx {
     /// S17 with `retries` retries.
     pub(crate) async fn read_s17_retries(&self, address: Address, retries: u32) -> Result<S17Bits> {
         let v = self.read_status_retries(address, StatusId::STATUS_BITS_2, retries).await?;
-        s17_of(&v).ok_or_else(|| Error::UnexpectedReply { address, command: "S17".into(), reply: v.to_string() })
+        let s17 = s17_of(&v).ok_or_else(|| Error::UnexpectedReply {
+            address,
+            command: "S17".into(),
+            reply: v.to_string(),
+        })?;
+        if s17.contains(S17Flag::CommandActive) {
+            self.core().command_bit_seen |= bit(address);
+        }
+        Ok(s17)
     }
 
     /// Reads parameter `id`, asking again when the reply does not read as a value.

@@ -7,7 +7,7 @@ use super::super::core::{bit, drives_in};
 use super::super::ctx::Ctx;
 use super::super::types::{EchoForm, MoveOptions, MoveReport, MoveRequest, MoveTarget, Progress, StartedMove};
 use crate::error::{Error, Result, StopOutcome, StopReport};
-use crate::model::{Command, Position, S17Flag};
+use crate::model::{Command, Position, S17Flag, StatusId};
 use crate::wire::Address;
 
 impl Ctx {
@@ -70,7 +70,9 @@ impl Ctx {
                 if let Ok(p) = self.read_position(a).await {
                     self.progress(Progress::Position { drive: a, position: p });
                 }
-                if s17.contains(S17Flag::CommandActive) {
+                let rests = !s17.contains(S17Flag::CommandActive) && self.at_rest_by_s1(a, None).await?;
+                self.check_cancel()?;
+                if !rests {
                     still.push(a);
                 } else {
                     if by_message && self.core().message_seen & bit(a) == 0 {
@@ -104,6 +106,39 @@ impl Ctx {
             Error::Timeout { .. } if self.is_cancelled() => Error::CancelledBeforeMotion,
             e => e,
         }
+    }
+
+    /// Whether drive `a`, whose S17 has just shown no command active, is at rest. Once this session has
+    /// seen the drive's S17 show a positioning, S17 says so. Until then (bit 3 is the user guide's, not the
+    /// RS485 manual's: a drive may not show it), and on a drive found not to, S1 is read twice, one poll
+    /// interval apart: a change beyond the in-position tolerance means it moves, and the drive is remembered
+    /// as one whose S17 does not show its positioning (one warning). `retries` for the S1 reads (`None`: the
+    /// session's); the wait between them is not cut short by a cancel (a stop makes it).
+    pub(crate) async fn at_rest_by_s1(&self, a: Address, retries: Option<u32>) -> Result<bool> {
+        let (seen, poll, tolerance, retries) = {
+            let c = self.core();
+            let seen = c.command_bit_seen & bit(a) != 0 && c.command_bit_missing & bit(a) == 0;
+            (seen, c.cfg.poll_interval, c.cfg.in_position_tolerance.units().abs(), retries.unwrap_or(c.cfg.retries))
+        };
+        if seen {
+            return Ok(true);
+        }
+        let first = self.read_position_value(a, StatusId::ACTUAL_POSITION, retries).await?;
+        self.sleep_until(self.now() + poll).await;
+        let second = self.read_position_value(a, StatusId::ACTUAL_POSITION, retries).await?;
+        if (second.units() - first.units()).abs() <= tolerance {
+            return Ok(true);
+        }
+        let mut core = self.core();
+        core.command_bit_missing |= bit(a);
+        core.warn_once(a, "command-bit", || {
+            format!(
+                "drive {a} moves (S1 {first} then {second}, {} ms apart) while its S17 shows no command active: \
+                 whether it rests is judged by S1 for the rest of the session",
+                poll.as_millis()
+            )
+        });
+        Ok(false)
     }
 
     /// `cause` ended an action while axes of this session in `scope` may be moving: stops them and says
@@ -150,12 +185,16 @@ impl Ctx {
         let mut report = StopReport::default();
         for &a in drives {
             match urgent.read_s17_retries(a, 0).await {
-                Ok(s) if !s.contains(S17Flag::CommandActive) => {
-                    tracing::debug!("drive {a}: at rest, not switched off");
-                    self.core().finish(a);
-                    report.drives.push((a, StopOutcome::AtRest));
-                    continue;
-                }
+                Ok(s) if !s.contains(S17Flag::CommandActive) => match urgent.at_rest_by_s1(a, Some(0)).await {
+                    Ok(true) => {
+                        tracing::debug!("drive {a}: at rest, not switched off");
+                        self.core().finish(a);
+                        report.drives.push((a, StopOutcome::AtRest));
+                        continue;
+                    }
+                    Ok(false) => tracing::info!("drive {a} moves although S17 shows no command: stopping it"),
+                    Err(e) => tracing::info!("drive {a}: S1 unreadable ({e}): stopping it anyway"),
+                },
                 Ok(_) => tracing::info!("drive {a} still moves: stopping it"),
                 Err(e) => tracing::info!("drive {a}: S17 unreadable ({e}): stopping it anyway"),
             }
@@ -181,23 +220,30 @@ impl Ctx {
             if let Err(e) = self.expect_ack(a, &Command::SWITCH_OFF).await {
                 return StopOutcome::NotConfirmed { reason: format!("OUTPUT O0=0 was not acknowledged: {e}") };
             }
-            match self.read_s17(a).await {
-                Ok(s) if !s.contains(S17Flag::CommandActive) => {
+            let rests = match self.read_s17(a).await {
+                Ok(s) if !s.contains(S17Flag::CommandActive) => self.at_rest_by_s1(a, None).await,
+                other => other.map(|_| false),
+            };
+            match rests {
+                Ok(true) => {
                     self.core().finish(a);
                     return StopOutcome::SwitchedOff;
                 }
-                Ok(_) => {
-                    tracing::info!("drive {a}: S17 still shows a command active after OUTPUT O0=0: sending it again")
+                Ok(false) => {
+                    tracing::info!("drive {a}: still moving after OUTPUT O0=0 (S17 or S1): sending it again")
                 }
                 Err(e) => {
                     return StopOutcome::NotConfirmed {
-                        reason: format!("OUTPUT O0=0 was acknowledged, but S17 could not be read afterwards: {e}"),
+                        reason: format!(
+                            "OUTPUT O0=0 was acknowledged, but S17 or S1 could not be read afterwards: {e}"
+                        ),
                     }
                 }
             }
         }
         StopOutcome::NotConfirmed {
-            reason: "S17 still shows a command active after OUTPUT O0=0 was acknowledged twice".into(),
+            reason: "S17 still shows a command active (or S1 still changes) after OUTPUT O0=0 was acknowledged twice"
+                .into(),
         }
     }
 
@@ -329,14 +375,23 @@ impl Ctx {
         };
         let target = started.target;
         let give_up_at = self.now() + timeout.unwrap_or(wait_timeout);
-        let report = |reached: Position| MoveReport {
-            address: a,
-            start: started.start,
-            target,
-            reached,
-            tolerance: Position::from_units_unchecked(tolerance),
-            verified: started.not_verifiable.is_empty(),
-            not_verifiable: started.not_verifiable.clone(),
+        let report = |reached: Position| {
+            let mut not_verifiable = started.not_verifiable.clone();
+            if self.core().command_bit_missing & bit(a) != 0 {
+                not_verifiable.push(format!(
+                    "drive {a}'s S17 did not show the positioning (bit 3, command active, clear while S1 moved): \
+                     its end was judged by S1 coming to rest"
+                ));
+            }
+            MoveReport {
+                address: a,
+                start: started.start,
+                target,
+                reached,
+                tolerance: Position::from_units_unchecked(tolerance),
+                verified: not_verifiable.is_empty(),
+                not_verifiable,
+            }
         };
         let close = |p: Position| (p.units() - target.units()).abs() <= tolerance;
         loop {
