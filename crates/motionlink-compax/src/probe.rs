@@ -206,7 +206,7 @@ pub fn probe(client: &Client, setup: &ProbeSetup, drives: &[Address]) -> Result<
                 CheckResult::Skipped,
                 "whether S17 bit 3 (command active) shows a positioning needs one: until this session has seen it \
                  set, a drive whose S17 shows no command is taken to rest only once S1 holds still for a poll \
-                 interval (waits, stops)",
+                 interval, at most 200 ms (waits, stops)",
             )
             .at(a.get())
             .variant("no-command-bit"),

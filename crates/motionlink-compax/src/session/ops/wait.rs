@@ -10,6 +10,10 @@ use crate::error::{Error, Result, StopOutcome, StopReport};
 use crate::model::{Command, Position, S17Flag, StatusId};
 use crate::wire::Address;
 
+/// The longest time between the two S1 reads that tell whether a drive rests where S17 cannot be relied on
+/// ([`Ctx::at_rest_by_s1`]): the poll interval, but no more than this.
+pub(crate) const REST_CHECK_MAX: Duration = Duration::from_millis(200);
+
 impl Ctx {
     /// Waits until every drive in `drives` has ended its positioning: by its `$` message when the move
     /// asked for one, otherwise by polling S17 every poll interval, reporting each polled position. While it
@@ -111,14 +115,15 @@ impl Ctx {
     /// Whether drive `a`, whose S17 has just shown no command active, is at rest. Once this session has
     /// seen the drive's S17 show a positioning, S17 says so. Until then (bit 3 is the user guide's, not the
     /// RS485 manual's: a drive may not show it), and on a drive found not to, S1 is read twice, one poll
-    /// interval apart: a change beyond the in-position tolerance means it moves, and the drive is remembered
+    /// interval apart (at most [`REST_CHECK_MAX`]: a stop does not wait longer): a change beyond the in-position tolerance means it moves, and the drive is remembered
     /// as one whose S17 does not show its positioning (one warning). `retries` for the S1 reads (`None`: the
     /// session's); the wait between them is not cut short by a cancel (a stop makes it).
     pub(crate) async fn at_rest_by_s1(&self, a: Address, retries: Option<u32>) -> Result<bool> {
         let (seen, poll, tolerance, retries) = {
             let c = self.core();
             let seen = c.command_bit_seen & bit(a) != 0 && c.command_bit_missing & bit(a) == 0;
-            (seen, c.cfg.poll_interval, c.cfg.in_position_tolerance.units().abs(), retries.unwrap_or(c.cfg.retries))
+            let poll = c.cfg.poll_interval.min(REST_CHECK_MAX);
+            (seen, poll, c.cfg.in_position_tolerance.units().abs(), retries.unwrap_or(c.cfg.retries))
         };
         if seen {
             return Ok(true);
