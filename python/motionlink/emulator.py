@@ -50,7 +50,7 @@ class Emulator:
             variant's name, or a list of them: ``"no-twin-mirror"``, ``"no-broadcast-pair"``,
             ``"ack-length-6"``, ``"ext-ack-on-put-id"``, ``"no-pos-state-dio"``,
             ``"life-sign-unacknowledged"``, ``"no-config-word"``, ``"reset-clears-watchdog"``,
-            ``"no-extended-ack"``; as ``motionlink sim powercube --variant``).
+            ``"no-extended-ack"``, ``"late-motion-start"``; as ``motionlink sim powercube --variant``).
         compax: ``drives`` (addresses), ``mode`` (P196), ``baud``, ``params`` ({"P3": 10.0}; P194..P196
             come from ``drives``, ``mode`` and ``baud``),
             ``config`` (TOML text), ``variant`` (a firmware variant's name, or a list of them:

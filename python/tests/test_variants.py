@@ -55,6 +55,7 @@ VARIANTS: Dict[str, Tuple[str, ...]] = {
         "no-config-word",
         "reset-clears-watchdog",
         "no-extended-ack",
+        "late-motion-start",
     ),
     "compax": (
         "echo-without-address",

@@ -59,7 +59,7 @@ pub fn identity_of(info: &ModuleInfo) -> String {
 }
 
 /// The behaviours of the list that no harmless exchange shows: name, why, variant.
-const NOT_PROBED: [(&str, &str, &str); 4] = [
+const NOT_PROBED: [(&str, &str, &str); 5] = [
     (
         "twin_mirror",
         "needs a write of another value (TargetVel, TargetAcc, TargetPos are write-only): found out by the first \
@@ -76,6 +76,13 @@ const NOT_PROBED: [(&str, &str, &str); 4] = [
         "ext_ack_identifier",
         "nothing to probe: an extended acknowledge is taken on 0x0A0 + address and on 0x0E0 + address",
         "ext-ack-on-put-id",
+    ),
+    (
+        "motion_shown_at_once",
+        "needs a motion: a checked move or homing takes an end flag for its own only once it saw STATE_MOTION, \
+         or stands at its target, or 1 s (the start grace) has passed; the close waits as long for a motion \
+         command it sent",
+        "late-motion-start",
     ),
 ];
 

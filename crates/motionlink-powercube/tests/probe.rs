@@ -56,8 +56,8 @@ fn the_default_modules_are_found_identified_and_answer_the_harmless_probe() {
         let expected = if answered { CheckResult::Ok } else { CheckResult::Skipped };
         assert_eq!(result, expected, "{name} of {address:?}");
     }
-    // Two link rows, then seven per module.
-    assert_eq!(r.checks.len(), 2 + 2 * 7);
+    // Two link rows, then eight per module.
+    assert_eq!(r.checks.len(), 2 + 2 * 8);
     assert_eq!((r.link.exchanges, r.link.errors), (20, 0));
     assert!(r.link.round_trip_ms.unwrap().min > 5.0, "9600 baud: {:?}", r.link.round_trip_ms);
     let broadcast = r.check("rs232_broadcast", Some(1)).unwrap();

@@ -148,6 +148,8 @@ pub(crate) struct Core {
     pub duty: WatchdogDuty,
     /// Modules this session may have set in motion and has not seen stop.
     pub started: BTreeSet<u8>,
+    /// When this session last sent each module a motion command.
+    pub motion_sent: BTreeMap<u8, Timestamp>,
     /// Modules known to exist: every address that has answered this session.
     pub known: BTreeSet<u8>,
     /// Module kinds read from their Config words.
@@ -179,6 +181,7 @@ impl Core {
             broadcast_out: None,
             duty: WatchdogDuty::default(),
             started: BTreeSet::new(),
+            motion_sent: BTreeMap::new(),
             known: BTreeSet::new(),
             kinds: BTreeMap::new(),
             findings: BTreeMap::new(),

@@ -46,8 +46,8 @@ use motionlink_link::session::{Action as LinkAction, Event, Input, OpId};
 use motionlink_link::{LinkError, Timestamp};
 
 pub use types::{
-    Config, Guard, HaltReport, HomeReport, ModuleFindings, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress,
-    Readback, ScanEntry, Until, HALT_SETTLE,
+    Begun, Config, Guard, HaltReport, HomeReport, ModuleFindings, ModuleInfo, ModulesAt, MoveReport, MoveSpec,
+    Progress, Readback, ScanEntry, Until, HALT_SETTLE,
 };
 
 use self::core::Core;

@@ -34,6 +34,12 @@ pub struct Config {
     /// default. When it gives up, the watchdog refresh stops with the session: a module whose watchdog it
     /// armed halts itself within 50 ms.
     pub close_bound: Duration,
+    /// After a motion command of this session, how long the module may take to show it (STATE_MOTION)
+    /// before a state that shows an end (STATE_RAMP_END, STATE_HOME_OK, perhaps of an earlier motion) counts
+    /// as this motion's end: the manual does not say how soon a module sets STATE_MOTION (a module with a
+    /// brake may release it first). 1 s by default. Also how long after a motion command the close halts a
+    /// module that does not show STATE_MOTION yet.
+    pub start_grace: Duration,
     /// The RS232 line's rate, for [`Client::open`](crate::Client::open). Default 9600.
     pub baud: Baud,
     /// An SLCAN adapter's CAN bit rate, for [`Client::open`](crate::Client::open). Default 1 Mbit/s.
@@ -51,6 +57,7 @@ impl Config {
             poll_interval: Duration::from_millis(10),
             watchdog_on_rs232: true,
             close_bound: Duration::from_secs(5),
+            start_grace: Duration::from_secs(1),
             baud: Baud::DEFAULT,
             can_bitrate: CanBitRate::DEFAULT,
         }
@@ -66,6 +73,7 @@ impl Config {
             poll_interval: Duration::from_millis(10),
             watchdog_on_rs232: true,
             close_bound: Duration::from_secs(5),
+            start_grace: Duration::from_secs(1),
             baud: Baud::DEFAULT,
             can_bitrate: CanBitRate::DEFAULT,
         }
@@ -380,6 +388,16 @@ impl Until {
                 Until::Ramp => s.contains(StateFlag::RampEnd),
             }
     }
+}
+
+/// A motion a wait waits for the end of, started by this operation ([`Config::start_grace`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Begun {
+    /// When its command was sent.
+    pub at: motionlink_link::Timestamp,
+    /// Where it goes and the tolerance, in the module's unit, where known: a module already there has
+    /// nothing to show.
+    pub target: Option<(f32, f32)>,
 }
 
 /// One poll while waiting for homing or a motion: position and state.

@@ -28,6 +28,8 @@ pub(super) enum Change {
     TowError,
     SoftLimit,
     MotionEnd,
+    /// A motion command taken late (`late-motion-start`) starts.
+    DelayedStart,
 }
 
 /// What kind of motion is running (for flags and for what happens at its end).
@@ -78,6 +80,8 @@ pub struct SimModule {
     pub(super) step_buffer: Option<(f64, f64)>,
     pub(super) move_mode: u8,
     pub(super) pending: Vec<Request>,
+    /// A motion command acknowledged at rest and not yet started, and when it starts (`late-motion-start`).
+    pub(super) delayed: Option<(f64, Request)>,
     /// On a CAN bus (CONFIGID_MOD_SYNC_MOTION and CONFIGID_MOD_DISABLE_ACK are valid only there).
     pub(super) can: bool,
     /// The bit rate the last change-baud-rate broadcast asked for, if any.
@@ -133,6 +137,7 @@ impl SimModule {
             step_buffer: None,
             move_mode: 0,
             pending: Vec::new(),
+            delayed: None,
             can,
             can_baud: None,
             watchdog_online: false,
@@ -192,6 +197,7 @@ impl SimModule {
             (tow, Change::TowError),
             (outside, Change::SoftLimit),
             (end, Change::MotionEnd),
+            (self.delayed.map(|(at, _)| at), Change::DelayedStart),
         ]
         .into_iter()
         .filter_map(|(t, c)| t.map(|t| (t, c)))
@@ -330,6 +336,7 @@ impl SimModule {
         self.pos = self.pos_at(t);
         let was_moving = self.motion.take().is_some();
         self.step_buffer = None;
+        self.delayed = None;
         if was_moving {
             self.event(t, format!("at rest {}", self.show_pos(self.pos)));
         }
@@ -363,6 +370,11 @@ impl SimModule {
                     self.event(t, format!("at rest {}", self.show_pos(p)));
                 }
                 Change::MotionEnd => self.motion_ended(t),
+                Change::DelayedStart => {
+                    if let Some((_, request)) = self.delayed.take() {
+                        self.execute_motion(t, &request);
+                    }
+                }
             }
             self.t = t;
         }

@@ -191,7 +191,21 @@ impl SimModule {
         let sync = self.can && self.config.contains(ConfigFlag::SyncMotion);
         if sync && !matches!(request, Request::Action(Action::Home)) {
             self.pending.push(*request);
+        } else if self.firmware.late_motion_start && self.motion.is_none() && self.accepts_motion(request) {
+            // This firmware starts a motion from rest later; the state stays as it was until then. A ramp's
+            // target is taken at once (TargetPos shows it).
+            match *request {
+                Request::Motion(Motion::FRamp { pos }, _) if pos.value().is_finite() => {
+                    self.target_pos = self.clamp_target(f64::from(pos.value()));
+                }
+                Request::Motion(Motion::IRamp { pos }, _) => {
+                    self.target_pos = self.clamp_target(f64::from(pos.0) / self.inc_ratio());
+                }
+                _ => {}
+            }
+            self.delayed = Some((t + super::variant::LATE_START_S, *request));
         } else {
+            self.delayed = None;
             self.execute_motion(t, request);
         }
     }

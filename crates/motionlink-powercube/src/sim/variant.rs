@@ -13,8 +13,13 @@
 //! | `no-config-word` | The Config word (parameter 57, from module version 3.5.00) is not known: GetExtended and SetExtended of it get no acknowledge, as any parameter a module does not know (DefConfig, the ROM default, is still answered). |
 //! | `reset-clears-watchdog` | A Reset (addressed or broadcast) also switches an online watchdog offline, so that an unrefreshed watchdog does not expire again after it. |
 //! | `no-extended-ack` | Motion commands with an extended-acknowledge MotionID (FRAMP_ACK ... ICUR_ACK, from PowerCube-OS 2.5.16 / 3.5.13) run as their plain mode does and get the simple acknowledge `[0x0b][motionID][0x64]`. |
+//! | `late-motion-start` | A motion command (or Home) to a module at rest starts the motion [`LATE_START_S`] (0.3 s) after its acknowledge; until then the state is as before it (STATE_RAMP_END and STATE_HOME_OK of an earlier motion included), as a module releasing its brake first might show. |
 
 use motionlink_link::emulator::FirmwareVariant;
+
+/// How long after its acknowledge a motion from rest starts on a module of the `late-motion-start` variant
+/// ([`Variant::LateMotionStart`]), in seconds.
+pub const LATE_START_S: f64 = 0.3;
 pub use motionlink_link::emulator::UnknownVariant;
 
 /// One firmware variant of the emulated modules (see the module documentation of `sim::variant`).
@@ -39,6 +44,8 @@ pub enum Variant {
     ResetClearsWatchdog,
     /// Motion commands get only the simple acknowledge.
     NoExtendedAck,
+    /// A motion from rest starts 0.3 s after its acknowledge, the state unchanged until then.
+    LateMotionStart,
 }
 
 impl FirmwareVariant for Variant {
@@ -54,6 +61,7 @@ impl FirmwareVariant for Variant {
         Variant::NoConfigWord,
         Variant::ResetClearsWatchdog,
         Variant::NoExtendedAck,
+        Variant::LateMotionStart,
     ];
 
     /// The name the command line, the TOML configuration and Python take.
@@ -68,6 +76,7 @@ impl FirmwareVariant for Variant {
             Variant::NoConfigWord => "no-config-word",
             Variant::ResetClearsWatchdog => "reset-clears-watchdog",
             Variant::NoExtendedAck => "no-extended-ack",
+            Variant::LateMotionStart => "late-motion-start",
         }
     }
 
@@ -95,6 +104,10 @@ impl FirmwareVariant for Variant {
                 "motion commands get the simple acknowledge, also with an extended-acknowledge MotionID (before \
                  PowerCube-OS 2.5.16 / 3.5.13)"
             }
+            Variant::LateMotionStart => {
+                "a motion from rest starts 0.3 s after its acknowledge; until then the state is as before it \
+                 (RAMP_END, HOME_OK)"
+            }
         }
     }
 }
@@ -110,6 +123,7 @@ pub(crate) struct Firmware {
     pub no_config_word: bool,
     pub reset_clears_watchdog: bool,
     pub no_extended_ack: bool,
+    pub late_motion_start: bool,
 }
 
 impl Firmware {
@@ -121,6 +135,7 @@ impl Firmware {
             no_config_word: variants.contains(&Variant::NoConfigWord),
             reset_clears_watchdog: variants.contains(&Variant::ResetClearsWatchdog),
             no_extended_ack: variants.contains(&Variant::NoExtendedAck),
+            late_motion_start: variants.contains(&Variant::LateMotionStart),
         }
     }
 }

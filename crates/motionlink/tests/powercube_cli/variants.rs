@@ -78,6 +78,7 @@ fn every_variant_through_the_binary() {
         "life-sign-unacknowledged",
         "no-config-word",
         "reset-clears-watchdog,no-extended-ack",
+        "late-motion-start",
     ];
     let runs: Vec<Run> = std::thread::scope(|s| {
         let handles: Vec<_> = variants.iter().map(|v| s.spawn(move || core_actions(v))).collect();

@@ -146,6 +146,7 @@ fn variants_the_client_takes_as_they_are() {
         Variant::ExtAckOnPutId,
         Variant::ResetClearsWatchdog,
         Variant::NoExtendedAck,
+        Variant::LateMotionStart,
     ] {
         let o = core_operations(&[v]);
         assert!(o.set.as_ref().is_ok_and(|s| s.verified), "{v}: {o:?}");
@@ -275,6 +276,7 @@ fn every_variant_on_can() {
         Some(Variant::NoPosStateDio),
         Some(Variant::ResetClearsWatchdog),
         Some(Variant::NoExtendedAck),
+        Some(Variant::LateMotionStart),
     ] {
         let o = core_operations_can(v.as_slice());
         assert!(o.set.as_ref().is_ok_and(|s| s.verified), "{v:?}: {o:?}");
@@ -417,4 +419,53 @@ fn the_broadcast_probe_never_resets_a_module_halted_before_it() {
     assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
     assert_eq!(host.with_device(|d| d.module(1).unwrap().position().value()), before);
     assert!(!host.with_device(|d| d.take_events()).iter().any(|e| e.contains("reset")));
+}
+
+#[test]
+fn a_module_that_starts_late_is_waited_for_within_the_grace_and_beyond_it_is_halted() {
+    // The module starts a motion 0.3 s after acknowledging it, its state until then that of before (the
+    // RAMP_END of the last ramp, the HOME_OK of the last homing): within the session's start grace (1 s)
+    // the checked moves and homing wait for it, and end where they were sent.
+    let (clock, host, bus) = rs232_variant(&[Variant::LateMotionStart]);
+    let _me = clock.reserve_participant().enter();
+    let m = bus.module(addr(1));
+    let sim = || host.with_device(|d| (d.module(1).unwrap().state(), d.module(1).unwrap().position().value()));
+    m.home_and_wait(secs(10), &mut |_| {}).unwrap();
+    for target in [0.4, 0.2] {
+        let r = m.move_to(&spec(target), &mut |_| {}).unwrap();
+        assert!(at(&r, target) && r.verified, "{r:?}");
+    }
+    let h = m.home_and_wait(secs(10), &mut |_| {}).unwrap();
+    assert!(h.state.contains(StateFlag::HomeOk) && sim().1.abs() < 1e-3, "{h:?}");
+    // A motion command the session sent just before its close, not shown yet: the close waits (up to the
+    // grace) for it, sees it start, and halts it.
+    m.motion(crate::model::Motion::FRamp { pos: Position::native(0.4) }, crate::model::AckKind::Simple).unwrap();
+    bus.close().unwrap();
+    clock.sleep(secs(1));
+    let (state, p) = sim();
+    assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion) && p < 0.4, "{state} {p}");
+    // A start grace shorter than the module's delay: at its end the module still stands at its start,
+    // away from its target, and has not been seen to move. It may start yet: it is halted, and the error
+    // says where it stood and that the halt was confirmed (never a success, never left to start unseen).
+    let mut config = Config::rs232();
+    config.start_grace = Duration::from_millis(100);
+    let bus = Client::with_link(PortLink::Rs232(Box::new(host.connect().0)), clock.shared(), config).unwrap();
+    let m = bus.module(addr(1));
+    m.reset().unwrap();
+    // (After the halt no end flag is left: this move waits for its motion in any case.)
+    let r = m.move_to(&spec(0.2), &mut |_| {}).unwrap();
+    assert!(at(&r, 0.2), "{r:?}");
+    let from = sim().1;
+    let e = m.move_to(&spec(0.4), &mut |_| {}).unwrap_err();
+    match &e {
+        Error::FailedDuringMotion { cause, stop, .. } => {
+            assert!(matches!(**cause, Error::NotReached { .. }) && stop.is_confirmed(), "{e}")
+        }
+        other => panic!("{other}"),
+    }
+    clock.sleep(secs(1));
+    let (state, p) = sim();
+    assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
+    assert!((p - from).abs() < 1e-3, "never moved: {from} then {p}");
+    bus.close().unwrap();
 }

@@ -59,6 +59,8 @@ impl Ctx {
             let mut core = self.core();
             if request.starts_motion() {
                 core.started.insert(address);
+                let now = core.now;
+                core.motion_sent.insert(address, now);
             }
             let retries = if request.is_idempotent() { core.config.read_retries } else { 0 };
             (1 + retries, core.config.reply_timeout)
@@ -87,7 +89,10 @@ impl Ctx {
             if let Err(e) = self.check(*address, request) {
                 results[i] = Some(Err(e));
             } else if request.starts_motion() {
-                self.core().started.insert(*address);
+                let mut core = self.core();
+                core.started.insert(*address);
+                let now = core.now;
+                core.motion_sent.insert(*address, now);
             }
         }
         let (retries, timeout, can) = {

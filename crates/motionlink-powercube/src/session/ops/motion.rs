@@ -12,7 +12,7 @@ use crate::model::{
 use crate::session::ctx::Ctx;
 use crate::session::ops::checked;
 use crate::session::ops::twins::{self, TwinCheck};
-use crate::session::{HomeReport, MoveReport, MoveSpec, Progress, Readback, Until};
+use crate::session::{Begun, HomeReport, MoveReport, MoveSpec, Progress, Readback, Until};
 use crate::wire::{ExtAck, Reply, Request};
 
 impl Ctx {
@@ -258,6 +258,23 @@ impl Ctx {
     /// Waits for `until` (polled every [`Config::poll_interval`](crate::session::Config) on a fixed
     /// schedule), halting on a timeout, a cancellation or a failing line.
     pub async fn wait(&self, a: u8, until: Until, timeout: Duration) -> Result<CubeState, Error> {
+        self.wait_begun(a, until, timeout, None).await.map(|(state, _)| state)
+    }
+
+    /// [`Ctx::wait`] for the end of a motion this operation started with a command sent at `begun.at`: a
+    /// state that shows the end counts only once the module has shown STATE_MOTION during the wait, or stands
+    /// within the tolerance of `begun.target`, or [`Config::start_grace`](crate::session::Config) has passed
+    /// since the command (an end flag of an earlier motion may still be set while a module has not started
+    /// this one). Also returns whether STATE_MOTION was seen.
+    pub async fn wait_begun(
+        &self,
+        a: u8,
+        until: Until,
+        timeout: Duration,
+        begun: Option<Begun>,
+    ) -> Result<(CubeState, bool), Error> {
+        let grace = self.core().config.start_grace;
+        let mut motion_seen = false;
         let start = self.now();
         let deadline = start + timeout;
         let period = self.core().config.poll_interval.max(Duration::from_micros(100));
@@ -286,9 +303,15 @@ impl Ctx {
                 self.core().started.remove(&a);
                 return Err(Error::Halted { address: crate::model::Address::checked(a), state });
             }
-            if until.reached(state) {
+            motion_seen |= state.contains(StateFlag::Motion);
+            let begun_ok = begun.is_none_or(|b| {
+                motion_seen
+                    || now.saturating_since(b.at) >= grace
+                    || b.target.is_some_and(|(target, tolerance)| (position.value() - target).abs() <= tolerance)
+            });
+            if until.reached(state) && begun_ok {
                 self.core().started.remove(&a);
-                return Ok(state);
+                return Ok((state, motion_seen));
             }
             if self.cancelled() {
                 return Err(Error::Cancelled {
@@ -379,11 +402,12 @@ impl Ctx {
         if self.cancelled() {
             return Err(Error::Cancelled { address: crate::model::Address::checked(a), stop: StopOutcome::NotStarted });
         }
+        let at = self.now();
         if let Err(e) = self.action(a, crate::wire::Action::Home).await {
             return Err(self.lost(a, e).await);
         }
         tracing::info!("module {a}: homing");
-        let state = self.wait(a, Until::Home, timeout).await?;
+        let (state, _) = self.wait_begun(a, Until::Home, timeout, Some(Begun { at, target: None })).await?;
         let reached = self.position(a).await?.in_unit_of(kind);
         Ok(HomeReport { kind, reached, state, verified: true, not_verifiable: Vec::new() })
     }
@@ -477,6 +501,7 @@ impl Ctx {
         if self.cancelled() {
             return Err(Error::Cancelled { address: crate::model::Address::checked(a), stop: StopOutcome::NotStarted });
         }
+        let at = self.now();
         if let Err(e) = self.request(a, motion).await {
             // It may have arrived and started the ramp.
             return Err(self.lost(a, e).await);
@@ -504,7 +529,8 @@ impl Ctx {
                 return Err(Error::TargetMismatch { address: crate::model::Address::checked(a), sent, taken, stop });
             }
         }
-        let state = self.wait(a, Until::Ramp, spec.timeout).await?;
+        let begun = Begun { at, target: Some((spec.target.value(), tolerance.value())) };
+        let (state, motion_seen) = self.wait_begun(a, Until::Ramp, spec.timeout, Some(begun)).await?;
         let mut reached = start;
         for _ in 0..2 {
             reached = self.position(a).await?;
@@ -513,19 +539,57 @@ impl Ctx {
             let within = difference.abs() <= tolerance.value();
             if !within {
                 let unit = reached.unit();
-                return Err(Error::NotReached {
+                let missed = Error::NotReached {
                     address: crate::model::Address::checked(a),
                     target: Position::new(spec.target.value(), unit),
                     reached,
                     difference: Position::new(difference, unit),
                     tolerance: Position::new(tolerance.value(), unit),
                     state,
+                };
+                if motion_seen {
+                    return Err(missed);
+                }
+                // Never seen moving, away from its target after the start grace: it may start yet (the
+                // manual does not say how soon it shows a motion), so it is halted.
+                let stop = self.stop_motion(a).await;
+                return Err(Error::FailedDuringMotion {
+                    address: crate::model::Address::checked(a),
+                    cause: Box::new(missed),
+                    stop,
                 });
             }
         }
         let (start, reached) = (start.in_unit_of(kind), reached.in_unit_of(kind));
         let target = spec.target.in_unit_of(kind);
         Ok(MoveReport { kind, target, start, reached, state, verified: not_verifiable.is_empty(), not_verifiable })
+    }
+
+    /// Whether module `a`, which does not show STATE_MOTION now, shows it (or cannot be read) before
+    /// [`Config::start_grace`](crate::session::Config) has passed since this session's last motion command
+    /// to it: its state is read again every poll interval until then. A module may take that long to show a
+    /// motion it was sent; one whose command is older than that is at rest.
+    async fn starts_within_grace(&self, a: u8) -> bool {
+        let (grace, period, sent) = {
+            let core = self.core();
+            (
+                core.config.start_grace,
+                core.config.poll_interval.max(Duration::from_millis(1)),
+                core.motion_sent.get(&a).copied(),
+            )
+        };
+        let Some(sent) = sent else { return false };
+        loop {
+            let now = self.now();
+            if now.saturating_since(sent) >= grace {
+                return false;
+            }
+            self.sleep_until((now + period).min(sent + grace)).await;
+            match self.request(a, Request::Get(Param::CubeState)).await {
+                Ok(Reply::Get(_, Value::U32(s))) if !CubeState(s).contains(StateFlag::Motion) => {}
+                _ => return true,
+            }
+        }
     }
 
     /// Halts every module this session set in motion that is still moving or cannot be asked (see
@@ -546,7 +610,9 @@ impl Ctx {
         let mut detail = String::new();
         for (a, s) in started.iter().zip(states) {
             let moving = match s {
-                Ok(Reply::Get(_, Value::U32(s))) => CubeState(s).contains(StateFlag::Motion),
+                Ok(Reply::Get(_, Value::U32(s))) => {
+                    CubeState(s).contains(StateFlag::Motion) || self.starts_within_grace(*a).await
+                }
                 Ok(_) => true,
                 // Never answered this session and silent now: nobody is there.
                 Err(Error::Timeout { .. }) if !known.contains(a) => {
