@@ -531,3 +531,24 @@ fn a_stop_left_unconfirmed_is_confirmed_by_the_close_before_it_leaves_remote_mod
     assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Off);
     assert!(!rig.unit(|u| u.any_moving()));
 }
+
+#[test]
+fn a_close_confirms_the_stop_of_what_it_started_by_the_status_before_it_leaves_remote_mode() {
+    // An acknowledged RS does not say that the drives are at rest, and the manual does not say what RA does
+    // to a motion under way: the close reads the status after its RS and sends RA once no actuator moves.
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(Config { function_map: FunctionMap::scp11(), ..Default::default() });
+    client.start_motion(f(1), MotionDirection::Out).unwrap();
+    rig.sleep(500);
+    assert!(rig.unit(|u| u.is_moving(a(1))));
+    let sent: Arc<Mutex<Vec<Vec<u8>>>> = Arc::default();
+    let log = Arc::clone(&sent);
+    rig.on_request(move |bytes, _| log.lock().unwrap().push(bytes[..2].to_vec()));
+    assert_eq!(client.close().unwrap(), vec![Function::Motion(f(1))], "the close says what it stopped");
+    let sent = sent.lock().unwrap().clone();
+    let ra = sent.iter().position(|b| b == b"RA").expect("RA sent");
+    let rs = sent[..ra].iter().position(|b| b == b"RS").unwrap_or_else(|| panic!("RS before RA: {sent:?}"));
+    assert!(sent[rs..ra].iter().any(|b| b == b"RG"), "the status read between RS and RA: {sent:?}");
+    assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Off);
+    assert!(!rig.unit(|u| u.any_moving()));
+}

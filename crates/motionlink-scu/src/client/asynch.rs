@@ -335,8 +335,8 @@ impl AsyncClient {
         self.driver.run(Op::Reopen).await.map(|_| ())
     }
 
-    /// Ends the session: RS for every started function (motions fast), then RA; waits at most
-    /// [`Config::close_bound`]; runs on tokio's blocking pool. Returns the functions it stopped, as
+    /// Ends the session: RS for every started function (motions fast), the status until no actuator moves,
+    /// then RA; waits at most [`Config::close_bound`]; runs on tokio's blocking pool. Returns the functions it stopped, as
     /// [`Client::close`] does.
     pub async fn close(self) -> Result<Vec<Function>, Error> {
         let started = self.started();

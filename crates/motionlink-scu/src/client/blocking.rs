@@ -438,7 +438,8 @@ impl Client {
         self.driver.run(Op::Reopen).map(|_| ())
     }
 
-    /// Ends the session: RS for every started function (motions fast), then RA; waits at most
+    /// Ends the session: RS for every started function (motions fast), the status of every actuator until
+    /// none moves (an acknowledged RS does not say the drives are at rest), then RA; waits at most
     /// [`Config::close_bound`]. Returns the functions it stopped (the unit acknowledged their RS; none when
     /// nothing was left started). The session is closed even if that fails; the error says what could not be
     /// sent or confirmed ([`Error::CloseUnconfirmed`], naming the functions, when some were left started).

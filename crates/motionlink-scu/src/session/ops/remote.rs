@@ -6,7 +6,7 @@ use motionlink_link::Timestamp;
 use super::stop::Stop;
 use super::Output;
 use crate::error::Error;
-use crate::model::{Actuator, StopMode};
+use crate::model::{Actuator, Function, StopMode};
 use crate::session::ctx::Ctx;
 use crate::session::request::{OwnedReply, PreparedRequest, Req};
 use crate::session::State;
@@ -162,9 +162,14 @@ pub(crate) async fn close(ctx: &Ctx) -> Result<Output, Error> {
         return Err(Error::SessionLost("port not connected: the unit's watchdog stops the drives".into()));
     }
     let mut first_error = None;
+    // What this session started and has not seen stop: its RS below is acknowledged, and then confirmed like
+    // any stop not yet confirmed (the status of every actuator until none moves) before RA: an acknowledged RS
+    // does not say that the drives are at rest, and the manual does not say what RA does to a motion.
+    let stopping: Vec<Function> = ctx.core().started.iter().filter_map(|f| Function::from_id(*f)).collect();
     if !ended {
         (first_error, ended) = stop_all(&ctx, true, true).await;
     }
+    ctx.core().stop_unconfirmed(&stopping);
     let still_started = !ctx.core().started.is_empty();
     if ended && still_started {
         tracing::info!("the unit ended remote mode; opening it to send the RS of what this session started");
