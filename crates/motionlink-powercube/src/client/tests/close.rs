@@ -184,3 +184,25 @@ fn a_halt_that_is_not_acknowledged_is_sent_again_and_then_said_unacknowledged() 
     assert!(device_view(&canbus, &clock, 1).0.contains(StateFlag::Halted));
     assert_eq!(bus.close().map_err(|e| e.to_string()), Ok(vec![addr(1)]));
 }
+
+#[test]
+fn the_close_confirms_its_halt_by_the_state_and_says_so_when_it_cannot() {
+    // The close halts a module still moving, and a Halt acknowledged is not yet a module at rest: its state
+    // is read after it, as after every stop. Here the state after the Halt never comes back.
+    let (rig, bus) = super::firmware::module_of(ModuleKind::Rotary, &[]);
+    bus.module(addr(1)).motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
+    rig.sleep(100);
+    // The close's telegrams: CubeState (moving), the Halt, then its state reads, whose answers are lost.
+    let count = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let seen = std::sync::Arc::clone(&count);
+    rig.on_request(move |_, faults| {
+        if seen.fetch_add(1, std::sync::atomic::Ordering::SeqCst) == 2 {
+            faults.drop_next(Direction::DeviceToHost, u64::MAX / 2);
+        }
+    });
+    let err = bus.close().unwrap_err();
+    assert!(matches!(err, Error::CloseUnconfirmed { .. }) && err.is_transport(), "{err}");
+    assert!(err.to_string().contains("the axis may still be moving"), "{err}");
+    let state = rig.device(|d| d.module(1).unwrap().state());
+    assert!(state.contains(StateFlag::Halted), "the Halt (and the broadcast) reached it: {state}");
+}

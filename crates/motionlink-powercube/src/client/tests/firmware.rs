@@ -12,7 +12,7 @@ use crate::wire::{Action, ExtAck};
 
 /// Module 1 of `kind` running `variants` on an RS232 line at 9600 baud (the shared rig, the test thread among
 /// the clock's participants), and a client.
-fn module_of(kind: ModuleKind, variants: &[Variant]) -> (Rig<Emulator>, Client) {
+pub(super) fn module_of(kind: ModuleKind, variants: &[Variant]) -> (Rig<Emulator>, Client) {
     let config = SimConfig {
         modules: vec![ModuleConfig { kind, ..ModuleConfig::at(1) }],
         variants: variants.to_vec(),

@@ -593,7 +593,8 @@ impl Ctx {
     }
 
     /// Halts every module this session set in motion that is still moving or cannot be asked (see
-    /// [`Op::HaltStarted`](crate::session::Op)). An error if a Halt had to be broadcast (the session failed);
+    /// [`Op::HaltStarted`](crate::session::Op)), each Halt confirmed as a stop is (the state read until
+    /// STATE_MOTION clears). An error if a Halt had to be broadcast (the session failed);
     /// the modules whose halt was not confirmed stay among those the session started, so that `started()`
     /// names them and the close tries again (and says so if it cannot confirm it either).
     pub async fn halt_started(&self) -> Result<(), Error> {
@@ -628,12 +629,16 @@ impl Ctx {
                 Err(_) => true,
             };
             if moving {
+                // Confirmed as every stop is: the Halt acknowledged, then the state until STATE_MOTION clears.
                 tracing::warn!("halting module {a}, set in motion by this session");
-                if let Err(e) = self.action(*a, crate::wire::Action::Halt).await {
-                    unconfirmed.push(*a);
-                    detail = e.to_string();
-                } else {
-                    self.core().started.remove(a);
+                match self.stop_motion(*a).await {
+                    StopOutcome::Unconfirmed { reason, .. } => {
+                        unconfirmed.push(*a);
+                        detail = reason;
+                    }
+                    _ => {
+                        self.core().started.remove(a);
+                    }
                 }
             }
         }
