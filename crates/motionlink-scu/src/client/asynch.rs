@@ -336,8 +336,8 @@ impl AsyncClient {
     }
 
     /// Ends the session: RS for every started function (motions fast), the status until no actuator moves,
-    /// then RA; waits at most [`Config::close_bound`]; runs on tokio's blocking pool. Returns the functions it stopped, as
-    /// [`Client::close`] does.
+    /// then RA; waits at most [`Config::close_bound`]; runs on tokio's blocking pool. Returns the functions
+    /// it stopped, as [`Client::close`] does.
     pub async fn close(self) -> Result<Vec<Function>, Error> {
         let started = self.started();
         super::closed(started, self.driver.close().await)

@@ -115,9 +115,10 @@ impl Ctx {
     /// Whether drive `a`, whose S17 has just shown no command active, is at rest. Once this session has
     /// seen the drive's S17 show a positioning, S17 says so. Until then (bit 3 is the user guide's, not the
     /// RS485 manual's: a drive may not show it), and on a drive found not to, S1 is read twice, one poll
-    /// interval apart (at most [`REST_CHECK_MAX`]: a stop does not wait longer): a change beyond the in-position tolerance means it moves, and the drive is remembered
-    /// as one whose S17 does not show its positioning (one warning). `retries` for the S1 reads (`None`: the
-    /// session's); the wait between them is not cut short by a cancel (a stop makes it).
+    /// interval apart (at most [`REST_CHECK_MAX`]: a stop does not wait longer): a change beyond the
+    /// in-position tolerance means it moves, and the drive is remembered as one whose S17 does not show its
+    /// positioning (one warning). `retries` for the S1 reads (`None`: the session's); the wait between them
+    /// is not cut short by a cancel (a stop makes it).
     pub(crate) async fn at_rest_by_s1(&self, a: Address, retries: Option<u32>) -> Result<bool> {
         let (seen, poll, tolerance, retries) = {
             let c = self.core();
