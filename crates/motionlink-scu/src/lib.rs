@@ -24,8 +24,9 @@
 //! **Closing.** [`Client::close`] (and `AsyncClient::close`) ends the session: RS for every function it
 //! started (motions fast), the status of every actuator until none moves, then RA, and returns the
 //! outcome. Dropping a client does the same, waiting at most [`Config::close_bound`] (5 s by default; a
-//! dead link takes about 0.6 s: one short try of RS and of RA); after that the stop is reported unconfirmed and the unit's own watchdog (500 ms) is what stops the
-//! drives. A dropped async future cancels its operation, which stops any motion it started.
+//! dead link takes about 0.6 s: one short try of RS and of RA); after that the stop is reported
+//! unconfirmed and the unit's own watchdog (500 ms) is what stops the drives. A dropped async future
+//! cancels its operation, which stops any motion it started.
 //!
 //! ```
 //! use motionlink_link::{pipe::{EmulatorHost, PipeConfig}, link::Link, ManualClock, Clock};
