@@ -242,10 +242,10 @@ async fn page(hub: Arc<Hub>, mut socket: WebSocket) {
                         let _ = socket.send(WsMessage::Text(text.as_str().into())).await;
                     }
                 }
-                let bye = Message::Bye { message: "the console is ending" }.json().to_string();
+                let bye = Message::Bye { message: super::hub::ENDING }.json().to_string();
                 let _ = socket.send(WsMessage::Text(bye.into())).await;
                 // The WebSocket's own end: 1001, going away.
-                let close = CloseFrame { code: 1001, reason: "the console is ending".into() };
+                let close = CloseFrame { code: 1001, reason: super::hub::ENDING.into() };
                 let _ = socket.send(WsMessage::Close(Some(close))).await;
                 break 'page;
             }
@@ -288,7 +288,7 @@ fn request(hub: &Arc<Hub>, page: u64, text: &str, replies: &mpsc::Sender<Message
     };
     let kind = req.get("type").and_then(Value::as_str).unwrap_or("").to_string();
     if hub.ending() && !matches!(kind.as_str(), "stop" | "jog_release" | "jog_hold") {
-        return Some(Message::failure(&kind, false, ErrorReport::usage("the console is ending")));
+        return Some(Message::failure(&kind, false, ErrorReport::usage(super::hub::ENDING)));
     }
     if let Err(e) = motionlink_link::result::each_key_once(text.as_bytes()) {
         // Which of two types is meant is not known: such a request is answered as "?".

@@ -469,3 +469,30 @@ fn a_module_that_starts_late_is_waited_for_within_the_grace_and_beyond_it_is_hal
     assert!((p - from).abs() < 1e-3, "never moved: {from} then {p}");
     bus.close().unwrap();
 }
+
+#[test]
+fn the_close_halts_every_module_that_shows_its_motion_late_not_only_the_first() {
+    // Two modules sent a motion command just before the close: module 1 a velocity of 0 (it never shows a
+    // motion), module 2 a ramp it shows 0.3 s later. The close watches module 1 through the whole
+    // grace, and then reads module 2 again (its first read is older than the grace, and it moves by now)
+    // instead of taking that first read for its rest.
+    let clock = ManualClock::new_auto();
+    let mut config = SimConfig::with_addresses(&[1, 2]).unwrap();
+    config.variants = vec![Variant::LateMotionStart];
+    let canbus = CanBus::with_emulator(Emulator::new_can(&config), clock.shared(), CanBusConfig::paced(1_000_000));
+    let bus = Client::with_link(PortLink::Can(Box::new(canbus.connect())), clock.shared(), Config::can()).unwrap();
+    let _me = clock.reserve_participant().enter();
+    let here = bus.module(addr(1)).position().unwrap();
+    // (Module 2's first: its grace has passed when module 1's has.)
+    let ramp = crate::model::Motion::FRamp { pos: Position::native(0.4) };
+    bus.module(addr(2)).motion(ramp, crate::model::AckKind::Simple).unwrap();
+    let still = crate::model::Motion::FVel { vel: Velocity::native(0.0) };
+    bus.module(addr(1)).motion(still, crate::model::AckKind::Simple).unwrap();
+    bus.close().unwrap();
+    clock.sleep(secs(1));
+    let (state, p, _, _) = device_view(&canbus, &clock, 1);
+    assert!(!state.contains(StateFlag::Halted) && (p - here.value()).abs() < 1e-3, "module 1 never moved: {state}");
+    let (state, p, _, _) = device_view(&canbus, &clock, 2);
+    assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "module 2: {state}");
+    assert!(p < 0.4, "module 2 halted on its way: {p}");
+}

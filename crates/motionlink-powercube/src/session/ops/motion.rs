@@ -569,7 +569,7 @@ impl Ctx {
     /// [`Config::start_grace`](crate::session::Config) has passed since this session's last motion command
     /// to it: its state is read again every poll interval until then. A module may take that long to show a
     /// motion it was sent; one whose command is older than that is at rest.
-    async fn starts_within_grace(&self, a: u8) -> bool {
+    async fn starts_within_grace(&self, a: u8, read_at: motionlink_link::Timestamp) -> bool {
         let (grace, period, sent) = {
             let core = self.core();
             (
@@ -579,12 +579,18 @@ impl Ctx {
             )
         };
         let Some(sent) = sent else { return false };
+        // `read_at`: when the state without STATE_MOTION was read. Read again until a read made once the
+        // grace had passed (the close may have waited for another module meanwhile) shows none either.
+        let mut read_at = read_at;
         loop {
-            let now = self.now();
-            if now.saturating_since(sent) >= grace {
+            if read_at.saturating_since(sent) >= grace {
                 return false;
             }
-            self.sleep_until((now + period).min(sent + grace)).await;
+            let now = self.now();
+            if now.saturating_since(sent) < grace {
+                self.sleep_until((now + period).min(sent + grace)).await;
+            }
+            read_at = self.now();
             match self.request(a, Request::Get(Param::CubeState)).await {
                 Ok(Reply::Get(_, Value::U32(s))) if !CubeState(s).contains(StateFlag::Motion) => {}
                 _ => return true,
@@ -605,6 +611,8 @@ impl Ctx {
         if started.is_empty() {
             return Ok(());
         }
+        // (The reads go out after this: a module's state is at least as recent.)
+        let read_at = self.now();
         let states =
             self.request_many(&started.iter().map(|a| (*a, Request::Get(Param::CubeState))).collect::<Vec<_>>()).await;
         let mut unconfirmed = Vec::new();
@@ -612,7 +620,7 @@ impl Ctx {
         for (a, s) in started.iter().zip(states) {
             let moving = match s {
                 Ok(Reply::Get(_, Value::U32(s))) => {
-                    CubeState(s).contains(StateFlag::Motion) || self.starts_within_grace(*a).await
+                    CubeState(s).contains(StateFlag::Motion) || self.starts_within_grace(*a, read_at).await
                 }
                 Ok(_) => true,
                 // Never answered this session and silent now: nobody is there.

@@ -30,6 +30,9 @@ const RESCAN_AFTER: Duration = Duration::from_secs(2);
 /// How long the end of the console waits for its pages to have been told to go (the stop's message and the
 /// bye sent, the WebSocket closed) before the session closes and the process ends.
 const PAGES_TOLD: Duration = Duration::from_secs(2);
+/// What the pages are told when the console ends (the stop's reason, the bye, the WebSocket's close, a
+/// request refused meanwhile).
+pub const ENDING: &str = "the console is ending";
 
 /// What the hub found on the link.
 #[derive(Debug, Clone, PartialEq)]
@@ -64,7 +67,7 @@ impl StopReason {
             StopReason::Released => "jog released",
             StopReason::DeadMan => "the page stopped renewing its jog (dead-man deadline passed)",
             StopReason::PageGone => "the page that started it went away",
-            StopReason::ConsoleEnding => "the console is ending",
+            StopReason::ConsoleEnding => ENDING,
         }
     }
 }
@@ -310,7 +313,7 @@ impl Hub {
     ) -> Result<(), ErrorReport> {
         let mut st = lock(&self.state);
         if st.ending {
-            return Err(ErrorReport::usage("the console is ending"));
+            return Err(ErrorReport::usage(ENDING));
         }
         if st.controller != Some(page) {
             return Err(ErrorReport::usage("this page is read-only: another page controls the console"));
