@@ -16,8 +16,8 @@ use motionlink_scu::args::{
 use motionlink_scu::model::{
     find, Actuator, Function, Item, MotionFunction, PositionCounts, SafetyId, Speed, SpeedMode, StopMode,
 };
-use motionlink_scu::results::{RunOutcome, SampleReport, StopScope, SwitchedOff};
-use motionlink_scu::session::{MoveReport, RunAction, RunReport, StopReport};
+use motionlink_scu::results::{FunctionStop, RunOutcome, SampleReport, StopScope, Stopped, SwitchedOff};
+use motionlink_scu::session::{MoveReport, RunAction, RunReport};
 use motionlink_scu::{port_connector, AsyncClient, Client, Config, Error, FunctionMap, MoveOptions, StrokeLimits};
 use pyo3::prelude::*;
 
@@ -207,24 +207,6 @@ fn stop_what(function: Option<&str>, soft: &Bool) -> Result<(Option<Function>, S
     let mode = if soft.get(FAMILY, "soft")? { StopMode::Soft } else { StopMode::Fast };
     let function = function.map(parse_function).transpose()?;
     Ok((function, StopScope::of(function), mode))
-}
-
-/// What a stop did: motion functions stopped (the library's report), or a switching function switched off.
-#[derive(serde::Serialize)]
-#[serde(untagged)]
-enum Stopped {
-    Motions(StopReport),
-    Switch(SwitchedOff),
-}
-
-/// A stop as the CLI's `scu stop --json` prints it, without what only the command knows (`action`,
-/// `stopped`, `holder`): the function named (if one was) and what the stop did.
-#[derive(serde::Serialize)]
-struct StopRecord {
-    #[serde(skip_serializing_if = "Option::is_none")]
-    function: Option<Function>,
-    #[serde(flatten)]
-    report: Stopped,
 }
 
 /// A session with an SCU control unit (the native half of `motionlink.Scu`).
@@ -426,5 +408,5 @@ faces! {
             StopScope::Motions(all) => w!(c.stop_functions(&all, mode)).map(Stopped::Motions),
             StopScope::Switch(f) => w!(c.switch(f, false)).map(|()| Stopped::Switch(SwitchedOff::OFF)),
         }
-    } => |py, report| report_py(py, &StopRecord { function, report }, |_| {});
+    } => |py, report| report_py(py, &FunctionStop { function, report }, |_| {});
 }

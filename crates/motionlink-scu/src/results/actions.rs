@@ -38,17 +38,11 @@ impl SwitchedOff {
     pub const OFF: SwitchedOff = SwitchedOff { mode: "off" };
 }
 
-/// What `stop` reports: `{action: "stop", stopped: true, holder, function (if named), ...report}`, where
-/// `holder` is the front end's own (the command line: the motionlink that held the port and was stopped
-/// first, or null) and `report` the library's ([`crate::session::StopReport`] or [`SwitchedOff`]).
+/// A stop without the keys of the front end that made it: `{function (if named), ...report}`, `report` the
+/// library's ([`crate::session::StopReport`], [`SwitchedOff`], or [`Stopped`], either of them). What
+/// Python's `Scu.stop()` returns; [`StopResult`] puts the command's keys before it.
 #[derive(Debug, Clone, Serialize)]
-pub struct StopResult<H: Serialize, R: Serialize> {
-    /// Always `stop`.
-    pub action: &'static str,
-    /// Always true: an unconfirmed stop is an error, not a result.
-    pub stopped: bool,
-    /// Who held the port and was stopped first (null when nobody did).
-    pub holder: Option<H>,
+pub struct FunctionStop<R: Serialize> {
     /// The function named, if one was.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub function: Option<Function>,
@@ -57,10 +51,37 @@ pub struct StopResult<H: Serialize, R: Serialize> {
     pub report: R,
 }
 
+/// What a stop did, as one type: the motion functions stopped, confirmed by the status, or a switching
+/// function switched off (serialised as the report it holds).
+#[derive(Debug, Clone, Serialize)]
+#[serde(untagged)]
+pub enum Stopped {
+    /// RS to motion functions, then the status until no actuator moves.
+    Motions(crate::session::StopReport),
+    /// A switching function switched off with RS.
+    Switch(SwitchedOff),
+}
+
+/// What `stop` reports: `{action: "stop", stopped: true, holder, function (if named), ...report}`, where
+/// `holder` is the front end's own (the command line: the motionlink that held the port and was stopped
+/// first, or null), and the rest the stop itself ([`FunctionStop`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct StopResult<H: Serialize, R: Serialize> {
+    /// Always `stop`.
+    pub action: &'static str,
+    /// Always true: an unconfirmed stop is an error, not a result.
+    pub stopped: bool,
+    /// Who held the port and was stopped first (null when nobody did).
+    pub holder: Option<H>,
+    /// The stop.
+    #[serde(flatten)]
+    pub stop: FunctionStop<R>,
+}
+
 impl<H: Serialize, R: Serialize> StopResult<H, R> {
     /// The result of a confirmed stop of `function` (None: every motion function).
     pub fn new(holder: Option<H>, function: Option<Function>, report: R) -> Self {
-        StopResult { action: "stop", stopped: true, holder, function, report }
+        StopResult { action: "stop", stopped: true, holder, stop: FunctionStop { function, report } }
     }
 }
 

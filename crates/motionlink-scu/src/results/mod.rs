@@ -18,7 +18,7 @@
 use serde::ser::{Serialize, SerializeMap, SerializeSeq, Serializer};
 
 mod actions;
-pub use actions::{ErrorHistory, Running, StopResult, StopScope, SwitchedOff};
+pub use actions::{ErrorHistory, FunctionStop, Running, StopResult, StopScope, Stopped, SwitchedOff};
 
 use crate::client::FollowReport;
 use crate::error::Error;

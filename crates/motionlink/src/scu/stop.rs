@@ -34,7 +34,7 @@ pub(super) fn stop(
     let mode = if soft { StopMode::Soft } else { StopMode::Fast };
     let stopped = client.stop_functions(&motions, mode).map_err(|e| common::classified(&e))?;
     let printed = StopResult::new(holder, function, stopped);
-    report.show(out, &printed, |out, p| print_stop_text(out, &p.report))
+    report.show(out, &printed, |out, p| print_stop_text(out, &p.stop.report))
 }
 
 /// How the stop went, in words (the console says it so too).
