@@ -77,7 +77,8 @@
 //! - **Which actuators a function drives** is the unit's parameterisation, which the data list does not show.
 //!   The caller gives it ([`FunctionMap`]; presets for SCP11, TLT and LIFTKIT); where it is not given,
 //!   a move writes the target into every connected actuator's remote position and reports the actuators that
-//!   moved, rather than guessing.
+//!   moved, rather than guessing; a move or stream given targets for some actuators holds the other
+//!   connected ones (their remote positions written with where they stand).
 //! - **The stroke** of an actuator, for refusing targets before anything moves, is read from the virtual
 //!   limits of its UserPositionData (0x2001..0x2006, "Position_Virtual_Limit_In/Out"), the only limits in the
 //!   data list; both 0 means none are set. The emulator stops every motion at the stroke ends and at the

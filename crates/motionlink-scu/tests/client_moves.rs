@@ -67,6 +67,44 @@ fn without_a_function_map_move_to_gives_every_connected_actuator_the_target_and_
 }
 
 #[test]
+fn without_a_function_map_the_actuators_a_move_or_stream_does_not_name_are_held_where_they_stand() {
+    // A TLT, of which the client is not told: F1 drives both columns. A2's remote position holds a stale 900.
+    let rig = Rig::new(SimConfig::tlt());
+    let client = rig.client(Config::default());
+    client.move_to(a(1), PositionCounts(400), pct(100), &MoveOptions::default()).unwrap();
+    client.set(DataIndex(0x3022), &Value::RemotePosition(900)).unwrap();
+    // F1 with a target for A1 alone: A2 is written where it stands, so F1 keeps it there, and is reported.
+    let report = client.move_function(f(1), &[(a(1), PositionCounts(200))], pct(100), &MoveOptions::default()).unwrap();
+    assert_eq!(rig.unit(|u| (u.position(a(1)), u.position(a(2)))), (Some(200), Some(400)));
+    let each: Vec<_> = report.actuators.iter().map(|o| (o.actuator, o.target_counts, o.position_counts)).collect();
+    assert_eq!(
+        each,
+        [(a(1), PositionCounts(200), PositionCounts(200)), (a(2), PositionCounts(400), PositionCounts(400))]
+    );
+    assert!(report.verified, "{:?}", report.not_verifiable);
+    // A stream of F1 naming A1 alone holds A2 the same way.
+    client.set(DataIndex(0x3022), &Value::RemotePosition(900)).unwrap();
+    let mut stream = client.stream(f(1), &[a(1)], pct(100)).unwrap();
+    assert_eq!(client.get_value(DataIndex(0x3022)).unwrap(), Value::RemotePosition(400));
+    stream.set_targets(&[PositionCounts(300)]).unwrap();
+    for _ in 0..100 {
+        if rig.unit(|u| !u.is_moving(a(1)) && u.position(a(1)) == Some(300)) {
+            break;
+        }
+        rig.sleep(100);
+    }
+    assert_eq!(rig.unit(|u| u.position(a(1))), Some(300));
+    assert_eq!(rig.unit(|u| u.position(a(2))), Some(400));
+    drop(stream);
+    // Where the map knows the function, nothing else is written.
+    let client = rig.client(Config { function_map: FunctionMap::scp11(), ..Default::default() });
+    client.set(DataIndex(0x3022), &Value::RemotePosition(900)).unwrap();
+    let report = client.move_function(f(1), &[(a(1), PositionCounts(250))], pct(100), &MoveOptions::default()).unwrap();
+    assert_eq!(report.actuators.len(), 1);
+    assert_eq!(client.get_value(DataIndex(0x3022)).unwrap(), Value::RemotePosition(900));
+}
+
+#[test]
 fn a_move_polls_at_its_interval_and_not_as_fast_as_the_line_answers() {
     // Polling with reads (the choice when the keepalive cannot carry the poll object).
     let rig = Rig::new(SimConfig::default());

@@ -381,7 +381,10 @@ impl Client {
     /// stop, the error is [`Error::StopUnconfirmed`].
     ///
     /// If [`Config::function_map`] knows `function`, `targets` must name exactly the actuators it
-    /// drives.
+    /// drives. If it does not, the function may drive connected actuators `targets` does not name: each
+    /// is held, its remote position written with where it stands (read back), and watched and reported
+    /// with that position as its target (an unnamed actuator would otherwise run to whatever its remote
+    /// position held).
     pub fn move_function(
         &self,
         function: MotionFunction,
@@ -412,7 +415,9 @@ impl Client {
     /// Prepares streamed setpoints (as a ros2_control hardware interface sends them, 10..100 times a second)
     /// for `function` driving `actuators` at `speed`: checks the actuators (connected; exactly the ones the
     /// function map says the function drives, if it knows it), reads their strokes, and writes the speed
-    /// (read back). Nothing moves until the first [`SetpointStream::set_targets`].
+    /// (read back). A function the map does not know may drive connected actuators not named: each gets
+    /// its remote position written with where it stands (read back), so it stays there. Nothing moves until
+    /// the first [`SetpointStream::set_targets`].
     pub fn stream(
         &self,
         function: MotionFunction,

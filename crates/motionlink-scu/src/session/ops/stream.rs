@@ -3,7 +3,7 @@
 
 use super::basic::{check_against_map, stroke, write};
 use super::stop::Stop;
-use super::{read_item, statuses, ItemRead, Output};
+use super::{positions, read_item, statuses, ItemRead, Output};
 use crate::error::Error;
 use crate::model::{
     Actuator, DataIndex, Function, MotionDirection, MotionFunction, PositionCounts, Speed, StopMode, UNUSED,
@@ -14,8 +14,9 @@ use crate::value::Value;
 use crate::wire::{Command, Request, Status};
 
 /// The checks of a stream ([`super::Op::StreamOpen`]): the actuators (connected; exactly the ones the
-/// function map says the function drives, if it knows it), their strokes, and the speed (read back). A
-/// cancel ends it before anything more is asked.
+/// function map says the function drives, if it knows it), their strokes, the connected actuators not named
+/// held (if the map does not know the function), and the speed (read back). A cancel ends it before
+/// anything more is asked.
 pub(crate) async fn open(
     ctx: &Ctx,
     function: MotionFunction,
@@ -29,8 +30,16 @@ pub(crate) async fn open(
     }
     check_against_map(&config, function, &actuators)?;
     let ctx = ctx.ending_on_cancel(Error::CancelledBeforeMotion(Command::Execute));
-    let status = statuses(&read_item(&ctx, ItemRead::actuators(DataIndex(0x0170), actuators.clone())).await?)?;
-    if let Some(a) = actuators.iter().find(|a| !status[usize::from(a.number() - 1)].available()) {
+    // A function the map does not know may drive actuators the stream does not name: those are held.
+    let map_unknown = config.function_map.drives(function).is_none();
+    let read = if map_unknown {
+        ItemRead::all(DataIndex(0x0170))
+    } else {
+        ItemRead::actuators(DataIndex(0x0170), actuators.clone())
+    };
+    let status = statuses(&read_item(&ctx, read).await?)?;
+    let available = |a: &Actuator| status[usize::from(a.number() - 1)].available();
+    if let Some(a) = actuators.iter().find(|a| !available(a)) {
         return Err(Error::NotConnected(*a));
     }
     let mut strokes = Vec::with_capacity(actuators.len());
@@ -45,8 +54,26 @@ pub(crate) async fn open(
             }
         }
     }
+    if map_unknown {
+        let held: Vec<Actuator> = Actuator::all().filter(|a| available(a) && !actuators.contains(a)).collect();
+        hold(&ctx, &held).await?;
+    }
     write(&ctx, function.remote_speed_index(), &raw.to_le_bytes(), true).await?;
     Ok(Output::Strokes(strokes))
+}
+
+/// Writes the remote position of each of `held` with where it stands (read back): a function the map does
+/// not know may drive them, and would otherwise take them to whatever their remote positions held.
+async fn hold(ctx: &Ctx, held: &[Actuator]) -> Result<(), Error> {
+    if held.is_empty() {
+        return Ok(());
+    }
+    let at = positions(&read_item(ctx, ItemRead::actuators(DataIndex(0x0010), held.to_vec())).await?)?;
+    for &a in held {
+        let here = at[usize::from(a.number() - 1)];
+        write(ctx, a.remote_position_index(), &Value::RemotePosition(here.get()).to_bytes(), true).await?;
+    }
+    Ok(())
 }
 
 /// One update of a stream ([`super::Op::StreamTargets`]): the remote positions (not read back: that would

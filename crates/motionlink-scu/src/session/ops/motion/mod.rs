@@ -28,6 +28,13 @@ struct Move {
     started_at: Timestamp,
     speed: u16,
     drives_unknown: bool,
+    /// Given targets of a function the map does not know: the connected actuators they do not name are held.
+    hold_unnamed: bool,
+    /// Connected actuators the caller named no target for, of a function the function map does not know
+    /// (it may drive them): each gets its remote position written with where it stands, so that the
+    /// function, should it drive it, keeps it there; from then on they are targets like the others (watched,
+    /// judged, reported).
+    held: Vec<Actuator>,
     targets: Vec<(Actuator, PositionCounts)>,
     /// The targets, the primary actuator first (its problem is the one reported).
     order: Vec<(Actuator, PositionCounts)>,
@@ -68,6 +75,8 @@ impl Move {
             started_at: now,
             speed: 0,
             drives_unknown: false,
+            hold_unnamed: false,
+            held: Vec::new(),
             targets: Vec::new(),
             order: Vec::new(),
             status: [ActuatorStatus1::EMPTY; 6],
@@ -97,6 +106,7 @@ impl Move {
                 }
                 let actuators: Vec<Actuator> = targets.iter().map(|(a, _)| *a).collect();
                 check_against_map(config, self.spec.function, &actuators)?;
+                self.hold_unnamed = config.function_map.drives(self.spec.function).is_none();
                 self.targets = targets.clone();
                 if !actuators.contains(&self.spec.primary) {
                     self.spec.primary = actuators[0];
@@ -118,10 +128,16 @@ impl Move {
             let found = stroke(ctx, self.order[i].0).await;
             self.stroke_read(i, found)?;
         }
-        let data = read_item(ctx, ItemRead::actuators(DataIndex(0x0010), self.actuators())).await?;
+        let mut read = self.actuators();
+        read.extend(&self.held);
+        let data = read_item(ctx, ItemRead::actuators(DataIndex(0x0010), read)).await?;
         let p = positions(&data)?;
         self.start = p;
         self.last_position = p;
+        for &a in &self.held {
+            self.targets.push((a, p[idx(a)]));
+            self.order.push((a, p[idx(a)]));
+        }
         define_object(ctx).await?;
         for (a, t) in self.targets.clone() {
             let index = a.remote_position_index();
@@ -151,6 +167,10 @@ impl Move {
         self.order.sort_by_key(|(a, _)| *a != primary);
         if let Some((a, _)) = self.order.iter().find(|(a, _)| !available(*a)) {
             return Err(Error::NotConnected(*a));
+        }
+        if self.hold_unnamed {
+            let named = self.actuators();
+            self.held = Actuator::all().filter(|a| available(*a) && !named.contains(a)).collect();
         }
         Ok(())
     }
