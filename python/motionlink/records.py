@@ -582,7 +582,8 @@ class CompaxSample(Record):
         drive: The drive.
         position_units: S1.
         s17: S17 as a :class:`FlagWord` with ``pattern``.
-        moving: True while a command is active (S17 COMMAND_ACTIVE).
+        moving: True while a command is active (S17 COMMAND_ACTIVE), or while S1 changed beyond the
+            in-position tolerance since the previous sample (a drive may move without S17's bit 3).
     """
 
     family: str

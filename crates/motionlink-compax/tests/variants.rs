@@ -8,7 +8,7 @@
 use std::time::Duration;
 
 use motionlink_compax::client::{Client, Config, EchoForm, Error, MoveOptions, MoveRequest, MoveTarget};
-use motionlink_compax::model::{Command, ParamId, SpeedPercent, StatusId};
+use motionlink_compax::model::{Command, ParamId, S17Flag, SpeedPercent, StatusId};
 use motionlink_compax::sim::{Emulator, SimConfig, Variant};
 use motionlink_compax::wire::Mode;
 use motionlink_link::clock::{Clock, ManualClock};
@@ -457,7 +457,19 @@ fn a_drive_whose_s17_never_shows_its_positioning_is_judged_by_s1_and_stopped_whi
     assert!(stopped.report.switched_off().is_empty(), "{stopped:?}");
     assert_eq!(host.with_device(|d| d.drive(1).unwrap().o0()), 1, "at rest: left switched on");
     bus.move_absolute(a(1), pos(500.0), MoveOptions::default()).unwrap();
-    while bus.read_position(a(1)).unwrap().units() < 1.0 {}
+    // A watch of it shows it moving by S1 (its S17 shows no command).
+    let token = motionlink_link::cancel::CancelToken::new();
+    bus.set_cancel(token.clone());
+    let mut samples = Vec::new();
+    bus.watch(a(1), Duration::from_millis(50), &mut |s| {
+        samples.push((s.s17.contains(S17Flag::CommandActive), s.moving()));
+        if samples.len() == 3 {
+            token.cancel();
+        }
+    })
+    .unwrap();
+    assert_eq!(samples, [(false, false), (false, true), (false, true)], "the first has nothing to compare with");
+    token.reset();
     let stopped = bus.stop_confirmed(a(1)).unwrap();
     assert_eq!(stopped.report.switched_off(), [a(1)], "{stopped:?}");
     assert!(!host.with_device(|d| d.drive(1).unwrap().is_moving()));

@@ -310,13 +310,15 @@ impl OutputSwitched {
 pub const LOOK_KEYS: (&str, &str) = ("position_units", "speed_units_per_s");
 
 /// One look at a drive as a live view shows it: `position` (S1), its speed where known, the flags of S16 and
-/// S17, moving while a command is active. The faults are S16's NO_FAULT clear (its absence is the fault) and
-/// the error-class flags of S17; unknown bits are S16's above S17's (shifted by 8).
+/// S17, moving while a command is active or `s1_moved` (S1 changed beyond the in-position tolerance since the
+/// previous look: a drive may move without S17's bit 3). The faults are S16's NO_FAULT clear (its absence is
+/// the fault) and the error-class flags of S17; unknown bits are S16's above S17's (shifted by 8).
 pub fn axis_look(
     position: Position,
     speed_units_per_s: Option<f64>,
     s16: S16Bits,
     s17: S17Bits,
+    s1_moved: bool,
 ) -> motionlink_link::result::AxisLook {
     use motionlink_link::flags::{FlagClass, FlagWord};
     use motionlink_link::result::{AxisLook, Named};
@@ -332,7 +334,7 @@ pub fn axis_look(
         flags,
         faults,
         unknown_bits: (s16.unknown() << 8) | s17.unknown(),
-        moving: s17.contains(crate::model::S17Flag::CommandActive),
+        moving: s17.contains(crate::model::S17Flag::CommandActive) || s1_moved,
         ..AxisLook::at(Named(LOOK_KEYS.0, position.units()))
     }
 }

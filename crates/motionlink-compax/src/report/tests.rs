@@ -133,7 +133,7 @@ fn a_raw_command_a_switched_output_and_a_stop() {
 
 #[test]
 fn a_watch_sample_with_its_time() {
-    let sample = WatchSample { drive: D5, position: p(2.5), s17: S17Bits(0b0010_0010) };
+    let sample = WatchSample { drive: D5, position: p(2.5), s17: S17Bits(0b0010_0010), s1_moved: false };
     assert_eq!(
         to_json(&Timed { t_s: 0.25, sample }),
         json!({"t_s": 0.25, "drive": 5, "position_units": 2.5, "moving": true,
@@ -145,12 +145,27 @@ fn a_watch_sample_with_its_time() {
 fn a_look_at_a_drive_takes_a_clear_no_fault_bit_as_its_fault_and_moves_while_a_command_is_active() {
     use crate::model::bit_mask;
     let at = Position::new(12.5).unwrap();
-    let look = axis_look(at, Some(2.0), S16Bits(bit_mask(5)), S17Bits(bit_mask(3)));
+    let look = axis_look(at, Some(2.0), S16Bits(bit_mask(5)), S17Bits(bit_mask(3)), false);
     assert_eq!(
         to_json(&look),
         json!({"position_units": 12.5, "speed_units_per_s": 2.0, "moving": true,
                "flags": ["POSITION_REACHED", "COMMAND_ACTIVE"], "faults": ["FAULT (S16 NO_FAULT clear)"]})
     );
-    let fine = axis_look(at, None, S16Bits(bit_mask(1)), S17Bits(0));
+    let fine = axis_look(at, None, S16Bits(bit_mask(1)), S17Bits(0), false);
     assert!(fine.faults.is_empty() && !fine.moving && fine.speed.is_none(), "{fine:?}");
+    // S1 moved while S17 shows no command (a drive without bit 3, or moved by an input): moving.
+    assert!(axis_look(at, Some(3.0), S16Bits(bit_mask(1)), S17Bits(0), true).moving);
+}
+
+#[test]
+fn a_watch_sample_moves_while_s17_shows_a_command_or_s1_changed_beyond_the_tolerance() {
+    let tolerance = p(0.1);
+    let first = WatchSample::after(None, D5, p(2.5), S17Bits(0), tolerance);
+    assert!(!first.moving(), "the first sample has nothing to compare with");
+    assert!(!WatchSample::after(Some(p(2.45)), D5, p(2.5), S17Bits(0), tolerance).moving(), "within the tolerance");
+    let by_s1 = WatchSample::after(Some(p(2.0)), D5, p(2.5), S17Bits(0), tolerance);
+    assert!(by_s1.moving() && by_s1.s1_moved);
+    assert_eq!(to_json(&by_s1)["moving"], json!(true));
+    let by_s17 = WatchSample::after(Some(p(2.5)), D5, p(2.5), S17Bits(crate::model::bit_mask(3)), tolerance);
+    assert!(by_s17.moving() && !by_s17.s1_moved);
 }

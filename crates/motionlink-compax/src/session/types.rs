@@ -352,12 +352,31 @@ pub struct WatchSample {
     pub position: Position,
     /// S17.
     pub s17: S17Bits,
+    /// S1 changed by more than the in-position tolerance since the watch's previous sample (false for its
+    /// first): the drive moves, whatever S17 shows (a drive whose S17 does not show its positioning, or one
+    /// moved by other means: an input, a program of its own).
+    pub s1_moved: bool,
 }
 
 impl WatchSample {
-    /// True while a command is active (the axis moves).
+    /// The sample of `drive` at `position` with `s17`, after the watch's `previous` position (`None` for
+    /// its first sample), with the in-position `tolerance` of the session.
+    pub fn after(
+        previous: Option<Position>,
+        drive: Address,
+        position: Position,
+        s17: S17Bits,
+        tolerance: Position,
+    ) -> Self {
+        let s1_moved = previous.is_some_and(|p| (position.units() - p.units()).abs() > tolerance.units().abs());
+        WatchSample { drive, position, s17, s1_moved }
+    }
+
+    /// True while the drive moves: S17 shows a command active, or S1 changed beyond the in-position
+    /// tolerance since the previous sample (S17's bit 3 is the user guide's, not the RS485 manual's; a drive
+    /// may move without it).
     pub fn moving(&self) -> bool {
-        self.s17.contains(crate::model::S17Flag::CommandActive)
+        self.s17.contains(crate::model::S17Flag::CommandActive) || self.s1_moved
     }
 }
 

@@ -34,6 +34,8 @@ pub(super) struct Compax {
     port: String,
     /// The device profile the session took (null: none).
     profile: Value,
+    /// The position of the previous state sample (`None` before the first): S1 moving says the drive moves.
+    last_sample: Arc<std::sync::Mutex<Option<Position>>>,
 }
 
 impl Compax {
@@ -65,7 +67,16 @@ impl Compax {
             ),
             None => Value::Null,
         };
-        Ok((Compax { client: Arc::new(client), drive: options.drive, port: port.to_string(), profile }, host))
+        Ok((
+            Compax {
+                client: Arc::new(client),
+                drive: options.drive,
+                port: port.to_string(),
+                profile,
+                last_sample: Default::default(),
+            },
+            host,
+        ))
     }
 
     fn result(&self, report: &impl serde::Serialize) -> Outcome {
@@ -183,7 +194,9 @@ impl Compax {
         Box::pin(async move {
             let position = me.client.read_position(me.drive).await.map_err(failed)?;
             let s17 = me.client.read_s17(me.drive).await.map_err(failed)?;
-            let sample = WatchSample { drive: me.drive, position, s17 };
+            let previous = motionlink_link::clock::lock(&me.last_sample).replace(position);
+            let tolerance = me.client.config().in_position_tolerance;
+            let sample = WatchSample::after(previous, me.drive, position, s17, tolerance);
             Ok((me.result(&Timed { t_s, sample })?, sample.moving()))
         })
     }

@@ -263,7 +263,9 @@ impl Device for Compax {
                         let dt = at.saturating_since(t0).as_secs_f64();
                         (dt > 0.0).then(|| (p - p0) / dt)
                     });
-                    motionlink_compax::report::axis_look(position, speed, s16, s17)
+                    let tolerance = self.client.config().in_position_tolerance.units().abs();
+                    let s1_moved = before.is_some_and(|(_, p0)| (p - p0).abs() > tolerance);
+                    motionlink_compax::report::axis_look(position, speed, s16, s17, s1_moved)
                 }));
             }
             out

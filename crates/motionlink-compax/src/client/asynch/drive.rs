@@ -181,6 +181,8 @@ pub struct AsyncWatch<'a> {
     interval: Duration,
     /// When the next sample is due (`None`: at once).
     due: Option<Timestamp>,
+    /// The previous sample's position (`None` before the first).
+    previous: Option<Position>,
 }
 
 impl<'a> AsyncWatch<'a> {
@@ -188,7 +190,7 @@ impl<'a> AsyncWatch<'a> {
         if drive.is_broadcast() {
             return Err(Error::Broadcast("a watch reads one drive's state"));
         }
-        Ok(AsyncWatch { client, drive, interval, due: None })
+        Ok(AsyncWatch { client, drive, interval, due: None, previous: None })
     }
 
     /// The drive watched.
@@ -214,7 +216,10 @@ impl<'a> AsyncWatch<'a> {
         self.due = Some((due + self.interval).max(clock.now()));
         match read?.as_slice() {
             [(_, StatusValue::Position(position)), (_, StatusValue::S17(s17))] => {
-                Ok(WatchSample { drive: self.drive, position: *position, s17: *s17 })
+                let tolerance = self.client.config().in_position_tolerance;
+                let sample = WatchSample::after(self.previous, self.drive, *position, *s17, tolerance);
+                self.previous = Some(*position);
+                Ok(sample)
             }
             other => Err(Error::UnexpectedReply {
                 address: self.drive,

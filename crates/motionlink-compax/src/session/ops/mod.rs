@@ -370,13 +370,16 @@ impl Ctx {
             return Err(Error::Broadcast("a watch reads one drive's state"));
         }
         let mut next = self.now();
+        let tolerance = self.core().cfg.in_position_tolerance;
+        let mut previous = None;
         loop {
             if self.is_cancelled() {
                 return Ok(());
             }
             let position = self.read_position(drive).await?;
             let s17 = self.read_s17(drive).await?;
-            self.progress(Progress::Watch(WatchSample { drive, position, s17 }));
+            self.progress(Progress::Watch(WatchSample::after(previous, drive, position, s17, tolerance)));
+            previous = Some(position);
             next = (next + interval).max(self.now());
             match self.listen_until(next).await {
                 Ok(()) => {}
