@@ -47,9 +47,13 @@ fn parse_whole<T: WholeArg>(text: &str) -> Result<T, ModelError> {
 }
 
 /// `text` as a finite number of `what` (its range is the caller's).
-fn parse_number(what: &'static str, text: &str) -> Result<f64, ModelError> {
+pub(crate) fn parse_number(what: &'static str, text: &str) -> Result<f64, ModelError> {
     let t = text.trim();
-    t.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| ModelError::Syntax { what, text: t.to_string() })
+    match t.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(_) => Err(ModelError::NotFinite { what, text: t.to_string() }),
+        Err(_) => Err(ModelError::Syntax { what, text: t.to_string() }),
+    }
 }
 
 fn out_of_range(what: &'static str, value: impl fmt::Display, range: &'static str) -> ModelError {
@@ -428,7 +432,9 @@ mod tests {
         assert_eq!(refused::<TimeLimit>("1e-300"), "time limit 1e-300 s is out of range (more than 0 s)");
         assert!(refused::<Position>("1e300").starts_with("position 1e300 is out of range"));
         assert_eq!(refused::<SpeedPercent>("fast"), "cannot read speed from \"fast\"");
-        assert_eq!(refused::<Position>("nan"), "cannot read position from \"nan\"");
+        assert_eq!(refused::<Position>("nan"), "position must be a finite number, not nan");
+        assert_eq!(refused::<Position>("1e400"), "position must be a finite number, not 1e400");
+        assert_eq!(refused::<Position>("far"), "cannot read position from \"far\"");
         assert_eq!("-1055.88".parse::<Position>().unwrap().units(), -1055.88);
         assert!(refused::<Position>("1e9").starts_with("position 1000000000 is out of range"));
 

@@ -60,6 +60,14 @@ pub enum ModelError {
         /// The allowed range.
         range: &'static str,
     },
+    /// A number that is not finite (`inf`, `nan`, `1e400`) where a finite one is needed.
+    #[error("{what} must be a finite number, not {text}")]
+    NotFinite {
+        /// What the value is.
+        what: &'static str,
+        /// The text.
+        text: String,
+    },
     /// Text that is not a command or a value of the expected form.
     #[error("cannot read {what} from {text:?}")]
     Syntax {

@@ -168,7 +168,9 @@ impl ParamId {
 /// let w = ParamWrite::parse(ParamId::DEVICE_ADDRESS, "5").unwrap();
 /// assert_eq!((w.id(), w.value()), (ParamId::DEVICE_ADDRESS, 5.0));
 /// assert_eq!(ParamWrite::parse(ParamId::DEVICE_ADDRESS, "NaN").unwrap_err().to_string(),
-///            "cannot read parameter value from \"NaN\"");
+///            "parameter value must be a finite number, not NaN");
+/// assert_eq!(ParamWrite::parse(ParamId::DEVICE_ADDRESS, "five").unwrap_err().to_string(),
+///            "cannot read parameter value from \"five\"");
 /// assert!(ParamWrite::new(ParamId::DEVICE_ADDRESS, f64::INFINITY).is_err());
 /// assert!(ParamWrite::new(ParamId::DEVICE_ADDRESS, 32.0).is_err());
 /// ```
@@ -189,11 +191,10 @@ impl ParamWrite {
     }
 
     /// The value `text` (a decimal number, blanks around it ignored) for parameter `id`, as [`ParamWrite::new`]
-    /// checks it; text that is no finite number is [`ModelError::Syntax`].
+    /// checks it; text that is no number is [`ModelError::Syntax`], a number that is not finite
+    /// [`ModelError::NotFinite`].
     pub fn parse(id: ParamId, text: &str) -> Result<ParamWrite, ModelError> {
-        let t = text.trim();
-        let value = t.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| syntax(Self::WHAT, t.as_bytes()))?;
-        ParamWrite::new(id, value)
+        ParamWrite::new(id, super::args::parse_number(Self::WHAT, text)?)
     }
 
     /// The parameter.
