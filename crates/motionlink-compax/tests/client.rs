@@ -170,6 +170,26 @@ fn a_relative_move_whose_reply_is_lost_is_not_sent_again() {
 }
 
 #[test]
+fn a_relative_move_too_small_for_s2_to_show_is_not_sent_again_when_its_reply_is_lost() {
+    let (r, bus) = rig(&[1], 0, 9600);
+    let _me = r.clock.reserve_participant().enter();
+    r.clock.sleep(Duration::from_millis(1));
+    // As above, the reply to POSR 0.001 is lost: S2 (three decimals) reads alike whether it was taken or not.
+    let before = r.faults().bytes_sent(Direction::DeviceToHost);
+    for i in 14..17 {
+        r.faults().inject(Direction::DeviceToHost, before + i, motionlink_link::pipe::Fault::Drop);
+    }
+    let e = bus.move_relative(a(1), pos(0.001), MoveOptions::default()).unwrap_err();
+    assert!(matches!(e, Error::MoveUncertain { .. }), "{e}");
+    let posr = sent(&r.transcript).into_iter().filter(|f| f.starts_with(b"1POSR")).count();
+    assert_eq!(posr, 1, "POSR sent exactly once");
+    assert_eq!(bus.started(), [a(1)], "still the session's to stop");
+    r.clock.sleep(Duration::from_millis(500));
+    assert_eq!(bus.read_position(a(1)).unwrap(), pos(0.001), "moved once, not twice");
+    bus.close().unwrap();
+}
+
+#[test]
 fn a_relative_move_that_never_arrived_is_sent_again_after_checking() {
     let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();

@@ -338,7 +338,7 @@ impl Ctx {
         self.check_cancel()?;
         self.core().execute_buffers(address);
         let exec = Request { address, body: Body::Execute, flags: Flags::NONE };
-        let close = |a: f64, b: f64| (a - b).abs() < 0.0015;
+        let close = |a: f64, b: f64| (a - b).abs() < super::S2_RESOLUTION;
         let mut attempts = 0;
         loop {
             attempts += 1;
@@ -404,7 +404,9 @@ impl Ctx {
             }
             let moving = self.read_s17(address).await?.contains(S17Flag::CommandActive);
             let unchanged = before.is_none_or(|b| close(target, b));
-            if moving || !unchanged {
+            // A relative distance within S2's resolution leaves S2 alike whether it started or not.
+            let s2_tells = before.is_none_or(|b| !close(expected, b));
+            if moving || !unchanged || !s2_tells {
                 return Err(Error::MoveUncertain {
                     address,
                     command: format!("! ({text})"),
@@ -492,7 +494,7 @@ impl Ctx {
             None => None,
         };
         let moved = match (before, target) {
-            (Some(b), Some(t)) if (t - b).abs() >= 0.0015 => Some((b, t)),
+            (Some(b), Some(t)) if (t - b).abs() >= super::S2_RESOLUTION => Some((b, t)),
             _ => None,
         };
         if active || moved.is_some() {

@@ -25,6 +25,9 @@ use crate::model::{
 use crate::wire::number::{same_decimal, MAX_DECIMALS};
 use crate::wire::{Address, Body, Flags, Mode, Reply, Request};
 
+/// How far apart two readings of S2 (printed with three decimals) must be to count as different, in units.
+pub(super) const S2_RESOLUTION: f64 = 0.0015;
+
 /// `v` rounded to `decimals` decimals, to the nearest (as decimal text shows it).
 fn rounded(v: f64, decimals: usize) -> f64 {
     format!("{v:.decimals$}").parse().unwrap_or(v)

@@ -4,6 +4,7 @@
 use super::super::core::{bit, drives_in, Effect, Retry};
 use super::super::ctx::Ctx;
 use super::super::types::{AfterRaw, MoveOptions, RawOutcome};
+use super::S2_RESOLUTION;
 use crate::error::{Error, Result};
 use crate::model::{Command, ModelError, Position, S17Flag};
 use crate::wire::{Address, Body, Flags, Request, WireError};
@@ -26,7 +27,8 @@ impl Ctx {
     /// Sends move `cmd` to one drive; for a POSR, `target_before` is the drive's S2 if the caller has just
     /// read it. If the reply is lost, the drive's target S2 tells whether it took the move: unchanged, it
     /// did not and the move is sent again; moved as the move says, it did; anything else is
-    /// [`Error::MoveUncertain`]. Never sent again blind.
+    /// [`Error::MoveUncertain`], as is a POSR whose distance S2 cannot show (below its resolution) and a
+    /// move sent again that the drive then refuses (the first may have been taken). Never sent again blind.
     pub(crate) async fn start_move(
         &self,
         address: Address,
@@ -86,10 +88,20 @@ impl Ctx {
                     // The reply is lost (or only a reply that cannot be the acknowledgement came): did the
                     // drive take the move? Its target position tells.
                     let target = self.read_target(address).await?.units();
-                    let close = |a: f64, b: f64| (a - b).abs() < 0.0015;
-                    if close(target, expected) && (before.is_none() || !close(expected, before.unwrap_or(0.0))) {
+                    let close = |a: f64, b: f64| (a - b).abs() < S2_RESOLUTION;
+                    // A relative distance within S2's resolution leaves S2 alike whether it was taken or not:
+                    // it cannot tell, and the move is never sent again on it.
+                    let s2_tells = before.is_none_or(|b| !close(expected, b));
+                    if close(target, expected) && s2_tells {
                         tracing::info!("drive {address}: reply lost, but the drive took the move (S2 = {target})");
                         return Ok(());
+                    }
+                    if !s2_tells {
+                        return Err(Error::MoveUncertain {
+                            address,
+                            command: cmd.to_string(),
+                            target: Position::from_units_unchecked(target),
+                        });
                     }
                     let not_taken = match before {
                         Some(b) => close(target, b),
@@ -115,6 +127,17 @@ impl Ctx {
                     return Err(e);
                 }
                 Err(e) => {
+                    if matches!(e, Error::Refused { .. }) && attempts > 1 {
+                        // Sent again after a reply was lost and the drive's state showed the move not taken,
+                        // and now refused (E92 while it moves, for one): the first may have been taken after
+                        // all. The drive stays the session's to stop.
+                        let target = self.read_target(address).await.map_or(f64::NAN, |t| t.units());
+                        return Err(Error::MoveUncertain {
+                            address,
+                            command: cmd.to_string(),
+                            target: Position::from_units_unchecked(target),
+                        });
+                    }
                     if matches!(e, Error::Refused { .. }) {
                         // Refused (E92 while it still moves, for one): it started nothing new, and an axis
                         // this session set moving before is still its to stop.
