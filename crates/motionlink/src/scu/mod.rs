@@ -304,6 +304,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let mut out = std::io::stdout().lock();
     let report = common::Out { json: crate::term::json(), family: "scu", port: &port, unit: None };
     let result = match &request {
+        // A Ctrl-C while the session was being opened: nothing was sent; the session is closed (RA).
+        Some(_) if interrupt.is_cancelled() => {
+            Err(CliError::Interrupted("interrupted before the request was sent".into()))
+        }
         Some(r) => send::send(&client, r, &tap, &report, &mut out),
         None => act(&client, &args, &report, stopped.as_ref(), &mut out, &interrupt),
     };

@@ -251,3 +251,16 @@ fn a_third_signal_exits_at_once_saying_the_stop_was_not_confirmed() {
     assert_eq!((&e["exit_code"], &e["stop_unconfirmed"]), (&serde_json::json!(3), &serde_json::json!(true)), "{e}");
     assert!(e["message"].as_str().unwrap().contains("may still be moving"), "{e}");
 }
+
+#[test]
+fn a_signal_while_the_session_opens_keeps_a_raw_request_unsent() {
+    // The sleepy unit wakes slowly: the signal comes while the session is opened, before `send` could go.
+    let running = Running::start(&["-v", "scu", "--port", "sim", "--sim-variant", "sleepy", "send", "RE", "F1", "out"]);
+    std::thread::sleep(Duration::from_millis(50));
+    running.signal(libc::SIGINT);
+    let ended = running.wait(Duration::from_secs(10));
+    assert_eq!(ended.code(), 130, "{ended:?}");
+    assert!(ended.stderr.contains("interrupted before the request was sent"), "{}", ended.stderr);
+    assert!(!ended.stderr.lines().any(|l| l.contains("-> 52 45")), "no RE went out: {}", ended.stderr);
+    assert!(ended.stderr.lines().any(|l| l.contains("RA remote mode abort")), "the session closed: {}", ended.stderr);
+}
