@@ -20,11 +20,12 @@ fn main() -> ExitCode {
     match motionlink_gateway::main(&cli.args.options()) {
         Ok(code) => ExitCode::from(code),
         Err(e) => {
-            if cli.json {
-                eprintln!("{}", serde_json::to_string(&e.report()).unwrap_or_else(|_| e.to_string()));
+            let line = if cli.json {
+                serde_json::to_string(&e.report()).unwrap_or_else(|_| e.to_string())
             } else {
-                eprintln!("motionlink gateway: {e}");
-            }
+                format!("motionlink gateway: {e}")
+            };
+            motionlink_gateway::notice::write_stderr(&line);
             ExitCode::from(e.exit_code())
         }
     }

@@ -16,13 +16,18 @@ pub fn json() -> bool {
     JSON.load(Ordering::Relaxed)
 }
 
-/// Writes one notice line on stderr, in the form [`set_json`] chose.
+/// Writes one notice line on stderr, in the form [`set_json`] chose, and ignores a failure: stderr closed,
+/// or its terminal gone after SIGHUP, must not end the gateway before it has stopped and closed its devices
+/// (`eprintln!` would panic).
 pub fn line(text: &str) {
-    if json() {
-        eprintln!("{}", serde_json::json!({ "log": text }));
-    } else {
-        eprintln!("{text}");
-    }
+    let line = if json() { serde_json::json!({ "log": text }).to_string() } else { text.to_string() };
+    write_stderr(&line);
+}
+
+/// Writes `line` and a line end on stderr, ignoring a failure (see [`line`]).
+pub fn write_stderr(line: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr().lock(), "{line}");
 }
 
 /// [`line`] with `format!` arguments.

@@ -294,6 +294,31 @@ async fn bad_requests_are_answered_and_nothing_moves() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_gateway_whose_stderr_is_gone_still_stops_closes_and_exits_143_on_sigterm() {
+    let Some(b) = broker("a_gateway_whose_stderr_is_gone_still_stops_closes_and_exits_143_on_sigterm") else { return };
+    let mut gw = gateway(&b, "k2", ALL);
+    let mut c = online(&b, "k2", "t-k2").await;
+    // Its terminal gone (as after SIGHUP), or the reader of its stderr: every notice now fails to be written.
+    gw.close_stderr();
+    request(
+        &c,
+        "k2",
+        "arm",
+        json!({"id": "m1", "op": "move", "args": {"position": 3.0, "vel": 0.3}, "reply_to": "me/r", "lease_ms": 2000}),
+    )
+    .await;
+    let keep = keep_alive(&c, "k2", "arm", "m1");
+    c.wait("started", 5 * S, |m| m.topic == "motionlink/k2/arm/events" && m.payload.contains("motion_started")).await;
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let (code, _) = gw.signal(libc::SIGTERM);
+    keep.abort();
+    assert_eq!(code, Some(143), "not a panic (101)");
+    let r = c.reply("me/r", "m1", 5 * S).await;
+    assert!(r["error"]["message"].as_str().unwrap().contains("halted"), "{r}");
+    c.wait("offline", 5 * S, |m| m.topic == "motionlink/k2/status" && m.payload == "offline").await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sigterm_mid_move_stops_it_says_so_and_exits_143() {
     let Some(b) = broker("sigterm_mid_move_stops_it_says_so_and_exits_143") else { return };
     let gw = gateway(&b, "k1", ALL);

@@ -191,6 +191,11 @@ impl Gateway {
         rx.recv_timeout(Duration::from_secs(20)).expect("a line on stderr")
     }
 
+    /// Closes the reading end of its stderr: its next line there fails (EPIPE).
+    pub fn close_stderr(&mut self) {
+        drop(self.child.stderr.take());
+    }
+
     /// Sends `signal` and waits for the end: the exit code and stderr.
     pub fn signal(mut self, signal: i32) -> (Option<i32>, String) {
         // SAFETY: kill(2) on the child's pid.
