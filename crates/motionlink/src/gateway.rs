@@ -14,7 +14,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
     match motionlink_gateway::main(&args.options()) {
         Ok(0) => Ok(()),
         // Ended by a signal after its motions were stopped and `offline` published (said on stderr).
-        Ok(code) => std::process::exit(i32::from(code)),
+        Ok(code) => {
+            crate::term::flush_stderr(std::time::Duration::from_secs(2));
+            std::process::exit(i32::from(code))
+        }
         Err(GatewayError::Usage(m)) => Err(CliError::usage(m)),
         Err(GatewayError::Transport(m)) => Err(CliError::transport(m)),
     }

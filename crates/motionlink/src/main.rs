@@ -294,6 +294,9 @@ fn parse() -> Cli {
     }
 }
 
+/// How long the end of the command waits for stderr to take what is still to be written on it.
+const STDERR_FLUSH_BOUND: std::time::Duration = std::time::Duration::from_secs(2);
+
 fn main() -> ExitCode {
     let cli = parse();
     term::init(cli.verbose, cli.quiet, cli.color, cli.json);
@@ -316,5 +319,6 @@ fn main() -> ExitCode {
     if let Some(e) = error {
         common::print_final_error(&e);
     }
+    term::flush_stderr(STDERR_FLUSH_BOUND);
     ExitCode::from(code)
 }

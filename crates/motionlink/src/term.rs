@@ -84,6 +84,7 @@ pub fn init(verbose: u8, quiet: bool, color: ColorChoice, json: bool) {
         json,
     };
     let _ = OUTPUT.set(out);
+    start_stderr_writer();
     let default = match (quiet, verbose) {
         (true, _) => LevelFilter::ERROR,
         (_, 0) => LevelFilter::WARN,
@@ -134,9 +135,79 @@ where
 /// The progress bars on screen: a line written on stderr first hides them, then draws them again.
 static BARS: Mutex<Vec<WeakProgressBar>> = Mutex::new(Vec::new());
 
+/// Text for stderr, written by a thread of its own once [`init`] started it: a stderr that is slow or not
+/// read at all (a pipe whose reader stalled) never holds up the thread that wrote the line (the session's,
+/// the signals'), so a stop is never kept waiting for a log line or a `-v` trace.
+struct StderrQueue {
+    texts: std::collections::VecDeque<String>,
+    /// Texts left out since the last one written: the queue was full.
+    left_out: usize,
+    /// The writer is writing a text it took.
+    writing: bool,
+}
+
+static STDERR_QUEUE: Mutex<StderrQueue> =
+    Mutex::new(StderrQueue { texts: std::collections::VecDeque::new(), left_out: 0, writing: false });
+static STDERR_WAKE: std::sync::Condvar = std::sync::Condvar::new();
+/// Set once the writer runs; until then (and where it could not be started) stderr is written at once.
+static STDERR_WRITER: OnceLock<()> = OnceLock::new();
+/// At most this many texts wait for a stderr that is not read; more are left out (and counted).
+const STDERR_QUEUE_TEXTS: usize = 4096;
+
+fn start_stderr_writer() {
+    let spawned = std::thread::Builder::new().name("stderr".into()).spawn(|| loop {
+        let (text, left_out) = {
+            let mut q = lock(&STDERR_QUEUE);
+            while q.texts.is_empty() {
+                q = STDERR_WAKE.wait(q).unwrap_or_else(|e| e.into_inner());
+            }
+            q.writing = true;
+            let left_out = std::mem::take(&mut q.left_out);
+            (q.texts.pop_front().unwrap_or_default(), left_out)
+        };
+        if left_out > 0 {
+            write_stderr_now(&format!("motionlink: {left_out} lines for stderr left out (it was not read)\n"));
+        }
+        write_stderr_now(&text);
+        lock(&STDERR_QUEUE).writing = false;
+        STDERR_WAKE.notify_all();
+    });
+    if spawned.is_ok() {
+        let _ = STDERR_WRITER.set(());
+    }
+}
+
+/// Waits until every text given to [`write_stderr`] was written, at most `bound` (a stderr nobody reads
+/// would keep the process from ending): before the process exits.
+pub fn flush_stderr(bound: Duration) {
+    if STDERR_WRITER.get().is_none() {
+        return;
+    }
+    let deadline = std::time::Instant::now() + bound;
+    let mut q = lock(&STDERR_QUEUE);
+    while !q.texts.is_empty() || q.writing {
+        let Some(left) = deadline.checked_duration_since(std::time::Instant::now()) else { return };
+        q = STDERR_WAKE.wait_timeout(q, left).unwrap_or_else(|e| e.into_inner()).0;
+    }
+}
+
 /// Writes `text` (one or more whole lines) on stderr without garbling a progress bar, ignoring failures
-/// (after SIGHUP the terminal may be gone).
+/// (after SIGHUP the terminal may be gone), through the writer thread once [`init`] started it: never
+/// waiting for a stderr that is slow or not read.
 pub fn write_stderr(text: &str) {
+    if STDERR_WRITER.get().is_none() {
+        return write_stderr_now(text);
+    }
+    let mut q = lock(&STDERR_QUEUE);
+    if q.texts.len() >= STDERR_QUEUE_TEXTS {
+        q.left_out += 1;
+        return;
+    }
+    q.texts.push_back(text.to_string());
+    STDERR_WAKE.notify_all();
+}
+
+fn write_stderr_now(text: &str) {
     let bar = {
         let mut bars = lock(&BARS);
         bars.retain(|b| b.upgrade().is_some_and(|b| !b.is_finished()));

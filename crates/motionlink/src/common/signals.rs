@@ -91,6 +91,10 @@ pub fn interrupt_token() -> CancelToken {
 fn on_signal(token: &CancelToken, presses: &mut u32, n: i32) {
     record_stop_cause(StopCause::Signal(n));
     *presses += 1;
+    // The stop first, then what is said about it.
+    if *presses < 3 {
+        token.cancel();
+    }
     let name = signal_name(n);
     match *presses {
         1 => match crate::portlock::stop_request() {
@@ -111,10 +115,10 @@ fn on_signal(token: &CancelToken, presses: &mut u32, n: i32) {
             .stop_not_confirmed();
             crate::portlock::release(e.exit_code(), &e.to_string());
             super::print_final_error(&e);
+            crate::term::flush_stderr(std::time::Duration::from_millis(200));
             std::process::exit(i32::from(e.exit_code()));
         }
     }
-    token.cancel();
 }
 
 #[cfg(unix)]

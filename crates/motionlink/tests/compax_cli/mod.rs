@@ -655,3 +655,33 @@ fn a_scan_in_the_wrong_mode_says_why_once() {
     let o = compax(&sim.address, &["--timeout-ms", "30", "--mode", "8", "scan"]);
     assert!(o.status.success() && stdout(&o).starts_with("drive 1 "), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// A stderr that nobody reads (a pipe whose reader stalled): the `-vvv` trace of every telegram fills it, and
+/// a signal still stops the move at once (COMPAX has no watchdog: a session waiting for stderr would leave
+/// the axis running). Lines for stderr are written by a thread of their own and left out when it is full.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_signal_stops_a_move_whose_stderr_is_not_read() {
+    use std::os::fd::AsRawFd;
+    let sim = start_sim(&["--tcp", "127.0.0.1:0"]);
+    let args = ["-vvv", "compax", "--port", &sim.address, "move", "--abs", "1000", "--speed", "10", "--poll-ms", "1"];
+    let mut child = Command::new(BIN).args(args).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
+    let stderr = child.stderr.take().unwrap();
+    // The smallest pipe (one page): it is full after a few dozen trace lines.
+    // SAFETY: fcntl(2) on a pipe this process holds.
+    unsafe { libc::fcntl(stderr.as_raw_fd(), libc::F_SETPIPE_SZ, 4096) };
+    wait_started(&sim, 1);
+    std::thread::sleep(Duration::from_millis(1500));
+    let at = common::unix_now();
+    // SAFETY: kill(2) on our own child's pid.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGTERM) }, 0);
+    let (rest, p) = wait_at_rest(&sim, 1, at);
+    assert!(rest.at - at < 0.100, "at rest {:.1} ms after the signal", (rest.at - at) * 1e3);
+    assert!((0.0..1000.0).contains(&p), "{p}");
+    // Read now: what was left to say comes out, and the command ends as a signal's stop does.
+    let reader = std::thread::spawn(move || std::io::read_to_string(stderr).unwrap_or_default());
+    let status = child.wait().unwrap();
+    let said = reader.join().unwrap();
+    assert_eq!(status.code(), Some(143), "{said}");
+    assert!(said.contains("now switched off"), "{said}");
+}
