@@ -222,11 +222,13 @@ impl Serialize for StartedMove {
     }
 }
 
-/// What a raw command did: `reply` (null when none was due) and `waited`.
+/// What a raw command did: `reply` (null when none was due), `started` (the drives it set in motion) and
+/// `waited`.
 impl Serialize for RawOutcome {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let mut map = s.serialize_map(Some(2))?;
+        let mut map = s.serialize_map(Some(3))?;
         map.serialize_entry("reply", &self.reply)?;
+        map.serialize_entry("started", &self.started)?;
         map.serialize_entry("waited", &self.waited)?;
         map.end()
     }

@@ -167,12 +167,15 @@ pub(super) fn move_drive(
         // Handed over once its target is read back: the move runs on after this command exits (a signal
         // before that stops it instead).
         let started = bus.start_and_release(drive, &plan.request).map_err(fail)?;
-        let now = bus.read_position(drive).map_err(fail)?;
+        let now = bus.read_position(drive);
+        let now = now.map_err(|e| handed_over_then(&[drive], fail(e)))?;
         if crate::term::json() {
-            return args.out().print(out, &HandedOver { started: &started, position_units: now });
+            args.out().print(out, &HandedOver { started: &started, position_units: now })?;
+        } else {
+            writeln!(out, "drive {drive}: target {} {UNITS}, position {now} {UNITS} (moving on)", started.target)?;
+            common::not_verified(out, &started.not_verifiable)?;
         }
-        writeln!(out, "drive {drive}: target {} {UNITS}, position {now} {UNITS} (moving on)", started.target)?;
-        return common::not_verified(out, &started.not_verifiable);
+        return signal_after_hand_over(&[drive]);
     }
     let bar = common::progress_bar(0, format!("drive {drive}"));
     let mut started_at: Option<f64> = None;
@@ -272,15 +275,51 @@ pub(super) fn raw(
     // A move it starts is waited for (--wait) or handed over: it runs on after the command exits.
     let after = wait.map_or(AfterRaw::HandOver, AfterRaw::Wait);
     let outcome = bus.raw_motion(args.drive, command, after).map_err(|e| error_for(args, e))?;
+    let handed_over = if outcome.waited { &[][..] } else { &outcome.started[..] };
     if crate::term::json() {
-        return args.out().print(out, &Raw { command, outcome: &outcome });
+        args.out().print(out, &Raw { command, outcome: &outcome })?;
+    } else {
+        match &outcome.reply {
+            Some(r) if r.is_empty() => writeln!(out, "(acknowledged)")?,
+            Some(r) => writeln!(out, "{r}")?,
+            None => writeln!(out, "(no reply due)")?,
+        }
     }
-    match outcome.reply {
-        Some(r) if r.is_empty() => writeln!(out, "(acknowledged)")?,
-        Some(r) => writeln!(out, "{r}")?,
-        None => writeln!(out, "(no reply due)")?,
+    if !handed_over.is_empty() {
+        common::say(format!("motionlink: {}", moving_on(handed_over)));
     }
-    Ok(())
+    signal_after_hand_over(handed_over)
+}
+
+/// What a command that handed moves over says of them: they run on, and how to stop them.
+fn moving_on(drives: &[Address]) -> String {
+    let list = drives.iter().map(ToString::to_string).collect::<Vec<_>>().join(", ");
+    let first = drives.first().map_or(1, |a| a.get());
+    format!(
+        "drive {list} moving on: handed over, not stopped by this command (COMPAX has no watchdog); `motionlink \
+         compax --drive {first} stop` stops it"
+    )
+}
+
+/// `e`, which came after the moves of `drives` were handed over: it says that they run on.
+fn handed_over_then(drives: &[Address], e: CliError) -> CliError {
+    if drives.is_empty() {
+        return e;
+    }
+    e.map_message(|m| format!("{m}; {}", moving_on(drives)))
+}
+
+/// The end of a command that handed the moves of `drives` over: a signal that came meanwhile ends it (exit
+/// 128 + n) saying that they were not stopped.
+fn signal_after_hand_over(drives: &[Address]) -> Result<(), CliError> {
+    match common::stop_cause() {
+        Some(cause @ common::StopCause::Signal(_)) if !drives.is_empty() => Err(CliError::Interrupted(format!(
+            "{} came after the move was handed over; {}",
+            cause.name(),
+            moving_on(drives)
+        ))),
+        _ => Ok(()),
+    }
 }
 
 /// What `send --json` has besides the exchange ([`crate::tap::Sent`]): the reply's text and the status polls

@@ -192,9 +192,17 @@ fn move_no_wait_hands_the_move_over() {
     // A move sent raw is left running too.
     let sim = start_sim(&["--tcp", "127.0.0.1:0", "--drives", "3"]);
     let o = compax(&sim.address, &["--drive", "3", "raw", "POSA 20"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{said}");
+    // It says so, and how to stop it.
+    assert!(said.contains("drive 3 moving on: handed over, not stopped by this command"), "{said}");
+    assert!(said.contains("--drive 3 stop"), "{said}");
     let (_, at) = wait_at_rest(&sim, 3, common::unix_now() - 10.0);
     assert_eq!(at, 20.0);
+    // With --json, the drives it set in motion.
+    let r = json(&compax(&sim.address, &["--json", "--drive", "3", "raw", "POSA 25"]));
+    assert_eq!((&r["started"], &r["waited"]), (&serde_json::json!([3]), &serde_json::json!(false)), "{r}");
+    wait_at_rest(&sim, 3, common::unix_now() - 10.0);
     // --no-wait with --timeout-s is a contradiction.
     assert_eq!(compax(p, &["move", "--abs", "1", "--no-wait", "--timeout-s", "5"]).status.code(), Some(2));
     // So are the options of the wait it does not do (they would be taken and ignored).
