@@ -99,9 +99,9 @@ fn a_move_waited_for_and_one_handed_over() {
 #[test]
 fn a_raw_command_a_switched_output_and_a_stop() {
     let raw = RawOutcome { reply: Some("S001: 0.000".into()), started: vec![D5], waited: false };
-    assert_eq!(to_json(&raw), json!({"reply": "S001: 0.000", "waited": false}));
+    assert_eq!(to_json(&raw), json!({"reply": "S001: 0.000", "started": [5], "waited": false}));
     let none = RawOutcome { reply: None, started: Vec::new(), waited: true };
-    assert_eq!(to_json(&none), json!({"reply": null, "waited": true}));
+    assert_eq!(to_json(&none), json!({"reply": null, "started": [], "waited": true}));
     let on = OutputSwitched::checked(D5, 0, OutputState::ON, Some(Ok(1))).unwrap();
     assert_eq!(to_json(&on), json!({"output": 0, "state": 1, "read_back": 1, "verified": true, "not_verifiable": []}));
     let e = OutputSwitched::checked(D5, 0, OutputState::ON, Some(Ok(0))).unwrap_err();
