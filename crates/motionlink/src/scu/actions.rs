@@ -5,7 +5,7 @@ use std::io::Write;
 use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
-use motionlink_scu::model::{Actuator, DataEntryExt, ErrorCode, Item, MotionFunction, PositionCounts, Speed};
+use motionlink_scu::model::{Actuator, DataEntryExt, ErrorCode, Function, Item, MotionFunction, PositionCounts, Speed};
 use motionlink_scu::results::{ActuatorState, ErrorHistory, GetReport, RunOutcome, Running, SampleReport};
 use motionlink_scu::session::{MoveProgress, MoveReport, RunAction, RunProgress, Snapshot};
 use motionlink_scu::{Client, MoveOptions};
@@ -194,27 +194,39 @@ pub(super) fn run(
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     let function = action.function();
+    // A switching function (buzzer, outputs, emergency stop, LEDs) is switched off by the RS that ends the
+    // run; only its acknowledge says so (no status shows it).
+    let switching = !matches!(function, Function::Motion(_));
     // The first progress comes right after the unit acknowledged the RE.
     let said = std::cell::Cell::new(false);
     let progress = |_: &RunProgress| {
         if !said.replace(true) {
             let mut stdout = std::io::stdout();
-            let _ = match report.json {
-                true => report.print(&mut stdout, Running { function, running: true }),
-                false => writeln!(stdout, "{function} running; Ctrl-C stops it").map_err(CliError::from),
+            let _ = match (report.json, switching) {
+                (true, _) => report.print(&mut stdout, Running { function, running: true }),
+                (false, false) => writeln!(stdout, "{function} running; Ctrl-C stops it").map_err(CliError::from),
+                (false, true) => {
+                    writeln!(stdout, "{function} switched on; Ctrl-C switches it off (RS)").map_err(CliError::from)
+                }
             };
             let _ = stdout.flush();
         }
     };
     let outcome = RunOutcome::of(client.run_function(action, limit, &progress)).map_err(cl)?;
     report.show(out, &outcome, |out, o| {
-        writeln!(out, "{function} stopped")?;
+        match switching {
+            true => writeln!(out, "{function} switched off (RS acknowledged)")?,
+            false => writeln!(out, "{function} stopped")?,
+        }
         let rows: Vec<Row> = o.rest.iter().map(|(a, p)| (a.to_string(), p.to_string())).collect();
         common::print_table(out, &rows)
     })?;
-    match outcome.interrupted {
-        true => Err(CliError::Interrupted(format!("interrupted; {function} stopped (the unit confirmed it)"))),
-        false => Ok(()),
+    match (outcome.interrupted, switching) {
+        (true, false) => Err(CliError::Interrupted(format!("interrupted; {function} stopped (the unit confirmed it)"))),
+        (true, true) => Err(CliError::Interrupted(format!(
+            "interrupted; {function} switched off (RS acknowledged; no status shows a switching function)"
+        ))),
+        (false, _) => Ok(()),
     }
 }
 

@@ -146,6 +146,10 @@ fn run_switches_a_function_for_a_while_and_stops_it() {
     assert!((20..70).contains(&p), "moved for half a second: {p}");
     let out = scu(&sim.address, &["run", "F11", "on", "--seconds", "0.2"]);
     assert!(out.status.success(), "{out:?}");
+    // Said as a switch: on, then off by the RS (acknowledged: no status shows a switching function).
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(said.contains("F11 (buzzer) switched on; Ctrl-C switches it off (RS)"), "{said}");
+    assert!(said.contains("F11 (buzzer) switched off (RS acknowledged)") && !said.contains("stopped"), "{said}");
     let buzzer = json(&scu(&sim.address, &["get", "buzzer", "--json"]));
     assert_eq!(buzzer["value"]["word"], 0, "the buzzer is off again after run");
 }
