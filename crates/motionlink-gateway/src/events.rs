@@ -4,7 +4,8 @@
 /// One event: a motion started or ended, a lease lapsed, an error with no one to reply to.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Event<'a> {
-    /// `motion_started`, `motion_ended`, `lease_expired`, `error`, `port_released` (a `stop` from another
+    /// `motion_started`, `motion_ended`, `lease_expired`, `error`, `repeated` (a motion request whose id was
+    /// taken already: not run again), `port_released` (a `stop` from another
     /// process took the device's port), `port_taken` (the gateway serves it again), `port_failed` (the
     /// device's port failed: its session is gone), `port_reopened` (served again), `device_silent` (the
     /// device does not answer over a port that is fine), `state_failed` (a state sample failed otherwise),

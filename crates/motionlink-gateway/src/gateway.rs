@@ -96,7 +96,14 @@ struct Gateway {
     internal: mpsc::UnboundedSender<Internal>,
     /// The last session's number.
     generation: u64,
+    /// The ids of the latest motion requests taken, per device and id ([`lease_key`]), oldest first (at most
+    /// [`MOTION_IDS_KEPT`]): a motion request delivered again (MQTT's QoS 1 delivers at least once) is not
+    /// run again.
+    motion_ids: std::collections::VecDeque<String>,
 }
+
+/// How many motion request ids the gateway remembers to know a repeated delivery.
+const MOTION_IDS_KEPT: usize = 4096;
 
 /// Runs the gateway of `config` until a signal ends it (its exit code: 128 + its number: 130 SIGINT, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT) or it
 /// cannot start (a usage error, exit 2; a device or the broker that cannot be reached, exit 3).
@@ -163,6 +170,7 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         lost: HashMap::new(),
         internal,
         generation,
+        motion_ids: std::collections::VecDeque::new(),
     };
     gw.online();
     crate::notice::say!(
@@ -438,6 +446,20 @@ impl Gateway {
         }
         let action = self.devices[device].device.action(&r.op, r.args.clone())?;
         match action {
+            Action::Motion(_) if self.motion_ids.contains(&lease_key(device, &r.id)) => {
+                // A repeated delivery (or an id used again): not run again, and not answered (the reply of the
+                // first is the answer); said as an event and on stderr.
+                let message = format!(
+                    "a motion request with id {:?} was taken already for {device}: not run again (a request \
+                     delivered twice runs once; give each motion request an id of its own)",
+                    r.id
+                );
+                crate::notice::say!("{message}");
+                self.event(
+                    device,
+                    &Event { op: Some(&r.op), message: Some(&message), ..Event::new("repeated", Some(&r.id)) },
+                );
+            }
             Action::Motion(op) => {
                 let served = self.devices.get_mut(device).expect("checked above");
                 if let Some(m) = &served.motion {
@@ -446,6 +468,10 @@ impl Gateway {
                         m.op, m.id
                     )));
                 }
+                if self.motion_ids.len() >= MOTION_IDS_KEPT {
+                    self.motion_ids.pop_front();
+                }
+                self.motion_ids.push_back(lease_key(device, &r.id));
                 let (cancel, cancelled) = oneshot::channel();
                 served.motion =
                     Some(Motion { id: r.id.clone(), op: r.op.clone(), reply: reply.clone(), cancel: Some(cancel) });

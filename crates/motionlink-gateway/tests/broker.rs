@@ -294,6 +294,35 @@ async fn bad_requests_are_answered_and_nothing_moves() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_motion_request_delivered_twice_runs_once() {
+    let Some(b) = broker("a_motion_request_delivered_twice_runs_once") else { return };
+    let _gw = gateway(&b, "q1", ALL);
+    let mut c = online(&b, "q1", "t-q1").await;
+    // A relative move (QoS 1 delivers at least once): the repeat comes after the first has ended, and while
+    // it runs.
+    let rel = json!({"id": "r1", "op": "move", "args": {"rel": 5, "speed": 100}, "reply_to": "me/r", "lease_ms": 2000});
+    request(&c, "q1", "axis", rel.clone()).await;
+    let keep = keep_alive(&c, "q1", "axis", "r1");
+    request(&c, "q1", "axis", rel.clone()).await;
+    let r = c.reply("me/r", "r1", 30 * S).await;
+    keep.abort();
+    assert_eq!((r["ok"].as_bool(), r["result"]["reached_units"].as_f64()), (Some(true), Some(5.0)), "{r}");
+    request(&c, "q1", "axis", rel).await;
+    let repeated = |m: &harness::Message| m.topic == "motionlink/q1/axis/events" && m.json()["event"] == "repeated";
+    for _ in 0..2 {
+        let e = c.wait("the repeat", 5 * S, repeated).await.json();
+        assert_eq!((e["id"].as_str(), e["op"].as_str()), (Some("r1"), Some("move")), "{e}");
+        assert!(e["message"].as_str().unwrap().contains("not run again"), "{e}");
+    }
+    // Nothing answered the repeats, and the axis moved 5 once.
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    assert!(!c.drain().iter().any(|m| m.topic == "me/r"), "a repeat was answered");
+    request(&c, "q1", "axis", json!({"id": "p", "op": "status", "args": {"values": "S1"}, "reply_to": "me/r"})).await;
+    let p = c.reply("me/r", "p", 5 * S).await;
+    assert_eq!(p["result"]["status"][0]["value"].as_f64(), Some(5.0), "{p}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_gateway_whose_stderr_is_gone_still_stops_closes_and_exits_143_on_sigterm() {
     let Some(b) = broker("a_gateway_whose_stderr_is_gone_still_stops_closes_and_exits_143_on_sigterm") else { return };
     let mut gw = gateway(&b, "k2", ALL);
