@@ -552,3 +552,23 @@ fn a_close_confirms_the_stop_of_what_it_started_by_the_status_before_it_leaves_r
     assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Off);
     assert!(!rig.unit(|u| u.any_moving()));
 }
+
+#[test]
+fn a_run_whose_re_never_got_a_clean_answer_fails_after_its_stop_and_is_no_report() {
+    use motionlink_scu::session::RunAction;
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(Config::default());
+    // Every reply to an RE comes back corrupt: the RE may have switched the buzzer on, none says so.
+    rig.on_request(|bytes, faults| {
+        if bytes.starts_with(b"RE") {
+            let at = faults.bytes_sent(Direction::DeviceToHost) + 3;
+            faults.inject(Direction::DeviceToHost, at, Fault::Corrupt { xor: 1 });
+        }
+    });
+    let limit = Some(Duration::from_millis(200));
+    let e = client.run_function(RunAction::Switch(Function::Buzzer), limit, &|_| {}).unwrap_err();
+    assert!(matches!(e, Error::Corrupt { .. }), "a failure, not a run: {e}");
+    // It was switched off all the same.
+    assert!(rig.unit(|u| u.executed_functions().is_empty()), "RS sent");
+    assert!(client.started().is_empty());
+}

@@ -6,7 +6,7 @@ use std::time::Duration;
 use motionlink_link::Timestamp;
 
 use super::object::define_object;
-use super::stop::Stop;
+use super::stop::{after_stop, Stop};
 use super::{read_item, statuses, ItemRead, Output, Progress, RunAction, RunSpec};
 use crate::error::Error;
 use crate::model::{Actuator, ActuatorStatus1, DataIndex, Function, PositionCounts, StopMode, UNUSED};
@@ -46,10 +46,15 @@ pub(crate) async fn run(ctx: &Ctx, spec: RunSpec) -> Result<Output, Error> {
         reply => match reply.and_then(|r| r.ack(Command::Execute)) {
             // The unit refused: nothing started.
             Err(e @ Error::Refused { .. }) => return Err(e),
-            // Without a clean answer the RE may have started the function: it is stopped.
-            Err(e) => {
+            // Without a clean answer the RE may have started the function: it is stopped. A cancel that cut
+            // the RE's repeats short is that cancel; otherwise the run failed (it was never seen to start).
+            Err(e) if ctx.cancelled() => {
                 tracing::warn!("{function}: {e}; stopping it");
                 return run.stop(ctx).await;
+            }
+            Err(e) => {
+                tracing::warn!("{function}: {e}; stopping it");
+                return Err(run.stop_after(ctx, e).await);
             }
             Ok(_) => {}
         },
@@ -147,10 +152,23 @@ impl Run {
     }
 
     /// Stops the function (fast) and confirms it; the run's end.
+    /// `cause` ended the run before it was seen to start: the function is stopped; the error is `cause` once
+    /// the stop is confirmed, else [`Error::StopUnconfirmed`].
+    async fn stop_after(&self, ctx: &Ctx, cause: Error) -> Error {
+        let stop = self.stopping();
+        let stopped = stop.run(ctx).await.rest;
+        after_stop(cause, stopped.map(|(_, p)| p), &stop)
+    }
+
+    /// The stop of the function (fast), confirmed by the status of every actuator for a motion function.
+    fn stopping(&self) -> Stop {
+        let watch = if self.is_motion() { Actuator::all().collect() } else { Vec::new() };
+        Stop::new(self.function(), StopMode::Fast, watch)
+    }
+
     async fn stop(&self, ctx: &Ctx) -> Result<Output, Error> {
         let function = self.function();
-        let watch = if self.is_motion() { Actuator::all().collect() } else { Vec::new() };
-        let stop = Stop::new(function, StopMode::Fast, watch);
+        let stop = self.stopping();
         match stop.run(ctx).await.rest {
             Ok((status, positions)) => {
                 let rest: Vec<(Actuator, PositionCounts)> = Actuator::all()
@@ -167,7 +185,7 @@ impl Run {
             Err((detail, _)) if ctx.cancelled() => {
                 Err(stop.unconfirmed(Error::FunctionCancelled { function_id: function.id(), stopped: false }, detail))
             }
-            Err((_, e)) => Err(e),
+            Err((detail, e)) => Err(stop.unconfirmed(e, detail)),
         }
     }
 }
