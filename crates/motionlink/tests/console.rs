@@ -391,6 +391,30 @@ fn a_stopped_console_stops_the_motion_it_started() {
 }
 
 #[test]
+fn a_console_whose_stop_at_the_end_is_not_confirmed_says_so_even_quiet_and_exits_3() {
+    let sim = Sim::start("compax", &["--tcp", "127.0.0.1:0", "--drives", "1"]);
+    let running = Running::start(&["--json", "-q", "console", "compax", "--port", &sim.address, "--drives", "1"]);
+    let line = running.stdout.wait_for(Duration::from_secs(30), |l| !l.is_empty()).expect("a line on stdout");
+    let value: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{line}: {e}"));
+    let url = value["console"].as_str().unwrap_or_default().trim_start_matches("http://").to_string();
+    let (host, token) = url.split_once("/?token=").unwrap_or_else(|| panic!("{line}"));
+    let c = Console { host: host.to_string(), token: token.to_string(), running };
+    let mut ws = ws(&c);
+    units(&mut ws);
+    send(&mut ws, json!({"type": "move", "drive": 1, "target_units": 900.0}));
+    sim.wait_event(Duration::from_secs(10), |t| t.starts_with("drive 1 motion started")).expect("it moves");
+    // The line carries nothing any more: neither the stop at the end nor the session's close is confirmed.
+    let frozen = sim.freeze();
+    c.running.signal(libc::SIGTERM);
+    let ended = c.running.wait(Duration::from_secs(30));
+    drop(frozen);
+    assert_eq!(ended.code(), 3, "{}", ended.stderr);
+    assert!(ended.stderr.contains("the stop at the end is not confirmed"), "said with -q: {}", ended.stderr);
+    let e = ended.json_error();
+    assert_eq!(e["stop_unconfirmed"], json!(true), "{e}");
+}
+
+#[test]
 fn a_parameter_write_shows_its_read_back() {
     let c = console(&["compax", "--port", "sim", "--drives", "1"]);
     let mut ws = ws(&c);

@@ -233,7 +233,8 @@ async fn serve_until_interrupted(
     match &stopped {
         Ok(msg) if !msg.is_empty() => common::say(format!("motionlink console: {msg}")),
         Ok(_) => {}
-        Err(e) => common::say(format!("motionlink console: the stop at the end is not confirmed: {e}")),
+        // Said also with -q: what was moving may still be moving.
+        Err(e) => common::say_error(format!("motionlink console: the stop at the end is not confirmed: {e}")),
     }
     let _ = server.await;
     let device = Arc::clone(hub.device());
@@ -243,7 +244,15 @@ async fn serve_until_interrupted(
         Ok(msg) if !msg.is_empty() => common::say(format!("motionlink console: {msg}")),
         Ok(_) => {}
         Err(e) if !refused => {
-            return Err(CliError::transport(format!("closing the session: {e}")));
+            let message = e.to_string();
+            let closing = match message.starts_with("closing the session") {
+                true => CliError::transport(message),
+                false => CliError::transport(format!("closing the session: {message}")),
+            };
+            return Err(match e.stop_unconfirmed || stopped.is_err() {
+                true => closing.stop_not_confirmed(),
+                false => closing,
+            });
         }
         Err(_) => {}
     }
@@ -251,6 +260,8 @@ async fn serve_until_interrupted(
         // Made the one busy line by `main` (tap::refused_as_busy).
         return Err(CliError::transport("the port is busy"));
     }
+    // (A stop at the end that was not confirmed, followed by a clean close: the close stopped what the session
+    // started, confirmed, as every family's close does.)
     Ok(())
 }
 
