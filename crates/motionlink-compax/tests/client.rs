@@ -190,6 +190,28 @@ fn a_relative_move_too_small_for_s2_to_show_is_not_sent_again_when_its_reply_is_
 }
 
 #[test]
+fn an_echo_of_a_command_that_is_not_idempotent_is_not_sent_again_when_its_reply_is_lost() {
+    let (r, bus) = rig(&[1], 0, 9600);
+    let _me = r.clock.reserve_participant().enter();
+    r.clock.sleep(Duration::from_millis(1));
+    // The manual does not say whether a drive carries out what it echoes: a relative move goes out once.
+    r.faults().drop_next(Direction::DeviceToHost, 64);
+    assert!(bus.echo(a(1), "POSR 10").is_err());
+    let sent_of = |start: &[u8]| sent(&r.transcript).into_iter().filter(|f| f.starts_with(start)).count();
+    assert_eq!(sent_of(b"1POSR"), 1, "sent once");
+    // A read is sent again.
+    r.clock.sleep(Duration::from_millis(500));
+    r.faults().heal();
+    let before = r.faults().bytes_sent(Direction::DeviceToHost);
+    assert_eq!(bus.echo(a(1), "S1").unwrap(), "1S1?");
+    let reply = r.faults().bytes_sent(Direction::DeviceToHost) - before;
+    r.faults().drop_next(Direction::DeviceToHost, reply);
+    assert_eq!(bus.echo(a(1), "S1").unwrap(), "1S1?");
+    assert_eq!(sent_of(b"1S1"), 3, "sent again");
+    bus.close().unwrap();
+}
+
+#[test]
 fn a_relative_move_that_never_arrived_is_sent_again_after_checking() {
     let (r, bus) = rig(&[1], 0, 9600);
     let _me = r.clock.reserve_participant().enter();

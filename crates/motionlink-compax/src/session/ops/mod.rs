@@ -316,13 +316,19 @@ impl Ctx {
         }
     }
 
-    /// Sends `text` with `?`: the drive sends it back.
+    /// Sends `text` with `?`: the drive sends it back. Whether a drive also carries out what it echoes the
+    /// manual does not say: after a lost or corrupt reply, text that is not a command known to be idempotent
+    /// (a relative move, a comparator or speed step, or text that is no known command) is not sent again.
     pub(crate) async fn echo(&self, address: Address, text: &str) -> Result<String> {
         if address.is_broadcast() {
             return Err(Error::Broadcast("no echo comes back"));
         }
         let req = Request { address, body: Body::Command(text.as_bytes()), flags: Flags { echo: true, ..Flags::NONE } };
-        let r = self.exchange(&req, Retry::Idempotent).await?;
+        let retry = match Command::parse(text.as_bytes()) {
+            Ok(c) if c.is_idempotent() => Retry::Idempotent,
+            _ => Retry::DiscardedOnly,
+        };
+        let r = self.exchange(&req, retry).await?;
         Ok(r.map(|r| r.text_str().to_string()).unwrap_or_default())
     }
 
