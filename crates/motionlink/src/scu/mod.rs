@@ -164,8 +164,8 @@ pub enum Action {
     },
     /// Follow targets read from stdin while the motion runs (streamed setpoints): each line gives the target
     /// in counts, one number for every actuator the function drives or one per actuator ("400" or "400 410"
-    /// or "a1=400 a2=410"), or a new speed ("speed 60"); "#" starts a comment. EOF, Ctrl-C or a bad line stops
-    /// the motion.
+    /// or "a1=400 a2=410"), or a new speed ("speed 60"); "#" starts a comment. At EOF the motion runs on to the
+    /// newest target and then ends (RS); Ctrl-C or a bad line stops it at once.
     Follow {
         /// Actuator 1..6 (its function, and every actuator that function drives, follow the targets).
         #[arg(value_parser = Actuator::parse_whole)]
