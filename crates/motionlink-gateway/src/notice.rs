@@ -24,7 +24,7 @@ pub fn line(text: &str) {
     write_stderr(&line);
 }
 
-/// Writes `line` and a line end on stderr, ignoring a failure (see [`line`]).
+/// Writes `line` and a line end on stderr, ignoring a failure (see [`line()`]).
 pub fn write_stderr(line: &str) {
     use std::io::Write;
     let _ = writeln!(std::io::stderr().lock(), "{line}");
