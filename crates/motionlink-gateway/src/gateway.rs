@@ -105,8 +105,9 @@ struct Gateway {
 /// How many motion request ids the gateway remembers to know a repeated delivery.
 const MOTION_IDS_KEPT: usize = 4096;
 
-/// Runs the gateway of `config` until a signal ends it (its exit code: 128 + its number: 130 SIGINT, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT) or it
-/// cannot start (a usage error, exit 2; a device or the broker that cannot be reached, exit 3).
+/// Runs the gateway of `config` until a signal ends it (its exit code: 128 + its number: 130 SIGINT, 143
+/// SIGTERM, 129 SIGHUP, 131 SIGQUIT; 3 when a stop was not confirmed) or it cannot start (a usage error, exit
+/// 2; a device or the broker that cannot be reached, exit 3).
 pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
     let topics = Topics::new(&config.name);
     // Every device's options, checked before anything is opened.
@@ -235,11 +236,15 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         gw.stop_all(StopReason::Signal { number, name });
     }
     let bound = Instant::now() + STOP_BOUND;
+    // A stop that the device did not confirm (or that did not end in time): the exit code says so (3), as
+    // the command line's does, not 128 + n, which says the motions were stopped.
+    let mut unconfirmed = false;
     while gw.any_motion() {
         match tokio::time::timeout_at(bound, done.recv()).await {
             Ok(Some(d)) => {
                 if let (Some(id), Err(e)) = (&d.motion_id, &d.outcome) {
                     crate::notice::say!("motionlink gateway: {name}: {} motion {id}: {}", d.device, e.message);
+                    unconfirmed |= e.stop_unconfirmed;
                 }
                 gw.on_done(d);
             }
@@ -248,10 +253,12 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
                 for (dev, motion) in gw.devices.iter().map(|(d, s)| (d, &s.motion)).chain(lost) {
                     if let Some(m) = motion {
                         crate::notice::say!(
-                            "motionlink gateway: {name}: {dev} motion {}: its stop did not end within {} s",
+                            "motionlink gateway: {name}: {dev} motion {}: its stop did not end within {} s: it \
+                             may still be moving",
                             m.id,
                             STOP_BOUND.as_secs()
                         );
+                        unconfirmed = true;
                     }
                 }
                 break;
@@ -274,7 +281,16 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
             crate::notice::say!("motionlink gateway: closing {name}: {e}");
         }
     }
-    Ok(if number == 0 { 0 } else { 128 + number as u8 })
+    Ok(match (unconfirmed, number) {
+        (true, _) => {
+            crate::notice::say!(
+                "motionlink gateway: a stop was not confirmed: what was moving may still be moving (exit 3)"
+            );
+            3
+        }
+        (false, 0) => 0,
+        (false, n) => 128 + n as u8,
+    })
 }
 
 /// Publishes the device's state (retained) at `sample_hz` while it moves (a motion of the gateway's, or

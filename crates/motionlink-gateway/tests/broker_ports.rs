@@ -198,3 +198,30 @@ async fn a_device_that_stops_answering_or_refuses_its_reads_is_published_unavail
     assert!(err.contains("axis: does not answer") && err.contains("axis: its state is read again"), "{err}");
     assert!(err.contains("axis: its state could not be read"), "{err}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_signal_whose_stop_the_device_does_not_confirm_ends_the_gateway_with_exit_3() {
+    let Some(b) = broker("a_signal_whose_stop_the_device_does_not_confirm_ends_the_gateway_with_exit_3") else {
+        return;
+    };
+    let bus = motionlink_compax::Emulator::new(motionlink_compax::DriveOptions::default().emulated()).unwrap();
+    let bus = Arc::new(Mutex::new(bus));
+    let server =
+        motionlink_link::emulator::serve_tcp("127.0.0.1:0", Arc::clone(&bus), motionlink_link::RealClock::shared())
+            .unwrap();
+    let devices = format!("[device.axis]\nfamily = \"compax\"\nport = \"{}\"\n", server.address());
+    let gw = gateway(&b, "pu", &devices);
+    let mut c = Client::connect(&b, "t-pu", &["motionlink/pu/#", "me/#"]).await;
+    c.wait("online", 20 * S, |m| m.topic == "motionlink/pu/status" && m.payload == "online").await;
+    let body =
+        json!({"id": "m1", "op": "move", "args": {"abs": 1000, "speed": 10}, "reply_to": "me/m", "lease_ms": 10000});
+    c.send("motionlink/pu/axis/cmd", body.to_string()).await;
+    c.wait("moving", 10 * S, |m| m.topic == "motionlink/pu/axis/state" && m.json()["moving"] == true).await;
+    // The drive answers nothing from now on (its emulator held): the stop the signal makes is not confirmed.
+    let frozen = bus.lock().unwrap();
+    let (code, stderr) = tokio::task::block_in_place(|| gw.signal(libc::SIGTERM));
+    drop(frozen);
+    assert_eq!(code, Some(3), "not 143, which says the motions were stopped: {stderr}");
+    assert!(stderr.contains("a stop was not confirmed: what was moving may still be moving"), "{stderr}");
+    drop(server);
+}
