@@ -475,3 +475,21 @@ fn a_drive_whose_s17_never_shows_its_positioning_is_judged_by_s1_and_stopped_whi
     assert!(!host.with_device(|d| d.drive(1).unwrap().is_moving()));
     bus.close().unwrap();
 }
+
+#[test]
+fn a_progress_callback_that_panics_has_its_move_stopped_before_the_panic_goes_on() {
+    let (clock, host, _faults, bus) = emulated(&[], 0);
+    let _me = clock.reserve_participant().enter();
+    let moving = || host.with_device(|d| d.drive(1).unwrap().is_moving());
+    // The caller's code panics on the first position the wait reports: the move is cancelled (the drive
+    // switched off, confirmed), and only then does the panic reach the caller.
+    let panicked = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        bus.move_to(a(1), &to(500.0), &mut |_| panic!("the caller's bug"))
+    }));
+    let payload = panicked.expect_err("the panic goes on");
+    assert_eq!(payload.downcast_ref::<&str>(), Some(&"the caller's bug"));
+    assert!(!moving(), "stopped");
+    assert_eq!(host.with_device(|d| d.drive(1).unwrap().o0()), 0, "switched off");
+    assert!(bus.started().is_empty());
+    bus.close().unwrap();
+}

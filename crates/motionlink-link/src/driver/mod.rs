@@ -176,6 +176,20 @@ struct Caller<'a, P> {
     progress: &'a mut dyn FnMut(&P),
     cancel: Option<&'a CancelToken>,
     cancel_sent: bool,
+    /// The panic of the caller's progress callback, if it panicked: the operation is cancelled (which stops
+    /// what it started, as the port is still here to say it), and the panic goes on once it has ended.
+    panicked: &'a PanicSlot,
+}
+
+/// Where a progress callback's panic waits until its operation has ended.
+type PanicSlot = std::cell::RefCell<Option<Box<dyn std::any::Any + Send>>>;
+
+impl<P> Caller<'_, P> {
+    /// True when the operation is to be cancelled now: the caller's token was cancelled, or its progress
+    /// callback panicked.
+    fn to_cancel(&self) -> bool {
+        !self.cancel_sent && (self.cancel.is_some_and(CancelToken::is_cancelled) || self.panicked.borrow().is_some())
+    }
 }
 
 impl<S: Session> Shared<S> {
@@ -198,7 +212,7 @@ impl<S: Session> Shared<S> {
             // Cancellation and progress of the caller that drives.
             if let Some(c) = caller.as_deref_mut() {
                 let mut core = self.core();
-                if !c.cancel_sent && c.cancel.is_some_and(CancelToken::is_cancelled) {
+                if c.to_cancel() {
                     c.cancel_sent = true;
                     let now = self.clock.now();
                     core.session.cancel(c.id, now);
@@ -442,7 +456,9 @@ impl<S: Session> Driver<S> {
 
     /// Runs `op` to its end on the calling thread, calling `progress` with each progress report in order (none
     /// is left out because two came before the caller looked), and
-    /// cancelling the operation (which stops what it started) when `cancel` is cancelled.
+    /// cancelling the operation (which stops what it started) when `cancel` is cancelled. If `progress`
+    /// panics, the operation is cancelled the same way (no more reports go to it), and the panic resumes once
+    /// the operation has ended: unwinding at once would drop the port with the stop still to be sent.
     pub fn run_with(
         &self,
         op: S::Op,
@@ -454,8 +470,19 @@ impl<S: Session> Driver<S> {
         if let Some(t) = cancel {
             t.watch(&me);
         }
+        let panicked = PanicSlot::new(None);
+        // A panic of `progress` is held until the operation has ended (it is cancelled meanwhile): unwinding
+        // here would drop the port, and with it the stop of what the operation started.
+        let mut guarded = |p: &S::Progress| {
+            if panicked.borrow().is_some() {
+                return;
+            }
+            if let Err(payload) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| progress(p))) {
+                *panicked.borrow_mut() = Some(payload);
+            }
+        };
         let result = self.submit(op, Waiter::Signal(me.clone()), true).and_then(|id| {
-            let mut caller = Caller { id, progress, cancel, cancel_sent: false };
+            let mut caller = Caller { id, progress: &mut guarded, cancel, cancel_sent: false, panicked: &panicked };
             loop {
                 let (port, progress) = {
                     let mut core = shared.core();
@@ -468,7 +495,7 @@ impl<S: Session> Driver<S> {
                         return r;
                     }
                     let progress = slot.progress.pop_front();
-                    if !caller.cancel_sent && cancel.is_some_and(CancelToken::is_cancelled) {
+                    if caller.to_cancel() {
                         caller.cancel_sent = true;
                         let now = shared.clock.now();
                         core.session.cancel(id, now);
@@ -496,6 +523,9 @@ impl<S: Session> Driver<S> {
         });
         if let Some(t) = cancel {
             t.unwatch(&me);
+        }
+        if let Some(payload) = panicked.into_inner() {
+            std::panic::resume_unwind(payload);
         }
         result
     }
