@@ -46,6 +46,9 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
         _ => {}
     }
     crate::portlock::claim("scu", &port)?;
+    // The probe moves nothing, but it opens remote mode: a signal ends it with the session's RA (killed
+    // instead, the unit's watchdog would end remote mode and record error bit 22).
+    let interrupt = common::interrupt_token();
     let clock = RealClock::shared();
     let describer = || Box::new(Describer::new()) as Box<dyn Describe + Send>;
     let tap = Tap::new("scu", &port, &clock, &args.link, "can0", &describer, false)?;
@@ -63,6 +66,13 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
     })?;
     setup.baud = (setup.kind == PortKind::Serial).then_some(baud);
     setup.baud_check = Some(baud_check);
+    client.set_cancel(interrupt.clone());
+    if interrupt.is_cancelled() {
+        let closed = client.close();
+        tap.flush();
+        closed.map_err(|e| common::classified(&e))?;
+        return Err(CliError::Interrupted("interrupted before the probe started".into()));
+    }
     let ended = (probe(&client, &setup), client.close());
     tap.flush();
     finish(ended, &args.options, save_profile, json, unit_line)

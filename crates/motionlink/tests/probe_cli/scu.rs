@@ -127,3 +127,16 @@ fn the_latency_timer_of_a_usb_adapter_is_reported_with_its_fix_and_low_latency_s
     assert_eq!(std::fs::read_to_string(&timer).unwrap().trim(), "1");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A signal while the probe runs ends it with the session's RA (the unit leaves remote mode as asked), not
+/// with the process killed and the unit's watchdog ending remote mode (its error bit 22).
+#[cfg(unix)]
+#[test]
+fn a_signal_ends_a_probe_with_the_session_s_ra() {
+    let running = common::Running::start(&["-v", "probe", "scu", "--port", "sim", "--sim-variant", "sleepy"]);
+    std::thread::sleep(std::time::Duration::from_millis(250));
+    running.signal(libc::SIGINT);
+    let ended = running.wait(std::time::Duration::from_secs(10));
+    assert_eq!(ended.code(), 130, "{}", ended.stderr);
+    assert!(ended.stderr.lines().any(|l| l.contains("RA remote mode abort")), "{}", ended.stderr);
+}
