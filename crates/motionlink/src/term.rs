@@ -155,6 +155,12 @@ static STDERR_WRITER: OnceLock<()> = OnceLock::new();
 const STDERR_QUEUE_TEXTS: usize = 4096;
 
 fn start_stderr_writer() {
+    // One writer, however often `init` runs.
+    static STARTED: std::sync::Once = std::sync::Once::new();
+    STARTED.call_once(spawn_stderr_writer);
+}
+
+fn spawn_stderr_writer() {
     let spawned = std::thread::Builder::new().name("stderr".into()).spawn(|| loop {
         let (text, left_out) = {
             let mut q = lock(&STDERR_QUEUE);
