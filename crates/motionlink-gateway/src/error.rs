@@ -94,7 +94,8 @@ impl GatewayErrors for ErrorReport {
     }
 }
 
-/// Why the gateway stopped a motion (the library's cancel: the stop Ctrl-C makes on the command line).
+/// Why the gateway stops a motion (the library's cancel: the stop Ctrl-C makes on the command line); said in
+/// the present tense, as what the gateway set out to do: what the device's stop found follows it.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum StopReason {
     /// No keepalive came within the lease.
@@ -132,14 +133,14 @@ impl std::fmt::Display for StopReason {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             StopReason::LeaseExpired { lease_ms } => {
-                write!(f, "the lease lapsed: no keepalive within {lease_ms} ms, so the gateway stopped the motion")
+                write!(f, "the lease lapsed: no keepalive within {lease_ms} ms, so the gateway stops the motion")
             }
             StopReason::StopRequest { id } => write!(f, "stopped by the stop request {id:?}"),
             StopReason::PortStop { who } => write!(f, "stopped by a stop from {who} through the port's lock"),
             StopReason::BrokerLost => {
-                f.write_str("the gateway lost the broker (no lease could be renewed), so it stopped the motion")
+                f.write_str("the gateway lost the broker (no lease could be renewed), so it stops the motion")
             }
-            StopReason::Signal { name, .. } => write!(f, "{name} received: the gateway stopped the motion"),
+            StopReason::Signal { name, .. } => write!(f, "{name} received: the gateway stops the motion"),
             StopReason::PortFailed { error } => {
                 write!(f, "the device's port failed ({error}): the gateway's session with it is gone")
             }
@@ -161,6 +162,10 @@ mod tests {
         let failed = ErrorReport::stopped(&lapsed, Err(silent));
         assert_eq!((failed.kind.as_ref(), failed.exit_code, failed.stop_unconfirmed), ("lease_expired", 3, true));
         assert!(failed.message.ends_with("the device's stop then failed: module 1: Halt not acknowledged (3 sent)"));
+        // What the gateway set out to do, not a stop it claims: the device's stop failed.
+        assert!(failed
+            .message
+            .starts_with("the lease lapsed: no keepalive within 500 ms, so the gateway stops the motion;"));
         let json = serde_json::to_value(&failed).unwrap();
         assert_eq!(json["stop_unconfirmed"], true, "{json}");
     }
