@@ -368,8 +368,14 @@ impl WatchSample {
         s17: S17Bits,
         tolerance: Position,
     ) -> Self {
-        let s1_moved = previous.is_some_and(|p| (position.units() - p.units()).abs() > tolerance.units().abs());
-        WatchSample { drive, position, s17, s1_moved }
+        WatchSample { drive, position, s17, s1_moved: Self::s1_moved(previous, position, tolerance) }
+    }
+
+    /// Whether S1 went from `previous` (`None`: no earlier reading) to `now` by more than the in-position
+    /// `tolerance`: the drive moves, whatever S17 shows. The rule of [`WatchSample::s1_moved`], for any
+    /// live view that reads S1 again.
+    pub fn s1_moved(previous: Option<Position>, now: Position, tolerance: Position) -> bool {
+        previous.is_some_and(|p| (now.units() - p.units()).abs() > tolerance.units().abs())
     }
 
     /// True while the drive moves: S17 shows a command active, or S1 changed beyond the in-position

@@ -303,9 +303,6 @@ fn moving_on(drives: &[Address]) -> String {
 
 /// `e`, which came after the moves of `drives` were handed over: it says that they run on.
 fn handed_over_then(drives: &[Address], e: CliError) -> CliError {
-    if drives.is_empty() {
-        return e;
-    }
     e.map_message(|m| format!("{m}; {}", moving_on(drives)))
 }
 

@@ -16,6 +16,7 @@ use motionlink_compax::model::{
     Tolerance, WholeArg, PARAMS,
 };
 use motionlink_compax::report::{ErrorHistory, ParamReading, StopResult};
+use motionlink_compax::session::WatchSample;
 use motionlink_compax::wire::Address;
 use motionlink_compax::AsyncClient;
 use motionlink_compax::DriveOptions;
@@ -79,7 +80,7 @@ struct Compax {
     limits: TravelLimits,
     jog_range: f64,
     /// The last position of each drive and when it was read, for the speed shown.
-    last: Mutex<HashMap<u8, (Timestamp, f64)>>,
+    last: Mutex<HashMap<u8, (Timestamp, Position)>>,
     /// The last S16 and S17 of each drive.
     flags: Mutex<HashMap<u8, (S16Bits, S17Bits)>>,
     /// The number of samples taken, for reading S16 and S17 every [`FLAGS_EVERY`]-th time.
@@ -238,11 +239,11 @@ impl Device for Compax {
                     let position = self.client.read_position(a).await?;
                     let p = position.units();
                     let at = self.clock.now();
-                    let before = lock(&self.last).insert(u.id, (at, p));
+                    let before = lock(&self.last).insert(u.id, (at, position));
                     let known = lock(&self.flags).get(&u.id).copied();
                     // S1 every time; S16 and S17 every FLAGS_EVERY-th sample, and at once when the position
                     // says the axis started or stopped moving and the flags do not say so yet.
-                    let moved = before.is_some_and(|(_, p0)| p0 != p);
+                    let moved = before.is_some_and(|(_, p0)| p0.units() != p);
                     let (s16, s17) = match known {
                         Some((s16, s17))
                             if turn % FLAGS_EVERY != 0 && moved == s17.contains(S17Flag::CommandActive) =>
@@ -261,10 +262,10 @@ impl Device for Compax {
                 out.push(look.await.map(|(position, p, at, before, s16, s17)| {
                     let speed = before.and_then(|(t0, p0)| {
                         let dt = at.saturating_since(t0).as_secs_f64();
-                        (dt > 0.0).then(|| (p - p0) / dt)
+                        (dt > 0.0).then(|| (p - p0.units()) / dt)
                     });
-                    let tolerance = self.client.config().in_position_tolerance.units().abs();
-                    let s1_moved = before.is_some_and(|(_, p0)| (p - p0).abs() > tolerance);
+                    let tolerance = self.client.config().in_position_tolerance;
+                    let s1_moved = WatchSample::s1_moved(before.map(|(_, p0)| p0), position, tolerance);
                     motionlink_compax::report::axis_look(position, speed, s16, s17, s1_moved)
                 }));
             }

@@ -79,6 +79,13 @@ impl Ctx {
             core.started = saved;
             core.awaiting_message = saved_awaiting;
         };
+        // The drive's target S2 as read after a lost reply, and the error that says it does not tell.
+        let mut s2_read = None;
+        let uncertain = |target: f64| Error::MoveUncertain {
+            address,
+            command: cmd.to_string(),
+            target: Position::from_units_unchecked(target),
+        };
         let mut attempts = 0;
         loop {
             attempts += 1;
@@ -88,6 +95,7 @@ impl Ctx {
                     // The reply is lost (or only a reply that cannot be the acknowledgement came): did the
                     // drive take the move? Its target position tells.
                     let target = self.read_target(address).await?.units();
+                    s2_read = Some(target);
                     let close = |a: f64, b: f64| (a - b).abs() < S2_RESOLUTION;
                     // A relative distance within S2's resolution leaves S2 alike whether it was taken or not:
                     // it cannot tell, and the move is never sent again on it.
@@ -97,11 +105,7 @@ impl Ctx {
                         return Ok(());
                     }
                     if !s2_tells {
-                        return Err(Error::MoveUncertain {
-                            address,
-                            command: cmd.to_string(),
-                            target: Position::from_units_unchecked(target),
-                        });
+                        return Err(uncertain(target));
                     }
                     let not_taken = match before {
                         Some(b) => close(target, b),
@@ -115,11 +119,7 @@ impl Ctx {
                         restore();
                         return Err(e);
                     }
-                    return Err(Error::MoveUncertain {
-                        address,
-                        command: cmd.to_string(),
-                        target: Position::from_units_unchecked(target),
-                    });
+                    return Err(uncertain(target));
                 }
                 Err(e @ Error::CancelledBeforeMotion) => {
                     // Cancelled before it went out: never sent.
@@ -127,16 +127,11 @@ impl Ctx {
                     return Err(e);
                 }
                 Err(e) => {
-                    if matches!(e, Error::Refused { .. }) && attempts > 1 {
+                    if let (Error::Refused { .. }, Some(target)) = (&e, s2_read) {
                         // Sent again after a reply was lost and the drive's state showed the move not taken,
                         // and now refused (E92 while it moves, for one): the first may have been taken after
                         // all. The drive stays the session's to stop.
-                        let target = self.read_target(address).await.map_or(f64::NAN, |t| t.units());
-                        return Err(Error::MoveUncertain {
-                            address,
-                            command: cmd.to_string(),
-                            target: Position::from_units_unchecked(target),
-                        });
+                        return Err(uncertain(target));
                     }
                     if matches!(e, Error::Refused { .. }) {
                         // Refused (E92 while it still moves, for one): it started nothing new, and an axis
