@@ -66,7 +66,10 @@
 //!   byte of reply the line counts as silent: keepalives pause, and each request gets one sending and 300 ms.
 //! - **RE is repeated** like the other requests (after silence, a corrupt reply, a CSE or PCE): every RE names
 //!   an absolute destination (an end, a stored position, the remote position) or switches a function on, so
-//!   a second sending has the effect of the first. RS after a failed RE is sent in any case.
+//!   a second sending has the effect of the first. RS after a failed RE is sent in any case. A unit that took
+//!   the first sending may refuse the second with PE (it wants the RS the manual asks for after every RE
+//!   first): a repeated RE of a motion function refused so, even after the RC and once more, gets the soft
+//!   RS and then the RE again (with a warning; a stream sends RS before each later RE).
 //! - **PE from a unit that left remote mode** (a watchdog expiry, a reset, someone else's RA): the client
 //!   sends an RC and tries once more. Still PE: the unit ended remote mode (with Safety_ID 0 it takes RC but
 //!   no remote motion until RO); the caller gets `RemoteEnded`, and the client never sends RO by itself:

@@ -326,3 +326,76 @@ fn a_unit_whose_motion_bit_rises_late_is_waited_for_within_the_start_grace_and_b
     assert_eq!(rig.unit(|u| u.position(a(1))), Some(before), "stopped (RS) before it started");
     assert!(!rig.unit(|u| u.is_moving(a(1))) && client.started().is_empty());
 }
+
+/// A rig with a `re-needs-rs` unit that loses the unit's answer to the first RE (the unit takes it), and the
+/// log of the commands the unit hears from then on.
+fn re_reply_lost() -> (Rig, Client, Arc<Mutex<Vec<Vec<u8>>>>) {
+    let rig = Rig::with_variants(SimConfig::default(), &[Variant::ReNeedsRs]);
+    let client = rig.client(scp11());
+    rig.sleep(50);
+    let sent: Arc<Mutex<Vec<Vec<u8>>>> = Arc::default();
+    let log = Arc::clone(&sent);
+    let lost = std::sync::atomic::AtomicBool::new(false);
+    rig.on_request(move |bytes, faults| {
+        log.lock().unwrap().push(bytes[..2].to_vec());
+        if bytes.starts_with(b"RE") && !lost.swap(true, std::sync::atomic::Ordering::Relaxed) {
+            faults.drop_next(Direction::DeviceToHost, 5);
+        }
+    });
+    (rig, client, sent)
+}
+
+/// The REs and RSs in `sent`.
+fn starts_and_stops(sent: &Mutex<Vec<Vec<u8>>>) -> Vec<String> {
+    let sent = sent.lock().unwrap();
+    sent.iter().filter(|b| *b == b"RE" || *b == b"RS").map(|b| String::from_utf8_lossy(b).into_owned()).collect()
+}
+
+#[test]
+fn a_move_whose_re_answer_was_lost_on_a_unit_that_refuses_a_second_re_gets_the_rs_and_reaches_its_target() {
+    // The unit took the first RE; the session, which did not hear it, sends it again and the unit refuses the
+    // repeat with PE. That PE is the unit asking for the RS the manual wants after every RE: a soft RS, then
+    // the RE again (to remote positions: absolute, nothing is repeated), and the move goes on.
+    let (rig, client, sent) = re_reply_lost();
+    let report = client.move_to(a(1), PositionCounts(600), pct(100), &MoveOptions::default()).unwrap();
+    assert_eq!(report.position_counts, PositionCounts(600));
+    assert_eq!(rig.unit(|u| u.position(a(1))), Some(600));
+    let commands = starts_and_stops(&sent);
+    let first_rs = commands.iter().position(|c| c == "RS").expect("an RS");
+    assert!(first_rs >= 2 && commands[..first_rs].iter().all(|c| c == "RE"), "{commands:?}");
+    assert_eq!(commands[first_rs..first_rs + 2], ["RS", "RE"], "{commands:?}");
+    assert!(client.started().is_empty());
+    client.close().unwrap();
+    assert!(!rig.unit(|u| u.any_moving()));
+}
+
+#[test]
+fn a_run_whose_re_answer_was_lost_on_a_unit_that_refuses_a_second_re_runs_and_is_stopped() {
+    let (rig, client, sent) = re_reply_lost();
+    let run = client
+        .run_function(RunAction::Motion(f(1), MotionDirection::Out), Some(Duration::from_millis(400)), &|_| {})
+        .unwrap();
+    assert!(run.duration >= Duration::from_millis(400), "{run:?}");
+    let commands = starts_and_stops(&sent);
+    let first_rs = commands.iter().position(|c| c == "RS").expect("an RS");
+    assert!(first_rs >= 2 && commands[..first_rs].iter().all(|c| c == "RE"), "{commands:?}");
+    assert_eq!(commands[first_rs..], ["RS", "RE", "RS"], "the soft RS, the RE again, the run's own stop");
+    assert!(!rig.unit(|u| u.any_moving()) && client.started().is_empty());
+    client.close().unwrap();
+}
+
+#[test]
+fn a_run_the_unit_refuses_still_gets_its_rs_for_the_motion_an_earlier_sending_may_have_started() {
+    // F5 drives nothing on this unit: the unit refuses its RE (PE). The run sends the RS all the same (a
+    // refusal can answer the repeat of an RE the unit took) and reports the refusal.
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(scp11());
+    let sent: Arc<Mutex<Vec<Vec<u8>>>> = Arc::default();
+    let log = Arc::clone(&sent);
+    rig.on_request(move |bytes, _| log.lock().unwrap().push(bytes[..2].to_vec()));
+    let e = client.run_function(RunAction::Motion(f(5), MotionDirection::Out), None, &|_| {}).unwrap_err();
+    assert!(matches!(e, Error::Refused { command: Command::Execute, status: Status::PermissionError }), "{e}");
+    assert_eq!(starts_and_stops(&sent).last().map(String::as_str), Some("RS"), "{:?}", starts_and_stops(&sent));
+    assert!(client.started().is_empty());
+    client.close().unwrap();
+}

@@ -91,6 +91,9 @@ impl Core {
         if let Some(f) = self.in_flight.as_mut() {
             if matches!(f.owner, Owner::Op { id, cancellable: true, .. } if id == op) {
                 f.exchange.cut_short();
+                if let Some(guard) = f.pe_guard.as_mut() {
+                    guard.cancelled();
+                }
             }
         }
     }
@@ -110,7 +113,8 @@ impl Core {
         let outcome = f.exchange.on_input(bytes, &mut self.line, &self.config, &mut self.counts, now, &mut self.outbox);
         if let Some(result) = outcome {
             let f = self.in_flight.take().expect("checked above");
-            self.exchange_done(f.owner, f.pe_guard, result);
+            let resent = f.exchange.sent_again_unanswered();
+            self.exchange_done(f.owner, f.pe_guard, result, resent);
         }
     }
 
@@ -122,7 +126,8 @@ impl Core {
                 f.exchange.on_timeout(&mut self.line, &self.config, &mut self.counts, now, &mut self.outbox)
             {
                 let f = self.in_flight.take().expect("checked above");
-                self.exchange_done(f.owner, f.pe_guard, result);
+                let resent = f.exchange.sent_again_unanswered();
+                self.exchange_done(f.owner, f.pe_guard, result, resent);
             }
         }
         self.line.expire_late(now);
@@ -160,18 +165,20 @@ impl Core {
         next
     }
 
-    /// The exchange under way ended with `result`.
+    /// The exchange under way ended with `result`; `resent`: its request went out again after a sending
+    /// that got no clean answer ([`super::line::Exchange::sent_again_unanswered`]).
     pub(super) fn exchange_done(
         &mut self,
         owner: Owner,
         pe_guard: Option<PeGuarded>,
         result: Result<OwnedReply, Error>,
+        resent: bool,
     ) {
         match owner {
             Owner::Keepalive(carries) => self.keepalive_done(carries, result),
             Owner::Op { id, ticket, cancellable } => {
                 let Some(mut pe_guard) = pe_guard else { return };
-                match pe_guard.next(self, result) {
+                match pe_guard.next(self, result, resent) {
                     PeStep::Again(request) => {
                         self.start_exchange(Owner::Op { id, ticket, cancellable }, Some(pe_guard), request);
                     }
@@ -253,7 +260,7 @@ impl Core {
         self.next_reconnect = self.now + self.config.reconnect_interval;
         let e = Error::SessionLost(why);
         if let Some(f) = self.in_flight.take() {
-            self.exchange_done(f.owner, f.pe_guard.map(PeGuarded::abandon), Err(e.clone()));
+            self.exchange_done(f.owner, f.pe_guard.map(PeGuarded::abandon), Err(e.clone()), false);
         }
         let queued: Vec<Queued> = self.queue.drain(..).collect();
         for q in queued {

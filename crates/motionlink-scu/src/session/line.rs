@@ -129,6 +129,9 @@ pub(crate) struct Exchange {
     stray: bool,
     /// Its operation was cancelled: no sending after the present one ([`Exchange::cut_short`]).
     last_sending: bool,
+    /// It went out again after a sending that got no clean answer (silence, a reply cut off or corrupt):
+    /// the unit may have taken an earlier sending ([`Exchange::sent_again_unanswered`]).
+    resent_unanswered: bool,
 }
 
 impl Exchange {
@@ -172,6 +175,7 @@ impl Exchange {
             heard: false,
             stray: false,
             last_sending: false,
+            resent_unanswered: false,
         };
         exchange.send(line, now, out);
         exchange
@@ -184,6 +188,12 @@ impl Exchange {
         if matches!(self.request.command, Command::Get | Command::Execute) {
             self.last_sending = true;
         }
+    }
+
+    /// True when the request went out again after a sending that got no clean answer: a reply (a PE to an
+    /// RE, say) may then answer a repeat of what the unit took from an earlier sending.
+    pub fn sent_again_unanswered(&self) -> bool {
+        self.resent_unanswered
     }
 
     /// When it first went out.
@@ -332,6 +342,7 @@ impl Exchange {
                 }
                 self.window = self.window.saturating_mul(2);
                 counts.retries += 1;
+                self.resent_unanswered = true;
                 // Nothing is discarded: the reply to the first sending may still come, and counts.
                 self.send(line, now, out);
                 None
@@ -340,6 +351,7 @@ impl Exchange {
                 self.heard_anything = true;
                 tracing::debug!("the reply to {command} stopped in the middle; sending again");
                 self.repairs += 1;
+                self.resent_unanswered = true;
                 self.repeat(line, counts, now, out);
                 None
             }
@@ -347,6 +359,7 @@ impl Exchange {
                 self.heard_anything = true;
                 tracing::debug!("corrupt reply to {command} ({error}); sending again");
                 self.repairs += 1;
+                self.resent_unanswered = true;
                 self.repeat(line, counts, now, out);
                 None
             }

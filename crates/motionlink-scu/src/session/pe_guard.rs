@@ -8,7 +8,7 @@
 use super::request::{OwnedReply, PreparedRequest, Req};
 use super::Core;
 use crate::error::Error;
-use crate::model::{Actuator, StopMode};
+use crate::model::{Actuator, Function, StopMode};
 use crate::wire::{Command, Status};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -22,6 +22,12 @@ enum Phase {
     PeRetry,
     /// The watchdog had lapsed: RS for what the session had started.
     LapseStops,
+    /// An RE that went out again after a lost answer was refused with PE even after the RC: the unit took
+    /// an earlier sending and refuses a second RE of a running function (see [`PeGuarded::next`]). The soft
+    /// RS the manual asks for after every RE.
+    ReStop,
+    /// The RS was acknowledged: the RE once more.
+    ReAgain,
 }
 
 /// A request of an operation and its follow-ups.
@@ -31,6 +37,12 @@ pub(crate) struct PeGuarded {
     phase: Phase,
     stops: Vec<u8>,
     abandoned: bool,
+    /// The request went out again after a sending that got no clean answer.
+    resent: bool,
+    /// Its operation was cancelled: nothing is started again.
+    cancelled: bool,
+    /// The unit's PE to an RE that went out again, reported if the RS and RE after it do not go through.
+    refusal: Option<OwnedReply>,
 }
 
 /// What follows an exchange of a transaction.
@@ -43,7 +55,25 @@ pub(crate) enum PeStep {
 
 impl PeGuarded {
     pub fn new(req: Req) -> PeGuarded {
-        PeGuarded { req, phase: Phase::Main, stops: Vec::new(), abandoned: false }
+        PeGuarded {
+            req,
+            phase: Phase::Main,
+            stops: Vec::new(),
+            abandoned: false,
+            resent: false,
+            cancelled: false,
+            refusal: None,
+        }
+    }
+
+    /// The operation was cancelled: a refused RE is not followed by RS and RE.
+    pub fn cancelled(&mut self) {
+        self.cancelled = true;
+    }
+
+    /// The motion function this request starts (an RE of a motion function).
+    fn starts_motion(&self) -> Option<u8> {
+        self.req.request.starts.filter(|&id| matches!(Function::from_id(id), Some(Function::Motion(_))))
     }
 
     /// The port is gone: the transaction ends with the error that comes.
@@ -56,12 +86,23 @@ impl PeGuarded {
         self.req.request.command
     }
 
-    /// The exchange of the present phase ended with `result`.
-    pub fn next(&mut self, core: &mut Core, result: Result<OwnedReply, Error>) -> PeStep {
+    /// The exchange of the present phase ended with `result` (`resent`: its request went out again after a
+    /// sending that got no clean answer).
+    ///
+    /// An RE of a motion function that went out again after a lost answer and is refused with PE, even
+    /// after the RC and once more, may be refused because the unit took an earlier sending: a unit may refuse
+    /// a second RE of a function it runs until the RS the manual asks for after every RE (the
+    /// `re-needs-rs` variant). The soft RS goes out (the motion ramps down, or goes on at once to the same
+    /// target), then the RE again (to remote positions: absolute; in a direction: the same motion), unless the
+    /// operation was cancelled; a unit that takes it is known to need the RS before every new RE.
+    pub fn next(&mut self, core: &mut Core, result: Result<OwnedReply, Error>, resent: bool) -> PeStep {
         if self.abandoned {
             return PeStep::Finished(result);
         }
         let command = self.command();
+        if self.phase == Phase::Main {
+            self.resent = resent;
+        }
         match self.phase {
             Phase::Main => match result {
                 Ok(reply)
@@ -118,10 +159,42 @@ impl PeGuarded {
                 Err(e) => PeStep::Finished(Err(e)),
             },
             Phase::PeRetry => match result {
-                Ok(r) if command == Command::Execute && r.status == Status::PermissionError => self.finish(core, Ok(r)),
+                Ok(r) if command == Command::Execute && r.status == Status::PermissionError => {
+                    match self.starts_motion() {
+                        Some(f) if self.resent && !self.cancelled => {
+                            tracing::warn!(
+                                "the unit refused an RE that went out again after a lost answer (PE): it may have \
+                                 taken the first and refuse a second RE of a running function; sending the soft RS \
+                                 the manual asks for after every RE, then the RE again"
+                            );
+                            self.refusal = Some(r);
+                            self.phase = Phase::ReStop;
+                            PeStep::Again(PreparedRequest::stop(f, StopMode::Soft))
+                        }
+                        _ => self.finish(core, Ok(r)),
+                    }
+                }
                 Ok(r) => self.lapse(core, r),
                 Err(e) => PeStep::Finished(Err(e)),
             },
+            Phase::ReStop => match result {
+                Ok(r) if r.status == Status::Ack && !self.cancelled => {
+                    self.phase = Phase::ReAgain;
+                    PeStep::Again(self.req.request.clone())
+                }
+                // The RS did not go through (or the operation was cancelled): the refusal stands, and the
+                // operation stops the function as after any refused RE.
+                _ => {
+                    let refusal = self.refusal.take().expect("kept for the RS");
+                    self.finish(core, Ok(refusal))
+                }
+            },
+            Phase::ReAgain => {
+                if matches!(&result, Ok(r) if r.status == Status::Ack) {
+                    core.re_needs_rs = true;
+                }
+                self.finish(core, result)
+            }
             Phase::LapseStops => {
                 let f = self.stops.remove(0);
                 match result {

@@ -44,8 +44,15 @@ pub(crate) async fn run(ctx: &Ctx, spec: RunSpec) -> Result<Output, Error> {
     match ctx.send(Req::op(re)).await {
         Err(e @ Error::CancelledBeforeMotion(_)) => return Err(e),
         reply => match reply.and_then(|r| r.ack(Command::Execute)) {
-            // The unit refused: nothing started.
-            Err(e @ Error::Refused { .. }) => return Err(e),
+            // The unit refused. A switching function is left as it is (an RS would switch off what another
+            // host may have switched on: an emergency stop). A motion function gets its RS: a refusal can
+            // answer a repeat of an RE the unit took after a lost answer (see `PeGuarded::next`), the motion
+            // then running.
+            Err(e @ Error::Refused { .. }) if !run.is_motion() => return Err(e),
+            Err(e @ Error::Refused { .. }) => {
+                tracing::warn!("{function}: {e}; stopping it (an earlier sending may have started it)");
+                return Err(run.stop_after(ctx, e).await);
+            }
             // Without a clean answer the RE may have started the function: it is stopped. A cancel that cut
             // the RE's repeats short is that cancel; otherwise the run failed (it was never seen to start).
             Err(e) if ctx.cancelled() => {
