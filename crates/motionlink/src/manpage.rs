@@ -19,7 +19,7 @@ const EXIT_CODES: [(&str, &str); 5] = [
     ("3", "Transport error: the port, a timeout, a corrupt frame; also a stop that could not be confirmed."),
     (
         "128+n",
-        "Ended by signal n (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT), after stopping what the command \
+        "Ended by signal n (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT, 148 Ctrl-Z), after stopping what the command \
          had started.",
     ),
 ];

@@ -31,7 +31,7 @@ pub enum CliError {
     #[error("{1}")]
     Transport(TransportKind, String),
     /// A signal or a closed stdout ended the action; what it had started was stopped first (exit code
-    /// 128 + the signal's number: 130 for SIGINT, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT; 0 for a closed stdout).
+    /// 128 + the signal's number: 130 for SIGINT, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT, 148 SIGTSTP; 0 for a closed stdout).
     #[error("{0}")]
     Interrupted(String),
     /// stdout was closed by its reader (`motionlink ... watch | head`): the command ends quietly with exit

@@ -1,5 +1,5 @@
-//! Why a command stops before its action ends: SIGINT, SIGTERM, SIGHUP, SIGQUIT and a closed stdout, and
-//! the one token they cancel.
+//! Why a command stops before its action ends: SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGTSTP and a closed
+//! stdout, and the one token they cancel.
 
 #[cfg(not(unix))]
 use std::sync::Arc;
@@ -15,8 +15,9 @@ pub(super) const SIGINT: i32 = 2;
 /// Why a command was asked to stop before its action ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum StopCause {
-    /// A signal: SIGINT (Ctrl-C), SIGTERM (`kill`), SIGHUP (the terminal or SSH session went away) or
-    /// SIGQUIT (Ctrl-\\).
+    /// A signal: SIGINT (Ctrl-C), SIGTERM (`kill`), SIGHUP (the terminal or SSH session went away), SIGQUIT
+    /// (Ctrl-\\) or SIGTSTP (Ctrl-Z: a suspended command would leave the devices without a host, so it
+    /// ends instead).
     Signal(i32),
     /// stdout was closed by its reader.
     OutputClosed,
@@ -48,6 +49,8 @@ fn signal_name(n: i32) -> String {
         3 => "SIGQUIT".into(),
         13 => "SIGPIPE".into(),
         15 => "SIGTERM".into(),
+        #[cfg(unix)]
+        n if n == libc::SIGTSTP => "SIGTSTP".into(),
         n => format!("signal {n}"),
     }
 }
@@ -68,8 +71,11 @@ pub(super) fn record_stop_cause(cause: StopCause) {
     slot.get_or_insert(cause);
 }
 
-/// The token that SIGINT, SIGTERM, SIGHUP, SIGQUIT and a closed stdout cancel; the handlers are installed
-/// by the first call, which every command that may start a motion makes before it opens the port.
+/// The token that SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGTSTP and a closed stdout cancel; the handlers are
+/// installed by the first call, which every command that may start a motion makes before it opens the port.
+/// SIGTSTP (Ctrl-Z) ends the command like the others rather than suspend it: a suspended command sends
+/// nothing, so a unit's watchdog would stop its drives as after a dead host, and a COMPAX drive, which has
+/// none, would move on unwatched.
 ///
 /// The first signal cancels the token (the running action stops its motion and returns; the command then
 /// exits with 128 + the signal's number); a second one only says that the stop is under way (stopping the
@@ -102,6 +108,11 @@ fn on_signal(token: &CancelToken, presses: &mut u32, n: i32) {
                 "motionlink: {name} from `motionlink {}` (pid {}), stopping what this command started",
                 r.command, r.pid
             )),
+            #[cfg(unix)]
+            None if n == libc::SIGTSTP => say(format!(
+                "motionlink: {name} (Ctrl-Z) received: this command is not suspended (suspended, it would leave \
+                 the devices without a host); it stops what it started and ends"
+            )),
             None => say(format!("motionlink: {name} received, stopping what this command started")),
         },
         2 => say(format!("motionlink: {name}: still stopping the motion; once more exits without waiting")),
@@ -123,8 +134,8 @@ fn on_signal(token: &CancelToken, presses: &mut u32, n: i32) {
 
 #[cfg(unix)]
 fn install_signal_handlers(token: CancelToken) {
-    use signal_hook::consts::{SIGHUP, SIGINT, SIGQUIT, SIGTERM};
-    match signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP, SIGQUIT]) {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGQUIT, SIGTERM, SIGTSTP};
+    match signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGTSTP]) {
         Ok(mut signals) => {
             let spawned = std::thread::Builder::new().name("signals".into()).spawn(move || {
                 let mut presses = 0;
