@@ -23,11 +23,13 @@ struct Run {
     spec: RunSpec,
     started_at: Timestamp,
     seen_motion: bool,
+    /// Why the watch could not go on (a look at the actuators failed): the run is stopped and fails with it.
+    failed: Option<Error>,
 }
 
 /// Runs a function ([`super::Op::Run`]): RE, the watch until it is over, the stop.
 pub(crate) async fn run(ctx: &Ctx, spec: RunSpec) -> Result<Output, Error> {
-    let mut run = Run { spec, started_at: ctx.now(), seen_motion: false };
+    let mut run = Run { spec, started_at: ctx.now(), seen_motion: false, failed: None };
     let function = run.function();
     if let RunAction::Switch(Function::Motion(m)) = spec.action {
         return Err(Error::invalid(format!("{m} is a motion function: run it with a direction")));
@@ -87,6 +89,7 @@ pub(crate) async fn run(ctx: &Ctx, spec: RunSpec) -> Result<Output, Error> {
                 Some(Err(_)) if ctx.cancelled() => true,
                 Some(Err(e)) => {
                     tracing::warn!("{function}: {e}; stopping it");
+                    run.failed = Some(e);
                     true
                 }
             }
@@ -94,7 +97,11 @@ pub(crate) async fn run(ctx: &Ctx, spec: RunSpec) -> Result<Output, Error> {
             run.watch(ctx).await
         };
         if over {
-            return run.stop(ctx).await;
+            // A run whose watch failed did not end: it is stopped, and fails with what failed.
+            return match run.failed.take() {
+                Some(e) => Err(run.stop_after(ctx, e).await),
+                None => run.stop(ctx).await,
+            };
         }
     }
 }
@@ -133,6 +140,7 @@ impl Run {
             Ok(s) => self.look(ctx, s, [PositionCounts(0); 6]),
             Err(e) => {
                 tracing::warn!("{}: the status could not be read ({e}); stopping it", self.function());
+                self.failed = Some(e);
                 true
             }
         }
