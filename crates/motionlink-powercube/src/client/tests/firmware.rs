@@ -131,8 +131,9 @@ fn a_reset_that_clears_the_watchdog_is_observed_and_nothing_more_is_sent() {
     let life_sign = Request::Action(Action::LifeSign);
     for (variants, released, expected) in [
         // The default: the Reset re-arms the expired watchdog, which expires again; a life sign switches
-        // it offline and a second Reset clears it, confirmed by the state read after it.
-        (&[][..], true, vec![state, reset, state, life_sign, reset, state]),
+        // it offline and a second Reset clears it, confirmed by the state read after it and once more after
+        // the time in which an online watchdog would have expired again.
+        (&[][..], true, vec![state, reset, state, life_sign, reset, state, state]),
         // A Reset that switches the watchdog offline: 100 ms later it has not expired again; nothing more.
         (&[Variant::ResetClearsWatchdog][..], false, vec![state, reset, state]),
     ] {

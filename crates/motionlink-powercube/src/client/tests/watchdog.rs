@@ -455,3 +455,22 @@ fn the_watchdog_refresh_keeps_absolute_deadlines() {
     assert!(!device_view(&canbus, &clock, 1).0.has_fault());
     bus.disable_watchdog().unwrap();
 }
+
+#[test]
+fn a_watchdog_release_whose_life_sign_is_lost_is_not_reported_released() {
+    // A host died with the watchdog online: the module halted with STATE_COMM_ERROR.
+    let (clock, canbus, bus) = can(&[1]);
+    let _me = clock.reserve_participant().enter();
+    bus.enable_watchdog(&addrs(&[1])).unwrap();
+    kill(bus);
+    clock.sleep(Duration::from_millis(200));
+    assert!(device_view(&canbus, &clock, 1).0.contains(StateFlag::CommError));
+    // The next session's life sign (which switches the watchdog offline) never reaches the module: the Reset
+    // clears the error, and the watchdog, still online and unrefreshed, expires again 50 ms later.
+    let link = LoseLifeSign { inner: canbus.connect(), outgoing: true, left: 1 };
+    let bus = Client::with_link(PortLink::Can(Box::new(link)), clock.shared(), Config::can()).unwrap();
+    let err = bus.module(addr(1)).reset_and_release_watchdog().unwrap_err();
+    assert!(err.to_string().contains("expired again"), "{err}");
+    let (state, _, online, _) = device_view(&canbus, &clock, 1);
+    assert!(online && state.contains(StateFlag::CommError), "the module as the error says: {state}");
+}

@@ -373,6 +373,10 @@ impl Ctx {
     /// not say what a Reset does to an online watchdog, and a module whose Reset switches it offline would
     /// leave the motion it guards unguarded, and have it switched on again by the session's second life sign.
     ///
+    /// A watchdog switched offline is seen so: the state read once more twice [`WATCHDOG_TIMEOUT`] after the
+    /// last Reset shows no STATE_COMM_ERROR (one still online, its life sign lost, has expired again by then:
+    /// an error saying so).
+    ///
     /// The state is read after the Reset: STATE_ERROR still set [`RESET_SETTLE`] after it is an error naming
     /// the flags the Reset left (a servo amplifier fault, STATE_POWERFAULT, needs the module switched off in
     /// most cases: manual 5).
@@ -390,13 +394,31 @@ impl Ctx {
             return self.reset_cleared(a, after).await.map(|()| false);
         }
         tracing::info!("module {a}: its watchdog expires again after a reset; switching it offline");
-        match self.request(a, Request::Action(Action::LifeSign)).await {
-            Ok(_) | Err(Error::Timeout { .. }) => {}
+        let acknowledged = match self.request(a, Request::Action(Action::LifeSign)).await {
+            Ok(_) => true,
+            Err(Error::Timeout { .. }) => false,
             Err(e) => return Err(e),
-        }
+        };
         self.core().duty.uncertain.remove(&a);
         self.action(a, Action::Reset).await?;
-        self.reset_cleared(a, self.state(a).await?).await.map(|()| true)
+        self.reset_cleared(a, self.state(a).await?).await?;
+        // Offline, the watchdog expires no more: seen only once it would have expired again.
+        let until = self.now() + WATCHDOG_TIMEOUT * 2;
+        self.sleep_until(until).await;
+        let after = self.state(a).await?;
+        if after.contains(StateFlag::CommError) {
+            let address = crate::model::Address::checked(a);
+            let heard = if acknowledged { "acknowledged" } else { "not acknowledged" };
+            return Err(Error::Context {
+                context: format!(
+                    "module {a}'s watchdog expired again after the life sign that switches it offline ({heard}) \
+                     and a Reset: it is still online, and the module halted"
+                ),
+                source: Box::new(Error::Device { address, state: after }),
+                hint: "; reset it again (`motionlink powercube --module N reset`), or switch the module off and on",
+            });
+        }
+        Ok(true)
     }
 
     /// The state `after` a Reset of module `a`, read again until STATE_ERROR is clear for at most
