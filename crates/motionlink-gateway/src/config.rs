@@ -52,7 +52,17 @@ impl BrokerUrl {
         let rest = rest.trim_end_matches('/');
         let (host, port) = if let Some(v6) = rest.strip_prefix('[') {
             let (host, after) = v6.split_once(']').ok_or_else(|| format!("broker {url:?}: no ] after the address"))?;
-            (host, after.strip_prefix(':'))
+            // After `]` only nothing or `:PORT`: anything else is not taken for the default port.
+            let port = match after {
+                "" => None,
+                _ => Some(after.strip_prefix(':').ok_or_else(|| {
+                    format!("broker {url:?}: unexpected {after:?} after [{host}]: give [ADDRESS] or [ADDRESS]:PORT")
+                })?),
+            };
+            (host, port)
+        } else if rest.matches(':').count() > 1 {
+            // `::1` would read as host ":" and port 1.
+            return Err(format!("broker {url:?}: an IPv6 address goes in brackets: mqtt://[ADDRESS]:PORT"));
         } else {
             match rest.rsplit_once(':') {
                 Some((h, p)) => (h, Some(p)),

@@ -47,7 +47,7 @@ pub trait GatewayErrors {
     fn unavailable(message: impl Into<String>) -> Self;
     /// The device could not be opened, or its session failed.
     fn transport(message: impl Into<String>) -> Self;
-    /// Why a motion was stopped by the gateway, with the device's stop that followed: its report in one
+    /// Why the gateway stops a motion, with the device's stop that followed: its report in one
     /// line, or its error. A stop that failed was not confirmed: the axis may still be moving, so the
     /// error says `stop_unconfirmed` and exit code 3, as the command line's after a Ctrl-C whose stop the
     /// device did not confirm (its kind still says why the gateway stopped it).
@@ -135,14 +135,16 @@ impl std::fmt::Display for StopReason {
             StopReason::LeaseExpired { lease_ms } => {
                 write!(f, "the lease lapsed: no keepalive within {lease_ms} ms, so the gateway stops the motion")
             }
-            StopReason::StopRequest { id } => write!(f, "stopped by the stop request {id:?}"),
-            StopReason::PortStop { who } => write!(f, "stopped by a stop from {who} through the port's lock"),
+            StopReason::StopRequest { id } => write!(f, "a stop request {id:?} asks the gateway to stop the motion"),
+            StopReason::PortStop { who } => {
+                write!(f, "a stop from {who} through the port's lock asks the gateway to stop the motion")
+            }
             StopReason::BrokerLost => {
                 f.write_str("the gateway lost the broker (no lease could be renewed), so it stops the motion")
             }
             StopReason::Signal { name, .. } => write!(f, "{name} received: the gateway stops the motion"),
             StopReason::PortFailed { error } => {
-                write!(f, "the device's port failed ({error}): the gateway's session with it is gone")
+                write!(f, "the device's port failed ({error}), so the gateway stops the motion")
             }
         }
     }
@@ -168,5 +170,37 @@ mod tests {
             .starts_with("the lease lapsed: no keepalive within 500 ms, so the gateway stops the motion;"));
         let json = serde_json::to_value(&failed).unwrap();
         assert_eq!(json["stop_unconfirmed"], true, "{json}");
+    }
+
+    #[test]
+    fn every_reason_says_what_the_gateway_set_out_to_do_not_a_stop_it_claims() {
+        let reasons = [
+            (StopReason::StopRequest { id: "s1".into() }, "a stop request \"s1\" asks the gateway to stop the motion"),
+            (
+                StopReason::PortStop { who: "pid 7".into() },
+                "a stop from pid 7 through the port's lock asks the gateway to stop the motion",
+            ),
+            (
+                StopReason::PortFailed { error: "connection reset".into() },
+                "the device's port failed (connection reset), so the gateway stops the motion",
+            ),
+            (
+                StopReason::LeaseExpired { lease_ms: 500 },
+                "the lease lapsed: no keepalive within 500 ms, so the gateway stops the motion",
+            ),
+            (StopReason::BrokerLost, "the gateway lost the broker (no lease could be renewed), so it stops the motion"),
+            (StopReason::Signal { number: 15, name: "SIGTERM" }, "SIGTERM received: the gateway stops the motion"),
+        ];
+        for (reason, said) in reasons {
+            // The device's stop failed: the reason does not say the motion was stopped, nor the stop reached.
+            let silent = ErrorReport::new("timeout", "drive 1: no answer", 3);
+            let failed = ErrorReport::stopped(&reason, Err(silent));
+            assert!(failed.stop_unconfirmed, "{reason:?}");
+            assert_eq!(failed.message, format!("{said}; the device's stop then failed: drive 1: no answer"));
+            // The device's stop confirmed: the same words, then what it found.
+            let done = ErrorReport::stopped(&reason, Ok("{\"stopped\":true}".into()));
+            assert!(!done.stop_unconfirmed, "{reason:?}");
+            assert_eq!(done.message, format!("{said}; the device's stop then: {{\"stopped\":true}}"));
+        }
     }
 }

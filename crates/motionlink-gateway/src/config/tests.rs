@@ -55,6 +55,45 @@ fn broker_urls_are_mqtt_or_mqtts() {
 }
 
 #[test]
+fn a_bracketed_address_takes_nothing_or_a_port_after_it() {
+    // An IPv6 address without brackets is refused, not read as host and port.
+    for bare in ["mqtt://::1", "mqtt://2001:db8::1:1883"] {
+        let e = BrokerUrl::parse(bare).unwrap_err();
+        assert!(e.contains("goes in brackets"), "{bare}: {e}");
+    }
+    // The valid forms: the default port, a port given; host names and IPv4 as before.
+    let v6 = BrokerUrl::parse("mqtt://[::1]").unwrap();
+    assert_eq!((v6.host.as_str(), v6.port, v6.tls), ("::1", 1883, false));
+    assert_eq!(BrokerUrl::parse("mqtts://[2001:db8::1]").unwrap().port, 8883);
+    let v6 = BrokerUrl::parse("mqtt://[::1]:1884").unwrap();
+    assert_eq!((v6.host.as_str(), v6.port), ("::1", 1884));
+    assert_eq!(BrokerUrl::parse("mqtt://[::1]:1884/").unwrap().port, 1884);
+    assert_eq!(BrokerUrl::parse("mqtt://broker.example:1885").unwrap().port, 1885);
+    assert_eq!(BrokerUrl::parse("mqtt://10.1.2.3").unwrap().port, 1883);
+    // What follows `]` is not dropped for the default port: the error names the broker and what was there.
+    let m = BrokerUrl::parse("mqtt://[2001:db8::1]junk").unwrap_err();
+    assert_eq!(
+        m,
+        "broker \"mqtt://[2001:db8::1]junk\": unexpected \"junk\" after [2001:db8::1]: give [ADDRESS] or \
+         [ADDRESS]:PORT"
+    );
+    let m = BrokerUrl::parse("mqtt://[::1]8883").unwrap_err();
+    assert!(m.starts_with("broker \"mqtt://[::1]8883\": unexpected \"8883\" after [::1]"), "{m}");
+    // A bad port after `:` is still the port's error.
+    for bad in ["mqtt://[::1]:", "mqtt://[::1]:0", "mqtt://[::1]:x", "mqtt://[::1]:1884:1"] {
+        let m = BrokerUrl::parse(bad).unwrap_err();
+        assert!(m.contains("the port must be a number"), "{bad}: {m}");
+    }
+    // Through the file and --broker: a usage error naming the value.
+    let o = Options { broker: Some("mqtt://[::1]8883".into()), ..Options::default() };
+    let m = message(parsed(FILE, &o, None));
+    assert!(m.contains("mqtt://[::1]8883") && m.contains("\"8883\""), "{m}");
+    let m =
+        message(parsed(&FILE.replace("mqtt://127.0.0.1:1883", "mqtt://[2001:db8::1]junk"), &Options::default(), None));
+    assert!(m.contains("mqtt://[2001:db8::1]junk") && m.contains("\"junk\""), "{m}");
+}
+
+#[test]
 fn a_remote_broker_without_tls_is_refused_unless_asked() {
     let o = Options { broker: Some("mqtt://10.1.2.3:1883".into()), ..Options::default() };
     let m = message(parsed(FILE, &o, None));
