@@ -114,8 +114,9 @@ class _Operations:
 
     @op(CompaxHome, aio=True)
     def home(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> CompaxHome:
-        """POSA HOME (find machine zero), waited for. Ctrl-C (or cancelling the awaiting task) stops the
-        drive."""
+        """POSA HOME (find machine zero), waited for, then checked: S16 must show machine zero approached
+        and the drive switched on, else :class:`DeviceError` (a homing stopped halfway, by another
+        program's stop say, ends at rest too). Ctrl-C (or cancelling the awaiting task) stops the drive."""
 
     @op(DrivePosition, aio=True)
     def wait(self, drive: Optional[int] = None, *, timeout_s: float = 600.0) -> DrivePosition:

@@ -79,6 +79,26 @@ def test_async_compax_moves_homes_waits_and_cancel_stops() -> None:
         asyncio.run(main())
 
 
+def test_an_async_compax_homing_stopped_halfway_raises_rather_than_return_a_position() -> None:
+    # Another task's stop switches the drive off halfway: the homing's positioning has ended (S17), but
+    # the axis is not referenced, and home() says so (was: a position returned as if homed).
+    async def main() -> None:
+        async with motionlink.AsyncCompax("sim") as drive:
+            await drive.move_to(500.0)
+
+            async def stop_soon() -> None:
+                await asyncio.sleep(0.3)
+                await drive.stop()
+
+            homed, stopped = await asyncio.gather(drive.home(), stop_soon(), return_exceptions=True)
+            assert stopped is None, stopped
+            assert isinstance(homed, motionlink.DeviceError), homed
+            assert "not referenced" in str(homed) and "switched off" in str(homed), homed
+            assert (await drive.position()).position_units > 100.0
+
+    asyncio.run(main())
+
+
 def test_an_async_client_must_be_opened() -> None:
     client = motionlink.AsyncCompax("sim")
     with pytest.raises(motionlink.UsageError, match="not open"):

@@ -139,6 +139,26 @@ pub enum Error {
         /// [`Config::in_position_tolerance`](crate::session::Config::in_position_tolerance).
         tolerance: Position,
     },
+    /// A homing (POSA HOME) that ended, by S17, with S16 showing the drive switched off (a stop, which is
+    /// `OUTPUT O0=0`, ended it: another program's, say) or not showing machine zero approached (bit 3,
+    /// MACHINE_ZERO: it did not find its zero). The axis is not referenced.
+    #[error(
+        "drive {address}'s homing (POSA HOME) ended at {position} {}: the axis is not referenced",
+        match (*.switched_off, *.machine_zero) {
+            (true, _) => "with the drive switched off (S16: O0=0): something stopped it",
+            (false, _) => "without S16 showing machine zero approached (MACHINE_ZERO)",
+        }
+    )]
+    NotHomed {
+        /// The drive.
+        address: Address,
+        /// Where it rests (S1).
+        position: Position,
+        /// S16 shows it switched off (O0 = 0).
+        switched_off: bool,
+        /// S16 shows machine zero approached.
+        machine_zero: bool,
+    },
     /// The target a drive reports (S2, read twice after the move was sent) is not the one sent: a telegram
     /// was corrupted on the way (without a BCC a flipped bit in a digit is still a valid command). Returned
     /// inside [`Error::FailedDuringMotion`]: the session stops the axis at once.
@@ -364,6 +384,7 @@ impl Classify for Error {
             Error::Refused { .. } => ErrorClass::Refused,
             Error::MoveTimeout { .. }
             | Error::NotReached { .. }
+            | Error::NotHomed { .. }
             | Error::TargetMismatch { .. }
             | Error::SwitchedOff { .. }
             | Error::StillMoving { .. }

@@ -255,3 +255,54 @@ fn dropped_outside_a_runtime_on_a_silent_line_the_client_returns_within_the_boun
     assert!(took <= BOUND + Duration::from_millis(400), "bounded: {took:?}");
     assert!(host.with_device(|d| d.drive(1).unwrap().is_moving()), "COMPAX has no watchdog: it moves on");
 }
+
+#[test]
+fn a_homing_is_checked_by_machine_zero_and_one_stopped_halfway_is_not_taken_for_done() {
+    runtime().block_on(async {
+        let (host, client) = setup().await;
+        client.set_speed(a(1), SpeedPercent::new(100.0).unwrap(), false).await.unwrap();
+        client.move_absolute(a(1), pos(30.0), MoveOptions::default()).await.unwrap();
+        client.wait_reached(&[a(1)], Some(Duration::from_secs(5))).await.unwrap();
+        let at = client.home_and_wait(a(1), Some(Duration::from_secs(10))).await.unwrap();
+        assert_eq!(at, pos(0.0));
+        assert!(client.started().is_empty(), "seen at rest");
+
+        // Another homing from far away, slowly; another task's stop switches the drive off halfway. The
+        // positioning has ended (S17), but machine zero was not approached.
+        client.move_absolute(a(1), pos(500.0), MoveOptions::default()).await.unwrap();
+        client.wait_reached(&[a(1)], Some(Duration::from_secs(10))).await.unwrap();
+        client.set_speed(a(1), SpeedPercent::new(10.0).unwrap(), false).await.unwrap();
+        let stop = async {
+            tokio::time::sleep(Duration::from_millis(300)).await;
+            client.stop(a(1)).await
+        };
+        let (mut homing, mut stop) =
+            (Box::pin(client.home_and_wait(a(1), Some(Duration::from_secs(30)))), Box::pin(stop));
+        let (mut homed, mut stopped) = (None, None);
+        std::future::poll_fn(|cx| {
+            if homed.is_none() {
+                if let Poll::Ready(r) = homing.as_mut().poll(cx) {
+                    homed = Some(r);
+                }
+            }
+            if stopped.is_none() {
+                if let Poll::Ready(r) = stop.as_mut().poll(cx) {
+                    stopped = Some(r);
+                }
+            }
+            if homed.is_some() && stopped.is_some() {
+                Poll::Ready(())
+            } else {
+                Poll::Pending
+            }
+        })
+        .await;
+        let (homed, stopped) = (homed.unwrap(), stopped.unwrap());
+        stopped.unwrap();
+        let e = homed.unwrap_err();
+        assert!(matches!(e, Error::NotHomed { switched_off: true, .. }), "{e}");
+        assert!(e.to_string().contains("not referenced"), "{e}");
+        let rests = host.with_device(|d| d.drive(1).unwrap().position());
+        assert!(rests > 100.0, "stopped halfway: {rests}");
+    });
+}

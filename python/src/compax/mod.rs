@@ -420,15 +420,12 @@ faces! {
         .map_err(|f| to_pyerr(py, f))?;
     } |c| { w!(c => move_to(a, &request); &mut |_| {}) } => |py, r| move_record(py, &r);
 
-    /// POSA HOME, waited for; Ctrl-C, or cancelling the task, stops the drive.
+    /// POSA HOME, waited for and checked (S16 shows machine zero approached and the drive switched on);
+    /// Ctrl-C, or cancelling the task, stops the drive.
     motion home(me, py, drive: Option<Int>, timeout_s: Float) {
         let a = me.drive(py, drive)?;
         let timeout = seconds(&timeout_s).map_err(|f| to_pyerr(py, f))?;
-    } |c| {
-        w!(c.home(a, Default::default()))?;
-        w!(c => wait_reached(&[a], Some(timeout)); &mut |_, _| {})?;
-        w!(c.read_position(a))
-    } => |py, p| position_record(py, a, p);
+    } |c| { w!(c.home_and_wait(a, Some(timeout))) } => |py, p| position_record(py, a, p);
 
     /// Waits until the drive reports its positioning ended (S17); its position then. Ctrl-C stops the
     /// drive; so does cancelling the task (the wait's future stops nothing when dropped: the motion may be

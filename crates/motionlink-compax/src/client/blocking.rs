@@ -365,9 +365,20 @@ impl Client {
         self.start_move(address, Command::PosR(distance), opts)
     }
 
-    /// POSA HOME: finds machine zero.
+    /// POSA HOME: finds machine zero; returns once the drive has taken it (see [`Client::home_and_wait`]).
     pub fn home(&self, address: Address, opts: MoveOptions) -> Result<()> {
         self.start_move(address, Command::PosAHome, opts)
+    }
+
+    /// POSA HOME, waited for (as [`Client::wait_reached`]: without `timeout`, at most
+    /// [`Config::wait_timeout`]), then checked: S16 must show machine zero approached (bit 3), else
+    /// [`Error::NotHomed`] (a homing stopped halfway, by another program's stop say, ends at rest too).
+    /// Returns where the drive rests (S1). A cancel stops the drive.
+    pub fn home_and_wait(&self, address: Address, timeout: Option<Duration>) -> Result<Position> {
+        output(self.run_cancellable(Op::Home(address, timeout), &mut |_| {})?, "a homing", |o| match o {
+            Output::Homed(p) => Ok(p),
+            o => Err(o),
+        })
     }
 
     /// Starts several drives at the same instant: each move is stored in its drive's buffer (`,`), then one

@@ -182,6 +182,7 @@ impl Session {
                     ctx.broadcast(&c).await?;
                     Output::Done
                 }
+                Op::Home(a, timeout) => Output::Homed(ctx.home(a, timeout).await?),
                 Op::Wait(drives, timeout) => {
                     ctx.wait_reached(&drives, timeout).await?;
                     Output::Done

@@ -431,6 +431,10 @@ pub enum Op {
     /// POSA, POSR or POSA HOME to one drive ([`Output::Done`] once the drive has taken it). A POSR whose
     /// reply is lost is never sent again blind: S2 tells whether it arrived.
     Move(Address, Command, MoveOptions),
+    /// POSA HOME to one drive, the wait until its positioning ended (as [`Op::Wait`]), then S16 and S1
+    /// ([`Output::Homed`]: where it rests); [`Error::NotHomed`] when S16 does not show machine zero
+    /// approached.
+    Home(Address, Option<Duration>),
     /// Moves stored in each drive's buffer, then one `32!` ([`Output::Done`]).
     SyncStart(Vec<(Address, Command)>, bool),
     /// A command to every drive, no reply ([`Output::Done`]).
@@ -486,6 +490,8 @@ pub enum Output {
     Started(StartedMove),
     /// A checked move that ended at its target.
     Moved(MoveReport),
+    /// A homing that ended at machine zero: where the drive rests (S1).
+    Homed(Position),
     /// The drives that answered a scan, with their positions.
     Found(Vec<(Address, Position)>),
     /// What a stop did.
@@ -506,6 +512,7 @@ impl Output {
             Output::Started(_) => "Started",
             Output::Moved(_) => "Moved",
             Output::Found(_) => "Found",
+            Output::Homed(_) => "Homed",
             Output::Stopped(_) => "Stopped",
         }
     }

@@ -233,6 +233,8 @@ impl Drive {
                 self.next.speed_step = None;
                 settings.comparators.sort_by(|a, b| a.distance.total_cmp(&b.distance));
                 if c == Command::PosAHome {
+                    // Machine zero is approached by this homing, once it ends: until then S16 does not show it.
+                    self.homed = false;
                     self.event(format!("homing started from {:.3}", self.position));
                 } else {
                     self.event(format!("motion started to {target:.3} from {:.3}", self.position));

@@ -303,6 +303,15 @@ impl AsyncClient {
         self.done(Op::Move(address, Command::PosAHome, opts), "a move").await
     }
 
+    /// POSA HOME, waited for and checked by S16; see
+    /// [`Client::home_and_wait`](super::Client::home_and_wait). Dropping the future stops the drive.
+    pub async fn home_and_wait(&self, address: Address, timeout: Option<Duration>) -> Result<Position> {
+        output(self.driver.run(Op::Home(address, timeout)).await?, "a homing", |o| match o {
+            Output::Homed(p) => Ok(p),
+            o => Err(o),
+        })
+    }
+
     /// `cmd` to every drive at once, no reply; see [`Client::broadcast`](super::Client::broadcast).
     pub async fn broadcast(&self, cmd: &Command) -> Result<()> {
         self.done(Op::Broadcast(*cmd), "a broadcast").await

@@ -7,7 +7,7 @@ use super::super::core::{bit, drives_in};
 use super::super::ctx::Ctx;
 use super::super::types::{EchoForm, MoveOptions, MoveReport, MoveRequest, MoveTarget, Progress, StartedMove};
 use crate::error::{Error, Result, StopOutcome, StopReport};
-use crate::model::{Command, Position, S17Flag, StatusId};
+use crate::model::{Command, Position, S16Flag, S17Flag, StatusId};
 use crate::wire::Address;
 
 /// The longest time between the two S1 reads that tell whether a drive rests where S17 cannot be relied on
@@ -15,6 +15,20 @@ use crate::wire::Address;
 pub(crate) const REST_CHECK_MAX: Duration = Duration::from_millis(200);
 
 impl Ctx {
+    /// POSA HOME to drive `a`, the wait until its positioning ended, then S16 (machine zero approached) and
+    /// where it rests: see [`Op::Home`](crate::session::Op::Home).
+    pub(crate) async fn home(&self, a: Address, timeout: Option<Duration>) -> Result<Position> {
+        self.start_move(a, Command::PosAHome, MoveOptions::default(), None).await?;
+        self.wait_reached(&[a], timeout).await?;
+        let s16 = self.read_s16(a).await?;
+        let position = self.read_position(a).await?;
+        let (switched_off, machine_zero) = (s16.o0_state() == 0, s16.contains(S16Flag::MachineZero));
+        if switched_off || !machine_zero {
+            return Err(Error::NotHomed { address: a, position, switched_off, machine_zero });
+        }
+        Ok(position)
+    }
+
     /// Waits until every drive in `drives` has ended its positioning: by its `$` message when the move
     /// asked for one, otherwise by polling S17 every poll interval, reporting each polled position. While it
     /// listens for `$` messages it still reads each drive's S17 every message check interval. On timeout,
