@@ -209,7 +209,7 @@ fn usage(msg: impl Into<String>) -> Failure {
 fn scu_device(s: &EmulatorSettings) -> Result<motionlink_scu::Emulator, Failure> {
     use motionlink_scu::{FirmwareVariant, SimConfig, Variant};
     let variants = variant_names(s).map(|n| Variant::list(&n)).transpose().map_err(|e| usage(e.to_string()))?;
-    // The preset is where the TOML configuration starts (a preset the text names wins), as `motionlink sim
+    // The preset is where the TOML configuration starts (a text that names another preset is refused, naming both), as `motionlink sim
     // scu --preset P --config FILE` takes them: one rule, the library's.
     let text = s.config.as_deref().unwrap_or("");
     let config = SimConfig::from_toml_over(text, s.preset.as_deref(), &variants.unwrap_or_default())

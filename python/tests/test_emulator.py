@@ -68,7 +68,8 @@ def test_bad_settings_are_usage_errors() -> None:
 
 def test_an_scu_preset_is_where_the_configuration_starts() -> None:
     """`preset=` with `config=` is `motionlink sim scu --preset P --config FILE`: the preset is the starting
-    point of the text (a comment that mentions the word changes nothing); a preset the text names wins."""
+    point of the text (a comment that mentions the word changes nothing); a text that names another preset is
+    refused naming both (which one was meant is not known), one that names the same is fine."""
 
     def configuration(**settings: str) -> str:
         with motionlink.Emulator("scu", **settings) as emu, motionlink.Scu(emu, functions="tlt") as lift:
@@ -76,7 +77,11 @@ def test_an_scu_preset_is_where_the_configuration_starts() -> None:
 
     tlt = configuration(preset="tlt")
     assert configuration(preset="tlt", config="# no preset here\ndefault_speed = 80\n") == tlt
-    assert configuration(preset="tlt", config='preset = "liftkit"\n') == configuration(preset="liftkit") != tlt
+    assert configuration(preset="tlt", config='preset = "tlt"\n') == tlt
+    assert configuration(config='preset = "liftkit"\n') == configuration(preset="liftkit") != tlt
+    differs = r"preset = \"liftkit\" in the configuration differs from the preset \"tlt\""
+    with pytest.raises(motionlink.UsageError, match=differs):
+        motionlink.Emulator("scu", preset="tlt", config='preset = "liftkit"\n')
     with pytest.raises(motionlink.UsageError, match=r"unknown preset \"nope\""):
         motionlink.Emulator("scu", preset="nope", config="default_speed = 80\n")
 

@@ -4,14 +4,16 @@
 //! reads a clock or sleeps. The same emulator runs in-process behind an
 //! [`EmulatorLink`](crate::pipe::EmulatorLink), or behind a socket or pseudo-terminal served here.
 
+use std::any::Any;
 use std::io::{ErrorKind, Read, Write};
 use std::net::{TcpListener, TcpStream};
+use std::panic::AssertUnwindSafe;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread;
 use std::time::Duration;
 
-use crate::clock::{lock, SharedClock, Timestamp};
+use crate::clock::{SharedClock, Timestamp};
 
 /// A device emulator as a state machine: bytes in, time passing, bytes out.
 pub trait Emulator: Send {
@@ -215,6 +217,38 @@ fn report_events<E: Emulator + ?Sized>(device: &mut E, options: &ServeOptions) {
     }
 }
 
+/// The served device, locked. A lock poisoned by a panic (of the device, or of another thread that held it)
+/// guards a device its panic may have left half-changed: serving it on would answer clients with what a
+/// broken emulator makes of that, so the panic is passed on, and the server ends ([`crashed`]).
+fn lock_device<E: ?Sized>(device: &Mutex<E>) -> MutexGuard<'_, E> {
+    match device.lock() {
+        Ok(guard) => guard,
+        Err(_) => panic!("the emulated device's lock is poisoned: a thread panicked while it held the device"),
+    }
+}
+
+/// The text of a panic's payload.
+fn panic_text(payload: &(dyn Any + Send)) -> &str {
+    match (payload.downcast_ref::<&str>(), payload.downcast_ref::<String>()) {
+        (Some(text), _) => text,
+        (None, Some(text)) => text,
+        (None, None) => "a panic without a message",
+    }
+}
+
+/// Reports that the device (or the event sink) panicked and the server ended: an error in the log, and an
+/// event (`the emulator crashed (...)`) to the sink, so that an operator watching `motionlink sim --events`
+/// and a Python host see it. The thread then passes the panic on, for [`Server::wait`].
+fn crashed(payload: &(dyn Any + Send), options: &ServeOptions) {
+    let text =
+        format!("the emulator crashed ({}); the server has stopped and serves no client any more", panic_text(payload));
+    tracing::error!("{text}");
+    if let Some(sink) = &options.on_event {
+        // The sink may be what panicked: a second panic of it is not passed on, the first one is.
+        let _ = std::panic::catch_unwind(AssertUnwindSafe(|| sink(&text)));
+    }
+}
+
 /// Serves `device` on one connected stream until the peer closes it or `stop` is set.
 fn serve_stream<E: Emulator>(
     stream: &mut dyn Stream,
@@ -228,7 +262,7 @@ fn serve_stream<E: Emulator>(
     let mut out = Vec::with_capacity(4096);
     while !stop.load(Ordering::Relaxed) {
         let wait = {
-            let dev = lock(device);
+            let dev = lock_device(device);
             let now = clock.now();
             dev.next_wakeup().map_or(IDLE_POLL, |t| t.saturating_since(now).min(IDLE_POLL))
         };
@@ -247,7 +281,7 @@ fn serve_stream<E: Emulator>(
         };
         out.clear();
         {
-            let mut dev = lock(device);
+            let mut dev = lock_device(device);
             let now = clock.now();
             if n > 0 {
                 dev.receive(now, &buf[..n], &mut out);
@@ -290,10 +324,20 @@ impl Server {
         &self.address
     }
 
-    /// Blocks until the server stops (it does not by itself; for `motionlink sim`, which runs until killed).
+    /// Blocks until the server stops. It does not by itself (for `motionlink sim`, which runs until killed),
+    /// unless the device panicked: that ends the server (its clients' connections close, later ones find no
+    /// server, and an event says so), and the panic is passed on here, so that a process that serves until
+    /// the server ends does not end as if all were well (`motionlink sim` exits with 101 after the panic's
+    /// message).
     pub fn wait(mut self) {
+        let mut panicked = None;
         for t in self.threads.drain(..) {
-            let _ = t.join();
+            if let Err(payload) = t.join() {
+                panicked.get_or_insert(payload);
+            }
+        }
+        if let Some(payload) = panicked {
+            std::panic::resume_unwind(payload);
         }
     }
 }
@@ -345,6 +389,11 @@ pub fn serve_tcp<E: Emulator + 'static>(
 ///
 /// A connection is accepted, and a request answered, as soon as it arrives: the accepting thread blocks in
 /// `accept`, the serving thread in a read whose timeout is the device's next wake-up.
+///
+/// A panic of the device (or of the event sink) ends the server: the client's connection closes, the port
+/// is closed (a later client's connection is refused, rather than told another client is connected), an
+/// event says the emulator crashed, and [`Server::wait`] passes the panic on. A device whose lock is
+/// poisoned is not served on.
 pub fn serve_tcp_with<E: Emulator + 'static>(
     bind: &str,
     device: Arc<Mutex<E>>,
@@ -392,38 +441,62 @@ pub fn serve_tcp_with<E: Emulator + 'static>(
 
     let serve_stop = Arc::clone(&stop);
     let server = thread::Builder::new().name("emulator-tcp".into()).spawn(move || {
-        let mut out = Vec::new();
-        while !serve_stop.load(Ordering::SeqCst) {
-            // Keep the device's time moving while nobody is connected (its watchdog, its motion).
-            let wait = {
-                let mut dev = lock(&device);
-                let now = clock.now();
-                out.clear();
-                dev.advance(now, &mut out);
-                report_events(&mut *dev, &options);
-                dev.next_wakeup()
-                    .map_or(IDLE_WAIT, |t| t.saturating_since(now).clamp(Duration::from_micros(100), IDLE_WAIT))
-            };
-            let (mut stream, peer) = match rx.recv_timeout(wait) {
-                Ok(accepted) => accepted,
-                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => continue,
-                Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => return,
-            };
-            tracing::info!("client connected from {peer}");
-            let _ = stream.set_nodelay(true);
-            match serve_stream(&mut stream, &device, &clock, &serve_stop, true, &options) {
-                Ok(()) => tracing::info!("client {peer} disconnected"),
-                Err(e) => tracing::warn!("connection from {peer} ended: {e}"),
-            }
-            {
-                let mut dev = lock(&device);
-                dev.connection_closed(clock.now());
-                report_events(&mut *dev, &options);
-            }
+        let served = std::panic::catch_unwind(AssertUnwindSafe(|| {
+            serve_clients(&device, &clock, &serve_stop, &busy, &rx, &options)
+        }));
+        if let Err(payload) = served {
+            // The server ends: the acceptor is woken to stop (and close the port), and the slot is freed, so
+            // that a client that connects meanwhile is closed rather than told another one is connected.
+            serve_stop.store(true, Ordering::SeqCst);
             busy.store(false, Ordering::SeqCst);
+            let _ = TcpStream::connect_timeout(&wake, Duration::from_secs(1));
+            crashed(&*payload, &options);
+            std::panic::resume_unwind(payload);
         }
     })?;
     Ok(Server { address, stop, wake: Some(wake), threads: vec![acceptor, server] })
+}
+
+/// The serving thread of [`serve_tcp_with`]: the clients the acceptor hands over (`accepted`), one after
+/// the other, and the device's time between them, until `stop` is set.
+fn serve_clients<E: Emulator>(
+    device: &Mutex<E>,
+    clock: &SharedClock,
+    stop: &AtomicBool,
+    busy: &AtomicBool,
+    accepted: &std::sync::mpsc::Receiver<(TcpStream, std::net::SocketAddr)>,
+    options: &ServeOptions,
+) {
+    let mut out = Vec::new();
+    while !stop.load(Ordering::SeqCst) {
+        // Keep the device's time moving while nobody is connected (its watchdog, its motion).
+        let wait = {
+            let mut dev = lock_device(device);
+            let now = clock.now();
+            out.clear();
+            dev.advance(now, &mut out);
+            report_events(&mut *dev, options);
+            dev.next_wakeup()
+                .map_or(IDLE_WAIT, |t| t.saturating_since(now).clamp(Duration::from_micros(100), IDLE_WAIT))
+        };
+        let (mut stream, peer) = match accepted.recv_timeout(wait) {
+            Ok(accepted) => accepted,
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => continue,
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => return,
+        };
+        tracing::info!("client connected from {peer}");
+        let _ = stream.set_nodelay(true);
+        match serve_stream(&mut stream, device, clock, stop, true, options) {
+            Ok(()) => tracing::info!("client {peer} disconnected"),
+            Err(e) => tracing::warn!("connection from {peer} ended: {e}"),
+        }
+        {
+            let mut dev = lock_device(device);
+            dev.connection_closed(clock.now());
+            report_events(&mut *dev, options);
+        }
+        busy.store(false, Ordering::SeqCst);
+    }
 }
 
 /// Serves `device` on a new pseudo-terminal. [`Server::address`] is the device path (`/dev/pts/N`) that a
@@ -434,7 +507,8 @@ pub fn serve_pty<E: Emulator + 'static>(device: Arc<Mutex<E>>, clock: SharedCloc
 }
 
 /// [`serve_pty`] with options. A pseudo-terminal cannot tell when a client closes it, so a telegram left
-/// incomplete is discarded only by the device's own inter-byte timeout, as on a serial line.
+/// incomplete is discarded only by the device's own inter-byte timeout, as on a serial line. A panic of the
+/// device ends the server as [`serve_tcp_with`]'s does (the pseudo-terminal goes away).
 #[cfg(unix)]
 pub fn serve_pty_with<E: Emulator + 'static>(
     device: Arc<Mutex<E>>,
@@ -450,8 +524,17 @@ pub fn serve_pty_with<E: Emulator + 'static>(
         // Holding the slave side open keeps the master readable between clients.
         let _keep_open = slave;
         let mut stream = SerialStream(master);
-        if let Err(e) = serve_stream(&mut stream, &device, &clock, &stop2, false, &options) {
-            tracing::error!("pty server stopped: {e}");
+        let served = std::panic::catch_unwind(AssertUnwindSafe(|| {
+            serve_stream(&mut stream, &device, &clock, &stop2, false, &options)
+        }));
+        match served {
+            Ok(Ok(())) => {}
+            Ok(Err(e)) => tracing::error!("pty server stopped: {e}"),
+            Err(payload) => {
+                stop2.store(true, Ordering::SeqCst);
+                crashed(&*payload, &options);
+                std::panic::resume_unwind(payload);
+            }
         }
     })?;
     Ok(Server { address, stop, wake: None, threads: vec![thread] })

@@ -4,7 +4,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use motionlink_link::clock::{RealClock, Timestamp};
-use motionlink_link::emulator::{serve_tcp, Emulator};
+use motionlink_link::emulator::{serve_tcp, serve_tcp_with, Emulator, ServeOptions, BUSY_PREFIX};
 use motionlink_link::error::Classify;
 use motionlink_link::link::{Link, LinkError, SerialSettings};
 use motionlink_link::url::PortUrl;
@@ -132,4 +132,96 @@ fn a_line_half_sent_on_a_closed_connection_is_not_completed_by_the_next() {
     };
     next.send(b"x\n").unwrap();
     assert_eq!(read_line(&mut next), b"X\n");
+}
+
+/// Echoes what it receives, and panics on `!` as an emulator with a defect would.
+struct Crashing;
+
+impl Emulator for Crashing {
+    fn receive(&mut self, _now: Timestamp, bytes: &[u8], out: &mut Vec<u8>) {
+        if bytes.contains(&b'!') {
+            panic!("the emulator's defect");
+        }
+        out.extend_from_slice(bytes);
+    }
+    fn advance(&mut self, _now: Timestamp, _out: &mut Vec<u8>) {}
+    fn next_wakeup(&self) -> Option<Timestamp> {
+        None
+    }
+    fn connection_closed(&mut self, _now: Timestamp) {}
+}
+
+/// Serves `device` over TCP with its events collected in the returned list.
+fn serve_collecting<E: Emulator + 'static>(
+    device: Arc<Mutex<E>>,
+) -> (motionlink_link::emulator::Server, Arc<Mutex<Vec<String>>>) {
+    let events = Arc::new(Mutex::new(Vec::new()));
+    let sink = Arc::clone(&events);
+    let options = ServeOptions { on_event: Some(Arc::new(move |e: &str| sink.lock().unwrap().push(e.to_string()))) };
+    (serve_tcp_with("127.0.0.1:0", device, RealClock::shared(), options).unwrap(), events)
+}
+
+/// Connects to a crashed server until it is gone (the connection refused), within 2 s. A connection made
+/// meanwhile is closed without a word: the server never claims another client is connected.
+fn wait_until_gone(address: &str) {
+    let addr: std::net::SocketAddr = address.trim_start_matches("tcp://").parse().unwrap();
+    let deadline = std::time::Instant::now() + Duration::from_secs(2);
+    loop {
+        assert!(std::time::Instant::now() < deadline, "the crashed server still accepts connections");
+        let Ok(mut stream) = std::net::TcpStream::connect_timeout(&addr, Duration::from_millis(200)) else {
+            return;
+        };
+        stream.set_read_timeout(Some(Duration::from_millis(500))).unwrap();
+        let mut got = Vec::new();
+        let _ = std::io::Read::read_to_end(&mut stream, &mut got);
+        assert!(!got.starts_with(BUSY_PREFIX.as_bytes()), "a crashed server said: {}", String::from_utf8_lossy(&got));
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// What `Server::wait` passed on, as text.
+fn wait_panic(server: motionlink_link::emulator::Server) -> String {
+    let payload = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| server.wait()))
+        .expect_err("wait passes the device's panic on");
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_default()
+}
+
+#[test]
+fn a_panicking_emulator_ends_its_tcp_server_which_says_so_and_passes_the_panic_on() {
+    let (server, events) = serve_collecting(Arc::new(Mutex::new(Crashing)));
+    let url: PortUrl = server.address().parse().unwrap();
+    let mut first = url.open_byte_link(SerialSettings::new(38_400)).unwrap();
+    first.send(b"ok\n").unwrap();
+    assert_eq!(read_line(&mut first), b"ok\n");
+    first.send(b"!").unwrap();
+    // The client's connection ends, and no later client is told the server is busy: it is gone.
+    let mut buf = [0u8; 8];
+    assert!(!matches!(first.recv(&mut buf, Duration::from_secs(2)), Ok(n) if n > 0));
+    let address = server.address().to_string();
+    wait_until_gone(&address);
+    let said = events.lock().unwrap().clone();
+    assert!(said.iter().any(|e| e.contains("the emulator crashed") && e.contains("the emulator's defect")), "{said:?}");
+    assert_eq!(wait_panic(server), "the emulator's defect");
+}
+
+#[test]
+fn a_device_whose_lock_another_thread_poisoned_is_not_served() {
+    let device = Arc::new(Mutex::new(Upper::default()));
+    let held = Arc::clone(&device);
+    let _ = std::thread::spawn(move || {
+        let _guard = held.lock().unwrap();
+        panic!("a panic while holding the device");
+    })
+    .join();
+    assert!(device.is_poisoned());
+    let (server, events) = serve_collecting(device);
+    let address = server.address().to_string();
+    wait_until_gone(&address);
+    let said = events.lock().unwrap().clone();
+    assert!(said.iter().any(|e| e.contains("the emulator crashed") && e.contains("poisoned")), "{said:?}");
+    assert!(wait_panic(server).contains("poisoned"));
 }

@@ -152,3 +152,97 @@ fn an_unknown_command_is_answered_ice_with_its_letters() {
     assert_eq!(&out[..3], b"RQ\x83");
     assert_eq!(crc16(&out[..3]).to_le_bytes(), [out[3], out[4]]);
 }
+
+#[test]
+fn an_in_end_undershoot_outside_0_to_the_stroke_is_refused_naming_it() {
+    for value in [i32::MIN, -1, 866, i32::MAX] {
+        let err = SimConfig::from_toml(&format!("[[actuator]]\nin_end_undershoot_counts = {value}\n")).unwrap_err();
+        assert!(err.0.contains(&format!("in_end_undershoot_counts = {value}")) && err.0.contains("0 to 865"), "{err}");
+    }
+    // The whole stroke is allowed: at rest on its In end the drive reads that far below it.
+    let mut b = Bench::new(SimConfig::from_toml("[[actuator]]\nin_end_undershoot_counts = 865\n").unwrap());
+    b.open(1);
+    assert_eq!(b.position(1), -865);
+    // A stroke at the bottom of the counts' range reads the lowest count, not a position past it.
+    let low = SimConfig::from_toml(
+        "[[actuator]]\nstroke_min_counts = -2147483648\nstroke_max_counts = -2147483638\n\
+         start_position_counts = -2147483648\nin_end_undershoot_counts = 5\n",
+    )
+    .unwrap();
+    let mut b = Bench::new(low);
+    b.open(1);
+    assert_eq!(b.position(1), i32::MIN);
+}
+
+#[test]
+fn an_obstacle_outside_the_stroke_is_refused_naming_it() {
+    for value in [-1, 866, i32::MIN] {
+        let err = SimConfig::from_toml(&format!("[[actuator]]\nobstacle_counts = {value}\n")).unwrap_err();
+        assert!(err.0.contains(&format!("obstacle_counts = {value}")) && err.0.contains("0 to 865"), "{err}");
+    }
+    for value in [0, 865] {
+        let c = SimConfig::from_toml(&format!("[[actuator]]\nobstacle_counts = {value}\n")).unwrap();
+        assert_eq!(c.actuators[0].obstacle_counts, Some(value), "an obstacle on a stroke end is in the stroke");
+    }
+}
+
+#[test]
+fn an_obstacle_a_whole_counts_range_from_the_start_is_modelled() {
+    let c = SimConfig::from_toml(
+        "[[actuator]]\nstroke_min_counts = -10\nstroke_max_counts = 2147483647\n\
+         start_position_counts = 2147483647\nobstacle_counts = -10\n",
+    )
+    .unwrap();
+    let mut b = Bench::new(c);
+    b.open(1);
+    assert_eq!(b.position(1), i32::MAX);
+}
+
+#[test]
+fn two_drives_at_the_highest_current_read_the_total_entrys_maximum() {
+    // 2 x 4000.0 A is more than the UINT16 total-current entry (0x00BF) holds: it reads its maximum.
+    let both = "[[actuator]]\ncurrent_at_full_speed_deci_amps = 40000\n\
+                [[actuator]]\ncurrent_at_full_speed_deci_amps = 40000\n";
+    let mut b = Bench::new(SimConfig::from_toml(both).unwrap());
+    b.open(1);
+    b.go(1, 800);
+    b.go(2, 800);
+    b.keep_alive(1_000);
+    assert!(b.unit.is_moving(a(1)) && b.unit.is_moving(a(2)));
+    assert_eq!(u16::from_le_bytes(b.get(0x00BF).try_into().unwrap()), u16::MAX);
+    assert_eq!(u16::from_le_bytes(b.get(0x00A1).try_into().unwrap()), 40000);
+    // The limit compares the true total: 8000.0 A is above 6553.5 A.
+    let limited = format!("total_current_limit_deci_amps = 65535\n{both}");
+    let mut b = Bench::new(SimConfig::from_toml(&limited).unwrap());
+    b.open(1);
+    b.go(1, 800);
+    b.go(2, 800);
+    b.keep_alive(1_000);
+    assert!(!b.unit.any_moving(), "bit 14 fast-stops every motion");
+    assert_eq!(last_error(&mut b), ErrorCode::from_bit(14));
+}
+
+#[test]
+fn a_preset_in_the_text_that_differs_from_the_one_given_is_refused_naming_both() {
+    let err = SimConfig::from_toml_over("preset = \"liftkit\"\n", Some("tlt"), &[]).unwrap_err();
+    assert!(err.0.contains("preset = \"liftkit\"") && err.0.contains("\"tlt\""), "{err}");
+    // The same preset in both, or either alone, is that preset.
+    assert_eq!(SimConfig::from_toml_over("preset = \"liftkit\"\n", Some("liftkit"), &[]), Ok(SimConfig::liftkit()));
+    assert_eq!(SimConfig::from_toml_over("preset = \"liftkit\"\n", None, &[]), Ok(SimConfig::liftkit()));
+    assert_eq!(SimConfig::from_toml_over("", Some("tlt"), &[]), Ok(SimConfig::tlt()));
+}
+
+#[test]
+fn an_info_text_longer_than_its_entry_is_refused_naming_it() {
+    let err = SimConfig::from_toml(&format!("firmware_info = \"{}\"\n", "x".repeat(32))).unwrap_err();
+    assert!(err.0.contains("firmware_info") && err.0.contains("32 bytes") && err.0.contains("31"), "{err}");
+    // Counted in bytes: 19 two-byte characters are 38 bytes.
+    let err = SimConfig::from_toml(&format!("configuration_info = \"{}\"\n", "é".repeat(19))).unwrap_err();
+    assert!(err.0.contains("configuration_info") && err.0.contains("38 bytes") && err.0.contains("36"), "{err}");
+    let err = Emulator::new(SimConfig { firmware_info: "ü".repeat(16), ..SimConfig::default() }).unwrap_err();
+    assert!(err.0.contains("firmware_info") && err.0.contains("32 bytes"), "{err}");
+    // A text that fills its entry is read in full.
+    let full = "F".repeat(31);
+    let mut b = Bench::new(SimConfig::from_toml(&format!("firmware_info = \"{full}\"\n")).unwrap());
+    assert_eq!(b.get_after_open(0x0001), full.as_bytes());
+}

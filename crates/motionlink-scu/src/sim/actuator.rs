@@ -64,7 +64,10 @@ impl ActuatorState {
             stalled: false,
             blocked: false,
             stalled_for: 0.0,
-            obstacle_side: cfg.obstacle_counts.map_or(0.0, |o| f64::from(cfg.start_position_counts - o).signum()),
+            // In f64: the start and the obstacle may lie further apart than an i32 holds.
+            obstacle_side: cfg
+                .obstacle_counts
+                .map_or(0.0, |o| (f64::from(cfg.start_position_counts) - f64::from(o)).signum()),
             cumulated_stroke: 0.0,
             relay_in_cycles: 0,
             relay_out_cycles: 0,
@@ -100,7 +103,8 @@ impl ActuatorState {
     pub(super) fn reported_position(&self) -> i32 {
         let p = self.position.round() as i32;
         if !self.moving() && p <= self.cfg.stroke_min_counts {
-            p - self.cfg.in_end_undershoot_counts
+            // A stroke at the bottom of the counts range reads its lowest count.
+            p.saturating_sub(self.cfg.in_end_undershoot_counts)
         } else {
             p
         }

@@ -1,7 +1,7 @@
 //! The emulated unit's parameterisation: actuators, function mapping, presets, the TOML file.
 
 use super::*;
-use crate::model::{UserPositionData, UserPositions};
+use crate::model::{DataEntryExt, UserPositionData, UserPositions};
 
 /// One actuator's parameterisation.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -22,14 +22,15 @@ pub struct ActuatorConfig {
     /// Below this speed (percent) the actuator stalls: it does not move though the motion bit is set, as TLT
     /// columns do below about 30 %. 0: never stalls.
     pub stall_below_percent: u16,
-    /// On reaching the In end, the position reads this many counts below it (as real units do after homing).
+    /// On reaching the In end, the position reads this many counts below it (as real units do after homing):
+    /// 0 up to the stroke (`stroke_max_counts - stroke_min_counts`).
     pub in_end_undershoot_counts: i32,
     /// A drive that stays stalled (below [`ActuatorConfig::stall_below_percent`], or pushing against
     /// [`ActuatorConfig::obstacle_counts`]) this long while its motion is on is stopped with its drive error
     /// bit (15 for drive 1 .. 20 for drive 6) set, as the unit's drive time-out does. 0: never.
     pub stall_error_after_ms: u64,
-    /// An obstacle at this position: the drive cannot pass it and stalls there, pushing (twice its full-speed
-    /// current), until its stall error stops it. None: no obstacle.
+    /// An obstacle at this position, within the stroke: the drive cannot pass it and stalls there, pushing
+    /// (twice its full-speed current), until its stall error stops it. None: no obstacle.
     pub obstacle_counts: Option<i32>,
     /// Stored positions (UserPositionData). Its virtual limits bound every motion of the drive.
     pub user_positions: UserPositionData,
@@ -103,9 +104,9 @@ pub struct SimConfig {
     pub speed_mode: SpeedMode,
     /// Default remote speed of every function ("function speed from configuration").
     pub default_speed: u16,
-    /// Firmware info (0x0001).
+    /// Firmware info (0x0001): at most 31 bytes of UTF-8, the entry's size.
     pub firmware_info: String,
-    /// Configuration info (0x0002).
+    /// Configuration info (0x0002): at most 36 bytes of UTF-8, the entry's size.
     pub configuration_info: String,
     /// Above this total current of all drives, in 0.1 A, error bit 14 is set and every motion fast-stops.
     /// 0: no limit.
@@ -194,8 +195,9 @@ impl SimConfig {
     }
 
     /// A configuration file's `text` as `motionlink sim scu --sim-config` (and a gateway's `sim_config`) reads
-    /// it: `preset` is its starting point where the file names no preset of its own, and the firmware
-    /// `variants` are added to the file's.
+    /// it: `preset` is its starting point where the file names no preset of its own (a file that names another
+    /// preset is an error naming both; the same one is fine), and the firmware `variants` are added to the
+    /// file's.
     ///
     /// ```
     /// use motionlink_scu::SimConfig;
@@ -227,7 +229,18 @@ impl SimConfig {
             variants: Option<Vec<Variant>>,
         }
         let f: File = toml::from_str(text).map_err(|e| SimConfigError(e.to_string()))?;
-        let mut c = match f.preset.as_deref().or(default_preset) {
+        // The preset given beside the text is where a text that names none starts; a text that names another
+        // one contradicts it, and which of the two was meant is not known.
+        let preset = match (f.preset.as_deref(), default_preset) {
+            (Some(named), Some(given)) if named != given => {
+                return Err(SimConfigError(format!(
+                    "preset = {named:?} in the configuration differs from the preset {given:?} given with it: \
+                     name one of them, or the same in both"
+                )));
+            }
+            (named, given) => named.or(given),
+        };
+        let mut c = match preset {
             None | Some("scp11") => SimConfig::scp11(f.actuators.unwrap_or(2)),
             Some(name) => SimConfig::preset(name).ok_or_else(|| {
                 SimConfigError(format!("unknown preset {name:?} (known: {})", SimConfig::PRESETS.join(", ")))
@@ -329,6 +342,26 @@ impl SimConfig {
             if !(a.stroke_min_counts..=a.stroke_max_counts).contains(&a.start_position_counts) {
                 return Err(SimConfigError(format!("actuator {}: start_position_counts is outside the stroke", i + 1)));
             }
+            // The stroke in counts, in i64: the span of a stroke across the whole counts range is above i32::MAX.
+            let stroke_counts = i64::from(a.stroke_max_counts) - i64::from(a.stroke_min_counts);
+            if !(0..=stroke_counts).contains(&i64::from(a.in_end_undershoot_counts)) {
+                return Err(SimConfigError(format!(
+                    "actuator {}: in_end_undershoot_counts = {}: allowed 0 to {stroke_counts} (the stroke, \
+                     stroke_max_counts - stroke_min_counts)",
+                    i + 1,
+                    a.in_end_undershoot_counts
+                )));
+            }
+            if let Some(o) = a.obstacle_counts {
+                if !(a.stroke_min_counts..=a.stroke_max_counts).contains(&o) {
+                    return Err(SimConfigError(format!(
+                        "actuator {}: obstacle_counts = {o} is outside the stroke: allowed {} to {}",
+                        i + 1,
+                        a.stroke_min_counts,
+                        a.stroke_max_counts
+                    )));
+                }
+            }
             if !(a.counts_per_second_at_full_speed > 0.0 && a.counts_per_second_at_full_speed.is_finite()) {
                 return Err(SimConfigError(format!(
                     "actuator {}: counts_per_second_at_full_speed must be a finite number above 0, not {}",
@@ -350,6 +383,20 @@ impl SimConfig {
                     i + 1,
                     v.virtual_limit_in_counts,
                     v.virtual_limit_out_counts
+                )));
+            }
+        }
+        // The info texts are read as their data-list entries, zero-padded to the entry's size: a longer text
+        // would be cut, perhaps in the middle of a character.
+        for (name, text, index) in [
+            ("firmware_info", &self.firmware_info, DataIndex(0x0001)),
+            ("configuration_info", &self.configuration_info, DataIndex(0x0002)),
+        ] {
+            let size_bytes = crate::model::entry(index).map_or(0, DataEntryExt::size);
+            if text.len() > size_bytes {
+                return Err(SimConfigError(format!(
+                    "{name} {text:?} is {} bytes long: its data-list entry ({index}) holds at most {size_bytes} bytes",
+                    text.len()
                 )));
             }
         }

@@ -390,14 +390,17 @@ impl Emulator {
                             drive_errors |= 1 << (u32::from(error_bits::DRIVE1) - 1 + i as u32);
                         }
                     }
-                    let total: u16 = self.actuators.iter().map(ActuatorState::current).sum();
-                    self.max_total_current = self.max_total_current.max(total);
+                    // Summed in u32 (six drives of up to 6553.5 A each); the UINT16 entry 0x00BF reads at
+                    // most its maximum, while the limit is compared with the true total.
+                    let total_deci_amps: u32 = self.actuators.iter().map(|a| u32::from(a.current())).sum();
+                    let total_entry = u16::try_from(total_deci_amps).unwrap_or(u16::MAX);
+                    self.max_total_current = self.max_total_current.max(total_entry);
                     self.now = next;
                     if drive_errors != 0 {
                         self.inject_error(ErrorCode(drive_errors));
                     }
                     let limit = self.config.total_current_limit_deci_amps;
-                    if limit > 0 && total > limit && self.any_moving() {
+                    if limit > 0 && total_deci_amps > u32::from(limit) && self.any_moving() {
                         self.inject_error(ErrorCode::from_bit(error_bits::TOTAL_CURRENT));
                     }
                     self.note_rest();
