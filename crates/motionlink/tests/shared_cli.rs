@@ -211,6 +211,8 @@ fn powercube_send_takes_a_whole_rs232_telegram() {
     for (args, expected) in [
         (&["02", "04", "22", "0A", "3C", "6D", "03"][..], "wrong BCC 0x6D"),
         (&["02", "0C", "22", "0A", "3C", "6C", "03"][..], "not an RS232 telegram"),
+        // An answer's TELID (TELID_RECVDAT: 0x08, address bits in 1..0), named as the manual has it.
+        (&["02", "08", "21", "01", "2A", "03"][..], "an answer of a module (first TELID byte 0x08..0x0B"),
         (&["home"][..], "powercube home"),
     ] {
         let o = run_with(&[&["powercube", "--port", p, "send"][..], args].concat(), &[], "");

@@ -290,19 +290,19 @@ impl fmt::Display for Tolerance {
     }
 }
 
-/// How long a move (or a wait for one) may take before the axis is stopped, in seconds: more than 0
-/// (`--timeout-s`, `timeout_s=`).
+/// How long a move (or a wait for one) may take before the axis is stopped, in seconds: more than 0 and at
+/// most 10⁹ (about 32 years; the PowerCube's bound) (`--timeout-s`, `timeout_s=`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub struct TimeLimit(Duration);
 
 impl TimeLimit {
-    /// A limit of `s` seconds; refused unless more than 0 (and no longer than a `Duration` holds).
+    /// A limit of `s` seconds; refused unless more than 0 and at most 10⁹.
     pub fn from_secs(s: f64) -> Result<Self, ModelError> {
         Duration::try_from_secs_f64(s)
             .ok()
-            .filter(|d| !d.is_zero())
+            .filter(|d| !d.is_zero() && s <= 1e9)
             .map(TimeLimit)
-            .ok_or_else(|| out_of_range("time limit", format!("{} s", shown(s)), "more than 0 s"))
+            .ok_or_else(|| out_of_range("time limit", format!("{} s", shown(s)), "more than 0 s, at most 1e9 s"))
     }
 
     /// The limit.
@@ -429,7 +429,10 @@ mod tests {
         assert_eq!(refused::<SpeedPercent>("1e-300"), format!("speed 1e-300 % is out of range ({speed_range})"));
         assert_eq!(refused::<SpeedPercent>("0.0000009"), format!("speed 0.0000009 % is out of range ({speed_range})"));
         assert_eq!("0.000001".parse::<SpeedPercent>().unwrap().to_string(), "0.000001");
-        assert_eq!(refused::<TimeLimit>("1e-300"), "time limit 1e-300 s is out of range (more than 0 s)");
+        assert_eq!(
+            refused::<TimeLimit>("1e-300"),
+            "time limit 1e-300 s is out of range (more than 0 s, at most 1e9 s)"
+        );
         assert!(refused::<Position>("1e300").starts_with("position 1e300 is out of range"));
         assert_eq!(refused::<SpeedPercent>("fast"), "cannot read speed from \"fast\"");
         assert_eq!(refused::<Position>("nan"), "position must be a finite number, not nan");
@@ -443,8 +446,10 @@ mod tests {
             "in-position tolerance 0 is out of range (more than 0, at most 1000000, in the drive's unit)"
         );
         assert_eq!("0.5".parse::<Tolerance>().unwrap().position().units(), 0.5);
-        assert_eq!(refused::<TimeLimit>("0"), "time limit 0 s is out of range (more than 0 s)");
-        assert_eq!(refused::<TimeLimit>("-1"), "time limit -1 s is out of range (more than 0 s)");
+        assert_eq!(refused::<TimeLimit>("0"), "time limit 0 s is out of range (more than 0 s, at most 1e9 s)");
+        assert_eq!(refused::<TimeLimit>("-1"), "time limit -1 s is out of range (more than 0 s, at most 1e9 s)");
+        assert_eq!(refused::<TimeLimit>("1e300"), "time limit 1e300 s is out of range (more than 0 s, at most 1e9 s)");
+        assert!(TimeLimit::from_secs(1e9).is_ok());
         assert_eq!("1.5".parse::<TimeLimit>().unwrap().duration(), Duration::from_millis(1500));
 
         assert_eq!(refused::<ReplyTimeout>("0"), "reply timeout 0 ms is out of range (1..=60000 ms)");
