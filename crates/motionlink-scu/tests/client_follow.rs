@@ -125,3 +125,35 @@ fn a_cancel_while_a_follow_settles_stops_it_fast() {
     assert_eq!(stops(&rig), ["F1 stopped (RS fast)"]);
     assert!(client.started().is_empty());
 }
+
+#[test]
+fn without_a_function_map_every_actuator_of_the_follow_that_moved_is_judged_not_only_the_one_asked_for() {
+    // F1 drives A1 and A2 on this unit; the session does not know it. A2 meets an obstacle at 150 on its way
+    // to 300: it moved, so it is one F1 drives, and its miss fails the follow (was: only A1 judged, success).
+    let mut unit = SimConfig::from_toml("[[actuator]]\n[[actuator]]\nobstacle_counts = 150\n").unwrap();
+    unit.functions[0] = vec![a(1), a(2)];
+    let rig = Rig::new(unit);
+    let client = rig.client(Config { function_map: FunctionMap::unknown(), ..Default::default() });
+    let stream = client.stream(f(1), &[a(1), a(2)], pct(100)).unwrap();
+    let mut follower = Follower::new(stream, a(1), 10).unwrap();
+    follower.offer(vec![PositionCounts(300), PositionCounts(300)]);
+    assert!(follower.apply_due().unwrap().is_some());
+    let FollowFailure { error, stopped } = follower.finish(&CancelToken::new()).unwrap_err();
+    match &error {
+        Error::NotReached { misses, .. } => {
+            assert_eq!(misses.iter().map(|m| m.actuator).collect::<Vec<_>>(), [a(2)], "{error}");
+            assert!((140..=150).contains(&misses[0].reached_counts.get()), "{error}");
+        }
+        other => panic!("{other}"),
+    }
+    assert!(stopped.is_some());
+    // An actuator the follow holds where it stands (the function does not drive it) is not judged: A2 of an
+    // SCP11 unit, F1 driving A1 alone.
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(Config { function_map: FunctionMap::unknown(), ..Default::default() });
+    let mut follower = Follower::new(client.stream(f(1), &[a(1), a(2)], pct(100)).unwrap(), a(1), 10).unwrap();
+    follower.offer(vec![PositionCounts(300), PositionCounts(300)]);
+    assert!(follower.apply_due().unwrap().is_some());
+    let report = follower.finish(&CancelToken::new()).unwrap();
+    assert_eq!(report.rest, [(a(1), PositionCounts(300)), (a(2), PositionCounts(0))]);
+}

@@ -3,7 +3,8 @@
 //! `rate_hz` times a second, the newest pending one winning; at the end the newest pending target is applied,
 //! the motion is let reach it and the stream ends along the ramp (soft RS); a cancel or an error ends it at
 //! once (fast RS); success means each actuator the function drives ended within
-//! [`Config::position_tolerance_counts`](crate::Config::position_tolerance_counts) of its last target.
+//! [`Config::position_tolerance_counts`](crate::Config::position_tolerance_counts) of its last target (where
+//! the function map does not know the function: the actuator asked for, and every other one that moved).
 
 use std::time::Duration;
 
@@ -66,6 +67,9 @@ impl From<FollowFailure> for Error {
 pub struct Follower<'c> {
     stream: SetpointStream<'c>,
     primary: Actuator,
+    /// Where the stream's actuators stood when the follow began, read where the function map does not know
+    /// the function: one that moved since is one the function drives.
+    start: Option<Vec<PositionCounts>>,
     gap: Duration,
     last_update: Option<Timestamp>,
     pending: Option<Vec<PositionCounts>>,
@@ -75,15 +79,21 @@ pub struct Follower<'c> {
 
 impl<'c> Follower<'c> {
     /// Follows with `stream` at most `rate_hz` (at least 1) updates a second. `primary` is the actuator asked
-    /// for: where [`Config::function_map`](crate::Config::function_map) does not know the
-    /// stream's function, only it is judged at the end (the others of the stream are not known to be driven).
+    /// for: where [`Config::function_map`](crate::Config::function_map) does not know the stream's function,
+    /// it is judged at the end, and so is every other actuator of the stream that moved (one the function
+    /// drives, as a move judges them); their positions are read here for that.
     pub fn new(stream: SetpointStream<'c>, primary: Actuator, rate_hz: u32) -> Result<Self, Error> {
         if rate_hz == 0 {
             return Err(Error::invalid("a follow's rate is at least 1 update a second"));
         }
+        let start = match stream.client().config().function_map.drives(stream.function()) {
+            Some(_) => None,
+            None => Some(stream.positions()?.into_iter().map(|(_, p, _)| p).collect()),
+        };
         Ok(Follower {
             stream,
             primary,
+            start,
             gap: Duration::from_secs(1) / rate_hz,
             last_update: None,
             pending: None,
@@ -162,7 +172,8 @@ impl<'c> Follower<'c> {
         }
         let function = self.stream.function();
         let mode = if cancelled { StopMode::Fast } else { StopMode::Soft };
-        let (stream, updates, last_targets, primary) = (self.stream, self.updates, self.last_targets, self.primary);
+        let (stream, updates, last_targets, primary, start) =
+            (self.stream, self.updates, self.last_targets, self.primary, self.start);
         let client = stream.client();
         let report = FollowReport { rest: stream.stop(mode).map_err(failed)?, updates };
         if cancelled {
@@ -172,12 +183,19 @@ impl<'c> Follower<'c> {
         let Some(targets) = last_targets else { return Ok(report) };
         let tolerance_counts = client.config().position_tolerance_counts;
         let drives = client.config().function_map.drives(function);
-        let driven = |a: &Actuator| drives.as_ref().map_or(*a == primary, |d| d.contains(a));
+        let moved = |i: usize, p: PositionCounts| {
+            start.as_ref().is_some_and(|s| p.counts_from(s[i]).abs() > i64::from(tolerance_counts))
+        };
+        let driven = |i: usize, a: &Actuator, p: PositionCounts| {
+            drives.as_ref().map_or(*a == primary || moved(i, p), |d| d.contains(a))
+        };
         let misses: Vec<TargetMiss> = report
             .rest
             .iter()
             .zip(targets)
-            .filter(|((a, _), _)| driven(a))
+            .enumerate()
+            .filter(|(i, ((a, p), _))| driven(*i, a, *p))
+            .map(|(_, pair)| pair)
             .filter(|((_, p), t)| p.counts_from(*t).abs() > i64::from(tolerance_counts))
             .map(|(&(actuator, reached_counts), target_counts)| TargetMiss { actuator, target_counts, reached_counts })
             .collect();
