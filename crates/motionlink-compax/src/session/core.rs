@@ -20,6 +20,14 @@ use crate::wire::{Address, Body, EscapedBytes, Flags, Reply, ReplyDecoder, Reply
 /// Bits 1..=31: every drive address.
 pub(crate) const ALL_DRIVES: u32 = !1;
 
+/// The drives a command marked started before it was sent ([`Core::before_send`]), and which of them were
+/// started already: what a refusal gives back.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Marked {
+    drives: u32,
+    before: u32,
+}
+
 /// The bit of drive `a` in the session's sets of drives; for the broadcast address 32, every drive's.
 pub(crate) fn bit(a: Address) -> u32 {
     if a.is_broadcast() {
@@ -328,18 +336,26 @@ impl Core {
     // The record of the drives
 
     /// Records what sending a command with `effect` to `address` does, before it is sent (a move counts as
-    /// started before it is sent: if the session fails then, the stop still reaches it). Returns the state
-    /// to restore if the drive refuses the command (or it is never sent).
-    pub(crate) fn before_send(&mut self, address: Address, effect: Effect) -> u32 {
-        let saved = self.started;
-        if effect == Effect::Starts {
-            let drives = if address.is_broadcast() { self.known } else { bit(address) };
-            if address.is_broadcast() && drives == 0 {
-                tracing::warn!("a broadcast that may start motion before any drive answered: none can be stopped");
-            }
-            self.started |= drives;
+    /// started before it is sent: if the session fails then, the stop still reaches it). Returns what to give
+    /// [`Core::unmark`] if the drive refuses the command (or it is never sent).
+    pub(crate) fn before_send(&mut self, address: Address, effect: Effect) -> Marked {
+        let drives = match effect {
+            Effect::Starts if address.is_broadcast() => self.known,
+            Effect::Starts => bit(address),
+            _ => 0,
+        };
+        if effect == Effect::Starts && address.is_broadcast() && drives == 0 {
+            tracing::warn!("a broadcast that may start motion before any drive answered: none can be stopped");
         }
-        saved
+        let marked = Marked { drives, before: self.started & drives };
+        self.started |= drives;
+        marked
+    }
+
+    /// A command [`Core::before_send`] marked was refused or never sent: its drives are as they were before
+    /// it. Only its own drives: another operation may have set others moving meanwhile.
+    pub(crate) fn unmark(&mut self, marked: Marked) {
+        self.started = (self.started & !marked.drives) | marked.before;
     }
 
     /// Records what a command with `effect` did once the drive took it.
@@ -352,10 +368,19 @@ impl Core {
     }
 
     /// Before a `!` to `address` (32: every drive) is sent: the buffered moves it executes count as started.
-    pub(crate) fn execute_buffers(&mut self, address: Address) {
+    /// Returns what to give [`Core::unexecute`] if the `!` is refused or never sent.
+    pub(crate) fn execute_buffers(&mut self, address: Address) -> Marked {
         let executed = self.buffered & bit(address);
+        let marked = Marked { drives: executed, before: self.started & executed };
         self.started |= executed;
         self.buffered &= !executed;
+        marked
+    }
+
+    /// A `!` [`Core::execute_buffers`] marked was refused or never sent: its moves are still buffered.
+    pub(crate) fn unexecute(&mut self, marked: Marked) {
+        self.unmark(marked);
+        self.buffered |= marked.drives;
     }
 
     /// Forgets `a` as moving: its positioning ended (or the broadcast address: every drive's). Its

@@ -473,3 +473,16 @@ fn a_cancel_while_the_move_s_execute_is_unanswered_stops_the_drive_and_says_canc
     assert_eq!(after, ["1S17\r", "1OUTPUT O0=0\r", "1S17\r"], "the stop only");
     assert!(!b.drive(1).is_moving() && b.drive(1).o0() == 0);
 }
+
+#[test]
+fn a_refused_move_forgets_only_its_own_drive_not_one_another_operation_set_moving_meanwhile() {
+    let mut b = Bench::bus(&[1, 2], 0, 9600);
+    b.run(Op::Stop(a(1))).unwrap();
+    // Drive 1 is switched off and refuses its move; drive 2's move waits its turn behind it, counted as started.
+    let refused = b.session.start(Op::Move(a(1), Command::PosA(pos(50.0)), MoveOptions::default()), b.now);
+    let taken = b.session.start(Op::Move(a(2), Command::PosA(pos(500.0)), MoveOptions::default()), b.now);
+    assert!(b.finish(refused).is_err());
+    b.finish(taken).unwrap();
+    assert!(b.drive(2).is_moving());
+    assert_eq!(b.session.started(), [a(2)], "drive 2 moves: the session still knows it, and its close stops it");
+}

@@ -276,9 +276,7 @@ impl Ctx {
         }
         let saved = self.core().before_send(address, effect);
         let executes = matches!(body, Body::Execute) && !flags.echo && !flags.buffer;
-        if executes {
-            self.core().execute_buffers(address);
-        }
+        let executed = if executes { Some(self.core().execute_buffers(address)) } else { None };
         let stores_move =
             flags.buffer && matches!(body, Body::Command(t) if Command::parse(t).is_ok_and(|c| c.is_move()));
         match self.exchange(&Request { address, body, flags }, Retry::DiscardedOnly).await {
@@ -292,8 +290,15 @@ impl Ctx {
                 Ok(r.map(|r| r.text_str().to_string()))
             }
             Err(e @ (Error::Refused { .. } | Error::CancelledBeforeMotion | Error::Encode(_))) => {
-                // Refused, or never sent: it started nothing (an axis that was moving before still is).
-                self.core().started = saved;
+                // Refused, or never sent: it started nothing (an axis that was moving before still is), and a
+                // `!` executed no buffer.
+                {
+                    let mut core = self.core();
+                    core.unmark(saved);
+                    if let Some(executed) = executed {
+                        core.unexecute(executed);
+                    }
+                }
                 if effect == Effect::Starts && matches!(e, Error::Refused { .. }) {
                     return Err(self.explain_refused_move(address, e).await);
                 }

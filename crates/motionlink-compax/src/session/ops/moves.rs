@@ -76,8 +76,9 @@ impl Ctx {
         };
         let restore = || {
             let mut core = self.core();
-            core.started = saved;
-            core.awaiting_message = saved_awaiting;
+            core.unmark(saved);
+            // Only this drive's: another operation may be awaiting its own drive's message meanwhile.
+            core.awaiting_message = (core.awaiting_message & !bit(address)) | (saved_awaiting & bit(address));
         };
         // The drive's target S2 as read after a lost reply, and the error that says it does not tell.
         let mut s2_read = None;
@@ -185,7 +186,7 @@ impl Ctx {
             }
         }
         self.check_cancel()?;
-        {
+        let executed = {
             let mut core = self.core();
             for (a, _) in moves {
                 if message {
@@ -193,16 +194,14 @@ impl Ctx {
                     core.message_seen &= !bit(*a);
                 }
             }
-            core.execute_buffers(Address::BROADCAST);
-        }
+            core.execute_buffers(Address::BROADCAST)
+        };
         let req = Request { address: Address::BROADCAST, body: Body::Execute, flags: Flags::NONE };
         match self.exchange(&req, Retry::DiscardedOnly).await {
             Ok(_) => Ok(()),
             Err(Error::CancelledBeforeMotion) => {
                 // The `!` never went out: the moves stay in the buffers.
-                let mut core = self.core();
-                core.started &= !stored;
-                core.buffered |= stored;
+                self.core().unexecute(executed);
                 Err(Error::CancelledBeforeMotion)
             }
             Err(e) => Err(e),
@@ -223,7 +222,7 @@ impl Ctx {
         match self.exchange(&req, Retry::DiscardedOnly).await {
             Ok(_) => {}
             Err(e @ Error::CancelledBeforeMotion) => {
-                self.core().started = saved;
+                self.core().unmark(saved);
                 return Err(e);
             }
             Err(e) => return Err(e),
