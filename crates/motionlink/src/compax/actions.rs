@@ -168,14 +168,14 @@ pub(super) fn move_drive(
         // before that stops it instead).
         let started = bus.start_and_release(drive, &plan.request).map_err(fail)?;
         let now = bus.read_position(drive);
-        let now = now.map_err(|e| handed_over_then(&[drive], fail(e)))?;
+        let now = now.map_err(|e| handed_over_then(args, &[drive], fail(e)))?;
         if crate::term::json() {
             args.out().print(out, &HandedOver { started: &started, position_units: now })?;
         } else {
             writeln!(out, "drive {drive}: target {} {UNITS}, position {now} {UNITS} (moving on)", started.target)?;
             common::not_verified(out, &started.not_verifiable)?;
         }
-        return signal_after_hand_over(&[drive]);
+        return signal_after_hand_over(args, &[drive]);
     }
     let bar = common::progress_bar(0, format!("drive {drive}"));
     let mut started_at: Option<f64> = None;
@@ -286,34 +286,36 @@ pub(super) fn raw(
         }
     }
     if !handed_over.is_empty() {
-        common::say(format!("motionlink: {}", moving_on(handed_over)));
+        common::say(format!("motionlink: {}", moving_on(args, handed_over)));
     }
-    signal_after_hand_over(handed_over)
+    signal_after_hand_over(args, handed_over)
 }
 
-/// What a command that handed moves over says of them: they run on, and how to stop them.
-fn moving_on(drives: &[Address]) -> String {
+/// What a command that handed moves over says of them: they run on, and how to stop them (a command on the
+/// same port and bus settings).
+fn moving_on(args: &Args, drives: &[Address]) -> String {
     let list = drives.iter().map(ToString::to_string).collect::<Vec<_>>().join(", ");
     let first = drives.first().map_or(1, |a| a.get());
     format!(
-        "drive {list} moving on: handed over, not stopped by this command (COMPAX has no watchdog); `motionlink \
-         compax --drive {first} stop` stops it"
+        "drive {list} moving on: handed over, not stopped by this command (COMPAX has no watchdog); `{} --drive \
+         {first} stop` stops it",
+        super::same_line(args)
     )
 }
 
 /// `e`, which came after the moves of `drives` were handed over: it says that they run on.
-fn handed_over_then(drives: &[Address], e: CliError) -> CliError {
-    e.map_message(|m| format!("{m}; {}", moving_on(drives)))
+fn handed_over_then(args: &Args, drives: &[Address], e: CliError) -> CliError {
+    e.map_message(|m| format!("{m}; {}", moving_on(args, drives)))
 }
 
 /// The end of a command that handed the moves of `drives` over: a signal that came meanwhile ends it (exit
 /// 128 + n) saying that they were not stopped.
-fn signal_after_hand_over(drives: &[Address]) -> Result<(), CliError> {
+fn signal_after_hand_over(args: &Args, drives: &[Address]) -> Result<(), CliError> {
     match common::stop_cause() {
         Some(cause @ common::StopCause::Signal(_)) if !drives.is_empty() => Err(CliError::Interrupted(format!(
             "{} came after the move was handed over; {}",
             cause.name(),
-            moving_on(drives)
+            moving_on(args, drives)
         ))),
         _ => Ok(()),
     }

@@ -227,16 +227,20 @@ pub enum Direction {
     Drive,
 }
 
-/// How to switch drive `a` on again, as a command line on the same port and bus settings.
-fn switch_on_hint(args: &Args, a: u8) -> String {
+/// `motionlink compax` on the same port and bus settings, for a hint that gives a command to run.
+fn same_line(args: &Args) -> String {
     // The port as resolved (from --port, --device or MOTIONLINK_PORT), else as given.
     let port = match (args.resolved_port.as_str(), args.port.as_deref()) {
         ("", Some(p)) => p,
         ("", None) => "PORT",
         (resolved, _) => resolved,
     };
-    let cmd = format!("motionlink compax --port {port}{}", bus_options(args));
-    format!("drive {a} is switched off; to switch it on again: {cmd} --drive {a} output 0 1")
+    format!("motionlink compax --port {port}{}", bus_options(args))
+}
+
+/// How to switch drive `a` on again, as a command line on the same port and bus settings.
+fn switch_on_hint(args: &Args, a: u8) -> String {
+    format!("drive {a} is switched off; to switch it on again: {} --drive {a} output 0 1", same_line(args))
 }
 
 /// An error of the library with the message the command line shows: classed as the library classes it.
