@@ -39,9 +39,9 @@ fn telegram_payload(bytes: &[u8], module: u8) -> Result<Payload, CliError> {
         )));
     }
     match (frame.kind, frame.address) {
-        (TelKind::Recv, _) => {
-            Err(CliError::usage(format!("{hex}: an answer of a module (first TELID byte 0x08..0x0B, TELID_RECVDAT), not a command")))
-        }
+        (TelKind::Recv, _) => Err(CliError::usage(format!(
+            "{hex}: an answer of a module (first TELID byte 0x08..0x0B, TELID_RECVDAT), not a command"
+        ))),
         (_, 0) => Err(CliError::usage(format!("{hex}: a broadcast (address 0); send takes a command to one module"))),
         (_, a) if a != module => {
             Err(CliError::usage(format!("{hex}: the telegram is for module {a}, not {module}: give --module {a}")))
