@@ -73,7 +73,8 @@ fn powercube_and_compax_port_sim_have_the_unit_the_command_names() {
 
 /// A client that holds the emulator's one connection (served: the emulator answered it).
 fn first_client(sim: &Sim, hello: &[u8]) -> TcpStream {
-    let mut s = TcpStream::connect(sim.address.strip_prefix("tcp://").unwrap()).unwrap();
+    let tcp = sim.address.strip_prefix("slcan://").unwrap_or(&sim.address);
+    let mut s = TcpStream::connect(tcp.strip_prefix("tcp://").unwrap()).unwrap();
     s.write_all(hello).unwrap();
     s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
     let mut buf = [0u8; 1];
@@ -111,9 +112,12 @@ fn a_second_client_is_told_the_port_is_busy_in_one_line_with_exit_code_3() {
 fn an_slcan_adapter_behind_a_busy_emulator_is_told_busy_too() {
     let sim = Sim::start("powercube", &["--slcan", "--tcp", "127.0.0.1:0"]);
     let _first = first_client(&sim, b"V\r");
-    let o = run(&["powercube", "--port", &format!("slcan://{}", sim.address), "info"]);
+    // `motionlink sim` names the port to give: the adapter's URL.
+    assert!(sim.address.starts_with("slcan://tcp://"), "{}", sim.address);
+    let o = run(&["powercube", "--port", &sim.address, "info"]);
     assert_eq!(o.status.code(), Some(3), "{o:?}");
     // The TCP port behind the adapter is what is busy.
     let said = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(said, format!("motionlink: {} is busy: another client is connected\n", sim.address), "{o:?}");
+    let tcp = sim.address.strip_prefix("slcan://").unwrap();
+    assert_eq!(said, format!("motionlink: {tcp} is busy: another client is connected\n"), "{o:?}");
 }

@@ -10,7 +10,7 @@ mod serve;
 mod signals;
 
 pub use output::*;
-pub use serve::{config_text, serve, ServeArgs};
+pub use serve::{config_text, serve, serve_behind, ServeArgs};
 pub use signals::{interrupt_token, stop_cause, StopCause};
 use signals::{record_stop_cause, SIGINT};
 

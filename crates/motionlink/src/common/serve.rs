@@ -34,6 +34,12 @@ pub struct ServeTarget {
 
 /// Serves `device` as `args` say, prints the single `listening on ...` line, and serves until killed.
 pub fn serve<E: Emulator + 'static>(args: &ServeArgs, device: E) -> Result<(), CliError> {
+    serve_behind(args, device, "")
+}
+
+/// [`serve`] for a device behind an adapter whose port URL starts with `scheme` (`slcan://`): the line
+/// names the port a client gives (`listening on slcan://tcp://127.0.0.1:PORT`).
+pub fn serve_behind<E: Emulator + 'static>(args: &ServeArgs, device: E, scheme: &str) -> Result<(), CliError> {
     let device = Arc::new(Mutex::new(device));
     let clock = RealClock::shared();
     let mut options = ServeOptions::default();
@@ -87,11 +93,11 @@ pub fn serve<E: Emulator + 'static>(args: &ServeArgs, device: E) -> Result<(), C
             listening: &'a str,
         }
         let kind = if args.target.tcp.is_some() { "tcp" } else { "pty" };
-        to_json(&Listening { kind, listening: server.address() }).to_string()
+        to_json(&Listening { kind, listening: &format!("{scheme}{}", server.address()) }).to_string()
     } else if args.target.tcp.is_some() {
-        format!("listening on {}", server.address())
+        format!("listening on {scheme}{}", server.address())
     } else {
-        format!("listening on pty {}", server.address())
+        format!("listening on pty {scheme}{}", server.address())
     };
     let mut stdout = std::io::stdout().lock();
     writeln!(stdout, "{line}")?;

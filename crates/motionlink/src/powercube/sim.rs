@@ -36,7 +36,7 @@ pub fn sim(args: SimArgs) -> Result<(), CliError> {
         if args.strict {
             return Err(CliError::usage("--strict is about RS232 BCCs; it has no meaning with --slcan"));
         }
-        common::serve(&args.serve, SlcanAdapter::new(Emulator::new_can(&config)))
+        common::serve_behind(&args.serve, SlcanAdapter::new(Emulator::new_can(&config)), "slcan://")
     } else {
         let mut bus = Emulator::new(&config);
         bus.set_strict_bcc(args.strict);

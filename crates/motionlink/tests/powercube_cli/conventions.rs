@@ -121,7 +121,7 @@ pub(super) fn watch_into_a_closed_pipe_ends_quietly_with_0() {
 pub(super) fn an_slcan_adapter_behind_a_tcp_port_is_reached_by_slcan_tcp() {
     // The emulated modules on CAN behind an emulated SLCAN adapter, served on TCP: `slcan://tcp://HOST:PORT`.
     let sim = Sim::start("powercube", &["--slcan", "--tcp", "127.0.0.1:0", "--modules", "1,17"]);
-    let port = format!("slcan://{}", sim.address);
+    let port = sim.address.clone();
     let found = ok(&port, &["scan"]);
     assert!(
         found.lines().filter(|l| l.trim_start().starts_with("1 ") || l.trim_start().starts_with("17 ")).count() == 2,

@@ -139,7 +139,7 @@ fn over_a_pty() {
 #[test]
 fn over_slcan_on_a_pty() {
     let sim = Sim::start("powercube", &["--pty", "--slcan", "--modules", "3,9"]);
-    let port = format!("slcan://{}", sim.address);
+    let port = sim.address.clone();
     let scan = ok(&port, &["scan"]);
     assert!(scan.lines().any(|l| l.starts_with("3 ")) && scan.lines().any(|l| l.starts_with("9 ")), "{scan}");
     assert!(ok(&port, &["--module", "9", "home"]).starts_with("homed"));

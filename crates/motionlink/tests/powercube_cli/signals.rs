@@ -296,21 +296,21 @@ fn a_killed_move_is_stopped_by_the_watchdog(sim: &Sim, port: &str) {
 #[test]
 fn a_killed_move_over_slcan_is_stopped_by_the_watchdog() {
     let sim = Sim::start("powercube", &["--pty", "--slcan", "--modules", "1"]);
-    a_killed_move_is_stopped_by_the_watchdog(&sim, &format!("slcan://{}", sim.address));
+    a_killed_move_is_stopped_by_the_watchdog(&sim, &sim.address);
 }
 
 #[cfg(unix)]
 #[test]
 fn a_killed_move_over_rs232_is_stopped_by_the_watchdog() {
     let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0"]);
-    a_killed_move_is_stopped_by_the_watchdog(&sim, &sim.address.clone());
+    a_killed_move_is_stopped_by_the_watchdog(&sim, &sim.address);
 }
 
 #[cfg(unix)]
 #[test]
 fn a_move_over_slcan_leaves_the_module_as_it_found_it() {
     let sim = Sim::start("powercube", &["--pty", "--slcan", "--modules", "4"]);
-    let port = format!("slcan://{}", sim.address);
+    let port = sim.address.clone();
     let p = port.as_str();
     let config_before = json_value(p, "4", "Config");
     assert!(ok(p, &["--module", "4", "home"]).starts_with("homed"));
