@@ -3,15 +3,18 @@
 //! results. Waits are on the module's state, never fixed sleeps.
 
 use motionlink_powercube::PortLink;
+use std::future::Future;
+use std::task::Poll;
 use std::time::Duration;
 
 use motionlink_link::can::{CanBus, CanBusConfig};
-use motionlink_link::RealClock;
-use motionlink_powercube::client::{AsyncClient, Config, StopOutcome};
+use motionlink_link::{RealClock, SharedClock};
+use motionlink_powercube::client::{AsyncClient, Config, Guard, MoveSpec, StopOutcome};
 use motionlink_powercube::model::{
-    Acceleration, Address, AxisUnit, ConfigFlag, ModuleKind, Param, Position, Ramp, ShortFlag, StateFlag, Value,
-    Velocity,
+    Acceleration, Address, AxisUnit, ConfigFlag, CubeState, ModuleKind, Param, Position, Ramp, ShortFlag, StateFlag,
+    Value, Velocity,
 };
+use motionlink_powercube::session::Op;
 use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::wire::{Reply, Request};
 use motionlink_powercube::{Emulator, Error};
@@ -122,5 +125,133 @@ fn async_request_many_answers_each_request_and_refuses_a_bad_one_alone() {
         assert_eq!(client.known(), vec![a(1), a(2)]);
         assert!(client.started().is_empty(), "reads set nothing in motion");
         client.close().await.unwrap();
+    })
+}
+
+/// Two futures polled together until both are done (what `tokio::join!` does), their outputs.
+async fn join2<A: std::future::Future, B: std::future::Future>(a: A, b: B) -> (A::Output, B::Output) {
+    let (mut a, mut b) = (Box::pin(a), Box::pin(b));
+    let (mut out_a, mut out_b) = (None, None);
+    std::future::poll_fn(|cx| {
+        if out_a.is_none() {
+            if let Poll::Ready(v) = a.as_mut().poll(cx) {
+                out_a = Some(v);
+            }
+        }
+        if out_b.is_none() {
+            if let Poll::Ready(v) = b.as_mut().poll(cx) {
+                out_b = Some(v);
+            }
+        }
+        if out_a.is_some() && out_b.is_some() {
+            Poll::Ready(())
+        } else {
+            Poll::Pending
+        }
+    })
+    .await;
+    (out_a.unwrap(), out_b.unwrap())
+}
+
+/// A move of a rotary module to `target` rad at 1 rad/s and 2 rad/s².
+fn spec(target: f32) -> MoveSpec {
+    MoveSpec {
+        vel: Some(Velocity::rad_per_s(1.0)),
+        acc: Some(Acceleration::rad_per_s2(2.0)),
+        ..MoveSpec::to(Position::rad(target))
+    }
+}
+
+/// State, position and whether the watchdog is online of module `n`, straight from the emulator, now.
+fn device(bus: &CanBus<Emulator>, clock: &SharedClock, n: u8) -> (CubeState, f32, bool) {
+    bus.with_device(|d| {
+        d.update(clock.now());
+        let m = d.module(n).unwrap();
+        (m.state(), m.position().value(), m.watchdog_online())
+    })
+    .unwrap()
+}
+
+#[test]
+fn two_guarded_moves_at_once_on_the_async_client_each_end_only_their_own_module() {
+    run(async {
+        let (bus, client) = setup().await;
+        let clock = client.clock().clone();
+        let (m1, m2) = (client.module(a(1)), client.module(a(2)));
+        let (one, two) =
+            join2(m1.move_to_guarded(&spec(0.3), Guard::Watchdog), m2.move_to_guarded(&spec(1.2), Guard::Watchdog))
+                .await;
+        for (n, target, result) in [(1, 0.3, one), (2, 1.2, two)] {
+            let report = result.unwrap_or_else(|e| panic!("module {n}: {e}"));
+            assert!((report.reached.value() - target).abs() <= 0.001 && report.verified, "module {n}: {report:?}");
+        }
+        assert!(!client.watchdog_served());
+        assert_eq!(client.close().await.map_err(|e| e.to_string()), Ok(vec![]));
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        for (n, target) in [(1, 0.3), (2, 1.2)] {
+            let (state, position, online) = device(&bus, &clock, n);
+            assert!(!state.contains(StateFlag::Halted) && !state.has_fault() && !online, "module {n}: {state}");
+            assert!((position - target).abs() <= 0.001, "module {n}: {position}");
+        }
+    })
+}
+
+#[test]
+fn two_guarded_moves_cancelled_on_the_async_client_halt_both_and_leave_no_watchdog_online() {
+    run(async {
+        let (bus, client) = setup().await;
+        let clock = client.clock().clone();
+        let one = client.start(Op::MoveGuarded(a(1), spec(1.2), Guard::Watchdog));
+        let two = client.start(Op::MoveGuarded(a(2), spec(1.5), Guard::Watchdog));
+        tokio::time::sleep(Duration::from_millis(400)).await;
+        assert!(device(&bus, &clock, 1).0.contains(StateFlag::Motion) && device(&bus, &clock, 2).2, "under way");
+        one.cancel();
+        two.cancel();
+        let (one, two) = join2(one, two).await;
+        for (n, result) in [(1, one), (2, two)] {
+            assert!(
+                matches!(result, Err(Error::Cancelled { address, stop: StopOutcome::Confirmed }) if address == a(n)),
+                "module {n}: {result:?}"
+            );
+            let (state, _, online) = device(&bus, &clock, n);
+            assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "module {n}: {state}");
+            assert!(!online, "module {n}: watchdog offline");
+        }
+        // The moves halted their modules: the close has nothing left to halt, and says so truly.
+        assert_eq!(client.close().await.map_err(|e| e.to_string()), Ok(vec![]));
+        tokio::time::sleep(Duration::from_secs(1)).await;
+        for n in [1, 2] {
+            let (state, _, online) = device(&bus, &clock, n);
+            assert!(!online && !state.contains(StateFlag::CommError), "module {n}: {state}");
+        }
+    })
+}
+
+#[test]
+fn a_guarded_move_future_dropped_while_another_runs_leaves_the_other_going_to_its_target() {
+    run(async {
+        let (bus, client) = setup().await;
+        let clock = client.clock().clone();
+        let (m1, m2) = (client.module(a(1)), client.module(a(2)));
+        let (far, near) = (spec(1.2), spec(0.9));
+        let mut one = Box::pin(m1.move_to_guarded(&far, Guard::Watchdog));
+        let mut two = Box::pin(m2.move_to_guarded(&near, Guard::Watchdog));
+        let mut a_while = Box::pin(tokio::time::sleep(Duration::from_millis(400)));
+        // Both polled for a while (neither ends), then the first dropped: what `select!` does to a losing branch.
+        std::future::poll_fn(|cx| {
+            assert!(one.as_mut().poll(cx).is_pending() && two.as_mut().poll(cx).is_pending(), "ended too soon");
+            a_while.as_mut().poll(cx)
+        })
+        .await;
+        drop(one);
+        let report = two.await.unwrap_or_else(|e| panic!("module 2: {e}"));
+        assert!((report.reached.value() - 0.9).abs() <= 0.001 && report.verified, "{report:?}");
+        let (state, position, online) = device(&bus, &clock, 2);
+        assert!(!state.contains(StateFlag::Halted) && !state.has_fault() && !online, "{state}");
+        assert!((position - 0.9).abs() <= 0.001, "{position}");
+        client.close().await.unwrap();
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        let (state, _, online) = device(&bus, &clock, 1);
+        assert!(state.contains(StateFlag::Halted) && !online && !state.contains(StateFlag::CommError), "{state}");
     })
 }

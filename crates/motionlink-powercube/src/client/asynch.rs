@@ -169,7 +169,8 @@ impl AsyncClient {
         self.call(calls::done(Op::EnableWatchdog(addresses.to_vec()))).await
     }
 
-    /// Switches the watchdogs this session switched on off again.
+    /// Switches the watchdogs this session switched on off again (see [`Op::DisableWatchdog`]; a watchdog that
+    /// a guarded motion under way armed stays online until the motion ends).
     pub async fn disable_watchdog(&self) -> Result<(), Error> {
         self.call(calls::done(Op::DisableWatchdog)).await
     }
@@ -382,7 +383,8 @@ impl AsyncModule<'_> {
         self.client.call(calls::move_to(self.address, *spec, None)).await
     }
 
-    /// [`AsyncModule::move_to`] under `guard`.
+    /// [`AsyncModule::move_to`] under `guard`: its end halts and disarms this module alone (see
+    /// [`Op::MoveGuarded`]).
     pub async fn move_to_guarded(&self, spec: &MoveSpec, guard: Guard) -> Result<MoveReport, Error> {
         self.client.call(calls::move_to(self.address, *spec, Some(guard))).await
     }

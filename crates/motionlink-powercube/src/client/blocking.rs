@@ -203,7 +203,8 @@ impl Client {
         self.call(calls::done(Op::EnableWatchdog(addresses.to_vec())))
     }
 
-    /// Undoes [`Client::enable_watchdog`] (see [`Op::DisableWatchdog`]).
+    /// Undoes [`Client::enable_watchdog`] (see [`Op::DisableWatchdog`]; a watchdog that a guarded motion
+    /// under way armed stays online until the motion ends).
     pub fn disable_watchdog(&self) -> Result<(), Error> {
         self.call(calls::done(Op::DisableWatchdog))
     }
@@ -456,7 +457,9 @@ impl Module<'_> {
         self.client.call_with(calls::move_to(self.address, *spec, None), progress)
     }
 
-    /// [`Module::move_to`] under `guard` (see [`Guard`]): what `motionlink powercube move` does.
+    /// [`Module::move_to`] under `guard` (see [`Guard`]): what `motionlink powercube move` does. Its end halts
+    /// and disarms this module alone, so other threads' guarded motions of other modules go on; a second one
+    /// of this module while one runs is refused (see [`Op::MoveGuarded`]).
     pub fn move_to_guarded(
         &self,
         spec: &MoveSpec,

@@ -76,6 +76,19 @@ pub(crate) struct WatchdogDuty {
     pub next_due: Timestamp,
     /// Modules whose watchdog this session switched on.
     pub online: BTreeSet<u8>,
+    /// Modules to which an operation is sending a life sign now (switching the watchdog on or off): it
+    /// claimed the toggle (taken out of `online` to switch it off), so that no other operation sends a second
+    /// one, which would toggle it back. Their watchdog may be online.
+    pub toggling: BTreeSet<u8>,
+    /// Modules armed by [`Op::EnableWatchdog`](crate::session::Op): switched off only by
+    /// [`Op::DisableWatchdog`](crate::session::Op) or the close, never at the end of a guarded motion.
+    pub by_user: BTreeSet<u8>,
+    /// Modules whose watchdog a guarded motion under way arms (or found armed) for its motion: its end
+    /// switches it off (unless in `by_user`); [`Op::DisableWatchdog`](crate::session::Op) leaves it to it.
+    pub held: BTreeSet<u8>,
+    /// Counts the spells of the refresh (each [`WatchdogDuty::start_serving`]): an observation of a
+    /// watchdog with the refresh stopped holds only if no new spell began meanwhile.
+    pub spell: u64,
     /// Modules in which this session set CONFIGID_MOD_WATCHDOG_ENABLE, with their Config word before.
     pub config_before: BTreeMap<u8, ConfigWord>,
     /// Modules that got a life sign this session could not confirm: their watchdog may be online or not.
@@ -97,9 +110,22 @@ impl WatchdogDuty {
     /// Starts serving the refresh at `now` (the timing of an earlier spell forgotten).
     pub fn start_serving(&mut self, now: Timestamp) {
         self.serving = true;
+        self.spell += 1;
         self.next_due = now;
         self.last_refresh = None;
         self.longest_gap = Duration::ZERO;
+    }
+
+    /// True if the watchdog of `address` is (or may be) online by this session's doing: switched on, a life
+    /// sign not confirmed, or one under way.
+    pub fn may_be_online(&self, address: u8) -> bool {
+        self.online.contains(&address) || self.uncertain.contains(&address) || self.toggling.contains(&address)
+    }
+
+    /// Every module whose watchdog is (or may be) online by this session's doing, in address order.
+    pub fn left_online(&self) -> Vec<u8> {
+        let all: BTreeSet<u8> = self.online.iter().chain(&self.uncertain).chain(&self.toggling).copied().collect();
+        all.into_iter().collect()
     }
 
     /// The refresh goes out at `now`.
@@ -146,8 +172,15 @@ pub(crate) struct Core {
     /// link error at once.
     broadcast_out: Option<Ticket>,
     pub duty: WatchdogDuty,
-    /// Modules this session may have set in motion and has not seen stop.
+    /// Modules this session may have set in motion and has not seen stop. Changed one module at a time
+    /// ([`Core::mark_started`], [`Core::seen_stopped`]), never replaced by a copy taken before an await: a
+    /// module another operation set in motion meanwhile would be forgotten.
     pub started: BTreeSet<u8>,
+    /// How often each module was counted as set in motion ([`Core::mark_started`]): an operation that saw a
+    /// module at rest takes it off `started` only if nothing set it in motion again since it looked.
+    pub start_count: BTreeMap<u8, u64>,
+    /// Modules a guarded motion of this session is under way on (`Ctx::guarded`): a second one is refused.
+    pub guarded: BTreeSet<u8>,
     /// When this session last sent each module a motion command.
     pub motion_sent: BTreeMap<u8, Timestamp>,
     /// Modules known to exist: every address that has answered this session.
@@ -181,6 +214,8 @@ impl Core {
             broadcast_out: None,
             duty: WatchdogDuty::default(),
             started: BTreeSet::new(),
+            start_count: BTreeMap::new(),
+            guarded: BTreeSet::new(),
             motion_sent: BTreeMap::new(),
             known: BTreeSet::new(),
             kinds: BTreeMap::new(),
@@ -188,6 +223,26 @@ impl Core {
             warned: BTreeSet::new(),
             failed: false,
             round_trips: None,
+        }
+    }
+
+    /// Counts module `address` as set in motion (again): a motion command, a Home, a broadcast that reaches
+    /// it, an acknowledge of one it was not sent, or a stop not confirmed.
+    pub fn mark_started(&mut self, address: u8) {
+        self.started.insert(address);
+        *self.start_count.entry(address).or_default() += 1;
+    }
+
+    /// How often module `address` has been counted as set in motion, for [`Core::seen_stopped`].
+    pub fn start_mark(&self, address: u8) -> u64 {
+        self.start_count.get(&address).copied().unwrap_or(0)
+    }
+
+    /// Module `address` was seen at rest (or halted) by an operation that looked when its count was `mark`
+    /// ([`Core::start_mark`]): it is taken off `started` unless something set it in motion again since.
+    pub fn seen_stopped(&mut self, address: u8, mark: u64) {
+        if self.start_mark(address) == mark {
+            self.started.remove(&address);
         }
     }
 
@@ -422,7 +477,7 @@ impl Core {
                 if let Ok(r) = Reply::decode(&payload) {
                     if moves(&r) {
                         tracing::warn!("module {address} acknowledged {r}, which it was not sent: it may be moving");
-                        self.started.insert(address);
+                        self.mark_started(address);
                     }
                 }
             }
@@ -459,7 +514,9 @@ impl Core {
                             tracing::warn!(
                                 "module {address} acknowledged {r}, which it was not sent: it may be moving"
                             );
+                            // `mark_started`, with the exchange in flight still borrowed.
                             self.started.insert(address);
+                            *self.start_count.entry(address).or_default() += 1;
                         }
                         // On a line that carries one request at a time, a frame from the module asked that
                         // answers something else is a corrupted answer (its echoed command or parameter is

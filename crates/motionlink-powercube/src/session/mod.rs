@@ -139,10 +139,15 @@ pub enum Op {
     /// confirmed. [`Output::Moved`].
     MoveTo(Address, MoveSpec),
     /// [`Op::HomeAndWait`] under a [`Guard`]; what the guard could not do is in the report's
-    /// `not_verifiable`. [`Output::Homed`].
+    /// `not_verifiable`. Its end halts and disarms this module alone (see [`Op::MoveGuarded`]).
+    /// [`Output::Homed`].
     HomeGuarded(Address, Duration, Guard),
     /// [`Op::MoveTo`] under a [`Guard`]: what `motionlink powercube move` does. The move's numbers, units and
-    /// limits are checked before the guard arms anything. [`Output::Moved`].
+    /// limits are checked before the guard arms anything. Its end (success, failure, cancel) halts this
+    /// module if it still moves and switches off the watchdog the guard switched on, nothing else: guarded
+    /// motions of other modules go on, and a watchdog armed by [`Op::EnableWatchdog`] stays armed. A second
+    /// guarded motion of a module while one is under way is refused ([`Error::NotSupported`]) before any
+    /// command goes to the module. [`Output::Moved`].
     MoveGuarded(Address, MoveSpec, Guard),
     /// Halts a module after an action that may have set it in motion cannot go on: up to three Halts, then
     /// a broadcast Halt and the watchdog refresh stopped. [`Output::Stop`].
@@ -154,9 +159,11 @@ pub enum Op {
     /// an unconfirmed one is [`Error::WatchdogUnconfirmed`]). A module showing STATE_COMM_ERROR is refused
     /// before anything changes. [`Output::Done`].
     EnableWatchdog(Vec<Address>),
-    /// Undoes [`Op::EnableWatchdog`]: a second life sign, the refresh stopped, unconfirmed watchdogs
-    /// observed (an online one expires), the flag cleared again where this session set it. A failed session
-    /// leaves them online ([`Error::WatchdogLeftOnline`]). [`Output::Done`].
+    /// Undoes [`Op::EnableWatchdog`]: a second life sign to each module (one only, whatever else runs), the
+    /// refresh stopped once no watchdog needs it, unconfirmed watchdogs observed (an online one expires), the
+    /// flag cleared again where this session set it. A watchdog that a guarded motion under way armed stays
+    /// online until that motion ends (its end switches it off). A failed session leaves them online
+    /// ([`Error::WatchdogLeftOnline`]). [`Output::Done`].
     DisableWatchdog,
     /// Reset; if STATE_COMM_ERROR comes back (a host died with the watchdog online), a life sign switches it
     /// offline and a second Reset clears it. Refused ([`Error::NotSupported`], nothing sent) for a module
@@ -363,8 +370,7 @@ impl Session {
     /// True if this session switched the watchdog of `address` on (or may have) and still refreshes it.
     pub fn watchdog_armed(&self, address: Address) -> bool {
         let core = self.core();
-        let a = address.get();
-        core.duty.serving && (core.duty.online.contains(&a) || core.duty.uncertain.contains(&a))
+        core.duty.serving && core.duty.may_be_online(address.get())
     }
 
     /// A view of this session's watchdog duty that outlives the session (a driver that closes drops it):
@@ -565,8 +571,7 @@ impl WatchdogView {
     /// not switched off again, in address order.
     pub fn armed(&self) -> Vec<Address> {
         let core = self.0.core();
-        let d = &core.duty;
-        addresses(&d.online.union(&d.uncertain).copied().collect())
+        addresses(&core.duty.left_online().into_iter().collect())
     }
 
     /// `e` with what this view knows: a [`Error::CloseTimedOut`] that could not say which watchdogs were

@@ -86,7 +86,8 @@ impl Config {
 pub enum Guard {
     /// Arm the module's watchdog for the motion (where the link allows it: CAN, and RS232 unless
     /// [`Config::watchdog_on_rs232`] is false), so that a host that dies stops it within 50 ms; switch it
-    /// off again after. What `motionlink powercube move` and `home` do by default.
+    /// off again after (that module's alone, and only if the guard switched it on). What `motionlink
+    /// powercube move` and `home` do by default.
     #[default]
     Watchdog,
     /// Leave the watchdog and the Config word alone: a host that dies leaves the module moving. What

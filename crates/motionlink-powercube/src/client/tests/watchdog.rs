@@ -1,7 +1,7 @@
 //! The watchdog, and what closing a session (dropping its client) stops.
 
 use super::*;
-use crate::client::WATCHDOG_TIMEOUT;
+use crate::client::{MoveReport, StopOutcome, WATCHDOG_TIMEOUT};
 use crate::error::Error;
 use crate::model::*;
 use crate::wire::Request;
@@ -473,4 +473,227 @@ fn a_watchdog_release_whose_life_sign_is_lost_is_not_reported_released() {
     assert!(err.to_string().contains("expired again"), "{err}");
     let (state, _, online, _) = device_view(&canbus, &clock, 1);
     assert!(online && state.contains(StateFlag::CommError), "the module as the error says: {state}");
+}
+
+/// Guarded moves of several modules at once on one client, each run by a thread of its own: `(module,
+/// target, cancel)`, where `cancel` cancels that move alone (its own token) once its wait has run that long.
+/// The results, in the same order.
+fn guarded_moves_at_once(
+    clock: &ManualClock,
+    bus: &Client,
+    moves: &[(u8, f32, Option<Duration>)],
+) -> Vec<Result<MoveReport, Error>> {
+    use crate::session::{Guard, Op, Output};
+    std::thread::scope(|scope| {
+        let threads: Vec<_> = moves
+            .iter()
+            .map(|&(a, target, cancel)| {
+                let ticket = clock.reserve_participant();
+                scope.spawn(move || {
+                    let _p = ticket.enter();
+                    let token = motionlink_link::cancel::CancelToken::new();
+                    let op = Op::MoveGuarded(addr(a), spec(target), Guard::Watchdog);
+                    let mut progress = |p: &crate::session::Progress| {
+                        if cancel.is_some_and(|after| p.elapsed >= after) {
+                            token.cancel();
+                        }
+                    };
+                    match bus.driver().run_with(op, &mut progress, Some(&token)) {
+                        Ok(Output::Moved(report)) => Ok(report),
+                        Ok(other) => panic!("module {a}: {other:?}"),
+                        Err(e) => Err(e),
+                    }
+                })
+            })
+            .collect();
+        threads.into_iter().map(|t| t.join().expect("a move's thread panicked")).collect()
+    })
+}
+
+#[test]
+fn two_guarded_moves_at_once_each_end_only_their_own_module() {
+    // Module 1 arrives first: the end of its move halts and disarms module 1 alone, while module 2 goes on.
+    let (clock, canbus, bus) = can(&[1, 2]);
+    let before = [device_view(&canbus, &clock, 1).3, device_view(&canbus, &clock, 2).3];
+    let results = guarded_moves_at_once(&clock, &bus, &[(1, 0.3, None), (2, 1.2, None)]);
+    let _me = clock.reserve_participant().enter();
+    for ((a, target), result) in [(1u8, 0.3f32), (2, 1.2)].into_iter().zip(&results) {
+        let report = result.as_ref().unwrap_or_else(|e| panic!("module {a}: {e}"));
+        assert!((report.reached.value() - target).abs() <= 0.001, "module {a}: {report:?}");
+        assert!(report.verified, "module {a}: {report:?}");
+    }
+    assert!(!bus.watchdog_served(), "no watchdog left to serve");
+    clock.sleep(secs(1));
+    for a in [1, 2] {
+        let (state, position, online, config) = device_view(&canbus, &clock, a);
+        assert!(!state.contains(StateFlag::Halted) && !state.has_fault(), "module {a}: {state}");
+        assert!(!online, "module {a}: its watchdog switched off once");
+        assert_eq!(config, before[usize::from(a - 1)], "module {a}: the Config word as it was");
+        assert!((position - if a == 1 { 0.3 } else { 1.2 }).abs() <= 0.001, "module {a}: {position}");
+    }
+    assert_eq!(bus.close().map_err(|e| e.to_string()), Ok(vec![]));
+}
+
+#[test]
+fn two_guarded_moves_cancelled_at_once_halt_both_and_leave_no_watchdog_online() {
+    // What Ctrl-C does to two threads moving: each move halts its module and switches its own watchdog off,
+    // once (a second life sign would switch it on again, and it would expire 50 ms later).
+    let (clock, canbus, bus) = can(&[1, 2]);
+    let before = [device_view(&canbus, &clock, 1).3, device_view(&canbus, &clock, 2).3];
+    let cancel = Some(Duration::from_millis(300));
+    let results = guarded_moves_at_once(&clock, &bus, &[(1, 1.2, cancel), (2, 1.5, cancel)]);
+    let _me = clock.reserve_participant().enter();
+    for (a, result) in [1u8, 2].into_iter().zip(&results) {
+        let address = addr(a);
+        assert!(
+            matches!(result, Err(Error::Cancelled { address: at, stop: StopOutcome::Confirmed }) if *at == address),
+            "module {a}: {result:?}"
+        );
+    }
+    assert!(!bus.watchdog_served());
+    for a in [1, 2] {
+        let (state, _, online, config) = device_view(&canbus, &clock, a);
+        assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "module {a}: {state}");
+        assert!(!online, "module {a}: watchdog offline");
+        assert_eq!(config, before[usize::from(a - 1)], "module {a}: the Config word as it was");
+    }
+    // Nothing left to expire: a second later, no STATE_COMM_ERROR.
+    clock.sleep(secs(1));
+    for a in [1, 2] {
+        let (state, _, online, _) = device_view(&canbus, &clock, a);
+        assert!(!online && !state.contains(StateFlag::CommError), "module {a}: {state}");
+    }
+    // The moves halted their modules themselves: the close has nothing left to halt, and says so truly.
+    assert_eq!(bus.close().map_err(|e| e.to_string()), Ok(vec![]));
+    clock.sleep(secs(1));
+    for a in [1, 2] {
+        let (state, _, online, _) = device_view(&canbus, &clock, a);
+        assert!(!online && !state.contains(StateFlag::CommError), "module {a} after the close: {state}");
+    }
+}
+
+#[test]
+fn a_guarded_move_cancelled_while_another_runs_leaves_the_other_going_to_its_target() {
+    let (clock, canbus, bus) = can(&[1, 2]);
+    let results = guarded_moves_at_once(&clock, &bus, &[(1, 1.2, Some(Duration::from_millis(300))), (2, 0.9, None)]);
+    let _me = clock.reserve_participant().enter();
+    assert!(matches!(results[0], Err(Error::Cancelled { address: A1, stop: StopOutcome::Confirmed })), "{results:?}");
+    let report = results[1].as_ref().unwrap_or_else(|e| panic!("module 2: {e}"));
+    assert!((report.reached.value() - 0.9).abs() <= 0.001 && report.verified, "{report:?}");
+    clock.sleep(secs(1));
+    let (state, _, online, _) = device_view(&canbus, &clock, 1);
+    assert!(state.contains(StateFlag::Halted) && !online && !state.contains(StateFlag::CommError), "{state}");
+    let (state, position, online, _) = device_view(&canbus, &clock, 2);
+    assert!(!state.contains(StateFlag::Halted) && !state.has_fault() && !online, "{state}");
+    assert!((position - 0.9).abs() <= 0.001, "{position}");
+    assert_eq!(bus.close().map_err(|e| e.to_string()), Ok(vec![]));
+}
+
+#[test]
+fn a_second_guarded_motion_of_a_module_is_refused_while_the_first_runs() {
+    // Two guarded motions of one module would share its watchdog (the first to end would switch it off under
+    // the other) and fight over the module: the second is refused before any command goes to the module.
+    let (clock, canbus, bus) = can(&[1]);
+    let results = guarded_moves_at_once(&clock, &bus, &[(1, 1.2, None), (1, 0.2, None)]);
+    let _me = clock.reserve_participant().enter();
+    let (done, refused): (Vec<_>, Vec<_>) = results.iter().partition(|r| r.is_ok());
+    assert_eq!((done.len(), refused.len()), (1, 1), "{results:?}");
+    let err = refused[0].as_ref().unwrap_err();
+    assert!(matches!(err, Error::NotSupported(_)) && err.is_usage(), "{err}");
+    assert!(err.to_string().contains("a guarded motion of module 1 is under way"), "{err}");
+    let reached = done[0].as_ref().unwrap().reached.value();
+    clock.sleep(secs(1));
+    let (state, position, online, _) = device_view(&canbus, &clock, 1);
+    assert!(!state.contains(StateFlag::Halted) && !state.has_fault() && !online, "{state}");
+    assert!((position - reached).abs() <= 0.001, "{position} {reached}");
+}
+
+#[test]
+fn a_guarded_motion_leaves_a_watchdog_the_user_armed_as_it_was() {
+    // The guard switches off only what it switched on: module 1's watchdog was online before it (the user's
+    // enable_watchdog), and stays so, as does module 2's.
+    let (clock, canbus, bus) = can(&[1, 2]);
+    let _me = clock.reserve_participant().enter();
+    bus.enable_watchdog(&addrs(&[1, 2])).unwrap();
+    let report = bus.module(addr(1)).move_to_guarded(&spec(0.3), crate::client::Guard::Watchdog, &mut |_| {}).unwrap();
+    assert!((report.reached.value() - 0.3).abs() <= 0.001);
+    assert!(bus.watchdog_served());
+    clock.sleep(secs(1));
+    for a in [1, 2] {
+        let (state, _, online, _) = device_view(&canbus, &clock, a);
+        assert!(online && !state.has_fault() && !state.contains(StateFlag::Halted), "module {a}: {state}");
+    }
+    bus.disable_watchdog().unwrap();
+    clock.sleep(secs(1));
+    for a in [1, 2] {
+        let (state, _, online, _) = device_view(&canbus, &clock, a);
+        assert!(!online && !state.has_fault(), "module {a}: {state}");
+    }
+}
+
+#[test]
+fn disable_watchdog_leaves_the_watchdog_of_a_guarded_motion_under_way_to_its_end() {
+    let (clock, canbus, bus) = can(&[1, 2]);
+    let (moved, online_meanwhile) = std::thread::scope(|scope| {
+        let (mover, other) = (clock.reserve_participant(), clock.reserve_participant());
+        let bus = &bus;
+        let moving = scope.spawn(move || {
+            let _p = mover.enter();
+            bus.module(addr(1)).move_to_guarded(&spec(1.2), crate::client::Guard::Watchdog, &mut |_| {})
+        });
+        let (clock, canbus) = (&clock, &canbus);
+        let disabling = scope.spawn(move || {
+            let _p = other.enter();
+            bus.enable_watchdog(&addrs(&[2])).unwrap();
+            clock.sleep(Duration::from_millis(500));
+            bus.disable_watchdog().unwrap();
+            // Module 2's (the caller's) is off; module 1's stays with its motion.
+            (device_view(canbus, clock, 1).2, device_view(canbus, clock, 2).2)
+        });
+        (moving.join().unwrap(), disabling.join().unwrap())
+    });
+    let _me = clock.reserve_participant().enter();
+    assert_eq!(online_meanwhile, (true, false));
+    let report = moved.unwrap();
+    assert!((report.reached.value() - 1.2).abs() <= 0.001, "{report:?}");
+    clock.sleep(secs(1));
+    for a in [1, 2] {
+        let (state, _, online, _) = device_view(&canbus, &clock, a);
+        assert!(!online && !state.has_fault() && !state.contains(StateFlag::Halted), "module {a}: {state}");
+    }
+}
+
+#[test]
+fn halting_what_was_started_keeps_a_module_another_operation_sets_moving_meanwhile() {
+    // `halt_started` halts module 1 (its telegrams take some 50 ms at 9600 baud); 10 ms into it, another
+    // thread sets module 2 in motion: module 2 stays among those the session started, and the close halts it.
+    let (clock, host, bus, _) = rs232(&[1, 2]);
+    {
+        let _me = clock.reserve_participant().enter();
+        bus.module(addr(2)).kind().unwrap();
+        bus.module(addr(1)).motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple).unwrap();
+        clock.sleep(Duration::from_millis(200));
+    }
+    std::thread::scope(|scope| {
+        let (halter, mover) = (clock.reserve_participant(), clock.reserve_participant());
+        let (bus, clock) = (&bus, &clock);
+        let halting = scope.spawn(move || {
+            let _p = halter.enter();
+            bus.halt_started()
+        });
+        let moving = scope.spawn(move || {
+            let _p = mover.enter();
+            clock.sleep(Duration::from_millis(10));
+            bus.module(addr(2)).motion(Motion::FVel { vel: Velocity::native(0.2) }, AckKind::Simple)
+        });
+        halting.join().unwrap().unwrap();
+        moving.join().unwrap().unwrap();
+    });
+    let _me = clock.reserve_participant().enter();
+    assert!(sim_module(&host, 1).0.contains(StateFlag::Halted));
+    assert!(sim_module(&host, 2).0.contains(StateFlag::Motion));
+    assert_eq!(bus.started(), vec![2], "module 2 is moving");
+    assert_eq!(bus.close().map_err(|e| e.to_string()), Ok(vec![addr(2)]));
+    let state = sim_module(&host, 2).0;
+    assert!(state.contains(StateFlag::Halted) && !state.contains(StateFlag::Motion), "{state}");
 }

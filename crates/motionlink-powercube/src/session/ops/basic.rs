@@ -58,7 +58,7 @@ impl Ctx {
         let (attempts, timeout) = {
             let mut core = self.core();
             if request.starts_motion() {
-                core.started.insert(address);
+                core.mark_started(address);
                 let now = core.now;
                 core.motion_sent.insert(address, now);
             }
@@ -90,7 +90,7 @@ impl Ctx {
                 results[i] = Some(Err(e));
             } else if request.starts_motion() {
                 let mut core = self.core();
-                core.started.insert(*address);
+                core.mark_started(*address);
                 let now = core.now;
                 core.motion_sent.insert(*address, now);
             }
@@ -175,7 +175,9 @@ impl Ctx {
                 Broadcast::Halt if core.can => core.started.clear(),
                 Broadcast::Home | Broadcast::StartMotion => {
                     let known = core.known.clone();
-                    core.started.extend(known);
+                    for a in known {
+                        core.mark_started(a);
+                    }
                 }
                 _ => {}
             }

@@ -32,7 +32,7 @@ pub(crate) fn abandon_watchdog(core: &mut Core) -> bool {
     if was_serving {
         tracing::warn!("watchdog refresh stopped: the modules it protects halt within 50 ms");
     }
-    was_serving && !(core.duty.online.is_empty() && core.duty.uncertain.is_empty())
+    was_serving && !core.duty.left_online().is_empty()
 }
 
 impl Ctx {
@@ -95,12 +95,35 @@ impl Ctx {
         Ok(entries)
     }
 
-    /// Runs a motion of module `a` under `guard` (see [`Guard`]): the watchdog armed before it where the
-    /// guard asks for it and the link allows it, whatever still moves halted after it, the watchdog switched
-    /// off again (with the Config word as it was) whether the motion succeeded, failed or was cancelled.
-    /// With the result, what the guard could not do (a module that ignores the RS232 broadcast refresh runs
-    /// without a watchdog: see `probes`).
+    /// Runs a motion of module `a` under `guard` (see [`Guard`]): the watchdog of `a` armed before it where
+    /// the guard asks for it and the link allows it, `a` halted after it if it still moves, and its watchdog
+    /// switched off again (with the Config word as it was) whether the motion succeeded, failed or was
+    /// cancelled. Only module `a`: what other operations of the session move, and the watchdogs they (or the
+    /// caller of [`Op::EnableWatchdog`](crate::session::Op)) armed, are theirs. A second guarded motion of `a`
+    /// while one is under way is refused before any command goes to the module: the two would share its watchdog and fight
+    /// over the module. With the result, what the guard could not do (a module that ignores the RS232
+    /// broadcast refresh runs without a watchdog: see `probes`).
     pub async fn guarded<T>(
+        &self,
+        a: u8,
+        guard: Guard,
+        motion: impl std::future::Future<Output = Result<T, Error>>,
+    ) -> Result<(T, Vec<String>), Error> {
+        if !self.core().guarded.insert(a) {
+            return Err(Error::NotSupported(format!(
+                "a guarded motion of module {a} is under way in this session: a second one is refused (the two \
+                 would share the module's watchdog and fight over the module); wait for the first to end"
+            )));
+        }
+        let result = self.guarded_alone(a, guard, motion).await;
+        let mut core = self.core();
+        core.guarded.remove(&a);
+        core.duty.held.remove(&a);
+        result
+    }
+
+    /// [`Ctx::guarded`], once this operation is the only guarded motion of module `a`.
+    async fn guarded_alone<T>(
         &self,
         a: u8,
         guard: Guard,
@@ -117,7 +140,7 @@ impl Ctx {
         }
         if !arm {
             let result = motion.await;
-            let stopped = self.halt_started().await;
+            let stopped = self.halt_own(a).await;
             return both(result, stopped).map(|v| (v, notes));
         }
         // A module halted or in error is refused before its watchdog is armed: the motion would refuse it
@@ -139,15 +162,21 @@ impl Ctx {
             };
             Error::Context { context: format!("cannot arm the watchdog of module {a}"), source: Box::new(e), hint }
         };
+        // From here on, the watchdog of `a` is this motion's: `disable_watchdog` leaves it to its end.
+        self.core().duty.held.insert(a);
         self.ready_for_motion(a).await.map_err(|e| match e {
             Error::Device { .. } => cannot_arm(e),
             e => e,
         })?;
         if let Err(e) = self.enable_watchdog(&[a]).await {
+            if self.core().duty.by_user.contains(&a) {
+                // Armed (or being armed) by the caller of EnableWatchdog, whose to undo.
+                return Err(cannot_arm(e));
+            }
             // Undo what was done before the failure (a Config word changed, a life sign sent), and say what
             // the module is left in: a life sign not acknowledged may have switched the watchdog online, which
             // expires once the refresh stops (see `release_failed_arming`).
-            if let Err(undo) = self.disable_watchdog().await {
+            if let Err(undo) = self.disarm(&[a]).await {
                 tracing::info!("switching the watchdog off again: {undo}");
             }
             let e = match (e, self.release_failed_arming(a).await) {
@@ -169,15 +198,15 @@ impl Ctx {
                 // The watchdog is off again and the module reset: the motion runs without it.
                 notes.push(note);
                 let result = motion.await;
-                let stopped = self.halt_started().await;
+                let stopped = self.halt_own(a).await;
                 return both(result, stopped).map(|v| (v, notes));
             }
             Err(e) => Err(e),
         };
-        // Whatever is still moving is stopped before the watchdog goes offline.
-        let stopped = self.halt_started().await;
+        // The module is stopped (if it still moves) before its watchdog goes offline.
+        let stopped = self.halt_own(a).await;
         let result = both(result, stopped);
-        match (result, self.disable_watchdog().await) {
+        match (result, self.disarm_own(a).await) {
             (result, Ok(())) => result.map(|v| (v, notes)),
             (Ok(_), Err(e)) => Err(Error::Context {
                 context: format!("cannot switch the watchdog of module {a} off again"),
@@ -208,7 +237,7 @@ impl Ctx {
         let (armed, failed) = {
             let core = self.core();
             let d = &core.duty;
-            (d.serving || !d.online.is_empty() || !d.config_before.is_empty() || !d.uncertain.is_empty(), core.failed)
+            (d.serving || !d.left_online().is_empty() || !d.config_before.is_empty(), core.failed)
         };
         let mut result = stopped;
         if armed {
@@ -220,10 +249,7 @@ impl Ctx {
             } else {
                 // Said by the close's error (or the error of what failed before it).
                 tracing::info!("the session failed: the watchdog stays online and the modules halt within 50 ms");
-                let left: Vec<u8> = {
-                    let core = self.core();
-                    core.duty.online.iter().chain(core.duty.uncertain.iter()).copied().collect()
-                };
+                let left: Vec<u8> = self.core().duty.left_online();
                 if result.is_ok() && !left.is_empty() {
                     result = Err(Error::WatchdogLeftOnline {
                         addresses: checked(left),

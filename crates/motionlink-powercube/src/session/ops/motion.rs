@@ -46,7 +46,7 @@ impl Ctx {
         }
         // Nothing confirmed it: the module stays among those the session started (the broadcast on CAN
         // takes it off), so that `started()` names it and the close tries again.
-        self.core().started.insert(a);
+        self.core().mark_started(a);
         self.abandon_watchdog();
         StopOutcome::Unconfirmed { reason, watchdog_armed }
     }
@@ -604,20 +604,37 @@ impl Ctx {
     /// the modules whose halt was not confirmed stay among those the session started, so that `started()`
     /// names them and the close tries again (and says so if it cannot confirm it either).
     pub async fn halt_started(&self) -> Result<(), Error> {
-        let (started, known): (Vec<u8>, _) = {
-            let core = self.core();
-            (core.started.iter().copied().collect(), core.known.clone())
-        };
-        if started.is_empty() {
+        let started: Vec<u8> = self.core().started.iter().copied().collect();
+        self.halt_modules(started).await
+    }
+
+    /// [`Ctx::halt_started`] for module `a` alone, if the session counts it as set in motion: the end of an
+    /// operation that moved `a` stops what it started, and nothing another operation moves.
+    pub async fn halt_own(&self, a: u8) -> Result<(), Error> {
+        if !self.core().started.contains(&a) {
             return Ok(());
         }
+        self.halt_modules(vec![a]).await
+    }
+
+    /// Halts those of `modules` that still move or cannot be asked. Each module is taken off `started` on
+    /// its own once seen at rest, absent or halted (and only if nothing set it in motion again while it was
+    /// being looked at); the others stay.
+    async fn halt_modules(&self, modules: Vec<u8>) -> Result<(), Error> {
+        if modules.is_empty() {
+            return Ok(());
+        }
+        let (known, marks): (_, Vec<u64>) = {
+            let core = self.core();
+            (core.known.clone(), modules.iter().map(|a| core.start_mark(*a)).collect())
+        };
         // (The reads go out after this: a module's state is at least as recent.)
         let read_at = self.now();
         let states =
-            self.request_many(&started.iter().map(|a| (*a, Request::Get(Param::CubeState))).collect::<Vec<_>>()).await;
+            self.request_many(&modules.iter().map(|a| (*a, Request::Get(Param::CubeState))).collect::<Vec<_>>()).await;
         let mut unconfirmed = Vec::new();
         let mut detail = String::new();
-        for (a, s) in started.iter().zip(states) {
+        for ((a, mark), s) in modules.iter().zip(marks).zip(states) {
             let moving = match s {
                 Ok(Reply::Get(_, Value::U32(s))) => {
                     CubeState(s).contains(StateFlag::Motion) || self.starts_within_grace(*a, read_at).await
@@ -632,39 +649,40 @@ impl Ctx {
                 Err(e @ Error::Timeout { .. }) => {
                     unconfirmed.push(*a);
                     detail = e.to_string();
-                    false
+                    continue;
                 }
                 Err(_) => true,
             };
-            if moving {
-                // Confirmed as every stop is: the Halt acknowledged, then the state until STATE_MOTION clears.
-                tracing::warn!("halting module {a}, set in motion by this session");
-                match self.stop_motion(*a).await {
-                    StopOutcome::Unconfirmed { reason, .. } => {
-                        unconfirmed.push(*a);
-                        detail = reason;
-                    }
-                    _ => {
-                        self.core().started.remove(a);
-                    }
+            if !moving {
+                self.core().seen_stopped(*a, mark);
+                continue;
+            }
+            // Confirmed as every stop is: the Halt acknowledged, then the state until STATE_MOTION clears.
+            tracing::warn!("halting module {a}, set in motion by this session");
+            match self.stop_motion(*a).await {
+                StopOutcome::Unconfirmed { reason, .. } => {
+                    unconfirmed.push(*a);
+                    detail = reason;
+                }
+                _ => {
+                    // Halted: a motion command sent to it since is ignored until a reset.
+                    self.core().started.remove(a);
                 }
             }
         }
-        let result = if unconfirmed.is_empty() {
-            Ok(())
-        } else {
-            let port = self.core().port.clone();
-            tracing::warn!("{port}: a module this session started cannot be asked; halting every module");
-            let watchdog_armed = unconfirmed.iter().any(|a| self.watchdog_armed(*a));
-            self.core().failed = true;
-            if let Err(e) = self.broadcast(Broadcast::Halt).await {
-                tracing::warn!("the halt broadcast could not be sent either: {e}");
-            }
-            Err(Error::StopUnconfirmed { addresses: checked(unconfirmed.clone()), detail, watchdog_armed })
-        };
-        // Only the modules whose halt was not confirmed stay (the broadcast on CAN took them off too).
-        self.core().started = unconfirmed.into_iter().collect();
-        result
+        if unconfirmed.is_empty() {
+            return Ok(());
+        }
+        let port = self.core().port.clone();
+        tracing::warn!("{port}: a module this session started cannot be asked; halting every module");
+        let watchdog_armed = unconfirmed.iter().any(|a| self.watchdog_armed(*a));
+        self.core().failed = true;
+        if let Err(e) = self.broadcast(Broadcast::Halt).await {
+            tracing::warn!("the halt broadcast could not be sent either: {e}");
+        }
+        // The modules whose halt was not confirmed stay (the broadcast on CAN took every module off).
+        self.core().started.extend(unconfirmed.iter().copied());
+        Err(Error::StopUnconfirmed { addresses: checked(unconfirmed), detail, watchdog_armed })
     }
 }
 

@@ -79,8 +79,9 @@ impl Ctx {
                 )
             });
         }
-        // The manual's way to restart: the watchdog offline, then a Reset.
-        self.disable_watchdog().await?;
+        // The manual's way to restart: the watchdog offline, then a Reset (this module's alone: the watchdogs
+        // other operations armed are theirs).
+        self.disarm(&[a]).await?;
         self.action(a, Action::Reset).await?;
         let after = self.state(a).await?;
         if after.has_fault() {

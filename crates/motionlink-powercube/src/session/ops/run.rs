@@ -129,7 +129,7 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
             Output::Done
         }
         Op::EnableWatchdog(addresses) => {
-            ctx.enable_watchdog(&numbers(&addresses)).await?;
+            ctx.enable_watchdog_held(&numbers(&addresses)).await?;
             Output::Done
         }
         Op::DisableWatchdog => {

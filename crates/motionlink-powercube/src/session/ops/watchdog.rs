@@ -23,8 +23,7 @@ impl Ctx {
     /// True if this session switched the watchdog of `address` on (or may have) and still refreshes it.
     pub fn watchdog_armed(&self, address: u8) -> bool {
         let core = self.core();
-        let duty = &core.duty;
-        duty.serving && (duty.online.contains(&address) || duty.uncertain.contains(&address))
+        core.duty.serving && core.duty.may_be_online(address)
     }
 
     /// Stops refreshing and marks the session failed; true if any watchdog was (or may have been) online.
@@ -69,42 +68,25 @@ impl Ctx {
                 self.set_checked(a, Param::Config, Value::U32(config.with(ConfigFlag::WatchdogEnable).0)).await?;
             }
         }
-        {
-            let mut core = self.core();
-            let now = core.now;
-            if !core.duty.serving {
-                core.duty.start_serving(now);
-            }
-        }
         let mut first_error = None;
         for &a in addresses {
-            {
-                let core = self.core();
-                if core.duty.online.contains(&a) {
-                    continue;
-                }
-                if core.duty.uncertain.contains(&a) {
-                    first_error.get_or_insert(Error::WatchdogUnconfirmed {
-                        address: crate::model::Address::checked(a),
-                        on: true,
-                        detail: "an earlier life sign was not acknowledged; not toggled again (disable_watchdog \
-                                 finds out its state)"
-                            .into(),
-                    });
-                    continue;
-                }
+            if !self.claim_toggle_on(a, &mut first_error).await? {
+                continue;
             }
             // The acknowledge of the life sign is the only confirmation the manual offers that the toggle
             // arrived (no state flag shows an online watchdog). Silence leaves the watchdog in an unknown
             // state: it is served (refreshed) as if online, reported, and never toggled again blindly.
-            match self.request(a, Request::Action(Action::LifeSign)).await {
+            let sent = self.request(a, Request::Action(Action::LifeSign)).await;
+            let mut core = self.core();
+            core.duty.toggling.remove(&a);
+            match sent {
                 Ok(_) => {
                     tracing::debug!("module {a}: watchdog online");
-                    self.core().duty.online.insert(a);
+                    core.duty.online.insert(a);
                 }
                 Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. })) => {
                     tracing::info!("module {a}: life sign not acknowledged ({e}); its watchdog state is unknown");
-                    self.core().duty.uncertain.insert(a);
+                    core.duty.uncertain.insert(a);
                     first_error.get_or_insert(Error::WatchdogUnconfirmed {
                         address: crate::model::Address::checked(a),
                         on: true,
@@ -117,57 +99,153 @@ impl Ctx {
         first_error.map_or(Ok(()), Err)
     }
 
-    /// Undoes [`Ctx::enable_watchdog`] (see [`Op::DisableWatchdog`](crate::session::Op)).
+    /// Before the life sign that switches the watchdog of `a` on: claims the toggle (no other operation sends
+    /// one meanwhile; one under way is waited for) and makes sure the refresh is served. False when no life
+    /// sign is due: the watchdog is online already, or its state is unknown (said in `first_error`: never
+    /// toggled again blindly).
+    async fn claim_toggle_on(&self, a: u8, first_error: &mut Option<Error>) -> Result<bool, Error> {
+        loop {
+            let period = {
+                let mut core = self.core();
+                if core.failed {
+                    return Err(Error::NotSupported(
+                        "this session has failed (its line broke or a stop was not confirmed): it cannot serve a \
+                         watchdog"
+                            .into(),
+                    ));
+                }
+                let now = core.now;
+                let duty = &mut core.duty;
+                if !duty.toggling.contains(&a) {
+                    if duty.online.contains(&a) {
+                        return Ok(false);
+                    }
+                    if duty.uncertain.contains(&a) {
+                        first_error.get_or_insert(Error::WatchdogUnconfirmed {
+                            address: crate::model::Address::checked(a),
+                            on: true,
+                            detail: "an earlier life sign was not acknowledged; not toggled again (disable_watchdog \
+                                     finds out its state)"
+                                .into(),
+                        });
+                        return Ok(false);
+                    }
+                    // Served from before the life sign on: an online watchdog never waits for its refresh.
+                    if !duty.serving {
+                        duty.start_serving(now);
+                    }
+                    duty.toggling.insert(a);
+                    return Ok(true);
+                }
+                core.config.poll_interval.max(std::time::Duration::from_millis(1))
+            };
+            // Another operation of this session is toggling it: its outcome decides.
+            let next = self.now() + period;
+            self.sleep_until(next).await;
+        }
+    }
+
+    /// Switches the watchdog on in `addresses` for the caller of [`Op::EnableWatchdog`](crate::session::Op):
+    /// they stay armed until [`Ctx::disable_watchdog`] or the close, whatever guarded motion of theirs ends.
+    pub async fn enable_watchdog_held(&self, addresses: &[u8]) -> Result<(), Error> {
+        // Marked before the first await: a guarded motion of one of them that ends meanwhile leaves it on.
+        self.core().duty.by_user.extend(addresses.iter().copied().filter(|a| crate::wire::is_module_address(*a)));
+        let result = self.enable_watchdog(addresses).await;
+        // Those it did not arm (refused, failed before their life sign) are not the caller's to keep.
+        let mut core = self.core();
+        let d = &mut core.duty;
+        for a in addresses {
+            if !d.may_be_online(*a) && !d.config_before.contains_key(a) {
+                d.by_user.remove(a);
+            }
+        }
+        result
+    }
+
+    /// Undoes [`Ctx::enable_watchdog`] (see [`Op::DisableWatchdog`](crate::session::Op)): every watchdog this
+    /// session switched on, except those a guarded motion under way holds (its end switches them off).
     pub async fn disable_watchdog(&self) -> Result<(), Error> {
         if self.core().failed {
             // A failed session may have left something moving that it could not stop: the watchdog is what
             // stops it now. It is not switched off.
             let left: Vec<u8> = {
                 let mut core = self.core();
-                let left = core.duty.online.iter().chain(core.duty.uncertain.iter()).copied().collect();
+                let left = core.duty.left_online();
                 super::abandon_watchdog(&mut core);
                 left
             };
-            if left.is_empty() {
-                return Ok(());
+            return left_online(left);
+        }
+        let addresses: Vec<u8> = {
+            let mut core = self.core();
+            let d = &mut core.duty;
+            let all: std::collections::BTreeSet<u8> =
+                d.online.iter().chain(&d.uncertain).chain(&d.toggling).chain(d.config_before.keys()).copied().collect();
+            // A watchdog a guarded motion armed is switched off at its end; one the caller armed is theirs.
+            let mine: Vec<u8> = all.into_iter().filter(|a| !d.held.contains(a) || d.by_user.contains(a)).collect();
+            for a in &mine {
+                d.by_user.remove(a);
             }
-            return Err(Error::WatchdogLeftOnline {
-                addresses: crate::session::ops::checked(left),
-                detail: "the session failed (its line broke, or a stop it sent was not confirmed)".into(),
-            });
+            mine
+        };
+        self.disarm(&addresses).await
+    }
+
+    /// What the end of a guarded motion of module `a` switches off: its watchdog, unless the caller of
+    /// [`Op::EnableWatchdog`](crate::session::Op) armed it (it stays armed for them).
+    pub(crate) async fn disarm_own(&self, a: u8) -> Result<(), Error> {
+        if self.core().duty.by_user.contains(&a) {
+            return Ok(());
+        }
+        self.disarm(&[a]).await
+    }
+
+    /// Switches the watchdog of each of `addresses` off and restores its Config word, touching no other
+    /// module's: a second life sign to each that this session switched on, sent by this operation alone
+    /// (claimed first: taken out of `online`, so that no other operation sends one too, which would switch
+    /// it on again). The refresh stops once no module of this session needs it any more; a watchdog whose
+    /// life sign was not confirmed is then observed (never toggled blindly).
+    pub(crate) async fn disarm(&self, addresses: &[u8]) -> Result<(), Error> {
+        if self.core().failed {
+            let left: Vec<u8> = {
+                let mut core = self.core();
+                super::abandon_watchdog(&mut core);
+                addresses.iter().copied().filter(|a| core.duty.may_be_online(*a)).collect()
+            };
+            return left_online(left);
         }
         let mut first_error = None;
-        let online: Vec<u8> = self.core().duty.online.iter().copied().collect();
-        for a in online {
-            match self.request(a, Request::Action(Action::LifeSign)).await {
-                Ok(_) => {
-                    tracing::debug!("module {a}: watchdog offline");
-                    self.core().duty.online.remove(&a);
-                }
+        for &a in addresses {
+            if !self.claim_toggle_off(a).await {
+                continue;
+            }
+            let sent = self.request(a, Request::Action(Action::LifeSign)).await;
+            let mut core = self.core();
+            core.duty.toggling.remove(&a);
+            match sent {
+                Ok(_) => tracing::debug!("module {a}: watchdog offline"),
                 Err(e @ (Error::Timeout { .. } | Error::Corrupt { .. })) => {
                     // It may or may not have arrived: a second life sign could switch the watchdog on again.
                     tracing::warn!("module {a}: life sign not acknowledged ({e}); its watchdog state is unknown");
-                    let mut core = self.core();
-                    core.duty.online.remove(&a);
                     core.duty.uncertain.insert(a);
                 }
                 Err(e) => {
                     tracing::info!("module {a}: cannot switch the watchdog off: {e}");
+                    core.duty.online.insert(a);
                     first_error.get_or_insert(e);
                 }
             }
         }
-        self.core().duty.serving = false;
-        if let Err(e) = self.observe_uncertain_watchdogs().await {
+        if let Err(e) = self.stop_refresh_if_unneeded(addresses).await {
             first_error.get_or_insert(e);
         }
         let restore: Vec<(u8, ConfigWord)> = {
             let core = self.core();
             let duty = &core.duty;
-            duty.config_before
+            addresses
                 .iter()
-                .filter(|(a, _)| !duty.online.contains(a) && !duty.uncertain.contains(a))
-                .map(|(a, w)| (*a, *w))
+                .filter(|a| !duty.may_be_online(**a))
+                .filter_map(|a| duty.config_before.get(a).map(|w| (*a, *w)))
                 .collect()
         };
         for (a, before) in restore {
@@ -184,44 +262,134 @@ impl Ctx {
         first_error.map_or(Ok(()), Err)
     }
 
-    /// With the refresh stopped, finds out whether the modules whose life sign was not confirmed have their
-    /// watchdog online, the only way the manual offers to observe it: an online watchdog that is not
-    /// refreshed expires (STATE_COMM_ERROR, STATE_HALTED) within [`WATCHDOG_TIMEOUT`]. Waits twice that on
-    /// the session's time, then reads each one's state.
-    async fn observe_uncertain_watchdogs(&self) -> Result<(), Error> {
-        let uncertain: Vec<u8> = self.core().duty.uncertain.iter().copied().collect();
-        if uncertain.is_empty() {
-            return Ok(());
+    /// Before the life sign that switches the watchdog of `a` off: claims it (out of `online`, into
+    /// `toggling`), after waiting for a toggle another operation has under way. False when this session has
+    /// no online watchdog of `a` to switch off (off already, switched off by another operation, or in an
+    /// unknown state: never toggled blindly).
+    async fn claim_toggle_off(&self, a: u8) -> bool {
+        loop {
+            let period = {
+                let mut core = self.core();
+                let duty = &mut core.duty;
+                if !duty.toggling.contains(&a) {
+                    if !duty.online.remove(&a) {
+                        return false;
+                    }
+                    duty.toggling.insert(a);
+                    return true;
+                }
+                core.config.poll_interval.max(std::time::Duration::from_millis(1))
+            };
+            let next = self.now() + period;
+            self.sleep_until(next).await;
         }
+    }
+
+    /// After the watchdogs of `addresses` were switched off: stops the refresh if nothing else of this session
+    /// needs it (no other watchdog online, being toggled, or unknown and still held by a guarded motion or the
+    /// caller of [`Op::EnableWatchdog`](crate::session::Op)), then observes the unknown ones. Those of
+    /// `addresses` whose state stays unknown because the refresh must go on are an error.
+    async fn stop_refresh_if_unneeded(&self, addresses: &[u8]) -> Result<(), Error> {
+        let (stopped, unknown) = {
+            let mut core = self.core();
+            let d = &mut core.duty;
+            let held =
+                d.uncertain.iter().any(|a| !addresses.contains(a) && (d.held.contains(a) || d.by_user.contains(a)));
+            let needed = !d.online.is_empty() || !d.toggling.is_empty() || held;
+            let unknown: Vec<u8> = d.uncertain.iter().copied().filter(|a| addresses.contains(a)).collect();
+            if needed {
+                (false, unknown)
+            } else {
+                d.serving = false;
+                (true, d.uncertain.iter().copied().collect::<Vec<u8>>())
+            }
+        };
+        if !stopped {
+            return match unknown.first() {
+                None => Ok(()),
+                Some(&a) => Err(Error::WatchdogUnconfirmed {
+                    address: crate::model::Address::checked(a),
+                    on: false,
+                    detail: "the life sign that switches it off was not acknowledged; not sent again: it is still \
+                             refreshed, as other watchdogs of this session are, and its state is found out once the \
+                             refresh stops (disable_watchdog, the close)"
+                        .into(),
+                }),
+            };
+        }
+        // Every unknown watchdog is observed (one whose guarded motion ended while others were served too); only
+        // those of `addresses` are this operation's to report, the others stay unknown for the close to say.
+        let mut first_error = None;
+        for (a, e) in self.observe_uncertain_watchdogs(&unknown).await {
+            if addresses.contains(&a) {
+                first_error.get_or_insert(e);
+            } else {
+                tracing::warn!("{e}");
+            }
+        }
+        first_error.map_or(Ok(()), Err)
+    }
+
+    /// With the refresh stopped, finds out whether the modules `uncertain`, whose life sign was not
+    /// confirmed, have their watchdog online, the only way the manual offers to observe it: an online
+    /// watchdog that is not refreshed expires (STATE_COMM_ERROR, STATE_HALTED) within [`WATCHDOG_TIMEOUT`].
+    /// Waits twice that on the session's time, then reads each one's state. The modules that could not be
+    /// seen offline, each with its error.
+    async fn observe_uncertain_watchdogs(&self, uncertain: &[u8]) -> Vec<(u8, Error)> {
+        if uncertain.is_empty() {
+            return Vec::new();
+        }
+        let spell = self.core().duty.spell;
         let until = self.now() + WATCHDOG_TIMEOUT * 2;
         self.sleep_until(until).await;
-        let mut first_error = None;
-        for a in uncertain {
+        let restarted = {
+            let core = self.core();
+            core.duty.serving || core.duty.spell != spell
+        };
+        let mut errors = Vec::new();
+        for &a in uncertain {
+            let address = crate::model::Address::checked(a);
+            if restarted {
+                // Another operation armed a watchdog meanwhile: the refresh may have kept this one alive.
+                errors.push((
+                    a,
+                    Error::WatchdogUnconfirmed {
+                        address,
+                        on: false,
+                        detail: "its state could not be observed: the refresh was started again meanwhile (another \
+                                 watchdog armed); it is found out once the refresh stops (disable_watchdog, the close)"
+                            .into(),
+                    },
+                ));
+                continue;
+            }
             match self.state(a).await {
                 Ok(state) if !state.contains(StateFlag::CommError) => {
                     tracing::debug!("module {a}: watchdog seen offline");
                     self.core().duty.uncertain.remove(&a);
                 }
-                Ok(state) => {
-                    first_error.get_or_insert(Error::WatchdogUnconfirmed {
-                        address: crate::model::Address::checked(a),
+                Ok(state) => errors.push((
+                    a,
+                    Error::WatchdogUnconfirmed {
+                        address,
                         on: false,
                         detail: format!(
                             "its watchdog was still online and has expired ({state}); the module is halted, `reset` \
                              clears it"
                         ),
-                    });
-                }
-                Err(e) => {
-                    first_error.get_or_insert(Error::WatchdogUnconfirmed {
-                        address: crate::model::Address::checked(a),
+                    },
+                )),
+                Err(e) => errors.push((
+                    a,
+                    Error::WatchdogUnconfirmed {
+                        address,
                         on: false,
                         detail: format!("its state cannot be read to check: {e}"),
-                    });
-                }
+                    },
+                )),
             }
         }
-        first_error.map_or(Ok(()), Err)
+        errors
     }
 
     /// After an arming of module `a` that failed, with [`Ctx::disable_watchdog`] run: what more can be
@@ -248,6 +416,15 @@ impl Ctx {
         };
         if online {
             return Some(format!("its watchdog could not be switched off again: module {a} halts itself within 50 ms (STATE_COMM_ERROR; `reset` clears it)"));
+        }
+        if uncertain && self.core().duty.serving {
+            // Other watchdogs of this session are served: the refresh keeps this one alive if it is online, so
+            // its state shows nothing yet. It stays unknown (and refreshed) until the refresh stops.
+            return Some(format!(
+                "its watchdog may have gone online: it is refreshed while this session serves other watchdogs, and \
+                 found out once the refresh stops (disable_watchdog, the close); if online then, module {a} halts \
+                 with STATE_COMM_ERROR (`reset` clears it)"
+            ));
         }
         if !uncertain {
             // Not left online (switched off, or never switched on: the arming may have failed before its life
@@ -444,4 +621,16 @@ impl Ctx {
         let source = Box::new(Error::Device { address, state: after });
         Err(Error::Context { context: format!("the Reset of module {a} left STATE_ERROR set"), source, hint })
     }
+}
+
+/// What switching off leaves online in a session that failed: nothing (`Ok`), or these modules, whose
+/// watchdog now halts them within 50 ms.
+fn left_online(left: Vec<u8>) -> Result<(), Error> {
+    if left.is_empty() {
+        return Ok(());
+    }
+    Err(Error::WatchdogLeftOnline {
+        addresses: crate::session::ops::checked(left),
+        detail: "the session failed (its line broke, or a stop it sent was not confirmed)".into(),
+    })
 }
