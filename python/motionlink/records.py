@@ -357,6 +357,9 @@ class ScuRun(Record):
         stopped: True.
         interrupted: False (Ctrl-C raises ``KeyboardInterrupt`` instead of returning).
         actuators: Where the actuators came to rest.
+        verified: A switching function (F11..F22): the status entry that shows it showed it on after the RE
+            and off after the RS (absent for a motion function).
+        not_verifiable: A switching function: why that could not be verified (empty when ``verified``).
         time_s: How long it ran (an attribute; not in ``to_dict()``).
     """
 
@@ -365,6 +368,8 @@ class ScuRun(Record):
     stopped: bool
     interrupted: bool
     actuators: List[ActuatorRest]
+    verified: bool
+    not_verifiable: List[str]
     time_s: float
 
 

@@ -51,9 +51,12 @@ class ScuStop(Record):
         function: The function named (1..22; absent when every motion function was stopped).
         functions: The motion functions sent RS, in that order (1..10).
         mode: ``"fast"`` or ``"soft"`` (along the stop ramp); ``"off"`` for a switching function (F11..F22)
-            named, switched off with RS (its record has ``function`` and ``mode`` only).
+            named, switched off with RS (its record has ``function``, ``mode``, ``verified`` and
+            ``not_verifiable`` only).
         refused: The RS the unit refused, with its answer.
         at_rest: Every connected actuator and where it rests, read after the stop.
+        verified: A switching function: the status entry that shows it showed it off after the RS.
+        not_verifiable: A switching function: why that could not be verified (empty when ``verified``).
     """
 
     family: str
@@ -62,6 +65,8 @@ class ScuStop(Record):
     mode: str
     refused: List[RefusedStop]
     at_rest: List[ActuatorAtRest]
+    verified: bool
+    not_verifiable: List[str]
 
 
 Specs = Union[str, Sequence[str]]
@@ -146,7 +151,8 @@ class _Operations:
     def run(self, function: Union[int, str], direction: str, *, seconds: Optional[float] = None) -> ScuRun:
         """Runs a function until it ends, ``seconds`` passed, or Ctrl-C (or the awaiting task's
         cancellation), then stops it: a motion function with a direction (``"in"``, ``"out"``, ``"mem1"``
-        ...), or F11, F17/F18, F20, F21/F22 with ``"on"``."""
+        ...), or F11, F17/F18, F20, F21/F22 with ``"on"`` (its status read back after the RE and the RS:
+        ``verified``, ``not_verifiable``)."""
 
     @op(ScuStop, aio=True, args=_stop_args)
     def stop(self, function: Optional[Union[int, str]] = None, *, soft: bool = False) -> ScuStop:
@@ -154,8 +160,9 @@ class _Operations:
         ``"F1"``), or without ``function`` to every one (F1..F10), fast or along the stop ramp (``soft``);
         then the status of every actuator is read until none moves. Returns where each connected actuator
         rests (:class:`ScuStop`), or raises if the unit did not confirm it. A switching function named
-        (F11..F22: buzzer, outputs, emergency stop, LEDs) is switched off with RS, acknowledged by the unit
-        (its record: ``function`` and ``mode`` ``"off"``)."""
+        (F11..F22: buzzer, outputs, emergency stop, LEDs) is switched off with RS, acknowledged by the unit,
+        and the status entry that shows it is read back (its record: ``function``, ``mode`` ``"off"``,
+        ``verified``, ``not_verifiable``; a status that shows it still on raises :class:`DeviceError`)."""
 
     @op(ErrorCode)
     def errors(self) -> List[ErrorCode]:

@@ -45,6 +45,8 @@ class ScuStop(Record):
     mode: str
     refused: List[RefusedStop]
     at_rest: List[ActuatorAtRest]
+    verified: bool
+    not_verifiable: List[str]
 
 
 class ActuatorAtRest(Record):

@@ -108,8 +108,10 @@ def test_stop_without_a_function_stops_every_motion_function_and_says_where_they
     one = scu.stop(1)
     assert (one.function, one.functions, one.mode, len(one.at_rest)) == (1, [1], "fast", 2), one
     assert set(one.to_dict()) == {"family", "function", "functions", "mode", "refused", "at_rest"}
+    # A switching function: RS, then its status read back (the buzzer's bit 0 shows it off).
     switched = scu.stop("F11")
-    assert switched.to_dict() == {"family": "scu", "function": 11, "mode": "off"}, switched
+    expected = {"family": "scu", "function": 11, "mode": "off", "verified": True, "not_verifiable": []}
+    assert switched.to_dict() == expected, switched
 
 
 def test_error_history(scu: motionlink.Scu) -> None:

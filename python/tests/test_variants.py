@@ -44,6 +44,7 @@ VARIANTS: Dict[str, Tuple[str, ...]] = {
         "in-end-undershoot",
         "re-needs-rs",
         "late-motion-bit",
+        "switch-status-unshown",
     ),
     "powercube": (
         "no-twin-mirror",

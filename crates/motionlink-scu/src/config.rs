@@ -257,8 +257,9 @@ pub struct Config {
     pub stall_timeout: Duration,
     /// The longest a move may take. Default 300 s.
     pub move_timeout: Duration,
-    /// After RE, how long the motion bit may take to come up before a still-standing actuator is an error.
-    /// Default 1 s.
+    /// After RE, how long the motion bit may take to come up before a still-standing actuator is an error;
+    /// after the RE or RS of a switching function, how long its status entry is read again before what it
+    /// shows is judged ([`crate::model::SwitchStatus`]). Default 1 s.
     pub start_grace: Duration,
     /// Reconnect by itself when the port is lost (every [`Config::reconnect_interval`]). Default off.
     pub auto_reconnect: bool,

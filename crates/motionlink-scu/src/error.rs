@@ -101,6 +101,22 @@ pub enum Error {
         /// The data the unit returned.
         read: Vec<u8>,
     },
+    /// After an RE or RS of a switching function that the unit acknowledged, the data-list entry that shows
+    /// the function ([`Function::switch_status`]) shows the other state.
+    #[error("{}", switch_not_shown(*function, *command, *word, *after, *switched_off))]
+    SwitchNotShown {
+        /// The function.
+        function: Function,
+        /// What the unit acknowledged: RE (switch on) or RS (switch off).
+        command: Command,
+        /// The entry's value, as last read.
+        word: u16,
+        /// How long after the acknowledge it was last read.
+        after: Duration,
+        /// The function was then switched off (the unit acknowledged the RS): a run whose RE the status did
+        /// not show.
+        switched_off: bool,
+    },
     /// The caller asked for something impossible (bad index, value out of range, read-only entry).
     #[error("{0}")]
     InvalidArgument(String),
@@ -199,6 +215,11 @@ pub enum Error {
         function: Function,
         /// Where each connected actuator came to rest.
         rest: Vec<(Actuator, PositionCounts)>,
+        /// As [`crate::session::RunReport::verified`]: a switching function's status showed it on after the RE
+        /// and off after the RS.
+        verified: bool,
+        /// What could not be verified, and why.
+        not_verifiable: Vec<String>,
     },
     /// After a stop the unit acknowledged, these actuators still report motion (another function or the hand
     /// switch may drive them).
@@ -327,6 +348,25 @@ impl Error {
     }
 }
 
+/// What [`Error::SwitchNotShown`] says: "the unit acknowledged RS of F20 (emergency stop), but still shows
+/// the emergency stop engaged: lock_status (0x0162) shows every motion function F1..F10 locked (0x03FF) (last
+/// read 1000 ms after the acknowledge)".
+fn switch_not_shown(function: Function, command: Command, word: u16, after: Duration, switched_off: bool) -> String {
+    let Some(status) = function.switch_status() else {
+        return format!("the unit acknowledged {command} of {function}, but its status shows otherwise (0x{word:04X})");
+    };
+    let shows = match status.shows_on(word) {
+        true => format!("still shows {} {}", status.what, status.state(true)),
+        false => format!("does not show {} {}", status.what, status.state(true)),
+    };
+    let then = if switched_off { "; then switched off (the unit acknowledged the RS)" } else { "" };
+    format!(
+        "the unit acknowledged {command} of {function}, but {shows}: {} (last read {} ms after the acknowledge){then}",
+        status.detail(word),
+        after.as_millis()
+    )
+}
+
 /// Why a target outside the stroke is refused (what [`Error::OutsideLimits`] says before what that means for
 /// a move).
 fn stroke_refusal(
@@ -364,6 +404,7 @@ impl Classify for Error {
             | Error::Stalled { .. }
             | Error::MoveTimeout { .. }
             | Error::ReadBack { .. }
+            | Error::SwitchNotShown { .. }
             | Error::NotConnected(_)
             | Error::StillMoving(_) => ErrorClass::Device,
             Error::Timeout { .. } | Error::NoRoom { .. } | Error::CloseTimedOut { .. } => {

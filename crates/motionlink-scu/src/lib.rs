@@ -138,8 +138,17 @@
 //!   (`sticky-errors`, `in-end-undershoot`, `re-needs-rs`); a motion bit that rises 0.4 s after the RE is
 //!   waited for ([`Config::start_grace`], 1 s) before an actuator still standing is judged (`late-motion-bit`).
 //! - **RA** fast-stops remote motions that are still running: a motion nobody can stop any more is worse.
-//! - **Emergency stop (F20)** shows as every function locked in Lock Status (0x0162) and the release flags of
-//!   actuator status 2 cleared; F21 and F22 are the hand switch's LED 1 and 2 (0x0120).
+//! - **Switching functions** (F11 buzzer, F17/F18 binary outputs, F20 emergency stop, F21/F22 LEDs): after the
+//!   unit acknowledged their RE or RS, the entry that shows them is read back ([`model::SwitchStatus`],
+//!   [`Client::switch`], a run's [`session::RunReport`]) until it shows the state asked for, at most
+//!   [`Config::start_grace`]. The buzzer (0x0140) and binary output 1 (0x0110 bit 0) the manuals name: the
+//!   other state shown is [`Error::SwitchNotShown`]. Binary output 2 as bit 1 of 0x0110 (the manuals name it
+//!   "Binary Output 1" again), F21 and F22 as the hand switch's LED 1 and 2 (0x0120), the emergency stop as
+//!   every motion function locked in Lock Status (0x0162) are readings: the session trusts such an entry once
+//!   it has seen it show the function on and off around its acknowledged RE and RS (the first switch is the
+//!   probe; the entry is read before it too, before the RE of F20 only when the line has room at once); one
+//!   that does not follow says `verified: false` for the rest of the session (`switch-status-unshown`), as does
+//!   a unit that refuses the entry (PDE).
 //! - **Where the editions differ in a text**, the reading that fits the rest of the table wins. Battery
 //!   Mains bit 2: the Ewellix edition says "0/1: charging control on/off", the Schaeffler edition "charge
 //!   controller off/on"; every other bit of the entry reads 0 = off / absent, so bit 2 set means the charge

@@ -101,3 +101,22 @@ fn a_dropped_stream_stops_its_function_and_a_dropped_client_ends_the_session() {
         assert!(unit.with_device(|u| u.executed_functions().is_empty()));
     })
 }
+
+#[test]
+fn a_switching_function_is_read_back_after_its_re_and_its_rs() {
+    use motionlink_scu::model::Function;
+    let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+    runtime.block_on(async {
+        let (unit, client) = setup();
+        let client = client.await;
+        let on = client.switch(Function::BinaryOutput2, true).await.unwrap();
+        assert!(on.on && on.verified, "{on:?}");
+        let off = client.switch(Function::BinaryOutput2, false).await.unwrap();
+        assert!(!off.on && off.verified, "{off:?}");
+        // An output that fails: the unit acknowledges the RE, binary_outputs shows it off.
+        unit.with_device(|u| u.fail_switch(Function::BinaryOutput2));
+        let e = client.switch(Function::BinaryOutput2, true).await.unwrap_err();
+        assert!(matches!(e, motionlink_scu::Error::SwitchNotShown { .. }), "{e}");
+        client.close().await.unwrap();
+    })
+}

@@ -3,6 +3,7 @@
 
 use crate::rig;
 
+use motionlink_scu::session::RunAction;
 use rig::*;
 
 #[test]
@@ -392,15 +393,157 @@ fn error_history_names_the_watchdog() {
     assert!(history[0].to_string().contains("overtemperature"));
 }
 
+/// The switching functions, the entry that shows each (read with RG) and its value while the function is on.
+const SWITCHES: [(Function, u16, u16); 6] = [
+    (Function::Buzzer, 0x0140, 0x01),
+    (Function::BinaryOutput1, 0x0110, 0x01),
+    (Function::BinaryOutput2, 0x0110, 0x02),
+    (Function::EmergencyStop, 0x0162, 0x03FF),
+    (Function::Led1, 0x0120, 0x01),
+    (Function::Led2, 0x0120, 0x02),
+];
+
+/// The value of a flag entry of one or two bytes.
+fn word(client: &Client, index: u16) -> u16 {
+    let raw = client.get_raw(DataIndex(index)).unwrap();
+    raw.iter().rev().fold(0, |w, b| w << 8 | u16::from(*b))
+}
+
+/// Counts the RG of `index` the client sends from now on.
+fn count_reads(rig: &Rig, index: u16) -> Arc<Mutex<usize>> {
+    let n = Arc::new(Mutex::new(0));
+    let sink = Arc::clone(&n);
+    rig.on_request(move |bytes, _| {
+        if bytes.starts_with(b"RG") && bytes[2..4] == index.to_le_bytes() {
+            *sink.lock().unwrap() += 1;
+        }
+    });
+    n
+}
+
 #[test]
-fn switching_functions() {
+fn switching_functions_are_read_back_after_their_re_and_their_rs() {
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(Config::default());
-    client.switch(Function::BinaryOutput2, true).unwrap();
-    assert_eq!(client.get_value(DataIndex(0x0110)).unwrap().to_string(), "0x02 [output2]");
-    client.switch(Function::BinaryOutput2, false).unwrap();
+    for (function, index, on_word) in SWITCHES {
+        let reads = count_reads(&rig, index);
+        let on = client.switch(function, true).unwrap();
+        assert!(on.on && on.verified && on.not_verifiable.is_empty(), "{function}: {:?}", on.not_verifiable);
+        assert_eq!(word(&client, index), on_word, "{function}");
+        let off = client.switch(function, false).unwrap();
+        assert!(!off.on && off.verified && off.not_verifiable.is_empty(), "{function}: {:?}", off.not_verifiable);
+        assert_eq!(word(&client, index), 0, "{function}");
+        // Read after each switch; where the manuals do not tie the entry to the function in so many words, also
+        // before the first (the probe: the entry seen off, then on); plus the two reads of this test.
+        let probe = usize::from(function.switch_status().unwrap().reading.is_some());
+        assert_eq!(*reads.lock().unwrap(), 2 + probe + 2, "{function}");
+    }
     assert!(client.started().is_empty());
     assert!(client.switch(Function::Motion(f(1)), true).is_err());
+    assert!(rig.unit(|u| u.executed_functions().is_empty()));
+}
+
+#[test]
+fn a_run_of_a_switching_function_is_verified_when_its_status_showed_it_on_then_off() {
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(Config::default());
+    for (function, index, _) in SWITCHES {
+        let seen = Mutex::new(Vec::new());
+        let progress = |p: &motionlink_scu::session::RunProgress| {
+            seen.lock().unwrap().push((p.switched_on_shown, rig.unit(|u| u.executed_functions())));
+        };
+        let limit = Some(Duration::from_millis(300));
+        let run = client.run_function(RunAction::Switch(function), limit, &progress).unwrap();
+        assert!(run.verified && run.not_verifiable.is_empty(), "{function}: {:?}", run.not_verifiable);
+        let said = seen.lock().unwrap().clone();
+        assert_eq!(said, [(Some(true), vec![function.number()])], "{function}: said once, after the RE was read back");
+        assert_eq!(word(&client, index), 0, "{function}: off after the run");
+    }
+    assert!(client.started().is_empty());
+}
+
+#[test]
+fn a_status_that_shows_the_other_state_after_an_acknowledged_re_or_rs_is_an_error_naming_it() {
+    // The buzzer and binary output 1: the manuals name their bits. A unit whose buzzer output failed
+    // acknowledges the RE but shows it off.
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(Config::default());
+    rig.unit(|u| u.fail_switch(Function::Buzzer));
+    let e = client.switch(Function::Buzzer, true).unwrap_err();
+    assert!(matches!(e, Error::SwitchNotShown { command: Command::Execute, word: 0, switched_off: false, .. }), "{e}");
+    assert_eq!(e.class(), ErrorClass::Device);
+    let text = e.to_string();
+    assert!(
+        text.starts_with(
+            "the unit acknowledged RE of F11 (buzzer), but does not show the buzzer on: buzzer (0x0140, bit 0) is \
+             clear (0x00) (last read 10"
+        ),
+        "{text}"
+    );
+    // A run of binary output 1 whose output fails: the RE is not shown, the run switches it off and says so.
+    rig.unit(|u| u.fail_switch(Function::BinaryOutput1));
+    let e = client.run_function(RunAction::Switch(Function::BinaryOutput1), None, &|_| {}).unwrap_err();
+    assert!(matches!(e, Error::SwitchNotShown { switched_off: true, .. }), "{e}");
+    assert!(e.to_string().ends_with("; then switched off (the unit acknowledged the RS)"), "{e}");
+    assert!(!client.started().contains(&Function::BinaryOutput1) && rig.unit(|u| u.executed_functions() == [11]));
+}
+
+#[test]
+fn an_emergency_stop_still_shown_engaged_after_an_acknowledged_rs_is_said_plainly() {
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(Config::default());
+    // The run reads lock_status before the RE (released), after it (engaged): the entry follows F20. Then the
+    // unit's emergency stop output fails while it is engaged: the RS is acknowledged, nothing is released.
+    let progress = |_: &motionlink_scu::session::RunProgress| rig.unit(|u| u.fail_switch(Function::EmergencyStop));
+    let limit = Some(Duration::from_millis(300));
+    let e = client.run_function(RunAction::Switch(Function::EmergencyStop), limit, &progress).unwrap_err();
+    assert!(matches!(e, Error::SwitchNotShown { command: Command::Stop, word: 0x03FF, .. }), "{e}");
+    let text = e.to_string();
+    assert!(
+        text.starts_with(
+            "the unit acknowledged RS of F20 (emergency stop), but still shows the emergency stop engaged: \
+             lock_status (0x0162) shows every motion function F1..F10 locked (0x03FF)"
+        ),
+        "{text}"
+    );
+    assert_eq!(word(&client, 0x0162), 0x03FF, "still engaged");
+    // The reverse: an RE the unit acknowledges but does not show, once the session has seen the entry follow.
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(Config::default());
+    client.switch(Function::EmergencyStop, true).unwrap();
+    client.switch(Function::EmergencyStop, false).unwrap();
+    rig.unit(|u| u.fail_switch(Function::EmergencyStop));
+    let e = client.switch(Function::EmergencyStop, true).unwrap_err();
+    assert!(
+        e.to_string().starts_with(
+            "the unit acknowledged RE of F20 (emergency stop), but does not show the emergency stop engaged: \
+             lock_status (0x0162) is 0x0000, not every motion function F1..F10 locked"
+        ),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_unit_that_refuses_the_status_entry_is_switched_and_says_it_was_not_read_back() {
+    let rig = Rig::new(SimConfig::default());
+    rig.unit(|u| u.refuse_reads(DataIndex(0x0140)));
+    let client = rig.client(Config::default());
+    let reads = count_reads(&rig, 0x0140);
+    let on = client.switch(Function::Buzzer, true).unwrap();
+    assert!(!on.verified, "{on:?}");
+    assert_eq!(
+        on.not_verifiable,
+        ["F11 (buzzer) was not verified by its status: the unit refuses buzzer (0x0140) (RG: PDE); the unit's \
+          acknowledge is all that says it switched"]
+    );
+    assert_eq!(rig.unit(|u| u.executed_functions()), [11], "switched on all the same");
+    let run = client.run_function(RunAction::Switch(Function::Buzzer), Some(Duration::from_millis(200)), &|_| {});
+    let run = run.unwrap();
+    assert_eq!((run.verified, &run.not_verifiable), (false, &on.not_verifiable), "said once, for the whole run");
+    let off = client.switch(Function::Buzzer, false).unwrap();
+    assert_eq!(off.not_verifiable, on.not_verifiable);
+    assert_eq!(*reads.lock().unwrap(), 1, "refused once, not asked for again in the session");
+    assert!(client.started().is_empty());
 }
 
 #[test]

@@ -4,6 +4,7 @@
 use crate::bench;
 
 use bench::*;
+use motionlink_scu::model::Function;
 
 #[test]
 fn remote_commands_are_refused_outside_remote_mode() {
@@ -387,6 +388,45 @@ fn switching_functions_show_in_the_data_list() {
         assert_eq!(b.status(off(f)), Status::Ack);
         assert_eq!(b.get(index)[0] & (1 << bit), 0, "F{} off", f + 1);
     }
+}
+
+#[test]
+fn a_unit_of_the_switch_status_unshown_variant_switches_f18_f20_f21_f22_without_showing_them() {
+    let mut config = SimConfig::default();
+    config.add_variants([motionlink_scu::Variant::SwitchStatusUnshown]);
+    let mut b = Bench::new(config);
+    b.open(1);
+    let on = |f: u8| Request::Execute { function: f, params: [0xFF, 0xFF] };
+    // Binary output 1 and the buzzer show as ever; output 2, the LEDs and the emergency stop do not.
+    for f in [10u8, 16, 17, 19, 20, 21] {
+        assert_eq!(b.status(on(f)), Status::Ack, "F{}", f + 1);
+    }
+    assert_eq!((b.get(0x0140), b.get(0x0110), b.get(0x0120)), (vec![1], vec![0b01], vec![0]));
+    assert_eq!(b.get(0x0162), [0, 0], "lock_status shows no emergency stop");
+    assert_eq!(b.status(Request::Execute { function: 0, params: [9, 0xFF] }), Status::PermissionError, "engaged");
+}
+
+#[test]
+fn a_failed_switch_is_acknowledged_and_its_status_stays_as_it_is() {
+    let config = SimConfig::from_toml("failed_switches = [\"F17\", \"20\"]").unwrap();
+    assert_eq!(config.failed_switches, [Function::BinaryOutput1, Function::EmergencyStop]);
+    let mut b = Bench::new(config);
+    b.open(1);
+    assert_eq!(b.status(Request::Execute { function: 16, params: [0xFF, 0xFF] }), Status::Ack);
+    assert_eq!(b.get(0x0110), [0], "binary output 1 did not switch on");
+    assert_eq!(b.unit.executed_functions(), [17], "the RE was taken");
+    assert_eq!(b.status(Request::Execute { function: 19, params: [0xFF, 0xFF] }), Status::Ack);
+    assert_eq!(b.get(0x0162), [0, 0]);
+    let events = b.unit.take_events();
+    assert!(events.iter().any(|e| e.starts_with("F17 RE acknowledged, but its output has failed")), "{events:?}");
+    b.unit.fail_switch(Function::Buzzer);
+    b.unit.fail_switch(Function::Buzzer);
+    assert_eq!(b.unit.config().failed_switches.len(), 3, "each once");
+    let e = SimConfig::from_toml("failed_switches = [\"F1\"]").unwrap_err();
+    assert!(e.to_string().contains("\"F1\" is not a switching function (F11, F17, F18, F20, F21, F22)"), "{e}");
+    // An entry refused on purpose (a unit without it).
+    b.unit.refuse_reads(DataIndex(0x0140));
+    assert_eq!(b.status(Request::Get { index: 0x0140 }), Status::ParameterDataError);
 }
 
 #[test]

@@ -19,6 +19,9 @@ struct Outcome {
     home_rest: PositionCounts,
     samples: Vec<Snapshot>,
     retries: u64,
+    /// A run of F11 (whose entry the manuals name) and of F18 (whose bit is this crate's reading): verified,
+    /// and what could not be.
+    switched: [(bool, Vec<String>); 2],
 }
 
 /// Open (with what a device profile says of the unit: `seed`), get, set, move (two functions, two speeds),
@@ -59,6 +62,13 @@ fn core_operations(rig: &Rig, config: Config, seed: Capabilities) -> Outcome {
     }
     let gaps: Vec<Duration> = samples.windows(2).map(|w| w[1].at - w[0].at).collect();
     assert!(gaps.iter().all(|g| *g >= Duration::from_millis(200) && *g <= Duration::from_millis(300)), "{gaps:?}");
+    // switching functions: on for a moment, read back after the RE and after the RS
+    let switched = [Function::Buzzer, Function::BinaryOutput2].map(|function| {
+        let limit = Some(Duration::from_millis(200));
+        let run = client.run_function(RunAction::Switch(function), limit, &|_| {}).unwrap();
+        assert_eq!(run.verified, run.not_verifiable.is_empty(), "{function}");
+        (run.verified, run.not_verifiable)
+    });
     assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 0);
     let caps = client.capabilities();
     let retries = client.stats().retries;
@@ -74,6 +84,7 @@ fn core_operations(rig: &Rig, config: Config, seed: Capabilities) -> Outcome {
         home_rest,
         samples,
         retries,
+        switched,
     }
 }
 
@@ -278,6 +289,64 @@ fn every_variant_together_still_runs_the_core_operations() {
     let (_, o) = run_on(Variant::ALL);
     assert!(!o.move_verified && o.move_why.len() == 2, "{:?}", o.move_why);
     assert_eq!(o.home_rest, PositionCounts(-3));
+    assert!(o.switched[0].0 && !o.switched[1].0, "{:?}", o.switched);
+}
+
+#[test]
+fn every_variant_but_one_shows_both_switching_functions_and_that_one_says_what_it_could_not_verify() {
+    for &v in Variant::ALL {
+        let (_, o) = run_on(&[v]);
+        assert!(o.switched[0].0, "{v:?}: the buzzer, whose bit the manuals name: {:?}", o.switched[0].1);
+        assert_eq!(o.switched[1].0, v != Variant::SwitchStatusUnshown, "{v:?}: {:?}", o.switched[1].1);
+    }
+}
+
+#[test]
+fn a_unit_whose_entries_do_not_follow_f18_f20_f21_f22_switches_them_and_says_they_were_not_verified() {
+    let (rig, o) = run_on(&[Variant::SwitchStatusUnshown]);
+    assert!(o.move_verified && o.set_verified, "{:?}", o.move_why);
+    assert_eq!(o.switched[1].1.len(), 1, "one reason for the RE and the RS: {:?}", o.switched[1].1);
+    assert!(
+        o.switched[1].1[0].starts_with(
+            "F18 (binary output 2) was not verified by its status: binary_outputs (0x0110, bit 1) did not show binary \
+             output 2 on after the acknowledged RE"
+        ),
+        "{:?}",
+        o.switched[1].1
+    );
+    for function in [Function::EmergencyStop, Function::Led1, Function::Led2] {
+        // A run: switched on and off, not verified, never an error; the emergency stop still stops motions.
+        let client = rig.client(scp11());
+        let seen = Mutex::new(Vec::new());
+        let progress = |p: &motionlink_scu::session::RunProgress| seen.lock().unwrap().push(p.switched_on_shown);
+        let run = client.run_function(RunAction::Switch(function), Some(Duration::from_millis(300)), &progress);
+        let run = run.unwrap();
+        assert!(!run.verified && run.not_verifiable.len() == 1, "{function}: {:?}", run.not_verifiable);
+        let why = &run.not_verifiable[0];
+        assert!(why.starts_with(&format!("{function} was not verified by its status: ")), "{why}");
+        assert!(why.contains("did not show") && why.contains("so this session does not take the entry"), "{why}");
+        assert_eq!(*seen.lock().unwrap(), [Some(false)], "{function}");
+        assert!(rig.unit(|u| u.executed_functions().is_empty()), "{function}: switched off");
+        // Later switches of the session say the same, without reading the entry again.
+        let on = client.switch(function, true).unwrap();
+        let off = client.switch(function, false).unwrap();
+        assert_eq!((on.verified, &on.not_verifiable), (false, &run.not_verifiable), "{function}");
+        assert_eq!((off.verified, &off.not_verifiable), (false, &run.not_verifiable), "{function}");
+        client.close().unwrap();
+    }
+    // A switch off alone finds the entry off before the RS as after it: not verified (the session has not seen
+    // it follow), not claimed.
+    let client = rig.client(scp11());
+    let off = client.switch(Function::Led1, false).unwrap();
+    assert!(!off.verified, "{off:?}");
+    assert!(
+        off.not_verifiable[0].contains("shows LED 1 of the operating unit off after the RS as before it"),
+        "{off:?}"
+    );
+    // While the emergency stop is on, the unit refuses motions all the same.
+    client.switch(Function::EmergencyStop, true).unwrap();
+    let e = client.run_function(RunAction::Motion(f(1), MotionDirection::Out), None, &|_| {}).unwrap_err();
+    assert!(matches!(e, Error::Refused { command: Command::Execute, .. }), "{e}");
 }
 
 #[test]

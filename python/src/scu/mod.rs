@@ -400,13 +400,14 @@ faces! {
     /// Stops what moves, as `motionlink scu stop` does: RS to the motion function named, or with no function
     /// to every one (F1..F10), fast or along the stop ramp (`soft`), confirmed by the status read until no
     /// actuator moves: the stop report, with where each connected actuator rests. Another function named
-    /// (F11..F22) is switched off with RS: `{function, mode: "off"}`.
+    /// (F11..F22) is switched off with RS and its status read back: `{function, mode: "off", verified,
+    /// not_verifiable}`.
     quick stop(me, py, function: Option<String>, soft: Bool) {
         let (function, scope, mode) = stop_what(function.as_deref(), &soft).map_err(|f| to_pyerr(py, f))?;
     } |c| {
         match scope {
             StopScope::Motions(all) => w!(c.stop_functions(&all, mode)).map(Stopped::Motions),
-            StopScope::Switch(f) => w!(c.switch(f, false)).map(|()| Stopped::Switch(SwitchedOff::OFF)),
+            StopScope::Switch(f) => w!(c.switch(f, false)).map(|r| Stopped::Switch(SwitchedOff::from(r))),
         }
     } => |py, report| report_py(py, &FunctionStop { function, report }, |_| {});
 }

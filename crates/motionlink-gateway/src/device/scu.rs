@@ -119,8 +119,8 @@ impl Scu {
                             me.result(&StopResult::new(None::<String>, function, report))
                         }
                         StopScope::Switch(f) => {
-                            client.switch(f, false).await.map_err(failed)?;
-                            me.result(&StopResult::new(None::<String>, function, SwitchedOff::OFF))
+                            let switched = client.switch(f, false).await.map_err(failed)?;
+                            me.result(&StopResult::new(None::<String>, function, SwitchedOff::from(switched)))
                         }
                     }
                 })))

@@ -19,7 +19,7 @@ use crate::model::{
 use crate::session::ops::basic::{cyclic_index, decode_cyclic_read, encode_for, Stroke};
 use crate::session::{
     Capabilities, ClientStats, MoveReport, MoveSpec, MoveTargets, Op, Output, PreparedRequest, RunAction, RunReport,
-    Session, SetReport, Snapshot, StopReport, WatchSpec,
+    Session, SetReport, Snapshot, StopReport, SwitchReport, WatchSpec,
 };
 use crate::value::Value;
 use crate::wire::{Command, Request};
@@ -226,9 +226,10 @@ impl AsyncClient {
         expect_output!(self.driver.run(op).await, Output::Stopped(r) => r)
     }
 
-    /// Switches a non-motion function on (RE) or off (RS).
-    pub async fn switch(&self, function: Function, on: bool) -> Result<(), Error> {
-        self.request(&super::switch_request(function, on)?).await.map(|_| ())
+    /// Switches a switching function on (RE) or off (RS) and reads back the status entry that shows it, as
+    /// [`Client::switch`].
+    pub async fn switch(&self, function: Function, on: bool) -> Result<SwitchReport, Error> {
+        expect_output!(self.driver.run(super::switch_op(function, on)?).await, Output::Switched(r) => r)
     }
 
     /// Runs a function as [`Client::run`]; dropping the future stops it. Progress:

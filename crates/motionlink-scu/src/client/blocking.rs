@@ -17,7 +17,7 @@ use crate::model::{
 use crate::session::ops::basic::{cyclic_index, decode_cyclic_read, encode_for};
 use crate::session::{
     Capabilities, ClientStats, MoveReport, Op, Output, PreparedRequest, Progress, RunAction, RunProgress, RunReport,
-    Session, SetReport, Snapshot, StopReport, WatchSpec,
+    Session, SetReport, Snapshot, StopReport, SwitchReport, WatchSpec,
 };
 use crate::value::Value;
 use crate::wire::{Command, Request};
@@ -290,9 +290,14 @@ impl Client {
         expect_output!(self.driver.run(op), Output::Stopped(r) => r)
     }
 
-    /// Switches a non-motion function (buzzer, outputs, emergency stop, LEDs) on (RE) or off (RS).
-    pub fn switch(&self, function: Function, on: bool) -> Result<(), Error> {
-        self.request(&super::switch_request(function, on)?).map(|_| ())
+    /// Switches a switching function (F11 buzzer, F17/F18 binary outputs, F20 emergency stop, F21/F22 LEDs) on
+    /// (RE) or off (RS), then reads the status entry that shows it ([`Function::switch_status`]) until it
+    /// shows the state asked for (at most [`Config::start_grace`]). The report says whether it did
+    /// (`verified`) or why that could not be checked (a unit that refuses the entry, an entry the manuals do
+    /// not tie to the function in so many words and that this session has not seen follow it); an entry that
+    /// shows the other state is [`Error::SwitchNotShown`].
+    pub fn switch(&self, function: Function, on: bool) -> Result<SwitchReport, Error> {
+        expect_output!(self.driver.run(super::switch_op(function, on)?), Output::Switched(r) => r)
     }
 
     /// Runs a function until it ends (a motion function whose actuators all stopped), `limit` passes, or

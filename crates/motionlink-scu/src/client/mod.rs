@@ -70,13 +70,13 @@ use crate::config::Config;
 use crate::error::Error;
 use crate::model::ActuatorStatus1;
 use crate::model::{
-    item, Actuator, DataEntry, DataIndex, ErrorCode, Function, Item, MotionFunction, PositionCounts, Speed, UNUSED,
+    item, Actuator, DataEntry, DataIndex, ErrorCode, Function, Item, MotionFunction, PositionCounts, Speed,
 };
 use crate::session::ops::basic::{check_stroke, Stroke};
 use crate::session::report::MoveProgress;
-use crate::session::{MoveSpec, MoveTargets, RunAction, RunSpec};
+use crate::session::{MoveSpec, MoveTargets, Op, RunAction, RunSpec};
 use crate::value::{decode_item, Value};
-use crate::wire::{Command, Request};
+use crate::wire::Command;
 
 #[cfg(feature = "tokio")]
 mod asynch;
@@ -178,17 +178,10 @@ pub(crate) fn run_spec(action: RunAction, limit: Option<std::time::Duration>) ->
     Ok(RunSpec { action, limit })
 }
 
-/// The RE or RS that switches a non-motion function.
-pub(crate) fn switch_request(function: Function, on: bool) -> Result<Request<'static>, Error> {
-    if let Function::Motion(m) = function {
-        return Err(Error::invalid(format!("{m} is a motion function: use start_motion/stop_motion")));
-    }
-    let id = function.id();
-    Ok(if on {
-        Request::Execute { function: id, params: [UNUSED, UNUSED] }
-    } else {
-        Request::Stop { function: id, param: UNUSED }
-    })
+/// The operation that switches a switching function on (RE) or off (RS) and checks its status.
+pub(crate) fn switch_op(function: Function, on: bool) -> Result<Op, Error> {
+    crate::session::ops::switch_request(function, on)?;
+    Ok(Op::Switch { function, on })
 }
 
 pub(crate) fn data(reply: Option<Vec<u8>>) -> Result<Vec<u8>, Error> {

@@ -24,6 +24,7 @@ mod errors;
 mod flags;
 mod functions;
 mod structs;
+mod switching;
 mod units;
 
 pub use data_list::{DATA_LIST, TABLE};
@@ -31,6 +32,7 @@ pub use errors::*;
 pub use flags::*;
 pub use functions::*;
 pub use structs::*;
+pub use switching::*;
 pub use units::*;
 
 /// An index of the data list (`data_ID`), such as 0x0011 (position of actuator 1) or a group such as 0x0010.

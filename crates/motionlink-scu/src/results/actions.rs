@@ -4,6 +4,7 @@
 use serde::Serialize;
 
 use crate::model::{ErrorCode, Function, MotionFunction};
+use crate::session::SwitchReport;
 
 /// What `stop` stops: the motion functions named (every one, F1..F10, when none is), or another function
 /// (buzzer, outputs, emergency stop, LEDs) switched off with RS.
@@ -26,16 +27,22 @@ impl StopScope {
     }
 }
 
-/// A switching function switched off: `{"mode": "off"}`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+/// A switching function switched off with RS: `{"mode": "off", "verified", "not_verifiable"}`, whether the
+/// status entry that shows it showed it off afterwards ([`crate::session::SwitchReport`]).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct SwitchedOff {
     /// Always `off`.
     pub mode: &'static str,
+    /// Its status entry showed it off after the RS.
+    pub verified: bool,
+    /// Why that could not be verified (empty when `verified`).
+    pub not_verifiable: Vec<String>,
 }
 
-impl SwitchedOff {
-    /// The function was switched off.
-    pub const OFF: SwitchedOff = SwitchedOff { mode: "off" };
+impl From<SwitchReport> for SwitchedOff {
+    fn from(r: SwitchReport) -> Self {
+        SwitchedOff { mode: "off", verified: r.verified, not_verifiable: r.not_verifiable }
+    }
 }
 
 /// A stop without the keys of the front end that made it: `{function (if named), ...report}`, `report` the
@@ -92,13 +99,18 @@ pub struct ErrorHistory {
     pub errors: [ErrorCode; 5],
 }
 
-/// A function's run began (the unit acknowledged its RE): `{"function", "running": true}`.
+/// A function's run began (the unit acknowledged its RE): `{"function", "running": true}`, for a switching
+/// function with `verified`: whether the status entry that shows it showed it on
+/// ([`crate::session::RunProgress::switched_on_shown`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct Running {
     /// The function.
     pub function: Function,
     /// Always true.
     pub running: bool,
+    /// A switching function: its status showed it on after the RE (`None` for a motion function).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub verified: Option<bool>,
 }
 
 #[cfg(test)]
@@ -107,10 +119,12 @@ mod tests {
 
     #[test]
     fn a_stop_serialises_with_the_action_s_keys() {
-        let r = StopResult::new(None::<String>, "F11".parse().ok(), SwitchedOff::OFF);
+        let off = SwitchReport { function: Function::Buzzer, on: false, verified: true, not_verifiable: Vec::new() };
+        let r = StopResult::new(None::<String>, "F11".parse().ok(), SwitchedOff::from(off));
         assert_eq!(
             serde_json::to_value(&r).unwrap(),
-            serde_json::json!({"action": "stop", "stopped": true, "holder": null, "function": 11, "mode": "off"})
+            serde_json::json!({"action": "stop", "stopped": true, "holder": null, "function": 11, "mode": "off",
+                "verified": true, "not_verifiable": []})
         );
         assert_eq!(StopScope::of(None), StopScope::Motions(MotionFunction::all().collect()));
         assert_eq!(StopScope::of("F11".parse().ok()), StopScope::Switch(Function::Buzzer));

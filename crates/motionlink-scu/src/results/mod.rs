@@ -208,7 +208,10 @@ impl SampleReport {
 }
 
 /// How a function's run ended: `{function, stopped: true, interrupted, actuators: [{actuator,
-/// reached_counts}]}`. The stop was confirmed by the unit in either case.
+/// reached_counts}]}`, and for a switching function (F11..F22) `verified` and `not_verifiable`: whether the
+/// status entry that shows it showed it on after the RE and off after the RS. The stop was confirmed by the
+/// unit in either case (a motion function's by the status of every actuator, a switching function's by the
+/// acknowledge of its RS).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct RunOutcome {
     /// The function.
@@ -217,6 +220,10 @@ pub struct RunOutcome {
     pub interrupted: bool,
     /// Where each connected actuator came to rest.
     pub rest: Vec<(Actuator, PositionCounts)>,
+    /// As [`RunReport::verified`].
+    pub verified: bool,
+    /// As [`RunReport::not_verifiable`].
+    pub not_verifiable: Vec<String>,
 }
 
 impl RunOutcome {
@@ -225,7 +232,9 @@ impl RunOutcome {
     pub fn of(result: Result<RunReport, Error>) -> Result<RunOutcome, Error> {
         match result {
             Ok(r) => Ok(RunOutcome::from(&r)),
-            Err(Error::RunCancelled { function, rest }) => Ok(RunOutcome { function, interrupted: true, rest }),
+            Err(Error::RunCancelled { function, rest, verified, not_verifiable }) => {
+                Ok(RunOutcome { function, interrupted: true, rest, verified, not_verifiable })
+            }
             Err(e) => Err(e),
         }
     }
@@ -233,17 +242,27 @@ impl RunOutcome {
 
 impl From<&RunReport> for RunOutcome {
     fn from(r: &RunReport) -> Self {
-        RunOutcome { function: r.function, interrupted: false, rest: r.rest.clone() }
+        RunOutcome {
+            function: r.function,
+            interrupted: false,
+            rest: r.rest.clone(),
+            verified: r.verified,
+            not_verifiable: r.not_verifiable.clone(),
+        }
     }
 }
 
 impl Serialize for RunOutcome {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let mut map = s.serialize_map(Some(4))?;
+        let mut map = s.serialize_map(None)?;
         map.serialize_entry("function", &self.function)?;
         map.serialize_entry("stopped", &true)?;
         map.serialize_entry("interrupted", &self.interrupted)?;
         map.serialize_entry("actuators", &PerActuator { pairs: &self.rest, key: "reached_counts" })?;
+        if !matches!(self.function, Function::Motion(_)) {
+            map.serialize_entry("verified", &self.verified)?;
+            map.serialize_entry("not_verifiable", &self.not_verifiable)?;
+        }
         map.end()
     }
 }

@@ -170,17 +170,40 @@ fn a_stop_names_the_functions_how_and_where_each_actuator_rests() {
 #[test]
 fn runs_and_streams_say_where_the_actuators_came_to_rest() {
     let rest = vec![(a(1), PositionCounts(5)), (a(2), PositionCounts(7))];
-    let ran = RunReport { function: Function::Motion(f(2)), duration: Duration::from_secs(1), rest: rest.clone() };
+    let ran = RunReport {
+        function: Function::Motion(f(2)),
+        duration: Duration::from_secs(1),
+        rest: rest.clone(),
+        verified: true,
+        not_verifiable: Vec::new(),
+    };
     let expected = |interrupted: bool| {
         json!({"function": 2, "stopped": true, "interrupted": interrupted,
                "actuators": [{"actuator": 1, "reached_counts": 5}, {"actuator": 2, "reached_counts": 7}]})
     };
     assert_eq!(to_value(RunOutcome::of(Ok(ran)).unwrap()).unwrap(), expected(false));
-    let cancelled = Error::RunCancelled { function: Function::Motion(f(2)), rest: rest.clone() };
+    let cancelled = Error::RunCancelled {
+        function: Function::Motion(f(2)),
+        rest: rest.clone(),
+        verified: true,
+        not_verifiable: Vec::new(),
+    };
     assert_eq!(to_value(RunOutcome::of(Err(cancelled)).unwrap()).unwrap(), expected(true));
     assert!(RunOutcome::of(Err(Error::Closed)).is_err(), "other errors stay errors");
-    let switched = RunOutcome { function: Function::Buzzer, interrupted: false, rest: vec![] };
-    assert_eq!(to_value(&switched).unwrap()["function"], 11);
+    // A switching function's run says whether its status showed it on after the RE and off after the RS.
+    let why = vec!["F11 (buzzer) was not verified by its status: ...".to_string()];
+    let switched = RunOutcome {
+        function: Function::Buzzer,
+        interrupted: false,
+        rest: vec![],
+        verified: false,
+        not_verifiable: why,
+    };
+    assert_eq!(
+        to_value(&switched).unwrap(),
+        json!({"function": 11, "stopped": true, "interrupted": false, "actuators": [], "verified": false,
+               "not_verifiable": ["F11 (buzzer) was not verified by its status: ..."]})
+    );
 
     let followed = FollowReport { rest: rest.clone(), updates: 3 };
     assert_eq!(

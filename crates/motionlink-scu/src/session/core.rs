@@ -80,6 +80,12 @@ impl Core {
         self.last_rc_sent.is_none_or(|t| now + expected <= t + RC_DEADLINE)
     }
 
+    /// True if a request queued now goes out without waiting for room between the keepalives (behind at most
+    /// the exchange under way).
+    pub(crate) fn room_at_once(&self) -> bool {
+        self.queue.is_empty() && self.has_room(self.now)
+    }
+
     pub(super) fn advance_keepalive(&mut self, now: Timestamp) {
         let period = self.rc_period();
         while self.keepalive_due <= now {

@@ -79,7 +79,7 @@ pub use ops::WatchSpec;
 pub use ops::{MoveSpec, MoveTargets, Op, Output, Progress, RunAction, RunSpec};
 pub use report::{
     ActuatorOutcome, ActuatorRest, ClientStats, MoveProgress, MoveReport, RefusedStop, RunProgress, RunReport,
-    SetReport, Snapshot, StopReport,
+    SetReport, Snapshot, StopReport, SwitchReport,
 };
 pub(crate) use request::{OwnedReply, Req};
 
@@ -219,6 +219,8 @@ pub(crate) struct Core {
     pub poll: PollObject,
     /// What the unit was found to do beyond the manual's words.
     pub(crate) probed: caps::Probed,
+    /// What each switching function's status entry was found to do.
+    pub(crate) switches: ops::SwitchFindings,
     /// Operations waiting for the next poll of a motion, and where it goes.
     subscribers: BTreeMap<OpId, Ticket>,
     /// Replies to the operations' requests.
@@ -279,6 +281,7 @@ impl Session {
             last_cyclic_read: None,
             poll: PollObject::default(),
             probed: caps::Probed::default(),
+            switches: ops::SwitchFindings::default(),
             subscribers: BTreeMap::new(),
             replies: Jobs::default(),
             snapshots: Jobs::default(),

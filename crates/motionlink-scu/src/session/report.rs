@@ -86,6 +86,9 @@ pub struct RunProgress {
     pub statuses: [ActuatorStatus1; 6],
     /// Positions of A1..A6 (zero where not read).
     pub positions: [PositionCounts; 6],
+    /// A switching function: whether the status entry that shows it ([`Function::switch_status`]) showed it
+    /// on after the RE (false: not verified; the run's report says why). `None` for a motion function.
+    pub switched_on_shown: Option<bool>,
 }
 
 /// How a function's run ended.
@@ -97,6 +100,26 @@ pub struct RunReport {
     pub duration: Duration,
     /// Where each connected actuator came to rest, read after the stop.
     pub rest: Vec<(Actuator, PositionCounts)>,
+    /// A switching function: its status entry showed it on after the RE and off after the RS. A motion
+    /// function: true (its stop is confirmed by the status of every actuator).
+    pub verified: bool,
+    /// What could not be verified, and why (empty when `verified`).
+    pub not_verifiable: Vec<String>,
+}
+
+/// How a switching function was switched ([`crate::Client::switch`]): the unit acknowledged the RE (on) or
+/// RS (off), and the status entry that shows the function ([`Function::switch_status`]) was read afterwards.
+/// A status that shows the other state is an error ([`crate::Error::SwitchNotShown`]), not a report.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SwitchReport {
+    /// The function.
+    pub function: Function,
+    /// Switched on (RE) or off (RS).
+    pub on: bool,
+    /// Its status entry showed the state asked for.
+    pub verified: bool,
+    /// Why it is not verified (empty when `verified`).
+    pub not_verifiable: Vec<String>,
 }
 
 /// How a stop of motion functions ended ([`crate::Client::stop_functions`]): the unit acknowledged the RS

@@ -55,7 +55,10 @@ impl Emulator {
                 self.note_rest();
             }
             Request::Cyclic { object, write } => self.handle_cyclic(object, write),
-            Request::Get { index } if variants::refuses_get(&self.config.variants, DataIndex(index)) => {
+            Request::Get { index }
+                if variants::refuses_get(&self.config.variants, DataIndex(index))
+                    || self.refused_reads.contains(&DataIndex(index)) =>
+            {
                 self.reply_status(command, Status::ParameterDataError)
             }
             Request::Get { index } => match item(DataIndex(index)) {
@@ -266,6 +269,15 @@ impl Emulator {
     }
 
     pub(super) fn switch(&mut self, f: Function, on: bool) {
+        if self.config.failed_switches.contains(&f) {
+            let (command, state) = if on { ("RE", "on") } else { ("RS", "off") };
+            self.push_event(format!(
+                "F{} {command} acknowledged, but its output has failed: not switched {state} ({})",
+                f.number(),
+                f.description()
+            ));
+            return;
+        }
         let set = |bits: &mut u8, bit: u8| {
             if on {
                 *bits |= 1 << bit;

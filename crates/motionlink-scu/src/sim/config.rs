@@ -1,7 +1,7 @@
 //! The emulated unit's parameterisation: actuators, function mapping, presets, the TOML file.
 
 use super::*;
-use crate::model::{DataEntryExt, UserPositionData, UserPositions};
+use crate::model::{DataEntryExt, Function, UserPositionData, UserPositions};
 
 /// One actuator's parameterisation.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -90,6 +90,7 @@ pub struct ScheduledError {
 /// counts_per_second_at_full_speed = 110.0
 /// obstacle_counts = 500     # the drive stalls here and stops with its drive error bit set
 /// variants = ["no-groups"] # firmware variants (see [`Variant`]); `--variant` adds more
+/// failed_switches = ["F17"] # RE and RS of F17 are acknowledged, binary output 1 stays as it is
 /// [[error]]                 # raise error bit 12 five seconds after power-on
 /// bit = 12
 /// at_ms = 5000
@@ -116,6 +117,10 @@ pub struct SimConfig {
     /// How this unit's firmware differs from the emulator's default reading of the manual (each once, in
     /// the order of [`Variant::ALL`]: [`SimConfig::add_variants`]).
     pub variants: Vec<Variant>,
+    /// Switching functions whose output has failed: the unit acknowledges their RE and RS, and what the data
+    /// list shows of them stays as it is (for tests of a host that reads it back; `failed_switches = ["F17"]`
+    /// in the TOML configuration).
+    pub failed_switches: Vec<Function>,
 }
 
 impl SimConfig {
@@ -141,6 +146,7 @@ impl SimConfig {
             total_current_limit_deci_amps: 0,
             scheduled_errors: Vec::new(),
             variants: Vec::new(),
+            failed_switches: Vec::new(),
         }
     }
 
@@ -227,6 +233,7 @@ impl SimConfig {
             total_current_limit_deci_amps: Option<u16>,
             error: Option<Vec<ScheduledError>>,
             variants: Option<Vec<Variant>>,
+            failed_switches: Option<Vec<String>>,
         }
         let f: File = toml::from_str(text).map_err(|e| SimConfigError(e.to_string()))?;
         // The preset given beside the text is where a text that names none starts; a text that names another
@@ -255,6 +262,17 @@ impl SimConfig {
         if let Some(v) = f.variants {
             c.variants.clear();
             c.add_variants(v);
+        }
+        if let Some(names) = f.failed_switches {
+            c.failed_switches = names
+                .iter()
+                .map(|name| match Function::parse(name) {
+                    Some(Function::Motion(_)) | None => Err(SimConfigError(format!(
+                        "failed_switches: {name:?} is not a switching function (F11, F17, F18, F20, F21, F22)"
+                    ))),
+                    Some(f) => Ok(f),
+                })
+                .collect::<Result<_, _>>()?;
         }
         if let Some(n) = f.actuators {
             if !(1..=6).contains(&n) {

@@ -50,6 +50,7 @@ impl Emulator {
     pub(super) fn entry_value(&self, e: &DataEntry) -> Option<Value> {
         let i = e.index().0;
         let actuator = |base: u16| self.actuators.get(usize::from(i - base).wrapping_sub(1));
+        let unshown = self.config.variants.contains(&Variant::SwitchStatusUnshown);
         Some(match i {
             0x0001 => Value::Text(self.config.firmware_info.clone()),
             0x0002 => Value::Text(self.config.configuration_info.clone()),
@@ -76,11 +77,14 @@ impl Emulator {
             0x00F1..=0x00F6 => Value::SpeedPercent(actuator(0x00F0).map_or(0, ActuatorState::speed_percent)),
             0x0040 => Value::Counter(self.keys),
             0x0100 => Value::Number(0b0001), // mains connected, no battery
+            // A unit of the variant shows output 2, the LEDs and the emergency stop elsewhere, or not at all.
+            0x0110 if unshown => Value::Number(self.binary_outputs & 0x01),
             0x0110 => Value::Number(self.binary_outputs),
+            0x0120 if unshown => Value::Number(0),
             0x0120 => Value::Number(self.led_hand_switch),
             0x0140 => Value::Number(u8::from(self.buzzer)),
             0x0150 => Value::Number(1),
-            0x0162 => Value::Counter(if self.emergency_stop { 0x03FF } else { 0 }),
+            0x0162 => Value::Counter(if self.emergency_stop && !unshown { 0x03FF } else { 0 }),
             0x0164 => Value::BatteryDeciVolts(0),
             0x0166 => Value::Number(1),
             0x0171..=0x0176 => Value::Number(actuator(0x0170).map_or(0, ActuatorState::status1)),

@@ -30,9 +30,12 @@
 //! - RE on F1..F10 moves the actuators the parameterisation assigns to the function, to the position the
 //!   motion_direction names (9: the remote position of each actuator), at the function's remote speed, with a
 //!   soft start ramp. RS stops it (0 fast, 1 along the ramp). F11 buzzer, F17/F18 binary outputs, F21/F22 the
-//!   operating unit's LEDs are switched on by RE and off by RS. F20 emergency stop fast-stops everything; while
-//!   it is on, motion functions are refused (PE), every function shows as locked in Lock Status and the release
-//!   flags of actuator status 2 are cleared.
+//!   operating unit's LEDs are switched on by RE and off by RS: the buzzer shows in 0x0140, the outputs in
+//!   0x0110 (bits 0 and 1), the LEDs in the hand switch's 0x0120 (bits 0 and 1). F20 emergency stop fast-stops
+//!   everything; while it is on, motion functions are refused (PE), every function shows as locked in Lock
+//!   Status and the release flags of actuator status 2 are cleared. [`SimConfig::failed_switches`] (and
+//!   [`Emulator::fail_switch`]) make a switching function's output fail: RE and RS acknowledged, nothing
+//!   switched.
 //! - Every data-list index answers: positions, status bits (motion, in/out position reached, limit signals),
 //!   currents and their maxima, speeds, cumulated stroke, relay cycle counters, error codes with a history of
 //!   five, and fixed plausible values for the rest.
@@ -152,6 +155,8 @@ pub struct Emulator {
     last_rx: Option<Timestamp>,
     /// A [`Variant::Sleepy`] unit dozed off: the next telegram only wakes it.
     dozing: bool,
+    /// Entries whose RG is refused with PDE ([`Emulator::refuse_reads`]).
+    refused_reads: Vec<DataIndex>,
 }
 
 /// The most events an emulator keeps for [`Emulator::take_events`] (a host that never takes them loses the
@@ -207,6 +212,7 @@ impl Emulator {
             scheduled_raised: 0,
             last_rx: None,
             dozing: false,
+            refused_reads: Vec::new(),
         })
     }
 
@@ -287,6 +293,20 @@ impl Emulator {
             self.actuators.iter_mut().for_each(ActuatorState::fast_stop);
         }
         self.note_rest();
+    }
+
+    /// From now on the unit acknowledges the RE and RS of switching function `f` but no longer switches it:
+    /// what the data list shows of it stays as it is (a failed output, for tests that need a unit in trouble;
+    /// [`SimConfig::failed_switches`] from power-on).
+    pub fn fail_switch(&mut self, f: crate::model::Function) {
+        if !self.config.failed_switches.contains(&f) {
+            self.config.failed_switches.push(f);
+        }
+    }
+
+    /// From now on RG of `index` is refused with PDE (a unit without that entry, for tests).
+    pub fn refuse_reads(&mut self, index: DataIndex) {
+        self.refused_reads.push(index);
     }
 
     /// Presses the hand switch: moves the actuators of motion function `function` (1..10) In or Out as a

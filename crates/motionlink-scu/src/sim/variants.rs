@@ -41,6 +41,10 @@ pub enum Variant {
     /// After an RE, actuators at rest start 0.4 s after the ACK, and their motion bit rises only
     /// then (a unit whose relays or soft start take that long; the manual does not say when the bit rises).
     LateMotionBit,
+    /// The entries this crate takes to show F18, F21/F22 and F20 (binary_outputs bit 1, led_hand_switch,
+    /// lock_status) do not follow those functions: they stay as they are (a unit that shows them elsewhere,
+    /// or not at all). The functions still switch (the emergency stop still stops every motion).
+    SwitchStatusUnshown,
 }
 
 impl FirmwareVariant for Variant {
@@ -57,6 +61,7 @@ impl FirmwareVariant for Variant {
         Variant::InEndUndershoot,
         Variant::ReNeedsRs,
         Variant::LateMotionBit,
+        Variant::SwitchStatusUnshown,
     ];
 
     /// Its name, as `--variant` takes it.
@@ -72,6 +77,7 @@ impl FirmwareVariant for Variant {
             Variant::InEndUndershoot => "in-end-undershoot",
             Variant::ReNeedsRs => "re-needs-rs",
             Variant::LateMotionBit => "late-motion-bit",
+            Variant::SwitchStatusUnshown => "switch-status-unshown",
         }
     }
 
@@ -93,6 +99,10 @@ impl FirmwareVariant for Variant {
             Variant::ReNeedsRs => "RE of a motion function started and not yet ended with RS is refused with PE",
             Variant::LateMotionBit => {
                 "after an RE, actuators at rest start, and their motion bit rises, 0.4 s after the ACK"
+            }
+            Variant::SwitchStatusUnshown => {
+                "binary_outputs bit 1, led_hand_switch and lock_status do not follow F18, F21/F22 and F20 (the \
+                 functions still switch)"
             }
         }
     }

@@ -5,7 +5,7 @@ use std::io::Write;
 use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
-use motionlink_scu::model::{Actuator, DataEntryExt, ErrorCode, Function, Item, MotionFunction, PositionCounts, Speed};
+use motionlink_scu::model::{Actuator, DataEntryExt, ErrorCode, Item, MotionFunction, PositionCounts, Speed};
 use motionlink_scu::results::{ActuatorState, ErrorHistory, GetReport, RunOutcome, Running, SampleReport};
 use motionlink_scu::session::{MoveProgress, MoveReport, RunAction, RunProgress, Snapshot};
 use motionlink_scu::{Client, MoveOptions};
@@ -195,18 +195,25 @@ pub(super) fn run(
 ) -> Result<(), CliError> {
     let function = action.function();
     // A switching function (buzzer, outputs, emergency stop, LEDs) is switched off by the RS that ends the
-    // run; only its acknowledge says so (no status shows it).
-    let switching = !matches!(function, Function::Motion(_));
-    // The first progress comes right after the unit acknowledged the RE.
+    // run; the library reads the status entry that shows it after the RE and after the RS.
+    let status = function.switch_status();
+    // The first progress comes right after the unit acknowledged the RE (for a switching function, once its
+    // status was read).
     let said = std::cell::Cell::new(false);
-    let progress = |_: &RunProgress| {
+    let progress = |p: &RunProgress| {
         if !said.replace(true) {
             let mut stdout = std::io::stdout();
-            let _ = match (report.json, switching) {
-                (true, _) => report.print(&mut stdout, Running { function, running: true }),
-                (false, false) => writeln!(stdout, "{function} running; Ctrl-C stops it").map_err(CliError::from),
-                (false, true) => {
-                    writeln!(stdout, "{function} switched on; Ctrl-C switches it off (RS)").map_err(CliError::from)
+            let verified = p.switched_on_shown;
+            let _ = match (report.json, status) {
+                (true, _) => report.print(&mut stdout, Running { function, running: true, verified }),
+                (false, None) => writeln!(stdout, "{function} running; Ctrl-C stops it").map_err(CliError::from),
+                (false, Some(s)) => {
+                    let shown = match verified {
+                        Some(true) => format!("read back from {}: {}", s.place(), s.state(true)),
+                        _ => "not verified by its status".into(),
+                    };
+                    writeln!(stdout, "{function} switched on (RE acknowledged; {shown}); Ctrl-C switches it off (RS)")
+                        .map_err(CliError::from)
                 }
             };
             let _ = stdout.flush();
@@ -214,18 +221,34 @@ pub(super) fn run(
     };
     let outcome = RunOutcome::of(client.run_function(action, limit, &progress)).map_err(cl)?;
     report.show(out, &outcome, |out, o| {
-        match switching {
-            true => writeln!(out, "{function} switched off (RS acknowledged)")?,
-            false => writeln!(out, "{function} stopped")?,
+        let mut rows: Vec<Row> = o.rest.iter().map(|(a, p)| (a.to_string(), p.to_string())).collect();
+        match status {
+            Some(s) => {
+                writeln!(out, "{function} switched off (RS acknowledged)")?;
+                let verified = match o.verified {
+                    true => format!(
+                        "yes: read back from {}: {} after the RE, {} after the RS",
+                        s.place(),
+                        s.state(true),
+                        s.state(false)
+                    ),
+                    false => format!("no: {}", o.not_verifiable.join("; ")),
+                };
+                rows.push(("verified".into(), verified));
+            }
+            None => writeln!(out, "{function} stopped")?,
         }
-        let rows: Vec<Row> = o.rest.iter().map(|(a, p)| (a.to_string(), p.to_string())).collect();
         common::print_table(out, &rows)
     })?;
-    match (outcome.interrupted, switching) {
-        (true, false) => Err(CliError::Interrupted(format!("interrupted; {function} stopped (the unit confirmed it)"))),
-        (true, true) => Err(CliError::Interrupted(format!(
-            "interrupted; {function} switched off (RS acknowledged; no status shows a switching function)"
-        ))),
+    match (outcome.interrupted, status) {
+        (true, None) => Err(CliError::Interrupted(format!("interrupted; {function} stopped (the unit confirmed it)"))),
+        (true, Some(s)) => {
+            let shown = match outcome.verified {
+                true => format!("read back from {}: {}", s.place(), s.state(false)),
+                false => "not verified by its status".into(),
+            };
+            Err(CliError::Interrupted(format!("interrupted; {function} switched off (RS acknowledged; {shown})")))
+        }
         (false, _) => Ok(()),
     }
 }

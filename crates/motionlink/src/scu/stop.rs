@@ -13,7 +13,8 @@ use crate::common::{self, CliError};
 
 /// Stops `function` (`None`: every motion function, F1..F10): a motion function with RS (`soft`: along the
 /// stop ramp) and the status read until no actuator moves, then where each connected actuator is; another
-/// function (buzzer, outputs, emergency stop, LEDs) is switched off with RS.
+/// function (buzzer, outputs, emergency stop, LEDs) is switched off with RS, and the status entry that shows
+/// it is read back.
 pub(super) fn stop(
     client: &Client,
     function: Option<Function>,
@@ -26,9 +27,17 @@ pub(super) fn stop(
     let motions = match StopScope::of(function) {
         StopScope::Motions(m) => m,
         StopScope::Switch(f) => {
-            client.switch(f, false).map_err(|e| common::classified(&e))?;
-            let printed = StopResult::new(holder, function, SwitchedOff::OFF);
-            return report.show(out, &printed, |out, _| writeln!(out, "{f} switched off (RS)").map_err(CliError::from));
+            let switched = client.switch(f, false).map_err(|e| common::classified(&e))?;
+            let printed = StopResult::new(holder, function, SwitchedOff::from(switched));
+            return report.show(out, &printed, |out, p| {
+                writeln!(out, "{f} switched off (RS)")?;
+                let verified = match (p.stop.report.verified, f.switch_status()) {
+                    (true, Some(s)) => format!("yes: read back from {}: {}", s.place(), s.state(false)),
+                    (true, None) => "yes".into(),
+                    (false, _) => format!("no: {}", p.stop.report.not_verifiable.join("; ")),
+                };
+                common::print_table(out, &[("verified".into(), verified)])
+            });
         }
     };
     let mode = if soft { StopMode::Soft } else { StopMode::Fast };

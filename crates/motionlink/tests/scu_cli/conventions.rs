@@ -45,6 +45,9 @@ pub(super) fn every_action_speaks_json_and_send_names_get_watch_csv() {
     let run = lines(&scu(p, &["run", "F11", "on", "--seconds", "0.2", "--json"]));
     assert_eq!((run.len(), &run[0]["running"], &run[1]["stopped"]), (2, &true.into(), &true.into()), "{run:?}");
     assert_eq!(run[1]["function"], 11);
+    // Its status read back after the RE and after the RS.
+    assert_eq!((&run[0]["verified"], &run[1]["verified"]), (&true.into(), &true.into()), "{run:?}");
+    assert_eq!(run[1]["not_verifiable"], serde_json::json!([]), "{run:?}");
     let follow = lines(&common::run_with(&["scu", "--port", p, "follow", "1", "--json"], &[], "120\n"));
     assert_eq!((&follow[0]["following"], &follow[1]["targets"][0]["target_counts"]), (&true.into(), &120.into()));
     assert_eq!(follow.last().unwrap()["stopped"], true, "{follow:?}");
@@ -280,7 +283,20 @@ pub(super) fn every_json_result_keeps_its_keys() {
     let stop = "family port profile action stopped holder functions mode refused at_rest[actuator position_counts]";
     assert_eq!(lines(&["stop"], ""), [keys(stop)]);
     assert_eq!(lines(&["stop", "F1", "--soft"], ""), [keys(&format!("{stop} function"))]);
-    assert_eq!(lines(&["stop", "F11"], ""), [keys("family port profile action stopped holder function mode")]);
+    assert_eq!(
+        lines(&["stop", "F11"], ""),
+        [keys("family port profile action stopped holder function mode verified not_verifiable")]
+    );
+    assert_eq!(
+        lines(&["run", "F11", "on", "--seconds", "0.1"], ""),
+        [
+            keys("family port profile function running verified"),
+            keys(
+                "family port profile function stopped interrupted actuators[actuator reached_counts] verified \
+                 not_verifiable"
+            )
+        ]
+    );
     assert_eq!(
         lines(&["watch", "--count", "1"], ""),
         [keys(&format!("family port profile t_s last_error{{{error_code}}} actuators[{state} current_amps]"))]

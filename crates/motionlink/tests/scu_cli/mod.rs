@@ -146,12 +146,111 @@ fn run_switches_a_function_for_a_while_and_stops_it() {
     assert!((20..70).contains(&p), "moved for half a second: {p}");
     let out = scu(&sim.address, &["run", "F11", "on", "--seconds", "0.2"]);
     assert!(out.status.success(), "{out:?}");
-    // Said as a switch: on, then off by the RS (acknowledged: no status shows a switching function).
+    // Said as a switch: on, then off by the RS, each read back from the entry that shows the buzzer.
     let said = String::from_utf8_lossy(&out.stdout);
-    assert!(said.contains("F11 (buzzer) switched on; Ctrl-C switches it off (RS)"), "{said}");
+    assert!(
+        said.contains(
+            "F11 (buzzer) switched on (RE acknowledged; read back from buzzer (0x0140, bit 0): on); Ctrl-C switches it \
+             off (RS)"
+        ),
+        "{said}"
+    );
     assert!(said.contains("F11 (buzzer) switched off (RS acknowledged)") && !said.contains("stopped"), "{said}");
+    assert!(
+        said.lines()
+            .last()
+            .unwrap_or_default()
+            .starts_with("verified  yes: read back from buzzer (0x0140, bit 0): on after the RE, off after the RS"),
+        "{said}"
+    );
     let buzzer = json(&scu(&sim.address, &["get", "buzzer", "--json"]));
     assert_eq!(buzzer["value"]["word"], 0, "the buzzer is off again after run");
+    // The emergency stop: engaged while the run runs, released by its RS, each read back from lock_status.
+    let out = scu(&sim.address, &["run", "F20", "on", "--seconds", "0.2"]);
+    let said = stdout(&out);
+    assert!(out.status.success(), "{out:?}");
+    assert!(
+        said.contains(
+            "verified  yes: read back from lock_status (0x0162, bits 0..9): engaged after the RE, released after the RS"
+        ),
+        "{said}"
+    );
+    // `stop` of a switching function: RS, read back.
+    let out = scu(&sim.address, &["stop", "F17"]);
+    assert_eq!(
+        stdout(&out),
+        "F17 (binary output 1) switched off (RS)\nverified  yes: read back from binary_outputs (0x0110, \
+         bit 0): off\n",
+        "{out:?}"
+    );
+}
+
+/// A switching function whose entry the manuals do not tie to it in so many words, on a unit where the entry
+/// does not follow it: switched all the same, exit 0, and said to be not verified (never an error, never a
+/// claim).
+#[test]
+fn a_switch_the_unit_does_not_show_is_done_and_said_not_verified() {
+    let variant = ["--port", "sim", "--sim-variant", "switch-status-unshown"];
+    let run = |words: &[&str]| common::run_with(&[&["scu"][..], &variant, words].concat(), &[], "");
+    let out = run(&["run", "F18", "on", "--seconds", "0.1"]);
+    assert!(out.status.success(), "{out:?}");
+    let said = stdout(&out);
+    assert!(said.contains("F18 (binary output 2) switched on (RE acknowledged; not verified by its status)"), "{said}");
+    let last = said.lines().last().unwrap_or_default();
+    assert!(
+        last.starts_with(
+            "verified  no: F18 (binary output 2) was not verified by its status: binary_outputs (0x0110, bit 1) did \
+             not show binary output 2 on after the acknowledged RE"
+        ),
+        "{said}"
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.matches("warning: F18 (binary output 2) was not verified").count(), 1, "one warning: {err}");
+    // The emergency stop, in JSON: the first line says it was not verified, the last why.
+    let out = run(&["--json", "run", "F20", "on", "--seconds", "0.1"]);
+    assert!(out.status.success(), "{out:?}");
+    let lines: Vec<serde_json::Value> =
+        stdout(&out).lines().map(|l| serde_json::from_str(l).expect("a JSON line")).collect();
+    assert_eq!((&lines[0]["running"], &lines[0]["verified"]), (&true.into(), &false.into()), "{lines:?}");
+    assert_eq!(lines[1]["verified"], false, "{lines:?}");
+    let why = lines[1]["not_verifiable"][0].as_str().unwrap_or_default();
+    assert!(
+        why.starts_with(
+            "F20 (emergency stop) was not verified by its status: lock_status (0x0162, bits 0..9) did not show the \
+             emergency stop engaged after the acknowledged RE"
+        ),
+        "{why}"
+    );
+    // A stop alone finds the LED off before the RS as after it: not verified, exit 0.
+    let out = run(&["--json", "stop", "F21"]);
+    let stopped = json(&out);
+    assert_eq!((&stopped["mode"], &stopped["verified"]), (&"off".into(), &false.into()), "{stopped}");
+}
+
+/// A unit that acknowledges the RE of binary output 1 but shows it off (its output failed:
+/// `failed_switches` in the emulator's configuration): an error naming what was sent and what the status
+/// shows, exit 1, and the run switches it off again.
+#[test]
+fn a_switch_whose_status_shows_the_other_state_is_an_error_naming_it() {
+    let path = common::temp_path("scu-failed-switch.toml");
+    std::fs::write(&path, "failed_switches = [\"F17\"]\n").expect("write the emulator configuration");
+    let config = path.to_str().expect("a UTF-8 temporary path");
+    let out = scu("sim", &["--sim-config", config, "run", "F17", "on", "--seconds", "0.1"]);
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(
+            "motionlink: the unit acknowledged RE of F17 (binary output 1), but does not show binary output 1 on: \
+             binary_outputs (0x0110, bit 0) is clear (0x00) (last read"
+        ) && err.contains("; then switched off (the unit acknowledged the RS)"),
+        "{err}"
+    );
+    assert!(!stdout(&out).contains("switched on"), "nothing said of a switch-on the unit did not show: {out:?}");
+    let out = scu("sim", &["--sim-config", config, "--json", "stop", "F17"]);
+    assert!(out.status.success(), "an output stuck off is off: {out:?}");
+    let out = scu("sim", &["--sim-config", config, "--json", "run", "F17", "on"]);
+    let e = common::json_error(&out);
+    assert_eq!((e["kind"].as_str(), e["exit_code"].as_i64(), out.status.code()), (Some("device"), Some(1), Some(1)));
 }
 
 #[test]

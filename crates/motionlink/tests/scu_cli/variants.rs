@@ -12,7 +12,7 @@ use crate::common::{self, Sim};
 
 /// Every variant `motionlink sim scu --variant` knows (the library's list: a new one fails this test until
 /// it is added here with what it changes).
-const VARIANTS: [&str; 10] = [
+const VARIANTS: [&str; 11] = [
     "no-groups",
     "no-user-positions",
     "no-cyclic-objects",
@@ -23,6 +23,7 @@ const VARIANTS: [&str; 10] = [
     "in-end-undershoot",
     "re-needs-rs",
     "late-motion-bit",
+    "switch-status-unshown",
 ];
 
 const FAST: &str = "[[actuator]]\ncounts_per_second_at_full_speed = 2000.0\nramp_ms = 30\n\
@@ -76,6 +77,12 @@ fn core_commands(variant: &str, config: &str) -> Vec<String> {
     assert_eq!(rest, Some(if variant == "in-end-undershoot" { -3 } else { 0 }), "{variant}: {home}");
     let stopped = ok_json("stop", &run(&["stop", "F1"]));
     assert_eq!(stopped["stopped"], true);
+    // A switching function: binary output 2, read back after the RE and the RS where the unit shows it.
+    let switched = run(&["run", "F18", "on", "--seconds", "0.1"]);
+    assert!(switched.status.success(), "{variant}: {switched:?}");
+    let switched: serde_json::Value =
+        serde_json::from_str(stdout(&switched).lines().last().unwrap_or_default()).expect("JSON");
+    assert_eq!(switched["verified"], variant != "switch-status-unshown", "{variant}: {switched}");
     let watched = run(&["watch", "--count", "2", "--interval-ms", "100"]);
     assert!(watched.status.success(), "{variant}: {watched:?}");
     let samples: Vec<serde_json::Value> =

@@ -5,7 +5,7 @@
 use std::time::Duration;
 
 use super::ctx::Ctx;
-use super::report::{MoveProgress, MoveReport, RunProgress, RunReport, SetReport, Snapshot, StopReport};
+use super::report::{MoveProgress, MoveReport, RunProgress, RunReport, SetReport, Snapshot, StopReport, SwitchReport};
 use super::request::PreparedRequest;
 use crate::config::StrokeLimits;
 use crate::error::Error;
@@ -23,10 +23,12 @@ mod remote;
 mod run;
 mod stop;
 mod stream;
+mod switch;
 mod watch;
 
 pub(crate) use read::{read_item, ItemRead};
 pub(crate) use remote::{close, reconnect};
+pub(crate) use switch::{switch_request, SwitchFindings};
 pub use watch::WatchSpec;
 
 /// An operation a caller starts: what the [`crate::Client`] methods run. See each method for what it does.
@@ -99,6 +101,14 @@ pub enum Op {
         watch: Vec<Actuator>,
         /// What went wrong, if the stop follows a failure.
         after: Option<Box<Error>>,
+    },
+    /// Switches a switching function on (RE) or off (RS), then reads the status entry that shows it and checks
+    /// that it shows the state asked for ([`crate::Client::switch`]).
+    Switch {
+        /// The function (F11..F22).
+        function: Function,
+        /// On (RE) or off (RS).
+        on: bool,
     },
     /// Runs a function until it ends, a time limit, or a cancel, then stops it ([`crate::Client::run`]).
     Run(RunSpec),
@@ -186,6 +196,8 @@ pub enum Output {
     Stopped(StopReport),
     /// How a write ended.
     Written(SetReport),
+    /// How a switching function was switched.
+    Switched(SwitchReport),
     /// How many samples a watch took, and the last.
     Watched {
         /// Samples taken.
@@ -222,6 +234,7 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
         Op::StreamOpen { function, actuators, speed } => stream::open(&ctx, function, actuators, speed).await,
         Op::StreamTargets { function, targets } => stream::targets(&ctx, function, targets).await,
         Op::Stop { function, mode, watch, after } => stop::stop(&ctx, function, mode, watch, after).await,
+        Op::Switch { function, on } => switch::switch(&ctx, function, on).await,
         Op::Run(spec) => run::run(&ctx, spec).await,
         Op::StopMotions { functions, mode } => stop::stop_motions(&ctx, functions, mode).await,
         Op::Watch(spec) => watch::watch(&ctx, spec).await,

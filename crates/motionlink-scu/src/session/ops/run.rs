@@ -7,6 +7,7 @@ use motionlink_link::Timestamp;
 
 use super::object::define_object;
 use super::stop::{after_stop, Stop};
+use super::switch::{self, Before, Checked};
 use super::{read_item, statuses, ItemRead, Output, Progress, RunAction, RunSpec};
 use crate::error::Error;
 use crate::model::{Actuator, ActuatorStatus1, DataIndex, Function, PositionCounts, StopMode, UNUSED};
@@ -25,11 +26,13 @@ struct Run {
     seen_motion: bool,
     /// Why the watch could not go on (a look at the actuators failed): the run is stopped and fails with it.
     failed: Option<Error>,
+    /// A switching function: what its status showed after the RE.
+    switched_on: Option<Checked>,
 }
 
 /// Runs a function ([`super::Op::Run`]): RE, the watch until it is over, the stop.
 pub(crate) async fn run(ctx: &Ctx, spec: RunSpec) -> Result<Output, Error> {
-    let mut run = Run { spec, started_at: ctx.now(), seen_motion: false, failed: None };
+    let mut run = Run { spec, started_at: ctx.now(), seen_motion: false, failed: None, switched_on: None };
     let function = run.function();
     if let RunAction::Switch(Function::Motion(m)) = spec.action {
         return Err(Error::invalid(format!("{m} is a motion function: run it with a direction")));
@@ -41,6 +44,11 @@ pub(crate) async fn run(ctx: &Ctx, spec: RunSpec) -> Result<Output, Error> {
     let params = match spec.action {
         RunAction::Motion(_, direction) => [direction.code(), UNUSED],
         RunAction::Switch(_) => [UNUSED, UNUSED],
+    };
+    // A switching function's status entry, read before the RE where the session has yet to see it follow.
+    let before = match run.is_motion() {
+        true => Before::NotRead,
+        false => switch::before(ctx, function, true).await?,
     };
     let re = PreparedRequest::new(&Request::Execute { function: function.id(), params })?;
     match ctx.send(Req::op(re)).await {
@@ -68,6 +76,21 @@ pub(crate) async fn run(ctx: &Ctx, spec: RunSpec) -> Result<Output, Error> {
             Ok(_) => {}
         },
     }
+    if !run.is_motion() {
+        // What the status shows after the RE; one that shows it off is an error, after the RS that follows.
+        match switch::check(ctx, function, true, &before).await {
+            Ok(checked) => run.switched_on = Some(checked),
+            Err(e) => {
+                tracing::info!("{function}: {e}; switching it off");
+                return Err(match run.stop_after(ctx, e).await {
+                    Error::SwitchNotShown { function, command, word, after, .. } => {
+                        Error::SwitchNotShown { function, command, word, after, switched_off: true }
+                    }
+                    other => other,
+                });
+            }
+        }
+    }
     let by_snapshot = {
         let core = ctx.core();
         core.poll_slot().is_some() && core.poll.configured
@@ -77,6 +100,7 @@ pub(crate) async fn run(ctx: &Ctx, spec: RunSpec) -> Result<Output, Error> {
         elapsed: ctx.now() - run.started_at,
         statuses: [ActuatorStatus1::EMPTY; 6],
         positions: [PositionCounts(0); 6],
+        switched_on_shown: run.switched_on.as_ref().map(|c| c.why.is_none()),
     }));
     if ctx.cancelled() {
         return run.stop(ctx).await;
@@ -150,7 +174,13 @@ impl Run {
     fn look(&mut self, ctx: &Ctx, status: [ActuatorStatus1; 6], positions: [PositionCounts; 6]) -> bool {
         let elapsed = ctx.now() - self.started_at;
         let function = self.function();
-        ctx.progress(Progress::Run(RunProgress { function, elapsed, statuses: status, positions }));
+        ctx.progress(Progress::Run(RunProgress {
+            function,
+            elapsed,
+            statuses: status,
+            positions,
+            switched_on_shown: None,
+        }));
         if ctx.cancelled() || self.spec.limit.is_some_and(|l| elapsed >= l) {
             return true;
         }
@@ -190,11 +220,23 @@ impl Run {
                     .filter(|a| status[usize::from(a.number() - 1)].available())
                     .map(|a| (a, positions[usize::from(a.number() - 1)]))
                     .collect();
+                // A switching function: what its status shows after the RS (the unit acknowledged it).
+                let (verified, not_verifiable) = match (self.is_motion(), &self.switched_on) {
+                    (true, _) => (true, Vec::new()),
+                    (false, on) => {
+                        let off = switch::check(ctx, function, false, &Before::NotRead).await?;
+                        match on {
+                            Some(on) => switch::run_verified(on, &off),
+                            // The RE's answer was lost to a cancel: what counts is that it is off.
+                            None => (off.why.is_none(), off.why.into_iter().collect()),
+                        }
+                    }
+                };
                 if ctx.cancelled() {
-                    Err(Error::RunCancelled { function, rest })
+                    Err(Error::RunCancelled { function, rest, verified, not_verifiable })
                 } else {
                     let duration = ctx.now() - self.started_at;
-                    Ok(Output::Run(RunReport { function, duration, rest }))
+                    Ok(Output::Run(RunReport { function, duration, rest, verified, not_verifiable }))
                 }
             }
             Err((detail, _)) if ctx.cancelled() => {
