@@ -6,9 +6,11 @@ from __future__ import annotations
 import asyncio
 import atexit
 import os
+import sys
+import threading
 import time
 import weakref
-from typing import Any, Callable, Dict, Iterator, List, Optional, TypeVar
+from typing import Any, Callable, Dict, Iterator, List, Optional, Set, TypeVar
 
 from . import _native
 from ._probe import warn_profile_notices
@@ -17,6 +19,10 @@ from .errors import Cancelled, MotionlinkError, UsageError
 __all__ = ["ClientBase", "AsyncClientBase", "resolve_port"]
 
 _open: "weakref.WeakSet[Any]" = weakref.WeakSet()
+"""The blocking clients still open (one that Python collects closes itself)."""
+_open_async: "Set[Any]" = set()
+"""The asyncio clients whose session has not finished closing, held here until it has: nothing else would
+wait for the close of one the program dropped, and an ``aclose()`` cut short is done again at exit."""
 
 PORT_ENV = "MOTIONLINK_PORT"
 """The environment variable that gives the port when a client is given none (as for the command line)."""
@@ -37,18 +43,38 @@ def resolve_port(port: Any, family: str) -> Any:
     return getattr(port, "_native", port)
 
 
+def _close_all() -> None:
+    """A program that ends (normally, or by an exception nobody caught, Ctrl-C's included) without closing a
+    client still stops what the client started: each client still open is closed here, at exit, and
+    before Python waits for the threads that are not daemons when the main thread ended by an exception
+    (:func:`_close_all_if_main_failed`)."""
+    for client in [*_open, *_open_async]:
+        try:
+            client._close_at_exit()
+        except Exception:  # noqa: BLE001 - nothing can be reported at this point but by the close itself
+            pass
+
+
+def _close_all_if_main_failed() -> None:
+    """When the main thread ended by an exception nobody caught (Ctrl-C's KeyboardInterrupt included: Python
+    then records it as ``sys.last_value``), the clients are closed before Python waits for the threads that
+    are not daemons, whose calls the closes cancel (else a move in such a thread ran to its end after
+    Ctrl-C). A main thread that returned leaves those threads their motions: Python waits for them, and the
+    exit closes what is left."""
+    if getattr(sys, "last_exc", None) is not None or getattr(sys, "last_value", None) is not None:
+        _close_all()
+
+
+if hasattr(threading, "_register_atexit"):  # CPython 3.9 on; without it, at exit only
+    threading._register_atexit(_close_all_if_main_failed)
+
+
 @atexit.register
 def _close_all_at_exit() -> None:
-    """A program that ends (normally, or by an exception nobody caught) without closing a client still
-    stops what the client started: each client still open is closed here. Then the library's delivery
-    thread stops calling into Python (it is no Python thread, and must not be inside a callback when the
-    interpreter finalises)."""
+    """:func:`_close_all`; then the library's delivery thread stops calling into Python (it is no Python
+    thread, and must not be inside a callback when the interpreter finalises)."""
     try:
-        for client in list(_open):
-            try:
-                client._close_at_exit()
-            except Exception:  # noqa: BLE001 - nothing can be reported at this point but by the close itself
-                pass
+        _close_all()
     finally:
         _native.stop_deliveries()
 
@@ -173,9 +199,11 @@ Calls = Dict[Any, "asyncio.Future[Any]"]
 async def run_native(start: Callable[[Callable[[bool, Any], None]], Any], calls: Optional[Calls] = None) -> Any:
     """Awaits a native operation: ``start(done)`` starts it on the library's runtime thread and returns
     its task; ``done(ok, value)`` is called there with the outcome. Cancelling the awaiting asyncio task
-    cancels the operation (its future is dropped, which stops what it set in motion) and waits, on a
-    worker thread, until that is done before ``CancelledError`` propagates. While it runs, the operation
-    is in ``calls`` (its client's), so that closing the client can cancel it."""
+    cancels the operation, which stops what it set in motion, and waits on a worker thread until that stop
+    has ended (through further cancellations): then ``CancelledError`` propagates, or, if the device did
+    not confirm the stop, the library's error that says so (``stop_unconfirmed``), raised from the
+    ``CancelledError``. While it runs, the operation is in ``calls`` (its client's), so that closing the
+    client can cancel it."""
     loop = asyncio.get_running_loop()
     fut: "asyncio.Future[Any]" = loop.create_future()
 
@@ -198,12 +226,33 @@ async def run_native(start: Callable[[Callable[[bool, Any], None]], Any], calls:
         calls[task] = fut
     try:
         return await fut
-    except asyncio.CancelledError:
-        await loop.run_in_executor(None, task.cancel)
+    except asyncio.CancelledError as cancelled:
+        stopping = loop.run_in_executor(None, task.cancel)
+        await _to_the_end(stopping)
+        if _unconfirmed(stopping.result()):
+            raise stopping.result() from cancelled
         raise
     finally:
         if calls is not None:
             calls.pop(task, None)
+
+
+async def _to_the_end(work: "asyncio.Future[Any]") -> Optional[asyncio.CancelledError]:
+    """Awaits ``work`` (a stop, a close: on a worker thread) to its end, even when the awaiting task is
+    cancelled meanwhile: returns that cancellation (for the caller to raise), if there was one."""
+    cancelled = None
+    while not work.done():
+        try:
+            await asyncio.wait((work,))
+        except asyncio.CancelledError as e:
+            cancelled = e
+    return cancelled
+
+
+def _unconfirmed(stop: Any) -> bool:
+    """True when ``stop`` (what a cancelled native operation's stop ended with) is the library's error
+    saying that the device did not confirm the stop."""
+    return isinstance(stop, MotionlinkError) and stop.stop_unconfirmed
 
 
 def _blocking_only(cls: type) -> "set[str]":
@@ -229,12 +278,14 @@ class _AsyncFace(type):
 class AsyncClientBase(metaclass=_AsyncFace):
     """An async session with a device: ``async with`` opens it and closes it (stopping what it started);
     cancelling a task that awaits a long operation (a move, homing, a wait) stops that motion. Closing
-    the client cancels the operations still under way on it first (their motions stop; whoever awaits
-    them gets :class:`Cancelled`), then ends the session."""
+    the client refuses new calls, cancels the operations still under way on it (their motions stop;
+    whoever awaits them gets :class:`Cancelled`), then ends the session."""
 
     family: str = ""
     _native: Any = None
     _native_name: str = ""
+    #: True from the start of the close on: a call is refused.
+    _closing = False
 
     def _start(self, port: Any, settings: Dict[str, Any]) -> None:
         """Keeps ``port`` and ``settings`` for the opening (``async with`` or :meth:`open`)."""
@@ -252,7 +303,9 @@ class AsyncClientBase(metaclass=_AsyncFace):
         return self._native
 
     async def _run(self, start: Callable[[Callable[[bool, Any], None]], Any]) -> Any:
-        """Awaits an operation of this session (see :func:`run_native`)."""
+        """Awaits an operation of this session (see :func:`run_native`); none starts once it closes."""
+        if self._closing:
+            raise UsageError("the client is closed", family=self.family)
         return await run_native(start, self._calls)
 
     @property
@@ -279,7 +332,7 @@ class AsyncClientBase(metaclass=_AsyncFace):
         if self._native is None:
             native = getattr(_native, "Async" + self._native_name)
             self._native = await run_native(lambda done: native.open(self._port, self._settings, done))
-            _open.add(self)
+            _open_async.add(self)
             warn_profile_notices(self._native)
         return self
 
@@ -293,34 +346,56 @@ class AsyncClientBase(metaclass=_AsyncFace):
     async def aclose(self) -> List[int]:
         """Ends the session: cancels the operations still under way on it (which stops their motions),
         then stops what it set in motion and still moves. Returns the ids of what it stopped (as
-        :meth:`ClientBase.close` does). Raises if the stop could not be confirmed. Closing twice does
-        nothing (and returns ``[]``)."""
+        :meth:`ClientBase.close` does). Raises if the stop could not be confirmed. Closing twice (or while
+        it closes) does nothing (and returns ``[]``). Cancelled meanwhile, it still cancels and closes to
+        the end, then raises ``CancelledError``."""
         native = self._native
-        if native is None:
+        if native is None or self._closing:
             return []
-        _open.discard(self)
+        self._closing = True
         # What is in motion now: the cancelled calls stop theirs, the close the rest.
         stopped = list(native.started()) if native.is_open else []
         loop = asyncio.get_running_loop()
-        for task, fut in list(self._calls.items()):
-            await loop.run_in_executor(None, task.cancel)
-            if not fut.done():
-                fut.set_exception(self._closed_under_it())
-        ended = await run_native(native.close)
-        return stopped + [i for i in ended if i not in stopped]
+        cancelled = None
+        while self._calls:
+            task, fut = self._calls.popitem()
+            stopping = loop.run_in_executor(None, task.cancel)
+            cancelled = await _to_the_end(stopping) or cancelled
+            self._settle(fut, stopping.result())
+        closing = loop.run_in_executor(None, native.close_blocking)
+        cancelled = await _to_the_end(closing) or cancelled
+        _open_async.discard(self)
+        if cancelled is not None:
+            raise cancelled
+        return stopped + [i for i in closing.result() if i not in stopped]
 
-    def _closed_under_it(self) -> Cancelled:
-        return Cancelled(
+    def _settle(self, fut: "asyncio.Future[Any]", stop: Any) -> None:
+        """Tells the awaiter of a call the close cancelled how it ended (on its loop, which may be another
+        thread's): the error of its stop if that was not confirmed, else :class:`Cancelled`."""
+        error = stop if _unconfirmed(stop) else Cancelled(
             f"{self.family}: the client was closed while this operation was under way: the operation was "
             "cancelled, which stops what it set in motion, and the session closed",
             family=self.family,
         )
 
+        def settle() -> None:
+            if not fut.done():
+                fut.set_exception(error)
+
+        try:
+            fut.get_loop().call_soon_threadsafe(settle)
+        except RuntimeError:  # its loop is closed: nobody awaits it any more
+            pass
+
     def _close_at_exit(self) -> None:
+        """The close at exit (the loop no longer runs here, if it runs at all)."""
         if self._native is not None:
-            for task in list(self._calls):
-                task.cancel()
+            self._closing = True
+            while self._calls:
+                task, fut = self._calls.popitem()
+                self._settle(fut, task.cancel())
             self._native.close_blocking()
+        _open_async.discard(self)
 
 
 _A = TypeVar("_A", bound=AsyncClientBase)

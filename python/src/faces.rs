@@ -17,11 +17,11 @@ pub fn to_py<'py, T: IntoPyObject<'py>>(py: Python<'py>, record: PyResult<T>) ->
 ///     B / A, Error;
 ///     both { methods of B and A } blocking { other methods of B } asynch { other methods of A }
 ///     /// Doc.
-///     motion home(me, py, module: Option<Int>, timeout_s: f64) {
+///     motion wait(me, py, module: Option<Int>, timeout_s: f64) {
 ///         let a = me.address(py, module)?;          // arguments checked (both faces)
-///     } |c| { w!(c.module(..) => home_guarded(t, g); &mut |_| {}) }   // the operation
+///     } |c| { w!(c.module(..) => wait_motion_end(t); &mut |_| {}) }   // the operation
 ///     else |c| { .. }                               // async only: what a cancelled task stops
-///     => |py, report| home_record(py, a, &report);  // the record (a PyResult)
+///     => |py, state| state_record(py, a, state);    // the record (a PyResult)
 ///     /// Doc.
 ///     blocking read info(me, py) {} |c| { c.info() } => |py, i| info_record(py, &i);  // B only
 /// }
@@ -29,15 +29,18 @@ pub fn to_py<'py, T: IntoPyObject<'py>>(py: Python<'py>, record: PyResult<T>) ->
 ///
 /// In the operation, `w!(call)` is the call on the blocking client and `call.await` on the async one;
 /// `w!(recv => method(args); p, .. => q, ..)` passes `p, ..` (a progress callback, a cancel token) to the
-/// blocking client's method only and `q, ..` to the async client's only. The blocking face runs it as its
+/// blocking client's method only and `q, ..` to the async client's only; `w!(call; async op => Output::V)`
+/// is `call` on the blocking client and, on the async one, the operation `op` (an `OpFuture`) awaited
+/// through [`crate::wait::stoppable`], its result that of the output `V`. The blocking face runs it as its
 /// kind says: `read` on a thread of its own, Ctrl-C raising at once ([`crate::wait::interruptible_read`]);
 /// `scan` so too, Ctrl-C also cancelling the client's token (`me.token`: the library's scan ends at its
 /// next step); `motion` on a worker while Ctrl-C is watched, which cancels the token (the family's client
 /// stops the motion) and waits for the end ([`crate::wait::interruptible`]); `quick` without the GIL. The
-/// async face spawns it: cancelling the task drops its future (the family's client stops what it set in
-/// motion), and runs the `else` future. An operation marked `blocking` is the blocking client's only.
+/// async face spawns it: cancelling the task lets a [`crate::wait::stoppable`] motion stop and end, else
+/// drops its future (the family's client stops what it set in motion) and runs the `else` future (whose
+/// error is the cancel's). An operation marked `blocking` is the blocking client's only.
 /// Both classes get the getters `port`, `profile` and `profile_notices` of their fields of those names,
-/// `is_open`, `started` and `close` (and the async class `close_blocking`) from the family's
+/// `is_open`, `started` and `close` (the async class `close_blocking`) from the family's
 /// [`crate::session::Session`] / [`crate::session::AsyncSession`] over their field `slot` (the blocking
 /// class's `token` and `close_bound` too), and a `Drop` that ends a session its owner did not close.
 /// (A `let` among the argument checks takes no type annotation, which the macro's `stmt` does not parse: a
@@ -63,6 +66,7 @@ macro_rules! faces {
                 $($prep;)*
                 #[allow(unused_macros)]
                 macro_rules! w {
+                    ($d b:expr; async $d op:expr => $d out:path) => { $d b };
                     (
                         $d r:expr => $d m:ident($d ($d a:expr),*)
                         $d (; $d ($d p:expr),+)? $d (=> $d ($d q:expr),+)?
@@ -98,6 +102,9 @@ macro_rules! faces {
                 $($prep;)*
                 #[allow(unused_macros)]
                 macro_rules! w {
+                    ($d b:expr; async $d op:expr => $d out:path) => {
+                        crate::wait::stoppable($d op, |o| match o { $d out(r) => Some(r), _ => None }).await
+                    };
                     (
                         $d r:expr => $d m:ident($d ($d a:expr),*)
                         $d (; $d ($d p:expr),+)? $d (=> $d ($d q:expr),+)?
@@ -112,7 +119,10 @@ macro_rules! faces {
                     let $out = out.map_err(|e| e.failure())?;
                     crate::wait::deliver(move |$rpy| crate::faces::to_py($rpy, $record))
                 };
-                faces!(@spawn done, run $(, async move $stop)?)
+                faces!(@spawn done, run $(, async move {
+                    let stopped: Result<_, $err> = async move $stop.await;
+                    stopped.map(drop).map_err(|e| e.failure())
+                })?)
             }
         }
             $(#[doc = $doc])*
@@ -220,12 +230,8 @@ macro_rules! faces {
                     Ok(crate::session::AsyncSession::started_ids(&*self.slot.client(py)?))
                 }
 
-                /// Ends the session (stops what it set in motion) on the runtime: `done(ok, ids)`.
-                fn close(&self, done: Py<PyAny>) -> NativeTask {
-                    crate::session::close_async(&self.slot, done)
-                }
-
-                /// Ends the session from synchronous code (atexit), waiting without the GIL.
+                /// Ends the session (stops what it set in motion), waiting without the GIL (`aclose` calls it on
+                /// a worker thread, the exit handler directly): the ids of what it stopped.
                 fn close_blocking(&self, py: Python<'_>) -> PyResult<Vec<u8>> {
                     crate::session::close_async_blocking(py, &self.slot)
                 }

@@ -1,8 +1,8 @@
 //! How a native session ends, written once for every family: [`faces!`] gives both faces of a family's
-//! native client `is_open`, `started` and `close` from these, and ends a client its owner dropped unclosed.
-//! A family says only what its clients stop ([`Session`], [`AsyncSession`]); what is stopped is named by
-//! its ids, as `started()` names it: SCU motion function numbers (1..10), PowerCube module addresses,
-//! COMPAX drive addresses.
+//! native client `is_open`, `started` and `close` (async: `close_blocking`) from these, and ends a client
+//! its owner dropped unclosed. A family says only what its clients stop ([`Session`], [`AsyncSession`]);
+//! what is stopped is named by its ids, as `started()` names it: SCU motion function numbers (1..10),
+//! PowerCube module addresses, COMPAX drive addresses.
 
 use std::future::Future;
 use std::sync::Arc;
@@ -10,11 +10,10 @@ use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
 use pyo3::prelude::*;
-use pyo3::IntoPyObjectExt;
 
 use crate::common::Slot;
 use crate::errors::{to_pyerr, Failure};
-use crate::wait::{block_on_runtime, deliver, runtime, spawn_task, NativeTask};
+use crate::wait::{block_on_runtime, runtime};
 
 /// A family's blocking client as a session that ends.
 pub trait Session: Send + Sync + Sized + 'static {
@@ -63,29 +62,19 @@ fn and(mut before: Vec<u8>, ended: Vec<u8>) -> Vec<u8> {
     before
 }
 
-/// The async face's `close(done)`: the session ends on the runtime, `done(ok, ids)` (the Python side
-/// cancels the calls under way first, and adds what they had in motion).
-pub fn close_async<C: AsyncSession>(slot: &Slot<C>, done: Py<PyAny>) -> NativeTask {
-    let taken = slot.take(&CancelToken::new(), Duration::ZERO);
-    spawn_task(done, async move {
-        let ids = end_async(taken).await?;
-        deliver(move |py| ids.into_py_any(py))
-    })
-}
-
-/// The async face's `close_blocking()` (atexit): the session ends on the runtime while this thread waits
-/// without the GIL.
+/// The async face's `close_blocking()` (`aclose` runs it on a worker thread, the exit handler directly):
+/// the session ends on the runtime while this thread waits without the GIL. The Python side has cancelled
+/// the client's calls and waited for their ends; a call that still holds the client (none should) is
+/// waited for as the blocking close waits (at most the library's default close bound), so that the
+/// session's own close runs, which ends every operation of it.
 pub fn close_async_blocking<C: AsyncSession>(py: Python<'_>, slot: &Slot<C>) -> PyResult<Vec<u8>> {
-    let taken = slot.take(&CancelToken::new(), Duration::ZERO);
-    block_on_runtime(py, end_async(taken))?.map_err(|f| to_pyerr(py, f))
-}
-
-async fn end_async<C: AsyncSession>(taken: Option<Result<C, Arc<C>>>) -> Result<Vec<u8>, Failure> {
-    match taken {
+    let bound = motionlink_link::driver::DriverConfig::default().close_bound;
+    let ended = match py.detach(|| slot.take(&CancelToken::new(), bound)) {
         None => Ok(Vec::new()),
-        Some(Ok(client)) => client.end().await,
-        Some(Err(shared)) => C::end_shared(shared).await,
-    }
+        Some(Ok(client)) => block_on_runtime(py, client.end())?,
+        Some(Err(shared)) => block_on_runtime(py, C::end_shared(shared))?,
+    };
+    ended.map_err(|f| to_pyerr(py, f))
 }
 
 /// A blocking client its owner did not close (garbage-collected): the session ends here, stopping what
@@ -96,8 +85,9 @@ pub fn drop_unclosed<C: Send + Sync>(slot: &Slot<C>, token: &CancelToken, bound:
     }
 }
 
-/// An async client its owner did not close: the session ends on the runtime (stopping what it started),
-/// not on the thread that happens to drop the object (which may hold the GIL).
+/// An async client dropped unclosed (the Python side holds each until its close has ended, so only one it
+/// never held): the session ends on the runtime (stopping what it started), not on the thread that happens
+/// to drop the object (which may hold the GIL); nothing waits for that end.
 pub fn drop_unclosed_async<C: Send + Sync + 'static>(slot: &Slot<C>) {
     if let Some(taken) = slot.take(&CancelToken::new(), Duration::ZERO) {
         runtime().spawn(async move { drop(taken) });

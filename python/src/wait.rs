@@ -2,11 +2,17 @@
 //! handlers (Ctrl-C), and the small tokio runtime the async clients open and close their sessions on.
 
 use std::future::Future;
+use std::pin::Pin;
 use std::sync::mpsc::{self, RecvTimeoutError};
-use std::sync::OnceLock;
+use std::sync::{Arc, Condvar, Mutex, OnceLock};
+use std::task::{Poll, Waker};
 use std::time::Duration;
 
 use motionlink_link::cancel::CancelToken;
+use motionlink_link::clock::lock;
+use motionlink_link::driver::OpFuture;
+use motionlink_link::session::Session;
+use motionlink_link::LinkError;
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 
@@ -82,7 +88,6 @@ pub fn interruptible_read<T: Send + 'static>(
     token: Option<CancelToken>,
     op: impl FnOnce() -> T + Send + 'static,
 ) -> PyResult<T> {
-    use std::sync::{Arc, Mutex};
     // What became of the call: 0 running, 1 ended, 2 abandoned (the worker then resets the token). One
     // lock decides, so a token is never left cancelled by a worker that ended just as Ctrl-C came.
     let state = Arc::new(Mutex::new(0u8));
@@ -92,7 +97,7 @@ pub fn interruptible_read<T: Send + 'static>(
         .name("motionlink-read".into())
         .spawn(move || {
             let out = op();
-            let mut s = motionlink_link::clock::lock(&shared);
+            let mut s = lock(&shared);
             if *s == 2 {
                 if let Some(t) = worker_token {
                     t.reset();
@@ -111,7 +116,7 @@ pub fn interruptible_read<T: Send + 'static>(
             Ok(value) => return Ok(value),
             Err(RecvTimeoutError::Timeout) => {
                 if let Err(interrupt) = py.check_signals() {
-                    let mut s = motionlink_link::clock::lock(&state);
+                    let mut s = lock(&state);
                     if *s == 0 {
                         *s = 2;
                         if let Some(t) = &token {
@@ -160,22 +165,42 @@ pub fn block_on_runtime<T: Send + 'static>(
 
 /// An async operation running on [`runtime`], as Python sees it: its outcome is handed to a callback
 /// (`done(ok, value)`, which the Python side turns into the result of an asyncio future), and
-/// [`NativeTask::cancel`] drops the operation's future, which stops what it set in motion.
+/// [`NativeTask::cancel`] stops it: it returns once what the operation set in motion has stopped.
 #[pyclass(frozen, module = "motionlink._native")]
-pub struct NativeTask {
-    handle: std::sync::Mutex<Option<tokio::task::JoinHandle<()>>>,
-    /// For a task with a stop of its own ([`spawn_task_stopping`]): how `cancel` tells it.
-    stop: Option<StopFlag>,
-}
+pub struct NativeTask(Task);
 
-/// Set by [`NativeTask::cancel`] for a task of [`spawn_task_stopping`]; the waker wakes it to see that.
+/// What a task and its [`NativeTask`] share: the state, and the signal of its end.
+type Task = Arc<(Mutex<TaskState>, Condvar)>;
+
 #[derive(Default)]
-struct StopState {
+struct TaskState {
+    /// [`NativeTask::cancel`] was called.
     requested: bool,
-    waker: Option<std::task::Waker>,
+    /// The task awaits an operation through [`stoppable`]: a cancel makes the session stop it, and the task
+    /// awaits its end, instead of being dropped.
+    in_op: bool,
+    /// Wakes the task to see `requested`.
+    waker: Option<Waker>,
+    /// The task has ended, its future dropped (set by [`Ended`], a panic included).
+    ended: bool,
+    /// How a cancelled task's operation, or its stop, failed (for [`NativeTask::cancel`] to hand on).
+    failed: Option<crate::errors::Failure>,
 }
 
-type StopFlag = std::sync::Arc<std::sync::Mutex<StopState>>;
+/// Marks its task ended when dropped, after the task's future.
+struct Ended(Task);
+
+impl Drop for Ended {
+    fn drop(&mut self) {
+        lock(&self.0 .0).ended = true;
+        self.0 .1.notify_all();
+    }
+}
+
+tokio::task_local! {
+    /// The task being polled, for [`stoppable`].
+    static TASK: Task;
+}
 
 /// What an async operation hands to Python: built, with the GIL, on the delivery thread.
 pub type Deliver = Box<dyn for<'py> FnOnce(Python<'py>) -> PyResult<Py<PyAny>> + Send>;
@@ -189,7 +214,7 @@ type Delivery = (Py<PyAny>, Outcome);
 /// Whether the delivery thread may still call into Python: true until [`stop_deliveries`]. The delivery
 /// thread holds this lock for as long as it runs a callback, so that closing the gate waits for the
 /// callback in flight.
-static DELIVERING: std::sync::Mutex<bool> = std::sync::Mutex::new(true);
+static DELIVERING: Mutex<bool> = Mutex::new(true);
 
 /// The thread that turns outcomes into Python objects and calls their `done` callbacks: the runtime's
 /// thread never waits for the GIL (a session's timers, such as a watchdog's refresh, run there).
@@ -200,15 +225,15 @@ static DELIVERING: std::sync::Mutex<bool> = std::sync::Mutex::new(true);
 /// pyo3's guard and aborts the process ("Fatal Python error: PyGILState_Release"). So the package's exit
 /// handler calls [`stop_deliveries`] before the interpreter finalises, and this thread never touches Python
 /// after that; an outcome that arrives later is dropped (nobody waits for it any more).
-fn delivery() -> &'static std::sync::Mutex<mpsc::Sender<Delivery>> {
-    static TX: OnceLock<std::sync::Mutex<mpsc::Sender<Delivery>>> = OnceLock::new();
+fn delivery() -> &'static Mutex<mpsc::Sender<Delivery>> {
+    static TX: OnceLock<Mutex<mpsc::Sender<Delivery>>> = OnceLock::new();
     TX.get_or_init(|| {
         let (tx, rx) = mpsc::channel::<Delivery>();
         std::thread::Builder::new()
             .name("motionlink-deliver".into())
             .spawn(move || {
                 for (done, outcome) in rx {
-                    let open = motionlink_link::clock::lock(&DELIVERING);
+                    let open = lock(&DELIVERING);
                     if !*open {
                         // `done` is dropped without the GIL: pyo3 defers its reference count to a pool.
                         continue;
@@ -231,7 +256,7 @@ fn delivery() -> &'static std::sync::Mutex<mpsc::Sender<Delivery>> {
                 }
             })
             .expect("the delivery thread starts");
-        std::sync::Mutex::new(tx)
+        Mutex::new(tx)
     })
 }
 
@@ -240,7 +265,7 @@ fn delivery() -> &'static std::sync::Mutex<mpsc::Sender<Delivery>> {
 /// it (`motionlink._base`), after it has closed the clients still open, before the interpreter finalises.
 #[pyfunction]
 pub fn stop_deliveries(py: Python<'_>) {
-    py.detach(|| *motionlink_link::clock::lock(&DELIVERING) = false);
+    py.detach(|| *lock(&DELIVERING) = false);
 }
 
 /// A [`Deliver`] from a closure.
@@ -250,96 +275,113 @@ pub fn deliver(f: impl for<'py> FnOnce(Python<'py>) -> PyResult<Py<PyAny>> + Sen
 
 /// Runs `fut` on [`runtime`] and calls `done(True, value)` or `done(False, exception)` with its outcome
 /// (from the delivery thread). The family's futures are polled there, not by asyncio: their wake-ups
-/// never wait for the GIL.
+/// never wait for the GIL. Cancelling the task ([`NativeTask::cancel`]) drops `fut` (what it set in motion
+/// stops as its futures' drops stop it), unless it awaits a [`stoppable`] operation.
 pub fn spawn_task<F>(done: Py<PyAny>, fut: F) -> NativeTask
 where
     F: Future<Output = Outcome> + Send + 'static,
 {
-    let handle = runtime().spawn(async move {
-        let out = fut.await;
-        let _ = motionlink_link::clock::lock(delivery()).send((done, out));
-    });
-    NativeTask { handle: std::sync::Mutex::new(Some(handle)), stop: None }
-}
-
-/// Says on stderr that the stop after a cancelled operation failed (nobody awaits the task any more to get
-/// it as an exception).
-pub fn say_stop_failed(message: &str) {
-    eprintln!("motionlink: {message}");
+    spawn_task_stopping(done, fut, async { Ok(()) })
 }
 
 /// As [`spawn_task`], for an operation whose own future, when dropped, does not stop the motion it waits
 /// for (a wait for another call's motion): cancelling the task drops `fut`, then runs `stop` (a halt) to
-/// its end, and only then does [`NativeTask::cancel`] return.
+/// its end, and only then does [`NativeTask::cancel`] return (with the stop's failure, if it failed).
 pub fn spawn_task_stopping<F, S>(done: Py<PyAny>, fut: F, stop: S) -> NativeTask
 where
     F: Future<Output = Outcome> + Send + 'static,
-    S: Future<Output = ()> + Send + 'static,
+    S: Future<Output = Result<(), crate::errors::Failure>> + Send + 'static,
 {
-    use motionlink_link::clock::lock;
-    let flag: StopFlag = Default::default();
-    let seen = std::sync::Arc::clone(&flag);
-    let handle = runtime().spawn(async move {
-        let mut fut = Box::pin(fut);
+    let task: Task = Default::default();
+    let seen = Arc::clone(&task);
+    runtime().spawn(async move {
+        let _ended = Ended(Arc::clone(&seen));
+        let mut fut = Box::pin(TASK.scope(Arc::clone(&seen), fut));
         let out = std::future::poll_fn(|cx| {
             {
-                let mut st = lock(&seen);
-                if st.requested {
-                    return std::task::Poll::Ready(None);
+                let mut st = lock(&seen.0);
+                if st.requested && !st.in_op {
+                    return Poll::Ready(None);
                 }
                 st.waker = Some(cx.waker().clone());
             }
             fut.as_mut().poll(cx).map(Some)
         })
         .await;
-        match out {
-            Some(out) => {
+        let failed = match out {
+            Some(out) if !lock(&seen.0).requested => {
                 let _ = lock(delivery()).send((done, out));
+                return;
             }
+            // Cancelled while a stoppable operation ran: it ended, stopped (or its stop failed).
+            Some(out) => out.err(),
             None => {
                 drop(fut);
-                stop.await;
+                stop.await.err()
+            }
+        };
+        lock(&seen.0).failed = failed;
+    });
+    NativeTask(task)
+}
+
+/// Awaits `op`, an operation of a family's session that sets something in motion, so that cancelling the
+/// task ([`NativeTask::cancel`]) cancels the operation (`OpFuture::cancel`: the session stops what it set
+/// in motion) and the task still awaits its end, whose outcome the cancel hands on: nothing when the stop
+/// was confirmed, the error that says it was not. `take` takes the operation's result out of the output.
+pub async fn stoppable<S: Session, T>(mut op: OpFuture<S>, take: fn(S::Output) -> Option<T>) -> Result<T, S::Error> {
+    let task = TASK.try_with(Arc::clone).ok();
+    let mut cancelled = false;
+    let out = std::future::poll_fn(|cx| {
+        if let Some(t) = &task {
+            let mut st = lock(&t.0);
+            st.in_op = true;
+            if st.requested && !cancelled {
+                cancelled = true;
+                drop(st);
+                op.cancel();
             }
         }
-    });
-    NativeTask { handle: std::sync::Mutex::new(Some(handle)), stop: Some(flag) }
+        Pin::new(&mut op).poll(cx)
+    })
+    .await;
+    if let Some(t) = &task {
+        lock(&t.0).in_op = false;
+    }
+    take(out?).ok_or_else(|| {
+        let other = std::io::Error::other("the session answered with the output of another operation");
+        LinkError::Io { port: String::new(), source: Arc::new(other) }.into()
+    })
 }
 
 #[pymethods]
 impl NativeTask {
-    /// Cancels the operation: its future is dropped (a motion it started is stopped, as the family's
-    /// async client does for a dropped future), and this returns once that has happened (without the GIL;
-    /// call it from a worker thread, not from the event loop). The `done` callback is not called.
-    fn cancel(&self, py: Python<'_>) {
-        let handle = motionlink_link::clock::lock(&self.handle).take();
-        if let Some(h) = handle {
-            match &self.stop {
-                // The task drops its operation and runs its stop; this waits for both.
-                Some(flag) => {
-                    let waker = {
-                        let mut st = motionlink_link::clock::lock(flag);
-                        st.requested = true;
-                        st.waker.take()
-                    };
-                    if let Some(w) = waker {
-                        w.wake();
-                    }
-                }
-                None => h.abort(),
+    /// Cancels the operation and returns once it has ended (without the GIL; call it from a worker thread,
+    /// not from the event loop): an operation awaited through [`stoppable`] once the session has stopped
+    /// what it set in motion, any other once its future is dropped (and the task's own stop, if any, has
+    /// run). The `done` callback is not called. Returns the exception of a cancelled operation, or its
+    /// stop, that failed (a stop not confirmed: `stop_unconfirmed`), else None; a second cancel waits as
+    /// well, and returns None.
+    fn cancel(&self, py: Python<'_>) -> Option<Py<PyAny>> {
+        let (state, ended) = &*self.0;
+        let failed = py.detach(|| {
+            let mut st = lock(state);
+            st.requested = true;
+            if let Some(w) = st.waker.take() {
+                w.wake();
             }
-            let (tx, rx) = mpsc::channel();
-            runtime().spawn(async move {
-                let _ = h.await;
-                let _ = tx.send(());
-            });
-            let _ = py.detach(move || rx.recv());
-        }
+            while !st.ended {
+                st = ended.wait(st).unwrap_or_else(std::sync::PoisonError::into_inner);
+            }
+            st.failed.take()
+        });
+        failed.map(|f| crate::errors::to_pyerr(py, f).into_value(py).into_any())
     }
 
     /// True once the operation has ended (or was cancelled).
     #[getter]
     fn done(&self) -> bool {
-        motionlink_link::clock::lock(&self.handle).as_ref().is_none_or(|h| h.is_finished())
+        lock(&self.0 .0).ended
     }
 }
 

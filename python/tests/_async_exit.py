@@ -10,6 +10,9 @@ closed by the script (the exit handler closes it).
 ``asyncio.run`` with it.
 ``mid-move-open``: a long move is in flight on a loop that is never closed, by a client never closed, when
 the script ends: only the exit handler can stop it.
+``abandoned``: a long move is in flight on a client opened with ``await open()`` and never closed when
+``asyncio.run`` ends (which cancels the move); the client is then garbage, collected: only the exit handler
+can end its session.
 ``in-callback``: as ``idle``, but the library's delivery thread lingers in the close's callback after
 handing the outcome to the loop (without the GIL, as in the socket write of ``call_soon_threadsafe``)
 until the script has ended and the exit handlers run, and a little longer: it is inside a callback when
@@ -80,6 +83,12 @@ async def mid_move():
         await until_moving(c, move)
 
 
+async def abandoned():
+    c = await client().open()
+    move = asyncio.create_task(long_move(c))
+    await until_moving(c, move)
+
+
 if state == "idle":
     asyncio.run(idle())
 elif state == "in-callback":
@@ -105,6 +114,11 @@ elif state == "mid-call":
     asyncio.run(mid_call())
 elif state == "mid-move":
     asyncio.run(mid_move())
+elif state == "abandoned":
+    import gc
+
+    asyncio.run(abandoned())
+    gc.collect()
 elif state == "mid-move-open":
     loop = asyncio.new_event_loop()
     c = loop.run_until_complete(client().open())

@@ -1,11 +1,13 @@
 """A child process for the Ctrl-C and exit tests: opens a client of FAMILY on PORT and starts a long move.
 
-    python _long_move.py FAMILY PORT [wait|term|thread-exit]
+    python _long_move.py FAMILY PORT [wait|term|thread-exit|thread-sleep|thread-return]
 
 ``wait``: the move runs in the main thread (Ctrl-C lands in it); ``term``: the same with a SIGTERM handler
 that raises SystemExit. ``thread-exit``: the move runs in a
 daemon thread and the main thread returns at once without closing the client (the exit handler must stop
-the motion).
+the motion). ``thread-sleep``: the move runs in a thread that is no daemon while the main thread sleeps
+(Ctrl-C lands in the sleep; Python then waits for that thread). ``thread-return``: the same, and the main
+thread returns at once (Python waits for that thread, whose move goes on).
 """
 
 import signal
@@ -35,6 +37,7 @@ if how == "wait":
         print("moving", flush=True)
         op()
 else:
-    threading.Thread(target=op, daemon=True).start()
+    threading.Thread(target=op, daemon=how == "thread-exit").start()
     print("moving", flush=True)
-    time.sleep(0.2)
+    if how != "thread-return":
+        time.sleep(0.2 if how == "thread-exit" else 60)

@@ -5,12 +5,29 @@ from __future__ import annotations
 
 import asyncio
 import time
-from typing import Any
+from typing import Any, Awaitable, Callable, Tuple
 
 import pytest
 from _events import EVENTS
+from _slow_link import SlowLink
 
 import motionlink
+
+FAMILIES = ["scu", "powercube", "compax"]
+TWO_AXES = {"scu": {"preset": "scp11"}, "powercube": {"modules": [1, 2]}, "compax": {"drives": [1, 2]}}
+"""Emulators with two axes: SCU actuators 1 and 2 on F1 and F2, PowerCube modules 1 and 2, COMPAX drives 1 and 2."""
+
+
+def async_client(family: str, port: object) -> Tuple[Any, Callable[[int], Awaitable[Any]]]:
+    """FAMILY's asyncio client of port (a TWO_AXES emulator), and a long move (30 s and more) of its axis n."""
+    if family == "scu":
+        scu = motionlink.AsyncScu(port, functions=["scp11"])
+        return scu, lambda n: scu.move_to(n, 800, speed=5)
+    if family == "powercube":
+        cube = motionlink.AsyncPowerCube(port)
+        return cube, lambda n: cube.move_to(3.0, module=n, velocity=0.1)
+    drive = motionlink.AsyncCompax(port)
+    return drive, lambda n: drive.move_to(100000.0, drive=n, speed_percent=1)
 
 
 async def in_thread(fn):  # type: ignore[no-untyped-def]
@@ -169,3 +186,80 @@ def test_dir_of_an_async_client_lists_only_what_it_has(cls: Any, blocking_only: 
                 assert hasattr(cls, name) or name in vars(client), name
     for name in blocking_only:
         assert not hasattr(client, name) and not hasattr(cls, name)
+
+
+@pytest.mark.parametrize("family", FAMILIES)
+def test_a_cancelled_move_raises_cancelled_error_once_its_stop_has_ended(family: str) -> None:
+    """Over a line that takes 30 ms each way the stop takes a while (its command, then its confirmation):
+    CancelledError reaches the awaiter only after the device stopped (its event came first) and the
+    session saw it stop (started() is [] by then). Was: 1-2 ms after cancel(), the axis still moving."""
+    started, stopped, _ = EVENTS[family]
+    with motionlink.Emulator(family, serve="tcp", **TWO_AXES[family]) as emu, SlowLink(emu.port) as link:
+
+        async def main() -> None:
+            client, move = async_client(family, link.port)
+            async with client:
+                task = asyncio.create_task(move(1))
+                await in_thread(lambda: emu.wait_event(started, 10))
+                task.cancel()
+                with pytest.raises(asyncio.CancelledError):
+                    await task
+                raised_at = time.time()
+                assert client.started() == []
+                assert emu.wait_event(stopped, 0).at <= raised_at
+
+        asyncio.run(main())
+
+
+@pytest.mark.parametrize("family", FAMILIES)
+def test_a_cancelled_move_whose_stop_is_not_confirmed_raises_that(family: str) -> None:
+    """The line goes dead, then the move's task is cancelled: the stop cannot be confirmed, and the awaiter
+    gets the library's error saying so (stop_unconfirmed, the cancellation its cause) instead of a
+    CancelledError that would say nothing of an axis that may still move. Was: CancelledError at once."""
+    started, _, _ = EVENTS[family]
+    with motionlink.Emulator(family, serve="tcp", **TWO_AXES[family]) as emu, SlowLink(emu.port, 0.0) as link:
+
+        async def main() -> None:
+            client, move = async_client(family, link.port)
+            await client.open()
+            task = asyncio.create_task(move(1))
+            await in_thread(lambda: emu.wait_event(started, 10))
+            link.cut()
+            task.cancel()
+            with pytest.raises(motionlink.MotionlinkError) as e:
+                await task
+            assert e.value.stop_unconfirmed, e.value
+            assert isinstance(e.value.__cause__, asyncio.CancelledError)
+            with pytest.raises(motionlink.MotionlinkError):
+                await client.aclose()
+
+        asyncio.run(main())
+
+
+@pytest.mark.parametrize("family", FAMILIES)
+def test_a_call_made_while_the_client_closes_is_refused(family: str) -> None:
+    """aclose() runs as a task; while it cancels the first move, a second move on another axis is asked
+    for: it is refused (UsageError), and nothing moves after aclose() returned. Was: the second move
+    started and ran on (SCU: 8 s; PowerCube: to its target, verified)."""
+    started, _, _ = EVENTS[family]
+    with motionlink.Emulator(family, **TWO_AXES[family]) as emu:
+
+        async def main() -> None:
+            client, move = async_client(family, emu)
+            await client.open()
+            first = asyncio.create_task(move(1))
+            await in_thread(lambda: emu.wait_event(started, 10))
+            closing = asyncio.create_task(client.aclose())
+            await asyncio.sleep(0)  # aclose() has begun: it awaits the cancel of the first move
+            second = asyncio.create_task(move(2))
+            assert await closing == [1]
+            with pytest.raises(motionlink.UsageError, match="closed"):
+                await asyncio.wait_for(second, 5)
+            with pytest.raises(motionlink.Cancelled):
+                await first
+
+        emu.take_events()
+        asyncio.run(main())
+        second = ("F2 started", "module 2 motion started", "drive 2 motion started")
+        assert not [e.text for e in emu.take_events() if e.text.startswith(second)]
+

@@ -17,6 +17,7 @@ from typing import Any, Callable, Tuple
 
 import pytest
 from _events import EVENTS
+from _slow_link import SlowLink
 
 StartSim = Callable[[str, str], Any]  # the sim_process fixture (conftest.py): starts a `motionlink sim`
 CHILD = str(Path(__file__).with_name("_async_exit.py"))
@@ -79,4 +80,24 @@ def test_a_move_in_flight_is_stopped_when_the_script_ends(
     assert at < ended_by, (text, sim.events())
     if closed is not None:
         at, text = sim.wait_event(closed)
+        assert at < ended_by, (text, sim.events())
+
+
+@pytest.mark.parametrize("family", FAMILIES)
+def test_the_session_of_an_async_client_nobody_closed_ends_before_the_script(
+    sim_process: StartSim, family: str
+) -> None:
+    """A client opened with `await open()` and never closed has a move in flight when `asyncio.run` ends,
+    over a line that takes 30 ms each way; the client is garbage, collected, before the script ends. The
+    move is stopped and the session ended (SCU: RA; PowerCube: watchdog off) before the process ends. Was:
+    the collected client's close ran in the background, cut off by the exit (the SCU and the PowerCube
+    left to their watchdogs)."""
+    started, stopped, closed = EVENTS[family]
+    sim = sim_process(family, "tcp")
+    with SlowLink(sim.port) as link:
+        done, ended_by = run_child(family, link.port, "abandoned")
+    assert_ended_normally(done)
+    sim.wait_event(started)
+    for event in (stopped, closed) if closed is not None else (stopped,):
+        at, text = sim.wait_event(event, 3)
         assert at < ended_by, (text, sim.events())

@@ -145,6 +145,55 @@ def test_the_end_of_the_program_stops_the_motion_of_an_open_client(family: str) 
         emu.wait_event(stopped, 2)
 
 
+@pytest.mark.parametrize("family", ["powercube", "scu", "compax"])
+def test_ctrl_c_in_the_main_thread_stops_the_move_of_a_thread_that_is_no_daemon(family: str) -> None:
+    """A move runs in a thread that is no daemon; Ctrl-C ends the main thread (asleep, in no call of the
+    client's): the client is closed before Python waits for that thread, which stops the move and ends the
+    thread's call (Cancelled), and the program. Was: the move ran to its end (atexit comes after the wait)."""
+    started, stopped, _ = EVENTS[family]
+    with motionlink.Emulator(family, serve="tcp") as emu:
+        child = subprocess.Popen(
+            [sys.executable, CHILD, family, emu.port, "thread-sleep"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            assert child.stdout is not None and child.stdout.readline() == "moving\n"
+            emu.wait_event(started, 10)
+            signal_at = time.time()
+            os.kill(child.pid, signal.SIGINT)
+            stop = emu.wait_event(stopped, 2)
+            _, err = child.communicate(timeout=10)
+        finally:
+            if child.poll() is None:
+                child.kill()
+    assert stop.at - signal_at < 1.0, f"stopped {stop.at - signal_at:.3f} s after SIGINT: {stop.text}"
+    assert "KeyboardInterrupt" in err and "motionlink.errors.Cancelled" in err, err
+
+
+def test_a_main_thread_that_returns_leaves_the_move_of_a_thread_that_is_no_daemon_to_go_on() -> None:
+    """The main thread returns at once while a thread that is no daemon moves: Python waits for that thread,
+    and the client is not closed under it (its move is not stopped)."""
+    started, stopped, _ = EVENTS["compax"]
+    with motionlink.Emulator("compax", serve="tcp") as emu:
+        child = subprocess.Popen(
+            [sys.executable, CHILD, "compax", emu.port, "thread-return"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            assert child.stdout is not None and child.stdout.readline() == "moving\n"
+            emu.wait_event(started, 10)
+            time.sleep(1.0)
+            assert child.poll() is None, "Python waits for the moving thread"
+            assert not any(stopped(e.text) for e in emu.take_events()), "the move goes on"
+        finally:
+            child.kill()
+            child.communicate(timeout=10)
+
+
 def test_a_garbage_collected_client_ends_its_session(scu_emulator: motionlink.Emulator) -> None:
     """A client nobody closed ends its session when it is collected (SCU: RA, which the unit reports)."""
     client = motionlink.Scu(scu_emulator)

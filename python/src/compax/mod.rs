@@ -14,6 +14,7 @@ use motionlink_compax::model::{
     SpeedPercent, StatusId, TimeLimit, Tolerance, WatchInterval, WholeArg,
 };
 use motionlink_compax::report::{DrivePosition, ParamReading, StatusReading};
+use motionlink_compax::session::{Op, Output};
 use motionlink_compax::wire::{Address, Mode};
 use motionlink_compax::{AsyncClient, Client, Error};
 use motionlink_link::cancel::CancelToken;
@@ -418,14 +419,20 @@ faces! {
             &timeout_s,
         )
         .map_err(|f| to_pyerr(py, f))?;
-    } |c| { w!(c => move_to(a, &request); &mut |_| {}) } => |py, r| move_record(py, &r);
+    } |c| {
+        w!(c.move_to(a, &request, &mut |_| {});
+            async c.start(Op::MoveTo(a, request)) => Output::Moved)
+    } => |py, r| move_record(py, &r);
 
     /// POSA HOME, waited for and checked (S16 shows machine zero approached and the drive switched on);
     /// Ctrl-C, or cancelling the task, stops the drive.
     motion home(me, py, drive: Option<Int>, timeout_s: Float) {
         let a = me.drive(py, drive)?;
         let timeout = seconds(&timeout_s).map_err(|f| to_pyerr(py, f))?;
-    } |c| { w!(c.home_and_wait(a, Some(timeout))) } => |py, p| position_record(py, a, p);
+    } |c| {
+        w!(c.home_and_wait(a, Some(timeout));
+            async c.start(Op::Home(a, Some(timeout))) => Output::Homed)
+    } => |py, p| position_record(py, a, p);
 
     /// Waits until the drive reports its positioning ended (S17); its position then. Ctrl-C stops the
     /// drive; so does cancelling the task (the wait's future stops nothing when dropped: the motion may be
@@ -437,11 +444,7 @@ faces! {
     } |c| {
         w!(c => wait_reached(&[a], Some(timeout)); &mut |_, _| {})?;
         w!(c.read_position(a))
-    } else |stopping| {
-        if let Err(e) = stopping.stop_confirmed(a).await {
-            crate::wait::say_stop_failed(&format!("drive {a}: the stop after a cancelled wait failed: {e}"));
-        }
-    } => |py, p| position_record(py, a, p);
+    } else |stopping| { stopping.stop_confirmed(a).await } => |py, p| position_record(py, a, p);
 
     /// Stops the drive as `motionlink compax stop` does: OUTPUT O0=0 if S17 shows it moves (switching it
     /// off), confirmed by S17; then S1 and S16 read (where it stands, whether it is switched on).

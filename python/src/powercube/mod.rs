@@ -18,6 +18,7 @@ use motionlink_powercube::client::{
 };
 use motionlink_powercube::model::{Address, AxisUnit, CubeState, ModuleKind, Param, Position, Value};
 use motionlink_powercube::report::{ParamReading, SetReport};
+use motionlink_powercube::session::{Op, Output};
 use motionlink_powercube::{AsyncClient, Error};
 use pyo3::prelude::*;
 
@@ -419,8 +420,10 @@ faces! {
         let a = me.address(py, module)?;
         let timeout = seconds(&timeout_s).map_err(|f| to_pyerr(py, f))?;
         let guard = me.guard;
-    } |c| { w!(c.module(Address::new(a)?) => home_guarded(timeout, guard); &mut |_| {}) }
-    => |py, r| home_record(py, a, &r);
+    } |c| {
+        w!(c.module(Address::new(a)?).home_guarded(timeout, guard, &mut |_| {});
+            async c.start(Op::HomeGuarded(Address::new(a)?, timeout, guard)) => Output::Homed)
+    } => |py, r| home_record(py, a, &r);
 
     /// A checked ramp move to `target` (the module's unit: rad or m), waited for (Ctrl-C, or cancelling the
     /// task, halts it).
@@ -432,8 +435,10 @@ faces! {
         let spec = move_spec(&target, velocity.as_ref(), acceleration.as_ref(), tolerance.as_ref(), &timeout_s)
             .map_err(|f| to_pyerr(py, f))?;
         let guard = me.guard;
-    } |c| { w!(c.module(Address::new(a)?) => move_to_guarded(&spec, guard); &mut |_| {}) }
-    => |py, r| move_record(py, a, &r);
+    } |c| {
+        w!(c.module(Address::new(a)?).move_to_guarded(&spec, guard, &mut |_| {});
+            async c.start(Op::MoveGuarded(Address::new(a)?, spec, guard)) => Output::Moved)
+    } => |py, r| move_record(py, a, &r);
 
     /// Waits until the module stands still (no STATE_MOTION); the state at the end. Ctrl-C halts it; so does
     /// cancelling the task (the wait's future stops nothing when dropped: the motion may be another call's,
@@ -442,11 +447,7 @@ faces! {
         let a = me.address(py, module)?;
         let timeout = seconds(&timeout_s).map_err(|f| to_pyerr(py, f))?;
     } |c| { w!(c.module(Address::new(a)?) => wait_motion_end(timeout); &mut |_| {}) }
-    else |halting| {
-        if let Err(e) = async { halting.module(Address::new(a)?).halt_confirmed().await }.await {
-            crate::wait::say_stop_failed(&format!("module {a}: the halt after a cancelled wait failed: {e}"));
-        }
-    } => |py, s| state_record(py, a, s);
+    else |halting| { halting.module(Address::new(a)?).halt_confirmed().await } => |py, s| state_record(py, a, s);
 
     /// Halts the module at once (it stays halted until a reset), confirmed by its state read back until it
     /// is at rest; the state and where it stands then, as `motionlink powercube stop --json` prints them.

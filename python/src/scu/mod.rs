@@ -18,7 +18,9 @@ use motionlink_scu::model::{
 };
 use motionlink_scu::results::{FunctionStop, RunOutcome, SampleReport, StopScope, Stopped, SwitchedOff};
 use motionlink_scu::session::{MoveReport, RunAction, RunReport};
-use motionlink_scu::{port_connector, AsyncClient, Client, Config, Error, FunctionMap, MoveOptions, StrokeLimits};
+use motionlink_scu::{
+    port_connector, AsyncClient, Client, Config, Error, FunctionMap, MoveOptions, Output, StrokeLimits,
+};
 use pyo3::prelude::*;
 
 use crate::common::{json_py, opt_float, Bool, Float, Int, Slot, Text};
@@ -387,15 +389,18 @@ faces! {
         let (a, target, f, speed) = move_args(&actuator, &target_counts, function.as_ref(), &speed, me.speed_mode)
             .map_err(|f| to_pyerr(py, f))?;
     } |c| {
-        w!(c => move_to(a, target, speed);
-            &MoveOptions { progress: None, function: f } => f)
+        w!(c.move_to(a, target, speed, &MoveOptions { progress: None, function: f });
+            async c.start(c.move_to_op(a, target, speed, f)?) => Output::Move)
     } => |py, r| move_py(py, &r);
 
     /// Runs a function until it ends (or `seconds`), then stops it; where the actuators rest. Ctrl-C, or
     /// cancelling the task, stops it.
     motion run(me, py, function: String, direction: Text, seconds: Option<Float>) {
         let (action, limit) = run_args(&function, &direction, seconds.as_ref()).map_err(|f| to_pyerr(py, f))?;
-    } |c| { w!(c => run_function(action, limit); &|_| {}) } => |py, r| run_py(py, &r);
+    } |c| {
+        w!(c.run_function(action, limit, &|_| {});
+            async c.start(c.run_function_op(action, limit)?) => Output::Run)
+    } => |py, r| run_py(py, &r);
 
     /// Stops what moves, as `motionlink scu stop` does: RS to the motion function named, or with no function
     /// to every one (F1..F10), fast or along the stop ramp (`soft`), confirmed by the status read until no
