@@ -73,10 +73,10 @@ class _Operations:
 
     @op(StatusValue, args=lambda names, drive: (items(names, "names", "compax"), drive))
     def status(
-        self, names: Union[str, int, Sequence[Union[str, int]]], drive: Optional[int] = None
+        self, names: Union[str, int, Sequence[Union[str, int]]] = (), drive: Optional[int] = None
     ) -> List[StatusValue]:
-        """Status values by name (``"S1"``) or number: one (a str or an int), or a list of them; an empty
-        list: the main ones, as :meth:`Compax.info` reads them."""
+        """Status values by name (``"S1"``) or number: one (a str or an int), or a list of them; none (or
+        an empty list): the main ones, as ``motionlink compax status`` and :meth:`Compax.info` read them."""
 
     @op(_position, aio=True, with_args=True)
     def position(self, drive: Optional[int] = None) -> DrivePosition:

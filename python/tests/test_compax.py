@@ -29,6 +29,8 @@ def test_scan_finds_both_drives(compax: motionlink.Compax) -> None:
 def test_info_and_status(compax: motionlink.Compax) -> None:
     info = compax.info()
     assert [s.status for s in info] == ["S1", "S2", "S3", "S16", "S17", "S18"]
+    # No names: the main ones, as `motionlink compax status` reads them.
+    assert [s.status for s in compax.status()] == [s.status for s in compax.status([])] == [s.status for s in info]
     s17 = compax.status(["S17"])[0]
     assert isinstance(s17, StatusValue) and (s17.status, s17.name) == ("S17", "status bits S17")
     assert s17.value.to_dict() == {"word": 2, "flags": ["RUN"], "pattern": "0000 0010"}
