@@ -10,9 +10,9 @@ use motionlink_scu::config::FLUSH_LEN;
 use motionlink_scu::model::{Actuator, DataIndex, MotionDirection, MotionFunction, PositionCounts, SafetyId, Speed};
 use motionlink_scu::session::{MoveSpec, MoveTargets, Op, Output, PreparedRequest, Progress, RunAction, RunSpec};
 use motionlink_scu::sim::RemoteMode;
-use motionlink_scu::wire::Request;
+use motionlink_scu::wire::{reply_to_vec, request_to_vec, Command, Reply, Request, Status};
 use motionlink_scu::{Config, Emulator, Error, FunctionMap, Session, SimConfig};
-use motionlink_testkit::wired::{Line, Serial, Wired};
+use motionlink_testkit::wired::{Device, Line, Serial, Telegram, Wired};
 
 /// The session wired to the unit at 38400 baud, 8N1 (the shared harness).
 type Bench = Wired<Session, Serial<Emulator>>;
@@ -375,5 +375,51 @@ fn a_cancel_while_an_unanswered_re_is_repeated_sends_no_more_re_and_stops_sooner
             let e = result.unwrap_err();
             assert!(motionlink_link::error::Classify::stop_unconfirmed(&e), "{e}");
         }
+    }
+}
+
+/// A unit that also acknowledges one write to an index the data list does not have (as a firmware with
+/// entries of its own might); everything else goes to the emulated unit.
+struct AcksAnUnlistedWrite {
+    unit: Serial<Emulator>,
+    write: Vec<u8>,
+}
+
+impl Device for AcksAnUnlistedWrite {
+    fn receive(&mut self, now: Timestamp, telegram: &Telegram, out: &mut Vec<Telegram>) {
+        if **telegram == self.write[..] {
+            let ack = Reply::status_only(Command::Transfer, Status::Ack);
+            out.push(Telegram::Bytes(reply_to_vec(&ack).unwrap()));
+        } else {
+            self.unit.receive(now, telegram, out);
+        }
+    }
+    fn advance(&mut self, now: Timestamp, out: &mut Vec<Telegram>) {
+        self.unit.advance(now, out);
+    }
+    fn next_wakeup(&self) -> Option<Timestamp> {
+        self.unit.next_wakeup()
+    }
+    fn take_events(&mut self) -> Vec<String> {
+        self.unit.take_events()
+    }
+}
+
+#[test]
+fn a_write_to_an_index_outside_the_data_list_says_it_was_not_read_back() {
+    // The unit acknowledges RT 0x7F00; the session cannot read it back (nothing says what it holds): the
+    // report says so, not `verified` (was: verified with nothing read).
+    let write = request_to_vec(&Request::Transfer { index: 0x7F00, data: &[1, 2] }).unwrap();
+    let unit = AcksAnUnlistedWrite { unit: Serial(Emulator::new(SimConfig::default()).unwrap()), write };
+    let mut b = Wired::new(Session::new(Config::default(), Timestamp::ZERO).unwrap(), unit, Line::baud(38_400, 10));
+    let open = b.start(Op::Open);
+    b.wait_done(open).unwrap();
+    let set = b.start(Op::Set { index: DataIndex(0x7F00), data: vec![1, 2], verify: true });
+    match b.wait_done(set).unwrap() {
+        Output::Written(report) => {
+            assert!(!report.verified, "{report:?}");
+            assert!(report.not_verifiable[0].contains("not in the data list"), "{report:?}");
+        }
+        other => panic!("{other:?}"),
     }
 }

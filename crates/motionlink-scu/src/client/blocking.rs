@@ -192,7 +192,8 @@ impl Client {
     }
 
     /// Writes raw bytes to a data index (no checks but the unit's), then reads the index back where the data
-    /// list has it (every remote entry and group is readable): a mismatch is [`Error::ReadBack`].
+    /// list has it (every remote entry and group is readable): a mismatch is [`Error::ReadBack`]. An index
+    /// outside the data list is written, not read back: the report says so (`verified` false).
     pub fn set_raw(&self, index: DataIndex, data: &[u8]) -> Result<SetReport, Error> {
         expect_output!(
             self.driver.run(Op::Set { index, data: data.to_vec(), verify: true }),

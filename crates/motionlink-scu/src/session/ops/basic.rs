@@ -117,9 +117,13 @@ pub(crate) fn encode_for(
     Ok((e, data))
 }
 
-/// A write of the caller's ([`super::Op::Set`]).
+/// A write of the caller's ([`super::Op::Set`]). An index outside the data list is written, not read back:
+/// what it holds, and so what a read of it would give, is not known; the report says so.
 pub(crate) async fn set(ctx: &Ctx, index: DataIndex, data: Vec<u8>, verify: bool) -> Result<Output, Error> {
-    let why = write(ctx, index, &data, verify).await?;
+    let mut why = write(ctx, index, &data, verify).await?;
+    if verify && item(index).is_none() {
+        why = Some(format!("{index} is not in the data list: written, not read back (what it holds is not known)"));
+    }
     Ok(Output::Written(SetReport { verified: why.is_none(), not_verifiable: why.into_iter().collect() }))
 }
 
