@@ -276,28 +276,8 @@ fn a_homing_is_checked_by_machine_zero_and_one_stopped_halfway_is_not_taken_for_
             tokio::time::sleep(Duration::from_millis(300)).await;
             client.stop(a(1)).await
         };
-        let (mut homing, mut stop) =
-            (Box::pin(client.home_and_wait(a(1), Some(Duration::from_secs(30)))), Box::pin(stop));
-        let (mut homed, mut stopped) = (None, None);
-        std::future::poll_fn(|cx| {
-            if homed.is_none() {
-                if let Poll::Ready(r) = homing.as_mut().poll(cx) {
-                    homed = Some(r);
-                }
-            }
-            if stopped.is_none() {
-                if let Poll::Ready(r) = stop.as_mut().poll(cx) {
-                    stopped = Some(r);
-                }
-            }
-            if homed.is_some() && stopped.is_some() {
-                Poll::Ready(())
-            } else {
-                Poll::Pending
-            }
-        })
-        .await;
-        let (homed, stopped) = (homed.unwrap(), stopped.unwrap());
+        let (homed, stopped) =
+            motionlink_testkit::join2(client.home_and_wait(a(1), Some(Duration::from_secs(30))), stop).await;
         stopped.unwrap();
         let e = homed.unwrap_err();
         assert!(matches!(e, Error::NotHomed { switched_off: true, .. }), "{e}");

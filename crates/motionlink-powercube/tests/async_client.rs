@@ -4,7 +4,6 @@
 
 use motionlink_powercube::PortLink;
 use std::future::Future;
-use std::task::Poll;
 use std::time::Duration;
 
 use motionlink_link::can::{CanBus, CanBusConfig};
@@ -128,31 +127,6 @@ fn async_request_many_answers_each_request_and_refuses_a_bad_one_alone() {
     })
 }
 
-/// Two futures polled together until both are done (what `tokio::join!` does), their outputs.
-async fn join2<A: std::future::Future, B: std::future::Future>(a: A, b: B) -> (A::Output, B::Output) {
-    let (mut a, mut b) = (Box::pin(a), Box::pin(b));
-    let (mut out_a, mut out_b) = (None, None);
-    std::future::poll_fn(|cx| {
-        if out_a.is_none() {
-            if let Poll::Ready(v) = a.as_mut().poll(cx) {
-                out_a = Some(v);
-            }
-        }
-        if out_b.is_none() {
-            if let Poll::Ready(v) = b.as_mut().poll(cx) {
-                out_b = Some(v);
-            }
-        }
-        if out_a.is_some() && out_b.is_some() {
-            Poll::Ready(())
-        } else {
-            Poll::Pending
-        }
-    })
-    .await;
-    (out_a.unwrap(), out_b.unwrap())
-}
-
 /// A move of a rotary module to `target` rad at 1 rad/s and 2 rad/s².
 fn spec(target: f32) -> MoveSpec {
     MoveSpec {
@@ -178,9 +152,11 @@ fn two_guarded_moves_at_once_on_the_async_client_each_end_only_their_own_module(
         let (bus, client) = setup().await;
         let clock = client.clock().clone();
         let (m1, m2) = (client.module(a(1)), client.module(a(2)));
-        let (one, two) =
-            join2(m1.move_to_guarded(&spec(0.3), Guard::Watchdog), m2.move_to_guarded(&spec(1.2), Guard::Watchdog))
-                .await;
+        let (one, two) = motionlink_testkit::join2(
+            m1.move_to_guarded(&spec(0.3), Guard::Watchdog),
+            m2.move_to_guarded(&spec(1.2), Guard::Watchdog),
+        )
+        .await;
         for (n, target, result) in [(1, 0.3, one), (2, 1.2, two)] {
             let report = result.unwrap_or_else(|e| panic!("module {n}: {e}"));
             assert!((report.reached.value() - target).abs() <= 0.001 && report.verified, "module {n}: {report:?}");
@@ -207,7 +183,7 @@ fn two_guarded_moves_cancelled_on_the_async_client_halt_both_and_leave_no_watchd
         assert!(device(&bus, &clock, 1).0.contains(StateFlag::Motion) && device(&bus, &clock, 2).2, "under way");
         one.cancel();
         two.cancel();
-        let (one, two) = join2(one, two).await;
+        let (one, two) = motionlink_testkit::join2(one, two).await;
         for (n, result) in [(1, one), (2, two)] {
             assert!(
                 matches!(result, Err(Error::Cancelled { address, stop: StopOutcome::Confirmed }) if address == a(n)),
