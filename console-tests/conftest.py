@@ -18,6 +18,7 @@ import queue
 import re
 import shutil
 import subprocess
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -146,16 +147,29 @@ def browser(request):
             pytest.fail(f"{message} (MOTIONLINK_REQUIRE_BROWSER=1)")
         pytest.skip(f"{message}; skipped")
     from selenium import webdriver
+    from selenium.common.exceptions import SessionNotCreatedException
     from selenium.webdriver.chrome.service import Service
 
+    profile = tempfile.mkdtemp(prefix="motionlink-chromium-")
     options = webdriver.ChromeOptions()
     options.binary_location = shutil.which(CHROMIUM) or CHROMIUM
+    # A profile of its own: a Chromium still closing from the test before holds the default one.
     for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--disable-gpu",
-                "--window-size=1400,1200", "--no-proxy-server"):
+                "--window-size=1400,1200", "--no-proxy-server", f"--user-data-dir={profile}"):
         options.add_argument(arg)
-    driver = webdriver.Chrome(service=Service(shutil.which(CHROMEDRIVER) or CHROMEDRIVER), options=options)
+    # Chromium sometimes exits as it starts on a loaded machine ("Chrome instance exited"): that is the
+    # browser's start, not the console under test, so it is tried again (three times at most).
+    for attempt in range(3):
+        try:
+            driver = webdriver.Chrome(service=Service(shutil.which(CHROMEDRIVER) or CHROMEDRIVER), options=options)
+            break
+        except SessionNotCreatedException:
+            if attempt == 2:
+                raise
+            time.sleep(1.0)
     yield driver
     driver.quit()
+    shutil.rmtree(profile, ignore_errors=True)
 
 
 @pytest.fixture
