@@ -620,3 +620,51 @@ fn a_watch_samples_once_per_interval() {
         );
     }
 }
+
+#[test]
+fn a_status_read_that_fails_before_the_emergency_stop_does_not_hold_it_back() {
+    // The read before the first RE of F20 (the probe of lock_status) gets corrupt answers, all three sendings:
+    // the emergency stop is engaged all the same (was: the read's error, and no RE), and the read after the RE
+    // shows it.
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(Config::default());
+    let reads = std::sync::atomic::AtomicU32::new(0);
+    rig.on_request(move |bytes, faults| {
+        if bytes.starts_with(&[0x52, 0x47, 0x62, 0x01]) && reads.fetch_add(1, std::sync::atomic::Ordering::Relaxed) < 3
+        {
+            faults.inject(
+                Direction::DeviceToHost,
+                faults.bytes_sent(Direction::DeviceToHost) + 3,
+                Fault::Corrupt { xor: 1 },
+            );
+        }
+    });
+    let report = client.switch(Function::EmergencyStop, true).unwrap();
+    assert_eq!(word(&client, 0x0162), 0x03FF, "engaged");
+    assert!(!report.verified, "the entry was not seen before the RE: {report:?}");
+    assert!(report.not_verifiable[0].contains("not read before it"), "{report:?}");
+    client.switch(Function::EmergencyStop, false).unwrap();
+}
+
+#[test]
+fn a_status_read_that_fails_after_an_acknowledged_switch_says_it_was_not_verified_not_that_it_failed() {
+    // The buzzer's entry (0x0140) answers corrupt, all three sendings of the read after the RE: the buzzer is
+    // on (the unit acknowledged it), and the report says it was not read back (was: the read's error).
+    let rig = Rig::new(SimConfig::default());
+    let client = rig.client(Config::default());
+    let reads = std::sync::atomic::AtomicU32::new(0);
+    rig.on_request(move |bytes, faults| {
+        if bytes.starts_with(&[0x52, 0x47, 0x40, 0x01]) && reads.fetch_add(1, std::sync::atomic::Ordering::Relaxed) < 3
+        {
+            faults.inject(
+                Direction::DeviceToHost,
+                faults.bytes_sent(Direction::DeviceToHost) + 3,
+                Fault::Corrupt { xor: 1 },
+            );
+        }
+    });
+    let report = client.switch(Function::Buzzer, true).unwrap();
+    assert!(!report.verified && report.not_verifiable[0].contains("was not read after the RE"), "{report:?}");
+    assert_eq!(word(&client, 0x0140), 0x01, "on");
+    assert!(client.switch(Function::Buzzer, false).unwrap().verified);
+}

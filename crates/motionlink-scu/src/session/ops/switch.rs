@@ -107,7 +107,9 @@ pub(crate) async fn switch(ctx: &Ctx, function: Function, on: bool) -> Result<Ou
 }
 
 /// Reads the entry that shows `function` before its RE (`on`) or RS, where the session has yet to see the
-/// entry follow the function (the probe); an error here means nothing was switched.
+/// entry follow the function (the probe). A read that fails holds nothing back (the switch goes out, an
+/// emergency stop above all; the report then says the entry was not read before it); only a cancel ends
+/// it, nothing switched.
 pub(crate) async fn before(ctx: &Ctx, function: Function, on: bool) -> Result<Before, Error> {
     let Some(status) = function.switch_status() else { return Ok(Before::NotRead) };
     {
@@ -129,8 +131,8 @@ pub(crate) async fn before(ctx: &Ctx, function: Function, on: bool) -> Result<Be
             refused(ctx, &status);
             Ok(Before::NotRead)
         }
-        Err(e @ Error::NoRoom { .. }) => Ok(Before::Skipped(e.to_string())),
-        Err(e) => Err(e),
+        Err(e @ Error::CancelledBeforeMotion(_)) => Err(e),
+        Err(e) => Ok(Before::Skipped(e.to_string())),
     }
 }
 
@@ -162,13 +164,13 @@ pub(crate) async fn check(ctx: &Ctx, function: Function, on: bool, before: &Befo
             Err(Error::Refused { status: Status::ParameterDataError, .. }) => {
                 return Ok(Checked::not(refused(&ctx, &status)));
             }
-            Err(e @ Error::NoRoom { .. }) => {
+            // The unit acknowledged the switch: a read that fails makes it not verified, not undone.
+            Err(e) => {
                 return Ok(Checked::not(format!(
                     "{function} was not verified by its status: {} was not read after the {command}: {e}",
                     status.place()
                 )));
             }
-            Err(e) => return Err(e),
         }
         let now = ctx.now();
         ctx.pause_until((now + interval).min(acknowledged + grace)).await;
