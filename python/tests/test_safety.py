@@ -4,6 +4,7 @@ motion the client started. Every wait is on an emulator event or a line the chil
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import os
 import signal
@@ -12,7 +13,7 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Callable, Tuple
+from typing import Callable, Iterator, Tuple
 
 import pytest
 from _events import EVENTS
@@ -20,6 +21,23 @@ from _events import EVENTS
 import motionlink
 
 CHILD = str(Path(__file__).with_name("_long_move.py"))
+
+
+@contextlib.contextmanager
+def moving_child(emu: motionlink.Emulator, family: str, how: str) -> Iterator["subprocess.Popen[str]"]:
+    """``_long_move.py`` run as ``how`` against ``emu``, once its move has started on the device; killed at
+    the end if still running."""
+    child = subprocess.Popen(
+        [sys.executable, CHILD, family, emu.port, how], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        assert child.stdout is not None and child.stdout.readline() == "moving\n"
+        emu.wait_event(EVENTS[family][0], 10)
+        yield child
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.communicate(timeout=10)
 
 def open_client(family: str, port: object) -> Tuple[motionlink.PowerCube, Callable[[], object]]:
     if family == "powercube":
@@ -104,24 +122,13 @@ def test_close_returns_what_it_stopped(family: str) -> None:
 def test_ctrl_c_stops_the_motion_within_100_ms_and_raises_keyboard_interrupt(family: str, signum: int) -> None:
     """SIGINT raises KeyboardInterrupt; SIGTERM with the README's handler raises SystemExit(143). Both stop
     the motion first."""
-    started, stopped, _ = EVENTS[family]
-    with motionlink.Emulator(family, serve="tcp") as emu:
-        child = subprocess.Popen(
-            [sys.executable, CHILD, family, emu.port, "wait" if signum == signal.SIGINT else "term"],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-        try:
-            assert child.stdout is not None and child.stdout.readline() == "moving\n"
-            emu.wait_event(started, 10)
-            signal_at = time.time()
-            os.kill(child.pid, signum)
-            stop = emu.wait_event(stopped, 2)
-            _, err = child.communicate(timeout=10)
-        finally:
-            if child.poll() is None:
-                child.kill()
+    _, stopped, _ = EVENTS[family]
+    how = "wait" if signum == signal.SIGINT else "term"
+    with motionlink.Emulator(family, serve="tcp") as emu, moving_child(emu, family, how) as child:
+        signal_at = time.time()
+        os.kill(child.pid, signum)
+        stop = emu.wait_event(stopped, 2)
+        _, err = child.communicate(timeout=10)
         print(f"{family}: stopped {1000 * (stop.at - signal_at):.1f} ms after signal {signum} ({stop.text})")
         assert stop.at - signal_at < 0.100, f"stopped {stop.at - signal_at:.3f} s after SIGINT: {stop.text}"
         if signum == signal.SIGINT:
@@ -150,24 +157,12 @@ def test_ctrl_c_in_the_main_thread_stops_the_move_of_a_thread_that_is_no_daemon(
     """A move runs in a thread that is no daemon; Ctrl-C ends the main thread (asleep, in no call of the
     client's): the client is closed before Python waits for that thread, which stops the move and ends the
     thread's call (Cancelled), and the program. Was: the move ran to its end (atexit comes after the wait)."""
-    started, stopped, _ = EVENTS[family]
-    with motionlink.Emulator(family, serve="tcp") as emu:
-        child = subprocess.Popen(
-            [sys.executable, CHILD, family, emu.port, "thread-sleep"],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-        try:
-            assert child.stdout is not None and child.stdout.readline() == "moving\n"
-            emu.wait_event(started, 10)
-            signal_at = time.time()
-            os.kill(child.pid, signal.SIGINT)
-            stop = emu.wait_event(stopped, 2)
-            _, err = child.communicate(timeout=10)
-        finally:
-            if child.poll() is None:
-                child.kill()
+    _, stopped, _ = EVENTS[family]
+    with motionlink.Emulator(family, serve="tcp") as emu, moving_child(emu, family, "thread-sleep") as child:
+        signal_at = time.time()
+        os.kill(child.pid, signal.SIGINT)
+        stop = emu.wait_event(stopped, 2)
+        _, err = child.communicate(timeout=10)
     assert stop.at - signal_at < 1.0, f"stopped {stop.at - signal_at:.3f} s after SIGINT: {stop.text}"
     assert "KeyboardInterrupt" in err and "motionlink.errors.Cancelled" in err, err
 
@@ -175,23 +170,11 @@ def test_ctrl_c_in_the_main_thread_stops_the_move_of_a_thread_that_is_no_daemon(
 def test_a_main_thread_that_returns_leaves_the_move_of_a_thread_that_is_no_daemon_to_go_on() -> None:
     """The main thread returns at once while a thread that is no daemon moves: Python waits for that thread,
     and the client is not closed under it (its move is not stopped)."""
-    started, stopped, _ = EVENTS["compax"]
-    with motionlink.Emulator("compax", serve="tcp") as emu:
-        child = subprocess.Popen(
-            [sys.executable, CHILD, "compax", emu.port, "thread-return"],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-        try:
-            assert child.stdout is not None and child.stdout.readline() == "moving\n"
-            emu.wait_event(started, 10)
-            time.sleep(1.0)
-            assert child.poll() is None, "Python waits for the moving thread"
-            assert not any(stopped(e.text) for e in emu.take_events()), "the move goes on"
-        finally:
-            child.kill()
-            child.communicate(timeout=10)
+    _, stopped, _ = EVENTS["compax"]
+    with motionlink.Emulator("compax", serve="tcp") as emu, moving_child(emu, "compax", "thread-return") as child:
+        time.sleep(1.0)
+        assert child.poll() is None, "Python waits for the moving thread"
+        assert not any(stopped(e.text) for e in emu.take_events()), "the move goes on"
 
 
 def test_a_garbage_collected_client_ends_its_session(scu_emulator: motionlink.Emulator) -> None:

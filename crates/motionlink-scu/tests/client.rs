@@ -628,17 +628,7 @@ fn a_status_read_that_fails_before_the_emergency_stop_does_not_hold_it_back() {
     // shows it.
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(Config::default());
-    let reads = std::sync::atomic::AtomicU32::new(0);
-    rig.on_request(move |bytes, faults| {
-        if bytes.starts_with(&[0x52, 0x47, 0x62, 0x01]) && reads.fetch_add(1, std::sync::atomic::Ordering::Relaxed) < 3
-        {
-            faults.inject(
-                Direction::DeviceToHost,
-                faults.bytes_sent(Direction::DeviceToHost) + 3,
-                Fault::Corrupt { xor: 1 },
-            );
-        }
-    });
+    rig.corrupt_reads(0x0162, 0..3);
     let report = client.switch(Function::EmergencyStop, true).unwrap();
     assert_eq!(word(&client, 0x0162), 0x03FF, "engaged");
     assert!(!report.verified, "the entry was not seen before the RE: {report:?}");
@@ -652,17 +642,7 @@ fn a_status_read_that_fails_after_an_acknowledged_switch_says_it_was_not_verifie
     // on (the unit acknowledged it), and the report says it was not read back (was: the read's error).
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(Config::default());
-    let reads = std::sync::atomic::AtomicU32::new(0);
-    rig.on_request(move |bytes, faults| {
-        if bytes.starts_with(&[0x52, 0x47, 0x40, 0x01]) && reads.fetch_add(1, std::sync::atomic::Ordering::Relaxed) < 3
-        {
-            faults.inject(
-                Direction::DeviceToHost,
-                faults.bytes_sent(Direction::DeviceToHost) + 3,
-                Fault::Corrupt { xor: 1 },
-            );
-        }
-    });
+    rig.corrupt_reads(0x0140, 0..3);
     let report = client.switch(Function::Buzzer, true).unwrap();
     assert!(!report.verified && report.not_verifiable[0].contains("was not read after the RE"), "{report:?}");
     assert_eq!(word(&client, 0x0140), 0x01, "on");

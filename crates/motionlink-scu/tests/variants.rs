@@ -476,18 +476,7 @@ fn a_run_whose_status_cannot_be_read_is_stopped_and_fails_rather_than_end_as_don
     // (the stop's own reads answered) and says why (was: a run that ended, the read's failure a warning).
     let rig = Rig::with_variants(SimConfig::default(), &[Variant::NoCyclicObjects]);
     let client = rig.client(scp11());
-    let reads = std::sync::atomic::AtomicU32::new(0);
-    rig.on_request(move |bytes, faults| {
-        if bytes.starts_with(&[0x52, 0x47, 0x70, 0x01])
-            && (1..=3).contains(&reads.fetch_add(1, std::sync::atomic::Ordering::Relaxed))
-        {
-            faults.inject(
-                Direction::DeviceToHost,
-                faults.bytes_sent(Direction::DeviceToHost) + 3,
-                Fault::Corrupt { xor: 1 },
-            );
-        }
-    });
+    rig.corrupt_reads(0x0170, 1..4);
     let e = client.run_function(RunAction::Motion(f(1), MotionDirection::Out), None, &|_| {}).unwrap_err();
     assert!(matches!(e, Error::Corrupt { command: Command::Get, .. }), "{e}");
     assert!(rig.unit(|u| u.position(a(1))) < Some(800), "cut short, not at its end of travel");

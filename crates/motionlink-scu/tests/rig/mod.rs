@@ -47,6 +47,21 @@ impl Rig {
     pub fn unit<R>(&self, f: impl FnOnce(&mut Emulator) -> R) -> R {
         self.device(f)
     }
+
+    /// The answers to the RGs of data index `index` numbered `reads` (0: the next one) come with their fourth
+    /// byte corrupted (the CRC fails: the session sends the RG again, three sendings at most).
+    pub fn corrupt_reads(&self, index: u16, reads: std::ops::Range<u32>) {
+        let count = std::sync::atomic::AtomicU32::new(0);
+        let [lo, hi] = index.to_le_bytes();
+        self.on_request(move |bytes, faults| {
+            if bytes.starts_with(&[b'R', b'G', lo, hi])
+                && reads.contains(&count.fetch_add(1, std::sync::atomic::Ordering::Relaxed))
+            {
+                let at = faults.bytes_sent(Direction::DeviceToHost) + 3;
+                faults.inject(Direction::DeviceToHost, at, Fault::Corrupt { xor: 1 });
+            }
+        });
+    }
 }
 
 pub fn a(n: u8) -> Actuator {
