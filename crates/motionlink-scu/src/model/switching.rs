@@ -30,8 +30,6 @@ pub struct SwitchStatus {
     pub index: DataIndex,
     /// The bits that show the function on: on while every one of them is set, off while any is clear.
     pub mask: u16,
-    /// The bits in words, as messages name them: "bit 0", "bits 0..9".
-    pub bits: &'static str,
     /// What the function switches, as messages name it: "the buzzer", "binary output 2".
     pub what: &'static str,
     /// `None` where the manuals' own words tie the bits to the function (the buzzer, binary output 1): a
@@ -62,9 +60,19 @@ impl SwitchStatus {
         item(self.index).map_or("?", |it| it.name())
     }
 
+    /// The bits of [`SwitchStatus::mask`] in words, as messages name them: "bit 0", "bits 0..9".
+    pub fn bits(&self) -> String {
+        let (low, high) = (self.mask.trailing_zeros(), 15 - self.mask.leading_zeros());
+        if low == high {
+            format!("bit {low}")
+        } else {
+            format!("bits {low}..{high}")
+        }
+    }
+
     /// The entry and its bits: "buzzer (0x0140, bit 0)", "lock_status (0x0162, bits 0..9)".
     pub fn place(&self) -> String {
-        format!("{} ({}, {})", self.name(), self.index, self.bits)
+        format!("{} ({}, {})", self.name(), self.index, self.bits())
     }
 
     /// What `word` shows, in words: "buzzer (0x0140, bit 0) is set (0x01)", "lock_status (0x0162) shows every
@@ -98,16 +106,16 @@ const EMERGENCY_STOP: &str = "the manuals tie no data-list entry to the emergenc
 impl Function {
     /// Where the data list shows this switching function's state; `None` for a motion function.
     pub const fn switch_status(self) -> Option<SwitchStatus> {
-        let (index, mask, bits, what, reading) = match self {
+        let (index, mask, what, reading) = match self {
             Function::Motion(_) => return None,
-            Function::Buzzer => (0x0140, 0x01, "bit 0", "the buzzer", None),
-            Function::BinaryOutput1 => (0x0110, 0x01, "bit 0", "binary output 1", None),
-            Function::BinaryOutput2 => (0x0110, 0x02, "bit 1", "binary output 2", Some(OUTPUT2)),
-            Function::EmergencyStop => (0x0162, 0x03FF, "bits 0..9", "the emergency stop", Some(EMERGENCY_STOP)),
-            Function::Led1 => (0x0120, 0x01, "bit 0", "LED 1 of the operating unit", Some(LEDS)),
-            Function::Led2 => (0x0120, 0x02, "bit 1", "LED 2 of the operating unit", Some(LEDS)),
+            Function::Buzzer => (0x0140, 0x01, "the buzzer", None),
+            Function::BinaryOutput1 => (0x0110, 0x01, "binary output 1", None),
+            Function::BinaryOutput2 => (0x0110, 0x02, "binary output 2", Some(OUTPUT2)),
+            Function::EmergencyStop => (0x0162, 0x03FF, "the emergency stop", Some(EMERGENCY_STOP)),
+            Function::Led1 => (0x0120, 0x01, "LED 1 of the operating unit", Some(LEDS)),
+            Function::Led2 => (0x0120, 0x02, "LED 2 of the operating unit", Some(LEDS)),
         };
-        Some(SwitchStatus { function: self, index: DataIndex(index), mask, bits, what, reading })
+        Some(SwitchStatus { function: self, index: DataIndex(index), mask, what, reading })
     }
 }
 
@@ -129,6 +137,7 @@ mod tests {
         assert!(Function::from_id(0).unwrap().switch_status().is_none());
         let out2 = Function::BinaryOutput2.switch_status().unwrap();
         assert_eq!(out2.detail(0x02), "binary_outputs (0x0110, bit 1) is set (0x02)");
+        assert_eq!(Function::EmergencyStop.switch_status().unwrap().place(), "lock_status (0x0162, bits 0..9)");
         let stop = Function::EmergencyStop.switch_status().unwrap();
         assert_eq!(stop.detail(0), "lock_status (0x0162) is 0x0000, not every motion function F1..F10 locked");
     }
