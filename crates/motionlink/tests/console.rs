@@ -324,6 +324,31 @@ fn a_jog_runs_while_renewed_and_stops_within_the_dead_man_time() {
     assert!(m["reason"].as_str().unwrap().contains("dead-man"), "{m}");
 }
 
+/// An SCU jog with a speed on a unit that does not read remote data back: the speed is written, not read
+/// back, and the jog's result says so (was: dropped, the result said verified).
+#[test]
+fn an_scu_jog_s_speed_not_read_back_is_said_with_its_result() {
+    let c = console(&["scu", "--port", "sim", "--sim-variant", "no-remote-readback"]);
+    let mut ws = ws(&c);
+    units(&mut ws);
+    send(&mut ws, json!({"type": "jog", "actuator": 1, "direction": "positive", "speed": 100.0}));
+    // Renewed until the unit reports the end of travel.
+    let ended = std::time::Instant::now() + Duration::from_secs(40);
+    let m = loop {
+        assert!(std::time::Instant::now() < ended, "the jog did not reach the end of travel");
+        send(&mut ws, json!({"type": "jog_hold"}));
+        if let Some(m) =
+            recv_until(&mut ws, Duration::from_millis(50), |v| v["type"] == "motion" && v["state"] != "running")
+        {
+            break m;
+        }
+    };
+    assert_eq!((&m["state"], &m["ok"]), (&json!("ended"), &json!(true)), "{m}");
+    assert_eq!(m["report"]["verified"], false, "{m}");
+    let why = m["report"]["not_verifiable"].to_string();
+    assert!(why.contains("the jog's speed") && why.contains("not read back"), "{m}");
+}
+
 #[test]
 fn a_released_jog_stops() {
     let (sim, c) = compax_on_sim();

@@ -259,7 +259,9 @@ impl Serialize for RunOutcome {
         map.serialize_entry("stopped", &true)?;
         map.serialize_entry("interrupted", &self.interrupted)?;
         map.serialize_entry("actuators", &PerActuator { pairs: &self.rest, key: "reached_counts" })?;
-        if !matches!(self.function, Function::Motion(_)) {
+        // A switching function's state is read back; a motion function's report says so only where something
+        // was not verified (the console's jog with a speed the unit does not read back).
+        if !matches!(self.function, Function::Motion(_)) || !self.not_verifiable.is_empty() {
             map.serialize_entry("verified", &self.verified)?;
             map.serialize_entry("not_verifiable", &self.not_verifiable)?;
         }

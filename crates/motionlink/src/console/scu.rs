@@ -208,13 +208,21 @@ impl Device for Scu {
             JogDirection::Negative => MotionDirection::In,
         };
         Ok(Box::pin(async move {
+            let mut speed_unverified = Vec::new();
             if let Some(s) = speed {
                 let raw = s.for_motion(self.speed_mode).map_err(ErrorReport::usage)?;
-                self.client.set(function.remote_speed_index(), &ScuValue::RemoteSpeed(raw)).await?;
+                let set = self.client.set(function.remote_speed_index(), &ScuValue::RemoteSpeed(raw)).await?;
+                // A speed the unit did not read back is said with the jog's result, not dropped.
+                speed_unverified = set.not_verifiable.into_iter().map(|w| format!("the jog's speed: {w}")).collect();
             }
             // Runs until the unit reports the end of travel; dropped, the session sends RS (fast) and checks it.
             let r = self.client.run_function(RunAction::Motion(function, dir), None).await?;
-            Ok(report(&RunOutcome::from(&r)))
+            let mut outcome = RunOutcome::from(&r);
+            if !speed_unverified.is_empty() {
+                outcome.verified = false;
+                outcome.not_verifiable.extend(speed_unverified);
+            }
+            Ok(report(&outcome))
         }))
     }
 
