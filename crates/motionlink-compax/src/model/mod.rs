@@ -39,7 +39,8 @@ pub use command::{Command, CommandStyle, CommandText};
 pub use error_code::ErrorCode;
 pub(crate) use param::param_reply_decimals;
 pub use param::{
-    parse_param_reply, write_param_reply, ParamDetail, ParamId, ParamWrite, ValidFrom, BAUD_RATES, PARAMS,
+    parse_param_reply, write_param_reply, ParamDetail, ParamId, ParamWrite, ValidFrom, BAUD_RATES, FIELDBUS_BAUD_RATES,
+    FIELDBUS_MODES, PARAMS,
 };
 pub use status::{StatusDetail, StatusId, StatusKind, STATUS};
 pub use units::{OutputState, Position, RampMs, SpeedPercent};

@@ -77,6 +77,15 @@ pub static PARAMS: Table<ParamDetail> = Table::new("parameter", PARAM_ENTRIES);
 /// The baud rates P195 accepts for the ASCII protocol (150..115200 bit/s, the usual steps).
 pub const BAUD_RATES: &[u32] = &[150, 300, 600, 1200, 2400, 4800, 9600, 19_200, 38_400, 57_600, 115_200];
 
+/// The baud rates P195 takes for the COMTAC fieldbus protocol, P196 = 164 / 165 (manual 3.3.2 and chapter 5).
+/// P195 can be written with them (to prepare a drive for the fieldbus); this crate speaks ASCII only.
+pub const FIELDBUS_BAUD_RATES: &[u32] = &[28_800, 57_600, 172_800, 345_600];
+
+/// The P196 values that select the COMTAC fieldbus protocol (option F5; 165 with F5 software >= V1.22 and
+/// COMPAX > V2.0): the manual's own instruction for a fieldbus drive. Written, they take effect at the next
+/// power-on, and from then on the drive answers no ASCII telegram.
+pub const FIELDBUS_MODES: &[u32] = &[164, 165];
+
 impl ParamId {
     /// The highest parameter number.
     pub const MAX: u16 = 250;
@@ -144,11 +153,20 @@ impl ParamId {
         let range_err =
             |range| ModelError::Range { what: "parameter value", value: format!("{self}={}", shown(value)), range };
         match self {
-            ParamId::BAUD_RATE if !BAUD_RATES.iter().any(|&b| f64::from(b) == value) => {
-                Err(range_err("150, 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200"))
+            ParamId::BAUD_RATE if !BAUD_RATES.iter().chain(FIELDBUS_BAUD_RATES).any(|&b| f64::from(b) == value) => {
+                Err(range_err(
+                    "150, 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200; for the fieldbus protocol \
+                     (P196 = 164/165): 28800, 57600, 172800, 345600",
+                ))
             }
-            ParamId::OPERATING_MODE if value.fract() != 0.0 || !(0.0..=127.0).contains(&value) => {
-                Err(range_err("a whole number 0..=127 (sum of the valences 1, 2, 4, 8, 16, 32, 64)"))
+            ParamId::OPERATING_MODE
+                if value.fract() != 0.0
+                    || !((0.0..=127.0).contains(&value) || FIELDBUS_MODES.iter().any(|&m| f64::from(m) == value)) =>
+            {
+                Err(range_err(
+                    "a whole number 0..=127 (sum of the valences 1, 2, 4, 8, 16, 32, 64), or 164 / 165 (the COMTAC \
+                     fieldbus protocol)",
+                ))
             }
             ParamId::DEVICE_ADDRESS if value.fract() != 0.0 || !(0.0..=31.0).contains(&value) => {
                 Err(range_err("a whole number 0..=31"))

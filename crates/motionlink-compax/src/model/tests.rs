@@ -159,7 +159,14 @@ fn errors_and_params() {
     assert!(ParamId::BAUD_RATE.check(9600.0).is_ok());
     assert!(ParamId::BAUD_RATE.check(9601.0).is_err());
     assert!(ParamId::OPERATING_MODE.check(127.0).is_ok());
-    assert!(ParamId::OPERATING_MODE.check(164.0).is_err());
+    // 164 / 165 select the COMTAC fieldbus protocol: the manual's instruction (3.3.2), written like any value.
+    assert!(ParamId::OPERATING_MODE.check(164.0).is_ok() && ParamId::OPERATING_MODE.check(165.0).is_ok());
+    assert!(ParamId::OPERATING_MODE.check(128.0).is_err() && ParamId::OPERATING_MODE.check(166.0).is_err());
+    // The fieldbus's baud rates (chapter 5): only those beyond the ASCII list.
+    for rate in [28_800.0, 172_800.0, 345_600.0] {
+        assert!(ParamId::BAUD_RATE.check(rate).is_ok(), "{rate}");
+    }
+    assert!(ParamId::BAUD_RATE.check(14_400.0).is_err());
     assert!(ParamId::DEVICE_ADDRESS.check(32.0).is_err());
     let mut t = TextBuf::<40>::new();
     write_param_reply(ParamId::BAUD_RATE, 9600.0, &mut t).unwrap();

@@ -180,6 +180,33 @@ impl ParamWritten {
     pub fn at_power_on(&self) -> bool {
         self.written.id.info().is_some_and(|i| i.kind.valid_from == ValidFrom::PowerOn)
     }
+
+    /// What the value written does at the next power-on that a user must know before it: P196 = 164 / 165
+    /// (the drive speaks the COMTAC fieldbus protocol from then on, and answers no ASCII telegram), or a
+    /// fieldbus baud rate in P195 (for the fieldbus protocol only).
+    ///
+    /// ```
+    /// use motionlink_compax::model::ParamId;
+    /// use motionlink_compax::report::{ParamReading, ParamWritten};
+    /// let written = ParamReading { id: ParamId::OPERATING_MODE, value: 164.0 };
+    /// let w = ParamWritten { written, read_back: 164.0 };
+    /// assert!(w.power_on_note().unwrap().contains("fieldbus"));
+    /// ```
+    pub fn power_on_note(&self) -> Option<&'static str> {
+        let value = self.written.value;
+        let is = |list: &[u32]| list.iter().any(|&v| f64::from(v) == value);
+        match self.written.id {
+            ParamId::OPERATING_MODE if is(crate::model::FIELDBUS_MODES) => Some(
+                "from the next power-on the drive speaks the COMTAC fieldbus protocol (P196 = 164/165), which \
+                 motionlink does not: it will answer no ASCII telegram on this line",
+            ),
+            ParamId::BAUD_RATE if !is(crate::model::BAUD_RATES) => Some(
+                "a baud rate of the fieldbus protocol: with an ASCII mode in P196 the drive's rate is one of \
+                 150..115200 bit/s",
+            ),
+            _ => None,
+        }
+    }
 }
 
 impl Serialize for ParamWritten {

@@ -67,6 +67,9 @@ pub struct Drive {
     pub(super) address: u8,
     pub(super) mode: Mode,
     pub(super) baud_rate: u32,
+    /// Powered on with P196 = 164/165: the drive speaks the COMTAC fieldbus protocol, not ASCII (it takes no
+    /// telegram of this crate's; only a configuration can give it ASCII again, as a fieldbus master would).
+    pub(super) fieldbus: bool,
     pub(super) rx: RequestDecoder,
     pub(super) rx_last: Timestamp,
     pub(super) rx_parity_error: bool,
@@ -120,6 +123,7 @@ impl Drive {
             address: cfg.address,
             mode,
             baud_rate: baud,
+            fieldbus: false,
             rx: RequestDecoder::for_drive(&mode),
             rx_last: Timestamp::ZERO,
             rx_parity_error: false,

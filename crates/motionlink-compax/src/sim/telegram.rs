@@ -59,7 +59,8 @@ impl Drive {
     }
 
     pub(super) fn on_byte(&mut self, now: Timestamp, b: u8, parity_error: bool, line_baud: u32, out: &mut Vec<u8>) {
-        if self.baud_rate != line_baud {
+        // A drive powered on with P196 = 164/165 speaks the COMTAC fieldbus protocol: no ASCII telegram is its.
+        if self.baud_rate != line_baud || self.fieldbus {
             return;
         }
         self.check_timeout(now, out);
@@ -329,7 +330,9 @@ impl Drive {
         let p = |id: ParamId| self.params.get(&id.get()).copied().unwrap_or(0.0);
         self.address = p(ParamId::DEVICE_ADDRESS) as u8;
         self.baud_rate = p(ParamId::BAUD_RATE) as u32;
-        self.mode = Mode::from_p196(p(ParamId::OPERATING_MODE) as u32).unwrap_or_default();
+        let p196 = p(ParamId::OPERATING_MODE) as u32;
+        self.fieldbus = crate::model::FIELDBUS_MODES.contains(&p196);
+        self.mode = Mode::from_p196(p196).unwrap_or_default();
         self.rx = RequestDecoder::for_drive(&self.mode);
         self.rx_parity_error = false;
         self.buffer.clear();
@@ -339,6 +342,9 @@ impl Drive {
         self.target = self.position;
         self.o0 = 1;
         self.event("powered on (switched on, O0=1)".to_string());
+        if self.fieldbus {
+            self.event(format!("speaks the COMTAC fieldbus protocol (P196={p196}): no ASCII telegram is answered"));
+        }
         self.pending.clear();
         self.xoff = false;
         self.held.clear();

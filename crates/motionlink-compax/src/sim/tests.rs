@@ -368,3 +368,27 @@ fn a_queueing_buffer_executes_the_oldest_command_first() {
     assert_eq!(ask(&mut b, 1, b"1POSR 5,\r"), b"\r\n>");
     assert_eq!(b.drive(1).unwrap().buffered_all(), ["POSR 5"]);
 }
+
+/// P196 = 164 written (the manual's setting for the COMTAC fieldbus, 3.3.2) is acknowledged and read back
+/// like any value; from the next power-on the drive speaks the fieldbus protocol and answers no ASCII
+/// telegram, and says so. The other drive on the bus answers as before.
+#[test]
+fn a_drive_powered_on_with_the_fieldbus_mode_answers_no_ascii() {
+    let mut b = bus(&[1, 5], 0);
+    assert_eq!(ask(&mut b, 0, b"1P196=164\r"), b"\r\n>");
+    assert_eq!(ask(&mut b, 1, b"1P196\r"), b"P196=164\r\n>");
+    assert_eq!(ask(&mut b, 2, b"1S1\r"), b"S001: 0.000\r\n>", "at once: the mode in force is the old one");
+    b.power_cycle(Timestamp::from_millis(10));
+    let ev = b.take_events();
+    assert!(
+        ev.contains(
+            &"drive 1 speaks the COMTAC fieldbus protocol (P196=164): no ASCII telegram is answered".to_string()
+        ),
+        "{ev:?}"
+    );
+    assert_eq!(ask(&mut b, 20, b"1S1\r"), b"");
+    assert_eq!(ask(&mut b, 30, b"5S1\r"), b"S001: 0.000\r\n>");
+    // A mode that is neither ASCII nor the fieldbus's is refused (E90) and not stored.
+    assert_eq!(ask(&mut b, 40, b"5P196=166\r"), b"E90\r\n>");
+    assert_eq!(ask(&mut b, 50, b"5P196\r"), b"P196=0\r\n>");
+}

@@ -139,7 +139,11 @@ pub(super) fn set(args: &Args, bus: &Client, id: ParamId, value: f64, out: &mut 
     if crate::term::json() {
         return args.out().print(out, written);
     }
-    let note = if written.at_power_on() { " (takes effect at the drive's next power-on)" } else { "" };
+    let note = match (written.at_power_on(), written.power_on_note()) {
+        (true, Some(warning)) => format!(" (takes effect at the drive's next power-on; {warning})"),
+        (true, None) => " (takes effect at the drive's next power-on)".to_string(),
+        (false, _) => String::new(),
+    };
     writeln!(out, "{id} = {}, read back{note}", common::with_unit(value, written.written.unit()))?;
     Ok(())
 }

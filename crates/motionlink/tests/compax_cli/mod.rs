@@ -703,3 +703,19 @@ fn a_signal_stops_a_move_whose_stderr_is_not_read() {
     assert_eq!(status.code(), Some(143), "{said}");
     assert!(said.contains("now switched off"), "{said}");
 }
+
+/// `set P196 164`, the manual's setting for a drive on the COMTAC fieldbus (3.3.2), is written and read back
+/// (was: refused as out of range), and the command says what it does at the next power-on: the drive
+/// speaks a protocol motionlink does not. A session's `--mode 164` stays refused (this tool speaks ASCII).
+#[test]
+fn the_fieldbus_mode_is_written_with_what_it_does_at_power_on() {
+    let o = compax("sim", &["set", "P196", "164"]);
+    let said = stdout(&o);
+    assert!(o.status.success(), "{said}{}", String::from_utf8_lossy(&o.stderr));
+    assert!(said.starts_with("P196 = 164, read back (takes effect at the drive's next power-on;"), "{said}");
+    assert!(said.contains("COMTAC fieldbus protocol") && said.contains("answer no ASCII telegram"), "{said}");
+    let o = compax("sim", &["set", "P195", "345600"]);
+    assert!(o.status.success() && stdout(&o).contains("a baud rate of the fieldbus protocol"), "{}", stdout(&o));
+    let o = compax("sim", &["--mode", "164", "status"]);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+}
