@@ -158,6 +158,9 @@ class PowerCubeMove(_WithState):
         target_rad: The target.
         reached_rad: The final actual position, read twice from the module, both within the tolerance.
         difference_rad: ``reached - target``.
+        homed: True when the module showed STATE_HOME_OK at the end; a module not homed has the
+            coordinates it took at power-on, and its MinPos/MaxPos (the target's check) hold only after
+            homing.
         verified: True when every check of what the module took could be made (the velocity and
             acceleration written, and the motion's target, read back through their Inc twins).
         not_verifiable: What could not be checked, and why (empty when ``verified``).
@@ -165,6 +168,7 @@ class PowerCubeMove(_WithState):
 
     action: str
     unit: str
+    homed: bool
     verified: bool
     not_verifiable: List[str]
     start_rad: float

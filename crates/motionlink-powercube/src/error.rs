@@ -308,6 +308,15 @@ pub enum Error {
         /// The state word at the end.
         state: CubeState,
     },
+    /// The module would not carry out the motion command as sent, by its Config word and state (see
+    /// `why`): nothing was sent.
+    #[error("module {address} takes no motion command of this move: {why}")]
+    NotReady {
+        /// The module.
+        address: Address,
+        /// Why, naming the flag.
+        why: &'static str,
+    },
     /// A value given to an action that makes no sense (not a finite number, not above 0): nothing was sent.
     #[error("{what} must be {must}, not {value}")]
     InvalidArgument {
@@ -515,6 +524,7 @@ impl Classify for Error {
             | Error::WatchdogLeftOnline { .. }
             | Error::ReadBack { .. }
             | Error::TargetMismatch { .. }
+            | Error::NotReady { .. }
             | Error::NotReached { .. } => ErrorClass::Device,
             // A cancel is of class Cancelled only once the module confirmed the halt (the class promises that
             // what was started was stopped); one whose halt was not acknowledged is the line's failure.

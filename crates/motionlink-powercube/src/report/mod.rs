@@ -116,7 +116,7 @@ impl Serialize for ScanEntry {
 }
 
 /// `target_rad`, `reached_rad`, `difference_rad` (reached − target; `_m` on a linear module), `state`,
-/// `verified`, `not_verifiable`.
+/// `homed` (STATE_HOME_OK at the end, [`MoveReport::homed`]), `verified`, `not_verifiable`.
 impl Serialize for MoveReport {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         let (target, reached) = (self.target.value(), self.reached.value());
@@ -125,6 +125,7 @@ impl Serialize for MoveReport {
         map.serialize_entry(&key("reached", self.kind, ""), &reached)?;
         map.serialize_entry(&key("difference", self.kind, ""), &(reached - target))?;
         map.serialize_entry("state", &StateReport(self.state))?;
+        map.serialize_entry("homed", &self.homed())?;
         map.serialize_entry("verified", &self.verified)?;
         map.serialize_entry("not_verifiable", &self.not_verifiable)?;
         map.end()

@@ -74,7 +74,7 @@ fn a_move_names_its_positions_in_the_unit_of_the_module() {
     assert_eq!(
         j,
         json!({"target_rad": 0.5, "reached_rad": 0.5, "difference_rad": 0.0,
-               "state": {"word": 0x8002, "flags": ["STATE_HOME_OK", "STATE_RAMP_END"], "faults": []},
+               "state": {"word": 0x8002, "flags": ["STATE_HOME_OK", "STATE_RAMP_END"], "faults": []}, "homed": true,
                "verified": false, "not_verifiable": ["TargetVel could not be read back"]})
     );
     let linear = to_json(&MoveReport { kind: ModuleKind::Linear, ..report });

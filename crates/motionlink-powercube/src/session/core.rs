@@ -187,6 +187,9 @@ pub(crate) struct Core {
     pub known: BTreeSet<u8>,
     /// Module kinds read from their Config words.
     pub kinds: BTreeMap<u8, ModuleKind>,
+    /// The Config word read with each kind (`None`: the kind came from DefConfig, the module gives no
+    /// Config word). Forgotten with the kind when the session writes Config.
+    pub configs: BTreeMap<u8, Option<crate::model::ConfigWord>>,
     /// What the session established about each module where the manual is silent.
     pub findings: BTreeMap<u8, super::ModuleFindings>,
     /// The findings already warned about (module, which), so that each is said once per session.
@@ -219,6 +222,7 @@ impl Core {
             motion_sent: BTreeMap::new(),
             known: BTreeSet::new(),
             kinds: BTreeMap::new(),
+            configs: BTreeMap::new(),
             findings: BTreeMap::new(),
             warned: BTreeSet::new(),
             failed: false,

@@ -256,6 +256,25 @@ pub struct MoveReport {
     pub not_verifiable: Vec<String>,
 }
 
+impl MoveReport {
+    /// True when the module showed STATE_HOME_OK at the end. A module not homed has the coordinates it took
+    /// at power-on (its position then reads DefHomeOffset wherever the axis stands), and its MinPos/MaxPos,
+    /// which the target was checked against, hold only after homing (manual 8: "Run motion commands only
+    /// after a successful homing"); [`MoveReport::not_homed_note`] says so.
+    pub fn homed(&self) -> bool {
+        self.state.contains(crate::model::StateFlag::HomeOk)
+    }
+
+    /// What a move of a module not homed means, in plain words (`None` when it is homed).
+    pub fn not_homed_note(&self) -> Option<&'static str> {
+        (!self.homed()).then_some(
+            "the module is not homed (STATE_HOME_OK clear): its position is in the coordinates it took at \
+             power-on, and MinPos/MaxPos, which the target was checked against, hold only after homing (the \
+             manual: run motion commands only after a successful homing, else only at slow speed)",
+        )
+    }
+}
+
 /// What homing ([`Op::HomeAndWait`](super::Op::HomeAndWait), [`Op::HomeGuarded`](super::Op::HomeGuarded))
 /// did: the module showed STATE_HOME_OK and stood still.
 #[derive(Debug, Clone, PartialEq)]

@@ -140,5 +140,8 @@ pub(super) fn move_to(
         return o.print(out, Acted::reached(report));
     }
     report_done(out, "reached", report.reached, report.kind, report.state)?;
+    if let Some(note) = report.not_homed_note() {
+        writeln!(out, "note: {note}")?;
+    }
     common::not_verified(out, &report.not_verifiable)
 }

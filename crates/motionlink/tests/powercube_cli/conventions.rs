@@ -129,6 +129,8 @@ pub(super) fn an_slcan_adapter_behind_a_tcp_port_is_reached_by_slcan_tcp() {
     );
     let moved = ok(&port, &["--module", "17", "move", "0.2"]);
     assert!(moved.contains("reached: position 0.2000"), "{moved}");
+    // Never homed: the move says what that means.
+    assert!(moved.contains("note: the module is not homed (STATE_HOME_OK clear)"), "{moved}");
     // A port behind slcan:// that is neither a device nor tcp:// is refused, saying why.
     let out = run("slcan://socketcan://can0", &["scan"]);
     assert_eq!(code(&out), 2, "a usage error: {out:?}");
@@ -163,7 +165,8 @@ fn every_json_result_keeps_its_keys() {
     assert_eq!(keys(&["set", "TargetVel", "0.5"]), [written]);
     let verified = "state verified not_verifiable";
     assert_eq!(keys(&["home"]), [with_port(&format!("action reached_rad {verified}"))]);
-    let moved = format!("action target_rad reached_rad difference_rad {verified}");
+    // `homed`: whether the module showed STATE_HOME_OK at the end (its coordinates hold only after homing).
+    let moved = format!("action target_rad reached_rad difference_rad homed {verified}");
     assert_eq!(keys(&["move", "0.1"]), [with_port(&moved)]);
     assert_eq!(keys(&["watch", "--count", "1"]), [with_port("t_s position_rad state")]);
     assert_eq!(keys(&["send", "get", "ActPos"]), [with_port("command request reply ok")]);

@@ -535,3 +535,43 @@ fn a_target_read_back_through_its_tick_twin_converts_into_its_own_unit() {
     assert_eq!(Param::TargetPos.from_read_back_ticks(&Value::I32(100), f64::NAN), None);
     assert_eq!(Param::TargetPos.from_read_back_ticks(&Value::I32(-300), 100.0), Some(-3.0));
 }
+
+/// A move says whether the module is homed (its coordinates and MinPos/MaxPos hold only after homing, manual
+/// 8), and one that the module's Config word would leave undone is refused before anything is sent, naming
+/// the flag: CONFIGID_MOD_M3_COMPATIBLE while not homed (was: a move that ended "not reached"), and on CAN
+/// CONFIGID_MOD_SYNC_MOTION (was: the ramp's timeout, the module waiting for startMotionAll).
+#[test]
+fn a_move_says_not_homed_and_is_refused_where_the_config_word_would_leave_it_undone() {
+    let (clock, host, bus, _) = rs232_instant(&[1]);
+    let _me = clock.reserve_participant().enter();
+    let m = bus.module(addr(1));
+    let r = m.move_to(&spec(0.2), &mut |_| {}).unwrap();
+    assert!(!r.homed() && r.not_homed_note().unwrap().contains("not homed"), "{r:?}");
+    let json = serde_json::to_value(&r).unwrap();
+    assert_eq!(json["homed"], false, "{json}");
+    // M3-compatible and not homed: refused, nothing sent to move it.
+    let word = m.get(Param::Config).unwrap().as_u32().unwrap();
+    m.set(Param::Config, Value::U32(word | ConfigFlag::M3Compatible.mask())).unwrap();
+    host.with_device(|d| d.take_events());
+    let err = m.move_to(&spec(0.4), &mut |_| {}).unwrap_err();
+    assert!(matches!(err, Error::NotReady { address: A1, .. }), "{err}");
+    assert!(err.to_string().contains("CONFIGID_MOD_M3_COMPATIBLE") && err.to_string().contains("home it first"));
+    assert!(host.with_device(|d| d.take_events()).is_empty(), "something was sent that moves");
+    // Homed, it moves, and says so.
+    m.home_and_wait(secs(10), &mut |_| {}).unwrap();
+    let r = m.move_to(&spec(0.4), &mut |_| {}).unwrap();
+    assert!(r.homed() && r.not_homed_note().is_none(), "{r:?}");
+    drop(bus);
+
+    // CAN, SYNC_MOTION: refused (on RS232 the manual says the flag has no meaning).
+    let (clock, canbus, bus) = can(&[2]);
+    let _me = clock.reserve_participant().enter();
+    let m = bus.module(addr(2));
+    let word = m.get(Param::Config).unwrap().as_u32().unwrap();
+    m.set(Param::Config, Value::U32(word | ConfigFlag::SyncMotion.mask())).unwrap();
+    let t0 = clock.now();
+    let err = m.move_to(&spec(0.3), &mut |_| {}).unwrap_err();
+    assert!(err.to_string().contains("CONFIGID_MOD_SYNC_MOTION"), "{err}");
+    assert!(clock.now() - t0 < Duration::from_millis(200), "refused at once, not at a timeout");
+    assert!(!device_view(&canbus, &clock, 2).0.contains(StateFlag::Motion));
+}

@@ -204,7 +204,9 @@ impl Ctx {
         let request = Request::set(param, value)?;
         self.request(address, request).await?;
         if param == Param::Config {
-            self.core().kinds.remove(&address);
+            let mut core = self.core();
+            core.kinds.remove(&address);
+            core.configs.remove(&address);
         }
         Ok(())
     }
@@ -245,6 +247,7 @@ impl Ctx {
     pub async fn config_word(&self, address: u8) -> Result<ConfigWord, Error> {
         let word = ConfigWord(self.get_u32(address, Param::Config).await?);
         self.learn_kind(address, word);
+        self.core().configs.insert(address, Some(word));
         Ok(word)
     }
 
@@ -271,6 +274,7 @@ impl Ctx {
             Err(e @ Error::Timeout { .. }) => {
                 let Ok(word) = self.get_u32(address, Param::DefConfig).await else { return Err(e) };
                 self.learn_kind(address, ConfigWord(word));
+                self.core().configs.insert(address, None);
                 self.core().warn_once(address, "config_word", || {
                     format!(
                         "module {address} does not answer the Config word (parameter 57, from module version \

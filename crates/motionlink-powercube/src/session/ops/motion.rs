@@ -6,8 +6,8 @@ use std::time::Duration;
 
 use crate::error::{unexpected, Error, StopOutcome};
 use crate::model::{
-    AckKind, Broadcast, CubeState, DataType, ModuleKind, Motion, Param, Position, Quantity, ShortState, StateFlag,
-    Value,
+    AckKind, Broadcast, ConfigFlag, CubeState, DataType, ModuleKind, Motion, Param, Position, Quantity, ShortState,
+    StateFlag, Value,
 };
 use crate::session::ctx::Ctx;
 use crate::session::ops::checked;
@@ -66,7 +66,7 @@ impl Ctx {
 
     /// Refuses a module that would ignore a motion command: one with an error flag ([`Error::Device`]) or
     /// halted ([`Error::Halted`]; a reset clears it).
-    pub(crate) async fn ready_for_motion(&self, a: u8) -> Result<(), Error> {
+    pub(crate) async fn ready_for_motion(&self, a: u8) -> Result<CubeState, Error> {
         let state = self.state(a).await?;
         if state.has_fault() {
             return Err(Error::Device { address: crate::model::Address::checked(a), state });
@@ -75,7 +75,33 @@ impl Ctx {
             return Err(Error::Halted { address: crate::model::Address::checked(a), state });
         }
         // Before anything moves: how this module can be polled while it does.
-        self.probe_pos_state_dio(a).await
+        self.probe_pos_state_dio(a).await?;
+        Ok(state)
+    }
+
+    /// Refuses a motion command that module `a` (in `state`) would not carry out as sent, by its Config word
+    /// (read with its kind): CONFIGID_MOD_SYNC_MOTION on CAN (the module waits for the broadcast
+    /// startMotionAll after a motion command, manual 7.4), or CONFIGID_MOD_M3_COMPATIBLE while it is not
+    /// homed (it "does not accept motion commands unless successfully homed"). A module that gives no Config
+    /// word is not checked.
+    pub(crate) async fn config_allows_motion(&self, a: u8, state: CubeState) -> Result<(), Error> {
+        self.kind(a).await?;
+        let (word, can) = {
+            let core = self.core();
+            (core.configs.get(&a).copied().flatten(), core.can)
+        };
+        let Some(word) = word else { return Ok(()) };
+        let why = if can && word.contains(ConfigFlag::SyncMotion) {
+            "its Config word has CONFIGID_MOD_SYNC_MOTION: after a motion command it waits for the broadcast \
+             startMotionAll, which a move of one module does not send (clear the flag with `set Config` to \
+             move it alone)"
+        } else if word.contains(ConfigFlag::M3Compatible) && !state.contains(StateFlag::HomeOk) {
+            "it is not homed (STATE_HOME_OK clear) and its Config word has CONFIGID_MOD_M3_COMPATIBLE: it \
+             accepts no motion command until homed (home it first: `powercube home`)"
+        } else {
+            return Ok(());
+        };
+        Err(Error::NotReady { address: crate::model::Address::checked(a), why })
     }
 
     /// Reads a float parameter that must be a finite number.
@@ -446,7 +472,8 @@ impl Ctx {
 
     /// [`Ctx::move_to`] after [`Ctx::check_move`] found `spec` fit for module `a` of `kind`.
     pub async fn move_checked(&self, a: u8, spec: &MoveSpec, kind: ModuleKind) -> Result<MoveReport, Error> {
-        self.ready_for_motion(a).await?;
+        let state = self.ready_for_motion(a).await?;
+        self.config_allows_motion(a, state).await?;
         let tolerance = spec.tolerance();
         let target = f64::from(spec.target.value());
         let ratio = self.inc_ratio(a).await?;
