@@ -201,6 +201,12 @@ impl SimModule {
             P::TargetVel => self.target_vel = fl.abs(),
             P::TargetAcc => self.target_acc = fl.abs(),
             P::HomeOffset => self.home_offset = fl,
+            // Commanded values are limited (chapter 12): RawCur to its range, -500..500 digits.
+            P::RawCur => {
+                let max = crate::wire::RAW_CUR_MAX;
+                let digits = value.as_i32().unwrap_or(0).clamp(i32::from(-max), i32::from(max));
+                self.store.insert(param.id(), Value::I16(digits as i16));
+            }
             _ => {
                 self.store.insert(param.id(), value);
             }

@@ -642,3 +642,18 @@ fn no_extended_ack_runs_the_motion_with_the_simple_acknowledge() {
     assert_eq!(ack.encode().as_bytes(), [0x0b, 14, 0x64]);
     assert!(state(&mut bus, 100).contains(StateFlag::Motion));
 }
+
+/// A commanded current beyond the manual's range (RawCur, -500..500 digits) is limited to it, as commanded
+/// values are (chapter 12): what reads back is the limit, not the value sent.
+#[test]
+fn raw_current_is_limited_to_its_range() {
+    let mut bus = Emulator::new(&SimConfig::default());
+    assert_eq!(get(&mut bus, 0, Param::RawCur), Value::I16(0));
+    // Sent as the wire carries it, past the client's own check.
+    set(&mut bus, 1, Param::RawCur, Value::I16(1000));
+    assert_eq!(get(&mut bus, 2, Param::RawCur), Value::I16(500));
+    set(&mut bus, 3, Param::RawCur, Value::I16(-2000));
+    assert_eq!(get(&mut bus, 4, Param::RawCur), Value::I16(-500));
+    set(&mut bus, 5, Param::RawCur, Value::I16(-123));
+    assert_eq!(get(&mut bus, 6, Param::RawCur), Value::I16(-123));
+}

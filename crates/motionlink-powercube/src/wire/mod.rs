@@ -19,7 +19,7 @@ pub mod rs232;
 
 pub use reply::{AckPosition, ExtAck, Reply};
 pub(crate) use request::payload;
-pub use request::{Action, ModelError, Request};
+pub use request::{Action, ModelError, Request, RAW_CUR_MAX};
 
 use std::fmt;
 

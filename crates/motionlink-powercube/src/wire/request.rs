@@ -103,6 +103,9 @@ pub enum Request {
     },
 }
 
+/// The largest commanded current in digits, either way (RawCur, "[-500...+500]", manual 7.2).
+pub const RAW_CUR_MAX: i16 = 500;
+
 /// A command or acknowledge that breaks the manual's rules.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ModelError {
@@ -121,6 +124,16 @@ pub enum ModelError {
     /// A float that is not a number (NaN or infinite) as a value or a motion parameter.
     #[error("{0} is not a finite number")]
     NotFinite(&'static str),
+    /// A value outside the range the manual gives the parameter (RawCur: -500..500 digits).
+    #[error("{param} {value} is outside the manual's range {range}")]
+    OutOfRange {
+        /// The parameter.
+        param: Param,
+        /// The value given.
+        value: String,
+        /// The manual's range.
+        range: &'static str,
+    },
     /// An empty payload.
     #[error("empty message")]
     Empty,
@@ -188,6 +201,10 @@ impl Request {
                 value.check_type(param)?;
                 match value {
                     Value::F32(v) if !v.is_finite() => Err(ModelError::NotFinite(param.name())),
+                    // "Commanded Current in Digits [-500...+500]" (7.2).
+                    Value::I16(v) if param == Param::RawCur && !(-RAW_CUR_MAX..=RAW_CUR_MAX).contains(&v) => {
+                        Err(ModelError::OutOfRange { param, value: v.to_string(), range: "-500..500 digits" })
+                    }
                     _ => Ok(()),
                 }
             }
@@ -390,6 +407,15 @@ mod tests {
             (Request::Get(Param::TargetVel), ModelError::NotReadable(Param::TargetVel)),
             (Request::Set(Param::TargetVel, Value::F32(f32::NAN)), ModelError::NotFinite("TargetVel")),
             (Request::Set(Param::MaxPos, Value::F32(f32::INFINITY)), ModelError::NotFinite("MaxPos")),
+            // RawCur: "Commanded Current in Digits [-500...+500]".
+            (
+                Request::Set(Param::RawCur, Value::I16(501)),
+                ModelError::OutOfRange { param: Param::RawCur, value: "501".into(), range: "-500..500 digits" },
+            ),
+            (
+                Request::Set(Param::RawCur, Value::I16(-2000)),
+                ModelError::OutOfRange { param: Param::RawCur, value: "-2000".into(), range: "-500..500 digits" },
+            ),
             (
                 Request::Motion(Motion::FCosLoop { pos: Position::native(1.0), time: Millis(10) }, AckKind::Extended),
                 ModelError::NoExtendedAck("FCOSLOOP"),
@@ -406,6 +432,10 @@ mod tests {
         for (req, err) in bad {
             assert_eq!(req.validate(), Err(err), "{req}");
         }
+        assert!(
+            Request::set(Param::RawCur, Value::I16(-500)).is_ok()
+                && Request::set(Param::RawCur, Value::I16(500)).is_ok()
+        );
         assert!(matches!(
             Request::Set(Param::MaxVel, Value::U32(1)).validate(),
             Err(ModelError::Value(ValueError::Type { .. }))
