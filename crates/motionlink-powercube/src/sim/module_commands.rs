@@ -244,6 +244,10 @@ impl SimModule {
                 self.flags = self.flags.without(StateFlag::PowerFault);
             }
         }
+        // STATE_CPU_OVERLOAD (the CPU lost the current controller): "Power must be switched off" (manual 5).
+        if self.flags.contains(StateFlag::CpuOverload) {
+            self.flags = self.flags.with(StateFlag::Error).with(StateFlag::Halted);
+        }
         if self.watchdog_online && self.firmware.reset_clears_watchdog {
             self.watchdog_online = false;
             self.event(t, "watchdog offline");

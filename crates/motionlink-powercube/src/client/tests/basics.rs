@@ -547,6 +547,12 @@ fn a_reset_is_confirmed_by_the_state_and_a_fault_it_leaves_is_an_error() {
     let text = e.to_string();
     assert!(text.starts_with("the Reset of module 1 left STATE_ERROR set: module 1 reports an error:"), "{text}");
     assert!(text.contains("STATE_POW_FET_TEMP") && text.contains("switching the module off"), "{text}");
+    // So does a CPU that lost its current controller (STATE_CPU_OVERLOAD: "Power must be switched off").
+    let (clock, host, bus, _) = rs232(&[1]);
+    let _me = clock.reserve_participant().enter();
+    host.with_device(|d| d.module_mut(1).unwrap().inject_fault(CubeState::EMPTY.with(StateFlag::CpuOverload)));
+    let e = bus.module(addr(1)).reset_and_release_watchdog().unwrap_err();
+    assert!(e.is_device() && e.to_string().contains("STATE_CPU_OVERLOAD"), "{e}");
     // A fault of the supply voltage, the voltage back: the Reset clears it.
     let (clock, host, bus, _) = rs232(&[1]);
     let _me = clock.reserve_participant().enter();
