@@ -89,11 +89,14 @@ impl Describer {
         while pos < bytes.len() {
             match self.find(&bytes[pos..], direction) {
                 // A bad telegram is one only where no good one starts inside it: else its first byte is
-                // garbage (a stray byte before a request), and the next frame is found.
+                // garbage (a stray byte before a request), and the next frame is found. A telegram does not
+                // start inside the address digits that open another (`33S1`, `032S1`): a drive reads the
+                // digits as one address (33: no drive), as the emulator does, so neither does `decode`.
                 Some(f)
                     if !f.bytes.is_empty()
                         && (!f.bad
                             || (pos + 1..pos + f.bytes.len())
+                                .filter(|&j| !bytes[pos..j].iter().all(u8::is_ascii_digit))
                                 .all(|j| self.find(&bytes[j..], direction).is_none_or(|g| g.bad))) =>
                 {
                     flush(&mut garbage, out);
@@ -422,6 +425,23 @@ mod tests {
             assert!(lines[0].contains("garbage"), "{lines:?}");
             assert!(lines[1..].iter().all(|l| l.contains("request to drive 1: S1")), "{lines:?}");
         }
+    }
+
+    /// A telegram whose address no drive has (`33`, `45`, three digits, a leading zero) is one bad request,
+    /// as the drives read it (none answers), not a stray digit before a request to another drive (was:
+    /// `33S1` shown as a request to drive 3, `032S1` as one to all drives).
+    #[test]
+    fn a_telegram_to_an_address_no_drive_has_is_one_bad_request() {
+        let mode = Mode::default();
+        for telegram in [&b"33S1\r"[..], b"45S1\r", b"123S1\r", b"032S1\r"] {
+            let lines = lines(telegram, &mode, Direction::ToDevice);
+            assert_eq!(lines.len(), 1, "{lines:?}");
+            assert!(!lines[0].contains("request to"), "{lines:?}");
+        }
+        // A stray byte that is no digit is still garbage before a good request.
+        let lines = lines(b"X1S1\r", &mode, Direction::ToDevice);
+        assert_eq!(lines.len(), 2, "{lines:?}");
+        assert!(lines[1].contains("request to drive 1: S1"), "{lines:?}");
     }
 
     #[test]
