@@ -107,6 +107,15 @@ impl Describer {
             }
             Ok((Role::Put(a), p)) => {
                 let (text, bad) = self.request(a, &p);
+                // The manual's table (chapter 8) shows a motion command's extended acknowledge on the put
+                // identifier 0x0E0 + id, which some firmware sends it on (the client takes it there too).
+                if bad && p.as_bytes().first() == Some(&crate::wire::cmd::SET_MOTION) {
+                    if let (ack, false) = self.reply(a, &p) {
+                        let text =
+                            format!("ack from module {a} (on its put identifier, as the manual's table shows): {ack}");
+                        return (text, Direction::FromDevice, false);
+                    }
+                }
                 (format!("put to module {a}: {text}"), Direction::ToDevice, bad)
             }
             Ok((Role::Broadcast, p)) => {
@@ -142,7 +151,9 @@ impl Describer {
         if !frame.bcc_ok() {
             text.push_str(&format!(" [BCC 0x{:02X} wrong, expected 0x{:02X}]", frame.bcc_received, frame.bcc_computed));
         }
-        if !frame.length_ok() {
+        if frame.manual_length_slip() {
+            text.push_str(" [TELID length 6 for 3 bytes: the manual's own acknowledges, accepted]");
+        } else if !frame.length_ok() {
             text.push_str(&format!(" [TELID length {} for {} bytes]", frame.declared_len, frame.payload.len()));
         }
         (text, bad)
@@ -172,7 +183,7 @@ impl Describer {
                         can_id: None,
                         bytes: std::mem::take(&mut self.frame),
                         meaning,
-                        bad: not_understood || !f.bcc_ok() || !f.length_ok(),
+                        bad: not_understood || !f.bcc_ok() || !(f.length_ok() || f.manual_length_slip()),
                     });
                 }
                 Some(Err(e)) => {
@@ -292,5 +303,35 @@ mod tests {
         let frame = CanFrame::new(0x0C4, &[0x0a, 0x3c]).unwrap();
         d.describe(Chunk::Frame(&frame), Direction::Unknown, None, &mut out);
         assert_eq!((out[0].can_id, out[0].direction), (Some(0x0C4), Direction::ToDevice));
+    }
+
+    /// The manual's own frames that the client takes are not shown as bad: the extended acknowledge on the
+    /// put identifier (chapter 8's table: `0x0f1 8 0x0b 0x0e actPos State DIO`; was: "put to module 17:
+    /// command not understood", to the device, bad), and the RS232 acknowledges with TELID length 6 for 3
+    /// bytes (chapter 9; was: flagged bad). Other length mismatches stay bad.
+    #[test]
+    fn the_manuals_own_acknowledges_are_read_as_acknowledges() {
+        let mut d = Describer::new();
+        let frame = CanFrame::new(0x0F1, &[0x0b, 0x0e, 0x00, 0x00, 0x40, 0x3f, 0x30, 0x00]).unwrap();
+        let (text, direction, bad) = d.describe_frame(&frame);
+        assert_eq!((direction, bad), (Direction::FromDevice, false), "{text}");
+        assert!(text.starts_with("ack from module 17 (on its put identifier"), "{text}");
+        // A command on the put identifier is still a command.
+        let frame = CanFrame::new(0x0F1, &[0x02]).unwrap();
+        assert_eq!(d.describe_frame(&frame), ("put to module 17: Halt".to_string(), Direction::ToDevice, false));
+        // Chapter 9's acknowledge of SetExtended: TELID 0x0a 0x26 (length 6) for 3 bytes.
+        let a = all(&mut d, Chunk::Bytes(&[0x02, 0x0a, 0x26, 0x08, 0x50, 0x64, 0xec, 0x03]));
+        assert_eq!(a.len(), 1, "{a:?}");
+        assert!(!a[0].bad && a[0].meaning.contains("the manual's own acknowledges, accepted"), "{a:?}");
+        // Length 7 for 3 bytes, with a right BCC: corrupt all the same.
+        use crate::wire::rs232;
+        let telid = rs232::telid(TelKind::Recv, 4, 7);
+        let payload = crate::wire::Payload::new(&[0x08, 0x50, 0x64]).unwrap();
+        let bcc = rs232::bcc(&[&telid[..], payload.as_bytes()].concat());
+        let mut frame = [0u8; rs232::MAX_FRAME];
+        let n = rs232::encode_raw(telid, &payload, bcc, &mut frame);
+        let a = all(&mut d, Chunk::Bytes(&frame[..n]));
+        assert_eq!(a.len(), 1, "{a:?}");
+        assert!(a[0].bad && a[0].meaning.contains("[TELID length 7 for 3 bytes]"), "{a:?}");
     }
 }

@@ -426,14 +426,12 @@ impl Core {
                 ))),
                 // The manual's own acknowledge examples carry TELID length 6 for 3 data bytes: that one slip
                 // is accepted; any other length that differs from the data is corruption the BCC let through.
-                Ok(f) if !(f.length_ok() || (f.declared_len == 6 && f.payload.len() == 3)) => {
-                    incoming.push(Incoming::Corrupt(format!(
-                        "frame from module {} with TELID length {} for {} data bytes",
-                        f.address,
-                        f.declared_len,
-                        f.payload.len()
-                    )))
-                }
+                Ok(f) if !(f.length_ok() || f.manual_length_slip()) => incoming.push(Incoming::Corrupt(format!(
+                    "frame from module {} with TELID length {} for {} data bytes",
+                    f.address,
+                    f.declared_len,
+                    f.payload.len()
+                ))),
                 Ok(f) => incoming.push(Incoming::Frame { address: f.address, payload: f.payload }),
                 Err(e) => incoming.push(Incoming::Corrupt(e.to_string())),
             }

@@ -97,6 +97,13 @@ impl Rs232Frame {
     pub fn length_ok(&self) -> bool {
         usize::from(self.declared_len) == self.payload.len()
     }
+
+    /// True for the manual's own slip: an acknowledge of 3 data bytes whose TELID says 6 (every RS232
+    /// acknowledge example of chapter 9 prints it so). The client accepts it; any other mismatch is
+    /// corruption the BCC let through.
+    pub fn manual_length_slip(&self) -> bool {
+        self.kind == TelKind::Recv && self.declared_len == 6 && self.payload.len() == 3
+    }
 }
 
 /// The two TELID bytes for `kind`, `address` (0..31) and `len` (0..15).
