@@ -56,7 +56,7 @@ class Emulator:
             ``config`` (TOML text), ``variant`` (a firmware variant's name, or a list of them:
             ``"echo-without-address"``, ``"echo-bare"``, ``"no-echo"``, ``"echo-without-store"``,
             ``"status-value-only"``, ``"no-position-message"``, ``"slow-replies"``, ``"buffer-queues"``,
-            ``"no-command-bit"``; as
+            ``"no-command-bit"``, ``"echo-executes"``; as
             ``motionlink sim compax --variant``).
 
     Use it as a context manager (or call :meth:`close`).

@@ -68,6 +68,7 @@ VARIANTS: Dict[str, Tuple[str, ...]] = {
         "slow-replies",
         "buffer-queues",
         "no-command-bit",
+        "echo-executes",
     ),
 }
 

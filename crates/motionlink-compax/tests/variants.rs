@@ -493,3 +493,42 @@ fn a_progress_callback_that_panics_has_its_move_stopped_before_the_panic_goes_on
     assert!(bus.started().is_empty());
     bus.close().unwrap();
 }
+
+/// A move sent with `?` may be carried out as well as echoed (the manual says only that the drive sends it
+/// back; `echo-executes` does both): `raw` and `echo` count it as started, so that the close (a signal, a
+/// drop) stops the axis it moved (was: not counted, and the axis ran on unstopped). Sent with `,?`, it is
+/// stored, not started; a switch-off sent with `?` is not taken for done.
+#[test]
+fn a_move_sent_with_an_echo_counts_as_started_and_the_close_stops_it() {
+    use motionlink_compax::client::AfterRaw;
+    let (clock, host, _faults, bus) = emulated(&[Variant::EchoExecutes], 0);
+    let _me = clock.reserve_participant().enter();
+    assert_eq!(bus.raw(a(1), "POSA 500?").unwrap().as_deref(), Some("1POSA 500?"));
+    assert_eq!(bus.started(), [a(1)]);
+    assert_eq!(starts(&host), 1, "the drive moves");
+    bus.echo(a(3), "POSA 400").unwrap();
+    assert_eq!(bus.started(), [a(1), a(3)]);
+    assert_eq!(starts(&host), 1, "drive 3's move started too");
+    // `OUTPUT O0=0?` echoed: drive 1 is still taken as moving.
+    bus.raw(a(1), "OUTPUT O0=0?").unwrap();
+    assert!(bus.started().contains(&a(1)));
+    let stopped = bus.close().unwrap();
+    assert_eq!(stopped.drives.len(), 2, "{stopped:?}");
+    assert!(stopped.all_confirmed(), "{stopped:?}");
+    for d in [1, 3] {
+        let (position, moving) = host.with_device(|e| {
+            let drive = e.drive(d).unwrap();
+            (drive.position(), drive.is_moving())
+        });
+        assert!(!moving && position < 400.0, "drive {d} stopped by the close, at {position}");
+    }
+    // The default drive does not carry it out: counted all the same (nothing tells the two apart; `raw`'s
+    // hand-over names it), and the close finds it at rest.
+    let (clock, host, _faults, bus) = emulated(&[], 0);
+    let _me = clock.reserve_participant().enter();
+    let r = bus.raw_motion(a(1), "POSA 500?", AfterRaw::HandOver).unwrap();
+    assert_eq!(r.started, [a(1)]);
+    assert_eq!(starts(&host), 0);
+    assert!(bus.raw_motion(a(1), "POSA 500,?", AfterRaw::HandOver).unwrap().started.is_empty());
+    assert!(bus.close().unwrap().all_confirmed());
+}

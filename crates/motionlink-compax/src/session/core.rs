@@ -125,16 +125,24 @@ impl Effect {
         }
     }
 
-    /// Of a telegram as a raw command sends it. A stored (`,`) or echoed (`?`) command is not executed;
-    /// `!` may start anything. Text the model cannot read is not tracked.
+    /// Of a telegram as a raw command sends it. A stored (`,`) command is not executed; `!` may start
+    /// anything. An echoed (`?`) one may start what it names: the manual says only that the drive sends it
+    /// back, not that it does not also carry it out (the emulator's `echo-executes` does), so it counts as
+    /// started, while its other effects (a switch-off, a comparator) are not taken for done. Text the model
+    /// cannot read is not tracked.
     pub(crate) fn of_request(body: &Body<'_>, flags: Flags) -> Effect {
-        if flags.echo || flags.buffer {
+        if flags.buffer {
             return Effect::None;
         }
-        match body {
+        let effect = match body {
             Body::Execute => Effect::Starts,
             Body::Command(t) => Command::parse(t).map_or(Effect::None, |c| Effect::of_command(&c)),
             Body::Binary(b) => Command::from_binary(b).map_or(Effect::None, |c| Effect::of_command(&c)),
+        };
+        match effect {
+            Effect::Starts => Effect::Starts,
+            _ if flags.echo => Effect::None,
+            other => other,
         }
     }
 }

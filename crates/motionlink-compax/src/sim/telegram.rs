@@ -143,6 +143,17 @@ impl Drive {
                     let _ = self.store(text, p.flags.position_message);
                 }
             }
+            if !p.flags.buffer && self.variants.contains(&Variant::EchoExecutes) {
+                // Carried out as well; an error it meets is answered instead of the echo.
+                if let Err(code) = self.execute(now, &p) {
+                    if answer {
+                        self.error(out, code);
+                    } else {
+                        self.record(code);
+                    }
+                    return;
+                }
+            }
             if answer {
                 let received = f.bytes();
                 let echo = super::variant::echo_of(&self.variants, received, received.len() - f.command_bytes().len())

@@ -20,6 +20,7 @@
 //! | `slow-replies` | Everything the drives send goes out [`SLOW_REPLY_DELAY`] (300 ms) after it would have: beyond the client's default reply timeout of 200 ms. |
 //! | `buffer-queues` | The buffer is a queue: each store (`,`) appends a command (up to [`QUEUE_DEPTH`]; beyond, a store is refused with E90 and nothing stored), and `!` executes the oldest. |
 //! | `no-command-bit` | S17 bit 3 ("command active", the user guide's, not the RS485 manual's) stays clear while a positioning runs. |
+//! | `echo-executes` | A command sent with `?` (without `,`) is carried out as well as echoed (the manual says only that the drive sends it back): `1POSA 10?` moves the axis. |
 //!
 //! Every reply keeps the framing P196 asks for (its address prefix, its end, its BCC): a variant changes
 //! what the drive says, not how it frames it.
@@ -58,6 +59,8 @@ pub enum Variant {
     BufferQueues,
     /// S17 never shows "command active": a positioning runs with the bit clear.
     NoCommandBit,
+    /// `?` (without `,`) carries the command out as well as echoing it.
+    EchoExecutes,
 }
 
 impl FirmwareVariant for Variant {
@@ -73,6 +76,7 @@ impl FirmwareVariant for Variant {
         Variant::SlowReplies,
         Variant::BufferQueues,
         Variant::NoCommandBit,
+        Variant::EchoExecutes,
     ];
 
     /// The name the command line, the TOML configuration and Python take.
@@ -87,6 +91,7 @@ impl FirmwareVariant for Variant {
             Variant::SlowReplies => "slow-replies",
             Variant::BufferQueues => "buffer-queues",
             Variant::NoCommandBit => "no-command-bit",
+            Variant::EchoExecutes => "echo-executes",
         }
     }
 
@@ -104,6 +109,7 @@ impl FirmwareVariant for Variant {
             }
             Variant::BufferQueues => "the buffer is a queue: each store appends a command, '!' executes the oldest",
             Variant::NoCommandBit => "S17 bit 3 (command active) stays clear while a positioning runs",
+            Variant::EchoExecutes => "a command sent with '?' (without ',') is carried out as well as echoed",
         }
     }
 }
@@ -140,7 +146,8 @@ mod tests {
         assert_eq!(
             e,
             "\"echo\" is not a variant of the COMPAX emulator (known: echo-without-address, echo-bare, no-echo, \
-             echo-without-store, status-value-only, no-position-message, slow-replies, buffer-queues, no-command-bit)"
+             echo-without-store, status-value-only, no-position-message, slow-replies, buffer-queues, no-command-bit, \
+             echo-executes)"
         );
         let t = b"12POSA 12.5$,?";
         assert_eq!(echo_of(&[], t, 2), t);

@@ -290,7 +290,16 @@ pub(super) fn raw(
         }
     }
     if !handed_over.is_empty() {
-        common::say(format!("motionlink: {}", moving_on(args, handed_over)));
+        let mut said = moving_on(args, handed_over);
+        if motionlink_compax::wire::Request::raw(args.drive, command).flags.echo {
+            // The manual does not say whether a drive carries out what it echoes: the move is taken as started.
+            said = said.replacen(
+                " moving on:",
+                " may be moving on (the manual does not say whether a drive carries out a command it echoes):",
+                1,
+            );
+        }
+        common::say(format!("motionlink: {said}"));
     }
     signal_after_hand_over(args, handed_over)
 }

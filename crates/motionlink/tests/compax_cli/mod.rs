@@ -719,3 +719,23 @@ fn the_fieldbus_mode_is_written_with_what_it_does_at_power_on() {
     let o = compax("sim", &["--mode", "164", "status"]);
     assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// `raw` of a move sent with `?`: the manual does not say whether a drive carries out what it echoes, so the
+/// move counts as started and is handed over with words that say it may be moving (was: not counted, so
+/// nothing said, and a drive that carries it out, `echo-executes`, ran on unmentioned).
+#[test]
+fn a_raw_move_with_an_echo_is_handed_over_as_one_that_may_be_moving() {
+    for (variant, moved) in [("echo-executes", true), ("echo-without-store", false)] {
+        let sim = start_sim(&["--tcp", "127.0.0.1:0", "--variant", variant]);
+        let o = compax(&sim.address, &["--json", "raw", "POSA 10?"]);
+        let said = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{said}");
+        assert_eq!(json(&o)["started"], serde_json::json!([1]), "{variant}");
+        assert!(
+            said.contains("drive 1 may be moving on (the manual does not say whether a drive carries out"),
+            "{said}"
+        );
+        let events = sim.events();
+        assert_eq!(events.iter().any(|e| e.text.starts_with("drive 1 motion started")), moved, "{variant}: {events:?}");
+    }
+}

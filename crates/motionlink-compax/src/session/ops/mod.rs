@@ -328,13 +328,26 @@ impl Ctx {
         if address.is_broadcast() {
             return Err(Error::Broadcast("no echo comes back"));
         }
-        let req = Request { address, body: Body::Command(text.as_bytes()), flags: Flags { echo: true, ..Flags::NONE } };
+        let flags = Flags { echo: true, ..Flags::NONE };
+        let req = Request { address, body: Body::Command(text.as_bytes()), flags };
         let retry = match Command::parse(text.as_bytes()) {
             Ok(c) if c.is_idempotent() => Retry::Idempotent,
             _ => Retry::DiscardedOnly,
         };
-        let r = self.exchange(&req, retry).await?;
-        Ok(r.map(|r| r.text_str().to_string()).unwrap_or_default())
+        // A move echoed may have been carried out too (see `Effect::of_request`): it counts as started.
+        let effect = Effect::of_request(&req.body, flags);
+        if effect == Effect::Starts {
+            self.check_cancel()?;
+        }
+        let saved = self.core().before_send(address, effect);
+        match self.exchange(&req, retry).await {
+            Ok(r) => Ok(r.map(|r| r.text_str().to_string()).unwrap_or_default()),
+            Err(e @ (Error::Refused { .. } | Error::CancelledBeforeMotion | Error::Encode(_))) => {
+                self.core().unmark(saved);
+                Err(e)
+            }
+            Err(e) => Err(e),
+        }
     }
 
     /// S1 of every address in `range`, once each (no retries); a cancel ends it before the next address.
