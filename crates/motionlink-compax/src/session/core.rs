@@ -529,7 +529,14 @@ impl Core {
             if now < since + self.cfg.reply_timeout {
                 return None;
             }
-            tracing::debug!("XOFF for {:?}: sending anyway", now - since);
+            // The drive asked for a pause (XOFF, P196 valence 1) and has not said XON within the reply
+            // timeout: the telegram goes out rather than hold the session (and a stop) for ever. Said, since
+            // the drive may then lose characters (E71, E73) or the whole telegram.
+            tracing::warn!(
+                "the drive held XOFF for {} ms without an XON (more than the reply timeout): sending the next \
+                 telegram anyway",
+                (now - since).as_millis()
+            );
         }
         let mut job = self.queue.pop_front()?;
         job.attempts += 1;

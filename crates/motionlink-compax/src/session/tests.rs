@@ -486,3 +486,64 @@ fn a_refused_move_forgets_only_its_own_drive_not_one_another_operation_set_movin
     assert!(b.drive(2).is_moving());
     assert_eq!(b.session.started(), [a(2)], "drive 2 moves: the session still knows it, and its close stops it");
 }
+
+/// A drive that sends XOFF before its first reply, and XON `pause` later.
+struct XoffOnce {
+    bus: Serial<Emulator>,
+    pause: Duration,
+    xoff_at: Option<Timestamp>,
+    xon_due: Option<Timestamp>,
+}
+
+impl motionlink_testkit::wired::Device for XoffOnce {
+    fn receive(&mut self, now: Timestamp, telegram: &Telegram, out: &mut Vec<Telegram>) {
+        if self.xoff_at.is_none() {
+            out.push(Telegram::Bytes(vec![crate::wire::XOFF]));
+            self.xoff_at = Some(now);
+            self.xon_due = Some(now + self.pause);
+        }
+        self.bus.receive(now, telegram, out);
+    }
+    fn advance(&mut self, now: Timestamp, out: &mut Vec<Telegram>) {
+        self.bus.advance(now, out);
+        if self.xon_due.is_some_and(|t| t <= now) {
+            self.xon_due = None;
+            out.push(Telegram::Bytes(vec![crate::wire::XON]));
+        }
+    }
+    fn next_wakeup(&self) -> Option<Timestamp> {
+        [self.bus.next_wakeup(), self.xon_due].into_iter().flatten().min()
+    }
+    fn take_events(&mut self) -> Vec<String> {
+        self.bus.take_events()
+    }
+}
+
+/// With XON/XOFF (P196 valence 1), a drive's XOFF holds the session's next telegram until its XON; a drive
+/// that gives no XON within the reply timeout gets the telegram all the same (the manual gives no longest
+/// pause, and a stop must not wait for ever).
+#[test]
+fn an_xoff_holds_the_next_telegram_until_the_xon_or_for_the_reply_timeout_at_most() {
+    for (pause_ms, held_ms) in [(120, 120), (5_000, 200)] {
+        let cfg = Config::new(Mode::from_p196(1).unwrap(), 9600);
+        let sim = SimConfig::bus(&[1], 1, 9600);
+        let line = Line { byte_time: cfg.char_time(), ..Line::instant() }.bytewise();
+        let device = XoffOnce {
+            bus: Serial(Emulator::new(sim).unwrap()),
+            pause: Duration::from_millis(pause_ms),
+            xoff_at: None,
+            xon_due: None,
+        };
+        let mut b = Wired::new(Session::new(cfg, Timestamp::ZERO), device, line);
+        b.run_op(Op::ReadStatus(a(1), StatusId::ACTUAL_POSITION)).unwrap();
+        b.run_op(Op::ReadStatus(a(1), StatusId::ACTUAL_POSITION)).unwrap();
+        let xoff_at = b.device.xoff_at.unwrap();
+        let second = b.sent[1].0;
+        let held = second.saturating_since(xoff_at);
+        // The XOFF reaches the session one character time after the drive sent it.
+        assert!(
+            held >= Duration::from_millis(held_ms) && held < Duration::from_millis(held_ms + 5),
+            "pause {pause_ms} ms: the next telegram went {held:?} after the XOFF"
+        );
+    }
+}
