@@ -294,8 +294,7 @@ impl Client {
     }
 
     fn raw_starts(&self, text: &str) -> bool {
-        let Request { body, flags, .. } = Request::raw(Address::BROADCAST, text);
-        Effect::of_request(&body, flags) == Effect::Starts
+        raw_may_start_motion(text)
     }
 
     /// Sends `text` with `?`: the drive sends it back. Returns the echo.
@@ -600,4 +599,18 @@ impl Client {
             }
         })
     }
+}
+
+/// True when `text`, sent as [`Client::raw`] sends it, may set an axis in motion: a move (sent alone or with
+/// `?`, which a drive may carry out as well as echo) or `!`, which runs whatever the buffer holds; a command
+/// stored with `,` does not (its `!` will).
+///
+/// ```
+/// use motionlink_compax::client::raw_may_start_motion;
+/// assert!(raw_may_start_motion("POSA 10") && raw_may_start_motion("!") && raw_may_start_motion("POSR 5?"));
+/// assert!(!raw_may_start_motion("POSA 10,") && !raw_may_start_motion("S1"));
+/// ```
+pub fn raw_may_start_motion(text: &str) -> bool {
+    let Request { body, flags, .. } = Request::raw(Address::BROADCAST, text);
+    Effect::of_request(&body, flags) == Effect::Starts
 }

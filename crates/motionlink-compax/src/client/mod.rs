@@ -27,7 +27,7 @@ mod drive;
 
 #[cfg(feature = "tokio")]
 pub use asynch::{AsyncClient, AsyncDrive, AsyncWatch};
-pub use blocking::Client;
+pub use blocking::{raw_may_start_motion, Client};
 pub use drive::Drive;
 
 pub use crate::error::{Error, Result, RoundTripRange, StopOutcome, StopReport};

@@ -59,7 +59,7 @@ pub(super) fn check(args: &Args) -> Result<Checked, CliError> {
             checked.move_plan = Some(MovePlan { request, tolerance: *tolerance });
             checked.poll = Some(poll_ms.duration());
         }
-        Action::Raw { command, wait, timeout_s, poll_ms } => {
+        Action::Raw { command, wait, timeout_s, poll_ms, .. } => {
             check_raw(command).map_err(CliError::usage)?;
             if *wait {
                 checked.raw_wait = Some(timeout_s.duration());
@@ -273,12 +273,14 @@ pub(super) fn raw(
     args: &Args,
     bus: &Client,
     command: &str,
+    broadcast: bool,
     wait: Option<Duration>,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
     // A move it starts is waited for (--wait) or handed over: it runs on after the command exits.
     let after = wait.map_or(AfterRaw::HandOver, AfterRaw::Wait);
-    let outcome = bus.raw_motion(args.drive, command, after).map_err(|e| error_for(args, e))?;
+    let to = if broadcast { Address::BROADCAST } else { args.drive };
+    let outcome = bus.raw_motion(to, command, after).map_err(|e| error_for(args, e))?;
     let handed_over = if outcome.waited { &[][..] } else { &outcome.started[..] };
     if crate::term::json() {
         args.out().print(out, &Raw { command, outcome: &outcome })?;
@@ -289,7 +291,14 @@ pub(super) fn raw(
             None => writeln!(out, "(no reply due)")?,
         }
     }
-    if !handed_over.is_empty() {
+    if broadcast && motionlink_compax::client::raw_may_start_motion(command) {
+        // No drive answers a broadcast: which of them took it (and move) this command cannot know.
+        common::say(format!(
+            "motionlink: sent to every drive (address 32, no drive answers): each drive that took it may be moving \
+             on, not stopped by this command (COMPAX has no watchdog); `{} --drive N stop` stops drive N",
+            super::same_line(args)
+        ));
+    } else if !handed_over.is_empty() {
         let mut said = moving_on(args, handed_over);
         if motionlink_compax::wire::Request::raw(args.drive, command).flags.echo {
             // The manual does not say whether a drive carries out what it echoes: the move is taken as started.

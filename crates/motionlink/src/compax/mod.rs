@@ -203,6 +203,10 @@ pub enum Action {
     Raw {
         /// The command.
         command: String,
+        /// Send it to address 32, every drive on the bus (the manual's broadcast: no drive answers), instead
+        /// of --drive: `OUTPUT O0=0` switches every drive off, `!` starts what each holds in its buffer.
+        #[arg(long, conflicts_with = "wait")]
+        broadcast: bool,
         /// Wait until a move the command started has ended (a signal stops it; its position is not
         /// checked: use move for that).
         #[arg(long)]
@@ -425,7 +429,7 @@ fn act_on(
         }
         Action::Stop => actions::stop(args, bus, stopped, out)?,
         Action::Output { .. } => actions::output(args, bus, checked.output, out)?,
-        Action::Raw { command, .. } => actions::raw(args, bus, command, checked.raw_wait, out)?,
+        Action::Raw { command, broadcast, .. } => actions::raw(args, bus, command, *broadcast, checked.raw_wait, out)?,
         Action::Send { words } => actions::send(args, tap, bus, drive, words, out)?,
     }
     Ok(())

@@ -739,3 +739,26 @@ fn a_raw_move_with_an_echo_is_handed_over_as_one_that_may_be_moving() {
         assert_eq!(events.iter().any(|e| e.text.starts_with("drive 1 motion started")), moved, "{variant}: {events:?}");
     }
 }
+
+/// `raw --broadcast` sends to address 32 (every drive; none answers), as the manual's broadcast: a move
+/// reaches both drives, and the command says that each may be moving on. `--wait` cannot go with it (no
+/// drive answers, so none can be waited for).
+#[test]
+fn raw_broadcast_reaches_every_drive_and_says_they_may_be_moving() {
+    let sim = start_sim(&["--tcp", "127.0.0.1:0", "--drives", "1,5"]);
+    let o = compax(&sim.address, &["raw", "--broadcast", "POSA 10"]);
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{said}");
+    assert_eq!(stdout(&o).trim(), "(no reply due)");
+    assert!(
+        said.contains("sent to every drive (address 32, no drive answers): each drive that took it may be moving on"),
+        "{said}"
+    );
+    for d in [1, 5] {
+        let started = format!("drive {d} motion started to 10.000");
+        sim.wait_event(Duration::from_secs(5), |t| t.starts_with(&started))
+            .unwrap_or_else(|| panic!("drive {d} moves"));
+    }
+    let o = compax(&sim.address, &["raw", "--broadcast", "--wait", "POSA 10"]);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+}
