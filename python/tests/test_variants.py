@@ -45,6 +45,8 @@ VARIANTS: Dict[str, Tuple[str, ...]] = {
         "re-needs-rs",
         "late-motion-bit",
         "switch-status-unshown",
+        "ack-without-motion",
+        "rc-rearms-watchdog",
     ),
     "powercube": (
         "no-twin-mirror",

@@ -74,9 +74,11 @@
 //!   sends an RC and tries once more. Still PE: the unit ended remote mode (with Safety_ID 0 it takes RC but
 //!   no remote motion until RO); the caller gets `RemoteEnded`, and the client never sends RO by itself:
 //!   [`Client::reopen`] is the caller's decision. Only the end of a session opens remote mode to
-//!   send the RS every RE needs, then RA. Accepted after the RC (Safety_ID 1 or 2, whose next RC re-arms the
-//!   watchdog): the session goes on; a caller with functions started gets `RemoteEnded` once (their motion
-//!   was stopped by the unit), and they get their RS.
+//!   send the RS every RE needs, then RA. Accepted after the RC (a unit that, after a lapse with Safety_ID
+//!   1 or 2, refuses commands only until the next RC re-arms its watchdog: no edition says so, emulator
+//!   variant `rc-rearms-watchdog`; by chapter 5 a unit deactivates remote mode and refuses the RC too): the
+//!   session goes on; a caller with functions started gets `RemoteEnded` once (their motion was stopped by
+//!   the unit), and they get their RS.
 //! - **Which actuators a function drives** is the unit's parameterisation, which the data list does not show.
 //!   The caller gives it ([`FunctionMap`]; presets for SCP11, TLT and LIFTKIT); where it is not given,
 //!   a move writes the target into every connected actuator's remote position and reports the actuators that
@@ -96,13 +98,24 @@
 //!   RE, so streamed setpoints are RT and RE each time.
 //! - **Which errors.** RT of an index that is not remote data (0x3xxx), an unknown index, or a value out of
 //!   range (speed above 100 % or 1000 counts/s, a cyclic object writing read-only data) is PDE; data of the
-//!   wrong length is PCE; an RE of a function that drives no actuator, or any motion while the emergency stop
-//!   is on, is PE.
+//!   wrong length is PCE; an RE of a function that drives no actuator, or of a motion function while the
+//!   emergency stop is on or while an error stands whose reaction is that motions are not performed (bits
+//!   8, 13, 24..32: "Motion not executed", "Motions not performed (or stopped)", E 4.6 Table 7, S 4.5), is
+//!   PE, "command not possible with SCU mode/state" (emulator variant `ack-without-motion`: acknowledged,
+//!   and nothing moves). The emulator keeps such an error standing until it is restarted.
+//! - **A reset of the unit** (error bits 1..5, "the control unit carries out a reset") ends remote mode and
+//!   initialises the remote data with their presets, as the data list says of them ("Initialized after
+//!   reset with preset values"): remote speeds the function speed from the configuration, remote positions
+//!   memory 1 / user 1 of UserPositionData, cyclic objects -1.
 //! - **Unknown commands.** A telegram `R?` with an unknown letter ends where its CRC matches (within 64
 //!   bytes) and is answered ICE with its letters repeated; other bytes that start no telegram are skipped.
 //! - **Safety_ID after a watchdog expiry.** 0: everything stops, and only RC, RA and RO are accepted until a
-//!   new RO. 1: everything stops; the next RC re-arms the watchdog. 2: only remote motions stop. In every
-//!   case error bit 22 enters the error history, and any command but RO/RA/RC needs an RC first.
+//!   new RO (the RO row, E 4.1 / S 4.1). 1: everything stops; 2: only remote motions stop; with both the
+//!   unit deactivates remote mode, as chapter 5 says of the watchdog ("the SCU will stop all drives in
+//!   motion and deactivate the remote mode", E 5.1 / S 5), so RG, RT, RC, RE and RS are refused with PE
+//!   until a new RO. Neither edition says that an RC re-arms the watchdog; a firmware that does (refusing
+//!   commands only until the next RC) is the emulator variant `rc-rearms-watchdog`. In every case error bit
+//!   22 enters the error history.
 //! - **Cyclic objects.** "The first 6 bytes (para[0..5])" of the `UINT16[12]` definition means the first six
 //!   entries: six write indices, six read indices, -1 (0xFFFF) unused. An RC naming a cyclic object answers
 //!   with ctp and read data (ctp 0 when nothing is read); an RC with object -1 answers with the status alone.
@@ -110,7 +123,9 @@
 //!   includes 0x008F and 0x00B0 includes 0x00BF; the collection indices 0x1000, 0x2000 and 0x3000 return
 //!   every entry of their collection (0x2000: all six UserPositionData structures; 0x3000: the cyclic
 //!   objects, remote speeds and remote positions), but 0x0000 returns only the firmware and configuration
-//!   texts (0x0001, 0x0002): the whole 0000 collection is two dozen groups that have their own indices.
+//!   texts (0x0001, 0x0002): the whole 0000 collection is two dozen groups that have their own indices, and
+//!   the Schaeffler edition prints 0000 as the secondary index of those two (S 338; the Ewellix edition
+//!   leaves that cell blank, E 361).
 //!   RT may write whole 0x3xxx groups and the 0x3000 collection, all or nothing.
 //!
 //! # Beyond the manual
@@ -137,6 +152,10 @@
 //!   second RE without RS: no check depends on the first two, and the third ends a stream with the unit's PE
 //!   (`sticky-errors`, `in-end-undershoot`, `re-needs-rs`); a motion bit that rises 0.4 s after the RE is
 //!   waited for ([`Config::start_grace`], 1 s) before an actuator still standing is judged (`late-motion-bit`).
+//! - A unit that acknowledges an RE while an error stands after which motions are not performed, and moves
+//!   nothing: a move is judged where the actuator stands once [`Config::start_grace`] has passed, and fails
+//!   naming the error code (`ack-without-motion`). A unit whose next RC re-arms its watchdog after a lapse
+//!   with Safety_ID 1 or 2: see "PE from a unit that left remote mode" above (`rc-rearms-watchdog`).
 //! - **RA** fast-stops remote motions that are still running: a motion nobody can stop any more is worse.
 //! - **Switching functions** (F11 buzzer, F17/F18 binary outputs, F20 emergency stop, F21/F22 LEDs): after the
 //!   unit acknowledged their RE or RS, the entry that shows them is read back ([`model::SwitchStatus`],
@@ -149,10 +168,11 @@
 //!   probe; the entry is read before it too, before the RE of F20 only when the line has room at once); one
 //!   that does not follow says `verified: false` for the rest of the session (`switch-status-unshown`), as does
 //!   a unit that refuses the entry (PDE).
-//! - **Where the editions differ in a text**, the reading that fits the rest of the table wins. Battery
+//! - **Where the editions differ in a text**, the reading that fits the rest of the table wins (both
+//!   editions' words, with line numbers, are in docs/assumptions.md, "Where the two editions differ"). Battery
 //!   Mains bit 2: the Ewellix edition says "0/1: charging control on/off", the Schaeffler edition "charge
 //!   controller off/on"; every other bit of the entry reads 0 = off / absent, so bit 2 set means the charge
-//!   controller is on (Schaeffler). Error bit 30: the Schaeffler edition repeats bit 29's "calibration data",
+//!   controller is on (Schaeffler; on a unit that behaves as the Ewellix edition says, a set bit means off). Error bit 30: the Schaeffler edition repeats bit 29's "calibration data",
 //!   the Ewellix edition has "HW settings", which no other bit covers (Ewellix). Error bit 32: "IDF operating
 //!   system error" (Ewellix) rather than the Schaeffler edition's cause column, which repeats the reaction.
 //!   F22: "LED2" (Ewellix); the Schaeffler edition repeats F21's "LED1", and 0x0120 has an LED 2.

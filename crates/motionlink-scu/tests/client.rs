@@ -82,14 +82,14 @@ fn watchdog_expiry_with_safety_id_0_locks_the_unit() {
 #[test]
 fn watchdog_expiry_with_safety_id_1() {
     let (rig, client) = watchdog_expires_after_500_ms(SafetyId::StopAll);
-    assert_eq!(rig.unit(|u| u.mode()), RemoteMode::TimedOut(SafetyId::StopAll));
+    assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Off, "remote mode deactivated (chapter 5)");
     drop(client);
 }
 
 #[test]
 fn watchdog_expiry_with_safety_id_2() {
     let (rig, client) = watchdog_expires_after_500_ms(SafetyId::StopRemoteOnly);
-    assert_eq!(rig.unit(|u| u.mode()), RemoteMode::TimedOut(SafetyId::StopRemoteOnly));
+    assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Off, "remote mode deactivated (chapter 5)");
     drop(client);
 }
 

@@ -252,49 +252,70 @@ fn cyclic_objects_may_name_groups() {
     assert_eq!(client.last_cyclic_read().unwrap().1.len(), 12);
 }
 
+/// A move with Safety_ID 1 or 2 whose link goes dead for 700 ms (nothing reaches the unit): the unit's
+/// watchdog lapses and stops the motion; the move ends with an error. Returns the client, the link healed.
+fn lapse_during_a_move(rig: &Rig, safety: SafetyId) -> Client {
+    let config = Config { safety_id: safety, function_map: FunctionMap::scp11(), ..Default::default() };
+    let client = rig.client(config);
+    assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Active(safety));
+    let faults = Arc::clone(&rig.faults);
+    let clock = rig.clock.shared();
+    let cut = Mutex::new(None);
+    let progress = |p: &motionlink_scu::session::MoveProgress| {
+        let f = faults.lock().unwrap().clone().unwrap();
+        let mut cut = cut.lock().unwrap();
+        match *cut {
+            None if p.position_counts > PositionCounts(50) => {
+                // 700 ms in which nothing reaches the unit (all 8 polls' bytes and keepalives are lost).
+                f.drop_next(Direction::HostToDevice, u64::MAX / 2);
+                *cut = Some(clock.now());
+            }
+            Some(t) if clock.now() - t > Duration::from_millis(700) => f.heal(),
+            _ => {}
+        }
+    };
+    let err = client
+        .move_to(a(1), PositionCounts(800), pct(100), &MoveOptions { progress: Some(&progress), ..Default::default() })
+        .unwrap_err();
+    assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 1, "{safety:?}");
+    assert!(!rig.unit(|u| u.is_moving(a(1))));
+    assert!(matches!(err, Error::RemoteEnded(_) | Error::MotionEnded { .. } | Error::StopUnconfirmed { .. }), "{err}");
+    rig.faults().heal();
+    client
+}
+
+/// By default (chapter 5) the unit deactivates remote mode when its watchdog lapses, whatever the Safety_ID:
+/// the session finds the unit refusing even RC, says that remote mode ended, and does not open it again by
+/// itself; the caller's reopen does.
 #[test]
-fn safety_id_1_through_the_api_a_watchdog_lapse_during_a_move_is_reported_and_the_session_goes_on() {
+fn safety_id_1_or_2_through_the_api_a_watchdog_lapse_during_a_move_ends_remote_mode_until_the_caller_reopens() {
     for safety in [SafetyId::StopAll, SafetyId::StopRemoteOnly] {
         let rig = Rig::new(SimConfig::default());
-        let config = Config { safety_id: safety, function_map: FunctionMap::scp11(), ..Default::default() };
-        let client = rig.client(config);
+        let client = lapse_during_a_move(&rig, safety);
+        assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Off, "{safety:?}");
+        let err = client.position(a(1)).unwrap_err();
+        assert!(matches!(&err, Error::RemoteEnded(t) if t.contains("left remote mode")), "{safety:?}: {err}");
+        assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Off, "the session sends no RO by itself");
+        client.reopen().unwrap();
         assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Active(safety));
-        let faults = Arc::clone(&rig.faults);
-        let clock = rig.clock.shared();
-        let cut = Mutex::new(None);
-        let progress = |p: &motionlink_scu::session::MoveProgress| {
-            let f = faults.lock().unwrap().clone().unwrap();
-            let mut cut = cut.lock().unwrap();
-            match *cut {
-                None if p.position_counts > PositionCounts(50) => {
-                    // 700 ms in which nothing reaches the unit (all 8 polls' bytes and keepalives are lost).
-                    f.drop_next(Direction::HostToDevice, u64::MAX / 2);
-                    *cut = Some(clock.now());
-                }
-                Some(t) if clock.now() - t > Duration::from_millis(700) => f.heal(),
-                _ => {}
-            }
-        };
-        let err = client
-            .move_to(
-                a(1),
-                PositionCounts(800),
-                pct(100),
-                &MoveOptions { progress: Some(&progress), ..Default::default() },
-            )
-            .unwrap_err();
-        assert_eq!(rig.unit(|u| u.stats().watchdog_expiries), 1, "{safety:?}");
-        assert!(!rig.unit(|u| u.is_moving(a(1))));
-        assert!(
-            matches!(err, Error::RemoteEnded(_) | Error::MotionEnded { .. } | Error::StopUnconfirmed { .. }),
-            "{err}"
-        );
-        rig.faults().heal();
+        let report = client.move_to(a(1), PositionCounts(100), pct(100), &MoveOptions::default()).unwrap();
+        assert_eq!(report.position_counts, PositionCounts(100), "{safety:?}");
+    }
+}
+
+/// A unit of the `rc-rearms-watchdog` variant refuses commands after the lapse until an RC re-arms its
+/// watchdog: the session says that the motion it had started was stopped (once), and goes on.
+#[test]
+fn on_an_rc_rearms_watchdog_unit_a_watchdog_lapse_during_a_move_is_reported_and_the_session_goes_on() {
+    for safety in [SafetyId::StopAll, SafetyId::StopRemoteOnly] {
+        let rig = Rig::with_variants(SimConfig::default(), &[Variant::RcRearmsWatchdog]);
+        let client = lapse_during_a_move(&rig, safety);
+        assert_eq!(rig.unit(|u| u.mode()), RemoteMode::TimedOut(safety));
         // The first request after that finds the lapse: the unit refuses it until an RC re-arms the watchdog,
         // and the session says that the motion it had started was stopped (once).
         let err = client.position(a(1)).unwrap_err();
         assert!(matches!(&err, Error::RemoteEnded(t) if t.contains("watchdog")), "{err}");
-        assert!(client.is_open(), "Safety_ID 1 and 2 need no RO");
+        assert!(client.is_open(), "Safety_ID 1 and 2 need no RO on such a unit");
         assert!(client.started().is_empty(), "the stopped function got its RS");
         // After the RC the session goes on.
         let report = client.move_to(a(1), PositionCounts(100), pct(100), &MoveOptions::default()).unwrap();
@@ -304,18 +325,32 @@ fn safety_id_1_through_the_api_a_watchdog_lapse_during_a_move_is_reported_and_th
 }
 
 #[test]
-fn while_idle_a_lapse_with_safety_id_1_is_re_armed_and_a_lock_with_safety_id_0_is_reported() {
+fn while_idle_a_lapse_with_safety_id_1_ends_remote_mode_and_a_lock_with_safety_id_0_is_reported() {
+    // Safety_ID 1: remote mode deactivated (chapter 5); the session says so and sends no RO by itself.
     let rig = Rig::new(SimConfig::default());
     let client = rig.client(Config { safety_id: SafetyId::StopAll, ..Default::default() });
     rig.faults().drop_next(Direction::HostToDevice, u64::MAX / 2);
     rig.sleep(1_500);
     rig.faults().heal();
+    assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Off);
+    assert!(matches!(client.position(a(1)), Err(Error::RemoteEnded(_))));
+    assert_eq!(rig.unit(|u| u.mode()), RemoteMode::Off);
+    client.reopen().unwrap();
+    assert_eq!(client.position(a(1)).unwrap(), PositionCounts(0));
+    drop(client);
+    // Safety_ID 1 on a unit whose next RC re-arms the watchdog: idle, the read goes through after the RC;
+    // the lapse is counted.
+    let rig = Rig::with_variants(SimConfig::default(), &[Variant::RcRearmsWatchdog]);
+    let client = rig.client(Config { safety_id: SafetyId::StopAll, ..Default::default() });
+    rig.faults().drop_next(Direction::HostToDevice, u64::MAX / 2);
+    rig.sleep(1_500);
+    rig.faults().heal();
     assert_eq!(rig.unit(|u| u.mode()), RemoteMode::TimedOut(SafetyId::StopAll));
-    // Idle: the read goes through after the RC re-armed the watchdog; the lapse is counted.
     assert_eq!(client.position(a(1)).unwrap(), PositionCounts(0));
     assert_eq!(client.stats().watchdog_lapses, 1);
     assert!(client.is_open());
     drop(client);
+    let rig = Rig::new(SimConfig::default());
     let client = rig.client(Config::default());
     rig.faults().drop_next(Direction::HostToDevice, u64::MAX / 2);
     rig.sleep(1_500);
@@ -428,5 +463,33 @@ fn function_maps_from_presets_and_specifications() {
     assert_eq!(FunctionMap::scp11().drives(f(6)), Some(vec![a(6)]));
     for bad in ["F11=1", "F1=7", "F1", "xyz", "F0=1"] {
         assert!(FunctionMap::unknown().apply(bad).is_err(), "{bad}");
+    }
+}
+
+/// A unit with a standing error after which "motions are not performed" (bit 25, raised 1 ms after
+/// power-on): a move fails, never "verified", and nothing moves. By default the unit refuses the RE (PE);
+/// on an `ack-without-motion` unit it acknowledges it and nothing moves: the move is judged where the
+/// actuator still stands, naming the error.
+#[test]
+fn a_move_against_a_unit_whose_error_keeps_motions_from_being_performed_fails_and_nothing_moves() {
+    for variants in [&[][..], &[Variant::AckWithoutMotion][..]] {
+        let config = SimConfig::from_toml("[[error]]\nbit = 25\nat_ms = 1\n").unwrap();
+        let rig = Rig::with_variants(config, variants);
+        let client = rig.client(Config { function_map: FunctionMap::scp11(), ..Default::default() });
+        let err = client.move_to(a(1), PositionCounts(400), pct(80), &MoveOptions::default()).unwrap_err();
+        match variants {
+            [] => assert!(
+                matches!(err, Error::Refused { command: Command::Execute, status: Status::PermissionError }),
+                "{err}"
+            ),
+            _ => assert!(
+                matches!(err, Error::MotionEnded { position_counts: PositionCounts(0), error_code, .. }
+                    if error_code.has(25)),
+                "{variants:?}: {err}"
+            ),
+        }
+        assert_eq!(rig.unit(|u| u.position(a(1))), Some(0), "{variants:?}: nothing moved");
+        assert!(client.started().is_empty(), "{variants:?}: the function got its RS");
+        assert!(client.is_open(), "{variants:?}: remote mode is fine");
     }
 }

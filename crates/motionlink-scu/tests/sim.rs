@@ -155,14 +155,48 @@ fn watchdog_with_safety_id_0_stops_and_locks_until_ro() {
     assert_eq!(b.get(0x00D1), (1u32 << 21).to_le_bytes(), "error code 1 has bit 22 (mask 1 << 21) set");
 }
 
+/// Chapter 5: "If the RC communication should fail, the SCU will stop all drives in motion and deactivate
+/// the remote mode" (E 591, S 550); RG, RT, RC, RE and RS "are only available if the remote function is
+/// activated", which RO does (E 4.1). The RO row restricts commands only for Safety_ID 0.
 #[test]
-fn watchdog_with_safety_id_1_stops_and_the_next_rc_rearms() {
-    let mut b = Bench::new(SimConfig::default());
+fn watchdog_with_safety_id_1_or_2_stops_and_deactivates_remote_mode_until_ro() {
+    for safety in [1u8, 2] {
+        let mut b = Bench::new(SimConfig::default());
+        b.open(safety);
+        b.go(1, 800);
+        b.wait(600);
+        assert!(!b.unit.is_moving(a(1)), "Safety_ID {safety}: the remote motion stopped");
+        assert_eq!(b.unit.mode(), RemoteMode::Off, "Safety_ID {safety}");
+        // Every remote command is refused, RC too: an RC does not bring remote mode back.
+        assert_eq!(b.rc(), Status::PermissionError, "Safety_ID {safety}");
+        assert_eq!(b.status(Request::Get { index: 0x0011 }), Status::PermissionError);
+        assert_eq!(b.status(Request::Execute { function: 0, params: [9, 0xFF] }), Status::PermissionError);
+        let events = b.unit.take_events();
+        let expiry = format!("remote mode ended by watchdog (Safety_ID {safety}): ");
+        let said = events.iter().find(|e| e.starts_with(&expiry)).unwrap_or_else(|| panic!("{events:?}"));
+        assert!(said.ends_with("remote mode deactivated until RO"), "{said}");
+        // RO (and the first RC) opens it again; the motion can start again.
+        b.open(safety);
+        assert_eq!(b.get(0x00D1), (1u32 << 21).to_le_bytes(), "error code 1 has bit 22");
+        assert_eq!(b.status(Request::Execute { function: 0, params: [9, 0xFF] }), Status::Ack);
+        b.keep_alive(300);
+        assert!(b.unit.is_moving(a(1)), "Safety_ID {safety}: motion can start again after RO");
+    }
+}
+
+/// The `rc-rearms-watchdog` variant: a firmware that, after a lapse with Safety_ID 1 or 2, refuses commands
+/// until the next RC, which re-arms the watchdog and restores remote mode without RO (chapter 5 calls the
+/// first RC the "activation of remote mode").
+#[test]
+fn on_an_rc_rearms_watchdog_unit_a_lapse_with_safety_id_1_is_re_armed_by_the_next_rc() {
+    let mut config = SimConfig::default();
+    config.add_variants([motionlink_scu::Variant::RcRearmsWatchdog]);
+    let mut b = Bench::new(config);
     b.open(1);
     b.go(1, 800);
     b.wait(600);
     assert!(!b.unit.is_moving(a(1)));
-    assert!(matches!(b.unit.mode(), RemoteMode::TimedOut(_)));
+    assert_eq!(b.unit.mode(), RemoteMode::TimedOut(motionlink_scu::model::SafetyId::StopAll));
     assert_eq!(b.status(Request::Get { index: 0x0011 }), Status::PermissionError, "an RC first");
     assert_eq!(b.rc(), Status::Ack);
     assert_eq!(b.status(Request::Get { index: 0x0011 }), Status::Ack);

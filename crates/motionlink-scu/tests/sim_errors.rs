@@ -348,3 +348,138 @@ fn the_bytes_the_public_ros_drivers_send_are_understood() {
     assert_eq!(exchange(&mut b, "52 41 38 30"), ack(b"RA"));
     assert_eq!(b.unit.mode(), RemoteMode::Off);
 }
+
+/// "Remote data item: Stored in volatile register. Initialized after reset with preset values" (E 469,
+/// S 437), and bits 1..5: "the control unit carries out a reset" (E 518-522, S 484-490): remote speed "function
+/// speed from configuration", remote position "memory 1 / user 1 position", CyclicObj "-1" (E 476-477,
+/// S 442-448).
+#[test]
+fn a_reset_of_the_unit_initialises_its_remote_data_with_their_presets() {
+    let object = CyclicObject::new(&[], &[DataIndex(0x0011)]).unwrap().to_bytes();
+    let write = |b: &mut Bench| {
+        assert_eq!(b.set(0x3011, &50u16.to_le_bytes()), Status::Ack);
+        assert_eq!(b.set(0x3021, &400i32.to_le_bytes()), Status::Ack);
+        assert_eq!(b.set(0x3002, &object), Status::Ack);
+    };
+    let written = |b: &mut Bench| (b.get(0x3011), b.get(0x3021), b.get(0x3002));
+    for bit in 1..=5u8 {
+        let mut b = Bench::new(SimConfig::default());
+        b.open(0);
+        write(&mut b);
+        b.unit.take_events();
+        b.unit.inject_error(ErrorCode::from_bit(bit));
+        assert_eq!(b.unit.mode(), RemoteMode::Off, "bit {bit}: the reset ends remote mode");
+        let events = b.unit.take_events();
+        assert!(events.iter().any(|e| e.starts_with("reset: remote speeds, remote positions")), "{events:?}");
+        b.open(0);
+        let (speed, position, cyclic) = written(&mut b);
+        assert_eq!(speed, 100u16.to_le_bytes(), "bit {bit}: F1's remote speed is the configured function speed");
+        assert_eq!(position, 100i32.to_le_bytes(), "bit {bit}: A1's remote position is memory 1 of user 1");
+        assert_eq!(cyclic, [0xFF; 24], "bit {bit}: CyclicObj 2 is -1 again");
+        let rc = b.send(Request::Cyclic { object: 1, write: &[] });
+        assert_eq!(rc.data, Some(vec![]), "bit {bit}: CyclicObj 2 reads nothing (it read A1's position before)");
+        // RE to the remote position goes to the preset, at the preset speed (110 counts/s at 100 %).
+        b.status(Request::Execute { function: 0, params: [9, 0xFF] });
+        b.keep_alive(1_500);
+        assert_eq!(b.position(1), 100, "bit {bit}");
+    }
+    // Another error stops the motions but resets nothing: what was written stays.
+    let mut b = Bench::new(SimConfig::default());
+    b.open(0);
+    write(&mut b);
+    b.unit.inject_error(ErrorCode::from_bit(12));
+    let (speed, position, cyclic) = written(&mut b);
+    assert_eq!(
+        (speed, position, cyclic),
+        (50u16.to_le_bytes().to_vec(), 400i32.to_le_bytes().to_vec(), object.to_vec())
+    );
+}
+
+/// Error bits whose reaction is that motions are not performed: 8 "Motion not executed", 13 "Control unit
+/// switches itself off", 24..30 and 32 "Motions not performed or stopped", 31 "Motions not performed" (E
+/// 525-544, S 493-512). PE: "Command not possible with SCU mode/state" (E 341, S 321).
+const NOT_PERFORMED: [u8; 11] = [8, 13, 24, 25, 26, 27, 28, 29, 30, 31, 32];
+
+#[test]
+fn while_an_error_stands_after_which_motions_are_not_performed_no_motion_starts_and_re_is_refused_with_pe() {
+    for bit in NOT_PERFORMED {
+        let mut b = Bench::new(SimConfig::default());
+        b.open(1);
+        b.go(1, 800);
+        b.keep_alive(500);
+        b.unit.inject_error(ErrorCode::from_bit(bit));
+        assert!(!b.unit.any_moving(), "bit {bit}: the running motion is stopped");
+        let at = b.position(1);
+        assert_eq!(b.unit.standing_errors(), ErrorCode::from_bit(bit));
+        b.unit.take_events();
+        for direction in [9u8, 2, 1, 3] {
+            let re = Request::Execute { function: 0, params: [direction, 0xFF] };
+            assert_eq!(b.status(re), Status::PermissionError, "bit {bit}, direction {direction}");
+        }
+        let events = b.unit.take_events();
+        assert_eq!(events[0], format!("F1 RE refused (PE): motions are not performed while error bit {bit} stands"));
+        // Neither does the hand switch move anything; the rest of remote mode works.
+        b.unit.press_hand_switch(2, true);
+        b.keep_alive(1_000);
+        assert!(!b.unit.any_moving(), "bit {bit}");
+        assert_eq!(b.position(1), at, "bit {bit}");
+        assert_eq!(b.status(Request::Stop { function: 0, param: 0 }), Status::Ack);
+        assert_eq!(b.set(0x3021, &100i32.to_le_bytes()), Status::Ack);
+        // A later error, even one that replaces it in Error_Code 1, does not make it go away.
+        b.unit.inject_error(ErrorCode::from_bit(15));
+        assert_eq!(b.status(Request::Execute { function: 0, params: [9, 0xFF] }), Status::PermissionError);
+        assert_eq!(last_error(&mut b), ErrorCode::from_bit(15), "bit 15 is not reset: no motion started");
+        // Nor does a reset of the unit (bits 1..5).
+        b.unit.inject_error(ErrorCode::from_bit(5));
+        b.open(1);
+        assert_eq!(b.status(Request::Execute { function: 0, params: [9, 0xFF] }), Status::PermissionError);
+        assert_eq!(b.unit.standing_errors(), ErrorCode::from_bit(bit));
+    }
+}
+
+#[test]
+fn errors_that_only_stop_motions_let_the_next_one_start() {
+    // 6, 7, 10, 11, 12 "Motions stopped (fast stop)"; 14..21 also "Bit reset on next motion"; 22 the watchdog.
+    for bit in [6u8, 7, 10, 11, 12, 14, 15, 21, 22] {
+        let mut b = Bench::new(SimConfig::default());
+        b.open(1);
+        b.unit.inject_error(ErrorCode::from_bit(bit));
+        assert_eq!(b.unit.standing_errors(), ErrorCode::NONE, "bit {bit}");
+        b.go(1, 200);
+        b.keep_alive(500);
+        assert!(b.unit.is_moving(a(1)), "bit {bit}");
+    }
+}
+
+#[test]
+fn an_error_scheduled_in_the_configuration_after_which_motions_are_not_performed_refuses_every_re_from_then_on() {
+    let mut b = Bench::new(SimConfig::from_toml("[[error]]\nbit = 25\nat_ms = 1\n").unwrap());
+    b.open(1);
+    b.keep_alive(100);
+    assert_eq!(b.set(0x3021, &400i32.to_le_bytes()), Status::Ack);
+    assert_eq!(b.status(Request::Execute { function: 0, params: [9, 0xFF] }), Status::PermissionError);
+    assert_eq!(last_error(&mut b), ErrorCode::from_bit(25));
+}
+
+/// The `ack-without-motion` variant: the other reading of "motions not performed", an RE acknowledged and
+/// nothing moving; the function counts as started until its RS.
+#[test]
+fn on_an_ack_without_motion_unit_re_is_acknowledged_while_the_error_stands_and_nothing_moves() {
+    let mut config = SimConfig::default();
+    config.add_variants([motionlink_scu::Variant::AckWithoutMotion]);
+    let mut b = Bench::new(config);
+    b.open(1);
+    b.unit.inject_error(ErrorCode::from_bit(25));
+    b.unit.take_events();
+    assert_eq!(b.set(0x3021, &400i32.to_le_bytes()), Status::Ack);
+    assert_eq!(b.status(Request::Execute { function: 0, params: [9, 0xFF] }), Status::Ack);
+    assert_eq!(b.unit.executed_functions(), [1]);
+    assert_eq!(
+        b.unit.take_events(),
+        ["F1 RE acknowledged, nothing moves: motions are not performed while error bit 25 stands"]
+    );
+    b.keep_alive(2_000);
+    assert_eq!((b.position(1), b.status1(1) & Status1Flag::Motion.mask()), (0, 0), "nothing moved");
+    assert_eq!(b.status(Request::Stop { function: 0, param: 0 }), Status::Ack);
+    assert!(b.unit.executed_functions().is_empty());
+}

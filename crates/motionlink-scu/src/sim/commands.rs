@@ -162,6 +162,9 @@ impl Emulator {
                 if drives.is_empty() || self.emergency_stop {
                     return Err(Status::PermissionError);
                 }
+                if self.standing_errors != 0 {
+                    return self.motion_not_performed(m, function);
+                }
                 if self.config.variants.contains(&Variant::ReNeedsRs) && self.executed[usize::from(function)] {
                     // This firmware takes a new RE of a started function only after its RS.
                     return Err(Status::PermissionError);
@@ -220,6 +223,27 @@ impl Emulator {
                 self.switch(other, true);
                 Ok(())
             }
+        }
+    }
+
+    /// An RE of motion function `m` (id `function`) while an error stands after which "motions are not
+    /// performed" (E 4.6 Table 7, S 4.5): nothing moves. The unit refuses the command as "not possible with
+    /// SCU mode/state" (PE, E 4.2 Table 2, S 4.2), or, on a unit of [`Variant::AckWithoutMotion`],
+    /// acknowledges it (the function then counts as started, to be ended with RS).
+    fn motion_not_performed(&mut self, m: crate::model::MotionFunction, function: u8) -> Result<(), Status> {
+        let bits: Vec<String> =
+            (1..=32u8).filter(|&b| ErrorCode(self.standing_errors).has(b)).map(|b| b.to_string()).collect();
+        let acked = self.config.variants.contains(&Variant::AckWithoutMotion);
+        self.push_event(format!(
+            "{m} RE {}: motions are not performed while error bit {} stands",
+            if acked { "acknowledged, nothing moves" } else { "refused (PE)" },
+            bits.join(", ")
+        ));
+        if acked {
+            self.executed[usize::from(function)] = true;
+            Ok(())
+        } else {
+            Err(Status::PermissionError)
         }
     }
 

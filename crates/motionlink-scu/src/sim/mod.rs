@@ -19,8 +19,11 @@
 //!   RG, RT, RC, RE and RS outside remote mode are refused with PE. RA leaves remote mode (ACK also outside it)
 //!   and fast-stops remote motions still running (the manual is silent; a motion nobody can stop is worse).
 //! - The RC watchdog: if no RC comes for 500 ms in remote mode, error bit 22 is recorded and, depending on
-//!   the Safety_ID, all motions (0, 1) or the remote motions (2) are fast-stopped. With Safety_ID 0 only RC,
-//!   RA and RO are accepted afterwards, until a new RO. With 1 and 2 the next RC re-arms the watchdog.
+//!   the Safety_ID, all motions (0, 1) or the remote motions (2) are fast-stopped (the RO row of E 4.1 / S
+//!   4.1). With Safety_ID 0 only RC, RA and RO are accepted afterwards, until a new RO (the RO row). With 1
+//!   and 2 the unit deactivates remote mode, as chapter 5 says ("the SCU will stop all drives in motion and
+//!   deactivate the remote mode", E 5.1, S 5): RG, RT, RC, RE and RS are refused with PE until a new RO
+//!   ([`Variant::RcRearmsWatchdog`]: refused until the next RC, which re-arms the watchdog).
 //! - Error replies: a CRC mismatch gets CSE, an unknown command ICE, bad parameter values PDE, a wrong data
 //!   length PCE, a command the present state forbids PE. A telegram left incomplete for 1000 ms is dropped.
 //! - RT writes only remote data (0x3xxx; entries or whole 0x3xxx groups): any other index is PDE, a value out
@@ -48,7 +51,14 @@
 //!   (5 s by default) stops with its drive error bit (15 + n - 1); a total current above
 //!   `total_current_limit_deci_amps` sets bit 14 and fast-stops every drive; `[[error]]` entries of the
 //!   configuration raise a chosen bit at a chosen time. Reactions follow the manual's table (a drive error
-//!   stops its drive, bits 1..5 reset the unit, which ends remote mode, the other bits stop every motion).
+//!   stops its drive; bits 1..5 reset the unit, which ends remote mode and initialises the remote data with
+//!   their presets: remote speeds the configured function speed, remote positions memory 1 of user 1,
+//!   cyclic objects -1; the other bits stop every motion). After the bits whose reaction is that motions are
+//!   not performed (8, 13, 24..32: [`MOTIONS_NOT_PERFORMED`]) no motion starts as long as the emulator runs
+//!   (the manual names nothing that clears them; a reset does not): an RE of a motion function is refused
+//!   with PE, "command not possible with SCU mode/state" ([`Variant::AckWithoutMotion`]: acknowledged,
+//!   nothing moves), and the hand switch moves nothing. Bit 13 ("control unit switches itself off") is
+//!   emulated as such an error: the unit goes on answering, so that its error code can be read.
 //!   When the next motion starts (an RE of a motion function with a direction other than 0, or the hand
 //!   switch), bits 14..21 ("bit reset on next motion") leave Error_Code 1; the other bits stay, and the
 //!   history keeps what happened.
@@ -87,7 +97,8 @@ const STEP: Duration = Duration::from_millis(5);
 /// Remote mode of the unit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RemoteMode {
-    /// Normal mode: only RO and RA are accepted.
+    /// Normal mode: only RO and RA are accepted (also after a watchdog expiry with Safety_ID 1 or 2, which
+    /// deactivates remote mode).
     Off,
     /// Opened by RO; waiting for the first RC.
     AwaitingRc(SafetyId),
@@ -95,7 +106,8 @@ pub enum RemoteMode {
     Active(SafetyId),
     /// The watchdog expired with Safety_ID 0: only RC, RA and RO are accepted until RO.
     Locked,
-    /// The watchdog expired with Safety_ID 1 or 2: the next RC re-arms it.
+    /// The watchdog expired with Safety_ID 1 or 2 on a unit of [`Variant::RcRearmsWatchdog`]: the next RC
+    /// re-arms it (by default the unit deactivates remote mode then: [`RemoteMode::Off`]).
     TimedOut(SafetyId),
 }
 
@@ -133,6 +145,9 @@ pub struct Emulator {
     cyclic_objects: [CyclicObject; 5],
     /// Error_Code 1..5: last recent first.
     error_history: [u32; 5],
+    /// The bits raised whose reaction is that motions are not performed ([`MOTIONS_NOT_PERFORMED`]): while
+    /// any stands, no motion starts.
+    standing_errors: u32,
     binary_outputs: u8,
     led_hand_switch: u8,
     buzzer: bool,
@@ -167,6 +182,23 @@ pub const MAX_EVENTS: usize = 1024;
 /// difference of synchronised drives).
 pub const RESET_ON_NEXT_MOTION: u32 = ((1u32 << 21) - 1) & !((1u32 << 13) - 1);
 
+/// Error bits after which the manual's reaction is that motions are not performed: 8 ("Motion not
+/// executed"), 13 ("Control unit switches itself off"), 24..30 and 32 ("Motions not performed or stopped"),
+/// 31 ("Motions not performed"). While one of them stands (from when it is raised until the emulator is
+/// restarted: the manual names nothing that clears them), motions do not start: see
+/// [`Emulator::standing_errors`]. Bit 21 ("Motion not started") is not among them: the manual resets it on
+/// the next motion ([`RESET_ON_NEXT_MOTION`]).
+pub const MOTIONS_NOT_PERFORMED: u32 = (1 << (8 - 1)) | (1 << (13 - 1)) | !((1u32 << 23) - 1);
+
+/// The remote positions a unit starts with: "Default value: memory 1 / user 1 position of UserPositionData".
+fn preset_remote_positions(config: &SimConfig) -> [i32; 6] {
+    let mut remote_position = [0i32; 6];
+    for (slot, a) in remote_position.iter_mut().zip(&config.actuators) {
+        *slot = a.user_positions.users[0].memory_counts[0];
+    }
+    remote_position
+}
+
 impl Emulator {
     /// A unit with `config`, powered on at time zero.
     pub fn new(mut config: SimConfig) -> Result<Self, SimConfigError> {
@@ -177,11 +209,7 @@ impl Emulator {
             }
         }
         let actuators = config.actuators.iter().cloned().map(ActuatorState::new).collect::<Vec<_>>();
-        let mut remote_position = [0i32; 6];
-        for (slot, a) in remote_position.iter_mut().zip(&config.actuators) {
-            // "Default value: memory 1 / user 1 position of UserPositionData".
-            *slot = a.user_positions.users[0].memory_counts[0];
-        }
+        let remote_position = preset_remote_positions(&config);
         let mut scheduled_errors = config.scheduled_errors.clone();
         scheduled_errors.sort_by_key(|e| e.at_ms);
         Ok(Emulator {
@@ -197,6 +225,7 @@ impl Emulator {
             remote_position,
             cyclic_objects: [CyclicObject::default(); 5],
             error_history: [0; 5],
+            standing_errors: 0,
             binary_outputs: 0,
             led_hand_switch: 0,
             buzzer: false,
@@ -256,13 +285,26 @@ impl Emulator {
         ErrorCode(self.error_history[0])
     }
 
+    /// The error bits raised so far whose reaction is that motions are not performed
+    /// ([`MOTIONS_NOT_PERFORMED`]): while this is not [`ErrorCode::NONE`], no motion starts (an RE of a motion
+    /// function is refused with PE, or acknowledged without motion on a unit of
+    /// [`Variant::AckWithoutMotion`]; the hand switch moves nothing). They stand until the emulator is
+    /// restarted, whatever Error_Code 1 shows by then.
+    pub fn standing_errors(&self) -> ErrorCode {
+        ErrorCode(self.standing_errors)
+    }
+
     /// Raises an error now: enters it in the history (Error_Code 1 is the newest) and applies the manual's
     /// reaction: a drive error (bits 15..20) fast-stops that drive; bit 22 (remote time-out) only records;
-    /// bits 1..5 stop everything and reset the unit, which leaves remote mode; every other defined bit
-    /// fast-stops every motion. For tests that need a unit in trouble.
+    /// bits 1..5 stop everything and reset the unit, which leaves remote mode and initialises the remote data
+    /// with their preset values; every other defined bit fast-stops every motion, and those whose reaction is
+    /// that motions are not performed ([`MOTIONS_NOT_PERFORMED`]) keep any motion from starting from then on
+    /// ([`Emulator::standing_errors`]). For tests that need a unit in trouble.
     pub fn inject_error(&mut self, code: ErrorCode) {
         self.record_error(code);
+        self.standing_errors |= code.0 & MOTIONS_NOT_PERFORMED;
         let mut stop_all = false;
+        let mut reset = false;
         for n in 1..=32u8 {
             if !code.has(n) {
                 continue;
@@ -281,10 +323,7 @@ impl Emulator {
                 error_bits::REMOTE_TIMEOUT | 9 | 23 => {}
                 1..=5 => {
                     stop_all = true;
-                    if self.mode != RemoteMode::Off {
-                        self.push_event("remote mode ended by a reset of the unit".into());
-                    }
-                    self.mode = RemoteMode::Off;
+                    reset = true;
                 }
                 _ => stop_all = true,
             }
@@ -292,7 +331,26 @@ impl Emulator {
         if stop_all {
             self.actuators.iter_mut().for_each(ActuatorState::fast_stop);
         }
+        if reset {
+            self.reset();
+        }
         self.note_rest();
+    }
+
+    /// The unit carries out a reset (error bits 1..5): it leaves remote mode, and its remote data, "stored in
+    /// volatile register. Initialized after reset with preset values" (E 4.4, S 4.3), take their presets:
+    /// the remote speeds the function speed from the configuration, the remote positions memory 1 / user 1
+    /// of UserPositionData, the cyclic objects -1 (none). What the data list keeps (positions, counters, the
+    /// error history) stays, as do the outputs of switching functions (the manual says nothing of them).
+    fn reset(&mut self) {
+        if self.mode != RemoteMode::Off {
+            self.push_event("remote mode ended by a reset of the unit".into());
+        }
+        self.mode = RemoteMode::Off;
+        self.remote_speed = [self.config.default_speed; 10];
+        self.remote_position = preset_remote_positions(&self.config);
+        self.cyclic_objects = [CyclicObject::default(); 5];
+        self.push_event("reset: remote speeds, remote positions and cyclic objects back to their presets".into());
     }
 
     /// From now on the unit acknowledges the RE and RS of switching function `f` but no longer switches it:
@@ -310,10 +368,11 @@ impl Emulator {
     }
 
     /// Presses the hand switch: moves the actuators of motion function `function` (1..10) In or Out as a
-    /// local (non-remote) motion, at 100 %. Keys K(2n-1) and K(2n) show as pressed.
+    /// local (non-remote) motion, at 100 %. Keys K(2n-1) and K(2n) show as pressed. Nothing happens while the
+    /// emergency stop is on or an error stands after which motions are not performed.
     pub fn press_hand_switch(&mut self, function: u8, out: bool) {
         let Some(f) = (1..=10).contains(&function).then(|| usize::from(function) - 1) else { return };
-        if self.emergency_stop {
+        if self.emergency_stop || self.standing_errors != 0 {
             return;
         }
         self.keys |= 1 << (2 * f + usize::from(out));
@@ -464,14 +523,22 @@ impl Emulator {
                 self.actuators.iter_mut().filter(|a| a.origin == Origin::Remote).for_each(ActuatorState::fast_stop);
             }
         }
+        // Safety_ID 0: "only the RC, RA and RO commands are available" (the RO row). 1 and 2: the row says only
+        // which motions stop; chapter 5 says the unit "will stop all drives in motion and deactivate the remote
+        // mode" (E 5.1, S 5), and RG, RT, RC, RE and RS are "only available if the remote function is
+        // activated", which RO does (E 4.1, S 4.1).
+        let rearms = self.config.variants.contains(&Variant::RcRearmsWatchdog);
         self.mode = match safety {
             SafetyId::StopAllAndLock => RemoteMode::Locked,
-            s => RemoteMode::TimedOut(s),
+            s if rearms => RemoteMode::TimedOut(s),
+            _ => RemoteMode::Off,
         };
-        let what = match safety {
-            SafetyId::StopAllAndLock => "all motions stopped; remote motion locked until RO",
-            SafetyId::StopAll => "all motions stopped; the next RC re-arms it",
-            SafetyId::StopRemoteOnly => "remote motions stopped; the next RC re-arms it",
+        let what = match (safety, rearms) {
+            (SafetyId::StopAllAndLock, _) => "all motions stopped; remote motion locked until RO",
+            (SafetyId::StopAll, true) => "all motions stopped; the next RC re-arms it",
+            (SafetyId::StopRemoteOnly, true) => "remote motions stopped; the next RC re-arms it",
+            (SafetyId::StopAll, false) => "all motions stopped; remote mode deactivated until RO",
+            (SafetyId::StopRemoteOnly, false) => "remote motions stopped; remote mode deactivated until RO",
         };
         self.push_event(format!("remote mode ended by watchdog (Safety_ID {}): {what}", safety.code()));
         self.note_rest();

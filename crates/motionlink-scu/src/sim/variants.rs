@@ -45,6 +45,14 @@ pub enum Variant {
     /// lock_status) do not follow those functions: they stay as they are (a unit that shows them elsewhere,
     /// or not at all). The functions still switch (the emergency stop still stops every motion).
     SwitchStatusUnshown,
+    /// While an error stands after which motions are not performed (error bits 8, 13, 24..32), an RE of a
+    /// motion function is acknowledged and nothing moves (the function counts as started, to be ended with
+    /// RS), instead of being refused with PE.
+    AckWithoutMotion,
+    /// After a watchdog expiry with Safety_ID 1 or 2, RG, RT, RE and RS are refused with PE until the next
+    /// RC, which re-arms the watchdog and restores remote mode without RO (instead of remote mode being
+    /// deactivated, RO needed, as chapter 5 says).
+    RcRearmsWatchdog,
 }
 
 impl FirmwareVariant for Variant {
@@ -62,6 +70,8 @@ impl FirmwareVariant for Variant {
         Variant::ReNeedsRs,
         Variant::LateMotionBit,
         Variant::SwitchStatusUnshown,
+        Variant::AckWithoutMotion,
+        Variant::RcRearmsWatchdog,
     ];
 
     /// Its name, as `--variant` takes it.
@@ -78,6 +88,8 @@ impl FirmwareVariant for Variant {
             Variant::ReNeedsRs => "re-needs-rs",
             Variant::LateMotionBit => "late-motion-bit",
             Variant::SwitchStatusUnshown => "switch-status-unshown",
+            Variant::AckWithoutMotion => "ack-without-motion",
+            Variant::RcRearmsWatchdog => "rc-rearms-watchdog",
         }
     }
 
@@ -103,6 +115,14 @@ impl FirmwareVariant for Variant {
             Variant::SwitchStatusUnshown => {
                 "binary_outputs bit 1, led_hand_switch and lock_status do not follow F18, F21/F22 and F20 (the \
                  functions still switch)"
+            }
+            Variant::AckWithoutMotion => {
+                "while an error bit whose reaction is \"motions not performed\" stands (8, 13, 24..32), an RE of a \
+                 motion function is acknowledged and nothing moves (instead of PE)"
+            }
+            Variant::RcRearmsWatchdog => {
+                "after a watchdog expiry with Safety_ID 1 or 2, commands are refused (PE) until the next RC, which \
+                 restores remote mode without RO"
             }
         }
     }
