@@ -212,8 +212,9 @@ impl Core {
             Ok(reply) => {
                 tracing::info!("keepalive RC refused: {}", reply.status);
                 let e = if reply.status == Status::PermissionError {
-                    let why = "the unit has left remote mode: it refused even RC with PE (it was reset, or another \
-                               host sent RA); the session does not open remote mode again by itself"
+                    let why = "the unit has left remote mode: it refused even RC with PE (its communication \
+                               watchdog lapsed, which ends remote mode with Safety_ID 1 or 2; or it was reset, or \
+                               another host sent RA); the session does not open remote mode again by itself"
                         .to_string();
                     self.state = State::Ended(why.clone());
                     self.line.remote = false;

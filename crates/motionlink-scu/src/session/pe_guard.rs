@@ -120,8 +120,9 @@ impl PeGuarded {
             Phase::PeRc => match result {
                 Ok(rc) if rc.status == Status::PermissionError => {
                     let e = core.ended(format!(
-                        "the unit has left remote mode: it refused {command} and even RC with PE (it was reset, or \
-                         another host sent RA); the session does not open remote mode again by itself"
+                        "the unit has left remote mode: it refused {command} and even RC with PE (its communication \
+                         watchdog lapsed, which ends remote mode with Safety_ID 1 or 2; or it was reset, or another \
+                         host sent RA); the session does not open remote mode again by itself"
                     ));
                     PeStep::Finished(Err(e))
                 }

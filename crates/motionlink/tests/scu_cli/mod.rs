@@ -605,3 +605,18 @@ fn probe_reports_the_edition_as_either_with_why_the_protocol_cannot_tell() {
     assert!(out.status.success(), "{out:?}");
     assert!(stdout(&out).contains("(edition: either: one protocol: the Ewellix and the Schaeffler manual"), "{out:?}");
 }
+
+/// A unit with an error standing after which motions are not performed (bit 25) refuses every RE with PE:
+/// `follow` fails with that refusal, and does not claim (was: warned) that the unit needs an RS after every
+/// RE while the function runs: it never ran.
+#[test]
+fn follow_on_a_unit_that_performs_no_motion_fails_without_claiming_a_running_function() {
+    let path = common::temp_path("scu-error-25.toml");
+    std::fs::write(&path, "[[error]]\nbit = 25\nat_ms = 1\n").expect("write the emulator configuration");
+    let config = path.to_str().expect("a UTF-8 temporary path");
+    let out = common::run_with(&["scu", "--port", "sim", "--sim-config", config, "follow", "1"], &[], "400\n");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("RE (remote execute function) refused by the unit: PE"), "{err}");
+    assert!(!err.contains("needs the RS") && !err.contains("while it ran"), "{err}");
+}

@@ -111,21 +111,26 @@ pub(crate) async fn targets(
         reply => reply.and_then(|r| r.ack(Command::Execute)),
     };
     // The stream relies on a new RE retargeting a running function (beyond the manual's words, which say each
-    // RE must be stopped with RS). A PE to it while the function runs is the unit asking for that RS: it is
-    // sent (soft: the motion goes on to the new target at once), the RE again (an RE to remote positions is
-    // absolute: sending it again repeats nothing), and so is every later update of the session.
+    // RE must be stopped with RS). A PE to it after an earlier RE of the function may be the unit asking for
+    // that RS: it is sent (soft: the motion goes on to the new target at once), the RE again (an RE to remote
+    // positions is absolute: sending it again repeats nothing); if that goes through, so does every later
+    // update of the session. A PE to that RE too has another cause (an error that keeps motions from being
+    // performed, say): the refusal is the result, and nothing is claimed of the RS.
     if matches!(result, Err(Error::Refused { command: Command::Execute, status: Status::PermissionError }))
         && !ctx.core().re_needs_rs
         && ctx.core().started.contains(&function.id())
         && !ctx.cancelled()
     {
-        tracing::warn!(
-            "the unit refused an RE of {function} while it runs (PE): it needs the RS the manual asks for after \
-             every RE; each new setpoint of this session goes out as RS then RE (the manual's plain form)"
-        );
-        ctx.core().re_needs_rs = true;
         rs_before_re(ctx, function).await?;
         result = ctx.send(Req::op(re)).await.and_then(|r| r.ack(Command::Execute));
+        if result.is_ok() {
+            tracing::warn!(
+                "the unit refused an RE of {function} while it ran (PE) and took it after an RS: it needs the RS \
+                 the manual asks for after every RE; each new setpoint of this session goes out as RS then RE \
+                 (the manual's plain form)"
+            );
+            ctx.core().re_needs_rs = true;
+        }
     }
     if ctx.cancelled() {
         let watch = targets.iter().map(|(a, _)| *a).collect();
