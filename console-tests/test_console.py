@@ -264,3 +264,63 @@ def test_each_of_three_modules_is_selected_named_and_moved_alone(browser):
         assert abs(position(1) - 0.6) > 0.1 and abs(position(3) - 0.6) > 0.1, "the others stay where they were"
     finally:
         console.stop()
+
+
+def _record_sent(browser):
+    """From now on, each message the page sends (but the jog's renewals) is kept in `window.__sent`."""
+    browser.execute_script("""
+        window.__sent = [];
+        const send = WebSocket.prototype.send;
+        WebSocket.prototype.send = function (data) {
+          if (!String(data).includes('"jog_hold"')) window.__sent.push(JSON.parse(data));
+          return send.call(this, data);
+        };
+    """)
+
+
+def test_an_unreadable_jog_speed_is_refused_on_the_page_and_nothing_is_sent(browser, compax_sim, compax_console):
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+    _open(browser, compax_console)
+    _record_sent(browser)
+    speed = browser.find_element(By.ID, "jog-speed")
+    # Text a number input cannot read: its `value` is "" as that of an empty field (was: sent as no speed).
+    speed.send_keys("1e")
+    assert browser.execute_script("return document.getElementById('jog-speed').value") == ""
+    jog = browser.find_element(By.ID, "jog-positive")
+    ActionChains(browser).click_and_hold(jog).perform()
+    _wait(browser, lambda b: "refused (jog)" in b.find_element(By.ID, "motion").text, 5, "the page refuses the jog")
+    ActionChains(browser).release(jog).perform()
+    said = browser.find_element(By.ID, "motion").text
+    assert "jog speed: what is typed is not a number" in said and "nothing was sent" in said, said
+    assert "failed" in browser.find_element(By.ID, "motion").get_attribute("class")
+    sent = browser.execute_script("return window.__sent")
+    assert not [m for m in sent if m["type"] == "jog"], sent
+    assert not any(e for e in compax_sim.events() if "motion started" in e), compax_sim.events()
+    # Corrected, the same button jogs at the speed typed.
+    speed.clear()
+    speed.send_keys("20")
+    ActionChains(browser).click_and_hold(jog).perform()
+    started = compax_sim.wait_event(lambda t: t.startswith("drive 1 motion started"))
+    ActionChains(browser).release(jog).perform()
+    assert started, f"the jog did not start: {compax_sim.events()}"
+    jogs = [m for m in browser.execute_script("return window.__sent") if m["type"] == "jog"]
+    assert jogs == [{"type": "jog", "direction": "positive", "drive": 1, "speed": 20}], jogs
+
+
+@pytest.mark.parametrize("family,move,jog", [
+    ("scu", "Speed (%; empty: 100 %)", "Jog speed (%; empty: the unit's remote_speed_f1 as it is)"),
+    ("powercube", "Speed (rad/s; empty: the module's TargetVel as it is)",
+     "Jog speed (rad/s; empty: the module's TargetVel as it is)"),
+    ("compax", "Speed (%; empty: the drive's SPEED setting as it is)",
+     "Jog speed (%; empty: the drive's SPEED setting as it is)"),
+])
+def test_the_speed_labels_say_what_an_empty_speed_does_in_each_family(browser, family, move, jog):
+    from selenium.webdriver.common.by import By
+    console = Console(family, "--port", "sim")
+    try:
+        _open(browser, console)
+        assert browser.find_element(By.CSS_SELECTOR, "label[for=move-speed]").text == move
+        assert browser.find_element(By.CSS_SELECTOR, "label[for=jog-speed]").text == jog
+    finally:
+        console.stop()

@@ -821,3 +821,156 @@ fn a_console_move_takes_the_tolerance_of_its_family_s_command() {
     // (A PowerCube move's report does not name its tolerance, and the emulator ends a ramp on its target:
     // that the console's move takes the value is read in console/powercube.rs, not seen here.)
 }
+
+/// The answer to `request`: the first `refused`, `failed`, `stopped`, `param`, `errors` or `action` message,
+/// or a `motion` message (a motion started), within 5 s.
+fn answer_to(ws: &mut Ws, request: Value) -> Value {
+    send(ws, request.clone());
+    let kinds = ["refused", "failed", "stopped", "param", "errors", "action", "motion"];
+    recv_until(ws, Duration::from_secs(5), |v| kinds.iter().any(|k| v["type"] == *k))
+        .unwrap_or_else(|| panic!("no answer to {request}"))
+}
+
+#[test]
+fn every_request_refuses_a_key_it_does_not_take_naming_it_and_the_keys_it_takes() {
+    let c = console(&["scu", "--port", "sim"]);
+    let mut ws = ws(&c);
+    units(&mut ws);
+    // A move's speed under the jog's key: refused, not run at the default 100 % (was: it ran at 100 %).
+    let v = answer_to(&mut ws, json!({"type": "move", "actuator": 1, "target_counts": 400, "speed": 10}));
+    assert_eq!((&v["type"], &v["request"], &v["error"]["kind"]), (&json!("refused"), &json!("move"), &json!("usage")));
+    assert_eq!(
+        v["message"],
+        "unknown key \"speed\": a move of actuator 1 takes \"type\", \"actuator\", \"target_counts\", \
+         \"speed_percent\" only",
+        "{v}"
+    );
+    // Every request type the console handles, each with a key it does not take.
+    let takes: [(&str, Value, &str); 10] = [
+        ("stop", json!({"actuator": 1}), "\"type\", \"actuator\""),
+        (
+            "move",
+            json!({"actuator": 1, "target_counts": 10}),
+            "\"type\", \"actuator\", \"target_counts\", \"speed_percent\"",
+        ),
+        ("jog", json!({"actuator": 1, "direction": "positive"}), "\"type\", \"actuator\", \"direction\", \"speed\""),
+        ("jog_hold", json!({}), "\"type\""),
+        ("jog_release", json!({}), "\"type\""),
+        ("take_control", json!({}), "\"type\""),
+        ("action", json!({"actuator": 1, "name": "x"}), "\"type\", \"actuator\", \"name\""),
+        ("read_param", json!({"actuator": 1, "name": "remote_speed_f1"}), "\"type\", \"actuator\", \"name\""),
+        (
+            "write_param",
+            json!({"actuator": 1, "name": "remote_speed_f1", "value": "50"}),
+            "\"type\", \"actuator\", \"name\", \"value\"",
+        ),
+        ("errors", json!({"actuator": 1}), "\"type\", \"actuator\""),
+    ];
+    for (kind, mut request, keys) in takes {
+        request["type"] = json!(kind);
+        request["bogus"] = json!(1);
+        let v = answer_to(&mut ws, request.clone());
+        assert_eq!((&v["type"], &v["request"]), (&json!("refused"), &json!(kind)), "{request}: {v}");
+        let message = v["message"].as_str().unwrap_or_default();
+        let of = if kind == "move" { "a move of actuator 1".to_string() } else { format!("a {kind} request") };
+        assert!(message.starts_with(&format!("unknown key \"bogus\": {of} takes {keys} only")), "{request}: {v}");
+    }
+    // Two unknown keys are both named.
+    let v = answer_to(&mut ws, json!({"type": "errors", "actuator": 1, "drive": 1, "module": 2}));
+    assert!(v["message"].as_str().unwrap_or_default().starts_with("unknown keys \"drive\", \"module\": "), "{v}");
+    // Nothing of it moved the actuator: the move with its right keys is the first motion, at the speed given.
+    let v = answer_to(&mut ws, json!({"type": "move", "actuator": 1, "target_counts": 30, "speed_percent": 100}));
+    assert_eq!((&v["type"], &v["state"]), (&json!("motion"), &json!("running")), "{v}");
+    let m = recv_until(&mut ws, Duration::from_secs(20), |v| v["type"] == "motion" && v["state"] != "running")
+        .expect("the move ends");
+    assert_eq!(m["ok"], true, "{m}");
+}
+
+#[test]
+fn each_unit_says_what_a_move_and_a_jog_given_no_speed_go_at() {
+    // SCU: a move with no speed runs at 100 (every front end's default), a jog at the unit's remote speed.
+    for (family, move_default, jog_default) in [
+        ("scu", "100 %", "the unit's remote_speed_f1 as it is"),
+        ("powercube", "the module's TargetVel as it is", "the module's TargetVel as it is"),
+        ("compax", "the drive's SPEED setting as it is", "the drive's SPEED setting as it is"),
+    ] {
+        let c = console(&[family, "--port", "sim"]);
+        let mut ws = ws(&c);
+        let found = units(&mut ws);
+        let u = &found[0];
+        assert_eq!(
+            (&u["move_speed_when_empty"], &u["jog_speed_when_empty"]),
+            (&json!(move_default), &json!(jog_default)),
+            "{family}: {u}"
+        );
+    }
+}
+
+#[test]
+fn a_unit_not_found_or_no_unit_number_is_refused_before_anything_is_sent() {
+    let (sim, c) = compax_on_sim();
+    let mut ws = ws(&c);
+    units(&mut ws);
+    let not_found = "drive 9 was not found: the console found drive 1";
+    // Each request that names a unit (was: read_param, write_param, stop, jog and the action went to the
+    // wire and ended in a timeout).
+    for request in [
+        json!({"type": "read_param", "drive": 9, "name": "P194"}),
+        json!({"type": "write_param", "drive": 9, "name": "P3", "value": "1"}),
+        json!({"type": "stop", "drive": 9}),
+        json!({"type": "jog", "drive": 9, "direction": "positive"}),
+        json!({"type": "action", "drive": 9, "name": "switch_on"}),
+        json!({"type": "move", "drive": 9, "target_units": 5}),
+        json!({"type": "errors", "drive": 9}),
+    ] {
+        let v = answer_to(&mut ws, request.clone());
+        assert_eq!((&v["type"], &v["request"]), (&json!("refused"), &request["type"]), "{request}: {v}");
+        assert!(v["message"].as_str().unwrap_or_default().starts_with(not_found), "{request}: {v}");
+    }
+    // A number no drive can have is named with the range (was: "the request names no drive").
+    for (given, shown) in
+        [(json!(300), "300"), (json!(-1), "-1"), (json!(1.5), "1.5"), (json!(0), "0"), (json!("1"), "\"1\"")]
+    {
+        for kind in ["move", "read_param", "stop"] {
+            let request = match kind {
+                "move" => json!({"type": kind, "drive": given, "target_units": 5}),
+                "read_param" => json!({"type": kind, "drive": given, "name": "P3"}),
+                _ => json!({"type": kind, "drive": given}),
+            };
+            let v = answer_to(&mut ws, request.clone());
+            assert_eq!(v["type"], "refused", "{request}: {v}");
+            let message = v["message"].as_str().unwrap_or_default();
+            let expected = format!("drive {shown} is not a drive number: give a whole number 1..31");
+            assert!(message.starts_with(&expected), "{request}: {v}");
+        }
+    }
+    let v = answer_to(&mut ws, json!({"type": "read_param", "name": "P3"}));
+    assert_eq!(v["message"], "the request names no drive: give \"drive\", a number 1..31", "{v}");
+    // A Stop naming a unit not found sends nothing to it, and still stops the console's motion under way.
+    let begun = unix_now();
+    send(&mut ws, json!({"type": "move", "drive": 1, "target_units": 800.0}));
+    sim.wait_event_after(begun, Duration::from_secs(10), |t| t.starts_with("drive 1 motion started"))
+        .expect("it moves");
+    let pressed = unix_now();
+    send(&mut ws, json!({"type": "stop", "drive": 9}));
+    let v = recv_until(&mut ws, Duration::from_secs(5), |v| {
+        ["refused", "failed", "stopped"].contains(&v["type"].as_str().unwrap_or_default())
+    })
+    .expect("the answer to the stop");
+    assert_eq!(v["type"], "refused", "{v}");
+    assert_eq!(
+        v["message"],
+        format!(
+            "{not_found}; the motion under way (move of drive 1) is stopped all the same (its motion message \
+             reports the stop)"
+        ),
+        "{v}"
+    );
+    sim.wait_event_after(pressed, Duration::from_secs(5), |t| t == "drive 1 switched off (O0=0)").expect("stopped");
+    let m = recv_until(&mut ws, Duration::from_secs(5), |v| v["type"] == "motion" && v["state"] == "stopped")
+        .expect("the page is told");
+    assert_eq!(m["ok"], true, "{m}");
+    // The Stop without a unit still stops what the console set in motion.
+    let v = answer_to(&mut ws, json!({"type": "stop"}));
+    assert_eq!(v["type"], "stopped", "{v}");
+}

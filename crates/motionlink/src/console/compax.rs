@@ -171,6 +171,9 @@ impl Compax {
             command_speed_key: "speed_percent",
             command_speed_unit: "%",
             current_key: None,
+            // A move or jog with no speed sends no SPEED (`MoveRequest::speed` None).
+            move_speed_when_empty: "the drive's SPEED setting as it is".into(),
+            jog_speed_when_empty: "the drive's SPEED setting as it is".into(),
         }
     }
 
@@ -203,6 +206,11 @@ impl Device for Compax {
 
     fn unit_key(&self) -> &'static str {
         "drive"
+    }
+
+    fn unit_numbers(&self) -> std::ops::RangeInclusive<u8> {
+        // Those `Address::drive` takes: below the broadcast address.
+        1..=motionlink_compax::wire::BROADCAST - 1
     }
 
     fn port(&self) -> String {

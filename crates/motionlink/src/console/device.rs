@@ -3,6 +3,7 @@
 //! stops the motion (the family library does that, as for every other user of its `AsyncClient`).
 
 use std::future::Future;
+use std::ops::RangeInclusive;
 use std::pin::Pin;
 use std::sync::Arc;
 
@@ -50,6 +51,11 @@ pub struct Unit {
     pub command_speed_unit: &'static str,
     /// `Some("current_amps")` when samples carry the motor current.
     pub current_key: Option<&'static str>,
+    /// What a move given no speed goes at, in words ("100 %", "the drive's SPEED setting as it is"): the
+    /// page says it where the speed is typed.
+    pub move_speed_when_empty: String,
+    /// What a jog given no speed goes at, in words.
+    pub jog_speed_when_empty: String,
 }
 
 /// One look at a unit, as the page gets it (with the unit's number, [`SampleEntry`](super::message::SampleEntry)):
@@ -120,6 +126,9 @@ pub trait Device: Send + Sync + 'static {
     fn unit_key(&self) -> &'static str;
     /// The port, as the user gave it.
     fn port(&self) -> String;
+    /// The numbers a unit of the family can have (SCU actuators 1..6, PowerCube modules and COMPAX drives
+    /// 1..31): a request naming another is refused, saying so.
+    fn unit_numbers(&self) -> RangeInclusive<u8>;
     /// Finds the units on the link (SCU: the connected actuators; PowerCube, COMPAX: a scan).
     fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, ErrorReport>>;
     /// One look at each of `units`.

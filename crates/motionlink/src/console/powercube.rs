@@ -199,6 +199,9 @@ impl PowerCube {
             command_speed_key: vel,
             command_speed_unit: vel_unit,
             current_key: Some("current_amps"),
+            // A move or jog with no speed writes no TargetVel (`MoveSpec::vel` None).
+            move_speed_when_empty: "the module's TargetVel as it is".into(),
+            jog_speed_when_empty: "the module's TargetVel as it is".into(),
         }
     }
 
@@ -228,6 +231,11 @@ impl Device for PowerCube {
 
     fn unit_key(&self) -> &'static str {
         "module"
+    }
+
+    fn unit_numbers(&self) -> std::ops::RangeInclusive<u8> {
+        // Those `Address::new` takes.
+        1..=motionlink_powercube::wire::MAX_ADDRESS
     }
 
     fn port(&self) -> String {

@@ -115,6 +115,14 @@ impl Scu {
     }
 }
 
+/// The data list's name of the remote speed of function `f` (`remote_speed_f1`), which a jog with no speed
+/// leaves as it is.
+fn remote_speed_name(f: MotionFunction) -> String {
+    let index = f.remote_speed_index();
+    motionlink_scu::model::entry(index)
+        .map_or_else(|| format!("remote speed of {f} ({index:?})"), |e| e.name.to_string())
+}
+
 fn lookup_entry(name: &str) -> Result<Item, ErrorReport> {
     motionlink_scu::model::find(name).map_err(ErrorReport::usage)
 }
@@ -126,6 +134,11 @@ impl Device for Scu {
 
     fn unit_key(&self) -> &'static str {
         "actuator"
+    }
+
+    fn unit_numbers(&self) -> std::ops::RangeInclusive<u8> {
+        // Those `Actuator::new` takes.
+        1..=6
     }
 
     fn port(&self) -> String {
@@ -150,6 +163,9 @@ impl Device for Scu {
                     command_speed_key: self.speed_key().0,
                     command_speed_unit: self.speed_key().1,
                     current_key: Some("current_amps"),
+                    // As `move_to` and `jog` do with no speed.
+                    move_speed_when_empty: Speed::default_for(self.speed_mode).to_string(),
+                    jog_speed_when_empty: format!("the unit's {} as it is", remote_speed_name(f)),
                 });
             }
             Ok(units)

@@ -262,22 +262,62 @@ fn number(req: &Value, key: &str) -> Result<Option<f64>, ErrorReport> {
     }
 }
 
-/// The unit a request names with the family's key (`actuator`, `module`, `drive`).
-fn unit_of(hub: &Hub, req: &Value) -> Result<u8, ErrorReport> {
-    let key = hub.device().unit_key();
-    req.get(key)
-        .and_then(Value::as_u64)
-        .and_then(|n| u8::try_from(n).ok())
-        .ok_or_else(|| ErrorReport::usage(format!("the request names no {key}")))
+/// `"a", "b", "c"`: keys as a message names them.
+fn key_list<'a>(keys: impl IntoIterator<Item = &'a str>) -> String {
+    keys.into_iter().map(|k| format!("\"{k}\"")).collect::<Vec<_>>().join(", ")
 }
 
-/// The unit `unit` of those the console found (a panel acts on a unit of the units table).
-fn found_unit(hub: &Hub, unit: u8) -> Result<crate::console::device::Unit, ErrorReport> {
-    let Units::Found(list) = hub.units().borrow().clone() else {
-        return Err(ErrorReport::usage("the units are not found yet"));
-    };
-    list.into_iter().find(|u| u.id == unit).ok_or_else(|| ErrorReport::usage(format!("no unit {unit}")))
+/// Refuses the keys of `req` that `what` (a request and its kind, "a move of actuator 1") does not take
+/// besides `type`, naming them and the keys it takes: a key misnamed is not ignored (a move's speed under
+/// the jog's `speed` would otherwise leave the move at its default speed).
+fn takes_only(req: &Value, what: &str, takes: &[&str]) -> Result<(), ErrorReport> {
+    let unknown: Vec<&str> = req
+        .as_object()
+        .into_iter()
+        .flat_map(|o| o.keys())
+        .map(String::as_str)
+        .filter(|k| *k != "type" && !takes.contains(k))
+        .collect();
+    if unknown.is_empty() {
+        return Ok(());
+    }
+    let keys = if unknown.len() == 1 { "key" } else { "keys" };
+    let taken = key_list(std::iter::once("type").chain(takes.iter().copied()));
+    Err(ErrorReport::usage(format!("unknown {keys} {}: {what} takes {taken} only", key_list(unknown))))
 }
+
+/// The unit a request names with the family's key (`actuator`, `module`, `drive`): a number the family's
+/// units can have (not yet whether the console found that unit: [`found_unit`]).
+fn unit_of(hub: &Hub, req: &Value) -> Result<u8, ErrorReport> {
+    let key = hub.device().unit_key();
+    let range = hub.device().unit_numbers();
+    let (first, last) = (range.start(), range.end());
+    match req.get(key) {
+        None | Some(Value::Null) => {
+            Err(ErrorReport::usage(format!("the request names no {key}: give \"{key}\", a number {first}..{last}")))
+        }
+        Some(v) => v.as_u64().and_then(|n| u8::try_from(n).ok()).filter(|n| range.contains(n)).ok_or_else(|| {
+            ErrorReport::usage(format!("{key} {v} is not a {key} number: give a whole number {first}..{last}"))
+        }),
+    }
+}
+
+/// The unit `unit` of those the console found (a panel acts on a unit of the units table): a unit not
+/// found is refused before anything is sent to it, naming the units found.
+fn found_unit(hub: &Hub, unit: u8) -> Result<crate::console::device::Unit, ErrorReport> {
+    let key = hub.device().unit_key();
+    let Units::Found(list) = hub.units().borrow().clone() else {
+        return Err(ErrorReport::usage(format!("{key} {unit}: the console has found no {key} yet (it is scanning)")));
+    };
+    let found = list.iter().map(|u| u.id.to_string()).collect::<Vec<_>>().join(", ");
+    list.into_iter()
+        .find(|u| u.id == unit)
+        .ok_or_else(|| ErrorReport::usage(format!("{key} {unit} was not found: the console found {key} {found}")))
+}
+
+/// The request types a page may send.
+const REQUESTS: [&str; 10] =
+    ["stop", "move", "jog", "jog_hold", "jog_release", "take_control", "action", "read_param", "write_param", "errors"];
 
 /// Handles one message of page `page`: an answer to send at once, or none (an answer comes later through
 /// `replies`).
@@ -290,20 +330,39 @@ fn request(hub: &Arc<Hub>, page: u64, text: &str, replies: &mpsc::Sender<Message
     if hub.ending() && !matches!(kind.as_str(), "stop" | "jog_release" | "jog_hold") {
         return Some(Message::failure(&kind, false, ErrorReport::usage(super::hub::ENDING)));
     }
-    if let Err(e) = motionlink_link::result::each_key_once(text.as_bytes()) {
+    let result = match motionlink_link::result::each_key_once(text.as_bytes()) {
         // Which of two types is meant is not known: such a request is answered as "?".
-        let kind = if e.to_string().starts_with("key \"type\"") { "?" } else { &kind };
-        return Some(Message::failure(
-            kind,
-            false,
-            ErrorReport::usage(format!("{e}: give each key of a request once")),
-        ));
-    }
-    let result = handle_request(hub, page, &kind, &req, replies);
+        Err(e) if e.to_string().starts_with("key \"type\"") => {
+            let e = ErrorReport::usage(format!("{e}: give each key of a request once"));
+            return Some(Message::failure("?", false, e));
+        }
+        Err(e) => Err(ErrorReport::usage(format!("{e}: give each key of a request once"))),
+        Ok(()) => handle_request(hub, page, &kind, &req, replies),
+    };
     match result {
         Ok(answer) => answer,
-        Err(e) => Some(Message::failure(&kind, false, e)),
+        Err(e) => Some(Message::failure(&kind, false, refused(hub, page, &kind, e))),
     }
+}
+
+/// The refusal `e` of a request of `kind`: a request that stops (Stop, the release of a jog) still stops
+/// what it can without the rest of it (the console's motion under way, the page's jog), and says so; what it
+/// named wrongly gets nothing.
+fn refused(hub: &Hub, page: u64, kind: &str, e: ErrorReport) -> ErrorReport {
+    let also = match kind {
+        "stop" => match hub.stop_motion() {
+            Some((unit, what)) => format!(
+                "; the motion under way ({what} of {} {unit}) is stopped all the same (its motion message reports \
+                 the stop)",
+                hub.device().unit_key()
+            ),
+            None => "; no motion of the console was under way".into(),
+        },
+        "jog_release" if hub.release_jog(page) => "; this page's jog is released all the same".into(),
+        "jog_hold" => "; the jog is not renewed".into(),
+        _ => return e,
+    };
+    ErrorReport { message: format!("{}{also}", e.message), ..e }
 }
 
 fn spawn_reply(
@@ -330,23 +389,37 @@ fn handle_request(
     req: &Value,
     replies: &mpsc::Sender<Message>,
 ) -> Result<Option<Message>, ErrorReport> {
+    if !req.is_object() {
+        return Err(ErrorReport::usage(format!("a request is a JSON object with its \"type\", not {req}")));
+    }
+    let key = hub.device().unit_key();
+    let a = format!("a {kind} request");
     match kind {
         "jog_hold" => {
+            takes_only(req, &a, &[])?;
             // Renewals are frequent and need no answer; a jog that ended is said by its notice.
             hub.renew_jog(page);
             Ok(None)
         }
         "jog_release" => {
+            takes_only(req, &a, &[])?;
             hub.release_jog(page);
             Ok(None)
         }
         "stop" => {
-            let unit = unit_of(hub, req).ok();
+            takes_only(req, &a, &[key])?;
+            // No unit: the console's motion and what it set in motion. A unit: one the console found (one it
+            // did not find cannot have been set in motion by it).
+            let unit = match req.get(key) {
+                None | Some(Value::Null) => None,
+                Some(_) => Some(found_unit(hub, unit_of(hub, req)?)?.id),
+            };
             let hub2 = Arc::clone(hub);
             spawn_reply(replies, kind, async move { hub2.stop(unit).await });
             Ok(None)
         }
         "take_control" => {
+            takes_only(req, &a, &[])?;
             if hub.take_control(page) {
                 Ok(None)
             } else {
@@ -356,6 +429,8 @@ fn handle_request(
         "move" => {
             let unit = unit_of(hub, req)?;
             let u = found_unit(hub, unit)?;
+            // The keys of this unit's move (its target's and its speed's name with their units).
+            takes_only(req, &format!("a move of {key} {unit}"), &[key, u.target_key, u.command_speed_key])?;
             let target = number(req, u.target_key)?
                 .ok_or_else(|| ErrorReport::usage(format!("a move needs {}", u.target_key)))?;
             let speed = number(req, u.command_speed_key)?;
@@ -366,7 +441,9 @@ fn handle_request(
             Ok(None)
         }
         "jog" => {
+            takes_only(req, &a, &[key, "direction", "speed"])?;
             let unit = unit_of(hub, req)?;
+            found_unit(hub, unit)?;
             let direction = match req.get("direction") {
                 Some(Value::String(s)) if s == "positive" => JogDirection::Positive,
                 Some(Value::String(s)) if s == "negative" => JogDirection::Negative,
@@ -383,14 +460,16 @@ fn handle_request(
             Ok(None)
         }
         "action" => {
+            takes_only(req, &a, &[key, "name"])?;
             let unit = unit_of(hub, req)?;
+            found_unit(hub, unit)?;
+            let actions = hub.device().actions();
             let name = req.get("name").and_then(Value::as_str).unwrap_or("").to_string();
-            let action = hub
-                .device()
-                .actions()
-                .into_iter()
-                .find(|a| a.name == name)
-                .ok_or_else(|| ErrorReport::usage(format!("no action {name:?}")))?;
+            let action = actions.iter().find(|a| a.name == name).copied().ok_or_else(|| {
+                let names = key_list(actions.iter().map(|a| a.name));
+                let names = if actions.is_empty() { "none".to_string() } else { names };
+                ErrorReport::usage(format!("no action {name:?}: the actions of this device are {names}"))
+            })?;
             hub.check_control(page)?;
             let device = Arc::clone(hub.device());
             let work = device.action(unit, &name)?;
@@ -405,14 +484,18 @@ fn handle_request(
             Ok(None)
         }
         "read_param" | "write_param" => {
+            let write = kind == "write_param";
+            let takes = [key, "name", "value"];
+            takes_only(req, &a, if write { &takes } else { &takes[..2] })?;
             let unit = unit_of(hub, req)?;
+            found_unit(hub, unit)?;
             let name = req.get("name").and_then(Value::as_str).unwrap_or("").trim().to_string();
             if name.is_empty() {
                 return Err(ErrorReport::usage("give the name or number of the entry"));
             }
             let device = Arc::clone(hub.device());
-            let key = Keyed(device.unit_key(), unit);
-            if kind == "write_param" {
+            let unit_key = Keyed(device.unit_key(), unit);
+            if write {
                 hub.check_control(page)?;
                 let value = match req.get("value") {
                     Some(Value::String(s)) => s.clone(),
@@ -421,25 +504,27 @@ fn handle_request(
                 };
                 spawn_reply(replies, kind, async move {
                     let v = device.write_param(unit, name, value).await?;
-                    Ok(Message::Param { written: true, unit: key, report: v })
+                    Ok(Message::Param { written: true, unit: unit_key, report: v })
                 });
             } else {
                 spawn_reply(replies, kind, async move {
                     let v = device.read_param(unit, name).await?;
-                    Ok(Message::Param { written: false, unit: key, report: v })
+                    Ok(Message::Param { written: false, unit: unit_key, report: v })
                 });
             }
             Ok(None)
         }
         "errors" => {
+            takes_only(req, &a, &[key])?;
             let unit = unit_of(hub, req)?;
             found_unit(hub, unit)?;
             let device = Arc::clone(hub.device());
-            let key = Keyed(device.unit_key(), unit);
+            let unit_key = Keyed(device.unit_key(), unit);
             let work = device.errors(unit);
-            spawn_reply(replies, kind, async move { Ok(Message::Errors { unit: key, report: work.await? }) });
+            spawn_reply(replies, kind, async move { Ok(Message::Errors { unit: unit_key, report: work.await? }) });
             Ok(None)
         }
-        other => Err(ErrorReport::usage(format!("unknown request {other:?}"))),
+        "" => Err(ErrorReport::usage(format!("the request names no \"type\": give one of {}", key_list(REQUESTS)))),
+        other => Err(ErrorReport::usage(format!("unknown request {other:?}: give one of {}", key_list(REQUESTS)))),
     }
 }

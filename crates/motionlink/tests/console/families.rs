@@ -361,7 +361,11 @@ fn bad_requests_are_refused_naming_what_was_wrong_and_nothing_is_sent() {
     assert_eq!((&v["type"], &v["request"]), (&json!("refused"), &json!("read_param")), "{v}");
     // The error history of a unit the console did not find is not asked on the line.
     let v = answer(&mut ws, json!({"type": "errors", "drive": 7}));
-    assert_eq!((&v["type"], &v["message"]), (&json!("refused"), &json!("no unit 7")), "{v}");
+    assert_eq!(
+        (&v["type"], &v["message"]),
+        (&json!("refused"), &json!("drive 7 was not found: the console found drive 1")),
+        "{v}"
+    );
     // Stop with nothing running says so.
     let v = answer(&mut ws, json!({"type": "stop"}));
     assert_eq!(v["type"], "stopped", "{v}");

@@ -286,7 +286,11 @@ function showUnit() {
   $("move-form").dataset.unit = u ? String(selected) : "";
   if (!u) return;
   $("target-unit").textContent = u.position_unit;
+  // What an empty speed does is the unit's: the server says it for its family (an SCU move: 100 %).
   $("speed-unit").textContent = u.command_speed_unit;
+  $("move-speed-empty").textContent = u.move_speed_when_empty;
+  $("jog-speed-unit").textContent = u.command_speed_unit;
+  $("jog-speed-empty").textContent = u.jog_speed_when_empty;
   $("move").textContent = `Move ${name} to target`;
 }
 
@@ -298,19 +302,35 @@ function stop() {
   send(msg);
 }
 
-function number(id) {
-  const v = $(id).value.trim();
-  return v === "" ? null : Number(v);
+// The number in input `id`: { value } (null when the field is empty), or { error } saying why it is
+// refused. Text a number input cannot read (`1e`) makes its `value` "" as an empty field does: its validity
+// tells them apart, so such text is never taken for an empty field.
+function number(id, what) {
+  const el = $(id);
+  if (el.validity.badInput) return { error: `${what}: what is typed is not a number` };
+  if (el.value.trim() === "") return { value: null };
+  if (!el.validity.valid || !Number.isFinite(el.valueAsNumber)) {
+    return { error: `${what}: ${el.value} is not taken (${el.validationMessage || "not a number"})` };
+  }
+  return { value: el.valueAsNumber };
+}
+
+// A request refused here, before anything is sent.
+function refusedHere(request, why) {
+  status(`refused (${request}): ${why}; nothing was sent`, true);
 }
 
 function move(ev) {
   ev.preventDefault();
   const u = unitOf(selected);
   if (!u) return;
+  const target = number("target", "target");
+  const speed = number("move-speed", "speed");
+  const bad = target.error || speed.error || (target.value === null ? "target: give the target" : null);
+  if (bad) { refusedHere("move", bad); return; }
   const msg = withUnit({ type: "move" });
-  msg[u.target_key] = number("target");
-  const speed = number("move-speed");
-  if (speed !== null) msg[u.command_speed_key] = speed;
+  msg[u.target_key] = target.value;
+  if (speed.value !== null) msg[u.command_speed_key] = speed.value;
   send(msg);
 }
 
@@ -318,11 +338,12 @@ function move(ev) {
 // for its dead-man time (200 ms), when the button is let go, and when this page goes away.
 function startJog(button, direction) {
   if (role !== "control" || jogButton || selected === null) return;
+  const speed = number("jog-speed", "jog speed");
+  if (speed.error) { refusedHere("jog", speed.error); return; }
   jogButton = button;
   button.classList.add("held");
   const msg = withUnit({ type: "jog", direction });
-  const speed = number("jog-speed");
-  if (speed !== null) msg.speed = speed;
+  if (speed.value !== null) msg.speed = speed.value;
   send(msg);
   jogTimer = setInterval(() => send({ type: "jog_hold" }), 50);
 }

@@ -429,30 +429,35 @@ impl Hub {
         }
     }
 
-    /// The jog of page `page` is let go.
-    pub fn release_jog(&self, page: u64) {
+    /// The jog of page `page` is let go: true if it had one under way (now stopping).
+    pub fn release_jog(&self, page: u64) -> bool {
         let mut st = lock(&self.state);
-        let cancel =
-            st.motion.as_mut().filter(|m| m.owner == page && m.deadline.is_some()).and_then(|m| m.cancel.take());
+        let jog = st.motion.as_mut().filter(|m| m.owner == page && m.deadline.is_some());
+        let had = jog.is_some();
+        let cancel = jog.and_then(|m| m.cancel.take());
         drop(st);
         if let Some(c) = cancel {
             let _ = c.send(StopReason::Released);
         }
+        had
+    }
+
+    /// Stops the console's motion under way, whichever page started it (as Stop does): its unit and what it
+    /// is, if one runs; its task stops the unit and reports the stop.
+    pub fn stop_motion(&self) -> Option<(u8, String)> {
+        let running = lock(&self.state).motion.as_mut().map(|m| (m.unit, m.what.clone(), m.cancel.take()));
+        let (unit, what, cancel) = running?;
+        if let Some(c) = cancel {
+            let _ = c.send(StopReason::StopButton);
+        }
+        Some((unit, what))
     }
 
     /// The Stop button of any page (a read-only page may stop too: a stop never sets anything in motion).
     /// Stops the console's motion, and `unit` if the motion was not its own (or none ran); the answer to the
     /// page (the motion's own end is told by its task, with the report of its stop).
     pub async fn stop(self: &Arc<Self>, unit: Option<u8>) -> Result<Message, ErrorReport> {
-        let running = lock(&self.state).motion.as_mut().map(|m| (m.unit, m.cancel.take()));
-        let motion_unit = match running {
-            Some((u, Some(cancel))) => {
-                let _ = cancel.send(StopReason::StopButton);
-                Some(u)
-            }
-            Some((u, None)) => Some(u),
-            None => None,
-        };
+        let motion_unit = self.stop_motion().map(|(u, _)| u);
         let key = self.device.unit_key();
         match unit {
             // The motion's task stops its unit and reports it.

@@ -48,6 +48,9 @@ impl Device for Fake {
     fn unit_key(&self) -> &'static str {
         "drive"
     }
+    fn unit_numbers(&self) -> std::ops::RangeInclusive<u8> {
+        1..=31
+    }
     fn port(&self) -> String {
         "fake".into()
     }
