@@ -236,7 +236,13 @@ pub(super) fn run(
                 };
                 rows.push(("verified".into(), verified));
             }
-            None => writeln!(out, "{function} stopped")?,
+            None => {
+                writeln!(out, "{function} stopped")?;
+                // A motion function no actuator was seen to carry out.
+                if !o.not_verifiable.is_empty() {
+                    rows.push(("verified".into(), format!("no: {}", o.not_verifiable.join("; "))));
+                }
+            }
         }
         common::print_table(out, &rows)
     })?;

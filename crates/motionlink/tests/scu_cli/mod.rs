@@ -620,3 +620,24 @@ fn follow_on_a_unit_that_performs_no_motion_fails_without_claiming_a_running_fun
     assert!(err.contains("RE (remote execute function) refused by the unit: PE"), "{err}");
     assert!(!err.contains("needs the RS") && !err.contains("while it ran"), "{err}");
 }
+
+/// `run` of a motion function that no actuator is seen to carry out within the start grace (a unit that
+/// acknowledges the RE with an error standing, `ack-without-motion`; or actuators already at that end) says
+/// so, with the unit's last error (was: "F1 stopped", as if it had run).
+#[test]
+fn a_run_no_actuator_was_seen_to_carry_out_says_so_with_the_last_error() {
+    let path = common::temp_path("scu-error-25-ack.toml");
+    std::fs::write(&path, "[[error]]\nbit = 25\nat_ms = 1\n").expect("write the emulator configuration");
+    let config = path.to_str().expect("a UTF-8 temporary path");
+    let out =
+        scu("sim", &["--sim-config", config, "--sim-variant", "ack-without-motion", "--json", "run", "F1", "out"]);
+    assert!(out.status.success(), "{out:?}");
+    let last: serde_json::Value = serde_json::from_str(stdout(&out).lines().last().unwrap_or_default()).expect("JSON");
+    assert_eq!(last["verified"], false, "{last}");
+    let why = last["not_verifiable"].to_string();
+    assert!(why.contains("no actuator was seen moving") && why.contains("bit 25"), "{last}");
+    // A run that moves says nothing of it.
+    let out = scu("sim", &["--json", "run", "F1", "out"]);
+    let last: serde_json::Value = serde_json::from_str(stdout(&out).lines().last().unwrap_or_default()).expect("JSON");
+    assert!(last.get("not_verifiable").is_none(), "{last}");
+}

@@ -196,6 +196,28 @@ impl Run {
         false
     }
 
+    /// A motion function's run that ended with no actuator seen moving: its start grace passed (no time
+    /// limit, no cancel ended it first).
+    fn unseen(&self) -> bool {
+        self.is_motion() && !self.seen_motion && self.spec.limit.is_none() && self.failed.is_none()
+    }
+
+    /// What a run that no actuator was seen to carry out says, with Error_Code 1 (read now; said if it
+    /// cannot be read).
+    async fn no_motion_seen(&self, ctx: &Ctx) -> String {
+        let read = ctx.firm().get(super::motion::poll::LAST_ERROR).await;
+        let code = read.and_then(|r| r.data(Command::Get)).and_then(|d| super::error_code(&d));
+        let last = match code {
+            Ok(code) => format!("the unit's last error: {code}"),
+            Err(e) => format!("its last error could not be read: {e}"),
+        };
+        format!(
+            "no actuator was seen moving within the start grace ({} ms): each already stood at the end it was sent \
+             to, or the unit did not carry the function out ({last})",
+            ctx.core().config.start_grace.as_millis()
+        )
+    }
+
     /// Stops the function (fast) and confirms it; the run's end.
     /// `cause` ended the run before it was seen to start: the function is stopped; the error is `cause` once
     /// the stop is confirmed, else [`Error::StopUnconfirmed`].
@@ -220,8 +242,11 @@ impl Run {
                     .filter(|a| status[usize::from(a.number() - 1)].available())
                     .map(|a| (a, positions[usize::from(a.number() - 1)]))
                     .collect();
-                // A switching function: what its status shows after the RS (the unit acknowledged it).
+                // A switching function: what its status shows after the RS (the unit acknowledged it). A motion
+                // function that no actuator was seen to carry out (its start grace passed with none moving,
+                // nothing ended the run early) is not taken for one that ran: said, with the unit's last error.
                 let (verified, not_verifiable) = match (self.is_motion(), &self.switched_on) {
+                    (true, _) if self.unseen() => (false, vec![self.no_motion_seen(ctx).await]),
                     (true, _) => (true, Vec::new()),
                     (false, on) => {
                         let off = switch::check(ctx, function, false, &Before::NotRead).await?;

@@ -20,7 +20,7 @@ use crate::session::request::{PreparedRequest, Req};
 use crate::value::Value;
 use crate::wire::{Command, Request};
 
-mod poll;
+pub(crate) mod poll;
 
 /// A move under way; see [`super::Op::Move`] and [`crate::Client::move_function`].
 struct Move {

@@ -10,7 +10,7 @@ use crate::session::request::{PreparedRequest, Req, Schedule};
 use crate::wire::Command;
 
 /// Error_Code 1, read for the report of a move that ended away from its target.
-const LAST_ERROR: DataIndex = DataIndex(0x00D1);
+pub(crate) const LAST_ERROR: DataIndex = DataIndex(0x00D1);
 
 /// A look at the actuators: status 1 and position of A1..A6.
 type Look = ([ActuatorStatus1; 6], [PositionCounts; 6]);
