@@ -619,6 +619,12 @@ fn follow_on_a_unit_that_performs_no_motion_fails_without_claiming_a_running_fun
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("RE (remote execute function) refused by the unit: PE"), "{err}");
     assert!(!err.contains("needs the RS") && !err.contains("while it ran"), "{err}");
+    // The refusal alone names no cause: the unit's last error is said with it, for `move` as for `follow`.
+    assert!(err.contains("its last error is 0x01000000 [bit 25"), "{err}");
+    let out = scu("sim", &["--sim-config", config, "move", "1", "400"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("its last error is 0x01000000 [bit 25"), "{err}");
 }
 
 /// `run` of a motion function that no actuator is seen to carry out within the start grace (a unit that

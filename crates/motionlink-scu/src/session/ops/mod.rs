@@ -14,6 +14,7 @@ use crate::model::{
     PositionCounts, Speed, StopMode,
 };
 use crate::value::Value;
+use crate::wire::{Command, Status};
 
 pub(crate) mod basic;
 mod motion;
@@ -274,6 +275,24 @@ pub(crate) fn currents(data: &[u8]) -> Result<[u16; 6], Error> {
 }
 
 /// An error code (4 bytes).
+/// After an RE refused with PE ("command not possible with SCU mode/state"): reads the unit's last error and,
+/// if one is set, says it (a warning): an error whose reaction is that motions are not performed keeps
+/// every RE from being taken, and the refusal alone does not name it. Nothing is said of other errors.
+pub(crate) async fn say_last_error_of_pe(ctx: &Ctx, e: &Error) {
+    if !matches!(e, Error::Refused { command: Command::Execute, status: Status::PermissionError }) {
+        return;
+    }
+    let read = ctx.firm().get(motion::poll::LAST_ERROR).await;
+    if let Ok(code) = read.and_then(|r| r.data(Command::Get)).and_then(|d| error_code(&d)) {
+        if code != ErrorCode::NONE {
+            tracing::warn!(
+                "the unit refused the RE with PE; its last error is {code} (the manual's reaction to some errors is \
+                 that motions are not performed: `motionlink scu errors` lists the history)"
+            );
+        }
+    }
+}
+
 pub(crate) fn error_code(data: &[u8]) -> Result<ErrorCode, Error> {
     <[u8; 4]>::try_from(data).map(|b| ErrorCode(u32::from_le_bytes(b))).map_err(|_| Error::UnexpectedReply {
         command: crate::wire::Command::Get,

@@ -58,8 +58,12 @@ pub(crate) async fn run(ctx: &Ctx, spec: RunSpec) -> Result<Output, Error> {
             // host may have switched on: an emergency stop). A motion function gets its RS: a refusal can
             // answer a repeat of an RE the unit took after a lost answer (see `PeGuarded::next`), the motion
             // then running.
-            Err(e @ Error::Refused { .. }) if !run.is_motion() => return Err(e),
+            Err(e @ Error::Refused { .. }) if !run.is_motion() => {
+                super::say_last_error_of_pe(ctx, &e).await;
+                return Err(e);
+            }
             Err(e @ Error::Refused { .. }) => {
+                super::say_last_error_of_pe(ctx, &e).await;
                 tracing::warn!("{function}: {e}; stopping it (an earlier sending may have started it)");
                 return Err(run.stop_after(ctx, e).await);
             }

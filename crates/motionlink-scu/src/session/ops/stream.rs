@@ -132,6 +132,9 @@ pub(crate) async fn targets(
             ctx.core().re_needs_rs = true;
         }
     }
+    if let Err(e) = &result {
+        super::say_last_error_of_pe(ctx, e).await;
+    }
     if ctx.cancelled() {
         let watch = targets.iter().map(|(a, _)| *a).collect();
         let stop = Stop::new(Function::Motion(function), StopMode::Fast, watch);

@@ -217,6 +217,7 @@ impl Move {
         // that cancel.
         let primary = self.spec.primary;
         if let Err(e) = reply.and_then(|r| r.ack(Command::Execute)) {
+            super::say_last_error_of_pe(ctx, &e).await;
             let cause = match e {
                 Error::Timeout { .. } if ctx.cancelled() => {
                     Error::Cancelled { actuator: primary, position_counts: self.start[idx(primary)] }
