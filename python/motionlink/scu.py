@@ -111,10 +111,11 @@ class _Operations:
         poll_ms: int = 50,
         speed_mode: str = "percent",
         profile: Profile = True,
+        wake: bool = False,
     ) -> None:
         settings = dict(baud=baud, safety=safety, reply_timeout_ms=reply_timeout_ms, functions=_specs(functions, "functions"))
         settings.update(strokes=_specs(strokes, "strokes"), tolerance_counts=tolerance_counts, poll_ms=poll_ms)
-        self._start(port, dict(settings, speed_mode=speed_mode, profile=profile_setting(profile)))
+        self._start(port, dict(settings, speed_mode=speed_mode, profile=profile_setting(profile), wake=wake))
 
     @op(ScuInfo)
     def info(self) -> ScuInfo:
@@ -196,6 +197,9 @@ class Scu(_Operations, ClientBase):
             ``False`` none, a path that profiles file. :attr:`profile` names the one taken. The emulator's
             firmware variants (``motionlink sim scu --variant``, :class:`motionlink.Emulator`) show what
             each probe finds.
+        wake: Hold the unit's RxD at "space" for 150 ms before opening (a break, ``motionlink scu
+            --wake``): a battery unit in low-power mode answers nothing until woken so. A serial port (or
+            an emulator in this process) only.
 
     Leaving a ``with`` block, ``close()`` or the end of the program sends RS for every function this
     session started, then RA. Ctrl-C during ``move_to`` or ``run`` stops the function (fast RS), then

@@ -206,7 +206,7 @@ fn usage(msg: impl Into<String>) -> Failure {
     Failure::usage("", msg)
 }
 
-fn scu_device(s: &EmulatorSettings) -> Result<motionlink_scu::Emulator, Failure> {
+fn scu_device(s: &EmulatorSettings, served: bool) -> Result<motionlink_scu::Emulator, Failure> {
     use motionlink_scu::{FirmwareVariant, SimConfig, Variant};
     let variants = variant_names(s).map(|n| Variant::list(&n)).transpose().map_err(|e| usage(e.to_string()))?;
     // The preset is where the TOML configuration starts (a text that names another preset is refused, naming both), as `motionlink sim
@@ -214,6 +214,9 @@ fn scu_device(s: &EmulatorSettings) -> Result<motionlink_scu::Emulator, Failure>
     let text = s.config.as_deref().unwrap_or("");
     let config = SimConfig::from_toml_over(text, s.preset.as_deref(), &variants.unwrap_or_default())
         .map_err(|e| usage(format!("SCU emulator: {e}")))?;
+    if served {
+        config.check_servable().map_err(|e| usage(format!("SCU emulator: {e}")))?;
+    }
     motionlink_scu::Emulator::new(config).map_err(|e| usage(e.to_string()))
 }
 
@@ -357,7 +360,7 @@ impl NativeEmulator {
         let (running, port) = match s.serve.as_deref() {
             None => {
                 let running = match family {
-                    "scu" => InProcess::Scu(Hosted::new(scu_device(s)?)),
+                    "scu" => InProcess::Scu(Hosted::new(scu_device(s, false)?)),
                     "powercube" if s.can => {
                         let cfg = powercube_config(s)?;
                         let device = motionlink_powercube::Emulator::new_can(&cfg);
@@ -376,7 +379,7 @@ impl NativeEmulator {
             }
             Some(how) => {
                 let server = match family {
-                    "scu" => serve(scu_device(s)?, how, bind, &events)?,
+                    "scu" => serve(scu_device(s, true)?, how, bind, &events)?,
                     "powercube" if s.can => {
                         if s.strict {
                             return Err(usage("strict= is about RS232 BCCs; it has no meaning with can=True"));

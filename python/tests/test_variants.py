@@ -47,6 +47,7 @@ VARIANTS: Dict[str, Tuple[str, ...]] = {
         "switch-status-unshown",
         "ack-without-motion",
         "rc-rearms-watchdog",
+        "low-power",
     ),
     "powercube": (
         "no-twin-mirror",
@@ -76,6 +77,10 @@ VARIANTS: Dict[str, Tuple[str, ...]] = {
 
 #: Variants the matrix leaves out, each with the reason (and where it is tested instead).
 NOT_IN_MATRIX: Dict[str, Dict[str, str]] = {
+    "scu": {
+        "low-power": "it answers nothing until a break wakes it, which a served emulator cannot carry (it is "
+        "refused there): test_a_unit_in_low_power_mode_answers_once_woken runs it in this process with wake=True",
+    },
     "compax": {
         "slow-replies": "its replies come 300 ms late: the suite's 50 ms reply timeout takes none of them, and with "
         "the 600 ms one such a drive needs a scan of 31 addresses takes over half a minute; the Rust tests run it "
@@ -516,3 +521,23 @@ def test_the_matrix_covers_every_variant() -> None:
         alone = {c.variants[0] for c in CASES if c.family == family and len(c.variants) == 1}
         assert alone == set(ours) - set(left_out), family
         assert any(c.variants == MATRIX[family] for c in CASES if c.family == family), family
+
+
+def test_a_unit_in_low_power_mode_answers_once_woken() -> None:
+    """A battery SCU in low-power mode (``low-power``) answers nothing until its RxD is held at space (a
+    break): ``Scu(..., wake=True)`` sends one before opening; without it the opening fails on the line. A
+    served emulator of that variant is refused (no break crosses TCP)."""
+    emulator = motionlink.Emulator("scu", variant="low-power")
+    try:
+        with pytest.raises(motionlink.MotionlinkError) as e:
+            motionlink.Scu(emulator, reply_timeout_ms=200)
+        assert e.value.kind in ("timeout", "io", "disconnected"), e.value
+        with motionlink.Scu(emulator, reply_timeout_ms=200, wake=True) as scu:
+            assert scu.position(1).position_counts == 0
+        events = [text for _, text in emulator.take_events()]
+        assert "woken from low-power mode by a break of 150 ms" in events, events
+    finally:
+        emulator.close()
+    with pytest.raises(motionlink.UsageError) as e:
+        motionlink.Emulator("scu", variant="low-power", serve="tcp")
+    assert "woken only by a break" in str(e.value)

@@ -90,6 +90,9 @@ impl<L: Link> Link for TapLink<L> {
     fn describe(&self) -> String {
         self.inner.describe()
     }
+    fn send_break(&mut self, duration: Duration) -> Result<(), LinkError> {
+        self.inner.send_break(duration)
+    }
 }
 
 /// A CAN link whose frames go to a [`TapSink`] as well.

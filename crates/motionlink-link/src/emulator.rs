@@ -41,6 +41,12 @@ pub trait Emulator: Send {
     fn take_events(&mut self) -> Vec<String> {
         Vec::new()
     }
+
+    /// The host held the line at "space" (a break) from `now` for `duration` ([`Link::send_break`]
+    /// (crate::link::Link::send_break)). A device that gives a break no meaning ignores it (the default).
+    fn line_break(&mut self, now: Timestamp, duration: std::time::Duration) {
+        let _ = (now, duration);
+    }
 }
 
 impl<E: Emulator + ?Sized> Emulator for Box<E> {
@@ -58,6 +64,9 @@ impl<E: Emulator + ?Sized> Emulator for Box<E> {
     }
     fn take_events(&mut self) -> Vec<String> {
         (**self).take_events()
+    }
+    fn line_break(&mut self, now: Timestamp, duration: std::time::Duration) {
+        (**self).line_break(now, duration)
     }
 }
 

@@ -87,6 +87,17 @@ pub trait Link: Send {
 
     /// The port as a user would name it, for messages.
     fn describe(&self) -> String;
+
+    /// Holds the line at "space" (a break) for `duration`, then releases it: an SCU in low-power mode wakes
+    /// when its RxD is held at space for at least 100 ms. Only a serial line (and an emulator in this
+    /// process) has such a state; another link refuses ([`LinkError::InvalidPort`]).
+    fn send_break(&mut self, duration: Duration) -> Result<(), LinkError> {
+        let _ = duration;
+        Err(LinkError::InvalidPort {
+            port: self.describe(),
+            reason: "a break (the line held at space) can only be sent on a serial device".into(),
+        })
+    }
 }
 
 impl<L: Link + ?Sized> Link for Box<L> {
@@ -101,6 +112,9 @@ impl<L: Link + ?Sized> Link for Box<L> {
     }
     fn describe(&self) -> String {
         (**self).describe()
+    }
+    fn send_break(&mut self, duration: Duration) -> Result<(), LinkError> {
+        (**self).send_break(duration)
     }
 }
 

@@ -140,6 +140,12 @@ impl Link for SerialLink {
         self.port.clear(serialport::ClearBuffer::Input).map_err(|e| LinkError::from_io(&self.name, e.into()))
     }
 
+    fn send_break(&mut self, duration: Duration) -> Result<(), LinkError> {
+        self.port.set_break().map_err(|e| LinkError::from_io(&self.name, e.into()))?;
+        std::thread::sleep(duration);
+        self.port.clear_break().map_err(|e| LinkError::from_io(&self.name, e.into()))
+    }
+
     fn describe(&self) -> String {
         self.name.clone()
     }

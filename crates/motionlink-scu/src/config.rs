@@ -277,7 +277,18 @@ pub struct Config {
     /// remote ones only), a hand switch's included. Default false: such a watch ends with
     /// [`Error::NoRoom`].
     pub watch_may_lapse: bool,
+    /// Before every opening of the port (the first and each reconnection), hold the unit's RxD at "space"
+    /// this long (a break): a battery unit with `<Low Power> = Enabled` in low-power mode wakes so, "min. 100
+    /// ms" (E 3, S 3: from FW V2B1). `None` (the default): no break. Only a serial line can send one.
+    pub wake_break: Option<Duration>,
 }
+
+/// The break [`Config::wake_break`] takes when asked for without a length (the command line's `--wake`):
+/// 150 ms, the manual's 100 ms with room for a USB adapter's timing.
+pub const WAKE_BREAK: Duration = Duration::from_millis(150);
+
+/// The shortest break that wakes a unit in low-power mode (E 3, S 3: "min. 100 ms").
+pub const MIN_WAKE_BREAK: Duration = Duration::from_millis(100);
 
 /// The largest position tolerance a session takes, in counts ([`crate::args::ToleranceCounts`]).
 pub const MAX_TOLERANCE_COUNTS: u32 = 100;
@@ -307,6 +318,7 @@ impl Default for Config {
             move_polling: MovePolling::default(),
             close_bound: Duration::from_secs(5),
             watch_may_lapse: false,
+            wake_break: None,
         }
     }
 }
@@ -340,6 +352,13 @@ impl Config {
         }
         if self.retries > 10 {
             return bad(format!("retries {}: at most 10", self.retries));
+        }
+        if let Some(b) = self.wake_break {
+            if !(MIN_WAKE_BREAK..=Duration::from_secs(2)).contains(&b) {
+                return bad(format!(
+                    "wake break {b:?}: 100 ms (the manual's least) to 2 s (the unit's longest request delay)"
+                ));
+            }
         }
         if self.position_tolerance_counts > MAX_TOLERANCE_COUNTS {
             return bad(format!("position tolerance {} counts: {TOLERANCE_RULE}", self.position_tolerance_counts));

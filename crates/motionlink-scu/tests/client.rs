@@ -31,6 +31,39 @@ fn a_unit_that_ignores_the_first_ro_after_a_long_silence_is_opened_by_the_second
     client.close().unwrap();
 }
 
+/// A battery unit in low-power mode (`low-power`) answers nothing until its RxD is held at space for at
+/// least 100 ms (E 3, S 3): without a break the opening times out; `Config::wake_break` (the command line's
+/// `--wake`) sends one before RO, at every opening, and the session runs. A break shorter than the manual's
+/// 100 ms is refused before anything is sent. Idle outside remote mode, the unit sleeps again.
+#[test]
+fn a_unit_in_low_power_mode_is_woken_by_a_break_before_ro() {
+    let rig = Rig::with_variants(SimConfig::default(), &[motionlink_scu::Variant::LowPower]);
+    let short = Config { reply_timeout: Duration::from_millis(300), ..Config::default() };
+    let err = Client::with_connector(rig.connector(), rig.clock.shared(), short.clone()).unwrap_err();
+    assert!(err.class().is_transport(), "{err}");
+    assert!(rig.unit(motionlink_link::emulator::Emulator::take_events).iter().any(|e| e.contains("in low-power mode")));
+    let too_short = Config { wake_break: Some(Duration::from_millis(50)), ..short.clone() };
+    let err = Client::with_connector(rig.connector(), rig.clock.shared(), too_short).unwrap_err();
+    assert!(err.to_string().contains("wake break 50ms: 100 ms"), "{err}");
+    let waking = Config { wake_break: Some(motionlink_scu::config::WAKE_BREAK), ..short };
+    let client = rig.client(waking.clone());
+    assert!(matches!(rig.unit(|u| u.mode()), RemoteMode::Active(_)));
+    assert!(rig
+        .unit(motionlink_link::emulator::Emulator::take_events)
+        .iter()
+        .any(|e| e == "woken from low-power mode by a break of 150 ms"));
+    client.get(DataIndex(0x0011)).unwrap();
+    client.close().unwrap();
+    // Asleep again 2 s after its last byte outside remote mode: a new session wakes it again.
+    rig.sleep(2_500);
+    assert!(rig
+        .unit(motionlink_link::emulator::Emulator::take_events)
+        .iter()
+        .any(|e| e.starts_with("gone to low-power mode")));
+    let client = rig.client(waking);
+    client.close().unwrap();
+}
+
 #[test]
 fn the_chosen_safety_id_goes_into_ro() {
     let rig = Rig::new(SimConfig::default());

@@ -94,7 +94,9 @@ fn scp11() -> Config {
 
 fn run_on(variants: &[Variant]) -> (Rig, Outcome) {
     let rig = Rig::with_variants(SimConfig::default(), variants);
-    let outcome = core_operations(&rig, scp11(), Capabilities::default());
+    // A unit in low-power mode answers once a break has woken it (`Config::wake_break`, the CLI's `--wake`).
+    let wake_break = variants.contains(&Variant::LowPower).then_some(motionlink_scu::config::WAKE_BREAK);
+    let outcome = core_operations(&rig, Config { wake_break, ..scp11() }, Capabilities::default());
     (rig, outcome)
 }
 

@@ -44,6 +44,9 @@ impl Link for Hooked {
     fn describe(&self) -> String {
         self.inner.describe()
     }
+    fn send_break(&mut self, duration: std::time::Duration) -> Result<(), LinkError> {
+        self.inner.send_break(duration)
+    }
 }
 
 /// An emulator behind in-memory links on a manual clock; see the [module documentation](self).

@@ -111,6 +111,10 @@ impl Link for BusyLink {
     fn describe(&self) -> String {
         self.inner.describe()
     }
+    fn send_break(&mut self, duration: std::time::Duration) -> Result<(), LinkError> {
+        let r = self.inner.send_break(duration);
+        self.seen(r)
+    }
 }
 
 /// The command's transport error `e` as the one plain line `<port> is busy: another client is connected`

@@ -77,6 +77,9 @@ pub struct Settings {
     tolerance_counts: Int,
     poll_ms: Int,
     speed_mode: Text,
+    /// Send a break before opening (`motionlink scu --wake`): wakes a battery unit in low-power mode.
+    #[pyo3(default)]
+    wake: Option<Bool>,
     /// The device profiles: `"auto"` (default) profiles.toml beside devices.toml, `"off"`, or a path.
     #[pyo3(default)]
     profile: Option<String>,
@@ -93,6 +96,10 @@ fn client_config(s: &Settings) -> Result<Config, Failure> {
         stroke_limits: StrokeLimits::per_actuator(&s.strokes).map_err(|e| usage(format!("strokes: {e}")))?,
         position_tolerance_counts: checked::<ToleranceCounts>(&s.tolerance_counts, "tolerance_counts")?.get(),
         poll_interval: checked::<PollInterval>(&s.poll_ms, "poll_ms")?.get(),
+        wake_break: match &s.wake {
+            Some(w) => w.get(FAMILY, "wake")?.then_some(motionlink_scu::config::WAKE_BREAK),
+            None => None,
+        },
         ..Config::default()
     };
     config.validate().map_err(|e| usage(e.to_string()))?;

@@ -636,6 +636,29 @@ impl<E: Emulator> Link for EmulatorLink<E> {
         Ok(())
     }
 
+    fn send_break(&mut self, duration: Duration) -> Result<(), LinkError> {
+        let start = self.host.clock.now();
+        {
+            let mut side = lock(&self.host.side);
+            let mut sh = lock(&self.wires);
+            if sh.faults.broken {
+                return Err(self.gone("link broken"));
+            }
+            // What was sent before the break reaches the device first.
+            if !side.pump(&mut sh.faults, start) {
+                sh.faults.broken = true;
+                return Err(self.gone("link broken"));
+            }
+            side.device.line_break(start, duration);
+        }
+        // The line is held that long: nothing else goes out meanwhile.
+        let end = start + duration;
+        while self.host.clock.now() < end {
+            self.wake.wait_until(Some(end));
+        }
+        Ok(())
+    }
+
     fn describe(&self) -> String {
         self.name.clone()
     }

@@ -39,6 +39,8 @@ pub struct UnitOptions {
     pub sim_preset: Option<String>,
     /// `sim_variants`: firmware variants of an in-process emulator.
     pub sim_variants: Vec<Variant>,
+    /// `wake`: send a break before opening ([`Config::wake_break`], [`crate::config::WAKE_BREAK`] long).
+    pub wake: bool,
 }
 
 impl Default for UnitOptions {
@@ -54,13 +56,14 @@ impl Default for UnitOptions {
             speed_mode: SpeedMode::Percent,
             sim_preset: None,
             sim_variants: Vec::new(),
+            wake: false,
         }
     }
 }
 
 impl UnitOptions {
     /// The keys of a device table these options take (the command line's options without `--`, with `_`).
-    pub const KEYS: [&'static str; 10] = [
+    pub const KEYS: [&'static str; 11] = [
         "baud",
         "safety",
         "timeout_ms",
@@ -71,6 +74,7 @@ impl UnitOptions {
         "speed_mode",
         "sim_preset",
         "sim_variants",
+        "wake",
     ];
 
     /// Sets the option `key` from its text as a device table gives it (a list option takes one element per
@@ -95,6 +99,13 @@ impl UnitOptions {
                 }
                 self.sim_preset = Some(text.to_string())
             }
+            "wake" => {
+                self.wake = match text.trim() {
+                    "true" => true,
+                    "false" => false,
+                    other => return Err(on("wake")(format!("{other:?} is neither true nor false"))),
+                }
+            }
             "sim_variants" => {
                 self.sim_variants.extend(Variant::list(text).map_err(|e| on("sim_variants")(e.to_string()))?)
             }
@@ -115,6 +126,7 @@ impl UnitOptions {
             stroke_limits: StrokeLimits::per_actuator(&self.stroke).map_err(on("stroke"))?,
             position_tolerance_counts: self.tolerance.get(),
             poll_interval: self.poll_ms.get(),
+            wake_break: self.wake.then_some(crate::config::WAKE_BREAK),
             ..Config::default()
         };
         config.validate().map_err(|e| OptionError { key: None, message: e.to_string() })?;

@@ -74,11 +74,12 @@ impl Client {
 
     /// Validates `config`, connects, and makes the driver (nothing is sent yet).
     pub(crate) fn make_driver(
-        mut connector: Connector,
+        connector: Connector,
         clock: SharedClock,
         config: Config,
     ) -> Result<Driver<Session>, Error> {
         config.validate()?;
+        let mut connector = super::waking(connector, config.wake_break);
         let link = connector()?;
         let session = Session::new(config.clone(), clock.now())?;
         let opener: PortOpener = Box::new(move || connector().map(Port::Bytes));

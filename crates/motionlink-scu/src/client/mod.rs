@@ -129,6 +129,21 @@ pub fn port_connector(port: &PortUrl, config: &Config) -> Result<Connector, Erro
     }
 }
 
+/// `connector`, sending each link it opens a break of `wake` first ([`Config::wake_break`]), or as it is.
+pub(crate) fn waking(mut connector: Connector, wake: Option<std::time::Duration>) -> Connector {
+    let Some(wake) = wake else { return connector };
+    Box::new(move || {
+        let mut link = connector()?;
+        tracing::info!(
+            "holding {}'s line at space for {} ms (a break: wakes a unit in low-power mode)",
+            link.describe(),
+            wake.as_millis()
+        );
+        link.send_break(wake)?;
+        Ok(link)
+    })
+}
+
 /// The connector of [`Client::with_link`]: `link` once; a reconnection after it is lost is refused.
 pub(crate) fn link_connector(link: Box<dyn Link>) -> Connector {
     let name = link.describe();

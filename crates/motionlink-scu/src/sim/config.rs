@@ -129,6 +129,20 @@ impl SimConfig {
         Variant::merge(&mut self.variants, variants);
     }
 
+    /// Refuses a unit that no client could wake if it were served on a TCP port or a pty: one of the
+    /// `low-power` variant, which only a break wakes, and a break crosses neither.
+    pub fn check_servable(&self) -> Result<(), SimConfigError> {
+        if self.variants.contains(&Variant::LowPower) {
+            return Err(SimConfigError(
+                "the variant low-power is woken only by a break (the line held at space), which neither TCP nor a \
+                 pty carries: use it in the client's own process (--port sim --sim-variant low-power --wake, or \
+                 Python's Emulator without serve=)"
+                    .into(),
+            ));
+        }
+        Ok(())
+    }
+
     /// SCP11 with `n` actuators: actuator k on function Fk.
     pub fn scp11(n: usize) -> Self {
         let n = n.clamp(1, 6);

@@ -170,6 +170,11 @@ pub struct Emulator {
     last_rx: Option<Timestamp>,
     /// A [`Variant::Sleepy`] unit dozed off: the next telegram only wakes it.
     dozing: bool,
+    /// A [`Variant::LowPower`] unit in low-power mode: it takes no telegram until a break of at least
+    /// 100 ms wakes it ([`Emulator::line_break`](motionlink_link::emulator::Emulator::line_break)).
+    low_power: bool,
+    /// Said once per low-power spell: a telegram came and was not taken.
+    low_power_said: bool,
     /// Entries whose RG is refused with PDE ([`Emulator::refuse_reads`]).
     refused_reads: Vec<DataIndex>,
 }
@@ -210,6 +215,8 @@ impl Emulator {
         }
         let actuators = config.actuators.iter().cloned().map(ActuatorState::new).collect::<Vec<_>>();
         let remote_position = preset_remote_positions(&config);
+        // A battery unit with <Low Power> enabled is in low-power mode from power-on.
+        let low_power = config.variants.contains(&Variant::LowPower);
         let mut scheduled_errors = config.scheduled_errors.clone();
         scheduled_errors.sort_by_key(|e| e.at_ms);
         Ok(Emulator {
@@ -241,6 +248,8 @@ impl Emulator {
             scheduled_raised: 0,
             last_rx: None,
             dozing: false,
+            low_power,
+            low_power_said: false,
             refused_reads: Vec::new(),
         })
     }
@@ -283,6 +292,21 @@ impl Emulator {
     /// The most recent error code (Error_Code 1).
     pub fn last_error(&self) -> ErrorCode {
         ErrorCode(self.error_history[0])
+    }
+
+    /// When a [`Variant::LowPower`] unit that is awake outside remote mode goes to low-power mode: 2 s
+    /// ([`SLEEP_AFTER`]) after the last byte (the manual gives no time; its parameterisation decides).
+    fn next_sleep(&self) -> Option<Timestamp> {
+        let idle = self.config.variants.contains(&Variant::LowPower) && !self.low_power && self.mode == RemoteMode::Off;
+        idle.then(|| self.last_rx.unwrap_or(Timestamp::ZERO) + SLEEP_AFTER)
+    }
+
+    /// Goes to low-power mode if [`Emulator::next_sleep`] has come.
+    fn fall_asleep(&mut self, now: Timestamp) {
+        if self.next_sleep().is_some_and(|t| t <= now) && !self.any_moving() {
+            self.low_power = true;
+            self.push_event("gone to low-power mode (outside remote mode, 2 s without a byte)".into());
+        }
     }
 
     /// The error bits raised so far whose reaction is that motions are not performed
@@ -541,6 +565,11 @@ impl Emulator {
             (SafetyId::StopRemoteOnly, false) => "remote motions stopped; remote mode deactivated until RO",
         };
         self.push_event(format!("remote mode ended by watchdog (Safety_ID {}): {what}", safety.code()));
+        // "If the communication is interrupted at this status the controller sets to low power mode."
+        if self.config.variants.contains(&Variant::LowPower) {
+            self.low_power = true;
+            self.push_event("gone to low-power mode (the communication was interrupted)".into());
+        }
         self.note_rest();
     }
 }
@@ -553,6 +582,12 @@ impl EmulatorTrait for Emulator {
                 self.decoder.reset();
                 self.stats.dropped_partial += 1;
             }
+        }
+        if self.low_power {
+            if !bytes.is_empty() && !std::mem::replace(&mut self.low_power_said, true) {
+                self.push_event("in low-power mode: telegrams go unanswered until a break of 100 ms wakes it".into());
+            }
+            return;
         }
         if !bytes.is_empty() {
             self.last_byte = Some(now);
@@ -603,6 +638,7 @@ impl EmulatorTrait for Emulator {
 
     fn advance(&mut self, now: Timestamp, _out: &mut Vec<u8>) {
         self.run_until(now);
+        self.fall_asleep(now);
         if let Some(last) = self.last_byte {
             if self.decoder.is_mid_telegram() && now.saturating_since(last) > INTER_BYTE_LIMIT {
                 self.decoder.reset();
@@ -620,7 +656,7 @@ impl EmulatorTrait for Emulator {
             _ => None,
         };
         let motion = self.any_moving().then(|| self.now + STEP);
-        [watchdog, motion, self.next_scheduled_error()].into_iter().flatten().min()
+        [watchdog, motion, self.next_scheduled_error(), self.next_sleep()].into_iter().flatten().min()
     }
 
     /// One line per notable change since the last call, oldest first: remote mode opened, closed or ended by
@@ -633,6 +669,28 @@ impl EmulatorTrait for Emulator {
     /// A telegram the host left half-sent is dropped; remote mode, its watchdog and any motion go on.
     fn connection_closed(&mut self, _now: Timestamp) {
         self.decoder.reset();
+    }
+
+    /// A break (RxD held at space): one of at least 100 ms wakes a [`Variant::LowPower`] unit from low-power
+    /// mode (E 3, S 3, from FW V2B1). A telegram in progress is dropped (the break is no byte of it).
+    fn line_break(&mut self, now: Timestamp, duration: std::time::Duration) {
+        self.run_until(now);
+        self.decoder.reset();
+        if !self.low_power {
+            return;
+        }
+        if duration >= crate::config::MIN_WAKE_BREAK {
+            self.low_power = false;
+            self.low_power_said = false;
+            // Awake from now: the 2 s without a byte that put it to sleep count from the break.
+            self.last_rx = Some(now + duration);
+            self.push_event(format!("woken from low-power mode by a break of {} ms", duration.as_millis()));
+        } else {
+            self.push_event(format!(
+                "a break of {} ms is too short to wake it from low-power mode (100 ms)",
+                duration.as_millis()
+            ));
+        }
     }
 }
 

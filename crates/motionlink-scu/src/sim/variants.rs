@@ -53,6 +53,10 @@ pub enum Variant {
     /// RC, which re-arms the watchdog and restores remote mode without RO (instead of remote mode being
     /// deactivated, RO needed, as chapter 5 says).
     RcRearmsWatchdog,
+    /// A battery unit with `<Low Power> = Enabled` (E 3, S 3, from FW V2B1): in low-power mode from power-on,
+    /// after a watchdog lapse in remote mode, and 2 s after its last byte outside remote mode, it takes no
+    /// telegram until its RxD is held at space for at least 100 ms (a break: `--wake`).
+    LowPower,
 }
 
 impl FirmwareVariant for Variant {
@@ -72,6 +76,7 @@ impl FirmwareVariant for Variant {
         Variant::SwitchStatusUnshown,
         Variant::AckWithoutMotion,
         Variant::RcRearmsWatchdog,
+        Variant::LowPower,
     ];
 
     /// Its name, as `--variant` takes it.
@@ -90,6 +95,7 @@ impl FirmwareVariant for Variant {
             Variant::SwitchStatusUnshown => "switch-status-unshown",
             Variant::AckWithoutMotion => "ack-without-motion",
             Variant::RcRearmsWatchdog => "rc-rearms-watchdog",
+            Variant::LowPower => "low-power",
         }
     }
 
@@ -123,6 +129,10 @@ impl FirmwareVariant for Variant {
             Variant::RcRearmsWatchdog => {
                 "after a watchdog expiry with Safety_ID 1 or 2, commands are refused (PE) until the next RC, which \
                  restores remote mode without RO"
+            }
+            Variant::LowPower => {
+                "a battery unit in low-power mode (from power-on, after a watchdog lapse, 2 s idle outside remote \
+                 mode): no telegram is answered until a break of at least 100 ms (--wake)"
             }
         }
     }

@@ -112,6 +112,11 @@ pub struct UnitArgs {
     /// on top.
     #[arg(long, value_name = "NAME", global = true, value_parser = SimConfig::PRESETS)]
     pub sim_preset: Option<String>,
+    /// Before opening the port, hold the unit's RxD at "space" for 150 ms (a break): a battery unit with
+    /// <Low Power> enabled in low-power mode answers nothing until woken so (the manual: at least 100 ms,
+    /// from FW V2B1). Only on a serial port (or --port sim).
+    #[arg(long, global = true)]
+    pub wake: bool,
 }
 
 /// What to do.
@@ -284,9 +289,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
         format!(
             "{stop}the SCU on {port} does not answer (nothing came back to RO within {} ms): check the cable, the \
              baud rate (--baud {}; standard units run at 38400, customised ones at 9600 or 19200) and that the \
-             control unit is powered",
+             control unit is powered{}",
             args.unit.timeout_ms.get().as_millis(),
-            args.unit.baud
+            args.unit.baud,
+            if args.unit.wake { "" } else { " (a battery unit in low-power mode answers only once woken: --wake)" }
         )
     };
     let client = connect(&args.unit, &port, &tap, &clock, config).map_err(|e| {

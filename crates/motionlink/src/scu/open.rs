@@ -15,6 +15,7 @@ pub(super) fn unit_options(args: &UnitArgs) -> UnitOptions {
         speed_mode: args.speed_mode,
         sim_preset: args.sim_preset.clone(),
         sim_variants: args.sim_variants.list.clone(),
+        wake: args.wake,
     }
 }
 

@@ -82,6 +82,7 @@ pub struct SimArgs {
 /// `motionlink sim scu`
 pub fn sim(args: SimArgs) -> Result<(), CliError> {
     let config = load_sim_config(args.config.as_ref(), args.preset.as_deref(), &args.variants.list)?;
+    config.check_servable().map_err(|e| CliError::usage(e.to_string()))?;
     let device = Emulator::new(config).map_err(|e| CliError::usage(e.to_string()))?;
     common::serve(&args.serve, device)
 }

@@ -42,8 +42,10 @@ pub(super) fn decode_rs232_and_candump() {
     assert!(text.contains("to module 17: Halt"), "{text}");
     // The manual's own acknowledge (TELID length 6 for 3 bytes), taken as the client takes it: no `!!`.
     assert!(
-        text.contains("<- 02 0A 26 08 50 64 EC 03                from module 17: TargetAcc set [TELID length 6 for 3 bytes: \
-                       the manual's own acknowledges, accepted]"),
+        text.contains(
+            "<- 02 0A 26 08 50 64 EC 03                from module 17: TargetAcc set [TELID length 6 for 3 bytes: \
+                       the manual's own acknowledges, accepted]"
+        ),
         "{text}"
     );
     assert!(text.contains("error: 1 byte(s) outside a frame skipped"), "{text}");

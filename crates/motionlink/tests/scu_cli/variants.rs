@@ -12,7 +12,7 @@ use crate::common::{self, Sim};
 
 /// Every variant `motionlink sim scu --variant` knows (the library's list: a new one fails this test until
 /// it is added here with what it changes).
-const VARIANTS: [&str; 13] = [
+const VARIANTS: [&str; 14] = [
     "no-groups",
     "no-user-positions",
     "no-cyclic-objects",
@@ -28,6 +28,8 @@ const VARIANTS: [&str; 13] = [
     // unit: they run here as on the plain unit (their own tests: the library's sim and client_moves).
     "ack-without-motion",
     "rc-rearms-watchdog",
+    // Served, it could not be woken (no break crosses TCP): refused there, run with `--port sim` below.
+    "low-power",
 ];
 
 const FAST: &str = "[[actuator]]\ncounts_per_second_at_full_speed = 2000.0\nramp_ms = 30\n\
@@ -106,7 +108,7 @@ fn core_commands(variant: &str, config: &str) -> Vec<String> {
 fn the_core_commands_work_on_every_firmware_variant_and_say_what_they_could_not_verify() {
     let config = fast_config();
     let config = config.to_str().expect("a UTF-8 temporary path").to_string();
-    let all: Vec<&str> = std::iter::once("").chain(VARIANTS).collect();
+    let all: Vec<&str> = std::iter::once("").chain(VARIANTS).filter(|v| *v != "low-power").collect();
     let results: Vec<(String, Vec<String>)> = std::thread::scope(|s| {
         let handles: Vec<_> = all
             .iter()
@@ -187,4 +189,25 @@ fn the_in_process_emulator_takes_variants_too() {
     let err = String::from_utf8_lossy(&missed.stderr);
     assert!(err.contains("A1 ended at 865 counts") && err.contains("target 900"), "{err}");
     assert!(started.elapsed() < Duration::from_secs(10));
+}
+
+/// A battery unit in low-power mode answers nothing until a break wakes it: without `--wake` the command
+/// says the unit does not answer and names `--wake`; with it the command runs. Served on TCP, which carries
+/// no break, such a unit is refused; `--wake` on a TCP port is refused naming why.
+#[test]
+fn a_unit_in_low_power_mode_answers_once_woken_with_wake() {
+    let asleep = scu("sim", &["--sim-variant", "low-power", "--timeout-ms", "300", "info"]);
+    let err = String::from_utf8_lossy(&asleep.stderr);
+    assert_eq!(asleep.status.code(), Some(3), "{err}");
+    assert!(err.contains("low-power mode answers only once woken: --wake"), "{err}");
+    let woken = scu("sim", &["--sim-variant", "low-power", "--wake", "info"]);
+    assert!(woken.status.success(), "{woken:?}");
+    assert!(stdout(&woken).contains("SCU V2B3 motionlink-sim"), "{woken:?}");
+    let served = common::run_with(&["sim", "scu", "--tcp", "127.0.0.1:0", "--variant", "low-power"], &[], "");
+    assert_eq!(served.status.code(), Some(2), "{served:?}");
+    assert!(String::from_utf8_lossy(&served.stderr).contains("woken only by a break"), "{served:?}");
+    let sim = Sim::start("scu", &["--tcp", "127.0.0.1:0"]);
+    let tcp = scu(&sim.address, &["--wake", "info"]);
+    assert_eq!(tcp.status.code(), Some(2), "{tcp:?}");
+    assert!(String::from_utf8_lossy(&tcp.stderr).contains("can only be sent on a serial device"), "{tcp:?}");
 }
