@@ -245,6 +245,7 @@ pub fn parse(
     if devices.is_empty() {
         return Err(usage("no [device.NAME] table: the gateway would serve nothing".into()));
     }
+    one_table_per_port(&devices).map_err(usage)?;
     Ok(GatewayConfig { name, broker, sample_hz, ca_file: gateway.ca_file, credentials, devices })
 }
 
@@ -264,6 +265,34 @@ fn device(name: &str, table: toml::Table) -> Result<DeviceEntry, String> {
         return Err(format!("family {family:?} is not scu, powercube or compax"));
     }
     Ok(DeviceEntry { name: name.to_string(), family, port, options })
+}
+
+/// Refuses two tables on one port (not `sim`, of which each table has its own emulator): the gateway opens a
+/// session of its own for each table, and a port takes one session at a time (a serial port or a TCP serial
+/// server is one line; on a CAN bus two sessions would see each other's frames and broadcasts). Ports are the
+/// same as their locks are ([`motionlink_link::portlock::lock_key`]: `/dev/ttyUSB0` and a link to it, `HOST`
+/// in any case); a port that does not parse is left to the device's own check.
+fn one_table_per_port(devices: &[DeviceEntry]) -> Result<(), String> {
+    use motionlink_link::url::PortUrl;
+    let mut seen: BTreeMap<String, &DeviceEntry> = BTreeMap::new();
+    for d in devices {
+        let Ok(url) = d.port.parse::<PortUrl>() else { continue };
+        if url == PortUrl::Sim {
+            continue;
+        }
+        let key = motionlink_link::portlock::lock_key(&url).unwrap_or_else(|| url.to_string());
+        if let Some(first) = seen.insert(key, d) {
+            let same = if first.port == d.port { String::new() } else { format!(" (as {:?})", first.port) };
+            return Err(format!(
+                "[device.{}] and [device.{}] both name the port {:?}{same}: a gateway serves one device per port \
+                 (it opens a session of its own for each table, and a port takes one session at a time), so two \
+                 drives or modules of one bus cannot both be served; remove one of the tables, or give each \
+                 device a port (a line) of its own",
+                first.name, d.name, d.port
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// This machine's host name, if it can be read.

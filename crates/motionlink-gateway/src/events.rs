@@ -5,11 +5,13 @@
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Event<'a> {
     /// `motion_started`, `motion_ended`, `lease_expired`, `error`, `repeated` (a motion request whose id was
-    /// taken already: not run again), `port_released` (a `stop` from another
+    /// taken already: not run again), `retained` (a request delivered as a retained message: not run),
+    /// `port_released` (a `stop` from another
     /// process took the device's port), `port_taken` (the gateway serves it again), `port_failed` (the
-    /// device's port failed: its session is gone), `port_reopened` (served again), `device_silent` (the
-    /// device does not answer over a port that is fine), `state_failed` (a state sample failed otherwise),
-    /// `device_answers` (a state sample succeeds again).
+    /// device's port failed: its session is gone), `port_reopened` (served again; where a motion ran when the
+    /// port failed, after the device's stop over the new session: `ok` and `error` say what it found),
+    /// `device_silent` (the device does not answer over a port that is fine), `state_failed` (a state sample
+    /// failed otherwise), `device_answers` (a state sample succeeds again).
     pub event: &'static str,
     /// The request's (or motion's) id, if there is one.
     pub id: Option<&'a crate::request::RequestId>,
@@ -19,7 +21,8 @@ pub struct Event<'a> {
     /// The lease of a motion that started or lapsed, in ms.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lease_ms: Option<u64>,
-    /// How a motion ended: true when it did what was asked.
+    /// How a motion ended: true when it did what was asked; for `port_reopened`, whether the device's stop
+    /// over the new session was confirmed.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ok: Option<bool>,
     /// The error, for an error and a motion that failed.

@@ -1,9 +1,9 @@
 //! The gateway's loop: requests from the broker to the devices, replies and events back, states at their
 //! rate, leases watched, and every motion stopped when its lease lapses, on `stop`, when the broker is
-//! lost and on SIGINT / SIGTERM.
+//! lost and on SIGINT, SIGTERM, SIGHUP, SIGQUIT and SIGTSTP.
 
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -19,15 +19,17 @@ use crate::device::{Action, Device, Operation, Outcome, Spec};
 use crate::error::{ErrorReport, GatewayError, GatewayErrors, StopReason};
 use crate::events::{Event, Renewed};
 use crate::lease::Leases;
-use crate::mqtt::{self, Net, OFFLINE, ONLINE};
+use crate::mqtt::{self, Net, OFFLINE};
 use crate::ports::PortLocks;
 use crate::request::{self, Request, RequestId};
-use crate::topics::Topics;
+use crate::topics::{self, Topics};
 
 mod handover;
+mod presence;
 mod reopen;
 mod signals;
 
+use presence::Presence;
 use reopen::{Internal, Lost};
 use signals::Signals;
 
@@ -88,6 +90,13 @@ struct Gateway {
     samplers: HashMap<String, tokio::task::JoinHandle<()>>,
     /// States a second while something moves.
     sample_hz: u32,
+    /// The subscription and `online` on the current connection.
+    presence: Presence,
+    /// The number of the current connection to the broker (1 for the first), 0 while there is none: the
+    /// samplers publish no state while it is 0 (it would wait in the queue to the broker, and fill it).
+    link: Arc<AtomicU64>,
+    /// The connections made so far.
+    connections: u64,
     /// The gateway's start (states' `t_s`).
     started: Instant,
     /// The devices whose port failed, while it is opened again.
@@ -106,8 +115,8 @@ struct Gateway {
 const MOTION_IDS_KEPT: usize = 4096;
 
 /// Runs the gateway of `config` until a signal ends it (its exit code: 128 + its number: 130 SIGINT, 143
-/// SIGTERM, 129 SIGHUP, 131 SIGQUIT; 3 when a stop was not confirmed) or it cannot start (a usage error, exit
-/// 2; a device or the broker that cannot be reached, exit 3).
+/// SIGTERM, 129 SIGHUP, 131 SIGQUIT, 148 SIGTSTP on Linux; 3 when a stop was not confirmed) or it cannot
+/// start (a usage error, exit 2; a device or the broker that cannot be reached, exit 3).
 pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
     let topics = Topics::new(&config.name);
     // Every device's options, checked before anything is opened.
@@ -117,6 +126,7 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         specs.push((entry, spec));
     }
     let options = mqtt::options(&config, &topics)?;
+    let queue = mqtt::queue_length(|key| std::env::var(key).ok())?;
     let mut signals = Signals::new()?;
     // The lock of every real port before any is opened: one held by another process names it (exit 3).
     let mut ports = PortLocks::new();
@@ -140,7 +150,7 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         let moving = Arc::new(AtomicBool::new(false));
         devices.insert(entry.name.clone(), Served { device, motion: None, moving, generation });
     }
-    let (mqtt, events) = Mqtt::new(options, 1024);
+    let (mqtt, events) = Mqtt::new(options, queue);
     let (net_tx, mut net) = mpsc::unbounded_channel();
     let event_loop = tokio::spawn(mqtt::drive(events, net_tx));
     // The first connection: without it the gateway does not start.
@@ -167,13 +177,16 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         released: Vec::new(),
         samplers: HashMap::new(),
         sample_hz: config.sample_hz,
+        presence: Presence::default(),
+        link: Arc::new(AtomicU64::new(0)),
+        connections: 0,
         started: Instant::now(),
         lost: HashMap::new(),
         internal,
         generation,
         motion_ids: std::collections::VecDeque::new(),
     };
-    gw.online();
+    gw.connected();
     crate::notice::say!(
         "motionlink gateway {}: connected to {}, serving {} device(s) under {}",
         config.name,
@@ -195,10 +208,13 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
                 Some(Net::Connected) => {
                     crate::notice::say!("motionlink gateway: connected to {} again", config.broker);
                     connected = true;
-                    gw.online();
+                    gw.connected();
                 }
                 Some(Net::Message(p)) => gw.on_message(&p),
+                Some(Net::Subscribed(granted)) => gw.presence.suback(granted, &gw.mqtt, &gw.topics, Instant::now()),
                 Some(Net::Lost(e)) => {
+                    gw.link.store(0, Ordering::Relaxed);
+                    gw.presence.lost();
                     // No lease can be renewed: every motion stops (said once per loss, not per retry).
                     let stopped = gw.stop_all(StopReason::BrokerLost);
                     if connected || stopped > 0 {
@@ -218,7 +234,10 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
             Some(d) = done.recv() => gw.on_done(d),
             Some(i) = internal_rx.recv() => gw.on_internal(i),
             _ = tokio::time::sleep_until(deadline) => gw.on_leases(),
-            _ = retake.tick() => gw.retake_ports().await,
+            _ = retake.tick() => {
+                gw.presence.step(&gw.mqtt, &gw.topics, Instant::now());
+                gw.retake_ports().await;
+            }
             s = signals.next() => {
                 // SIGINT from `motionlink FAMILY --port PORT stop`: that device's motion stops, its port is
                 // let go of; the others are served on. Any other SIGINT (Ctrl-C) or SIGTERM ends the gateway.
@@ -232,6 +251,13 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         }
     };
     // The end: every motion stopped (and said on stderr), then `offline`, then the devices closed.
+    #[cfg(unix)]
+    if number == libc::SIGTSTP {
+        crate::notice::say!(
+            "motionlink gateway: SIGTSTP (Ctrl-Z) received: the gateway is not suspended (suspended, it would \
+             watch no lease and leave every motion it started running); it stops every motion and ends"
+        );
+    }
     if number != 0 {
         gw.stop_all(StopReason::Signal { number, name });
     }
@@ -266,15 +292,33 @@ pub async fn run(config: GatewayConfig) -> Result<u8, GatewayError> {
         }
     }
     // The samplers end before the sessions close (each holds its device); failed ports are not opened again.
-    for (_, lost) in gw.lost.drain() {
+    for (device, lost) in gw.lost.drain() {
+        if let Some(motion) = &lost.stop_due {
+            // Its stop was due once the port opened again: it never did.
+            let without = gw.entries.get(&device).map(|(_, s)| s.without_host()).unwrap_or_default();
+            crate::notice::say!(
+                "motionlink gateway: {device}: its port failed while its motion {motion} ran and is not open again, \
+                 so no stop reached the device ({without}): it may still be moving"
+            );
+            unconfirmed = true;
+        }
         lost.give_up();
     }
     for (_, s) in gw.samplers.drain() {
         s.abort();
         let _ = s.await;
     }
-    let _ = gw.mqtt.try_publish(gw.topics.status(), QoS::AtLeastOnce, true, OFFLINE);
-    let _ = gw.mqtt.try_disconnect();
+    // `offline` and the DISCONNECT wait for room in the queue (a clean DISCONNECT discards the last will, so
+    // `offline` must not be dropped before it); a connection that is gone leaves `offline` to the will.
+    let bye = async {
+        gw.mqtt.publish(gw.topics.status(), QoS::AtLeastOnce, true, OFFLINE).await?;
+        gw.mqtt.disconnect().await
+    };
+    match tokio::time::timeout(Duration::from_secs(2), bye).await {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => tracing::warn!("offline: {e}"),
+        Err(_) => tracing::warn!("offline: no room in the queue to the broker within 2 s"),
+    }
     let _ = tokio::time::timeout(Duration::from_secs(3), event_loop).await;
     for (name, s) in gw.devices.drain() {
         if let Err(e) = s.device.close().await {
@@ -309,10 +353,13 @@ async fn sample_states(
     sample_hz: u32,
     started: Instant,
     generation: u64,
+    link: Arc<AtomicU64>,
     failed: mpsc::UnboundedSender<Internal>,
     unavailable: impl Fn(&ErrorReport, f64) -> Option<String> + Send,
 ) {
     let mut silent = false;
+    // The connection on which the unavailable state went out (a broker that restarted lost it).
+    let mut unavailable_on = 0;
     let fast = Duration::from_secs(1) / sample_hz.max(1);
     let slow = Duration::from_secs(1).max(fast);
     let mut due = Instant::now();
@@ -322,7 +369,12 @@ async fn sample_states(
         match device.sample(t_s).await {
             Ok((state, in_motion)) => {
                 reported = in_motion;
-                let _ = mqtt.try_publish(topic.clone(), QoS::AtMostOnce, true, state.to_string());
+                // While the broker is gone, no state is queued: it would be stale when it goes, and would
+                // fill the queue that the subscription and `online` need once the broker is back.
+                if link.load(Ordering::Relaxed) != 0 {
+                    let _ = mqtt.try_publish(topic.clone(), QoS::AtMostOnce, true, state.to_string());
+                }
+                unavailable_on = 0;
                 if std::mem::take(&mut silent) {
                     let _ = failed.send(Internal::Silent { device: device.name.clone(), generation, error: None });
                 }
@@ -333,11 +385,17 @@ async fn sample_states(
             }
             Err(e) => {
                 tracing::warn!("{}: state: {}", device.name, e.message);
+                // Published once per connection (again after a reconnection: the broker may have lost it).
+                let connection = link.load(Ordering::Relaxed);
+                if connection != 0 && connection != unavailable_on {
+                    if let Some(body) = unavailable(&e, t_s) {
+                        if mqtt.try_publish(topic.clone(), QoS::AtLeastOnce, true, body).is_ok() {
+                            unavailable_on = connection;
+                        }
+                    }
+                }
                 if !silent {
                     silent = true;
-                    if let Some(body) = unavailable(&e, t_s) {
-                        let _ = mqtt.try_publish(topic.clone(), QoS::AtLeastOnce, true, body);
-                    }
                     let _ = failed.send(Internal::Silent { device: device.name.clone(), generation, error: Some(e) });
                 }
             }
@@ -361,10 +419,13 @@ async fn sample_states(
 }
 
 impl Gateway {
-    /// `online` (retained) and the subscription to every device's `cmd`.
-    fn online(&self) {
-        let _ = self.mqtt.try_subscribe(self.topics.all_cmd(), QoS::AtLeastOnce);
-        let _ = self.mqtt.try_publish(self.topics.status(), QoS::AtLeastOnce, true, ONLINE);
+    /// A connection to the broker (the first, or again): states are published again, the subscription is
+    /// asked for, and `online` follows once it is granted ([`Presence`]).
+    fn connected(&mut self) {
+        self.connections += 1;
+        self.link.store(self.connections, Ordering::Relaxed);
+        self.presence.connected();
+        self.presence.step(&self.mqtt, &self.topics, Instant::now());
     }
 
     fn publish_reply(&self, reply: &ReplyTo, id: Option<&RequestId>, outcome: &Outcome, device: &str) {
@@ -394,31 +455,72 @@ impl Gateway {
         let _ = self.mqtt.try_publish(self.topics.events(device), QoS::AtLeastOnce, false, body);
     }
 
-    /// One message on a `cmd` topic.
+    /// One message on a `cmd` topic: a request is run unless it came retained or names a reply topic in the
+    /// gateways' tree (both refused, and said).
     fn on_message(&mut self, p: &Publish) {
         let topic = String::from_utf8_lossy(&p.topic).to_string();
         let Some(device) = self.topics.device_of_cmd(&topic).map(str::to_string) else { return };
+        if p.retain && p.payload.is_empty() {
+            // A retained request cleared (an empty retained message): nothing to run nor answer.
+            return;
+        }
         let response_topic = p.properties.as_ref().and_then(|pp| pp.response_topic.clone());
         let properties = p.properties.as_ref().map(|pp| PublishProperties {
             correlation_data: pp.correlation_data.clone(),
             ..PublishProperties::default()
         });
         let request = request::parse(&p.payload);
-        let reply_of = |reply_to: Option<String>| match reply_to {
+        let (id, reply_to) = match &request {
+            Ok(r) => (Some(r.id.clone()), r.reply_to.clone()),
+            Err(bad) => (bad.id.clone(), bad.reply_to.clone()),
+        };
+        let which = if reply_to.is_some() { "reply_to" } else { "the response topic" };
+        let reply = match reply_to {
             Some(t) => ReplyTo { topic: Some(t), properties: None },
-            None => ReplyTo { topic: response_topic.clone(), properties: properties.clone() },
+            None => ReplyTo { topic: response_topic, properties },
         };
-        let request = match request {
-            Ok(r) => r,
-            Err(bad) => {
-                let reply = reply_of(bad.reply_to);
-                self.publish_reply(&reply, bad.id.as_ref(), &Err(bad.error), &device);
-                return;
+        // A reply topic in the gateways' tree: no reply is published there (it would pose as a status, a state,
+        // an event or a request); the request is refused, as an `error` event.
+        if let Some(t) = reply.topic.as_deref().filter(|t| topics::in_tree(t)) {
+            let error = ErrorReport::usage(format!(
+                "{which} {t:?} is in the gateways' topic tree ({}/...): a reply there would pose as a gateway's \
+                 status, a device's state, an event or a request, so the request is refused and not run; give a \
+                 reply topic outside it, such as motionlink-reply/<user>/<anything>",
+                topics::ROOT
+            ));
+            self.publish_reply(&ReplyTo::default(), id.as_ref(), &Err(error), &device);
+            return;
+        }
+        if p.retain {
+            let op = request.as_ref().ok().map(|r| r.op.as_str());
+            self.retained(&device, &topic, op, id.as_ref(), &reply);
+            return;
+        }
+        match request {
+            Err(bad) => self.publish_reply(&reply, bad.id.as_ref(), &Err(bad.error), &device),
+            Ok(request) => {
+                if let Err(e) = self.on_request(&device, &request, &reply) {
+                    self.publish_reply(&reply, Some(&request.id), &Err(e), &device);
+                }
             }
-        };
-        let reply = reply_of(request.reply_to.clone());
-        if let Err(e) = self.on_request(&device, &request, &reply) {
-            self.publish_reply(&reply, Some(&request.id), &Err(e), &device);
+        }
+    }
+
+    /// A request delivered as a retained message (published with the retain flag: the broker keeps it and
+    /// would send it again at every subscription, and a relative move would run again at every start of the
+    /// gateway): not run; said on stderr and as a `retained` event, and answered with a usage error where the
+    /// request names a reply topic.
+    fn retained(&self, device: &str, topic: &str, op: Option<&str>, id: Option<&RequestId>, reply: &ReplyTo) {
+        let message = format!(
+            "a request delivered as a retained message is not run: it was published with the retain flag, and a \
+             broker keeps such a message and sends it again at each subscription (a relative move would run \
+             again at each start of the gateway); publish requests without the retain flag, and clear this one \
+             by publishing an empty retained message to {topic}"
+        );
+        crate::notice::say!("motionlink gateway: {device}: {message}");
+        self.event(device, &Event { op, message: Some(&message), ..Event::new("retained", id) });
+        if reply.topic.is_some() {
+            self.publish_reply(reply, id, &Err(ErrorReport::usage(message)), device);
         }
     }
 

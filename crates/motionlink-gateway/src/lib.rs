@@ -28,8 +28,8 @@ pub use error::GatewayError;
 
 /// Runs the gateway the command line describes: reads and checks the file (the password from
 /// `password_file` or [`config::PASSWORD_ENV`]), opens every device, connects, and serves until SIGINT,
-/// SIGTERM, SIGHUP or SIGQUIT; then every motion is stopped and `offline` published. `Ok` holds the exit
-/// code (128 + the signal's number: 130, 143, 129, 131);
+/// SIGTERM, SIGHUP, SIGQUIT or SIGTSTP (Ctrl-Z: not suspended); then every motion is stopped and `offline`
+/// published. `Ok` holds the exit code (128 + the signal's number: 130, 143, 129, 131, 148 on Linux);
 /// an error is a usage error (exit 2) or a device or broker that cannot be reached (exit 3), found before
 /// anything was served.
 pub fn main(options: &Options) -> Result<u8, GatewayError> {

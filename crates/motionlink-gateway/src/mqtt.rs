@@ -4,7 +4,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use rumqttc::v5::mqttbytes::v5::{LastWill, Packet, Publish};
+use rumqttc::v5::mqttbytes::v5::{LastWill, Packet, Publish, SubAck, SubscribeReasonCode};
 use rumqttc::v5::mqttbytes::QoS;
 use rumqttc::v5::{Event, EventLoop, MqttOptions};
 use rumqttc::{Outgoing, TlsConfiguration, Transport};
@@ -22,6 +22,26 @@ pub const OFFLINE: &str = "offline";
 /// The largest MQTT packet the gateway takes (a request is a few hundred bytes).
 pub const MAX_PACKET_BYTES: u32 = 64 * 1024;
 
+/// How many requests to the broker (publishes, the subscription) may wait for the connection at once, unless
+/// [`QUEUE_ENV`] says otherwise.
+pub const QUEUE: usize = 1024;
+
+/// The environment variable that sets the queue's length instead of [`QUEUE`] (a whole number from 1 to
+/// 65535): the tests fill a short one.
+pub const QUEUE_ENV: &str = "MOTIONLINK_GATEWAY_MQTT_QUEUE";
+
+/// The queue's length: [`QUEUE_ENV`] read by `env`, else [`QUEUE`]; a value that is not a whole number from 1
+/// to 65535 is a usage error naming it.
+pub fn queue_length(env: impl Fn(&str) -> Option<String>) -> Result<usize, GatewayError> {
+    match env(QUEUE_ENV) {
+        None => Ok(QUEUE),
+        Some(text) => match text.trim().parse::<u16>() {
+            Ok(n) if n > 0 => Ok(usize::from(n)),
+            _ => Err(GatewayError::Usage(format!("{QUEUE_ENV}={text:?}: give a whole number from 1 to 65535"))),
+        },
+    }
+}
+
 /// The first wait before a reconnection; it doubles up to [`MAX_BACKOFF`].
 pub const FIRST_BACKOFF: Duration = Duration::from_millis(250);
 /// The longest wait between two reconnections.
@@ -38,6 +58,8 @@ pub enum Net {
     Connected,
     /// A message on a subscribed topic.
     Message(Box<Publish>),
+    /// The broker's answer to the subscription (SUBACK): `Err` names why it refused it.
+    Subscribed(Result<(), String>),
     /// The connection is lost (or could not be made); the loop tries again after a backoff.
     Lost(String),
     /// The gateway's own DISCONNECT went out: the loop has ended.
@@ -51,7 +73,6 @@ pub fn options(config: &GatewayConfig, topics: &Topics) -> Result<MqttOptions, G
     o.set_keep_alive(Duration::from_secs(5));
     o.set_clean_start(true);
     o.set_connection_timeout(5);
-    o.set_request_channel_capacity(1024);
     // The largest packet the gateway takes, told the broker in CONNECT (MQTT 5 Maximum Packet Size): a
     // larger message is the broker's to drop, and never reaches the connection, which would fail on it and
     // stop every motion the gateway serves.
@@ -102,6 +123,24 @@ fn tls(config: &GatewayConfig) -> Result<rustls::ClientConfig, GatewayError> {
         .with_no_client_auth())
 }
 
+/// Whether a SUBACK grants every filter: `Err` names the reason codes (and the broker's reason string).
+fn granted(ack: &SubAck) -> Result<(), String> {
+    let refused: Vec<String> = ack
+        .return_codes
+        .iter()
+        .filter(|c| !matches!(c, SubscribeReasonCode::Success(_)))
+        .map(|c| format!("{c:?}"))
+        .collect();
+    if refused.is_empty() {
+        return Ok(());
+    }
+    let mut why = refused.join(", ");
+    if let Some(reason) = ack.properties.as_ref().and_then(|p| p.reason_string.as_ref()) {
+        why.push_str(&format!(": {reason}"));
+    }
+    Err(why)
+}
+
 /// Runs the event loop until the gateway's DISCONNECT goes out, telling `to` what happens; after a loss
 /// it waits (from [`FIRST_BACKOFF`], doubling to [`MAX_BACKOFF`]) and connects again.
 pub async fn drive(mut events: EventLoop, to: mpsc::UnboundedSender<Net>) {
@@ -115,6 +154,9 @@ pub async fn drive(mut events: EventLoop, to: mpsc::UnboundedSender<Net>) {
             Ok(Event::Incoming(Packet::Publish(p))) => {
                 let _ = to.send(Net::Message(Box::new(p)));
             }
+            Ok(Event::Incoming(Packet::SubAck(ack))) => {
+                let _ = to.send(Net::Subscribed(granted(&ack)));
+            }
             Ok(Event::Outgoing(Outgoing::Disconnect)) => {
                 let _ = to.send(Net::Closed);
                 return;
@@ -127,6 +169,26 @@ pub async fn drive(mut events: EventLoop, to: mpsc::UnboundedSender<Net>) {
                 tokio::time::sleep(backoff).await;
                 backoff = (backoff * 2).min(MAX_BACKOFF);
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_queue_s_length_is_1024_or_the_variable_s_named_when_bad() {
+        assert_eq!(queue_length(|_| None).unwrap(), QUEUE);
+        assert_eq!(queue_length(|k| (k == QUEUE_ENV).then(|| "8".to_string())).unwrap(), 8);
+        for bad in ["0", "-1", "x", "70000", ""] {
+            let e = queue_length(|_| Some(bad.to_string())).unwrap_err();
+            assert_eq!(e.exit_code(), 2, "{bad}");
+            assert_eq!(
+                e.to_string(),
+                format!("MOTIONLINK_GATEWAY_MQTT_QUEUE={bad:?}: give a whole number from 1 to 65535"),
+                "{bad}"
+            );
         }
     }
 }

@@ -15,6 +15,13 @@ pub fn check_name(name: &str) -> Result<(), String> {
     Ok(())
 }
 
+/// True for a topic of the gateways' tree: `motionlink` and everything under `motionlink/` (every gateway's
+/// `status`, and its devices' `state`, `cmd` and `events`). The gateway publishes no reply there: a reply
+/// would pose as a gateway's status, a device's state, an event or a request.
+pub fn in_tree(topic: &str) -> bool {
+    topic.strip_prefix(ROOT).is_some_and(|rest| rest.is_empty() || rest.starts_with('/'))
+}
+
 /// The topics of one gateway.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Topics {
@@ -75,6 +82,18 @@ mod tests {
         assert_eq!(t.device_of_cmd("motionlink/wing-a/bed1/cmd"), Some("bed1"));
         for other in ["motionlink/wing-b/bed1/cmd", "motionlink/wing-a/bed1/state", "motionlink/wing-a/a/b/cmd", "x"] {
             assert_eq!(t.device_of_cmd(other), None, "{other}");
+        }
+    }
+
+    #[test]
+    fn the_gateways_tree_is_motionlink_and_below() {
+        for mine in
+            ["motionlink", "motionlink/", "motionlink/wing-a/status", "motionlink/wing-b/bed1/cmd", "motionlink//x"]
+        {
+            assert!(in_tree(mine), "{mine}");
+        }
+        for other in ["motionlink-reply/nurse/a", "motionlinks/a", "me/r", "x/motionlink/a", "Motionlink/a", ""] {
+            assert!(!in_tree(other), "{other}");
         }
     }
 

@@ -327,6 +327,137 @@ async fn a_motion_request_delivered_twice_runs_once() {
     assert_eq!(p["result"]["status"][0]["value"].as_f64(), Some(5.0), "{p}");
 }
 
+/// The axis's position (S1) as the drive reports it.
+async fn axis_position(c: &mut Client, gw: &str, id: &str) -> f64 {
+    request(c, gw, "axis", json!({"id": id, "op": "status", "args": {"values": "S1"}, "reply_to": "me/p"})).await;
+    let p = c.reply("me/p", id, 5 * S).await;
+    p["result"]["status"][0]["value"].as_f64().unwrap_or_else(|| panic!("{p}"))
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_retained_request_is_never_run_at_a_start_nor_when_it_is_published() {
+    let Some(b) = broker("a_retained_request_is_never_run_at_a_start_nor_when_it_is_published") else { return };
+    let qos = rumqttc::v5::mqttbytes::QoS::AtLeastOnce;
+    // A relative move published retained before the gateway starts: the broker keeps it.
+    let c0 = Client::connect(&b, "t-rt0", &[]).await;
+    let rel = |id: &str| {
+        json!({"id": id, "op": "move", "args": {"rel": 20, "speed": 100}, "reply_to": "me/r", "lease_ms": 5000})
+            .to_string()
+    };
+    c0.mqtt.publish("motionlink/rt/axis/cmd", qos, true, rel("rel-1")).await.unwrap();
+    let started = |m: &harness::Message| m.topic == "motionlink/rt/axis/events" && m.payload.contains("motion_started");
+    let replied = |m: &harness::Message| m.topic == "me/r";
+    for run in 0..2 {
+        // At each start (the second: after a restart, with two retained moves kept by now), nothing runs.
+        let gw = gateway(&b, "rt", ALL);
+        let mut c = online(&b, "rt", &format!("t-rt-{run}")).await;
+        tokio::time::sleep(Duration::from_millis(1500)).await;
+        assert_eq!(axis_position(&mut c, "rt", &format!("p{run}")).await, 0.0, "run {run}");
+        let seen = c.drain();
+        assert!(!seen.iter().any(|m| started(m) || replied(m)), "run {run}: {seen:?}");
+        if run == 0 {
+            // Published retained while the gateway runs: refused, said and answered, and not run either.
+            c.mqtt.publish("motionlink/rt/axis/cmd", qos, true, rel("rel-2")).await.unwrap();
+            let r = c.reply("me/r", "rel-2", 5 * S).await;
+            assert_eq!((r["ok"].as_bool(), r["error"]["kind"].as_str()), (Some(false), Some("usage")), "{r}");
+            let said = r["error"]["message"].as_str().unwrap();
+            assert!(said.contains("a request delivered as a retained message is not run"), "{r}");
+            assert!(said.contains("publishing an empty retained message to motionlink/rt/axis/cmd"), "{r}");
+            let e = c
+                .wait("the retained event", 5 * S, |m| {
+                    m.topic == "motionlink/rt/axis/events" && m.json()["event"] == "retained"
+                })
+                .await
+                .json();
+            assert_eq!((e["id"].as_str(), e["op"].as_str()), (Some("rel-2"), Some("move")), "{e}");
+            tokio::time::sleep(Duration::from_millis(500)).await;
+            assert_eq!(axis_position(&mut c, "rt", "p-after").await, 0.0);
+            assert!(!c.drain().iter().any(started));
+        }
+        let (code, stderr) = gw.signal(libc::SIGTERM);
+        assert_eq!(code, Some(143), "{stderr}");
+        if run == 0 {
+            assert!(stderr.contains("axis: a request delivered as a retained message is not run"), "{stderr}");
+        }
+    }
+    // Cleared (an empty retained message): nothing to say about it.
+    let gw = gateway(&b, "rt", ALL);
+    let mut c = online(&b, "rt", "t-rt-clear").await;
+    c.mqtt.publish("motionlink/rt/axis/cmd", qos, true, "").await.unwrap();
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let seen = c.drain();
+    assert!(!seen.iter().any(|m| m.topic == "motionlink/rt/axis/events"), "{seen:?}");
+    // A request published without the retain flag runs, as ever.
+    request(
+        &c,
+        "rt",
+        "axis",
+        json!({"id": "r3", "op": "move", "args": {"rel": 5, "speed": 100}, "reply_to": "me/r", "lease_ms": 5000}),
+    )
+    .await;
+    let r = c.reply("me/r", "r3", 20 * S).await;
+    assert_eq!((r["ok"].as_bool(), r["result"]["reached_units"].as_f64()), (Some(true), Some(5.0)), "{r}");
+    drop(gw);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_reply_topic_in_the_gateways_tree_is_refused_and_nothing_is_published_there() {
+    let Some(b) = broker("a_reply_topic_in_the_gateways_tree_is_refused_and_nothing_is_published_there") else {
+        return;
+    };
+    let _gw = gateway(&b, "r5", ALL);
+    let mut c = Client::connect(&b, "t-r5", &["motionlink/#", "me/#"]).await;
+    c.wait("online", 20 * S, |m| m.topic == "motionlink/r5/status" && m.payload == "online").await;
+    let event_of =
+        |id: &'static str| move |m: &harness::Message| m.topic == "motionlink/r5/lift/events" && m.json()["id"] == id;
+    let cases = [
+        ("x1", "motionlink/r5/status"),
+        ("x2", "motionlink/r5/lift/state"),
+        ("x3", "motionlink/r5/arm/cmd"),
+        ("x4", "motionlink/r5/lift/events"),
+        ("x5", "motionlink/wing-b/bed/state"),
+        ("x6", "motionlink"),
+    ];
+    for (id, reply_to) in cases {
+        request(&c, "r5", "lift", json!({"id": id, "op": "info", "reply_to": reply_to})).await;
+        let e = c.wait(&format!("the refusal of {id}"), 5 * S, event_of(id)).await.json();
+        assert_eq!((e["event"].as_str(), e["error"]["kind"].as_str()), (Some("error"), Some("usage")), "{e}");
+        let said = e["error"]["message"].as_str().unwrap();
+        assert!(said.starts_with(&format!("reply_to {reply_to:?} is in the gateways' topic tree")), "{e}");
+        assert!(said.contains("refused and not run") && said.contains("motionlink-reply/"), "{e}");
+    }
+    // A motion request with such a reply topic is not run.
+    let body = json!({"id": "m1", "op": "move", "args": {"rel": 5}, "reply_to": "motionlink/r5/axis/state"});
+    request(&c, "r5", "axis", body).await;
+    let e = c
+        .wait("the refused move", 5 * S, |m| m.topic == "motionlink/r5/axis/events" && m.json()["id"] == "m1")
+        .await
+        .json();
+    assert_eq!((e["event"].as_str(), e["error"]["kind"].as_str()), (Some("error"), Some("usage")), "{e}");
+    // So is an MQTT 5 response topic there.
+    let properties = rumqttc::v5::mqttbytes::v5::PublishProperties {
+        response_topic: Some("motionlink/r5/status".into()),
+        correlation_data: Some(b"c".to_vec().into()),
+        ..Default::default()
+    };
+    let body = json!({"id": "x7", "op": "info"}).to_string();
+    let qos = rumqttc::v5::mqttbytes::QoS::AtLeastOnce;
+    c.mqtt.publish_with_properties("motionlink/r5/lift/cmd", qos, false, body, properties).await.unwrap();
+    let e = c.wait("the refusal of x7", 5 * S, event_of("x7")).await.json();
+    let said = e["error"]["message"].as_str().unwrap();
+    assert!(said.starts_with("the response topic \"motionlink/r5/status\" is in the gateways' topic tree"), "{e}");
+    // A reply topic outside the tree is answered, as ever.
+    request(&c, "r5", "lift", json!({"id": "ok1", "op": "info", "reply_to": "me/r"})).await;
+    assert_eq!(c.reply("me/r", "ok1", 5 * S).await["ok"], true);
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    // Nothing the gateway published in its tree was a reply, nor moved the axis.
+    let seen = c.drain();
+    let replies: Vec<_> = seen.iter().filter(|m| m.topic != "me/r" && m.payload.contains("\"ok\":true")).collect();
+    assert!(replies.is_empty(), "{replies:?}");
+    assert!(!seen.iter().any(|m| m.payload.contains("motion_started")), "{seen:?}");
+    assert_eq!(axis_position(&mut c, "r5", "p").await, 0.0);
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_gateway_whose_stderr_is_gone_still_stops_closes_and_exits_143_on_sigterm() {
     let Some(b) = broker("a_gateway_whose_stderr_is_gone_still_stops_closes_and_exits_143_on_sigterm") else { return };
@@ -401,6 +532,40 @@ async fn sighup_mid_move_of_a_drive_without_watchdog_stops_it_and_exits_129() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sigtstp_mid_move_of_a_drive_without_watchdog_stops_it_and_ends_the_gateway_not_suspends_it() {
+    // Ctrl-Z must not suspend the gateway with a COMPAX move running: suspended, it would watch no lease, and
+    // the drive, which has no watchdog, would run to its target. It ends as on the other signals.
+    let Some(b) = broker("sigtstp_mid_move_of_a_drive_without_watchdog_stops_it_and_ends_the_gateway_not_suspends_it")
+    else {
+        return;
+    };
+    let gw = gateway(&b, "z1", ALL);
+    let mut c = online(&b, "z1", "t-z1").await;
+    let body =
+        json!({"id": "m1", "op": "move", "args": {"abs": 500, "speed": 10}, "reply_to": "me/r", "lease_ms": 2000});
+    request(&c, "z1", "axis", body).await;
+    let keep = keep_alive(&c, "z1", "axis", "m1");
+    c.wait("started", 5 * S, |m| m.topic == "motionlink/z1/axis/events" && m.payload.contains("motion_started")).await;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let (code, stderr) = gw.signal(libc::SIGTSTP);
+    keep.abort();
+    // 128 + SIGTSTP's number: 148 on Linux.
+    assert_eq!(code, Some(128 + libc::SIGTSTP), "{stderr}");
+    assert!(stderr.contains("SIGTSTP (Ctrl-Z) received: the gateway is not suspended"), "{stderr}");
+    assert!(stderr.contains("SIGTSTP") && stderr.contains("axis motion m1"), "{stderr}");
+    let r = c.reply("me/r", "m1", 5 * S).await;
+    assert_eq!(
+        (r["error"]["kind"].as_str(), r["error"]["exit_code"].as_i64()),
+        (Some("cancelled"), Some(128 + i64::from(libc::SIGTSTP))),
+        "{r}"
+    );
+    let said = r["error"]["message"].as_str().unwrap();
+    assert!(said.starts_with("SIGTSTP received: the gateway stops the motion; the device's stop then: "), "{r}");
+    assert!(said.contains("\"confirmed\":true"), "{r}");
+    c.wait("offline", 5 * S, |m| m.topic == "motionlink/z1/status" && m.payload == "offline").await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_broker_lost_mid_move_stops_it_and_the_gateway_comes_back_online() {
     let Some(mut b) = broker("the_broker_lost_mid_move_stops_it_and_the_gateway_comes_back_online") else { return };
     let _gw = gateway(&b, "x1", ALL);
@@ -427,6 +592,40 @@ async fn the_broker_lost_mid_move_stops_it_and_the_gateway_comes_back_online() {
     c.drain();
     let later = c.wait("still", 3 * S, rest).await.json()["actuators"][0]["position_counts"].as_i64().unwrap();
     assert!(first > 0 && first < 800 && first == later, "{first} then {later}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn after_a_broker_outage_longer_than_its_queue_the_gateway_is_online_answers_and_sent_no_stale_state() {
+    let name = "after_a_broker_outage_longer_than_its_queue_the_gateway_is_online_answers_and_sent_no_stale_state";
+    let Some(mut b) = broker(name) else { return };
+    // A queue of 8 requests to the broker: while the broker is gone, the three devices' states (one a second
+    // each) would fill it within 3 s, before the gateway's subscription and `online` of the reconnection.
+    let text = format!("[gateway]\nname = \"o1\"\nbroker = \"{}\"\n\n{ALL}", b.url());
+    let gw = harness::gateway_of("o1", &text, &[("MOTIONLINK_GATEWAY_MQTT_QUEUE", "8")]);
+    let mut c = online(&b, "o1", "t-o1").await;
+    let state = |m: &harness::Message| m.topic.starts_with("motionlink/o1/") && m.topic.ends_with("/state");
+    tokio::time::sleep(Duration::from_millis(1200)).await;
+    let t_s = |m: &harness::Message| m.json()["t_s"].as_f64().unwrap();
+    let before = c.drain().iter().filter(|m| state(m)).map(t_s).fold(0.0, f64::max);
+    assert!(before > 0.5, "a state of the gateway's second second: {before}");
+    // Gone for 5 s; the gateway's next try (its backoff: 0.25 s doubling) comes at about 7.75 s.
+    b.kill();
+    tokio::time::sleep(5 * S).await;
+    b.restart();
+    // On the restarted broker (it kept nothing) before the gateway is back: `online` again, a request answered.
+    let mut c = online(&b, "o1", "t-o1-again").await;
+    request(&c, "o1", "lift", json!({"id": "e1", "op": "errors", "reply_to": "me/r"})).await;
+    assert_eq!(c.reply("me/r", "e1", 10 * S).await["ok"], true);
+    request(&c, "o1", "axis", json!({"id": "s1", "op": "status", "reply_to": "me/r"})).await;
+    assert_eq!(c.reply("me/r", "s1", 10 * S).await["ok"], true);
+    // No state sampled while the broker was gone was queued and sent late: every state is of after the
+    // reconnection (t_s more than 5 s after the last state before the outage).
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    let stale: Vec<f64> = c.drain().iter().filter(|m| state(m)).map(t_s).filter(|t| *t < before + 5.0).collect();
+    assert!(stale.is_empty(), "states of {stale:?} s (the last before the outage: {before} s)");
+    let (code, stderr) = gw.signal(libc::SIGTERM);
+    assert_eq!(code, Some(143), "{stderr}");
+    assert!(stderr.contains("subscribed to motionlink/o1/+/cmd again; `online` published"), "{stderr}");
 }
 
 /// No broker needed: the security rule is checked before any connection.
@@ -634,12 +833,21 @@ async fn the_documented_acl_lets_a_dashboard_read_states_but_not_command() {
     dash.send("motionlink/wing-a/lift/cmd", move_.to_string()).await;
     // The operator station's command does, and its reply comes back on its own reply topic.
     let nurse = Some(("nurse-station", "nurse-pass"));
-    let mut n = Client::connect_as(&b, "nurse", nurse, &["motionlink-reply/nurse-station/#"]).await;
+    let mut n =
+        Client::connect_as(&b, "nurse", nurse, &["motionlink-reply/nurse-station/#", "motionlink/wing-a/#"]).await;
     let move_ = json!({"id": "n1", "op": "move", "args": {"actuator": 2, "position": 30},
                        "reply_to": "motionlink-reply/nurse-station/r", "lease_ms": 3000});
     n.send("motionlink/wing-a/lift/cmd", move_.to_string()).await;
     let r = n.reply("motionlink-reply/nurse-station/r", "n1", 10 * S).await;
     assert_eq!((r["ok"].as_bool(), r["result"]["reached_counts"].as_i64()), (Some(true), Some(30)), "{r}");
+    // The operator station reads states and events, but no request (its own stands for another's, which names
+    // that client's reply topic and ids), and it cannot write a reply topic itself, not even its own.
+    n.send("motionlink-reply/nurse-station/forged", json!({"id": "n1", "ok": true}).to_string()).await;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let heard = n.drain();
+    assert!(heard.iter().any(|m| m.topic == "motionlink/wing-a/lift/state"), "{heard:?}");
+    assert!(heard.iter().any(|m| m.topic == "motionlink/wing-a/lift/events"), "{heard:?}");
+    assert!(!heard.iter().any(|m| m.topic.ends_with("/cmd") || m.topic.ends_with("/forged")), "{heard:?}");
     tokio::time::sleep(S).await;
     let seen = dash.drain();
     let started: Vec<&str> =

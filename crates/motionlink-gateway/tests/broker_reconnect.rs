@@ -3,13 +3,17 @@
 //! mid-move and started again on the same port. The gateway ends the device's motion and says that no
 //! stop can reach the drive, publishes its state unavailable (retained), answers its requests
 //! `unavailable` while it serves its other device on, and opens the port again with backoff: the drive is
-//! served again and its state published. Without mosquitto each test says it is skipped, by name
-//! (MOTIONLINK_REQUIRE_BROKER=1 makes that a failure).
+//! served again and its state published. A line cut for a moment (a TCP proxy between the gateway and a
+//! COMPAX emulator that runs on) during a move: once the port is open again, the gateway stops the drive
+//! before it serves it. Without mosquitto each test says it is skipped, by name (MOTIONLINK_REQUIRE_BROKER=1
+//! makes that a failure).
 
 #![cfg(unix)]
 
 use std::io::BufRead;
+use std::net::{Shutdown, TcpListener, TcpStream};
 use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -142,4 +146,117 @@ async fn a_failed_port_is_opened_again_and_the_other_devices_are_served_on() {
     c.send("motionlink/rc/axis/cmd", json!({"id": "s2", "op": "status", "reply_to": "me/r"}).to_string()).await;
     let r = c.reply("me/r", "s2", 5 * S).await;
     assert_eq!(r["ok"], true, "{r}");
+}
+
+/// A line that can be cut: a TCP proxy from its own port to `upstream` (a device's server, which runs on).
+/// Cut, its connections end at once and new ones are closed as soon as they come, as a serial server whose
+/// line is gone; put back, it carries new connections again.
+struct Line {
+    address: String,
+    cut: Arc<AtomicBool>,
+    live: Arc<Mutex<Vec<TcpStream>>>,
+}
+
+impl Line {
+    fn to(upstream: &str) -> Line {
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let address = listener.local_addr().unwrap().to_string();
+        let (cut, live) = (Arc::new(AtomicBool::new(false)), Arc::new(Mutex::new(Vec::<TcpStream>::new())));
+        let (c, l, upstream) = (Arc::clone(&cut), Arc::clone(&live), upstream.to_string());
+        std::thread::spawn(move || {
+            for client in listener.incoming() {
+                let Ok(client) = client else { continue };
+                if c.load(Ordering::SeqCst) {
+                    let _ = client.shutdown(Shutdown::Both);
+                    continue;
+                }
+                let Ok(server) = TcpStream::connect(&upstream) else { continue };
+                let _ = (client.set_nodelay(true), server.set_nodelay(true));
+                let mut live = l.lock().unwrap();
+                for (from, to) in [(&client, &server), (&server, &client)] {
+                    let (mut from, mut to) = (from.try_clone().unwrap(), to.try_clone().unwrap());
+                    std::thread::spawn(move || {
+                        let _ = std::io::copy(&mut from, &mut to);
+                        let _ = (from.shutdown(Shutdown::Both), to.shutdown(Shutdown::Both));
+                    });
+                }
+                live.extend([client, server]);
+            }
+        });
+        Line { address, cut, live }
+    }
+
+    fn cut(&self) {
+        self.cut.store(true, Ordering::SeqCst);
+        for s in self.live.lock().unwrap().drain(..) {
+            let _ = s.shutdown(Shutdown::Both);
+        }
+    }
+
+    fn put_back(&self) {
+        self.cut.store(false, Ordering::SeqCst);
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_drive_whose_line_blipped_mid_move_is_stopped_before_it_is_served_again() {
+    let Some(b) = broker("a_drive_whose_line_blipped_mid_move_is_stopped_before_it_is_served_again") else { return };
+    let bus = motionlink_compax::Emulator::new(motionlink_compax::DriveOptions::default().emulated()).unwrap();
+    let bus = Arc::new(Mutex::new(bus));
+    let server =
+        motionlink_link::emulator::serve_tcp("127.0.0.1:0", Arc::clone(&bus), motionlink_link::RealClock::shared())
+            .unwrap();
+    let line = Line::to(server.address().trim_start_matches("tcp://"));
+    let port = format!("tcp://{}", line.address);
+    let _gw = gateway(&b, "bl", &format!("[device.axis]\nfamily = \"compax\"\nport = \"{port}\"\n"));
+    let mut c = Client::connect(&b, "t-bl", &["motionlink/bl/#", "me/#"]).await;
+    c.wait("online", 20 * S, |m| m.topic == "motionlink/bl/status" && m.payload == "online").await;
+    let events = |m: &harness::Message| m.topic == "motionlink/bl/axis/events";
+
+    // A move under a lease (10 s at speed 10); the line is cut for 300 ms while the drive moves.
+    let body =
+        json!({"id": "m1", "op": "move", "args": {"abs": 1000, "speed": 10}, "reply_to": "me/m", "lease_ms": 10000});
+    c.send("motionlink/bl/axis/cmd", body.to_string()).await;
+    c.wait("moving", 10 * S, |m| m.topic == "motionlink/bl/axis/state" && m.json()["moving"] == true).await;
+    line.cut();
+    let m = c.reply("me/m", "m1", 10 * S).await;
+    assert_eq!(m["error"]["kind"], "disconnected", "{m}");
+    let failed = c.wait("port_failed", 5 * S, |m| events(m) && m.json()["event"] == "port_failed").await.json();
+    assert!(
+        failed["message"].as_str().unwrap().ends_with("and stops the device over it before it serves it again"),
+        "{failed}"
+    );
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    assert!(bus.lock().unwrap().drive(1).unwrap().is_moving(), "the drive runs on without its host");
+    line.put_back();
+
+    // Open again: the drive is stopped over the new session before it is served, and the event says so.
+    let ev = c.wait("port_reopened", 20 * S, |m| events(m) && m.json()["event"] == "port_reopened").await.json();
+    // At rest short of its target, and it stays there.
+    let drive = |bus: &Mutex<motionlink_compax::Emulator>| {
+        let bus = bus.lock().unwrap();
+        let d = bus.drive(1).unwrap();
+        (d.is_moving(), d.position())
+    };
+    let (moving, at) = drive(&bus);
+    assert!(!moving && at > 0.0 && at < 1000.0, "{moving} at {at}");
+    let said = ev["message"].as_str().unwrap();
+    let first = "its motion move \"m1\" ran when the port failed, so the gateway stopped the device first: the \
+                 device's stop: ";
+    assert!(said.contains(first), "{ev}");
+    assert!(said.contains("\"confirmed\":true"), "{ev}");
+    assert_eq!(ev["ok"], true, "{ev}");
+    c.send("motionlink/bl/axis/cmd", json!({"id": "p1", "op": "status", "reply_to": "me/r"}).to_string()).await;
+    let p1 = c.reply("me/r", "p1", 5 * S).await["result"]["status"][0]["value"].as_f64().unwrap();
+    tokio::time::sleep(S).await;
+    c.send("motionlink/bl/axis/cmd", json!({"id": "p2", "op": "status", "reply_to": "me/r"}).to_string()).await;
+    let p2 = c.reply("me/r", "p2", 5 * S).await["result"]["status"][0]["value"].as_f64().unwrap();
+    assert!(p1 == p2 && p1 < 1000.0, "{p1} then {p2}");
+    c.drain();
+    let st = c
+        .wait("a state at rest", 5 * S, |m| m.topic == "motionlink/bl/axis/state" && m.json()["moving"] == false)
+        .await
+        .json();
+    assert_eq!(st["position_units"].as_f64(), Some(p2), "{st}");
+    drop(server);
 }

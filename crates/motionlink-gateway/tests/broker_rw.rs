@@ -248,6 +248,27 @@ fn a_device_table_key_no_command_takes_is_refused_naming_it() {
     assert!(err.contains("[device.axis]: unknown key `max_poss`") && err.contains("max_pos"), "{err}");
 }
 
+#[test]
+fn two_device_tables_on_one_port_are_refused_at_start_naming_both_and_the_port() {
+    // Two drives of one COMPAX bus, one table each: not "another process" holding the port (the gateway's
+    // own lock), but a usage error before anything is opened, naming both tables and the port.
+    let Some(b) = broker("two_device_tables_on_one_port_are_refused_at_start_naming_both_and_the_port") else {
+        return;
+    };
+    let port = format!("tcp://127.0.0.1:{}", b.port);
+    let devices = format!(
+        "[device.d]\nfamily = \"compax\"\nport = \"{port}\"\n\n\
+         [device.e]\nfamily = \"compax\"\nport = \"{port}\"\ndrive = 2\n"
+    );
+    let gw = gateway(&b, "dp", &devices);
+    let pid = gw.pid();
+    let (code, err) = gw.signal(0);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(&format!("[device.d] and [device.e] both name the port \"{port}\"")), "{err}");
+    assert!(err.contains("a gateway serves one device per port"), "{err}");
+    assert!(!err.contains(&format!("pid {pid}")) && !err.contains("stop"), "{err}");
+}
+
 /// The objects of a list result, each without its `port` (checked to be `sim`).
 fn listed(r: &Value) -> Vec<Value> {
     assert_eq!(r["ok"], true, "{r}");

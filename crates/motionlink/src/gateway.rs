@@ -7,7 +7,8 @@ use crate::common::CliError;
 
 pub use motionlink_gateway::cli::Args;
 
-/// Serves until SIGINT, SIGTERM, SIGHUP or SIGQUIT (every motion stopped first; exit 128 + the signal's number).
+/// Serves until SIGINT, SIGTERM, SIGHUP, SIGQUIT or SIGTSTP (every motion stopped first; exit 128 + the signal's
+/// number).
 pub fn run(args: Args) -> Result<(), CliError> {
     // With `--json`, the gateway's notices are JSON lines too, as every command's logs.
     motionlink_gateway::notice::set_json(crate::term::output().json);

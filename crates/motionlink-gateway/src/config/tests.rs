@@ -175,3 +175,33 @@ fn the_documented_gateway_file_is_read_by_the_gateway() {
         crate::device::Spec::of(d).unwrap_or_else(|e| panic!("{}: {e}", d.name));
     }
 }
+
+#[test]
+fn two_tables_on_one_port_are_refused_naming_both_and_the_port() {
+    let two = |a: &str, b: &str| {
+        format!(
+            "[gateway]\nname = \"g\"\nbroker = \"mqtt://127.0.0.1\"\n\n\
+             [device.d]\nfamily = \"compax\"\nport = \"{a}\"\n\n\
+             [device.e]\nfamily = \"compax\"\nport = \"{b}\"\ndrive = 2\n"
+        )
+    };
+    let m = message(parsed(&two("tcp://127.0.0.1:4001", "tcp://127.0.0.1:4001"), &Options::default(), None));
+    assert!(
+        m.starts_with(
+            "gw.toml: [device.d] and [device.e] both name the port \"tcp://127.0.0.1:4001\": a gateway serves one \
+             device per port"
+        ),
+        "{m}"
+    );
+    assert!(m.ends_with("remove one of the tables, or give each device a port (a line) of its own"), "{m}");
+    // The same port spelt otherwise is the same port.
+    let m = message(parsed(&two("tcp://LOCALHOST:4001", "tcp://localhost:4001"), &Options::default(), None));
+    assert!(m.contains("both name the port \"tcp://localhost:4001\" (as \"tcp://LOCALHOST:4001\")"), "{m}");
+    let m = message(parsed(&two("/dev/ttyUSB7", "serial:///dev/ttyUSB7"), &Options::default(), None));
+    assert!(m.contains("[device.d] and [device.e] both name the port"), "{m}");
+    let m = message(parsed(&two("socketcan://can0", "socketcan://can0"), &Options::default(), None));
+    assert!(m.contains("both name the port \"socketcan://can0\""), "{m}");
+    // Emulators are each table's own; other ports are other ports.
+    parsed(&two("sim", "sim"), &Options::default(), None).unwrap();
+    parsed(&two("tcp://127.0.0.1:4001", "tcp://127.0.0.1:4002"), &Options::default(), None).unwrap();
+}

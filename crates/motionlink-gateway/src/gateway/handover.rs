@@ -31,6 +31,7 @@ impl Gateway {
             self.sample_hz,
             self.started,
             served.generation,
+            Arc::clone(&self.link),
             self.internal.clone(),
             unavailable,
         ));

@@ -2,8 +2,10 @@
 //! motion is cancelled (nothing can be sent over the port: what stops the device then is what it does
 //! without its host, said in the `port_failed` event), its state becomes `"available": false` (retained),
 //! requests to it are answered `unavailable`, and the port is opened again with backoff (0.5 s doubling to
-//! 10 s); once open, the device is served again (`port_reopened`) and its state published. The gateway's
-//! other devices are served on meanwhile.
+//! 10 s); once open, the device is served again (`port_reopened`) and its state published. A port that failed
+//! while a motion of the gateway's ran on the device (it may run on: a COMPAX drive has no watchdog) is
+//! stopped over the new session, by the family's confirmed `stop`, before the device is served again, and
+//! `port_reopened` says what that stop found. The gateway's other devices are served on meanwhile.
 
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -52,6 +54,8 @@ pub(super) enum Internal {
         device: String,
         /// Its new session.
         opened: Arc<Device>,
+        /// The device's stop over it, where one was due (its report in one line, or its error).
+        stop: Option<Result<String, ErrorReport>>,
     },
 }
 
@@ -63,6 +67,9 @@ pub(super) struct Lost {
     error: ErrorReport,
     /// When.
     since: Instant,
+    /// The motion of the gateway's that ran when the port failed (`move "m1"`), which may run on: the device
+    /// is stopped once its port is open again, before it is served.
+    pub(super) stop_due: Option<String>,
     /// The task that opens the port again.
     reopen: JoinHandle<()>,
 }
@@ -93,18 +100,24 @@ impl Gateway {
     pub(super) fn unavailable(&self, device: &str) -> Option<ErrorReport> {
         let lost = self.lost.get(device)?;
         let port = self.entries.get(device).map(|(e, _)| e.port.as_str()).unwrap_or("its port");
-        Some(ErrorReport::unavailable(format!(
+        let mut message = format!(
             "{device}: its port {port} failed {:.1} s ago ({}); the gateway is opening it again",
             lost.since.elapsed().as_secs_f64(),
             lost.error.message
-        )))
+        );
+        if let Some(motion) = &lost.stop_due {
+            message.push_str(&format!(
+                ", and then stops the device before it serves it (its motion {motion} ran when the port failed)"
+            ));
+        }
+        Some(ErrorReport::unavailable(message))
     }
 
     /// What the gateway's tasks said.
     pub(super) fn on_internal(&mut self, i: Internal) {
         match i {
             Internal::SampleFailed { device, generation, error } => self.port_failed(&device, generation, error, None),
-            Internal::Reopened { device, opened } => self.reopened(&device, opened),
+            Internal::Reopened { device, opened, stop } => self.reopened(&device, opened, stop),
             Internal::Silent { device, generation, error } => self.silent(&device, generation, error),
         }
     }
@@ -163,6 +176,13 @@ impl Gateway {
             "{device}: its port {} failed ({}): the gateway's session with it is gone",
             entry.port, error.message
         );
+        // A motion that ran (or has just ended with the failure) may run on: the device is stopped once the
+        // port is open again.
+        let stop_due = match (&served.motion, &ended) {
+            (Some(m), _) => Some(format!("{} {:?}", m.op, m.id)),
+            (None, Some((op, id))) => Some(format!("{op} {id:?}")),
+            (None, None) => None,
+        };
         if let Some(m) = served.motion.as_mut() {
             // No lease can help a motion that cannot be stopped over its port: its lease ends here.
             self.leases.end(&lease_key(device, &m.id));
@@ -187,6 +207,9 @@ impl Gateway {
             FIRST_REOPEN_WAIT.as_secs_f64(),
             MAX_REOPEN_WAIT.as_secs()
         ));
+        if stop_due.is_some() {
+            message.push_str(", and stops the device over it before it serves it again");
+        }
         crate::notice::say!("motionlink gateway: {message}");
         self.event(device, &Event { message: Some(&message), error: Some(&error), ..Event::new("port_failed", None) });
         let state = Unavailable { available: false, error: &error, t_s: self.started.elapsed().as_secs_f64() };
@@ -201,14 +224,15 @@ impl Gateway {
         tokio::spawn(async move {
             let _ = Device::close(old).await;
         });
-        let reopen = tokio::spawn(reopen(entry, spec, self.internal.clone()));
-        let lost = Lost { motion: served.motion.take(), error, since: Instant::now(), reopen };
+        let reopen = tokio::spawn(reopen(entry, spec, stop_due.is_some(), self.internal.clone()));
+        let lost = Lost { motion: served.motion.take(), error, since: Instant::now(), stop_due, reopen };
         self.lost.insert(device.to_string(), lost);
     }
 
-    /// A failed device's port is open again: it is served (its motion slot as it was: a cancelled motion
-    /// may still be ending), its state published again by its sampler, `port_reopened` said.
-    fn reopened(&mut self, device: &str, opened: Arc<Device>) {
+    /// A failed device's port is open again (and the device stopped over it, where a motion of the gateway's
+    /// ran when the port failed: `stop`): it is served (its motion slot as it was: a cancelled motion may still
+    /// be ending), its state published again by its sampler, `port_reopened` said with what the stop found.
+    fn reopened(&mut self, device: &str, opened: Arc<Device>, stop: Option<Result<String, ErrorReport>>) {
         let Some(lost) = self.lost.remove(device) else {
             // No longer waited for (its port handed to a stop): the new session goes.
             tokio::spawn(async move {
@@ -221,12 +245,31 @@ impl Gateway {
         self.devices.insert(device.to_string(), Served { device: opened, motion: lost.motion, moving, generation });
         self.start_sampler(device);
         let port = self.entries.get(device).map(|(e, _)| e.port.clone()).unwrap_or_default();
-        let message = format!(
+        let mut message = format!(
             "{device} on {port} is served again ({:.1} s after its port failed)",
             lost.since.elapsed().as_secs_f64()
         );
+        let motion = lost.stop_due.as_deref().unwrap_or("");
+        let (ok, error) = match &stop {
+            None => (None, None),
+            Some(Ok(summary)) => {
+                message.push_str(&format!(
+                    "; its motion {motion} ran when the port failed, so the gateway stopped the device first: the \
+                     device's stop: {summary}"
+                ));
+                (Some(true), None)
+            }
+            Some(Err(e)) => {
+                message.push_str(&format!(
+                    "; its motion {motion} ran when the port failed, so the gateway stopped the device first, but \
+                     the device's stop failed ({}): the axis may still be moving",
+                    e.message
+                ));
+                (Some(false), Some(e))
+            }
+        };
         crate::notice::say!("motionlink gateway: {message}");
-        self.event(device, &Event { message: Some(&message), ..Event::new("port_reopened", None) });
+        self.event(device, &Event { message: Some(&message), ok, error, ..Event::new("port_reopened", None) });
     }
 
     /// A new session's number.
@@ -237,14 +280,28 @@ impl Gateway {
 }
 
 /// Opens the port of `entry` again until it opens: after [`FIRST_REOPEN_WAIT`], doubling up to
-/// [`MAX_REOPEN_WAIT`]; the new session goes to the loop.
-async fn reopen(entry: DeviceEntry, spec: Spec, tx: mpsc::UnboundedSender<Internal>) {
+/// [`MAX_REOPEN_WAIT`]; with `stop`, the device's `stop` then runs over the new session (a port that fails
+/// again meanwhile is opened again, and the stop with it); the new session goes to the loop, with what the stop
+/// found.
+async fn reopen(entry: DeviceEntry, spec: Spec, stop: bool, tx: mpsc::UnboundedSender<Internal>) {
     let mut wait = FIRST_REOPEN_WAIT;
     loop {
         tokio::time::sleep(wait).await;
         match Device::open(&entry, &spec).await {
             Ok(opened) => {
-                let _ = tx.send(Internal::Reopened { device: entry.name.clone(), opened });
+                let stopped = match stop {
+                    false => None,
+                    true => match opened.stop().await {
+                        Err(e) if e.port_failed() => {
+                            tracing::info!("{}: stopping it over {} again: {}", entry.name, entry.port, e.message);
+                            let _ = Device::close(opened).await;
+                            wait = (wait * 2).min(MAX_REOPEN_WAIT);
+                            continue;
+                        }
+                        outcome => Some(outcome.map(|report| super::summary(&report))),
+                    },
+                };
+                let _ = tx.send(Internal::Reopened { device: entry.name.clone(), opened, stop: stopped });
                 return;
             }
             Err(e) => {

@@ -2,9 +2,10 @@
 
 use crate::error::GatewayError;
 
-/// SIGINT, SIGTERM, SIGHUP (a closed terminal or session) and SIGQUIT: each ends the gateway after it
-/// stopped every motion (none of them may kill it with a motion left running; a COMPAX drive has no
-/// watchdog that would stop it).
+/// SIGINT, SIGTERM, SIGHUP (a closed terminal or session), SIGQUIT and SIGTSTP (Ctrl-Z): each ends the
+/// gateway after it stopped every motion (none of them may kill it with a motion left running; a COMPAX drive
+/// has no watchdog that would stop it). SIGTSTP ends it rather than suspend it, as it ends every motionlink
+/// command: a suspended gateway watches no lease, and the motions it started would run on unwatched.
 pub(super) struct Signals {
     #[cfg(unix)]
     int: tokio::signal::unix::Signal,
@@ -14,6 +15,8 @@ pub(super) struct Signals {
     hup: tokio::signal::unix::Signal,
     #[cfg(unix)]
     quit: tokio::signal::unix::Signal,
+    #[cfg(unix)]
+    tstp: tokio::signal::unix::Signal,
 }
 
 impl Signals {
@@ -27,6 +30,7 @@ impl Signals {
                 term: signal(SignalKind::terminate()).map_err(fail)?,
                 hup: signal(SignalKind::hangup()).map_err(fail)?,
                 quit: signal(SignalKind::quit()).map_err(fail)?,
+                tstp: signal(SignalKind::from_raw(libc::SIGTSTP)).map_err(fail)?,
             })
         }
         #[cfg(not(unix))]
@@ -42,6 +46,7 @@ impl Signals {
                 _ = self.term.recv() => (15, "SIGTERM"),
                 _ = self.hup.recv() => (1, "SIGHUP"),
                 _ = self.quit.recv() => (3, "SIGQUIT"),
+                _ = self.tstp.recv() => (libc::SIGTSTP, "SIGTSTP"),
             }
         }
         #[cfg(not(unix))]

@@ -222,8 +222,12 @@ impl Gateway {
 impl Drop for Gateway {
     fn drop(&mut self) {
         if self.child.try_wait().ok().flatten().is_none() {
-            // SAFETY: kill(2) on the child's pid.
-            unsafe { libc::kill(self.child.id() as i32, libc::SIGTERM) };
+            // SAFETY: kill(2) on the child's pid. SIGCONT first: a gateway stopped (as by SIGTSTP) takes no
+            // SIGTERM until it runs again.
+            unsafe {
+                libc::kill(self.child.id() as i32, libc::SIGCONT);
+                libc::kill(self.child.id() as i32, libc::SIGTERM);
+            }
             let _ = self.finish();
         }
         let _ = std::fs::remove_dir_all(&self.dir);
