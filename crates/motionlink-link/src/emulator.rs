@@ -42,8 +42,9 @@ pub trait Emulator: Send {
         Vec::new()
     }
 
-    /// The host held the line at "space" (a break) from `now` for `duration` ([`Link::send_break`]
-    /// (crate::link::Link::send_break)). A device that gives a break no meaning ignores it (the default).
+    /// The host held the line at "space" (a break) from `now` for `duration`
+    /// ([`Link::send_break`](crate::link::Link::send_break)). A device that gives a break no meaning ignores
+    /// it (the default).
     fn line_break(&mut self, now: Timestamp, duration: std::time::Duration) {
         let _ = (now, duration);
     }

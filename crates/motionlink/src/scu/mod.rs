@@ -113,7 +113,7 @@ pub struct UnitArgs {
     #[arg(long, value_name = "NAME", global = true, value_parser = SimConfig::PRESETS)]
     pub sim_preset: Option<String>,
     /// Before opening the port, hold the unit's RxD at "space" for 150 ms (a break): a battery unit with
-    /// <Low Power> enabled in low-power mode answers nothing until woken so (the manual: at least 100 ms,
+    /// "Low Power" enabled in low-power mode answers nothing until woken so (the manual: at least 100 ms,
     /// from FW V2B1). Only on a serial port (or --port sim).
     #[arg(long, global = true)]
     pub wake: bool,
