@@ -16,11 +16,23 @@ use motionlink_link::table;
 use crate::common::{classified, CliError};
 
 /// Options no device entry gives: the one that names the entry; the console's serving address and its
-/// opt-in to serve beyond this machine; a move's target (`--abs`, `--rel`: a device has no standing target)
-/// and the hand-over of a move nothing watches (`--no-wait`): each must be said on the command line; and
-/// clap's own.
-const NOT_FROM_THE_FILE: [&str; 11] =
-    ["device", "listen", "listen_any", "abs", "rel", "no_wait", "help", "version", "verbose", "quiet", "json"];
+/// opt-in to serve beyond this machine; a move's target (`--abs`, `--rel`: a device has no standing target),
+/// the hand-over of a move nothing watches (`--no-wait`) and a raw command to every drive (`--broadcast`):
+/// each must be said on the command line; and clap's own.
+const NOT_FROM_THE_FILE: [&str; 12] = [
+    "device",
+    "listen",
+    "listen_any",
+    "abs",
+    "rel",
+    "no_wait",
+    "broadcast",
+    "help",
+    "version",
+    "verbose",
+    "quiet",
+    "json",
+];
 
 /// `cli` with the options of the device `--device` names in `args` as its defaults, where a family command
 /// (`motionlink scu ...`) or a console (`motionlink console scu ...`) names one: each key of the device's
