@@ -31,6 +31,10 @@ pub struct Args {
     pub baud: motionlink_link::probe::BaudChoice,
     #[command(flatten)]
     pub sim_variants: crate::common::SimVariants<motionlink_scu::Variant>,
+    /// Before opening the port, hold the unit's RxD at "space" for 150 ms (a break), as `motionlink scu --wake`:
+    /// a battery unit in low-power mode answers nothing until woken so.
+    #[arg(long)]
+    pub wake: bool,
     #[command(flatten)]
     pub options: Options,
 }
@@ -58,7 +62,9 @@ pub fn run(args: Args, json: bool) -> Result<(), CliError> {
         let variants = &args.sim_variants.list;
         let unit = InProcess { functions: &[], preset: None, file: None, speed_mode: SpeedMode::Percent, variants };
         let connector = connector(&url, &unit, baud, &tap, &clock)?;
-        Client::with_connector(connector, Arc::clone(&clock), Config::default()).map_err(|e| common::classified(&e))
+        let config =
+            Config { wake_break: args.wake.then_some(motionlink_scu::config::WAKE_BREAK), ..Config::default() };
+        Client::with_connector(connector, Arc::clone(&clock), config).map_err(|e| common::classified(&e))
     });
     let (client, baud) = opened.map_err(|e| {
         tap.flush();

@@ -140,3 +140,14 @@ fn a_signal_ends_a_probe_with_the_session_s_ra() {
     assert_eq!(ended.code(), 130, "{}", ended.stderr);
     assert!(ended.stderr.lines().any(|l| l.contains("RA remote mode abort")), "{}", ended.stderr);
 }
+
+/// A battery unit in low-power mode is probed once `--wake` woke it (without it, it answers nothing).
+#[test]
+fn probe_scu_wakes_a_unit_in_low_power_mode_with_wake() {
+    let dir = config_dir("probe-scu-wake");
+    let asleep = run_in(&dir, &["probe", "scu", "--port", "sim", "--sim-variant", "low-power"], &[]);
+    assert_eq!(asleep.status.code(), Some(3), "{asleep:?}");
+    let out = run_in(&dir, &["probe", "scu", "--port", "sim", "--sim-variant", "low-power", "--wake", "--json"], &[]);
+    let v = one_json(&out);
+    assert_eq!(v["devices"][0]["firmware"], "SCU V2B3 motionlink-sim", "{v}");
+}
