@@ -139,8 +139,8 @@ ALL_PC = VARIANTS["powercube"]
 CASES: List[Case] = [
     *each("scu"),
     Case("scu", (), client="async"),
-    Case("scu", VARIANTS["scu"], client="async"),
-    Case("scu", VARIANTS["scu"], serve="tcp"),
+    Case("scu", MATRIX["scu"], client="async"),
+    Case("scu", MATRIX["scu"], serve="tcp"),
     *each("powercube"),
     Case("powercube", ("ext-ack-on-put-id",), can=True),
     Case("powercube", ALL_PC, can=True),
