@@ -574,4 +574,18 @@ fn a_move_says_not_homed_and_is_refused_where_the_config_word_would_leave_it_und
     assert!(err.to_string().contains("CONFIGID_MOD_SYNC_MOTION"), "{err}");
     assert!(clock.now() - t0 < Duration::from_millis(200), "refused at once, not at a timeout");
     assert!(!device_view(&canbus, &clock, 2).0.contains(StateFlag::Motion));
+    drop(bus);
+
+    // CAN, DISABLE_ACK set by another tool (this client refuses to write it): no motion command would be
+    // acknowledged, nor a Halt: refused before anything is sent (was: a motion command, then a timeout).
+    let (clock, canbus, bus) = can(&[3]);
+    let _me = clock.reserve_participant().enter();
+    let word = device_view(&canbus, &clock, 3).3;
+    let disabled = Request::Set(Param::Config, Value::U32(word.0 | ConfigFlag::DisableAck.mask()));
+    canbus.with_device(|d| d.request(clock.now(), 3, &disabled)).unwrap();
+    let t0 = clock.now();
+    let err = bus.module(addr(3)).move_to(&spec(0.3), &mut |_| {}).unwrap_err();
+    assert!(matches!(err, Error::NotReady { .. }) && err.to_string().contains("CONFIGID_MOD_DISABLE_ACK"), "{err}");
+    assert!(clock.now() - t0 < Duration::from_millis(200), "refused at once, not at a timeout");
+    assert!(!device_view(&canbus, &clock, 3).0.contains(StateFlag::Motion));
 }

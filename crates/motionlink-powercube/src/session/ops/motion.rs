@@ -79,8 +79,9 @@ impl Ctx {
         Ok(state)
     }
 
-    /// Refuses a motion command that module `a` (in `state`) would not carry out as sent, by its Config word
-    /// (read with its kind): CONFIGID_MOD_SYNC_MOTION on CAN (the module waits for the broadcast
+    /// Refuses a motion command that module `a` (in `state`) would not carry out as sent, or not acknowledge,
+    /// by its Config word (read with its kind): CONFIGID_MOD_DISABLE_ACK on CAN (no acknowledge comes: the
+    /// motion could not be confirmed nor a Halt), CONFIGID_MOD_SYNC_MOTION on CAN (the module waits for the broadcast
     /// startMotionAll after a motion command, manual 7.4), or CONFIGID_MOD_M3_COMPATIBLE while it is not
     /// homed (it "does not accept motion commands unless successfully homed"). A module that gives no Config
     /// word is not checked.
@@ -91,7 +92,11 @@ impl Ctx {
             (core.configs.get(&a).copied().flatten(), core.can)
         };
         let Some(word) = word else { return Ok(()) };
-        let why = if can && word.contains(ConfigFlag::SyncMotion) {
+        let why = if can && word.contains(ConfigFlag::DisableAck) {
+            "its Config word has CONFIGID_MOD_DISABLE_ACK: on CAN it acknowledges no command, and this client \
+             needs the acknowledges (of the motion command, of a Halt) to know what the module took (clear the \
+             flag with the tool that set it)"
+        } else if can && word.contains(ConfigFlag::SyncMotion) {
             "its Config word has CONFIGID_MOD_SYNC_MOTION: after a motion command it waits for the broadcast \
              startMotionAll, which a move of one module does not send (clear the flag with `set Config` to \
              move it alone)"
