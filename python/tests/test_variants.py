@@ -536,6 +536,9 @@ def test_a_unit_in_low_power_mode_answers_once_woken() -> None:
             assert scu.position(1).position_counts == 0
         events = [text for _, text in emulator.take_events()]
         assert "woken from low-power mode by a break of 150 ms" in events, events
+        # The probe takes the client's options, `wake` among them.
+        report = motionlink.probe("scu", emulator, wake=True)
+        assert report.devices[0]["firmware"] == "SCU V2B3 motionlink-sim", report
     finally:
         emulator.close()
     with pytest.raises(motionlink.UsageError) as e:
