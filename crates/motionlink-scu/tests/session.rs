@@ -323,6 +323,22 @@ fn a_cancelled_run_stops_its_function_and_says_where_the_actuators_came_to_rest(
     assert!(b.session.started().is_empty());
 }
 
+/// A run no actuator was seen to carry out says so once its start grace has passed; a run cancelled before
+/// then (the motion bit of a `late-motion-bit` unit not up yet) says nothing of it: the grace had not passed.
+#[test]
+fn a_run_cancelled_within_its_start_grace_does_not_say_that_nothing_moved() {
+    let mut config = SimConfig::default();
+    config.add_variants([motionlink_scu::Variant::LateMotionBit]);
+    let mut b = Bench::opened(Config::default(), config);
+    let id = b.start(Op::Run(RunSpec { action: RunAction::Motion(f(1), MotionDirection::Out), limit: None }));
+    let at = b.now;
+    b.run_until(Duration::from_secs(5), |b| b.now.saturating_since(at) >= Duration::from_millis(200));
+    b.session.cancel(id, b.now);
+    let result = b.wait_done(id);
+    let Err(Error::RunCancelled { verified, not_verifiable, .. }) = result else { panic!("{result:?}") };
+    assert!(verified && not_verifiable.is_empty(), "{not_verifiable:?}");
+}
+
 #[test]
 fn a_unit_slow_to_answer_ro_does_not_hold_back_the_requests_after_it() {
     let mut b = Bench::unopened(Config::default(), SimConfig::default());

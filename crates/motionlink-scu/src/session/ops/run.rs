@@ -250,7 +250,7 @@ impl Run {
                 // function that no actuator was seen to carry out (its start grace passed with none moving,
                 // nothing ended the run early) is not taken for one that ran: said, with the unit's last error.
                 let (verified, not_verifiable) = match (self.is_motion(), &self.switched_on) {
-                    (true, _) if self.unseen() => (false, vec![self.no_motion_seen(ctx).await]),
+                    (true, _) if self.unseen() && !ctx.cancelled() => (false, vec![self.no_motion_seen(ctx).await]),
                     (true, _) => (true, Vec::new()),
                     (false, on) => {
                         let off = switch::check(ctx, function, false, &Before::NotRead).await?;
