@@ -63,9 +63,11 @@ pub(crate) async fn run(ctx: &Ctx, spec: RunSpec) -> Result<Output, Error> {
                 return Err(e);
             }
             Err(e @ Error::Refused { .. }) => {
-                super::say_last_error_of_pe(ctx, &e).await;
                 tracing::warn!("{function}: {e}; stopping it (an earlier sending may have started it)");
-                return Err(run.stop_after(ctx, e).await);
+                let refused = e.clone();
+                let stopped = run.stop_after(ctx, e).await;
+                super::say_last_error_of_pe(ctx, &refused).await;
+                return Err(stopped);
             }
             // Without a clean answer the RE may have started the function: it is stopped. A cancel that cut
             // the RE's repeats short is that cancel; otherwise the run failed (it was never seen to start).

@@ -217,14 +217,17 @@ impl Move {
         // that cancel.
         let primary = self.spec.primary;
         if let Err(e) = reply.and_then(|r| r.ack(Command::Execute)) {
-            super::say_last_error_of_pe(ctx, &e).await;
+            let refused = e.clone();
             let cause = match e {
                 Error::Timeout { .. } if ctx.cancelled() => {
                     Error::Cancelled { actuator: primary, position_counts: self.start[idx(primary)] }
                 }
                 e => e,
             };
-            return Err(self.stop(ctx, cause).await);
+            // The stop first; then, for a PE, what the unit's last error says.
+            let stopped = self.stop(ctx, cause).await;
+            super::say_last_error_of_pe(ctx, &refused).await;
+            return Err(stopped);
         }
         if ctx.cancelled() {
             let e = Error::Cancelled { actuator: primary, position_counts: self.start[idx(primary)] };
