@@ -84,7 +84,7 @@ pub const FIELDBUS_BAUD_RATES: &[u32] = &[28_800, 57_600, 172_800, 345_600];
 /// The P196 values that select the COMTAC fieldbus protocol (option F5; 165 with F5 software >= V1.22 and
 /// COMPAX > V2.0): the manual's own instruction for a fieldbus drive. Written, they take effect at the next
 /// power-on, and from then on the drive answers no ASCII telegram.
-pub const FIELDBUS_MODES: &[u32] = &[164, 165];
+pub const FIELDBUS_MODES: &[u32] = crate::wire::Mode::FIELDBUS_P196;
 
 impl ParamId {
     /// The highest parameter number.

@@ -235,10 +235,13 @@ impl Mode {
     /// The largest ASCII operating mode: every valence set.
     pub const MAX_P196: u32 = 127;
 
+    /// The P196 values that select the COMTAC fieldbus protocol (option F5, manual 3.3.2): no ASCII mode.
+    pub const FIELDBUS_P196: &'static [u32] = &[164, 165];
+
     /// Decodes P196. 0..=127 are ASCII modes; 164 and 165 select the COMTAC fieldbus protocol, which this
     /// crate does not speak. The valence 4 (even) without 2 (parity on) means no parity.
     pub fn from_p196(value: u32) -> Result<Mode, WireError> {
-        if value == 164 || value == 165 {
+        if Self::FIELDBUS_P196.contains(&value) {
             return Err(WireError::Mode { value, reason: "the COMTAC fieldbus protocol (option F5) is not ASCII" });
         }
         if value > Self::MAX_P196 {
