@@ -185,6 +185,21 @@
 //!   (the emulator sets it from FRAMP); `move_to` reads it right after the motion command and halts the
 //!   module on a difference of more than one tick: the modules ignore the BCC, so a corrupted command would
 //!   otherwise run to a wrong place. To be confirmed on real hardware.
+//! - **Every motion mode, checked.** Beside the ramp move [`session::Op::MoveTo`] (and
+//!   [`session::Op::MoveGuarded`]), [`session::Op::RunMotion`] ([`client::Module::run_motion`],
+//!   [`session::MotionSpec`]) runs any of the manual's modes with the same rigour and ends with a
+//!   [`session::MotionReport`]. Limits are refused before anything moves: float targets and a loop's far
+//!   end against MinPos/MaxPos; tick targets (IRAMP, ISTEP) against the module's own ActIMinPos/ActIMaxPos
+//!   and IVEL against ActIMaxVel, in ticks (no IncRatio rounding); FVEL against MaxVel, FCUR against MaxCur,
+//!   ICUR within -500..500 digits; a step's distance over its time against MaxVel (a step the module would
+//!   have to stretch). The ramps end on STATE_RAMP_END; the steps, which set no ramp end, on STATE_MOTION
+//!   clear; both within the tolerance of their target. The target is read back from TargetPosInc (FRAMP,
+//!   IRAMP, as `move_to` does) or StepInc (FSTEP, ISTEP; read again after the step when a step under way or
+//!   a late start had not shown it yet). The continuous modes (FVEL, IVEL, FCUR, ICUR, FCOSLOOP,
+//!   FRAMPLOOP) run for a hold, watched as a wait watches a motion, and are then ended: a velocity mode with
+//!   the same mode at velocity 0 and the wait for rest, a current or loop mode with a Halt confirmed by its
+//!   state (the module then takes no motion until a reset). What cannot be read back (a velocity's or a
+//!   current's value, a loop's far end) is said in the report's `not_verifiable`.
 //! - **Stops that cannot be confirmed.** When an action that may have set a module in motion cannot go on,
 //!   the module is halted: up to three Halts by address (a Halt may be repeated), the state read after an
 //!   acknowledged one until STATE_MOTION clears (at most [`session::HALT_SETTLE`]), and, unless it was seen

@@ -231,3 +231,29 @@ fn a_guarded_move_future_dropped_while_another_runs_leaves_the_other_going_to_it
         assert!(state.contains(StateFlag::Halted) && !online && !state.contains(StateFlag::CommError), "{state}");
     })
 }
+
+#[test]
+fn async_run_motion_holds_a_velocity_and_ends_it_and_a_guarded_step_reaches_its_target() {
+    use motionlink_powercube::client::{MotionEnding, MotionSpec};
+    use motionlink_powercube::model::{AckKind, Millis, Motion, MotionId};
+    run(async {
+        let (bus, client) = setup().await;
+        let m = client.module(a(1));
+        let spec = MotionSpec {
+            ack: AckKind::Extended,
+            hold: Some(Duration::from_millis(200)),
+            ..MotionSpec::new(Motion::FVel { vel: Velocity::rad_per_s(0.2) })
+        };
+        let report = m.run_motion(&spec).await.unwrap();
+        assert_eq!((report.mode, report.ending), (MotionId::FVelAck, MotionEnding::VelocityZero));
+        assert!(report.ext_ack.is_some() && report.held.unwrap() >= Duration::from_millis(200), "{report:?}");
+        assert!(report.reached.value() > report.start.value(), "{report:?}");
+        assert!(!m.state().await.unwrap().contains(StateFlag::Halted));
+        let step = MotionSpec::new(Motion::FStep { pos: Position::rad(0.1), time: Millis(300) });
+        let report = m.run_motion_guarded(&step, Guard::Watchdog).await.unwrap();
+        assert_eq!(report.ending, MotionEnding::Reached);
+        assert!((report.reached.value() - 0.1).abs() <= 1e-3 && report.verified, "{report:?}");
+        assert!(emulator_events(&bus, "module 1 watchdog").iter().any(|e| e.ends_with("offline")));
+        client.close().await.unwrap();
+    })
+}

@@ -21,8 +21,8 @@ use std::time::Duration;
 use motionlink_link::can::SlcanBitrate;
 
 use crate::error::Error;
-use crate::model::{Acceleration, Position, Velocity};
-use crate::session::MoveSpec;
+use crate::model::{Acceleration, AxisUnit, Motion, MotionId, Position, Velocity};
+use crate::session::{MotionSpec, MoveSpec};
 
 mod options;
 pub use options::{ModuleOptions, OptionError};
@@ -318,6 +318,44 @@ impl MoveSpec {
             tolerance: Some(tolerance.position()),
             timeout: timeout.get(),
         }
+    }
+}
+
+impl MotionSpec {
+    /// The motion of mode `mode` its arguments describe (what `motionlink powercube motion` and Python's
+    /// `motion()` take): `value` in the mode's unit (the module's own for a float position or velocity),
+    /// `time_ms` for FSTEP, ISTEP and FCOSLOOP, `hold` for a continuous mode (`None`: until cancelled),
+    /// `tolerance` for a position mode; checked as [`Motion::from_id`] and [`MotionSpec::validate`] check
+    /// it, so that a bad argument is refused before anything is opened.
+    ///
+    /// ```
+    /// use motionlink_powercube::args::MotionTimeout;
+    /// use motionlink_powercube::client::MotionSpec;
+    /// use motionlink_powercube::model::MotionId;
+    /// let spec = MotionSpec::from_args(MotionId::FVel, 0.2, None, MotionTimeout::from_secs(2.0).ok(), None,
+    ///     MotionTimeout::DEFAULT).unwrap();
+    /// assert!(spec.continuous());
+    /// let e = MotionSpec::from_args(MotionId::FStep, 0.2, None, None, None, MotionTimeout::DEFAULT).unwrap_err();
+    /// assert!(e.to_string().starts_with("FSTEP_MODE takes a target position"), "{e}");
+    /// ```
+    pub fn from_args(
+        mode: MotionId,
+        value: f64,
+        time_ms: Option<u16>,
+        hold: Option<MotionTimeout>,
+        tolerance: Option<Tolerance>,
+        timeout: MotionTimeout,
+    ) -> Result<MotionSpec, Error> {
+        let (motion, ack) = Motion::from_id(mode, value, time_ms, AxisUnit::ModuleUnit)?;
+        let spec = MotionSpec {
+            motion,
+            ack,
+            hold: hold.map(MotionTimeout::get),
+            tolerance: tolerance.map(Tolerance::position),
+            timeout: timeout.get(),
+        };
+        spec.validate()?;
+        Ok(spec)
     }
 }
 

@@ -18,8 +18,8 @@ use crate::model::{
 };
 use crate::report::ModuleDetails;
 use crate::session::{
-    Config, Guard, HaltReport, HomeReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry, Session,
-    Until,
+    Config, Guard, HaltReport, HomeReport, ModuleInfo, MotionReport, MotionSpec, MoveReport, MoveSpec, Op, Output,
+    Readback, ScanEntry, Session, Until,
 };
 use crate::wire::{Action, ExtAck, Reply, Request};
 
@@ -387,5 +387,17 @@ impl AsyncModule<'_> {
     /// [`Op::MoveGuarded`]).
     pub async fn move_to_guarded(&self, spec: &MoveSpec, guard: Guard) -> Result<MoveReport, Error> {
         self.client.call(calls::move_to(self.address, *spec, Some(guard))).await
+    }
+
+    /// A motion command of any mode run to its end with every check (see [`Op::RunMotion`]); dropping the
+    /// future halts the module (a continuous mode without [`MotionSpec::hold`] runs until then).
+    pub async fn run_motion(&self, spec: &MotionSpec) -> Result<MotionReport, Error> {
+        self.client.call(calls::run_motion(self.address, *spec, None)).await
+    }
+
+    /// [`AsyncModule::run_motion`] under `guard`: its end halts and disarms this module alone (see
+    /// [`Op::MoveGuarded`]).
+    pub async fn run_motion_guarded(&self, spec: &MotionSpec, guard: Guard) -> Result<MotionReport, Error> {
+        self.client.call(calls::run_motion(self.address, *spec, Some(guard))).await
     }
 }

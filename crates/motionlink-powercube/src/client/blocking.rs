@@ -19,8 +19,8 @@ use crate::model::{
 };
 use crate::report::ModuleDetails;
 use crate::session::{
-    Config, Guard, HaltReport, HomeReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Progress, Readback, ScanEntry,
-    Session, Until,
+    Config, Guard, HaltReport, HomeReport, ModuleInfo, MotionReport, MotionSpec, MoveReport, MoveSpec, Op, Output,
+    Progress, Readback, ScanEntry, Session, Until,
 };
 use crate::wire::{Action, ExtAck, Reply, Request};
 
@@ -467,5 +467,24 @@ impl Module<'_> {
         progress: &mut dyn FnMut(&Progress),
     ) -> Result<MoveReport, Error> {
         self.client.call_with(calls::move_to(self.address, *spec, Some(guard)), progress)
+    }
+
+    /// A motion command of any mode run to its end with every check (see [`Op::RunMotion`]): its limits
+    /// refused before anything moves, a position mode waited for and checked within the tolerance of its
+    /// target, a continuous mode held for [`MotionSpec::hold`] and then ended (velocity 0, or a confirmed
+    /// Halt). `progress` sees every poll.
+    pub fn run_motion(&self, spec: &MotionSpec, progress: &mut dyn FnMut(&Progress)) -> Result<MotionReport, Error> {
+        self.client.call_with(calls::run_motion(self.address, *spec, None), progress)
+    }
+
+    /// [`Module::run_motion`] under `guard` (see [`Guard`]), as [`Module::move_to_guarded`]: its end halts
+    /// and disarms this module alone; what the guard could not do is in the report's `not_verifiable`.
+    pub fn run_motion_guarded(
+        &self,
+        spec: &MotionSpec,
+        guard: Guard,
+        progress: &mut dyn FnMut(&Progress),
+    ) -> Result<MotionReport, Error> {
+        self.client.call_with(calls::run_motion(self.address, *spec, Some(guard)), progress)
     }
 }

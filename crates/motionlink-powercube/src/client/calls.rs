@@ -10,7 +10,8 @@ use crate::model::{
     ShortState, Ticks, Value, Velocity,
 };
 use crate::session::{
-    Guard, HaltReport, HomeReport, ModuleInfo, MoveReport, MoveSpec, Op, Output, Readback, ScanEntry, Until,
+    Guard, HaltReport, HomeReport, ModuleInfo, MotionReport, MotionSpec, MoveReport, MoveSpec, Op, Output, Readback,
+    ScanEntry, Until,
 };
 use crate::wire::{Action, ExtAck, Reply, Request};
 
@@ -138,6 +139,10 @@ pub(crate) fn move_to(a: Address, spec: MoveSpec, guard: Option<Guard>) -> Call<
         None => Op::MoveTo(a, spec),
     };
     call!(op, Output::Moved(r) => r)
+}
+
+pub(crate) fn run_motion(a: Address, spec: MotionSpec, guard: Option<Guard>) -> Call<MotionReport> {
+    call!(Op::RunMotion(a, spec, guard), Output::MotionRun(r) => r)
 }
 
 pub(crate) fn halt_confirmed(a: Address) -> Call<HaltReport> {

@@ -90,5 +90,6 @@ pub use port::PortLink;
 pub use crate::error::{Error, RefreshTiming, RoundTripRange, StopOutcome};
 pub use crate::model::WATCHDOG_TIMEOUT;
 pub use crate::session::{
-    Config, Guard, HaltReport, HomeReport, ModuleInfo, ModulesAt, MoveReport, MoveSpec, Progress, Readback, ScanEntry,
+    Config, Guard, HaltReport, HomeReport, ModuleInfo, ModulesAt, MotionEnding, MotionReport, MotionSpec, MoveReport,
+    MoveSpec, Progress, Readback, ScanEntry,
 };

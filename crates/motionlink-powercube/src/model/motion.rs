@@ -8,7 +8,8 @@
 //! assert_eq!(MotionId::FRampAck.code(), 14);
 //! ```
 
-use super::units::{Acceleration, Amperes, CurrentDigits, Millis, Position, Ticks, TicksPerSec, Velocity};
+use super::units::{Acceleration, Amperes, AxisUnit, CurrentDigits, Millis, Position, Ticks, TicksPerSec, Velocity};
+use crate::wire::{ModelError, RAW_CUR_MAX};
 
 /// What a motion command's parameters are.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -118,6 +119,77 @@ motion_table! {
     FRampLoop = (25, "FRAMPLOOP", FPos, Simple, "Ramp loop to a position and back (v4630)."),
 }
 
+impl MotionId {
+    /// The mode named `name`: the manual's name, in any case, with or without `_MODE` ("fvel", "FVEL_MODE",
+    /// "fvel_ack", "fcosloop", "FRAMPLOOP"). An `_ACK` name takes no `_MODE`. `None` for anything else.
+    ///
+    /// ```
+    /// use motionlink_powercube::model::MotionId;
+    /// assert_eq!(MotionId::parse("fvel"), Some(MotionId::FVel));
+    /// assert_eq!(MotionId::parse("FStep_Ack"), Some(MotionId::FStepAck));
+    /// assert_eq!(MotionId::parse("fvelx"), None);
+    /// ```
+    pub fn parse(name: &str) -> Option<MotionId> {
+        let wanted = name.trim().to_ascii_uppercase();
+        let (bare, with_mode) = match wanted.strip_suffix("_MODE") {
+            Some(bare) => (bare, true),
+            None => (wanted.as_str(), false),
+        };
+        MotionId::ALL.iter().copied().find(|id| {
+            let base = id.name().strip_suffix("_MODE").unwrap_or(id.name());
+            base == bare && !(with_mode && base.ends_with("_ACK"))
+        })
+    }
+
+    /// What a command of this mode takes, in words (the manual's table, 4.5).
+    pub fn takes(self) -> &'static str {
+        match self.shape() {
+            MotionShape::FPos if self.continuous() => "the loop's far end (rad or m) and no time",
+            MotionShape::FPos => "a target position (rad or m) and no time",
+            MotionShape::FPosTime if self.continuous() => {
+                "the loop's far end (rad or m) and its period, a time in ms (1..65535)"
+            }
+            MotionShape::FPosTime => "a target position (rad or m) and a time in ms (1..65535)",
+            MotionShape::FVel => "a velocity (rad/s or m/s) and no time",
+            MotionShape::FCur => "a current in A and no time",
+            MotionShape::IPos => "a target position in whole encoder ticks (Int32) and no time",
+            MotionShape::IPosTime => "a target position in whole encoder ticks (Int32) and a time in ms (1..65535)",
+            MotionShape::IVel => "a velocity in whole encoder ticks/s (Int32) and no time",
+            MotionShape::ICur => "a current in whole digits within -500..500 and no time",
+        }
+    }
+
+    /// True for a mode that takes a time besides its position: FSTEP, ISTEP (and their `_ACK` forms) and
+    /// FCOSLOOP.
+    pub fn takes_time(self) -> bool {
+        matches!(self.shape(), MotionShape::FPosTime | MotionShape::IPosTime)
+    }
+
+    /// True for a mode that runs until something ends it: velocity, current and the two loops. False for
+    /// the position modes (FRAMP, FSTEP, IRAMP, ISTEP and their `_ACK` forms), which end at their target.
+    pub fn continuous(self) -> bool {
+        !matches!(
+            self,
+            MotionId::FRamp
+                | MotionId::FRampAck
+                | MotionId::FStep
+                | MotionId::FStepAck
+                | MotionId::IRamp
+                | MotionId::IRampAck
+                | MotionId::IStep
+                | MotionId::IStepAck
+        )
+    }
+}
+
+/// [`MotionId::parse`], with an error naming the modes there are.
+impl std::str::FromStr for MotionId {
+    type Err = ModelError;
+    fn from_str(name: &str) -> Result<MotionId, ModelError> {
+        MotionId::parse(name).ok_or_else(|| ModelError::UnknownMotionName(name.to_string()))
+    }
+}
+
 /// A motion command's mode and parameters, typed. With an [`AckKind`] it makes one of the 18 MotionIDs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Motion {
@@ -183,22 +255,115 @@ impl Motion {
     /// The MotionID for this mode with acknowledge `ack`; `None` for the loops with an extended one.
     pub fn id(&self, ack: AckKind) -> Option<MotionId> {
         use MotionId as M;
-        let (simple, extended) = match self {
-            Motion::FRamp { .. } => (M::FRamp, Some(M::FRampAck)),
-            Motion::FStep { .. } => (M::FStep, Some(M::FStepAck)),
-            Motion::FVel { .. } => (M::FVel, Some(M::FVelAck)),
-            Motion::FCur { .. } => (M::FCur, Some(M::FCurAck)),
-            Motion::IRamp { .. } => (M::IRamp, Some(M::IRampAck)),
-            Motion::IStep { .. } => (M::IStep, Some(M::IStepAck)),
-            Motion::IVel { .. } => (M::IVel, Some(M::IVelAck)),
-            Motion::ICur { .. } => (M::ICur, Some(M::ICurAck)),
-            Motion::FCosLoop { .. } => (M::FCosLoop, None),
-            Motion::FRampLoop { .. } => (M::FRampLoop, None),
-        };
+        let simple = self.mode();
         match ack {
             AckKind::Simple => Some(simple),
-            AckKind::Extended => extended,
+            AckKind::Extended => match simple {
+                M::FRamp => Some(M::FRampAck),
+                M::FStep => Some(M::FStepAck),
+                M::FVel => Some(M::FVelAck),
+                M::FCur => Some(M::FCurAck),
+                M::IRamp => Some(M::IRampAck),
+                M::IStep => Some(M::IStepAck),
+                M::IVel => Some(M::IVelAck),
+                M::ICur => Some(M::ICurAck),
+                _ => None,
+            },
         }
+    }
+
+    /// The motion command of mode `id` with the number `value` and, for the modes that take one
+    /// ([`MotionId::takes_time`]), the time `time_ms`; with the acknowledge the MotionID asks for (the
+    /// `_ACK` ids: [`AckKind::Extended`]). `unit` is the unit of a float position or velocity (rad, m, or
+    /// the module's own); the tick, digit and ampere modes have their own.
+    ///
+    /// Refused, naming the mode and what it takes ([`ModelError::MotionArgument`]): no time for a mode that
+    /// needs one, or a time of 0 ms; a time for a mode that takes none; a number that is not finite, beyond
+    /// a 32-bit float, or for the I modes not a whole number within its type (ICUR: -500..500 digits,
+    /// [`RAW_CUR_MAX`]).
+    ///
+    /// ```
+    /// use motionlink_powercube::model::{AckKind, AxisUnit, Millis, Motion, MotionId, Position};
+    /// let (m, ack) = Motion::from_id(MotionId::FStepAck, 0.5, Some(800), AxisUnit::Radian).unwrap();
+    /// assert_eq!((m, ack), (Motion::FStep { pos: Position::rad(0.5), time: Millis(800) }, AckKind::Extended));
+    /// let e = Motion::from_id(MotionId::FStep, 0.5, None, AxisUnit::ModuleUnit).unwrap_err();
+    /// assert!(e.to_string().starts_with("FSTEP_MODE takes a target position"), "{e}");
+    /// ```
+    pub fn from_id(
+        id: MotionId,
+        value: f64,
+        time_ms: Option<u16>,
+        unit: AxisUnit,
+    ) -> Result<(Motion, AckKind), ModelError> {
+        let bad = |problem: String| ModelError::MotionArgument { mode: id.name(), takes: id.takes(), problem };
+        let time = match (id.takes_time(), time_ms) {
+            (true, None) => return Err(bad("no time was given".into())),
+            (true, Some(0)) => return Err(bad("a time of 0 ms was given (a motion in no time cannot be done)".into())),
+            (true, Some(t)) => Millis(t),
+            (false, Some(t)) => {
+                return Err(bad(format!("a time of {t} ms was given (only FSTEP, ISTEP and FCOSLOOP take a time)")))
+            }
+            (false, None) => Millis(0),
+        };
+        if !value.is_finite() {
+            return Err(bad(format!("{value} is not a finite number")));
+        }
+        let float = || {
+            let narrow = value as f32;
+            if narrow.is_finite() {
+                Ok(narrow)
+            } else {
+                Err(bad(format!("{value:e} is beyond the module's 32-bit float range (about 3.4e38)")))
+            }
+        };
+        let whole = |min: i64, max: i64| {
+            if value.fract() != 0.0 {
+                Err(bad(format!("{value} is not a whole number")))
+            } else if value < min as f64 || value > max as f64 {
+                Err(bad(format!("{value} is outside {min}..{max}")))
+            } else {
+                Ok(value as i64)
+            }
+        };
+        let int32 = || whole(i64::from(i32::MIN), i64::from(i32::MAX)).map(|v| v as i32);
+        use MotionId as M;
+        let motion = match id {
+            M::FRamp | M::FRampAck => Motion::FRamp { pos: Position::new(float()?, unit) },
+            M::FStep | M::FStepAck => Motion::FStep { pos: Position::new(float()?, unit), time },
+            M::FVel | M::FVelAck => Motion::FVel { vel: Velocity::new(float()?, unit) },
+            M::FCur | M::FCurAck => Motion::FCur { cur: Amperes(float()?) },
+            M::IRamp | M::IRampAck => Motion::IRamp { pos: Ticks(int32()?) },
+            M::IStep | M::IStepAck => Motion::IStep { pos: Ticks(int32()?), time },
+            M::IVel | M::IVelAck => Motion::IVel { vel: TicksPerSec(int32()?) },
+            M::ICur | M::ICurAck => {
+                let max = i64::from(RAW_CUR_MAX);
+                Motion::ICur { cur: CurrentDigits(whole(-max, max)? as i16) }
+            }
+            M::FCosLoop => Motion::FCosLoop { pos: Position::new(float()?, unit), time },
+            M::FRampLoop => Motion::FRampLoop { pos: Position::new(float()?, unit) },
+        };
+        Ok((motion, id.ack()))
+    }
+
+    /// The MotionID of this mode with the simple acknowledge (FRAMP_MODE for [`Motion::FRamp`]).
+    pub fn mode(&self) -> MotionId {
+        match self {
+            Motion::FRamp { .. } => MotionId::FRamp,
+            Motion::FStep { .. } => MotionId::FStep,
+            Motion::FVel { .. } => MotionId::FVel,
+            Motion::FCur { .. } => MotionId::FCur,
+            Motion::IRamp { .. } => MotionId::IRamp,
+            Motion::IStep { .. } => MotionId::IStep,
+            Motion::IVel { .. } => MotionId::IVel,
+            Motion::ICur { .. } => MotionId::ICur,
+            Motion::FCosLoop { .. } => MotionId::FCosLoop,
+            Motion::FRampLoop { .. } => MotionId::FRampLoop,
+        }
+    }
+
+    /// True for a motion that runs until something ends it (see [`MotionId::continuous`]).
+    pub fn continuous(&self) -> bool {
+        self.mode().continuous()
     }
 
     /// False if a float parameter (position, velocity, current) is NaN or infinite.
@@ -329,5 +494,72 @@ mod tests {
             }
         }
         assert_eq!(ids, 18, "every MotionID is reachable");
+    }
+
+    #[test]
+    fn modes_parse_by_the_manuals_names_in_any_case_with_or_without_mode() {
+        for (name, id) in [
+            ("fvel", MotionId::FVel),
+            ("FVEL_MODE", MotionId::FVel),
+            ("fvel_ack", MotionId::FVelAck),
+            ("fcosloop", MotionId::FCosLoop),
+            ("FCOSLOOP_MODE", MotionId::FCosLoop),
+            ("FRAMPLOOP", MotionId::FRampLoop),
+            (" iStep_Mode ", MotionId::IStep),
+            ("ICUR_ACK", MotionId::ICurAck),
+        ] {
+            assert_eq!(MotionId::parse(name), Some(id), "{name}");
+        }
+        for bad in ["fvelx", "", "_MODE", "FVEL_ACK_MODE", "ramp", "4", "FRAMP_MODE_MODE"] {
+            assert_eq!(MotionId::parse(bad), None, "{bad}");
+        }
+        assert_eq!("Fvel_Ack".parse::<MotionId>(), Ok(MotionId::FVelAck));
+        let e = "velocity".parse::<MotionId>().unwrap_err().to_string();
+        assert!(e.starts_with("unknown motion mode \"velocity\": one of FRAMP, FSTEP, FVEL"), "{e}");
+        for id in MotionId::ALL {
+            assert_eq!(MotionId::parse(id.name()), Some(*id), "every name of the table parses");
+            assert_eq!(MotionId::parse(&id.name().to_lowercase()), Some(*id));
+        }
+    }
+
+    #[test]
+    fn a_motion_is_built_from_a_mode_and_numbers_or_refused_naming_the_mode() {
+        let unit = AxisUnit::ModuleUnit;
+        assert_eq!(
+            Motion::from_id(MotionId::FVel, -0.25, None, AxisUnit::Radian).unwrap(),
+            (Motion::FVel { vel: Velocity::rad_per_s(-0.25) }, AckKind::Simple)
+        );
+        assert_eq!(
+            Motion::from_id(MotionId::IStepAck, -4096.0, Some(20), unit).unwrap(),
+            (Motion::IStep { pos: Ticks(-4096), time: Millis(20) }, AckKind::Extended)
+        );
+        assert_eq!(
+            Motion::from_id(MotionId::ICurAck, -500.0, None, unit).unwrap(),
+            (Motion::ICur { cur: CurrentDigits(-500) }, AckKind::Extended)
+        );
+        assert_eq!(
+            Motion::from_id(MotionId::FCosLoop, 1.0, Some(2000), unit).unwrap(),
+            (Motion::FCosLoop { pos: Position::native(1.0), time: Millis(2000) }, AckKind::Simple)
+        );
+        let says = |id, value, time| Motion::from_id(id, value, time, unit).unwrap_err().to_string();
+        assert_eq!(
+            says(MotionId::FStep, 0.5, None),
+            "FSTEP_MODE takes a target position (rad or m) and a time in ms (1..65535): no time was given"
+        );
+        assert_eq!(
+            says(MotionId::FVel, 0.5, Some(500)),
+            "FVEL_MODE takes a velocity (rad/s or m/s) and no time: a time of 500 ms was given (only FSTEP, ISTEP \
+             and FCOSLOOP take a time)"
+        );
+        assert!(says(MotionId::FCosLoop, 0.5, Some(0)).starts_with("FCOSLOOP takes the loop's far end"));
+        assert!(says(MotionId::IStep, 1.0, Some(0)).contains("a time of 0 ms"));
+        assert!(says(MotionId::IRamp, 1.5, None).ends_with("1.5 is not a whole number"));
+        assert!(says(MotionId::IVel, 3e9, None).ends_with("3000000000 is outside -2147483648..2147483647"));
+        assert_eq!(
+            says(MotionId::ICur, 501.0, None),
+            "ICUR_MODE takes a current in whole digits within -500..500 and no time: 501 is outside -500..500"
+        );
+        assert!(says(MotionId::FCur, f64::NAN, None).ends_with("NaN is not a finite number"));
+        assert!(says(MotionId::FRamp, 1e39, None).contains("32-bit float range"));
     }
 }

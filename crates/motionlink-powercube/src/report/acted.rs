@@ -1,4 +1,4 @@
-//! What the actions `home`, `move`, `stop` and `reset` report and what `watch` samples, as every front end
+//! What the actions `home`, `move`, `motion`, `stop` and `reset` report and what `watch` samples, as every front end
 //! prints or sends it (the command line's `--json`, the gateway's replies and states): the library's reports
 //! with the action's own keys.
 
@@ -6,7 +6,7 @@ use serde::Serialize;
 
 use super::Sample;
 
-/// A report with the action's keys: its tag (`homed`, `reached`, `halted`, `reset`), `ok` where the action
+/// A report with the action's keys: its tag (`homed`, `reached`, `ran`, `halted`, `reset`), `ok` where the action
 /// has no report of its own to say so (`halted`, `reset`), and for `stop` who held the port (`holder`: the
 /// front end's own; the command line names the motionlink it stopped first, or null).
 #[derive(Debug, Clone, Serialize)]
@@ -14,7 +14,7 @@ pub struct Acted<T: Serialize, H: Serialize = ()> {
     /// True for an action whose report does not say itself that it succeeded (left out when false).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub ok: bool,
-    /// `homed`, `reached`, `halted` or `reset`.
+    /// `homed`, `reached`, `ran`, `halted` or `reset`.
     pub action: &'static str,
     /// The library's report.
     #[serde(flatten)]
@@ -33,6 +33,11 @@ impl<T: Serialize> Acted<T> {
     /// `move`'s result.
     pub fn reached(report: T) -> Self {
         Acted { ok: false, action: "reached", report, holder: None }
+    }
+
+    /// `motion`'s result (the report says how the motion ended: `ended`).
+    pub fn ran(report: T) -> Self {
+        Acted { ok: false, action: "ran", report, holder: None }
     }
 
     /// `reset`'s result.

@@ -14,7 +14,8 @@ mod acted;
 pub use acted::{Acted, Released, Timed};
 
 use crate::model::{CubeState, ModuleKind, Param, ParamKind, Position, StateFlag, Value};
-use crate::session::{HaltReport, HomeReport, ModuleInfo, MoveReport, Readback, ScanEntry};
+use crate::session::{HaltReport, HomeReport, ModuleInfo, MotionReport, MoveReport, Readback, ScanEntry};
+use crate::wire::{AckPosition, ExtAck};
 
 /// The name of a quantity `stem` of a module of `kind`: `position_rad`, `max_velocity_m_per_s` (`tail` after
 /// the unit: "", "_per_s", "_per_s2").
@@ -124,6 +125,63 @@ impl Serialize for MoveReport {
         map.serialize_entry(&key("target", self.kind, ""), &target)?;
         map.serialize_entry(&key("reached", self.kind, ""), &reached)?;
         map.serialize_entry(&key("difference", self.kind, ""), &(reached - target))?;
+        map.serialize_entry("state", &StateReport(self.state))?;
+        map.serialize_entry("homed", &self.homed())?;
+        map.serialize_entry("verified", &self.verified)?;
+        map.serialize_entry("not_verifiable", &self.not_verifiable)?;
+        map.end()
+    }
+}
+
+/// The extended acknowledge of a motion command: `position` (as the module sent it: rad or m for the float
+/// modes, encoder ticks for the I modes), `position_unit` ("rad", "m", "rad|m" where the kind was not known,
+/// or "ticks"), `short_state` and `dio` (flag words).
+struct ExtAckReport<'a>(&'a ExtAck);
+
+impl Serialize for ExtAckReport<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut map = s.serialize_map(Some(4))?;
+        match self.0.position {
+            AckPosition::Unit(p) => {
+                map.serialize_entry("position", &p.value())?;
+                map.serialize_entry("position_unit", p.unit().symbol())?;
+            }
+            AckPosition::Ticks(t) => {
+                map.serialize_entry("position", &t.0)?;
+                map.serialize_entry("position_unit", "ticks")?;
+            }
+        }
+        map.serialize_entry("short_state", &self.0.state)?;
+        map.serialize_entry("dio", &self.0.dio)?;
+        map.end()
+    }
+}
+
+/// `mode` (the manual's name: "FVEL_MODE"), `start_rad`, `target_rad` (position modes), `reached_rad`,
+/// `difference_rad` (position modes: reached − target; `_m` on a linear module), `held_s` (continuous
+/// modes), `ended` ("reached", "velocity_zero", "halted"), `ext_ack` (when one came: `{position,
+/// position_unit, short_state, dio}`), `state`, `homed` ([`MotionReport::homed`]), `verified`,
+/// `not_verifiable`.
+impl Serialize for MotionReport {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let reached = self.reached.value();
+        let mut map = s.serialize_map(None)?;
+        map.serialize_entry("mode", self.mode.name())?;
+        map.serialize_entry(&key("start", self.kind, ""), &self.start.value())?;
+        if let Some(target) = self.target {
+            map.serialize_entry(&key("target", self.kind, ""), &target.value())?;
+        }
+        map.serialize_entry(&key("reached", self.kind, ""), &reached)?;
+        if let Some(target) = self.target {
+            map.serialize_entry(&key("difference", self.kind, ""), &(reached - target.value()))?;
+        }
+        if let Some(held) = self.held {
+            map.serialize_entry("held_s", &held.as_secs_f64())?;
+        }
+        map.serialize_entry("ended", &self.ending)?;
+        if let Some(ext) = &self.ext_ack {
+            map.serialize_entry("ext_ack", &ExtAckReport(ext))?;
+        }
         map.serialize_entry("state", &StateReport(self.state))?;
         map.serialize_entry("homed", &self.homed())?;
         map.serialize_entry("verified", &self.verified)?;

@@ -82,6 +82,84 @@ fn a_move_names_its_positions_in_the_unit_of_the_module() {
 }
 
 #[test]
+fn a_motion_of_any_mode_names_its_positions_in_the_unit_of_the_module_and_says_how_it_ended() {
+    use crate::model::{Dio, MotionId, Ticks};
+    use crate::session::{MotionEnding, MotionReport};
+    use crate::wire::{AckPosition, ExtAck};
+    let velocity = MotionReport {
+        kind: ModuleKind::Rotary,
+        mode: MotionId::FVel,
+        start: Position::rad(0.05),
+        target: None,
+        reached: Position::rad(0.125),
+        held: Some(std::time::Duration::from_millis(300)),
+        ending: MotionEnding::VelocityZero,
+        ext_ack: None,
+        state: CubeState(0x2),
+        verified: false,
+        not_verifiable: vec!["the velocity the module took could not be read back".into()],
+    };
+    assert_eq!(
+        to_json(&velocity),
+        json!({"mode": "FVEL_MODE", "start_rad": 0.05_f32, "reached_rad": 0.125, "held_s": 0.3, "ended": "velocity_zero",
+               "state": {"word": 2, "flags": ["STATE_HOME_OK"], "faults": []}, "homed": true, "verified": false,
+               "not_verifiable": ["the velocity the module took could not be read back"]})
+    );
+    // A step on a linear module, with its extended acknowledge: a target, the difference, no hold.
+    let ack = ExtAck { position: AckPosition::Unit(Position::m(0.1)), state: ShortState(0x10), dio: Dio(0x01) };
+    let step = MotionReport {
+        kind: ModuleKind::Linear,
+        mode: MotionId::FStepAck,
+        start: Position::m(0.1),
+        target: Some(Position::m(0.25)),
+        reached: Position::m(0.25),
+        held: None,
+        ending: MotionEnding::Reached,
+        ext_ack: Some(ack),
+        state: CubeState(0x0),
+        verified: true,
+        not_verifiable: vec![],
+    };
+    let j = to_json(&step);
+    let mut expected = json!({"mode": "FSTEP_ACK", "start_m": 0.1_f32, "target_m": 0.25, "reached_m": 0.25,
+        "difference_m": 0.0, "ended": "reached", "state": {"word": 0, "flags": [], "faults": []}, "homed": false,
+        "verified": true, "not_verifiable": []});
+    expected["ext_ack"] = json!({"position": 0.1_f32, "position_unit": "m", "short_state": to_json(&ShortState(0x10)),
+                                 "dio": to_json(&Dio(0x01))});
+    assert_eq!(j, expected);
+    assert_eq!(j["ext_ack"]["short_state"]["flags"], json!(["SHORT_MOTION"]), "{j}");
+    assert!(
+        step.not_homed_note().is_some()
+            && step.not_homed_note()
+                == MoveReport {
+                    kind: ModuleKind::Linear,
+                    target: Position::m(0.0),
+                    start: Position::m(0.0),
+                    reached: Position::m(0.0),
+                    state: CubeState(0),
+                    verified: true,
+                    not_verifiable: vec![]
+                }
+                .not_homed_note(),
+        "one text"
+    );
+    // An IRAMP acknowledge gives ticks; a current mode ends halted.
+    let ticks = ExtAck { position: AckPosition::Ticks(Ticks(-7)), ..ack };
+    let halted = MotionReport {
+        mode: MotionId::ICurAck,
+        target: None,
+        held: Some(std::time::Duration::from_millis(1500)),
+        ending: MotionEnding::Halted,
+        ext_ack: Some(ticks),
+        ..step
+    };
+    let j = to_json(&halted);
+    assert_eq!((j["ended"].clone(), j["held_s"].clone()), (json!("halted"), json!(1.5)), "{j}");
+    assert_eq!((j["ext_ack"]["position"].clone(), j["ext_ack"]["position_unit"].clone()), (json!(-7), json!("ticks")));
+    assert!(j.get("target_m").is_none() && j.get("difference_m").is_none(), "{j}");
+}
+
+#[test]
 fn homing_and_a_halt_name_their_position_in_the_unit_of_the_module() {
     let homed = HomeReport {
         kind: ModuleKind::Linear,

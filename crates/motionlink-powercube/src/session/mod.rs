@@ -5,6 +5,13 @@
 //! started) as an `async fn` run by the one executor of `motionlink-link`. It is told what arrived and what time it is, and says
 //! what to send and when to wake it; it has no thread, no clock and no I/O.
 //!
+//! Two operations move a module with every check the protocol allows: [`Op::MoveTo`] (and
+//! [`Op::MoveGuarded`]), a ramp to a position with its velocity and acceleration written and read back,
+//! and [`Op::RunMotion`], any of the manual's motion modes ([`MotionSpec`]: FRAMP, FSTEP, IRAMP, ISTEP run
+//! to their target; FVEL, IVEL, FCUR, ICUR, FCOSLOOP, FRAMPLOOP held for a time and then ended), each with
+//! its limits refused before anything moves, its end waited for and checked, and a [`MotionReport`].
+//! [`Op::Motion`] is the raw command: units checked, nothing else.
+//!
 //! The clients ([`Client`](crate::Client), [`AsyncClient`](crate::client)) run it over a link through
 //! [`Driver`](motionlink_link::driver::Driver). Tests run it against the emulator directly:
 //!
@@ -46,8 +53,8 @@ use motionlink_link::session::{Action as LinkAction, Event, Input, OpId};
 use motionlink_link::{LinkError, Timestamp};
 
 pub use types::{
-    Begun, Config, Guard, HaltReport, HomeReport, ModuleFindings, ModuleInfo, ModulesAt, MoveReport, MoveSpec,
-    Progress, Readback, ScanEntry, Until, HALT_SETTLE,
+    Begun, Config, Guard, HaltReport, HomeReport, ModuleFindings, ModuleInfo, ModulesAt, MotionEnding, MotionReport,
+    MotionSpec, MoveReport, MoveSpec, Progress, Readback, ScanEntry, Until, HALT_SETTLE,
 };
 
 use self::core::Core;
@@ -149,6 +156,28 @@ pub enum Op {
     /// guarded motion of a module while one is under way is refused ([`Error::NotSupported`]) before any
     /// command goes to the module. [`Output::Moved`].
     MoveGuarded(Address, MoveSpec, Guard),
+    /// A motion command of any mode ([`MotionSpec`]) with the rigour of [`Op::MoveTo`], run to its end.
+    /// Before anything that changes the module is sent (reads only): the spec's numbers, their units against
+    /// the module's kind, and its limits, refused ([`Error::OutsideLimits`]), never clamped: a position
+    /// target (FRAMP, FSTEP, FRAMPLOOP, FCOSLOOP's far end) within MinPos..MaxPos, a tick target (IRAMP,
+    /// ISTEP) within ActIMinPos..ActIMaxPos, a step's speed (its distance over its time) and a velocity
+    /// within MaxVel (IVEL, ISTEP: ActIMaxVel), an FCUR current within MaxCur. Then the module ready (no
+    /// error, not halted, its Config word lets it move), its position read, the command sent (a lost
+    /// acknowledge halts it), and:
+    ///
+    /// - a position mode: the target read back where the module shows it (TargetPosInc for FRAMP / IRAMP,
+    ///   StepInc for FSTEP / ISTEP), the wait for its end (STATE_RAMP_END for the ramps; no STATE_MOTION
+    ///   for the steps, which set no ramp end), and the final position read twice within the tolerance:
+    ///   [`MotionEnding::Reached`];
+    /// - a continuous mode: the state polled for [`MotionSpec::hold`] (`None`: until cancelled; a fault or a
+    ///   halt of the module's own ends it as an error), then a velocity mode is sent velocity 0 and waited
+    ///   for at rest ([`MotionEnding::VelocityZero`]), a current or loop mode is halted, confirmed by its
+    ///   state ([`MotionEnding::Halted`]: it takes no motion until a reset).
+    ///
+    /// A cancel halts the module ([`Error::Cancelled`] says whether that was confirmed). With a [`Guard`],
+    /// the checks come before the guard arms anything, and the motion runs as [`Op::MoveGuarded`]'s does:
+    /// what the guard could not do is in the report's `not_verifiable`. [`Output::MotionRun`].
+    RunMotion(Address, MotionSpec, Option<Guard>),
     /// Halts a module after an action that may have set it in motion cannot go on: up to three Halts, then
     /// a broadcast Halt and the watchdog refresh stopped. [`Output::Stop`].
     StopMotion(Address),
@@ -240,6 +269,8 @@ pub enum Output {
     Homed(HomeReport),
     /// What a checked move did.
     Moved(MoveReport),
+    /// What a motion of any mode ([`Op::RunMotion`]) did.
+    MotionRun(MotionReport),
     /// What became of a stop.
     Stop(StopOutcome),
     /// What a confirmed halt found.

@@ -5,8 +5,10 @@ use std::time::Duration;
 use crate::args::{Baud, CanBitRate};
 use crate::error::Error;
 use crate::model::{
-    Acceleration, Address, AxisUnit, CubeState, CubeVersion, ModuleKind, Param, Position, StateFlag, Value, Velocity,
+    Acceleration, AckKind, Address, AxisUnit, CubeState, CubeVersion, ModuleKind, Motion, MotionId, Param, Position,
+    StateFlag, Value, Velocity,
 };
+use crate::wire::{ExtAck, Request, RAW_CUR_MAX};
 
 /// Timing and retry settings of a session; the defaults depend on the carrier.
 #[derive(Debug, Clone, PartialEq)]
@@ -267,11 +269,236 @@ impl MoveReport {
 
     /// What a move of a module not homed means, in plain words (`None` when it is homed).
     pub fn not_homed_note(&self) -> Option<&'static str> {
-        (!self.homed()).then_some(
-            "the module is not homed (STATE_HOME_OK clear): its position is in the coordinates it took at \
-             power-on, and MinPos/MaxPos, which the target was checked against, hold only after homing (the \
-             manual: run motion commands only after a successful homing, else only at slow speed)",
-        )
+        not_homed_note(self.state)
+    }
+}
+
+/// What a motion of a module that ended in `state` means when the module is not homed (`None` when it is):
+/// the one text of [`MoveReport::not_homed_note`] and [`MotionReport::not_homed_note`].
+fn not_homed_note(state: CubeState) -> Option<&'static str> {
+    (!state.contains(StateFlag::HomeOk)).then_some(
+        "the module is not homed (STATE_HOME_OK clear): its position is in the coordinates it took at \
+         power-on, and MinPos/MaxPos, which the target was checked against, hold only after homing (the \
+         manual: run motion commands only after a successful homing, else only at slow speed)",
+    )
+}
+
+/// A motion command of any mode ([`Op::RunMotion`](super::Op::RunMotion)), run to its end and checked: the
+/// position modes (FRAMP, FSTEP, IRAMP, ISTEP and their `_ACK` forms) to their target, the continuous ones
+/// (velocity, current, FCOSLOOP, FRAMPLOOP) for [`MotionSpec::hold`] and then ended.
+///
+/// ```
+/// use std::time::Duration;
+/// use motionlink_powercube::model::{AxisUnit, Motion, MotionId, Velocity};
+/// use motionlink_powercube::session::MotionSpec;
+///
+/// // FVEL at 0.2 rad/s for 2 s, then velocity 0 and the wait for rest.
+/// let spec = MotionSpec {
+///     hold: Some(Duration::from_secs(2)),
+///     ..MotionSpec::new(Motion::FVel { vel: Velocity::rad_per_s(0.2) })
+/// };
+/// assert!(spec.continuous() && spec.validate().is_ok());
+///
+/// // FSTEP_ACK from its name and numbers: 0.5 in 800 ms, the extended acknowledge asked for.
+/// let id = MotionId::parse("fstep_ack").unwrap();
+/// let (motion, ack) = Motion::from_id(id, 0.5, Some(800), AxisUnit::ModuleUnit).unwrap();
+/// let step = MotionSpec { ack, ..MotionSpec::new(motion) };
+/// assert!(!step.continuous() && step.validate().is_ok());
+/// // A position mode ends at its target: a hold is refused.
+/// let held = MotionSpec { hold: Some(Duration::from_secs(1)), ..step };
+/// assert!(held.validate().is_err());
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotionSpec {
+    /// The mode and its numbers.
+    pub motion: Motion,
+    /// [`AckKind::Simple`], or [`AckKind::Extended`] for the `_ACK` MotionIDs (the loops have none).
+    pub ack: AckKind,
+    /// Continuous modes (velocity, current, the loops): how long the motion runs before it is ended;
+    /// `None`: until the operation is cancelled (which halts it, as every motion). Must be `None` for the
+    /// position modes ([`Error::InvalidArgument`] otherwise).
+    pub hold: Option<Duration>,
+    /// Position modes: how close the module must end to the target (above 0, at most
+    /// [`MoveSpec::MAX_TOLERANCE`]); `None` is [`MoveSpec::DEFAULT_TOLERANCE`]. Must be `None` for the
+    /// continuous modes, which have no target to be within.
+    pub tolerance: Option<Position>,
+    /// Position modes: how long the module may take to come to rest at its target; velocity modes: how
+    /// long the stop from the velocity 0 sent after the hold may take. A wait that runs out halts the
+    /// module. 60 s by [`MotionSpec::new`].
+    pub timeout: Duration,
+}
+
+impl MotionSpec {
+    /// `motion` with the simple acknowledge, no hold (a continuous mode runs until cancelled), the default
+    /// tolerance and 60 s.
+    pub fn new(motion: Motion) -> MotionSpec {
+        MotionSpec { motion, ack: AckKind::Simple, hold: None, tolerance: None, timeout: Duration::from_secs(60) }
+    }
+
+    /// True for a mode that runs until it is ended (velocity, current, the loops; [`MotionId::continuous`]).
+    pub fn continuous(&self) -> bool {
+        self.motion.continuous()
+    }
+
+    /// The MotionID sent: the mode with the acknowledge asked for (`None` for a loop with an extended one).
+    pub fn id(&self) -> Option<MotionId> {
+        self.motion.id(self.ack)
+    }
+
+    /// The tolerance in force (position modes).
+    pub fn tolerance(&self) -> Position {
+        self.tolerance.unwrap_or(MoveSpec::DEFAULT_TOLERANCE)
+    }
+
+    /// Checks what can be checked without the module: the mode has the acknowledge asked for; its numbers
+    /// are finite; a time (FSTEP, ISTEP, FCOSLOOP) above 0 ms; ICUR within -500..500 digits
+    /// ([`RAW_CUR_MAX`]); a hold only for a continuous mode and above 0; a tolerance only for a position
+    /// mode, above 0 and at most [`MoveSpec::MAX_TOLERANCE`]; a timeout above 0; rad and m not mixed.
+    pub fn validate(&self) -> Result<(), Error> {
+        let refused =
+            |what: &'static str, must: &'static str, value: String| Error::InvalidArgument { what, must, value };
+        let number = match self.motion {
+            Motion::FRamp { pos } | Motion::FStep { pos, .. } => Some(("the target position", pos.value())),
+            Motion::FCosLoop { pos, .. } | Motion::FRampLoop { pos } => Some(("the loop's far end", pos.value())),
+            Motion::FVel { vel } => Some(("the velocity", vel.value())),
+            Motion::FCur { cur } => Some(("the current", cur.0)),
+            _ => None,
+        };
+        if let Some((what, v)) = number.filter(|(_, v)| !v.is_finite()) {
+            return Err(refused(what, "a finite number", v.to_string()));
+        }
+        // The mode has the acknowledge asked for (the loops have no `_ACK` form).
+        Request::motion(self.motion, self.ack)?;
+        let time = match self.motion {
+            Motion::FStep { time, .. } => Some(("the time of FSTEP_MODE", time)),
+            Motion::IStep { time, .. } => Some(("the time of ISTEP_MODE", time)),
+            Motion::FCosLoop { time, .. } => Some(("the period of FCOSLOOP", time)),
+            _ => None,
+        };
+        if let Some((what, _)) = time.filter(|(_, t)| t.0 == 0) {
+            return Err(refused(what, "above 0 ms (a motion in no time cannot be done)", "0 ms".into()));
+        }
+        if let Motion::ICur { cur } = self.motion {
+            if !(-RAW_CUR_MAX..=RAW_CUR_MAX).contains(&cur.0) {
+                return Err(refused(
+                    "the current of ICUR_MODE",
+                    "within -500..500 digits (the commanded current's range, manual 7.2)",
+                    format!("{} digits", cur.0),
+                ));
+            }
+        }
+        match (self.continuous(), self.hold) {
+            (false, Some(hold)) => {
+                return Err(refused(
+                    "the hold",
+                    "none for a position mode (FRAMP, FSTEP, IRAMP, ISTEP end at their target; a hold is for the \
+                     velocity, current and loop modes)",
+                    format!("{hold:?}"),
+                ))
+            }
+            (true, Some(hold)) if hold.is_zero() => {
+                return Err(refused("the hold", "above 0 (none: until the operation is cancelled)", "0 s".into()))
+            }
+            _ => {}
+        }
+        if let Some(tolerance) = self.tolerance {
+            if self.continuous() {
+                return Err(refused(
+                    "the tolerance",
+                    "none for a continuous mode (velocity, current and the loops have no target to end within)",
+                    tolerance.to_string(),
+                ));
+            }
+            crate::args::Tolerance::new(f64::from(tolerance.value()))?;
+        }
+        if self.timeout.is_zero() {
+            return Err(refused("the timeout", "a number of seconds above 0", format!("{:?}", self.timeout)));
+        }
+        let position = match self.motion {
+            Motion::FRamp { pos } | Motion::FStep { pos, .. } => Some(pos.unit()),
+            _ => None,
+        };
+        let said: Vec<AxisUnit> = [position, self.tolerance.map(|t| t.unit())]
+            .into_iter()
+            .flatten()
+            .filter(|u| *u != AxisUnit::ModuleUnit)
+            .collect();
+        if said.windows(2).any(|w| w[0] != w[1]) {
+            return Err(refused("the motion's quantities", "all in rad or all in m", format!("{self:?}")));
+        }
+        Ok(())
+    }
+}
+
+/// How a motion run by [`Op::RunMotion`](super::Op::RunMotion) ended. Serialises as `"reached"`,
+/// `"velocity_zero"` or `"halted"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MotionEnding {
+    /// A position mode: at rest within the tolerance of its target.
+    Reached,
+    /// A velocity mode after its hold: the same mode with velocity 0 was sent and the module came to rest.
+    VelocityZero,
+    /// A current or loop mode after its hold: Halt, confirmed by the state read back (the module takes no
+    /// motion command until a reset).
+    Halted,
+}
+
+/// How the motion ended, in words: "reached", "ended with velocity 0, at rest", "halted (it takes no motion
+/// until reset)".
+impl std::fmt::Display for MotionEnding {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            MotionEnding::Reached => "reached",
+            MotionEnding::VelocityZero => "ended with velocity 0, at rest",
+            MotionEnding::Halted => "halted (it takes no motion until reset)",
+        })
+    }
+}
+
+/// What a motion run by [`Op::RunMotion`](super::Op::RunMotion) did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MotionReport {
+    /// Rotary or linear: the unit of every position here (read before the motion).
+    pub kind: ModuleKind,
+    /// The MotionID sent.
+    pub mode: MotionId,
+    /// Where the module stood before the command (read).
+    pub start: Position,
+    /// Position modes: the target (IRAMP / ISTEP targets converted from ticks with the module's IncRatio).
+    pub target: Option<Position>,
+    /// Where the module came to rest at the end (read back; for a position mode twice, both within the
+    /// tolerance of the target).
+    pub reached: Position,
+    /// Continuous modes: how long the motion ran, from its command to the one that ended it.
+    pub held: Option<Duration>,
+    /// How it ended.
+    pub ending: MotionEnding,
+    /// The extended acknowledge of the motion command, when one was asked for and given (a firmware before
+    /// PowerCube-OS 2.5.16 / 3.5.13 answers with the simple one: `None`).
+    pub ext_ack: Option<ExtAck>,
+    /// The state word at the end.
+    pub state: CubeState,
+    /// True when every check of what the module took could be made (see `not_verifiable`). The end is
+    /// always checked: a position mode that did not end within the tolerance, a velocity that did not come
+    /// to rest, a halt not confirmed is an error, never a report.
+    pub verified: bool,
+    /// What could not be checked, and why, in plain words (empty when `verified`): a target the module
+    /// gives no way to read back, the value of a velocity or current command (the manual has no parameter
+    /// that shows it), what a guard could not do.
+    pub not_verifiable: Vec<String>,
+}
+
+impl MotionReport {
+    /// True when the module showed STATE_HOME_OK at the end (see [`MoveReport::homed`]).
+    pub fn homed(&self) -> bool {
+        self.state.contains(StateFlag::HomeOk)
+    }
+
+    /// What a motion of a module not homed means, in plain words (`None` when it is homed); the text of
+    /// [`MoveReport::not_homed_note`].
+    pub fn not_homed_note(&self) -> Option<&'static str> {
+        not_homed_note(self.state)
     }
 }
 

@@ -124,6 +124,23 @@ pub enum ModelError {
     /// A float that is not a number (NaN or infinite) as a value or a motion parameter.
     #[error("{0} is not a finite number")]
     NotFinite(&'static str),
+    /// A motion mode's name that is none of the manual's ([`MotionId::parse`](crate::model::MotionId::parse)).
+    #[error(
+        "unknown motion mode \"{0}\": one of FRAMP, FSTEP, FVEL, FCUR, IRAMP, ISTEP, IVEL, ICUR (any case, _MODE \
+         optional; _ACK after any of them for the extended acknowledge), FCOSLOOP, FRAMPLOOP"
+    )]
+    UnknownMotionName(String),
+    /// A motion command built from a mode and numbers ([`Motion::from_id`]) that the mode does not take:
+    /// a time it has none of, no time where it needs one, a number that is no integer of its type.
+    #[error("{mode} takes {takes}: {problem}")]
+    MotionArgument {
+        /// The manual's name of the mode (FSTEP_MODE).
+        mode: &'static str,
+        /// What the mode takes ([`MotionId::takes`]).
+        takes: &'static str,
+        /// What was wrong with what was given.
+        problem: String,
+    },
     /// A value outside the range the manual gives the parameter (RawCur: -500..500 digits).
     #[error("{param} {value} is outside the manual's range {range}")]
     OutOfRange {

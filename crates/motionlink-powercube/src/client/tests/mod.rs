@@ -6,6 +6,7 @@ mod basics;
 mod checked;
 mod close;
 mod firmware;
+mod modes;
 mod variants;
 mod watchdog;
 

@@ -4,6 +4,7 @@
 //! ([`motionlink_link::exec`]) runs them. No thread, no I/O.
 
 mod basic;
+mod modes;
 mod motion;
 mod probes;
 mod run;

@@ -120,7 +120,7 @@ impl Ctx {
     }
 
     /// The encoder ticks per unit (IncRatio), which must be a number above 0.
-    async fn inc_ratio(&self, a: u8) -> Result<f64, Error> {
+    pub(super) async fn inc_ratio(&self, a: u8) -> Result<f64, Error> {
         let r = self.get_finite(a, Param::IncRatio).await?;
         if r > 0.0 {
             Ok(f64::from(r))
@@ -139,34 +139,57 @@ impl Ctx {
     }
 
     /// Refuses `value` (named `what`) if it lies beyond the limit `param` of the module (`upper`: a maximum).
-    async fn within_limit(&self, a: u8, what: &str, value: f64, param: Param, upper: bool) -> Result<(), Error> {
+    pub(super) async fn within_limit(
+        &self,
+        a: u8,
+        what: &str,
+        value: f64,
+        param: Param,
+        upper: bool,
+    ) -> Result<(), Error> {
         let limit = self.limit_value(a, param).await?;
         let beyond = if upper { value > limit } else { value < limit };
         if beyond {
-            // The message gives the unit and, for a position, the whole range.
-            let unit = self.kind(a).await.map_or("", |k| param.unit().symbol(k));
-            let other = match param {
-                Param::MinPos => Some(Param::MaxPos),
-                Param::MaxPos => Some(Param::MinPos),
-                Param::ActIMinPos => Some(Param::ActIMaxPos),
-                Param::ActIMaxPos => Some(Param::ActIMinPos),
-                _ => None,
-            };
-            let other_limit = match other {
-                Some(p) => self.limit_value(a, p).await.ok().map(|v| (p, v)),
-                None => None,
-            };
-            return Err(Error::OutsideLimits {
-                address: crate::model::Address::checked(a),
-                what: what.into(),
-                value,
-                limit: param,
-                limit_value: limit,
-                unit,
-                other_limit,
-            });
+            return Err(self.outside_limit(a, what, value, param, limit).await);
         }
         Ok(())
+    }
+
+    /// Refuses `value` (named `what`, either sign) if its size lies beyond the limit `param` of the module
+    /// (a maximum of a speed or a current, which holds both ways).
+    pub(super) async fn within_size(&self, a: u8, what: &str, value: f64, param: Param) -> Result<(), Error> {
+        let limit = self.limit_value(a, param).await?;
+        // A NaN is beyond every limit.
+        if value.is_nan() || value.abs() > limit {
+            return Err(self.outside_limit(a, what, value, param, limit).await);
+        }
+        Ok(())
+    }
+
+    /// The refusal of `value` (named `what`) beyond the limit `param` of the module, which is `limit`: with
+    /// the unit and, for a position, the whole range.
+    async fn outside_limit(&self, a: u8, what: &str, value: f64, param: Param, limit: f64) -> Error {
+        let unit = self.kind(a).await.map_or("", |k| param.unit().symbol(k));
+        let other = match param {
+            Param::MinPos => Some(Param::MaxPos),
+            Param::MaxPos => Some(Param::MinPos),
+            Param::ActIMinPos => Some(Param::ActIMaxPos),
+            Param::ActIMaxPos => Some(Param::ActIMinPos),
+            _ => None,
+        };
+        let other_limit = match other {
+            Some(p) => self.limit_value(a, p).await.ok().map(|v| (p, v)),
+            None => None,
+        };
+        Error::OutsideLimits {
+            address: crate::model::Address::checked(a),
+            what: what.into(),
+            value,
+            limit: param,
+            limit_value: limit,
+            unit,
+            other_limit,
+        }
     }
 
     /// Writes `param` and checks that the module took it (see [`Op::SetChecked`](crate::session::Op)).
@@ -238,18 +261,23 @@ impl Ctx {
     /// acknowledge is awaited, the module is halted.
     pub async fn motion(&self, a: u8, motion: Motion, ack: AckKind) -> Result<Option<ExtAck>, Error> {
         let request = Request::motion(motion, ack)?;
-        let units = match motion {
-            Motion::FRamp { pos } | Motion::FRampLoop { pos } | Motion::FStep { pos, .. } => {
-                vec![("the target position", Quantity::Position(pos))]
-            }
-            Motion::FCosLoop { pos, .. } => vec![("the loop's far end", Quantity::Position(pos))],
-            Motion::FVel { vel } => vec![("the velocity", Quantity::Velocity(vel))],
-            _ => Vec::new(),
-        };
-        self.check_units(a, &units).await?;
+        self.check_units(a, &motion_units(motion)).await?;
         let reply = self.request(a, request).await;
         self.halt_if_cancelled(a, &request).await?;
-        match reply? {
+        self.ext_ack_of(a, ack, &request, reply?)
+    }
+
+    /// The extended acknowledge in `reply` to the motion command `request` (with acknowledge `ack`), in the
+    /// unit of the module's kind where known. The simple acknowledge to an extended-acknowledge MotionID
+    /// (a firmware before PowerCube-OS 2.5.16 / 3.5.13) is `None`, the motion taken, said once per module.
+    pub(super) fn ext_ack_of(
+        &self,
+        a: u8,
+        ack: AckKind,
+        request: &Request,
+        reply: Reply,
+    ) -> Result<Option<ExtAck>, Error> {
+        match reply {
             Reply::Motion { ext, .. } => {
                 if ext.is_none() && ack == AckKind::Extended {
                     self.core().warn_once(a, "extended_ack", || {
@@ -262,7 +290,7 @@ impl Ctx {
                 }
                 Ok(ext.map(|e| e.resolved(self.known_kind(a))))
             }
-            other => Err(unexpected(a, &request, other)),
+            other => Err(unexpected(a, request, other)),
         }
     }
 
@@ -308,32 +336,12 @@ impl Ctx {
         let mut motion_seen = false;
         let start = self.now();
         let deadline = start + timeout;
-        let period = self.core().config.poll_interval.max(Duration::from_micros(100));
+        let period = self.poll_period();
         let mut due = start;
-        if let Err(e) = self.probe_pos_state_dio(a).await {
-            return Err(self.lost(a, e).await);
-        }
-        let mut poll = Poll { separate: self.lacks_pos_state_dio(a), ..Poll::default() };
+        let mut poll = self.start_polls(a).await?;
         loop {
-            let polled = self.poll_state(a, &mut poll).await;
-            let (state, position) = match polled {
-                Ok(x) => x,
-                // The line is failing, or the module stopped answering, while a motion may be running (or
-                // the poll was not asked again after a cancel: the cancel, see `lost`).
-                Err(e) => return Err(self.lost(a, e).await),
-            };
+            let (state, position) = self.watch(a, &mut poll, start).await?;
             let now = self.now();
-            let address = crate::model::Address::new(a)?;
-            let position = Position::native(position).resolved(self.known_kind(a));
-            self.progress(Progress { address, position, state, elapsed: now.saturating_since(start) });
-            if state.has_fault() {
-                self.core().started.remove(&a);
-                return Err(Error::Device { address: crate::model::Address::checked(a), state });
-            }
-            if state.contains(StateFlag::Halted) {
-                self.core().started.remove(&a);
-                return Err(Error::Halted { address: crate::model::Address::checked(a), state });
-            }
             motion_seen |= state.contains(StateFlag::Motion);
             let begun_ok = begun.is_none_or(|b| {
                 motion_seen
@@ -360,13 +368,7 @@ impl Ctx {
                     stop,
                 });
             }
-            // Polls on a fixed schedule from the first one: never faster than the period, whatever the line;
-            // a poll that took longer than a period skips the slots it missed.
-            due += period;
-            if due <= now {
-                let missed = (now - due).as_nanos() / period.as_nanos() + 1;
-                due += period * u32::try_from(missed).unwrap_or(u32::MAX);
-            }
+            next_slot(&mut due, now, period);
             self.sleep_until_cancelled(due.min(deadline)).await;
             if self.cancelled() {
                 return Err(Error::Cancelled {
@@ -375,6 +377,51 @@ impl Ctx {
                 });
             }
         }
+    }
+
+    /// How often a wait polls: [`Config::poll_interval`](crate::session::Config), at least every 100 µs.
+    pub(super) fn poll_period(&self) -> Duration {
+        self.core().config.poll_interval.max(Duration::from_micros(100))
+    }
+
+    /// What the polls of a wait of module `a` start from: how the module can be polled (probed once; a
+    /// failing probe while a motion may run is lost, see [`Ctx::lost`]).
+    pub(super) async fn start_polls(&self, a: u8) -> Result<Poll, Error> {
+        if let Err(e) = self.probe_pos_state_dio(a).await {
+            return Err(self.lost(a, e).await);
+        }
+        Ok(Poll { separate: self.lacks_pos_state_dio(a), ..Poll::default() })
+    }
+
+    /// One poll of module `a` while a motion is watched ([`Ctx::poll_state`]), reported as [`Progress`]
+    /// (the time since `start`): its state and position. A module that shows an error flag
+    /// ([`Error::Device`]) or STATE_HALTED ([`Error::Halted`]) has stopped on its own and ends the watch;
+    /// a poll that fails while the motion may run halts it ([`Ctx::lost`]).
+    pub(super) async fn watch(
+        &self,
+        a: u8,
+        poll: &mut Poll,
+        start: motionlink_link::Timestamp,
+    ) -> Result<(CubeState, Position), Error> {
+        let (state, position) = match self.poll_state(a, poll).await {
+            Ok(x) => x,
+            // The line is failing, or the module stopped answering, while a motion may be running (or
+            // the poll was not asked again after a cancel: the cancel, see `lost`).
+            Err(e) => return Err(self.lost(a, e).await),
+        };
+        let now = self.now();
+        let address = crate::model::Address::new(a)?;
+        let position = Position::native(position).resolved(self.known_kind(a));
+        self.progress(Progress { address, position, state, elapsed: now.saturating_since(start) });
+        if state.has_fault() {
+            self.core().started.remove(&a);
+            return Err(Error::Device { address: crate::model::Address::checked(a), state });
+        }
+        if state.contains(StateFlag::Halted) {
+            self.core().started.remove(&a);
+            return Err(Error::Halted { address: crate::model::Address::checked(a), state });
+        }
+        Ok((state, position))
     }
 
     /// One poll of a wait: the state word and the position of module `a`. One exchange where it can be:
@@ -387,7 +434,7 @@ impl Ctx {
     /// a flag the short state does not carry is seen within that time. Wherever a wait may end (the motion
     /// over, the ramp ended) the state is read in full. A module that refuses ActFPosStateDio is polled
     /// with CubeState and ActPos from then on.
-    async fn poll_state(&self, a: u8, poll: &mut Poll) -> Result<(CubeState, f32), Error> {
+    pub(super) async fn poll_state(&self, a: u8, poll: &mut Poll) -> Result<(CubeState, f32), Error> {
         if !poll.separate {
             let read = self
                 .get_as(a, Param::ActFPosStateDio, |v| match *v {
@@ -523,13 +570,7 @@ impl Ctx {
                 }
             }
         }
-        // The motion's target is read back through TargetPosInc. Whether TargetPosInc follows the target is
-        // found out before anything moves, the first time: TargetPos written as the target, which the motion
-        // command sets anyway (see `twins`).
-        if self.twin_known(a, Param::TargetPos).is_none() {
-            self.write_twinned(a, Param::TargetPos, Value::F32(spec.target.value()), ratio).await?;
-        }
-        let pos_known = self.twin_known(a, Param::TargetPos);
+        let pos_known = self.prepare_target_read_back(a, spec.target.value(), ratio).await?;
         if self.cancelled() {
             return Err(Error::Cancelled { address: crate::model::Address::checked(a), stop: StopOutcome::NotStarted });
         }
@@ -540,43 +581,84 @@ impl Ctx {
         }
         tracing::info!("module {a}: moving from {:.4} to {}", start.value(), spec.target.value());
         let sent = (target * ratio).round() as i32;
-        if pos_known == Some(false) {
-            not_verifiable.push(twins::kept_apart(Param::TargetPos));
-        } else {
-            let taken = match self.get_as(a, Param::TargetPosInc, Value::as_i32).await {
-                Ok(taken) => taken,
-                Err(e) => return Err(self.lost(a, e).await),
-            };
-            // Not known (TargetPosInc held the target already): a TargetPosInc that changed to another
-            // target mirrors all the same, and that is a discrepancy too.
-            if (i64::from(taken) - i64::from(sent)).abs() <= 1 {
-                if pos_known.is_none() {
-                    not_verifiable.push(twins::undecided(Param::TargetPos));
-                }
-            } else {
-                if pos_known.is_none() {
-                    self.remember_twin(a, Param::TargetPos, true);
-                }
-                let stop = self.stop_motion(a).await;
-                return Err(Error::TargetMismatch { address: crate::model::Address::checked(a), sent, taken, stop });
-            }
+        if let Some(why) = self.check_target_taken(a, sent, pos_known).await? {
+            not_verifiable.push(why);
         }
         let begun = Begun { at, target: Some((spec.target.value(), tolerance.value())) };
         let (state, motion_seen) = self.wait_begun(a, Until::Ramp, spec.timeout, Some(begun)).await?;
-        let mut reached = start;
+        let reached = self.check_reached(a, spec.target.value(), tolerance.value(), state, motion_seen).await?;
+        let (start, reached) = (start.in_unit_of(kind), reached.in_unit_of(kind));
+        let target = spec.target.in_unit_of(kind);
+        Ok(MoveReport { kind, target, start, reached, state, verified: not_verifiable.is_empty(), not_verifiable })
+    }
+
+    /// Before a ramp command to `target` (in the module's unit, `ratio` its IncRatio) whose target is to be
+    /// read back through TargetPosInc: whether TargetPosInc follows the target on module `a`, found out the
+    /// first time by writing TargetPos as the target, which the motion command sets anyway (see `twins`).
+    /// `None`: not established (TargetPosInc held the target already).
+    pub(super) async fn prepare_target_read_back(&self, a: u8, target: f32, ratio: f64) -> Result<Option<bool>, Error> {
+        if self.twin_known(a, Param::TargetPos).is_none() {
+            self.write_twinned(a, Param::TargetPos, Value::F32(target), ratio).await?;
+        }
+        Ok(self.twin_known(a, Param::TargetPos))
+    }
+
+    /// Right after a ramp command whose target was `sent` ticks: the module's target read back from
+    /// TargetPosInc (what `known` says of it, see [`Ctx::prepare_target_read_back`]). A difference of more
+    /// than one tick is a corrupted command: the module is halted ([`Error::TargetMismatch`]). What could
+    /// not be checked (a module that keeps TargetPosInc apart; a TargetPosInc that held the target before)
+    /// is returned, in plain words. A failing read halts the motion ([`Ctx::lost`]).
+    pub(super) async fn check_target_taken(
+        &self,
+        a: u8,
+        sent: i32,
+        known: Option<bool>,
+    ) -> Result<Option<String>, Error> {
+        if known == Some(false) {
+            return Ok(Some(twins::kept_apart(Param::TargetPos)));
+        }
+        let taken = match self.get_as(a, Param::TargetPosInc, Value::as_i32).await {
+            Ok(taken) => taken,
+            Err(e) => return Err(self.lost(a, e).await),
+        };
+        // Not known (TargetPosInc held the target already): a TargetPosInc that changed to another target
+        // mirrors all the same, and that is a discrepancy too.
+        if (i64::from(taken) - i64::from(sent)).abs() <= 1 {
+            return Ok(known.is_none().then(|| twins::undecided(Param::TargetPos)));
+        }
+        if known.is_none() {
+            self.remember_twin(a, Param::TargetPos, true);
+        }
+        let stop = self.stop_motion(a).await;
+        Err(Error::TargetMismatch { address: crate::model::Address::checked(a), sent, taken, stop })
+    }
+
+    /// After the end of a motion to `target` (the module's unit) was seen (`state`, and whether STATE_MOTION
+    /// was seen during the wait): the position of module `a`, read twice, both within `tolerance` of the
+    /// target. A module that does not stand there is [`Error::NotReached`]; one never seen moving may start
+    /// yet, so it is halted ([`Error::FailedDuringMotion`]).
+    pub(super) async fn check_reached(
+        &self,
+        a: u8,
+        target: f32,
+        tolerance: f32,
+        state: CubeState,
+        motion_seen: bool,
+    ) -> Result<Position, Error> {
+        let mut reached = Position::native(target);
         for _ in 0..2 {
             reached = self.position(a).await?;
-            let difference = reached.value() - spec.target.value();
+            let difference = reached.value() - target;
             // A NaN reading is not within any tolerance.
-            let within = difference.abs() <= tolerance.value();
+            let within = difference.abs() <= tolerance;
             if !within {
                 let unit = reached.unit();
                 let missed = Error::NotReached {
                     address: crate::model::Address::checked(a),
-                    target: Position::new(spec.target.value(), unit),
+                    target: Position::new(target, unit),
                     reached,
                     difference: Position::new(difference, unit),
-                    tolerance: Position::new(tolerance.value(), unit),
+                    tolerance: Position::new(tolerance, unit),
                     state,
                 };
                 if motion_seen {
@@ -592,9 +674,7 @@ impl Ctx {
                 });
             }
         }
-        let (start, reached) = (start.in_unit_of(kind), reached.in_unit_of(kind));
-        let target = spec.target.in_unit_of(kind);
-        Ok(MoveReport { kind, target, start, reached, state, verified: not_verifiable.is_empty(), not_verifiable })
+        Ok(reached)
     }
 
     /// Whether module `a`, which does not show STATE_MOTION now, shows it (or cannot be read) before
@@ -724,7 +804,7 @@ const FULL_STATE_EVERY: Duration = Duration::from_millis(100);
 
 /// What the polls of one wait remember.
 #[derive(Default)]
-struct Poll {
+pub(super) struct Poll {
     /// When the last poll that read CubeState was, its short state and the full state word.
     last: Option<(motionlink_link::Timestamp, ShortState, CubeState)>,
     /// The module refused ActFPosStateDio: CubeState and ActPos are read instead.
@@ -740,5 +820,28 @@ impl ExtAck {
             other => other,
         };
         ExtAck { position, ..self }
+    }
+}
+
+/// The next poll of a wait on its fixed schedule from the first one (`due`, moved on from the slot just
+/// polled, at `now`): never faster than `period`, whatever the line; a poll that took longer than a period
+/// skips the slots it missed.
+pub(super) fn next_slot(due: &mut motionlink_link::Timestamp, now: motionlink_link::Timestamp, period: Duration) {
+    *due += period;
+    if *due <= now {
+        let missed = (now - *due).as_nanos() / period.as_nanos().max(1) + 1;
+        *due += period * u32::try_from(missed).unwrap_or(u32::MAX);
+    }
+}
+
+/// The quantities of `motion` whose unit is checked against the module's kind, each named.
+pub(super) fn motion_units(motion: Motion) -> Vec<(&'static str, Quantity)> {
+    match motion {
+        Motion::FRamp { pos } | Motion::FRampLoop { pos } | Motion::FStep { pos, .. } => {
+            vec![("the target position", Quantity::Position(pos))]
+        }
+        Motion::FCosLoop { pos, .. } => vec![("the loop's far end", Quantity::Position(pos))],
+        Motion::FVel { vel } => vec![("the velocity", Quantity::Velocity(vel))],
+        _ => Vec::new(),
     }
 }

@@ -123,6 +123,22 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
             report.not_verifiable.extend(notes);
             Output::Moved(report)
         }
+        Op::RunMotion(a, spec, guard) => {
+            let a = a.get();
+            // A motion the module would limit (a velocity beyond MaxVel) is refused as such, before the guard
+            // arms anything.
+            let fit = ctx.check_motion(a, &spec).await?;
+            let report = match guard {
+                None => ctx.run_motion_checked(a, &spec, fit).await?,
+                Some(guard) => {
+                    let (mut report, notes) = ctx.guarded(a, guard, ctx.run_motion_checked(a, &spec, fit)).await?;
+                    report.verified &= notes.is_empty();
+                    report.not_verifiable.extend(notes);
+                    report
+                }
+            };
+            Output::MotionRun(report)
+        }
         Op::StopMotion(a) => Output::Stop(ctx.stop_motion(a.get()).await),
         Op::HaltStarted => {
             ctx.halt_started().await?;
