@@ -24,7 +24,8 @@ use motionlink_link::clock::{lock, SharedClock, Timestamp};
 use motionlink_link::url::PortUrl;
 
 use super::device::{
-    close_last, report, Action, BoxFuture, Device, ErrorReport, JogDirection, Motion, Param, Report, Sample, Unit,
+    close_last, report, Action, BoxFuture, Device, ErrorReport, JogDirection, Motion, Naming, Param, Report, Sample,
+    Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -200,17 +201,9 @@ impl Compax {
 }
 
 impl Device for Compax {
-    fn family(&self) -> &'static str {
-        "compax"
-    }
-
-    fn unit_key(&self) -> &'static str {
-        "drive"
-    }
-
-    fn unit_numbers(&self) -> std::ops::RangeInclusive<u8> {
-        // Those `Address::drive` takes: below the broadcast address.
-        1..=motionlink_compax::wire::BROADCAST - 1
+    fn naming(&self) -> Naming {
+        // The numbers `Address::drive` takes: below the broadcast address.
+        Naming { family: "compax", unit_key: "drive", unit_numbers: 1..=motionlink_compax::wire::BROADCAST - 1 }
     }
 
     fn port(&self) -> String {

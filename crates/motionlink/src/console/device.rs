@@ -116,19 +116,26 @@ pub enum JogDirection {
     Negative,
 }
 
+/// A family's name and what it calls its units.
+#[derive(Debug, Clone)]
+pub struct Naming {
+    /// "scu", "powercube" or "compax".
+    pub family: &'static str,
+    /// The JSON name of a unit's number: "actuator", "module" or "drive".
+    pub unit_key: &'static str,
+    /// The numbers a unit of the family can have (SCU actuators 1..6, PowerCube modules and COMPAX drives
+    /// 1..31): a request naming another is refused, saying so.
+    pub unit_numbers: RangeInclusive<u8>,
+}
+
 /// A device family as the console drives it. Every motion (`move_to`, `jog`, an action that moves) is a
 /// future: it ends when the motion has ended, and dropping it before stops the motion (the family's
 /// library sends the stop and checks it).
 pub trait Device: Send + Sync + 'static {
-    /// "scu", "powercube" or "compax".
-    fn family(&self) -> &'static str;
-    /// The JSON name of a unit's number: "actuator", "module" or "drive".
-    fn unit_key(&self) -> &'static str;
+    /// The family's name and what it calls its units.
+    fn naming(&self) -> Naming;
     /// The port, as the user gave it.
     fn port(&self) -> String;
-    /// The numbers a unit of the family can have (SCU actuators 1..6, PowerCube modules and COMPAX drives
-    /// 1..31): a request naming another is refused, saying so.
-    fn unit_numbers(&self) -> RangeInclusive<u8>;
     /// Finds the units on the link (SCU: the connected actuators; PowerCube, COMPAX: a scan).
     fn discover(&self) -> BoxFuture<'_, Result<Vec<Unit>, ErrorReport>>;
     /// One look at each of `units`.

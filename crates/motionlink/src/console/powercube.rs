@@ -18,8 +18,8 @@ use motionlink_powercube::sim::SimConfig;
 use motionlink_powercube::{AsyncClient, Emulator, Error};
 
 use super::device::{
-    close_last, report, Action, BoxFuture, Device, ErrorReport, JogDirection, Motion, Param as Row, Report, Sample,
-    Unit,
+    close_last, report, Action, BoxFuture, Device, ErrorReport, JogDirection, Motion, Naming, Param as Row, Report,
+    Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -225,17 +225,9 @@ impl PowerCube {
 }
 
 impl Device for PowerCube {
-    fn family(&self) -> &'static str {
-        "powercube"
-    }
-
-    fn unit_key(&self) -> &'static str {
-        "module"
-    }
-
-    fn unit_numbers(&self) -> std::ops::RangeInclusive<u8> {
-        // Those `Address::new` takes.
-        1..=motionlink_powercube::wire::MAX_ADDRESS
+    fn naming(&self) -> Naming {
+        // The numbers `Address::new` takes.
+        Naming { family: "powercube", unit_key: "module", unit_numbers: 1..=motionlink_powercube::wire::MAX_ADDRESS }
     }
 
     fn port(&self) -> String {

@@ -18,8 +18,8 @@ use motionlink_scu::value::Value as ScuValue;
 use motionlink_scu::{AsyncClient, FunctionMap};
 
 use super::device::{
-    close_last, finite, report, Action, BoxFuture, Device, ErrorReport, JogDirection, Motion, Param, Report, Sample,
-    Unit,
+    close_last, finite, report, Action, BoxFuture, Device, ErrorReport, JogDirection, Motion, Naming, Param, Report,
+    Sample, Unit,
 };
 use super::traffic::Traffic;
 use super::ServeArgs;
@@ -128,17 +128,9 @@ fn lookup_entry(name: &str) -> Result<Item, ErrorReport> {
 }
 
 impl Device for Scu {
-    fn family(&self) -> &'static str {
-        "scu"
-    }
-
-    fn unit_key(&self) -> &'static str {
-        "actuator"
-    }
-
-    fn unit_numbers(&self) -> std::ops::RangeInclusive<u8> {
-        // Those `Actuator::new` takes.
-        1..=6
+    fn naming(&self) -> Naming {
+        // The numbers `Actuator::new` takes.
+        Naming { family: "scu", unit_key: "actuator", unit_numbers: 1..=6 }
     }
 
     fn port(&self) -> String {

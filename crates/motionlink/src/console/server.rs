@@ -95,7 +95,7 @@ pub async fn handle(State(app): State<Arc<App>>, req: Request) -> Response {
         "/app.js" => asset("text/javascript; charset=utf-8", APP_JS),
         "/app.css" => asset("text/css; charset=utf-8", APP_CSS),
         "/capture" => {
-            let family = app.hub.device().family();
+            let family = app.hub.device().naming().family;
             let mut r = asset("text/plain; charset=utf-8", app.hub.traffic.capture_file());
             let name = format!("attachment; filename=\"motionlink-{family}-capture.log\"");
             if let Ok(v) = HeaderValue::from_str(&name) {
@@ -128,7 +128,7 @@ pub async fn handle(State(app): State<Arc<App>>, req: Request) -> Response {
 
 /// The units as the page gets them: none while scanning, with the failure if the scan failed.
 fn units_message(hub: &Hub, units: &Units) -> Message {
-    let key = hub.device().unit_key();
+    let key = hub.device().naming().unit_key;
     let (scanning, found, error) = match units {
         Units::Scanning => (true, Vec::new(), None),
         Units::Found(list) => (false, list.clone(), None),
@@ -151,9 +151,9 @@ fn role_message(hub: &Hub, page: u64) -> Message {
 fn welcome(hub: &Hub, page: u64) -> Message {
     let d = hub.device();
     Message::Welcome {
-        family: d.family(),
+        family: d.naming().family,
         port: d.port(),
-        unit_key: d.unit_key(),
+        unit_key: d.naming().unit_key,
         params: d.params(),
         actions: d.actions(),
         dead_man_ms: super::hub::DEAD_MAN.as_millis() as u64,
@@ -289,8 +289,8 @@ fn takes_only(req: &Value, what: &str, takes: &[&str]) -> Result<(), ErrorReport
 /// The unit a request names with the family's key (`actuator`, `module`, `drive`): a number the family's
 /// units can have (not yet whether the console found that unit: [`found_unit`]).
 fn unit_of(hub: &Hub, req: &Value) -> Result<u8, ErrorReport> {
-    let key = hub.device().unit_key();
-    let range = hub.device().unit_numbers();
+    let key = hub.device().naming().unit_key;
+    let range = hub.device().naming().unit_numbers;
     let (first, last) = (range.start(), range.end());
     match req.get(key) {
         None | Some(Value::Null) => {
@@ -305,7 +305,7 @@ fn unit_of(hub: &Hub, req: &Value) -> Result<u8, ErrorReport> {
 /// The unit `unit` of those the console found (a panel acts on a unit of the units table): a unit not
 /// found is refused before anything is sent to it, naming the units found.
 fn found_unit(hub: &Hub, unit: u8) -> Result<crate::console::device::Unit, ErrorReport> {
-    let key = hub.device().unit_key();
+    let key = hub.device().naming().unit_key;
     let Units::Found(list) = hub.units().borrow().clone() else {
         return Err(ErrorReport::usage(format!("{key} {unit}: the console has found no {key} yet (it is scanning)")));
     };
@@ -354,7 +354,7 @@ fn refused(hub: &Hub, page: u64, kind: &str, e: ErrorReport) -> ErrorReport {
             Some((unit, what)) => format!(
                 "; the motion under way ({what} of {} {unit}) is stopped all the same (its motion message reports \
                  the stop)",
-                hub.device().unit_key()
+                hub.device().naming().unit_key
             ),
             None => "; no motion of the console was under way".into(),
         },
@@ -392,7 +392,7 @@ fn handle_request(
     if !req.is_object() {
         return Err(ErrorReport::usage(format!("a request is a JSON object with its \"type\", not {req}")));
     }
-    let key = hub.device().unit_key();
+    let key = hub.device().naming().unit_key;
     let a = format!("a {kind} request");
     match kind {
         "jog_hold" => {
@@ -494,7 +494,7 @@ fn handle_request(
                 return Err(ErrorReport::usage("give the name or number of the entry"));
             }
             let device = Arc::clone(hub.device());
-            let unit_key = Keyed(device.unit_key(), unit);
+            let unit_key = Keyed(device.naming().unit_key, unit);
             if write {
                 hub.check_control(page)?;
                 let value = match req.get("value") {
@@ -519,7 +519,7 @@ fn handle_request(
             let unit = unit_of(hub, req)?;
             found_unit(hub, unit)?;
             let device = Arc::clone(hub.device());
-            let unit_key = Keyed(device.unit_key(), unit);
+            let unit_key = Keyed(device.naming().unit_key, unit);
             let work = device.errors(unit);
             spawn_reply(replies, kind, async move { Ok(Message::Errors { unit: unit_key, report: work.await? }) });
             Ok(None)

@@ -202,7 +202,7 @@ impl Hub {
             match self.device.discover().await {
                 Ok(found) if !found.is_empty() => break found,
                 Ok(_) => {
-                    let what = format!("no {} answered on {}", self.device.unit_key(), self.device.port());
+                    let what = format!("no {} answered on {}", self.device.naming().unit_key, self.device.port());
                     self.units.send_replace(Units::Failed(ErrorReport::classed(
                         ErrorClass::Transport(TransportKind::Timeout),
                         what,
@@ -217,7 +217,7 @@ impl Hub {
         };
         self.units.send_replace(Units::Found(units.clone()));
         let _ = self.notices.send(Notice::UnitsChanged);
-        let key = self.device.unit_key();
+        let key = self.device.naming().unit_key;
         let mut due = Instant::now();
         loop {
             let t_s = self.t_s();
@@ -349,7 +349,7 @@ impl Hub {
         mut motion: DeviceMotion,
         mut cancelled: oneshot::Receiver<StopReason>,
     ) {
-        let key = Keyed(self.device.unit_key(), unit);
+        let key = Keyed(self.device.naming().unit_key, unit);
         let motion_message = |state, ok, reason, error, message, report| Message::Motion {
             state,
             what: what.clone(),
@@ -458,7 +458,7 @@ impl Hub {
     /// page (the motion's own end is told by its task, with the report of its stop).
     pub async fn stop(self: &Arc<Self>, unit: Option<u8>) -> Result<Message, ErrorReport> {
         let motion_unit = self.stop_motion().map(|(u, _)| u);
-        let key = self.device.unit_key();
+        let key = self.device.naming().unit_key;
         match unit {
             // The motion's task stops its unit and reports it.
             Some(u) if Some(u) != motion_unit => {

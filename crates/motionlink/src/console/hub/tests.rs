@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::console::device::Motion as DeviceMotion;
-use crate::console::device::{Action, BoxFuture, JogDirection, Param, Report, Sample};
+use crate::console::device::{Action, BoxFuture, JogDirection, Naming, Param, Report, Sample};
 use crate::console::traffic::Traffic;
 use motionlink_link::clock::ManualClock;
 use serde_json::json;
@@ -42,15 +42,10 @@ impl Fake {
 }
 
 impl Device for Fake {
-    fn family(&self) -> &'static str {
-        "compax"
+    fn naming(&self) -> Naming {
+        Naming { family: "compax", unit_key: "drive", unit_numbers: 1..=31 }
     }
-    fn unit_key(&self) -> &'static str {
-        "drive"
-    }
-    fn unit_numbers(&self) -> std::ops::RangeInclusive<u8> {
-        1..=31
-    }
+
     fn port(&self) -> String {
         "fake".into()
     }
