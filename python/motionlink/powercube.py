@@ -17,6 +17,7 @@ from .records import (
     ModuleState,
     Parameter,
     PowerCubeHome,
+    PowerCubeMotion,
     PowerCubeMove,
     PowerCubeSample,
     PowerCubeStop,
@@ -92,6 +93,27 @@ class _Operations:
         cancelling the awaiting task halts it."""
 
     move = move_to
+
+    @op(PowerCubeMotion, aio=True)
+    def motion(
+        self,
+        mode: str,
+        value: float,
+        module: Optional[int] = None,
+        *,
+        time_ms: Optional[int] = None,
+        for_s: Optional[float] = None,
+        tolerance: Optional[float] = None,
+        timeout_s: float = 60.0,
+    ) -> PowerCubeMotion:
+        """A motion of one of the manual's modes (``mode``: ``"fvel"``, ``"FSTEP_MODE"``, ``"ivel_ack"``
+        ...; FSTEP, FVEL, FCUR, IRAMP, ISTEP, IVEL, ICUR, FCOSLOOP, FRAMPLOOP, FRAMP) with ``value`` in the
+        mode's unit (a position, velocity or current; ticks, ticks/s or digits in the I modes) and
+        ``time_ms`` for FSTEP, ISTEP and FCOSLOOP, checked against the module's limits before anything
+        moves, as ``motionlink powercube motion`` runs it. A position mode returns once the module is at
+        rest within ``tolerance`` of its target; a velocity, current or loop mode runs for ``for_s``
+        seconds (without it, until Ctrl-C or the task is cancelled, which halt it), then a velocity mode
+        is sent velocity 0 and waited for at rest, the others are halted (until :meth:`reset`)."""
 
     @op(ModuleState, aio=True)
     def wait(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> ModuleState:

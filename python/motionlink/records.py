@@ -17,7 +17,7 @@ of the same type with the same fields.
 
 from __future__ import annotations
 
-from typing import Any, List
+from typing import Any, Dict, List
 
 from ._record import ErrorBit, ErrorCode, FlagWord, Parameter, Record
 
@@ -31,6 +31,7 @@ __all__ = [
     "ModuleState",
     "ModulePosition",
     "PowerCubeMove",
+    "PowerCubeMotion",
     "PowerCubeHome",
     "PowerCubeStop",
     "PowerCubeSample",
@@ -146,7 +147,25 @@ class ModulePosition(Record):
         return float(self.get("position_rad", self.get("position_m", self.get("position"))))
 
 
-class PowerCubeMove(_WithState):
+class _Path(_WithState):
+    """A PowerCube motion's end: its positions in the module's unit (``_rad`` or ``_m``) and its checks."""
+
+    action: str
+    unit: str
+    homed: bool
+    verified: bool
+    not_verifiable: List[str]
+    start_rad: float
+    target_rad: float
+    reached_rad: float
+    difference_rad: float
+    start_m: float
+    target_m: float
+    reached_m: float
+    difference_m: float
+
+
+class PowerCubeMove(_Path):
     """A checked move that ended at its target: the module's state at the end (``state``), and where it
     went, in its unit (``"rad"``: ``target_rad``, ``reached_rad``, ``difference_rad``; ``"m"``: the same
     with ``_m``).
@@ -166,19 +185,34 @@ class PowerCubeMove(_WithState):
         not_verifiable: What could not be checked, and why (empty when ``verified``).
     """
 
-    action: str
-    unit: str
-    homed: bool
-    verified: bool
-    not_verifiable: List[str]
-    start_rad: float
-    target_rad: float
-    reached_rad: float
-    difference_rad: float
-    start_m: float
-    target_m: float
-    reached_m: float
-    difference_m: float
+
+class PowerCubeMotion(_Path):
+    """A motion of one of the manual's modes run to its end, as ``motionlink powercube motion --json``
+    reports it: the state at the end (``state``), how it ended (``ended``) and where the module went, in
+    its unit (``_rad`` on a rotary module, ``_m`` on a linear one).
+
+    Attributes:
+        action: ``"ran"``.
+        mode: The manual's name of the MotionID sent (``"FVEL_MODE"``, ``"FSTEP_ACK"``).
+        ended: ``"reached"`` (a position mode, at rest within its tolerance), ``"velocity_zero"`` (a
+            velocity mode after its hold: sent velocity 0, at rest) or ``"halted"`` (a current or loop mode
+            after its hold: halted until :meth:`PowerCube.reset`).
+        unit: ``"rad"`` or ``"m"`` (an attribute; not in ``to_dict()``).
+        start_rad: Where the module stood before.
+        target_rad: A position mode's target (an IRAMP / ISTEP target in the module's unit).
+        reached_rad: Where the module came to rest at the end.
+        difference_rad: A position mode's ``reached - target``.
+        held_s: A velocity, current or loop mode: how long it ran before it was ended.
+        ext_ack: An ``_ACK`` mode's extended acknowledge: ``position``, ``position_unit`` (``"rad"``,
+            ``"m"`` or ``"ticks"``), ``short_state`` and ``dio`` (flag words as dicts).
+        homed, verified, not_verifiable: As :class:`PowerCubeMove`'s (a velocity, current or loop command
+            cannot be read back: ``verified`` is False and ``not_verifiable`` says so).
+    """
+
+    mode: str
+    ended: str
+    held_s: float
+    ext_ack: Dict[str, Any]
 
 
 class PowerCubeHome(_WithState):

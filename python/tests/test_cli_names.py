@@ -108,6 +108,12 @@ def test_powercube_names(cli: Callable[..., List[Any]]) -> None:
         same_names("set", cube.set("MaxVel", 0.5).to_dict(), cli(*pc, "set", "MaxVel", "0.5")[0])
         same_names("home", cube.home().to_dict(), cli(*pc, "home")[0])
         same_names("move_to", cube.move_to(0.3).to_dict(), cli(*pc, "move", "0.3")[0])
+        for mode, value, given, option in (
+            ("fvel", 0.1, {"for_s": 0.1}, ("--for-s", "0.1")),
+            ("fstep_ack", 0.2, {"time_ms": 800}, ("--time-ms", "800")),
+        ):
+            ours = cube.motion(mode, value, **given).to_dict()
+            same_names(f"motion {mode}", ours, cli(*pc, "motion", mode, str(value), *option)[0])
         sample = next(cube.watch(interval_ms=10, count=1))
         same_names("watch", sample.to_dict(), cli(*pc, "watch", "--count", "1")[0])
         same_names("stop", cube.stop().to_dict(), without(cli(*pc, "stop")[0], "holder"))

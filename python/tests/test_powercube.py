@@ -16,6 +16,7 @@ from motionlink.records import (
     ModuleState,
     Parameter,
     PowerCubeHome,
+    PowerCubeMotion,
     PowerCubeMove,
     PowerCubeStop,
 )
@@ -65,6 +66,51 @@ def test_home_move_wait_and_watch(cube: motionlink.PowerCube, powercube_emulator
     assert [round(s.position_rad, 3) for s in samples] == [0.3, 0.3, 0.3]
     assert "STATE_MOTION" not in samples[0].state.flags
     assert samples[0].t_s <= samples[1].t_s <= samples[2].t_s
+
+
+def test_motion_runs_the_manuals_modes_checked_and_ended(cube: motionlink.PowerCube) -> None:
+    cube.home()
+    held = cube.motion("fvel", 0.2, for_s=0.3)
+    assert isinstance(held, PowerCubeMotion)
+    assert (held.action, held.mode, held.ended, held.unit) == ("ran", "FVEL_MODE", "velocity_zero", "rad")
+    assert held.reached_rad - held.start_rad > 0.04 and held.held_s >= 0.3
+    assert held.verified is False and "velocity" in held.not_verifiable[0]
+    assert "STATE_HALTED" not in held.state.flags and "target_rad" not in held
+    step = cube.motion("FSTEP_ACK", 0.3, time_ms=400)
+    assert (step.ended, step.target_rad) == ("reached", 0.3)
+    assert step.reached_rad == pytest.approx(0.3, abs=1e-3) and step.ext_ack["position_unit"] == "rad"
+    halted = cube.motion("fcur", -0.5, for_s=0.2)
+    assert halted.ended == "halted" and "STATE_HALTED" in halted.state.flags
+    cube.reset()
+    # Refused before anything moves, with the command line's messages.
+    before = cube.position().position_rad
+    for args, kwargs, message in [
+        (("fstep", 0.3), {}, "FSTEP_MODE takes a target position"),
+        (("velocity", 0.3), {}, 'unknown motion mode "velocity"'),
+        (("fvel", 1.5), {"for_s": 1.0}, "MaxVel"),
+        (("icur", 600), {"for_s": 1.0}, "600 is outside -500..500"),
+        (("fvel", 0.1), {"tolerance": 0.01}, "the tolerance"),
+        (("fvel", 0.1), {"time_ms": 70000}, "time_ms 70000"),
+    ]:
+        with pytest.raises(motionlink.UsageError, match=message):
+            cube.motion(*args, **kwargs)
+    assert cube.position().position_rad == before
+
+
+def test_async_motion_cancelled_during_its_hold_halts_the_module() -> None:
+    async def main() -> None:
+        async with motionlink.AsyncPowerCube("sim") as c:
+            await c.home()
+            held = asyncio.create_task(c.motion("fvel", 0.3))
+            while "STATE_MOTION" not in (await c.state()).flags:
+                await asyncio.sleep(0.01)
+            held.cancel()
+            with pytest.raises(asyncio.CancelledError):
+                await held
+            state = await c.state()
+            assert "STATE_HALTED" in state.flags and "STATE_MOTION" not in state.flags
+
+    asyncio.run(main())
 
 
 def test_stop_halts_and_reset_clears(cube: motionlink.PowerCube, powercube_emulator: motionlink.Emulator) -> None:

@@ -17,9 +17,10 @@ use crate::common::{classified, CliError};
 
 /// Options no device entry gives: the one that names the entry; the console's serving address and its
 /// opt-in to serve beyond this machine; a move's target (`--abs`, `--rel`: a device has no standing target),
-/// the hand-over of a move nothing watches (`--no-wait`) and a raw command to every drive (`--broadcast`):
-/// each must be said on the command line; and clap's own.
-const NOT_FROM_THE_FILE: [&str; 12] = [
+/// the hand-over of a move nothing watches (`--no-wait`), a raw command to every drive (`--broadcast`) and
+/// a PowerCube motion's time and hold (`--time-ms`, `--for-s`): each must be said on the command line; and
+/// clap's own.
+const NOT_FROM_THE_FILE: [&str; 14] = [
     "device",
     "listen",
     "listen_any",
@@ -27,6 +28,8 @@ const NOT_FROM_THE_FILE: [&str; 12] = [
     "rel",
     "no_wait",
     "broadcast",
+    "time_ms",
+    "for_s",
     "help",
     "version",
     "verbose",

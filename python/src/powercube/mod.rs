@@ -14,15 +14,15 @@ use motionlink_powercube::args::{
     Tolerance,
 };
 use motionlink_powercube::client::{
-    Client, Config, Guard, HaltReport, HomeReport, ModulesAt, MoveReport, MoveSpec, PortLink,
+    Client, Config, Guard, HaltReport, HomeReport, ModulesAt, MotionReport, MotionSpec, MoveReport, MoveSpec, PortLink,
 };
-use motionlink_powercube::model::{Address, AxisUnit, CubeState, ModuleKind, Param, Position, Value};
+use motionlink_powercube::model::{Address, AxisUnit, CubeState, ModuleKind, MotionId, Param, Position, Value};
 use motionlink_powercube::report::{ParamReading, SetReport};
 use motionlink_powercube::session::{Op, Output};
 use motionlink_powercube::{AsyncClient, Error};
 use pyo3::prelude::*;
 
-use crate::common::{f32_py, opt_float, Bool, Float, Int, Record, Slot};
+use crate::common::{f32_py, opt_float, opt_within, Bool, Float, Int, Record, Slot, Text};
 use crate::emulator::{clock, InProcess};
 use crate::emulator::{target, Target};
 use crate::errors::{to_pyerr, Failure, IntoFailure, OrRaise};
@@ -167,6 +167,23 @@ fn move_spec(
         tolerance.map(Tolerance::new).transpose().map_err(refused)?.unwrap_or_default(),
         MotionTimeout::from_secs(timeout_s).map_err(refused)?,
     ))
+}
+
+/// The motion `motion` asks for, every argument checked by the library as the command line checks it.
+fn motion_spec(
+    mode: &Text,
+    value: &Float,
+    time_ms: Option<&Int>,
+    for_s: Option<&Float>,
+    tolerance: Option<&Float>,
+    timeout_s: &Float,
+) -> Result<MotionSpec, Failure> {
+    let mode = mode.get(FAMILY, "mode")?.parse::<MotionId>().map_err(|e| usage(e.to_string()))?;
+    let time_ms = opt_within(time_ms, FAMILY, "time_ms", 0..=65535)?;
+    let hold = opt_float(for_s, FAMILY, "for_s")?.map(MotionTimeout::from_secs).transpose().map_err(refused)?;
+    let tolerance = opt_float(tolerance, FAMILY, "tolerance")?.map(Tolerance::new).transpose().map_err(refused)?;
+    let timeout = MotionTimeout::from_secs(timeout_s.get(FAMILY, "timeout_s")?).map_err(refused)?;
+    MotionSpec::from_args(mode, value.get(FAMILY, "value")?, time_ms, hold, tolerance, timeout).map_err(refused)
 }
 
 /// The value `value` (a Python number) for parameter `p`, parsed as the command line parses it (a whole
@@ -439,6 +456,21 @@ faces! {
         w!(c.module(Address::new(a)?).move_to_guarded(&spec, guard, &mut |_| {});
             async c.start(Op::MoveGuarded(Address::new(a)?, spec, guard)) => Output::Moved)
     } => |py, r| move_record(py, a, &r);
+
+    /// A motion of any of the manual's modes (`mode`: "fvel", "FSTEP_MODE", "ivel_ack" ...), checked against
+    /// the module's limits and run to its end (Ctrl-C, or cancelling the task, halts it).
+    motion motion(
+        me, py, mode: Text, value: Float, module: Option<Int>, time_ms: Option<Int>, for_s: Option<Float>,
+        tolerance: Option<Float>, timeout_s: Float
+    ) {
+        let a = me.address(py, module)?;
+        let spec = motion_spec(&mode, &value, time_ms.as_ref(), for_s.as_ref(), tolerance.as_ref(), &timeout_s)
+            .map_err(|f| to_pyerr(py, f))?;
+        let guard = me.guard;
+    } |c| {
+        w!(c.module(Address::new(a)?).run_motion_guarded(&spec, guard, &mut |_| {});
+            async c.start(Op::RunMotion(Address::new(a)?, spec, Some(guard))) => Output::MotionRun)
+    } => |py, r| motion_record(py, a, &r);
 
     /// Waits until the module stands still (no STATE_MOTION); the state at the end. Ctrl-C halts it; so does
     /// cancelling the task (the wait's future stops nothing when dropped: the motion may be another call's,

@@ -64,6 +64,11 @@ pub(super) fn move_record<'py>(py: Python<'py>, module: u8, m: &MoveReport) -> P
     record(py, module, &Acted::reached(m), Some(m.kind), &[(&start, f32_py(m.start.value()))])
 }
 
+/// A motion of any mode as the CLI's `powercube motion --json` prints it.
+pub(super) fn motion_record<'py>(py: Python<'py>, module: u8, m: &MotionReport) -> PyResult<Record<'py>> {
+    record(py, module, &Acted::ran(m), Some(m.kind), &[])
+}
+
 /// A confirmed halt as the CLI's `powercube stop --json` prints it, but `holder` (the command line's own).
 pub(super) fn halt_record<'py>(py: Python<'py>, module: u8, h: &HaltReport) -> PyResult<Record<'py>> {
     let halted = Acted { holder: None::<Option<()>>, ..Acted::halted(h, None::<()>) };

@@ -77,8 +77,7 @@ pub(super) fn home(
     if o.json {
         return o.print(out, Acted::homed(report));
     }
-    report_done(out, "homed", report.reached, report.kind, report.state)?;
-    common::not_verified(out, &report.not_verifiable)
+    report_done(out, "homed", (report.reached, report.kind, report.state), None, &report.not_verifiable)
 }
 
 /// `reset`: resets the module, switching off a watchdog that expired with no host serving it.
@@ -139,9 +138,26 @@ pub(super) fn move_to(
     if o.json {
         return o.print(out, Acted::reached(report));
     }
-    report_done(out, "reached", report.reached, report.kind, report.state)?;
-    if let Some(note) = report.not_homed_note() {
-        writeln!(out, "note: {note}")?;
+    let end = (report.reached, report.kind, report.state);
+    report_done(out, "reached", end, report.not_homed_note(), &report.not_verifiable)
+}
+
+/// `motion`: runs the mode `spec` gives and prints how it ended and where the module came to rest.
+pub(super) fn motion(
+    o: &Out<'_>,
+    m: &Module<'_>,
+    guard: Guard,
+    spec: &MotionSpec,
+    out: &mut dyn Write,
+) -> Result<(), CliError> {
+    let bar = common::progress_bar(0, format!("module {}", m.address()));
+    let r = m.run_motion_guarded(spec, guard, &mut |p: &Progress| bar.set_message(progress_text(p)));
+    bar.finish_and_clear();
+    let report = r.map_err(failed)?;
+    if o.json {
+        return o.print(out, Acted::ran(report));
     }
-    common::not_verified(out, &report.not_verifiable)
+    let (what, end) =
+        (format!("{} {}", report.mode.name(), report.ending), (report.reached, report.kind, report.state));
+    report_done(out, &what, end, report.not_homed_note(), &report.not_verifiable)
 }

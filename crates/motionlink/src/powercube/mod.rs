@@ -22,9 +22,9 @@ use motionlink_powercube::args::{
     Baud, CanBitRate, ModuleOptions, MotionTimeout, MoveAcceleration, MoveVelocity, PollInterval, ReplyTimeout, Target,
     Tolerance,
 };
-use motionlink_powercube::client::{Client, Guard, Module, MoveSpec, PortLink, Progress};
+use motionlink_powercube::client::{Client, Guard, Module, MotionSpec, MoveSpec, PortLink, Progress};
 use motionlink_powercube::describe::Describer;
-use motionlink_powercube::model::{Address, CubeState, ModuleKind, Param, Position, Value};
+use motionlink_powercube::model::{Address, CubeState, ModuleKind, MotionId, Param, Position, Value};
 use motionlink_powercube::sim::{SimConfig, Variant};
 use motionlink_powercube::wire::Payload;
 use motionlink_powercube::wire::{Action as PcAction, Request};
@@ -167,6 +167,33 @@ pub enum Action {
         #[arg(long, default_value = "0.001")]
         tolerance: Tolerance,
     },
+    /// Run a motion mode of the manual (FSTEP, FVEL, FCUR, IRAMP, ISTEP, IVEL, ICUR, FCOSLOOP, FRAMPLOOP,
+    /// FRAMP; an _ACK form for the extended acknowledge), its numbers checked against the module's limits
+    /// before anything moves (watchdog armed; a signal halts it). A position mode waits until the module is
+    /// at rest within --tolerance of its target; a velocity, current or loop mode runs for --for-s (without
+    /// it, until a signal), then a velocity mode is sent velocity 0 and waited for at rest, and the others
+    /// are halted (halted until `reset`).
+    Motion {
+        /// The mode as the manual names it, any case, _MODE optional: fvel, FSTEP_MODE, ivel_ack ...
+        mode: MotionId,
+        /// What the mode takes: a position (rad or m), a velocity (rad/s or m/s) or a current (A); in the I
+        /// modes whole encoder ticks, ticks/s or current digits (-500..500).
+        #[arg(allow_negative_numbers = true)]
+        value: f64,
+        /// FSTEP and ISTEP: the step's time; FCOSLOOP: its period (ms, 1 to 65535).
+        #[arg(long, value_name = "MS")]
+        time_ms: Option<u16>,
+        /// A velocity, current or loop mode: how long it runs, in seconds (above 0).
+        #[arg(long = "for-s", value_name = "S")]
+        for_s: Option<MotionTimeout>,
+        /// Give up (and halt) after this many seconds (above 0): a position mode's motion, a velocity
+        /// mode's stop.
+        #[arg(long = "timeout-s", value_name = "S", default_value = "60")]
+        timeout_s: MotionTimeout,
+        /// A position mode's in-position tolerance (rad or m, above 0, at most 0.1; default 0.001).
+        #[arg(long)]
+        tolerance: Option<Tolerance>,
+    },
     /// Print position and state until Ctrl-C (or --count samples).
     Watch {
         /// Milliseconds between samples (1 to 3600000).
@@ -205,6 +232,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
     }
     if let Action::Watch { csv, .. } = args.action {
         WatchFormat::of(csv, crate::term::json())?;
+    }
+    if let Action::Motion { mode, value, time_ms, for_s, timeout_s, tolerance } = args.action {
+        MotionSpec::from_args(mode, value, time_ms, for_s, tolerance, timeout_s).map_err(failed)?;
     }
     let request = match &args.action {
         Action::Send { words } => Some(parse_send(words, args.module.get())?),
@@ -287,6 +317,10 @@ fn act(
         Action::Move { position, vel, acc, timeout_s, tolerance } => {
             let spec = MoveSpec::from_args(*position, *vel, *acc, *tolerance, *timeout_s);
             actions::move_to(o, &m, guard, &spec, out)?
+        }
+        Action::Motion { mode, value, time_ms, for_s, timeout_s, tolerance } => {
+            let spec = MotionSpec::from_args(*mode, *value, *time_ms, *for_s, *tolerance, *timeout_s);
+            actions::motion(o, &m, guard, &spec.map_err(failed)?, out)?
         }
         Action::Watch { interval_ms, count, csv } => {
             watch(client, o, &m, out, WatchFormat::of(*csv, crate::term::json())?, *interval_ms, *count)?

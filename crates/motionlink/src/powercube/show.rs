@@ -115,14 +115,18 @@ pub(super) fn progress_text(p: &Progress) -> String {
     format!("module {}: {:.4}{unit}  {}", p.address, p.position.value(), p.state)
 }
 
-/// The end of a motion: `reached: position 1.2000 rad, state ...` (in the unit of a module of `kind`).
+/// The end of a motion: `reached: position 1.2000 rad, state ...` (in the unit of a module of `kind`), then
+/// the report's note on a module not homed and what it could not verify.
 pub(super) fn report_done(
     out: &mut dyn Write,
     what: &str,
-    pos: Position,
-    kind: ModuleKind,
-    s: CubeState,
+    (pos, kind, s): (Position, ModuleKind, CubeState),
+    note: Option<&str>,
+    not_verifiable: &[String],
 ) -> Result<(), CliError> {
     writeln!(out, "{what}: position {}, state {s}", pos.show(kind))?;
-    Ok(())
+    if let Some(note) = note {
+        writeln!(out, "note: {note}")?;
+    }
+    common::not_verified(out, not_verifiable)
 }

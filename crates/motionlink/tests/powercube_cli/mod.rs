@@ -3,6 +3,7 @@
 
 mod conventions;
 mod decoding;
+mod modes;
 #[cfg(unix)]
 mod signals;
 mod variants;

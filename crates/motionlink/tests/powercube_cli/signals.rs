@@ -104,6 +104,20 @@ fn every_signal_during_a_move_over_tcp_halts_it_within_100_ms() {
 
 #[cfg(unix)]
 #[test]
+fn a_signal_ends_a_velocity_held_until_it_with_a_confirmed_halt() {
+    let sim = Sim::start("powercube", &["--tcp", "127.0.0.1:0"]);
+    let port = sim.address.clone();
+    ok(&port, &["home"]);
+    for (sig, velocity) in [(libc::SIGINT, "0.3"), (libc::SIGTERM, "-0.3")] {
+        // No --for-s: it runs until a signal.
+        let running = start_moving(&sim, &port, "1", &["motion", "fvel", velocity]);
+        interrupt_and_check(&sim, running, "1", sig);
+        ok(&port, &["reset"]);
+    }
+}
+
+#[cfg(unix)]
+#[test]
 fn sigterm_during_homing_halts_it() {
     let dir = std::env::temp_dir().join(format!("motionlink-pc-home-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
