@@ -320,6 +320,31 @@ fn operations_after_close_fail_and_a_dead_device_bounds_the_close() {
 }
 
 #[test]
+fn a_move_whose_stop_a_dead_device_never_confirms_ends_with_the_close_s_error_not_never() {
+    let clock = RealClock::shared();
+    let host = EmulatorHost::new(Toy::default(), Arc::clone(&clock), PipeConfig::paced(115_200));
+    let (link, faults) = host.connect();
+    let config = DriverConfig { close_bound: Duration::from_millis(10), ..DriverConfig::default() };
+    let driver = Driver::new(ToySession::new(clock.now()), Port::Bytes(Box::new(link)), None, clock, config).unwrap();
+    let future = driver.start(Op::Move(1000));
+    let moving = (0..200).any(|_| {
+        std::thread::sleep(Duration::from_millis(5));
+        host.with_device(|d| d.moving_since.is_some())
+    });
+    assert!(moving, "the move started");
+    // The device goes silent: the close's STOP is not answered, and the close gives up after its bound
+    // (10 ms, shorter than the toy's answer timeout: the session has not ended the move by then).
+    faults.drop_next(motionlink_link::pipe::Direction::DeviceToHost, u64::MAX / 2);
+    assert!(matches!(driver.close(), Err(ToyError::Unconfirmed)));
+    // The future of the move, which the session had not ended, ends with the close's error (or, on a
+    // machine so loaded that the stop's answer timed out first, with that).
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || tx.send(block_on(future)).unwrap());
+    let ended = rx.recv_timeout(Duration::from_secs(2)).expect("the move's future ended");
+    assert!(matches!(ended, Err(ToyError::Unconfirmed | ToyError::Timeout)), "{ended:?}");
+}
+
+#[test]
 fn a_close_returns_within_its_bound_and_grace_while_the_background_thread_is_stuck_in_a_send() {
     let clock = RealClock::shared();
     let host = EmulatorHost::new(Toy::default(), Arc::clone(&clock), PipeConfig::paced(115_200));

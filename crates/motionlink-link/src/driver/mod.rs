@@ -67,6 +67,20 @@ enum Waiter {
     Waker(Option<Waker>),
 }
 
+impl Waiter {
+    /// Tells the caller that its operation's result is there.
+    fn wake(&mut self) {
+        match self {
+            Waiter::Signal(s) => s.raise(),
+            Waiter::Waker(w) => {
+                if let Some(w) = w.take() {
+                    w.wake();
+                }
+            }
+        }
+    }
+}
+
 /// One caller's operation as the driver sees it: its result and progress once they come, and who waits for them.
 struct CallerSlot<S: Session> {
     result: Option<Result<S::Output, S::Error>>,
@@ -124,14 +138,7 @@ impl<S: Session> DriverState<S> {
                     }
                     if let Some(slot) = self.ops.get_mut(&id) {
                         slot.result = Some(result);
-                        match &mut slot.waiter {
-                            Waiter::Signal(s) => s.raise(),
-                            Waiter::Waker(w) => {
-                                if let Some(w) = w.take() {
-                                    w.wake();
-                                }
-                            }
-                        }
+                        slot.waiter.wake();
                     }
                 }
                 Event::Closed(result) => {
@@ -575,6 +582,7 @@ impl<S: Session> Driver<S> {
                 core.wake_driver(shared);
             }
         }
+        let mut gave_up = false;
         let result = loop {
             let port = {
                 let mut core = shared.core();
@@ -582,6 +590,7 @@ impl<S: Session> Driver<S> {
                     break r;
                 }
                 if shared.clock.now() >= give_up {
+                    gave_up = true;
                     break Err(S::Error::close_timed_out(bound));
                 }
                 let port = core.port.take();
@@ -602,6 +611,14 @@ impl<S: Session> Driver<S> {
             core.stop_thread = true;
             // A result kept for later is no use once the session is closed.
             core.closed = Some(Ok(()));
+            // An operation without an outcome gets none from the session now: its caller (a future, which
+            // may outlive the driver) is told so rather than left waiting for ever; after a close that gave
+            // up, with the close's error (what was started may not be stopped).
+            for slot in core.ops.values_mut().filter(|slot| slot.result.is_none()) {
+                let e = if gave_up { S::Error::close_timed_out(bound) } else { S::Error::session_closed() };
+                slot.result = Some(Err(e));
+                slot.waiter.wake();
+            }
         }
         self.open = false;
         shared.background.raise();
