@@ -199,7 +199,13 @@
 //!   FRAMPLOOP) run for a hold, watched as a wait watches a motion, and are then ended: a velocity mode with
 //!   the same mode at velocity 0 and the wait for rest, a current or loop mode with a Halt confirmed by its
 //!   state (the module then takes no motion until a reset). What cannot be read back (a velocity's or a
-//!   current's value, a loop's far end) is said in the report's `not_verifiable`.
+//!   current's value, a loop's far end) is said in the report's `not_verifiable`. For control loops,
+//!   [`session::Op::Setpoint`] ([`client::Module::setpoint`]) streams one motion command per cycle
+//!   (typically FVEL_ACK, whose acknowledge gives the position, short state and DIO): the same numbers and
+//!   limits checked, against limits read at the first call to a module and cached (dropped when this
+//!   session writes a limit or the Config word, resets, homes or halts the module, or a setpoint fails; a
+//!   limit another program changes is not seen until then), so that each later call is one exchange; a
+//!   SHORT_NOT_OK in the acknowledge has the state read (a fault or a halt ends the stream with its error).
 //! - **Stops that cannot be confirmed.** When an action that may have set a module in motion cannot go on,
 //!   the module is halted: up to three Halts by address (a Halt may be repeated), the state read after an
 //!   acknowledged one until STATE_MOTION clears (at most [`session::HALT_SETTLE`]), and, unless it was seen

@@ -257,3 +257,30 @@ fn async_run_motion_holds_a_velocity_and_ends_it_and_a_guarded_step_reaches_its_
         client.close().await.unwrap();
     })
 }
+
+#[test]
+fn async_setpoints_stream_a_velocity_with_the_watchdog_held_until_the_close() {
+    use motionlink_powercube::model::{AckKind, Motion, MotionId};
+    use motionlink_powercube::wire::AckPosition;
+    run(async {
+        let (bus, client) = setup().await;
+        let m = client.module(a(1));
+        let vel = Motion::FVel { vel: Velocity::rad_per_s(0.2) };
+        let mut positions = Vec::new();
+        for _ in 0..20 {
+            let report = m.setpoint(vel, AckKind::Extended, Guard::Watchdog).await.unwrap();
+            assert_eq!((report.mode, report.kind, report.watchdog), (MotionId::FVelAck, ModuleKind::Rotary, true));
+            match report.ext_ack.map(|e| e.position) {
+                Some(AckPosition::Unit(p)) => positions.push(p.value()),
+                other => panic!("{other:?}"),
+            }
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        assert!(positions.windows(2).skip(1).all(|w| w[1] > w[0]), "{positions:?}");
+        assert!(client.watchdog_armed(a(1)), "armed after the calls returned");
+        assert_eq!(client.close().await.map_err(|e| e.to_string()), Ok(vec![a(1)]));
+        let events = emulator_events(&bus, "module 1");
+        assert!(events.iter().any(|e| e.ends_with("halted")), "{events:?}");
+        assert!(events.last().is_some_and(|e| e.ends_with("watchdog offline")), "{events:?}");
+    })
+}

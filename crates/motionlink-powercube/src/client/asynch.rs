@@ -19,7 +19,7 @@ use crate::model::{
 use crate::report::ModuleDetails;
 use crate::session::{
     Config, Guard, HaltReport, HomeReport, ModuleInfo, MotionReport, MotionSpec, MoveReport, MoveSpec, Op, Output,
-    Readback, ScanEntry, Session, Until,
+    Readback, ScanEntry, Session, SetpointReport, Until,
 };
 use crate::wire::{Action, ExtAck, Reply, Request};
 
@@ -366,6 +366,13 @@ impl AsyncModule<'_> {
     pub async fn motion(&self, motion: Motion, ack: AckKind) -> Result<Option<ExtAck>, Error> {
         Request::motion(motion, ack)?;
         self.client.call(calls::motion(self.address, motion, ack)).await
+    }
+
+    /// A streamed motion command for a control loop, as [`Module::setpoint`](crate::client::Module::setpoint)
+    /// (see [`Op::Setpoint`]): after the first call to the module one exchange per call; dropping the
+    /// future halts the module.
+    pub async fn setpoint(&self, motion: Motion, ack: AckKind, guard: Guard) -> Result<SetpointReport, Error> {
+        self.client.call(calls::setpoint(self.address, motion, ack, guard)).await
     }
 
     /// Homes and waits for the end of homing; dropping the future halts the module.

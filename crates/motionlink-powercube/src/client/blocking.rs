@@ -20,7 +20,7 @@ use crate::model::{
 use crate::report::ModuleDetails;
 use crate::session::{
     Config, Guard, HaltReport, HomeReport, ModuleInfo, MotionReport, MotionSpec, MoveReport, MoveSpec, Op, Output,
-    Progress, Readback, ScanEntry, Session, Until,
+    Progress, Readback, ScanEntry, Session, SetpointReport, Until,
 };
 use crate::wire::{Action, ExtAck, Reply, Request};
 
@@ -397,6 +397,51 @@ impl Module<'_> {
     pub fn motion(&self, motion: Motion, ack: AckKind) -> Result<Option<ExtAck>, Error> {
         Request::motion(motion, ack)?;
         self.client.call(calls::motion(self.address, motion, ack))
+    }
+
+    /// A streamed motion command for a control loop, sent once per cycle (see [`Op::Setpoint`]): typically
+    /// FVEL ([`Motion::FVel`]) with [`AckKind::Extended`], whose acknowledge gives where the module stood
+    /// in the same exchange. Every call checks the motion's numbers, units and limits (refused, never
+    /// clamped: [`Error::OutsideLimits`], nothing sent) against limits read at the first call to the module
+    /// and cached; the first call also refuses a module in error or halted and, under [`Guard::Watchdog`],
+    /// arms its watchdog, which the session refreshes until [`Client::disable_watchdog`] or the close (the
+    /// close halts the module). After it, each call is one exchange. The cache is dropped when this session
+    /// writes a limit or the Config word, resets, homes or halts the module, and on any error: a limit
+    /// another program changes is not seen until then.
+    ///
+    /// ```
+    /// use std::time::Duration;
+    /// use motionlink_link::clock::{Clock, ManualClock};
+    /// use motionlink_link::pipe::{EmulatorHost, PipeConfig};
+    /// use motionlink_powercube::client::{Client, Config, Guard, PortLink};
+    /// use motionlink_powercube::model::{AckKind, Address, Motion, Velocity};
+    /// use motionlink_powercube::wire::AckPosition;
+    /// use motionlink_powercube::Emulator;
+    ///
+    /// let clock = ManualClock::new_auto();
+    /// let _me = clock.reserve_participant().enter();
+    /// let host = EmulatorHost::new(Emulator::new(&Default::default()), clock.shared(), PipeConfig::instant());
+    /// let link = PortLink::Rs232(Box::new(host.connect().0));
+    /// let client = Client::with_link(link, clock.shared(), Config::rs232()).unwrap();
+    /// let joint = client.module(Address::new(1).unwrap());
+    /// // A control loop at 100 Hz: FVEL_ACK every 10 ms, where the module stood in each acknowledge.
+    /// let vel = Motion::FVel { vel: Velocity::rad_per_s(0.2) };
+    /// let mut next = clock.now();
+    /// for _ in 0..50 {
+    ///     let report = joint.setpoint(vel, AckKind::Extended, Guard::HaltOnly).unwrap();
+    ///     let Some(ext) = report.ext_ack else { panic!("an old firmware: no extended acknowledge") };
+    ///     assert!(matches!(ext.position, AckPosition::Unit(p) if p.value() >= 0.05));
+    ///     next += Duration::from_millis(10);
+    ///     clock.sleep_until(next);
+    /// }
+    /// // A velocity beyond MaxVel is refused, nothing sent.
+    /// let fast = Motion::FVel { vel: Velocity::rad_per_s(100.0) };
+    /// assert!(joint.setpoint(fast, AckKind::Extended, Guard::HaltOnly).is_err());
+    /// let address = joint.address();
+    /// assert_eq!(client.close().unwrap(), vec![address]); // the close halts it
+    /// ```
+    pub fn setpoint(&self, motion: Motion, ack: AckKind, guard: Guard) -> Result<SetpointReport, Error> {
+        self.client.call(calls::setpoint(self.address, motion, ack, guard))
     }
 
     /// A step in encoder ticks (SetIStep).

@@ -11,7 +11,7 @@ use crate::model::{
 };
 use crate::session::{
     Guard, HaltReport, HomeReport, ModuleInfo, MotionReport, MotionSpec, MoveReport, MoveSpec, Op, Output, Readback,
-    ScanEntry, Until,
+    ScanEntry, SetpointReport, Until,
 };
 use crate::wire::{Action, ExtAck, Reply, Request};
 
@@ -143,6 +143,10 @@ pub(crate) fn move_to(a: Address, spec: MoveSpec, guard: Option<Guard>) -> Call<
 
 pub(crate) fn run_motion(a: Address, spec: MotionSpec, guard: Option<Guard>) -> Call<MotionReport> {
     call!(Op::RunMotion(a, spec, guard), Output::MotionRun(r) => r)
+}
+
+pub(crate) fn setpoint(a: Address, m: Motion, ack: AckKind, guard: Guard) -> Call<SetpointReport> {
+    call!(Op::Setpoint(a, m, ack, guard), Output::Setpoint(r) => r)
 }
 
 pub(crate) fn halt_confirmed(a: Address) -> Call<HaltReport> {

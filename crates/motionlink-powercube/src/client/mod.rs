@@ -91,5 +91,5 @@ pub use crate::error::{Error, RefreshTiming, RoundTripRange, StopOutcome};
 pub use crate::model::WATCHDOG_TIMEOUT;
 pub use crate::session::{
     Config, Guard, HaltReport, HomeReport, ModuleInfo, ModulesAt, MotionEnding, MotionReport, MotionSpec, MoveReport,
-    MoveSpec, Progress, Readback, ScanEntry,
+    MoveSpec, Progress, Readback, ScanEntry, SetpointReport,
 };

@@ -14,7 +14,9 @@ mod acted;
 pub use acted::{Acted, Released, Timed};
 
 use crate::model::{CubeState, ModuleKind, Param, ParamKind, Position, StateFlag, Value};
-use crate::session::{HaltReport, HomeReport, ModuleInfo, MotionReport, MoveReport, Readback, ScanEntry};
+use crate::session::{
+    HaltReport, HomeReport, ModuleInfo, MotionReport, MoveReport, Readback, ScanEntry, SetpointReport,
+};
 use crate::wire::{AckPosition, ExtAck};
 
 /// The name of a quantity `stem` of a module of `kind`: `position_rad`, `max_velocity_m_per_s` (`tail` after
@@ -186,6 +188,20 @@ impl Serialize for MotionReport {
         map.serialize_entry("homed", &self.homed())?;
         map.serialize_entry("verified", &self.verified)?;
         map.serialize_entry("not_verifiable", &self.not_verifiable)?;
+        map.end()
+    }
+}
+
+/// `mode` (the manual's name: "FVEL_ACK"), `ext_ack` (when one came: `{position, position_unit,
+/// short_state, dio}`, as in [`MotionReport`]), `watchdog` (armed and refreshed by the session).
+impl Serialize for SetpointReport {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut map = s.serialize_map(None)?;
+        map.serialize_entry("mode", self.mode.name())?;
+        if let Some(ext) = &self.ext_ack {
+            map.serialize_entry("ext_ack", &ExtAckReport(ext))?;
+        }
+        map.serialize_entry("watchdog", &self.watchdog)?;
         map.end()
     }
 }

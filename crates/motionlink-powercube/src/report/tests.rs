@@ -160,6 +160,36 @@ fn a_motion_of_any_mode_names_its_positions_in_the_unit_of_the_module_and_says_h
 }
 
 #[test]
+fn a_setpoint_names_its_mode_its_extended_acknowledge_when_one_came_and_its_watchdog() {
+    use crate::model::{MotionId, Ticks};
+    use crate::session::SetpointReport;
+    use crate::wire::{AckPosition, ExtAck};
+    let ack = ExtAck { position: AckPosition::Unit(Position::rad(0.25)), state: ShortState(0x11), dio: Dio(0x01) };
+    let report =
+        SetpointReport { kind: ModuleKind::Rotary, mode: MotionId::FVelAck, ext_ack: Some(ack), watchdog: true };
+    let j = to_json(&report);
+    assert_eq!(
+        j,
+        json!({"mode": "FVEL_ACK", "ext_ack": {"position": 0.25_f32, "position_unit": "rad",
+               "short_state": to_json(&ShortState(0x11)), "dio": to_json(&Dio(0x01))}, "watchdog": true})
+    );
+    assert_eq!(j["ext_ack"]["short_state"]["flags"], json!(["SHORT_NOT_OK", "SHORT_MOTION"]), "{j}");
+    // IVEL_ACK in ticks; the simple acknowledge has none.
+    let ticks = SetpointReport {
+        mode: MotionId::IVelAck,
+        ext_ack: Some(ExtAck { position: AckPosition::Ticks(Ticks(4096)), ..ack }),
+        ..report.clone()
+    };
+    let j = to_json(&ticks);
+    assert_eq!(
+        (j["ext_ack"]["position"].clone(), j["ext_ack"]["position_unit"].clone()),
+        (json!(4096), json!("ticks"))
+    );
+    let simple = SetpointReport { mode: MotionId::FCur, ext_ack: None, watchdog: false, ..report };
+    assert_eq!(to_json(&simple), json!({"mode": "FCUR_MODE", "watchdog": false}));
+}
+
+#[test]
 fn homing_and_a_halt_name_their_position_in_the_unit_of_the_module() {
     let homed = HomeReport {
         kind: ModuleKind::Linear,

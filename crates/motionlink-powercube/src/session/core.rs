@@ -12,11 +12,11 @@ use motionlink_link::{LinkError, Timestamp};
 
 use super::Config;
 use crate::error::Error;
-use crate::model::{Broadcast, BroadcastForm, ConfigWord, ModuleKind};
+use crate::model::{Broadcast, BroadcastForm, ConfigWord, ModuleKind, Param};
 use crate::wire::can::{self as can_wire, Role};
 use crate::wire::rs232::{self, Rs232Decoder, TelKind};
 use crate::wire::Payload;
-use crate::wire::{Action, Reply, Request};
+use crate::wire::{AckPosition, Action, Reply, Request};
 
 /// What a finished job gives its operation.
 #[derive(Debug)]
@@ -153,6 +153,25 @@ impl WatchdogDuty {
     }
 }
 
+/// What the streamed setpoints of one module ([`Op::Setpoint`](crate::session::Op::Setpoint)) keep between
+/// calls, so that a later call is one exchange: dropped ([`Core::drop_setpoints`]) whenever what it holds
+/// may no longer be true.
+#[derive(Debug, Default)]
+pub(crate) struct SetpointCache {
+    /// Which cache this is: a value read for a cache dropped meanwhile is not kept in its successor.
+    pub generation: u64,
+    /// The first setpoint's checks are done: the module was found ready (no error, not halted, its Config
+    /// word lets it move), its watchdog armed where the guard asked for it, and a command acknowledged.
+    pub ready: bool,
+    /// The limits read for the checks, by parameter.
+    pub limits: BTreeMap<Param, f64>,
+    /// Where the last extended acknowledge put the module (the start of a step's speed rule).
+    pub last_position: Option<AckPosition>,
+    /// When the full state word last showed the module not homed, and nothing worse: until
+    /// `FULL_STATE_EVERY` later, its SHORT_NOT_OK is taken to say no more than that.
+    pub not_homed_at: Option<Timestamp>,
+}
+
 /// Everything a session and its operations share.
 pub(crate) struct Core {
     pub now: Timestamp,
@@ -188,12 +207,17 @@ pub(crate) struct Core {
     /// Module kinds read from their Config words.
     pub kinds: BTreeMap<u8, ModuleKind>,
     /// The Config word read with each kind (`None`: the kind came from DefConfig, the module gives no
-    /// Config word). Forgotten with the kind when the session writes Config.
+    /// Config word). Forgotten with the kind when the session writes Config (kept, with the new word, when
+    /// the write changes only CONFIGID_MOD_WATCHDOG_ENABLE: arming and disarming a watchdog).
     pub configs: BTreeMap<u8, Option<crate::model::ConfigWord>>,
     /// What the session established about each module where the manual is silent.
     pub findings: BTreeMap<u8, super::ModuleFindings>,
     /// The findings already warned about (module, which), so that each is said once per session.
     pub warned: BTreeSet<(u8, &'static str)>,
+    /// What the streamed setpoints of each module keep between calls.
+    pub setpoints: BTreeMap<u8, SetpointCache>,
+    /// How many setpoint caches were made: the generation of the next.
+    pub setpoint_generations: u64,
     /// The session lost its line or could not stop what it started.
     pub failed: bool,
     /// The round trips measured on the line: each acknowledge since its request went out.
@@ -225,6 +249,8 @@ impl Core {
             configs: BTreeMap::new(),
             findings: BTreeMap::new(),
             warned: BTreeSet::new(),
+            setpoints: BTreeMap::new(),
+            setpoint_generations: 0,
             failed: false,
             round_trips: None,
         }
@@ -247,6 +273,45 @@ impl Core {
     pub fn seen_stopped(&mut self, address: u8, mark: u64) {
         if self.start_mark(address) == mark {
             self.started.remove(&address);
+        }
+    }
+
+    /// The setpoint cache of module `address`, made (empty, a new generation) where there is none.
+    pub fn setpoint_cache(&mut self, address: u8) -> &mut SetpointCache {
+        let generations = &mut self.setpoint_generations;
+        self.setpoints.entry(address).or_insert_with(|| {
+            *generations += 1;
+            SetpointCache { generation: *generations, ..SetpointCache::default() }
+        })
+    }
+
+    /// The setpoint cache of module `address` if it is still generation `generation` (not dropped since).
+    pub fn setpoints_of(&mut self, address: u8, generation: u64) -> Option<&mut SetpointCache> {
+        self.setpoints.get_mut(&address).filter(|c| c.generation == generation)
+    }
+
+    /// Drops the setpoint cache of module `address`: its next setpoint reads again what it checks.
+    pub fn drop_setpoints(&mut self, address: u8) {
+        if self.setpoints.remove(&address).is_some() {
+            tracing::debug!("module {address}: the cache of its setpoints is dropped");
+        }
+    }
+
+    /// Before `request` goes to module `address`: a write of a limit its setpoints are checked against (or
+    /// of the Config word), a Reset, a Home or a Halt drops its setpoint cache.
+    pub fn note_request(&mut self, address: u8, request: &Request) {
+        let drops = match request {
+            // The session's own arming and disarming of a watchdog changes that flag alone: kept.
+            Request::Set(Param::Config, value) => {
+                let known = self.configs.get(&address).copied().flatten();
+                !value.as_u32().is_some_and(|word| known.is_some_and(|k| only_watchdog_flag(k, ConfigWord(word))))
+            }
+            Request::Set(param, _) => setpoint_limit(*param),
+            Request::Action(action) => matches!(action, Action::Reset | Action::Home | Action::Halt),
+            _ => false,
+        };
+        if drops {
+            self.drop_setpoints(address);
         }
     }
 
@@ -608,6 +673,28 @@ impl Core {
         let results = f.batch.iter().map(|_| Err(Error::Link(error.clone()))).collect();
         self.finish(f.ticket, JobResult::Exchange(results));
     }
+}
+
+/// True for a limit the checks of a motion read ([`Op::Setpoint`](crate::session::Op::Setpoint) caches
+/// them): MinPos, MaxPos, MaxVel, MaxCur and the tick limits ActIMinPos, ActIMaxPos, ActIMaxVel.
+pub(crate) fn setpoint_limit(param: Param) -> bool {
+    matches!(
+        param,
+        Param::MinPos
+            | Param::MaxPos
+            | Param::MaxVel
+            | Param::MaxCur
+            | Param::ActIMinPos
+            | Param::ActIMaxPos
+            | Param::ActIMaxVel
+    )
+}
+
+/// True when Config words `before` and `after` differ at most in CONFIGID_MOD_WATCHDOG_ENABLE (what arming
+/// and disarming a watchdog writes): the module's kind and what it lets move are the same.
+pub(crate) fn only_watchdog_flag(before: ConfigWord, after: ConfigWord) -> bool {
+    let flag = crate::model::ConfigFlag::WatchdogEnable;
+    before.with(flag) == after.with(flag)
 }
 
 /// True for an acknowledge of something that sets a module in motion.

@@ -10,7 +10,9 @@
 //! and [`Op::RunMotion`], any of the manual's motion modes ([`MotionSpec`]: FRAMP, FSTEP, IRAMP, ISTEP run
 //! to their target; FVEL, IVEL, FCUR, ICUR, FCOSLOOP, FRAMPLOOP held for a time and then ended), each with
 //! its limits refused before anything moves, its end waited for and checked, and a [`MotionReport`].
-//! [`Op::Motion`] is the raw command: units checked, nothing else.
+//! [`Op::Motion`] is the raw command: units checked, nothing else. [`Op::Setpoint`] is between the two, for
+//! control loops: a motion command streamed once per cycle, its numbers and limits checked, after the
+//! first call to a module one exchange per call.
 //!
 //! The clients ([`Client`](crate::Client), [`AsyncClient`](crate::client)) run it over a link through
 //! [`Driver`](motionlink_link::driver::Driver). Tests run it against the emulator directly:
@@ -54,7 +56,7 @@ use motionlink_link::{LinkError, Timestamp};
 
 pub use types::{
     Begun, Config, Guard, HaltReport, HomeReport, ModuleFindings, ModuleInfo, ModulesAt, MotionEnding, MotionReport,
-    MotionSpec, MoveReport, MoveSpec, Progress, Readback, ScanEntry, Until, HALT_SETTLE,
+    MotionSpec, MoveReport, MoveSpec, Progress, Readback, ScanEntry, SetpointReport, Until, HALT_SETTLE,
 };
 
 use self::core::Core;
@@ -178,6 +180,44 @@ pub enum Op {
     /// the checks come before the guard arms anything, and the motion runs as [`Op::MoveGuarded`]'s does:
     /// what the guard could not do is in the report's `not_verifiable`. [`Output::MotionRun`].
     RunMotion(Address, MotionSpec, Option<Guard>),
+    /// A streamed motion command ("setpoint") for a control loop, sent once per cycle (100..1000 Hz),
+    /// typically FVEL_ACK, whose extended acknowledge gives the module's position, short state and DIO in
+    /// the same exchange (what libm5api's `moveVelExtended` does every cycle). After the first call to a
+    /// module, one exchange per call: the command and its acknowledge, everything else cached.
+    ///
+    /// Every call checks the motion's numbers ([`MotionSpec::validate`]: finite, ICUR within -500..500
+    /// digits, a time above 0 for FSTEP, ISTEP and FCOSLOOP, no `_ACK` form of a loop), their units against
+    /// the module's kind, and its limits by the rules of [`Op::RunMotion`], refused
+    /// ([`Error::OutsideLimits`], nothing sent), never clamped, against values read once per module and
+    /// cached. A step's speed (FSTEP, ISTEP) starts from the position of the last extended acknowledge of
+    /// the same form (a float position, ticks), read only where there is none: with the simple acknowledge
+    /// a step reads the position at every call. The first call to a module (and the first after its cache
+    /// was dropped) also refuses a module in error, halted, or whose Config word would not let it move, and
+    /// with [`Guard::Watchdog`] arms its watchdog where the link allows it (as a guarded motion decides; on
+    /// RS232 the first arming also finds out, once per session, whether the module takes the broadcast
+    /// refresh, about 90 ms): it stays armed and refreshed after the call, until [`Op::DisableWatchdog`] or
+    /// the close (which halts what this session started and switches the watchdogs off); a later call does
+    /// not arm it again until the cache is dropped. A link that cannot serve it is no error: the report
+    /// says `watchdog: false`. [`Guard::HaltOnly`] never arms it.
+    ///
+    /// The cache of a module is dropped when this session writes one of those limits (MinPos, MaxPos,
+    /// MaxVel, MaxCur, ActIMinPos, ActIMaxPos, ActIMaxVel) or its Config word (beyond the watchdog flag its
+    /// own arming and disarming toggle), resets, homes or halts it (also by a broadcast), when a setpoint
+    /// fails (any error), and when a state read shows the module in error or halted. A limit changed by
+    /// another program (or a module homed or reset by one) is not seen until then.
+    ///
+    /// An extended acknowledge with SHORT_NOT_OK ("(STATE_ERROR) OR (NOT STATE_HOME_OK) OR (STATE_HALTED)")
+    /// has the state word read: an error flag or STATE_HALTED ends the call ([`Error::Device`],
+    /// [`Error::Halted`]; a module still moving then is halted, [`Error::FailedDuringMotion`]); a module
+    /// merely not homed streams on, its state read again at most every 100 ms (SHORT_NOT_OK cannot show a
+    /// halt or an error of a module that is not homed). With the simple acknowledge nothing shows the
+    /// module's state: a halted module acknowledges the commands it ignores.
+    ///
+    /// The command is never repeated (a motion command is not); one whose acknowledge is lost halts the
+    /// module ([`Error::FailedDuringMotion`]). A cancel halts it ([`Error::Cancelled`]): while the
+    /// acknowledge is awaited, or before the command if an earlier one of this session set it moving. The
+    /// module counts as set in motion: the close halts it. [`Output::Setpoint`].
+    Setpoint(Address, Motion, AckKind, Guard),
     /// Halts a module after an action that may have set it in motion cannot go on: up to three Halts, then
     /// a broadcast Halt and the watchdog refresh stopped. [`Output::Stop`].
     StopMotion(Address),
@@ -271,6 +311,8 @@ pub enum Output {
     Moved(MoveReport),
     /// What a motion of any mode ([`Op::RunMotion`]) did.
     MotionRun(MotionReport),
+    /// What a streamed setpoint ([`Op::Setpoint`]) did.
+    Setpoint(SetpointReport),
     /// What became of a stop.
     Stop(StopOutcome),
     /// What a confirmed halt found.

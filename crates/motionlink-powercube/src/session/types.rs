@@ -502,6 +502,25 @@ impl MotionReport {
     }
 }
 
+/// What a streamed setpoint ([`Op::Setpoint`](super::Op::Setpoint)) did: the command was acknowledged; with
+/// an `_ACK` mode, where the module stood then. Serialises as `{mode, ext_ack, watchdog}` (`ext_ack` only
+/// when one came).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SetpointReport {
+    /// Rotary or linear: the unit of a float position in `ext_ack`.
+    pub kind: ModuleKind,
+    /// The MotionID sent.
+    pub mode: MotionId,
+    /// The extended acknowledge: the module's position (rad or m for the float modes, encoder ticks for
+    /// the I modes), short state and DIO when it took the command. `None` for the simple acknowledge, or
+    /// when a firmware before PowerCube-OS 2.5.16 / 3.5.13 answered an `_ACK` MotionID with the simple one.
+    pub ext_ack: Option<ExtAck>,
+    /// True when the module's watchdog is armed and refreshed by this session ([`Guard::Watchdog`] on a
+    /// link that allows it, or an earlier [`Op::EnableWatchdog`](super::Op::EnableWatchdog)): a host that
+    /// dies stops the module within 50 ms.
+    pub watchdog: bool,
+}
+
 /// What homing ([`Op::HomeAndWait`](super::Op::HomeAndWait), [`Op::HomeGuarded`](super::Op::HomeGuarded))
 /// did: the module showed STATE_HOME_OK and stood still.
 #[derive(Debug, Clone, PartialEq)]

@@ -7,6 +7,7 @@ mod checked;
 mod close;
 mod firmware;
 mod modes;
+mod setpoint;
 mod variants;
 mod watchdog;
 

@@ -8,6 +8,7 @@ use crate::model::{
     AxisUnit, Broadcast, ConfigFlag, ConfigWord, CubeState, CubeVersion, ModuleKind, Param, Position, Quantity,
     StateFlag, Value,
 };
+use crate::session::core::only_watchdog_flag;
 use crate::session::ctx::Ctx;
 use crate::session::{HaltReport, ModuleInfo, HALT_SETTLE};
 use crate::wire::{is_module_address, ACK_OK};
@@ -57,6 +58,7 @@ impl Ctx {
         self.check(address, &request)?;
         let (attempts, timeout) = {
             let mut core = self.core();
+            core.note_request(address, &request);
             if request.starts_motion() {
                 core.mark_started(address);
                 let now = core.now;
@@ -88,7 +90,10 @@ impl Ctx {
         for (i, (address, request)) in requests.iter().enumerate() {
             if let Err(e) = self.check(*address, request) {
                 results[i] = Some(Err(e));
-            } else if request.starts_motion() {
+                continue;
+            }
+            self.core().note_request(*address, request);
+            if request.starts_motion() {
                 let mut core = self.core();
                 core.mark_started(*address);
                 let now = core.now;
@@ -171,6 +176,10 @@ impl Ctx {
     pub async fn broadcast(&self, broadcast: Broadcast) -> Result<(), Error> {
         {
             let mut core = self.core();
+            // Every module resets, homes or halts: what the setpoints of each cached may no longer hold.
+            if matches!(broadcast, Broadcast::Reset | Broadcast::Home | Broadcast::Halt) {
+                core.setpoints.clear();
+            }
             match broadcast {
                 Broadcast::Halt if core.can => core.started.clear(),
                 Broadcast::Home | Broadcast::StartMotion => {
@@ -205,8 +214,17 @@ impl Ctx {
         self.request(address, request).await?;
         if param == Param::Config {
             let mut core = self.core();
-            core.kinds.remove(&address);
-            core.configs.remove(&address);
+            let known = core.configs.get(&address).copied().flatten();
+            match (known, value.as_u32().map(ConfigWord)) {
+                // The watchdog flag alone (arming, disarming): the kind and the rest of the word stand.
+                (Some(before), Some(after)) if only_watchdog_flag(before, after) => {
+                    core.configs.insert(address, Some(after));
+                }
+                _ => {
+                    core.kinds.remove(&address);
+                    core.configs.remove(&address);
+                }
+            }
         }
         Ok(())
     }
@@ -238,9 +256,14 @@ impl Ctx {
         Ok(Position::native(v).resolved(self.known_kind(address)))
     }
 
-    /// The state word (CubeState).
+    /// The state word (CubeState). A module seen with an error flag or halted has its setpoint cache
+    /// dropped.
     pub async fn state(&self, address: u8) -> Result<CubeState, Error> {
-        Ok(CubeState(self.get_u32(address, Param::CubeState).await?))
+        let state = CubeState(self.get_u32(address, Param::CubeState).await?);
+        if state.has_fault() || state.contains(StateFlag::Halted) {
+            self.core().drop_setpoints(address);
+        }
+        Ok(state)
     }
 
     /// The Config word (the module's kind is learnt from it on the way).

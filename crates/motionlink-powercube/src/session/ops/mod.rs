@@ -8,6 +8,7 @@ mod modes;
 mod motion;
 mod probes;
 mod run;
+mod setpoint;
 mod twins;
 mod watchdog;
 

@@ -13,7 +13,17 @@ use crate::model::{
 use crate::session::ctx::Ctx;
 use crate::session::ops::motion::{motion_units, next_slot};
 use crate::session::{Begun, MotionEnding, MotionReport, MotionSpec, Until};
-use crate::wire::Request;
+use crate::wire::{AckPosition, Request};
+
+/// Where the limits a motion is checked against come from ([`Ctx::check_limits`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Limits {
+    /// Read from the module now (a motion run to its end, a checked move or write).
+    Read,
+    /// The module's setpoint cache of this generation ([`Op::Setpoint`](crate::session::Op::Setpoint)):
+    /// each limit read the first time it is needed and kept until the cache is dropped.
+    Cached(u64),
+}
 
 /// What the checks before a motion found ([`Ctx::check_motion`]): the module's kind, and for a position
 /// mode its target.
@@ -51,30 +61,26 @@ fn same_ticks(ticks: i32, sent: i32) -> bool {
 }
 
 impl Ctx {
-    /// What can be checked of a motion before anything is sent that changes the module (reads only; see
-    /// [`Op::RunMotion`](crate::session::Op::RunMotion)): the spec's numbers, their units against the
-    /// module's kind, and the module's limits, each refused ([`Error::OutsideLimits`]), never clamped:
+    /// The limits of module `a` that `motion` must keep, as `limits` gives them (read now, or cached for
+    /// the module's setpoints), each refused ([`Error::OutsideLimits`]), never clamped:
     ///
     /// - a float target (FRAMP, FSTEP) and a loop's far end (FRAMPLOOP, FCOSLOOP) within MinPos..MaxPos;
     /// - a tick target (IRAMP, ISTEP) within ActIMinPos..ActIMaxPos, the module's own limits in ticks (no
     ///   conversion through IncRatio, whose rounding could let a target one tick beyond pass);
     /// - a velocity within ±MaxVel (FVEL) or ±ActIMaxVel (IVEL), a current within ±MaxCur (FCUR); ICUR's
     ///   -500..500 digits are the spec's own check ([`MotionSpec::validate`]);
-    /// - a step's speed, its distance from the position now over its time, within MaxVel (FSTEP) or
-    ///   ActIMaxVel (ISTEP): a step faster than that the module would stretch, which is a limit too.
-    pub(crate) async fn check_motion(&self, a: u8, spec: &MotionSpec) -> Result<Fit, Error> {
-        spec.validate()?;
-        let mut units = motion_units(spec.motion);
-        units.extend(spec.tolerance.map(|t| ("the tolerance", Quantity::Position(t))));
-        self.check_units(a, &units).await?;
-        let kind = self.kind(a).await?;
+    /// - a step's speed, its distance from where the module stands over its time, within MaxVel (FSTEP)
+    ///   or ActIMaxVel (ISTEP): a step faster than that the module would stretch, which is a limit too.
+    ///   Where it stands is read now; with cached limits, it is where the last extended acknowledge of the
+    ///   same kind (a float position for FSTEP, ticks for ISTEP) put it, and read only without one.
+    pub(crate) async fn check_limits(&self, a: u8, motion: Motion, limits: Limits) -> Result<(), Error> {
         let range = |what: &'static str, value: f64, (min, max): (Param, Param)| async move {
-            self.within_limit(a, what, value, min, false).await?;
-            self.within_limit(a, what, value, max, true).await
+            self.within_limit(a, what, value, min, false, limits).await?;
+            self.within_limit(a, what, value, max, true, limits).await
         };
         let float_range = (Param::MinPos, Param::MaxPos);
         let tick_range = (Param::ActIMinPos, Param::ActIMaxPos);
-        match spec.motion {
+        match motion {
             Motion::FRamp { pos } | Motion::FStep { pos, .. } => {
                 range("the target position", f64::from(pos.value()), float_range).await?;
             }
@@ -84,28 +90,58 @@ impl Ctx {
             Motion::IRamp { pos } | Motion::IStep { pos, .. } => {
                 range("the target position in ticks", f64::from(pos.0), tick_range).await?;
             }
-            Motion::FVel { vel } => self.within_size(a, "the velocity", f64::from(vel.value()), Param::MaxVel).await?,
-            Motion::IVel { vel } => {
-                self.within_size(a, "the velocity in ticks/s", f64::from(vel.0), Param::ActIMaxVel).await?;
+            Motion::FVel { vel } => {
+                self.within_size(a, "the velocity", f64::from(vel.value()), Param::MaxVel, limits).await?;
             }
-            Motion::FCur { cur } => self.within_size(a, "the current", f64::from(cur.0), Param::MaxCur).await?,
+            Motion::IVel { vel } => {
+                self.within_size(a, "the velocity in ticks/s", f64::from(vel.0), Param::ActIMaxVel, limits).await?;
+            }
+            Motion::FCur { cur } => {
+                self.within_size(a, "the current", f64::from(cur.0), Param::MaxCur, limits).await?;
+            }
             Motion::ICur { .. } => {}
         }
         // The speed a step needs: at least its distance over its time, whatever the profile the module runs.
         const STEP_SPEED: &str = "the speed the step needs (its distance over its time)";
-        match spec.motion {
-            Motion::FStep { pos, time } => {
-                let from = self.position(a).await?.value();
-                let speed = f64::from(pos.value() - from).abs() / (f64::from(time.0) / 1000.0);
-                self.within_size(a, STEP_SPEED, speed, Param::MaxVel).await?;
+        let (to, time, in_ticks, max) = match motion {
+            Motion::FStep { pos, time } => (f64::from(pos.value()), time, false, Param::MaxVel),
+            Motion::IStep { pos, time } => (f64::from(pos.0), time, true, Param::ActIMaxVel),
+            _ => return Ok(()),
+        };
+        let from = self.step_start(a, in_ticks, limits).await?;
+        let speed = (to - from).abs() / (f64::from(time.0) / 1000.0);
+        self.within_size(a, STEP_SPEED, speed, max, limits).await
+    }
+
+    /// Where module `a` stands for a step's speed rule, in ticks (ISTEP) or in its unit (FSTEP): read
+    /// (ActIPos, ActPos), or, with cached limits, the position of its last extended acknowledge where that
+    /// has the same form.
+    async fn step_start(&self, a: u8, in_ticks: bool, limits: Limits) -> Result<f64, Error> {
+        if let Limits::Cached(generation) = limits {
+            let last = self.core().setpoints_of(a, generation).and_then(|c| c.last_position);
+            match last {
+                Some(AckPosition::Ticks(t)) if in_ticks => return Ok(f64::from(t.0)),
+                Some(AckPosition::Unit(p)) if !in_ticks => return Ok(f64::from(p.value())),
+                _ => {}
             }
-            Motion::IStep { pos, time } => {
-                let from = self.get_as(a, Param::ActIPos, Value::as_i32).await?;
-                let speed = (f64::from(pos.0) - f64::from(from)).abs() / (f64::from(time.0) / 1000.0);
-                self.within_size(a, STEP_SPEED, speed, Param::ActIMaxVel).await?;
-            }
-            _ => {}
         }
+        if in_ticks {
+            Ok(f64::from(self.get_as(a, Param::ActIPos, Value::as_i32).await?))
+        } else {
+            Ok(f64::from(self.position(a).await?.value()))
+        }
+    }
+
+    /// What can be checked of a motion before anything is sent that changes the module (reads only; see
+    /// [`Op::RunMotion`](crate::session::Op::RunMotion)): the spec's numbers, their units against the
+    /// module's kind, and the module's limits read now ([`Ctx::check_limits`]).
+    pub(crate) async fn check_motion(&self, a: u8, spec: &MotionSpec) -> Result<Fit, Error> {
+        spec.validate()?;
+        let mut units = motion_units(spec.motion);
+        units.extend(spec.tolerance.map(|t| ("the tolerance", Quantity::Position(t))));
+        self.check_units(a, &units).await?;
+        let kind = self.kind(a).await?;
+        self.check_limits(a, spec.motion, Limits::Read).await?;
         let target = match spec.motion {
             Motion::FRamp { pos } | Motion::FStep { pos, .. } => {
                 let ratio = self.inc_ratio(a).await?;

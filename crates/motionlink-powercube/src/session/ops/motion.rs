@@ -11,6 +11,7 @@ use crate::model::{
 };
 use crate::session::ctx::Ctx;
 use crate::session::ops::checked;
+use crate::session::ops::modes::Limits;
 use crate::session::ops::twins::{self, TwinCheck};
 use crate::session::{Begun, HomeReport, MoveReport, MoveSpec, Progress, Readback, Until};
 use crate::wire::{ExtAck, Reply, Request};
@@ -138,7 +139,24 @@ impl Ctx {
         }
     }
 
-    /// Refuses `value` (named `what`) if it lies beyond the limit `param` of the module (`upper`: a maximum).
+    /// The limit `param` of module `a` as `limits` gives it: read now, or taken from the module's setpoint
+    /// cache of that generation, where it is read (and kept) the first time.
+    async fn limit_from(&self, a: u8, param: Param, limits: Limits) -> Result<f64, Error> {
+        let Limits::Cached(generation) = limits else { return self.limit_value(a, param).await };
+        let cached = self.core().setpoints_of(a, generation).and_then(|c| c.limits.get(&param).copied());
+        if let Some(value) = cached {
+            return Ok(value);
+        }
+        let value = self.limit_value(a, param).await?;
+        // Kept only if the cache was not dropped meanwhile (a write of the limit under way).
+        if let Some(c) = self.core().setpoints_of(a, generation) {
+            c.limits.insert(param, value);
+        }
+        Ok(value)
+    }
+
+    /// Refuses `value` (named `what`) if it lies beyond the limit `param` of the module (`upper`: a maximum),
+    /// as `limits` gives it.
     pub(super) async fn within_limit(
         &self,
         a: u8,
@@ -146,29 +164,44 @@ impl Ctx {
         value: f64,
         param: Param,
         upper: bool,
+        limits: Limits,
     ) -> Result<(), Error> {
-        let limit = self.limit_value(a, param).await?;
+        let limit = self.limit_from(a, param, limits).await?;
         let beyond = if upper { value > limit } else { value < limit };
         if beyond {
-            return Err(self.outside_limit(a, what, value, param, limit).await);
+            return Err(self.outside_limit(a, what, value, (param, limit), limits).await);
         }
         Ok(())
     }
 
     /// Refuses `value` (named `what`, either sign) if its size lies beyond the limit `param` of the module
-    /// (a maximum of a speed or a current, which holds both ways).
-    pub(super) async fn within_size(&self, a: u8, what: &str, value: f64, param: Param) -> Result<(), Error> {
-        let limit = self.limit_value(a, param).await?;
+    /// (a maximum of a speed or a current, which holds both ways), as `limits` gives it.
+    pub(super) async fn within_size(
+        &self,
+        a: u8,
+        what: &str,
+        value: f64,
+        param: Param,
+        limits: Limits,
+    ) -> Result<(), Error> {
+        let limit = self.limit_from(a, param, limits).await?;
         // A NaN is beyond every limit.
         if value.is_nan() || value.abs() > limit {
-            return Err(self.outside_limit(a, what, value, param, limit).await);
+            return Err(self.outside_limit(a, what, value, (param, limit), limits).await);
         }
         Ok(())
     }
 
     /// The refusal of `value` (named `what`) beyond the limit `param` of the module, which is `limit`: with
-    /// the unit and, for a position, the whole range.
-    async fn outside_limit(&self, a: u8, what: &str, value: f64, param: Param, limit: f64) -> Error {
+    /// the unit and, for a position, the whole range (its other end as `limits` gives it).
+    async fn outside_limit(
+        &self,
+        a: u8,
+        what: &str,
+        value: f64,
+        (param, limit): (Param, f64),
+        limits: Limits,
+    ) -> Error {
         let unit = self.kind(a).await.map_or("", |k| param.unit().symbol(k));
         let other = match param {
             Param::MinPos => Some(Param::MaxPos),
@@ -178,7 +211,7 @@ impl Ctx {
             _ => None,
         };
         let other_limit = match other {
-            Some(p) => self.limit_value(a, p).await.ok().map(|v| (p, v)),
+            Some(p) => self.limit_from(a, p, limits).await.ok().map(|v| (p, v)),
             None => None,
         };
         Error::OutsideLimits {
@@ -212,18 +245,22 @@ impl Ctx {
         }
         match (param, number) {
             (Param::TargetPos, Some(v)) => {
-                self.within_limit(a, name, v, Param::MinPos, false).await?;
-                self.within_limit(a, name, v, Param::MaxPos, true).await?;
+                self.within_limit(a, name, v, Param::MinPos, false, Limits::Read).await?;
+                self.within_limit(a, name, v, Param::MaxPos, true, Limits::Read).await?;
             }
             (Param::TargetPosInc, Some(v)) => {
-                self.within_limit(a, name, v, Param::ActIMinPos, false).await?;
-                self.within_limit(a, name, v, Param::ActIMaxPos, true).await?;
+                self.within_limit(a, name, v, Param::ActIMinPos, false, Limits::Read).await?;
+                self.within_limit(a, name, v, Param::ActIMaxPos, true, Limits::Read).await?;
             }
-            (Param::TargetVel, Some(v)) => self.within_limit(a, name, v, Param::MaxVel, true).await?,
-            (Param::TargetVelInc, Some(v)) => self.within_limit(a, name, v, Param::ActIMaxVel, true).await?,
-            (Param::TargetAcc, Some(v)) => self.within_limit(a, name, v, Param::MaxAcc, true).await?,
-            (Param::TargetAccInc, Some(v)) => self.within_limit(a, name, v, Param::ActIMaxAcc, true).await?,
-            (Param::Cur, Some(v)) => self.within_limit(a, name, v.abs(), Param::MaxCur, true).await?,
+            (Param::TargetVel, Some(v)) => self.within_limit(a, name, v, Param::MaxVel, true, Limits::Read).await?,
+            (Param::TargetVelInc, Some(v)) => {
+                self.within_limit(a, name, v, Param::ActIMaxVel, true, Limits::Read).await?
+            }
+            (Param::TargetAcc, Some(v)) => self.within_limit(a, name, v, Param::MaxAcc, true, Limits::Read).await?,
+            (Param::TargetAccInc, Some(v)) => {
+                self.within_limit(a, name, v, Param::ActIMaxAcc, true, Limits::Read).await?
+            }
+            (Param::Cur, Some(v)) => self.within_limit(a, name, v.abs(), Param::MaxCur, true, Limits::Read).await?,
             _ => {}
         }
         if param.read_back_as().is_some() && number.is_some() {
@@ -304,7 +341,7 @@ impl Ctx {
 
     /// If the operation was cancelled and `request` may have set `a` in motion: the module is halted and
     /// that is the operation's end.
-    async fn halt_if_cancelled(&self, a: u8, request: &Request) -> Result<(), Error> {
+    pub(super) async fn halt_if_cancelled(&self, a: u8, request: &Request) -> Result<(), Error> {
         if request.starts_motion() && self.cancelled() {
             return Err(Error::Cancelled {
                 address: crate::model::Address::checked(a),
@@ -511,13 +548,13 @@ impl Ctx {
         self.check_units(a, &units).await?;
         let kind = self.kind(a).await?;
         let target = f64::from(spec.target.value());
-        self.within_limit(a, "the target position", target, Param::MinPos, false).await?;
-        self.within_limit(a, "the target position", target, Param::MaxPos, true).await?;
+        self.within_limit(a, "the target position", target, Param::MinPos, false, Limits::Read).await?;
+        self.within_limit(a, "the target position", target, Param::MaxPos, true, Limits::Read).await?;
         if let Some(v) = spec.vel {
-            self.within_limit(a, "the velocity", f64::from(v.value()), Param::MaxVel, true).await?;
+            self.within_limit(a, "the velocity", f64::from(v.value()), Param::MaxVel, true, Limits::Read).await?;
         }
         if let Some(acc) = spec.acc {
-            self.within_limit(a, "the acceleration", f64::from(acc.value()), Param::MaxAcc, true).await?;
+            self.within_limit(a, "the acceleration", f64::from(acc.value()), Param::MaxAcc, true, Limits::Read).await?;
         }
         Ok(kind)
     }
@@ -800,7 +837,7 @@ impl Ctx {
 
 /// In the middle of a motion, a wait reads the full state word at least this often (see
 /// [`Ctx::poll_state`]); the polls between read only ActFPosStateDio.
-const FULL_STATE_EVERY: Duration = Duration::from_millis(100);
+pub(super) const FULL_STATE_EVERY: Duration = Duration::from_millis(100);
 
 /// What the polls of one wait remember.
 #[derive(Default)]

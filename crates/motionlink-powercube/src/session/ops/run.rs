@@ -139,6 +139,7 @@ pub(crate) async fn run(ctx: Ctx, op: Op) -> Result<Output, Error> {
             };
             Output::MotionRun(report)
         }
+        Op::Setpoint(a, motion, ack, guard) => Output::Setpoint(ctx.setpoint(a.get(), motion, ack, guard).await?),
         Op::StopMotion(a) => Output::Stop(ctx.stop_motion(a.get()).await),
         Op::HaltStarted => {
             ctx.halt_started().await?;
