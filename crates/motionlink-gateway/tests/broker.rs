@@ -40,12 +40,12 @@ async fn online(b: &harness::Broker, gw: &str, client: &str) -> Client {
     c
 }
 
-/// A move of `device` with `args` under a lease kept alive: its reply.
-async fn leased_move(b: &harness::Broker, gw: &str, device: &str, args: Value) -> Value {
+/// A motion `op` (`move`, `motion`) of `device` with `args` under a lease kept alive: its reply.
+async fn leased(b: &harness::Broker, gw: &str, device: &str, op: &str, args: Value) -> Value {
     let _gw = gateway(b, gw, ALL);
     let mut c = online(b, gw, &format!("t-{gw}")).await;
     c.drain();
-    request(&c, gw, device, json!({"id": "m1", "op": "move", "args": args, "reply_to": "me/r", "lease_ms": 500})).await;
+    request(&c, gw, device, json!({"id": "m1", "op": op, "args": args, "reply_to": "me/r", "lease_ms": 500})).await;
     let started = std::time::Instant::now();
     let keep = keep_alive(&c, gw, device, "m1");
     let r = c.reply("me/r", "m1", 60 * S).await;
@@ -55,7 +55,7 @@ async fn leased_move(b: &harness::Broker, gw: &str, device: &str, args: Value) -
     let events: Vec<Value> =
         seen.iter().filter(|m| m.topic == format!("motionlink/{gw}/{device}/events")).map(|m| m.json()).collect();
     assert_eq!(events[0]["event"], "motion_started", "{events:?}");
-    assert_eq!((events[0]["op"].as_str(), events[0]["lease_ms"].as_u64()), (Some("move"), Some(500)), "{events:?}");
+    assert_eq!((events[0]["op"].as_str(), events[0]["lease_ms"].as_u64()), (Some(op), Some(500)), "{events:?}");
     assert_eq!(
         (events[1]["event"].as_str(), events[1]["ok"].as_bool()),
         (Some("motion_ended"), Some(true)),
@@ -103,7 +103,7 @@ async fn status_and_states_are_retained_and_the_end_is_offline() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_leased_scu_move_kept_alive_ends_at_its_target() {
     let Some(b) = broker("a_leased_scu_move_kept_alive_ends_at_its_target") else { return };
-    let r = leased_move(&b, "l1", "lift", json!({"actuator": 1, "position": 250, "speed": 100})).await;
+    let r = leased(&b, "l1", "lift", "move", json!({"actuator": 1, "position": 250, "speed": 100})).await;
     assert_eq!(r["ok"], true, "{r}");
     let result = &r["result"];
     assert_eq!((result["family"].as_str(), result["port"].as_str()), (Some("scu"), Some("sim")), "{r}");
@@ -113,7 +113,7 @@ async fn a_leased_scu_move_kept_alive_ends_at_its_target() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_leased_powercube_move_kept_alive_ends_at_its_target() {
     let Some(b) = broker("a_leased_powercube_move_kept_alive_ends_at_its_target") else { return };
-    let r = leased_move(&b, "l2", "arm", json!({"position": 1.0, "vel": 0.8})).await;
+    let r = leased(&b, "l2", "arm", "move", json!({"position": 1.0, "vel": 0.8})).await;
     assert_eq!(r["ok"], true, "{r}");
     let result = &r["result"];
     assert_eq!((result["action"].as_str(), result["module"].as_i64()), (Some("reached"), Some(1)), "{r}");
@@ -121,9 +121,20 @@ async fn a_leased_powercube_move_kept_alive_ends_at_its_target() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_leased_powercube_velocity_held_for_its_time_ends_with_velocity_zero() {
+    let Some(b) = broker("a_leased_powercube_velocity_held_for_its_time_ends_with_velocity_zero") else { return };
+    let r = leased(&b, "l4", "arm", "motion", json!({"mode": "fvel", "value": 0.3, "for_s": 0.6})).await;
+    assert_eq!(r["ok"], true, "{r}");
+    let result = &r["result"];
+    assert_eq!((result["action"].as_str(), result["ended"].as_str()), (Some("ran"), Some("velocity_zero")), "{r}");
+    assert!(result["reached_rad"].as_f64().unwrap() - result["start_rad"].as_f64().unwrap() > 0.1, "{r}");
+    assert!(result["held_s"].as_f64().unwrap() >= 0.6, "{r}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_leased_compax_move_kept_alive_ends_at_its_target() {
     let Some(b) = broker("a_leased_compax_move_kept_alive_ends_at_its_target") else { return };
-    let r = leased_move(&b, "l3", "axis", json!({"abs": 40, "speed": 50})).await;
+    let r = leased(&b, "l3", "axis", "move", json!({"abs": 40, "speed": 50})).await;
     assert_eq!(r["ok"], true, "{r}");
     let result = &r["result"];
     assert_eq!((result["drive"].as_i64(), result["waited"].as_bool()), (Some(1), Some(true)), "{r}");

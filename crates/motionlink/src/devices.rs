@@ -18,9 +18,10 @@ use crate::common::{classified, CliError};
 /// Options no device entry gives: the one that names the entry; the console's serving address and its
 /// opt-in to serve beyond this machine; a move's target (`--abs`, `--rel`: a device has no standing target),
 /// the hand-over of a move nothing watches (`--no-wait`), a raw command to every drive (`--broadcast`) and
-/// a PowerCube motion's time and hold (`--time-ms`, `--for-s`): each must be said on the command line; and
-/// clap's own.
-const NOT_FROM_THE_FILE: [&str; 14] = [
+/// a PowerCube motion's time, hold and tolerance (`--time-ms`, `--for-s`, `motion --tolerance`: a device's
+/// `tolerance` is `move`'s, which a velocity would refuse): each must be said on the command line; and clap's
+/// own.
+const NOT_FROM_THE_FILE: [&str; 15] = [
     "device",
     "listen",
     "listen_any",
@@ -30,6 +31,7 @@ const NOT_FROM_THE_FILE: [&str; 14] = [
     "broadcast",
     "time_ms",
     "for_s",
+    "motion_tolerance",
     "help",
     "version",
     "verbose",

@@ -68,7 +68,7 @@ pub const POWERCUBE: FamilyKeys = FamilyKeys {
         OpDefault { key: "vel", ops: &["move"] },
         OpDefault { key: "acc", ops: &["move"] },
         OpDefault { key: "tolerance", ops: &["move"] },
-        OpDefault { key: "timeout_s", ops: &["move", "home"] },
+        OpDefault { key: "timeout_s", ops: &["move", "motion", "home"] },
     ],
     ignored: &[
         CAPTURE,

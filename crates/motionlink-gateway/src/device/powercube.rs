@@ -1,4 +1,4 @@
-//! A PowerCube module on the gateway: `move`, `home`, `stop`, `reset`, `state`, `info`, `get`, `set`, `scan` and the state
+//! A PowerCube module on the gateway: `move`, `motion`, `home`, `stop`, `reset`, `state`, `info`, `get`, `set`, `scan` and the state
 //! samples, as the command line's `motionlink powercube` does them, on [`AsyncClient`].
 
 use std::sync::Arc;
@@ -9,9 +9,9 @@ use motionlink_link::url::PortUrl;
 use motionlink_link::Link;
 use motionlink_link::RealClock;
 use motionlink_powercube::args::{ModuleOptions, MotionTimeout, MoveAcceleration, MoveVelocity, Target, Tolerance};
-use motionlink_powercube::model::{Address, Param, StateFlag, Value as ParamValue};
+use motionlink_powercube::model::{Address, MotionId, Param, StateFlag, Value as ParamValue};
 use motionlink_powercube::report::{Acted, ParamReading, Released, Sample, SetReport, StateReport, Timed};
-use motionlink_powercube::session::{Guard, MoveSpec};
+use motionlink_powercube::session::{Guard, MotionSpec, MoveSpec};
 use motionlink_powercube::{AsyncClient, Emulator};
 use serde_json::Value;
 
@@ -20,7 +20,7 @@ use crate::args::Args;
 use crate::error::{ErrorReport, GatewayErrors};
 
 /// The actions served.
-const OPS: [&str; 9] = ["move", "home", "stop", "reset", "state", "info", "get", "set", "scan"];
+const OPS: [&str; 10] = ["move", "motion", "home", "stop", "reset", "state", "info", "get", "set", "scan"];
 
 /// A session with one module.
 #[derive(Clone)]
@@ -93,6 +93,21 @@ impl PowerCube {
                 Ok(Action::Motion(Box::pin(async move {
                     let report = client.module(module).move_to_guarded(&spec, guard).await.map_err(failed)?;
                     me.result(&Acted::reached(report))
+                })))
+            }
+            "motion" => {
+                // The command line's `powercube motion MODE VALUE`, checked by the same rules.
+                let mode: MotionId = args.need("mode")?;
+                let value: f64 = args.need("value")?;
+                let time_ms: Option<u16> = args.get("time_ms")?;
+                let hold: Option<MotionTimeout> = args.get("for_s")?;
+                let tolerance: Option<Tolerance> = args.get("tolerance")?;
+                let timeout = args.get::<MotionTimeout>("timeout_s")?.unwrap_or(MotionTimeout::DEFAULT);
+                args.finish()?;
+                let spec = MotionSpec::from_args(mode, value, time_ms, hold, tolerance, timeout).map_err(failed)?;
+                Ok(Action::Motion(Box::pin(async move {
+                    let report = client.module(module).run_motion_guarded(&spec, guard).await.map_err(failed)?;
+                    me.result(&Acted::ran(report))
                 })))
             }
             "home" => {

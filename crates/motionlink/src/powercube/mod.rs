@@ -190,8 +190,9 @@ pub enum Action {
         /// mode's stop.
         #[arg(long = "timeout-s", value_name = "S", default_value = "60")]
         timeout_s: MotionTimeout,
-        /// A position mode's in-position tolerance (rad or m, above 0, at most 0.1; default 0.001).
-        #[arg(long)]
+        /// A position mode's in-position tolerance (rad or m, above 0, at most 0.1; default 0.001; a device
+        /// table's `tolerance` is `move`'s).
+        #[arg(long, id = "motion_tolerance")]
         tolerance: Option<Tolerance>,
     },
     /// Print position and state until Ctrl-C (or --count samples).

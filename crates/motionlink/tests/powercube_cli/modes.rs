@@ -88,3 +88,22 @@ fn beyond_the_module_s_limits_a_mode_is_refused_and_nothing_moves() {
     }
     assert_eq!(number(port, "ActPos"), f64::from(0.05f32), "nothing moved");
 }
+
+#[test]
+fn a_device_table_s_tolerance_is_move_s_and_leaves_a_velocity_alone() {
+    let config = crate::common::temp_path("powercube-modes-devices.toml");
+    std::fs::write(&config, "[device.arm]\nfamily = \"powercube\"\nport = \"sim\"\ntolerance = 0.01\n").unwrap();
+    let env = [("MOTIONLINK_CONFIG", config.to_str().unwrap())];
+    let o =
+        crate::common::run_with(&["powercube", "--device", "arm", "motion", "fvel", "0.1", "--for-s", "0.1"], &env, "");
+    assert_eq!(code(&o), 0, "{o:?}");
+    assert!(String::from_utf8_lossy(&o.stdout).starts_with("FVEL_MODE ended with velocity 0"), "{o:?}");
+    // A position mode's tolerance is said on the command line.
+    let o = crate::common::run_with(
+        &["powercube", "--device", "arm", "motion", "fstep", "0.1", "--time-ms", "500", "--tolerance", "0.01"],
+        &env,
+        "",
+    );
+    assert_eq!(code(&o), 0, "{o:?}");
+    let _ = std::fs::remove_file(&config);
+}
