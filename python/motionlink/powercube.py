@@ -20,6 +20,7 @@ from .records import (
     PowerCubeMotion,
     PowerCubeMove,
     PowerCubeSample,
+    PowerCubeSetpoint,
     PowerCubeStop,
 )
 
@@ -119,6 +120,18 @@ class _Operations:
     def wait(self, module: Optional[int] = None, *, timeout_s: float = 60.0) -> ModuleState:
         """Waits until the module stands still; its state then. Ctrl-C halts it; cancelling the awaiting
         task halts it."""
+
+    @op(PowerCubeSetpoint, aio=True)
+    def setpoint(
+        self, mode: str, value: float, module: Optional[int] = None, *, time_ms: Optional[int] = None
+    ) -> PowerCubeSetpoint:
+        """One motion command of a control loop (``mode`` and ``value`` as :meth:`motion` takes them;
+        ``"fvel_ack"``: a velocity whose acknowledge says where the module stood, in ``ext_ack``), checked
+        against the module's limits, read once and cached until this client writes one of them or the
+        module resets, homes or halts. After the first call to a module each call is one exchange; the
+        first also checks that the module takes motion and arms its watchdog (``watchdog=True``), which
+        this client then refreshes until it closes. The motion goes on after the call: a velocity of 0
+        (or :meth:`stop`) ends it; closing the client (the end of ``with``, Ctrl-C out of it) halts it."""
 
     @op(PowerCubeStop, aio=True)
     def stop(self, module: Optional[int] = None) -> PowerCubeStop:

@@ -32,6 +32,7 @@ __all__ = [
     "ModulePosition",
     "PowerCubeMove",
     "PowerCubeMotion",
+    "PowerCubeSetpoint",
     "PowerCubeHome",
     "PowerCubeStop",
     "PowerCubeSample",
@@ -213,6 +214,28 @@ class PowerCubeMotion(_Path):
     ended: str
     held_s: float
     ext_ack: Dict[str, Any]
+
+
+class PowerCubeSetpoint(Record):
+    """A streamed setpoint's acknowledge (:meth:`PowerCube.setpoint`): the command was taken.
+
+    Attributes:
+        family: ``"powercube"``.
+        module: The address, 1..31.
+        mode: The manual's name of the MotionID sent (``"FVEL_ACK"``).
+        ext_ack: An ``_ACK`` mode's extended acknowledge, where the module stood as it took the command:
+            ``position``, ``position_unit`` (``"rad"``, ``"m"`` or ``"ticks"``), ``short_state`` and ``dio``
+            (flag words as dicts); absent for a simple acknowledge.
+        watchdog: True when the module's watchdog is armed and refreshed by this client (until it closes).
+        unit: ``"rad"`` or ``"m"`` (an attribute; not in ``to_dict()``).
+    """
+
+    family: str
+    module: int
+    mode: str
+    ext_ack: Dict[str, Any]
+    watchdog: bool
+    unit: str
 
 
 class PowerCubeHome(_WithState):

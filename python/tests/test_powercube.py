@@ -18,6 +18,7 @@ from motionlink.records import (
     PowerCubeHome,
     PowerCubeMotion,
     PowerCubeMove,
+    PowerCubeSetpoint,
     PowerCubeStop,
 )
 
@@ -95,6 +96,30 @@ def test_motion_runs_the_manuals_modes_checked_and_ended(cube: motionlink.PowerC
         with pytest.raises(motionlink.UsageError, match=message):
             cube.motion(*args, **kwargs)
     assert cube.position().position_rad == before
+
+
+def test_setpoints_stream_a_velocity_and_the_close_halts_what_still_moves() -> None:
+    emulator = motionlink.Emulator("powercube")
+    try:
+        with motionlink.PowerCube(emulator) as cube:
+            cube.home()
+            positions = []
+            for _ in range(20):
+                sent = cube.setpoint("fvel_ack", 0.5)
+                assert isinstance(sent, PowerCubeSetpoint)
+                assert (sent.mode, sent.module, sent.ext_ack["position_unit"]) == ("FVEL_ACK", 1, "rad")
+                positions.append(sent.ext_ack["position"])
+                time.sleep(0.01)
+            assert positions[-1] > positions[0], positions
+            with pytest.raises(motionlink.UsageError, match="MaxVel"):
+                cube.setpoint("fvel", 1.5)
+            with pytest.raises(motionlink.UsageError, match='unknown motion mode "speed"'):
+                cube.setpoint("speed", 0.1)
+            assert "STATE_MOTION" in cube.state().flags
+        texts = [e.text for e in emulator.take_events()]
+        assert any("at rest" in t for t in texts), texts
+    finally:
+        emulator.close()
 
 
 def test_async_motion_cancelled_during_its_hold_halts_the_module() -> None:

@@ -15,8 +15,11 @@ use motionlink_powercube::args::{
 };
 use motionlink_powercube::client::{
     Client, Config, Guard, HaltReport, HomeReport, ModulesAt, MotionReport, MotionSpec, MoveReport, MoveSpec, PortLink,
+    SetpointReport,
 };
-use motionlink_powercube::model::{Address, AxisUnit, CubeState, ModuleKind, MotionId, Param, Position, Value};
+use motionlink_powercube::model::{
+    AckKind, Address, AxisUnit, CubeState, ModuleKind, Motion, MotionId, Param, Position, Value,
+};
 use motionlink_powercube::report::{ParamReading, SetReport};
 use motionlink_powercube::session::{Op, Output};
 use motionlink_powercube::{AsyncClient, Error};
@@ -184,6 +187,13 @@ fn motion_spec(
     let tolerance = opt_float(tolerance, FAMILY, "tolerance")?.map(Tolerance::new).transpose().map_err(refused)?;
     let timeout = MotionTimeout::from_secs(timeout_s.get(FAMILY, "timeout_s")?).map_err(refused)?;
     MotionSpec::from_args(mode, value.get(FAMILY, "value")?, time_ms, hold, tolerance, timeout).map_err(refused)
+}
+
+/// The motion command `setpoint` sends, checked as [`Motion::from_id`] checks it.
+fn setpoint_motion(mode: &Text, value: &Float, time_ms: Option<&Int>) -> Result<(Motion, AckKind), Failure> {
+    let mode = mode.get(FAMILY, "mode")?.parse::<MotionId>().map_err(|e| usage(e.to_string()))?;
+    let time_ms = opt_within(time_ms, FAMILY, "time_ms", 0..=65535)?;
+    Motion::from_id(mode, value.get(FAMILY, "value")?, time_ms, AxisUnit::ModuleUnit).map_err(|e| usage(e.to_string()))
 }
 
 /// The value `value` (a Python number) for parameter `p`, parsed as the command line parses it (a whole
@@ -480,6 +490,14 @@ faces! {
         let timeout = seconds(&timeout_s).map_err(|f| to_pyerr(py, f))?;
     } |c| { w!(c.module(Address::new(a)?) => wait_motion_end(timeout); &mut |_| {}) }
     else |halting| { halting.module(Address::new(a)?).halt_confirmed().await } => |py, s| state_record(py, a, s);
+
+    /// One streamed motion command (a control loop's setpoint): checked against the module's limits (read
+    /// once, cached), sent, its acknowledge returned; the motion goes on after the call.
+    quick setpoint(me, py, mode: Text, value: Float, module: Option<Int>, time_ms: Option<Int>) {
+        let a = me.address(py, module)?;
+        let (motion, ack) = setpoint_motion(&mode, &value, time_ms.as_ref()).map_err(|f| to_pyerr(py, f))?;
+        let guard = me.guard;
+    } |c| { w!(c.module(Address::new(a)?).setpoint(motion, ack, guard)) } => |py, r| setpoint_record(py, a, &r);
 
     /// Halts the module at once (it stays halted until a reset), confirmed by its state read back until it
     /// is at rest; the state and where it stands then, as `motionlink powercube stop --json` prints them.

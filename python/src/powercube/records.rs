@@ -69,6 +69,11 @@ pub(super) fn motion_record<'py>(py: Python<'py>, module: u8, m: &MotionReport) 
     record(py, module, &Acted::ran(m), Some(m.kind), &[])
 }
 
+/// A streamed setpoint's acknowledge: `{mode, ext_ack, watchdog}` with the module.
+pub(super) fn setpoint_record<'py>(py: Python<'py>, module: u8, r: &SetpointReport) -> PyResult<Record<'py>> {
+    record(py, module, r, Some(r.kind), &[])
+}
+
 /// A confirmed halt as the CLI's `powercube stop --json` prints it, but `holder` (the command line's own).
 pub(super) fn halt_record<'py>(py: Python<'py>, module: u8, h: &HaltReport) -> PyResult<Record<'py>> {
     let halted = Acted { holder: None::<Option<()>>, ..Acted::halted(h, None::<()>) };
