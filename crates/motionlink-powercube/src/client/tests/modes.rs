@@ -359,3 +359,29 @@ fn what_a_firmware_variant_does_not_show_is_said_never_claimed() {
     assert_eq!((report.mode, report.ext_ack, report.ending), (MotionId::FVelAck, None, MotionEnding::VelocityZero));
     assert!(report.reached.value() > report.start.value() + 0.03, "{report:?}");
 }
+
+#[test]
+fn a_ramp_mode_with_the_module_s_own_velocity_found_to_be_0_is_refused_before_it_is_sent() {
+    let (clock, host, bus, _) = rs232_instant(&[1]);
+    let _me = clock.reserve_participant().enter();
+    let m = bus.module(addr(1));
+    // The checked write finds out that TargetVelInc mirrors TargetVel, and it is 0: a ramp would not move.
+    m.set_checked(Param::TargetVel, Value::F32(0.0)).unwrap();
+    events(&host);
+    let ticks = (0.3 * RATIO).round() as i32;
+    for motion in [
+        Motion::FRamp { pos: Position::rad(0.3) },
+        Motion::IRamp { pos: Ticks(ticks) },
+        Motion::FRampLoop { pos: Position::rad(0.3) },
+    ] {
+        let spec = if motion.continuous() { held(motion, 200) } else { MotionSpec::new(motion) };
+        let err = m.run_motion(&spec, &mut |_| {}).unwrap_err();
+        assert!(matches!(err, Error::InvalidArgument { what: "the velocity", .. }), "{motion:?}: {err}");
+        assert!(err.to_string().contains("found to mirror it"), "{err}");
+    }
+    assert!(events(&host).is_empty(), "nothing was sent that moves");
+    assert!(!sim_module(&host, 1).0.contains(StateFlag::Motion));
+    // A step takes its own time, not TargetVel: it runs.
+    let step = MotionSpec::new(Motion::FStep { pos: Position::rad(0.1), time: Millis(500) });
+    assert_eq!(m.run_motion(&step, &mut |_| {}).unwrap().ending, MotionEnding::Reached);
+}

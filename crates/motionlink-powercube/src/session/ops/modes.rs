@@ -165,6 +165,12 @@ impl Ctx {
         self.config_allows_motion(a, state).await?;
         let request = Request::motion(spec.motion, spec.ack)?;
         let mode = spec.id().ok_or(crate::wire::ModelError::NoExtendedAck(spec.motion.mode().name()))?;
+        // A ramp runs with the module's own TargetVel and TargetAcc: one found to be 0 would not move it.
+        if matches!(spec.motion, Motion::FRamp { .. } | Motion::IRamp { .. } | Motion::FRampLoop { .. }) {
+            for param in [Param::TargetVel, Param::TargetAcc] {
+                self.own_ramp_value_usable(a, param).await?;
+            }
+        }
         let start = self.position(a).await?;
         let check = match (spec.motion, fit.target) {
             (Motion::FRamp { .. } | Motion::IRamp { .. }, Some(t)) => {

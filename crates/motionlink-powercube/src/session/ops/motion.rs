@@ -572,39 +572,13 @@ impl Ctx {
         for (param, given) in
             [(Param::TargetVel, spec.vel.map(|v| v.value())), (Param::TargetAcc, spec.acc.map(|acc| acc.value()))]
         {
-            let twin = param.read_back_as().unwrap_or(param);
             match given {
                 Some(v) => {
                     if let TwinCheck::Unverified(why) = self.write_twinned(a, param, Value::F32(v), ratio).await? {
                         not_verifiable.push(why);
                     }
                 }
-                // The module's own value, which the ramp will use, cannot be read (the float is write-only):
-                // only a twin found to mirror it on this module shows it. A module known to keep them apart
-                // shows nothing of it: no pre-check then.
-                None if self.twin_known(a, param) == Some(false) => {}
-                None => {
-                    let mirrors = self.twin_known(a, param) == Some(true);
-                    let ticks = self.get(a, twin).await?;
-                    if ticks.as_f64() == Some(0.0) {
-                        if mirrors {
-                            return Err(Error::InvalidArgument {
-                                what: if param == Param::TargetVel { "the velocity" } else { "the acceleration" },
-                                must: "given: the module's own value (its Inc twin, found to mirror it) is 0, and a \
-                                       ramp with it would not move",
-                                value: "none".into(),
-                            });
-                        }
-                        // Not found out on this module (no write has shown it yet): a 0 here may be a twin kept
-                        // apart. The ramp runs with the module's own value; a 0 there ends it unmoved (or at
-                        // the timeout, halted), which the final position check reports.
-                        tracing::warn!(
-                            "module {a}: {twin} reads 0, but whether it shows the module's own {param} is not known \
-                             on this module: the move runs with the module's own {param} unchecked (give a value to \
-                             set it)"
-                        );
-                    }
-                }
+                None => self.own_ramp_value_usable(a, param).await?,
             }
         }
         let pos_known = self.prepare_target_read_back(a, spec.target.value(), ratio).await?;
@@ -627,6 +601,37 @@ impl Ctx {
         let (start, reached) = (start.in_unit_of(kind), reached.in_unit_of(kind));
         let target = spec.target.in_unit_of(kind);
         Ok(MoveReport { kind, target, start, reached, state, verified: not_verifiable.is_empty(), not_verifiable })
+    }
+
+    /// Before a ramp that runs with module `a`'s own TargetVel or TargetAcc (`param`, not written): refused
+    /// when its Inc twin, found to mirror it on this module, reads 0 (a ramp with it would not move). The
+    /// float cannot be read (it is write-only): only a twin found to mirror it shows it, and a module known to
+    /// keep them apart shows nothing (no check); a twin not found out yet that reads 0 is a warning.
+    pub(super) async fn own_ramp_value_usable(&self, a: u8, param: Param) -> Result<(), Error> {
+        let known = self.twin_known(a, param);
+        if known == Some(false) {
+            return Ok(());
+        }
+        let twin = param.read_back_as().unwrap_or(param);
+        if self.get(a, twin).await?.as_f64() != Some(0.0) {
+            return Ok(());
+        }
+        if known == Some(true) {
+            return Err(Error::InvalidArgument {
+                what: if param == Param::TargetVel { "the velocity" } else { "the acceleration" },
+                must: "given: the module's own value (its Inc twin, found to mirror it) is 0, and a ramp with it \
+                       would not move",
+                value: "none".into(),
+            });
+        }
+        // Not found out on this module (no write has shown it yet): a 0 here may be a twin kept apart. The ramp
+        // runs with the module's own value; a 0 there ends it unmoved (or at the timeout, halted), which the
+        // final position check reports.
+        tracing::warn!(
+            "module {a}: {twin} reads 0, but whether it shows the module's own {param} is not known on this \
+             module: the ramp runs with the module's own {param} unchecked (give a value to set it)"
+        );
+        Ok(())
     }
 
     /// Before a ramp command to `target` (in the module's unit, `ratio` its IncRatio) whose target is to be
