@@ -7,7 +7,9 @@ one pty against one `motionlink sim powercube --pty` process): this script start
 pty with `motionlink.PowerCube` (RS232 framing, module 1, no watchdog) and reads ActPos N times, R rounds.
 It prints, for the best round, the reads per second and the CPU time of this process per read (the Python
 call, the native client and the line's I/O; the emulator's own CPU is the other process's), and the same
-loop in Rust through the native module with no Python in between.
+loop in Rust through the native module with no Python in between; then as many streamed velocity setpoints
+(`PowerCube.setpoint("fvel_ack", ...)`, a small velocity each way in turn, the module homed first: each
+call one exchange, its acknowledge carrying the position), as a control loop sends them.
 
 The binary is `--bin`, else `MOTIONLINK_BIN`, else `motionlink` on the PATH. With `--floor`, the path of
 the `pty_floor` example (`cargo build --release -p motionlink-powercube --example pty_floor`, then
@@ -73,8 +75,16 @@ def main() -> None:
             def rust_loop(n: int) -> None:
                 native._bench_native_reads(n, None)
 
+            def setpoint_loop(n: int) -> None:
+                for i in range(n):
+                    cube.setpoint("fvel_ack", 0.01 if i % 2 else -0.01)
+
             py_wall, py_cpu = best_round(python_loop, args.reads, args.rounds)
             rs_wall, rs_cpu = best_round(rust_loop, args.reads, args.rounds)
+            cube.home()
+            cube.setpoint("fvel_ack", 0.0)  # the first: limits read, readiness checked
+            sp_wall, sp_cpu = best_round(setpoint_loop, args.reads, args.rounds)
+            cube.setpoint("fvel_ack", 0.0)
         # The client has closed the pty (it holds it exclusively): the floor's reads over the same one.
         floor = None
         if args.floor:
@@ -89,6 +99,7 @@ def main() -> None:
     print(f"Rust loop (native module):  {1 / rs_wall / 1e3:6.1f} k reads/s, {rs_cpu * 1e6:6.1f} us CPU per read")
     print(f"PowerCube.position():       {1 / py_wall / 1e3:6.1f} k reads/s, {py_cpu * 1e6:6.1f} us CPU per read")
     print(f"Python vs Rust rate:        {py_wall / rs_wall * 100 - 100:+6.1f} % time per read")
+    print(f"PowerCube.setpoint(FVEL_ACK): {1 / sp_wall / 1e3:6.1f} k setpoints/s, {sp_cpu * 1e6:6.1f} us CPU each")
     if floor:
         print(f"floor (the line's I/O only):  {floor}")
     print("libm5api (vendor, C++):       15.9 k reads/s,   25.0 us CPU per read")
