@@ -243,8 +243,18 @@ impl Client {
     /// their positions. Ends with [`Error::CancelledBeforeMotion`] when the cancel token is cancelled (checked before
     /// each address).
     pub fn scan(&self, range: RangeInclusive<u8>) -> Result<Vec<(Address, Position)>> {
+        self.scan_with(range, &mut |_| {})
+    }
+
+    /// [`Client::scan`], each address announced to `progress` before it is asked ([`Progress::Scan`]): a
+    /// scan waits a reply timeout and as long again at each address without a drive.
+    pub fn scan_with(
+        &self,
+        range: RangeInclusive<u8>,
+        progress: &mut dyn FnMut(&Progress),
+    ) -> Result<Vec<(Address, Position)>> {
         self.check_cancel()?;
-        output(self.run_cancellable(Op::Scan(range), &mut |_| {})?, "a scan", |o| match o {
+        output(self.run_cancellable(Op::Scan(range), progress)?, "a scan", |o| match o {
             Output::Found(v) => Ok(v),
             o => Err(o),
         })

@@ -364,6 +364,16 @@ fn a_scan_asks_each_address_once_and_a_watch_reports_until_cancelled() {
     let Ok(Output::Found(found)) = b.run(Op::Scan(1..=10)) else { panic!() };
     assert_eq!(found.iter().map(|(a, _)| a.get()).collect::<Vec<_>>(), [2, 9]);
     assert_eq!(b.sent_text().len(), 10, "once each: {:?}", b.sent_text());
+    // Each address announced before it is asked, with how far the scan has come.
+    let announced: Vec<(u8, usize, usize)> = b
+        .progress
+        .iter()
+        .filter_map(|(_, p)| match p {
+            Progress::Scan { drive, index, of } => Some((drive.get(), *index, *of)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(announced, (1..=10).map(|d| (d, usize::from(d) - 1, 10)).collect::<Vec<_>>());
     let id = b.session.start(Op::Watch(a(2), Duration::from_millis(100)), b.now);
     b.run_for(Duration::from_millis(1000));
     b.session.cancel(id, b.now);

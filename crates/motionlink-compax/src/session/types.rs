@@ -398,6 +398,15 @@ pub enum Progress {
     },
     /// One reading of a watch.
     Watch(WatchSample),
+    /// A scan is about to read S1 of `drive`, the `index`-th address of its range (from 0), `of` in all.
+    Scan {
+        /// The address asked next.
+        drive: Address,
+        /// How many addresses of the range were asked before it.
+        index: usize,
+        /// How many addresses the range has.
+        of: usize,
+    },
 }
 
 /// An operation of a COMPAX session. Each ends with one [`Output`] (named below) or an [`Error`].

@@ -2,7 +2,7 @@
 //! per action. Each prints the library's report: as it serialises with `--json`, in words otherwise.
 
 use motionlink_compax::report::{DrivePosition, ParamReading, StatusReport, StopResult};
-use motionlink_compax::session::{RawOutcome, StartedMove};
+use motionlink_compax::session::{Progress, RawOutcome, StartedMove};
 use motionlink_compax::wire::request::check_raw;
 
 use super::*;
@@ -82,9 +82,18 @@ pub(super) fn check(args: &Args) -> Result<Checked, CliError> {
 
 /// `scan`: lists the drives that answer on the bus; none is an error.
 pub(super) fn scan(args: &Args, bus: &Client, out: &mut dyn Write) -> Result<(), CliError> {
-    // A signal ends the scan between two addresses.
+    // A signal ends the scan between two addresses; each address without a drive waits out the reply
+    // timeout twice, so the bar shows where the scan is.
+    let bar = common::progress_bar(31, "scan");
+    let scanned = bus.scan_with(1..=31, &mut |p| {
+        if let Progress::Scan { drive, index, .. } = p {
+            bar.set_position(*index as u64);
+            bar.set_message(format!("scan: address {drive}"));
+        }
+    });
+    bar.finish_and_clear();
     let found: Vec<DrivePosition> =
-        bus.scan(1..=31).map_err(|e| error_for(args, e))?.into_iter().map(DrivePosition::from).collect();
+        scanned.map_err(|e| error_for(args, e))?.into_iter().map(DrivePosition::from).collect();
     if crate::term::json() {
         // A listing: one object per drive found (JSON Lines).
         for d in &found {

@@ -350,17 +350,20 @@ impl Ctx {
         }
     }
 
-    /// S1 of every address in `range`, once each (no retries); a cancel ends it before the next address.
+    /// S1 of every address in `range`, once each (no retries), each announced as [`Progress::Scan`]; a
+    /// cancel ends it before the next address.
     pub(crate) async fn scan(&self, range: RangeInclusive<u8>) -> Result<Vec<(Address, Position)>> {
         let mut found = Vec::new();
         let mut result = Ok(());
         let mode = self.core().cfg.mode;
         let mut bcc_errors = Vec::new();
-        for a in range.filter_map(|a| Address::drive(a).ok()) {
+        let addresses: Vec<Address> = range.filter_map(|a| Address::drive(a).ok()).collect();
+        for (index, &a) in addresses.iter().enumerate() {
             if let Err(e) = self.check_cancel() {
                 result = Err(e);
                 break;
             }
+            self.progress(Progress::Scan { drive: a, index, of: addresses.len() });
             self.core().last_late = None;
             match self.read_position_value(a, StatusId::ACTUAL_POSITION, 0).await {
                 Ok(p) => found.push((a, p)),
