@@ -36,7 +36,8 @@ fn keep_alive(c: &Client, gw: &str, device: &str, id: &str) -> tokio::task::Join
 /// A connected client of gateway `gw` once it is online, subscribed to its topics and `me/#`.
 async fn online(b: &harness::Broker, gw: &str, client: &str) -> Client {
     let mut c = Client::connect(b, client, &[&format!("motionlink/{gw}/#"), "me/#"]).await;
-    c.wait("online", 20 * S, |m| m.topic == format!("motionlink/{gw}/status") && m.payload == "online").await;
+    // A bound, not a pause: 23 gateways with their emulators and brokers start at once on 2 cores.
+    c.wait("online", 60 * S, |m| m.topic == format!("motionlink/{gw}/status") && m.payload == "online").await;
     c
 }
 

@@ -228,7 +228,11 @@ impl Drop for Gateway {
                 libc::kill(self.child.id() as i32, libc::SIGCONT);
                 libc::kill(self.child.id() as i32, libc::SIGTERM);
             }
-            let _ = self.finish();
+            let (_, stderr) = self.finish();
+            // A test that fails with the gateway running shows what the gateway said.
+            if std::thread::panicking() {
+                eprintln!("the gateway's stderr:\n{stderr}");
+            }
         }
         let _ = std::fs::remove_dir_all(&self.dir);
     }
